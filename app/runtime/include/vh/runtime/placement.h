@@ -1,0 +1,55 @@
+#pragma once
+/// @file
+/// Static queries of a tool's point shell against a volume's isosurface F = s, outside the servo
+/// loop: placing a tool (initial poses, first contact along a ray) and measuring penetration
+/// (the headless runner's check). Inside means F(p) > s within the grid (paper section 2.2).
+
+#include <optional>
+
+#include <Eigen/Core>
+#include <Eigen/Geometry>
+
+#include "vh/haptics/point_shell.h"
+#include "vh/haptics/pose.h"
+#include "vh/haptics/scalar_volume.h"
+
+namespace vh::runtime {
+
+/// Number of shell points (in T) inside the isosurface when the tool is at X_WT.
+int countPointsInside(const haptics::ScalarVolume& volume, const haptics::PointShell& shell,
+                      const haptics::Pose& X_WT, double isovalue) noexcept;
+
+/// Penetration of the tool at X_WT: the largest first-order depth (F(p) - s) / |grad F(p)| [m]
+/// over the shell points p inside the isosurface (0 when none is inside). A point inside with
+/// a vanishing gradient counts as the volume's largest voxel diagonal.
+/// @param deepest_point when not null, receives the index of the deepest point (-1 if none).
+double maxPenetration_m(const haptics::ScalarVolume& volume, const haptics::PointShell& shell,
+                        const haptics::Pose& X_WT, double isovalue,
+                        int* deepest_point = nullptr) noexcept;
+
+/// Distance [m] the tool can translate from X_WT_start along unit `dir_W` before a shell point
+/// first enters the isosurface, to within `tolerance_m` (the returned distance is on the free
+/// side). Every point moves at most the volume's feature size f between tests, so no surface
+/// is skipped (section 2.3). @return nullopt when nothing is met within max_distance_m.
+/// The start pose should be free (a point already inside is reported as contact at 0).
+std::optional<double> firstContactDistance(const haptics::ScalarVolume& volume,
+                                           const haptics::PointShell& shell,
+                                           const haptics::Pose& X_WT_start,
+                                           const Eigen::Vector3d& dir_W, double max_distance_m,
+                                           double isovalue, double tolerance_m = 0.0);
+
+/// A pose with orientation R_WT whose lowest shell point lies `clearance_m` above the top
+/// (+z of W) of the volume's bounding box, over the box's centre in x and y: always free.
+haptics::Pose poseAboveVolume(const haptics::ScalarVolume& volume,
+                              const haptics::PointShell& shell, const Eigen::Quaterniond& R_WT,
+                              double clearance_m);
+
+/// The default initial pose of a scene's tool (orientation R_WT): lowered from
+/// poseAboveVolume() along -z onto the isosurface over the volume's centre, then backed off
+/// by a clearance of 10% of the volume's extent clamped to [2 f, 10 mm]; the pose above the
+/// volume when the ray meets nothing. Always free.
+haptics::Pose defaultInitialPose(const haptics::ScalarVolume& volume,
+                                 const haptics::PointShell& shell, const Eigen::Quaterniond& R_WT,
+                                 double isovalue);
+
+}  // namespace vh::runtime

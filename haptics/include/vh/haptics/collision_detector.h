@@ -1,0 +1,107 @@
+#pragma once
+/// @file
+/// Continuous collision detection of the point shell against the isosurface F = s along the
+/// proxy's motion arc (paper section 2.3) and contact-set pruning (step 2).
+
+#include <cstdint>
+#include <span>
+#include <vector>
+
+#include <Eigen/Core>
+
+#include "vh/haptics/pose.h"
+#include "vh/haptics/rigid_motion.h"
+#include "vh/haptics/scalar_volume.h"
+#include "vh/haptics/tool_model.h"
+
+namespace vh::haptics {
+
+/// One point of the contact set.
+struct Contact {
+  int point_index = -1;                            ///< Index into the point shell.
+  Eigen::Vector3d p_W_m = Eigen::Vector3d::Zero(); ///< Point position on the proxy, in W [m].
+  Eigen::Vector3d n_W = Eigen::Vector3d::UnitZ();  ///< Unit surface normal -grad F / |grad F|, W.
+};
+
+/// Result of a swept query.
+struct SweepResult {
+  double t = 1.0;      ///< First time of contact in [0, 1] (1 = no contact).
+  int hit_point = -1;  ///< Point that collided first, or -1.
+};
+
+/// Collision detector for one point shell against one volume. Owns the contact set and all
+/// working memory (sized at construction): no member allocates after construction.
+class CollisionDetector {
+ public:
+  /// @param epsilon_m collision tolerance; 0 selects f / 4 (f = feature size).
+  /// @param max_contacts capacity of the contact set.
+  /// @throws std::invalid_argument when epsilon_m >= f or the point shell is empty.
+  CollisionDetector(const ScalarVolume& volume, const ToolModel& tool, double epsilon_m,
+                    std::size_t max_contacts = 256);
+
+  double epsilon_m() const noexcept { return epsilon_; }
+  double featureSize_m() const noexcept { return feature_; }
+
+  /// Step 4: first time of contact along `motion` (eq. 2) for all points not embedded: each
+  /// point's path is split into ceil(s / f) equal time segments (s = path-length bound), the
+  /// segments are visited in time order through one priority queue over all points, and the
+  /// first crossing is refined by bisection until the point's travel over the interval is
+  /// below epsilon. The returned time is on the outside end of that interval.
+  SweepResult sweep(const RigidMotion& motion, double isovalue) noexcept;
+
+  /// Step 2: keeps the contacts that, moved epsilon from X_WP towards X_WD, are inside; their
+  /// positions and normals are refreshed at X_WP.
+  void pruneContacts(const Pose& X_WP, const Pose& X_WD, double isovalue) noexcept;
+
+  /// After step 5: adds the point that collided and every point that at time `hit.t` of the
+  /// last sweep's `motion` is within epsilon of collision (moving a further epsilon along its
+  /// path puts it inside), with normals, to the contact set. Call after sweep() with the same
+  /// motion.
+  void addContactsAt(const RigidMotion& motion, const SweepResult& hit, double isovalue) noexcept;
+
+  /// Moves the stored contact positions to the proxy pose X_WP (after step 5).
+  void refreshPositions(const Pose& X_WP) noexcept;
+
+  /// Marks the points inside the isosurface at pose X_WP as embedded (they do not constrain
+  /// the proxy until they are outside again) and releases the embedded ones that are now
+  /// outside. Called when the isovalue changed or the proxy was reset (see haptics/README.md).
+  /// @return number of embedded points.
+  int updateEmbedded(const Pose& X_WP, double isovalue) noexcept;
+  /// Re-tests only the embedded points (cheap when there are none).
+  int releaseEmbedded(const Pose& X_WP, double isovalue) noexcept;
+  int embeddedCount() const noexcept { return embedded_count_; }
+
+  void clearContacts() noexcept;
+  std::span<const Contact> contacts() const noexcept { return {contacts_.data(), contact_count_}; }
+
+  /// Trilinear samples taken since the last resetSampleCount() (a gradient counts 6).
+  std::int64_t sampleCount() const noexcept { return samples_; }
+  void resetSampleCount() noexcept { samples_ = 0; }
+
+ private:
+  struct QueueEntry {
+    double t_begin;  // start of the segment to test
+    int point;
+    int segment;     // segment index along the point's path
+  };
+  bool inside(const Eigen::Vector3d& p_W, double isovalue) noexcept;
+  Eigen::Vector3d normalAt(const Eigen::Vector3d& p_W, const Eigen::Vector3d& fallback_W) noexcept;
+  void appendContact(int point, const Eigen::Vector3d& p_W, const Eigen::Vector3d& fallback_n_W) noexcept;
+
+  const ScalarVolume* volume_;
+  const ToolModel* tool_;
+  double feature_;
+  double epsilon_;
+  std::vector<Eigen::Vector3d> r0_;      // per point radial vector at t = 0 (W)
+  std::vector<double> dt_;               // per point segment length in time
+  std::vector<double> path_;             // per point path-length bound
+  std::vector<QueueEntry> heap_;         // capacity = number of points
+  std::vector<unsigned char> embedded_;  // per point
+  std::vector<unsigned char> in_set_;    // per point: in the contact set
+  int embedded_count_ = 0;
+  std::vector<Contact> contacts_;
+  std::size_t contact_count_ = 0;
+  std::int64_t samples_ = 0;
+};
+
+}  // namespace vh::haptics

@@ -1,0 +1,49 @@
+#pragma once
+/// @file
+/// The configuration solver (paper section 2.4): the unconstrained acceleration towards the
+/// device (a_u = 2 dx), the contact constraints (eq. 4), Gauss' principle of least constraint
+/// (eq. 3) by cone projection, and the target configuration x_t = x_i + a_c / 2.
+
+#include <span>
+#include <vector>
+
+#include <Eigen/Core>
+
+#include "vh/haptics/collision_detector.h"
+#include "vh/haptics/cone_projection.h"
+#include "vh/haptics/pose.h"
+#include "vh/haptics/tool_model.h"
+
+namespace vh::haptics {
+
+/// Generalised 6-D displacement of the centre of mass from X_WA to X_WB, in W:
+/// (c_B - c_A [m], rotation vector of R_WB R_WA^T [rad]).
+Vector6d displacement_W(const Pose& X_WA, const Pose& X_WB, const Eigen::Vector3d& p_TCm_m) noexcept;
+
+/// Constraint row of eq. 4 for a contact at p_W with normal n_W on a body rotating about c_W:
+/// (n^T, ((p - c) x n)^T).
+Vector6d constraintRow(const Eigen::Vector3d& p_W_m, const Eigen::Vector3d& n_W,
+                       const Eigen::Vector3d& c_W_m) noexcept;
+
+class ConfigurationSolver {
+ public:
+  explicit ConfigurationSolver(std::size_t max_contacts = 256);
+
+  /// Step 1 + 3: constrained motion for the proxy at X_WP pulled towards X_WD under the
+  /// contacts. Returns the motion from X_WP to the target x_t = x_i + a_c / 2.
+  RigidMotion constrainedMotion(const Pose& X_WP, const Pose& X_WD, const MassProperties& mass,
+                                std::span<const Contact> contacts) noexcept;
+
+  /// Last projection's details (for statistics and tests).
+  const ConeProjection& lastProjection() const noexcept { return last_; }
+  /// Last unconstrained acceleration a_u = 2 dx (W).
+  const Vector6d& lastUnconstrained() const noexcept { return a_u_; }
+
+ private:
+  ConeProjector projector_;
+  std::vector<Vector6d> rows_;
+  ConeProjection last_;
+  Vector6d a_u_ = Vector6d::Zero();
+};
+
+}  // namespace vh::haptics

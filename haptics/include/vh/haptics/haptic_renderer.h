@@ -1,0 +1,103 @@
+#pragma once
+/// @file
+/// One servo tick of the constraint-based 6-DOF rendering algorithm (paper section 2.1):
+///   1. unconstrained motion from the proxy to the device configuration     (configuration solver)
+///   2. verify and prune the contact set                                     (collision detector)
+///   3. constrained motion from the contact set, Gauss' principle, eq. 3-4  (configuration solver)
+///   4. continuous collision detection along the constrained path           (collision detector)
+///   5. move the proxy to the first contact (or the target)                  (configuration solver)
+///   6. force and torque from the virtual coupling, eq. 5                    (virtual coupling)
+///
+/// Frames: W = the volume's physical frame [m]; T = tool frame; D = the device's tool frame
+/// (where the device holds the tool); P = the proxy's tool frame. Forces are expressed in W and
+/// act on the user's hand at the tool's centre of mass.
+
+#include <cstdint>
+#include <memory>
+#include <span>
+
+#include <Eigen/Core>
+
+#include "vh/haptics/collision_detector.h"
+#include "vh/haptics/configuration_solver.h"
+#include "vh/haptics/pose.h"
+#include "vh/haptics/scalar_volume.h"
+#include "vh/haptics/tool_model.h"
+#include "vh/haptics/virtual_coupling.h"
+
+namespace vh::haptics {
+
+/// Settings of the renderer; constant while it runs except where noted.
+struct RendererOptions {
+  /// Collision tolerance epsilon [m] (section 2.3); 0 selects feature size / 4. Must be < f.
+  double epsilon_m = 0.0;
+  /// Coupling gains (section 2.5); may be changed between ticks with setGains().
+  CouplingGains gains;
+  /// Largest device translation accepted from one tick to the next [m]; farther jumps and
+  /// device poses farther than this from the volume are treated as bad input (zero force).
+  double max_device_distance_m = 10.0;
+};
+
+/// Statistics of one tick.
+struct TickStats {
+  double exec_time_us = 0.0;        ///< Wall time of the tick [us].
+  int contacts = 0;                 ///< Contact set size after the tick.
+  std::int64_t volume_samples = 0;  ///< Trilinear F samples taken (a gradient counts 6).
+  double time_of_contact = 1.0;     ///< Fraction of the constrained path travelled (1 = free).
+  bool bad_input = false;           ///< The device pose was rejected this tick.
+};
+
+/// Result of one tick.
+struct TickOutput {
+  Pose X_WP;                                          ///< Proxy pose after the tick.
+  Eigen::Vector3d force_W_N = Eigen::Vector3d::Zero();   ///< Force on the user's hand, in W [N].
+  Eigen::Vector3d torque_W_Nm = Eigen::Vector3d::Zero(); ///< Torque on the hand about Cm, W [N*m].
+  TickStats stats;
+};
+
+/// The haptic rendering algorithm for one tool against one volume.
+/// Owns all working memory, sized at construction: tick() never allocates, throws or blocks.
+/// Not thread safe: one thread (the servo thread) calls tick(); others read snapshots it
+/// publishes elsewhere.
+class HapticRenderer {
+ public:
+  /// @param volume, tool shared, immutable; must outlive nothing (held by shared_ptr).
+  /// @param X_WP_initial initial proxy pose; should be outside the isosurface.
+  /// @throws std::invalid_argument for an empty volume or point shell, a non-finite pose, or
+  ///         epsilon >= feature size.
+  HapticRenderer(std::shared_ptr<const ScalarVolume> volume, std::shared_ptr<const ToolModel> tool,
+                 const RendererOptions& options, const Pose& X_WP_initial, double isovalue);
+
+  /// Runs the six steps once for the device pose X_WD and the isovalue s (data units); the
+  /// isovalue takes effect on this tick (nothing depends on it beforehand).
+  /// A non-finite pose, a quaternion whose norm is off by more than 1e-3, or a jump beyond
+  /// max_device_distance_m yields zero force, leaves the proxy in place and counts a bad sample.
+  TickOutput tick(const Pose& X_WD, double isovalue) noexcept;
+
+  /// Moves the proxy (and clears the contact set) without collision checking.
+  void resetProxy(const Pose& X_WP) noexcept;
+  void setGains(const CouplingGains& gains) noexcept { coupling_.setGains(gains); }
+
+  const Pose& proxyPose() const noexcept { return X_WP_; }
+  /// Current contact set (points on the proxy within epsilon of the surface).
+  std::span<const Contact> contacts() const noexcept { return collision_.contacts(); }
+  std::int64_t badInputCount() const noexcept { return bad_inputs_; }
+  double epsilon_m() const noexcept { return collision_.epsilon_m(); }
+  const ScalarVolume& volume() const noexcept { return *volume_; }
+  const ToolModel& tool() const noexcept { return *tool_; }
+  const VirtualCoupling& coupling() const noexcept { return coupling_; }
+
+ private:
+  std::shared_ptr<const ScalarVolume> volume_;
+  std::shared_ptr<const ToolModel> tool_;
+  RendererOptions options_;
+  CollisionDetector collision_;
+  ConfigurationSolver solver_;
+  VirtualCoupling coupling_;
+  Pose X_WP_;
+  double last_isovalue_;
+  bool embedded_scan_needed_ = false;
+  std::int64_t bad_inputs_ = 0;
+};
+
+}  // namespace vh::haptics

@@ -1,0 +1,39 @@
+#pragma once
+/// @file
+/// Rigid poses and 6-D motion vectors in SI units (m, rad).
+///
+/// Monogram notation: `X_WT` is the pose of frame T measured and expressed in frame W, so
+/// `p_W = X_WT * p_T`. All poses are proper rigid transforms with a unit quaternion.
+
+#include <Eigen/Core>
+#include <Eigen/Geometry>
+
+namespace vh::haptics {
+
+/// A rigid transform X_AB: rotation `R_AB` (unit quaternion) and translation `p_AB_m` [m].
+struct Pose {
+  Eigen::Quaterniond R_AB = Eigen::Quaterniond::Identity();  ///< Orientation of B in A.
+  Eigen::Vector3d p_AB_m = Eigen::Vector3d::Zero();            ///< Origin of B in A [m].
+
+  static Pose Identity() { return {}; }
+  static Pose FromTranslation(const Eigen::Vector3d& p_m) { return {Eigen::Quaterniond::Identity(), p_m}; }
+
+  /// p_A = X_AB * p_B.
+  Eigen::Vector3d operator*(const Eigen::Vector3d& p_B) const { return R_AB * p_B + p_AB_m; }
+  /// X_AC = X_AB * X_BC.
+  Pose operator*(const Pose& X_BC) const { return {R_AB * X_BC.R_AB, R_AB * X_BC.p_AB_m + p_AB_m}; }
+  /// X_BA.
+  Pose inverse() const {
+    const Eigen::Quaterniond R_BA = R_AB.conjugate();
+    return {R_BA, -(R_BA * p_AB_m)};
+  }
+  /// True when every component is finite.
+  bool allFinite() const { return R_AB.coeffs().allFinite() && p_AB_m.allFinite(); }
+};
+
+/// Rotation vector (axis * angle [rad], angle in [0, pi]) of a unit quaternion.
+Eigen::Vector3d rotationVector(const Eigen::Quaterniond& q) noexcept;
+/// Unit quaternion of a rotation vector (axis * angle [rad]); exact for tiny angles.
+Eigen::Quaterniond quaternionFromRotationVector(const Eigen::Vector3d& theta_rad) noexcept;
+
+}  // namespace vh::haptics

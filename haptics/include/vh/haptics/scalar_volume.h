@@ -1,0 +1,128 @@
+#pragma once
+/// @file
+/// A sampled scalar volume queried as a continuous field F(x) (paper section 2.2).
+///
+/// Frames: W is the volume's physical (world) frame, in metres. Voxel (i, j, k) has its centre at
+///   p_W = origin_W_m + direction_W * diag(spacing_m) * (i, j, k)^T.
+/// Values: F = value_scale * raw + value_offset, in the data's units (HU for CT). The raw
+/// voxels are kept unmodified in their stored type.
+
+#include <array>
+#include <cstddef>
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include <Eigen/Core>
+
+namespace vh::haptics {
+
+/// Stored voxel type.
+enum class VoxelType : std::uint8_t { kUInt8, kInt16, kUInt16, kFloat32 };
+
+/// Name of a voxel type ("uint8", "int16", "uint16", "float32").
+const char* voxelTypeName(VoxelType type) noexcept;
+/// Size of one voxel [bytes].
+std::size_t voxelTypeSize(VoxelType type) noexcept;
+
+/// Geometry of a regular grid in the world frame W.
+struct VolumeGeometry {
+  std::array<int, 3> dims{0, 0, 0};                          ///< Voxels along i, j, k (nx, ny, nz).
+  Eigen::Vector3d spacing_m{1e-3, 1e-3, 1e-3};               ///< Voxel size along i, j, k [m].
+  Eigen::Vector3d origin_W_m = Eigen::Vector3d::Zero();      ///< Centre of voxel (0,0,0) in W [m].
+  Eigen::Matrix3d direction_W = Eigen::Matrix3d::Identity(); ///< Columns: unit i, j, k axes in W.
+
+  /// Number of voxels nx * ny * nz.
+  std::size_t voxelCount() const noexcept {
+    return static_cast<std::size_t>(dims[0]) * static_cast<std::size_t>(dims[1]) *
+           static_cast<std::size_t>(dims[2]);
+  }
+  /// Smallest voxel side [m].
+  double minSpacing() const noexcept { return spacing_m.minCoeff(); }
+};
+
+/// Immutable sampled volume: trilinear F(x) and central-difference gradient (eq. 1).
+///
+/// Inside/outside (section 2.2): a point is inside the isosurface F = s where F(x) > s.
+/// Outside the grid's bounding box (voxel centres 0..n-1 on each axis) counts as empty: such
+/// points are never inside, whatever the isovalue.
+/// Thread safety: all const members may be called concurrently (no mutable state).
+class ScalarVolume {
+ public:
+  ScalarVolume() = default;
+
+  /// Builds a volume that owns a copy of `voxels` (x fastest, then y, then z).
+  /// @param geometry dims > 1 on every axis, spacing > 0, direction orthonormal.
+  /// @param value_scale, value_offset F = value_scale * raw + value_offset (value_scale != 0).
+  /// @throws std::invalid_argument on bad geometry, a size mismatch or a non-finite scale.
+  template <typename T>
+  static ScalarVolume FromVoxels(const VolumeGeometry& geometry, const std::vector<T>& voxels,
+                                 double value_scale = 1.0, double value_offset = 0.0);
+
+  /// Builds a volume from raw bytes of `type` (native endianness), x fastest.
+  /// @throws std::invalid_argument as FromVoxels.
+  static ScalarVolume FromBytes(const VolumeGeometry& geometry, VoxelType type,
+                                std::vector<std::byte> bytes, double value_scale = 1.0,
+                                double value_offset = 0.0);
+
+  const VolumeGeometry& geometry() const noexcept { return geometry_; }
+  VoxelType voxelType() const noexcept { return type_; }
+  double valueScale() const noexcept { return scale_; }
+  double valueOffset() const noexcept { return offset_; }
+  bool empty() const noexcept { return bytes_.empty(); }
+  /// Raw voxel storage (voxelCount() * voxelTypeSize() bytes).
+  const std::vector<std::byte>& bytes() const noexcept { return bytes_; }
+
+  /// Smallest and largest F over the voxels, in data units.
+  double minValue() const noexcept { return min_value_; }
+  double maxValue() const noexcept { return max_value_; }
+
+  /// Feature size f = half the smallest voxel side [m] (section 2.3).
+  double featureSize_m() const noexcept { return 0.5 * geometry_.minSpacing(); }
+
+  /// Value of voxel (i, j, k) in data units; indices are clamped to the grid.
+  double voxel(int i, int j, int k) const noexcept;
+
+  /// Continuous grid coordinates (i, j, k) of a point p_W [m].
+  Eigen::Vector3d gridCoordinates(const Eigen::Vector3d& p_W_m) const noexcept;
+  /// True when p_W lies inside the grid's bounding box of voxel centres.
+  bool inBounds(const Eigen::Vector3d& p_W_m) const noexcept;
+
+  /// Trilinear F(p_W) in data units (section 2.2). Coordinates outside the grid are clamped to
+  /// its border for interpolation; use isInside() for the inside test.
+  double sample(const Eigen::Vector3d& p_W_m) const noexcept;
+
+  /// Central-difference gradient of F at p_W (eq. 1), in data units per metre, expressed in W.
+  /// Differences are taken along the grid axes with delta = the voxel spacing on each axis and
+  /// divided by 2 delta, then rotated into W (eq. 1 up to that scale, which keeps the direction).
+  Eigen::Vector3d gradient(const Eigen::Vector3d& p_W_m) const noexcept;
+
+  /// Inside test for the isosurface F = isovalue: inBounds(p) && F(p) > isovalue.
+  bool isInside(const Eigen::Vector3d& p_W_m, double isovalue) const noexcept;
+
+
+  /// Axis-aligned bounding box of the grid in W [m].
+  Eigen::Vector3d boundsMin_W_m() const noexcept;
+  Eigen::Vector3d boundsMax_W_m() const noexcept;
+
+ private:
+  void initialise();  // validates and caches derived data
+  template <typename T>
+  double trilinear(const Eigen::Vector3d& ijk) const noexcept;
+  double sampleGrid(const Eigen::Vector3d& ijk) const noexcept;  // F at grid coordinates
+  bool gridInBounds(const Eigen::Vector3d& ijk) const noexcept;
+
+  VolumeGeometry geometry_;
+  VoxelType type_ = VoxelType::kUInt8;
+  std::vector<std::byte> bytes_;
+  double scale_ = 1.0;
+  double offset_ = 0.0;
+  double min_value_ = 0.0;
+  double max_value_ = 0.0;
+  Eigen::Matrix3d W_to_grid_ = Eigen::Matrix3d::Identity();  // (D diag(s))^-1
+  Eigen::Vector3d upper_{0, 0, 0};                           // n - 1 per axis
+};
+
+}  // namespace vh::haptics
+
+#include "vh/haptics/scalar_volume_inl.h"

@@ -1,0 +1,183 @@
+#include "vh/haptics/collision_detector.h"
+
+#include <algorithm>
+#include <cmath>
+#include <stdexcept>
+#include <string>
+
+namespace vh::haptics {
+namespace {
+// Min-heap on t_begin over a preallocated array.
+struct Later {
+  template <typename E>
+  bool operator()(const E& a, const E& b) const noexcept { return a.t_begin > b.t_begin; }
+};
+}  // namespace
+
+CollisionDetector::CollisionDetector(const ScalarVolume& volume, const ToolModel& tool, double epsilon_m,
+                                     std::size_t max_contacts)
+    : volume_(&volume), tool_(&tool), feature_(volume.featureSize_m()) {
+  if (tool.point_shell.empty()) throw std::invalid_argument("CollisionDetector: the point shell is empty");
+  if (volume.empty()) throw std::invalid_argument("CollisionDetector: the volume is empty");
+  epsilon_ = epsilon_m > 0.0 ? epsilon_m : 0.25 * feature_;
+  if (!(epsilon_ < feature_) || !std::isfinite(epsilon_))
+    throw std::invalid_argument("CollisionDetector: epsilon " + std::to_string(epsilon_) +
+                                " m must be smaller than the feature size " + std::to_string(feature_) + " m");
+  const std::size_t n = tool.point_shell.size();
+  r0_.resize(n);
+  dt_.resize(n);
+  path_.resize(n);
+  heap_.resize(n);
+  embedded_.assign(n, 0);
+  in_set_.assign(n, 0);
+  contacts_.resize(std::max<std::size_t>(max_contacts, 1));
+}
+
+bool CollisionDetector::inside(const Eigen::Vector3d& p_W, double isovalue) noexcept {
+  ++samples_;
+  return volume_->isInside(p_W, isovalue);
+}
+
+Eigen::Vector3d CollisionDetector::normalAt(const Eigen::Vector3d& p_W, const Eigen::Vector3d& fallback_W) noexcept {
+  samples_ += 6;
+  const Eigen::Vector3d g = volume_->gradient(p_W);
+  const double norm = g.norm();
+  if (norm > 0.0 && std::isfinite(norm)) return -g / norm;
+  return fallback_W;
+}
+
+void CollisionDetector::appendContact(int point, const Eigen::Vector3d& p_W, const Eigen::Vector3d& fallback_n_W) noexcept {
+  if (in_set_[point] || contact_count_ >= contacts_.size()) return;
+  Contact& c = contacts_[contact_count_++];
+  c.point_index = point;
+  c.p_W_m = p_W;
+  c.n_W = normalAt(p_W, fallback_n_W);
+  in_set_[point] = 1;
+}
+
+void CollisionDetector::clearContacts() noexcept {
+  for (std::size_t i = 0; i < contact_count_; ++i) in_set_[contacts_[i].point_index] = 0;
+  contact_count_ = 0;
+}
+
+SweepResult CollisionDetector::sweep(const RigidMotion& motion, double isovalue) noexcept {
+  SweepResult result;
+  if (motion.isStill()) return result;
+  const auto& points = tool_->point_shell.points_T_m();
+  const int n = static_cast<int>(points.size());
+  std::size_t count = 0;
+  for (int j = 0; j < n; ++j) {
+    r0_[j] = motion.radial_W(points[j]);
+    path_[j] = motion.pathLengthBound(r0_[j]);
+    if (embedded_[j] || !(path_[j] > 0.0)) continue;
+    // ceil(s / f) equal time segments, none longer than the feature size (section 2.3).
+    const double segments = std::max(1.0, std::ceil(path_[j] / feature_));
+    dt_[j] = 1.0 / segments;
+    heap_[count++] = {0.0, j, 0};
+  }
+  std::make_heap(heap_.begin(), heap_.begin() + static_cast<std::ptrdiff_t>(count), Later{});
+  // Time-prioritised search: always advance the segment that starts earliest; stop once no
+  // pending segment starts before the earliest contact found.
+  while (count > 0 && heap_[0].t_begin < result.t) {
+    std::pop_heap(heap_.begin(), heap_.begin() + static_cast<std::ptrdiff_t>(count), Later{});
+    const QueueEntry e = heap_[--count];
+    const int j = e.point;
+    const int next = e.segment + 1;
+    const double t_end = (static_cast<double>(next) * dt_[j] >= 1.0 - 1e-12) ? 1.0 : next * dt_[j];
+    if (inside(motion.pointAt(r0_[j], t_end), isovalue)) {
+      // Interval bisection until the point travels less than epsilon over the interval.
+      double lo = e.t_begin, hi = t_end;
+      while (path_[j] * (hi - lo) >= epsilon_) {
+        const double mid = 0.5 * (lo + hi);
+        if (inside(motion.pointAt(r0_[j], mid), isovalue)) hi = mid; else lo = mid;
+      }
+      if (lo < result.t) {
+        result.t = lo;
+        result.hit_point = j;
+      }
+    } else if (t_end < 1.0) {
+      heap_[count++] = {t_end, j, next};
+      std::push_heap(heap_.begin(), heap_.begin() + static_cast<std::ptrdiff_t>(count), Later{});
+    }
+  }
+  return result;
+}
+
+void CollisionDetector::pruneContacts(const Pose& X_WP, const Pose& X_WD, double isovalue) noexcept {
+  const RigidMotion motion = RigidMotion::Between(X_WP, X_WD, tool_->mass.p_TCm_m);
+  const auto& points = tool_->point_shell.points_T_m();
+  std::size_t kept = 0;
+  for (std::size_t i = 0; i < contact_count_; ++i) {
+    Contact c = contacts_[i];
+    const int j = c.point_index;
+    const Eigen::Vector3d r0 = motion.radial_W(points[j]);
+    const double path = motion.pathLengthBound(r0);
+    bool keep = false;
+    if (path > 0.0 && !embedded_[j]) {
+      // Move the point epsilon towards the target; still inside means it still blocks.
+      keep = inside(motion.pointAt(r0, std::min(1.0, epsilon_ / path)), isovalue);
+    }
+    if (keep) {
+      c.p_W_m = X_WP * points[j];
+      c.n_W = normalAt(c.p_W_m, c.n_W);
+      contacts_[kept++] = c;
+    } else {
+      in_set_[j] = 0;
+    }
+  }
+  contact_count_ = kept;
+}
+
+void CollisionDetector::addContactsAt(const RigidMotion& motion, const SweepResult& hit, double isovalue) noexcept {
+  if (hit.hit_point < 0) return;
+  const auto& points = tool_->point_shell.points_T_m();
+  const int n = static_cast<int>(points.size());
+  const double t = hit.t;
+  auto direction = [&](int j) {  // fallback normal: against the point's motion
+    const Eigen::Vector3d d = motion.pointAt(r0_[j], t + 1e-3) - motion.pointAt(r0_[j], t);
+    const double nd = d.norm();
+    return nd > 0.0 ? Eigen::Vector3d(-d / nd) : Eigen::Vector3d(Eigen::Vector3d::UnitZ());
+  };
+  appendContact(hit.hit_point, motion.pointAt(r0_[hit.hit_point], t), direction(hit.hit_point));
+  for (int j = 0; j < n; ++j) {
+    if (in_set_[j] || embedded_[j] || !(path_[j] > 0.0)) continue;
+    if (inside(motion.pointAt(r0_[j], t + epsilon_ / path_[j]), isovalue))
+      appendContact(j, motion.pointAt(r0_[j], t), direction(j));
+  }
+}
+
+void CollisionDetector::refreshPositions(const Pose& X_WP) noexcept {
+  const auto& points = tool_->point_shell.points_T_m();
+  for (std::size_t i = 0; i < contact_count_; ++i) contacts_[i].p_W_m = X_WP * points[contacts_[i].point_index];
+}
+
+int CollisionDetector::updateEmbedded(const Pose& X_WP, double isovalue) noexcept {
+  const auto& points = tool_->point_shell.points_T_m();
+  embedded_count_ = 0;
+  for (std::size_t j = 0; j < points.size(); ++j) {
+    embedded_[j] = inside(X_WP * points[j], isovalue) ? 1 : 0;
+    embedded_count_ += embedded_[j];
+  }
+  if (embedded_count_ > 0) {  // embedded points leave the contact set
+    std::size_t kept = 0;
+    for (std::size_t i = 0; i < contact_count_; ++i) {
+      if (embedded_[contacts_[i].point_index]) in_set_[contacts_[i].point_index] = 0;
+      else contacts_[kept++] = contacts_[i];
+    }
+    contact_count_ = kept;
+  }
+  return embedded_count_;
+}
+
+int CollisionDetector::releaseEmbedded(const Pose& X_WP, double isovalue) noexcept {
+  if (embedded_count_ == 0) return 0;
+  const auto& points = tool_->point_shell.points_T_m();
+  for (std::size_t j = 0; j < points.size(); ++j)
+    if (embedded_[j] && !inside(X_WP * points[j], isovalue)) {
+      embedded_[j] = 0;
+      --embedded_count_;
+    }
+  return embedded_count_;
+}
+
+}  // namespace vh::haptics

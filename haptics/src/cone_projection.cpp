@@ -1,0 +1,201 @@
+#include "vh/haptics/cone_projection.h"
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <limits>
+#include <stdexcept>
+
+#include <Eigen/Cholesky>
+#include <Eigen/QR>
+
+namespace vh::haptics {
+namespace {
+
+constexpr int kDim = 6;
+
+// Least-squares coefficients mu of y on the columns cols[0..k) (modified Gram-Schmidt with
+// re-orthogonalisation; k <= 6). Returns false when a column is (numerically) dependent.
+bool leastSquares(const Vector6d* const* cols, int k, const Vector6d& y, double* mu) {
+  std::array<Vector6d, kDim> Q;
+  double R[kDim][kDim] = {};
+  for (int c = 0; c < k; ++c) {
+    Vector6d v = *cols[c];
+    const double norm0 = v.norm();
+    for (int pass = 0; pass < 2; ++pass)
+      for (int q = 0; q < c; ++q) {
+        const double d = Q[q].dot(v);
+        R[q][c] += d;
+        v -= d * Q[q];
+      }
+    const double nv = v.norm();
+    if (!(nv > 1e-10 * norm0)) return false;
+    R[c][c] = nv;
+    Q[c] = v / nv;
+  }
+  double qty[kDim];
+  for (int c = 0; c < k; ++c) qty[c] = Q[c].dot(y);
+  for (int c = k - 1; c >= 0; --c) {
+    double s = qty[c];
+    for (int q = c + 1; q < k; ++q) s -= R[c][q] * mu[q];
+    mu[c] = s / R[c][c];
+  }
+  return true;
+}
+
+// Distance of g from the span of cols[0..k), relative to |g|.
+double relativeResidual(const Vector6d* const* cols, int k, const Vector6d& g) {
+  if (k == 0) return 1.0;
+  double mu[kDim];
+  if (!leastSquares(cols, k, g, mu)) return 0.0;
+  Vector6d r = g;
+  for (int c = 0; c < k; ++c) r -= mu[c] * *cols[c];
+  return r.norm() / g.norm();
+}
+
+}  // namespace
+
+ConeProjector::ConeProjector(std::size_t max_constraints)
+    : g_(max_constraints), gnorm_(max_constraints), lambda_(max_constraints), excluded_(max_constraints) {}
+
+ConeProjection ConeProjector::project(const Matrix6d& M, const Vector6d& a_u, std::span<const Vector6d> J_rows,
+                                      std::span<double> lambda_out) noexcept {
+  ConeProjection out;
+  const int m = static_cast<int>(std::min(J_rows.size(), g_.size()));
+  for (double& l : lambda_out) l = 0.0;
+  if (m == 0) {
+    out.a_c = a_u;
+    out.converged = true;
+    return out;
+  }
+  // Mass metric -> Euclidean: M = L L^T, b = L^T a, generators g_i = L^-1 j_i.
+  const Eigen::LLT<Matrix6d> llt(M);
+  const auto L = llt.matrixL();
+  const Vector6d x = L.transpose() * a_u;
+  const Vector6d y = -x;  // P_C(x) = x + P_K(-x), K = cone(g_i)
+  for (int i = 0; i < m; ++i) {
+    g_[i] = L.solve(J_rows[i]);
+    gnorm_[i] = g_[i].norm();
+    lambda_[i] = 0.0;
+    excluded_[i] = !(gnorm_[i] > 0.0) || !g_[i].allFinite();
+  }
+  const double ynorm = y.norm();
+  const double tol = 1e-13 * std::max(ynorm, std::numeric_limits<double>::min());
+
+  // Wilhelmsen's algorithm: grow the active set by the generator that most reduces the
+  // distance, project onto the active span, and when a coefficient would turn negative walk
+  // back to the face where it vanishes and drop it.
+  int active[kDim];
+  int k = 0;
+  Vector6d z = Vector6d::Zero();
+  const int max_iterations = 4 * m + 40;
+  int it = 0;
+  bool converged = false;
+  for (; it < max_iterations; ++it) {
+    const Vector6d r = y - z;
+    int best = -1;
+    double best_w = tol;
+    for (int i = 0; i < m; ++i) {
+      if (excluded_[i] || lambda_[i] > 0.0) continue;
+      const double w = g_[i].dot(r) / gnorm_[i];
+      if (w > best_w) {
+        best_w = w;
+        best = i;
+      }
+    }
+    if (best < 0) {
+      converged = true;
+      break;
+    }
+    const Vector6d* cols[kDim];
+    for (int c = 0; c < k; ++c) cols[c] = &g_[active[c]];
+    if (k == kDim || relativeResidual(cols, k, g_[best]) < 1e-9) {
+      excluded_[best] = 1;  // (numerically) in the span of the active set: cannot reduce further
+      continue;
+    }
+    active[k++] = best;
+    // Inner loop: restore positive coefficients.
+    for (int inner = 0; inner < kDim + 2; ++inner) {
+      for (int c = 0; c < k; ++c) cols[c] = &g_[active[c]];
+      double mu[kDim];
+      if (!leastSquares(cols, k, y, mu)) {
+        excluded_[active[k - 1]] = 1;
+        lambda_[active[k - 1]] = 0.0;
+        --k;
+        continue;
+      }
+      bool all_positive = true;
+      for (int c = 0; c < k; ++c) all_positive &= mu[c] > 0.0;
+      if (all_positive) {
+        for (int c = 0; c < k; ++c) lambda_[active[c]] = mu[c];
+        break;
+      }
+      double theta = 1.0;
+      for (int c = 0; c < k; ++c)
+        if (mu[c] <= 0.0) {
+          const double l = lambda_[active[c]];
+          theta = std::min(theta, l / (l - mu[c]));
+        }
+      int kept = 0;
+      for (int c = 0; c < k; ++c) {
+        double& l = lambda_[active[c]];
+        l += theta * (mu[c] - l);
+        if (l > 1e-15 * (1.0 + std::abs(mu[c]))) {
+          active[kept++] = active[c];
+        } else {
+          if (active[c] == best && theta == 0.0) excluded_[best] = 1;  // no progress possible with it
+          l = 0.0;
+        }
+      }
+      k = kept;
+      if (k == 0) break;
+    }
+    z.setZero();
+    for (int c = 0; c < k; ++c) z += lambda_[active[c]] * g_[active[c]];
+  }
+  out.iterations = it;
+  out.converged = converged;
+  out.active = k;
+  out.a_c = L.transpose().solve(x + z);
+  for (int i = 0; i < m && i < static_cast<int>(lambda_out.size()); ++i) lambda_out[i] = lambda_[i];
+  if (!out.a_c.allFinite()) {  // never hand a NaN to the collision detector: stay still
+    out.a_c.setZero();
+    out.converged = false;
+  }
+  return out;
+}
+
+Vector6d projectOntoConeReference(const Matrix6d& M, const Vector6d& a_u, std::span<const Vector6d> J_rows) {
+  const int m = static_cast<int>(J_rows.size());
+  if (m > 16) throw std::invalid_argument("projectOntoConeReference: at most 16 constraints");
+  const Eigen::LLT<Matrix6d> llt(M);
+  const Eigen::Matrix<double, 6, 6> L = llt.matrixL();
+  const Vector6d x = L.transpose() * a_u;
+  const Vector6d y = -x;
+  std::vector<Vector6d> g(m);
+  for (int i = 0; i < m; ++i) g[i] = L.triangularView<Eigen::Lower>().solve(J_rows[i]);
+  Vector6d best_z = Vector6d::Zero();
+  double best_d = y.squaredNorm();
+  for (unsigned mask = 1; mask < (1u << m); ++mask) {
+    const int k = __builtin_popcount(mask);
+    if (k > 6) continue;
+    Eigen::Matrix<double, 6, Eigen::Dynamic> A(6, k);
+    int c = 0;
+    for (int i = 0; i < m; ++i)
+      if (mask & (1u << i)) A.col(c++) = g[i];
+    Eigen::ColPivHouseholderQR<Eigen::Matrix<double, 6, Eigen::Dynamic>> qr(A);
+    qr.setThreshold(1e-10);
+    if (qr.rank() < k) continue;
+    const Eigen::VectorXd mu = qr.solve(y);
+    if ((mu.array() < 0.0).any()) continue;
+    const Vector6d z = A * mu;
+    const double d = (y - z).squaredNorm();
+    if (d < best_d) {
+      best_d = d;
+      best_z = z;
+    }
+  }
+  return L.transpose().triangularView<Eigen::Upper>().solve(x + best_z);
+}
+
+}  // namespace vh::haptics

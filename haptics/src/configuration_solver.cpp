@@ -1,0 +1,39 @@
+#include "vh/haptics/configuration_solver.h"
+
+#include <algorithm>
+
+namespace vh::haptics {
+
+Vector6d displacement_W(const Pose& X_WA, const Pose& X_WB, const Eigen::Vector3d& p_TCm_m) noexcept {
+  Vector6d dx;
+  dx.head<3>() = X_WB * p_TCm_m - X_WA * p_TCm_m;
+  dx.tail<3>() = rotationVector(X_WB.R_AB * X_WA.R_AB.conjugate());
+  return dx;
+}
+
+Vector6d constraintRow(const Eigen::Vector3d& p_W_m, const Eigen::Vector3d& n_W, const Eigen::Vector3d& c_W_m) noexcept {
+  Vector6d row;
+  row.head<3>() = n_W;
+  row.tail<3>() = (p_W_m - c_W_m).cross(n_W);
+  return row;
+}
+
+ConfigurationSolver::ConfigurationSolver(std::size_t max_contacts) : projector_(max_contacts), rows_(max_contacts) {}
+
+RigidMotion ConfigurationSolver::constrainedMotion(const Pose& X_WP, const Pose& X_WD, const MassProperties& mass,
+                                                   std::span<const Contact> contacts) noexcept {
+  // Step 1: a_u = 2 dx takes the proxy to the device in a unit step (section 2.4).
+  a_u_ = 2.0 * displacement_W(X_WP, X_WD, mass.p_TCm_m);
+  // The projection is invariant to a scale of M; dividing by the mass keeps the numbers O(1).
+  const Matrix6d M = mass.massMatrix_W(X_WP.R_AB.toRotationMatrix()) / mass.mass_kg;
+  const Eigen::Vector3d c_W = X_WP * mass.p_TCm_m;
+  const std::size_t m = std::min(contacts.size(), rows_.size());
+  for (std::size_t i = 0; i < m; ++i) rows_[i] = constraintRow(contacts[i].p_W_m, contacts[i].n_W, c_W);
+  // Step 3: Gauss' principle (eq. 3) under the contact constraints (eq. 4).
+  last_ = projector_.project(M, a_u_, std::span<const Vector6d>(rows_.data(), m));
+  const Vector6d& a_c = last_.a_c;
+  // x_t = x_i + a_c / 2: the motion over the unit step (eq. 2).
+  return RigidMotion::FromVelocity(X_WP, mass.p_TCm_m, 0.5 * a_c.head<3>(), 0.5 * a_c.tail<3>());
+}
+
+}  // namespace vh::haptics

@@ -1,0 +1,89 @@
+#include "vh/haptics/haptic_renderer.h"
+
+#include <chrono>
+#include <cmath>
+#include <stdexcept>
+
+namespace vh::haptics {
+
+HapticRenderer::HapticRenderer(std::shared_ptr<const ScalarVolume> volume, std::shared_ptr<const ToolModel> tool,
+                               const RendererOptions& options, const Pose& X_WP_initial, double isovalue)
+    : volume_(std::move(volume)),
+      tool_(std::move(tool)),
+      options_(options),
+      collision_((volume_ && !volume_->empty()) ? *volume_ : throw std::invalid_argument("HapticRenderer: no volume"),
+                 tool_ ? *tool_ : throw std::invalid_argument("HapticRenderer: no tool"), options.epsilon_m),
+      solver_(),
+      coupling_(options.gains),
+      X_WP_(X_WP_initial),
+      last_isovalue_(isovalue) {
+  if (!X_WP_initial.allFinite()) throw std::invalid_argument("HapticRenderer: the initial proxy pose is not finite");
+  if (!std::isfinite(isovalue)) throw std::invalid_argument("HapticRenderer: the isovalue is not finite");
+  X_WP_.R_AB.normalize();
+  collision_.updateEmbedded(X_WP_, isovalue);
+}
+
+void HapticRenderer::resetProxy(const Pose& X_WP) noexcept {
+  if (!X_WP.allFinite()) return;
+  X_WP_ = X_WP;
+  X_WP_.R_AB.normalize();
+  collision_.clearContacts();
+  embedded_scan_needed_ = true;
+}
+
+TickOutput HapticRenderer::tick(const Pose& X_WD_in, double isovalue) noexcept {
+  using Clock = std::chrono::steady_clock;
+  const auto start = Clock::now();
+  TickOutput out;
+  collision_.resetSampleCount();
+
+  // Validate the device sample: zero force, proxy in place, counted (bad input never throws).
+  Pose X_WD = X_WD_in;
+  const double qn = X_WD.R_AB.norm();
+  const bool finite = X_WD.allFinite() && std::isfinite(isovalue);
+  if (!finite || std::abs(qn - 1.0) > 1e-3 ||
+      (X_WD.p_AB_m - X_WP_.p_AB_m).norm() > options_.max_device_distance_m) {
+    ++bad_inputs_;
+    out.X_WP = X_WP_;
+    out.stats.bad_input = true;
+    out.stats.contacts = static_cast<int>(collision_.contacts().size());
+    out.stats.exec_time_us = std::chrono::duration<double, std::micro>(Clock::now() - start).count();
+    return out;
+  }
+  X_WD.R_AB.coeffs() /= qn;
+
+  // A new isovalue moves the surface under the proxy: points it swallowed are embedded and
+  // released once outside again (see haptics/README.md, "Isovalue changes").
+  if (embedded_scan_needed_ || isovalue != last_isovalue_) {
+    collision_.updateEmbedded(X_WP_, isovalue);
+    last_isovalue_ = isovalue;
+    embedded_scan_needed_ = false;
+  } else {
+    collision_.releaseEmbedded(X_WP_, isovalue);
+  }
+
+  const MassProperties& mass = tool_->mass;
+  // Step 2: verify and prune the contact set.
+  collision_.pruneContacts(X_WP_, X_WD, isovalue);
+  // Steps 1 and 3: unconstrained, then constrained motion (Gauss' principle).
+  const RigidMotion motion = solver_.constrainedMotion(X_WP_, X_WD, mass, collision_.contacts());
+  // Step 4: collision detection along the constrained path.
+  const SweepResult hit = collision_.sweep(motion, isovalue);
+  // Step 5: move the proxy to the first contact (or the target).
+  X_WP_ = motion.poseAt(hit.t);
+  collision_.refreshPositions(X_WP_);
+  if (hit.hit_point >= 0) collision_.addContactsAt(motion, hit, isovalue);
+  // Step 6: virtual coupling.
+  const Wrench w = coupling_.compute(X_WP_, X_WD, mass);
+
+  out.X_WP = X_WP_;
+  out.force_W_N = w.force_W_N;
+  out.torque_W_Nm = w.torque_W_Nm;
+  out.stats.contacts = static_cast<int>(collision_.contacts().size());
+  out.stats.volume_samples = collision_.sampleCount();
+  out.stats.time_of_contact = hit.t;
+  out.stats.exec_time_us = std::chrono::duration<double, std::micro>(Clock::now() - start).count();
+  return out;
+}
+
+}  // namespace vh::haptics

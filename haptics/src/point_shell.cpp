@@ -1,0 +1,178 @@
+#include "vh/haptics/point_shell.h"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <random>
+#include <stdexcept>
+#include <unordered_map>
+
+namespace vh::haptics {
+
+PointShell::PointShell(std::vector<Eigen::Vector3d> points_T_m, std::vector<Eigen::Vector3d> normals_T)
+    : points_(std::move(points_T_m)), normals_(std::move(normals_T)) {
+  if (!normals_.empty() && normals_.size() != points_.size())
+    throw std::invalid_argument("PointShell: " + std::to_string(normals_.size()) + " normals for " +
+                                std::to_string(points_.size()) + " points");
+  for (const auto& p : points_)
+    if (!p.allFinite()) throw std::invalid_argument("PointShell: a point is not finite");
+  for (const auto& n : normals_)
+    if (!n.allFinite()) throw std::invalid_argument("PointShell: a normal is not finite");
+}
+
+double PointShell::meanNearestNeighbourSpacing_m() const {
+  if (points_.size() < 2) return 0.0;
+  double sum = 0.0;
+  for (std::size_t i = 0; i < points_.size(); ++i) {
+    double best = std::numeric_limits<double>::infinity();
+    for (std::size_t j = 0; j < points_.size(); ++j)
+      if (j != i) best = std::min(best, (points_[i] - points_[j]).squaredNorm());
+    sum += std::sqrt(best);
+  }
+  return sum / static_cast<double>(points_.size());
+}
+
+namespace {
+
+struct Candidate {
+  Eigen::Vector3d p;
+  Eigen::Vector3d n;
+};
+
+// Area-weighted uniform samples on the mesh, in random order.
+std::vector<Candidate> sampleCandidates(const TriangleMesh& mesh, std::size_t count, unsigned seed) {
+  std::vector<double> cumulative(mesh.triangles.size());
+  double total = 0.0;
+  for (std::size_t t = 0; t < mesh.triangles.size(); ++t) {
+    const auto& tri = mesh.triangles[t];
+    total += 0.5 * (mesh.vertices_T_m[tri[1]] - mesh.vertices_T_m[tri[0]])
+                       .cross(mesh.vertices_T_m[tri[2]] - mesh.vertices_T_m[tri[0]])
+                       .norm();
+    cumulative[t] = total;
+  }
+  std::mt19937_64 rng(seed);
+  std::uniform_real_distribution<double> uni(0.0, 1.0);
+  std::vector<Candidate> out;
+  out.reserve(count);
+  for (std::size_t c = 0; c < count; ++c) {
+    const double r = uni(rng) * total;
+    const std::size_t t = std::min<std::size_t>(
+        static_cast<std::size_t>(std::lower_bound(cumulative.begin(), cumulative.end(), r) - cumulative.begin()),
+        cumulative.size() - 1);
+    const auto& tri = mesh.triangles[t];
+    const Eigen::Vector3d& a = mesh.vertices_T_m[tri[0]];
+    const Eigen::Vector3d& b = mesh.vertices_T_m[tri[1]];
+    const Eigen::Vector3d& cc = mesh.vertices_T_m[tri[2]];
+    double u = uni(rng), v = uni(rng);
+    if (u + v > 1.0) {
+      u = 1.0 - u;
+      v = 1.0 - v;
+    }
+    Eigen::Vector3d n = (b - a).cross(cc - a);
+    const double nn = n.norm();
+    n = nn > 0.0 ? Eigen::Vector3d(n / nn) : Eigen::Vector3d::UnitZ();
+    out.push_back({a + u * (b - a) + v * (cc - a), n});
+  }
+  return out;
+}
+
+// Poisson-disk thinning (dart throwing over the candidates) with a uniform grid hash.
+std::vector<std::size_t> poissonThin(const std::vector<Candidate>& cand, double radius) {
+  if (!(radius > 0.0)) {
+    std::vector<std::size_t> all(cand.size());
+    for (std::size_t i = 0; i < all.size(); ++i) all[i] = i;
+    return all;
+  }
+  const double cell = radius;
+  struct KeyHash {
+    std::size_t operator()(const std::array<long long, 3>& k) const noexcept {
+      return static_cast<std::size_t>(k[0] * 73856093LL ^ k[1] * 19349663LL ^ k[2] * 83492791LL);
+    }
+  };
+  std::unordered_map<std::array<long long, 3>, std::vector<std::size_t>, KeyHash> grid;
+  std::vector<std::size_t> accepted;
+  const double r2 = radius * radius;
+  for (std::size_t c = 0; c < cand.size(); ++c) {
+    const Eigen::Vector3d& p = cand[c].p;
+    const std::array<long long, 3> key{static_cast<long long>(std::floor(p.x() / cell)),
+                                       static_cast<long long>(std::floor(p.y() / cell)),
+                                       static_cast<long long>(std::floor(p.z() / cell))};
+    bool ok = true;
+    for (int dx = -1; dx <= 1 && ok; ++dx)
+      for (int dy = -1; dy <= 1 && ok; ++dy)
+        for (int dz = -1; dz <= 1 && ok; ++dz) {
+          auto it = grid.find({key[0] + dx, key[1] + dy, key[2] + dz});
+          if (it == grid.end()) continue;
+          for (std::size_t q : it->second)
+            if ((cand[q].p - p).squaredNorm() < r2) {
+              ok = false;
+              break;
+            }
+        }
+    if (ok) {
+      grid[key].push_back(c);
+      accepted.push_back(c);
+    }
+  }
+  return accepted;
+}
+
+}  // namespace
+
+PointShell makePointShell(const TriangleMesh& mesh, const PointShellOptions& options) {
+  if (mesh.triangles.empty()) throw std::invalid_argument("makePointShell: the mesh has no triangles");
+  const double area = mesh.area_m2();
+  if (!(area > 0.0) || !std::isfinite(area)) throw std::invalid_argument("makePointShell: the mesh has zero area");
+  constexpr std::size_t kMaxPoints = 200000;
+  // A Poisson-disk set of radius r covers about 0.6 r^2 of area per point... use the hexagonal
+  // packing density (sqrt(3)/2 r^2 per point) with a margin for the estimate.
+  double radius = options.spacing_m;
+  if (options.point_count > 0) {
+    if (options.point_count > kMaxPoints) throw std::invalid_argument("makePointShell: more than 200000 points requested");
+    radius = std::sqrt(area / (0.7 * static_cast<double>(options.point_count)));
+  } else if (!(options.spacing_m > 0.0) || !std::isfinite(options.spacing_m)) {
+    throw std::invalid_argument("makePointShell: point spacing must be > 0");
+  }
+  const double expected = area / (0.7 * radius * radius);
+  if (expected > 1.5 * kMaxPoints)
+    throw std::invalid_argument("makePointShell: spacing " + std::to_string(options.spacing_m) +
+                                " m would need about " + std::to_string(static_cast<long long>(expected)) +
+                                " points (limit 200000)");
+  const std::size_t want = options.point_count > 0 ? options.point_count : static_cast<std::size_t>(expected);
+  const std::size_t n_candidates = std::clamp<std::size_t>(30 * std::max<std::size_t>(want, 1), 2000, 3000000);
+  const std::vector<Candidate> cand = sampleCandidates(mesh, n_candidates, options.seed);
+
+  std::vector<std::size_t> chosen;
+  if (options.point_count == 0) {
+    chosen = poissonThin(cand, radius);
+  } else {
+    // Largest radius that still yields at least point_count points (bisection), then keep the
+    // first point_count accepted (they are in random order, so the excess is spread out).
+    double lo = 0.0, hi = 2.0 * radius;
+    std::vector<std::size_t> best;
+    for (int it = 0; it < 24; ++it) {
+      const double mid = 0.5 * (lo + hi);
+      std::vector<std::size_t> s = poissonThin(cand, mid);
+      if (s.size() >= options.point_count) {
+        lo = mid;
+        best = std::move(s);
+      } else {
+        hi = mid;
+      }
+    }
+    if (best.size() < options.point_count) best = poissonThin(cand, 0.0);
+    if (best.size() < options.point_count) throw std::invalid_argument("makePointShell: could not place the requested point count");
+    best.resize(options.point_count);
+    chosen = std::move(best);
+  }
+  std::vector<Eigen::Vector3d> points, normals;
+  points.reserve(chosen.size());
+  normals.reserve(chosen.size());
+  for (std::size_t c : chosen) {
+    points.push_back(cand[c].p);
+    normals.push_back(cand[c].n);
+  }
+  return PointShell(std::move(points), std::move(normals));
+}
+
+}  // namespace vh::haptics

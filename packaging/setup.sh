@@ -1,0 +1,45 @@
+#!/usr/bin/env bash
+# One-command set-up for a fresh Debian 12 machine.
+#   packaging/setup.sh run [ARGS...]  install missing Debian packages, build, open the application
+#   packaging/setup.sh test           install missing Debian packages, build, run ctest
+# Environment: VH_BUILD_DIR (default build), VH_JOBS (default nproc).
+set -euo pipefail
+here="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
+mode="${1:-test}"; shift || true
+build_dir="${VH_BUILD_DIR:-$here/build}"
+jobs="${VH_JOBS:-$(nproc)}"
+
+# Debian 12 package names; each is installed only when missing.
+packages=(cmake ninja-build g++ pkg-config libeigen3-dev libgtest-dev libgmock-dev
+  libbenchmark-dev nlohmann-json3-dev libcli11-dev libvtk9-dev libvtk-dicom-dev
+  qt6-base-dev libqt6opengl6-dev qt6-charts-dev libhidapi-dev libusb-1.0-0-dev
+  zlib1g-dev zstd xvfb xauth libgl1-mesa-dri)
+missing=()
+for p in "${packages[@]}"; do
+  dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
+done
+if ((${#missing[@]})); then
+  echo "setup: installing missing Debian packages: ${missing[*]}"
+  sudo_cmd=(); [[ $(id -u) -eq 0 ]] || sudo_cmd=(sudo)
+  "${sudo_cmd[@]}" apt-get update -q
+  DEBIAN_FRONTEND=noninteractive "${sudo_cmd[@]}" apt-get install -y -q --no-install-recommends "${missing[@]}"
+fi
+
+cmake -S "$here" -B "$build_dir" -G Ninja -DCMAKE_BUILD_TYPE=Release -DVH_WITH_APP=ON
+cmake --build "$build_dir" -j "$jobs"
+
+case "$mode" in
+  test)
+    cd "$build_dir"
+    ctest --output-on-failure -j "$jobs" --timeout 1500
+    ;;
+  run)
+    app="$build_dir/app/volume-haptics"
+    if [[ -z "${DISPLAY:-}" && -z "${WAYLAND_DISPLAY:-}" ]]; then
+      echo "setup: no display found; running under xvfb-run (pass a screenshot path with --screenshot to see it)"
+      exec xvfb-run -a -s "-screen 0 1280x1024x24" "$app" "$@"
+    fi
+    exec "$app" "$@"
+    ;;
+  *) echo "usage: $0 run [ARGS...] | test" >&2; exit 2 ;;
+esac
