@@ -1,9 +1,12 @@
 #include "vh/haptics/scalar_volume.h"
 
+#include <cmath>
 #include <cstring>
 #include <limits>
 #include <stdexcept>
 #include <string>
+
+#include <Eigen/LU>
 
 namespace vh::haptics {
 
@@ -41,6 +44,10 @@ void rawRange(const std::vector<std::byte>& bytes, double& lo, double& hi) {
   double mn = std::numeric_limits<double>::infinity(), mx = -mn;
   for (std::size_t i = 0; i < n; ++i) {
     const double v = d[i];
+    if (!std::isfinite(v)) {  // only float32 can hold these
+      lo = hi = v;
+      return;
+    }
     if (v < mn) mn = v;
     if (v > mx) mx = v;
   }

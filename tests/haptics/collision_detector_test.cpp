@@ -1,0 +1,146 @@
+#include "vh/haptics/collision_detector.h"
+
+#include <random>
+
+#include <gtest/gtest.h>
+
+#include "test_tools.h"
+
+namespace vh::haptics {
+namespace {
+
+// Brute-force reference: sample every point's arc at 1/100 of the feature size and return the
+// first sample time at which any point is inside (1 when none).
+double bruteForceFirstContact(const ScalarVolume& vol, const ToolModel& tool, const RigidMotion& motion, double s) {
+  const double f = vol.featureSize_m();
+  double first = 1.0;
+  for (const auto& p_T : tool.point_shell.points_T_m()) {
+    const Eigen::Vector3d r0 = motion.radial_W(p_T);
+    const int steps = std::max(1, static_cast<int>(std::ceil(motion.pathLengthBound(r0) / (f / 100))));
+    for (int i = 1; i <= steps; ++i) {
+      const double t = static_cast<double>(i) / steps;
+      if (t >= first) break;
+      if (vol.isInside(motion.pointAt(r0, t), s)) {
+        first = t;
+        break;
+      }
+    }
+  }
+  return first;
+}
+
+TEST(CollisionDetector, PointDrivenIntoAPlaneStopsWithinEpsilon) {
+  const ScalarVolume vol = datasets::makePlaneVolume(test::grid1mm(), Eigen::Vector3d::UnitZ(), 0.0);
+  const auto tool = test::pointTool();
+  CollisionDetector cd(vol, *tool, 0.0);
+  const Pose X0 = Pose::FromTranslation({0.001, 0.002, 0.010});
+  const Pose X1 = Pose::FromTranslation({0.003, 0.002, -0.010});
+  const RigidMotion motion = RigidMotion::Between(X0, X1, tool->mass.p_TCm_m);
+  const SweepResult r = cd.sweep(motion, 0.0);
+  ASSERT_EQ(r.hit_point, 0);
+  const Eigen::Vector3d p = motion.poseAt(r.t) * Eigen::Vector3d::Zero();
+  EXPECT_GE(p.z(), 0.0);                                        // outside
+  EXPECT_LE(p.z() * std::hypot(20.0, 2.0) / 20.0, cd.epsilon_m());  // within epsilon of travel
+  // Contact set with the normal of the plane.
+  cd.addContactsAt(motion, r, 0.0);
+  ASSERT_EQ(cd.contacts().size(), 1u);
+  EXPECT_LT((cd.contacts()[0].n_W - Eigen::Vector3d::UnitZ()).norm(), 1e-9);
+}
+
+TEST(CollisionDetector, PointDrivenIntoASphereStopsWithinEpsilon) {
+  datasets::GridSpec g = test::grid1mm();
+  const ScalarVolume vol = datasets::makeSphereVolume(g, Eigen::Vector3d::Zero(), 0.015);
+  const auto tool = test::pointTool();
+  CollisionDetector cd(vol, *tool, 0.0);
+  std::mt19937 rng(4);
+  std::normal_distribution<double> nd;
+  for (int n = 0; n < 50; ++n) {
+    const Eigen::Vector3d dir = Eigen::Vector3d(nd(rng), nd(rng), nd(rng)).normalized();
+    const RigidMotion motion = RigidMotion::Between(Pose::FromTranslation(0.025 * dir), Pose::FromTranslation(0.005 * dir),
+                                                    tool->mass.p_TCm_m);
+    const SweepResult r = cd.sweep(motion, 0.0);
+    ASSERT_EQ(r.hit_point, 0);
+    const Eigen::Vector3d p = motion.poseAt(r.t).p_AB_m;
+    EXPECT_LE(vol.sample(p), 0.0);
+    // Distance to the (interpolated) surface along the path: travel to the inside <= epsilon.
+    const double t_ref = bruteForceFirstContact(vol, *tool, motion, 0.0);
+    EXPECT_LE(r.t, t_ref);
+    EXPECT_LE((t_ref - r.t) * 0.020, cd.epsilon_m() + vol.featureSize_m() / 100);
+  }
+}
+
+TEST(CollisionDetector, NeverLaterThanTheBruteForceReferenceForRotatingTools) {
+  const ScalarVolume vol = datasets::makeSphereVolume(test::grid1mm(), Eigen::Vector3d::Zero(), 0.012);
+  const auto tool = test::meshTool(datasets::makeBuiltinTool("probe"), 2e-3);
+  CollisionDetector cd(vol, *tool, 0.0);
+  std::mt19937 rng(9);
+  std::normal_distribution<double> nd;
+  int hits = 0;
+  for (int n = 0; n < 60; ++n) {
+    Pose X0, X1;
+    X0.p_AB_m = Eigen::Vector3d(0, 0, 0.016) + 0.002 * Eigen::Vector3d(nd(rng), nd(rng), nd(rng));
+    X0.R_AB = Eigen::Quaterniond(Eigen::AngleAxisd(0.3 * nd(rng), Eigen::Vector3d::UnitX()));
+    X1.p_AB_m = X0.p_AB_m + Eigen::Vector3d(0.004 * nd(rng), 0.004 * nd(rng), -0.006);
+    X1.R_AB = Eigen::Quaterniond(Eigen::AngleAxisd(0.5 * nd(rng), Eigen::Vector3d(nd(rng), nd(rng), nd(rng)).normalized())) * X0.R_AB;
+    // Start outside: skip poses where any point already is inside.
+    bool clear = true;
+    for (const auto& p : tool->point_shell.points_T_m()) clear &= !vol.isInside(X0 * p, 0.0);
+    if (!clear) continue;
+    const RigidMotion motion = RigidMotion::Between(X0, X1, tool->mass.p_TCm_m);
+    const SweepResult r = cd.sweep(motion, 0.0);
+    const double t_ref = bruteForceFirstContact(vol, *tool, motion, 0.0);
+    EXPECT_LE(r.t, t_ref + 1e-12) << "missed contact, case " << n;
+    if (r.hit_point >= 0) {
+      ++hits;
+      const double travel = motion.pathLengthBound(motion.radial_W(tool->point_shell.points_T_m()[r.hit_point]));
+      EXPECT_GE(r.t * travel + cd.epsilon_m() + vol.featureSize_m() / 100, t_ref * travel) << "too early, case " << n;
+    }
+  }
+  EXPECT_GT(hits, 10);
+}
+
+TEST(CollisionDetector, OneVoxelPlateIsNotTunnelledThrough) {
+  const ScalarVolume vol = datasets::makeThinPlateVolume(test::grid1mm());
+  const double s = datasets::builtinIsovalue("thin-plate");
+  const auto tool = test::meshTool(datasets::makeBuiltinTool("sphere"), 1.5e-3);
+  CollisionDetector cd(vol, *tool, 0.0);
+  const double z_plate = vol.geometry().origin_W_m.z() + 32 * 1e-3;
+  // A 10 cm jump with a half turn, straight through the plate, in one step.
+  Pose X0 = Pose::FromTranslation({0.0, 0.0, z_plate + 0.02});
+  Pose X1 = Pose::FromTranslation({0.0, 0.0, z_plate - 0.08});
+  X1.R_AB = Eigen::Quaterniond(Eigen::AngleAxisd(3.1, Eigen::Vector3d::UnitY()));
+  const RigidMotion motion = RigidMotion::Between(X0, X1, tool->mass.p_TCm_m);
+  const SweepResult r = cd.sweep(motion, s);
+  ASSERT_GE(r.hit_point, 0);
+  const Pose X = motion.poseAt(r.t);
+  for (const auto& p : tool->point_shell.points_T_m()) {
+    EXPECT_FALSE(vol.isInside(X * p, s));
+    EXPECT_GT((X * p).z(), z_plate);  // still on the near side of the plate
+  }
+}
+
+TEST(CollisionDetector, PruningKeepsOnlyContactsThatBlockTheMotion) {
+  const ScalarVolume vol = datasets::makePlaneVolume(test::grid1mm(), Eigen::Vector3d::UnitZ(), 0.0);
+  const auto tool = test::pointTool();
+  CollisionDetector cd(vol, *tool, 0.0);
+  const RigidMotion motion = RigidMotion::Between(Pose::FromTranslation({0, 0, 0.005}), Pose::FromTranslation({0, 0, -0.005}),
+                                                  tool->mass.p_TCm_m);
+  const SweepResult r = cd.sweep(motion, 0.0);
+  cd.addContactsAt(motion, r, 0.0);
+  const Pose X_WP = motion.poseAt(r.t);
+  ASSERT_EQ(cd.contacts().size(), 1u);
+  cd.pruneContacts(X_WP, Pose::FromTranslation({0.001, 0, -0.003}), 0.0);  // still pushing in
+  EXPECT_EQ(cd.contacts().size(), 1u);
+  cd.pruneContacts(X_WP, Pose::FromTranslation({0.001, 0, 0.003}), 0.0);   // pulling away
+  EXPECT_EQ(cd.contacts().size(), 0u);
+}
+
+TEST(CollisionDetector, RejectsEpsilonNotBelowTheFeatureSize) {
+  const ScalarVolume vol = datasets::makePlaneVolume(test::grid1mm(16), Eigen::Vector3d::UnitZ(), 0.0);
+  const auto tool = test::pointTool();
+  EXPECT_THROW(CollisionDetector(vol, *tool, 0.6e-3), std::invalid_argument);
+  EXPECT_NO_THROW(CollisionDetector(vol, *tool, 0.4e-3));
+}
+
+}  // namespace
+}  // namespace vh::haptics

@@ -1,0 +1,172 @@
+#include "vh/haptics/haptic_renderer.h"
+
+#include <cmath>
+#include <limits>
+
+#include <gtest/gtest.h>
+
+#include "allocation_guard.h"
+#include "test_tools.h"
+
+namespace vh::haptics {
+namespace {
+
+// Largest depth of any proxy point inside the isosurface, (F - s) / |grad F|.
+double maxPenetration(const ScalarVolume& vol, const ToolModel& tool, const Pose& X_WP, double s) {
+  double worst = 0.0;
+  for (const auto& p_T : tool.point_shell.points_T_m()) {
+    const Eigen::Vector3d p = X_WP * p_T;
+    if (!vol.isInside(p, s)) continue;
+    worst = std::max(worst, (vol.sample(p) - s) / std::max(vol.gradient(p).norm(), 1e-300));
+  }
+  return worst;
+}
+
+struct PlaneScene {
+  std::shared_ptr<const ScalarVolume> volume =
+      std::make_shared<ScalarVolume>(datasets::makePlaneVolume(test::grid1mm(), Eigen::Vector3d::UnitZ(), 0.0));
+  // A flat-bottomed box tool 10 x 10 x 4 mm, its bottom face at z = -2 mm in T.
+  std::shared_ptr<const ToolModel> tool = test::meshTool(datasets::makeBoxMesh({0.005, 0.005, 0.002}), 1e-3);
+};
+
+TEST(HapticRenderer, FreeMotionReachesTheDeviceWithZeroForce) {
+  PlaneScene scene;
+  HapticRenderer r(scene.volume, scene.tool, {}, Pose::FromTranslation({0, 0, 0.01}), 0.0);
+  Pose X_WD = Pose::FromTranslation({0.003, -0.002, 0.012});
+  X_WD.R_AB = Eigen::Quaterniond(Eigen::AngleAxisd(0.4, Eigen::Vector3d::UnitZ()));
+  const TickOutput out = r.tick(X_WD, 0.0);
+  EXPECT_LT((out.X_WP.p_AB_m - X_WD.p_AB_m).norm(), 1e-12);
+  EXPECT_LT(out.force_W_N.norm(), 1e-9);
+  EXPECT_EQ(out.stats.contacts, 0);
+  EXPECT_DOUBLE_EQ(out.stats.time_of_contact, 1.0);
+}
+
+TEST(HapticRenderer, PressingIntoAPlaneGivesKTimesDepth) {
+  PlaneScene scene;
+  RendererOptions o;
+  o.epsilon_m = 0.01e-3;  // tight tolerance so the stand-off stays well under 1 % of 5 mm
+  o.gains.linear_N_per_m = 1000.0;
+  HapticRenderer r(scene.volume, scene.tool, o, Pose::FromTranslation({0, 0, 0.01}), 0.0);
+  // Device lowered until the box's bottom face is 5 mm below the plane, then held.
+  TickOutput out;
+  for (int i = 0; i <= 100; ++i) {
+    const double z = 0.01 - (0.01 - (0.002 - 0.005)) * std::min(1.0, i / 50.0);
+    out = r.tick(Pose::FromTranslation({0, 0, z}), 0.0);
+    ASSERT_LE(maxPenetration(*scene.volume, *scene.tool, out.X_WP, 0.0), r.epsilon_m());
+  }
+  const double expected = 1000.0 * 0.005;
+  EXPECT_NEAR(out.force_W_N.z(), expected, 0.01 * expected);
+  EXPECT_NEAR(out.force_W_N.head<2>().norm(), 0.0, 1e-6);
+  EXPECT_GE(out.stats.contacts, 3);
+  EXPECT_LT(out.torque_W_Nm.norm(), 1e-3);
+}
+
+TEST(HapticRenderer, SlidingFollowsTheDeviceProjectionOntoThePlane) {
+  PlaneScene scene;
+  HapticRenderer r(scene.volume, scene.tool, {}, Pose::FromTranslation({0, 0, 0.003}), 0.0);
+  TickOutput out;
+  for (int i = 0; i < 30; ++i) out = r.tick(Pose::FromTranslation({0, 0, -0.001}), 0.0);  // press
+  for (int i = 0; i <= 300; ++i) {
+    const Eigen::Vector3d device(0.01 * i / 300.0, -0.005 * i / 300.0, -0.001);
+    out = r.tick(Pose::FromTranslation(device), 0.0);
+    ASSERT_LE(maxPenetration(*scene.volume, *scene.tool, out.X_WP, 0.0), r.epsilon_m());
+  }
+  for (int i = 0; i < 20; ++i) out = r.tick(Pose::FromTranslation({0.01, -0.005, -0.001}), 0.0);
+  // Friction-free: the proxy ends above the device, resting on the plane.
+  EXPECT_NEAR(out.X_WP.p_AB_m.x(), 0.01, 1e-6);
+  EXPECT_NEAR(out.X_WP.p_AB_m.y(), -0.005, 1e-6);
+  EXPECT_NEAR(out.X_WP.p_AB_m.z(), 0.002, r.epsilon_m() + 1e-9);
+  EXPECT_NEAR(out.force_W_N.head<2>().norm(), 0.0, 1e-3);
+}
+
+TEST(HapticRenderer, ThinPlateIsNotTunnelledThroughAtOneMetrePerSecond) {
+  auto vol = std::make_shared<ScalarVolume>(datasets::makeThinPlateVolume(test::grid1mm()));
+  const double s = datasets::builtinIsovalue("thin-plate");
+  const auto tool = test::pointTool();
+  const double z_plate = vol->geometry().origin_W_m.z() + 32e-3;
+  HapticRenderer r(vol, tool, {}, Pose::FromTranslation({0, 0, z_plate + 0.01}), s);
+  for (int i = 0; i < 40; ++i) {  // 1 mm per tick at 1 kHz = 1 m/s, ending 30 mm below the plate
+    const TickOutput out = r.tick(Pose::FromTranslation({0, 0, z_plate + 0.01 - 0.001 * i}), s);
+    ASSERT_GT(out.X_WP.p_AB_m.z(), z_plate) << "tick " << i;
+  }
+}
+
+TEST(HapticRenderer, BadDeviceInputGivesZeroForceAndRecovers) {
+  PlaneScene scene;
+  HapticRenderer r(scene.volume, scene.tool, {}, Pose::FromTranslation({0, 0, 0.003}), 0.0);
+  TickOutput out = r.tick(Pose::FromTranslation({0, 0, -0.001}), 0.0);
+  const Pose before = out.X_WP;
+  const double nan = std::numeric_limits<double>::quiet_NaN();
+  Pose bad_nan = Pose::FromTranslation({nan, 0, 0});
+  Pose bad_quat = Pose::FromTranslation({0, 0, 0});
+  bad_quat.R_AB.coeffs() << 0.5, 0.5, 0.5, 0.9;
+  Pose far = Pose::FromTranslation({1000.0, 0, 0});
+  for (const Pose& bad : {bad_nan, bad_quat, far}) {
+    out = r.tick(bad, 0.0);
+    EXPECT_TRUE(out.stats.bad_input);
+    EXPECT_EQ(out.force_W_N, Eigen::Vector3d::Zero());
+    EXPECT_EQ(out.X_WP.p_AB_m, before.p_AB_m);
+  }
+  EXPECT_EQ(r.badInputCount(), 3);
+  out = r.tick(Pose::FromTranslation({0, 0, -0.001}), 0.0);
+  EXPECT_FALSE(out.stats.bad_input);
+  EXPECT_GT(out.force_W_N.z(), 0.0);
+  EXPECT_TRUE(out.force_W_N.allFinite());
+}
+
+TEST(HapticRenderer, IsovalueChangeInContactCausesNoForceSpike) {
+  auto vol = std::make_shared<ScalarVolume>(datasets::makePlaneVolume(test::grid1mm(), Eigen::Vector3d::UnitZ(), 0.0));
+  const auto tool = test::meshTool(datasets::makeSphereMesh(0.004, 3), 1e-3);
+  HapticRenderer r(vol, tool, {}, Pose::FromTranslation({0, 0, 0.006}), 0.0);
+  TickOutput out;
+  for (int i = 0; i < 20; ++i) out = r.tick(Pose::FromTranslation({0, 0, 0.002}), 0.0);
+  const double felt = out.force_W_N.norm();
+  ASSERT_GT(felt, 0.5);
+  // Raise the surface by 3 mm (F = 1000 (0 - z) mm > -3 inside): the proxy is swallowed.
+  for (int i = 0; i < 20; ++i) {
+    out = r.tick(Pose::FromTranslation({0, 0, 0.002}), -3.0);
+    EXPECT_TRUE(out.force_W_N.allFinite());
+    EXPECT_LE(out.force_W_N.norm(), felt + 1e-9);
+  }
+  // Lower it below the original: contact is lost, no spike either.
+  for (int i = 0; i < 20; ++i) {
+    out = r.tick(Pose::FromTranslation({0, 0, 0.002}), 3.0);
+    EXPECT_LE(out.force_W_N.norm(), felt + 1e-9);
+  }
+  // Move out and back in at the original isovalue: contact works again.
+  for (int i = 0; i < 20; ++i) out = r.tick(Pose::FromTranslation({0, 0, 0.02}), 0.0);
+  EXPECT_LT(out.force_W_N.norm(), 1e-9);
+  for (int i = 0; i < 40; ++i) out = r.tick(Pose::FromTranslation({0, 0, 0.002}), 0.0);
+  EXPECT_NEAR(out.force_W_N.norm(), felt, 0.05 * felt);
+  EXPECT_LE(maxPenetration(*vol, *tool, out.X_WP, 0.0), r.epsilon_m());
+}
+
+TEST(HapticRenderer, TickDoesNotAllocate) {
+  auto vol = std::make_shared<ScalarVolume>(datasets::makeSphereVolume(test::grid1mm(), Eigen::Vector3d::Zero(), 0.015));
+  const auto tool = test::meshTool(datasets::makeBuiltinTool("drill"), 1.5e-3);
+  HapticRenderer r(vol, tool, {}, Pose::FromTranslation({0, 0, 0.02}), 0.0);
+  Pose X_WD = Pose::FromTranslation({0.002, 0.0, 0.012});
+  X_WD.R_AB = Eigen::Quaterniond(Eigen::AngleAxisd(0.2, Eigen::Vector3d::UnitX()));
+  r.tick(X_WD, 0.0);  // warm-up
+  test::AllocationGuard guard;
+  int contacts = 0;
+  for (int i = 0; i < 200; ++i) {
+    X_WD.p_AB_m.x() = 0.002 * std::sin(i * 0.05);
+    contacts = std::max(contacts, r.tick(X_WD, i < 100 ? 0.0 : -1.0).stats.contacts);
+  }
+  EXPECT_EQ(guard.count(), 0u);
+  EXPECT_GT(contacts, 0);
+}
+
+TEST(HapticRenderer, ReportsStatistics) {
+  PlaneScene scene;
+  HapticRenderer r(scene.volume, scene.tool, {}, Pose::FromTranslation({0, 0, 0.003}), 0.0);
+  const TickOutput out = r.tick(Pose::FromTranslation({0, 0, -0.002}), 0.0);
+  EXPECT_GT(out.stats.volume_samples, 0);
+  EXPECT_GT(out.stats.exec_time_us, 0.0);
+  EXPECT_LT(out.stats.time_of_contact, 1.0);
+  EXPECT_GT(out.stats.contacts, 0);
+}
+
+}  // namespace
+}  // namespace vh::haptics

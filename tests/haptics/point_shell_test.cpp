@@ -1,0 +1,94 @@
+#include "vh/haptics/point_shell.h"
+
+#include <cmath>
+#include <numbers>
+
+#include <Eigen/Geometry>
+#include <gtest/gtest.h>
+
+#include "vh/datasets/synthetic.h"
+#include "vh/haptics/tool_model.h"
+
+namespace vh::haptics {
+namespace {
+
+TEST(PointShell, ResampledToTheRequestedSpacingAndEvenlySpread) {
+  const TriangleMesh mesh = datasets::makeCylinderMesh(0.005, 0.03, 48);
+  PointShellOptions o;
+  o.spacing_m = 1e-3;
+  const PointShell shell = makePointShell(mesh, o);
+  // Poisson-disk: no two points closer than the spacing; the mean nearest-neighbour distance
+  // stays within a small factor of it (vertices alone would leave the side bare).
+  const auto& pts = shell.points_T_m();
+  double min_d = 1e9;
+  for (std::size_t i = 0; i < pts.size(); ++i)
+    for (std::size_t j = i + 1; j < pts.size(); ++j) min_d = std::min(min_d, (pts[i] - pts[j]).norm());
+  EXPECT_GE(min_d, 1e-3 * (1 - 1e-9));
+  const double mean_nn = shell.meanNearestNeighbourSpacing_m();
+  EXPECT_GT(mean_nn, 1e-3);
+  EXPECT_LT(mean_nn, 1.6e-3);
+  const double area = mesh.area_m2();
+  EXPECT_GT(shell.size(), area / (2.0 * 1e-3 * 1e-3));  // maximal Poisson-disk density
+  // Every point on the surface; normals unit and outward.
+  ASSERT_TRUE(shell.hasNormals());
+  for (std::size_t i = 0; i < pts.size(); ++i) {
+    const Eigen::Vector3d& p = pts[i];
+    const double radial = std::hypot(p.x(), p.y());
+    const bool on_side = std::abs(radial - 0.005) < 1e-4;  // chordal error of 48 segments
+    const bool on_cap = std::abs(p.z()) < 1e-12 || std::abs(p.z() - 0.03) < 1e-12;
+    EXPECT_TRUE(on_side || on_cap) << p.transpose();
+    EXPECT_NEAR(shell.normals_T()[i].norm(), 1.0, 1e-9);
+    const Eigen::Vector3d outward = on_cap ? Eigen::Vector3d(0, 0, p.z() > 0.015 ? 1 : -1)
+                                           : Eigen::Vector3d(p.x(), p.y(), 0).normalized();
+    EXPECT_GT(shell.normals_T()[i].dot(outward), 0.9);
+  }
+}
+
+TEST(PointShell, ExactPointCountWhenRequested) {
+  const TriangleMesh mesh = datasets::makeBuiltinTool("drill");
+  for (std::size_t n : {50u, 518u, 2000u}) {
+    PointShellOptions o;
+    o.point_count = n;
+    EXPECT_EQ(makePointShell(mesh, o).size(), n);
+  }
+}
+
+TEST(PointShell, RejectsBadInput) {
+  PointShellOptions o;
+  EXPECT_THROW(makePointShell(TriangleMesh{}, o), std::invalid_argument);
+  o.spacing_m = 1e-7;
+  EXPECT_THROW(makePointShell(datasets::makeSphereMesh(0.05), o), std::invalid_argument);
+  EXPECT_THROW(PointShell({Eigen::Vector3d(0, std::nan(""), 0)}), std::invalid_argument);
+  EXPECT_THROW(PointShell({Eigen::Vector3d::Zero()}, {Eigen::Vector3d::UnitX(), Eigen::Vector3d::UnitY()}),
+               std::invalid_argument);
+}
+
+TEST(MassProperties, SolidCylinderMatchesClosedForm) {
+  const double r = 0.004, h = 0.05, rho = 7800.0;
+  const TriangleMesh mesh = datasets::makeCylinderMesh(r, h, 256);
+  const MassProperties mp = massPropertiesFromMesh(mesh, rho);
+  const double m = rho * std::numbers::pi * r * r * h;
+  EXPECT_NEAR(mp.mass_kg, m, 1e-3 * m);
+  EXPECT_NEAR(mp.p_TCm_m.z(), h / 2, 1e-9);
+  EXPECT_NEAR(mp.p_TCm_m.head<2>().norm(), 0.0, 1e-9);
+  EXPECT_NEAR(mp.I_Cm_T_kgm2(2, 2), m * r * r / 2, 2e-3 * m * r * r / 2);
+  const double transverse = m * (3 * r * r + h * h) / 12;
+  EXPECT_NEAR(mp.I_Cm_T_kgm2(0, 0), transverse, 2e-3 * transverse);
+  EXPECT_NEAR(mp.I_Cm_T_kgm2(0, 1), 0.0, 1e-6 * transverse);
+  // The 6x6 mass matrix in W rotates the inertia block.
+  const Eigen::Matrix3d R = Eigen::AngleAxisd(std::numbers::pi / 2, Eigen::Vector3d::UnitX()).toRotationMatrix();
+  const auto M = mp.massMatrix_W(R);
+  EXPECT_NEAR(M(0, 0), mp.mass_kg, 1e-15);
+  EXPECT_NEAR(M(4, 4), mp.I_Cm_T_kgm2(2, 2), 1e-12);  // T's z axis now lies along W's y
+}
+
+TEST(MassProperties, BoxMatchesClosedForm) {
+  const Eigen::Vector3d h(0.01, 0.02, 0.005);
+  const MassProperties mp = massPropertiesFromMesh(datasets::makeBoxMesh(h), 1000.0);
+  const double m = 1000.0 * 8 * h.prod();
+  EXPECT_NEAR(mp.mass_kg, m, 1e-12);
+  EXPECT_NEAR(mp.I_Cm_T_kgm2(0, 0), m * (4 * h.y() * h.y() + 4 * h.z() * h.z()) / 12, 1e-12);
+}
+
+}  // namespace
+}  // namespace vh::haptics

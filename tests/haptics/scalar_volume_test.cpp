@@ -1,0 +1,130 @@
+#include "vh/haptics/scalar_volume.h"
+
+#include <cstdint>
+#include <random>
+
+#include <Eigen/Geometry>
+#include <gtest/gtest.h>
+
+#include "vh/datasets/synthetic.h"
+
+namespace vh::haptics {
+namespace {
+
+VolumeGeometry rotatedGeometry() {
+  VolumeGeometry g;
+  g.dims = {12, 10, 8};
+  g.spacing_m = {0.5e-3, 0.8e-3, 2e-3};
+  g.origin_W_m = {0.01, -0.02, 0.005};
+  g.direction_W = Eigen::AngleAxisd(0.4, Eigen::Vector3d(1, 2, 3).normalized()).toRotationMatrix();
+  return g;
+}
+
+// F(i,j,k) = a + b.(i,j,k) in raw units; trilinear interpolation reproduces it exactly.
+template <typename T>
+ScalarVolume linearVolume(const VolumeGeometry& g, double a, const Eigen::Vector3d& b) {
+  std::vector<T> v(g.voxelCount());
+  std::size_t idx = 0;
+  for (int k = 0; k < g.dims[2]; ++k)
+    for (int j = 0; j < g.dims[1]; ++j)
+      for (int i = 0; i < g.dims[0]; ++i) v[idx++] = static_cast<T>(a + b.dot(Eigen::Vector3d(i, j, k)));
+  return ScalarVolume::FromVoxels(g, v, 2.0, -5.0);
+}
+
+template <typename T>
+void expectExactOnLinearField() {
+  const VolumeGeometry g = rotatedGeometry();
+  const Eigen::Vector3d b(3, 2, 5);  // integer steps so every voxel type stores them exactly
+  const ScalarVolume vol = linearVolume<T>(g, 10.0, b);
+  std::mt19937 rng(7);
+  std::uniform_real_distribution<double> u(1.05, 5.95);  // gradient samples stay inside the grid
+  const Eigen::Matrix3d A = g.direction_W * g.spacing_m.asDiagonal();
+  for (int n = 0; n < 200; ++n) {
+    const Eigen::Vector3d ijk(u(rng), u(rng), u(rng));
+    const Eigen::Vector3d p = g.origin_W_m + A * ijk;
+    const double expected = 2.0 * (10.0 + b.dot(ijk)) - 5.0;
+    EXPECT_NEAR(vol.sample(p), expected, 1e-9 * std::abs(expected)) << voxelTypeName(vol.voxelType());
+    // The gradient of F = 2 b.(A^-1 (p - o)) is 2 A^-T b, exactly (central differences of a
+    // linear field are exact).
+    const Eigen::Vector3d grad = 2.0 * A.inverse().transpose() * b;
+    EXPECT_LT((vol.gradient(p) - grad).norm(), 1e-9 * grad.norm());
+  }
+}
+
+TEST(ScalarVolume, TrilinearIsExactOnLinearFieldsForEveryVoxelType) {
+  expectExactOnLinearField<std::uint8_t>();
+  expectExactOnLinearField<std::int16_t>();
+  expectExactOnLinearField<std::uint16_t>();
+  expectExactOnLinearField<float>();
+}
+
+TEST(ScalarVolume, GradientMatchesFiniteDifferencesOfTheField) {
+  // A smooth non-linear field: the central difference with delta = spacing must agree with a
+  // fine finite difference of the trilinear field to first order in the spacing.
+  datasets::GridSpec grid;
+  grid.dims = {48, 48, 48};
+  grid.spacing_m = Eigen::Vector3d::Constant(0.5e-3);
+  const ScalarVolume vol = datasets::makeSphereVolume(grid, Eigen::Vector3d::Zero(), 0.008);
+  std::mt19937 rng(3);
+  std::normal_distribution<double> nd;
+  for (int n = 0; n < 100; ++n) {
+    Eigen::Vector3d dir(nd(rng), nd(rng), nd(rng));
+    dir.normalize();
+    const Eigen::Vector3d p = dir * (0.004 + 0.006 * (n % 10) / 10.0);
+    const Eigen::Vector3d g = vol.gradient(p);
+    // F = 1000 (R - |p|) [mm units]: gradient -1000 * p/|p| per metre... in mm per m.
+    EXPECT_NEAR(g.norm(), 1000.0, 40.0);
+    EXPECT_GT(g.normalized().dot(-dir), 0.995);
+  }
+}
+
+TEST(ScalarVolume, InsideOnlyWhereFExceedsTheIsovalueAndNeverOutsideTheGrid) {
+  const ScalarVolume vol = datasets::makePlaneVolume([] {
+    datasets::GridSpec g;
+    g.dims = {16, 16, 16};
+    return g;
+  }(), Eigen::Vector3d::UnitZ(), 0.0);
+  EXPECT_TRUE(vol.isInside(Eigen::Vector3d(0, 0, -0.001), 0.0));
+  EXPECT_FALSE(vol.isInside(Eigen::Vector3d(0, 0, 0.001), 0.0));
+  EXPECT_FALSE(vol.isInside(Eigen::Vector3d(0, 0, 1e-6), 0.0));
+  EXPECT_TRUE(vol.isInside(Eigen::Vector3d(0, 0, 0.002), -2.5));  // the isovalue moves the surface
+  // Below the plane but outside the grid: empty, whatever the isovalue.
+  EXPECT_FALSE(vol.isInside(Eigen::Vector3d(0.5, 0, -0.001), -1e9));
+  EXPECT_FALSE(vol.isInside(Eigen::Vector3d(0, 0, -0.1), -1e9));
+  EXPECT_DOUBLE_EQ(vol.featureSize_m(), 0.5e-3);
+}
+
+TEST(ScalarVolume, RejectsBadGeometryWithAClearMessage) {
+  VolumeGeometry g;
+  g.dims = {4, 4, 4};
+  std::vector<float> v(63);
+  try {
+    ScalarVolume::FromVoxels(g, v);
+    FAIL() << "expected a size mismatch";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("expected 256"), std::string::npos) << e.what();
+  }
+  v.resize(64);
+  g.spacing_m.x() = 0.0;
+  EXPECT_THROW(ScalarVolume::FromVoxels(g, v), std::invalid_argument);
+  g.spacing_m.x() = 1e-3;
+  g.dims = {1, 8, 8};
+  EXPECT_THROW(ScalarVolume::FromVoxels(g, v), std::invalid_argument);
+  g.dims = {4, 4, 4};
+  v[5] = std::numeric_limits<float>::quiet_NaN();
+  EXPECT_THROW(ScalarVolume::FromVoxels(g, v), std::invalid_argument);
+}
+
+TEST(ScalarVolume, BoundsCoverTheRotatedGrid) {
+  const VolumeGeometry g = rotatedGeometry();
+  const ScalarVolume vol = linearVolume<float>(g, 0.0, Eigen::Vector3d(1, 1, 1));
+  const Eigen::Matrix3d A = g.direction_W * g.spacing_m.asDiagonal();
+  const Eigen::Vector3d far_corner = g.origin_W_m + A * Eigen::Vector3d(11, 9, 7);
+  EXPECT_TRUE((far_corner.array() <= vol.boundsMax_W_m().array() + 1e-12).all());
+  EXPECT_TRUE((g.origin_W_m.array() >= vol.boundsMin_W_m().array() - 1e-12).all());
+  EXPECT_TRUE(vol.inBounds(g.origin_W_m + A * Eigen::Vector3d(5, 5, 5)));
+  EXPECT_FALSE(vol.inBounds(g.origin_W_m + A * Eigen::Vector3d(-0.1, 5, 5)));
+}
+
+}  // namespace
+}  // namespace vh::haptics
