@@ -49,6 +49,12 @@ struct LoadedVolume {
 /// to HU, oriented from Image Orientation (Patient)).
 /// @throws LoadError naming the file and the problem: missing path, not a volume, corrupt or
 ///         truncated file, inconsistent slices.
+/// Geometry: W is the file's patient frame (DICOM / NRRD patient LPS; NRRD RAS/LAS converted to
+/// LPS) in metres; lengths without units are millimetres. Voxels are kept as stored (uint8,
+/// int16, uint16, float32; other types converted to int16 / uint16 when their range fits, else
+/// float32), with a uniform DICOM rescale as the field's value_scale / value_offset.
+/// VTK's own error text during the load becomes the LoadError instead of console output.
+/// May be called from any thread (one load per thread at a time).
 LoadedVolume loadVolume(const std::filesystem::path& path);
 
 /// Loads a triangle mesh (STL, OBJ, PLY), triangulated, coordinates multiplied by `scale_to_m`.
@@ -58,5 +64,13 @@ haptics::TriangleMesh loadMesh(const std::filesystem::path& path, double scale_t
 /// A vtkImageData (metres, no direction) over the voxels of a field, e.g. for synthetic
 /// volumes; values in data units.
 vtkSmartPointer<vtkImageData> imageFromField(const haptics::ScalarVolume& field);
+
+/// Name filter for a Qt file dialog that opens volumes, e.g.
+/// "Volumes (*.nrrd *.nhdr *.mha *.mhd *.dcm);;...". A DICOM series is opened by folder or by
+/// any one of its files.
+std::string volumeFileDialogFilter();
+
+/// Name filter for a Qt file dialog that opens tool meshes (STL, OBJ, PLY).
+std::string meshFileDialogFilter();
 
 }  // namespace vh::io

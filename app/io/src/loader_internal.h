@@ -1,0 +1,75 @@
+#pragma once
+/// @file
+/// Pieces shared by the format loaders of vh::io. Private to the library.
+
+#include <cstdint>
+#include <filesystem>
+#include <optional>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include <Eigen/Core>
+#include <vtkSmartPointer.h>
+
+#include "vh/haptics/scalar_volume.h"
+#include "vh/io/volume_loader.h"
+
+class vtkImageData;
+
+namespace vh::io::detail {
+
+namespace fs = std::filesystem;
+
+/// Throws LoadError("<path>: <problem>").
+[[noreturn]] void fail(const fs::path& path, const std::string& problem);
+
+/// A volume as a reader produced it, before conversion into the field's voxel types.
+struct RawVolume {
+  vtkSmartPointer<vtkImageData> image;  ///< Reader output; its spacing and origin are ignored.
+  haptics::VolumeGeometry geometry;     ///< Geometry in W [m].
+  double value_scale = 1.0;             ///< F = value_scale * stored + value_offset.
+  double value_offset = 0.0;
+  VolumeInfo info;
+};
+
+/// Validates `raw` (dimensions, one scalar component, voxel count), converts the voxels into a
+/// ScalarVolume (keeping uint8 / int16 / uint16 / float32 as stored, converting other types)
+/// and builds the rendering image (metres, data units).
+/// @throws LoadError naming `path`.
+LoadedVolume finishVolume(RawVolume raw, const fs::path& path);
+
+/// Format loaders. `path` exists; each throws LoadError naming the file and the problem.
+LoadedVolume loadDicom(const fs::path& path);
+LoadedVolume loadNrrd(const fs::path& path);
+LoadedVolume loadMetaImage(const fs::path& path);
+
+// --- small text and geometry helpers -------------------------------------------------------
+
+std::string trim(std::string_view s);
+std::string toLower(std::string_view s);
+/// Splits on white space.
+std::vector<std::string> splitWords(std::string_view s);
+/// Parses a finite double; nullopt when `s` is not one.
+std::optional<double> parseDouble(std::string_view s);
+/// Parses an integer; nullopt when `s` is not one.
+std::optional<long long> parseInt(std::string_view s);
+
+/// Bytes in a file, or nullopt when it cannot be stat'ed.
+std::optional<std::uintmax_t> fileSize(const fs::path& path);
+
+/// Splits a 3 x 3 matrix whose columns are the grid axes scaled by the voxel size (any length
+/// unit) into unit directions and spacings, both returned through the out parameters.
+/// @throws LoadError naming `path` when an axis has zero length or the axes are not orthogonal
+///         (sheared grids are not supported).
+void splitAxes(const Eigen::Matrix3d& axes, const fs::path& path, Eigen::Matrix3d& direction_W,
+               Eigen::Vector3d& spacing);
+
+/// Factor from a length unit name ("mm", "m", "cm", "um", "micron", "µm") to metres; nullopt
+/// for an unknown name. An empty name means millimetres.
+std::optional<double> lengthUnitToMetres(std::string_view unit);
+
+/// "64x64x93"
+std::string dimsString(const std::array<int, 3>& dims);
+
+}  // namespace vh::io::detail

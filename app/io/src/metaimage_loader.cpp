@@ -1,0 +1,198 @@
+// MetaImage (.mha / .mhd) loading.
+//
+// vtkMetaImageReader reads the voxels. It ignores TransformMatrix (the axes' directions), and a
+// short uncompressed data file gives it garbage, so the text header is parsed here as well for
+// the directions and for a size check before VTK reads the data.
+#include <fstream>
+#include <map>
+
+#include <Eigen/Core>
+#include <vtkDataArray.h>
+#include <vtkImageData.h>
+#include <vtkMetaImageReader.h>
+#include <vtkPointData.h>
+#include <vtkSmartPointer.h>
+
+#include "loader_internal.h"
+#include "vtk_error_capture.h"
+
+namespace vh::io::detail {
+namespace {
+
+struct MetaHeader {
+  std::map<std::string, std::string> fields;  // key as written -> trimmed value
+  std::uintmax_t header_bytes = 0;            // offset after the ElementDataFile line
+};
+
+MetaHeader readHeader(const fs::path& path) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in) fail(path, "cannot be opened for reading");
+  MetaHeader h;
+  std::string line;
+  std::uintmax_t offset = 0;
+  std::size_t line_no = 0;
+  while (std::getline(in, line)) {
+    ++line_no;
+    offset += line.size() + (in.eof() ? 0 : 1);
+    if (line.size() > (1u << 16) || line_no > 10000) fail(path, "malformed MetaImage header");
+    if (!line.empty() && line.back() == '\r') line.pop_back();
+    if (trim(line).empty()) continue;
+    const auto eq = line.find('=');
+    if (eq == std::string::npos) {
+      fail(path, "malformed MetaImage header line " + std::to_string(line_no) + ": \"" + line +
+                     "\"");
+    }
+    const std::string key = trim(line.substr(0, eq));
+    h.fields[key] = trim(line.substr(eq + 1));
+    if (key == "ElementDataFile") {
+      h.header_bytes = offset;
+      return h;
+    }
+  }
+  fail(path, "MetaImage header has no ElementDataFile entry (not a MetaImage, or truncated)");
+}
+
+std::string get(const MetaHeader& h, const std::string& key) {
+  const auto it = h.fields.find(key);
+  return it == h.fields.end() ? std::string() : it->second;
+}
+
+std::size_t metaTypeSize(const std::string& t) {
+  static const std::map<std::string, std::size_t> kSizes = {
+      {"MET_CHAR", 1},  {"MET_UCHAR", 1}, {"MET_SHORT", 2},     {"MET_USHORT", 2},
+      {"MET_INT", 4},   {"MET_UINT", 4},  {"MET_LONG", 4},      {"MET_ULONG", 4},
+      {"MET_LONG_LONG", 8}, {"MET_ULONG_LONG", 8}, {"MET_FLOAT", 4}, {"MET_DOUBLE", 8}};
+  const auto it = kSizes.find(t);
+  return it == kSizes.end() ? 0 : it->second;
+}
+
+std::vector<double> numbers(const std::string& value, const fs::path& path,
+                            const std::string& key) {
+  std::vector<double> out;
+  for (const auto& w : splitWords(value)) {
+    const auto d = parseDouble(w);
+    if (!d) fail(path, "MetaImage " + key + " has a non-numeric value: \"" + value + "\"");
+    out.push_back(*d);
+  }
+  return out;
+}
+
+bool isTrue(const std::string& v) {
+  const std::string t = toLower(v);
+  return t == "true" || t == "1" || t == "yes";
+}
+
+}  // namespace
+
+LoadedVolume loadMetaImage(const fs::path& path) {
+  const MetaHeader h = readHeader(path);
+  const auto ndims = parseInt(get(h, "NDims"));
+  if (!ndims) fail(path, "MetaImage header has no valid NDims");
+  if (*ndims != 3) {
+    fail(path, "is a " + std::to_string(*ndims) +
+                   "-D MetaImage; only 3-D scalar volumes are supported");
+  }
+  const auto dim_size = numbers(get(h, "DimSize"), path, "DimSize");
+  if (dim_size.size() != 3) fail(path, "MetaImage DimSize must list 3 sizes");
+  std::uintmax_t voxel_count = 1;
+  for (double d : dim_size) {
+    if (!(d >= 1.0)) fail(path, "MetaImage DimSize has an invalid size");
+    voxel_count *= static_cast<std::uintmax_t>(d);
+  }
+  const std::string type = get(h, "ElementType");
+  const std::size_t type_size = metaTypeSize(type);
+  if (type_size == 0) fail(path, "unsupported MetaImage ElementType \"" + type + "\"");
+  const auto channels = parseInt(get(h, "ElementNumberOfChannels")).value_or(1);
+  if (channels != 1) {
+    fail(path, "has " + std::to_string(channels) +
+                   " channels per voxel; only scalar volumes are supported");
+  }
+
+  // Size check for an uncompressed single data file (attached "LOCAL" or detached).
+  const std::string data_file = get(h, "ElementDataFile");
+  const bool compressed = isTrue(get(h, "CompressedData"));
+  const bool list = data_file == "LIST" || data_file.find('%') != std::string::npos;
+  if (!list) {
+    const bool local = data_file == "LOCAL" || data_file == "Local" || data_file == "local";
+    fs::path file = local ? path : fs::path(data_file);
+    if (!local && file.is_relative()) file = path.parent_path() / file;
+    const auto size = fileSize(file);
+    if (!size) fail(path, "data file " + file.string() + " is missing");
+    std::uintmax_t start = local ? h.header_bytes : 0;
+    const long long header_size = parseInt(get(h, "HeaderSize")).value_or(0);
+    if (header_size > 0) start += static_cast<std::uintmax_t>(header_size);
+    const std::uintmax_t available = *size > start ? *size - start : 0;
+    if (!compressed) {
+      const std::uintmax_t expected = voxel_count * type_size;
+      if (available < expected) {
+        fail(path, "truncated: expected " + std::to_string(expected) +
+                       " bytes of voxel data" +
+                       (local ? std::string() : " in " + file.filename().string()) + ", found " +
+                       std::to_string(available));
+      }
+    } else if (const auto csize = parseInt(get(h, "CompressedDataSize"));
+               csize && static_cast<std::uintmax_t>(*csize) > available) {
+      fail(path, "truncated: expected " + std::to_string(*csize) +
+                     " bytes of compressed voxel data, found " + std::to_string(available));
+    }
+  }
+
+  VtkErrorCapture capture;
+  auto reader = vtkSmartPointer<vtkMetaImageReader>::New();
+  capture.watch(reader);
+  reader->SetFileName(path.string().c_str());
+  reader->Update();
+  if (capture.hasErrors()) {
+    fail(path, "voxel data could not be read (" + capture.firstError() + ")");
+  }
+  vtkImageData* out = reader->GetOutput();
+  if (out == nullptr || out->GetPointData()->GetScalars() == nullptr) {
+    fail(path, "no voxel data was read");
+  }
+
+  // Geometry: MetaImage coordinates are millimetres in the file's world frame (patient LPS for
+  // files written by ITK). TransformMatrix rows are the grid axes' directions.
+  std::vector<double> spacing = numbers(get(h, "ElementSpacing"), path, "ElementSpacing");
+  if (spacing.empty()) spacing = numbers(get(h, "ElementSize"), path, "ElementSize");
+  if (spacing.empty()) spacing = {1.0, 1.0, 1.0};
+  if (spacing.size() != 3) fail(path, "MetaImage ElementSpacing must list 3 values");
+  std::vector<double> origin;
+  for (const char* key : {"Offset", "Position", "Origin"}) {
+    origin = numbers(get(h, key), path, key);
+    if (!origin.empty()) break;
+  }
+  if (origin.empty()) origin = {0.0, 0.0, 0.0};
+  if (origin.size() != 3) fail(path, "MetaImage Offset must list 3 values");
+  std::vector<double> matrix;
+  for (const char* key : {"TransformMatrix", "Rotation", "Orientation"}) {
+    matrix = numbers(get(h, key), path, key);
+    if (!matrix.empty()) break;
+  }
+  Eigen::Matrix3d axes = Eigen::Matrix3d::Identity();
+  if (!matrix.empty()) {
+    if (matrix.size() != 9) fail(path, "MetaImage TransformMatrix must hold 9 values");
+    for (int c = 0; c < 3; ++c) {
+      for (int r = 0; r < 3; ++r) axes(r, c) = matrix[static_cast<std::size_t>(3 * c + r)];
+    }
+  }
+  for (int c = 0; c < 3; ++c) axes.col(c) *= spacing[static_cast<std::size_t>(c)];
+  Eigen::Matrix3d direction;
+  Eigen::Vector3d spacing_mm;
+  splitAxes(axes, path, direction, spacing_mm);
+
+  RawVolume raw;
+  raw.image = out;
+  raw.geometry.spacing_m = spacing_mm * 1e-3;
+  raw.geometry.direction_W = direction;
+  raw.geometry.origin_W_m = Eigen::Vector3d(origin[0], origin[1], origin[2]) * 1e-3;
+  raw.info.format = "MetaImage";
+  const std::string modality = get(h, "Modality");
+  if (modality.rfind("MET_MOD_", 0) == 0 && modality != "MET_MOD_UNKNOWN") {
+    raw.info.modality = modality.substr(8);
+  }
+  if (raw.info.modality == "CT") raw.info.value_unit = "HU";
+  raw.info.description = path.filename().string();
+  return finishVolume(std::move(raw), path);
+}
+
+}  // namespace vh::io::detail
