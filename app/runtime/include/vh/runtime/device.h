@@ -3,12 +3,14 @@
 /// Devices as the servo loop sees them: one complete sample per read, a force/torque command.
 
 #include <atomic>
+#include <cstdint>
 #include <string>
 #include <vector>
 
 #include <Eigen/Core>
 
 #include "vh/haptics/pose.h"
+#include "vh/runtime/trajectory.h"
 #include "vh/runtime/triple_buffer.h"
 
 namespace vh::runtime {
@@ -33,6 +35,13 @@ class Device {
   virtual void command(const Eigen::Vector3d& force_W_N, const Eigen::Vector3d& torque_W_Nm) noexcept = 0;
 };
 
+/// The last force/torque command sent to a device (on the user's hand, in W).
+struct DeviceCommand {
+  Eigen::Vector3d force_W_N = Eigen::Vector3d::Zero();    ///< Force [N] in W.
+  Eigen::Vector3d torque_W_Nm = Eigen::Vector3d::Zero();  ///< Torque [N*m] in W.
+  std::uint64_t count = 0;                                ///< Commands received so far.
+};
+
 /// A device driven by the GUI (mouse and keyboard): the GUI thread sets the target pose, the
 /// servo thread reads it. Forces are recorded (last command) but go nowhere.
 class SimulatedDevice final : public Device {
@@ -45,12 +54,52 @@ class SimulatedDevice final : public Device {
   haptics::Pose pose() const noexcept;
   bool read(DeviceSample& sample) noexcept override;
   void command(const Eigen::Vector3d& force_W_N, const Eigen::Vector3d& torque_W_Nm) noexcept override;
+  /// One consumer thread (e.g. the GUI or a test): the latest command the servo thread sent.
+  /// @return true when it is newer than the last call's.
+  bool lastCommand(DeviceCommand& out) noexcept { return commands_.read(out); }
 
  private:
   TripleBuffer<haptics::Pose> poses_;
+  TripleBuffer<DeviceCommand> commands_;  // servo thread -> one consumer
   haptics::Pose gui_pose_;  // GUI thread only
   haptics::Pose last_;      // servo thread only
-  double time_s_ = 0.0;     // servo thread only
+  double time_s_ = 0.0;     // servo thread only: device time [s] (steady clock since construction)
+  double t0_s_ = 0.0;       // steady clock at construction [s]
+  std::uint64_t command_count_ = 0;  // servo thread only
+};
+
+/// A device that replays a trajectory (e.g. loadTrajectoryCsv()): each read() advances the
+/// device time by a fixed step from the trajectory's start, so a replay is deterministic and
+/// independent of wall-clock jitter (one read per servo tick). Past the end it holds the last
+/// pose. Forces are recorded (last command) but go nowhere.
+class ScriptedDevice final : public Device {
+ public:
+  /// @param trajectory non-empty; @param step_s device time per read [s] (the servo period).
+  /// @throws std::invalid_argument for an empty trajectory or step_s <= 0.
+  explicit ScriptedDevice(Trajectory trajectory, double step_s = 1e-3, std::string source = {});
+  std::string name() const override;
+  /// Servo thread: the pose at t = start + reads * step_s (always valid; the last pose after
+  /// the end).
+  bool read(DeviceSample& sample) noexcept override;
+  void command(const Eigen::Vector3d& force_W_N, const Eigen::Vector3d& torque_W_Nm) noexcept override;
+  /// One consumer thread: the latest command sent. @return true when newer than the last call's.
+  bool lastCommand(DeviceCommand& out) noexcept { return commands_.read(out); }
+
+  const Trajectory& trajectory() const noexcept { return trajectory_; }
+  /// Reads served so far (any thread).
+  std::uint64_t reads() const noexcept { return reads_.load(std::memory_order_relaxed); }
+  /// True once a read's time reached the trajectory's end (any thread).
+  bool finished() const noexcept { return finished_.load(std::memory_order_acquire); }
+
+ private:
+  Trajectory trajectory_;
+  double step_s_;
+  std::string source_;
+  std::size_t cursor_ = 0;  // servo thread only
+  std::atomic<std::uint64_t> reads_{0};
+  std::atomic<bool> finished_{false};
+  TripleBuffer<DeviceCommand> commands_;
+  std::uint64_t command_count_ = 0;  // servo thread only
 };
 
 }  // namespace vh::runtime

@@ -54,6 +54,11 @@ class HapticThread {
   /// Ramps the force to zero over ~50 ms, then joins the thread.
   void stop();
   bool running() const noexcept { return running_.load(std::memory_order_acquire); }
+  /// After the loop started: whether it got SCHED_FIFO (else it runs under SCHED_OTHER with a
+  /// 1 ns timer slack) and locked its memory (mlockall; undone when the loop ends).
+  bool realtimeScheduling() const noexcept { return fifo_.load(std::memory_order_acquire); }
+  bool memoryLocked() const noexcept { return memory_locked_.load(std::memory_order_acquire); }
+  double servoRate_Hz() const noexcept { return 1.0 / period_s_; }
 
   /// Applied at the start of the next tick.
   void setIsovalue(double isovalue) noexcept { isovalue_.store(isovalue, std::memory_order_relaxed); }
@@ -75,6 +80,8 @@ class HapticThread {
   std::atomic<bool> gains_dirty_{false};
   std::atomic<bool> stop_requested_{false};
   std::atomic<bool> running_{false};
+  std::atomic<bool> fifo_{false};
+  std::atomic<bool> memory_locked_{false};
   TripleBuffer<HapticSnapshot> snapshots_;
   std::thread thread_;
 };

@@ -12,15 +12,28 @@
 ///   "coupling": {"linear_N_per_m": 2000, "angular_Nm_per_rad": 2.0},
 ///   "device": {"kind": "simulated"}               // or "scripted" with "trajectory": "T.csv"
 /// }
-/// Relative paths resolve against the scene file's folder, then the shared datasets folder.
+/// Relative paths resolve against the scene file's folder, then the shared datasets folder, then
+/// the build's generated data folder (which mirrors the shared layout for unpacked archives, e.g.
+/// "classic/ct-bunny/bunny.nhdr" from classic/ct-bunny.tar.zst).
 /// Tool meshes may also be "builtin:peg", "builtin:probe", "builtin:drill" (see vh::datasets).
+/// Volumes may be "builtin:block-with-hole", "builtin:plane", "builtin:sphere", "builtin:thin-plate".
+/// Optional keys: a top-level "description" (text, ignored); "initial_pose" may give only
+/// "q_wxyz" (the tool keeps that orientation and is placed automatically). Every other key is
+/// an error (typos are caught), as are unreadable or missing referenced files.
 
 #include <filesystem>
+#include <memory>
 #include <optional>
 #include <string>
 
+#include <vtkImageData.h>  // complete type: LoadedScene copies io::LoadedVolume's image pointer
+
 #include "vh/haptics/haptic_renderer.h"
 #include "vh/haptics/pose.h"
+#include "vh/haptics/tool_model.h"
+#include "vh/io/volume_loader.h"
+#include "vh/runtime/device.h"
+#include "vh/runtime/haptic_thread.h"
 
 namespace vh::runtime {
 
@@ -37,6 +50,9 @@ struct ToolSpec {
   std::size_t point_count = 0;         ///< Point count; 0 with spacing 0 = an automatic spacing.
   haptics::Pose X_WT_initial;          ///< Initial proxy/device pose in W [m].
   bool initial_pose_set = false;       ///< False: placed above the volume's centre.
+  /// Only the orientation of X_WT_initial was given ("initial_pose": {"q_wxyz": [...]}): the
+  /// tool keeps it and is placed above the volume's centre (initial_pose_set stays false).
+  bool initial_orientation_set = false;
 };
 
 struct DeviceSpec {
@@ -58,6 +74,23 @@ struct SceneSpec {
 ///         missing or mistyped field).
 SceneSpec loadSceneFile(const std::filesystem::path& path);
 
+/// Parses scene JSON text ('//' and '/* */' comments allowed). Unknown keys are errors (they are
+/// usually typos). Relative paths resolve against `base_dir`, then sharedDatasetsDir(), then
+/// generatedDataDir(); a referenced file or folder found in none of them is an error.
+/// @param source names the scene in error messages ("FILE: problem").
+/// @throws std::runtime_error "SOURCE: problem", e.g. "s.json: volume.isovalue: expected a
+///         number, found string".
+SceneSpec parseScene(const std::string& json_text, const std::string& source,
+                     const std::filesystem::path& base_dir);
+
+/// The folder of the real shared datasets: $VH_SHARED_DATASETS_DIR when set, else the folder
+/// configured at build time (CMake cache VH_SHARED_DATASETS_DIR).
+std::filesystem::path sharedDatasetsDir();
+
+/// The build's generated data folder (synthetic volumes, unpacked archives):
+/// $VH_GENERATED_DATA_DIR when set, else the build tree's data/ folder configured at build time.
+std::filesystem::path generatedDataDir();
+
 /// The built-in scene: the paper's 256^3 block with a hole and a peg that fits it, simulated
 /// device.
 SceneSpec builtinBlockWithHoleScene();
@@ -65,5 +98,38 @@ SceneSpec builtinBlockWithHoleScene();
 /// A scene for a volume path (DICOM folder, NRRD, MetaImage) with the default tool and a
 /// simulated device.
 SceneSpec sceneForVolume(const std::filesystem::path& volume_path);
+
+/// A scene with everything loaded: the volume (haptic field + VTK image), the tool (resampled
+/// point shell, mass properties, display mesh), the isovalue and the initial pose. Constant;
+/// makes the renderer, device and haptic thread it describes.
+struct LoadedScene {
+  SceneSpec spec;
+  io::LoadedVolume volume;                        ///< Field and image in W [m].
+  std::shared_ptr<const haptics::ToolModel> tool; ///< Tool in its frame T [m].
+  double isovalue = 0.0;                          ///< Isovalue s in the data's units.
+  haptics::Pose X_WT_initial;                     ///< Initial proxy and device pose in W [m].
+  int initial_points_inside = 0;  ///< Shell points inside F = s at X_WT_initial (0 normally).
+
+  /// A renderer for this scene at X_WT_initial (gains from the spec; epsilon as `options`).
+  /// @throws std::invalid_argument as HapticRenderer's constructor.
+  std::unique_ptr<haptics::HapticRenderer> makeRenderer(haptics::RendererOptions options = {}) const;
+  /// The scene's device (SimulatedDevice at X_WT_initial, or ScriptedDevice stepping one servo
+  /// period per read), or nullptr when the scene has no device section.
+  /// @throws std::runtime_error for an unreadable trajectory (naming the file and line).
+  std::shared_ptr<Device> makeDevice(double servo_rate_Hz = 1000.0) const;
+  /// A haptic thread (not started) driving `device` with a new renderer.
+  std::unique_ptr<HapticThread> makeHapticThread(std::shared_ptr<Device> device,
+                                                 double servo_rate_Hz = 1000.0) const;
+};
+
+/// Loads what a scene names: the volume (io::loadVolume, or vh::datasets for "builtin:NAME"),
+/// the tool mesh (io::loadMesh scaled by scale_to_m, or a built-in tool) resampled into a point
+/// shell (point_count, else point_spacing_m, else a spacing giving about 1000 points but not
+/// below half a voxel), the isovalue (the spec's; else the built-in volume's; else midway
+/// between the field's minimum and maximum) and the initial pose (the spec's; else
+/// defaultInitialPose(): above the volume's centre, lowered to a clearance above the surface).
+/// @throws io::LoadError for volume/mesh files that fail to load; std::runtime_error naming the
+///         scene for unknown built-ins or an unusable tool.
+LoadedScene loadScene(const SceneSpec& spec);
 
 }  // namespace vh::runtime

@@ -1,0 +1,170 @@
+// volume-haptics: the application.
+//
+//   volume-haptics [PATH] [--screenshot PNG] [--isovalue V] ...     the GUI (vh::ui)
+//   volume-haptics run --scene S.json --trajectory T.csv [--report R.json] [--check]
+//   volume-haptics make-trajectory --scene S.json --out T.csv [...]
+//
+// PATH is a DICOM folder, a NRRD / MetaImage file or a scene .json; without it the built-in
+// block-with-hole scene opens. `run` and `make-trajectory` are headless: they never create Qt
+// objects (the QApplication is created inside vh::ui::runApplication) and need no display.
+
+#include <cctype>
+#include <cstdlib>
+#include <exception>
+#include <filesystem>
+#include <iostream>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include <CLI/CLI.hpp>
+
+#include "vh/runtime/placement.h"
+#include "vh/runtime/runner.h"
+#include "vh/runtime/scene.h"
+#include "vh/runtime/trajectory.h"
+#include "vh/ui/application.h"
+
+namespace fs = std::filesystem;
+
+namespace {
+
+constexpr int kExitError = 1;
+constexpr int kExitCheckFailed = 3;
+
+/// The scene for the GUI's optional positional argument.
+vh::runtime::SceneSpec sceneForPath(const std::string& input) {
+  if (input.empty()) return vh::runtime::builtinBlockWithHoleScene();
+  const fs::path path(input);
+  std::error_code ec;
+  if (!fs::exists(path, ec)) throw std::runtime_error(input + ": no such file or folder");
+  std::string ext = path.extension().string();
+  for (char& c : ext) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+  if (ext == ".json") return vh::runtime::loadSceneFile(path);
+  return vh::runtime::sceneForVolume(path);
+}
+
+Eigen::Vector3d toVector(const std::vector<double>& v, const char* option) {
+  if (v.size() != 3) throw std::runtime_error(std::string(option) + ": expected 3 numbers");
+  return {v[0], v[1], v[2]};
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  CLI::App app{"VolumeHaptics: feel the isosurfaces of CT/MR volumes with a 6-DOF haptic tool "
+               "(Chan et al., WHC 2011)."};
+  app.require_subcommand(0, 1);
+
+  // ---- GUI (default) ----
+  std::string gui_input;
+  vh::ui::AppOptions gui;
+  std::string screenshot;
+  std::optional<double> gui_isovalue;
+  app.add_option("path", gui_input,
+                 "DICOM folder, NRRD (.nrrd/.nhdr) or MetaImage (.mha/.mhd) file, or scene .json "
+                 "(default: the built-in block with a hole and a peg)");
+  app.add_option("--screenshot", screenshot, "Save a PNG of the window after loading, then quit");
+  app.add_option("--screenshot-delay-ms", gui.screenshot_delay_ms, "Time from showing the window to the screenshot [ms]")
+      ->check(CLI::NonNegativeNumber);
+  app.add_option("--isovalue", gui_isovalue, "Initial isovalue in the data's units (HU for CT)");
+  app.add_flag("--touch", gui.touch, "Move the simulated device onto the surface along the view direction after load");
+  app.add_option("--touch-depth-m", gui.touch_depth_m, "How far past the surface --touch goes [m]")
+      ->check(CLI::NonNegativeNumber);
+  app.add_option("--width", gui.window_width, "Window width [logical pixels]")->check(CLI::PositiveNumber);
+  app.add_option("--height", gui.window_height, "Window height [logical pixels]")->check(CLI::PositiveNumber);
+
+  // ---- run ----
+  CLI::App* run = app.add_subcommand("run", "Headless: replay a device trajectory through the renderer and "
+                                            "report timing, contacts and penetration (no display needed)");
+  std::string run_scene, run_trajectory, run_report;
+  std::optional<double> run_isovalue;
+  bool run_check = false;
+  run->add_option("--scene", run_scene, "Scene .json (its device section is ignored)")->required();
+  run->add_option("--trajectory", run_trajectory, "Trajectory CSV: t_s,x_m,y_m,z_m,qw,qx,qy,qz")->required();
+  run->add_option("--report", run_report, "Write the JSON report here");
+  run->add_option("--isovalue", run_isovalue, "Override the scene's isovalue");
+  std::string run_trace;
+  run->add_option("--trace", run_trace, "Also write one CSV row per tick (poses, force, contacts, time, depth)");
+  run->add_flag("--check", run_check,
+                "Exit with 3 when the proxy penetrated deeper than epsilon or a tick produced a non-finite value");
+
+  // ---- make-trajectory ----
+  CLI::App* make = app.add_subcommand(
+      "make-trajectory",
+      "Headless: cast the scene's tool down onto the surface and write a push-and-slide trajectory CSV");
+  std::string make_scene, make_out;
+  std::optional<double> make_isovalue;
+  vh::runtime::PushSlideOptions push;
+  std::vector<double> approach_dir, slide_dir, ray_start;
+  make->add_option("--scene", make_scene, "Scene .json")->required();
+  make->add_option("--out", make_out, "Trajectory CSV to write")->required();
+  make->add_option("--isovalue", make_isovalue, "Override the scene's isovalue");
+  make->add_option("--ray-start", ray_start,
+                   "Tool origin where the ray starts, x y z in W [m] (default: above the volume's centre)")
+      ->expected(3);
+  make->add_option("--approach-dir", approach_dir, "Push direction x y z in W (default 0 0 -1)")->expected(3);
+  make->add_option("--slide-dir", slide_dir, "Slide direction x y z in W (default: perpendicular axis)")->expected(3);
+  make->add_option("--clearance-m", push.start_clearance_m, "Start this far before the first contact [m]");
+  make->add_option("--push-depth-m", push.push_depth_m, "Push the device this far past the contact [m]");
+  make->add_option("--slide-m", push.slide_m, "Slide this far tangentially [m]");
+  make->add_option("--slide-rotation-rad", push.slide_rotation_rad, "Rotate this much while sliding [rad]");
+
+  try {
+    app.parse(argc, argv);
+  } catch (const CLI::ParseError& e) {
+    return app.exit(e);
+  }
+
+  try {
+    if (*run) {
+      vh::runtime::SceneSpec spec = vh::runtime::loadSceneFile(run_scene);
+      if (run_isovalue) {
+        spec.volume.isovalue = *run_isovalue;
+        spec.volume.isovalue_set = true;
+      }
+      vh::runtime::RunOptions run_options;
+      run_options.trace_csv = run_trace;
+      const vh::runtime::RunReport report = vh::runtime::runHeadless(spec, run_trajectory, run_options);
+      if (!run_report.empty()) vh::runtime::writeRunReport(report, run_report);
+      std::cout << "volume-haptics run: " << report.summary() << std::endl;
+      if (run_check && (report.max_penetration_m > report.epsilon_m || report.nan_ticks > 0)) {
+        std::cerr << "volume-haptics run: check failed: penetration " << report.max_penetration_m * 1e3
+                  << " mm (epsilon " << report.epsilon_m * 1e3 << " mm), non-finite ticks " << report.nan_ticks
+                  << std::endl;
+        return kExitCheckFailed;
+      }
+      return EXIT_SUCCESS;
+    }
+
+    if (*make) {
+      vh::runtime::SceneSpec spec = vh::runtime::loadSceneFile(make_scene);
+      if (make_isovalue) {
+        spec.volume.isovalue = *make_isovalue;
+        spec.volume.isovalue_set = true;
+      }
+      const vh::runtime::LoadedScene scene = vh::runtime::loadScene(spec);
+      if (!approach_dir.empty()) push.approach_dir_W = toVector(approach_dir, "--approach-dir");
+      if (!slide_dir.empty()) push.slide_dir_W = toVector(slide_dir, "--slide-dir");
+      vh::haptics::Pose start = vh::runtime::poseAboveVolume(*scene.volume.field, scene.tool->point_shell,
+                                                             scene.X_WT_initial.R_AB, 0.01);
+      if (!ray_start.empty()) start.p_AB_m = toVector(ray_start, "--ray-start");
+      const vh::runtime::PushSlidePlan plan = vh::runtime::makePushSlideTrajectory(
+          *scene.volume.field, scene.tool->point_shell, scene.isovalue, start, push);
+      vh::runtime::writeTrajectoryCsv(plan.trajectory, make_out);
+      std::cout << "volume-haptics make-trajectory: first contact at (" << plan.X_WD_contact.p_AB_m.transpose()
+                << ") m; " << plan.trajectory.size() << " key poses over " << plan.trajectory.duration_s()
+                << " s written to " << make_out << std::endl;
+      return EXIT_SUCCESS;
+    }
+
+    // GUI.
+    const vh::runtime::SceneSpec scene = sceneForPath(gui_input);
+    gui.screenshot = screenshot;
+    gui.isovalue = gui_isovalue;
+    return vh::ui::runApplication(argc, argv, scene, gui);
+  } catch (const std::exception& e) {
+    std::cerr << "volume-haptics: error: " << e.what() << std::endl;
+    return kExitError;
+  }
+}

@@ -1,0 +1,236 @@
+#include "vh/runtime/haptic_thread.h"
+
+#include <pthread.h>
+#include <sched.h>
+#include <sys/mman.h>
+#include <sys/prctl.h>
+#include <sys/resource.h>
+#include <time.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <cerrno>
+#include <cmath>
+#include <stdexcept>
+
+namespace vh::runtime {
+
+namespace {
+
+constexpr std::int64_t kNsPerS = 1'000'000'000;
+
+std::int64_t toNs(const timespec& t) noexcept { return static_cast<std::int64_t>(t.tv_sec) * kNsPerS + t.tv_nsec; }
+
+timespec fromNs(std::int64_t ns) noexcept {
+  timespec t{};
+  t.tv_sec = static_cast<time_t>(ns / kNsPerS);
+  t.tv_nsec = static_cast<long>(ns % kNsPerS);
+  return t;
+}
+
+std::int64_t monotonicNs() noexcept {
+  timespec t{};
+  clock_gettime(CLOCK_MONOTONIC, &t);
+  return toNs(t);
+}
+
+/// Best effort real-time set-up of the calling thread (devices.md, "Servo loop timing"): 1 ns
+/// timer slack, SCHED_FIFO 80 and, when that worked, mlockall. Every failure (EPERM in a
+/// container or for a normal user) silently leaves the default.
+void configureRealtime(bool& fifo, bool& locked) noexcept {
+  prctl(PR_SET_TIMERSLACK, 1UL, 0UL, 0UL, 0UL);
+  sched_param param{};
+  param.sched_priority = 80;
+  fifo = pthread_setschedparam(pthread_self(), SCHED_FIFO, &param) == 0;
+  locked = false;
+  if (!fifo) return;
+  // Lock only when the limit cannot make later allocations fail (root or unlimited).
+  rlimit limit{};
+  if (geteuid() != 0 && (getrlimit(RLIMIT_MEMLOCK, &limit) != 0 || limit.rlim_cur != RLIM_INFINITY)) return;
+#ifdef MCL_ONFAULT
+  // ONFAULT: resident pages are locked now, later ones when first touched (no pre-faulting of
+  // large reservations such as thread stacks).
+  locked = mlockall(MCL_CURRENT | MCL_FUTURE | MCL_ONFAULT) == 0;
+  if (!locked && errno == EINVAL) locked = mlockall(MCL_CURRENT | MCL_FUTURE) == 0;
+#else
+  locked = mlockall(MCL_CURRENT | MCL_FUTURE) == 0;
+#endif
+}
+
+}  // namespace
+
+HapticThread::HapticThread(std::unique_ptr<haptics::HapticRenderer> renderer, std::shared_ptr<Device> device,
+                           double isovalue, double servo_rate_Hz)
+    : renderer_(std::move(renderer)),
+      device_(std::move(device)),
+      period_s_(servo_rate_Hz > 0.0 ? 1.0 / servo_rate_Hz : 0.0),
+      isovalue_(isovalue),
+      gain_linear_(0.0),
+      gain_angular_(0.0) {
+  if (!renderer_) throw std::invalid_argument("HapticThread: no renderer");
+  if (!device_) throw std::invalid_argument("HapticThread: no device");
+  if (!(servo_rate_Hz > 0.0) || !std::isfinite(servo_rate_Hz)) {
+    throw std::invalid_argument("HapticThread: servo rate must be a positive number of Hz");
+  }
+  const haptics::CouplingGains gains = renderer_->coupling().gains();
+  gain_linear_.store(gains.linear_N_per_m);
+  gain_angular_.store(gains.angular_Nm_per_rad);
+  // Readers see the initial proxy/device pose before the first tick.
+  HapticSnapshot& first = snapshots_.writeSlot();
+  first.X_WP = renderer_->proxyPose();
+  first.X_WD = renderer_->proxyPose();
+  first.isovalue = isovalue;
+  snapshots_.publish();
+}
+
+HapticThread::~HapticThread() { stop(); }
+
+void HapticThread::setGains(const haptics::CouplingGains& gains) noexcept {
+  gain_linear_.store(gains.linear_N_per_m, std::memory_order_relaxed);
+  gain_angular_.store(gains.angular_Nm_per_rad, std::memory_order_relaxed);
+  gains_dirty_.store(true, std::memory_order_release);
+}
+
+void HapticThread::start() {
+  if (thread_.joinable()) return;
+  stop_requested_.store(false, std::memory_order_release);
+  running_.store(true, std::memory_order_release);
+  try {
+    thread_ = std::thread([this] { loop(); });
+  } catch (...) {
+    running_.store(false, std::memory_order_release);
+    throw;
+  }
+}
+
+void HapticThread::stop() {
+  if (!thread_.joinable()) return;
+  stop_requested_.store(true, std::memory_order_release);
+  thread_.join();
+}
+
+void HapticThread::loop() noexcept {
+  bool fifo = false, locked = false;
+  configureRealtime(fifo, locked);
+  fifo_.store(fifo, std::memory_order_release);
+  memory_locked_.store(locked, std::memory_order_release);
+
+  const std::int64_t period_ns = std::max<std::int64_t>(1, std::llround(period_s_ * 1e9));
+  const int ramp_ticks = std::max(1, static_cast<int>(std::lround(0.050 / period_s_)));  // ~50 ms
+  int ramp_left = -1;  // -1: not stopping
+
+  std::uint64_t tick = 0;
+  std::uint64_t deadline_misses = 0;
+  std::uint64_t bad_samples = 0;
+  // Rolling statistics over windows of one second; until the first window closes, the running
+  // window's values are published.
+  std::int64_t window_start_ns = monotonicNs();
+  std::uint64_t window_ticks = 0;
+  double window_sum_us = 0.0, window_max_us = 0.0;
+  double rate_Hz = 0.0, mean_us = 0.0, max_us = 0.0;
+  bool have_window = false;
+
+  DeviceSample sample;
+  haptics::Pose X_WD_last = renderer_->proxyPose();
+  std::int64_t next_ns = monotonicNs();
+
+  while (true) {
+    if (ramp_left < 0 && stop_requested_.load(std::memory_order_acquire)) ramp_left = ramp_ticks;
+    if (ramp_left == 0) break;
+
+    // Absolute-deadline sleep; on an overrun of more than one period count a miss and resync
+    // (no catch-up ticks).
+    next_ns += period_ns;
+    const timespec deadline = fromNs(next_ns);
+    while (clock_nanosleep(CLOCK_MONOTONIC, TIMER_ABSTIME, &deadline, nullptr) == EINTR) {
+    }
+    const std::int64_t begin_ns = monotonicNs();
+    if (begin_ns - next_ns > period_ns) {
+      ++deadline_misses;
+      next_ns = begin_ns;
+    }
+
+    // 1. Device sample.
+    const bool ok = device_->read(sample) && sample.valid;
+    // 2. Pending GUI commands.
+    if (gains_dirty_.exchange(false, std::memory_order_acq_rel)) {
+      renderer_->setGains({gain_linear_.load(std::memory_order_relaxed),
+                           gain_angular_.load(std::memory_order_relaxed)});
+    }
+    const double isovalue = isovalue_.load(std::memory_order_relaxed);
+    // 3. Render.
+    Eigen::Vector3d force_W_N = Eigen::Vector3d::Zero();
+    Eigen::Vector3d torque_W_Nm = Eigen::Vector3d::Zero();
+    if (ok) {
+      X_WD_last = sample.X_WD;
+      const haptics::TickOutput out = renderer_->tick(sample.X_WD, isovalue);
+      if (out.stats.bad_input) ++bad_samples;
+      force_W_N = out.force_W_N;
+      torque_W_Nm = out.torque_W_Nm;
+    } else {
+      ++bad_samples;  // watchdog: nothing usable from the device, no force
+    }
+    if (ramp_left > 0) {
+      --ramp_left;
+      const double scale = static_cast<double>(ramp_left) / ramp_ticks;  // reaches 0 on the last tick
+      force_W_N *= scale;
+      torque_W_Nm *= scale;
+    }
+    if (!force_W_N.allFinite() || !torque_W_Nm.allFinite()) {
+      force_W_N.setZero();
+      torque_W_Nm.setZero();
+    }
+    // 4. Command.
+    device_->command(force_W_N, torque_W_Nm);
+    ++tick;
+
+    // 5. Statistics.
+    const std::int64_t end_ns = monotonicNs();
+    const double tick_us = 1e-3 * static_cast<double>(end_ns - begin_ns);
+    ++window_ticks;
+    window_sum_us += tick_us;
+    window_max_us = std::max(window_max_us, tick_us);
+    const std::int64_t window_ns = end_ns - window_start_ns;
+    if (window_ns >= kNsPerS || !have_window) {
+      rate_Hz = window_ns > 0 ? static_cast<double>(window_ticks) * 1e9 / static_cast<double>(window_ns) : 0.0;
+      mean_us = window_sum_us / static_cast<double>(window_ticks);
+      max_us = window_max_us;
+    }
+    if (window_ns >= kNsPerS) {
+      have_window = true;
+      window_start_ns = end_ns;
+      window_ticks = 0;
+      window_sum_us = 0.0;
+      window_max_us = 0.0;
+    }
+
+    // 6. Snapshot.
+    HapticSnapshot& snap = snapshots_.writeSlot();
+    snap.tick = tick;
+    snap.X_WP = renderer_->proxyPose();
+    snap.X_WD = X_WD_last;
+    snap.force_W_N = force_W_N;
+    snap.torque_W_Nm = torque_W_Nm;
+    snap.isovalue = isovalue;
+    const auto contacts = renderer_->contacts();
+    snap.contacts = static_cast<int>(contacts.size());
+    const int shown = std::min<int>(snap.contacts, HapticSnapshot::kMaxContactsShown);
+    snap.contacts_shown = shown;
+    for (int i = 0; i < shown; ++i) {
+      snap.contact_p_W_m[static_cast<std::size_t>(i)] = contacts[static_cast<std::size_t>(i)].p_W_m;
+      snap.contact_n_W[static_cast<std::size_t>(i)] = contacts[static_cast<std::size_t>(i)].n_W;
+    }
+    snap.servo_rate_Hz = rate_Hz;
+    snap.mean_tick_us = mean_us;
+    snap.max_tick_us = max_us;
+    snap.deadline_misses = deadline_misses;
+    snap.bad_device_samples = bad_samples;
+    snapshots_.publish();
+  }
+
+  device_->command(Eigen::Vector3d::Zero(), Eigen::Vector3d::Zero());
+  if (locked) munlockall();
+  running_.store(false, std::memory_order_release);
+}
+
+}  // namespace vh::runtime

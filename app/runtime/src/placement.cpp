@@ -1,0 +1,149 @@
+#include "vh/runtime/placement.h"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+
+namespace vh::runtime {
+
+using haptics::Pose;
+
+int countPointsInside(const haptics::ScalarVolume& volume, const haptics::PointShell& shell,
+                      const Pose& X_WT, double isovalue) noexcept {
+  int count = 0;
+  for (const Eigen::Vector3d& p_T : shell.points_T_m()) {
+    if (volume.isInside(X_WT * p_T, isovalue)) ++count;
+  }
+  return count;
+}
+
+double maxPenetration_m(const haptics::ScalarVolume& volume, const haptics::PointShell& shell,
+                        const Pose& X_WT, double isovalue, int* deepest_point) noexcept {
+  const auto& g = volume.geometry();
+  const double voxel_diagonal_m = g.spacing_m.norm();
+  double deepest = 0.0;
+  int deepest_index = -1;
+  const auto& points = shell.points_T_m();
+  for (std::size_t i = 0; i < points.size(); ++i) {
+    const Eigen::Vector3d p_W = X_WT * points[i];
+    if (!volume.inBounds(p_W)) continue;
+    const double F = volume.sample(p_W);
+    if (!(F > isovalue)) continue;
+    const double grad_norm = volume.gradient(p_W).norm();
+    const double depth = grad_norm > 1e-12 ? (F - isovalue) / grad_norm : voxel_diagonal_m;
+    if (depth > deepest || deepest_index < 0) {
+      deepest = std::max(deepest, depth);
+      deepest_index = static_cast<int>(i);
+    }
+  }
+  if (deepest_point != nullptr) *deepest_point = deepest_index;
+  return deepest;
+}
+
+namespace {
+
+bool anyInside(const haptics::ScalarVolume& volume, const haptics::PointShell& shell, const Pose& X_WT,
+               double isovalue) noexcept {
+  for (const Eigen::Vector3d& p_T : shell.points_T_m()) {
+    if (volume.isInside(X_WT * p_T, isovalue)) return true;
+  }
+  return false;
+}
+
+Pose translatedBy(const Pose& X_WT, const Eigen::Vector3d& d_W_m) {
+  return {X_WT.R_AB, X_WT.p_AB_m + d_W_m};
+}
+
+}  // namespace
+
+std::optional<double> firstContactDistance(const haptics::ScalarVolume& volume,
+                                           const haptics::PointShell& shell, const Pose& X_WT_start,
+                                           const Eigen::Vector3d& dir_W, double max_distance_m,
+                                           double isovalue, double tolerance_m) {
+  const Eigen::Vector3d d = dir_W.normalized();
+  const double f = volume.featureSize_m();
+  const double tolerance = tolerance_m > 0.0 ? tolerance_m : f / 8.0;
+  if (anyInside(volume, shell, X_WT_start, isovalue)) return 0.0;
+  // Pure translation: every point moves exactly the step, at most f (section 2.3).
+  const double step = f;
+  double free_s = 0.0;
+  double hit_s = -1.0;
+  for (double s = step;; s += step) {
+    const double s_clamped = std::min(s, max_distance_m);
+    if (anyInside(volume, shell, translatedBy(X_WT_start, s_clamped * d), isovalue)) {
+      hit_s = s_clamped;
+      break;
+    }
+    free_s = s_clamped;
+    if (s_clamped >= max_distance_m) break;
+  }
+  if (hit_s < 0.0) return std::nullopt;
+  while (hit_s - free_s > tolerance) {
+    const double mid = 0.5 * (free_s + hit_s);
+    if (anyInside(volume, shell, translatedBy(X_WT_start, mid * d), isovalue)) {
+      hit_s = mid;
+    } else {
+      free_s = mid;
+    }
+  }
+  return free_s;
+}
+
+Pose poseAboveVolume(const haptics::ScalarVolume& volume, const haptics::PointShell& shell,
+                     const Eigen::Quaterniond& R_WT, double clearance_m) {
+  const Eigen::Vector3d lo = volume.boundsMin_W_m(), hi = volume.boundsMax_W_m();
+  const Eigen::Quaterniond R = R_WT.normalized();
+  // Lowest points of the rotated tool; centre the band of points near the bottom over the box.
+  double z_min = std::numeric_limits<double>::infinity(), z_max = -z_min;
+  for (const Eigen::Vector3d& p_T : shell.points_T_m()) {
+    const double z = (R * p_T).z();
+    z_min = std::min(z_min, z);
+    z_max = std::max(z_max, z);
+  }
+  Eigen::Vector3d bottom_centre = Eigen::Vector3d::Zero();
+  if (!shell.empty()) {
+    const double band = 0.01 * (z_max - z_min) + 1e-9;  // points within 1% of the height
+    int n = 0;
+    for (const Eigen::Vector3d& p_T : shell.points_T_m()) {
+      const Eigen::Vector3d p = R * p_T;
+      if (p.z() <= z_min + band) {
+        bottom_centre += p;
+        ++n;
+      }
+    }
+    bottom_centre /= std::max(n, 1);
+  } else {
+    z_min = 0.0;
+  }
+  const Eigen::Vector3d centre = 0.5 * (lo + hi);
+  Pose X_WT;
+  X_WT.R_AB = R;
+  X_WT.p_AB_m = Eigen::Vector3d(centre.x() - bottom_centre.x(), centre.y() - bottom_centre.y(),
+                                hi.z() + clearance_m - z_min);
+  return X_WT;
+}
+
+Pose defaultInitialPose(const haptics::ScalarVolume& volume, const haptics::PointShell& shell,
+                        const Eigen::Quaterniond& R_WT, double isovalue) {
+  const double f = volume.featureSize_m();
+  const Pose above = poseAboveVolume(volume, shell, R_WT, 2.0 * f);
+  const Eigen::Vector3d extent = volume.boundsMax_W_m() - volume.boundsMin_W_m();
+  double tool_height = 0.0;
+  if (!shell.empty()) {
+    double z_lo = std::numeric_limits<double>::infinity(), z_hi = -z_lo;
+    for (const Eigen::Vector3d& p_T : shell.points_T_m()) {
+      const double z = (above.R_AB * p_T).z();
+      z_lo = std::min(z_lo, z);
+      z_hi = std::max(z_hi, z);
+    }
+    tool_height = z_hi - z_lo;
+  }
+  const double max_distance = extent.z() + tool_height + 4.0 * f;
+  const auto contact = firstContactDistance(volume, shell, above, -Eigen::Vector3d::UnitZ(),
+                                            max_distance, isovalue);
+  if (!contact) return above;
+  const double back_off = std::clamp(0.1 * extent.maxCoeff(), 2.0 * f, 0.01);
+  return translatedBy(above, -std::max(0.0, *contact - back_off) * Eigen::Vector3d::UnitZ());
+}
+
+}  // namespace vh::runtime

@@ -1,0 +1,203 @@
+#include "vh/runtime/runner.h"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <fstream>
+#include <iomanip>
+#include <sstream>
+#include <stdexcept>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+
+#include "vh/runtime/device.h"
+#include "vh/runtime/placement.h"
+
+namespace vh::runtime {
+
+namespace {
+
+double percentile(std::vector<double> values, double q) {
+  if (values.empty()) return 0.0;
+  const auto k = static_cast<std::size_t>(std::clamp(std::ceil(q * static_cast<double>(values.size())) - 1.0, 0.0,
+                                                     static_cast<double>(values.size() - 1)));
+  std::nth_element(values.begin(), values.begin() + static_cast<std::ptrdiff_t>(k), values.end());
+  return values[k];
+}
+
+}  // namespace
+
+RunReport runHeadless(const LoadedScene& scene, const Trajectory& trajectory, const RunOptions& options) {
+  if (trajectory.empty()) throw std::runtime_error("runHeadless: empty trajectory");
+  if (!(options.servo_rate_Hz > 0.0)) throw std::invalid_argument("runHeadless: servo rate must be > 0");
+  const haptics::ScalarVolume& volume = *scene.volume.field;
+  const haptics::ToolModel& tool = *scene.tool;
+  const double s = scene.isovalue;
+
+  RunReport r;
+  r.scene = scene.spec.source.empty() ? std::string("builtin") : scene.spec.source.string();
+  r.volume = scene.spec.volume.path;
+  r.volume_dims = volume.geometry().dims;
+  r.volume_spacing_m = volume.geometry().spacing_m;
+  r.isovalue = s;
+  r.tool = scene.spec.tool.mesh;
+  r.point_count = tool.point_shell.size();
+  r.point_spacing_m = tool.point_shell.meanNearestNeighbourSpacing_m();
+  r.feature_size_m = volume.featureSize_m();
+  r.servo_rate_Hz = options.servo_rate_Hz;
+  r.trajectory_duration_s = trajectory.duration_s();
+
+  const haptics::Pose X_WD_first = trajectory.samples().front().X_WD;
+  r.initial_points_inside = countPointsInside(volume, tool.point_shell, X_WD_first, s);
+  haptics::RendererOptions renderer_options;
+  renderer_options.gains = scene.spec.gains;
+  haptics::HapticRenderer renderer(scene.volume.field, scene.tool, renderer_options, X_WD_first, s);
+  r.epsilon_m = renderer.epsilon_m();
+  ScriptedDevice device(trajectory, 1.0 / options.servo_rate_Hz);
+
+  const auto n = static_cast<std::uint64_t>(std::floor(trajectory.duration_s() * options.servo_rate_Hz + 1e-9)) + 1;
+  std::vector<double> times_us;
+  times_us.reserve(n);
+  std::ofstream trace;
+  if (!options.trace_csv.empty()) {
+    trace.open(options.trace_csv);
+    if (!trace) throw std::runtime_error(options.trace_csv.string() + ": cannot write the trace");
+    trace << "tick,t_s,xd_m,yd_m,zd_m,xp_m,yp_m,zp_m,fx_N,fy_N,fz_N,tx_Nm,ty_Nm,tz_Nm,contacts,exec_us,penetration_m,"
+             "qw_p,qx_p,qy_p,qz_p,time_of_contact\n"
+          << std::setprecision(9);
+  }
+  double contact_sum = 0.0, samples_sum = 0.0;
+  const auto wall_begin = std::chrono::steady_clock::now();
+  for (std::uint64_t i = 0; i < n; ++i) {
+    DeviceSample sample;
+    device.read(sample);
+    const haptics::TickOutput out = renderer.tick(sample.X_WD, s);
+    device.command(out.force_W_N, out.torque_W_Nm);
+
+    // Everything below is outside the timed section (exec_time_us is measured by tick()).
+    times_us.push_back(out.stats.exec_time_us);
+    if (out.stats.exec_time_us > 1000.0) ++r.ticks_over_1ms;
+    r.max_contacts = std::max(r.max_contacts, out.stats.contacts);
+    contact_sum += out.stats.contacts;
+    samples_sum += static_cast<double>(out.stats.volume_samples);
+    if (out.stats.contacts > 0) {
+      ++r.ticks_in_contact;
+      if (r.first_contact_tick < 0) r.first_contact_tick = static_cast<std::int64_t>(i);
+    }
+    if (out.stats.bad_input) ++r.bad_device_samples;
+    const bool finite = out.force_W_N.allFinite() && out.torque_W_Nm.allFinite() && out.X_WP.allFinite();
+    double depth = 0.0;
+    if (!finite) {
+      ++r.nan_ticks;
+    } else {
+      r.max_force_N = std::max(r.max_force_N, out.force_W_N.norm());
+      r.max_torque_Nm = std::max(r.max_torque_Nm, out.torque_W_Nm.norm());
+      r.final_force_N = out.force_W_N.norm();
+      r.final_proxy_device_distance_m = (out.X_WP.p_AB_m - sample.X_WD.p_AB_m).norm();
+      r.max_proxy_device_distance_m = std::max(r.max_proxy_device_distance_m, r.final_proxy_device_distance_m);
+      if (options.check_penetration) {
+        depth = maxPenetration_m(volume, tool.point_shell, out.X_WP, s);
+        if (depth > r.epsilon_m) ++r.ticks_penetrating;
+        if (depth > r.max_penetration_m) {
+          r.max_penetration_m = depth;
+          r.max_penetration_tick = static_cast<std::int64_t>(i);
+        }
+      }
+    }
+    if (trace.is_open()) {
+      const Eigen::Vector3d& pd = sample.X_WD.p_AB_m;
+      const Eigen::Vector3d& pp = out.X_WP.p_AB_m;
+      trace << i << ',' << sample.time_s << ',' << pd.x() << ',' << pd.y() << ',' << pd.z() << ',' << pp.x() << ','
+            << pp.y() << ',' << pp.z() << ',' << out.force_W_N.x() << ',' << out.force_W_N.y() << ','
+            << out.force_W_N.z() << ',' << out.torque_W_Nm.x() << ',' << out.torque_W_Nm.y() << ','
+            << out.torque_W_Nm.z() << ',' << out.stats.contacts << ',' << out.stats.exec_time_us << ',' << depth << ','
+            << out.X_WP.R_AB.w() << ',' << out.X_WP.R_AB.x() << ',' << out.X_WP.R_AB.y() << ',' << out.X_WP.R_AB.z()
+            << ',' << out.stats.time_of_contact << '\n';
+    }
+  }
+  r.total_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - wall_begin).count();
+  r.ticks = n;
+  double sum = 0.0;
+  for (double t : times_us) {
+    sum += t;
+    r.max_us = std::max(r.max_us, t);
+  }
+  r.mean_us = n ? sum / static_cast<double>(n) : 0.0;
+  r.p50_us = percentile(times_us, 0.50);
+  r.p99_us = percentile(times_us, 0.99);
+  r.mean_contacts = n ? contact_sum / static_cast<double>(n) : 0.0;
+  r.mean_volume_samples = n ? samples_sum / static_cast<double>(n) : 0.0;
+  return r;
+}
+
+RunReport runHeadless(const SceneSpec& scene, const std::filesystem::path& trajectory_csv, const RunOptions& options) {
+  const Trajectory trajectory = loadTrajectoryCsv(trajectory_csv);
+  const LoadedScene loaded = loadScene(scene);
+  RunReport report = runHeadless(loaded, trajectory, options);
+  report.trajectory = trajectory_csv.string();
+  return report;
+}
+
+std::string RunReport::toJson() const {
+  nlohmann::ordered_json j;
+  j["scene"] = scene;
+  j["trajectory"] = trajectory;
+  j["volume"] = volume;
+  j["volume_dims"] = volume_dims;
+  j["volume_spacing_m"] = {volume_spacing_m.x(), volume_spacing_m.y(), volume_spacing_m.z()};
+  j["isovalue"] = isovalue;
+  j["tool"] = tool;
+  j["point_count"] = point_count;
+  j["point_spacing_m"] = point_spacing_m;
+  j["epsilon_m"] = epsilon_m;
+  j["feature_size_m"] = feature_size_m;
+  j["servo_rate_Hz"] = servo_rate_Hz;
+  j["trajectory_duration_s"] = trajectory_duration_s;
+  j["ticks"] = ticks;
+  j["mean_us"] = mean_us;
+  j["p50_us"] = p50_us;
+  j["p99_us"] = p99_us;
+  j["max_us"] = max_us;
+  j["ticks_over_1ms"] = ticks_over_1ms;
+  j["total_s"] = total_s;
+  j["max_contacts"] = max_contacts;
+  j["mean_contacts"] = mean_contacts;
+  j["ticks_in_contact"] = ticks_in_contact;
+  j["first_contact_tick"] = first_contact_tick;
+  j["max_force_N"] = max_force_N;
+  j["max_torque_Nm"] = max_torque_Nm;
+  j["mean_volume_samples"] = mean_volume_samples;
+  j["max_penetration_m"] = max_penetration_m;
+  j["max_penetration_tick"] = max_penetration_tick;
+  j["ticks_penetrating"] = ticks_penetrating;
+  j["nan_ticks"] = nan_ticks;
+  j["bad_device_samples"] = bad_device_samples;
+  j["initial_points_inside"] = initial_points_inside;
+  j["final_force_N"] = final_force_N;
+  j["final_proxy_device_distance_m"] = final_proxy_device_distance_m;
+  j["max_proxy_device_distance_m"] = max_proxy_device_distance_m;
+  return j.dump(2) + "\n";
+}
+
+std::string RunReport::summary() const {
+  char line[512];
+  std::snprintf(line, sizeof line,
+                "ticks %llu, exec mean %.0f us, p50 %.0f us, p99 %.0f us, max %.0f us; %zu points; contacts <= %d "
+                "(mean %.1f); max force %.2f N; penetration %.4f mm (epsilon %.4f mm); nan ticks %llu; bad samples %llu",
+                static_cast<unsigned long long>(ticks), mean_us, p50_us, p99_us, max_us, point_count, max_contacts,
+                mean_contacts, max_force_N, max_penetration_m * 1e3, epsilon_m * 1e3,
+                static_cast<unsigned long long>(nan_ticks), static_cast<unsigned long long>(bad_device_samples));
+  return line;
+}
+
+void writeRunReport(const RunReport& report, const std::filesystem::path& path) {
+  std::ofstream out(path);
+  if (!out) throw std::runtime_error(path.string() + ": cannot write the report");
+  out << report.toJson();
+  out.flush();
+  if (!out) throw std::runtime_error(path.string() + ": write failed");
+}
+
+}  // namespace vh::runtime

@@ -1,0 +1,377 @@
+#include "vh/runtime/scene.h"
+
+#include <cmath>
+#include <cstdlib>
+#include <fstream>
+#include <initializer_list>
+#include <set>
+#include <sstream>
+#include <stdexcept>
+
+#include <nlohmann/json.hpp>
+
+#include "vh/datasets/synthetic.h"
+#include "vh/runtime/placement.h"
+
+#ifndef VH_DEFAULT_SHARED_DATASETS_DIR
+#define VH_DEFAULT_SHARED_DATASETS_DIR ""
+#endif
+#ifndef VH_DEFAULT_GENERATED_DATA_DIR
+#define VH_DEFAULT_GENERATED_DATA_DIR ""
+#endif
+
+namespace vh::runtime {
+
+namespace fs = std::filesystem;
+using nlohmann::json;
+
+namespace {
+
+constexpr std::string_view kBuiltinPrefix = "builtin:";
+
+bool isBuiltin(const std::string& path) { return path.rfind(kBuiltinPrefix, 0) == 0; }
+std::string builtinName(const std::string& path) { return path.substr(kBuiltinPrefix.size()); }
+
+/// Reads fields of one JSON object, checking types and unknown keys; errors name the scene and
+/// the dotted field path.
+class ObjectReader {
+ public:
+  ObjectReader(const json& object, std::string path, const std::string& source)
+      : object_(object), path_(std::move(path)), source_(source) {
+    if (!object_.is_object()) fail(path_, "expected an object, found " + std::string(object_.type_name()));
+  }
+
+  [[noreturn]] void fail(const std::string& field, const std::string& problem) const {
+    throw std::runtime_error(source_ + ": " + (field.empty() ? std::string() : field + ": ") + problem);
+  }
+  std::string fieldPath(const std::string& key) const { return path_.empty() ? key : path_ + "." + key; }
+
+  /// Throws for a key not in `known`.
+  void allowOnly(std::initializer_list<const char*> known) const {
+    std::set<std::string> allowed;
+    std::string list;
+    for (const char* k : known) {
+      allowed.insert(k);
+      list += (list.empty() ? "" : ", ") + std::string(k);
+    }
+    for (auto it = object_.begin(); it != object_.end(); ++it) {
+      if (!allowed.count(it.key())) {
+        fail(path_.empty() ? std::string() : path_,
+             "unknown key '" + it.key() + "' (expected one of: " + list + ")");
+      }
+    }
+  }
+
+  bool has(const char* key) const { return object_.contains(key); }
+  const json& at(const char* key) const {
+    if (!object_.contains(key)) fail(fieldPath(key), "missing");
+    return object_.at(key);
+  }
+
+  std::string string(const char* key) const {
+    const json& v = at(key);
+    if (!v.is_string()) fail(fieldPath(key), "expected a string, found " + std::string(v.type_name()));
+    const std::string s = v.get<std::string>();
+    if (s.empty()) fail(fieldPath(key), "must not be empty");
+    return s;
+  }
+  double number(const char* key) const {
+    const json& v = at(key);
+    if (!v.is_number()) fail(fieldPath(key), "expected a number, found " + std::string(v.type_name()));
+    const double d = v.get<double>();
+    if (!std::isfinite(d)) fail(fieldPath(key), "must be finite");
+    return d;
+  }
+  double positive(const char* key) const {
+    const double d = number(key);
+    if (!(d > 0.0)) fail(fieldPath(key), "must be > 0, found " + json(d).dump());
+    return d;
+  }
+  std::size_t count(const char* key) const {
+    const json& v = at(key);
+    if (!v.is_number_integer() || v.get<long long>() <= 0) {
+      fail(fieldPath(key), "expected a positive integer, found " + v.dump());
+    }
+    return static_cast<std::size_t>(v.get<long long>());
+  }
+  template <int N>
+  Eigen::Matrix<double, N, 1> vector(const char* key) const {
+    const json& v = at(key);
+    if (!v.is_array() || v.size() != static_cast<std::size_t>(N)) {
+      fail(fieldPath(key), "expected an array of " + std::to_string(N) + " numbers, found " + v.dump());
+    }
+    Eigen::Matrix<double, N, 1> out;
+    for (int i = 0; i < N; ++i) {
+      const json& e = v[static_cast<std::size_t>(i)];
+      if (!e.is_number() || !std::isfinite(e.get<double>())) {
+        fail(fieldPath(key), "expected an array of " + std::to_string(N) + " numbers, found " + v.dump());
+      }
+      out[i] = e.get<double>();
+    }
+    return out;
+  }
+  ObjectReader object(const char* key) const { return ObjectReader(at(key), fieldPath(key), source_); }
+
+ private:
+  const json& object_;
+  std::string path_;
+  const std::string& source_;
+};
+
+/// A hint for a relative path that lies inside an archive of the shared folder
+/// ("classic/ct-bunny/bunny.nhdr" -> "classic/ct-bunny.tar.zst"), or empty.
+std::string archiveHint(const fs::path& relative) {
+  std::error_code ec;
+  fs::path prefix;
+  for (const fs::path& part : relative) {
+    prefix /= part;
+    for (const char* ext : {".tar.zst", ".tar.gz", ".tar.xz", ".zip"}) {
+      const fs::path archive = sharedDatasetsDir() / (prefix.string() + ext);
+      if (fs::is_regular_file(archive, ec)) {
+        return "; it is packed in " + archive.string() + ": unpack it into " +
+               (generatedDataDir() / prefix.parent_path()).lexically_normal().string() +
+               " (cmake -E tar xf), or run the runtime tests, which do";
+      }
+    }
+  }
+  return {};
+}
+
+/// Resolves a data path: absolute as is; relative against the scene's folder, the shared
+/// datasets folder, then the generated data folder. Built-ins are returned unchanged.
+std::string resolveDataPath(const ObjectReader& reader, const char* key, const std::string& value,
+                            const fs::path& base_dir) {
+  if (isBuiltin(value)) return value;
+  std::error_code ec;
+  const fs::path p(value);
+  if (p.is_absolute()) {
+    if (!fs::exists(p, ec)) reader.fail(reader.fieldPath(key), "'" + value + "' not found");
+    return p.lexically_normal().string();
+  }
+  std::vector<fs::path> candidates;
+  if (!base_dir.empty()) candidates.push_back(base_dir / p);
+  const fs::path shared = sharedDatasetsDir();
+  if (!shared.empty()) candidates.push_back(shared / p);
+  const fs::path generated = generatedDataDir();
+  if (!generated.empty()) candidates.push_back(generated / p);
+  std::string looked;
+  for (const fs::path& c : candidates) {
+    if (fs::exists(c, ec)) return fs::absolute(c, ec).lexically_normal().string();
+    looked += (looked.empty() ? "" : " and ") + c.lexically_normal().string();
+  }
+  reader.fail(reader.fieldPath(key), "'" + value + "' not found (looked in " + looked + ")" + archiveHint(p));
+}
+
+}  // namespace
+
+fs::path sharedDatasetsDir() {
+  if (const char* env = std::getenv("VH_SHARED_DATASETS_DIR"); env != nullptr && *env != '\0') {
+    return fs::path(env);
+  }
+  return fs::path(VH_DEFAULT_SHARED_DATASETS_DIR).lexically_normal();
+}
+
+fs::path generatedDataDir() {
+  if (const char* env = std::getenv("VH_GENERATED_DATA_DIR"); env != nullptr && *env != '\0') {
+    return fs::path(env);
+  }
+  return fs::path(VH_DEFAULT_GENERATED_DATA_DIR).lexically_normal();
+}
+
+SceneSpec parseScene(const std::string& json_text, const std::string& source, const fs::path& base_dir) {
+  json root;
+  try {
+    root = json::parse(json_text, nullptr, /*allow_exceptions=*/true, /*ignore_comments=*/true);
+  } catch (const json::parse_error& e) {
+    // e.what() is "[json.exception.parse_error.101] parse error at line 3, column 5: ...".
+    std::string what = e.what();
+    const auto pos = what.find("] ");
+    throw std::runtime_error(source + ": invalid JSON: " + (pos == std::string::npos ? what : what.substr(pos + 2)));
+  }
+  const ObjectReader top(root, "", source);
+  top.allowOnly({"description", "volume", "tool", "coupling", "device"});
+
+  SceneSpec spec;
+  spec.source = source;
+
+  const ObjectReader volume = top.object("volume");
+  volume.allowOnly({"path", "isovalue"});
+  spec.volume.path = resolveDataPath(volume, "path", volume.string("path"), base_dir);
+  if (volume.has("isovalue")) {
+    spec.volume.isovalue = volume.number("isovalue");
+    spec.volume.isovalue_set = true;
+  }
+
+  if (top.has("tool")) {
+    const ObjectReader tool = top.object("tool");
+    tool.allowOnly({"mesh", "scale_to_m", "point_spacing_m", "point_count", "initial_pose"});
+    if (tool.has("mesh")) spec.tool.mesh = resolveDataPath(tool, "mesh", tool.string("mesh"), base_dir);
+    if (tool.has("scale_to_m")) spec.tool.scale_to_m = tool.positive("scale_to_m");
+    if (tool.has("point_spacing_m") && tool.has("point_count")) {
+      tool.fail("tool", "give point_spacing_m or point_count, not both");
+    }
+    if (tool.has("point_spacing_m")) spec.tool.point_spacing_m = tool.positive("point_spacing_m");
+    if (tool.has("point_count")) spec.tool.point_count = tool.count("point_count");
+    if (tool.has("initial_pose")) {
+      const ObjectReader pose = tool.object("initial_pose");
+      pose.allowOnly({"p_m", "q_wxyz"});
+      if (!pose.has("p_m") && !pose.has("q_wxyz")) pose.fail(tool.fieldPath("initial_pose"), "needs p_m and/or q_wxyz");
+      if (pose.has("q_wxyz")) {
+        const Eigen::Vector4d q = pose.vector<4>("q_wxyz");
+        if (!(q.norm() > 1e-9)) pose.fail(pose.fieldPath("q_wxyz"), "zero quaternion");
+        spec.tool.X_WT_initial.R_AB = Eigen::Quaterniond(q[0], q[1], q[2], q[3]).normalized();
+      }
+      if (pose.has("p_m")) {
+        spec.tool.X_WT_initial.p_AB_m = pose.vector<3>("p_m");
+        spec.tool.initial_pose_set = true;
+      } else {
+        spec.tool.initial_orientation_set = true;
+      }
+    }
+  }
+
+  if (top.has("coupling")) {
+    const ObjectReader coupling = top.object("coupling");
+    coupling.allowOnly({"linear_N_per_m", "angular_Nm_per_rad"});
+    if (coupling.has("linear_N_per_m")) spec.gains.linear_N_per_m = coupling.positive("linear_N_per_m");
+    if (coupling.has("angular_Nm_per_rad")) spec.gains.angular_Nm_per_rad = coupling.positive("angular_Nm_per_rad");
+  }
+
+  if (top.has("device")) {
+    const ObjectReader device = top.object("device");
+    device.allowOnly({"kind", "trajectory"});
+    DeviceSpec d;
+    if (device.has("kind")) d.kind = device.string("kind");
+    if (d.kind == "simulated") {
+      if (device.has("trajectory")) device.fail(device.fieldPath("trajectory"), "only for kind \"scripted\"");
+    } else if (d.kind == "scripted") {
+      if (!device.has("trajectory")) device.fail(device.fieldPath("trajectory"), "missing (needed by kind \"scripted\")");
+      d.trajectory = resolveDataPath(device, "trajectory", device.string("trajectory"), base_dir);
+    } else {
+      device.fail(device.fieldPath("kind"), "unknown device kind '" + d.kind + "' (expected \"simulated\" or \"scripted\")");
+    }
+    spec.device = d;
+  }
+  return spec;
+}
+
+SceneSpec loadSceneFile(const fs::path& path) {
+  std::error_code ec;
+  if (!fs::is_regular_file(path, ec)) throw std::runtime_error(path.string() + ": scene file not found");
+  std::ifstream in(path, std::ios::binary);
+  if (!in) throw std::runtime_error(path.string() + ": cannot open the scene file");
+  std::ostringstream text;
+  text << in.rdbuf();
+  SceneSpec spec = parseScene(text.str(), path.string(), fs::absolute(path, ec).parent_path());
+  spec.source = fs::absolute(path, ec);
+  return spec;
+}
+
+SceneSpec builtinBlockWithHoleScene() {
+  SceneSpec spec;
+  spec.volume.path = "builtin:block-with-hole";
+  spec.volume.isovalue = datasets::kBlockIsovalue;
+  spec.volume.isovalue_set = true;
+  spec.tool.mesh = "builtin:peg";
+  // The peg (tip at the origin of T, shaft along +z) 5 mm over the hole in the block's top face.
+  spec.tool.X_WT_initial = haptics::Pose::FromTranslation({0.0, 0.0, datasets::kBlockHalfHeight_m + 0.005});
+  spec.tool.initial_pose_set = true;
+  spec.device = DeviceSpec{};
+  return spec;
+}
+
+SceneSpec sceneForVolume(const fs::path& volume_path) {
+  SceneSpec spec;
+  std::error_code ec;
+  spec.volume.path = fs::absolute(volume_path, ec).lexically_normal().string();
+  spec.tool.mesh = "builtin:probe";
+  spec.device = DeviceSpec{};
+  return spec;
+}
+
+// ---- Loading -------------------------------------------------------------------------------
+
+LoadedScene loadScene(const SceneSpec& spec) {
+  const std::string where = spec.source.empty() ? std::string("scene") : spec.source.string();
+  LoadedScene scene;
+  scene.spec = spec;
+
+  // Volume.
+  if (isBuiltin(spec.volume.path)) {
+    const std::string name = builtinName(spec.volume.path);
+    try {
+      auto field = std::make_shared<const haptics::ScalarVolume>(datasets::makeBuiltinVolume(name));
+      scene.volume.image = io::imageFromField(*field);
+      scene.volume.field = std::move(field);
+      scene.isovalue = datasets::builtinIsovalue(name);
+    } catch (const std::invalid_argument& e) {
+      throw std::runtime_error(where + ": volume: " + e.what());
+    }
+    scene.volume.info.source = spec.volume.path;
+    scene.volume.info.format = "synthetic";
+    scene.volume.info.description = name;
+  } else {
+    scene.volume = io::loadVolume(spec.volume.path);
+    scene.isovalue = 0.5 * (scene.volume.field->minValue() + scene.volume.field->maxValue());
+  }
+  if (spec.volume.isovalue_set) scene.isovalue = spec.volume.isovalue;
+  const haptics::ScalarVolume& field = *scene.volume.field;
+
+  // Tool.
+  haptics::TriangleMesh mesh;
+  if (isBuiltin(spec.tool.mesh)) {
+    try {
+      mesh = datasets::makeBuiltinTool(builtinName(spec.tool.mesh));
+    } catch (const std::invalid_argument& e) {
+      throw std::runtime_error(where + ": tool: " + e.what());
+    }
+    if (spec.tool.scale_to_m != 1.0) mesh.scale(spec.tool.scale_to_m);
+  } else {
+    mesh = io::loadMesh(spec.tool.mesh, spec.tool.scale_to_m);
+  }
+  haptics::PointShellOptions shell_options;
+  if (spec.tool.point_count > 0) {
+    shell_options.point_count = spec.tool.point_count;
+  } else if (spec.tool.point_spacing_m > 0.0) {
+    shell_options.spacing_m = spec.tool.point_spacing_m;
+  } else {
+    shell_options.spacing_m = std::max(std::sqrt(mesh.area_m2() / 1000.0), 0.5 * field.geometry().minSpacing());
+  }
+  try {
+    scene.tool = std::make_shared<const haptics::ToolModel>(haptics::makeToolModel(std::move(mesh), shell_options));
+  } catch (const std::invalid_argument& e) {
+    throw std::runtime_error(where + ": tool '" + spec.tool.mesh + "': " + e.what());
+  }
+
+  // Initial pose.
+  if (spec.tool.initial_pose_set) {
+    scene.X_WT_initial = spec.tool.X_WT_initial;
+  } else {
+    const Eigen::Quaterniond R_WT =
+        spec.tool.initial_orientation_set ? spec.tool.X_WT_initial.R_AB : Eigen::Quaterniond::Identity();
+    scene.X_WT_initial = defaultInitialPose(field, scene.tool->point_shell, R_WT, scene.isovalue);
+  }
+  scene.initial_points_inside = countPointsInside(field, scene.tool->point_shell, scene.X_WT_initial, scene.isovalue);
+  return scene;
+}
+
+std::unique_ptr<haptics::HapticRenderer> LoadedScene::makeRenderer(haptics::RendererOptions options) const {
+  options.gains = spec.gains;
+  return std::make_unique<haptics::HapticRenderer>(volume.field, tool, options, X_WT_initial, isovalue);
+}
+
+std::shared_ptr<Device> LoadedScene::makeDevice(double servo_rate_Hz) const {
+  if (!spec.device) return nullptr;
+  if (spec.device->kind == "scripted") {
+    return std::make_shared<ScriptedDevice>(loadTrajectoryCsv(spec.device->trajectory), 1.0 / servo_rate_Hz,
+                                            fs::path(spec.device->trajectory).filename().string());
+  }
+  return std::make_shared<SimulatedDevice>(X_WT_initial);
+}
+
+std::unique_ptr<HapticThread> LoadedScene::makeHapticThread(std::shared_ptr<Device> device,
+                                                            double servo_rate_Hz) const {
+  return std::make_unique<HapticThread>(makeRenderer(), std::move(device), isovalue, servo_rate_Hz);
+}
+
+}  // namespace vh::runtime

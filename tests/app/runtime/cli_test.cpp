@@ -1,0 +1,108 @@
+// Tests of the volume-haptics executable's headless subcommands (app/main.cpp), run as a child
+// process without a display: exit codes and messages for bad input, a report for good input.
+#include <sys/wait.h>
+
+#include <array>
+#include <cstdio>
+#include <fstream>
+#include <string>
+
+#include <gtest/gtest.h>
+#include <nlohmann/json.hpp>
+
+#include "runtime_test_support.h"
+#include "vh/runtime/trajectory.h"
+
+namespace vh::runtime {
+namespace {
+
+namespace fs = std::filesystem;
+
+struct ProcessResult {
+  int exit_code = -1;
+  std::string output;  // stdout and stderr
+};
+
+std::string quoted(const fs::path& p) {
+  std::string out(1, '\'');  // built by appending: GCC 12 warns falsely on "'" + std::string
+  out.append(p.string());
+  out.push_back('\'');
+  return out;
+}
+
+/// Runs volume-haptics with `args` (already quoted) and no display.
+ProcessResult runApp(const std::string& args) {
+  const std::string command =
+      "env -u DISPLAY -u WAYLAND_DISPLAY " + quoted(VH_APP_EXECUTABLE) + " " + args + " 2>&1";
+  ProcessResult result;
+  FILE* pipe = popen(command.c_str(), "r");
+  if (pipe == nullptr) return result;
+  std::array<char, 4096> buffer{};
+  while (std::fgets(buffer.data(), static_cast<int>(buffer.size()), pipe) != nullptr) result.output += buffer.data();
+  const int status = pclose(pipe);
+  result.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+  return result;
+}
+
+const fs::path kBlockScene = test::sourceDir() / "resources" / "scenes" / "block-peg.json";
+
+TEST(Cli, HelpListsTheSubcommands) {
+  const ProcessResult r = runApp("--help");
+  EXPECT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_NE(r.output.find("run"), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("make-trajectory"), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("--screenshot"), std::string::npos) << r.output;
+}
+
+TEST(Cli, RunNeedsSceneAndTrajectory) {
+  const ProcessResult r = runApp("run --trajectory t.csv");
+  EXPECT_NE(r.exit_code, 0);
+  EXPECT_NE(r.output.find("--scene"), std::string::npos) << r.output;
+}
+
+TEST(Cli, RunWithAMissingSceneFailsNamingIt) {
+  const ProcessResult r = runApp("run --scene /no/such/scene.json --trajectory /no/such/t.csv");
+  EXPECT_EQ(r.exit_code, 1) << r.output;
+  EXPECT_NE(r.output.find("volume-haptics: error: /no/such/scene.json: scene file not found"), std::string::npos)
+      << r.output;
+}
+
+TEST(Cli, RunWithABadTrajectoryNamesFileAndLine) {
+  const fs::path csv = test::writeText(test::scratchDir() / "bad.csv", "t_s,x_m,y_m,z_m,qw,qx,qy,qz\n0,0,0,0.1,1,0,0,0\n1,x,0,0,1,0,0,0\n");
+  const ProcessResult r = runApp("run --scene " + quoted(kBlockScene) + " --trajectory " + quoted(csv));
+  EXPECT_EQ(r.exit_code, 1) << r.output;
+  EXPECT_NE(r.output.find(csv.string() + ":3: column x_m: 'x' is not a number"), std::string::npos) << r.output;
+}
+
+TEST(Cli, GuiWithAMissingPathFailsBeforeOpeningAWindow) {
+  const ProcessResult r = runApp("/no/such/volume.nrrd");
+  EXPECT_EQ(r.exit_code, 1) << r.output;
+  EXPECT_NE(r.output.find("/no/such/volume.nrrd: no such file or folder"), std::string::npos) << r.output;
+}
+
+TEST(Cli, MakeTrajectoryThenRunWithoutADisplay) {
+  const fs::path dir = test::scratchDir();
+  const fs::path csv = dir / "t.csv";
+  const fs::path report = dir / "report.json";
+  const ProcessResult made = runApp("make-trajectory --scene " + quoted(kBlockScene) +
+                                    " --ray-start 0.015 0 0.04 --slide-dir 0 1 0 --slide-m 0.01 --out " + quoted(csv));
+  ASSERT_EQ(made.exit_code, 0) << made.output;
+  const Trajectory trajectory = loadTrajectoryCsv(csv);
+  EXPECT_GT(trajectory.duration_s(), 3.0);
+  EXPECT_NEAR(trajectory.samples().front().X_WD.p_AB_m.x(), 0.015, 1e-12);
+
+  const ProcessResult ran =
+      runApp("run --check --scene " + quoted(kBlockScene) + " --trajectory " + quoted(csv) + " --report " + quoted(report));
+  ASSERT_EQ(ran.exit_code, 0) << ran.output;
+  EXPECT_NE(ran.output.find("volume-haptics run: ticks"), std::string::npos) << ran.output;
+  std::ifstream in(report);
+  ASSERT_TRUE(in.good()) << report;
+  const nlohmann::json j = nlohmann::json::parse(in);
+  EXPECT_EQ(j["ticks"].get<std::uint64_t>(), static_cast<std::uint64_t>(trajectory.duration_s() * 1000.0 + 1e-9) + 1);
+  EXPECT_GT(j["max_contacts"].get<int>(), 0);
+  EXPECT_LE(j["max_penetration_m"].get<double>(), j["epsilon_m"].get<double>());
+  EXPECT_EQ(j["nan_ticks"].get<int>(), 0);
+}
+
+}  // namespace
+}  // namespace vh::runtime

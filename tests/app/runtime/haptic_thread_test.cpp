@@ -1,0 +1,293 @@
+// Tests of vh/runtime/haptic_thread.h with SimulatedDevice and test devices: the loop ticks and
+// publishes consistent snapshots, applies GUI commands, zeroes the force for bad samples, never
+// allocates, and ramps the force down when stopped.
+#include "vh/runtime/haptic_thread.h"
+
+#include <array>
+#include <atomic>
+#include <chrono>
+#include <cmath>
+#include <functional>
+#include <iostream>
+#include <optional>
+#include <thread>
+
+#include <gtest/gtest.h>
+
+#include "allocation_guard.h"
+#include "vh/runtime/placement.h"
+#include "vh/runtime/scene.h"
+
+namespace vh::runtime {
+namespace {
+
+using namespace std::chrono_literals;
+using haptics::Pose;
+
+/// The built-in sphere (radius 20 mm, F = signed distance in mm, isovalue 0) with the 5 mm ball
+/// tool centred on its frame's origin.
+const LoadedScene& sphereScene() {
+  static const LoadedScene scene = [] {
+    SceneSpec spec;
+    spec.volume.path = "builtin:sphere";
+    spec.tool.mesh = "builtin:sphere";
+    spec.tool.point_spacing_m = 0.0015;
+    spec.gains.linear_N_per_m = 1000.0;
+    spec.device = DeviceSpec{};
+    return loadScene(spec);
+  }();
+  return scene;
+}
+
+/// The ball tool's centre `depth_m` below the top of the sphere's surface at x = y = 0 (its
+/// lowest point 5 mm further down).
+Pose pressedPose(double depth_m) { return Pose::FromTranslation({0.0, 0.0, 0.020 + 0.005 - depth_m}); }
+
+bool waitUntil(const std::function<bool()>& condition, std::chrono::milliseconds timeout = 3000ms) {
+  const auto deadline = std::chrono::steady_clock::now() + timeout;
+  while (std::chrono::steady_clock::now() < deadline) {
+    if (condition()) return true;
+    std::this_thread::sleep_for(2ms);
+  }
+  return condition();
+}
+
+/// Force the coupling must produce for a snapshot's poses: -k (c_D - c_P) (eq. 5, linear part).
+Eigen::Vector3d couplingForce(const HapticSnapshot& s, const haptics::ToolModel& tool, double k) {
+  const Eigen::Vector3d c_P = s.X_WP * tool.mass.p_TCm_m;
+  const Eigen::Vector3d c_D = s.X_WD * tool.mass.p_TCm_m;
+  return -k * (c_D - c_P);
+}
+
+TEST(HapticThread, TicksPublishesConsistentSnapshotsAndStops) {
+  const LoadedScene& scene = sphereScene();
+  auto device = std::make_shared<SimulatedDevice>(scene.X_WT_initial);
+  auto thread = scene.makeHapticThread(device);
+  EXPECT_FALSE(thread->running());
+  HapticSnapshot snap;
+  ASSERT_TRUE(thread->latestSnapshot(snap));  // the initial pose is published before start
+  EXPECT_EQ(snap.tick, 0u);
+  EXPECT_TRUE(snap.X_WP.p_AB_m.isApprox(scene.X_WT_initial.p_AB_m));
+
+  thread->start();
+  EXPECT_TRUE(thread->running());
+  const Pose target = pressedPose(0.003);
+  device->setPose(target);
+  std::this_thread::sleep_for(200ms);
+  ASSERT_TRUE(waitUntil([&] { return thread->latestSnapshot(snap) && snap.tick >= 50 && snap.contacts > 0; }))
+      << "ticks " << snap.tick << ", contacts " << snap.contacts;
+  const std::uint64_t first_tick = snap.tick;
+  ASSERT_TRUE(waitUntil([&] { thread->latestSnapshot(snap); return snap.tick > first_tick + 20; }));
+
+  // One consistent tick: device pose as set, force from exactly these proxy and device poses.
+  EXPECT_TRUE(snap.X_WD.p_AB_m.isApprox(target.p_AB_m));
+  const Eigen::Vector3d expected = couplingForce(snap, *scene.tool, 1000.0);
+  EXPECT_LT((snap.force_W_N - expected).norm(), 1e-9 * (1.0 + expected.norm()));
+  // Pressed 3 mm in: about 3 N, pushing the hand out (+z).
+  EXPECT_GT(snap.force_W_N.z(), 0.9 * snap.force_W_N.norm());
+  EXPECT_NEAR(snap.force_W_N.norm(), 3.0, 0.5);
+  EXPECT_GT(snap.servo_rate_Hz, 100.0);
+  EXPECT_LT(snap.servo_rate_Hz, 1100.0);
+  EXPECT_GT(snap.mean_tick_us, 0.0);
+  EXPECT_GE(snap.max_tick_us, snap.mean_tick_us);
+  EXPECT_EQ(snap.isovalue, scene.isovalue);
+  EXPECT_EQ(snap.contacts_shown, std::min(snap.contacts, HapticSnapshot::kMaxContactsShown));
+  for (int i = 0; i < snap.contacts_shown; ++i) {
+    const auto& p = snap.contact_p_W_m[static_cast<std::size_t>(i)];
+    const auto& n = snap.contact_n_W[static_cast<std::size_t>(i)];
+    EXPECT_NEAR(n.norm(), 1.0, 1e-9);
+    EXPECT_NEAR(p.norm(), 0.020, 0.001) << "contact " << i << " is not on the sphere";
+    EXPECT_GT(n.dot(p.normalized()), 0.9) << "normal " << i << " does not point outwards";
+  }
+  EXPECT_LE(maxPenetration_m(*scene.volume.field, scene.tool->point_shell, snap.X_WP, scene.isovalue),
+            scene.makeRenderer()->epsilon_m());
+  EXPECT_EQ(snap.bad_device_samples, 0u);
+
+  ::testing::Test::RecordProperty("sched_fifo", thread->realtimeScheduling() ? "yes" : "no");
+  ::testing::Test::RecordProperty("memory_locked", thread->memoryLocked() ? "yes" : "no");
+  std::cout << "servo thread: SCHED_FIFO " << (thread->realtimeScheduling() ? "yes" : "no") << ", mlockall "
+            << (thread->memoryLocked() ? "yes" : "no") << ", " << snap.servo_rate_Hz << " Hz, mean tick "
+            << snap.mean_tick_us << " us, max " << snap.max_tick_us << " us, deadline misses "
+            << snap.deadline_misses << std::endl;
+  thread->stop();
+  EXPECT_FALSE(thread->running());
+  DeviceCommand last;
+  device->lastCommand(last);
+  EXPECT_EQ(last.force_W_N, Eigen::Vector3d::Zero());
+  EXPECT_EQ(last.torque_W_Nm, Eigen::Vector3d::Zero());
+  EXPECT_GT(last.count, first_tick);
+  thread->stop();  // idempotent
+}
+
+/// A device held at a fixed pose that records the magnitude of every force command.
+class RecordingDevice final : public Device {
+ public:
+  explicit RecordingDevice(const Pose& X_WD) : X_WD_(X_WD) {}
+  std::string name() const override { return "recording"; }
+  bool read(DeviceSample& sample) noexcept override {
+    sample.X_WD = X_WD_;
+    sample.valid = true;
+    return true;
+  }
+  void command(const Eigen::Vector3d& force_W_N, const Eigen::Vector3d&) noexcept override {
+    const std::size_t i = count_.load(std::memory_order_relaxed);
+    if (i < forces_.size()) forces_[i] = force_W_N.norm();
+    count_.store(i + 1, std::memory_order_release);
+  }
+  std::size_t count() const { return count_.load(std::memory_order_acquire); }
+  double force(std::size_t i) const { return forces_[i]; }
+
+ private:
+  Pose X_WD_;
+  std::array<double, 1 << 16> forces_{};
+  std::atomic<std::size_t> count_{0};
+};
+
+TEST(HapticThread, StopRampsTheForceToZeroOverAbout50Milliseconds) {
+  const LoadedScene& scene = sphereScene();
+  auto device = std::make_shared<RecordingDevice>(pressedPose(0.003));
+  auto thread = scene.makeHapticThread(device);
+  thread->start();
+  HapticSnapshot snap;
+  ASSERT_TRUE(waitUntil([&] { return thread->latestSnapshot(snap) && snap.tick > 150; }));
+  thread->stop();
+  const std::size_t n = device->count();
+  ASSERT_GT(n, 200u);
+  ASSERT_LT(n, std::size_t{1} << 16);
+  const double steady = device->force(n - 60);
+  EXPECT_GT(steady, 2.0);
+  EXPECT_EQ(device->force(n - 1), 0.0);
+  // The last ~50 commands decrease monotonically to zero, through about half way.
+  for (std::size_t i = n - 52; i + 1 < n; ++i) {
+    EXPECT_LE(device->force(i + 1), device->force(i) + 1e-9) << "command " << i;
+  }
+  const double half = device->force(n - 26) / steady;
+  EXPECT_GT(half, 0.3);
+  EXPECT_LT(half, 0.7);
+  EXPECT_LT(device->force(n - 5), 0.15 * steady);
+}
+
+TEST(HapticThread, GainsAndIsovalueAreAppliedWhileRunning) {
+  const LoadedScene& scene = sphereScene();
+  auto device = std::make_shared<SimulatedDevice>(pressedPose(0.003));
+  auto thread = scene.makeHapticThread(device);
+  thread->start();
+  HapticSnapshot snap;
+  ASSERT_TRUE(waitUntil([&] { return thread->latestSnapshot(snap) && snap.tick > 100 && snap.contacts > 0; }));
+  const double before = snap.force_W_N.norm();
+  thread->setGains({2000.0, 1.0});
+  const std::uint64_t changed_at = snap.tick;
+  ASSERT_TRUE(waitUntil([&] { thread->latestSnapshot(snap); return snap.tick > changed_at + 20; }));
+  EXPECT_NEAR(snap.force_W_N.norm(), 2.0 * before, 0.1 * before);
+  EXPECT_LT((snap.force_W_N - couplingForce(snap, *scene.tool, 2000.0)).norm(), 1e-9 * before);
+
+  thread->setIsovalue(-2.0);  // the surface grows to 22 mm: the tool is now deeper inside
+  EXPECT_EQ(thread->isovalue(), -2.0);
+  ASSERT_TRUE(waitUntil([&] { thread->latestSnapshot(snap); return snap.isovalue == -2.0; }));
+  const std::uint64_t iso_at = snap.tick;
+  ASSERT_TRUE(waitUntil([&] { thread->latestSnapshot(snap); return snap.tick > iso_at + 20; }));
+  EXPECT_TRUE(snap.force_W_N.allFinite());
+  EXPECT_TRUE(snap.X_WP.allFinite());
+  thread->stop();
+}
+
+/// A device that delivers `good` samples and then nothing (unplugged).
+class FailingDevice final : public Device {
+ public:
+  FailingDevice(const Pose& X_WD, int good) : X_WD_(X_WD), good_(good) {}
+  std::string name() const override { return "failing"; }
+  bool read(DeviceSample& sample) noexcept override {
+    if (reads_++ >= good_) return false;
+    sample.X_WD = X_WD_;
+    sample.valid = true;
+    return true;
+  }
+  void command(const Eigen::Vector3d& force_W_N, const Eigen::Vector3d&) noexcept override {
+    last_force_.store(force_W_N.norm(), std::memory_order_relaxed);
+  }
+  double lastForce() const { return last_force_.load(std::memory_order_relaxed); }
+
+ private:
+  Pose X_WD_;
+  int good_;
+  int reads_ = 0;
+  std::atomic<double> last_force_{-1.0};
+};
+
+TEST(HapticThread, BadDeviceSamplesAreCountedAndGiveNoForce) {
+  const LoadedScene& scene = sphereScene();
+  auto device = std::make_shared<FailingDevice>(pressedPose(0.003), 100);
+  auto thread = scene.makeHapticThread(device);
+  thread->start();
+  HapticSnapshot snap;
+  ASSERT_TRUE(waitUntil([&] { return thread->latestSnapshot(snap) && snap.bad_device_samples > 20; }));
+  EXPECT_EQ(snap.force_W_N, Eigen::Vector3d::Zero());
+  EXPECT_EQ(device->lastForce(), 0.0);
+  EXPECT_EQ(snap.bad_device_samples, snap.tick - 100);
+  thread->stop();
+}
+
+/// A device that counts the heap allocations the servo thread makes between its reads.
+class AllocationCountingDevice final : public Device {
+ public:
+  explicit AllocationCountingDevice(const Pose& X_WD) : X_WD_(X_WD) {}
+  std::string name() const override { return "allocation counting"; }
+  bool read(DeviceSample& sample) noexcept override {
+    if (!guard_) {
+      guard_.emplace();  // on the servo thread; counts from here on
+    } else {
+      allocations_.store(guard_->count(), std::memory_order_relaxed);
+      reads_.fetch_add(1, std::memory_order_relaxed);
+    }
+    sample.X_WD = X_WD_;
+    sample.valid = true;
+    return true;
+  }
+  void command(const Eigen::Vector3d&, const Eigen::Vector3d&) noexcept override {}
+  std::size_t allocations() const { return allocations_.load(std::memory_order_relaxed); }
+  std::size_t reads() const { return reads_.load(std::memory_order_relaxed); }
+
+ private:
+  Pose X_WD_;
+  std::optional<test::AllocationGuard> guard_;
+  std::atomic<std::size_t> allocations_{0};
+  std::atomic<std::size_t> reads_{0};
+};
+
+TEST(HapticThread, ServoLoopDoesNotAllocate) {
+  const LoadedScene& scene = sphereScene();
+  auto device = std::make_shared<AllocationCountingDevice>(pressedPose(0.003));
+  auto thread = scene.makeHapticThread(device);
+  thread->start();
+  ASSERT_TRUE(waitUntil([&] { return device->reads() > 200; }));
+  thread->stop();
+  EXPECT_EQ(device->allocations(), 0u) << "heap allocations on the servo thread over " << device->reads() << " ticks";
+}
+
+TEST(HapticThread, RejectsBadArguments) {
+  const LoadedScene& scene = sphereScene();
+  auto device = std::make_shared<SimulatedDevice>(scene.X_WT_initial);
+  EXPECT_THROW(HapticThread(nullptr, device, 0.0), std::invalid_argument);
+  EXPECT_THROW(HapticThread(scene.makeRenderer(), nullptr, 0.0), std::invalid_argument);
+  EXPECT_THROW(HapticThread(scene.makeRenderer(), device, 0.0, 0.0), std::invalid_argument);
+}
+
+TEST(SimulatedDevice, HandsPosesFromTheGuiToTheServoThread) {
+  SimulatedDevice device(Pose::FromTranslation({1, 2, 3}));
+  DeviceSample sample;
+  ASSERT_TRUE(device.read(sample));
+  EXPECT_TRUE(sample.valid);
+  EXPECT_EQ(sample.X_WD.p_AB_m, Eigen::Vector3d(1, 2, 3));
+  device.setPose(Pose::FromTranslation({4, 5, 6}));
+  EXPECT_EQ(device.pose().p_AB_m, Eigen::Vector3d(4, 5, 6));
+  const double t0 = sample.time_s;
+  std::this_thread::sleep_for(2ms);
+  ASSERT_TRUE(device.read(sample));
+  EXPECT_EQ(sample.X_WD.p_AB_m, Eigen::Vector3d(4, 5, 6));
+  EXPECT_GT(sample.time_s, t0);
+  ASSERT_TRUE(device.read(sample));  // nothing new: the same pose again
+  EXPECT_EQ(sample.X_WD.p_AB_m, Eigen::Vector3d(4, 5, 6));
+}
+
+}  // namespace
+}  // namespace vh::runtime

@@ -1,0 +1,198 @@
+// Tests of vh/runtime/runner.h (the headless runner) on synthetic volumes with generated
+// push-and-slide trajectories: the proxy never penetrates deeper than epsilon, no tick produces a
+// non-finite value, contacts and forces happen, and the proxy follows the device back into free
+// space. Also the penetration measure itself, the report, determinism through the CSV, errors.
+#include "vh/runtime/runner.h"
+
+#include <cmath>
+#include <fstream>
+
+#include <gtest/gtest.h>
+#include <nlohmann/json.hpp>
+
+#include "runtime_test_support.h"
+#include "vh/datasets/synthetic.h"
+#include "vh/runtime/placement.h"
+
+namespace vh::runtime {
+namespace {
+
+namespace fs = std::filesystem;
+using haptics::Pose;
+
+const LoadedScene& blockScene() {
+  static const LoadedScene scene = [] {
+    SceneSpec spec = builtinBlockWithHoleScene();
+    spec.tool.point_spacing_m = 0.001;
+    return loadScene(spec);
+  }();
+  return scene;
+}
+
+LoadedScene blockSceneWith(const std::string& tool) {
+  SceneSpec spec = builtinBlockWithHoleScene();
+  spec.tool.mesh = tool;
+  return loadScene(spec);
+}
+
+/// The checks every replay must pass; `what` names the run in failure messages.
+void expectSoundRun(const RunReport& r, const Trajectory& trajectory, const std::string& what) {
+  SCOPED_TRACE(what + ": " + r.summary());
+  EXPECT_EQ(r.ticks, static_cast<std::uint64_t>(std::floor(trajectory.duration_s() * 1000.0 + 1e-9)) + 1);
+  EXPECT_EQ(r.nan_ticks, 0u);
+  EXPECT_EQ(r.bad_device_samples, 0u);
+  EXPECT_EQ(r.initial_points_inside, 0);
+  EXPECT_GT(r.epsilon_m, 0.0);
+  EXPECT_LT(r.epsilon_m, r.feature_size_m);
+  EXPECT_LE(r.max_penetration_m, r.epsilon_m) << "deepest at tick " << r.max_penetration_tick;
+  EXPECT_EQ(r.ticks_penetrating, 0u);
+  EXPECT_GT(r.max_contacts, 0);
+  EXPECT_GT(r.ticks_in_contact, 500u);  // in contact through most of the push and the slide
+  EXPECT_GT(r.max_force_N, 1.0);        // the device is pushed 5 mm past the surface
+  // Retracted into free space: the proxy follows the device and the force vanishes.
+  EXPECT_LT(r.final_proxy_device_distance_m, 1e-4);
+  EXPECT_LT(r.final_force_N, 0.1);
+  EXPECT_GT(r.mean_us, 0.0);
+  EXPECT_LE(r.p50_us, r.p99_us);
+  EXPECT_LE(r.p99_us, r.max_us);
+}
+
+TEST(Runner, PegPushedOntoTheBlockAndSlidAlongIt) {
+  const LoadedScene& scene = blockScene();
+  const auto& field = *scene.volume.field;
+  // Between the hole (radius 8 mm) and the block's edge (24 mm): the peg (7.5 mm) lands flat on
+  // the top face, the paper's pathological case of many coplanar contacts.
+  Pose start = poseAboveVolume(field, scene.tool->point_shell, Eigen::Quaterniond::Identity(), 0.005);
+  start.p_AB_m.x() = 0.015;
+  PushSlideOptions push;
+  push.slide_dir_W = Eigen::Vector3d::UnitY();
+  const PushSlidePlan plan = makePushSlideTrajectory(field, scene.tool->point_shell, scene.isovalue, start, push);
+  EXPECT_NEAR(plan.X_WD_contact.p_AB_m.z(), datasets::kBlockHalfHeight_m, 2 * field.featureSize_m());
+  const RunReport r = runHeadless(scene, plan.trajectory);
+  expectSoundRun(r, plan.trajectory, "peg on the block");
+  EXPECT_GE(r.max_contacts, 3);  // a flat face rests on at least three points
+  // Pressed 5 mm in with 1000 N/m: about 5 N.
+  EXPECT_NEAR(r.max_force_N, 5.0, 1.0);
+}
+
+TEST(Runner, ProbeSlidesOverTheHoleEdgeAndDropsIn) {
+  const LoadedScene scene = blockSceneWith("builtin:probe");
+  const auto& field = *scene.volume.field;
+  Pose start = poseAboveVolume(field, scene.tool->point_shell, Eigen::Quaterniond::Identity(), 0.005);
+  start.p_AB_m.x() = 0.014;
+  PushSlideOptions push;
+  push.slide_dir_W = -Eigen::Vector3d::UnitX();  // from x = 14 mm to -6 mm, across the hole's rim
+  const PushSlidePlan plan = makePushSlideTrajectory(field, scene.tool->point_shell, scene.isovalue, start, push);
+  const RunReport r = runHeadless(scene, plan.trajectory);
+  expectSoundRun(r, plan.trajectory, "probe over the hole");
+}
+
+TEST(Runner, SlideWithRotationOnASphere) {
+  SceneSpec spec;
+  spec.volume.path = "builtin:sphere";
+  spec.tool.mesh = "builtin:drill";
+  spec.tool.point_spacing_m = 0.001;
+  const LoadedScene scene = loadScene(spec);
+  const auto& field = *scene.volume.field;
+  const Pose start = poseAboveVolume(field, scene.tool->point_shell, Eigen::Quaterniond::Identity(), 0.002);
+  PushSlideOptions push;
+  push.slide_rotation_rad = 0.3;  // tilt the drill while sliding over the curved surface
+  const PushSlidePlan plan = makePushSlideTrajectory(field, scene.tool->point_shell, scene.isovalue, start, push);
+  const RunReport r = runHeadless(scene, plan.trajectory);
+  expectSoundRun(r, plan.trajectory, "rotating drill on the sphere");
+  EXPECT_GT(r.max_torque_Nm, 0.0);
+}
+
+TEST(Runner, ProbeFollowsTheDeviceAcrossASphere) {
+  // resources/scenes/sphere-probe.json: frictionless sliding over a convex surface. With the
+  // device 5 mm inside, the coupling force stays near k * 5 mm unless the proxy lags behind.
+  const SceneSpec spec = loadSceneFile(test::sourceDir() / "resources" / "scenes" / "sphere-probe.json");
+  const LoadedScene scene = loadScene(spec);
+  const auto& field = *scene.volume.field;
+  const Pose start = poseAboveVolume(field, scene.tool->point_shell, scene.X_WT_initial.R_AB, 0.01);
+  PushSlideOptions push;
+  const PushSlidePlan plan = makePushSlideTrajectory(field, scene.tool->point_shell, scene.isovalue, start, push);
+  RunOptions options;
+  options.trace_csv = test::scratchDir() / "trace.csv";
+  const RunReport r = runHeadless(scene, plan.trajectory, options);
+  expectSoundRun(r, plan.trajectory, "probe across the sphere (trace: " + options.trace_csv.string() + ")");
+  EXPECT_LT(r.max_force_N, spec.gains.linear_N_per_m * (push.push_depth_m + 0.001))
+      << "the proxy lagged behind the device (stuck on the surface); trace: " << options.trace_csv;
+}
+
+TEST(Runner, ReplayThroughTheCsvIsIdenticalAndTheReportIsComplete) {
+  const fs::path dir = test::scratchDir();
+  const fs::path scene_file = test::writeText(dir / "plane.json", R"({
+    "volume": {"path": "builtin:plane"},
+    "tool": {"mesh": "builtin:sphere", "point_spacing_m": 0.001},
+    "coupling": {"linear_N_per_m": 800}
+  })");
+  const SceneSpec spec = loadSceneFile(scene_file);
+  const LoadedScene scene = loadScene(spec);
+  const Pose start = poseAboveVolume(*scene.volume.field, scene.tool->point_shell, Eigen::Quaterniond::Identity(), 0.002);
+  PushSlideOptions push;
+  push.slide_time_s = 1.0;
+  const PushSlidePlan plan =
+      makePushSlideTrajectory(*scene.volume.field, scene.tool->point_shell, scene.isovalue, start, push);
+  const fs::path csv = dir / "trajectory.csv";
+  writeTrajectoryCsv(plan.trajectory, csv);
+
+  RunOptions options;
+  options.trace_csv = dir / "trace.csv";
+  const RunReport in_process = runHeadless(scene, plan.trajectory, options);
+  const RunReport from_files = runHeadless(spec, csv);
+  expectSoundRun(from_files, plan.trajectory, "ball on a plane via CSV");
+  EXPECT_EQ(from_files.ticks, in_process.ticks);
+  EXPECT_EQ(from_files.max_contacts, in_process.max_contacts);
+  EXPECT_EQ(from_files.mean_contacts, in_process.mean_contacts);
+  EXPECT_EQ(from_files.max_force_N, in_process.max_force_N);
+  EXPECT_EQ(from_files.max_penetration_m, in_process.max_penetration_m);
+  EXPECT_EQ(from_files.trajectory, csv.string());
+  EXPECT_NEAR(from_files.max_force_N, 800.0 * push.push_depth_m, 0.2 * 800.0 * push.push_depth_m);
+
+  const fs::path report_file = dir / "report.json";
+  writeRunReport(from_files, report_file);
+  std::ifstream in(report_file);
+  const nlohmann::json j = nlohmann::json::parse(in);
+  for (const char* key : {"ticks", "mean_us", "p50_us", "p99_us", "max_us", "max_contacts", "mean_contacts",
+                          "max_penetration_m", "nan_ticks", "max_force_N", "epsilon_m", "point_count", "volume_dims",
+                          "isovalue", "bad_device_samples"}) {
+    EXPECT_TRUE(j.contains(key)) << key;
+  }
+  EXPECT_EQ(j["ticks"].get<std::uint64_t>(), from_files.ticks);
+  EXPECT_EQ(j["volume_dims"], nlohmann::json({64, 64, 64}));
+  EXPECT_EQ(j["point_count"].get<std::size_t>(), scene.tool->point_shell.size());
+  EXPECT_DOUBLE_EQ(j["max_penetration_m"].get<double>(), from_files.max_penetration_m);
+  EXPECT_NE(from_files.summary().find("ticks " + std::to_string(from_files.ticks)), std::string::npos);
+}
+
+TEST(Runner, PenetrationMeasureIsTheDepthBelowAPlane) {
+  // F = 1000 (0 - z) [mm]: |grad F| = 1000 per metre, so the first-order depth is exact.
+  const haptics::ScalarVolume plane = datasets::makeBuiltinVolume("plane");
+  haptics::PointShellOptions options;
+  options.spacing_m = 0.001;
+  const haptics::PointShell shell = haptics::makePointShell(datasets::makeBuiltinTool("sphere"), options);
+  double lowest = 0.0;
+  for (const auto& p : shell.points_T_m()) lowest = std::min(lowest, p.z());
+  const Pose above = Pose::FromTranslation({0, 0, 0.010});
+  EXPECT_EQ(maxPenetration_m(plane, shell, above, 0.0), 0.0);
+  EXPECT_EQ(countPointsInside(plane, shell, above, 0.0), 0);
+  int deepest = -2;
+  const Pose sunk = Pose::FromTranslation({0, 0, -lowest - 0.002});  // lowest point 2 mm below z = 0
+  EXPECT_NEAR(maxPenetration_m(plane, shell, sunk, 0.0, &deepest), 0.002, 1e-9);
+  ASSERT_GE(deepest, 0);
+  EXPECT_DOUBLE_EQ(shell.points_T_m()[static_cast<std::size_t>(deepest)].z(), lowest);
+  EXPECT_GT(countPointsInside(plane, shell, sunk, 0.0), 0);
+}
+
+TEST(Runner, ErrorsNameTheFile) {
+  const SceneSpec spec = builtinBlockWithHoleScene();
+  VH_EXPECT_THROW_WITH(runHeadless(spec, "/no/such/trajectory.csv"), std::runtime_error, "/no/such/trajectory.csv");
+  const fs::path bad = test::writeText(test::scratchDir() / "bad.csv", "0,0,0,0,1,0,0,0\n1,0,0\n");
+  VH_EXPECT_THROW_WITH(runHeadless(spec, bad), std::runtime_error, bad.string() + ":2:");
+  VH_EXPECT_THROW_WITH(writeRunReport(RunReport{}, "/no/such/folder/report.json"), std::runtime_error,
+                       "/no/such/folder/report.json");
+}
+
+}  // namespace
+}  // namespace vh::runtime

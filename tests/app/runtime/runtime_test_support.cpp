@@ -1,0 +1,32 @@
+#include "runtime_test_support.h"
+
+#include <fstream>
+
+namespace vh::test {
+
+namespace fs = std::filesystem;
+
+fs::path scratchDir() {
+  const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
+  std::string name = info ? std::string(info->test_suite_name()) + "." + info->name() : "scratch";
+  for (char& c : name) {
+    if (c == '/') c = '_';
+  }
+  const fs::path dir = fs::path(VH_TEST_OUTPUT_DIR) / "scratch" / name;
+  fs::remove_all(dir);
+  fs::create_directories(dir);
+  return dir;
+}
+
+fs::path writeText(const fs::path& path, const std::string& text) {
+  fs::create_directories(path.parent_path());
+  std::ofstream out(path, std::ios::binary);
+  out << text;
+  return path;
+}
+
+fs::path sharedDatasets() { return fs::path(VH_SHARED_DATASETS_DIR); }
+fs::path generatedData() { return fs::path(VH_GENERATED_DATA_DIR); }
+fs::path sourceDir() { return fs::path(VH_SOURCE_DIR); }
+
+}  // namespace vh::test

@@ -1,0 +1,42 @@
+#pragma once
+// Helpers shared by the runtime tests: scratch folders, files, expected error messages, data paths.
+#include <filesystem>
+#include <initializer_list>
+#include <string>
+
+#include <gtest/gtest.h>
+
+namespace vh::test {
+
+/// A fresh, empty folder under the test output folder, named after the running test.
+std::filesystem::path scratchDir();
+
+/// Writes `text` to `path` (creating folders); returns the path.
+std::filesystem::path writeText(const std::filesystem::path& path, const std::string& text);
+
+/// The shared real datasets folder (VH_SHARED_DATASETS_DIR).
+std::filesystem::path sharedDatasets();
+/// The build's generated data folder (VH_GENERATED_DATA_DIR).
+std::filesystem::path generatedData();
+/// The source tree (VH_SOURCE_DIR).
+std::filesystem::path sourceDir();
+
+}  // namespace vh::test
+
+/// Expects `statement` to throw `exception_type` whose what() contains every one of the given
+/// substrings.
+#define VH_EXPECT_THROW_WITH(statement, exception_type, ...)                                   \
+  do {                                                                                         \
+    bool vh_thrown_ = false;                                                                   \
+    try {                                                                                      \
+      statement;                                                                               \
+    } catch (const exception_type& vh_e_) {                                                    \
+      vh_thrown_ = true;                                                                       \
+      const std::string vh_what_ = vh_e_.what();                                               \
+      for (const std::string& vh_part_ : std::initializer_list<std::string>{__VA_ARGS__}) {    \
+        EXPECT_NE(vh_what_.find(vh_part_), std::string::npos)                                  \
+            << "message \"" << vh_what_ << "\" lacks \"" << vh_part_ << "\"";                  \
+      }                                                                                        \
+    }                                                                                          \
+    EXPECT_TRUE(vh_thrown_) << #statement " did not throw " #exception_type;                   \
+  } while (false)

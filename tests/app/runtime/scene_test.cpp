@@ -1,0 +1,262 @@
+// Tests of vh/runtime/scene.h: parsing scene files (good and every error), built-in scenes,
+// loading a scene into a renderer, and the default placement of the tool.
+#include "vh/runtime/scene.h"
+
+#include <cmath>
+#include <stdexcept>
+
+#include <gtest/gtest.h>
+
+#include "runtime_test_support.h"
+#include "vh/datasets/synthetic.h"
+#include "vh/runtime/placement.h"
+
+namespace vh::runtime {
+namespace {
+
+namespace fs = std::filesystem;
+using test::scratchDir;
+using test::writeText;
+
+TEST(SceneFile, ParsesEveryField) {
+  const fs::path dir = scratchDir();
+  writeText(dir / "data" / "tool.stl", "not read by the parser");
+  writeText(dir / "traj.csv", "0,0,0,0,1,0,0,0\n");
+  const fs::path scene = writeText(dir / "s.json", R"({
+    // comments are allowed
+    "description": "test scene",
+    "volume": {"path": "builtin:sphere", "isovalue": -2.5},
+    "tool": {"mesh": "data/tool.stl", "scale_to_m": 0.001, "point_count": 321,
+             "initial_pose": {"p_m": [0.01, -0.02, 0.03], "q_wxyz": [0, 0, 0, 2]}},
+    "coupling": {"linear_N_per_m": 2500, "angular_Nm_per_rad": 1.5},
+    "device": {"kind": "scripted", "trajectory": "traj.csv"}
+  })");
+  const SceneSpec spec = loadSceneFile(scene);
+  EXPECT_EQ(spec.source, fs::absolute(scene));
+  EXPECT_EQ(spec.volume.path, "builtin:sphere");
+  EXPECT_TRUE(spec.volume.isovalue_set);
+  EXPECT_DOUBLE_EQ(spec.volume.isovalue, -2.5);
+  EXPECT_EQ(fs::path(spec.tool.mesh), fs::absolute(dir / "data" / "tool.stl").lexically_normal());
+  EXPECT_DOUBLE_EQ(spec.tool.scale_to_m, 0.001);
+  EXPECT_EQ(spec.tool.point_count, 321u);
+  EXPECT_DOUBLE_EQ(spec.tool.point_spacing_m, 0.0);
+  EXPECT_TRUE(spec.tool.initial_pose_set);
+  EXPECT_FALSE(spec.tool.initial_orientation_set);
+  EXPECT_TRUE(spec.tool.X_WT_initial.p_AB_m.isApprox(Eigen::Vector3d(0.01, -0.02, 0.03)));
+  EXPECT_NEAR(spec.tool.X_WT_initial.R_AB.z(), 1.0, 1e-15);  // normalised from (0, 0, 0, 2)
+  EXPECT_DOUBLE_EQ(spec.gains.linear_N_per_m, 2500.0);
+  EXPECT_DOUBLE_EQ(spec.gains.angular_Nm_per_rad, 1.5);
+  ASSERT_TRUE(spec.device.has_value());
+  EXPECT_EQ(spec.device->kind, "scripted");
+  EXPECT_EQ(fs::path(spec.device->trajectory), fs::absolute(dir / "traj.csv").lexically_normal());
+}
+
+TEST(SceneFile, DefaultsAndNoDeviceMeansNoHapticThread) {
+  const fs::path dir = scratchDir();
+  const SceneSpec spec = loadSceneFile(writeText(dir / "s.json", R"({"volume": {"path": "builtin:plane"}})"));
+  EXPECT_FALSE(spec.volume.isovalue_set);
+  EXPECT_EQ(spec.tool.mesh, "builtin:probe");
+  EXPECT_FALSE(spec.tool.initial_pose_set);
+  EXPECT_FALSE(spec.device.has_value());
+  const haptics::CouplingGains defaults;
+  EXPECT_EQ(spec.gains.linear_N_per_m, defaults.linear_N_per_m);
+  // A scene starts only what it uses: no device section, no device (and so no haptic thread).
+  const LoadedScene loaded = loadScene(spec);
+  EXPECT_EQ(loaded.makeDevice(), nullptr);
+  EXPECT_DOUBLE_EQ(loaded.isovalue, datasets::builtinIsovalue("plane"));
+}
+
+TEST(SceneFile, OrientationOnlyKeepsAutomaticPlacement) {
+  const fs::path dir = scratchDir();
+  const SceneSpec spec = loadSceneFile(writeText(dir / "s.json", R"({"volume": {"path": "builtin:sphere"},
+      "tool": {"initial_pose": {"q_wxyz": [0.7071067811865476, 0.7071067811865476, 0, 0]}}})"));
+  EXPECT_FALSE(spec.tool.initial_pose_set);
+  EXPECT_TRUE(spec.tool.initial_orientation_set);
+  const LoadedScene loaded = loadScene(spec);
+  EXPECT_NEAR(loaded.X_WT_initial.R_AB.angularDistance(spec.tool.X_WT_initial.R_AB), 0.0, 1e-12);
+  EXPECT_EQ(loaded.initial_points_inside, 0);
+}
+
+TEST(SceneFile, ResolvesRelativePathsAgainstTheSharedDatasets) {
+  const fs::path drill = test::sharedDatasets() / "meshes" / "drill" / "drill.stl";
+  if (!fs::exists(drill)) GTEST_SKIP() << "shared dataset absent: " << drill;
+  const fs::path dir = scratchDir();
+  const SceneSpec spec = loadSceneFile(writeText(dir / "s.json", R"({"volume": {"path": "builtin:plane"},
+      "tool": {"mesh": "meshes/drill/drill.stl"}})"));
+  EXPECT_TRUE(fs::equivalent(spec.tool.mesh, drill));
+}
+
+/// Writes `json` as a scene file and expects loadSceneFile to fail naming the file and `parts`.
+template <typename... Parts>
+void expectSceneError(const std::string& json, Parts... parts) {
+  const fs::path dir = scratchDir();
+  const fs::path file = writeText(dir / "bad.json", json);
+  VH_EXPECT_THROW_WITH(loadSceneFile(file), std::runtime_error, file.string(), parts...);
+}
+
+TEST(SceneFileErrors, MissingFile) {
+  VH_EXPECT_THROW_WITH(loadSceneFile("/no/such/scene.json"), std::runtime_error, "/no/such/scene.json",
+                       "scene file not found");
+}
+
+TEST(SceneFileErrors, InvalidJson) {
+  expectSceneError("{\n  \"volume\": {\"path\": \"builtin:plane\",,}\n}", "invalid JSON", "line 2");
+}
+
+TEST(SceneFileErrors, TopLevelNotAnObject) { expectSceneError("[1, 2]", "expected an object, found array"); }
+
+TEST(SceneFileErrors, MissingVolume) { expectSceneError(R"({"tool": {}})", "volume: missing"); }
+
+TEST(SceneFileErrors, MissingVolumePath) { expectSceneError(R"({"volume": {"isovalue": 3}})", "volume.path: missing"); }
+
+TEST(SceneFileErrors, MistypedFields) {
+  expectSceneError(R"({"volume": {"path": 12}})", "volume.path: expected a string, found number");
+  expectSceneError(R"({"volume": {"path": "builtin:plane", "isovalue": "400"}})",
+                   "volume.isovalue: expected a number, found string");
+  expectSceneError(R"({"volume": {"path": "builtin:plane"}, "tool": {"scale_to_m": -1}})",
+                   "tool.scale_to_m: must be > 0");
+  expectSceneError(R"({"volume": {"path": "builtin:plane"}, "tool": {"point_count": 2.5}})",
+                   "tool.point_count: expected a positive integer");
+  expectSceneError(R"({"volume": {"path": "builtin:plane"}, "coupling": {"linear_N_per_m": 0}})",
+                   "coupling.linear_N_per_m: must be > 0");
+}
+
+TEST(SceneFileErrors, UnknownKeyIsATypo) {
+  expectSceneError(R"({"volume": {"path": "builtin:plane", "isoValue": 3}})", "volume", "unknown key 'isoValue'",
+                   "path, isovalue");
+  expectSceneError(R"({"volume": {"path": "builtin:plane"}, "devices": {}})", "unknown key 'devices'");
+}
+
+TEST(SceneFileErrors, BadPose) {
+  expectSceneError(R"({"volume": {"path": "builtin:plane"}, "tool": {"initial_pose": {"p_m": [0, 0]}}})",
+                   "tool.initial_pose.p_m: expected an array of 3 numbers");
+  expectSceneError(R"({"volume": {"path": "builtin:plane"}, "tool": {"initial_pose": {"q_wxyz": [0, 0, 0, 0]}}})",
+                   "tool.initial_pose.q_wxyz: zero quaternion");
+  expectSceneError(R"({"volume": {"path": "builtin:plane"}, "tool": {"initial_pose": {}}})",
+                   "tool.initial_pose: needs p_m and/or q_wxyz");
+}
+
+TEST(SceneFileErrors, SpacingAndCountTogether) {
+  expectSceneError(R"({"volume": {"path": "builtin:plane"},
+                       "tool": {"point_spacing_m": 0.001, "point_count": 100}})",
+                   "give point_spacing_m or point_count, not both");
+}
+
+TEST(SceneFileErrors, Devices) {
+  expectSceneError(R"({"volume": {"path": "builtin:plane"}, "device": {"kind": "falcon"}})",
+                   "device.kind: unknown device kind 'falcon'");
+  expectSceneError(R"({"volume": {"path": "builtin:plane"}, "device": {"kind": "scripted"}})",
+                   "device.trajectory: missing");
+  expectSceneError(R"({"volume": {"path": "builtin:plane"}, "device": {"trajectory": "t.csv"}})",
+                   "device.trajectory: only for kind \"scripted\"");
+}
+
+TEST(SceneFileErrors, DataFileNotFoundNamesWhereItLooked) {
+  expectSceneError(R"({"volume": {"path": "no/such/volume.nrrd"}})", "volume.path: 'no/such/volume.nrrd' not found",
+                   "looked in", test::sharedDatasets().lexically_normal().string());
+  expectSceneError(R"({"volume": {"path": "/abs/volume.nrrd"}})", "volume.path: '/abs/volume.nrrd' not found");
+}
+
+TEST(SceneFileErrors, PackedDatasetGetsAHint) {
+  const fs::path archive = test::sharedDatasets() / "classic" / "ct-bunny.tar.zst";
+  if (!fs::exists(archive)) GTEST_SKIP() << "shared dataset absent: " << archive;
+  const fs::path dir = scratchDir();
+  const fs::path file = writeText(dir / "bad.json", R"({"volume": {"path": "classic/ct-bunny/no-such.nhdr"}})");
+  VH_EXPECT_THROW_WITH(loadSceneFile(file), std::runtime_error, "not found", "ct-bunny.tar.zst", "unpack");
+}
+
+TEST(SceneLoading, UnknownBuiltinsNameTheScene) {
+  SceneSpec spec;
+  spec.source = "my-scene.json";
+  spec.volume.path = "builtin:torus";
+  VH_EXPECT_THROW_WITH(loadScene(spec), std::runtime_error, "my-scene.json", "torus");
+  spec.volume.path = "builtin:plane";
+  spec.tool.mesh = "builtin:hammer";
+  VH_EXPECT_THROW_WITH(loadScene(spec), std::runtime_error, "my-scene.json", "hammer");
+}
+
+TEST(SceneLoading, BuiltinBlockWithHoleScene) {
+  const SceneSpec spec = builtinBlockWithHoleScene();
+  EXPECT_EQ(spec.volume.path, "builtin:block-with-hole");
+  EXPECT_EQ(spec.tool.mesh, "builtin:peg");
+  ASSERT_TRUE(spec.device.has_value());
+  EXPECT_EQ(spec.device->kind, "simulated");
+  const LoadedScene scene = loadScene(spec);
+  EXPECT_EQ(scene.volume.field->geometry().dims, (std::array<int, 3>{256, 256, 256}));
+  ASSERT_NE(scene.volume.image, nullptr);
+  int image_dims[3];
+  scene.volume.image->GetDimensions(image_dims);
+  EXPECT_EQ(image_dims[0], 256);
+  EXPECT_DOUBLE_EQ(scene.isovalue, datasets::kBlockIsovalue);
+  EXPECT_EQ(scene.initial_points_inside, 0);
+  // The peg hangs over the hole: lowering it along -z, it passes through without touching.
+  EXPECT_FALSE(firstContactDistance(*scene.volume.field, scene.tool->point_shell, scene.X_WT_initial,
+                                    -Eigen::Vector3d::UnitZ(), 0.03, scene.isovalue)
+                   .has_value());
+  const auto device = scene.makeDevice();
+  ASSERT_NE(device, nullptr);
+  EXPECT_NE(dynamic_cast<SimulatedDevice*>(device.get()), nullptr);
+  const auto renderer = scene.makeRenderer();
+  EXPECT_TRUE(renderer->proxyPose().p_AB_m.isApprox(scene.X_WT_initial.p_AB_m));
+}
+
+TEST(SceneLoading, SceneForVolume) {
+  const SceneSpec spec = sceneForVolume("some/volume.nrrd");
+  EXPECT_TRUE(fs::path(spec.volume.path).is_absolute());
+  EXPECT_EQ(spec.tool.mesh, "builtin:probe");
+  EXPECT_FALSE(spec.volume.isovalue_set);
+  ASSERT_TRUE(spec.device.has_value());
+  EXPECT_EQ(spec.device->kind, "simulated");
+}
+
+TEST(SceneLoading, PointShellFromSpacingOrCount) {
+  SceneSpec spec;
+  spec.volume.path = "builtin:sphere";
+  spec.tool.mesh = "builtin:sphere";
+  spec.tool.point_count = 250;
+  EXPECT_EQ(loadScene(spec).tool->point_shell.size(), 250u);
+  spec.tool.point_count = 0;
+  spec.tool.point_spacing_m = 0.002;
+  const LoadedScene scene = loadScene(spec);
+  EXPECT_NEAR(scene.tool->point_shell.meanNearestNeighbourSpacing_m(), 0.002, 0.001);
+  // Scaled built-in tool: a 5 mm sphere scaled by 2 is 10 mm in radius.
+  spec.tool.scale_to_m = 2.0;
+  const LoadedScene big = loadScene(spec);
+  EXPECT_NEAR(big.tool->point_shell.points_T_m().front().norm(), 0.010, 5e-4);
+}
+
+TEST(SceneLoading, DefaultPoseRestsAboveTheSurfaceAtAClearance) {
+  SceneSpec spec;
+  spec.volume.path = "builtin:sphere";  // radius 20 mm in a 64 mm cube of 1 mm voxels
+  spec.tool.mesh = "builtin:probe";     // 2 mm ball tip at the origin, shaft along +z
+  const LoadedScene scene = loadScene(spec);
+  const auto& field = *scene.volume.field;
+  EXPECT_EQ(scene.initial_points_inside, 0);
+  EXPECT_NEAR(scene.isovalue, 0.0, 1e-12);
+  // Over the centre in x, y; the clearance to the surface is 10% of 64 mm = 6.4 mm.
+  EXPECT_NEAR(scene.X_WT_initial.p_AB_m.x(), 0.0, 1e-3);
+  EXPECT_NEAR(scene.X_WT_initial.p_AB_m.y(), 0.0, 1e-3);
+  const auto gap = firstContactDistance(field, scene.tool->point_shell, scene.X_WT_initial, -Eigen::Vector3d::UnitZ(),
+                                        0.05, scene.isovalue);
+  ASSERT_TRUE(gap.has_value());
+  EXPECT_NEAR(*gap, 0.0064, field.featureSize_m());
+}
+
+TEST(SceneResources, ShippedScenesParse) {
+  const fs::path dir = test::sourceDir() / "resources" / "scenes";
+  const SceneSpec block = loadSceneFile(dir / "block-peg.json");
+  EXPECT_EQ(block.volume.path, "builtin:block-with-hole");
+  for (const char* name : {"phantom-drill.json", "bunny-probe.json"}) {
+    try {
+      const SceneSpec spec = loadSceneFile(dir / name);
+      EXPECT_TRUE(spec.volume.isovalue_set) << name;
+      EXPECT_TRUE(fs::exists(spec.volume.path)) << name;
+    } catch (const std::runtime_error& e) {
+      // Only a missing shared dataset is acceptable here.
+      EXPECT_NE(std::string(e.what()).find("not found"), std::string::npos) << e.what();
+    }
+  }
+}
+
+}  // namespace
+}  // namespace vh::runtime
