@@ -20,6 +20,7 @@ CollisionDetector::CollisionDetector(const ScalarVolume& volume, const ToolModel
   if (tool.point_shell.empty()) throw std::invalid_argument("CollisionDetector: the point shell is empty");
   if (volume.empty()) throw std::invalid_argument("CollisionDetector: the volume is empty");
   epsilon_ = epsilon_m > 0.0 ? epsilon_m : 0.25 * feature_;
+  bisection_tolerance_ = epsilon_ / 8.0;
   if (!(epsilon_ < feature_) || !std::isfinite(epsilon_))
     throw std::invalid_argument("CollisionDetector: epsilon " + std::to_string(epsilon_) +
                                 " m must be smaller than the feature size " + std::to_string(feature_) + " m");
@@ -38,20 +39,34 @@ bool CollisionDetector::inside(const Eigen::Vector3d& p_W, double isovalue) noex
   return volume_->isInside(p_W, isovalue);
 }
 
-Eigen::Vector3d CollisionDetector::normalAt(const Eigen::Vector3d& p_W, const Eigen::Vector3d& fallback_W) noexcept {
+void CollisionDetector::measureContact(Contact& c, double isovalue) noexcept {
   samples_ += 6;
-  const Eigen::Vector3d g = volume_->gradient(p_W);
+  const Eigen::Vector3d g = volume_->gradient(c.p_W_m);
   const double norm = g.norm();
-  if (norm > 0.0 && std::isfinite(norm)) return -g / norm;
-  return fallback_W;
+  if (norm > 0.0 && std::isfinite(norm)) c.n_W = -g / norm;  // else keep the previous/fallback
+  // Clearance measured with the inside test itself, along -n, up to epsilon: a linearised
+  // (s - F) / |grad F| overestimates it where the central difference smooths a sharp edge.
+  const Eigen::Vector3d& n = c.n_W;
+  if (!inside(c.p_W_m - epsilon_ * n, isovalue)) {
+    c.clearance_m = epsilon_;
+    return;
+  }
+  double lo = 0.0, hi = epsilon_;  // outside at lo, inside at hi
+  for (int i = 0; i < 4; ++i) {
+    const double mid = 0.5 * (lo + hi);
+    if (inside(c.p_W_m - mid * n, isovalue)) hi = mid; else lo = mid;
+  }
+  c.clearance_m = lo;
 }
 
-void CollisionDetector::appendContact(int point, const Eigen::Vector3d& p_W, const Eigen::Vector3d& fallback_n_W) noexcept {
+void CollisionDetector::appendContact(int point, const Eigen::Vector3d& p_W, const Eigen::Vector3d& fallback_n_W,
+                                      double isovalue) noexcept {
   if (in_set_[point] || contact_count_ >= contacts_.size()) return;
   Contact& c = contacts_[contact_count_++];
   c.point_index = point;
   c.p_W_m = p_W;
-  c.n_W = normalAt(p_W, fallback_n_W);
+  c.n_W = fallback_n_W;
+  measureContact(c, isovalue);
   in_set_[point] = 1;
 }
 
@@ -85,9 +100,10 @@ SweepResult CollisionDetector::sweep(const RigidMotion& motion, double isovalue)
     const int next = e.segment + 1;
     const double t_end = (static_cast<double>(next) * dt_[j] >= 1.0 - 1e-12) ? 1.0 : next * dt_[j];
     if (inside(motion.pointAt(r0_[j], t_end), isovalue)) {
-      // Interval bisection until the point travels less than epsilon over the interval.
+      // Interval bisection until the point travels less than epsilon over the interval (here
+      // epsilon / 8: a stop within the full epsilon can be t = 0 for every small step).
       double lo = e.t_begin, hi = t_end;
-      while (path_[j] * (hi - lo) >= epsilon_) {
+      while (path_[j] * (hi - lo) >= bisection_tolerance_) {
         const double mid = 0.5 * (lo + hi);
         if (inside(motion.pointAt(r0_[j], mid), isovalue)) hi = mid; else lo = mid;
       }
@@ -114,12 +130,17 @@ void CollisionDetector::pruneContacts(const Pose& X_WP, const Pose& X_WD, double
     const double path = motion.pathLengthBound(r0);
     bool keep = false;
     if (path > 0.0 && !embedded_[j]) {
-      // Move the point epsilon towards the target; still inside means it still blocks.
-      keep = inside(motion.pointAt(r0, std::min(1.0, epsilon_ / path)), isovalue);
+      // Move the point epsilon towards the target; still inside means it still blocks. A
+      // contact held at the stand-off clearance also blocks when that move heads into the
+      // surface (the same test to first order): without this, two contacts of a resting tool
+      // are dropped in turn and the proxy chatters between them.
+      const Eigen::Vector3d p0 = motion.pointAt(r0, 0.0);
+      const Eigen::Vector3d p_eps = motion.pointAt(r0, std::min(1.0, epsilon_ / path));
+      keep = c.n_W.dot(p_eps - p0) < 0.0 || inside(p_eps, isovalue);
     }
     if (keep) {
       c.p_W_m = X_WP * points[j];
-      c.n_W = normalAt(c.p_W_m, c.n_W);
+      measureContact(c, isovalue);
       contacts_[kept++] = c;
     } else {
       in_set_[j] = 0;
@@ -138,11 +159,11 @@ void CollisionDetector::addContactsAt(const RigidMotion& motion, const SweepResu
     const double nd = d.norm();
     return nd > 0.0 ? Eigen::Vector3d(-d / nd) : Eigen::Vector3d(Eigen::Vector3d::UnitZ());
   };
-  appendContact(hit.hit_point, motion.pointAt(r0_[hit.hit_point], t), direction(hit.hit_point));
+  appendContact(hit.hit_point, motion.pointAt(r0_[hit.hit_point], t), direction(hit.hit_point), isovalue);
   for (int j = 0; j < n; ++j) {
     if (in_set_[j] || embedded_[j] || !(path_[j] > 0.0)) continue;
     if (inside(motion.pointAt(r0_[j], t + epsilon_ / path_[j]), isovalue))
-      appendContact(j, motion.pointAt(r0_[j], t), direction(j));
+      appendContact(j, motion.pointAt(r0_[j], t), direction(j), isovalue);
   }
 }
 

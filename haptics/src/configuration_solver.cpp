@@ -20,8 +20,22 @@ Vector6d constraintRow(const Eigen::Vector3d& p_W_m, const Eigen::Vector3d& n_W,
 
 ConfigurationSolver::ConfigurationSolver(std::size_t max_contacts) : projector_(max_contacts), rows_(max_contacts) {}
 
+Eigen::Vector3d ConfigurationSolver::standoffTranslation(std::span<const Contact> contacts, double standoff_m) noexcept {
+  Eigen::Vector3d d = Eigen::Vector3d::Zero();
+  if (!(standoff_m > 0.0)) return d;
+  for (int sweep = 0; sweep < 3; ++sweep)
+    for (const Contact& c : contacts) {
+      const double deficit = standoff_m - c.clearance_m - c.n_W.dot(d);
+      if (deficit > 0.0) d += deficit * c.n_W;
+    }
+  const double cap = 2.0 * standoff_m;
+  const double norm = d.norm();
+  if (norm > cap) d *= cap / norm;
+  return d.allFinite() ? d : Eigen::Vector3d::Zero();
+}
+
 RigidMotion ConfigurationSolver::constrainedMotion(const Pose& X_WP, const Pose& X_WD, const MassProperties& mass,
-                                                   std::span<const Contact> contacts) noexcept {
+                                                   std::span<const Contact> contacts, double standoff_m) noexcept {
   // Step 1: a_u = 2 dx takes the proxy to the device in a unit step (section 2.4).
   a_u_ = 2.0 * displacement_W(X_WP, X_WD, mass.p_TCm_m);
   // The projection is invariant to a scale of M; dividing by the mass keeps the numbers O(1).
@@ -33,7 +47,8 @@ RigidMotion ConfigurationSolver::constrainedMotion(const Pose& X_WP, const Pose&
   last_ = projector_.project(M, a_u_, std::span<const Vector6d>(rows_.data(), m));
   const Vector6d& a_c = last_.a_c;
   // x_t = x_i + a_c / 2: the motion over the unit step (eq. 2).
-  return RigidMotion::FromVelocity(X_WP, mass.p_TCm_m, 0.5 * a_c.head<3>(), 0.5 * a_c.tail<3>());
+  const Eigen::Vector3d lift = standoffTranslation(std::span<const Contact>(contacts.data(), m), standoff_m);
+  return RigidMotion::FromVelocity(X_WP, mass.p_TCm_m, 0.5 * a_c.head<3>() + lift, 0.5 * a_c.tail<3>());
 }
 
 }  // namespace vh::haptics

@@ -66,7 +66,8 @@ TickOutput HapticRenderer::tick(const Pose& X_WD_in, double isovalue) noexcept {
   // Step 2: verify and prune the contact set.
   collision_.pruneContacts(X_WP_, X_WD, isovalue);
   // Steps 1 and 3: unconstrained, then constrained motion (Gauss' principle).
-  const RigidMotion motion = solver_.constrainedMotion(X_WP_, X_WD, mass, collision_.contacts());
+  const RigidMotion motion = solver_.constrainedMotion(X_WP_, X_WD, mass, collision_.contacts(),
+                                                      options_.standoff_fraction * collision_.epsilon_m());
   // Step 4: collision detection along the constrained path.
   const SweepResult hit = collision_.sweep(motion, isovalue);
   // Step 5: move the proxy to the first contact (or the target).

@@ -21,6 +21,9 @@ struct Contact {
   int point_index = -1;                            ///< Index into the point shell.
   Eigen::Vector3d p_W_m = Eigen::Vector3d::Zero(); ///< Point position on the proxy, in W [m].
   Eigen::Vector3d n_W = Eigen::Vector3d::UnitZ();  ///< Unit surface normal -grad F / |grad F|, W.
+  /// Distance from p to the isosurface along -n_W [m], measured by bisection with the inside
+  /// test to epsilon / 16, capped at epsilon.
+  double clearance_m = 0.0;
 };
 
 /// Result of a swept query.
@@ -46,11 +49,14 @@ class CollisionDetector {
   /// point's path is split into ceil(s / f) equal time segments (s = path-length bound), the
   /// segments are visited in time order through one priority queue over all points, and the
   /// first crossing is refined by bisection until the point's travel over the interval is
-  /// below epsilon. The returned time is on the outside end of that interval.
+  /// below epsilon / 8 (< epsilon as the paper asks; finer so that small steps still make
+  /// progress). The returned time is on the outside end of that interval.
   SweepResult sweep(const RigidMotion& motion, double isovalue) noexcept;
 
-  /// Step 2: keeps the contacts that, moved epsilon from X_WP towards X_WD, are inside; their
-  /// positions and normals are refreshed at X_WP.
+  /// Step 2: keeps the contacts that, moved epsilon from X_WP towards X_WD, are inside or move
+  /// against their normal (the first-order form of the same test, needed because contacts are
+  /// held at a small stand-off clearance); positions, normals and clearances are refreshed at
+  /// X_WP.
   void pruneContacts(const Pose& X_WP, const Pose& X_WD, double isovalue) noexcept;
 
   /// After step 5: adds the point that collided and every point that at time `hit.t` of the
@@ -85,13 +91,15 @@ class CollisionDetector {
     int segment;     // segment index along the point's path
   };
   bool inside(const Eigen::Vector3d& p_W, double isovalue) noexcept;
-  Eigen::Vector3d normalAt(const Eigen::Vector3d& p_W, const Eigen::Vector3d& fallback_W) noexcept;
-  void appendContact(int point, const Eigen::Vector3d& p_W, const Eigen::Vector3d& fallback_n_W) noexcept;
+  // Fills c.n_W and c.clearance_m at c.p_W_m (7 samples).
+  void measureContact(Contact& c, double isovalue) noexcept;
+  void appendContact(int point, const Eigen::Vector3d& p_W, const Eigen::Vector3d& fallback_n_W, double isovalue) noexcept;
 
   const ScalarVolume* volume_;
   const ToolModel* tool_;
   double feature_;
   double epsilon_;
+  double bisection_tolerance_;
   std::vector<Eigen::Vector3d> r0_;      // per point radial vector at t = 0 (W)
   std::vector<double> dt_;               // per point segment length in time
   std::vector<double> path_;             // per point path-length bound

@@ -31,6 +31,9 @@ namespace vh::haptics {
 struct RendererOptions {
   /// Collision tolerance epsilon [m] (section 2.3); 0 selects feature size / 4. Must be < f.
   double epsilon_m = 0.0;
+  /// Clearance kept between contact points and the surface, as a fraction of epsilon (see
+  /// ConfigurationSolver::standoffTranslation); 0 gives the paper's plain behaviour.
+  double standoff_fraction = 0.5;
   /// Coupling gains (section 2.5); may be changed between ticks with setGains().
   CouplingGains gains;
   /// Largest device translation accepted from one tick to the next [m]; farther jumps and
