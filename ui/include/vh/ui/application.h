@@ -1,0 +1,60 @@
+#pragma once
+/// @file
+/// The Qt6 desktop application: main window with a VTK render view of the volume's isosurface,
+/// the proxy and device tools, contact points, the force vector, and live statistics.
+///
+/// Mouse controls in the view (also shown on screen):
+///   left drag                 camera trackball (rotate)      | middle drag / wheel: pan / zoom
+///   Ctrl + left drag          move the simulated device in the view plane
+///   Ctrl + wheel              move the simulated device along the view direction
+///   Ctrl + right drag (vert.) same, continuous
+///   Shift + left drag         rotate the simulated device (trackball about its centre)
+
+#include <filesystem>
+#include <optional>
+
+#include "vh/haptics/pose.h"
+
+namespace vh::runtime {
+struct SceneSpec;
+}
+
+namespace vh::ui {
+
+/// Options of one application run (command line of volume-haptics).
+struct AppOptions {
+  /// Non-empty: after the scene loaded and `screenshot_delay_ms` of haptic ticks and frames,
+  /// save a PNG of the main window (the VTK view composited in) here, then quit with 0
+  /// (1 when the file could not be written).
+  std::filesystem::path screenshot;
+  /// Initial isovalue in the data's units (HU for CT); overrides the scene's.
+  std::optional<double> isovalue;
+  /// Time from the window being shown to the screenshot [ms].
+  int screenshot_delay_ms = 1500;
+  /// Scripted pose X_WD of the simulated device (world frame W, metres), set once after load.
+  std::optional<haptics::Pose> device_pose;
+  /// Scripted "touch" (for screenshots): after load, the simulated device moves from its initial
+  /// pose straight towards the volume's centre until the tool's point shell meets the isosurface
+  /// (a cast through the field, runtime::firstContactDistance), then `touch_depth_m` further, so
+  /// the proxy rests on the surface while the device sinks in and a contact force shows. When that
+  /// ray slips through a hole, starts on rings around it (up to 30% of the volume's size) are
+  /// tried; the device then moves sideways first and goes in 0.3 s later. Ignored when
+  /// `device_pose` is set or the scene has no simulated device (a warning on stderr).
+  bool touch = false;
+  /// How far past the surface the device target goes for `touch` [m].
+  double touch_depth_m = 0.003;
+  /// Main window size in logical pixels.
+  int window_width = 1024;
+  int window_height = 768;
+};
+
+/// Creates the QApplication (default surface format set before: OpenGL 3.2 core, depth 24,
+/// stencil 8, samples 0), loads `scene` (errors: message box naming the file and the problem,
+/// also printed to stderr; returns 1), shows the main window and runs the event loop. Starts
+/// the haptic thread when the scene has a device; closing the window stops it (force ramped to
+/// zero) before the VTK objects are destroyed.
+/// @return the event loop's exit code (0 on a normal close or a successful screenshot).
+int runApplication(int argc, char** argv, const vh::runtime::SceneSpec& scene,
+                   const AppOptions& options);
+
+}  // namespace vh::ui

@@ -1,0 +1,121 @@
+#pragma once
+/// @file
+/// The VTK side of the main view (no Qt): the volume's isosurface (GPU ray casting), the proxy
+/// and device tools, contact points, the force arrow and the on-screen hint. The main window
+/// edits the scene only through this class; it never touches the mapper directly.
+///
+/// Frames: everything is drawn in the world frame W [m]. The vtkImageData has spacing and origin
+/// in metres but no direction; the volume prop's user matrix applies the direction D about the
+/// origin o: p_W = o + D (p_image - o).
+
+#include <span>
+#include <string>
+
+#include <Eigen/Core>
+
+#include <vtkNew.h>
+#include <vtkSmartPointer.h>
+
+#include "vh/haptics/pose.h"
+#include "vh/haptics/triangle_mesh.h"
+
+class vtkActor;
+class vtkColorTransferFunction;
+class vtkGPUVolumeRayCastMapper;
+class vtkImageData;
+class vtkPiecewiseFunction;
+class vtkPoints;
+class vtkPolyData;
+class vtkRenderer;
+class vtkTextActor;
+class vtkVolume;
+class vtkVolumeProperty;
+
+namespace vh::ui {
+
+/// Inputs of the scene's props.
+struct SceneActorsSpec {
+  vtkSmartPointer<vtkImageData> image;                      ///< Scalars in data units, metres.
+  Eigen::Matrix3d direction_W = Eigen::Matrix3d::Identity(); ///< Columns: image i, j, k axes in W.
+  double isovalue = 0.0;                                     ///< Data units (HU for CT).
+  haptics::TriangleMesh tool_mesh_T;                         ///< Tool display mesh in T [m].
+  Eigen::Vector3d p_TCm_m = Eigen::Vector3d::Zero();         ///< Tool centre of mass in T [m].
+  bool show_device = true;                                   ///< Draw the device tool.
+  std::string hint;                                          ///< Text overlay (may be empty).
+};
+
+class SceneActors {
+ public:
+  /// Builds the props and adds them to `renderer`, which must already be in its render window:
+  /// contacts and the force arrow go to an overlay renderer (layer 1, same camera) added to it.
+  SceneActors(vtkRenderer* renderer, const SceneActorsSpec& spec);
+  ~SceneActors();
+  SceneActors(const SceneActors&) = delete;
+  SceneActors& operator=(const SceneActors&) = delete;
+
+  /// Isosurface value in data units.
+  void setIsovalue(double isovalue);
+  double isovalue() const;
+
+  void setProxyPose(const haptics::Pose& X_WP);
+  void setDevicePose(const haptics::Pose& X_WD);
+  void setDeviceVisible(bool visible);
+  /// Contact points in W [m] (small spheres drawn over everything).
+  void setContacts(std::span<const Eigen::Vector3d> p_W_m);
+  /// Force on the user's hand [N], drawn over everything as an arrow from p_W_origin_m; its
+  /// length is arrowReferenceLength_m() per 3 N (clamped to 0.15..2.5 times); hidden below 1 mN.
+  void setForce(const Eigen::Vector3d& p_W_origin_m, const Eigen::Vector3d& force_W_N);
+
+  /// Rendering quality of the volume. Still frames sample rays every half voxel at full
+  /// resolution; interactive frames (camera drags, moving tools, slider drags) sample every voxel
+  /// and cast fewer rays (image sample distance) so software GL stays responsive.
+  void setInteractive(bool interactive);
+  bool interactive() const noexcept { return interactive_; }
+  /// Adapts the quality to the wall time of the frame just rendered [ms]: interactive frames
+  /// aim at `interactive_target_ms` (image sample distance 1..4 pixels); still frames that take
+  /// over a second (software GL, large views) step down to voxel-spaced samples, then to 1.5
+  /// pixel image sampling, and step back up when they get fast again.
+  void adaptQuality(double last_frame_ms, double interactive_target_ms = 80.0);
+  /// Back to the best still quality (half-voxel samples, every pixel).
+  void resetQuality();
+  /// Ray sample distance [m] and image sample distance [px] now in use.
+  double sampleDistance_m() const;
+  double imageSampleDistance_px() const;
+
+  /// Length [m] of the arrow drawn for 3 N: half the tool's bounding-box diagonal.
+  double arrowReferenceLength_m() const noexcept { return arrow_reference_m_; }
+
+  vtkVolume* volume() const noexcept;
+  vtkGPUVolumeRayCastMapper* volumeMapper() const noexcept;
+  vtkActor* proxyActor() const noexcept;
+  vtkActor* deviceActor() const noexcept;
+  vtkActor* contactActor() const noexcept;
+  vtkActor* forceActor() const noexcept;
+  vtkRenderer* overlayRenderer() const noexcept;
+  vtkTextActor* hintActor() const noexcept;
+
+ private:
+  vtkRenderer* renderer_;  // not owned
+  vtkNew<vtkRenderer> overlay_;
+  vtkNew<vtkGPUVolumeRayCastMapper> volume_mapper_;
+  vtkNew<vtkVolumeProperty> volume_property_;
+  vtkNew<vtkColorTransferFunction> colour_;
+  vtkNew<vtkPiecewiseFunction> opacity_;
+  vtkNew<vtkVolume> volume_;
+  vtkNew<vtkActor> proxy_actor_;
+  vtkNew<vtkActor> device_actor_;
+  vtkNew<vtkPoints> contact_points_;
+  vtkNew<vtkPolyData> contact_poly_;
+  vtkNew<vtkActor> contact_actor_;
+  vtkNew<vtkActor> force_actor_;
+  vtkNew<vtkTextActor> hint_actor_;
+  double arrow_reference_m_ = 0.01;
+  void applyQuality();
+  double min_spacing_m_ = 1e-3;
+  int still_level_ = 0;  // 0 best; see adaptQuality()
+  double interactive_image_sample_ = 1.0;
+  bool interactive_ = false;
+  static constexpr double kReferenceForce_N = 3.0;
+};
+
+}  // namespace vh::ui
