@@ -41,7 +41,7 @@ bool CollisionDetector::inside(const Eigen::Vector3d& p_W, double isovalue) noex
 
 void CollisionDetector::measureContact(Contact& c, double isovalue) noexcept {
   samples_ += 6;
-  const Eigen::Vector3d g = volume_->gradient(c.p_W_m);
+  const Eigen::Vector3d g = c.crossing_normal ? volume_->interpolantGradient(c.p_W_m) : volume_->gradient(c.p_W_m);
   const double norm = g.norm();
   if (norm > 0.0 && std::isfinite(norm)) c.n_W = -g / norm;  // else keep the previous/fallback
   // Clearance measured with the inside test itself, along -n, up to epsilon: a linearised
@@ -66,6 +66,7 @@ void CollisionDetector::appendContact(int point, const Eigen::Vector3d& p_W, con
   c.point_index = point;
   c.p_W_m = p_W;
   c.n_W = fallback_n_W;
+  c.crossing_normal = false;
   measureContact(c, isovalue);
   in_set_[point] = 1;
 }
@@ -109,6 +110,7 @@ SweepResult CollisionDetector::sweep(const RigidMotion& motion, double isovalue)
       }
       if (lo < result.t) {
         result.t = lo;
+        result.t_inside = hi;
         result.hit_point = j;
       }
     } else if (t_end < 1.0) {
@@ -165,6 +167,26 @@ void CollisionDetector::addContactsAt(const RigidMotion& motion, const SweepResu
     if (inside(motion.pointAt(r0_[j], t + epsilon_ / path_[j]), isovalue))
       appendContact(j, motion.pointAt(r0_[j], t), direction(j), isovalue);
   }
+}
+
+bool CollisionDetector::refineStuckContact(const RigidMotion& motion, const SweepResult& hit) noexcept {
+  if (hit.hit_point < 0 || !in_set_[hit.hit_point]) return false;
+  const int j = hit.hit_point;
+  if (path_[j] * hit.t >= bisection_tolerance_) return false;  // it did make progress
+  for (std::size_t i = 0; i < contact_count_; ++i) {
+    Contact& c = contacts_[i];
+    if (c.point_index != j) continue;
+    samples_ += 6;
+    const Eigen::Vector3d g = volume_->interpolantGradient(motion.pointAt(r0_[j], hit.t_inside));
+    const double norm = g.norm();
+    if (!(norm > 0.0) || !std::isfinite(norm)) return false;
+    const Eigen::Vector3d n = -g / norm;
+    if (c.crossing_normal && (n - c.n_W).norm() < 1e-9) return false;  // nothing new to try
+    c.n_W = n;
+    c.crossing_normal = true;
+    return true;
+  }
+  return false;
 }
 
 void CollisionDetector::refreshPositions(const Pose& X_WP) noexcept {

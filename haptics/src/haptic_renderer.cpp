@@ -65,11 +65,18 @@ TickOutput HapticRenderer::tick(const Pose& X_WD_in, double isovalue) noexcept {
   const MassProperties& mass = tool_->mass;
   // Step 2: verify and prune the contact set.
   collision_.pruneContacts(X_WP_, X_WD, isovalue);
-  // Steps 1 and 3: unconstrained, then constrained motion (Gauss' principle).
-  const RigidMotion motion = solver_.constrainedMotion(X_WP_, X_WD, mass, collision_.contacts(),
-                                                      options_.standoff_fraction * collision_.epsilon_m());
-  // Step 4: collision detection along the constrained path.
-  const SweepResult hit = collision_.sweep(motion, isovalue);
+  // Steps 1 and 3: unconstrained, then constrained motion (Gauss' principle); step 4:
+  // collision detection along the constrained path. When a contact blocks its own tangent step
+  // (its eq. 1 normal disagrees with the trilinear surface), its normal is refined and steps
+  // 3-4 are solved again, at most twice per tick.
+  RigidMotion motion;
+  SweepResult hit;
+  for (int attempt = 0; attempt < 3; ++attempt) {
+    motion = solver_.constrainedMotion(X_WP_, X_WD, mass, collision_.contacts(),
+                                       options_.standoff_fraction * collision_.epsilon_m());
+    hit = collision_.sweep(motion, isovalue);
+    if (attempt == 2 || !collision_.refineStuckContact(motion, hit)) break;
+  }
   // Step 5: move the proxy to the first contact (or the target).
   X_WP_ = motion.poseAt(hit.t);
   collision_.refreshPositions(X_WP_);

@@ -145,6 +145,19 @@ Eigen::Vector3d ScalarVolume::gradient(const Eigen::Vector3d& p_W_m) const noexc
   return geometry_.direction_W * d_grid;
 }
 
+Eigen::Vector3d ScalarVolume::interpolantGradient(const Eigen::Vector3d& p_W_m) const noexcept {
+  constexpr double kStep = 1e-3;  // voxels
+  const Eigen::Vector3d g = gridCoordinates(p_W_m);
+  Eigen::Vector3d d_grid;
+  for (int a = 0; a < 3; ++a) {
+    Eigen::Vector3d plus = g, minus = g;
+    plus[a] += kStep;
+    minus[a] -= kStep;
+    d_grid[a] = (sampleGrid(plus) - sampleGrid(minus)) / (2.0 * kStep * geometry_.spacing_m[a]);
+  }
+  return geometry_.direction_W * d_grid;
+}
+
 Eigen::Vector3d ScalarVolume::boundsMin_W_m() const noexcept {
   Eigen::Vector3d lo = Eigen::Vector3d::Constant(std::numeric_limits<double>::infinity());
   for (int c = 0; c < 8; ++c) {

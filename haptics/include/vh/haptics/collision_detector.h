@@ -24,12 +24,15 @@ struct Contact {
   /// Distance from p to the isosurface along -n_W [m], measured by bisection with the inside
   /// test to epsilon / 16, capped at epsilon.
   double clearance_m = 0.0;
+  /// True when n_W comes from the interpolant's own gradient (see refineStuckContact()).
+  bool crossing_normal = false;
 };
 
 /// Result of a swept query.
 struct SweepResult {
-  double t = 1.0;      ///< First time of contact in [0, 1] (1 = no contact).
-  int hit_point = -1;  ///< Point that collided first, or -1.
+  double t = 1.0;         ///< First time of contact in [0, 1] (1 = no contact).
+  double t_inside = 1.0;  ///< End of the bisection interval (the hit point is inside there).
+  int hit_point = -1;     ///< Point that collided first, or -1.
 };
 
 /// Collision detector for one point shell against one volume. Owns the contact set and all
@@ -64,6 +67,13 @@ class CollisionDetector {
   /// path puts it inside), with normals, to the contact set. Call after sweep() with the same
   /// motion.
   void addContactsAt(const RigidMotion& motion, const SweepResult& hit, double isovalue) noexcept;
+
+  /// When the sweep's first hit is a point already in the contact set and the proxy could not
+  /// move (travel below the bisection tolerance), its eq. 1 normal disagrees with the trilinear
+  /// surface there; the contact's normal is replaced by the interpolant's own gradient at the
+  /// crossing, which by construction opposes the blocked direction.
+  /// @return true when a normal was replaced (re-solve steps 3-5 within the tick).
+  bool refineStuckContact(const RigidMotion& motion, const SweepResult& hit) noexcept;
 
   /// Moves the stored contact positions to the proxy pose X_WP (after step 5).
   void refreshPositions(const Pose& X_WP) noexcept;

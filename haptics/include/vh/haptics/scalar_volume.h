@@ -98,6 +98,11 @@ class ScalarVolume {
   /// divided by 2 delta, then rotated into W (eq. 1 up to that scale, which keeps the direction).
   Eigen::Vector3d gradient(const Eigen::Vector3d& p_W_m) const noexcept;
 
+  /// Gradient of the trilinear interpolant itself at p_W (central difference over 1e-3 voxel),
+  /// in data units per metre, in W: consistent with isInside() where eq. 1's smoothing is not
+  /// (sharp edges of CT data). Used for the normal of a contact that blocks its own tangent step.
+  Eigen::Vector3d interpolantGradient(const Eigen::Vector3d& p_W_m) const noexcept;
+
   /// Inside test for the isosurface F = isovalue: inBounds(p) && F(p) > isovalue.
   bool isInside(const Eigen::Vector3d& p_W_m, double isovalue) const noexcept;
 
