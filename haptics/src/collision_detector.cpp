@@ -132,17 +132,16 @@ void CollisionDetector::pruneContacts(const Pose& X_WP, const Pose& X_WD, double
     const double path = motion.pathLengthBound(r0);
     bool keep = false;
     if (path > 0.0 && !embedded_[j]) {
-      // Move the point epsilon towards the target; still inside means it still blocks. A
-      // contact held at the stand-off clearance also blocks when that move heads into the
-      // surface (the same test to first order): without this, two contacts of a resting tool
-      // are dropped in turn and the proxy chatters between them.
-      const Eigen::Vector3d p0 = motion.pointAt(r0, 0.0);
-      const Eigen::Vector3d p_eps = motion.pointAt(r0, std::min(1.0, epsilon_ / path));
-      keep = c.n_W.dot(p_eps - p0) < 0.0 || inside(p_eps, isovalue);
-    }
-    if (keep) {
       c.p_W_m = X_WP * points[j];
       measureContact(c, isovalue);
+      // Move the point epsilon towards the target; still inside means it still blocks. A
+      // contact within epsilon of the surface (held at the stand-off clearance) also blocks when
+      // that move heads into the surface (the same test to first order): without this, two
+      // contacts of a resting tool are dropped in turn and the proxy chatters between them.
+      const Eigen::Vector3d p_eps = motion.pointAt(r0, std::min(1.0, epsilon_ / path));
+      keep = (c.clearance_m < epsilon_ && c.n_W.dot(p_eps - c.p_W_m) < 0.0) || inside(p_eps, isovalue);
+    }
+    if (keep) {
       contacts_[kept++] = c;
     } else {
       in_set_[j] = 0;

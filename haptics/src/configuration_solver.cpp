@@ -23,8 +23,14 @@ ConfigurationSolver::ConfigurationSolver(std::size_t max_contacts) : projector_(
 Eigen::Vector3d ConfigurationSolver::standoffTranslation(std::span<const Contact> contacts, double standoff_m) noexcept {
   Eigen::Vector3d d = Eigen::Vector3d::Zero();
   if (!(standoff_m > 0.0)) return d;
+  // Hysteresis: only contacts closer than half the stand-off are lifted (to the full stand-off),
+  // so a proxy at rest stays at rest (the clearance is measured to epsilon / 16 only).
+  bool any = false;
+  for (const Contact& c : contacts) any |= c.clearance_m < 0.5 * standoff_m;
+  if (!any) return d;
   for (int sweep = 0; sweep < 3; ++sweep)
     for (const Contact& c : contacts) {
+      if (c.clearance_m >= 0.5 * standoff_m) continue;
       const double deficit = standoff_m - c.clearance_m - c.n_W.dot(d);
       if (deficit > 0.0) d += deficit * c.n_W;
     }

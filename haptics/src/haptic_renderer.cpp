@@ -72,8 +72,11 @@ TickOutput HapticRenderer::tick(const Pose& X_WD_in, double isovalue) noexcept {
   RigidMotion motion;
   SweepResult hit;
   for (int attempt = 0; attempt < 3; ++attempt) {
-    motion = solver_.constrainedMotion(X_WP_, X_WD, mass, collision_.contacts(),
-                                       options_.standoff_fraction * collision_.epsilon_m());
+    // No stand-off lift while the surface has swallowed part of the tool (isovalue change): a
+    // moving surface must never push the proxy against the user.
+    const double standoff_m =
+        collision_.embeddedCount() > 0 ? 0.0 : options_.standoff_fraction * collision_.epsilon_m();
+    motion = solver_.constrainedMotion(X_WP_, X_WD, mass, collision_.contacts(), standoff_m);
     hit = collision_.sweep(motion, isovalue);
     if (attempt == 2 || !collision_.refineStuckContact(motion, hit)) break;
   }

@@ -141,6 +141,25 @@ TEST(HapticRenderer, IsovalueChangeInContactCausesNoForceSpike) {
   EXPECT_LE(maxPenetration(*vol, *tool, out.X_WP, 0.0), r.epsilon_m());
 }
 
+TEST(HapticRenderer, ProxyComesToRestWhenTheDeviceIsStill) {
+  // A point-sampled ball pressed onto a sphere: rotating it rolls other points into contact, the
+  // hardest case for settling (a stand-off of epsilon / 2 made it cycle with a 28-tick period).
+  auto vol = std::make_shared<ScalarVolume>(datasets::makeBuiltinVolume("sphere"));
+  const auto tool = test::meshTool(datasets::makeBuiltinTool("sphere"), 1.5e-3);
+  HapticRenderer r(vol, tool, {}, Pose::FromTranslation({0, 0, 0.03}), 0.0);
+  const Pose device = Pose::FromTranslation({0.0, 0.0, 0.022});
+  TickOutput out;
+  for (int i = 0; i < 400; ++i) out = r.tick(device, 0.0);
+  const Pose rest = out.X_WP;
+  for (int i = 0; i < 1000; ++i) {
+    out = r.tick(device, 0.0);
+    ASSERT_LT((out.X_WP.p_AB_m - rest.p_AB_m).norm(), 1e-9) << "tick " << i;
+    ASSERT_LT(rest.R_AB.angularDistance(out.X_WP.R_AB), 1e-9) << "tick " << i;
+  }
+  EXPECT_GT(out.stats.contacts, 0);
+  EXPECT_LE(maxPenetration(*vol, *tool, out.X_WP, 0.0), r.epsilon_m());
+}
+
 TEST(HapticRenderer, TickDoesNotAllocate) {
   auto vol = std::make_shared<ScalarVolume>(datasets::makeSphereVolume(test::grid1mm(), Eigen::Vector3d::Zero(), 0.015));
   const auto tool = test::meshTool(datasets::makeBuiltinTool("drill"), 1.5e-3);

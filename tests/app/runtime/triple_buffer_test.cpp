@@ -67,17 +67,23 @@ struct Wide {
 TEST(TripleBuffer, StressConsumerNeverSeesATornOrOlderValue) {
   TripleBuffer<Wide> buffer;
   std::atomic<bool> done{false};
+  std::atomic<bool> consumer_started{false};
   constexpr std::uint64_t kPublishes = 300'000;
   std::thread producer([&] {
+    // Overlap with the consumer even on a loaded 2-core machine: start once it runs, and give
+    // the core away now and then.
+    while (!consumer_started.load(std::memory_order_acquire)) std::this_thread::yield();
     for (std::uint64_t s = 1; s <= kPublishes; ++s) {
       buffer.writeSlot().fill(s);
       buffer.publish();
+      if (s % 512 == 0) std::this_thread::yield();
     }
     done.store(true, std::memory_order_release);
   });
   Wide value;
   std::uint64_t last_seq = 0, reads = 0, fresh = 0, torn = 0, backwards = 0;
   const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(20);
+  consumer_started.store(true, std::memory_order_release);
   while (true) {
     const bool finished = done.load(std::memory_order_acquire);
     if (buffer.read(value)) ++fresh;

@@ -35,9 +35,9 @@ class ConfigurationSolver {
   RigidMotion constrainedMotion(const Pose& X_WP, const Pose& X_WD, const MassProperties& mass,
                                 std::span<const Contact> contacts, double standoff_m = 0.0) noexcept;
 
-  /// Translation [m, W] that lifts every contact to a clearance of at least standoff_m along its
-  /// normal (projected Gauss-Seidel over the contacts' deficits, three sweeps), capped at
-  /// 2 standoff_m. A position-level correction in the spirit of Baumgarte stabilisation: the
+  /// Translation [m, W] that lifts every contact closer than standoff_m / 2 to a clearance of
+  /// standoff_m along its normal (projected Gauss-Seidel over the deficits, three sweeps; the
+  /// hysteresis keeps a proxy at rest still), capped at 2 standoff_m. A position-level correction in the spirit of Baumgarte stabilisation: the
   /// bisection of section 2.3 leaves contacts anywhere in [0, epsilon) from the surface, and at
   /// zero clearance any second-order inward drift of a tangent step (curvature, rotation,
   /// gradient error) ends inside and stops the proxy for the whole tick.

@@ -32,8 +32,10 @@ struct RendererOptions {
   /// Collision tolerance epsilon [m] (section 2.3); 0 selects feature size / 4. Must be < f.
   double epsilon_m = 0.0;
   /// Clearance kept between contact points and the surface, as a fraction of epsilon (see
-  /// ConfigurationSolver::standoffTranslation); 0 gives the paper's plain behaviour.
-  double standoff_fraction = 0.5;
+  /// ConfigurationSolver::standoffTranslation); 0 gives the paper's plain behaviour. 0.5 was
+  /// measured to drive a limit cycle of a ball resting on a sphere; 0.25 settles exactly.
+  /// Not applied while points are embedded after an isovalue change.
+  double standoff_fraction = 0.25;
   /// Coupling gains (section 2.5); may be changed between ticks with setGains().
   CouplingGains gains;
   /// Largest device translation accepted from one tick to the next [m]; farther jumps and
