@@ -40,11 +40,7 @@ bool SimulatedDevice::read(DeviceSample& sample) noexcept {
 }
 
 void SimulatedDevice::command(const Eigen::Vector3d& force_W_N, const Eigen::Vector3d& torque_W_Nm) noexcept {
-  DeviceCommand& slot = commands_.writeSlot();
-  slot.force_W_N = force_W_N;
-  slot.torque_W_Nm = torque_W_Nm;
-  slot.count = ++command_count_;
-  commands_.publish();
+  commands_.record(force_W_N, torque_W_Nm);
 }
 
 // ---- ScriptedDevice ---------------------------------------------------------------------------
@@ -72,11 +68,7 @@ bool ScriptedDevice::read(DeviceSample& sample) noexcept {
 }
 
 void ScriptedDevice::command(const Eigen::Vector3d& force_W_N, const Eigen::Vector3d& torque_W_Nm) noexcept {
-  DeviceCommand& slot = commands_.writeSlot();
-  slot.force_W_N = force_W_N;
-  slot.torque_W_Nm = torque_W_Nm;
-  slot.count = ++command_count_;
-  commands_.publish();
+  commands_.record(force_W_N, torque_W_Nm);
 }
 
 }  // namespace vh::runtime

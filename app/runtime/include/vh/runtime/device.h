@@ -42,6 +42,26 @@ struct DeviceCommand {
   std::uint64_t count = 0;                                ///< Commands received so far.
 };
 
+/// The last force/torque command of a device without hardware, handed from the servo thread to
+/// one reader (GUI or test) through a triple buffer. record() never blocks or allocates.
+class CommandLog {
+ public:
+  /// Servo thread: stores a command (numbered from 1).
+  void record(const Eigen::Vector3d& force_W_N, const Eigen::Vector3d& torque_W_Nm) noexcept {
+    DeviceCommand& slot = buffer_.writeSlot();
+    slot.force_W_N = force_W_N;
+    slot.torque_W_Nm = torque_W_Nm;
+    slot.count = ++count_;
+    buffer_.publish();
+  }
+  /// Reader: the latest command; @return true when it is new since the last call.
+  bool last(DeviceCommand& out) noexcept { return buffer_.read(out); }
+
+ private:
+  TripleBuffer<DeviceCommand> buffer_;
+  std::uint64_t count_ = 0;  // servo thread only
+};
+
 /// A device driven by the GUI (mouse and keyboard): the GUI thread sets the target pose, the
 /// servo thread reads it. Forces are recorded (last command) but go nowhere.
 class SimulatedDevice final : public Device {
@@ -56,16 +76,15 @@ class SimulatedDevice final : public Device {
   void command(const Eigen::Vector3d& force_W_N, const Eigen::Vector3d& torque_W_Nm) noexcept override;
   /// One consumer thread (e.g. the GUI or a test): the latest command the servo thread sent.
   /// @return true when it is newer than the last call's.
-  bool lastCommand(DeviceCommand& out) noexcept { return commands_.read(out); }
+  bool lastCommand(DeviceCommand& out) noexcept { return commands_.last(out); }
 
  private:
   TripleBuffer<haptics::Pose> poses_;
-  TripleBuffer<DeviceCommand> commands_;  // servo thread -> one consumer
+  CommandLog commands_;  // servo thread -> one consumer
   haptics::Pose gui_pose_;  // GUI thread only
   haptics::Pose last_;      // servo thread only
   double time_s_ = 0.0;     // servo thread only: device time [s] (steady clock since construction)
   double t0_s_ = 0.0;       // steady clock at construction [s]
-  std::uint64_t command_count_ = 0;  // servo thread only
 };
 
 /// A device that replays a trajectory (e.g. loadTrajectoryCsv()): each read() advances the
@@ -83,7 +102,7 @@ class ScriptedDevice final : public Device {
   bool read(DeviceSample& sample) noexcept override;
   void command(const Eigen::Vector3d& force_W_N, const Eigen::Vector3d& torque_W_Nm) noexcept override;
   /// One consumer thread: the latest command sent. @return true when newer than the last call's.
-  bool lastCommand(DeviceCommand& out) noexcept { return commands_.read(out); }
+  bool lastCommand(DeviceCommand& out) noexcept { return commands_.last(out); }
 
   const Trajectory& trajectory() const noexcept { return trajectory_; }
   /// Reads served so far (any thread).
@@ -98,8 +117,7 @@ class ScriptedDevice final : public Device {
   std::size_t cursor_ = 0;  // servo thread only
   std::atomic<std::uint64_t> reads_{0};
   std::atomic<bool> finished_{false};
-  TripleBuffer<DeviceCommand> commands_;
-  std::uint64_t command_count_ = 0;  // servo thread only
+  CommandLog commands_;
 };
 
 }  // namespace vh::runtime
