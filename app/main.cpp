@@ -68,7 +68,7 @@ int main(int argc, char** argv) {
   app.add_option("--screenshot-delay-ms", gui.screenshot_delay_ms, "Time from showing the window to the screenshot [ms]")
       ->check(CLI::NonNegativeNumber);
   app.add_option("--isovalue", gui_isovalue, "Initial isovalue in the data's units (HU for CT)");
-  app.add_flag("--touch", gui.touch, "Move the simulated device onto the surface along the view direction after load");
+  app.add_flag("--touch", gui.touch, "Move the simulated device towards the volume's centre until the tool rests on the surface, after load");
   app.add_option("--touch-depth-m", gui.touch_depth_m, "How far past the surface --touch goes [m]")
       ->check(CLI::NonNegativeNumber);
   app.add_option("--width", gui.window_width, "Window width [logical pixels]")->check(CLI::PositiveNumber);

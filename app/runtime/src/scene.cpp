@@ -312,7 +312,10 @@ LoadedScene loadScene(const SceneSpec& spec) {
     scene.volume.info.description = name;
   } else {
     scene.volume = io::loadVolume(spec.volume.path);
-    scene.isovalue = 0.5 * (scene.volume.field->minValue() + scene.volume.field->maxValue());
+    // CT in HU: bone (400 HU) is what a clinician feels first; otherwise midway.
+    const auto* f = scene.volume.field.get();
+    if (scene.volume.info.value_unit == "HU" && f->minValue() < 400.0 && f->maxValue() > 400.0) scene.isovalue = 400.0;
+    else scene.isovalue = 0.5 * (f->minValue() + f->maxValue());
   }
   if (spec.volume.isovalue_set) scene.isovalue = spec.volume.isovalue;
   const haptics::ScalarVolume& field = *scene.volume.field;

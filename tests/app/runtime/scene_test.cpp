@@ -260,3 +260,22 @@ TEST(SceneResources, ShippedScenesParse) {
 
 }  // namespace
 }  // namespace vh::runtime
+
+namespace vh::runtime {
+namespace {
+
+TEST(SceneLoading, CtWithoutAnIsovalueOpensAtBone) {
+  const fs::path head = test::sharedDatasets() / "ct" / "ct-head-small";
+  if (!fs::exists(head)) GTEST_SKIP() << "shared dataset absent: " << head;
+  const LoadedScene scene = loadScene(sceneForVolume(head));
+  ASSERT_EQ(scene.volume.info.value_unit, "HU");
+  EXPECT_DOUBLE_EQ(scene.isovalue, 400.0);
+  // An explicit isovalue wins.
+  SceneSpec spec = sceneForVolume(head);
+  spec.volume.isovalue = -300.0;
+  spec.volume.isovalue_set = true;
+  EXPECT_DOUBLE_EQ(loadScene(spec).isovalue, -300.0);
+}
+
+}  // namespace
+}  // namespace vh::runtime

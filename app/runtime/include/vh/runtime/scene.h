@@ -40,7 +40,7 @@ namespace vh::runtime {
 struct VolumeSpec {
   std::string path;          ///< File, DICOM folder, or "builtin:block-with-hole" etc.
   double isovalue = 0.0;     ///< In the data's units (HU for CT).
-  bool isovalue_set = false; ///< False: choose one from the data (midway between min and max).
+  bool isovalue_set = false; ///< False: from the data (400 HU, bone, for CT in HU; else midway).
 };
 
 struct ToolSpec {
@@ -125,7 +125,8 @@ struct LoadedScene {
 /// Loads what a scene names: the volume (io::loadVolume, or vh::datasets for "builtin:NAME"),
 /// the tool mesh (io::loadMesh scaled by scale_to_m, or a built-in tool) resampled into a point
 /// shell (point_count, else point_spacing_m, else a spacing giving about 1000 points but not
-/// below half a voxel), the isovalue (the spec's; else the built-in volume's; else midway
+/// below half a voxel), the isovalue (the spec's; else the built-in volume's; else 400 HU for CT data in HU
+/// within its range; else midway
 /// between the field's minimum and maximum) and the initial pose (the spec's; else
 /// defaultInitialPose(): above the volume's centre, lowered to a clearance above the surface).
 /// @throws io::LoadError for volume/mesh files that fail to load; std::runtime_error naming the
