@@ -7,6 +7,7 @@
 #include <stdexcept>
 
 #include <Eigen/Cholesky>
+#include <Eigen/LU>
 #include <Eigen/QR>
 
 namespace vh::haptics {
@@ -196,6 +197,71 @@ Vector6d projectOntoConeReference(const Matrix6d& M, const Vector6d& a_u, std::s
     }
   }
   return L.transpose().triangularView<Eigen::Upper>().solve(x + best_z);
+}
+
+Vector6d projectOntoConeHildreth(const Matrix6d& M, const Vector6d& a_u, std::span<const Vector6d> J_rows) {
+  const int m = static_cast<int>(J_rows.size());
+  const Matrix6d Minv = M.inverse();
+  std::vector<Vector6d> Minv_j(m);
+  std::vector<double> d(m);
+  for (int i = 0; i < m; ++i) {
+    Minv_j[i] = Minv * J_rows[i];
+    d[i] = J_rows[i].dot(Minv_j[i]);
+  }
+  std::vector<double> lambda(m, 0.0);
+  Vector6d a = a_u;
+  const double scale = std::max(a_u.norm(), 1e-300);
+  // Exact projection onto {J_S a = 0} in the metric M, for the support S (pseudo-inverse: any
+  // rank), and its KKT check against all rows.
+  auto polish = [&](Vector6d& out) -> bool {
+    std::vector<int> S;
+    double lmax = 0.0;
+    for (double l : lambda) lmax = std::max(lmax, l);
+    for (int i = 0; i < m; ++i)
+      if (lambda[i] > 1e-7 * lmax) S.push_back(i);
+    if (S.empty()) {
+      out = a_u;
+    } else {
+      Eigen::MatrixXd J(S.size(), 6);
+      for (std::size_t r = 0; r < S.size(); ++r) J.row(static_cast<Eigen::Index>(r)) = J_rows[S[r]].transpose();
+      const Eigen::MatrixXd A = J * Minv * J.transpose();
+      const Eigen::VectorXd mu = A.completeOrthogonalDecomposition().solve(-(J * a_u));
+      out = a_u + Minv * J.transpose() * mu;
+    }
+    // KKT certificate: out feasible, and M (out - a_u) in the cone of the rows tight at out
+    // (checked by Moreau: its projection onto the polar cone {x : j . x <= 0, j tight} is zero,
+    // found by the exhaustive reference). With more than 16 tight rows, fall back to Hildreth's
+    // own multipliers (stationarity to 1e-5 |M a_u|, which screens the support).
+    std::vector<Vector6d> tight;
+    for (int i = 0; i < m; ++i) {
+      const double g = J_rows[i].dot(out);
+      if (g < -1e-10 * scale * J_rows[i].norm()) return false;
+      if (g <= 1e-10 * scale * J_rows[i].norm()) tight.push_back(-J_rows[i]);
+    }
+    const Vector6d v = M * (out - a_u);
+    if (tight.size() <= 10) {
+      const Vector6d polar = projectOntoConeReference(Matrix6d::Identity(), v, tight);
+      return polar.norm() <= 1e-9 * std::max(v.norm(), (M * a_u).norm());
+    }
+    Vector6d residual = v;
+    for (int i = 0; i < m; ++i) residual -= lambda[i] * J_rows[i];
+    return residual.norm() <= 1e-5 * (M * a_u).norm();
+  };
+  int next_check = 16;
+  for (int sweep = 1; sweep <= 200000; ++sweep) {
+    for (int i = 0; i < m; ++i) {
+      if (!(d[i] > 0.0)) continue;
+      const double next = std::max(0.0, lambda[i] - J_rows[i].dot(a) / d[i]);
+      a += (next - lambda[i]) * Minv_j[i];
+      lambda[i] = next;
+    }
+    if (sweep == next_check) {
+      next_check *= 2;
+      Vector6d polished;
+      if (polish(polished)) return polished;
+    }
+  }
+  throw std::runtime_error("projectOntoConeHildreth: no convergence in 200000 sweeps");
 }
 
 }  // namespace vh::haptics

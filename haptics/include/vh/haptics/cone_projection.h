@@ -58,4 +58,14 @@ class ConeProjector {
 /// @throws std::invalid_argument when m > 16.
 Vector6d projectOntoConeReference(const Matrix6d& M, const Vector6d& a_u, std::span<const Vector6d> J_rows);
 
+/// Reference solver for tests, independent of ConeProjector: Hildreth's dual coordinate descent
+/// (C. Hildreth, 1957) on the multipliers of eq. 3-4; after 16, 32, 64, ... sweeps the iterate is
+/// polished to
+/// the exact projection onto the null space of the rows with positive multipliers (complete
+/// orthogonal decomposition: any rank) and accepted once it is certified optimal: feasible to
+/// 1e-10 |a_u|, and M (a - a_u) in the cone of the rows tight at a (Moreau: its projection onto
+/// the polar cone, by projectOntoConeReference(), vanishes; with more than 10 tight rows,
+/// Hildreth's multipliers screen it to 1e-5). Works for any number of rows; allocates.
+Vector6d projectOntoConeHildreth(const Matrix6d& M, const Vector6d& a_u, std::span<const Vector6d> J_rows);
+
 }  // namespace vh::haptics
