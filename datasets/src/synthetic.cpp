@@ -44,6 +44,41 @@ ScalarVolume fromFunction(const GridSpec& grid, const std::function<double(const
 
 }  // namespace
 
+ScalarVolume makeVolumeFromSignedDistance(const GridSpec& grid, const SignedDistance& solid, haptics::VoxelType type) {
+  const VolumeGeometry g = geometryOf(grid);
+  const std::size_t n = g.voxelCount();
+  const double h_mm = 1000.0 * g.spacing_m.minCoeff();
+  auto at = [&](std::size_t idx) {
+    const int i = static_cast<int>(idx % g.dims[0]);
+    const int j = static_cast<int>((idx / g.dims[0]) % g.dims[1]);
+    const int k = static_cast<int>(idx / (static_cast<std::size_t>(g.dims[0]) * g.dims[1]));
+    return 1000.0 * solid(g.origin_W_m + Eigen::Vector3d(i * g.spacing_m[0], j * g.spacing_m[1], k * g.spacing_m[2]));
+  };
+  switch (type) {
+    case haptics::VoxelType::kFloat32: {
+      std::vector<float> v(n);
+      for (std::size_t i = 0; i < n; ++i) v[i] = static_cast<float>(at(i));
+      return ScalarVolume::FromVoxels(g, v);
+    }
+    case haptics::VoxelType::kInt16: {
+      std::vector<std::int16_t> v(n);
+      for (std::size_t i = 0; i < n; ++i) v[i] = static_cast<std::int16_t>(std::clamp(std::lround(100.0 * at(i)), -32767L, 32767L));
+      return ScalarVolume::FromVoxels(g, v, 0.01, 0.0);
+    }
+    case haptics::VoxelType::kUInt16: {
+      std::vector<std::uint16_t> v(n);
+      for (std::size_t i = 0; i < n; ++i) v[i] = static_cast<std::uint16_t>(std::clamp(std::lround(100.0 * at(i)) + 32768L, 0L, 65535L));
+      return ScalarVolume::FromVoxels(g, v, 0.01, -327.68);
+    }
+    case haptics::VoxelType::kUInt8: {
+      std::vector<std::uint8_t> v(n);
+      for (std::size_t i = 0; i < n; ++i) v[i] = static_cast<std::uint8_t>(std::clamp(std::lround(128.0 + 50.0 * at(i) / h_mm), 0L, 255L));
+      return ScalarVolume::FromVoxels(g, v, h_mm / 50.0, -128.0 * h_mm / 50.0);
+    }
+  }
+  throw std::invalid_argument("makeVolumeFromSignedDistance: unknown voxel type");
+}
+
 ScalarVolume makePlaneVolume(const GridSpec& grid, const Eigen::Vector3d& normal_W, double offset_m) {
   if (!(normal_W.norm() > 0.0)) throw std::invalid_argument("makePlaneVolume: zero normal");
   const Eigen::Vector3d n = normal_W.normalized();
@@ -63,7 +98,9 @@ ScalarVolume makeThinPlateVolume(const GridSpec& grid) {
   return ScalarVolume::FromVoxels(g, voxels);
 }
 
-ScalarVolume makeBlockWithHoleVolume(int dims) {
+ScalarVolume makeBlockWithHoleVolume(int dims) { return makeBlockWithBlindHoleVolume(dims, -1.0); }
+
+ScalarVolume makeBlockWithBlindHoleVolume(int dims, double hole_bottom_z_m) {
   if (dims < 16) throw std::invalid_argument("makeBlockWithHoleVolume: dims < 16");
   GridSpec grid;
   const double spacing = 0.064 / dims;
@@ -80,7 +117,9 @@ ScalarVolume makeBlockWithHoleVolume(int dims) {
         // Signed distance (positive inside) of the box, and of the outside of the hole.
         const Eigen::Vector3d q = half - p.cwiseAbs();
         const double d_box = q.minCoeff() >= 0.0 ? q.minCoeff() : -q.cwiseMin(0.0).norm();
-        const double d_hole = std::hypot(p.x(), p.y()) - kHoleRadius_m;
+        // Outside the hole: radial distance beyond the wall, or depth below a blind hole's floor.
+        const double d_radial = std::hypot(p.x(), p.y()) - kHoleRadius_m;
+        const double d_hole = std::max(d_radial, hole_bottom_z_m - p.z());
         const double d = std::min(d_box, d_hole);
         const double v = std::clamp(128.0 + 50.0 * d / spacing, 0.0, 255.0);
         voxels[idx++] = static_cast<std::uint8_t>(std::lround(v));

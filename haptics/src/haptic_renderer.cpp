@@ -72,14 +72,17 @@ TickOutput HapticRenderer::tick(const Pose& X_WD_in, double isovalue) noexcept {
   RigidMotion motion;
   SweepResult hit;
   for (int attempt = 0; attempt < 3; ++attempt) {
-    // No stand-off lift while the surface has swallowed part of the tool (isovalue change): a
-    // moving surface must never push the proxy against the user.
-    const double standoff_m =
-        collision_.embeddedCount() > 0 ? 0.0 : options_.standoff_fraction * collision_.epsilon_m();
+    // The stand-off lift is a recovery: only after a tick that was blocked almost at once (a
+    // lift on every tick drove a hook hanging from one contact into a 2-cycle), and never while
+    // the surface has swallowed part of the tool (a moving surface must not push the proxy
+    // against the user).
+    const bool lift = blocked_last_tick_ && collision_.embeddedCount() == 0;
+    const double standoff_m = lift ? options_.standoff_fraction * collision_.epsilon_m() : 0.0;
     motion = solver_.constrainedMotion(X_WP_, X_WD, mass, collision_.contacts(), standoff_m);
     hit = collision_.sweep(motion, isovalue);
     if (attempt == 2 || !collision_.refineStuckContact(motion, hit)) break;
   }
+  blocked_last_tick_ = hit.hit_point >= 0 && hit.t < 0.01;
   // Step 5: move the proxy to the first contact (or the target).
   X_WP_ = motion.poseAt(hit.t);
   collision_.refreshPositions(X_WP_);

@@ -6,6 +6,7 @@
 /// F = 0 is the exact shape and trilinear interpolation is exact on planes.
 
 #include <array>
+#include <functional>
 #include <limits>
 #include <string>
 
@@ -25,6 +26,20 @@ struct GridSpec {
   Eigen::Vector3d origin_W_m = Eigen::Vector3d::Constant(std::numeric_limits<double>::quiet_NaN());
 };
 
+/// Signed distance of a solid [m], positive inside.
+using SignedDistance = std::function<double(const Eigen::Vector3d& p_W_m)>;
+
+/// Samples a solid into a grid of the given voxel type so that F is the signed distance in
+/// millimetres near the surface and the isosurface F = 0 is the solid's boundary:
+///   float32  F = d [mm] exactly;
+///   int16    raw = round(100 d [mm]) (clamped), value_scale 0.01;
+///   uint16   raw = round(100 d [mm]) + 32768 (clamped), value_scale 0.01, offset -327.68;
+///   uint8    raw = round(128 + 50 d / h) (clamped to 0..255, h = smallest spacing), scaled so
+///            that F = d [mm] where not clamped (within 2.5 voxels of the surface).
+/// @throws std::invalid_argument for a bad grid.
+haptics::ScalarVolume makeVolumeFromSignedDistance(const GridSpec& grid, const SignedDistance& solid,
+                                                   haptics::VoxelType type = haptics::VoxelType::kFloat32);
+
 /// Half-space below a plane: F(p) = 1000 * (offset_m - n . p) [mm], inside where n . p < offset.
 /// @throws std::invalid_argument for a zero normal or a bad grid.
 haptics::ScalarVolume makePlaneVolume(const GridSpec& grid, const Eigen::Vector3d& normal_W,
@@ -43,6 +58,9 @@ haptics::ScalarVolume makeThinPlateVolume(const GridSpec& grid);
 /// through its centre. Values 128 + 50 * signed distance [voxels], clamped to 0..255 (anti-
 /// aliased); use isovalue kBlockIsovalue.
 haptics::ScalarVolume makeBlockWithHoleVolume(int dims = 256);
+
+/// The same block with a blind hole: the hole ends in a flat bottom at z = hole_bottom_z_m.
+haptics::ScalarVolume makeBlockWithBlindHoleVolume(int dims, double hole_bottom_z_m);
 
 inline constexpr double kHoleRadius_m = 0.008;
 inline constexpr double kPegRadius_m = 0.0075;   ///< Snug: 0.5 mm (2 voxels) of clearance.

@@ -31,11 +31,13 @@ namespace vh::haptics {
 struct RendererOptions {
   /// Collision tolerance epsilon [m] (section 2.3); 0 selects feature size / 4. Must be < f.
   double epsilon_m = 0.0;
-  /// Clearance kept between contact points and the surface, as a fraction of epsilon (see
-  /// ConfigurationSolver::standoffTranslation); 0 gives the paper's plain behaviour. 0.5 was
-  /// measured to drive a limit cycle of a ball resting on a sphere; 0.25 settles exactly.
-  /// Not applied while points are embedded after an isovalue change.
-  double standoff_fraction = 0.25;
+  /// Optional clearance kept between contact points and the surface, as a fraction of epsilon
+  /// (see ConfigurationSolver::standoffTranslation); 0, the default, is the paper's plain
+  /// behaviour. Measured: once blocked contacts get crossing normals it is not needed (CT phantom
+  /// slide, curved surfaces), and a lift drove a hook hanging from one contact into a 2-cycle.
+  /// When set, it is applied only on the tick after one whose sweep stopped before 1 % of its
+  /// path, and not while points are embedded after an isovalue change.
+  double standoff_fraction = 0.0;
   /// Coupling gains (section 2.5); may be changed between ticks with setGains().
   CouplingGains gains;
   /// Largest device translation accepted from one tick to the next [m]; farther jumps and
@@ -102,6 +104,7 @@ class HapticRenderer {
   Pose X_WP_;
   double last_isovalue_;
   bool embedded_scan_needed_ = false;
+  bool blocked_last_tick_ = false;  // the last sweep stopped before 1 % of its path
   std::int64_t bad_inputs_ = 0;
 };
 
