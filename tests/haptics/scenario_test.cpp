@@ -242,7 +242,9 @@ TEST(Scenario, LongPegGoesToTheBottomOfTheHoleAndJamsOnlyWhenPulledSideways) {
   auto vol = std::make_shared<ScalarVolume>(datasets::makeBlockWithBlindHoleVolume(256, -0.004));
   PointShellOptions ps;
   ps.point_count = 1307;  // the paper's Hole / Peg figure
-  auto tool = std::make_shared<ToolModel>(makeToolModel(datasets::makeBuiltinTool("peg"), ps));
+  // The snug peg (radius kPegRadius_m), 80 mm long: 1307 points put about 50 on its flat end, the
+  // paper's "up to 40" coplanar contacts regime (the 40 mm built-in peg puts about 100 there).
+  auto tool = std::make_shared<ToolModel>(makeToolModel(datasets::makeCylinderMesh(datasets::kPegRadius_m, 0.08, 64), ps));
   const double s = datasets::kBlockIsovalue;
   RendererOptions o;
   HapticRenderer r(vol, tool, o, at(0, 0, 0.02), s);
@@ -250,14 +252,16 @@ TEST(Scenario, LongPegGoesToTheBottomOfTheHoleAndJamsOnlyWhenPulledSideways) {
   const Outcome in = runScenario(r, s, {{1500, line(at(0, 0, 0.02), deep)}, {800, still(deep), true}}, o.gains);
   EXPECT_NEAR(r.proxyPose().p_AB_m.z(), -0.004, 0.1e-3);  // at the bottom: no jamming on the way
   EXPECT_GE(in.max_contacts, 30);
-  EXPECT_LE(in.max_contacts, 256);
+  EXPECT_LE(in.max_contacts, 60);
   RecordProperty("coplanar_contacts", in.max_contacts);
   std::cout << "peg at the bottom: " << in.max_contacts << " simultaneous contacts\n";
   // Pulled sideways and up: the walls hold it (the proxy stays in the hole, the force says so).
   const Pose sideways = at(0.004, 0, 0.0);
   const Outcome jam = runScenario(r, s, {{300, line(deep, sideways)}, {400, still(sideways), true}}, o.gains);
   EXPECT_LT(std::hypot(r.proxyPose().p_AB_m.x(), r.proxyPose().p_AB_m.y()), datasets::kHoleRadius_m - datasets::kPegRadius_m + 1e-4);
-  EXPECT_LT(jam.last.force_W_N.x(), -0.9 * o.gains.linear_N_per_m * 0.003);
+  // The long peg tilts in the hole, but its centre of mass cannot follow: it lags the device's
+  // by more than 1 mm in x, and the force (= k times the lag, checked every tick) pulls back.
+  EXPECT_LT(jam.last.force_W_N.x(), -o.gains.linear_N_per_m * 0.001);
 }
 
 // ---- Thin and fast ------------------------------------------------------------------------------
