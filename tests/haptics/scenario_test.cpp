@@ -105,6 +105,28 @@ GridSpec grid(int n, double h_m) {
 
 Pose at(double x, double y, double z) { return Pose::FromTranslation({x, y, z}); }
 
+// ---- Sliding --------------------------------------------------------------------------------
+
+TEST(Scenario, SlidingOnAPlaneFollowsTheDeviceProjection) {
+  auto vol = std::make_shared<ScalarVolume>(datasets::makePlaneVolume(grid(64, 1e-3), Eigen::Vector3d::UnitZ(), 0.0));
+  const auto tool = test::meshTool(datasets::makeBoxMesh({0.005, 0.005, 0.002}), 1e-3);
+  RendererOptions o;
+  HapticRenderer r(vol, tool, o, at(0, 0, 0.004), 0.0);
+  // Press 2 mm in, then slide 15 mm diagonally, circle back, and hold.
+  const Pose a = at(0, 0, 0.0), b = at(0.012, -0.009, 0.0);
+  auto circle = [](double u) {
+    const double t = 2 * std::numbers::pi * u;
+    return at(0.012 - 0.006 + 0.006 * std::cos(t), -0.009 + 0.006 * std::sin(t), 0.0);
+  };
+  const Outcome out = runScenario(r, 0.0, {{100, line(at(0, 0, 0.004), a)}, {600, line(a, b)}, {1000, circle}, {600, still(b), true}}, o.gains);
+  // Friction-free: the proxy sits on the plane right above the device, the force is normal.
+  EXPECT_NEAR(r.proxyPose().p_AB_m.x(), 0.012, 1e-6);
+  EXPECT_NEAR(r.proxyPose().p_AB_m.y(), -0.009, 1e-6);
+  EXPECT_NEAR(r.proxyPose().p_AB_m.z(), 0.002, r.epsilon_m());
+  EXPECT_LT(out.last.force_W_N.head<2>().norm(), 1e-6);
+  EXPECT_GE(out.max_contacts, 3);
+}
+
 // ---- Pressing -------------------------------------------------------------------------------
 
 TEST(Scenario, PressingIntoASphereGivesKTimesDepth) {
