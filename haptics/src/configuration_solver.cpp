@@ -44,8 +44,14 @@ RigidMotion ConfigurationSolver::constrainedMotion(const Pose& X_WP, const Pose&
                                                    std::span<const Contact> contacts, double standoff_m) noexcept {
   // Step 1: a_u = 2 dx takes the proxy to the device in a unit step (section 2.4).
   a_u_ = 2.0 * displacement_W(X_WP, X_WD, mass.p_TCm_m);
-  // The projection is invariant to a scale of M; dividing by the mass keeps the numbers O(1).
-  const Matrix6d M = mass.massMatrix_W(X_WP.R_AB.toRotationMatrix()) / mass.mass_kg;
+  // The projection is invariant to a scale of the metric; normalising keeps the numbers O(1).
+  Matrix6d M = mass.massMatrix_W(X_WP.R_AB.toRotationMatrix()) / mass.mass_kg;
+  if (has_gains_ && gains_.linear_N_per_m > 0.0) {
+    // Coupling metric K M / k_lin = diag(I3, (k_ang / (k_lin i)) I_W) (see setGains()).
+    const double i_mean = mass.I_Cm_T_kgm2.trace() / 3.0;
+    const double k_ang = std::max(gains_.angular_Nm_per_rad, 1e-3 * gains_.linear_N_per_m * i_mean / mass.mass_kg);
+    M.bottomRightCorner<3, 3>() *= (k_ang / (gains_.linear_N_per_m * i_mean)) * mass.mass_kg;
+  }
   const Eigen::Vector3d c_W = X_WP * mass.p_TCm_m;
   const std::size_t m = std::min(contacts.size(), rows_.size());
   for (std::size_t i = 0; i < m; ++i) rows_[i] = constraintRow(contacts[i].p_W_m, contacts[i].n_W, c_W);

@@ -20,6 +20,7 @@ HapticRenderer::HapticRenderer(std::shared_ptr<const ScalarVolume> volume, std::
   if (!X_WP_initial.allFinite()) throw std::invalid_argument("HapticRenderer: the initial proxy pose is not finite");
   if (!std::isfinite(isovalue)) throw std::invalid_argument("HapticRenderer: the isovalue is not finite");
   X_WP_.R_AB.normalize();
+  solver_.setGains(options.gains);
   collision_.updateEmbedded(X_WP_, isovalue);
 }
 

@@ -13,6 +13,7 @@
 #include "vh/haptics/cone_projection.h"
 #include "vh/haptics/pose.h"
 #include "vh/haptics/tool_model.h"
+#include "vh/haptics/virtual_coupling.h"
 
 namespace vh::haptics {
 
@@ -28,6 +29,15 @@ Vector6d constraintRow(const Eigen::Vector3d& p_W_m, const Eigen::Vector3d& n_W,
 class ConfigurationSolver {
  public:
   explicit ConfigurationSolver(std::size_t max_contacts = 256);
+
+  /// The metric of Gauss' principle (eq. 3). Without gains: the tool's mass matrix M (the
+  /// paper). With gains: the coupling's own metric K M = diag(k_lin I3, (k_ang / i) I_W), i =
+  /// trace(I) / 3, which is the paper's M up to a factor when k_ang = k_lin i / m (the paper's
+  /// scalar k). With separate gains, projecting in M let the proxy move against the coupling
+  /// and inject energy (a ball rolled 0.09 rad and doubled the coupling energy in one step);
+  /// a projection in the coupling's metric never raises the coupling energy of a step.
+  /// k_ang is floored at 1e-3 k_lin i / m so that the metric stays positive definite.
+  void setGains(const CouplingGains& gains) noexcept { gains_ = gains; has_gains_ = true; }
 
   /// Step 1 + 3: constrained motion for the proxy at X_WP pulled towards X_WD under the
   /// contacts. Returns the motion from X_WP to the target x_t = x_i + a_c / 2, plus the
@@ -49,6 +59,8 @@ class ConfigurationSolver {
   const Vector6d& lastUnconstrained() const noexcept { return a_u_; }
 
  private:
+  CouplingGains gains_;
+  bool has_gains_ = false;
   ConeProjector projector_;
   std::vector<Vector6d> rows_;
   ConeProjection last_;

@@ -83,7 +83,11 @@ class HapticRenderer {
 
   /// Moves the proxy (and clears the contact set) without collision checking.
   void resetProxy(const Pose& X_WP) noexcept;
-  void setGains(const CouplingGains& gains) noexcept { coupling_.setGains(gains); }
+  /// New coupling gains; also the solver's metric (ConfigurationSolver::setGains()).
+  void setGains(const CouplingGains& gains) noexcept {
+    coupling_.setGains(gains);
+    solver_.setGains(gains);
+  }
 
   const Pose& proxyPose() const noexcept { return X_WP_; }
   /// Current contact set (points on the proxy within epsilon of the surface).

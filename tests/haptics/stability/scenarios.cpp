@@ -1,0 +1,329 @@
+#include "scenarios.h"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <sstream>
+
+#include "vh/datasets/synthetic.h"
+
+namespace vh::stability {
+
+using haptics::Pose;
+
+namespace {
+
+datasets::GridSpec grid1mm() {
+  datasets::GridSpec g;
+  g.dims = {64, 64, 64};
+  g.spacing_m = Eigen::Vector3d::Constant(1e-3);
+  return g;
+}
+
+std::shared_ptr<const haptics::ToolModel> meshTool(const haptics::TriangleMesh& mesh, double spacing_m) {
+  haptics::PointShellOptions o;
+  o.spacing_m = spacing_m;
+  return std::make_shared<haptics::ToolModel>(haptics::makeToolModel(mesh, o));
+}
+
+Pose poseOfCm(const haptics::ToolModel& tool, const Eigen::Vector3d& c, const Eigen::Quaterniond& R) {
+  return {R, c - R * tool.mass.p_TCm_m};
+}
+
+}  // namespace
+
+std::vector<Scenario> defaultScenarios() {
+  std::vector<Scenario> out;
+  const auto plane = std::make_shared<const haptics::ScalarVolume>(
+      datasets::makePlaneVolume(grid1mm(), Eigen::Vector3d::UnitZ(), 0.0));
+  // 10 x 10 x 4 mm box; Cm at its centre, bottom face 2 mm below Cm.
+  const auto box = meshTool(datasets::makeBoxMesh({0.005, 0.005, 0.002}), 1e-3);
+  const double half_h = 0.002;
+  const Eigen::Vector3d up = Eigen::Vector3d::UnitZ();
+
+  {  // Plane: press, hold, slide, hold, tilt, hold.
+    Scenario sc;
+    sc.name = "plane press-slide-tilt";
+    sc.volume = plane;
+    sc.tool = box;
+    const Eigen::Vector3d c0(0, 0, half_h + 0.002);
+    sc.X_WP0 = poseOfCm(*box, c0, Eigen::Quaterniond::Identity());
+    sc.start.c_W_m = c0;
+    const double drop = 0.002 + kDepth_m;  // to kDepth_m past contact
+    sc.hand = [c0, drop](double t) {
+      HandTarget h;
+      h.c_W_m = c0 + Eigen::Vector3d(0.015 * ramp(t, 0.85, 1.15), 0.0, -drop * ramp(t, 0.05, 0.25));
+      h.v_W_mps = Eigen::Vector3d(0.015 * rampRate(t, 0.85, 1.15), 0.0, -drop * rampRate(t, 0.05, 0.25));
+      const double a = 0.15 * ramp(t, 1.25, 1.45);
+      h.R_W = Eigen::Quaterniond(Eigen::AngleAxisd(a, Eigen::Vector3d::UnitY()));
+      h.w_W_radps = Eigen::Vector3d(0.0, 0.15 * rampRate(t, 1.25, 1.45), 0.0);
+      return h;
+    };
+    sc.duration_s = 2.05;
+    sc.settle = {{0.75, 0.85, up}, {1.95, 2.05, up}};
+    out.push_back(std::move(sc));
+  }
+  {  // Sphere: press onto the top, hold, slide 0.5 rad around, hold.
+    Scenario sc;
+    sc.name = "sphere press-slide";
+    sc.volume = std::make_shared<const haptics::ScalarVolume>(
+        datasets::makeSphereVolume(grid1mm(), Eigen::Vector3d::Zero(), 0.020));
+    sc.tool = meshTool(datasets::makeBuiltinTool("sphere"), 1e-3);
+    const double r_rest = 0.020 + 0.005;
+    const Eigen::Vector3d c0(0, 0, r_rest + 0.003);
+    sc.X_WP0 = poseOfCm(*sc.tool, c0, Eigen::Quaterniond::Identity());
+    sc.start.c_W_m = c0;
+    sc.hand = [r_rest](double t) {
+      HandTarget h;
+      const double r = r_rest + 0.003 - (0.003 + kDepth_m) * ramp(t, 0.05, 0.25);
+      const double dr = -(0.003 + kDepth_m) * rampRate(t, 0.05, 0.25);
+      const double phi = 0.5 * ramp(t, 0.85, 1.15), dphi = 0.5 * rampRate(t, 0.85, 1.15);
+      const Eigen::Vector3d dir(std::sin(phi), 0.0, std::cos(phi)), ddir(std::cos(phi), 0.0, -std::sin(phi));
+      h.c_W_m = r * dir;
+      h.v_W_mps = dr * dir + r * dphi * ddir;
+      return h;
+    };
+    sc.duration_s = 1.75;
+    sc.settle = {{0.75, 0.85, up}, {1.65, 1.75, Eigen::Vector3d(std::sin(0.5), 0.0, std::cos(0.5))}};
+    out.push_back(std::move(sc));
+  }
+  {  // Tap: the target falls at 0.3 m/s from 10 mm above the plane and stops dead.
+    Scenario sc;
+    sc.name = "plane tap 0.3 m/s";
+    sc.volume = plane;
+    sc.tool = box;
+    const Eigen::Vector3d c0(0, 0, half_h + 0.010);
+    sc.X_WP0 = poseOfCm(*box, c0, Eigen::Quaterniond::Identity());
+    sc.start.c_W_m = c0;
+    const double speed = 0.3, t0 = 0.02, drop = 0.010 + kDepth_m, t1 = t0 + drop / speed;
+    sc.hand = [=](double t) {
+      HandTarget h;
+      const double s = std::clamp((t - t0) / (t1 - t0), 0.0, 1.0);
+      h.c_W_m = c0 - up * drop * s;
+      h.v_W_mps = (t > t0 && t < t1) ? Eigen::Vector3d(-up * speed) : Eigen::Vector3d::Zero();
+      return h;
+    };
+    sc.duration_s = 0.7;
+    sc.settle = {{0.6, 0.7, up}};
+    out.push_back(std::move(sc));
+  }
+  {  // Bounce: released handle reaching the plane at 0.1 m/s.
+    Scenario sc;
+    sc.name = "plane bounce 0.1 m/s";
+    sc.volume = plane;
+    sc.tool = box;
+    const Eigen::Vector3d c0(0, 0, half_h + 0.0005);
+    sc.X_WP0 = poseOfCm(*box, c0, Eigen::Quaterniond::Identity());
+    sc.start.c_W_m = c0;
+    sc.start.v_W_mps = -0.1 * up;
+    sc.duration_s = 0.3;
+    sc.bounce = true;
+    out.push_back(std::move(sc));
+  }
+  return out;
+}
+
+Scenario pegScenario() {
+  Scenario sc;
+  sc.name = "peg in blind hole";
+  const double floor_z = -0.004;
+  sc.volume = std::make_shared<const haptics::ScalarVolume>(datasets::makeBlockWithBlindHoleVolume(256, floor_z));
+  sc.isovalue = datasets::kBlockIsovalue;
+  // The snug peg 80 mm long with the paper's 1307 points (about 50 on its flat end).
+  haptics::PointShellOptions ps;
+  ps.point_count = 1307;
+  sc.tool = std::make_shared<haptics::ToolModel>(
+      haptics::makeToolModel(datasets::makeCylinderMesh(datasets::kPegRadius_m, 0.08, 64), ps));
+  const auto& tool = *sc.tool;
+  // Tip 3 mm above the block's top, centred over the hole.
+  const Eigen::Vector3d tip0(0, 0, datasets::kBlockHalfHeight_m + 0.003);
+  const Eigen::Vector3d c0 = tip0 + tool.mass.p_TCm_m;
+  sc.X_WP0 = poseOfCm(tool, c0, Eigen::Quaterniond::Identity());
+  sc.start.c_W_m = c0;
+  // Lower the tip to kDepth_m below the hole's floor (0.05-0.45 s), hold (judged on the floor's
+  // normal), pull the target 4 mm sideways (0.85-1.0 s; the clearance is 0.5 mm), hold, pry
+  // 0.1 rad about y (1.2-1.35 s), hold (judged along -x: the wall at +x pushes the hand back).
+  const double drop = tip0.z() - floor_z + kDepth_m;
+  sc.hand = [c0, drop](double t) {
+    HandTarget h;
+    h.c_W_m = c0 + Eigen::Vector3d(0.004 * ramp(t, 0.85, 1.0), 0.0, -drop * ramp(t, 0.05, 0.45));
+    h.v_W_mps = Eigen::Vector3d(0.004 * rampRate(t, 0.85, 1.0), 0.0, -drop * rampRate(t, 0.05, 0.45));
+    h.R_W = Eigen::Quaterniond(Eigen::AngleAxisd(0.1 * ramp(t, 1.2, 1.35), Eigen::Vector3d::UnitY()));
+    h.w_W_radps = Eigen::Vector3d(0.0, 0.1 * rampRate(t, 1.2, 1.35), 0.0);
+    return h;
+  };
+  sc.duration_s = 1.85;
+  sc.settle = {{0.75, 0.85, Eigen::Vector3d::UnitZ()}, {1.75, 1.85, -Eigen::Vector3d::UnitX()}};
+  return sc;
+}
+
+const char* toString(Behaviour b) {
+  switch (b) {
+    case Behaviour::kSettled: return "settled";
+    case Behaviour::kDecaying: return "decaying";
+    case Behaviour::kLimitCycle: return "LIMIT CYCLE";
+    case Behaviour::kDiverged: return "DIVERGED";
+  }
+  return "?";
+}
+
+SimulationResult runScenario(const Scenario& sc, double k_lin, const DeviceParams& device, const HandParams& hand,
+                             const SweepOptions& options) {
+  haptics::RendererOptions o;
+  o.gains.linear_N_per_m = k_lin;
+  o.gains.angular_Nm_per_rad =
+      options.lever_m > 0.0 ? k_lin * options.lever_m * options.lever_m
+                            : k_lin * sc.tool->mass.I_Cm_T_kgm2.trace() / 3.0 / sc.tool->mass.mass_kg;
+  if (options.standoff_fraction >= 0.0) o.standoff_fraction = options.standoff_fraction;
+  haptics::HapticRenderer r(sc.volume, sc.tool, o, sc.X_WP0, sc.isovalue);
+  SimulationConfig cfg;
+  cfg.device = device;
+  cfg.hand = sc.bounce ? HandParams::released() : hand;
+  cfg.duration_s = sc.duration_s;
+  cfg.isovalue = sc.isovalue;
+  cfg.lift_bound_m = 2.0 * o.standoff_fraction * r.epsilon_m();
+  cfg.check_penetration = options.check_penetration;
+  return simulate(r, cfg, sc.hand, sc.start);
+}
+
+double passivityTolerance(double throughput_J) { return 1e-9 * throughput_J + 1e-12; }
+
+double linearStabilityLimit(double m, double b, double k_h, double b_h, double T) {
+  double lo = 1.0, hi = 1e7;
+  if (contactSpectralRadius(m, b, k_h, b_h, hi, T) < 1.0) return hi;
+  for (int i = 0; i < 100 && hi / lo > 1.0 + 1e-9; ++i) {
+    const double mid = std::sqrt(lo * hi);
+    (contactSpectralRadius(m, b, k_h, b_h, mid, T) < 1.0 ? lo : hi) = mid;
+  }
+  return std::sqrt(lo * hi);
+}
+
+StiffnessResult evaluate(const std::vector<Scenario>& scenarios, double k_lin, const DeviceParams& device,
+                         const HandParams& hand, const SweepOptions& options) {
+  StiffnessResult s;
+  s.k_lin = k_lin;
+  s.k_ang = options.lever_m > 0.0 ? k_lin * options.lever_m * options.lever_m : 0.0;
+  s.gains = options.lever_m > 0.0 ? "diag" : "scalar";
+  s.device = device.name;
+  s.mass_kg = device.mass_kg;
+  s.damping = device.damping_Ns_per_m;
+  const double T = 1e-3;
+  s.colgate_k_max = colgateMaxStiffness(device.damping_Ns_per_m, T);
+  s.colgate_k_max_hand = colgateMaxStiffness(device.damping_Ns_per_m + hand.damping_Ns_per_m, T);
+  s.spectral_radius = contactSpectralRadius(device.mass_kg, device.damping_Ns_per_m, hand.stiffness_N_per_m,
+                                            hand.damping_Ns_per_m, k_lin, T);
+  s.linear_k_limit = linearStabilityLimit(device.mass_kg, device.damping_Ns_per_m, hand.stiffness_N_per_m,
+                                          hand.damping_Ns_per_m, T);
+  const double k_eff = k_lin * hand.stiffness_N_per_m / (k_lin + hand.stiffness_N_per_m);
+  bool passive = true, settled = true, decaying = true, first_hold = true;
+  for (const Scenario& sc : scenarios) {
+    const SimulationResult r = runScenario(sc, k_lin, device, hand, options);
+    s.finite &= r.finite;
+    s.bad_inputs += r.bad_inputs;
+    s.solver_violations += r.solver_violations;
+    s.solver_injected_J += r.solver_injected_J;
+    s.lift_bound_violations += r.lift_bound_violations;
+    s.worst_solver_work_J = std::min(s.worst_solver_work_J, r.worst_solver_work_J);
+    s.max_penetration_over_eps = std::max(s.max_penetration_over_eps, r.max_penetration_m / r.epsilon_m);
+    s.max_force_error_rel = std::max(s.max_force_error_rel, r.max_force_error_rel);
+    s.max_e_gen_J = std::max(s.max_e_gen_J, r.max_e_gen_J);
+    s.peak_force_N = std::max(s.peak_force_N, r.peak_force_N);
+    passive &= r.max_e_gen_J <= passivityTolerance(r.energy_in_J + r.energy_out_J);
+    if (sc.bounce) s.bounce_ratio = r.energy_out_J / std::max(r.energy_in_J, 1e-300);
+    for (const Window& w : sc.settle) {
+      const Eigen::Vector3d n = w.normal_W;
+      const auto fn = [n](const TickRecord& t) { return t.force.dot(n); };
+      const double ptp = peakToPeak(r, w.t0_s, w.t1_s, fn);
+      const double ptp_before = peakToPeak(r, w.t0_s - kDecayLag_s, w.t1_s - kDecayLag_s, fn);
+      const double avg = mean(r, w.t0_s, w.t1_s, fn);
+      const double rel = ptp / std::max(std::abs(avg), 1e-9);
+      int lost = 0;
+      for (const TickRecord& t : r.ticks)
+        if (t.t_s >= w.t0_s && t.t_s <= w.t1_s && t.contacts == 0) ++lost;
+      s.contact_lost_ticks += lost;
+      s.settled_ptp_rel = std::max(s.settled_ptp_rel, rel);
+      s.settled_ptp_N = std::max(s.settled_ptp_N, ptp);
+      const double ratio = ptp / std::max(ptp_before, 1e-300);
+      s.decay_ratio = std::max(s.decay_ratio, ratio);
+      const bool window_settled = rel < kSettledPtp && avg > 0.0 && lost == 0;
+      settled &= window_settled;
+      decaying &= window_settled || (ratio <= 0.5 && avg > 0.0 && lost == 0);
+      if (first_hold && sc.name.starts_with("plane")) {
+        s.steady_force_error_rel = std::abs(avg - k_eff * kDepth_m) / (k_eff * kDepth_m);
+        first_hold = false;
+      }
+    }
+    if (sc.name.starts_with("plane tap")) {
+      const double avg = mean(r, sc.settle[0].t0_s, sc.settle[0].t1_s, [](const TickRecord& t) { return t.force.z(); });
+      s.tap_overshoot = r.peak_force_N / std::max(avg, 1e-9);
+    }
+  }
+  s.passive = passive;
+  if (!s.finite || s.bad_inputs > 0)
+    s.behaviour = Behaviour::kDiverged;
+  else if (settled)
+    s.behaviour = Behaviour::kSettled;
+  else if (decaying)
+    s.behaviour = Behaviour::kDecaying;
+  else
+    s.behaviour = Behaviour::kLimitCycle;
+  return s;
+}
+
+std::string markdownTable(const std::vector<StiffnessResult>& rows) {
+  std::ostringstream o;
+  o << "| gains | dev | m [kg] | b_d [N s/m] | K [N/m] | K_ang [N m/rad] | 2b_d/T | 2(b_d+b_h)/T | K* (rho=1) | rho | max E_gen [J] "
+       "| passive | bounce out/in | hold ptp [N] (rel) | decay | lost | F err | tap peak/F | peak F [N] "
+       "| solver viol. | injected [J] | pen/eps | behaviour |\n";
+  o << "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n";
+  char buf[640];
+  for (const StiffnessResult& s : rows) {
+    char kang[32];
+    if (s.k_ang > 0.0)
+      std::snprintf(kang, sizeof kang, "%.3g", s.k_ang);
+    else
+      std::snprintf(kang, sizeof kang, "K i/m");
+    std::snprintf(buf, sizeof buf,
+                  "| %s | %s | %.2f | %.2f | %.0f | %s | %.0f | %.0f | %.0f | %.4f | %.3g | %s | %.3f | %.3g (%.2g) | %.2f | %d "
+                  "| %.2g | %.2f | %.3g | %d | %.2g | %.2f | %s |\n",
+                  s.gains.c_str(), s.device.c_str(), s.mass_kg, s.damping, s.k_lin, kang, s.colgate_k_max,
+                  s.colgate_k_max_hand, s.linear_k_limit, s.spectral_radius, s.max_e_gen_J, s.passive ? "yes" : "NO", s.bounce_ratio,
+                  s.settled_ptp_N, s.settled_ptp_rel, s.decay_ratio, s.contact_lost_ticks, s.steady_force_error_rel,
+                  s.tap_overshoot, s.peak_force_N, s.solver_violations, s.solver_injected_J,
+                  s.max_penetration_over_eps, toString(s.behaviour));
+    o << buf;
+  }
+  return o.str();
+}
+
+std::string jsonReport(const std::vector<StiffnessResult>& rows, const HandParams& hand) {
+  std::ostringstream o;
+  o.precision(9);
+  o << "{\n  \"servo_period_s\": 0.001,\n  \"substeps\": 10,\n  \"lever_m\": " << kLever_m
+    << ",\n  \"hand_depth_m\": " << kDepth_m << ",\n  \"hand\": {\"k_N_per_m\": " << hand.stiffness_N_per_m
+    << ", \"b_Ns_per_m\": " << hand.damping_Ns_per_m << ", \"k_rot_Nm_per_rad\": " << hand.rot_stiffness_Nm
+    << ", \"b_rot_Nms\": " << hand.rot_damping_Nms << "},\n  \"rows\": [\n";
+  for (std::size_t i = 0; i < rows.size(); ++i) {
+    const StiffnessResult& s = rows[i];
+    o << "    {\"gains\": \"" << s.gains << "\", \"device\": \"" << s.device << "\", \"mass_kg\": " << s.mass_kg
+      << ", \"damping_Ns_per_m\": " << s.damping << ", \"k_lin_N_per_m\": " << s.k_lin
+      << ", \"k_ang_Nm_per_rad\": " << (s.k_ang > 0.0 ? std::to_string(s.k_ang) : std::string("null"))
+      << ", \"colgate_k_max\": " << s.colgate_k_max << ", \"colgate_k_max_with_hand\": " << s.colgate_k_max_hand
+      << ", \"spectral_radius\": " << s.spectral_radius << ", \"linear_k_limit\": " << s.linear_k_limit << ", \"max_e_gen_J\": " << s.max_e_gen_J
+      << ", \"passive\": " << (s.passive ? "true" : "false") << ", \"bounce_energy_ratio\": " << s.bounce_ratio
+      << ", \"hold_ptp_N\": " << s.settled_ptp_N << ", \"hold_ptp_rel\": " << s.settled_ptp_rel
+      << ", \"decay_ratio\": " << s.decay_ratio << ", \"contact_lost_ticks\": " << s.contact_lost_ticks
+      << ", \"steady_force_error_rel\": " << s.steady_force_error_rel << ", \"tap_overshoot\": " << s.tap_overshoot
+      << ", \"peak_force_N\": " << s.peak_force_N << ", \"solver_violations\": " << s.solver_violations
+      << ", \"solver_injected_J\": " << s.solver_injected_J << ", \"worst_solver_work_J\": " << s.worst_solver_work_J
+      << ", \"lift_bound_violations\": " << s.lift_bound_violations
+      << ", \"max_penetration_over_epsilon\": " << s.max_penetration_over_eps
+      << ", \"max_force_error_rel\": " << s.max_force_error_rel << ", \"finite\": " << (s.finite ? "true" : "false")
+      << ", \"bad_inputs\": " << s.bad_inputs << ", \"behaviour\": \"" << toString(s.behaviour) << "\", \"stable\": "
+      << (s.stable() ? "true" : "false") << "}" << (i + 1 < rows.size() ? "," : "") << "\n";
+  }
+  o << "  ]\n}\n";
+  return o.str();
+}
+
+}  // namespace vh::stability
