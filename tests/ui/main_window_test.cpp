@@ -1,19 +1,29 @@
 // The main window on the small CT head (64 x 64 x 93): rendering, the isovalue slider driving
-// both the picture and the haptic thread, the tool actors, the mouse-driven device and a touch.
+// both the picture and the haptic thread, rendering modes, standard views and clipping, the tool
+// actors against the haptic state, the mouse-driven device, loading off the GUI thread (and its
+// errors and cancel), the haptics panel (gains, tool change).
 #include "vh/ui/main_window.h"
 
-#include <chrono>
 #include <cmath>
 #include <filesystem>
-#include <functional>
+#include <fstream>
 #include <memory>
-#include <thread>
 
 #include <QApplication>
+#include <QDockWidget>
 #include <QDoubleSpinBox>
 #include <QImage>
+#include <QLabel>
+#include <QMenu>
+#include <QMimeData>
+#include <QUrl>
+#include <QDropEvent>
+#include <QMessageBox>
 #include <QMouseEvent>
+#include <QPushButton>
+#include <QSignalSpy>
 #include <QSlider>
+#include <QTemporaryDir>
 
 #include <gtest/gtest.h>
 #include <vtkActor.h>
@@ -24,64 +34,24 @@
 #include <vtkPolyData.h>
 #include <vtkRenderer.h>
 
+#include "ui_test_util.h"
 #include "vh/runtime/device.h"
+#include "vh/runtime/placement.h"
 #include "vh/runtime/scene.h"
 #include "vh/ui/device_manipulation.h"
+#include "vh/ui/haptics_panel.h"
+#include "vh/ui/histogram_slider.h"
 #include "vh/ui/scene_actors.h"
+#include "vh/ui/scene_loader.h"
 #include "vh/ui/vtk_view.h"
 
 namespace vh::ui {
 namespace {
 
-const std::filesystem::path kHead = std::filesystem::path(VH_SHARED_DATASETS_DIR) / "ct/ct-head-small";
-
-/// Processes events until `done` or the timeout; @return done().
-bool waitFor(const std::function<bool()>& done, int timeout_ms) {
-  const auto end = std::chrono::steady_clock::now() + std::chrono::milliseconds(timeout_ms);
-  while (!done()) {
-    if (std::chrono::steady_clock::now() > end) {
-      return false;
-    }
-    QApplication::processEvents(QEventLoop::AllEvents, 10);
-    std::this_thread::sleep_for(std::chrono::milliseconds(5));
-  }
-  return true;
-}
-
-/// Fraction of pixels whose colour differs by more than `threshold` in some channel.
-double differingFraction(const QImage& a, const QImage& b, int threshold = 24) {
-  if (a.size() != b.size() || a.isNull()) {
-    return 1.0;
-  }
-  const QImage ra = a.convertToFormat(QImage::Format_RGB32);
-  const QImage rb = b.convertToFormat(QImage::Format_RGB32);
-  std::size_t differing = 0;
-  for (int y = 0; y < ra.height(); ++y) {
-    const auto* pa = reinterpret_cast<const QRgb*>(ra.constScanLine(y));
-    const auto* pb = reinterpret_cast<const QRgb*>(rb.constScanLine(y));
-    for (int x = 0; x < ra.width(); ++x) {
-      if (std::abs(qRed(pa[x]) - qRed(pb[x])) > threshold ||
-          std::abs(qGreen(pa[x]) - qGreen(pb[x])) > threshold ||
-          std::abs(qBlue(pa[x]) - qBlue(pb[x])) > threshold) {
-        ++differing;
-      }
-    }
-  }
-  return static_cast<double>(differing) / (static_cast<double>(ra.width()) * ra.height());
-}
-
-/// Fraction of pixels brighter than the background gradient (grey level > 100).
-double brightFraction(const QImage& image) {
-  const QImage rgb = image.convertToFormat(QImage::Format_RGB32);
-  std::size_t bright = 0;
-  for (int y = 0; y < rgb.height(); ++y) {
-    const auto* p = reinterpret_cast<const QRgb*>(rgb.constScanLine(y));
-    for (int x = 0; x < rgb.width(); ++x) {
-      bright += qGray(p[x]) > 100 ? 1 : 0;
-    }
-  }
-  return static_cast<double>(bright) / (static_cast<double>(rgb.width()) * rgb.height());
-}
+using test::brightFraction;
+using test::differingFraction;
+using test::kHead;
+using test::waitFor;
 
 Eigen::Vector3d translationOf(vtkActor* actor) {
   vtkMatrix4x4* m = actor->GetUserMatrix();
@@ -89,12 +59,24 @@ Eigen::Vector3d translationOf(vtkActor* actor) {
                       : Eigen::Vector3d(m->GetElement(0, 3), m->GetElement(1, 3), m->GetElement(2, 3));
 }
 
+/// The actor's user matrix as a pose (rotation part and translation).
+haptics::Pose poseOf(vtkActor* actor) {
+  vtkMatrix4x4* m = actor->GetUserMatrix();
+  Eigen::Matrix3d R;
+  for (int r = 0; r < 3; ++r) {
+    for (int c = 0; c < 3; ++c) R(r, c) = m->GetElement(r, c);
+  }
+  haptics::Pose X;
+  X.R_AB = Eigen::Quaterniond(R);
+  X.p_AB_m = translationOf(actor);
+  return X;
+}
+
 class MainWindowTest : public ::testing::Test {
  protected:
   static void SetUpTestSuite() {
     if (std::filesystem::exists(kHead)) {
-      loaded_ = std::make_unique<runtime::LoadedScene>(
-          runtime::loadScene(runtime::sceneForVolume(kHead)));
+      loaded_ = std::make_unique<runtime::LoadedScene>(runtime::loadScene(runtime::sceneForVolume(kHead)));
     }
   }
   static void TearDownTestSuite() { loaded_.reset(); }
@@ -103,19 +85,16 @@ class MainWindowTest : public ::testing::Test {
     if (loaded_ == nullptr) {
       GTEST_SKIP() << "dataset absent: " << kHead << " (the small CT head of ../shared/datasets)";
     }
-    ViewerScene scene;
-    scene.volume = loaded_->volume;
-    scene.tool = loaded_->tool;
-    scene.isovalue = loaded_->isovalue;
-    scene.X_WT_initial = loaded_->X_WT_initial;
-    scene.device = loaded_->makeDevice();
-    scene.haptics = loaded_->makeHapticThread(scene.device);
+    std::shared_ptr<runtime::Device> device = loaded_->makeDevice();
+    ViewerScene scene = makeViewerScene(*loaded_, device, loaded_->makeHapticThread(device));
     scene.title = "ct-head-small";
     window_ = std::make_unique<MainWindow>(std::move(scene));
-    window_->resize(640, 560);
+    window_->setInteractive(false);
+    // Docks closed: their widgets work hidden, and the view stays small (software GL).
+    for (auto* dock : window_->findChildren<QDockWidget*>()) dock->hide();
+    window_->resize(640, 540);
     window_->show();
-    ASSERT_TRUE(waitFor([this] { return window_->view()->frameCount() > 0; }, 20000))
-        << "the view never rendered";
+    ASSERT_TRUE(waitFor([this] { return window_->view()->frameCount() > 0; }, 20000)) << "the view never rendered";
     window_->startHaptics();
   }
 
@@ -172,9 +151,72 @@ TEST_F(MainWindowTest, IsovalueSliderChangesThePictureAndTheHapticIsovalue) {
 
   // The spin box drives it too.
   window_->isovalueSpinBox()->setValue(old_isovalue);
-  EXPECT_NEAR(window_->isovalue(), old_isovalue,
-              std::pow(10.0, -window_->isovalueSpinBox()->decimals()));
+  EXPECT_NEAR(window_->isovalue(), old_isovalue, std::pow(10.0, -window_->isovalueSpinBox()->decimals()));
   EXPECT_DOUBLE_EQ(window_->hapticThread()->isovalue(), window_->isovalue());
+}
+
+TEST_F(MainWindowTest, HistogramIsDrawnBehindTheSlider) {
+  const Histogram& h = window_->histogramSlider()->histogram();
+  ASSERT_FALSE(h.empty());
+  EXPECT_EQ(h.total(), 64u * 64u * 93u);
+  EXPECT_LE(h.min_value, window_->isovalueSpinBox()->minimum() + 1e-9);
+  EXPECT_GE(h.max_value, window_->isovalueSpinBox()->maximum() - 1e-9);
+  // The slider paints it: its pixels differ from a plain slider's.
+  const QImage with = window_->histogramSlider()->grab().toImage();
+  window_->histogramSlider()->clearHistogram();
+  const QImage without = window_->histogramSlider()->grab().toImage();
+  EXPECT_GT(differingFraction(with, without, 8), 0.05);
+}
+
+TEST_F(MainWindowTest, RenderingModesChangeThePicture) {
+  VtkView* view = window_->view();
+  ASSERT_EQ(window_->renderMode(), RenderMode::kIsosurface);
+  // Each picture at the same (best) quality.
+  auto grab = [&] {
+    window_->renderStill(true);
+    return view->grabFrame();
+  };
+  const QImage iso = grab();
+  window_->setPreset(VolumePreset::kBone);
+  window_->setRenderMode(RenderMode::kComposite);
+  EXPECT_EQ(window_->actors().renderMode(), RenderMode::kComposite);
+  const QImage composite = grab();
+  window_->setRenderMode(RenderMode::kMip);
+  const QImage mip = grab();
+  EXPECT_GT(differingFraction(iso, composite), 0.02);
+  EXPECT_GT(differingFraction(iso, mip), 0.02);
+  EXPECT_GT(differingFraction(composite, mip), 0.02);
+  EXPECT_GT(brightFraction(composite), 0.01) << "the bone preset should show something";
+  window_->setPreset(VolumePreset::kSkin);
+  window_->setRenderMode(RenderMode::kComposite);
+  EXPECT_GT(differingFraction(composite, grab()), 0.02) << "skin vs bone preset";
+  window_->setRenderMode(RenderMode::kIsosurface);
+  EXPECT_LT(differingFraction(iso, grab()), 0.01) << "back to the same isosurface";
+}
+
+TEST_F(MainWindowTest, StandardViewsAndClipping) {
+  vtkCamera* camera = window_->view()->renderer()->GetActiveCamera();
+  double dop[3], up[3];
+  window_->setStandardView(StandardView::kAnterior);
+  camera->GetDirectionOfProjection(dop);
+  EXPECT_NEAR(dop[1], 1.0, 1e-9) << "anterior: looking from -y (A) towards +y (P)";
+  window_->setStandardView(StandardView::kLeft);
+  camera->GetDirectionOfProjection(dop);
+  EXPECT_NEAR(dop[0], -1.0, 1e-9) << "left lateral: looking from +x (L)";
+  window_->setStandardView(StandardView::kSuperior);
+  camera->GetDirectionOfProjection(dop);
+  camera->GetViewUp(up);
+  EXPECT_NEAR(dop[2], -1.0, 1e-9) << "superior: looking down";
+  EXPECT_NEAR(up[1], -1.0, 1e-9) << "anterior up";
+
+  window_->setStandardView(StandardView::kAnterior);
+  const QImage whole = window_->view()->grabFrame();
+  window_->setClipping(true, ClipAxis::kY, 0.5);
+  EXPECT_TRUE(window_->actors().clipping());
+  const QImage clipped = window_->view()->grabFrame();
+  EXPECT_GT(differingFraction(whole, clipped), 0.02) << "a coronal cut opens the head";
+  window_->setClipping(false);
+  EXPECT_FALSE(window_->actors().clipping());
 }
 
 TEST_F(MainWindowTest, ToolActorsExistAndFollowTheHapticThread) {
@@ -202,6 +244,7 @@ TEST_F(MainWindowTest, ToolActorsExistAndFollowTheHapticThread) {
     window_->refreshFromHaptics();
     return window_->statusText().contains("Hz");
   }, 3000)) << window_->statusText().toStdString();
+  EXPECT_GT(window_->stripChart() != nullptr, 0);
 }
 
 TEST_F(MainWindowTest, CtrlDragMovesTheDeviceAndPlainDragTheCamera) {
@@ -248,6 +291,14 @@ TEST_F(MainWindowTest, CtrlDragMovesTheDeviceAndPlainDragTheCamera) {
   const Eigen::Vector3d p_Cm = loaded_->tool->mass.p_TCm_m;
   EXPECT_LT((after_rotation * p_Cm - before_rotation * p_Cm).norm(), 1e-9);
 
+  // The keyboard moves it too (arrow right: screen-right by one step).
+  const haptics::Pose before_key = device->pose();
+  QKeyEvent key(QEvent::KeyPress, Qt::Key_Right, Qt::NoModifier);
+  QApplication::sendEvent(view, &key);
+  const Eigen::Vector3d key_moved = device->pose().p_AB_m - before_key.p_AB_m;
+  EXPECT_GT(key_moved.norm(), 1e-4);
+  EXPECT_GT(key_moved.dot(Eigen::Vector3d(right[0], right[1], right[2])), 0.99 * key_moved.norm());
+
   // A plain drag turns the camera and leaves the device alone.
   const haptics::Pose before_camera = device->pose();
   mouse(QEvent::MouseButtonPress, start, Qt::LeftButton, Qt::LeftButton, Qt::NoModifier);
@@ -261,7 +312,7 @@ TEST_F(MainWindowTest, CtrlDragMovesTheDeviceAndPlainDragTheCamera) {
   EXPECT_EQ(device->pose().p_AB_m, before_camera.p_AB_m);
 }
 
-TEST_F(MainWindowTest, TouchRestsTheProxyOnTheSurfaceWithAForce) {
+TEST_F(MainWindowTest, DeviceDrivenIntoTheSurfaceLeavesTheProxyOutsideWhereTheActorShowsIt) {
   ASSERT_TRUE(window_->touchSurface(0.003));
   EXPECT_TRUE(waitFor([&] {
     window_->refreshFromHaptics();
@@ -269,12 +320,141 @@ TEST_F(MainWindowTest, TouchRestsTheProxyOnTheSurfaceWithAForce) {
     return s.contacts > 0 && s.force_W_N.norm() > 0.1;
   }, 10000)) << "contacts " << window_->lastSnapshot().contacts << ", |F| "
             << window_->lastSnapshot().force_W_N.norm() << " N";
-  // The proxy stays out while the device sinks in; the force arrow and contacts are drawn.
+  // Freeze the haptic state (the force ramps down; the proxy stays), then read it once more.
+  window_->stopHaptics();
+  window_->refreshFromHaptics(true);
   const runtime::HapticSnapshot& s = window_->lastSnapshot();
+  // The proxy actor shows exactly the haptic thread's proxy pose.
+  const haptics::Pose shown = poseOf(window_->proxyActor());
+  EXPECT_LT((shown.p_AB_m - s.X_WP.p_AB_m).norm(), 1e-12);
+  EXPECT_LT(shown.R_AB.angularDistance(s.X_WP.R_AB), 1e-9);
+  EXPECT_LT((translationOf(window_->deviceActor()) - s.X_WD.p_AB_m).norm(), 1e-12);
+  // The device sank in; the proxy stayed outside the isosurface (within the collision tolerance).
   EXPECT_GT((s.X_WD.p_AB_m - s.X_WP.p_AB_m).norm(), 1e-3);
-  EXPECT_TRUE(window_->actors().forceActor()->GetVisibility());
+  const haptics::ScalarVolume& field = *loaded_->volume.field;
+  const double depth_m = runtime::maxPenetration_m(field, loaded_->tool->point_shell, shown, window_->isovalue());
+  EXPECT_LE(depth_m, 0.25 * field.featureSize_m()) << "proxy " << depth_m * 1e3 << " mm inside";
+  EXPECT_GT(runtime::maxPenetration_m(field, loaded_->tool->point_shell, s.X_WD, window_->isovalue()), 1e-3)
+      << "the device itself is inside";
+  // The force arrow and contacts are drawn.
   EXPECT_TRUE(window_->actors().contactActor()->GetVisibility());
   EXPECT_FALSE(window_->view()->grabFrame().isNull());
+}
+
+TEST_F(MainWindowTest, GainsFromThePanelApplyLiveAndPersist) {
+  HapticsPanel* panel = window_->hapticsPanel();
+  ASSERT_NE(panel, nullptr);
+  panel->linearStiffnessBox()->setValue(2500.0);
+  panel->torsionalStiffnessBox()->setValue(1.5);
+  EXPECT_DOUBLE_EQ(window_->gains().linear_N_per_m, 2500.0);
+  EXPECT_DOUBLE_EQ(window_->gains().angular_Nm_per_rad, 1.5);
+  EXPECT_DOUBLE_EQ(window_->preferences().linear_stiffness_N_per_m, 2500.0);
+  EXPECT_DOUBLE_EQ(window_->preferences().torsional_stiffness_Nm_per_rad, 1.5);
+  EXPECT_EQ(panel->pointCountLabel()->text().toULongLong(), loaded_->tool->point_shell.size());
+  EXPECT_TRUE(window_->hapticsRunning());
+  // The start/stop button stops and restarts the thread.
+  panel->startStopButton()->click();
+  EXPECT_FALSE(window_->hapticsRunning());
+  panel->startStopButton()->click();
+  EXPECT_TRUE(window_->hapticsRunning());
+}
+
+TEST_F(MainWindowTest, ChoosingAToolRebuildsTheHapticThread) {
+  const auto& tools = window_->toolChoices();
+  int sphere = -1;
+  for (std::size_t i = 0; i < tools.size(); ++i) {
+    if (tools[i].id == "builtin:sphere") sphere = static_cast<int>(i);
+  }
+  ASSERT_GE(sphere, 0);
+  const vtkIdType cells_before = window_->proxyActor()->GetMapper()->GetInput()->GetNumberOfCells();
+  QSignalSpy changed(window_.get(), &MainWindow::toolChanged);
+  window_->selectTool(sphere, 0.001);
+  ASSERT_TRUE(waitFor([&] { return changed.count() > 0; }, 20000)) << "the tool was never rebuilt";
+  EXPECT_EQ(window_->currentToolIndex(), sphere);
+  EXPECT_NE(window_->proxyActor()->GetMapper()->GetInput()->GetNumberOfCells(), cells_before);
+  EXPECT_EQ(window_->hapticsPanel()->pointCountLabel()->text().toULongLong(), window_->scene().tool->point_shell.size());
+  EXPECT_NEAR(window_->hapticsPanel()->pointSpacing_m(), 0.001, 1e-9);
+  EXPECT_TRUE(window_->hapticsRunning());
+  // The new thread runs with the new tool: the proxy follows the device from the new pose.
+  EXPECT_TRUE(waitFor([&] {
+    window_->refreshFromHaptics();
+    return window_->lastSnapshot().tick > 0 &&
+           (window_->lastSnapshot().X_WP.p_AB_m - window_->scene().X_WT_initial.p_AB_m).norm() < 1e-4;
+  }, 3000));
+}
+
+TEST_F(MainWindowTest, LoadingErrorKeepsThePreviousScene) {
+  vtkVolume* volume_before = window_->volumeProp();
+  runtime::HapticThread* thread_before = window_->hapticThread();
+  const double isovalue_before = window_->isovalue();
+  QTemporaryDir dir;
+  const QString bad = dir.filePath("broken.nrrd");
+  {
+    std::ofstream out(bad.toStdString(), std::ios::binary);
+    out << "NRRD0004\ntype: short\ndimension: 3\nsizes: 64 64 64\nencoding: raw\n\n" << std::string(100, '\0');
+  }
+  QSignalSpy failed(window_.get(), &MainWindow::loadFailed);
+  window_->openPath(bad);
+  ASSERT_TRUE(waitFor([&] { return failed.count() > 0; }, 10000)) << "no error reported";
+  EXPECT_TRUE(window_->lastError().contains("broken.nrrd")) << window_->lastError().toStdString();
+  EXPECT_FALSE(window_->loading());
+  EXPECT_EQ(window_->volumeProp(), volume_before);
+  EXPECT_EQ(window_->hapticThread(), thread_before);
+  EXPECT_TRUE(window_->hapticsRunning());
+  EXPECT_DOUBLE_EQ(window_->isovalue(), isovalue_before);
+
+  // A missing path fails at once; interactively the error dialog names the file.
+  window_->setInteractive(true);
+  window_->openPath(dir.filePath("missing.mha"));
+  EXPECT_TRUE(window_->lastError().contains("missing.mha"));
+  auto* box = window_->findChild<QMessageBox*>("errorBox");
+  ASSERT_NE(box, nullptr);
+  EXPECT_TRUE(box->text().contains("missing.mha"));
+  EXPECT_TRUE(box->informativeText().contains("kept"));
+  box->close();
+  EXPECT_EQ(window_->volumeProp(), volume_before);
+}
+
+// ---- Windows that load by themselves ------------------------------------------------------------
+
+TEST(MainWindowLoadTest, OpensADroppedFolderOffTheGuiThreadAndCancels) {
+  if (!std::filesystem::exists(kHead)) GTEST_SKIP() << "dataset absent: " << kHead;
+  MainWindow window;
+  window.setInteractive(false);
+  window.resize(800, 600);
+  window.show();
+  EXPECT_FALSE(window.hasScene());
+  QSignalSpy loaded(&window, &MainWindow::sceneLoaded);
+  // Dropped on the window like a folder from a file manager.
+  QMimeData mime;
+  mime.setUrls({QUrl::fromLocalFile(QString::fromStdString(kHead.string()))});
+  QDragEnterEvent enter(QPoint(400, 300), Qt::CopyAction, &mime, Qt::LeftButton, Qt::NoModifier);
+  QApplication::sendEvent(&window, &enter);
+  EXPECT_TRUE(enter.isAccepted()) << "a local folder is welcome";
+  QDropEvent drop(QPointF(400, 300), Qt::CopyAction, &mime, Qt::LeftButton, Qt::NoModifier);
+  QApplication::sendEvent(&window, &drop);
+  EXPECT_TRUE(drop.isAccepted());
+  EXPECT_TRUE(window.loading()) << "the load runs on the worker";
+  ASSERT_TRUE(waitFor([&] { return loaded.count() > 0; }, 20000)) << window.lastError().toStdString();
+  ASSERT_TRUE(window.hasScene());
+  EXPECT_TRUE(waitFor([&] { return !window.loading(); }, 20000)) << "first frame (GPU upload) never came";
+  EXPECT_TRUE(window.hapticsRunning()) << "haptics start after a load";
+  EXPECT_FALSE(window.histogramSlider()->histogram().empty()) << "histogram computed on the loader thread";
+  EXPECT_TRUE(window.windowTitle().contains("ct-head-small")) << window.windowTitle().toStdString();
+  ASSERT_FALSE(window.preferences().recent_files.isEmpty());
+  EXPECT_TRUE(window.preferences().recent_files.front().endsWith("ct-head-small"));
+  EXPECT_GE(window.recentFilesMenu()->actions().size(), 1);
+
+  // Cancel: the running load is abandoned, the scene shown stays.
+  vtkVolume* shown = window.volumeProp();
+  window.openPath(QString::fromStdString(kHead.string()));
+  window.cancelLoading();
+  EXPECT_FALSE(window.loading());
+  window.loader()->waitForIdle();
+  test::pump(200);
+  EXPECT_EQ(window.volumeProp(), shown);
+  EXPECT_EQ(loaded.count(), 1);
+  window.close();
 }
 
 }  // namespace

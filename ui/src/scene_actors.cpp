@@ -12,6 +12,7 @@
 #include <vtkImageData.h>
 #include <vtkMatrix4x4.h>
 #include <vtkPiecewiseFunction.h>
+#include <vtkPlane.h>
 #include <vtkPoints.h>
 #include <vtkPolyData.h>
 #include <vtkPolyDataMapper.h>
@@ -97,18 +98,16 @@ SceneActors::SceneActors(vtkRenderer* renderer, const SceneActorsSpec& spec) : r
   volume_mapper_->SetAutoAdjustSampleDistances(0);
   volume_mapper_->SetLockSampleDistanceToInputSpacing(0);
   applyQuality();
-  colour_->AddRGBPoint(range[0], kBone[0], kBone[1], kBone[2]);
-  colour_->AddRGBPoint(range[1] > range[0] ? range[1] : range[0] + 1.0, kBone[0], kBone[1], kBone[2]);
-  opacity_->AddPoint(range[0], 1.0);
-  opacity_->AddPoint(range[1] > range[0] ? range[1] : range[0] + 1.0, 1.0);
+  range_[0] = range[0];
+  range_[1] = range[1] > range[0] ? range[1] : range[0] + 1.0;
+  hounsfield_ = spec.hounsfield;
+  surface_rgb_[0] = kBone[0];
+  surface_rgb_[1] = kBone[1];
+  surface_rgb_[2] = kBone[2];
   volume_property_->SetColor(colour_);
   volume_property_->SetScalarOpacity(opacity_);
   volume_property_->SetInterpolationTypeToLinear();
-  volume_property_->ShadeOn();
-  volume_property_->SetAmbient(0.15);
-  volume_property_->SetDiffuse(0.8);
-  volume_property_->SetSpecular(0.25);
-  volume_property_->SetSpecularPower(20.0);
+  applyLook();
   volume_property_->GetIsoSurfaceValues()->SetNumberOfContours(1);
   volume_property_->GetIsoSurfaceValues()->SetValue(0, spec.isovalue);
   volume_->SetMapper(volume_mapper_);
@@ -242,6 +241,85 @@ SceneActors::~SceneActors() {
   }
   renderer_->RemoveActor2D(hint_actor_);
 }
+
+void SceneActors::applyLook() {
+  VolumeLook look;
+  switch (mode_) {
+    case RenderMode::kIsosurface:
+      volume_mapper_->SetBlendModeToIsoSurface();
+      look = isosurfaceLook(range_[0], range_[1], surface_rgb_[0], surface_rgb_[1], surface_rgb_[2]);
+      break;
+    case RenderMode::kComposite:
+      volume_mapper_->SetBlendModeToComposite();
+      look = compositeLook(preset_, range_[0], range_[1], hounsfield_);
+      break;
+    case RenderMode::kMip:
+      volume_mapper_->SetBlendModeToMaximumIntensity();
+      look = mipLook(range_[0], range_[1], hounsfield_);
+      break;
+  }
+  colour_->RemoveAllPoints();
+  for (const ColourPoint& c : look.colour) colour_->AddRGBPoint(c.value, c.r, c.g, c.b);
+  opacity_->RemoveAllPoints();
+  for (const OpacityPoint& o : look.opacity) opacity_->AddPoint(o.value, o.opacity);
+  volume_property_->SetShade(look.shade ? 1 : 0);
+  volume_property_->SetAmbient(look.ambient);
+  volume_property_->SetDiffuse(look.diffuse);
+  volume_property_->SetSpecular(look.specular);
+  volume_property_->SetSpecularPower(look.specular_power);
+  // Opacities are per voxel of ray (the image is in metres: VTK's default unit distance, 1, would
+  // be a metre and make every composite rendering nearly transparent).
+  volume_property_->SetScalarOpacityUnitDistance(look.opacity_unit_distance_voxels * min_spacing_m_);
+  volume_property_->Modified();
+}
+
+void SceneActors::setRenderMode(RenderMode mode, VolumePreset preset) {
+  mode_ = mode;
+  preset_ = preset;
+  applyLook();
+}
+
+void SceneActors::setSurfaceColour(double r, double g, double b) {
+  surface_rgb_[0] = r;
+  surface_rgb_[1] = g;
+  surface_rgb_[2] = b;
+  if (mode_ == RenderMode::kIsosurface) applyLook();
+}
+
+void SceneActors::setToolColour(double r, double g, double b) { proxy_actor_->GetProperty()->SetColor(r, g, b); }
+void SceneActors::setDeviceColour(double r, double g, double b) { device_actor_->GetProperty()->SetColor(r, g, b); }
+
+void SceneActors::setToolMesh(const haptics::TriangleMesh& mesh_T, const Eigen::Vector3d& /*p_TCm_m*/) {
+  // Both tool mappers read the same normals filter; replacing its input updates both.
+  auto* proxy_mapper = vtkPolyDataMapper::SafeDownCast(proxy_actor_->GetMapper());
+  if (proxy_mapper == nullptr) return;
+  auto* normals = vtkPolyDataNormals::SafeDownCast(proxy_mapper->GetInputAlgorithm());
+  if (normals == nullptr) return;
+  normals->SetInputData(polyDataFromMesh(mesh_T));
+  normals->Update();
+  const Eigen::Vector3d extent = mesh_T.empty() ? Eigen::Vector3d(0.02, 0.02, 0.02)
+                                                : Eigen::Vector3d(mesh_T.boundsMax_T_m() - mesh_T.boundsMin_T_m());
+  arrow_reference_m_ = std::max(0.5 * extent.norm(), 1e-3);
+}
+
+void SceneActors::setClipPlane(bool enabled, const Eigen::Vector3d& p_W_origin_m, const Eigen::Vector3d& n_W) {
+  clipping_ = enabled && p_W_origin_m.allFinite() && n_W.norm() > 0.0;
+  volume_mapper_->RemoveAllClippingPlanes();
+  if (!clipping_) return;
+  // The GPU ray caster takes clipping planes in world coordinates (it applies the prop's user
+  // matrix itself; VTK's TestGPURayCastClippingUserTransform).
+  const Eigen::Vector3d n = n_W.normalized();
+  clip_plane_->SetOrigin(p_W_origin_m.x(), p_W_origin_m.y(), p_W_origin_m.z());
+  clip_plane_->SetNormal(n.x(), n.y(), n.z());
+  volume_mapper_->AddClippingPlane(clip_plane_);
+}
+
+void SceneActors::setHint(const std::string& hint) {
+  hint_actor_->SetInput(hint.c_str());
+  hint_actor_->SetVisibility(!hint.empty());
+}
+
+void SceneActors::volumeBounds_W(double bounds[6]) const { volume_->GetBounds(bounds); }
 
 void SceneActors::setIsovalue(double isovalue) {
   volume_property_->GetIsoSurfaceValues()->SetValue(0, isovalue);

@@ -14,6 +14,7 @@
 #include <optional>
 
 #include "vh/haptics/pose.h"
+#include "vh/ui/render_presets.h"
 
 namespace vh::runtime {
 struct SceneSpec;
@@ -38,21 +39,28 @@ struct AppOptions {
   /// (a cast through the field, runtime::firstContactDistance), then `touch_depth_m` further, so
   /// the proxy rests on the surface while the device sinks in and a contact force shows. When that
   /// ray slips through a hole, starts on rings around it (up to 30% of the volume's size) are
-  /// tried; the device then moves sideways first and goes in 0.3 s later. Ignored when
+  /// tried; the device then moves sideways first and goes in 0.3 s later. The camera then moves
+  /// close to the tool (MainWindow::focusOnTool) to show the contact. Ignored when
   /// `device_pose` is set or the scene has no simulated device (a warning on stderr).
   bool touch = false;
   /// How far past the surface the device target goes for `touch` [m].
   double touch_depth_m = 0.003;
-  /// Main window size in logical pixels.
-  int window_width = 1024;
-  int window_height = 768;
+  /// Rendering mode and composite preset for this run; unset: the saved preferences'.
+  std::optional<RenderMode> render_mode;
+  std::optional<VolumePreset> preset;
+  /// Main window size in logical pixels (interactive runs restore the saved size instead, when
+  /// there is one).
+  int window_width = 1280;
+  int window_height = 860;
 };
 
 /// Creates the QApplication (default surface format set before: OpenGL 3.2 core, depth 24,
-/// stencil 8, samples 0), loads `scene` (errors: message box naming the file and the problem,
-/// also printed to stderr; returns 1), shows the main window and runs the event loop. Starts
-/// the haptic thread when the scene has a device; closing the window stops it (force ramped to
-/// zero) before the VTK objects are destroyed.
+/// stencil 8, samples 0), shows the main window at once and loads `scene` on a worker thread
+/// with a progress bar (a DICOM folder with several series asks which one). Errors: a dialog
+/// naming the file and the problem (also printed to stderr); the window stays open so another
+/// file can be opened (File menu, drag and drop); a scripted screenshot run exits with 1
+/// instead. Starts the haptic thread when the scene has a device; closing the window stops it
+/// (force ramped to zero) before the VTK objects are destroyed, and saves the settings.
 /// @return the event loop's exit code (0 on a normal close or a successful screenshot).
 int runApplication(int argc, char** argv, const vh::runtime::SceneSpec& scene,
                    const AppOptions& options);

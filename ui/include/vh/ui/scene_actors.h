@@ -18,12 +18,14 @@
 
 #include "vh/haptics/pose.h"
 #include "vh/haptics/triangle_mesh.h"
+#include "vh/ui/render_presets.h"
 
 class vtkActor;
 class vtkColorTransferFunction;
 class vtkGPUVolumeRayCastMapper;
 class vtkImageData;
 class vtkPiecewiseFunction;
+class vtkPlane;
 class vtkPoints;
 class vtkPolyData;
 class vtkRenderer;
@@ -42,6 +44,7 @@ struct SceneActorsSpec {
   Eigen::Vector3d p_TCm_m = Eigen::Vector3d::Zero();         ///< Tool centre of mass in T [m].
   bool show_device = true;                                   ///< Draw the device tool.
   std::string hint;                                          ///< Text overlay (may be empty).
+  bool hounsfield = false;  ///< Values are HU (CT): the composite presets apply as defined.
 };
 
 class SceneActors {
@@ -56,6 +59,29 @@ class SceneActors {
   /// Isosurface value in data units.
   void setIsovalue(double isovalue);
   double isovalue() const;
+
+  /// How the volume is drawn: the isosurface (the haptic surface, in the surface colour), a
+  /// composite ray cast with `preset`'s transfer functions, or a MIP.
+  void setRenderMode(RenderMode mode, VolumePreset preset = VolumePreset::kBone);
+  RenderMode renderMode() const noexcept { return mode_; }
+  VolumePreset preset() const noexcept { return preset_; }
+  /// Colours, RGB in [0, 1]: the isosurface, the proxy tool (solid), the device tool (lines).
+  void setSurfaceColour(double r, double g, double b);
+  void setToolColour(double r, double g, double b);
+  void setDeviceColour(double r, double g, double b);
+  /// Replaces the tool's display mesh (in T [m]) of both tool actors; `p_TCm_m` its centre of
+  /// mass sets the force arrow's scale.
+  void setToolMesh(const haptics::TriangleMesh& mesh_T, const Eigen::Vector3d& p_TCm_m);
+  /// Clips the volume (not the tools) with the plane through p_W_origin_m [m] with normal
+  /// n_W; the half space the normal points into is kept. Visual only: the haptic surface stays
+  /// whole.
+  void setClipPlane(bool enabled, const Eigen::Vector3d& p_W_origin_m = Eigen::Vector3d::Zero(),
+                    const Eigen::Vector3d& n_W = Eigen::Vector3d::UnitZ());
+  bool clipping() const noexcept { return clipping_; }
+  /// Text in the top left corner (empty: none).
+  void setHint(const std::string& hint);
+  /// The volume's world bounds in W [m] (xmin, xmax, ymin, ymax, zmin, zmax).
+  void volumeBounds_W(double bounds[6]) const;
 
   void setProxyPose(const haptics::Pose& X_WP);
   void setDevicePose(const haptics::Pose& X_WD);
@@ -109,8 +135,16 @@ class SceneActors {
   vtkNew<vtkActor> contact_actor_;
   vtkNew<vtkActor> force_actor_;
   vtkNew<vtkTextActor> hint_actor_;
+  vtkNew<vtkPlane> clip_plane_;
   double arrow_reference_m_ = 0.01;
   void applyQuality();
+  void applyLook();
+  RenderMode mode_ = RenderMode::kIsosurface;
+  VolumePreset preset_ = VolumePreset::kBone;
+  bool hounsfield_ = false;
+  bool clipping_ = false;
+  double range_[2] = {0.0, 1.0};
+  double surface_rgb_[3] = {0.93, 0.87, 0.74};
   double min_spacing_m_ = 1e-3;
   int still_level_ = 0;  // 0 best; see adaptQuality()
   double interactive_image_sample_ = 1.0;

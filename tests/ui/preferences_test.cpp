@@ -1,0 +1,69 @@
+// Settings round trip (ui/preferences.h) and the recent-files list.
+#include "vh/ui/preferences.h"
+
+#include <QSettings>
+#include <QTemporaryDir>
+
+#include <gtest/gtest.h>
+
+namespace vh::ui {
+namespace {
+
+TEST(PreferencesTest, RoundTripThroughQSettings) {
+  QTemporaryDir dir;
+  const QString file = dir.filePath("prefs.ini");
+  Preferences p;
+  p.background_top = QColor(10, 20, 30);
+  p.background_bottom = QColor(1, 2, 3);
+  p.surface = QColor(200, 100, 50);
+  p.tool = QColor(9, 8, 7);
+  p.device = QColor(250, 0, 250);
+  p.linear_stiffness_N_per_m = 2345.0;
+  p.torsional_stiffness_Nm_per_rad = 0.75;
+  p.mode = RenderMode::kMip;
+  p.preset = VolumePreset::kSkin;
+  p.orientation_marker = false;
+  p.show_device = false;
+  p.addRecentFile("/data/a.nrrd");
+  p.addRecentFile("/data/dicom");
+  p.last_folder = "/data";
+  {
+    QSettings s(file, QSettings::IniFormat);
+    p.save(s);
+  }
+  QSettings s(file, QSettings::IniFormat);
+  const Preferences back = Preferences::load(s);
+  EXPECT_TRUE(back == p);
+  EXPECT_EQ(back.recent_files, (QStringList{"/data/dicom", "/data/a.nrrd"}));
+  EXPECT_EQ(back.mode, RenderMode::kMip);
+  EXPECT_EQ(back.surface, QColor(200, 100, 50));
+}
+
+TEST(PreferencesTest, MissingOrInvalidEntriesKeepTheDefaults) {
+  QTemporaryDir dir;
+  QSettings s(dir.filePath("bad.ini"), QSettings::IniFormat);
+  s.setValue("preferences/colours/surface", "not a colour");
+  s.setValue("preferences/haptics/linear_stiffness_N_per_m", -5.0);
+  s.setValue("preferences/view/mode", 42);
+  const Preferences p = Preferences::load(s);
+  const Preferences defaults;
+  EXPECT_EQ(p.surface, defaults.surface);
+  EXPECT_EQ(p.linear_stiffness_N_per_m, defaults.linear_stiffness_N_per_m);
+  EXPECT_EQ(p.mode, defaults.mode);
+  EXPECT_TRUE(p == defaults);
+}
+
+TEST(PreferencesTest, RecentFilesAreUniqueNewestFirstAndBounded) {
+  Preferences p;
+  for (int i = 0; i < Preferences::kMaxRecentFiles + 5; ++i) p.addRecentFile(QString("/f%1").arg(i));
+  EXPECT_EQ(p.recent_files.size(), Preferences::kMaxRecentFiles);
+  EXPECT_EQ(p.recent_files.front(), QString("/f%1").arg(Preferences::kMaxRecentFiles + 4));
+  p.addRecentFile("/f10");
+  EXPECT_EQ(p.recent_files.front(), "/f10");
+  EXPECT_EQ(p.recent_files.count("/f10"), 1);
+  p.addRecentFile("");
+  EXPECT_EQ(p.recent_files.front(), "/f10");
+}
+
+}  // namespace
+}  // namespace vh::ui

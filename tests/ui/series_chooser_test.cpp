@@ -1,0 +1,128 @@
+// Listing the DICOM series of a folder (io/dicom_series.h), loading a chosen one, and the series
+// chooser's model and dialog (ui/series_chooser.h).
+#include "vh/ui/series_chooser.h"
+
+#include <filesystem>
+
+#include <QItemSelectionModel>
+#include <QTableView>
+#include <QTemporaryDir>
+
+#include <gtest/gtest.h>
+#include <vtkImageData.h>
+
+#include "ui_test_util.h"
+#include "vh/io/dicom_series.h"
+
+namespace vh::ui {
+namespace {
+
+namespace fs = std::filesystem;
+using test::kHead;
+using test::kSharedData;
+
+const fs::path kPhantom = kSharedData / "ct/philips-head-phantom-bone";
+
+io::DicomSeriesInfo series(const char* description, int slices, const char* modality = "CT") {
+  io::DicomSeriesInfo s;
+  s.folder = "/data/study";
+  s.patient_name = "Doe^Jane";
+  s.patient_id = "123";
+  s.study_description = "HEAD";
+  s.study_date = "20110516";
+  s.series_description = description;
+  s.series_number = 3;
+  s.modality = modality;
+  s.file_count = slices;
+  s.slice_count = slices;
+  s.rows = 512;
+  s.columns = 512;
+  s.spacing_mm = Eigen::Vector3d(0.451, 0.451, 1.0);
+  return s;
+}
+
+TEST(DicomSeriesModelTest, ShowsPatientStudySeriesModalitySlicesAndSpacing) {
+  DicomSeriesModel model({series("Scout", 2), series("BONE 1mm", 140), series("SOFT", 70, "CT")});
+  ASSERT_EQ(model.rowCount(), 3);
+  ASSERT_EQ(model.columnCount(), DicomSeriesModel::kColumnCount);
+  auto text = [&](int row, int column) { return model.data(model.index(row, column)).toString(); };
+  EXPECT_EQ(text(1, DicomSeriesModel::kPatient), "Doe, Jane (123)");
+  EXPECT_EQ(text(1, DicomSeriesModel::kStudy), "HEAD [2011-05-16]");
+  EXPECT_EQ(text(1, DicomSeriesModel::kSeries), "#3 BONE 1mm");
+  EXPECT_EQ(text(1, DicomSeriesModel::kModality), "CT");
+  EXPECT_EQ(model.data(model.index(1, DicomSeriesModel::kSlices)).toInt(), 140);
+  EXPECT_EQ(text(1, DicomSeriesModel::kSpacing), "0.45 x 0.45 x 1.00 mm");
+  EXPECT_EQ(text(1, DicomSeriesModel::kMatrix), "512 x 512");
+  EXPECT_EQ(model.headerData(DicomSeriesModel::kSlices, Qt::Horizontal).toString(), "Slices");
+  EXPECT_EQ(model.largestRow(), 1);
+  EXPECT_FALSE(model.data(model.index(7, 0)).isValid());
+
+  SeriesChooserDialog dialog("/data/study", {series("Scout", 2), series("BONE 1mm", 140)});
+  EXPECT_EQ(dialog.selectedRow(), 1) << "the largest series is preselected";
+  dialog.selectRow(0);
+  EXPECT_EQ(dialog.selectedRow(), 0);
+  EXPECT_EQ(dialog.model()->series(dialog.selectedRow()).series_description, "Scout");
+}
+
+TEST(DicomSeriesTest, ListsTheSmallHeadAsOneCtSeries) {
+  if (!fs::exists(kHead)) GTEST_SKIP() << "dataset absent: " << kHead;
+  int calls = 0;
+  const auto list = io::listDicomSeries(kHead, [&](int, int) { ++calls; });
+  ASSERT_EQ(list.size(), 1u);
+  const io::DicomSeriesInfo& s = list.front();
+  EXPECT_EQ(s.modality, "CT");
+  EXPECT_EQ(s.file_count, 93);
+  EXPECT_EQ(s.slice_count, 93);
+  EXPECT_EQ(s.columns, 64);
+  EXPECT_EQ(s.rows, 64);
+  EXPECT_NEAR(s.spacing_mm.x(), 3.2, 1e-3);
+  EXPECT_NEAR(s.spacing_mm.z(), 1.5, 1e-3);
+  EXPECT_GE(calls, 2) << "progress reported";
+  const io::LoadedVolume v = io::loadDicomSeries(kHead, 0);
+  int dims[3];
+  v.image->GetDimensions(dims);
+  EXPECT_EQ(dims[0] * dims[1] * dims[2], 64 * 64 * 93);
+  EXPECT_THROW(io::loadDicomSeries(kHead, 1), io::LoadError);
+}
+
+TEST(DicomSeriesTest, AFolderWithTwoSeriesListsBothAndLoadsTheChosenOne) {
+  if (!fs::exists(kHead) || !fs::exists(kPhantom)) GTEST_SKIP() << "datasets absent";
+  QTemporaryDir tmp;
+  const fs::path root = tmp.path().toStdString();
+  fs::create_directories(root / "head");
+  fs::create_directories(root / "phantom");
+  for (const auto& e : fs::directory_iterator(kHead)) fs::copy_file(e.path(), root / "head" / e.path().filename());
+  for (const char* name : {"I10", "I20", "I30"}) fs::copy_file(kPhantom / name, root / "phantom" / name);
+  const auto list = io::listDicomSeries(root);
+  ASSERT_EQ(list.size(), 2u);
+  int head = -1, phantom = -1;
+  for (const auto& s : list) {
+    if (s.file_count == 93) head = s.index;
+    if (s.file_count == 3) phantom = s.index;
+  }
+  ASSERT_GE(head, 0);
+  ASSERT_GE(phantom, 0);
+  EXPECT_EQ(list[static_cast<std::size_t>(phantom)].columns, 512);
+  DicomSeriesModel model(list);
+  EXPECT_EQ(model.data(model.index(model.largestRow(), DicomSeriesModel::kSlices)).toInt(), 93);
+  const io::LoadedVolume v = io::loadDicomSeries(list[static_cast<std::size_t>(phantom)]);
+  int dims[3];
+  v.image->GetDimensions(dims);
+  EXPECT_EQ(dims[0], 512);
+  EXPECT_EQ(dims[2], 3) << "only the chosen series is read";
+}
+
+TEST(DicomSeriesTest, ErrorsNameTheFolder) {
+  QTemporaryDir tmp;
+  try {
+    io::listDicomSeries(tmp.path().toStdString());
+    FAIL() << "an empty folder has no series";
+  } catch (const io::LoadError& e) {
+    EXPECT_NE(std::string(e.what()).find(tmp.path().toStdString()), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("no DICOM image series"), std::string::npos) << e.what();
+  }
+  EXPECT_THROW(io::listDicomSeries(tmp.filePath("missing").toStdString()), io::LoadError);
+}
+
+}  // namespace
+}  // namespace vh::ui

@@ -1,0 +1,39 @@
+// The live strip chart (ui/strip_chart.h): samples kept over the window, batched redraws.
+#include "vh/ui/strip_chart.h"
+
+#include <QChart>
+#include <QChartView>
+#include <QLineSeries>
+#include <QValueAxis>
+
+#include <gtest/gtest.h>
+
+namespace vh::ui {
+namespace {
+
+TEST(StripChartTest, KeepsTheLastWindowOfSamples) {
+  StripChart chart(nullptr, 10.0);
+  for (int i = 0; i <= 150; ++i) chart.addSample(0.1 * i, 0.01 * i, 50.0, 80.0);  // 15 s at 10 Hz
+  chart.flush();
+  // Everything older than the window (and a second of margin) is gone: t in [4, 15].
+  EXPECT_GE(chart.sampleCount(), 100);
+  EXPECT_LE(chart.sampleCount(), 112);
+  auto* series = qobject_cast<QLineSeries*>(chart.chartView()->chart()->series().front());
+  ASSERT_NE(series, nullptr);
+  EXPECT_NEAR(series->at(series->count() - 1).x(), 0.0, 1e-9) << "x: seconds before the newest sample";
+  EXPECT_NEAR(series->at(0).x(), -11.0, 0.11);
+  EXPECT_NEAR(series->at(series->count() - 1).y(), 1.5, 1e-9);
+  const auto axes = chart.chartView()->chart()->axes(Qt::Vertical, series);
+  ASSERT_FALSE(axes.isEmpty());
+  const auto* force_axis = qobject_cast<QValueAxis*>(axes.front());
+  ASSERT_NE(force_axis, nullptr);
+  EXPECT_GE(force_axis->max(), 1.5) << "the force axis covers the largest force shown";
+  chart.addSample(15.1, std::nan(""), 1.0, 1.0);  // a non-finite force is drawn as 0
+  chart.flush();
+  EXPECT_EQ(series->at(series->count() - 1).y(), 0.0);
+  chart.clear();
+  EXPECT_EQ(chart.sampleCount(), 0);
+}
+
+}  // namespace
+}  // namespace vh::ui

@@ -1,0 +1,71 @@
+#pragma once
+// Helpers shared by the GUI tests: event-loop waits and picture comparisons.
+
+#include <chrono>
+#include <cstdlib>
+#include <filesystem>
+#include <functional>
+#include <thread>
+
+#include <QApplication>
+#include <QImage>
+
+namespace vh::ui::test {
+
+inline const std::filesystem::path kSharedData = std::filesystem::path(VH_SHARED_DATASETS_DIR);
+inline const std::filesystem::path kHead = kSharedData / "ct/ct-head-small";
+
+/// Processes events until `done` or the timeout; @return done().
+inline bool waitFor(const std::function<bool()>& done, int timeout_ms) {
+  const auto end = std::chrono::steady_clock::now() + std::chrono::milliseconds(timeout_ms);
+  while (!done()) {
+    if (std::chrono::steady_clock::now() > end) {
+      return false;
+    }
+    QApplication::processEvents(QEventLoop::AllEvents, 10);
+    std::this_thread::sleep_for(std::chrono::milliseconds(5));
+  }
+  return true;
+}
+
+/// Processes events for `ms` milliseconds.
+inline void pump(int ms) {
+  waitFor([] { return false; }, ms);
+}
+
+/// Fraction of pixels whose colour differs by more than `threshold` in some channel.
+inline double differingFraction(const QImage& a, const QImage& b, int threshold = 24) {
+  if (a.size() != b.size() || a.isNull()) {
+    return 1.0;
+  }
+  const QImage ra = a.convertToFormat(QImage::Format_RGB32);
+  const QImage rb = b.convertToFormat(QImage::Format_RGB32);
+  std::size_t differing = 0;
+  for (int y = 0; y < ra.height(); ++y) {
+    const auto* pa = reinterpret_cast<const QRgb*>(ra.constScanLine(y));
+    const auto* pb = reinterpret_cast<const QRgb*>(rb.constScanLine(y));
+    for (int x = 0; x < ra.width(); ++x) {
+      if (std::abs(qRed(pa[x]) - qRed(pb[x])) > threshold ||
+          std::abs(qGreen(pa[x]) - qGreen(pb[x])) > threshold ||
+          std::abs(qBlue(pa[x]) - qBlue(pb[x])) > threshold) {
+        ++differing;
+      }
+    }
+  }
+  return static_cast<double>(differing) / (static_cast<double>(ra.width()) * ra.height());
+}
+
+/// Fraction of pixels brighter than the background gradient (grey level > 100).
+inline double brightFraction(const QImage& image) {
+  const QImage rgb = image.convertToFormat(QImage::Format_RGB32);
+  std::size_t bright = 0;
+  for (int y = 0; y < rgb.height(); ++y) {
+    const auto* p = reinterpret_cast<const QRgb*>(rgb.constScanLine(y));
+    for (int x = 0; x < rgb.width(); ++x) {
+      bright += qGray(p[x]) > 100 ? 1 : 0;
+    }
+  }
+  return static_cast<double>(bright) / (static_cast<double>(rgb.width()) * rgb.height());
+}
+
+}  // namespace vh::ui::test

@@ -1,0 +1,75 @@
+#pragma once
+/// @file
+/// The haptics dock panel: start / stop the haptic thread, the tool (built-in and shared meshes),
+/// its point-shell spacing and the resulting point count, the coupling's linear [N/m] and
+/// torsional [N*m/rad] stiffness (applied live), and the device in use with its limits. The
+/// panel only edits and shows values; MainWindow acts on its signals.
+
+#include <vector>
+
+#include <QString>
+#include <QWidget>
+
+#include "vh/haptics/virtual_coupling.h"
+#include "vh/ui/tool_catalog.h"
+
+class QComboBox;
+class QDoubleSpinBox;
+class QLabel;
+class QPushButton;
+class QTimer;
+
+namespace vh::ui {
+
+class HapticsPanel : public QWidget {
+  Q_OBJECT
+
+ public:
+  explicit HapticsPanel(QWidget* parent = nullptr);
+
+  /// The tool list and the entry in use.
+  void setTools(const std::vector<ToolChoice>& tools, int current);
+  int currentTool() const;
+  /// The spacing in use [m] and the point count it gave.
+  void setPointShell(double spacing_m, std::size_t point_count);
+  /// Spacing the spin box shows [m].
+  double pointSpacing_m() const;
+  /// While a tool is being rebuilt: the point count reads "building..." and tool edits wait.
+  void setBuilding(bool building);
+  void setGains(const haptics::CouplingGains& gains);
+  haptics::CouplingGains gains() const;
+  /// Whether the haptic thread runs (button text), and whether there is one at all.
+  void setRunning(bool running, bool available);
+  /// The device's name and a line (or lines) of its limits.
+  void setDevice(const QString& name, const QString& limits);
+
+  QPushButton* startStopButton() const noexcept { return start_stop_; }
+  QComboBox* toolBox() const noexcept { return tool_; }
+  QDoubleSpinBox* spacingBox() const noexcept { return spacing_mm_; }
+  QDoubleSpinBox* linearStiffnessBox() const noexcept { return linear_; }
+  QDoubleSpinBox* torsionalStiffnessBox() const noexcept { return torsional_; }
+  QLabel* pointCountLabel() const noexcept { return points_; }
+
+ signals:
+  void startStopRequested(bool run);
+  /// The user picked a tool or a spacing (debounced 400 ms for the spin box): rebuild.
+  void toolRequested(int choice_index, double point_spacing_m);
+  void gainsChanged(const haptics::CouplingGains& gains);
+  void resetDeviceRequested();
+
+ private:
+  QPushButton* start_stop_;
+  QPushButton* reset_device_;
+  QComboBox* tool_;
+  QDoubleSpinBox* spacing_mm_;
+  QLabel* points_;
+  QDoubleSpinBox* linear_;
+  QDoubleSpinBox* torsional_;
+  QLabel* device_name_;
+  QLabel* device_limits_;
+  QTimer* spacing_timer_;
+  bool running_ = false;
+  bool updating_ = false;  // programmatic changes emit nothing
+};
+
+}  // namespace vh::ui

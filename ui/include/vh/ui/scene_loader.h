@@ -1,0 +1,98 @@
+#pragma once
+/// @file
+/// Loading off the GUI thread: scenes (volume + tool + device + haptic thread + histogram),
+/// DICOM folder listings and tool rebuilds run on a worker thread (a private QThreadPool);
+/// progress and the result come back to the GUI thread as queued signals. One job at a time;
+/// cancel() abandons the running job at once: its result is dropped when it arrives (a read
+/// inside VTK cannot be interrupted, so the worker may run on briefly, never touching the
+/// window; the stages in between check the cancel flag).
+
+#include <atomic>
+#include <cstdint>
+#include <functional>
+#include <filesystem>
+#include <memory>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include <QObject>
+#include <QString>
+#include <QThreadPool>
+
+#include "vh/io/dicom_series.h"
+#include "vh/runtime/scene.h"
+#include "vh/ui/histogram.h"
+#include "vh/ui/tool_catalog.h"
+
+namespace vh::ui {
+
+/// What a scene load produces on the worker, handed to the GUI thread whole.
+struct LoadedViewerScene {
+  runtime::LoadedScene scene;                      ///< Volume, tool, isovalue, initial pose.
+  Histogram histogram;                             ///< Of the volume's values (256 bins).
+  std::shared_ptr<runtime::Device> device;         ///< Null when the scene has no device.
+  std::unique_ptr<runtime::HapticThread> haptics;  ///< Not started; null without a device.
+  std::filesystem::path opened;                    ///< What the user opened (file or folder).
+  std::string title;                               ///< Window title detail.
+};
+
+/// A tool rebuilt for the current volume (haptics panel).
+struct RebuiltTool {
+  int choice_index = -1;                             ///< Index into the tool catalog.
+  BuiltTool built;                                   ///< Tool, spacing, free initial pose.
+  std::unique_ptr<haptics::HapticRenderer> renderer; ///< For the new tool at built.X_WT_initial.
+};
+
+class SceneLoader : public QObject {
+  Q_OBJECT
+
+ public:
+  explicit SceneLoader(QObject* parent = nullptr);
+  ~SceneLoader() override;  ///< Cancels and waits for the worker.
+
+  /// Loads `spec` (runtime::loadScene), its device and haptic thread, and the histogram.
+  /// `opened` is remembered as what the user opened (recent files). Emits progress(), then
+  /// sceneLoaded() or failed() (or cancelled()).
+  void loadScene(const runtime::SceneSpec& spec, const std::filesystem::path& opened);
+  /// Lists the DICOM series in `folder`; emits seriesListed() or failed().
+  void listSeries(const std::filesystem::path& folder);
+  /// Builds `choice` at `point_spacing_m` (0: automatic) for `field` / `isovalue`, with a renderer
+  /// using `options`. Emits toolBuilt() or failed().
+  void buildTool(int choice_index, const ToolChoice& choice, double point_spacing_m,
+                 std::shared_ptr<const haptics::ScalarVolume> field, double isovalue,
+                 const haptics::RendererOptions& options);
+
+  /// Abandons the running job (no result signal but cancelled()).
+  void cancel();
+  bool busy() const noexcept { return busy_; }
+  /// Blocks until the worker is idle (tests, shutdown).
+  void waitForIdle();
+
+ signals:
+  /// `percent` in [0, 100], or -1 while the stage's length is unknown (a busy indicator).
+  void progress(const QString& stage, int percent);
+  void sceneLoaded(std::shared_ptr<vh::ui::LoadedViewerScene> scene);
+  void seriesListed(const QString& folder, std::shared_ptr<std::vector<vh::io::DicomSeriesInfo>> series);
+  void toolBuilt(std::shared_ptr<vh::ui::RebuiltTool> tool);
+  /// `what`: the file, folder or tool concerned; `message`: the problem (names the file).
+  void failed(const QString& what, const QString& message);
+  void cancelled();
+  /// After any of the above: the loader is idle.
+  void idle();
+
+ private:
+  /// Runs `job(cancel_flag, job_id)` on the pool as the current job.
+  void start(std::function<void(const std::atomic<bool>& cancel, std::uint64_t job)> job);
+  /// Worker side: runs `deliver` on the GUI thread if job `job` is still the current one.
+  void post(std::uint64_t job, std::function<void()> deliver);
+  /// GUI thread: the current job ended (result delivered).
+  void finish(std::uint64_t job);
+
+  QThreadPool pool_;
+  std::shared_ptr<std::atomic<bool>> cancel_flag_;
+  std::uint64_t job_ = 0;  // GUI thread: id of the current job (0: none yet)
+  bool busy_ = false;
+};
+
+}  // namespace vh::ui

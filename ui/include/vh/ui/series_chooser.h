@@ -1,0 +1,69 @@
+#pragma once
+/// @file
+/// Choosing one DICOM series of a folder: a table model over io::DicomSeriesInfo (patient,
+/// study, series description, modality, slice count, voxel spacing, matrix size) and the modal
+/// dialog around it. The largest series is preselected (what loadVolume() would take).
+
+#include <vector>
+
+#include <QAbstractTableModel>
+#include <QDialog>
+
+#include "vh/io/dicom_series.h"
+
+class QTableView;
+
+namespace vh::ui {
+
+class DicomSeriesModel : public QAbstractTableModel {
+  Q_OBJECT
+
+ public:
+  enum Column {
+    kPatient,
+    kStudy,
+    kSeries,
+    kModality,
+    kSlices,
+    kSpacing,
+    kMatrix,
+    kColumnCount
+  };
+
+  explicit DicomSeriesModel(std::vector<io::DicomSeriesInfo> series, QObject* parent = nullptr);
+
+  int rowCount(const QModelIndex& parent = {}) const override;
+  int columnCount(const QModelIndex& parent = {}) const override;
+  /// DisplayRole: text ("0.45 x 0.45 x 1.00 mm", "512 x 512"); ToolTipRole: the folder of the
+  /// files and the series UID; Qt::UserRole: the series' index in the folder scan;
+  /// Qt::TextAlignmentRole: numbers right-aligned.
+  QVariant data(const QModelIndex& index, int role = Qt::DisplayRole) const override;
+  QVariant headerData(int section, Qt::Orientation orientation, int role = Qt::DisplayRole) const override;
+
+  const io::DicomSeriesInfo& series(int row) const { return series_.at(static_cast<std::size_t>(row)); }
+  /// Row of the series with the most slices (ties: the first); -1 when empty.
+  int largestRow() const;
+
+ private:
+  std::vector<io::DicomSeriesInfo> series_;
+};
+
+class SeriesChooserDialog : public QDialog {
+  Q_OBJECT
+
+ public:
+  /// @param folder shown in the dialog's text.
+  SeriesChooserDialog(const QString& folder, std::vector<io::DicomSeriesInfo> series, QWidget* parent = nullptr);
+
+  /// The selected row (-1 when none); selected series via model()->series(row).
+  int selectedRow() const;
+  void selectRow(int row);
+  DicomSeriesModel* model() const noexcept { return model_; }
+  QTableView* table() const noexcept { return table_; }
+
+ private:
+  DicomSeriesModel* model_;
+  QTableView* table_;
+};
+
+}  // namespace vh::ui

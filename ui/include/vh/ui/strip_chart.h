@@ -1,0 +1,56 @@
+#pragma once
+/// @file
+/// A live strip chart (Qt Charts) of the haptic thread: the force magnitude |F| [N] on the left
+/// axis and the servo tick time [us] (mean and max over the last second) on the right axis, over
+/// the last `window_s` seconds (the x axis is time relative to the newest sample, -window..0 s).
+/// Fed from the display timer with snapshot values; redraws at most ~8 times a second so it costs
+/// little on software rendering.
+
+#include <deque>
+
+#include <QElapsedTimer>
+#include <QWidget>
+
+class QChart;
+class QChartView;
+class QLineSeries;
+class QValueAxis;
+
+namespace vh::ui {
+
+class StripChart : public QWidget {
+  Q_OBJECT
+
+ public:
+  explicit StripChart(QWidget* parent = nullptr, double window_s = 10.0);
+
+  /// One sample at time t_s [s] (any monotonic clock): |F| [N], mean and max tick time [us].
+  void addSample(double t_s, double force_N, double mean_tick_us, double max_tick_us);
+  /// Redraws with every sample so far now (normally at most ~8 times a second).
+  void flush();
+  /// Forgets every sample (e.g. a new scene).
+  void clear();
+  /// Samples held (including those not drawn yet).
+  int sampleCount() const;
+  QChartView* chartView() const noexcept { return view_; }
+
+ private:
+  void redraw();
+
+  double window_s_;
+  QChart* chart_;
+  QChartView* view_;
+  QLineSeries* force_;
+  QLineSeries* tick_mean_;
+  QLineSeries* tick_max_;
+  QValueAxis* axis_t_;
+  QValueAxis* axis_force_;
+  QValueAxis* axis_tick_;
+  struct Sample {
+    double t_s, force_N, mean_us, max_us;
+  };
+  std::deque<Sample> samples_;  // oldest first, at most window_s (+1 s) old
+  QElapsedTimer since_redraw_;
+};
+
+}  // namespace vh::ui

@@ -1,0 +1,72 @@
+#include "vh/ui/preferences.h"
+
+#include <cmath>
+
+#include <QSettings>
+
+namespace vh::ui {
+namespace {
+
+QColor readColour(QSettings& s, const char* key, const QColor& fallback) {
+  const QColor c(s.value(key, fallback.name()).toString());
+  return c.isValid() ? c : fallback;
+}
+
+double readPositive(QSettings& s, const char* key, double fallback) {
+  bool ok = false;
+  const double v = s.value(key, fallback).toDouble(&ok);
+  return ok && std::isfinite(v) && v >= 0.0 ? v : fallback;
+}
+
+}  // namespace
+
+void Preferences::addRecentFile(const QString& path) {
+  if (path.isEmpty()) return;
+  recent_files.removeAll(path);
+  recent_files.prepend(path);
+  while (recent_files.size() > kMaxRecentFiles) recent_files.removeLast();
+}
+
+Preferences Preferences::load(QSettings& s) {
+  Preferences p;
+  s.beginGroup("preferences");
+  p.background_bottom = readColour(s, "colours/background_bottom", p.background_bottom);
+  p.background_top = readColour(s, "colours/background_top", p.background_top);
+  p.surface = readColour(s, "colours/surface", p.surface);
+  p.tool = readColour(s, "colours/tool", p.tool);
+  p.device = readColour(s, "colours/device", p.device);
+  p.linear_stiffness_N_per_m = readPositive(s, "haptics/linear_stiffness_N_per_m", p.linear_stiffness_N_per_m);
+  p.torsional_stiffness_Nm_per_rad =
+      readPositive(s, "haptics/torsional_stiffness_Nm_per_rad", p.torsional_stiffness_Nm_per_rad);
+  const int mode = s.value("view/mode", static_cast<int>(p.mode)).toInt();
+  if (mode >= 0 && mode <= static_cast<int>(RenderMode::kMip)) p.mode = static_cast<RenderMode>(mode);
+  const int preset = s.value("view/preset", static_cast<int>(p.preset)).toInt();
+  if (preset >= 0 && preset <= static_cast<int>(VolumePreset::kSkin)) p.preset = static_cast<VolumePreset>(preset);
+  p.orientation_marker = s.value("view/orientation_marker", p.orientation_marker).toBool();
+  p.show_device = s.value("view/show_device", p.show_device).toBool();
+  p.recent_files = s.value("files/recent").toStringList();
+  while (p.recent_files.size() > kMaxRecentFiles) p.recent_files.removeLast();
+  p.last_folder = s.value("files/last_folder").toString();
+  s.endGroup();
+  return p;
+}
+
+void Preferences::save(QSettings& s) const {
+  s.beginGroup("preferences");
+  s.setValue("colours/background_bottom", background_bottom.name());
+  s.setValue("colours/background_top", background_top.name());
+  s.setValue("colours/surface", surface.name());
+  s.setValue("colours/tool", tool.name());
+  s.setValue("colours/device", device.name());
+  s.setValue("haptics/linear_stiffness_N_per_m", linear_stiffness_N_per_m);
+  s.setValue("haptics/torsional_stiffness_Nm_per_rad", torsional_stiffness_Nm_per_rad);
+  s.setValue("view/mode", static_cast<int>(mode));
+  s.setValue("view/preset", static_cast<int>(preset));
+  s.setValue("view/orientation_marker", orientation_marker);
+  s.setValue("view/show_device", show_device);
+  s.setValue("files/recent", recent_files);
+  s.setValue("files/last_folder", last_folder);
+  s.endGroup();
+}
+
+}  // namespace vh::ui
