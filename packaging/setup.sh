@@ -13,7 +13,7 @@ jobs="${VH_JOBS:-$(nproc)}"
 packages=(cmake ninja-build g++ pkg-config libeigen3-dev libgtest-dev libgmock-dev
   libbenchmark-dev nlohmann-json3-dev libcli11-dev libvtk9-dev libvtk-dicom-dev
   qt6-base-dev libqt6opengl6-dev qt6-charts-dev libhidapi-dev libusb-1.0-0-dev
-  zlib1g-dev zstd xvfb xauth libgl1-mesa-dri)
+  zlib1g-dev zstd xvfb xauth libgl1-mesa-dri umockdev libumockdev-dev)
 missing=()
 for p in "${packages[@]}"; do
   dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")

@@ -1,6 +1,8 @@
 #include "vh/runtime/device.h"
 
+#include <algorithm>
 #include <chrono>
+#include <cmath>
 #include <stdexcept>
 
 namespace vh::runtime {
@@ -11,7 +13,235 @@ double steadySeconds() noexcept {
   return std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch()).count();
 }
 
+/// `v` scaled down to norm `max_norm` when longer (direction kept). @return true when clamped.
+bool clampNorm(Eigen::Vector3d& v, double max_norm) noexcept {
+  if (!(max_norm >= 0.0)) max_norm = 0.0;  // NaN limit: nothing passes
+  const double n = v.norm();
+  if (n <= max_norm) return false;
+  if (max_norm == 0.0 || !std::isfinite(n)) {
+    v.setZero();
+  } else {
+    v *= max_norm / n;
+  }
+  return true;
+}
+
+/// Gain g limited to [0, max]; non-finite or negative gains become 0.
+double clampGain(double g, double max) noexcept {
+  if (!std::isfinite(g) || g < 0.0) return 0.0;
+  if (max >= 0.0 && g > max) return max;  // also false for a NaN max: keep g
+  return g;
+}
+
 }  // namespace
+
+haptics::CouplingGains clampGains(const haptics::CouplingGains& gains, const DeviceLimits& limits) noexcept {
+  return {clampGain(gains.linear_N_per_m, limits.max_linear_stiffness_N_per_m),
+          clampGain(gains.angular_Nm_per_rad, limits.max_angular_stiffness_Nm_per_rad)};
+}
+
+// ---- ForceSafety --------------------------------------------------------------------------------
+
+void ForceSafety::configure(const DeviceLimits& limits, const SafetyPolicy& policy, DofMask actuated) noexcept {
+  limits_ = limits;
+  policy_ = policy;
+  actuated_ = actuated;
+}
+
+void ForceSafety::enable() noexcept {
+  if (state_ == State::kOff) rearm();
+}
+
+void ForceSafety::rearm() noexcept {
+  state_ = State::kWaitingForSmallForce;
+  ramp_elapsed_s_ = 0.0;
+}
+
+double ForceSafety::rampFactor() const noexcept {
+  switch (state_) {
+    case State::kEngaged:
+      return 1.0;
+    case State::kRamping:
+      return policy_.ramp_time_s > 0.0 ? std::clamp(ramp_elapsed_s_ / policy_.ramp_time_s, 0.0, 1.0) : 1.0;
+    default:
+      return 0.0;
+  }
+}
+
+void ForceSafety::step(const SafetyInput& in, Eigen::Vector3d& force_W_N, Eigen::Vector3d& torque_W_Nm) noexcept {
+  ++stats_.ticks;
+  force_W_N.setZero();
+  torque_W_Nm.setZero();
+  const bool enabled = state_ != State::kOff;
+  const double dt = std::isfinite(in.tick_interval_s) && in.tick_interval_s > 0.0 ? in.tick_interval_s : 0.0;
+
+  // 1. Watchdog.
+  bool trip = false;
+  if (!in.sample_ok) {
+    ++stats_.missing_samples;
+    trip = true;
+  } else {
+    if (!have_connection_ || in.connection != connection_) {
+      if (have_connection_) trip = true;  // a new connection: the hand may be anywhere
+      connection_ = in.connection;
+      have_connection_ = true;
+      stale_s_ = 0.0;
+      silent_ = false;
+    }
+    if (in.sample_time_s == last_sample_time_s_) {
+      stale_s_ += dt;
+    } else {
+      stale_s_ = 0.0;
+      silent_ = false;
+    }
+    last_sample_time_s_ = in.sample_time_s;
+    if (stale_s_ > policy_.silent_s) {
+      if (!silent_) ++stats_.silent_trips;
+      silent_ = true;
+      trip = true;
+    }
+  }
+  if (in.tick_interval_s > policy_.watchdog_s) {
+    ++stats_.watchdog_trips;
+    trip = true;
+  }
+  // 2. Non-finite commands.
+  if (!in.force_W_N.allFinite() || !in.torque_W_Nm.allFinite()) {
+    ++stats_.nonfinite_commands;
+    trip = true;
+  }
+  if (trip || !enabled) {
+    if (enabled) rearm();
+    ++stats_.zeroed_ticks;
+    return;
+  }
+
+  // 3. Degrees of freedom the device renders.
+  Eigen::Vector3d f = in.force_W_N;
+  Eigen::Vector3d tau = in.torque_W_Nm;
+  bool dropped = false;
+  if ((actuated_ & kDofTranslation) != kDofTranslation) {
+    dropped = dropped || !f.isZero(0.0);
+    f.setZero();
+  }
+  if ((actuated_ & kDofRotation) != kDofRotation) {
+    dropped = dropped || !tau.isZero(0.0);
+    tau.setZero();
+  }
+  if (dropped) ++stats_.dropped_dof_ticks;
+
+  // 4. Engage gate (on what the device would render, before clamping).
+  if (state_ == State::kWaitingForSmallForce) {
+    if (f.norm() <= policy_.engage_force_N && tau.norm() <= policy_.engage_torque_Nm) {
+      state_ = policy_.ramp_time_s > 0.0 ? State::kRamping : State::kEngaged;
+      ramp_elapsed_s_ = 0.0;
+    } else {
+      ++stats_.zeroed_ticks;
+      return;
+    }
+  }
+
+  // 5. Clamp to the limits.
+  const bool clamped_f = clampNorm(f, limits_.max_force_N);
+  const bool clamped_t = clampNorm(tau, limits_.max_torque_Nm);
+  if (clamped_f || clamped_t) ++stats_.clamped_ticks;
+
+  // 6. Ramp.
+  double scale = 1.0;
+  if (state_ == State::kRamping) {
+    ramp_elapsed_s_ += dt;
+    scale = std::clamp(ramp_elapsed_s_ / policy_.ramp_time_s, 0.0, 1.0);
+    if (scale >= 1.0) state_ = State::kEngaged;
+  }
+  force_W_N = scale * f;
+  torque_W_Nm = scale * tau;
+  if (scale == 0.0) ++stats_.zeroed_ticks;
+}
+
+// ---- WorkspaceMapping ---------------------------------------------------------------------------
+
+haptics::Pose WorkspaceMapping::toWorld(const haptics::Pose& X_BH) const noexcept {
+  haptics::Pose X_WD;
+  X_WD.p_AB_m = X_WB.p_AB_m + scale * (X_WB.R_AB * X_BH.p_AB_m);
+  X_WD.R_AB = (X_WB.R_AB * X_BH.R_AB * R_HD).normalized();
+  return X_WD;
+}
+
+DeviceLimits WorkspaceMapping::limitsInWorld(const DeviceLimits& d) const noexcept {
+  DeviceLimits w = d;
+  w.max_linear_stiffness_N_per_m = d.max_linear_stiffness_N_per_m / scale;
+  w.max_linear_damping_N_s_per_m = d.max_linear_damping_N_s_per_m / scale;
+  w.workspace_radius_m = d.workspace_radius_m * scale;
+  return w;
+}
+
+bool WorkspaceMapping::valid() const noexcept {
+  const auto unitOk = [](const Eigen::Quaterniond& q) {
+    return q.coeffs().allFinite() && q.norm() > 1e-9;
+  };
+  return std::isfinite(scale) && scale > 0.0 && X_WB.p_AB_m.allFinite() && unitOk(X_WB.R_AB) && unitOk(R_HD);
+}
+
+void WorkspaceMapping::validate() const {
+  if (!std::isfinite(scale) || !(scale > 0.0)) {
+    throw std::invalid_argument("workspace mapping: scale must be a finite number > 0");
+  }
+  if (!X_WB.p_AB_m.allFinite()) throw std::invalid_argument("workspace mapping: offset must be finite");
+  if (!X_WB.R_AB.coeffs().allFinite() || !(X_WB.R_AB.norm() > 1e-9)) {
+    throw std::invalid_argument("workspace mapping: rotation must be a finite, non-zero quaternion");
+  }
+  if (!R_HD.coeffs().allFinite() || !(R_HD.norm() > 1e-9)) {
+    throw std::invalid_argument("workspace mapping: tool rotation must be a finite, non-zero quaternion");
+  }
+}
+
+// ---- MappedDevice -------------------------------------------------------------------------------
+
+namespace {
+WorkspaceMapping normalised(WorkspaceMapping m) {
+  m.validate();
+  m.X_WB.R_AB.normalize();
+  m.R_HD.normalize();
+  return m;
+}
+}  // namespace
+
+MappedDevice::MappedDevice(std::shared_ptr<Device> raw, const WorkspaceMapping& mapping)
+    : raw_(std::move(raw)), gui_mapping_(normalised(mapping)), scale_(gui_mapping_.scale), servo_mapping_(gui_mapping_) {
+  if (!raw_) throw std::invalid_argument("MappedDevice: no device");
+  mappings_.writeSlot() = gui_mapping_;
+  mappings_.publish();
+}
+
+void MappedDevice::setMapping(const WorkspaceMapping& mapping) {
+  gui_mapping_ = normalised(mapping);
+  scale_.store(gui_mapping_.scale, std::memory_order_relaxed);
+  mappings_.writeSlot() = gui_mapping_;
+  mappings_.publish();
+}
+
+WorkspaceMapping MappedDevice::mapping() const { return gui_mapping_; }
+
+DeviceLimits MappedDevice::limits() const noexcept {
+  WorkspaceMapping m;
+  m.scale = scale_.load(std::memory_order_relaxed);
+  return m.limitsInWorld(raw_->limits());
+}
+
+bool MappedDevice::read(DeviceSample& sample) noexcept {
+  if (mappings_.read(servo_mapping_)) ++mapping_epoch_;
+  if (!raw_->read(sample)) return false;
+  const haptics::Pose X_BH = sample.X_WD;
+  sample.X_WD = servo_mapping_.toWorld(X_BH);
+  sample.v_WD_m_per_s = servo_mapping_.linearVelocityToWorld(sample.v_WD_m_per_s);
+  sample.w_WD_rad_per_s = servo_mapping_.angularVelocityToWorld(sample.w_WD_rad_per_s);
+  sample.connection += mapping_epoch_;  // both only grow: a change of either changes the sum
+  return true;
+}
+
+void MappedDevice::command(const Eigen::Vector3d& force_W_N, const Eigen::Vector3d& torque_W_Nm) noexcept {
+  raw_->command(servo_mapping_.vectorToDevice(force_W_N), servo_mapping_.vectorToDevice(torque_W_Nm));
+}
 
 // ---- SimulatedDevice --------------------------------------------------------------------------
 
@@ -30,11 +260,23 @@ void SimulatedDevice::setPose(const haptics::Pose& X_WD) noexcept {
 haptics::Pose SimulatedDevice::pose() const noexcept { return gui_pose_; }
 
 bool SimulatedDevice::read(DeviceSample& sample) noexcept {
+  const haptics::Pose previous = last_;
+  const double previous_time_s = time_s_;
   poses_.read(last_);
   time_s_ = steadySeconds() - t0_s_;
+  const double dt = time_s_ - previous_time_s;
   sample.time_s = time_s_;
   sample.X_WD = last_;
+  if (have_read_ && dt > 0.0) {
+    sample.v_WD_m_per_s = (last_.p_AB_m - previous.p_AB_m) / dt;
+    sample.w_WD_rad_per_s = haptics::rotationVector(last_.R_AB * previous.R_AB.conjugate()) / dt;
+  } else {
+    sample.v_WD_m_per_s.setZero();
+    sample.w_WD_rad_per_s.setZero();
+  }
+  have_read_ = true;
   sample.buttons = 0;
+  sample.connection = 0;
   sample.valid = true;
   return true;
 }
@@ -60,7 +302,18 @@ bool ScriptedDevice::read(DeviceSample& sample) noexcept {
   const double t = trajectory_.startTime_s() + static_cast<double>(n) * step_s_;
   sample.time_s = t;
   sample.X_WD = trajectory_.poseAt(t, cursor_);
+  // Velocities: finite difference over the last step (zero at the start and past the end).
+  const double t_prev = t - step_s_;
+  if (t_prev >= trajectory_.startTime_s() && t <= trajectory_.endTime_s()) {
+    const haptics::Pose X_prev = trajectory_.poseAt(t_prev);
+    sample.v_WD_m_per_s = (sample.X_WD.p_AB_m - X_prev.p_AB_m) / step_s_;
+    sample.w_WD_rad_per_s = haptics::rotationVector(sample.X_WD.R_AB * X_prev.R_AB.conjugate()) / step_s_;
+  } else {
+    sample.v_WD_m_per_s.setZero();
+    sample.w_WD_rad_per_s.setZero();
+  }
   sample.buttons = 0;
+  sample.connection = 0;
   sample.valid = true;
   reads_.store(n + 1, std::memory_order_relaxed);
   if (t >= trajectory_.endTime_s()) finished_.store(true, std::memory_order_release);

@@ -133,6 +133,16 @@ void HapticThread::loop() noexcept {
   DeviceSample sample;
   haptics::Pose X_WD_last = renderer_->proxyPose();
   std::int64_t next_ns = monotonicNs();
+  std::int64_t previous_begin_ns = next_ns;
+
+  // Every command goes through the one safety layer: the device's limits, engage gate, ramp,
+  // watchdog, actuated DOF (device.h, ForceSafety). Coupling gains are kept within the device's
+  // stable stiffness.
+  ForceSafety safety(device_->limits(), device_->safetyPolicy(), device_->actuatedDof());
+  safety.enable();
+  haptics::CouplingGains requested_gains = renderer_->coupling().gains();
+  haptics::CouplingGains applied_gains = clampGains(requested_gains, safety.limits());
+  renderer_->setGains(applied_gains);
 
   while (true) {
     if (ramp_left < 0 && stop_requested_.load(std::memory_order_acquire)) ramp_left = ramp_ticks;
@@ -145,17 +155,26 @@ void HapticThread::loop() noexcept {
     while (clock_nanosleep(CLOCK_MONOTONIC, TIMER_ABSTIME, &deadline, nullptr) == EINTR) {
     }
     const std::int64_t begin_ns = monotonicNs();
+    const double tick_interval_s = 1e-9 * static_cast<double>(begin_ns - previous_begin_ns);
+    previous_begin_ns = begin_ns;
     if (begin_ns - next_ns > period_ns) {
       ++deadline_misses;
       next_ns = begin_ns;
     }
 
-    // 1. Device sample.
-    const bool ok = device_->read(sample) && sample.valid;
-    // 2. Pending GUI commands.
+    // 1. Device sample (a non-finite pose is no sample).
+    const bool ok = device_->read(sample) && sample.valid && sample.X_WD.allFinite();
+    // 2. Pending GUI commands; gains within the device's current limits (a workspace scale
+    //    change alters them).
+    safety.setLimits(device_->limits());
     if (gains_dirty_.exchange(false, std::memory_order_acq_rel)) {
-      renderer_->setGains({gain_linear_.load(std::memory_order_relaxed),
-                           gain_angular_.load(std::memory_order_relaxed)});
+      requested_gains = {gain_linear_.load(std::memory_order_relaxed), gain_angular_.load(std::memory_order_relaxed)};
+    }
+    const haptics::CouplingGains gains = clampGains(requested_gains, safety.limits());
+    if (gains.linear_N_per_m != applied_gains.linear_N_per_m ||
+        gains.angular_Nm_per_rad != applied_gains.angular_Nm_per_rad) {
+      applied_gains = gains;
+      renderer_->setGains(applied_gains);
     }
     const double isovalue = isovalue_.load(std::memory_order_relaxed);
     // 3. Render.
@@ -176,11 +195,15 @@ void HapticThread::loop() noexcept {
       force_W_N *= scale;
       torque_W_Nm *= scale;
     }
-    if (!force_W_N.allFinite() || !torque_W_Nm.allFinite()) {
-      force_W_N.setZero();
-      torque_W_Nm.setZero();
-    }
-    // 4. Command.
+    // 4. Safety layer, then command (never NaN, never beyond the device's limits).
+    SafetyInput safety_in;
+    safety_in.sample_ok = ok;
+    safety_in.sample_time_s = sample.time_s;
+    safety_in.connection = sample.connection;
+    safety_in.tick_interval_s = tick_interval_s;
+    safety_in.force_W_N = force_W_N;
+    safety_in.torque_W_Nm = torque_W_Nm;
+    safety.step(safety_in, force_W_N, torque_W_Nm);
     device_->command(force_W_N, torque_W_Nm);
     ++tick;
 

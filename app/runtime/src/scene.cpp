@@ -4,6 +4,8 @@
 #include <cstdlib>
 #include <fstream>
 #include <initializer_list>
+#include <map>
+#include <mutex>
 #include <set>
 #include <sstream>
 #include <stdexcept>
@@ -162,6 +164,16 @@ std::string resolveDataPath(const ObjectReader& reader, const char* key, const s
   reader.fail(reader.fieldPath(key), "'" + value + "' not found (looked in " + looked + ")" + archiveHint(p));
 }
 
+/// Factories of the registered hardware device kinds (registerDeviceKind()).
+std::map<std::string, DeviceFactory>& deviceFactories() {
+  static std::map<std::string, DeviceFactory> factories;
+  return factories;
+}
+std::mutex& deviceFactoriesMutex() {
+  static std::mutex mutex;
+  return mutex;
+}
+
 }  // namespace
 
 fs::path sharedDatasetsDir() {
@@ -239,16 +251,45 @@ SceneSpec parseScene(const std::string& json_text, const std::string& source, co
 
   if (top.has("device")) {
     const ObjectReader device = top.object("device");
-    device.allowOnly({"kind", "trajectory"});
+    device.allowOnly({"kind", "trajectory", "firmware", "select", "workspace"});
     DeviceSpec d;
     if (device.has("kind")) d.kind = device.string("kind");
-    if (d.kind == "simulated") {
-      if (device.has("trajectory")) device.fail(device.fieldPath("trajectory"), "only for kind \"scripted\"");
-    } else if (d.kind == "scripted") {
+    // Kinds are those this program can make: the built-in ones and the registered drivers.
+    const bool hardware = d.kind != "simulated" && d.kind != "scripted";
+    if (hardware && !deviceKindAvailable(d.kind)) {
+      const bool known_driver = d.kind == "spacemouse" || d.kind == "falcon";
+      device.fail(device.fieldPath("kind"),
+                  "unknown device kind '" + d.kind + "'" +
+                      (known_driver ? std::string(" in this program (its driver registers with "
+                                                  "vh::devices::registerDeviceKinds() when built with ") +
+                                          (d.kind == "falcon" ? "libusb" : "hidapi") + ")"
+                                    : std::string(" (expected \"simulated\", \"scripted\", \"spacemouse\" or \"falcon\")")));
+    }
+    if (d.kind == "scripted") {
       if (!device.has("trajectory")) device.fail(device.fieldPath("trajectory"), "missing (needed by kind \"scripted\")");
       d.trajectory = resolveDataPath(device, "trajectory", device.string("trajectory"), base_dir);
-    } else {
-      device.fail(device.fieldPath("kind"), "unknown device kind '" + d.kind + "' (expected \"simulated\" or \"scripted\")");
+    } else if (device.has("trajectory")) {
+      device.fail(device.fieldPath("trajectory"), "only for kind \"scripted\"");
+    }
+    if (device.has("firmware")) {
+      if (d.kind != "falcon") device.fail(device.fieldPath("firmware"), "only for kind \"falcon\"");
+      d.firmware = resolveDataPath(device, "firmware", device.string("firmware"), base_dir);
+    }
+    if (device.has("select")) {
+      if (!hardware) device.fail(device.fieldPath("select"), "only for hardware kinds (e.g. \"spacemouse\", \"falcon\")");
+      d.select = device.string("select");
+    }
+    if (device.has("workspace")) {
+      if (!hardware) device.fail(device.fieldPath("workspace"), "only for hardware kinds (e.g. \"spacemouse\", \"falcon\")");
+      const ObjectReader ws = device.object("workspace");
+      ws.allowOnly({"scale", "offset_m", "q_wxyz"});
+      if (ws.has("scale")) d.workspace.scale = ws.positive("scale");
+      if (ws.has("offset_m")) d.workspace.offset_W_m = ws.vector<3>("offset_m");
+      if (ws.has("q_wxyz")) {
+        const Eigen::Vector4d q = ws.vector<4>("q_wxyz");
+        if (!(q.norm() > 1e-9)) ws.fail(ws.fieldPath("q_wxyz"), "zero quaternion");
+        d.workspace.R_WB = Eigen::Quaterniond(q[0], q[1], q[2], q[3]).normalized();
+      }
     }
     spec.device = d;
   }
@@ -369,7 +410,37 @@ std::shared_ptr<Device> LoadedScene::makeDevice(double servo_rate_Hz) const {
     return std::make_shared<ScriptedDevice>(loadTrajectoryCsv(spec.device->trajectory), 1.0 / servo_rate_Hz,
                                             fs::path(spec.device->trajectory).filename().string());
   }
-  return std::make_shared<SimulatedDevice>(X_WT_initial);
+  if (spec.device->kind == "simulated") return std::make_shared<SimulatedDevice>(X_WT_initial);
+  DeviceFactory factory;
+  {
+    const std::lock_guard<std::mutex> lock(deviceFactoriesMutex());
+    const auto it = deviceFactories().find(spec.device->kind);
+    if (it != deviceFactories().end()) factory = it->second;
+  }
+  const std::string where = spec.source.empty() ? std::string("scene") : spec.source.string();
+  if (!factory) {
+    throw std::runtime_error(where + ": device kind '" + spec.device->kind +
+                             "' has no driver in this program (vh::devices::registerDeviceKinds() registers "
+                             "\"spacemouse\" when hidapi was found and \"falcon\" when libusb was found)");
+  }
+  std::shared_ptr<Device> device = factory(*spec.device, X_WT_initial);
+  if (!device) throw std::runtime_error(where + ": device kind '" + spec.device->kind + "': no device made");
+  return device;
+}
+
+void registerDeviceKind(const std::string& kind, DeviceFactory factory) {
+  if (kind.empty() || kind == "simulated" || kind == "scripted") {
+    throw std::invalid_argument("registerDeviceKind: '" + kind + "' cannot be registered");
+  }
+  if (!factory) throw std::invalid_argument("registerDeviceKind: no factory for '" + kind + "'");
+  const std::lock_guard<std::mutex> lock(deviceFactoriesMutex());
+  deviceFactories()[kind] = std::move(factory);
+}
+
+bool deviceKindAvailable(const std::string& kind) {
+  if (kind == "simulated" || kind == "scripted") return true;
+  const std::lock_guard<std::mutex> lock(deviceFactoriesMutex());
+  return deviceFactories().count(kind) > 0;
 }
 
 std::unique_ptr<HapticThread> LoadedScene::makeHapticThread(std::shared_ptr<Device> device,

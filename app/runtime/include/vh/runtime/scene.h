@@ -12,6 +12,9 @@
 ///   "coupling": {"linear_N_per_m": 2000, "angular_Nm_per_rad": 2.0},
 ///   "device": {"kind": "simulated"}               // or "scripted" with "trajectory": "T.csv"
 /// }
+/// Hardware devices: "device": {"kind": "falcon", "firmware": "/path/nvent_firmware.bin",
+///   "select": "SERIAL-or-path", "workspace": {"scale": 1.5, "offset_m": [0, 0, 0.05],
+///   "q_wxyz": [1, 0, 0, 0]}}; "spacemouse" takes "select" and "workspace".
 /// Relative paths resolve against the scene file's folder, then the shared datasets folder, then
 /// the build's generated data folder (which mirrors the shared layout for unpacked archives, e.g.
 /// "classic/ct-bunny/bunny.nhdr" from classic/ct-bunny.tar.zst).
@@ -22,6 +25,7 @@
 /// an error (typos are caught), as are unreadable or missing referenced files.
 
 #include <filesystem>
+#include <functional>
 #include <memory>
 #include <optional>
 #include <string>
@@ -55,10 +59,41 @@ struct ToolSpec {
   bool initial_orientation_set = false;
 };
 
-struct DeviceSpec {
-  std::string kind = "simulated";  ///< "simulated" | "scripted".
-  std::string trajectory;          ///< Trajectory CSV for "scripted".
+/// Where a hardware device's workspace lands in the scene ("device": {"workspace": {...}}).
+/// Unset fields take the driver's defaults: the workspace centre at the tool's initial
+/// position, the driver's axes (e.g. the Falcon's "up" along +z of W).
+struct WorkspaceSpec {
+  double scale = 1.0;                         ///< "scale": metres in W per metre at the device.
+  std::optional<Eigen::Vector3d> offset_W_m;  ///< "offset_m": workspace centre in W [m].
+  std::optional<Eigen::Quaterniond> R_WB;     ///< "q_wxyz": device base frame B in W.
 };
+
+struct DeviceSpec {
+  /// "simulated" | "scripted" | "spacemouse" | "falcon". A hardware kind parses once its driver
+  /// is registered (registerDeviceKind(); vh::devices::registerDeviceKinds() registers the drivers
+  /// the build has); before that the parse error names the library the driver needs.
+  std::string kind = "simulated";
+  std::string trajectory;          ///< Trajectory CSV for "scripted".
+  /// "falcon": the Novint firmware file (user-supplied, never shipped; "firmware"). Optional:
+  /// without it a Falcon whose firmware is not loaded yet fails to open with a message.
+  std::string firmware;
+  /// Hardware: which device ("device": serial number or device path); empty: the first found.
+  std::string select;
+  WorkspaceSpec workspace;         ///< Hardware: workspace mapping ("workspace").
+};
+
+/// Makes a hardware device for a scene's device section, already mapped into W (e.g. a
+/// MappedDevice); `X_WT_initial` is the tool's initial pose [m].
+/// @throws std::runtime_error when the device cannot be found or opened (the message says why).
+using DeviceFactory =
+    std::function<std::shared_ptr<Device>(const DeviceSpec& spec, const haptics::Pose& X_WT_initial)>;
+
+/// Registers (or replaces) the factory of a device kind other than "simulated" / "scripted";
+/// thread-safe. vh::devices registers "spacemouse" and "falcon" when their libraries were found.
+/// @throws std::invalid_argument for an empty kind, a built-in kind or a null factory.
+void registerDeviceKind(const std::string& kind, DeviceFactory factory);
+/// True when makeDevice() can make `kind` (built-in or registered); thread-safe.
+bool deviceKindAvailable(const std::string& kind);
 
 /// A parsed scene (paths already resolved to absolute ones where they exist).
 struct SceneSpec {
@@ -113,9 +148,11 @@ struct LoadedScene {
   /// A renderer for this scene at X_WT_initial (gains from the spec; epsilon as `options`).
   /// @throws std::invalid_argument as HapticRenderer's constructor.
   std::unique_ptr<haptics::HapticRenderer> makeRenderer(haptics::RendererOptions options = {}) const;
-  /// The scene's device (SimulatedDevice at X_WT_initial, or ScriptedDevice stepping one servo
-  /// period per read), or nullptr when the scene has no device section.
-  /// @throws std::runtime_error for an unreadable trajectory (naming the file and line).
+  /// The scene's device (SimulatedDevice at X_WT_initial, ScriptedDevice stepping one servo
+  /// period per read, or a registered hardware kind), or nullptr when the scene has no device
+  /// section.
+  /// @throws std::runtime_error for an unreadable trajectory (naming the file and line), a
+  ///         hardware kind without a registered driver, or a device that cannot be opened.
   std::shared_ptr<Device> makeDevice(double servo_rate_Hz = 1000.0) const;
   /// A haptic thread (not started) driving `device` with a new renderer.
   std::unique_ptr<HapticThread> makeHapticThread(std::shared_ptr<Device> device,
