@@ -1,4 +1,5 @@
 #include "vh/haptics/haptic_renderer.h"
+#include "vh/haptics/penetration.h"
 
 #include <cmath>
 #include <limits>
@@ -13,13 +14,7 @@ namespace {
 
 // Largest depth of any proxy point inside the isosurface, (F - s) / |grad F|.
 double maxPenetration(const ScalarVolume& vol, const ToolModel& tool, const Pose& X_WP, double s) {
-  double worst = 0.0;
-  for (const auto& p_T : tool.point_shell.points_T_m()) {
-    const Eigen::Vector3d p = X_WP * p_T;
-    if (!vol.isInside(p, s)) continue;
-    worst = std::max(worst, (vol.sample(p) - s) / std::max(vol.gradient(p).norm(), 1e-300));
-  }
-  return worst;
+  return maxPenetration_m(vol, tool.point_shell, X_WP, s);
 }
 
 struct PlaneScene {

@@ -14,6 +14,7 @@
 
 #include "test_tools.h"
 #include "vh/haptics/haptic_renderer.h"
+#include "vh/haptics/penetration.h"
 
 namespace vh::haptics {
 namespace {
@@ -50,13 +51,7 @@ void expectCoupling(const ToolModel& tool, const CouplingGains& k, const Pose& X
 }
 
 double depthOf(const ScalarVolume& vol, const ToolModel& tool, const Pose& X_WP, double s) {
-  double worst = 0.0;
-  for (const auto& p_T : tool.point_shell.points_T_m()) {
-    const Eigen::Vector3d p = X_WP * p_T;
-    if (!vol.isInside(p, s)) continue;
-    worst = std::max(worst, (vol.sample(p) - s) / std::max(vol.gradient(p).norm(), 1e-300));
-  }
-  return worst;
+  return maxPenetration_m(vol, tool.point_shell, X_WP, s);
 }
 
 Outcome runScenario(HapticRenderer& r, double s, const std::vector<Phase>& phases, const CouplingGains& gains) {

@@ -1,5 +1,7 @@
 #include "vh/runtime/placement.h"
 
+#include "vh/haptics/penetration.h"
+
 #include <algorithm>
 #include <cmath>
 #include <limits>
@@ -19,25 +21,7 @@ int countPointsInside(const haptics::ScalarVolume& volume, const haptics::PointS
 
 double maxPenetration_m(const haptics::ScalarVolume& volume, const haptics::PointShell& shell,
                         const Pose& X_WT, double isovalue, int* deepest_point) noexcept {
-  const auto& g = volume.geometry();
-  const double voxel_diagonal_m = g.spacing_m.norm();
-  double deepest = 0.0;
-  int deepest_index = -1;
-  const auto& points = shell.points_T_m();
-  for (std::size_t i = 0; i < points.size(); ++i) {
-    const Eigen::Vector3d p_W = X_WT * points[i];
-    if (!volume.inBounds(p_W)) continue;
-    const double F = volume.sample(p_W);
-    if (!(F > isovalue)) continue;
-    const double grad_norm = volume.gradient(p_W).norm();
-    const double depth = grad_norm > 1e-12 ? (F - isovalue) / grad_norm : voxel_diagonal_m;
-    if (depth > deepest || deepest_index < 0) {
-      deepest = std::max(deepest, depth);
-      deepest_index = static_cast<int>(i);
-    }
-  }
-  if (deepest_point != nullptr) *deepest_point = deepest_index;
-  return deepest;
+  return haptics::maxPenetration_m(volume, shell, X_WT, isovalue, deepest_point);
 }
 
 namespace {

@@ -1,5 +1,7 @@
 #include "device_model.h"
 
+#include "vh/haptics/penetration.h"
+
 #include <algorithm>
 #include <cmath>
 #include <limits>
@@ -75,15 +77,8 @@ struct Coupling {
 };
 
 double penetration(const haptics::ScalarVolume& vol, const haptics::ToolModel& tool, const Pose& X_WP, double s) {
-  double worst = 0.0;
-  for (const auto& p_T : tool.point_shell.points_T_m()) {
-    const Eigen::Vector3d p = X_WP * p_T;
-    if (!vol.isInside(p, s)) continue;
-    worst = std::max(worst, (vol.sample(p) - s) / std::max(vol.gradient(p).norm(), 1e-300));
-  }
-  return worst;
+  return haptics::maxPenetration_m(vol, tool.point_shell, X_WP, s);
 }
-
 
 // Handle state for the fine integration; phi (angle swept, integral of w) and damper_J (the
 // damper's absorbed work) are integrated with it and reset every servo period.
