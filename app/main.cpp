@@ -19,6 +19,7 @@
 
 #include <CLI/CLI.hpp>
 
+#include "vh/devices/device_catalog.h"
 #include "vh/runtime/placement.h"
 #include "vh/runtime/runner.h"
 #include "vh/runtime/scene.h"
@@ -117,6 +118,8 @@ int main(int argc, char** argv) {
   }
 
   try {
+    // Hardware kinds ("spacemouse", "falcon") for the scene files parsed below.
+    vh::devices::registerDeviceKinds();
     if (*run) {
       vh::runtime::SceneSpec spec = vh::runtime::loadSceneFile(run_scene);
       if (run_isovalue) {

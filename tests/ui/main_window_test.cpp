@@ -10,6 +10,7 @@
 #include <memory>
 
 #include <QApplication>
+#include <QComboBox>
 #include <QDockWidget>
 #include <QDoubleSpinBox>
 #include <QImage>
@@ -35,6 +36,7 @@
 #include <vtkRenderer.h>
 
 #include "ui_test_util.h"
+#include "vh/devices/device_catalog.h"
 #include "vh/runtime/device.h"
 #include "vh/runtime/placement.h"
 #include "vh/runtime/scene.h"
@@ -381,6 +383,48 @@ TEST_F(MainWindowTest, ChoosingAToolRebuildsTheHapticThread) {
     return window_->lastSnapshot().tick > 0 &&
            (window_->lastSnapshot().X_WP.p_AB_m - window_->scene().X_WT_initial.p_AB_m).norm() < 1e-4;
   }, 3000));
+}
+
+TEST_F(MainWindowTest, DevicePickerListsTheSimulatedDeviceAndWhatIsFound) {
+  // Entry 0 is the simulated device, then whatever the catalog finds (none on a build machine).
+  devices::DeviceCatalog catalog;
+  const std::vector<devices::FoundDevice> found = catalog.enumerate();
+  window_->rescanDevices();
+  const QStringList choices = window_->deviceChoices();
+  ASSERT_EQ(choices.size(), static_cast<qsizetype>(found.size() + 1));
+  EXPECT_EQ(choices.front().toStdString(), "Simulated device (mouse/keyboard)");
+  for (std::size_t i = 0; i < found.size(); ++i) EXPECT_EQ(choices[static_cast<qsizetype>(i + 1)].toStdString(), found[i].label());
+  // The panel's combo box and the Haptics > Device menu show the same list.
+  QComboBox* box = window_->hapticsPanel()->deviceBox();
+  ASSERT_NE(box, nullptr);
+  ASSERT_EQ(box->count(), choices.size());
+  for (int i = 0; i < box->count(); ++i) EXPECT_EQ(box->itemText(i).toStdString(), choices[i].toStdString());
+  ASSERT_NE(window_->deviceMenu(), nullptr);
+  EXPECT_EQ(window_->deviceMenu()->actions().front()->text().toStdString(), choices.front().toStdString());
+  EXPECT_EQ(window_->currentDeviceChoice(), 0) << "the scene's simulated device is entry 0";
+  EXPECT_EQ(box->currentIndex(), 0);
+
+  // Another device (not in the list), then back to the simulated one: a new SimulatedDevice
+  // drives a running haptic thread whose ticks advance.
+  window_->setDevice(std::make_shared<runtime::ScriptedDevice>(
+      runtime::Trajectory({runtime::TrajectorySample{0.0, window_->scene().X_WT_initial}})));
+  EXPECT_EQ(window_->currentDeviceChoice(), -1);
+  EXPECT_EQ(box->currentIndex(), -1);
+  ASSERT_TRUE(window_->chooseDevice(0));
+  EXPECT_EQ(window_->currentDeviceChoice(), 0);
+  EXPECT_EQ(box->currentIndex(), 0);
+  ASSERT_NE(window_->simulatedDevice(), nullptr);
+  EXPECT_TRUE(window_->hapticsRunning());
+  ASSERT_TRUE(waitFor([&] { window_->refreshFromHaptics(); return window_->lastSnapshot().tick > 0; }, 3000));
+  const auto first = window_->lastSnapshot().tick;
+  EXPECT_TRUE(waitFor([&] { window_->refreshFromHaptics(); return window_->lastSnapshot().tick > first + 10; }, 3000))
+      << "the haptic thread stopped ticking";
+  // Choosing it again keeps the same device; an entry past the list is refused.
+  runtime::Device* sim = window_->device();
+  EXPECT_TRUE(window_->chooseDevice(0));
+  EXPECT_EQ(window_->device(), sim);
+  EXPECT_FALSE(window_->chooseDevice(static_cast<int>(choices.size())));
+  EXPECT_EQ(window_->device(), sim);
 }
 
 TEST_F(MainWindowTest, LoadingErrorKeepsThePreviousScene) {

@@ -74,6 +74,19 @@ HapticsPanel::HapticsPanel(QWidget* parent) : QWidget(parent) {
 
   auto* device = new QGroupBox("Device", this);
   auto* device_layout = new QVBoxLayout(device);
+  auto* device_row = new QHBoxLayout();
+  device_choice_ = new QComboBox(device);
+  device_choice_->setObjectName("deviceChoice");
+  device_choice_->setSizeAdjustPolicy(QComboBox::AdjustToMinimumContentsLengthWithIcon);
+  device_choice_->setMinimumContentsLength(18);
+  device_choice_->setPlaceholderText("Device named by the scene");
+  device_choice_->setToolTip("The device that drives the tool: the simulated one or a connected haptic device");
+  rescan_ = new QPushButton("Rescan", device);
+  rescan_->setObjectName("rescanDevices");
+  rescan_->setToolTip("List the connected devices again");
+  device_row->addWidget(device_choice_, 1);
+  device_row->addWidget(rescan_);
+  device_layout->addLayout(device_row);
   device_name_ = new QLabel("-", device);
   device_name_->setObjectName("deviceName");
   device_name_->setWordWrap(true);
@@ -92,6 +105,8 @@ HapticsPanel::HapticsPanel(QWidget* parent) : QWidget(parent) {
 
   connect(start_stop_, &QPushButton::clicked, this, [this] { emit startStopRequested(!running_); });
   connect(reset_device_, &QPushButton::clicked, this, &HapticsPanel::resetDeviceRequested);
+  connect(rescan_, &QPushButton::clicked, this, &HapticsPanel::rescanRequested);
+  connect(device_choice_, &QComboBox::activated, this, &HapticsPanel::deviceChoiceRequested);
   connect(tool_, &QComboBox::currentIndexChanged, this, [this](int index) {
     if (!updating_ && index >= 0) emit toolRequested(index, pointSpacing_m());
   });
@@ -161,6 +176,21 @@ void HapticsPanel::setDevice(const QString& name, const QString& limits) {
   device_name_->setText(name);
   device_limits_->setText(limits);
   device_limits_->setVisible(!limits.isEmpty());
+}
+
+void HapticsPanel::setDeviceChoices(const QStringList& labels, int current, const QString& problems) {
+  const QSignalBlocker block(device_choice_);
+  device_choice_->clear();
+  device_choice_->addItems(labels);
+  device_choice_->setCurrentIndex(current);
+  const QString tip = "The device that drives the tool: the simulated one or a connected haptic device";
+  device_choice_->setToolTip(problems.isEmpty() ? tip : tip + "\n\nProblems while listing devices:\n" + problems);
+  rescan_->setToolTip(problems.isEmpty() ? "List the connected devices again" : problems);
+}
+
+void HapticsPanel::setDeviceChoice(int index) {
+  const QSignalBlocker block(device_choice_);
+  device_choice_->setCurrentIndex(index);
 }
 
 }  // namespace vh::ui

@@ -54,6 +54,8 @@
 #include <vtkTextProperty.h>
 #include <vtkVolume.h>
 
+#include "vh/devices/device_catalog.h"
+#include "vh/devices/fallback_device.h"
 #include "vh/runtime/device.h"
 #include "vh/runtime/placement.h"
 #include "vh/ui/about_dialog.h"
@@ -224,6 +226,7 @@ MainWindow::MainWindow(QWidget* parent) : QMainWindow(parent) {
   buildDocks();
   buildMenus();
   connectLoader();
+  setUpDevicePicker();
   applyColours();
   view_->installEventFilter(this);
   setAcceptDrops(true);
@@ -272,6 +275,7 @@ MainWindow::MainWindow(QWidget* parent) : QMainWindow(parent) {
 MainWindow::MainWindow(ViewerScene scene, QWidget* parent) : MainWindow(parent) { setScene(std::move(scene)); }
 
 MainWindow::~MainWindow() {
+  hotplug_.reset();  // joins its polling thread
   delete loader_;  // cancels and waits for the worker
   loader_ = nullptr;
   teardownScene();
@@ -464,6 +468,8 @@ void MainWindow::buildDocks() {
   connect(haptics_panel_, &HapticsPanel::resetDeviceRequested, this, [this] {
     if (hasScene()) setDevicePose(scene_.X_WT_initial);
   });
+  connect(haptics_panel_, &HapticsPanel::rescanRequested, this, &MainWindow::rescanDevices);
+  connect(haptics_panel_, &HapticsPanel::deviceChoiceRequested, this, [this](int index) { chooseDevice(index); });
 
   // ---- Strip chart.
   chart_ = new StripChart(this);
@@ -608,6 +614,10 @@ void MainWindow::buildMenus() {
   });
   touch->setShortcut(QKeySequence("Ctrl+T"));
   touch->setToolTip("Moves the simulated device straight towards the volume's centre until the tool rests on the surface");
+  hapticsMenu->addSeparator();
+  device_menu_ = hapticsMenu->addMenu("De&vice");
+  device_actions_ = new QActionGroup(this);
+  device_actions_->setExclusive(true);
 
   // ---- Help.
   QMenu* help = menuBar()->addMenu("H&elp");
@@ -954,6 +964,9 @@ void MainWindow::dropEvent(QDropEvent* event) {
 // ---- Haptics -------------------------------------------------------------------------------------
 
 runtime::SimulatedDevice* MainWindow::simulatedDevice() const noexcept {
+  if (auto* fallback = dynamic_cast<devices::FallbackDevice*>(scene_.device.get())) {
+    return fallback->usingFallback() ? fallback->simulated().get() : nullptr;
+  }
   return dynamic_cast<runtime::SimulatedDevice*>(scene_.device.get());
 }
 
@@ -1096,6 +1109,7 @@ void MainWindow::updateHapticsPanel() {
     }
   }
   haptics_panel_->setDevice(name, limits);
+  syncDeviceChoice();
 }
 
 void MainWindow::setIsovalue(double isovalue) {
@@ -1711,6 +1725,193 @@ void MainWindow::closeEvent(QCloseEvent* event) {
   stopHaptics();  // force ramped to zero before anything else goes away
   saveSettings();
   QMainWindow::closeEvent(event);
+}
+
+// ---- Device picker -------------------------------------------------------------------------------
+
+namespace {
+constexpr char kFalconFirmwareKey[] = "devices/falcon_firmware";
+constexpr int kHotplugPeriodMs = 1000;
+const QString kSimulatedChoice = "Simulated device (mouse/keyboard)";
+}  // namespace
+
+void MainWindow::setUpDevicePicker() {
+  try {
+    catalog_ = std::make_shared<devices::DeviceCatalog>();
+  } catch (const std::exception& e) {  // no backend at all: only the simulated device
+    std::cerr << "volume-haptics: no device backends: " << e.what() << std::endl;
+  }
+  if (device_menu_ != nullptr) {
+    connect(device_actions_, &QActionGroup::triggered, this, [this](QAction* action) {
+      if (!chooseDevice(action->data().toInt())) syncDeviceChoice();
+    });
+  }
+  rescanDevices();
+  if (catalog_ != nullptr) {
+    hotplug_ = std::make_unique<devices::HotplugMonitor>(catalog_, std::chrono::milliseconds(kHotplugPeriodMs));
+    hotplug_->start();
+    hotplug_timer_ = new QTimer(this);
+    hotplug_timer_->setInterval(kHotplugPeriodMs);
+    connect(hotplug_timer_, &QTimer::timeout, this, &MainWindow::pollHotplug);
+    hotplug_timer_->start();
+  }
+}
+
+void MainWindow::rescanDevices() {
+  std::vector<devices::FoundDevice> found;
+  device_problems_.clear();
+  if (catalog_ != nullptr) {
+    found = catalog_->enumerate();  // never throws
+    device_problems_ = catalog_->problems();
+  }
+  // The device in use stays listed (and selected) even when it did not answer this time.
+  picked_index_ = -1;
+  if (picked_device_ != nullptr && picked_device_ == scene_.device && device_choice_ > 0 &&
+      device_choice_ <= static_cast<int>(found_.size())) {
+    const devices::FoundDevice in_use = found_[static_cast<std::size_t>(device_choice_ - 1)];
+    auto it = std::find_if(found.begin(), found.end(), [&](const devices::FoundDevice& d) { return d.sameDeviceAs(in_use); });
+    if (it == found.end()) it = found.insert(found.end(), in_use);
+    picked_index_ = static_cast<int>(it - found.begin()) + 1;
+  }
+  found_ = std::move(found);
+  if (!device_problems_.empty() && statusBar() != nullptr) {
+    statusBar()->showMessage("Listing devices: " + q(device_problems_.front()), 6000);
+  }
+  showDeviceChoices();
+}
+
+QStringList MainWindow::deviceChoices() const {
+  QStringList labels{kSimulatedChoice};
+  for (const devices::FoundDevice& d : found_) labels << q(d.label());
+  return labels;
+}
+
+void MainWindow::showDeviceChoices() {
+  QString problems;
+  for (const std::string& p : device_problems_) problems += (problems.isEmpty() ? "" : "\n") + q(p);
+  const QStringList labels = deviceChoices();
+  if (device_menu_ != nullptr) {
+    device_menu_->clear();
+    for (QAction* a : device_actions_->actions()) device_actions_->removeAction(a);
+    for (int i = 0; i < labels.size(); ++i) {
+      QAction* action = device_menu_->addAction(labels[i]);
+      action->setCheckable(true);
+      action->setData(i);
+      device_actions_->addAction(action);
+    }
+    if (labels.size() == 1) {
+      QAction* none = device_menu_->addAction(problems.isEmpty() ? "No haptic device found" : "No haptic device found (see tooltip)");
+      none->setEnabled(false);
+    }
+    device_menu_->addSeparator();
+    QAction* rescan = device_menu_->addAction("&Rescan Devices", this, &MainWindow::rescanDevices);
+    rescan->setToolTip(problems.isEmpty() ? "List the connected devices again" : problems);
+    device_menu_->setToolTipsVisible(true);
+  }
+  if (haptics_panel_ != nullptr) haptics_panel_->setDeviceChoices(labels, -1, problems);
+  syncDeviceChoice();
+}
+
+void MainWindow::syncDeviceChoice() {
+  int choice = -1;
+  if (scene_.device != nullptr) {
+    if (picked_device_ != nullptr && scene_.device == picked_device_) {
+      choice = picked_index_;
+    } else if (dynamic_cast<runtime::SimulatedDevice*>(scene_.device.get()) != nullptr) {
+      choice = 0;
+    }
+  }
+  device_choice_ = choice;
+  if (haptics_panel_ != nullptr) haptics_panel_->setDeviceChoice(choice);
+  if (device_actions_ != nullptr) {
+    for (QAction* a : device_actions_->actions()) {
+      const QSignalBlocker block(a);
+      a->setChecked(a->data().toInt() == choice);
+    }
+  }
+}
+
+bool MainWindow::chooseDevice(int index) {
+  last_device_error_.clear();
+  if (index < 0 || index > static_cast<int>(found_.size())) return false;
+  const haptics::Pose X_WP = have_snapshot_ ? snapshot_.X_WP : scene_.X_WT_initial;
+  if (index == 0) {
+    if (dynamic_cast<runtime::SimulatedDevice*>(scene_.device.get()) == nullptr || scene_.device == nullptr) {
+      picked_device_.reset();
+      setDevice(std::make_shared<runtime::SimulatedDevice>(X_WP));
+    }
+    syncDeviceChoice();
+    return true;
+  }
+  const devices::FoundDevice found = found_[static_cast<std::size_t>(index - 1)];
+  if (picked_device_ != nullptr && scene_.device == picked_device_ && picked_index_ == index) return true;
+  devices::OpenOptions options;
+  options.X_WT_initial = scene_.X_WT_initial;
+  if (found.kind == "falcon") {
+    QSettings settings;
+    QString firmware = settings.value(kFalconFirmwareKey).toString();
+    if ((firmware.isEmpty() || !QFileInfo::exists(firmware)) && interactive_) {
+      firmware = QFileDialog::getOpenFileName(this, "Novint Falcon firmware", firmware,
+                                              "Falcon firmware (*.bin *.rbf);;All files (*)");
+      if (firmware.isEmpty()) {
+        syncDeviceChoice();
+        return false;  // cancelled
+      }
+      settings.setValue(kFalconFirmwareKey, firmware);
+    }
+    if (!firmware.isEmpty()) options.falcon_firmware = firmware.toStdString();
+  }
+  std::shared_ptr<runtime::Device> device;
+  QString limits;
+  try {
+    std::shared_ptr<runtime::MappedDevice> hardware = catalog_->open(found, options);
+    limits = deviceLimitsText(*hardware);
+    device = std::make_shared<devices::FallbackDevice>(hardware, std::make_shared<runtime::SimulatedDevice>(X_WP));
+  } catch (const std::exception& e) {
+    last_device_error_ = q(e.what());
+    if (interactive_) {
+      QMessageBox::warning(this, "VolumeHaptics", "Could not open " + q(found.label()) + ":\n" + last_device_error_);
+    } else {
+      std::cerr << "volume-haptics: could not open " << found.label() << ": " << e.what() << std::endl;
+    }
+    syncDeviceChoice();
+    return false;
+  }
+  picked_device_ = device;
+  picked_index_ = index;
+  setDevice(device, limits);
+  statusBar()->showMessage("Using " + q(found.label()), 4000);
+  return true;
+}
+
+void MainWindow::pollHotplug() {
+  if (hotplug_ == nullptr) return;
+  const std::vector<devices::HotplugEvent> events = hotplug_->takeEvents();
+  if (events.empty()) return;
+  bool changed = false;
+  QString message;
+  for (const devices::HotplugEvent& event : events) {
+    const bool listed = std::any_of(found_.begin(), found_.end(),
+                                    [&](const devices::FoundDevice& d) { return d.sameDeviceAs(event.device); });
+    if (event.kind == devices::HotplugEvent::Kind::kArrived) {
+      if (listed) continue;  // already listed (e.g. the monitor's first poll)
+      message = "Device connected: " + q(event.device.label());
+      const bool in_use_and_lost = picked_device_ != nullptr && scene_.device == picked_device_ &&
+                                   !picked_device_->connected() && picked_index_ > 0 &&
+                                   found_[static_cast<std::size_t>(picked_index_ - 1)].sameDeviceAs(event.device);
+      if (in_use_and_lost) message += " (pick it again in Haptics > Device to reconnect)";
+    } else {
+      message = "Device removed: " + q(event.device.label());
+      if (auto* fallback = dynamic_cast<devices::FallbackDevice*>(scene_.device.get())) {
+        // The stand-in takes over where the hardware left the tool.
+        if (have_snapshot_) fallback->simulated()->setPose(snapshot_.X_WD);
+      }
+    }
+    changed = true;
+  }
+  if (!changed) return;
+  statusBar()->showMessage(message, 6000);
+  rescanDevices();
 }
 
 }  // namespace vh::ui

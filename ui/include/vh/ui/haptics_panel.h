@@ -8,6 +8,7 @@
 #include <vector>
 
 #include <QString>
+#include <QStringList>
 #include <QWidget>
 
 #include "vh/haptics/virtual_coupling.h"
@@ -42,6 +43,12 @@ class HapticsPanel : public QWidget {
   void setRunning(bool running, bool available);
   /// The device's name and a line (or lines) of its limits.
   void setDevice(const QString& name, const QString& limits);
+  /// The device picker's entries (entry 0: the simulated device), the one in use (-1: none of
+  /// them, e.g. a device named by the scene file) and the catalog's problems (tooltip; empty:
+  /// none). Emits nothing.
+  void setDeviceChoices(const QStringList& labels, int current, const QString& problems);
+  /// Selects entry `index` of the picker (-1: none). Emits nothing.
+  void setDeviceChoice(int index);
 
   QPushButton* startStopButton() const noexcept { return start_stop_; }
   QComboBox* toolBox() const noexcept { return tool_; }
@@ -49,6 +56,8 @@ class HapticsPanel : public QWidget {
   QDoubleSpinBox* linearStiffnessBox() const noexcept { return linear_; }
   QDoubleSpinBox* torsionalStiffnessBox() const noexcept { return torsional_; }
   QLabel* pointCountLabel() const noexcept { return points_; }
+  QComboBox* deviceBox() const noexcept { return device_choice_; }
+  QPushButton* rescanButton() const noexcept { return rescan_; }
 
  signals:
   void startStopRequested(bool run);
@@ -56,6 +65,10 @@ class HapticsPanel : public QWidget {
   void toolRequested(int choice_index, double point_spacing_m);
   void gainsChanged(const haptics::CouplingGains& gains);
   void resetDeviceRequested();
+  /// The user picked entry `index` of the device picker.
+  void deviceChoiceRequested(int index);
+  /// The user asked for the devices to be listed again.
+  void rescanRequested();
 
  private:
   QPushButton* start_stop_;
@@ -65,6 +78,8 @@ class HapticsPanel : public QWidget {
   QLabel* points_;
   QDoubleSpinBox* linear_;
   QDoubleSpinBox* torsional_;
+  QComboBox* device_choice_;
+  QPushButton* rescan_;
   QLabel* device_name_;
   QLabel* device_limits_;
   QTimer* spacing_timer_;

@@ -27,6 +27,7 @@
 #include <QMainWindow>
 #include <QPoint>
 #include <QString>
+#include <QStringList>
 
 #include "vh/haptics/pose.h"
 #include "vh/haptics/tool_model.h"
@@ -66,6 +67,12 @@ namespace vh::runtime {
 class Device;
 class SimulatedDevice;
 }  // namespace vh::runtime
+
+namespace vh::devices {
+class DeviceCatalog;
+class HotplugMonitor;
+struct FoundDevice;
+}  // namespace vh::devices
 
 namespace vh::ui {
 
@@ -164,6 +171,25 @@ class MainWindow : public QMainWindow {
   /// `limits_text` describes the device's limits for the haptics panel (empty: from the device).
   void setDevice(std::shared_ptr<runtime::Device> device, const QString& limits_text = {});
   runtime::Device* device() const noexcept { return scene_.device.get(); }
+
+  // ---- Device picker (Haptics > Device and the Haptics dock's Device group) -------------------
+  /// Lists the devices again (DeviceCatalog::enumerate(); never throws): entry 0 is the
+  /// simulated device, then one entry per device found. Problems go to the picker's tooltip
+  /// and the status bar.
+  void rescanDevices();
+  /// The picker's entries: "Simulated device (mouse/keyboard)", then FoundDevice::label()s.
+  QStringList deviceChoices() const;
+  /// The entry in use; -1 when the device is none of them (e.g. named by the scene file).
+  int currentDeviceChoice() const noexcept { return device_choice_; }
+  /// Switches to entry `index`: 0 a SimulatedDevice at the proxy's pose; a hardware entry is
+  /// opened mapped around the scene's initial tool pose and wrapped in a FallbackDevice (a
+  /// Falcon asks for its firmware file once, remembered in QSettings). On failure the current
+  /// device stays and the message is shown (dialog when interactive, else stderr).
+  /// @return true when the device was switched.
+  bool chooseDevice(int index);
+  /// The last device error, empty when none.
+  QString lastDeviceError() const { return last_device_error_; }
+  QMenu* deviceMenu() const noexcept { return device_menu_; }
 
   /// Sets the isovalue (data units, clamped to the data range) of the rendered isosurface, the
   /// haptic thread and the widgets.
@@ -292,6 +318,10 @@ class MainWindow : public QMainWindow {
   int valueToSlider(double value) const;
   double wheelStep_m() const;
   void fitCamera(const double direction_W[3], const double up_W[3], double zoom);
+  void setUpDevicePicker();
+  void showDeviceChoices();  // the found devices into the menu and the panel
+  void syncDeviceChoice();   // the entry of the device in use
+  void pollHotplug();
 
   ViewerScene scene_;
   Preferences prefs_;
@@ -345,6 +375,17 @@ class MainWindow : public QMainWindow {
   std::uint64_t upload_frame_ = 0;
   QString last_error_;
   QString device_limits_text_;
+  std::shared_ptr<devices::DeviceCatalog> catalog_;
+  std::unique_ptr<devices::HotplugMonitor> hotplug_;
+  std::vector<devices::FoundDevice> found_;
+  std::vector<std::string> device_problems_;
+  std::shared_ptr<runtime::Device> picked_device_;  // the hardware device the picker opened
+  int picked_index_ = -1;                           // its entry
+  int device_choice_ = -1;
+  QString last_device_error_;
+  QMenu* device_menu_ = nullptr;
+  QActionGroup* device_actions_ = nullptr;
+  QTimer* hotplug_timer_ = nullptr;
   runtime::HapticSnapshot snapshot_;
   bool have_snapshot_ = false;
   haptics::Pose shown_X_WP_;
