@@ -6,7 +6,9 @@
 /// K = diag(k_lin / (2 m) I3, k_ang / (2 i) I3), with m the tool's mass and i the mean principal
 /// moment of inertia (trace / 3), so that the force is exactly -k_lin (c_D - c_P) [N] and the
 /// torque is -k_ang (I_W / i) dtheta [N*m]: the torque keeps the direction the mass metric gives
-/// it (the paper's "mismatch between applied and reflected force directions").
+/// it (the paper's "mismatch between applied and reflected force directions"). The configuration
+/// solver projects in the same metric (ConfigurationSolver::setGains()), so the proxy never moves
+/// against this coupling.
 
 #include <Eigen/Core>
 
