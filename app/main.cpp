@@ -21,6 +21,7 @@
 
 #include "vh/devices/device_catalog.h"
 #include "vh/runtime/placement.h"
+#include "vh/runtime/recording.h"
 #include "vh/runtime/runner.h"
 #include "vh/runtime/scene.h"
 #include "vh/runtime/trajectory.h"
@@ -111,6 +112,15 @@ int main(int argc, char** argv) {
   make->add_option("--slide-m", push.slide_m, "Slide this far tangentially [m]");
   make->add_option("--slide-rotation-rad", push.slide_rotation_rad, "Rotate this much while sliding [rad]");
 
+  std::string export_rec;
+  std::string export_csv;
+  std::string export_json;
+  CLI::App* export_cmd = app.add_subcommand("export", "Export a session recording (.vhrec) as CSV (one row per tick, "
+                                               "SI units) and/or JSON metadata; a damaged tail is reported");
+  export_cmd->add_option("recording", export_rec, "Recording file (.vhrec)")->required();
+  export_cmd->add_option("--csv", export_csv, "CSV to write: one row per tick, units in the header");
+  export_cmd->add_option("--json", export_json, "JSON to write: the session metadata and a summary");
+
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
@@ -137,6 +147,16 @@ int main(int argc, char** argv) {
                   << std::endl;
         return kExitCheckFailed;
       }
+      return EXIT_SUCCESS;
+    }
+
+    if (*export_cmd) {
+      const vh::runtime::Recording recording = vh::runtime::readRecording(export_rec);
+      for (const std::string& w : recording.warnings) std::cerr << "volume-haptics export: warning: " << w << std::endl;
+      if (!export_csv.empty()) vh::runtime::writeRecordingCsv(recording, std::filesystem::path(export_csv));
+      if (!export_json.empty()) vh::runtime::writeRecordingJson(recording, export_json);
+      std::cout << "volume-haptics export: " << recording.records.size() << " records in " << recording.chunks
+                << " chunks, " << recording.dropped_records << " dropped" << std::endl;
       return EXIT_SUCCESS;
     }
 

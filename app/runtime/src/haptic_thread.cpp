@@ -122,6 +122,7 @@ void HapticThread::loop() noexcept {
   std::uint64_t tick = 0;
   std::uint64_t deadline_misses = 0;
   std::uint64_t bad_samples = 0;
+  std::uint64_t record_first_tick = 0;  // tick of the first recorded one (0: none yet)
   // Rolling statistics over windows of one second; until the first window closes, the running
   // window's values are published.
   std::int64_t window_start_ns = monotonicNs();
@@ -157,7 +158,8 @@ void HapticThread::loop() noexcept {
     const std::int64_t begin_ns = monotonicNs();
     const double tick_interval_s = 1e-9 * static_cast<double>(begin_ns - previous_begin_ns);
     previous_begin_ns = begin_ns;
-    if (begin_ns - next_ns > period_ns) {
+    const bool missed = begin_ns - next_ns > period_ns;
+    if (missed) {
       ++deadline_misses;
       next_ns = begin_ns;
     }
@@ -203,13 +205,43 @@ void HapticThread::loop() noexcept {
     safety_in.tick_interval_s = tick_interval_s;
     safety_in.force_W_N = force_W_N;
     safety_in.torque_W_Nm = torque_W_Nm;
+    const bool nonfinite = !force_W_N.allFinite() || !torque_W_Nm.allFinite();
+    const std::uint64_t zeroed_before = safety.stats().zeroed_ticks;
     safety.step(safety_in, force_W_N, torque_W_Nm);
     device_->command(force_W_N, torque_W_Nm);
+    const bool zeroed = safety.stats().zeroed_ticks != zeroed_before;
     ++tick;
 
     // 5. Statistics.
     const std::int64_t end_ns = monotonicNs();
     const double tick_us = 1e-3 * static_cast<double>(end_ns - begin_ns);
+
+    // 6. Recording (lock-free push; a full ring drops the record and counts it).
+    if (RecordingWriter* recorder = recorder_.load(std::memory_order_acquire)) {
+      if (record_first_tick == 0) record_first_tick = tick;
+      TickRecord rec;
+      rec.time_s = static_cast<double>(tick - record_first_tick) * period_s_;
+      rec.tick = tick;
+      const haptics::Pose X_WP_now = renderer_->proxyPose();
+      const haptics::Pose& X_WD_rec = ok ? sample.X_WD : X_WD_last;
+      for (int k = 0; k < 3; ++k) {
+        rec.p_WD_m[k] = X_WD_rec.p_AB_m[k];
+        rec.p_WP_m[k] = X_WP_now.p_AB_m[k];
+        rec.force_W_N[k] = force_W_N[k];
+        rec.torque_W_Nm[k] = torque_W_Nm[k];
+      }
+      rec.q_WD[0] = X_WD_rec.R_AB.w(); rec.q_WD[1] = X_WD_rec.R_AB.x();
+      rec.q_WD[2] = X_WD_rec.R_AB.y(); rec.q_WD[3] = X_WD_rec.R_AB.z();
+      rec.q_WP[0] = X_WP_now.R_AB.w(); rec.q_WP[1] = X_WP_now.R_AB.x();
+      rec.q_WP[2] = X_WP_now.R_AB.y(); rec.q_WP[3] = X_WP_now.R_AB.z();
+      rec.isovalue = isovalue;
+      rec.tick_time_s = 1e-9 * static_cast<double>(end_ns - begin_ns);
+      rec.contacts = static_cast<std::uint32_t>(renderer_->contacts().size());
+      rec.flags = (rec.contacts > 0 ? kRecordFlagContact : 0u) | (ok ? 0u : kRecordFlagBadSample) |
+                  (missed ? kRecordFlagDeadlineMiss : 0u) | (zeroed ? kRecordFlagForceZeroed : 0u) |
+                  (nonfinite ? kRecordFlagNonFinite : 0u) | (ramp_left >= 0 ? kRecordFlagStopping : 0u);
+      (void)recorder->push(rec);
+    }
     ++window_ticks;
     window_sum_us += tick_us;
     window_max_us = std::max(window_max_us, tick_us);

@@ -6,6 +6,7 @@
 #include <array>
 #include <atomic>
 #include <chrono>
+#include <filesystem>
 #include <cmath>
 #include <functional>
 #include <iostream>
@@ -262,6 +263,22 @@ TEST(HapticThread, ServoLoopDoesNotAllocate) {
   ASSERT_TRUE(waitUntil([&] { return device->reads() > 200; }));
   thread->stop();
   EXPECT_EQ(device->allocations(), 0u) << "heap allocations on the servo thread over " << device->reads() << " ticks";
+}
+
+TEST(HapticThread, ServoLoopDoesNotAllocateWhileRecording) {
+  const LoadedScene& scene = sphereScene();
+  auto device = std::make_shared<AllocationCountingDevice>(pressedPose(0.003));
+  RecordingWriterOptions options;
+  options.ring_capacity = 64;  // small: the full-ring (drop) path runs too when the writer lags
+  RecordingWriter writer(std::filesystem::path(VH_TEST_OUTPUT_DIR) / "servo-alloc.vhrec", "{}", options);
+  auto thread = scene.makeHapticThread(device);
+  thread->setRecorder(&writer);
+  thread->start();
+  ASSERT_TRUE(waitUntil([&] { return device->reads() > 200; }));
+  thread->stop();
+  writer.close();
+  EXPECT_EQ(device->allocations(), 0u) << "heap allocations on the servo thread over " << device->reads() << " ticks";
+  EXPECT_GT(writer.recordsWritten() + writer.dropped(), 200u);
 }
 
 TEST(HapticThread, RejectsBadArguments) {

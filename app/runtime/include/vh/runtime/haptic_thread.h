@@ -15,6 +15,7 @@
 
 #include "vh/haptics/haptic_renderer.h"
 #include "vh/runtime/device.h"
+#include "vh/runtime/recording.h"
 #include "vh/runtime/triple_buffer.h"
 
 namespace vh::runtime {
@@ -65,6 +66,13 @@ class HapticThread {
   double isovalue() const noexcept { return isovalue_.load(std::memory_order_relaxed); }
   void setGains(const haptics::CouplingGains& gains) noexcept;
 
+  /// Records every tick from the next one on into `recorder` (one TickRecord per tick, pushed
+  /// without blocking or allocating; a full ring drops the record and the recorder counts it).
+  /// Not owned: it must outlive the recording. Set it before start(), or clear it (nullptr) and
+  /// only destroy the recorder after stop(): the servo thread may be inside push() otherwise.
+  /// TickRecord::time_s counts servo periods (tick * period) from the first recorded tick.
+  void setRecorder(RecordingWriter* recorder) noexcept { recorder_.store(recorder, std::memory_order_release); }
+
   /// Latest snapshot (never blocks). @return true when it is newer than the last call's.
   bool latestSnapshot(HapticSnapshot& out) noexcept { return snapshots_.read(out); }
 
@@ -82,6 +90,7 @@ class HapticThread {
   std::atomic<bool> running_{false};
   std::atomic<bool> fifo_{false};
   std::atomic<bool> memory_locked_{false};
+  std::atomic<RecordingWriter*> recorder_{nullptr};
   TripleBuffer<HapticSnapshot> snapshots_;
   std::thread thread_;
 };

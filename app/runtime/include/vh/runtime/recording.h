@@ -1,0 +1,208 @@
+#pragma once
+/// @file
+/// Session recordings: one fixed-size TickRecord per servo tick, pushed by the servo thread into
+/// a preallocated lock-free single-producer / single-consumer ring (TickRing), drained to disk by
+/// a writer thread (RecordingWriter) in checksummed chunks, read back by readRecording() up to the
+/// last good chunk, and exported as CSV (writeRecordingCsv()).
+///
+/// ## File format, version 1 (`.vhrec`)
+/// All integers and doubles are little-endian (IEEE-754 binary64 for doubles); the writer
+/// refuses to build on a big-endian host. The file is written append-only.
+///
+///   File header (24 bytes, then the metadata):
+///     offset  size  field
+///          0     8  magic "VHREC\r\n\x1a" (bytes 56 48 52 45 43 0d 0a 1a)
+///          8     4  uint32 format version (kRecordingFormatVersion = 1)
+///         12     4  uint32 record size in bytes (sizeof(TickRecord) = 200)
+///         16     4  uint32 metadata length M in bytes
+///         20     4  uint32 CRC-32 of the M metadata bytes
+///         24     M  metadata: one UTF-8 JSON object (session, scene, device, ...; free form,
+///                   plus "servo_rate_Hz" and "start_time_utc" added by the writer)
+///   Then zero or more chunks, back to back:
+///     offset  size  field
+///          0     4  chunk tag "CHNK" (bytes 43 48 4e 4b)
+///          4     4  uint32 record count N (1 .. 65535)
+///          8     8  uint64 dropped records in total when the chunk was written (ring overflow)
+///         16  N*200 N TickRecord, each the byte image of the struct (layout below)
+///   16+N*200     4  uint32 CRC-32 of bytes [0, 16 + N*200) of the chunk
+///
+///   TickRecord (200 bytes; all frames are the scene (world) frame W, SI units):
+///     offset  field
+///          0  double   time_s          servo time since the recording started [s]
+///          8  double   p_WD_m[3]       device (tool) position in W [m]
+///         32  double   q_WD[4]         device orientation in W, unit quaternion (w, x, y, z)
+///         64  double   p_WP_m[3]       proxy position in W [m]
+///         88  double   q_WP[4]         proxy orientation in W (w, x, y, z)
+///        120  double   force_W_N[3]    force on the user's hand in W [N]
+///        144  double   torque_W_Nm[3]  torque on the user's hand in W [N*m]
+///        168  double   isovalue        isovalue in the data's units (HU for CT)
+///        176  uint64   tick            servo tick counter
+///        184  double   tick_time_s     compute time of the tick [s]
+///        192  uint32   contacts        contact set size
+///        196  uint32   flags           kRecordFlag* bits
+///
+/// CRC-32 is the ISO-HDLC / zlib one (reflected polynomial 0xEDB88320, init and final XOR
+/// 0xFFFFFFFF; crc32("123456789") = 0xCBF43926).
+///
+/// Size: 200 bytes per tick plus 20 bytes per chunk; at 1 kHz with the default 500-record
+/// chunks that is 200,040 bytes (about 195 KiB) per second of recording, about 720 MB per hour,
+/// plus the header (24 bytes + the metadata, typically well under 1 KiB).
+///
+/// A crash (even `kill -9`) loses only the records not yet written: the writer flushes a chunk
+/// at least every RecordingWriterOptions::max_chunk_wall_s (< 1 s) and every chunk holds at most
+/// RecordingWriterOptions::chunk_records (< 1 s of ticks; the writer enforces it). readRecording() keeps every chunk up
+/// to the first truncated or corrupted one and reports the rest as a warning.
+
+#include <atomic>
+#include <cstddef>
+#include <cstdint>
+#include <cstdio>
+#include <filesystem>
+#include <iosfwd>
+#include <memory>
+#include <string>
+#include <thread>
+#include <type_traits>
+#include <vector>
+
+namespace vh::runtime {
+
+inline constexpr std::uint32_t kRecordingFormatVersion = 1;
+
+/// TickRecord::flags bits.
+inline constexpr std::uint32_t kRecordFlagContact = 1u << 0;        ///< contacts > 0.
+inline constexpr std::uint32_t kRecordFlagBadSample = 1u << 1;      ///< No usable device sample.
+inline constexpr std::uint32_t kRecordFlagDeadlineMiss = 1u << 2;   ///< Tick started > 1 period late.
+inline constexpr std::uint32_t kRecordFlagForceZeroed = 1u << 3;    ///< The safety layer sent zero.
+inline constexpr std::uint32_t kRecordFlagNonFinite = 1u << 4;      ///< The renderer computed a NaN / inf.
+inline constexpr std::uint32_t kRecordFlagStopping = 1u << 5;       ///< Force ramped down by stop().
+
+/// One servo tick, fixed size, trivially copyable (its byte image is what the file stores).
+/// Frames: W is the scene (world) frame; D the device (tool) frame; P the proxy frame.
+struct TickRecord {
+  double time_s = 0.0;                  ///< Servo time since the recording started [s].
+  double p_WD_m[3] = {0, 0, 0};         ///< Device position in W [m].
+  double q_WD[4] = {1, 0, 0, 0};        ///< Device orientation in W (w, x, y, z).
+  double p_WP_m[3] = {0, 0, 0};         ///< Proxy position in W [m].
+  double q_WP[4] = {1, 0, 0, 0};        ///< Proxy orientation in W (w, x, y, z).
+  double force_W_N[3] = {0, 0, 0};      ///< Force on the hand in W [N].
+  double torque_W_Nm[3] = {0, 0, 0};    ///< Torque on the hand in W [N*m].
+  double isovalue = 0.0;                ///< Isovalue (data units, HU for CT).
+  std::uint64_t tick = 0;               ///< Servo tick counter.
+  double tick_time_s = 0.0;             ///< Compute time of the tick [s].
+  std::uint32_t contacts = 0;           ///< Contact set size.
+  std::uint32_t flags = 0;              ///< kRecordFlag* bits.
+};
+static_assert(std::is_trivially_copyable_v<TickRecord>);
+static_assert(std::is_standard_layout_v<TickRecord>);
+static_assert(sizeof(TickRecord) == 200, "the file format stores 200-byte records");
+
+/// CRC-32 (ISO-HDLC / zlib) of `size` bytes, continuing from `crc` (0 to start).
+std::uint32_t crc32(const void* data, std::size_t size, std::uint32_t crc = 0) noexcept;
+
+/// Preallocated lock-free ring for exactly one producer thread (push) and one consumer thread
+/// (pop). push() never blocks, allocates or throws; when full the record is dropped and counted.
+class TickRing {
+ public:
+  /// @param capacity records; rounded up to a power of two (>= 2).
+  /// @throws std::invalid_argument when capacity is 0 or absurdly large (> 2^28).
+  explicit TickRing(std::size_t capacity);
+
+  /// Producer only. @return false (and counts a drop) when the ring is full.
+  bool push(const TickRecord& record) noexcept;
+  /// Consumer only: moves up to `max` records into `out`. @return how many.
+  std::size_t pop(TickRecord* out, std::size_t max) noexcept;
+  /// Records dropped because the ring was full (any thread).
+  std::uint64_t dropped() const noexcept { return dropped_.load(std::memory_order_relaxed); }
+  /// Records waiting (approximate from a third thread; exact from producer or consumer).
+  std::size_t size() const noexcept;
+  std::size_t capacity() const noexcept { return mask_ + 1; }
+
+ private:
+  std::unique_ptr<TickRecord[]> slots_;
+  std::size_t mask_;
+  alignas(64) std::atomic<std::uint64_t> head_{0};  // next write (producer)
+  alignas(64) std::atomic<std::uint64_t> tail_{0};  // next read (consumer)
+  alignas(64) std::atomic<std::uint64_t> dropped_{0};
+};
+
+/// How RecordingWriter sizes its ring and chunks.
+struct RecordingWriterOptions {
+  std::size_t ring_capacity = 1u << 14;  ///< Records the ring holds (16 s at 1 kHz).
+  /// Records per chunk at most: < servo_rate_Hz (under 1 s of ticks) and <= 65535.
+  std::size_t chunk_records = 500;
+  double max_chunk_wall_s = 0.5;         ///< A non-empty chunk is written at least this often [s].
+  double servo_rate_Hz = 1000.0;         ///< Stored in the metadata [Hz].
+};
+
+/// Writes a recording: the servo thread push()es, a writer thread drains the ring to disk.
+class RecordingWriter {
+ public:
+  /// Creates (truncates) `path`, writes the header and starts the writer thread.
+  /// @param metadata_json a JSON object (scene, dataset, device, ...), stored in the header.
+  /// @throws std::invalid_argument when metadata_json is not a JSON object or the options are
+  ///         out of range; std::runtime_error when the file cannot be created or written.
+  RecordingWriter(const std::filesystem::path& path, const std::string& metadata_json,
+                  const RecordingWriterOptions& options = {});
+  /// Calls close() (errors are swallowed; call close() to see them).
+  ~RecordingWriter();
+  RecordingWriter(const RecordingWriter&) = delete;
+  RecordingWriter& operator=(const RecordingWriter&) = delete;
+
+  /// Servo thread only: never blocks, allocates or throws. @return false when dropped.
+  bool push(const TickRecord& record) noexcept { return ring_.push(record); }
+  /// Stops the writer thread after it drained the ring, writes the last chunk, closes the file.
+  /// Idempotent. @throws std::runtime_error when a write failed (the message says which).
+  void close();
+
+  std::uint64_t dropped() const noexcept { return ring_.dropped(); }
+  /// Records written to disk so far (any thread).
+  std::uint64_t recordsWritten() const noexcept { return written_.load(std::memory_order_relaxed); }
+  const std::filesystem::path& path() const noexcept { return path_; }
+
+ private:
+  void run() noexcept;
+  bool writeChunk(const TickRecord* records, std::size_t count) noexcept;
+
+  std::filesystem::path path_;
+  RecordingWriterOptions options_;
+  TickRing ring_;
+  std::FILE* file_ = nullptr;
+  std::vector<TickRecord> chunk_;
+  std::atomic<bool> stop_{false};
+  std::atomic<bool> failed_{false};
+  std::atomic<std::uint64_t> written_{0};
+  std::thread thread_;
+  bool closed_ = false;
+};
+
+/// A recording as read back.
+struct Recording {
+  std::uint32_t version = 0;
+  std::string metadata_json;           ///< The header's JSON object, verbatim.
+  std::vector<TickRecord> records;     ///< Every record of every good chunk, in order.
+  std::size_t chunks = 0;              ///< Good chunks read.
+  std::uint64_t dropped_records = 0;   ///< Ring overflows as of the last good chunk.
+  std::uint64_t bytes_ignored = 0;     ///< Bytes after the last good chunk.
+  std::vector<std::string> warnings;   ///< Truncated / corrupted tail; empty for a clean file.
+};
+
+/// Reads a recording up to its last good chunk; a truncated or corrupted tail adds a warning
+/// (with its byte offset) instead of throwing.
+/// @throws std::runtime_error when the file cannot be opened, is not a recording (magic), has
+///         an unsupported version or record size, or a damaged header / metadata.
+Recording readRecording(const std::filesystem::path& path);
+
+/// One CSV row per record, header line with SI units:
+/// `t_s,tick,device_x_m,device_y_m,device_z_m,device_qw,device_qx,device_qy,device_qz,
+/// proxy_x_m,...,proxy_qz,force_x_N,force_y_N,force_z_N,torque_x_Nm,torque_y_Nm,torque_z_Nm,
+/// contacts,isovalue,tick_time_s,flags`. Doubles are written with 17 significant digits (they
+/// read back bit for bit).
+void writeRecordingCsv(const Recording& recording, std::ostream& out);
+/// The same to a file. @throws std::runtime_error when it cannot be written.
+void writeRecordingCsv(const Recording& recording, const std::filesystem::path& path);
+/// The metadata plus a summary (version, records, chunks, duration_s, dropped_records,
+/// warnings) as pretty-printed JSON. @throws std::runtime_error when it cannot be written.
+void writeRecordingJson(const Recording& recording, const std::filesystem::path& path);
+
+}  // namespace vh::runtime

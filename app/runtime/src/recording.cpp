@@ -1,0 +1,331 @@
+// Session recordings: the ring, the chunked file writer and reader, CSV / JSON export.
+// The file format is documented in vh/runtime/recording.h.
+#include "vh/runtime/recording.h"
+
+#include <algorithm>
+#include <array>
+#include <bit>
+#include <chrono>
+#include <cstring>
+#include <ctime>
+#include <fstream>
+#include <iomanip>
+#include <ostream>
+#include <sstream>
+#include <stdexcept>
+
+#include <nlohmann/json.hpp>
+
+static_assert(std::endian::native == std::endian::little,
+              "the recording format is little-endian; add byte swapping for this host");
+
+namespace vh::runtime {
+namespace {
+
+constexpr std::array<char, 8> kMagic = {'V', 'H', 'R', 'E', 'C', '\r', '\n', '\x1a'};
+constexpr std::array<char, 4> kChunkTag = {'C', 'H', 'N', 'K'};
+constexpr std::size_t kFileHeaderBytes = 24;
+constexpr std::size_t kChunkHeaderBytes = 16;
+constexpr std::size_t kMaxChunkRecords = 65535;
+
+constexpr std::array<std::uint32_t, 256> makeCrcTable() {
+  std::array<std::uint32_t, 256> table{};
+  for (std::uint32_t i = 0; i < 256; ++i) {
+    std::uint32_t c = i;
+    for (int k = 0; k < 8; ++k) c = (c & 1u) ? (0xEDB88320u ^ (c >> 1)) : (c >> 1);
+    table[i] = c;
+  }
+  return table;
+}
+constexpr std::array<std::uint32_t, 256> kCrcTable = makeCrcTable();
+
+void putU32(unsigned char* p, std::uint32_t v) noexcept { std::memcpy(p, &v, 4); }
+void putU64(unsigned char* p, std::uint64_t v) noexcept { std::memcpy(p, &v, 8); }
+std::uint32_t getU32(const unsigned char* p) noexcept {
+  std::uint32_t v;
+  std::memcpy(&v, p, 4);
+  return v;
+}
+std::uint64_t getU64(const unsigned char* p) noexcept {
+  std::uint64_t v;
+  std::memcpy(&v, p, 8);
+  return v;
+}
+
+std::size_t roundUpPow2(std::size_t n) {
+  std::size_t c = 2;
+  while (c < n) c <<= 1;
+  return c;
+}
+
+std::string utcNow() {
+  const std::time_t now = std::time(nullptr);
+  std::tm tm{};
+  gmtime_r(&now, &tm);
+  char buf[32];
+  std::strftime(buf, sizeof buf, "%Y-%m-%dT%H:%M:%SZ", &tm);
+  return buf;
+}
+
+}  // namespace
+
+std::uint32_t crc32(const void* data, std::size_t size, std::uint32_t crc) noexcept {
+  const auto* p = static_cast<const unsigned char*>(data);
+  crc = ~crc;
+  for (std::size_t i = 0; i < size; ++i) crc = kCrcTable[(crc ^ p[i]) & 0xFFu] ^ (crc >> 8);
+  return ~crc;
+}
+
+// ---- TickRing ------------------------------------------------------------------------------------
+
+TickRing::TickRing(std::size_t capacity) {
+  if (capacity == 0 || capacity > (std::size_t{1} << 28))
+    throw std::invalid_argument("TickRing: capacity must be in [1, 2^28], got " + std::to_string(capacity));
+  const std::size_t n = roundUpPow2(capacity);
+  slots_ = std::make_unique<TickRecord[]>(n);
+  mask_ = n - 1;
+}
+
+bool TickRing::push(const TickRecord& record) noexcept {
+  const std::uint64_t head = head_.load(std::memory_order_relaxed);
+  const std::uint64_t tail = tail_.load(std::memory_order_acquire);
+  if (head - tail > mask_) {
+    dropped_.fetch_add(1, std::memory_order_relaxed);
+    return false;
+  }
+  slots_[static_cast<std::size_t>(head) & mask_] = record;
+  head_.store(head + 1, std::memory_order_release);
+  return true;
+}
+
+std::size_t TickRing::pop(TickRecord* out, std::size_t max) noexcept {
+  const std::uint64_t tail = tail_.load(std::memory_order_relaxed);
+  const std::uint64_t head = head_.load(std::memory_order_acquire);
+  const std::size_t n = static_cast<std::size_t>(std::min<std::uint64_t>(head - tail, max));
+  for (std::size_t i = 0; i < n; ++i) out[i] = slots_[static_cast<std::size_t>(tail + i) & mask_];
+  tail_.store(tail + n, std::memory_order_release);
+  return n;
+}
+
+std::size_t TickRing::size() const noexcept {
+  const std::uint64_t tail = tail_.load(std::memory_order_acquire);
+  const std::uint64_t head = head_.load(std::memory_order_acquire);
+  return static_cast<std::size_t>(head - tail);
+}
+
+// ---- RecordingWriter -----------------------------------------------------------------------------
+
+RecordingWriter::RecordingWriter(const std::filesystem::path& path, const std::string& metadata_json,
+                                 const RecordingWriterOptions& options)
+    : path_(path), options_(options), ring_(options.ring_capacity) {
+  if (options.chunk_records == 0 || options.chunk_records > kMaxChunkRecords)
+    throw std::invalid_argument("RecordingWriter: chunk_records must be in [1, 65535], got " +
+                                std::to_string(options.chunk_records));
+  if (!(static_cast<double>(options.chunk_records) < options.servo_rate_Hz))
+    throw std::invalid_argument("RecordingWriter: chunk_records (" + std::to_string(options.chunk_records) +
+                                ") must hold under 1 s of ticks at servo_rate_Hz");
+  if (!(options.max_chunk_wall_s > 0.0 && options.max_chunk_wall_s < 1.0))
+    throw std::invalid_argument("RecordingWriter: max_chunk_wall_s must be in (0, 1) s");
+  nlohmann::json meta;
+  try {
+    meta = nlohmann::json::parse(metadata_json.empty() ? std::string("{}") : metadata_json);
+  } catch (const nlohmann::json::exception& e) {
+    throw std::invalid_argument(std::string("RecordingWriter: metadata is not JSON: ") + e.what());
+  }
+  if (!meta.is_object()) throw std::invalid_argument("RecordingWriter: metadata must be a JSON object");
+  meta["servo_rate_Hz"] = options.servo_rate_Hz;
+  if (!meta.contains("start_time_utc")) meta["start_time_utc"] = utcNow();
+  const std::string text = meta.dump();
+
+  file_ = std::fopen(path.c_str(), "wb");
+  if (file_ == nullptr) throw std::runtime_error("RecordingWriter: cannot create " + path.string());
+  std::array<unsigned char, kFileHeaderBytes> header{};
+  std::memcpy(header.data(), kMagic.data(), kMagic.size());
+  putU32(header.data() + 8, kRecordingFormatVersion);
+  putU32(header.data() + 12, static_cast<std::uint32_t>(sizeof(TickRecord)));
+  putU32(header.data() + 16, static_cast<std::uint32_t>(text.size()));
+  putU32(header.data() + 20, crc32(text.data(), text.size()));
+  if (std::fwrite(header.data(), 1, header.size(), file_) != header.size() ||
+      std::fwrite(text.data(), 1, text.size(), file_) != text.size() || std::fflush(file_) != 0) {
+    std::fclose(file_);
+    file_ = nullptr;
+    throw std::runtime_error("RecordingWriter: cannot write the header of " + path.string());
+  }
+  chunk_.resize(options.chunk_records);
+  thread_ = std::thread([this] { run(); });
+}
+
+RecordingWriter::~RecordingWriter() {
+  try {
+    close();
+  } catch (...) {  // NOLINT(bugprone-empty-catch): documented, close() reports
+  }
+}
+
+bool RecordingWriter::writeChunk(const TickRecord* records, std::size_t count) noexcept {
+  if (count == 0) return true;
+  std::array<unsigned char, kChunkHeaderBytes> header{};
+  std::memcpy(header.data(), kChunkTag.data(), kChunkTag.size());
+  putU32(header.data() + 4, static_cast<std::uint32_t>(count));
+  putU64(header.data() + 8, ring_.dropped());
+  const std::size_t payload = count * sizeof(TickRecord);
+  std::uint32_t crc = crc32(header.data(), header.size());
+  crc = crc32(records, payload, crc);
+  std::array<unsigned char, 4> trailer{};
+  putU32(trailer.data(), crc);
+  const bool ok = std::fwrite(header.data(), 1, header.size(), file_) == header.size() &&
+                  std::fwrite(records, 1, payload, file_) == payload &&
+                  std::fwrite(trailer.data(), 1, trailer.size(), file_) == trailer.size() &&
+                  std::fflush(file_) == 0;
+  if (ok) written_.fetch_add(count, std::memory_order_relaxed);
+  return ok;
+}
+
+void RecordingWriter::run() noexcept {
+  using Clock = std::chrono::steady_clock;
+  const auto max_wait = std::chrono::duration_cast<Clock::duration>(
+      std::chrono::duration<double>(options_.max_chunk_wall_s));
+  std::size_t filled = 0;
+  auto chunk_started = Clock::now();
+  for (;;) {
+    const bool stopping = stop_.load(std::memory_order_acquire);
+    const std::size_t n = ring_.pop(chunk_.data() + filled, chunk_.size() - filled);
+    if (filled == 0 && n > 0) chunk_started = Clock::now();
+    filled += n;
+    const bool full = filled == chunk_.size();
+    const bool due = filled > 0 && Clock::now() - chunk_started >= max_wait;
+    if (full || due || (stopping && n == 0)) {
+      if (!failed_.load(std::memory_order_relaxed) && !writeChunk(chunk_.data(), filled))
+        failed_.store(true, std::memory_order_relaxed);
+      filled = 0;
+    }
+    if (stopping && n == 0) break;  // drained after the stop request
+    if (n == 0) std::this_thread::sleep_for(std::chrono::milliseconds(5));
+  }
+}
+
+void RecordingWriter::close() {
+  if (closed_) return;
+  closed_ = true;
+  stop_.store(true, std::memory_order_release);
+  if (thread_.joinable()) thread_.join();
+  const bool closed_ok = std::fclose(file_) == 0;
+  file_ = nullptr;
+  if (failed_.load() || !closed_ok) throw std::runtime_error("RecordingWriter: write failed on " + path_.string());
+}
+
+// ---- Reader ----------------------------------------------------------------------------------------
+
+Recording readRecording(const std::filesystem::path& path) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in) throw std::runtime_error("readRecording: cannot open " + path.string());
+  const std::string bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  const auto* data = reinterpret_cast<const unsigned char*>(bytes.data());
+  const std::size_t size = bytes.size();
+  const std::string where = path.string() + ": ";
+  if (size < kFileHeaderBytes || std::memcmp(data, kMagic.data(), kMagic.size()) != 0)
+    throw std::runtime_error("readRecording: " + where + "not a volume-haptics recording (bad magic)");
+  Recording rec;
+  rec.version = getU32(data + 8);
+  if (rec.version != kRecordingFormatVersion)
+    throw std::runtime_error("readRecording: " + where + "unsupported format version " + std::to_string(rec.version));
+  const std::uint32_t record_size = getU32(data + 12);
+  if (record_size != sizeof(TickRecord))
+    throw std::runtime_error("readRecording: " + where + "record size " + std::to_string(record_size) +
+                             " bytes, expected " + std::to_string(sizeof(TickRecord)));
+  const std::uint32_t meta_size = getU32(data + 16);
+  if (size - kFileHeaderBytes < meta_size ||
+      crc32(data + kFileHeaderBytes, meta_size) != getU32(data + 20))
+    throw std::runtime_error("readRecording: " + where + "damaged metadata header");
+  rec.metadata_json.assign(bytes, kFileHeaderBytes, meta_size);
+
+  std::size_t offset = kFileHeaderBytes + meta_size;
+  while (offset < size) {
+    const std::size_t left = size - offset;
+    const unsigned char* chunk = data + offset;
+    std::string problem;
+    if (left < kChunkHeaderBytes) {
+      problem = "truncated chunk header";
+    } else if (std::memcmp(chunk, kChunkTag.data(), kChunkTag.size()) != 0) {
+      problem = "bad chunk tag";
+    } else {
+      const std::uint32_t count = getU32(chunk + 4);
+      const std::size_t payload = std::size_t{count} * sizeof(TickRecord);
+      if (count == 0 || count > kMaxChunkRecords) {
+        problem = "bad chunk record count " + std::to_string(count);
+      } else if (left < kChunkHeaderBytes + payload + 4) {
+        problem = "truncated chunk (" + std::to_string(left) + " of " +
+                  std::to_string(kChunkHeaderBytes + payload + 4) + " bytes)";
+      } else if (crc32(chunk, kChunkHeaderBytes + payload) != getU32(chunk + kChunkHeaderBytes + payload)) {
+        problem = "chunk checksum mismatch";
+      } else {
+        const std::size_t first = rec.records.size();
+        rec.records.resize(first + count);
+        std::memcpy(rec.records.data() + first, chunk + kChunkHeaderBytes, payload);
+        rec.dropped_records = getU64(chunk + 8);
+        ++rec.chunks;
+        offset += kChunkHeaderBytes + payload + 4;
+        continue;
+      }
+    }
+    rec.bytes_ignored = left;
+    std::ostringstream msg;
+    msg << where << problem << " at byte " << offset << " (chunk " << rec.chunks << "); kept " << rec.chunks
+        << " good chunks (" << rec.records.size() << " records), ignored the last " << left << " bytes";
+    rec.warnings.push_back(msg.str());
+    break;
+  }
+  return rec;
+}
+
+// ---- Export ----------------------------------------------------------------------------------------
+
+void writeRecordingCsv(const Recording& recording, std::ostream& out) {
+  out << "t_s,tick,device_x_m,device_y_m,device_z_m,device_qw,device_qx,device_qy,device_qz,"
+         "proxy_x_m,proxy_y_m,proxy_z_m,proxy_qw,proxy_qx,proxy_qy,proxy_qz,"
+         "force_x_N,force_y_N,force_z_N,torque_x_Nm,torque_y_Nm,torque_z_Nm,"
+         "contacts,isovalue,tick_time_s,flags\n";
+  out << std::setprecision(17);
+  for (const TickRecord& r : recording.records) {
+    out << r.time_s << ',' << r.tick;
+    for (double v : r.p_WD_m) out << ',' << v;
+    for (double v : r.q_WD) out << ',' << v;
+    for (double v : r.p_WP_m) out << ',' << v;
+    for (double v : r.q_WP) out << ',' << v;
+    for (double v : r.force_W_N) out << ',' << v;
+    for (double v : r.torque_W_Nm) out << ',' << v;
+    out << ',' << r.contacts << ',' << r.isovalue << ',' << r.tick_time_s << ',' << r.flags << '\n';
+  }
+}
+
+void writeRecordingCsv(const Recording& recording, const std::filesystem::path& path) {
+  std::ofstream out(path);
+  if (!out) throw std::runtime_error("writeRecordingCsv: cannot create " + path.string());
+  writeRecordingCsv(recording, out);
+  out.flush();
+  if (!out) throw std::runtime_error("writeRecordingCsv: write failed on " + path.string());
+}
+
+void writeRecordingJson(const Recording& recording, const std::filesystem::path& path) {
+  nlohmann::json j;
+  try {
+    j["metadata"] = nlohmann::json::parse(recording.metadata_json);
+  } catch (const nlohmann::json::exception&) {
+    j["metadata"] = recording.metadata_json;  // keep it verbatim when it does not parse
+  }
+  j["format_version"] = recording.version;
+  j["records"] = recording.records.size();
+  j["chunks"] = recording.chunks;
+  j["duration_s"] = recording.records.empty()
+                        ? 0.0
+                        : recording.records.back().time_s - recording.records.front().time_s;
+  j["dropped_records"] = recording.dropped_records;
+  j["warnings"] = recording.warnings;
+  std::ofstream out(path);
+  if (!out) throw std::runtime_error("writeRecordingJson: cannot create " + path.string());
+  out << j.dump(2) << '\n';
+  out.flush();
+  if (!out) throw std::runtime_error("writeRecordingJson: write failed on " + path.string());
+}
+
+}  // namespace vh::runtime
