@@ -70,15 +70,15 @@ TickOutput HapticRenderer::tick(const Pose& X_WD_in, double isovalue) noexcept {
   // collision detection along the constrained path. When a contact blocks its own tangent step
   // (its eq. 1 normal disagrees with the trilinear surface), its normal is refined and steps
   // 3-4 are solved again, at most twice per tick.
+  // The stand-off lift (an option, off by default) is a recovery: only after a tick that was
+  // blocked almost at once (a lift on every tick drove a hook hanging from one contact into a
+  // 2-cycle), and never while the surface has swallowed part of the tool (a moving surface must
+  // not push the proxy against the user).
+  const bool lift = blocked_last_tick_ && collision_.embeddedCount() == 0;
+  const double standoff_m = lift ? options_.standoff_fraction * collision_.epsilon_m() : 0.0;
   RigidMotion motion;
   SweepResult hit;
   for (int attempt = 0; attempt < 3; ++attempt) {
-    // The stand-off lift is a recovery: only after a tick that was blocked almost at once (a
-    // lift on every tick drove a hook hanging from one contact into a 2-cycle), and never while
-    // the surface has swallowed part of the tool (a moving surface must not push the proxy
-    // against the user).
-    const bool lift = blocked_last_tick_ && collision_.embeddedCount() == 0;
-    const double standoff_m = lift ? options_.standoff_fraction * collision_.epsilon_m() : 0.0;
     motion = solver_.constrainedMotion(X_WP_, X_WD, mass, collision_.contacts(), standoff_m);
     hit = collision_.sweep(motion, isovalue);
     if (attempt == 2 || !collision_.refineStuckContact(motion, hit)) break;

@@ -334,9 +334,9 @@ TEST_F(MainWindowTest, DeviceDrivenIntoTheSurfaceLeavesTheProxyOutsideWhereTheAc
   // The device sank in; the proxy stayed outside the isosurface (within the collision tolerance).
   EXPECT_GT((s.X_WD.p_AB_m - s.X_WP.p_AB_m).norm(), 1e-3);
   const haptics::ScalarVolume& field = *loaded_->volume.field;
-  const double depth_m = runtime::maxPenetration_m(field, loaded_->tool->point_shell, shown, window_->isovalue());
+  const double depth_m = haptics::maxPenetration_m(field, loaded_->tool->point_shell, shown, window_->isovalue());
   EXPECT_LE(depth_m, 0.25 * field.featureSize_m()) << "proxy " << depth_m * 1e3 << " mm inside";
-  EXPECT_GT(runtime::maxPenetration_m(field, loaded_->tool->point_shell, s.X_WD, window_->isovalue()), 1e-3)
+  EXPECT_GT(haptics::maxPenetration_m(field, loaded_->tool->point_shell, s.X_WD, window_->isovalue()), 1e-3)
       << "the device itself is inside";
   // The force arrow and contacts are drawn.
   EXPECT_TRUE(window_->actors().contactActor()->GetVisibility());

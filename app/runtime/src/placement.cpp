@@ -19,11 +19,6 @@ int countPointsInside(const haptics::ScalarVolume& volume, const haptics::PointS
   return count;
 }
 
-double maxPenetration_m(const haptics::ScalarVolume& volume, const haptics::PointShell& shell,
-                        const Pose& X_WT, double isovalue, int* deepest_point) noexcept {
-  return haptics::maxPenetration_m(volume, shell, X_WT, isovalue, deepest_point);
-}
-
 namespace {
 
 bool anyInside(const haptics::ScalarVolume& volume, const haptics::PointShell& shell, const Pose& X_WT,

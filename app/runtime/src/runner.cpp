@@ -98,7 +98,7 @@ RunReport runHeadless(const LoadedScene& scene, const Trajectory& trajectory, co
       r.final_proxy_device_distance_m = (out.X_WP.p_AB_m - sample.X_WD.p_AB_m).norm();
       r.max_proxy_device_distance_m = std::max(r.max_proxy_device_distance_m, r.final_proxy_device_distance_m);
       if (options.check_penetration) {
-        depth = maxPenetration_m(volume, tool.point_shell, out.X_WP, s);
+        depth = haptics::maxPenetration_m(volume, tool.point_shell, out.X_WP, s);
         if (depth > r.epsilon_m) ++r.ticks_penetrating;
         if (depth > r.max_penetration_m) {
           r.max_penetration_m = depth;

@@ -15,6 +15,8 @@
 
 #include <gtest/gtest.h>
 
+#include "runtime_test_support.h"
+
 #include "allocation_guard.h"
 #include "vh/runtime/placement.h"
 #include "vh/runtime/scene.h"
@@ -25,20 +27,6 @@ namespace {
 using namespace std::chrono_literals;
 using haptics::Pose;
 
-/// The built-in sphere (radius 20 mm, F = signed distance in mm, isovalue 0) with the 5 mm ball
-/// tool centred on its frame's origin.
-const LoadedScene& sphereScene() {
-  static const LoadedScene scene = [] {
-    SceneSpec spec;
-    spec.volume.path = "builtin:sphere";
-    spec.tool.mesh = "builtin:sphere";
-    spec.tool.point_spacing_m = 0.0015;
-    spec.gains.linear_N_per_m = 1000.0;
-    spec.device = DeviceSpec{};
-    return loadScene(spec);
-  }();
-  return scene;
-}
 
 /// The ball tool's centre `depth_m` below the top of the sphere's surface at x = y = 0 (its
 /// lowest point 5 mm further down).
@@ -61,7 +49,7 @@ Eigen::Vector3d couplingForce(const HapticSnapshot& s, const haptics::ToolModel&
 }
 
 TEST(HapticThread, TicksPublishesConsistentSnapshotsAndStops) {
-  const LoadedScene& scene = sphereScene();
+  const LoadedScene& scene = test::sphereBallScene();
   auto device = std::make_shared<SimulatedDevice>(scene.X_WT_initial);
   auto thread = scene.makeHapticThread(device);
   EXPECT_FALSE(thread->running());
@@ -100,7 +88,7 @@ TEST(HapticThread, TicksPublishesConsistentSnapshotsAndStops) {
     EXPECT_NEAR(p.norm(), 0.020, 0.001) << "contact " << i << " is not on the sphere";
     EXPECT_GT(n.dot(p.normalized()), 0.9) << "normal " << i << " does not point outwards";
   }
-  EXPECT_LE(maxPenetration_m(*scene.volume.field, scene.tool->point_shell, snap.X_WP, scene.isovalue),
+  EXPECT_LE(haptics::maxPenetration_m(*scene.volume.field, scene.tool->point_shell, snap.X_WP, scene.isovalue),
             scene.makeRenderer()->epsilon_m());
   EXPECT_EQ(snap.bad_device_samples, 0u);
 
@@ -145,7 +133,7 @@ class RecordingDevice final : public Device {
 };
 
 TEST(HapticThread, StopRampsTheForceToZeroOverAbout50Milliseconds) {
-  const LoadedScene& scene = sphereScene();
+  const LoadedScene& scene = test::sphereBallScene();
   auto device = std::make_shared<RecordingDevice>(pressedPose(0.003));
   auto thread = scene.makeHapticThread(device);
   thread->start();
@@ -169,7 +157,7 @@ TEST(HapticThread, StopRampsTheForceToZeroOverAbout50Milliseconds) {
 }
 
 TEST(HapticThread, GainsAndIsovalueAreAppliedWhileRunning) {
-  const LoadedScene& scene = sphereScene();
+  const LoadedScene& scene = test::sphereBallScene();
   auto device = std::make_shared<SimulatedDevice>(pressedPose(0.003));
   auto thread = scene.makeHapticThread(device);
   thread->start();
@@ -216,7 +204,7 @@ class FailingDevice final : public Device {
 };
 
 TEST(HapticThread, BadDeviceSamplesAreCountedAndGiveNoForce) {
-  const LoadedScene& scene = sphereScene();
+  const LoadedScene& scene = test::sphereBallScene();
   auto device = std::make_shared<FailingDevice>(pressedPose(0.003), 100);
   auto thread = scene.makeHapticThread(device);
   thread->start();
@@ -256,7 +244,7 @@ class AllocationCountingDevice final : public Device {
 };
 
 TEST(HapticThread, ServoLoopDoesNotAllocate) {
-  const LoadedScene& scene = sphereScene();
+  const LoadedScene& scene = test::sphereBallScene();
   auto device = std::make_shared<AllocationCountingDevice>(pressedPose(0.003));
   auto thread = scene.makeHapticThread(device);
   thread->start();
@@ -266,7 +254,7 @@ TEST(HapticThread, ServoLoopDoesNotAllocate) {
 }
 
 TEST(HapticThread, ServoLoopDoesNotAllocateWhileRecording) {
-  const LoadedScene& scene = sphereScene();
+  const LoadedScene& scene = test::sphereBallScene();
   auto device = std::make_shared<AllocationCountingDevice>(pressedPose(0.003));
   RecordingWriterOptions options;
   options.ring_capacity = 64;  // small: the full-ring (drop) path runs too when the writer lags
@@ -282,7 +270,7 @@ TEST(HapticThread, ServoLoopDoesNotAllocateWhileRecording) {
 }
 
 TEST(HapticThread, RejectsBadArguments) {
-  const LoadedScene& scene = sphereScene();
+  const LoadedScene& scene = test::sphereBallScene();
   auto device = std::make_shared<SimulatedDevice>(scene.X_WT_initial);
   EXPECT_THROW(HapticThread(nullptr, device, 0.0), std::invalid_argument);
   EXPECT_THROW(HapticThread(scene.makeRenderer(), nullptr, 0.0), std::invalid_argument);

@@ -328,19 +328,6 @@ TEST(RecordingExport, CommandLineWritesCsvAndJson) {
 
 // ---- Record through the haptic thread, replay through a fresh renderer --------------------------
 
-/// The built-in sphere (radius 20 mm, isovalue 0) with the 5 mm ball tool (as haptic_thread_test).
-const LoadedScene& sphereScene() {
-  static const LoadedScene scene = [] {
-    SceneSpec spec;
-    spec.volume.path = "builtin:sphere";
-    spec.tool.mesh = "builtin:sphere";
-    spec.tool.point_spacing_m = 0.0015;
-    spec.gains.linear_N_per_m = 1000.0;
-    spec.device = DeviceSpec{};
-    return loadScene(spec);
-  }();
-  return scene;
-}
 
 /// Scripted 2 s session: approach the sphere's top, press 3 mm in, slide and twist, hold.
 Trajectory pressSlideTrajectory() {
@@ -385,7 +372,7 @@ std::uint64_t sessionHash(const std::vector<TickRecord>& records, std::size_t n)
 }
 
 TEST(RecordingReplay, HapticThreadRecordingReplaysBitForBitThroughAFreshRenderer) {
-  const LoadedScene& scene = sphereScene();
+  const LoadedScene& scene = test::sphereBallScene();
   auto device = std::make_shared<ScriptedDevice>(pressSlideTrajectory(), 1e-3, "press-slide");
   const fs::path path = test::scratchDir() / "thread.vhrec";
   RecordingWriter writer(path, R"({"scene":"builtin:sphere","device":"scripted press-slide"})");

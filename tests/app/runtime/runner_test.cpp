@@ -175,11 +175,11 @@ TEST(Runner, PenetrationMeasureIsTheDepthBelowAPlane) {
   double lowest = 0.0;
   for (const auto& p : shell.points_T_m()) lowest = std::min(lowest, p.z());
   const Pose above = Pose::FromTranslation({0, 0, 0.010});
-  EXPECT_EQ(maxPenetration_m(plane, shell, above, 0.0), 0.0);
+  EXPECT_EQ(haptics::maxPenetration_m(plane, shell, above, 0.0), 0.0);
   EXPECT_EQ(countPointsInside(plane, shell, above, 0.0), 0);
   int deepest = -2;
   const Pose sunk = Pose::FromTranslation({0, 0, -lowest - 0.002});  // lowest point 2 mm below z = 0
-  EXPECT_NEAR(maxPenetration_m(plane, shell, sunk, 0.0, &deepest), 0.002, 1e-9);
+  EXPECT_NEAR(haptics::maxPenetration_m(plane, shell, sunk, 0.0, &deepest), 0.002, 1e-9);
   ASSERT_GE(deepest, 0);
   EXPECT_DOUBLE_EQ(shell.points_T_m()[static_cast<std::size_t>(deepest)].z(), lowest);
   EXPECT_GT(countPointsInside(plane, shell, sunk, 0.0), 0);

@@ -29,4 +29,17 @@ fs::path sharedDatasets() { return fs::path(VH_SHARED_DATASETS_DIR); }
 fs::path generatedData() { return fs::path(VH_GENERATED_DATA_DIR); }
 fs::path sourceDir() { return fs::path(VH_SOURCE_DIR); }
 
+const runtime::LoadedScene& sphereBallScene() {
+  static const runtime::LoadedScene scene = [] {
+    runtime::SceneSpec spec;
+    spec.volume.path = "builtin:sphere";
+    spec.tool.mesh = "builtin:sphere";
+    spec.tool.point_spacing_m = 0.0015;
+    spec.gains.linear_N_per_m = 1000.0;
+    spec.device = runtime::DeviceSpec{};
+    return runtime::loadScene(spec);
+  }();
+  return scene;
+}
+
 }  // namespace vh::test

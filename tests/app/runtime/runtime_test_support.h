@@ -6,6 +6,8 @@
 
 #include <gtest/gtest.h>
 
+#include "vh/runtime/scene.h"
+
 namespace vh::test {
 
 /// A fresh, empty folder under the test output folder, named after the running test.
@@ -20,6 +22,10 @@ std::filesystem::path sharedDatasets();
 std::filesystem::path generatedData();
 /// The source tree (VH_SOURCE_DIR).
 std::filesystem::path sourceDir();
+
+/// The built-in sphere (radius 20 mm, F = signed distance in mm, isovalue 0) with the 5 mm ball
+/// tool (1.5 mm point spacing), coupling 1000 N/m, simulated device; loaded once.
+const runtime::LoadedScene& sphereBallScene();
 
 }  // namespace vh::test
 

@@ -9,6 +9,7 @@
 #include <Eigen/Core>
 #include <Eigen/Geometry>
 
+#include "vh/haptics/penetration.h"
 #include "vh/haptics/point_shell.h"
 #include "vh/haptics/pose.h"
 #include "vh/haptics/scalar_volume.h"
@@ -19,13 +20,7 @@ namespace vh::runtime {
 int countPointsInside(const haptics::ScalarVolume& volume, const haptics::PointShell& shell,
                       const haptics::Pose& X_WT, double isovalue) noexcept;
 
-/// Penetration of the tool at X_WT: the largest first-order depth (F(p) - s) / |grad F(p)| [m]
-/// over the shell points p inside the isosurface (0 when none is inside). A point inside with
-/// a vanishing gradient counts as the volume's largest voxel diagonal.
-/// @param deepest_point when not null, receives the index of the deepest point (-1 if none).
-double maxPenetration_m(const haptics::ScalarVolume& volume, const haptics::PointShell& shell,
-                        const haptics::Pose& X_WT, double isovalue,
-                        int* deepest_point = nullptr) noexcept;
+/// (The penetration measure itself is haptics::maxPenetration_m, vh/haptics/penetration.h.)
 
 /// Distance [m] the tool can translate from X_WT_start along unit `dir_W` before a shell point
 /// first enters the isosurface, to within `tolerance_m` (the returned distance is on the free
