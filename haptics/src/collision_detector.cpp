@@ -14,9 +14,13 @@ struct Later {
 };
 }  // namespace
 
+const char* toString(DetectionMode mode) noexcept {
+  return mode == DetectionMode::kPaper ? "paper" : "accelerated";
+}
+
 CollisionDetector::CollisionDetector(const ScalarVolume& volume, const ToolModel& tool, double epsilon_m,
-                                     std::size_t max_contacts)
-    : volume_(&volume), tool_(&tool), feature_(volume.featureSize_m()) {
+                                     std::size_t max_contacts, DetectionMode mode)
+    : volume_(&volume), tool_(&tool), mode_(mode), feature_(volume.featureSize_m()) {
   if (tool.point_shell.empty()) throw std::invalid_argument("CollisionDetector: the point shell is empty");
   if (volume.empty()) throw std::invalid_argument("CollisionDetector: the volume is empty");
   epsilon_ = epsilon_m > 0.0 ? epsilon_m : 0.25 * feature_;

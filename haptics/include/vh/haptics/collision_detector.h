@@ -16,6 +16,17 @@
 
 namespace vh::haptics {
 
+/// Which collision-detection path runs.
+/// - kPaper: section 2.3 as published: every point's arc is split into ceil(s / f) equal time
+///   segments (s = path-length bound, f = feature size), each segment end is sampled, the first
+///   crossing is bisected. Kept as the reference path and for side-by-side benchmarks.
+/// - kAccelerated: the same contract (first time of contact to the same tolerance, same contact
+///   set) computed with fewer samples: see haptics/README.md, "Speed".
+enum class DetectionMode { kPaper, kAccelerated };
+
+/// "paper" or "accelerated".
+const char* toString(DetectionMode mode) noexcept;
+
 /// One point of the contact set.
 struct Contact {
   int point_index = -1;                            ///< Index into the point shell.
@@ -41,9 +52,12 @@ class CollisionDetector {
  public:
   /// @param epsilon_m collision tolerance; 0 selects f / 4 (f = feature size).
   /// @param max_contacts capacity of the contact set.
+  /// @param mode which sweep path runs (both give the same contract).
   /// @throws std::invalid_argument when epsilon_m >= f or the point shell is empty.
   CollisionDetector(const ScalarVolume& volume, const ToolModel& tool, double epsilon_m,
-                    std::size_t max_contacts = 256);
+                    std::size_t max_contacts = 256, DetectionMode mode = DetectionMode::kAccelerated);
+
+  DetectionMode mode() const noexcept { return mode_; }
 
   double epsilon_m() const noexcept { return epsilon_; }
   double featureSize_m() const noexcept { return feature_; }
@@ -107,6 +121,7 @@ class CollisionDetector {
 
   const ScalarVolume* volume_;
   const ToolModel* tool_;
+  DetectionMode mode_;
   double feature_;
   double epsilon_;
   double bisection_tolerance_;

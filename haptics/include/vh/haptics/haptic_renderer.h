@@ -38,6 +38,9 @@ struct RendererOptions {
   /// When set, it is applied only on the tick after one whose sweep stopped before 1 % of its
   /// path, and not while points are embedded after an isovalue change.
   double standoff_fraction = 0.0;
+  /// Collision-detection path: the paper's (section 2.3) or the accelerated one with the same
+  /// contract (haptics/README.md, "Speed").
+  DetectionMode detection_mode = DetectionMode::kAccelerated;
   /// Coupling gains (section 2.5); may be changed between ticks with setGains().
   CouplingGains gains;
   /// Largest device translation accepted from one tick to the next [m]; farther jumps and
