@@ -19,8 +19,12 @@ const char* toString(DetectionMode mode) noexcept {
 }
 
 CollisionDetector::CollisionDetector(const ScalarVolume& volume, const ToolModel& tool, double epsilon_m,
-                                     std::size_t max_contacts, DetectionMode mode)
+                                     std::size_t max_contacts, DetectionMode mode, double segment_fraction)
     : volume_(&volume), tool_(&tool), mode_(mode), feature_(volume.featureSize_m()) {
+  if (!(segment_fraction > 0.0 && segment_fraction <= 1.0))
+    throw std::invalid_argument("CollisionDetector: segment_fraction " + std::to_string(segment_fraction) +
+                                " must be in (0, 1]");
+  segment_length_m_ = feature_ * segment_fraction;
   if (tool.point_shell.empty()) throw std::invalid_argument("CollisionDetector: the point shell is empty");
   if (volume.empty()) throw std::invalid_argument("CollisionDetector: the volume is empty");
   epsilon_ = epsilon_m > 0.0 ? epsilon_m : 0.25 * feature_;
@@ -91,7 +95,7 @@ SweepResult CollisionDetector::sweep(const RigidMotion& motion, double isovalue)
     path_[j] = motion.pathLengthBound(r0_[j]);
     if (embedded_[j] || !(path_[j] > 0.0)) continue;
     // ceil(s / f) equal time segments, none longer than the feature size (section 2.3).
-    const double segments = std::max(1.0, std::ceil(path_[j] / feature_));
+    const double segments = std::max(1.0, std::ceil(path_[j] / segment_length_m_));
     dt_[j] = 1.0 / segments;
     heap_[count++] = {0.0, j, 0};
   }

@@ -13,7 +13,7 @@ HapticRenderer::HapticRenderer(std::shared_ptr<const ScalarVolume> volume, std::
       options_(options),
       collision_((volume_ && !volume_->empty()) ? *volume_ : throw std::invalid_argument("HapticRenderer: no volume"),
                  tool_ ? *tool_ : throw std::invalid_argument("HapticRenderer: no tool"), options.epsilon_m,
-                 256, options.detection_mode),
+                 256, options.detection_mode, options.segment_fraction),
       solver_(),
       coupling_(options.gains),
       X_WP_(X_WP_initial),

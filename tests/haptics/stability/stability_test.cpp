@@ -18,7 +18,7 @@
 
 #include <gtest/gtest.h>
 
-#include "scenarios.h"
+#include "vh/simulation/stability_scenarios.h"
 #include "vh/haptics/configuration_solver.h"
 #include "vh/haptics/virtual_coupling.h"
 

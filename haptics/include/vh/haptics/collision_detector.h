@@ -53,9 +53,13 @@ class CollisionDetector {
   /// @param epsilon_m collision tolerance; 0 selects f / 4 (f = feature size).
   /// @param max_contacts capacity of the contact set.
   /// @param mode which sweep path runs (both give the same contract).
-  /// @throws std::invalid_argument when epsilon_m >= f or the point shell is empty.
+  /// @param segment_fraction longest sampling segment along a path as a fraction of the
+  ///        feature size f, in (0, 1]; 1 is the paper's ceil(s / f) segments (section 2.3).
+  /// @throws std::invalid_argument when epsilon_m >= f, the point shell is empty or
+  ///         segment_fraction is outside (0, 1].
   CollisionDetector(const ScalarVolume& volume, const ToolModel& tool, double epsilon_m,
-                    std::size_t max_contacts = 256, DetectionMode mode = DetectionMode::kAccelerated);
+                    std::size_t max_contacts = 256, DetectionMode mode = DetectionMode::kAccelerated,
+                    double segment_fraction = 1.0);
 
   DetectionMode mode() const noexcept { return mode_; }
 
@@ -123,6 +127,7 @@ class CollisionDetector {
   const ToolModel* tool_;
   DetectionMode mode_;
   double feature_;
+  double segment_length_m_;  // feature size * segment_fraction
   double epsilon_;
   double bisection_tolerance_;
   std::vector<Eigen::Vector3d> r0_;      // per point radial vector at t = 0 (W)

@@ -41,6 +41,9 @@ struct RendererOptions {
   /// Collision-detection path: the paper's (section 2.3) or the accelerated one with the same
   /// contract (haptics/README.md, "Speed").
   DetectionMode detection_mode = DetectionMode::kAccelerated;
+  /// Longest sampling segment along a point's path as a fraction of the feature size, (0, 1];
+  /// 1 is the paper's (section 2.3). Smaller trades time for catching thinner features.
+  double segment_fraction = 1.0;
   /// Coupling gains (section 2.5); may be changed between ticks with setGains().
   CouplingGains gains;
   /// Largest device translation accepted from one tick to the next [m]; farther jumps and
@@ -73,8 +76,8 @@ class HapticRenderer {
  public:
   /// @param volume, tool shared, immutable; must outlive nothing (held by shared_ptr).
   /// @param X_WP_initial initial proxy pose; should be outside the isosurface.
-  /// @throws std::invalid_argument for an empty volume or point shell, a non-finite pose, or
-  ///         epsilon >= feature size.
+  /// @throws std::invalid_argument for an empty volume or point shell, a non-finite pose,
+  ///         epsilon >= feature size, or segment_fraction outside (0, 1].
   HapticRenderer(std::shared_ptr<const ScalarVolume> volume, std::shared_ptr<const ToolModel> tool,
                  const RendererOptions& options, const Pose& X_WP_initial, double isovalue);
 

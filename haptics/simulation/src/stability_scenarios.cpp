@@ -1,4 +1,4 @@
-#include "scenarios.h"
+#include "vh/simulation/stability_scenarios.h"
 
 #include <algorithm>
 #include <cmath>

@@ -1,4 +1,4 @@
-#include "device_model.h"
+#include "vh/simulation/device_model.h"
 
 #include "vh/haptics/penetration.h"
 

@@ -24,7 +24,7 @@
 #include <string>
 #include <vector>
 
-#include "device_model.h"
+#include "vh/simulation/device_model.h"
 
 namespace vh::stability {
 
