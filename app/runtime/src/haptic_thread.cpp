@@ -11,7 +11,10 @@
 #include <algorithm>
 #include <cerrno>
 #include <cmath>
+#include <cstring>
 #include <stdexcept>
+
+#include <nlohmann/json.hpp>
 
 namespace vh::runtime {
 
@@ -89,6 +92,29 @@ void HapticThread::setGains(const haptics::CouplingGains& gains) noexcept {
   gain_linear_.store(gains.linear_N_per_m, std::memory_order_relaxed);
   gain_angular_.store(gains.angular_Nm_per_rad, std::memory_order_relaxed);
   gains_dirty_.store(true, std::memory_order_release);
+  if (recorder_.load(std::memory_order_acquire) == nullptr) return;
+  try {
+    const haptics::CouplingGains applied = clampGains(gains, device_->limits());
+    nlohmann::json d;
+    d["linear_N_per_m"] = applied.linear_N_per_m;
+    d["angular_Nm_per_rad"] = applied.angular_Nm_per_rad;
+    d["requested"] = {{"linear_N_per_m", gains.linear_N_per_m}, {"angular_Nm_per_rad", gains.angular_Nm_per_rad}};
+    recordEvent("gains", d.dump());
+  } catch (...) {  // NOLINT(bugprone-empty-catch): the event is best effort, the gains are set
+  }
+}
+
+void HapticThread::recordEvent(const std::string& type, const std::string& detail_json) {
+  RecordingWriter* recorder = recorder_.load(std::memory_order_acquire);
+  if (recorder == nullptr) return;
+  RecordingEvent event;
+  event.type = type;
+  event.detail_json = detail_json;
+  const std::uint64_t first = first_recorded_tick_.load(std::memory_order_acquire);
+  const std::uint64_t latest = latest_recorded_tick_.load(std::memory_order_acquire);
+  event.tick = latest;
+  event.time_s = first != 0 && latest >= first ? static_cast<double>(latest - first) * period_s_ : 0.0;
+  recorder->addEvent(event);
 }
 
 void HapticThread::start() {
@@ -122,7 +148,8 @@ void HapticThread::loop() noexcept {
   std::uint64_t tick = 0;
   std::uint64_t deadline_misses = 0;
   std::uint64_t bad_samples = 0;
-  std::uint64_t record_first_tick = 0;  // tick of the first recorded one (0: none yet)
+  std::uint64_t record_first_tick = 0;  // tick of the current recording's first record
+  RecordingWriter* active_recorder = nullptr;  // the recorder of the current recording
   // Rolling statistics over windows of one second; until the first window closes, the running
   // window's values are published.
   std::int64_t window_start_ns = monotonicNs();
@@ -207,7 +234,12 @@ void HapticThread::loop() noexcept {
     safety_in.torque_W_Nm = torque_W_Nm;
     const bool nonfinite = !force_W_N.allFinite() || !torque_W_Nm.allFinite();
     const std::uint64_t zeroed_before = safety.stats().zeroed_ticks;
+    const Eigen::Vector3d force_rendered_W_N = force_W_N;
+    const Eigen::Vector3d torque_rendered_W_Nm = torque_W_Nm;
     safety.step(safety_in, force_W_N, torque_W_Nm);
+    // Bit comparison (a NaN that was zeroed counts as changed).
+    const bool limited = std::memcmp(force_rendered_W_N.data(), force_W_N.data(), 3 * sizeof(double)) != 0 ||
+                         std::memcmp(torque_rendered_W_Nm.data(), torque_W_Nm.data(), 3 * sizeof(double)) != 0;
     device_->command(force_W_N, torque_W_Nm);
     const bool zeroed = safety.stats().zeroed_ticks != zeroed_before;
     ++tick;
@@ -217,8 +249,13 @@ void HapticThread::loop() noexcept {
     const double tick_us = 1e-3 * static_cast<double>(end_ns - begin_ns);
 
     // 6. Recording (lock-free push; a full ring drops the record and counts it).
-    if (RecordingWriter* recorder = recorder_.load(std::memory_order_acquire)) {
-      if (record_first_tick == 0) record_first_tick = tick;
+    RecordingWriter* const recorder = recorder_.load(std::memory_order_acquire);
+    if (recorder != active_recorder) {  // a new recording starts its clock at its first tick
+      active_recorder = recorder;
+      record_first_tick = tick;
+      first_recorded_tick_.store(tick, std::memory_order_release);
+    }
+    if (recorder != nullptr) {
       TickRecord rec;
       rec.time_s = static_cast<double>(tick - record_first_tick) * period_s_;
       rec.tick = tick;
@@ -239,8 +276,11 @@ void HapticThread::loop() noexcept {
       rec.contacts = static_cast<std::uint32_t>(renderer_->contacts().size());
       rec.flags = (rec.contacts > 0 ? kRecordFlagContact : 0u) | (ok ? 0u : kRecordFlagBadSample) |
                   (missed ? kRecordFlagDeadlineMiss : 0u) | (zeroed ? kRecordFlagForceZeroed : 0u) |
-                  (nonfinite ? kRecordFlagNonFinite : 0u) | (ramp_left >= 0 ? kRecordFlagStopping : 0u);
+                  (nonfinite ? kRecordFlagNonFinite : 0u) | (ramp_left >= 0 ? kRecordFlagStopping : 0u) |
+                  (limited || zeroed ? kRecordFlagForceLimited : 0u) |
+                  (device_->connected() ? 0u : kRecordFlagDeviceDisconnected);
       (void)recorder->push(rec);
+      latest_recorded_tick_.store(tick, std::memory_order_release);
     }
     ++window_ticks;
     window_sum_us += tick_us;

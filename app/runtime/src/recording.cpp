@@ -10,6 +10,7 @@
 #include <ctime>
 #include <fstream>
 #include <iomanip>
+#include <iterator>
 #include <ostream>
 #include <sstream>
 #include <stdexcept>
@@ -24,6 +25,10 @@ namespace {
 
 constexpr std::array<char, 8> kMagic = {'V', 'H', 'R', 'E', 'C', '\r', '\n', '\x1a'};
 constexpr std::array<char, 4> kChunkTag = {'C', 'H', 'N', 'K'};
+constexpr std::array<char, 4> kEventTag = {'E', 'V', 'N', 'T'};
+constexpr std::size_t kEventHeaderBytes = 12;
+constexpr std::size_t kMaxEventPayloadBytes = std::size_t{16} << 20;
+constexpr std::size_t kMaxChunkEvents = 65535;
 constexpr std::size_t kFileHeaderBytes = 24;
 constexpr std::size_t kChunkHeaderBytes = 16;
 constexpr std::size_t kMaxChunkRecords = 65535;
@@ -56,6 +61,22 @@ std::size_t roundUpPow2(std::size_t n) {
   std::size_t c = 2;
   while (c < n) c <<= 1;
   return c;
+}
+
+/// Parses `text` (empty = {}) as a JSON object. @throws std::invalid_argument naming `what`.
+nlohmann::json parseObject(const std::string& text, const std::string& what) {
+  nlohmann::json j;
+  try {
+    j = nlohmann::json::parse(text.empty() ? std::string("{}") : text);
+  } catch (const nlohmann::json::exception& e) {
+    throw std::invalid_argument(what + " is not JSON: " + e.what());
+  }
+  if (!j.is_object()) throw std::invalid_argument(what + " must be a JSON object, got: " + text);
+  return j;
+}
+
+void appendBytes(std::string& out, const void* data, std::size_t size) {
+  out.append(static_cast<const char*>(data), size);
 }
 
 std::string utcNow() {
@@ -126,13 +147,7 @@ RecordingWriter::RecordingWriter(const std::filesystem::path& path, const std::s
                                 ") must hold under 1 s of ticks at servo_rate_Hz");
   if (!(options.max_chunk_wall_s > 0.0 && options.max_chunk_wall_s < 1.0))
     throw std::invalid_argument("RecordingWriter: max_chunk_wall_s must be in (0, 1) s");
-  nlohmann::json meta;
-  try {
-    meta = nlohmann::json::parse(metadata_json.empty() ? std::string("{}") : metadata_json);
-  } catch (const nlohmann::json::exception& e) {
-    throw std::invalid_argument(std::string("RecordingWriter: metadata is not JSON: ") + e.what());
-  }
-  if (!meta.is_object()) throw std::invalid_argument("RecordingWriter: metadata must be a JSON object");
+  nlohmann::json meta = parseObject(metadata_json, "RecordingWriter: metadata");
   meta["servo_rate_Hz"] = options.servo_rate_Hz;
   if (!meta.contains("start_time_utc")) meta["start_time_utc"] = utcNow();
   const std::string text = meta.dump();
@@ -181,23 +196,136 @@ bool RecordingWriter::writeChunk(const TickRecord* records, std::size_t count) n
   return ok;
 }
 
+void RecordingWriter::pushWaiting(const TickRecord& record) noexcept {
+  while (ring_.size() >= ring_.capacity()) std::this_thread::sleep_for(std::chrono::milliseconds(1));
+  (void)ring_.push(record);
+}
+
+void RecordingWriter::addEvent(const RecordingEvent& event) {
+  if (event.type.empty()) throw std::invalid_argument("RecordingWriter::addEvent: empty event type");
+  RecordingEvent copy = event;
+  copy.detail_json = parseObject(event.detail_json, "RecordingWriter::addEvent: detail of \"" + event.type + "\"").dump();
+  const std::lock_guard<std::mutex> lock(events_mutex_);
+  if (closed_) throw std::logic_error("RecordingWriter::addEvent: the recording " + path_.string() + " is closed");
+  pending_events_.push_back(std::move(copy));
+}
+
+void RecordingWriter::deriveEvents(const TickRecord* records, std::size_t count) {
+  std::vector<RecordingEvent> derived;
+  for (std::size_t i = 0; i < count; ++i) {
+    const TickRecord& r = records[i];
+    const bool disconnected = (r.flags & kRecordFlagDeviceDisconnected) != 0;
+    if (!have_previous_) {
+      have_previous_ = true;
+      if (disconnected) derived.push_back({r.time_s, r.tick, "device_disconnected", "{}"});
+    } else {
+      if (disconnected != previous_disconnected_)
+        derived.push_back({r.time_s, r.tick, disconnected ? "device_disconnected" : "device_connected", "{}"});
+      // Bit comparison: a NaN isovalue (never expected) does not give an event per tick.
+      if (std::memcmp(&r.isovalue, &previous_isovalue_, sizeof(double)) != 0) {
+        nlohmann::json d;
+        d["from"] = previous_isovalue_;
+        d["to"] = r.isovalue;
+        derived.push_back({r.time_s, r.tick, "isovalue", d.dump()});
+      }
+    }
+    previous_disconnected_ = disconnected;
+    previous_isovalue_ = r.isovalue;
+  }
+  if (derived.empty()) return;
+  const std::lock_guard<std::mutex> lock(events_mutex_);
+  pending_events_.insert(pending_events_.end(), std::make_move_iterator(derived.begin()),
+                         std::make_move_iterator(derived.end()));
+}
+
+bool RecordingWriter::writeEvents() noexcept {
+  try {
+    std::vector<RecordingEvent> events;
+    {
+      const std::lock_guard<std::mutex> lock(events_mutex_);
+      events.swap(pending_events_);
+    }
+    std::stable_sort(events.begin(), events.end(),
+                     [](const RecordingEvent& a, const RecordingEvent& b) { return a.tick < b.tick; });
+    std::size_t first = 0;
+    while (first < events.size()) {
+      std::string payload;
+      std::size_t n = 0;
+      while (first + n < events.size() && n < kMaxChunkEvents) {
+        const RecordingEvent& e = events[first + n];
+        if (e.type.size() + e.detail_json.size() + 32 > kMaxEventPayloadBytes) {  // absurd: skip it
+          ++first;
+          continue;
+        }
+        if (payload.size() + e.type.size() + e.detail_json.size() + 32 > kMaxEventPayloadBytes) break;
+        appendBytes(payload, &e.time_s, 8);
+        appendBytes(payload, &e.tick, 8);
+        const auto type_size = static_cast<std::uint32_t>(e.type.size());
+        const auto detail_size = static_cast<std::uint32_t>(e.detail_json.size());
+        appendBytes(payload, &type_size, 4);
+        payload += e.type;
+        appendBytes(payload, &detail_size, 4);
+        payload += e.detail_json;
+        ++n;
+      }
+      if (n == 0) break;
+      std::array<unsigned char, kEventHeaderBytes> header{};
+      std::memcpy(header.data(), kEventTag.data(), kEventTag.size());
+      putU32(header.data() + 4, static_cast<std::uint32_t>(n));
+      putU32(header.data() + 8, static_cast<std::uint32_t>(payload.size()));
+      std::uint32_t crc = crc32(header.data(), header.size());
+      crc = crc32(payload.data(), payload.size(), crc);
+      std::array<unsigned char, 4> trailer{};
+      putU32(trailer.data(), crc);
+      const bool ok = std::fwrite(header.data(), 1, header.size(), file_) == header.size() &&
+                      std::fwrite(payload.data(), 1, payload.size(), file_) == payload.size() &&
+                      std::fwrite(trailer.data(), 1, trailer.size(), file_) == trailer.size() &&
+                      std::fflush(file_) == 0;
+      if (!ok) return false;
+      events_written_.fetch_add(n, std::memory_order_relaxed);
+      first += n;
+    }
+    return true;
+  } catch (...) {  // allocation failure
+    return false;
+  }
+}
+
 void RecordingWriter::run() noexcept {
   using Clock = std::chrono::steady_clock;
   const auto max_wait = std::chrono::duration_cast<Clock::duration>(
       std::chrono::duration<double>(options_.max_chunk_wall_s));
   std::size_t filled = 0;
   auto chunk_started = Clock::now();
+  auto events_started = Clock::now();
   for (;;) {
     const bool stopping = stop_.load(std::memory_order_acquire);
     const std::size_t n = ring_.pop(chunk_.data() + filled, chunk_.size() - filled);
+    if (n > 0) {
+      try {
+        deriveEvents(chunk_.data() + filled, n);
+      } catch (...) {  // allocation failure: the records still get written
+        failed_.store(true, std::memory_order_relaxed);
+      }
+    }
     if (filled == 0 && n > 0) chunk_started = Clock::now();
     filled += n;
     const bool full = filled == chunk_.size();
     const bool due = filled > 0 && Clock::now() - chunk_started >= max_wait;
-    if (full || due || (stopping && n == 0)) {
-      if (!failed_.load(std::memory_order_relaxed) && !writeChunk(chunk_.data(), filled))
+    bool events_due = false;
+    if (filled == 0) {  // events without records (e.g. nothing ticking) still go out in time
+      const std::lock_guard<std::mutex> lock(events_mutex_);
+      if (pending_events_.empty()) {
+        events_started = Clock::now();
+      } else {
+        events_due = Clock::now() - events_started >= max_wait;
+      }
+    }
+    if (full || due || events_due || (stopping && n == 0)) {
+      if (!failed_.load(std::memory_order_relaxed) && !(writeEvents() && writeChunk(chunk_.data(), filled)))
         failed_.store(true, std::memory_order_relaxed);
       filled = 0;
+      events_started = Clock::now();
     }
     if (stopping && n == 0) break;  // drained after the stop request
     if (n == 0) std::this_thread::sleep_for(std::chrono::milliseconds(5));
@@ -205,8 +333,11 @@ void RecordingWriter::run() noexcept {
 }
 
 void RecordingWriter::close() {
-  if (closed_) return;
-  closed_ = true;
+  {
+    const std::lock_guard<std::mutex> lock(events_mutex_);
+    if (closed_) return;
+    closed_ = true;  // later addEvent() calls throw; pending ones are written below
+  }
   stop_.store(true, std::memory_order_release);
   if (thread_.joinable()) thread_.join();
   const bool closed_ok = std::fclose(file_) == 0;
@@ -227,7 +358,7 @@ Recording readRecording(const std::filesystem::path& path) {
     throw std::runtime_error("readRecording: " + where + "not a volume-haptics recording (bad magic)");
   Recording rec;
   rec.version = getU32(data + 8);
-  if (rec.version != kRecordingFormatVersion)
+  if (rec.version != 1 && rec.version != kRecordingFormatVersion)
     throw std::runtime_error("readRecording: " + where + "unsupported format version " + std::to_string(rec.version));
   const std::uint32_t record_size = getU32(data + 12);
   if (record_size != sizeof(TickRecord))
@@ -244,7 +375,60 @@ Recording readRecording(const std::filesystem::path& path) {
     const std::size_t left = size - offset;
     const unsigned char* chunk = data + offset;
     std::string problem;
-    if (left < kChunkHeaderBytes) {
+    if (rec.version >= 2 && left >= kEventTag.size() && std::memcmp(chunk, kEventTag.data(), kEventTag.size()) == 0) {
+      if (left < kEventHeaderBytes) {
+        problem = "truncated event chunk header";
+      } else {
+        const std::uint32_t count = getU32(chunk + 4);
+        const std::uint32_t payload = getU32(chunk + 8);
+        if (count == 0 || count > kMaxChunkEvents || payload > kMaxEventPayloadBytes) {
+          problem = "bad event chunk (" + std::to_string(count) + " events, " + std::to_string(payload) + " bytes)";
+        } else if (left < kEventHeaderBytes + payload + 4) {
+          problem = "truncated event chunk (" + std::to_string(left) + " of " +
+                    std::to_string(kEventHeaderBytes + payload + 4) + " bytes)";
+        } else if (crc32(chunk, kEventHeaderBytes + payload) != getU32(chunk + kEventHeaderBytes + payload)) {
+          problem = "event chunk checksum mismatch";
+        } else {
+          std::vector<RecordingEvent> events;
+          const unsigned char* p = chunk + kEventHeaderBytes;
+          const unsigned char* const end = p + payload;
+          for (std::uint32_t i = 0; i < count && problem.empty(); ++i) {
+            RecordingEvent e;
+            if (end - p < 20) {
+              problem = "malformed event chunk";
+              break;
+            }
+            std::memcpy(&e.time_s, p, 8);
+            e.tick = getU64(p + 8);
+            const std::uint32_t type_size = getU32(p + 16);
+            p += 20;
+            if (static_cast<std::size_t>(end - p) < std::size_t{type_size} + 4) {
+              problem = "malformed event chunk";
+              break;
+            }
+            e.type.assign(reinterpret_cast<const char*>(p), type_size);
+            p += type_size;
+            const std::uint32_t detail_size = getU32(p);
+            p += 4;
+            if (static_cast<std::size_t>(end - p) < detail_size) {
+              problem = "malformed event chunk";
+              break;
+            }
+            e.detail_json.assign(reinterpret_cast<const char*>(p), detail_size);
+            p += detail_size;
+            events.push_back(std::move(e));
+          }
+          if (problem.empty() && p != end) problem = "malformed event chunk";
+          if (problem.empty()) {
+            rec.events.insert(rec.events.end(), std::make_move_iterator(events.begin()),
+                              std::make_move_iterator(events.end()));
+            ++rec.event_chunks;
+            offset += kEventHeaderBytes + payload + 4;
+            continue;
+          }
+        }
+      }
+    } else if (left < kChunkHeaderBytes) {
       problem = "truncated chunk header";
     } else if (std::memcmp(chunk, kChunkTag.data(), kChunkTag.size()) != 0) {
       problem = "bad chunk tag";
@@ -270,11 +454,14 @@ Recording readRecording(const std::filesystem::path& path) {
     }
     rec.bytes_ignored = left;
     std::ostringstream msg;
-    msg << where << problem << " at byte " << offset << " (chunk " << rec.chunks << "); kept " << rec.chunks
-        << " good chunks (" << rec.records.size() << " records), ignored the last " << left << " bytes";
+    msg << where << problem << " at byte " << offset << " (chunk " << rec.chunks + rec.event_chunks << "); kept "
+        << rec.chunks + rec.event_chunks << " good chunks (" << rec.records.size() << " records, "
+        << rec.events.size() << " events), ignored the last " << left << " bytes";
     rec.warnings.push_back(msg.str());
     break;
   }
+  std::stable_sort(rec.events.begin(), rec.events.end(),
+                   [](const RecordingEvent& a, const RecordingEvent& b) { return a.tick < b.tick; });
   return rec;
 }
 
@@ -306,6 +493,28 @@ void writeRecordingCsv(const Recording& recording, const std::filesystem::path& 
   if (!out) throw std::runtime_error("writeRecordingCsv: write failed on " + path.string());
 }
 
+void writeRecordingEventsCsv(const Recording& recording, std::ostream& out) {
+  const auto quoted = [](const std::string& text) {
+    std::string q = "\"";
+    for (char c : text) {
+      if (c == '"') q += '"';
+      q += c;
+    }
+    return q + '"';
+  };
+  out << "t_s,tick,type,detail_json\n" << std::setprecision(17);
+  for (const RecordingEvent& e : recording.events)
+    out << e.time_s << ',' << e.tick << ',' << quoted(e.type) << ',' << quoted(e.detail_json) << '\n';
+}
+
+void writeRecordingEventsCsv(const Recording& recording, const std::filesystem::path& path) {
+  std::ofstream out(path);
+  if (!out) throw std::runtime_error("writeRecordingEventsCsv: cannot create " + path.string());
+  writeRecordingEventsCsv(recording, out);
+  out.flush();
+  if (!out) throw std::runtime_error("writeRecordingEventsCsv: write failed on " + path.string());
+}
+
 void writeRecordingJson(const Recording& recording, const std::filesystem::path& path) {
   nlohmann::json j;
   try {
@@ -316,11 +525,26 @@ void writeRecordingJson(const Recording& recording, const std::filesystem::path&
   j["format_version"] = recording.version;
   j["records"] = recording.records.size();
   j["chunks"] = recording.chunks;
+  j["event_chunks"] = recording.event_chunks;
   j["duration_s"] = recording.records.empty()
                         ? 0.0
                         : recording.records.back().time_s - recording.records.front().time_s;
   j["dropped_records"] = recording.dropped_records;
   j["warnings"] = recording.warnings;
+  nlohmann::json events = nlohmann::json::array();
+  for (const RecordingEvent& e : recording.events) {
+    nlohmann::json item;
+    item["t_s"] = e.time_s;
+    item["tick"] = e.tick;
+    item["type"] = e.type;
+    try {
+      item["detail"] = nlohmann::json::parse(e.detail_json);
+    } catch (const nlohmann::json::exception&) {
+      item["detail"] = e.detail_json;  // verbatim when it does not parse
+    }
+    events.push_back(std::move(item));
+  }
+  j["events"] = std::move(events);
   std::ofstream out(path);
   if (!out) throw std::runtime_error("writeRecordingJson: cannot create " + path.string());
   out << j.dump(2) << '\n';

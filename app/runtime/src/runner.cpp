@@ -14,6 +14,8 @@
 
 #include "vh/runtime/device.h"
 #include "vh/runtime/placement.h"
+#include "vh/runtime/recording.h"
+#include "vh/runtime/session_metadata.h"
 
 namespace vh::runtime {
 
@@ -68,6 +70,21 @@ RunReport runHeadless(const LoadedScene& scene, const Trajectory& trajectory, co
              "qw_p,qx_p,qy_p,qz_p,time_of_contact\n"
           << std::setprecision(9);
   }
+  std::unique_ptr<RecordingWriter> recorder;
+  if (!options.record.empty()) {
+    LoadedScene recorded = scene;
+    recorded.X_WT_initial = X_WD_first;  // the renderer above starts there
+    SessionInfo info;
+    info.device_name = device.name();
+    info.device_kind = "scripted";
+    info.note = options.record_note;
+    RecordingWriterOptions writer_options;
+    writer_options.servo_rate_Hz = options.servo_rate_Hz;
+    writer_options.ring_capacity = std::size_t{1} << 16;
+    writer_options.chunk_records =
+        std::clamp<std::size_t>(static_cast<std::size_t>(std::ceil(options.servo_rate_Hz / 2.0)), 1, 65535);
+    recorder = std::make_unique<RecordingWriter>(options.record, makeSessionMetadata(recorded, info), writer_options);
+  }
   double contact_sum = 0.0, samples_sum = 0.0;
   const auto wall_begin = std::chrono::steady_clock::now();
   for (std::uint64_t i = 0; i < n; ++i) {
@@ -106,6 +123,27 @@ RunReport runHeadless(const LoadedScene& scene, const Trajectory& trajectory, co
         }
       }
     }
+    if (recorder) {
+      TickRecord rec;
+      rec.time_s = static_cast<double>(i) / options.servo_rate_Hz;
+      rec.tick = i + 1;
+      for (int k = 0; k < 3; ++k) {
+        rec.p_WD_m[k] = sample.X_WD.p_AB_m[k];
+        rec.force_W_N[k] = out.force_W_N[k];
+        rec.torque_W_Nm[k] = out.torque_W_Nm[k];
+      }
+      rec.q_WD[0] = sample.X_WD.R_AB.w(); rec.q_WD[1] = sample.X_WD.R_AB.x();
+      rec.q_WD[2] = sample.X_WD.R_AB.y(); rec.q_WD[3] = sample.X_WD.R_AB.z();
+      const haptics::Pose& X_WP_now = renderer.proxyPose();
+      for (int k = 0; k < 3; ++k) rec.p_WP_m[k] = X_WP_now.p_AB_m[k];
+      rec.q_WP[0] = X_WP_now.R_AB.w(); rec.q_WP[1] = X_WP_now.R_AB.x();
+      rec.q_WP[2] = X_WP_now.R_AB.y(); rec.q_WP[3] = X_WP_now.R_AB.z();
+      rec.isovalue = s;
+      rec.tick_time_s = 1e-6 * out.stats.exec_time_us;
+      rec.contacts = static_cast<std::uint32_t>(renderer.contacts().size());
+      rec.flags = (rec.contacts > 0 ? kRecordFlagContact : 0u) | (finite ? 0u : kRecordFlagNonFinite);
+      recorder->pushWaiting(rec);
+    }
     if (trace.is_open()) {
       const Eigen::Vector3d& pd = sample.X_WD.p_AB_m;
       const Eigen::Vector3d& pp = out.X_WP.p_AB_m;
@@ -117,6 +155,7 @@ RunReport runHeadless(const LoadedScene& scene, const Trajectory& trajectory, co
             << ',' << out.stats.time_of_contact << '\n';
     }
   }
+  if (recorder) recorder->close();  // throws naming the file when a write failed
   r.total_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - wall_begin).count();
   r.ticks = n;
   double sum = 0.0;

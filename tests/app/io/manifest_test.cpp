@@ -9,13 +9,13 @@
 #include <nlohmann/json.hpp>
 
 #include "io_test_support.h"
-#include "sha256.h"
+#include "vh/runtime/sha256.h"
 
 namespace {
 
 namespace fs = std::filesystem;
-using vh::io::test::sha256File;
-using vh::io::test::sha256Folder;
+using vh::runtime::sha256File;
+using vh::runtime::sha256Folder;
 using vh::io::test::sharedDir;
 
 nlohmann::json manifest() {
@@ -25,12 +25,12 @@ nlohmann::json manifest() {
 }
 
 TEST(DatasetManifest, Sha256KnownAnswers) {
-  vh::io::test::Sha256 empty;
+  vh::runtime::Sha256 empty;
   EXPECT_EQ(empty.hexDigest(), "e3b0c44298fc1c149afbf4c8996fb92427ae41e4649b934ca495991b7852b855");
-  vh::io::test::Sha256 abc;
+  vh::runtime::Sha256 abc;
   abc.update("abc");
   EXPECT_EQ(abc.hexDigest(), "ba7816bf8f01cfea414140de5dae2223b00361a396177a9cb410ff61f20015ad");
-  vh::io::test::Sha256 split;  // 56-byte message across updates
+  vh::runtime::Sha256 split;  // 56-byte message across updates
   split.update("abcdbcdecdefdefgefghfghighijhijk");
   split.update("ijkljklmklmnlmnomnopnopq");
   EXPECT_EQ(split.hexDigest(), "248d6a61d20638b8e5c026930c3e6039a33ce45964ff2167f6ecedd419db06c1");

@@ -9,6 +9,7 @@
 #include <atomic>
 #include <cstdint>
 #include <memory>
+#include <string>
 #include <thread>
 
 #include <Eigen/Core>
@@ -64,14 +65,27 @@ class HapticThread {
   /// Applied at the start of the next tick.
   void setIsovalue(double isovalue) noexcept { isovalue_.store(isovalue, std::memory_order_relaxed); }
   double isovalue() const noexcept { return isovalue_.load(std::memory_order_relaxed); }
+  /// Applied at the start of the next tick (clamped to the device's stable stiffness). While
+  /// recording, also records a "gains" event with the clamped (applied) gains
+  /// {"linear_N_per_m": k, "angular_Nm_per_rad": k_r, "requested": {...}}. Not on the servo thread.
   void setGains(const haptics::CouplingGains& gains) noexcept;
 
   /// Records every tick from the next one on into `recorder` (one TickRecord per tick, pushed
   /// without blocking or allocating; a full ring drops the record and the recorder counts it).
   /// Not owned: it must outlive the recording. Set it before start(), or clear it (nullptr) and
   /// only destroy the recorder after stop(): the servo thread may be inside push() otherwise.
-  /// TickRecord::time_s counts servo periods (tick * period) from the first recorded tick.
+  /// TickRecord::time_s counts servo periods (tick * period) from the recording's first tick (a
+  /// new recorder, or the same one set again after nullptr, starts a new clock).
+  /// The servo thread also sets kRecordFlagDeviceDisconnected while Device::connected() is false
+  /// (the writer turns changes into device_connected / device_disconnected events) and
+  /// kRecordFlagForceLimited when the safety layer changed the force or torque.
   void setRecorder(RecordingWriter* recorder) noexcept { recorder_.store(recorder, std::memory_order_release); }
+
+  /// Adds an event to the current recording stamped with the latest servo tick and time; a
+  /// no-op when not recording. Any thread but the servo thread (it allocates). The recorder
+  /// must not be destroyed concurrently (see setRecorder()).
+  /// @throws std::invalid_argument when detail_json is not a JSON object (RecordingWriter::addEvent()).
+  void recordEvent(const std::string& type, const std::string& detail_json);
 
   /// Latest snapshot (never blocks). @return true when it is newer than the last call's.
   bool latestSnapshot(HapticSnapshot& out) noexcept { return snapshots_.read(out); }
@@ -91,6 +105,10 @@ class HapticThread {
   std::atomic<bool> fifo_{false};
   std::atomic<bool> memory_locked_{false};
   std::atomic<RecordingWriter*> recorder_{nullptr};
+  /// Latest recorded tick and its TickRecord::time_s (servo thread writes; 0 before the first).
+  /// Packed: tick in the atomic, time recomputed from it and the first recorded tick.
+  std::atomic<std::uint64_t> latest_recorded_tick_{0};
+  std::atomic<std::uint64_t> first_recorded_tick_{0};
   TripleBuffer<HapticSnapshot> snapshots_;
   std::thread thread_;
 };

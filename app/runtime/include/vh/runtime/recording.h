@@ -2,29 +2,46 @@
 /// @file
 /// Session recordings: one fixed-size TickRecord per servo tick, pushed by the servo thread into
 /// a preallocated lock-free single-producer / single-consumer ring (TickRing), drained to disk by
-/// a writer thread (RecordingWriter) in checksummed chunks, read back by readRecording() up to the
-/// last good chunk, and exported as CSV (writeRecordingCsv()).
+/// a writer thread (RecordingWriter) in checksummed chunks together with timestamped events
+/// (RecordingEvent: markers, isovalue / tool / gains changes, device connect / disconnect), read
+/// back by readRecording() up to the last good chunk, and exported as CSV (writeRecordingCsv(),
+/// writeRecordingEventsCsv()) and JSON (writeRecordingJson()). The session metadata is made by
+/// makeSessionMetadata() (session_metadata.h); replay.h replays a recording bit for bit.
 ///
-/// ## File format, version 1 (`.vhrec`)
+/// ## File format, version 2 (`.vhrec`)
 /// All integers and doubles are little-endian (IEEE-754 binary64 for doubles); the writer
 /// refuses to build on a big-endian host. The file is written append-only.
 ///
 ///   File header (24 bytes, then the metadata):
 ///     offset  size  field
 ///          0     8  magic "VHREC\r\n\x1a" (bytes 56 48 52 45 43 0d 0a 1a)
-///          8     4  uint32 format version (kRecordingFormatVersion = 1)
+///          8     4  uint32 format version (kRecordingFormatVersion = 2; readers accept 1 and 2)
 ///         12     4  uint32 record size in bytes (sizeof(TickRecord) = 200)
 ///         16     4  uint32 metadata length M in bytes
 ///         20     4  uint32 CRC-32 of the M metadata bytes
-///         24     M  metadata: one UTF-8 JSON object (session, scene, device, ...; free form,
-///                   plus "servo_rate_Hz" and "start_time_utc" added by the writer)
-///   Then zero or more chunks, back to back:
+///         24     M  metadata: one UTF-8 JSON object (makeSessionMetadata(): scene, dataset and
+///                   its SHA-256, tool, point shell, gains, device, software version; plus
+///                   "servo_rate_Hz" and "start_time_utc" added by the writer)
+///   Then zero or more chunks, back to back, in any order; two kinds, told apart by the tag.
+///   Record chunk:
 ///     offset  size  field
 ///          0     4  chunk tag "CHNK" (bytes 43 48 4e 4b)
 ///          4     4  uint32 record count N (1 .. 65535)
 ///          8     8  uint64 dropped records in total when the chunk was written (ring overflow)
 ///         16  N*200 N TickRecord, each the byte image of the struct (layout below)
 ///   16+N*200     4  uint32 CRC-32 of bytes [0, 16 + N*200) of the chunk
+///   Event chunk (version 2 only; written before the record chunk it was flushed with):
+///     offset  size  field
+///          0     4  chunk tag "EVNT" (bytes 45 56 4e 54)
+///          4     4  uint32 event count N (1 .. 65535)
+///          8     4  uint32 payload length B in bytes (<= 16 MiB)
+///         12     B  N events back to back, each:
+///                     double  time_s   servo time since the recording started [s]
+///                     uint64  tick     servo tick counter
+///                     uint32  T, then T bytes: type, UTF-8 ("marker", "isovalue", ...)
+///                     uint32  J, then J bytes: detail, UTF-8 JSON object text
+///       12+B     4  uint32 CRC-32 of bytes [0, 12 + B) of the chunk
+///   Version 1 files are the same without event chunks.
 ///
 ///   TickRecord (200 bytes; all frames are the scene (world) frame W, SI units):
 ///     offset  field
@@ -44,9 +61,18 @@
 /// CRC-32 is the ISO-HDLC / zlib one (reflected polynomial 0xEDB88320, init and final XOR
 /// 0xFFFFFFFF; crc32("123456789") = 0xCBF43926).
 ///
-/// Size: 200 bytes per tick plus 20 bytes per chunk; at 1 kHz with the default 500-record
-/// chunks that is 200,040 bytes (about 195 KiB) per second of recording, about 720 MB per hour,
-/// plus the header (24 bytes + the metadata, typically well under 1 KiB).
+/// Size: 200 bytes per tick plus 20 bytes per record chunk; at 1 kHz with the default
+/// 500-record chunks that is 200,040 bytes (about 195 KiB) per second of recording, about
+/// 720 MB per hour, plus the header (24 bytes + the metadata, typically 1-2 KiB) and the events
+/// (16 bytes of framing per event chunk, 24 bytes + type + detail per event, e.g. 57 bytes for
+/// an isovalue change {"from":400,"to":500}; sessions have a few per minute).
+///
+/// Events come from RecordingWriter::addEvent() (any thread but the servo thread; e.g.
+/// HapticThread::recordEvent() for markers, tool and gains changes) and from the writer thread
+/// itself, which watches the records: an isovalue that differs from the previous record's gives
+/// an "isovalue" event {"from":A,"to":B}; kRecordFlagDeviceDisconnected turning on / off gives
+/// "device_disconnected" / "device_connected" (the first record's state is in the metadata; a
+/// recording that starts disconnected gets a "device_disconnected" event at its first tick).
 ///
 /// A crash (even `kill -9`) loses only the records not yet written: the writer flushes a chunk
 /// at least every RecordingWriterOptions::max_chunk_wall_s (< 1 s) and every chunk holds at most
@@ -60,6 +86,7 @@
 #include <filesystem>
 #include <iosfwd>
 #include <memory>
+#include <mutex>
 #include <string>
 #include <thread>
 #include <type_traits>
@@ -67,7 +94,7 @@
 
 namespace vh::runtime {
 
-inline constexpr std::uint32_t kRecordingFormatVersion = 1;
+inline constexpr std::uint32_t kRecordingFormatVersion = 2;
 
 /// TickRecord::flags bits.
 inline constexpr std::uint32_t kRecordFlagContact = 1u << 0;        ///< contacts > 0.
@@ -76,6 +103,10 @@ inline constexpr std::uint32_t kRecordFlagDeadlineMiss = 1u << 2;   ///< Tick st
 inline constexpr std::uint32_t kRecordFlagForceZeroed = 1u << 3;    ///< The safety layer sent zero.
 inline constexpr std::uint32_t kRecordFlagNonFinite = 1u << 4;      ///< The renderer computed a NaN / inf.
 inline constexpr std::uint32_t kRecordFlagStopping = 1u << 5;       ///< Force ramped down by stop().
+inline constexpr std::uint32_t kRecordFlagDeviceDisconnected = 1u << 6;  ///< Device::connected() was false.
+/// The safety layer changed the renderer's force or torque (clamped, ramped or gated; includes
+/// kRecordFlagForceZeroed ticks): the recorded force is not the renderer's.
+inline constexpr std::uint32_t kRecordFlagForceLimited = 1u << 7;
 
 /// One servo tick, fixed size, trivially copyable (its byte image is what the file stores).
 /// Frames: W is the scene (world) frame; D the device (tool) frame; P the proxy frame.
@@ -96,6 +127,15 @@ struct TickRecord {
 static_assert(std::is_trivially_copyable_v<TickRecord>);
 static_assert(std::is_standard_layout_v<TickRecord>);
 static_assert(sizeof(TickRecord) == 200, "the file format stores 200-byte records");
+
+/// One timestamped event of a session (marker, isovalue change, tool change, device
+/// connect/disconnect, ...).
+struct RecordingEvent {
+  double time_s = 0.0;       ///< Servo time since the recording started [s] (same clock as TickRecord::time_s).
+  std::uint64_t tick = 0;    ///< Servo tick counter (same as TickRecord::tick).
+  std::string type;          ///< "marker", "isovalue", "tool", "gains", "device_connected", "device_disconnected", "note", ...
+  std::string detail_json;   ///< A JSON object text, e.g. {"label":"nerve"} or {"from":400,"to":500}.
+};
 
 /// CRC-32 (ISO-HDLC / zlib) of `size` bytes, continuing from `crc` (0 to start).
 std::uint32_t crc32(const void* data, std::size_t size, std::uint32_t crc = 0) noexcept;
@@ -151,6 +191,16 @@ class RecordingWriter {
 
   /// Servo thread only: never blocks, allocates or throws. @return false when dropped.
   bool push(const TickRecord& record) noexcept { return ring_.push(record); }
+  /// For producers that are not real-time (the headless runner, which ticks faster than the
+  /// writer drains): waits (sleeping 1 ms at a time) while the ring is full instead of dropping.
+  /// One producer thread only, as push(); never mix the two on different threads.
+  void pushWaiting(const TickRecord& record) noexcept;
+  /// Adds an event; any thread but the servo thread; thread-safe; may allocate. It is written
+  /// to disk with the next chunk flush (at most max_chunk_wall_s later) and at close().
+  /// An empty detail_json stands for {}.
+  /// @throws std::invalid_argument when detail_json is not a JSON object or type is empty;
+  ///         std::logic_error after close().
+  void addEvent(const RecordingEvent& event);
   /// Stops the writer thread after it drained the ring, writes the last chunk, closes the file.
   /// Idempotent. @throws std::runtime_error when a write failed (the message says which).
   void close();
@@ -158,17 +208,29 @@ class RecordingWriter {
   std::uint64_t dropped() const noexcept { return ring_.dropped(); }
   /// Records written to disk so far (any thread).
   std::uint64_t recordsWritten() const noexcept { return written_.load(std::memory_order_relaxed); }
+  /// Events written to disk so far (any thread).
+  std::uint64_t eventsWritten() const noexcept { return events_written_.load(std::memory_order_relaxed); }
   const std::filesystem::path& path() const noexcept { return path_; }
 
  private:
   void run() noexcept;
   bool writeChunk(const TickRecord* records, std::size_t count) noexcept;
+  /// Writer thread: events the records imply (isovalue changes, device (dis)connection).
+  void deriveEvents(const TickRecord* records, std::size_t count);
+  /// Writer thread: writes the pending events as one event chunk (nothing when none).
+  bool writeEvents() noexcept;
 
   std::filesystem::path path_;
   RecordingWriterOptions options_;
   TickRing ring_;
   std::FILE* file_ = nullptr;
   std::vector<TickRecord> chunk_;
+  std::mutex events_mutex_;
+  std::vector<RecordingEvent> pending_events_;  // guarded by events_mutex_
+  bool have_previous_ = false;                  // writer thread: deriveEvents() state
+  double previous_isovalue_ = 0.0;
+  bool previous_disconnected_ = false;
+  std::atomic<std::uint64_t> events_written_{0};
   std::atomic<bool> stop_{false};
   std::atomic<bool> failed_{false};
   std::atomic<std::uint64_t> written_{0};
@@ -181,7 +243,10 @@ struct Recording {
   std::uint32_t version = 0;
   std::string metadata_json;           ///< The header's JSON object, verbatim.
   std::vector<TickRecord> records;     ///< Every record of every good chunk, in order.
-  std::size_t chunks = 0;              ///< Good chunks read.
+  /// Every event of every good chunk, in order (sorted by tick, stable; empty for version 1).
+  std::vector<RecordingEvent> events;
+  std::size_t chunks = 0;              ///< Good record chunks read.
+  std::size_t event_chunks = 0;        ///< Good event chunks read.
   std::uint64_t dropped_records = 0;   ///< Ring overflows as of the last good chunk.
   std::uint64_t bytes_ignored = 0;     ///< Bytes after the last good chunk.
   std::vector<std::string> warnings;   ///< Truncated / corrupted tail; empty for a clean file.
@@ -201,8 +266,13 @@ Recording readRecording(const std::filesystem::path& path);
 void writeRecordingCsv(const Recording& recording, std::ostream& out);
 /// The same to a file. @throws std::runtime_error when it cannot be written.
 void writeRecordingCsv(const Recording& recording, const std::filesystem::path& path);
+/// One CSV row per event: `t_s,tick,type,detail_json` (type and detail quoted as RFC 4180:
+/// in double quotes, inner quotes doubled). @throws std::runtime_error when it cannot be written.
+void writeRecordingEventsCsv(const Recording& recording, std::ostream& out);
+void writeRecordingEventsCsv(const Recording& recording, const std::filesystem::path& path);
 /// The metadata plus a summary (version, records, chunks, duration_s, dropped_records,
-/// warnings) as pretty-printed JSON. @throws std::runtime_error when it cannot be written.
+/// warnings) and the events ("events": [{"t_s", "tick", "type", "detail"}], detail parsed) as
+/// pretty-printed JSON. @throws std::runtime_error when it cannot be written.
 void writeRecordingJson(const Recording& recording, const std::filesystem::path& path);
 
 }  // namespace vh::runtime

@@ -26,6 +26,13 @@ struct RunOptions {
   /// force [N], torque [N*m], contacts, exec_us, penetration_m, proxy quaternion, time of
   /// contact) for inspecting a run.
   std::filesystem::path trace_csv;
+  /// Non-empty: also write a session recording (recording.h) here: makeSessionMetadata() with
+  /// the trajectory's first pose as the initial pose and device kind "scripted", one TickRecord
+  /// per tick (tick i + 1, time_s = i / servo_rate_Hz, tick_time_s = the renderer's exec time;
+  /// no safety layer, so forces are the renderer's), and the events the writer derives. Replays
+  /// bit for bit with replayRecording() (default RendererOptions, as the runner uses).
+  std::filesystem::path record;
+  std::string record_note;  ///< SessionInfo::note of the recording.
 };
 
 /// What one headless run measured. Times are the renderer's TickStats::exec_time_us.

@@ -1,11 +1,11 @@
-#include "sha256.h"
+#include "vh/runtime/sha256.h"
 
 #include <algorithm>
 #include <cstdio>
 #include <fstream>
 #include <vector>
 
-namespace vh::io::test {
+namespace vh::runtime {
 namespace {
 
 constexpr std::array<std::uint32_t, 64> kK = {
@@ -129,4 +129,4 @@ std::string sha256Folder(const std::filesystem::path& folder) {
   return listing.hexDigest();
 }
 
-}  // namespace vh::io::test
+}  // namespace vh::runtime

@@ -1,6 +1,8 @@
 #pragma once
 /// @file
-/// SHA-256 (FIPS 180-4) for the dataset manifest test; no external dependency.
+/// SHA-256 (FIPS 180-4) for dataset checksums in session recordings (session_metadata.h).
+/// Own code: no dependency of the project provides SHA-256 (VTK's vtksys has only MD5, OpenSSL
+/// is not a dependency, Qt is not allowed in vh::runtime). Also checks datasets/manifest.json (tests/app/io/manifest_test.cpp).
 
 #include <array>
 #include <cstddef>
@@ -9,7 +11,7 @@
 #include <string>
 #include <string_view>
 
-namespace vh::io::test {
+namespace vh::runtime {
 
 class Sha256 {
  public:
@@ -34,4 +36,4 @@ std::string sha256File(const std::filesystem::path& file);
 /// `find . -type f | sed 's|^\./||' | LC_ALL=C sort | xargs sha256sum`.
 std::string sha256Folder(const std::filesystem::path& folder);
 
-}  // namespace vh::io::test
+}  // namespace vh::runtime

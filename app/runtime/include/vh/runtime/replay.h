@@ -1,0 +1,78 @@
+#pragma once
+/// @file
+/// Replaying recordings (recording.h): ReplayDevice feeds the recorded device poses back one per
+/// read, and replayRecording() re-runs a recording through a fresh renderer of the same scene
+/// and reports the first tick whose proxy pose, force or torque differs bit for bit from the
+/// recorded one (the determinism check of issue 6).
+
+#include <atomic>
+#include <cstdint>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "vh/haptics/haptic_renderer.h"
+#include "vh/runtime/device.h"
+#include "vh/runtime/recording.h"
+#include "vh/runtime/scene.h"
+
+namespace vh::runtime {
+
+/// A Device that returns a recording's device poses, one record per read (like ScriptedDevice
+/// steps its trajectory): read i returns record i's X_WD (p_WD_m, q_WD) with time_s = the
+/// record's time_s; a record flagged kRecordFlagBadSample reads as invalid (no sample), as the
+/// servo thread saw it. After the last record it keeps returning the last pose (valid) and
+/// finished() is true. Forces commanded to it are ignored. connected() is true.
+class ReplayDevice final : public Device {
+ public:
+  /// @param records non-empty, in tick order. @param source names it in name().
+  /// @throws std::invalid_argument for no records.
+  explicit ReplayDevice(std::vector<TickRecord> records, std::string source = {});
+  std::string name() const override;
+  bool read(DeviceSample& sample) noexcept override;
+  void command(const Eigen::Vector3d& force_W_N, const Eigen::Vector3d& torque_W_Nm) noexcept override;
+  /// The record the next read() returns (records().size() once finished); servo thread.
+  std::size_t cursor() const noexcept { return cursor_; }
+  const std::vector<TickRecord>& records() const noexcept { return records_; }
+  /// Reads served so far (any thread).
+  std::uint64_t reads() const noexcept { return reads_.load(std::memory_order_relaxed); }
+  /// True once every record was read (any thread).
+  bool finished() const noexcept { return finished_.load(std::memory_order_acquire); }
+
+ private:
+  std::vector<TickRecord> records_;
+  std::string source_;
+  std::size_t cursor_ = 0;  // servo thread only
+  std::atomic<std::uint64_t> reads_{0};
+  std::atomic<bool> finished_{false};
+};
+
+/// What replayRecording() found.
+struct ReplayComparison {
+  std::uint64_t ticks_replayed = 0;   ///< Records whose device sample was rendered.
+  std::uint64_t forces_compared = 0;  ///< Records whose force / torque were compared.
+  bool identical = true;              ///< Every compared value equal bit for bit.
+  /// The first record that differs (TickRecord::tick and its index), and what differed:
+  /// "proxy position", "proxy orientation", "force", "torque" or "contacts".
+  std::optional<std::uint64_t> first_mismatch_tick;
+  std::size_t first_mismatch_index = 0;
+  std::string mismatch;
+};
+
+/// Re-runs `recording` through a fresh renderer of `scene` (scene.makeRenderer(options), so the
+/// proxy starts at scene.X_WT_initial, which must be the recorded initial pose: use
+/// loadScene(sceneFromSessionMetadata(recording.metadata_json)) or the scene it was recorded on)
+/// fed by a ReplayDevice, as the haptic thread drives it: gains set once before the first tick
+/// (the scene's), each record's isovalue, no tick for a record flagged kRecordFlagBadSample.
+/// A "gains" event ({"linear_N_per_m": k, "angular_Nm_per_rad": k_r}) is applied before the
+/// first record after its tick (exact only when the change took effect on the next tick).
+/// After each rendered tick it compares the proxy pose (always), the contact count, and the
+/// force and torque (only on records without kRecordFlagForceLimited, kRecordFlagForceZeroed or
+/// kRecordFlagStopping, where the safety layer sent the renderer's output unchanged), and stops
+/// at the first difference. Not for the servo thread (allocates).
+/// @throws std::invalid_argument for a recording without records; as HapticRenderer's
+///         constructor.
+ReplayComparison replayRecording(const LoadedScene& scene, const Recording& recording,
+                                 const haptics::RendererOptions& options = {});
+
+}  // namespace vh::runtime

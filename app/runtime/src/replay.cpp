@@ -1,0 +1,115 @@
+// Replaying recordings: the replay device and the bit-for-bit re-run (vh/runtime/replay.h).
+#include "vh/runtime/replay.h"
+
+#include <cstring>
+#include <stdexcept>
+
+#include <nlohmann/json.hpp>
+
+namespace vh::runtime {
+namespace {
+
+haptics::Pose poseOf(const double p[3], const double q[4]) {
+  haptics::Pose X;
+  X.p_AB_m = {p[0], p[1], p[2]};
+  X.R_AB = Eigen::Quaterniond(q[0], q[1], q[2], q[3]);
+  return X;
+}
+
+bool sameBits(double a, double b) noexcept { return std::memcmp(&a, &b, sizeof a) == 0; }
+
+}  // namespace
+
+ReplayDevice::ReplayDevice(std::vector<TickRecord> records, std::string source)
+    : records_(std::move(records)), source_(std::move(source)) {
+  if (records_.empty()) throw std::invalid_argument("ReplayDevice: the recording has no records");
+}
+
+std::string ReplayDevice::name() const {
+  return source_.empty() ? std::string("Replay device") : "Replay device (" + source_ + ")";
+}
+
+bool ReplayDevice::read(DeviceSample& sample) noexcept {
+  const std::size_t i = cursor_ < records_.size() ? cursor_ : records_.size() - 1;
+  const TickRecord& r = records_[i];
+  const bool past_end = cursor_ >= records_.size();
+  sample.time_s = r.time_s;
+  sample.X_WD = poseOf(r.p_WD_m, r.q_WD);
+  sample.v_WD_m_per_s.setZero();
+  sample.w_WD_rad_per_s.setZero();
+  sample.buttons = 0;
+  sample.connection = 0;
+  sample.valid = past_end || (r.flags & kRecordFlagBadSample) == 0;
+  if (!past_end) ++cursor_;
+  reads_.fetch_add(1, std::memory_order_relaxed);
+  if (cursor_ >= records_.size()) finished_.store(true, std::memory_order_release);
+  return sample.valid;
+}
+
+void ReplayDevice::command(const Eigen::Vector3d& /*force_W_N*/, const Eigen::Vector3d& /*torque_W_Nm*/) noexcept {}
+
+ReplayComparison replayRecording(const LoadedScene& scene, const Recording& recording,
+                                 const haptics::RendererOptions& options) {
+  if (recording.records.empty()) throw std::invalid_argument("replayRecording: the recording has no records");
+  // "gains" events, in tick order (readRecording() sorts events by tick).
+  struct GainsChange {
+    std::uint64_t tick;
+    haptics::CouplingGains gains;
+  };
+  std::vector<GainsChange> gains_changes;
+  for (const RecordingEvent& e : recording.events) {
+    if (e.type != "gains") continue;
+    try {
+      const nlohmann::json d = nlohmann::json::parse(e.detail_json);
+      haptics::CouplingGains g = scene.spec.gains;
+      g.linear_N_per_m = d.value("linear_N_per_m", g.linear_N_per_m);
+      g.angular_Nm_per_rad = d.value("angular_Nm_per_rad", g.angular_Nm_per_rad);
+      gains_changes.push_back({e.tick, g});
+    } catch (const nlohmann::json::exception&) {  // a malformed event changes nothing
+    }
+  }
+
+  std::unique_ptr<haptics::HapticRenderer> renderer = scene.makeRenderer(options);
+  renderer->setGains(renderer->coupling().gains());  // as the haptic thread does before its first tick
+  ReplayDevice device(recording.records, "replayRecording");
+  ReplayComparison result;
+  std::size_t next_gains = 0;
+  const auto fail = [&result](const TickRecord& r, std::size_t index, const char* what) {
+    result.identical = false;
+    result.first_mismatch_tick = r.tick;
+    result.first_mismatch_index = index;
+    result.mismatch = what;
+    return result;
+  };
+  for (std::size_t i = 0; i < recording.records.size(); ++i) {
+    const TickRecord& r = recording.records[i];
+    while (next_gains < gains_changes.size() && gains_changes[next_gains].tick < r.tick) {
+      renderer->setGains(gains_changes[next_gains].gains);
+      ++next_gains;
+    }
+    DeviceSample sample;
+    const bool ok = device.read(sample) && sample.valid && sample.X_WD.allFinite();
+    haptics::TickOutput out;
+    if (ok) {
+      out = renderer->tick(sample.X_WD, r.isovalue);
+      ++result.ticks_replayed;
+    }
+    const haptics::Pose& X_WP = renderer->proxyPose();
+    for (int k = 0; k < 3; ++k)
+      if (!sameBits(X_WP.p_AB_m[k], r.p_WP_m[k])) return fail(r, i, "proxy position");
+    if (!sameBits(X_WP.R_AB.w(), r.q_WP[0]) || !sameBits(X_WP.R_AB.x(), r.q_WP[1]) ||
+        !sameBits(X_WP.R_AB.y(), r.q_WP[2]) || !sameBits(X_WP.R_AB.z(), r.q_WP[3]))
+      return fail(r, i, "proxy orientation");
+    if (renderer->contacts().size() != r.contacts) return fail(r, i, "contacts");
+    if (ok && (r.flags & (kRecordFlagForceLimited | kRecordFlagForceZeroed | kRecordFlagStopping)) == 0) {
+      for (int k = 0; k < 3; ++k)
+        if (!sameBits(out.force_W_N[k], r.force_W_N[k])) return fail(r, i, "force");
+      for (int k = 0; k < 3; ++k)
+        if (!sameBits(out.torque_W_Nm[k], r.torque_W_Nm[k])) return fail(r, i, "torque");
+      ++result.forces_compared;
+    }
+  }
+  return result;
+}
+
+}  // namespace vh::runtime

@@ -1,0 +1,280 @@
+// Session metadata for recordings: scene, dataset identity and SHA-256, tool, device, software.
+// The layout and checksum rules are documented in vh/runtime/session_metadata.h.
+#include "vh/runtime/session_metadata.h"
+
+#include <algorithm>
+#include <cctype>
+#include <ctime>
+#include <fstream>
+#include <map>
+#include <mutex>
+#include <stdexcept>
+
+#include <nlohmann/json.hpp>
+
+#include "vh/runtime/sha256.h"
+
+#ifndef VH_SOFTWARE_VERSION
+#define VH_SOFTWARE_VERSION "unknown"
+#endif
+
+namespace vh::runtime {
+namespace {
+
+namespace fs = std::filesystem;
+using nlohmann::json;
+
+constexpr std::string_view kBuiltinPrefix = "builtin:";
+
+bool isBuiltin(const std::string& path) { return path.rfind(kBuiltinPrefix, 0) == 0; }
+
+std::string lower(std::string s) {
+  for (char& c : s) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+  return s;
+}
+
+std::string trim(const std::string& s) {
+  const auto b = s.find_first_not_of(" \t\r\n");
+  if (b == std::string::npos) return {};
+  const auto e = s.find_last_not_of(" \t\r\n");
+  return s.substr(b, e - b + 1);
+}
+
+std::string utcNow() {
+  const std::time_t now = std::time(nullptr);
+  std::tm tm{};
+  gmtime_r(&now, &tm);
+  char buf[32];
+  std::strftime(buf, sizeof buf, "%Y-%m-%dT%H:%M:%SZ", &tm);
+  return buf;
+}
+
+/// The data files a detached header (.nhdr "data file:" / .mhd "ElementDataFile =") names,
+/// relative to the header's folder, in order; empty when the data is attached (or LOCAL).
+std::vector<std::string> detachedDataFiles(const fs::path& header, bool nrrd) {
+  std::ifstream in(header);
+  if (!in) throw std::runtime_error("dataset checksum: cannot read " + header.string());
+  std::vector<std::string> files;
+  std::string line;
+  bool list = false;
+  while (std::getline(in, line)) {
+    if (list) {
+      const std::string name = trim(line);
+      if (!name.empty()) files.push_back(name);
+      continue;
+    }
+    if (nrrd && trim(line).empty()) break;  // end of the NRRD header
+    const std::string::size_type sep = line.find(nrrd ? ':' : '=');
+    if (sep == std::string::npos) continue;
+    const std::string key = lower(trim(line.substr(0, sep)));
+    const std::string value = trim(line.substr(sep + 1));
+    const bool is_data_key = nrrd ? (key == "data file" || key == "datafile") : (key == "elementdatafile");
+    if (!is_data_key) continue;
+    if (lower(value) == "local") break;
+    if (lower(value.substr(0, 4)) == "list") {
+      list = true;
+      continue;
+    }
+    if (value.find('%') != std::string::npos || (!nrrd && value.find(' ') != std::string::npos)) {
+      throw std::runtime_error("dataset checksum: " + header.string() +
+                               ": data file patterns are not supported (\"" + value + "\")");
+    }
+    files.push_back(value);
+    if (!nrrd) break;  // ElementDataFile is the header's last line
+  }
+  return files;
+}
+
+/// Cache key: path, total size and newest modification time of what the checksum covers.
+struct CacheEntry {
+  std::uintmax_t bytes = 0;
+  fs::file_time_type newest = fs::file_time_type::min();
+  DatasetChecksum checksum;
+};
+
+std::mutex g_cache_mutex;
+std::map<std::string, CacheEntry>& cache() {
+  static std::map<std::string, CacheEntry> entries;
+  return entries;
+}
+
+std::string hashFileOrThrow(const fs::path& file) {
+  if (!fs::is_regular_file(file)) throw std::runtime_error("dataset checksum: missing file " + file.string());
+  std::string digest = sha256File(file);
+  if (digest.empty()) throw std::runtime_error("dataset checksum: cannot read " + file.string());
+  return digest;
+}
+
+DatasetChecksum computeChecksum(const fs::path& path, const std::vector<std::string>& files, const std::string& kind) {
+  DatasetChecksum c;
+  c.kind = kind;
+  c.files = files;
+  if (kind == "file") {
+    c.sha256 = hashFileOrThrow(path);
+    return c;
+  }
+  const fs::path base = fs::is_directory(path) ? path : path.parent_path();
+  Sha256 listing;
+  for (const std::string& f : files) listing.update(hashFileOrThrow(base / f) + "  " + f + "\n");
+  c.sha256 = listing.hexDigest();
+  return c;
+}
+
+json poseJson(const haptics::Pose& X) {
+  const Eigen::Quaterniond& q = X.R_AB;
+  return {{"p_m", {X.p_AB_m.x(), X.p_AB_m.y(), X.p_AB_m.z()}}, {"q_wxyz", {q.w(), q.x(), q.y(), q.z()}}};
+}
+
+}  // namespace
+
+DatasetChecksum datasetChecksum(const std::string& volume_path) {
+  if (isBuiltin(volume_path)) {
+    Sha256 sha;
+    sha.update(volume_path);
+    return {"builtin", sha.hexDigest(), {}};
+  }
+  const fs::path path(volume_path);
+  if (!fs::exists(path)) throw std::runtime_error("dataset missing: " + volume_path);
+  // What the checksum covers, with the cache key (sizes and times), before reading any byte.
+  std::string kind;
+  std::vector<std::string> files;
+  if (fs::is_directory(path)) {
+    kind = "dicom-folder";
+    for (const auto& e : fs::recursive_directory_iterator(path))
+      if (e.is_regular_file()) files.push_back(fs::relative(e.path(), path).generic_string());
+    std::sort(files.begin(), files.end());
+  } else {
+    const std::string ext = lower(path.extension().string());
+    if (ext == ".nhdr" || ext == ".mhd") {
+      kind = ext == ".nhdr" ? "nrrd" : "metaimage";
+      files.push_back(path.filename().string());
+      for (const std::string& f : detachedDataFiles(path, ext == ".nhdr")) files.push_back(f);
+    } else {
+      kind = ext == ".nrrd" ? "nrrd" : ext == ".mha" ? "metaimage" : "file";
+      files.push_back(path.filename().string());
+    }
+  }
+  CacheEntry key;
+  const fs::path base = fs::is_directory(path) ? path : path.parent_path();
+  for (const std::string& f : files) {
+    std::error_code ec;
+    key.bytes += fs::file_size(base / f, ec);
+    const fs::file_time_type t = fs::last_write_time(base / f, ec);
+    if (!ec) key.newest = std::max(key.newest, t);
+  }
+  const std::string cache_key = fs::absolute(path).lexically_normal().string();
+  {
+    const std::lock_guard<std::mutex> lock(g_cache_mutex);
+    const auto it = cache().find(cache_key);
+    if (it != cache().end() && it->second.bytes == key.bytes && it->second.newest == key.newest &&
+        it->second.checksum.files == files)
+      return it->second.checksum;
+  }
+  // "file" kind hashes the bytes themselves (sha256sum); the others a listing of files.
+  key.checksum = computeChecksum(path, files, (kind == "nrrd" || kind == "metaimage") && files.size() == 1 ? "file" : kind);
+  key.checksum.kind = kind;
+  const std::lock_guard<std::mutex> lock(g_cache_mutex);
+  cache()[cache_key] = key;
+  return key.checksum;
+}
+
+std::string makeSessionMetadata(const LoadedScene& scene, const SessionInfo& info) {
+  const SceneSpec& spec = scene.spec;
+  json j;
+  j["format"] = "volume-haptics session";
+  j["software"] = {{"name", "volume-haptics"}, {"version", VH_SOFTWARE_VERSION}};
+  j["start_time_utc"] = utcNow();
+  j["servo_rate_Hz"] = 1000.0;
+
+  json sc;
+  sc["source"] = spec.source.string();
+  sc["volume"] = {{"path", spec.volume.path}, {"isovalue", scene.isovalue}};
+  sc["tool"] = {{"mesh", spec.tool.mesh},
+                {"scale_to_m", spec.tool.scale_to_m},
+                {"point_spacing_m", spec.tool.point_spacing_m},
+                {"point_count", spec.tool.point_count},
+                {"initial_pose", poseJson(scene.X_WT_initial)}};
+  sc["coupling"] = {{"linear_N_per_m", spec.gains.linear_N_per_m}, {"angular_Nm_per_rad", spec.gains.angular_Nm_per_rad}};
+  j["scene"] = sc;
+
+  const DatasetChecksum checksum = datasetChecksum(spec.volume.path);
+  json ds;
+  ds["path"] = spec.volume.path;
+  ds["kind"] = checksum.kind;
+  if (scene.volume.field) {
+    const auto& g = scene.volume.field->geometry();
+    ds["dims"] = g.dims;
+    ds["spacing_m"] = {g.spacing_m.x(), g.spacing_m.y(), g.spacing_m.z()};
+  }
+  ds["format"] = scene.volume.info.format;
+  ds["modality"] = scene.volume.info.modality;
+  ds["value_unit"] = scene.volume.info.value_unit;
+  ds["description"] = scene.volume.info.description;
+  ds["sha256"] = checksum.sha256;
+  ds["checksum_files"] = checksum.files;
+  j["dataset"] = ds;
+
+  json tool;
+  tool["mesh"] = spec.tool.mesh;
+  if (scene.tool) {
+    tool["point_count"] = scene.tool->point_shell.size();
+    tool["point_spacing_m"] = scene.tool->point_shell.meanNearestNeighbourSpacing_m();
+  }
+  j["tool"] = tool;
+  j["gains"] = sc["coupling"];
+  j["device"] = {{"name", info.device_name}, {"kind", info.device_kind}};
+  if (!info.note.empty()) j["note"] = info.note;
+  return j.dump();
+}
+
+SceneSpec sceneFromSessionMetadata(const std::string& metadata_json) {
+  json j;
+  try {
+    j = json::parse(metadata_json);
+  } catch (const json::exception& e) {
+    throw std::runtime_error(std::string("session metadata is not JSON: ") + e.what());
+  }
+  if (!j.is_object() || !j.contains("scene"))
+    throw std::runtime_error("session metadata has no \"scene\" (not recorded by makeSessionMetadata())");
+  SceneSpec spec;
+  try {
+    const json& sc = j.at("scene");
+    spec.source = sc.value("source", std::string());
+    spec.volume.path = sc.at("volume").at("path").get<std::string>();
+    spec.volume.isovalue = sc.at("volume").at("isovalue").get<double>();
+    spec.volume.isovalue_set = true;
+    const json& tool = sc.at("tool");
+    spec.tool.mesh = tool.at("mesh").get<std::string>();
+    spec.tool.scale_to_m = tool.at("scale_to_m").get<double>();
+    spec.tool.point_spacing_m = tool.at("point_spacing_m").get<double>();
+    spec.tool.point_count = tool.at("point_count").get<std::size_t>();
+    const json& pose = tool.at("initial_pose");
+    const auto p = pose.at("p_m").get<std::vector<double>>();
+    const auto q = pose.at("q_wxyz").get<std::vector<double>>();
+    if (p.size() != 3 || q.size() != 4) throw std::runtime_error("scene.tool.initial_pose: bad p_m / q_wxyz");
+    spec.tool.X_WT_initial.p_AB_m = {p[0], p[1], p[2]};
+    spec.tool.X_WT_initial.R_AB = Eigen::Quaterniond(q[0], q[1], q[2], q[3]);  // as stored: bit for bit
+    spec.tool.initial_pose_set = true;
+    spec.gains.linear_N_per_m = sc.at("coupling").at("linear_N_per_m").get<double>();
+    spec.gains.angular_Nm_per_rad = sc.at("coupling").at("angular_Nm_per_rad").get<double>();
+  } catch (const json::exception& e) {
+    throw std::runtime_error(std::string("session metadata: bad \"scene\": ") + e.what());
+  }
+  // The dataset must be the recorded one.
+  const std::string recorded = j.contains("dataset") ? j["dataset"].value("sha256", std::string()) : std::string();
+  const std::string& volume = spec.volume.path;
+  if (!isBuiltin(volume) && !fs::exists(volume))
+    throw std::runtime_error("the recorded dataset is missing: " + volume + " (recorded SHA-256 " + recorded + ")");
+  if (!isBuiltin(spec.tool.mesh) && !fs::exists(spec.tool.mesh))
+    throw std::runtime_error("the recorded tool mesh is missing: " + spec.tool.mesh);
+  if (!recorded.empty()) {
+    const DatasetChecksum now = datasetChecksum(volume);
+    if (now.sha256 != recorded) {
+      throw std::runtime_error("the dataset " + volume + " (" + now.kind + ") differs from the recorded one: SHA-256 " +
+                               now.sha256 + " now, " + recorded + " when recorded");
+    }
+  }
+  return spec;
+}
+
+}  // namespace vh::runtime
