@@ -133,7 +133,9 @@ int runApplication(int argc, char** argv, const runtime::SceneSpec& scene, const
   const fs::path volume_path(spec.volume.path);
   const bool plain_folder = spec.source.empty() && !options.isovalue.has_value() &&
                             spec.volume.path.rfind("builtin:", 0) != 0 && fs::is_directory(volume_path, ec);
-  if (plain_folder) {
+  // A session recording (.vhrec) opens in replay (MainWindow::openPath()).
+  const bool recording = spec.source.empty() && volume_path.extension() == ".vhrec";
+  if (plain_folder || recording) {
     window->openPath(QString::fromStdString(volume_path.string()));
   } else {
     fs::path opened = spec.source;

@@ -63,9 +63,11 @@
 #include "vh/ui/haptics_panel.h"
 #include "vh/ui/histogram_slider.h"
 #include "vh/ui/orientation_marker.h"
+#include "vh/ui/replay_panel.h"
 #include "vh/ui/scene_actors.h"
 #include "vh/ui/scene_loader.h"
 #include "vh/ui/series_chooser.h"
+#include "vh/ui/session_recorder.h"
 #include "vh/ui/strip_chart.h"
 #include "vh/ui/vtk_view.h"
 
@@ -187,6 +189,7 @@ ViewerScene makeViewerScene(const runtime::LoadedScene& loaded, std::shared_ptr<
   v.gains = loaded.spec.gains;
   v.point_spacing_m = spacingOf(loaded);
   v.scene_file = !loaded.spec.source.empty();
+  v.spec = loaded.spec;
   return v;
 }
 
@@ -223,6 +226,8 @@ MainWindow::MainWindow(QWidget* parent) : QMainWindow(parent) {
 
   loader_ = new SceneLoader(this);
   buildUi();
+  recorder_ = new SessionRecorder(this);
+  replay_ = new ReplayController(this);
   buildDocks();
   buildMenus();
   connectLoader();
@@ -453,7 +458,15 @@ void MainWindow::buildDocks() {
   haptics_panel_ = new HapticsPanel(this);
   haptics_dock_ = new QDockWidget("Haptics", this);
   haptics_dock_->setObjectName("hapticsDock");
-  haptics_dock_->setWidget(haptics_panel_);
+  {
+    auto* haptics_box = new QWidget(this);
+    auto* haptics_layout = new QVBoxLayout(haptics_box);
+    haptics_layout->setContentsMargins(0, 0, 0, 0);
+    haptics_layout->setSpacing(0);
+    haptics_layout->addWidget(recorder_->makeDockControls(haptics_box));
+    haptics_layout->addWidget(haptics_panel_, 1);
+    haptics_dock_->setWidget(haptics_box);
+  }
   addDockWidget(Qt::RightDockWidgetArea, haptics_dock_);
   connect(haptics_panel_, &HapticsPanel::startStopRequested, this, [this](bool run) {
     if (run) {
@@ -498,6 +511,8 @@ void MainWindow::buildMenus() {
   recent_menu_ = file->addMenu("Open &Recent");
   recent_menu_->setObjectName("recentFilesMenu");
   rebuildRecentMenu();
+  file->addSeparator();
+  replay_->addFileMenuActions(file);
   file->addSeparator();
   QAction* shot = file->addAction("Save Screens&hot...", this, [this] {
     const QString path = QFileDialog::getSaveFileName(this, "Save a screenshot of the window",
@@ -615,6 +630,10 @@ void MainWindow::buildMenus() {
   touch->setShortcut(QKeySequence("Ctrl+T"));
   touch->setToolTip("Moves the simulated device straight towards the volume's centre until the tool rests on the surface");
   hapticsMenu->addSeparator();
+  hapticsMenu->addAction(recorder_->recordAction());
+  hapticsMenu->addAction(recorder_->markerAction());
+  addAction(recorder_->markerAction());  // M works wherever the focus is in the window
+  hapticsMenu->addSeparator();
   device_menu_ = hapticsMenu->addMenu("De&vice");
   device_actions_ = new QActionGroup(this);
   device_actions_->setExclusive(true);
@@ -677,6 +696,7 @@ void MainWindow::connectLoader() {
 // ---- Scenes --------------------------------------------------------------------------------------
 
 void MainWindow::teardownScene() {
+  if (replay_ != nullptr) replay_->onSceneTeardown();
   stopHaptics();
   if (actors_ != nullptr) {
     // VTK props release their GL objects when they leave the renderer: give them the context.
@@ -775,6 +795,7 @@ void MainWindow::installScene() {
   updateWindowTitle();
   chart_->clear();
   updateStatus();
+  recorder_->updateUi();
   view_->requestRender();
 }
 
@@ -792,6 +813,10 @@ void MainWindow::openPath(const QString& path) {
   }
   std::string ext = p.extension().string();
   std::transform(ext.begin(), ext.end(), ext.begin(), [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
+  if (ext == ".vhrec") {
+    replay_->openRecording(p);
+    return;
+  }
   if (ext == ".json") {
     try {
       openScene(runtime::loadSceneFile(p), p);
@@ -961,6 +986,20 @@ void MainWindow::dropEvent(QDropEvent* event) {
   openPath(path);
 }
 
+runtime::LoadedScene MainWindow::currentLoadedScene() const {
+  runtime::LoadedScene s;
+  s.spec = scene_.spec;
+  s.spec.tool = scene_.tool_spec;
+  s.spec.gains = gains_;
+  s.spec.volume.isovalue = isovalue_;
+  s.spec.volume.isovalue_set = true;
+  s.volume = scene_.volume;
+  s.tool = scene_.tool;
+  s.isovalue = isovalue_;
+  s.X_WT_initial = scene_.X_WT_initial;
+  return s;
+}
+
 // ---- Haptics -------------------------------------------------------------------------------------
 
 runtime::SimulatedDevice* MainWindow::simulatedDevice() const noexcept {
@@ -978,6 +1017,10 @@ QSlider* MainWindow::isovalueSlider() const noexcept { return slider_; }
 bool MainWindow::hapticsRunning() const noexcept { return scene_.haptics != nullptr && scene_.haptics->running(); }
 
 void MainWindow::startHaptics() {
+  if (replay_ != nullptr && replay_->active()) {
+    recorder_->showNotice("A recording is replayed: Close Replay first", 4000);
+    return;
+  }
   if (scene_.haptics != nullptr && !scene_.haptics->running()) {
     scene_.haptics->setIsovalue(isovalue_);
     scene_.haptics->setGains(gains_);
@@ -991,6 +1034,7 @@ void MainWindow::startHaptics() {
 void MainWindow::stopHaptics() {
   if (display_timer_ != nullptr) display_timer_->stop();
   if (scene_.haptics != nullptr && scene_.haptics->running()) scene_.haptics->stop();
+  if (recorder_ != nullptr) recorder_->onHapticsStopped();  // after the thread stopped
   if (haptics_panel_ != nullptr) updateHapticsPanel();
   updateStatus();
 }
@@ -1001,7 +1045,7 @@ void MainWindow::setGains(const haptics::CouplingGains& gains) {
   prefs_.linear_stiffness_N_per_m = gains.linear_N_per_m;
   prefs_.torsional_stiffness_Nm_per_rad = gains.angular_Nm_per_rad;
   if (scene_.haptics != nullptr) scene_.haptics->setGains(gains);
-  haptics_panel_->setGains(gains);
+  haptics_panel_->setGains(gains);  // while recording, HapticThread::setGains() records a "gains" event
 }
 
 void MainWindow::selectTool(int choice_index, double point_spacing_m) {
@@ -1016,6 +1060,7 @@ void MainWindow::selectTool(int choice_index, double point_spacing_m) {
   }
   haptics::RendererOptions options;
   options.gains = gains_;
+  recorder_->noteTool(q(tools_[static_cast<std::size_t>(choice_index)].label), point_spacing_m);
   haptics_panel_->setBuilding(true);
   loader_->buildTool(choice_index, tools_[static_cast<std::size_t>(choice_index)], point_spacing_m,
                      scene_.volume.field, isovalue_, options);
@@ -1084,10 +1129,11 @@ void MainWindow::setDevice(std::shared_ptr<runtime::Device> device, const QStrin
 
 void MainWindow::updateHapticsPanel() {
   if (haptics_panel_ == nullptr) return;
-  haptics_panel_->setRunning(hapticsRunning(), scene_.haptics != nullptr);
+  const bool replaying = replay_ != nullptr && replay_->active();  // the haptic thread waits
+  haptics_panel_->setRunning(hapticsRunning(), scene_.haptics != nullptr && !replaying);
   if (haptics_action_ != nullptr) {
     const QSignalBlocker block(haptics_action_);
-    haptics_action_->setEnabled(scene_.haptics != nullptr);
+    haptics_action_->setEnabled(scene_.haptics != nullptr && !replaying);
     haptics_action_->setChecked(hapticsRunning());
   }
   haptics_panel_->setGains(gains_);
@@ -1430,6 +1476,11 @@ void MainWindow::updateStatus() {
   }
   if (!hasScene()) {
     status_label_->setText("No scan open");
+    return;
+  }
+  if (replay_ != nullptr && replay_->active()) {
+    status_label_->setText("Replaying " + q(replay_->path().filename().string()) +
+                           ": haptics stopped (Close Replay in the Replay dock to go live)");
     return;
   }
   if (scene_.haptics == nullptr) {

@@ -79,8 +79,10 @@ namespace vh::ui {
 class HapticsPanel;
 class HistogramSlider;
 class OrientationMarker;
+class ReplayController;
 class SceneActors;
 class SceneLoader;
+class SessionRecorder;
 class StripChart;
 class VtkView;
 struct LoadedViewerScene;
@@ -102,6 +104,7 @@ struct ViewerScene {
   std::optional<Histogram> histogram;               ///< Absent: computed when shown.
   std::filesystem::path opened;                     ///< What the user opened (recent files).
   bool scene_file = false;                          ///< Opened from a scene .json (its gains win).
+  runtime::SceneSpec spec;                          ///< The scene as loaded (session metadata).
 };
 
 /// A ViewerScene from a loaded scene and (optionally) its device and haptic thread.
@@ -270,6 +273,15 @@ class MainWindow : public QMainWindow {
   const runtime::HapticSnapshot& lastSnapshot() const noexcept { return snapshot_; }
   QMenu* recentFilesMenu() const noexcept { return recent_menu_; }
 
+  // ---- Recordings (session_recorder.h, replay_panel.h) ---------------------------------------
+  /// Haptics > Record Session, Add Marker and the recording's status.
+  SessionRecorder* recorder() const noexcept { return recorder_; }
+  /// File > Open Recording, the Replay dock, File > Export Recording.
+  ReplayController* replay() const noexcept { return replay_; }
+  /// The scene shown, as a runtime::LoadedScene (spec with the current tool, gains and
+  /// isovalue; volume, tool and initial pose): what a recording's metadata describes.
+  runtime::LoadedScene currentLoadedScene() const;
+
  signals:
   /// A load finished and its scene is shown.
   void sceneLoaded();
@@ -285,6 +297,9 @@ class MainWindow : public QMainWindow {
   void dropEvent(QDropEvent* event) override;
 
  private:
+  friend class SessionRecorder;
+  friend class ReplayController;
+
   enum class DragMode { kNone, kTranslate, kDepth, kRotate };
 
   void buildUi();
@@ -395,6 +410,8 @@ class MainWindow : public QMainWindow {
   int status_countdown_ = 0;
   DragMode drag_ = DragMode::kNone;
   QPointF drag_last_;
+  SessionRecorder* recorder_ = nullptr;  // child QObjects
+  ReplayController* replay_ = nullptr;
 };
 
 }  // namespace vh::ui

@@ -1,0 +1,372 @@
+// Session recordings in the GUI (issue 6): recording from the window (records, events and
+// metadata read back), replay (the recorded scene reloads, scrubbing the timeline puts the proxy
+// actor at the recorded pose, one |F| sample per record), video and PNG export (GUI and command
+// line), and a recording whose dataset is missing (error naming it, the scene shown stays).
+// Scenes: the built-in 64^3 sphere (no shared data needed), small windows (llvmpipe).
+#include <cmath>
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <memory>
+#include <string>
+
+#include <QApplication>
+#include <QImage>
+#include <QListWidget>
+#include <QSignalSpy>
+#include <QSlider>
+#include <QTemporaryDir>
+#include <QTest>
+
+#include <gtest/gtest.h>
+#include <nlohmann/json.hpp>
+#include <vtkActor.h>
+#include <vtkMatrix4x4.h>
+
+#include "ui_test_util.h"
+#include "vh/runtime/device.h"
+#include "vh/runtime/recording.h"
+#include "vh/runtime/scene.h"
+#include "vh/ui/main_window.h"
+#include "vh/ui/media_export.h"
+#include "vh/ui/replay_panel.h"
+#include "vh/ui/session_recorder.h"
+#include "vh/ui/vtk_view.h"
+
+namespace vh::ui {
+namespace {
+
+namespace fs = std::filesystem;
+using test::waitFor;
+
+runtime::SceneSpec sphereScene() {
+  runtime::SceneSpec spec;
+  spec.volume.path = "builtin:sphere";
+  spec.tool.mesh = "builtin:probe";
+  spec.device = runtime::DeviceSpec{};  // simulated
+  return spec;
+}
+
+std::unique_ptr<MainWindow> smallWindow() {
+  auto w = std::make_unique<MainWindow>();
+  w->setInteractive(false);
+  w->resize(520, 420);
+  w->show();
+  return w;
+}
+
+bool loadInto(MainWindow& w, const runtime::SceneSpec& spec) {
+  QSignalSpy loaded(&w, &MainWindow::sceneLoaded);
+  w.openScene(spec);
+  return waitFor([&] { return loaded.count() > 0 && !w.loading(); }, 60000);
+}
+
+Eigen::Vector3d translationOf(vtkActor* actor) {
+  vtkMatrix4x4* m = actor->GetUserMatrix();
+  return Eigen::Vector3d(m->GetElement(0, 3), m->GetElement(1, 3), m->GetElement(2, 3));
+}
+
+Eigen::Quaterniond rotationOf(vtkActor* actor) {
+  vtkMatrix4x4* m = actor->GetUserMatrix();
+  Eigen::Matrix3d R;
+  for (int r = 0; r < 3; ++r) {
+    for (int c = 0; c < 3; ++c) R(r, c) = m->GetElement(r, c);
+  }
+  return Eigen::Quaterniond(R);
+}
+
+std::string firstBytes(const fs::path& path, std::size_t n) {
+  std::ifstream in(path, std::ios::binary);
+  std::string s(n, '\0');
+  in.read(s.data(), static_cast<std::streamsize>(n));
+  s.resize(static_cast<std::size_t>(in.gcount()));
+  return s;
+}
+
+/// One recording for the whole suite: the device pushed into the sphere (the proxy moves and a
+/// force shows), a marker, an isovalue change from the slider.
+class RecordingTest : public ::testing::Test {
+ protected:
+  static void SetUpTestSuite() {
+    dir_ = new QTemporaryDir();
+    path_ = fs::path(dir_->path().toStdString()) / "session.vhrec";
+    auto w = smallWindow();
+    if (!loadInto(*w, sphereScene())) {
+      setup_error_ = "the built-in sphere scene did not load: " + w->lastError().toStdString();
+      return;
+    }
+    if (!w->hapticsRunning()) {
+      setup_error_ = "the haptic thread did not start";
+      return;
+    }
+    if (!w->recorder()->start(path_)) {
+      setup_error_ = "recording did not start: " + w->recorder()->lastError().toStdString();
+      return;
+    }
+    test::pump(250);
+    if (!w->touchSurface(0.004)) {
+      setup_error_ = "touchSurface found no surface";
+      return;
+    }
+    test::pump(500);
+    marker_ok_ = w->recorder()->addMarker("nerve");
+    // Haptics > Add Marker's key: "Marker 2" (not interactive, so no label dialog). Shortcuts
+    // need the active window (Xvfb without a window manager: activate it by hand).
+    w->activateWindow();
+    key_window_active_ = QTest::qWaitForWindowActive(w.get(), 3000);
+    QTest::keyClick(w->view(), Qt::Key_M);
+    rec_status_ = w->recorder()->statusText().toStdString();
+    if (const char* shots = std::getenv("VH_UI_SHOTS_DIR"); shots != nullptr && *shots != '\0') {
+      w->resize(1100, 760);
+      test::pump(400);
+      w->grab().toImage().save(QString::fromStdString((fs::path(shots) / "recording.png").string()), "PNG");
+    }
+    iso_before_ = w->isovalue();
+    w->isovalueSlider()->setValue(w->isovalueSlider()->value() + 40);  // as a user's slider move
+    iso_after_ = w->isovalue();
+    haptics::CouplingGains gains = w->gains();
+    gains.linear_N_per_m *= 0.8;
+    w->setGains(gains);  // as from the haptics panel
+    test::pump(500);
+    // A tool swap records a "tool" event, then ends the recording (the haptic thread is rebuilt).
+    const int other_tool = w->currentToolIndex() == 0 ? 1 : 0;
+    tool_label_ = w->toolChoices()[static_cast<std::size_t>(other_tool)].label;
+    QSignalSpy tool_changed(w.get(), &MainWindow::toolChanged);
+    w->selectTool(other_tool);
+    if (!waitFor([&] { return tool_changed.count() > 0; }, 60000)) {
+      setup_error_ = "the tool swap did not finish";
+      return;
+    }
+    recording_after_stop_ = w->recorder()->recording();
+    w->stopHaptics();
+  }
+  static void TearDownTestSuite() {
+    delete dir_;
+    dir_ = nullptr;
+  }
+  void SetUp() override {
+    if (!setup_error_.empty()) GTEST_FAIL() << setup_error_;
+  }
+
+  static inline QTemporaryDir* dir_ = nullptr;
+  static inline fs::path path_;
+  static inline std::string setup_error_;
+  static inline bool marker_ok_ = false;
+  static inline std::string rec_status_;
+  static inline std::string tool_label_;
+  static inline bool key_window_active_ = false;
+  static inline bool recording_after_stop_ = true;
+  static inline double iso_before_ = 0.0;
+  static inline double iso_after_ = 0.0;
+};
+
+TEST_F(RecordingTest, WindowRecordingReadsBackWithEventsAndMetadata) {
+  EXPECT_TRUE(marker_ok_);
+  EXPECT_NE(rec_status_.find("REC"), std::string::npos) << rec_status_;
+  EXPECT_FALSE(recording_after_stop_) << "a tool swap ends the recording";
+  ASSERT_NE(iso_before_, iso_after_);
+  const runtime::Recording rec = runtime::readRecording(path_);
+  EXPECT_TRUE(rec.warnings.empty()) << rec.warnings.front();
+  ASSERT_GT(rec.records.size(), 100u);
+  for (std::size_t i = 1; i < rec.records.size(); ++i) {
+    ASSERT_GE(rec.records[i].time_s, rec.records[i - 1].time_s);
+  }
+  bool marker = false, key_marker = false, isovalue = false, gains = false, tool = false;
+  for (const runtime::RecordingEvent& e : rec.events) {
+    const nlohmann::json detail = nlohmann::json::parse(e.detail_json);
+    if (e.type == "marker" && detail.value("label", "") == "nerve") marker = true;
+    if (e.type == "marker" && detail.value("label", "") == "Marker 2") key_marker = true;
+    if (e.type == "isovalue") isovalue = true;
+    if (e.type == "gains") gains = true;
+    if (e.type == "tool" && detail.value("tool", "") == tool_label_) tool = true;
+  }
+  EXPECT_TRUE(marker) << "no marker event 'nerve' in " << rec.events.size() << " events";
+  EXPECT_TRUE(key_marker) << "the M key added no marker (window active: " << key_window_active_ << ")";
+  EXPECT_TRUE(isovalue) << "no isovalue event after the slider moved";
+  EXPECT_TRUE(gains) << "no gains event after the gains changed";
+  EXPECT_TRUE(tool) << "no tool event for " << tool_label_;
+  // Records carry the new isovalue at the end.
+  EXPECT_DOUBLE_EQ(rec.records.back().isovalue, iso_after_);
+  const nlohmann::json meta = nlohmann::json::parse(rec.metadata_json);
+  EXPECT_EQ(meta["scene"]["volume"]["path"], "builtin:sphere");
+  EXPECT_TRUE(meta.contains("device"));
+  // The device went into the sphere: some tick has contacts and a force.
+  double max_force = 0.0;
+  for (const runtime::TickRecord& r : rec.records) max_force = std::max(max_force, forceNormOf(r));
+  EXPECT_GT(max_force, 0.01);
+}
+
+TEST_F(RecordingTest, ReplayLoadsTheSceneAndScrubbingMovesTheProxy) {
+  const runtime::Recording rec = runtime::readRecording(path_);
+  auto w = smallWindow();
+  QSignalSpy started(w->replay(), &ReplayController::replayStarted);
+  w->openPath(QString::fromStdString(path_.string()));  // as a dropped / command-line file
+  ASSERT_TRUE(waitFor([&] { return started.count() > 0 && !w->loading(); }, 60000)) << w->lastError().toStdString();
+  ASSERT_TRUE(w->replay()->active());
+  EXPECT_FALSE(w->hapticsRunning());
+  EXPECT_EQ(w->scene().spec.volume.path, "builtin:sphere");
+  // The |F| plot holds one sample per record; one marker in the list.
+  EXPECT_EQ(w->replay()->timeline()->sampleCount(), rec.records.size());
+  EXPECT_EQ(w->replay()->markerList()->count(), 2);
+
+  ForceTimeline* timeline = w->replay()->timeline();
+  timeline->resize(400, 100);
+  // The record with the largest proxy displacement from the first one, then the first.
+  std::size_t far = 0;
+  double far_m = 0.0;
+  for (std::size_t i = 0; i < rec.records.size(); ++i) {
+    const double d = (proxyPoseOf(rec.records[i]).p_AB_m - proxyPoseOf(rec.records[0]).p_AB_m).norm();
+    if (d > far_m) {
+      far_m = d;
+      far = i;
+    }
+  }
+  ASSERT_GT(far_m, 1e-4) << "the proxy never moved in the recording";
+  for (const double t : {rec.records[far].time_s, rec.records.front().time_s}) {
+    const int x = static_cast<int>(std::lround(timeline->xAtTime(t)));
+    QTest::mouseClick(timeline, Qt::LeftButton, {}, QPoint(x, timeline->height() / 2));
+    const std::size_t i = w->replay()->currentIndex();
+    EXPECT_EQ(i, recordIndexAt(rec.records, timeline->timeAtX(x)));
+    const haptics::Pose X_WP = proxyPoseOf(rec.records[i]);
+    EXPECT_LT((translationOf(w->proxyActor()) - X_WP.p_AB_m).norm(), 1e-9);
+    EXPECT_LT(rotationOf(w->proxyActor()).angularDistance(X_WP.R_AB), 1e-6);
+    EXPECT_LT((translationOf(w->deviceActor()) - devicePoseOf(rec.records[i]).p_AB_m).norm(), 1e-9);
+    EXPECT_DOUBLE_EQ(w->isovalue(), rec.records[i].isovalue);
+  }
+  // Jumping to the marker.
+  w->replay()->markerList()->setCurrentRow(0);
+  EXPECT_NEAR(w->replay()->time_s(), rec.events.front().time_s, 1e-9);
+
+  // For a person to look at: VH_UI_SHOTS_DIR=DIR writes the window in replay at the deepest push.
+  if (const char* shots = std::getenv("VH_UI_SHOTS_DIR"); shots != nullptr && *shots != '\0') {
+    w->resize(1100, 760);
+    test::pump(300);
+    w->replay()->setTime(rec.records[far].time_s);
+    w->renderStill(/*best_quality=*/true);
+    test::pump(800);
+    const QString out = QString::fromStdString((fs::path(shots) / "replay.png").string());
+    EXPECT_TRUE(w->grab().toImage().save(out, "PNG")) << out.toStdString();
+  }
+
+  // Close Replay: live haptics again on the same scene.
+  w->replay()->closeReplay();
+  EXPECT_FALSE(w->replay()->active());
+  EXPECT_TRUE(w->hapticsRunning());
+  w->stopHaptics();
+}
+
+TEST_F(RecordingTest, VideoAndPngExport) {
+  auto w = smallWindow();
+  QSignalSpy started(w->replay(), &ReplayController::replayStarted);
+  ASSERT_TRUE(w->replay()->openRecording(path_));
+  ASSERT_TRUE(waitFor([&] { return started.count() > 0 && !w->loading(); }, 60000));
+  const fs::path dir(dir_->path().toStdString());
+  const double duration = w->replay()->timeline()->duration_s();
+  const double fps = 4.0;
+  int reported_total = 0;
+  const int frames = w->replay()->exportVideo(dir / "gui.ogv", fps, 96, 64, [&](int, int total) {
+    reported_total = total;
+    return true;
+  });
+  EXPECT_EQ(frames, static_cast<int>(std::floor(duration * fps + 1e-9)) + 1);
+  EXPECT_EQ(reported_total, frames);
+  EXPECT_GT(fs::file_size(dir / "gui.ogv"), 100u);
+  EXPECT_EQ(firstBytes(dir / "gui.ogv", 4), "OggS");
+
+  w->replay()->exportPng(dir / "gui.png", 120, 90);
+  const QImage png(QString::fromStdString((dir / "gui.png").string()));
+  ASSERT_FALSE(png.isNull());
+  EXPECT_EQ(png.size(), QSize(120, 90));
+  EXPECT_EQ(firstBytes(dir / "gui.png", 8), std::string("\x89PNG\r\n\x1a\n", 8));
+  int colours = 0;
+  const QRgb first = png.pixel(0, 0);
+  for (int y = 0; y < png.height() && colours == 0; ++y) {
+    for (int x = 0; x < png.width(); ++x) {
+      if (png.pixel(x, y) != first) {
+        ++colours;
+        break;
+      }
+    }
+  }
+  EXPECT_GT(colours, 0) << "the PNG is one colour";
+  // Something besides the background gradient: the sphere or the tools.
+  EXPECT_GT(test::brightFraction(png), 0.01);
+  if (const char* shots = std::getenv("VH_UI_SHOTS_DIR"); shots != nullptr && *shots != '\0') {
+    fs::copy_file(path_, fs::path(shots) / "session.vhrec", fs::copy_options::overwrite_existing);
+    fs::copy_file(dir / "gui.png", fs::path(shots) / "replay-export.png", fs::copy_options::overwrite_existing);
+    fs::copy_file(dir / "gui.ogv", fs::path(shots) / "replay-export.ogv", fs::copy_options::overwrite_existing);
+  }
+}
+
+TEST_F(RecordingTest, CommandLineMediaExport) {
+  const fs::path dir(dir_->path().toStdString());
+  MediaExportOptions options;
+  options.video = dir / "cli.ogv";
+  options.png = dir / "cli.png";
+  options.png_time_s = 0.5;
+  options.fps = 3.0;
+  options.width = 80;
+  options.height = 60;
+  ASSERT_EQ(exportRecordingMedia(0, nullptr, path_, options), 0);
+  EXPECT_EQ(firstBytes(options.video, 4), "OggS");
+  const QImage png(QString::fromStdString(options.png.string()));
+  ASSERT_FALSE(png.isNull());
+  EXPECT_EQ(png.size(), QSize(80, 60));
+  if (const char* shots = std::getenv("VH_UI_SHOTS_DIR"); shots != nullptr && *shots != '\0') {
+    MediaExportOptions look;  // the command line's default frame, at the deepest push
+    look.png = fs::path(shots) / "export-cli.png";
+    look.png_time_s = 3.0;
+    EXPECT_EQ(exportRecordingMedia(0, nullptr, path_, look), 0);
+  }
+  // A recording that does not exist: 1 and no output.
+  options.video = dir / "none.ogv";
+  options.png.clear();
+  EXPECT_EQ(exportRecordingMedia(0, nullptr, dir / "missing.vhrec", options), 1);
+  EXPECT_FALSE(fs::exists(options.video));
+}
+
+TEST_F(RecordingTest, MissingDatasetNamesItAndKeepsTheScene) {
+  // The same recording, but its metadata names a dataset that is not there.
+  const runtime::Recording rec = runtime::readRecording(path_);
+  nlohmann::json meta = nlohmann::json::parse(rec.metadata_json);
+  const fs::path dir(dir_->path().toStdString());
+  const std::string missing = (dir / "ct-gone" / "head.nrrd").string();
+  meta["scene"]["volume"]["path"] = missing;
+  if (meta.contains("dataset")) meta["dataset"]["path"] = missing;
+  const fs::path bad = dir / "missing-dataset.vhrec";
+  {
+    runtime::RecordingWriter writer(bad, meta.dump());
+    for (std::size_t i = 0; i < 10 && i < rec.records.size(); ++i) writer.push(rec.records[i]);
+    writer.close();
+  }
+  auto w = smallWindow();
+  ASSERT_TRUE(loadInto(*w, sphereScene()));
+  w->stopHaptics();
+  const void* image_before = w->scene().volume.image.GetPointer();
+  QSignalSpy failed(w.get(), &MainWindow::loadFailed);
+  EXPECT_FALSE(w->replay()->openRecording(bad));
+  EXPECT_EQ(failed.count(), 1);
+  EXPECT_NE(w->lastError().indexOf(QString::fromStdString(missing)), -1) << w->lastError().toStdString();
+  EXPECT_FALSE(w->replay()->active());
+  EXPECT_FALSE(w->replay()->pending());
+  EXPECT_EQ(w->scene().volume.image.GetPointer(), image_before);
+}
+
+TEST(ReplayForceArrow, StartsAtTheToolsExtremePointAgainstTheForce) {
+  // A vertical probe: vertices from its tip (z = 0) to its end (z = 0.06 m) in T.
+  const std::vector<Eigen::Vector3d> vertices_T = {{0, 0, 0.03}, {0.001, 0, 0.06}, {0, 0, 0}, {0, 0.001, 0.01}};
+  haptics::Pose X_WP;
+  X_WP.p_AB_m = Eigen::Vector3d(0.1, 0.2, 0.3);
+  // Pushed up (+z): the tip; pushed down: the far end.
+  EXPECT_LT((forceOrigin_W(X_WP, Eigen::Vector3d(0, 0, 2.0), vertices_T) - Eigen::Vector3d(0.1, 0.2, 0.3)).norm(), 1e-12);
+  EXPECT_LT((forceOrigin_W(X_WP, Eigen::Vector3d(0, 0, -2.0), vertices_T) - Eigen::Vector3d(0.101, 0.2, 0.36)).norm(), 1e-12);
+  // Turned upside down (180 degrees about x): pushed down (-z in W) is the tip again.
+  X_WP.R_AB = Eigen::Quaterniond(Eigen::AngleAxisd(M_PI, Eigen::Vector3d::UnitX()));
+  EXPECT_LT((forceOrigin_W(X_WP, Eigen::Vector3d(0, 0, -2.0), vertices_T) - X_WP.p_AB_m).norm(), 1e-12);
+  // No force: the proxy's origin.
+  X_WP.p_AB_m = Eigen::Vector3d(0.5, 0, 0);
+  EXPECT_EQ(forceOrigin_W(X_WP, Eigen::Vector3d::Zero(), vertices_T), X_WP.p_AB_m);
+}
+
+}  // namespace
+}  // namespace vh::ui

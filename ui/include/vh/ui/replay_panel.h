@@ -1,0 +1,176 @@
+#pragma once
+/// @file
+/// Replaying a session recording in the main window (issue 6). File > Open Recording (and a
+/// dropped or command-line `.vhrec`) reads the file (warnings shown, not fatal), reloads its
+/// scene from the metadata (runtime::sceneFromSessionMetadata(); a missing or changed dataset
+/// is an error dialog naming it and the current scene stays), stops the haptic thread and shows
+/// the Replay dock: play / pause, speed 0.25x .. 4x, a timeline with |F| and the markers that
+/// can be scrubbed, the marker list, and the time / tick / force / contacts of the record shown.
+/// The proxy, device, force arrow and isovalue follow the records; Close Replay returns to live
+/// haptics on the same scene. File > Export Recording writes CSV / JSON (runtime), a video
+/// (Ogg/Theora) and a PNG (media_export.h).
+///
+/// Threads: GUI thread only; the haptic thread is stopped while a replay is shown.
+
+#include <filesystem>
+#include <functional>
+#include <memory>
+#include <optional>
+#include <vector>
+
+#include <QElapsedTimer>
+#include <QObject>
+#include <QString>
+#include <QWidget>
+
+#include "vh/runtime/recording.h"
+
+class QAction;
+class QComboBox;
+class QDockWidget;
+class QLabel;
+class QListWidget;
+class QMenu;
+class QPushButton;
+class QTimer;
+
+namespace vh::ui {
+
+class MainWindow;
+
+/// The replay's timeline: |F| [N] over the recording's time as a filled curve (per pixel column
+/// the largest |F| of the records under it, so short peaks stay visible), markers as vertical
+/// lines with their labels, and the cursor. Click or drag to scrub.
+class ForceTimeline : public QWidget {
+  Q_OBJECT
+
+ public:
+  explicit ForceTimeline(QWidget* parent = nullptr);
+  /// One sample per record: time [s] and |F| [N] (same length; times non-decreasing).
+  void setSamples(std::vector<double> time_s, std::vector<double> force_N);
+  /// Markers: times [s] and labels.
+  void setMarkers(std::vector<double> time_s, QStringList labels);
+  void setCursor_s(double t_s);
+  double cursor_s() const noexcept { return cursor_s_; }
+  /// Samples held (one per record; the painting decimates to the widget's width).
+  std::size_t sampleCount() const noexcept { return time_s_.size(); }
+  double duration_s() const noexcept { return time_s_.empty() ? 0.0 : time_s_.back() - time_s_.front(); }
+  double maxForce_N() const noexcept { return max_force_N_; }
+  /// The time [s] under widget x coordinate `x` (clamped to the recording).
+  double timeAtX(double x) const;
+  double xAtTime(double t_s) const;
+  QSize sizeHint() const override;
+
+ signals:
+  /// The user clicked or dragged to `t_s`.
+  void scrubbed(double t_s);
+
+ protected:
+  void paintEvent(QPaintEvent* event) override;
+  void mousePressEvent(QMouseEvent* event) override;
+  void mouseMoveEvent(QMouseEvent* event) override;
+
+ private:
+  QRectF plotRect() const;
+  std::vector<double> time_s_;
+  std::vector<double> force_N_;
+  std::vector<double> marker_s_;
+  QStringList marker_labels_;
+  double max_force_N_ = 0.0;
+  double cursor_s_ = 0.0;
+};
+
+/// The replay mode of a MainWindow: its dock, playback and the File menu's recording entries.
+class ReplayController : public QObject {
+  Q_OBJECT
+
+ public:
+  explicit ReplayController(MainWindow* window);
+  ~ReplayController() override;
+
+  /// Adds Open Recording... and Export Recording > CSV / JSON / Video / Screenshot to `file`.
+  void addFileMenuActions(QMenu* file);
+
+  /// Reads `path`, checks its dataset and loads its scene (asynchronous: replayStarted() or
+  /// MainWindow::loadFailed() follows). @return false when the file cannot be read or its
+  /// dataset is missing / changed: the error is reported (dialog when interactive, stderr and
+  /// MainWindow::lastError()) and the current scene stays.
+  bool openRecording(const std::filesystem::path& path);
+  /// True while the replay dock drives the view (haptics stopped).
+  bool active() const noexcept { return active_; }
+  /// True from openRecording() until its scene is shown or failed.
+  bool pending() const noexcept { return pending_.has_value(); }
+  /// Leaves the replay; the haptic thread starts again (live mode).
+  void closeReplay();
+
+  /// Shows the record at recording time `t_s` [s] (clamped): props, isovalue, labels, cursor.
+  void setTime(double t_s);
+  double time_s() const noexcept { return time_s_; }
+  /// Index of the record shown.
+  std::size_t currentIndex() const noexcept { return index_; }
+  void play();
+  void pause();
+  bool playing() const noexcept;
+  /// Playback speed factor (0.25 .. 4).
+  void setSpeed(double factor);
+  double speed() const noexcept { return speed_; }
+
+  const runtime::Recording& recording() const noexcept { return recording_; }
+  const std::filesystem::path& path() const noexcept { return path_; }
+  ForceTimeline* timeline() const noexcept { return timeline_; }
+  QListWidget* markerList() const noexcept { return marker_list_; }
+  QDockWidget* dock() const noexcept { return dock_; }
+  /// "t 1.234 s  tick 1234  |F| 0.52 N  contacts 3".
+  QString readout() const;
+
+  /// Exports of the replayed recording (File > Export Recording), also for scripts and tests.
+  /// @throws std::runtime_error naming the file, or std::logic_error when no replay is shown.
+  void exportCsv(const std::filesystem::path& path) const;
+  void exportJson(const std::filesystem::path& path) const;
+  /// Video of the whole recording at `fps`, frames of `width` x `height` px (0: the view's size)
+  /// seen from the view's camera. @return frames written (fewer when `progress` cancelled).
+  int exportVideo(const std::filesystem::path& path, double fps = 30.0, int width = 0, int height = 0,
+                  const std::function<bool(int, int)>& progress = {});
+  /// PNG of the record shown now, from the view's camera at the view's size (or the size given).
+  void exportPng(const std::filesystem::path& path, int width = 0, int height = 0);
+
+  /// The main window calls this when its scene is about to be replaced.
+  void onSceneTeardown();
+
+ signals:
+  /// A recording's scene is shown and the replay dock drives it.
+  void replayStarted();
+  void replayClosed();
+
+ private:
+  void buildDock();
+  void onSceneLoaded();
+  void onLoadFailed();
+  void advance();
+  void exportFromMenu(int kind);
+  void updateActions();
+
+  MainWindow* window_;
+  runtime::Recording recording_;
+  std::filesystem::path path_;
+  std::optional<runtime::Recording> pending_;
+  std::filesystem::path pending_path_;
+  bool restore_auto_start_ = true;
+  bool active_ = false;
+  double time_s_ = 0.0;
+  std::size_t index_ = 0;
+  double speed_ = 1.0;
+  QElapsedTimer play_clock_;
+  double play_origin_s_ = 0.0;
+  QTimer* play_timer_ = nullptr;
+  QDockWidget* dock_ = nullptr;
+  ForceTimeline* timeline_ = nullptr;
+  QPushButton* play_button_ = nullptr;
+  QComboBox* speed_box_ = nullptr;
+  QLabel* readout_ = nullptr;
+  QListWidget* marker_list_ = nullptr;
+  std::vector<double> marker_times_s_;
+  std::vector<QAction*> export_actions_;
+};
+
+}  // namespace vh::ui

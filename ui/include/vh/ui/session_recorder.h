@@ -1,0 +1,121 @@
+#pragma once
+/// @file
+/// Recording a session from the main window (issue 6): Haptics > Record Session (Ctrl+Shift+R,
+/// and the Record button in the Haptics dock) writes a `.vhrec` (runtime::RecordingWriter, one
+/// TickRecord per servo tick) with the scene's metadata (runtime::makeSessionMetadata()), plus
+/// events: "marker" (Haptics > Add Marker, key M) and "tool" (a tool swap was asked for). The
+/// runtime adds the others by itself: "isovalue" {"from": A, "to": B} and device
+/// (dis)connections from the records (runtime::RecordingWriter), "gains" from
+/// HapticThread::setGains(); so the slider and the haptics panel add none here.
+///
+/// Lifetime: the writer is set on the running haptic thread (HapticThread::setRecorder()). A
+/// recording ends with the haptic thread: stopping haptics, a tool or device swap, a new scene
+/// and closing the window all stop it (the thread first, then the writer closes and flushes).
+/// Stopping by hand while the thread runs clears the thread's recorder and closes the writer at
+/// once; the closed writer object is kept until the thread stops (the servo thread may still be
+/// inside RecordingWriter::push(), see HapticThread::setRecorder()).
+///
+/// Threads: GUI thread only (events go through HapticThread::recordEvent(), stamped with the
+/// latest tick).
+
+#include <chrono>
+#include <filesystem>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include <QElapsedTimer>
+#include <QObject>
+#include <QString>
+
+
+class QAction;
+class QLabel;
+class QMenu;
+class QPushButton;
+class QTimer;
+class QWidget;
+
+namespace vh::runtime {
+class RecordingWriter;
+}
+
+namespace vh::ui {
+
+class MainWindow;
+
+class SessionRecorder : public QObject {
+  Q_OBJECT
+
+ public:
+  /// Lives as long as `window` (its child); adds its label to the window's status bar.
+  explicit SessionRecorder(MainWindow* window);
+  ~SessionRecorder() override;
+
+  /// `documents/VolumeHaptics/session-YYYYMMDD-HHMMSS.vhrec` (the folder is created).
+  static std::filesystem::path defaultPath();
+
+  /// Starts recording into `path` (the haptic thread is started when it is not running).
+  /// @return false (and lastError() names the file and problem) when there is no scene with a
+  ///         haptic thread, a replay is shown, or the file cannot be created.
+  bool start(const std::filesystem::path& path);
+  /// Stops and closes the recording (idempotent). Errors go to lastError() and the status bar.
+  void stop();
+  bool recording() const noexcept { return writer_ != nullptr; }
+  /// The file being (or last) written.
+  const std::filesystem::path& path() const noexcept { return path_; }
+  QString lastError() const { return last_error_; }
+  /// Ticks written to disk so far / dropped (ring overflow) in the current recording.
+  std::uint64_t recordsWritten() const noexcept;
+  std::uint64_t dropped() const noexcept;
+
+  /// Records a "marker" event {"label": label}. @return false when not recording.
+  bool addMarker(const QString& label);
+  /// Records a "tool" {"tool": label, "point_spacing_m": s} event when recording (no-op
+  /// otherwise); s = 0: automatic spacing.
+  void noteTool(const QString& name, double point_spacing_m);
+
+  /// The main window calls this after its haptic thread stopped (or before it is replaced):
+  /// the recording ends and closed writers are released.
+  void onHapticsStopped();
+
+  /// Haptics > Record Session (checkable, Ctrl+Shift+R) and Add Marker (M).
+  QAction* recordAction() const noexcept { return record_action_; }
+  QAction* markerAction() const noexcept { return marker_action_; }
+  /// A row with the Record and Add Marker buttons for the Haptics dock.
+  QWidget* makeDockControls(QWidget* parent);
+  /// The status bar's recording text ("REC 0:12  2.3 MB  dropped 0"; empty when not recording).
+  QString statusText() const;
+  /// Refreshes the actions, buttons and status text (e.g. after a scene change).
+  void updateUi();
+  /// Shows `text` in the recording's status bar label for `ms` milliseconds (after the REC
+  /// text while recording). Used instead of QStatusBar::showMessage(), which would be drawn
+  /// over the servo statistics.
+  void showNotice(const QString& text, int ms = 5000);
+
+ signals:
+  void recordingChanged(bool recording);
+
+ private:
+  void toggleFromUi(bool on);
+  void addMarkerFromUi();
+  bool recordEvent(const std::string& type, const std::string& detail_json);
+
+  MainWindow* window_;
+  std::unique_ptr<runtime::RecordingWriter> writer_;
+  std::vector<std::unique_ptr<runtime::RecordingWriter>> retired_;  // closed, thread still running
+  std::filesystem::path path_;
+  QString last_error_;
+  QElapsedTimer elapsed_;
+  QTimer* status_timer_ = nullptr;
+  QLabel* status_label_ = nullptr;
+  QAction* record_action_ = nullptr;
+  QAction* marker_action_ = nullptr;
+  QPushButton* record_button_ = nullptr;
+  QPushButton* marker_button_ = nullptr;
+  int marker_count_ = 0;
+  QString notice_;
+  qint64 notice_until_ms_ = 0;  // QDateTime::currentMSecsSinceEpoch()
+};
+
+}  // namespace vh::ui
