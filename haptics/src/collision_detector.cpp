@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <stdexcept>
 #include <string>
 
@@ -40,6 +41,65 @@ CollisionDetector::CollisionDetector(const ScalarVolume& volume, const ToolModel
   embedded_.assign(n, 0);
   in_set_.assign(n, 0);
   contacts_.resize(std::max<std::size_t>(max_contacts, 1));
+  if (mode_ == DetectionMode::kAccelerated) {
+    order_.resize(n);
+    for (std::size_t j = 0; j < n; ++j) order_[j] = static_cast<int>(j);
+    nodes_.reserve(2 * n);
+    buildShellTree(0, static_cast<int>(n), 0);
+    stack_.resize(nodes_.size() + 1);
+    segments_.assign(n, 0);
+    clear_until_.assign(n, 0.0);
+    clear_segments_.assign(n, 0);
+    active_.resize(n);
+    grid_per_m_ = volume.geometry().spacing_m.cwiseInverse();
+  }
+}
+
+int CollisionDetector::buildShellTree(int begin, int end, int depth) {
+  constexpr int kLeafPoints = 8;
+  const auto& points = tool_->point_shell.points_T_m();
+  Eigen::Vector3d lo = Eigen::Vector3d::Constant(std::numeric_limits<double>::infinity()), hi = -lo;
+  for (int i = begin; i < end; ++i) {
+    lo = lo.cwiseMin(points[order_[i]]);
+    hi = hi.cwiseMax(points[order_[i]]);
+  }
+  const int index = static_cast<int>(nodes_.size());
+  nodes_.push_back({});
+  ShellNode node;
+  node.center_T_m = 0.5 * (lo + hi);
+  for (int i = begin; i < end; ++i) node.radius_m = std::max(node.radius_m, (points[order_[i]] - node.center_T_m).norm());
+  node.begin = begin;
+  node.end = end;
+  if (end - begin > kLeafPoints && depth < 40) {
+    int axis = 0;
+    (hi - lo).maxCoeff(&axis);
+    const int mid = begin + (end - begin) / 2;
+    std::nth_element(order_.begin() + begin, order_.begin() + mid, order_.begin() + end,
+                     [&](int a, int b) { return points[a][axis] < points[b][axis]; });
+    node.left = buildShellTree(begin, mid, depth + 1);
+    node.right = buildShellTree(mid, end, depth + 1);
+  }
+  nodes_[index] = node;
+  return index;
+}
+
+bool CollisionDetector::ballMayBeInside(const Eigen::Vector3d& center_W_m, double radius_m, double isovalue) noexcept {
+  ++box_queries_;
+  const Eigen::Vector3d g = volume_->gridCoordinates(center_W_m);
+  // A W ball maps to an ellipsoid with half-axes radius / spacing along the grid axes (the
+  // direction matrix is orthonormal); 1e-6 voxel covers the rounding of both paths.
+  const Eigen::Vector3d half = (radius_m * grid_per_m_).array() + 1e-6;
+  return volume_->upperBoundInBox(g - half, g + half) > isovalue;
+}
+
+bool CollisionDetector::runMayHit(const RigidMotion& motion, int j, std::int64_t k, std::int64_t run,
+                                  double isovalue) noexcept {
+  // The run's points stay within half its path-length bound of its mid-time position.
+  const std::int64_t total = segments_[j];
+  const double t0 = segmentBegin(j, k);
+  const double t1 = k + run >= total ? 1.0 : static_cast<double>(k + run) * dt_[j];
+  const double radius = 0.5 * path_[j] * (t1 - t0) * (1.0 + 1e-9) + 1e-12;
+  return ballMayBeInside(motion.pointAt(r0_[j], 0.5 * (t0 + t1)), radius, isovalue);
 }
 
 bool CollisionDetector::inside(const Eigen::Vector3d& p_W, double isovalue) noexcept {
@@ -85,6 +145,115 @@ void CollisionDetector::clearContacts() noexcept {
 }
 
 SweepResult CollisionDetector::sweep(const RigidMotion& motion, double isovalue) noexcept {
+  return mode_ == DetectionMode::kAccelerated ? sweepAccelerated(motion, isovalue) : sweepPaper(motion, isovalue);
+}
+
+SweepResult CollisionDetector::sweepAccelerated(const RigidMotion& motion, double isovalue) noexcept {
+  SweepResult result;
+  active_count_ = 0;
+  if (motion.isStill()) return result;
+  const auto& points = tool_->point_shell.points_T_m();
+  const double angle = motion.omega_W_rad().norm();
+  const Eigen::Matrix3d R_half = angle > 0.0
+      ? Eigen::AngleAxisd(0.5 * angle, motion.omega_W_rad() / angle).toRotationMatrix()
+      : Eigen::Matrix3d::Identity();
+  const Eigen::Vector3d c_half = motion.c0_W_m() + 0.5 * motion.v_W_m();
+  // Point-shell tree, top down: a node whose points' whole arcs, plus epsilon of further travel
+  // (addContactsAt's look-ahead), lie in bricks that cannot hold an inside point is skipped.
+  // A point at r = r_c + d (|d| <= node radius) stays within path(r_c) / 2 + radius of the
+  // node centre's mid-time position.
+  std::size_t count = 0;
+  int top = 0;
+  stack_[top++] = 0;
+  while (top > 0) {
+    const ShellNode& node = nodes_[stack_[--top]];
+    const Eigen::Vector3d r_c = motion.radial_W(node.center_T_m);
+    const double radius = (0.5 * motion.pathLengthBound(r_c) + node.radius_m + epsilon_) * (1.0 + 1e-9) + 1e-12;
+    // Culled points are not touched at all (addContactsAt visits only the active ones).
+    if (!ballMayBeInside(c_half + R_half * r_c, radius, isovalue)) continue;
+    if (node.left >= 0) {
+      stack_[top++] = node.right;
+      stack_[top++] = node.left;
+      continue;
+    }
+    for (int i = node.begin; i < node.end; ++i) {
+      const int j = order_[i];
+      active_[active_count_++] = j;
+      r0_[j] = motion.radial_W(points[j]);
+      path_[j] = motion.pathLengthBound(r0_[j]);
+      clear_until_[j] = -1.0;
+      if (embedded_[j] || !(path_[j] > 0.0)) continue;
+      const double segments = std::max(1.0, std::ceil(path_[j] / segment_length_m_));
+      dt_[j] = 1.0 / segments;
+      segments_[j] = static_cast<std::int64_t>(segments);
+      clear_segments_[j] = 0;
+      if (segments_[j] == 1) {
+        // One segment: its own ball (cheap: R(omega / 2) is precomputed) decides at once.
+        const double radius_j = 0.5 * path_[j] * (1.0 + 1e-9) + 1e-12;
+        if (!ballMayBeInside(c_half + R_half * r0_[j], radius_j, isovalue)) {
+          clear_segments_[j] = 1;
+          clear_until_[j] = 1.0;
+          continue;
+        }
+        heap_[count++] = {0.0, j, 0, 0};
+      } else {
+        heap_[count++] = {0.0, j, 0, 1};  // resolved lazily, in time order
+      }
+    }
+  }
+  std::make_heap(heap_.begin(), heap_.begin() + static_cast<std::ptrdiff_t>(count), Later{});
+  // The paper's time-ordered search over the segments that remain; the samples and the
+  // bisection are the paper's, so the first time of contact is the same double.
+  // Entries with run <= 0 are single segments sampled as the paper does (0: after a run test,
+  // -1: a direct step). Runs of segments are resolved lazily, in time order: a run proven empty is skipped and the
+  // next one doubles (conservative advancement); a run that may hit is halved down to one
+  // segment, whose end is then sampled as the paper does, and after a sample that stays
+  // outside the next segment is sampled directly once more before testing resumes.
+  const auto push = [&](const QueueEntry& entry) {
+    heap_[count++] = entry;
+    std::push_heap(heap_.begin(), heap_.begin() + static_cast<std::ptrdiff_t>(count), Later{});
+  };
+  while (count > 0 && heap_[0].t_begin < result.t) {
+    std::pop_heap(heap_.begin(), heap_.begin() + static_cast<std::ptrdiff_t>(count), Later{});
+    const QueueEntry e = heap_[--count];
+    const int j = e.point;
+    const std::int64_t total = segments_[j];
+    if (e.run > 0) {  // an unresolved run
+      if (!runMayHit(motion, j, e.segment, e.run, isovalue)) {
+        const std::int64_t after = e.segment + e.run;
+        if (clear_segments_[j] == e.segment) {
+          clear_segments_[j] = after;
+          clear_until_[j] = after >= total ? 1.0 : segmentBegin(j, after);
+        }
+        if (after < total) push({segmentBegin(j, after), j, after, std::min(2 * e.run, total - after)});
+      } else {
+        push({e.t_begin, j, e.segment, e.run / 2});  // run 1 becomes 0: sample it
+      }
+      continue;
+    }
+    const std::int64_t next = e.segment + 1;
+    const double t_end = (static_cast<double>(next) * dt_[j] >= 1.0 - 1e-12) ? 1.0 : static_cast<double>(next) * dt_[j];
+    if (inside(motion.pointAt(r0_[j], t_end), isovalue)) {
+      double lo = e.t_begin, hi = t_end;
+      while (path_[j] * (hi - lo) >= bisection_tolerance_) {
+        const double mid = 0.5 * (lo + hi);
+        if (inside(motion.pointAt(r0_[j], mid), isovalue)) hi = mid; else lo = mid;
+      }
+      // Of tied points, the lower index among those popped (the paper path: the first popped).
+      if (lo < result.t || (lo == result.t && j < result.hit_point)) {
+        result.t = lo;
+        result.t_inside = hi;
+        result.hit_point = j;
+      }
+    } else if (t_end < 1.0) {
+      // Near the surface: one direct step (-1), then test a run again (1).
+      push({segmentBegin(j, next), j, next, e.run == 0 ? -1 : 1});
+    }
+  }
+  return result;
+}
+
+SweepResult CollisionDetector::sweepPaper(const RigidMotion& motion, double isovalue) noexcept {
   SweepResult result;
   if (motion.isStill()) return result;
   const auto& points = tool_->point_shell.points_T_m();
@@ -169,6 +338,20 @@ void CollisionDetector::addContactsAt(const RigidMotion& motion, const SweepResu
     return nd > 0.0 ? Eigen::Vector3d(-d / nd) : Eigen::Vector3d(Eigen::Vector3d::UnitZ());
   };
   appendContact(hit.hit_point, motion.pointAt(r0_[hit.hit_point], t), direction(hit.hit_point), isovalue);
+  if (mode_ == DetectionMode::kAccelerated) {
+    // Only the points the sweep did not cull, in index order (the paper's contact order); a
+    // point whose look-ahead time lies in its proven-outside prefix is skipped.
+    std::sort(active_.begin(), active_.begin() + static_cast<std::ptrdiff_t>(active_count_));
+    for (std::size_t i = 0; i < active_count_; ++i) {
+      const int j = active_[i];
+      if (in_set_[j] || embedded_[j] || !(path_[j] > 0.0)) continue;
+      const double t_ahead = t + epsilon_ / path_[j];
+      if (t_ahead <= clear_until_[j]) continue;
+      if (inside(motion.pointAt(r0_[j], t_ahead), isovalue))
+        appendContact(j, motion.pointAt(r0_[j], t), direction(j), isovalue);
+    }
+    return;
+  }
   for (int j = 0; j < n; ++j) {
     if (in_set_[j] || embedded_[j] || !(path_[j] > 0.0)) continue;
     if (inside(motion.pointAt(r0_[j], t + epsilon_ / path_[j]), isovalue))
@@ -204,9 +387,31 @@ void CollisionDetector::refreshPositions(const Pose& X_WP) noexcept {
 int CollisionDetector::updateEmbedded(const Pose& X_WP, double isovalue) noexcept {
   const auto& points = tool_->point_shell.points_T_m();
   embedded_count_ = 0;
-  for (std::size_t j = 0; j < points.size(); ++j) {
-    embedded_[j] = inside(X_WP * points[j], isovalue) ? 1 : 0;
-    embedded_count_ += embedded_[j];
+  if (mode_ == DetectionMode::kAccelerated) {
+    // The point-shell tree at the pose X_WP: a node whose ball lies in bricks that cannot hold
+    // an inside point has no embedded point (the test of each point is the paper's).
+    int top = 0;
+    stack_[top++] = 0;
+    while (top > 0) {
+      const ShellNode& node = nodes_[stack_[--top]];
+      if (!ballMayBeInside(X_WP * node.center_T_m, node.radius_m * (1.0 + 1e-9) + 1e-12, isovalue)) {
+        for (int i = node.begin; i < node.end; ++i) embedded_[order_[i]] = 0;
+      } else if (node.left >= 0) {
+        stack_[top++] = node.right;
+        stack_[top++] = node.left;
+      } else {
+        for (int i = node.begin; i < node.end; ++i) {
+          const int j = order_[i];
+          embedded_[j] = inside(X_WP * points[j], isovalue) ? 1 : 0;
+          embedded_count_ += embedded_[j];
+        }
+      }
+    }
+  } else {
+    for (std::size_t j = 0; j < points.size(); ++j) {
+      embedded_[j] = inside(X_WP * points[j], isovalue) ? 1 : 0;
+      embedded_count_ += embedded_[j];
+    }
   }
   if (embedded_count_ > 0) {  // embedded points leave the contact set
     std::size_t kept = 0;

@@ -97,6 +97,7 @@ TickOutput HapticRenderer::tick(const Pose& X_WD_in, double isovalue) noexcept {
   out.torque_W_Nm = w.torque_W_Nm;
   out.stats.contacts = static_cast<int>(collision_.contacts().size());
   out.stats.volume_samples = collision_.sampleCount();
+  out.stats.box_queries = collision_.boxQueryCount();
   out.stats.time_of_contact = hit.t;
   out.stats.exec_time_us = std::chrono::duration<double, std::micro>(Clock::now() - start).count();
   return out;

@@ -1,6 +1,7 @@
 #include "vh/haptics/collision_detector.h"
 
 #include <random>
+#include <string>
 
 #include <gtest/gtest.h>
 
@@ -29,10 +30,15 @@ double bruteForceFirstContact(const ScalarVolume& vol, const ToolModel& tool, co
   return first;
 }
 
-TEST(CollisionDetector, PointDrivenIntoAPlaneStopsWithinEpsilon) {
+// Every test runs in both detection modes (issue 8): the paper's path and the accelerated one.
+class CollisionDetectorModes : public ::testing::TestWithParam<DetectionMode> {};
+INSTANTIATE_TEST_SUITE_P(Modes, CollisionDetectorModes, ::testing::Values(DetectionMode::kPaper, DetectionMode::kAccelerated),
+                         [](const ::testing::TestParamInfo<DetectionMode>& p) { return std::string(toString(p.param)); });
+
+TEST_P(CollisionDetectorModes, PointDrivenIntoAPlaneStopsWithinEpsilon) {
   const ScalarVolume vol = datasets::makePlaneVolume(test::grid1mm(), Eigen::Vector3d::UnitZ(), 0.0);
   const auto tool = test::pointTool();
-  CollisionDetector cd(vol, *tool, 0.0);
+  CollisionDetector cd(vol, *tool, 0.0, 256, GetParam());
   const Pose X0 = Pose::FromTranslation({0.001, 0.002, 0.010});
   const Pose X1 = Pose::FromTranslation({0.003, 0.002, -0.010});
   const RigidMotion motion = RigidMotion::Between(X0, X1, tool->mass.p_TCm_m);
@@ -47,11 +53,11 @@ TEST(CollisionDetector, PointDrivenIntoAPlaneStopsWithinEpsilon) {
   EXPECT_LT((cd.contacts()[0].n_W - Eigen::Vector3d::UnitZ()).norm(), 1e-9);
 }
 
-TEST(CollisionDetector, PointDrivenIntoASphereStopsWithinEpsilon) {
+TEST_P(CollisionDetectorModes, PointDrivenIntoASphereStopsWithinEpsilon) {
   datasets::GridSpec g = test::grid1mm();
   const ScalarVolume vol = datasets::makeSphereVolume(g, Eigen::Vector3d::Zero(), 0.015);
   const auto tool = test::pointTool();
-  CollisionDetector cd(vol, *tool, 0.0);
+  CollisionDetector cd(vol, *tool, 0.0, 256, GetParam());
   std::mt19937 rng(4);
   std::normal_distribution<double> nd;
   for (int n = 0; n < 50; ++n) {
@@ -69,10 +75,10 @@ TEST(CollisionDetector, PointDrivenIntoASphereStopsWithinEpsilon) {
   }
 }
 
-TEST(CollisionDetector, NeverLaterThanTheBruteForceReferenceForRotatingTools) {
+TEST_P(CollisionDetectorModes, NeverLaterThanTheBruteForceReferenceForRotatingTools) {
   const ScalarVolume vol = datasets::makeSphereVolume(test::grid1mm(), Eigen::Vector3d::Zero(), 0.012);
   const auto tool = test::meshTool(datasets::makeBuiltinTool("probe"), 2e-3);
-  CollisionDetector cd(vol, *tool, 0.0);
+  CollisionDetector cd(vol, *tool, 0.0, 256, GetParam());
   std::mt19937 rng(9);
   std::normal_distribution<double> nd;
   int hits = 0;
@@ -99,11 +105,11 @@ TEST(CollisionDetector, NeverLaterThanTheBruteForceReferenceForRotatingTools) {
   EXPECT_GT(hits, 10);
 }
 
-TEST(CollisionDetector, OneVoxelPlateIsNotTunnelledThrough) {
+TEST_P(CollisionDetectorModes, OneVoxelPlateIsNotTunnelledThrough) {
   const ScalarVolume vol = datasets::makeThinPlateVolume(test::grid1mm());
   const double s = datasets::builtinIsovalue("thin-plate");
   const auto tool = test::meshTool(datasets::makeBuiltinTool("sphere"), 1.5e-3);
-  CollisionDetector cd(vol, *tool, 0.0);
+  CollisionDetector cd(vol, *tool, 0.0, 256, GetParam());
   const double z_plate = vol.geometry().origin_W_m.z() + 32 * 1e-3;
   // A 10 cm jump with a half turn, straight through the plate, in one step.
   Pose X0 = Pose::FromTranslation({0.0, 0.0, z_plate + 0.02});
@@ -119,10 +125,10 @@ TEST(CollisionDetector, OneVoxelPlateIsNotTunnelledThrough) {
   }
 }
 
-TEST(CollisionDetector, PruningKeepsOnlyContactsThatBlockTheMotion) {
+TEST_P(CollisionDetectorModes, PruningKeepsOnlyContactsThatBlockTheMotion) {
   const ScalarVolume vol = datasets::makePlaneVolume(test::grid1mm(), Eigen::Vector3d::UnitZ(), 0.0);
   const auto tool = test::pointTool();
-  CollisionDetector cd(vol, *tool, 0.0);
+  CollisionDetector cd(vol, *tool, 0.0, 256, GetParam());
   const RigidMotion motion = RigidMotion::Between(Pose::FromTranslation({0, 0, 0.005}), Pose::FromTranslation({0, 0, -0.005}),
                                                   tool->mass.p_TCm_m);
   const SweepResult r = cd.sweep(motion, 0.0);

@@ -3,6 +3,7 @@
 
 #include <cmath>
 #include <limits>
+#include <string>
 
 #include <gtest/gtest.h>
 
@@ -24,9 +25,20 @@ struct PlaneScene {
   std::shared_ptr<const ToolModel> tool = test::meshTool(datasets::makeBoxMesh({0.005, 0.005, 0.002}), 1e-3);
 };
 
-TEST(HapticRenderer, FreeMotionReachesTheDeviceWithZeroForce) {
+RendererOptions inMode(DetectionMode mode) {
+  RendererOptions o;
+  o.detection_mode = mode;
+  return o;
+}
+
+// Every test runs in both detection modes (issue 8): the paper's path and the accelerated one.
+class HapticRendererModes : public ::testing::TestWithParam<DetectionMode> {};
+INSTANTIATE_TEST_SUITE_P(Modes, HapticRendererModes, ::testing::Values(DetectionMode::kPaper, DetectionMode::kAccelerated),
+                         [](const ::testing::TestParamInfo<DetectionMode>& p) { return std::string(toString(p.param)); });
+
+TEST_P(HapticRendererModes, FreeMotionReachesTheDeviceWithZeroForce) {
   PlaneScene scene;
-  HapticRenderer r(scene.volume, scene.tool, {}, Pose::FromTranslation({0, 0, 0.01}), 0.0);
+  HapticRenderer r(scene.volume, scene.tool, inMode(GetParam()), Pose::FromTranslation({0, 0, 0.01}), 0.0);
   Pose X_WD = Pose::FromTranslation({0.003, -0.002, 0.012});
   X_WD.R_AB = Eigen::Quaterniond(Eigen::AngleAxisd(0.4, Eigen::Vector3d::UnitZ()));
   const TickOutput out = r.tick(X_WD, 0.0);
@@ -36,9 +48,9 @@ TEST(HapticRenderer, FreeMotionReachesTheDeviceWithZeroForce) {
   EXPECT_DOUBLE_EQ(out.stats.time_of_contact, 1.0);
 }
 
-TEST(HapticRenderer, PressingIntoAPlaneGivesKTimesDepth) {
+TEST_P(HapticRendererModes, PressingIntoAPlaneGivesKTimesDepth) {
   PlaneScene scene;
-  RendererOptions o;
+  RendererOptions o = inMode(GetParam());
   o.epsilon_m = 0.01e-3;  // tight tolerance so the stand-off stays well under 1 % of 5 mm
   o.gains.linear_N_per_m = 1000.0;
   HapticRenderer r(scene.volume, scene.tool, o, Pose::FromTranslation({0, 0, 0.01}), 0.0);
@@ -56,9 +68,9 @@ TEST(HapticRenderer, PressingIntoAPlaneGivesKTimesDepth) {
   EXPECT_LT(out.torque_W_Nm.norm(), 1e-3);
 }
 
-TEST(HapticRenderer, SlidingFollowsTheDeviceProjectionOntoThePlane) {
+TEST_P(HapticRendererModes, SlidingFollowsTheDeviceProjectionOntoThePlane) {
   PlaneScene scene;
-  HapticRenderer r(scene.volume, scene.tool, {}, Pose::FromTranslation({0, 0, 0.003}), 0.0);
+  HapticRenderer r(scene.volume, scene.tool, inMode(GetParam()), Pose::FromTranslation({0, 0, 0.003}), 0.0);
   TickOutput out;
   for (int i = 0; i < 30; ++i) out = r.tick(Pose::FromTranslation({0, 0, -0.001}), 0.0);  // press
   for (int i = 0; i <= 300; ++i) {
@@ -74,21 +86,21 @@ TEST(HapticRenderer, SlidingFollowsTheDeviceProjectionOntoThePlane) {
   EXPECT_NEAR(out.force_W_N.head<2>().norm(), 0.0, 1e-3);
 }
 
-TEST(HapticRenderer, ThinPlateIsNotTunnelledThroughAtOneMetrePerSecond) {
+TEST_P(HapticRendererModes, ThinPlateIsNotTunnelledThroughAtOneMetrePerSecond) {
   auto vol = std::make_shared<ScalarVolume>(datasets::makeThinPlateVolume(test::grid1mm()));
   const double s = datasets::builtinIsovalue("thin-plate");
   const auto tool = test::pointTool();
   const double z_plate = vol->geometry().origin_W_m.z() + 32e-3;
-  HapticRenderer r(vol, tool, {}, Pose::FromTranslation({0, 0, z_plate + 0.01}), s);
+  HapticRenderer r(vol, tool, inMode(GetParam()), Pose::FromTranslation({0, 0, z_plate + 0.01}), s);
   for (int i = 0; i < 40; ++i) {  // 1 mm per tick at 1 kHz = 1 m/s, ending 30 mm below the plate
     const TickOutput out = r.tick(Pose::FromTranslation({0, 0, z_plate + 0.01 - 0.001 * i}), s);
     ASSERT_GT(out.X_WP.p_AB_m.z(), z_plate) << "tick " << i;
   }
 }
 
-TEST(HapticRenderer, BadDeviceInputGivesZeroForceAndRecovers) {
+TEST_P(HapticRendererModes, BadDeviceInputGivesZeroForceAndRecovers) {
   PlaneScene scene;
-  HapticRenderer r(scene.volume, scene.tool, {}, Pose::FromTranslation({0, 0, 0.003}), 0.0);
+  HapticRenderer r(scene.volume, scene.tool, inMode(GetParam()), Pose::FromTranslation({0, 0, 0.003}), 0.0);
   TickOutput out = r.tick(Pose::FromTranslation({0, 0, -0.001}), 0.0);
   const Pose before = out.X_WP;
   const double nan = std::numeric_limits<double>::quiet_NaN();
@@ -109,10 +121,10 @@ TEST(HapticRenderer, BadDeviceInputGivesZeroForceAndRecovers) {
   EXPECT_TRUE(out.force_W_N.allFinite());
 }
 
-TEST(HapticRenderer, IsovalueChangeInContactCausesNoForceSpike) {
+TEST_P(HapticRendererModes, IsovalueChangeInContactCausesNoForceSpike) {
   auto vol = std::make_shared<ScalarVolume>(datasets::makePlaneVolume(test::grid1mm(), Eigen::Vector3d::UnitZ(), 0.0));
   const auto tool = test::meshTool(datasets::makeSphereMesh(0.004, 3), 1e-3);
-  HapticRenderer r(vol, tool, {}, Pose::FromTranslation({0, 0, 0.006}), 0.0);
+  HapticRenderer r(vol, tool, inMode(GetParam()), Pose::FromTranslation({0, 0, 0.006}), 0.0);
   TickOutput out;
   for (int i = 0; i < 20; ++i) out = r.tick(Pose::FromTranslation({0, 0, 0.002}), 0.0);
   const double felt = out.force_W_N.norm();
@@ -136,12 +148,12 @@ TEST(HapticRenderer, IsovalueChangeInContactCausesNoForceSpike) {
   EXPECT_LE(maxPenetration(*vol, *tool, out.X_WP, 0.0), r.epsilon_m());
 }
 
-TEST(HapticRenderer, ProxyComesToRestWhenTheDeviceIsStill) {
+TEST_P(HapticRendererModes, ProxyComesToRestWhenTheDeviceIsStill) {
   // A point-sampled ball pressed onto a sphere: rotating it rolls other points into contact, the
   // hardest case for settling (a stand-off of epsilon / 2 made it cycle with a 28-tick period).
   auto vol = std::make_shared<ScalarVolume>(datasets::makeBuiltinVolume("sphere"));
   const auto tool = test::meshTool(datasets::makeBuiltinTool("sphere"), 1.5e-3);
-  HapticRenderer r(vol, tool, {}, Pose::FromTranslation({0, 0, 0.03}), 0.0);
+  HapticRenderer r(vol, tool, inMode(GetParam()), Pose::FromTranslation({0, 0, 0.03}), 0.0);
   const Pose device = Pose::FromTranslation({0.0, 0.0, 0.022});
   TickOutput out;
   for (int i = 0; i < 400; ++i) out = r.tick(device, 0.0);
@@ -155,10 +167,10 @@ TEST(HapticRenderer, ProxyComesToRestWhenTheDeviceIsStill) {
   EXPECT_LE(maxPenetration(*vol, *tool, out.X_WP, 0.0), r.epsilon_m());
 }
 
-TEST(HapticRenderer, TickDoesNotAllocate) {
+TEST_P(HapticRendererModes, TickDoesNotAllocate) {
   auto vol = std::make_shared<ScalarVolume>(datasets::makeSphereVolume(test::grid1mm(), Eigen::Vector3d::Zero(), 0.015));
   const auto tool = test::meshTool(datasets::makeBuiltinTool("drill"), 1.5e-3);
-  HapticRenderer r(vol, tool, {}, Pose::FromTranslation({0, 0, 0.02}), 0.0);
+  HapticRenderer r(vol, tool, inMode(GetParam()), Pose::FromTranslation({0, 0, 0.02}), 0.0);
   Pose X_WD = Pose::FromTranslation({0.002, 0.0, 0.012});
   X_WD.R_AB = Eigen::Quaterniond(Eigen::AngleAxisd(0.2, Eigen::Vector3d::UnitX()));
   r.tick(X_WD, 0.0);  // warm-up
@@ -172,9 +184,9 @@ TEST(HapticRenderer, TickDoesNotAllocate) {
   EXPECT_GT(contacts, 0);
 }
 
-TEST(HapticRenderer, ReportsStatistics) {
+TEST_P(HapticRendererModes, ReportsStatistics) {
   PlaneScene scene;
-  HapticRenderer r(scene.volume, scene.tool, {}, Pose::FromTranslation({0, 0, 0.003}), 0.0);
+  HapticRenderer r(scene.volume, scene.tool, inMode(GetParam()), Pose::FromTranslation({0, 0, 0.003}), 0.0);
   const TickOutput out = r.tick(Pose::FromTranslation({0, 0, -0.002}), 0.0);
   EXPECT_GT(out.stats.volume_samples, 0);
   EXPECT_GT(out.stats.exec_time_us, 0.0);

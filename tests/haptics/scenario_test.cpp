@@ -102,10 +102,16 @@ Pose at(double x, double y, double z) { return Pose::FromTranslation({x, y, z});
 
 // ---- Sliding --------------------------------------------------------------------------------
 
-TEST(Scenario, SlidingOnAPlaneFollowsTheDeviceProjection) {
+// Every test runs in both detection modes (issue 8): the paper's path and the accelerated one.
+class Scenario : public ::testing::TestWithParam<DetectionMode> {};
+INSTANTIATE_TEST_SUITE_P(Modes, Scenario, ::testing::Values(DetectionMode::kPaper, DetectionMode::kAccelerated),
+                         [](const ::testing::TestParamInfo<DetectionMode>& p) { return std::string(toString(p.param)); });
+
+TEST_P(Scenario, SlidingOnAPlaneFollowsTheDeviceProjection) {
   auto vol = std::make_shared<ScalarVolume>(datasets::makePlaneVolume(grid(64, 1e-3), Eigen::Vector3d::UnitZ(), 0.0));
   const auto tool = test::meshTool(datasets::makeBoxMesh({0.005, 0.005, 0.002}), 1e-3);
   RendererOptions o;
+  o.detection_mode = GetParam();
   HapticRenderer r(vol, tool, o, at(0, 0, 0.004), 0.0);
   // Press 2 mm in, then slide 15 mm diagonally, circle back, and hold.
   const Pose a = at(0, 0, 0.0), b = at(0.012, -0.009, 0.0);
@@ -124,10 +130,11 @@ TEST(Scenario, SlidingOnAPlaneFollowsTheDeviceProjection) {
 
 // ---- Pressing -------------------------------------------------------------------------------
 
-TEST(Scenario, PressingIntoASphereGivesKTimesDepth) {
+TEST_P(Scenario, PressingIntoASphereGivesKTimesDepth) {
   auto vol = std::make_shared<ScalarVolume>(datasets::makeSphereVolume(grid(64, 1e-3), Eigen::Vector3d::Zero(), 0.02));
   const auto tool = test::pointTool();
   RendererOptions o;
+  o.detection_mode = GetParam();
   o.epsilon_m = 0.02e-3;
   HapticRenderer r(vol, tool, o, at(0, 0, 0.026), 0.0);
   // First contact along -z, then the device goes exactly 5 mm further and holds.
@@ -142,7 +149,7 @@ TEST(Scenario, PressingIntoASphereGivesKTimesDepth) {
   EXPECT_GT(out.last.force_W_N.z(), 0.0);
 }
 
-TEST(Scenario, PressingWorksForEveryVoxelTypeAndAnisotropicVoxels) {
+TEST_P(Scenario, PressingWorksForEveryVoxelTypeAndAnisotropicVoxels) {
   struct Case {
     VoxelType type;
     Eigen::Vector3d spacing_m;
@@ -166,6 +173,7 @@ TEST(Scenario, PressingWorksForEveryVoxelTypeAndAnisotropicVoxels) {
         datasets::makeVolumeFromSignedDistance(g, [n](const Eigen::Vector3d& p) { return -n.dot(p); }, c.type));
     const auto tool = test::meshTool(datasets::makeSphereMesh(0.002, 3), 0.5e-3);
     RendererOptions o;
+  o.detection_mode = GetParam();
     HapticRenderer r(vol, tool, o, at(0, 0, 0.006), 0.0);
     const Pose pressed = Pose::FromTranslation(n * (0.002 - 0.003));  // ball centre 3 mm past contact
     const Outcome out = runScenario(r, 0.0, {{300, line(at(0, 0, 0.006), pressed)}, {700, still(pressed), true}}, o.gains);
@@ -179,7 +187,7 @@ TEST(Scenario, PressingWorksForEveryVoxelTypeAndAnisotropicVoxels) {
 
 // ---- Wedging ----------------------------------------------------------------------------------
 
-TEST(Scenario, WedgingInAVGrooveAndACreviceSettlesWithoutChatter) {
+TEST_P(Scenario, WedgingInAVGrooveAndACreviceSettlesWithoutChatter) {
   for (const double half_angle_deg : {45.0, 15.0}) {  // a V-groove and a narrow crevice
     SCOPED_TRACE("wall half-angle " + std::to_string(half_angle_deg));
     const double a = half_angle_deg * std::numbers::pi / 180.0;
@@ -189,6 +197,7 @@ TEST(Scenario, WedgingInAVGrooveAndACreviceSettlesWithoutChatter) {
         grid(96, 0.5e-3), [n1, n2](const Eigen::Vector3d& p) { return std::max(n1.dot(p), n2.dot(p)); }));
     const auto tool = test::meshTool(datasets::makeSphereMesh(0.003, 3), 0.6e-3);
     RendererOptions o;
+  o.detection_mode = GetParam();
     // Start clear of both walls (the V's half width at height z is z tan a), wedge 4 mm deeper
     // than where the ball meets both walls (centre height r / sin a).
     const Pose start = at(0.001, 0, 0.021);
@@ -204,7 +213,7 @@ TEST(Scenario, WedgingInAVGrooveAndACreviceSettlesWithoutChatter) {
 
 // ---- Prying -----------------------------------------------------------------------------------
 
-TEST(Scenario, PryingALeverInASlotGivesAnOpposingTorque) {
+TEST_P(Scenario, PryingALeverInASlotGivesAnOpposingTorque) {
   // A block (z < 0) with a slot 3 mm wide (|x| < 1.5 mm), 20 mm deep; a 2 x 6 x 40 mm bar in it.
   auto vol = std::make_shared<ScalarVolume>(datasets::makeVolumeFromSignedDistance(grid(96, 0.5e-3), [](const Eigen::Vector3d& p) {
     const double block = -p.z();
@@ -213,6 +222,7 @@ TEST(Scenario, PryingALeverInASlotGivesAnOpposingTorque) {
   }));
   const auto tool = test::meshTool(datasets::translated(datasets::makeBoxMesh({0.001, 0.003, 0.02}), {0, 0, 0.02}), 0.7e-3);
   RendererOptions o;
+  o.detection_mode = GetParam();
   o.gains = {1000.0, 0.5};
   const Pose inserted = at(0, 0, -0.015);  // tip 15 mm down the slot
   HapticRenderer r(vol, tool, o, at(0, 0, 0.01), 0.0);
@@ -232,7 +242,7 @@ TEST(Scenario, PryingALeverInASlotGivesAnOpposingTorque) {
 
 // ---- Hooking ----------------------------------------------------------------------------------
 
-TEST(Scenario, HookCaughtUnderAShelfHoldsWhenPulled) {
+TEST_P(Scenario, HookCaughtUnderAShelfHoldsWhenPulled) {
   // A shelf 4 mm thick at 0 < z < 4 mm over x > 0 (an overhang); an L-shaped hook: a shaft along
   // +z and a foot along +x at its bottom, slid under the shelf and pulled straight up.
   auto vol = std::make_shared<ScalarVolume>(datasets::makeVolumeFromSignedDistance(grid(80, 0.5e-3), [](const Eigen::Vector3d& p) {
@@ -243,6 +253,7 @@ TEST(Scenario, HookCaughtUnderAShelfHoldsWhenPulled) {
       datasets::translated(datasets::makeBoxMesh({0.004, 0.001, 0.001}), {-0.001, 0, 0.0}));
   const auto tool = test::meshTool(hook, 0.6e-3);
   RendererOptions o;
+  o.detection_mode = GetParam();
   const Pose under = at(0.0, 0, -0.004);  // foot (z in [-1, 1] mm around origin) below the shelf
   HapticRenderer r(vol, tool, o, at(-0.01, 0, -0.004), 0.0);
   const Pose pulled = at(0.0, 0, 0.004);  // 8 mm up: the foot would end inside the shelf
@@ -255,7 +266,7 @@ TEST(Scenario, HookCaughtUnderAShelfHoldsWhenPulled) {
 
 // ---- Peg in hole ------------------------------------------------------------------------------
 
-TEST(Scenario, LongPegGoesToTheBottomOfTheHoleAndJamsOnlyWhenPulledSideways) {
+TEST_P(Scenario, LongPegGoesToTheBottomOfTheHoleAndJamsOnlyWhenPulledSideways) {
   auto vol = std::make_shared<ScalarVolume>(datasets::makeBlockWithBlindHoleVolume(256, -0.004));
   PointShellOptions ps;
   ps.point_count = 1307;  // the paper's Hole / Peg figure
@@ -264,6 +275,7 @@ TEST(Scenario, LongPegGoesToTheBottomOfTheHoleAndJamsOnlyWhenPulledSideways) {
   auto tool = std::make_shared<ToolModel>(makeToolModel(datasets::makeCylinderMesh(datasets::kPegRadius_m, 0.08, 64), ps));
   const double s = datasets::kBlockIsovalue;
   RendererOptions o;
+  o.detection_mode = GetParam();
   HapticRenderer r(vol, tool, o, at(0, 0, 0.02), s);
   const Pose deep = at(0, 0, -0.008);  // 4 mm past the hole's floor at z = -4 mm
   const Outcome in = runScenario(r, s, {{1500, line(at(0, 0, 0.02), deep)}, {800, still(deep), true}}, o.gains);
@@ -283,12 +295,13 @@ TEST(Scenario, LongPegGoesToTheBottomOfTheHoleAndJamsOnlyWhenPulledSideways) {
 
 // ---- Thin and fast ------------------------------------------------------------------------------
 
-TEST(Scenario, TenCentimetreJumpWithAHalfTurnNeverCrossesAOneVoxelPlate) {
+TEST_P(Scenario, TenCentimetreJumpWithAHalfTurnNeverCrossesAOneVoxelPlate) {
   auto vol = std::make_shared<ScalarVolume>(datasets::makeThinPlateVolume(grid(64, 1e-3)));
   const double s = datasets::builtinIsovalue("thin-plate");
   const double z_plate = vol->geometry().origin_W_m.z() + 32e-3;
   const auto tool = test::meshTool(datasets::makeBuiltinTool("probe"), 1e-3);
   RendererOptions o;
+  o.detection_mode = GetParam();
   HapticRenderer r(vol, tool, o, at(0, 0, z_plate + 0.004), s);
   for (int i = 0; i < 40; ++i) {
     Pose X_WD = at(0.001 * (i % 3), 0, z_plate + (i % 2 == 0 ? -0.096 : 0.004));

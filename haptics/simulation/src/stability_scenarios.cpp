@@ -175,6 +175,7 @@ SimulationResult runScenario(const Scenario& sc, double k_lin, const DeviceParam
       options.lever_m > 0.0 ? k_lin * options.lever_m * options.lever_m
                             : k_lin * sc.tool->mass.I_Cm_T_kgm2.trace() / 3.0 / sc.tool->mass.mass_kg;
   if (options.standoff_fraction >= 0.0) o.standoff_fraction = options.standoff_fraction;
+  o.detection_mode = options.detection_mode;
   haptics::HapticRenderer r(sc.volume, sc.tool, o, sc.X_WP0, sc.isovalue);
   SimulationConfig cfg;
   cfg.device = device;

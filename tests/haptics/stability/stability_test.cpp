@@ -37,6 +37,11 @@ const std::vector<Scenario>& scenarios() {
   return s;
 }
 
+// <base>.json for the default (accelerated) mode, <base>_paper.json for the paper's path.
+std::string reportName(const std::string& base, haptics::DetectionMode mode) {
+  return base + (mode == haptics::DetectionMode::kPaper ? "_paper" : "") + ".json";
+}
+
 void writeReport(const std::string& file, const std::vector<StiffnessResult>& rows) {
   const std::string path = std::string(VH_STABILITY_REPORT_DIR) + "/" + file;
   std::ofstream(path) << jsonReport(rows, hand());
@@ -44,6 +49,17 @@ void writeReport(const std::string& file, const std::vector<StiffnessResult>& ro
 }
 
 // --- The harness against closed-form results ---------------------------------------------
+
+// The tests that run the renderer run in both detection modes (issue 8).
+std::string modeName(const ::testing::TestParamInfo<haptics::DetectionMode>& p) { return haptics::toString(p.param); }
+#define VH_BOTH_MODES(suite)                                                    \
+  class suite : public ::testing::TestWithParam<haptics::DetectionMode> {};     \
+  INSTANTIATE_TEST_SUITE_P(Modes, suite,                                        \
+                           ::testing::Values(haptics::DetectionMode::kPaper,    \
+                                             haptics::DetectionMode::kAccelerated), modeName)
+VH_BOTH_MODES(StabilitySolverModes);
+VH_BOTH_MODES(StabilitySweepModes);
+VH_BOTH_MODES(StabilityLongModes);
 
 // Colgate and Schenkel: a mass-damper touching a zero-order-hold spring is stable for
 // K < ~2b/T when bT/m is small. The exact discrete analysis must agree within 10 %.
@@ -87,8 +103,8 @@ TEST(StabilityHarness, FreeBounceMatchesTheZeroOrderHoldPrediction) {
 // Strict: the paper's algorithm (scalar coupling, no contact stand-off), every scenario, every
 // stiffness, both devices: at every tick the coupling does non-negative work on the proxy,
 // S_k >= -tol_k (device_model.h; tol_k is rounding only, see solverWorkTolerance()).
-TEST(StabilitySolver, ProxyNeverMovesAgainstTheCoupling) {
-  const SweepOptions paper{0.0, 0.0};
+TEST_P(StabilitySolverModes, ProxyNeverMovesAgainstTheCoupling) {
+  const SweepOptions paper{0.0, 0.0, true, GetParam()};
   for (const DeviceParams& dev : {deviceA(), deviceB()})
     for (double k : kStiffnesses)
       for (const Scenario& sc : scenarios()) {
@@ -107,8 +123,8 @@ TEST(StabilitySolver, ProxyNeverMovesAgainstTheCoupling) {
 // The optional contact stand-off (off by default) lifts contacts out of the surface, against
 // the spring: with it on (epsilon / 4), that lift is the only motion against the coupling, and
 // no tick loses more than |F| * (lift cap 2 * epsilon / 4) of solver work.
-TEST(StabilitySolver, StandOffLiftIsTheOnlyMotionAgainstTheCoupling) {
-  const SweepOptions standoff{0.25, 0.0, false};
+TEST_P(StabilitySolverModes, StandOffLiftIsTheOnlyMotionAgainstTheCoupling) {
+  const SweepOptions standoff{0.25, 0.0, false, GetParam()};
   int lifts = 0;
   double injected = 0.0, throughput = 0.0;
   for (const DeviceParams& dev : {deviceA(), deviceB()})
@@ -186,9 +202,9 @@ TEST(StabilitySolver, DiagonalCouplingOneContactStepLowersTheCouplingEnergy) {
 // coupling gives the device 9.2 mJ for 3.7 mJ taken (E_gen = +7.8 mJ), although Colgate's
 // bound (2 b / T = 2000 N/m) says this device is passive at 1000 N/m, as the scalar coupling
 // shows (E_gen <= 0). The fix of the one-contact case fixes this too.
-TEST(StabilitySolver, DiagonalCouplingSphereSlideNeverMovesAgainstTheCoupling) {
+TEST_P(StabilitySolverModes, DiagonalCouplingSphereSlideNeverMovesAgainstTheCoupling) {
   const Scenario& sphere = scenarios()[1];
-  const SimulationResult r = runScenario(sphere, 1000.0, deviceA(), hand(), {0.0, kLever_m});
+  const SimulationResult r = runScenario(sphere, 1000.0, deviceA(), hand(), {0.0, kLever_m, true, GetParam()});
   EXPECT_EQ(r.solver_violations, 0) << "worst S_k " << r.worst_solver_work_J << " J, injected "
                                     << r.solver_injected_J << " J";
   EXPECT_LE(r.max_e_gen_J, passivityTolerance(r.energy_in_J + r.energy_out_J))
@@ -198,11 +214,11 @@ TEST(StabilitySolver, DiagonalCouplingSphereSlideNeverMovesAgainstTheCoupling) {
 // --- The sweep ------------------------------------------------------------------------------
 
 std::vector<StiffnessResult> sweep(const std::vector<Scenario>& scs, const std::vector<double>& ks,
-                                   const std::vector<DeviceParams>& devices) {
+                                   const std::vector<DeviceParams>& devices, haptics::DetectionMode mode) {
   std::vector<StiffnessResult> rows;
   for (double lever : {kLever_m, 0.0})
     for (const DeviceParams& d : devices)
-      for (double k : ks) rows.push_back(evaluate(scs, k, d, hand(), {-1.0, lever, false}));
+      for (double k : ks) rows.push_back(evaluate(scs, k, d, hand(), {-1.0, lever, false, mode}));
   return rows;
 }
 
@@ -241,9 +257,9 @@ void checkRow(const StiffnessResult& s) {
   }
 }
 
-TEST(StabilitySweep, StiffnessFrom100To50000NPerM) {
-  const std::vector<StiffnessResult> rows = sweep(scenarios(), kStiffnesses, {deviceA(), deviceB()});
-  writeReport("stability_report.json", rows);
+TEST_P(StabilitySweepModes, StiffnessFrom100To50000NPerM) {
+  const std::vector<StiffnessResult> rows = sweep(scenarios(), kStiffnesses, {deviceA(), deviceB()}, GetParam());
+  writeReport(reportName("stability_report", GetParam()), rows);
   for (const StiffnessResult& s : rows) {
     checkRow(s);
     SCOPED_TRACE(s.gains + ", device " + s.device + ", K = " + std::to_string(s.k_lin));
@@ -267,30 +283,30 @@ TEST(StabilitySweep, StiffnessFrom100To50000NPerM) {
 
 // --- Long runs (labels stability;long) ---------------------------------------------------------
 
-TEST(StabilityLong, FullSweep) {
+TEST_P(StabilityLongModes, FullSweep) {
   std::vector<double> ks;
   for (double k = 100.0; k <= 50000.0 * 1.0001; k *= std::pow(500.0, 1.0 / 18.0)) ks.push_back(std::round(k));
   const std::vector<DeviceParams> devices{deviceA(), deviceB(), DeviceParams::scaled("C", 0.2, 3.0, kLever_m),
                                           DeviceParams::scaled("D", 0.1, 1.0, kLever_m),
                                           DeviceParams::scaled("E", 0.5, 2.0, kLever_m)};
-  const std::vector<StiffnessResult> rows = sweep(scenarios(), ks, devices);
-  writeReport("stability_report_long.json", rows);
+  const std::vector<StiffnessResult> rows = sweep(scenarios(), ks, devices, GetParam());
+  writeReport(reportName("stability_report_long", GetParam()), rows);
   for (const StiffnessResult& s : rows) checkRow(s);
   // The strict solver test over the whole grid.
   for (const DeviceParams& dev : devices)
     for (double k : ks)
       for (const Scenario& sc : scenarios()) {
-        const SimulationResult r = runScenario(sc, k, dev, hand(), {0.0, 0.0});
+        const SimulationResult r = runScenario(sc, k, dev, hand(), {0.0, 0.0, true, GetParam()});
         EXPECT_EQ(r.solver_violations, 0) << sc.name << ", device " << dev.name << ", K = " << k;
       }
 }
 
-TEST(StabilityLong, PegInHole) {
+TEST_P(StabilityLongModes, PegInHole) {
   const std::vector<Scenario> peg{pegScenario()};
   std::vector<StiffnessResult> rows;
   for (double lever : {kLever_m, 0.0})
-    for (double k : kStiffnesses) rows.push_back(evaluate(peg, k, deviceA(), hand(), {-1.0, lever}));
-  writeReport("stability_report_peg.json", rows);
+    for (double k : kStiffnesses) rows.push_back(evaluate(peg, k, deviceA(), hand(), {-1.0, lever, true, GetParam()}));
+  writeReport(reportName("stability_report_peg", GetParam()), rows);
   for (const StiffnessResult& s : rows) {
     SCOPED_TRACE(s.gains + ", K = " + std::to_string(s.k_lin));
     EXPECT_TRUE(s.finite);
@@ -300,7 +316,7 @@ TEST(StabilityLong, PegInHole) {
     }
   }
   for (double k : kStiffnesses) {
-    const SimulationResult r = runScenario(peg[0], k, deviceA(), hand(), {0.0, 0.0});
+    const SimulationResult r = runScenario(peg[0], k, deviceA(), hand(), {0.0, 0.0, true, GetParam()});
     EXPECT_EQ(r.solver_violations, 0) << "K = " << k << ", worst S_k " << r.worst_solver_work_J << " J";
     EXPECT_LE(r.max_penetration_m, r.epsilon_m);
   }

@@ -4,6 +4,7 @@
 /// proxy's motion arc (paper section 2.3) and contact-set pruning (step 2).
 
 #include <cstdint>
+#include <ostream>
 #include <span>
 #include <vector>
 
@@ -26,6 +27,8 @@ enum class DetectionMode { kPaper, kAccelerated };
 
 /// "paper" or "accelerated".
 const char* toString(DetectionMode mode) noexcept;
+/// Writes toString(mode) (also names parametrised tests).
+inline std::ostream& operator<<(std::ostream& os, DetectionMode mode) { return os << toString(mode); }
 
 /// One point of the contact set.
 struct Contact {
@@ -72,6 +75,9 @@ class CollisionDetector {
   /// first crossing is refined by bisection until the point's travel over the interval is
   /// below epsilon / 8 (< epsilon as the paper asks; finer so that small steps still make
   /// progress). The returned time is on the outside end of that interval.
+  /// kAccelerated takes the same samples except where the volume's min-max tree proves a run
+  /// of segments (or a whole node of the point-shell tree) free of inside points: the same t
+  /// (bit for bit); on an exact tie between points, hit_point may name another tied point.
   SweepResult sweep(const RigidMotion& motion, double isovalue) noexcept;
 
   /// Step 2: keeps the contacts that, moved epsilon from X_WP towards X_WD, are inside or move
@@ -110,14 +116,38 @@ class CollisionDetector {
 
   /// Trilinear samples taken since the last resetSampleCount() (a gradient counts 6).
   std::int64_t sampleCount() const noexcept { return samples_; }
-  void resetSampleCount() noexcept { samples_ = 0; }
+  /// Min-max tree box queries since the last resetSampleCount() (kAccelerated only).
+  std::int64_t boxQueryCount() const noexcept { return box_queries_; }
+  void resetSampleCount() noexcept {
+    samples_ = 0;
+    box_queries_ = 0;
+  }
 
  private:
   struct QueueEntry {
     double t_begin;  // start of the segment to test
     int point;
-    int segment;     // segment index along the point's path
+    std::int64_t segment;  // segment index along the point's path
+    // kAccelerated: segments [segment, segment + run) are not yet proven empty; 0 means sample
+    // the end of `segment` directly (the paper's step).
+    std::int64_t run = 0;
   };
+  // Node of the point-shell tree (kAccelerated): a ball in T holding points order_[begin, end).
+  struct ShellNode {
+    Eigen::Vector3d center_T_m = Eigen::Vector3d::Zero();
+    double radius_m = 0.0;
+    int begin = 0, end = 0;
+    int left = -1, right = -1;  // children, -1 for a leaf
+  };
+  SweepResult sweepPaper(const RigidMotion& motion, double isovalue) noexcept;
+  SweepResult sweepAccelerated(const RigidMotion& motion, double isovalue) noexcept;
+  int buildShellTree(int begin, int end, int depth);
+  // False when no point of the W ball (centre, radius) can be inside (min-max tree bound).
+  bool ballMayBeInside(const Eigen::Vector3d& center_W_m, double radius_m, double isovalue) noexcept;
+  // Start time of segment k of point j (the same double the paper path computes).
+  double segmentBegin(int j, std::int64_t k) const noexcept { return k == 0 ? 0.0 : static_cast<double>(k) * dt_[j]; }
+  // False when the swept ball of segments [k, k + run) of point j holds no inside point.
+  bool runMayHit(const RigidMotion& motion, int j, std::int64_t k, std::int64_t run, double isovalue) noexcept;
   bool inside(const Eigen::Vector3d& p_W, double isovalue) noexcept;
   // Fills c.n_W and c.clearance_m at c.p_W_m (7 samples).
   void measureContact(Contact& c, double isovalue) noexcept;
@@ -134,12 +164,23 @@ class CollisionDetector {
   std::vector<double> dt_;               // per point segment length in time
   std::vector<double> path_;             // per point path-length bound
   std::vector<QueueEntry> heap_;         // capacity = number of points
+  // kAccelerated state (see haptics/README.md, "Speed").
+  std::vector<ShellNode> nodes_;         // point-shell tree, root at 0
+  std::vector<int> order_;               // point indices in tree order
+  std::vector<int> stack_;               // traversal stack, capacity = nodes
+  std::vector<std::int64_t> segments_;   // per point segment count of the last sweep
+  std::vector<double> clear_until_;      // per point: proven outside over [0, clear_until] of the last sweep
+  std::vector<std::int64_t> clear_segments_;  // per point: leading segments proven empty
+  std::vector<int> active_;              // points not culled by the last sweep, capacity = points
+  std::size_t active_count_ = 0;
+  Eigen::Vector3d grid_per_m_ = Eigen::Vector3d::Ones();  // 1 / spacing per grid axis
   std::vector<unsigned char> embedded_;  // per point
   std::vector<unsigned char> in_set_;    // per point: in the contact set
   int embedded_count_ = 0;
   std::vector<Contact> contacts_;
   std::size_t contact_count_ = 0;
   std::int64_t samples_ = 0;
+  std::int64_t box_queries_ = 0;
 };
 
 }  // namespace vh::haptics

@@ -56,6 +56,7 @@ struct TickStats {
   double exec_time_us = 0.0;        ///< Wall time of the tick [us].
   int contacts = 0;                 ///< Contact set size after the tick.
   std::int64_t volume_samples = 0;  ///< Trilinear F samples taken (a gradient counts 6).
+  std::int64_t box_queries = 0;     ///< Min-max tree box queries (kAccelerated; 0 for kPaper).
   double time_of_contact = 1.0;     ///< Fraction of the constrained path travelled (1 = free).
   bool bad_input = false;           ///< The device pose was rejected this tick.
 };

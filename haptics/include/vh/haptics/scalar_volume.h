@@ -16,6 +16,8 @@
 #include <Eigen/Core>
 #include <Eigen/Geometry>
 
+#include "vh/haptics/min_max_tree.h"
+
 namespace vh::haptics {
 
 /// Stored voxel type.
@@ -107,6 +109,16 @@ class ScalarVolume {
   bool isInside(const Eigen::Vector3d& p_W_m, double isovalue) const noexcept;
 
 
+  /// Min/max bricks over the raw voxels (built once with the volume; independent of any
+  /// isovalue). See haptics/README.md, "Speed".
+  const MinMaxTree& minMaxTree() const noexcept { return tree_; }
+
+  /// Upper bound of F over every point with grid coordinates in the closed box [lo_ijk, hi_ijk]
+  /// that isInside() could report inside: -infinity when the box misses the grid's box (out of
+  /// bounds is never inside). Conservative under rounding: sampleGrid(g) <= the bound for every
+  /// in-bounds g in the box, so "bound <= isovalue" proves that no point of the box is inside.
+  double upperBoundInBox(const Eigen::Vector3d& lo_ijk, const Eigen::Vector3d& hi_ijk) const noexcept;
+
   /// Axis-aligned bounding box of the grid in W [m].
   Eigen::Vector3d boundsMin_W_m() const noexcept;
   Eigen::Vector3d boundsMax_W_m() const noexcept;
@@ -127,6 +139,7 @@ class ScalarVolume {
   double max_value_ = 0.0;
   Eigen::Matrix3d W_to_grid_ = Eigen::Matrix3d::Identity();  // (D diag(s))^-1
   Eigen::Vector3d upper_{0, 0, 0};                           // n - 1 per axis
+  MinMaxTree tree_;
 };
 
 }  // namespace vh::haptics

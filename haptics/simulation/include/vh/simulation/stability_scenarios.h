@@ -113,6 +113,8 @@ struct SweepOptions {
   double standoff_fraction = -1.0;  ///< < 0: the renderer's default.
   double lever_m = kLever_m;        ///< k_ang = k_lin lever^2; <= 0: k_ang = k_lin i / m (scalar k).
   bool check_penetration = true;    ///< Measure the proxy's depth every tick (a third of the cost).
+  /// Collision-detection path of the renderer (both must pass the same tests, issue 8).
+  haptics::DetectionMode detection_mode = haptics::DetectionMode::kAccelerated;
 };
 
 /// Runs one scenario at linear stiffness k_lin. Torsional stiffness: options.lever_m > 0 gives

@@ -1,0 +1,115 @@
+#pragma once
+/// @file
+/// Min/max bricks over the raw voxel values of a volume, arranged as a tree (issue 8, "Speed"
+/// in haptics/README.md). Independent of the isovalue: built once per volume, it answers "which
+/// raw values can a trilinear sample take inside this box?", and the caller compares that with
+/// the isovalue of the current tick, so a moved isovalue slider needs no rebuild.
+
+#include <algorithm>
+#include <array>
+#include <cstddef>
+#include <limits>
+#include <vector>
+
+#include <Eigen/Core>
+
+namespace vh::haptics {
+
+/// Tree of raw-value ranges over the cells of a regular grid.
+///
+/// Level 0 brick (a, b, c) covers the cells [4a, 4a + 4) x [4b, 4b + 4) x [4c, 4c + 4) (cell
+/// i spans grid coordinates [i, i + 1] and uses voxels i and i + 1, so a brick reads the voxels
+/// [4a, 4a + 4] on each axis, its one-voxel upper border included); level L + 1 merges 2 x 2 x 2
+/// nodes of level L, up to one root. Ranges are stored as float: every supported voxel type
+/// (uint8, int16, uint16, float32) converts to float exactly.
+class MinMaxTree {
+ public:
+  static constexpr int kBrickCells = 4;  ///< Cells per brick side at level 0.
+
+  MinMaxTree() = default;
+  /// Builds the tree over `voxels` (x fastest, then y, then z) of a grid with `dims`.
+  /// @param dims voxels per axis, each >= 2 (the caller validates).
+  template <typename T>
+  static MinMaxTree Build(const T* voxels, const std::array<int, 3>& dims);
+
+  /// Range of the raw values that a trilinear sample (ScalarVolume's: coordinates clamped to
+  /// the grid, cell min(floor(x), n - 2)) can take at grid coordinates in the closed box
+  /// [lo_ijk, hi_ijk], clipped to the grid's box [0, n - 1]^3. Every such sample lies within
+  /// the 8 corner voxels of its cell, so within [raw_min, raw_max] (as computed in double by
+  /// ScalarVolume, up to rounding: see ScalarVolume::upperBoundInBox()).
+  /// @return false when the box does not meet the grid (no sample there is in bounds); the
+  ///         whole volume's range when a coordinate is not finite.
+  bool rawRange(const Eigen::Vector3d& lo_ijk, const Eigen::Vector3d& hi_ijk, float& raw_min,
+                float& raw_max) const noexcept;
+
+  /// Number of levels (0 when empty).
+  int levels() const noexcept { return static_cast<int>(levels_.size()); }
+  /// Nodes per axis at `level`.
+  std::array<int, 3> nodes(int level) const noexcept { return levels_[level].n; }
+  /// Range stored at node (a, b, c) of `level`.
+  void node(int level, int a, int b, int c, float& raw_min, float& raw_max) const noexcept;
+  bool empty() const noexcept { return levels_.empty(); }
+
+ private:
+  struct Level {
+    std::array<int, 3> n{0, 0, 0};
+    std::vector<float> range;  // (min, max) per node, n[0] * n[1] * n[2] nodes, a fastest
+  };
+  std::array<int, 3> dims_{0, 0, 0};
+  std::vector<Level> levels_;
+};
+
+// ---- Inline hot path --------------------------------------------------------------------------
+
+inline void MinMaxTree::node(int level, int a, int b, int c, float& raw_min, float& raw_max) const noexcept {
+  const Level& l = levels_[level];
+  const std::size_t o = static_cast<std::size_t>(a) + static_cast<std::size_t>(l.n[0]) * (b + static_cast<std::size_t>(l.n[1]) * c);
+  raw_min = l.range[2 * o];
+  raw_max = l.range[2 * o + 1];
+}
+
+inline bool MinMaxTree::rawRange(const Eigen::Vector3d& lo_ijk, const Eigen::Vector3d& hi_ijk, float& raw_min,
+                                 float& raw_max) const noexcept {
+  if (levels_.empty()) return false;
+  if (!lo_ijk.allFinite() || !hi_ijk.allFinite()) {
+    node(levels() - 1, 0, 0, 0, raw_min, raw_max);
+    return true;
+  }
+  int b0[3], b1[3];
+  int spread = 0;  // OR of b0 ^ b1: its bit length bounds the level needed
+  for (int a = 0; a < 3; ++a) {
+    const double upper = dims_[a] - 1;
+    if (hi_ijk[a] < 0.0 || lo_ijk[a] > upper) return false;
+    const double lo = std::clamp(lo_ijk[a], 0.0, upper), hi = std::clamp(hi_ijk[a], 0.0, upper);
+    // The cell trilinear interpolation uses at x: min(floor(x), n - 2).
+    b0[a] = std::min(static_cast<int>(lo), dims_[a] - 2) / kBrickCells;
+    b1[a] = std::min(static_cast<int>(hi), dims_[a] - 2) / kBrickCells;
+    spread |= b1[a] - b0[a];
+  }
+  if (spread == 0) {  // one brick: the common case of a short segment
+    node(0, b0[0], b0[1], b0[2], raw_min, raw_max);
+    return true;
+  }
+  // The finest level at which the box spans at most 2 nodes per axis (at most 8 reads).
+  int level = 0;
+  while ((spread >> level) > 1 && level + 1 < levels()) ++level;
+  while (level + 1 < levels() &&
+         ((b1[0] >> level) - (b0[0] >> level) > 1 || (b1[1] >> level) - (b0[1] >> level) > 1 ||
+          (b1[2] >> level) - (b0[2] >> level) > 1))
+    ++level;
+  const Level& l = levels_[level];
+  float lo = std::numeric_limits<float>::infinity(), hi = -lo;
+  for (int c = b0[2] >> level; c <= (b1[2] >> level); ++c)
+    for (int b = b0[1] >> level; b <= (b1[1] >> level); ++b) {
+      const std::size_t row = static_cast<std::size_t>(l.n[0]) * (b + static_cast<std::size_t>(l.n[1]) * c);
+      for (int a = b0[0] >> level; a <= (b1[0] >> level); ++a) {
+        lo = std::min(lo, l.range[2 * (row + a)]);
+        hi = std::max(hi, l.range[2 * (row + a) + 1]);
+      }
+    }
+  raw_min = lo;
+  raw_max = hi;
+  return true;
+}
+
+}  // namespace vh::haptics

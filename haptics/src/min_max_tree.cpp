@@ -1,0 +1,100 @@
+#include "vh/haptics/min_max_tree.h"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdint>
+#include <limits>
+
+namespace vh::haptics {
+namespace {
+constexpr float kInf = std::numeric_limits<float>::infinity();
+
+// Merges 2 nodes into one along `axis` (no shared border: nodes partition the cells).
+void mergeAxis(const std::vector<float>& in_lo, const std::vector<float>& in_hi, const std::array<int, 3>& n_in,
+               int axis, std::vector<float>& out_lo, std::vector<float>& out_hi, std::array<int, 3>& n_out) {
+  n_out = n_in;
+  n_out[axis] = (n_in[axis] + 1) / 2;
+  const std::size_t count = static_cast<std::size_t>(n_out[0]) * n_out[1] * n_out[2];
+  out_lo.assign(count, kInf);
+  out_hi.assign(count, -kInf);
+  const std::ptrdiff_t stride_in[3] = {1, n_in[0], static_cast<std::ptrdiff_t>(n_in[0]) * n_in[1]};
+  for (int k = 0; k < n_out[2]; ++k)
+    for (int j = 0; j < n_out[1]; ++j)
+      for (int i = 0; i < n_out[0]; ++i) {
+        const int idx[3] = {i, j, k};
+        std::ptrdiff_t base_in = 0;
+        for (int a = 0; a < 3; ++a)
+          if (a != axis) base_in += idx[a] * stride_in[a];
+        const std::ptrdiff_t o = i + static_cast<std::ptrdiff_t>(n_out[0]) * (j + static_cast<std::ptrdiff_t>(n_out[1]) * k);
+        float lo = kInf, hi = -kInf;
+        for (int v = 2 * idx[axis]; v <= std::min(2 * idx[axis] + 1, n_in[axis] - 1); ++v) {
+          const std::ptrdiff_t p = base_in + v * stride_in[axis];
+          lo = std::min(lo, in_lo[p]);
+          hi = std::max(hi, in_hi[p]);
+        }
+        out_lo[o] = lo;
+        out_hi[o] = hi;
+      }
+}
+}  // namespace
+
+template <typename T>
+MinMaxTree MinMaxTree::Build(const T* voxels, const std::array<int, 3>& dims) {
+  MinMaxTree tree;
+  tree.dims_ = dims;
+  // Level 0 straight from the voxels, brick by brick (no copy of the volume): brick a reads
+  // voxels [4a, 4a + 4] clipped to the grid on each axis.
+  std::array<int, 3> n;
+  for (int a = 0; a < 3; ++a) n[a] = std::max(1, (dims[a] - 1 + kBrickCells - 1) / kBrickCells);
+  const std::size_t count = static_cast<std::size_t>(n[0]) * n[1] * n[2];
+  std::vector<float> lo(count, kInf), hi(count, -kInf);
+  const std::ptrdiff_t sy = dims[0], sz = static_cast<std::ptrdiff_t>(dims[0]) * dims[1];
+  std::size_t o = 0;
+  for (int c = 0; c < n[2]; ++c)
+    for (int b = 0; b < n[1]; ++b)
+      for (int a = 0; a < n[0]; ++a, ++o) {
+        float l = kInf, h = -kInf;
+        const int x1 = std::min(kBrickCells * a + kBrickCells, dims[0] - 1);
+        const int y1 = std::min(kBrickCells * b + kBrickCells, dims[1] - 1);
+        const int z1 = std::min(kBrickCells * c + kBrickCells, dims[2] - 1);
+        for (int z = kBrickCells * c; z <= z1; ++z)
+          for (int y = kBrickCells * b; y <= y1; ++y) {
+            const T* row = voxels + z * sz + y * sy;
+            for (int x = kBrickCells * a; x <= x1; ++x) {
+              const float v = static_cast<float>(row[x]);
+              l = std::min(l, v);
+              h = std::max(h, v);
+            }
+          }
+        lo[o] = l;
+        hi[o] = h;
+      }
+  const auto interleave = [](const std::vector<float>& mins, const std::vector<float>& maxs) {
+    std::vector<float> range(2 * mins.size());
+    for (std::size_t i = 0; i < mins.size(); ++i) {
+      range[2 * i] = mins[i];
+      range[2 * i + 1] = maxs[i];
+    }
+    return range;
+  };
+  tree.levels_.push_back({n, interleave(lo, hi)});
+  while (n[0] > 1 || n[1] > 1 || n[2] > 1) {
+    for (int axis = 0; axis < 3; ++axis) {
+      std::vector<float> out_lo, out_hi;
+      std::array<int, 3> n_out;
+      mergeAxis(lo, hi, n, axis, out_lo, out_hi, n_out);
+      lo.swap(out_lo);
+      hi.swap(out_hi);
+      n = n_out;
+    }
+    tree.levels_.push_back({n, interleave(lo, hi)});
+  }
+  return tree;
+}
+
+template MinMaxTree MinMaxTree::Build<std::uint8_t>(const std::uint8_t*, const std::array<int, 3>&);
+template MinMaxTree MinMaxTree::Build<std::int16_t>(const std::int16_t*, const std::array<int, 3>&);
+template MinMaxTree MinMaxTree::Build<std::uint16_t>(const std::uint16_t*, const std::array<int, 3>&);
+template MinMaxTree MinMaxTree::Build<float>(const float*, const std::array<int, 3>&);
+
+}  // namespace vh::haptics

@@ -1,0 +1,172 @@
+// The min-max tree (issue 8) against brute force: its range must contain every trilinear
+// sample in a box (random volumes of every voxel type, random boxes, partly outside the grid),
+// and it must be exact where its definition says so (level-0 bricks, parents).
+#include "vh/haptics/min_max_tree.h"
+
+#include <algorithm>
+#include <cstdint>
+#include <limits>
+#include <random>
+#include <vector>
+
+#include <gtest/gtest.h>
+
+#include "vh/haptics/scalar_volume.h"
+
+namespace vh::haptics {
+namespace {
+
+VolumeGeometry unitGeometry(const std::array<int, 3>& dims) {
+  VolumeGeometry g;
+  g.dims = dims;
+  g.spacing_m = Eigen::Vector3d::Ones();  // grid coordinates = W coordinates
+  return g;
+}
+
+template <typename T>
+ScalarVolume randomVolume(std::mt19937& rng, const std::array<int, 3>& dims, double scale = 1.0) {
+  std::vector<T> v(static_cast<std::size_t>(dims[0]) * dims[1] * dims[2]);
+  std::uniform_real_distribution<double> u(0.0, 1.0);
+  for (auto& x : v) {
+    if constexpr (std::is_same_v<T, float>) x = static_cast<float>(2000.0 * u(rng) - 1000.0);
+    else if constexpr (std::is_same_v<T, std::int16_t>) x = static_cast<T>(std::lround(4000.0 * u(rng) - 2000.0));
+    else x = static_cast<T>(std::lround(static_cast<double>(std::numeric_limits<T>::max()) * u(rng)));
+  }
+  return ScalarVolume::FromVoxels(unitGeometry(dims), v, scale, 0.0);
+}
+
+// Every trilinear sample at random points of the box (and its corners), clipped to the grid,
+// lies within the tree's range; the raw range is F's when scale = 1, offset = 0.
+template <typename T>
+void checkContainsSamples(std::uint32_t seed) {
+  std::mt19937 rng(seed);
+  std::uniform_int_distribution<int> dim(2, 23);
+  std::uniform_real_distribution<double> u(0.0, 1.0);
+  for (int volume = 0; volume < 20; ++volume) {
+    const std::array<int, 3> dims{dim(rng), dim(rng), dim(rng)};
+    const ScalarVolume vol = randomVolume<T>(rng, dims);
+    const MinMaxTree& tree = vol.minMaxTree();
+    for (int box = 0; box < 200; ++box) {
+      Eigen::Vector3d lo, hi;
+      for (int a = 0; a < 3; ++a) {
+        const double n = dims[a] - 1;
+        const double c = (1.4 * u(rng) - 0.2) * n, w = (box % 3 == 0 ? 0.3 : 0.6 * n) * u(rng);
+        lo[a] = c - w;
+        hi[a] = c + w;
+      }
+      float mn = 0.0f, mx = 0.0f;
+      const bool meets = tree.rawRange(lo, hi, mn, mx);
+      const Eigen::Vector3d upper(dims[0] - 1, dims[1] - 1, dims[2] - 1);
+      const bool expected_meets = (hi.array() >= 0.0).all() && (lo.array() <= upper.array()).all();
+      ASSERT_EQ(meets, expected_meets) << "volume " << volume << " box " << box;
+      if (!meets) {
+        EXPECT_EQ(vol.upperBoundInBox(lo, hi), -std::numeric_limits<double>::infinity());
+        continue;
+      }
+      const Eigen::Vector3d clo = lo.cwiseMax(Eigen::Vector3d::Zero()), chi = hi.cwiseMin(upper);
+      for (int k = 0; k < 300; ++k) {
+        Eigen::Vector3d g;
+        for (int a = 0; a < 3; ++a) {
+          const double r = k < 8 ? ((k >> a) & 1) : u(rng);  // the 8 corners first
+          g[a] = clo[a] + r * (chi[a] - clo[a]);
+        }
+        const double F = vol.sample(g);
+        ASSERT_GE(F, mn) << "volume " << volume << " box " << box << " sample " << g.transpose();
+        ASSERT_LE(F, mx) << "volume " << volume << " box " << box << " sample " << g.transpose();
+        ASSERT_LE(F, vol.upperBoundInBox(lo, hi));
+      }
+    }
+  }
+}
+
+TEST(MinMaxTree, RangeContainsEveryTrilinearSampleInTheBoxUInt8) { checkContainsSamples<std::uint8_t>(1); }
+TEST(MinMaxTree, RangeContainsEveryTrilinearSampleInTheBoxInt16) { checkContainsSamples<std::int16_t>(2); }
+TEST(MinMaxTree, RangeContainsEveryTrilinearSampleInTheBoxUInt16) { checkContainsSamples<std::uint16_t>(3); }
+TEST(MinMaxTree, RangeContainsEveryTrilinearSampleInTheBoxFloat32) { checkContainsSamples<float>(4); }
+
+TEST(MinMaxTree, LevelZeroBricksHoldExactlyTheirVoxelsAndParentsTheirChildren) {
+  std::mt19937 rng(5);
+  const std::array<int, 3> dims{18, 9, 13};  // not multiples of the brick size
+  const ScalarVolume vol = randomVolume<std::int16_t>(rng, dims);
+  const MinMaxTree& tree = vol.minMaxTree();
+  ASSERT_GE(tree.levels(), 2);
+  const auto n0 = tree.nodes(0);
+  constexpr int B = MinMaxTree::kBrickCells;
+  EXPECT_EQ(n0[0], (dims[0] - 1 + B - 1) / B);
+  for (int c = 0; c < n0[2]; ++c)
+    for (int b = 0; b < n0[1]; ++b)
+      for (int a = 0; a < n0[0]; ++a) {
+        double lo = std::numeric_limits<double>::infinity(), hi = -lo;
+        for (int z = B * c; z <= std::min(B * c + B, dims[2] - 1); ++z)
+          for (int y = B * b; y <= std::min(B * b + B, dims[1] - 1); ++y)
+            for (int x = B * a; x <= std::min(B * a + B, dims[0] - 1); ++x) {
+              lo = std::min(lo, vol.voxel(x, y, z));
+              hi = std::max(hi, vol.voxel(x, y, z));
+            }
+        float mn, mx;
+        tree.node(0, a, b, c, mn, mx);
+        EXPECT_EQ(mn, lo);
+        EXPECT_EQ(mx, hi);
+      }
+  for (int level = 1; level < tree.levels(); ++level) {
+    const auto n = tree.nodes(level), m = tree.nodes(level - 1);
+    for (int c = 0; c < n[2]; ++c)
+      for (int b = 0; b < n[1]; ++b)
+        for (int a = 0; a < n[0]; ++a) {
+          float lo = std::numeric_limits<float>::infinity(), hi = -lo;
+          for (int z = 2 * c; z <= std::min(2 * c + 1, m[2] - 1); ++z)
+            for (int y = 2 * b; y <= std::min(2 * b + 1, m[1] - 1); ++y)
+              for (int x = 2 * a; x <= std::min(2 * a + 1, m[0] - 1); ++x) {
+                float l, h;
+                tree.node(level - 1, x, y, z, l, h);
+                lo = std::min(lo, l);
+                hi = std::max(hi, h);
+              }
+          float mn, mx;
+          tree.node(level, a, b, c, mn, mx);
+          EXPECT_EQ(mn, lo);
+          EXPECT_EQ(mx, hi);
+        }
+  }
+  const auto top = tree.nodes(tree.levels() - 1);
+  EXPECT_EQ(top, (std::array<int, 3>{1, 1, 1}));
+}
+
+TEST(MinMaxTree, TightOnASingleBrightVoxel) {
+  const std::array<int, 3> dims{17, 17, 17};
+  std::vector<std::uint8_t> v(17 * 17 * 17, 0);
+  v[8 + 17 * (8 + 17 * 8)] = 100;  // voxel (8, 8, 8): a corner of the bricks around it
+  const ScalarVolume vol = ScalarVolume::FromVoxels(unitGeometry(dims), v);
+  float mn, mx;
+  // Far from the voxel: exactly 0.
+  ASSERT_TRUE(vol.minMaxTree().rawRange({1.2, 1.3, 1.1}, {2.5, 2.5, 2.5}, mn, mx));
+  EXPECT_EQ(mn, 0.0f);
+  EXPECT_EQ(mx, 0.0f);
+  // A box in the cell just above the voxel, and one in the brick holding it as its border.
+  ASSERT_TRUE(vol.minMaxTree().rawRange({8.2, 8.2, 8.2}, {8.3, 8.3, 8.3}, mn, mx));
+  EXPECT_EQ(mx, 100.0f);
+  ASSERT_TRUE(vol.minMaxTree().rawRange({7.2, 7.2, 7.2}, {7.3, 7.3, 7.3}, mn, mx));
+  EXPECT_EQ(mx, 100.0f);
+  // The brick [0, 4] cells on each axis does not reach voxel 8.
+  ASSERT_TRUE(vol.minMaxTree().rawRange({0.0, 0.0, 0.0}, {3.9, 3.9, 3.9}, mn, mx));
+  EXPECT_EQ(mx, 0.0f);
+  // isInside agrees: no point of the far box can be inside for any isovalue >= 0.
+  EXPECT_EQ(vol.upperBoundInBox({1.2, 1.3, 1.1}, {2.5, 2.5, 2.5}), 0.0);
+  // Outside the grid entirely: no sample is in bounds.
+  EXPECT_FALSE(vol.minMaxTree().rawRange({17.0, 0.0, 0.0}, {18.0, 1.0, 1.0}, mn, mx));
+}
+
+TEST(MinMaxTree, NegativeValueScaleBoundsWithTheRawMinimum) {
+  std::mt19937 rng(6);
+  const std::array<int, 3> dims{12, 10, 9};
+  const ScalarVolume vol = randomVolume<std::uint16_t>(rng, dims, -0.5);
+  std::uniform_real_distribution<double> u(0.0, 1.0);
+  for (int k = 0; k < 2000; ++k) {
+    const Eigen::Vector3d g(u(rng) * 11, u(rng) * 9, u(rng) * 8);
+    const Eigen::Vector3d half = Eigen::Vector3d::Constant(0.7 * u(rng));
+    ASSERT_LE(vol.sample(g), vol.upperBoundInBox(g - half, g + half));
+  }
+}
+
+}  // namespace
+}  // namespace vh::haptics
