@@ -1,8 +1,10 @@
 // volume-haptics: the application.
 //
 //   volume-haptics [PATH] [--screenshot PNG] [--isovalue V] ...     the GUI (vh::ui)
-//   volume-haptics run --scene S.json --trajectory T.csv [--report R.json] [--check]
+//   volume-haptics run --scene S.json --trajectory T.csv [--report R.json] [--check] [--record R.vhrec]
+//   volume-haptics export R.vhrec [--csv C] [--json J] [--events-csv E] [--video V.ogv] [--png P --at-s T]
 //   volume-haptics make-trajectory --scene S.json --out T.csv [...]
+//   volume-haptics bench table1|accuracy|stability [--short] [--out DIR]   benchmarks (vh::bench)
 //
 // PATH is a DICOM folder, a NRRD / MetaImage file or a scene .json; without it the built-in
 // block-with-hole scene opens. `run` and `make-trajectory` are headless: they never create Qt
@@ -12,6 +14,7 @@
 #include <cstdlib>
 #include <exception>
 #include <filesystem>
+#include <functional>
 #include <iostream>
 #include <optional>
 #include <string>
@@ -19,6 +22,7 @@
 
 #include <CLI/CLI.hpp>
 
+#include "vh/bench/bench.h"
 #include "vh/devices/device_catalog.h"
 #include "vh/runtime/placement.h"
 #include "vh/runtime/recording.h"
@@ -26,6 +30,7 @@
 #include "vh/runtime/scene.h"
 #include "vh/runtime/trajectory.h"
 #include "vh/ui/application.h"
+#include "vh/ui/media_export.h"
 
 namespace fs = std::filesystem;
 
@@ -88,6 +93,9 @@ int main(int argc, char** argv) {
   run->add_option("--isovalue", run_isovalue, "Override the scene's isovalue");
   std::string run_trace;
   run->add_option("--trace", run_trace, "Also write one CSV row per tick (poses, force, contacts, time, depth)");
+  std::string run_record;
+  run->add_option("--record", run_record,
+                  "Also write a session recording (.vhrec: metadata, one record per tick, events) here");
   run->add_flag("--check", run_check,
                 "Exit with 3 when the proxy penetrated deeper than epsilon or a tick produced a non-finite value");
 
@@ -119,7 +127,23 @@ int main(int argc, char** argv) {
                                                "SI units) and/or JSON metadata; a damaged tail is reported");
   export_cmd->add_option("recording", export_rec, "Recording file (.vhrec)")->required();
   export_cmd->add_option("--csv", export_csv, "CSV to write: one row per tick, units in the header");
-  export_cmd->add_option("--json", export_json, "JSON to write: the session metadata and a summary");
+  export_cmd->add_option("--json", export_json, "JSON to write: the session metadata, a summary and the events");
+  std::string export_events_csv;
+  export_cmd->add_option("--events-csv", export_events_csv, "CSV to write: one row per event (t_s,tick,type,detail_json)");
+  vh::ui::MediaExportOptions export_media;
+  export_cmd->add_option("--video", export_media.video,
+                         "Ogg/Theora video (.ogv) of the replay, rendered off screen (needs an X display with "
+                         "OpenGL, e.g. xvfb-run)");
+  export_cmd->add_option("--png", export_media.png, "PNG of the replay at --at-s");
+  export_cmd->add_option("--at-s", export_media.png_time_s, "Recording time of the --png frame [s]")
+      ->check(CLI::NonNegativeNumber);
+  export_cmd->add_option("--fps", export_media.fps, "Video frame rate [frames/s]")->check(CLI::Range(1.0, 120.0));
+  export_cmd->add_option("--width", export_media.width, "Frame width [px]")->check(CLI::Range(16, 8192));
+  export_cmd->add_option("--height", export_media.height, "Frame height [px]")->check(CLI::Range(16, 8192));
+
+  // ---- bench (issue 7) ----
+  std::function<int()> bench_handler;
+  vh::bench::addBenchSubcommand(app, bench_handler);
 
   try {
     app.parse(argc, argv);
@@ -138,9 +162,11 @@ int main(int argc, char** argv) {
       }
       vh::runtime::RunOptions run_options;
       run_options.trace_csv = run_trace;
+      run_options.record = run_record;
       const vh::runtime::RunReport report = vh::runtime::runHeadless(spec, run_trajectory, run_options);
       if (!run_report.empty()) vh::runtime::writeRunReport(report, run_report);
       std::cout << "volume-haptics run: " << report.summary() << std::endl;
+      if (!run_record.empty()) std::cout << "volume-haptics run: recording written to " << run_record << std::endl;
       if (run_check && (report.max_penetration_m > report.epsilon_m || report.nan_ticks > 0)) {
         std::cerr << "volume-haptics run: check failed: penetration " << report.max_penetration_m * 1e3
                   << " mm (epsilon " << report.epsilon_m * 1e3 << " mm), non-finite ticks " << report.nan_ticks
@@ -155,8 +181,13 @@ int main(int argc, char** argv) {
       for (const std::string& w : recording.warnings) std::cerr << "volume-haptics export: warning: " << w << std::endl;
       if (!export_csv.empty()) vh::runtime::writeRecordingCsv(recording, std::filesystem::path(export_csv));
       if (!export_json.empty()) vh::runtime::writeRecordingJson(recording, export_json);
-      std::cout << "volume-haptics export: " << recording.records.size() << " records in " << recording.chunks
-                << " chunks, " << recording.dropped_records << " dropped" << std::endl;
+      if (!export_events_csv.empty()) vh::runtime::writeRecordingEventsCsv(recording, std::filesystem::path(export_events_csv));
+      if (!export_media.video.empty() || !export_media.png.empty()) {
+        if (vh::ui::exportRecordingMedia(argc, argv, export_rec, export_media) != 0) return kExitError;
+      }
+      std::cout << "volume-haptics export: " << recording.records.size() << " records, " << recording.events.size()
+                << " events in " << recording.chunks << " chunks, " << recording.dropped_records << " dropped"
+                << std::endl;
       return EXIT_SUCCESS;
     }
 
@@ -180,6 +211,8 @@ int main(int argc, char** argv) {
                 << " s written to " << make_out << std::endl;
       return EXIT_SUCCESS;
     }
+
+    if (bench_handler) return bench_handler();
 
     // GUI.
     const vh::runtime::SceneSpec scene = sceneForPath(gui_input);

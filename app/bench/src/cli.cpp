@@ -1,0 +1,78 @@
+// The `volume-haptics bench` subcommands (CLI11).
+#include <cstdlib>
+#include <iostream>
+
+#include <CLI/CLI.hpp>
+
+#include "common.h"
+
+namespace vh::bench {
+
+std::filesystem::path defaultOutputDir() {
+  if (const char* env = std::getenv("VH_BENCH_OUT_DIR"); env != nullptr && *env != '\0') return env;
+  return VH_BENCH_DEFAULT_OUT_DIR;
+}
+
+namespace {
+
+void addCommon(CLI::App* cmd, CommonOptions& common) {
+  cmd->add_flag("--short", common.short_run, "Short version (about 1,000 ticks per run; for tests)");
+  cmd->add_option("--out", common.out_dir, "Output folder (default: the build tree's bench/NAME)");
+  cmd->add_flag("!--no-plots", common.plots, "Do not write PNG plots");
+}
+
+int guarded(const char* name, const std::function<void()>& f) {
+  try {
+    f();
+    return EXIT_SUCCESS;
+  } catch (const std::exception& e) {
+    std::cerr << "volume-haptics bench " << name << ": error: " << e.what() << std::endl;
+    return 1;
+  }
+}
+
+}  // namespace
+
+CLI::App* addBenchSubcommand(CLI::App& app, std::function<int()>& handler) {
+  CLI::App* bench = app.add_subcommand(
+      "bench", "Benchmarks (issue 7): the paper's Table 1, error against run time, stiff and extreme cases; "
+               "reports (JSON, Markdown, PNG) go into the build tree");
+  bench->require_subcommand(1);
+
+  auto table1 = std::make_shared<Table1Options>();
+  auto mode = std::make_shared<std::string>("both");
+  CLI::App* t1 = bench->add_subcommand("table1", "The paper's Table 1: four scenes, tick times in both detection "
+                                                 "modes side by side, plus the large-tool runs");
+  addCommon(t1, table1->common);
+  t1->add_option("--mode", *mode, "Detection path(s): paper, accelerated or both")
+      ->check(CLI::IsMember({"paper", "accelerated", "both"}));
+  t1->add_option("--scene", table1->scene, "Only this scene: Bunny, Engine, Hole or Bone");
+  t1->add_option("--ticks", table1->ticks, "Ticks per scene and mode (default 20000; short 1000)")
+      ->check(CLI::PositiveNumber);
+  t1->add_flag("!--no-large-tools", table1->large_tools, "Skip the 20,000-point tool runs");
+  t1->callback([&handler, table1, mode] {
+    table1->modes = *mode == "paper"         ? ModeSelection::kPaper
+                    : *mode == "accelerated" ? ModeSelection::kAccelerated
+                                             : ModeSelection::kBoth;
+    handler = [table1] { return guarded("table1", [&] { runTable1(*table1); }); };
+  });
+
+  auto accuracy = std::make_shared<CommonOptions>();
+  CLI::App* acc = bench->add_subcommand("accuracy", "Contact-position and normal error against tick time on exact "
+                                                    "isosurfaces; Pareto front and recommended defaults");
+  addCommon(acc, *accuracy);
+  acc->callback([&handler, accuracy] {
+    handler = [accuracy] { return guarded("accuracy", [&] { runAccuracy(*accuracy); }); };
+  });
+
+  auto stability = std::make_shared<CommonOptions>();
+  CLI::App* stab = bench->add_subcommand("stability", "Coupling-stiffness sweep with the simulated device, and "
+                                                      "extreme cases with their outcomes");
+  addCommon(stab, *stability);
+  stab->callback([&handler, stability] {
+    handler = [stability] { return guarded("stability", [&] { runStability(*stability); }); };
+  });
+  return bench;
+}
+
+}  // namespace vh::bench

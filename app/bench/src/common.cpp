@@ -1,0 +1,98 @@
+#include "common.h"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdarg>
+#include <cstdio>
+#include <cstdlib>
+#include <ctime>
+#include <fstream>
+#include <stdexcept>
+#include <thread>
+
+namespace vh::bench::detail {
+
+namespace fs = std::filesystem;
+
+Stats summarize(std::vector<double> values) {
+  Stats s;
+  s.n = values.size();
+  if (values.empty()) return s;
+  std::sort(values.begin(), values.end());
+  double sum = 0.0;
+  for (double v : values) sum += v;
+  s.mean = sum / static_cast<double>(values.size());
+  const auto rank = [&](double q) {
+    const double k = std::ceil(q * static_cast<double>(values.size())) - 1.0;
+    return values[static_cast<std::size_t>(std::clamp(k, 0.0, static_cast<double>(values.size() - 1)))];
+  };
+  s.p50 = rank(0.50);
+  s.p99 = rank(0.99);
+  s.p999 = rank(0.999);
+  s.max = values.back();
+  return s;
+}
+
+std::string cpuModel() {
+  std::ifstream in("/proc/cpuinfo");
+  std::string line, model, mhz;
+  const auto value = [](const std::string& l) {
+    std::string v = l.substr(l.find(':') + 1);
+    v.erase(0, v.find_first_not_of(" \t"));
+    return v;
+  };
+  while (std::getline(in, line)) {
+    if (model.empty() && line.rfind("model name", 0) == 0 && line.find(':') != std::string::npos) model = value(line);
+    if (mhz.empty() && line.rfind("cpu MHz", 0) == 0 && line.find(':') != std::string::npos) mhz = value(line);
+  }
+  if (model.empty()) return "unknown";
+  // A model name without its clock (e.g. a virtual "Intel(R) Xeon(R) Processor"): add the MHz.
+  if (model.find("Hz") == std::string::npos && !mhz.empty()) model += ", " + mhz.substr(0, mhz.find('.')) + " MHz";
+  return model;
+}
+
+unsigned cpuCount() { return std::max(1u, std::thread::hardware_concurrency()); }
+
+std::string utcNow() {
+  const std::time_t t = std::chrono::system_clock::to_time_t(std::chrono::system_clock::now());
+  std::tm tm{};
+  gmtime_r(&t, &tm);
+  char buf[32];
+  std::strftime(buf, sizeof buf, "%Y-%m-%dT%H:%M:%SZ", &tm);
+  return buf;
+}
+
+fs::path outputDir(const CommonOptions& options, const std::string& name) {
+  const fs::path dir = options.out_dir.empty() ? defaultOutputDir() / name : options.out_dir;
+  std::error_code ec;
+  fs::create_directories(dir, ec);
+  if (ec || !fs::is_directory(dir)) throw std::runtime_error(dir.string() + ": cannot create the output folder");
+  return dir;
+}
+
+void writeText(const fs::path& path, const std::string& text) {
+  std::ofstream out(path);
+  if (!out) throw std::runtime_error(path.string() + ": cannot write");
+  out << text;
+  out.flush();
+  if (!out) throw std::runtime_error(path.string() + ": write failed");
+}
+
+double finiteOr(double v, double fallback) { return std::isfinite(v) ? v : fallback; }
+
+std::string format(const char* fmt, ...) {
+  char buf[1024];
+  va_list args;
+  va_start(args, fmt);
+  std::vsnprintf(buf, sizeof buf, fmt, args);
+  va_end(args);
+  return buf;
+}
+
+bool displayAvailable() {
+  const char* d = std::getenv("DISPLAY");
+  return d != nullptr && *d != '\0';
+}
+
+}  // namespace vh::bench::detail

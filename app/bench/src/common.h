@@ -1,0 +1,57 @@
+#pragma once
+// Helpers shared by the benchmarks (internal to vh::bench).
+#include <cstdint>
+#include <filesystem>
+#include <string>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+
+#include "vh/bench/bench.h"
+
+namespace vh::bench::detail {
+
+/// Summary of a sample of tick times [us] (or any values).
+struct Stats {
+  double mean = 0.0, p50 = 0.0, p99 = 0.0, p999 = 0.0, max = 0.0;
+  std::size_t n = 0;
+};
+/// Mean, nearest-rank percentiles and maximum of `values` (copied; sorted inside).
+Stats summarize(std::vector<double> values);
+
+/// The CPU model from /proc/cpuinfo ("model name"), or "unknown".
+std::string cpuModel();
+/// Number of online CPUs.
+unsigned cpuCount();
+/// UTC time now, ISO 8601 ("2026-11-21T17:45:00Z").
+std::string utcNow();
+/// The output folder for a benchmark (created). @throws std::runtime_error when it cannot be.
+std::filesystem::path outputDir(const CommonOptions& options, const std::string& name);
+/// Writes text to a file. @throws std::runtime_error naming the file.
+void writeText(const std::filesystem::path& path, const std::string& text);
+/// A JSON number that is always finite (NaN / inf become null would break the tests' checks:
+/// non-finite values are written as -1 and flagged by the caller).
+double finiteOr(double v, double fallback = -1.0);
+/// printf-style formatting into a std::string.
+std::string format(const char* fmt, ...) __attribute__((format(printf, 1, 2)));
+
+/// True when an X display is there for VTK's off-screen rendering (DISPLAY set).
+bool displayAvailable();
+
+/// One line series of a chart.
+struct Series {
+  std::string name;
+  std::vector<double> x, y;
+  bool points = false;  ///< Scatter (points) instead of a line.
+};
+/// Writes a line / scatter chart as PNG (VTK vtkChartXY rendered off screen).
+/// @return false (with a message on stderr) when no display is available or rendering failed.
+bool plotXY(const std::filesystem::path& png, const std::string& title, const std::string& x_label,
+            const std::string& y_label, const std::vector<Series>& series, bool log_x = false, bool log_y = false,
+            int width = 900, int height = 500);
+/// Grouped bar chart: one group per category, one bar per series (series[i].y[category]).
+bool plotBars(const std::filesystem::path& png, const std::string& title, const std::vector<std::string>& categories,
+              const std::string& y_label, const std::vector<Series>& series, bool log_y = false, int width = 900,
+              int height = 500);
+
+}  // namespace vh::bench::detail

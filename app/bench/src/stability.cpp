@@ -1,0 +1,459 @@
+// `volume-haptics bench stability`: the coupling-stiffness sweep with the simulated device
+// (vh::simulation, the same scenarios and verdicts as tests/haptics/stability) and a table of
+// extreme cases with their outcomes, each run in both detection modes.
+#include <algorithm>
+#include <cmath>
+#include <functional>
+#include <iostream>
+#include <sstream>
+
+#include <Eigen/Geometry>
+
+#include "common.h"
+#include "vh/datasets/synthetic.h"
+#include "vh/haptics/haptic_renderer.h"
+#include "vh/haptics/penetration.h"
+#include "vh/simulation/stability_scenarios.h"
+
+namespace vh::bench {
+
+namespace fs = std::filesystem;
+using namespace detail;
+
+namespace {
+
+using haptics::Pose;
+
+/// One extreme case: a volume, a tool, a device path and an isovalue per tick, and a verdict.
+struct ExtremeCase {
+  std::string name;
+  std::string setup;      ///< What is done.
+  std::string criterion;  ///< What "pass" means.
+  std::shared_ptr<const haptics::ScalarVolume> volume;
+  std::shared_ptr<const haptics::ToolModel> tool;
+  int ticks = 1000;
+  std::function<Pose(int)> device;        ///< X_WD at tick i.
+  std::function<double(int)> isovalue;    ///< s at tick i.
+  /// True when the proxy pose is on the wrong side (a crossing), if the case can tell.
+  std::function<bool(const Pose&)> crossed;
+  /// Ticks whose penetration is judged (empty: all). Points swallowed by an isovalue change are
+  /// inside by design until the tool is moved out (haptics/README.md, "Isovalue changes").
+  std::function<bool(int)> penetration_judged;
+};
+
+struct CaseResult {
+  int ticks = 0, max_contacts = 0, nan_ticks = 0, crossed_ticks = 0, contact_ticks = 0;
+  std::int64_t bad_inputs = 0;
+  double max_penetration_over_eps = 0, max_force_N = 0, final_force_N = 0, mean_us = 0, max_us = 0;
+  std::vector<double> force_N;
+  std::vector<int> contacts;
+};
+
+CaseResult runCase(const ExtremeCase& c, haptics::DetectionMode mode) {
+  haptics::RendererOptions options;
+  options.detection_mode = mode;
+  haptics::HapticRenderer renderer(c.volume, c.tool, options, c.device(0), c.isovalue(0));
+  CaseResult r;
+  r.ticks = c.ticks;
+  std::vector<double> times;
+  for (int i = 0; i < c.ticks; ++i) {
+    const double s = c.isovalue(i);
+    const haptics::TickOutput out = renderer.tick(c.device(i), s);
+    times.push_back(out.stats.exec_time_us);
+    const bool finite = out.force_W_N.allFinite() && out.torque_W_Nm.allFinite() && out.X_WP.allFinite();
+    r.force_N.push_back(finite ? out.force_W_N.norm() : -1.0);
+    r.contacts.push_back(out.stats.contacts);
+    if (!finite) {
+      ++r.nan_ticks;
+      continue;
+    }
+    r.max_contacts = std::max(r.max_contacts, out.stats.contacts);
+    if (out.stats.contacts > 0) ++r.contact_ticks;
+    r.max_force_N = std::max(r.max_force_N, out.force_W_N.norm());
+    r.final_force_N = out.force_W_N.norm();
+    const double pen = haptics::maxPenetration_m(*c.volume, c.tool->point_shell, out.X_WP, s);
+    if (!c.penetration_judged || c.penetration_judged(i))
+      r.max_penetration_over_eps = std::max(r.max_penetration_over_eps, pen / renderer.epsilon_m());
+    if (c.crossed && c.crossed(out.X_WP)) ++r.crossed_ticks;
+  }
+  r.bad_inputs = renderer.badInputCount();
+  const Stats t = summarize(times);
+  r.mean_us = t.mean;
+  r.max_us = t.max;
+  return r;
+}
+
+Pose at(const Eigen::Vector3d& p, const Eigen::Quaterniond& R = Eigen::Quaterniond::Identity()) { return {R, p}; }
+double lerp(double a, double b, double u) { return a + (b - a) * std::clamp(u, 0.0, 1.0); }
+
+std::shared_ptr<const haptics::ToolModel> makeTool(const haptics::TriangleMesh& mesh, double spacing_m) {
+  haptics::PointShellOptions po;
+  po.spacing_m = spacing_m;
+  return std::make_shared<const haptics::ToolModel>(haptics::makeToolModel(mesh, po));
+}
+
+/// Deterministic noise in [-1, 1] from a position (a hash of the voxel centre), summed four
+/// times for a bell-shaped distribution (standard deviation ~0.58).
+double noise(const Eigen::Vector3d& p) {
+  double sum = 0.0;
+  for (unsigned k = 0; k < 4; ++k) {
+    std::uint64_t h = 1469598103934665603ull ^ k;
+    for (int a = 0; a < 3; ++a) {
+      h ^= static_cast<std::uint64_t>(std::llround(p[a] * 1e6) + 1000000007ll * a);
+      h *= 1099511628211ull;
+      h ^= h >> 29;
+    }
+    sum += static_cast<double>(h % 2000001) / 1000000.0 - 1.0;
+  }
+  return sum / 2.0;
+}
+
+std::vector<ExtremeCase> extremeCases(bool short_run) {
+  std::vector<ExtremeCase> cases;
+  const int scale = short_run ? 1 : 3;
+  datasets::GridSpec g64;  // 64^3 of 1 mm about the origin
+  auto plane = std::make_shared<const haptics::ScalarVolume>(
+      datasets::makePlaneVolume(g64, Eigen::Vector3d::UnitZ(), 0.0));  // inside z < 0
+  auto ball5 = makeTool(datasets::makeBuiltinTool("sphere"), 1e-3);    // r 5 mm about the origin of T
+
+  {  // Many coplanar contacts: a flat box pressed onto a plane, slid and tilted.
+    ExtremeCase c;
+    c.name = "40+ simultaneous contacts";
+    c.setup = "12 x 12 x 4 mm box (0.7 mm point spacing) pressed 2 mm into a plane, slid 10 mm, tilted 0.1 rad";
+    c.criterion = "more than 40 contacts; penetration <= epsilon; finite";
+    c.volume = plane;
+    c.tool = makeTool(datasets::makeBoxMesh({0.006, 0.006, 0.002}), 7e-4);
+    c.ticks = 500 * scale;
+    const int n = c.ticks;
+    c.device = [n](int i) {
+      const double u = static_cast<double>(i) / n;
+      const double z = u < 0.3 ? lerp(0.005, 0.0, u / 0.3) : 0.0;  // box bottom at z - 2 mm
+      const double x = u < 0.4 ? 0.0 : lerp(0.0, 0.010, (u - 0.4) / 0.3);
+      const double tilt = u < 0.75 ? 0.0 : lerp(0.0, 0.1, (u - 0.75) / 0.2);
+      return at({x, 0.0, z}, Eigen::Quaterniond(Eigen::AngleAxisd(tilt, Eigen::Vector3d::UnitY())));
+    };
+    c.isovalue = [](int) { return 0.0; };
+    cases.push_back(c);
+  }
+  auto plate = std::make_shared<const haptics::ScalarVolume>(datasets::makeThinPlateVolume(g64));
+  const double plate_s = datasets::builtinIsovalue("thin-plate");
+  const double plate_z = plate->geometry().origin_W_m.z() + plate->geometry().spacing_m.z() * (g64.dims[2] / 2);
+  const auto below_plate = [plate_z](const Pose& X) { return X.p_AB_m.z() < plate_z; };
+  {  // One-voxel plate, fast.
+    ExtremeCase c;
+    c.name = "one-voxel plate at 1 m/s and 20 rad/s";
+    c.setup = "5 mm ball driven down through a 1 mm plate at 1 m/s (1 mm per tick) spinning at 20 rad/s, then "
+              "swept sideways at 1 m/s 40 mm below it";
+    c.criterion = "the proxy never crosses the plate; penetration <= epsilon; finite";
+    c.volume = plate;
+    c.tool = ball5;
+    c.ticks = 200 * scale;
+    c.device = [plate_z](int i) {
+      const double z = std::max(plate_z + 0.020 - 0.001 * i, plate_z - 0.040);
+      const double x = i > 60 ? 0.001 * ((i - 60) % 40 < 20 ? (i - 60) % 40 : 40 - (i - 60) % 40) - 0.010 : 0.0;
+      return at({x, 0.0, z}, Eigen::Quaterniond(Eigen::AngleAxisd(0.02 * i, Eigen::Vector3d::UnitX())));
+    };
+    c.isovalue = [plate_s](int) { return plate_s; };
+    c.crossed = below_plate;
+    cases.push_back(c);
+  }
+  {  // Teleport.
+    ExtremeCase c;
+    c.name = "device teleport";
+    c.setup = "device jumps in one tick from 10 mm above the plate to 40 mm below it with a half turn; later a 20 m "
+              "jump (a unit error) and back";
+    c.criterion = "no crossing; the 20 m sample is rejected (zero force, counted); finite";
+    c.volume = plate;
+    c.tool = ball5;
+    c.ticks = 100 * scale;
+    const int n = c.ticks;
+    c.device = [plate_z, n](int i) {
+      if (i < n / 4) return at({0.0, 0.0, plate_z + 0.010});
+      if (i == n / 2) return at({20.0, 0.0, 0.0});
+      return at({0.0, 0.0, plate_z - 0.040}, Eigen::Quaterniond(Eigen::AngleAxisd(M_PI, Eigen::Vector3d::UnitX())));
+    };
+    c.isovalue = [plate_s](int) { return plate_s; };
+    c.crossed = below_plate;
+    cases.push_back(c);
+  }
+  datasets::GridSpec g64f = g64;
+  auto sphere = std::make_shared<const haptics::ScalarVolume>(
+      datasets::makeSphereVolume(g64f, Eigen::Vector3d::Zero(), 0.020));  // F = r - |p| [mm]
+  {  // Isovalue swept through the tool.
+    ExtremeCase c;
+    c.name = "isovalue swept through the tool";
+    c.setup = "5 mm ball pressed 1 mm onto a 20 mm sphere; the isovalue goes 0 -> -12 mm (the surface grows through "
+              "the whole tool) -> +4 mm -> 0 while the device holds still, then lifts and presses again";
+    c.criterion = "force during the sweep never above the force before it (+1 %); contact again after re-pressing; "
+                  "penetration <= epsilon before the sweep and after the lift (the swallowed tool is inside by "
+                  "design in between); finite";
+    c.volume = sphere;
+    c.tool = ball5;
+    c.ticks = 400 * scale;
+    const int n = c.ticks;
+    c.device = [n](int i) {  // down, hold through the sweep, lift and press again
+      const double u = static_cast<double>(i) / n;
+      if (u < 0.8) return at({0.0, 0.0, lerp(0.030, 0.024, u / 0.2)});
+      if (u < 0.9) return at({0.0, 0.0, lerp(0.024, 0.032, (u - 0.8) / 0.05)});
+      return at({0.0, 0.0, lerp(0.032, 0.024, (u - 0.9) / 0.05)});
+    };
+    c.isovalue = [n](int i) {
+      const double u = static_cast<double>(i) / n;
+      if (u < 0.3) return 0.0;
+      if (u < 0.5) return lerp(0.0, -12.0, (u - 0.3) / 0.2);
+      if (u < 0.7) return lerp(-12.0, 4.0, (u - 0.5) / 0.2);
+      return lerp(4.0, 0.0, (u - 0.7) / 0.1);
+    };
+    c.penetration_judged = [n](int i) { return i < static_cast<int>(0.3 * n) || i >= static_cast<int>(0.85 * n); };
+    cases.push_back(c);
+  }
+  {  // Anisotropic voxels.
+    datasets::GridSpec ga;
+    ga.dims = {192, 192, 28};
+    ga.spacing_m = {0.25e-3, 0.25e-3, 2e-3};
+    ExtremeCase c;
+    c.name = "anisotropic voxels";
+    c.setup = "sphere r 20 mm sampled on 0.25 x 0.25 x 2 mm voxels; 5 mm ball pressed 1.5 mm and slid 0.4 rad "
+              "around it";
+    c.criterion = "penetration <= epsilon (f = 0.125 mm); finite";
+    c.volume = std::make_shared<const haptics::ScalarVolume>(
+        datasets::makeSphereVolume(ga, Eigen::Vector3d::Zero(), 0.020));
+    c.tool = ball5;
+    c.ticks = 500 * scale;
+    const int n = c.ticks;
+    c.device = [n](int i) {
+      const double u = static_cast<double>(i) / n;
+      const double r = u < 0.3 ? lerp(0.030, 0.0235, u / 0.3) : 0.0235;
+      const double a = u < 0.3 ? 0.0 : lerp(0.0, 0.4, (u - 0.3) / 0.6);
+      return at({r * std::sin(a), 0.0, r * std::cos(a)});
+    };
+    c.isovalue = [](int) { return 0.0; };
+    cases.push_back(c);
+  }
+  {  // Noisy CT.
+    datasets::GridSpec gn = g64;
+    ExtremeCase c;
+    c.name = "noisy CT";
+    c.setup = "sphere r 20 mm in int16 with voxel noise of 0.3 mm standard deviation (in distance units); 5 mm ball "
+              "pressed, held, slid";
+    c.criterion = "penetration <= epsilon; finite (force ripple reported)";
+    c.volume = std::make_shared<const haptics::ScalarVolume>(datasets::makeVolumeFromSignedDistance(
+        gn, [](const Eigen::Vector3d& p) { return 0.020 - p.norm() + 0.3e-3 / 0.58 * noise(p); },
+        haptics::VoxelType::kInt16));
+    c.tool = ball5;
+    c.ticks = 600 * scale;
+    const int n = c.ticks;
+    c.device = [n](int i) {
+      const double u = static_cast<double>(i) / n;
+      const double r = u < 0.2 ? lerp(0.030, 0.0235, u / 0.2) : 0.0235;
+      const double a = u < 0.5 ? 0.0 : lerp(0.0, 0.4, (u - 0.5) / 0.4);
+      return at({r * std::sin(a), 0.0, r * std::cos(a)});
+    };
+    c.isovalue = [](int) { return 0.0; };
+    cases.push_back(c);
+  }
+  {  // Tool larger than the volume.
+    datasets::GridSpec gs;
+    gs.dims = {16, 16, 16};
+    ExtremeCase c;
+    c.name = "tool larger than the volume";
+    c.setup = "40 x 40 x 10 mm box (1 mm spacing) pressed onto a 6 mm sphere in a 16 mm grid, slid 10 mm";
+    c.criterion = "contact made; penetration <= epsilon; finite";
+    c.volume = std::make_shared<const haptics::ScalarVolume>(
+        datasets::makeSphereVolume(gs, Eigen::Vector3d::Zero(), 0.006));
+    c.tool = makeTool(datasets::makeBoxMesh({0.020, 0.020, 0.005}), 1e-3);
+    c.ticks = 400 * scale;
+    const int n = c.ticks;
+    c.device = [n](int i) {
+      const double u = static_cast<double>(i) / n;
+      return at({u < 0.5 ? 0.0 : lerp(0.0, 0.010, (u - 0.5) / 0.4), 0.0, lerp(0.020, 0.009, u / 0.4)});
+    };
+    c.isovalue = [](int) { return 0.0; };
+    cases.push_back(c);
+  }
+  {  // Tool leaving the volume.
+    ExtremeCase c;
+    c.name = "tool leaving the volume";
+    c.setup = "5 mm ball pressed 2 mm into the plane and slid 60 mm in x, off the grid's edge at x = 31.5 mm";
+    c.criterion = "contact while over the grid; no contact and zero force once outside; finite";
+    c.volume = plane;
+    c.tool = ball5;
+    c.ticks = 600 * scale;
+    const int n = c.ticks;
+    c.device = [n](int i) {
+      const double u = static_cast<double>(i) / n;
+      return at({u < 0.2 ? 0.0 : lerp(0.0, 0.060, (u - 0.2) / 0.6), 0.0, lerp(0.010, 0.003, u / 0.15)});
+    };
+    c.isovalue = [](int) { return 0.0; };
+    cases.push_back(c);
+  }
+  return cases;
+}
+
+/// Judges a case's result by its criterion; returns "pass" or "FAIL: why".
+std::string judge(const ExtremeCase& c, const CaseResult& r) {
+  std::vector<std::string> why;
+  if (r.nan_ticks > 0) why.push_back(format("%d non-finite ticks", r.nan_ticks));
+  if (r.max_penetration_over_eps > 1.0) why.push_back(format("penetration %.2f epsilon", r.max_penetration_over_eps));
+  if (r.crossed_ticks > 0) why.push_back(format("crossed on %d ticks", r.crossed_ticks));
+  if (c.name == "40+ simultaneous contacts" && r.max_contacts <= 40)
+    why.push_back(format("only %d contacts", r.max_contacts));
+  if (c.name == "device teleport" && r.bad_inputs < 1) why.push_back("the 20 m sample was not rejected");
+  if (c.name == "isovalue swept through the tool") {
+    const int n = r.ticks;
+    double before = 0.0, during = 0.0;
+    for (int i = 0; i < n; ++i) {
+      if (i < static_cast<int>(0.3 * n)) before = r.force_N[static_cast<std::size_t>(i)];
+      else if (i < static_cast<int>(0.8 * n)) during = std::max(during, r.force_N[static_cast<std::size_t>(i)]);
+    }
+    if (during > 1.01 * before + 1e-9) why.push_back(format("force %.3f N after the sweep began > %.3f N before", during, before));
+    if (r.contacts.back() == 0) why.push_back("no contact at the end");
+  }
+  if (c.name == "tool larger than the volume" && r.contact_ticks == 0) why.push_back("no contact");
+  if (c.name == "tool leaving the volume") {
+    if (r.contact_ticks == 0) why.push_back("no contact");
+    if (r.contacts.back() != 0 || r.final_force_N > 1e-9) why.push_back("still in contact outside the grid");
+  }
+  if (why.empty()) return "pass";
+  std::string s = "FAIL:";
+  for (const auto& w : why) s += " " + w + ";";
+  return s;
+}
+
+}  // namespace
+
+fs::path runStability(const CommonOptions& options) {
+  const fs::path out = outputDir(options, "stability");
+  const bool short_run = options.short_run;
+  nlohmann::ordered_json report;
+  report["benchmark"] = "stability";
+  report["date_utc"] = utcNow();
+  report["cpu_model"] = cpuModel();
+  report["short"] = short_run;
+
+  // --- Stiffness sweep --------------------------------------------------------------------
+  using namespace vh::stability;
+  const std::vector<double> ks = short_run ? std::vector<double>{1000, 5000, 50000}
+                                           : std::vector<double>{100, 300, 1000, 3000, 5000, 10000, 30000, 50000};
+  std::vector<DeviceParams> devices{DeviceParams::scaled("A", 0.2, 1.0, kLever_m)};
+  if (!short_run) devices.push_back(DeviceParams::scaled("B", 0.1, 0.0, kLever_m));
+  const std::vector<double> levers = short_run ? std::vector<double>{kLever_m} : std::vector<double>{kLever_m, 0.0};
+  const HandParams hand = HandParams::scaled(500.0, 5.0, kLever_m);
+  std::vector<Scenario> scenarios = defaultScenarios();
+  std::cout << "bench stability: stiffness sweep, " << ks.size() << " stiffnesses x " << devices.size()
+            << " devices x " << levers.size() << " couplings x " << scenarios.size() << " scenarios\n";
+  std::vector<StiffnessResult> rows;
+  for (double lever : levers)
+    for (const DeviceParams& d : devices)
+      for (double k : ks) rows.push_back(evaluate(scenarios, k, d, hand, {-1.0, lever, true}));
+  nlohmann::ordered_json sweep = nlohmann::ordered_json::array();
+  std::ostringstream md;
+  md << "## Stiff and extreme cases (`volume-haptics bench stability" << (short_run ? " --short" : "") << "`)\n\n";
+  md << "Run " << report["date_utc"].get<std::string>() << " on " << report["cpu_model"].get<std::string>()
+     << ". The renderer closed around the simulated device (vh::simulation: mass-damper handle, 1 kHz zero-order "
+        "hold, spring-damper hand k_h = 500 N/m, b_h = 5 N*s/m) in the scenarios of tests/haptics/stability (plane "
+        "press-slide-tilt, sphere press-slide, tap, free bounce). Energy balance: the largest energy created by the "
+        "loop, max E_gen (<= 0: passive); bounce: energy returned / absorbed by the coupling in the free bounce; "
+        "oscillation: force peak-to-peak in the hold windows after settling. Colgate's passivity bound is "
+        "K < 2 b / T.\n\n";
+  md << "| K [N/m] | coupling | device (m, b) | Colgate 2b/T [N/m] | spectral radius | max E_gen [mJ] | passive | "
+        "bounce out/in | peak force [N] | oscillation after settling [N] (rel.) | verdict | penetration / epsilon |\n";
+  md << "|---|---|---|---|---|---|---|---|---|---|---|---|\n";
+  for (const StiffnessResult& s : rows) {
+    nlohmann::ordered_json j;
+    j["k_lin_N_per_m"] = s.k_lin;
+    j["coupling"] = s.gains;
+    j["device"] = s.device;
+    j["mass_kg"] = s.mass_kg;
+    j["damping_Ns_per_m"] = s.damping;
+    j["colgate_k_max_N_per_m"] = s.colgate_k_max;
+    j["spectral_radius"] = finiteOr(s.spectral_radius);
+    j["max_e_gen_J"] = finiteOr(s.max_e_gen_J);
+    j["passive"] = s.passive;
+    j["bounce_ratio"] = finiteOr(s.bounce_ratio);
+    j["peak_force_N"] = finiteOr(s.peak_force_N);
+    j["settled_ptp_N"] = finiteOr(s.settled_ptp_N);
+    j["settled_ptp_rel"] = finiteOr(s.settled_ptp_rel);
+    j["behaviour"] = toString(s.behaviour);
+    j["stable"] = s.stable();
+    j["solver_violations"] = s.solver_violations;
+    j["max_penetration_over_epsilon"] = finiteOr(s.max_penetration_over_eps);
+    j["finite"] = s.finite;
+    sweep.push_back(j);
+    md << "| " << format("%.0f", s.k_lin) << " | " << s.gains << " | " << s.device << " ("
+       << format("%.1f kg, %.1f N*s/m", s.mass_kg, s.damping) << ") | " << format("%.0f", s.colgate_k_max) << " | "
+       << format("%.3f", s.spectral_radius) << " | " << format("%.4g", 1e3 * s.max_e_gen_J) << " | "
+       << (s.passive ? "yes" : "no") << " | " << format("%.3f", s.bounce_ratio) << " | "
+       << format("%.2f", s.peak_force_N) << " | " << format("%.4f (%.3f)", s.settled_ptp_N, s.settled_ptp_rel) << " | "
+       << toString(s.behaviour) << " | " << format("%.3f", s.max_penetration_over_eps) << " |\n";
+  }
+  report["stiffness_sweep"] = sweep;
+
+  // --- Extreme cases ---------------------------------------------------------------------
+  std::cout << "bench stability: extreme cases (both detection modes)\n";
+  nlohmann::ordered_json extreme = nlohmann::ordered_json::array();
+  md << "\nExtreme cases, both detection modes (coupling 1000 N/m, 1 N*m/rad; scripted device):\n\n";
+  md << "| case | set-up | pass when | mode | outcome | ticks | max contacts | penetration / epsilon | max force [N] | "
+        "bad samples | mean / max tick [us] |\n|---|---|---|---|---|---|---|---|---|---|---|\n";
+  for (const ExtremeCase& c : extremeCases(short_run)) {
+    nlohmann::ordered_json j;
+    j["name"] = c.name;
+    j["setup"] = c.setup;
+    j["criterion"] = c.criterion;
+    nlohmann::ordered_json modes;
+    for (haptics::DetectionMode mode : {haptics::DetectionMode::kPaper, haptics::DetectionMode::kAccelerated}) {
+      const CaseResult r = runCase(c, mode);
+      const std::string outcome = judge(c, r);
+      modes[haptics::toString(mode)] = {{"outcome", outcome},
+                                        {"ticks", r.ticks},
+                                        {"max_contacts", r.max_contacts},
+                                        {"max_penetration_over_epsilon", r.max_penetration_over_eps},
+                                        {"max_force_N", r.max_force_N},
+                                        {"final_force_N", r.final_force_N},
+                                        {"nan_ticks", r.nan_ticks},
+                                        {"crossed_ticks", r.crossed_ticks},
+                                        {"bad_device_samples", r.bad_inputs},
+                                        {"mean_us", r.mean_us},
+                                        {"max_us", r.max_us}};
+      md << "| " << c.name << " | " << c.setup << " | " << c.criterion << " | " << haptics::toString(mode) << " | "
+         << outcome << " | " << r.ticks << " | " << r.max_contacts << " | " << format("%.3f", r.max_penetration_over_eps)
+         << " | " << format("%.2f", r.max_force_N) << " | " << r.bad_inputs << " | "
+         << format("%.1f / %.1f", r.mean_us, r.max_us) << " |\n";
+      std::cout << "  " << c.name << " [" << haptics::toString(mode) << "]: " << outcome << "\n";
+    }
+    j["modes"] = modes;
+    extreme.push_back(j);
+  }
+  report["extreme_cases"] = extreme;
+
+  std::vector<std::string> plots;
+  if (options.plots) {
+    std::vector<Series> series;
+    for (double lever : levers)
+      for (const DeviceParams& d : devices) {
+        Series s{std::string(lever > 0 ? "diag" : "scalar") + ", device " + d.name, {}, {}, false};
+        for (const StiffnessResult& r : rows)
+          if (r.device == d.name && r.gains == (lever > 0 ? "diag" : "scalar")) {
+            s.x.push_back(r.k_lin);
+            s.y.push_back(std::max(r.settled_ptp_rel, 1e-6));
+          }
+        series.push_back(s);
+      }
+    if (plotXY(out / "stability_oscillation.png", "Force oscillation after settling", "stiffness K [N/m]",
+               "force peak-to-peak / mean force", series, true, true))
+      plots.push_back("stability_oscillation.png");
+  }
+  report["plots"] = plots;
+  if (!plots.empty()) {
+    md << "\nPlots:";
+    for (const auto& p : plots) md << " [" << p << "](" << p << ")";
+    md << "\n";
+  }
+  writeText(out / "stability.json", report.dump(2) + "\n");
+  writeText(out / "stability.md", md.str());
+  std::cout << md.str() << "\nbench stability: wrote " << (out / "stability.json").string() << ", stability.md and "
+            << plots.size() << " plots\n";
+  return out;
+}
+
+}  // namespace vh::bench

@@ -1,0 +1,585 @@
+// `volume-haptics bench table1`: the paper's Table 1 (Chan et al. 2011, section 3.2) on this
+// machine, the paper-faithful and the accelerated detection path side by side in one run.
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdlib>
+#include <iostream>
+#include <optional>
+#include <sstream>
+#include <stdexcept>
+#include <ctime>
+#include <unistd.h>
+
+#include <Eigen/Geometry>
+
+#include "common.h"
+#include "vh/haptics/haptic_renderer.h"
+#include "vh/haptics/penetration.h"
+#include "vh/runtime/placement.h"
+#include "vh/runtime/scene.h"
+#include "vh/runtime/trajectory.h"
+
+namespace vh::bench {
+
+namespace fs = std::filesystem;
+using namespace detail;
+
+namespace {
+
+/// One row of the paper's Table 1 and how this project stands in for it.
+struct SceneDef {
+  std::string name;
+  std::string volume;      ///< "builtin:NAME" or a path relative to the shared datasets folder.
+  bool from_archive = false;  ///< Unpacked from classic/ct-bunny.tar.zst into the generated data.
+  std::optional<double> isovalue;
+  std::string tool_label;  ///< The paper's tool and ours.
+  std::string tool_mesh;   ///< "builtin:NAME" or relative to the shared datasets folder.
+  double tool_scale_to_m = 1.0;
+  Eigen::Quaterniond R_WT = Eigen::Quaterniond::Identity();
+  std::size_t paper_points = 0;
+  double paper_mean_us = 0.0, paper_max_us = 0.0;
+  std::string paper_resolution;
+};
+
+std::vector<SceneDef> table1Scenes() {
+  std::vector<SceneDef> s;
+  // Stanford CT bunny (stored HU + 1024: air ~0-100, ceramic ~2200-2400): isosurface midway.
+  // The dental probe mesh (7.1 units long along z, hooked tip) scaled to 100 mm: the paper's cane.
+  s.push_back({"Bunny", "classic/ct-bunny/bunny.nhdr", true, 1200.0, "cane (dental probe, 100 mm)",
+               "meshes/dental-probe/dental_instrument.obj", 0.1 / 7.13, Eigen::Quaterniond::Identity(), 403, 209.0,
+               900.0, "512 x 512 x 361"});
+  // GE engine block (uchar, 1 mm voxels); the paper used a 110-slice crop; isovalue midway.
+  s.push_back({"Engine", "classic/engine/engine.nhdr", false, std::nullopt, "wrench (150 mm, flat)",
+               "meshes/wrench/adjustable-wrench-body.stl", 0.001, Eigen::Quaterniond::Identity(), 2126, 776.0,
+               4380.0, "256 x 256 x 110"});
+  // The project's 256^3 block with a round hole and the peg that fits it (0.5 mm clearance).
+  s.push_back({"Hole", "builtin:block-with-hole", false, 128.0, "peg (snug, 7.5 mm radius)", "builtin:peg", 1.0,
+               Eigen::Quaterniond::Identity(), 1307, 414.0, 2135.0, "256 x 256 x 256"});
+  // CT head phantom, bone kernel, 400 HU; the CHAI3D drill scaled to 100 mm, burr down.
+  s.push_back({"Bone", "ct/philips-head-phantom-bone", false, 400.0, "drill with ball burr (100 mm)",
+               "meshes/drill/drill.stl", 0.00044,
+               Eigen::Quaterniond(0.7071067811865476, 0.0, -0.7071067811865476, 0.0), 518, 255.0, 1181.0,
+               "768 x 768 x 70 (temporal bone)"});
+  return s;
+}
+
+std::string lower(std::string s) {
+  for (char& c : s) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+  return s;
+}
+
+/// Finds the unpacked CT bunny, unpacking the shipped archive into the generated data folder
+/// when needed (tar --zstd). @return the .nhdr path, or nullopt with `why` set.
+std::optional<fs::path> findOrUnpackBunny(std::string& why) {
+  const fs::path rel = "classic/ct-bunny/bunny.nhdr";
+  for (const fs::path& base : {runtime::generatedDataDir(), runtime::sharedDatasetsDir()}) {
+    if (fs::exists(base / rel)) {
+      std::cout << "bench table1: CT bunny found at " << (base / rel).string() << "\n";
+      return base / rel;
+    }
+  }
+  const fs::path archive = runtime::sharedDatasetsDir() / "classic/ct-bunny.tar.zst";
+  if (!fs::exists(archive)) {
+    why = archive.string() + " is absent";
+    return std::nullopt;
+  }
+  const fs::path dest = runtime::generatedDataDir() / "classic";
+  const fs::path tmp = dest / (".unpack-bench-" + std::to_string(::getpid()));
+  std::error_code ec;
+  fs::create_directories(tmp, ec);
+  if (ec) {
+    why = "cannot create " + tmp.string() + ": " + ec.message();
+    return std::nullopt;
+  }
+  std::cout << "bench table1: unpacking " << archive.string() << " into " << dest.string() << " (tar --zstd) ..."
+            << std::endl;
+  const auto t0 = std::chrono::steady_clock::now();
+  const std::string cmd = "tar --zstd -xf '" + archive.string() + "' -C '" + tmp.string() + "'";
+  const int rc = std::system(cmd.c_str());
+  if (rc != 0 || !fs::exists(tmp / rel.lexically_relative("classic"))) {
+    fs::remove_all(tmp, ec);
+    why = "unpacking " + archive.string() + " failed (" + cmd + " exited with " + std::to_string(rc) + ")";
+    return std::nullopt;
+  }
+  if (!fs::exists(dest / "ct-bunny")) fs::rename(tmp / "ct-bunny", dest / "ct-bunny", ec);
+  fs::remove_all(tmp, ec);
+  if (!fs::exists(runtime::generatedDataDir() / rel)) {
+    why = "unpacked, but " + (runtime::generatedDataDir() / rel).string() + " is missing";
+    return std::nullopt;
+  }
+  std::cout << "bench table1: unpacked in "
+            << std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count() << " s\n";
+  return runtime::generatedDataDir() / rel;
+}
+
+Eigen::Vector3d volumeCentre(const haptics::ScalarVolume& v) {
+  const haptics::VolumeGeometry& g = v.geometry();
+  const Eigen::Vector3d half((g.dims[0] - 1) * 0.5, (g.dims[1] - 1) * 0.5, (g.dims[2] - 1) * 0.5);
+  return g.origin_W_m + g.direction_W * g.spacing_m.cwiseProduct(half);
+}
+
+Eigen::Vector3d volumeExtent(const haptics::ScalarVolume& v) {
+  const haptics::VolumeGeometry& g = v.geometry();
+  Eigen::Vector3d e;
+  for (int a = 0; a < 3; ++a) e[a] = g.spacing_m[a] * (g.dims[a] - 1);
+  return (g.direction_W * e).cwiseAbs();
+}
+
+Eigen::Quaterniond aa(double angle_rad, const Eigen::Vector3d& axis) {
+  return Eigen::Quaterniond(Eigen::AngleAxisd(angle_rad, axis.normalized()));
+}
+
+}  // namespace
+
+/// The scripted interaction of one Table 1 scene (see the README's Benchmarks section):
+/// at each of `locations` spots over the volume (cast straight down onto the surface; a spot
+/// whose ray meets nothing, e.g. over a through hole, uses the volume's mid height), the device
+///   hovers 10 mm above the contact and circles (free motion, 8 mm radius, tilting 0.2 rad),
+///   descends 1 mm past the first contact (contact), pushes to 3 mm (pressing),
+///   slides 10 mm in x and 8 mm in y (sliding), turns +-0.3 rad about y (prying),
+///   pushes to 6 mm while twisting 0.4 rad about z (wedging),
+///   drags 15 mm back in -x at that depth and pulls 15 mm up (hooking), and retracts.
+/// Times are scaled so that the whole trajectory lasts ticks / 1 kHz.
+runtime::Trajectory table1Trajectory(const haptics::ScalarVolume& volume, const haptics::PointShell& shell,
+                                     double isovalue, const Eigen::Quaterniond& R0, int ticks, int locations,
+                                     std::vector<std::string>* notes) {
+  const Eigen::Vector3d ext = volumeExtent(volume);
+  const Eigen::Vector3d centre = volumeCentre(volume);
+  const std::vector<Eigen::Vector2d> spots{{0.0, 0.0}, {0.15, 0.0}, {0.0, 0.15}, {-0.12, -0.12}};
+  const Eigen::Vector3d ez = Eigen::Vector3d::UnitZ(), ex = Eigen::Vector3d::UnitX(), ey = Eigen::Vector3d::UnitY();
+  struct Key {
+    double dt;
+    Eigen::Vector3d p;
+    Eigen::Quaterniond R;
+  };
+  std::vector<Key> keys;
+  const double f = volume.featureSize_m();
+  for (int l = 0; l < locations; ++l) {
+    const Eigen::Vector2d o = spots[static_cast<std::size_t>(l) % spots.size()];
+    haptics::Pose start = runtime::poseAboveVolume(volume, shell, R0, 0.01);
+    start.p_AB_m.x() += o.x() * ext.x();
+    start.p_AB_m.y() += o.y() * ext.y();
+    const std::optional<double> d = runtime::firstContactDistance(volume, shell, start, -ez,
+                                                                  ext.z() + 0.2, isovalue, 0.25 * f);
+    Eigen::Vector3d c = start.p_AB_m;
+    if (d) {
+      c.z() -= *d;
+    } else {
+      c.z() = centre.z();
+      if (notes) notes->push_back(format("spot %d: the ray meets no surface; the interaction starts at mid height", l));
+    }
+    const Eigen::Vector3d hover = c + 0.010 * ez;
+    const double gap = keys.empty() ? 0.0 : 0.3;
+    keys.push_back({gap, hover, R0});
+    for (int k = 1; k <= 8; ++k) {  // free motion: a circle with a tilt
+      const double a = 2.0 * M_PI * k / 8.0;
+      const Eigen::Vector3d p = hover + 0.008 * (std::cos(a) - 1.0) * ex + 0.008 * std::sin(a) * ey;
+      keys.push_back({0.125, p, aa(0.2 * std::sin(a), k % 2 ? ex : ey) * R0});
+    }
+    keys.push_back({0.4, c - 0.001 * ez, R0});                                     // contact
+    keys.push_back({0.3, c - 0.003 * ez, R0});                                     // pressing
+    keys.push_back({1.0, c - 0.003 * ez + 0.010 * ex, R0});                        // sliding in x
+    keys.push_back({0.6, c - 0.003 * ez + 0.010 * ex + 0.008 * ey, R0});           // sliding in y
+    const Eigen::Vector3d q = c - 0.003 * ez + 0.010 * ex + 0.008 * ey;
+    keys.push_back({0.6, q, aa(0.3, ey) * R0});                                    // prying
+    keys.push_back({0.4, q, aa(-0.3, ey) * R0});
+    keys.push_back({0.3, q - 0.003 * ez, aa(0.4, ez) * R0});                       // wedging
+    keys.push_back({0.4, q - 0.003 * ez - 0.015 * ex, aa(0.4, ez) * R0});          // hooking: drag
+    keys.push_back({0.3, q - 0.003 * ez - 0.015 * ex + 0.015 * ez, R0});           // and pull up
+    keys.push_back({0.3, hover, R0});                                              // retract
+  }
+  double total = 0.0;
+  for (const Key& k : keys) total += k.dt;
+  const double duration_s = (ticks - 1) / 1000.0;
+  const double scale = duration_s / total;
+  std::vector<runtime::TrajectorySample> samples;
+  double t = 0.0;
+  for (const Key& k : keys) {
+    t += k.dt * scale;
+    samples.push_back({t, haptics::Pose{k.R, k.p}});
+  }
+  samples.front().t_s = 0.0;
+  return runtime::Trajectory(std::move(samples));
+}
+
+namespace {
+
+struct ModeRun {
+  haptics::DetectionMode mode;
+  std::unique_ptr<haptics::HapticRenderer> renderer;
+  std::vector<double> times_us, cpu_us, contacts, samples;
+  double max_penetration_m = 0.0, max_force_N = 0.0;
+  std::uint64_t nan_ticks = 0, over_1ms = 0, in_contact = 0;
+  double wall_s = 0.0;
+};
+
+/// CPU time of this thread [us] (not advanced while the thread is preempted).
+double threadCpu_us() {
+  timespec ts{};
+  clock_gettime(CLOCK_THREAD_CPUTIME_ID, &ts);
+  return static_cast<double>(ts.tv_sec) * 1e6 + static_cast<double>(ts.tv_nsec) * 1e-3;
+}
+
+nlohmann::ordered_json modeJson(const ModeRun& m, double epsilon_m) {
+  const Stats t = summarize(m.times_us), c = summarize(m.contacts), s = summarize(m.samples);
+  const Stats cpu = summarize(m.cpu_us);
+  nlohmann::ordered_json j;
+  j["ticks"] = t.n;
+  j["mean_us"] = t.mean;
+  j["p50_us"] = t.p50;
+  j["p99_us"] = t.p99;
+  j["p99_9_us"] = t.p999;
+  j["max_us"] = t.max;
+  j["ticks_over_1ms"] = m.over_1ms;
+  // Thread CPU time around tick() (includes ~1 us of clock reads): insensitive to preemption on
+  // a shared machine, unlike the wall times above.
+  j["cpu_mean_us"] = cpu.mean;
+  j["cpu_p99_us"] = cpu.p99;
+  j["cpu_max_us"] = cpu.max;
+  j["mean_contacts"] = c.mean;
+  j["max_contacts"] = c.max;
+  j["ticks_in_contact"] = m.in_contact;
+  j["mean_volume_samples"] = s.mean;
+  j["max_volume_samples"] = s.max;
+  j["max_penetration_m"] = m.max_penetration_m;
+  j["max_penetration_over_epsilon"] = epsilon_m > 0.0 ? m.max_penetration_m / epsilon_m : 0.0;
+  j["max_force_N"] = finiteOr(m.max_force_N);
+  j["nan_ticks"] = m.nan_ticks;
+  j["bad_device_samples"] = m.renderer->badInputCount();
+  j["wall_s"] = m.wall_s;
+  return j;
+}
+
+/// Max of each of `bins` consecutive blocks (keeps the spikes visible in a plot).
+Series downsampleMax(const std::string& name, const std::vector<double>& v, std::size_t bins) {
+  Series s;
+  s.name = name;
+  const std::size_t n = v.size();
+  if (n == 0) return s;
+  const std::size_t step = std::max<std::size_t>(1, n / bins);
+  for (std::size_t i = 0; i < n; i += step) {
+    double m = 0.0;
+    for (std::size_t k = i; k < std::min(n, i + step); ++k) m = std::max(m, v[k]);
+    s.x.push_back(static_cast<double>(i));
+    s.y.push_back(m);
+  }
+  return s;
+}
+
+/// Runs one scene (loaded) in the selected modes, interleaved tick by tick so that both see
+/// the same machine load. Fills `row`.
+void runScene(const runtime::LoadedScene& scene, std::shared_ptr<const haptics::ToolModel> tool,
+              const std::vector<haptics::DetectionMode>& modes, int ticks, int locations, int penetration_stride,
+              nlohmann::ordered_json& row, std::vector<Series>& plot_series) {
+  const haptics::ScalarVolume& volume = *scene.volume.field;
+  const double s = scene.isovalue;
+  std::vector<std::string> notes;
+  const runtime::Trajectory traj =
+      table1Trajectory(volume, tool->point_shell, s, scene.spec.tool.X_WT_initial.R_AB, ticks, locations, &notes);
+  const haptics::Pose X_WD0 = traj.samples().front().X_WD;
+  const int inside0 = runtime::countPointsInside(volume, tool->point_shell, X_WD0, s);
+
+  std::vector<ModeRun> runs;
+  for (haptics::DetectionMode mode : modes) {
+    ModeRun m;
+    m.mode = mode;
+    haptics::RendererOptions options;
+    options.detection_mode = mode;
+    options.gains = scene.spec.gains;
+    m.renderer = std::make_unique<haptics::HapticRenderer>(scene.volume.field, tool, options, X_WD0, s);
+    m.times_us.reserve(static_cast<std::size_t>(ticks));
+    m.contacts.reserve(static_cast<std::size_t>(ticks));
+    m.samples.reserve(static_cast<std::size_t>(ticks));
+    runs.push_back(std::move(m));
+  }
+  const double epsilon_m = runs.front().renderer->epsilon_m();
+  double max_mode_difference_m = 0.0;
+  std::size_t cursor = 0;
+  for (int i = 0; i < ticks; ++i) {
+    const haptics::Pose X_WD = traj.poseAt(i * 1e-3, cursor);
+    Eigen::Vector3d first_proxy = Eigen::Vector3d::Zero();
+    for (std::size_t r = 0; r < runs.size(); ++r) {
+      ModeRun& m = runs[r];
+      const auto w0 = std::chrono::steady_clock::now();
+      const double c0 = threadCpu_us();
+      const haptics::TickOutput out = m.renderer->tick(X_WD, s);
+      m.cpu_us.push_back(threadCpu_us() - c0);
+      m.wall_s += std::chrono::duration<double>(std::chrono::steady_clock::now() - w0).count();
+      m.times_us.push_back(out.stats.exec_time_us);
+      m.contacts.push_back(out.stats.contacts);
+      m.samples.push_back(static_cast<double>(out.stats.volume_samples));
+      if (out.stats.exec_time_us > 1000.0) ++m.over_1ms;
+      if (out.stats.contacts > 0) ++m.in_contact;
+      const bool finite = out.force_W_N.allFinite() && out.torque_W_Nm.allFinite() && out.X_WP.allFinite();
+      if (!finite) {
+        ++m.nan_ticks;
+        continue;
+      }
+      m.max_force_N = std::max(m.max_force_N, out.force_W_N.norm());
+      if (i % penetration_stride == 0)
+        m.max_penetration_m =
+            std::max(m.max_penetration_m, haptics::maxPenetration_m(volume, tool->point_shell, out.X_WP, s));
+      if (r == 0) first_proxy = out.X_WP.p_AB_m;
+      else max_mode_difference_m = std::max(max_mode_difference_m, (out.X_WP.p_AB_m - first_proxy).norm());
+    }
+  }
+
+  row["status"] = "ran";
+  row["isovalue"] = s;
+  row["volume_dims"] = volume.geometry().dims;
+  row["volume_spacing_m"] = {volume.geometry().spacing_m.x(), volume.geometry().spacing_m.y(),
+                             volume.geometry().spacing_m.z()};
+  row["points"] = tool->point_shell.size();
+  row["epsilon_m"] = epsilon_m;
+  row["feature_size_m"] = volume.featureSize_m();
+  row["ticks"] = ticks;
+  row["trajectory"] = {{"duration_s", traj.duration_s()}, {"key_poses", traj.size()}, {"spots", locations},
+                       {"notes", notes}};
+  row["initial_points_inside"] = inside0;
+  row["penetration_every_n_ticks"] = penetration_stride;
+  nlohmann::ordered_json modes_json;
+  for (const ModeRun& m : runs) {
+    modes_json[haptics::toString(m.mode)] = modeJson(m, epsilon_m);
+    plot_series.push_back(downsampleMax(std::string(haptics::toString(m.mode)) + " mode", m.times_us, 1500));
+  }
+  row["modes"] = modes_json;
+  if (runs.size() == 2) {
+    const auto& p = modes_json["paper"];
+    const auto& a = modes_json["accelerated"];
+    const auto ratio = [](double num, double den) { return den > 0.0 ? num / den : 0.0; };
+    row["ratio_paper_over_accelerated"] = {
+        {"mean", ratio(p["mean_us"], a["mean_us"])},
+        {"p99", ratio(p["p99_us"], a["p99_us"])},
+        {"max", ratio(p["max_us"], a["max_us"])},
+        {"volume_samples", ratio(p["mean_volume_samples"], a["mean_volume_samples"])}};
+    row["max_proxy_difference_between_modes_m"] = max_mode_difference_m;
+  }
+}
+
+std::string num(double v, int digits = 0) { return format("%.*f", digits, v); }
+
+}  // namespace
+
+fs::path runTable1(const Table1Options& options) {
+  const fs::path out = outputDir(options.common, "table1");
+  const bool short_run = options.common.short_run;
+  const int ticks = options.ticks > 0 ? options.ticks : (short_run ? 1000 : 20000);
+  const int locations = short_run ? 1 : 4;
+  std::vector<haptics::DetectionMode> modes;
+  if (options.modes != ModeSelection::kAccelerated) modes.push_back(haptics::DetectionMode::kPaper);
+  if (options.modes != ModeSelection::kPaper) modes.push_back(haptics::DetectionMode::kAccelerated);
+
+  std::vector<SceneDef> defs = table1Scenes();
+  if (!options.scene.empty()) {
+    const auto it = std::find_if(defs.begin(), defs.end(),
+                                 [&](const SceneDef& d) { return lower(d.name) == lower(options.scene); });
+    if (it == defs.end())
+      throw std::runtime_error("unknown scene '" + options.scene + "' (Bunny, Engine, Hole, Bone)");
+    defs = {*it};
+  }
+
+  nlohmann::ordered_json report;
+  report["benchmark"] = "table1";
+  report["date_utc"] = utcNow();
+  report["cpu_model"] = cpuModel();
+  report["cpus"] = cpuCount();
+#ifdef NDEBUG
+  report["build"] = "release (NDEBUG)";
+#else
+  report["build"] = "debug (assertions on)";
+#endif
+  report["short"] = short_run;
+  report["ticks_per_run"] = ticks;
+  report["servo_rate_Hz"] = 1000.0;
+  std::vector<std::string> mode_names;
+  for (auto m : modes) mode_names.push_back(haptics::toString(m));
+  report["modes"] = mode_names;
+  report["paper_machine"] = "2.67 GHz Intel Core i7 (Chan et al., WHC 2011, Table 1)";
+  nlohmann::ordered_json rows = nlohmann::ordered_json::array();
+  std::vector<std::pair<std::string, std::vector<Series>>> scene_plots;
+
+  std::cout << "bench table1: " << ticks << " ticks per scene and mode (" << mode_names.size()
+            << " modes, interleaved tick by tick) on " << cpuModel() << "\n";
+  for (const SceneDef& def : defs) {
+    for (int large = 0; large < 2; ++large) {
+      if (large && (short_run || !options.large_tools || (def.name != "Bone" && def.name != "Engine"))) continue;
+      nlohmann::ordered_json row;
+      row["name"] = large ? def.name + " (large tool)" : def.name;
+      row["large_tool"] = large == 1;
+      row["volume"] = def.volume;
+      row["tool"] = def.tool_label;
+      row["tool_mesh"] = def.tool_mesh;
+      row["paper_points"] = large ? 20000 : def.paper_points;
+      row["paper"] = {{"mean_us", large ? 0.0 : def.paper_mean_us},
+                      {"max_us", large ? 0.0 : def.paper_max_us},
+                      {"resolution", def.paper_resolution}};
+      // Resolve the data.
+      runtime::SceneSpec spec;
+      std::string why;
+      std::optional<fs::path> volume_path;
+      if (def.volume.rfind("builtin:", 0) == 0) {
+        spec.volume.path = def.volume;
+      } else if (def.from_archive) {
+        volume_path = findOrUnpackBunny(why);
+      } else {
+        const fs::path p = runtime::sharedDatasetsDir() / def.volume;
+        if (fs::exists(p)) volume_path = p;
+        else why = p.string() + " is absent";
+      }
+      if (def.volume.rfind("builtin:", 0) != 0) {
+        if (!volume_path) {
+          std::cout << "bench table1: " << def.name << ": skipped: " << why << "\n";
+          row["status"] = "skipped";
+          row["reason"] = why;
+          rows.push_back(row);
+          continue;
+        }
+        spec.volume.path = volume_path->string();
+      }
+      if (def.tool_mesh.rfind("builtin:", 0) == 0) {
+        spec.tool.mesh = def.tool_mesh;
+      } else {
+        const fs::path p = runtime::sharedDatasetsDir() / def.tool_mesh;
+        if (!fs::exists(p)) {
+          std::cout << "bench table1: " << def.name << ": skipped: " << p.string() << " is absent\n";
+          row["status"] = "skipped";
+          row["reason"] = p.string() + " is absent";
+          rows.push_back(row);
+          continue;
+        }
+        spec.tool.mesh = p.string();
+      }
+      if (def.isovalue) {
+        spec.volume.isovalue = *def.isovalue;
+        spec.volume.isovalue_set = true;
+      }
+      spec.tool.scale_to_m = def.tool_scale_to_m;
+      spec.tool.point_count = large ? 20000 : def.paper_points;
+      spec.tool.X_WT_initial.R_AB = def.R_WT;
+      spec.tool.initial_orientation_set = true;
+      const auto t_load = std::chrono::steady_clock::now();
+      const runtime::LoadedScene scene = runtime::loadScene(spec);
+      const double load_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t_load).count();
+      const int run_ticks = large ? std::max(1000, ticks / 4) : ticks;
+      std::cout << "bench table1: " << row["name"].get<std::string>() << ": " << spec.volume.path << " ("
+                << scene.volume.field->geometry().dims[0] << " x " << scene.volume.field->geometry().dims[1] << " x "
+                << scene.volume.field->geometry().dims[2] << ", isovalue " << scene.isovalue << "), "
+                << def.tool_label << ", " << scene.tool->point_shell.size() << " points (paper "
+                << row["paper_points"].get<std::size_t>() << "); loaded in " << num(load_s, 1) << " s; "
+                << run_ticks << " ticks ..." << std::endl;
+      std::vector<Series> series;
+      const auto t_run = std::chrono::steady_clock::now();
+      runScene(scene, scene.tool, modes, run_ticks, locations, large ? 5 : 1, row, series);
+      row["load_s"] = load_s;
+      row["run_s"] = std::chrono::duration<double>(std::chrono::steady_clock::now() - t_run).count();
+      for (const auto& [mode, m] : row["modes"].items())
+        std::cout << "  " << mode << ": mean " << num(m["mean_us"], 1) << " us, p50 " << num(m["p50_us"], 1)
+                  << ", p99 " << num(m["p99_us"], 1) << ", p99.9 " << num(m["p99_9_us"], 1) << ", max "
+                  << num(m["max_us"], 1) << " us (CPU mean " << num(m["cpu_mean_us"], 1) << ", max "
+                  << num(m["cpu_max_us"], 1) << "); contacts mean " << num(m["mean_contacts"], 2) << " max "
+                  << num(m["max_contacts"]) << "; samples/tick " << num(m["mean_volume_samples"]) << "; penetration "
+                  << num(1e3 * m["max_penetration_m"].get<double>(), 4) << " mm\n";
+      if (row.contains("ratio_paper_over_accelerated"))
+        std::cout << "  paper / accelerated: mean " << num(row["ratio_paper_over_accelerated"]["mean"], 2)
+                  << "x, max " << num(row["ratio_paper_over_accelerated"]["max"], 2) << "x\n";
+      scene_plots.emplace_back(row["name"].get<std::string>(), std::move(series));
+      rows.push_back(row);
+    }
+  }
+  report["scenes"] = rows;
+
+  // Markdown.
+  std::ostringstream md;
+  md << "## Table 1 (`volume-haptics bench table1" << (short_run ? " --short" : "") << "`)\n\n";
+  md << "Run " << report["date_utc"].get<std::string>() << " on " << report["cpu_model"].get<std::string>() << " ("
+     << cpuCount() << " CPUs, " << report["build"].get<std::string>() << "); the paper: "
+     << report["paper_machine"].get<std::string>() << ". " << ticks
+     << " ticks per scene and mode at a simulated 1 kHz, modes interleaved tick by tick; times are "
+        "TickStats::exec_time_us (wall) of one tick on one core; the CPU-time column is the thread's CPU time "
+        "around tick(), which a busy machine's preemption does not inflate.\n\n";
+  md << "| scene | tool | points (paper) | mode | mean [us] | p50 | p99 | p99.9 | max [us] | paper mean (max) [us] | "
+        "CPU time mean / max [us] | contacts mean / max | samples / tick | max penetration [mm] (epsilon) |\n";
+  md << "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n";
+  for (const auto& row : rows) {
+    if (row["status"] != "ran") {
+      md << "| " << row["name"].get<std::string>() << " | " << row["tool"].get<std::string>()
+         << " | | skipped | " << row["reason"].get<std::string>() << " | | | | | | | | | |\n";
+      continue;
+    }
+    for (const auto& [mode, m] : row["modes"].items()) {
+      const bool large = row["large_tool"].get<bool>();
+      md << "| " << row["name"].get<std::string>() << " | " << row["tool"].get<std::string>() << " | "
+         << row["points"].get<std::size_t>() << " (" << row["paper_points"].get<std::size_t>() << ") | " << mode
+         << " | " << num(m["mean_us"], 1) << " | " << num(m["p50_us"], 1) << " | " << num(m["p99_us"], 1) << " | "
+         << num(m["p99_9_us"], 1) << " | " << num(m["max_us"], 1) << " | "
+         << (large ? std::string("-")
+                   : num(row["paper"]["mean_us"]) + " (" + num(row["paper"]["max_us"]) + ")")
+         << " | " << num(m["cpu_mean_us"], 1) << " / " << num(m["cpu_max_us"], 1) << " | " << num(m["mean_contacts"], 2) << " / " << num(m["max_contacts"]) << " | "
+         << num(m["mean_volume_samples"]) << " | " << num(1e3 * m["max_penetration_m"].get<double>(), 4) << " ("
+         << num(1e3 * row["epsilon_m"].get<double>(), 4) << ") |\n";
+    }
+  }
+  bool any_ratio = false;
+  for (const auto& row : rows) any_ratio = any_ratio || row.contains("ratio_paper_over_accelerated");
+  if (any_ratio) {
+    md << "\nSpeed-up of the accelerated path (paper-mode time / accelerated-mode time, same run):\n\n";
+    md << "| scene | mean | p99 | max | volume samples | max proxy difference between modes [mm] |\n|---|---|---|---|---|---|\n";
+    for (const auto& row : rows) {
+      if (!row.contains("ratio_paper_over_accelerated")) continue;
+      const auto& r = row["ratio_paper_over_accelerated"];
+      md << "| " << row["name"].get<std::string>() << " | " << num(r["mean"], 2) << "x | " << num(r["p99"], 2)
+         << "x | " << num(r["max"], 2) << "x | " << num(r["volume_samples"], 2) << "x | "
+         << num(1e3 * row["max_proxy_difference_between_modes_m"].get<double>(), 4) << " |\n";
+    }
+  }
+  md << "\nIssue 8 targets: mean at most a tenth of the paper's (Bunny 21, Engine 78, Hole 41, Bone 26 us), max "
+        "under 250 us; a 20,000-point tool on Bone and Engine: mean under 200 us, max under 1000 us.\n";
+
+  // Plots.
+  std::vector<std::string> plots;
+  if (options.common.plots) {
+    for (const auto& [name, series] : scene_plots) {
+      std::string file = "table1_" + lower(name) + ".png";
+      std::replace(file.begin(), file.end(), ' ', '_');
+      file.erase(std::remove_if(file.begin(), file.end(), [](char c) { return c == '(' || c == ')'; }), file.end());
+      if (plotXY(out / file, name + ": tick time (max per bin)", "tick", "exec time [us]", series, false, true))
+        plots.push_back(file);
+    }
+    std::vector<std::string> cats;
+    std::vector<Series> mean_series{{"paper (2.67 GHz i7)", {}, {}}}, max_series{{"paper (2.67 GHz i7)", {}, {}}};
+    for (const auto& m : mode_names) {
+      mean_series.push_back({"ours, " + m + " mode", {}, {}});
+      max_series.push_back({"ours, " + m + " mode", {}, {}});
+    }
+    for (const auto& row : rows) {
+      if (row["status"] != "ran" || row["large_tool"].get<bool>()) continue;
+      cats.push_back(row["name"].get<std::string>());
+      mean_series[0].y.push_back(row["paper"]["mean_us"]);
+      max_series[0].y.push_back(row["paper"]["max_us"]);
+      for (std::size_t k = 0; k < mode_names.size(); ++k) {
+        mean_series[k + 1].y.push_back(row["modes"][mode_names[k]]["mean_us"]);
+        max_series[k + 1].y.push_back(row["modes"][mode_names[k]]["max_us"]);
+      }
+    }
+    if (!cats.empty()) {
+      if (plotBars(out / "table1_mean.png", "Mean tick time per scene", cats, "mean [us]", mean_series, true))
+        plots.push_back("table1_mean.png");
+      if (plotBars(out / "table1_max.png", "Worst tick per scene", cats, "max [us]", max_series, true))
+        plots.push_back("table1_max.png");
+    }
+  }
+  report["plots"] = plots;
+  if (!plots.empty()) {
+    md << "\nPlots:";
+    for (const auto& p : plots) md << " [" << p << "](" << p << ")";
+    md << "\n";
+  }
+  writeText(out / "table1.json", report.dump(2) + "\n");
+  writeText(out / "table1.md", md.str());
+  std::cout << md.str() << "\nbench table1: wrote " << (out / "table1.json").string() << ", table1.md and "
+            << plots.size() << " plots\n";
+  return out;
+}
+
+}  // namespace vh::bench

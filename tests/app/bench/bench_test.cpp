@@ -1,0 +1,209 @@
+// vh::bench: each benchmark runs in its short version and writes well-formed reports. No timing
+// thresholds: only structure, finiteness and counts are checked (the numbers are measurements).
+#include <cmath>
+#include <cstdlib>
+#include <cstring>
+#include <set>
+#include <fstream>
+#include <sstream>
+#include <string>
+
+#include <gtest/gtest.h>
+#include <nlohmann/json.hpp>
+
+#include "vh/bench/bench.h"
+
+namespace vh::bench {
+namespace {
+
+namespace fs = std::filesystem;
+using nlohmann::json;
+
+json readJson(const fs::path& p) {
+  std::ifstream in(p);
+  EXPECT_TRUE(in.good()) << p;
+  return json::parse(in);  // throws (and fails the test) on malformed JSON
+}
+
+std::string readText(const fs::path& p) {
+  std::ifstream in(p);
+  std::stringstream ss;
+  ss << in.rdbuf();
+  return ss.str();
+}
+
+// nlohmann-json writes NaN and infinity as null: a null anywhere means a non-finite number.
+void expectNoNull(const json& j, const std::string& where = "$") {
+  if (j.is_null()) {
+    ADD_FAILURE() << where << " is null (a non-finite number?)";
+    return;
+  }
+  if (j.is_object()) {
+    for (const auto& [k, v] : j.items()) expectNoNull(v, where + "." + k);
+  }
+  if (j.is_array()) {
+    for (std::size_t i = 0; i < j.size(); ++i) expectNoNull(j[i], where + "[" + std::to_string(i) + "]");
+  }
+  if (j.is_number_float()) {
+    EXPECT_TRUE(std::isfinite(j.get<double>())) << where;
+  }
+}
+
+double number(const json& j, const std::string& key) {
+  EXPECT_TRUE(j.contains(key)) << "missing key " << key;
+  if (!j.contains(key) || !j[key].is_number()) {
+    ADD_FAILURE() << key << " is not a number";
+    return 0.0;
+  }
+  return j[key].get<double>();
+}
+
+bool display() {
+  const char* d = std::getenv("DISPLAY");
+  return d != nullptr && *d != '\0';
+}
+
+void expectPngs(const fs::path& dir, const json& report, std::size_t at_least) {
+  ASSERT_TRUE(report.contains("plots"));
+  if (!display()) {
+    std::cout << "no DISPLAY: plots are skipped by design, not checked\n";
+    EXPECT_TRUE(report["plots"].empty());
+    return;
+  }
+  EXPECT_GE(report["plots"].size(), at_least);
+  for (const auto& name : report["plots"]) {
+    const fs::path png = dir / name.get<std::string>();
+    std::ifstream in(png, std::ios::binary);
+    ASSERT_TRUE(in.good()) << png;
+    unsigned char sig[8] = {};
+    in.read(reinterpret_cast<char*>(sig), 8);
+    const unsigned char expected[8] = {0x89, 'P', 'N', 'G', '\r', '\n', 0x1a, '\n'};
+    EXPECT_EQ(0, std::memcmp(sig, expected, 8)) << png << " is not a PNG";
+    EXPECT_GT(fs::file_size(png), 1000u) << png;
+  }
+}
+
+fs::path outDir(const std::string& name) {
+  const fs::path dir = fs::path(VH_BENCH_TEST_OUTPUT_DIR) / name;
+  fs::remove_all(dir);
+  return dir;
+}
+
+TEST(Bench, table1ShortWritesBothModesForEveryScene) {
+  Table1Options options;
+  options.common.short_run = true;
+  options.common.out_dir = outDir("table1");
+  const fs::path dir = runTable1(options);
+  const json report = readJson(dir / "table1.json");
+  expectNoNull(report);
+  for (const char* key : {"benchmark", "date_utc", "cpu_model", "ticks_per_run", "modes", "scenes"})
+    EXPECT_TRUE(report.contains(key)) << key;
+  EXPECT_EQ(report["benchmark"], "table1");
+  EXPECT_FALSE(report["cpu_model"].get<std::string>().empty());
+  EXPECT_EQ(report["ticks_per_run"], 1000);
+  ASSERT_EQ(report["scenes"].size(), 4u) << "one row per Table 1 scene (short runs have no large-tool rows)";
+  int ran = 0;
+  for (const json& row : report["scenes"]) {
+    SCOPED_TRACE(row["name"].get<std::string>());
+    if (row["status"] == "skipped") {
+      std::cout << row["name"].get<std::string>() << " skipped: " << row["reason"].get<std::string>() << "\n";
+      EXPECT_FALSE(row["reason"].get<std::string>().empty());
+      EXPECT_NE(row["name"], "Hole") << "the Hole scene is built in and never skipped";
+      continue;
+    }
+    ++ran;
+    EXPECT_GT(number(row, "points"), 0.0);
+    EXPECT_GT(number(row["paper"], "mean_us"), 0.0);
+    ASSERT_TRUE(row["modes"].contains("paper"));
+    ASSERT_TRUE(row["modes"].contains("accelerated"));
+    for (const char* mode : {"paper", "accelerated"}) {
+      const json& m = row["modes"][mode];
+      EXPECT_EQ(m["ticks"], 1000);
+      const double mean = number(m, "mean_us"), p50 = number(m, "p50_us"), p99 = number(m, "p99_us"),
+                   p999 = number(m, "p99_9_us"), max = number(m, "max_us");
+      EXPECT_GT(mean, 0.0);
+      EXPECT_LE(p50, p99);
+      EXPECT_LE(p99, p999);
+      EXPECT_LE(p999, max);
+      EXPECT_LE(mean, max);
+      EXPECT_GE(number(m, "mean_contacts"), 0.0);
+      EXPECT_LE(number(m, "mean_contacts"), number(m, "max_contacts"));
+      EXPECT_GT(number(m, "mean_volume_samples"), 0.0);
+      EXPECT_GE(number(m, "max_penetration_m"), 0.0);
+      EXPECT_EQ(m["nan_ticks"], 0);
+    }
+    EXPECT_GT(number(row["ratio_paper_over_accelerated"], "mean"), 0.0);
+    EXPECT_GT(number(row["modes"]["paper"], "max_contacts"), 0.0) << "the trajectory never touched the surface";
+  }
+  EXPECT_GE(ran, 1);
+  const std::string md = readText(dir / "table1.md");
+  EXPECT_NE(md.find("| scene | tool | points (paper) | mode | mean [us]"), std::string::npos);
+  EXPECT_NE(md.find("| Hole |"), std::string::npos);
+  EXPECT_NE(md.find("Speed-up of the accelerated path"), std::string::npos);
+  EXPECT_NE(md.find(report["cpu_model"].get<std::string>()), std::string::npos);
+  expectPngs(dir, report, static_cast<std::size_t>(ran) + 2);
+}
+
+TEST(Bench, accuracyShortWritesCurvesParetoFrontAndRecommendation) {
+  CommonOptions options;
+  options.short_run = true;
+  options.out_dir = outDir("accuracy");
+  const fs::path dir = runAccuracy(options);
+  const json report = readJson(dir / "accuracy.json");
+  expectNoNull(report);
+  EXPECT_EQ(report["benchmark"], "accuracy");
+  // 4 surfaces x 1 resolution x 5 settings in the short version.
+  ASSERT_EQ(report["runs"].size(), 20u);
+  std::set<std::string> surfaces;
+  for (const json& r : report["runs"]) {
+    surfaces.insert(r["surface"].get<std::string>());
+    EXPECT_GT(number(r, "mean_us"), 0.0);
+    EXPECT_GE(number(r, "position_error_mean_m"), 0.0);
+    EXPECT_LE(number(r, "position_error_mean_m"), number(r, "position_error_max_m"));
+    EXPECT_GE(number(r, "normal_error_mean_deg"), 0.0);
+    EXPECT_LE(number(r, "normal_error_max_deg"), 180.0);
+    EXPECT_TRUE(r["finite"].get<bool>());
+  }
+  EXPECT_EQ(surfaces.size(), 4u);
+  ASSERT_FALSE(report["pareto_front"].empty());
+  EXPECT_LE(report["pareto_front"].size(), report["settings"].size());
+  ASSERT_TRUE(report.contains("recommended"));
+  const std::string md = readText(dir / "accuracy.md");
+  EXPECT_NE(md.find("### Recommended defaults"), std::string::npos);
+  EXPECT_NE(md.find("| surface | voxel [mm] | setting |"), std::string::npos);
+  expectPngs(dir, report, 2);
+}
+
+TEST(Bench, stabilityShortWritesSweepAndExtremeCases) {
+  CommonOptions options;
+  options.short_run = true;
+  options.out_dir = outDir("stability");
+  const fs::path dir = runStability(options);
+  const json report = readJson(dir / "stability.json");
+  expectNoNull(report);
+  EXPECT_EQ(report["benchmark"], "stability");
+  ASSERT_EQ(report["stiffness_sweep"].size(), 3u);
+  for (const json& r : report["stiffness_sweep"]) {
+    EXPECT_GT(number(r, "k_lin_N_per_m"), 0.0);
+    EXPECT_GE(number(r, "peak_force_N"), 0.0);
+    EXPECT_GE(number(r, "settled_ptp_N"), 0.0);
+    EXPECT_TRUE(r.contains("behaviour"));
+  }
+  ASSERT_EQ(report["extreme_cases"].size(), 8u);
+  for (const json& c : report["extreme_cases"]) {
+    SCOPED_TRACE(c["name"].get<std::string>());
+    for (const char* mode : {"paper", "accelerated"}) {
+      ASSERT_TRUE(c["modes"].contains(mode));
+      const std::string outcome = c["modes"][mode]["outcome"];
+      EXPECT_TRUE(outcome == "pass" || outcome.rfind("FAIL:", 0) == 0) << outcome;
+      EXPECT_GT(number(c["modes"][mode], "ticks"), 0.0);
+    }
+  }
+  const std::string md = readText(dir / "stability.md");
+  EXPECT_NE(md.find("| K [N/m] |"), std::string::npos);
+  EXPECT_NE(md.find("| case | set-up |"), std::string::npos);
+  expectPngs(dir, report, 1);
+}
+
+}  // namespace
+}  // namespace vh::bench
