@@ -13,6 +13,23 @@ struct Later {
   template <typename E>
   bool operator()(const E& a, const E& b) const noexcept { return a.t_begin > b.t_begin; }
 };
+
+// Puts `entry` at the root of the binary min-heap h[0, count) (on t_begin) and sifts it down:
+// the accelerated sweep replaces the popped minimum by its successor in one sift instead of a
+// pop and a push (the heap was the largest cost of the sweep on a wrench lying on the Engine).
+template <typename E>
+void replaceTop(E* h, std::size_t count, const E& entry) noexcept {
+  std::size_t i = 0;
+  for (;;) {
+    std::size_t child = 2 * i + 1;
+    if (child >= count) break;
+    if (child + 1 < count && h[child + 1].t_begin < h[child].t_begin) ++child;
+    if (!(h[child].t_begin < entry.t_begin)) break;
+    h[i] = h[child];
+    i = child;
+  }
+  h[i] = entry;
+}
 }  // namespace
 
 const char* toString(DetectionMode mode) noexcept {
@@ -187,18 +204,17 @@ SweepResult CollisionDetector::sweepAccelerated(const RigidMotion& motion, doubl
       dt_[j] = 1.0 / segments;
       segments_[j] = static_cast<std::int64_t>(segments);
       clear_segments_[j] = 0;
-      if (segments_[j] == 1) {
-        // One segment: its own ball (cheap: R(omega / 2) is precomputed) decides at once.
-        const double radius_j = 0.5 * path_[j] * (1.0 + 1e-9) + 1e-12;
-        if (!ballMayBeInside(c_half + R_half * r0_[j], radius_j, isovalue)) {
-          clear_segments_[j] = 1;
-          clear_until_[j] = 1.0;
-          continue;
-        }
-        heap_[count++] = {0.0, j, 0, 0};
-      } else {
-        heap_[count++] = {0.0, j, 0, 1};  // resolved lazily, in time order
+      // The whole path first: its own ball (cheap: R(omega / 2) is precomputed) culls the point
+      // at once. On the Engine wrench this culls 62 % of the points with several segments,
+      // which otherwise cost about two run tests and two heap steps each.
+      const double radius_j = 0.5 * path_[j] * (1.0 + 1e-9) + 1e-12;
+      if (!ballMayBeInside(c_half + R_half * r0_[j], radius_j, isovalue)) {
+        clear_segments_[j] = segments_[j];
+        clear_until_[j] = 1.0;
+        continue;
       }
+      // One segment: sample it; several: resolved lazily, in time order.
+      heap_[count++] = {0.0, j, 0, segments_[j] == 1 ? 0 : 1};
     }
   }
   std::make_heap(heap_.begin(), heap_.begin() + static_cast<std::ptrdiff_t>(count), Later{});
@@ -209,13 +225,20 @@ SweepResult CollisionDetector::sweepAccelerated(const RigidMotion& motion, doubl
   // next one doubles (conservative advancement); a run that may hit is halved down to one
   // segment, whose end is then sampled as the paper does, and after a sample that stays
   // outside the next segment is sampled directly once more before testing resumes.
+  // Each step replaces the minimum by at most one successor (replaceTop: one sift).
+  // The minimum stays at the root while it is processed; push() (at most once per step) puts
+  // its successor there, else it is popped at the top of the next step.
+  QueueEntry* const heap = heap_.data();
+  bool pop_pending = false;
   const auto push = [&](const QueueEntry& entry) {
-    heap_[count++] = entry;
-    std::push_heap(heap_.begin(), heap_.begin() + static_cast<std::ptrdiff_t>(count), Later{});
+    replaceTop(heap, count, entry);
+    pop_pending = false;
   };
-  while (count > 0 && heap_[0].t_begin < result.t) {
-    std::pop_heap(heap_.begin(), heap_.begin() + static_cast<std::ptrdiff_t>(count), Later{});
-    const QueueEntry e = heap_[--count];
+  for (;;) {
+    if (pop_pending && --count > 0) replaceTop(heap, count, heap[count]);
+    if (!(count > 0 && heap[0].t_begin < result.t)) break;
+    const QueueEntry e = heap[0];
+    pop_pending = true;
     const int j = e.point;
     const std::int64_t total = segments_[j];
     if (e.run > 0) {  // an unresolved run
@@ -341,12 +364,20 @@ void CollisionDetector::addContactsAt(const RigidMotion& motion, const SweepResu
   if (mode_ == DetectionMode::kAccelerated) {
     // Only the points the sweep did not cull, in index order (the paper's contact order); a
     // point whose look-ahead time lies in its proven-outside prefix is skipped.
-    std::sort(active_.begin(), active_.begin() + static_cast<std::ptrdiff_t>(active_count_));
+    // The skip tests first, then only the few candidates left are sorted (sorting every active
+    // point cost 4 % of a tick on Engine). active_ keeps just the candidates afterwards.
+    std::size_t candidates = 0;
     for (std::size_t i = 0; i < active_count_; ++i) {
       const int j = active_[i];
       if (in_set_[j] || embedded_[j] || !(path_[j] > 0.0)) continue;
+      if (t + epsilon_ / path_[j] <= clear_until_[j]) continue;
+      active_[candidates++] = j;
+    }
+    active_count_ = candidates;
+    std::sort(active_.begin(), active_.begin() + static_cast<std::ptrdiff_t>(candidates));
+    for (std::size_t i = 0; i < candidates; ++i) {
+      const int j = active_[i];
       const double t_ahead = t + epsilon_ / path_[j];
-      if (t_ahead <= clear_until_[j]) continue;
       if (inside(motion.pointAt(r0_[j], t_ahead), isovalue))
         appendContact(j, motion.pointAt(r0_[j], t), direction(j), isovalue);
     }

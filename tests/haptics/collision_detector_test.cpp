@@ -141,6 +141,33 @@ TEST_P(CollisionDetectorModes, PruningKeepsOnlyContactsThatBlockTheMotion) {
   EXPECT_EQ(cd.contacts().size(), 0u);
 }
 
+// Accelerated path: a point whose whole path (here 8 segments) lies in bricks that cannot hold
+// an inside point is culled by one box query on its path's ball, with no sample and no run
+// tests (a run-by-run walk takes 4 more: runs of 1, 2, 4 and 1 segments). Slides at many
+// heights above a plane: none may hit, and at some heights the point-shell tree's root (its
+// ball is epsilon larger) passes and the point's own whole-path test culls it: 2 queries.
+TEST(CollisionDetector, AcceleratedCullsAWholeFreePathWithOneQuery) {
+  const ScalarVolume vol = datasets::makePlaneVolume(test::grid1mm(), Eigen::Vector3d::UnitZ(), 0.0);
+  const auto tool = test::pointTool();
+  CollisionDetector cd(vol, *tool, 0.0, 256, DetectionMode::kAccelerated);
+  const double length_m = 8.0 * vol.featureSize_m();
+  int culled_by_point_test = 0, more_queries = 0;
+  for (int i = 0; i < 400; ++i) {
+    const double height_m = 0.0002 + 0.000025 * i;  // 0.2 to 10.2 mm
+    const Pose X0 = Pose::FromTranslation({-0.5 * length_m, 0.001, height_m});
+    const Pose X1 = Pose::FromTranslation({0.5 * length_m, 0.001, height_m});
+    const RigidMotion motion = RigidMotion::Between(X0, X1, tool->mass.p_TCm_m);
+    cd.resetSampleCount();
+    const SweepResult r = cd.sweep(motion, 0.0);
+    ASSERT_LT(r.hit_point, 0) << "height " << height_m;  // parallel to the plane, above it
+    if (cd.sampleCount() == 0 && cd.boxQueryCount() == 2) ++culled_by_point_test;
+    if (cd.sampleCount() == 0 && cd.boxQueryCount() > 2) ++more_queries;
+  }
+  EXPECT_GT(culled_by_point_test, 0) << "no height exercised the point's own whole-path test";
+  ::testing::Test::RecordProperty("culled_by_point_test", culled_by_point_test);
+  ::testing::Test::RecordProperty("sample_free_with_run_tests", more_queries);
+}
+
 TEST(CollisionDetector, RejectsEpsilonNotBelowTheFeatureSize) {
   const ScalarVolume vol = datasets::makePlaneVolume(test::grid1mm(16), Eigen::Vector3d::UnitZ(), 0.0);
   const auto tool = test::pointTool();
