@@ -62,16 +62,20 @@ void styleChart(vtkChartXY* chart, const std::string& title, const std::string& 
   chart->GetLegend()->SetVerticalAlignment(vtkChartLegend::TOP);
 }
 
+/// False (with a message naming the plot) when there is no X display to render on.
+bool canPlot(const std::filesystem::path& png) {
+  if (displayAvailable()) return true;
+  std::cerr << "bench: no X display (DISPLAY unset): plot " << png.filename().string()
+            << " skipped (run under xvfb-run for plots)\n";
+  return false;
+}
+
 }  // namespace
 
 bool plotXY(const std::filesystem::path& png, const std::string& title, const std::string& x_label,
             const std::string& y_label, const std::vector<Series>& series, bool log_x, bool log_y, int width,
             int height) {
-  if (!displayAvailable()) {
-    std::cerr << "bench: no X display (DISPLAY unset): plot " << png.filename().string()
-              << " skipped (run under xvfb-run for plots)\n";
-    return false;
-  }
+  if (!canPlot(png)) return false;
   vtkNew<vtkContextView> view;
   vtkNew<vtkChartXY> chart;
   view->GetScene()->AddItem(chart);
@@ -107,11 +111,7 @@ bool plotXY(const std::filesystem::path& png, const std::string& title, const st
 
 bool plotBars(const std::filesystem::path& png, const std::string& title, const std::vector<std::string>& categories,
               const std::string& y_label, const std::vector<Series>& series, bool log_y, int width, int height) {
-  if (!displayAvailable()) {
-    std::cerr << "bench: no X display (DISPLAY unset): plot " << png.filename().string()
-              << " skipped (run under xvfb-run for plots)\n";
-    return false;
-  }
+  if (!canPlot(png)) return false;
   vtkNew<vtkContextView> view;
   vtkNew<vtkChartXY> chart;
   view->GetScene()->AddItem(chart);

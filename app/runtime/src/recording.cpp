@@ -16,6 +16,7 @@
 #include <stdexcept>
 
 #include <nlohmann/json.hpp>
+#include <zlib.h>
 
 static_assert(std::endian::native == std::endian::little,
               "the recording format is little-endian; add byte swapping for this host");
@@ -32,17 +33,6 @@ constexpr std::size_t kMaxChunkEvents = 65535;
 constexpr std::size_t kFileHeaderBytes = 24;
 constexpr std::size_t kChunkHeaderBytes = 16;
 constexpr std::size_t kMaxChunkRecords = 65535;
-
-constexpr std::array<std::uint32_t, 256> makeCrcTable() {
-  std::array<std::uint32_t, 256> table{};
-  for (std::uint32_t i = 0; i < 256; ++i) {
-    std::uint32_t c = i;
-    for (int k = 0; k < 8; ++k) c = (c & 1u) ? (0xEDB88320u ^ (c >> 1)) : (c >> 1);
-    table[i] = c;
-  }
-  return table;
-}
-constexpr std::array<std::uint32_t, 256> kCrcTable = makeCrcTable();
 
 void putU32(unsigned char* p, std::uint32_t v) noexcept { std::memcpy(p, &v, 4); }
 void putU64(unsigned char* p, std::uint64_t v) noexcept { std::memcpy(p, &v, 8); }
@@ -79,6 +69,8 @@ void appendBytes(std::string& out, const void* data, std::size_t size) {
   out.append(static_cast<const char*>(data), size);
 }
 
+}  // namespace
+
 std::string utcNow() {
   const std::time_t now = std::time(nullptr);
   std::tm tm{};
@@ -88,13 +80,9 @@ std::string utcNow() {
   return buf;
 }
 
-}  // namespace
-
 std::uint32_t crc32(const void* data, std::size_t size, std::uint32_t crc) noexcept {
-  const auto* p = static_cast<const unsigned char*>(data);
-  crc = ~crc;
-  for (std::size_t i = 0; i < size; ++i) crc = kCrcTable[(crc ^ p[i]) & 0xFFu] ^ (crc >> 8);
-  return ~crc;
+  // zlib's CRC-32 is this one (ISO-HDLC); crc32_z takes a size_t length.
+  return static_cast<std::uint32_t>(::crc32_z(crc, static_cast<const Bytef*>(data), size));
 }
 
 // ---- TickRing ------------------------------------------------------------------------------------

@@ -12,6 +12,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include "vh/runtime/recording.h"
 #include "vh/runtime/sha256.h"
 
 #ifndef VH_SOFTWARE_VERSION
@@ -38,15 +39,6 @@ std::string trim(const std::string& s) {
   if (b == std::string::npos) return {};
   const auto e = s.find_last_not_of(" \t\r\n");
   return s.substr(b, e - b + 1);
-}
-
-std::string utcNow() {
-  const std::time_t now = std::time(nullptr);
-  std::tm tm{};
-  gmtime_r(&now, &tm);
-  char buf[32];
-  std::strftime(buf, sizeof buf, "%Y-%m-%dT%H:%M:%SZ", &tm);
-  return buf;
 }
 
 /// The data files a detached header (.nhdr "data file:" / .mhd "ElementDataFile =") names,

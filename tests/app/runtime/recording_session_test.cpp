@@ -38,7 +38,12 @@ int runCommand(const std::string& command, std::string& output) {
   return pclose(pipe);
 }
 
-std::string quoted(const fs::path& p) { return "'" + p.string() + "'"; }
+std::string quoted(const fs::path& p) {
+  std::string out(1, '\'');  // built by appending: GCC 12 warns falsely on "'" + std::string
+  out.append(p.string());
+  out.push_back('\'');
+  return out;
+}
 
 TEST(RecordingCli, RunRecordWritesAReplayableRecordingAndExportWritesEvents) {
   const fs::path dir = test::scratchDir();

@@ -137,6 +137,9 @@ struct RecordingEvent {
   std::string detail_json;   ///< A JSON object text, e.g. {"label":"nerve"} or {"from":400,"to":500}.
 };
 
+/// The current UTC time as ISO-8601 "YYYY-MM-DDTHH:MM:SSZ" (metadata's start_time_utc).
+std::string utcNow();
+
 /// CRC-32 (ISO-HDLC / zlib) of `size` bytes, continuing from `crc` (0 to start).
 std::uint32_t crc32(const void* data, std::size_t size, std::uint32_t crc = 0) noexcept;
 
