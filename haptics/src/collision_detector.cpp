@@ -66,6 +66,8 @@ CollisionDetector::CollisionDetector(const ScalarVolume& volume, const ToolModel
     stack_.resize(nodes_.size() + 1);
     segments_.assign(n, 0);
     clear_until_.assign(n, 0.0);
+    started_.assign(n, 0u);
+    backoff_.assign(n, 0);
     clear_segments_.assign(n, 0);
     active_.resize(n);
     grid_per_m_ = volume.geometry().spacing_m.cwiseInverse();
@@ -165,29 +167,59 @@ SweepResult CollisionDetector::sweep(const RigidMotion& motion, double isovalue)
   return mode_ == DetectionMode::kAccelerated ? sweepAccelerated(motion, isovalue) : sweepPaper(motion, isovalue);
 }
 
-SweepResult CollisionDetector::sweepAccelerated(const RigidMotion& motion, double isovalue) noexcept {
-  SweepResult result;
+void CollisionDetector::startPoint(const RigidMotion& motion, int j) noexcept {
+  r0_[j] = motion.radial_W(tool_->point_shell.points_T_m()[j]);
+  path_[j] = motion.pathLengthBound(r0_[j]);
+  clear_until_[j] = -1.0;
+  if (embedded_[j] || !(path_[j] > 0.0)) return;
+  const double segments = std::max(1.0, std::ceil(path_[j] / segment_length_m_));
+  dt_[j] = 1.0 / segments;
+  segments_[j] = static_cast<std::int64_t>(segments);
+  clear_segments_[j] = 0;
+  backoff_[j] = 0;
+}
+
+double CollisionDetector::stepSegment(const RigidMotion& motion, int j, std::int64_t segment, double t_begin,
+                                      double isovalue, SweepResult& result) noexcept {
+  const std::int64_t next = segment + 1;
+  const double t_end = (static_cast<double>(next) * dt_[j] >= 1.0 - 1e-12) ? 1.0 : static_cast<double>(next) * dt_[j];
+  if (!inside(motion.pointAt(r0_[j], t_end), isovalue)) return t_end;
+  double lo = t_begin, hi = t_end;
+  while (path_[j] * (hi - lo) >= bisection_tolerance_) {
+    const double mid = 0.5 * (lo + hi);
+    if (inside(motion.pointAt(r0_[j], mid), isovalue)) hi = mid; else lo = mid;
+  }
+  // Of tied points, the lower index among those popped (the paper path: the first popped).
+  if (lo < result.t || (lo == result.t && j < result.hit_point)) {
+    result.t = lo;
+    result.t_inside = hi;
+    result.hit_point = j;
+  }
+  return -1.0;
+}
+
+std::size_t CollisionDetector::collectActive(const RigidMotion& motion, double t_max, double isovalue,
+                                             bool queue) noexcept {
   active_count_ = 0;
-  if (motion.isStill()) return result;
-  const auto& points = tool_->point_shell.points_T_m();
   const double angle = motion.omega_W_rad().norm();
-  const Eigen::Matrix3d R_half = angle > 0.0
-      ? Eigen::AngleAxisd(0.5 * angle, motion.omega_W_rad() / angle).toRotationMatrix()
+  const Eigen::Matrix3d R_mid = angle > 0.0 && t_max > 0.0
+      ? Eigen::AngleAxisd(0.5 * t_max * angle, motion.omega_W_rad() / angle).toRotationMatrix()
       : Eigen::Matrix3d::Identity();
-  const Eigen::Vector3d c_half = motion.c0_W_m() + 0.5 * motion.v_W_m();
-  // Point-shell tree, top down: a node whose points' whole arcs, plus epsilon of further travel
-  // (addContactsAt's look-ahead), lie in bricks that cannot hold an inside point is skipped.
-  // A point at r = r_c + d (|d| <= node radius) stays within path(r_c) / 2 + radius of the
-  // node centre's mid-time position.
+  const Eigen::Vector3d c_mid = motion.c0_W_m() + (0.5 * t_max) * motion.v_W_m();
+  // Point-shell tree, top down: a node whose points' arcs over [0, t_max], plus epsilon of
+  // further travel (addContactsAt's look-ahead), lie in bricks that cannot hold an inside point
+  // is skipped. A point at r = r_c + d (|d| <= node radius) stays within t_max path(r_c) / 2 +
+  // radius of the node centre's position at t_max / 2.
   std::size_t count = 0;
   int top = 0;
   stack_[top++] = 0;
   while (top > 0) {
     const ShellNode& node = nodes_[stack_[--top]];
     const Eigen::Vector3d r_c = motion.radial_W(node.center_T_m);
-    const double radius = (0.5 * motion.pathLengthBound(r_c) + node.radius_m + epsilon_) * (1.0 + 1e-9) + 1e-12;
+    const double radius =
+        (0.5 * t_max * motion.pathLengthBound(r_c) + node.radius_m + epsilon_) * (1.0 + 1e-9) + 1e-12;
     // Culled points are not touched at all (addContactsAt visits only the active ones).
-    if (!ballMayBeInside(c_half + R_half * r_c, radius, isovalue)) continue;
+    if (!ballMayBeInside(c_mid + R_mid * r_c, radius, isovalue)) continue;
     if (node.left >= 0) {
       stack_[top++] = node.right;
       stack_[top++] = node.left;
@@ -196,27 +228,56 @@ SweepResult CollisionDetector::sweepAccelerated(const RigidMotion& motion, doubl
     for (int i = node.begin; i < node.end; ++i) {
       const int j = order_[i];
       active_[active_count_++] = j;
-      r0_[j] = motion.radial_W(points[j]);
-      path_[j] = motion.pathLengthBound(r0_[j]);
-      clear_until_[j] = -1.0;
-      if (embedded_[j] || !(path_[j] > 0.0)) continue;
-      const double segments = std::max(1.0, std::ceil(path_[j] / segment_length_m_));
-      dt_[j] = 1.0 / segments;
-      segments_[j] = static_cast<std::int64_t>(segments);
-      clear_segments_[j] = 0;
-      // The whole path first: its own ball (cheap: R(omega / 2) is precomputed) culls the point
-      // at once. On the Engine wrench this culls 62 % of the points with several segments,
-      // which otherwise cost about two run tests and two heap steps each.
-      const double radius_j = 0.5 * path_[j] * (1.0 + 1e-9) + 1e-12;
-      if (!ballMayBeInside(c_half + R_half * r0_[j], radius_j, isovalue)) {
-        clear_segments_[j] = segments_[j];
-        clear_until_[j] = 1.0;
+      if (started_[j] == sweep_stamp_) continue;  // a contact point: started (and queued) already
+      startPoint(motion, j);
+      if (!queue || embedded_[j] || !(path_[j] > 0.0)) continue;
+      // The path over [0, t_max] first: its own ball culls the point at once (on the Engine
+      // wrench 62 % of the points with several segments, which otherwise cost about two run
+      // tests and two heap steps each).
+      const double radius_j = 0.5 * t_max * path_[j] * (1.0 + 1e-9) + 1e-12;
+      if (!ballMayBeInside(c_mid + R_mid * r0_[j], radius_j, isovalue)) {
+        clear_until_[j] = t_max;
         continue;
       }
       // One segment: sample it; several: resolved lazily, in time order.
-      heap_[count++] = {0.0, j, 0, segments_[j] == 1 ? 0 : 1};
+      heap_[queued_ + count++] = {0.0, j, 0, segments_[j] == 1 ? 0 : 1};
     }
   }
+  return count;
+}
+
+SweepResult CollisionDetector::sweepAccelerated(const RigidMotion& motion, double isovalue) noexcept {
+  SweepResult result;
+  active_count_ = 0;
+  active_complete_ = true;
+  if (motion.isStill()) return result;
+  if (++sweep_stamp_ == 0) {  // wrapped: forget every old stamp
+    std::fill(started_.begin(), started_.end(), 0u);
+    sweep_stamp_ = 1;
+  }
+  // The contact points first: they are the likely first hits (a proxy resting or pushed
+  // against the surface is blocked by one of them, often at t = 0). Their first segment is
+  // taken before any other point's, which is one of the orders the queue may pop segments
+  // starting at t = 0 in. A hit here bounds the search: the tree and the other points are then
+  // only tested over [0, t]; a hit at t = 0 ends the sweep at once (addContactsAt then
+  // collects the points near the proxy itself).
+  queued_ = 0;
+  for (std::size_t i = 0; i < contact_count_; ++i) {
+    const int j = contacts_[i].point_index;
+    if (embedded_[j]) continue;
+    startPoint(motion, j);
+    if (!(path_[j] > 0.0)) continue;
+    started_[j] = sweep_stamp_;
+    const double t_end = stepSegment(motion, j, 0, 0.0, isovalue, result);
+    // Outside at the end of its first segment: a run test next.
+    if (t_end >= 0.0 && t_end < 1.0) heap_[queued_++] = {t_end, j, 1, 1};
+    if (result.t == 0.0) break;  // nothing can come earlier
+  }
+  if (result.t == 0.0) {
+    active_complete_ = false;
+    return result;
+  }
+  std::size_t count = queued_ + collectActive(motion, result.t, isovalue, true);
   std::make_heap(heap_.begin(), heap_.begin() + static_cast<std::ptrdiff_t>(count), Later{});
   // The paper's time-ordered search over the segments that remain; the samples and the
   // bisection are the paper's, so the first time of contact is the same double.
@@ -242,35 +303,34 @@ SweepResult CollisionDetector::sweepAccelerated(const RigidMotion& motion, doubl
     const int j = e.point;
     const std::int64_t total = segments_[j];
     if (e.run > 0) {  // an unresolved run
-      if (!runMayHit(motion, j, e.segment, e.run, isovalue)) {
-        const std::int64_t after = e.segment + e.run;
+      const std::int64_t run = std::min(e.run, total - e.segment);
+      if (!runMayHit(motion, j, e.segment, run, isovalue)) {
+        backoff_[j] = 0;
+        const std::int64_t after = e.segment + run;
         if (clear_segments_[j] == e.segment) {
           clear_segments_[j] = after;
           clear_until_[j] = after >= total ? 1.0 : segmentBegin(j, after);
         }
-        if (after < total) push({segmentBegin(j, after), j, after, std::min(2 * e.run, total - after)});
+        if (after < total) push({segmentBegin(j, after), j, after, std::min(2 * run, total - after)});
       } else {
-        push({e.t_begin, j, e.segment, e.run / 2});  // run 1 becomes 0: sample it
+        push({e.t_begin, j, e.segment, run / 2});  // run 1 becomes 0: sample it
       }
       continue;
     }
-    const std::int64_t next = e.segment + 1;
-    const double t_end = (static_cast<double>(next) * dt_[j] >= 1.0 - 1e-12) ? 1.0 : static_cast<double>(next) * dt_[j];
-    if (inside(motion.pointAt(r0_[j], t_end), isovalue)) {
-      double lo = e.t_begin, hi = t_end;
-      while (path_[j] * (hi - lo) >= bisection_tolerance_) {
-        const double mid = 0.5 * (lo + hi);
-        if (inside(motion.pointAt(r0_[j], mid), isovalue)) hi = mid; else lo = mid;
+    const double t_end = stepSegment(motion, j, e.segment, e.t_begin, isovalue, result);
+    if (t_end >= 0.0 && t_end < 1.0) {
+      // Near the surface, after a failed test of one segment (run 0): 2^b direct steps (-2^b,
+      // counting up to -1), then test a run again (1); b grows with each failure in a row and
+      // is reset by a run proven empty. Along a surface (a tool sliding in a hole) the tests
+      // fail nearly always and this keeps them to a few per point instead of one per 2 samples.
+      std::int64_t successor = 1;
+      if (e.run == 0) {
+        successor = -(std::int64_t{1} << backoff_[j]);
+        if (backoff_[j] < 6) ++backoff_[j];
+      } else if (e.run < -1) {
+        successor = e.run + 1;
       }
-      // Of tied points, the lower index among those popped (the paper path: the first popped).
-      if (lo < result.t || (lo == result.t && j < result.hit_point)) {
-        result.t = lo;
-        result.t_inside = hi;
-        result.hit_point = j;
-      }
-    } else if (t_end < 1.0) {
-      // Near the surface: one direct step (-1), then test a run again (1).
-      push({segmentBegin(j, next), j, next, e.run == 0 ? -1 : 1});
+      push({t_end, j, e.segment + 1, successor});
     }
   }
   return result;
@@ -362,6 +422,12 @@ void CollisionDetector::addContactsAt(const RigidMotion& motion, const SweepResu
   };
   appendContact(hit.hit_point, motion.pointAt(r0_[hit.hit_point], t), direction(hit.hit_point), isovalue);
   if (mode_ == DetectionMode::kAccelerated) {
+    // A sweep that ended at t = 0 on a contact point skipped the tree: collect the points near
+    // the proxy now (the tree over [0, t], t = 0, with the epsilon look-ahead).
+    if (!active_complete_) {
+      collectActive(motion, t, isovalue, false);
+      active_complete_ = true;
+    }
     // Only the points the sweep did not cull, in index order (the paper's contact order); a
     // point whose look-ahead time lies in its proven-outside prefix is skipped.
     // The skip tests first, then only the few candidates left are sorted (sorting every active

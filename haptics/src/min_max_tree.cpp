@@ -92,6 +92,33 @@ MinMaxTree MinMaxTree::Build(const T* voxels, const std::array<int, 3>& dims) {
   return tree;
 }
 
+// rawRange() reads at most (kSpan + 1)^3 nodes, at the finest level where the box spans that
+// few per axis. 1 (8 reads) culled too little for the point-shell tree's balls; 3 (64 reads)
+// was the fastest on the Table 1 scenes (Engine mean -25 %), 7 slower again.
+constexpr int kSpan = 3;
+void MinMaxTree::rawRangeSpread(const int* b0, const int* b1, int spread, float& raw_min,
+                                float& raw_max) const noexcept {
+  // The finest level at which the box spans at most kSpan + 1 nodes per axis.
+  int level = 0;
+  while ((spread >> level) > kSpan && level + 1 < levels()) ++level;
+  while (level + 1 < levels() &&
+         ((b1[0] >> level) - (b0[0] >> level) > kSpan || (b1[1] >> level) - (b0[1] >> level) > kSpan ||
+          (b1[2] >> level) - (b0[2] >> level) > kSpan))
+    ++level;
+  const Level& l = levels_[level];
+  float lo = kInf, hi = -kInf;
+  for (int c = b0[2] >> level; c <= (b1[2] >> level); ++c)
+    for (int b = b0[1] >> level; b <= (b1[1] >> level); ++b) {
+      const std::size_t row = static_cast<std::size_t>(l.n[0]) * (b + static_cast<std::size_t>(l.n[1]) * c);
+      for (int a = b0[0] >> level; a <= (b1[0] >> level); ++a) {
+        lo = std::min(lo, l.range[2 * (row + a)]);
+        hi = std::max(hi, l.range[2 * (row + a) + 1]);
+      }
+    }
+  raw_min = lo;
+  raw_max = hi;
+}
+
 template MinMaxTree MinMaxTree::Build<std::uint8_t>(const std::uint8_t*, const std::array<int, 3>&);
 template MinMaxTree MinMaxTree::Build<std::int16_t>(const std::int16_t*, const std::array<int, 3>&);
 template MinMaxTree MinMaxTree::Build<std::uint16_t>(const std::uint16_t*, const std::array<int, 3>&);

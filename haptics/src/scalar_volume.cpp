@@ -164,18 +164,6 @@ Eigen::Vector3d ScalarVolume::interpolantGradient(const Eigen::Vector3d& p_W_m) 
   return geometry_.direction_W * d_grid;
 }
 
-double ScalarVolume::upperBoundInBox(const Eigen::Vector3d& lo_ijk, const Eigen::Vector3d& hi_ijk) const noexcept {
-  float raw_min = 0.0f, raw_max = 0.0f;
-  if (!tree_.rawRange(lo_ijk, hi_ijk, raw_min, raw_max)) return -std::numeric_limits<double>::infinity();
-  // trilinear() lerps in double: a + f (b - a) with f in [0, 1] stays within [a, b] when b - a
-  // is exact, which it is for the integer types; for float32 corners of very different
-  // magnitude it may not be, so widen by a few units in the last place. F = scale raw + offset
-  // is monotone in raw under rounding.
-  double raw = scale_ > 0.0 ? static_cast<double>(raw_max) : static_cast<double>(raw_min);
-  if (type_ == VoxelType::kFloat32) raw += (scale_ > 0.0 ? 1.0 : -1.0) * std::abs(raw) * 0x1p-40;
-  return scale_ * raw + offset_;
-}
-
 Eigen::Vector3d ScalarVolume::boundsMin_W_m() const noexcept {
   Eigen::Vector3d lo = Eigen::Vector3d::Constant(std::numeric_limits<double>::infinity());
   for (int c = 0; c < 8; ++c) {

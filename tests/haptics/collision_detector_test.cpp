@@ -168,6 +168,56 @@ TEST(CollisionDetector, AcceleratedCullsAWholeFreePathWithOneQuery) {
   ::testing::Test::RecordProperty("sample_free_with_run_tests", more_queries);
 }
 
+// A tool resting on a plane and pushed into it is blocked at t = 0 by its own contacts: the
+// accelerated sweep tests the contact points first and stops there, without walking the
+// point-shell tree (no box query); the time of contact and the contact set added afterwards
+// are the paper path's.
+TEST(CollisionDetector, AcceleratedStopsAtABlockingContactWithoutWalkingTheTree) {
+  const ScalarVolume vol = datasets::makePlaneVolume(test::grid1mm(), Eigen::Vector3d::UnitZ(), 0.0);
+  const auto tool = test::meshTool(datasets::makeBoxMesh({0.004, 0.004, 0.002}), 1e-3);
+  CollisionDetector paper(vol, *tool, 0.0, 256, DetectionMode::kPaper);
+  CollisionDetector fast(vol, *tool, 0.0, 256, DetectionMode::kAccelerated);
+  // Drop the box onto the plane (z = 0 is the surface; inside below), then push it further.
+  const Pose X_start = Pose::FromTranslation({0.0005, 0.0003, 0.004});
+  const Pose X_low = Pose::FromTranslation({0.0005, 0.0003, -0.002});
+  const RigidMotion drop = RigidMotion::Between(X_start, X_low, tool->mass.p_TCm_m);
+  const SweepResult hp = paper.sweep(drop, 0.0), hf = fast.sweep(drop, 0.0);
+  ASSERT_GE(hp.hit_point, 0);
+  ASSERT_EQ(hf.t, hp.t);
+  paper.addContactsAt(drop, hp, 0.0);
+  fast.addContactsAt(drop, hf, 0.0);
+  ASSERT_GT(fast.contacts().size(), 1u);
+  const Pose X_rest = drop.poseAt(hf.t);
+  paper.refreshPositions(X_rest);
+  fast.refreshPositions(X_rest);
+  // Pushed down again from the resting pose: blocked at once.
+  const RigidMotion push = RigidMotion::Between(X_rest, X_low, tool->mass.p_TCm_m);
+  paper.resetSampleCount();
+  fast.resetSampleCount();
+  const SweepResult rp = paper.sweep(push, 0.0), rf = fast.sweep(push, 0.0);
+  ASSERT_EQ(rp.t, 0.0);
+  EXPECT_EQ(rf.t, rp.t);
+  EXPECT_EQ(rf.t_inside, rp.t_inside);
+  EXPECT_EQ(fast.boxQueryCount(), 0) << "the tree was walked although a contact blocks at t = 0";
+  // The points added at t = 0 (collected by addContactsAt itself) are the paper's.
+  paper.clearContacts();
+  fast.clearContacts();
+  paper.addContactsAt(push, rp, 0.0);
+  fast.addContactsAt(push, rf, 0.0);
+  std::vector<int> a, b;
+  for (const Contact& c : paper.contacts()) a.push_back(c.point_index);
+  for (const Contact& c : fast.contacts()) b.push_back(c.point_index);
+  // Each path adds its own hit point first; on a tie at t = 0 these may differ (documented).
+  std::erase(a, rp.hit_point);
+  std::erase(a, rf.hit_point);
+  std::erase(b, rp.hit_point);
+  std::erase(b, rf.hit_point);
+  std::sort(a.begin(), a.end());
+  std::sort(b.begin(), b.end());
+  EXPECT_EQ(a, b);
+  EXPECT_FALSE(a.empty());
+}
+
 TEST(CollisionDetector, RejectsEpsilonNotBelowTheFeatureSize) {
   const ScalarVolume vol = datasets::makePlaneVolume(test::grid1mm(16), Eigen::Vector3d::UnitZ(), 0.0);
   const auto tool = test::pointTool();

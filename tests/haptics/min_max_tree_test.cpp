@@ -156,6 +156,23 @@ TEST(MinMaxTree, TightOnASingleBrightVoxel) {
   EXPECT_FALSE(vol.minMaxTree().rawRange({17.0, 0.0, 0.0}, {18.0, 1.0, 1.0}, mn, mx));
 }
 
+// A box spanning up to 4 bricks per axis is read brick by brick (level 0), not from a coarser
+// node that also covers the voxels next to it (the point-shell tree's balls span several
+// bricks; a coarse read culled too little).
+TEST(MinMaxTree, ReadsBricksAcrossFourBricksPerAxis) {
+  const std::array<int, 3> dims{65, 65, 65};  // 16 bricks per axis
+  std::vector<std::uint8_t> v(65 * 65 * 65, 0);
+  v[0 + 65 * (0 + 65 * 0)] = 100;  // voxel (0, 0, 0): only the first brick holds it
+  const ScalarVolume vol = ScalarVolume::FromVoxels(unitGeometry(dims), v);
+  float mn, mx;
+  // Bricks 1..4 on each axis (cells 4 to 19): brute force says 0; a level-2 node would hold 100.
+  ASSERT_TRUE(vol.minMaxTree().rawRange({4.5, 4.5, 4.5}, {19.5, 19.5, 19.5}, mn, mx));
+  EXPECT_EQ(mx, 0.0f);
+  // One cell further down reaches brick 0 and the bright voxel.
+  ASSERT_TRUE(vol.minMaxTree().rawRange({3.5, 4.5, 4.5}, {19.5, 19.5, 19.5}, mn, mx));
+  EXPECT_EQ(mx, 100.0f);
+}
+
 TEST(MinMaxTree, NegativeValueScaleBoundsWithTheRawMinimum) {
   std::mt19937 rng(6);
   const std::array<int, 3> dims{12, 10, 9};

@@ -304,7 +304,7 @@ void runScene(const runtime::LoadedScene& scene, std::shared_ptr<const haptics::
       tick_csv.push_back(std::make_unique<std::ofstream>(fs::path(dir) / (row["name"].get<std::string>() + "_" +
                                                                          haptics::toString(m.mode) + ".csv")));
       *tick_csv.back() << "tick,wall_us,cpu_us,contacts,samples,box_queries,time_of_contact,device_step_m,"
-                          "device_step_rad,proxy_device_m,proxy_device_rad,sweeps,nodes,active,path_tests,run_tests,heap_steps,sweep_samples,bisect_samples,prune_samples,add_samples,heap0,angle,speed,segs,maxpath\n";
+                          "device_step_rad,proxy_device_m,proxy_device_rad\n";
     }
   }
   haptics::Pose X_WD_last = X_WD0;
@@ -317,7 +317,6 @@ void runScene(const runtime::LoadedScene& scene, std::shared_ptr<const haptics::
       const auto w0 = std::chrono::steady_clock::now();
       const double c0 = threadCpu_us();
       const haptics::Pose X_WP_before = m.renderer->proxyPose();
-      haptics::g_diag = {};
       const haptics::TickOutput out = m.renderer->tick(X_WD, s);
       m.cpu_us.push_back(threadCpu_us() - c0);
       if (!tick_csv.empty())
@@ -326,7 +325,7 @@ void runScene(const runtime::LoadedScene& scene, std::shared_ptr<const haptics::
                      << ',' << (X_WD.p_AB_m - X_WD_last.p_AB_m).norm() << ','
                      << X_WD.R_AB.angularDistance(X_WD_last.R_AB) << ','
                      << (X_WD.p_AB_m - X_WP_before.p_AB_m).norm() << ','
-                     << X_WD.R_AB.angularDistance(X_WP_before.R_AB) << ',' << haptics::g_diag.sweeps << ',' << haptics::g_diag.nodes << ',' << haptics::g_diag.active << ',' << haptics::g_diag.path_tests << ',' << haptics::g_diag.run_tests << ',' << haptics::g_diag.heap_steps << ',' << haptics::g_diag.sweep_samples << ',' << haptics::g_diag.bisect_samples << ',' << haptics::g_diag.prune_samples << ',' << haptics::g_diag.add_samples << ',' << haptics::g_diag.heap0 << ',' << haptics::g_diag.angle << ',' << haptics::g_diag.speed << ',' << haptics::g_diag.segs << ',' << haptics::g_diag.maxpath << '\n';
+                     << X_WD.R_AB.angularDistance(X_WP_before.R_AB) << '\n';
       m.wall_s += std::chrono::duration<double>(std::chrono::steady_clock::now() - w0).count();
       m.times_us.push_back(out.stats.exec_time_us);
       m.contacts.push_back(out.stats.contacts);

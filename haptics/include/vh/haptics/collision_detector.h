@@ -25,6 +25,7 @@ namespace vh::haptics {
 ///   set) computed with fewer samples: see haptics/README.md, "Speed".
 enum class DetectionMode { kPaper, kAccelerated };
 
+
 /// "paper" or "accelerated".
 const char* toString(DetectionMode mode) noexcept;
 /// Writes toString(mode) (also names parametrised tests).
@@ -149,6 +150,16 @@ class CollisionDetector {
   // False when the swept ball of segments [k, k + run) of point j holds no inside point.
   bool runMayHit(const RigidMotion& motion, int j, std::int64_t k, std::int64_t run, double isovalue) noexcept;
   bool inside(const Eigen::Vector3d& p_W, double isovalue) noexcept;
+  // kAccelerated: r0, path, segments of point j for `motion`; clears its proven-empty prefix.
+  void startPoint(const RigidMotion& motion, int j) noexcept;
+  // kAccelerated: the paper's step for segment `segment` of point j (sample its end; bisect
+  // and record in `result` when inside). Returns the segment's end time, or -1 when inside.
+  double stepSegment(const RigidMotion& motion, int j, std::int64_t segment, double t_begin, double isovalue,
+                     SweepResult& result) noexcept;
+  // kAccelerated: walks the point-shell tree over the arc [0, t_max] (plus epsilon) and fills
+  // active_ with the points not culled; with `queue`, also tests each point's path over
+  // [0, t_max] and writes heap entries from heap_[queued_]. Returns the entries written.
+  std::size_t collectActive(const RigidMotion& motion, double t_max, double isovalue, bool queue) noexcept;
   // Fills c.n_W and c.clearance_m at c.p_W_m (7 samples).
   void measureContact(Contact& c, double isovalue) noexcept;
   void appendContact(int point, const Eigen::Vector3d& p_W, const Eigen::Vector3d& fallback_n_W, double isovalue) noexcept;
@@ -173,6 +184,11 @@ class CollisionDetector {
   std::vector<std::int64_t> clear_segments_;  // per point: leading segments proven empty
   std::vector<int> active_;              // points not culled by the last sweep, capacity = points
   std::size_t active_count_ = 0;
+  bool active_complete_ = true;          // false: the last sweep stopped before collecting active_
+  std::vector<std::uint32_t> started_;   // per point: sweep_stamp_ when started by the contact pre-pass
+  std::uint32_t sweep_stamp_ = 0;
+  std::vector<unsigned char> backoff_;   // per point: direct steps after a failed test = 2^backoff
+  std::size_t queued_ = 0;               // heap entries written by the contact pre-pass
   Eigen::Vector3d grid_per_m_ = Eigen::Vector3d::Ones();  // 1 / spacing per grid axis
   std::vector<unsigned char> embedded_;  // per point
   std::vector<unsigned char> in_set_;    // per point: in the contact set

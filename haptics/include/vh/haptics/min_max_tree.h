@@ -55,6 +55,9 @@ class MinMaxTree {
     std::array<int, 3> n{0, 0, 0};
     std::vector<float> range;  // (min, max) per node, n[0] * n[1] * n[2] nodes, a fastest
   };
+  // rawRange() for a box that spans several level-0 bricks (out of line: the rare case).
+  void rawRangeSpread(const int* b0, const int* b1, int spread, float& raw_min, float& raw_max) const noexcept;
+
   std::array<int, 3> dims_{0, 0, 0};
   std::vector<Level> levels_;
 };
@@ -90,25 +93,7 @@ inline bool MinMaxTree::rawRange(const Eigen::Vector3d& lo_ijk, const Eigen::Vec
     node(0, b0[0], b0[1], b0[2], raw_min, raw_max);
     return true;
   }
-  // The finest level at which the box spans at most 2 nodes per axis (at most 8 reads).
-  int level = 0;
-  while ((spread >> level) > 1 && level + 1 < levels()) ++level;
-  while (level + 1 < levels() &&
-         ((b1[0] >> level) - (b0[0] >> level) > 1 || (b1[1] >> level) - (b0[1] >> level) > 1 ||
-          (b1[2] >> level) - (b0[2] >> level) > 1))
-    ++level;
-  const Level& l = levels_[level];
-  float lo = std::numeric_limits<float>::infinity(), hi = -lo;
-  for (int c = b0[2] >> level; c <= (b1[2] >> level); ++c)
-    for (int b = b0[1] >> level; b <= (b1[1] >> level); ++b) {
-      const std::size_t row = static_cast<std::size_t>(l.n[0]) * (b + static_cast<std::size_t>(l.n[1]) * c);
-      for (int a = b0[0] >> level; a <= (b1[0] >> level); ++a) {
-        lo = std::min(lo, l.range[2 * (row + a)]);
-        hi = std::max(hi, l.range[2 * (row + a) + 1]);
-      }
-    }
-  raw_min = lo;
-  raw_max = hi;
+  rawRangeSpread(b0, b1, spread, raw_min, raw_max);
   return true;
 }
 
