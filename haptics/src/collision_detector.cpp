@@ -45,7 +45,7 @@ CollisionDetector::CollisionDetector(const ScalarVolume& volume, const ToolModel
   segment_length_m_ = feature_ * segment_fraction;
   if (tool.point_shell.empty()) throw std::invalid_argument("CollisionDetector: the point shell is empty");
   if (volume.empty()) throw std::invalid_argument("CollisionDetector: the volume is empty");
-  epsilon_ = epsilon_m > 0.0 ? epsilon_m : 0.25 * feature_;
+  epsilon_ = epsilon_m > 0.0 ? epsilon_m : 0.125 * feature_;  // f / 8: bench accuracy
   bisection_tolerance_ = epsilon_ / 8.0;
   if (!(epsilon_ < feature_) || !std::isfinite(epsilon_))
     throw std::invalid_argument("CollisionDetector: epsilon " + std::to_string(epsilon_) +

@@ -175,8 +175,11 @@ TEST(CollisionDetector, AcceleratedCullsAWholeFreePathWithOneQuery) {
 TEST(CollisionDetector, AcceleratedStopsAtABlockingContactWithoutWalkingTheTree) {
   const ScalarVolume vol = datasets::makePlaneVolume(test::grid1mm(), Eigen::Vector3d::UnitZ(), 0.0);
   const auto tool = test::meshTool(datasets::makeBoxMesh({0.004, 0.004, 0.002}), 1e-3);
-  CollisionDetector paper(vol, *tool, 0.0, 256, DetectionMode::kPaper);
-  CollisionDetector fast(vol, *tool, 0.0, 256, DetectionMode::kAccelerated);
+  // epsilon f / 4: the resting pose after the drop is then within the bisection tolerance of the
+  // plane, so the second push is blocked at exactly t = 0 (the case under test).
+  const double eps = 0.25 * vol.featureSize_m();
+  CollisionDetector paper(vol, *tool, eps, 256, DetectionMode::kPaper);
+  CollisionDetector fast(vol, *tool, eps, 256, DetectionMode::kAccelerated);
   // Drop the box onto the plane (z = 0 is the surface; inside below), then push it further.
   const Pose X_start = Pose::FromTranslation({0.0005, 0.0003, 0.004});
   const Pose X_low = Pose::FromTranslation({0.0005, 0.0003, -0.002});

@@ -29,7 +29,7 @@ namespace vh::haptics {
 
 /// Settings of the renderer; constant while it runs except where noted.
 struct RendererOptions {
-  /// Collision tolerance epsilon [m] (section 2.3); 0 selects feature size / 4. Must be < f.
+  /// Collision tolerance epsilon [m] (section 2.3); 0 selects feature size / 8 (chosen by `bench accuracy`). Must be < f.
   double epsilon_m = 0.0;
   /// Optional clearance kept between contact points and the surface, as a fraction of epsilon
   /// (see ConfigurationSolver::standoffTranslation); 0, the default, is the paper's plain
