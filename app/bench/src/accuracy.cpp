@@ -448,16 +448,7 @@ fs::path runAccuracy(const CommonOptions& options) {
                "mean normal error [deg]", normal_series))
       plots.push_back("accuracy_normal_vs_time.png");
   }
-  report["plots"] = plots;
-  if (!plots.empty()) {
-    md << "\nPlots:";
-    for (const auto& p : plots) md << " [" << p << "](" << p << ")";
-    md << "\n";
-  }
-  writeText(out / "accuracy.json", report.dump(2) + "\n");
-  writeText(out / "accuracy.md", md.str());
-  std::cout << md.str() << "\nbench accuracy: wrote " << (out / "accuracy.json").string() << ", accuracy.md and "
-            << plots.size() << " plots\n";
+  writeReport(out, "accuracy", report, md, plots);
   return out;
 }
 

@@ -8,6 +8,8 @@
 #include <cstdlib>
 #include <ctime>
 #include <fstream>
+#include <iostream>
+#include <sstream>
 #include <stdexcept>
 #include <thread>
 
@@ -54,15 +56,6 @@ std::string cpuModel() {
 
 unsigned cpuCount() { return std::max(1u, std::thread::hardware_concurrency()); }
 
-std::string utcNow() {
-  const std::time_t t = std::chrono::system_clock::to_time_t(std::chrono::system_clock::now());
-  std::tm tm{};
-  gmtime_r(&t, &tm);
-  char buf[32];
-  std::strftime(buf, sizeof buf, "%Y-%m-%dT%H:%M:%SZ", &tm);
-  return buf;
-}
-
 fs::path outputDir(const CommonOptions& options, const std::string& name) {
   const fs::path dir = options.out_dir.empty() ? defaultOutputDir() / name : options.out_dir;
   std::error_code ec;
@@ -77,6 +70,19 @@ void writeText(const fs::path& path, const std::string& text) {
   out << text;
   out.flush();
   if (!out) throw std::runtime_error(path.string() + ": write failed");
+}
+
+void writeReportFiles(const fs::path& out, const std::string& name, const std::string& json_text, std::ostringstream& md,
+                      const std::vector<std::string>& plots) {
+  if (!plots.empty()) {
+    md << "\nPlots:";
+    for (const auto& p : plots) md << " [" << p << "](" << p << ")";
+    md << "\n";
+  }
+  writeText(out / (name + ".json"), json_text + "\n");
+  writeText(out / (name + ".md"), md.str());
+  std::cout << md.str() << "\nbench " << name << ": wrote " << (out / (name + ".json")).string() << ", " << name
+            << ".md and " << plots.size() << " plots\n";
 }
 
 double finiteOr(double v, double fallback) { return std::isfinite(v) ? v : fallback; }

@@ -2,12 +2,14 @@
 // Helpers shared by the benchmarks (internal to vh::bench).
 #include <cstdint>
 #include <filesystem>
+#include <sstream>
 #include <string>
 #include <vector>
 
 #include <nlohmann/json.hpp>
 
 #include "vh/bench/bench.h"
+#include "vh/runtime/recording.h"
 
 namespace vh::bench::detail {
 
@@ -24,11 +26,22 @@ std::string cpuModel();
 /// Number of online CPUs.
 unsigned cpuCount();
 /// UTC time now, ISO 8601 ("2026-11-21T17:45:00Z").
-std::string utcNow();
+using runtime::utcNow;
 /// The output folder for a benchmark (created). @throws std::runtime_error when it cannot be.
 std::filesystem::path outputDir(const CommonOptions& options, const std::string& name);
 /// Writes text to a file. @throws std::runtime_error naming the file.
 void writeText(const std::filesystem::path& path, const std::string& text);
+/// Appends the plots' links to the Markdown, writes NAME.json (json_text) and NAME.md into `out`
+/// and prints the Markdown. @throws std::runtime_error naming a file that cannot be written.
+void writeReportFiles(const std::filesystem::path& out, const std::string& name, const std::string& json_text,
+                      std::ostringstream& md, const std::vector<std::string>& plots);
+/// Stores `plots` in `report` (nlohmann::json or ordered_json), then writeReportFiles().
+template <typename Json>
+void writeReport(const std::filesystem::path& out, const std::string& name, Json& report, std::ostringstream& md,
+                 const std::vector<std::string>& plots) {
+  report["plots"] = plots;
+  writeReportFiles(out, name, report.dump(2), md, plots);
+}
 /// A JSON number that is always finite (NaN / inf become null would break the tests' checks:
 /// non-finite values are written as -1 and flagged by the caller).
 double finiteOr(double v, double fallback = -1.0);

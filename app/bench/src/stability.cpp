@@ -443,16 +443,7 @@ fs::path runStability(const CommonOptions& options) {
                "force peak-to-peak / mean force", series, true, true))
       plots.push_back("stability_oscillation.png");
   }
-  report["plots"] = plots;
-  if (!plots.empty()) {
-    md << "\nPlots:";
-    for (const auto& p : plots) md << " [" << p << "](" << p << ")";
-    md << "\n";
-  }
-  writeText(out / "stability.json", report.dump(2) + "\n");
-  writeText(out / "stability.md", md.str());
-  std::cout << md.str() << "\nbench stability: wrote " << (out / "stability.json").string() << ", stability.md and "
-            << plots.size() << " plots\n";
+  writeReport(out, "stability", report, md, plots);
   return out;
 }
 

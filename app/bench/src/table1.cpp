@@ -591,16 +591,7 @@ fs::path runTable1(const Table1Options& options) {
         plots.push_back("table1_max.png");
     }
   }
-  report["plots"] = plots;
-  if (!plots.empty()) {
-    md << "\nPlots:";
-    for (const auto& p : plots) md << " [" << p << "](" << p << ")";
-    md << "\n";
-  }
-  writeText(out / "table1.json", report.dump(2) + "\n");
-  writeText(out / "table1.md", md.str());
-  std::cout << md.str() << "\nbench table1: wrote " << (out / "table1.json").string() << ", table1.md and "
-            << plots.size() << " plots\n";
+  writeReport(out, "table1", report, md, plots);
   return out;
 }
 
