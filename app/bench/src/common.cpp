@@ -13,6 +13,8 @@
 #include <stdexcept>
 #include <thread>
 
+#include "vh/runtime/runner.h"
+
 namespace vh::bench::detail {
 
 namespace fs = std::filesystem;
@@ -25,13 +27,9 @@ Stats summarize(std::vector<double> values) {
   double sum = 0.0;
   for (double v : values) sum += v;
   s.mean = sum / static_cast<double>(values.size());
-  const auto rank = [&](double q) {
-    const double k = std::ceil(q * static_cast<double>(values.size())) - 1.0;
-    return values[static_cast<std::size_t>(std::clamp(k, 0.0, static_cast<double>(values.size() - 1)))];
-  };
-  s.p50 = rank(0.50);
-  s.p99 = rank(0.99);
-  s.p999 = rank(0.999);
+  s.p50 = runtime::nearestRankPercentile(values, 0.50);
+  s.p99 = runtime::nearestRankPercentile(values, 0.99);
+  s.p999 = runtime::nearestRankPercentile(values, 0.999);
   s.max = values.back();
   return s;
 }

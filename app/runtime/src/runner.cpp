@@ -19,17 +19,12 @@
 
 namespace vh::runtime {
 
-namespace {
-
-double percentile(std::vector<double> values, double q) {
-  if (values.empty()) return 0.0;
-  const auto k = static_cast<std::size_t>(std::clamp(std::ceil(q * static_cast<double>(values.size())) - 1.0, 0.0,
-                                                     static_cast<double>(values.size() - 1)));
-  std::nth_element(values.begin(), values.begin() + static_cast<std::ptrdiff_t>(k), values.end());
-  return values[k];
+double nearestRankPercentile(std::span<const double> sorted, double q) noexcept {
+  if (sorted.empty()) return 0.0;
+  const auto k = static_cast<std::size_t>(std::clamp(std::ceil(q * static_cast<double>(sorted.size())) - 1.0, 0.0,
+                                                     static_cast<double>(sorted.size() - 1)));
+  return sorted[k];
 }
-
-}  // namespace
 
 RunReport runHeadless(const LoadedScene& scene, const Trajectory& trajectory, const RunOptions& options) {
   if (trajectory.empty()) throw std::runtime_error("runHeadless: empty trajectory");
@@ -164,8 +159,9 @@ RunReport runHeadless(const LoadedScene& scene, const Trajectory& trajectory, co
     r.max_us = std::max(r.max_us, t);
   }
   r.mean_us = n ? sum / static_cast<double>(n) : 0.0;
-  r.p50_us = percentile(times_us, 0.50);
-  r.p99_us = percentile(times_us, 0.99);
+  std::sort(times_us.begin(), times_us.end());
+  r.p50_us = nearestRankPercentile(times_us, 0.50);
+  r.p99_us = nearestRankPercentile(times_us, 0.99);
   r.mean_contacts = n ? contact_sum / static_cast<double>(n) : 0.0;
   r.mean_volume_samples = n ? samples_sum / static_cast<double>(n) : 0.0;
   return r;

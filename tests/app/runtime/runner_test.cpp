@@ -57,6 +57,18 @@ void expectSoundRun(const RunReport& r, const Trajectory& trajectory, const std:
   EXPECT_LE(r.p99_us, r.max_us);
 }
 
+TEST(Runner, NearestRankPercentileIsTheValueAtRankCeilQN) {
+  std::vector<double> sorted;
+  for (int i = 1; i <= 200; ++i) sorted.push_back(0.5 * i);  // 0.5, 1.0, ..., 100.0
+  EXPECT_EQ(nearestRankPercentile(sorted, 0.0), 0.5);      // rank 1
+  EXPECT_EQ(nearestRankPercentile(sorted, 0.50), 50.0);    // rank 100
+  EXPECT_EQ(nearestRankPercentile(sorted, 0.99), 99.0);    // rank 198
+  EXPECT_EQ(nearestRankPercentile(sorted, 0.999), 100.0);  // rank ceil(199.8) = 200
+  EXPECT_EQ(nearestRankPercentile(sorted, 1.0), 100.0);
+  EXPECT_EQ(nearestRankPercentile(std::vector<double>{}, 0.5), 0.0);
+  EXPECT_EQ(nearestRankPercentile(std::vector<double>{7.0}, 0.99), 7.0);
+}
+
 TEST(Runner, PegPushedOntoTheBlockAndSlidAlongIt) {
   const LoadedScene& scene = blockScene();
   const auto& field = *scene.volume.field;

@@ -10,6 +10,7 @@
 #include <array>
 #include <cstdint>
 #include <filesystem>
+#include <span>
 #include <string>
 
 #include <Eigen/Core>
@@ -83,6 +84,11 @@ struct RunReport {
   /// 0.01 mm (epsilon 0.03 mm), nan 0".
   std::string summary() const;
 };
+
+/// Nearest-rank q-quantile of `sorted` (ascending), q in [0, 1]: the value at rank ceil(q n)
+/// (rank 1 for q = 0); 0 for an empty span. Used for the run report's and the benchmarks' tick-time
+/// percentiles.
+double nearestRankPercentile(std::span<const double> sorted, double q) noexcept;
 
 /// Loads the scene and the trajectory and replays it (the scene's device section is ignored).
 /// The proxy starts at the trajectory's first pose.
