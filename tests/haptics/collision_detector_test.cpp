@@ -221,6 +221,17 @@ TEST(CollisionDetector, AcceleratedStopsAtABlockingContactWithoutWalkingTheTree)
   EXPECT_FALSE(a.empty());
 }
 
+TEST(CollisionDetector, DefaultEpsilonIsAnEighthOfTheFeatureSize) {
+  // Chosen by `volume-haptics bench accuracy` (top README, "Error against run time").
+  const ScalarVolume vol = datasets::makePlaneVolume(test::grid1mm(16), Eigen::Vector3d::UnitZ(), 0.0);
+  const auto tool = test::pointTool();
+  for (const DetectionMode mode : {DetectionMode::kPaper, DetectionMode::kAccelerated}) {
+    const CollisionDetector cd(vol, *tool, 0.0, 256, mode);
+    EXPECT_DOUBLE_EQ(cd.epsilon_m(), vol.featureSize_m() / 8.0) << toString(mode);
+    EXPECT_DOUBLE_EQ(CollisionDetector(vol, *tool, 0.1e-3, 256, mode).epsilon_m(), 0.1e-3) << toString(mode);
+  }
+}
+
 TEST(CollisionDetector, RejectsEpsilonNotBelowTheFeatureSize) {
   const ScalarVolume vol = datasets::makePlaneVolume(test::grid1mm(16), Eigen::Vector3d::UnitZ(), 0.0);
   const auto tool = test::pointTool();
