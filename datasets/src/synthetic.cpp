@@ -98,6 +98,29 @@ ScalarVolume makeThinPlateVolume(const GridSpec& grid) {
   return ScalarVolume::FromVoxels(g, voxels);
 }
 
+ScalarVolume makeThinWallVolume(const GridSpec& grid, const SignedDistance& mid_surface) {
+  const VolumeGeometry g = geometryOf(grid);
+  const double h = g.spacing_m.minCoeff();
+  std::vector<std::uint8_t> voxels(g.voxelCount());
+  std::size_t idx = 0;
+  for (int k = 0; k < g.dims[2]; ++k)
+    for (int j = 0; j < g.dims[1]; ++j)
+      for (int i = 0; i < g.dims[0]; ++i) {
+        const Eigen::Vector3d p = g.origin_W_m + Eigen::Vector3d(i * g.spacing_m[0], j * g.spacing_m[1], k * g.spacing_m[2]);
+        const double w = std::max(0.0, 1.0 - std::abs(mid_surface(p)) / h);
+        voxels[idx++] = static_cast<std::uint8_t>(std::lround(255.0 * w));
+      }
+  return ScalarVolume::FromVoxels(g, voxels);
+}
+
+ScalarVolume makeThinShellVolume(const GridSpec& grid, const Eigen::Vector3d& centre_W_m, double radius_m) {
+  return makeThinWallVolume(grid, [&](const Eigen::Vector3d& p) { return (p - centre_W_m).norm() - radius_m; });
+}
+
+ScalarVolume makeThinTubeVolume(const GridSpec& grid, double radius_m) {
+  return makeThinWallVolume(grid, [&](const Eigen::Vector3d& p) { return std::hypot(p.x(), p.y()) - radius_m; });
+}
+
 ScalarVolume makeBlockWithHoleVolume(int dims) { return makeBlockWithBlindHoleVolume(dims, -1.0); }
 
 ScalarVolume makeBlockWithBlindHoleVolume(int dims, double hole_bottom_z_m) {
@@ -223,12 +246,15 @@ ScalarVolume makeBuiltinVolume(const std::string& name) {
   if (name == "plane") return makePlaneVolume(grid, Eigen::Vector3d::UnitZ(), 0.0);
   if (name == "sphere") return makeSphereVolume(grid, Eigen::Vector3d::Zero(), 0.020);
   if (name == "thin-plate") return makeThinPlateVolume(grid);
-  throw std::invalid_argument("unknown built-in volume '" + name + "' (block-with-hole, plane, sphere, thin-plate)");
+  if (name == "thin-shell") return makeThinShellVolume(grid, Eigen::Vector3d::Zero(), 0.020);
+  if (name == "thin-tube") return makeThinTubeVolume(grid, 0.015);
+  throw std::invalid_argument("unknown built-in volume '" + name +
+                              "' (block-with-hole, plane, sphere, thin-plate, thin-shell, thin-tube)");
 }
 
 double builtinIsovalue(const std::string& name) {
   if (name == "block-with-hole") return kBlockIsovalue;
-  if (name == "thin-plate") return 127.5;
+  if (name == "thin-plate" || name == "thin-shell" || name == "thin-tube") return 127.5;
   if (name == "plane" || name == "sphere") return 0.0;
   throw std::invalid_argument("unknown built-in volume '" + name + "'");
 }

@@ -36,9 +36,14 @@ const char* toString(DetectionMode mode) noexcept {
   return mode == DetectionMode::kPaper ? "paper" : "accelerated";
 }
 
+const char* toString(SegmentTest test) noexcept {
+  return test == SegmentTest::kExact ? "exact" : "end-sample";
+}
+
 CollisionDetector::CollisionDetector(const ScalarVolume& volume, const ToolModel& tool, double epsilon_m,
-                                     std::size_t max_contacts, DetectionMode mode, double segment_fraction)
-    : volume_(&volume), tool_(&tool), mode_(mode), feature_(volume.featureSize_m()) {
+                                     std::size_t max_contacts, DetectionMode mode, double segment_fraction,
+                                     SegmentTest segment_test)
+    : volume_(&volume), tool_(&tool), mode_(mode), segment_test_(segment_test), feature_(volume.featureSize_m()) {
   if (!(segment_fraction > 0.0 && segment_fraction <= 1.0))
     throw std::invalid_argument("CollisionDetector: segment_fraction " + std::to_string(segment_fraction) +
                                 " must be in (0, 1]");
@@ -50,8 +55,14 @@ CollisionDetector::CollisionDetector(const ScalarVolume& volume, const ToolModel
   if (!(epsilon_ < feature_) || !std::isfinite(epsilon_))
     throw std::invalid_argument("CollisionDetector: epsilon " + std::to_string(epsilon_) +
                                 " m must be smaller than the feature size " + std::to_string(feature_) + " m");
+  // A rotating point's arc leaves its chord by at most this much; the exact test lowers the
+  // threshold by the Lipschitz bound times it (README, "Never through").
+  if (segment_test_ == SegmentTest::kExact) max_sagitta_ = epsilon_ / 64.0;
+  for (const auto& p : tool.point_shell.points_T_m())
+    shell_radius_m_ = std::max(shell_radius_m_, (p - tool.mass.p_TCm_m).norm());
   const std::size_t n = tool.point_shell.size();
   r0_.resize(n);
+  margin_.assign(n, 0.0);
   dt_.resize(n);
   path_.resize(n);
   heap_.resize(n);
@@ -70,8 +81,8 @@ CollisionDetector::CollisionDetector(const ScalarVolume& volume, const ToolModel
     backoff_.assign(n, 0);
     clear_segments_.assign(n, 0);
     active_.resize(n);
-    grid_per_m_ = volume.geometry().spacing_m.cwiseInverse();
   }
+  grid_per_m_ = volume.geometry().spacing_m.cwiseInverse();
 }
 
 int CollisionDetector::buildShellTree(int begin, int end, int depth) {
@@ -118,7 +129,7 @@ bool CollisionDetector::runMayHit(const RigidMotion& motion, int j, std::int64_t
   const double t0 = segmentBegin(j, k);
   const double t1 = k + run >= total ? 1.0 : static_cast<double>(k + run) * dt_[j];
   const double radius = 0.5 * path_[j] * (t1 - t0) * (1.0 + 1e-9) + 1e-12;
-  return ballMayBeInside(motion.pointAt(r0_[j], 0.5 * (t0 + t1)), radius, isovalue);
+  return ballMayBeInside(motion.pointAt(r0_[j], 0.5 * (t0 + t1)), radius, isovalue - margin_[j]);
 }
 
 bool CollisionDetector::inside(const Eigen::Vector3d& p_W, double isovalue) noexcept {
@@ -164,17 +175,41 @@ void CollisionDetector::clearContacts() noexcept {
 }
 
 SweepResult CollisionDetector::sweep(const RigidMotion& motion, double isovalue) noexcept {
+  // The largest arc margin of any point this sweep (for the point-shell tree's node tests):
+  // every point's sagitta is <= min(max_sagitta_, R angle^2 / 8), R the shell's radius.
+  const double angle = motion.angle_rad();
+  sweep_margin_ = max_sagitta_ > 0.0 && angle > 0.0
+      ? volume_->lipschitzBound() * std::min(max_sagitta_, shell_radius_m_ * angle * angle / 8.0) * (1.0 + 1e-9)
+      : 0.0;
   return mode_ == DetectionMode::kAccelerated ? sweepAccelerated(motion, isovalue) : sweepPaper(motion, isovalue);
 }
 
-void CollisionDetector::startPoint(const RigidMotion& motion, int j) noexcept {
+void CollisionDetector::setupPath(const RigidMotion& motion, int j) noexcept {
   r0_[j] = motion.radial_W(tool_->point_shell.points_T_m()[j]);
   path_[j] = motion.pathLengthBound(r0_[j]);
+  if (embedded_[j] || !(path_[j] > 0.0)) return;
+  // ceil(s / f) equal time segments, none longer than the feature size (section 2.3).
+  double segments = std::max(1.0, std::ceil(path_[j] / segment_length_m_));
+  margin_[j] = 0.0;
+  const double rho = max_sagitta_ > 0.0 ? motion.radiusAboutAxis(r0_[j]) : 0.0;
+  if (rho > 0.0) {
+    // Chords of the rotation: sagitta delta = rho (angle / segments)^2 / 8 <= max_sagitta_. At
+    // the same time the arc is within 4 delta u (1 - u) of its chord (the interpolation error
+    // bound with |p''| = rho omega^2), so a chord whose F stays <= s - 4 L delta u (1 - u)
+    // keeps the arc at F <= s (L = lipschitzBound()).
+    const double angle = motion.angle_rad();
+    segments = std::max(segments, std::ceil(angle * std::sqrt(rho / (8.0 * max_sagitta_))));
+    const double step = angle / segments;
+    margin_[j] = volume_->lipschitzBound() * rho * step * step / 8.0 * (1.0 + 1e-9);
+  }
+  dt_[j] = 1.0 / segments;
+  if (mode_ == DetectionMode::kAccelerated) segments_[j] = static_cast<std::int64_t>(segments);
+}
+
+void CollisionDetector::startPoint(const RigidMotion& motion, int j) noexcept {
+  setupPath(motion, j);
   clear_until_[j] = -1.0;
   if (embedded_[j] || !(path_[j] > 0.0)) return;
-  const double segments = std::max(1.0, std::ceil(path_[j] / segment_length_m_));
-  dt_[j] = 1.0 / segments;
-  segments_[j] = static_cast<std::int64_t>(segments);
   clear_segments_[j] = 0;
   backoff_[j] = 0;
 }
@@ -183,11 +218,31 @@ double CollisionDetector::stepSegment(const RigidMotion& motion, int j, std::int
                                       double isovalue, SweepResult& result) noexcept {
   const std::int64_t next = segment + 1;
   const double t_end = (static_cast<double>(next) * dt_[j] >= 1.0 - 1e-12) ? 1.0 : static_cast<double>(next) * dt_[j];
-  if (!inside(motion.pointAt(r0_[j], t_end), isovalue)) return t_end;
   double lo = t_begin, hi = t_end;
-  while (path_[j] * (hi - lo) >= bisection_tolerance_) {
-    const double mid = 0.5 * (lo + hi);
-    if (inside(motion.pointAt(r0_[j], mid), isovalue)) hi = mid; else lo = mid;
+  if (segment_test_ == SegmentTest::kExact) {
+    // The chord between the arc's points at t_begin and t_end, walked cell by cell; the
+    // threshold is lowered by the arc's margin in the middle of the chord, 4 m u (1 - u), none
+    // at its ends (m = 0 without rotation).
+    const double span = t_end - t_begin;
+    samples_ += 2;
+    const Eigen::Vector3d a = volume_->gridCoordinates(motion.pointAt(r0_[j], t_begin));
+    const Eigen::Vector3d b = volume_->gridCoordinates(motion.pointAt(r0_[j], t_end));
+    const double u_limit = result.t >= t_end ? 1.0 : (result.t - t_begin) / span;
+    // The arc's reach beyond its chord (the sagitta), per grid axis, for the grid's border.
+    const Eigen::Vector3d reach = margin_[j] > 0.0 ? Eigen::Vector3d(margin_[j] / volume_->lipschitzBound() * grid_per_m_)
+                                                   : Eigen::Vector3d::Zero();
+    const SegmentEntry entry = volume_->firstEntryOnSegment(a, b, isovalue, u_limit,
+                                                            bisection_tolerance_ / (path_[j] * span), reach, margin_[j]);
+    cells_ += entry.cells;
+    if (!entry.hit) return t_end;
+    lo = entry.u_outside >= 1.0 ? t_end : t_begin + entry.u_outside * span;
+    hi = entry.u_inside >= 1.0 ? t_end : t_begin + entry.u_inside * span;
+  } else {
+    if (!inside(motion.pointAt(r0_[j], t_end), isovalue)) return t_end;
+    while (path_[j] * (hi - lo) >= bisection_tolerance_) {
+      const double mid = 0.5 * (lo + hi);
+      if (inside(motion.pointAt(r0_[j], mid), isovalue)) hi = mid; else lo = mid;
+    }
   }
   // Of tied points, the lower index among those popped (the paper path: the first popped).
   if (lo < result.t || (lo == result.t && j < result.hit_point)) {
@@ -219,7 +274,7 @@ std::size_t CollisionDetector::collectActive(const RigidMotion& motion, double t
     const double radius =
         (0.5 * t_max * motion.pathLengthBound(r_c) + node.radius_m + epsilon_) * (1.0 + 1e-9) + 1e-12;
     // Culled points are not touched at all (addContactsAt visits only the active ones).
-    if (!ballMayBeInside(c_mid + R_mid * r_c, radius, isovalue)) continue;
+    if (!ballMayBeInside(c_mid + R_mid * r_c, radius, isovalue - sweep_margin_)) continue;
     if (node.left >= 0) {
       stack_[top++] = node.right;
       stack_[top++] = node.left;
@@ -235,7 +290,7 @@ std::size_t CollisionDetector::collectActive(const RigidMotion& motion, double t
       // wrench 62 % of the points with several segments, which otherwise cost about two run
       // tests and two heap steps each).
       const double radius_j = 0.5 * t_max * path_[j] * (1.0 + 1e-9) + 1e-12;
-      if (!ballMayBeInside(c_mid + R_mid * r0_[j], radius_j, isovalue)) {
+      if (!ballMayBeInside(c_mid + R_mid * r0_[j], radius_j, isovalue - margin_[j])) {
         clear_until_[j] = t_max;
         continue;
       }
@@ -339,16 +394,11 @@ SweepResult CollisionDetector::sweepAccelerated(const RigidMotion& motion, doubl
 SweepResult CollisionDetector::sweepPaper(const RigidMotion& motion, double isovalue) noexcept {
   SweepResult result;
   if (motion.isStill()) return result;
-  const auto& points = tool_->point_shell.points_T_m();
-  const int n = static_cast<int>(points.size());
+  const int n = static_cast<int>(tool_->point_shell.size());
   std::size_t count = 0;
   for (int j = 0; j < n; ++j) {
-    r0_[j] = motion.radial_W(points[j]);
-    path_[j] = motion.pathLengthBound(r0_[j]);
+    setupPath(motion, j);
     if (embedded_[j] || !(path_[j] > 0.0)) continue;
-    // ceil(s / f) equal time segments, none longer than the feature size (section 2.3).
-    const double segments = std::max(1.0, std::ceil(path_[j] / segment_length_m_));
-    dt_[j] = 1.0 / segments;
     heap_[count++] = {0.0, j, 0};
   }
   std::make_heap(heap_.begin(), heap_.begin() + static_cast<std::ptrdiff_t>(count), Later{});
@@ -357,24 +407,12 @@ SweepResult CollisionDetector::sweepPaper(const RigidMotion& motion, double isov
   while (count > 0 && heap_[0].t_begin < result.t) {
     std::pop_heap(heap_.begin(), heap_.begin() + static_cast<std::ptrdiff_t>(count), Later{});
     const QueueEntry e = heap_[--count];
-    const int j = e.point;
-    const int next = e.segment + 1;
-    const double t_end = (static_cast<double>(next) * dt_[j] >= 1.0 - 1e-12) ? 1.0 : next * dt_[j];
-    if (inside(motion.pointAt(r0_[j], t_end), isovalue)) {
-      // Interval bisection until the point travels less than epsilon over the interval (here
-      // epsilon / 8: a stop within the full epsilon can be t = 0 for every small step).
-      double lo = e.t_begin, hi = t_end;
-      while (path_[j] * (hi - lo) >= bisection_tolerance_) {
-        const double mid = 0.5 * (lo + hi);
-        if (inside(motion.pointAt(r0_[j], mid), isovalue)) hi = mid; else lo = mid;
-      }
-      if (lo < result.t) {
-        result.t = lo;
-        result.t_inside = hi;
-        result.hit_point = j;
-      }
-    } else if (t_end < 1.0) {
-      heap_[count++] = {t_end, j, next};
+    // The segment's test (exact, or the paper's end sample), then interval bisection until the
+    // point travels less than epsilon over the interval (here epsilon / 8: a stop within the
+    // full epsilon can be t = 0 for every small step).
+    const double t_end = stepSegment(motion, e.point, e.segment, e.t_begin, isovalue, result);
+    if (t_end >= 0.0 && t_end < 1.0) {
+      heap_[count++] = {t_end, e.point, e.segment + 1};
       std::push_heap(heap_.begin(), heap_.begin() + static_cast<std::ptrdiff_t>(count), Later{});
     }
   }

@@ -13,7 +13,7 @@ HapticRenderer::HapticRenderer(std::shared_ptr<const ScalarVolume> volume, std::
       options_(options),
       collision_((volume_ && !volume_->empty()) ? *volume_ : throw std::invalid_argument("HapticRenderer: no volume"),
                  tool_ ? *tool_ : throw std::invalid_argument("HapticRenderer: no tool"), options.epsilon_m,
-                 256, options.detection_mode, options.segment_fraction),
+                 256, options.detection_mode, options.segment_fraction, options.segment_test),
       solver_(),
       coupling_(options.gains),
       X_WP_(X_WP_initial),
@@ -46,6 +46,8 @@ TickOutput HapticRenderer::tick(const Pose& X_WD_in, double isovalue) noexcept {
   if (!finite || std::abs(qn - 1.0) > 1e-3 ||
       (X_WD.p_AB_m - X_WP_.p_AB_m).norm() > options_.max_device_distance_m) {
     ++bad_inputs_;
+    last_motion_ = RigidMotion::FromVelocity(X_WP_, tool_->mass.p_TCm_m, Eigen::Vector3d::Zero(), Eigen::Vector3d::Zero());
+    last_t_ = 0.0;
     out.X_WP = X_WP_;
     out.stats.bad_input = true;
     out.stats.contacts = static_cast<int>(collision_.contacts().size());
@@ -87,6 +89,8 @@ TickOutput HapticRenderer::tick(const Pose& X_WD_in, double isovalue) noexcept {
   blocked_last_tick_ = hit.hit_point >= 0 && hit.t < 0.01;
   // Step 5: move the proxy to the first contact (or the target).
   X_WP_ = motion.poseAt(hit.t);
+  last_motion_ = motion;
+  last_t_ = hit.t;
   collision_.refreshPositions(X_WP_);
   if (hit.hit_point >= 0) collision_.addContactsAt(motion, hit, isovalue);
   // Step 6: virtual coupling.
@@ -98,6 +102,7 @@ TickOutput HapticRenderer::tick(const Pose& X_WD_in, double isovalue) noexcept {
   out.stats.contacts = static_cast<int>(collision_.contacts().size());
   out.stats.volume_samples = collision_.sampleCount();
   out.stats.box_queries = collision_.boxQueryCount();
+  out.stats.cells = collision_.cellCount();
   out.stats.time_of_contact = hit.t;
   out.stats.exec_time_us = std::chrono::duration<double, std::micro>(Clock::now() - start).count();
   return out;

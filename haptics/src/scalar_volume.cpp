@@ -54,6 +54,25 @@ void rawRange(const std::vector<std::byte>& bytes, double& lo, double& hi) {
   lo = mn;
   hi = mx;
 }
+
+// Largest |v(i + 1) - v(i)| along each grid axis, in raw units.
+template <typename T>
+Eigen::Vector3d largestStep(const std::vector<std::byte>& bytes, const std::array<int, 3>& dims) {
+  const T* d = reinterpret_cast<const T*>(bytes.data());
+  const std::ptrdiff_t nx = dims[0], ny = dims[1], nz = dims[2];
+  double sx = 0.0, sy = 0.0, sz = 0.0;
+  for (std::ptrdiff_t k = 0; k < nz; ++k)
+    for (std::ptrdiff_t j = 0; j < ny; ++j) {
+      const T* row = d + nx * (j + ny * k);
+      for (std::ptrdiff_t i = 0; i < nx; ++i) {
+        const double v = row[i];
+        if (i + 1 < nx) sx = std::max(sx, std::abs(static_cast<double>(row[i + 1]) - v));
+        if (j + 1 < ny) sy = std::max(sy, std::abs(static_cast<double>(row[i + nx]) - v));
+        if (k + 1 < nz) sz = std::max(sz, std::abs(static_cast<double>(row[i + nx * ny]) - v));
+      }
+    }
+  return {sx, sy, sz};
+}
 }  // namespace
 
 template <typename T>
@@ -118,6 +137,15 @@ void ScalarVolume::initialise() {
     case VoxelType::kUInt16: tree_ = MinMaxTree::Build(reinterpret_cast<const std::uint16_t*>(bytes_.data()), g.dims); break;
     case VoxelType::kFloat32: tree_ = MinMaxTree::Build(reinterpret_cast<const float*>(bytes_.data()), g.dims); break;
   }
+  Eigen::Vector3d step = Eigen::Vector3d::Zero();
+  switch (type_) {
+    case VoxelType::kUInt8: step = largestStep<std::uint8_t>(bytes_, g.dims); break;
+    case VoxelType::kInt16: step = largestStep<std::int16_t>(bytes_, g.dims); break;
+    case VoxelType::kUInt16: step = largestStep<std::uint16_t>(bytes_, g.dims); break;
+    case VoxelType::kFloat32: step = largestStep<float>(bytes_, g.dims); break;
+  }
+  // |dF/dx_a| <= |scale| step_a / spacing_a inside every cell; 1e-9 relative for rounding.
+  lipschitz_ = std::abs(scale_) * step.cwiseQuotient(g.spacing_m).norm() * (1.0 + 1e-9);
   min_value_ = std::min(scale_ * lo + offset_, scale_ * hi + offset_);
   max_value_ = std::max(scale_ * lo + offset_, scale_ * hi + offset_);
 }

@@ -53,6 +53,18 @@ haptics::ScalarVolume makeSphereVolume(const GridSpec& grid, const Eigen::Vector
 /// isovalue 127.5 the solid is |z - z_k| < spacing_z / 2 (trilinear), across the whole x-y extent.
 haptics::ScalarVolume makeThinPlateVolume(const GridSpec& grid);
 
+/// A wall one voxel thick along a closed surface, as a CT's partial volume shows thin bone:
+/// uint8, 255 * max(0, 1 - |d| / h) at each voxel centre, d the signed distance to the wall's
+/// mid-surface [m] and h the smallest spacing. At isovalue s (0 < s < 255) the trilinear wall is
+/// about 2 h (1 - s / 255) thick: 0.01 h at 99 % of the range. For issue 12's crossing tests.
+/// `mid_surface` returns d (its sign does not matter).
+haptics::ScalarVolume makeThinWallVolume(const GridSpec& grid, const SignedDistance& mid_surface);
+/// makeThinWallVolume() of a sphere of radius_m about centre_W_m (a thin spherical shell).
+haptics::ScalarVolume makeThinShellVolume(const GridSpec& grid, const Eigen::Vector3d& centre_W_m, double radius_m);
+/// makeThinWallVolume() of an infinite cylinder of radius_m along z through the origin of W
+/// (a thin-walled tube).
+haptics::ScalarVolume makeThinTubeVolume(const GridSpec& grid, double radius_m);
+
 /// The paper's "Hole" volume: a 256^3 uint8 grid (0.25 mm voxels, 64 mm across) holding a block
 /// 48 x 48 x 24 mm (z from -12 to +12 mm) with a round hole of radius kHoleRadius_m along z
 /// through its centre. Values 128 + 50 * signed distance [voxels], clamped to 0..255 (anti-
@@ -87,7 +99,8 @@ haptics::TriangleMesh translated(haptics::TriangleMesh mesh, const Eigen::Vector
 haptics::TriangleMesh makeBuiltinTool(const std::string& name);
 
 /// Built-in volumes: "block-with-hole", "plane" (z < 0 inside, 64^3 of 1 mm), "sphere"
-/// (radius 20 mm, 64^3 of 1 mm), "thin-plate" (64^3 of 1 mm). Isovalue: see builtinIsovalue().
+/// (radius 20 mm, 64^3 of 1 mm), "thin-plate" (64^3 of 1 mm), "thin-shell" (radius 20 mm, 64^3
+/// of 1 mm), "thin-tube" (radius 15 mm along z, 64^3 of 1 mm). Isovalue: see builtinIsovalue().
 /// @throws std::invalid_argument for an unknown name.
 haptics::ScalarVolume makeBuiltinVolume(const std::string& name);
 /// The isovalue at which a built-in volume's surface is its nominal shape.

@@ -26,8 +26,22 @@ namespace vh::haptics {
 enum class DetectionMode { kPaper, kAccelerated };
 
 
+/// How one segment of a point's path is tested against the isosurface.
+/// - kExact (default): the cells the segment's chord crosses are walked and the trilinear cubic
+///   in each is solved for the first entry (ScalarVolume::firstEntryOnSegment), so a feature of
+///   any thickness is found; rotating points' arcs are split into chords of sagitta <= epsilon / 64
+///   and the threshold is lowered by the Lipschitz bound times the sagitta, so the arc itself is
+///   covered (haptics/README.md, "Never through").
+/// - kEndSample: issue 8's test, the paper's (section 2.3): sample the segment's end, bisect
+///   when it is inside. Misses features thinner than a segment (f) that a segment crosses
+///   between its ends; kept only as the "before" column of `bench table1` and to show that the
+///   crossing oracle catches tunnels.
+enum class SegmentTest { kExact, kEndSample };
+
 /// "paper" or "accelerated".
 const char* toString(DetectionMode mode) noexcept;
+/// "exact" or "end-sample".
+const char* toString(SegmentTest test) noexcept;
 /// Writes toString(mode) (also names parametrised tests).
 inline std::ostream& operator<<(std::ostream& os, DetectionMode mode) { return os << toString(mode); }
 
@@ -59,21 +73,30 @@ class CollisionDetector {
   /// @param mode which sweep path runs (both give the same contract).
   /// @param segment_fraction longest sampling segment along a path as a fraction of the
   ///        feature size f, in (0, 1]; 1 is the paper's ceil(s / f) segments (section 2.3).
+  /// @param segment_test how each segment is tested (kExact: never misses a thin feature).
   /// @throws std::invalid_argument when epsilon_m >= f, the point shell is empty or
   ///         segment_fraction is outside (0, 1].
   CollisionDetector(const ScalarVolume& volume, const ToolModel& tool, double epsilon_m,
                     std::size_t max_contacts = 256, DetectionMode mode = DetectionMode::kAccelerated,
-                    double segment_fraction = 1.0);
+                    double segment_fraction = 1.0, SegmentTest segment_test = SegmentTest::kExact);
 
   DetectionMode mode() const noexcept { return mode_; }
+  SegmentTest segmentTest() const noexcept { return segment_test_; }
+  /// Largest deviation of a rotating point's arc from the chords it is tested along [m]
+  /// (kExact: epsilon / 64; see haptics/README.md, "Never through").
+  double maxSagitta_m() const noexcept { return max_sagitta_; }
+  /// True when point j of the point shell is embedded (see updateEmbedded()).
+  bool isEmbedded(int j) const noexcept { return embedded_[static_cast<std::size_t>(j)] != 0; }
 
   double epsilon_m() const noexcept { return epsilon_; }
   double featureSize_m() const noexcept { return feature_; }
 
   /// Step 4: first time of contact along `motion` (eq. 2) for all points not embedded: each
-  /// point's path is split into ceil(s / f) equal time segments (s = path-length bound), the
-  /// segments are visited in time order through one priority queue over all points, and the
-  /// first crossing is refined by bisection until the point's travel over the interval is
+  /// point's path is split into ceil(s / f) equal time segments (s = path-length bound; more
+  /// for a rotating point under kExact, so that no chord's sagitta exceeds maxSagitta_m()), the
+  /// segments are visited in time order through one priority queue over all points, each is
+  /// tested (kExact: the first entry along its chord, exactly; kEndSample: its end sampled) and
+  /// the first crossing is refined by bisection until the point's travel over the interval is
   /// below epsilon / 8 (< epsilon as the paper asks; finer so that small steps still make
   /// progress). The returned time is on the outside end of that interval.
   /// kAccelerated takes the same samples except where the volume's min-max tree proves a run
@@ -119,7 +142,10 @@ class CollisionDetector {
   std::int64_t sampleCount() const noexcept { return samples_; }
   /// Min-max tree box queries since the last resetSampleCount() (kAccelerated only).
   std::int64_t boxQueryCount() const noexcept { return box_queries_; }
+  /// Cells walked by the exact segment test whose cubic was examined, since the last resetSampleCount().
+  std::int64_t cellCount() const noexcept { return cells_; }
   void resetSampleCount() noexcept {
+    cells_ = 0;
     samples_ = 0;
     box_queries_ = 0;
   }
@@ -150,7 +176,9 @@ class CollisionDetector {
   // False when the swept ball of segments [k, k + run) of point j holds no inside point.
   bool runMayHit(const RigidMotion& motion, int j, std::int64_t k, std::int64_t run, double isovalue) noexcept;
   bool inside(const Eigen::Vector3d& p_W, double isovalue) noexcept;
-  // kAccelerated: r0, path, segments of point j for `motion`; clears its proven-empty prefix.
+  // r0, path, segments, segment time and arc margin of point j for `motion` (both modes).
+  void setupPath(const RigidMotion& motion, int j) noexcept;
+  // kAccelerated: setupPath() and clears the proven-empty prefix of point j.
   void startPoint(const RigidMotion& motion, int j) noexcept;
   // kAccelerated: the paper's step for segment `segment` of point j (sample its end; bisect
   // and record in `result` when inside). Returns the segment's end time, or -1 when inside.
@@ -167,13 +195,18 @@ class CollisionDetector {
   const ScalarVolume* volume_;
   const ToolModel* tool_;
   DetectionMode mode_;
+  SegmentTest segment_test_;
   double feature_;
+  double max_sagitta_ = 0.0;  // kExact: largest chord sagitta of an arc [m]
+  double shell_radius_m_ = 0.0;  // largest |p_T - Cm| over the point shell
+  double sweep_margin_ = 0.0;    // per sweep: largest margin_ of any point (node tests)
   double segment_length_m_;  // feature size * segment_fraction
   double epsilon_;
   double bisection_tolerance_;
   std::vector<Eigen::Vector3d> r0_;      // per point radial vector at t = 0 (W)
   std::vector<double> dt_;               // per point segment length in time
   std::vector<double> path_;             // per point path-length bound
+  std::vector<double> margin_;           // per point: threshold lowered by L * sagitta (kExact, rotation)
   std::vector<QueueEntry> heap_;         // capacity = number of points
   // kAccelerated state (see haptics/README.md, "Speed").
   std::vector<ShellNode> nodes_;         // point-shell tree, root at 0
@@ -197,6 +230,7 @@ class CollisionDetector {
   std::size_t contact_count_ = 0;
   std::int64_t samples_ = 0;
   std::int64_t box_queries_ = 0;
+  std::int64_t cells_ = 0;
 };
 
 }  // namespace vh::haptics

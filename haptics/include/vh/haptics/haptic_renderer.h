@@ -44,6 +44,9 @@ struct RendererOptions {
   /// Longest sampling segment along a point's path as a fraction of the feature size, (0, 1];
   /// 1 is the paper's (section 2.3). Smaller trades time for catching thinner features.
   double segment_fraction = 1.0;
+  /// How each segment is tested: kExact (default) finds a feature of any thickness; kEndSample
+  /// is issue 8's end sample, kept for the before/after benchmark (see SegmentTest).
+  SegmentTest segment_test = SegmentTest::kExact;
   /// Coupling gains (section 2.5); may be changed between ticks with setGains().
   CouplingGains gains;
   /// Largest device translation accepted from one tick to the next [m]; farther jumps and
@@ -57,6 +60,7 @@ struct TickStats {
   int contacts = 0;                 ///< Contact set size after the tick.
   std::int64_t volume_samples = 0;  ///< Trilinear F samples taken (a gradient counts 6).
   std::int64_t box_queries = 0;     ///< Min-max tree box queries (kAccelerated; 0 for kPaper).
+  std::int64_t cells = 0;           ///< Cells whose cubic the exact segment test examined.
   double time_of_contact = 1.0;     ///< Fraction of the constrained path travelled (1 = free).
   bool bad_input = false;           ///< The device pose was rejected this tick.
 };
@@ -97,6 +101,13 @@ class HapticRenderer {
   }
 
   const Pose& proxyPose() const noexcept { return X_WP_; }
+  /// The constrained motion the last tick swept (eq. 2; from the proxy pose before the tick) and
+  /// the time it stopped at: the proxy moved along lastMotion() over [0, lastTimeOfContact()]
+  /// (a still motion on a tick with bad input). For CrossingVerifier.
+  const RigidMotion& lastMotion() const noexcept { return last_motion_; }
+  double lastTimeOfContact() const noexcept { return last_t_; }
+  /// True when point j was embedded (exempt from contact) during the last tick's sweep.
+  bool isEmbedded(int j) const noexcept { return collision_.isEmbedded(j); }
   /// Current contact set (points on the proxy within epsilon of the surface).
   std::span<const Contact> contacts() const noexcept { return collision_.contacts(); }
   std::int64_t badInputCount() const noexcept { return bad_inputs_; }
@@ -113,6 +124,8 @@ class HapticRenderer {
   ConfigurationSolver solver_;
   VirtualCoupling coupling_;
   Pose X_WP_;
+  RigidMotion last_motion_;
+  double last_t_ = 0.0;
   double last_isovalue_;
   bool embedded_scan_needed_ = false;
   bool blocked_last_tick_ = false;  // the last sweep stopped before 1 % of its path

@@ -43,6 +43,13 @@ class RigidMotion {
   Pose poseAt(double t) const noexcept;
   /// Conservative path-length bound of a point over the unit step: |v| + |r0| |omega| [m].
   double pathLengthBound(const Eigen::Vector3d& r0_W) const noexcept { return speed_ + r0_W.norm() * angle_; }
+  /// Rotation angle over the unit step, |omega| [rad].
+  double angle_rad() const noexcept { return angle_; }
+  /// Distance of the point with radial vector r0_W from the rotation axis through c0 [m]
+  /// (0 without rotation): the radius of the circle its rotation part moves on.
+  double radiusAboutAxis(const Eigen::Vector3d& r0_W) const noexcept {
+    return angle_ > 0.0 ? (r0_W - axis_ * axis_.dot(r0_W)).norm() : 0.0;
+  }
   /// True when the motion neither translates nor rotates.
   bool isStill() const noexcept { return speed_ == 0.0 && angle_ == 0.0; }
 

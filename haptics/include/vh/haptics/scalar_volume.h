@@ -44,6 +44,15 @@ struct VolumeGeometry {
   double minSpacing() const noexcept { return spacing_m.minCoeff(); }
 };
 
+/// Result of ScalarVolume::firstEntryOnSegment(): where a straight segment first enters
+/// {F > threshold}, bracketed in the segment's parameter u in [0, 1].
+struct SegmentEntry {
+  bool hit = false;        ///< The segment enters (or, starting inside, goes deeper).
+  double u_outside = 1.0;  ///< Outside end of the bracket: F <= threshold on [0, u_outside].
+  double u_inside = 1.0;   ///< Inside end of the bracket (u_inside - u_outside < u_tolerance).
+  int cells = 0;           ///< Cells whose cubic was examined (cells skipped by their corners not counted).
+};
+
 /// Immutable sampled volume: trilinear F(x) and central-difference gradient (eq. 1).
 ///
 /// Inside/outside (section 2.2): a point is inside the isosurface F = s where F(x) > s.
@@ -109,6 +118,39 @@ class ScalarVolume {
   bool isInside(const Eigen::Vector3d& p_W_m, double isovalue) const noexcept;
 
 
+  /// Exact first entry of the straight segment g(u) = a + u (b - a), u in [0, 1], given in grid
+  /// coordinates (i, j, k), into {F > threshold} (issue 12). Along a straight line inside one
+  /// cell the trilinear field is a cubic in u: the cells the segment crosses are walked in order
+  /// (3-D DDA), a cell whose largest corner is <= threshold is skipped (the trilinear field is a
+  /// convex combination of its corners), and in the others the cubic is split at its critical
+  /// points into monotone pieces whose ends decide, exactly up to rounding, whether and where it
+  /// rises above the threshold; the crossing is then bisected on the cubic to u_tolerance. Parts
+  /// of the segment outside the grid's box of voxel centres are never inside (as isInside()).
+  /// Hence a feature of any non-zero thickness above the threshold is found, however thin.
+  /// A segment that starts inside (F(a) > threshold; rounding, or a point the surface moved
+  /// onto) is not stopped while F decreases along it (it is leaving); it is stopped where F
+  /// starts to increase while still inside (going deeper), and at any later entry.
+  /// Cells that start after u_limit are not examined (the caller knows an earlier hit).
+  /// With bubble_height h > 0 the threshold is lowered along the segment to
+  /// threshold - 4 h u (1 - u) (h at the middle, none at the ends; the test stays a cubic): for a
+  /// rotating point whose arc leaves its chord by at most 4 delta u (1 - u) (delta the sagitta),
+  /// h = lipschitzBound() * delta makes "no entry" a statement about the arc itself.
+  /// With reach_ijk > 0 (per grid axis, in voxels), points of the grid's box within that reach
+  /// of the segment count too: the segment's projection onto the box is walked where the
+  /// segment is within reach of the box (for the arcs of rotating points, which may leave their
+  /// chord by the sagitta; the threshold is then lowered by the caller, see lipschitzBound()).
+  /// @param u_tolerance bracket width at which the bisection stops, > 0.
+  SegmentEntry firstEntryOnSegment(const Eigen::Vector3d& a_ijk, const Eigen::Vector3d& b_ijk, double threshold,
+                                   double u_limit, double u_tolerance,
+                                   const Eigen::Vector3d& reach_ijk = Eigen::Vector3d::Zero(),
+                                   double bubble_height = 0.0) const noexcept;
+
+  /// Lipschitz bound of F over the whole grid [data units per metre]: |F(p) - F(q)| <=
+  /// lipschitzBound() |p - q| for p, q in W (trilinear partial derivatives are bounded by the
+  /// largest difference of neighbouring voxels along their axis, divided by the spacing).
+  /// Used to cover the deviation of a rotating point's arc from its chord (issue 12).
+  double lipschitzBound() const noexcept { return lipschitz_; }
+
   /// Min/max bricks over the raw voxels (built once with the volume; independent of any
   /// isovalue). See haptics/README.md, "Speed".
   const MinMaxTree& minMaxTree() const noexcept { return tree_; }
@@ -127,6 +169,15 @@ class ScalarVolume {
   void initialise();  // validates and caches derived data
   template <typename T>
   double trilinear(const Eigen::Vector3d& ijk) const noexcept;
+  // The bubble over a piece of a chord: height h, chord parameter U = u0 + du * (piece's u).
+  struct SegmentBubble {
+    double height = 0.0, u0 = 0.0, du = 1.0;
+  };
+  template <typename T>
+  SegmentEntry firstEntry(const Eigen::Vector3d& a, const Eigen::Vector3d& b, double threshold, double u_limit,
+                          double u_tolerance, bool at_segment_start, const SegmentBubble& bubble) const noexcept;
+  SegmentEntry walkSegment(const Eigen::Vector3d& a, const Eigen::Vector3d& b, double threshold, double u_limit,
+                           double u_tolerance, bool at_segment_start, const SegmentBubble& bubble) const noexcept;
   double sampleGrid(const Eigen::Vector3d& ijk) const noexcept;  // F at grid coordinates
   bool gridInBounds(const Eigen::Vector3d& ijk) const noexcept;
 
@@ -137,6 +188,7 @@ class ScalarVolume {
   double offset_ = 0.0;
   double min_value_ = 0.0;
   double max_value_ = 0.0;
+  double lipschitz_ = 0.0;  // see lipschitzBound()
   Eigen::Matrix3d W_to_grid_ = Eigen::Matrix3d::Identity();  // (D diag(s))^-1
   Eigen::Vector3d upper_{0, 0, 0};                           // n - 1 per axis
   MinMaxTree tree_;

@@ -1,0 +1,108 @@
+#include "vh/haptics/crossing_verifier.h"
+
+#include <algorithm>
+#include <cmath>
+#include <stdexcept>
+#include <string>
+
+namespace vh::haptics {
+
+CrossingVerifier::CrossingVerifier(const ScalarVolume& volume, const PointShell& shell, double step_voxels)
+    : volume_(&volume), shell_(&shell) {
+  if (!(step_voxels > 0.0) || !std::isfinite(step_voxels))
+    throw std::invalid_argument("CrossingVerifier: step " + std::to_string(step_voxels) + " voxels must be finite and > 0");
+  if (volume.empty()) throw std::invalid_argument("CrossingVerifier: the volume is empty");
+  step_m_ = step_voxels * volume.geometry().minSpacing();
+  const auto& dims = volume.geometry().dims;
+  for (int a = 0; a < 3; ++a) blocks_[a] = (dims[a] - 2) / kBlock + 1;  // cells 0 .. n - 2
+  block_max_.assign(static_cast<std::size_t>(blocks_[0]) * blocks_[1] * blocks_[2],
+                    -std::numeric_limits<double>::infinity());
+  // Brute force: every voxel raises the maximum of each block whose cells use it (a voxel on a
+  // block's upper border belongs to two blocks along that axis).
+  for (int k = 0; k < dims[2]; ++k)
+    for (int j = 0; j < dims[1]; ++j)
+      for (int i = 0; i < dims[0]; ++i) {
+        const double v = volume.voxel(i, j, k);
+        const int idx[3] = {i, j, k};
+        int lo[3], hi[3];
+        for (int a = 0; a < 3; ++a) {
+          hi[a] = std::min(idx[a] / kBlock, blocks_[a] - 1);
+          lo[a] = idx[a] % kBlock == 0 && idx[a] > 0 ? std::min(idx[a] / kBlock - 1, blocks_[a] - 1) : hi[a];
+        }
+        for (int c = lo[2]; c <= hi[2]; ++c)
+          for (int b = lo[1]; b <= hi[1]; ++b)
+            for (int a = lo[0]; a <= hi[0]; ++a) {
+              double& m = block_max_[a + static_cast<std::size_t>(blocks_[0]) * (b + static_cast<std::size_t>(blocks_[1]) * c)];
+              m = std::max(m, v);
+            }
+      }
+}
+
+bool CrossingVerifier::ballMayBeInside(const Eigen::Vector3d& centre_W_m, double radius_m, double isovalue) const {
+  const auto& geometry = volume_->geometry();
+  const Eigen::Vector3d g = volume_->gridCoordinates(centre_W_m);
+  int lo[3], hi[3];
+  for (int a = 0; a < 3; ++a) {
+    const double r = radius_m / geometry.spacing_m[a] + 1e-6;
+    const double upper = geometry.dims[a] - 1.0;
+    if (g[a] + r < 0.0 || g[a] - r > upper) return false;  // out of bounds is never inside
+    lo[a] = std::clamp(static_cast<int>(std::floor(std::max(0.0, g[a] - r))) / kBlock, 0, blocks_[a] - 1);
+    hi[a] = std::clamp(static_cast<int>(std::floor(std::min(upper, g[a] + r))) / kBlock, 0, blocks_[a] - 1);
+    // A point on a block's lower face may belong to the block below (its upper border).
+    lo[a] = std::max(0, lo[a] - 1);
+  }
+  for (int c = lo[2]; c <= hi[2]; ++c)
+    for (int b = lo[1]; b <= hi[1]; ++b)
+      for (int a = lo[0]; a <= hi[0]; ++a)
+        if (block_max_[a + static_cast<std::size_t>(blocks_[0]) * (b + static_cast<std::size_t>(blocks_[1]) * c)] > isovalue)
+          return true;
+  return false;
+}
+
+CrossingVerifier::Result CrossingVerifier::check(const RigidMotion& motion, double t_stop, double isovalue) const {
+  Result result;
+  if (!(t_stop > 0.0) || motion.isStill()) return result;
+  const auto& points = shell_->points_T_m();
+  const double piece_m = kBlock * volume_->geometry().minSpacing();
+  for (std::size_t j = 0; j < points.size(); ++j) {
+    const Eigen::Vector3d r0 = motion.radial_W(points[j]);
+    const double path = motion.pathLengthBound(r0) * t_stop;
+    // Samples t_i = t_stop i / n; the path is cut into pieces of at most 8 voxels, each skipped
+    // when its ball (radius half its path-length bound) holds no block above the isovalue.
+    const double n = std::max(1.0, std::ceil(path / step_m_));
+    const double pieces = std::max(1.0, std::ceil(path / piece_m));
+    bool start_checked = false;
+    for (double k = 0.0; k < pieces; k += 1.0) {
+      const double ta = t_stop * (k / pieces), tb = t_stop * ((k + 1.0) / pieces);
+      if (!ballMayBeInside(motion.pointAt(r0, 0.5 * (ta + tb)), 0.5 * path / pieces * (1.0 + 1e-9) + 1e-12, isovalue))
+        continue;
+      if (!start_checked) {
+        start_checked = true;
+        if (k == 0.0) {
+          ++result.samples;
+          if (volume_->isInside(motion.pointAt(r0, 0.0), isovalue)) {
+            ++result.started_inside;
+            break;
+          }
+        }
+      }
+      bool crossed = false;
+      for (double i = std::max(1.0, std::ceil(n * k / pieces)); i <= n && i <= std::floor(n * (k + 1.0) / pieces) + 1.0; i += 1.0) {
+        const double t = t_stop * (i / n);
+        ++result.samples;
+        if (volume_->isInside(motion.pointAt(r0, t), isovalue)) {
+          if (result.crossing_points++ == 0) {
+            result.first_point = static_cast<int>(j);
+            result.first_t = t;
+          }
+          crossed = true;
+          break;
+        }
+      }
+      if (crossed) break;
+    }
+  }
+  return result;
+}
+
+}  // namespace vh::haptics

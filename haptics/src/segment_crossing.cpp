@@ -1,0 +1,256 @@
+// ScalarVolume::firstEntryOnSegment(): the exact first crossing of a straight segment into
+// {F > s}, cell by cell (issue 12; haptics/README.md, "Never through").
+#include <algorithm>
+#include <cmath>
+#include <cstdint>
+#include <limits>
+
+#include "vh/haptics/scalar_volume.h"
+
+namespace vh::haptics {
+namespace {
+
+// g(w) = c0 + c1 w + c2 w^2 + c3 w^3 (Horner).
+struct Cubic {
+  double c0, c1, c2, c3;
+  double operator()(double w) const noexcept { return ((c3 * w + c2) * w + c1) * w + c0; }
+};
+
+// Roots of g'(w) = c1 + 2 c2 w + 3 c3 w^2 strictly inside (0, w_end), sorted; returns the count.
+int criticalPoints(const Cubic& g, double w_end, double* out) noexcept {
+  const double a = 3.0 * g.c3, b = 2.0 * g.c2, c = g.c1;
+  double r[2];
+  int n = 0;
+  if (a == 0.0) {
+    if (b != 0.0) r[n++] = -c / b;
+  } else {
+    const double disc = b * b - 4.0 * a * c;
+    if (disc >= 0.0) {
+      // The numerically stable pair: q = -(b + sign(b) sqrt(disc)) / 2, roots q / a and c / q.
+      const double q = -0.5 * (b + std::copysign(std::sqrt(disc), b));
+      r[n++] = q / a;
+      if (q != 0.0) r[n++] = c / q;
+    }
+  }
+  int m = 0;
+  for (int i = 0; i < n; ++i)
+    if (r[i] > 0.0 && r[i] < w_end && std::isfinite(r[i])) out[m++] = r[i];
+  if (m == 2 && out[1] < out[0]) std::swap(out[0], out[1]);
+  return m;
+}
+
+}  // namespace
+
+template <typename T>
+SegmentEntry ScalarVolume::firstEntry(const Eigen::Vector3d& a, const Eigen::Vector3d& b, double threshold,
+                                      double u_limit, double u_tolerance, bool at_segment_start,
+                                      const SegmentBubble& bubble) const noexcept {
+  SegmentEntry result;
+  const Eigen::Vector3d d = b - a;
+  // Clip u in [0, 1] to the grid's box of voxel centres [0, n - 1] per axis (slab method).
+  double u_lo = 0.0, u_hi = 1.0;
+  for (int axis = 0; axis < 3; ++axis) {
+    if (d[axis] == 0.0) {
+      if (a[axis] < 0.0 || a[axis] > upper_[axis]) return result;
+      continue;
+    }
+    double t0 = (0.0 - a[axis]) / d[axis], t1 = (upper_[axis] - a[axis]) / d[axis];
+    if (t0 > t1) std::swap(t0, t1);
+    u_lo = std::max(u_lo, t0);
+    u_hi = std::min(u_hi, t1);
+  }
+  if (!(u_lo <= u_hi)) return result;
+
+  const T* data = reinterpret_cast<const T*>(bytes_.data());
+  const std::ptrdiff_t sy = geometry_.dims[0], sz = sy * geometry_.dims[1];
+  // The cell containing the start, stepping into the one the segment moves into when the start
+  // lies on a cell face.
+  const Eigen::Vector3d start = a + u_lo * d;
+  int cell[3], step[3];
+  double u_next[3], u_delta[3];
+  for (int axis = 0; axis < 3; ++axis) {
+    const int top = geometry_.dims[axis] - 2;
+    double fl = std::floor(start[axis]);
+    if (d[axis] < 0.0 && fl == start[axis]) fl -= 1.0;
+    cell[axis] = static_cast<int>(std::clamp(fl, 0.0, static_cast<double>(top)));
+    step[axis] = d[axis] > 0.0 ? 1 : (d[axis] < 0.0 ? -1 : 0);
+    if (step[axis] == 0) {
+      u_next[axis] = u_delta[axis] = std::numeric_limits<double>::infinity();
+    } else {
+      const double face = step[axis] > 0 ? cell[axis] + 1.0 : static_cast<double>(cell[axis]);
+      u_next[axis] = (face - a[axis]) / d[axis];
+      u_delta[axis] = 1.0 / std::abs(d[axis]);
+    }
+  }
+  // State along the walk: inside (entered before this point; only a start inside, leaving).
+  bool inside_run = false;
+  bool first = at_segment_start && u_lo == 0.0;  // the segment's own start: inside there may mean leaving
+  double u = u_lo;
+  const double sign = scale_ > 0.0 ? 1.0 : -1.0;
+  for (int guard = 0; guard < 1 << 20; ++guard) {
+    if (u > u_limit && u > u_lo) break;
+    const double u_exit = std::min({u_next[0], u_next[1], u_next[2], u_hi});
+    const double w_end = std::max(0.0, u_exit - u);
+    const T* c = data + cell[0] + sy * cell[1] + sz * cell[2];
+    const double c000 = c[0], c100 = c[1], c010 = c[sy], c110 = c[1 + sy];
+    const double c001 = c[sz], c101 = c[1 + sz], c011 = c[sy + sz], c111 = c[1 + sy + sz];
+    const double corner_max = sign > 0.0 ? std::max({c000, c100, c010, c110, c001, c101, c011, c111})
+                                         : std::min({c000, c100, c010, c110, c001, c101, c011, c111});
+    if (scale_ * corner_max + offset_ + bubble.height <= threshold) {
+      inside_run = false;  // the whole cell is outside
+    } else {
+      ++result.cells;
+      // Local coordinates at the cell's entry, then the cubic in w = u - u_entry.
+      const double x = a[0] + u * d[0] - cell[0], y = a[1] + u * d[1] - cell[1], z = a[2] + u * d[2] - cell[2];
+      const double dx = d[0], dy = d[1], dz = d[2];
+      const double k0 = c000, k1 = c100 - c000, k2 = c010 - c000, k3 = c001 - c000;
+      const double k4 = c110 - c010 - c100 + c000, k5 = c101 - c001 - c100 + c000, k6 = c011 - c001 - c010 + c000;
+      const double k7 = c111 - c011 - c101 - c110 + c100 + c010 + c001 - c000;
+      const double r0 = k0 + k1 * x + k2 * y + k3 * z + k4 * x * y + k5 * x * z + k6 * y * z + k7 * x * y * z;
+      const double r1 = k1 * dx + k2 * dy + k3 * dz + k4 * (x * dy + y * dx) + k5 * (x * dz + z * dx) +
+                        k6 * (y * dz + z * dy) + k7 * (dx * y * z + x * dy * z + x * y * dz);
+      const double r2 = k4 * dx * dy + k5 * dx * dz + k6 * dy * dz + k7 * (x * dy * dz + dx * y * dz + dx * dy * z);
+      const double r3 = k7 * dx * dy * dz;
+      // The bubble 4 h U (1 - U), U = U0 + D (u + w) the parameter of the whole chord.
+      const double Uc = bubble.u0 + bubble.du * u, D = bubble.du, h4 = 4.0 * bubble.height;
+      const Cubic g{scale_ * r0 + offset_ - threshold + h4 * Uc * (1.0 - Uc), scale_ * r1 + h4 * D * (1.0 - 2.0 * Uc),
+                    scale_ * r2 - h4 * D * D, scale_ * r3};
+      double breaks[4];
+      int nb = 0;
+      breaks[nb++] = 0.0;
+      nb += criticalPoints(g, w_end, breaks + nb);
+      breaks[nb++] = w_end;
+      double gp = g(0.0);
+      if (first) {
+        inside_run = gp > 0.0;  // the segment starts inside
+      } else if (!inside_run && gp > 0.0) {
+        // Entered exactly on a cell face (the previous cell's cubic rounded to <= 0 there), or on
+        // the grid box's face from outside it (out of bounds is outside).
+        result.hit = true;
+        result.u_outside = u == u_lo && u_lo > 0.0 ? std::max(0.0, u - u_tolerance) : u;
+        result.u_inside = u;
+        return result;
+      } else if (inside_run && gp <= 0.0) {
+        inside_run = false;
+      }
+      for (int i = 0; i + 1 < nb; ++i) {
+        double p = breaks[i], q = breaks[i + 1];
+        const double gq = g(q);
+        if (inside_run) {
+          if (gq > gp) {  // going deeper while inside: stop here
+            result.hit = true;
+            result.u_outside = result.u_inside = u + p;
+            return result;
+          }
+          if (gq > 0.0) {  // still inside at q
+            gp = gq;
+            continue;
+          }
+          // Leaves in (p, q]: find the exit (g decreasing), then outside up to q.
+          while (q - p > u_tolerance) {
+            const double m = 0.5 * (p + q);
+            if (g(m) > 0.0) p = m; else q = m;
+          }
+          inside_run = false;
+          gp = gq;
+          continue;
+        }
+        if (gq > 0.0) {  // enters in (p, q]: g increases on the piece, g(p) <= 0
+          while (q - p > u_tolerance) {
+            const double m = 0.5 * (p + q);
+            if (g(m) > 0.0) q = m; else p = m;
+          }
+          result.hit = true;
+          result.u_outside = u + p;
+          result.u_inside = u + q;
+          return result;
+        }
+        gp = gq;
+      }
+    }
+    first = false;
+    if (u_exit >= u_hi) break;
+    // Step into the next cell along every axis whose face is reached here.
+    u = u_exit;
+    bool out_of_grid = false;
+    for (int axis = 0; axis < 3; ++axis) {
+      if (u_next[axis] != u_exit) continue;
+      cell[axis] += step[axis];
+      u_next[axis] += u_delta[axis];
+      if (cell[axis] < 0 || cell[axis] > geometry_.dims[axis] - 2) out_of_grid = true;
+    }
+    if (out_of_grid) break;
+  }
+  return result;
+}
+
+SegmentEntry ScalarVolume::walkSegment(const Eigen::Vector3d& a, const Eigen::Vector3d& b, double threshold,
+                                       double u_limit, double u_tolerance, bool at_segment_start,
+                                       const SegmentBubble& bubble) const noexcept {
+  switch (type_) {
+    case VoxelType::kUInt8: return firstEntry<std::uint8_t>(a, b, threshold, u_limit, u_tolerance, at_segment_start, bubble);
+    case VoxelType::kInt16: return firstEntry<std::int16_t>(a, b, threshold, u_limit, u_tolerance, at_segment_start, bubble);
+    case VoxelType::kUInt16: return firstEntry<std::uint16_t>(a, b, threshold, u_limit, u_tolerance, at_segment_start, bubble);
+    case VoxelType::kFloat32: return firstEntry<float>(a, b, threshold, u_limit, u_tolerance, at_segment_start, bubble);
+  }
+  return {};
+}
+
+SegmentEntry ScalarVolume::firstEntryOnSegment(const Eigen::Vector3d& a_ijk, const Eigen::Vector3d& b_ijk,
+                                               double threshold, double u_limit, double u_tolerance,
+                                               const Eigen::Vector3d& reach_ijk, double bubble_height) const noexcept {
+  if (!(reach_ijk.maxCoeff() > 0.0))
+    return walkSegment(a_ijk, b_ijk, threshold, u_limit, u_tolerance, true, {bubble_height, 0.0, 1.0});
+  // A point within reach of the segment may be in the grid's box while the segment is not:
+  // walk the segment's projection onto the box (clamped per axis: a polyline in the box, one
+  // piece between consecutive crossings of a box plane) where the segment is within reach of
+  // the box. Projection onto the box is non-expansive and fixes points of the box, so a point of
+  // the box within reach of the segment is within reach of the projection.
+  const Eigen::Vector3d d = b_ijk - a_ijk;
+  double u_lo = 0.0, u_hi = 1.0;
+  double cuts[8];
+  int n_cuts = 0;
+  for (int axis = 0; axis < 3; ++axis) {
+    const double lo = -reach_ijk[axis], hi = upper_[axis] + reach_ijk[axis];
+    if (d[axis] == 0.0) {
+      if (a_ijk[axis] < lo || a_ijk[axis] > hi) return {};
+      continue;
+    }
+    double t0 = (lo - a_ijk[axis]) / d[axis], t1 = (hi - a_ijk[axis]) / d[axis];
+    if (t0 > t1) std::swap(t0, t1);
+    u_lo = std::max(u_lo, t0);
+    u_hi = std::min(u_hi, t1);
+    cuts[n_cuts++] = (0.0 - a_ijk[axis]) / d[axis];
+    cuts[n_cuts++] = (upper_[axis] - a_ijk[axis]) / d[axis];
+  }
+  if (!(u_lo <= u_hi)) return {};
+  double breaks[8];
+  int nb = 0;
+  breaks[nb++] = u_lo;
+  for (int i = 0; i < n_cuts; ++i)
+    if (cuts[i] > u_lo && cuts[i] < u_hi) breaks[nb++] = cuts[i];
+  std::sort(breaks + 1, breaks + nb);
+  breaks[nb++] = u_hi;
+  SegmentEntry result;
+  for (int i = 0; i + 1 < nb; ++i) {
+    const double p = breaks[i], q = breaks[i + 1];
+    if (p > u_limit) break;
+    if (!(q > p)) continue;
+    const Eigen::Vector3d pa = (a_ijk + p * d).cwiseMax(Eigen::Vector3d::Zero()).cwiseMin(upper_);
+    const Eigen::Vector3d pb = (a_ijk + q * d).cwiseMax(Eigen::Vector3d::Zero()).cwiseMin(upper_);
+    const double span = q - p;
+    const SegmentEntry e = walkSegment(pa, pb, threshold, (u_limit - p) / span, u_tolerance / span, p == 0.0,
+                                       {bubble_height, p, span});
+    result.cells += e.cells;
+    if (e.hit) {
+      result.hit = true;
+      result.u_outside = p + e.u_outside * span;
+      result.u_inside = p + e.u_inside * span;
+      // An entry at the start of a later piece: the piece before was outside up to p.
+      return result;
+    }
+  }
+  return result;
+}
+
+}  // namespace vh::haptics
