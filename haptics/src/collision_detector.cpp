@@ -63,6 +63,9 @@ CollisionDetector::CollisionDetector(const ScalarVolume& volume, const ToolModel
   const std::size_t n = tool.point_shell.size();
   r0_.resize(n);
   margin_.assign(n, 0.0);
+  chord_end_ijk_.resize(n);
+  chord_end_t_.assign(n, -1.0);
+  chord_end_stamp_.assign(n, 0u);
   dt_.resize(n);
   path_.resize(n);
   heap_.resize(n);
@@ -175,6 +178,10 @@ void CollisionDetector::clearContacts() noexcept {
 }
 
 SweepResult CollisionDetector::sweep(const RigidMotion& motion, double isovalue) noexcept {
+  if (++chord_stamp_ == 0) {  // wrapped: forget every cached chord end
+    std::fill(chord_end_stamp_.begin(), chord_end_stamp_.end(), 0u);
+    chord_stamp_ = 1;
+  }
   // The largest arc margin of any point this sweep (for the point-shell tree's node tests):
   // every point's sagitta is <= min(max_sagitta_, R angle^2 / 8), R the shell's radius.
   const double angle = motion.angle_rad();
@@ -224,9 +231,20 @@ double CollisionDetector::stepSegment(const RigidMotion& motion, int j, std::int
     // threshold is lowered by the arc's margin in the middle of the chord, 4 m u (1 - u), none
     // at its ends (m = 0 without rotation).
     const double span = t_end - t_begin;
-    samples_ += 2;
-    const Eigen::Vector3d a = volume_->gridCoordinates(motion.pointAt(r0_[j], t_begin));
+    // The chord's start is the previous segment's end when the point's segments are taken in
+    // turn (the same double either way: pointAt at the same t).
+    Eigen::Vector3d a;
+    if (chord_end_t_[j] == t_begin && chord_end_stamp_[j] == chord_stamp_) {
+      a = chord_end_ijk_[j];
+    } else {
+      ++samples_;
+      a = volume_->gridCoordinates(motion.pointAt(r0_[j], t_begin));
+    }
+    ++samples_;
     const Eigen::Vector3d b = volume_->gridCoordinates(motion.pointAt(r0_[j], t_end));
+    chord_end_ijk_[j] = b;
+    chord_end_t_[j] = t_end;
+    chord_end_stamp_[j] = chord_stamp_;
     const double u_limit = result.t >= t_end ? 1.0 : (result.t - t_begin) / span;
     // The arc's reach beyond its chord (the sagitta), per grid axis, for the grid's border.
     const Eigen::Vector3d reach = margin_[j] > 0.0 ? Eigen::Vector3d(margin_[j] / volume_->lipschitzBound() * grid_per_m_)

@@ -156,6 +156,10 @@ SegmentEntry ScalarVolume::firstEntry(const Eigen::Vector3d& a, const Eigen::Vec
           continue;
         }
         if (gq > 0.0) {  // enters in (p, q]: g increases on the piece, g(p) <= 0
+          // An entry within the tolerance of the piece's start stops there (a contact resting
+          // within the tolerance and pushed in is blocked at once, as the paper's bisection
+          // from the segment's start does); else bisect.
+          if (q - p > u_tolerance && g(p + u_tolerance) > 0.0) q = p + u_tolerance;
           while (q - p > u_tolerance) {
             const double m = 0.5 * (p + q);
             if (g(m) > 0.0) q = m; else p = m;

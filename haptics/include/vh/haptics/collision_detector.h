@@ -207,6 +207,10 @@ class CollisionDetector {
   std::vector<double> dt_;               // per point segment length in time
   std::vector<double> path_;             // per point path-length bound
   std::vector<double> margin_;           // per point: threshold lowered by L * sagitta (kExact, rotation)
+  std::vector<Eigen::Vector3d> chord_end_ijk_;   // per point: grid coordinates of the last chord's end
+  std::vector<double> chord_end_t_;              // ... and its time
+  std::vector<std::uint32_t> chord_end_stamp_;   // ... valid when equal to chord_stamp_ (this sweep)
+  std::uint32_t chord_stamp_ = 0;
   std::vector<QueueEntry> heap_;         // capacity = number of points
   // kAccelerated state (see haptics/README.md, "Speed").
   std::vector<ShellNode> nodes_;         // point-shell tree, root at 0
