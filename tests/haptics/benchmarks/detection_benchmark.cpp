@@ -2,7 +2,8 @@
 // one run. Each benchmark iteration replays one scripted device trajectory through a fresh
 // HapticRenderer and records every tick's time (the renderer's own exec_time_us), its trilinear
 // samples and its min-max tree box queries. After Google Benchmark's table, a ratio table
-// (paper / accelerated) is printed per scene.
+// (paper / accelerated) is printed per scene, and the accelerated path's exact segment test
+// (issue 12) against issue 8's end sample (accelerated-end-sample).
 //
 // Scenes:
 //   hole         the paper's Hole scene: 256^3 uint8 block (0.25 mm voxels) with a blind hole
@@ -36,6 +37,7 @@ using vh::haptics::HapticRenderer;
 using vh::haptics::Pose;
 using vh::haptics::RendererOptions;
 using vh::haptics::ScalarVolume;
+using vh::haptics::SegmentTest;
 using vh::haptics::ToolModel;
 
 struct Scene {
@@ -147,7 +149,12 @@ std::map<std::string, Summary>& summaries() {
   return s;
 }
 
-void runScene(benchmark::State& state, const Scene& scene, DetectionMode mode) {
+// The accelerated path with issue 8's end-sample segment test: today's exact test against it.
+std::string variantName(DetectionMode mode, SegmentTest test) {
+  return std::string(vh::haptics::toString(mode)) + (test == SegmentTest::kEndSample ? "-end-sample" : "");
+}
+
+void runScene(benchmark::State& state, const Scene& scene, DetectionMode mode, SegmentTest test) {
   std::vector<double> tick_us, wall_us;
   tick_us.reserve(scene.device.size());
   wall_us.reserve(scene.device.size());
@@ -156,6 +163,7 @@ void runScene(benchmark::State& state, const Scene& scene, DetectionMode mode) {
     state.PauseTiming();
     RendererOptions o;
     o.detection_mode = mode;
+    o.segment_test = test;
     HapticRenderer r(scene.volume, scene.tool, o, scene.device.front(), scene.isovalueAt(0));
     tick_us.clear();
     wall_us.clear();
@@ -205,7 +213,7 @@ void runScene(benchmark::State& state, const Scene& scene, DetectionMode mode) {
   state.counters["samples_per_tick"] = sum.samples_per_tick;
   state.counters["box_queries_per_tick"] = sum.box_queries_per_tick;
   state.counters["max_contacts"] = sum.contacts_max;
-  summaries()[scene.name + "/" + vh::haptics::toString(mode)] = sum;
+  summaries()[scene.name + "/" + variantName(mode, test)] = sum;
 }
 
 void printRatios() {
@@ -230,16 +238,29 @@ void printRatios() {
                 sp.wall_median_us / sa.wall_median_us,
                 sp.samples_per_tick / std::max(1e-9, sa.samples_per_tick),
                 (sp.final_proxy.p_AB_m - sa.final_proxy.p_AB_m).norm());
+    // Issue 12: the exact segment test against issue 8's end sample, both accelerated.
+    const auto e = summaries().find(scene + "/accelerated-end-sample");
+    if (e == summaries().end()) continue;
+    const Summary& se = e->second;
+    std::printf("%-13s %-12s %10.1f %10.1f %10.1f %12.1f %12.0f %12.0f %9.0f\n", scene.c_str(), "acc-end-smp",
+                se.mean_us, se.p99_us, se.max_us, se.wall_median_us, se.samples_per_tick, se.box_queries_per_tick,
+                se.contacts_max);
+    std::printf("%-13s %-12s %10.2f %10.2f %10.2f %12.2f   (exact / end-sample, accelerated)\n", scene.c_str(), "ratio",
+                sa.mean_us / se.mean_us, sa.p99_us / se.p99_us, sa.max_us / se.max_us,
+                sa.wall_median_us / se.wall_median_us);
   }
 }
 
 }  // namespace
 
 int main(int argc, char** argv) {
+  const std::pair<DetectionMode, SegmentTest> variants[] = {{DetectionMode::kPaper, SegmentTest::kExact},
+                                                             {DetectionMode::kAccelerated, SegmentTest::kExact},
+                                                             {DetectionMode::kAccelerated, SegmentTest::kEndSample}};
   for (const Scene* scene : {&holeScene(), &spherePlaneScene(), &sliderScene()})
-    for (DetectionMode mode : {DetectionMode::kPaper, DetectionMode::kAccelerated})
-      benchmark::RegisterBenchmark((scene->name + "/" + vh::haptics::toString(mode)).c_str(),
-                                   [scene, mode](benchmark::State& st) { runScene(st, *scene, mode); })
+    for (const auto& [mode, test] : variants)
+      benchmark::RegisterBenchmark((scene->name + "/" + variantName(mode, test)).c_str(),
+                                   [scene, mode = mode, test = test](benchmark::State& st) { runScene(st, *scene, mode, test); })
           ->Unit(benchmark::kMillisecond)
           ->Iterations(3);
   benchmark::Initialize(&argc, argv);
