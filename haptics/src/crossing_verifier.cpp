@@ -66,7 +66,8 @@ CrossingVerifier::Result CrossingVerifier::check(const RigidMotion& motion, doub
   const double piece_m = kBlock * volume_->geometry().minSpacing();
   for (std::size_t j = 0; j < points.size(); ++j) {
     const Eigen::Vector3d r0 = motion.radial_W(points[j]);
-    const double path = motion.pathLengthBound(r0) * t_stop;
+    // Its own (the paper's, looser) path-length bound, |v| + |omega| |r0|.
+    const double path = (motion.v_W_m().norm() + motion.omega_W_rad().norm() * r0.norm()) * t_stop;
     // Samples t_i = t_stop i / n; the path is cut into pieces of at most 8 voxels, each skipped
     // when its ball (radius half its path-length bound) holds no block above the isovalue.
     const double n = std::max(1.0, std::ceil(path / step_m_));

@@ -50,6 +50,25 @@ TEST(RigidMotion, PathLengthBoundIsConservative) {
   }
 }
 
+TEST(RigidMotion, PathLengthBoundCountsOnlyTheDistanceFromTheAxis) {
+  // A pure rotation: the bound is the arc's own length |omega| rho; a point on the axis does
+  // not move (the paper's |omega| |r0| would give it 3 rad x 50 mm of path).
+  Pose X0;
+  const RigidMotion spin = RigidMotion::FromVelocity(X0, Eigen::Vector3d::Zero(), Eigen::Vector3d::Zero(),
+                                                     Eigen::Vector3d(0.0, 0.0, 3.0));
+  const Eigen::Vector3d on_axis(0.0, 0.0, 0.05), off_axis(0.004, 0.0, 0.05);
+  EXPECT_EQ(spin.pathLengthBound(spin.radial_W(on_axis)), 0.0);
+  double arc = 0.0;
+  Eigen::Vector3d prev = spin.pointAt(spin.radial_W(off_axis), 0.0);
+  for (int i = 1; i <= 10000; ++i) {
+    const Eigen::Vector3d p = spin.pointAt(spin.radial_W(off_axis), i / 10000.0);
+    arc += (p - prev).norm();
+    prev = p;
+  }
+  EXPECT_NEAR(spin.pathLengthBound(spin.radial_W(off_axis)), 3.0 * 0.004, 1e-12);
+  EXPECT_NEAR(arc, 3.0 * 0.004, 1e-8);
+}
+
 TEST(RigidMotion, RotationVectorRoundTrip) {
   std::mt19937 rng(2);
   std::normal_distribution<double> nd;

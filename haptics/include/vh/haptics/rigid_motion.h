@@ -41,8 +41,11 @@ class RigidMotion {
   }
   /// Pose of the tool frame at time t.
   Pose poseAt(double t) const noexcept;
-  /// Conservative path-length bound of a point over the unit step: |v| + |r0| |omega| [m].
-  double pathLengthBound(const Eigen::Vector3d& r0_W) const noexcept { return speed_ + r0_W.norm() * angle_; }
+  /// Path-length bound of a point over the unit step [m]: |v| + |omega x r0| (the point's speed
+  /// is |v + omega x r(t)| and |omega x r(t)| = |omega| rho stays constant, rho its distance from
+  /// the axis). Tighter than the paper's |v| + |omega| |r0| for points near the rotation axis
+  /// (a thin tool spinning about its shaft; issue 13).
+  double pathLengthBound(const Eigen::Vector3d& r0_W) const noexcept { return speed_ + angle_ * radiusAboutAxis(r0_W); }
   /// Rotation angle over the unit step, |omega| [rad].
   double angle_rad() const noexcept { return angle_; }
   /// Distance of the point with radial vector r0_W from the rotation axis through c0 [m]
