@@ -1,7 +1,7 @@
 // volume-haptics: the application.
 //
 //   volume-haptics [PATH] [--screenshot PNG] [--isovalue V] ...     the GUI (vh::ui)
-//   volume-haptics run --scene S.json --trajectory T.csv [--report R.json] [--check] [--record R.vhrec]
+//   volume-haptics run --scene S.json --trajectory T.csv [--report R.json] [--check] [--record R.vhrec] [--verify-step V]
 //   volume-haptics export R.vhrec [--csv C] [--json J] [--events-csv E] [--video V.ogv] [--png P --at-s T]
 //   volume-haptics make-trajectory --scene S.json --out T.csv [...]
 //   volume-haptics bench table1|accuracy|stability [--short] [--out DIR]   benchmarks (vh::bench)
@@ -96,8 +96,15 @@ int main(int argc, char** argv) {
   std::string run_record;
   run->add_option("--record", run_record,
                   "Also write a session recording (.vhrec: metadata, one record per tick, events) here");
+  double run_verify_step = vh::runtime::RunOptions{}.verify_step_voxels;
+  run->add_option("--verify-step", run_verify_step,
+                  "Crossing check after every tick, outside the timed part: sample each shell point's path with "
+                  "this step [voxels]; 0 turns it off")
+      ->capture_default_str()
+      ->check(CLI::NonNegativeNumber);
   run->add_flag("--check", run_check,
-                "Exit with 3 when the proxy penetrated deeper than epsilon or a tick produced a non-finite value");
+                "Exit with 3 when the proxy penetrated deeper than epsilon, a tick produced a non-finite value or "
+                "the proxy crossed into the isosurface (crossings > 0)");
 
   // ---- make-trajectory ----
   CLI::App* make = app.add_subcommand(
@@ -163,14 +170,24 @@ int main(int argc, char** argv) {
       vh::runtime::RunOptions run_options;
       run_options.trace_csv = run_trace;
       run_options.record = run_record;
+      run_options.verify_step_voxels = run_verify_step;
       const vh::runtime::RunReport report = vh::runtime::runHeadless(spec, run_trajectory, run_options);
       if (!run_report.empty()) vh::runtime::writeRunReport(report, run_report);
       std::cout << "volume-haptics run: " << report.summary() << std::endl;
       if (!run_record.empty()) std::cout << "volume-haptics run: recording written to " << run_record << std::endl;
-      if (run_check && (report.max_penetration_m > report.epsilon_m || report.nan_ticks > 0)) {
+      if (run_check && !report.crossingsChecked())
+        std::cerr << "volume-haptics run: warning: --check without the crossing check (--verify-step 0)" << std::endl;
+      if (run_check &&
+          (report.max_penetration_m > report.epsilon_m || report.nan_ticks > 0 || report.crossings > 0)) {
         std::cerr << "volume-haptics run: check failed: penetration " << report.max_penetration_m * 1e3
                   << " mm (epsilon " << report.epsilon_m * 1e3 << " mm), non-finite ticks " << report.nan_ticks
-                  << std::endl;
+                  << ", crossings ";
+        if (report.crossingsChecked()) std::cerr << report.crossings;
+        else std::cerr << "not checked";
+        if (report.crossings > 0)
+          std::cerr << " (" << report.crossing_points << (report.crossing_points == 1 ? " point" : " points")
+                    << ", first at tick " << report.first_crossing_tick << ")";
+        std::cerr << std::endl;
         return kExitCheckFailed;
       }
       return EXIT_SUCCESS;

@@ -40,20 +40,35 @@ CLI::App* addBenchSubcommand(CLI::App& app, std::function<int()>& handler) {
   bench->require_subcommand(1);
 
   auto table1 = std::make_shared<Table1Options>();
-  auto mode = std::make_shared<std::string>("both");
+  auto mode = std::make_shared<std::string>("all");
+  auto before = std::make_shared<bool>(false);
   CLI::App* t1 = bench->add_subcommand("table1", "The paper's Table 1: four scenes, tick times in both detection "
-                                                 "modes side by side, plus the large-tool runs");
+                                                 "modes side by side, the accelerated mode before and after the "
+                                                 "exact segment test, plus the large-tool runs");
   addCommon(t1, table1->common);
-  t1->add_option("--mode", *mode, "Detection path(s): paper, accelerated or both")
-      ->check(CLI::IsMember({"paper", "accelerated", "both"}));
+  t1->add_option("--mode", *mode,
+                 "Detection path(s): paper, accelerated, both (paper and accelerated) or all (both, plus the "
+                 "accelerated mode with the end-sample segment test: the 'before' column)")
+      ->capture_default_str()
+      ->check(CLI::IsMember({"paper", "accelerated", "both", "all"}));
+  t1->add_flag("--before", *before,
+               "Add the 'before' column (accelerated mode, end-sample segment test) to --mode accelerated or both");
+  t1->add_option("--verify-step", table1->verify_step_voxels,
+                 "Crossing check after every tick, outside the timed part: path sampling step [voxels]; 0: off")
+      ->capture_default_str()
+      ->check(CLI::NonNegativeNumber);
   t1->add_option("--scene", table1->scene, "Only this scene: Bunny, Engine, Hole or Bone");
   t1->add_option("--ticks", table1->ticks, "Ticks per scene and mode (default 20000; short 1000)")
       ->check(CLI::PositiveNumber);
   t1->add_flag("!--no-large-tools", table1->large_tools, "Skip the 20,000-point tool runs");
-  t1->callback([&handler, table1, mode] {
+  t1->callback([&handler, table1, mode, before] {
     table1->modes = *mode == "paper"         ? ModeSelection::kPaper
                     : *mode == "accelerated" ? ModeSelection::kAccelerated
                                              : ModeSelection::kBoth;
+    table1->before = *mode == "all" || *before;
+    if (*mode == "paper" && *before)
+      throw CLI::ValidationError("--before", "compares the accelerated mode's segment tests: use --mode accelerated, "
+                                             "both or all");
     handler = [table1] { return guarded("table1", [&] { runTable1(*table1); }); };
   });
 

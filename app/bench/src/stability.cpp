@@ -11,6 +11,7 @@
 
 #include "common.h"
 #include "vh/datasets/synthetic.h"
+#include "vh/haptics/crossing_verifier.h"
 #include "vh/haptics/haptic_renderer.h"
 #include "vh/haptics/penetration.h"
 #include "vh/simulation/stability_scenarios.h"
@@ -41,8 +42,14 @@ struct ExtremeCase {
   std::function<bool(int)> penetration_judged;
 };
 
+/// Crossing check after every tick of the extreme cases (haptics::CrossingVerifier, outside the
+/// timed section): path sampling step [voxels].
+constexpr double kVerifyStepVoxels = 0.01;
+
 struct CaseResult {
   int ticks = 0, max_contacts = 0, nan_ticks = 0, crossed_ticks = 0, contact_ticks = 0;
+  /// Ticks in which the proxy carried a shell point from outside into the isosurface, and those points.
+  int crossings = 0, crossing_points = 0;
   std::int64_t bad_inputs = 0;
   double max_penetration_over_eps = 0, max_force_N = 0, final_force_N = 0, mean_us = 0, max_us = 0;
   std::vector<double> force_N;
@@ -53,6 +60,7 @@ CaseResult runCase(const ExtremeCase& c, haptics::DetectionMode mode) {
   haptics::RendererOptions options;
   options.detection_mode = mode;
   haptics::HapticRenderer renderer(c.volume, c.tool, options, c.device(0), c.isovalue(0));
+  const haptics::CrossingVerifier verifier(*c.volume, c.tool->point_shell, kVerifyStepVoxels);
   CaseResult r;
   r.ticks = c.ticks;
   std::vector<double> times;
@@ -66,6 +74,14 @@ CaseResult runCase(const ExtremeCase& c, haptics::DetectionMode mode) {
     if (!finite) {
       ++r.nan_ticks;
       continue;
+    }
+    // The tick's motion against this tick's isovalue: points it swallowed start inside and are
+    // not counted; a point carried from outside in is.
+    const haptics::CrossingVerifier::Result check =
+        verifier.check(renderer.lastMotion(), renderer.lastTimeOfContact(), s);
+    if (check.crossing_points > 0) {
+      ++r.crossings;
+      r.crossing_points += check.crossing_points;
     }
     r.max_contacts = std::max(r.max_contacts, out.stats.contacts);
     if (out.stats.contacts > 0) ++r.contact_ticks;
@@ -81,6 +97,45 @@ CaseResult runCase(const ExtremeCase& c, haptics::DetectionMode mode) {
   r.mean_us = t.mean;
   r.max_us = t.max;
   return r;
+}
+
+/// Crossings of one stiffness-sweep row, counted over its scenarios.
+struct SweepCrossings {
+  int crossings = 0;            ///< Ticks in which a shell point was carried into the isosurface.
+  std::int64_t points = 0;
+};
+
+/// The sweep runs inside vh::stability::evaluate(), which has no per-tick hook: each scenario is
+/// run again with runScenario() (deterministic: the same ticks evaluate() judged) and every tick's
+/// proxy motion checked from the records. A record keeps the proxy's centre of mass after the tick
+/// and its rotation relative to the device; the renderer's motion over a tick (eq. 2: the centre of
+/// mass moves linearly, the rotation about it at a constant rate) stopped at its time of contact is
+/// the path of RigidMotion::Between() the poses before and after the tick.
+SweepCrossings sweepCrossings(const std::vector<vh::stability::Scenario>& scenarios, double k_lin,
+                              const vh::stability::DeviceParams& device, const vh::stability::HandParams& hand,
+                              const vh::stability::SweepOptions& options) {
+  SweepCrossings out;
+  for (const vh::stability::Scenario& sc : scenarios) {
+    const vh::stability::SimulationResult sim = vh::stability::runScenario(sc, k_lin, device, hand, options);
+    const haptics::CrossingVerifier verifier(*sc.volume, sc.tool->point_shell, kVerifyStepVoxels);
+    const Eigen::Vector3d& p_TCm = sc.tool->mass.p_TCm_m;
+    Pose X_prev = sc.X_WP0;
+    for (const vh::stability::TickRecord& rec : sim.ticks) {
+      // theta = rotvec(R_WD R_WP^T), so R_WP = exp(theta)^T R_WD.
+      Pose X;
+      X.R_AB = (haptics::quaternionFromRotationVector(rec.theta).conjugate() * rec.X_WD.R_AB).normalized();
+      X.p_AB_m = rec.c_P - X.R_AB * p_TCm;
+      if (!X.allFinite()) continue;  // counted as non-finite by evaluate()
+      const haptics::CrossingVerifier::Result check =
+          verifier.check(haptics::RigidMotion::Between(X_prev, X, p_TCm), 1.0, sc.isovalue);
+      if (check.crossing_points > 0) {
+        ++out.crossings;
+        out.points += check.crossing_points;
+      }
+      X_prev = X;
+    }
+  }
+  return out;
 }
 
 Pose at(const Eigen::Vector3d& p, const Eigen::Quaterniond& R = Eigen::Quaterniond::Identity()) { return {R, p}; }
@@ -296,6 +351,8 @@ std::string judge(const ExtremeCase& c, const CaseResult& r) {
   if (r.nan_ticks > 0) why.push_back(format("%d non-finite ticks", r.nan_ticks));
   if (r.max_penetration_over_eps > 1.0) why.push_back(format("penetration %.2f epsilon", r.max_penetration_over_eps));
   if (r.crossed_ticks > 0) why.push_back(format("crossed on %d ticks", r.crossed_ticks));
+  if (r.crossings > 0)
+    why.push_back(format("crossings (CrossingVerifier) on %d ticks, %d points", r.crossings, r.crossing_points));
   if (c.name == "40+ simultaneous contacts" && r.max_contacts <= 40)
     why.push_back(format("only %d contacts", r.max_contacts));
   if (c.name == "device teleport" && r.bad_inputs < 1) why.push_back("the 20 m sample was not rejected");
@@ -330,6 +387,7 @@ fs::path runStability(const CommonOptions& options) {
   report["date_utc"] = utcNow();
   report["cpu_model"] = cpuModel();
   report["short"] = short_run;
+  report["verify_step_voxels"] = kVerifyStepVoxels;
 
   // --- Stiffness sweep --------------------------------------------------------------------
   using namespace vh::stability;
@@ -343,9 +401,14 @@ fs::path runStability(const CommonOptions& options) {
   std::cout << "bench stability: stiffness sweep, " << ks.size() << " stiffnesses x " << devices.size()
             << " devices x " << levers.size() << " couplings x " << scenarios.size() << " scenarios\n";
   std::vector<StiffnessResult> rows;
+  std::vector<SweepCrossings> row_crossings;
   for (double lever : levers)
     for (const DeviceParams& d : devices)
-      for (double k : ks) rows.push_back(evaluate(scenarios, k, d, hand, {-1.0, lever, true}));
+      for (double k : ks) {
+        const SweepOptions sweep_options{-1.0, lever, true};
+        rows.push_back(evaluate(scenarios, k, d, hand, sweep_options));
+        row_crossings.push_back(sweepCrossings(scenarios, k, d, hand, sweep_options));
+      }
   nlohmann::ordered_json sweep = nlohmann::ordered_json::array();
   std::ostringstream md;
   md << "## Stiff and extreme cases (`volume-haptics bench stability" << (short_run ? " --short" : "") << "`)\n\n";
@@ -355,11 +418,18 @@ fs::path runStability(const CommonOptions& options) {
         "press-slide-tilt, sphere press-slide, tap, free bounce). Energy balance: the largest energy created by the "
         "loop, max E_gen (<= 0: passive); bounce: energy returned / absorbed by the coupling in the free bounce; "
         "oscillation: force peak-to-peak in the hold windows after settling. Colgate's passivity bound is "
-        "K < 2 b / T.\n\n";
+        "K < 2 b / T. Crossings: ticks in which haptics::CrossingVerifier, sampling each shell point's path over "
+        "the tick every "
+     << kVerifyStepVoxels
+     << " voxel, found a point carried from outside into the isosurface (summed over the scenarios; the "
+        "verdict adds CROSSED).\n\n";
   md << "| K [N/m] | coupling | device (m, b) | Colgate 2b/T [N/m] | spectral radius | max E_gen [mJ] | passive | "
-        "bounce out/in | peak force [N] | oscillation after settling [N] (rel.) | verdict | penetration / epsilon |\n";
-  md << "|---|---|---|---|---|---|---|---|---|---|---|---|\n";
-  for (const StiffnessResult& s : rows) {
+        "bounce out/in | peak force [N] | oscillation after settling [N] (rel.) | verdict | penetration / epsilon | "
+        "crossings |\n";
+  md << "|---|---|---|---|---|---|---|---|---|---|---|---|---|\n";
+  for (std::size_t row = 0; row < rows.size(); ++row) {
+    const StiffnessResult& s = rows[row];
+    const SweepCrossings& crossed = row_crossings[row];
     nlohmann::ordered_json j;
     j["k_lin_N_per_m"] = s.k_lin;
     j["coupling"] = s.gains;
@@ -378,6 +448,8 @@ fs::path runStability(const CommonOptions& options) {
     j["stable"] = s.stable();
     j["solver_violations"] = s.solver_violations;
     j["max_penetration_over_epsilon"] = finiteOr(s.max_penetration_over_eps);
+    j["crossings"] = crossed.crossings;
+    j["crossing_points"] = crossed.points;
     j["finite"] = s.finite;
     sweep.push_back(j);
     md << "| " << format("%.0f", s.k_lin) << " | " << s.gains << " | " << s.device << " ("
@@ -385,16 +457,21 @@ fs::path runStability(const CommonOptions& options) {
        << format("%.3f", s.spectral_radius) << " | " << format("%.4g", 1e3 * s.max_e_gen_J) << " | "
        << (s.passive ? "yes" : "no") << " | " << format("%.3f", s.bounce_ratio) << " | "
        << format("%.2f", s.peak_force_N) << " | " << format("%.4f (%.3f)", s.settled_ptp_N, s.settled_ptp_rel) << " | "
-       << toString(s.behaviour) << " | " << format("%.3f", s.max_penetration_over_eps) << " |\n";
+       << toString(s.behaviour) << (crossed.crossings > 0 ? ", CROSSED" : "") << " | "
+       << format("%.3f", s.max_penetration_over_eps) << " | " << crossed.crossings << " |\n";
   }
   report["stiffness_sweep"] = sweep;
 
   // --- Extreme cases ---------------------------------------------------------------------
   std::cout << "bench stability: extreme cases (both detection modes)\n";
   nlohmann::ordered_json extreme = nlohmann::ordered_json::array();
-  md << "\nExtreme cases, both detection modes (coupling 1000 N/m, 1 N*m/rad; scripted device):\n\n";
-  md << "| case | set-up | pass when | mode | outcome | ticks | max contacts | penetration / epsilon | max force [N] | "
-        "bad samples | mean / max tick [us] |\n|---|---|---|---|---|---|---|---|---|---|---|\n";
+  md << "\nExtreme cases, both detection modes (coupling 1000 N/m, 1 N*m/rad; scripted device). Crossings: ticks in "
+        "which haptics::CrossingVerifier, sampling each shell point's path over the tick every "
+     << kVerifyStepVoxels
+     << " voxel, found a point carried from outside into the isosurface (a failure, like penetration beyond "
+        "epsilon):\n\n";
+  md << "| case | set-up | pass when | mode | outcome | ticks | max contacts | penetration / epsilon | crossings | "
+        "max force [N] | bad samples | mean / max tick [us] |\n|---|---|---|---|---|---|---|---|---|---|---|---|\n";
   for (const ExtremeCase& c : extremeCases(short_run)) {
     nlohmann::ordered_json j;
     j["name"] = c.name;
@@ -412,12 +489,14 @@ fs::path runStability(const CommonOptions& options) {
                                         {"final_force_N", r.final_force_N},
                                         {"nan_ticks", r.nan_ticks},
                                         {"crossed_ticks", r.crossed_ticks},
+                                        {"crossings", r.crossings},
+                                        {"crossing_points", r.crossing_points},
                                         {"bad_device_samples", r.bad_inputs},
                                         {"mean_us", r.mean_us},
                                         {"max_us", r.max_us}};
       md << "| " << c.name << " | " << c.setup << " | " << c.criterion << " | " << haptics::toString(mode) << " | "
          << outcome << " | " << r.ticks << " | " << r.max_contacts << " | " << format("%.3f", r.max_penetration_over_eps)
-         << " | " << format("%.2f", r.max_force_N) << " | " << r.bad_inputs << " | "
+         << " | " << r.crossings << " | " << format("%.2f", r.max_force_N) << " | " << r.bad_inputs << " | "
          << format("%.1f / %.1f", r.mean_us, r.max_us) << " |\n";
       std::cout << "  " << c.name << " [" << haptics::toString(mode) << "]: " << outcome << "\n";
     }

@@ -6,12 +6,14 @@
 #include <cstdio>
 #include <fstream>
 #include <iomanip>
+#include <optional>
 #include <sstream>
 #include <stdexcept>
 #include <vector>
 
 #include <nlohmann/json.hpp>
 
+#include "vh/haptics/crossing_verifier.h"
 #include "vh/runtime/device.h"
 #include "vh/runtime/placement.h"
 #include "vh/runtime/recording.h"
@@ -29,6 +31,8 @@ double nearestRankPercentile(std::span<const double> sorted, double q) noexcept 
 RunReport runHeadless(const LoadedScene& scene, const Trajectory& trajectory, const RunOptions& options) {
   if (trajectory.empty()) throw std::runtime_error("runHeadless: empty trajectory");
   if (!(options.servo_rate_Hz > 0.0)) throw std::invalid_argument("runHeadless: servo rate must be > 0");
+  if (!(options.verify_step_voxels >= 0.0) || !std::isfinite(options.verify_step_voxels))
+    throw std::invalid_argument("runHeadless: the crossing-check step must be >= 0 voxels (0: off)");
   const haptics::ScalarVolume& volume = *scene.volume.field;
   const haptics::ToolModel& tool = *scene.tool;
   const double s = scene.isovalue;
@@ -52,6 +56,13 @@ RunReport runHeadless(const LoadedScene& scene, const Trajectory& trajectory, co
   renderer_options.gains = scene.spec.gains;
   haptics::HapticRenderer renderer(scene.volume.field, scene.tool, renderer_options, X_WD_first, s);
   r.epsilon_m = renderer.epsilon_m();
+  std::optional<haptics::CrossingVerifier> verifier;
+  if (options.verify_step_voxels > 0.0) {
+    verifier.emplace(volume, tool.point_shell, options.verify_step_voxels);
+    r.verify_step_voxels = options.verify_step_voxels;
+    r.crossings = 0;
+    r.crossing_points = 0;
+  }
   ScriptedDevice device(trajectory, 1.0 / options.servo_rate_Hz);
 
   const auto n = static_cast<std::uint64_t>(std::floor(trajectory.duration_s() * options.servo_rate_Hz + 1e-9)) + 1;
@@ -62,7 +73,7 @@ RunReport runHeadless(const LoadedScene& scene, const Trajectory& trajectory, co
     trace.open(options.trace_csv);
     if (!trace) throw std::runtime_error(options.trace_csv.string() + ": cannot write the trace");
     trace << "tick,t_s,xd_m,yd_m,zd_m,xp_m,yp_m,zp_m,fx_N,fy_N,fz_N,tx_Nm,ty_Nm,tz_Nm,contacts,exec_us,penetration_m,"
-             "qw_p,qx_p,qy_p,qz_p,time_of_contact\n"
+             "qw_p,qx_p,qy_p,qz_p,time_of_contact,crossing_points\n"
           << std::setprecision(9);
   }
   std::unique_ptr<RecordingWriter> recorder;
@@ -100,6 +111,21 @@ RunReport runHeadless(const LoadedScene& scene, const Trajectory& trajectory, co
     }
     if (out.stats.bad_input) ++r.bad_device_samples;
     const bool finite = out.force_W_N.allFinite() && out.torque_W_Nm.allFinite() && out.X_WP.allFinite();
+    int crossing_points = -1;
+    if (verifier && finite) {
+      // The path the proxy moved along this tick, sampled densely: a point outside at its start
+      // and inside later was carried into (or through) the isosurface.
+      const auto v0 = std::chrono::steady_clock::now();
+      const haptics::CrossingVerifier::Result check =
+          verifier->check(renderer.lastMotion(), renderer.lastTimeOfContact(), s);
+      r.verify_s += std::chrono::duration<double>(std::chrono::steady_clock::now() - v0).count();
+      crossing_points = check.crossing_points;
+      if (check.crossing_points > 0) {
+        ++r.crossings;
+        r.crossing_points += check.crossing_points;
+        if (r.first_crossing_tick < 0) r.first_crossing_tick = static_cast<std::int64_t>(i);
+      }
+    }
     double depth = 0.0;
     if (!finite) {
       ++r.nan_ticks;
@@ -147,7 +173,7 @@ RunReport runHeadless(const LoadedScene& scene, const Trajectory& trajectory, co
             << out.force_W_N.z() << ',' << out.torque_W_Nm.x() << ',' << out.torque_W_Nm.y() << ','
             << out.torque_W_Nm.z() << ',' << out.stats.contacts << ',' << out.stats.exec_time_us << ',' << depth << ','
             << out.X_WP.R_AB.w() << ',' << out.X_WP.R_AB.x() << ',' << out.X_WP.R_AB.y() << ',' << out.X_WP.R_AB.z()
-            << ',' << out.stats.time_of_contact << '\n';
+            << ',' << out.stats.time_of_contact << ',' << crossing_points << '\n';
     }
   }
   if (recorder) recorder->close();  // throws naming the file when a write failed
@@ -208,6 +234,13 @@ std::string RunReport::toJson() const {
   j["max_penetration_tick"] = max_penetration_tick;
   j["ticks_penetrating"] = ticks_penetrating;
   j["nan_ticks"] = nan_ticks;
+  // Not checked: null (never a 0 that reads as "no crossing").
+  const auto checked = [this](std::int64_t v) { return crossingsChecked() ? nlohmann::ordered_json(v) : nlohmann::ordered_json(nullptr); };
+  j["verify_step_voxels"] = verify_step_voxels;
+  j["crossings"] = checked(crossings);
+  j["crossing_points"] = checked(crossing_points);
+  j["first_crossing_tick"] = checked(first_crossing_tick);
+  j["verify_s"] = verify_s;
   j["bad_device_samples"] = bad_device_samples;
   j["initial_points_inside"] = initial_points_inside;
   j["final_force_N"] = final_force_N;
@@ -217,14 +250,26 @@ std::string RunReport::toJson() const {
 }
 
 std::string RunReport::summary() const {
-  char line[512];
+  char line[640];
   std::snprintf(line, sizeof line,
                 "ticks %llu, exec mean %.0f us, p50 %.0f us, p99 %.0f us, max %.0f us; %zu points; contacts <= %d "
-                "(mean %.1f); max force %.2f N; penetration %.4f mm (epsilon %.4f mm); nan ticks %llu; bad samples %llu",
+                "(mean %.1f); max force %.2f N; penetration %.4f mm (epsilon %.4f mm); nan ticks %llu; bad samples %llu; ",
                 static_cast<unsigned long long>(ticks), mean_us, p50_us, p99_us, max_us, point_count, max_contacts,
                 mean_contacts, max_force_N, max_penetration_m * 1e3, epsilon_m * 1e3,
                 static_cast<unsigned long long>(nan_ticks), static_cast<unsigned long long>(bad_device_samples));
-  return line;
+  std::string out = line;
+  if (!crossingsChecked()) {
+    out += "crossings not checked (verify step 0)";
+  } else if (crossings == 0) {
+    std::snprintf(line, sizeof line, "crossings 0 (checked at %g voxel)", verify_step_voxels);
+    out += line;
+  } else {
+    std::snprintf(line, sizeof line, "crossings %lld (%lld point%s, first at tick %lld; checked at %g voxel)",
+                  static_cast<long long>(crossings), static_cast<long long>(crossing_points),
+                  crossing_points == 1 ? "" : "s", static_cast<long long>(first_crossing_tick), verify_step_voxels);
+    out += line;
+  }
+  return out;
 }
 
 void writeRunReport(const RunReport& report, const std::filesystem::path& path) {

@@ -83,6 +83,29 @@ void expectPngs(const fs::path& dir, const json& report, std::size_t at_least) {
   }
 }
 
+/// The crossing fields of one run or mode (haptics::CrossingVerifier after every tick): present,
+/// integers, consistent. @return the number of ticks with a crossing.
+std::int64_t expectCrossingFields(const json& j, double ticks) {
+  EXPECT_TRUE(j.contains("crossings")) << "missing key crossings";
+  EXPECT_TRUE(j.contains("crossing_points")) << "missing key crossing_points";
+  if (!j.contains("crossings") || !j["crossings"].is_number_integer()) {
+    ADD_FAILURE() << "crossings is not an integer";
+    return -1;
+  }
+  const auto crossings = j["crossings"].get<std::int64_t>();
+  const auto points = j["crossing_points"].get<std::int64_t>();
+  EXPECT_GE(crossings, 0) << "checked by default";
+  EXPECT_LE(static_cast<double>(crossings), ticks);
+  EXPECT_GE(points, crossings) << "a tick with a crossing has at least one point";
+  EXPECT_EQ(points == 0, crossings == 0);
+  if (j.contains("first_crossing_tick")) {
+    const auto first = j["first_crossing_tick"].get<std::int64_t>();
+    EXPECT_EQ(first == -1, crossings == 0) << first;
+    EXPECT_LT(static_cast<double>(first), ticks);
+  }
+  return crossings;
+}
+
 fs::path outDir(const std::string& name) {
   const fs::path dir = fs::path(VH_BENCH_TEST_OUTPUT_DIR) / name;
   fs::remove_all(dir);
@@ -96,11 +119,15 @@ TEST(Bench, table1ShortWritesBothModesForEveryScene) {
   const fs::path dir = runTable1(options);
   const json report = readJson(dir / "table1.json");
   expectNoNull(report);
-  for (const char* key : {"benchmark", "date_utc", "cpu_model", "ticks_per_run", "modes", "scenes"})
+  for (const char* key : {"benchmark", "date_utc", "cpu_model", "ticks_per_run", "modes", "scenes",
+                          "verify_step_voxels"})
     EXPECT_TRUE(report.contains(key)) << key;
   EXPECT_EQ(report["benchmark"], "table1");
   EXPECT_FALSE(report["cpu_model"].get<std::string>().empty());
   EXPECT_EQ(report["ticks_per_run"], 1000);
+  EXPECT_EQ(report["verify_step_voxels"].get<double>(), 0.01);
+  // The default runs both detection modes and the "before" column (issue 12).
+  EXPECT_EQ(report["modes"], json({"paper", "accelerated", "accelerated-end-sample"}));
   ASSERT_EQ(report["scenes"].size(), 4u) << "one row per Table 1 scene (short runs have no large-tool rows)";
   int ran = 0;
   for (const json& row : report["scenes"]) {
@@ -116,9 +143,29 @@ TEST(Bench, table1ShortWritesBothModesForEveryScene) {
     EXPECT_GT(number(row["paper"], "mean_us"), 0.0);
     ASSERT_TRUE(row["modes"].contains("paper"));
     ASSERT_TRUE(row["modes"].contains("accelerated"));
-    for (const char* mode : {"paper", "accelerated"}) {
+    ASSERT_TRUE(row["modes"].contains("accelerated-end-sample"));
+    EXPECT_EQ(number(row, "verify_step_voxels"), 0.01);
+    const bool builtin = row["volume"].get<std::string>().rfind("builtin:", 0) == 0;
+    for (const char* mode : {"paper", "accelerated", "accelerated-end-sample"}) {
+      SCOPED_TRACE(mode);
       const json& m = row["modes"][mode];
       EXPECT_EQ(m["ticks"], 1000);
+      EXPECT_EQ(m["segment_test"], std::string(mode) == "accelerated-end-sample" ? "end-sample" : "exact");
+      EXPECT_FALSE(m["label"].get<std::string>().empty());
+      EXPECT_LE(number(m, "cpu_mean_us"), number(m, "cpu_max_us"));
+      EXPECT_LE(number(m, "cpu_p99_9_us"), number(m, "cpu_max_us"));
+      EXPECT_GE(number(m, "mean_cells"), 0.0);
+      EXPECT_GE(number(m, "verify_s"), 0.0);
+      const std::int64_t crossings = expectCrossingFields(m, 1000.0);
+      // The exact segment test never lets the proxy through the surface (issue 12); the end sample
+      // (the "before" column) may. Asserted on the built-in scene; reported for the others.
+      if (std::string(mode) != "accelerated-end-sample") {
+        if (builtin) {
+          EXPECT_EQ(crossings, 0) << "first at tick " << m["first_crossing_tick"];
+        } else if (crossings != 0) {
+          std::cout << "NOTE: " << mode << " mode crossed on " << crossings << " ticks\n";
+        }
+      }
       const double mean = number(m, "mean_us"), p50 = number(m, "p50_us"), p99 = number(m, "p99_us"),
                    p999 = number(m, "p99_9_us"), max = number(m, "max_us");
       EXPECT_GT(mean, 0.0);
@@ -133,6 +180,13 @@ TEST(Bench, table1ShortWritesBothModesForEveryScene) {
       EXPECT_EQ(m["nan_ticks"], 0);
     }
     EXPECT_GT(number(row["ratio_paper_over_accelerated"], "mean"), 0.0);
+    ASSERT_TRUE(row.contains("ratio_exact_over_end_sample"));
+    const json& q = row["ratio_exact_over_end_sample"];
+    EXPECT_GT(number(q, "cpu_mean"), 0.0);
+    EXPECT_GT(number(q, "cpu_p99_9"), 0.0);
+    EXPECT_GT(number(q, "cpu_max"), 0.0);
+    EXPECT_TRUE(q["within_1_3x"].is_boolean());
+    EXPECT_GE(number(row, "max_proxy_difference_exact_vs_end_sample_m"), 0.0);
     EXPECT_GT(number(row["modes"]["paper"], "max_contacts"), 0.0) << "the trajectory never touched the surface";
   }
   EXPECT_GE(ran, 1);
@@ -140,6 +194,10 @@ TEST(Bench, table1ShortWritesBothModesForEveryScene) {
   EXPECT_NE(md.find("| scene | tool | points (paper) | mode | mean [us]"), std::string::npos);
   EXPECT_NE(md.find("| Hole |"), std::string::npos);
   EXPECT_NE(md.find("Speed-up of the accelerated path"), std::string::npos);
+  EXPECT_NE(md.find("| max penetration [mm] (epsilon) | crossings |"), std::string::npos);
+  EXPECT_NE(md.find("| accelerated (end-sample, before) |"), std::string::npos);
+  EXPECT_NE(md.find("Before and after the exact segment test"), std::string::npos);
+  EXPECT_NE(md.find("Issue 12 target"), std::string::npos);
   EXPECT_NE(md.find(report["cpu_model"].get<std::string>()), std::string::npos);
   expectPngs(dir, report, static_cast<std::size_t>(ran) + 2);
 }
@@ -163,14 +221,22 @@ TEST(Bench, accuracyShortWritesCurvesParetoFrontAndRecommendation) {
     EXPECT_GE(number(r, "normal_error_mean_deg"), 0.0);
     EXPECT_LE(number(r, "normal_error_max_deg"), 180.0);
     EXPECT_TRUE(r["finite"].get<bool>());
+    // Synthetic volumes, default (exact) segment test: never through the grid's isosurface.
+    EXPECT_EQ(expectCrossingFields(r, number(r, "ticks")), 0)
+        << r["surface"].get<std::string>() << ", " << r["voxel_m"] << " m voxels";
   }
   EXPECT_EQ(surfaces.size(), 4u);
+  EXPECT_EQ(report["verify_step_voxels"].get<double>(), 0.01);
+  EXPECT_EQ(report["crossings_total"].get<int>(), 0);
+  for (const json& p : report["settings"]) EXPECT_TRUE(p["crossings"].is_number_integer());
   ASSERT_FALSE(report["pareto_front"].empty());
   EXPECT_LE(report["pareto_front"].size(), report["settings"].size());
   ASSERT_TRUE(report.contains("recommended"));
   const std::string md = readText(dir / "accuracy.md");
   EXPECT_NE(md.find("### Recommended defaults"), std::string::npos);
   EXPECT_NE(md.find("| surface | voxel [mm] | setting |"), std::string::npos);
+  EXPECT_NE(md.find("| max penetration [mm] (epsilon) | crossings |"), std::string::npos);
+  EXPECT_NE(md.find("| max penetration / epsilon | crossings | Pareto |"), std::string::npos);
   expectPngs(dir, report, 2);
 }
 
@@ -197,11 +263,19 @@ TEST(Bench, stabilityShortWritesSweepAndExtremeCases) {
       const std::string outcome = c["modes"][mode]["outcome"];
       EXPECT_TRUE(outcome == "pass" || outcome.rfind("FAIL:", 0) == 0) << outcome;
       EXPECT_GT(number(c["modes"][mode], "ticks"), 0.0);
+      // Both modes use the exact segment test: no crossing, and a crossing would fail the case.
+      const std::int64_t crossings = expectCrossingFields(c["modes"][mode], number(c["modes"][mode], "ticks"));
+      EXPECT_EQ(crossings, 0) << mode;
+      if (crossings > 0) {
+        EXPECT_NE(outcome.find("crossings"), std::string::npos) << outcome;
+      }
     }
   }
   const std::string md = readText(dir / "stability.md");
   EXPECT_NE(md.find("| K [N/m] |"), std::string::npos);
   EXPECT_NE(md.find("| case | set-up |"), std::string::npos);
+  EXPECT_NE(md.find("| penetration / epsilon | crossings |"), std::string::npos);
+  EXPECT_EQ(report["verify_step_voxels"].get<double>(), 0.01);
   expectPngs(dir, report, 1);
 }
 

@@ -69,6 +69,8 @@ void expectAccepted(const AcceptanceRun& run) {
                                                << r.ticks_penetrating << " ticks deeper than epsilon)";
   EXPECT_EQ(r.nan_ticks, 0u);
   EXPECT_EQ(r.bad_device_samples, 0u);
+  EXPECT_TRUE(r.crossingsChecked());
+  EXPECT_EQ(r.crossings, 0) << r.crossing_points << " points crossed, first at tick " << r.first_crossing_tick;
   EXPECT_GT(r.max_contacts, 0);
   EXPECT_GT(r.ticks_in_contact, 0u);
   EXPECT_GT(r.max_force_N, 0.5) << "the device was pushed 5 mm past the first contact";

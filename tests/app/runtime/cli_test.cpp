@@ -102,6 +102,29 @@ TEST(Cli, MakeTrajectoryThenRunWithoutADisplay) {
   EXPECT_GT(j["max_contacts"].get<int>(), 0);
   EXPECT_LE(j["max_penetration_m"].get<double>(), j["epsilon_m"].get<double>());
   EXPECT_EQ(j["nan_ticks"].get<int>(), 0);
+  // --check also fails on crossings; checked by default at 0.01 voxel.
+  EXPECT_EQ(j["crossings"].get<std::int64_t>(), 0);
+  EXPECT_EQ(j["crossing_points"].get<std::int64_t>(), 0);
+  EXPECT_EQ(j["first_crossing_tick"].get<std::int64_t>(), -1);
+  EXPECT_DOUBLE_EQ(j["verify_step_voxels"].get<double>(), 0.01);
+  EXPECT_NE(ran.output.find("crossings 0 (checked at 0.01 voxel)"), std::string::npos) << ran.output;
+
+  // --verify-step 0: not checked, reported as null (not 0), and --check says so.
+  const fs::path report_off = dir / "report-off.json";
+  const ProcessResult off = runApp("run --check --verify-step 0 --scene " + quoted(kBlockScene) + " --trajectory " +
+                                   quoted(csv) + " --report " + quoted(report_off));
+  ASSERT_EQ(off.exit_code, 0) << off.output;
+  EXPECT_NE(off.output.find("crossings not checked"), std::string::npos) << off.output;
+  EXPECT_NE(off.output.find("warning: --check without the crossing check"), std::string::npos) << off.output;
+  std::ifstream in_off(report_off);
+  const nlohmann::json j_off = nlohmann::json::parse(in_off);
+  EXPECT_TRUE(j_off["crossings"].is_null());
+  EXPECT_EQ(j_off["verify_step_voxels"].get<double>(), 0.0);
+
+  const ProcessResult negative =
+      runApp("run --verify-step -1 --scene " + quoted(kBlockScene) + " --trajectory " + quoted(csv));
+  EXPECT_NE(negative.exit_code, 0) << negative.output;
+  EXPECT_NE(negative.output.find("--verify-step"), std::string::npos) << negative.output;
 }
 
 }  // namespace

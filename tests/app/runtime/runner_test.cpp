@@ -1,7 +1,8 @@
 // Tests of vh/runtime/runner.h (the headless runner) on synthetic volumes with generated
 // push-and-slide trajectories: the proxy never penetrates deeper than epsilon, no tick produces a
 // non-finite value, contacts and forces happen, and the proxy follows the device back into free
-// space. Also the penetration measure itself, the report, determinism through the CSV, errors.
+// space, and the crossing check (haptics::CrossingVerifier after every tick) finds no crossing.
+// Also the penetration measure itself, the report, determinism through the CSV, errors.
 #include "vh/runtime/runner.h"
 
 #include <cmath>
@@ -46,6 +47,14 @@ void expectSoundRun(const RunReport& r, const Trajectory& trajectory, const std:
   EXPECT_LT(r.epsilon_m, r.feature_size_m);
   EXPECT_LE(r.max_penetration_m, r.epsilon_m) << "deepest at tick " << r.max_penetration_tick;
   EXPECT_EQ(r.ticks_penetrating, 0u);
+  // The default run checks every tick's proxy motion for crossings (issue 12): none.
+  EXPECT_TRUE(r.crossingsChecked());
+  EXPECT_EQ(r.verify_step_voxels, RunOptions{}.verify_step_voxels);
+  EXPECT_EQ(r.crossings, 0) << "first at tick " << r.first_crossing_tick;
+  EXPECT_EQ(r.crossing_points, 0);
+  EXPECT_EQ(r.first_crossing_tick, -1);
+  EXPECT_GE(r.verify_s, 0.0);
+  EXPECT_LE(r.verify_s, r.total_s);
   EXPECT_GT(r.max_contacts, 0);
   EXPECT_GT(r.ticks_in_contact, 500u);  // in contact through most of the push and the slide
   EXPECT_GT(r.max_force_N, 1.0);        // the device is pushed 5 mm past the surface
@@ -168,14 +177,50 @@ TEST(Runner, ReplayThroughTheCsvIsIdenticalAndTheReportIsComplete) {
   const nlohmann::json j = nlohmann::json::parse(in);
   for (const char* key : {"ticks", "mean_us", "p50_us", "p99_us", "max_us", "max_contacts", "mean_contacts",
                           "max_penetration_m", "nan_ticks", "max_force_N", "epsilon_m", "point_count", "volume_dims",
-                          "isovalue", "bad_device_samples"}) {
+                          "isovalue", "bad_device_samples", "crossings", "crossing_points", "first_crossing_tick",
+                          "verify_step_voxels", "verify_s"}) {
     EXPECT_TRUE(j.contains(key)) << key;
   }
+  ASSERT_TRUE(j["crossings"].is_number_integer());
+  EXPECT_EQ(j["crossings"].get<std::int64_t>(), 0);
+  EXPECT_EQ(j["crossing_points"].get<std::int64_t>(), 0);
+  EXPECT_EQ(j["first_crossing_tick"].get<std::int64_t>(), -1);
+  EXPECT_DOUBLE_EQ(j["verify_step_voxels"].get<double>(), 0.01);
+  EXPECT_NE(from_files.summary().find("crossings 0 (checked at 0.01 voxel)"), std::string::npos)
+      << from_files.summary();
   EXPECT_EQ(j["ticks"].get<std::uint64_t>(), from_files.ticks);
   EXPECT_EQ(j["volume_dims"], nlohmann::json({64, 64, 64}));
   EXPECT_EQ(j["point_count"].get<std::size_t>(), scene.tool->point_shell.size());
   EXPECT_DOUBLE_EQ(j["max_penetration_m"].get<double>(), from_files.max_penetration_m);
   EXPECT_NE(from_files.summary().find("ticks " + std::to_string(from_files.ticks)), std::string::npos);
+}
+
+TEST(Runner, CrossingCheckOffIsReportedAsNotCheckedNotAsZero) {
+  const LoadedScene& scene = blockScene();
+  const auto& field = *scene.volume.field;
+  Pose start = poseAboveVolume(field, scene.tool->point_shell, Eigen::Quaterniond::Identity(), 0.005);
+  start.p_AB_m.x() = 0.015;
+  PushSlideOptions push;
+  push.slide_time_s = 0.5;
+  const PushSlidePlan plan = makePushSlideTrajectory(field, scene.tool->point_shell, scene.isovalue, start, push);
+  RunOptions options;
+  options.verify_step_voxels = 0.0;
+  const RunReport r = runHeadless(scene, plan.trajectory, options);
+  EXPECT_FALSE(r.crossingsChecked());
+  EXPECT_EQ(r.verify_step_voxels, 0.0);
+  EXPECT_EQ(r.crossings, -1);
+  EXPECT_EQ(r.crossing_points, -1);
+  EXPECT_EQ(r.first_crossing_tick, -1);
+  EXPECT_EQ(r.verify_s, 0.0);
+  EXPECT_NE(r.summary().find("crossings not checked"), std::string::npos) << r.summary();
+  const nlohmann::json j = nlohmann::json::parse(r.toJson());
+  EXPECT_TRUE(j["crossings"].is_null());
+  EXPECT_TRUE(j["crossing_points"].is_null());
+  EXPECT_TRUE(j["first_crossing_tick"].is_null());
+  EXPECT_EQ(j["verify_step_voxels"].get<double>(), 0.0);
+
+  options.verify_step_voxels = -1.0;
+  EXPECT_THROW(runHeadless(scene, plan.trajectory, options), std::invalid_argument);
 }
 
 TEST(Runner, PenetrationMeasureIsTheDepthBelowAPlane) {

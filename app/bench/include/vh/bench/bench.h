@@ -2,7 +2,10 @@
 /// @file
 /// Benchmarks of the rendering core (issue 7), run by `volume-haptics bench ...`:
 ///   table1     the paper's Table 1 (section 3.2): four scenes, scripted device trajectories,
-///              tick times per detection mode (paper / accelerated) side by side with their ratio;
+///              tick times per detection mode (paper / accelerated) side by side with their ratio,
+///              and the accelerated mode with issue 8's end-sample segment test (the "before"
+///              column of issue 12) against the exact test; every tick's proxy motion checked
+///              for crossings by haptics::CrossingVerifier outside the timed section;
 ///   accuracy   contact-position and normal error against tick time on volumes with exact
 ///              isosurfaces, swept over epsilon, segment_fraction and point-shell density;
 ///   stability  the coupling-stiffness sweep with the simulated device (vh::simulation) and a
@@ -21,7 +24,7 @@ class App;
 
 namespace vh::bench {
 
-/// Which detection paths a benchmark runs (haptics::DetectionMode).
+/// Which detection paths a benchmark runs (haptics::DetectionMode; kBoth: paper and accelerated).
 enum class ModeSelection { kPaper, kAccelerated, kBoth };
 
 /// Options shared by every benchmark.
@@ -37,6 +40,12 @@ struct CommonOptions {
 struct Table1Options {
   CommonOptions common;
   ModeSelection modes = ModeSelection::kBoth;
+  /// When the accelerated mode runs: also run it with SegmentTest::kEndSample (issue 8's test, the
+  /// "before" column of issue 12), interleaved with the others, and compare it with the exact test.
+  bool before = true;
+  /// Crossing check after every tick (haptics::CrossingVerifier, outside the timed section):
+  /// sampling step along each shell point's path [voxels]; 0: off (crossings reported as -1).
+  double verify_step_voxels = 0.01;
   /// Run only this scene ("Bunny", "Engine", "Hole", "Bone", case-insensitive); empty: all.
   std::string scene;
   /// Ticks per scene and mode; 0: 20,000 (short: 1,000).

@@ -4,8 +4,11 @@
 /// as fast as possible at simulated servo ticks and reports timing and correctness: tick i runs
 /// at t = t_first + i / rate for t up to the trajectory's last time. After every tick, outside
 /// the timed section, it measures how deep the proxy's point shell is inside the isosurface
-/// (first order: (F(p) - s) / |grad F(p)| over the points with F(p) > s) and counts ticks with a
-/// non-finite force, torque or proxy pose.
+/// (first order: (F(p) - s) / |grad F(p)| over the points with F(p) > s), counts ticks with a
+/// non-finite force, torque or proxy pose, and checks with haptics::CrossingVerifier that the
+/// tick's proxy motion (HapticRenderer::lastMotion() over [0, lastTimeOfContact()]) carried no
+/// shell point from outside the isosurface into it (a crossing: the proxy went into or through
+/// the surface, issue 12).
 
 #include <array>
 #include <cstdint>
@@ -23,9 +26,13 @@ namespace vh::runtime {
 struct RunOptions {
   double servo_rate_Hz = 1000.0;  ///< Simulated tick rate [Hz].
   bool check_penetration = true;  ///< Measure the penetration after every tick.
+  /// Sampling step of the crossing check along each shell point's path, in voxels (the smallest
+  /// voxel side; see haptics::CrossingVerifier); 0 turns the check off (the report's crossing
+  /// fields are then -1, null in JSON: not checked). Outside the timed section.
+  double verify_step_voxels = 0.01;
   /// Non-empty: also write one CSV row per tick here (t_s, device and proxy positions [m],
   /// force [N], torque [N*m], contacts, exec_us, penetration_m, proxy quaternion, time of
-  /// contact) for inspecting a run.
+  /// contact, crossing_points: -1 when not checked) for inspecting a run.
   std::filesystem::path trace_csv;
   /// Non-empty: also write a session recording (recording.h) here: makeSessionMetadata() with
   /// the trajectory's first pose as the initial pose and device kind "scripted", one TickRecord
@@ -70,6 +77,13 @@ struct RunReport {
   std::int64_t max_penetration_tick = -1;
   std::uint64_t ticks_penetrating = 0;   ///< Ticks with depth > epsilon.
   std::uint64_t nan_ticks = 0;           ///< Ticks with a non-finite force, torque or proxy pose.
+  /// Crossing check (CrossingVerifier after every tick, outside the timed section). The step it
+  /// sampled paths with [voxels]; 0: not checked, and the three counts below are -1.
+  double verify_step_voxels = 0.0;
+  std::int64_t crossings = -1;           ///< Ticks in which some shell point crossed into the isosurface.
+  std::int64_t crossing_points = -1;     ///< Sum over ticks of the points that crossed.
+  std::int64_t first_crossing_tick = -1; ///< First tick with a crossing; -1: none (or not checked).
+  double verify_s = 0.0;                 ///< Time spent in the crossing check [s] (in total_s).
   std::uint64_t bad_device_samples = 0;  ///< Samples the renderer rejected.
   int initial_points_inside = 0;         ///< Shell points inside at the first proxy pose.
   double final_force_N = 0.0;            ///< |force| on the last tick.
@@ -78,10 +92,15 @@ struct RunReport {
   /// surface with the device; much more means the proxy lagged or stuck.
   double max_proxy_device_distance_m = 0.0;
 
-  /// The report as a JSON document (keys as the field names; dims as "volume_dims").
+  /// True when the crossing check ran (verify_step_voxels > 0).
+  bool crossingsChecked() const noexcept { return verify_step_voxels > 0.0; }
+
+  /// The report as a JSON document (keys as the field names; dims as "volume_dims"; the crossing
+  /// counts are null when the check was off).
   std::string toJson() const;
-  /// One line: "ticks 4200, mean 120 us, p99 310 us, max 900 us, contacts <= 12, penetration
-  /// 0.01 mm (epsilon 0.03 mm), nan 0".
+  /// One line: "ticks 4200, exec mean 120 us, ..., penetration 0.01 mm (epsilon 0.03 mm); nan ticks
+  /// 0; bad samples 0; crossings 0 (checked at 0.01 voxel)" ("crossings 3 (5 points, first at
+  /// tick 812; ...)" when some crossed, "crossings not checked" when the check was off).
   std::string summary() const;
 };
 
