@@ -28,9 +28,9 @@ INSTANTIATE_TEST_SUITE_P(Modes, NeverThroughPhantom,
                            return std::string(haptics::toString(p.param));
                          });
 
-TEST_P(NeverThroughPhantom, BallPushedOntoTheVaultAt870HUNeverEntersTheCranium) {
-  const fs::path data = test::sharedDatasets() / "ct" / "philips-head-phantom-bone";
-  if (!fs::exists(data)) GTEST_SKIP() << "shared dataset absent: " << data;
+// Pushes the ball onto the vault at four places (those that meet bone) and three speeds;
+// returns the ticks with a crossing over all runs.
+int pushOntoTheVault(haptics::DetectionMode mode, haptics::SegmentTest test) {
   const SceneSpec spec = parseScene(
       R"({"volume": {"path": "ct/philips-head-phantom-bone", "isovalue": 870},
           "tool": {"mesh": "builtin:sphere", "point_spacing_m": 0.001}})",
@@ -40,7 +40,7 @@ TEST_P(NeverThroughPhantom, BallPushedOntoTheVaultAt870HUNeverEntersTheCranium) 
   const double s = scene.isovalue;
   const haptics::CrossingVerifier oracle(*volume, scene.tool->point_shell, 1e-3);
   const Pose above = poseAboveVolume(*volume, scene.tool->point_shell, Eigen::Quaterniond::Identity(), 0.005);
-  int runs = 0, contacts = 0;
+  int runs = 0, contacts = 0, total_crossings = 0;
   std::int64_t samples = 0;
   for (const Eigen::Vector2d offset : {Eigen::Vector2d(0.0, 0.0), Eigen::Vector2d(0.02, 0.005),
                                        Eigen::Vector2d(-0.015, 0.02), Eigen::Vector2d(0.01, -0.03)}) {
@@ -51,7 +51,8 @@ TEST_P(NeverThroughPhantom, BallPushedOntoTheVaultAt870HUNeverEntersTheCranium) 
     start.p_AB_m.z() -= *d - 0.002;  // 2 mm above the vault
     for (const double speed_mm : {0.5, 2.0, 6.0}) {
       haptics::RendererOptions o;
-      o.detection_mode = GetParam();
+      o.detection_mode = mode;
+      o.segment_test = test;
       haptics::HapticRenderer r(volume, scene.tool, o, start, s);
       // Down 12 mm past the first contact (the vault is a few millimetres of bone), then held.
       const double travel = 0.014;
@@ -66,14 +67,32 @@ TEST_P(NeverThroughPhantom, BallPushedOntoTheVaultAt870HUNeverEntersTheCranium) 
         samples += c.samples;
         if (c.crossing_points > 0 && crossing_ticks++ == 0) first = i;
       }
-      EXPECT_EQ(crossing_ticks, 0) << "offset " << offset.transpose() << " m, " << speed_mm
-                                   << " mm per tick: first crossing at tick " << first;
+      if (test == haptics::SegmentTest::kExact)
+        EXPECT_EQ(crossing_ticks, 0) << "offset " << offset.transpose() << " m, " << speed_mm
+                                     << " mm per tick: first crossing at tick " << first;
+      total_crossings += crossing_ticks;
       ++runs;
     }
   }
-  ASSERT_GT(runs, 0) << "the ball met no bone at 870 HU";
+  EXPECT_GT(runs, 0) << "the ball met no bone at 870 HU";
   EXPECT_GT(contacts, 0);
-  std::cout << runs << " approaches, " << samples << " oracle samples, up to " << contacts << " contacts\n";
+  std::cout << toString(test) << ": " << runs << " approaches, " << samples << " oracle samples, up to " << contacts
+            << " contacts, " << total_crossings << " ticks with a crossing\n";
+  return total_crossings;
+}
+
+bool phantomPresent() { return fs::exists(test::sharedDatasets() / "ct" / "philips-head-phantom-bone"); }
+
+TEST_P(NeverThroughPhantom, BallPushedOntoTheVaultAt870HUNeverEntersTheCranium) {
+  if (!phantomPresent()) GTEST_SKIP() << "shared dataset absent: " << test::sharedDatasets() / "ct";
+  EXPECT_EQ(pushOntoTheVault(GetParam(), haptics::SegmentTest::kExact), 0);
+}
+
+// The control: issue 8's end-sample test carries points through the vault here, and the
+// oracle reports it (so the check above can fail).
+TEST(NeverThroughPhantomControl, TheEndSampleTestCrossesTheVault) {
+  if (!phantomPresent()) GTEST_SKIP() << "shared dataset absent: " << test::sharedDatasets() / "ct";
+  EXPECT_GT(pushOntoTheVault(haptics::DetectionMode::kAccelerated, haptics::SegmentTest::kEndSample), 0);
 }
 
 }  // namespace
