@@ -193,21 +193,22 @@ SweepResult CollisionDetector::sweep(const RigidMotion& motion, double isovalue)
 
 void CollisionDetector::setupPath(const RigidMotion& motion, int j) noexcept {
   r0_[j] = motion.radial_W(tool_->point_shell.points_T_m()[j]);
-  path_[j] = motion.pathLengthBound(r0_[j]);
+  const double angle = motion.angle_rad();
+  const double rho = motion.radiusAboutAxis(r0_[j]);
+  path_[j] = motion.speed_m() + angle * rho;  // = pathLengthBound(r0), rho computed once
   if (embedded_[j] || !(path_[j] > 0.0)) return;
   // ceil(s / f) equal time segments, none longer than the feature size (section 2.3).
   double segments = std::max(1.0, std::ceil(path_[j] / segment_length_m_));
   margin_[j] = 0.0;
-  const double rho = max_sagitta_ > 0.0 ? motion.radiusAboutAxis(r0_[j]) : 0.0;
-  if (rho > 0.0) {
+  if (max_sagitta_ > 0.0 && rho > 0.0) {
     // Chords of the rotation: sagitta delta = rho (angle / segments)^2 / 8 <= max_sagitta_. At
     // the same time the arc is within 4 delta u (1 - u) of its chord (the interpolation error
     // bound with |p''| = rho omega^2), so a chord whose F stays <= s - 4 L delta u (1 - u)
     // keeps the arc at F <= s (L = lipschitzBound()).
-    const double angle = motion.angle_rad();
-    segments = std::max(segments, std::ceil(angle * std::sqrt(rho / (8.0 * max_sagitta_))));
-    const double step = angle / segments;
-    margin_[j] = volume_->lipschitzBound() * rho * step * step / 8.0 * (1.0 + 1e-9);
+    const double sagitta_of_one = rho * angle * angle / 8.0;  // one chord over the whole arc
+    if (sagitta_of_one > max_sagitta_ * segments * segments)
+      segments = std::ceil(angle * std::sqrt(rho / (8.0 * max_sagitta_)));
+    margin_[j] = volume_->lipschitzBound() * sagitta_of_one / (segments * segments) * (1.0 + 1e-9);
   }
   dt_[j] = 1.0 / segments;
   if (mode_ == DetectionMode::kAccelerated) segments_[j] = static_cast<std::int64_t>(segments);

@@ -46,6 +46,8 @@ class RigidMotion {
   /// the axis). Tighter than the paper's |v| + |omega| |r0| for points near the rotation axis
   /// (a thin tool spinning about its shaft; issue 13).
   double pathLengthBound(const Eigen::Vector3d& r0_W) const noexcept { return speed_ + angle_ * radiusAboutAxis(r0_W); }
+  /// Translation over the unit step, |v| [m].
+  double speed_m() const noexcept { return speed_; }
   /// Rotation angle over the unit step, |omega| [rad].
   double angle_rad() const noexcept { return angle_; }
   /// Distance of the point with radial vector r0_W from the rotation axis through c0 [m]
