@@ -287,7 +287,12 @@ std::size_t CollisionDetector::collectActive(const RigidMotion& motion, double t
   std::size_t count = 0;
   int top = 0;
   stack_[top++] = 0;
+  budget_stopped_ = false;
   while (top > 0) {
+    if (queue && overBudget()) {
+      budget_stopped_ = true;
+      return count;
+    }
     const ShellNode& node = nodes_[stack_[--top]];
     const Eigen::Vector3d r_c = motion.radial_W(node.center_T_m);
     const double radius =
@@ -336,7 +341,16 @@ SweepResult CollisionDetector::sweepAccelerated(const RigidMotion& motion, doubl
   // only tested over [0, t]; a hit at t = 0 ends the sweep at once (addContactsAt then
   // collects the points near the proxy itself).
   queued_ = 0;
+  // Budget cut before the queue: nothing is proven for the points not yet looked at.
+  const auto cutAtStart = [&] {
+    active_complete_ = false;
+    SweepResult cut;
+    cut.t = cut.t_inside = 0.0;
+    cut.budget_cut = true;
+    return cut;
+  };
   for (std::size_t i = 0; i < contact_count_; ++i) {
+    if (overBudget()) return cutAtStart();
     const int j = contacts_[i].point_index;
     if (embedded_[j]) continue;
     startPoint(motion, j);
@@ -352,6 +366,7 @@ SweepResult CollisionDetector::sweepAccelerated(const RigidMotion& motion, doubl
     return result;
   }
   std::size_t count = queued_ + collectActive(motion, result.t, isovalue, true);
+  if (budget_stopped_) return cutAtStart();
   std::make_heap(heap_.begin(), heap_.begin() + static_cast<std::ptrdiff_t>(count), Later{});
   // The paper's time-ordered search over the segments that remain; the samples and the
   // bisection are the paper's, so the first time of contact is the same double.
@@ -372,6 +387,13 @@ SweepResult CollisionDetector::sweepAccelerated(const RigidMotion& motion, doubl
   for (;;) {
     if (pop_pending && --count > 0) replaceTop(heap, count, heap[count]);
     if (!(count > 0 && heap[0].t_begin < result.t)) break;
+    if (overBudget()) {  // every path is proven free up to the queue's front
+      result.t = result.t_inside = heap[0].t_begin;
+      result.hit_point = -1;
+      result.budget_cut = true;
+      active_complete_ = false;
+      break;
+    }
     const QueueEntry e = heap[0];
     pop_pending = true;
     const int j = e.point;
@@ -424,6 +446,12 @@ SweepResult CollisionDetector::sweepPaper(const RigidMotion& motion, double isov
   // Time-prioritised search: always advance the segment that starts earliest; stop once no
   // pending segment starts before the earliest contact found.
   while (count > 0 && heap_[0].t_begin < result.t) {
+    if (overBudget()) {  // every path is proven free up to the queue's front
+      result.t = result.t_inside = heap_[0].t_begin;
+      result.hit_point = -1;
+      result.budget_cut = true;
+      break;
+    }
     std::pop_heap(heap_.begin(), heap_.begin() + static_cast<std::ptrdiff_t>(count), Later{});
     const QueueEntry e = heap_[--count];
     // The segment's test (exact, or the paper's end sample), then interval bisection until the
@@ -498,7 +526,7 @@ void CollisionDetector::addContactsAt(const RigidMotion& motion, const SweepResu
     }
     active_count_ = candidates;
     std::sort(active_.begin(), active_.begin() + static_cast<std::ptrdiff_t>(candidates));
-    for (std::size_t i = 0; i < candidates; ++i) {
+    for (std::size_t i = 0; i < candidates && !overBudget(); ++i) {
       const int j = active_[i];
       const double t_ahead = t + epsilon_ / path_[j];
       if (inside(motion.pointAt(r0_[j], t_ahead), isovalue))
@@ -506,7 +534,7 @@ void CollisionDetector::addContactsAt(const RigidMotion& motion, const SweepResu
     }
     return;
   }
-  for (int j = 0; j < n; ++j) {
+  for (int j = 0; j < n && !overBudget(); ++j) {
     if (in_set_[j] || embedded_[j] || !(path_[j] > 0.0)) continue;
     if (inside(motion.pointAt(r0_[j], t + epsilon_ / path_[j]), isovalue))
       appendContact(j, motion.pointAt(r0_[j], t), direction(j), isovalue);

@@ -1,6 +1,7 @@
 #include "vh/haptics/haptic_renderer.h"
 
 #include <chrono>
+#include <algorithm>
 #include <cmath>
 #include <stdexcept>
 
@@ -22,6 +23,7 @@ HapticRenderer::HapticRenderer(std::shared_ptr<const ScalarVolume> volume, std::
   if (!std::isfinite(isovalue)) throw std::invalid_argument("HapticRenderer: the isovalue is not finite");
   X_WP_.R_AB.normalize();
   solver_.setGains(options.gains);
+  collision_.setWorkBudget(options.work_budget);
   collision_.updateEmbedded(X_WP_, isovalue);
 }
 
@@ -83,10 +85,21 @@ TickOutput HapticRenderer::tick(const Pose& X_WD_in, double isovalue) noexcept {
   SweepResult hit;
   for (int attempt = 0; attempt < 3; ++attempt) {
     motion = solver_.constrainedMotion(X_WP_, X_WD, mass, collision_.contacts(), standoff_m);
+    // After a tick the work budget cut, a shorter step along the same constrained motion (the
+    // velocity limit of section 2.3): fewer segments, smaller balls, so the sweep can finish
+    // and the proxy make progress; the step doubles back after each tick that finishes.
+    if (motion_scale_ < 1.0)
+      motion = RigidMotion::FromVelocity(X_WP_, mass.p_TCm_m, motion.v_W_m() * motion_scale_,
+                                         motion.omega_W_rad() * motion_scale_);
     hit = collision_.sweep(motion, isovalue);
     if (attempt == 2 || !collision_.refineStuckContact(motion, hit)) break;
   }
   blocked_last_tick_ = hit.hit_point >= 0 && hit.t < 0.01;
+  if (hit.budget_cut) {
+    motion_scale_ = std::max(1.0 / 4096.0, 0.5 * motion_scale_);
+  } else if (motion_scale_ < 1.0) {
+    motion_scale_ = std::min(1.0, 2.0 * motion_scale_);
+  }
   // Step 5: move the proxy to the first contact (or the target).
   X_WP_ = motion.poseAt(hit.t);
   last_motion_ = motion;
@@ -103,6 +116,8 @@ TickOutput HapticRenderer::tick(const Pose& X_WD_in, double isovalue) noexcept {
   out.stats.volume_samples = collision_.sampleCount();
   out.stats.box_queries = collision_.boxQueryCount();
   out.stats.cells = collision_.cellCount();
+  out.stats.work = collision_.work();
+  out.stats.budget_cut = hit.budget_cut;
   out.stats.time_of_contact = hit.t;
   out.stats.exec_time_us = std::chrono::duration<double, std::micro>(Clock::now() - start).count();
   return out;

@@ -62,6 +62,10 @@ struct SweepResult {
   double t = 1.0;         ///< First time of contact in [0, 1] (1 = no contact).
   double t_inside = 1.0;  ///< End of the bisection interval (the hit point is inside there).
   int hit_point = -1;     ///< Point that collided first, or -1.
+  /// The work budget ran out before the sweep was done (issue 13): t is the time up to which
+  /// every point's path is proven free (hit_point -1); the rest of the motion is left for the
+  /// next tick.
+  bool budget_cut = false;
 };
 
 /// Collision detector for one point shell against one volume. Owns the contact set and all
@@ -144,6 +148,16 @@ class CollisionDetector {
   std::int64_t boxQueryCount() const noexcept { return box_queries_; }
   /// Cells walked by the exact segment test whose cubic was examined, since the last resetSampleCount().
   std::int64_t cellCount() const noexcept { return cells_; }
+  /// Work since the last resetSampleCount(): samples + cells + box queries (one unit each; about
+  /// a trilinear sample's cost).
+  std::int64_t work() const noexcept { return samples_ + cells_ + box_queries_; }
+  /// Work budget per resetSampleCount() period (a servo tick), 0 = none (issue 13). Once work()
+  /// reaches it, sweep() stops at the time up to which every path is proven free (the
+  /// time-ordered queue's front; 0 before the queue starts) and addContactsAt() adds only the
+  /// hit point: the overshoot is at most one queue step. The proxy never crosses the surface
+  /// because of it: it moves less far, and the rest of the motion continues next tick.
+  void setWorkBudget(std::int64_t units) noexcept { work_budget_ = units > 0 ? units : 0; }
+  std::int64_t workBudget() const noexcept { return work_budget_; }
   void resetSampleCount() noexcept {
     cells_ = 0;
     samples_ = 0;
@@ -187,7 +201,9 @@ class CollisionDetector {
   // kAccelerated: walks the point-shell tree over the arc [0, t_max] (plus epsilon) and fills
   // active_ with the points not culled; with `queue`, also tests each point's path over
   // [0, t_max] and writes heap entries from heap_[queued_]. Returns the entries written.
+  // With `queue`, the walk stops when the work budget runs out and sets budget_stopped_.
   std::size_t collectActive(const RigidMotion& motion, double t_max, double isovalue, bool queue) noexcept;
+  bool budget_stopped_ = false;
   // Fills c.n_W and c.clearance_m at c.p_W_m (7 samples).
   void measureContact(Contact& c, double isovalue) noexcept;
   void appendContact(int point, const Eigen::Vector3d& p_W, const Eigen::Vector3d& fallback_n_W, double isovalue) noexcept;
@@ -235,6 +251,8 @@ class CollisionDetector {
   std::int64_t samples_ = 0;
   std::int64_t box_queries_ = 0;
   std::int64_t cells_ = 0;
+  std::int64_t work_budget_ = 0;
+  bool overBudget() const noexcept { return work_budget_ > 0 && work() >= work_budget_; }
 };
 
 }  // namespace vh::haptics

@@ -47,6 +47,14 @@ struct RendererOptions {
   /// How each segment is tested: kExact (default) finds a feature of any thickness; kEndSample
   /// is issue 8's end sample, kept for the before/after benchmark (see SegmentTest).
   SegmentTest segment_test = SegmentTest::kExact;
+  /// Collision-detection work per tick, in units of about one trilinear sample (samples, cells
+  /// and box queries; CollisionDetector::work()); 0 = unbounded (the default). When the sweep
+  /// reaches it, the proxy moves only as far as every point is proven free and the rest of the
+  /// motion continues next tick (issue 13, "a tick that respects a time budget"); after a cut
+  /// the next tick's step along the constrained motion is halved (down to 1/4096), and doubles
+  /// back after each tick that finishes. It must exceed the pruning of a full contact set
+  /// (about 12 units per contact), which is done before the sweep, or the proxy stalls.
+  std::int64_t work_budget = 0;
   /// Coupling gains (section 2.5); may be changed between ticks with setGains().
   CouplingGains gains;
   /// Largest device translation accepted from one tick to the next [m]; farther jumps and
@@ -61,6 +69,8 @@ struct TickStats {
   std::int64_t volume_samples = 0;  ///< Trilinear F samples taken (a gradient counts 6).
   std::int64_t box_queries = 0;     ///< Min-max tree box queries (kAccelerated; 0 for kPaper).
   std::int64_t cells = 0;           ///< Cells whose cubic the exact segment test examined.
+  std::int64_t work = 0;            ///< samples + cells + box queries (RendererOptions::work_budget's unit).
+  bool budget_cut = false;          ///< The work budget stopped the sweep before its end.
   double time_of_contact = 1.0;     ///< Fraction of the constrained path travelled (1 = free).
   bool bad_input = false;           ///< The device pose was rejected this tick.
 };
@@ -128,7 +138,8 @@ class HapticRenderer {
   double last_t_ = 0.0;
   double last_isovalue_;
   bool embedded_scan_needed_ = false;
-  bool blocked_last_tick_ = false;  // the last sweep stopped before 1 % of its path
+  bool blocked_last_tick_ = false;
+  double motion_scale_ = 1.0;  // < 1 after ticks the work budget cut (RendererOptions::work_budget)  // the last sweep stopped before 1 % of its path
   std::int64_t bad_inputs_ = 0;
 };
 
