@@ -53,6 +53,10 @@ CLI::App* addBenchSubcommand(CLI::App& app, std::function<int()>& handler) {
       ->check(CLI::IsMember({"paper", "accelerated", "both", "all"}));
   t1->add_flag("--before", *before,
                "Add the 'before' column (accelerated mode, end-sample segment test) to --mode accelerated or both");
+  t1->add_option("--work-budget", table1->work_budget,
+                 "Add a column: the accelerated mode with this work budget per tick (units of about one "
+                 "trilinear sample; issue 13), with its lag behind the unbudgeted accelerated proxy")
+      ->check(CLI::NonNegativeNumber);
   t1->add_option("--verify-step", table1->verify_step_voxels,
                  "Crossing check after every tick, outside the timed part: path sampling step [voxels]; 0: off")
       ->capture_default_str()

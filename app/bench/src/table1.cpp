@@ -214,7 +214,10 @@ struct Variant {
   haptics::SegmentTest segment_test = haptics::SegmentTest::kExact;
   std::string key;    ///< JSON key and file-name part: "paper", "accelerated", "accelerated-end-sample".
   std::string label;  ///< For people: "paper", "accelerated", "accelerated (end-sample, before)".
+  std::int64_t work_budget = 0;  ///< RendererOptions::work_budget (issue 13's bounded tick), 0 = none.
 };
+
+constexpr const char* kBudgetKey = "accelerated-budget";
 
 constexpr const char* kBeforeKey = "accelerated-end-sample";
 
@@ -228,6 +231,9 @@ struct ModeRun {
   std::int64_t crossings = 0, crossing_points = 0, first_crossing_tick = -1;
   double verify_s = 0.0;
   double wall_s = 0.0;
+  // Issue 13: ticks the work budget cut; the lag behind the unbudgeted accelerated proxy.
+  std::int64_t budget_cuts = 0, lag_ticks = 0;
+  double max_lag_m = 0.0, max_lag_rad = 0.0, max_work = 0.0;
 };
 
 /// CPU time of this thread [us] (not advanced while the thread is preempted).
@@ -244,6 +250,14 @@ nlohmann::ordered_json modeJson(const ModeRun& m, double epsilon_m, bool verifie
   j["label"] = m.variant.label;
   j["detection_mode"] = haptics::toString(m.variant.mode);
   j["segment_test"] = haptics::toString(m.variant.segment_test);
+  if (m.variant.work_budget > 0) {
+    j["work_budget"] = m.variant.work_budget;
+    j["budget_cuts"] = m.budget_cuts;
+    j["max_work"] = m.max_work;
+    j["lag_ticks"] = m.lag_ticks;
+    j["max_lag_m"] = m.max_lag_m;
+    j["max_lag_rad"] = m.max_lag_rad;
+  }
   j["ticks"] = t.n;
   j["mean_us"] = t.mean;
   j["p50_us"] = t.p50;
@@ -317,6 +331,7 @@ void runScene(const runtime::LoadedScene& scene, std::shared_ptr<const haptics::
     haptics::RendererOptions options;
     options.detection_mode = variant.mode;
     options.segment_test = variant.segment_test;
+    options.work_budget = variant.work_budget;
     options.gains = scene.spec.gains;
     m.renderer = std::make_unique<haptics::HapticRenderer>(scene.volume.field, tool, options, X_WD0, s);
     m.times_us.reserve(static_cast<std::size_t>(ticks));
@@ -331,6 +346,7 @@ void runScene(const runtime::LoadedScene& scene, std::shared_ptr<const haptics::
     return -1;
   };
   const int i_paper = indexOf("paper"), i_accel = indexOf("accelerated"), i_before = indexOf(kBeforeKey);
+  const int i_budget = indexOf(kBudgetKey);
   const double epsilon_m = runs.front().renderer->epsilon_m();
   double max_mode_difference_m = 0.0, max_before_difference_m = 0.0;
   // Diagnostics (issue 8): VH_TABLE1_TICK_CSV=DIR writes one CSV per scene and mode with every
@@ -347,6 +363,7 @@ void runScene(const runtime::LoadedScene& scene, std::shared_ptr<const haptics::
   haptics::Pose X_WD_last = X_WD0;
   std::size_t cursor = 0;
   std::vector<Eigen::Vector3d> proxy(runs.size(), Eigen::Vector3d::Zero());
+  std::vector<Eigen::Quaterniond> proxy_R(runs.size(), Eigen::Quaterniond::Identity());
   std::vector<char> proxy_finite(runs.size(), 0);
   for (int i = 0; i < ticks; ++i) {
     const haptics::Pose X_WD = traj.poseAt(i * 1e-3, cursor);
@@ -384,6 +401,8 @@ void runScene(const runtime::LoadedScene& scene, std::shared_ptr<const haptics::
       m.contacts.push_back(out.stats.contacts);
       m.samples.push_back(static_cast<double>(out.stats.volume_samples));
       m.cells_sum += static_cast<double>(out.stats.cells);
+      m.budget_cuts += out.stats.budget_cut;
+      m.max_work = std::max(m.max_work, static_cast<double>(out.stats.work));
       if (out.stats.exec_time_us > 1000.0) ++m.over_1ms;
       if (out.stats.contacts > 0) ++m.in_contact;
       proxy_finite[r] = finite;
@@ -392,6 +411,7 @@ void runScene(const runtime::LoadedScene& scene, std::shared_ptr<const haptics::
         continue;
       }
       proxy[r] = out.X_WP.p_AB_m;
+      proxy_R[r] = out.X_WP.R_AB;
       m.max_force_N = std::max(m.max_force_N, out.force_W_N.norm());
       if (i % penetration_stride == 0)
         m.max_penetration_m =
@@ -404,6 +424,15 @@ void runScene(const runtime::LoadedScene& scene, std::shared_ptr<const haptics::
     };
     max_mode_difference_m = std::max(max_mode_difference_m, difference(i_paper, i_accel));
     max_before_difference_m = std::max(max_before_difference_m, difference(i_accel, i_before));
+    if (i_budget >= 0 && i_accel >= 0 && proxy_finite[static_cast<std::size_t>(i_budget)] &&
+        proxy_finite[static_cast<std::size_t>(i_accel)]) {
+      ModeRun& b = runs[static_cast<std::size_t>(i_budget)];
+      const double lag_m = difference(i_budget, i_accel);
+      const double lag_rad = proxy_R[static_cast<std::size_t>(i_budget)].angularDistance(proxy_R[static_cast<std::size_t>(i_accel)]);
+      b.max_lag_m = std::max(b.max_lag_m, lag_m);
+      b.max_lag_rad = std::max(b.max_lag_rad, lag_rad);
+      if (lag_m > 1e-9 || lag_rad > 1e-9) ++b.lag_ticks;
+    }
     X_WD_last = X_WD;
   }
 
@@ -487,6 +516,9 @@ fs::path runTable1(const Table1Options& options) {
     if (options.before)
       variants.push_back({DetectionMode::kAccelerated, SegmentTest::kEndSample, kBeforeKey,
                           "accelerated (end-sample, before)"});
+    if (options.work_budget > 0)
+      variants.push_back({DetectionMode::kAccelerated, SegmentTest::kExact, kBudgetKey,
+                          "accelerated (work budget " + std::to_string(options.work_budget) + ")", options.work_budget});
   }
 
   std::vector<SceneDef> defs = table1Scenes();
@@ -599,7 +631,7 @@ fs::path runTable1(const Table1Options& options) {
                series);
       row["load_s"] = load_s;
       row["run_s"] = std::chrono::duration<double>(std::chrono::steady_clock::now() - t_run).count();
-      for (const auto& [mode, m] : row["modes"].items())
+      for (const auto& [mode, m] : row["modes"].items()) {
         std::cout << "  " << m["label"].get<std::string>() << ": mean " << num(m["mean_us"], 1) << " us, p50 " << num(m["p50_us"], 1)
                   << ", p99 " << num(m["p99_us"], 1) << ", p99.9 " << num(m["p99_9_us"], 1) << ", max "
                   << num(m["max_us"], 1) << " us (CPU mean " << num(m["cpu_mean_us"], 1) << ", max "
@@ -607,6 +639,12 @@ fs::path runTable1(const Table1Options& options) {
                   << num(m["max_contacts"]) << "; samples/tick " << num(m["mean_volume_samples"]) << "; penetration "
                   << num(1e3 * m["max_penetration_m"].get<double>(), 4) << " mm; crossings "
                   << crossingsText(m) << "\n";
+        if (m.contains("work_budget"))
+          std::cout << "    work budget " << num(m["work_budget"]) << ": max work " << num(m["max_work"]) << ", "
+                    << num(m["budget_cuts"]) << " ticks cut; lag behind the unbudgeted proxy: max "
+                    << num(1e3 * m["max_lag_m"].get<double>(), 4) << " mm, " << num(m["max_lag_rad"].get<double>(), 4)
+                    << " rad, " << num(m["lag_ticks"]) << " ticks\n";
+      }
       if (row.contains("ratio_paper_over_accelerated"))
         std::cout << "  paper / accelerated: mean " << num(row["ratio_paper_over_accelerated"]["mean"], 2)
                   << "x, max " << num(row["ratio_paper_over_accelerated"]["max"], 2) << "x\n";

@@ -46,6 +46,9 @@ struct Table1Options {
   /// Crossing check after every tick (haptics::CrossingVerifier, outside the timed section):
   /// sampling step along each shell point's path [voxels]; 0: off (crossings reported as -1).
   double verify_step_voxels = 0.01;
+  /// Issue 13: > 0 adds a column, the accelerated mode with RendererOptions::work_budget set to
+  /// this, and its lag behind the unbudgeted accelerated proxy (mm, rad, ticks) and cut ticks.
+  std::int64_t work_budget = 0;
   /// Run only this scene ("Bunny", "Engine", "Hole", "Bone", case-insensitive); empty: all.
   std::string scene;
   /// Ticks per scene and mode; 0: 20,000 (short: 1,000).
