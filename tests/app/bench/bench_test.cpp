@@ -112,6 +112,38 @@ fs::path outDir(const std::string& name) {
   return dir;
 }
 
+TEST(Bench, table1WorkBudgetColumnCountsCutsAndLagWithinItsBudget) {
+  // Issue 13, first part: the budgeted accelerated column. Work is counted, not timed: no tick
+  // exceeds the budget by more than the pruning of a full contact set and one queue step.
+  Table1Options options;
+  options.common.short_run = true;
+  options.common.out_dir = outDir("table1-budget");
+  options.scene = "Hole";
+  options.modes = ModeSelection::kAccelerated;
+  options.before = false;
+  options.large_tools = false;
+  options.work_budget = 3000;
+  const fs::path dir = runTable1(options);
+  const json report = readJson(dir / "table1.json");
+  ASSERT_EQ(report["scenes"].size(), 1u);
+  int ran = 0;
+  for (const auto& row : report["scenes"]) {
+    if (row["status"] != "ran") continue;
+    ++ran;
+    ASSERT_TRUE(row["modes"].contains("accelerated-budget")) << row["name"];
+    const json& m = row["modes"]["accelerated-budget"];
+    EXPECT_EQ(number(m, "work_budget"), 3000.0);
+    EXPECT_LE(number(m, "max_work"), 3000.0 + 256 * 12 + 200);
+    EXPECT_GE(number(m, "budget_cuts"), 0.0);
+    EXPECT_GE(number(m, "lag_ticks"), 0.0);
+    EXPECT_GE(number(m, "max_lag_m"), 0.0);
+    EXPECT_GE(number(m, "max_lag_rad"), 0.0);
+    EXPECT_EQ(number(m, "crossings"), 0.0) << row["name"];
+    EXPECT_FALSE(row["modes"]["accelerated"].contains("work_budget"));
+  }
+  EXPECT_EQ(ran, 1) << "the Hole scene is built in: it always runs";
+}
+
 TEST(Bench, table1ShortWritesBothModesForEveryScene) {
   Table1Options options;
   options.common.short_run = true;
