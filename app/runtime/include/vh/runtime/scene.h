@@ -19,7 +19,8 @@
 /// the build's generated data folder (which mirrors the shared layout for unpacked archives, e.g.
 /// "classic/ct-bunny/bunny.nhdr" from classic/ct-bunny.tar.zst).
 /// Tool meshes may also be "builtin:peg", "builtin:probe", "builtin:drill" (see vh::datasets).
-/// Volumes may be "builtin:block-with-hole", "builtin:plane", "builtin:sphere", "builtin:thin-plate".
+/// Volumes may be "builtin:block-with-hole", "builtin:plane", "builtin:sphere", "builtin:thin-plate",
+/// "builtin:thin-shell", "builtin:thin-tube".
 /// Optional keys: a top-level "description" (text, ignored); "initial_pose" may give only
 /// "q_wxyz" (the tool keeps that orientation and is placed automatically). Every other key is
 /// an error (typos are caught), as are unreadable or missing referenced files.
