@@ -99,45 +99,6 @@ CaseResult runCase(const ExtremeCase& c, haptics::DetectionMode mode) {
   return r;
 }
 
-/// Crossings of one stiffness-sweep row, counted over its scenarios.
-struct SweepCrossings {
-  int crossings = 0;            ///< Ticks in which a shell point was carried into the isosurface.
-  std::int64_t points = 0;
-};
-
-/// The sweep runs inside vh::stability::evaluate(), which has no per-tick hook: each scenario is
-/// run again with runScenario() (deterministic: the same ticks evaluate() judged) and every tick's
-/// proxy motion checked from the records. A record keeps the proxy's centre of mass after the tick
-/// and its rotation relative to the device; the renderer's motion over a tick (eq. 2: the centre of
-/// mass moves linearly, the rotation about it at a constant rate) stopped at its time of contact is
-/// the path of RigidMotion::Between() the poses before and after the tick.
-SweepCrossings sweepCrossings(const std::vector<vh::stability::Scenario>& scenarios, double k_lin,
-                              const vh::stability::DeviceParams& device, const vh::stability::HandParams& hand,
-                              const vh::stability::SweepOptions& options) {
-  SweepCrossings out;
-  for (const vh::stability::Scenario& sc : scenarios) {
-    const vh::stability::SimulationResult sim = vh::stability::runScenario(sc, k_lin, device, hand, options);
-    const haptics::CrossingVerifier verifier(*sc.volume, sc.tool->point_shell, kVerifyStepVoxels);
-    const Eigen::Vector3d& p_TCm = sc.tool->mass.p_TCm_m;
-    Pose X_prev = sc.X_WP0;
-    for (const vh::stability::TickRecord& rec : sim.ticks) {
-      // theta = rotvec(R_WD R_WP^T), so R_WP = exp(theta)^T R_WD.
-      Pose X;
-      X.R_AB = (haptics::quaternionFromRotationVector(rec.theta).conjugate() * rec.X_WD.R_AB).normalized();
-      X.p_AB_m = rec.c_P - X.R_AB * p_TCm;
-      if (!X.allFinite()) continue;  // counted as non-finite by evaluate()
-      const haptics::CrossingVerifier::Result check =
-          verifier.check(haptics::RigidMotion::Between(X_prev, X, p_TCm), 1.0, sc.isovalue);
-      if (check.crossing_points > 0) {
-        ++out.crossings;
-        out.points += check.crossing_points;
-      }
-      X_prev = X;
-    }
-  }
-  return out;
-}
-
 Pose at(const Eigen::Vector3d& p, const Eigen::Quaterniond& R = Eigen::Quaterniond::Identity()) { return {R, p}; }
 double lerp(double a, double b, double u) { return a + (b - a) * std::clamp(u, 0.0, 1.0); }
 
@@ -401,13 +362,12 @@ fs::path runStability(const CommonOptions& options) {
   std::cout << "bench stability: stiffness sweep, " << ks.size() << " stiffnesses x " << devices.size()
             << " devices x " << levers.size() << " couplings x " << scenarios.size() << " scenarios\n";
   std::vector<StiffnessResult> rows;
-  std::vector<SweepCrossings> row_crossings;
   for (double lever : levers)
     for (const DeviceParams& d : devices)
       for (double k : ks) {
-        const SweepOptions sweep_options{-1.0, lever, true};
+        SweepOptions sweep_options{-1.0, lever, true};
+        sweep_options.verify_step_voxels = kVerifyStepVoxels;
         rows.push_back(evaluate(scenarios, k, d, hand, sweep_options));
-        row_crossings.push_back(sweepCrossings(scenarios, k, d, hand, sweep_options));
       }
   nlohmann::ordered_json sweep = nlohmann::ordered_json::array();
   std::ostringstream md;
@@ -427,9 +387,7 @@ fs::path runStability(const CommonOptions& options) {
         "bounce out/in | peak force [N] | oscillation after settling [N] (rel.) | verdict | penetration / epsilon | "
         "crossings |\n";
   md << "|---|---|---|---|---|---|---|---|---|---|---|---|---|\n";
-  for (std::size_t row = 0; row < rows.size(); ++row) {
-    const StiffnessResult& s = rows[row];
-    const SweepCrossings& crossed = row_crossings[row];
+  for (const StiffnessResult& s : rows) {
     nlohmann::ordered_json j;
     j["k_lin_N_per_m"] = s.k_lin;
     j["coupling"] = s.gains;
@@ -448,8 +406,8 @@ fs::path runStability(const CommonOptions& options) {
     j["stable"] = s.stable();
     j["solver_violations"] = s.solver_violations;
     j["max_penetration_over_epsilon"] = finiteOr(s.max_penetration_over_eps);
-    j["crossings"] = crossed.crossings;
-    j["crossing_points"] = crossed.points;
+    j["crossings"] = s.crossings;
+    j["crossing_points"] = s.crossing_points;
     j["finite"] = s.finite;
     sweep.push_back(j);
     md << "| " << format("%.0f", s.k_lin) << " | " << s.gains << " | " << s.device << " ("
@@ -457,8 +415,8 @@ fs::path runStability(const CommonOptions& options) {
        << format("%.3f", s.spectral_radius) << " | " << format("%.4g", 1e3 * s.max_e_gen_J) << " | "
        << (s.passive ? "yes" : "no") << " | " << format("%.3f", s.bounce_ratio) << " | "
        << format("%.2f", s.peak_force_N) << " | " << format("%.4f (%.3f)", s.settled_ptp_N, s.settled_ptp_rel) << " | "
-       << toString(s.behaviour) << (crossed.crossings > 0 ? ", CROSSED" : "") << " | "
-       << format("%.3f", s.max_penetration_over_eps) << " | " << crossed.crossings << " |\n";
+       << toString(s.behaviour) << (s.crossings > 0 ? ", CROSSED" : "") << " | "
+       << format("%.3f", s.max_penetration_over_eps) << " | " << s.crossings << " |\n";
   }
   report["stiffness_sweep"] = sweep;
 

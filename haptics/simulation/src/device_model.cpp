@@ -1,11 +1,13 @@
 #include "vh/simulation/device_model.h"
 
+#include "vh/haptics/crossing_verifier.h"
 #include "vh/haptics/penetration.h"
 
 #include <algorithm>
 #include <cmath>
 #include <limits>
 #include <numbers>
+#include <optional>
 
 #include <Eigen/Eigenvalues>
 
@@ -161,6 +163,10 @@ SimulationResult simulate(HapticRenderer& renderer, const SimulationConfig& cfg,
   const int n_ticks = static_cast<int>(std::lround(cfg.duration_s / T));
   res.ticks.reserve(static_cast<std::size_t>(n_ticks));
 
+  std::optional<haptics::CrossingVerifier> verifier;
+  if (cfg.verify_step_voxels > 0.0)
+    verifier.emplace(renderer.volume(), renderer.tool().point_shell, cfg.verify_step_voxels);
+
   Eigen::Vector3d c = start.c_W_m, v = start.v_W_mps, w = start.w_W_radps;
   Eigen::Quaterniond q = start.R_W.normalized();
   double w_out = 0.0, d_dev = 0.0, v0 = 0.0;
@@ -235,6 +241,11 @@ SimulationResult simulate(HapticRenderer& renderer, const SimulationConfig& cfg,
       res.max_penetration_m = std::max(res.max_penetration_m, rec.penetration_m);
     }
     res.peak_force_N = std::max(res.peak_force_N, out.force_W_N.norm());
+    if (verifier) {
+      const int crossed = verifier->check(renderer.lastMotion(), renderer.lastTimeOfContact(), cfg.isovalue).crossing_points;
+      res.crossings += crossed > 0;
+      res.crossing_points += crossed;
+    }
 
     // Plant over the hold interval: the coupling wrench is held (zero-order hold).
     const Eigen::Vector3d F = out.force_W_N, tau = out.torque_W_Nm;

@@ -184,6 +184,7 @@ SimulationResult runScenario(const Scenario& sc, double k_lin, const DeviceParam
   cfg.isovalue = sc.isovalue;
   cfg.lift_bound_m = 2.0 * o.standoff_fraction * r.epsilon_m();
   cfg.check_penetration = options.check_penetration;
+  cfg.verify_step_voxels = options.verify_step_voxels;
   return simulate(r, cfg, sc.hand, sc.start);
 }
 
@@ -226,6 +227,8 @@ StiffnessResult evaluate(const std::vector<Scenario>& scenarios, double k_lin, c
     s.lift_bound_violations += r.lift_bound_violations;
     s.worst_solver_work_J = std::min(s.worst_solver_work_J, r.worst_solver_work_J);
     s.max_penetration_over_eps = std::max(s.max_penetration_over_eps, r.max_penetration_m / r.epsilon_m);
+    s.crossings += r.crossings;
+    s.crossing_points += r.crossing_points;
     s.max_force_error_rel = std::max(s.max_force_error_rel, r.max_force_error_rel);
     s.max_e_gen_J = std::max(s.max_e_gen_J, r.max_e_gen_J);
     s.peak_force_N = std::max(s.peak_force_N, r.peak_force_N);

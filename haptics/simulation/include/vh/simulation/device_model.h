@@ -101,6 +101,9 @@ struct SimulationConfig {
   double duration_s = 1.0;
   double isovalue = 0.0;
   bool check_penetration = true;  ///< Measure the proxy's depth inside the isosurface each tick.
+  /// > 0: after every tick, haptics::CrossingVerifier samples each shell point's path over the
+  /// tick every this many voxels (issue 12); 0: crossings are not checked.
+  double verify_step_voxels = 0.0;
   /// Largest translation the renderer's contact stand-off may add to one proxy move [m]
   /// (2 * standoff_fraction * epsilon, the cap of ConfigurationSolver::standoffTranslation);
   /// 0 when the stand-off is off. The lift pushes the proxy out of the surface, against the
@@ -140,6 +143,8 @@ struct SimulationResult {
   bool finite = true;             ///< No NaN or infinity anywhere (renderer or plant).
   int bad_inputs = 0;             ///< Ticks the renderer rejected.
   double max_penetration_m = 0.0;
+  int crossings = 0;                  ///< Ticks in which a shell point was carried into the isosurface.
+  std::int64_t crossing_points = 0;   ///< Those points, summed (SimulationConfig::verify_step_voxels > 0).
   double max_force_error_rel = 0.0;
   double min_solver_margin_J = 0.0;   ///< min over ticks of S_k + tol_k (must stay >= 0).
   double worst_solver_work_J = 0.0;   ///< min over ticks of S_k (most negative).

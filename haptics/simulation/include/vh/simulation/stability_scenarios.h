@@ -102,6 +102,8 @@ struct StiffnessResult {
   double worst_solver_work_J = 0.0;  ///< Most negative S_k.
   int lift_bound_violations = 0;     ///< Ticks whose S_k is below -|F| * stand-off lift bound.
   double max_penetration_over_eps = 0.0;
+  int crossings = 0;                 ///< Ticks with a crossing, summed over the scenarios.
+  std::int64_t crossing_points = 0;  ///< Points those ticks carried into the isosurface.
   double max_force_error_rel = 0.0;
   bool finite = true;
   int bad_inputs = 0;
@@ -115,6 +117,8 @@ struct SweepOptions {
   bool check_penetration = true;    ///< Measure the proxy's depth every tick (a third of the cost).
   /// Collision-detection path of the renderer (both must pass the same tests, issue 8).
   haptics::DetectionMode detection_mode = haptics::DetectionMode::kAccelerated;
+  /// > 0: crossings checked after every tick at this step [voxels] (SimulationConfig).
+  double verify_step_voxels = 0.0;
 };
 
 /// Runs one scenario at linear stiffness k_lin. Torsional stiffness: options.lever_m > 0 gives
