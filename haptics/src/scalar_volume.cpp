@@ -37,41 +37,41 @@ template <> constexpr VoxelType voxelTypeOf<std::int16_t>() { return VoxelType::
 template <> constexpr VoxelType voxelTypeOf<std::uint16_t>() { return VoxelType::kUInt16; }
 template <> constexpr VoxelType voxelTypeOf<float>() { return VoxelType::kFloat32; }
 
-template <typename T>
-void rawRange(const std::vector<std::byte>& bytes, double& lo, double& hi) {
-  const std::size_t n = bytes.size() / sizeof(T);
-  const T* d = reinterpret_cast<const T*>(bytes.data());
-  double mn = std::numeric_limits<double>::infinity(), mx = -mn;
-  for (std::size_t i = 0; i < n; ++i) {
-    const double v = d[i];
-    if (!std::isfinite(v)) {  // only float32 can hold these
-      lo = hi = v;
-      return;
-    }
-    if (v < mn) mn = v;
-    if (v > mx) mx = v;
-  }
-  lo = mn;
-  hi = mx;
-}
+// One pass over the raw voxels: their range, and the largest |v(i + 1) - v(i)| along each grid
+// axis (the Lipschitz bound's steps). Stops at the first non-finite value (only float32 holds
+// one) with finite = false.
+struct VoxelScan {
+  double lo = 0.0, hi = 0.0;
+  Eigen::Vector3d step = Eigen::Vector3d::Zero();
+  bool finite = true;
+};
 
-// Largest |v(i + 1) - v(i)| along each grid axis, in raw units.
 template <typename T>
-Eigen::Vector3d largestStep(const std::vector<std::byte>& bytes, const std::array<int, 3>& dims) {
+VoxelScan scanVoxels(const std::vector<std::byte>& bytes, const std::array<int, 3>& dims) {
   const T* d = reinterpret_cast<const T*>(bytes.data());
   const std::ptrdiff_t nx = dims[0], ny = dims[1], nz = dims[2];
-  double sx = 0.0, sy = 0.0, sz = 0.0;
+  VoxelScan scan;
+  double mn = std::numeric_limits<double>::infinity(), mx = -mn, sx = 0.0, sy = 0.0, sz = 0.0;
   for (std::ptrdiff_t k = 0; k < nz; ++k)
     for (std::ptrdiff_t j = 0; j < ny; ++j) {
       const T* row = d + nx * (j + ny * k);
       for (std::ptrdiff_t i = 0; i < nx; ++i) {
         const double v = row[i];
+        if (!std::isfinite(v)) {
+          scan.finite = false;
+          return scan;
+        }
+        mn = std::min(mn, v);
+        mx = std::max(mx, v);
         if (i + 1 < nx) sx = std::max(sx, std::abs(static_cast<double>(row[i + 1]) - v));
         if (j + 1 < ny) sy = std::max(sy, std::abs(static_cast<double>(row[i + nx]) - v));
         if (k + 1 < nz) sz = std::max(sz, std::abs(static_cast<double>(row[i + nx * ny]) - v));
       }
     }
-  return {sx, sy, sz};
+  scan.lo = mn;
+  scan.hi = mx;
+  scan.step = {sx, sy, sz};
+  return scan;
 }
 }  // namespace
 
@@ -123,31 +123,24 @@ void ScalarVolume::initialise() {
   W_to_grid_ = (g.direction_W * g.spacing_m.asDiagonal()).inverse();
   upper_ = Eigen::Vector3d(g.dims[0] - 1, g.dims[1] - 1, g.dims[2] - 1);
 
-  double lo = 0, hi = 0;
+  VoxelScan scan;
   switch (type_) {
-    case VoxelType::kUInt8: rawRange<std::uint8_t>(bytes_, lo, hi); break;
-    case VoxelType::kInt16: rawRange<std::int16_t>(bytes_, lo, hi); break;
-    case VoxelType::kUInt16: rawRange<std::uint16_t>(bytes_, lo, hi); break;
-    case VoxelType::kFloat32: rawRange<float>(bytes_, lo, hi); break;
+    case VoxelType::kUInt8: scan = scanVoxels<std::uint8_t>(bytes_, g.dims); break;
+    case VoxelType::kInt16: scan = scanVoxels<std::int16_t>(bytes_, g.dims); break;
+    case VoxelType::kUInt16: scan = scanVoxels<std::uint16_t>(bytes_, g.dims); break;
+    case VoxelType::kFloat32: scan = scanVoxels<float>(bytes_, g.dims); break;
   }
-  if (!std::isfinite(lo) || !std::isfinite(hi)) throw std::invalid_argument("ScalarVolume: voxel data contains NaN or infinity");
+  if (!scan.finite) throw std::invalid_argument("ScalarVolume: voxel data contains NaN or infinity");
   switch (type_) {
     case VoxelType::kUInt8: tree_ = MinMaxTree::Build(reinterpret_cast<const std::uint8_t*>(bytes_.data()), g.dims); break;
     case VoxelType::kInt16: tree_ = MinMaxTree::Build(reinterpret_cast<const std::int16_t*>(bytes_.data()), g.dims); break;
     case VoxelType::kUInt16: tree_ = MinMaxTree::Build(reinterpret_cast<const std::uint16_t*>(bytes_.data()), g.dims); break;
     case VoxelType::kFloat32: tree_ = MinMaxTree::Build(reinterpret_cast<const float*>(bytes_.data()), g.dims); break;
   }
-  Eigen::Vector3d step = Eigen::Vector3d::Zero();
-  switch (type_) {
-    case VoxelType::kUInt8: step = largestStep<std::uint8_t>(bytes_, g.dims); break;
-    case VoxelType::kInt16: step = largestStep<std::int16_t>(bytes_, g.dims); break;
-    case VoxelType::kUInt16: step = largestStep<std::uint16_t>(bytes_, g.dims); break;
-    case VoxelType::kFloat32: step = largestStep<float>(bytes_, g.dims); break;
-  }
   // |dF/dx_a| <= |scale| step_a / spacing_a inside every cell; 1e-9 relative for rounding.
-  lipschitz_ = std::abs(scale_) * step.cwiseQuotient(g.spacing_m).norm() * (1.0 + 1e-9);
-  min_value_ = std::min(scale_ * lo + offset_, scale_ * hi + offset_);
-  max_value_ = std::max(scale_ * lo + offset_, scale_ * hi + offset_);
+  lipschitz_ = std::abs(scale_) * scan.step.cwiseQuotient(g.spacing_m).norm() * (1.0 + 1e-9);
+  min_value_ = std::min(scale_ * scan.lo + offset_, scale_ * scan.hi + offset_);
+  max_value_ = std::max(scale_ * scan.lo + offset_, scale_ * scan.hi + offset_);
 }
 
 double ScalarVolume::voxel(int i, int j, int k) const noexcept {
