@@ -62,7 +62,7 @@ CollisionDetector::CollisionDetector(const ScalarVolume& volume, const ToolModel
     shell_radius_m_ = std::max(shell_radius_m_, (p - tool.mass.p_TCm_m).norm());
   const std::size_t n = tool.point_shell.size();
   r0_.resize(n);
-  margin_.assign(n, 0.0);
+  sagitta_.assign(n, 0.0);
   chord_end_ijk_.resize(n);
   chord_end_t_.assign(n, -1.0);
   chord_end_stamp_.assign(n, 0u);
@@ -132,7 +132,7 @@ bool CollisionDetector::runMayHit(const RigidMotion& motion, int j, std::int64_t
   const double t0 = segmentBegin(j, k);
   const double t1 = k + run >= total ? 1.0 : static_cast<double>(k + run) * dt_[j];
   const double radius = 0.5 * path_[j] * (t1 - t0) * (1.0 + 1e-9) + 1e-12;
-  return ballMayBeInside(motion.pointAt(r0_[j], 0.5 * (t0 + t1)), radius, isovalue - margin_[j]);
+  return ballMayBeInside(motion.pointAt(r0_[j], 0.5 * (t0 + t1)), radius, isovalue - margin(j));
 }
 
 bool CollisionDetector::inside(const Eigen::Vector3d& p_W, double isovalue) noexcept {
@@ -199,7 +199,7 @@ void CollisionDetector::setupPath(const RigidMotion& motion, int j) noexcept {
   if (embedded_[j] || !(path_[j] > 0.0)) return;
   // ceil(s / f) equal time segments, none longer than the feature size (section 2.3).
   double segments = std::max(1.0, std::ceil(path_[j] / segment_length_m_));
-  margin_[j] = 0.0;
+  sagitta_[j] = 0.0;
   if (max_sagitta_ > 0.0 && rho > 0.0) {
     // Chords of the rotation: sagitta delta = rho (angle / segments)^2 / 8 <= max_sagitta_. At
     // the same time the arc is within 4 delta u (1 - u) of its chord (the interpolation error
@@ -208,7 +208,7 @@ void CollisionDetector::setupPath(const RigidMotion& motion, int j) noexcept {
     const double sagitta_of_one = rho * angle * angle / 8.0;  // one chord over the whole arc
     if (sagitta_of_one > max_sagitta_ * segments * segments)
       segments = std::ceil(angle * std::sqrt(rho / (8.0 * max_sagitta_)));
-    margin_[j] = volume_->lipschitzBound() * sagitta_of_one / (segments * segments) * (1.0 + 1e-9);
+    sagitta_[j] = sagitta_of_one / (segments * segments) * (1.0 + 1e-9);
   }
   dt_[j] = 1.0 / segments;
   if (mode_ == DetectionMode::kAccelerated) segments_[j] = static_cast<std::int64_t>(segments);
@@ -248,10 +248,9 @@ double CollisionDetector::stepSegment(const RigidMotion& motion, int j, std::int
     chord_end_stamp_[j] = chord_stamp_;
     const double u_limit = result.t >= t_end ? 1.0 : (result.t - t_begin) / span;
     // The arc's reach beyond its chord (the sagitta), per grid axis, for the grid's border.
-    const Eigen::Vector3d reach = margin_[j] > 0.0 ? Eigen::Vector3d(margin_[j] / volume_->lipschitzBound() * grid_per_m_)
-                                                   : Eigen::Vector3d::Zero();
+    const Eigen::Vector3d reach = sagitta_[j] * grid_per_m_;
     const SegmentEntry entry = volume_->firstEntryOnSegment(a, b, isovalue, u_limit,
-                                                            bisection_tolerance_ / (path_[j] * span), reach, margin_[j]);
+                                                            bisection_tolerance_ / (path_[j] * span), reach, margin(j));
     cells_ += entry.cells;
     if (!entry.hit) return t_end;
     lo = entry.u_outside >= 1.0 ? t_end : t_begin + entry.u_outside * span;
@@ -314,7 +313,7 @@ std::size_t CollisionDetector::collectActive(const RigidMotion& motion, double t
       // wrench 62 % of the points with several segments, which otherwise cost about two run
       // tests and two heap steps each).
       const double radius_j = 0.5 * t_max * path_[j] * (1.0 + 1e-9) + 1e-12;
-      if (!ballMayBeInside(c_mid + R_mid * r0_[j], radius_j, isovalue - margin_[j])) {
+      if (!ballMayBeInside(c_mid + R_mid * r0_[j], radius_j, isovalue - margin(j))) {
         clear_until_[j] = t_max;
         continue;
       }

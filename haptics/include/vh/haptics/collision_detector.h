@@ -89,8 +89,6 @@ class CollisionDetector {
   /// Largest deviation of a rotating point's arc from the chords it is tested along [m]
   /// (kExact: epsilon / 64; see haptics/README.md, "Never through").
   double maxSagitta_m() const noexcept { return max_sagitta_; }
-  /// True when point j of the point shell is embedded (see updateEmbedded()).
-  bool isEmbedded(int j) const noexcept { return embedded_[static_cast<std::size_t>(j)] != 0; }
 
   double epsilon_m() const noexcept { return epsilon_; }
   double featureSize_m() const noexcept { return feature_; }
@@ -215,14 +213,16 @@ class CollisionDetector {
   double feature_;
   double max_sagitta_ = 0.0;  // kExact: largest chord sagitta of an arc [m]
   double shell_radius_m_ = 0.0;  // largest |p_T - Cm| over the point shell
-  double sweep_margin_ = 0.0;    // per sweep: largest margin_ of any point (node tests)
+  double sweep_margin_ = 0.0;    // per sweep: largest margin(j) of any point (node tests)
   double segment_length_m_;  // feature size * segment_fraction
   double epsilon_;
   double bisection_tolerance_;
   std::vector<Eigen::Vector3d> r0_;      // per point radial vector at t = 0 (W)
   std::vector<double> dt_;               // per point segment length in time
   std::vector<double> path_;             // per point path-length bound
-  std::vector<double> margin_;           // per point: threshold lowered by L * sagitta (kExact, rotation)
+  std::vector<double> sagitta_;          // per point: its chords' sagitta [m] (kExact with rotation, else 0)
+  // The threshold lowering that covers point j's arc: L * sagitta (data units).
+  double margin(int j) const noexcept { return volume_->lipschitzBound() * sagitta_[j]; }
   std::vector<Eigen::Vector3d> chord_end_ijk_;   // per point: grid coordinates of the last chord's end
   std::vector<double> chord_end_t_;              // ... and its time
   std::vector<std::uint32_t> chord_end_stamp_;   // ... valid when equal to chord_stamp_ (this sweep)

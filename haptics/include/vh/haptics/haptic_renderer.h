@@ -116,8 +116,6 @@ class HapticRenderer {
   /// (a still motion on a tick with bad input). For CrossingVerifier.
   const RigidMotion& lastMotion() const noexcept { return last_motion_; }
   double lastTimeOfContact() const noexcept { return last_t_; }
-  /// True when point j was embedded (exempt from contact) during the last tick's sweep.
-  bool isEmbedded(int j) const noexcept { return collision_.isEmbedded(j); }
   /// Current contact set (points on the proxy within epsilon of the surface).
   std::span<const Contact> contacts() const noexcept { return collision_.contacts(); }
   std::int64_t badInputCount() const noexcept { return bad_inputs_; }
