@@ -46,6 +46,13 @@ SegmentEntry ScalarVolume::firstEntry(const Eigen::Vector3d& a, const Eigen::Vec
                                       double u_limit, double u_tolerance, bool at_segment_start,
                                       const SegmentBubble& bubble) const noexcept {
   SegmentEntry result;
+  // Conservative answers where the walk cannot decide: stopped at u (never let through).
+  const auto stopAt = [&result](double u) {
+    result.hit = true;
+    result.u_outside = result.u_inside = u;
+    return result;
+  };
+  if (!a.allFinite() || !b.allFinite()) return stopAt(0.0);
   const Eigen::Vector3d d = b - a;
   // Clip u in [0, 1] to the grid's box of voxel centres [0, n - 1] per axis (slab method).
   double u_lo = 0.0, u_hi = 1.0;
@@ -87,7 +94,10 @@ SegmentEntry ScalarVolume::firstEntry(const Eigen::Vector3d& a, const Eigen::Vec
   bool first = at_segment_start && u_lo == 0.0;  // the segment's own start: inside there may mean leaving
   double u = u_lo;
   const double sign = scale_ > 0.0 ? 1.0 : -1.0;
-  for (int guard = 0; guard < 1 << 20; ++guard) {
+  // A segment crosses at most 3 cells per voxel of length (+ 3); past 2^20 cells (a segment
+  // of some 350,000 voxels, never a servo tick's) the rest is not walked: stop there.
+  for (int guard = 0;; ++guard) {
+    if (guard == 1 << 20) return stopAt(u);
     if (u > u_limit && u > u_lo) break;
     const double u_exit = std::min({u_next[0], u_next[1], u_next[2], u_hi});
     const double w_end = std::max(0.0, u_exit - u);

@@ -8,6 +8,7 @@
 #include <algorithm>
 #include <cmath>
 #include <functional>
+#include <limits>
 #include <iostream>
 #include <numbers>
 #include <random>
@@ -105,6 +106,20 @@ TEST(SegmentEntry, FindsTheOneVoxelPlateAtNinetyNinePercentBetweenItsEnds) {
   // At the largest value itself nothing is inside (F > s is strict).
   EXPECT_FALSE(vol.firstEntryOnSegment(a, b, 255.0, 1.0, 1e-12).hit);
   EXPECT_TRUE(vol.firstEntryOnSegment(a, b, 254.999, 1.0, 1e-12).hit);
+}
+
+TEST(SegmentEntry, NonFiniteOrHugeSegmentsStopConservatively) {
+  const ScalarVolume vol = datasets::makeThinPlateVolume(grid(16, 1e-3));
+  const double nan = std::numeric_limits<double>::quiet_NaN();
+  for (const Eigen::Vector3d& bad : {Eigen::Vector3d(nan, 1, 1), Eigen::Vector3d(1, std::numeric_limits<double>::infinity(), 1)}) {
+    const SegmentEntry e = vol.firstEntryOnSegment({5, 5, 2}, bad, 127.5, 1.0, 1e-9);
+    EXPECT_TRUE(e.hit);
+    EXPECT_EQ(e.u_outside, 0.0);
+  }
+  // Far outside the grid on both ends but never crossing its box: no hit; a 1e9-voxel segment
+  // through the grid still finds the plate (the box clip keeps the walk to the grid's cells).
+  EXPECT_FALSE(vol.firstEntryOnSegment({-1e9, 5, 2}, {1e9, 5, 2}, 127.5, 1.0, 1e-9).hit);
+  EXPECT_TRUE(vol.firstEntryOnSegment({5, 5, -1e9}, {5, 5, 1e9}, 127.5, 1.0, 1e-18).hit);
 }
 
 TEST(SegmentEntry, AStartInsideMayLeaveButNotGoDeeper) {

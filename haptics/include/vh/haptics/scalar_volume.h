@@ -139,6 +139,8 @@ class ScalarVolume {
   /// of the segment count too: the segment's projection onto the box is walked where the
   /// segment is within reach of the box (for the arcs of rotating points, which may leave their
   /// chord by the sagitta; the threshold is then lowered by the caller, see lipschitzBound()).
+  /// A non-finite end, or a segment crossing more than 2^20 cells (some 350,000 voxels long),
+  /// is answered conservatively: a hit at u = 0, or where the walk stopped.
   /// @param u_tolerance bracket width at which the bisection stops, > 0.
   SegmentEntry firstEntryOnSegment(const Eigen::Vector3d& a_ijk, const Eigen::Vector3d& b_ijk, double threshold,
                                    double u_limit, double u_tolerance,
