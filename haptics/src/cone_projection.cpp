@@ -60,7 +60,7 @@ ConeProjector::ConeProjector(std::size_t max_constraints)
     : g_(max_constraints), gnorm_(max_constraints), lambda_(max_constraints), excluded_(max_constraints) {}
 
 ConeProjection ConeProjector::project(const Matrix6d& M, const Vector6d& a_u, std::span<const Vector6d> J_rows,
-                                      std::span<double> lambda_out) noexcept {
+                                      std::span<double> lambda_out, std::span<const int> warm_start) noexcept {
   ConeProjection out;
   const int m = static_cast<int>(std::min(J_rows.size(), g_.size()));
   for (double& l : lambda_out) l = 0.0;
@@ -89,6 +89,40 @@ ConeProjection ConeProjector::project(const Matrix6d& M, const Vector6d& a_u, st
   int active[kDim];
   int k = 0;
   Vector6d z = Vector6d::Zero();
+  // Warm start: the guessed face's independent rows, then drop non-positive coefficients until
+  // the least-squares coefficients on the face are all positive (z is then the projection of y
+  // onto that face's cone, a valid Wilhelmsen iterate).
+  for (const int i : warm_start) {
+    if (k == kDim || i < 0 || i >= m || excluded_[i] || lambda_[i] != 0.0) continue;
+    const Vector6d* cols[kDim];
+    for (int c = 0; c < k; ++c) cols[c] = &g_[active[c]];
+    if (k > 0 && relativeResidual(cols, k, g_[i]) < 1e-9) continue;
+    active[k++] = i;
+    lambda_[i] = 1.0;  // marks "in the guess" until the coefficients are known
+  }
+  while (k > 0) {
+    const Vector6d* cols[kDim];
+    for (int c = 0; c < k; ++c) cols[c] = &g_[active[c]];
+    double mu[kDim];
+    if (!leastSquares(cols, k, y, mu)) {  // cannot happen for independent rows; start cold
+      for (int c = 0; c < k; ++c) lambda_[active[c]] = 0.0;
+      k = 0;
+      break;
+    }
+    int kept = 0;
+    for (int c = 0; c < k; ++c) {
+      if (mu[c] > 0.0) {
+        lambda_[active[c]] = mu[c];
+        active[kept++] = active[c];
+      } else {
+        lambda_[active[c]] = 0.0;
+      }
+    }
+    if (kept == k) break;
+    for (int c = 0; c < kept; ++c) lambda_[active[c]] = 1.0;
+    k = kept;
+  }
+  for (int c = 0; c < k; ++c) z += lambda_[active[c]] * g_[active[c]];
   const int max_iterations = 4 * m + 40;
   int it = 0;
   bool converged = false;
@@ -157,6 +191,7 @@ ConeProjection ConeProjector::project(const Matrix6d& M, const Vector6d& a_u, st
   out.iterations = it;
   out.converged = converged;
   out.active = k;
+  for (int c = 0; c < k; ++c) out.active_rows[static_cast<std::size_t>(c)] = active[c];
   out.a_c = L.transpose().solve(x + z);
   for (int i = 0; i < m && i < static_cast<int>(lambda_out.size()); ++i) lambda_out[i] = lambda_[i];
   if (!out.a_c.allFinite()) {  // never hand a NaN to the collision detector: stay still

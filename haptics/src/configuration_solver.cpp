@@ -56,7 +56,21 @@ RigidMotion ConfigurationSolver::constrainedMotion(const Pose& X_WP, const Pose&
   const std::size_t m = std::min(contacts.size(), rows_.size());
   for (std::size_t i = 0; i < m; ++i) rows_[i] = constraintRow(contacts[i].p_W_m, contacts[i].n_W, c_W);
   // Step 3: Gauss' principle (eq. 3) under the contact constraints (eq. 4).
-  last_ = projector_.project(M, a_u_, std::span<const Vector6d>(rows_.data(), m));
+  // Warm start from the last tick's active set (the same points, where still in contact).
+  std::array<int, 6> warm{};
+  int warm_count = 0;
+  for (int a = 0; a < active_point_count_; ++a)
+    for (std::size_t i = 0; i < m; ++i)
+      if (contacts[i].point_index == active_points_[static_cast<std::size_t>(a)]) {
+        warm[static_cast<std::size_t>(warm_count++)] = static_cast<int>(i);
+        break;
+      }
+  last_ = projector_.project(M, a_u_, std::span<const Vector6d>(rows_.data(), m), {},
+                             std::span<const int>(warm.data(), static_cast<std::size_t>(warm_count)));
+  active_point_count_ = last_.active;
+  for (int a = 0; a < last_.active; ++a)
+    active_points_[static_cast<std::size_t>(a)] =
+        contacts[static_cast<std::size_t>(last_.active_rows[static_cast<std::size_t>(a)])].point_index;
   const Vector6d& a_c = last_.a_c;
   // x_t = x_i + a_c / 2: the motion over the unit step (eq. 2).
   const Eigen::Vector3d lift = standoffTranslation(std::span<const Contact>(contacts.data(), m), standoff_m);

@@ -58,6 +58,9 @@ TickOutput HapticRenderer::tick(const Pose& X_WD_in, double isovalue) noexcept {
   }
   X_WD.R_AB.coeffs() /= qn;
 
+  const auto us_since = [](Clock::time_point a, Clock::time_point b) {
+    return std::chrono::duration<double, std::micro>(b - a).count();
+  };
   // A new isovalue moves the surface under the proxy: points it swallowed are embedded and
   // released once outside again (see haptics/README.md, "Isovalue changes").
   if (embedded_scan_needed_ || isovalue != last_isovalue_) {
@@ -71,6 +74,8 @@ TickOutput HapticRenderer::tick(const Pose& X_WD_in, double isovalue) noexcept {
   const MassProperties& mass = tool_->mass;
   // Step 2: verify and prune the contact set.
   collision_.pruneContacts(X_WP_, X_WD, isovalue);
+  auto phase = Clock::now();
+  out.stats.prune_us = us_since(start, phase);
   // Steps 1 and 3: unconstrained, then constrained motion (Gauss' principle); step 4:
   // collision detection along the constrained path. When a contact blocks its own tangent step
   // (its eq. 1 normal disagrees with the trilinear surface), its normal is refined and steps
@@ -85,6 +90,11 @@ TickOutput HapticRenderer::tick(const Pose& X_WD_in, double isovalue) noexcept {
   SweepResult hit;
   for (int attempt = 0; attempt < 3; ++attempt) {
     motion = solver_.constrainedMotion(X_WP_, X_WD, mass, collision_.contacts(), standoff_m);
+    {
+      const auto now = Clock::now();
+      out.stats.solve_us += us_since(phase, now);
+      phase = now;
+    }
     // After a tick the work budget cut, a shorter step along the same constrained motion (the
     // velocity limit of section 2.3): fewer segments, smaller balls, so the sweep can finish
     // and the proxy make progress; the step doubles back after each tick that finishes.
@@ -92,6 +102,11 @@ TickOutput HapticRenderer::tick(const Pose& X_WD_in, double isovalue) noexcept {
       motion = RigidMotion::FromVelocity(X_WP_, mass.p_TCm_m, motion.v_W_m() * motion_scale_,
                                          motion.omega_W_rad() * motion_scale_);
     hit = collision_.sweep(motion, isovalue);
+    {
+      const auto now = Clock::now();
+      out.stats.sweep_us += us_since(phase, now);
+      phase = now;
+    }
     if (attempt == 2 || !collision_.refineStuckContact(motion, hit)) break;
   }
   blocked_last_tick_ = hit.hit_point >= 0 && hit.t < 0.01;
@@ -106,6 +121,7 @@ TickOutput HapticRenderer::tick(const Pose& X_WD_in, double isovalue) noexcept {
   last_t_ = hit.t;
   collision_.refreshPositions(X_WP_);
   if (hit.hit_point >= 0) collision_.addContactsAt(motion, hit, isovalue);
+  out.stats.contacts_us = us_since(phase, Clock::now());
   // Step 6: virtual coupling.
   const Wrench w = coupling_.compute(X_WP_, X_WD, mass);
 

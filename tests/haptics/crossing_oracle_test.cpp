@@ -406,7 +406,9 @@ TEST(NeverThroughControl, TheOracleCatchesTheEndSampleTunnel) {
       });
       tunnelled_runs += through;
       flagged_runs += r.crossing_ticks > 0;
-      if (through) EXPECT_GT(r.crossing_ticks, 0) << "a tunnel the oracle did not report";
+      if (through) {
+        EXPECT_GT(r.crossing_ticks, 0) << "a tunnel the oracle did not report";
+      }
     }
   }
   std::cout << "end-sample test: " << tunnelled_runs << " of 16 runs ended through the plate, "

@@ -4,6 +4,7 @@
 /// device (a_u = 2 dx), the contact constraints (eq. 4), Gauss' principle of least constraint
 /// (eq. 3) by cone projection, and the target configuration x_t = x_i + a_c / 2.
 
+#include <array>
 #include <span>
 #include <vector>
 
@@ -65,6 +66,10 @@ class ConfigurationSolver {
   std::vector<Vector6d> rows_;
   ConeProjection last_;
   Vector6d a_u_ = Vector6d::Zero();
+  // Point-shell indices of the last projection's active set: the next projection starts from
+  // the rows of the same points (a warm start, issue 13).
+  std::array<int, 6> active_points_{};
+  int active_point_count_ = 0;
 };
 
 }  // namespace vh::haptics

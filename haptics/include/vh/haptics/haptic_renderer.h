@@ -72,6 +72,10 @@ struct TickStats {
   std::int64_t work = 0;            ///< samples + cells + box queries (RendererOptions::work_budget's unit).
   bool budget_cut = false;          ///< The work budget stopped the sweep before its end.
   double time_of_contact = 1.0;     ///< Fraction of the constrained path travelled (1 = free).
+  /// Wall time of the tick's phases [us] (diagnostics; they sum to about exec_time_us):
+  /// embedded-point scan and step 2 (prune), steps 1 + 3 (solve, every attempt), step 4 (sweep,
+  /// every attempt), step 5's contact update (contacts).
+  double prune_us = 0.0, solve_us = 0.0, sweep_us = 0.0, contacts_us = 0.0;
   bool bad_input = false;           ///< The device pose was rejected this tick.
 };
 
