@@ -357,7 +357,8 @@ void runScene(const runtime::LoadedScene& scene, std::shared_ptr<const haptics::
       tick_csv.push_back(std::make_unique<std::ofstream>(fs::path(dir) /
                                                          (row["name"].get<std::string>() + "_" + m.variant.key + ".csv")));
       *tick_csv.back() << "tick,wall_us,cpu_us,contacts,samples,box_queries,cells,time_of_contact,device_step_m,"
-                          "device_step_rad,proxy_device_m,proxy_device_rad,crossing_points\n";
+                          "device_step_rad,proxy_device_m,proxy_device_rad,crossing_points,prune_us,solve_us,sweep_us,contacts_us,work,"
+                          "budget_cut\n";
     }
   }
   haptics::Pose X_WD_last = X_WD0;
@@ -396,7 +397,9 @@ void runScene(const runtime::LoadedScene& scene, std::shared_ptr<const haptics::
                      << out.stats.time_of_contact << ',' << (X_WD.p_AB_m - X_WD_last.p_AB_m).norm() << ','
                      << X_WD.R_AB.angularDistance(X_WD_last.R_AB) << ','
                      << (X_WD.p_AB_m - X_WP_before.p_AB_m).norm() << ','
-                     << X_WD.R_AB.angularDistance(X_WP_before.R_AB) << ',' << crossing_points << '\n';
+                     << X_WD.R_AB.angularDistance(X_WP_before.R_AB) << ',' << crossing_points << ','
+                     << out.stats.prune_us << ',' << out.stats.solve_us << ',' << out.stats.sweep_us << ','
+                     << out.stats.contacts_us << ',' << out.stats.work << ',' << int(out.stats.budget_cut) << '\n';
       m.times_us.push_back(out.stats.exec_time_us);
       m.contacts.push_back(out.stats.contacts);
       m.samples.push_back(static_cast<double>(out.stats.volume_samples));
