@@ -85,6 +85,10 @@ CollisionDetector::CollisionDetector(const ScalarVolume& volume, const ToolModel
     clear_segments_.assign(n, 0);
     active_.resize(n);
   }
+  candidate_.resize(n);
+  reduce_position_.resize(n + contacts_.size());
+  reduce_distance_.resize(n + contacts_.size());
+  reduce_chosen_.resize(n + contacts_.size());
   grid_per_m_ = volume.geometry().spacing_m.cwiseInverse();
 }
 
@@ -504,7 +508,10 @@ void CollisionDetector::addContactsAt(const RigidMotion& motion, const SweepResu
     const double nd = d.norm();
     return nd > 0.0 ? Eigen::Vector3d(-d / nd) : Eigen::Vector3d(Eigen::Vector3d::UnitZ());
   };
-  appendContact(hit.hit_point, motion.pointAt(r0_[hit.hit_point], t), direction(hit.hit_point), isovalue);
+  // The points within epsilon of collision (moving a further epsilon along the path puts them
+  // inside) become candidates, in index order (the paper's contact order); the hit point first.
+  std::size_t candidates = 0;
+  if (!in_set_[hit.hit_point]) candidate_[candidates++] = hit.hit_point;
   if (mode_ == DetectionMode::kAccelerated) {
     // A sweep that ended at t = 0 on a contact point skipped the tree: collect the points near
     // the proxy now (the tree over [0, t], t = 0, with the epsilon look-ahead).
@@ -512,32 +519,93 @@ void CollisionDetector::addContactsAt(const RigidMotion& motion, const SweepResu
       collectActive(motion, t, isovalue, false);
       active_complete_ = true;
     }
-    // Only the points the sweep did not cull, in index order (the paper's contact order); a
-    // point whose look-ahead time lies in its proven-outside prefix is skipped.
-    // The skip tests first, then only the few candidates left are sorted (sorting every active
-    // point cost 4 % of a tick on Engine). active_ keeps just the candidates afterwards.
-    std::size_t candidates = 0;
+    // Only the points the sweep did not cull, in index order; a point whose look-ahead time lies
+    // in its proven-outside prefix is skipped. The skip tests first, then only the few
+    // candidates left are sorted (sorting every active point cost 4 % of a tick on Engine).
+    // active_ keeps just the candidates afterwards.
+    std::size_t kept = 0;
     for (std::size_t i = 0; i < active_count_; ++i) {
       const int j = active_[i];
-      if (in_set_[j] || embedded_[j] || !(path_[j] > 0.0)) continue;
+      if (j == hit.hit_point || in_set_[j] || embedded_[j] || !(path_[j] > 0.0)) continue;
       if (t + epsilon_ / path_[j] <= clear_until_[j]) continue;
-      active_[candidates++] = j;
+      active_[kept++] = j;
     }
-    active_count_ = candidates;
-    std::sort(active_.begin(), active_.begin() + static_cast<std::ptrdiff_t>(candidates));
-    for (std::size_t i = 0; i < candidates && !overBudget(); ++i) {
+    active_count_ = kept;
+    std::sort(active_.begin(), active_.begin() + static_cast<std::ptrdiff_t>(kept));
+    for (std::size_t i = 0; i < kept && !overBudget(); ++i) {
       const int j = active_[i];
-      const double t_ahead = t + epsilon_ / path_[j];
-      if (inside(motion.pointAt(r0_[j], t_ahead), isovalue))
-        appendContact(j, motion.pointAt(r0_[j], t), direction(j), isovalue);
+      if (inside(motion.pointAt(r0_[j], t + epsilon_ / path_[j]), isovalue)) candidate_[candidates++] = j;
     }
-    return;
+  } else {
+    for (int j = 0; j < n && !overBudget(); ++j) {
+      if (j == hit.hit_point || in_set_[j] || embedded_[j] || !(path_[j] > 0.0)) continue;
+      if (inside(motion.pointAt(r0_[j], t + epsilon_ / path_[j]), isovalue)) candidate_[candidates++] = j;
+    }
   }
-  for (int j = 0; j < n && !overBudget(); ++j) {
-    if (in_set_[j] || embedded_[j] || !(path_[j] > 0.0)) continue;
-    if (inside(motion.pointAt(r0_[j], t + epsilon_ / path_[j]), isovalue))
-      appendContact(j, motion.pointAt(r0_[j], t), direction(j), isovalue);
+  const std::size_t cap = std::min(contact_cap_, contacts_.size());
+  if (contact_count_ + candidates > cap) reduceContacts(motion, t, hit.hit_point, candidates, cap);
+  for (std::size_t i = 0; i < candidates; ++i) {
+    const int j = candidate_[i];
+    appendContact(j, motion.pointAt(r0_[j], t), direction(j), isovalue);
   }
+}
+
+void CollisionDetector::reduceContacts(const RigidMotion& motion, double t, int hit_point, std::size_t& candidates,
+                                       std::size_t cap) noexcept {
+  // Farthest-point selection over the union of the contact set and the candidates, by position
+  // at the proxy's new pose, seeded with the hit point (always kept: it is what stopped the
+  // proxy). On a flat or gently curved face the constraint of a contact is affine in its
+  // position, so contacts inside the hull of the kept ones add (almost) nothing; spreading the
+  // kept ones over the face keeps the hull. A dropped contact that the next motion would push
+  // in is caught by the sweep like any point (the cap never lets the proxy penetrate).
+  const std::size_t existing = contact_count_;
+  const std::size_t total = existing + candidates;
+  auto position = [&](std::size_t u) {
+    return u < existing ? contacts_[u].p_W_m : motion.pointAt(r0_[candidate_[u - existing]], t);
+  };
+  auto point_of = [&](std::size_t u) { return u < existing ? contacts_[u].point_index : candidate_[u - existing]; };
+  for (std::size_t u = 0; u < total; ++u) {
+    reduce_position_[u] = position(u);
+    reduce_distance_[u] = std::numeric_limits<double>::infinity();
+    reduce_chosen_[u] = 0;
+  }
+  std::size_t seed = 0;
+  for (std::size_t u = 0; u < total; ++u)
+    if (point_of(u) == hit_point) seed = u;
+  std::size_t chosen = 0;
+  std::size_t next = seed;
+  while (chosen < cap) {
+    reduce_chosen_[next] = 1;
+    ++chosen;
+    if (chosen == cap) break;
+    double farthest = -1.0;
+    std::size_t best = next;
+    const Eigen::Vector3d& p = reduce_position_[next];
+    for (std::size_t u = 0; u < total; ++u) {
+      if (reduce_chosen_[u]) continue;
+      reduce_distance_[u] = std::min(reduce_distance_[u], (reduce_position_[u] - p).squaredNorm());
+      if (reduce_distance_[u] > farthest) {
+        farthest = reduce_distance_[u];
+        best = u;
+      }
+    }
+    samples_ += static_cast<std::int64_t>(total / 16 + 1);  // ~16 distance updates per sample's cost
+    if (farthest < 0.0) break;
+    next = best;
+  }
+  std::size_t kept = 0;
+  for (std::size_t u = 0; u < existing; ++u) {
+    if (reduce_chosen_[u]) {
+      contacts_[kept++] = contacts_[u];
+    } else {
+      in_set_[contacts_[u].point_index] = 0;
+    }
+  }
+  contact_count_ = kept;
+  std::size_t kept_candidates = 0;
+  for (std::size_t i = 0; i < candidates; ++i)
+    if (reduce_chosen_[existing + i]) candidate_[kept_candidates++] = candidate_[i];
+  candidates = kept_candidates;
 }
 
 bool CollisionDetector::refineStuckContact(const RigidMotion& motion, const SweepResult& hit) noexcept {

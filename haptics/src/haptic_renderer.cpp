@@ -4,6 +4,7 @@
 #include <algorithm>
 #include <cmath>
 #include <stdexcept>
+#include <string>
 
 namespace vh::haptics {
 
@@ -21,8 +22,12 @@ HapticRenderer::HapticRenderer(std::shared_ptr<const ScalarVolume> volume, std::
       last_isovalue_(isovalue) {
   if (!X_WP_initial.allFinite()) throw std::invalid_argument("HapticRenderer: the initial proxy pose is not finite");
   if (!std::isfinite(isovalue)) throw std::invalid_argument("HapticRenderer: the isovalue is not finite");
+  if (options.max_contacts < 1 || options.max_contacts > 256)
+    throw std::invalid_argument("HapticRenderer: max_contacts " + std::to_string(options.max_contacts) +
+                                " must be in [1, 256]");
   X_WP_.R_AB.normalize();
   solver_.setGains(options.gains);
+  collision_.setContactCap(static_cast<std::size_t>(options.max_contacts));
   collision_.setWorkBudget(options.work_budget);
   collision_.updateEmbedded(X_WP_, isovalue);
 }

@@ -202,7 +202,9 @@ TEST(CollisionDetector, AcceleratedStopsAtABlockingContactWithoutWalkingTheTree)
   EXPECT_EQ(rf.t, rp.t);
   // On a tie at t = 0 the two paths may name different points (documented), whose brackets
   // differ (a point already inside and going deeper has t_inside = 0).
-  if (rf.hit_point == rp.hit_point) EXPECT_EQ(rf.t_inside, rp.t_inside);
+  if (rf.hit_point == rp.hit_point) {
+    EXPECT_EQ(rf.t_inside, rp.t_inside);
+  }
   EXPECT_EQ(fast.boxQueryCount(), 0) << "the tree was walked although a contact blocks at t = 0";
   // The points added at t = 0 (collected by addContactsAt itself) are the paper's.
   paper.clearContacts();

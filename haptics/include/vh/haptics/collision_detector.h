@@ -3,6 +3,7 @@
 /// Continuous collision detection of the point shell against the isosurface F = s along the
 /// proxy's motion arc (paper section 2.3) and contact-set pruning (step 2).
 
+#include <algorithm>
 #include <cstdint>
 #include <ostream>
 #include <span>
@@ -115,7 +116,9 @@ class CollisionDetector {
   /// After step 5: adds the point that collided and every point that at time `hit.t` of the
   /// last sweep's `motion` is within epsilon of collision (moving a further epsilon along its
   /// path puts it inside), with normals, to the contact set. Call after sweep() with the same
-  /// motion.
+  /// motion. When the set would exceed contactCap(), the union of the set and the new points is
+  /// reduced to contactCap() by farthest-point selection over positions, seeded with the hit
+  /// point (issue 13: capped contact rows keep pruning and the cone projection bounded).
   void addContactsAt(const RigidMotion& motion, const SweepResult& hit, double isovalue) noexcept;
 
   /// When the sweep's first hit is a point already in the contact set and the proxy could not
@@ -154,6 +157,10 @@ class CollisionDetector {
   /// time-ordered queue's front; 0 before the queue starts) and addContactsAt() adds only the
   /// hit point: the overshoot is at most one queue step. The proxy never crosses the surface
   /// because of it: it moves less far, and the rest of the motion continues next tick.
+  /// Most contacts kept in the set (issue 13; at least 1, at most the capacity given to the
+  /// constructor, which is the default). See addContactsAt().
+  void setContactCap(std::size_t cap) noexcept { contact_cap_ = std::clamp<std::size_t>(cap, 1, contacts_.size()); }
+  std::size_t contactCap() const noexcept { return std::min(contact_cap_, contacts_.size()); }
   void setWorkBudget(std::int64_t units) noexcept { work_budget_ = units > 0 ? units : 0; }
   std::int64_t workBudget() const noexcept { return work_budget_; }
   void resetSampleCount() noexcept {
@@ -252,6 +259,15 @@ class CollisionDetector {
   std::int64_t box_queries_ = 0;
   std::int64_t cells_ = 0;
   std::int64_t work_budget_ = 0;
+  std::size_t contact_cap_ = static_cast<std::size_t>(-1);
+  // addContactsAt(): the new contact points (capacity = points); reduceContacts()' scratch
+  // (capacity = points + contact capacity).
+  std::vector<int> candidate_;
+  std::vector<Eigen::Vector3d> reduce_position_;
+  std::vector<double> reduce_distance_;
+  std::vector<unsigned char> reduce_chosen_;
+  void reduceContacts(const RigidMotion& motion, double t, int hit_point, std::size_t& candidates,
+                      std::size_t cap) noexcept;
   bool overBudget() const noexcept { return work_budget_ > 0 && work() >= work_budget_; }
 };
 

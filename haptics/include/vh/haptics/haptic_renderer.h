@@ -55,6 +55,12 @@ struct RendererOptions {
   /// back after each tick that finishes. It must exceed the pruning of a full contact set
   /// (about 12 units per contact), which is done before the sweep, or the proxy stalls.
   std::int64_t work_budget = 0;
+  /// Most contacts in the contact set, 1 to 256 (issue 13): more are reduced by farthest-point
+  /// selection (CollisionDetector::addContactsAt()), which bounds the pruning (about 12 work
+  /// units per contact) and the cone projection's rows. 256, the set's capacity, is the paper's
+  /// path (table1's paper mode); the cap never lets the proxy penetrate (the sweep tests every
+  /// point, in the set or not).
+  int max_contacts = 64;
   /// Coupling gains (section 2.5); may be changed between ticks with setGains().
   CouplingGains gains;
   /// Largest device translation accepted from one tick to the next [m]; farther jumps and
@@ -96,7 +102,8 @@ class HapticRenderer {
   /// @param volume, tool shared, immutable; must outlive nothing (held by shared_ptr).
   /// @param X_WP_initial initial proxy pose; should be outside the isosurface.
   /// @throws std::invalid_argument for an empty volume or point shell, a non-finite pose,
-  ///         epsilon >= feature size, or segment_fraction outside (0, 1].
+  ///         epsilon >= feature size, segment_fraction outside (0, 1], or max_contacts outside
+  ///         [1, 256].
   HapticRenderer(std::shared_ptr<const ScalarVolume> volume, std::shared_ptr<const ToolModel> tool,
                  const RendererOptions& options, const Pose& X_WP_initial, double isovalue);
 
