@@ -3,6 +3,7 @@
 
 #include <QChart>
 #include <QChartView>
+#include <QLegend>
 #include <QLineSeries>
 #include <QValueAxis>
 
@@ -13,7 +14,7 @@ namespace {
 
 TEST(StripChartTest, KeepsTheLastWindowOfSamples) {
   StripChart chart(nullptr, 10.0);
-  for (int i = 0; i <= 150; ++i) chart.addSample(0.1 * i, 0.01 * i, 50.0, 80.0);  // 15 s at 10 Hz
+  for (int i = 0; i <= 150; ++i) chart.addSample(0.1 * i, 0.01 * i, 50.0, 80.0, 3.0);  // 15 s at 10 Hz
   chart.flush();
   // Everything older than the window (and a second of margin) is gone: t in [4, 15].
   EXPECT_GE(chart.sampleCount(), 100);
@@ -28,7 +29,19 @@ TEST(StripChartTest, KeepsTheLastWindowOfSamples) {
   const auto* force_axis = qobject_cast<QValueAxis*>(axes.front());
   ASSERT_NE(force_axis, nullptr);
   EXPECT_GE(force_axis->max(), 1.5) << "the force axis covers the largest force shown";
-  chart.addSample(15.1, std::nan(""), 1.0, 1.0);  // a non-finite force is drawn as 0
+  // The solver's tick times and the coupling thread's jitter share the right axis [us], each a
+  // series named in the legend.
+  QStringList names;
+  for (QAbstractSeries* s : chart.chartView()->chart()->series()) names << s->name();
+  EXPECT_EQ(names.size(), 4);
+  EXPECT_TRUE(names.filter("solver tick mean").size() == 1) << names.join(", ").toStdString();
+  EXPECT_TRUE(names.filter("solver tick max").size() == 1);
+  EXPECT_TRUE(names.filter("coupling jitter").size() == 1);
+  EXPECT_TRUE(chart.chartView()->chart()->legend()->isVisible());
+  auto* jitter = qobject_cast<QLineSeries*>(chart.chartView()->chart()->series().back());
+  ASSERT_NE(jitter, nullptr);
+  EXPECT_EQ(jitter->at(jitter->count() - 1).y(), 3.0);
+  chart.addSample(15.1, std::nan(""), 1.0, 1.0, std::nan(""));  // a non-finite force is drawn as 0
   chart.flush();
   EXPECT_EQ(series->at(series->count() - 1).y(), 0.0);
   chart.clear();

@@ -1441,8 +1441,8 @@ bool MainWindow::refreshFromHaptics(bool update_status_now) {
     view_->requestRender();
   }
   if (chart_dock_->isVisible()) {
-    chart_->addSample(1e-3 * static_cast<double>(clock_.elapsed()), snapshot_.force_W_N.norm(), snapshot_.mean_tick_us,
-                      snapshot_.max_tick_us);
+    chart_->addSample(1e-3 * static_cast<double>(clock_.elapsed()), snapshot_.force_W_N.norm(),
+                      snapshot_.solver.mean_tick_us, snapshot_.solver.max_tick_us, snapshot_.coupling.jitter_us);
   }
   if (--status_countdown_ <= 0 || update_status_now) {
     status_countdown_ = kStatusEveryTicks;
@@ -1495,17 +1495,32 @@ void MainWindow::updateStatus() {
     status_label_->setText("Haptic thread starting...");
     return;
   }
+  // Two threads (paper section 3.2): the coupling thread renders the force at the device's
+  // rate, the solver thread moves the proxy (HapticRenderer::tick()) at its own.
   const runtime::HapticSnapshot& s = snapshot_;
-  status_label_->setText(
-      QString::fromUtf8("Servo %1 Hz  |  tick %2 / %3 \u00b5s (mean / max)  |  contacts %4  |  "
-                        "|F| %5 N  |  |\u03c4| %6 N\u00b7m  |  misses %7")
-          .arg(s.servo_rate_Hz, 0, 'f', 0)
-          .arg(s.mean_tick_us, 0, 'f', 1)
-          .arg(s.max_tick_us, 0, 'f', 1)
+  QString text =
+      QString::fromUtf8("Coupling %1 Hz (jitter %2 \u00b5s, misses %3)  |  Solver %4 Hz (tick %5 / %6 \u00b5s "
+                        "mean / max, misses %7)  |  contacts %8  |  |F| %9 N  |  |\u03c4| %10 N\u00b7m")
+          .arg(s.coupling.rate_Hz, 0, 'f', 0)
+          .arg(s.coupling.jitter_us, 0, 'f', 0)
+          .arg(static_cast<qulonglong>(s.coupling.deadline_misses))
+          .arg(s.solver.rate_Hz, 0, 'f', 0)
+          .arg(s.solver.mean_tick_us, 0, 'f', 1)
+          .arg(s.solver.max_tick_us, 0, 'f', 1)
+          .arg(static_cast<qulonglong>(s.solver.deadline_misses))
           .arg(s.contacts)
           .arg(s.force_W_N.norm(), 0, 'f', 2)
-          .arg(s.torque_W_Nm.norm(), 0, 'f', 4)
-          .arg(static_cast<qulonglong>(s.deadline_misses)));
+          .arg(s.torque_W_Nm.norm(), 0, 'f', 4);
+  if (s.skipped_samples > 0) {
+    text += QString("  |  solver skipped %1 device samples").arg(static_cast<qulonglong>(s.skipped_samples));
+  }
+  status_label_->setText(text);
+  status_label_->setToolTip(
+      "Coupling: the thread that reads the device and sends the force (virtual coupling), at the "
+      "device's rate; jitter is the largest deviation of its wake-up interval from the period over "
+      "the last second.\nSolver: the thread that moves the proxy against the surface; tick is its "
+      "computing time per tick over the last second.\nMisses: ticks that started more than one period "
+      "late (total).");
 }
 
 QString MainWindow::statusText() const {

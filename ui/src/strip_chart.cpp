@@ -33,14 +33,18 @@ StripChart::StripChart(QWidget* parent, double window_s)
   force_->setName("|F| [N]");
   force_->setPen(QPen(QColor(230, 160, 20), 2.0));
   tick_mean_ = new QLineSeries(chart_);
-  tick_mean_->setName(QString::fromUtf8("tick mean [\u00b5s]"));
+  tick_mean_->setName(QString::fromUtf8("solver tick mean [\u00b5s]"));
   tick_mean_->setPen(QPen(QColor(60, 140, 220), 1.5));
   tick_max_ = new QLineSeries(chart_);
-  tick_max_->setName(QString::fromUtf8("tick max [\u00b5s]"));
+  tick_max_->setName(QString::fromUtf8("solver tick max [\u00b5s]"));
   tick_max_->setPen(QPen(QColor(60, 140, 220), 1.0, Qt::DashLine));
+  jitter_ = new QLineSeries(chart_);
+  jitter_->setName(QString::fromUtf8("coupling jitter [\u00b5s]"));
+  jitter_->setPen(QPen(QColor(200, 60, 90), 1.0));
   chart_->addSeries(force_);
   chart_->addSeries(tick_mean_);
   chart_->addSeries(tick_max_);
+  chart_->addSeries(jitter_);
 
   axis_t_ = new QValueAxis(chart_);
   axis_t_->setLabelFormat("%.0f s");
@@ -59,7 +63,7 @@ StripChart::StripChart(QWidget* parent, double window_s)
   chart_->addAxis(axis_tick_, Qt::AlignRight);
   force_->attachAxis(axis_t_);
   force_->attachAxis(axis_force_);
-  for (QLineSeries* s : {tick_mean_, tick_max_}) {
+  for (QLineSeries* s : {tick_mean_, tick_max_, jitter_}) {
     s->attachAxis(axis_t_);
     s->attachAxis(axis_tick_);
   }
@@ -82,10 +86,10 @@ StripChart::StripChart(QWidget* parent, double window_s)
   since_redraw_.start();
 }
 
-void StripChart::addSample(double t_s, double force_N, double mean_tick_us, double max_tick_us) {
+void StripChart::addSample(double t_s, double force_N, double mean_tick_us, double max_tick_us, double jitter_us) {
   if (!std::isfinite(t_s)) return;
   auto finite = [](double v) { return std::isfinite(v) ? v : 0.0; };
-  samples_.push_back({t_s, finite(force_N), finite(mean_tick_us), finite(max_tick_us)});
+  samples_.push_back({t_s, finite(force_N), finite(mean_tick_us), finite(max_tick_us), finite(jitter_us)});
   while (!samples_.empty() && samples_.front().t_s < t_s - window_s_ - 1.0) samples_.pop_front();
   if (since_redraw_.elapsed() >= kRedrawMs) redraw();
 }
@@ -96,22 +100,25 @@ void StripChart::redraw() {
   since_redraw_.restart();
   // x = time relative to the newest sample; each series is replaced at once (one repaint).
   const double now = samples_.empty() ? 0.0 : samples_.back().t_s;
-  QList<QPointF> force, mean, max;
+  QList<QPointF> force, mean, max, jitter;
   force.reserve(static_cast<qsizetype>(samples_.size()));
   mean.reserve(static_cast<qsizetype>(samples_.size()));
   max.reserve(static_cast<qsizetype>(samples_.size()));
+  jitter.reserve(static_cast<qsizetype>(samples_.size()));
   double top_force = 0.0, top_tick = 0.0;
   for (const Sample& s : samples_) {
     const double x = s.t_s - now;
     force.append(QPointF(x, s.force_N));
     mean.append(QPointF(x, s.mean_us));
     max.append(QPointF(x, s.max_us));
+    jitter.append(QPointF(x, s.jitter_us));
     top_force = std::max(top_force, s.force_N);
-    top_tick = std::max({top_tick, s.mean_us, s.max_us});
+    top_tick = std::max({top_tick, s.mean_us, s.max_us, s.jitter_us});
   }
   force_->replace(force);
   tick_mean_->replace(mean);
   tick_max_->replace(max);
+  jitter_->replace(jitter);
   axis_force_->setRange(0.0, niceCeil(std::max(0.5, 1.1 * top_force)));
   axis_tick_->setRange(0.0, niceCeil(std::max(100.0, 1.1 * top_tick)));
 }

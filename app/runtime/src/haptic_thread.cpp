@@ -1,3 +1,4 @@
+// The coupling and solver threads of vh/runtime/haptic_thread.h.
 #include "vh/runtime/haptic_thread.h"
 
 #include <pthread.h>
@@ -11,6 +12,7 @@
 #include <algorithm>
 #include <cerrno>
 #include <cmath>
+#include <cstdlib>
 #include <cstring>
 #include <stdexcept>
 
@@ -21,6 +23,8 @@ namespace vh::runtime {
 namespace {
 
 constexpr std::int64_t kNsPerS = 1'000'000'000;
+constexpr int kCouplingPriority = 80;  // above the solver: on a shared core the coupling preempts it
+constexpr int kSolverPriority = 79;
 
 std::int64_t toNs(const timespec& t) noexcept { return static_cast<std::int64_t>(t.tv_sec) * kNsPerS + t.tv_nsec; }
 
@@ -38,15 +42,15 @@ std::int64_t monotonicNs() noexcept {
 }
 
 /// Best effort real-time set-up of the calling thread (devices.md, "Servo loop timing"): 1 ns
-/// timer slack, SCHED_FIFO 80 and, when that worked, mlockall. Every failure (EPERM in a
-/// container or for a normal user) silently leaves the default.
-void configureRealtime(bool& fifo, bool& locked) noexcept {
+/// timer slack, SCHED_FIFO at `priority` and, when that worked and `lock_memory`, mlockall.
+/// Every failure (EPERM in a container or for a normal user) silently leaves the default.
+void configureRealtime(int priority, bool lock_memory, bool& fifo, bool& locked) noexcept {
   prctl(PR_SET_TIMERSLACK, 1UL, 0UL, 0UL, 0UL);
   sched_param param{};
-  param.sched_priority = 80;
+  param.sched_priority = priority;
   fifo = pthread_setschedparam(pthread_self(), SCHED_FIFO, &param) == 0;
   locked = false;
-  if (!fifo) return;
+  if (!fifo || !lock_memory) return;
   // Lock only when the limit cannot make later allocations fail (root or unlimited).
   rlimit limit{};
   if (geteuid() != 0 && (getrlimit(RLIMIT_MEMLOCK, &limit) != 0 || limit.rlim_cur != RLIM_INFINITY)) return;
@@ -60,13 +64,219 @@ void configureRealtime(bool& fifo, bool& locked) noexcept {
 #endif
 }
 
+/// An absolute-deadline periodic wake-up with the statistics of ThreadTiming: on an overrun of
+/// more than one period it counts a miss and resynchronises (no catch-up wake-ups).
+class PeriodicClock {
+ public:
+  PeriodicClock(double period_s, std::uint64_t ticks_before) noexcept
+      : period_ns_(std::max<std::int64_t>(1, std::llround(period_s * 1e9))),
+        next_ns_(monotonicNs()),
+        previous_begin_ns_(next_ns_),
+        window_start_ns_(next_ns_) {
+    timing_.nominal_rate_Hz = 1.0 / period_s;
+    timing_.ticks = ticks_before;
+  }
+
+  /// Sleeps until the next deadline. @return whether this wake-up missed its deadline.
+  bool wait() noexcept {
+    next_ns_ += period_ns_;
+    const timespec deadline = fromNs(next_ns_);
+    while (clock_nanosleep(CLOCK_MONOTONIC, TIMER_ABSTIME, &deadline, nullptr) == EINTR) {
+    }
+    const std::int64_t begin_ns = monotonicNs();
+    interval_s_ = 1e-9 * static_cast<double>(begin_ns - previous_begin_ns_);
+    const double jitter_us = 1e-3 * static_cast<double>(std::llabs(begin_ns - previous_begin_ns_ - period_ns_));
+    window_jitter_us_ = std::max(window_jitter_us_, jitter_us);
+    previous_begin_ns_ = begin_ns;
+    const bool missed = begin_ns - next_ns_ > period_ns_;
+    if (missed) {
+      ++timing_.deadline_misses;
+      next_ns_ = begin_ns;
+    }
+    return missed;
+  }
+  /// The interval between the last two wake-ups [s].
+  double interval_s() const noexcept { return interval_s_; }
+
+  /// One tick that ran from begin_ns to end_ns (monotonicNs()); closes the window after 1 s.
+  void tick(std::int64_t begin_ns, std::int64_t end_ns) noexcept {
+    ++timing_.ticks;
+    ++window_ticks_;
+    const double tick_us = 1e-3 * static_cast<double>(end_ns - begin_ns);
+    window_sum_us_ += tick_us;
+    window_max_us_ = std::max(window_max_us_, tick_us);
+    const std::int64_t window_ns = end_ns - window_start_ns_;
+    if (window_ns >= kNsPerS || !have_window_) {
+      timing_.rate_Hz = window_ns > 0 ? static_cast<double>(window_ticks_) * 1e9 / static_cast<double>(window_ns) : 0.0;
+      timing_.mean_tick_us = window_sum_us_ / static_cast<double>(window_ticks_);
+      timing_.max_tick_us = window_max_us_;
+      timing_.jitter_us = window_jitter_us_;
+    }
+    if (window_ns >= kNsPerS) {
+      have_window_ = true;
+      window_start_ns_ = end_ns;
+      window_ticks_ = 0;
+      window_sum_us_ = 0.0;
+      window_max_us_ = 0.0;
+      window_jitter_us_ = 0.0;
+    }
+  }
+  const ThreadTiming& timing() const noexcept { return timing_; }
+
+ private:
+  std::int64_t period_ns_;
+  std::int64_t next_ns_;
+  std::int64_t previous_begin_ns_;
+  std::int64_t window_start_ns_;
+  double interval_s_ = 0.0;
+  std::uint64_t window_ticks_ = 0;
+  double window_sum_us_ = 0.0, window_max_us_ = 0.0, window_jitter_us_ = 0.0;
+  bool have_window_ = false;
+  ThreadTiming timing_;
+};
+
+/// One coupling tick's device sample as the solver gets it.
+struct DeviceInput {
+  haptics::Pose X_WD;            ///< As read (not normalised); meaningful only when ok.
+  double isovalue = 0.0;         ///< HapticThread's isovalue on that coupling tick.
+  haptics::CouplingGains gains;  ///< The gains the coupling thread applied on that tick.
+  bool ok = false;               ///< A usable sample (read() true, valid, finite).
+  bool connected = true;         ///< Device::connected() right after the read.
+};
+
+bool sameGains(const haptics::CouplingGains& a, const haptics::CouplingGains& b) noexcept {
+  return a.linear_N_per_m == b.linear_N_per_m && a.angular_Nm_per_rad == b.angular_Nm_per_rad;
+}
+
+/// The last `capacity` device samples, numbered 1, 2, ... One producer (the coupling thread)
+/// that never waits: it overwrites the oldest slot. One consumer (the solver thread) that reads
+/// any sample still held; each slot is a sequence lock (odd version while written), its fields
+/// relaxed atomics, so a torn read is detected and never undefined.
+class SampleRing {
+ public:
+  explicit SampleRing(std::size_t capacity) {
+    std::size_t n = 2;
+    while (n < capacity) n *= 2;
+    slots_ = std::make_unique<Slot[]>(n);
+    mask_ = n - 1;
+  }
+  std::size_t capacity() const noexcept { return mask_ + 1; }
+
+  /// Producer. @return the new sample's number.
+  std::uint64_t push(const DeviceInput& in) noexcept {
+    const std::uint64_t seq = ++written_;
+    Slot& s = slots_[seq & mask_];
+    const std::uint64_t v = s.version.load(std::memory_order_relaxed);
+    s.version.store(v + 1, std::memory_order_relaxed);
+    std::atomic_thread_fence(std::memory_order_release);
+    s.seq.store(seq, std::memory_order_relaxed);
+    for (int k = 0; k < 3; ++k) s.value[k].store(in.X_WD.p_AB_m[k], std::memory_order_relaxed);
+    s.value[3].store(in.X_WD.R_AB.w(), std::memory_order_relaxed);
+    s.value[4].store(in.X_WD.R_AB.x(), std::memory_order_relaxed);
+    s.value[5].store(in.X_WD.R_AB.y(), std::memory_order_relaxed);
+    s.value[6].store(in.X_WD.R_AB.z(), std::memory_order_relaxed);
+    s.value[7].store(in.isovalue, std::memory_order_relaxed);
+    s.value[8].store(in.gains.linear_N_per_m, std::memory_order_relaxed);
+    s.value[9].store(in.gains.angular_Nm_per_rad, std::memory_order_relaxed);
+    s.flags.store((in.ok ? 1u : 0u) | (in.connected ? 2u : 0u), std::memory_order_relaxed);
+    s.version.store(v + 2, std::memory_order_release);
+    latest_.store(seq, std::memory_order_release);
+    return seq;
+  }
+  /// Any thread: the newest sample's number (0: none yet).
+  std::uint64_t latest() const noexcept { return latest_.load(std::memory_order_acquire); }
+  /// Consumer. @return false when sample `seq` is not (or no longer) held.
+  bool read(std::uint64_t seq, DeviceInput& out) const noexcept {
+    const Slot& s = slots_[seq & mask_];
+    const std::uint64_t v1 = s.version.load(std::memory_order_acquire);
+    if ((v1 & 1u) != 0) return false;
+    const std::uint64_t held = s.seq.load(std::memory_order_relaxed);
+    double value[kValues];
+    for (int k = 0; k < kValues; ++k) value[k] = s.value[k].load(std::memory_order_relaxed);
+    const std::uint32_t flags = s.flags.load(std::memory_order_relaxed);
+    std::atomic_thread_fence(std::memory_order_acquire);
+    if (s.version.load(std::memory_order_relaxed) != v1 || held != seq) return false;
+    out.X_WD.p_AB_m = {value[0], value[1], value[2]};
+    out.X_WD.R_AB = Eigen::Quaterniond(value[3], value[4], value[5], value[6]);
+    out.isovalue = value[7];
+    out.gains.linear_N_per_m = value[8];
+    out.gains.angular_Nm_per_rad = value[9];
+    out.ok = (flags & 1u) != 0;
+    out.connected = (flags & 2u) != 0;
+    return true;
+  }
+
+ private:
+  static constexpr int kValues = 10;
+  struct Slot {
+    std::atomic<std::uint64_t> version{0};
+    std::atomic<std::uint64_t> seq{0};
+    std::array<std::atomic<double>, kValues> value{};
+    std::atomic<std::uint32_t> flags{0};
+  };
+  std::unique_ptr<Slot[]> slots_;
+  std::size_t mask_ = 0;
+  std::uint64_t written_ = 0;  // producer only
+  std::atomic<std::uint64_t> latest_{0};
+};
+
+/// Solver -> coupling: the proxy pose to couple to.
+struct ProxyState {
+  haptics::Pose X_WP;
+  bool bad_input = false;  ///< The renderer rejected the device pose of the tick that produced it.
+};
+
+/// Coupling thread -> GUI.
+struct CouplingSnapshot {
+  std::uint64_t tick = 0;
+  haptics::Pose X_WP, X_WD;
+  Eigen::Vector3d force_W_N = Eigen::Vector3d::Zero();
+  Eigen::Vector3d torque_W_Nm = Eigen::Vector3d::Zero();
+  std::uint64_t bad_samples = 0;
+  ThreadTiming timing;
+};
+
+/// Solver thread -> GUI.
+struct SolverSnapshot {
+  std::uint64_t tick = 0;
+  double isovalue = 0.0;
+  int contacts = 0;
+  int contacts_shown = 0;
+  std::array<Eigen::Vector3d, HapticSnapshot::kMaxContactsShown> contact_p_W_m{};
+  std::array<Eigen::Vector3d, HapticSnapshot::kMaxContactsShown> contact_n_W{};
+  std::uint64_t rejected = 0;  ///< Device poses the renderer rejected.
+  std::uint64_t skipped = 0;
+  ThreadTiming timing;
+};
+
 }  // namespace
 
+struct HapticThread::Exchange {
+  explicit Exchange(std::size_t ring_capacity) : samples(ring_capacity) {}
+  SampleRing samples;
+  TripleBuffer<ProxyState> proxy;
+  TripleBuffer<CouplingSnapshot> coupling_snapshots;
+  TripleBuffer<SolverSnapshot> solver_snapshots;
+  /// kRecordFlagForceLimited / ForceZeroed / NonFinite / Stopping of the latest command.
+  std::atomic<std::uint32_t> command_flags{0};
+  /// kRecordFlagDeadlineMiss when the coupling thread missed since the solver last looked.
+  std::atomic<std::uint32_t> sticky_flags{0};
+  std::atomic<bool> solver_fifo{false};
+  /// The samples a kEverySample solver may fall behind before it skips to the newest.
+  std::uint64_t backlog_limit = 1;
+  /// GUI side: the last values read, merged by latestSnapshot().
+  CouplingSnapshot gui_coupling;
+  SolverSnapshot gui_solver;
+};
+
 HapticThread::HapticThread(std::unique_ptr<haptics::HapticRenderer> renderer, std::shared_ptr<Device> device,
-                           double isovalue, double servo_rate_Hz)
+                           double isovalue, double servo_rate_Hz, const HapticThreadOptions& options)
     : renderer_(std::move(renderer)),
       device_(std::move(device)),
       period_s_(servo_rate_Hz > 0.0 ? 1.0 / servo_rate_Hz : 0.0),
+      solver_period_s_(period_s_),
+      every_sample_(true),
+      options_(options),
       isovalue_(isovalue),
       gain_linear_(0.0),
       gain_angular_(0.0) {
@@ -75,15 +285,45 @@ HapticThread::HapticThread(std::unique_ptr<haptics::HapticRenderer> renderer, st
   if (!(servo_rate_Hz > 0.0) || !std::isfinite(servo_rate_Hz)) {
     throw std::invalid_argument("HapticThread: servo rate must be a positive number of Hz");
   }
+  const double solver_rate_Hz = options.solver_rate_Hz == 0.0 ? servo_rate_Hz : options.solver_rate_Hz;
+  if (!(solver_rate_Hz > 0.0) || !std::isfinite(solver_rate_Hz)) {
+    throw std::invalid_argument("HapticThread: solver rate must be a positive number of Hz (or 0)");
+  }
+  if (!(options.max_solver_backlog_s > 0.0) || !(options.max_solver_backlog_s <= 10.0)) {
+    throw std::invalid_argument("HapticThread: max_solver_backlog_s must be in (0, 10] s");
+  }
+  solver_period_s_ = 1.0 / solver_rate_Hz;
+  const bool equal_rates = solver_rate_Hz == servo_rate_Hz;
+  switch (options.solver_input) {
+    case SolverInput::kAuto: every_sample_ = equal_rates; break;
+    case SolverInput::kLatest: every_sample_ = false; break;
+    case SolverInput::kEverySample:
+      if (!equal_rates) {
+        throw std::invalid_argument("HapticThread: SolverInput::kEverySample needs the solver at the device's rate");
+      }
+      every_sample_ = true;
+      break;
+  }
+  const auto backlog = static_cast<std::uint64_t>(std::max(1.0, std::round(options.max_solver_backlog_s * servo_rate_Hz)));
+  x_ = std::make_unique<Exchange>(static_cast<std::size_t>(backlog) + 16);
+  x_->backlog_limit = backlog;
+
   const haptics::CouplingGains gains = renderer_->coupling().gains();
   gain_linear_.store(gains.linear_N_per_m);
   gain_angular_.store(gains.angular_Nm_per_rad);
   // Readers see the initial proxy/device pose before the first tick.
-  HapticSnapshot& first = snapshots_.writeSlot();
-  first.X_WP = renderer_->proxyPose();
-  first.X_WD = renderer_->proxyPose();
-  first.isovalue = isovalue;
-  snapshots_.publish();
+  ProxyState& proxy = x_->proxy.writeSlot();
+  proxy.X_WP = renderer_->proxyPose();
+  x_->proxy.publish();
+  CouplingSnapshot& c = x_->coupling_snapshots.writeSlot();
+  c.X_WP = renderer_->proxyPose();
+  c.X_WD = renderer_->proxyPose();
+  c.timing.nominal_rate_Hz = servo_rate_Hz;
+  x_->coupling_snapshots.publish();
+  SolverSnapshot& s = x_->solver_snapshots.writeSlot();
+  s.isovalue = isovalue;
+  s.timing.nominal_rate_Hz = solver_rate_Hz;
+  x_->solver_snapshots.publish();
 }
 
 HapticThread::~HapticThread() { stop(); }
@@ -113,86 +353,106 @@ void HapticThread::recordEvent(const std::string& type, const std::string& detai
   const std::uint64_t first = first_recorded_tick_.load(std::memory_order_acquire);
   const std::uint64_t latest = latest_recorded_tick_.load(std::memory_order_acquire);
   event.tick = latest;
-  event.time_s = first != 0 && latest >= first ? static_cast<double>(latest - first) * period_s_ : 0.0;
+  event.time_s = first != 0 && latest >= first ? static_cast<double>(latest - first) * solver_period_s_ : 0.0;
   recorder->addEvent(event);
 }
 
+bool HapticThread::realtimeScheduling() const noexcept {
+  return fifo_.load(std::memory_order_acquire) && x_->solver_fifo.load(std::memory_order_acquire);
+}
+
+bool HapticThread::latestSnapshot(HapticSnapshot& out) noexcept {
+  const bool fresh_coupling = x_->coupling_snapshots.read(x_->gui_coupling);
+  const bool fresh_solver = x_->solver_snapshots.read(x_->gui_solver);
+  const CouplingSnapshot& c = x_->gui_coupling;
+  const SolverSnapshot& s = x_->gui_solver;
+  out.tick = c.tick;
+  out.solver_tick = s.tick;
+  out.X_WP = c.X_WP;
+  out.X_WD = c.X_WD;
+  out.force_W_N = c.force_W_N;
+  out.torque_W_Nm = c.torque_W_Nm;
+  out.isovalue = s.isovalue;
+  out.contacts = s.contacts;
+  out.contacts_shown = s.contacts_shown;
+  out.contact_p_W_m = s.contact_p_W_m;
+  out.contact_n_W = s.contact_n_W;
+  out.coupling = c.timing;
+  out.solver = s.timing;
+  out.bad_device_samples = c.bad_samples + s.rejected;
+  out.skipped_samples = s.skipped;
+  return fresh_coupling || fresh_solver;
+}
+
 void HapticThread::start() {
-  if (thread_.joinable()) return;
+  if (coupling_thread_.joinable()) return;
   stop_requested_.store(false, std::memory_order_release);
+  coupling_done_.store(false, std::memory_order_release);
   running_.store(true, std::memory_order_release);
   try {
-    thread_ = std::thread([this] { loop(); });
+    solver_thread_ = std::thread([this] { solverLoop(); });
   } catch (...) {
+    running_.store(false, std::memory_order_release);
+    throw;
+  }
+  try {
+    coupling_thread_ = std::thread([this] { couplingLoop(); });
+  } catch (...) {
+    coupling_done_.store(true, std::memory_order_release);
+    solver_thread_.join();
     running_.store(false, std::memory_order_release);
     throw;
   }
 }
 
 void HapticThread::stop() {
-  if (!thread_.joinable()) return;
+  if (!coupling_thread_.joinable()) return;
   stop_requested_.store(true, std::memory_order_release);
-  thread_.join();
+  coupling_thread_.join();  // ramps the force down, commands zero, then tells the solver
+  coupling_done_.store(true, std::memory_order_release);
+  if (solver_thread_.joinable()) solver_thread_.join();
 }
 
-void HapticThread::loop() noexcept {
+void HapticThread::couplingLoop() noexcept {
   bool fifo = false, locked = false;
-  configureRealtime(fifo, locked);
-  fifo_.store(fifo, std::memory_order_release);
+  configureRealtime(kCouplingPriority, true, fifo, locked);
   memory_locked_.store(locked, std::memory_order_release);
+  fifo_.store(fifo, std::memory_order_release);
 
-  const std::int64_t period_ns = std::max<std::int64_t>(1, std::llround(period_s_ * 1e9));
   const int ramp_ticks = std::max(1, static_cast<int>(std::lround(0.050 / period_s_)));  // ~50 ms
   int ramp_left = -1;  // -1: not stopping
-
   std::uint64_t tick = 0;
-  std::uint64_t deadline_misses = 0;
   std::uint64_t bad_samples = 0;
-  std::uint64_t record_first_tick = 0;  // tick of the current recording's first record
-  RecordingWriter* active_recorder = nullptr;  // the recorder of the current recording
-  // Rolling statistics over windows of one second; until the first window closes, the running
-  // window's values are published.
-  std::int64_t window_start_ns = monotonicNs();
-  std::uint64_t window_ticks = 0;
-  double window_sum_us = 0.0, window_max_us = 0.0;
-  double rate_Hz = 0.0, mean_us = 0.0, max_us = 0.0;
-  bool have_window = false;
+  PeriodicClock clock(period_s_, 0);
 
   DeviceSample sample;
-  haptics::Pose X_WD_last = renderer_->proxyPose();
-  std::int64_t next_ns = monotonicNs();
-  std::int64_t previous_begin_ns = next_ns;
+  DeviceInput input;
+  ProxyState proxy;
+  x_->proxy.read(proxy);
+  haptics::Pose X_WD_last = proxy.X_WP;  // until the first valid sample
+  const haptics::MassProperties& mass = renderer_->tool().mass;  // immutable: shared with the solver
 
   // Every command goes through the one safety layer: the device's limits, engage gate, ramp,
   // watchdog, actuated DOF (device.h, ForceSafety). Coupling gains are kept within the device's
   // stable stiffness.
   ForceSafety safety(device_->limits(), device_->safetyPolicy(), device_->actuatedDof());
   safety.enable();
-  haptics::CouplingGains requested_gains = renderer_->coupling().gains();
+  haptics::CouplingGains requested_gains{gain_linear_.load(std::memory_order_relaxed),
+                                         gain_angular_.load(std::memory_order_relaxed)};
   haptics::CouplingGains applied_gains = clampGains(requested_gains, safety.limits());
-  renderer_->setGains(applied_gains);
+  haptics::VirtualCoupling coupling(applied_gains);
 
   while (true) {
     if (ramp_left < 0 && stop_requested_.load(std::memory_order_acquire)) ramp_left = ramp_ticks;
     if (ramp_left == 0) break;
-
-    // Absolute-deadline sleep; on an overrun of more than one period count a miss and resync
-    // (no catch-up ticks).
-    next_ns += period_ns;
-    const timespec deadline = fromNs(next_ns);
-    while (clock_nanosleep(CLOCK_MONOTONIC, TIMER_ABSTIME, &deadline, nullptr) == EINTR) {
-    }
+    const bool missed = clock.wait();
     const std::int64_t begin_ns = monotonicNs();
-    const double tick_interval_s = 1e-9 * static_cast<double>(begin_ns - previous_begin_ns);
-    previous_begin_ns = begin_ns;
-    const bool missed = begin_ns - next_ns > period_ns;
-    if (missed) {
-      ++deadline_misses;
-      next_ns = begin_ns;
-    }
+    if (missed) x_->sticky_flags.fetch_or(kRecordFlagDeadlineMiss, std::memory_order_relaxed);
 
     // 1. Device sample (a non-finite pose is no sample).
     const bool ok = device_->read(sample) && sample.valid && sample.X_WD.allFinite();
+    const bool connected = device_->connected();
+    if (!ok) ++bad_samples;
     // 2. Pending GUI commands; gains within the device's current limits (a workspace scale
     //    change alters them).
     safety.setLimits(device_->limits());
@@ -200,23 +460,34 @@ void HapticThread::loop() noexcept {
       requested_gains = {gain_linear_.load(std::memory_order_relaxed), gain_angular_.load(std::memory_order_relaxed)};
     }
     const haptics::CouplingGains gains = clampGains(requested_gains, safety.limits());
-    if (gains.linear_N_per_m != applied_gains.linear_N_per_m ||
-        gains.angular_Nm_per_rad != applied_gains.angular_Nm_per_rad) {
+    if (!sameGains(gains, applied_gains)) {
       applied_gains = gains;
-      renderer_->setGains(applied_gains);
+      coupling.setGains(applied_gains);
     }
-    const double isovalue = isovalue_.load(std::memory_order_relaxed);
-    // 3. Render.
+    // 3. Hand the sample to the solver, with this tick's isovalue and gains.
+    input.X_WD = ok ? sample.X_WD : X_WD_last;
+    input.isovalue = isovalue_.load(std::memory_order_relaxed);
+    input.gains = applied_gains;
+    input.ok = ok;
+    input.connected = connected;
+    x_->samples.push(input);
+    // 4. Virtual coupling (eq. 5) to the solver's latest proxy pose, with the device pose
+    //    normalised as the renderer does (so that the same pair gives the same bits). A pose
+    //    the renderer would reject (quaternion off unit length), or one it rejected on its
+    //    latest tick, gives no force.
+    x_->proxy.read(proxy);
     Eigen::Vector3d force_W_N = Eigen::Vector3d::Zero();
     Eigen::Vector3d torque_W_Nm = Eigen::Vector3d::Zero();
     if (ok) {
-      X_WD_last = sample.X_WD;
-      const haptics::TickOutput out = renderer_->tick(sample.X_WD, isovalue);
-      if (out.stats.bad_input) ++bad_samples;
-      force_W_N = out.force_W_N;
-      torque_W_Nm = out.torque_W_Nm;
-    } else {
-      ++bad_samples;  // watchdog: nothing usable from the device, no force
+      const double qn = sample.X_WD.R_AB.norm();
+      if (std::abs(qn - 1.0) <= 1e-3 && !proxy.bad_input) {
+        haptics::Pose X_WD = sample.X_WD;
+        X_WD.R_AB.coeffs() /= qn;
+        X_WD_last = X_WD;
+        const haptics::Wrench w = coupling.compute(proxy.X_WP, X_WD, mass);
+        force_W_N = w.force_W_N;
+        torque_W_Nm = w.torque_W_Nm;
+      }
     }
     if (ramp_left > 0) {
       --ramp_left;
@@ -224,12 +495,12 @@ void HapticThread::loop() noexcept {
       force_W_N *= scale;
       torque_W_Nm *= scale;
     }
-    // 4. Safety layer, then command (never NaN, never beyond the device's limits).
+    // 5. Safety layer, then command (never NaN, never beyond the device's limits).
     SafetyInput safety_in;
     safety_in.sample_ok = ok;
     safety_in.sample_time_s = sample.time_s;
     safety_in.connection = sample.connection;
-    safety_in.tick_interval_s = tick_interval_s;
+    safety_in.tick_interval_s = clock.interval_s();
     safety_in.force_W_N = force_W_N;
     safety_in.torque_W_Nm = torque_W_Nm;
     const bool nonfinite = !force_W_N.allFinite() || !torque_W_Nm.allFinite();
@@ -242,72 +513,118 @@ void HapticThread::loop() noexcept {
                          std::memcmp(torque_rendered_W_Nm.data(), torque_W_Nm.data(), 3 * sizeof(double)) != 0;
     device_->command(force_W_N, torque_W_Nm);
     const bool zeroed = safety.stats().zeroed_ticks != zeroed_before;
+    x_->command_flags.store((zeroed ? kRecordFlagForceZeroed : 0u) | (nonfinite ? kRecordFlagNonFinite : 0u) |
+                                (ramp_left >= 0 ? kRecordFlagStopping : 0u) |
+                                (limited || zeroed ? kRecordFlagForceLimited : 0u),
+                            std::memory_order_relaxed);
     ++tick;
 
-    // 5. Statistics.
-    const std::int64_t end_ns = monotonicNs();
-    const double tick_us = 1e-3 * static_cast<double>(end_ns - begin_ns);
+    // 6. Statistics and snapshot.
+    clock.tick(begin_ns, monotonicNs());
+    CouplingSnapshot& snap = x_->coupling_snapshots.writeSlot();
+    snap.tick = tick;
+    snap.X_WP = proxy.X_WP;
+    snap.X_WD = X_WD_last;
+    snap.force_W_N = force_W_N;
+    snap.torque_W_Nm = torque_W_Nm;
+    snap.bad_samples = bad_samples;
+    snap.timing = clock.timing();
+    x_->coupling_snapshots.publish();
+  }
 
-    // 6. Recording (lock-free push; a full ring drops the record and counts it).
+  device_->command(Eigen::Vector3d::Zero(), Eigen::Vector3d::Zero());
+  coupling_done_.store(true, std::memory_order_release);
+  if (locked) munlockall();
+  running_.store(false, std::memory_order_release);
+}
+
+void HapticThread::solverLoop() noexcept {
+  bool fifo = false, locked = false;
+  configureRealtime(kSolverPriority, false, fifo, locked);
+  x_->solver_fifo.store(fifo, std::memory_order_release);
+
+  std::uint64_t tick = 0;
+  std::uint64_t rejected = 0;
+  std::uint64_t skipped = 0;
+  std::uint64_t record_first_tick = 0;         // tick of the current recording's first record
+  RecordingWriter* active_recorder = nullptr;  // the recorder of the current recording
+  PeriodicClock clock(solver_period_s_, 0);
+  // Samples from before this start() are not used (a restart begins with the next one).
+  std::uint64_t consumed = x_->samples.latest();
+  DeviceInput input, last_input;
+  bool have_last = false;
+  // The renderer's gains (and the solver's metric) are set before the first tick, as
+  // replayRecording() does; then each sample brings the gains the coupling thread applied.
+  haptics::CouplingGains gains = renderer_->coupling().gains();
+  renderer_->setGains(gains);
+  haptics::Pose X_WD_used = renderer_->proxyPose();  // the latest pose the renderer ticked with
+  std::uint32_t wake_flags = 0;                      // deadline miss of this wake-up (first tick only)
+
+  // One solver tick on `in`: render, publish the proxy, record, publish the snapshot.
+  const auto solve = [&](const DeviceInput& in) noexcept {
+    const std::int64_t begin_ns = monotonicNs();
+    if (!sameGains(in.gains, gains)) {
+      gains = in.gains;
+      renderer_->setGains(gains);
+    }
+    haptics::TickOutput out;
+    bool bad_input = false;
+    if (in.ok) {
+      X_WD_used = in.X_WD;
+      out = renderer_->tick(in.X_WD, in.isovalue);
+      bad_input = out.stats.bad_input;
+      if (bad_input) ++rejected;
+    }
+    ProxyState& proxy = x_->proxy.writeSlot();
+    proxy.X_WP = renderer_->proxyPose();
+    proxy.bad_input = bad_input;
+    x_->proxy.publish();
+    ++tick;
+    if (options_.solver_tick_hook != nullptr) options_.solver_tick_hook(options_.solver_tick_hook_context);
+    const std::int64_t end_ns = monotonicNs();
+
+    // Recording (lock-free push; a full ring drops the record and counts it).
+    const std::uint32_t coupling_flags = x_->command_flags.load(std::memory_order_relaxed) |
+                                         x_->sticky_flags.exchange(0, std::memory_order_relaxed);
     RecordingWriter* const recorder = recorder_.load(std::memory_order_acquire);
     if (recorder != active_recorder) {  // a new recording starts its clock at its first tick
       active_recorder = recorder;
       record_first_tick = tick;
       first_recorded_tick_.store(tick, std::memory_order_release);
     }
+    const auto contacts = renderer_->contacts();
     if (recorder != nullptr) {
       TickRecord rec;
-      rec.time_s = static_cast<double>(tick - record_first_tick) * period_s_;
+      rec.time_s = static_cast<double>(tick - record_first_tick) * solver_period_s_;
       rec.tick = tick;
-      const haptics::Pose X_WP_now = renderer_->proxyPose();
-      const haptics::Pose& X_WD_rec = ok ? sample.X_WD : X_WD_last;
+      const haptics::Pose& X_WP = renderer_->proxyPose();
+      const haptics::Pose& X_WD = in.ok ? in.X_WD : X_WD_used;
       for (int k = 0; k < 3; ++k) {
-        rec.p_WD_m[k] = X_WD_rec.p_AB_m[k];
-        rec.p_WP_m[k] = X_WP_now.p_AB_m[k];
-        rec.force_W_N[k] = force_W_N[k];
-        rec.torque_W_Nm[k] = torque_W_Nm[k];
+        rec.p_WD_m[k] = X_WD.p_AB_m[k];
+        rec.p_WP_m[k] = X_WP.p_AB_m[k];
+        rec.force_W_N[k] = out.force_W_N[k];
+        rec.torque_W_Nm[k] = out.torque_W_Nm[k];
       }
-      rec.q_WD[0] = X_WD_rec.R_AB.w(); rec.q_WD[1] = X_WD_rec.R_AB.x();
-      rec.q_WD[2] = X_WD_rec.R_AB.y(); rec.q_WD[3] = X_WD_rec.R_AB.z();
-      rec.q_WP[0] = X_WP_now.R_AB.w(); rec.q_WP[1] = X_WP_now.R_AB.x();
-      rec.q_WP[2] = X_WP_now.R_AB.y(); rec.q_WP[3] = X_WP_now.R_AB.z();
-      rec.isovalue = isovalue;
+      rec.q_WD[0] = X_WD.R_AB.w(); rec.q_WD[1] = X_WD.R_AB.x();
+      rec.q_WD[2] = X_WD.R_AB.y(); rec.q_WD[3] = X_WD.R_AB.z();
+      rec.q_WP[0] = X_WP.R_AB.w(); rec.q_WP[1] = X_WP.R_AB.x();
+      rec.q_WP[2] = X_WP.R_AB.y(); rec.q_WP[3] = X_WP.R_AB.z();
+      rec.isovalue = in.isovalue;
       rec.tick_time_s = 1e-9 * static_cast<double>(end_ns - begin_ns);
-      rec.contacts = static_cast<std::uint32_t>(renderer_->contacts().size());
-      rec.flags = (rec.contacts > 0 ? kRecordFlagContact : 0u) | (ok ? 0u : kRecordFlagBadSample) |
-                  (missed ? kRecordFlagDeadlineMiss : 0u) | (zeroed ? kRecordFlagForceZeroed : 0u) |
-                  (nonfinite ? kRecordFlagNonFinite : 0u) | (ramp_left >= 0 ? kRecordFlagStopping : 0u) |
-                  (limited || zeroed ? kRecordFlagForceLimited : 0u) |
-                  (device_->connected() ? 0u : kRecordFlagDeviceDisconnected);
+      rec.contacts = static_cast<std::uint32_t>(contacts.size());
+      const bool nonfinite = !out.force_W_N.allFinite() || !out.torque_W_Nm.allFinite();
+      rec.flags = (rec.contacts > 0 ? kRecordFlagContact : 0u) | (in.ok ? 0u : kRecordFlagBadSample) |
+                  (nonfinite ? kRecordFlagNonFinite : 0u) | wake_flags | coupling_flags |
+                  (in.connected ? 0u : kRecordFlagDeviceDisconnected);
       (void)recorder->push(rec);
       latest_recorded_tick_.store(tick, std::memory_order_release);
     }
-    ++window_ticks;
-    window_sum_us += tick_us;
-    window_max_us = std::max(window_max_us, tick_us);
-    const std::int64_t window_ns = end_ns - window_start_ns;
-    if (window_ns >= kNsPerS || !have_window) {
-      rate_Hz = window_ns > 0 ? static_cast<double>(window_ticks) * 1e9 / static_cast<double>(window_ns) : 0.0;
-      mean_us = window_sum_us / static_cast<double>(window_ticks);
-      max_us = window_max_us;
-    }
-    if (window_ns >= kNsPerS) {
-      have_window = true;
-      window_start_ns = end_ns;
-      window_ticks = 0;
-      window_sum_us = 0.0;
-      window_max_us = 0.0;
-    }
+    wake_flags = 0;
 
-    // 6. Snapshot.
-    HapticSnapshot& snap = snapshots_.writeSlot();
+    clock.tick(begin_ns, end_ns);
+    SolverSnapshot& snap = x_->solver_snapshots.writeSlot();
     snap.tick = tick;
-    snap.X_WP = renderer_->proxyPose();
-    snap.X_WD = X_WD_last;
-    snap.force_W_N = force_W_N;
-    snap.torque_W_Nm = torque_W_Nm;
-    snap.isovalue = isovalue;
-    const auto contacts = renderer_->contacts();
+    snap.isovalue = in.isovalue;
     snap.contacts = static_cast<int>(contacts.size());
     const int shown = std::min<int>(snap.contacts, HapticSnapshot::kMaxContactsShown);
     snap.contacts_shown = shown;
@@ -315,17 +632,46 @@ void HapticThread::loop() noexcept {
       snap.contact_p_W_m[static_cast<std::size_t>(i)] = contacts[static_cast<std::size_t>(i)].p_W_m;
       snap.contact_n_W[static_cast<std::size_t>(i)] = contacts[static_cast<std::size_t>(i)].n_W;
     }
-    snap.servo_rate_Hz = rate_Hz;
-    snap.mean_tick_us = mean_us;
-    snap.max_tick_us = max_us;
-    snap.deadline_misses = deadline_misses;
-    snap.bad_device_samples = bad_samples;
-    snapshots_.publish();
-  }
+    snap.rejected = rejected;
+    snap.skipped = skipped;
+    snap.timing = clock.timing();
+    x_->solver_snapshots.publish();
+  };
 
-  device_->command(Eigen::Vector3d::Zero(), Eigen::Vector3d::Zero());
-  if (locked) munlockall();
-  running_.store(false, std::memory_order_release);
+  // The samples waiting at this wake-up.
+  const auto solvePending = [&]() noexcept {
+    const std::uint64_t latest = x_->samples.latest();
+    if (every_sample_) {
+      // Every sample once, in order; skip to the newest only when too far behind (or when the
+      // coupling thread overwrote the next one, which the backlog limit prevents).
+      while (consumed < latest) {
+        std::uint64_t next = consumed + 1;
+        if (latest - next >= x_->backlog_limit) next = latest;
+        if (!x_->samples.read(next, input)) {
+          next = x_->samples.latest();
+          if (!x_->samples.read(next, input)) break;
+        }
+        skipped += next - consumed - 1;
+        consumed = next;
+        solve(input);
+      }
+      return;
+    }
+    // The newest sample; the last one again when nothing new arrived.
+    if (latest > consumed && x_->samples.read(latest, input)) {
+      if (have_last) skipped += latest - consumed - 1;
+      consumed = latest;
+      last_input = input;
+      have_last = true;
+    }
+    if (have_last) solve(last_input);
+  };
+
+  while (!coupling_done_.load(std::memory_order_acquire)) {
+    if (clock.wait()) wake_flags = kRecordFlagDeadlineMiss;
+    solvePending();
+  }
+  if (every_sample_) solvePending();  // the samples of the coupling thread's last ticks
 }
 
 }  // namespace vh::runtime

@@ -75,10 +75,15 @@ TEST(HapticThread, TicksPublishesConsistentSnapshotsAndStops) {
   // Pressed 3 mm in: about 3 N, pushing the hand out (+z).
   EXPECT_GT(snap.force_W_N.z(), 0.9 * snap.force_W_N.norm());
   EXPECT_NEAR(snap.force_W_N.norm(), 3.0, 0.5);
-  EXPECT_GT(snap.servo_rate_Hz, 100.0);
-  EXPECT_LT(snap.servo_rate_Hz, 1100.0);
-  EXPECT_GT(snap.mean_tick_us, 0.0);
-  EXPECT_GE(snap.max_tick_us, snap.mean_tick_us);
+  for (const ThreadTiming* t : {&snap.coupling, &snap.solver}) {
+    EXPECT_EQ(t->nominal_rate_Hz, 1000.0);
+    EXPECT_GT(t->rate_Hz, 100.0);
+    EXPECT_LT(t->rate_Hz, 1100.0);
+    EXPECT_GT(t->mean_tick_us, 0.0);
+    EXPECT_GE(t->max_tick_us, t->mean_tick_us);
+  }
+  EXPECT_TRUE(thread->solverUsesEverySample());
+  EXPECT_GT(snap.solver_tick, 0u);
   EXPECT_EQ(snap.isovalue, scene.isovalue);
   EXPECT_EQ(snap.contacts_shown, std::min(snap.contacts, HapticSnapshot::kMaxContactsShown));
   for (int i = 0; i < snap.contacts_shown; ++i) {
@@ -94,10 +99,11 @@ TEST(HapticThread, TicksPublishesConsistentSnapshotsAndStops) {
 
   ::testing::Test::RecordProperty("sched_fifo", thread->realtimeScheduling() ? "yes" : "no");
   ::testing::Test::RecordProperty("memory_locked", thread->memoryLocked() ? "yes" : "no");
-  std::cout << "servo thread: SCHED_FIFO " << (thread->realtimeScheduling() ? "yes" : "no") << ", mlockall "
-            << (thread->memoryLocked() ? "yes" : "no") << ", " << snap.servo_rate_Hz << " Hz, mean tick "
-            << snap.mean_tick_us << " us, max " << snap.max_tick_us << " us, deadline misses "
-            << snap.deadline_misses << std::endl;
+  std::cout << "haptic threads: SCHED_FIFO " << (thread->realtimeScheduling() ? "yes" : "no") << ", mlockall "
+            << (thread->memoryLocked() ? "yes" : "no") << "; coupling " << snap.coupling.rate_Hz << " Hz, jitter "
+            << snap.coupling.jitter_us << " us, deadline misses " << snap.coupling.deadline_misses << "; solver "
+            << snap.solver.rate_Hz << " Hz, mean tick " << snap.solver.mean_tick_us << " us, max "
+            << snap.solver.max_tick_us << " us, deadline misses " << snap.solver.deadline_misses << std::endl;
   thread->stop();
   EXPECT_FALSE(thread->running());
   DeviceCommand last;
@@ -243,14 +249,41 @@ class AllocationCountingDevice final : public Device {
   std::atomic<std::size_t> reads_{0};
 };
 
+/// Counts the heap allocations the solver thread makes between the ends of its ticks (through
+/// HapticThreadOptions::solver_tick_hook).
+struct SolverAllocationCounter {
+  std::optional<test::AllocationGuard> guard;  // solver thread only
+  std::atomic<std::size_t> allocations{0};
+  std::atomic<std::size_t> ticks{0};
+  static void hook(void* context) {
+    auto* self = static_cast<SolverAllocationCounter*>(context);
+    if (!self->guard) {
+      self->guard.emplace();  // on the solver thread; counts from here on
+      return;
+    }
+    self->allocations.store(self->guard->count(), std::memory_order_relaxed);
+    self->ticks.fetch_add(1, std::memory_order_relaxed);
+  }
+  HapticThreadOptions options() {
+    HapticThreadOptions o;
+    o.solver_tick_hook = &SolverAllocationCounter::hook;
+    o.solver_tick_hook_context = this;
+    return o;
+  }
+};
+
 TEST(HapticThread, ServoLoopDoesNotAllocate) {
   const LoadedScene& scene = test::sphereBallScene();
   auto device = std::make_shared<AllocationCountingDevice>(pressedPose(0.003));
-  auto thread = scene.makeHapticThread(device);
-  thread->start();
-  ASSERT_TRUE(waitUntil([&] { return device->reads() > 200; }));
-  thread->stop();
-  EXPECT_EQ(device->allocations(), 0u) << "heap allocations on the servo thread over " << device->reads() << " ticks";
+  SolverAllocationCounter solver;
+  HapticThread thread(scene.makeRenderer(), device, scene.isovalue, 1000.0, solver.options());
+  thread.start();
+  ASSERT_TRUE(waitUntil([&] { return device->reads() > 200 && solver.ticks.load() > 200; }));
+  thread.stop();
+  EXPECT_EQ(device->allocations(), 0u) << "heap allocations on the coupling thread over " << device->reads()
+                                       << " ticks";
+  EXPECT_EQ(solver.allocations.load(), 0u) << "heap allocations on the solver thread over " << solver.ticks.load()
+                                           << " ticks";
 }
 
 TEST(HapticThread, ServoLoopDoesNotAllocateWhileRecording) {
@@ -259,14 +292,148 @@ TEST(HapticThread, ServoLoopDoesNotAllocateWhileRecording) {
   RecordingWriterOptions options;
   options.ring_capacity = 64;  // small: the full-ring (drop) path runs too when the writer lags
   RecordingWriter writer(std::filesystem::path(VH_TEST_OUTPUT_DIR) / "servo-alloc.vhrec", "{}", options);
-  auto thread = scene.makeHapticThread(device);
-  thread->setRecorder(&writer);
-  thread->start();
-  ASSERT_TRUE(waitUntil([&] { return device->reads() > 200; }));
-  thread->stop();
+  SolverAllocationCounter solver;
+  HapticThread thread(scene.makeRenderer(), device, scene.isovalue, 1000.0, solver.options());
+  thread.setRecorder(&writer);
+  thread.start();
+  ASSERT_TRUE(waitUntil([&] { return device->reads() > 200 && solver.ticks.load() > 200; }));
+  thread.stop();
   writer.close();
-  EXPECT_EQ(device->allocations(), 0u) << "heap allocations on the servo thread over " << device->reads() << " ticks";
+  EXPECT_EQ(device->allocations(), 0u) << "heap allocations on the coupling thread over " << device->reads()
+                                       << " ticks";
+  EXPECT_EQ(solver.allocations.load(), 0u) << "heap allocations on the solver thread over " << solver.ticks.load()
+                                           << " ticks";
   EXPECT_GT(writer.recordsWritten() + writer.dropped(), 200u);
+}
+
+/// Makes every solver tick last at least 5 ms (HapticThreadOptions::solver_tick_hook).
+void sleepFiveMilliseconds(void*) { std::this_thread::sleep_for(5ms); }
+
+// Paper section 3.2: a solver that overruns its period must not stall the virtual coupling. The
+// solver is made 5x slower than the device; the coupling thread keeps ticking at the device's
+// rate, and every command is the coupling of the current device pose to the latest proxy pose.
+TEST(HapticThread, ASlowSolverDoesNotSlowTheCouplingThread) {
+  const LoadedScene& scene = test::sphereBallScene();
+  auto device = std::make_shared<SimulatedDevice>(pressedPose(0.003));
+  HapticThreadOptions options;
+  options.solver_rate_Hz = 1000.0;  // the device's: every sample, until 0.25 s behind
+  options.solver_tick_hook = &sleepFiveMilliseconds;
+  HapticThread thread(scene.makeRenderer(), device, scene.isovalue, 1000.0, options);
+  ASSERT_TRUE(thread.solverUsesEverySample());
+  thread.start();
+  HapticSnapshot snap;
+  ASSERT_TRUE(waitUntil([&] { return thread.latestSnapshot(snap) && snap.tick > 1200 && snap.solver_tick > 20; },
+                        20000ms))
+      << "coupling ticks " << snap.tick << ", solver ticks " << snap.solver_tick;
+  // Counted, not timed: the coupling thread ticked (at least) 3 times per solver tick.
+  EXPECT_GE(snap.tick, 3 * snap.solver_tick) << "coupling ticks " << snap.tick << ", solver " << snap.solver_tick;
+  EXPECT_GE(snap.coupling.ticks, 3 * snap.solver.ticks);
+  EXPECT_GT(snap.solver.mean_tick_us, 4000.0);  // the 5 ms shows in the solver's tick time
+  // More than 0.25 s behind: the solver skipped to the newest sample (counted).
+  EXPECT_GT(snap.skipped_samples, 0u);
+
+  // Move the device: the coupling thread renders the new pose at once against the proxy the slow
+  // solver last published, and its force is exactly -k (c_D - c_P) for that pair.
+  const Pose moved = Pose::FromTranslation({0.001, 0.0, 0.020 + 0.005 - 0.004});
+  device->setPose(moved);
+  ASSERT_TRUE(waitUntil([&] { thread.latestSnapshot(snap); return snap.X_WD.p_AB_m == moved.p_AB_m; }));
+  for (int i = 0; i < 20; ++i) {
+    thread.latestSnapshot(snap);
+    EXPECT_EQ(snap.X_WD.p_AB_m, moved.p_AB_m);
+    const Eigen::Vector3d expected = couplingForce(snap, *scene.tool, 1000.0);
+    EXPECT_LT((snap.force_W_N - expected).norm(), 1e-9 * (1.0 + expected.norm())) << "snapshot " << i;
+    std::this_thread::sleep_for(1ms);
+  }
+  EXPECT_GT(snap.force_W_N.z(), 1.0);  // pressed in: pushing the hand out
+  thread.stop();
+  EXPECT_FALSE(thread.running());
+  DeviceCommand last;
+  device->lastCommand(last);
+  EXPECT_EQ(last.force_W_N, Eigen::Vector3d::Zero());
+}
+
+// A 4 kHz coupling thread (e.g. a device serving 4 kHz) with the 1 kHz solver: the solver uses
+// the newest of every ~4 samples; the stop ramp is ~50 ms of 4 kHz ticks.
+TEST(HapticThread, FourKilohertzCouplingWithAOneKilohertzSolver) {
+  const LoadedScene& scene = test::sphereBallScene();
+  auto device = std::make_shared<RecordingDevice>(pressedPose(0.003));
+  HapticThreadOptions options;
+  options.solver_rate_Hz = 1000.0;
+  HapticThread thread(scene.makeRenderer(), device, scene.isovalue, 4000.0, options);
+  EXPECT_EQ(thread.servoRate_Hz(), 4000.0);
+  EXPECT_EQ(thread.solverRate_Hz(), 1000.0);
+  EXPECT_FALSE(thread.solverUsesEverySample());
+  thread.start();
+  HapticSnapshot snap;
+  ASSERT_TRUE(waitUntil([&] { return thread.latestSnapshot(snap) && snap.solver_tick > 600 && snap.contacts > 0; },
+                        20000ms));
+  EXPECT_EQ(snap.coupling.nominal_rate_Hz, 4000.0);
+  EXPECT_EQ(snap.solver.nominal_rate_Hz, 1000.0);
+  // Counted: about 4 coupling ticks per solver tick (2 leaves room for a loaded machine).
+  EXPECT_GE(snap.tick, 2 * snap.solver_tick) << "coupling ticks " << snap.tick << ", solver " << snap.solver_tick;
+  EXPECT_GT(snap.skipped_samples, 0u);
+  EXPECT_GT(snap.coupling.rate_Hz, 1.5 * snap.solver.rate_Hz);
+  const Eigen::Vector3d expected = couplingForce(snap, *scene.tool, 1000.0);
+  EXPECT_LT((snap.force_W_N - expected).norm(), 1e-9 * (1.0 + expected.norm()));
+  EXPECT_NEAR(snap.force_W_N.norm(), 3.0, 0.5);
+  thread.stop();
+  const std::size_t n = device->count();
+  ASSERT_GT(n, 400u);
+  ASSERT_LT(n, std::size_t{1} << 16);
+  EXPECT_EQ(device->force(n - 1), 0.0);
+  const double steady = device->force(n - 250);
+  EXPECT_GT(steady, 2.0);
+  const double half = device->force(n - 101) / steady;  // half way through 200 ramp ticks
+  EXPECT_GT(half, 0.3);
+  EXPECT_LT(half, 0.7);
+}
+
+TEST(HapticThread, PerThreadTimingIsFilledAndFinite) {
+  const LoadedScene& scene = test::sphereBallScene();
+  auto device = std::make_shared<SimulatedDevice>(pressedPose(0.003));
+  auto thread = scene.makeHapticThread(device);
+  HapticSnapshot snap;
+  thread->latestSnapshot(snap);
+  EXPECT_EQ(snap.coupling.nominal_rate_Hz, 1000.0);  // before the start: the set rates, nothing else
+  EXPECT_EQ(snap.solver.nominal_rate_Hz, 1000.0);
+  EXPECT_EQ(snap.coupling.ticks, 0u);
+  thread->start();
+  // Past the first one-second window.
+  ASSERT_TRUE(waitUntil([&] { return thread->latestSnapshot(snap) && snap.tick > 1300 && snap.solver_tick > 1300; },
+                        20000ms));
+  thread->stop();
+  for (const ThreadTiming* t : {&snap.coupling, &snap.solver}) {
+    const char* name = t == &snap.coupling ? "coupling" : "solver";
+    EXPECT_EQ(t->nominal_rate_Hz, 1000.0) << name;
+    EXPECT_TRUE(std::isfinite(t->rate_Hz)) << name;
+    EXPECT_GT(t->rate_Hz, 50.0) << name;
+    EXPECT_LT(t->rate_Hz, 1100.0) << name;
+    EXPECT_TRUE(std::isfinite(t->mean_tick_us)) << name;
+    EXPECT_GT(t->mean_tick_us, 0.0) << name;
+    EXPECT_TRUE(std::isfinite(t->max_tick_us)) << name;
+    EXPECT_GE(t->max_tick_us, t->mean_tick_us) << name;
+    EXPECT_TRUE(std::isfinite(t->jitter_us)) << name;
+    EXPECT_GE(t->jitter_us, 0.0) << name;
+    EXPECT_GT(t->ticks, 1300u) << name;
+    EXPECT_LE(t->deadline_misses, t->ticks) << name;
+  }
+  EXPECT_EQ(snap.coupling.ticks, snap.tick);
+  EXPECT_EQ(snap.solver.ticks, snap.solver_tick);
+  EXPECT_EQ(snap.skipped_samples, 0u);  // equal rates, a fast solver: every sample used
+}
+
+TEST(HapticThread, RejectsBadSolverOptions) {
+  const LoadedScene& scene = test::sphereBallScene();
+  auto device = std::make_shared<SimulatedDevice>(scene.X_WT_initial);
+  HapticThreadOptions options;
+  options.solver_rate_Hz = -1.0;
+  EXPECT_THROW(HapticThread(scene.makeRenderer(), device, 0.0, 1000.0, options), std::invalid_argument);
+  options.solver_rate_Hz = 500.0;
+  options.solver_input = SolverInput::kEverySample;  // only at the device's rate
+  EXPECT_THROW(HapticThread(scene.makeRenderer(), device, 0.0, 1000.0, options), std::invalid_argument);
+  options.solver_input = SolverInput::kAuto;
+  options.max_solver_backlog_s = 0.0;
+  EXPECT_THROW(HapticThread(scene.makeRenderer(), device, 0.0, 1000.0, options), std::invalid_argument);
 }
 
 TEST(HapticThread, RejectsBadArguments) {

@@ -1,10 +1,11 @@
 #pragma once
 /// @file
-/// A live strip chart (Qt Charts) of the haptic thread: the force magnitude |F| [N] on the left
-/// axis and the servo tick time [us] (mean and max over the last second) on the right axis, over
-/// the last `window_s` seconds (the x axis is time relative to the newest sample, -window..0 s).
-/// Fed from the display timer with snapshot values; redraws at most ~8 times a second so it costs
-/// little on software rendering.
+/// A live strip chart (Qt Charts) of the haptic threads: the force magnitude |F| [N] on the left
+/// axis; on the right axis [us] the solver thread's tick time (mean and max over the last second)
+/// and the coupling thread's period jitter (largest deviation of its wake-up interval from the
+/// period over the last second); over the last `window_s` seconds (the x axis is time relative to
+/// the newest sample, -window..0 s). A legend names the series. Fed from the display timer with
+/// snapshot values; redraws at most ~8 times a second so it costs little on software rendering.
 
 #include <deque>
 
@@ -24,8 +25,9 @@ class StripChart : public QWidget {
  public:
   explicit StripChart(QWidget* parent = nullptr, double window_s = 10.0);
 
-  /// One sample at time t_s [s] (any monotonic clock): |F| [N], mean and max tick time [us].
-  void addSample(double t_s, double force_N, double mean_tick_us, double max_tick_us);
+  /// One sample at time t_s [s] (any monotonic clock): |F| [N], the solver's mean and max tick
+  /// time [us] and the coupling thread's jitter [us] (HapticSnapshot::solver / ::coupling).
+  void addSample(double t_s, double force_N, double mean_tick_us, double max_tick_us, double jitter_us = 0.0);
   /// Redraws with every sample so far now (normally at most ~8 times a second).
   void flush();
   /// Forgets every sample (e.g. a new scene).
@@ -43,11 +45,12 @@ class StripChart : public QWidget {
   QLineSeries* force_;
   QLineSeries* tick_mean_;
   QLineSeries* tick_max_;
+  QLineSeries* jitter_;
   QValueAxis* axis_t_;
   QValueAxis* axis_force_;
   QValueAxis* axis_tick_;
   struct Sample {
-    double t_s, force_N, mean_us, max_us;
+    double t_s, force_N, mean_us, max_us, jitter_us;
   };
   std::deque<Sample> samples_;  // oldest first, at most window_s (+1 s) old
   QElapsedTimer since_redraw_;

@@ -1,9 +1,40 @@
 #pragma once
 /// @file
-/// The embedded servo loop: a thread that runs HapticRenderer::tick() at the servo rate
-/// (1 kHz), reads the device, writes forces and publishes snapshots for the render thread.
-/// GUI commands (isovalue, gains, device target) go in through atomics / triple buffers and
-/// are applied at the start of the next tick. The loop never allocates, locks or throws.
+/// The embedded haptic loop, split over two real-time threads (paper section 3.2: the
+/// configuration solver "cannot be guaranteed to terminate within the allotted time", so the
+/// virtual coupling runs on a thread of its own):
+///
+///   * the **coupling thread**, at the device's rate (`servo_rate_Hz`, 1 kHz by default; e.g.
+///     4 kHz): reads the device, applies the GUI's gains (clamped to the device's stable
+///     stiffness) and isovalue, hands the sample to the solver, takes the latest proxy pose the
+///     solver published, computes the wrench with its own haptics::VirtualCoupling (eq. 5, the
+///     same code and gains as the renderer's step 6), applies the stop ramp (~50 ms) and the
+///     safety layer (ForceSafety) and commands the device. It never waits for the solver: when
+///     the solver is late the coupling keeps rendering the spring to the last proxy pose.
+///   * the **solver thread**, at the solver rate (HapticThreadOptions::solver_rate_Hz; by
+///     default the device's), runs HapticRenderer::tick() (steps 1-6 of section 2.1) on the
+///     device samples, publishes the proxy pose for the coupling thread, the contacts and its
+///     statistics for the GUI, and writes the recording (one TickRecord per solver tick).
+///
+/// Which samples the solver uses (SolverInput): at equal rates (the default) it uses every
+/// device sample once, in order (catching up after a late wake-up, and skipping to the newest
+/// only when it falls more than HapticThreadOptions::max_solver_backlog_s behind), so a session
+/// recorded from a scripted device is the same whatever the scheduling; a slower solver uses the
+/// newest sample at each of its ticks (the samples in between are counted as skipped, and the
+/// recording holds the samples the solver used).
+///
+/// Lock-free exchange, no mutex, no allocation, no exception in either loop:
+///   coupling -> solver: a ring of the last device samples (per-slot sequence lock), each with
+///                       the isovalue and the applied gains read on the same coupling tick;
+///   solver -> coupling: the proxy pose X_WP (TripleBuffer);
+///   both -> GUI:        one TripleBuffer each, merged by latestSnapshot();
+///   GUI -> coupling:    gains and isovalue in atomics, applied at the coupling thread's next tick;
+///   flags:              atomics (the coupling thread's force-limited / zeroed / stopping / deadline
+///                       miss bits, read by the solver into its TickRecord).
+///
+/// Frames and units: W the scene (world) frame [m]; D the device's tool frame; P the proxy's tool
+/// frame; forces [N] and torques [N*m] in W on the user's hand about the tool's centre of mass;
+/// times in the snapshot in microseconds, rates in Hz.
 
 #include <array>
 #include <atomic>
@@ -21,96 +52,162 @@
 
 namespace vh::runtime {
 
-/// What the render thread sees of the haptic thread: one consistent tick.
-struct HapticSnapshot {
-  static constexpr int kMaxContactsShown = 64;
-  std::uint64_t tick = 0;                 ///< Tick counter.
-  haptics::Pose X_WP;                     ///< Proxy pose in W.
-  haptics::Pose X_WD;                     ///< Device pose in W.
-  Eigen::Vector3d force_W_N = Eigen::Vector3d::Zero();
-  Eigen::Vector3d torque_W_Nm = Eigen::Vector3d::Zero();
-  double isovalue = 0.0;
-  int contacts = 0;                       ///< Contact set size.
-  int contacts_shown = 0;                 ///< Entries filled in contact_p_W_m / contact_n_W.
-  std::array<Eigen::Vector3d, kMaxContactsShown> contact_p_W_m{};
-  std::array<Eigen::Vector3d, kMaxContactsShown> contact_n_W{};
-  // Over the last second:
-  double servo_rate_Hz = 0.0;
-  double mean_tick_us = 0.0;
-  double max_tick_us = 0.0;
-  std::uint64_t deadline_misses = 0;      ///< Ticks that started > 1 period late (total).
-  std::uint64_t bad_device_samples = 0;   ///< Total.
+/// Timing of one of the two haptic threads. Rate, tick times and jitter are over the last
+/// rolling window of one second (until the first window closes, over the running one).
+struct ThreadTiming {
+  double nominal_rate_Hz = 0.0;       ///< The rate the thread is set to [Hz].
+  double rate_Hz = 0.0;               ///< Ticks per second over the window [Hz].
+  double mean_tick_us = 0.0;          ///< Mean execution time of a tick [us].
+  double max_tick_us = 0.0;           ///< Longest tick execution time [us].
+  /// Period jitter: the largest |actual interval between two wake-ups - nominal period| [us].
+  double jitter_us = 0.0;
+  std::uint64_t deadline_misses = 0;  ///< Wake-ups that started > 1 period late (total since start()).
+  std::uint64_t ticks = 0;            ///< Ticks since the thread was created (total).
 };
 
-/// Runs the servo loop on its own thread.
+/// What the render thread sees of the haptic threads: the coupling thread's latest tick (poses,
+/// force) and the solver thread's latest tick (contacts, isovalue). The force is exactly the one
+/// commanded from X_WP and X_WD (after gains, ramp and safety layer); the contacts belong to the
+/// solver tick that published X_WP or to a newer one.
+struct HapticSnapshot {
+  static constexpr int kMaxContactsShown = 64;
+  std::uint64_t tick = 0;                 ///< Coupling (device) ticks so far; 0 before the first.
+  std::uint64_t solver_tick = 0;          ///< Solver ticks so far (= TickRecord::tick while recording).
+  haptics::Pose X_WP;                     ///< Proxy pose in W the coupling used (the solver's latest).
+  haptics::Pose X_WD;                     ///< Device pose in W the coupling used (the latest valid one).
+  Eigen::Vector3d force_W_N = Eigen::Vector3d::Zero();    ///< Commanded force on the hand in W [N].
+  Eigen::Vector3d torque_W_Nm = Eigen::Vector3d::Zero();  ///< Commanded torque on the hand in W [N*m].
+  double isovalue = 0.0;                  ///< Isovalue of the solver's latest tick (data units).
+  int contacts = 0;                       ///< Contact set size after the solver's latest tick.
+  int contacts_shown = 0;                 ///< Entries filled in contact_p_W_m / contact_n_W.
+  std::array<Eigen::Vector3d, kMaxContactsShown> contact_p_W_m{};  ///< Contact points in W [m].
+  std::array<Eigen::Vector3d, kMaxContactsShown> contact_n_W{};    ///< Their unit surface normals in W.
+  ThreadTiming coupling;                  ///< The coupling (device-rate) thread.
+  ThreadTiming solver;                    ///< The solver (HapticRenderer::tick()) thread.
+  /// Device reads without a usable sample plus device poses the renderer rejected (total).
+  std::uint64_t bad_device_samples = 0;
+  /// Device samples the solver never used: it runs slower than the device, or fell more than
+  /// HapticThreadOptions::max_solver_backlog_s behind (total).
+  std::uint64_t skipped_samples = 0;
+};
+
+/// Which device samples the solver thread uses.
+enum class SolverInput {
+  kAuto,        ///< kEverySample when the solver and device rates are equal, else kLatest.
+  kEverySample, ///< Every sample once, in order (deterministic); only at the device's rate.
+  kLatest,      ///< The newest sample at each solver tick (the last one again when none is new).
+};
+
+/// Settings of HapticThread beyond the device rate. The defaults reproduce the single-rate loop:
+/// a 1 kHz solver using every 1 kHz device sample.
+struct HapticThreadOptions {
+  /// Rate of the solver thread [Hz]; 0 = the device (servo) rate.
+  double solver_rate_Hz = 0.0;
+  SolverInput solver_input = SolverInput::kAuto;
+  /// kEverySample: when the solver is this far behind the device [s], it skips to the newest
+  /// sample instead of catching up (bounds the proxy's lag; the skipped samples are counted).
+  double max_solver_backlog_s = 0.25;
+  /// Test only: called on the solver thread at the end of every solver tick (e.g. to make the
+  /// solver slow). Must not throw; it may allocate or sleep (the loop's guarantees then no
+  /// longer hold for the solver).
+  void (*solver_tick_hook)(void* context) = nullptr;
+  void* solver_tick_hook_context = nullptr;
+};
+
+/// Runs the coupling and the solver threads (see the file comment).
 class HapticThread {
  public:
-  /// @param renderer takes ownership; @param device read and commanded by the servo thread.
+  /// @param renderer takes ownership; @param device read and commanded by the coupling thread;
+  /// @param servo_rate_Hz the coupling thread's (device) rate.
+  /// @throws std::invalid_argument for a missing renderer or device, a rate that is not a
+  ///         positive number, or kEverySample with a solver rate other than the device's.
   HapticThread(std::unique_ptr<haptics::HapticRenderer> renderer, std::shared_ptr<Device> device,
-               double isovalue, double servo_rate_Hz = 1000.0);
-  ~HapticThread();  ///< Stops the thread (force ramped to zero).
+               double isovalue, double servo_rate_Hz = 1000.0, const HapticThreadOptions& options = {});
+  ~HapticThread();  ///< Stops the threads (force ramped to zero).
   HapticThread(const HapticThread&) = delete;
   HapticThread& operator=(const HapticThread&) = delete;
 
   void start();
-  /// Ramps the force to zero over ~50 ms, then joins the thread.
+  /// Ramps the force to zero over ~50 ms, then joins both threads.
   void stop();
   bool running() const noexcept { return running_.load(std::memory_order_acquire); }
-  /// After the loop started: whether it got SCHED_FIFO (else it runs under SCHED_OTHER with a
-  /// 1 ns timer slack) and locked its memory (mlockall; undone when the loop ends).
-  bool realtimeScheduling() const noexcept { return fifo_.load(std::memory_order_acquire); }
+  /// After the threads started: whether both got SCHED_FIFO (coupling priority 80, solver 79;
+  /// else SCHED_OTHER with a 1 ns timer slack) and whether the coupling thread locked the
+  /// process's memory (mlockall; undone when it ends).
+  bool realtimeScheduling() const noexcept;
   bool memoryLocked() const noexcept { return memory_locked_.load(std::memory_order_acquire); }
+  /// The coupling thread's (device) rate [Hz].
   double servoRate_Hz() const noexcept { return 1.0 / period_s_; }
+  /// The solver thread's rate [Hz] (TickRecord::time_s counts its periods).
+  double solverRate_Hz() const noexcept { return 1.0 / solver_period_s_; }
+  /// Whether the solver uses every device sample (SolverInput resolved).
+  bool solverUsesEverySample() const noexcept { return every_sample_; }
 
-  /// Applied at the start of the next tick.
+  /// Applied at the coupling thread's next tick; it reaches the solver with that tick's sample.
   void setIsovalue(double isovalue) noexcept { isovalue_.store(isovalue, std::memory_order_relaxed); }
   double isovalue() const noexcept { return isovalue_.load(std::memory_order_relaxed); }
-  /// Applied at the start of the next tick (clamped to the device's stable stiffness). While
-  /// recording, also records a "gains" event with the clamped (applied) gains
-  /// {"linear_N_per_m": k, "angular_Nm_per_rad": k_r, "requested": {...}}. Not on the servo thread.
+  /// Applied at the coupling thread's next tick (clamped to the device's stable stiffness), and
+  /// by the solver (its metric) with that tick's sample. While recording, also records a "gains"
+  /// event with the clamped (applied) gains
+  /// {"linear_N_per_m": k, "angular_Nm_per_rad": k_r, "requested": {...}}. Not on a haptic thread.
   void setGains(const haptics::CouplingGains& gains) noexcept;
 
-  /// Records every tick from the next one on into `recorder` (one TickRecord per tick, pushed
-  /// without blocking or allocating; a full ring drops the record and the recorder counts it).
-  /// Not owned: it must outlive the recording. Set it before start(), or clear it (nullptr) and
-  /// only destroy the recorder after stop(): the servo thread may be inside push() otherwise.
-  /// TickRecord::time_s counts servo periods (tick * period) from the recording's first tick (a
-  /// new recorder, or the same one set again after nullptr, starts a new clock).
-  /// The servo thread also sets kRecordFlagDeviceDisconnected while Device::connected() is false
-  /// (the writer turns changes into device_connected / device_disconnected events) and
-  /// kRecordFlagForceLimited when the safety layer changed the force or torque.
+  /// Records every solver tick from the next one on into `recorder` (one TickRecord per solver
+  /// tick, pushed without blocking or allocating; a full ring drops the record and the recorder
+  /// counts it). Not owned: it must outlive the recording. Set it before start(), or clear it
+  /// (nullptr) and only destroy the recorder after stop(): the solver thread may be inside
+  /// push() otherwise.
+  /// TickRecord: time_s counts solver periods (tick * period) from the recording's first tick (a
+  /// new recorder, or the same one set again after nullptr, starts a new clock); the device pose
+  /// is the sample the solver used on that tick, the proxy pose the one it produced, and the
+  /// force / torque the virtual coupling's for exactly these two poses (the renderer's step 6,
+  /// with the applied gains: what the coupling thread commands for this pair before its ramp
+  /// and safety layer; the coupling thread's commands, computed from newer device poses, are in
+  /// the snapshot). So a recording replays bit for bit (replay.h). Flags: kRecordFlagBadSample
+  /// for a sample without a usable pose, kRecordFlagDeviceDisconnected while
+  /// Device::connected() was false at that sample, kRecordFlagDeadlineMiss when either thread
+  /// missed a deadline since the previous record, and kRecordFlagForceLimited / ForceZeroed /
+  /// Stopping / NonFinite from the coupling thread's latest command.
   void setRecorder(RecordingWriter* recorder) noexcept { recorder_.store(recorder, std::memory_order_release); }
 
-  /// Adds an event to the current recording stamped with the latest servo tick and time; a
-  /// no-op when not recording. Any thread but the servo thread (it allocates). The recorder
+  /// Adds an event to the current recording stamped with the latest solver tick and time; a
+  /// no-op when not recording. Any thread but the haptic threads (it allocates). The recorder
   /// must not be destroyed concurrently (see setRecorder()).
   /// @throws std::invalid_argument when detail_json is not a JSON object (RecordingWriter::addEvent()).
   void recordEvent(const std::string& type, const std::string& detail_json);
 
-  /// Latest snapshot (never blocks). @return true when it is newer than the last call's.
-  bool latestSnapshot(HapticSnapshot& out) noexcept { return snapshots_.read(out); }
+  /// Latest snapshot (never blocks; one consumer thread). @return true when either thread
+  /// published something since the last call.
+  bool latestSnapshot(HapticSnapshot& out) noexcept;
 
  private:
-  void loop() noexcept;
+  struct Exchange;  // the lock-free buffers between the threads (haptic_thread.cpp)
+
+  void couplingLoop() noexcept;
+  void solverLoop() noexcept;
 
   std::unique_ptr<haptics::HapticRenderer> renderer_;
   std::shared_ptr<Device> device_;
   double period_s_;
+  double solver_period_s_;
+  bool every_sample_;
+  HapticThreadOptions options_;
+  std::unique_ptr<Exchange> x_;
   std::atomic<double> isovalue_;
   std::atomic<double> gain_linear_;
   std::atomic<double> gain_angular_;
   std::atomic<bool> gains_dirty_{false};
   std::atomic<bool> stop_requested_{false};
+  std::atomic<bool> coupling_done_{false};  ///< The coupling thread ended: the solver stops too.
   std::atomic<bool> running_{false};
   std::atomic<bool> fifo_{false};
   std::atomic<bool> memory_locked_{false};
   std::atomic<RecordingWriter*> recorder_{nullptr};
-  /// Latest recorded tick and its TickRecord::time_s (servo thread writes; 0 before the first).
-  /// Packed: tick in the atomic, time recomputed from it and the first recorded tick.
+  /// Latest recorded solver tick and the recording's first (solver thread writes; 0 before).
   std::atomic<std::uint64_t> latest_recorded_tick_{0};
   std::atomic<std::uint64_t> first_recorded_tick_{0};
-  TripleBuffer<HapticSnapshot> snapshots_;
-  std::thread thread_;
+  std::thread coupling_thread_;
+  std::thread solver_thread_;
 };
 
 }  // namespace vh::runtime
