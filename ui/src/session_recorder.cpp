@@ -101,7 +101,7 @@ bool SessionRecorder::start(const fs::path& path) {
                                                                    : "hardware";
     const std::string metadata = runtime::makeSessionMetadata(window_->currentLoadedScene(), info);
     runtime::RecordingWriterOptions options;
-    options.servo_rate_Hz = haptics->servoRate_Hz();
+    options.servo_rate_Hz = haptics->solverRate_Hz();  // one record per solver tick
     if (options.chunk_records >= options.servo_rate_Hz) {
       options.chunk_records = static_cast<std::size_t>(std::max(1.0, options.servo_rate_Hz / 2.0));
     }

@@ -52,9 +52,11 @@ Trajectory tenSecondTrajectory() {
                      at(10.0, -0.006, 0.035, -0.3)});
 }
 
-/// A scripted device that, on its Nth read, sets the haptic thread's isovalue: the servo thread
-/// reads the device before it loads the isovalue, so the change lands on tick N exactly (a GUI
-/// thread's setIsovalue() would land on whichever tick came next).
+/// A scripted device that, on its Nth read, sets the haptic thread's isovalue: the coupling
+/// thread reads the device before it loads the isovalue and hands both to the solver with sample
+/// N; at equal rates the solver uses every sample once, in order (SolverInput::kAuto), so the
+/// change lands on solver tick N exactly, whatever the two threads' scheduling (a GUI thread's
+/// setIsovalue() would land on whichever tick came next).
 class IsovalueScriptDevice final : public Device {
  public:
   explicit IsovalueScriptDevice(Trajectory trajectory) : inner_(std::move(trajectory), 1e-3, "ten-second") {}

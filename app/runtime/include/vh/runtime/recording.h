@@ -105,7 +105,9 @@ inline constexpr std::uint32_t kRecordFlagNonFinite = 1u << 4;      ///< The ren
 inline constexpr std::uint32_t kRecordFlagStopping = 1u << 5;       ///< Force ramped down by stop().
 inline constexpr std::uint32_t kRecordFlagDeviceDisconnected = 1u << 6;  ///< Device::connected() was false.
 /// The safety layer changed the renderer's force or torque (clamped, ramped or gated; includes
-/// kRecordFlagForceZeroed ticks): the recorded force is not the renderer's.
+/// kRecordFlagForceZeroed ticks): the force sent to the device was not the renderer's.
+/// (HapticThread records the coupling's force for the record's own proxy and device poses and
+/// takes this flag, ForceZeroed and Stopping from the coupling thread's latest command.)
 inline constexpr std::uint32_t kRecordFlagForceLimited = 1u << 7;
 
 /// One servo tick, fixed size, trivially copyable (its byte image is what the file stores).
