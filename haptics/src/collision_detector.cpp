@@ -276,8 +276,7 @@ double CollisionDetector::stepSegment(const RigidMotion& motion, int j, std::int
 }
 
 std::size_t CollisionDetector::collectActive(const RigidMotion& motion, double t_max, double isovalue,
-                                             bool queue) noexcept {
-  active_count_ = 0;
+                                             bool queue, bool resume) noexcept {
   const double angle = motion.omega_W_rad().norm();
   const Eigen::Matrix3d R_mid = angle > 0.0 && t_max > 0.0
       ? Eigen::AngleAxisd(0.5 * t_max * angle, motion.omega_W_rad() / angle).toRotationMatrix()
@@ -289,11 +288,19 @@ std::size_t CollisionDetector::collectActive(const RigidMotion& motion, double t
   // radius of the node centre's position at t_max / 2.
   std::size_t count = 0;
   int top = 0;
-  stack_[top++] = 0;
+  if (resume) {
+    count = walk_count_;
+    top = walk_top_;
+  } else {
+    active_count_ = 0;
+    stack_[top++] = 0;
+  }
   budget_stopped_ = false;
   while (top > 0) {
     if (queue && overBudget()) {
       budget_stopped_ = true;
+      walk_top_ = top;
+      walk_count_ = count;
       return count;
     }
     const ShellNode& node = nodes_[stack_[--top]];
@@ -329,48 +336,85 @@ std::size_t CollisionDetector::collectActive(const RigidMotion& motion, double t
 }
 
 SweepResult CollisionDetector::sweepAccelerated(const RigidMotion& motion, double isovalue) noexcept {
-  SweepResult result;
+  pending_.active = false;
   active_count_ = 0;
   active_complete_ = true;
-  if (motion.isStill()) return result;
+  if (motion.isStill()) return {};
   if (++sweep_stamp_ == 0) {  // wrapped: forget every old stamp
     std::fill(started_.begin(), started_.end(), 0u);
     sweep_stamp_ = 1;
   }
+  queued_ = 0;
+  pending_.motion = motion;
+  pending_.isovalue = isovalue;
+  pending_.phase = 0;
+  pending_.contact_index = 0;
+  pending_.count = 0;
+  pending_.pop_pending = false;
+  pending_.result = SweepResult{};
+  return runAccelerated();
+}
+
+SweepResult CollisionDetector::resumeSweep() noexcept {
+  if (!pending_.active) return {};
+  if (++chord_stamp_ == 0) {  // a new tick: the cached chord ends are recomputed (same values)
+    std::fill(chord_end_stamp_.begin(), chord_end_stamp_.end(), 0u);
+    chord_stamp_ = 1;
+  }
+  return runAccelerated();
+}
+
+SweepResult CollisionDetector::runAccelerated() noexcept {
+  PendingSweep& st = pending_;
+  const RigidMotion& motion = st.motion;
+  const double isovalue = st.isovalue;
+  SweepResult& result = st.result;
+  st.active = false;
   // The contact points first: they are the likely first hits (a proxy resting or pushed
   // against the surface is blocked by one of them, often at t = 0). Their first segment is
   // taken before any other point's, which is one of the orders the queue may pop segments
   // starting at t = 0 in. A hit here bounds the search: the tree and the other points are then
   // only tested over [0, t]; a hit at t = 0 ends the sweep at once (addContactsAt then
   // collects the points near the proxy itself).
-  queued_ = 0;
-  // Budget cut before the queue: nothing is proven for the points not yet looked at.
+  // Budget cut before the queue: nothing is proven for the points not yet looked at; the
+  // sweep can be resumed where it stopped (issue 13).
   const auto cutAtStart = [&] {
+    st.active = true;
     active_complete_ = false;
     SweepResult cut;
     cut.t = cut.t_inside = 0.0;
     cut.budget_cut = true;
     return cut;
   };
-  for (std::size_t i = 0; i < contact_count_; ++i) {
-    if (overBudget()) return cutAtStart();
-    const int j = contacts_[i].point_index;
-    if (embedded_[j]) continue;
-    startPoint(motion, j);
-    if (!(path_[j] > 0.0)) continue;
-    started_[j] = sweep_stamp_;
-    const double t_end = stepSegment(motion, j, 0, 0.0, isovalue, result);
-    // Outside at the end of its first segment: a run test next.
-    if (t_end >= 0.0 && t_end < 1.0) heap_[queued_++] = {t_end, j, 1, 1};
-    if (result.t == 0.0) break;  // nothing can come earlier
+  if (st.phase == 0) {
+    for (; st.contact_index < contact_count_; ++st.contact_index) {
+      if (overBudget()) return cutAtStart();
+      const int j = contacts_[st.contact_index].point_index;
+      if (embedded_[j]) continue;
+      startPoint(motion, j);
+      if (!(path_[j] > 0.0)) continue;
+      started_[j] = sweep_stamp_;
+      const double t_end = stepSegment(motion, j, 0, 0.0, isovalue, result);
+      // Outside at the end of its first segment: a run test next.
+      if (t_end >= 0.0 && t_end < 1.0) heap_[queued_++] = {t_end, j, 1, 1};
+      if (result.t == 0.0) break;  // nothing can come earlier
+    }
+    if (result.t == 0.0) {
+      active_complete_ = false;
+      return result;
+    }
+    st.phase = 1;
+    st.count = queued_ + collectActive(motion, result.t, isovalue, true);
+  } else if (st.phase == 1) {
+    st.count = queued_ + collectActive(motion, result.t, isovalue, true, true);
   }
-  if (result.t == 0.0) {
-    active_complete_ = false;
-    return result;
+  if (st.phase == 1) {
+    if (budget_stopped_) return cutAtStart();
+    std::make_heap(heap_.begin(), heap_.begin() + static_cast<std::ptrdiff_t>(st.count), Later{});
+    st.phase = 2;
+    st.pop_pending = false;
+    active_complete_ = true;  // the walk is done: active_ holds every point not culled
   }
-  std::size_t count = queued_ + collectActive(motion, result.t, isovalue, true);
-  if (budget_stopped_) return cutAtStart();
-  std::make_heap(heap_.begin(), heap_.begin() + static_cast<std::ptrdiff_t>(count), Later{});
   // The paper's time-ordered search over the segments that remain; the samples and the
   // bisection are the paper's, so the first time of contact is the same double.
   // Entries with run <= 0 are single segments sampled as the paper does (0: after a run test,
@@ -382,20 +426,24 @@ SweepResult CollisionDetector::sweepAccelerated(const RigidMotion& motion, doubl
   // The minimum stays at the root while it is processed; push() (at most once per step) puts
   // its successor there, else it is popped at the top of the next step.
   QueueEntry* const heap = heap_.data();
-  bool pop_pending = false;
+  std::size_t& count = st.count;
+  bool& pop_pending = st.pop_pending;
   const auto push = [&](const QueueEntry& entry) {
     replaceTop(heap, count, entry);
     pop_pending = false;
   };
   for (;;) {
-    if (pop_pending && --count > 0) replaceTop(heap, count, heap[count]);
+    if (pop_pending) {
+      pop_pending = false;
+      if (--count > 0) replaceTop(heap, count, heap[count]);
+    }
     if (!(count > 0 && heap[0].t_begin < result.t)) break;
     if (overBudget()) {  // every path is proven free up to the queue's front
-      result.t = result.t_inside = heap[0].t_begin;
-      result.hit_point = -1;
-      result.budget_cut = true;
-      active_complete_ = false;
-      break;
+      st.active = true;
+      SweepResult cut;
+      cut.t = cut.t_inside = heap[0].t_begin;
+      cut.budget_cut = true;
+      return cut;
     }
     const QueueEntry e = heap[0];
     pop_pending = true;

@@ -28,6 +28,8 @@ HapticRenderer::HapticRenderer(std::shared_ptr<const ScalarVolume> volume, std::
   X_WP_.R_AB.normalize();
   solver_.setGains(options.gains);
   collision_.setContactCap(static_cast<std::size_t>(options.max_contacts));
+  for (const auto& p : tool_->point_shell.points_T_m())
+    shell_radius_m_ = std::max(shell_radius_m_, (p - tool_->mass.p_TCm_m).norm());
   collision_.setWorkBudget(options.work_budget);
   collision_.updateEmbedded(X_WP_, isovalue);
 }
@@ -36,6 +38,7 @@ void HapticRenderer::resetProxy(const Pose& X_WP) noexcept {
   if (!X_WP.allFinite()) return;
   X_WP_ = X_WP;
   X_WP_.R_AB.normalize();
+  collision_.abandonSweep();
   collision_.clearContacts();
   embedded_scan_needed_ = true;
 }
@@ -66,67 +69,109 @@ TickOutput HapticRenderer::tick(const Pose& X_WD_in, double isovalue) noexcept {
   const auto us_since = [](Clock::time_point a, Clock::time_point b) {
     return std::chrono::duration<double, std::micro>(b - a).count();
   };
-  // A new isovalue moves the surface under the proxy: points it swallowed are embedded and
-  // released once outside again (see haptics/README.md, "Isovalue changes").
-  if (embedded_scan_needed_ || isovalue != last_isovalue_) {
-    collision_.updateEmbedded(X_WP_, isovalue);
-    last_isovalue_ = isovalue;
-    embedded_scan_needed_ = false;
-  } else {
-    collision_.releaseEmbedded(X_WP_, isovalue);
-  }
-
   const MassProperties& mass = tool_->mass;
-  // Step 2: verify and prune the contact set.
-  collision_.pruneContacts(X_WP_, X_WD, isovalue);
-  auto phase = Clock::now();
-  out.stats.prune_us = us_since(start, phase);
-  // Steps 1 and 3: unconstrained, then constrained motion (Gauss' principle); step 4:
-  // collision detection along the constrained path. When a contact blocks its own tangent step
-  // (its eq. 1 normal disagrees with the trilinear surface), its normal is refined and steps
-  // 3-4 are solved again, at most twice per tick.
-  // The stand-off lift (an option, off by default) is a recovery: only after a tick that was
-  // blocked almost at once (a lift on every tick drove a hook hanging from one contact into a
-  // 2-cycle), and never while the surface has swallowed part of the tool (a moving surface must
-  // not push the proxy against the user).
-  const bool lift = blocked_last_tick_ && collision_.embeddedCount() == 0;
-  const double standoff_m = lift ? options_.standoff_fraction * collision_.epsilon_m() : 0.0;
-  RigidMotion motion;
-  SweepResult hit;
-  for (int attempt = 0; attempt < 3; ++attempt) {
-    motion = solver_.constrainedMotion(X_WP_, X_WD, mass, collision_.contacts(), standoff_m);
-    {
-      const auto now = Clock::now();
-      out.stats.solve_us += us_since(phase, now);
-      phase = now;
+  // A sweep the work budget cut on an earlier tick goes on where it stopped (issue 13): the
+  // same motion, this tick's budget; the proxy moves as far as every path is proven free. A new
+  // isovalue or a reset abandons it (the proxy stays where it is, which is proven free).
+  if (collision_.sweepPending() && (embedded_scan_needed_ || isovalue != last_isovalue_)) collision_.abandonSweep();
+  if (collision_.sweepPending()) {
+    const auto phase = Clock::now();
+    const SweepResult hit = collision_.resumeSweep();
+    out.stats.sweep_us = us_since(phase, Clock::now());
+    const double t = std::max(pending_t_, hit.t);
+    last_motion_ = pending_motion_.part(pending_t_, t);
+    last_t_ = 1.0;
+    X_WP_ = pending_motion_.poseAt(t);
+    pending_t_ = t;
+    collision_.refreshPositions(X_WP_);
+    ++pending_ticks_;
+    if (!hit.budget_cut) {
+      const auto contacts_start = Clock::now();
+      if (hit.hit_point >= 0) collision_.addContactsAt(pending_motion_, hit, isovalue);
+      out.stats.contacts_us = us_since(contacts_start, Clock::now());
+      blocked_last_tick_ = hit.hit_point >= 0 && hit.t < 0.01;
+      // The motion took several ticks: the next one is shorter (see below).
+      motion_scale_ = std::max(1.0 / 4096.0, motion_scale_ / pending_ticks_);
     }
-    // After a tick the work budget cut, a shorter step along the same constrained motion (the
-    // velocity limit of section 2.3): fewer segments, smaller balls, so the sweep can finish
-    // and the proxy make progress; the step doubles back after each tick that finishes.
-    if (motion_scale_ < 1.0)
-      motion = RigidMotion::FromVelocity(X_WP_, mass.p_TCm_m, motion.v_W_m() * motion_scale_,
-                                         motion.omega_W_rad() * motion_scale_);
-    hit = collision_.sweep(motion, isovalue);
-    {
-      const auto now = Clock::now();
-      out.stats.sweep_us += us_since(phase, now);
-      phase = now;
+    out.stats.budget_cut = hit.budget_cut;
+    out.stats.time_of_contact = t;
+  } else {
+    // A new isovalue moves the surface under the proxy: points it swallowed are embedded and
+    // released once outside again (see haptics/README.md, "Isovalue changes").
+    if (embedded_scan_needed_ || isovalue != last_isovalue_) {
+      collision_.updateEmbedded(X_WP_, isovalue);
+      last_isovalue_ = isovalue;
+      embedded_scan_needed_ = false;
+    } else {
+      collision_.releaseEmbedded(X_WP_, isovalue);
     }
-    if (attempt == 2 || !collision_.refineStuckContact(motion, hit)) break;
+
+    // Step 2: verify and prune the contact set.
+    collision_.pruneContacts(X_WP_, X_WD, isovalue);
+    auto phase = Clock::now();
+    out.stats.prune_us = us_since(start, phase);
+    // Steps 1 and 3: unconstrained, then constrained motion (Gauss' principle); step 4:
+    // collision detection along the constrained path. When a contact blocks its own tangent step
+    // (its eq. 1 normal disagrees with the trilinear surface), its normal is refined and steps
+    // 3-4 are solved again, at most twice per tick.
+    // The stand-off lift (an option, off by default) is a recovery: only after a tick that was
+    // blocked almost at once (a lift on every tick drove a hook hanging from one contact into a
+    // 2-cycle), and never while the surface has swallowed part of the tool (a moving surface must
+    // not push the proxy against the user).
+    const bool lift = blocked_last_tick_ && collision_.embeddedCount() == 0;
+    const double standoff_m = lift ? options_.standoff_fraction * collision_.epsilon_m() : 0.0;
+    RigidMotion motion;
+    SweepResult hit;
+    for (int attempt = 0; attempt < 3; ++attempt) {
+      motion = solver_.constrainedMotion(X_WP_, X_WD, mass, collision_.contacts(), standoff_m);
+      {
+        const auto now = Clock::now();
+        out.stats.solve_us += us_since(phase, now);
+        phase = now;
+      }
+      // The motion per tick is bounded (the velocity limit of section 2.3): no point of the
+      // shell travels farther than max_travel_per_tick_m (path bound |v| + |omega| R, R the
+      // shell's radius about the centre of mass), and after ticks the work budget cut, a
+      // shorter step along the same constrained motion: fewer segments, smaller balls. Scaling
+      // keeps the motion in the cone of allowed motions (eq. 4).
+      double scale = motion_scale_;
+      const double travel_m = motion.speed_m() + motion.angle_rad() * shell_radius_m_;
+      if (options_.max_travel_per_tick_m > 0.0 && travel_m * scale > options_.max_travel_per_tick_m)
+        scale = options_.max_travel_per_tick_m / travel_m;
+      if (scale < 1.0)
+        motion = RigidMotion::FromVelocity(X_WP_, mass.p_TCm_m, motion.v_W_m() * scale, motion.omega_W_rad() * scale);
+      // The projection shares the work budget: about a sample's cost per 4 rows per iteration.
+      const ConeProjection& projection = solver_.lastProjection();
+      collision_.addWork(static_cast<std::int64_t>(collision_.contacts().size()) * (projection.iterations + 2) / 4);
+      hit = collision_.sweep(motion, isovalue);
+      {
+        const auto now = Clock::now();
+        out.stats.sweep_us += us_since(phase, now);
+        phase = now;
+      }
+      if (attempt == 2 || hit.budget_cut || !collision_.refineStuckContact(motion, hit)) break;
+    }
+    blocked_last_tick_ = hit.hit_point >= 0 && hit.t < 0.01;
+    // Step 5: move the proxy to the first contact (or the target, or as far as the budget
+    // proved free).
+    X_WP_ = motion.poseAt(hit.t);
+    last_motion_ = motion;
+    last_t_ = hit.t;
+    collision_.refreshPositions(X_WP_);
+    if (collision_.sweepPending()) {  // cut: goes on next tick
+      pending_motion_ = motion;
+      pending_t_ = hit.t;
+      pending_ticks_ = 1;
+    } else if (hit.budget_cut) {  // cut for good (kPaper): a shorter step next tick
+      motion_scale_ = std::max(1.0 / 4096.0, 0.5 * motion_scale_);
+    } else if (motion_scale_ < 1.0) {
+      motion_scale_ = std::min(1.0, 2.0 * motion_scale_);
+    }
+    if (hit.hit_point >= 0 && !hit.budget_cut) collision_.addContactsAt(motion, hit, isovalue);
+    out.stats.contacts_us = us_since(phase, Clock::now());
+    out.stats.budget_cut = hit.budget_cut;
+    out.stats.time_of_contact = hit.t;
   }
-  blocked_last_tick_ = hit.hit_point >= 0 && hit.t < 0.01;
-  if (hit.budget_cut) {
-    motion_scale_ = std::max(1.0 / 4096.0, 0.5 * motion_scale_);
-  } else if (motion_scale_ < 1.0) {
-    motion_scale_ = std::min(1.0, 2.0 * motion_scale_);
-  }
-  // Step 5: move the proxy to the first contact (or the target).
-  X_WP_ = motion.poseAt(hit.t);
-  last_motion_ = motion;
-  last_t_ = hit.t;
-  collision_.refreshPositions(X_WP_);
-  if (hit.hit_point >= 0) collision_.addContactsAt(motion, hit, isovalue);
-  out.stats.contacts_us = us_since(phase, Clock::now());
   // Step 6: virtual coupling.
   const Wrench w = coupling_.compute(X_WP_, X_WD, mass);
 
@@ -138,8 +183,6 @@ TickOutput HapticRenderer::tick(const Pose& X_WD_in, double isovalue) noexcept {
   out.stats.box_queries = collision_.boxQueryCount();
   out.stats.cells = collision_.cellCount();
   out.stats.work = collision_.work();
-  out.stats.budget_cut = hit.budget_cut;
-  out.stats.time_of_contact = hit.t;
   out.stats.exec_time_us = std::chrono::duration<double, std::micro>(Clock::now() - start).count();
   return out;
 }

@@ -1,5 +1,6 @@
 #include "vh/haptics/collision_detector.h"
 
+#include <iostream>
 #include <random>
 #include <string>
 
@@ -223,6 +224,65 @@ TEST(CollisionDetector, AcceleratedStopsAtABlockingContactWithoutWalkingTheTree)
   std::sort(b.begin(), b.end());
   EXPECT_EQ(a, b);
   EXPECT_FALSE(a.empty());
+}
+
+// Issue 13: a sweep the work budget cuts is resumed on later calls where it stopped. Done, it
+// gives the uncut sweep's result bit for bit (time, bracket, point) and so keeps its contract
+// with the brute-force reference; the times reported while cut are proven free (never after
+// the first contact) and never decrease; resuming costs little more work than one uncut sweep.
+TEST(CollisionDetector, AResumedSweepGivesTheUncutResult) {
+  const ScalarVolume vol = datasets::makeSphereVolume(test::grid1mm(), Eigen::Vector3d::Zero(), 0.012);
+  const auto tool = test::meshTool(datasets::makeSphereMesh(0.006, 3), 0.5e-3);
+  CollisionDetector uncut(vol, *tool, 0.0, 256, DetectionMode::kAccelerated);
+  CollisionDetector cut(vol, *tool, 0.0, 256, DetectionMode::kAccelerated);
+  std::mt19937 rng(31);
+  std::normal_distribution<double> nd;
+  int compared = 0, hits = 0, resumed = 0;
+  std::int64_t uncut_work = 0, cut_work = 0;
+  for (int n = 0; n < 80; ++n) {
+    Pose X0, X1;
+    X0.p_AB_m = Eigen::Vector3d(0, 0, 0.020) + 0.002 * Eigen::Vector3d(nd(rng), nd(rng), nd(rng));
+    X1.p_AB_m = X0.p_AB_m + Eigen::Vector3d(0.004 * nd(rng), 0.004 * nd(rng), -0.006);
+    X1.R_AB = Eigen::Quaterniond(Eigen::AngleAxisd(0.5 * nd(rng), Eigen::Vector3d(nd(rng), nd(rng), nd(rng)).normalized()));
+    bool clear = true;
+    for (const auto& p : tool->point_shell.points_T_m()) clear &= !vol.isInside(X0 * p, 0.0);
+    if (!clear) continue;
+    const RigidMotion motion = RigidMotion::Between(X0, X1, tool->mass.p_TCm_m);
+    uncut.resetSampleCount();
+    const SweepResult reference = uncut.sweep(motion, 0.0);
+    uncut_work += uncut.work();
+    const std::int64_t budget = 50 + n * 7;
+    cut.setWorkBudget(budget);
+    cut.resetSampleCount();
+    SweepResult r = cut.sweep(motion, 0.0);
+    cut_work += cut.work();
+    double last_t = 0.0;
+    int calls = 1;
+    while (r.budget_cut) {
+      ASSERT_TRUE(cut.sweepPending());
+      EXPECT_GE(r.t, last_t) << "case " << n;
+      EXPECT_LE(r.t, reference.t) << "a cut time after the first contact, case " << n;
+      last_t = r.t;
+      cut.resetSampleCount();
+      r = cut.resumeSweep();
+      cut_work += cut.work();
+      ASSERT_LT(++calls, 100000) << "the resumed sweep does not finish, case " << n;
+    }
+    EXPECT_FALSE(cut.sweepPending());
+    resumed += calls > 1;
+    EXPECT_EQ(r.t, reference.t) << "case " << n;
+    EXPECT_EQ(r.t_inside, reference.t_inside) << "case " << n;
+    EXPECT_EQ(r.hit_point, reference.hit_point) << "case " << n;
+    EXPECT_LE(r.t, bruteForceFirstContact(vol, *tool, motion, 0.0) + 1e-12) << "case " << n;
+    ++compared;
+    hits += r.hit_point >= 0;
+  }
+  std::cout << compared << " sweeps (" << hits << " hits, " << resumed << " resumed): work uncut " << uncut_work
+            << ", cut and resumed " << cut_work << "\n";
+  EXPECT_GT(compared, 40);
+  EXPECT_GT(hits, 10);
+  EXPECT_GT(resumed, 30);
+  EXPECT_LT(static_cast<double>(cut_work), 1.25 * static_cast<double>(uncut_work));
 }
 
 TEST(CollisionDetector, DefaultEpsilonIsAnEighthOfTheFeatureSize) {

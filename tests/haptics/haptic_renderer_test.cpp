@@ -38,7 +38,9 @@ INSTANTIATE_TEST_SUITE_P(Modes, HapticRendererModes, ::testing::Values(Detection
 
 TEST_P(HapticRendererModes, FreeMotionReachesTheDeviceWithZeroForce) {
   PlaneScene scene;
-  HapticRenderer r(scene.volume, scene.tool, inMode(GetParam()), Pose::FromTranslation({0, 0, 0.01}), 0.0);
+  RendererOptions o = inMode(GetParam());
+  o.max_travel_per_tick_m = 0.0;  // the paper's: no velocity limit
+  HapticRenderer r(scene.volume, scene.tool, o, Pose::FromTranslation({0, 0, 0.01}), 0.0);
   Pose X_WD = Pose::FromTranslation({0.003, -0.002, 0.012});
   X_WD.R_AB = Eigen::Quaterniond(Eigen::AngleAxisd(0.4, Eigen::Vector3d::UnitZ()));
   const TickOutput out = r.tick(X_WD, 0.0);
@@ -46,6 +48,31 @@ TEST_P(HapticRendererModes, FreeMotionReachesTheDeviceWithZeroForce) {
   EXPECT_LT(out.force_W_N.norm(), 1e-9);
   EXPECT_EQ(out.stats.contacts, 0);
   EXPECT_DOUBLE_EQ(out.stats.time_of_contact, 1.0);
+}
+
+// The velocity limit (section 2.3's alternative; issue 13): in free space no shell point moves
+// farther than max_travel_per_tick_m in a tick (checked point by point), and the proxy reaches
+// the device after ceil(travel / limit) ticks.
+TEST_P(HapticRendererModes, VelocityLimitBoundsEveryPointsTravelPerTick) {
+  PlaneScene scene;
+  RendererOptions o = inMode(GetParam());
+  o.max_travel_per_tick_m = 0.001;
+  HapticRenderer r(scene.volume, scene.tool, o, Pose::FromTranslation({0, 0, 0.01}), 0.0);
+  Pose X_WD = Pose::FromTranslation({0.003, -0.002, 0.012});
+  X_WD.R_AB = Eigen::Quaterniond(Eigen::AngleAxisd(0.4, Eigen::Vector3d::UnitZ()));
+  int ticks = 0;
+  double max_travel_m = 0.0;
+  for (; ticks < 100 && (r.proxyPose().p_AB_m - X_WD.p_AB_m).norm() > 1e-12; ++ticks) {
+    const Pose before = r.proxyPose();
+    const TickOutput out = r.tick(X_WD, 0.0);
+    for (const auto& p : scene.tool->point_shell.points_T_m())
+      max_travel_m = std::max(max_travel_m, (out.X_WP * p - before * p).norm());
+  }
+  EXPECT_LE(max_travel_m, 0.001 * (1.0 + 1e-9));
+  EXPECT_GT(max_travel_m, 0.0009);  // the limit binds
+  EXPECT_GT(ticks, 2);
+  EXPECT_LT(ticks, 100);
+  EXPECT_LT(r.tick(X_WD, 0.0).force_W_N.norm(), 1e-9);
 }
 
 TEST_P(HapticRendererModes, PressingIntoAPlaneGivesKTimesDepth) {

@@ -23,6 +23,7 @@ INSTANTIATE_TEST_SUITE_P(Modes, WorkBudget, ::testing::Values(DetectionMode::kPa
 
 struct BudgetRun {
   std::int64_t max_work = 0, cuts = 0, crossings = 0;
+  int longest_cut_run = 0;  // most consecutive ticks the budget cut (one resumed sweep)
   double max_depth_m = 0.0;
   Pose final;
 };
@@ -45,6 +46,7 @@ BudgetRun teleports(DetectionMode mode, std::int64_t budget) {
   HapticRenderer r(vol, tool, o, above, s);
   const CrossingVerifier oracle(*vol, tool->point_shell, 1e-2);
   BudgetRun run;
+  int cut_run = 0;
   for (int i = 0; i < 400; ++i) {
     Pose X_WD = above;
     if (i < 40 && i % 4 == 1) {  // a jump through the plate with a half turn
@@ -59,6 +61,8 @@ BudgetRun teleports(DetectionMode mode, std::int64_t budget) {
                 << " z " << (out.X_WP.p_AB_m.z() - z_plate) * 1e3 << " contacts " << out.stats.contacts << "\n";
     run.max_work = std::max(run.max_work, out.stats.work);
     run.cuts += out.stats.budget_cut;
+    cut_run = out.stats.budget_cut ? cut_run + 1 : 0;
+    run.longest_cut_run = std::max(run.longest_cut_run, cut_run);
     run.max_depth_m = std::max(run.max_depth_m, maxPenetration_m(*vol, tool->point_shell, out.X_WP, s));
     run.crossings += oracle.check(r.lastMotion(), r.lastTimeOfContact(), s).crossing_points > 0;
   }
@@ -72,9 +76,9 @@ TEST_P(WorkBudget, NoTickExceedsItsWorkAndTheProxyStillNeverPenetrates) {
   // The unbudgeted jumps cost many times the budget (the test bites).
   ASSERT_GT(free_run.max_work, 5 * kBudget);
   const BudgetRun budgeted = teleports(GetParam(), kBudget);
-  // Over the budget by at most the pruning of a full contact set (256 x 12 samples, done before
-  // the sweep) and one queue step.
-  EXPECT_LE(budgeted.max_work, kBudget + 256 * 12 + 200);
+  // Over the budget by at most the pruning of a full contact set (64 contacts, about 8 units
+  // each, done before the sweep) and one queue step.
+  EXPECT_LE(budgeted.max_work, kBudget + 64 * 12 + 200);
   EXPECT_GT(budgeted.cuts, 0);
   EXPECT_EQ(budgeted.crossings, 0);
   EXPECT_EQ(free_run.crossings, 0);
@@ -84,11 +88,17 @@ TEST_P(WorkBudget, NoTickExceedsItsWorkAndTheProxyStillNeverPenetrates) {
   // place. Not in the paper's path: without culling, every sweep samples every point's first
   // segment (5000 here), so a budget below the point count stalls the proxy (safe, documented).
   if (GetParam() == DetectionMode::kAccelerated) {
-    EXPECT_LT((budgeted.final.p_AB_m - free_run.final.p_AB_m).norm(), 1e-4);
-    EXPECT_LT(budgeted.cuts, 100);
+    // Their contact histories differ (the budgeted proxy arrives later), so to within half a
+    // voxel.
+    EXPECT_LT((budgeted.final.p_AB_m - free_run.final.p_AB_m).norm(), 0.5e-3);
+    // A cut sweep is resumed, never restarted, so every one finishes (the detector's test
+    // AResumedSweepGivesTheUncutResult checks that it ends with the uncut result): no run of
+    // cut ticks is long. The longest here is one sweep of about 19 budgets.
+    EXPECT_LE(budgeted.longest_cut_run, 40);
   }
   std::cout << "work per tick: unbudgeted max " << free_run.max_work << ", budgeted max " << budgeted.max_work
-            << " (budget " << kBudget << "), " << budgeted.cuts << " ticks cut\n";
+            << " (budget " << kBudget << "), " << budgeted.cuts << " ticks cut, longest run of cut ticks "
+            << budgeted.longest_cut_run << "\n";
 }
 
 }  // namespace

@@ -41,6 +41,11 @@ class RigidMotion {
   }
   /// Pose of the tool frame at time t.
   Pose poseAt(double t) const noexcept;
+  /// The same arc over [t0, t1], re-timed to [0, 1]: starts at poseAt(t0), moves by
+  /// (t1 - t0) v and (t1 - t0) omega (the axis and the centre's line are the same).
+  RigidMotion part(double t0, double t1) const noexcept {
+    return FromVelocity(poseAt(t0), p_TCm_, v_ * (t1 - t0), omega_ * (t1 - t0));
+  }
   /// Path-length bound of a point over the unit step [m]: |v| + |omega x r0| (the point's speed
   /// is |v + omega x r(t)| and |omega x r(t)| = |omega| rho stays constant, rho its distance from
   /// the axis). Tighter than the paper's |v| + |omega| |r0| for points near the rotation axis
