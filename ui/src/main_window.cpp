@@ -486,7 +486,7 @@ void MainWindow::buildDocks() {
 
   // ---- Strip chart.
   chart_ = new StripChart(this);
-  chart_dock_ = new QDockWidget("Force and servo time", this);
+  chart_dock_ = new QDockWidget("Force and haptic thread timing", this);
   chart_dock_->setObjectName("chartDock");
   chart_dock_->setWidget(chart_);
   addDockWidget(Qt::BottomDockWidgetArea, chart_dock_);
