@@ -78,7 +78,28 @@ TickOutput HapticRenderer::tick(const Pose& X_WD_in, double isovalue) noexcept {
     const auto phase = Clock::now();
     const SweepResult hit = collision_.resumeSweep();
     out.stats.sweep_us = us_since(phase, Clock::now());
-    const double t = std::max(pending_t_, hit.t);
+    // The motion was solved for an older device pose: the proxy moves along it only as far as
+    // that does not work against the coupling to the device now (the solver's own guarantee,
+    // ConfigurationSolver::setGains(), for the pose it solved for): the trapezoidal work of the
+    // coupling wrench on the proxy over the move must not be negative. Halved up to 4 times,
+    // else the proxy waits (proven free where it is) while the sweep goes on.
+    double t = pending_t_;
+    const Pose X_from = pending_motion_.poseAt(pending_t_);
+    const Wrench w0 = coupling_.compute(X_from, X_WD, mass);
+    double t_try = std::max(pending_t_, hit.t);
+    for (int attempt = 0; attempt < 5 && t_try > pending_t_; ++attempt, t_try = 0.5 * (pending_t_ + t_try)) {
+      const Pose X_to = pending_motion_.poseAt(t_try);
+      const Wrench w1 = coupling_.compute(X_to, X_WD, mass);
+      const Vector6d dx = displacement_W(X_from, X_to, mass.p_TCm_m);
+      const double work_J = -0.5 * ((w0.force_W_N + w1.force_W_N).dot(dx.head<3>()) +
+                                    (w0.torque_W_Nm + w1.torque_W_Nm).dot(dx.tail<3>()));
+      const double gross_J = 0.5 * ((w0.force_W_N.cwiseAbs() + w1.force_W_N.cwiseAbs()).dot(dx.head<3>().cwiseAbs()) +
+                                    (w0.torque_W_Nm.cwiseAbs() + w1.torque_W_Nm.cwiseAbs()).dot(dx.tail<3>().cwiseAbs()));
+      if (work_J >= -1e-9 * gross_J) {
+        t = t_try;
+        break;
+      }
+    }
     last_motion_ = pending_motion_.part(pending_t_, t);
     last_t_ = 1.0;
     X_WP_ = pending_motion_.poseAt(t);
@@ -87,11 +108,10 @@ TickOutput HapticRenderer::tick(const Pose& X_WD_in, double isovalue) noexcept {
     ++pending_ticks_;
     if (!hit.budget_cut) {
       const auto contacts_start = Clock::now();
-      if (hit.hit_point >= 0) collision_.addContactsAt(pending_motion_, hit, isovalue);
+      // The contacts at the hit, when the proxy got there.
+      if (hit.hit_point >= 0 && t == hit.t) collision_.addContactsAt(pending_motion_, hit, isovalue);
       out.stats.contacts_us = us_since(contacts_start, Clock::now());
       blocked_last_tick_ = hit.hit_point >= 0 && hit.t < 0.01;
-      // The motion took several ticks: the next one is shorter (see below).
-      motion_scale_ = std::max(1.0 / 4096.0, motion_scale_ / pending_ticks_);
     }
     out.stats.budget_cut = hit.budget_cut;
     out.stats.time_of_contact = t;
