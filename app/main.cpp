@@ -102,6 +102,9 @@ int main(int argc, char** argv) {
                   "this step [voxels]; 0 turns it off")
       ->capture_default_str()
       ->check(CLI::NonNegativeNumber);
+  bool run_lag_reference = vh::runtime::RunOptions{}.lag_reference;
+  run->add_flag("!--no-lag-reference", run_lag_reference,
+                "Skip the unbudgeted reference run that measures the work budget's lag (issue 13)");
   run->add_flag("--check", run_check,
                 "Exit with 3 when the proxy penetrated deeper than epsilon, a tick produced a non-finite value or "
                 "the proxy crossed into the isosurface (crossings > 0)");
@@ -171,6 +174,7 @@ int main(int argc, char** argv) {
       run_options.trace_csv = run_trace;
       run_options.record = run_record;
       run_options.verify_step_voxels = run_verify_step;
+      run_options.lag_reference = run_lag_reference;
       const vh::runtime::RunReport report = vh::runtime::runHeadless(spec, run_trajectory, run_options);
       if (!run_report.empty()) vh::runtime::writeRunReport(report, run_report);
       std::cout << "volume-haptics run: " << report.summary() << std::endl;

@@ -1,6 +1,7 @@
 #include "vh/haptics/collision_detector.h"
 
 #include <algorithm>
+#include <bit>
 #include <cmath>
 #include <limits>
 #include <stdexcept>
@@ -86,6 +87,7 @@ CollisionDetector::CollisionDetector(const ScalarVolume& volume, const ToolModel
     active_.resize(n);
   }
   candidate_.resize(n);
+  setup_work_ = std::max<std::int64_t>(1, static_cast<std::int64_t>(n) / 5000);
   reduce_position_.resize(n + contacts_.size());
   reduce_distance_.resize(n + contacts_.size());
   reduce_chosen_.resize(n + contacts_.size());
@@ -196,6 +198,7 @@ SweepResult CollisionDetector::sweep(const RigidMotion& motion, double isovalue)
 }
 
 void CollisionDetector::setupPath(const RigidMotion& motion, int j) noexcept {
+  samples_ += setup_work_;  // a point's path set-up: its state is touched (see setup_work_)
   r0_[j] = motion.radial_W(tool_->point_shell.points_T_m()[j]);
   const double angle = motion.angle_rad();
   const double rho = motion.radiusAboutAxis(r0_[j]);
@@ -297,7 +300,7 @@ std::size_t CollisionDetector::collectActive(const RigidMotion& motion, double t
   }
   budget_stopped_ = false;
   while (top > 0) {
-    if (queue && overBudget()) {
+    if (overBudget()) {
       budget_stopped_ = true;
       walk_top_ = top;
       walk_count_ = count;
@@ -563,9 +566,11 @@ void CollisionDetector::addContactsAt(const RigidMotion& motion, const SweepResu
   if (mode_ == DetectionMode::kAccelerated) {
     // A sweep that ended at t = 0 on a contact point skipped the tree: collect the points near
     // the proxy now (the tree over [0, t], t = 0, with the epsilon look-ahead).
+    // This walk shares the work budget: cut, it leaves fewer candidates (the contact set is an
+    // aid to the solver; the sweep alone keeps the proxy out).
     if (!active_complete_) {
       collectActive(motion, t, isovalue, false);
-      active_complete_ = true;
+      active_complete_ = !budget_stopped_;
     }
     // Only the points the sweep did not cull, in index order; a point whose look-ahead time lies
     // in its proven-outside prefix is skipped. The skip tests first, then only the few
@@ -579,7 +584,12 @@ void CollisionDetector::addContactsAt(const RigidMotion& motion, const SweepResu
       active_[kept++] = j;
     }
     active_count_ = kept;
-    std::sort(active_.begin(), active_.begin() + static_cast<std::ptrdiff_t>(kept));
+    // Sorted when few (the paper's order); many (a large face landing) are tested in the walk's
+    // order, which the budget may stop early and reduceContacts() thins out anyway.
+    if (kept <= 4 * contact_cap_) {
+      std::sort(active_.begin(), active_.begin() + static_cast<std::ptrdiff_t>(kept));
+      samples_ += static_cast<std::int64_t>(kept * static_cast<std::size_t>(std::bit_width(kept)) / 8);
+    }
     for (std::size_t i = 0; i < kept && !overBudget(); ++i) {
       const int j = active_[i];
       if (inside(motion.pointAt(r0_[j], t + epsilon_ / path_[j]), isovalue)) candidate_[candidates++] = j;
@@ -594,6 +604,7 @@ void CollisionDetector::addContactsAt(const RigidMotion& motion, const SweepResu
   if (contact_count_ + candidates > cap) reduceContacts(motion, t, hit.hit_point, candidates, cap);
   for (std::size_t i = 0; i < candidates; ++i) {
     const int j = candidate_[i];
+    if (j != hit.hit_point && overBudget()) continue;  // measuring a contact costs 7+ samples
     appendContact(j, motion.pointAt(r0_[j], t), direction(j), isovalue);
   }
 }
@@ -606,6 +617,24 @@ void CollisionDetector::reduceContacts(const RigidMotion& motion, double t, int 
   // position, so contacts inside the hull of the kept ones add (almost) nothing; spreading the
   // kept ones over the face keeps the hull. A dropped contact that the next motion would push
   // in is caught by the sweep like any point (the cap never lets the proxy penetrate).
+  // Over the budget: the hit point and the set as it is. Many candidates (a flat face landing
+  // on a flat surface): every k-th one, so the selection below costs at most about
+  // cap * max(4 cap, 256) / 16 units.
+  if (overBudget()) {
+    std::size_t kept_candidates = 0;
+    for (std::size_t i = 0; i < candidates; ++i)
+      if (candidate_[i] == hit_point) candidate_[kept_candidates++] = candidate_[i];
+    candidates = kept_candidates;
+    if (contact_count_ + candidates <= cap) return;
+  }
+  const std::size_t limit = std::max<std::size_t>(4 * cap, 256);
+  if (candidates > limit) {
+    const std::size_t stride = (candidates + limit - 1) / limit;
+    std::size_t kept_candidates = 0;
+    for (std::size_t i = 0; i < candidates; ++i)
+      if (i % stride == 0 || candidate_[i] == hit_point) candidate_[kept_candidates++] = candidate_[i];
+    candidates = kept_candidates;
+  }
   const std::size_t existing = contact_count_;
   const std::size_t total = existing + candidates;
   auto position = [&](std::size_t u) {
@@ -625,7 +654,7 @@ void CollisionDetector::reduceContacts(const RigidMotion& motion, double t, int 
   while (chosen < cap) {
     reduce_chosen_[next] = 1;
     ++chosen;
-    if (chosen == cap) break;
+    if (chosen == cap || overBudget()) break;  // over budget: the ones chosen so far
     double farthest = -1.0;
     std::size_t best = next;
     const Eigen::Vector3d& p = reduce_position_[next];

@@ -78,26 +78,28 @@ TickOutput HapticRenderer::tick(const Pose& X_WD_in, double isovalue) noexcept {
     const auto phase = Clock::now();
     const SweepResult hit = collision_.resumeSweep();
     out.stats.sweep_us = us_since(phase, Clock::now());
-    // The motion was solved for an older device pose: the proxy moves along it only as far as
-    // that does not work against the coupling to the device now (the solver's own guarantee,
-    // ConfigurationSolver::setGains(), for the pose it solved for): the trapezoidal work of the
-    // coupling wrench on the proxy over the move must not be negative. Halved up to 4 times,
-    // else the proxy waits (proven free where it is) while the sweep goes on.
+    // The motion was solved for an older device pose: along it, the proxy moves to the point,
+    // among eight from where it is to where the sweep has proven free, where the coupling to
+    // the device now has done the most positive work on it (a line search; the trapezoidal
+    // work of the coupling wrench over the move). Never negative work (the solver's own
+    // guarantee, ConfigurationSolver::setGains(), for the pose it solved for); when every
+    // candidate would do negative work the proxy waits, proven free where it is, while the
+    // sweep goes on.
     double t = pending_t_;
     const Pose X_from = pending_motion_.poseAt(pending_t_);
     const Wrench w0 = coupling_.compute(X_from, X_WD, mass);
-    double t_try = std::max(pending_t_, hit.t);
-    for (int attempt = 0; attempt < 5 && t_try > pending_t_; ++attempt, t_try = 0.5 * (pending_t_ + t_try)) {
+    const double t_end = std::max(pending_t_, hit.t);
+    double best_work_J = 0.0;
+    for (int k = 1; k <= 8 && t_end > pending_t_; ++k) {
+      const double t_try = k == 8 ? t_end : pending_t_ + (t_end - pending_t_) * (k / 8.0);
       const Pose X_to = pending_motion_.poseAt(t_try);
       const Wrench w1 = coupling_.compute(X_to, X_WD, mass);
       const Vector6d dx = displacement_W(X_from, X_to, mass.p_TCm_m);
       const double work_J = -0.5 * ((w0.force_W_N + w1.force_W_N).dot(dx.head<3>()) +
                                     (w0.torque_W_Nm + w1.torque_W_Nm).dot(dx.tail<3>()));
-      const double gross_J = 0.5 * ((w0.force_W_N.cwiseAbs() + w1.force_W_N.cwiseAbs()).dot(dx.head<3>().cwiseAbs()) +
-                                    (w0.torque_W_Nm.cwiseAbs() + w1.torque_W_Nm.cwiseAbs()).dot(dx.tail<3>().cwiseAbs()));
-      if (work_J >= -1e-9 * gross_J) {
+      if (work_J > best_work_J) {
+        best_work_J = work_J;
         t = t_try;
-        break;
       }
     }
     last_motion_ = pending_motion_.part(pending_t_, t);

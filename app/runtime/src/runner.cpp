@@ -56,6 +56,15 @@ RunReport runHeadless(const LoadedScene& scene, const Trajectory& trajectory, co
   renderer_options.gains = scene.spec.gains;
   haptics::HapticRenderer renderer(scene.volume.field, scene.tool, renderer_options, X_WD_first, s);
   r.epsilon_m = renderer.epsilon_m();
+  r.work_budget = renderer_options.work_budget;
+  std::optional<haptics::HapticRenderer> reference;  // the same without the budget: the lag
+  if (options.lag_reference && renderer_options.work_budget > 0) {
+    haptics::RendererOptions unbudgeted = renderer_options;
+    unbudgeted.work_budget = 0;
+    reference.emplace(scene.volume.field, scene.tool, unbudgeted, X_WD_first, s);
+    r.lag_ticks = 0;
+    r.max_lag_m = r.max_lag_rad = 0.0;
+  }
   std::optional<haptics::CrossingVerifier> verifier;
   if (options.verify_step_voxels > 0.0) {
     verifier.emplace(volume, tool.point_shell, options.verify_step_voxels);
@@ -101,6 +110,18 @@ RunReport runHeadless(const LoadedScene& scene, const Trajectory& trajectory, co
 
     // Everything below is outside the timed section (exec_time_us is measured by tick()).
     times_us.push_back(out.stats.exec_time_us);
+    r.budget_cuts += out.stats.budget_cut;
+    r.max_work = std::max(r.max_work, out.stats.work);
+    if (reference) {
+      const haptics::TickOutput ref = reference->tick(sample.X_WD, s);
+      if (ref.X_WP.allFinite() && out.X_WP.allFinite()) {
+        const double lag_m = (out.X_WP.p_AB_m - ref.X_WP.p_AB_m).norm();
+        const double lag_rad = out.X_WP.R_AB.angularDistance(ref.X_WP.R_AB);
+        r.max_lag_m = std::max(r.max_lag_m, lag_m);
+        r.max_lag_rad = std::max(r.max_lag_rad, lag_rad);
+        if (lag_m > 1e-9 || lag_rad > 1e-9) ++r.lag_ticks;
+      }
+    }
     if (out.stats.exec_time_us > 1000.0) ++r.ticks_over_1ms;
     r.max_contacts = std::max(r.max_contacts, out.stats.contacts);
     contact_sum += out.stats.contacts;
@@ -246,6 +267,13 @@ std::string RunReport::toJson() const {
   j["final_force_N"] = final_force_N;
   j["final_proxy_device_distance_m"] = final_proxy_device_distance_m;
   j["max_proxy_device_distance_m"] = max_proxy_device_distance_m;
+  j["work_budget"] = work_budget;
+  j["budget_cuts"] = budget_cuts;
+  j["max_work"] = max_work;
+  // Not measured: null.
+  j["lag_ticks"] = lag_ticks >= 0 ? nlohmann::ordered_json(lag_ticks) : nlohmann::ordered_json(nullptr);
+  j["max_lag_m"] = max_lag_m >= 0.0 ? nlohmann::ordered_json(max_lag_m) : nlohmann::ordered_json(nullptr);
+  j["max_lag_rad"] = max_lag_rad >= 0.0 ? nlohmann::ordered_json(max_lag_rad) : nlohmann::ordered_json(nullptr);
   return j.dump(2) + "\n";
 }
 
@@ -268,6 +296,17 @@ std::string RunReport::summary() const {
                   static_cast<long long>(crossings), static_cast<long long>(crossing_points),
                   crossing_points == 1 ? "" : "s", static_cast<long long>(first_crossing_tick), verify_step_voxels);
     out += line;
+  }
+  if (work_budget > 0) {
+    std::snprintf(line, sizeof line, "; work budget %lld: %llu ticks cut, max work %lld",
+                  static_cast<long long>(work_budget), static_cast<unsigned long long>(budget_cuts),
+                  static_cast<long long>(max_work));
+    out += line;
+    if (lag_ticks >= 0) {
+      std::snprintf(line, sizeof line, ", lag behind the unbudgeted proxy %.3f mm, %.4f rad (%lld ticks)",
+                    max_lag_m * 1e3, max_lag_rad, static_cast<long long>(lag_ticks));
+      out += line;
+    }
   }
   return out;
 }

@@ -64,6 +64,15 @@ void expectSoundRun(const RunReport& r, const Trajectory& trajectory, const std:
   EXPECT_GT(r.mean_us, 0.0);
   EXPECT_LE(r.p50_us, r.p99_us);
   EXPECT_LE(r.p99_us, r.max_us);
+  // The work budget (issue 13) and its price against the unbudgeted run of the same samples.
+  EXPECT_EQ(r.work_budget, haptics::RendererOptions::kDefaultWorkBudget);
+  EXPECT_LE(r.max_work, r.work_budget + 64 * 12 + 300);
+  EXPECT_GE(r.lag_ticks, 0);
+  EXPECT_LE(static_cast<std::uint64_t>(r.lag_ticks), r.ticks);
+  EXPECT_GE(r.max_lag_m, 0.0);
+  EXPECT_GE(r.max_lag_rad, 0.0);
+  if (r.budget_cuts == 0) EXPECT_EQ(r.lag_ticks, 0) << "no tick cut, yet the proxy differs from the unbudgeted one";
+  EXPECT_NE(r.summary().find("work budget"), std::string::npos) << r.summary();
 }
 
 TEST(Runner, NearestRankPercentileIsTheValueAtRankCeilQN) {
@@ -218,6 +227,13 @@ TEST(Runner, CrossingCheckOffIsReportedAsNotCheckedNotAsZero) {
   EXPECT_TRUE(j["crossing_points"].is_null());
   EXPECT_TRUE(j["first_crossing_tick"].is_null());
   EXPECT_EQ(j["verify_step_voxels"].get<double>(), 0.0);
+  // The lag reference ran (the default); without it the lag is null, not 0.
+  EXPECT_TRUE(j["lag_ticks"].is_number());
+  options.lag_reference = false;
+  const nlohmann::json j2 = nlohmann::json::parse(runHeadless(scene, plan.trajectory, options).toJson());
+  EXPECT_TRUE(j2["lag_ticks"].is_null());
+  EXPECT_TRUE(j2["max_lag_m"].is_null());
+  EXPECT_EQ(j2["work_budget"].get<std::int64_t>(), haptics::RendererOptions::kDefaultWorkBudget);
 
   options.verify_step_voxels = -1.0;
   EXPECT_THROW(runHeadless(scene, plan.trajectory, options), std::invalid_argument);

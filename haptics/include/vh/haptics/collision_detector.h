@@ -162,11 +162,12 @@ class CollisionDetector {
   std::int64_t cellCount() const noexcept { return cells_; }
   /// Relative costs of a min-max tree box query and of a cell of the exact segment test, in
   /// trilinear samples: a least-squares fit of the phase times of 5,000 Engine ticks to the three
-  /// counts (2-core Xeon, 2.0 GHz) gave 0.05 us per sample, 0.2 per box query, 0.25 per cell.
+  /// counts (2-core Xeon, 2.0 GHz) gave 0.05 us per sample, 0.2 per box query, 0.25 to 0.35 per cell.
   static constexpr std::int64_t kBoxQueryWork = 4;
-  static constexpr std::int64_t kCellWork = 5;
+  static constexpr std::int64_t kCellWork = 6;
   /// Work since the last resetSampleCount(), in units of one trilinear sample's cost (about
-  /// 0.05 us on the machine above): samples + kBoxQueryWork * box queries + kCellWork * cells.
+  /// 0.05 us on the machine above): samples + kBoxQueryWork * box queries + kCellWork * cells,
+  /// where "samples" also counts a point's path set-up and the contact candidates' sort.
   std::int64_t work() const noexcept { return samples_ + kCellWork * cells_ + kBoxQueryWork * box_queries_; }
   /// Work budget per resetSampleCount() period (a servo tick), 0 = none (issue 13). Once work()
   /// reaches it, sweep() stops at the time up to which every path is proven free (the
@@ -299,6 +300,10 @@ class CollisionDetector {
   std::int64_t cells_ = 0;
   std::int64_t work_budget_ = 0;
   std::size_t contact_cap_ = static_cast<std::size_t>(-1);
+  // Work units of one point's path set-up: max(1, points / 5000). The per-point state of a large
+  // shell no longer fits in the caches: on Engine a unit of work cost 0.039 us with the
+  // 2,126-point wrench, 0.088 us with 20,000 points and 0.071 us with 50,000 (cut ticks).
+  std::int64_t setup_work_ = 1;
   // addContactsAt(): the new contact points (capacity = points); reduceContacts()' scratch
   // (capacity = points + contact capacity).
   std::vector<int> candidate_;

@@ -58,9 +58,9 @@ struct RendererOptions {
   /// 1/4096, doubling back after each tick that finishes; its sweep samples every point's first segment, so a
   /// budget below the point count stalls it: the paper-faithful runs set 0). The overshoot is at
   /// most one queue step, and the pruning of a full contact set before the sweep (about 8 units
-  /// per contact). The default, 4000 units, is about 200 us on a 2.0 GHz Xeon core: with the
+  /// per contact). The default, 3000 units, is about 120 to 270 us on a 2.0 GHz Xeon core: with the
   /// solver's other work a tick stays well inside a 1 ms servo period (`bench table1`).
-  static constexpr std::int64_t kDefaultWorkBudget = 4000;
+  static constexpr std::int64_t kDefaultWorkBudget = 3000;
   std::int64_t work_budget = kDefaultWorkBudget;
   /// The velocity limit of section 2.3 (issue 13): no point of the shell travels farther than
   /// this in one tick [m] (bound |v| + |omega| R, R the shell's radius about the centre of

@@ -41,6 +41,10 @@ struct RunOptions {
   /// bit for bit with replayRecording() (default RendererOptions, as the runner uses).
   std::filesystem::path record;
   std::string record_note;  ///< SessionInfo::note of the recording.
+  /// The price of the work budget (issue 13): also run the same samples through a renderer
+  /// without it (outside the timed section) and report how far and how long the budgeted proxy
+  /// was from it. Off: the lag fields are -1.
+  bool lag_reference = true;
 };
 
 /// What one headless run measured. Times are the renderer's TickStats::exec_time_us.
@@ -91,6 +95,14 @@ struct RunReport {
   /// Largest |p_P - p_D| over the run [m]: about the push depth when the proxy slides along the
   /// surface with the device; much more means the proxy lagged or stuck.
   double max_proxy_device_distance_m = 0.0;
+  // The work budget (issue 13; haptics::RendererOptions::work_budget) and its price.
+  std::int64_t work_budget = 0;          ///< Work units per tick; 0: unbounded.
+  std::uint64_t budget_cuts = 0;         ///< Ticks the budget cut (the sweep went on next tick).
+  std::int64_t max_work = 0;             ///< Largest work of a tick [units].
+  /// Against the same run without a budget (RunOptions::lag_reference; else -1): ticks whose
+  /// proxy pose differed, and the largest distance of the tool origins [m] and angle [rad].
+  std::int64_t lag_ticks = -1;
+  double max_lag_m = -1.0, max_lag_rad = -1.0;
 
   /// True when the crossing check ran (verify_step_voxels > 0).
   bool crossingsChecked() const noexcept { return verify_step_voxels > 0.0; }
