@@ -205,6 +205,8 @@ TickOutput HapticRenderer::tick(const Pose& X_WD_in, double isovalue) noexcept {
   out.stats.box_queries = collision_.boxQueryCount();
   out.stats.cells = collision_.cellCount();
   out.stats.work = collision_.work();
+  // Also a tick whose sweep finished but whose contact update (or re-solve) the budget shortened.
+  out.stats.budget_cut = out.stats.budget_cut || collision_.budgetSpent();
   out.stats.exec_time_us = std::chrono::duration<double, std::micro>(Clock::now() - start).count();
   return out;
 }

@@ -42,7 +42,7 @@ int pushOntoTheVault(haptics::DetectionMode mode, haptics::SegmentTest test) {
   const Pose above = poseAboveVolume(*volume, scene.tool->point_shell, Eigen::Quaterniond::Identity(), 0.005);
   int runs = 0, contacts = 0, total_crossings = 0;
   std::int64_t samples = 0;
-  for (const Eigen::Vector2d offset : {Eigen::Vector2d(0.0, 0.0), Eigen::Vector2d(0.02, 0.005),
+  for (const Eigen::Vector2d& offset : {Eigen::Vector2d(0.0, 0.0), Eigen::Vector2d(0.02, 0.005),
                                        Eigen::Vector2d(-0.015, 0.02), Eigen::Vector2d(0.01, -0.03)}) {
     Pose start = above;
     start.p_AB_m.head<2>() += offset;
@@ -67,9 +67,10 @@ int pushOntoTheVault(haptics::DetectionMode mode, haptics::SegmentTest test) {
         samples += c.samples;
         if (c.crossing_points > 0 && crossing_ticks++ == 0) first = i;
       }
-      if (test == haptics::SegmentTest::kExact)
+      if (test == haptics::SegmentTest::kExact) {
         EXPECT_EQ(crossing_ticks, 0) << "offset " << offset.transpose() << " m, " << speed_mm
                                      << " mm per tick: first crossing at tick " << first;
+      }
       total_crossings += crossing_ticks;
       ++runs;
     }

@@ -71,7 +71,9 @@ void expectSoundRun(const RunReport& r, const Trajectory& trajectory, const std:
   EXPECT_LE(static_cast<std::uint64_t>(r.lag_ticks), r.ticks);
   EXPECT_GE(r.max_lag_m, 0.0);
   EXPECT_GE(r.max_lag_rad, 0.0);
-  if (r.budget_cuts == 0) EXPECT_EQ(r.lag_ticks, 0) << "no tick cut, yet the proxy differs from the unbudgeted one";
+  if (r.budget_cuts == 0) {
+    EXPECT_EQ(r.lag_ticks, 0) << "no tick cut, yet the proxy differs from the unbudgeted one";
+  }
   EXPECT_NE(r.summary().find("work budget"), std::string::npos) << r.summary();
 }
 

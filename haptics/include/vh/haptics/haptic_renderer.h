@@ -89,7 +89,9 @@ struct TickStats {
   std::int64_t box_queries = 0;     ///< Min-max tree box queries (kAccelerated; 0 for kPaper).
   std::int64_t cells = 0;           ///< Cells whose cubic the exact segment test examined.
   std::int64_t work = 0;            ///< samples + cells + box queries (RendererOptions::work_budget's unit).
-  bool budget_cut = false;          ///< The work budget stopped the sweep before its end.
+  /// The work budget was reached: the sweep stopped before its end (and goes on next tick), or
+  /// the contact update or the re-solve was shortened.
+  bool budget_cut = false;
   double time_of_contact = 1.0;     ///< Fraction of the constrained path travelled (1 = free).
   /// Wall time of the tick's phases [us] (diagnostics; they sum to about exec_time_us):
   /// embedded-point scan and step 2 (prune), steps 1 + 3 (solve, every attempt), step 4 (sweep,
