@@ -198,7 +198,7 @@ SweepResult CollisionDetector::sweep(const RigidMotion& motion, double isovalue)
 }
 
 void CollisionDetector::setupPath(const RigidMotion& motion, int j) noexcept {
-  samples_ += setup_work_;  // a point's path set-up: its state is touched (see setup_work_)
+  other_work_ += setup_work_;  // a point's path set-up: its state is touched (see setup_work_)
   r0_[j] = motion.radial_W(tool_->point_shell.points_T_m()[j]);
   const double angle = motion.angle_rad();
   const double rho = motion.radiusAboutAxis(r0_[j]);
@@ -588,7 +588,7 @@ void CollisionDetector::addContactsAt(const RigidMotion& motion, const SweepResu
     // order, which the budget may stop early and reduceContacts() thins out anyway.
     if (kept <= 4 * contact_cap_) {
       std::sort(active_.begin(), active_.begin() + static_cast<std::ptrdiff_t>(kept));
-      samples_ += static_cast<std::int64_t>(kept * static_cast<std::size_t>(std::bit_width(kept)) / 8);
+      other_work_ += static_cast<std::int64_t>(kept * static_cast<std::size_t>(std::bit_width(kept)) / 8);
     }
     for (std::size_t i = 0; i < kept && !overBudget(); ++i) {
       const int j = active_[i];
@@ -666,7 +666,7 @@ void CollisionDetector::reduceContacts(const RigidMotion& motion, double t, int 
         best = u;
       }
     }
-    samples_ += static_cast<std::int64_t>(total / 16 + 1);  // ~16 distance updates per sample's cost
+    other_work_ += static_cast<std::int64_t>(total / 16 + 1);  // ~16 distance updates per sample's cost
     if (farthest < 0.0) break;
     next = best;
   }

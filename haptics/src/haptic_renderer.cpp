@@ -30,7 +30,9 @@ HapticRenderer::HapticRenderer(std::shared_ptr<const ScalarVolume> volume, std::
   collision_.setContactCap(static_cast<std::size_t>(options.max_contacts));
   for (const auto& p : tool_->point_shell.points_T_m())
     shell_radius_m_ = std::max(shell_radius_m_, (p - tool_->mass.p_TCm_m).norm());
-  collision_.setWorkBudget(options.work_budget);
+  collision_.setWorkBudget(options.work_budget >= 0 ? options.work_budget
+                          : options.detection_mode == DetectionMode::kAccelerated ? RendererOptions::kDefaultWorkBudget
+                                                                                  : 0);
   collision_.updateEmbedded(X_WP_, isovalue);
 }
 

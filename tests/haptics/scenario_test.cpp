@@ -276,6 +276,7 @@ TEST_P(Scenario, LongPegGoesToTheBottomOfTheHoleAndJamsOnlyWhenPulledSideways) {
   const double s = datasets::kBlockIsovalue;
   RendererOptions o;
   o.detection_mode = GetParam();
+  o.work_budget = 0;  // the contact count of whole ticks (a budget adds the rest on later ticks)
   HapticRenderer r(vol, tool, o, at(0, 0, 0.02), s);
   const Pose deep = at(0, 0, -0.008);  // 4 mm past the hole's floor at z = -4 mm
   const Outcome in = runScenario(r, s, {{1500, line(at(0, 0, 0.02), deep)}, {800, still(deep), true}}, o.gains);

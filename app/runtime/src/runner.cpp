@@ -56,9 +56,9 @@ RunReport runHeadless(const LoadedScene& scene, const Trajectory& trajectory, co
   renderer_options.gains = scene.spec.gains;
   haptics::HapticRenderer renderer(scene.volume.field, scene.tool, renderer_options, X_WD_first, s);
   r.epsilon_m = renderer.epsilon_m();
-  r.work_budget = renderer_options.work_budget;
+  r.work_budget = renderer.workBudget();
   std::optional<haptics::HapticRenderer> reference;  // the same without the budget: the lag
-  if (options.lag_reference && renderer_options.work_budget > 0) {
+  if (options.lag_reference && r.work_budget > 0) {
     haptics::RendererOptions unbudgeted = renderer_options;
     unbudgeted.work_budget = 0;
     reference.emplace(scene.volume.field, scene.tool, unbudgeted, X_WD_first, s);

@@ -167,8 +167,11 @@ class CollisionDetector {
   static constexpr std::int64_t kCellWork = 6;
   /// Work since the last resetSampleCount(), in units of one trilinear sample's cost (about
   /// 0.05 us on the machine above): samples + kBoxQueryWork * box queries + kCellWork * cells,
-  /// where "samples" also counts a point's path set-up and the contact candidates' sort.
-  std::int64_t work() const noexcept { return samples_ + kCellWork * cells_ + kBoxQueryWork * box_queries_; }
+  /// plus the other work counted in sample units: a point's path set-up, the contact
+  /// candidates' sort and reduction, and addWork().
+  std::int64_t work() const noexcept {
+    return samples_ + other_work_ + kCellWork * cells_ + kBoxQueryWork * box_queries_;
+  }
   /// Work budget per resetSampleCount() period (a servo tick), 0 = none (issue 13). Once work()
   /// reaches it, sweep() stops at the time up to which every path is proven free (the
   /// time-ordered queue's front; 0 before the queue starts) and addContactsAt() adds only the
@@ -181,11 +184,12 @@ class CollisionDetector {
   void setWorkBudget(std::int64_t units) noexcept { work_budget_ = units > 0 ? units : 0; }
   /// Work done outside the detector that shares the tick's budget (the configuration solver's
   /// cone projection, issue 13), counted as samples.
-  void addWork(std::int64_t units) noexcept { samples_ += units > 0 ? units : 0; }
+  void addWork(std::int64_t units) noexcept { other_work_ += units > 0 ? units : 0; }
   /// True once work() has reached a non-zero work budget.
   bool budgetSpent() const noexcept { return overBudget(); }
   std::int64_t workBudget() const noexcept { return work_budget_; }
   void resetSampleCount() noexcept {
+    other_work_ = 0;
     cells_ = 0;
     samples_ = 0;
     box_queries_ = 0;
@@ -298,6 +302,7 @@ class CollisionDetector {
   std::int64_t samples_ = 0;
   std::int64_t box_queries_ = 0;
   std::int64_t cells_ = 0;
+  std::int64_t other_work_ = 0;  // work() beyond samples, cells and box queries (sample units)
   std::int64_t work_budget_ = 0;
   std::size_t contact_cap_ = static_cast<std::size_t>(-1);
   // Work units of one point's path set-up: max(1, points / 5000). The per-point state of a large

@@ -60,8 +60,9 @@ struct RendererOptions {
   /// most one queue step, and the pruning of a full contact set before the sweep (about 8 units
   /// per contact). The default, 3000 units, is about 120 to 270 us on a 2.0 GHz Xeon core: with the
   /// solver's other work a tick stays well inside a 1 ms servo period (`bench table1`).
+  /// -1 (the default) selects kDefaultWorkBudget in kAccelerated and no budget in kPaper.
   static constexpr std::int64_t kDefaultWorkBudget = 3000;
-  std::int64_t work_budget = kDefaultWorkBudget;
+  std::int64_t work_budget = -1;
   /// The velocity limit of section 2.3 (issue 13): no point of the shell travels farther than
   /// this in one tick [m] (bound |v| + |omega| R, R the shell's radius about the centre of
   /// mass); the constrained motion is scaled down along itself. 0 = unbounded (the paper's).
@@ -149,6 +150,8 @@ class HapticRenderer {
   const ScalarVolume& volume() const noexcept { return *volume_; }
   const ToolModel& tool() const noexcept { return *tool_; }
   const VirtualCoupling& coupling() const noexcept { return coupling_; }
+  /// The work budget in force (RendererOptions::work_budget with its default resolved); 0: none.
+  std::int64_t workBudget() const noexcept { return collision_.workBudget(); }
 
  private:
   std::shared_ptr<const ScalarVolume> volume_;
