@@ -28,8 +28,6 @@ HapticRenderer::HapticRenderer(std::shared_ptr<const ScalarVolume> volume, std::
   X_WP_.R_AB.normalize();
   solver_.setGains(options.gains);
   collision_.setContactCap(static_cast<std::size_t>(options.max_contacts));
-  for (const auto& p : tool_->point_shell.points_T_m())
-    shell_radius_m_ = std::max(shell_radius_m_, (p - tool_->mass.p_TCm_m).norm());
   collision_.setWorkBudget(options.work_budget >= 0 ? options.work_budget
                           : options.detection_mode == DetectionMode::kAccelerated ? RendererOptions::kDefaultWorkBudget
                                                                                   : 0);
@@ -78,6 +76,8 @@ TickOutput HapticRenderer::tick(const Pose& X_WD_in, double isovalue) noexcept {
   if (collision_.sweepPending() && (embedded_scan_needed_ || isovalue != last_isovalue_)) collision_.abandonSweep();
   if (collision_.sweepPending()) {
     const auto phase = Clock::now();
+    // The detector keeps it until the next sweep() (resumeSweep() only ends the sweep).
+    const RigidMotion& pending_motion = collision_.pendingMotion();
     const SweepResult hit = collision_.resumeSweep();
     out.stats.sweep_us = us_since(phase, Clock::now());
     // The motion was solved for an older device pose: along it, the proxy moves to the point,
@@ -88,13 +88,13 @@ TickOutput HapticRenderer::tick(const Pose& X_WD_in, double isovalue) noexcept {
     // candidate would do negative work the proxy waits, proven free where it is, while the
     // sweep goes on.
     double t = pending_t_;
-    const Pose X_from = pending_motion_.poseAt(pending_t_);
+    const Pose X_from = pending_motion.poseAt(pending_t_);
     const Wrench w0 = coupling_.compute(X_from, X_WD, mass);
     const double t_end = std::max(pending_t_, hit.t);
     double best_work_J = 0.0;
     for (int k = 1; k <= 8 && t_end > pending_t_; ++k) {
       const double t_try = k == 8 ? t_end : pending_t_ + (t_end - pending_t_) * (k / 8.0);
-      const Pose X_to = pending_motion_.poseAt(t_try);
+      const Pose X_to = pending_motion.poseAt(t_try);
       const Wrench w1 = coupling_.compute(X_to, X_WD, mass);
       const Vector6d dx = displacement_W(X_from, X_to, mass.p_TCm_m);
       const double work_J = -0.5 * ((w0.force_W_N + w1.force_W_N).dot(dx.head<3>()) +
@@ -104,16 +104,15 @@ TickOutput HapticRenderer::tick(const Pose& X_WD_in, double isovalue) noexcept {
         t = t_try;
       }
     }
-    last_motion_ = pending_motion_.part(pending_t_, t);
+    last_motion_ = pending_motion.part(pending_t_, t);
     last_t_ = 1.0;
-    X_WP_ = pending_motion_.poseAt(t);
+    X_WP_ = pending_motion.poseAt(t);
     pending_t_ = t;
     collision_.refreshPositions(X_WP_);
-    ++pending_ticks_;
     if (!hit.budget_cut) {
       const auto contacts_start = Clock::now();
       // The contacts at the hit, when the proxy got there.
-      if (hit.hit_point >= 0 && t == hit.t) collision_.addContactsAt(pending_motion_, hit, isovalue);
+      if (hit.hit_point >= 0 && t == hit.t) collision_.addContactsAt(pending_motion, hit, isovalue);
       out.stats.contacts_us = us_since(contacts_start, Clock::now());
       blocked_last_tick_ = hit.hit_point >= 0 && hit.t < 0.01;
     }
@@ -159,7 +158,7 @@ TickOutput HapticRenderer::tick(const Pose& X_WD_in, double isovalue) noexcept {
       // shorter step along the same constrained motion: fewer segments, smaller balls. Scaling
       // keeps the motion in the cone of allowed motions (eq. 4).
       double scale = motion_scale_;
-      const double travel_m = motion.speed_m() + motion.angle_rad() * shell_radius_m_;
+      const double travel_m = motion.speed_m() + motion.angle_rad() * collision_.shellRadius_m();
       if (options_.max_travel_per_tick_m > 0.0 && travel_m * scale > options_.max_travel_per_tick_m)
         scale = options_.max_travel_per_tick_m / travel_m;
       if (scale < 1.0)
@@ -183,9 +182,7 @@ TickOutput HapticRenderer::tick(const Pose& X_WD_in, double isovalue) noexcept {
     last_t_ = hit.t;
     collision_.refreshPositions(X_WP_);
     if (collision_.sweepPending()) {  // cut: goes on next tick
-      pending_motion_ = motion;
       pending_t_ = hit.t;
-      pending_ticks_ = 1;
     } else if (hit.budget_cut) {  // cut for good (kPaper): a shorter step next tick
       motion_scale_ = std::max(1.0 / 4096.0, 0.5 * motion_scale_);
     } else if (motion_scale_ < 1.0) {

@@ -93,6 +93,8 @@ class CollisionDetector {
 
   double epsilon_m() const noexcept { return epsilon_; }
   double featureSize_m() const noexcept { return feature_; }
+  /// Largest distance of a shell point from the tool's centre of mass [m] (T).
+  double shellRadius_m() const noexcept { return shell_radius_m_; }
 
   /// Step 4: first time of contact along `motion` (eq. 2) for all points not embedded: each
   /// point's path is split into ceil(s / f) equal time segments (s = path-length bound; more
@@ -109,6 +111,9 @@ class CollisionDetector {
   /// kAccelerated, after a sweep() or resumeSweep() that the work budget cut (issue 13): whether
   /// that sweep can go on. The contact set must not change meanwhile.
   bool sweepPending() const noexcept { return pending_.active; }
+  /// The motion of the last accelerated sweep, kept until the next sweep(): while sweepPending(),
+  /// the arc the proxy moves along until the sweep is done.
+  const RigidMotion& pendingMotion() const noexcept { return pending_.motion; }
   /// Goes on with the pending sweep where the budget stopped it, with this tick's budget: the
   /// same motion and isovalue, the same samples in the same order as one uncut sweep, so the
   /// same result once it is done (budget_cut false). While still cut, t is the time up to which

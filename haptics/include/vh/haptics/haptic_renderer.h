@@ -168,12 +168,9 @@ class HapticRenderer {
   bool blocked_last_tick_ = false;
   double motion_scale_ = 1.0;  // < 1 after ticks the work budget cut (RendererOptions::work_budget)  // the last sweep stopped before 1 % of its path
   std::int64_t bad_inputs_ = 0;
-  double shell_radius_m_ = 0.0;  // largest |p_T - Cm| over the point shell
-  // The sweep the work budget cut, resumed on the next ticks (CollisionDetector::sweepPending()):
-  // its motion, the time the proxy has reached along it, and the ticks it has taken.
-  RigidMotion pending_motion_;
+  // The time the proxy has reached along the motion of the sweep the work budget cut, which is
+  // resumed on the next ticks (CollisionDetector::sweepPending(), pendingMotion()).
   double pending_t_ = 0.0;
-  int pending_ticks_ = 0;
 };
 
 }  // namespace vh::haptics
