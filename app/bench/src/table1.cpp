@@ -19,6 +19,7 @@
 #include "vh/haptics/haptic_renderer.h"
 #include "vh/haptics/penetration.h"
 #include "vh/runtime/placement.h"
+#include "vh/runtime/runner.h"
 #include "vh/runtime/scene.h"
 #include "vh/runtime/trajectory.h"
 
@@ -236,8 +237,9 @@ struct ModeRun {
   double verify_s = 0.0;
   double wall_s = 0.0;
   // Issue 13: ticks the work budget cut; the lag behind the unbudgeted accelerated proxy.
-  std::int64_t budget_cuts = 0, lag_ticks = 0;
-  double max_lag_m = 0.0, max_lag_rad = 0.0, max_work = 0.0;
+  std::int64_t budget_cuts = 0;
+  runtime::ProxyLag lag;
+  double max_work = 0.0;
 };
 
 /// CPU time of this thread [us] (not advanced while the thread is preempted).
@@ -258,9 +260,9 @@ nlohmann::ordered_json modeJson(const ModeRun& m, double epsilon_m, bool verifie
     j["work_budget"] = m.variant.work_budget;
     j["budget_cuts"] = m.budget_cuts;
     j["max_work"] = m.max_work;
-    j["lag_ticks"] = m.lag_ticks;
-    j["max_lag_m"] = m.max_lag_m;
-    j["max_lag_rad"] = m.max_lag_rad;
+    j["lag_ticks"] = m.lag.ticks;
+    j["max_lag_m"] = m.lag.max_m;
+    j["max_lag_rad"] = m.lag.max_rad;
   }
   j["ticks"] = t.n;
   j["mean_us"] = t.mean;
@@ -435,13 +437,8 @@ void runScene(const runtime::LoadedScene& scene, std::shared_ptr<const haptics::
     max_before_difference_m = std::max(max_before_difference_m, difference(i_accel, i_before));
     if (i_unbudgeted >= 0 && i_accel >= 0 && proxy_finite[static_cast<std::size_t>(i_unbudgeted)] &&
         proxy_finite[static_cast<std::size_t>(i_accel)]) {
-      ModeRun& b = runs[static_cast<std::size_t>(i_accel)];
-      const double lag_m = difference(i_accel, i_unbudgeted);
-      const double lag_rad =
-          proxy_R[static_cast<std::size_t>(i_accel)].angularDistance(proxy_R[static_cast<std::size_t>(i_unbudgeted)]);
-      b.max_lag_m = std::max(b.max_lag_m, lag_m);
-      b.max_lag_rad = std::max(b.max_lag_rad, lag_rad);
-      if (lag_m > 1e-9 || lag_rad > 1e-9) ++b.lag_ticks;
+      runs[static_cast<std::size_t>(i_accel)].lag.add(runs[static_cast<std::size_t>(i_accel)].renderer->proxyPose(),
+                                                       runs[static_cast<std::size_t>(i_unbudgeted)].renderer->proxyPose());
     }
     X_WD_last = X_WD;
   }

@@ -58,12 +58,11 @@ RunReport runHeadless(const LoadedScene& scene, const Trajectory& trajectory, co
   r.epsilon_m = renderer.epsilon_m();
   r.work_budget = renderer.workBudget();
   std::optional<haptics::HapticRenderer> reference;  // the same without the budget: the lag
+  ProxyLag lag;
   if (options.lag_reference && r.work_budget > 0) {
     haptics::RendererOptions unbudgeted = renderer_options;
     unbudgeted.work_budget = 0;
     reference.emplace(scene.volume.field, scene.tool, unbudgeted, X_WD_first, s);
-    r.lag_ticks = 0;
-    r.max_lag_m = r.max_lag_rad = 0.0;
   }
   std::optional<haptics::CrossingVerifier> verifier;
   if (options.verify_step_voxels > 0.0) {
@@ -114,13 +113,7 @@ RunReport runHeadless(const LoadedScene& scene, const Trajectory& trajectory, co
     r.max_work = std::max(r.max_work, out.stats.work);
     if (reference) {
       const haptics::TickOutput ref = reference->tick(sample.X_WD, s);
-      if (ref.X_WP.allFinite() && out.X_WP.allFinite()) {
-        const double lag_m = (out.X_WP.p_AB_m - ref.X_WP.p_AB_m).norm();
-        const double lag_rad = out.X_WP.R_AB.angularDistance(ref.X_WP.R_AB);
-        r.max_lag_m = std::max(r.max_lag_m, lag_m);
-        r.max_lag_rad = std::max(r.max_lag_rad, lag_rad);
-        if (lag_m > 1e-9 || lag_rad > 1e-9) ++r.lag_ticks;
-      }
+      if (ref.X_WP.allFinite() && out.X_WP.allFinite()) lag.add(out.X_WP, ref.X_WP);
     }
     if (out.stats.exec_time_us > 1000.0) ++r.ticks_over_1ms;
     r.max_contacts = std::max(r.max_contacts, out.stats.contacts);
@@ -198,6 +191,11 @@ RunReport runHeadless(const LoadedScene& scene, const Trajectory& trajectory, co
     }
   }
   if (recorder) recorder->close();  // throws naming the file when a write failed
+  if (reference) {
+    r.lag_ticks = lag.ticks;
+    r.max_lag_m = lag.max_m;
+    r.max_lag_rad = lag.max_rad;
+  }
   r.total_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - wall_begin).count();
   r.ticks = n;
   double sum = 0.0;

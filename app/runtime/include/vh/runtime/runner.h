@@ -10,6 +10,7 @@
 /// shell point from outside the isosurface into it (a crossing: the proxy went into or through
 /// the surface, issue 12).
 
+#include <algorithm>
 #include <array>
 #include <cstdint>
 #include <filesystem>
@@ -18,6 +19,7 @@
 
 #include <Eigen/Core>
 
+#include "vh/haptics/pose.h"
 #include "vh/runtime/scene.h"
 #include "vh/runtime/trajectory.h"
 
@@ -45,6 +47,22 @@ struct RunOptions {
   /// without it (outside the timed section) and report how far and how long the budgeted proxy
   /// was from it. Off: the lag fields are -1.
   bool lag_reference = true;
+};
+
+/// The work budget's price (issue 13): how far a budgeted proxy is from an unbudgeted one driven
+/// by the same device samples. Used by the run report and `bench table1`.
+struct ProxyLag {
+  std::int64_t ticks = 0;   ///< Ticks whose poses differed (by more than 1e-9 m or rad).
+  double max_m = 0.0;       ///< Largest distance of the tool origins [m].
+  double max_rad = 0.0;     ///< Largest angle between the orientations [rad].
+  /// One tick: the budgeted proxy's pose and the unbudgeted one's (both in W).
+  void add(const haptics::Pose& X_WP_budgeted, const haptics::Pose& X_WP_reference) noexcept {
+    const double m = (X_WP_budgeted.p_AB_m - X_WP_reference.p_AB_m).norm();
+    const double rad = X_WP_budgeted.R_AB.angularDistance(X_WP_reference.R_AB);
+    max_m = std::max(max_m, m);
+    max_rad = std::max(max_rad, rad);
+    if (m > 1e-9 || rad > 1e-9) ++ticks;
+  }
 };
 
 /// What one headless run measured. Times are the renderer's TickStats::exec_time_us.
