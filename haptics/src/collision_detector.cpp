@@ -128,7 +128,10 @@ bool CollisionDetector::ballMayBeInside(const Eigen::Vector3d& center_W_m, doubl
   // A W ball maps to an ellipsoid with half-axes radius / spacing along the grid axes (the
   // direction matrix is orthonormal); 1e-6 voxel covers the rounding of both paths.
   const Eigen::Vector3d half = (radius_m * grid_per_m_).array() + 1e-6;
-  return volume_->upperBoundInBox(g - half, g + half) > isovalue;
+  int nodes_read = 0;
+  const bool may_be_inside = volume_->upperBoundInBox(g - half, g + half, &nodes_read) > isovalue;
+  tree_nodes_ += nodes_read;
+  return may_be_inside;
 }
 
 bool CollisionDetector::runMayHit(const RigidMotion& motion, int j, std::int64_t k, std::int64_t run,
@@ -259,6 +262,7 @@ double CollisionDetector::stepSegment(const RigidMotion& motion, int j, std::int
     const SegmentEntry entry = volume_->firstEntryOnSegment(a, b, isovalue, u_limit,
                                                             bisection_tolerance_ / (path_[j] * span), reach, margin(j));
     cells_ += entry.cells;
+    cells_walked_ += entry.cells_walked;
     if (!entry.hit) return t_end;
     lo = entry.u_outside >= 1.0 ? t_end : t_begin + entry.u_outside * span;
     hi = entry.u_inside >= 1.0 ? t_end : t_begin + entry.u_inside * span;

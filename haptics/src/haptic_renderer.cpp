@@ -202,6 +202,8 @@ TickOutput HapticRenderer::tick(const Pose& X_WD_in, double isovalue) noexcept {
   out.stats.contacts = static_cast<int>(collision_.contacts().size());
   out.stats.volume_samples = collision_.sampleCount();
   out.stats.box_queries = collision_.boxQueryCount();
+  out.stats.tree_nodes = collision_.treeNodeCount();
+  out.stats.cells_walked = collision_.cellsWalkedCount();
   out.stats.cells = collision_.cellCount();
   out.stats.work = collision_.work();
   // Also a tick whose sweep finished but whose contact update (or re-solve) the budget shortened.

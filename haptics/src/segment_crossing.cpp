@@ -99,6 +99,7 @@ SegmentEntry ScalarVolume::firstEntry(const Eigen::Vector3d& a, const Eigen::Vec
   for (int guard = 0;; ++guard) {
     if (guard == 1 << 20) return stopAt(u);
     if (u > u_limit && u > u_lo) break;
+    ++result.cells_walked;
     const double u_exit = std::min({u_next[0], u_next[1], u_next[2], u_hi});
     const double w_end = std::max(0.0, u_exit - u);
     const T* c = data + cell[0] + sy * cell[1] + sz * cell[2];
@@ -256,6 +257,7 @@ SegmentEntry ScalarVolume::firstEntryOnSegment(const Eigen::Vector3d& a_ijk, con
     const SegmentEntry e = walkSegment(pa, pb, threshold, (u_limit - p) / span, u_tolerance / span, p == 0.0,
                                        {bubble_height, p, span});
     result.cells += e.cells;
+    result.cells_walked += e.cells_walked;
     if (e.hit) {
       result.hit = true;
       result.u_outside = p + e.u_outside * span;

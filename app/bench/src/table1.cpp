@@ -364,7 +364,7 @@ void runScene(const runtime::LoadedScene& scene, std::shared_ptr<const haptics::
     for (const ModeRun& m : runs) {
       tick_csv.push_back(std::make_unique<std::ofstream>(fs::path(dir) /
                                                          (row["name"].get<std::string>() + "_" + m.variant.key + ".csv")));
-      *tick_csv.back() << "tick,wall_us,cpu_us,contacts,samples,box_queries,cells,time_of_contact,device_step_m,"
+      *tick_csv.back() << "tick,wall_us,cpu_us,contacts,samples,box_queries,tree_nodes,cells,cells_walked,time_of_contact,device_step_m,"
                           "device_step_rad,proxy_device_m,proxy_device_rad,crossing_points,prune_us,solve_us,sweep_us,contacts_us,work,"
                           "budget_cut\n";
     }
@@ -401,7 +401,8 @@ void runScene(const runtime::LoadedScene& scene, std::shared_ptr<const haptics::
       }
       if (!tick_csv.empty())
         *tick_csv[r] << i << ',' << out.stats.exec_time_us << ',' << m.cpu_us.back() << ',' << out.stats.contacts << ','
-                     << out.stats.volume_samples << ',' << out.stats.box_queries << ',' << out.stats.cells << ','
+                     << out.stats.volume_samples << ',' << out.stats.box_queries << ',' << out.stats.tree_nodes << ','
+                     << out.stats.cells << ',' << out.stats.cells_walked << ','
                      << out.stats.time_of_contact << ',' << (X_WD.p_AB_m - X_WD_last.p_AB_m).norm() << ','
                      << X_WD.R_AB.angularDistance(X_WD_last.R_AB) << ','
                      << (X_WD.p_AB_m - X_WP_before.p_AB_m).norm() << ','

@@ -163,19 +163,31 @@ class CollisionDetector {
   std::int64_t sampleCount() const noexcept { return samples_; }
   /// Min-max tree box queries since the last resetSampleCount() (kAccelerated only).
   std::int64_t boxQueryCount() const noexcept { return box_queries_; }
+  /// Min-max tree nodes those box queries read (1 to 64 each: MinMaxTree::rawRange()).
+  std::int64_t treeNodeCount() const noexcept { return tree_nodes_; }
   /// Cells walked by the exact segment test whose cubic was examined, since the last resetSampleCount().
   std::int64_t cellCount() const noexcept { return cells_; }
-  /// Relative costs of a min-max tree box query and of a cell of the exact segment test, in
-  /// trilinear samples: a least-squares fit of the phase times of 5,000 Engine ticks to the three
-  /// counts (2-core Xeon, 2.0 GHz) gave 0.05 us per sample, 0.2 per box query, 0.25 to 0.35 per cell.
-  static constexpr std::int64_t kBoxQueryWork = 4;
-  static constexpr std::int64_t kCellWork = 6;
+  /// Every cell the exact segment test visited (examined or skipped by its corners).
+  std::int64_t cellsWalkedCount() const noexcept { return cells_walked_; }
+  /// Relative costs, in trilinear samples, of a min-max tree box query (plus 1 per
+  /// kTreeNodesPerWork nodes it reads), of a cell the exact segment test walks, and of the extra
+  /// for a cell whose cubic it examines. A least-squares fit of the thread CPU time of 40,000
+  /// Engine and Hole ticks (2-core Xeon, 2.0 GHz) to the counts gave 0.044 us per sample, 0.07
+  /// per box query, 0.001 to 0.025 per tree node, 0.14 per walked cell and 0.02 to 0.2 more per
+  /// examined cell. Walked cells were not counted before (issue 13): Hole's worst ticks walked
+  /// about 1,200 cells (150 us) beyond their budget.
+  static constexpr std::int64_t kBoxQueryWork = 2;
+  static constexpr std::int64_t kTreeNodesPerWork = 4;
+  static constexpr std::int64_t kCellWalkWork = 3;
+  static constexpr std::int64_t kCellWork = 3;
   /// Work since the last resetSampleCount(), in units of one trilinear sample's cost (about
-  /// 0.05 us on the machine above): samples + kBoxQueryWork * box queries + kCellWork * cells,
-  /// plus the other work counted in sample units: a point's path set-up, the contact
-  /// candidates' sort and reduction, and addWork().
+  /// 0.05 us on the machine above): samples + kBoxQueryWork * box queries + tree nodes /
+  /// kTreeNodesPerWork + kCellWalkWork * walked cells + kCellWork * examined cells, plus the
+  /// other work counted in sample units: a point's path set-up, the contact candidates' sort and
+  /// reduction, and addWork().
   std::int64_t work() const noexcept {
-    return samples_ + other_work_ + kCellWork * cells_ + kBoxQueryWork * box_queries_;
+    return samples_ + other_work_ + kCellWork * cells_ + kCellWalkWork * cells_walked_ +
+           kBoxQueryWork * box_queries_ + tree_nodes_ / kTreeNodesPerWork;
   }
   /// Work budget per resetSampleCount() period (a servo tick), 0 = none (issue 13). Once work()
   /// reaches it, sweep() stops at the time up to which every path is proven free (the
@@ -198,6 +210,8 @@ class CollisionDetector {
     cells_ = 0;
     samples_ = 0;
     box_queries_ = 0;
+    tree_nodes_ = 0;
+    cells_walked_ = 0;
   }
 
  private:
@@ -306,6 +320,8 @@ class CollisionDetector {
   std::size_t contact_count_ = 0;
   std::int64_t samples_ = 0;
   std::int64_t box_queries_ = 0;
+  std::int64_t tree_nodes_ = 0;
+  std::int64_t cells_walked_ = 0;
   std::int64_t cells_ = 0;
   std::int64_t other_work_ = 0;  // work() beyond samples, cells and box queries (sample units)
   std::int64_t work_budget_ = 0;

@@ -88,8 +88,10 @@ struct TickStats {
   int contacts = 0;                 ///< Contact set size after the tick.
   std::int64_t volume_samples = 0;  ///< Trilinear F samples taken (a gradient counts 6).
   std::int64_t box_queries = 0;     ///< Min-max tree box queries (kAccelerated; 0 for kPaper).
+  std::int64_t tree_nodes = 0;      ///< Min-max tree nodes those queries read (1 to 64 each).
   std::int64_t cells = 0;           ///< Cells whose cubic the exact segment test examined.
-  std::int64_t work = 0;            ///< samples + cells + box queries (RendererOptions::work_budget's unit).
+  std::int64_t cells_walked = 0;    ///< Cells the exact segment test visited (examined or skipped).
+  std::int64_t work = 0;            ///< CollisionDetector::work(): samples, box queries, tree nodes, cells (RendererOptions::work_budget's unit).
   /// The work budget was reached: the sweep stopped before its end (and goes on next tick), or
   /// the contact update or the re-solve was shortened.
   bool budget_cut = false;

@@ -37,10 +37,13 @@ class MinMaxTree {
   /// [lo_ijk, hi_ijk], clipped to the grid's box [0, n - 1]^3. Every such sample lies within
   /// the 8 corner voxels of its cell, so within [raw_min, raw_max] (as computed in double by
   /// ScalarVolume, up to rounding: see ScalarVolume::upperBoundInBox()).
+  /// @param nodes_read when set, receives the number of tree nodes read (0 when the box misses
+  ///        the grid, 1 for one brick or the root, at most (kSpan + 1)^3 = 64): a query's cost,
+  ///        which the work budget counts (issue 13).
   /// @return false when the box does not meet the grid (no sample there is in bounds); the
   ///         whole volume's range when a coordinate is not finite.
   bool rawRange(const Eigen::Vector3d& lo_ijk, const Eigen::Vector3d& hi_ijk, float& raw_min,
-                float& raw_max) const noexcept;
+                float& raw_max, int* nodes_read = nullptr) const noexcept;
 
   /// Number of levels (0 when empty).
   int levels() const noexcept { return static_cast<int>(levels_.size()); }
@@ -56,7 +59,8 @@ class MinMaxTree {
     std::vector<float> range;  // (min, max) per node, n[0] * n[1] * n[2] nodes, a fastest
   };
   // rawRange() for a box that spans several level-0 bricks (out of line: the rare case).
-  void rawRangeSpread(const int* b0, const int* b1, int spread, float& raw_min, float& raw_max) const noexcept;
+  // Returns the number of nodes read.
+  int rawRangeSpread(const int* b0, const int* b1, int spread, float& raw_min, float& raw_max) const noexcept;
 
   std::array<int, 3> dims_{0, 0, 0};
   std::vector<Level> levels_;
@@ -72,10 +76,12 @@ inline void MinMaxTree::node(int level, int a, int b, int c, float& raw_min, flo
 }
 
 inline bool MinMaxTree::rawRange(const Eigen::Vector3d& lo_ijk, const Eigen::Vector3d& hi_ijk, float& raw_min,
-                                 float& raw_max) const noexcept {
+                                 float& raw_max, int* nodes_read) const noexcept {
+  if (nodes_read != nullptr) *nodes_read = 0;
   if (levels_.empty()) return false;
   if (!lo_ijk.allFinite() || !hi_ijk.allFinite()) {
     node(levels() - 1, 0, 0, 0, raw_min, raw_max);
+    if (nodes_read != nullptr) *nodes_read = 1;
     return true;
   }
   int b0[3], b1[3];
@@ -91,9 +97,11 @@ inline bool MinMaxTree::rawRange(const Eigen::Vector3d& lo_ijk, const Eigen::Vec
   }
   if (spread == 0) {  // one brick: the common case of a short segment
     node(0, b0[0], b0[1], b0[2], raw_min, raw_max);
+    if (nodes_read != nullptr) *nodes_read = 1;
     return true;
   }
-  rawRangeSpread(b0, b1, spread, raw_min, raw_max);
+  const int read = rawRangeSpread(b0, b1, spread, raw_min, raw_max);
+  if (nodes_read != nullptr) *nodes_read = read;
   return true;
 }
 

@@ -51,6 +51,7 @@ struct SegmentEntry {
   double u_outside = 1.0;  ///< Outside end of the bracket: F <= threshold on [0, u_outside].
   double u_inside = 1.0;   ///< Inside end of the bracket (u_inside - u_outside < u_tolerance).
   int cells = 0;           ///< Cells whose cubic was examined (cells skipped by their corners not counted).
+  int cells_walked = 0;    ///< Every cell visited, skipped or examined (the walk's cost).
 };
 
 /// Immutable sampled volume: trilinear F(x) and central-difference gradient (eq. 1).
@@ -161,7 +162,9 @@ class ScalarVolume {
   /// that isInside() could report inside: -infinity when the box misses the grid's box (out of
   /// bounds is never inside). Conservative under rounding: sampleGrid(g) <= the bound for every
   /// in-bounds g in the box, so "bound <= isovalue" proves that no point of the box is inside.
-  double upperBoundInBox(const Eigen::Vector3d& lo_ijk, const Eigen::Vector3d& hi_ijk) const noexcept;
+  /// @param nodes_read when set, receives the min-max tree nodes read (MinMaxTree::rawRange()).
+  double upperBoundInBox(const Eigen::Vector3d& lo_ijk, const Eigen::Vector3d& hi_ijk,
+                         int* nodes_read = nullptr) const noexcept;
 
   /// Axis-aligned bounding box of the grid in W [m].
   Eigen::Vector3d boundsMin_W_m() const noexcept;

@@ -65,9 +65,10 @@ inline bool ScalarVolume::isInside(const Eigen::Vector3d& p_W_m, double isovalue
   return gridInBounds(g) && sampleGrid(g) > isovalue;
 }
 
-inline double ScalarVolume::upperBoundInBox(const Eigen::Vector3d& lo_ijk, const Eigen::Vector3d& hi_ijk) const noexcept {
+inline double ScalarVolume::upperBoundInBox(const Eigen::Vector3d& lo_ijk, const Eigen::Vector3d& hi_ijk,
+                                            int* nodes_read) const noexcept {
   float raw_min = 0.0f, raw_max = 0.0f;
-  if (!tree_.rawRange(lo_ijk, hi_ijk, raw_min, raw_max)) return -std::numeric_limits<double>::infinity();
+  if (!tree_.rawRange(lo_ijk, hi_ijk, raw_min, raw_max, nodes_read)) return -std::numeric_limits<double>::infinity();
   // trilinear() lerps in double: a + f (b - a) with f in [0, 1] stays within [a, b] when b - a
   // is exact, which it is for the integer types; for float32 corners of very different
   // magnitude it may not be, so widen by a few units in the last place. F = scale raw + offset
