@@ -6,7 +6,11 @@
 // data units directly.
 #include <algorithm>
 #include <cmath>
+#include <iomanip>
+#include <map>
 #include <sstream>
+#include <tuple>
+#include <type_traits>
 
 #include <Eigen/Core>
 #include <vtkDICOMDictHash.h>
@@ -16,13 +20,18 @@
 #include <vtkDICOMReader.h>
 #include <vtkDICOMSliceSorter.h>
 #include <vtkDICOMValue.h>
+#include <vtkCallbackCommand.h>
+#include <vtkCommand.h>
+#include <vtkDICOMItem.h>
 #include <vtkImageData.h>
+#include <vtkPointData.h>
 #include <vtkIntArray.h>
 #include <vtkMatrix4x4.h>
 #include <vtkSmartPointer.h>
 #include <vtkStringArray.h>
 
 #include "loader_internal.h"
+#include "slice_stack.h"
 #include "vtk_error_capture.h"
 
 namespace vh::io::detail {
@@ -112,35 +121,6 @@ bool uniformRescale(vtkDICOMMetaData* md, double& slope, double& intercept) {
   return std::isfinite(slope) && std::isfinite(intercept) && slope != 0.0;
 }
 
-/// Slices must be evenly spaced along the slice normal (a missing slice would otherwise be
-/// silently stretched over).
-void checkSliceSpacing(vtkDICOMMetaData* md, vtkStringArray* files, const Eigen::Vector3d& normal,
-                       double spacing_mm, int n_slices, const fs::path& path) {
-  std::vector<double> d;
-  std::vector<int> file_of_slice;
-  for (int k = 0; k < n_slices; ++k) {
-    const int file = md->GetFileIndex(k);
-    const int frame = md->GetFrameIndex(k);
-    if (file < 0) return;
-    const vtkDICOMValue& v = md->Get(file, frame < 0 ? 0 : frame, DC::ImagePositionPatient);
-    if (!v.IsValid() || v.GetNumberOfValues() != 3) return;  // no positions: nothing to check
-    double p[3];
-    v.GetValues(p, 3);
-    d.push_back(normal.dot(Eigen::Vector3d(p[0], p[1], p[2])));
-    file_of_slice.push_back(file);
-  }
-  for (std::size_t k = 1; k < d.size(); ++k) {
-    const double gap = std::abs(d[k] - d[k - 1]);
-    if (std::abs(gap - spacing_mm) > 0.1 * spacing_mm + 1e-3) {
-      std::ostringstream os;
-      os << "inconsistent slices in the series: uneven slice spacing, " << gap << " mm between "
-         << fileName(files, file_of_slice[k - 1]) << " and " << fileName(files, file_of_slice[k])
-         << " where the series spacing is " << spacing_mm << " mm (missing or duplicate slice?)";
-      fail(path, os.str());
-    }
-  }
-}
-
 /// After the reader failed: names the first file of the series that cannot be parsed or whose
 /// pixel data is cut short, with the reason; "" when every file looks whole.
 std::string findCorruptFile(vtkStringArray* files) {
@@ -177,56 +157,215 @@ std::string findCorruptFile(vtkStringArray* files) {
   fail(path, "corrupt DICOM series: " + vtk);
 }
 
-}  // namespace
 
-LoadedVolume loadDicom(const fs::path& path) {
-  const bool is_dir = fs::is_directory(path);
-  const fs::path folder = is_dir ? path : (path.has_parent_path() ? path.parent_path() : ".");
-  VtkErrorCapture capture;
+std::string fixed(double v, int digits) {
+  std::ostringstream os;
+  os << std::fixed << std::setprecision(digits) << v;
+  return os.str();
+}
 
-  auto directory = vtkSmartPointer<vtkDICOMDirectory>::New();
-  capture.watch(directory);
-  directory->SetDirectoryName(folder.string().c_str());
-  directory->SetScanDepth(is_dir ? 2 : 1);  // a folder and its sub-folders, or the file's folder
-  directory->IgnoreDicomdirOn();            // scan the files themselves; a DICOMDIR may be stale
-  directory->RequirePixelDataOn();
-  directory->Update();
+std::string seriesText(const vtkDICOMItem& record, vtkDICOMMetaData* md, vtkDICOMTag tag) {
+  const vtkDICOMValue& v = record.Get(tag);
+  if (v.IsValid() && !trim(v.AsUTF8String()).empty()) return trim(v.AsUTF8String());
+  if (md != nullptr && md->GetNumberOfInstances() > 0) {
+    const vtkDICOMValue& f = md->Get(0, tag);
+    if (f.IsValid()) return trim(f.AsUTF8String());
+  }
+  return {};
+}
 
-  int chosen = -1;
-  const int n_series = directory->GetNumberOfSeries();
-  for (int s = 0; s < n_series; ++s) {
-    vtkStringArray* names = directory->GetFileNamesForSeries(s);
-    if (!is_dir) {
-      for (vtkIdType f = 0; f < names->GetNumberOfValues(); ++f) {
-        if (samePath(fs::path(std::string(names->GetValue(f))), path)) chosen = s;
-      }
-    } else if (chosen < 0 || names->GetNumberOfValues() >
-                                 directory->GetFileNamesForSeries(chosen)->GetNumberOfValues()) {
-      chosen = s;
+/// "series 3 'BONE 1MM' (140 files)"
+std::string seriesName(vtkDICOMDirectory* directory, int s) {
+  vtkDICOMMetaData* md = directory->GetMetaDataForSeries(s);
+  const vtkDICOMItem& record = directory->GetSeriesRecord(s);
+  const std::string number = seriesText(record, md, DC::SeriesNumber);
+  const std::string description = seriesText(record, md, DC::SeriesDescription);
+  std::string out = "series " + (number.empty() ? "#" + std::to_string(s + 1) : number);
+  if (!description.empty()) out += " '" + description + "'";
+  return out + " (" + std::to_string(directory->GetFileNamesForSeries(s)->GetNumberOfValues()) + " files)";
+}
+
+/// Series indices of `directory` that `selector` names: a series number, a Series Instance UID
+/// or text in the series description (case-insensitive); in that order of precedence.
+std::vector<int> seriesMatching(vtkDICOMDirectory* directory, const std::string& selector) {
+  const int n = directory->GetNumberOfSeries();
+  const auto number = parseInt(selector);
+  std::vector<int> by_number, by_uid, by_description;
+  const std::string wanted = toLower(selector);
+  for (int s = 0; s < n; ++s) {
+    vtkDICOMMetaData* md = directory->GetMetaDataForSeries(s);
+    const vtkDICOMItem& record = directory->GetSeriesRecord(s);
+    const auto series_number = parseInt(seriesText(record, md, DC::SeriesNumber));
+    if (number && series_number && *number == *series_number) by_number.push_back(s);
+    if (seriesText(record, md, DC::SeriesInstanceUID) == selector) by_uid.push_back(s);
+    if (toLower(seriesText(record, md, DC::SeriesDescription)).find(wanted) != std::string::npos) {
+      by_description.push_back(s);
     }
   }
-  if (chosen < 0) {
-    const std::string vtk = capture.hasErrors() ? " (" + capture.firstError() + ")" : "";
-    if (is_dir) fail(path, "no DICOM image series found in the folder" + vtk);
-    fail(path, "not a volume: not a readable DICOM image (corrupt, not DICOM, or no pixel data)" +
-                   vtk);
-  }
-  vtkStringArray* files = directory->GetFileNamesForSeries(chosen);
+  if (!by_number.empty()) return by_number;
+  if (!by_uid.empty()) return by_uid;
+  return by_description;
+}
 
+/// Whether `path` is a DICOMDIR (Media Storage Directory), by name or by its header.
+bool isDicomdir(const fs::path& path) {
+  if (toLower(path.filename().string()) == "dicomdir") return true;
+  VtkErrorCapture capture;
+  auto meta = vtkSmartPointer<vtkDICOMMetaData>::New();
+  auto parser = vtkSmartPointer<vtkDICOMParser>::New();
+  capture.watch(parser);
+  parser->SetMetaData(meta);
+  parser->SetFileName(path.string().c_str());
+  parser->SetQueryItem(vtkDICOMItem());
+  parser->Update();
+  if (capture.hasErrors() || meta->GetNumberOfInstances() == 0) return false;
+  return meta->Get(DC::MediaStorageSOPClassUID).AsString() == "1.2.840.10008.1.3.10";
+}
+
+/// A DICOM load's progress from the reader's ProgressEvent, and cancelling through
+/// AbortExecute.
+struct ReaderProgress {
+  const VolumeLoadOptions* options = nullptr;
+  double begin = 0.0, end = 1.0;  // the part of the whole load this read stands for
+  static void callback(vtkObject* caller, unsigned long, void* client, void* call) {
+    auto* self = static_cast<ReaderProgress*>(client);
+    const double fraction = call != nullptr ? *static_cast<double*>(call) : 0.0;
+    if (self->options->progress) self->options->progress(self->begin + fraction * (self->end - self->begin));
+    if (self->options->cancel != nullptr && self->options->cancel->load(std::memory_order_relaxed)) {
+      static_cast<vtkAlgorithm*>(caller)->SetAbortExecute(1);
+    }
+  }
+};
+
+bool cancelled(const VolumeLoadOptions& options) {
+  return options.cancel != nullptr && options.cancel->load(std::memory_order_relaxed);
+}
+
+[[noreturn]] void failCancelled(const fs::path& path) {
+  throw LoadCancelled(path.string() + ": loading cancelled");
+}
+
+vtkSmartPointer<vtkDICOMReader> makeReader(vtkStringArray* files, VtkErrorCapture& capture) {
   auto reader = vtkSmartPointer<vtkDICOMReader>::New();
   capture.watch(reader);
-  capture.watch(reader->GetSorter());  // warns about gaps; reported below as uneven spacing
+  capture.watch(reader->GetSorter());  // warns about gaps; measured and corrected below
   reader->SetFileNames(files);
   reader->SortingOn();
   reader->SetMemoryRowOrderToFileNative();  // rows top-down as stored: D = the DICOM axes
   reader->TimeAsVectorOff();
-  reader->SetDesiredTimeIndex(0);  // a 4-D series gives its first time point
   reader->AutoRescaleOff();
+  return reader;
+}
+
+/// Files of a single-frame series at the same position and time point / echo as an earlier
+/// file (exact duplicates, e.g. a slice exported twice): their indices, with a description.
+std::vector<int> duplicateFiles(vtkDICOMMetaData* md, vtkStringArray* files, std::string& description) {
+  const int n = md->GetNumberOfInstances();
+  std::map<std::tuple<long long, long long, long long, std::string>, int> seen;
+  std::vector<int> out;
+  std::ostringstream os;
+  for (int i = 0; i < n; ++i) {
+    if (md->Get(i, DC::NumberOfFrames).AsInt() > 1) return {};  // multi-frame: the reader's affair
+    const auto p = values(md, i, DC::ImagePositionPatient);
+    if (p.size() != 3) return {};
+    // Positions to a micrometre; the acquisition keys that tell time points and echoes apart.
+    const std::string key = md->Get(i, DC::TemporalPositionIdentifier).AsString() + "|" +
+                            md->Get(i, DC::EchoNumbers).AsString() + "|" + md->Get(i, DC::TriggerTime).AsString() +
+                            "|" + md->Get(i, DC::EchoTime).AsString() + "|" +
+                            md->Get(i, DC::DiffusionBValue).AsString();
+    const auto pos = std::make_tuple(std::llround(p[0] * 1e3), std::llround(p[1] * 1e3), std::llround(p[2] * 1e3), key);
+    const auto [it, inserted] = seen.emplace(pos, i);
+    if (!inserted) {
+      if (!out.empty()) os << ", ";
+      os << fileName(files, i) << " (same as " << fileName(files, it->second) << ")";
+      out.push_back(i);
+    }
+  }
+  description = os.str();
+  return out;
+}
+
+/// The voxels of `image` resampled onto `grid` (same scalar type), or null when cancelled.
+vtkSmartPointer<vtkImageData> resampled(vtkImageData* image, const SliceStack& stack, const RegularGrid& grid,
+                                        const VolumeLoadOptions& options, double progress_begin) {
+  auto out = vtkSmartPointer<vtkImageData>::New();
+  out->SetDimensions(grid.dims[0], grid.dims[1], grid.dims[2]);
+  out->AllocateScalars(image->GetScalarType(), 1);
+  const double background = image->GetScalarRange()[0];  // air, or the scanner's padding
+  const auto progress = [&](double f) {
+    if (options.progress) options.progress(progress_begin + f * (1.0 - progress_begin));
+  };
+  const auto run = [&](auto* in) {
+    using T = std::remove_const_t<std::remove_pointer_t<decltype(in)>>;
+    return resampleStack<T>(in, stack, grid, static_cast<T>(background), static_cast<T*>(out->GetScalarPointer()),
+                            progress, options.cancel);
+  };
+  void* in = image->GetScalarPointer();
+  bool done = false;
+  switch (image->GetScalarType()) {
+    case VTK_UNSIGNED_CHAR: done = run(static_cast<const std::uint8_t*>(in)); break;
+    case VTK_SIGNED_CHAR:
+    case VTK_CHAR: done = run(static_cast<const std::int8_t*>(in)); break;
+    case VTK_SHORT: done = run(static_cast<const std::int16_t*>(in)); break;
+    case VTK_UNSIGNED_SHORT: done = run(static_cast<const std::uint16_t*>(in)); break;
+    case VTK_INT: done = run(static_cast<const std::int32_t*>(in)); break;
+    case VTK_UNSIGNED_INT: done = run(static_cast<const std::uint32_t*>(in)); break;
+    case VTK_FLOAT: done = run(static_cast<const float*>(in)); break;
+    case VTK_DOUBLE: done = run(static_cast<const double*>(in)); break;
+    default:
+      throw LoadError(std::string("cannot resample voxels of type ") + image->GetScalarTypeAsString());
+  }
+  return done ? out : nullptr;
+}
+
+/// Reads the chosen files as one volume, regularised when needed; notices appended to `raw`.
+RawVolume readSeries(vtkStringArray* series_files, const fs::path& path, const fs::path& folder,
+                     const VolumeLoadOptions& options) {
+  VtkErrorCapture capture;
+  RawVolume raw;
+  auto files = vtkSmartPointer<vtkStringArray>::New();
+  files->DeepCopy(series_files);
+  auto reader = makeReader(files, capture);
   reader->UpdateInformation();
-  if (capture.hasErrors()) failRead(path, files, capture.firstError());
   vtkDICOMMetaData* md = reader->GetMetaData();
+  // Exact duplicates first: the sorter would take them for a second time point.
+  if (md != nullptr && md->GetNumberOfInstances() > 1) {
+    std::string which;
+    const std::vector<int> duplicates = duplicateFiles(md, files, which);
+    if (!duplicates.empty()) {
+      auto kept = vtkSmartPointer<vtkStringArray>::New();
+      for (vtkIdType f = 0; f < files->GetNumberOfValues(); ++f) {
+        if (std::find(duplicates.begin(), duplicates.end(), static_cast<int>(f)) == duplicates.end()) {
+          kept->InsertNextValue(files->GetValue(f));
+        }
+      }
+      raw.info.notices.push_back("dropped " + std::to_string(duplicates.size()) + " duplicate slice" +
+                                 (duplicates.size() > 1 ? "s" : "") + ": " + which);
+      files = kept;
+      capture.clear();
+      reader = makeReader(files, capture);
+      reader->UpdateInformation();
+      md = reader->GetMetaData();
+    }
+  }
+  if (capture.hasErrors()) failRead(path, files, capture.firstError());
   if (md == nullptr || md->GetNumberOfInstances() == 0) fail(path, "no DICOM slices could be read");
   checkConsistentSlices(md, files, path);
+
+  // 4-D series (cardiac phases, dynamic frames, echoes): one time point.
+  const int time_points = std::max(1, reader->GetTimeDimension());
+  raw.info.phase_count = time_points;
+  if (options.dicom_phase < 0 || options.dicom_phase >= time_points) {
+    fail(path, "time point " + std::to_string(options.dicom_phase + 1) + " asked for, but the series has " +
+                   std::to_string(time_points) + (time_points == 1 ? " (it is not 4-D)" : ""));
+  }
+  raw.info.phase = options.dicom_phase;
+  reader->SetDesiredTimeIndex(options.dicom_phase);
+  if (time_points > 1) {
+    raw.info.notices.push_back("4-D series with " + std::to_string(time_points) +
+                               " time points (phases or echoes): loaded time point " +
+                               std::to_string(options.dicom_phase + 1) + " (choose another with the phase option)");
+  }
 
   double slope = 1.0;
   double intercept = 0.0;
@@ -237,7 +376,13 @@ LoadedVolume loadDicom(const fs::path& path) {
     slope = 1.0;
     intercept = 0.0;
   }
+  ReaderProgress progress{&options, 0.0, 0.7};
+  auto observer = vtkSmartPointer<vtkCallbackCommand>::New();
+  observer->SetCallback(&ReaderProgress::callback);
+  observer->SetClientData(&progress);
+  reader->AddObserver(vtkCommand::ProgressEvent, observer);
   reader->Update();
+  if (cancelled(options)) failCancelled(path);
   if (capture.hasErrors()) failRead(path, files, capture.firstError());
   vtkImageData* out = reader->GetOutput();
   if (out == nullptr) fail(path, "no voxel data was read");
@@ -256,30 +401,213 @@ LoadedVolume loadDicom(const fs::path& path) {
   double o[3];
   out->GetSpacing(s);
   out->GetOrigin(o);
-  Eigen::Matrix3d direction;
-  Eigen::Vector3d axis_lengths;
-  splitAxes(rotation, path, direction, axis_lengths);
-  const Eigen::Vector3d spacing_mm = Eigen::Vector3d(s[0], s[1], s[2]).cwiseAbs().cwiseProduct(axis_lengths);
   int dims[3];
   out->GetDimensions(dims);
-  if (dims[2] >= 2) {
-    checkSliceSpacing(md, files, direction.col(2), spacing_mm[2], dims[2], path);
+
+  // The slices as acquired: each one's ImagePositionPatient, in the plane frame (u, v, d).
+  SliceStack stack;
+  bool have_positions = dims[2] >= 2;
+  Eigen::Vector3d row_dir = rotation.col(0).normalized(), col_dir = rotation.col(1).normalized();
+  Eigen::Vector3d first = Eigen::Vector3d::Zero();
+  {
+    const auto iop = values(md, 0, DC::ImageOrientationPatient);
+    const auto spacing = values(md, 0, DC::PixelSpacing);
+    if (iop.size() == 6 && spacing.size() == 2) {
+      row_dir = Eigen::Vector3d(iop[0], iop[1], iop[2]).normalized();
+      col_dir = Eigen::Vector3d(iop[3], iop[4], iop[5]).normalized();
+      stack.row_spacing_mm = spacing[0];
+      stack.column_spacing_mm = spacing[1];
+    } else {
+      // Multi-frame files keep these per frame or in the shared functional groups.
+      const int file = std::max(0, md->GetFileIndex(0));
+      const int frame = std::max(0, md->GetFrameIndex(0));
+      const vtkDICOMValue& o6 = md->Get(file, frame, DC::ImageOrientationPatient);
+      const vtkDICOMValue& ps = md->Get(file, frame, DC::PixelSpacing);
+      if (o6.IsValid() && o6.GetNumberOfValues() == 6 && ps.IsValid() && ps.GetNumberOfValues() == 2) {
+        double q[6], sp[2];
+        o6.GetValues(q, 6);
+        ps.GetValues(sp, 2);
+        row_dir = Eigen::Vector3d(q[0], q[1], q[2]).normalized();
+        col_dir = Eigen::Vector3d(q[3], q[4], q[5]).normalized();
+        stack.row_spacing_mm = sp[0];
+        stack.column_spacing_mm = sp[1];
+      } else {
+        have_positions = false;
+      }
+    }
+  }
+  Eigen::Vector3d normal = row_dir.cross(col_dir);
+  std::vector<Eigen::Vector3d> positions;
+  for (int k = 0; have_positions && k < dims[2]; ++k) {
+    const int file = md->GetFileIndex(k);
+    const int frame = std::max(0, md->GetFrameIndex(k));
+    if (file < 0) {
+      have_positions = false;
+      break;
+    }
+    const vtkDICOMValue& v = md->Get(file, frame, DC::ImagePositionPatient);
+    if (!v.IsValid() || v.GetNumberOfValues() != 3) {
+      have_positions = false;
+      break;
+    }
+    double p[3];
+    v.GetValues(p, 3);
+    positions.emplace_back(p[0], p[1], p[2]);
+  }
+  StackAnalysis analysis;
+  if (have_positions && std::abs(row_dir.dot(col_dir)) < 1e-3 && stack.row_spacing_mm > 0.0 &&
+      stack.column_spacing_mm > 0.0) {
+    first = positions.front();
+    if (normal.dot(positions.back() - first) < 0.0) normal = -normal;  // d grows with k
+    normal.normalize();
+    stack.columns = dims[0];
+    stack.rows = dims[1];
+    for (const auto& p : positions) {
+      const Eigen::Vector3d q = p - first;
+      stack.offset_mm.emplace_back(q.dot(row_dir), q.dot(col_dir), q.dot(normal));
+    }
+    for (std::size_t k = 1; k < stack.offset_mm.size(); ++k) {
+      if (!(stack.offset_mm[k].z() > stack.offset_mm[k - 1].z())) {
+        fail(path, "inconsistent slices in the series: two slices at the same position (" +
+                       fileName(files, md->GetFileIndex(static_cast<int>(k - 1))) + " and " +
+                       fileName(files, md->GetFileIndex(static_cast<int>(k))) + ") with different pixels or times");
+      }
+    }
+    analysis = analyseStack(stack);
   }
 
-  RawVolume raw;
-  raw.image = out;
+  const std::string modality = md->Get(0, DC::Modality).AsString();
+  if (!analysis.regular() && analysis.median_spacing_mm > 0.0) {
+    // Regularise: resample onto the grid of the image planes (u, v, d) with the median spacing.
+    RegularGrid grid;
+    try {
+      grid = regularGridFor(stack, analysis);
+    } catch (const std::invalid_argument& e) {
+      fail(path, std::string("cannot regularise the slice stack: ") + e.what());
+    }
+    if (analysis.sheared) {
+      const vtkDICOMValue& tilt = md->Get(0, DC::GantryDetectorTilt);
+      const bool is_tilt = modality == "CT" || (tilt.IsValid() && tilt.AsDouble() != 0.0);
+      raw.info.notices.push_back(std::string(is_tilt ? "resampled from a gantry tilt of " :
+                                                       "resampled from a sheared slice stack of ") +
+                                 fixed(analysis.shear_deg, 1) + " deg");
+    }
+    for (const SliceGap& gap : analysis.gaps) {
+      const int before = md->GetFileIndex(gap.slice), after = md->GetFileIndex(gap.slice + 1);
+      raw.info.notices.push_back(
+          "missing slice" + std::string(gap.missing > 1 ? "s" : "") + ": a gap of " +
+          fixed(gap.d_after_mm - gap.d_before_mm, 2) + " mm (about " + std::to_string(gap.missing) +
+          " slice" + (gap.missing > 1 ? "s" : "") + ") between " + fileName(files, before) + " at " +
+          fixed(first.dot(normal) + gap.d_before_mm, 2) + " mm and " + fileName(files, after) + " at " +
+          fixed(first.dot(normal) + gap.d_after_mm, 2) + " mm along the slice normal, filled by linear interpolation");
+    }
+    if (analysis.uneven) {
+      raw.info.notices.push_back("uneven slice spacing (" + fixed(analysis.min_spacing_mm, 3) + " to " +
+                                 fixed(analysis.max_spacing_mm, 3) + " mm): resampled to " +
+                                 fixed(grid.spacing_mm.z(), 3) + " mm (the median spacing)");
+    }
+    vtkSmartPointer<vtkImageData> regular = resampled(out, stack, grid, options, 0.7);
+    if (regular == nullptr) failCancelled(path);
+    raw.image = regular;
+    raw.geometry.direction_W.col(0) = row_dir;
+    raw.geometry.direction_W.col(1) = col_dir;
+    raw.geometry.direction_W.col(2) = normal;
+    raw.geometry.spacing_m = grid.spacing_mm * 1e-3;
+    raw.geometry.origin_W_m = (first + grid.origin_mm.x() * row_dir + grid.origin_mm.y() * col_dir +
+                               grid.origin_mm.z() * normal) * 1e-3;
+  } else {
+    Eigen::Matrix3d direction;
+    Eigen::Vector3d axis_lengths;
+    splitAxes(rotation, path, direction, axis_lengths);
+    raw.image = out;
+    raw.geometry.spacing_m = Eigen::Vector3d(s[0], s[1], s[2]).cwiseAbs().cwiseProduct(axis_lengths) * 1e-3;
+    raw.geometry.direction_W = direction;
+    raw.geometry.origin_W_m = (rotation * Eigen::Vector3d(o[0], o[1], o[2]) + translation) * 1e-3;
+  }
   raw.value_scale = slope;
   raw.value_offset = intercept;
-  raw.geometry.spacing_m = spacing_mm * 1e-3;
-  raw.geometry.direction_W = direction;
-  raw.geometry.origin_W_m = (rotation * Eigen::Vector3d(o[0], o[1], o[2]) + translation) * 1e-3;
   raw.info.format = "DICOM";
-  raw.info.modality = md->Get(0, DC::Modality).AsString();
+  raw.info.modality = modality;
   if (raw.info.modality == "CT") raw.info.value_unit = "HU";
   raw.info.description = md->Get(0, DC::SeriesDescription).AsUTF8String();
   if (raw.info.description.empty()) raw.info.description = folder.filename().string();
   raw.info.patient_name = md->Get(0, DC::PatientName).AsUTF8String();
-  return finishVolume(std::move(raw), path);
+  raw.info.series_uid = md->Get(0, DC::SeriesInstanceUID).AsString();
+  raw.info.series_number = md->Get(0, DC::SeriesNumber).AsInt();
+  return raw;
+}
+
+}  // namespace
+
+LoadedVolume loadDicom(const fs::path& path, const VolumeLoadOptions& options) {
+  // A DICOMDIR opens the folder it indexes (scanned file by file: an index may be stale).
+  const bool is_dir = fs::is_directory(path) || isDicomdir(path);
+  const fs::path folder = fs::is_directory(path) ? path : (path.has_parent_path() ? path.parent_path() : ".");
+  VtkErrorCapture capture;
+
+  auto directory = vtkSmartPointer<vtkDICOMDirectory>::New();
+  capture.watch(directory);
+  directory->SetDirectoryName(folder.string().c_str());
+  directory->SetScanDepth(is_dir ? kDicomScanDepth : 1);  // a folder and its sub-folders, or the file's folder
+  directory->IgnoreDicomdirOn();
+  directory->RequirePixelDataOn();
+  directory->Update();
+  if (cancelled(options)) failCancelled(path);
+
+  const int n_series = directory->GetNumberOfSeries();
+  std::vector<int> candidates;
+  if (!is_dir) {
+    for (int s = 0; s < n_series && candidates.empty(); ++s) {
+      vtkStringArray* names = directory->GetFileNamesForSeries(s);
+      for (vtkIdType f = 0; f < names->GetNumberOfValues(); ++f) {
+        if (samePath(fs::path(std::string(names->GetValue(f))), path)) {
+          candidates.push_back(s);
+          break;
+        }
+      }
+    }
+  } else if (!options.dicom_series.empty()) {
+    candidates = seriesMatching(directory, options.dicom_series);
+    if (candidates.empty() && n_series > 0) {
+      std::string list;
+      for (int s = 0; s < n_series; ++s) list += (s ? "; " : "") + seriesName(directory, s);
+      fail(path, "no series matches '" + options.dicom_series + "' (number, UID or description); the folder has: " + list);
+    }
+  } else {
+    for (int s = 0; s < n_series; ++s) candidates.push_back(s);
+  }
+  // The largest first (a scout or a dose report is small).
+  std::stable_sort(candidates.begin(), candidates.end(), [&](int a, int b) {
+    return directory->GetFileNamesForSeries(a)->GetNumberOfValues() >
+           directory->GetFileNamesForSeries(b)->GetNumberOfValues();
+  });
+  if (candidates.empty()) {
+    const std::string vtk = capture.hasErrors() ? " (" + capture.firstError() + ")" : "";
+    if (is_dir) fail(path, "no DICOM image series found in the folder" + vtk);
+    fail(path, "not a volume: not a readable DICOM image (corrupt, not DICOM, or no pixel data)" + vtk);
+  }
+  // The first that loads: a damaged or unusable largest series falls back to the next one.
+  std::vector<std::string> skipped;
+  for (std::size_t c = 0; c < candidates.size(); ++c) {
+    const int chosen = candidates[c];
+    try {
+      RawVolume raw = readSeries(directory->GetFileNamesForSeries(chosen), path, folder, options);
+      if (n_series > 1 || !skipped.empty()) {
+        std::string note = "loaded " + seriesName(directory, chosen) + " of " + std::to_string(n_series) +
+                           " series in the folder";
+        if (is_dir && options.dicom_series.empty()) note += " (the largest usable; choose another with the series option)";
+        raw.info.notices.insert(raw.info.notices.begin(), note);
+      }
+      for (const auto& why : skipped) raw.info.notices.push_back(why);
+      return finishVolume(std::move(raw), path);
+    } catch (const LoadCancelled&) {
+      throw;
+    } catch (const LoadError& e) {
+      if (c + 1 == candidates.size() || !options.dicom_series.empty() || !is_dir) throw;
+      skipped.push_back("skipped " + seriesName(directory, chosen) + ": " + e.what());
+    }
+  }
+  fail(path, "no DICOM series could be loaded");
 }
 
 }  // namespace vh::io::detail

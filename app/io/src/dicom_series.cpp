@@ -35,7 +35,7 @@ int integer(const vtkDICOMItem& item, vtkDICOMTag tag) {
   return v.IsValid() && v.GetNumberOfValues() > 0 ? v.AsInt() : 0;
 }
 
-/// The scan every function here shares with loadDicom(): two levels deep, DICOMDIR ignored,
+/// The scan every function here shares with loadDicom(): kDicomScanDepth levels, DICOMDIR ignored,
 /// images only.
 vtkSmartPointer<vtkDICOMDirectory> scanFolder(const fs::path& folder, detail::VtkErrorCapture& capture) {
   std::error_code ec;
@@ -45,7 +45,7 @@ vtkSmartPointer<vtkDICOMDirectory> scanFolder(const fs::path& folder, detail::Vt
   auto directory = vtkSmartPointer<vtkDICOMDirectory>::New();
   capture.watch(directory);
   directory->SetDirectoryName(folder.string().c_str());
-  directory->SetScanDepth(2);
+  directory->SetScanDepth(detail::kDicomScanDepth);
   directory->IgnoreDicomdirOn();
   directory->RequirePixelDataOn();
   directory->Update();

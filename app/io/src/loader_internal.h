@@ -39,8 +39,11 @@ struct RawVolume {
 /// @throws LoadError naming `path`.
 LoadedVolume finishVolume(RawVolume raw, const fs::path& path);
 
+/// Folder levels a DICOM folder is scanned to: a DICOMDIR tree (DICOM/PA0/ST0/SE0/IM0) is four.
+inline constexpr int kDicomScanDepth = 4;
+
 /// Format loaders. `path` exists; each throws LoadError naming the file and the problem.
-LoadedVolume loadDicom(const fs::path& path);
+LoadedVolume loadDicom(const fs::path& path, const VolumeLoadOptions& options);
 LoadedVolume loadNrrd(const fs::path& path);
 LoadedVolume loadMetaImage(const fs::path& path);
 

@@ -145,12 +145,12 @@ Format detectFormat(const fs::path& path) {
 
 }  // namespace
 
-LoadedVolume loadVolume(const std::filesystem::path& path) {
+LoadedVolume loadVolume(const std::filesystem::path& path, const VolumeLoadOptions& options) {
   std::error_code ec;
   if (path.empty()) throw LoadError("(empty path): no file or folder given");
   const auto status = fs::status(path, ec);
   if (ec || !fs::exists(status)) detail::fail(path, "no such file or folder");
-  if (fs::is_directory(status)) return detail::loadDicom(path);
+  if (fs::is_directory(status)) return detail::loadDicom(path, options);
   if (!fs::is_regular_file(status)) detail::fail(path, "not a regular file or folder");
   const auto size = detail::fileSize(path);
   if (!size) detail::fail(path, "cannot read the file size");
@@ -161,7 +161,7 @@ LoadedVolume loadVolume(const std::filesystem::path& path) {
   }
   switch (detectFormat(path)) {
     case Format::kDicom:
-      return detail::loadDicom(path);
+      return detail::loadDicom(path, options);
     case Format::kNrrd:
       return detail::loadNrrd(path);
     case Format::kMetaImage:

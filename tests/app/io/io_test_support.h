@@ -59,3 +59,7 @@ inline double secondsSince(std::chrono::steady_clock::time_point t0) {
   if (!std::filesystem::exists(var)) {                                                 \
     GTEST_SKIP() << "shared dataset missing: " << var.string();                        \
   }
+
+/// Expects `part` in `text` (a message).
+#define EXPECT_CONTAINS(text, part) \
+  EXPECT_NE(std::string(text).find(part), std::string::npos) << "message: " << (text)

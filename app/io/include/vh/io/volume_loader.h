@@ -3,10 +3,13 @@
 /// Loading volumes (DICOM series, NRRD, MetaImage) and tool meshes (STL, OBJ, PLY) through VTK.
 /// Units are converted once, here, into metres; values stay in the data's units (HU for CT).
 
+#include <atomic>
 #include <filesystem>
+#include <functional>
 #include <memory>
 #include <stdexcept>
 #include <string>
+#include <vector>
 
 #include <vtkSmartPointer.h>
 
@@ -24,6 +27,26 @@ class LoadError : public std::runtime_error {
   using std::runtime_error::runtime_error;
 };
 
+/// The load was cancelled through VolumeLoadOptions::cancel; nothing was loaded.
+class LoadCancelled : public LoadError {
+ public:
+  using LoadError::LoadError;
+};
+
+/// How loadVolume() picks and reads a volume. The series and phase apply to DICOM only.
+struct VolumeLoadOptions {
+  /// Which series of a DICOM folder: empty = the largest series that loads (a series that
+  /// fails is skipped, with a notice); else a Series Number ("3"), a Series Instance UID, or
+  /// text found in the Series Description (case-insensitive, e.g. "bone"), in that order.
+  std::string dicom_series;
+  /// A 4-D series (cardiac phases, dynamic frames, echoes): which time point, 0-based.
+  int dicom_phase = 0;
+  /// When set, called with the fraction done (0..1) from the loading thread.
+  std::function<void(double fraction)> progress;
+  /// When set and it becomes true, the load stops and throws LoadCancelled.
+  const std::atomic<bool>* cancel = nullptr;
+};
+
 /// Descriptive facts about a loaded volume, for the UI and session metadata.
 struct VolumeInfo {
   std::filesystem::path source;  ///< File or folder loaded.
@@ -32,6 +55,14 @@ struct VolumeInfo {
   std::string value_unit;        ///< "HU" for CT, else empty.
   std::string description;       ///< Series description or file name.
   std::string patient_name;      ///< DICOM patient name, or empty.
+  std::string series_uid;        ///< DICOM Series Instance UID, or empty.
+  int series_number = 0;         ///< DICOM Series Number, 0 when absent.
+  int phase = 0;                 ///< The time point loaded of a 4-D series (0-based).
+  int phase_count = 1;           ///< Time points (phases, echoes) of the series; 1 when 3-D.
+  /// What the loader chose or corrected, one sentence each, for the status bar, the console
+  /// and the recording's metadata: "resampled from a gantry tilt of 18.5 deg", a gap's slice
+  /// positions, dropped duplicates, which series of a folder was taken.
+  std::vector<std::string> notices;
 };
 
 /// A loaded volume: the haptic field and the same voxels as a vtkImageData for rendering.
@@ -44,18 +75,23 @@ struct LoadedVolume {
   VolumeInfo info;
 };
 
-/// Loads a DICOM folder (or one file of a series), a NRRD (.nrrd/.nhdr) or a MetaImage
-/// (.mha/.mhd). DICOM: the largest series in the folder is read (sorted by position, rescaled
-/// to HU, oriented from Image Orientation (Patient)).
+/// Loads a DICOM folder (or one file of a series, or a DICOMDIR), a NRRD (.nrrd/.nhdr) or a
+/// MetaImage (.mha/.mhd). DICOM: the series `options` names, else the largest that loads
+/// (sorted by position, rescaled to HU, oriented from Image Orientation (Patient)); exact
+/// duplicate slices are dropped, and a sheared stack (gantry tilt) or one with missing slices
+/// or uneven spacing is resampled onto a rectilinear grid in the image planes' frame with the
+/// median slice spacing (bilinear in plane, linear between slices); VolumeInfo::notices says
+/// what was done.
 /// @throws LoadError naming the file and the problem: missing path, not a volume, corrupt or
-///         truncated file, inconsistent slices.
+///         truncated file, inconsistent slices, no series matching options.dicom_series, a
+///         phase out of range; LoadCancelled when options.cancel was set.
 /// Geometry: W is the file's patient frame (DICOM / NRRD patient LPS; NRRD RAS/LAS converted to
 /// LPS) in metres; lengths without units are millimetres. Voxels are kept as stored (uint8,
 /// int16, uint16, float32; other types converted to int16 / uint16 when their range fits, else
 /// float32), with a uniform DICOM rescale as the field's value_scale / value_offset.
 /// VTK's own error text during the load becomes the LoadError instead of console output.
 /// May be called from any thread (one load per thread at a time).
-LoadedVolume loadVolume(const std::filesystem::path& path);
+LoadedVolume loadVolume(const std::filesystem::path& path, const VolumeLoadOptions& options = {});
 
 /// Loads a triangle mesh (STL, OBJ, PLY), triangulated, coordinates multiplied by `scale_to_m`.
 /// @throws LoadError for a missing or unreadable file, or a mesh with no triangles.
