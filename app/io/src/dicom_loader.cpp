@@ -539,7 +539,7 @@ RawVolume readSeries(vtkStringArray* series_files, const fs::path& path, const f
 
 }  // namespace
 
-LoadedVolume loadDicom(const fs::path& path, const VolumeLoadOptions& options) {
+RawVolume loadDicomRaw(const fs::path& path, const VolumeLoadOptions& options) {
   // A DICOMDIR opens the folder it indexes (scanned file by file: an index may be stale).
   const bool is_dir = fs::is_directory(path) || isDicomdir(path);
   const fs::path folder = fs::is_directory(path) ? path : (path.has_parent_path() ? path.parent_path() : ".");
@@ -599,7 +599,7 @@ LoadedVolume loadDicom(const fs::path& path, const VolumeLoadOptions& options) {
         raw.info.notices.insert(raw.info.notices.begin(), note);
       }
       for (const auto& why : skipped) raw.info.notices.push_back(why);
-      return finishVolume(std::move(raw), path);
+      return raw;
     } catch (const LoadCancelled&) {
       throw;
     } catch (const LoadError& e) {

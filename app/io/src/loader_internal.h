@@ -43,7 +43,11 @@ LoadedVolume finishVolume(RawVolume raw, const fs::path& path);
 inline constexpr int kDicomScanDepth = 4;
 
 /// Format loaders. `path` exists; each throws LoadError naming the file and the problem.
+/// loadDicom() reads in a worker process when one is available (isolated_load.cpp: a parser
+/// crash cannot take the application down), else in this process through loadDicomRaw().
 LoadedVolume loadDicom(const fs::path& path, const VolumeLoadOptions& options);
+/// The DICOM read itself, in this process: the series chosen, regularised, not yet converted.
+RawVolume loadDicomRaw(const fs::path& path, const VolumeLoadOptions& options);
 LoadedVolume loadNrrd(const fs::path& path);
 LoadedVolume loadMetaImage(const fs::path& path);
 

@@ -33,6 +33,15 @@ class LoadCancelled : public LoadError {
   using LoadError::LoadError;
 };
 
+/// Where a DICOM series is read (issue 15). vtk-dicom's parser has crashed on damaged files; in
+/// a worker process (the `volume-haptics-dicom-worker` program, see dicom_worker.h) such a
+/// crash ends the worker and the load fails with a LoadError naming the file.
+enum class DicomIsolation {
+  kAuto,       ///< In a worker when the program is found, else in this process (with a notice).
+  kWorker,     ///< Only in a worker; a LoadError when the program is missing.
+  kInProcess,  ///< In this process (the worker itself; tests of the reading code).
+};
+
 /// How loadVolume() picks and reads a volume. The series and phase apply to DICOM only.
 struct VolumeLoadOptions {
   /// Which series of a DICOM folder: empty = the largest series that loads (a series that
@@ -45,6 +54,7 @@ struct VolumeLoadOptions {
   std::function<void(double fraction)> progress;
   /// When set and it becomes true, the load stops and throws LoadCancelled.
   const std::atomic<bool>* cancel = nullptr;
+  DicomIsolation dicom_isolation = DicomIsolation::kAuto;
 };
 
 /// Descriptive facts about a loaded volume, for the UI and session metadata.

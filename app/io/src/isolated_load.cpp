@@ -1,0 +1,378 @@
+// DICOM loading in a worker process (issue 15): vtk-dicom's parser has crashed (SIGSEGV in
+// vtkDICOMParser::ReadMetaData) on damaged files; in a worker such a crash ends the worker, and
+// the application names the file and keeps what it had open.
+//
+// Protocol: the application runs `volume-haptics-dicom-worker load PATH OUT [--series S]
+// [--phase N]`; the worker reads with loadDicomRaw() and writes OUT (below), printing
+// "progress F" lines on stdout, and "error MESSAGE" before exiting 1 on a LoadError. After a
+// crash the application runs `... probe PATH`, which parses the files one by one, printing
+// "file NAME" before each: the last name before the crash is the damaged file.
+//
+// OUT: "VHRAW1\n", the length of a JSON header as 8 bytes (little endian), the header
+// (geometry, value scale and offset, VolumeInfo, the VTK scalar type), then the voxels.
+#include <fcntl.h>
+#include <poll.h>
+#include <signal.h>
+#include <spawn.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <array>
+#include <atomic>
+#include <cerrno>
+#include <cstdio>
+#include <cstring>
+#include <fstream>
+#include <iostream>
+#include <sstream>
+
+#include <nlohmann/json.hpp>
+#include <vtkDICOMMetaData.h>
+#include <vtkDICOMParser.h>
+#include <vtkDataArray.h>
+#include <vtkImageData.h>
+#include <vtkPointData.h>
+#include <vtkSmartPointer.h>
+
+#include "loader_internal.h"
+#include "vh/io/dicom_worker.h"
+#include "vtk_error_capture.h"
+
+extern char** environ;
+
+namespace vh::io {
+namespace {
+
+namespace fs = std::filesystem;
+using json = nlohmann::json;
+
+constexpr char kMagic[] = "VHRAW1\n";
+constexpr char kWorkerName[] = "volume-haptics-dicom-worker";
+
+json toJson(const Eigen::Vector3d& v) { return {v.x(), v.y(), v.z()}; }
+Eigen::Vector3d vec(const json& j) { return {j.at(0).get<double>(), j.at(1).get<double>(), j.at(2).get<double>()}; }
+
+void writeRaw(const detail::RawVolume& raw, const fs::path& out) {
+  int dims[3];
+  raw.image->GetDimensions(dims);
+  vtkDataArray* scalars = raw.image->GetPointData()->GetScalars();
+  if (scalars == nullptr) throw LoadError(out.string() + ": the reader produced no voxels");
+  json h;
+  h["dims"] = {dims[0], dims[1], dims[2]};
+  h["components"] = scalars->GetNumberOfComponents();
+  h["vtk_type"] = scalars->GetDataType();
+  h["spacing_m"] = toJson(raw.geometry.spacing_m);
+  h["origin_W_m"] = toJson(raw.geometry.origin_W_m);
+  h["direction_W"] = {toJson(raw.geometry.direction_W.col(0)), toJson(raw.geometry.direction_W.col(1)),
+                      toJson(raw.geometry.direction_W.col(2))};
+  h["value_scale"] = raw.value_scale;
+  h["value_offset"] = raw.value_offset;
+  const VolumeInfo& i = raw.info;
+  h["info"] = {{"format", i.format},         {"modality", i.modality},           {"value_unit", i.value_unit},
+               {"description", i.description}, {"patient_name", i.patient_name}, {"series_uid", i.series_uid},
+               {"series_number", i.series_number}, {"phase", i.phase}, {"phase_count", i.phase_count},
+               {"notices", i.notices}};
+  const std::string header = h.dump(-1, ' ', false, json::error_handler_t::replace);
+  std::ofstream f(out, std::ios::binary);
+  const std::uint64_t n = header.size();
+  f.write(kMagic, sizeof(kMagic) - 1);
+  f.write(reinterpret_cast<const char*>(&n), sizeof(n));
+  f.write(header.data(), static_cast<std::streamsize>(header.size()));
+  const auto bytes = static_cast<std::streamsize>(scalars->GetNumberOfValues()) * scalars->GetDataTypeSize();
+  f.write(static_cast<const char*>(scalars->GetVoidPointer(0)), bytes);
+  if (!f) throw LoadError(out.string() + ": cannot write the loaded volume (disk full?)");
+}
+
+detail::RawVolume readRaw(const fs::path& in, const fs::path& source) {
+  std::ifstream f(in, std::ios::binary);
+  char magic[sizeof(kMagic) - 1];
+  std::uint64_t n = 0;
+  f.read(magic, sizeof(magic));
+  f.read(reinterpret_cast<char*>(&n), sizeof(n));
+  if (!f || std::memcmp(magic, kMagic, sizeof(magic)) != 0 || n > (1u << 26)) {
+    detail::fail(source, "the DICOM worker's output is unreadable");
+  }
+  std::string header(n, '\0');
+  f.read(header.data(), static_cast<std::streamsize>(n));
+  detail::RawVolume raw;
+  try {
+    const json h = json::parse(header);
+    const auto dims = h.at("dims").get<std::array<int, 3>>();
+    raw.image = vtkSmartPointer<vtkImageData>::New();
+    raw.image->SetDimensions(dims[0], dims[1], dims[2]);
+    raw.image->AllocateScalars(h.at("vtk_type").get<int>(), h.at("components").get<int>());
+    vtkDataArray* scalars = raw.image->GetPointData()->GetScalars();
+    const auto bytes = static_cast<std::streamsize>(scalars->GetNumberOfValues()) * scalars->GetDataTypeSize();
+    f.read(static_cast<char*>(scalars->GetVoidPointer(0)), bytes);
+    if (f.gcount() != bytes) detail::fail(source, "the DICOM worker's output is cut short");
+    raw.geometry.spacing_m = vec(h.at("spacing_m"));
+    raw.geometry.origin_W_m = vec(h.at("origin_W_m"));
+    for (int c = 0; c < 3; ++c) raw.geometry.direction_W.col(c) = vec(h.at("direction_W").at(c));
+    raw.value_scale = h.at("value_scale").get<double>();
+    raw.value_offset = h.at("value_offset").get<double>();
+    const json& i = h.at("info");
+    raw.info.format = i.at("format").get<std::string>();
+    raw.info.modality = i.at("modality").get<std::string>();
+    raw.info.value_unit = i.at("value_unit").get<std::string>();
+    raw.info.description = i.at("description").get<std::string>();
+    raw.info.patient_name = i.at("patient_name").get<std::string>();
+    raw.info.series_uid = i.at("series_uid").get<std::string>();
+    raw.info.series_number = i.at("series_number").get<int>();
+    raw.info.phase = i.at("phase").get<int>();
+    raw.info.phase_count = i.at("phase_count").get<int>();
+    raw.info.notices = i.at("notices").get<std::vector<std::string>>();
+  } catch (const json::exception& e) {
+    detail::fail(source, std::string("the DICOM worker's output is unreadable: ") + e.what());
+  }
+  return raw;
+}
+
+/// A running worker with its stdout.
+class Worker {
+ public:
+  explicit Worker(const std::vector<std::string>& args) {
+    int fds[2];
+    if (pipe2(fds, O_CLOEXEC) != 0) throw LoadError(std::string("cannot start the DICOM worker: ") + std::strerror(errno));
+    posix_spawn_file_actions_t actions;
+    posix_spawn_file_actions_init(&actions);
+    posix_spawn_file_actions_adddup2(&actions, fds[1], STDOUT_FILENO);
+    std::vector<char*> argv;
+    for (const auto& a : args) argv.push_back(const_cast<char*>(a.c_str()));
+    argv.push_back(nullptr);
+    const int rc = posix_spawn(&pid_, argv[0], &actions, nullptr, argv.data(), environ);
+    posix_spawn_file_actions_destroy(&actions);
+    close(fds[1]);
+    out_ = fds[0];
+    if (rc != 0) {
+      close(out_);
+      throw LoadError(std::string("cannot start the DICOM worker ") + args[0] + ": " + std::strerror(rc));
+    }
+  }
+  ~Worker() {
+    if (pid_ > 0) {
+      kill(pid_, SIGKILL);
+      waitpid(pid_, nullptr, 0);
+    }
+    if (out_ >= 0) close(out_);
+  }
+  Worker(const Worker&) = delete;
+  Worker& operator=(const Worker&) = delete;
+
+  /// Next line of stdout; false at the end. Waits at most `timeout_ms` (then `line` is empty
+  /// and true is returned).
+  bool readLine(std::string& line, int timeout_ms) {
+    line.clear();
+    for (;;) {
+      const auto nl = buffer_.find('\n');
+      if (nl != std::string::npos) {
+        line = buffer_.substr(0, nl);
+        buffer_.erase(0, nl + 1);
+        return true;
+      }
+      pollfd p{out_, POLLIN, 0};
+      const int ready = poll(&p, 1, timeout_ms);
+      if (ready == 0) return true;
+      if (ready < 0) {
+        if (errno == EINTR) continue;
+        return false;
+      }
+      char chunk[4096];
+      const ssize_t got = read(out_, chunk, sizeof(chunk));
+      if (got < 0 && errno == EINTR) continue;
+      if (got <= 0) {
+        if (!buffer_.empty()) {
+          line.swap(buffer_);
+          return true;
+        }
+        return false;
+      }
+      buffer_.append(chunk, static_cast<std::size_t>(got));
+    }
+  }
+  /// Waits for the end; the wait status.
+  int wait() {
+    int status = 0;
+    while (waitpid(pid_, &status, 0) < 0 && errno == EINTR) {
+    }
+    pid_ = -1;
+    return status;
+  }
+  void kill9() {
+    if (pid_ > 0) {
+      kill(pid_, SIGKILL);
+      wait();
+    }
+  }
+
+ private:
+  pid_t pid_ = -1;
+  int out_ = -1;
+  std::string buffer_;
+};
+
+std::string signalName(int sig) {
+  const char* abbrev = sigabbrev_np(sig);
+  return abbrev != nullptr ? std::string("SIG") + abbrev : "signal " + std::to_string(sig);
+}
+
+/// After a crash: the file the worker's probe crashes on, or "".
+std::string findCrashingFile(const fs::path& worker, const fs::path& path) {
+  Worker probe({worker.string(), "probe", path.string()});
+  std::string line, last;
+  while (probe.readLine(line, 30000)) {
+    if (line.rfind("file ", 0) == 0) last = line.substr(5);
+    if (line == "ok") last.clear();
+  }
+  const int status = probe.wait();
+  return WIFSIGNALED(status) ? last : std::string();
+}
+
+std::atomic<int> g_out_counter{0};
+
+}  // namespace
+
+fs::path dicomWorkerPath() {
+  std::error_code ec;
+  if (const char* env = std::getenv("VH_DICOM_WORKER"); env != nullptr && *env != '\0') {
+    return fs::exists(env, ec) ? fs::path(env) : fs::path();
+  }
+  const fs::path beside = fs::read_symlink("/proc/self/exe", ec).parent_path() / kWorkerName;
+  if (!ec && fs::exists(beside, ec)) return beside;
+#ifdef VH_DICOM_WORKER_BUILD_PATH
+  if (fs::exists(VH_DICOM_WORKER_BUILD_PATH, ec)) return VH_DICOM_WORKER_BUILD_PATH;
+#endif
+#ifdef VH_DICOM_WORKER_INSTALL_PATH
+  if (fs::exists(VH_DICOM_WORKER_INSTALL_PATH, ec)) return VH_DICOM_WORKER_INSTALL_PATH;
+#endif
+  return {};
+}
+
+namespace detail {
+
+LoadedVolume loadDicom(const fs::path& path, const VolumeLoadOptions& options) {
+  const fs::path worker = options.dicom_isolation == DicomIsolation::kInProcess ? fs::path() : dicomWorkerPath();
+  if (worker.empty()) {
+    if (options.dicom_isolation == DicomIsolation::kWorker) {
+      fail(path, std::string("the DICOM worker program (") + kWorkerName + ") was not found");
+    }
+    RawVolume raw = loadDicomRaw(path, options);
+    if (options.dicom_isolation == DicomIsolation::kAuto) {
+      raw.info.notices.push_back(std::string("read in this process: the DICOM worker (") + kWorkerName +
+                                 ") was not found, so a damaged file could end the program");
+    }
+    return finishVolume(std::move(raw), path);
+  }
+  std::error_code ec;
+  const fs::path out = fs::temp_directory_path(ec) /
+                       ("vh-dicom-" + std::to_string(getpid()) + "-" + std::to_string(g_out_counter++) + ".raw");
+  struct RemoveOnExit {
+    fs::path p;
+    ~RemoveOnExit() {
+      std::error_code e;
+      fs::remove(p, e);
+    }
+  } remove_out{out};
+  std::vector<std::string> args = {worker.string(), "load", fs::absolute(path, ec).string(), out.string()};
+  if (!options.dicom_series.empty()) args.insert(args.end(), {"--series", options.dicom_series});
+  if (options.dicom_phase != 0) args.insert(args.end(), {"--phase", std::to_string(options.dicom_phase)});
+  Worker run(args);
+  std::string line, error;
+  const auto is_cancelled = [&] { return options.cancel != nullptr && options.cancel->load(std::memory_order_relaxed); };
+  while (run.readLine(line, 50)) {
+    if (is_cancelled()) {
+      run.kill9();
+      throw LoadCancelled(path.string() + ": loading cancelled");
+    }
+    if (line.rfind("progress ", 0) == 0) {
+      if (options.progress) options.progress(0.9 * std::strtod(line.c_str() + 9, nullptr));
+    } else if (line.rfind("error ", 0) == 0) {
+      error = line.substr(6);
+    } else if (line == "cancelled") {
+      error = "cancelled";
+    }
+  }
+  const int status = run.wait();
+  if (WIFSIGNALED(status)) {
+    const std::string file = findCrashingFile(worker, path);
+    fail(path, "the DICOM reader crashed (" + signalName(WTERMSIG(status)) + ")" +
+                   (file.empty() ? std::string(" reading the series") : " on " + file) +
+                   ": a damaged file; nothing was loaded");
+  }
+  if (WEXITSTATUS(status) != 0) {
+    if (!error.empty()) throw LoadError(error);
+    fail(path, "the DICOM worker failed (exit status " + std::to_string(WEXITSTATUS(status)) + ")");
+  }
+  RawVolume raw = readRaw(out, path);
+  if (options.progress) options.progress(0.95);
+  return finishVolume(std::move(raw), path);
+}
+
+}  // namespace detail
+
+int runDicomWorker(int argc, char** argv) {
+  const std::string usage = "usage: volume-haptics-dicom-worker load PATH OUT [--series S] [--phase N] | probe PATH";
+  if (argc < 3) {
+    std::cerr << usage << std::endl;
+    return 2;
+  }
+  const std::string mode = argv[1];
+  const fs::path path = argv[2];
+  if (mode == "probe") {
+    // Each file's header and pixels on its own; the name first, so a crash names it.
+    std::error_code ec;
+    std::vector<fs::path> files;
+    if (fs::is_directory(path, ec)) {
+      for (auto it = fs::recursive_directory_iterator(path, ec); !ec && it != fs::recursive_directory_iterator();
+           it.increment(ec)) {
+        if (it.depth() >= detail::kDicomScanDepth) it.disable_recursion_pending();
+        if (it->is_regular_file(ec)) files.push_back(it->path());
+      }
+    } else {
+      files.push_back(path);
+    }
+    std::sort(files.begin(), files.end());
+    for (const auto& f : files) {
+      std::cout << "file " << f.string() << std::endl;
+      detail::VtkErrorCapture capture;
+      auto meta = vtkSmartPointer<vtkDICOMMetaData>::New();
+      auto parser = vtkSmartPointer<vtkDICOMParser>::New();
+      capture.watch(parser);
+      parser->SetMetaData(meta);
+      parser->SetFileName(f.string().c_str());
+      parser->Update();
+      std::cout << "ok" << std::endl;
+    }
+    return 0;
+  }
+  if (mode != "load" || argc < 4) {
+    std::cerr << usage << std::endl;
+    return 2;
+  }
+  VolumeLoadOptions options;
+  options.dicom_isolation = DicomIsolation::kInProcess;
+  for (int i = 4; i + 1 < argc; i += 2) {
+    const std::string key = argv[i];
+    if (key == "--series") options.dicom_series = argv[i + 1];
+    else if (key == "--phase") options.dicom_phase = std::atoi(argv[i + 1]);
+  }
+  double last = -1.0;
+  options.progress = [&](double f) {
+    if (f - last >= 0.01 || f >= 1.0) {
+      last = f;
+      std::cout << "progress " << f << std::endl;
+    }
+  };
+  try {
+    detail::RawVolume raw = detail::loadDicomRaw(path, options);
+    writeRaw(raw, argv[3]);
+  } catch (const std::exception& e) {
+    std::string message = e.what();
+    std::replace(message.begin(), message.end(), '\n', ' ');
+    std::cout << "error " << message << std::endl;
+    return 1;
+  }
+  return 0;
+}
+
+}  // namespace vh::io
