@@ -35,7 +35,8 @@ int guarded(const char* name, const std::function<void()>& f) {
 
 CLI::App* addBenchSubcommand(CLI::App& app, std::function<int()>& handler) {
   CLI::App* bench = app.add_subcommand(
-      "bench", "Benchmarks (issue 7): the paper's Table 1, error against run time, stiff and extreme cases; "
+      "bench", "Benchmarks (issue 7): the paper's Table 1, error against run time, stiff and extreme cases, "
+               "big scans (issue 14); "
                "reports (JSON, Markdown, PNG) go into the build tree");
   bench->require_subcommand(1);
 
@@ -91,6 +92,31 @@ CLI::App* addBenchSubcommand(CLI::App& app, std::function<int()>& handler) {
   addCommon(stab, *stability);
   stab->callback([&handler, stability] {
     handler = [stability] { return guarded("stability", [&] { runStability(*stability); }); };
+  });
+  auto bigscan = std::make_shared<BigScanOptions>();
+  CLI::App* big = bench->add_subcommand("bigscan", "Big scans (issue 14): a 512 x 512 x 2000 int16 CT series "
+                                                   "generated into the build tree, its load time, peak memory, "
+                                                   "min/max tree build, a cancelled load, and tick times against "
+                                                   "the 140-slice phantom's");
+  addCommon(big, bigscan->common);
+  big->add_option("--slices", bigscan->slices, "Slices of the generated scan (default 2000; short 64)")
+      ->check(CLI::Range(2, 100000));
+  big->add_option("--ticks", bigscan->ticks, "Ticks of the touch run on each volume (default 20000; short 1000)")
+      ->check(CLI::PositiveNumber);
+  big->add_option("--series-dir", bigscan->series_dir,
+                  "Where the series is generated and reused (default: the build tree's bench/bigscan/"
+                  "series-512x512xN)");
+  big->add_option("--cancel-at", bigscan->cancel_at, "Progress fraction at which the cancel run cancels")
+      ->capture_default_str()
+      ->check(CLI::Range(0.01, 0.99));
+  // The child processes the benchmark starts (this binary re-executed): not for people.
+  big->add_option("--child", bigscan->child, "internal")->group("");
+  big->callback([&handler, bigscan] {
+    if (!bigscan->child.empty()) {
+      handler = [bigscan] { return runBigScanChild(*bigscan); };
+      return;
+    }
+    handler = [bigscan] { return guarded("bigscan", [&] { runBigScan(*bigscan); }); };
   });
   return bench;
 }

@@ -9,7 +9,9 @@
 ///   accuracy   contact-position and normal error against tick time on volumes with exact
 ///              isosurfaces, swept over epsilon, segment_fraction and point-shell density;
 ///   stability  the coupling-stiffness sweep with the simulated device (vh::simulation) and a
-///              table of extreme cases with their outcomes.
+///              table of extreme cases with their outcomes;
+///   bigscan    a ~1 GB CT series (issue 14): load time, peak memory, tree build, cancel, and
+///              tick times against the small phantom's.
 /// Each writes a JSON report, a Markdown report and PNG plots (VTK charts rendered off screen;
 /// skipped with a message when no X display is available) into an output folder.
 /// Not part of the servo loop: allocates, prints and throws freely.
@@ -61,6 +63,36 @@ struct Table1Options {
   bool large_tools = true;
 };
 
+/// `bench bigscan` (issue 14, "Big scans"): a 512 x 512 x N int16 CT series (default N = 2000,
+/// about 1 GB of voxels) generated once into the build tree from the shared Philips head
+/// phantom, loaded by io::loadVolume in fresh child processes (load time, peak resident memory
+/// against the voxel bytes, min/max tree build time; a load cancelled at 30 % progress), and
+/// tick times on it side by side with the 140-slice phantom.
+struct BigScanOptions {
+  CommonOptions common;
+  /// Slices of the generated scan; 0: 2000 (short: 64).
+  int slices = 0;
+  /// Ticks of the side-by-side touch run; 0: 20,000 (short: 1,000).
+  int ticks = 0;
+  /// Where the series is generated (and reused when complete); empty: defaultOutputDir() /
+  /// "bigscan" / "series-512x512xN".
+  std::filesystem::path series_dir;
+  /// Progress fraction (0..1) at which the cancel run sets VolumeLoadOptions::cancel.
+  double cancel_at = 0.3;
+  /// Internal: "load" or "cancel" runs only that child part on `series_dir` and prints one
+  /// "bigscan-result: {json}" line (the parent re-executes its own binary with it).
+  std::string child;
+};
+
+/// The big-scan benchmark (see BigScanOptions). Skips with a message (and a report saying so)
+/// when the shared phantom is absent. @return the output folder.
+/// @throws std::runtime_error when fewer than 3 times the voxel bytes (3 GB for the full scan)
+///         are free where the series is generated, or when a child process fails.
+std::filesystem::path runBigScan(const BigScanOptions& options);
+
+/// The child part named by options.child (see BigScanOptions::child). @return the exit code.
+int runBigScanChild(const BigScanOptions& options);
+
 /// The paper's Table 1 (see the file comment). Scenes whose data are absent are skipped with a
 /// message (and listed as skipped in the report). @return the output folder.
 /// @throws std::runtime_error for an unknown scene name or an unwritable output folder.
@@ -75,7 +107,7 @@ std::filesystem::path runStability(const CommonOptions& options);
 /// The build tree's benchmark folder (`BUILD/bench`), or $VH_BENCH_OUT_DIR when set.
 std::filesystem::path defaultOutputDir();
 
-/// Adds `bench` with the subcommands `table1`, `accuracy` and `stability` to `app`. After
+/// Adds `bench` with the subcommands `table1`, `accuracy`, `stability` and `bigscan` to `app`. After
 /// app.parse(), `handler` is set when a bench subcommand was chosen; calling it runs the
 /// benchmark and returns the process exit code (0 on success; errors are printed).
 /// @return the `bench` subcommand.
