@@ -62,6 +62,7 @@
 #include "vh/ui/device_manipulation.h"
 #include "vh/ui/haptics_panel.h"
 #include "vh/ui/histogram_slider.h"
+#include "vh/ui/load_notices.h"
 #include "vh/ui/orientation_marker.h"
 #include "vh/ui/replay_panel.h"
 #include "vh/ui/scene_actors.h"
@@ -82,6 +83,7 @@ constexpr int kSliderSteps = 1000;
 constexpr int kDisplayPeriodMs = 33;     // ~30 Hz prop updates
 constexpr int kStatusEveryTicks = 6;     // status text at ~5 Hz (readable)
 constexpr int kSettleMs = 300;           // still frame this long after the last motion
+constexpr int kNoticeStatusMs = 10000;   // a load notice stays in the status bar this long
 constexpr double kKeyRotation_rad = 5.0 * std::numbers::pi / 180.0;
 
 const char* kHintCamera = "Camera: left drag rotate | middle drag pan | right drag / wheel zoom";
@@ -315,6 +317,10 @@ void MainWindow::buildUi() {
   controls->addWidget(iso_label_);
   controls->addWidget(slider_, 1);
   controls->addWidget(spin_);
+  notices_ = new LoadNoticePanel(central);
+  connect(notices_, &LoadNoticePanel::reloadRequested, this,
+          [this](const runtime::SceneSpec& spec, const fs::path& opened) { openScene(spec, opened); });
+  layout->addWidget(notices_);
   layout->addLayout(controls);
   layout->addWidget(view_, 1);
   setCentralWidget(central);
@@ -334,6 +340,10 @@ void MainWindow::buildUi() {
   status_label_->setObjectName("hapticStatus");
   status_label_->setTextInteractionFlags(Qt::TextSelectableByMouse);
   statusBar()->addWidget(status_label_, 1);
+  // A message (a load notice, "Loading cancelled") replaces the statistics while it lasts; the
+  // status bar alone leaves both painted over each other once the label's text changes.
+  connect(statusBar(), &QStatusBar::messageChanged, status_label_,
+          [this](const QString& message) { status_label_->setVisible(message.isEmpty()); });
 
   progress_box_ = new QWidget(this);
   auto* progress_layout = new QHBoxLayout(progress_box_);
@@ -646,6 +656,8 @@ void MainWindow::buildMenus() {
     box.exec();
   });
   controls->setShortcut(QKeySequence::HelpContents);
+  help->addAction("Load &Notes", this, [this] { notices_->reopen(); })
+      ->setStatusTip("What the loader corrected or chose for the open scan (gantry tilt, missing slices, series)");
   help->addAction("&About VolumeHaptics", this, [this] { showAboutDialog(this); });
   help->addAction("About &Qt", qApp, &QApplication::aboutQt);
 
@@ -718,6 +730,18 @@ void MainWindow::setScene(ViewerScene scene) {
   teardownScene();
   scene_ = std::move(scene);
   installScene();
+  showLoadNotices();
+}
+
+void MainWindow::showLoadNotices() {
+  const io::VolumeInfo& info = scene_.volume.info;
+  notices_->setLoaded(q(scene_.title), scene_.spec, info, scene_.opened);
+  for (const std::string& n : info.notices) std::cerr << "volume-haptics: note: " << n << '\n';
+  const std::string first = primaryNotice(info.notices);
+  if (first.empty()) return;
+  QString text = "Note: " + q(first);
+  if (info.notices.size() > 1) text += QString(" (+%1 more, see Help > Load Notes)").arg(info.notices.size() - 1);
+  statusBar()->showMessage(text, kNoticeStatusMs);
 }
 
 void MainWindow::installScene() {
@@ -833,13 +857,16 @@ void MainWindow::openScene(const runtime::SceneSpec& spec, const fs::path& opene
   haptics_panel_->setEnabled(false);
 }
 
-void MainWindow::openDicomSeries(const io::DicomSeriesInfo& series) {
+void MainWindow::openDicomSeries(const io::DicomSeriesInfo& series, int phase) {
   if (series.files.empty()) {
     reportError(q(series.folder.string()), q(series.folder.string()) + ": the chosen series has no files");
     return;
   }
-  // loadVolume() on one file of a series reads exactly that series.
-  runtime::SceneSpec spec = runtime::sceneForVolume(series.files.front());
+  // The folder and the series UID (what a recording's scene names); without a UID, one file of
+  // the series, which loadVolume() reads as exactly that series.
+  runtime::SceneSpec spec = runtime::sceneForVolume(series.series_uid.empty() ? series.files.front() : series.folder);
+  spec.volume.series = series.series_uid;
+  spec.volume.phase = phase;
   loader_->loadScene(spec, series.folder);
   haptics_panel_->setEnabled(false);
 }
@@ -859,7 +886,7 @@ void MainWindow::onSeriesListed(const QString& folder, const std::vector<io::Dic
   hideProgress();
   SeriesChooserDialog dialog(folder, series, this);
   if (dialog.exec() == QDialog::Accepted && dialog.selectedRow() >= 0) {
-    openDicomSeries(dialog.model()->series(dialog.selectedRow()));
+    openDicomSeries(dialog.model()->series(dialog.selectedRow()), dialog.selectedPhase());
   }
 }
 

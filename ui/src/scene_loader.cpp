@@ -1,5 +1,6 @@
 #include "vh/ui/scene_loader.h"
 
+#include <algorithm>
 #include <exception>
 
 #include <QMetaObject>
@@ -24,6 +25,14 @@ std::string displayName(const runtime::SceneSpec& spec, const fs::path& opened) 
 }
 
 }  // namespace
+
+runtime::LoadedScene loadSceneDefault(const runtime::SceneSpec& spec, const std::function<void(double)>& /*progress*/,
+                                      const std::atomic<bool>* /*cancel*/) {
+  // Once runtime offers loadScene(spec, progress, cancel), pass them on here.
+  return runtime::loadScene(spec);
+}
+
+void SceneLoader::setSceneLoadFunction(SceneLoadFunction load) { load_scene_ = std::move(load); }
 
 SceneLoader::SceneLoader(QObject* parent) : QObject(parent) {
   // Two threads: a cancelled job may still be finishing while the next one starts.
@@ -77,15 +86,24 @@ void SceneLoader::cancel() {
 void SceneLoader::waitForIdle() { pool_.waitForDone(); }
 
 void SceneLoader::loadScene(const runtime::SceneSpec& spec, const fs::path& opened) {
-  start([this, spec, opened](const std::atomic<bool>& cancel, std::uint64_t job) {
+  const SceneLoadFunction load = load_scene_ ? load_scene_ : SceneLoadFunction(&loadSceneDefault);
+  start([this, spec, opened, load](const std::atomic<bool>& cancel, std::uint64_t job) {
     const std::string name = displayName(spec, opened);
     auto stage = [&](const QString& text, int percent) {
       post(job, [this, text, percent] { emit progress(text, percent); });
     };
     auto result = std::make_shared<LoadedViewerScene>();
     try {
-      stage(QString("Reading %1").arg(q(name)), -1);
-      result->scene = runtime::loadScene(spec);
+      const QString reading = QString("Reading %1").arg(q(name));
+      stage(reading, -1);
+      int shown = -1;  // worker: the last percent posted (one signal per percent, not per slice)
+      const auto read_progress = [&](double fraction) {
+        const int percent = static_cast<int>(std::clamp(fraction, 0.0, 1.0) * 70.0);
+        if (percent == shown) return;
+        shown = percent;
+        stage(reading, percent);
+      };
+      result->scene = load(spec, read_progress, &cancel);
       if (cancel.load()) return;
       stage("Computing the histogram", 70);
       result->histogram = computeHistogram(result->scene.volume.image, 256, &cancel);
@@ -102,7 +120,10 @@ void SceneLoader::loadScene(const runtime::SceneSpec& spec, const fs::path& open
         finish(job);
         emit sceneLoaded(result);
       });
+    } catch (const io::LoadCancelled&) {
+      return;  // cancel() has said so already
     } catch (const std::exception& e) {
+      if (cancel.load()) return;  // a read stopped by the cancel, whatever it threw
       const QString what = q(name);
       const QString message = q(std::string(e.what()));
       post(job, [this, what, message, job] {

@@ -1,9 +1,12 @@
 #include "vh/ui/series_chooser.h"
 
 #include <QDialogButtonBox>
+#include <QHBoxLayout>
 #include <QHeaderView>
+#include <QItemSelectionModel>
 #include <QLabel>
 #include <QPushButton>
+#include <QSpinBox>
 #include <QTableView>
 #include <QVBoxLayout>
 
@@ -30,6 +33,11 @@ QString isoDate(const std::string& da) {
 QString number(double v) { return QString::number(v, 'f', v >= 10.0 ? 1 : 2); }
 
 }  // namespace
+
+int estimatedTimePoints(const io::DicomSeriesInfo& series) {
+  if (series.slice_count <= 0 || series.file_count <= series.slice_count) return 1;
+  return series.file_count % series.slice_count == 0 ? series.file_count / series.slice_count : 1;
+}
 
 DicomSeriesModel::DicomSeriesModel(std::vector<io::DicomSeriesInfo> series, QObject* parent)
     : QAbstractTableModel(parent), series_(std::move(series)) {}
@@ -109,7 +117,10 @@ int DicomSeriesModel::largestRow() const {
 }
 
 SeriesChooserDialog::SeriesChooserDialog(const QString& folder, std::vector<io::DicomSeriesInfo> series, QWidget* parent)
-    : QDialog(parent), model_(new DicomSeriesModel(std::move(series), this)), table_(new QTableView(this)) {
+    : QDialog(parent),
+      model_(new DicomSeriesModel(std::move(series), this)),
+      table_(new QTableView(this)),
+      phase_(new QSpinBox(this)) {
   setWindowTitle("Choose a DICOM series");
   auto* layout = new QVBoxLayout(this);
   auto* text = new QLabel(QString("<b>%1</b> holds %2 image series. Choose the one to open:")
@@ -130,19 +141,41 @@ SeriesChooserDialog::SeriesChooserDialog(const QString& folder, std::vector<io::
   table_->setAlternatingRowColors(true);
   table_->setWordWrap(false);
   layout->addWidget(table_, 1);
+  auto* phase_row = new QHBoxLayout();
+  auto* phase_label = new QLabel("Time point (4-D series):", this);
+  phase_->setObjectName("seriesPhase");
+  phase_->setToolTip("Cardiac phase, dynamic frame or echo to load, from 1 (4-D series only)");
+  phase_label->setBuddy(phase_);
+  phase_row->addWidget(phase_label);
+  phase_row->addWidget(phase_);
+  auto* phase_count = new QLabel(this);
+  phase_row->addWidget(phase_count);
+  phase_row->addStretch(1);
+  layout->addLayout(phase_row);
   auto* buttons = new QDialogButtonBox(QDialogButtonBox::Open | QDialogButtonBox::Cancel, this);
   layout->addWidget(buttons);
   connect(buttons, &QDialogButtonBox::accepted, this, &QDialog::accept);
   connect(buttons, &QDialogButtonBox::rejected, this, &QDialog::reject);
   connect(table_, &QTableView::doubleClicked, this, &QDialog::accept);
+  connect(table_->selectionModel(), &QItemSelectionModel::selectionChanged, this, [this, phase_count] {
+    const int row = selectedRow();
+    const int n = row < 0 ? 1 : estimatedTimePoints(model_->series(row));
+    phase_->setRange(1, n);
+    phase_->setEnabled(n > 1);
+    phase_count->setText(n > 1 ? QString("of %1").arg(n) : QString("(3-D series)"));
+  });
+  phase_->setRange(1, 1);
+  phase_->setEnabled(false);
   selectRow(model_->largestRow());
-  resize(980, 320);
+  resize(980, 340);
 }
 
 int SeriesChooserDialog::selectedRow() const {
   const QModelIndexList rows = table_->selectionModel()->selectedRows();
   return rows.isEmpty() ? -1 : rows.front().row();
 }
+
+int SeriesChooserDialog::selectedPhase() const { return phase_->isEnabled() ? phase_->value() - 1 : 0; }
 
 void SeriesChooserDialog::selectRow(int row) {
   if (row >= 0 && row < model_->rowCount()) table_->selectRow(row);

@@ -77,6 +77,7 @@ struct FoundDevice;
 namespace vh::ui {
 
 class HapticsPanel;
+class LoadNoticePanel;
 class HistogramSlider;
 class OrientationMarker;
 class ReplayController;
@@ -139,8 +140,9 @@ class MainWindow : public QMainWindow {
   void openPath(const QString& path);
   /// Loads a parsed scene asynchronously; `opened` goes to the recent files.
   void openScene(const runtime::SceneSpec& spec, const std::filesystem::path& opened = {});
-  /// Loads series `series` of a listed DICOM folder asynchronously.
-  void openDicomSeries(const io::DicomSeriesInfo& series);
+  /// Loads series `series` of a listed DICOM folder asynchronously, time point `phase` (0-based)
+  /// of a 4-D series: the scene's volume is the folder with VolumeSpec::series = the series UID.
+  void openDicomSeries(const io::DicomSeriesInfo& series, int phase = 0);
   /// True from a load's start until its scene is shown and rendered once (or it failed).
   bool loading() const noexcept;
   /// Abandons the running load; the current scene stays.
@@ -257,6 +259,8 @@ class MainWindow : public QMainWindow {
   HapticsPanel* hapticsPanel() const noexcept { return haptics_panel_; }
   StripChart* stripChart() const noexcept { return chart_; }
   SceneLoader* loader() const noexcept { return loader_; }
+  /// The banner listing what the loader corrected or chose (Help > Load Notes).
+  LoadNoticePanel* loadNotices() const noexcept { return notices_; }
   runtime::HapticThread* hapticThread() const noexcept { return scene_.haptics.get(); }
   const ViewerScene& scene() const noexcept { return scene_; }
   /// The simulated device, or null (no device, or a scripted/hardware one).
@@ -311,6 +315,7 @@ class MainWindow : public QMainWindow {
   void onSceneLoaded(std::shared_ptr<LoadedViewerScene> loaded);
   void onToolBuilt(std::shared_ptr<RebuiltTool> tool);
   void onSeriesListed(const QString& folder, const std::vector<io::DicomSeriesInfo>& series);
+  void showLoadNotices();  // scene_'s io::VolumeInfo::notices: banner, status bar, console
   void reportError(const QString& what, const QString& message);
   void showProgress(const QString& stage, int percent, bool cancellable);
   void hideProgress();
@@ -351,6 +356,7 @@ class MainWindow : public QMainWindow {
   vtkTextActor* welcome_ = nullptr;  // owned by the renderer while shown
   VtkView* view_ = nullptr;
   SceneLoader* loader_ = nullptr;
+  LoadNoticePanel* notices_ = nullptr;
   HistogramSlider* slider_ = nullptr;
   QDoubleSpinBox* spin_ = nullptr;
   QLabel* iso_label_ = nullptr;

@@ -37,6 +37,20 @@ struct LoadedViewerScene {
   std::string title;                               ///< Window title detail.
 };
 
+/// Loads a scene on the worker: runtime::loadScene() with the volume read's `progress` (fraction
+/// 0..1, called on the worker) and `cancel` (io::VolumeLoadOptions; a cancelled read throws
+/// io::LoadCancelled).
+using SceneLoadFunction = std::function<runtime::LoadedScene(
+    const runtime::SceneSpec& spec, const std::function<void(double fraction)>& progress,
+    const std::atomic<bool>* cancel)>;
+
+/// The SceneLoadFunction used unless another is set: runtime::loadScene(spec). It cannot pass
+/// `progress` and `cancel` on yet (runtime::loadScene takes neither), so the read shows a busy
+/// indicator and a cancelled read runs on, its result dropped.
+runtime::LoadedScene loadSceneDefault(const runtime::SceneSpec& spec,
+                                      const std::function<void(double fraction)>& progress,
+                                      const std::atomic<bool>* cancel);
+
 /// A tool rebuilt for the current volume (haptics panel).
 struct RebuiltTool {
   int choice_index = -1;                             ///< Index into the tool catalog.
@@ -52,9 +66,11 @@ class SceneLoader : public QObject {
   ~SceneLoader() override;  ///< Cancels and waits for the worker.
 
   /// Loads `spec` (runtime::loadScene), its device and haptic thread, and the histogram.
-  /// `opened` is remembered as what the user opened (recent files). Emits progress(), then
-  /// sceneLoaded() or failed() (or cancelled()).
+  /// `opened` is remembered as what the user opened (recent files). Emits progress() (the read's
+  /// fraction as 0..70 %), then sceneLoaded() or failed() (or cancelled()).
   void loadScene(const runtime::SceneSpec& spec, const std::filesystem::path& opened);
+  /// Replaces how loadScene() loads (tests; a runtime that reports progress). Null: the default.
+  void setSceneLoadFunction(SceneLoadFunction load);
   /// Lists the DICOM series in `folder`; emits seriesListed() or failed().
   void listSeries(const std::filesystem::path& folder);
   /// Builds `choice` at `point_spacing_m` (0: automatic) for `field` / `isovalue`, with a renderer
@@ -90,6 +106,7 @@ class SceneLoader : public QObject {
   void finish(std::uint64_t job);
 
   QThreadPool pool_;
+  SceneLoadFunction load_scene_;  // GUI thread; copied into each job
   std::shared_ptr<std::atomic<bool>> cancel_flag_;
   std::uint64_t job_ = 0;  // GUI thread: id of the current job (0: none yet)
   bool busy_ = false;

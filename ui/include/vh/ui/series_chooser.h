@@ -2,7 +2,8 @@
 /// @file
 /// Choosing one DICOM series of a folder: a table model over io::DicomSeriesInfo (patient,
 /// study, series description, modality, slice count, voxel spacing, matrix size) and the modal
-/// dialog around it. The largest series is preselected (what loadVolume() would take).
+/// dialog around it, with the time point to load of a 4-D series. The largest series is
+/// preselected (what loadVolume() would take).
 
 #include <vector>
 
@@ -11,9 +12,15 @@
 
 #include "vh/io/dicom_series.h"
 
+class QSpinBox;
 class QTableView;
 
 namespace vh::ui {
+
+/// Time points (cardiac phases, dynamic frames, echoes) a listed series seems to hold: its
+/// files over the slices of one volume when that divides evenly (2-D files), else 1 (a
+/// multi-frame file's time points are known only once loaded: io::VolumeInfo::phase_count).
+int estimatedTimePoints(const io::DicomSeriesInfo& series);
 
 class DicomSeriesModel : public QAbstractTableModel {
   Q_OBJECT
@@ -58,12 +65,18 @@ class SeriesChooserDialog : public QDialog {
   /// The selected row (-1 when none); selected series via model()->series(row).
   int selectedRow() const;
   void selectRow(int row);
+  /// The time point to load, 0-based (runtime::VolumeSpec::phase); 0 unless the selected series
+  /// is 4-D (estimatedTimePoints() > 1).
+  int selectedPhase() const;
+  /// The time point chooser (1-based, as shown); enabled for a 4-D series.
+  QSpinBox* phaseSpinBox() const noexcept { return phase_; }
   DicomSeriesModel* model() const noexcept { return model_; }
   QTableView* table() const noexcept { return table_; }
 
  private:
   DicomSeriesModel* model_;
   QTableView* table_;
+  QSpinBox* phase_;
 };
 
 }  // namespace vh::ui
