@@ -431,6 +431,9 @@ int childCancel(const BigScanOptions& options) {
   r["latency_ms"] = flag_fraction >= 0.0 ? 1e3 * std::chrono::duration<double>(t_end - t_flag).count() : -1.0;
   r["peak_rss_bytes"] = procStatusBytes("VmHWM");
   r["rss_after_bytes"] = procStatusBytes("VmRSS");
+  rusage children{};
+  getrusage(RUSAGE_CHILDREN, &children);  // the loader's worker process, if any (issue 15)
+  r["loader_children_peak_rss_bytes"] = 1024.0 * static_cast<double>(children.ru_maxrss);
   malloc_trim(0);
   r["rss_after_trim_bytes"] = procStatusBytes("VmRSS");
   r["progress"] = printer.timeline;
@@ -744,7 +747,9 @@ fs::path runBigScan(const BigScanOptions& options) {
      << " GiB), generated from the Philips head phantom (0.5 mm slices interpolated between its 1 mm ones, mirrored "
         "along the stack, its top at the top); "
      << (series.generated ? format("written in %.1f s this run", series.generate_s) : std::string("reused"))
-     << ". Loads in fresh child processes; peak memory: the child's VmHWM.\n\n";
+     << ". Loads in fresh child processes; peak memory: the child's VmHWM plus the peak of the processes the "
+        "loader started (issue 15's DICOM worker; the sum bounds the memory in use at any one time). Tick times: "
+        "the CPU-time columns are the ones to read on a shared machine (a preempted tick inflates the wall time).\n\n";
   md << "| what | value |\n|---|---|\n";
   md << "| voxel bytes | " << format("%.0f MiB", mib(voxel_bytes)) << " |\n";
   md << "| load time (io::loadVolume) | " << format("%.2f s", ld["load_s"].get<double>()) << " |\n";
@@ -755,6 +760,15 @@ fs::path runBigScan(const BigScanOptions& options) {
      << " |\n";
   md << "| peak minus the child's resident memory before the load (" << format("%.0f MiB", mib(ld["rss_before_bytes"].get<double>()))
      << ") / voxel bytes | " << format("%.2f", ld["peak_above_start_over_voxel_bytes"].get<double>()) << " |\n";
+  {
+    std::string timeline;
+    for (const auto& p : ld["progress"]) {
+      if (!timeline.empty()) timeline += ", ";
+      timeline += format("%.0f %% at %.2f s", 100.0 * p[0].get<double>(), p[1].get<double>());
+    }
+    md << "| progress lines (then done at " << format("%.2f s", ld["load_s"].get<double>()) << ") | " << timeline
+       << " |\n";
+  }
   md << "| resident after the load | " << format("%.0f MiB", mib(ld["rss_after_load_bytes"].get<double>()))
      << " |\n";
   md << "| min/max tree build (MinMaxTree::Build, median of 3) | "
@@ -774,7 +788,11 @@ fs::path runBigScan(const BigScanOptions& options) {
   md << "| cancel: resident before / peak / after (after malloc_trim) | "
      << format("%.0f / %.0f / %.0f (%.0f) MiB", mib(rss_before), mib(cc["peak_rss_bytes"].get<double>()),
                mib(rss_after), mib(cc["rss_after_trim_bytes"].get<double>()))
-     << (cc["released"].get<bool>() ? " (released)" : " (NOT released)") << " |\n\n";
+     << (cc["released"].get<bool>() ? " (released)" : " (NOT released)") << " |\n";
+  if (cc["loader_children_peak_rss_bytes"].get<double>() > 0.0)
+    md << "| cancel: the loader's worker process's peak before it ended | "
+       << format("%.0f MiB", mib(cc["loader_children_peak_rss_bytes"].get<double>())) << " |\n";
+  md << "\n";
 
   const auto& tp = touch["phantom"];
   const auto& tb = touch["bigscan"];
