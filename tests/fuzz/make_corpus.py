@@ -1,0 +1,259 @@
+#!/usr/bin/env python3
+"""Writes the seed corpora of tests/fuzz/corpus/<target>/ (small files, < 2 MB in all) from the
+shared datasets (../shared/datasets, never copied whole) and resources/scenes, downscaled or cut.
+
+    tests/fuzz/make_corpus.py [--datasets DIR] [--recording R.vhrec --trajectory T.csv]
+
+The .vhrec seed comes from a real recording (`volume-haptics run --scene
+resources/scenes/sphere-probe.json --trajectory T.csv --report r.json --record R.vhrec`, T a
+make-trajectory CSV with its times scaled by 0.01: 46 ticks) with an event chunk appended here.
+Standard library only.
+"""
+import argparse
+import gzip
+import math
+import os
+import pathlib
+import shutil
+import struct
+import zlib
+
+HERE = pathlib.Path(__file__).resolve().parent
+ROOT = HERE.parent.parent
+
+
+def out(target, name, data):
+    d = HERE / "corpus" / target
+    d.mkdir(parents=True, exist_ok=True)
+    (d / name).write_bytes(data if isinstance(data, bytes) else data.encode())
+
+
+def shorts_le(values):
+    return struct.pack("<%dh" % len(values), *values)
+
+
+def downsample(raw, dims, step, slices, dtype="<h"):
+    """Every step-th voxel in plane of the given slices of a little-endian volume."""
+    nx, ny, _ = dims
+    size = struct.calcsize(dtype)
+    vals = []
+    for z in slices:
+        for y in range(0, ny, step):
+            for x in range(0, nx, step):
+                i = ((z * ny + y) * nx + x) * size
+                vals.append(struct.unpack_from(dtype, raw, i)[0])
+    return vals
+
+
+def nrrd_seeds(ds):
+    # CT head quarter (64x64x93 shorts, one file per slice): two slices, detached header.
+    q = ds / "nrrd/headsq-quarter"
+    data = (q / "quarter.40").read_bytes() + (q / "quarter.41").read_bytes()
+    header = ("NRRD0004\ndimension: 3\nsizes: 64 64 2\nspacings: 3.2 3.2 1.5\nendian: little\n"
+              "type: short\nencoding: raw\nspace: 3D-left-handed\ndata file: in.raw\n")
+    out("nrrd", "headsq-2slices-detached", header.encode() + b"\n#VHDATA#\n" + data)
+    # The same, 16x16x2, attached and ascii.
+    small = downsample(data, (64, 64, 2), 4, [0, 1])
+    out("nrrd", "headsq-ascii.nrrd",
+        "NRRD0004\ndimension: 3\nsizes: 16 16 2\nspacings: 12.8 12.8 1.5\ntype: short\n"
+        "encoding: ascii\nspace: left-posterior-superior\n\n" + " ".join(map(str, small)) + "\n")
+    # MR brain (256x256x25 shorts, gzip, space directions): 32x32x3, gzip, attached.
+    mr = (ds / "nrrd/mr-brain/brain1_image.nrrd").read_bytes()
+    end = mr.index(b"\n\n") + 2
+    head = mr[:end].decode()
+    vox = gzip.decompress(mr[end:])
+    small = downsample(vox, (256, 256, 25), 8, [11, 12, 13])
+    head = head.replace("sizes: 256 256 25", "sizes: 32 32 3")
+    head = head.replace("0.78124999999999989", "6.2499999999999991")
+    out("nrrd", "mr-brain-32x32x3-gzip.nrrd", head.encode() + gzip.compress(shorts_le(small), 9))
+    # The same voxels raw, big endian, RAS space, float.
+    floats = struct.pack(">%df" % len(small), *[float(v) for v in small])
+    out("nrrd", "mr-brain-float-big-ras.nrrd",
+        ("NRRD0005\ntype: float\ndimension: 3\nspace: right-anterior-superior\nsizes: 32 32 3\n"
+         "space directions: (6.25,0,0) (0,6.25,0) (0,0,6.5)\nspace units: \"mm\" \"mm\" \"mm\"\n"
+         "kinds: domain domain domain\nendian: big\nencoding: raw\n"
+         "space origin: (-99.6,-99.6,-78)\n\n").encode() + floats)
+    # Engine (256x256x128 uchar, detached gzip): 16x16x8, detached gzip.
+    eng = gzip.decompress((ds / "classic/engine/engine_256x256x128_uint8.raw.gz").read_bytes())
+    small = downsample(eng, (256, 256, 128), 16, range(0, 128, 16), dtype="B")
+    out("nrrd", "engine-16x16x8-gzip-detached",
+        b"NRRD0004\ntype: uchar\ndimension: 3\nsizes: 16 16 8\nspacings: 16 16 16\nencoding: gzip\n"
+        b"data file: in.raw\n\n#VHDATA#\n" + gzip.compress(bytes(small), 9))
+    # A 4x4x4 unsigned short volume with a data file LIST.
+    out("nrrd", "list-ushort-detached",
+        b"NRRD0004\ntype: unsigned short\ndimension: 3\nsizes: 4 4 4\nspacings: 1 1 2\n"
+        b"endian: little\nencoding: raw\nspace units: \"mm\" \"mm\" \"mm\"\ndata file: LIST\nin.raw\n"
+        b"#VHDATA#\n" + struct.pack("<64H", *range(0, 6400, 100)))
+    return small
+
+
+def metaimage_seeds(ds):
+    q = ds / "nrrd/headsq-quarter"
+    data = (q / "quarter.40").read_bytes() + (q / "quarter.41").read_bytes() + (q / "quarter.42").read_bytes()
+    small = shorts_le(downsample(data, (64, 64, 3), 4, [0, 1, 2]))
+    head = ("ObjectType = Image\nNDims = 3\nBinaryData = True\nBinaryDataByteOrderMSB = False\n"
+            "TransformMatrix = 1 0 0 0 1 0 0 0 1\nOffset = -100 -100 -60\nCenterOfRotation = 0 0 0\n"
+            "AnatomicalOrientation = RAI\nElementSpacing = 12.8 12.8 1.5\nDimSize = 16 16 3\n"
+            "ElementType = MET_SHORT\n")
+    out("metaimage", "headsq-16x16x3.mha", (head + "ElementDataFile = LOCAL\n").encode() + small)
+    comp = zlib.compress(small, 9)
+    out("metaimage", "headsq-16x16x3-zlib.mha",
+        (head.replace("BinaryData = True\n", "BinaryData = True\nCompressedData = True\n"
+                      "CompressedDataSize = %d\n" % len(comp)) + "ElementDataFile = LOCAL\n").encode() + comp)
+    out("metaimage", "oblique-uchar.mha",
+        b"ObjectType = Image\nNDims = 3\nDimSize = 4 4 4\nElementSpacing = 1 1 1\n"
+        b"TransformMatrix = 0.8 0.6 0 -0.6 0.8 0 0 0 1\nOffset = 0 0 0\nElementType = MET_UCHAR\n"
+        b"ElementDataFile = LOCAL\n" + bytes(range(0, 256, 4)))
+    out("metaimage", "float-msb.mha",
+        b"ObjectType = Image\nNDims = 3\nDimSize = 2 2 2\nElementSpacing = 0.5 0.5 0.5\n"
+        b"ElementByteOrderMSB = True\nElementType = MET_FLOAT\nElementDataFile = LOCAL\n" +
+        struct.pack(">8f", *[0.5 * i for i in range(8)]))
+
+
+def mesh_seeds(ds):
+    # Binary STL: the drill's first 60 triangles.
+    stl = (ds / "meshes/drill/drill.stl").read_bytes()
+    n = 60
+    # VTK reads text unless a byte of the start is > 127.
+    head = b"\xffbinary STL: 60 triangles cut from drill.stl".ljust(80, b" ")
+    out("mesh", "drill-60tri.stl", b"\x00" + head + struct.pack("<I", n) + stl[84:84 + 50 * n])
+    tet = [(0, 0, 0), (10, 0, 0), (0, 10, 0), (0, 0, 10)]
+    faces = [(0, 2, 1), (0, 1, 3), (0, 3, 2), (1, 2, 3)]
+    text = "solid tet\n"
+    for f in faces:
+        text += " facet normal 0 0 0\n  outer loop\n"
+        for v in f:
+            text += "   vertex %g %g %g\n" % tet[v]
+        text += "  endloop\n endfacet\n"
+    out("mesh", "tet-ascii.stl", b"\x00" + (text + "endsolid tet\n").encode())
+    # OBJ: the first 300 vertices of the dental probe and the faces that use only them.
+    lines = (ds / "meshes/dental-probe/dental_instrument.obj").read_text(errors="replace").splitlines()
+    verts = [l for l in lines if l.startswith("v ")][:300]
+    fs = []
+    for l in lines:
+        if l.startswith("f "):
+            idx = [int(t.split("/")[0]) for t in l.split()[1:]]
+            if all(0 < i <= 300 for i in idx):
+                fs.append("f " + " ".join(str(i) for i in idx))
+    out("mesh", "dental-probe-300v.obj", b"\x01" + ("\n".join(["# cut from dental_instrument.obj"] + verts + fs[:400]) + "\n").encode())
+    obj = "o tet\n" + "".join("v %g %g %g\n" % v for v in tet) + "vn 0 0 1\nvt 0 0\n" + \
+          "".join("f %d/1/1 %d/1/1 %d/1/1\n" % tuple(i + 1 for i in f) for f in faces[:3]) + \
+          "f -4 -3 -2 -1\ng part\ns 1\nusemtl none\n"
+    out("mesh", "tet-quad-negative.obj", b"\x01" + obj.encode())
+    # PLY, ascii and binary.
+    ply = ("ply\nformat ascii 1.0\ncomment tetrahedron\nelement vertex 4\nproperty float x\n"
+           "property float y\nproperty float z\nelement face 4\nproperty list uchar int vertex_indices\n"
+           "end_header\n" + "".join("%g %g %g\n" % v for v in tet) +
+           "".join("3 %d %d %d\n" % f for f in faces))
+    out("mesh", "tet-ascii.ply", b"\x02" + ply.encode())
+    binply = (b"ply\nformat binary_little_endian 1.0\nelement vertex 4\nproperty double x\n"
+              b"property double y\nproperty double z\nproperty uchar red\nelement face 4\n"
+              b"property list uchar uint vertex_indices\nend_header\n")
+    for v in tet:
+        binply += struct.pack("<dddB", *v, 200)
+    for f in faces:
+        binply += struct.pack("<BIII", 3, *f)
+    out("mesh", "tet-binary.ply", b"\x02" + binply)
+
+
+def dicom_seeds(ds):
+    d = ds / "ct/ct-head-small"
+    for name in ("CTHead1.dcm", "CTHead40.dcm"):
+        out("dicom", name, (d / name).read_bytes())
+    # A two-frame file: CTHead40 with Number of Frames (0028,0008) "2" and CTHead41's pixels.
+    b = (d / "CTHead40.dcm").read_bytes()
+    k = b.find(b"\x28\x00\x10\x00US\x02\x00")
+    b = b[:k] + b"\x28\x00\x08\x00IS\x02\x002 " + b[k:]
+    p = b.rfind(b"\xe0\x7f\x10\x00OW")
+    n = struct.unpack_from("<I", b, p + 8)[0]
+    out("dicom", "CTHead40-41-two-frames.dcm",
+        b[:p + 8] + struct.pack("<I", 2 * n) + b[p + 12:p + 12 + n] + (d / "CTHead41.dcm").read_bytes()[-n:])
+
+
+def scene_seeds():
+    for p in sorted((ROOT / "resources/scenes").glob("*.json")):
+        out("scene", p.name, p.read_bytes())
+    out("scene", "scripted-comments.json",
+        '// a scene with every section\n{"volume": {"path": "builtin:sphere", "isovalue": 0.5},\n'
+        ' /* tool */ "tool": {"mesh": "tool.stl", "scale_to_m": 1e-3, "point_count": 200,\n'
+        '  "initial_pose": {"p_m": [0, 0, 0.03], "q_wxyz": [0.7071, 0, 0.7071, 0]}},\n'
+        ' "coupling": {"linear_N_per_m": 500, "angular_Nm_per_rad": 0.5},\n'
+        ' "device": {"kind": "scripted", "trajectory": "t.csv"}}\n')
+
+
+def trajectory_seeds(trajectory):
+    if trajectory:
+        out("trajectory", "push-slide.csv", pathlib.Path(trajectory).read_bytes())
+    rows = ["t_s,x_m,y_m,z_m,qw,qx,qy,qz"]
+    for i in range(12):
+        a = 0.5 * i
+        rows.append("%g,%g,%g,%g,%g,0,0,%g" % (0.01 * i, 0.01 * math.cos(a), 0.01 * math.sin(a), 0.02,
+                                              math.cos(a / 2), math.sin(a / 2)))
+    out("trajectory", "circle.csv", "\n".join(rows) + "\n")
+    out("trajectory", "no-header-crlf.csv", "0,0,0,0.1,1,0,0,0\r\n1e-3,0,0,0.09,2,0,0,0\r\n")
+
+
+def recording_seeds(recording):
+    if not recording:
+        return
+    rec = pathlib.Path(recording).read_bytes()
+    # Append an event chunk ("EVNT", count, payload bytes, payload, CRC-32): one marker.
+    etype = b"marker"
+    detail = b'{"label":"seed"}'
+    payload = struct.pack("<dQI", 0.01, 10, len(etype)) + etype + struct.pack("<I", len(detail)) + detail
+    chunk = b"EVNT" + struct.pack("<II", 1, len(payload)) + payload
+    chunk += struct.pack("<I", zlib.crc32(chunk) & 0xFFFFFFFF)
+    out("recording", "sphere-46ticks-fixcrc", b"\x01" + rec + chunk)
+    out("recording", "sphere-46ticks-asis", b"\x00" + rec)
+    # The header and metadata only.
+    meta = struct.unpack_from("<I", rec, 16)[0]
+    out("recording", "sphere-header-only", b"\x01" + rec[:24 + meta])
+
+
+def device_seeds():
+    def report(b):
+        return bytes([len(b)]) + bytes(b)
+    t = report([1] + list(struct.pack("<hhh", 120, -40, 350)))
+    r = report([2] + list(struct.pack("<hhh", -5, 200, -350)))
+    six = report([1] + list(struct.pack("<hhhhhh", 10, 20, 30, -10, -20, -30)))
+    buttons = report([3, 0x03, 0x00]) + report([3, 0x01, 0x00, 0x00, 0x80])
+    battery = report([0x17, 87])
+    out("spacemouse", "navigator-translate-rotate", bytes([0x6D, 0x04, 0x26, 0xC6]) + t + r + t + r)
+    out("spacemouse", "wireless-six-axes-buttons-battery", bytes([0x6F, 0x25, 0x2E, 0xC6]) + six * 3 + buttons + battery)
+
+    def word(v):
+        bits = v & 0xFFFF
+        return bytes(((bits >> (4 * i)) & 0xF) + 0x41 for i in range(4))
+
+    def status(enc, homed=7, buttons=0):
+        p = b"<" + b"".join(word(e) for e in enc) + bytes([((homed << 4) | buttons) + 0x41, 0x41]) + b">"
+        return p
+
+    def transfer(serial):
+        b = b"\x31\x60" + serial  # FTDI modem status, then the serial bytes
+        return bytes([len(b)]) + b
+    packets = b"".join(status((e, -e, 2 * e)) for e in (0, 100, -100))
+    out("falcon", "status-packets", transfer(bytes([0x0A, 0x44, 0x2C, 0x0D])) + transfer(packets[:30]) + transfer(packets[30:]))
+    out("falcon", "status-junk-split", transfer(b"xx<AB" + status((1500, 1500, 1500), 3, 5)[:9]) +
+        transfer(status((1500, 1500, 1500), 3, 5)[9:] + status((-2000, 0, 2000))))
+
+
+def main():
+    ap = argparse.ArgumentParser()
+    ap.add_argument("--datasets", default=str(ROOT.parent / "shared/datasets"))
+    ap.add_argument("--recording")
+    ap.add_argument("--trajectory")
+    a = ap.parse_args()
+    ds = pathlib.Path(a.datasets)
+    dicom_seeds(ds)
+    nrrd_seeds(ds)
+    metaimage_seeds(ds)
+    mesh_seeds(ds)
+    scene_seeds()
+    trajectory_seeds(a.trajectory)
+    recording_seeds(a.recording)
+    device_seeds()
+
+
+if __name__ == "__main__":
+    main()
