@@ -2,7 +2,8 @@
 # One-command set-up for a fresh Debian 12 machine.
 #   packaging/setup.sh run [ARGS...]  install missing Debian packages, build, open the application
 #   packaging/setup.sh test           install missing Debian packages, build, run ctest
-# Environment: VH_BUILD_DIR (default build), VH_JOBS (default nproc).
+# Environment: VH_BUILD_DIR (default build), VH_FUZZ_BUILD_DIR (default build-fuzz), VH_JOBS
+# (default nproc).
 set -euo pipefail
 here="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 mode="${1:-test}"; shift || true
@@ -14,6 +15,8 @@ packages=(cmake ninja-build g++ pkg-config libeigen3-dev libgtest-dev libgmock-d
   libbenchmark-dev nlohmann-json3-dev libcli11-dev libvtk9-dev libvtk-dicom-dev
   qt6-base-dev libqt6opengl6-dev qt6-charts-dev libhidapi-dev libusb-1.0-0-dev
   zlib1g-dev zstd xvfb xauth libgl1-mesa-dri umockdev libumockdev-dev)
+# test also builds the fuzz targets (tests/fuzz/ci.sh): clang and its libFuzzer / sanitizer runtimes.
+if [[ $mode == test ]]; then packages+=(clang libclang-rt-14-dev); fi
 missing=()
 for p in "${packages[@]}"; do
   dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
@@ -32,6 +35,8 @@ case "$mode" in
   test)
     cd "$build_dir"
     ctest --output-on-failure -j "$jobs" --timeout 1500
+    # Fuzz targets (clang, their own build folder), each briefly on the committed corpus.
+    VH_JOBS="$jobs" bash "$here/tests/fuzz/ci.sh" "${VH_FUZZ_BUILD_DIR:-$here/build-fuzz}"
     ;;
   run)
     app="$build_dir/app/volume-haptics"
