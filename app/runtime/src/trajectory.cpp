@@ -159,7 +159,7 @@ Trajectory parseTrajectoryCsv(std::istream& in, const std::string& source_name) 
     s.t_s = v[0];
     s.X_WD.p_AB_m = Eigen::Vector3d(v[1], v[2], v[3]);
     s.X_WD.R_AB = Eigen::Quaterniond(v[4], v[5], v[6], v[7]);
-    const double norm = s.X_WD.R_AB.norm();
+    const double norm = s.X_WD.R_AB.coeffs().stableNorm();  // no overflow to inf for huge components
     if (!(norm > 1e-9)) fail("zero quaternion (qw, qx, qy, qz all 0)");
     s.X_WD.R_AB.coeffs() /= norm;
     if (!samples.empty() && !(s.t_s > samples.back().t_s)) {
