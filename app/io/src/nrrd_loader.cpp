@@ -175,7 +175,7 @@ NrrdHeader readHeader(const fs::path& path) {
   NrrdHeader h;
   std::string line;
   std::uintmax_t offset = 0;
-  if (!std::getline(in, line) || line.rfind("NRRD000", 0) != 0) {
+  if (!std::getline(in, line) || line.rfind("NRRD000", 0) != 0 || line.find('\0') != std::string::npos) {
     fail(path, "not a NRRD file (the first line is not \"NRRD000x\")");
   }
   offset += line.size() + 1;
@@ -191,6 +191,7 @@ NrrdHeader readHeader(const fs::path& path) {
     if (line.size() > kMaxLine || line_no > kMaxLines) {
       fail(path, "malformed NRRD header (line " + std::to_string(line_no) + " is too long)");
     }
+    if (line.find('\0') != std::string::npos) fail(path, "malformed NRRD header (a NUL byte in line " + std::to_string(line_no) + ")");  // vtkNrrdReader 9.1 loops forever on one
     if (!line.empty() && line.back() == '\r') line.pop_back();
     if (in_list) {
       const std::string name = trim(line);
