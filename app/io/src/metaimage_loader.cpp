@@ -42,6 +42,7 @@ MetaHeader readHeader(const fs::path& path) {
       fail(path, "malformed MetaImage header line " + std::to_string(line_no) + ": \"" + line +
                      "\"");
     }
+    if (eq > 200) fail(path, "malformed MetaImage header line " + std::to_string(line_no) + " (a key of over 200 characters)");  // vtkmetaio copies keys into 255 bytes
     const std::string key = trim(line.substr(0, eq));
     h.fields[key] = trim(line.substr(eq + 1));
     if (key == "ElementDataFile") {
