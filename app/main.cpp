@@ -91,6 +91,12 @@ int main(int argc, char** argv) {
   run->add_option("--trajectory", run_trajectory, "Trajectory CSV: t_s,x_m,y_m,z_m,qw,qx,qy,qz")->required();
   run->add_option("--report", run_report, "Write the JSON report here");
   run->add_option("--isovalue", run_isovalue, "Override the scene's isovalue");
+  std::optional<std::string> run_series;
+  std::optional<int> run_phase;
+  run->add_option("--series", run_series,
+                  "DICOM folder: the series to load (number, Series Instance UID or text of its description); default: the scene's, else the largest");
+  run->add_option("--phase", run_phase, "4-D DICOM series: the time point (phase, echo) to load, 0-based")
+      ->check(CLI::NonNegativeNumber);
   std::string run_trace;
   run->add_option("--trace", run_trace, "Also write one CSV row per tick (poses, force, contacts, time, depth)");
   std::string run_record;
@@ -170,7 +176,12 @@ int main(int argc, char** argv) {
         spec.volume.isovalue = *run_isovalue;
         spec.volume.isovalue_set = true;
       }
+      if (run_series) spec.volume.series = *run_series;
+      if (run_phase) spec.volume.phase = *run_phase;
       vh::runtime::RunOptions run_options;
+      run_options.on_notice = [](const std::string& notice) {
+        std::cerr << "volume-haptics run: warning: " << notice << std::endl;
+      };
       run_options.trace_csv = run_trace;
       run_options.record = run_record;
       run_options.verify_step_voxels = run_verify_step;

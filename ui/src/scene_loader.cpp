@@ -26,10 +26,9 @@ std::string displayName(const runtime::SceneSpec& spec, const fs::path& opened) 
 
 }  // namespace
 
-runtime::LoadedScene loadSceneDefault(const runtime::SceneSpec& spec, const std::function<void(double)>& /*progress*/,
-                                      const std::atomic<bool>* /*cancel*/) {
-  // Once runtime offers loadScene(spec, progress, cancel), pass them on here.
-  return runtime::loadScene(spec);
+runtime::LoadedScene loadSceneDefault(const runtime::SceneSpec& spec, const std::function<void(double)>& progress,
+                                      const std::atomic<bool>* cancel) {
+  return runtime::loadScene(spec, progress, cancel);
 }
 
 void SceneLoader::setSceneLoadFunction(SceneLoadFunction load) { load_scene_ = std::move(load); }

@@ -219,6 +219,11 @@ LoadedVolume finishVolume(RawVolume raw, const fs::path& path) {
     fail(path, e.what());
   }
   const bool keep_image = !voxels.converted && raw.value_scale == 1.0 && raw.value_offset == 0.0;
+  vtkSmartPointer<vtkDataArray> kept_scalars = keep_image ? scalars : nullptr;
+  // The reader's voxels are in the field now: release them before the rendering image is made
+  // (issue 14: a 1 GB scan peaks at two copies of its voxels, not three).
+  scalars = nullptr;
+  raw.image = nullptr;
 
   auto field = std::make_shared<haptics::ScalarVolume>();
   try {
@@ -236,8 +241,8 @@ LoadedVolume finishVolume(RawVolume raw, const fs::path& path) {
     const auto& g = field->geometry();
     out.image->SetSpacing(g.spacing_m.x(), g.spacing_m.y(), g.spacing_m.z());
     out.image->SetOrigin(g.origin_W_m.x(), g.origin_W_m.y(), g.origin_W_m.z());
-    if (scalars->GetName() == nullptr) scalars->SetName("values");
-    out.image->GetPointData()->SetScalars(scalars);
+    if (kept_scalars->GetName() == nullptr) kept_scalars->SetName("values");
+    out.image->GetPointData()->SetScalars(kept_scalars);
   } else {
     out.image = imageFromField(*field);
   }

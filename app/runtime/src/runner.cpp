@@ -40,6 +40,7 @@ RunReport runHeadless(const LoadedScene& scene, const Trajectory& trajectory, co
   RunReport r;
   r.scene = scene.spec.source.empty() ? std::string("builtin") : scene.spec.source.string();
   r.volume = scene.spec.volume.path;
+  r.volume_notices = scene.volume.info.notices;
   r.volume_dims = volume.geometry().dims;
   r.volume_spacing_m = volume.geometry().spacing_m;
   r.isovalue = s;
@@ -215,6 +216,9 @@ RunReport runHeadless(const LoadedScene& scene, const Trajectory& trajectory, co
 RunReport runHeadless(const SceneSpec& scene, const std::filesystem::path& trajectory_csv, const RunOptions& options) {
   const Trajectory trajectory = loadTrajectoryCsv(trajectory_csv);
   const LoadedScene loaded = loadScene(scene);
+  if (options.on_notice) {
+    for (const std::string& notice : loaded.volume.info.notices) options.on_notice(notice);
+  }
   RunReport report = runHeadless(loaded, trajectory, options);
   report.trajectory = trajectory_csv.string();
   return report;
@@ -225,6 +229,7 @@ std::string RunReport::toJson() const {
   j["scene"] = scene;
   j["trajectory"] = trajectory;
   j["volume"] = volume;
+  j["volume_notices"] = volume_notices;
   j["volume_dims"] = volume_dims;
   j["volume_spacing_m"] = {volume_spacing_m.x(), volume_spacing_m.y(), volume_spacing_m.z()};
   j["isovalue"] = isovalue;

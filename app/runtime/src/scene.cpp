@@ -96,6 +96,19 @@ class ObjectReader {
     }
     return static_cast<std::size_t>(v.get<long long>());
   }
+  /// A string, or an integer given as a number (a DICOM series number).
+  std::string stringOrInteger(const char* key) const {
+    const json& v = at(key);
+    if (v.is_number_integer()) return std::to_string(v.get<long long>());
+    return string(key);
+  }
+  std::size_t index(const char* key) const {
+    const json& v = at(key);
+    if (!v.is_number_integer() || v.get<long long>() < 0 || v.get<long long>() > 1000000) {
+      fail(fieldPath(key), "expected an integer >= 0, found " + v.dump());
+    }
+    return static_cast<std::size_t>(v.get<long long>());
+  }
   template <int N>
   Eigen::Matrix<double, N, 1> vector(const char* key) const {
     const json& v = at(key);
@@ -207,12 +220,14 @@ SceneSpec parseScene(const std::string& json_text, const std::string& source, co
   spec.source = source;
 
   const ObjectReader volume = top.object("volume");
-  volume.allowOnly({"path", "isovalue"});
+  volume.allowOnly({"path", "isovalue", "series", "phase"});
   spec.volume.path = resolveDataPath(volume, "path", volume.string("path"), base_dir);
   if (volume.has("isovalue")) {
     spec.volume.isovalue = volume.number("isovalue");
     spec.volume.isovalue_set = true;
   }
+  if (volume.has("series")) spec.volume.series = volume.stringOrInteger("series");
+  if (volume.has("phase")) spec.volume.phase = static_cast<int>(volume.index("phase"));
 
   if (top.has("tool")) {
     const ObjectReader tool = top.object("tool");
@@ -332,7 +347,10 @@ SceneSpec sceneForVolume(const fs::path& volume_path) {
 
 // ---- Loading -------------------------------------------------------------------------------
 
-LoadedScene loadScene(const SceneSpec& spec) {
+LoadedScene loadScene(const SceneSpec& spec) { return loadScene(spec, {}, nullptr); }
+
+LoadedScene loadScene(const SceneSpec& spec, const std::function<void(double)>& progress,
+                      const std::atomic<bool>* cancel) {
   const std::string where = spec.source.empty() ? std::string("scene") : spec.source.string();
   LoadedScene scene;
   scene.spec = spec;
@@ -352,7 +370,12 @@ LoadedScene loadScene(const SceneSpec& spec) {
     scene.volume.info.format = "synthetic";
     scene.volume.info.description = name;
   } else {
-    scene.volume = io::loadVolume(spec.volume.path);
+    io::VolumeLoadOptions options;
+    options.dicom_series = spec.volume.series;
+    options.dicom_phase = spec.volume.phase;
+    options.progress = progress;
+    options.cancel = cancel;
+    scene.volume = io::loadVolume(spec.volume.path, options);
     // CT in HU: bone (400 HU) is what a clinician feels first; otherwise midway.
     const auto* f = scene.volume.field.get();
     if (scene.volume.info.value_unit == "HU" && f->minValue() < 400.0 && f->maxValue() > 400.0) scene.isovalue = 400.0;

@@ -181,6 +181,10 @@ std::string makeSessionMetadata(const LoadedScene& scene, const SessionInfo& inf
   json sc;
   sc["source"] = spec.source.string();
   sc["volume"] = {{"path", spec.volume.path}, {"isovalue", scene.isovalue}};
+  // The series as loaded, by its UID (the folder may hold others), and the time point.
+  const std::string series = scene.volume.info.series_uid.empty() ? spec.volume.series : scene.volume.info.series_uid;
+  if (!series.empty()) sc["volume"]["series"] = series;
+  if (scene.volume.info.phase_count > 1 || spec.volume.phase != 0) sc["volume"]["phase"] = scene.volume.info.phase;
   sc["tool"] = {{"mesh", spec.tool.mesh},
                 {"scale_to_m", spec.tool.scale_to_m},
                 {"point_spacing_m", spec.tool.point_spacing_m},
@@ -202,6 +206,13 @@ std::string makeSessionMetadata(const LoadedScene& scene, const SessionInfo& inf
   ds["modality"] = scene.volume.info.modality;
   ds["value_unit"] = scene.volume.info.value_unit;
   ds["description"] = scene.volume.info.description;
+  if (!scene.volume.info.series_uid.empty()) {
+    ds["series_uid"] = scene.volume.info.series_uid;
+    ds["series_number"] = scene.volume.info.series_number;
+  }
+  if (scene.volume.info.phase_count > 1) ds["phase"] = {scene.volume.info.phase, scene.volume.info.phase_count};
+  // What the loader corrected or chose ("resampled from a gantry tilt of 18.5 deg", gaps...).
+  ds["notices"] = scene.volume.info.notices;
   ds["sha256"] = checksum.sha256;
   ds["checksum_files"] = checksum.files;
   j["dataset"] = ds;
@@ -235,6 +246,8 @@ SceneSpec sceneFromSessionMetadata(const std::string& metadata_json) {
     spec.volume.path = sc.at("volume").at("path").get<std::string>();
     spec.volume.isovalue = sc.at("volume").at("isovalue").get<double>();
     spec.volume.isovalue_set = true;
+    spec.volume.series = sc.at("volume").value("series", std::string());
+    spec.volume.phase = sc.at("volume").value("phase", 0);
     const json& tool = sc.at("tool");
     spec.tool.mesh = tool.at("mesh").get<std::string>();
     spec.tool.scale_to_m = tool.at("scale_to_m").get<double>();

@@ -128,4 +128,35 @@ TEST(Cli, MakeTrajectoryThenRunWithoutADisplay) {
 }
 
 }  // namespace
+TEST(Cli, RunOnAGappedSeriesWarnsAndGoesOn) {
+  // Issue 14: a CT series with a missing slice opens; the headless run says where the gap is.
+  const fs::path head = test::sharedDatasets() / "ct" / "ct-head-small";
+  if (!fs::exists(head)) GTEST_SKIP() << "shared dataset missing: " << head;
+  const fs::path dir = test::scratchDir();
+  const fs::path series = dir / "gapped";
+  fs::create_directories(series);
+  for (const auto& e : fs::directory_iterator(head)) {
+    if (e.path().filename() != "CTHead50.dcm") fs::copy_file(e.path(), series / e.path().filename());
+  }
+  const fs::path scene = test::writeText(dir / "s.json", "{\"volume\": {\"path\": " + nlohmann::json(series.string()).dump() + "}}");
+  const fs::path csv = test::writeText(dir / "t.csv", "0,0,0,0.4,1,0,0,0\n0.01,0,0,0.4,1,0,0,0\n");
+  const fs::path report = dir / "report.json";
+  const ProcessResult ran = runApp("run --verify-step 0 --no-lag-reference --scene " + quoted(scene) +
+                                   " --trajectory " + quoted(csv) + " --report " + quoted(report));
+  ASSERT_EQ(ran.exit_code, 0) << ran.output;
+  EXPECT_NE(ran.output.find("volume-haptics run: warning: missing slice"), std::string::npos) << ran.output;
+  EXPECT_NE(ran.output.find("CTHead49.dcm"), std::string::npos) << ran.output;
+  EXPECT_NE(ran.output.find("CTHead51.dcm"), std::string::npos) << ran.output;
+  std::ifstream in(report);
+  const nlohmann::json j = nlohmann::json::parse(in);
+  ASSERT_FALSE(j["volume_notices"].empty());
+  EXPECT_EQ(j["volume_dims"][2].get<int>(), 93);
+
+  // A series the folder does not hold is an error that lists what it holds.
+  const ProcessResult wrong = runApp("run --series lung --verify-step 0 --no-lag-reference --scene " + quoted(scene) +
+                                     " --trajectory " + quoted(csv));
+  EXPECT_NE(wrong.exit_code, 0) << wrong.output;
+  EXPECT_NE(wrong.output.find("no series matches 'lung'"), std::string::npos) << wrong.output;
+}
+
 }  // namespace vh::runtime

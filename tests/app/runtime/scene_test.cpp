@@ -51,6 +51,20 @@ TEST(SceneFile, ParsesEveryField) {
   EXPECT_EQ(fs::path(spec.device->trajectory), fs::absolute(dir / "traj.csv").lexically_normal());
 }
 
+TEST(SceneFile, SeriesAndPhaseOfADicomFolder) {
+  const fs::path dir = scratchDir();
+  SceneSpec spec = loadSceneFile(writeText(dir / "a.json", R"({"volume": {"path": "builtin:plane", "series": "BONE", "phase": 2}})"));
+  EXPECT_EQ(spec.volume.series, "BONE");
+  EXPECT_EQ(spec.volume.phase, 2);
+  spec = loadSceneFile(writeText(dir / "b.json", R"({"volume": {"path": "builtin:plane", "series": 3}})"));
+  EXPECT_EQ(spec.volume.series, "3");
+  EXPECT_EQ(spec.volume.phase, 0);
+  EXPECT_THROW(loadSceneFile(writeText(dir / "c.json", R"({"volume": {"path": "builtin:plane", "phase": -1}})")),
+               std::runtime_error);
+  EXPECT_THROW(loadSceneFile(writeText(dir / "d.json", R"({"volume": {"path": "builtin:plane", "series": ""}})")),
+               std::runtime_error);
+}
+
 TEST(SceneFile, DefaultsAndNoDeviceMeansNoHapticThread) {
   const fs::path dir = scratchDir();
   const SceneSpec spec = loadSceneFile(writeText(dir / "s.json", R"({"volume": {"path": "builtin:plane"}})"));

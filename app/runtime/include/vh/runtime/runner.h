@@ -14,8 +14,10 @@
 #include <array>
 #include <cstdint>
 #include <filesystem>
+#include <functional>
 #include <span>
 #include <string>
+#include <vector>
 
 #include <Eigen/Core>
 
@@ -47,6 +49,9 @@ struct RunOptions {
   /// without it (outside the timed section) and report how far and how long the budgeted proxy
   /// was from it. Off: the lag fields are -1.
   bool lag_reference = true;
+  /// When set, called once per loader notice as soon as the scene is loaded (the headless
+  /// command prints them as warnings and goes on).
+  std::function<void(const std::string&)> on_notice;
 };
 
 /// The work budget's price (issue 13): how far a budgeted proxy is from an unbudgeted one driven
@@ -71,6 +76,9 @@ struct RunReport {
   std::string scene;                     ///< Scene file (or "builtin ...").
   std::string trajectory;                ///< Trajectory file (or "generated").
   std::string volume;                    ///< Volume path or built-in name.
+  /// What the loader corrected or chose (io::VolumeInfo::notices): a gantry tilt resampled,
+  /// missing slices filled, which series of a folder was taken.
+  std::vector<std::string> volume_notices;
   std::array<int, 3> volume_dims{0, 0, 0};
   Eigen::Vector3d volume_spacing_m = Eigen::Vector3d::Zero();
   double isovalue = 0.0;                 ///< Data units.

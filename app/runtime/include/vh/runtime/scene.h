@@ -5,7 +5,8 @@
 ///
 /// Example:
 /// {
-///   "volume": {"path": "ct/philips-head-phantom-bone", "isovalue": 400},
+///   "volume": {"path": "ct/philips-head-phantom-bone", "isovalue": 400,
+///              "series": "BONE", "phase": 0},          // both optional (DICOM folders)
 ///   "tool": {"mesh": "meshes/drill/drill.stl", "scale_to_m": 0.00044,
 ///            "point_spacing_m": 0.001,            // or "point_count": 500
 ///            "initial_pose": {"p_m": [0, 0, 0.1], "q_wxyz": [1, 0, 0, 0]}},
@@ -25,6 +26,7 @@
 /// "q_wxyz" (the tool keeps that orientation and is placed automatically). Every other key is
 /// an error (typos are caught), as are unreadable or missing referenced files.
 
+#include <atomic>
 #include <filesystem>
 #include <functional>
 #include <memory>
@@ -46,6 +48,10 @@ struct VolumeSpec {
   std::string path;          ///< File, DICOM folder, or "builtin:block-with-hole" etc.
   double isovalue = 0.0;     ///< In the data's units (HU for CT).
   bool isovalue_set = false; ///< False: from the data (400 HU, bone, for CT in HU; else midway).
+  /// DICOM folder: which series (io::VolumeLoadOptions::dicom_series: a series number, a
+  /// Series Instance UID or text of the description); empty = the largest that loads.
+  std::string series;
+  int phase = 0;             ///< 4-D DICOM series: the time point (phase, echo), 0-based.
 };
 
 struct ToolSpec {
@@ -170,5 +176,10 @@ struct LoadedScene {
 /// @throws io::LoadError for volume/mesh files that fail to load; std::runtime_error naming the
 ///         scene for unknown built-ins or an unusable tool.
 LoadedScene loadScene(const SceneSpec& spec);
+/// loadScene() with the volume read's progress (0..1, from the calling thread) and a cancel
+/// flag (io::VolumeLoadOptions).
+/// @throws io::LoadCancelled when `cancel` became true during the read; else as loadScene().
+LoadedScene loadScene(const SceneSpec& spec, const std::function<void(double fraction)>& progress,
+                      const std::atomic<bool>* cancel);
 
 }  // namespace vh::runtime
