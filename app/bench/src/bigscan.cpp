@@ -13,7 +13,7 @@
 //
 // The loads run in fresh child processes (this binary re-executed with the hidden
 // `--child load|cancel`, started with posix_spawn so that none of the parent's memory is
-// copied): their peak resident memory (VmHWM, read by the child) is the loader's alone.
+// copied): their peak resident memory is sampled together with the DICOM worker they start.
 #include <sys/resource.h>
 #include <sys/wait.h>
 #include <spawn.h>
@@ -23,7 +23,9 @@
 #include <algorithm>
 #include <array>
 #include <atomic>
+#include <atomic>
 #include <chrono>
+#include <thread>
 #include <cmath>
 #include <cstdint>
 #include <cstdio>
@@ -91,6 +93,51 @@ double procStatusBytes(const char* key) {
   }
   return -1.0;
 }
+
+/// Resident memory [bytes] of this process plus its child processes (a DICOM worker), from
+/// /proc/self/status and /proc/PID/status of the pids in /proc/self/task/*/children.
+double residentWithChildren() {
+  double total = procStatusBytes("VmRSS");
+  std::error_code ec;
+  for (const auto& task : std::filesystem::directory_iterator("/proc/self/task", ec)) {
+    std::ifstream children(task.path() / "children");
+    int pid = 0;
+    while (children >> pid) {
+      std::ifstream status("/proc/" + std::to_string(pid) + "/status");
+      std::string line;
+      while (std::getline(status, line)) {
+        if (line.rfind("VmRSS:", 0) == 0) total += 1024.0 * std::atof(line.c_str() + 6);
+      }
+    }
+  }
+  return total;
+}
+
+/// Samples residentWithChildren() every 5 ms on a thread of its own; peak() is the largest seen:
+/// the memory the load held at one time, the loader's worker process included.
+class ConcurrentPeak {
+ public:
+  ConcurrentPeak() : thread_([this] {
+      while (!stop_.load()) {
+        const double now = residentWithChildren();
+        double old = peak_.load();
+        while (now > old && !peak_.compare_exchange_weak(old, now)) {
+        }
+        std::this_thread::sleep_for(std::chrono::milliseconds(5));
+      }
+    }) {}
+  ~ConcurrentPeak() { stopNow(); }
+  double stopNow() {
+    stop_ = true;
+    if (thread_.joinable()) thread_.join();
+    return peak_.load();
+  }
+
+ private:
+  std::atomic<bool> stop_{false};
+  std::atomic<double> peak_{0.0};
+  std::thread thread_;
+};
 
 double gib(double bytes) { return bytes / (1024.0 * 1024.0 * 1024.0); }
 double mib(double bytes) { return bytes / (1024.0 * 1024.0); }
@@ -351,8 +398,10 @@ int childLoad(const BigScanOptions& options) {
   io::VolumeLoadOptions lo;
   lo.progress = [&](double f) { printer(f, "load"); };
   const auto t0 = std::chrono::steady_clock::now();
+  ConcurrentPeak sampler;
   io::LoadedVolume v = io::loadVolume(options.series_dir, lo);
   r["load_s"] = seconds(t0);
+  r["peak_concurrent_bytes"] = sampler.stopNow();
   r["peak_rss_bytes"] = procStatusBytes("VmHWM");
   r["rss_after_load_bytes"] = procStatusBytes("VmRSS");
   // Processes the loader itself started and waited for (a DICOM reading worker, issue 15), if
@@ -713,7 +762,11 @@ fs::path runBigScan(const BigScanOptions& options) {
   std::cout << "bench bigscan: loading " << series.nx << " x " << series.ny << " x " << series.nz
             << " in a fresh process (io::loadVolume) ..." << std::endl;
   nlohmann::json load = runChild("load", o);
-  const double peak = load["peak_rss_bytes"].get<double>() + load["loader_children_peak_rss_bytes"].get<double>();
+  // The sum of the two processes' peaks bounds the memory from above (reported); the measure is
+  // the sampled peak of both together (the application waits for its worker to end before it
+  // takes the voxels, so the two peaks do not coincide), but never below this process's own.
+  load["peak_sum_bytes"] = load["peak_rss_bytes"].get<double>() + load["loader_children_peak_rss_bytes"].get<double>();
+  const double peak = std::max(load["peak_concurrent_bytes"].get<double>(), load["peak_rss_bytes"].get<double>());
   load["peak_total_bytes"] = peak;
   const double ratio = peak / voxel_bytes;
   load["peak_over_voxel_bytes"] = ratio;
@@ -747,15 +800,20 @@ fs::path runBigScan(const BigScanOptions& options) {
      << " GiB), generated from the Philips head phantom (0.5 mm slices interpolated between its 1 mm ones, mirrored "
         "along the stack, its top at the top); "
      << (series.generated ? format("written in %.1f s this run", series.generate_s) : std::string("reused"))
-     << ". Loads in fresh child processes; peak memory: the child's VmHWM plus the peak of the processes the "
-        "loader started (issue 15's DICOM worker; the sum bounds the memory in use at any one time). Tick times: "
+     << ". Loads in fresh child processes; peak memory: the child and the processes the loader started (issue "
+        "15's DICOM worker) together, sampled every 5 ms, and never below the child's own VmHWM (the loader waits "
+        "for its worker to end before it takes the voxels, so their peaks do not coincide; the sum of the two is "
+        "given as a bound). Tick times: "
         "the CPU-time columns are the ones to read on a shared machine (a preempted tick inflates the wall time).\n\n";
   md << "| what | value |\n|---|---|\n";
   md << "| voxel bytes | " << format("%.0f MiB", mib(voxel_bytes)) << " |\n";
   md << "| load time (io::loadVolume) | " << format("%.2f s", ld["load_s"].get<double>()) << " |\n";
-  md << "| peak resident memory (VmHWM" << (ld["loader_children_peak_rss_bytes"].get<double>() > 0.0
-                                                ? " + the loader's worker process's peak" : "")
-     << ") | " << format("%.0f MiB", mib(peak)) << " |\n";
+  md << "| peak resident memory, this process and its DICOM worker together (sampled every 5 ms; at least VmHWM) | "
+     << format("%.0f MiB", mib(peak)) << " |\n";
+  md << "| peaks of each: the loading process (VmHWM) / the DICOM worker (ru_maxrss); their sum | "
+     << format("%.0f / %.0f MiB; %.0f MiB", mib(ld["peak_rss_bytes"].get<double>()),
+               mib(ld["loader_children_peak_rss_bytes"].get<double>()), mib(ld["peak_sum_bytes"].get<double>()))
+     << " |\n";
   md << "| peak / voxel bytes (target <= 2.5) | " << format("%.2f", ratio) << (ratio <= 2.5 ? " (met)" : " (NOT MET)")
      << " |\n";
   md << "| peak minus the child's resident memory before the load (" << format("%.0f MiB", mib(ld["rss_before_bytes"].get<double>()))
