@@ -84,9 +84,11 @@ void readGeometry(const vtkSmartPointer<vtkStringArray>& files, DicomSeriesInfo&
 
 }  // namespace
 
-std::vector<DicomSeriesInfo> listDicomSeries(const fs::path& folder,
-                                             const std::function<void(int, int)>& progress,
-                                             const std::atomic<bool>* cancel) {
+namespace detail {
+
+std::vector<DicomSeriesInfo> listDicomSeriesInProcess(const fs::path& folder,
+                                                      const std::function<void(int, int)>& progress,
+                                                      const std::atomic<bool>* cancel) {
   detail::VtkErrorCapture capture;
   const vtkSmartPointer<vtkDICOMDirectory> directory = scanFolder(folder, capture);
   const int n_series = directory->GetNumberOfSeries();
@@ -147,6 +149,8 @@ std::vector<DicomSeriesInfo> listDicomSeries(const fs::path& folder,
   }
   return out;
 }
+
+}  // namespace detail
 
 LoadedVolume loadDicomSeries(const DicomSeriesInfo& series) {
   if (series.files.empty()) {

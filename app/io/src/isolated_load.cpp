@@ -36,6 +36,7 @@
 #include <vtkSmartPointer.h>
 
 #include "loader_internal.h"
+#include "vh/io/dicom_series.h"
 #include "vh/io/dicom_worker.h"
 #include "vtk_error_capture.h"
 
@@ -126,6 +127,48 @@ detail::RawVolume readRaw(const fs::path& in, const fs::path& source) {
     detail::fail(source, std::string("the DICOM worker's output is unreadable: ") + e.what());
   }
   return raw;
+}
+
+json seriesToJson(const DicomSeriesInfo& i) {
+  std::vector<std::string> files;
+  for (const auto& f : i.files) files.push_back(f.string());
+  return {{"folder", i.folder.string()},
+          {"index", i.index},
+          {"patient_name", i.patient_name},
+          {"patient_id", i.patient_id},
+          {"study_description", i.study_description},
+          {"study_date", i.study_date},
+          {"series_description", i.series_description},
+          {"series_uid", i.series_uid},
+          {"series_number", i.series_number},
+          {"modality", i.modality},
+          {"file_count", i.file_count},
+          {"slice_count", i.slice_count},
+          {"rows", i.rows},
+          {"columns", i.columns},
+          {"spacing_mm", toJson(i.spacing_mm)},
+          {"files", files}};
+}
+
+DicomSeriesInfo seriesFromJson(const json& j) {
+  DicomSeriesInfo i;
+  i.folder = j.at("folder").get<std::string>();
+  i.index = j.at("index").get<int>();
+  i.patient_name = j.at("patient_name").get<std::string>();
+  i.patient_id = j.at("patient_id").get<std::string>();
+  i.study_description = j.at("study_description").get<std::string>();
+  i.study_date = j.at("study_date").get<std::string>();
+  i.series_description = j.at("series_description").get<std::string>();
+  i.series_uid = j.at("series_uid").get<std::string>();
+  i.series_number = j.at("series_number").get<int>();
+  i.modality = j.at("modality").get<std::string>();
+  i.file_count = j.at("file_count").get<int>();
+  i.slice_count = j.at("slice_count").get<int>();
+  i.rows = j.at("rows").get<int>();
+  i.columns = j.at("columns").get<int>();
+  i.spacing_mm = vec(j.at("spacing_mm"));
+  for (const auto& f : j.at("files")) i.files.emplace_back(f.get<std::string>());
+  return i;
 }
 
 /// A running worker with its stdout.
@@ -248,6 +291,58 @@ fs::path dicomWorkerPath() {
   return {};
 }
 
+std::vector<DicomSeriesInfo> listDicomSeries(const fs::path& folder, const std::function<void(int, int)>& progress,
+                                             const std::atomic<bool>* cancel) {
+  const fs::path worker = dicomWorkerPath();
+  if (worker.empty()) return detail::listDicomSeriesInProcess(folder, progress, cancel);
+  std::error_code ec;
+  const fs::path out = fs::temp_directory_path(ec) /
+                       ("vh-dicom-list-" + std::to_string(getpid()) + "-" + std::to_string(g_out_counter++) + ".json");
+  struct RemoveOnExit {
+    fs::path p;
+    ~RemoveOnExit() {
+      std::error_code e;
+      fs::remove(p, e);
+    }
+  } remove_out{out};
+  Worker run({worker.string(), "list", fs::absolute(folder, ec).string(), out.string()});
+  std::string line, error;
+  bool stopped = false;
+  while (run.readLine(line, 50)) {
+    if (cancel != nullptr && cancel->load(std::memory_order_relaxed)) {
+      run.kill9();
+      stopped = true;
+      break;
+    }
+    int done = 0, total = 0;
+    if (std::sscanf(line.c_str(), "progress %d %d", &done, &total) == 2) {
+      if (progress) progress(done, total);
+    } else if (line.rfind("error ", 0) == 0) {
+      error = line.substr(6);
+    }
+  }
+  if (stopped) return {};
+  const int status = run.wait();
+  if (WIFSIGNALED(status)) {
+    const std::string file = findCrashingFile(worker, folder);
+    detail::fail(folder, "the DICOM reader crashed (" + signalName(WTERMSIG(status)) + ")" +
+                             (file.empty() ? std::string(" listing the folder") : " on " + file) +
+                             ": a damaged file");
+  }
+  if (WEXITSTATUS(status) != 0) {
+    if (!error.empty()) throw LoadError(error);
+    detail::fail(folder, "the DICOM worker failed (exit status " + std::to_string(WEXITSTATUS(status)) + ")");
+  }
+  std::vector<DicomSeriesInfo> series;
+  try {
+    std::ifstream in(out);
+    for (const auto& j : json::parse(in)) series.push_back(seriesFromJson(j));
+  } catch (const json::exception& e) {
+    detail::fail(folder, std::string("the DICOM worker's series list is unreadable: ") + e.what());
+  }
+  return series;
+}
+
 namespace detail {
 
 LoadedVolume loadDicom(const fs::path& path, const VolumeLoadOptions& options) {
@@ -311,7 +406,8 @@ LoadedVolume loadDicom(const fs::path& path, const VolumeLoadOptions& options) {
 }  // namespace detail
 
 int runDicomWorker(int argc, char** argv) {
-  const std::string usage = "usage: volume-haptics-dicom-worker load PATH OUT [--series S] [--phase N] | probe PATH";
+  const std::string usage =
+      "usage: volume-haptics-dicom-worker load PATH OUT [--series S] [--phase N] | list FOLDER OUT | probe PATH";
   if (argc < 3) {
     std::cerr << usage << std::endl;
     return 2;
@@ -342,6 +438,22 @@ int runDicomWorker(int argc, char** argv) {
       parser->SetFileName(f.string().c_str());
       parser->Update();
       std::cout << "ok" << std::endl;
+    }
+    return 0;
+  }
+  if (mode == "list" && argc >= 4) {
+    try {
+      const auto series = detail::listDicomSeriesInProcess(path, [](int done, int total) {
+        std::cout << "progress " << done << " " << total << std::endl;
+      }, nullptr);
+      json list = json::array();
+      for (const auto& i : series) list.push_back(seriesToJson(i));
+      std::ofstream(argv[3]) << list.dump(-1, ' ', false, json::error_handler_t::replace);
+    } catch (const std::exception& e) {
+      std::string message = e.what();
+      std::replace(message.begin(), message.end(), '\n', ' ');
+      std::cout << "error " << message << std::endl;
+      return 1;
     }
     return 0;
   }

@@ -13,6 +13,7 @@
 #include <vtkSmartPointer.h>
 
 #include "vh/haptics/scalar_volume.h"
+#include "vh/io/dicom_series.h"
 #include "vh/io/volume_loader.h"
 
 class vtkImageData;
@@ -46,6 +47,11 @@ inline constexpr int kDicomScanDepth = 4;
 /// loadDicom() reads in a worker process when one is available (isolated_load.cpp: a parser
 /// crash cannot take the application down), else in this process through loadDicomRaw().
 LoadedVolume loadDicom(const fs::path& path, const VolumeLoadOptions& options);
+/// listDicomSeries() in this process (the worker's "list"; see dicom_series.h).
+std::vector<DicomSeriesInfo> listDicomSeriesInProcess(const fs::path& folder,
+                                                      const std::function<void(int, int)>& progress,
+                                                      const std::atomic<bool>* cancel);
+
 /// The DICOM read itself, in this process: the series chosen, regularised, not yet converted.
 RawVolume loadDicomRaw(const fs::path& path, const VolumeLoadOptions& options);
 LoadedVolume loadNrrd(const fs::path& path);

@@ -14,6 +14,7 @@
 #include <vtkImageData.h>
 
 #include "io_test_support.h"
+#include "vh/io/dicom_series.h"
 #include "vh/io/dicom_worker.h"
 #include "vh/io/volume_loader.h"
 
@@ -86,6 +87,29 @@ TEST(DicomIsolation, AWorkerCrashNamesTheFileAndLoadsNothing) {
   const std::string msg = loadErrorOf([&] { loadVolume(head); });
   EXPECT_CONTAINS(msg, "the DICOM reader crashed (SIGSEGV) on " + (head / "CTHead8.dcm").string());
   EXPECT_CONTAINS(msg, "nothing was loaded");
+}
+
+TEST(DicomIsolation, ListingSeriesRunsInTheWorkerToo) {
+  VH_REQUIRE_SHARED(phantom, "ct/philips-head-phantom-bone");
+  ASSERT_FALSE(dicomWorkerPath().empty());
+  int last_done = -1, last_total = -1;
+  const auto listed = listDicomSeries(phantom, [&](int done, int total) {
+    last_done = done;
+    last_total = total;
+  });
+  ASSERT_EQ(listed.size(), 1u);
+  EXPECT_EQ(last_done, last_total);
+  EXPECT_EQ(listed[0].slice_count, 140);
+  EXPECT_EQ(listed[0].files.size(), 140u);
+  EXPECT_FALSE(listed[0].series_uid.empty());
+  // The stand-in worker that crashes: the listing names the file.
+  TempDir tmp("crash_list");
+  const fs::path script = tmp / "worker.sh";
+  writeFile(script, "#!/bin/sh\nif [ \"$1\" = probe ]; then echo \"file $2/I10\"; fi\nkill -SEGV $$\n");
+  fs::permissions(script, fs::perms::owner_all);
+  ScopedEnv env("VH_DICOM_WORKER", script.string());
+  const std::string msg = loadErrorOf([&] { listDicomSeries(phantom); });
+  EXPECT_CONTAINS(msg, "the DICOM reader crashed (SIGSEGV) on " + (phantom / "I10").string());
 }
 
 TEST(DicomIsolation, CancellingKillsTheWorkerAtOnce) {
