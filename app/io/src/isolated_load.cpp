@@ -19,6 +19,8 @@
 
 #include <algorithm>
 #include <array>
+#include <cmath>
+#include <cstdint>
 #include <atomic>
 #include <cerrno>
 #include <cstdio>
@@ -291,6 +293,56 @@ fs::path dicomWorkerPath() {
   return {};
 }
 
+haptics::TriangleMesh loadMesh(const fs::path& path, double scale_to_m) {
+  const fs::path worker = dicomWorkerPath();
+  if (worker.empty() || !(scale_to_m > 0.0) || !std::isfinite(scale_to_m)) {
+    return detail::loadMeshInProcess(path, scale_to_m);  // also names a bad scale
+  }
+  std::error_code ec;
+  const fs::path out = fs::temp_directory_path(ec) /
+                       ("vh-mesh-" + std::to_string(getpid()) + "-" + std::to_string(g_out_counter++) + ".bin");
+  struct RemoveOnExit {
+    fs::path p;
+    ~RemoveOnExit() {
+      std::error_code e;
+      fs::remove(p, e);
+    }
+  } remove_out{out};
+  std::ostringstream scale;
+  scale.precision(17);
+  scale << scale_to_m;
+  Worker run({worker.string(), "mesh", fs::absolute(path, ec).string(), out.string(), scale.str()});
+  std::string line, error;
+  while (run.readLine(line, 1000)) {
+    if (line.rfind("error ", 0) == 0) error = line.substr(6);
+  }
+  const int status = run.wait();
+  if (WIFSIGNALED(status)) {
+    detail::fail(path, "the mesh reader crashed (" + signalName(WTERMSIG(status)) + "): a damaged file; nothing was loaded");
+  }
+  if (WEXITSTATUS(status) != 0) {
+    if (!error.empty()) throw LoadError(error);
+    detail::fail(path, "the mesh worker failed (exit status " + std::to_string(WEXITSTATUS(status)) + ")");
+  }
+  std::ifstream in(out, std::ios::binary);
+  std::uint64_t nv = 0, nt = 0;
+  in.read(reinterpret_cast<char*>(&nv), sizeof(nv));
+  in.read(reinterpret_cast<char*>(&nt), sizeof(nt));
+  if (!in || nv > (1ull << 31) || nt > (1ull << 31)) detail::fail(path, "the mesh worker's output is unreadable");
+  haptics::TriangleMesh mesh;
+  mesh.vertices_T_m.resize(nv);
+  mesh.triangles.resize(nt);
+  for (auto& v : mesh.vertices_T_m) in.read(reinterpret_cast<char*>(v.data()), 3 * sizeof(double));
+  for (auto& t : mesh.triangles) in.read(reinterpret_cast<char*>(t.data()), 3 * sizeof(int));
+  if (!in) detail::fail(path, "the mesh worker's output is cut short");
+  for (const auto& t : mesh.triangles) {
+    for (int v : t) {
+      if (v < 0 || static_cast<std::uint64_t>(v) >= nv) detail::fail(path, "the mesh worker's output is inconsistent");
+    }
+  }
+  return mesh;
+}
+
 std::vector<DicomSeriesInfo> listDicomSeries(const fs::path& folder, const std::function<void(int, int)>& progress,
                                              const std::atomic<bool>* cancel) {
   const fs::path worker = dicomWorkerPath();
@@ -407,7 +459,8 @@ LoadedVolume loadDicom(const fs::path& path, const VolumeLoadOptions& options) {
 
 int runDicomWorker(int argc, char** argv) {
   const std::string usage =
-      "usage: volume-haptics-dicom-worker load PATH OUT [--series S] [--phase N] | list FOLDER OUT | probe PATH";
+      "usage: volume-haptics-dicom-worker load PATH OUT [--series S] [--phase N] | list FOLDER OUT | mesh PATH OUT "
+      "SCALE | probe PATH";
   if (argc < 3) {
     std::cerr << usage << std::endl;
     return 2;
@@ -438,6 +491,24 @@ int runDicomWorker(int argc, char** argv) {
       parser->SetFileName(f.string().c_str());
       parser->Update();
       std::cout << "ok" << std::endl;
+    }
+    return 0;
+  }
+  if (mode == "mesh" && argc >= 5) {
+    try {
+      const haptics::TriangleMesh mesh = detail::loadMeshInProcess(path, std::strtod(argv[4], nullptr));
+      std::ofstream f(argv[3], std::ios::binary);
+      const std::uint64_t nv = mesh.vertices_T_m.size(), nt = mesh.triangles.size();
+      f.write(reinterpret_cast<const char*>(&nv), sizeof(nv));
+      f.write(reinterpret_cast<const char*>(&nt), sizeof(nt));
+      for (const auto& v : mesh.vertices_T_m) f.write(reinterpret_cast<const char*>(v.data()), 3 * sizeof(double));
+      for (const auto& t : mesh.triangles) f.write(reinterpret_cast<const char*>(t.data()), 3 * sizeof(int));
+      if (!f) throw LoadError(path.string() + ": cannot hand the mesh back (disk full?)");
+    } catch (const std::exception& e) {
+      std::string message = e.what();
+      std::replace(message.begin(), message.end(), '\n', ' ');
+      std::cout << "error " << message << std::endl;
+      return 1;
     }
     return 0;
   }

@@ -47,6 +47,10 @@ inline constexpr int kDicomScanDepth = 4;
 /// loadDicom() reads in a worker process when one is available (isolated_load.cpp: a parser
 /// crash cannot take the application down), else in this process through loadDicomRaw().
 LoadedVolume loadDicom(const fs::path& path, const VolumeLoadOptions& options);
+/// loadMesh() in this process (the worker's "mesh"; VTK's mesh readers crash on some damaged
+/// files: see tests/fuzz/known-crashes).
+haptics::TriangleMesh loadMeshInProcess(const fs::path& path, double scale_to_m);
+
 /// listDicomSeries() in this process (the worker's "list"; see dicom_series.h).
 std::vector<DicomSeriesInfo> listDicomSeriesInProcess(const fs::path& folder,
                                                       const std::function<void(int, int)>& progress,

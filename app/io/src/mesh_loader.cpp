@@ -21,7 +21,7 @@
 
 namespace vh::io {
 
-haptics::TriangleMesh loadMesh(const std::filesystem::path& path, double scale_to_m) {
+haptics::TriangleMesh detail::loadMeshInProcess(const std::filesystem::path& path, double scale_to_m) {
   namespace fs = std::filesystem;
   using detail::fail;
   if (!(scale_to_m > 0.0) || !std::isfinite(scale_to_m)) {

@@ -112,6 +112,27 @@ TEST(DicomIsolation, ListingSeriesRunsInTheWorkerToo) {
   EXPECT_CONTAINS(msg, "the DICOM reader crashed (SIGSEGV) on " + (phantom / "I10").string());
 }
 
+TEST(DicomIsolation, MeshesThatCrashVtkReadersAreRefusedNotFatal) {
+  // Inputs the fuzzing campaign found to crash VTK 9.1's OBJ and PLY readers in process
+  // (tests/fuzz/known-crashes/mesh); through the worker each is a LoadError.
+  ASSERT_FALSE(dicomWorkerPath().empty());
+  const fs::path known = fs::path(VH_SOURCE_DIR) / "tests" / "fuzz" / "known-crashes" / "mesh";
+  if (!fs::exists(known)) GTEST_SKIP() << "no known crashes in " << known;
+  TempDir tmp("crash_meshes");
+  int tried = 0;
+  for (const auto& e : fs::directory_iterator(known)) {
+    const std::string name = e.path().filename().string();
+    if (name.find("oom") != std::string::npos) continue;  // allocation bombs: bounded elsewhere
+    const std::string ext = name.substr(0, 3);
+    const fs::path copy = tmp / (name + "." + ext);
+    fs::copy_file(e.path(), copy);
+    const std::string msg = loadErrorOf([&] { loadMesh(copy, 0.001); });
+    EXPECT_CONTAINS(msg, copy.string());
+    ++tried;
+  }
+  EXPECT_GE(tried, 4);
+}
+
 TEST(DicomIsolation, CancellingKillsTheWorkerAtOnce) {
   VH_REQUIRE_SHARED(phantom, "ct/philips-head-phantom-bone");
   std::atomic<bool> cancel{false};

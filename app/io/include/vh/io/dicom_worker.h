@@ -18,7 +18,8 @@ std::filesystem::path dicomWorkerPath();
 /// The worker's main(): `load PATH OUT [--series S] [--phase N]` reads PATH in this process and
 /// writes the voxels and geometry to OUT, printing "progress F" lines and "error MESSAGE" on a
 /// LoadError (exit status 1); `list FOLDER OUT` writes listDicomSeries() as JSON, printing
-/// "progress DONE TOTAL" lines; `probe PATH` parses each file of PATH alone, printing
+/// "progress DONE TOTAL" lines; `mesh PATH OUT SCALE` reads a tool mesh (VTK's mesh readers
+/// crash on some damaged files too) and writes its vertices and triangles; `probe PATH` parses each file of PATH alone, printing
 /// "file NAME" before and "ok" after each (a crash names the file).
 /// @return the process exit status.
 int runDicomWorker(int argc, char** argv);

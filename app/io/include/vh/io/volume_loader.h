@@ -104,7 +104,10 @@ struct LoadedVolume {
 LoadedVolume loadVolume(const std::filesystem::path& path, const VolumeLoadOptions& options = {});
 
 /// Loads a triangle mesh (STL, OBJ, PLY), triangulated, coordinates multiplied by `scale_to_m`.
-/// @throws LoadError for a missing or unreadable file, or a mesh with no triangles.
+/// Read in the worker process when it is found (dicom_worker.h): VTK 9.1's PLY and OBJ readers
+/// crash on some damaged files (tests/fuzz/known-crashes), which then becomes a LoadError.
+/// @throws LoadError for a missing or unreadable file, a mesh with no triangles, or a reader
+///         crash.
 haptics::TriangleMesh loadMesh(const std::filesystem::path& path, double scale_to_m = 1.0);
 
 /// A vtkImageData (metres, no direction) over the voxels of a field, e.g. for synthetic
