@@ -275,6 +275,52 @@ std::string findCrashingFile(const fs::path& worker, const fs::path& path) {
 
 std::atomic<int> g_out_counter{0};
 
+/// A temporary file for a worker's output, removed again when it goes out of scope.
+class WorkerOutput {
+ public:
+  explicit WorkerOutput(const char* kind) {
+    std::error_code ec;
+    path_ = fs::temp_directory_path(ec) /
+            ("vh-" + std::string(kind) + "-" + std::to_string(getpid()) + "-" + std::to_string(g_out_counter++));
+  }
+  ~WorkerOutput() {
+    std::error_code ec;
+    fs::remove(path_, ec);
+  }
+  WorkerOutput(const WorkerOutput&) = delete;
+  WorkerOutput& operator=(const WorkerOutput&) = delete;
+  const fs::path& path() const { return path_; }
+
+ private:
+  fs::path path_;
+};
+
+/// Runs the worker to its end. `on_line` sees each line it prints but its "error MESSAGE";
+/// `cancel` set kills it at once (returns false). A crash throws the LoadError that
+/// `crash_problem(signal name)` describes (naming `named`); a failure throws the worker's
+/// error message, else one naming `named` and the exit status.
+bool runWorker(const std::vector<std::string>& args, const fs::path& named, int poll_ms,
+               const std::function<void(const std::string&)>& on_line, const std::atomic<bool>* cancel,
+               const std::function<std::string(const std::string&)>& crash_problem) {
+  Worker run(args);
+  std::string line, error;
+  while (run.readLine(line, poll_ms)) {
+    if (cancel != nullptr && cancel->load(std::memory_order_relaxed)) {
+      run.kill9();
+      return false;
+    }
+    if (line.rfind("error ", 0) == 0) error = line.substr(6);
+    else if (!line.empty() && on_line) on_line(line);
+  }
+  const int status = run.wait();
+  if (WIFSIGNALED(status)) detail::fail(named, crash_problem(signalName(WTERMSIG(status))));
+  if (WEXITSTATUS(status) != 0) {
+    if (!error.empty()) throw LoadError(error);
+    detail::fail(named, "the worker " + args[0] + " failed (exit status " + std::to_string(WEXITSTATUS(status)) + ")");
+  }
+  return true;
+}
+
 }  // namespace
 
 fs::path dicomWorkerPath() {
@@ -299,32 +345,15 @@ haptics::TriangleMesh loadMesh(const fs::path& path, double scale_to_m) {
     return detail::loadMeshInProcess(path, scale_to_m);  // also names a bad scale
   }
   std::error_code ec;
-  const fs::path out = fs::temp_directory_path(ec) /
-                       ("vh-mesh-" + std::to_string(getpid()) + "-" + std::to_string(g_out_counter++) + ".bin");
-  struct RemoveOnExit {
-    fs::path p;
-    ~RemoveOnExit() {
-      std::error_code e;
-      fs::remove(p, e);
-    }
-  } remove_out{out};
+  const WorkerOutput out("mesh");
   std::ostringstream scale;
   scale.precision(17);
   scale << scale_to_m;
-  Worker run({worker.string(), "mesh", fs::absolute(path, ec).string(), out.string(), scale.str()});
-  std::string line, error;
-  while (run.readLine(line, 1000)) {
-    if (line.rfind("error ", 0) == 0) error = line.substr(6);
-  }
-  const int status = run.wait();
-  if (WIFSIGNALED(status)) {
-    detail::fail(path, "the mesh reader crashed (" + signalName(WTERMSIG(status)) + "): a damaged file; nothing was loaded");
-  }
-  if (WEXITSTATUS(status) != 0) {
-    if (!error.empty()) throw LoadError(error);
-    detail::fail(path, "the mesh worker failed (exit status " + std::to_string(WEXITSTATUS(status)) + ")");
-  }
-  std::ifstream in(out, std::ios::binary);
+  runWorker({worker.string(), "mesh", fs::absolute(path, ec).string(), out.path().string(), scale.str()}, path, 1000,
+            {}, nullptr, [](const std::string& signal) {
+              return "the mesh reader crashed (" + signal + "): a damaged file; nothing was loaded";
+            });
+  std::ifstream in(out.path(), std::ios::binary);
   std::uint64_t nv = 0, nt = 0;
   in.read(reinterpret_cast<char*>(&nv), sizeof(nv));
   in.read(reinterpret_cast<char*>(&nt), sizeof(nt));
@@ -348,46 +377,22 @@ std::vector<DicomSeriesInfo> listDicomSeries(const fs::path& folder, const std::
   const fs::path worker = dicomWorkerPath();
   if (worker.empty()) return detail::listDicomSeriesInProcess(folder, progress, cancel);
   std::error_code ec;
-  const fs::path out = fs::temp_directory_path(ec) /
-                       ("vh-dicom-list-" + std::to_string(getpid()) + "-" + std::to_string(g_out_counter++) + ".json");
-  struct RemoveOnExit {
-    fs::path p;
-    ~RemoveOnExit() {
-      std::error_code e;
-      fs::remove(p, e);
-    }
-  } remove_out{out};
-  Worker run({worker.string(), "list", fs::absolute(folder, ec).string(), out.string()});
-  std::string line, error;
-  bool stopped = false;
-  while (run.readLine(line, 50)) {
-    if (cancel != nullptr && cancel->load(std::memory_order_relaxed)) {
-      run.kill9();
-      stopped = true;
-      break;
-    }
+  const WorkerOutput out("dicom-list");
+  const auto on_line = [&](const std::string& line) {
     int done = 0, total = 0;
-    if (std::sscanf(line.c_str(), "progress %d %d", &done, &total) == 2) {
-      if (progress) progress(done, total);
-    } else if (line.rfind("error ", 0) == 0) {
-      error = line.substr(6);
-    }
-  }
-  if (stopped) return {};
-  const int status = run.wait();
-  if (WIFSIGNALED(status)) {
-    const std::string file = findCrashingFile(worker, folder);
-    detail::fail(folder, "the DICOM reader crashed (" + signalName(WTERMSIG(status)) + ")" +
-                             (file.empty() ? std::string(" listing the folder") : " on " + file) +
-                             ": a damaged file");
-  }
-  if (WEXITSTATUS(status) != 0) {
-    if (!error.empty()) throw LoadError(error);
-    detail::fail(folder, "the DICOM worker failed (exit status " + std::to_string(WEXITSTATUS(status)) + ")");
-  }
+    if (progress && std::sscanf(line.c_str(), "progress %d %d", &done, &total) == 2) progress(done, total);
+  };
+  const bool finished = runWorker({worker.string(), "list", fs::absolute(folder, ec).string(), out.path().string()},
+                                  folder, 50, on_line, cancel, [&](const std::string& signal) {
+                                    const std::string file = findCrashingFile(worker, folder);
+                                    return "the DICOM reader crashed (" + signal + ")" +
+                                           (file.empty() ? std::string(" listing the folder") : " on " + file) +
+                                           ": a damaged file";
+                                  });
+  if (!finished) return {};
   std::vector<DicomSeriesInfo> series;
   try {
-    std::ifstream in(out);
+    std::ifstream in(out.path());
     for (const auto& j : json::parse(in)) series.push_back(seriesFromJson(j));
   } catch (const json::exception& e) {
     detail::fail(folder, std::string("the DICOM worker's series list is unreadable: ") + e.what());
@@ -411,46 +416,20 @@ LoadedVolume loadDicom(const fs::path& path, const VolumeLoadOptions& options) {
     return finishVolume(std::move(raw), path);
   }
   std::error_code ec;
-  const fs::path out = fs::temp_directory_path(ec) /
-                       ("vh-dicom-" + std::to_string(getpid()) + "-" + std::to_string(g_out_counter++) + ".raw");
-  struct RemoveOnExit {
-    fs::path p;
-    ~RemoveOnExit() {
-      std::error_code e;
-      fs::remove(p, e);
-    }
-  } remove_out{out};
-  std::vector<std::string> args = {worker.string(), "load", fs::absolute(path, ec).string(), out.string()};
+  const WorkerOutput out("dicom");
+  std::vector<std::string> args = {worker.string(), "load", fs::absolute(path, ec).string(), out.path().string()};
   if (!options.dicom_series.empty()) args.insert(args.end(), {"--series", options.dicom_series});
   if (options.dicom_phase != 0) args.insert(args.end(), {"--phase", std::to_string(options.dicom_phase)});
-  Worker run(args);
-  std::string line, error;
-  const auto is_cancelled = [&] { return options.cancel != nullptr && options.cancel->load(std::memory_order_relaxed); };
-  while (run.readLine(line, 50)) {
-    if (is_cancelled()) {
-      run.kill9();
-      throw LoadCancelled(path.string() + ": loading cancelled");
-    }
-    if (line.rfind("progress ", 0) == 0) {
-      if (options.progress) options.progress(0.9 * std::strtod(line.c_str() + 9, nullptr));
-    } else if (line.rfind("error ", 0) == 0) {
-      error = line.substr(6);
-    } else if (line == "cancelled") {
-      error = "cancelled";
-    }
-  }
-  const int status = run.wait();
-  if (WIFSIGNALED(status)) {
+  const auto on_line = [&](const std::string& line) {
+    if (line.rfind("progress ", 0) == 0 && options.progress) options.progress(0.9 * std::strtod(line.c_str() + 9, nullptr));
+  };
+  const bool finished = runWorker(args, path, 50, on_line, options.cancel, [&](const std::string& signal) {
     const std::string file = findCrashingFile(worker, path);
-    fail(path, "the DICOM reader crashed (" + signalName(WTERMSIG(status)) + ")" +
-                   (file.empty() ? std::string(" reading the series") : " on " + file) +
-                   ": a damaged file; nothing was loaded");
-  }
-  if (WEXITSTATUS(status) != 0) {
-    if (!error.empty()) throw LoadError(error);
-    fail(path, "the DICOM worker failed (exit status " + std::to_string(WEXITSTATUS(status)) + ")");
-  }
-  RawVolume raw = readRaw(out, path);
+    return "the DICOM reader crashed (" + signal + ")" +
+           (file.empty() ? std::string(" reading the series") : " on " + file) + ": a damaged file; nothing was loaded";
+  });
+  if (!finished) throw LoadCancelled(path.string() + ": loading cancelled");
+  RawVolume raw = readRaw(out.path(), path);
   if (options.progress) options.progress(0.95);
   return finishVolume(std::move(raw), path);
 }
