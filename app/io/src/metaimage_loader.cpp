@@ -97,7 +97,7 @@ LoadedVolume loadMetaImage(const fs::path& path) {
   if (dim_size.size() != 3) fail(path, "MetaImage DimSize must list 3 sizes");
   std::uintmax_t voxel_count = 1;
   for (double d : dim_size) {
-    if (!(d >= 1.0)) fail(path, "MetaImage DimSize has an invalid size");
+    if (!(d >= 1.0 && d <= 1048576.0)) fail(path, "MetaImage DimSize has an invalid size");  // also keeps the cast and the product in range
     voxel_count *= static_cast<std::uintmax_t>(d);
   }
   const std::string type = get(h, "ElementType");
