@@ -220,11 +220,7 @@ fs::path runAccuracy(const CommonOptions& options) {
         haptics::makeToolModel(datasets::makeSphereMesh(kToolRadius_m, 4), po));
   }
 
-  nlohmann::ordered_json report;
-  report["benchmark"] = "accuracy";
-  report["date_utc"] = utcNow();
-  report["cpu_model"] = cpuModel();
-  report["short"] = short_run;
+  nlohmann::ordered_json report = reportHeader("accuracy", short_run);
   report["ticks_per_run"] = ticks;
   report["tool"] = "ball, radius 4 mm";
   report["push_depth_m"] = kPush_m;

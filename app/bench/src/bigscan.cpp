@@ -718,17 +718,7 @@ fs::path runBigScan(const BigScanOptions& options) {
   BigScanOptions o = options;
   if (o.series_dir.empty()) o.series_dir = defaultOutputDir() / "bigscan" / format("series-512x512x%d", nz);
 
-  nlohmann::ordered_json report;
-  report["benchmark"] = "bigscan";
-  report["date_utc"] = utcNow();
-  report["cpu_model"] = cpuModel();
-  report["cpus"] = cpuCount();
-#ifdef NDEBUG
-  report["build"] = "release (NDEBUG)";
-#else
-  report["build"] = "debug (assertions on)";
-#endif
-  report["short"] = short_run;
+  nlohmann::ordered_json report = reportHeader("bigscan", short_run);
   std::ostringstream md;
   md << "## Big scans (`volume-haptics bench bigscan" << (short_run ? " --short" : "") << "`)\n\n";
 

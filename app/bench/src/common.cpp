@@ -99,4 +99,19 @@ bool displayAvailable() {
   return d != nullptr && *d != '\0';
 }
 
+nlohmann::ordered_json reportHeader(const std::string& benchmark, bool short_run) {
+  nlohmann::ordered_json report;
+  report["benchmark"] = benchmark;
+  report["date_utc"] = utcNow();
+  report["cpu_model"] = cpuModel();
+  report["cpus"] = cpuCount();
+#ifdef NDEBUG
+  report["build"] = "release (NDEBUG)";
+#else
+  report["build"] = "debug (assertions on)";
+#endif
+  report["short"] = short_run;
+  return report;
+}
+
 }  // namespace vh::bench::detail

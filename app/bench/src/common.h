@@ -27,6 +27,9 @@ std::string cpuModel();
 unsigned cpuCount();
 /// UTC time now, ISO 8601 ("2026-11-21T17:45:00Z").
 using runtime::utcNow;
+/// The start of every benchmark's JSON report: its name, the date, the machine (CPU model and
+/// count), the build type and whether it is the short run.
+nlohmann::ordered_json reportHeader(const std::string& benchmark, bool short_run);
 /// The output folder for a benchmark (created). @throws std::runtime_error when it cannot be.
 std::filesystem::path outputDir(const CommonOptions& options, const std::string& name);
 /// Writes text to a file. @throws std::runtime_error naming the file.

@@ -343,11 +343,7 @@ std::string judge(const ExtremeCase& c, const CaseResult& r) {
 fs::path runStability(const CommonOptions& options) {
   const fs::path out = outputDir(options, "stability");
   const bool short_run = options.short_run;
-  nlohmann::ordered_json report;
-  report["benchmark"] = "stability";
-  report["date_utc"] = utcNow();
-  report["cpu_model"] = cpuModel();
-  report["short"] = short_run;
+  nlohmann::ordered_json report = reportHeader("stability", short_run);
   report["verify_step_voxels"] = kVerifyStepVoxels;
 
   // --- Stiffness sweep --------------------------------------------------------------------

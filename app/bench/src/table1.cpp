@@ -543,17 +543,7 @@ fs::path runTable1(const Table1Options& options) {
     defs = {*it};
   }
 
-  nlohmann::ordered_json report;
-  report["benchmark"] = "table1";
-  report["date_utc"] = utcNow();
-  report["cpu_model"] = cpuModel();
-  report["cpus"] = cpuCount();
-#ifdef NDEBUG
-  report["build"] = "release (NDEBUG)";
-#else
-  report["build"] = "debug (assertions on)";
-#endif
-  report["short"] = short_run;
+  nlohmann::ordered_json report = reportHeader("table1", short_run);
   report["ticks_per_run"] = ticks;
   report["servo_rate_Hz"] = 1000.0;
   std::vector<std::string> mode_names, mode_labels;
