@@ -56,6 +56,87 @@ constexpr char kWorkerName[] = "volume-haptics-dicom-worker";
 json toJson(const Eigen::Vector3d& v) { return {v.x(), v.y(), v.z()}; }
 Eigen::Vector3d vec(const json& j) { return {j.at(0).get<double>(), j.at(1).get<double>(), j.at(2).get<double>()}; }
 
+json infoToJson(const VolumeInfo& i) {
+  return {{"format", i.format},           {"modality", i.modality},         {"value_unit", i.value_unit},
+          {"description", i.description}, {"patient_name", i.patient_name}, {"series_uid", i.series_uid},
+          {"series_number", i.series_number}, {"phase", i.phase},           {"phase_count", i.phase_count},
+          {"notices", i.notices}};
+}
+
+VolumeInfo infoFromJson(const json& i) {
+  VolumeInfo info;
+  info.format = i.at("format").get<std::string>();
+  info.modality = i.at("modality").get<std::string>();
+  info.value_unit = i.at("value_unit").get<std::string>();
+  info.description = i.at("description").get<std::string>();
+  info.patient_name = i.at("patient_name").get<std::string>();
+  info.series_uid = i.at("series_uid").get<std::string>();
+  info.series_number = i.at("series_number").get<int>();
+  info.phase = i.at("phase").get<int>();
+  info.phase_count = i.at("phase_count").get<int>();
+  info.notices = i.at("notices").get<std::vector<std::string>>();
+  return info;
+}
+
+/// A loaded field (NRRD, MetaImage read in the worker): header as in writeRaw, then its bytes.
+void writeField(const haptics::ScalarVolume& field, const VolumeInfo& info, const fs::path& out) {
+  const auto& g = field.geometry();
+  json h;
+  h["dims"] = g.dims;
+  h["voxel_type"] = static_cast<int>(field.voxelType());
+  h["spacing_m"] = toJson(g.spacing_m);
+  h["origin_W_m"] = toJson(g.origin_W_m);
+  h["direction_W"] = {toJson(g.direction_W.col(0)), toJson(g.direction_W.col(1)), toJson(g.direction_W.col(2))};
+  h["value_scale"] = field.valueScale();
+  h["value_offset"] = field.valueOffset();
+  h["info"] = infoToJson(info);
+  const std::string header = h.dump(-1, ' ', false, json::error_handler_t::replace);
+  std::ofstream f(out, std::ios::binary);
+  const std::uint64_t n = header.size();
+  f.write(kMagic, sizeof(kMagic) - 1);
+  f.write(reinterpret_cast<const char*>(&n), sizeof(n));
+  f.write(header.data(), static_cast<std::streamsize>(header.size()));
+  f.write(reinterpret_cast<const char*>(field.bytes().data()), static_cast<std::streamsize>(field.bytes().size()));
+  if (!f) throw LoadError(out.string() + ": cannot write the loaded volume (disk full?)");
+}
+
+LoadedVolume readField(const fs::path& in, const fs::path& source) {
+  std::ifstream f(in, std::ios::binary);
+  char magic[sizeof(kMagic) - 1];
+  std::uint64_t n = 0;
+  f.read(magic, sizeof(magic));
+  f.read(reinterpret_cast<char*>(&n), sizeof(n));
+  if (!f || std::memcmp(magic, kMagic, sizeof(magic)) != 0 || n > (1u << 26)) {
+    detail::fail(source, "the reader worker's output is unreadable");
+  }
+  std::string header(n, '\0');
+  f.read(header.data(), static_cast<std::streamsize>(n));
+  LoadedVolume out;
+  try {
+    const json h = json::parse(header);
+    haptics::VolumeGeometry g;
+    g.dims = h.at("dims").get<std::array<int, 3>>();
+    g.spacing_m = vec(h.at("spacing_m"));
+    g.origin_W_m = vec(h.at("origin_W_m"));
+    for (int c = 0; c < 3; ++c) g.direction_W.col(c) = vec(h.at("direction_W").at(c));
+    const auto type = static_cast<haptics::VoxelType>(h.at("voxel_type").get<int>());
+    std::vector<std::byte> bytes(g.voxelCount() * haptics::voxelTypeSize(type));
+    f.read(reinterpret_cast<char*>(bytes.data()), static_cast<std::streamsize>(bytes.size()));
+    if (static_cast<std::size_t>(f.gcount()) != bytes.size()) detail::fail(source, "the reader worker's output is cut short");
+    auto field = std::make_shared<haptics::ScalarVolume>(haptics::ScalarVolume::FromBytes(
+        g, type, std::move(bytes), h.at("value_scale").get<double>(), h.at("value_offset").get<double>()));
+    out.image = imageFromField(*field);
+    out.field = std::move(field);
+    out.info = infoFromJson(h.at("info"));
+    out.info.source = source;
+  } catch (const json::exception& e) {
+    detail::fail(source, std::string("the reader worker's output is unreadable: ") + e.what());
+  } catch (const std::invalid_argument& e) {
+    detail::fail(source, std::string("the reader worker's output is invalid: ") + e.what());
+  }
+  return out;
+}
+
 void writeRaw(const detail::RawVolume& raw, const fs::path& out) {
   int dims[3];
   raw.image->GetDimensions(dims);
@@ -71,11 +152,7 @@ void writeRaw(const detail::RawVolume& raw, const fs::path& out) {
                       toJson(raw.geometry.direction_W.col(2))};
   h["value_scale"] = raw.value_scale;
   h["value_offset"] = raw.value_offset;
-  const VolumeInfo& i = raw.info;
-  h["info"] = {{"format", i.format},         {"modality", i.modality},           {"value_unit", i.value_unit},
-               {"description", i.description}, {"patient_name", i.patient_name}, {"series_uid", i.series_uid},
-               {"series_number", i.series_number}, {"phase", i.phase}, {"phase_count", i.phase_count},
-               {"notices", i.notices}};
+  h["info"] = infoToJson(raw.info);
   const std::string header = h.dump(-1, ' ', false, json::error_handler_t::replace);
   std::ofstream f(out, std::ios::binary);
   const std::uint64_t n = header.size();
@@ -114,17 +191,7 @@ detail::RawVolume readRaw(const fs::path& in, const fs::path& source) {
     for (int c = 0; c < 3; ++c) raw.geometry.direction_W.col(c) = vec(h.at("direction_W").at(c));
     raw.value_scale = h.at("value_scale").get<double>();
     raw.value_offset = h.at("value_offset").get<double>();
-    const json& i = h.at("info");
-    raw.info.format = i.at("format").get<std::string>();
-    raw.info.modality = i.at("modality").get<std::string>();
-    raw.info.value_unit = i.at("value_unit").get<std::string>();
-    raw.info.description = i.at("description").get<std::string>();
-    raw.info.patient_name = i.at("patient_name").get<std::string>();
-    raw.info.series_uid = i.at("series_uid").get<std::string>();
-    raw.info.series_number = i.at("series_number").get<int>();
-    raw.info.phase = i.at("phase").get<int>();
-    raw.info.phase_count = i.at("phase_count").get<int>();
-    raw.info.notices = i.at("notices").get<std::vector<std::string>>();
+    raw.info = infoFromJson(h.at("info"));
   } catch (const json::exception& e) {
     detail::fail(source, std::string("the DICOM worker's output is unreadable: ") + e.what());
   }
@@ -182,6 +249,9 @@ class Worker {
     posix_spawn_file_actions_t actions;
     posix_spawn_file_actions_init(&actions);
     posix_spawn_file_actions_adddup2(&actions, fds[1], STDOUT_FILENO);
+    // A crashing reader's last words (glibc's "*** buffer overflow detected ***", VTK text that
+    // escaped the capture) are not the user's console's: the crash itself is reported.
+    posix_spawn_file_actions_addopen(&actions, STDERR_FILENO, "/dev/null", O_WRONLY, 0);
     std::vector<char*> argv;
     for (const auto& a : args) argv.push_back(const_cast<char*>(a.c_str()));
     argv.push_back(nullptr);
@@ -402,6 +472,25 @@ std::vector<DicomSeriesInfo> listDicomSeries(const fs::path& folder, const std::
 
 namespace detail {
 
+LoadedVolume loadFileIsolated(const fs::path& path, const VolumeLoadOptions& options,
+                              const std::function<LoadedVolume()>& in_process) {
+  const fs::path worker = options.dicom_isolation == DicomIsolation::kInProcess ? fs::path() : dicomWorkerPath();
+  if (worker.empty()) {
+    if (options.dicom_isolation == DicomIsolation::kWorker) {
+      fail(path, std::string("the reader worker program (") + kWorkerName + ") was not found");
+    }
+    return in_process();
+  }
+  std::error_code ec;
+  const WorkerOutput out("volume");
+  const bool finished = runWorker({worker.string(), "volume", fs::absolute(path, ec).string(), out.path().string()},
+                                  path, 50, {}, options.cancel, [](const std::string& signal) {
+                                    return "the volume reader crashed (" + signal + "): a damaged file; nothing was loaded";
+                                  });
+  if (!finished) throw LoadCancelled(path.string() + ": loading cancelled");
+  return readField(out.path(), path);
+}
+
 LoadedVolume loadDicom(const fs::path& path, const VolumeLoadOptions& options) {
   const fs::path worker = options.dicom_isolation == DicomIsolation::kInProcess ? fs::path() : dicomWorkerPath();
   if (worker.empty()) {
@@ -438,7 +527,7 @@ LoadedVolume loadDicom(const fs::path& path, const VolumeLoadOptions& options) {
 
 int runDicomWorker(int argc, char** argv) {
   const std::string usage =
-      "usage: volume-haptics-dicom-worker load PATH OUT [--series S] [--phase N] | list FOLDER OUT | mesh PATH OUT "
+      "usage: volume-haptics-dicom-worker load PATH OUT [--series S] [--phase N] | volume FILE OUT | list FOLDER OUT | mesh PATH OUT "
       "SCALE | probe PATH";
   if (argc < 3) {
     std::cerr << usage << std::endl;
@@ -470,6 +559,20 @@ int runDicomWorker(int argc, char** argv) {
       parser->SetFileName(f.string().c_str());
       parser->Update();
       std::cout << "ok" << std::endl;
+    }
+    return 0;
+  }
+  if (mode == "volume" && argc >= 4) {
+    try {
+      VolumeLoadOptions in_process;
+      in_process.dicom_isolation = DicomIsolation::kInProcess;
+      const LoadedVolume v = loadVolume(path, in_process);
+      writeField(*v.field, v.info, argv[3]);
+    } catch (const std::exception& e) {
+      std::string message = e.what();
+      std::replace(message.begin(), message.end(), '\n', ' ');
+      std::cout << "error " << message << std::endl;
+      return 1;
     }
     return 0;
   }

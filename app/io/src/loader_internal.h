@@ -4,6 +4,7 @@
 
 #include <cstdint>
 #include <filesystem>
+#include <functional>
 #include <optional>
 #include <string>
 #include <string_view>
@@ -55,6 +56,11 @@ haptics::TriangleMesh loadMeshInProcess(const fs::path& path, double scale_to_m)
 std::vector<DicomSeriesInfo> listDicomSeriesInProcess(const fs::path& folder,
                                                       const std::function<void(int, int)>& progress,
                                                       const std::atomic<bool>* cancel);
+
+/// A NRRD or MetaImage read in the worker process when it is found (VTK's readers crash or hang
+/// on some damaged files: tests/fuzz/known-crashes), else `in_process()`.
+LoadedVolume loadFileIsolated(const fs::path& path, const VolumeLoadOptions& options,
+                              const std::function<LoadedVolume()>& in_process);
 
 /// The DICOM read itself, in this process: the series chosen, regularised, not yet converted.
 RawVolume loadDicomRaw(const fs::path& path, const VolumeLoadOptions& options);

@@ -163,9 +163,9 @@ LoadedVolume loadVolume(const std::filesystem::path& path, const VolumeLoadOptio
     case Format::kDicom:
       return detail::loadDicom(path, options);
     case Format::kNrrd:
-      return detail::loadNrrd(path);
+      return detail::loadFileIsolated(path, options, [&] { return detail::loadNrrd(path); });
     case Format::kMetaImage:
-      return detail::loadMetaImage(path);
+      return detail::loadFileIsolated(path, options, [&] { return detail::loadMetaImage(path); });
     case Format::kUnknown:
       break;
   }

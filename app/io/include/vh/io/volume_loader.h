@@ -33,9 +33,10 @@ class LoadCancelled : public LoadError {
   using LoadError::LoadError;
 };
 
-/// Where a DICOM series is read (issue 15). vtk-dicom's parser has crashed on damaged files; in
-/// a worker process (the `volume-haptics-dicom-worker` program, see dicom_worker.h) such a
-/// crash ends the worker and the load fails with a LoadError naming the file.
+/// Where a volume file is read (issue 15; the name is historical: DICOM, NRRD and MetaImage
+/// alike). vtk-dicom's parser and VTK's NRRD and MetaImage readers have crashed on damaged
+/// files; in a worker process (the `volume-haptics-dicom-worker` program, see dicom_worker.h)
+/// such a crash ends the worker and the load fails with a LoadError naming the file.
 enum class DicomIsolation {
   kAuto,       ///< In a worker when the program is found, else in this process (with a notice).
   kWorker,     ///< Only in a worker; a LoadError when the program is missing.
