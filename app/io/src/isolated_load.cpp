@@ -56,6 +56,34 @@ constexpr char kWorkerName[] = "volume-haptics-dicom-worker";
 json toJson(const Eigen::Vector3d& v) { return {v.x(), v.y(), v.z()}; }
 Eigen::Vector3d vec(const json& j) { return {j.at(0).get<double>(), j.at(1).get<double>(), j.at(2).get<double>()}; }
 
+/// The worker's output files: kMagic, the JSON header's length (8 bytes) and the header; the
+/// voxels follow.
+void writeHeader(std::ofstream& f, const json& h) {
+  const std::string header = h.dump(-1, ' ', false, json::error_handler_t::replace);
+  const std::uint64_t n = header.size();
+  f.write(kMagic, sizeof(kMagic) - 1);
+  f.write(reinterpret_cast<const char*>(&n), sizeof(n));
+  f.write(header.data(), static_cast<std::streamsize>(header.size()));
+}
+
+/// Reads what writeHeader() wrote (a LoadError naming `source` when it cannot).
+json readHeader(std::ifstream& f, const fs::path& source) {
+  char magic[sizeof(kMagic) - 1];
+  std::uint64_t n = 0;
+  f.read(magic, sizeof(magic));
+  f.read(reinterpret_cast<char*>(&n), sizeof(n));
+  if (!f || std::memcmp(magic, kMagic, sizeof(magic)) != 0 || n > (1u << 26)) {
+    detail::fail(source, "the reader worker's output is unreadable");
+  }
+  std::string header(n, '\0');
+  f.read(header.data(), static_cast<std::streamsize>(n));
+  try {
+    return json::parse(header);
+  } catch (const json::exception& e) {
+    detail::fail(source, std::string("the reader worker's output is unreadable: ") + e.what());
+  }
+}
+
 json infoToJson(const VolumeInfo& i) {
   return {{"format", i.format},           {"modality", i.modality},         {"value_unit", i.value_unit},
           {"description", i.description}, {"patient_name", i.patient_name}, {"series_uid", i.series_uid},
@@ -90,30 +118,17 @@ void writeField(const haptics::ScalarVolume& field, const VolumeInfo& info, cons
   h["value_scale"] = field.valueScale();
   h["value_offset"] = field.valueOffset();
   h["info"] = infoToJson(info);
-  const std::string header = h.dump(-1, ' ', false, json::error_handler_t::replace);
   std::ofstream f(out, std::ios::binary);
-  const std::uint64_t n = header.size();
-  f.write(kMagic, sizeof(kMagic) - 1);
-  f.write(reinterpret_cast<const char*>(&n), sizeof(n));
-  f.write(header.data(), static_cast<std::streamsize>(header.size()));
+  writeHeader(f, h);
   f.write(reinterpret_cast<const char*>(field.bytes().data()), static_cast<std::streamsize>(field.bytes().size()));
   if (!f) throw LoadError(out.string() + ": cannot write the loaded volume (disk full?)");
 }
 
 LoadedVolume readField(const fs::path& in, const fs::path& source) {
   std::ifstream f(in, std::ios::binary);
-  char magic[sizeof(kMagic) - 1];
-  std::uint64_t n = 0;
-  f.read(magic, sizeof(magic));
-  f.read(reinterpret_cast<char*>(&n), sizeof(n));
-  if (!f || std::memcmp(magic, kMagic, sizeof(magic)) != 0 || n > (1u << 26)) {
-    detail::fail(source, "the reader worker's output is unreadable");
-  }
-  std::string header(n, '\0');
-  f.read(header.data(), static_cast<std::streamsize>(n));
+  const json h = readHeader(f, source);
   LoadedVolume out;
   try {
-    const json h = json::parse(header);
     haptics::VolumeGeometry g;
     g.dims = h.at("dims").get<std::array<int, 3>>();
     g.spacing_m = vec(h.at("spacing_m"));
@@ -153,12 +168,8 @@ void writeRaw(const detail::RawVolume& raw, const fs::path& out) {
   h["value_scale"] = raw.value_scale;
   h["value_offset"] = raw.value_offset;
   h["info"] = infoToJson(raw.info);
-  const std::string header = h.dump(-1, ' ', false, json::error_handler_t::replace);
   std::ofstream f(out, std::ios::binary);
-  const std::uint64_t n = header.size();
-  f.write(kMagic, sizeof(kMagic) - 1);
-  f.write(reinterpret_cast<const char*>(&n), sizeof(n));
-  f.write(header.data(), static_cast<std::streamsize>(header.size()));
+  writeHeader(f, h);
   const auto bytes = static_cast<std::streamsize>(scalars->GetNumberOfValues()) * scalars->GetDataTypeSize();
   f.write(static_cast<const char*>(scalars->GetVoidPointer(0)), bytes);
   if (!f) throw LoadError(out.string() + ": cannot write the loaded volume (disk full?)");
@@ -166,18 +177,9 @@ void writeRaw(const detail::RawVolume& raw, const fs::path& out) {
 
 detail::RawVolume readRaw(const fs::path& in, const fs::path& source) {
   std::ifstream f(in, std::ios::binary);
-  char magic[sizeof(kMagic) - 1];
-  std::uint64_t n = 0;
-  f.read(magic, sizeof(magic));
-  f.read(reinterpret_cast<char*>(&n), sizeof(n));
-  if (!f || std::memcmp(magic, kMagic, sizeof(magic)) != 0 || n > (1u << 26)) {
-    detail::fail(source, "the DICOM worker's output is unreadable");
-  }
-  std::string header(n, '\0');
-  f.read(header.data(), static_cast<std::streamsize>(n));
+  const json h = readHeader(f, source);
   detail::RawVolume raw;
   try {
-    const json h = json::parse(header);
     const auto dims = h.at("dims").get<std::array<int, 3>>();
     raw.image = vtkSmartPointer<vtkImageData>::New();
     raw.image->SetDimensions(dims[0], dims[1], dims[2]);
