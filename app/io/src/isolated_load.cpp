@@ -19,6 +19,7 @@
 
 #include <algorithm>
 #include <array>
+#include <chrono>
 #include <cmath>
 #include <cstdint>
 #include <atomic>
@@ -333,11 +334,35 @@ std::string signalName(int sig) {
   return abbrev != nullptr ? std::string("SIG") + abbrev : "signal " + std::to_string(sig);
 }
 
-/// After a crash: the file the worker's probe crashes on, or "".
-std::string findCrashingFile(const fs::path& worker, const fs::path& path) {
+/// Seconds the watchdog allows a single-file reader that reports no progress: `base_s` plus
+/// 1 s per 8 MiB of `file`; 0 (no watchdog) stays 0.
+double stallLimitFor(const fs::path& file, double base_s) {
+  if (!(base_s > 0.0)) return 0.0;
+  std::error_code ec;
+  const auto bytes = fs::is_regular_file(file, ec) ? fs::file_size(file, ec) : 0;
+  return base_s + (ec ? 0.0 : static_cast<double>(bytes) / (8.0 * 1024 * 1024));
+}
+
+/// Waits at most this long per poll of the worker's stdout [ms].
+constexpr int kPollMs = 50;
+/// The watchdog's default for readers without VolumeLoadOptions (meshes) [s].
+constexpr double kDefaultStallS = 60.0;
+
+/// After a crash or a stall: the file the worker's probe crashes or stops on, or "". The probe
+/// has its own watchdog (`stall_s`, 0 = none): a file it stays on that long is the culprit.
+std::string findCulpritFile(const fs::path& worker, const fs::path& path, double stall_s) {
   Worker probe({worker.string(), "probe", path.string()});
   std::string line, last;
-  while (probe.readLine(line, 30000)) {
+  auto last_line = std::chrono::steady_clock::now();
+  while (probe.readLine(line, kPollMs)) {
+    if (line.empty()) {
+      if (stall_s > 0.0 && std::chrono::duration<double>(std::chrono::steady_clock::now() - last_line).count() > stall_s) {
+        probe.kill9();
+        return last;
+      }
+      continue;
+    }
+    last_line = std::chrono::steady_clock::now();
     if (line.rfind("file ", 0) == 0) last = line.substr(5);
     if (line == "ok") last.clear();
   }
@@ -369,23 +394,37 @@ class WorkerOutput {
 
 /// Runs the worker to its end. `on_line` sees each line it prints but its "error MESSAGE";
 /// `cancel` set kills it at once (returns false). A crash throws the LoadError that
-/// `crash_problem(signal name)` describes (naming `named`); a failure throws the worker's
-/// error message, else one naming `named` and the exit status.
-bool runWorker(const std::vector<std::string>& args, const fs::path& named, int poll_ms,
+/// `problem("crashed (SIGSEGV)")` describes (naming `named`); so does a stall, when the worker
+/// prints nothing for `stall_s` seconds (0 = no watchdog): it is killed and `problem` gets
+/// "stopped responding (nothing for N s)". A failure throws the worker's error message, else one
+/// naming `named` and the exit status.
+bool runWorker(const std::vector<std::string>& args, const fs::path& named, double stall_s,
                const std::function<void(const std::string&)>& on_line, const std::atomic<bool>* cancel,
-               const std::function<std::string(const std::string&)>& crash_problem) {
+               const std::function<std::string(const std::string&)>& problem) {
   Worker run(args);
   std::string line, error;
-  while (run.readLine(line, poll_ms)) {
+  auto last_line = std::chrono::steady_clock::now();
+  while (run.readLine(line, kPollMs)) {
     if (cancel != nullptr && cancel->load(std::memory_order_relaxed)) {
       run.kill9();
       return false;
     }
+    const auto now = std::chrono::steady_clock::now();
+    if (line.empty()) {
+      if (stall_s > 0.0 && std::chrono::duration<double>(now - last_line).count() > stall_s) {
+        run.kill9();
+        char seconds[32];
+        std::snprintf(seconds, sizeof(seconds), "%.0f", stall_s);
+        detail::fail(named, problem(std::string("stopped responding (nothing for ") + seconds + " s)"));
+      }
+      continue;
+    }
+    last_line = now;
     if (line.rfind("error ", 0) == 0) error = line.substr(6);
-    else if (!line.empty() && on_line) on_line(line);
+    else if (on_line) on_line(line);
   }
   const int status = run.wait();
-  if (WIFSIGNALED(status)) detail::fail(named, crash_problem(signalName(WTERMSIG(status))));
+  if (WIFSIGNALED(status)) detail::fail(named, problem("crashed (" + signalName(WTERMSIG(status)) + ")"));
   if (WEXITSTATUS(status) != 0) {
     if (!error.empty()) throw LoadError(error);
     detail::fail(named, "the worker " + args[0] + " failed (exit status " + std::to_string(WEXITSTATUS(status)) + ")");
@@ -421,9 +460,9 @@ haptics::TriangleMesh loadMesh(const fs::path& path, double scale_to_m) {
   std::ostringstream scale;
   scale.precision(17);
   scale << scale_to_m;
-  runWorker({worker.string(), "mesh", fs::absolute(path, ec).string(), out.path().string(), scale.str()}, path, 1000,
-            {}, nullptr, [](const std::string& signal) {
-              return "the mesh reader crashed (" + signal + "): a damaged file; nothing was loaded";
+  runWorker({worker.string(), "mesh", fs::absolute(path, ec).string(), out.path().string(), scale.str()}, path,
+            stallLimitFor(path, kDefaultStallS), {}, nullptr, [](const std::string& what) {
+              return "the mesh reader " + what + ": a damaged file; nothing was loaded";
             });
   std::ifstream in(out.path(), std::ios::binary);
   std::uint64_t nv = 0, nt = 0;
@@ -455,9 +494,9 @@ std::vector<DicomSeriesInfo> listDicomSeries(const fs::path& folder, const std::
     if (progress && std::sscanf(line.c_str(), "progress %d %d", &done, &total) == 2) progress(done, total);
   };
   const bool finished = runWorker({worker.string(), "list", fs::absolute(folder, ec).string(), out.path().string()},
-                                  folder, 50, on_line, cancel, [&](const std::string& signal) {
-                                    const std::string file = findCrashingFile(worker, folder);
-                                    return "the DICOM reader crashed (" + signal + ")" +
+                                  folder, kDefaultStallS, on_line, cancel, [&](const std::string& what) {
+                                    const std::string file = findCulpritFile(worker, folder, kDefaultStallS);
+                                    return "the DICOM reader " + what +
                                            (file.empty() ? std::string(" listing the folder") : " on " + file) +
                                            ": a damaged file";
                                   });
@@ -486,8 +525,9 @@ LoadedVolume loadFileIsolated(const fs::path& path, const VolumeLoadOptions& opt
   std::error_code ec;
   const WorkerOutput out("volume");
   const bool finished = runWorker({worker.string(), "volume", fs::absolute(path, ec).string(), out.path().string()},
-                                  path, 50, {}, options.cancel, [](const std::string& signal) {
-                                    return "the volume reader crashed (" + signal + "): a damaged file; nothing was loaded";
+                                  path, stallLimitFor(path, options.worker_stall_timeout_s), {}, options.cancel,
+                                  [](const std::string& what) {
+                                    return "the volume reader " + what + ": a damaged file; nothing was loaded";
                                   });
   if (!finished) throw LoadCancelled(path.string() + ": loading cancelled");
   return readField(out.path(), path);
@@ -514,9 +554,10 @@ LoadedVolume loadDicom(const fs::path& path, const VolumeLoadOptions& options) {
   const auto on_line = [&](const std::string& line) {
     if (line.rfind("progress ", 0) == 0 && options.progress) options.progress(0.9 * std::strtod(line.c_str() + 9, nullptr));
   };
-  const bool finished = runWorker(args, path, 50, on_line, options.cancel, [&](const std::string& signal) {
-    const std::string file = findCrashingFile(worker, path);
-    return "the DICOM reader crashed (" + signal + ")" +
+  const double stall_s = stallLimitFor(path, options.worker_stall_timeout_s);
+  const bool finished = runWorker(args, path, stall_s, on_line, options.cancel, [&](const std::string& what) {
+    const std::string file = findCulpritFile(worker, path, stall_s);
+    return "the DICOM reader " + what +
            (file.empty() ? std::string(" reading the series") : " on " + file) + ": a damaged file; nothing was loaded";
   });
   if (!finished) throw LoadCancelled(path.string() + ": loading cancelled");

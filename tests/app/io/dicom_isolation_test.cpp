@@ -157,6 +157,40 @@ TEST(DicomIsolation, VolumeFilesThatCrashVtkReadersAreRefusedNotFatal) {
   EXPECT_GE(tried, 3);
 }
 
+TEST(DicomIsolation, AReaderStuckOnADamagedFileIsStoppedByTheWatchdog) {
+  // vtkmetaio's MET_Read loops forever on this header (found by fuzz_metaimage). Read in the
+  // worker with a 1 s watchdog (plus 1 s per 8 MiB: nothing for a file this small), the load
+  // fails with a LoadError naming the file instead of waiting for ever.
+  ASSERT_FALSE(dicomWorkerPath().empty());
+  const fs::path hang = fs::path(VH_SOURCE_DIR) / "tests/fuzz/known-crashes/metaimage/hang-vtkmetaio-MET_Read.mha";
+  if (!fs::exists(hang)) GTEST_SKIP() << "no " << hang;
+  TempDir tmp("stuck_reader");
+  const fs::path copy = tmp / "stuck.mha";
+  fs::copy_file(hang, copy);
+  VolumeLoadOptions options;
+  options.worker_stall_timeout_s = 1.0;
+  const auto start = std::chrono::steady_clock::now();
+  const std::string msg = loadErrorOf([&] { loadVolume(copy, options); });
+  const double took_s = secondsSince(start);
+  std::cout << "[isolation] stuck reader stopped after " << took_s << " s: " << msg << "\n";
+  EXPECT_CONTAINS(msg, copy.string());
+  EXPECT_CONTAINS(msg, "stopped responding");
+  EXPECT_GE(took_s, 1.0);
+  EXPECT_LT(took_s, 10.0);
+}
+
+TEST(DicomIsolation, TheWatchdogLeavesAnOrdinaryReadAlone) {
+  // A 1 s watchdog on the 140-slice phantom (progress every slice) and a NRRD volume (no
+  // progress while reading one file): both load as without it.
+  VH_REQUIRE_SHARED(phantom, "ct/philips-head-phantom-bone");
+  VH_REQUIRE_SHARED(mr_brain, "nrrd/mr-brain/brain1_image.nrrd");
+  VolumeLoadOptions options;
+  options.dicom_isolation = DicomIsolation::kWorker;
+  options.worker_stall_timeout_s = 1.0;
+  EXPECT_EQ(loadVolume(phantom, options).field->geometry().dims[2], 140);
+  EXPECT_GT(loadVolume(mr_brain, options).field->geometry().voxelCount(), 0u);
+}
+
 TEST(DicomIsolation, CancellingKillsTheWorkerAtOnce) {
   VH_REQUIRE_SHARED(phantom, "ct/philips-head-phantom-bone");
   std::atomic<bool> cancel{false};

@@ -56,6 +56,13 @@ struct VolumeLoadOptions {
   /// When set and it becomes true, the load stops and throws LoadCancelled.
   const std::atomic<bool>* cancel = nullptr;
   DicomIsolation dicom_isolation = DicomIsolation::kAuto;
+  /// Watchdog of the reader worker [s]: a worker that reports nothing (no progress line) for
+  /// this long is killed and the load fails with a LoadError naming the file ("the reader
+  /// stopped responding"): a reader stuck on a damaged file (vtkmetaio's `MET_Read` loops
+  /// forever on some headers) must not hang the program. Readers that report no progress while
+  /// reading one file (NRRD, MetaImage, meshes) get 1 s more per 8 MiB of that file. 0 = no
+  /// watchdog. Ignored in process (DicomIsolation::kInProcess or no worker program).
+  double worker_stall_timeout_s = 60.0;
 };
 
 /// Descriptive facts about a loaded volume, for the UI and session metadata.
