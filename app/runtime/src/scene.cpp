@@ -402,8 +402,9 @@ LoadedScene loadScene(const SceneSpec& spec, const std::function<void(double)>& 
   } else if (spec.tool.point_spacing_m > 0.0) {
     shell_options.spacing_m = spec.tool.point_spacing_m;
   } else {
-    shell_options.spacing_m = std::max(std::sqrt(mesh.area_m2() / 1000.0), 0.5 * field.geometry().minSpacing());
+    shell_options.spacing_m = automaticPointSpacing_m(mesh, field);
   }
+  scene.point_spacing_m = toolPointSpacing_m(spec.tool, mesh, field);
   try {
     scene.tool = std::make_shared<const haptics::ToolModel>(haptics::makeToolModel(std::move(mesh), shell_options));
   } catch (const std::invalid_argument& e) {
@@ -422,9 +423,21 @@ LoadedScene loadScene(const SceneSpec& spec, const std::function<void(double)>& 
   return scene;
 }
 
-std::unique_ptr<haptics::HapticRenderer> LoadedScene::makeRenderer(haptics::RendererOptions options) const {
+double automaticPointSpacing_m(const haptics::TriangleMesh& mesh_T, const haptics::ScalarVolume& volume) {
+  return std::max(std::sqrt(mesh_T.area_m2() / 1000.0), 0.5 * volume.geometry().minSpacing());
+}
+
+double toolPointSpacing_m(const ToolSpec& spec, const haptics::TriangleMesh& mesh_T,
+                          const haptics::ScalarVolume& volume) {
+  if (spec.point_count > 0) return std::sqrt(mesh_T.area_m2() / static_cast<double>(spec.point_count));
+  if (spec.point_spacing_m > 0.0) return spec.point_spacing_m;
+  return automaticPointSpacing_m(mesh_T, volume);
+}
+
+std::unique_ptr<haptics::HapticRenderer> LoadedScene::makeRenderer(haptics::RendererOptions options,
+                                                                   const std::optional<haptics::Pose>& X_WP) const {
   options.gains = spec.gains;
-  return std::make_unique<haptics::HapticRenderer>(volume.field, tool, options, X_WT_initial, isovalue);
+  return std::make_unique<haptics::HapticRenderer>(volume.field, tool, options, X_WP.value_or(X_WT_initial), isovalue);
 }
 
 std::shared_ptr<Device> LoadedScene::makeDevice(double servo_rate_Hz) const {
@@ -466,9 +479,11 @@ bool deviceKindAvailable(const std::string& kind) {
   return deviceFactories().count(kind) > 0;
 }
 
-std::unique_ptr<HapticThread> LoadedScene::makeHapticThread(std::shared_ptr<Device> device,
-                                                            double servo_rate_Hz) const {
-  return std::make_unique<HapticThread>(makeRenderer(), std::move(device), isovalue, servo_rate_Hz);
+std::unique_ptr<HapticThread> LoadedScene::makeHapticThread(std::shared_ptr<Device> device, double servo_rate_Hz,
+                                                            const std::optional<haptics::Pose>& X_WP) const {
+  auto thread = std::make_unique<HapticThread>(makeRenderer({}, X_WP), std::move(device), isovalue, servo_rate_Hz);
+  thread->setGains(spec.gains);
+  return thread;
 }
 
 }  // namespace vh::runtime

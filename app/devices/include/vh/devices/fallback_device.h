@@ -37,6 +37,8 @@ class FallbackDevice final : public runtime::Device {
   bool connected() const noexcept override { return hardware_->connected(); }
   std::string problem() const override { return hardware_->problem(); }
   void reconnect() override { hardware_->reconnect(); }
+  /// The stand-in while it stands in (usingFallback()), else null.
+  runtime::SimulatedDevice* simulatedDevice() noexcept override { return usingFallback() ? fallback_.get() : nullptr; }
   /// Servo thread: the hardware's sample while connected, else the stand-in's (always true).
   bool read(runtime::DeviceSample& sample) noexcept override;
   /// Servo thread: to whichever device the last read came from.

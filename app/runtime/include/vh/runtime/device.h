@@ -120,6 +120,8 @@ struct DeviceSample {
   bool valid = false;       ///< False when the device delivered nothing usable.
 };
 
+class SimulatedDevice;
+
 /// Interface every device implements. read() and command() are called from the servo thread
 /// only and must not block, allocate or throw. limits(), safetyPolicy(), sensedDof(),
 /// actuatedDof() and connected() are cheap and callable from any thread.
@@ -147,6 +149,10 @@ class Device {
   /// Any thread but the servo thread: reopens a disconnected hardware device (no-op otherwise).
   /// @throws std::runtime_error when the device cannot be opened (the message says why).
   virtual void reconnect() {}
+  /// GUI thread: the simulated device the mouse and keys move while this device is in use (the
+  /// device itself for a SimulatedDevice, the stand-in of a hardware device while it stands in),
+  /// else null.
+  virtual SimulatedDevice* simulatedDevice() noexcept { return nullptr; }
   /// Reads the latest sample; @return false when the device has nothing (e.g. disconnected).
   virtual bool read(DeviceSample& sample) noexcept = 0;
   /// Commands a force [N] and torque [N*m] in W on the user's hand.
@@ -342,6 +348,7 @@ class SimulatedDevice final : public Device {
   explicit SimulatedDevice(const haptics::Pose& X_WD_initial);
   std::string name() const override { return "Simulated device (mouse/keyboard)"; }
   DeviceIdentity identity() const override { return {"Simulated device (mouse/keyboard)", {}, {}, "virtual"}; }
+  SimulatedDevice* simulatedDevice() noexcept override { return this; }
   /// GUI thread: the pose the device moves to.
   void setPose(const haptics::Pose& X_WD) noexcept;
   /// GUI thread: the last pose set.

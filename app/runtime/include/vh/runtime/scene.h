@@ -151,20 +151,36 @@ struct LoadedScene {
   double isovalue = 0.0;                          ///< Isovalue s in the data's units.
   haptics::Pose X_WT_initial;                     ///< Initial proxy and device pose in W [m].
   int initial_points_inside = 0;  ///< Shell points inside F = s at X_WT_initial (0 normally).
+  /// The spacing the tool's point shell was sampled at [m] (toolPointSpacing_m()).
+  double point_spacing_m = 0.0;
 
-  /// A renderer for this scene at X_WT_initial (gains from the spec; epsilon as `options`).
+  /// A renderer for this scene with the proxy at `X_WP` (X_WT_initial when absent), the spec's
+  /// gains, this isovalue; epsilon as `options`.
   /// @throws std::invalid_argument as HapticRenderer's constructor.
-  std::unique_ptr<haptics::HapticRenderer> makeRenderer(haptics::RendererOptions options = {}) const;
+  std::unique_ptr<haptics::HapticRenderer> makeRenderer(haptics::RendererOptions options = {},
+                                                        const std::optional<haptics::Pose>& X_WP = {}) const;
   /// The scene's device (SimulatedDevice at X_WT_initial, ScriptedDevice stepping one servo
   /// period per read, or a registered hardware kind), or nullptr when the scene has no device
   /// section.
   /// @throws std::runtime_error for an unreadable trajectory (naming the file and line), a
   ///         hardware kind without a registered driver, or a device that cannot be opened.
   std::shared_ptr<Device> makeDevice(double servo_rate_Hz = 1000.0) const;
-  /// A haptic thread (not started) driving `device` with a new renderer.
-  std::unique_ptr<HapticThread> makeHapticThread(std::shared_ptr<Device> device,
-                                                 double servo_rate_Hz = 1000.0) const;
+  /// The one place a renderer and its haptic threads are built (the headless runner's tests,
+  /// the GUI through Session): a HapticThread (not started) driving `device` at
+  /// `servo_rate_Hz` with makeRenderer({}, X_WP).
+  /// @throws std::invalid_argument as HapticThread's and HapticRenderer's constructors.
+  std::unique_ptr<HapticThread> makeHapticThread(std::shared_ptr<Device> device, double servo_rate_Hz = 1000.0,
+                                                 const std::optional<haptics::Pose>& X_WP = {}) const;
 };
+
+/// The point spacing [m] of a tool whose spec gives none: about 1000 points on the mesh, not
+/// below half the volume's smallest voxel. The one rule (loadScene(), the GUI's tool picker).
+double automaticPointSpacing_m(const haptics::TriangleMesh& mesh_T, const haptics::ScalarVolume& volume);
+
+/// The spacing [m] a tool spec asks for on `mesh_T` in `volume`: point_spacing_m when given;
+/// sqrt(area / point_count) for a point count; else automaticPointSpacing_m().
+double toolPointSpacing_m(const ToolSpec& spec, const haptics::TriangleMesh& mesh_T,
+                          const haptics::ScalarVolume& volume);
 
 /// Loads what a scene names: the volume (io::loadVolume, or vh::datasets for "builtin:NAME"),
 /// the tool mesh (io::loadMesh scaled by scale_to_m, or a built-in tool) resampled into a point

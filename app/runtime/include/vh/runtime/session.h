@@ -1,0 +1,145 @@
+#pragma once
+/// @file
+/// The one owner of an interactive haptic session (issue 16): the loaded scene (volume, tool,
+/// initial pose and the spec that describes them), the device, the haptic threads, the isovalue,
+/// the coupling gains and the tool. No Qt: the GUI's widgets observe it (addObserver()) and send
+/// it commands; nothing else keeps a copy that could disagree. Recordings describe scene().
+///
+/// One value, one place: the isovalue is scene().isovalue (scene().spec.volume.isovalue says the
+/// same, written by the same function), the gains scene().spec.gains, the tool scene().tool with
+/// scene().spec.tool and scene().point_spacing_m. The haptic thread receives them as commands
+/// (HapticThread::setIsovalue(), setGains()); it is built in one place, rebuildHaptics(), from
+/// LoadedScene::makeHapticThread().
+///
+/// Threads: every member is called on one thread (the GUI thread); observers run on it,
+/// synchronously, after the change. The haptic threads are read only through
+/// latestSnapshot() (never blocks).
+///
+/// Frames and units: W the scene (world) frame [m]; the isovalue in the data's units (HU for
+/// CT); gains [N/m] and [N*m/rad].
+
+#include <cstdint>
+#include <functional>
+#include <memory>
+#include <optional>
+#include <utility>
+#include <vector>
+
+#include "vh/haptics/pose.h"
+#include "vh/haptics/tool_model.h"
+#include "vh/haptics/virtual_coupling.h"
+#include "vh/runtime/device.h"
+#include "vh/runtime/haptic_thread.h"
+#include "vh/runtime/scene.h"
+
+namespace vh::runtime {
+
+/// What changed, for observers (a bit set).
+enum class SessionChange : std::uint32_t {
+  kScene = 1u << 0,     ///< A new scene (or none): everything else may have changed too.
+  kIsovalue = 1u << 1,  ///< isovalue()
+  kGains = 1u << 2,     ///< gains()
+  kTool = 1u << 3,      ///< scene().tool, its spec and spacing; the haptic thread was rebuilt.
+  kDevice = 1u << 4,    ///< device(); the haptic thread was rebuilt.
+  kRunning = 1u << 5,   ///< hapticsRunning()
+};
+constexpr SessionChange operator|(SessionChange a, SessionChange b) {
+  return static_cast<SessionChange>(static_cast<std::uint32_t>(a) | static_cast<std::uint32_t>(b));
+}
+/// True when `set` contains `bit`.
+constexpr bool has(SessionChange set, SessionChange bit) {
+  return (static_cast<std::uint32_t>(set) & static_cast<std::uint32_t>(bit)) != 0;
+}
+
+class Session {
+ public:
+  using Observer = std::function<void(SessionChange what)>;
+
+  /// @param servo_rate_Hz the rate of the haptic threads this session builds [Hz].
+  /// @throws std::invalid_argument for a rate that is not a positive number.
+  explicit Session(double servo_rate_Hz = 1000.0);
+  ~Session();  ///< Stops the haptic threads (force ramped to zero).
+  Session(const Session&) = delete;
+  Session& operator=(const Session&) = delete;
+
+  /// Calls `observer(what)` after every change from now on. @return an id for removeObserver().
+  int addObserver(Observer observer);
+  void removeObserver(int id);
+
+  // ---- Scene ---------------------------------------------------------------------------------
+  /// Replaces the scene: the old haptic threads stop (force ramped to zero) and go; the new ones
+  /// are built (not started) when `device` is set and the scene has a field and a tool. The
+  /// isovalue is clamped to the field's value range.
+  /// @throws std::invalid_argument when the scene has no field (nothing to touch or show).
+  void setScene(LoadedScene scene, std::shared_ptr<Device> device);
+  /// Stops the haptic threads and forgets the scene and the device.
+  void clear();
+  bool hasScene() const noexcept { return has_scene_; }
+  /// The scene as it is now: its spec carries the current isovalue, gains and tool, so a
+  /// recording's metadata (makeSessionMetadata()) describes exactly what is felt.
+  const LoadedScene& scene() const noexcept { return scene_; }
+  /// The field's value range [min, max] (data units); {0, 1} without a scene.
+  std::pair<double, double> valueRange() const noexcept { return {value_min_, value_max_}; }
+
+  // ---- Isovalue and gains --------------------------------------------------------------------
+  double isovalue() const noexcept { return scene_.isovalue; }
+  /// Sets the isovalue, clamped to valueRange(); the haptic thread applies it at its next tick.
+  /// A non-finite value or no scene: ignored.
+  void setIsovalue(double isovalue);
+  const haptics::CouplingGains& gains() const noexcept { return scene_.spec.gains; }
+  /// Sets the coupling gains [N/m], [N*m/rad] (applied at the haptic thread's next tick, clamped
+  /// there to the device's stable stiffness). Non-finite or negative gains: ignored. Kept
+  /// without a scene too (the next scene's haptics start with them when setScene() is given
+  /// them in its spec).
+  void setGains(const haptics::CouplingGains& gains);
+
+  // ---- Tool ----------------------------------------------------------------------------------
+  /// Swaps the tool (e.g. one rebuilt by the GUI's tool picker): the haptic threads stop (force
+  /// ramped to zero), the tool and its spec replace the scene's, the device (when simulated)
+  /// moves to `X_WT_initial` (a free pose), the threads are rebuilt there and restarted when
+  /// they ran. `spec.point_spacing_m` should be the spacing the shell was sampled at.
+  /// @throws std::invalid_argument for a null tool or no scene.
+  void setTool(std::shared_ptr<const haptics::ToolModel> tool, const ToolSpec& spec,
+               const haptics::Pose& X_WT_initial, double point_spacing_m);
+
+  // ---- Device and haptic threads -------------------------------------------------------------
+  /// Drives `device` instead (null: haptics off): the threads are rebuilt with the current tool
+  /// at the proxy's current pose (a simulated device is moved there) and restarted when they
+  /// ran. Without a scene only the device is kept.
+  void setDevice(std::shared_ptr<Device> device);
+  Device* device() const noexcept { return device_.get(); }
+  const std::shared_ptr<Device>& sharedDevice() const noexcept { return device_; }
+  /// The simulated device the mouse and keys move: device()->simulatedDevice(), or null.
+  SimulatedDevice* simulatedDevice() const noexcept { return device_ != nullptr ? device_->simulatedDevice() : nullptr; }
+  /// Null without a device (haptics off) or a scene.
+  HapticThread* hapticThread() const noexcept { return haptics_.get(); }
+  bool hapticsRunning() const noexcept { return haptics_ != nullptr && haptics_->running(); }
+  /// Starts the haptic threads with the current isovalue and gains (no effect without them).
+  void startHaptics();
+  /// Ramps the force to zero and joins the threads; idempotent.
+  void stopHaptics();
+  /// The haptic threads' latest snapshot into `out` (false, `out` untouched, without threads or
+  /// before their first tick). Never blocks.
+  bool latestSnapshot(HapticSnapshot& out) const;
+  /// The proxy's pose in W [m]: the latest snapshot's, else the scene's initial pose.
+  haptics::Pose proxyPose() const;
+  double servoRate_Hz() const noexcept { return servo_rate_Hz_; }
+
+ private:
+  /// The one function that builds the renderer and the haptic threads (not started), with the
+  /// proxy at `X_WP`; none without a device, a field or a tool.
+  void rebuildHaptics(const haptics::Pose& X_WP);
+  void notify(SessionChange what);
+
+  double servo_rate_Hz_;
+  LoadedScene scene_;
+  bool has_scene_ = false;
+  double value_min_ = 0.0;
+  double value_max_ = 1.0;
+  std::shared_ptr<Device> device_;
+  std::unique_ptr<HapticThread> haptics_;
+  std::vector<std::pair<int, Observer>> observers_;
+  int next_observer_ = 1;
+};
+
+}  // namespace vh::runtime

@@ -1,0 +1,167 @@
+#include "vh/runtime/session.h"
+
+#include <algorithm>
+#include <cmath>
+#include <stdexcept>
+#include <string>
+
+namespace vh::runtime {
+
+Session::Session(double servo_rate_Hz) : servo_rate_Hz_(servo_rate_Hz) {
+  if (!(servo_rate_Hz > 0.0) || !std::isfinite(servo_rate_Hz)) {
+    throw std::invalid_argument("Session: the servo rate must be a positive number of Hz, not " +
+                                std::to_string(servo_rate_Hz));
+  }
+}
+
+Session::~Session() {
+  observers_.clear();  // nobody hears the shutdown
+  if (haptics_ != nullptr) haptics_->stop();
+}
+
+int Session::addObserver(Observer observer) {
+  const int id = next_observer_++;
+  observers_.emplace_back(id, std::move(observer));
+  return id;
+}
+
+void Session::removeObserver(int id) {
+  observers_.erase(std::remove_if(observers_.begin(), observers_.end(), [id](const auto& o) { return o.first == id; }),
+                   observers_.end());
+}
+
+void Session::notify(SessionChange what) {
+  // A copy: an observer may add or remove observers.
+  const auto observers = observers_;
+  for (const auto& [id, observer] : observers) {
+    if (observer) observer(what);
+  }
+}
+
+void Session::setScene(LoadedScene scene, std::shared_ptr<Device> device) {
+  if (scene.volume.field == nullptr) throw std::invalid_argument("Session: the scene has no volume field");
+  const bool was_running = hapticsRunning();
+  if (haptics_ != nullptr) haptics_->stop();
+  haptics_.reset();
+  scene_ = std::move(scene);
+  has_scene_ = true;
+  value_min_ = scene_.volume.field->minValue();
+  value_max_ = scene_.volume.field->maxValue();
+  if (!(value_max_ > value_min_)) value_max_ = value_min_ + 1.0;
+  scene_.isovalue = std::clamp(scene_.isovalue, value_min_, value_max_);
+  scene_.spec.volume.isovalue = scene_.isovalue;
+  scene_.spec.volume.isovalue_set = true;
+  device_ = std::move(device);
+  rebuildHaptics(scene_.X_WT_initial);
+  notify(SessionChange::kScene | SessionChange::kIsovalue | SessionChange::kGains | SessionChange::kTool |
+         SessionChange::kDevice | (was_running ? SessionChange::kRunning : SessionChange{}));
+}
+
+void Session::clear() {
+  if (haptics_ != nullptr) haptics_->stop();
+  haptics_.reset();
+  device_.reset();
+  const haptics::CouplingGains gains = scene_.spec.gains;
+  scene_ = LoadedScene{};
+  scene_.spec.gains = gains;
+  has_scene_ = false;
+  value_min_ = 0.0;
+  value_max_ = 1.0;
+  notify(SessionChange::kScene | SessionChange::kDevice | SessionChange::kRunning);
+}
+
+void Session::setIsovalue(double isovalue) {
+  if (!std::isfinite(isovalue) || !has_scene_) return;
+  const double clamped = std::clamp(isovalue, value_min_, value_max_);
+  if (clamped == scene_.isovalue) return;
+  scene_.isovalue = clamped;
+  scene_.spec.volume.isovalue = clamped;
+  scene_.spec.volume.isovalue_set = true;
+  if (haptics_ != nullptr) haptics_->setIsovalue(clamped);
+  notify(SessionChange::kIsovalue);
+}
+
+void Session::setGains(const haptics::CouplingGains& gains) {
+  if (!std::isfinite(gains.linear_N_per_m) || !std::isfinite(gains.angular_Nm_per_rad) ||
+      gains.linear_N_per_m < 0.0 || gains.angular_Nm_per_rad < 0.0) {
+    return;
+  }
+  scene_.spec.gains = gains;
+  // While recording, HapticThread::setGains() records a "gains" event.
+  if (haptics_ != nullptr) haptics_->setGains(gains);
+  notify(SessionChange::kGains);
+}
+
+void Session::setTool(std::shared_ptr<const haptics::ToolModel> tool, const ToolSpec& spec,
+                      const haptics::Pose& X_WT_initial, double point_spacing_m) {
+  if (tool == nullptr) throw std::invalid_argument("Session::setTool: no tool");
+  if (!has_scene_) throw std::invalid_argument("Session::setTool: no scene");
+  const bool was_running = hapticsRunning();
+  if (haptics_ != nullptr) haptics_->stop();  // force ramped to zero before the tool changes in the hand
+  haptics_.reset();
+  scene_.tool = std::move(tool);
+  scene_.spec.tool = spec;
+  scene_.X_WT_initial = X_WT_initial;
+  scene_.point_spacing_m = point_spacing_m;
+  if (SimulatedDevice* sim = simulatedDevice()) sim->setPose(X_WT_initial);
+  rebuildHaptics(X_WT_initial);
+  if (was_running && haptics_ != nullptr) haptics_->start();
+  notify(SessionChange::kTool | (was_running != hapticsRunning() ? SessionChange::kRunning : SessionChange{}));
+}
+
+void Session::setDevice(std::shared_ptr<Device> device) {
+  if (!has_scene_) {
+    device_ = std::move(device);
+    notify(SessionChange::kDevice);
+    return;
+  }
+  const bool was_running = hapticsRunning();
+  const haptics::Pose X_WP = proxyPose();
+  if (haptics_ != nullptr) haptics_->stop();
+  haptics_.reset();
+  device_ = std::move(device);
+  if (SimulatedDevice* sim = simulatedDevice()) sim->setPose(X_WP);
+  rebuildHaptics(X_WP);
+  if (was_running && haptics_ != nullptr) haptics_->start();
+  notify(SessionChange::kDevice | (was_running != hapticsRunning() ? SessionChange::kRunning : SessionChange{}));
+}
+
+void Session::rebuildHaptics(const haptics::Pose& X_WP) {
+  haptics_.reset();
+  if (device_ == nullptr || !has_scene_ || scene_.volume.field == nullptr || scene_.tool == nullptr) return;
+  haptics_ = scene_.makeHapticThread(device_, servo_rate_Hz_, X_WP);
+}
+
+void Session::startHaptics() {
+  if (haptics_ == nullptr || haptics_->running()) return;
+  haptics_->setIsovalue(scene_.isovalue);
+  haptics_->setGains(scene_.spec.gains);
+  haptics_->start();
+  notify(SessionChange::kRunning);
+}
+
+void Session::stopHaptics() {
+  if (haptics_ == nullptr || !haptics_->running()) return;
+  haptics_->stop();
+  notify(SessionChange::kRunning);
+}
+
+bool Session::latestSnapshot(HapticSnapshot& out) const {
+  if (haptics_ == nullptr) return false;
+  HapticSnapshot latest;
+  haptics_->latestSnapshot(latest);
+  if (latest.tick == 0) return false;
+  out = latest;
+  return true;
+}
+
+haptics::Pose Session::proxyPose() const {
+  if (haptics_ != nullptr) {
+    HapticSnapshot snapshot;
+    haptics_->latestSnapshot(snapshot);
+    if (snapshot.tick > 0) return snapshot.X_WP;
+  }
+  return scene_.X_WT_initial;
+}
+
+}  // namespace vh::runtime

@@ -1,0 +1,220 @@
+// Tests of vh/runtime/session.h: the session is the one owner of the scene, isovalue, gains,
+// tool, device and haptic threads (issue 16). Oracles: the analytic sphere (radius 20 mm, F =
+// signed distance in mm) for where the proxy rests, the field's own min / max for clamping, and
+// the haptic thread's snapshot for what reached the hand.
+#include <chrono>
+#include <cmath>
+#include <limits>
+#include <functional>
+#include <memory>
+#include <thread>
+#include <vector>
+
+#include <gtest/gtest.h>
+
+#include "runtime_test_support.h"
+#include "vh/haptics/tool_model.h"
+#include "vh/runtime/session.h"
+
+namespace vh::runtime {
+namespace {
+
+using namespace std::chrono_literals;
+using haptics::Pose;
+
+bool waitUntil(const std::function<bool()>& condition, std::chrono::milliseconds timeout = 3000ms) {
+  const auto deadline = std::chrono::steady_clock::now() + timeout;
+  while (std::chrono::steady_clock::now() < deadline) {
+    if (condition()) return true;
+    std::this_thread::sleep_for(2ms);
+  }
+  return condition();
+}
+
+/// The ball tool's centre `depth_m` below the top of the sphere (its lowest point 5 mm lower).
+Pose pressedPose(double depth_m) { return Pose::FromTranslation({0.0, 0.0, 0.020 + 0.005 - depth_m}); }
+
+/// Records what observers were told.
+struct Heard {
+  std::vector<SessionChange> changes;
+  bool any(SessionChange bit) const {
+    for (SessionChange c : changes) {
+      if (has(c, bit)) return true;
+    }
+    return false;
+  }
+};
+
+TEST(Session, WithoutASceneNothingRunsAndCommandsAreKeptOrIgnored) {
+  Session session;
+  EXPECT_FALSE(session.hasScene());
+  EXPECT_EQ(session.hapticThread(), nullptr);
+  session.setIsovalue(5.0);  // no scene: nothing to clamp against, ignored
+  EXPECT_EQ(session.isovalue(), 0.0);
+  session.setGains({1500.0, 0.5});
+  EXPECT_EQ(session.gains().linear_N_per_m, 1500.0);
+  session.startHaptics();  // nothing to start
+  EXPECT_FALSE(session.hapticsRunning());
+  HapticSnapshot s;
+  EXPECT_FALSE(session.latestSnapshot(s));
+  EXPECT_THROW(Session(0.0), std::invalid_argument);
+  EXPECT_THROW(session.setScene(LoadedScene{}, nullptr), std::invalid_argument);
+}
+
+TEST(Session, OwnsTheIsovalueClampedToTheFieldAndSendsItToTheHapticThread) {
+  const LoadedScene& loaded = test::sphereBallScene();
+  Session session;
+  Heard heard;
+  session.addObserver([&](SessionChange c) { heard.changes.push_back(c); });
+  session.setScene(loaded, std::make_shared<SimulatedDevice>(loaded.X_WT_initial));
+  ASSERT_TRUE(heard.any(SessionChange::kScene));
+  ASSERT_NE(session.hapticThread(), nullptr);
+  EXPECT_FALSE(session.hapticsRunning());  // built, not started
+
+  heard.changes.clear();
+  session.setIsovalue(-2.0);
+  EXPECT_EQ(session.isovalue(), -2.0);
+  EXPECT_EQ(session.scene().spec.volume.isovalue, -2.0);  // what a recording's metadata says
+  EXPECT_EQ(session.hapticThread()->isovalue(), -2.0);
+  ASSERT_EQ(heard.changes.size(), 1u);
+  EXPECT_TRUE(has(heard.changes[0], SessionChange::kIsovalue));
+
+  const double max = loaded.volume.field->maxValue();
+  const double min = loaded.volume.field->minValue();
+  session.setIsovalue(max + 1000.0);
+  EXPECT_EQ(session.isovalue(), max);
+  session.setIsovalue(min - 1000.0);
+  EXPECT_EQ(session.isovalue(), min);
+  EXPECT_EQ(session.valueRange().first, min);
+  EXPECT_EQ(session.valueRange().second, max);
+
+  heard.changes.clear();
+  session.setIsovalue(std::numeric_limits<double>::quiet_NaN());
+  EXPECT_EQ(session.isovalue(), min);
+  EXPECT_TRUE(heard.changes.empty());
+}
+
+TEST(Session, TheProxyRestsOnTheAnalyticSphereAndIsovalueAndGainsReachTheHand) {
+  const LoadedScene& loaded = test::sphereBallScene();
+  Session session;
+  auto device = std::make_shared<SimulatedDevice>(pressedPose(0.003));
+  session.setScene(loaded, device);
+  session.setGains({1000.0, 1.0});
+  session.startHaptics();
+  ASSERT_TRUE(session.hapticsRunning());
+  HapticSnapshot snap;
+  ASSERT_TRUE(waitUntil([&] { return session.latestSnapshot(snap) && snap.tick > 100 && snap.contacts > 0; }));
+  // The ball (radius 5 mm) rests on the sphere (radius 20 mm): its centre 25 mm from the origin,
+  // within a voxel's worth of the trilinear surface.
+  EXPECT_NEAR(snap.X_WP.p_AB_m.norm(), 0.025, 0.5e-3);
+  const double before = snap.force_W_N.norm();
+  EXPECT_NEAR(before, 1000.0 * 0.003, 0.6);  // k * depth, the same half-millimetre
+
+  session.setGains({2000.0, 1.0});
+  const std::uint64_t at = snap.tick;
+  ASSERT_TRUE(waitUntil([&] { session.latestSnapshot(snap); return snap.tick > at + 30; }));
+  EXPECT_NEAR(snap.force_W_N.norm(), 2.0 * before, 0.1 * before);
+
+  // F = 20 mm - r: isovalue 2 shrinks the surface to r = 18 mm. The device's ball (centre at
+  // 22 mm) still reaches 1 mm into it, so the proxy settles at 23 mm.
+  session.setIsovalue(2.0);
+  ASSERT_TRUE(waitUntil([&] { session.latestSnapshot(snap); return snap.isovalue == 2.0 && snap.tick > at + 60; }));
+  ASSERT_TRUE(waitUntil([&] { session.latestSnapshot(snap); return snap.X_WP.p_AB_m.norm() < 0.0235; }));
+  EXPECT_NEAR(snap.X_WP.p_AB_m.norm(), 0.023, 0.5e-3);
+  EXPECT_NEAR(snap.force_W_N.norm(), 2000.0 * 0.001, 0.6);
+  session.stopHaptics();
+  EXPECT_FALSE(session.hapticsRunning());
+}
+
+TEST(Session, ASwappedDeviceTakesOverAtTheProxysPoseAndKeepsRunning) {
+  const LoadedScene& loaded = test::sphereBallScene();
+  Session session;
+  session.setScene(loaded, std::make_shared<SimulatedDevice>(pressedPose(0.003)));
+  session.startHaptics();
+  HapticSnapshot snap;
+  ASSERT_TRUE(waitUntil([&] { return session.latestSnapshot(snap) && snap.tick > 100 && snap.contacts > 0; }));
+  const Pose X_WP = snap.X_WP;
+  const std::uint64_t old_ticks = snap.tick;
+
+  Heard heard;
+  session.addObserver([&](SessionChange c) { heard.changes.push_back(c); });
+  auto next = std::make_shared<SimulatedDevice>(Pose::FromTranslation({0.0, 0.0, 0.1}));
+  session.setDevice(next);
+  EXPECT_TRUE(heard.any(SessionChange::kDevice));
+  EXPECT_EQ(session.device(), next.get());
+  EXPECT_EQ(session.simulatedDevice(), next.get());
+  ASSERT_NE(session.hapticThread(), nullptr);
+  EXPECT_TRUE(session.hapticsRunning());
+  ASSERT_TRUE(waitUntil([&] { return session.latestSnapshot(snap); }));
+  EXPECT_LT(snap.tick, old_ticks);  // a new thread counts from its own start
+  // The new device was moved to where the proxy was: no jump, no force spike.
+  EXPECT_LT((next->pose().p_AB_m - X_WP.p_AB_m).norm(), 1e-12);
+  ASSERT_TRUE(waitUntil([&] { return session.latestSnapshot(snap) && snap.tick > 50; }));
+  EXPECT_LT((snap.X_WP.p_AB_m - X_WP.p_AB_m).norm(), 0.5e-3);
+  EXPECT_LT(snap.force_W_N.norm(), 0.5);
+
+  session.setDevice(nullptr);  // haptics off
+  EXPECT_EQ(session.hapticThread(), nullptr);
+  EXPECT_FALSE(session.hapticsRunning());
+  EXPECT_TRUE(heard.any(SessionChange::kRunning));
+}
+
+TEST(Session, ASwappedToolReplacesTheSpecAndRestartsAtItsFreePose) {
+  const LoadedScene& loaded = test::sphereBallScene();
+  Session session;
+  auto device = std::make_shared<SimulatedDevice>(pressedPose(0.003));
+  session.setScene(loaded, device);
+  session.startHaptics();
+  haptics::PointShellOptions options;
+  options.spacing_m = 0.003;
+  auto coarse = std::make_shared<const haptics::ToolModel>(haptics::makeToolModel(loaded.tool->mesh_T, options));
+  ToolSpec spec = loaded.spec.tool;
+  spec.point_spacing_m = 0.003;
+  const Pose free_pose = Pose::FromTranslation({0.0, 0.0, 0.040});
+  session.setTool(coarse, spec, free_pose, 0.003);
+  EXPECT_EQ(session.scene().tool, coarse);
+  EXPECT_EQ(session.scene().spec.tool.point_spacing_m, 0.003);
+  EXPECT_EQ(session.scene().point_spacing_m, 0.003);
+  EXPECT_TRUE(session.hapticsRunning());
+  EXPECT_LT((device->pose().p_AB_m - free_pose.p_AB_m).norm(), 1e-12);
+  HapticSnapshot snap;
+  ASSERT_TRUE(waitUntil([&] { return session.latestSnapshot(snap) && snap.tick > 50; }));
+  EXPECT_LT((snap.X_WP.p_AB_m - free_pose.p_AB_m).norm(), 1e-6);
+  EXPECT_EQ(snap.contacts, 0);
+  EXPECT_THROW(session.setTool(nullptr, spec, free_pose, 0.003), std::invalid_argument);
+}
+
+TEST(Session, ARemovedObserverHearsNothingAndClearForgetsTheScene) {
+  const LoadedScene& loaded = test::sphereBallScene();
+  Session session;
+  int calls = 0;
+  const int id = session.addObserver([&](SessionChange) { ++calls; });
+  session.setScene(loaded, nullptr);  // no device: no haptic thread
+  EXPECT_EQ(calls, 1);
+  EXPECT_EQ(session.hapticThread(), nullptr);
+  session.removeObserver(id);
+  session.setIsovalue(1.0);
+  EXPECT_EQ(calls, 1);
+  session.clear();
+  EXPECT_FALSE(session.hasScene());
+  EXPECT_EQ(session.device(), nullptr);
+}
+
+TEST(Session, LoadSceneRecordsTheSpacingItSampledTheToolAt) {
+  // The one point-spacing rule (toolPointSpacing_m): a spacing as given, a count as
+  // sqrt(area / count), else automatic.
+  const LoadedScene& loaded = test::sphereBallScene();
+  EXPECT_EQ(loaded.point_spacing_m, 0.0015);
+  ToolSpec by_count;
+  by_count.point_count = 400;
+  EXPECT_NEAR(toolPointSpacing_m(by_count, loaded.tool->mesh_T, *loaded.volume.field),
+              std::sqrt(loaded.tool->mesh_T.area_m2() / 400.0), 1e-15);
+  ToolSpec automatic;
+  EXPECT_EQ(toolPointSpacing_m(automatic, loaded.tool->mesh_T, *loaded.volume.field),
+            automaticPointSpacing_m(loaded.tool->mesh_T, *loaded.volume.field));
+  EXPECT_GE(automaticPointSpacing_m(loaded.tool->mesh_T, *loaded.volume.field),
+            0.5 * loaded.volume.field->geometry().minSpacing());
+}
+
+}  // namespace
+}  // namespace vh::runtime
