@@ -104,7 +104,7 @@ TEST(LoadNoticesTest, AGapIsNamedInTheStatusBarTheBannerAndHelpLoadNotes) {
   // The same series is what the scene names (and so a recording), by its UID.
   EXPECT_FALSE(window.scene().spec.volume.series.empty());
   EXPECT_EQ(window.scene().spec.volume.series, window.scene().volume.info.series_uid);
-  EXPECT_EQ(window.currentLoadedScene().spec.volume.series, window.scene().volume.info.series_uid);
+  EXPECT_EQ(window.session().scene().spec.volume.series, window.scene().volume.info.series_uid);
 
   // Dismissed, then reopened from the Help menu.
   panel->findChild<QToolButton*>("loadNoticeClose")->click();
@@ -129,7 +129,7 @@ TEST(LoadNoticesTest, CancellingAReadShowsItsProgressAndKeepsThePreviousScene) {
   ASSERT_TRUE(waitFor([&] { return !window.loading(); }, 30000));
   ASSERT_TRUE(window.hapticsRunning());
   vtkVolume* shown = window.volumeProp();
-  const std::string title = window.scene().title;
+  const std::string title = window.sceneTitle();
   ASSERT_TRUE(waitFor([&] { window.refreshFromHaptics(); return window.lastSnapshot().tick > 0; }, 3000));
   const auto ticks_before = window.lastSnapshot().tick;
 
@@ -165,7 +165,7 @@ TEST(LoadNoticesTest, CancellingAReadShowsItsProgressAndKeepsThePreviousScene) {
   EXPECT_EQ(failed.count(), 0) << "a cancel is no error";
   EXPECT_EQ(loaded.count(), 1);
   EXPECT_EQ(window.volumeProp(), shown);
-  EXPECT_EQ(window.scene().title, title);
+  EXPECT_EQ(window.sceneTitle(), title);
   EXPECT_TRUE(window.hapticsRunning()) << "the haptic thread runs on";
   EXPECT_TRUE(waitFor([&] { window.refreshFromHaptics(); return window.lastSnapshot().tick > ticks_before + 10; }, 3000))
       << "the haptic thread still ticks";
@@ -219,8 +219,8 @@ TEST(LoadNoticesTest, TheChosenTimePointReachesTheSceneSpec) {
   ASSERT_TRUE(waitFor([&] { return loaded.count() == 2; }, 30000)) << window.lastError().toStdString();
   EXPECT_EQ(window.scene().spec.volume.phase, 2);
   EXPECT_EQ(window.scene().volume.info.phase, 2);
-  EXPECT_EQ(window.currentLoadedScene().spec.volume.phase, 2) << "what a recording's metadata describes";
-  EXPECT_EQ(window.currentLoadedScene().spec.volume.series, written.series_uid);
+  EXPECT_EQ(window.session().scene().spec.volume.phase, 2) << "what a recording's metadata describes";
+  EXPECT_EQ(window.session().scene().spec.volume.series, written.series_uid);
   window.close();
 }
 

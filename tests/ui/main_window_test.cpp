@@ -88,7 +88,7 @@ class MainWindowTest : public ::testing::Test {
       GTEST_SKIP() << "dataset absent: " << kHead << " (the small CT head of ../shared/datasets)";
     }
     std::shared_ptr<runtime::Device> device = loaded_->makeDevice();
-    ViewerScene scene = makeViewerScene(*loaded_, device, loaded_->makeHapticThread(device));
+    ViewerScene scene = makeViewerScene(*loaded_, device);
     scene.title = "ct-head-small";
     window_ = std::make_unique<MainWindow>(std::move(scene));
     window_->setInteractive(false);

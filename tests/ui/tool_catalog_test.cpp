@@ -54,7 +54,7 @@ TEST(ToolCatalogTest, BuildsAFreeToolAtTheAskedSpacing) {
   EXPECT_GT(t.tool->point_shell.size(), 10u);
   EXPECT_EQ(runtime::countPointsInside(sphere, t.tool->point_shell, t.X_WT_initial, iso), 0);
   const BuiltTool automatic = buildTool(catalog[0], 0.0, sphere, iso);
-  EXPECT_NEAR(automatic.point_spacing_m, automaticPointSpacing_m(automatic.tool->mesh_T, sphere), 1e-12);
+  EXPECT_NEAR(automatic.point_spacing_m, runtime::automaticPointSpacing_m(automatic.tool->mesh_T, sphere), 1e-12);
   ToolChoice bad = catalog[0];
   bad.mesh = "/nonexistent/tool.stl";
   EXPECT_ANY_THROW(buildTool(bad, 0.002, sphere, iso));

@@ -69,26 +69,18 @@ SceneActorsSpec sceneActorsSpecFor(const runtime::LoadedScene& scene) {
   return spec;
 }
 
-Eigen::Vector3d forceOrigin_W(const haptics::Pose& X_WP, const Eigen::Vector3d& force_W_N,
-                              const std::vector<Eigen::Vector3d>& tool_vertices_T_m) {
-  if (tool_vertices_T_m.empty() || !(force_W_N.norm() > 1e-3)) return X_WP.p_AB_m;
-  const Eigen::Vector3d f_T = X_WP.R_AB.inverse() * force_W_N;  // the force in T
-  const auto least = std::min_element(tool_vertices_T_m.begin(), tool_vertices_T_m.end(),
-                                      [&](const Eigen::Vector3d& a, const Eigen::Vector3d& b) {
-                                        return f_T.dot(a) < f_T.dot(b);
-                                      });
-  return X_WP * *least;
+ToolFrame toolFrameOf(const runtime::TickRecord& record) {
+  ToolFrame frame;
+  frame.X_WP = proxyPoseOf(record);
+  frame.X_WD = devicePoseOf(record);
+  frame.force_W_N = Eigen::Vector3d(record.force_W_N[0], record.force_W_N[1], record.force_W_N[2]);
+  frame.isovalue = record.isovalue;
+  return frame;
 }
 
 void showRecord(SceneActors& actors, const runtime::TickRecord& record,
                 const std::vector<Eigen::Vector3d>& tool_vertices_T_m) {
-  const haptics::Pose X_WP = proxyPoseOf(record);
-  const Eigen::Vector3d force_W_N(record.force_W_N[0], record.force_W_N[1], record.force_W_N[2]);
-  actors.setProxyPose(X_WP);
-  actors.setDevicePose(devicePoseOf(record));
-  actors.setContacts({});
-  actors.setForce(forceOrigin_W(X_WP, force_W_N, tool_vertices_T_m), force_W_N);
-  if (std::isfinite(record.isovalue) && record.isovalue != actors.isovalue()) actors.setIsovalue(record.isovalue);
+  showToolFrame(actors, toolFrameOf(record), tool_vertices_T_m);
 }
 
 // ---- RecordingFrameRenderer ----------------------------------------------------------------------

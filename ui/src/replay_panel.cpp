@@ -16,6 +16,7 @@
 #include <QInputDialog>
 #include <QLabel>
 #include <QListWidget>
+#include <QMainWindow>
 #include <QMenu>
 #include <QMessageBox>
 #include <QMouseEvent>
@@ -32,12 +33,13 @@
 #include <vtkRenderer.h>
 
 #include "vh/runtime/session_metadata.h"
-#include "vh/ui/main_window.h"
+#include "vh/runtime/scene.h"
+#include "vh/runtime/session.h"
+#include "vh/ui/preferences.h"
+#include "vh/ui/scene_view.h"
+#include "vh/ui/vtk_view.h"
 #include "vh/ui/media_export.h"
 #include "vh/ui/scene_actors.h"
-#include "vh/ui/scene_loader.h"
-#include "vh/ui/session_recorder.h"
-#include "vh/ui/vtk_view.h"
 
 namespace vh::ui {
 namespace {
@@ -176,21 +178,20 @@ void ForceTimeline::mouseMoveEvent(QMouseEvent* event) {
 
 // ---- ReplayController ----------------------------------------------------------------------------
 
-ReplayController::ReplayController(MainWindow* window) : QObject(window), window_(window) {
+ReplayController::ReplayController(runtime::Session& session, SceneView& view, Preferences& prefs, QMainWindow* window,
+                                   QDockWidget* tab_with)
+    : QObject(window), session_(session), view_(view), prefs_(prefs), window_(window), tab_with_(tab_with) {
   setObjectName("replayController");
   play_timer_ = new QTimer(this);
   play_timer_->setInterval(kPlayPeriodMs);
   connect(play_timer_, &QTimer::timeout, this, &ReplayController::advance);
-  connect(window_, &MainWindow::sceneLoaded, this, &ReplayController::onSceneLoaded);
-  connect(window_, &MainWindow::loadFailed, this, &ReplayController::onLoadFailed);
-  connect(window_->loader(), &SceneLoader::cancelled, this, &ReplayController::onLoadFailed);
 }
 
 ReplayController::~ReplayController() = default;
 
 void ReplayController::addFileMenuActions(QMenu* file) {
   QAction* open = file->addAction("Open Re&cording...", this, [this] {
-    const QString path = QFileDialog::getOpenFileName(window_, "Open a session recording", window_->prefs_.last_folder,
+    const QString path = QFileDialog::getOpenFileName(window_, "Open a session recording", prefs_.last_folder,
                                                       "Session recordings (*.vhrec);;All files (*)");
     if (!path.isEmpty()) openRecording(fs::path(path.toStdString()));
   });
@@ -218,18 +219,18 @@ bool ReplayController::openRecording(const fs::path& path) {
   try {
     recording = runtime::readRecording(path);
   } catch (const std::exception& e) {
-    window_->reportError(file, QString::fromUtf8(e.what()));
+    emit errorReported(file, QString::fromUtf8(e.what()));
     return false;
   }
   if (recording.records.empty()) {
-    window_->reportError(file, file + ": the recording holds no ticks to replay");
+    emit errorReported(file, file + ": the recording holds no ticks to replay");
     return false;
   }
   runtime::SceneSpec spec;
   try {
     spec = runtime::sceneFromSessionMetadata(recording.metadata_json);
   } catch (const std::exception& e) {
-    window_->reportError(file, file + ": cannot reload the recorded scene: " + QString::fromUtf8(e.what()));
+    emit errorReported(file, file + ": cannot reload the recorded scene: " + QString::fromUtf8(e.what()));
     return false;
   }
   // A simulated device (not started) so the device tool is drawn and Close Replay goes live.
@@ -240,8 +241,8 @@ bool ReplayController::openRecording(const fs::path& path) {
       lines << q(w);
       std::cerr << "volume-haptics: " << path.string() << ": warning: " << w << '\n';
     }
-    window_->recorder()->showNotice("Damaged recording: " + lines.join("; "), 10000);
-    if (window_->interactive_) {
+    emit noticeRequested("Damaged recording: " + lines.join("; "), 10000);
+    if (interactive_) {
       auto* box = new QMessageBox(QMessageBox::Warning, "VolumeHaptics", "The recording is damaged at its end",
                                   QMessageBox::Ok, window_);
       box->setObjectName("recordingWarningBox");
@@ -250,31 +251,27 @@ bool ReplayController::openRecording(const fs::path& path) {
       box->open();
     }
   }
-  window_->stopHaptics();
-  if (!pending_.has_value()) restore_auto_start_ = window_->auto_start_haptics_;
-  window_->setAutoStartHaptics(false);
+  session_.stopHaptics();
   pending_ = std::move(recording);
   pending_path_ = path;
-  window_->prefs_.last_folder = QFileInfo(file).absolutePath();
-  window_->openScene(spec, path);
+  prefs_.last_folder = QFileInfo(file).absolutePath();
+  emit openSceneRequested(spec, path);
   return true;
 }
 
 void ReplayController::onLoadFailed() {
   if (!pending_.has_value()) return;
   pending_.reset();
-  window_->setAutoStartHaptics(restore_auto_start_);
   // The scene shown before stays; so does its replay (when one was shown).
-  if (!active_) window_->startHaptics();
+  if (!active_) session_.startHaptics();
 }
 
-void ReplayController::onSceneLoaded() {
+void ReplayController::onSceneShown() {
   if (!pending_.has_value()) return;
   recording_ = std::move(*pending_);
   pending_.reset();
   path_ = pending_path_;
-  window_->setAutoStartHaptics(restore_auto_start_);
-  window_->stopHaptics();
+  session_.stopHaptics();
   if (dock_ == nullptr) buildDock();
   std::vector<double> t, f;
   t.reserve(recording_.records.size());
@@ -301,15 +298,12 @@ void ReplayController::onSceneLoaded() {
   speed_box_->setCurrentIndex(2);
   speed_ = 1.0;
   setTime(recording_.records.front().time_s);
-  window_->updateHapticsPanel();
   updateActions();
   dock_->setToolTip(QString("%1: %2 ticks, %3 s, %4 markers")
                         .arg(q(path_.string()))
                         .arg(recording_.records.size())
                         .arg(timeline_->duration_s(), 0, 'f', 2)
                         .arg(marker_times_s_.size()));
-  window_->updateStatus();
-  window_->recorder()->updateUi();
   emit replayStarted();
 }
 
@@ -319,19 +313,15 @@ void ReplayController::onSceneTeardown() {
   active_ = false;
   if (dock_ != nullptr) dock_->hide();
   updateActions();
-  window_->updateStatus();
-  window_->updateHapticsPanel();
-  window_->recorder()->updateUi();
   emit replayClosed();
 }
 
 void ReplayController::closeReplay() {
   if (!active_) return;
   onSceneTeardown();
-  if (window_->hasScene()) {
-    window_->actors().setForce(Eigen::Vector3d::Zero(), Eigen::Vector3d::Zero());
-    window_->startHaptics();
-    window_->updateHapticsPanel();
+  if (session_.hasScene()) {
+    if (view_.hasScene()) view_.actors().setForce(Eigen::Vector3d::Zero(), Eigen::Vector3d::Zero());
+    session_.startHaptics();
   }
 }
 
@@ -375,7 +365,7 @@ void ReplayController::buildDock() {
   dock_->setWidget(panel);
   dock_->setFeatures(QDockWidget::DockWidgetMovable | QDockWidget::DockWidgetFloatable);
   window_->addDockWidget(Qt::BottomDockWidgetArea, dock_);
-  if (window_->chart_dock_ != nullptr) window_->tabifyDockWidget(window_->chart_dock_, dock_);
+  if (tab_with_ != nullptr) window_->tabifyDockWidget(tab_with_, dock_);
 
   connect(play_button_, &QPushButton::clicked, this, [this] { playing() ? pause() : play(); });
   connect(speed_box_, &QComboBox::currentIndexChanged, this,
@@ -396,20 +386,19 @@ void ReplayController::buildDock() {
 }
 
 void ReplayController::setTime(double t_s) {
-  if (!active_ || recording_.records.empty() || !window_->hasScene()) return;
+  if (!active_ || recording_.records.empty() || !session_.hasScene() || !view_.hasScene()) return;
   const double first = recording_.records.front().time_s;
   const double last = recording_.records.back().time_s;
   time_s_ = std::clamp(std::isfinite(t_s) ? t_s : first, first, last);
   index_ = recordIndexAt(recording_.records, time_s_);
   const runtime::TickRecord& r = recording_.records[index_];
-  if (std::isfinite(r.isovalue) && r.isovalue != window_->isovalue()) window_->setIsovalue(r.isovalue);
-  static const std::vector<Eigen::Vector3d> kNoVertices;
-  showRecord(window_->actors(), r,
-             window_->scene().tool != nullptr ? window_->scene().tool->mesh_T.vertices_T_m : kNoVertices);
+  // The session owns the isovalue: the bar, the view and (when live again) the hand follow it.
+  if (std::isfinite(r.isovalue)) session_.setIsovalue(r.isovalue);
+  view_.show(toolFrameOf(r));  // the same picture as a live snapshot
   timeline_->setCursor_s(time_s_);
   readout_->setText(readout());
-  window_->noteMotion();
-  window_->view()->requestRender();
+  view_.noteMotion();
+  view_.requestRender();
 }
 
 QString ReplayController::readout() const {
@@ -477,15 +466,15 @@ int ReplayController::exportVideo(const fs::path& path, double fps, int width, i
                                   const std::function<bool(int, int)>& progress) {
   if (!active_) throw std::logic_error("exportVideo: no recording is replayed");
   if (width <= 0 || height <= 0) {
-    width = std::max(16, window_->view()->width());
-    height = std::max(16, window_->view()->height());
+    width = std::max(16, view_.widget()->width());
+    height = std::max(16, view_.widget()->height());
   }
   const double t_shown = time_s_;
   int frames_written = 0;
   {
-    RecordingFrameRenderer frames(sceneActorsSpecFor(window_->currentLoadedScene()), width, height,
-                                  window_->preferences());
-    frames.copyCamera(window_->view()->renderer()->GetActiveCamera());
+    RecordingFrameRenderer frames(sceneActorsSpecFor(session_.scene()), width, height,
+                                  prefs_);
+    frames.copyCamera(view_.widget()->renderer()->GetActiveCamera());
     frames_written = writeRecordingVideo(frames, recording_, path, fps, 0.0, -1.0, progress);
   }
   setTime(t_shown);
@@ -495,17 +484,17 @@ int ReplayController::exportVideo(const fs::path& path, double fps, int width, i
 void ReplayController::exportPng(const fs::path& path, int width, int height) {
   if (!active_) throw std::logic_error("exportPng: no recording is replayed");
   if (width <= 0 || height <= 0) {
-    width = std::max(16, window_->view()->width());
-    height = std::max(16, window_->view()->height());
+    width = std::max(16, view_.widget()->width());
+    height = std::max(16, view_.widget()->height());
   }
-  RecordingFrameRenderer frames(sceneActorsSpecFor(window_->currentLoadedScene()), width, height,
-                                window_->preferences());
-  frames.copyCamera(window_->view()->renderer()->GetActiveCamera());
+  RecordingFrameRenderer frames(sceneActorsSpecFor(session_.scene()), width, height,
+                                prefs_);
+  frames.copyCamera(view_.widget()->renderer()->GetActiveCamera());
   writeRecordingPng(frames, recording_, time_s_, path);
 }
 
 void ReplayController::exportFromMenu(int kind) {
-  const QString folder = path_.empty() ? window_->prefs_.last_folder : q(path_.parent_path().string());
+  const QString folder = path_.empty() ? prefs_.last_folder : q(path_.parent_path().string());
   const QString stem = path_.empty() ? QString("session") : q(path_.stem().string());
   try {
     if (kind == 0 || kind == 1) {
@@ -528,7 +517,7 @@ void ReplayController::exportFromMenu(int kind) {
       } else {
         runtime::writeRecordingJson(*source, fs::path(out.toStdString()));
       }
-      window_->recorder()->showNotice("Exported " + QFileInfo(out).fileName());
+      emit noticeRequested("Exported " + QFileInfo(out).fileName());
       return;
     }
     if (kind == 2) {
@@ -552,7 +541,7 @@ void ReplayController::exportFromMenu(int kind) {
         return !progress.wasCanceled();
       });
       progress.reset();
-      window_->recorder()->showNotice(QString("Video written: %1 (%2 frames)").arg(QFileInfo(out).fileName()).arg(n));
+      emit noticeRequested(QString("Video written: %1 (%2 frames)").arg(QFileInfo(out).fileName()).arg(n));
       return;
     }
     // Screenshot of the view.
@@ -561,12 +550,12 @@ void ReplayController::exportFromMenu(int kind) {
     if (out.isEmpty()) return;
     if (active_) {
       exportPng(fs::path(out.toStdString()));
-    } else if (!window_->view()->grabFrame().save(out, "PNG")) {
+    } else if (!view_.widget()->grabFrame().save(out, "PNG")) {
       throw std::runtime_error(out.toStdString() + ": the PNG could not be written");
     }
-    window_->recorder()->showNotice("Saved " + QFileInfo(out).fileName());
+    emit noticeRequested("Saved " + QFileInfo(out).fileName());
   } catch (const std::exception& e) {
-    window_->reportError(q(path_.string()), QString::fromUtf8(e.what()));
+    emit errorReported(q(path_.string()), QString::fromUtf8(e.what()));
   }
 }
 

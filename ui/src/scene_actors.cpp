@@ -438,4 +438,23 @@ vtkActor* SceneActors::forceActor() const noexcept { return force_actor_; }
 vtkTextActor* SceneActors::hintActor() const noexcept { return hint_actor_; }
 vtkRenderer* SceneActors::overlayRenderer() const noexcept { return overlay_; }
 
+Eigen::Vector3d forceOrigin_W(const haptics::Pose& X_WP, const Eigen::Vector3d& force_W_N,
+                              const std::vector<Eigen::Vector3d>& tool_vertices_T_m) {
+  if (tool_vertices_T_m.empty() || !(force_W_N.norm() > 1e-3)) return X_WP.p_AB_m;
+  const Eigen::Vector3d f_T = X_WP.R_AB.inverse() * force_W_N;  // the force in T
+  const auto least = std::min_element(tool_vertices_T_m.begin(), tool_vertices_T_m.end(),
+                                      [&](const Eigen::Vector3d& a, const Eigen::Vector3d& b) {
+                                        return f_T.dot(a) < f_T.dot(b);
+                                      });
+  return X_WP * *least;
+}
+
+void showToolFrame(SceneActors& actors, const ToolFrame& frame, const std::vector<Eigen::Vector3d>& tool_vertices_T_m) {
+  actors.setProxyPose(frame.X_WP);
+  actors.setDevicePose(frame.X_WD);
+  actors.setContacts(frame.contacts_W_m);
+  actors.setForce(forceOrigin_W(frame.X_WP, frame.force_W_N, tool_vertices_T_m), frame.force_W_N);
+  if (std::isfinite(frame.isovalue)) actors.setIsovalue(frame.isovalue);
+}
+
 }  // namespace vh::ui

@@ -107,11 +107,9 @@ void SceneLoader::loadScene(const runtime::SceneSpec& spec, const fs::path& open
       stage("Computing the histogram", 70);
       result->histogram = computeHistogram(result->scene.volume.image, 256, &cancel);
       if (cancel.load()) return;
-      stage("Building the haptic model", 85);
-      if (spec.device.has_value()) {
-        result->device = result->scene.makeDevice();
-        if (result->device != nullptr) result->haptics = result->scene.makeHapticThread(result->device);
-      }
+      stage("Opening the device", 85);
+      // The device may take a while to open (hardware); the session builds the haptic threads.
+      if (spec.device.has_value()) result->device = result->scene.makeDevice();
       if (cancel.load()) return;
       result->opened = opened;
       result->title = name;
@@ -164,18 +162,15 @@ void SceneLoader::listSeries(const fs::path& folder) {
 }
 
 void SceneLoader::buildTool(int choice_index, const ToolChoice& choice, double point_spacing_m,
-                            std::shared_ptr<const haptics::ScalarVolume> field, double isovalue,
-                            const haptics::RendererOptions& options) {
-  start([this, choice_index, choice, point_spacing_m, field, isovalue, options](const std::atomic<bool>& cancel,
-                                                                                std::uint64_t job) {
+                            std::shared_ptr<const haptics::ScalarVolume> field, double isovalue) {
+  start([this, choice_index, choice, point_spacing_m, field, isovalue](const std::atomic<bool>& cancel,
+                                                                       std::uint64_t job) {
     try {
       post(job, [this, label = q(choice.label)] { emit progress(QString("Building the tool: %1").arg(label), -1); });
       auto result = std::make_shared<RebuiltTool>();
       result->choice_index = choice_index;
       result->built = ui::buildTool(choice, point_spacing_m, *field, isovalue);
       if (cancel.load()) return;
-      result->renderer = std::make_unique<haptics::HapticRenderer>(field, result->built.tool, options,
-                                                                   result->built.X_WT_initial, isovalue);
       post(job, [this, result, job] {
         finish(job);
         emit toolBuilt(result);

@@ -23,8 +23,7 @@
 
 #include "vh/runtime/recording.h"
 #include "vh/runtime/session_metadata.h"
-#include "vh/ui/main_window.h"
-#include "vh/ui/replay_panel.h"
+#include "vh/runtime/session.h"
 
 namespace vh::ui {
 namespace {
@@ -40,7 +39,8 @@ QString sizeText(double bytes) {
 
 }  // namespace
 
-SessionRecorder::SessionRecorder(MainWindow* window) : QObject(window), window_(window) {
+SessionRecorder::SessionRecorder(runtime::Session& session, QStatusBar* status_bar, QWidget* dialog_parent)
+    : QObject(dialog_parent), session_(session), dialog_parent_(dialog_parent) {
   setObjectName("sessionRecorder");
   record_action_ = new QAction("&Record Session", this);
   record_action_->setObjectName("recordSessionAction");
@@ -54,19 +54,32 @@ SessionRecorder::SessionRecorder(MainWindow* window) : QObject(window), window_(
   marker_action_->setToolTip("Adds a labelled marker to the recording at the current tick (M)");
   connect(marker_action_, &QAction::triggered, this, &SessionRecorder::addMarkerFromUi);
 
-  status_label_ = new QLabel(window);
+  status_label_ = new QLabel(status_bar);
   status_label_->setObjectName("recordingStatus");
-  window->statusBar()->addPermanentWidget(status_label_);
+  status_bar->addPermanentWidget(status_label_);
   status_label_->hide();
   status_timer_ = new QTimer(this);
   status_timer_->setInterval(kStatusPeriodMs);
   connect(status_timer_, &QTimer::timeout, this, &SessionRecorder::updateUi);
+  observer_ = session_.addObserver([this](runtime::SessionChange what) {
+    using runtime::SessionChange;
+    const bool replaced = runtime::has(what, SessionChange::kScene) || runtime::has(what, SessionChange::kTool) ||
+                          runtime::has(what, SessionChange::kDevice);
+    if (replaced || (runtime::has(what, SessionChange::kRunning) && !session_.hapticsRunning())) onHapticsStopped();
+    updateUi();
+  });
   updateUi();
 }
 
 SessionRecorder::~SessionRecorder() {
+  session_.removeObserver(observer_);
   // The window stops its haptic thread before its children go; this is the last safety net.
   stop();
+}
+
+void SessionRecorder::setReplayActive(bool active) {
+  replay_active_ = active;
+  updateUi();
 }
 
 fs::path SessionRecorder::defaultPath() {
@@ -81,25 +94,25 @@ fs::path SessionRecorder::defaultPath() {
 bool SessionRecorder::start(const fs::path& path) {
   if (recording()) stop();
   last_error_.clear();
-  runtime::HapticThread* haptics = window_->hapticThread();
-  if (!window_->hasScene() || haptics == nullptr) {
+  runtime::HapticThread* haptics = session_.hapticThread();
+  if (!session_.hasScene() || haptics == nullptr) {
     last_error_ = "Nothing to record: the scene has no device and haptic thread";
     updateUi();
     return false;
   }
-  window_->startHaptics();  // refused while a replay is shown
-  if (!window_->hapticsRunning()) {
+  if (!replay_active_) session_.startHaptics();  // the haptic thread waits while a replay is shown
+  if (!session_.hapticsRunning()) {
     last_error_ = "Nothing to record: the haptic thread is not running (close the replay first)";
     updateUi();
     return false;
   }
   try {
     runtime::SessionInfo info;
-    if (window_->device() != nullptr) info.device_name = window_->device()->name();
-    info.device_kind = window_->simulatedDevice() != nullptr ? "simulated"
-                       : window_->scene().spec.device.has_value() ? window_->scene().spec.device->kind
+    if (session_.device() != nullptr) info.device_name = session_.device()->name();
+    info.device_kind = session_.simulatedDevice() != nullptr ? "simulated"
+                       : session_.scene().spec.device.has_value() ? session_.scene().spec.device->kind
                                                                    : "hardware";
-    const std::string metadata = runtime::makeSessionMetadata(window_->currentLoadedScene(), info);
+    const std::string metadata = runtime::makeSessionMetadata(session_.scene(), info);
     runtime::RecordingWriterOptions options;
     options.servo_rate_Hz = haptics->solverRate_Hz();  // one record per solver tick
     if (options.chunk_records >= options.servo_rate_Hz) {
@@ -127,7 +140,7 @@ bool SessionRecorder::start(const fs::path& path) {
 
 void SessionRecorder::stop() {
   if (writer_ == nullptr) return;
-  runtime::HapticThread* haptics = window_ != nullptr ? window_->hapticThread() : nullptr;
+  runtime::HapticThread* haptics = session_.hapticThread();
   const bool thread_running = haptics != nullptr && haptics->running();
   if (haptics != nullptr) haptics->setRecorder(nullptr);
   try {
@@ -145,7 +158,7 @@ void SessionRecorder::stop() {
   }
   status_timer_->stop();
   updateUi();
-  if (window_ != nullptr && last_error_.isEmpty()) {
+  if (last_error_.isEmpty()) {
     showNotice(QString("Recording saved: %1 (%2 ticks, %3 dropped)")
                    .arg(QString::fromStdString(path_.filename().string()))
                    .arg(static_cast<qulonglong>(records))
@@ -164,12 +177,12 @@ std::uint64_t SessionRecorder::dropped() const noexcept { return writer_ != null
 
 void SessionRecorder::onHapticsStopped() {
   stop();
-  runtime::HapticThread* haptics = window_->hapticThread();
+  runtime::HapticThread* haptics = session_.hapticThread();
   if (haptics == nullptr || !haptics->running()) retired_.clear();
 }
 
 bool SessionRecorder::recordEvent(const std::string& type, const std::string& detail_json) {
-  runtime::HapticThread* haptics = window_->hapticThread();
+  runtime::HapticThread* haptics = session_.hapticThread();
   if (writer_ == nullptr || haptics == nullptr) return false;
   haptics->recordEvent(type, detail_json);
   return true;
@@ -194,8 +207,8 @@ void SessionRecorder::toggleFromUi(bool on) {
     return;
   }
   fs::path path = defaultPath();
-  if (window_->interactive_) {
-    const QString chosen = QFileDialog::getSaveFileName(window_, "Record the session to",
+  if (interactive_) {
+    const QString chosen = QFileDialog::getSaveFileName(dialog_parent_, "Record the session to",
                                                         QString::fromStdString(path.string()),
                                                         "Session recordings (*.vhrec)");
     if (chosen.isEmpty()) {
@@ -205,7 +218,7 @@ void SessionRecorder::toggleFromUi(bool on) {
     path = fs::path(chosen.toStdString());
     if (path.extension().empty()) path += ".vhrec";
   }
-  if (!start(path)) window_->reportError(QString::fromStdString(path.string()), last_error_);
+  if (!start(path)) emit failed(QString::fromStdString(path.string()), last_error_);
 }
 
 void SessionRecorder::addMarkerFromUi() {
@@ -214,9 +227,9 @@ void SessionRecorder::addMarkerFromUi() {
     return;
   }
   QString label = QString("Marker %1").arg(marker_count_ + 1);
-  if (window_->interactive_) {
+  if (interactive_) {
     bool ok = false;
-    label = QInputDialog::getText(window_, "Add a marker", "Label:", QLineEdit::Normal, label, &ok);
+    label = QInputDialog::getText(dialog_parent_, "Add a marker", "Label:", QLineEdit::Normal, label, &ok);
     if (!ok) return;
   }
   addMarker(label);
@@ -251,8 +264,7 @@ void SessionRecorder::updateUi() {
     const QSignalBlocker block(record_action_);
     record_action_->setChecked(on);
   }
-  const bool replaying = window_->replay() != nullptr && window_->replay()->active();
-  record_action_->setEnabled(on || (window_->hapticThread() != nullptr && !replaying));
+  record_action_->setEnabled(on || (session_.hapticThread() != nullptr && !replay_active_));
   marker_action_->setEnabled(on);
   if (record_button_ != nullptr) {
     const QSignalBlocker block(record_button_);

@@ -93,9 +93,6 @@ int findOrAddSceneTool(std::vector<ToolChoice>& catalog, const runtime::ToolSpec
   return 0;
 }
 
-double automaticPointSpacing_m(const haptics::TriangleMesh& mesh_T, const haptics::ScalarVolume& volume) {
-  return std::max(std::sqrt(mesh_T.area_m2() / 1000.0), 0.5 * volume.geometry().minSpacing());
-}
 
 BuiltTool buildTool(const ToolChoice& choice, double point_spacing_m, const haptics::ScalarVolume& volume,
                     double isovalue) {
@@ -113,7 +110,7 @@ BuiltTool buildTool(const ToolChoice& choice, double point_spacing_m, const hapt
     throw std::runtime_error("tool '" + choice.label + "': " + e.what());
   }
   BuiltTool out;
-  out.point_spacing_m = point_spacing_m > 0.0 ? point_spacing_m : automaticPointSpacing_m(mesh, volume);
+  out.point_spacing_m = point_spacing_m > 0.0 ? point_spacing_m : runtime::automaticPointSpacing_m(mesh, volume);
   haptics::PointShellOptions options;
   options.spacing_m = out.point_spacing_m;
   try {

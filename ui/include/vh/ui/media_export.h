@@ -46,16 +46,11 @@ double forceNormOf(const runtime::TickRecord& record);
 /// volume's unit is HU; the device tool shown).
 SceneActorsSpec sceneActorsSpecFor(const runtime::LoadedScene& scene);
 
-/// Where the replay draws the force arrow from: records keep the contact count, not the contact
-/// points, so the arrow starts at the proxy tool's extreme point against the force (the vertex
-/// of `tool_vertices_T_m` (tool frame T, metres) with the least F.p in W: where the surface
-/// pushes when one side of the tool touches, e.g. a probe's tip pushed up). The proxy's origin
-/// when there is no force or no vertex.
-Eigen::Vector3d forceOrigin_W(const haptics::Pose& X_WP, const Eigen::Vector3d& force_W_N,
-                              const std::vector<Eigen::Vector3d>& tool_vertices_T_m);
+/// The picture of `record` (scene_actors.h: ToolFrame): its poses, force and isovalue, no
+/// contact points (recordings keep the count only).
+ToolFrame toolFrameOf(const runtime::TickRecord& record);
 
-/// Shows `record` on `actors`: proxy and device poses, the force arrow (from forceOrigin_W()),
-/// no contact points, and the recorded isovalue.
+/// Shows `record` on `actors` (showToolFrame(toolFrameOf(record))).
 void showRecord(SceneActors& actors, const runtime::TickRecord& record,
                 const std::vector<Eigen::Vector3d>& tool_vertices_T_m);
 

@@ -32,11 +32,18 @@ class QLabel;
 class QListWidget;
 class QMenu;
 class QPushButton;
+class QMainWindow;
 class QTimer;
+
+namespace vh::runtime {
+class Session;
+struct SceneSpec;
+}  // namespace vh::runtime
 
 namespace vh::ui {
 
-class MainWindow;
+class SceneView;
+struct Preferences;
 
 /// The replay's timeline: |F| [N] over the recording's time as a filled curve (per pixel column
 /// the largest |F| of the records under it, so short peaks stay visible), markers as vertical
@@ -80,21 +87,28 @@ class ForceTimeline : public QWidget {
   double cursor_s_ = 0.0;
 };
 
-/// The replay mode of a MainWindow: its dock, playback and the File menu's recording entries.
+/// The replay mode of the main window: its dock, playback and the File menu's recording
+/// entries. It asks the window to open the recording's scene (openSceneRequested()); once the
+/// window shows it (onSceneShown()), it stops the session's haptic threads and shows records on
+/// the scene view; Close Replay starts them again.
 class ReplayController : public QObject {
   Q_OBJECT
 
  public:
-  explicit ReplayController(MainWindow* window);
+  /// `window` hosts the dock (tabbed with `tab_with` when given) and parents the dialogs;
+  /// `prefs` gives the look of exported frames and the folder of file dialogs. All must outlive
+  /// the controller.
+  ReplayController(runtime::Session& session, SceneView& view, Preferences& prefs, QMainWindow* window,
+                   QDockWidget* tab_with);
   ~ReplayController() override;
 
   /// Adds Open Recording... and Export Recording > CSV / JSON / Video / Screenshot to `file`.
   void addFileMenuActions(QMenu* file);
 
-  /// Reads `path`, checks its dataset and loads its scene (asynchronous: replayStarted() or
-  /// MainWindow::loadFailed() follows). @return false when the file cannot be read or its
-  /// dataset is missing / changed: the error is reported (dialog when interactive, stderr and
-  /// MainWindow::lastError()) and the current scene stays.
+  /// Reads `path`, checks its dataset and asks for its scene (openSceneRequested(); then
+  /// replayStarted() once the window calls onSceneShown(), or nothing after onLoadFailed()).
+  /// @return false when the file cannot be read or its dataset is missing / changed: the error
+  /// is reported (errorReported()) and the current scene stays.
   bool openRecording(const std::filesystem::path& path);
   /// True while the replay dock drives the view (haptics stopped).
   bool active() const noexcept { return active_; }
@@ -136,26 +150,40 @@ class ReplayController : public QObject {
 
   /// The main window calls this when its scene is about to be replaced.
   void onSceneTeardown();
+  /// The main window showed the scene it was asked for (the recording's, when one is pending).
+  void onSceneShown();
+  /// The scene load failed or was cancelled: a pending recording is dropped.
+  void onLoadFailed();
+  /// Dialogs (damaged-recording warnings, export file names) when true.
+  void setInteractive(bool interactive) { interactive_ = interactive; }
 
  signals:
   /// A recording's scene is shown and the replay dock drives it.
   void replayStarted();
   void replayClosed();
+  /// Open the recording's scene (`opened`: the recording, for the recent files).
+  void openSceneRequested(const vh::runtime::SceneSpec& spec, const std::filesystem::path& opened);
+  /// `what` (a file) could not be read or written: `message` names it and the problem.
+  void errorReported(const QString& what, const QString& message);
+  /// A short message for the status bar.
+  void noticeRequested(const QString& text, int ms = 5000);
 
  private:
   void buildDock();
-  void onSceneLoaded();
-  void onLoadFailed();
   void advance();
   void exportFromMenu(int kind);
   void updateActions();
 
-  MainWindow* window_;
+  runtime::Session& session_;
+  SceneView& view_;
+  Preferences& prefs_;
+  QMainWindow* window_;
+  QDockWidget* tab_with_;
+  bool interactive_ = true;
   runtime::Recording recording_;
   std::filesystem::path path_;
   std::optional<runtime::Recording> pending_;
   std::filesystem::path pending_path_;
-  bool restore_auto_start_ = true;
   bool active_ = false;
   double time_s_ = 0.0;
   std::size_t index_ = 0;

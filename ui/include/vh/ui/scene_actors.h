@@ -8,8 +8,10 @@
 /// in metres but no direction; the volume prop's user matrix applies the direction D about the
 /// origin o: p_W = o + D (p_image - o).
 
+#include <limits>
 #include <span>
 #include <string>
+#include <vector>
 
 #include <Eigen/Core>
 
@@ -151,5 +153,28 @@ class SceneActors {
   bool interactive_ = false;
   static constexpr double kReferenceForce_N = 3.0;
 };
+
+/// One picture of the tools: what a live haptic snapshot and a recorded tick both become, so
+/// the live view and the replay (and its exports) draw the same thing the same way.
+struct ToolFrame {
+  haptics::Pose X_WP;                                   ///< Proxy pose in W [m].
+  haptics::Pose X_WD;                                   ///< Device pose in W [m].
+  Eigen::Vector3d force_W_N = Eigen::Vector3d::Zero();  ///< Force on the hand in W [N].
+  /// Isovalue (data units); NaN: leave the shown one.
+  double isovalue = std::numeric_limits<double>::quiet_NaN();
+  /// Contact points in W [m] (recordings keep none: empty).
+  std::span<const Eigen::Vector3d> contacts_W_m;
+};
+
+/// Where the force arrow starts: the proxy tool's extreme point against the force (the vertex of
+/// `tool_vertices_T_m` (tool frame T, metres) with the least F.p in W: where the surface pushes
+/// when one side of the tool touches, e.g. a probe's tip pushed up); the proxy's origin when
+/// there is no force (below 1 mN) or no vertex. The one rule for live and replayed frames.
+Eigen::Vector3d forceOrigin_W(const haptics::Pose& X_WP, const Eigen::Vector3d& force_W_N,
+                              const std::vector<Eigen::Vector3d>& tool_vertices_T_m);
+
+/// Shows `frame` on `actors`: proxy and device poses, the contact points, the force arrow from
+/// forceOrigin_W(), and the isovalue when finite.
+void showToolFrame(SceneActors& actors, const ToolFrame& frame, const std::vector<Eigen::Vector3d>& tool_vertices_T_m);
 
 }  // namespace vh::ui

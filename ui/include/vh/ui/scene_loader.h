@@ -27,12 +27,12 @@
 
 namespace vh::ui {
 
-/// What a scene load produces on the worker, handed to the GUI thread whole.
+/// What a scene load produces on the worker, handed to the GUI thread whole (the session
+/// builds the haptic threads).
 struct LoadedViewerScene {
   runtime::LoadedScene scene;                      ///< Volume, tool, isovalue, initial pose.
   Histogram histogram;                             ///< Of the volume's values (256 bins).
   std::shared_ptr<runtime::Device> device;         ///< Null when the scene has no device.
-  std::unique_ptr<runtime::HapticThread> haptics;  ///< Not started; null without a device.
   std::filesystem::path opened;                    ///< What the user opened (file or folder).
   std::string title;                               ///< Window title detail.
 };
@@ -53,9 +53,8 @@ runtime::LoadedScene loadSceneDefault(const runtime::SceneSpec& spec,
 
 /// A tool rebuilt for the current volume (haptics panel).
 struct RebuiltTool {
-  int choice_index = -1;                             ///< Index into the tool catalog.
-  BuiltTool built;                                   ///< Tool, spacing, free initial pose.
-  std::unique_ptr<haptics::HapticRenderer> renderer; ///< For the new tool at built.X_WT_initial.
+  int choice_index = -1;  ///< Index into the tool catalog.
+  BuiltTool built;        ///< Tool, spacing, free initial pose.
 };
 
 class SceneLoader : public QObject {
@@ -65,7 +64,7 @@ class SceneLoader : public QObject {
   explicit SceneLoader(QObject* parent = nullptr);
   ~SceneLoader() override;  ///< Cancels and waits for the worker.
 
-  /// Loads `spec` (runtime::loadScene), its device and haptic thread, and the histogram.
+  /// Loads `spec` (runtime::loadScene), opens its device, and computes the histogram.
   /// `opened` is remembered as what the user opened (recent files). Emits progress() (the read's
   /// fraction as 0..70 %), then sceneLoaded() or failed() (or cancelled()).
   void loadScene(const runtime::SceneSpec& spec, const std::filesystem::path& opened);
@@ -73,11 +72,10 @@ class SceneLoader : public QObject {
   void setSceneLoadFunction(SceneLoadFunction load);
   /// Lists the DICOM series in `folder`; emits seriesListed() or failed().
   void listSeries(const std::filesystem::path& folder);
-  /// Builds `choice` at `point_spacing_m` (0: automatic) for `field` / `isovalue`, with a renderer
-  /// using `options`. Emits toolBuilt() or failed().
+  /// Builds `choice` at `point_spacing_m` (0: automatic) for `field` / `isovalue` (placed just
+  /// clear of it). Emits toolBuilt() or failed().
   void buildTool(int choice_index, const ToolChoice& choice, double point_spacing_m,
-                 std::shared_ptr<const haptics::ScalarVolume> field, double isovalue,
-                 const haptics::RendererOptions& options);
+                 std::shared_ptr<const haptics::ScalarVolume> field, double isovalue);
 
   /// Abandons the running job (no result signal but cancelled()).
   void cancel();

@@ -16,7 +16,7 @@
 /// inside RecordingWriter::push(), see HapticThread::setRecorder()).
 ///
 /// Threads: GUI thread only (events go through HapticThread::recordEvent(), stamped with the
-/// latest tick).
+/// latest tick). It observes runtime::Session; it holds no copy of the scene.
 
 #include <chrono>
 #include <filesystem>
@@ -32,12 +32,14 @@
 class QAction;
 class QLabel;
 class QMenu;
+class QStatusBar;
 class QPushButton;
 class QTimer;
 class QWidget;
 
 namespace vh::runtime {
 class RecordingWriter;
+class Session;
 }
 
 namespace vh::ui {
@@ -48,8 +50,9 @@ class SessionRecorder : public QObject {
   Q_OBJECT
 
  public:
-  /// Lives as long as `window` (its child); adds its label to the window's status bar.
-  explicit SessionRecorder(MainWindow* window);
+  /// Records `session`'s haptic thread (observed: a recording ends when the thread stops or is
+  /// replaced); adds its label to `status_bar`; `dialog_parent` parents its dialogs and owns it.
+  SessionRecorder(runtime::Session& session, QStatusBar* status_bar, QWidget* dialog_parent);
   ~SessionRecorder() override;
 
   /// `documents/VolumeHaptics/session-YYYYMMDD-HHMMSS.vhrec` (the folder is created).
@@ -75,9 +78,10 @@ class SessionRecorder : public QObject {
   /// otherwise); s = 0: automatic spacing.
   void noteTool(const QString& name, double point_spacing_m);
 
-  /// The main window calls this after its haptic thread stopped (or before it is replaced):
-  /// the recording ends and closed writers are released.
-  void onHapticsStopped();
+  /// While a replay is shown the haptic thread waits: nothing can be recorded.
+  void setReplayActive(bool active);
+  /// Dialogs (file name, marker label) when true; else the default path and labels.
+  void setInteractive(bool interactive) { interactive_ = interactive; }
 
   /// Haptics > Record Session (checkable, Ctrl+Shift+R) and Add Marker (M).
   QAction* recordAction() const noexcept { return record_action_; }
@@ -95,13 +99,22 @@ class SessionRecorder : public QObject {
 
  signals:
   void recordingChanged(bool recording);
+  /// A recording could not be started: `what` the file, `message` the problem.
+  void failed(const QString& what, const QString& message);
 
  private:
   void toggleFromUi(bool on);
   void addMarkerFromUi();
   bool recordEvent(const std::string& type, const std::string& detail_json);
 
-  MainWindow* window_;
+  /// The haptic thread stopped or was replaced: the recording ends, closed writers go.
+  void onHapticsStopped();
+
+  runtime::Session& session_;
+  QWidget* dialog_parent_;
+  int observer_ = 0;
+  bool replay_active_ = false;
+  bool interactive_ = true;
   std::unique_ptr<runtime::RecordingWriter> writer_;
   std::vector<std::unique_ptr<runtime::RecordingWriter>> retired_;  // closed, thread still running
   std::filesystem::path path_;

@@ -42,10 +42,6 @@ std::vector<ToolChoice> toolCatalog(const std::filesystem::path& shared_datasets
 /// @return index into `catalog` (the new entry is appended when needed).
 int findOrAddSceneTool(std::vector<ToolChoice>& catalog, const runtime::ToolSpec& spec);
 
-/// The point spacing [m] used when none is asked for: about 1000 points on the mesh, not below
-/// half the volume's smallest voxel (as runtime::loadScene()).
-double automaticPointSpacing_m(const haptics::TriangleMesh& mesh_T, const haptics::ScalarVolume& volume);
-
 /// A tool built for a volume.
 struct BuiltTool {
   std::shared_ptr<const haptics::ToolModel> tool;  ///< Mesh, point shell, mass in T [m].
@@ -53,7 +49,8 @@ struct BuiltTool {
   haptics::Pose X_WT_initial;                      ///< A free pose above the surface in W [m].
 };
 
-/// Loads / generates the mesh of `choice`, resamples it at `point_spacing_m` (0: automatic)
+/// Loads / generates the mesh of `choice`, resamples it at `point_spacing_m` (0: automatic,
+/// runtime::automaticPointSpacing_m())
 /// and places it (runtime::defaultInitialPose: over the volume's centre, just clear of F = s).
 /// @throws std::runtime_error (or io::LoadError) naming the tool and the problem.
 BuiltTool buildTool(const ToolChoice& choice, double point_spacing_m, const haptics::ScalarVolume& volume,

@@ -1,0 +1,58 @@
+#pragma once
+/// @file
+/// The mouse and keyboard as a 6-DOF device: when the session's device is a simulated one
+/// (runtime::Session::simulatedDevice()), drags and keys in the view move it (Ctrl+left drag in
+/// the view plane, Ctrl+wheel / Ctrl+right drag in depth, Shift+left drag rotates about the
+/// tool's centre; arrows, Page Up / Down, Shift+arrows, Home), and touchSurface() brings the
+/// tool onto the surface. Plain drags stay the camera's. The [ and ] keys step the isovalue with
+/// or without a device. GUI thread only.
+
+#include <QObject>
+#include <QPointF>
+
+#include "vh/haptics/pose.h"
+#include "vh/runtime/session.h"
+
+class QKeyEvent;
+
+namespace vh::ui {
+
+class SceneView;
+
+class DeviceInput : public QObject {
+  Q_OBJECT
+
+ public:
+  /// Filters the events of `view`'s widget; `session` and `view` must outlive it.
+  DeviceInput(runtime::Session& session, SceneView& view);
+
+  /// Moves the simulated device to `X_WD` [m] and shows it at once (no effect without one, or
+  /// for a non-finite pose).
+  void setDevicePose(const haptics::Pose& X_WD);
+  /// Moves the simulated device from its pose towards the volume's centre until the tool's point
+  /// shell meets the isosurface, then `depth_m` [m] further; where the central ray meets nothing,
+  /// parallel rays on rings around it are tried (the device then goes sideways first and in
+  /// 0.3 s later). @return false without a simulated device or when no ray meets the surface.
+  bool touchSurface(double depth_m);
+  /// One step of the device's keyboard motion and of the mouse wheel [m]: 1/200 of the volume's
+  /// diagonal, 0.5 to 5 mm.
+  double wheelStep_m() const;
+
+ signals:
+  /// [ (-1) or ] (+1) was pressed in the view.
+  void isovalueStepRequested(int direction);
+
+ protected:
+  bool eventFilter(QObject* watched, QEvent* event) override;
+
+ private:
+  enum class DragMode { kNone, kTranslate, kDepth, kRotate };
+  bool handleKey(QKeyEvent* event);
+
+  runtime::Session& session_;
+  SceneView& view_;
+  DragMode drag_ = DragMode::kNone;
+  QPointF drag_last_;
+};
+
+}  // namespace vh::ui
