@@ -1,5 +1,6 @@
-// Tests of the volume-haptics executable's headless subcommands (app/main.cpp), run as a child
-// process without a display: exit codes and messages for bad input, a report for good input.
+// Tests of the volume-haptics executable's headless subcommands (ui/volume-haptics/main.cpp), run
+// as a child process without a display: exit codes and messages for bad input, a report for good
+// input.
 #include <sys/wait.h>
 
 #include <array>
