@@ -21,12 +21,48 @@ namespace {
 
 constexpr double kKeyRotation_rad = 5.0 * std::numbers::pi / 180.0;
 
+const char* const kHintCamera = "Camera: left drag rotate | middle drag pan | right drag / wheel zoom";
+const char* const kHintDevice =
+    "Device: Ctrl+left drag move in view plane | Ctrl+wheel or Ctrl+right drag move in depth\n"
+    "        Shift+left drag rotate | keys (click the view): arrows, PgUp/PgDn, Shift+arrows, Home";
+
+const char* const kControlsHtml =
+    "<h3>Mouse in the view</h3><table cellpadding='2'>"
+    "<tr><td>left drag</td><td>rotate the camera</td></tr>"
+    "<tr><td>middle drag / right drag or wheel</td><td>pan / zoom the camera</td></tr>"
+    "<tr><td>Ctrl + left drag</td><td>move the simulated device in the view plane</td></tr>"
+    "<tr><td>Ctrl + wheel, Ctrl + right drag</td><td>move the device along the view direction</td></tr>"
+    "<tr><td>Shift + left drag</td><td>rotate the device about the tool's centre</td></tr></table>"
+    "<h3>Keys (click the view first)</h3><table cellpadding='2'>"
+    "<tr><td>arrows</td><td>move the device in the view plane</td></tr>"
+    "<tr><td>Page Up / Page Down</td><td>move the device away / towards you</td></tr>"
+    "<tr><td>Shift + arrows</td><td>rotate the device by 5&deg;</td></tr>"
+    "<tr><td>Home</td><td>device back to its starting pose</td></tr>"
+    "<tr><td>[ and ]</td><td>isovalue down / up one step</td></tr></table>"
+    "<p>The solid tool is the proxy, which stays on the surface; the wire tool is the device. "
+    "The yellow arrow is the force on your hand, red dots are the contacts.</p>";
+
+
 }  // namespace
 
 DeviceInput::DeviceInput(runtime::Session& session, SceneView& view)
     : QObject(&view), session_(session), view_(view) {
   view_.widget()->installEventFilter(this);
 }
+
+std::string DeviceInput::hint(const runtime::Session& session) {
+  std::string hint = kHintCamera;
+  if (session.simulatedDevice() != nullptr && session.hapticThread() != nullptr) {
+    hint += std::string("\n") + kHintDevice;
+  } else if (session.device() != nullptr) {
+    hint += "\nDevice: " + session.device()->name();
+  } else {
+    hint += "\nNo device in this scene: haptics off";
+  }
+  return hint;
+}
+
+QString DeviceInput::controlsHtml() { return QString::fromUtf8(kControlsHtml); }
 
 void DeviceInput::setDevicePose(const haptics::Pose& X_WD) {
   runtime::SimulatedDevice* device = session_.simulatedDevice();

@@ -3,11 +3,14 @@
 #include <algorithm>
 #include <cmath>
 
+#include <QAction>
+#include <QActionGroup>
 #include <QCheckBox>
 #include <QComboBox>
 #include <QFormLayout>
 #include <QGridLayout>
 #include <QGroupBox>
+#include <QMenu>
 #include <QPushButton>
 #include <QSignalBlocker>
 #include <QSlider>
@@ -91,7 +94,13 @@ DisplayPanel::DisplayPanel(QWidget* parent) : QWidget(parent) {
           [this](int i) { emit renderModeChosen(static_cast<RenderMode>(mode_box_->itemData(i).toInt())); });
   connect(preset_box_, &QComboBox::currentIndexChanged, this,
           [this](int i) { emit presetChosen(static_cast<VolumePreset>(preset_box_->itemData(i).toInt())); });
-  connect(clip_group_, &QGroupBox::toggled, this, [this] { emit clippingChanged(false); });
+  connect(clip_group_, &QGroupBox::toggled, this, [this](bool on) {
+    if (clip_action_ != nullptr) {
+      const QSignalBlocker block(clip_action_);
+      clip_action_->setChecked(on);
+    }
+    emit clippingChanged(false);
+  });
   connect(clip_axis_, &QComboBox::currentIndexChanged, this, [this] { emit clippingChanged(false); });
   connect(clip_position_, &QSlider::valueChanged, this, [this] { emit clippingChanged(true); });
   connect(clip_flip_, &QCheckBox::toggled, this, [this] { emit clippingChanged(false); });
@@ -99,15 +108,80 @@ DisplayPanel::DisplayPanel(QWidget* parent) : QWidget(parent) {
   connect(device_box_, &QCheckBox::toggled, this, &DisplayPanel::deviceToolToggled);
 }
 
+QAction* DisplayPanel::addViewMenuActions(QMenu* menu, QWidget* shortcut_owner) {
+  mode_actions_ = new QActionGroup(this);
+  const char* mode_keys[] = {"Ctrl+1", "Ctrl+2", "Ctrl+3"};
+  int k = 0;
+  for (const RenderMode m : {RenderMode::kIsosurface, RenderMode::kComposite, RenderMode::kMip}) {
+    QAction* a = menu->addAction(QString::fromStdString(modeName(m)), this, [this, m] { emit renderModeChosen(m); });
+    a->setCheckable(true);
+    a->setData(static_cast<int>(m));
+    a->setShortcut(QKeySequence(mode_keys[k++]));
+    mode_actions_->addAction(a);
+  }
+  QMenu* presets = menu->addMenu("Composite &Preset");
+  preset_actions_ = new QActionGroup(this);
+  for (const VolumePreset p : {VolumePreset::kBone, VolumePreset::kSoftTissue, VolumePreset::kSkin}) {
+    QAction* a = presets->addAction(QString::fromStdString(presetName(p)), this, [this, p] {
+      emit presetChosen(p);
+      emit renderModeChosen(RenderMode::kComposite);
+    });
+    a->setCheckable(true);
+    a->setData(static_cast<int>(p));
+    preset_actions_->addAction(a);
+  }
+  menu->addSeparator();
+  QAction* reset = menu->addAction("&Reset View", this, &DisplayPanel::resetViewRequested);
+  reset->setShortcut(QKeySequence("Ctrl+R"));
+  struct ViewEntry {
+    const char* text;
+    const char* key;
+    StandardView view;
+  };
+  const ViewEntry entries[] = {{"Anterior", "Alt+A", StandardView::kAnterior},
+                               {"Posterior", "Alt+P", StandardView::kPosterior},
+                               {"Left Lateral", "Alt+L", StandardView::kLeft},
+                               {"Right Lateral", "Alt+R", StandardView::kRight},
+                               {"Superior", "Alt+S", StandardView::kSuperior},
+                               {"Inferior", "Alt+I", StandardView::kInferior}};
+  QMenu* standard = menu->addMenu("Standard &Views");
+  for (const ViewEntry& e : entries) {
+    const StandardView v = e.view;
+    QAction* a = standard->addAction(e.text, this, [this, v] { emit standardViewRequested(v); });
+    a->setShortcut(QKeySequence(e.key));
+    if (shortcut_owner != nullptr) shortcut_owner->addAction(a);  // shortcuts work while the menu is closed
+  }
+  marker_action_ = menu->addAction("Orientation &Marker", this, [this](bool on) { emit markerToggled(on); });
+  marker_action_->setCheckable(true);
+  marker_action_->setChecked(marker_box_->isChecked());
+  marker_action_->setShortcut(QKeySequence("Ctrl+M"));
+  clip_action_ = menu->addAction("&Clipping Plane", this, [this](bool on) { clip_group_->setChecked(on); });
+  clip_action_->setCheckable(true);
+  clip_action_->setChecked(clip_group_->isChecked());
+  clip_action_->setShortcut(QKeySequence("Ctrl+K"));
+  device_action_ = menu->addAction("&Device Tool", this, [this](bool on) { emit deviceToolToggled(on); });
+  device_action_->setCheckable(true);
+  device_action_->setChecked(device_box_->isChecked());
+  setRenderMode(static_cast<RenderMode>(mode_box_->currentData().toInt()));
+  setPreset(static_cast<VolumePreset>(preset_box_->currentData().toInt()));
+  return marker_action_;
+}
+
 void DisplayPanel::setRenderMode(RenderMode mode) {
   const QSignalBlocker block(mode_box_);
   mode_box_->setCurrentIndex(mode_box_->findData(static_cast<int>(mode)));
   preset_box_->setEnabled(mode == RenderMode::kComposite);
+  if (mode_actions_ != nullptr) {
+    for (QAction* a : mode_actions_->actions()) a->setChecked(a->data().toInt() == static_cast<int>(mode));
+  }
 }
 
 void DisplayPanel::setPreset(VolumePreset preset) {
   const QSignalBlocker block(preset_box_);
   preset_box_->setCurrentIndex(preset_box_->findData(static_cast<int>(preset)));
+  if (preset_actions_ != nullptr) {
+    for (QAction* a : preset_actions_->actions()) a->setChecked(a->data().toInt() == static_cast<int>(preset));
+  }
 }
 
 void DisplayPanel::setClipping(bool enabled, ClipAxis axis, double fraction, bool flip) {
@@ -119,16 +193,28 @@ void DisplayPanel::setClipping(bool enabled, ClipAxis axis, double fraction, boo
   clip_axis_->setCurrentIndex(clip_axis_->findData(static_cast<int>(axis)));
   clip_position_->setValue(static_cast<int>(std::lround(std::clamp(fraction, 0.0, 1.0) * 1000.0)));
   clip_flip_->setChecked(flip);
+  if (clip_action_ != nullptr) {
+    const QSignalBlocker block(clip_action_);
+    clip_action_->setChecked(enabled);
+  }
 }
 
 void DisplayPanel::setMarkerVisible(bool visible) {
   const QSignalBlocker block(marker_box_);
   marker_box_->setChecked(visible);
+  if (marker_action_ != nullptr) {
+    const QSignalBlocker block_action(marker_action_);
+    marker_action_->setChecked(visible);
+  }
 }
 
 void DisplayPanel::setDeviceToolVisible(bool visible) {
   const QSignalBlocker block(device_box_);
   device_box_->setChecked(visible);
+  if (device_action_ != nullptr) {
+    const QSignalBlocker block_action(device_action_);
+    device_action_->setChecked(visible);
+  }
 }
 
 bool DisplayPanel::clippingEnabled() const { return clip_group_->isChecked(); }

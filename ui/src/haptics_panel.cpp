@@ -1,4 +1,5 @@
 #include "vh/ui/haptics_panel.h"
+#include "vh/ui/device_picker.h"
 
 #include <cmath>
 
@@ -170,6 +171,29 @@ void HapticsPanel::setRunning(bool running, bool available) {
   start_stop_->setEnabled(available);
   start_stop_->setText(running ? "Stop haptics" : "Start haptics");
   start_stop_->setChecked(running);
+}
+
+void HapticsPanel::showSession(const runtime::Session& session, const std::vector<ToolChoice>& tools, int tool_index,
+                               const QString& hardware_limits, bool replaying) {
+  setRunning(session.hapticsRunning(), session.hapticThread() != nullptr && !replaying);
+  setGains(session.gains());
+  if (session.hasScene()) {
+    setTools(tools, tool_index);
+    const auto& tool = session.scene().tool;
+    setPointShell(session.scene().point_spacing_m, tool != nullptr ? tool->point_shell.size() : std::size_t{0});
+  }
+  QString name = "No device: haptics off";
+  QString limits;
+  if (const runtime::Device* device = session.device()) {
+    name = QString::fromStdString(device->name());
+    limits = hardware_limits;
+    if (limits.isEmpty()) {
+      if (session.simulatedDevice() != nullptr) limits = "Moved with the mouse and keys; its force is computed and shown, not felt.";
+      const QString reported = deviceLimitsText(*device);
+      if (!reported.isEmpty()) limits += (limits.isEmpty() ? "" : "\n") + reported;
+    }
+  }
+  setDevice(name, limits);
 }
 
 void HapticsPanel::setDevice(const QString& name, const QString& limits) {

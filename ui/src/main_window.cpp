@@ -58,27 +58,6 @@ constexpr int kDisplayPeriodMs = 33;    // ~30 Hz prop updates
 constexpr int kStatusEveryTicks = 6;    // status text at ~5 Hz (readable)
 constexpr int kNoticeStatusMs = 10000;  // a load notice stays in the status bar this long
 
-const char* kHintCamera = "Camera: left drag rotate | middle drag pan | right drag / wheel zoom";
-const char* kHintDevice =
-    "Device: Ctrl+left drag move in view plane | Ctrl+wheel or Ctrl+right drag move in depth\n"
-    "        Shift+left drag rotate | keys (click the view): arrows, PgUp/PgDn, Shift+arrows, Home";
-
-const char* kControlsHtml =
-    "<h3>Mouse in the view</h3><table cellpadding='2'>"
-    "<tr><td>left drag</td><td>rotate the camera</td></tr>"
-    "<tr><td>middle drag / right drag or wheel</td><td>pan / zoom the camera</td></tr>"
-    "<tr><td>Ctrl + left drag</td><td>move the simulated device in the view plane</td></tr>"
-    "<tr><td>Ctrl + wheel, Ctrl + right drag</td><td>move the device along the view direction</td></tr>"
-    "<tr><td>Shift + left drag</td><td>rotate the device about the tool's centre</td></tr></table>"
-    "<h3>Keys (click the view first)</h3><table cellpadding='2'>"
-    "<tr><td>arrows</td><td>move the device in the view plane</td></tr>"
-    "<tr><td>Page Up / Page Down</td><td>move the device away / towards you</td></tr>"
-    "<tr><td>Shift + arrows</td><td>rotate the device by 5&deg;</td></tr>"
-    "<tr><td>Home</td><td>device back to its starting pose</td></tr>"
-    "<tr><td>[ and ]</td><td>isovalue down / up one step</td></tr></table>"
-    "<p>The solid tool is the proxy, which stays on the surface; the wire tool is the device. "
-    "The yellow arrow is the force on your hand, red dots are the contacts.</p>";
-
 QString q(const std::string& s) { return QString::fromStdString(s); }
 
 }  // namespace
@@ -450,66 +429,14 @@ void MainWindow::buildMenus() {
   QAction* quit = file->addAction("&Quit", this, &QWidget::close);
   quit->setShortcut(QKeySequence::Quit);
 
-  // ---- View.
+  // ---- View: the Display panel's actions (the same choices as its dock), then the window's.
   QMenu* viewMenu = menuBar()->addMenu("&View");
-  mode_actions_ = new QActionGroup(this);
-  const char* mode_keys[] = {"Ctrl+1", "Ctrl+2", "Ctrl+3"};
-  int k = 0;
-  for (const RenderMode m : {RenderMode::kIsosurface, RenderMode::kComposite, RenderMode::kMip}) {
-    QAction* a = viewMenu->addAction(q(modeName(m)), this, [this, m] { setRenderMode(m); });
-    a->setCheckable(true);
-    a->setData(static_cast<int>(m));
-    a->setShortcut(QKeySequence(mode_keys[k++]));
-    mode_actions_->addAction(a);
-  }
-  QMenu* presets = viewMenu->addMenu("Composite &Preset");
-  preset_actions_ = new QActionGroup(this);
-  for (const VolumePreset p : {VolumePreset::kBone, VolumePreset::kSoftTissue, VolumePreset::kSkin}) {
-    QAction* a = presets->addAction(q(presetName(p)), this, [this, p] {
-      setPreset(p);
-      setRenderMode(RenderMode::kComposite);
-    });
-    a->setCheckable(true);
-    a->setData(static_cast<int>(p));
-    preset_actions_->addAction(a);
-  }
-  viewMenu->addSeparator();
-  QAction* reset = viewMenu->addAction("&Reset View", this, [this] {
-    resetCamera();
-    view_->requestRender();
-  });
-  reset->setShortcut(QKeySequence("Ctrl+R"));
-  struct ViewEntry {
-    const char* text;
-    const char* key;
-    StandardView view;
-  };
-  const ViewEntry entries[] = {{"Anterior", "Alt+A", StandardView::kAnterior},
-                               {"Posterior", "Alt+P", StandardView::kPosterior},
-                               {"Left Lateral", "Alt+L", StandardView::kLeft},
-                               {"Right Lateral", "Alt+R", StandardView::kRight},
-                               {"Superior", "Alt+S", StandardView::kSuperior},
-                               {"Inferior", "Alt+I", StandardView::kInferior}};
-  QMenu* standard = viewMenu->addMenu("Standard &Views");
-  for (const ViewEntry& e : entries) {
-    const StandardView v = e.view;
-    QAction* a = standard->addAction(e.text, this, [this, v] { setStandardView(v); });
-    a->setShortcut(QKeySequence(e.key));
-    addAction(a);  // shortcuts work while the menu is closed
-  }
-  QAction* focus = viewMenu->addAction("&Focus on the Tool", this, &MainWindow::focusOnTool);
+  QAction* first_toggle = display_panel_->addViewMenuActions(viewMenu, this);
+  QAction* focus = new QAction("&Focus on the Tool", this);
+  connect(focus, &QAction::triggered, this, &MainWindow::focusOnTool);
   focus->setShortcut(QKeySequence("Ctrl+F"));
-  viewMenu->addSeparator();
-  marker_action_ = viewMenu->addAction("Orientation &Marker", this, &MainWindow::setOrientationMarkerVisible);
-  marker_action_->setCheckable(true);
-  marker_action_->setChecked(prefs_.orientation_marker);
-  marker_action_->setShortcut(QKeySequence("Ctrl+M"));
-  clip_action_ = viewMenu->addAction("&Clipping Plane", this, [this](bool on) { display_panel_->clipGroup()->setChecked(on); });
-  clip_action_->setCheckable(true);
-  clip_action_->setShortcut(QKeySequence("Ctrl+K"));
-  device_action_ = viewMenu->addAction("&Device Tool", this, &MainWindow::setDeviceToolVisible);
-  device_action_->setCheckable(true);
-  device_action_->setChecked(prefs_.show_device);
+  viewMenu->insertAction(first_toggle, focus);
+  viewMenu->insertSeparator(first_toggle);
   QMenu* colours = viewMenu->addMenu("C&olours");
   colours->addAction("Background (top)...", this, [this] { chooseColour(&Preferences::background_top, "Background, top"); });
   colours->addAction("Background (bottom)...", this,
@@ -562,7 +489,7 @@ void MainWindow::buildMenus() {
   // ---- Help.
   QMenu* help = menuBar()->addMenu("H&elp");
   QAction* controls = help->addAction("&Controls", this, [this] {
-    QMessageBox box(QMessageBox::Information, "Controls", kControlsHtml, QMessageBox::Close, this);
+    QMessageBox box(QMessageBox::Information, "Controls", DeviceInput::controlsHtml(), QMessageBox::Close, this);
     box.setTextFormat(Qt::RichText);
     box.exec();
   });
@@ -581,8 +508,6 @@ void MainWindow::buildMenus() {
   addAction(cancel);
 
   // Reflect the preferences.
-  for (QAction* a : mode_actions_->actions()) a->setChecked(a->data().toInt() == static_cast<int>(prefs_.mode));
-  for (QAction* a : preset_actions_->actions()) a->setChecked(a->data().toInt() == static_cast<int>(prefs_.preset));
   display_panel_->setPreset(prefs_.preset);
   display_panel_->setRenderMode(prefs_.mode);
 }
@@ -762,31 +687,13 @@ void MainWindow::dropEvent(QDropEvent* event) {
 void MainWindow::updateHapticsPanel() {
   if (haptics_panel_ == nullptr) return;
   const bool replaying = replay_ != nullptr && replay_->active();  // the haptic thread waits
-  const bool available = session_.hapticThread() != nullptr && !replaying;
-  haptics_panel_->setRunning(hapticsRunning(), available);
+  haptics_panel_->showSession(session_, tools_, tool_index_, device_picker_ != nullptr ? device_picker_->limitsText() : QString(),
+                              replaying);
   if (haptics_action_ != nullptr) {
     const QSignalBlocker block(haptics_action_);
-    haptics_action_->setEnabled(available);
+    haptics_action_->setEnabled(session_.hapticThread() != nullptr && !replaying);
     haptics_action_->setChecked(hapticsRunning());
   }
-  haptics_panel_->setGains(session_.gains());
-  if (hasScene()) {
-    haptics_panel_->setTools(tools_, tool_index_);
-    haptics_panel_->setPointShell(scene().point_spacing_m,
-                                  scene().tool != nullptr ? scene().tool->point_shell.size() : std::size_t{0});
-  }
-  QString name = "No device: haptics off";
-  QString limits;
-  if (const runtime::Device* device = session_.device()) {
-    name = q(device->name());
-    limits = device_picker_ != nullptr ? device_picker_->limitsText() : QString();
-    if (limits.isEmpty()) {
-      if (session_.simulatedDevice() != nullptr) limits = "Moved with the mouse and keys; its force is computed and shown, not felt.";
-      const QString reported = deviceLimitsText(*device);
-      if (!reported.isEmpty()) limits += (limits.isEmpty() ? "" : "\n") + reported;
-    }
-  }
-  haptics_panel_->setDevice(name, limits);
 }
 
 void MainWindow::updateStatus() {
@@ -799,16 +706,7 @@ void MainWindow::updateStatus() {
 QString MainWindow::statusText() const { return status_ != nullptr ? status_->text() : QString(); }
 
 void MainWindow::updateHint() {
-  if (!view_->hasScene()) return;
-  std::string hint = kHintCamera;
-  if (session_.simulatedDevice() != nullptr && session_.hapticThread() != nullptr) {
-    hint += std::string("\n") + kHintDevice;
-  } else if (session_.device() != nullptr) {
-    hint += "\nDevice: " + session_.device()->name();
-  } else {
-    hint += "\nNo device in this scene: haptics off";
-  }
-  view_->setHint(hint);
+  if (view_->hasScene()) view_->setHint(DeviceInput::hint(session_));
 }
 
 void MainWindow::updateWindowTitle() {
@@ -840,14 +738,12 @@ void MainWindow::updateWindowTitle() {
 void MainWindow::setRenderMode(RenderMode mode) {
   prefs_.mode = mode;
   display_panel_->setRenderMode(mode);
-  for (QAction* a : mode_actions_->actions()) a->setChecked(a->data().toInt() == static_cast<int>(mode));
   view_->setRenderMode(prefs_.mode, prefs_.preset);
 }
 
 void MainWindow::setPreset(VolumePreset preset) {
   prefs_.preset = preset;
   display_panel_->setPreset(preset);
-  for (QAction* a : preset_actions_->actions()) a->setChecked(a->data().toInt() == static_cast<int>(preset));
   view_->setRenderMode(prefs_.mode, prefs_.preset);
 }
 
@@ -867,10 +763,6 @@ void MainWindow::setClipping(bool enabled, ClipAxis axis, double fraction, bool 
 
 void MainWindow::applyClippingFromPanel() {
   const bool enabled = display_panel_->clippingEnabled();
-  if (clip_action_ != nullptr) {
-    const QSignalBlocker block(clip_action_);
-    clip_action_->setChecked(enabled);
-  }
   view_->setClipping(enabled, display_panel_->clipAxis(), display_panel_->clipFraction(), display_panel_->clipFlipped());
 }
 
@@ -878,19 +770,11 @@ void MainWindow::setOrientationMarkerVisible(bool visible) {
   prefs_.orientation_marker = visible;
   view_->setMarkerVisible(visible);
   display_panel_->setMarkerVisible(visible);
-  if (marker_action_ != nullptr) {
-    const QSignalBlocker block(marker_action_);
-    marker_action_->setChecked(visible);
-  }
 }
 
 void MainWindow::setDeviceToolVisible(bool visible) {
   prefs_.show_device = visible;
   display_panel_->setDeviceToolVisible(visible);
-  if (device_action_ != nullptr) {
-    const QSignalBlocker block(device_action_);
-    device_action_->setChecked(visible);
-  }
   view_->setDeviceVisible(visible && session_.hapticThread() != nullptr);
 }
 

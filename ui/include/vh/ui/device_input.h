@@ -7,8 +7,11 @@
 /// tool onto the surface. Plain drags stay the camera's. The [ and ] keys step the isovalue with
 /// or without a device. GUI thread only.
 
+#include <string>
+
 #include <QObject>
 #include <QPointF>
+#include <QString>
 
 #include "vh/haptics/pose.h"
 #include "vh/runtime/session.h"
@@ -25,6 +28,12 @@ class DeviceInput : public QObject {
  public:
   /// Filters the events of `view`'s widget; `session` and `view` must outlive it.
   DeviceInput(runtime::Session& session, SceneView& view);
+
+  /// The view's overlay: the camera's mouse controls, then the device's (with a simulated
+  /// device), the device's name (another device) or "haptics off" (none).
+  static std::string hint(const runtime::Session& session);
+  /// Help > Controls: every mouse and key binding of the view (rich text).
+  static QString controlsHtml();
 
   /// Moves the simulated device to `X_WD` [m] and shows it at once (no effect without one, or
   /// for a non-finite pose).

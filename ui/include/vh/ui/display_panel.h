@@ -1,7 +1,8 @@
 #pragma once
 /// @file
 /// The Display dock's panel: rendering mode and composite preset, standard views and Reset
-/// view, the clipping plane (axis, position, side), the orientation marker and the device tool.
+/// view, the clipping plane (axis, position, side), the orientation marker and the device tool;
+/// and the same choices as View menu actions (addViewMenuActions()), kept in step with the dock.
 /// It edits and shows; the main window acts on its signals (preferences and the scene view).
 /// GUI thread only.
 
@@ -10,9 +11,12 @@
 #include "vh/ui/render_presets.h"
 #include "vh/ui/scene_view.h"
 
+class QAction;
+class QActionGroup;
 class QCheckBox;
 class QComboBox;
 class QGroupBox;
+class QMenu;
 class QSlider;
 
 namespace vh::ui {
@@ -22,6 +26,12 @@ class DisplayPanel : public QWidget {
 
  public:
   explicit DisplayPanel(QWidget* parent = nullptr);
+
+  /// Adds to `menu`: the rendering modes (Ctrl+1..3), Composite Preset, Reset View (Ctrl+R),
+  /// Standard Views (Alt+A/P/L/R/S/I, also added to `shortcut_owner` so they work while the
+  /// menu is closed), Orientation Marker (Ctrl+M), Clipping Plane (Ctrl+K) and Device Tool.
+  /// They emit the panel's signals. @return the Orientation Marker action (the first toggle).
+  QAction* addViewMenuActions(QMenu* menu, QWidget* shortcut_owner);
 
   // Shown values (no signal is emitted).
   void setRenderMode(RenderMode mode);
@@ -56,6 +66,11 @@ class DisplayPanel : public QWidget {
   QCheckBox* clip_flip_ = nullptr;
   QCheckBox* marker_box_ = nullptr;
   QCheckBox* device_box_ = nullptr;
+  QActionGroup* mode_actions_ = nullptr;
+  QActionGroup* preset_actions_ = nullptr;
+  QAction* marker_action_ = nullptr;
+  QAction* clip_action_ = nullptr;
+  QAction* device_action_ = nullptr;
 };
 
 }  // namespace vh::ui

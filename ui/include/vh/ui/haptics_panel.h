@@ -12,6 +12,7 @@
 #include <QWidget>
 
 #include "vh/haptics/virtual_coupling.h"
+#include "vh/runtime/session.h"
 #include "vh/ui/tool_catalog.h"
 
 class QComboBox;
@@ -29,6 +30,11 @@ class HapticsPanel : public QWidget {
   explicit HapticsPanel(QWidget* parent = nullptr);
 
   /// The tool list and the entry in use.
+  /// Shows `session`: running / available (not while `replaying`), gains, the tool `tool_index`
+  /// of `tools` and its point shell, the device's name and limits (`hardware_limits` when the
+  /// device picker opened it, else what the device reports).
+  void showSession(const runtime::Session& session, const std::vector<ToolChoice>& tools, int tool_index,
+                   const QString& hardware_limits, bool replaying);
   void setTools(const std::vector<ToolChoice>& tools, int current);
   int currentTool() const;
   /// The spacing in use [m] and the point count it gave.

@@ -267,11 +267,6 @@ class MainWindow : public QMainWindow {
   QMenu* recent_menu_ = nullptr;
   QMenu* device_menu_ = nullptr;
   QAction* haptics_action_ = nullptr;
-  QActionGroup* mode_actions_ = nullptr;
-  QActionGroup* preset_actions_ = nullptr;
-  QAction* marker_action_ = nullptr;
-  QAction* clip_action_ = nullptr;
-  QAction* device_action_ = nullptr;
   QTimer* display_timer_ = nullptr;
   QElapsedTimer clock_;  // strip chart time base
   int observer_ = 0;
