@@ -1,0 +1,93 @@
+// IsovalueBar against runtime::Session on the built-in sphere (F = 20 mm - r in mm, 64^3 voxels
+// of 1 mm). Oracles: the field's own minimum and maximum (the slider maps 0..1000 linearly onto
+// them) and the values handed to the session.
+#include "vh/ui/isovalue_bar.h"
+
+#include <cmath>
+#include <memory>
+
+#include <QDoubleSpinBox>
+
+#include <gtest/gtest.h>
+
+#include "vh/runtime/scene.h"
+#include "vh/runtime/session.h"
+#include "vh/ui/histogram_slider.h"
+
+namespace vh::ui {
+namespace {
+
+const runtime::LoadedScene& sphereProbeScene() {
+  static const runtime::LoadedScene scene = [] {
+    runtime::SceneSpec spec;
+    spec.volume.path = "builtin:sphere";
+    spec.tool.mesh = "builtin:probe";
+    return runtime::loadScene(spec);
+  }();
+  return scene;
+}
+
+TEST(IsovalueBar, TheSliderSetsTheSessionsIsovalueLinearlyOverTheFieldsRange) {
+  runtime::Session session;
+  session.setScene(sphereProbeScene(), nullptr);
+  IsovalueBar bar(session);
+  const double min = sphereProbeScene().volume.field->minValue();
+  const double max = sphereProbeScene().volume.field->maxValue();
+  // F = 20 mm - r: about 20 at the centre, negative in the corners.
+  ASSERT_GT(max, 19.0);
+  ASSERT_LT(min, -20.0);
+  EXPECT_EQ(bar.slider()->value(), static_cast<int>(std::lround(1000.0 * (0.0 - min) / (max - min))))
+      << "the slider shows the scene's isovalue 0";
+  for (const int p : {0, 250, 731, 1000}) {
+    bar.slider()->setValue(p);
+    EXPECT_NEAR(session.isovalue(), min + (max - min) * p / 1000.0, 1e-9) << "slider at " << p;
+    EXPECT_EQ(bar.slider()->value(), p);
+  }
+}
+
+TEST(IsovalueBar, TheSpinBoxFollowsTheSessionClampedToTheFieldsMaximum) {
+  runtime::Session session;
+  session.setScene(sphereProbeScene(), nullptr);
+  IsovalueBar bar(session);
+  const double max = sphereProbeScene().volume.field->maxValue();
+  session.setIsovalue(1.5);
+  EXPECT_NEAR(bar.spinBox()->value(), 1.5, 1e-9);
+  session.setIsovalue(max + 7.0);
+  EXPECT_DOUBLE_EQ(session.isovalue(), max);
+  EXPECT_NEAR(bar.spinBox()->value(), max, 0.005) << "the spin box shows two decimals";
+  EXPECT_EQ(bar.slider()->value(), 1000);
+
+  // The spin box sends what is typed.
+  bar.spinBox()->setValue(-3.25);
+  EXPECT_NEAR(session.isovalue(), -3.25, 1e-9);
+}
+
+TEST(IsovalueBar, OneStepAddsOneSpinBoxStep) {
+  runtime::Session session;
+  session.setScene(sphereProbeScene(), nullptr);
+  IsovalueBar bar(session);
+  session.setIsovalue(2.0);
+  const double step = bar.spinBox()->singleStep();
+  ASSERT_GT(step, 0.0);
+  bar.step(+1);
+  EXPECT_NEAR(session.isovalue(), 2.0 + step, 1e-9);
+  bar.step(-1);
+  bar.step(-1);
+  EXPECT_NEAR(session.isovalue(), 2.0 - step, 1e-9);
+}
+
+TEST(IsovalueBar, IsDisabledWithoutAScene) {
+  runtime::Session session;
+  IsovalueBar bar(session);
+  EXPECT_FALSE(bar.slider()->isEnabled());
+  EXPECT_FALSE(bar.spinBox()->isEnabled());
+  session.setScene(sphereProbeScene(), nullptr);
+  EXPECT_TRUE(bar.slider()->isEnabled());
+  EXPECT_TRUE(bar.spinBox()->isEnabled());
+  session.clear();
+  EXPECT_FALSE(bar.slider()->isEnabled());
+  EXPECT_FALSE(bar.spinBox()->isEnabled());
+}
+
+}  // namespace
+}  // namespace vh::ui

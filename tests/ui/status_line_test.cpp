@@ -1,0 +1,81 @@
+// hapticStatusText() and StatusLine: what the status line says in each state of a
+// runtime::Session (no scan, haptics off, stopped, starting, running with known numbers,
+// replaying).
+#include "vh/ui/status_line.h"
+
+#include <memory>
+
+#include <QStatusBar>
+
+#include <gtest/gtest.h>
+
+#include "vh/runtime/scene.h"
+#include "vh/runtime/session.h"
+
+namespace vh::ui {
+namespace {
+
+const runtime::LoadedScene& sphereProbeScene() {
+  static const runtime::LoadedScene scene = [] {
+    runtime::SceneSpec spec;
+    spec.volume.path = "builtin:sphere";
+    spec.tool.mesh = "builtin:probe";
+    return runtime::loadScene(spec);
+  }();
+  return scene;
+}
+
+bool contains(const QString& text, const char* part) { return text.contains(QString::fromUtf8(part)); }
+
+TEST(StatusLine, SaysWhyThereAreNoStatistics) {
+  runtime::Session session;
+  EXPECT_EQ(hapticStatusText(session, nullptr, {}), "No scan open");
+
+  session.setScene(sphereProbeScene(), nullptr);
+  EXPECT_TRUE(hapticStatusText(session, nullptr, {}).startsWith("Haptics off")) << hapticStatusText(session, nullptr, {}).toStdString();
+
+  session.setDevice(std::make_shared<runtime::SimulatedDevice>(sphereProbeScene().X_WT_initial));
+  ASSERT_NE(session.hapticThread(), nullptr);
+  EXPECT_TRUE(contains(hapticStatusText(session, nullptr, {}), "stopped")) << hapticStatusText(session, nullptr, {}).toStdString();
+
+  session.startHaptics();
+  ASSERT_TRUE(session.hapticsRunning());
+  EXPECT_TRUE(contains(hapticStatusText(session, nullptr, {}), "starting")) << hapticStatusText(session, nullptr, {}).toStdString();
+  session.stopHaptics();
+}
+
+TEST(StatusLine, ShowsTheSnapshotsNumbers) {
+  runtime::Session session;
+  session.setScene(sphereProbeScene(), std::make_shared<runtime::SimulatedDevice>(sphereProbeScene().X_WT_initial));
+  session.startHaptics();
+  ASSERT_TRUE(session.hapticsRunning());
+  runtime::HapticSnapshot s;
+  s.coupling.rate_Hz = 1000.0;
+  s.solver.rate_Hz = 250.0;
+  s.contacts = 3;
+  s.force_W_N = Eigen::Vector3d(1.806, 2.408, 0.0);  // 0.602 * (3, 4, 0): |F| = 3.01 N
+  const QString text = hapticStatusText(session, &s, {});
+  EXPECT_TRUE(contains(text, "Coupling 1000 Hz")) << text.toStdString();
+  EXPECT_TRUE(contains(text, "Solver 250 Hz")) << text.toStdString();
+  EXPECT_TRUE(contains(text, "contacts 3")) << text.toStdString();
+  EXPECT_TRUE(contains(text, "|F| 3.01 N")) << text.toStdString();
+  EXPECT_FALSE(contains(text, "skipped")) << "no skipped samples: not mentioned";
+
+  // The widget shows the same text in its label.
+  QStatusBar bar;
+  StatusLine line(&bar);
+  line.showHaptics(session, &s, {});
+  EXPECT_EQ(line.text(), text);
+  session.stopHaptics();
+}
+
+TEST(StatusLine, AReplayNamesTheRecording) {
+  runtime::Session session;
+  session.setScene(sphereProbeScene(), nullptr);
+  const QString text = hapticStatusText(session, nullptr, "probe-run.vhrec");
+  EXPECT_TRUE(text.startsWith("Replaying probe-run.vhrec")) << text.toStdString();
+  EXPECT_EQ(hapticStatusText(runtime::Session{}, nullptr, "probe-run.vhrec"), "No scan open");
+}
+
+}  // namespace
+}  // namespace vh::ui
