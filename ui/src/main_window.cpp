@@ -373,7 +373,7 @@ void MainWindow::setScene(ViewerScene v) {
   view_->clearScene();
   title_ = v.title;
   opened_ = v.opened;
-  const Histogram histogram = v.histogram.has_value() ? *v.histogram : computeHistogram(v.scene.volume.image, 256);
+  const Histogram histogram = v.histogram.has_value() ? *v.histogram : computeHistogram(v.scene.volume.image.get(), 256);
   session_.setScene(std::move(v.scene), std::move(v.device));  // observers: bar, recorder, panel
   SceneActorsSpec spec = sceneActorsSpecFor(session_.scene());
   spec.show_device = session_.hapticThread() != nullptr && prefs_.show_device;

@@ -57,7 +57,7 @@ double forceNormOf(const runtime::TickRecord& r) {
 
 SceneActorsSpec sceneActorsSpecFor(const runtime::LoadedScene& scene) {
   SceneActorsSpec spec;
-  spec.image = scene.volume.image;
+  spec.image = scene.volume.image.get();
   if (scene.volume.field != nullptr) spec.direction_W = scene.volume.field->geometry().direction_W;
   spec.isovalue = scene.isovalue;
   if (scene.tool != nullptr) {

@@ -105,7 +105,7 @@ void SceneLoader::loadScene(const runtime::SceneSpec& spec, const fs::path& open
       result->scene = load(spec, read_progress, &cancel);
       if (cancel.load()) return;
       stage("Computing the histogram", 70);
-      result->histogram = computeHistogram(result->scene.volume.image, 256, &cancel);
+      result->histogram = computeHistogram(result->scene.volume.image.get(), 256, &cancel);
       if (cancel.load()) return;
       stage("Opening the device", 85);
       // The device may take a while to open (hardware); the session builds the haptic threads.

@@ -142,9 +142,15 @@ bool isInteger(double v) { return std::isfinite(v) && v == std::round(v); }
 
 }  // namespace
 
-vtkSmartPointer<vtkImageData> imageFromField(const haptics::ScalarVolume& field) {
+ImagePtr shareImage(vtkImageData* image) {
+  if (image == nullptr) return nullptr;
+  image->Register(nullptr);
+  return ImagePtr(image, [](vtkImageData* p) { p->UnRegister(nullptr); });
+}
+
+ImagePtr imageFromField(const haptics::ScalarVolume& field) {
   auto image = vtkSmartPointer<vtkImageData>::New();
-  if (field.empty()) return image;
+  if (field.empty()) return shareImage(image);
   const auto& g = field.geometry();
   image->SetDimensions(g.dims[0], g.dims[1], g.dims[2]);
   image->SetSpacing(g.spacing_m.x(), g.spacing_m.y(), g.spacing_m.z());
@@ -182,7 +188,7 @@ vtkSmartPointer<vtkImageData> imageFromField(const haptics::ScalarVolume& field)
   }
   scalars->SetName("values");
   image->GetPointData()->SetScalars(scalars);
-  return image;
+  return shareImage(image);
 }
 
 namespace detail {
@@ -236,7 +242,7 @@ LoadedVolume finishVolume(RawVolume raw, const fs::path& path) {
   LoadedVolume out;
   if (keep_image) {
     // Share the reader's voxel array; only the geometry changes (metres, no direction).
-    out.image = vtkSmartPointer<vtkImageData>::New();
+    out.image = shareImage(vtkSmartPointer<vtkImageData>::New());
     out.image->SetDimensions(dims[0], dims[1], dims[2]);
     const auto& g = field->geometry();
     out.image->SetSpacing(g.spacing_m.x(), g.spacing_m.y(), g.spacing_m.z());

@@ -145,7 +145,7 @@ TEST(NrrdLoad, HeadsqQuarterHasTheSameVoxelsAsTheDicomHead) {
   const LoadedVolume dicom = loadVolume(dir);
   EXPECT_EQ(nrrd.field->minValue(), dicom.field->minValue());
   EXPECT_EQ(nrrd.field->maxValue(), dicom.field->maxValue());
-  EXPECT_DOUBLE_EQ(scalarSum(nrrd.image), scalarSum(dicom.image));
+  EXPECT_DOUBLE_EQ(scalarSum(nrrd.image.get()), scalarSum(dicom.image.get()));
   // Voxel for voxel: rows in the files' own order on both sides (vtkNrrdReader's row flip for
   // "3D-left-handed" undone); the slice files run in opposite order (quarter.93 holds the same
   // pixels as CTHead1.dcm, which lies at z = 0).

@@ -6,6 +6,7 @@
 #include <stdexcept>
 
 #include <gtest/gtest.h>
+#include <vtkImageData.h>  // the image LoadedScene shares for rendering
 
 #include "runtime_test_support.h"
 #include "vh/datasets/synthetic.h"

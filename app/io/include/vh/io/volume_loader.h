@@ -11,14 +11,19 @@
 #include <string>
 #include <vector>
 
-#include <vtkSmartPointer.h>
-
 #include "vh/haptics/scalar_volume.h"
 #include "vh/haptics/triangle_mesh.h"
 
 class vtkImageData;
 
 namespace vh::io {
+
+/// The voxels for rendering: a vtkImageData shared without VTK in the public headers (the
+/// layers above io, e.g. runtime, stay free of VTK). It holds one VTK reference (shareImage()).
+using ImagePtr = std::shared_ptr<vtkImageData>;
+
+/// Shares `image` (null gives null): takes a VTK reference, released when the last ImagePtr goes.
+ImagePtr shareImage(vtkImageData* image);
 
 /// A load failed. what() names the file and the problem, e.g.
 /// "/data/x.nrrd: truncated: expected 8388608 bytes of voxel data, found 1000".
@@ -89,7 +94,7 @@ struct VolumeInfo {
 /// (p_W = origin + D * (p_image - origin)).
 struct LoadedVolume {
   std::shared_ptr<const haptics::ScalarVolume> field;
-  vtkSmartPointer<vtkImageData> image;  ///< Scalars in data units (rescaled), metres.
+  ImagePtr image;  ///< Scalars in data units (rescaled), metres.
   VolumeInfo info;
 };
 
@@ -120,7 +125,7 @@ haptics::TriangleMesh loadMesh(const std::filesystem::path& path, double scale_t
 
 /// A vtkImageData (metres, no direction) over the voxels of a field, e.g. for synthetic
 /// volumes; values in data units.
-vtkSmartPointer<vtkImageData> imageFromField(const haptics::ScalarVolume& field);
+ImagePtr imageFromField(const haptics::ScalarVolume& field);
 
 /// Name filter for a Qt file dialog that opens volumes, e.g.
 /// "Volumes (*.nrrd *.nhdr *.mha *.mhd *.dcm);;...". A DICOM series is opened by folder or by

@@ -33,8 +33,6 @@
 #include <optional>
 #include <string>
 
-#include <vtkImageData.h>  // complete type: LoadedScene copies io::LoadedVolume's image pointer
-
 #include "vh/haptics/haptic_renderer.h"
 #include "vh/haptics/pose.h"
 #include "vh/haptics/tool_model.h"
