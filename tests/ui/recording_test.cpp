@@ -342,14 +342,14 @@ TEST_F(RecordingTest, MissingDatasetNamesItAndKeepsTheScene) {
   auto w = smallWindow();
   ASSERT_TRUE(loadInto(*w, sphereScene()));
   w->stopHaptics();
-  const void* image_before = w->scene().volume.image.GetPointer();
+  const void* image_before = w->scene().volume.image.get();
   QSignalSpy failed(w.get(), &MainWindow::loadFailed);
   EXPECT_FALSE(w->replay()->openRecording(bad));
   EXPECT_EQ(failed.count(), 1);
   EXPECT_NE(w->lastError().indexOf(QString::fromStdString(missing)), -1) << w->lastError().toStdString();
   EXPECT_FALSE(w->replay()->active());
   EXPECT_FALSE(w->replay()->pending());
-  EXPECT_EQ(w->scene().volume.image.GetPointer(), image_before);
+  EXPECT_EQ(w->scene().volume.image.get(), image_before);
 }
 
 TEST(ReplayForceArrow, StartsAtTheToolsExtremePointAgainstTheForce) {
