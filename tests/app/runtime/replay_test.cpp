@@ -260,7 +260,11 @@ TEST(RecordingReplay, DeviceDisconnectAndReconnectAreRecordedAsEventsAndReplay) 
   const fs::path path = test::scratchDir() / "unplugged.vhrec";
   RecordingWriter writer(path, makeSessionMetadata(scene, {device->name(), "scripted", {}}));
   {
-    HapticThread thread(scene.makeRenderer(), device, scene.isovalue);
+    // Every device sample reaches the solver even when a loaded machine delays it (by default
+    // a solver over 0.25 s behind skips ahead, and the ticks would no longer be the reads).
+    HapticThreadOptions options;
+    options.max_solver_backlog_s = 3600.0;
+    HapticThread thread(scene.makeRenderer(), device, scene.isovalue, 1000.0, options);
     thread.setRecorder(&writer);
     thread.start();
     const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(30);
