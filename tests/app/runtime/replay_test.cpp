@@ -263,7 +263,7 @@ TEST(RecordingReplay, DeviceDisconnectAndReconnectAreRecordedAsEventsAndReplay) 
     // Every device sample reaches the solver even when a loaded machine delays it (by default
     // a solver over 0.25 s behind skips ahead, and the ticks would no longer be the reads).
     HapticThreadOptions options;
-    options.max_solver_backlog_s = 3600.0;
+    options.max_solver_backlog_s = 10.0;  // the longest allowed
     HapticThread thread(scene.makeRenderer(), device, scene.isovalue, 1000.0, options);
     thread.setRecorder(&writer);
     thread.start();
