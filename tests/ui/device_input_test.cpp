@@ -15,6 +15,8 @@
 #include <QWidget>
 
 #include <gtest/gtest.h>
+
+#include "ui_test_util.h"
 #include <vtkActor.h>
 #include <vtkMatrix4x4.h>
 
@@ -28,18 +30,10 @@
 namespace vh::ui {
 namespace {
 
+using test::sphereProbeScene;
+
 using haptics::Pose;
 
-const runtime::LoadedScene& sphereProbeScene() {
-  static const runtime::LoadedScene scene = [] {
-    runtime::SceneSpec spec;
-    spec.volume.path = "builtin:sphere";
-    spec.tool.mesh = "builtin:probe";
-    spec.device = runtime::DeviceSpec{};
-    return runtime::loadScene(spec);
-  }();
-  return scene;
-}
 
 /// The shell point nearest the sphere's centre when the tool is at `X_WT`: its distance [m].
 double deepestRadius_m(const haptics::PointShell& shell, const Pose& X_WT) {

@@ -9,6 +9,8 @@
 
 #include <gtest/gtest.h>
 
+#include "ui_test_util.h"
+
 #include "vh/runtime/scene.h"
 #include "vh/runtime/session.h"
 #include "vh/runtime/trajectory.h"
@@ -16,15 +18,8 @@
 namespace vh::ui {
 namespace {
 
-const runtime::LoadedScene& sphereProbeScene() {
-  static const runtime::LoadedScene scene = [] {
-    runtime::SceneSpec spec;
-    spec.volume.path = "builtin:sphere";
-    spec.tool.mesh = "builtin:probe";
-    return runtime::loadScene(spec);
-  }();
-  return scene;
-}
+using test::sphereProbeScene;
+
 
 TEST(DevicePicker, EntryZeroPutsASimulatedDeviceAtTheProxysPose) {
   runtime::Session session;

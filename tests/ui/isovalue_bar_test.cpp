@@ -10,6 +10,8 @@
 
 #include <gtest/gtest.h>
 
+#include "ui_test_util.h"
+
 #include "vh/runtime/scene.h"
 #include "vh/runtime/session.h"
 #include "vh/ui/histogram_slider.h"
@@ -17,15 +19,8 @@
 namespace vh::ui {
 namespace {
 
-const runtime::LoadedScene& sphereProbeScene() {
-  static const runtime::LoadedScene scene = [] {
-    runtime::SceneSpec spec;
-    spec.volume.path = "builtin:sphere";
-    spec.tool.mesh = "builtin:probe";
-    return runtime::loadScene(spec);
-  }();
-  return scene;
-}
+using test::sphereProbeScene;
+
 
 TEST(IsovalueBar, TheSliderSetsTheSessionsIsovalueLinearlyOverTheFieldsRange) {
   runtime::Session session;

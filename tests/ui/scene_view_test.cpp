@@ -31,18 +31,10 @@
 namespace vh::ui {
 namespace {
 
+using test::sphereProbeScene;
+
 using haptics::Pose;
 
-const runtime::LoadedScene& sphereProbeScene() {
-  static const runtime::LoadedScene scene = [] {
-    runtime::SceneSpec spec;
-    spec.volume.path = "builtin:sphere";
-    spec.tool.mesh = "builtin:probe";
-    spec.device = runtime::DeviceSpec{};
-    return runtime::loadScene(spec);
-  }();
-  return scene;
-}
 
 /// A small window holding a SceneView (the host owns the view and its widget).
 struct ViewWindow {

@@ -9,21 +9,16 @@
 
 #include <gtest/gtest.h>
 
+#include "ui_test_util.h"
+
 #include "vh/runtime/scene.h"
 #include "vh/runtime/session.h"
 
 namespace vh::ui {
 namespace {
 
-const runtime::LoadedScene& sphereProbeScene() {
-  static const runtime::LoadedScene scene = [] {
-    runtime::SceneSpec spec;
-    spec.volume.path = "builtin:sphere";
-    spec.tool.mesh = "builtin:probe";
-    return runtime::loadScene(spec);
-  }();
-  return scene;
-}
+using test::sphereProbeScene;
+
 
 bool contains(const QString& text, const char* part) { return text.contains(QString::fromUtf8(part)); }
 

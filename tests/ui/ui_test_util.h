@@ -10,10 +10,26 @@
 #include <QApplication>
 #include <QImage>
 
+#include "vh/runtime/scene.h"
+
 namespace vh::ui::test {
 
 inline const std::filesystem::path kSharedData = std::filesystem::path(VH_SHARED_DATASETS_DIR);
 inline const std::filesystem::path kHead = kSharedData / "ct/ct-head-small";
+
+/// The built-in sphere (radius 20 mm in 64^3 voxels of 1 mm, F = 20 mm - r, isovalue 0) with the
+/// built-in probe and a simulated device section; loaded once. The analytic oracle of the parts'
+/// tests.
+inline const runtime::LoadedScene& sphereProbeScene() {
+  static const runtime::LoadedScene scene = [] {
+    runtime::SceneSpec spec;
+    spec.volume.path = "builtin:sphere";
+    spec.tool.mesh = "builtin:probe";
+    spec.device = runtime::DeviceSpec{};
+    return runtime::loadScene(spec);
+  }();
+  return scene;
+}
 
 /// Processes events until `done` or the timeout; @return done().
 inline bool waitFor(const std::function<bool()>& done, int timeout_ms) {

@@ -32,14 +32,7 @@ using haptics::Pose;
 /// lowest point 5 mm further down).
 Pose pressedPose(double depth_m) { return Pose::FromTranslation({0.0, 0.0, 0.020 + 0.005 - depth_m}); }
 
-bool waitUntil(const std::function<bool()>& condition, std::chrono::milliseconds timeout = 3000ms) {
-  const auto deadline = std::chrono::steady_clock::now() + timeout;
-  while (std::chrono::steady_clock::now() < deadline) {
-    if (condition()) return true;
-    std::this_thread::sleep_for(2ms);
-  }
-  return condition();
-}
+using test::waitUntil;
 
 /// Force the coupling must produce for a snapshot's poses: -k (c_D - c_P) (eq. 5, linear part).
 Eigen::Vector3d couplingForce(const HapticSnapshot& s, const haptics::ToolModel& tool, double k) {

@@ -1,6 +1,7 @@
 #include "runtime_test_support.h"
 
 #include <fstream>
+#include <thread>
 
 namespace vh::test {
 
@@ -40,6 +41,15 @@ const runtime::LoadedScene& sphereBallScene() {
     return runtime::loadScene(spec);
   }();
   return scene;
+}
+
+bool waitUntil(const std::function<bool()>& condition, std::chrono::milliseconds timeout) {
+  const auto deadline = std::chrono::steady_clock::now() + timeout;
+  while (std::chrono::steady_clock::now() < deadline) {
+    if (condition()) return true;
+    std::this_thread::sleep_for(std::chrono::milliseconds(2));
+  }
+  return condition();
 }
 
 }  // namespace vh::test

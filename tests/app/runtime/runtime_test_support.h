@@ -1,6 +1,8 @@
 #pragma once
 // Helpers shared by the runtime tests: scratch folders, files, expected error messages, data paths.
+#include <chrono>
 #include <filesystem>
+#include <functional>
 #include <initializer_list>
 #include <string>
 
@@ -26,6 +28,10 @@ std::filesystem::path sourceDir();
 /// The built-in sphere (radius 20 mm, F = signed distance in mm, isovalue 0) with the 5 mm ball
 /// tool (1.5 mm point spacing), coupling 1000 N/m, simulated device; loaded once.
 const runtime::LoadedScene& sphereBallScene();
+
+/// Polls `condition` every 2 ms until it holds or `timeout` passes; @return condition().
+bool waitUntil(const std::function<bool()>& condition,
+               std::chrono::milliseconds timeout = std::chrono::milliseconds(3000));
 
 }  // namespace vh::test
 

@@ -22,14 +22,7 @@ namespace {
 using namespace std::chrono_literals;
 using haptics::Pose;
 
-bool waitUntil(const std::function<bool()>& condition, std::chrono::milliseconds timeout = 3000ms) {
-  const auto deadline = std::chrono::steady_clock::now() + timeout;
-  while (std::chrono::steady_clock::now() < deadline) {
-    if (condition()) return true;
-    std::this_thread::sleep_for(2ms);
-  }
-  return condition();
-}
+using test::waitUntil;
 
 /// The ball tool's centre `depth_m` below the top of the sphere (its lowest point 5 mm lower).
 Pose pressedPose(double depth_m) { return Pose::FromTranslation({0.0, 0.0, 0.020 + 0.005 - depth_m}); }
