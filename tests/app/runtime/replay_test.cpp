@@ -109,7 +109,10 @@ Recording recordTenSeconds(haptics::DetectionMode mode, const fs::path& path) {
   info.note = std::string("determinism test, ") + haptics::toString(mode);
   RecordingWriter writer(path, makeSessionMetadata(scene, info));
   {
-    HapticThread thread(scene.makeRenderer(options), device, scene.isovalue);
+    // Every device sample reaches the solver even on a loaded machine (see the unplug test).
+    HapticThreadOptions thread_options;
+    thread_options.max_solver_backlog_s = 10.0;
+    HapticThread thread(scene.makeRenderer(options), device, scene.isovalue, 1000.0, thread_options);
     device->attach(&thread);
     thread.setRecorder(&writer);
     thread.start();
