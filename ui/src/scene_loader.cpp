@@ -2,9 +2,9 @@
 
 #include <algorithm>
 #include <exception>
+#include <vector>
 
 #include <QMetaObject>
-#include <QPointer>
 
 #include "vh/runtime/device.h"
 #include "vh/runtime/haptic_thread.h"
@@ -34,8 +34,6 @@ runtime::LoadedScene loadSceneDefault(const runtime::SceneSpec& spec, const std:
 void SceneLoader::setSceneLoadFunction(SceneLoadFunction load) { load_scene_ = std::move(load); }
 
 SceneLoader::SceneLoader(QObject* parent) : QObject(parent) {
-  // Two threads: a cancelled job may still be finishing while the next one starts.
-  pool_.setMaxThreadCount(2);
   qRegisterMetaType<std::shared_ptr<vh::ui::LoadedViewerScene>>();
   qRegisterMetaType<std::shared_ptr<std::vector<vh::io::DicomSeriesInfo>>>();
   qRegisterMetaType<std::shared_ptr<vh::ui::RebuiltTool>>();
@@ -44,27 +42,53 @@ SceneLoader::SceneLoader(QObject* parent) : QObject(parent) {
 SceneLoader::~SceneLoader() {
   if (cancel_flag_) cancel_flag_->store(true);
   ++job_;  // nothing more is delivered
-  pool_.waitForDone();
+  joinWorkers(/*all=*/true);
 }
 
 void SceneLoader::start(std::function<void(const std::atomic<bool>&, std::uint64_t)> job) {
   if (busy_) cancel();
+  joinWorkers(/*all=*/false);
   cancel_flag_ = std::make_shared<std::atomic<bool>>(false);
   const std::uint64_t id = ++job_;
   busy_ = true;
-  auto flag = cancel_flag_;
-  pool_.start([job = std::move(job), flag, id] { job(*flag, id); });
+  auto done = std::make_shared<std::atomic<bool>>(false);
+  workers_.push_back({std::thread([job = std::move(job), flag = cancel_flag_, id, done] {
+                        job(*flag, id);
+                        done->store(true, std::memory_order_release);
+                      }),
+                      done});
 }
 
 void SceneLoader::post(std::uint64_t job, std::function<void()> deliver) {
-  // The loader outlives its jobs (its destructor waits for the pool), so `this` is valid here;
-  // the job id check on the GUI thread drops results of cancelled jobs.
-  QMetaObject::invokeMethod(
-      this,
-      [this, job, deliver = std::move(deliver)] {
-        if (job == job_) deliver();
-      },
-      Qt::QueuedConnection);
+  // The loader outlives its workers (its destructor joins them), so `this` is valid here; the
+  // job id check on the GUI thread drops results of cancelled jobs.
+  {
+    const std::lock_guard<std::mutex> lock(inbox_mutex_);
+    inbox_.emplace_back(job, std::move(deliver));
+  }
+  QMetaObject::invokeMethod(this, "drain", Qt::QueuedConnection);
+}
+
+void SceneLoader::drain() {
+  std::deque<std::pair<std::uint64_t, std::function<void()>>> items;
+  {
+    const std::lock_guard<std::mutex> lock(inbox_mutex_);
+    items.swap(inbox_);
+  }
+  for (auto& [job, deliver] : items) {
+    if (job == job_) deliver();
+  }
+}
+
+void SceneLoader::joinWorkers(bool all) {
+  for (auto it = workers_.begin(); it != workers_.end();) {
+    if (all || it->done->load(std::memory_order_acquire)) {
+      it->thread.join();
+      it = workers_.erase(it);
+    } else {
+      ++it;
+    }
+  }
 }
 
 void SceneLoader::finish(std::uint64_t job) {
@@ -82,7 +106,7 @@ void SceneLoader::cancel() {
   emit idle();
 }
 
-void SceneLoader::waitForIdle() { pool_.waitForDone(); }
+void SceneLoader::waitForIdle() { joinWorkers(/*all=*/true); }
 
 void SceneLoader::loadScene(const runtime::SceneSpec& spec, const fs::path& opened) {
   const SceneLoadFunction load = load_scene_ ? load_scene_ : SceneLoadFunction(&loadSceneDefault);

@@ -1,14 +1,18 @@
 #pragma once
 /// @file
 /// Loading off the GUI thread: scenes (volume + tool + device + haptic thread + histogram),
-/// DICOM folder listings and tool rebuilds run on a worker thread (a private QThreadPool);
-/// progress and the result come back to the GUI thread as queued signals. One job at a time;
+/// DICOM folder listings and tool rebuilds run on a worker thread (a std::thread per job);
+/// progress and the result come back to the GUI thread through a mutex-guarded inbox drained by
+/// a queued call, so every hand-off between the threads is one ThreadSanitizer can see. One job at a time;
 /// cancel() abandons the running job at once: its result is dropped when it arrives (a read
 /// inside VTK cannot be interrupted, so the worker may run on briefly, never touching the
 /// window; the stages in between check the cancel flag).
 
 #include <atomic>
 #include <cstdint>
+#include <deque>
+#include <mutex>
+#include <thread>
 #include <functional>
 #include <filesystem>
 #include <memory>
@@ -18,7 +22,6 @@
 
 #include <QObject>
 #include <QString>
-#include <QThreadPool>
 
 #include "vh/io/dicom_series.h"
 #include "vh/runtime/scene.h"
@@ -96,14 +99,24 @@ class SceneLoader : public QObject {
   void idle();
 
  private:
-  /// Runs `job(cancel_flag, job_id)` on the pool as the current job.
+  /// Runs `job(cancel_flag, job_id)` on a new worker thread as the current job.
   void start(std::function<void(const std::atomic<bool>& cancel, std::uint64_t job)> job);
   /// Worker side: runs `deliver` on the GUI thread if job `job` is still the current one.
   void post(std::uint64_t job, std::function<void()> deliver);
+  /// GUI thread: runs what the workers posted (queued call from post()).
+  Q_INVOKABLE void drain();
   /// GUI thread: the current job ended (result delivered).
   void finish(std::uint64_t job);
+  /// GUI thread: joins the workers that are done (`all`: every worker, waiting for them).
+  void joinWorkers(bool all);
 
-  QThreadPool pool_;
+  struct Worker {
+    std::thread thread;
+    std::shared_ptr<std::atomic<bool>> done;
+  };
+  std::vector<Worker> workers_;  // GUI thread; a cancelled job may still run beside the next
+  std::mutex inbox_mutex_;
+  std::deque<std::pair<std::uint64_t, std::function<void()>>> inbox_;  // guarded by inbox_mutex_
   SceneLoadFunction load_scene_;  // GUI thread; copied into each job
   std::shared_ptr<std::atomic<bool>> cancel_flag_;
   std::uint64_t job_ = 0;  // GUI thread: id of the current job (0: none yet)
