@@ -180,7 +180,7 @@ void HapticsPanel::showSession(const runtime::Session& session, const std::vecto
   if (session.hasScene()) {
     setTools(tools, tool_index);
     const auto& tool = session.scene().tool;
-    setPointShell(session.scene().point_spacing_m, tool != nullptr ? tool->point_shell.size() : std::size_t{0});
+    setPointShell(session.scene().pointSpacing_m(), tool != nullptr ? tool->point_shell.size() : std::size_t{0});
   }
   QString name = "No device: haptics off";
   QString limits;

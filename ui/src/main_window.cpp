@@ -332,7 +332,7 @@ void MainWindow::onToolBuilt(std::shared_ptr<RebuiltTool> rebuilt) {
   spec.X_WT_initial.R_AB = choice.R_WT;
   spec.initial_orientation_set = true;
   // The session ramps the force to zero before the tool changes under the user's hand.
-  session_.setTool(rebuilt->built.tool, spec, rebuilt->built.X_WT_initial, rebuilt->built.point_spacing_m);
+  session_.setTool(rebuilt->built.tool, spec, rebuilt->built.X_WT_initial);
   emit toolChanged();
 }
 

@@ -83,6 +83,20 @@ void showRecord(SceneActors& actors, const runtime::TickRecord& record,
   showToolFrame(actors, toolFrameOf(record), tool_vertices_T_m);
 }
 
+void applyColours(vtkRenderer* renderer, SceneActors* actors, const Preferences& look) {
+  const auto bottom = rgbOf(look.background_bottom);
+  const auto top = rgbOf(look.background_top);
+  renderer->SetBackground(bottom[0], bottom[1], bottom[2]);
+  renderer->SetBackground2(top[0], top[1], top[2]);
+  if (actors == nullptr) return;
+  const auto s = rgbOf(look.surface);
+  const auto t = rgbOf(look.tool);
+  const auto d = rgbOf(look.device);
+  actors->setSurfaceColour(s[0], s[1], s[2]);
+  actors->setToolColour(t[0], t[1], t[2]);
+  actors->setDeviceColour(d[0], d[1], d[2]);
+}
+
 // ---- RecordingFrameRenderer ----------------------------------------------------------------------
 
 RecordingFrameRenderer::RecordingFrameRenderer(const SceneActorsSpec& spec, int width, int height,
@@ -100,18 +114,9 @@ RecordingFrameRenderer::RecordingFrameRenderer(const SceneActorsSpec& spec, int 
   window_->SetWindowName("volume-haptics export");
   renderer_ = vtkSmartPointer<vtkRenderer>::New();
   window_->AddRenderer(renderer_);
-  const auto bottom = rgbOf(look.background_bottom);
-  const auto top = rgbOf(look.background_top);
   renderer_->GradientBackgroundOn();
-  renderer_->SetBackground(bottom[0], bottom[1], bottom[2]);
-  renderer_->SetBackground2(top[0], top[1], top[2]);
   actors_ = std::make_unique<SceneActors>(renderer_, spec);
-  const auto s = rgbOf(look.surface);
-  const auto t = rgbOf(look.tool);
-  const auto d = rgbOf(look.device);
-  actors_->setSurfaceColour(s[0], s[1], s[2]);
-  actors_->setToolColour(t[0], t[1], t[2]);
-  actors_->setDeviceColour(d[0], d[1], d[2]);
+  applyColours(renderer_, actors_.get(), look);
   actors_->setRenderMode(look.mode, look.preset);
   actors_->setInteractive(false);
   actors_->resetQuality();

@@ -5,7 +5,6 @@
 #include <numbers>
 #include <stdexcept>
 
-#include <QColor>
 #include <QTimer>
 #include <vtkCamera.h>
 #include <vtkGenericOpenGLRenderWindow.h>
@@ -14,6 +13,7 @@
 #include <vtkTextActor.h>
 #include <vtkTextProperty.h>
 
+#include "vh/ui/media_export.h"
 #include "vh/ui/orientation_marker.h"
 #include "vh/ui/vtk_view.h"
 
@@ -26,7 +26,6 @@ bool posesDiffer(const haptics::Pose& a, const haptics::Pose& b) {
   return (a.p_AB_m - b.p_AB_m).norm() > 1e-6 || a.R_AB.angularDistance(b.R_AB) > 1e-4;
 }
 
-std::array<double, 3> rgb(const QColor& c) { return {c.redF(), c.greenF(), c.blueF()}; }
 
 }  // namespace
 
@@ -97,8 +96,7 @@ void SceneView::setScene(const SceneActorsSpec& spec, const haptics::Pose& X_WT,
   shown_force_W_N_.setZero();
   scene_frame_ = view_->frameCount();
   if (welcome_ != nullptr) welcome_->SetVisibility(false);
-  marker_wanted_ = look.orientation_marker;
-  marker_->setVisible(marker_wanted_);
+  marker_->setVisible(look.orientation_marker);
   applyColours(look);
   resetCamera();
   requestRender();
@@ -130,8 +128,7 @@ bool SceneView::show(const ToolFrame& frame) {
   if (actors_ == nullptr) return false;
   const int contacts = static_cast<int>(frame.contacts_W_m.size());
   const bool changed = posesDiffer(frame.X_WP, shown_X_WP_) || posesDiffer(frame.X_WD, shown_X_WD_) ||
-                       contacts != shown_contacts_ || (frame.force_W_N - shown_force_W_N_).norm() > 0.01 ||
-                       (std::isfinite(frame.isovalue) && frame.isovalue != actors_->isovalue());
+                       contacts != shown_contacts_ || (frame.force_W_N - shown_force_W_N_).norm() > 0.01;
   // The tools always show the latest frame exactly; a new picture is asked for only when
   // something moved visibly.
   actors_->setProxyPose(frame.X_WP);
@@ -178,24 +175,11 @@ void SceneView::setRenderMode(RenderMode mode, VolumePreset preset) {
 }
 
 void SceneView::applyColours(const Preferences& look) {
-  vtkRenderer* renderer = view_->renderer();
-  const auto bottom = rgb(look.background_bottom);
-  const auto top = rgb(look.background_top);
-  renderer->SetBackground(bottom[0], bottom[1], bottom[2]);
-  renderer->SetBackground2(top[0], top[1], top[2]);
-  if (actors_ != nullptr) {
-    const auto s = rgb(look.surface);
-    const auto t = rgb(look.tool);
-    const auto d = rgb(look.device);
-    actors_->setSurfaceColour(s[0], s[1], s[2]);
-    actors_->setToolColour(t[0], t[1], t[2]);
-    actors_->setDeviceColour(d[0], d[1], d[2]);
-  }
+  ui::applyColours(view_->renderer(), actors_.get(), look);
   requestRender();
 }
 
 void SceneView::setMarkerVisible(bool visible) {
-  marker_wanted_ = visible;
   marker_->setVisible(visible && actors_ != nullptr);
   requestRender();
 }

@@ -404,7 +404,6 @@ LoadedScene loadScene(const SceneSpec& spec, const std::function<void(double)>& 
   } else {
     shell_options.spacing_m = automaticPointSpacing_m(mesh, field);
   }
-  scene.point_spacing_m = toolPointSpacing_m(spec.tool, mesh, field);
   try {
     scene.tool = std::make_shared<const haptics::ToolModel>(haptics::makeToolModel(std::move(mesh), shell_options));
   } catch (const std::invalid_argument& e) {
@@ -432,6 +431,11 @@ double toolPointSpacing_m(const ToolSpec& spec, const haptics::TriangleMesh& mes
   if (spec.point_count > 0) return std::sqrt(mesh_T.area_m2() / static_cast<double>(spec.point_count));
   if (spec.point_spacing_m > 0.0) return spec.point_spacing_m;
   return automaticPointSpacing_m(mesh_T, volume);
+}
+
+double LoadedScene::pointSpacing_m() const {
+  if (tool == nullptr || volume.field == nullptr) return 0.0;
+  return toolPointSpacing_m(spec.tool, tool->mesh_T, *volume.field);
 }
 
 std::unique_ptr<haptics::HapticRenderer> LoadedScene::makeRenderer(haptics::RendererOptions options,

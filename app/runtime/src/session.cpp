@@ -93,7 +93,7 @@ void Session::setGains(const haptics::CouplingGains& gains) {
 }
 
 void Session::setTool(std::shared_ptr<const haptics::ToolModel> tool, const ToolSpec& spec,
-                      const haptics::Pose& X_WT_initial, double point_spacing_m) {
+                      const haptics::Pose& X_WT_initial) {
   if (tool == nullptr) throw std::invalid_argument("Session::setTool: no tool");
   if (!has_scene_) throw std::invalid_argument("Session::setTool: no scene");
   const bool was_running = hapticsRunning();
@@ -102,7 +102,6 @@ void Session::setTool(std::shared_ptr<const haptics::ToolModel> tool, const Tool
   scene_.tool = std::move(tool);
   scene_.spec.tool = spec;
   scene_.X_WT_initial = X_WT_initial;
-  scene_.point_spacing_m = point_spacing_m;
   if (SimulatedDevice* sim = simulatedDevice()) sim->setPose(X_WT_initial);
   rebuildHaptics(X_WT_initial);
   if (was_running && haptics_ != nullptr) haptics_->start();

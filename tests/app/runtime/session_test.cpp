@@ -164,17 +164,17 @@ TEST(Session, ASwappedToolReplacesTheSpecAndRestartsAtItsFreePose) {
   ToolSpec spec = loaded.spec.tool;
   spec.point_spacing_m = 0.003;
   const Pose free_pose = Pose::FromTranslation({0.0, 0.0, 0.040});
-  session.setTool(coarse, spec, free_pose, 0.003);
+  session.setTool(coarse, spec, free_pose);
   EXPECT_EQ(session.scene().tool, coarse);
   EXPECT_EQ(session.scene().spec.tool.point_spacing_m, 0.003);
-  EXPECT_EQ(session.scene().point_spacing_m, 0.003);
+  EXPECT_EQ(session.scene().pointSpacing_m(), 0.003);
   EXPECT_TRUE(session.hapticsRunning());
   EXPECT_LT((device->pose().p_AB_m - free_pose.p_AB_m).norm(), 1e-12);
   HapticSnapshot snap;
   ASSERT_TRUE(waitUntil([&] { return session.latestSnapshot(snap) && snap.tick > 50; }));
   EXPECT_LT((snap.X_WP.p_AB_m - free_pose.p_AB_m).norm(), 1e-6);
   EXPECT_EQ(snap.contacts, 0);
-  EXPECT_THROW(session.setTool(nullptr, spec, free_pose, 0.003), std::invalid_argument);
+  EXPECT_THROW(session.setTool(nullptr, spec, free_pose), std::invalid_argument);
 }
 
 TEST(Session, ARemovedObserverHearsNothingAndClearForgetsTheScene) {
@@ -197,7 +197,7 @@ TEST(Session, LoadSceneRecordsTheSpacingItSampledTheToolAt) {
   // The one point-spacing rule (toolPointSpacing_m): a spacing as given, a count as
   // sqrt(area / count), else automatic.
   const LoadedScene& loaded = test::sphereBallScene();
-  EXPECT_EQ(loaded.point_spacing_m, 0.0015);
+  EXPECT_EQ(loaded.pointSpacing_m(), 0.0015);
   ToolSpec by_count;
   by_count.point_count = 400;
   EXPECT_NEAR(toolPointSpacing_m(by_count, loaded.tool->mesh_T, *loaded.volume.field),

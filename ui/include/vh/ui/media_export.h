@@ -54,6 +54,11 @@ ToolFrame toolFrameOf(const runtime::TickRecord& record);
 void showRecord(SceneActors& actors, const runtime::TickRecord& record,
                 const std::vector<Eigen::Vector3d>& tool_vertices_T_m);
 
+/// The colours of `look` (RGB from the preferences' QColors): `renderer`'s background gradient
+/// (bottom, top) and, when `actors` is set, the isosurface, proxy tool and device tool. The one
+/// place both the main view (SceneView) and exported frames take their colours from.
+void applyColours(vtkRenderer* renderer, SceneActors* actors, const Preferences& look);
+
 /// An off-screen render window with the scene's props, for frames of a recording.
 class RecordingFrameRenderer {
  public:

@@ -114,7 +114,6 @@ class SceneView : public QObject {
   QTimer* settle_timer_ = nullptr;
   bool interacting_ = false;
   bool camera_dragging_ = false;
-  bool marker_wanted_ = false;
   std::uint64_t scene_frame_ = 0;  // the view's frame count when the props were built
   std::vector<Eigen::Vector3d> tool_vertices_T_m_;
   haptics::Pose shown_X_WP_;

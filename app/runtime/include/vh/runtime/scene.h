@@ -149,8 +149,11 @@ struct LoadedScene {
   double isovalue = 0.0;                          ///< Isovalue s in the data's units.
   haptics::Pose X_WT_initial;                     ///< Initial proxy and device pose in W [m].
   int initial_points_inside = 0;  ///< Shell points inside F = s at X_WT_initial (0 normally).
-  /// The spacing the tool's point shell was sampled at [m] (toolPointSpacing_m()).
-  double point_spacing_m = 0.0;
+
+  /// The spacing the tool's point shell was sampled at [m]: toolPointSpacing_m() of spec.tool
+  /// on the tool's mesh and the field (derived, so it cannot disagree with the spec); 0 without
+  /// a tool or a field.
+  double pointSpacing_m() const;
 
   /// A renderer for this scene with the proxy at `X_WP` (X_WT_initial when absent), the spec's
   /// gains, this isovalue; epsilon as `options`.

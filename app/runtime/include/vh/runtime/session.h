@@ -7,7 +7,7 @@
 ///
 /// One value, one place: the isovalue is scene().isovalue (scene().spec.volume.isovalue says the
 /// same, written by the same function), the gains scene().spec.gains, the tool scene().tool with
-/// scene().spec.tool and scene().point_spacing_m. The haptic thread receives them as commands
+/// scene().spec.tool (its spacing derived: scene().pointSpacing_m()). The haptic thread receives them as commands
 /// (HapticThread::setIsovalue(), setGains()); it is built in one place, rebuildHaptics(), from
 /// LoadedScene::makeHapticThread().
 ///
@@ -39,7 +39,7 @@ enum class SessionChange : std::uint32_t {
   kScene = 1u << 0,     ///< A new scene (or none): everything else may have changed too.
   kIsovalue = 1u << 1,  ///< isovalue()
   kGains = 1u << 2,     ///< gains()
-  kTool = 1u << 3,      ///< scene().tool, its spec and spacing; the haptic thread was rebuilt.
+  kTool = 1u << 3,      ///< scene().tool and its spec; the haptic thread was rebuilt.
   kDevice = 1u << 4,    ///< device(); the haptic thread was rebuilt.
   kRunning = 1u << 5,   ///< hapticsRunning()
 };
@@ -97,10 +97,10 @@ class Session {
   /// Swaps the tool (e.g. one rebuilt by the GUI's tool picker): the haptic threads stop (force
   /// ramped to zero), the tool and its spec replace the scene's, the device (when simulated)
   /// moves to `X_WT_initial` (a free pose), the threads are rebuilt there and restarted when
-  /// they ran. `spec.point_spacing_m` should be the spacing the shell was sampled at.
+  /// they ran. `spec` should name the spacing the shell was sampled at (point_spacing_m, or
+  /// point_count): scene().pointSpacing_m() derives it from there.
   /// @throws std::invalid_argument for a null tool or no scene.
-  void setTool(std::shared_ptr<const haptics::ToolModel> tool, const ToolSpec& spec,
-               const haptics::Pose& X_WT_initial, double point_spacing_m);
+  void setTool(std::shared_ptr<const haptics::ToolModel> tool, const ToolSpec& spec, const haptics::Pose& X_WT_initial);
 
   // ---- Device and haptic threads -------------------------------------------------------------
   /// Drives `device` instead (null: haptics off): the threads are rebuilt with the current tool
