@@ -524,7 +524,9 @@ LoadedVolume loadFileIsolated(const fs::path& path, const VolumeLoadOptions& opt
   }
   std::error_code ec;
   const WorkerOutput out("volume");
-  const bool finished = runWorker({worker.string(), "volume", fs::absolute(path, ec).string(), out.path().string()},
+  std::vector<std::string> args = {worker.string(), "volume", fs::absolute(path, ec).string(), out.path().string()};
+  if (options.nrrd_layer != 0) args.insert(args.end(), {"--layer", std::to_string(options.nrrd_layer)});
+  const bool finished = runWorker(args,
                                   path, stallLimitFor(path, options.worker_stall_timeout_s), {}, options.cancel,
                                   [](const std::string& what) {
                                     return "the volume reader " + what + ": a damaged file; nothing was loaded";
@@ -609,6 +611,9 @@ int runDicomWorker(int argc, char** argv) {
     try {
       VolumeLoadOptions in_process;
       in_process.dicom_isolation = DicomIsolation::kInProcess;
+      for (int a = 4; a + 1 < argc; ++a) {
+        if (std::string(argv[a]) == "--layer") in_process.nrrd_layer = std::atoi(argv[a + 1]);
+      }
       const LoadedVolume v = loadVolume(path, in_process);
       writeField(*v.field, v.info, argv[3]);
     } catch (const std::exception& e) {

@@ -5,6 +5,7 @@
 #include <cstdint>
 #include <filesystem>
 #include <functional>
+#include <map>
 #include <optional>
 #include <string>
 #include <string_view>
@@ -64,7 +65,14 @@ LoadedVolume loadFileIsolated(const fs::path& path, const VolumeLoadOptions& opt
 
 /// The DICOM read itself, in this process: the series chosen, regularised, not yet converted.
 RawVolume loadDicomRaw(const fs::path& path, const VolumeLoadOptions& options);
-LoadedVolume loadNrrd(const fs::path& path);
+/// `layer`: which layer of a 4-D layered NRRD (3D Slicer's .seg.nrrd with overlapping
+/// segments); 0 for a 3-D NRRD.
+LoadedVolume loadNrrd(const fs::path& path, int layer = 0);
+/// The "key:=value" pairs of a NRRD header (keys as written), e.g. 3D Slicer's
+/// "Segment0_Name" -> "tumour". Reads the header only (the project's own parser, fuzzed with
+/// the NRRD target).
+/// @throws LoadError naming the file for a missing file or a malformed header.
+std::map<std::string, std::string> readNrrdKeyValues(const fs::path& path);
 LoadedVolume loadMetaImage(const fs::path& path);
 
 // --- small text and geometry helpers -------------------------------------------------------

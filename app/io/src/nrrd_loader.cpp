@@ -12,6 +12,9 @@
 //  - descending format-string ranges, byte / line skips and multi-file gzip are not supported:
 //    rejected here with a clear message.
 #include <algorithm>
+#include <bit>
+#include <iterator>
+#include <limits>
 #include <array>
 #include <cmath>
 #include <cstring>
@@ -27,6 +30,7 @@
 #include <vtkNrrdReader.h>
 #include <vtkPointData.h>
 #include <vtkSmartPointer.h>
+#include <zlib.h>
 
 #include "loader_internal.h"
 #include "vtk_error_capture.h"
@@ -36,6 +40,7 @@ namespace {
 
 struct NrrdHeader {
   std::map<std::string, std::string> fields;  // lower-case key -> trimmed value
+  std::map<std::string, std::string> key_values;  // "key:=value" pairs, key as written
   std::vector<fs::path> data_files;           // absolute or relative to the header's folder
   bool detached = false;
   std::uintmax_t header_bytes = 0;  // offset of attached data
@@ -207,7 +212,10 @@ NrrdHeader readHeader(const fs::path& path) {
       break;
     }
     if (line[0] == '#') continue;
-    if (line.find(":=") != std::string::npos) continue;  // key/value pair, not a field
+    if (const auto kv = line.find(":="); kv != std::string::npos) {  // key/value pair, not a field
+      h.key_values[line.substr(0, kv)] = line.substr(kv + 2);
+      continue;
+    }
     const auto colon = line.find(": ");
     const auto colon_end = line.size() > 0 && line.back() == ':' ? line.size() - 1 : std::string::npos;
     const auto pos = colon != std::string::npos ? colon : colon_end;
@@ -368,6 +376,58 @@ vtkSmartPointer<vtkImageData> asScalarVolume(vtkImageData* image, const std::arr
   return out;
 }
 
+/// Layer `layer` of a layered NRRD's `layer_count` interleaved layers (the list axis fastest),
+/// decoded from the raw or gzip data (zlib), as a one-component image of dims `sizes`.
+vtkSmartPointer<vtkImageData> readLayer(const NrrdHeader& h, const fs::path& path, bool gzip, int vtk_type,
+                                        std::size_t type_size, int layer_count, int layer,
+                                        const std::array<int, 3>& sizes) {
+  const std::size_t voxels = static_cast<std::size_t>(sizes[0]) * static_cast<std::size_t>(sizes[1]) *
+                             static_cast<std::size_t>(sizes[2]);
+  const std::size_t total = voxels * static_cast<std::size_t>(layer_count) * type_size;
+  const fs::path data = h.detached ? h.data_files.front() : path;
+  const std::uintmax_t offset = h.detached ? 0 : h.header_bytes;
+  std::ifstream in(data, std::ios::binary);
+  if (!in) fail(path, "cannot open the voxel data " + data.string());
+  in.seekg(static_cast<std::streamoff>(offset));
+  std::vector<unsigned char> bytes(total);
+  if (!gzip) {
+    in.read(reinterpret_cast<char*>(bytes.data()), static_cast<std::streamsize>(total));
+    if (static_cast<std::size_t>(in.gcount()) != total) fail(path, "truncated layered voxel data");
+  } else {
+    std::vector<unsigned char> packed((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+    z_stream z{};
+    if (inflateInit2(&z, 16 + MAX_WBITS) != Z_OK) fail(path, "zlib could not start");
+    z.next_in = packed.data();
+    z.avail_in = static_cast<uInt>(std::min<std::size_t>(packed.size(), std::numeric_limits<uInt>::max()));
+    z.next_out = bytes.data();
+    z.avail_out = static_cast<uInt>(std::min<std::size_t>(total, std::numeric_limits<uInt>::max()));
+    const int rc = inflate(&z, Z_FINISH);
+    const std::size_t produced = total - z.avail_out;
+    inflateEnd(&z);
+    if ((rc != Z_STREAM_END && rc != Z_OK && rc != Z_BUF_ERROR) || produced != total) {
+      fail(path, "corrupt or truncated gzip voxel data (" + std::to_string(produced) + " of " + std::to_string(total) +
+                     " bytes)");
+    }
+  }
+  const std::string endian = toLower(field(h, "endian"));
+  const bool swap = type_size > 1 && ((endian == "big") != (std::endian::native == std::endian::big)) && !endian.empty();
+  vtkSmartPointer<vtkDataArray> scalars;
+  scalars.TakeReference(vtkDataArray::CreateDataArray(vtk_type));
+  scalars->SetNumberOfComponents(1);
+  scalars->SetNumberOfTuples(static_cast<vtkIdType>(voxels));
+  auto* to = static_cast<unsigned char*>(scalars->GetVoidPointer(0));
+  const std::size_t stride = type_size * static_cast<std::size_t>(layer_count);
+  for (std::size_t v = 0; v < voxels; ++v) {
+    unsigned char* dst = to + v * type_size;
+    std::memcpy(dst, bytes.data() + v * stride + static_cast<std::size_t>(layer) * type_size, type_size);
+    if (swap) std::reverse(dst, dst + type_size);
+  }
+  auto out = vtkSmartPointer<vtkImageData>::New();
+  out->SetDimensions(sizes[0], sizes[1], sizes[2]);
+  out->GetPointData()->SetScalars(scalars);
+  return out;
+}
+
 /// Reads raw or gzip voxels with vtkNrrdReader and undoes its quirks (row flip, components).
 vtkSmartPointer<vtkImageData> readWithVtk(const NrrdHeader& h, const fs::path& path, bool gzip,
                                           const std::string& type, std::size_t type_size,
@@ -405,24 +465,50 @@ vtkSmartPointer<vtkImageData> readWithVtk(const NrrdHeader& h, const fs::path& p
 
 }  // namespace
 
-LoadedVolume loadNrrd(const fs::path& path) {
+std::map<std::string, std::string> readNrrdKeyValues(const fs::path& path) { return readHeader(path).key_values; }
+
+LoadedVolume loadNrrd(const fs::path& path, int layer) {
   const NrrdHeader h = readHeader(path);
 
   // --- fields needed for the checks ---
   const auto dimension = parseInt(field(h, "dimension"));
   if (!dimension) fail(path, "NRRD header has no valid \"dimension\"");
-  if (*dimension != 3) {
+  // A 4-D NRRD whose first (fastest) axis is a list is a stack of 3-D layers: 3D Slicer's
+  // segmentation with overlapping segments (.seg.nrrd, "kinds: list domain domain domain").
+  std::vector<std::string> kinds = splitWords(toLower(field(h, "kinds")));
+  const bool layered = *dimension == 4 && !kinds.empty() && kinds[0] == "list";
+  if (*dimension != 3 && !layered) {
     fail(path, "is a " + std::to_string(*dimension) +
-                   "-D NRRD; only 3-D scalar volumes are supported");
+                   "-D NRRD; only 3-D scalar volumes (and 4-D layered segmentations whose first "
+                   "axis is a \"list\") are supported");
   }
-  const auto size_words = splitWords(field(h, "sizes"));
-  if (size_words.size() != 3) fail(path, "NRRD \"sizes\" must list 3 sizes");
+  auto size_words = splitWords(field(h, "sizes"));
+  if (size_words.size() != static_cast<std::size_t>(*dimension)) {
+    fail(path, "NRRD \"sizes\" must list " + std::to_string(*dimension) + " sizes");
+  }
+  int layer_count = 1;
+  if (layered) {
+    const auto n = parseInt(size_words[0]);
+    if (!n || *n <= 0 || *n > 256) fail(path, "NRRD \"sizes\" has an invalid layer count \"" + size_words[0] + "\"");
+    layer_count = static_cast<int>(*n);
+    size_words.erase(size_words.begin());
+    kinds.erase(kinds.begin());
+  }
+  if (layer < 0 || layer >= layer_count) {
+    fail(path, "has " + std::to_string(layer_count) + " layer(s); layer " + std::to_string(layer) +
+                   " was asked for");
+  }
   std::uintmax_t voxel_count = 1;
   for (const auto& w : size_words) {
     const auto v = parseInt(w);
     if (!v || *v <= 0) fail(path, "NRRD \"sizes\" has an invalid size \"" + w + "\"");
+    if (*v > (1 << 20) || voxel_count > (std::uintmax_t{1} << 40)) fail(path, "NRRD \"sizes\" announce an absurd number of values");
     voxel_count *= static_cast<std::uintmax_t>(*v);
   }
+  if (voxel_count > (std::uintmax_t{1} << 40) / static_cast<std::uintmax_t>(layer_count)) {
+    fail(path, "NRRD \"sizes\" announce an absurd number of values");
+  }
+  const std::uintmax_t value_count = voxel_count * static_cast<std::uintmax_t>(layer_count);
   const std::string type = field(h, "type");
   if (type.empty()) fail(path, "NRRD header has no \"type\"");
   const NrrdType value_type = nrrdType(type);
@@ -441,7 +527,7 @@ LoadedVolume loadNrrd(const fs::path& path) {
       fail(path, std::string("NRRD \"") + key + "\" is not supported (by vtkNrrdReader)");
     }
   }
-  if (const auto kinds = splitWords(toLower(field(h, "kinds"))); !kinds.empty()) {
+  {
     for (std::size_t a = 0; a < kinds.size(); ++a) {
       if (kinds[a] != "domain" && kinds[a] != "space" && kinds[a] != "???" && kinds[a] != "none") {
         fail(path, "axis " + std::to_string(a) + " has kind \"" + kinds[a] +
@@ -475,7 +561,7 @@ LoadedVolume loadNrrd(const fs::path& path) {
   for (const auto& f : h.data_files) {
     if (!fs::exists(f)) fail(path, "data file " + f.string() + " is missing");
   }
-  if (raw) checkRawSizes(h, path, voxel_count * type_size);
+  if (raw) checkRawSizes(h, path, value_count * type_size);
   if (gzip) {
     const fs::path data = h.detached ? h.data_files.front() : path;
     if (!startsWithGzipMagic(data, h.detached ? 0 : h.header_bytes)) {
@@ -490,7 +576,13 @@ LoadedVolume loadNrrd(const fs::path& path) {
 
   // --- voxels (through VTK, except ascii) ---
   vtkSmartPointer<vtkImageData> out;
-  if (text) {
+  if (layered) {
+    // vtkNrrdReader 9.1 reads only the first three sizes of a 4-D NRRD: the layers are decoded
+    // here (raw, or gzip through zlib) and the chosen one is extracted.
+    if (text) fail(path, "ascii-encoded layered NRRD is not supported");
+    if (h.data_files.size() > 1) fail(path, "a layered NRRD split over several data files is not supported");
+    out = readLayer(h, path, gzip, value_type.vtk_type, type_size, layer_count, layer, sizes);
+  } else if (text) {
     out = readAscii(h, path, value_type.vtk_type, sizes, voxel_count);
   } else {
     out = readWithVtk(h, path, gzip, type, type_size, voxel_count, sizes);
@@ -501,7 +593,11 @@ LoadedVolume loadNrrd(const fs::path& path) {
   Eigen::Matrix3d axes = Eigen::Matrix3d::Identity();
   const std::string directions = field(h, "space directions");
   if (!directions.empty()) {
-    const auto vectors = parseVectors(directions, path, "space directions");
+    auto vectors = parseVectors(directions, path, "space directions");
+    if (layered && !vectors.empty()) {
+      if (vectors.front()) fail(path, "the list axis of a layered NRRD must be \"none\" in \"space directions\"");
+      vectors.erase(vectors.begin());
+    }
     if (vectors.size() != 3) fail(path, "\"space directions\" must give 3 vectors");
     for (int c = 0; c < 3; ++c) {
       if (!vectors[static_cast<std::size_t>(c)]) {
@@ -559,6 +655,10 @@ LoadedVolume loadNrrd(const fs::path& path) {
   raw_volume.info.format = "NRRD";
   const std::string content = field(h, "content");
   raw_volume.info.description = content.empty() ? path.filename().string() : content;
+  if (layered) {
+    raw_volume.info.notices.push_back("layer " + std::to_string(layer + 1) + " of " + std::to_string(layer_count) +
+                                      " of a layered segmentation");
+  }
   return finishVolume(std::move(raw_volume), path);
 }
 

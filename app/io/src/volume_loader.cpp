@@ -163,7 +163,7 @@ LoadedVolume loadVolume(const std::filesystem::path& path, const VolumeLoadOptio
     case Format::kDicom:
       return detail::loadDicom(path, options);
     case Format::kNrrd:
-      return detail::loadFileIsolated(path, options, [&] { return detail::loadNrrd(path); });
+      return detail::loadFileIsolated(path, options, [&] { return detail::loadNrrd(path, options.nrrd_layer); });
     case Format::kMetaImage:
       return detail::loadFileIsolated(path, options, [&] { return detail::loadMetaImage(path); });
     case Format::kUnknown:

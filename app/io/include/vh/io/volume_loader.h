@@ -56,6 +56,9 @@ struct VolumeLoadOptions {
   std::string dicom_series;
   /// A 4-D series (cardiac phases, dynamic frames, echoes): which time point, 0-based.
   int dicom_phase = 0;
+  /// A 4-D layered NRRD (3D Slicer's .seg.nrrd with overlapping segments: "kinds: list domain
+  /// domain domain"): which layer, 0-based. Ignored by the other formats.
+  int nrrd_layer = 0;
   /// When set, called with the fraction done (0..1) from the loading thread.
   std::function<void(double fraction)> progress;
   /// When set and it becomes true, the load stops and throws LoadCancelled.

@@ -1,0 +1,85 @@
+#pragma once
+/// @file
+/// Segmentations (issue 17): 3D Slicer's `.seg.nrrd` and plain label-map NRRDs, and the smoothed
+/// indicator field whose isosurface is the felt surface of chosen segments.
+///
+/// A `.seg.nrrd` (3D Slicer's Segmentations module, vtkMRMLSegmentationStorageNode) is a NRRD
+/// of integer labels, 3-D (one layer) or 4-D with a leading "list" axis (one layer per group of
+/// overlapping segments), whose header names each segment with key/value pairs:
+/// `SegmentN_ID`, `SegmentN_Name`, `SegmentN_Color` (r g b in 0..1), `SegmentN_LabelValue`,
+/// `SegmentN_Layer`, `SegmentN_Extent`, ... Segment N occupies the voxels of layer
+/// `SegmentN_Layer` whose value is `SegmentN_LabelValue`. A NRRD without these keys is read as a
+/// label map: each distinct non-zero value is one segment, "Label V".
+///
+/// Frames and units as loadVolume(): W is patient LPS in metres (a RAS file is converted).
+#include <array>
+#include <filesystem>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "vh/haptics/scalar_volume.h"
+#include "vh/io/volume_loader.h"
+
+namespace vh::io {
+
+/// One segment of a segmentation.
+struct SegmentInfo {
+  std::string id;                      ///< Slicer's SegmentN_ID ("Segment_1"), or "Label_V".
+  std::string name;                    ///< Slicer's SegmentN_Name ("right lung"), or "Label V".
+  std::array<double, 3> color_rgb{0.5, 0.5, 0.5};  ///< Display colour, each in 0..1.
+  int label_value = 1;                 ///< The voxel value that marks the segment in its layer.
+  int layer = 0;                       ///< Which layer (0 for a 3-D file).
+  std::size_t voxel_count = 0;         ///< Voxels of the segment (0: empty).
+};
+
+/// A loaded segmentation: its segments and the label layers they live in.
+struct LoadedSegmentation {
+  std::filesystem::path source;        ///< The file read.
+  std::vector<SegmentInfo> segments;   ///< In the file's order (SegmentN), or by label value.
+  /// Label layers (values as stored; one per layer of the file), all on the same grid in W [m].
+  std::vector<std::shared_ptr<const haptics::ScalarVolume>> layers;
+  bool from_slicer = false;            ///< The header named the segments (a .seg.nrrd).
+  std::vector<std::string> notices;    ///< What the loader chose or corrected, one sentence each.
+
+  /// Index of the segment whose name or ID is `name_or_id` (case-insensitive), or -1.
+  int find(const std::string& name_or_id) const;
+  /// Label of the voxel (i, j, k) of `layer` (indices clamped to the grid).
+  int label(int layer, int i, int j, int k) const noexcept;
+};
+
+/// Loads a segmentation (.seg.nrrd, or a label-map .nrrd / .nhdr). The voxels are read by
+/// loadVolume() (in the reader worker when it is found), the segment names from the header.
+/// @param options as loadVolume()'s (cancel, progress, watchdog); its nrrd_layer is ignored.
+/// @throws LoadError naming the file and the problem: not a NRRD, a damaged file, a segment
+///         whose layer is missing, non-integer labels, more than 4096 distinct labels in a label
+///         map, or no segment at all.
+LoadedSegmentation loadSegmentation(const std::filesystem::path& path, const VolumeLoadOptions& options = {});
+
+/// True when `path` names a 3D Slicer segmentation: its name ends in ".seg.nrrd", or it is a
+/// NRRD whose header has "Segment0_" keys. Never throws (false when unreadable).
+bool isSegmentationFile(const std::filesystem::path& path) noexcept;
+
+/// Name filter for a Qt file dialog that opens segmentations.
+std::string segmentationFileDialogFilter();
+
+/// The smoothed indicator field of the chosen segments: 1 inside any of them, 0 outside,
+/// convolved with a Gaussian of standard deviation `sigma_voxels` (in voxels of the
+/// segmentation's grid, per axis), stored as uint8 with value_scale 1/255 (F in 0..1), on the
+/// segmentation's grid padded by ceil(3 sigma) + 1 voxels on every side (so the surface closes
+/// inside the grid). The felt surface is its isosurface F = 0.5 (kSegmentSurfaceLevel): a
+/// smooth surface within about half a voxel of the voxels' boundary, where the blocky voxel steps
+/// are smoothed away; it is a ScalarVolume like any scan, so the renderer's guarantees (no
+/// penetration, no crossing) hold for it unchanged. See README, "Segmentations".
+/// @param segments indices into seg.segments (at least one).
+/// @param sigma_voxels >= 0 (0: the trilinear indicator itself; blocky).
+/// @throws std::invalid_argument for no or unknown segments, or a negative or non-finite sigma.
+std::shared_ptr<const haptics::ScalarVolume> segmentIndicatorField(const LoadedSegmentation& seg,
+                                                                  const std::vector<int>& segments,
+                                                                  double sigma_voxels = 1.0);
+
+/// The level of the felt surface in segmentIndicatorField() (F = 0.5: halfway between outside
+/// and inside).
+inline constexpr double kSegmentSurfaceLevel = 0.5;
+
+}  // namespace vh::io
