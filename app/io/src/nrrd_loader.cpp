@@ -389,12 +389,19 @@ vtkSmartPointer<vtkImageData> readLayer(const NrrdHeader& h, const fs::path& pat
   std::ifstream in(data, std::ios::binary);
   if (!in) fail(path, "cannot open the voxel data " + data.string());
   in.seekg(static_cast<std::streamoff>(offset));
-  std::vector<unsigned char> bytes(total);
+  std::vector<unsigned char> bytes;
   if (!gzip) {
+    std::error_code ec;
+    const std::uintmax_t size = fs::file_size(data, ec);
+    if (ec || size < offset || size - offset < total) fail(path, "truncated layered voxel data");
+    bytes.resize(total);
     in.read(reinterpret_cast<char*>(bytes.data()), static_cast<std::streamsize>(total));
     if (static_cast<std::size_t>(in.gcount()) != total) fail(path, "truncated layered voxel data");
   } else {
     std::vector<unsigned char> packed((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+    // Deflate expands at most 1032:1; a header announcing more than that is a damaged file.
+    if (total / 1032 > packed.size() + 64) fail(path, "truncated gzip voxel data (far less data than the header announces)");
+    bytes.resize(total);
     z_stream z{};
     if (inflateInit2(&z, 16 + MAX_WBITS) != Z_OK) fail(path, "zlib could not start");
     z.next_in = packed.data();
