@@ -242,6 +242,7 @@ struct SolverSnapshot {
   double isovalue = 0.0;
   int contacts = 0;
   int contacts_shown = 0;
+  int segment = -1;
   std::array<Eigen::Vector3d, HapticSnapshot::kMaxContactsShown> contact_p_W_m{};
   std::array<Eigen::Vector3d, HapticSnapshot::kMaxContactsShown> contact_n_W{};
   std::uint64_t rejected = 0;  ///< Device poses the renderer rejected.
@@ -375,6 +376,7 @@ bool HapticThread::latestSnapshot(HapticSnapshot& out) noexcept {
   out.isovalue = s.isovalue;
   out.contacts = s.contacts;
   out.contacts_shown = s.contacts_shown;
+  out.segment = s.segment;
   out.contact_p_W_m = s.contact_p_W_m;
   out.contact_n_W = s.contact_n_W;
   out.coupling = c.timing;
@@ -593,6 +595,7 @@ void HapticThread::solverLoop() noexcept {
       first_recorded_tick_.store(tick, std::memory_order_release);
     }
     const auto contacts = renderer_->contacts();
+    const int segment = options_.segments != nullptr ? options_.segments->segmentOf(contacts) : -1;
     if (recorder != nullptr) {
       TickRecord rec;
       rec.time_s = static_cast<double>(tick - record_first_tick) * solver_period_s_;
@@ -615,7 +618,7 @@ void HapticThread::solverLoop() noexcept {
       const bool nonfinite = !out.force_W_N.allFinite() || !out.torque_W_Nm.allFinite();
       rec.flags = (rec.contacts > 0 ? kRecordFlagContact : 0u) | (in.ok ? 0u : kRecordFlagBadSample) |
                   (nonfinite ? kRecordFlagNonFinite : 0u) | wake_flags | coupling_flags |
-                  (in.connected ? 0u : kRecordFlagDeviceDisconnected);
+                  (in.connected ? 0u : kRecordFlagDeviceDisconnected) | recordSegmentBits(segment);
       (void)recorder->push(rec);
       latest_recorded_tick_.store(tick, std::memory_order_release);
     }
@@ -626,6 +629,7 @@ void HapticThread::solverLoop() noexcept {
     snap.tick = tick;
     snap.isovalue = in.isovalue;
     snap.contacts = static_cast<int>(contacts.size());
+    snap.segment = segment;
     const int shown = std::min<int>(snap.contacts, HapticSnapshot::kMaxContactsShown);
     snap.contacts_shown = shown;
     for (int i = 0; i < shown; ++i) {

@@ -6,6 +6,7 @@
 #include <array>
 #include <bit>
 #include <chrono>
+#include <cmath>
 #include <cstring>
 #include <ctime>
 #include <fstream>
@@ -124,6 +125,25 @@ std::size_t TickRing::size() const noexcept {
 
 // ---- RecordingWriter -----------------------------------------------------------------------------
 
+namespace {
+/// The segments a recording's metadata lists ("scene.segmentation.segments": [{"name",
+/// "critical"}]); empty when none (or malformed: a recording stays readable).
+void segmentList(const nlohmann::json& meta, std::vector<std::string>& names, std::vector<bool>& critical) {
+  names.clear();
+  critical.clear();
+  try {
+    if (!meta.is_object() || !meta.contains("scene") || !meta["scene"].contains("segmentation")) return;
+    for (const auto& s : meta["scene"]["segmentation"].at("segments")) {
+      names.push_back(s.at("name").get<std::string>());
+      critical.push_back(s.value("critical", false));
+    }
+  } catch (const nlohmann::json::exception&) {
+    names.clear();
+    critical.clear();
+  }
+}
+}  // namespace
+
 RecordingWriter::RecordingWriter(const std::filesystem::path& path, const std::string& metadata_json,
                                  const RecordingWriterOptions& options)
     : path_(path), options_(options), ring_(options.ring_capacity) {
@@ -138,6 +158,7 @@ RecordingWriter::RecordingWriter(const std::filesystem::path& path, const std::s
   nlohmann::json meta = parseObject(metadata_json, "RecordingWriter: metadata");
   meta["servo_rate_Hz"] = options.servo_rate_Hz;
   if (!meta.contains("start_time_utc")) meta["start_time_utc"] = utcNow();
+  segmentList(meta, segment_names_, segment_critical_);
   const std::string text = meta.dump();
 
   file_ = std::fopen(path.c_str(), "wb");
@@ -216,6 +237,27 @@ void RecordingWriter::deriveEvents(const TickRecord* records, std::size_t count)
         d["to"] = r.isovalue;
         derived.push_back({r.time_s, r.tick, "isovalue", d.dump()});
       }
+    }
+    // The touched segment (issue 17): "segment" when it changes, "critical_contact" on entering
+    // a critical one.
+    const int segment = recordSegment(r.flags);
+    if (segment != previous_segment_) {
+      const auto name = [this](int s) {
+        return s >= 0 && static_cast<std::size_t>(s) < segment_names_.size()
+                   ? nlohmann::json(segment_names_[static_cast<std::size_t>(s)])
+                   : nlohmann::json(nullptr);
+      };
+      nlohmann::json d;
+      d["from"] = name(previous_segment_);
+      d["to"] = name(segment);
+      derived.push_back({r.time_s, r.tick, "segment", d.dump()});
+      if (segment >= 0 && static_cast<std::size_t>(segment) < segment_critical_.size() &&
+          segment_critical_[static_cast<std::size_t>(segment)]) {
+        nlohmann::json c;
+        c["segment"] = name(segment);
+        derived.push_back({r.time_s, r.tick, "critical_contact", c.dump()});
+      }
+      previous_segment_ = segment;
     }
     previous_disconnected_ = disconnected;
     previous_isovalue_ = r.isovalue;
@@ -533,11 +575,43 @@ void writeRecordingJson(const Recording& recording, const std::filesystem::path&
     events.push_back(std::move(item));
   }
   j["events"] = std::move(events);
+  nlohmann::json segments = nlohmann::json::array();
+  for (const SegmentContact& c : segmentContacts(recording)) {
+    segments.push_back({{"name", c.name},
+                        {"critical", c.critical},
+                        {"time_in_contact_s", c.time_in_contact_s},
+                        {"peak_force_N", c.peak_force_N},
+                        {"touches", c.touches}});
+  }
+  j["segments"] = std::move(segments);
   std::ofstream out(path);
   if (!out) throw std::runtime_error("writeRecordingJson: cannot create " + path.string());
   out << j.dump(2) << '\n';
   out.flush();
   if (!out) throw std::runtime_error("writeRecordingJson: write failed on " + path.string());
+}
+
+std::vector<SegmentContact> segmentContacts(const Recording& recording) {
+  nlohmann::json meta;
+  try {
+    meta = nlohmann::json::parse(recording.metadata_json);
+  } catch (const nlohmann::json::exception&) {
+    return {};
+  }
+  std::vector<std::string> names;
+  std::vector<bool> critical;
+  segmentList(meta, names, critical);
+  if (names.empty()) return {};
+  const double rate = meta.is_object() && meta.contains("servo_rate_Hz") && meta["servo_rate_Hz"].is_number()
+                          ? meta["servo_rate_Hz"].get<double>()
+                          : 1000.0;
+  SegmentContactTally tally(names, critical);
+  for (const TickRecord& r : recording.records) {
+    const double f = std::sqrt(r.force_W_N[0] * r.force_W_N[0] + r.force_W_N[1] * r.force_W_N[1] +
+                               r.force_W_N[2] * r.force_W_N[2]);
+    tally.add(recordSegment(r.flags), f, rate > 0.0 ? 1.0 / rate : 0.0);
+  }
+  return tally.segments();
 }
 
 }  // namespace vh::runtime

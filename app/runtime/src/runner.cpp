@@ -33,9 +33,9 @@ RunReport runHeadless(const LoadedScene& scene, const Trajectory& trajectory, co
   if (!(options.servo_rate_Hz > 0.0)) throw std::invalid_argument("runHeadless: servo rate must be > 0");
   if (!(options.verify_step_voxels >= 0.0) || !std::isfinite(options.verify_step_voxels))
     throw std::invalid_argument("runHeadless: the crossing-check step must be >= 0 voxels (0: off)");
-  const haptics::ScalarVolume& volume = *scene.volume.field;
+  const haptics::ScalarVolume& volume = *scene.hapticField();
   const haptics::ToolModel& tool = *scene.tool;
-  const double s = scene.isovalue;
+  const double s = scene.hapticIsovalue();
 
   RunReport r;
   r.scene = scene.spec.source.empty() ? std::string("builtin") : scene.spec.source.string();
@@ -55,7 +55,7 @@ RunReport runHeadless(const LoadedScene& scene, const Trajectory& trajectory, co
   r.initial_points_inside = countPointsInside(volume, tool.point_shell, X_WD_first, s);
   haptics::RendererOptions renderer_options;
   renderer_options.gains = scene.spec.gains;
-  haptics::HapticRenderer renderer(scene.volume.field, scene.tool, renderer_options, X_WD_first, s);
+  haptics::HapticRenderer renderer(scene.hapticField(), scene.tool, renderer_options, X_WD_first, s);
   r.epsilon_m = renderer.epsilon_m();
   r.work_budget = renderer.workBudget();
   std::optional<haptics::HapticRenderer> reference;  // the same without the budget: the lag
@@ -63,7 +63,7 @@ RunReport runHeadless(const LoadedScene& scene, const Trajectory& trajectory, co
   if (options.lag_reference && r.work_budget > 0) {
     haptics::RendererOptions unbudgeted = renderer_options;
     unbudgeted.work_budget = 0;
-    reference.emplace(scene.volume.field, scene.tool, unbudgeted, X_WD_first, s);
+    reference.emplace(scene.hapticField(), scene.tool, unbudgeted, X_WD_first, s);
   }
   std::optional<haptics::CrossingVerifier> verifier;
   if (options.verify_step_voxels > 0.0) {
@@ -100,6 +100,16 @@ RunReport runHeadless(const LoadedScene& scene, const Trajectory& trajectory, co
         std::clamp<std::size_t>(static_cast<std::size_t>(std::ceil(options.servo_rate_Hz / 2.0)), 1, 65535);
     recorder = std::make_unique<RecordingWriter>(options.record, makeSessionMetadata(recorded, info), writer_options);
   }
+  std::optional<SegmentContactTally> segment_tally;
+  if (scene.segments) {
+    std::vector<std::string> names;
+    std::vector<bool> critical;
+    for (int k = 0; k < static_cast<int>(scene.segments->size()); ++k) {
+      names.push_back(scene.segments->name(k));
+      critical.push_back(scene.segments->isCritical(k));
+    }
+    segment_tally.emplace(names, critical);
+  }
   double contact_sum = 0.0, samples_sum = 0.0;
   const auto wall_begin = std::chrono::steady_clock::now();
   for (std::uint64_t i = 0; i < n; ++i) {
@@ -126,6 +136,8 @@ RunReport runHeadless(const LoadedScene& scene, const Trajectory& trajectory, co
     }
     if (out.stats.bad_input) ++r.bad_device_samples;
     const bool finite = out.force_W_N.allFinite() && out.torque_W_Nm.allFinite() && out.X_WP.allFinite();
+    const int segment = scene.segments ? scene.segments->segmentOf(renderer.contacts()) : -1;
+    if (segment_tally) segment_tally->add(segment, out.force_W_N.norm(), 1.0 / options.servo_rate_Hz);
     int crossing_points = -1;
     if (verifier && finite) {
       // The path the proxy moved along this tick, sampled densely: a point outside at its start
@@ -177,7 +189,8 @@ RunReport runHeadless(const LoadedScene& scene, const Trajectory& trajectory, co
       rec.isovalue = s;
       rec.tick_time_s = 1e-6 * out.stats.exec_time_us;
       rec.contacts = static_cast<std::uint32_t>(renderer.contacts().size());
-      rec.flags = (rec.contacts > 0 ? kRecordFlagContact : 0u) | (finite ? 0u : kRecordFlagNonFinite);
+      rec.flags = (rec.contacts > 0 ? kRecordFlagContact : 0u) | (finite ? 0u : kRecordFlagNonFinite) |
+                  recordSegmentBits(segment);
       recorder->pushWaiting(rec);
     }
     if (trace.is_open()) {
@@ -192,6 +205,7 @@ RunReport runHeadless(const LoadedScene& scene, const Trajectory& trajectory, co
     }
   }
   if (recorder) recorder->close();  // throws naming the file when a write failed
+  if (segment_tally) r.segment_contacts = segment_tally->segments();
   if (reference) {
     r.lag_ticks = lag.ticks;
     r.max_lag_m = lag.max_m;
@@ -277,6 +291,14 @@ std::string RunReport::toJson() const {
   j["lag_ticks"] = lag_ticks >= 0 ? nlohmann::ordered_json(lag_ticks) : nlohmann::ordered_json(nullptr);
   j["max_lag_m"] = max_lag_m >= 0.0 ? nlohmann::ordered_json(max_lag_m) : nlohmann::ordered_json(nullptr);
   j["max_lag_rad"] = max_lag_rad >= 0.0 ? nlohmann::ordered_json(max_lag_rad) : nlohmann::ordered_json(nullptr);
+  j["segments"] = nlohmann::ordered_json::array();
+  for (const SegmentContact& c : segment_contacts) {
+    j["segments"].push_back({{"name", c.name},
+                             {"critical", c.critical},
+                             {"time_in_contact_s", c.time_in_contact_s},
+                             {"peak_force_N", c.peak_force_N},
+                             {"touches", c.touches}});
+  }
   return j.dump(2) + "\n";
 }
 
@@ -310,6 +332,13 @@ std::string RunReport::summary() const {
                     max_lag_m * 1e3, max_lag_rad, static_cast<long long>(lag_ticks));
       out += line;
     }
+  }
+  for (const SegmentContact& c : segment_contacts) {
+    if (c.ticks == 0) continue;
+    std::snprintf(line, sizeof line, "; touched %s%s: %.3f s, peak %.2f N, %llu touch%s", c.name.c_str(),
+                  c.critical ? " (CRITICAL)" : "", c.time_in_contact_s, c.peak_force_N,
+                  static_cast<unsigned long long>(c.touches), c.touches == 1 ? "" : "es");
+    out += line;
   }
   return out;
 }

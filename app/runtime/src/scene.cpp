@@ -96,6 +96,18 @@ class ObjectReader {
     }
     return static_cast<std::size_t>(v.get<long long>());
   }
+  /// A list of strings (absent: empty).
+  std::vector<std::string> strings(const char* key) const {
+    std::vector<std::string> out;
+    if (!has(key)) return out;
+    const json& v = at(key);
+    if (!v.is_array()) fail(fieldPath(key), "expected a list of strings, found " + v.dump());
+    for (const json& e : v) {
+      if (!e.is_string()) fail(fieldPath(key), "expected a list of strings, found " + e.dump() + " in it");
+      out.push_back(e.get<std::string>());
+    }
+    return out;
+  }
   /// A string, or an integer given as a number (a DICOM series number).
   std::string stringOrInteger(const char* key) const {
     const json& v = at(key);
@@ -214,7 +226,7 @@ SceneSpec parseScene(const std::string& json_text, const std::string& source, co
     throw std::runtime_error(source + ": invalid JSON: " + (pos == std::string::npos ? what : what.substr(pos + 2)));
   }
   const ObjectReader top(root, "", source);
-  top.allowOnly({"description", "volume", "tool", "coupling", "device"});
+  top.allowOnly({"description", "volume", "tool", "coupling", "device", "segmentation"});
 
   SceneSpec spec;
   spec.source = source;
@@ -308,6 +320,26 @@ SceneSpec parseScene(const std::string& json_text, const std::string& source, co
     }
     spec.device = d;
   }
+
+  if (top.has("segmentation")) {
+    const ObjectReader seg = top.object("segmentation");
+    seg.allowOnly({"path", "felt", "shown", "critical", "smoothing_voxels"});
+    SegmentationSpec s;
+    s.path = resolveDataPath(seg, "path", seg.string("path"), base_dir);
+    s.felt = seg.strings("felt");
+    if (seg.has("shown")) {
+      s.shown = seg.strings("shown");
+      s.show_all = false;
+    }
+    s.critical = seg.strings("critical");
+    if (seg.has("smoothing_voxels")) {
+      s.smoothing_voxels = seg.number("smoothing_voxels");
+      if (!(s.smoothing_voxels >= 0.0 && s.smoothing_voxels <= 10.0)) {
+        seg.fail(seg.fieldPath("smoothing_voxels"), "expected a number of voxels in [0, 10]");
+      }
+    }
+    spec.segmentation = s;
+  }
   return spec;
 }
 
@@ -382,7 +414,13 @@ LoadedScene loadScene(const SceneSpec& spec, const std::function<void(double)>& 
     else scene.isovalue = 0.5 * (f->minValue() + f->maxValue());
   }
   if (spec.volume.isovalue_set) scene.isovalue = spec.volume.isovalue;
-  const haptics::ScalarVolume& field = *scene.volume.field;
+  if (spec.segmentation) {
+    io::VolumeLoadOptions options;
+    options.cancel = cancel;
+    scene.segments = SegmentSet::fromSpec(io::loadSegmentation(spec.segmentation->path, options), *spec.segmentation,
+                                          where);
+  }
+  const haptics::ScalarVolume& field = *scene.hapticField();
 
   // Tool.
   haptics::TriangleMesh mesh;
@@ -416,9 +454,10 @@ LoadedScene loadScene(const SceneSpec& spec, const std::function<void(double)>& 
   } else {
     const Eigen::Quaterniond R_WT =
         spec.tool.initial_orientation_set ? spec.tool.X_WT_initial.R_AB : Eigen::Quaterniond::Identity();
-    scene.X_WT_initial = defaultInitialPose(field, scene.tool->point_shell, R_WT, scene.isovalue);
+    scene.X_WT_initial = defaultInitialPose(field, scene.tool->point_shell, R_WT, scene.hapticIsovalue());
   }
-  scene.initial_points_inside = countPointsInside(field, scene.tool->point_shell, scene.X_WT_initial, scene.isovalue);
+  scene.initial_points_inside =
+      countPointsInside(field, scene.tool->point_shell, scene.X_WT_initial, scene.hapticIsovalue());
   return scene;
 }
 
@@ -434,14 +473,15 @@ double toolPointSpacing_m(const ToolSpec& spec, const haptics::TriangleMesh& mes
 }
 
 double LoadedScene::pointSpacing_m() const {
-  if (tool == nullptr || volume.field == nullptr) return 0.0;
-  return toolPointSpacing_m(spec.tool, tool->mesh_T, *volume.field);
+  if (tool == nullptr || hapticField() == nullptr) return 0.0;
+  return toolPointSpacing_m(spec.tool, tool->mesh_T, *hapticField());
 }
 
 std::unique_ptr<haptics::HapticRenderer> LoadedScene::makeRenderer(haptics::RendererOptions options,
                                                                    const std::optional<haptics::Pose>& X_WP) const {
   options.gains = spec.gains;
-  return std::make_unique<haptics::HapticRenderer>(volume.field, tool, options, X_WP.value_or(X_WT_initial), isovalue);
+  return std::make_unique<haptics::HapticRenderer>(hapticField(), tool, options, X_WP.value_or(X_WT_initial),
+                                                   hapticIsovalue());
 }
 
 std::shared_ptr<Device> LoadedScene::makeDevice(double servo_rate_Hz) const {
@@ -485,7 +525,10 @@ bool deviceKindAvailable(const std::string& kind) {
 
 std::unique_ptr<HapticThread> LoadedScene::makeHapticThread(std::shared_ptr<Device> device, double servo_rate_Hz,
                                                             const std::optional<haptics::Pose>& X_WP) const {
-  auto thread = std::make_unique<HapticThread>(makeRenderer({}, X_WP), std::move(device), isovalue, servo_rate_Hz);
+  HapticThreadOptions options;
+  options.segments = segments;
+  auto thread = std::make_unique<HapticThread>(makeRenderer({}, X_WP), std::move(device), hapticIsovalue(),
+                                               servo_rate_Hz, options);
   thread->setGains(spec.gains);
   return thread;
 }

@@ -77,7 +77,8 @@ void Session::setIsovalue(double isovalue) {
   scene_.isovalue = clamped;
   scene_.spec.volume.isovalue = clamped;
   scene_.spec.volume.isovalue_set = true;
-  if (haptics_ != nullptr) haptics_->setIsovalue(clamped);
+  // Felt segments: the isovalue sets only the scan's picture; the hand keeps the segments' surface.
+  if (haptics_ != nullptr) haptics_->setIsovalue(scene_.hapticIsovalue());
   notify(SessionChange::kIsovalue);
 }
 
@@ -133,7 +134,7 @@ void Session::rebuildHaptics(const haptics::Pose& X_WP) {
 
 void Session::startHaptics() {
   if (haptics_ == nullptr || haptics_->running()) return;
-  haptics_->setIsovalue(scene_.isovalue);
+  haptics_->setIsovalue(scene_.hapticIsovalue());
   haptics_->setGains(scene_.spec.gains);
   haptics_->start();
   notify(SessionChange::kRunning);

@@ -191,6 +191,34 @@ std::string makeSessionMetadata(const LoadedScene& scene, const SessionInfo& inf
                 {"point_count", spec.tool.point_count},
                 {"initial_pose", poseJson(scene.X_WT_initial)}};
   sc["coupling"] = {{"linear_N_per_m", spec.gains.linear_N_per_m}, {"angular_Nm_per_rad", spec.gains.angular_Nm_per_rad}};
+  if (scene.segments != nullptr && spec.segmentation) {
+    // The choices by name (what a scene file says), and every segment as loaded: the recording
+    // names the touched segment by its index into "segments".
+    const SegmentSet& set = *scene.segments;
+    const auto names = [&set](const std::vector<int>& indices) {
+      std::vector<std::string> out;
+      for (const int s : indices) out.push_back(set.name(s));
+      return out;
+    };
+    json seg;
+    seg["path"] = spec.segmentation->path;
+    seg["felt"] = names(set.felt());
+    seg["shown"] = names(set.shown());
+    seg["critical"] = names(set.critical());
+    seg["smoothing_voxels"] = set.smoothingVoxels();
+    seg["segments"] = json::array();
+    for (int s = 0; s < static_cast<int>(set.size()); ++s) {
+      const io::SegmentInfo& info = set.segment(s);
+      seg["segments"].push_back({{"name", info.name},
+                                 {"id", info.id},
+                                 {"label_value", info.label_value},
+                                 {"layer", info.layer},
+                                 {"color_rgb", info.color_rgb},
+                                 {"felt", set.isFelt(s)},
+                                 {"critical", set.isCritical(s)}});
+    }
+    sc["segmentation"] = seg;
+  }
   j["scene"] = sc;
 
   const DatasetChecksum checksum = datasetChecksum(spec.volume.path);
@@ -262,6 +290,17 @@ SceneSpec sceneFromSessionMetadata(const std::string& metadata_json) {
     spec.tool.initial_pose_set = true;
     spec.gains.linear_N_per_m = sc.at("coupling").at("linear_N_per_m").get<double>();
     spec.gains.angular_Nm_per_rad = sc.at("coupling").at("angular_Nm_per_rad").get<double>();
+    if (sc.contains("segmentation")) {
+      const json& seg = sc.at("segmentation");
+      SegmentationSpec s;
+      s.path = seg.at("path").get<std::string>();
+      s.felt = seg.at("felt").get<std::vector<std::string>>();
+      s.shown = seg.at("shown").get<std::vector<std::string>>();
+      s.show_all = false;
+      s.critical = seg.at("critical").get<std::vector<std::string>>();
+      s.smoothing_voxels = seg.at("smoothing_voxels").get<double>();
+      spec.segmentation = s;
+    }
   } catch (const json::exception& e) {
     throw std::runtime_error(std::string("session metadata: bad \"scene\": ") + e.what());
   }

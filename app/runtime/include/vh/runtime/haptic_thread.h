@@ -47,6 +47,7 @@
 
 #include "vh/haptics/haptic_renderer.h"
 #include "vh/runtime/device.h"
+#include "vh/runtime/segments.h"
 #include "vh/runtime/recording.h"
 #include "vh/runtime/triple_buffer.h"
 
@@ -80,6 +81,9 @@ struct HapticSnapshot {
   double isovalue = 0.0;                  ///< Isovalue of the solver's latest tick (data units).
   int contacts = 0;                       ///< Contact set size after the solver's latest tick.
   int contacts_shown = 0;                 ///< Entries filled in contact_p_W_m / contact_n_W.
+  /// The segment the contacts touch (SegmentSet::segmentOf(), index into the scene's
+  /// segments), or -1: no contact, no segments, or a contact on no felt segment.
+  int segment = -1;
   std::array<Eigen::Vector3d, kMaxContactsShown> contact_p_W_m{};  ///< Contact points in W [m].
   std::array<Eigen::Vector3d, kMaxContactsShown> contact_n_W{};    ///< Their unit surface normals in W.
   ThreadTiming coupling;                  ///< The coupling (device-rate) thread.
@@ -107,6 +111,9 @@ struct HapticThreadOptions {
   /// kEverySample: when the solver is this far behind the device [s], it skips to the newest
   /// sample instead of catching up (bounds the proxy's lag; the skipped samples are counted).
   double max_solver_backlog_s = 0.25;
+  /// The scene's segments: each solver tick names the segment its contacts touch
+  /// (HapticSnapshot::segment, and TickRecord::flags >> kRecordSegmentShift). Null: none.
+  std::shared_ptr<const SegmentSet> segments;
   /// Test only: called on the solver thread at the end of every solver tick (e.g. to make the
   /// solver slow). Must not throw; it may allocate or sleep (the loop's guarantees then no
   /// longer hold for the solver).

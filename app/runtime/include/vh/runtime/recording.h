@@ -56,7 +56,7 @@
 ///        176  uint64   tick            servo tick counter
 ///        184  double   tick_time_s     compute time of the tick [s]
 ///        192  uint32   contacts        contact set size
-///        196  uint32   flags           kRecordFlag* bits
+///        196  uint32   flags           kRecordFlag* bits (0..15), touched segment + 1 (16..31)
 ///
 /// CRC-32 is the ISO-HDLC / zlib one (reflected polynomial 0xEDB88320, init and final XOR
 /// 0xFFFFFFFF; crc32("123456789") = 0xCBF43926).
@@ -92,6 +92,8 @@
 #include <type_traits>
 #include <vector>
 
+#include "vh/runtime/segments.h"
+
 namespace vh::runtime {
 
 inline constexpr std::uint32_t kRecordingFormatVersion = 2;
@@ -104,6 +106,14 @@ inline constexpr std::uint32_t kRecordFlagForceZeroed = 1u << 3;    ///< The saf
 inline constexpr std::uint32_t kRecordFlagNonFinite = 1u << 4;      ///< The renderer computed a NaN / inf.
 inline constexpr std::uint32_t kRecordFlagStopping = 1u << 5;       ///< Force ramped down by stop().
 inline constexpr std::uint32_t kRecordFlagDeviceDisconnected = 1u << 6;  ///< Device::connected() was false.
+/// Bits 16..31 of TickRecord::flags: the touched segment + 1 (0: none; see SegmentSet::segmentOf()).
+inline constexpr int kRecordSegmentShift = 16;
+/// The flag bits of a touched segment index (-1: none; indices above 65534 are not recorded).
+constexpr std::uint32_t recordSegmentBits(int segment) noexcept {
+  return segment >= 0 && segment < 65535 ? static_cast<std::uint32_t>(segment + 1) << kRecordSegmentShift : 0u;
+}
+/// The touched segment of a record's flags, or -1.
+constexpr int recordSegment(std::uint32_t flags) noexcept { return static_cast<int>(flags >> kRecordSegmentShift) - 1; }
 /// The safety layer changed the renderer's force or torque (clamped, ramped or gated; includes
 /// kRecordFlagForceZeroed ticks): the force sent to the device was not the renderer's.
 /// (HapticThread records the coupling's force for the record's own proxy and device poses and
@@ -124,7 +134,7 @@ struct TickRecord {
   std::uint64_t tick = 0;               ///< Servo tick counter.
   double tick_time_s = 0.0;             ///< Compute time of the tick [s].
   std::uint32_t contacts = 0;           ///< Contact set size.
-  std::uint32_t flags = 0;              ///< kRecordFlag* bits.
+  std::uint32_t flags = 0;              ///< kRecordFlag* bits; bits 16..31: recordSegment().
 };
 static_assert(std::is_trivially_copyable_v<TickRecord>);
 static_assert(std::is_standard_layout_v<TickRecord>);
@@ -233,6 +243,9 @@ class RecordingWriter {
   std::mutex events_mutex_;
   std::vector<RecordingEvent> pending_events_;  // guarded by events_mutex_
   bool have_previous_ = false;                  // writer thread: deriveEvents() state
+  int previous_segment_ = -1;
+  std::vector<std::string> segment_names_;      // from the metadata (constant)
+  std::vector<bool> segment_critical_;
   double previous_isovalue_ = 0.0;
   bool previous_disconnected_ = false;
   std::atomic<std::uint64_t> events_written_{0};
@@ -279,5 +292,10 @@ void writeRecordingEventsCsv(const Recording& recording, const std::filesystem::
 /// warnings) and the events ("events": [{"t_s", "tick", "type", "detail"}], detail parsed) as
 /// pretty-printed JSON. @throws std::runtime_error when it cannot be written.
 void writeRecordingJson(const Recording& recording, const std::filesystem::path& path);
+
+/// Time in contact, peak force and touches per segment of a recording (issue 17), from the
+/// segment each record names (recordSegment()) and the segments its metadata lists
+/// ("scene": {"segmentation": {"segments": [{"name", "critical"}, ...]}}); empty when it has none.
+std::vector<SegmentContact> segmentContacts(const Recording& recording);
 
 }  // namespace vh::runtime

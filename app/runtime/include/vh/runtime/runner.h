@@ -101,6 +101,9 @@ struct RunReport {
   std::int64_t first_contact_tick = -1;  ///< -1: never.
   double max_force_N = 0.0;              ///< Largest |force|.
   double max_torque_Nm = 0.0;            ///< Largest |torque|.
+  /// Felt segments (issue 17): time in contact, peak force and touches per segment of the
+  /// scene's segmentation (empty without one).
+  std::vector<SegmentContact> segment_contacts;
   double mean_volume_samples = 0.0;      ///< Trilinear samples per tick.
   // Correctness.
   double max_penetration_m = 0.0;        ///< Largest first-order depth over all ticks [m].

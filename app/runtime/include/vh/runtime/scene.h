@@ -11,8 +11,13 @@
 ///            "point_spacing_m": 0.001,            // or "point_count": 500
 ///            "initial_pose": {"p_m": [0, 0, 0.1], "q_wxyz": [1, 0, 0, 0]}},
 ///   "coupling": {"linear_N_per_m": 2000, "angular_Nm_per_rad": 2.0},
-///   "device": {"kind": "simulated"}               // or "scripted" with "trajectory": "T.csv"
+///   "device": {"kind": "simulated"},              // or "scripted" with "trajectory": "T.csv"
+///   "segmentation": {"path": "case.seg.nrrd",     // optional: 3D Slicer segments (segments.h)
+///                    "felt": ["facial nerve"], "shown": ["facial nerve", "sigmoid sinus"],
+///                    "critical": ["facial nerve"], "smoothing_voxels": 1.0}
 /// }
+/// "felt" absent or empty: the scan's isosurface is felt and the segments are only shown;
+/// "shown" absent: every segment is shown.
 /// Hardware devices: "device": {"kind": "falcon", "firmware": "/path/nvent_firmware.bin",
 ///   "select": "SERIAL-or-path", "workspace": {"scale": 1.5, "offset_m": [0, 0, 0.05],
 ///   "q_wxyz": [1, 0, 0, 0]}}; "spacemouse" takes "select" and "workspace".
@@ -39,6 +44,7 @@
 #include "vh/io/volume_loader.h"
 #include "vh/runtime/device.h"
 #include "vh/runtime/haptic_thread.h"
+#include "vh/runtime/segments.h"
 
 namespace vh::runtime {
 
@@ -107,6 +113,7 @@ struct SceneSpec {
   ToolSpec tool;
   haptics::CouplingGains gains;
   std::optional<DeviceSpec> device;  ///< Absent: no haptic thread.
+  std::optional<SegmentationSpec> segmentation;  ///< Absent: no segments.
 };
 
 /// Parses a scene file.
@@ -149,6 +156,18 @@ struct LoadedScene {
   double isovalue = 0.0;                          ///< Isovalue s in the data's units.
   haptics::Pose X_WT_initial;                     ///< Initial proxy and device pose in W [m].
   int initial_points_inside = 0;  ///< Shell points inside F = s at X_WT_initial (0 normally).
+  /// The scene's segments (spec.segmentation), or null. When some are felt, the hand feels
+  /// their surface (hapticField()) and the isovalue only sets the scan's picture.
+  std::shared_ptr<const SegmentSet> segments;
+
+  /// True when segments are felt instead of the scan's isosurface.
+  bool feltSegments() const noexcept { return segments != nullptr && segments->feltField() != nullptr; }
+  /// The field the hand feels: the felt segments' smoothed indicator, else the scan's field.
+  const std::shared_ptr<const haptics::ScalarVolume>& hapticField() const noexcept {
+    return feltSegments() ? segments->feltField() : volume.field;
+  }
+  /// The isovalue of hapticField(): io::kSegmentSurfaceLevel for felt segments, else isovalue.
+  double hapticIsovalue() const noexcept { return feltSegments() ? io::kSegmentSurfaceLevel : isovalue; }
 
   /// The spacing the tool's point shell was sampled at [m]: toolPointSpacing_m() of spec.tool
   /// on the tool's mesh and the field (derived, so it cannot disagree with the spec); 0 without
@@ -156,7 +175,7 @@ struct LoadedScene {
   double pointSpacing_m() const;
 
   /// A renderer for this scene with the proxy at `X_WP` (X_WT_initial when absent), the spec's
-  /// gains, this isovalue; epsilon as `options`.
+  /// gains, on hapticField() at hapticIsovalue(); epsilon as `options`.
   /// @throws std::invalid_argument as HapticRenderer's constructor.
   std::unique_ptr<haptics::HapticRenderer> makeRenderer(haptics::RendererOptions options = {},
                                                         const std::optional<haptics::Pose>& X_WP = {}) const;
@@ -168,7 +187,8 @@ struct LoadedScene {
   std::shared_ptr<Device> makeDevice(double servo_rate_Hz = 1000.0) const;
   /// The one place a renderer and its haptic threads are built (the headless runner's tests,
   /// the GUI through Session): a HapticThread (not started) driving `device` at
-  /// `servo_rate_Hz` with makeRenderer({}, X_WP).
+  /// `servo_rate_Hz` with makeRenderer({}, X_WP), naming the segment of each contact when the
+  /// scene has segments (HapticThreadOptions::segments).
   /// @throws std::invalid_argument as HapticThread's and HapticRenderer's constructors.
   std::unique_ptr<HapticThread> makeHapticThread(std::shared_ptr<Device> device, double servo_rate_Hz = 1000.0,
                                                  const std::optional<haptics::Pose>& X_WP = {}) const;
