@@ -208,12 +208,12 @@ std::string makeSessionMetadata(const LoadedScene& scene, const SessionInfo& inf
     seg["smoothing_voxels"] = set.smoothingVoxels();
     seg["segments"] = json::array();
     for (int s = 0; s < static_cast<int>(set.size()); ++s) {
-      const io::SegmentInfo& info = set.segment(s);
-      seg["segments"].push_back({{"name", info.name},
-                                 {"id", info.id},
-                                 {"label_value", info.label_value},
-                                 {"layer", info.layer},
-                                 {"color_rgb", info.color_rgb},
+      const io::SegmentInfo& segment = set.segment(s);
+      seg["segments"].push_back({{"name", segment.name},
+                                 {"id", segment.id},
+                                 {"label_value", segment.label_value},
+                                 {"layer", segment.layer},
+                                 {"color_rgb", segment.color_rgb},
                                  {"felt", set.isFelt(s)},
                                  {"critical", set.isCritical(s)}});
     }
