@@ -1,0 +1,234 @@
+// Felt segments (issue 17): a CT in which a nerve and a bone have the same intensity (no
+// isovalue separates them) and a segmentation that names them. The hand feels the chosen
+// segments' smoothed surface with the renderer's guarantees (no penetration, no crossing), each
+// contact is named by its segment, a critical segment gives an event, and the export reports
+// time in contact and peak force per segment.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <fstream>
+#include <string>
+
+#include <nlohmann/json.hpp>
+
+#include "runtime_test_support.h"
+#include "vh/runtime/placement.h"
+#include "vh/runtime/recording.h"
+#include "vh/runtime/replay.h"
+#include "vh/runtime/runner.h"
+#include "vh/runtime/scene.h"
+#include "vh/runtime/session.h"
+#include "vh/runtime/session_metadata.h"
+#include "vh/runtime/trajectory.h"
+
+namespace vh::runtime {
+namespace {
+
+namespace fs = std::filesystem;
+
+constexpr int kN = 60;           // voxels per axis
+constexpr double kH_mm = 0.5;    // voxel size
+// The nerve: a ball of radius 6 mm at (15, 15, 19) mm; the bone: a slab z in [4, 9] mm.
+bool inNerve(double x, double y, double z) {
+  return (x - 15) * (x - 15) + (y - 15) * (y - 15) + (z - 19) * (z - 19) <= 36.0;
+}
+bool inBone(double x, double y, double z) { return x >= 3 && x <= 27 && y >= 3 && y <= 27 && z >= 4 && z <= 9; }
+
+std::string nrrdHeader(const std::string& type, const std::string& extra) {
+  return "NRRD0004\ntype: " + type + "\ndimension: 3\nspace: left-posterior-superior\nsizes: 60 60 60\n"
+         "space directions: (0.5,0,0) (0,0.5,0) (0,0,0.5)\nkinds: domain domain domain\nendian: little\n"
+         "encoding: raw\nspace origin: (0,0,0)\n" + extra + "\n";
+}
+
+/// Writes ct.nrrd (nerve and bone both 300, air 0: one intensity) and case.seg.nrrd.
+fs::path writeCase() {
+  const fs::path dir = test::scratchDir();
+  std::string ct, labels;
+  for (int k = 0; k < kN; ++k) {
+    for (int j = 0; j < kN; ++j) {
+      for (int i = 0; i < kN; ++i) {
+        const double x = i * kH_mm, y = j * kH_mm, z = k * kH_mm;
+        const int label = inNerve(x, y, z) ? 1 : inBone(x, y, z) ? 2 : 0;
+        const std::int16_t hu = label != 0 ? 300 : 0;
+        ct.append(reinterpret_cast<const char*>(&hu), 2);
+        labels.push_back(static_cast<char>(label));
+      }
+    }
+  }
+  std::ofstream(dir / "ct.nrrd", std::ios::binary) << nrrdHeader("short", "") << ct;
+  const std::string keys =
+      "Segment0_Color:=1 0.9 0.2\nSegment0_ID:=Segment_1\nSegment0_LabelValue:=1\nSegment0_Layer:=0\n"
+      "Segment0_Name:=facial nerve\nSegment1_Color:=0.9 0.9 0.8\nSegment1_ID:=Segment_2\n"
+      "Segment1_LabelValue:=2\nSegment1_Layer:=0\nSegment1_Name:=bone\n";
+  std::ofstream(dir / "case.seg.nrrd", std::ios::binary) << nrrdHeader("unsigned char", keys) << labels;
+  return dir;
+}
+
+fs::path writeScene(const fs::path& dir, const std::string& felt, const std::string& critical) {
+  return test::writeText(dir / ("scene-" + std::to_string(felt.size()) + ".json"),
+                         R"({"volume": {"path": "ct.nrrd", "isovalue": 150},
+                             "tool": {"mesh": "builtin:sphere", "scale_to_m": 0.4, "point_spacing_m": 0.0006},
+                             "coupling": {"linear_N_per_m": 1000},
+                             "segmentation": {"path": "case.seg.nrrd", "felt": )" + felt +
+                             R"(, "critical": )" + critical + "}}");
+}
+
+/// Pushes the tool straight down (-z) over the nerve's centre and slides 2 mm.
+Trajectory pushOverTheNerve(const LoadedScene& scene) {
+  haptics::Pose start;
+  start.p_AB_m = Eigen::Vector3d(0.015, 0.015, 0.029);
+  PushSlideOptions push;
+  push.start_clearance_m = 0.002;
+  push.push_depth_m = 0.002;
+  push.slide_m = 0.002;
+  push.hold_s = 0.05;
+  push.approach_time_s = 0.1;
+  push.push_time_s = 0.3;
+  push.slide_time_s = 0.3;
+  push.retract_time_s = 0.1;
+  return makePushSlideTrajectory(*scene.hapticField(), scene.tool->point_shell, scene.hapticIsovalue(), start, push)
+      .trajectory;
+}
+
+const SegmentContact& contactWith(const std::vector<SegmentContact>& contacts, const std::string& name) {
+  for (const auto& c : contacts) {
+    if (c.name == name) return c;
+  }
+  throw std::runtime_error("no segment " + name);
+}
+
+TEST(FeltSegments, TheNerveIsFeltNamedAndNeverEnteredWhileTheIsovalueOnlySetsThePicture) {
+  const fs::path dir = writeCase();
+  const LoadedScene scene = loadScene(loadSceneFile(writeScene(dir, R"(["facial nerve"])", R"(["facial nerve"])")));
+  ASSERT_TRUE(scene.feltSegments());
+  EXPECT_EQ(scene.isovalue, 150.0);  // the scan's picture
+  EXPECT_EQ(scene.hapticIsovalue(), 0.5);
+  ASSERT_EQ(scene.segments->size(), 2u);
+  EXPECT_TRUE(scene.segments->isCritical(0));
+  EXPECT_FALSE(scene.segments->isFelt(1));
+
+  RunOptions options;
+  options.record = dir / "nerve.vhrec";
+  const RunReport r = runHeadless(scene, pushOverTheNerve(scene), options);
+  std::cout << "[ segments ] " << r.summary() << "\n";
+  // The renderer's guarantees hold on the felt surface.
+  EXPECT_EQ(r.crossings, 0);
+  EXPECT_LE(r.max_penetration_m, r.epsilon_m);
+  EXPECT_EQ(r.nan_ticks, 0u);
+  ASSERT_GT(r.ticks_in_contact, 100u);
+  // The tool rests on the ball (radius 6 mm about z = 19 mm): its centre 2 mm above the top.
+  ASSERT_EQ(r.segment_contacts.size(), 2u);
+  const SegmentContact& nerve = contactWith(r.segment_contacts, "facial nerve");
+  EXPECT_TRUE(nerve.critical);
+  EXPECT_GT(nerve.ticks, r.ticks_in_contact * 9 / 10) << "contacts are named by their segment";
+  EXPECT_NEAR(nerve.time_in_contact_s, static_cast<double>(nerve.ticks) / 1000.0, 1e-9);
+  EXPECT_EQ(nerve.touches, 1u);
+  EXPECT_NEAR(nerve.peak_force_N, r.max_force_N, 1e-12);
+  EXPECT_GT(nerve.peak_force_N, 0.5);
+  EXPECT_EQ(contactWith(r.segment_contacts, "bone").ticks, 0u);
+  EXPECT_NE(r.summary().find("touched facial nerve (CRITICAL)"), std::string::npos);
+
+  // The recording names the touched segment tick by tick, with a critical_contact event, and
+  // its export gives the same time and peak force.
+  const Recording rec = readRecording(options.record);
+  int segment_events = 0, critical_events = 0;
+  for (const RecordingEvent& e : rec.events) {
+    const auto d = nlohmann::json::parse(e.detail_json);
+    if (e.type == "segment") {
+      ++segment_events;
+      if (segment_events == 1) {
+        EXPECT_TRUE(d.at("from").is_null());
+        EXPECT_EQ(d.at("to"), "facial nerve");
+      }
+    }
+    if (e.type == "critical_contact") {
+      ++critical_events;
+      EXPECT_EQ(d.at("segment"), "facial nerve");
+      EXPECT_EQ(recordSegment(rec.records.at(e.tick - 1).flags), 0);
+    }
+  }
+  EXPECT_EQ(segment_events, 2);  // on, then off when the tool retracts
+  EXPECT_EQ(critical_events, 1);
+  const auto exported = segmentContacts(rec);
+  ASSERT_EQ(exported.size(), 2u);
+  EXPECT_EQ(exported[0].ticks, nerve.ticks);
+  EXPECT_DOUBLE_EQ(exported[0].peak_force_N, nerve.peak_force_N);
+  writeRecordingJson(rec, dir / "nerve.json");
+  std::ifstream json_in(dir / "nerve.json");
+  const auto j = nlohmann::json::parse(json_in);
+  EXPECT_EQ(j.at("segments").at(0).at("name"), "facial nerve");
+  EXPECT_GT(j.at("segments").at(0).at("time_in_contact_s").get<double>(), 0.1);
+
+  // The recording replays bit for bit: its metadata brings the segmentation back.
+  const LoadedScene reloaded = loadScene(sceneFromSessionMetadata(rec.metadata_json));
+  ASSERT_TRUE(reloaded.feltSegments());
+  const ReplayComparison replay = replayRecording(reloaded, rec);
+  EXPECT_TRUE(replay.identical) << replay.mismatch;
+}
+
+TEST(FeltSegments, WithOnlyTheBoneFeltTheToolPassesTheNerveAndRestsOnTheBone) {
+  const fs::path dir = writeCase();
+  const LoadedScene scene = loadScene(loadSceneFile(writeScene(dir, R"(["bone"])", "[]")));
+  haptics::Pose start;
+  start.p_AB_m = Eigen::Vector3d(0.015, 0.015, 0.029);
+  PushSlideOptions push;
+  push.start_clearance_m = 0.002;
+  push.push_depth_m = 0.001;
+  push.slide_m = 0.0;
+  push.hold_s = 0.05;
+  const PushSlidePlan plan =
+      makePushSlideTrajectory(*scene.hapticField(), scene.tool->point_shell, scene.hapticIsovalue(), start, push);
+  // The first contact is on the slab's top (z = 9 mm): the tool's centre 2 mm above it, where the
+  // nerve's voxels are (the nerve is not felt).
+  EXPECT_NEAR(plan.X_WD_contact.p_AB_m.z(), 0.011, 0.0006);
+  RunOptions options;
+  options.lag_reference = false;
+  const RunReport r = runHeadless(scene, plan.trajectory, options);
+  EXPECT_EQ(r.crossings, 0);
+  EXPECT_GT(contactWith(r.segment_contacts, "bone").ticks, 100u);
+  EXPECT_EQ(contactWith(r.segment_contacts, "facial nerve").ticks, 0u);
+  EXPECT_FALSE(contactWith(r.segment_contacts, "bone").critical);
+}
+
+TEST(FeltSegments, TheHapticThreadNamesTheSegmentAndKeepsItsSurfaceWhenTheIsovalueMoves) {
+  const fs::path dir = writeCase();
+  LoadedScene scene = loadScene(loadSceneFile(writeScene(dir, R"(["facial nerve", "bone"])", R"(["facial nerve"])")));
+  const Trajectory trajectory = pushOverTheNerve(scene);
+  Session session;
+  // A scripted device running the push; the session's isovalue moves the picture only.
+  session.setScene(std::move(scene), std::make_shared<ScriptedDevice>(trajectory, 1e-3, "push"));
+  session.startHaptics();
+  session.setIsovalue(250.0);
+  HapticSnapshot snap;
+  const bool touched = test::waitUntil(
+      [&] {
+        return session.latestSnapshot(snap) && snap.contacts > 0 && snap.segment == 0;
+      },
+      std::chrono::milliseconds(20000));
+  EXPECT_TRUE(touched) << "contacts " << snap.contacts << ", segment " << snap.segment;
+  EXPECT_EQ(session.scene().isovalue, 250.0);
+  EXPECT_EQ(snap.isovalue, 0.5) << "the hand keeps the segments' surface";
+  session.stopHaptics();
+}
+
+TEST(FeltSegments, UnknownSegmentsAndBadSmoothingAreSceneErrors) {
+  const fs::path dir = writeCase();
+  VH_EXPECT_THROW_WITH(loadScene(loadSceneFile(writeScene(dir, R"(["tumour"])", "[]"))), std::runtime_error,
+                       "segmentation.felt", "no segment \"tumour\"", "\"facial nerve\", \"bone\"");
+  const fs::path bad = test::writeText(
+      dir / "bad.json", R"({"volume": {"path": "ct.nrrd"}, "segmentation": {"path": "case.seg.nrrd", "smoothing_voxels": -1}})");
+  VH_EXPECT_THROW_WITH(loadSceneFile(bad), std::runtime_error, "segmentation.smoothing_voxels");
+  const fs::path typo = test::writeText(
+      dir / "typo.json", R"({"volume": {"path": "ct.nrrd"}, "segmentation": {"path": "case.seg.nrrd", "feelt": []}})");
+  VH_EXPECT_THROW_WITH(loadSceneFile(typo), std::runtime_error, "feelt");
+  // Shown only: the scan stays felt.
+  const fs::path shown = test::writeText(
+      dir / "shown.json", R"({"volume": {"path": "ct.nrrd", "isovalue": 150}, "segmentation": {"path": "case.seg.nrrd"}})");
+  const LoadedScene s = loadScene(loadSceneFile(shown));
+  EXPECT_FALSE(s.feltSegments());
+  EXPECT_EQ(s.hapticField(), s.volume.field);
+  EXPECT_EQ(s.segments->shown().size(), 2u);
+}
+
+}  // namespace
+}  // namespace vh::runtime
