@@ -1,5 +1,7 @@
 #include "vh/runtime/session.h"
 
+#include "vh/runtime/placement.h"
+
 #include <algorithm>
 #include <cmath>
 #include <stdexcept>
@@ -107,6 +109,27 @@ void Session::setTool(std::shared_ptr<const haptics::ToolModel> tool, const Tool
   rebuildHaptics(X_WT_initial);
   if (was_running && haptics_ != nullptr) haptics_->start();
   notify(SessionChange::kTool | (was_running != hapticsRunning() ? SessionChange::kRunning : SessionChange{}));
+}
+
+void Session::setSegments(std::shared_ptr<const SegmentSet> segments, std::optional<SegmentationSpec> spec) {
+  if (!has_scene_) throw std::invalid_argument("Session::setSegments: no scene");
+  if (segments != nullptr && !spec) throw std::invalid_argument("Session::setSegments: segments without a spec");
+  const bool was_running = hapticsRunning();
+  haptics::Pose X_WP = proxyPose();
+  if (haptics_ != nullptr) haptics_->stop();  // force ramped to zero before the surface changes
+  haptics_.reset();
+  scene_.segments = std::move(segments);
+  scene_.spec.segmentation = scene_.segments != nullptr ? std::move(spec) : std::nullopt;
+  // The proxy must start free of the new surface: where it is, else above the volume.
+  const haptics::ScalarVolume& field = *scene_.hapticField();
+  if (scene_.tool != nullptr &&
+      countPointsInside(field, scene_.tool->point_shell, X_WP, scene_.hapticIsovalue()) > 0) {
+    X_WP = defaultInitialPose(field, scene_.tool->point_shell, X_WP.R_AB, scene_.hapticIsovalue());
+    if (SimulatedDevice* sim = simulatedDevice()) sim->setPose(X_WP);
+  }
+  rebuildHaptics(X_WP);
+  if (was_running && haptics_ != nullptr) haptics_->start();
+  notify(SessionChange::kSegments | (was_running != hapticsRunning() ? SessionChange::kRunning : SessionChange{}));
 }
 
 void Session::setDevice(std::shared_ptr<Device> device) {

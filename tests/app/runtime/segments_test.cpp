@@ -230,5 +230,41 @@ TEST(FeltSegments, UnknownSegmentsAndBadSmoothingAreSceneErrors) {
   EXPECT_EQ(s.segments->shown().size(), 2u);
 }
 
+TEST(FeltSegments, TheSessionSwapsTheFeltSegmentsAndStartsTheProxyFreeOfTheNewSurface) {
+  const fs::path dir = writeCase();
+  // The scan felt first (isovalue 150: nerve and bone alike), segments only shown.
+  const fs::path shown = test::writeText(dir / "shown.json", R"({"volume": {"path": "ct.nrrd", "isovalue": 150},
+      "tool": {"mesh": "builtin:sphere", "scale_to_m": 0.4, "point_spacing_m": 0.0006},
+      "segmentation": {"path": "case.seg.nrrd"}, "device": {"kind": "simulated"}})");
+  LoadedScene scene = loadScene(loadSceneFile(shown));
+  ASSERT_FALSE(scene.feltSegments());
+  const io::LoadedSegmentation seg = scene.segments->segmentation();
+  auto device = scene.makeDevice();
+  Session session;
+  session.setScene(std::move(scene), device);
+  SessionChange heard{};
+  session.addObserver([&](SessionChange what) { heard = what; });
+  // Feel the nerve instead of the scan.
+  SegmentationSpec spec = *session.scene().spec.segmentation;
+  spec.felt = {"facial nerve"};
+  session.setSegments(SegmentSet::fromSpec(seg, spec, "test"), spec);
+  EXPECT_TRUE(has(heard, SessionChange::kSegments));
+  ASSERT_TRUE(session.scene().feltSegments());
+  EXPECT_EQ(session.scene().spec.segmentation->felt, std::vector<std::string>{"facial nerve"});
+  ASSERT_NE(session.hapticThread(), nullptr);
+  // The proxy starts free of the nerve's surface.
+  const haptics::Pose X_WP = session.proxyPose();
+  EXPECT_EQ(countPointsInside(*session.scene().hapticField(), session.scene().tool->point_shell, X_WP, 0.5), 0);
+  session.startHaptics();
+  HapticSnapshot snap;
+  ASSERT_TRUE(test::waitUntil([&] { return session.latestSnapshot(snap) && snap.solver_tick > 5; }));
+  EXPECT_EQ(snap.isovalue, 0.5);
+  // Back to the scan.
+  session.setSegments(nullptr, std::nullopt);
+  EXPECT_FALSE(session.scene().feltSegments());
+  EXPECT_FALSE(session.scene().spec.segmentation.has_value());
+  session.stopHaptics();
+}
+
 }  // namespace
 }  // namespace vh::runtime

@@ -42,6 +42,7 @@ enum class SessionChange : std::uint32_t {
   kTool = 1u << 3,      ///< scene().tool and its spec; the haptic thread was rebuilt.
   kDevice = 1u << 4,    ///< device(); the haptic thread was rebuilt.
   kRunning = 1u << 5,   ///< hapticsRunning()
+  kSegments = 1u << 6,  ///< scene().segments (felt, shown, critical); the haptic thread was rebuilt.
 };
 constexpr SessionChange operator|(SessionChange a, SessionChange b) {
   return static_cast<SessionChange>(static_cast<std::uint32_t>(a) | static_cast<std::uint32_t>(b));
@@ -101,6 +102,15 @@ class Session {
   /// point_count): scene().pointSpacing_m() derives it from there.
   /// @throws std::invalid_argument for a null tool or no scene.
   void setTool(std::shared_ptr<const haptics::ToolModel> tool, const ToolSpec& spec, const haptics::Pose& X_WT_initial);
+
+  // ---- Segments (issue 17) ---------------------------------------------------------------------
+  /// Replaces the scene's segments (null: none) and their spec (what recordings and scene
+  /// files say): the haptic threads stop (force ramped to zero) and are rebuilt on the new felt
+  /// field (LoadedScene::hapticField()) at the proxy's pose when no shell point is inside the
+  /// new surface there, else at a free pose above the volume (defaultInitialPose(); a simulated
+  /// device is moved there); restarted when they ran.
+  /// @throws std::invalid_argument without a scene, or for segments without a spec.
+  void setSegments(std::shared_ptr<const SegmentSet> segments, std::optional<SegmentationSpec> spec);
 
   // ---- Device and haptic threads -------------------------------------------------------------
   /// Drives `device` instead (null: haptics off): the threads are rebuilt with the current tool
