@@ -74,10 +74,11 @@ void DeviceInput::setDevicePose(const haptics::Pose& X_WD) {
 bool DeviceInput::touchSurface(double depth_m) {
   runtime::SimulatedDevice* device = session_.simulatedDevice();
   const runtime::LoadedScene& scene = session_.scene();
-  if (device == nullptr || scene.tool == nullptr || scene.volume.field == nullptr) return false;
-  const haptics::ScalarVolume& field = *scene.volume.field;
+  if (device == nullptr || scene.tool == nullptr || scene.hapticField() == nullptr) return false;
+  // The surface the hand feels: the felt segments' when some are felt, else the scan's.
+  const haptics::ScalarVolume& field = *scene.hapticField();
   const haptics::PointShell& shell = scene.tool->point_shell;
-  const double isovalue = session_.isovalue();
+  const double isovalue = scene.hapticIsovalue();
   const haptics::Pose X_WD = device->pose();
   const Eigen::Vector3d c_W = X_WD * scene.tool->mass.p_TCm_m;
   const Eigen::Vector3d lo = field.boundsMin_W_m();

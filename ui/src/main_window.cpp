@@ -30,6 +30,7 @@
 #include <QVBoxLayout>
 #include <vtkImageData.h>
 
+#include "vh/io/segmentation.h"
 #include "vh/ui/about_dialog.h"
 #include "vh/ui/device_input.h"
 #include "vh/ui/device_picker.h"
@@ -42,6 +43,7 @@
 #include "vh/ui/replay_panel.h"
 #include "vh/ui/scene_actors.h"
 #include "vh/ui/scene_loader.h"
+#include "vh/ui/segments_controller.h"
 #include "vh/ui/series_chooser.h"
 #include "vh/ui/session_recorder.h"
 #include "vh/ui/status_line.h"
@@ -164,9 +166,11 @@ void MainWindow::buildDocks() {
   chart_dock_->setObjectName("chartDock");
   chart_dock_->setWidget(chart_);
   addDockWidget(Qt::BottomDockWidgetArea, chart_dock_);
-  // Display and Haptics share the right side as tabs (Haptics in front): both together would be
-  // taller than a laptop screen.
-  tabifyDockWidget(display_dock_, haptics_dock_);
+  segments_ = new SegmentsController(session_, *view_, this, statusBar());
+  // Display, Segments and Haptics share the right side as tabs (Haptics in front): together they
+  // would be taller than a laptop screen.
+  tabifyDockWidget(display_dock_, segments_->dock());
+  tabifyDockWidget(segments_->dock(), haptics_dock_);
   haptics_dock_->raise();
   resizeDocks({chart_dock_}, {190}, Qt::Vertical);
   resizeDocks({haptics_dock_}, {300}, Qt::Horizontal);
@@ -244,6 +248,7 @@ void MainWindow::connectParts() {
 
   // Recorder and replay -> the window.
   connect(recorder_, &SessionRecorder::failed, this, &MainWindow::reportError);
+  connect(segments_, &SegmentsController::errorReported, this, &MainWindow::reportError);
   connect(replay_, &ReplayController::openSceneRequested, this,
           [this](const runtime::SceneSpec& spec, const fs::path& opened) { openScene(spec, opened); });
   connect(replay_, &ReplayController::errorReported, this, &MainWindow::reportError);
@@ -317,7 +322,7 @@ void MainWindow::selectTool(int choice_index, double point_spacing_m) {
   recorder_->noteTool(q(tools_[static_cast<std::size_t>(choice_index)].label), point_spacing_m);
   haptics_panel_->setBuilding(true);
   loader_->buildTool(choice_index, tools_[static_cast<std::size_t>(choice_index)], point_spacing_m,
-                     scene().volume.field, session_.isovalue());
+                     scene().hapticField(), scene().hapticIsovalue());
 }
 
 void MainWindow::onToolBuilt(std::shared_ptr<RebuiltTool> rebuilt) {
@@ -346,6 +351,7 @@ bool MainWindow::refreshFromHaptics(bool update_status_now) {
   const int n = std::clamp(snapshot_.contacts_shown, 0, runtime::HapticSnapshot::kMaxContactsShown);
   frame.contacts_W_m = std::span<const Eigen::Vector3d>(snapshot_.contact_p_W_m.data(), static_cast<std::size_t>(n));
   const bool changed = view_->show(frame);
+  segments_->showSnapshot(snapshot_);
   if (chart_dock_->isVisible()) {
     chart_->addSample(1e-3 * static_cast<double>(clock_.elapsed()), snapshot_.force_W_N.norm(),
                       snapshot_.solver.mean_tick_us, snapshot_.solver.max_tick_us, snapshot_.coupling.jitter_us);
@@ -410,6 +416,9 @@ void MainWindow::buildMenus() {
   open_volume->setShortcut(QKeySequence::Open);
   QAction* open_scene = file->addAction("Open &Scene...", this, [this] { openFileDialog(2); });
   open_scene->setShortcut(QKeySequence("Ctrl+Shift+O"));
+  QAction* open_segments = file->addAction("Open Se&gmentation (3D Slicer .seg.nrrd)...", this,
+                                           [this] { segments_->openDialog(prefs_.last_folder); });
+  open_segments->setShortcut(QKeySequence("Ctrl+G"));
   recent_menu_ = file->addMenu("Open &Recent");
   recent_menu_->setObjectName("recentFilesMenu");
   rebuildRecentMenu();
@@ -529,6 +538,18 @@ void MainWindow::openPath(const QString& path) {
   std::transform(ext.begin(), ext.end(), ext.begin(), [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
   if (ext == ".vhrec") {
     replay_->openRecording(p);
+    return;
+  }
+  if ((ext == ".nrrd" || ext == ".nhdr") && io::isSegmentationFile(p)) {
+    // A segmentation: the segments of the scan shown; alone, it is its own scan.
+    if (hasScene()) {
+      segments_->open(p);
+    } else {
+      runtime::SceneSpec spec = runtime::sceneForVolume(p);
+      spec.segmentation = runtime::SegmentationSpec{};
+      spec.segmentation->path = spec.volume.path;
+      openScene(spec, p);
+    }
     return;
   }
   if (ext == ".json") {

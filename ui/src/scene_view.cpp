@@ -50,6 +50,21 @@ SceneView::SceneView(QWidget* parent) : QObject(parent) {
   view_->renderer()->AddActor2D(welcome);
   welcome_ = welcome;
 
+  // A critical segment touched: red text at the top of the view.
+  vtkNew<vtkTextActor> alert;
+  alert->GetTextProperty()->SetFontSize(22);
+  alert->GetTextProperty()->SetBold(true);
+  alert->GetTextProperty()->SetColor(1.0, 1.0, 1.0);
+  alert->GetTextProperty()->SetBackgroundColor(0.75, 0.1, 0.1);
+  alert->GetTextProperty()->SetBackgroundOpacity(0.9);
+  alert->GetTextProperty()->SetJustificationToCentered();
+  alert->GetTextProperty()->SetVerticalJustificationToTop();
+  alert->GetPositionCoordinate()->SetCoordinateSystemToNormalizedViewport();
+  alert->GetPositionCoordinate()->SetValue(0.5, 0.88);  // below the hint lines
+  alert->SetVisibility(false);
+  view_->renderer()->AddActor2D(alert);
+  alert_ = alert;
+
   // Interactive (cheaper) frames while something moves, a full-quality one when it settles.
   settle_timer_ = new QTimer(this);
   settle_timer_->setSingleShot(true);
@@ -76,16 +91,23 @@ SceneView::~SceneView() {
   if (view_->context() != nullptr) {
     view_->makeCurrent();
     actors_.reset();
+    segments_.reset();
     marker_.reset();
     view_->doneCurrent();
   }
   actors_.reset();
+  segments_.reset();
   marker_.reset();
 }
 
 void SceneView::setScene(const SceneActorsSpec& spec, const haptics::Pose& X_WT, const Preferences& look) {
   if (spec.image == nullptr) throw std::invalid_argument("SceneView: the scene's volume has no image to render");
-  clearScene();
+  // The scan's props only: the segment surfaces follow the session's segments (setSegments()).
+  if (view_->context() != nullptr) {
+    view_->makeCurrent();
+    actors_.reset();
+    view_->doneCurrent();
+  }
   actors_ = std::make_unique<SceneActors>(view_->renderer(), spec);
   tool_vertices_T_m_ = spec.tool_mesh_T.vertices_T_m;
   actors_->setProxyPose(X_WT);
@@ -107,9 +129,31 @@ void SceneView::clearScene() {
   if (view_->context() != nullptr) {
     view_->makeCurrent();
     actors_.reset();
+    segments_.reset();
     view_->doneCurrent();
   }
   actors_.reset();
+  segments_.reset();
+  if (alert_ != nullptr) alert_->SetVisibility(false);
+}
+
+void SceneView::setSegments(const runtime::SegmentSet* set) {
+  if (segments_ == nullptr) segments_ = std::make_unique<SegmentSurfaces>(view_->renderer());
+  segments_->show(set);
+  requestRender();
+}
+
+void SceneView::setTouchedSegment(int segment, const std::string& alert) {
+  if (segments_ != nullptr) segments_->setTouched(segment);
+  if (alert_ != nullptr) {
+    alert_->SetInput(alert.c_str());
+    alert_->SetVisibility(!alert.empty());
+  }
+  requestRender();
+}
+
+std::string SceneView::alertText() const {
+  return alert_ != nullptr && alert_->GetVisibility() && alert_->GetInput() != nullptr ? alert_->GetInput() : "";
 }
 
 void SceneView::setTool(const haptics::ToolModel& tool, const haptics::Pose& X_WT) {

@@ -64,7 +64,7 @@ SessionRecorder::SessionRecorder(runtime::Session& session, QStatusBar* status_b
   observer_ = session_.addObserver([this](runtime::SessionChange what) {
     using runtime::SessionChange;
     const bool replaced = runtime::has(what, SessionChange::kScene) || runtime::has(what, SessionChange::kTool) ||
-                          runtime::has(what, SessionChange::kDevice);
+                          runtime::has(what, SessionChange::kDevice) || runtime::has(what, SessionChange::kSegments);
     if (replaced || (runtime::has(what, SessionChange::kRunning) && !session_.hapticsRunning())) onHapticsStopped();
     updateUi();
   });

@@ -31,6 +31,11 @@ QString hapticStatusText(const runtime::Session& session, const runtime::HapticS
           .arg(s.contacts)
           .arg(s.force_W_N.norm(), 0, 'f', 2)
           .arg(s.torque_W_Nm.norm(), 0, 'f', 4);
+  // The structure touched (issue 17).
+  if (const auto& segments = session.scene().segments; segments != nullptr && s.segment >= 0) {
+    text += "  |  touching " + QString::fromStdString(segments->name(s.segment)) +
+            (segments->isCritical(s.segment) ? " (CRITICAL)" : "");
+  }
   if (s.skipped_samples > 0) {
     text += QString("  |  solver skipped %1 device samples").arg(static_cast<qulonglong>(s.skipped_samples));
   }

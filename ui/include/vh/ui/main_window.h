@@ -64,6 +64,7 @@ class OrientationMarker;
 class ReplayController;
 class SceneActors;
 class SceneLoader;
+class SegmentsController;
 class SessionRecorder;
 class StatusLine;
 class StripChart;
@@ -209,6 +210,7 @@ class MainWindow : public QMainWindow {
   QMenu* recentFilesMenu() const noexcept { return recent_menu_; }
   SessionRecorder* recorder() const noexcept { return recorder_; }
   ReplayController* replay() const noexcept { return replay_; }
+  SegmentsController* segments() const noexcept { return segments_; }
 
  signals:
   /// A load finished and its scene is shown.
@@ -258,6 +260,7 @@ class MainWindow : public QMainWindow {
   DevicePicker* device_picker_ = nullptr;
   DeviceInput* device_input_ = nullptr;
   StatusLine* status_ = nullptr;
+  SegmentsController* segments_ = nullptr;
   StripChart* chart_ = nullptr;
   SessionRecorder* recorder_ = nullptr;
   ReplayController* replay_ = nullptr;

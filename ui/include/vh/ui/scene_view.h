@@ -24,6 +24,7 @@
 #include "vh/ui/preferences.h"
 #include "vh/ui/render_presets.h"
 #include "vh/ui/scene_actors.h"
+#include "vh/ui/segment_surfaces.h"
 
 class QTimer;
 class QWidget;
@@ -51,15 +52,25 @@ class SceneView : public QObject {
   VtkView* widget() const noexcept { return view_; }
 
   // ---- Scene ---------------------------------------------------------------------------------
-  /// Builds the props for `spec` (replacing any), the tools at `X_WT`, the look of `look`, and
-  /// resets the camera; hides the welcome text. @throws std::invalid_argument without an image.
+  /// Builds the props for `spec` (replacing any; the segment surfaces stay), the tools at
+  /// `X_WT`, the look of `look`, and resets the camera; hides the welcome text. @throws std::invalid_argument without an image.
   void setScene(const SceneActorsSpec& spec, const haptics::Pose& X_WT, const Preferences& look);
-  /// Removes the props (the welcome text stays hidden once a scene was shown).
+  /// Removes the props and the segment surfaces (the welcome text stays hidden once a scene was
+  /// shown).
   void clearScene();
   bool hasScene() const noexcept { return actors_ != nullptr; }
   /// The props; only while hasScene().
   SceneActors& actors() const noexcept { return *actors_; }
   OrientationMarker* marker() const noexcept { return marker_.get(); }
+  /// Shows the shown segments of `set` as coloured surfaces (null: none; SegmentSurfaces).
+  void setSegments(const runtime::SegmentSet* set);
+  /// Emphasises the touched segment (-1: none); a non-empty `alert` is shown in red at the top
+  /// of the view (a critical segment touched), an empty one hides it.
+  void setTouchedSegment(int segment, const std::string& alert);
+  /// The segment surfaces (null before the first scene).
+  const SegmentSurfaces* segmentSurfaces() const noexcept { return segments_.get(); }
+  /// The alert text shown now ("" when none).
+  std::string alertText() const;
   /// A new tool's display mesh, both tools at `X_WT`, no contacts, no force.
   void setTool(const haptics::ToolModel& tool, const haptics::Pose& X_WT);
 
@@ -109,6 +120,8 @@ class SceneView : public QObject {
 
   VtkView* view_ = nullptr;
   std::unique_ptr<SceneActors> actors_;
+  std::unique_ptr<SegmentSurfaces> segments_;
+  vtkTextActor* alert_ = nullptr;  // owned by the renderer
   std::unique_ptr<OrientationMarker> marker_;
   vtkTextActor* welcome_ = nullptr;  // owned by the renderer while shown
   QTimer* settle_timer_ = nullptr;

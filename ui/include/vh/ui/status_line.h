@@ -20,7 +20,8 @@ class QWidget;
 namespace vh::ui {
 
 /// The statistics text for `session` (its latest snapshot `snapshot`, null before the first),
-/// or why there are none; `replaying` names the recording a replay shows (empty: live).
+/// or why there are none; `replaying` names the recording a replay shows (empty: live). With
+/// segments, it names the one the tool touches ("touching facial nerve (CRITICAL)").
 QString hapticStatusText(const runtime::Session& session, const runtime::HapticSnapshot* snapshot,
                          const QString& replaying);
 

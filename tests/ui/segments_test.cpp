@@ -1,0 +1,232 @@
+// Segments in the GUI (issue 17): the Segments panel, the controller that applies its choices to
+// the session, and the segment surfaces. Oracles: the test's own ball (its analytic radius and
+// centre in W, from the geometry the test wrote), the session's segments after each command.
+#include "vh/ui/segments_panel.h"
+
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+#include <string>
+
+#include <unistd.h>
+
+#include <QLabel>
+#include <QMainWindow>
+#include <QSignalSpy>
+#include <QTableWidget>
+
+#include <gtest/gtest.h>
+#include <vtkMatrix4x4.h>
+#include <vtkPolyData.h>
+
+#include "ui_test_util.h"
+#include "vh/runtime/scene.h"
+#include "vh/runtime/session.h"
+#include "vh/ui/scene_view.h"
+#include "vh/ui/segment_surfaces.h"
+#include "vh/ui/segments_controller.h"
+#include "vh/ui/media_export.h"
+#include "vh/ui/vtk_view.h"
+
+namespace vh::ui {
+namespace {
+
+namespace fs = std::filesystem;
+
+// The test's case: 28 x 28 x 16 voxels of 1 x 1 x 2 mm, axes (-x, -y, +z) as 3D Slicer writes
+// LPS, origin (40, 30, -10) mm. Segment 1 "nerve": a ball of radius 8 mm about grid (13, 14, 8);
+// segment 2 "bone": the slab k in [1, 3]. The CT has both at 300 (one intensity).
+constexpr int kNx = 28, kNy = 28, kNz = 16;
+const Eigen::Vector3d kSpacing_mm(1.0, 1.0, 2.0);
+const Eigen::Vector3d kOrigin_mm(40.0, 30.0, -10.0);
+const Eigen::Matrix3d kDirection = Eigen::Vector3d(-1.0, -1.0, 1.0).asDiagonal();
+const Eigen::Vector3d kBallGrid(13.0, 14.0, 8.0);
+constexpr double kBallRadius_mm = 8.0;
+
+Eigen::Vector3d toW_mm(const Eigen::Vector3d& ijk) { return kOrigin_mm + kDirection * kSpacing_mm.cwiseProduct(ijk); }
+
+int labelAt(int i, int j, int k) {
+  if ((toW_mm(Eigen::Vector3d(i, j, k)) - toW_mm(kBallGrid)).norm() <= kBallRadius_mm) return 1;
+  return k >= 1 && k <= 3 ? 2 : 0;
+}
+
+std::string header(const std::string& type, const std::string& extra) {
+  std::ostringstream h;
+  h << "NRRD0004\ntype: " << type << "\ndimension: 3\nspace: left-posterior-superior\nsizes: " << kNx << " " << kNy
+    << " " << kNz << "\nspace directions: (-1,0,0) (0,-1,0) (0,0,2)\nkinds: domain domain domain\nendian: little\n"
+    << "encoding: raw\nspace origin: (40,30,-10)\n" << extra << "\n";
+  return h.str();
+}
+
+/// Writes ct.nrrd and case.seg.nrrd into a fresh folder.
+fs::path writeCase(const std::string& name) {
+  const fs::path dir = fs::temp_directory_path() / ("vh_ui_segments_" + name + "_" + std::to_string(::getpid()));
+  fs::remove_all(dir);
+  fs::create_directories(dir);
+  std::string ct, labels;
+  for (int k = 0; k < kNz; ++k) {
+    for (int j = 0; j < kNy; ++j) {
+      for (int i = 0; i < kNx; ++i) {
+        const int label = labelAt(i, j, k);
+        const std::int16_t hu = label != 0 ? 300 : 0;
+        ct.append(reinterpret_cast<const char*>(&hu), 2);
+        labels.push_back(static_cast<char>(label));
+      }
+    }
+  }
+  std::ofstream(dir / "ct.nrrd", std::ios::binary) << header("short", "") << ct;
+  const std::string keys =
+      "Segment0_Color:=1 0.8 0.1\nSegment0_ID:=Segment_1\nSegment0_LabelValue:=1\nSegment0_Layer:=0\n"
+      "Segment0_Name:=nerve\nSegment1_Color:=0.9 0.9 0.85\nSegment1_ID:=Segment_2\nSegment1_LabelValue:=2\n"
+      "Segment1_Layer:=0\nSegment1_Name:=bone\n";
+  std::ofstream(dir / "case.seg.nrrd", std::ios::binary) << header("unsigned char", keys) << labels;
+  return dir;
+}
+
+runtime::LoadedScene loadCase(const fs::path& dir, bool with_segmentation) {
+  runtime::SceneSpec spec;
+  spec.volume.path = (dir / "ct.nrrd").string();
+  spec.volume.isovalue = 150.0;
+  spec.volume.isovalue_set = true;
+  spec.tool.mesh = "builtin:sphere";
+  spec.tool.scale_to_m = 0.3;
+  spec.device = runtime::DeviceSpec{};
+  if (with_segmentation) {
+    spec.segmentation = runtime::SegmentationSpec{};
+    spec.segmentation->path = (dir / "case.seg.nrrd").string();
+    spec.segmentation->felt = {"nerve"};
+    spec.segmentation->critical = {"nerve"};
+  }
+  return runtime::loadScene(spec);
+}
+
+TEST(SegmentsPanel, ShowsTheSegmentsAndEmitsTheChoicesTicked) {
+  const fs::path dir = writeCase("panel");
+  const runtime::LoadedScene scene = loadCase(dir, true);
+  SegmentsPanel panel;
+  panel.showSegments(scene.segments.get());
+  QTableWidget* table = panel.table();
+  ASSERT_EQ(table->rowCount(), 2);
+  EXPECT_EQ(table->item(0, SegmentsPanel::kName)->text(), "nerve");
+  EXPECT_EQ(table->item(1, SegmentsPanel::kName)->text(), "bone");
+  EXPECT_EQ(table->item(0, SegmentsPanel::kFelt)->checkState(), Qt::Checked);
+  EXPECT_EQ(table->item(1, SegmentsPanel::kFelt)->checkState(), Qt::Unchecked);
+  EXPECT_EQ(table->item(0, SegmentsPanel::kCritical)->checkState(), Qt::Checked);
+  EXPECT_EQ(table->item(1, SegmentsPanel::kShown)->checkState(), Qt::Checked);  // "shown" absent: all
+
+  QSignalSpy spy(&panel, &SegmentsPanel::choicesChanged);
+  table->item(1, SegmentsPanel::kFelt)->setCheckState(Qt::Checked);
+  ASSERT_EQ(spy.count(), 1);
+  const auto chosen = spy.takeFirst().at(0).value<SegmentChoices>();
+  EXPECT_EQ(chosen.felt, (std::vector<int>{0, 1}));
+  EXPECT_EQ(chosen.critical, (std::vector<int>{0}));
+
+  panel.setTouched(0);
+  EXPECT_TRUE(table->item(0, SegmentsPanel::kName)->font().bold());
+  auto labels = panel.findChildren<QLabel*>();
+  const bool says = std::any_of(labels.begin(), labels.end(),
+                                [](QLabel* l) { return l->text() == "Touching: nerve (CRITICAL)"; });
+  EXPECT_TRUE(says);
+  panel.showSegments(nullptr);
+  EXPECT_EQ(table->rowCount(), 0);
+  EXPECT_EQ(spy.count(), 0) << "showing does not emit";
+  fs::remove_all(dir);
+}
+
+/// A main window stand-in: the scene view as the central widget, the session, the controller.
+struct Host {
+  Host() {
+    view = new SceneView(&window);
+    window.setCentralWidget(view->widget());
+    window.resize(480, 360);
+    window.show();
+    controller = new SegmentsController(session, *view, &window, window.statusBar());
+  }
+  runtime::Session session;
+  QMainWindow window;
+  SceneView* view = nullptr;
+  SegmentsController* controller = nullptr;
+};
+
+TEST(SegmentsController, OpensASegmentationAppliesChoicesAndAlertsOnACriticalTouch) {
+  const fs::path dir = writeCase("controller");
+  Host host;
+  runtime::LoadedScene scene = loadCase(dir, false);
+  auto device = scene.makeDevice();
+  const SceneActorsSpec spec = sceneActorsSpecFor(scene);
+  host.session.setScene(std::move(scene), device);
+  host.view->setScene(spec, host.session.scene().X_WT_initial, Preferences{});
+
+  QSignalSpy errors(host.controller, &SegmentsController::errorReported);
+  ASSERT_TRUE(host.controller->open(dir / "case.seg.nrrd"));
+  ASSERT_NE(host.session.scene().segments, nullptr);
+  EXPECT_FALSE(host.session.scene().feltSegments()) << "opening shows; nothing is felt until ticked";
+  EXPECT_EQ(host.controller->panel()->table()->rowCount(), 2);
+  ASSERT_NE(host.view->segmentSurfaces(), nullptr);
+  EXPECT_EQ(host.view->segmentSurfaces()->shownSegments(), (std::vector<int>{0, 1}));
+
+  // Feel and guard the nerve; show only it.
+  SegmentChoices choices;
+  choices.felt = {0};
+  choices.shown = {0};
+  choices.critical = {0};
+  ASSERT_TRUE(host.controller->apply(choices));
+  ASSERT_TRUE(host.session.scene().feltSegments());
+  EXPECT_EQ(host.session.scene().spec.segmentation->felt, std::vector<std::string>{"nerve"});
+  EXPECT_EQ(host.session.scene().spec.segmentation->critical, std::vector<std::string>{"nerve"});
+  EXPECT_EQ(host.view->segmentSurfaces()->shownSegments(), std::vector<int>{0});
+  ASSERT_NE(host.session.hapticThread(), nullptr) << "the threads are rebuilt on the nerve's surface";
+
+  // A snapshot touching the nerve: the alert; leaving it: none.
+  runtime::HapticSnapshot touching;
+  touching.contacts = 2;
+  touching.segment = 0;
+  host.controller->showSnapshot(touching);
+  EXPECT_NE(host.view->alertText().find("nerve"), std::string::npos) << host.view->alertText();
+  EXPECT_EQ(host.controller->criticalAlerts(), 1);
+  host.controller->showSnapshot(touching);  // still touching: no second alert
+  EXPECT_EQ(host.controller->criticalAlerts(), 1);
+  host.controller->showSnapshot(runtime::HapticSnapshot{});
+  EXPECT_EQ(host.view->alertText(), "");
+
+  // A damaged file is reported and the segments stay.
+  std::ofstream(dir / "bad.seg.nrrd") << "NRRD0004\ntype: uchar\ndimension: 3\nsizes: 4 4\n\n";
+  EXPECT_FALSE(host.controller->open(dir / "bad.seg.nrrd"));
+  EXPECT_EQ(errors.count(), 1);
+  EXPECT_TRUE(host.session.scene().feltSegments());
+  host.session.clear();
+  fs::remove_all(dir);
+}
+
+TEST(SegmentSurfaces, TheNervesSurfaceIsTheBallInTheSceneFrame) {
+  const fs::path dir = writeCase("surfaces");
+  const runtime::LoadedScene scene = loadCase(dir, true);
+  Host host;
+  host.view->setSegments(scene.segments.get());
+  const SegmentSurfaces* surfaces = host.view->segmentSurfaces();
+  ASSERT_NE(surfaces, nullptr);
+  vtkPolyData* nerve = surfaces->surface(0);
+  ASSERT_NE(nerve, nullptr);
+  ASSERT_GT(nerve->GetNumberOfPoints(), 100);
+  // The actor applies the direction about the origin: p_W = o + D (p - o) (as the volume's).
+  const Eigen::Vector3d o_m = scene.segments->feltField()->geometry().origin_W_m;
+  const Eigen::Vector3d c_m = toW_mm(kBallGrid) * 1e-3;
+  double max_error_mm = 0.0, mean_error_mm = 0.0;
+  for (vtkIdType p = 0; p < nerve->GetNumberOfPoints(); ++p) {
+    double x[3];
+    nerve->GetPoint(p, x);
+    const Eigen::Vector3d p_W = o_m + kDirection * (Eigen::Vector3d(x[0], x[1], x[2]) - o_m);
+    const double e = std::abs((p_W - c_m).norm() * 1e3 - kBallRadius_mm);
+    max_error_mm = std::max(max_error_mm, e);
+    mean_error_mm += e / static_cast<double>(nerve->GetNumberOfPoints());
+  }
+  std::cout << "[ surfaces ] nerve surface vs the 8 mm ball: mean " << mean_error_mm << " mm, max " << max_error_mm
+            << " mm (voxels 1 x 1 x 2 mm)\n";
+  EXPECT_LT(mean_error_mm, 0.6);
+  EXPECT_LT(max_error_mm, 1.5);
+  fs::remove_all(dir);
+}
+
+}  // namespace
+}  // namespace vh::ui

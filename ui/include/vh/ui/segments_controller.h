@@ -1,0 +1,73 @@
+#pragma once
+/// @file
+/// Segments in the main window (issue 17): File > Open Segmentation (and a dropped or opened
+/// .seg.nrrd while a scan is shown) reads a 3D Slicer segmentation or a label map for the scan
+/// shown; the Segments dock (SegmentsPanel) chooses what is felt, shown and critical, which the
+/// session applies (runtime::Session::setSegments()); the scene view draws the shown segments;
+/// each haptic snapshot names the segment touched, and touching a critical one shows a red
+/// alert in the view (and beeps when asked). The recording gets its "segment" and
+/// "critical_contact" events from the records (runtime::RecordingWriter).
+///
+/// Threads: GUI thread only. It observes runtime::Session; it holds no copy of the segments.
+#include <filesystem>
+
+#include <QObject>
+#include <QString>
+
+#include "vh/runtime/session.h"
+
+class QDockWidget;
+class QMainWindow;
+class QStatusBar;
+
+namespace vh::ui {
+
+class SceneView;
+class SegmentsPanel;
+struct SegmentChoices;
+
+class SegmentsController : public QObject {
+  Q_OBJECT
+
+ public:
+  /// Adds the Segments dock to `window` (right side) and observes `session`.
+  SegmentsController(runtime::Session& session, SceneView& view, QMainWindow* window, QStatusBar* status_bar);
+  ~SegmentsController() override;
+
+  /// Loads `path` (.seg.nrrd or label map) as the segments of the scan shown: every segment
+  /// shown, none felt (the scan's isosurface stays felt). Errors are reported through
+  /// errorReported() and the current segments stay.
+  /// @return true when loaded.
+  bool open(const std::filesystem::path& path);
+  /// Asks for a file (File > Open Segmentation...).
+  void openDialog(const QString& folder);
+  /// Applies `choices` to the session's segments (felt, shown, critical, smoothing).
+  /// @return false (and errorReported()) when the felt field cannot be built.
+  bool apply(const SegmentChoices& choices);
+  /// Shows what `snapshot` touches: the panel's row, the view's emphasis and, for a critical
+  /// segment, the alert (a beep on entering it when the panel asks for sound).
+  void showSnapshot(const runtime::HapticSnapshot& snapshot);
+
+  SegmentsPanel* panel() const noexcept { return panel_; }
+  QDockWidget* dock() const noexcept { return dock_; }
+  /// Critical touches shown since the segments were set (entries into a critical segment).
+  int criticalAlerts() const noexcept { return critical_alerts_; }
+
+ signals:
+  void errorReported(const QString& what, const QString& message);
+
+ private:
+  void onSessionChanged(runtime::SessionChange what);
+
+  runtime::Session& session_;
+  SceneView& view_;
+  QMainWindow* window_;
+  QStatusBar* status_bar_;
+  SegmentsPanel* panel_ = nullptr;
+  QDockWidget* dock_ = nullptr;
+  int observer_ = -1;
+  int touched_ = -1;
+  int critical_alerts_ = 0;
+};
+
+}  // namespace vh::ui

@@ -1,0 +1,73 @@
+#pragma once
+/// @file
+/// The Segments dock's panel (issue 17): the segments of a 3D Slicer segmentation or label map
+/// with their colours, and for each whether it is felt (the hand feels its smoothed surface
+/// instead of the scan's isosurface), shown (a coloured surface beside the ray-cast scan) and
+/// critical (touching it is an alert and an event in the recording); the felt surface's
+/// smoothing; the segment touched now. It edits and shows; the main window acts on its signals
+/// (runtime::Session::setSegments()). GUI thread only.
+#include <vector>
+
+#include <QMetaType>
+#include <QWidget>
+
+#include "vh/runtime/segments.h"
+
+class QCheckBox;
+class QDoubleSpinBox;
+class QLabel;
+class QPushButton;
+class QTableWidget;
+
+namespace vh::ui {
+
+/// The choices the panel shows: indices into the segmentation's segments.
+struct SegmentChoices {
+  std::vector<int> felt, shown, critical;
+  double smoothing_voxels = 1.0;
+  bool operator==(const SegmentChoices&) const = default;
+};
+
+class SegmentsPanel : public QWidget {
+  Q_OBJECT
+
+ public:
+  /// Table columns.
+  enum Column { kName = 0, kFelt = 1, kShown = 2, kCritical = 3 };
+
+  explicit SegmentsPanel(QWidget* parent = nullptr);
+
+  /// Shows `set`'s segments and choices (null: none, with a hint how to open some). No signal.
+  void showSegments(const runtime::SegmentSet* set);
+  /// Marks the row of the touched segment (-1: none) and says so under the table.
+  void setTouched(int segment);
+  /// The choices as the check boxes say now.
+  SegmentChoices choices() const;
+  /// Sound on touching a critical segment (the window beeps).
+  bool alertSound() const;
+
+  QTableWidget* table() const noexcept { return table_; }
+  QPushButton* openButton() const noexcept { return open_; }
+
+ signals:
+  /// A check box or the smoothing changed.
+  void choicesChanged(const vh::ui::SegmentChoices& choices);
+  /// "Open Segmentation..." was pressed.
+  void openRequested();
+
+ private:
+  QLabel* source_ = nullptr;
+  QTableWidget* table_ = nullptr;
+  QDoubleSpinBox* smoothing_ = nullptr;
+  QCheckBox* sound_ = nullptr;
+  QLabel* touched_ = nullptr;
+  QPushButton* open_ = nullptr;
+  std::vector<QString> names_;
+  std::vector<bool> critical_;
+  int touched_segment_ = -1;
+  bool filling_ = false;
+};
+
+}  // namespace vh::ui
+
+Q_DECLARE_METATYPE(vh::ui::SegmentChoices)

@@ -1,0 +1,134 @@
+// Segments in the main window (see segments_controller.h).
+#include "vh/ui/segments_controller.h"
+
+#include <QApplication>
+#include <QDockWidget>
+#include <QFileDialog>
+#include <QMainWindow>
+#include <QStatusBar>
+
+#include "vh/io/segmentation.h"
+#include "vh/ui/scene_view.h"
+#include "vh/ui/segments_panel.h"
+
+namespace vh::ui {
+namespace {
+
+QString q(const std::string& s) { return QString::fromStdString(s); }
+
+/// A wait cursor while the felt field is smoothed (a second or two for a large CT).
+struct WaitCursor {
+  WaitCursor() { QApplication::setOverrideCursor(Qt::WaitCursor); }
+  ~WaitCursor() { QApplication::restoreOverrideCursor(); }
+};
+
+std::vector<std::string> names(const io::LoadedSegmentation& seg, const std::vector<int>& indices) {
+  std::vector<std::string> out;
+  for (const int s : indices) out.push_back(seg.segments.at(static_cast<std::size_t>(s)).name);
+  return out;
+}
+
+}  // namespace
+
+SegmentsController::SegmentsController(runtime::Session& session, SceneView& view, QMainWindow* window,
+                                       QStatusBar* status_bar)
+    : QObject(window), session_(session), view_(view), window_(window), status_bar_(status_bar) {
+  panel_ = new SegmentsPanel(window);
+  dock_ = new QDockWidget("Segments", window);
+  dock_->setObjectName("segmentsDock");
+  dock_->setWidget(panel_);
+  window->addDockWidget(Qt::RightDockWidgetArea, dock_);
+  connect(panel_, &SegmentsPanel::choicesChanged, this, [this](const SegmentChoices& c) { apply(c); });
+  observer_ = session_.addObserver([this](runtime::SessionChange what) { onSessionChanged(what); });
+}
+
+SegmentsController::~SegmentsController() { session_.removeObserver(observer_); }
+
+void SegmentsController::onSessionChanged(runtime::SessionChange what) {
+  if (!runtime::has(what, runtime::SessionChange::kScene) && !runtime::has(what, runtime::SessionChange::kSegments)) {
+    return;
+  }
+  const runtime::SegmentSet* set = session_.hasScene() ? session_.scene().segments.get() : nullptr;
+  panel_->showSegments(set);
+  if (session_.hasScene()) view_.setSegments(set);
+  // A scene that comes with segments shows them in front (where to choose what is felt).
+  if (set != nullptr && runtime::has(what, runtime::SessionChange::kScene)) dock_->raise();
+  touched_ = -1;
+  critical_alerts_ = 0;
+  panel_->setTouched(-1);
+  view_.setTouchedSegment(-1, {});
+}
+
+bool SegmentsController::open(const std::filesystem::path& path) {
+  if (!session_.hasScene()) {
+    emit errorReported(q(path.string()), q(path.string()) + ": open a scan first; a segmentation is opened on it");
+    return false;
+  }
+  try {
+    WaitCursor wait;
+    io::LoadedSegmentation seg = io::loadSegmentation(path);
+    runtime::SegmentationSpec spec;
+    spec.path = std::filesystem::absolute(path).lexically_normal().string();
+    spec.show_all = true;
+    auto set = runtime::SegmentSet::fromSpec(std::move(seg), spec, path.filename().string());
+    spec.shown = names(set->segmentation(), set->shown());
+    spec.show_all = false;
+    session_.setSegments(std::move(set), spec);
+  } catch (const std::exception& e) {
+    emit errorReported(q(path.string()), q(e.what()));
+    return false;
+  }
+  dock_->show();
+  dock_->raise();
+  status_bar_->showMessage(QString("Segments of %1: tick Felt to feel a segment, Critical to be warned when it is touched")
+                               .arg(q(path.filename().string())),
+                           8000);
+  return true;
+}
+
+void SegmentsController::openDialog(const QString& folder) {
+  const QString path = QFileDialog::getOpenFileName(window_, "Open a segmentation (3D Slicer .seg.nrrd or label map)",
+                                                    folder, q(io::segmentationFileDialogFilter()));
+  if (!path.isEmpty()) open(path.toStdString());
+}
+
+bool SegmentsController::apply(const SegmentChoices& choices) {
+  if (!session_.hasScene() || session_.scene().segments == nullptr) return false;
+  const runtime::SegmentSet& current = *session_.scene().segments;
+  runtime::SegmentationSpec spec = session_.scene().spec.segmentation.value_or(runtime::SegmentationSpec{});
+  const io::LoadedSegmentation& seg = current.segmentation();
+  spec.felt = names(seg, choices.felt);
+  spec.shown = names(seg, choices.shown);
+  spec.show_all = false;
+  spec.critical = names(seg, choices.critical);
+  spec.smoothing_voxels = choices.smoothing_voxels;
+  try {
+    WaitCursor wait;
+    auto set = std::make_shared<const runtime::SegmentSet>(seg, choices.felt, choices.shown, choices.critical,
+                                                           choices.smoothing_voxels);
+    session_.setSegments(std::move(set), spec);
+  } catch (const std::exception& e) {
+    emit errorReported("Segments", q(e.what()));
+    return false;
+  }
+  return true;
+}
+
+void SegmentsController::showSnapshot(const runtime::HapticSnapshot& snapshot) {
+  const int segment = snapshot.contacts > 0 ? snapshot.segment : -1;
+  if (segment == touched_) return;
+  touched_ = segment;
+  panel_->setTouched(segment);
+  const runtime::SegmentSet* set = session_.scene().segments.get();
+  const bool critical = set != nullptr && segment >= 0 && set->isCritical(segment);
+  std::string alert;
+  if (critical) {
+    alert = "CRITICAL: " + set->name(segment) + " touched";
+    ++critical_alerts_;
+    status_bar_->showMessage(q(alert), 4000);
+    if (panel_->alertSound()) QApplication::beep();
+  }
+  view_.setTouchedSegment(segment, alert);
+}
+
+}  // namespace vh::ui
