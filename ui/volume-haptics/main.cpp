@@ -97,6 +97,13 @@ int main(int argc, char** argv) {
                   "DICOM folder: the series to load (number, Series Instance UID or text of its description); default: the scene's, else the largest");
   run->add_option("--phase", run_phase, "4-D DICOM series: the time point (phase, echo) to load, 0-based")
       ->check(CLI::NonNegativeNumber);
+  std::string run_segmentation;
+  std::vector<std::string> run_felt, run_critical;
+  run->add_option("--segmentation", run_segmentation,
+                  "3D Slicer segmentation (.seg.nrrd) or label map on the scan (overrides the scene's)");
+  run->add_option("--felt", run_felt,
+                  "A segment to feel instead of the scan's isosurface (name or ID; repeat for more)");
+  run->add_option("--critical", run_critical, "A segment whose touch is reported as critical (repeatable)");
   std::string run_trace;
   run->add_option("--trace", run_trace, "Also write one CSV row per tick (poses, force, contacts, time, depth)");
   std::string run_record;
@@ -178,6 +185,15 @@ int main(int argc, char** argv) {
       }
       if (run_series) spec.volume.series = *run_series;
       if (run_phase) spec.volume.phase = *run_phase;
+      if (!run_segmentation.empty()) {
+        spec.segmentation = vh::runtime::SegmentationSpec{};
+        spec.segmentation->path = std::filesystem::absolute(run_segmentation).string();
+      }
+      if ((!run_felt.empty() || !run_critical.empty()) && !spec.segmentation) {
+        throw std::runtime_error("--felt and --critical need a segmentation (--segmentation or the scene's)");
+      }
+      if (!run_felt.empty()) spec.segmentation->felt = run_felt;
+      if (!run_critical.empty()) spec.segmentation->critical = run_critical;
       vh::runtime::RunOptions run_options;
       run_options.on_notice = [](const std::string& notice) {
         std::cerr << "volume-haptics run: warning: " << notice << std::endl;
@@ -232,11 +248,12 @@ int main(int argc, char** argv) {
       const vh::runtime::LoadedScene scene = vh::runtime::loadScene(spec);
       if (!approach_dir.empty()) push.approach_dir_W = toVector(approach_dir, "--approach-dir");
       if (!slide_dir.empty()) push.slide_dir_W = toVector(slide_dir, "--slide-dir");
-      vh::haptics::Pose start = vh::runtime::poseAboveVolume(*scene.volume.field, scene.tool->point_shell,
+      // The surface the hand feels (the felt segments' when the scene has some).
+      vh::haptics::Pose start = vh::runtime::poseAboveVolume(*scene.hapticField(), scene.tool->point_shell,
                                                              scene.X_WT_initial.R_AB, 0.01);
       if (!ray_start.empty()) start.p_AB_m = toVector(ray_start, "--ray-start");
       const vh::runtime::PushSlidePlan plan = vh::runtime::makePushSlideTrajectory(
-          *scene.volume.field, scene.tool->point_shell, scene.isovalue, start, push);
+          *scene.hapticField(), scene.tool->point_shell, scene.hapticIsovalue(), start, push);
       vh::runtime::writeTrajectoryCsv(plan.trajectory, make_out);
       std::cout << "volume-haptics make-trajectory: first contact at (" << plan.X_WD_contact.p_AB_m.transpose()
                 << ") m; " << plan.trajectory.size() << " key poses over " << plan.trajectory.duration_s()
