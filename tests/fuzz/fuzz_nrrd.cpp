@@ -1,4 +1,4 @@
-// Fuzz target: NRRD header and voxels through vh::io::loadVolume.
+// Fuzz target: NRRD header and voxels through vh::io::loadVolume, and the same file as a segmentation (loadSegmentation).
 // Input: a whole attached .nrrd file, or, when the input holds the line "#VHDATA#" (kSplit), a
 // detached header (the bytes before it, written as in.nhdr) and its data file (the bytes after
 // it, written as in.raw; the header names it with `data file: in.raw`).
@@ -9,6 +9,7 @@
 #include <string_view>
 
 #include "fuzz_support.h"
+#include "vh/io/segmentation.h"
 #include "vh/io/volume_loader.h"
 
 namespace {
@@ -37,6 +38,14 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
   try {
     const vh::io::LoadedVolume v = vh::io::loadVolume(path);
     (void)v;
+  } catch (const vh::io::LoadError& e) {
+    vh::fuzz::expected(e);
+  }
+  // The same file as a segmentation (issue 17): the header's key/value pairs, the layers of a
+  // 4-D layered .seg.nrrd, the labels.
+  try {
+    const vh::io::LoadedSegmentation s = vh::io::loadSegmentation(path);
+    (void)s;
   } catch (const vh::io::LoadError& e) {
     vh::fuzz::expected(e);
   }
