@@ -11,7 +11,8 @@
 ///            "point_spacing_m": 0.001,            // or "point_count": 500
 ///            "initial_pose": {"p_m": [0, 0, 0.1], "q_wxyz": [1, 0, 0, 0]}},
 ///   "coupling": {"linear_N_per_m": 2000, "angular_Nm_per_rad": 2.0},
-///   "device": {"kind": "simulated"}               // or "scripted" with "trajectory": "T.csv"
+///   "device": {"kind": "simulated"},              // or "scripted" with "trajectory": "T.csv"
+///   "openigtlink": {"port": 18944, "rate_Hz": 60} // optional: stream to 3D Slicer (off when absent)
 /// }
 /// Hardware devices: "device": {"kind": "falcon", "firmware": "/path/nvent_firmware.bin",
 ///   "select": "SERIAL-or-path", "workspace": {"scale": 1.5, "offset_m": [0, 0, 0.05],
@@ -100,6 +101,14 @@ void registerDeviceKind(const std::string& kind, DeviceFactory factory);
 /// True when makeDevice() can make `kind` (built-in or registered); thread-safe.
 bool deviceKindAvailable(const std::string& kind);
 
+/// The OpenIGTLink server of a scene ("openigtlink": {"port": 18944, "rate_Hz": 60}; both keys
+/// optional): the link (vh/igtl/igtl_link.h) listens on `port` and streams the proxy and device
+/// poses, force and contact state to one client (e.g. 3D Slicer's OpenIGTLinkIF) at `rate_Hz`.
+struct OpenIgtlinkSpec {
+  int port = 18944;      ///< TCP port, 1..65535 (OpenIGTLink's registered port by default).
+  double rate_Hz = 60.0; ///< Messages per second per kind, > 0 (the link clamps it to the servo rate) [Hz].
+};
+
 /// A parsed scene (paths already resolved to absolute ones where they exist).
 struct SceneSpec {
   std::filesystem::path source;  ///< Scene file (empty for built-in scenes).
@@ -107,6 +116,7 @@ struct SceneSpec {
   ToolSpec tool;
   haptics::CouplingGains gains;
   std::optional<DeviceSpec> device;  ///< Absent: no haptic thread.
+  std::optional<OpenIgtlinkSpec> openigtlink;  ///< Absent: no OpenIGTLink server (the default).
 };
 
 /// Parses a scene file.
@@ -139,6 +149,16 @@ SceneSpec builtinBlockWithHoleScene();
 /// simulated device.
 SceneSpec sceneForVolume(const std::filesystem::path& volume_path);
 
+/// Prefix of SceneSpec::volume.path for a volume received over OpenIGTLink ("igtl:NAME", NAME
+/// the IMAGE message's device name): it names no file; loadScene(spec, preloaded) takes the
+/// voxels from memory.
+inline constexpr const char* kIgtlVolumePrefix = "igtl:";
+
+/// A scene for a volume that is already loaded (e.g. received over OpenIGTLink): volume path
+/// "igtl:" + `volume.info.description`, the default tool and a simulated device, like
+/// sceneForVolume(). Open it with loadScene(spec, volume).
+SceneSpec sceneForLoadedVolume(const io::LoadedVolume& volume);
+
 /// A scene with everything loaded: the volume (haptic field + VTK image), the tool (resampled
 /// point shell, mass properties, display mesh), the isovalue and the initial pose. Constant;
 /// makes the renderer, device and haptic thread it describes.
@@ -170,8 +190,10 @@ struct LoadedScene {
   /// the GUI through Session): a HapticThread (not started) driving `device` at
   /// `servo_rate_Hz` with makeRenderer({}, X_WP).
   /// @throws std::invalid_argument as HapticThread's and HapticRenderer's constructors.
+  /// `options` as HapticThreadOptions (e.g. the monitor channel the Session shares).
   std::unique_ptr<HapticThread> makeHapticThread(std::shared_ptr<Device> device, double servo_rate_Hz = 1000.0,
-                                                 const std::optional<haptics::Pose>& X_WP = {}) const;
+                                                 const std::optional<haptics::Pose>& X_WP = {},
+                                                 const HapticThreadOptions& options = {}) const;
 };
 
 /// The point spacing [m] of a tool whose spec gives none: about 1000 points on the mesh, not
@@ -198,5 +220,10 @@ LoadedScene loadScene(const SceneSpec& spec);
 /// @throws io::LoadCancelled when `cancel` became true during the read; else as loadScene().
 LoadedScene loadScene(const SceneSpec& spec, const std::function<void(double fraction)>& progress,
                       const std::atomic<bool>* cancel);
+/// loadScene() with the volume already in memory (e.g. an IMAGE received over OpenIGTLink):
+/// `preloaded` replaces the read of spec.volume.path; the isovalue, tool and initial pose follow
+/// as for a file (400 HU for CT in HU, else midway; the spec's when set).
+/// @throws std::invalid_argument when `preloaded` has no field; else as loadScene() (the tool).
+LoadedScene loadScene(const SceneSpec& spec, io::LoadedVolume preloaded);
 
 }  // namespace vh::runtime
