@@ -130,8 +130,9 @@ class IgtlLink {
   /// Binds the port and starts the link's thread; no effect when running.
   /// @throws std::runtime_error "OpenIGTLink: cannot listen on port N (in use?)".
   void start();
-  /// Closes the client and the server socket and joins the thread; returns within about
-  /// 100 ms plus one send timeout (200 ms) plus one receive chunk. Idempotent.
+  /// Closes the client and the server socket and joins the thread; returns within one wait of
+  /// the link's loop (at most 50 ms: the sockets are non-blocking, a stalled client cannot
+  /// hold it). Idempotent.
   void stop();
   bool running() const noexcept { return running_.load(std::memory_order_acquire); }
 
