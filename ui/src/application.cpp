@@ -12,6 +12,7 @@
 #include <QTimer>
 
 #include "vh/runtime/scene.h"
+#include "vh/ui/igtl_panel.h"
 #include "vh/ui/main_window.h"
 #include "vh/ui/vtk_view.h"
 
@@ -79,6 +80,16 @@ int runApplication(int argc, char** argv, const runtime::SceneSpec& scene, const
   if (!scripted) window->restoreLayout();
   if (options.render_mode.has_value()) window->setRenderMode(*options.render_mode);
   if (options.preset.has_value()) window->setPreset(*options.preset);
+  if (options.igtl_port.has_value()) {
+    // The command line's server wins over a scene file's "openigtlink" section; it listens from
+    // now on, before the scene has loaded.
+    spec.openigtlink = runtime::OpenIgtlinkSpec{*options.igtl_port, options.igtl_rate_Hz};
+    QString error;
+    if (!window->igtlPanel()->apply({true, *options.igtl_port, options.igtl_rate_Hz}, &error)) {
+      std::cerr << "volume-haptics: error: " << error.toStdString() << std::endl;
+      return 1;
+    }
+  }
   window->show();
 
   bool loaded_once = false;

@@ -45,6 +45,7 @@
 #include "vh/ui/scene_loader.h"
 #include "vh/ui/segments_controller.h"
 #include "vh/ui/series_chooser.h"
+#include "vh/ui/igtl_panel.h"
 #include "vh/ui/session_recorder.h"
 #include "vh/ui/status_line.h"
 #include "vh/ui/strip_chart.h"
@@ -84,8 +85,14 @@ MainWindow::MainWindow(QWidget* parent) : QMainWindow(parent) {
   tools_ = toolCatalog(runtime::sharedDatasetsDir());
   loader_ = new SceneLoader(this);
   buildUi();
+  // OpenIGTLink: the channel is the session's from the start, so switching the link on never
+  // rebuilds the haptic threads.
+  igtl_ = new IgtlPanel(statusBar(), session_.servoRate_Hz(), this);
+  session_.setMonitor(igtl_->channel());
+  igtl_->setOnVolume([this](io::LoadedVolume volume) { openLoadedVolume(std::move(volume)); });
   recorder_ = new SessionRecorder(session_, statusBar(), this);
   buildDocks();
+  igtl_->setSegmentNames(segments_->names());
   replay_ = new ReplayController(session_, *view_, prefs_, this, chart_dock_);
   device_picker_ = new DevicePicker(session_, this);
   buildMenus();
@@ -220,6 +227,7 @@ void MainWindow::connectParts() {
   connect(device_picker_, &DevicePicker::choicesChanged, haptics_panel_, &HapticsPanel::setDeviceChoices);
   connect(device_picker_, &DevicePicker::choiceChanged, haptics_panel_, &HapticsPanel::setDeviceChoice);
   connect(device_picker_, &DevicePicker::message, this, [this](const QString& text, int ms) { statusBar()->showMessage(text, ms); });
+  connect(igtl_, &IgtlPanel::message, this, [this](const QString& text, int ms) { statusBar()->showMessage(text, ms); });
   device_picker_->rescan();
 
   // Loader.
@@ -495,6 +503,9 @@ void MainWindow::buildMenus() {
   hapticsMenu->addSeparator();
   device_menu_ = hapticsMenu->addMenu("De&vice");
 
+  // ---- Connections.
+  menuBar()->addMenu("&Connections")->addAction(igtl_->action());
+
   // ---- Help.
   QMenu* help = menuBar()->addMenu("H&elp");
   QAction* controls = help->addAction("&Controls", this, [this] {
@@ -568,6 +579,13 @@ void MainWindow::openScene(const runtime::SceneSpec& spec, const fs::path& opene
   haptics_panel_->setEnabled(false);
 }
 
+void MainWindow::openLoadedVolume(io::LoadedVolume volume) {
+  statusBar()->showMessage(q("Opening '" + volume.info.description + "' received over OpenIGTLink"), kNoticeStatusMs);
+  const runtime::SceneSpec spec = runtime::sceneForLoadedVolume(volume);
+  loader_->loadScene(spec, {}, std::move(volume));
+  haptics_panel_->setEnabled(false);
+}
+
 void MainWindow::openDicomSeries(const io::DicomSeriesInfo& series, int phase) {
   if (series.files.empty()) {
     reportError(q(series.folder.string()), q(series.folder.string()) + ": the chosen series has no files");
@@ -625,6 +643,14 @@ void MainWindow::onSceneLoaded(std::shared_ptr<LoadedViewerScene> loaded) {
     rebuildRecentMenu();
   }
   last_error_.clear();
+  // A scene file's "openigtlink" section switches the link on (or moves it to its port / rate).
+  if (const std::optional<runtime::OpenIgtlinkSpec>& o = session_.scene().spec.openigtlink; o.has_value()) {
+    const IgtlSettings now = igtl_->settings();
+    if (!igtl_->running() || now.port != o->port || now.rate_Hz != o->rate_Hz) {
+      QString error;
+      if (!igtl_->apply({true, o->port, o->rate_Hz}, &error)) statusBar()->showMessage(error, kNoticeStatusMs);
+    }
+  }
   const bool replay_pending = replay_->pending();
   replay_->onSceneShown();  // a recording's scene: its replay starts, haptics stay off
   if (auto_start_haptics_ && !replay_pending) startHaptics();

@@ -108,8 +108,13 @@ void SceneLoader::cancel() {
 
 void SceneLoader::waitForIdle() { joinWorkers(/*all=*/true); }
 
-void SceneLoader::loadScene(const runtime::SceneSpec& spec, const fs::path& opened) {
-  const SceneLoadFunction load = load_scene_ ? load_scene_ : SceneLoadFunction(&loadSceneDefault);
+void SceneLoader::loadScene(const runtime::SceneSpec& spec, const fs::path& opened,
+                            std::optional<io::LoadedVolume> preloaded) {
+  SceneLoadFunction load = load_scene_ ? load_scene_ : SceneLoadFunction(&loadSceneDefault);
+  if (preloaded.has_value()) {
+    load = [volume = std::move(*preloaded)](const runtime::SceneSpec& s, const std::function<void(double)>&,
+                                            const std::atomic<bool>*) { return runtime::loadScene(s, volume); };
+  }
   start([this, spec, opened, load](const std::atomic<bool>& cancel, std::uint64_t job) {
     const std::string name = displayName(spec, opened);
     auto stage = [&](const QString& text, int percent) {

@@ -22,7 +22,7 @@ struct WaitCursor {
   ~WaitCursor() { QApplication::restoreOverrideCursor(); }
 };
 
-std::vector<std::string> names(const io::LoadedSegmentation& seg, const std::vector<int>& indices) {
+std::vector<std::string> segmentNames(const io::LoadedSegmentation& seg, const std::vector<int>& indices) {
   std::vector<std::string> out;
   for (const int s : indices) out.push_back(seg.segments.at(static_cast<std::size_t>(s)).name);
   return out;
@@ -50,6 +50,7 @@ void SegmentsController::onSessionChanged(runtime::SessionChange what) {
   }
   const runtime::SegmentSet* set = session_.hasScene() ? session_.scene().segments.get() : nullptr;
   panel_->showSegments(set);
+  names_->set(set);
   if (session_.hasScene()) view_.setSegments(set);
   // A scene that comes with segments shows them in front (where to choose what is felt).
   if (set != nullptr && runtime::has(what, runtime::SessionChange::kScene)) dock_->raise();
@@ -71,7 +72,7 @@ bool SegmentsController::open(const std::filesystem::path& path) {
     spec.path = std::filesystem::absolute(path).lexically_normal().string();
     spec.show_all = true;
     auto set = runtime::SegmentSet::fromSpec(std::move(seg), spec, path.filename().string());
-    spec.shown = names(set->segmentation(), set->shown());
+    spec.shown = segmentNames(set->segmentation(), set->shown());
     spec.show_all = false;
     session_.setSegments(std::move(set), spec);
   } catch (const std::exception& e) {
@@ -97,10 +98,10 @@ bool SegmentsController::apply(const SegmentChoices& choices) {
   const runtime::SegmentSet& current = *session_.scene().segments;
   runtime::SegmentationSpec spec = session_.scene().spec.segmentation.value_or(runtime::SegmentationSpec{});
   const io::LoadedSegmentation& seg = current.segmentation();
-  spec.felt = names(seg, choices.felt);
-  spec.shown = names(seg, choices.shown);
+  spec.felt = segmentNames(seg, choices.felt);
+  spec.shown = segmentNames(seg, choices.shown);
   spec.show_all = false;
-  spec.critical = names(seg, choices.critical);
+  spec.critical = segmentNames(seg, choices.critical);
   spec.smoothing_voxels = choices.smoothing_voxels;
   try {
     WaitCursor wait;

@@ -1,7 +1,8 @@
 // volume-haptics: the application.
 //
-//   volume-haptics [PATH] [--screenshot PNG] [--isovalue V] ...     the GUI (vh::ui)
+//   volume-haptics [PATH] [--screenshot PNG] [--isovalue V] [--igtl-port N [--igtl-rate HZ]] ...   the GUI (vh::ui)
 //   volume-haptics run --scene S.json --trajectory T.csv [--report R.json] [--check] [--record R.vhrec] [--verify-step V]
+//                      [--igtl-port N [--igtl-rate HZ]]
 //   volume-haptics export R.vhrec [--csv C] [--json J] [--events-csv E] [--video V.ogv] [--png P --at-s T]
 //   volume-haptics make-trajectory --scene S.json --out T.csv [...]
 //   volume-haptics bench table1|accuracy|stability [--short] [--out DIR]   benchmarks (vh::bench)
@@ -16,6 +17,7 @@
 #include <filesystem>
 #include <functional>
 #include <iostream>
+#include <memory>
 #include <optional>
 #include <string>
 #include <vector>
@@ -24,10 +26,12 @@
 
 #include "vh/bench/bench.h"
 #include "vh/devices/device_catalog.h"
+#include "vh/igtl/igtl_link.h"
 #include "vh/runtime/placement.h"
 #include "vh/runtime/recording.h"
 #include "vh/runtime/runner.h"
 #include "vh/runtime/scene.h"
+#include "vh/runtime/snapshot_channel.h"
 #include "vh/runtime/trajectory.h"
 #include "vh/ui/application.h"
 #include "vh/ui/media_export.h"
@@ -78,6 +82,11 @@ int main(int argc, char** argv) {
   app.add_flag("--touch", gui.touch, "Move the simulated device towards the volume's centre until the tool rests on the surface, after load");
   app.add_option("--touch-depth-m", gui.touch_depth_m, "How far past the surface --touch goes [m]")
       ->check(CLI::NonNegativeNumber);
+  app.add_option("--igtl-port", gui.igtl_port,
+                 "Listen for an OpenIGTLink client (3D Slicer) on this port (18944 is Slicer's default); off without it")
+      ->check(CLI::Range(1, 65535));
+  app.add_option("--igtl-rate", gui.igtl_rate_Hz, "OpenIGTLink frames per second [Hz] (clamped to the servo rate)")
+      ->check(CLI::Range(1.0, 100000.0));
   app.add_option("--width", gui.window_width, "Window width [logical pixels]")->check(CLI::PositiveNumber);
   app.add_option("--height", gui.window_height, "Window height [logical pixels]")->check(CLI::PositiveNumber);
 
@@ -105,6 +114,13 @@ int main(int argc, char** argv) {
                   "A segment to feel instead of the scan's isosurface (name or ID; repeat for more)");
   run->add_option("--critical", run_critical, "A segment whose touch is reported as critical (repeatable)");
   std::string run_trace;
+  std::optional<int> run_igtl_port;
+  double run_igtl_rate_Hz = 60.0;
+  run->add_option("--igtl-port", run_igtl_port,
+                  "Stream the run over OpenIGTLink on this port (the run then plays in real time)")
+      ->check(CLI::Range(1, 65535));
+  run->add_option("--igtl-rate", run_igtl_rate_Hz, "OpenIGTLink frames per second [Hz] (clamped to the servo rate)")
+      ->check(CLI::Range(1.0, 100000.0));
   run->add_option("--trace", run_trace, "Also write one CSV row per tick (poses, force, contacts, time, depth)");
   std::string run_record;
   run->add_option("--record", run_record,
@@ -202,7 +218,39 @@ int main(int argc, char** argv) {
       run_options.record = run_record;
       run_options.verify_step_voxels = run_verify_step;
       run_options.lag_reference = run_lag_reference;
+      // OpenIGTLink: the command line's port, else the scene file's section; the run plays in
+      // real time so the client sees the motion at its speed.
+      std::unique_ptr<vh::igtl::IgtlLink> link;
+      if (run_igtl_port) spec.openigtlink = vh::runtime::OpenIgtlinkSpec{*run_igtl_port, run_igtl_rate_Hz};
+      if (spec.openigtlink) {
+        run_options.monitor = std::make_shared<vh::runtime::SnapshotChannel>();
+        run_options.realtime = true;
+        vh::igtl::LinkOptions link_options;
+        link_options.port = spec.openigtlink->port;
+        link_options.rate_Hz = spec.openigtlink->rate_Hz;
+        link_options.servo_rate_Hz = run_options.servo_rate_Hz;
+        if (spec.segmentation) {  // ContactState names the segment touched
+          auto names = std::make_shared<vh::runtime::SegmentNameTable>();
+          vh::runtime::SegmentationSpec names_only;  // nothing felt: just the names
+          names_only.path = spec.segmentation->path;
+          const auto seg =
+              vh::runtime::SegmentSet::fromSpec(vh::io::loadSegmentation(names_only.path), names_only, run_scene);
+          names->set(seg.get());
+          link_options.segment_name = [names](const vh::runtime::HapticSnapshot& snapshot) {
+            return names->name(snapshot.contacts > 0 ? snapshot.segment : -1);
+          };
+        }
+        link = std::make_unique<vh::igtl::IgtlLink>(run_options.monitor, link_options);
+        link->start();
+        std::cout << "volume-haptics run: " << link->statusText() << " at " << link->rate_Hz() << " Hz" << std::endl;
+      }
       const vh::runtime::RunReport report = vh::runtime::runHeadless(spec, run_trajectory, run_options);
+      if (link) {
+        const vh::igtl::LinkStatus st = link->status();
+        link->stop();
+        std::cout << "volume-haptics run: OpenIGTLink sent " << st.frames_sent << " frames to " << st.clients
+                  << (st.clients == 1 ? " client" : " clients") << std::endl;
+      }
       if (!run_report.empty()) vh::runtime::writeRunReport(report, run_report);
       std::cout << "volume-haptics run: " << report.summary() << std::endl;
       if (!run_record.empty()) std::cout << "volume-haptics run: recording written to " << run_record << std::endl;

@@ -1,6 +1,8 @@
 // The coupling and solver threads of vh/runtime/haptic_thread.h.
 #include "vh/runtime/haptic_thread.h"
 
+#include "vh/runtime/snapshot_channel.h"
+
 #include <pthread.h>
 #include <sched.h>
 #include <sys/mman.h>
@@ -226,38 +228,13 @@ struct ProxyState {
   bool bad_input = false;  ///< The renderer rejected the device pose of the tick that produced it.
 };
 
-/// Coupling thread -> GUI.
-struct CouplingSnapshot {
-  std::uint64_t tick = 0;
-  haptics::Pose X_WP, X_WD;
-  Eigen::Vector3d force_W_N = Eigen::Vector3d::Zero();
-  Eigen::Vector3d torque_W_Nm = Eigen::Vector3d::Zero();
-  std::uint64_t bad_samples = 0;
-  ThreadTiming timing;
-};
-
-/// Solver thread -> GUI.
-struct SolverSnapshot {
-  std::uint64_t tick = 0;
-  double isovalue = 0.0;
-  int contacts = 0;
-  int contacts_shown = 0;
-  int segment = -1;
-  std::array<Eigen::Vector3d, HapticSnapshot::kMaxContactsShown> contact_p_W_m{};
-  std::array<Eigen::Vector3d, HapticSnapshot::kMaxContactsShown> contact_n_W{};
-  std::uint64_t rejected = 0;  ///< Device poses the renderer rejected.
-  std::uint64_t skipped = 0;
-  ThreadTiming timing;
-};
-
 }  // namespace
 
 struct HapticThread::Exchange {
   explicit Exchange(std::size_t ring_capacity) : samples(ring_capacity) {}
   SampleRing samples;
   TripleBuffer<ProxyState> proxy;
-  TripleBuffer<CouplingSnapshot> coupling_snapshots;
-  TripleBuffer<SolverSnapshot> solver_snapshots;
+  SnapshotChannel gui;  ///< Both threads -> latestSnapshot().
   /// kRecordFlagForceLimited / ForceZeroed / NonFinite / Stopping of the latest command.
   std::atomic<std::uint32_t> command_flags{0};
   /// kRecordFlagDeadlineMiss when the coupling thread missed since the solver last looked.
@@ -265,9 +242,6 @@ struct HapticThread::Exchange {
   std::atomic<bool> solver_fifo{false};
   /// The samples a kEverySample solver may fall behind before it skips to the newest.
   std::uint64_t backlog_limit = 1;
-  /// GUI side: the last values read, merged by latestSnapshot().
-  CouplingSnapshot gui_coupling;
-  SolverSnapshot gui_solver;
 };
 
 HapticThread::HapticThread(std::unique_ptr<haptics::HapticRenderer> renderer, std::shared_ptr<Device> device,
@@ -316,15 +290,20 @@ HapticThread::HapticThread(std::unique_ptr<haptics::HapticRenderer> renderer, st
   ProxyState& proxy = x_->proxy.writeSlot();
   proxy.X_WP = renderer_->proxyPose();
   x_->proxy.publish();
-  CouplingSnapshot& c = x_->coupling_snapshots.writeSlot();
+  CouplingSnapshot c;
   c.X_WP = renderer_->proxyPose();
   c.X_WD = renderer_->proxyPose();
   c.timing.nominal_rate_Hz = servo_rate_Hz;
-  x_->coupling_snapshots.publish();
-  SolverSnapshot& s = x_->solver_snapshots.writeSlot();
+  SolverSnapshot s;
   s.isovalue = isovalue;
   s.timing.nominal_rate_Hz = solver_rate_Hz;
-  x_->solver_snapshots.publish();
+  for (SnapshotChannel* channel : {&x_->gui, options_.monitor.get()}) {
+    if (channel == nullptr) continue;
+    channel->couplingSlot() = c;
+    channel->publishCoupling();
+    channel->solverSlot() = s;
+    channel->publishSolver();
+  }
 }
 
 HapticThread::~HapticThread() { stop(); }
@@ -362,13 +341,12 @@ bool HapticThread::realtimeScheduling() const noexcept {
   return fifo_.load(std::memory_order_acquire) && x_->solver_fifo.load(std::memory_order_acquire);
 }
 
-bool HapticThread::latestSnapshot(HapticSnapshot& out) noexcept {
-  const bool fresh_coupling = x_->coupling_snapshots.read(x_->gui_coupling);
-  const bool fresh_solver = x_->solver_snapshots.read(x_->gui_solver);
-  const CouplingSnapshot& c = x_->gui_coupling;
-  const SolverSnapshot& s = x_->gui_solver;
+bool HapticThread::latestSnapshot(HapticSnapshot& out) noexcept { return x_->gui.read(out); }
+
+void mergeSnapshots(const CouplingSnapshot& c, const SolverSnapshot& s, HapticSnapshot& out) noexcept {
   out.tick = c.tick;
   out.solver_tick = s.tick;
+  out.time_ns = c.time_ns;
   out.X_WP = c.X_WP;
   out.X_WD = c.X_WD;
   out.force_W_N = c.force_W_N;
@@ -383,7 +361,6 @@ bool HapticThread::latestSnapshot(HapticSnapshot& out) noexcept {
   out.solver = s.timing;
   out.bad_device_samples = c.bad_samples + s.rejected;
   out.skipped_samples = s.skipped;
-  return fresh_coupling || fresh_solver;
 }
 
 void HapticThread::start() {
@@ -433,6 +410,7 @@ void HapticThread::couplingLoop() noexcept {
   x_->proxy.read(proxy);
   haptics::Pose X_WD_last = proxy.X_WP;  // until the first valid sample
   const haptics::MassProperties& mass = renderer_->tool().mass;  // immutable: shared with the solver
+  SnapshotChannel* const monitor = options_.monitor.get();  // optional second consumer
 
   // Every command goes through the one safety layer: the device's limits, engage gate, ramp,
   // watchdog, actuated DOF (device.h, ForceSafety). Coupling gains are kept within the device's
@@ -523,15 +501,20 @@ void HapticThread::couplingLoop() noexcept {
 
     // 6. Statistics and snapshot.
     clock.tick(begin_ns, monotonicNs());
-    CouplingSnapshot& snap = x_->coupling_snapshots.writeSlot();
+    CouplingSnapshot& snap = x_->gui.couplingSlot();
     snap.tick = tick;
+    snap.time_ns = begin_ns;
     snap.X_WP = proxy.X_WP;
     snap.X_WD = X_WD_last;
     snap.force_W_N = force_W_N;
     snap.torque_W_Nm = torque_W_Nm;
     snap.bad_samples = bad_samples;
     snap.timing = clock.timing();
-    x_->coupling_snapshots.publish();
+    if (monitor != nullptr) {
+      monitor->couplingSlot() = snap;
+      monitor->publishCoupling();
+    }
+    x_->gui.publishCoupling();
   }
 
   device_->command(Eigen::Vector3d::Zero(), Eigen::Vector3d::Zero());
@@ -551,6 +534,7 @@ void HapticThread::solverLoop() noexcept {
   std::uint64_t record_first_tick = 0;         // tick of the current recording's first record
   RecordingWriter* active_recorder = nullptr;  // the recorder of the current recording
   PeriodicClock clock(solver_period_s_, 0);
+  SnapshotChannel* const monitor = options_.monitor.get();  // optional second consumer
   // Samples from before this start() are not used (a restart begins with the next one).
   std::uint64_t consumed = x_->samples.latest();
   DeviceInput input, last_input;
@@ -625,7 +609,7 @@ void HapticThread::solverLoop() noexcept {
     wake_flags = 0;
 
     clock.tick(begin_ns, end_ns);
-    SolverSnapshot& snap = x_->solver_snapshots.writeSlot();
+    SolverSnapshot& snap = x_->gui.solverSlot();
     snap.tick = tick;
     snap.isovalue = in.isovalue;
     snap.contacts = static_cast<int>(contacts.size());
@@ -639,7 +623,11 @@ void HapticThread::solverLoop() noexcept {
     snap.rejected = rejected;
     snap.skipped = skipped;
     snap.timing = clock.timing();
-    x_->solver_snapshots.publish();
+    if (monitor != nullptr) {
+      monitor->solverSlot() = snap;
+      monitor->publishSolver();
+    }
+    x_->gui.publishSolver();
   };
 
   // The samples waiting at this wake-up.

@@ -9,6 +9,7 @@
 #include <optional>
 #include <sstream>
 #include <stdexcept>
+#include <thread>
 #include <vector>
 
 #include <nlohmann/json.hpp>
@@ -18,6 +19,7 @@
 #include "vh/runtime/placement.h"
 #include "vh/runtime/recording.h"
 #include "vh/runtime/session_metadata.h"
+#include "vh/runtime/snapshot_channel.h"
 
 namespace vh::runtime {
 
@@ -203,6 +205,23 @@ RunReport runHeadless(const LoadedScene& scene, const Trajectory& trajectory, co
             << out.X_WP.R_AB.w() << ',' << out.X_WP.R_AB.x() << ',' << out.X_WP.R_AB.y() << ',' << out.X_WP.R_AB.z()
             << ',' << out.stats.time_of_contact << ',' << crossing_points << '\n';
     }
+    if (SnapshotChannel* monitor = options.monitor.get()) {
+      CouplingSnapshot& c = monitor->couplingSlot();
+      c.tick = i + 1;
+      c.time_ns = std::chrono::duration_cast<std::chrono::nanoseconds>(std::chrono::steady_clock::now().time_since_epoch()).count();
+      c.X_WP = out.X_WP;
+      c.X_WD = sample.X_WD;
+      c.force_W_N = out.force_W_N;
+      c.torque_W_Nm = out.torque_W_Nm;
+      monitor->publishCoupling();
+      SolverSnapshot& solver = monitor->solverSlot();
+      solver.tick = i + 1;
+      solver.isovalue = s;
+      solver.contacts = static_cast<int>(renderer.contacts().size());
+      solver.segment = segment;
+      monitor->publishSolver();
+    }
+    if (options.realtime) std::this_thread::sleep_until(wall_begin + std::chrono::nanoseconds(static_cast<std::int64_t>(1e9 * static_cast<double>(i + 1) / options.servo_rate_Hz)));
   }
   if (recorder) recorder->close();  // throws naming the file when a write failed
   if (segment_tally) r.segment_contacts = segment_tally->segments();

@@ -226,7 +226,7 @@ SceneSpec parseScene(const std::string& json_text, const std::string& source, co
     throw std::runtime_error(source + ": invalid JSON: " + (pos == std::string::npos ? what : what.substr(pos + 2)));
   }
   const ObjectReader top(root, "", source);
-  top.allowOnly({"description", "volume", "tool", "coupling", "device", "segmentation"});
+  top.allowOnly({"description", "volume", "tool", "coupling", "device", "segmentation", "openigtlink"});
 
   SceneSpec spec;
   spec.source = source;
@@ -340,6 +340,21 @@ SceneSpec parseScene(const std::string& json_text, const std::string& source, co
     }
     spec.segmentation = s;
   }
+
+  if (top.has("openigtlink")) {
+    const ObjectReader igtl = top.object("openigtlink");
+    igtl.allowOnly({"port", "rate_Hz"});
+    OpenIgtlinkSpec o;
+    if (igtl.has("port")) {
+      const json& v = igtl.at("port");
+      if (!v.is_number_integer() || v.get<long long>() < 1 || v.get<long long>() > 65535) {
+        igtl.fail(igtl.fieldPath("port"), "expected an integer port in 1..65535, found " + v.dump());
+      }
+      o.port = static_cast<int>(v.get<long long>());
+    }
+    if (igtl.has("rate_Hz")) o.rate_Hz = igtl.positive("rate_Hz");
+    spec.openigtlink = o;
+  }
   return spec;
 }
 
@@ -377,7 +392,43 @@ SceneSpec sceneForVolume(const fs::path& volume_path) {
   return spec;
 }
 
+SceneSpec sceneForLoadedVolume(const io::LoadedVolume& volume) {
+  SceneSpec spec;
+  spec.volume.path = std::string(kIgtlVolumePrefix) + volume.info.description;
+  spec.tool.mesh = "builtin:probe";
+  spec.device = DeviceSpec{};
+  return spec;
+}
+
 // ---- Loading -------------------------------------------------------------------------------
+
+namespace {
+
+/// The isovalue a volume file starts with: bone (400 HU) for CT in HU, which is what a
+/// clinician feels first; otherwise midway.
+double defaultFileIsovalue(const io::LoadedVolume& volume) {
+  const auto* f = volume.field.get();
+  if (volume.info.value_unit == "HU" && f->minValue() < 400.0 && f->maxValue() > 400.0) return 400.0;
+  return 0.5 * (f->minValue() + f->maxValue());
+}
+
+/// The part of loading after the volume: the spec's isovalue, the segmentation, the tool, the
+/// initial pose. `cancel` as loadScene()'s (the segmentation's read).
+void loadToolAndPose(LoadedScene& scene, const std::string& where, const std::atomic<bool>* cancel = nullptr);
+
+}  // namespace
+
+LoadedScene loadScene(const SceneSpec& spec, io::LoadedVolume preloaded) {
+  if (preloaded.field == nullptr) throw std::invalid_argument("loadScene: the preloaded volume has no field");
+  const std::string where = spec.source.empty() ? std::string("scene") : spec.source.string();
+  LoadedScene scene;
+  scene.spec = spec;
+  scene.volume = std::move(preloaded);
+  if (scene.volume.image == nullptr) scene.volume.image = io::imageFromField(*scene.volume.field);
+  scene.isovalue = defaultFileIsovalue(scene.volume);
+  loadToolAndPose(scene, where);
+  return scene;
+}
 
 LoadedScene loadScene(const SceneSpec& spec) { return loadScene(spec, {}, nullptr); }
 
@@ -408,11 +459,16 @@ LoadedScene loadScene(const SceneSpec& spec, const std::function<void(double)>& 
     options.progress = progress;
     options.cancel = cancel;
     scene.volume = io::loadVolume(spec.volume.path, options);
-    // CT in HU: bone (400 HU) is what a clinician feels first; otherwise midway.
-    const auto* f = scene.volume.field.get();
-    if (scene.volume.info.value_unit == "HU" && f->minValue() < 400.0 && f->maxValue() > 400.0) scene.isovalue = 400.0;
-    else scene.isovalue = 0.5 * (f->minValue() + f->maxValue());
+    scene.isovalue = defaultFileIsovalue(scene.volume);
   }
+  loadToolAndPose(scene, where, cancel);
+  return scene;
+}
+
+namespace {
+
+void loadToolAndPose(LoadedScene& scene, const std::string& where, const std::atomic<bool>* cancel) {
+  const SceneSpec& spec = scene.spec;
   if (spec.volume.isovalue_set) scene.isovalue = spec.volume.isovalue;
   if (spec.segmentation) {
     io::VolumeLoadOptions options;
@@ -458,8 +514,9 @@ LoadedScene loadScene(const SceneSpec& spec, const std::function<void(double)>& 
   }
   scene.initial_points_inside =
       countPointsInside(field, scene.tool->point_shell, scene.X_WT_initial, scene.hapticIsovalue());
-  return scene;
 }
+
+}  // namespace
 
 double automaticPointSpacing_m(const haptics::TriangleMesh& mesh_T, const haptics::ScalarVolume& volume) {
   return std::max(std::sqrt(mesh_T.area_m2() / 1000.0), 0.5 * volume.geometry().minSpacing());
@@ -524,11 +581,12 @@ bool deviceKindAvailable(const std::string& kind) {
 }
 
 std::unique_ptr<HapticThread> LoadedScene::makeHapticThread(std::shared_ptr<Device> device, double servo_rate_Hz,
-                                                            const std::optional<haptics::Pose>& X_WP) const {
-  HapticThreadOptions options;
-  options.segments = segments;
+                                                            const std::optional<haptics::Pose>& X_WP,
+                                                            const HapticThreadOptions& options) const {
+  HapticThreadOptions with_segments = options;
+  with_segments.segments = segments;
   auto thread = std::make_unique<HapticThread>(makeRenderer({}, X_WP), std::move(device), hapticIsovalue(),
-                                               servo_rate_Hz, options);
+                                               servo_rate_Hz, with_segments);
   thread->setGains(spec.gains);
   return thread;
 }

@@ -131,6 +131,20 @@ int SegmentSet::segmentOf(std::span<const haptics::Contact> contacts) const noex
   return best;
 }
 
+void SegmentNameTable::set(const SegmentSet* set) {
+  std::vector<std::string> names;
+  if (set != nullptr) {
+    for (int s = 0; s < static_cast<int>(set->size()); ++s) names.push_back(set->name(s));
+  }
+  const std::lock_guard<std::mutex> lock(mutex_);
+  names_ = std::move(names);
+}
+
+std::string SegmentNameTable::name(int s) const {
+  const std::lock_guard<std::mutex> lock(mutex_);
+  return s >= 0 && static_cast<std::size_t>(s) < names_.size() ? names_[static_cast<std::size_t>(s)] : std::string();
+}
+
 SegmentContactTally::SegmentContactTally(const std::vector<std::string>& names, const std::vector<bool>& critical) {
   if (names.size() != critical.size()) throw std::invalid_argument("SegmentContactTally: names and critical differ in length");
   for (std::size_t s = 0; s < names.size(); ++s) {

@@ -1,6 +1,7 @@
 #include "vh/runtime/session.h"
 
 #include "vh/runtime/placement.h"
+#include "vh/runtime/snapshot_channel.h"
 
 #include <algorithm>
 #include <cmath>
@@ -152,7 +153,27 @@ void Session::setDevice(std::shared_ptr<Device> device) {
 void Session::rebuildHaptics(const haptics::Pose& X_WP) {
   haptics_.reset();
   if (device_ == nullptr || !has_scene_ || scene_.volume.field == nullptr || scene_.tool == nullptr) return;
-  haptics_ = scene_.makeHapticThread(device_, servo_rate_Hz_, X_WP);
+  HapticThreadOptions options;
+  options.monitor = monitor_;
+  haptics_ = scene_.makeHapticThread(device_, servo_rate_Hz_, X_WP, options);
+}
+
+void Session::setMonitor(std::shared_ptr<SnapshotChannel> monitor) {
+  if (monitor == monitor_) return;
+  monitor_ = std::move(monitor);
+  if (haptics_ == nullptr) return;
+  const bool was_running = hapticsRunning();
+  const haptics::Pose X_WP = proxyPose();
+  haptics_->stop();
+  haptics_.reset();
+  if (SimulatedDevice* sim = simulatedDevice()) sim->setPose(X_WP);
+  rebuildHaptics(X_WP);
+  if (was_running && haptics_ != nullptr) {
+    haptics_->setIsovalue(scene_.isovalue);
+    haptics_->setGains(scene_.spec.gains);
+    haptics_->start();
+  }
+  notify(SessionChange::kDevice | (was_running != hapticsRunning() ? SessionChange::kRunning : SessionChange{}));
 }
 
 void Session::startHaptics() {

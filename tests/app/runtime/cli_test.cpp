@@ -3,6 +3,8 @@
 // input.
 #include <sys/wait.h>
 
+#include <unistd.h>
+
 #include <array>
 #include <cstdio>
 #include <fstream>
@@ -129,6 +131,27 @@ TEST(Cli, MakeTrajectoryThenRunWithoutADisplay) {
 }
 
 }  // namespace
+TEST(Cli, RunStreamsOverOpenIgtlinkOnlyWhenAsked) {
+  const fs::path dir = test::scratchDir();
+  const fs::path csv = dir / "t.csv";
+  ASSERT_EQ(runApp("make-trajectory --scene " + quoted(kBlockScene) + " --ray-start 0.015 0 0.04 --slide-m 0.002 --out " +
+                   quoted(csv)).exit_code, 0);
+  const std::string common = " --verify-step 0 --no-lag-reference --scene " + quoted(kBlockScene) + " --trajectory " + quoted(csv);
+  const ProcessResult off = runApp("run" + common);
+  ASSERT_EQ(off.exit_code, 0) << off.output;
+  EXPECT_EQ(off.output.find("OpenIGTLink"), std::string::npos) << "off by default: " << off.output;
+  // A port from a pid-dependent range (no client connects: the run streams to nobody).
+  const int port = 40000 + static_cast<int>(getpid() % 20000);
+  const ProcessResult on = runApp("run --igtl-port " + std::to_string(port) + " --igtl-rate 5000" + common);
+  ASSERT_EQ(on.exit_code, 0) << on.output;
+  EXPECT_NE(on.output.find("OpenIGTLink: listening on " + std::to_string(port) + " at 1000 Hz"), std::string::npos)
+      << "the rate is clamped to the servo rate: " << on.output;
+  EXPECT_NE(on.output.find("OpenIGTLink sent 0 frames to 0 clients"), std::string::npos) << on.output;
+  const ProcessResult bad = runApp("run --igtl-port 0" + common);
+  EXPECT_NE(bad.exit_code, 0);
+  EXPECT_NE(bad.output.find("--igtl-port"), std::string::npos) << bad.output;
+}
+
 TEST(Cli, RunOnAGappedSeriesWarnsAndGoesOn) {
   // Issue 14: a CT series with a missing slice opens; the headless run says where the gap is.
   const fs::path head = test::sharedDatasets() / "ct" / "ct-head-small";

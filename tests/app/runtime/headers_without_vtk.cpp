@@ -12,6 +12,7 @@
 #include "vh/runtime/session.h"
 #include "vh/runtime/session_metadata.h"
 #include "vh/runtime/sha256.h"
+#include "vh/runtime/snapshot_channel.h"
 #include "vh/runtime/trajectory.h"
 #include "vh/runtime/triple_buffer.h"
 

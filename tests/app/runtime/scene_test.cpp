@@ -109,6 +109,51 @@ void expectSceneError(const std::string& json, Parts... parts) {
   VH_EXPECT_THROW_WITH(loadSceneFile(file), std::runtime_error, file.string(), parts...);
 }
 
+TEST(SceneFile, OpenIgtlinkIsOffUnlessTheSceneAsks) {
+  const fs::path dir = scratchDir();
+  EXPECT_FALSE(loadSceneFile(writeText(dir / "off.json", R"({"volume": {"path": "builtin:plane"}})")).openigtlink);
+  const SceneSpec defaults =
+      loadSceneFile(writeText(dir / "d.json", R"({"volume": {"path": "builtin:plane"}, "openigtlink": {}})"));
+  ASSERT_TRUE(defaults.openigtlink.has_value());
+  EXPECT_EQ(defaults.openigtlink->port, 18944);
+  EXPECT_DOUBLE_EQ(defaults.openigtlink->rate_Hz, 60.0);
+  const SceneSpec set = loadSceneFile(
+      writeText(dir / "s.json", R"({"volume": {"path": "builtin:plane"}, "openigtlink": {"port": 18945, "rate_Hz": 250}})"));
+  ASSERT_TRUE(set.openigtlink.has_value());
+  EXPECT_EQ(set.openigtlink->port, 18945);
+  EXPECT_DOUBLE_EQ(set.openigtlink->rate_Hz, 250.0);
+}
+
+TEST(SceneFileErrors, OpenIgtlink) {
+  expectSceneError(R"({"volume": {"path": "builtin:plane"}, "openigtlink": {"port": 0}})", "openigtlink.port",
+                   "expected an integer port in 1..65535, found 0");
+  expectSceneError(R"({"volume": {"path": "builtin:plane"}, "openigtlink": {"port": 18944.5}})", "openigtlink.port");
+  expectSceneError(R"({"volume": {"path": "builtin:plane"}, "openigtlink": {"rate_Hz": -1}})", "openigtlink.rate_Hz",
+                   "must be > 0");
+  expectSceneError(R"({"volume": {"path": "builtin:plane"}, "openigtlink": {"rate": 60}})", "openigtlink",
+                   "unknown key 'rate'");
+  expectSceneError(R"({"volume": {"path": "builtin:plane"}, "openigtlink": 18944})", "openigtlink", "expected an object");
+}
+
+TEST(SceneLoad, PreloadedVolumeOpensLikeAFile) {
+  SceneSpec builtin;
+  builtin.volume.path = "builtin:sphere";
+  const LoadedScene file = loadScene(builtin);
+  io::LoadedVolume volume = file.volume;
+  volume.info.description = "FromSlicer";
+  volume.info.format = "OpenIGTLink";
+  const SceneSpec spec = sceneForLoadedVolume(volume);
+  EXPECT_EQ(spec.volume.path, "igtl:FromSlicer");
+  EXPECT_EQ(spec.tool.mesh, "builtin:probe");
+  ASSERT_TRUE(spec.device.has_value());
+  const LoadedScene scene = loadScene(spec, volume);
+  EXPECT_EQ(scene.volume.field, volume.field);
+  ASSERT_NE(scene.tool, nullptr);
+  EXPECT_EQ(scene.initial_points_inside, 0);
+  EXPECT_DOUBLE_EQ(scene.isovalue, 0.5 * (volume.field->minValue() + volume.field->maxValue()));
+  VH_EXPECT_THROW_WITH(loadScene(spec, io::LoadedVolume{}), std::invalid_argument, "no field");
+}
+
 TEST(SceneFileErrors, MissingFile) {
   VH_EXPECT_THROW_WITH(loadSceneFile("/no/such/scene.json"), std::runtime_error, "/no/such/scene.json",
                        "scene file not found");

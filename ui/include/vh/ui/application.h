@@ -52,6 +52,11 @@ struct AppOptions {
   /// there is one).
   int window_width = 1280;
   int window_height = 860;
+  /// Set: the OpenIGTLink server listens on this port from the start (issue 17; it overrides a
+  /// scene file's "openigtlink" section); unset: off unless the scene or the GUI switches it on.
+  std::optional<int> igtl_port;
+  /// Its frame rate [Hz] (clamped to the servo rate).
+  double igtl_rate_Hz = 60.0;
 };
 
 /// Creates the QApplication (default surface format set before: OpenGL 3.2 core, depth 24,

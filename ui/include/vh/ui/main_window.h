@@ -53,6 +53,8 @@ class vtkVolume;
 
 namespace vh::ui {
 
+class IgtlPanel;  // igtl_panel.h
+
 class DeviceInput;
 class DevicePicker;
 class DisplayPanel;
@@ -108,6 +110,12 @@ class MainWindow : public QMainWindow {
   void openPath(const QString& path);
   /// Loads a parsed scene asynchronously; `opened` goes to the recent files.
   void openScene(const runtime::SceneSpec& spec, const std::filesystem::path& opened = {});
+  /// Opens a volume already in memory (one received over OpenIGTLink) as the new scene with the
+  /// default tool and a simulated device, like a dropped file (not added to the recent files).
+  void openLoadedVolume(io::LoadedVolume volume);
+  /// The OpenIGTLink switch (Connections menu): off until switched on here, by a scene file's
+  /// "openigtlink" section or by the command line (AppOptions::igtl_port).
+  IgtlPanel* igtlPanel() const noexcept { return igtl_; }
   /// Loads series `series` of a listed DICOM folder, time point `phase` (0-based).
   void openDicomSeries(const io::DicomSeriesInfo& series, int phase = 0);
   /// True from a load's start until its scene is shown and rendered once (or it failed).
@@ -253,6 +261,7 @@ class MainWindow : public QMainWindow {
   int tool_index_ = -1;
   SceneView* view_ = nullptr;
   SceneLoader* loader_ = nullptr;
+  IgtlPanel* igtl_ = nullptr;
   LoadNoticePanel* notices_ = nullptr;
   IsovalueBar* iso_bar_ = nullptr;
   DisplayPanel* display_panel_ = nullptr;

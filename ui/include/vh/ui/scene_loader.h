@@ -70,7 +70,10 @@ class SceneLoader : public QObject {
   /// Loads `spec` (runtime::loadScene), opens its device, and computes the histogram.
   /// `opened` is remembered as what the user opened (recent files). Emits progress() (the read's
   /// fraction as 0..70 %), then sceneLoaded() or failed() (or cancelled()).
-  void loadScene(const runtime::SceneSpec& spec, const std::filesystem::path& opened);
+  /// `preloaded`: a volume already in memory (received over OpenIGTLink) replaces the read of
+  /// spec.volume.path (runtime::loadScene(spec, preloaded)).
+  void loadScene(const runtime::SceneSpec& spec, const std::filesystem::path& opened,
+                 std::optional<io::LoadedVolume> preloaded = std::nullopt);
   /// Replaces how loadScene() loads (tests; a runtime that reports progress). Null: the default.
   void setSceneLoadFunction(SceneLoadFunction load);
   /// Lists the DICOM series in `folder`; emits seriesListed() or failed().

@@ -49,6 +49,8 @@ class SegmentsController : public QObject {
   void showSnapshot(const runtime::HapticSnapshot& snapshot);
 
   SegmentsPanel* panel() const noexcept { return panel_; }
+  /// The session's segment names for other threads (the OpenIGTLink link), updated with them.
+  const std::shared_ptr<runtime::SegmentNameTable>& names() const noexcept { return names_; }
   QDockWidget* dock() const noexcept { return dock_; }
   /// Critical touches shown since the segments were set (entries into a critical segment).
   int criticalAlerts() const noexcept { return critical_alerts_; }
@@ -66,6 +68,7 @@ class SegmentsController : public QObject {
   SegmentsPanel* panel_ = nullptr;
   QDockWidget* dock_ = nullptr;
   int observer_ = -1;
+  std::shared_ptr<runtime::SegmentNameTable> names_ = std::make_shared<runtime::SegmentNameTable>();
   int touched_ = -1;
   int critical_alerts_ = 0;
 };

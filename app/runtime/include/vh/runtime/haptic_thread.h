@@ -28,6 +28,8 @@
 ///                       the isovalue and the applied gains read on the same coupling tick;
 ///   solver -> coupling: the proxy pose X_WP (TripleBuffer);
 ///   both -> GUI:        one TripleBuffer each, merged by latestSnapshot();
+///   both -> monitor:    optionally the same again into a second SnapshotChannel
+///                       (HapticThreadOptions::monitor) for another consumer, e.g. OpenIGTLink;
 ///   GUI -> coupling:    gains and isovalue in atomics, applied at the coupling thread's next tick;
 ///   flags:              atomics (the coupling thread's force-limited / zeroed / stopping / deadline
 ///                       miss bits, read by the solver into its TickRecord).
@@ -53,6 +55,8 @@
 
 namespace vh::runtime {
 
+class SnapshotChannel;  // snapshot_channel.h
+
 /// Timing of one of the two haptic threads. Rate, tick times and jitter are over the last
 /// rolling window of one second (until the first window closes, over the running one).
 struct ThreadTiming {
@@ -74,6 +78,9 @@ struct HapticSnapshot {
   static constexpr int kMaxContactsShown = 64;
   std::uint64_t tick = 0;                 ///< Coupling (device) ticks so far; 0 before the first.
   std::uint64_t solver_tick = 0;          ///< Solver ticks so far (= TickRecord::tick while recording).
+  /// CLOCK_MONOTONIC (std::chrono::steady_clock) time of the coupling tick's start [ns]; 0
+  /// before the first.
+  std::int64_t time_ns = 0;
   haptics::Pose X_WP;                     ///< Proxy pose in W the coupling used (the solver's latest).
   haptics::Pose X_WD;                     ///< Device pose in W the coupling used (the latest valid one).
   Eigen::Vector3d force_W_N = Eigen::Vector3d::Zero();    ///< Commanded force on the hand in W [N].
@@ -119,6 +126,12 @@ struct HapticThreadOptions {
   /// longer hold for the solver).
   void (*solver_tick_hook)(void* context) = nullptr;
   void* solver_tick_hook_context = nullptr;
+  /// When set, both threads also publish every tick into this channel (one copy into a triple
+  /// buffer each; no lock, no allocation), for a consumer other than the GUI (e.g. the
+  /// OpenIGTLink link) at up to the servo rate. Shared: it outlives the threads; a thread
+  /// rebuilt with the same options keeps feeding it. Only one HapticThread may feed a channel
+  /// at a time (the next one once the previous one stopped).
+  std::shared_ptr<SnapshotChannel> monitor;
 };
 
 /// Runs the coupling and the solver threads (see the file comment).

@@ -15,6 +15,7 @@
 #include <cstdint>
 #include <filesystem>
 #include <functional>
+#include <memory>
 #include <span>
 #include <string>
 #include <vector>
@@ -26,6 +27,8 @@
 #include "vh/runtime/trajectory.h"
 
 namespace vh::runtime {
+
+class SnapshotChannel;  // snapshot_channel.h
 
 struct RunOptions {
   double servo_rate_Hz = 1000.0;  ///< Simulated tick rate [Hz].
@@ -52,6 +55,14 @@ struct RunOptions {
   /// When set, called once per loader notice as soon as the scene is loaded (the headless
   /// command prints them as warnings and goes on).
   std::function<void(const std::string&)> on_notice;
+  /// When set, every tick is also published into this channel (tick i + 1, the device pose
+  /// used, the proxy pose and force produced, the contact count; steady-clock time), for a
+  /// consumer such as the OpenIGTLink link (`run --igtl-port`). Outside the timed section.
+  std::shared_ptr<SnapshotChannel> monitor;
+  /// Pace the ticks at servo_rate_Hz in wall-clock time instead of as fast as possible (tick
+  /// i + 1 ends no earlier than (i + 1) / rate after the start), so a streamed run plays at the
+  /// trajectory's speed. The exec times are unaffected.
+  bool realtime = false;
 };
 
 /// The work budget's price (issue 13): how far a budgeted proxy is from an unbudgeted one driven

@@ -14,7 +14,8 @@
 ///   "device": {"kind": "simulated"},              // or "scripted" with "trajectory": "T.csv"
 ///   "segmentation": {"path": "case.seg.nrrd",     // optional: 3D Slicer segments (segments.h)
 ///                    "felt": ["facial nerve"], "shown": ["facial nerve", "sigmoid sinus"],
-///                    "critical": ["facial nerve"], "smoothing_voxels": 1.0}
+///                    "critical": ["facial nerve"], "smoothing_voxels": 1.0},
+///   "openigtlink": {"port": 18944, "rate_Hz": 60} // optional: stream to 3D Slicer (off when absent)
 /// }
 /// "felt" absent or empty: the scan's isosurface is felt and the segments are only shown;
 /// "shown" absent: every segment is shown.
@@ -106,6 +107,14 @@ void registerDeviceKind(const std::string& kind, DeviceFactory factory);
 /// True when makeDevice() can make `kind` (built-in or registered); thread-safe.
 bool deviceKindAvailable(const std::string& kind);
 
+/// The OpenIGTLink server of a scene ("openigtlink": {"port": 18944, "rate_Hz": 60}; both keys
+/// optional): the link (vh/igtl/igtl_link.h) listens on `port` and streams the proxy and device
+/// poses, force and contact state to one client (e.g. 3D Slicer's OpenIGTLinkIF) at `rate_Hz`.
+struct OpenIgtlinkSpec {
+  int port = 18944;      ///< TCP port, 1..65535 (OpenIGTLink's registered port by default).
+  double rate_Hz = 60.0; ///< Messages per second per kind, > 0 (the link clamps it to the servo rate) [Hz].
+};
+
 /// A parsed scene (paths already resolved to absolute ones where they exist).
 struct SceneSpec {
   std::filesystem::path source;  ///< Scene file (empty for built-in scenes).
@@ -114,6 +123,7 @@ struct SceneSpec {
   haptics::CouplingGains gains;
   std::optional<DeviceSpec> device;  ///< Absent: no haptic thread.
   std::optional<SegmentationSpec> segmentation;  ///< Absent: no segments.
+  std::optional<OpenIgtlinkSpec> openigtlink;  ///< Absent: no OpenIGTLink server (the default).
 };
 
 /// Parses a scene file.
@@ -145,6 +155,16 @@ SceneSpec builtinBlockWithHoleScene();
 /// A scene for a volume path (DICOM folder, NRRD, MetaImage) with the default tool and a
 /// simulated device.
 SceneSpec sceneForVolume(const std::filesystem::path& volume_path);
+
+/// Prefix of SceneSpec::volume.path for a volume received over OpenIGTLink ("igtl:NAME", NAME
+/// the IMAGE message's device name): it names no file; loadScene(spec, preloaded) takes the
+/// voxels from memory.
+inline constexpr const char* kIgtlVolumePrefix = "igtl:";
+
+/// A scene for a volume that is already loaded (e.g. received over OpenIGTLink): volume path
+/// "igtl:" + `volume.info.description`, the default tool and a simulated device, like
+/// sceneForVolume(). Open it with loadScene(spec, volume).
+SceneSpec sceneForLoadedVolume(const io::LoadedVolume& volume);
 
 /// A scene with everything loaded: the volume (haptic field + VTK image), the tool (resampled
 /// point shell, mass properties, display mesh), the isovalue and the initial pose. Constant;
@@ -190,8 +210,10 @@ struct LoadedScene {
   /// `servo_rate_Hz` with makeRenderer({}, X_WP), naming the segment of each contact when the
   /// scene has segments (HapticThreadOptions::segments).
   /// @throws std::invalid_argument as HapticThread's and HapticRenderer's constructors.
+  /// `options` as HapticThreadOptions (e.g. the monitor channel the Session shares).
   std::unique_ptr<HapticThread> makeHapticThread(std::shared_ptr<Device> device, double servo_rate_Hz = 1000.0,
-                                                 const std::optional<haptics::Pose>& X_WP = {}) const;
+                                                 const std::optional<haptics::Pose>& X_WP = {},
+                                                 const HapticThreadOptions& options = {}) const;
 };
 
 /// The point spacing [m] of a tool whose spec gives none: about 1000 points on the mesh, not
@@ -218,5 +240,10 @@ LoadedScene loadScene(const SceneSpec& spec);
 /// @throws io::LoadCancelled when `cancel` became true during the read; else as loadScene().
 LoadedScene loadScene(const SceneSpec& spec, const std::function<void(double fraction)>& progress,
                       const std::atomic<bool>* cancel);
+/// loadScene() with the volume already in memory (e.g. an IMAGE received over OpenIGTLink):
+/// `preloaded` replaces the read of spec.volume.path; the isovalue, tool and initial pose follow
+/// as for a file (400 HU for CT in HU, else midway; the spec's when set).
+/// @throws std::invalid_argument when `preloaded` has no field; else as loadScene() (the tool).
+LoadedScene loadScene(const SceneSpec& spec, io::LoadedVolume preloaded);
 
 }  // namespace vh::runtime

@@ -11,6 +11,7 @@
 /// Frames and units: W is the scene frame (patient LPS) in metres, as io::loadVolume().
 #include <cstdint>
 #include <memory>
+#include <mutex>
 #include <span>
 #include <string>
 #include <vector>
@@ -82,6 +83,21 @@ class SegmentSet {
     int label = 0;
   };
   std::vector<FeltLabel> felt_labels_;
+};
+
+/// The names of a scene's segments for a thread other than the GUI's (the OpenIGTLink link names
+/// the touched segment in its ContactState): set on the GUI thread when the segments change,
+/// read elsewhere. Thread-safe (a mutex; never used on the haptic threads).
+class SegmentNameTable {
+ public:
+  /// Takes the names of `set`'s segments (null: none).
+  void set(const SegmentSet* set);
+  /// The name of segment `s` (HapticSnapshot::segment), or "" for -1 or an unknown index.
+  std::string name(int s) const;
+
+ private:
+  mutable std::mutex mutex_;
+  std::vector<std::string> names_;
 };
 
 /// Contact with one segment over a session: what the export and the headless run report.

@@ -135,6 +135,14 @@ class Session {
   haptics::Pose proxyPose() const;
   double servoRate_Hz() const noexcept { return servo_rate_Hz_; }
 
+  /// Every haptic thread this session builds from now on also publishes into `monitor`
+  /// (HapticThreadOptions::monitor; null: none), so a consumer other than the GUI (the
+  /// OpenIGTLink link) reads them at up to the servo rate; a rebuilt thread keeps feeding it.
+  /// Threads that exist are rebuilt at the proxy's pose (force ramped to zero for ~50 ms) and
+  /// restarted when they ran: set it once, before the first scene, to avoid that.
+  void setMonitor(std::shared_ptr<SnapshotChannel> monitor);
+  const std::shared_ptr<SnapshotChannel>& monitor() const noexcept { return monitor_; }
+
  private:
   /// The one function that builds the renderer and the haptic threads (not started), with the
   /// proxy at `X_WP`; none without a device, a field or a tool.
@@ -148,6 +156,7 @@ class Session {
   double value_max_ = 1.0;
   std::shared_ptr<Device> device_;
   std::unique_ptr<HapticThread> haptics_;
+  std::shared_ptr<SnapshotChannel> monitor_;
   std::vector<std::pair<int, Observer>> observers_;
   int next_observer_ = 1;
 };

@@ -1,0 +1,724 @@
+// The OpenIGTLink link of vh/igtl/igtl_link.h.
+//
+// Sockets: libOpenIGTLink's ServerSocket listens and accepts (with SO_REUSEADDR, so a link
+// restarted on the same port binds at once); the accepted client's descriptor is then driven
+// with poll() and non-blocking send()/recv() (MSG_NOSIGNAL: a client that vanished is an EPIPE,
+// not a SIGPIPE), so the link's thread never waits on a client: outgoing frames go through a
+// bounded output buffer (a full one skips frames), incoming bytes feed a message parser. The
+// messages themselves are packed and unpacked (CRC included) by libOpenIGTLink.
+#include "vh/igtl/igtl_link.h"
+
+#include <arpa/inet.h>
+#include <netinet/in.h>
+#include <poll.h>
+#include <sys/socket.h>
+#include <time.h>
+
+#include <algorithm>
+#include <cerrno>
+#include <chrono>
+#include <cmath>
+#include <cstring>
+#include <limits>
+#include <sstream>
+#include <stdexcept>
+
+#include <Eigen/SVD>
+#include <nlohmann/json.hpp>
+
+#include "vh/runtime/scene.h"
+
+#include <igtlClientSocket.h>
+#include <igtlImageMessage.h>
+#include <igtlMessageHeader.h>
+#include <igtlSensorMessage.h>
+#include <igtlServerSocket.h>
+#include <igtlStringMessage.h>
+#include <igtlTimeStamp.h>
+#include <igtlTransformMessage.h>
+#include <igtlUnit.h>
+#include <igtl_header.h>
+#include <igtl_util.h>
+
+namespace vh::igtl {
+
+namespace {
+
+constexpr std::size_t kHeaderSize = IGTL_HEADER_SIZE;  // 58 bytes
+constexpr std::size_t kImageHeaderSize = 72;            // IGTL_IMAGE_HEADER_SIZE, version 1
+constexpr std::size_t kExtendedHeaderSize = 12;         // header version 2 (protocol 3)
+/// Unsent bytes beyond which a frame is skipped (about 8 frames): the client is not reading, and
+/// older poses queued for it are worth less than the newest.
+constexpr std::size_t kMaxPendingOutput = 4 * 1024;
+/// The kernel's send buffer for a client [bytes] (Linux doubles it): small, so a client that
+/// falls behind gets the newest frames once it reads again, not seconds of stale ones.
+constexpr int kClientSendBuffer = 32 * 1024;
+constexpr std::size_t kMaxNotices = 64;
+constexpr std::int64_t kNsPerS = 1'000'000'000;
+
+std::int64_t steadyNs() noexcept {
+  timespec t{};
+  clock_gettime(CLOCK_MONOTONIC, &t);
+  return static_cast<std::int64_t>(t.tv_sec) * kNsPerS + t.tv_nsec;
+}
+std::int64_t wallNs() noexcept {
+  timespec t{};
+  clock_gettime(CLOCK_REALTIME, &t);
+  return static_cast<std::int64_t>(t.tv_sec) * kNsPerS + t.tv_nsec;
+}
+
+std::uint64_t readBigEndian(const unsigned char* p, int bytes) noexcept {
+  std::uint64_t v = 0;
+  for (int i = 0; i < bytes; ++i) v = (v << 8) | p[i];
+  return v;
+}
+void writeBigEndian(unsigned char* p, int bytes, std::uint64_t v) noexcept {
+  for (int i = bytes - 1; i >= 0; --i) {
+    p[i] = static_cast<unsigned char>(v & 0xff);
+    v >>= 8;
+  }
+}
+
+/// A field of a fixed-size, possibly unterminated char array.
+std::string fixedString(const unsigned char* p, std::size_t n) {
+  std::size_t len = 0;
+  while (len < n && p[len] != 0) ++len;
+  return std::string(reinterpret_cast<const char*>(p), len);
+}
+
+/// The descriptor of an igtl socket: Socket keeps it protected; a pointer to the member taken
+/// in a derived class's scope reads it without a cast.
+struct SocketDescriptor : ::igtl::Socket {
+  static int of(::igtl::Socket& socket) { return socket.*(&SocketDescriptor::m_SocketDescriptor); }
+};
+
+/// ServerSocket::CreateServer() with SO_REUSEADDR (the library sets it only where a VTK macro
+/// is defined): a link stopped and started again on the same port binds even while the
+/// previous connections linger in TIME_WAIT.
+class ReusableServerSocket : public ::igtl::ServerSocket {
+ public:
+  typedef ReusableServerSocket Self;
+  typedef ::igtl::ServerSocket Superclass;
+  typedef ::igtl::SmartPointer<Self> Pointer;
+  typedef ::igtl::SmartPointer<const Self> ConstPointer;
+  igtlTypeMacro(ReusableServerSocket, ::igtl::ServerSocket);
+  igtlNewMacro(ReusableServerSocket);
+
+  /// 0 on success, -1 when the port cannot be bound.
+  int createReusableServer(int port) {
+    if (m_SocketDescriptor != -1) {
+      CloseSocket(m_SocketDescriptor);
+      m_SocketDescriptor = -1;
+    }
+    m_SocketDescriptor = CreateSocket();
+    if (m_SocketDescriptor < 0) return -1;
+    const int on = 1;
+    setsockopt(m_SocketDescriptor, SOL_SOCKET, SO_REUSEADDR, &on, sizeof(on));
+    if (BindSocket(m_SocketDescriptor, port) != 0 || Listen(m_SocketDescriptor) != 0) {
+      CloseSocket(m_SocketDescriptor);
+      m_SocketDescriptor = -1;
+      return -1;
+    }
+    return 0;
+  }
+  int descriptor() const noexcept { return m_SocketDescriptor; }
+
+ protected:
+  ReusableServerSocket() = default;
+  ~ReusableServerSocket() override = default;
+};
+
+/// igtl::Matrix4x4 (float, [row][column]) from an Eigen matrix.
+void toIgtl(const Eigen::Matrix4d& m, ::igtl::Matrix4x4& out) noexcept {
+  for (int r = 0; r < 4; ++r) {
+    for (int c = 0; c < 4; ++c) out[r][c] = static_cast<float>(m(r, c));
+  }
+}
+
+/// Voxels of an IMAGE in one of ScalarVolume's types: uint8, int16, uint16 and float32 as they
+/// are; int8 widened to int16; int32 / uint32 to int16 / uint16 when the range fits, else
+/// float32; float64 to float32. `raw` is in host byte order.
+haptics::VoxelType convertVoxels(int scalar_type, const unsigned char* raw, std::size_t count,
+                                 std::vector<std::byte>& out) {
+  const auto copyAs = [&](auto tag_in, auto tag_out) {
+    using In = decltype(tag_in);
+    using Out = decltype(tag_out);
+    out.resize(count * sizeof(Out));
+    for (std::size_t i = 0; i < count; ++i) {
+      In v;
+      std::memcpy(&v, raw + i * sizeof(In), sizeof(In));
+      const Out o = static_cast<Out>(v);
+      std::memcpy(out.data() + i * sizeof(Out), &o, sizeof(Out));
+    }
+  };
+  const auto range = [&](auto tag_in) {
+    using In = decltype(tag_in);
+    double lo = std::numeric_limits<double>::infinity(), hi = -lo;
+    for (std::size_t i = 0; i < count; ++i) {
+      In v;
+      std::memcpy(&v, raw + i * sizeof(In), sizeof(In));
+      lo = std::min(lo, static_cast<double>(v));
+      hi = std::max(hi, static_cast<double>(v));
+    }
+    return std::pair<double, double>(lo, hi);
+  };
+  switch (scalar_type) {
+    case ::igtl::ImageMessage::TYPE_UINT8:
+      out.assign(reinterpret_cast<const std::byte*>(raw), reinterpret_cast<const std::byte*>(raw) + count);
+      return haptics::VoxelType::kUInt8;
+    case ::igtl::ImageMessage::TYPE_INT16:
+      out.assign(reinterpret_cast<const std::byte*>(raw), reinterpret_cast<const std::byte*>(raw) + 2 * count);
+      return haptics::VoxelType::kInt16;
+    case ::igtl::ImageMessage::TYPE_UINT16:
+      out.assign(reinterpret_cast<const std::byte*>(raw), reinterpret_cast<const std::byte*>(raw) + 2 * count);
+      return haptics::VoxelType::kUInt16;
+    case ::igtl::ImageMessage::TYPE_FLOAT32:
+      out.assign(reinterpret_cast<const std::byte*>(raw), reinterpret_cast<const std::byte*>(raw) + 4 * count);
+      return haptics::VoxelType::kFloat32;
+    case ::igtl::ImageMessage::TYPE_INT8:
+      copyAs(std::int8_t{}, std::int16_t{});
+      return haptics::VoxelType::kInt16;
+    case ::igtl::ImageMessage::TYPE_INT32: {
+      const auto [lo, hi] = range(std::int32_t{});
+      if (lo >= -32768.0 && hi <= 32767.0) {
+        copyAs(std::int32_t{}, std::int16_t{});
+        return haptics::VoxelType::kInt16;
+      }
+      copyAs(std::int32_t{}, float{});
+      return haptics::VoxelType::kFloat32;
+    }
+    case ::igtl::ImageMessage::TYPE_UINT32: {
+      const auto [lo, hi] = range(std::uint32_t{});
+      (void)lo;
+      if (hi <= 65535.0) {
+        copyAs(std::uint32_t{}, std::uint16_t{});
+        return haptics::VoxelType::kUInt16;
+      }
+      copyAs(std::uint32_t{}, float{});
+      return haptics::VoxelType::kFloat32;
+    }
+    case ::igtl::ImageMessage::TYPE_FLOAT64:
+      copyAs(double{}, float{});
+      return haptics::VoxelType::kFloat32;
+    default:
+      throw std::invalid_argument("unsupported scalar type " + std::to_string(scalar_type));
+  }
+}
+
+}  // namespace
+
+// ---- Conversions ---------------------------------------------------------------------------
+
+Eigen::Matrix4d toRasMatrix_mm(const haptics::Pose& X_WT) {
+  const Eigen::Matrix3d F = Eigen::Vector3d(-1.0, -1.0, 1.0).asDiagonal();
+  Eigen::Matrix4d X = Eigen::Matrix4d::Identity();
+  X.topLeftCorner<3, 3>() = F * X_WT.R_AB.toRotationMatrix() * F;
+  X.topRightCorner<3, 1>() = 1000.0 * (F * X_WT.p_AB_m);
+  return X;
+}
+
+io::LoadedVolume volumeFromIjkToRas(const std::array<int, 3>& dims, const Eigen::Matrix4d& X_RAS_IJK_mm,
+                                    haptics::VoxelType type, std::vector<std::byte> bytes,
+                                    const std::string& name) {
+  if (!X_RAS_IJK_mm.allFinite()) throw std::invalid_argument("the IJK-to-RAS matrix is not finite");
+  const Eigen::Matrix3d F = Eigen::Vector3d(-1.0, -1.0, 1.0).asDiagonal();
+  haptics::VolumeGeometry g;
+  g.dims = dims;
+  Eigen::Matrix3d D_RAS;
+  for (int a = 0; a < 3; ++a) {
+    const Eigen::Vector3d axis_mm = X_RAS_IJK_mm.block<3, 1>(0, a);
+    const double spacing_mm = axis_mm.norm();
+    if (!(spacing_mm > 0.0)) throw std::invalid_argument("axis " + std::to_string(a) + " has zero spacing");
+    g.spacing_m[a] = 1e-3 * spacing_mm;
+    D_RAS.col(a) = axis_mm / spacing_mm;
+  }
+  // The matrix travels as float: tolerate float rounding, refuse a sheared grid, and hand
+  // ScalarVolume the nearest orthogonal matrix (polar decomposition).
+  if (!(D_RAS.transpose() * D_RAS).isApprox(Eigen::Matrix3d::Identity(), 1e-3)) {
+    throw std::invalid_argument("the image axes are not orthogonal (sheared grids are not supported)");
+  }
+  const Eigen::JacobiSVD<Eigen::Matrix3d> svd(F * D_RAS, Eigen::ComputeFullU | Eigen::ComputeFullV);
+  g.direction_W = svd.matrixU() * svd.matrixV().transpose();
+  g.origin_W_m = 1e-3 * (F * X_RAS_IJK_mm.block<3, 1>(0, 3));
+  auto field = std::make_shared<const haptics::ScalarVolume>(haptics::ScalarVolume::FromBytes(g, type, std::move(bytes)));
+  io::LoadedVolume volume;
+  volume.image = io::imageFromField(*field);
+  volume.field = std::move(field);
+  volume.info.source = std::string(runtime::kIgtlVolumePrefix) + name;
+  volume.info.format = "OpenIGTLink";
+  volume.info.description = name;
+  return volume;
+}
+
+// ---- The link ------------------------------------------------------------------------------
+
+struct IgtlLink::Impl {
+  ReusableServerSocket::Pointer server;
+  ::igtl::ClientSocket::Pointer client;  ///< Owns the client's descriptor (closes it).
+  int client_fd = -1;
+  std::string peer;
+  std::vector<unsigned char> output;     ///< Packed messages not yet sent.
+  std::size_t output_sent = 0;           ///< Bytes of `output` already sent.
+
+  // Incoming message parser.
+  std::array<unsigned char, kHeaderSize> header{};
+  std::size_t header_got = 0;
+  bool in_body = false;
+  bool keep_body = false;  ///< IMAGE: keep the body; else discard it.
+  std::uint64_t body_size = 0;
+  std::uint64_t body_got = 0;
+  std::vector<unsigned char> body;
+  std::array<unsigned char, 64 * 1024> scratch{};
+
+  // Outgoing messages (built once, packed per frame).
+  ::igtl::TransformMessage::Pointer proxy = ::igtl::TransformMessage::New();
+  ::igtl::TransformMessage::Pointer device = ::igtl::TransformMessage::New();
+  ::igtl::SensorMessage::Pointer force = ::igtl::SensorMessage::New();
+  ::igtl::StringMessage::Pointer contact = ::igtl::StringMessage::New();
+  ::igtl::TimeStamp::Pointer stamp = ::igtl::TimeStamp::New();
+  runtime::HapticSnapshot snapshot;  ///< The consumer's copy (large: kept, not on the stack).
+  bool have_snapshot = false;
+  std::int64_t wall_minus_steady_ns = 0;
+};
+
+IgtlLink::IgtlLink(std::shared_ptr<runtime::SnapshotChannel> channel, LinkOptions options)
+    : channel_(std::move(channel)), options_(std::move(options)), rate_Hz_(options_.rate_Hz) {
+  if (options_.port < 1 || options_.port > 65535) {
+    throw std::invalid_argument("OpenIGTLink: port must be in 1..65535, not " + std::to_string(options_.port));
+  }
+  if (!(options_.rate_Hz > 0.0) || !std::isfinite(options_.rate_Hz)) {
+    throw std::invalid_argument("OpenIGTLink: rate must be a positive number of Hz");
+  }
+  if (options_.servo_rate_Hz > 0.0 && std::isfinite(options_.servo_rate_Hz)) {
+    rate_Hz_ = std::min(rate_Hz_, options_.servo_rate_Hz);
+  }
+  // A body must fit the library's int sizes.
+  options_.max_message_bytes = std::min<std::uint64_t>(options_.max_message_bytes, (std::uint64_t{1} << 31) - 4096);
+}
+
+IgtlLink::~IgtlLink() { stop(); }
+
+void IgtlLink::start() {
+  if (thread_.joinable()) return;
+  impl_ = std::make_unique<Impl>();
+  impl_->server = ReusableServerSocket::New();
+  if (impl_->server->createReusableServer(options_.port) != 0) {
+    impl_.reset();
+    throw std::runtime_error("OpenIGTLink: cannot listen on port " + std::to_string(options_.port) + " (in use?)");
+  }
+  Impl& m = *impl_;
+  m.proxy->SetDeviceName(options_.proxy_name.c_str());
+  m.device->SetDeviceName(options_.device_name.c_str());
+  m.force->SetDeviceName(options_.force_name.c_str());
+  m.force->SetLength(3);
+  ::igtl::Unit::Pointer newton = ::igtl::Unit::New();
+  newton->Init();
+  newton->SetPrefix(::igtl::Unit::SI_PREFIX_NONE);
+  newton->Append(::igtl::Unit::SI_DERIVED_NEWTON, 1);
+  m.force->SetUnit(newton);
+  m.contact->SetDeviceName(options_.contact_name.c_str());
+  m.wall_minus_steady_ns = wallNs() - steadyNs();
+  {
+    const std::lock_guard<std::mutex> lock(mutex_);
+    status_ = LinkStatus{};
+    status_.listening = true;
+    status_.port = options_.port;
+    status_.rate_Hz = rate_Hz_;
+  }
+  stop_requested_.store(false, std::memory_order_release);
+  running_.store(true, std::memory_order_release);
+  try {
+    thread_ = std::thread([this] { run(); });
+  } catch (...) {
+    running_.store(false, std::memory_order_release);
+    impl_.reset();
+    throw;
+  }
+}
+
+void IgtlLink::stop() {
+  stop_requested_.store(true, std::memory_order_release);
+  if (thread_.joinable()) thread_.join();
+  impl_.reset();  // closes the client and the server socket
+  running_.store(false, std::memory_order_release);
+  const std::lock_guard<std::mutex> lock(mutex_);
+  status_.listening = false;
+  status_.connected = false;
+  status_.peer.clear();
+}
+
+LinkStatus IgtlLink::status() const {
+  const std::lock_guard<std::mutex> lock(mutex_);
+  return status_;
+}
+
+std::string IgtlLink::statusText() const {
+  const LinkStatus s = status();
+  if (!s.listening) return "OpenIGTLink off";
+  if (s.connected) {
+    const std::string host = s.peer.substr(0, s.peer.rfind(':'));
+    return "OpenIGTLink: connected to " + host + " (port " + std::to_string(s.port) + ")";
+  }
+  return "OpenIGTLink: listening on " + std::to_string(s.port);
+}
+
+std::optional<io::LoadedVolume> IgtlLink::takeReceivedVolume() {
+  const std::lock_guard<std::mutex> lock(mutex_);
+  if (inbox_.empty()) return std::nullopt;
+  io::LoadedVolume v = std::move(inbox_.front());
+  inbox_.pop_front();
+  return v;
+}
+
+std::vector<std::string> IgtlLink::takeNotices() {
+  const std::lock_guard<std::mutex> lock(mutex_);
+  std::vector<std::string> out(notices_.begin(), notices_.end());
+  notices_.clear();
+  return out;
+}
+
+void IgtlLink::notice(std::string text) {
+  const std::lock_guard<std::mutex> lock(mutex_);
+  notices_.push_back(std::move(text));
+  while (notices_.size() > kMaxNotices) notices_.pop_front();
+}
+
+void IgtlLink::run() noexcept {
+  Impl& m = *impl_;
+  const auto period_ns = static_cast<std::int64_t>(std::llround(1e9 / rate_Hz_));
+  std::int64_t next_frame_ns = steadyNs();
+
+  const auto closeClient = [&](const std::string& why) {
+    if (m.client_fd < 0) return;
+    if (m.in_body || m.header_got > 0) {
+      notice("OpenIGTLink: a message from " + m.peer + " was cut off (" + std::to_string(m.in_body ? m.body_got : m.header_got) +
+             " bytes of it received)");
+    }
+    notice("OpenIGTLink: client " + m.peer + " " + why);
+    m.client->CloseSocket();
+    m.client = nullptr;
+    m.client_fd = -1;
+    m.output.clear();
+    m.output_sent = 0;
+    m.header_got = 0;
+    m.in_body = false;
+    m.body.clear();
+    m.body.shrink_to_fit();
+    const std::lock_guard<std::mutex> lock(mutex_);
+    status_.connected = false;
+    status_.peer.clear();
+  };
+  const auto reject = [&](const std::string& why) {
+    notice("OpenIGTLink: rejected a message from " + m.peer + ": " + why);
+    const std::lock_guard<std::mutex> lock(mutex_);
+    ++status_.messages_rejected;
+  };
+
+  // Writes what it can of the output buffer; false when the client is gone.
+  const auto flush = [&]() -> bool {
+    while (m.output_sent < m.output.size()) {
+      const ssize_t n = ::send(m.client_fd, m.output.data() + m.output_sent, m.output.size() - m.output_sent,
+                               MSG_NOSIGNAL | MSG_DONTWAIT);
+      if (n > 0) {
+        m.output_sent += static_cast<std::size_t>(n);
+        continue;
+      }
+      if (n < 0 && (errno == EAGAIN || errno == EWOULDBLOCK)) return true;
+      if (n < 0 && errno == EINTR) continue;
+      return false;
+    }
+    m.output.clear();
+    m.output_sent = 0;
+    return true;
+  };
+  const auto append = [&](::igtl::MessageBase& message) {
+    message.SetTimeStamp(m.stamp);
+    message.Pack();
+    const auto* p = static_cast<const unsigned char*>(message.GetPackPointer());
+    m.output.insert(m.output.end(), p, p + message.GetPackSize());
+  };
+
+  // One frame: the four messages from the latest snapshot.
+  const auto sendFrame = [&]() {
+    if (channel_ != nullptr && channel_->read(m.snapshot)) m.have_snapshot = true;
+    if (m.client_fd < 0 || !m.have_snapshot) return;
+    if (m.output.size() - m.output_sent > kMaxPendingOutput) {
+      const std::lock_guard<std::mutex> lock(mutex_);
+      ++status_.frames_skipped;
+      return;
+    }
+    const runtime::HapticSnapshot& s = m.snapshot;
+    const std::int64_t t_ns = s.time_ns != 0 ? s.time_ns + m.wall_minus_steady_ns : wallNs();
+    m.stamp->SetTime(static_cast<::igtl_uint32>(t_ns / kNsPerS), static_cast<::igtl_uint32>(t_ns % kNsPerS));
+    ::igtl::Matrix4x4 matrix;
+    toIgtl(toRasMatrix_mm(s.X_WP), matrix);
+    m.proxy->SetMatrix(matrix);
+    append(*m.proxy);
+    toIgtl(toRasMatrix_mm(s.X_WD), matrix);
+    m.device->SetMatrix(matrix);
+    append(*m.device);
+    const Eigen::Vector3d force_RAS_N = toRas(s.force_W_N);
+    for (unsigned i = 0; i < 3; ++i) m.force->SetValue(i, force_RAS_N[static_cast<int>(i)]);
+    append(*m.force);
+    nlohmann::json state;
+    state["tick"] = s.tick;
+    state["contacts"] = s.contacts;
+    state["force_N"] = s.force_W_N.allFinite() ? s.force_W_N.norm() : 0.0;
+    std::string segment;
+    if (options_.segment_name) {
+      try {
+        segment = options_.segment_name(s);
+      } catch (...) {  // NOLINT(bugprone-empty-catch): the hook's failure leaves the segment null
+        segment.clear();
+      }
+    }
+    state["segment"] = segment.empty() ? nlohmann::json(nullptr) : nlohmann::json(segment);
+    std::string text = state.dump();
+    m.contact->SetString(text);
+    append(*m.contact);
+    if (!flush()) {
+      closeClient("disconnected (send failed)");
+      return;
+    }
+    const std::lock_guard<std::mutex> lock(mutex_);
+    ++status_.frames_sent;
+  };
+
+  // A whole message arrived (header in m.header, IMAGE body in m.body).
+  const auto handleImage = [&]() {
+    const std::uint16_t version = static_cast<std::uint16_t>(readBigEndian(m.header.data(), 2));
+    const std::string name = fixedString(m.header.data() + 14, 20);
+    std::array<unsigned char, kHeaderSize> v1_header = m.header;
+    const unsigned char* content = m.body.data();
+    std::uint64_t content_size = m.body.size();
+    if (version == 2) {
+      // Header version 2 (protocol 3): extended header, content, metadata. libOpenIGTLink 1.11
+      // knows version 1 only: check the CRC over the whole body here, then hand it the content.
+      if (m.body.size() < kExtendedHeaderSize) return reject("IMAGE '" + name + "': body shorter than its extended header");
+      const std::uint64_t crc = crc64(m.body.data(), m.body.size(), 0ULL);
+      if (crc != readBigEndian(m.header.data() + 50, 8)) return reject("IMAGE '" + name + "': CRC mismatch");
+      const std::uint64_t ext = readBigEndian(m.body.data(), 2);
+      const std::uint64_t meta_header = readBigEndian(m.body.data() + 2, 2);
+      const std::uint64_t meta = readBigEndian(m.body.data() + 4, 4);
+      if (ext < kExtendedHeaderSize || ext + meta_header + meta > m.body.size()) {
+        return reject("IMAGE '" + name + "': extended header sizes exceed the body");
+      }
+      content = m.body.data() + ext;
+      content_size = m.body.size() - ext - meta_header - meta;
+      writeBigEndian(v1_header.data(), 2, 1);
+      writeBigEndian(v1_header.data() + 42, 8, content_size);
+      writeBigEndian(v1_header.data() + 50, 8, crc64(const_cast<unsigned char*>(content), content_size, 0ULL));
+    } else if (version != 1) {
+      return reject("IMAGE '" + name + "': unknown header version " + std::to_string(version));
+    }
+    if (content_size < kImageHeaderSize) return reject("IMAGE '" + name + "': body shorter than the image header");
+    ::igtl::MessageHeader::Pointer header = ::igtl::MessageHeader::New();
+    header->InitPack();
+    std::memcpy(header->GetPackPointer(), v1_header.data(), kHeaderSize);
+    header->Unpack();
+    ::igtl::ImageMessage::Pointer image = ::igtl::ImageMessage::New();
+    image->SetMessageHeader(header);
+    image->AllocatePack();
+    if (static_cast<std::uint64_t>(image->GetPackBodySize()) != content_size) {
+      return reject("IMAGE '" + name + "': body size mismatch");
+    }
+    std::memcpy(image->GetPackBodyPointer(), content, content_size);
+    if (!(image->Unpack(1) & ::igtl::MessageHeader::UNPACK_BODY)) {
+      return reject("IMAGE '" + name + "': CRC mismatch or unknown image header version");
+    }
+    int dims[3], sub_dims[3], sub_off[3];
+    image->GetDimensions(dims);
+    image->GetSubVolume(sub_dims, sub_off);
+    if (image->GetNumComponents() != 1) {
+      return reject("IMAGE '" + name + "': " + std::to_string(image->GetNumComponents()) + " components (only scalar volumes)");
+    }
+    for (int a = 0; a < 3; ++a) {
+      if (dims[a] < 2) {
+        return reject("IMAGE '" + name + "': " + std::to_string(dims[0]) + " x " + std::to_string(dims[1]) + " x " +
+                      std::to_string(dims[2]) + " voxels (at least 2 along every axis)");
+      }
+      if (sub_dims[a] != dims[a] || sub_off[a] != 0) return reject("IMAGE '" + name + "': a sub-volume (only whole volumes)");
+    }
+    const int type = image->GetScalarType();
+    std::uint64_t scalar_size = 0;
+    switch (type) {
+      case ::igtl::ImageMessage::TYPE_INT8: case ::igtl::ImageMessage::TYPE_UINT8: scalar_size = 1; break;
+      case ::igtl::ImageMessage::TYPE_INT16: case ::igtl::ImageMessage::TYPE_UINT16: scalar_size = 2; break;
+      case ::igtl::ImageMessage::TYPE_INT32: case ::igtl::ImageMessage::TYPE_UINT32:
+      case ::igtl::ImageMessage::TYPE_FLOAT32: scalar_size = 4; break;
+      case ::igtl::ImageMessage::TYPE_FLOAT64: scalar_size = 8; break;
+      default: return reject("IMAGE '" + name + "': unknown scalar type " + std::to_string(type));
+    }
+    const std::uint64_t count =
+        static_cast<std::uint64_t>(dims[0]) * static_cast<std::uint64_t>(dims[1]) * static_cast<std::uint64_t>(dims[2]);
+    if (kImageHeaderSize + count * scalar_size != content_size) {
+      return reject("IMAGE '" + name + "': " + std::to_string(content_size - kImageHeaderSize) + " bytes of voxels, expected " +
+                    std::to_string(count * scalar_size));
+    }
+    auto* voxels = static_cast<unsigned char*>(image->GetScalarPointer());
+    const bool little_host = igtl_is_little_endian() != 0;
+    const bool little_data = image->GetEndian() == ::igtl::ImageMessage::ENDIAN_LITTLE;
+    if (scalar_size > 1 && little_host != little_data) {
+      for (std::uint64_t i = 0; i < count; ++i) std::reverse(voxels + i * scalar_size, voxels + (i + 1) * scalar_size);
+    }
+    // Geometry: unit axes (columns 0..2) and the image centre (column 3), OpenIGTLink's
+    // convention; the first voxel's centre is (dims - 1) / 2 voxels back from it.
+    ::igtl::Matrix4x4 matrix;
+    image->GetMatrix(matrix);
+    float spacing[3];
+    image->GetSpacing(spacing);
+    Eigen::Matrix4d X = Eigen::Matrix4d::Identity();
+    Eigen::Vector3d centre;
+    for (int r = 0; r < 3; ++r) centre[r] = matrix[r][3];
+    for (int a = 0; a < 3; ++a) {
+      Eigen::Vector3d axis(matrix[0][a], matrix[1][a], matrix[2][a]);
+      const double n = axis.norm();
+      if (!(n > 0.0) || !std::isfinite(n)) return reject("IMAGE '" + name + "': a zero or non-finite axis");
+      X.block<3, 1>(0, a) = axis / n * static_cast<double>(spacing[a]);
+    }
+    X.block<3, 1>(0, 3) = centre - X.topLeftCorner<3, 3>() * Eigen::Vector3d(0.5 * (dims[0] - 1), 0.5 * (dims[1] - 1), 0.5 * (dims[2] - 1));
+    if (image->GetCoordinateSystem() == ::igtl::ImageMessage::COORDINATE_LPS) {
+      X.topRows<2>() *= -1.0;  // LPS -> RAS
+    }
+    try {
+      std::vector<std::byte> bytes;
+      const haptics::VoxelType voxel_type = convertVoxels(type, voxels, static_cast<std::size_t>(count), bytes);
+      io::LoadedVolume volume =
+          volumeFromIjkToRas({dims[0], dims[1], dims[2]}, X, voxel_type, std::move(bytes), name);
+      notice("OpenIGTLink: received volume '" + name + "' (" + std::to_string(dims[0]) + " x " + std::to_string(dims[1]) +
+             " x " + std::to_string(dims[2]) + ")");
+      const std::lock_guard<std::mutex> lock(mutex_);
+      inbox_.push_back(std::move(volume));
+      ++status_.images_received;
+    } catch (const std::exception& e) {
+      reject("IMAGE '" + name + "': " + e.what());
+    }
+  };
+
+  // Reads what the client has sent; false when it is gone (or sent something that cannot be
+  // skipped).
+  const auto receive = [&]() -> bool {
+    for (;;) {
+      unsigned char* target = nullptr;
+      std::size_t want = 0;
+      if (!m.in_body) {
+        target = m.header.data() + m.header_got;
+        want = kHeaderSize - m.header_got;
+      } else if (m.keep_body) {
+        target = m.body.data() + m.body_got;
+        want = static_cast<std::size_t>(m.body_size - m.body_got);
+      } else {
+        target = m.scratch.data();
+        want = static_cast<std::size_t>(std::min<std::uint64_t>(m.scratch.size(), m.body_size - m.body_got));
+      }
+      if (want > 0) {
+        const ssize_t n = ::recv(m.client_fd, target, want, MSG_DONTWAIT);
+        if (n == 0) return false;
+        if (n < 0) {
+          if (errno == EAGAIN || errno == EWOULDBLOCK) return true;
+          if (errno == EINTR) continue;
+          return false;
+        }
+        if (!m.in_body) m.header_got += static_cast<std::size_t>(n);
+        else m.body_got += static_cast<std::uint64_t>(n);
+      }
+      if (!m.in_body && m.header_got == kHeaderSize) {
+        m.body_size = readBigEndian(m.header.data() + 42, 8);
+        const std::string type = fixedString(m.header.data() + 2, 12);
+        if (m.body_size > options_.max_message_bytes) {
+          reject(type + " '" + fixedString(m.header.data() + 14, 20) + "': body of " + std::to_string(m.body_size) +
+                 " bytes exceeds the limit of " + std::to_string(options_.max_message_bytes));
+          m.header_got = 0;
+          return false;  // cannot skip that much safely: drop the client
+        }
+        m.in_body = true;
+        m.body_got = 0;
+        m.keep_body = type == "IMAGE";
+        if (m.keep_body) {
+          try {
+            m.body.assign(static_cast<std::size_t>(m.body_size), 0);
+          } catch (const std::bad_alloc&) {
+            reject("IMAGE: out of memory for " + std::to_string(m.body_size) + " bytes");
+            m.in_body = false;
+            m.header_got = 0;
+            return false;
+          }
+        }
+      }
+      if (m.in_body && m.body_got == m.body_size) {
+        m.in_body = false;
+        m.header_got = 0;
+        {
+          const std::lock_guard<std::mutex> lock(mutex_);
+          ++status_.messages_received;
+        }
+        if (m.keep_body) {
+          handleImage();
+          m.body.clear();
+          m.body.shrink_to_fit();
+        }
+      }
+    }
+  };
+
+  const auto acceptClient = [&]() {
+    ::igtl::ClientSocket::Pointer socket = m.server->WaitForConnection(1);
+    if (socket.IsNull()) return;
+    if (m.client_fd >= 0) closeClient("replaced by a new connection");
+    m.client = socket;
+    m.client_fd = SocketDescriptor::of(*socket);
+    setsockopt(m.client_fd, SOL_SOCKET, SO_SNDBUF, &kClientSendBuffer, sizeof(kClientSendBuffer));
+    sockaddr_in address{};
+    socklen_t length = sizeof(address);
+    char text[INET_ADDRSTRLEN] = "?";
+    if (getpeername(m.client_fd, reinterpret_cast<sockaddr*>(&address), &length) == 0) {
+      inet_ntop(AF_INET, &address.sin_addr, text, sizeof(text));
+    }
+    m.peer = std::string(text) + ":" + std::to_string(ntohs(address.sin_port));
+    notice("OpenIGTLink: client " + m.peer + " connected");
+    const std::lock_guard<std::mutex> lock(mutex_);
+    status_.connected = true;
+    status_.peer = m.peer;
+    ++status_.clients;
+  };
+
+  try {
+    while (!stop_requested_.load(std::memory_order_acquire)) {
+      const std::int64_t now = steadyNs();
+      if (now >= next_frame_ns) {
+        sendFrame();
+        next_frame_ns += period_ns;
+        if (now - next_frame_ns > period_ns) next_frame_ns = now + period_ns;  // fell behind: no burst
+      }
+      // Wait for the next frame, a connection, data, or room for pending output; at most
+      // 50 ms so stop() is prompt.
+      pollfd fds[2];
+      fds[0] = {m.server->descriptor(), POLLIN, 0};
+      nfds_t count = 1;
+      if (m.client_fd >= 0) {
+        fds[1] = {m.client_fd, static_cast<short>(POLLIN | (m.output.empty() ? 0 : POLLOUT)), 0};
+        count = 2;
+      }
+      const std::int64_t wait_ns = std::clamp<std::int64_t>(next_frame_ns - steadyNs(), 0, 50'000'000);
+      const timespec timeout{static_cast<time_t>(wait_ns / kNsPerS), static_cast<long>(wait_ns % kNsPerS)};
+      const int ready = ppoll(fds, count, &timeout, nullptr);
+      if (ready <= 0) continue;
+      if (count == 2 && fds[1].revents != 0) {
+        if ((fds[1].revents & (POLLIN | POLLHUP | POLLERR)) != 0 && !receive()) {
+          closeClient("disconnected");
+        } else if ((fds[1].revents & POLLOUT) != 0 && !flush()) {
+          closeClient("disconnected (send failed)");
+        }
+      }
+      if ((fds[0].revents & POLLIN) != 0) acceptClient();
+    }
+  } catch (const std::exception& e) {
+    notice(std::string("OpenIGTLink: the link stopped: ") + e.what());
+  } catch (...) {
+    notice("OpenIGTLink: the link stopped (unknown error)");
+  }
+  if (m.client_fd >= 0) closeClient("closed (the link stopped)");
+  running_.store(false, std::memory_order_release);
+}
+
+}  // namespace vh::igtl

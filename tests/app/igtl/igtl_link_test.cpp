@@ -1,0 +1,610 @@
+// The OpenIGTLink link (vh/igtl/igtl_link.h) against loopback clients written with
+// libOpenIGTLink (and one plain socket that never reads): transforms at the asked rate with RAS
+// values, IMAGE messages opened with their geometry, malformed messages and dropped clients
+// survived, and a stalled client never slowing the haptic thread.
+#include "vh/igtl/igtl_link.h"
+
+#include <netinet/in.h>
+#include <signal.h>
+#include <sys/socket.h>
+#include <unistd.h>
+
+#include <chrono>
+#include <cmath>
+#include <cstring>
+#include <map>
+#include <thread>
+
+#include <Eigen/Geometry>
+#include <gtest/gtest.h>
+#include <nlohmann/json.hpp>
+
+#include <igtlClientSocket.h>
+#include <igtlImageMessage.h>
+#include <igtlMessageHeader.h>
+#include <igtlSensorMessage.h>
+#include <igtlStringMessage.h>
+#include <igtlTimeStamp.h>
+#include <igtlTransformMessage.h>
+#include <igtlUnit.h>
+#include <igtl_header.h>
+#include <igtl_util.h>
+
+#include "runtime_test_support.h"
+#include "vh/runtime/scene.h"
+#include "vh/runtime/session.h"
+#include "vh/runtime/snapshot_channel.h"
+
+namespace vh::igtl {
+namespace {
+
+using namespace std::chrono_literals;
+using Clock = std::chrono::steady_clock;
+using haptics::Pose;
+
+double secondsSince(Clock::time_point t0) { return std::chrono::duration<double>(Clock::now() - t0).count(); }
+
+/// A port no one listens on now: probed with a plain socket (igtl::ServerSocket cannot bind
+/// port 0), starting from a pid-dependent place so parallel test processes spread out.
+int probeFreePort() {
+  static int next = 20000 + static_cast<int>(getpid() % 2000) * 10;
+  for (int tries = 0; tries < 500; ++tries) {
+    const int port = next++;
+    if (next > 60000) next = 20000;
+    const int fd = socket(AF_INET, SOCK_STREAM, 0);
+    sockaddr_in a{};
+    a.sin_family = AF_INET;
+    a.sin_addr.s_addr = htonl(INADDR_ANY);
+    a.sin_port = htons(static_cast<std::uint16_t>(port));
+    const bool ok = bind(fd, reinterpret_cast<sockaddr*>(&a), sizeof(a)) == 0;
+    close(fd);
+    if (ok) return port;
+  }
+  return 0;
+}
+
+/// Starts `link` options on a free port (retrying when another process took it meanwhile).
+std::unique_ptr<IgtlLink> startLink(std::shared_ptr<runtime::SnapshotChannel> channel, LinkOptions options) {
+  for (int tries = 0; tries < 20; ++tries) {
+    options.port = probeFreePort();
+    auto link = std::make_unique<IgtlLink>(channel, options);
+    try {
+      link->start();
+      return link;
+    } catch (const std::runtime_error&) {
+    }
+  }
+  ADD_FAILURE() << "no free port to listen on";
+  return nullptr;
+}
+
+/// What a client read: one entry per message.
+struct Received {
+  std::string type, name;
+  double t_s = 0.0;                         ///< Receive time since the client connected [s].
+  Eigen::Matrix4d matrix = Eigen::Matrix4d::Zero();  ///< TRANSFORM
+  std::vector<double> values;               ///< SENSOR
+  std::uint64_t unit = 0;                     ///< SENSOR
+  std::string text;                         ///< STRING
+  double stamp_s = 0.0;                     ///< Header time stamp [s since the epoch].
+};
+
+/// A loopback OpenIGTLink client (libOpenIGTLink's ClientSocket and message classes).
+class Client {
+ public:
+  bool connect(int port) {
+    socket_ = ::igtl::ClientSocket::New();
+    for (int i = 0; i < 50; ++i) {
+      if (socket_->ConnectToServer("127.0.0.1", port) == 0) {
+        socket_->SetReceiveTimeout(2000);
+        t0_ = Clock::now();
+        return true;
+      }
+      std::this_thread::sleep_for(20ms);
+    }
+    return false;
+  }
+  void close() { socket_->CloseSocket(); }
+  ::igtl::ClientSocket& socket() { return *socket_; }
+
+  /// Reads one message; false on timeout or a closed socket.
+  bool read(Received& out) {
+    ::igtl::MessageHeader::Pointer header = ::igtl::MessageHeader::New();
+    header->InitPack();
+    if (socket_->Receive(header->GetPackPointer(), header->GetPackSize()) != header->GetPackSize()) return false;
+    header->Unpack();
+    out = Received{};
+    out.t_s = secondsSince(t0_);
+    out.type = header->GetDeviceType();
+    out.name = header->GetDeviceName();
+    ::igtl::TimeStamp::Pointer ts = ::igtl::TimeStamp::New();
+    header->GetTimeStamp(ts);
+    out.stamp_s = ts->GetTimeStamp();
+    const auto body = [&](::igtl::MessageBase& m) {
+      m.SetMessageHeader(header);
+      m.AllocatePack();
+      if (socket_->Receive(m.GetPackBodyPointer(), m.GetPackBodySize()) != m.GetPackBodySize()) return false;
+      return (m.Unpack(1) & ::igtl::MessageHeader::UNPACK_BODY) != 0;
+    };
+    if (out.type == "TRANSFORM") {
+      ::igtl::TransformMessage::Pointer m = ::igtl::TransformMessage::New();
+      if (!body(*m)) return false;
+      ::igtl::Matrix4x4 matrix;
+      m->GetMatrix(matrix);
+      for (int r = 0; r < 4; ++r) {
+        for (int c = 0; c < 4; ++c) out.matrix(r, c) = matrix[r][c];
+      }
+    } else if (out.type == "SENSOR") {
+      ::igtl::SensorMessage::Pointer m = ::igtl::SensorMessage::New();
+      if (!body(*m)) return false;
+      for (unsigned i = 0; i < m->GetLength(); ++i) out.values.push_back(m->GetValue(i));
+      out.unit = m->GetUnit();
+    } else if (out.type == "STRING") {
+      ::igtl::StringMessage::Pointer m = ::igtl::StringMessage::New();
+      if (!body(*m)) return false;
+      out.text = m->GetString();
+    } else {
+      if (socket_->Skip(header->GetBodySizeToRead(), 1) != header->GetBodySizeToRead()) return false;
+    }
+    return true;
+  }
+
+  /// Reads for `duration`; @return every message.
+  std::vector<Received> readFor(std::chrono::duration<double> duration) {
+    std::vector<Received> all;
+    const auto end = Clock::now() + duration;
+    Received r;
+    while (Clock::now() < end && read(r)) all.push_back(r);
+    return all;
+  }
+
+ private:
+  ::igtl::ClientSocket::Pointer socket_;
+  Clock::time_point t0_;
+};
+
+/// Publishes one coupling and one solver snapshot into `channel` (the test thread is the
+/// channel's only producer).
+void publish(runtime::SnapshotChannel& channel, const Pose& X_WP, const Pose& X_WD, const Eigen::Vector3d& force_W_N,
+             int contacts, std::uint64_t tick, std::int64_t time_ns) {
+  runtime::CouplingSnapshot& c = channel.couplingSlot();
+  c.tick = tick;
+  c.time_ns = time_ns;
+  c.X_WP = X_WP;
+  c.X_WD = X_WD;
+  c.force_W_N = force_W_N;
+  channel.publishCoupling();
+  runtime::SolverSnapshot& s = channel.solverSlot();
+  s.tick = tick;
+  s.contacts = contacts;
+  channel.publishSolver();
+}
+
+std::int64_t steadyNowNs() {
+  return std::chrono::duration_cast<std::chrono::nanoseconds>(Clock::now().time_since_epoch()).count();
+}
+double wallNowS() {
+  return std::chrono::duration<double>(std::chrono::system_clock::now().time_since_epoch()).count();
+}
+
+class IgtlLinkTest : public ::testing::Test {
+ protected:
+  // A client that vanishes must not kill the test process (libOpenIGTLink's send has no
+  // MSG_NOSIGNAL).
+  void SetUp() override { signal(SIGPIPE, SIG_IGN); }
+};
+
+// ---- Conversions ---------------------------------------------------------------------------
+
+TEST(IgtlConversion, RasMatrixNegatesXAndYInMillimetres) {
+  // 90 degrees about x of W (LPS): in RAS, whose x and y point the other way, that is -90
+  // degrees about x; the translation (10, 20, 30) mm becomes (-10, -20, 30) mm.
+  const Pose X_WT(Eigen::Quaterniond(Eigen::AngleAxisd(M_PI / 2, Eigen::Vector3d::UnitX())),
+                  Eigen::Vector3d(0.010, 0.020, 0.030));
+  Eigen::Matrix4d expected;
+  expected << 1, 0, 0, -10,  //
+      0, 0, 1, -20,          //
+      0, -1, 0, 30,          //
+      0, 0, 0, 1;
+  EXPECT_TRUE(toRasMatrix_mm(X_WT).isApprox(expected, 1e-12)) << toRasMatrix_mm(X_WT);
+  EXPECT_TRUE(toRas(Eigen::Vector3d(1, 2, 3)).isApprox(Eigen::Vector3d(-1, -2, 3)));
+}
+
+TEST(IgtlConversion, VolumeFromIjkToRasIsInLpsMetres) {
+  Eigen::Matrix4d X = Eigen::Matrix4d::Identity();
+  X.diagonal().head<3>() = Eigen::Vector3d(0.5, 0.7, 1.2);
+  X.block<3, 1>(0, 3) = Eigen::Vector3d(10, 20, 30);
+  std::vector<std::byte> bytes(2 * 3 * 4);
+  const io::LoadedVolume v = volumeFromIjkToRas({2, 3, 4}, X, haptics::VoxelType::kUInt8, bytes, "T");
+  const haptics::VolumeGeometry& g = v.field->geometry();
+  EXPECT_TRUE(g.spacing_m.isApprox(Eigen::Vector3d(0.0005, 0.0007, 0.0012)));
+  EXPECT_TRUE(g.origin_W_m.isApprox(Eigen::Vector3d(-0.010, -0.020, 0.030)));
+  EXPECT_TRUE(g.direction_W.isApprox(Eigen::Vector3d(-1, -1, 1).asDiagonal().toDenseMatrix()));
+  EXPECT_EQ(v.info.format, "OpenIGTLink");
+  EXPECT_EQ(v.info.description, "T");
+  ASSERT_NE(v.image, nullptr);
+  X(0, 1) = 0.3;  // sheared
+  EXPECT_THROW(volumeFromIjkToRas({2, 3, 4}, X, haptics::VoxelType::kUInt8, bytes, "T"), std::invalid_argument);
+}
+
+TEST(IgtlConversion, OptionsAreChecked) {
+  LinkOptions o;
+  o.port = 0;
+  EXPECT_THROW(IgtlLink(nullptr, o), std::invalid_argument);
+  o.port = 18944;
+  o.rate_Hz = 0.0;
+  EXPECT_THROW(IgtlLink(nullptr, o), std::invalid_argument);
+  o.rate_Hz = 5000.0;
+  o.servo_rate_Hz = 1000.0;
+  EXPECT_DOUBLE_EQ(IgtlLink(nullptr, o).rate_Hz(), 1000.0);  // clamped to the servo rate
+  EXPECT_EQ(IgtlLink(nullptr, o).statusText(), "OpenIGTLink off");
+}
+
+// ---- Streaming -----------------------------------------------------------------------------
+
+class IgtlLinkRate : public IgtlLinkTest, public ::testing::WithParamInterface<double> {};
+
+TEST_P(IgtlLinkRate, StreamsTransformsAtTheAskedRateWithRasValues) {
+  const double rate_Hz = GetParam();
+  auto channel = std::make_shared<runtime::SnapshotChannel>();
+  const Pose X_WP(Eigen::Quaterniond(Eigen::AngleAxisd(0.7, Eigen::Vector3d(1, 2, 3).normalized())),
+                  Eigen::Vector3d(0.010, -0.020, 0.030));
+  const Pose X_WD(Eigen::Quaterniond(Eigen::AngleAxisd(-0.4, Eigen::Vector3d(0, 1, 1).normalized())),
+                  Eigen::Vector3d(0.011, -0.018, 0.027));
+  const Eigen::Vector3d force_W_N(1.5, -2.0, 0.25);
+  const std::int64_t t_ns = steadyNowNs();
+  const double expected_stamp_s = wallNowS();  // the snapshot's time on the wall clock
+  publish(*channel, X_WP, X_WD, force_W_N, 7, 1234, t_ns);
+
+  LinkOptions options;
+  options.rate_Hz = rate_Hz;
+  options.segment_name = [](const runtime::HapticSnapshot& s) { return s.contacts > 0 ? std::string("bone") : std::string(); };
+  auto link = startLink(channel, options);
+  ASSERT_NE(link, nullptr);
+  Client client;
+  ASSERT_TRUE(client.connect(link->options().port));
+  const std::vector<Received> all = client.readFor(1.5s);
+
+  // Independently: RAS = diag(-1, -1, 1) LPS for both the rotation's rows and columns, mm.
+  const auto expectedRas = [](const Pose& X) {
+    Eigen::Matrix4d M = Eigen::Matrix4d::Identity();
+    const Eigen::Matrix3d R = X.R_AB.toRotationMatrix();
+    const double s[3] = {-1.0, -1.0, 1.0};
+    for (int r = 0; r < 3; ++r) {
+      for (int c = 0; c < 3; ++c) M(r, c) = s[r] * s[c] * R(r, c);
+      M(r, 3) = s[r] * 1000.0 * X.p_AB_m[r];
+    }
+    return M;
+  };
+  std::map<std::string, std::vector<const Received*>> by_name;
+  for (const Received& r : all) by_name[r.name].push_back(&r);
+  ASSERT_FALSE(by_name["ProxyToRAS"].empty());
+  ASSERT_FALSE(by_name["DeviceToRAS"].empty());
+  ASSERT_FALSE(by_name["Force"].empty());
+  ASSERT_FALSE(by_name["ContactState"].empty());
+  const Received& proxy = *by_name["ProxyToRAS"].back();
+  const Received& device = *by_name["DeviceToRAS"].back();
+  EXPECT_EQ(proxy.type, "TRANSFORM");
+  EXPECT_TRUE(proxy.matrix.isApprox(expectedRas(X_WP), 1e-5)) << proxy.matrix << "\nexpected\n" << expectedRas(X_WP);
+  EXPECT_TRUE(device.matrix.isApprox(expectedRas(X_WD), 1e-5)) << device.matrix;
+  EXPECT_NEAR(proxy.matrix(0, 3), -10.0, 1e-4);  // x negated, mm
+  EXPECT_NEAR(proxy.matrix(1, 3), 20.0, 1e-4);   // y negated, mm
+  EXPECT_NEAR(proxy.matrix(2, 3), 30.0, 1e-4);
+  EXPECT_NEAR(proxy.stamp_s, expected_stamp_s, 0.005);  // the snapshot's time, not the send time
+  const Received& force = *by_name["Force"].back();
+  EXPECT_EQ(force.type, "SENSOR");
+  ASSERT_EQ(force.values.size(), 3u);
+  EXPECT_DOUBLE_EQ(force.values[0], -1.5);
+  EXPECT_DOUBLE_EQ(force.values[1], 2.0);
+  EXPECT_DOUBLE_EQ(force.values[2], 0.25);
+  EXPECT_NE(force.unit, 0u);
+  const nlohmann::json state = nlohmann::json::parse(by_name["ContactState"].back()->text);
+  EXPECT_EQ(state["contacts"], 7);
+  EXPECT_EQ(state["tick"], 1234);
+  EXPECT_NEAR(state["force_N"].get<double>(), force_W_N.norm(), 1e-12);
+  EXPECT_EQ(state["segment"], "bone");
+
+  // The rate: frames over the span between the first and the last (the client's clock).
+  const auto& frames = by_name["ProxyToRAS"];
+  const double span_s = frames.back()->t_s - frames.front()->t_s;
+  const double measured_Hz = static_cast<double>(frames.size() - 1) / span_s;
+  std::cout << "[ rate ] asked " << rate_Hz << " Hz, received " << measured_Hz << " Hz (" << frames.size()
+            << " frames over " << span_s << " s)\n";
+  EXPECT_NEAR(measured_Hz / rate_Hz, 1.0, 0.10);
+  EXPECT_NEAR(static_cast<double>(by_name["DeviceToRAS"].size()), static_cast<double>(frames.size()), 1.0);
+
+  const auto t_stop = Clock::now();
+  link->stop();
+  const double stop_ms = 1e3 * secondsSince(t_stop);
+  std::cout << "[ stop ] " << stop_ms << " ms with a client connected\n";
+  EXPECT_LT(stop_ms, 300.0);
+}
+
+INSTANTIATE_TEST_SUITE_P(Rates, IgtlLinkRate, ::testing::Values(60.0, 250.0),
+                         [](const auto& param_info) { return std::to_string(static_cast<int>(param_info.param)) + "Hz"; });
+
+// ---- Receiving volumes ---------------------------------------------------------------------
+
+/// A 20 x 16 x 12 int16 IMAGE with spacing (0.5, 0.7, 1.2) mm, first voxel at `corner_RAS_mm`,
+/// axes `N_RAS` (columns), values v(i, j, k) = i + 20 j - 7 k; `coordinate` RAS or LPS (the
+/// geometry is then given in LPS), `big_endian` swaps the voxels' bytes.
+::igtl::ImageMessage::Pointer makeImage(const Eigen::Matrix3d& N_RAS, const Eigen::Vector3d& corner_RAS_mm,
+                                        bool lps = false, bool big_endian = false) {
+  const int dims[3] = {20, 16, 12};
+  const float spacing[3] = {0.5f, 0.7f, 1.2f};
+  ::igtl::ImageMessage::Pointer m = ::igtl::ImageMessage::New();
+  m->SetDimensions(dims[0], dims[1], dims[2]);
+  m->SetSpacing(spacing[0], spacing[1], spacing[2]);
+  m->SetScalarTypeToInt16();
+  m->SetDeviceName("SlicerCT");
+  m->SetEndian(big_endian ? ::igtl::ImageMessage::ENDIAN_BIG : ::igtl::ImageMessage::ENDIAN_LITTLE);
+  // OpenIGTLink's origin is the image's centre.
+  const Eigen::Vector3d centre = corner_RAS_mm + N_RAS * Eigen::Vector3d(0.5 * 19 * 0.5, 0.5 * 15 * 0.7, 0.5 * 11 * 1.2);
+  const Eigen::Matrix3d F = Eigen::Vector3d(-1, -1, 1).asDiagonal();
+  const Eigen::Matrix3d N = lps ? Eigen::Matrix3d(F * N_RAS) : N_RAS;
+  const Eigen::Vector3d p = lps ? Eigen::Vector3d(F * centre) : centre;
+  ::igtl::Matrix4x4 matrix;
+  ::igtl::IdentityMatrix(matrix);
+  for (int r = 0; r < 3; ++r) {
+    for (int c = 0; c < 3; ++c) matrix[r][c] = static_cast<float>(N(r, c));
+    matrix[r][3] = static_cast<float>(p[r]);
+  }
+  m->SetMatrix(matrix);
+  m->SetCoordinateSystem(lps ? ::igtl::ImageMessage::COORDINATE_LPS : ::igtl::ImageMessage::COORDINATE_RAS);
+  m->AllocateScalars();
+  auto* v = static_cast<std::int16_t*>(m->GetScalarPointer());
+  for (int k = 0; k < dims[2]; ++k) {
+    for (int j = 0; j < dims[1]; ++j) {
+      for (int i = 0; i < dims[0]; ++i) {
+        std::int16_t value = static_cast<std::int16_t>(i + 20 * j - 7 * k);
+        if (big_endian) value = static_cast<std::int16_t>(((value & 0xff) << 8) | ((value >> 8) & 0xff));
+        v[i + dims[0] * (j + dims[1] * k)] = value;
+      }
+    }
+  }
+  m->Pack();
+  return m;
+}
+
+Eigen::Matrix3d obliqueAxes() {
+  return Eigen::AngleAxisd(0.5, Eigen::Vector3d(1, 1, 0.5).normalized()).toRotationMatrix();
+}
+
+void expectSlicerCt(const io::LoadedVolume& v, const Eigen::Matrix3d& N_RAS, const Eigen::Vector3d& corner_RAS_mm) {
+  ASSERT_NE(v.field, nullptr);
+  const haptics::VolumeGeometry& g = v.field->geometry();
+  EXPECT_EQ(g.dims, (std::array<int, 3>{20, 16, 12}));
+  EXPECT_TRUE(g.spacing_m.isApprox(Eigen::Vector3d(0.0005, 0.0007, 0.0012), 1e-6)) << g.spacing_m.transpose();
+  const Eigen::Matrix3d F = Eigen::Vector3d(-1, -1, 1).asDiagonal();
+  EXPECT_TRUE(g.origin_W_m.isApprox(1e-3 * F * corner_RAS_mm, 1e-5)) << g.origin_W_m.transpose();
+  EXPECT_TRUE(g.direction_W.isApprox(F * N_RAS, 1e-5)) << g.direction_W;
+  EXPECT_EQ(v.field->voxelType(), haptics::VoxelType::kInt16);
+  for (const auto& [i, j, k] : std::vector<std::array<int, 3>>{{0, 0, 0}, {19, 0, 0}, {3, 15, 0}, {7, 9, 11}, {19, 15, 11}}) {
+    EXPECT_DOUBLE_EQ(v.field->voxel(i, j, k), i + 20 * j - 7 * k) << i << " " << j << " " << k;
+  }
+  EXPECT_EQ(v.info.format, "OpenIGTLink");
+  EXPECT_EQ(v.info.description, "SlicerCT");
+  EXPECT_NE(v.image, nullptr);
+}
+
+std::optional<io::LoadedVolume> waitForVolume(IgtlLink& link) {
+  std::optional<io::LoadedVolume> v;
+  test::waitUntil([&] { return (v = link.takeReceivedVolume()).has_value(); });
+  return v;
+}
+
+TEST_F(IgtlLinkTest, ReceivedImageOpensWithItsSpacingOriginAndDirection) {
+  auto link = startLink(nullptr, LinkOptions{});
+  ASSERT_NE(link, nullptr);
+  Client client;
+  ASSERT_TRUE(client.connect(link->options().port));
+  const Eigen::Matrix3d N = obliqueAxes();
+  const Eigen::Vector3d corner(12.5, -30.25, 47.0);
+  ::igtl::ImageMessage::Pointer image = makeImage(N, corner);
+  ASSERT_EQ(client.socket().Send(image->GetPackPointer(), image->GetPackSize()), 1);
+  const std::optional<io::LoadedVolume> v = waitForVolume(*link);
+  ASSERT_TRUE(v.has_value()) << "no volume; status: " << link->statusText();
+  expectSlicerCt(*v, N, corner);
+
+  // The same volume in LPS and big-endian.
+  image = makeImage(N, corner, /*lps=*/true, /*big_endian=*/true);
+  ASSERT_EQ(client.socket().Send(image->GetPackPointer(), image->GetPackSize()), 1);
+  const std::optional<io::LoadedVolume> v2 = waitForVolume(*link);
+  ASSERT_TRUE(v2.has_value());
+  expectSlicerCt(*v2, N, corner);
+  EXPECT_EQ(link->status().images_received, 2u);
+
+  // It opens as a scene, exactly as a loaded file.
+  const runtime::SceneSpec spec = runtime::sceneForLoadedVolume(*v);
+  EXPECT_EQ(spec.volume.path, "igtl:SlicerCT");
+  const runtime::LoadedScene scene = runtime::loadScene(spec, *v);
+  EXPECT_EQ(scene.volume.field, v->field);
+  EXPECT_NE(scene.tool, nullptr);
+  EXPECT_GT(scene.isovalue, v->field->minValue());
+  EXPECT_LT(scene.isovalue, v->field->maxValue());
+}
+
+// ---- Robustness ----------------------------------------------------------------------------
+
+/// The image's packed bytes with the body cut to `body_bytes` and the header's size and CRC
+/// made consistent with the cut body (a message that is well-formed on the wire but whose
+/// IMAGE header promises more voxels than it carries).
+std::vector<unsigned char> truncatedImage(::igtl::ImageMessage& image, std::size_t body_bytes) {
+  const auto* p = static_cast<const unsigned char*>(image.GetPackPointer());
+  std::vector<unsigned char> bytes(p, p + IGTL_HEADER_SIZE + body_bytes);
+  const std::uint64_t crc = crc64(bytes.data() + IGTL_HEADER_SIZE, body_bytes, 0ULL);
+  for (int i = 0; i < 8; ++i) {
+    bytes[42 + i] = static_cast<unsigned char>(static_cast<std::uint64_t>(body_bytes) >> (56 - 8 * i));
+    bytes[50 + i] = static_cast<unsigned char>(crc >> (56 - 8 * i));
+  }
+  return bytes;
+}
+
+TEST_F(IgtlLinkTest, MalformedMessagesAndDroppedClientsLeaveTheLinkServing) {
+  auto channel = std::make_shared<runtime::SnapshotChannel>();
+  publish(*channel, Pose(), Pose(), Eigen::Vector3d::Zero(), 0, 1, steadyNowNs());
+  LinkOptions options;
+  options.rate_Hz = 100.0;
+  options.max_message_bytes = 1 << 20;
+  auto link = startLink(channel, options);
+  ASSERT_NE(link, nullptr);
+  const int port = link->options().port;
+  const Eigen::Matrix3d N = obliqueAxes();
+  const Eigen::Vector3d corner(1, 2, 3);
+
+  {  // A bad CRC, then an IMAGE whose voxels are cut short: both rejected, the connection kept.
+    Client client;
+    ASSERT_TRUE(client.connect(port));
+    ::igtl::ImageMessage::Pointer image = makeImage(N, corner);
+    std::vector<unsigned char> bytes(static_cast<const unsigned char*>(image->GetPackPointer()),
+                                     static_cast<const unsigned char*>(image->GetPackPointer()) + image->GetPackSize());
+    bytes[IGTL_HEADER_SIZE + 200] ^= 0x5a;
+    ASSERT_EQ(client.socket().Send(bytes.data(), static_cast<int>(bytes.size())), 1);
+    const std::vector<unsigned char> cut = truncatedImage(*image, 72 + 100);
+    ASSERT_EQ(client.socket().Send(cut.data(), static_cast<int>(cut.size())), 1);
+    const std::vector<unsigned char> tiny = truncatedImage(*image, 10);  // shorter than the image header
+    ASSERT_EQ(client.socket().Send(tiny.data(), static_cast<int>(tiny.size())), 1);
+    ASSERT_TRUE(test::waitUntil([&] { return link->status().messages_rejected >= 3; })) << link->status().messages_rejected;
+    image = makeImage(N, corner);
+    ASSERT_EQ(client.socket().Send(image->GetPackPointer(), image->GetPackSize()), 1);
+    const std::optional<io::LoadedVolume> v = waitForVolume(*link);
+    ASSERT_TRUE(v.has_value());
+    expectSlicerCt(*v, N, corner);
+    Received r;
+    EXPECT_TRUE(client.read(r));  // still streaming on the same connection
+    bool saw_reason = false;
+    for (const std::string& n : link->takeNotices()) saw_reason = saw_reason || n.find("CRC") != std::string::npos;
+    EXPECT_TRUE(saw_reason);
+  }
+  {  // A body size over the limit: the client is dropped, the link keeps listening.
+    Client client;
+    ASSERT_TRUE(client.connect(port));
+    ::igtl::ImageMessage::Pointer image = makeImage(N, corner);
+    std::vector<unsigned char> header(static_cast<const unsigned char*>(image->GetPackPointer()),
+                                      static_cast<const unsigned char*>(image->GetPackPointer()) + IGTL_HEADER_SIZE);
+    header[42] = 0x40;  // 2^62 bytes
+    ASSERT_EQ(client.socket().Send(header.data(), static_cast<int>(header.size())), 1);
+    ASSERT_TRUE(test::waitUntil([&] { return link->status().messages_rejected >= 4 && !link->status().connected; }));
+  }
+  {  // Half an IMAGE, then the client vanishes.
+    Client client;
+    ASSERT_TRUE(client.connect(port));
+    ASSERT_TRUE(test::waitUntil([&] { return link->status().connected; }));
+    ::igtl::ImageMessage::Pointer image = makeImage(N, corner);
+    ASSERT_EQ(client.socket().Send(image->GetPackPointer(), image->GetPackSize() / 2), 1);
+    std::this_thread::sleep_for(50ms);
+    client.close();
+    ASSERT_TRUE(test::waitUntil([&] { return !link->status().connected; }));
+  }
+  {  // A client that disconnects while frames are being sent to it, twice.
+    for (int i = 0; i < 2; ++i) {
+      Client client;
+      ASSERT_TRUE(client.connect(port));
+      Received r;
+      ASSERT_TRUE(client.read(r));
+      client.close();
+      std::this_thread::sleep_for(50ms);
+    }
+  }
+  // Still serving: a new client gets the transforms.
+  Client client;
+  ASSERT_TRUE(client.connect(port));
+  const std::vector<Received> all = client.readFor(0.3s);
+  int transforms = 0;
+  for (const Received& r : all) transforms += r.name == "ProxyToRAS";
+  EXPECT_GT(transforms, 10);
+  EXPECT_TRUE(link->running());
+  EXPECT_EQ(link->status().images_received, 1u);
+  EXPECT_GE(link->status().clients, 6u);
+}
+
+TEST_F(IgtlLinkTest, NewClientReplacesTheCurrentOne) {
+  auto channel = std::make_shared<runtime::SnapshotChannel>();
+  publish(*channel, Pose(), Pose(), Eigen::Vector3d::Zero(), 0, 1, steadyNowNs());
+  auto link = startLink(channel, LinkOptions{});
+  ASSERT_NE(link, nullptr);
+  Client first, second;
+  ASSERT_TRUE(first.connect(link->options().port));
+  Received r;
+  ASSERT_TRUE(first.read(r));
+  ASSERT_TRUE(second.connect(link->options().port));
+  ASSERT_TRUE(second.read(r));
+  EXPECT_EQ(link->status().clients, 2u);
+  EXPECT_TRUE(link->status().connected);
+  EXPECT_NE(link->statusText().find("connected to 127.0.0.1"), std::string::npos) << link->statusText();
+}
+
+// ---- Never blocking the haptic thread ------------------------------------------------------
+
+TEST_F(IgtlLinkTest, StalledClientNeverSlowsTheHapticThread) {
+  const runtime::LoadedScene& scene = test::sphereBallScene();
+  auto channel = std::make_shared<runtime::SnapshotChannel>();
+  runtime::HapticThreadOptions thread_options;
+  thread_options.monitor = channel;
+  auto device = std::make_shared<runtime::SimulatedDevice>(scene.X_WT_initial);
+  auto thread = scene.makeHapticThread(device, 1000.0, {}, thread_options);
+
+  LinkOptions options;
+  options.rate_Hz = 1000.0;  // as fast as the servo loop: the most the link can ask of it
+  options.servo_rate_Hz = thread->servoRate_Hz();
+  auto link = startLink(channel, options);
+  ASSERT_NE(link, nullptr);
+
+  // A client with a tiny receive buffer that never reads.
+  const int fd = socket(AF_INET, SOCK_STREAM, 0);
+  const int small = 4096;
+  setsockopt(fd, SOL_SOCKET, SO_RCVBUF, &small, sizeof(small));
+  sockaddr_in a{};
+  a.sin_family = AF_INET;
+  a.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+  a.sin_port = htons(static_cast<std::uint16_t>(link->options().port));
+  ASSERT_EQ(connect(fd, reinterpret_cast<sockaddr*>(&a), sizeof(a)), 0);
+
+  thread->start();
+  runtime::HapticSnapshot before, after;
+  ASSERT_TRUE(test::waitUntil([&] { return thread->latestSnapshot(before) && before.tick > 100; }));
+  const auto t0 = Clock::now();
+  ASSERT_TRUE(test::waitUntil([&] { return link->status().frames_skipped > 50; }, 5000ms))
+      << "the link never found the client's socket full: sent " << link->status().frames_sent;
+  std::this_thread::sleep_for(1000ms);
+  thread->latestSnapshot(after);
+  const double elapsed_s = secondsSince(t0);
+  const double tick_rate_Hz = static_cast<double>(after.tick - before.tick) / elapsed_s;
+  const LinkStatus status = link->status();
+  std::cout << "[ stalled ] coupling " << tick_rate_Hz << " ticks/s over " << elapsed_s << " s (window rate "
+            << after.coupling.rate_Hz << " Hz, " << after.coupling.deadline_misses << " misses); link sent "
+            << status.frames_sent << ", skipped " << status.frames_skipped << "\n";
+  EXPECT_GT(tick_rate_Hz, 900.0);
+  EXPECT_TRUE(status.connected);  // a slow client is not dropped, its frames are skipped
+
+  const auto t_stop = Clock::now();
+  link->stop();
+  const double stop_ms = 1e3 * secondsSince(t_stop);
+  std::cout << "[ stop ] " << stop_ms << " ms with a stalled client\n";
+  EXPECT_LT(stop_ms, 300.0);
+  thread->stop();
+  close(fd);
+}
+
+TEST_F(IgtlLinkTest, SessionRebuildKeepsFeedingTheChannel) {
+  auto channel = std::make_shared<runtime::SnapshotChannel>();
+  runtime::Session session(1000.0);
+  session.setMonitor(channel);
+  const runtime::LoadedScene& scene = test::sphereBallScene();
+  session.setScene(scene, std::make_shared<runtime::SimulatedDevice>(scene.X_WT_initial));
+  session.startHaptics();
+  runtime::HapticSnapshot s;
+  ASSERT_TRUE(test::waitUntil([&] { return channel->read(s) && s.tick > 50; }));
+  session.stopHaptics();
+  channel->read(s);
+  EXPECT_GT(s.tick, 50u);
+  session.setDevice(std::make_shared<runtime::SimulatedDevice>(scene.X_WT_initial));  // rebuilds the threads
+  EXPECT_TRUE(channel->read(s));
+  EXPECT_EQ(s.tick, 0u);  // the new thread's first publication
+  session.startHaptics();
+  EXPECT_TRUE(test::waitUntil([&] { return channel->read(s) && s.tick > 50; })) << "the rebuilt thread feeds nothing";
+  session.stopHaptics();
+}
+
+}  // namespace
+}  // namespace vh::igtl
