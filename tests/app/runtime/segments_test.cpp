@@ -19,6 +19,7 @@
 #include "vh/runtime/scene.h"
 #include "vh/runtime/session.h"
 #include "vh/runtime/session_metadata.h"
+#include "vh/runtime/snapshot_channel.h"
 #include "vh/runtime/trajectory.h"
 
 namespace vh::runtime {
@@ -195,6 +196,11 @@ TEST(FeltSegments, TheHapticThreadNamesTheSegmentAndKeepsItsSurfaceWhenTheIsoval
   LoadedScene scene = loadScene(loadSceneFile(writeScene(dir, R"(["facial nerve", "bone"])", R"(["facial nerve"])")));
   const Trajectory trajectory = pushOverTheNerve(scene);
   Session session;
+  // A second consumer (the OpenIGTLink link's channel) and the names it sends.
+  auto monitor = std::make_shared<SnapshotChannel>();
+  session.setMonitor(monitor);
+  SegmentNameTable names;
+  names.set(scene.segments.get());
   // A scripted device running the push; the session's isovalue moves the picture only.
   session.setScene(std::move(scene), std::make_shared<ScriptedDevice>(trajectory, 1e-3, "push"));
   session.startHaptics();
@@ -208,6 +214,11 @@ TEST(FeltSegments, TheHapticThreadNamesTheSegmentAndKeepsItsSurfaceWhenTheIsoval
   EXPECT_TRUE(touched) << "contacts " << snap.contacts << ", segment " << snap.segment;
   EXPECT_EQ(session.scene().isovalue, 250.0);
   EXPECT_EQ(snap.isovalue, 0.5) << "the hand keeps the segments' surface";
+  HapticSnapshot linked;
+  EXPECT_TRUE(test::waitUntil([&] { return monitor->read(linked) && linked.contacts > 0 && linked.segment == 0; }));
+  EXPECT_EQ(names.name(linked.segment), "facial nerve");
+  EXPECT_EQ(names.name(-1), "");
+  EXPECT_EQ(names.name(7), "");
   session.stopHaptics();
 }
 
