@@ -51,6 +51,7 @@ SegmentsPanel::SegmentsPanel(QWidget* parent) : QWidget(parent) {
   form->addRow("Smoothing:", smoothing_);
   sound_ = new QCheckBox("Sound when a critical segment is touched", this);
   touched_ = new QLabel("Touching: nothing", this);
+  touched_->setWordWrap(true);
   layout->addWidget(open_);
   layout->addWidget(source_);
   layout->addWidget(table_, 1);
