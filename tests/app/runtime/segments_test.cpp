@@ -74,22 +74,24 @@ fs::path writeScene(const fs::path& dir, const std::string& felt, const std::str
                              R"(, "critical": )" + critical + "}}");
 }
 
-/// Pushes the tool straight down (-z) over the nerve's centre and slides 2 mm.
-Trajectory pushOverTheNerve(const LoadedScene& scene) {
+/// Pushes the tool straight down (-z) from above the nerve's centre onto the felt surface, then
+/// `push_depth_m` past it, and slides `slide_m`.
+PushSlidePlan pushDownOverTheNerve(const LoadedScene& scene, double push_depth_m = 0.002, double slide_m = 0.002) {
   haptics::Pose start;
   start.p_AB_m = Eigen::Vector3d(0.015, 0.015, 0.029);
   PushSlideOptions push;
   push.start_clearance_m = 0.002;
-  push.push_depth_m = 0.002;
-  push.slide_m = 0.002;
+  push.push_depth_m = push_depth_m;
+  push.slide_m = slide_m;
   push.hold_s = 0.05;
   push.approach_time_s = 0.1;
   push.push_time_s = 0.3;
   push.slide_time_s = 0.3;
   push.retract_time_s = 0.1;
-  return makePushSlideTrajectory(*scene.hapticField(), scene.tool->point_shell, scene.hapticIsovalue(), start, push)
-      .trajectory;
+  return makePushSlideTrajectory(*scene.hapticField(), scene.tool->point_shell, scene.hapticIsovalue(), start, push);
 }
+
+Trajectory pushOverTheNerve(const LoadedScene& scene) { return pushDownOverTheNerve(scene).trajectory; }
 
 const SegmentContact& contactWith(const std::vector<SegmentContact>& contacts, const std::string& name) {
   for (const auto& c : contacts) {
@@ -170,15 +172,7 @@ TEST(FeltSegments, TheNerveIsFeltNamedAndNeverEnteredWhileTheIsovalueOnlySetsThe
 TEST(FeltSegments, WithOnlyTheBoneFeltTheToolPassesTheNerveAndRestsOnTheBone) {
   const fs::path dir = writeCase();
   const LoadedScene scene = loadScene(loadSceneFile(writeScene(dir, R"(["bone"])", "[]")));
-  haptics::Pose start;
-  start.p_AB_m = Eigen::Vector3d(0.015, 0.015, 0.029);
-  PushSlideOptions push;
-  push.start_clearance_m = 0.002;
-  push.push_depth_m = 0.001;
-  push.slide_m = 0.0;
-  push.hold_s = 0.05;
-  const PushSlidePlan plan =
-      makePushSlideTrajectory(*scene.hapticField(), scene.tool->point_shell, scene.hapticIsovalue(), start, push);
+  const PushSlidePlan plan = pushDownOverTheNerve(scene, 0.001, 0.0);
   // The first contact is on the slab's top (z = 9 mm): the tool's centre 2 mm above it, where the
   // nerve's voxels are (the nerve is not felt).
   EXPECT_NEAR(plan.X_WD_contact.p_AB_m.z(), 0.011, 0.0006);
