@@ -435,5 +435,62 @@ TEST(OpenHapticsDevice, TheSafetyLayerClampsToTheSdksMaxForce) {
   EXPECT_LE(std::hypot(c[0], c[1], c[2]), 3.3 + 1e-12);
 }
 
+// ---- Catalog ------------------------------------------------------------------------------------
+
+TEST(VendorCatalog, WithoutTheSdksTheBackEndsAreListedAsNotInstalled) {
+  VendorLibraries none;
+  none.dhd = {"/nonexistent/libdhd.so"};
+  none.openhaptics = {"/nonexistent/libHD.so"};
+  DeviceCatalog catalog(nullptr, nullptr, none);
+  const std::vector<VendorStatus> status = catalog.vendorStatus();
+  ASSERT_EQ(status.size(), 2u);
+  EXPECT_EQ(status[0].kind, "forcedimension");
+  EXPECT_FALSE(status[0].installed);
+  EXPECT_EQ(status[1].kind, "openhaptics");
+  EXPECT_FALSE(status[1].installed);
+  EXPECT_TRUE(catalog.kinds().empty());
+  EXPECT_TRUE(catalog.enumerate().empty());
+  try {
+    catalog.openFirst("openhaptics", "");
+    FAIL() << "opened an OpenHaptics device without the SDK";
+  } catch (const std::runtime_error& e) {
+    EXPECT_NE(std::string(e.what()).find("not installed"), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find(kHdLibraryEnv), std::string::npos) << e.what();
+  }
+}
+
+TEST(VendorCatalog, ListsAndOpensVendorDevicesMappedIntoTheScene) {
+  Dhd dhd_fake;
+  dhd_fake.reset(2, dhd::kDeviceSigma331, "sigma.7", 1, 1, 1, -1, -1);
+  Hd hd_fake;
+  hd_fake.touch();
+  VendorLibraries fakes;
+  fakes.dhd = {VH_FAKE_DHD_PATH};
+  fakes.openhaptics = {VH_FAKE_HD_PATH};
+  DeviceCatalog catalog(nullptr, nullptr, fakes);
+  EXPECT_EQ(catalog.kinds(), (std::vector<std::string>{"forcedimension", "openhaptics"}));
+  const std::vector<FoundDevice> found = catalog.enumerate();
+  ASSERT_EQ(found.size(), 3u);
+  EXPECT_EQ(found[0].path, "dhd:0");
+  EXPECT_EQ(found[1].path, "dhd:1");
+  EXPECT_EQ(found[2].path, "hd:default");
+  OpenOptions options;
+  options.X_WT_initial.p_AB_m = {0.1, 0.0, 0.0};
+  auto sigma = catalog.open(found[1], options);
+  EXPECT_EQ(sigma->name(), "sigma.7");
+  EXPECT_DOUBLE_EQ(sigma->limits().max_force_N, 20.0);
+  // While it runs, listing does not call the SDK and keeps the devices found before.
+  EXPECT_EQ(catalog.enumerate().size(), 3u);
+  auto touch = catalog.open(found[2], options);
+  EXPECT_DOUBLE_EQ(touch->limits().max_force_N, 3.3);
+  EXPECT_DOUBLE_EQ(touch->limits().max_linear_stiffness_N_per_m, 1260.0);
+  // DHD B: x towards the user, y right, z up; B y maps to W +x.
+  runtime::DeviceSample sample;
+  double pose[12] = {0.0, 0.01, 0.0, 1, 0, 0, 0, 1, 0, 0, 0, 1};
+  dhd_fake.setPoses(pose, 1);
+  ASSERT_TRUE(waitFor([&] { return sigma->read(sample) && sample.X_WD.p_AB_m.x() > 0.105; }));
+  EXPECT_NEAR((sample.X_WD.p_AB_m - Eigen::Vector3d(0.11, 0.0, 0.0)).norm(), 0.0, 1e-12);
+}
+
 }  // namespace
 }  // namespace vh::devices
