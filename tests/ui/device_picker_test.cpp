@@ -3,6 +3,7 @@
 // limits read as text.
 #include "vh/ui/device_picker.h"
 
+#include <cstdlib>
 #include <memory>
 
 #include <QSignalSpy>
@@ -47,6 +48,22 @@ TEST(DevicePicker, EntryZeroPutsASimulatedDeviceAtTheProxysPose) {
   // Entry 0 again keeps the simulated device.
   ASSERT_TRUE(picker.choose(0));
   EXPECT_EQ(session.simulatedDevice(), device);
+}
+
+TEST(DevicePicker, ListsVendorBackEndsWithoutTheirSdkAsNotInstalled) {
+  ::setenv("VH_DHD_LIBRARY", "/nonexistent/libdhd.so", 1);
+  ::setenv("VH_OPENHAPTICS_LIBRARY", "/nonexistent/libHD.so", 1);
+  runtime::Session session;
+  session.setScene(sphereProbeScene(), nullptr);
+  DevicePicker picker(session, nullptr);
+  picker.setInteractive(false);
+  ::unsetenv("VH_DHD_LIBRARY");
+  ::unsetenv("VH_OPENHAPTICS_LIBRARY");
+  const QStringList missing = picker.notInstalled();
+  EXPECT_TRUE(missing.contains("Force Dimension (DHD): not installed")) << missing.join("; ").toStdString();
+  EXPECT_TRUE(missing.contains("3D Systems OpenHaptics (HD): not installed")) << missing.join("; ").toStdString();
+  for (const QString& choice : picker.choices()) EXPECT_FALSE(choice.contains("not installed"));  // not pickable
+  ASSERT_TRUE(picker.choose(0));  // the app runs on with the simulated device
 }
 
 TEST(DevicePicker, AnEntryOutOfRangeKeepsTheDevice) {

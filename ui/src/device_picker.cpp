@@ -110,6 +110,15 @@ QStringList DevicePicker::choices() const {
   return labels;
 }
 
+QStringList DevicePicker::notInstalled() const {
+  QStringList out;
+  if (catalog_ == nullptr) return out;
+  for (const devices::VendorStatus& v : catalog_->vendorStatus()) {
+    if (!v.installed) out << q(v.title + ": not installed");
+  }
+  return out;
+}
+
 void DevicePicker::showChoices() {
   QString problems;
   for (const std::string& p : problems_) problems += (problems.isEmpty() ? "" : "\n") + q(p);
@@ -122,6 +131,14 @@ void DevicePicker::showChoices() {
       action->setCheckable(true);
       action->setData(i);
       actions_->addAction(action);
+    }
+    if (catalog_ != nullptr) {
+      for (const devices::VendorStatus& v : catalog_->vendorStatus()) {
+        if (v.installed) continue;
+        QAction* missing = menu_->addAction(q(v.title + ": not installed"));
+        missing->setEnabled(false);
+        missing->setToolTip(q(v.detail));
+      }
     }
     if (labels.size() == 1) {
       QAction* none = menu_->addAction(problems.isEmpty() ? "No haptic device found" : "No haptic device found (see tooltip)");

@@ -36,7 +36,26 @@ std::shared_ptr<UsbBackend> tryLibusb(std::string& problem) {
   }
 }
 
+void loadVendors(const VendorLibraries& vendors, std::shared_ptr<const DhdApi>& dhd, std::shared_ptr<const HdApi>& hd,
+                 std::vector<VendorStatus>& status) {
+  status.push_back(probeDhd(vendors.dhd, dhd));
+  status.push_back(probeHd(vendors.openhaptics, hd));
+}
+
+const VendorStatus* findStatus(const std::vector<VendorStatus>& status, const std::string& kind) {
+  for (const VendorStatus& s : status)
+    if (s.kind == kind) return &s;
+  return nullptr;
+}
+
 }  // namespace
+
+VendorLibraries VendorLibraries::fromEnvironment() {
+  VendorLibraries v;
+  v.dhd = vendorLibraryCandidates(kDhdLibraryEnv, defaultDhdLibraries());
+  v.openhaptics = vendorLibraryCandidates(kHdLibraryEnv, defaultHdLibraries());
+  return v;
+}
 
 // ---- FoundDevice ---------------------------------------------------------------------------------
 
@@ -61,10 +80,12 @@ bool FoundDevice::sameDeviceAs(const FoundDevice& other) const noexcept {
 runtime::WorkspaceMapping defaultWorkspaceMapping(const std::string& kind, const haptics::Pose& X_WT_initial,
                                                   const runtime::WorkspaceSpec& spec) {
   Eigen::Quaterniond R_WB_default;
-  if (kind == "falcon") {
+  if (kind == "falcon" || kind == "openhaptics") {
     R_WB_default = Eigen::Quaterniond(Eigen::AngleAxisd(0.5 * std::numbers::pi, Eigen::Vector3d::UnitX()));
   } else if (kind == "spacemouse") {
     R_WB_default = Eigen::Quaterniond::Identity();
+  } else if (kind == "forcedimension") {
+    R_WB_default = Eigen::Quaterniond(Eigen::AngleAxisd(-0.5 * std::numbers::pi, Eigen::Vector3d::UnitZ()));
   } else {
     throw std::invalid_argument("no workspace mapping for device kind '" + kind + "'");
   }
@@ -83,10 +104,14 @@ DeviceCatalog::DeviceCatalog() : hid_(makeHidapiBackend()) {
   std::string problem;
   usb_ = tryLibusb(problem);
   if (!problem.empty()) problems_.push_back(problem);
+  loadVendors(VendorLibraries::fromEnvironment(), dhd_, hd_, vendor_status_);
 }
 
-DeviceCatalog::DeviceCatalog(std::shared_ptr<HidBackend> hid, std::shared_ptr<UsbBackend> usb)
-    : hid_(std::move(hid)), usb_(std::move(usb)) {}
+DeviceCatalog::DeviceCatalog(std::shared_ptr<HidBackend> hid, std::shared_ptr<UsbBackend> usb,
+                             const VendorLibraries& vendors)
+    : hid_(std::move(hid)), usb_(std::move(usb)) {
+  loadVendors(vendors, dhd_, hd_, vendor_status_);
+}
 
 std::vector<std::string> DeviceCatalog::backends() const {
   std::vector<std::string> out;
@@ -99,6 +124,8 @@ std::vector<std::string> DeviceCatalog::kinds() const {
   std::vector<std::string> out;
   if (hid_) out.emplace_back("spacemouse");
   if (usb_) out.emplace_back("falcon");
+  if (dhd_) out.emplace_back("forcedimension");
+  if (hd_) out.emplace_back("openhaptics");
   return out;
 }
 
@@ -146,6 +173,34 @@ std::vector<FoundDevice> DeviceCatalog::enumerate() {
       problems.push_back(usb_->name() + ": " + e.what());
     }
   }
+  if (dhd_) {
+    const std::lock_guard<std::mutex> lock(mutex_);
+    if (dhd_open_.expired()) {  // never call the SDK while a device of it runs its I/O thread
+      dhd_found_.clear();
+      const int count = dhd_->getDeviceCount();
+      if (count < 0) problems.push_back("dhd: " + dhd_->lastError("dhdGetDeviceCount"));
+      for (int i = 0; i < count; ++i) {
+        FoundDevice f;
+        f.kind = "forcedimension";
+        f.model = "Force Dimension device";
+        f.manufacturer = "Force Dimension";
+        f.path = "dhd:" + std::to_string(i);
+        f.backend = "dhd";
+        dhd_found_.push_back(std::move(f));
+      }
+    }
+    out.insert(out.end(), dhd_found_.begin(), dhd_found_.end());
+  }
+  if (hd_) {
+    // OpenHaptics has no enumeration without opening: its configured default device.
+    FoundDevice f;
+    f.kind = "openhaptics";
+    f.model = "OpenHaptics device";
+    f.manufacturer = "3D Systems";
+    f.path = "hd:default";
+    f.backend = "openhaptics";
+    out.push_back(std::move(f));
+  }
   const std::lock_guard<std::mutex> lock(mutex_);
   problems_ = std::move(problems);
   return out;
@@ -185,6 +240,20 @@ std::shared_ptr<runtime::MappedDevice> DeviceCatalog::open(const FoundDevice& de
     FalconOptions falcon_options = options.falcon;
     if (!options.falcon_firmware.empty()) falcon_options.firmware = options.falcon_firmware;
     raw = std::make_shared<FalconDevice>(usb_, info, falcon_options);
+  } else if (device.kind == "forcedimension") {
+    if (!dhd_) throw std::runtime_error(findStatus(vendor_status_, "forcedimension")->label() + "; set " + kDhdLibraryEnv + " to the SDK's libdhd.so or libdrd.so");
+    DhdOptions dhd_options = options.dhd;
+    int index = 0;
+    if (std::sscanf(device.path.c_str(), "dhd:%d", &index) == 1) dhd_options.index = index;
+    auto dhd = std::make_shared<DhdDevice>(dhd_, dhd_options);
+    {
+      const std::lock_guard<std::mutex> lock(mutex_);
+      dhd_open_ = dhd;
+    }
+    raw = std::move(dhd);
+  } else if (device.kind == "openhaptics") {
+    if (!hd_) throw std::runtime_error(findStatus(vendor_status_, "openhaptics")->label() + "; set " + kHdLibraryEnv + " to OpenHaptics' libHD.so");
+    raw = std::make_shared<OpenHapticsDevice>(hd_, options.openhaptics);
   } else {
     throw std::runtime_error("unknown device kind '" + device.kind + "'");
   }
@@ -200,6 +269,11 @@ std::shared_ptr<runtime::MappedDevice> DeviceCatalog::openFirst(const std::strin
     if (d.kind != kind) continue;
     if (!select.empty() && d.serial != select && d.path != select) continue;
     return open(d, options);
+  }
+  if (const VendorStatus* vendor = findStatus(vendor_status_, kind); vendor != nullptr && !vendor->installed) {
+    throw std::runtime_error(vendor->label() + "; set " +
+                             (kind == "forcedimension" ? std::string(kDhdLibraryEnv) : std::string(kHdLibraryEnv)) +
+                             " to the SDK's library");
   }
   std::string problems;
   for (const std::string& p : this->problems()) problems += "; " + p;
@@ -282,6 +356,8 @@ void registerDeviceKinds() {
       return catalog->openFirst(spec.kind, spec.select, options);
     };
     for (const std::string& kind : catalog->kinds()) runtime::registerDeviceKind(kind, factory);
+    // Vendor SDKs: always (a scene naming one opens it, or fails saying it is not installed).
+    for (const VendorStatus& vendor : catalog->vendorStatus()) runtime::registerDeviceKind(vendor.kind, factory);
   });
 }
 

@@ -53,6 +53,9 @@ class DevicePicker : public QObject {
   void rescan();
   /// "Simulated device (mouse/keyboard)", then FoundDevice::label()s.
   QStringList choices() const;
+  /// The vendor back-ends whose SDK is not installed, e.g. "Force Dimension (DHD): not
+  /// installed"; the menu lists them disabled (their reason in the tooltip).
+  QStringList notInstalled() const;
   /// The entry in use; -1 when the device is none of them (e.g. named by the scene file).
   int currentChoice() const noexcept { return choice_; }
   /// Switches to entry `index` (0: a SimulatedDevice at the proxy's pose). On failure the

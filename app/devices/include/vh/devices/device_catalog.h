@@ -22,7 +22,9 @@
 #include <thread>
 #include <vector>
 
+#include "vh/devices/dhd_device.h"
 #include "vh/devices/falcon_device.h"
+#include "vh/devices/openhaptics_device.h"
 #include "vh/devices/spacemouse_device.h"
 #include "vh/devices/transport.h"
 #include "vh/haptics/pose.h"
@@ -33,14 +35,14 @@ namespace vh::devices {
 
 /// A supported device present now.
 struct FoundDevice {
-  std::string kind;          ///< "spacemouse" | "falcon" (the scene's device kinds).
+  std::string kind;          ///< "spacemouse" | "falcon" | "forcedimension" | "openhaptics" (scene kinds).
   std::string model;         ///< e.g. "SpaceNavigator", "Novint Falcon".
   std::string manufacturer;  ///< Empty when unknown.
   std::string serial;        ///< Empty when unknown.
-  std::string path;          ///< Backend address: "/dev/hidraw3", "usb:1:7".
+  std::string path;          ///< Backend address: "/dev/hidraw3", "usb:1:7", "dhd:0", "hd:default".
   std::uint16_t vendor_id = 0;
   std::uint16_t product_id = 0;
-  std::string backend;       ///< "hidapi" | "libusb".
+  std::string backend;       ///< "hidapi" | "libusb" | "dhd" | "openhaptics".
 
   /// One line for a list, e.g. "SpaceNavigator (3Dconnexion, /dev/hidraw3)".
   std::string label() const;
@@ -59,12 +61,25 @@ struct OpenOptions {
   std::filesystem::path falcon_firmware;  ///< A Falcon's firmware file (overrides falcon.firmware).
   SpaceMouseOptions spacemouse;
   FalconOptions falcon;
+  DhdOptions dhd;                  ///< Force Dimension (the index comes from FoundDevice::path).
+  OpenHapticsOptions openhaptics;
+};
+
+/// Where the catalog looks for the vendor SDK libraries (dlopen candidates, vendor_library.h).
+/// An empty list: that back-end is not tried (listed as not installed).
+struct VendorLibraries {
+  std::vector<std::string> dhd;          ///< Force Dimension DHD / DRD.
+  std::vector<std::string> openhaptics;  ///< OpenHaptics libHD.
+  /// VH_DHD_LIBRARY / VH_OPENHAPTICS_LIBRARY when set, else the default library names.
+  static VendorLibraries fromEnvironment();
 };
 
 /// The workspace mapping of a device kind: scale `spec.scale`; offset `spec.offset_W_m`, else
 /// the tool's initial position; rotation `spec.R_WB`, else the kind's axes into W (z up):
 /// "falcon" B y up -> W +z, B z towards the user -> W -y (a +90 degree turn about x);
-/// "spacemouse" B = W axes. R_HD keeps the tool's initial orientation at rest.
+/// "spacemouse" B = W axes; "openhaptics" as "falcon" (B y up, z towards the user);
+/// "forcedimension" B x towards the user, y right, z up -> a -90 degree turn about z (B y -> W +x,
+/// B x -> W -y). R_HD keeps the tool's initial orientation at rest.
 /// @throws std::invalid_argument for an unknown kind or an invalid mapping.
 runtime::WorkspaceMapping defaultWorkspaceMapping(const std::string& kind, const haptics::Pose& X_WT_initial,
                                                   const runtime::WorkspaceSpec& spec = {});
@@ -72,14 +87,20 @@ runtime::WorkspaceMapping defaultWorkspaceMapping(const std::string& kind, const
 /// Finds and opens the supported devices through HID and USB backends.
 class DeviceCatalog {
  public:
-  /// The backends this build has (hidapi, libusb; either may be missing).
+  /// The backends this build has (hidapi, libusb; either may be missing) and the vendor SDKs
+  /// installed on this machine (VendorLibraries::fromEnvironment(); loaded with dlopen).
   DeviceCatalog();
-  /// Given backends (e.g. fakes in tests); either may be null.
-  DeviceCatalog(std::shared_ptr<HidBackend> hid, std::shared_ptr<UsbBackend> usb);
+  /// Given backends (e.g. fakes in tests); either may be null. Vendor SDKs from `vendors`
+  /// (none by default).
+  DeviceCatalog(std::shared_ptr<HidBackend> hid, std::shared_ptr<UsbBackend> usb, const VendorLibraries& vendors = {});
+
+  /// The vendor back-ends ("forcedimension", "openhaptics"), installed or not, for the picker.
+  std::vector<VendorStatus> vendorStatus() const { return vendor_status_; }
 
   /// Names of the backends in use, e.g. {"hidapi", "libusb"}.
   std::vector<std::string> backends() const;
-  /// Device kinds this catalog can find: "spacemouse" with a HID backend, "falcon" with USB.
+  /// Device kinds this catalog can find: "spacemouse" with a HID backend, "falcon" with USB,
+  /// "forcedimension" / "openhaptics" with their SDK installed.
   std::vector<std::string> kinds() const;
   /// Every supported device present now (any thread; may take some milliseconds). Never
   /// throws: a failing backend is skipped and its error kept in problems().
@@ -97,8 +118,15 @@ class DeviceCatalog {
  private:
   std::shared_ptr<HidBackend> hid_;
   std::shared_ptr<UsbBackend> usb_;
+  std::shared_ptr<const DhdApi> dhd_;
+  std::shared_ptr<const HdApi> hd_;
+  std::vector<VendorStatus> vendor_status_;
   mutable std::mutex mutex_;
   std::vector<std::string> problems_;
+  // The DHD device this catalog opened: while it lives, enumerate() does not call the SDK from
+  // the monitor's thread and lists the devices found before (dhd_found_).
+  std::weak_ptr<DhdDevice> dhd_open_;
+  std::vector<FoundDevice> dhd_found_;
 };
 
 /// A device arriving or leaving.
@@ -146,7 +174,9 @@ class HotplugMonitor {
 };
 
 /// Registers the hardware kinds of this build with vh::runtime::registerDeviceKind() ("spacemouse"
-/// when hidapi was built, "falcon" when libusb was), so that scene files can name them; their
+/// when hidapi was built, "falcon" when libusb was; "forcedimension" and "openhaptics" always:
+/// without their SDK opening one fails with a "not installed" message), so that scene files can
+/// name them; their
 /// devices come from one process-wide DeviceCatalog. Idempotent and thread-safe; call once at
 /// start-up (before parsing scene files).
 void registerDeviceKinds();
