@@ -284,13 +284,14 @@ SceneSpec parseScene(const std::string& json_text, const std::string& source, co
     // Kinds are those this program can make: the built-in ones and the registered drivers.
     const bool hardware = d.kind != "simulated" && d.kind != "scripted";
     if (hardware && !deviceKindAvailable(d.kind)) {
-      const bool known_driver = d.kind == "spacemouse" || d.kind == "falcon";
+      const bool known_driver = d.kind == "spacemouse" || d.kind == "falcon";  // built-time libraries
       device.fail(device.fieldPath("kind"),
                   "unknown device kind '" + d.kind + "'" +
                       (known_driver ? std::string(" in this program (its driver registers with "
                                                   "vh::devices::registerDeviceKinds() when built with ") +
                                           (d.kind == "falcon" ? "libusb" : "hidapi") + ")"
-                                    : std::string(" (expected \"simulated\", \"scripted\", \"spacemouse\" or \"falcon\")")));
+                                    : std::string(" (expected \"simulated\", \"scripted\", \"spacemouse\", \"falcon\", "
+                                                  "\"forcedimension\" or \"openhaptics\")")));
     }
     if (d.kind == "scripted") {
       if (!device.has("trajectory")) device.fail(device.fieldPath("trajectory"), "missing (needed by kind \"scripted\")");

@@ -81,7 +81,8 @@ struct WorkspaceSpec {
 };
 
 struct DeviceSpec {
-  /// "simulated" | "scripted" | "spacemouse" | "falcon". A hardware kind parses once its driver
+  /// "simulated" | "scripted" | "spacemouse" | "falcon" | "forcedimension" | "openhaptics" (the
+  /// last two load the vendor's SDK at run time: vh::devices). A hardware kind parses once its driver
   /// is registered (registerDeviceKind(); vh::devices::registerDeviceKinds() registers the drivers
   /// the build has); before that the parse error names the library the driver needs.
   std::string kind = "simulated";
