@@ -38,7 +38,7 @@ echo "cpack: $(basename "$deb"), $(du -k "$deb" | cut -f1) KiB, $((t1 - t0)) s"
 # ---- control data: computed Depends ----
 step "dpkg-deb -I"
 dpkg-deb -I "$deb" >"$tmp/info"
-sed -n '/^ Package:/,$p' "$tmp/info"
+sed -n '/^ [A-Z][A-Za-z-]*:/,$p' "$tmp/info"
 depends="$(sed -n 's/^ Depends: //p' "$tmp/info")"
 [[ -n $depends ]] || fail "the package has no Depends"
 for lib in 'libc6 ' 'libqt6' 'libvtk' 'libstdc++6' 'libhidapi-hidraw0' 'libusb-1.0-0'; do
