@@ -5,13 +5,14 @@
 # Depends must be computed from the shared libraries; and the unpacked program must run --help,
 # a headless run on an installed scene, and load an NRRD through its own (unpacked) worker,
 # without naming the build machine's folders.
-#   usage: deb_test.sh BUILD_DIR SOURCE_DIR
+#   usage: [CPACK=/path/to/cpack] deb_test.sh BUILD_DIR SOURCE_DIR
 # Exit 77 (skipped, with a message) when a Debian packaging tool is missing.
 set -euo pipefail
 build="$(cd "$1" && pwd)"
 source_dir="$(cd "$2" && pwd)"
 
-for tool in cpack dpkg-deb dpkg-shlibdeps help2man perl; do
+cpack="${CPACK:-cpack}"  # ctest passes the cpack of the CMake that configured the build
+for tool in "$cpack" dpkg-deb dpkg-shlibdeps help2man perl; do
   if ! command -v "$tool" >/dev/null 2>&1; then
     echo "SKIPPED: the package test needs $tool (Debian: cmake, dpkg-dev, help2man, perl; packaging/setup.sh test installs them)"
     exit 77
@@ -26,7 +27,7 @@ step() { echo "---- $*"; }
 # ---- build the package (outside the build tree, so that parallel tests never see it) ----
 step "cpack -G DEB"
 t0=$(date +%s)
-if ! cpack -G DEB -B "$tmp/cpack" --config "$build/CPackConfig.cmake" >"$tmp/cpack.log" 2>&1; then
+if ! "$cpack" -G DEB -B "$tmp/cpack" --config "$build/CPackConfig.cmake" >"$tmp/cpack.log" 2>&1; then
   cat "$tmp/cpack.log"; fail "cpack -G DEB failed"
 fi
 t1=$(date +%s)
