@@ -58,7 +58,9 @@ TEST(UdevRules, NoRuleCarriesATrailingComment) {
   // udev has no trailing comments: "KEY==x  # note" is a syntax error that drops the rule.
   std::istringstream lines(readRules());
   for (std::string line; std::getline(lines, line);) {
-    if (!line.empty() && line[0] != '#') EXPECT_EQ(line.find('#'), std::string::npos) << line;
+    if (!line.empty() && line[0] != '#') {
+      EXPECT_EQ(line.find('#'), std::string::npos) << line;
+    }
   }
 }
 
