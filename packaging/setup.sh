@@ -16,7 +16,12 @@ packages=(cmake ninja-build g++ pkg-config libeigen3-dev libgtest-dev libgmock-d
   qt6-base-dev libqt6opengl6-dev qt6-charts-dev libhidapi-dev libusb-1.0-0-dev
   zlib1g-dev zstd xvfb xauth libgl1-mesa-dri umockdev libumockdev-dev libopenigtlink-dev)
 # test also builds the fuzz targets (tests/fuzz/ci.sh): clang and its libFuzzer / sanitizer runtimes.
-if [[ $mode == test ]]; then packages+=(clang libclang-rt-14-dev); fi
+# test also builds and checks the Debian package (tests/packaging/deb_test.sh): dpkg-shlibdeps
+# (dpkg-dev) and file for cpack's Depends, help2man for the man page, desktop-file-utils and
+# shared-mime-info to validate the desktop entry and compile the MIME type.
+if [[ $mode == test ]]; then
+  packages+=(clang libclang-rt-14-dev dpkg-dev file help2man desktop-file-utils shared-mime-info)
+fi
 missing=()
 for p in "${packages[@]}"; do
   dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")

@@ -434,19 +434,30 @@ bool runWorker(const std::vector<std::string>& args, const fs::path& named, doub
 
 }  // namespace
 
+std::vector<fs::path> dicomWorkerCandidates(const fs::path& exe_dir) {
+  std::vector<fs::path> candidates;
+  if (!exe_dir.empty()) {
+    candidates.push_back(exe_dir / kWorkerName);
+#ifdef VH_DICOM_WORKER_INSTALL_RELATIVE_PATH
+    candidates.push_back((exe_dir / VH_DICOM_WORKER_INSTALL_RELATIVE_PATH).lexically_normal());
+#endif
+  }
+#ifdef VH_DICOM_WORKER_BUILD_PATH
+  candidates.emplace_back(VH_DICOM_WORKER_BUILD_PATH);
+#endif
+  return candidates;
+}
+
 fs::path dicomWorkerPath() {
   std::error_code ec;
   if (const char* env = std::getenv("VH_DICOM_WORKER"); env != nullptr && *env != '\0') {
     return fs::exists(env, ec) ? fs::path(env) : fs::path();
   }
-  const fs::path beside = fs::read_symlink("/proc/self/exe", ec).parent_path() / kWorkerName;
-  if (!ec && fs::exists(beside, ec)) return beside;
-#ifdef VH_DICOM_WORKER_BUILD_PATH
-  if (fs::exists(VH_DICOM_WORKER_BUILD_PATH, ec)) return VH_DICOM_WORKER_BUILD_PATH;
-#endif
-#ifdef VH_DICOM_WORKER_INSTALL_PATH
-  if (fs::exists(VH_DICOM_WORKER_INSTALL_PATH, ec)) return VH_DICOM_WORKER_INSTALL_PATH;
-#endif
+  fs::path exe_dir = fs::read_symlink("/proc/self/exe", ec).parent_path();
+  if (ec) exe_dir.clear();
+  for (const fs::path& candidate : dicomWorkerCandidates(exe_dir)) {
+    if (fs::exists(candidate, ec)) return candidate;
+  }
   return {};
 }
 

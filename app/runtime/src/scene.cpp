@@ -201,16 +201,38 @@ std::mutex& deviceFactoriesMutex() {
 
 }  // namespace
 
+fs::path installedDataDir() {
+#ifdef VH_INSTALL_DATA_RELATIVE_PATH
+  std::error_code ec;
+  const fs::path exe = fs::read_symlink("/proc/self/exe", ec);
+  if (ec) return {};
+  const fs::path data = (exe.parent_path() / VH_INSTALL_DATA_RELATIVE_PATH).lexically_normal();
+  if (fs::is_directory(data, ec)) return data;
+#endif
+  return {};
+}
+
 fs::path sharedDatasetsDir() {
   if (const char* env = std::getenv("VH_SHARED_DATASETS_DIR"); env != nullptr && *env != '\0') {
     return fs::path(env);
   }
+  if (const fs::path installed = installedDataDir(); !installed.empty()) return installed / "datasets";
   return fs::path(VH_DEFAULT_SHARED_DATASETS_DIR).lexically_normal();
 }
 
 fs::path generatedDataDir() {
   if (const char* env = std::getenv("VH_GENERATED_DATA_DIR"); env != nullptr && *env != '\0') {
     return fs::path(env);
+  }
+  if (!installedDataDir().empty()) {
+    // An installed copy never writes beside itself: the user's cache (XDG base directories).
+    if (const char* cache = std::getenv("XDG_CACHE_HOME"); cache != nullptr && *cache == '/') {
+      return fs::path(cache) / "volume-haptics";
+    }
+    if (const char* home = std::getenv("HOME"); home != nullptr && *home == '/') {
+      return fs::path(home) / ".cache/volume-haptics";
+    }
+    return {};
   }
   return fs::path(VH_DEFAULT_GENERATED_DATA_DIR).lexically_normal();
 }

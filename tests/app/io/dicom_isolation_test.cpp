@@ -41,6 +41,19 @@ class ScopedEnv {
   bool had_ = false;
 };
 
+TEST(DicomIsolation, TheWorkerIsLookedForBesideTheProgramThenInTheInstalledLayout) {
+  // An installed or unpacked package (packaging/): PREFIX/bin/volume-haptics finds
+  // PREFIX/libexec/volume-haptics/volume-haptics-dicom-worker before the build tree's worker.
+  const auto candidates = dicomWorkerCandidates("/opt/vh/usr/bin");
+  ASSERT_GE(candidates.size(), 3u);
+  EXPECT_EQ(candidates[0], std::filesystem::path("/opt/vh/usr/bin/volume-haptics-dicom-worker"));
+  EXPECT_EQ(candidates[1], std::filesystem::path("/opt/vh/usr/libexec/volume-haptics/volume-haptics-dicom-worker"));
+  EXPECT_EQ(candidates.back().filename(), "volume-haptics-dicom-worker");
+  EXPECT_EQ(candidates.back().parent_path().filename(), "app") << "the build tree's build/app/ comes last";
+  // Without the executable's folder only the build tree's worker is left.
+  EXPECT_EQ(dicomWorkerCandidates({}).size(), 1u);
+}
+
 TEST(DicomIsolation, TheWorkerIsBuiltAndGivesTheSameVolumeAsTheInProcessRead) {
   VH_REQUIRE_SHARED(phantom, "ct/philips-head-phantom-bone");
   ASSERT_FALSE(dicomWorkerPath().empty()) << "volume-haptics-dicom-worker not found";

@@ -8,12 +8,19 @@
 /// loaded"). What was open stays open; a recording in progress is untouched.
 
 #include <filesystem>
+#include <vector>
 
 namespace vh::io {
 
-/// The worker program: $VH_DICOM_WORKER if set, else `volume-haptics-dicom-worker` beside the
-/// running executable, else the build tree's or the installed one; empty when none exists.
+/// The worker program: $VH_DICOM_WORKER if set, else the first of dicomWorkerCandidates() of
+/// the running executable's folder that exists; empty when none exists.
 std::filesystem::path dicomWorkerPath();
+
+/// Where the worker is looked for, in order, for an executable in `exe_dir`: beside it (the
+/// build tree's build/app/), then the installed layout relative to it (bin/ ->
+/// libexec/volume-haptics/, so an unpacked or relocated package finds its own worker), then the
+/// build tree's worker (tests whose executables live elsewhere in the build tree).
+std::vector<std::filesystem::path> dicomWorkerCandidates(const std::filesystem::path& exe_dir);
 
 /// The worker's main(): `load PATH OUT [--series S] [--phase N]` reads PATH in this process and
 /// writes the voxels and geometry to OUT, printing "progress F" lines and "error MESSAGE" on a

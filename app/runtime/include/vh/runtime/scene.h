@@ -141,12 +141,19 @@ SceneSpec loadSceneFile(const std::filesystem::path& path);
 SceneSpec parseScene(const std::string& json_text, const std::string& source,
                      const std::filesystem::path& base_dir);
 
-/// The folder of the real shared datasets: $VH_SHARED_DATASETS_DIR when set, else the folder
-/// configured at build time (CMake cache VH_SHARED_DATASETS_DIR).
+/// The installed program's data folder, PREFIX/share/volume-haptics (found relative to the running
+/// executable, PREFIX/bin/), when it exists; empty when running from the build tree.
+std::filesystem::path installedDataDir();
+
+/// The folder of the real shared datasets: $VH_SHARED_DATASETS_DIR when set, else for an
+/// installed copy installedDataDir()/datasets (absent unless someone puts datasets there), else
+/// the folder configured at build time (CMake cache VH_SHARED_DATASETS_DIR).
 std::filesystem::path sharedDatasetsDir();
 
-/// The build's generated data folder (synthetic volumes, unpacked archives):
-/// $VH_GENERATED_DATA_DIR when set, else the build tree's data/ folder configured at build time.
+/// The generated data folder (synthetic volumes, unpacked archives): $VH_GENERATED_DATA_DIR
+/// when set, else for an installed copy $XDG_CACHE_HOME/volume-haptics (or
+/// ~/.cache/volume-haptics; empty without either), else the build tree's data/ folder
+/// configured at build time. An installed copy never refers to the build machine's folders.
 std::filesystem::path generatedDataDir();
 
 /// The built-in scene: the paper's 256^3 block with a hole and a peg that fits it, simulated
