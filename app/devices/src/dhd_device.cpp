@@ -85,12 +85,7 @@ VendorStatus probeDhd(const std::vector<std::string>& candidates, std::shared_pt
     status.library = api->library->path();
     status.detail = api->sdkVersion();
   } catch (const std::exception& e) {
-    std::string why = e.what();
-    const std::string prefix = "not installed";
-    if (why.rfind(prefix, 0) == 0) why = why.substr(prefix.size());
-    while (!why.empty() && (why.front() == ' ' || why.front() == ':')) why.erase(0, 1);
-    if (why.size() > 1 && why.front() == '(' && why.back() == ')') why = why.substr(1, why.size() - 2);
-    status.detail = why;
+    status.detail = notInstalledReason(e.what());
   } catch (...) {
     status.detail = "unknown error";
   }

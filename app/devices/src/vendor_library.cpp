@@ -32,6 +32,15 @@ std::vector<std::string> vendorLibraryCandidates(const char* env_var, const std:
   return defaults;
 }
 
+std::string notInstalledReason(const std::string& what) {
+  std::string why = what;
+  const std::string prefix = "not installed";
+  if (why.rfind(prefix, 0) == 0) why = why.substr(prefix.size());
+  while (!why.empty() && (why.front() == ' ' || why.front() == ':')) why.erase(0, 1);
+  if (why.size() > 1 && why.front() == '(' && why.back() == ')') why = why.substr(1, why.size() - 2);
+  return why;
+}
+
 std::string VendorStatus::label() const {
   if (installed) return title + ": " + library + (detail.empty() ? std::string() : " (" + detail + ")");
   return title + ": not installed" + (detail.empty() ? std::string() : " (" + detail + ")");

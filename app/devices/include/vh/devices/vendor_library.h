@@ -65,4 +65,9 @@ struct VendorStatus {
   std::string label() const;
 };
 
+/// A failed load's message as VendorStatus::detail: without its leading "not installed" and
+/// the parentheses around the reason ("not installed (libdhd.so: cannot open ...)" ->
+/// "libdhd.so: cannot open ...").
+std::string notInstalledReason(const std::string& what);
+
 }  // namespace vh::devices
