@@ -1,19 +1,20 @@
 #include "vh/devices/dhd_device.h"
 
+#include "device_clock.h"
+
 #include <chrono>
 #include <cmath>
-#include <numbers>
 #include <stdexcept>
 
 #include <Eigen/Geometry>
+
+#include "vh/devices/velocity_filter.h"
 
 namespace vh::devices {
 
 namespace {
 
-double steadySeconds() noexcept {
-  return std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch()).count();
-}
+using detail::steadySeconds;
 
 runtime::DeviceLimits limitsOf(double force_N, double torque_Nm, double stiffness_N_per_m, double radius_m) noexcept {
   runtime::DeviceLimits l;
@@ -229,10 +230,7 @@ void DhdDevice::ioLoop() noexcept {
   const auto period = std::chrono::duration_cast<std::chrono::steady_clock::duration>(
       std::chrono::duration<double>(options_.io_period_s));
   auto next = std::chrono::steady_clock::now();
-  Eigen::Vector3d p_prev = Eigen::Vector3d::Zero();
-  Eigen::Vector3d v_filtered = Eigen::Vector3d::Zero();
-  double t_prev = 0.0;
-  bool have_prev = false;
+  VelocityFilter velocity(options_.velocity_cutoff_Hz);
   Wrench wrench;
   while (!stop_.load(std::memory_order_acquire)) {
     double px = 0.0, py = 0.0, pz = 0.0;
@@ -247,19 +245,12 @@ void DhdDevice::ioLoop() noexcept {
     Eigen::Matrix3d R;
     for (int i = 0; i < 3; ++i)
       for (int j = 0; j < 3; ++j) R(i, j) = m[i][j];
-    if (have_prev && t > t_prev) {
-      const double dt = t - t_prev;
-      const double alpha = 1.0 - std::exp(-2.0 * std::numbers::pi * options_.velocity_cutoff_Hz * dt);
-      v_filtered += alpha * ((p_BH - p_prev) / dt - v_filtered);
-    }
-    p_prev = p_BH;
-    t_prev = t;
-    have_prev = true;
+    velocity.update(p_BH, t);
     runtime::DeviceSample& s = samples_.writeSlot();
     s.time_s = t;
     s.X_WD.p_AB_m = p_BH;
     s.X_WD.R_AB = Eigen::Quaterniond(R).normalized();
-    s.v_WD_m_per_s = v_filtered;
+    s.v_WD_m_per_s = velocity.velocity();
     s.w_WD_rad_per_s.setZero();
     s.buttons = a.getButtonMask(id_);
     s.connection = connection;

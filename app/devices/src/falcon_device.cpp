@@ -1,15 +1,17 @@
 #include "vh/devices/falcon_device.h"
 
+#include "device_clock.h"
+
 #include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <fstream>
 #include <iterator>
-#include <numbers>
 #include <sstream>
 #include <stdexcept>
 
 #include "vh/devices/falcon_kinematics.h"
+#include "vh/devices/velocity_filter.h"
 
 namespace vh::devices {
 
@@ -19,9 +21,7 @@ using falcon::ControlStep;
 
 constexpr std::size_t kMaxFirmwareBytes = 64 * 1024;
 
-double steadySeconds() noexcept {
-  return std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch()).count();
-}
+using detail::steadySeconds;
 
 std::string hex(std::uint8_t b) {
   static constexpr char kDigits[] = "0123456789ABCDEF";
@@ -323,7 +323,7 @@ void FalconDevice::ioLoop() noexcept {
   bool have_status = false;
   bool have_position = false;
   Eigen::Vector3d p_K(0.0, 0.0, falcon::kWorkspaceCentreZ_m);
-  Eigen::Vector3d v_B = Eigen::Vector3d::Zero();
+  VelocityFilter velocity(options_.velocity_cutoff_Hz);
   double last_time_s = 0.0;
   const double t0_s = steadySeconds();
   const std::uint32_t connection = connection_.load(std::memory_order_acquire);
@@ -386,11 +386,7 @@ void FalconDevice::ioLoop() noexcept {
                         (have_position && falcon::forwardKinematics(theta, p_new));
     const double now_s = steadySeconds() - t0_s;
     if (solved) {
-      if (have_position && now_s > last_time_s) {
-        const double dt = now_s - last_time_s;
-        const double alpha = 1.0 - std::exp(-2.0 * std::numbers::pi * options_.velocity_cutoff_Hz * dt);
-        v_B += alpha * ((p_new - p_K) / dt - v_B);
-      }
+      velocity.update(p_new, now_s);
       p_K = p_new;
       have_position = true;
       last_time_s = now_s;
@@ -404,7 +400,7 @@ void FalconDevice::ioLoop() noexcept {
     runtime::DeviceSample& s = samples_.writeSlot();
     s.time_s = last_time_s;
     s.X_WD = haptics::Pose::FromTranslation(p_K - Eigen::Vector3d(0.0, 0.0, falcon::kWorkspaceCentreZ_m));
-    s.v_WD_m_per_s = v_B;
+    s.v_WD_m_per_s = velocity.velocity();
     s.w_WD_rad_per_s.setZero();
     s.buttons = status.buttons;
     s.connection = connection;

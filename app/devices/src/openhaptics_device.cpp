@@ -1,24 +1,17 @@
 #include "vh/devices/openhaptics_device.h"
 
+#include "device_clock.h"
+
 #include <chrono>
 #include <cmath>
 #include <cstdio>
-#include <numbers>
 #include <stdexcept>
 
 #include <Eigen/Geometry>
 
 namespace vh::devices {
 
-namespace {
-
-double steadySeconds() noexcept {
-  return std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch()).count();
-}
-
-constexpr double kVelocityCutoff_Hz = 40.0;
-
-}  // namespace
+using detail::steadySeconds;
 
 // ---- Library -------------------------------------------------------------------------------------
 
@@ -209,7 +202,7 @@ void OpenHapticsDevice::openAndStart() {
     wrenches_.writeSlot() = Wrench{};
     wrenches_.publish();
     scheduler_wrench_ = Wrench{};
-    have_prev_ = false;
+    velocity_.reset();
     failed_.store(false, std::memory_order_release);
     connection_.fetch_add(1, std::memory_order_acq_rel);
     connected_.store(true, std::memory_order_release);
@@ -293,19 +286,12 @@ hd::HDCallbackCode OpenHapticsDevice::servoTick() noexcept {
   Eigen::Vector3d p_BH;
   Eigen::Quaterniond R_BH;
   transformToPose(m, p_BH, R_BH);
-  if (have_prev_ && t > t_prev_) {
-    const double dt = t - t_prev_;
-    const double alpha = 1.0 - std::exp(-2.0 * std::numbers::pi * kVelocityCutoff_Hz * dt);
-    v_filtered_ += alpha * ((p_BH - p_prev_) / dt - v_filtered_);
-  }
-  p_prev_ = p_BH;
-  t_prev_ = t;
-  have_prev_ = true;
+  velocity_.update(p_BH, t);
   runtime::DeviceSample& s = samples_.writeSlot();
   s.time_s = t;
   s.X_WD.p_AB_m = p_BH;
   s.X_WD.R_AB = R_BH;
-  s.v_WD_m_per_s = v_filtered_;
+  s.v_WD_m_per_s = velocity_.velocity();
   s.w_WD_rad_per_s.setZero();
   s.buttons = static_cast<unsigned>(buttons);
   s.connection = connection_.load(std::memory_order_relaxed);

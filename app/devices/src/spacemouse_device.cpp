@@ -1,5 +1,7 @@
 #include "vh/devices/spacemouse_device.h"
 
+#include "device_clock.h"
+
 #include <chrono>
 #include <cstdio>
 #include <stdexcept>
@@ -8,9 +10,7 @@ namespace vh::devices {
 
 namespace {
 
-double steadySeconds() noexcept {
-  return std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch()).count();
-}
+using detail::steadySeconds;
 
 std::string idText(std::uint16_t vendor_id, std::uint16_t product_id) {
   char text[16];

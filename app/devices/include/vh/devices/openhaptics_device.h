@@ -41,6 +41,7 @@
 
 #include <Eigen/Core>
 
+#include "vh/devices/velocity_filter.h"
 #include "vh/devices/vendor_library.h"
 #include "vh/runtime/device.h"
 
@@ -205,10 +206,8 @@ class OpenHapticsDevice final : public runtime::Device {
   runtime::TripleBuffer<runtime::DeviceSample> samples_;  // scheduler thread -> servo thread
   runtime::TripleBuffer<Wrench> wrenches_;                // servo thread -> scheduler thread
   Wrench scheduler_wrench_;                               // scheduler thread only
-  Eigen::Vector3d p_prev_ = Eigen::Vector3d::Zero();      // scheduler thread only
-  Eigen::Vector3d v_filtered_ = Eigen::Vector3d::Zero();  // scheduler thread only
-  double t_prev_ = 0.0;                                   // scheduler thread only
-  bool have_prev_ = false;                                // scheduler thread only
+  static constexpr double kVelocityCutoff_Hz = 40.0;     // low-pass of the velocity [Hz]
+  VelocityFilter velocity_{kVelocityCutoff_Hz};          // scheduler thread only
   runtime::DeviceSample servo_sample_;                    // servo thread only
   mutable std::mutex problem_mutex_;
   std::string problem_;
