@@ -70,10 +70,7 @@ bool SegmentsController::open(const std::filesystem::path& path) {
     io::LoadedSegmentation seg = io::loadSegmentation(path);
     runtime::SegmentationSpec spec;
     spec.path = std::filesystem::absolute(path).lexically_normal().string();
-    spec.show_all = true;
-    auto set = runtime::SegmentSet::fromSpec(std::move(seg), spec, path.filename().string());
-    spec.shown = segmentNames(set->segmentation(), set->shown());
-    spec.show_all = false;
+    auto set = runtime::SegmentSet::fromSpec(std::move(seg), spec, path.filename().string());  // all shown
     session_.setSegments(std::move(set), spec);
   } catch (const std::exception& e) {
     emit errorReported(q(path.string()), q(e.what()));
@@ -100,7 +97,6 @@ bool SegmentsController::apply(const SegmentChoices& choices) {
   const io::LoadedSegmentation& seg = current.segmentation();
   spec.felt = segmentNames(seg, choices.felt);
   spec.shown = segmentNames(seg, choices.shown);
-  spec.show_all = false;
   spec.critical = segmentNames(seg, choices.critical);
   spec.smoothing_voxels = choices.smoothing_voxels;
   try {

@@ -350,10 +350,7 @@ SceneSpec parseScene(const std::string& json_text, const std::string& source, co
     SegmentationSpec s;
     s.path = resolveDataPath(seg, "path", seg.string("path"), base_dir);
     s.felt = seg.strings("felt");
-    if (seg.has("shown")) {
-      s.shown = seg.strings("shown");
-      s.show_all = false;
-    }
+    if (seg.has("shown")) s.shown = seg.strings("shown");
     s.critical = seg.strings("critical");
     if (seg.has("smoothing_voxels")) {
       s.smoothing_voxels = seg.number("smoothing_voxels");

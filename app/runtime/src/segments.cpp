@@ -55,8 +55,10 @@ SegmentSet::SegmentSet(io::LoadedSegmentation seg, std::vector<int> felt, std::v
 std::shared_ptr<const SegmentSet> SegmentSet::fromSpec(io::LoadedSegmentation seg, const SegmentationSpec& spec,
                                                        const std::string& source) {
   std::vector<int> felt = resolve(seg, spec.felt, "felt", source);
-  std::vector<int> shown = resolve(seg, spec.shown, "shown", source);
-  if (spec.show_all && spec.shown.empty()) {
+  std::vector<int> shown;
+  if (spec.shown) {
+    shown = resolve(seg, *spec.shown, "shown", source);
+  } else {
     for (std::size_t s = 0; s < seg.segments.size(); ++s) shown.push_back(static_cast<int>(s));
   }
   std::vector<int> critical = resolve(seg, spec.critical, "critical", source);

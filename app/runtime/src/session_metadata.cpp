@@ -296,7 +296,6 @@ SceneSpec sceneFromSessionMetadata(const std::string& metadata_json) {
       s.path = seg.at("path").get<std::string>();
       s.felt = seg.at("felt").get<std::vector<std::string>>();
       s.shown = seg.at("shown").get<std::vector<std::string>>();
-      s.show_all = false;
       s.critical = seg.at("critical").get<std::vector<std::string>>();
       s.smoothing_voxels = seg.at("smoothing_voxels").get<double>();
       spec.segmentation = s;

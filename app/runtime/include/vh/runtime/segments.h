@@ -12,6 +12,7 @@
 #include <cstdint>
 #include <memory>
 #include <mutex>
+#include <optional>
 #include <span>
 #include <string>
 #include <vector>
@@ -28,8 +29,8 @@ namespace vh::runtime {
 struct SegmentationSpec {
   std::string path;                   ///< .seg.nrrd or label-map NRRD (resolved like the volume).
   std::vector<std::string> felt;      ///< Segment names or IDs felt; empty: the scan's isosurface is felt.
-  std::vector<std::string> shown;     ///< Segment names or IDs shown; empty with show_all: every segment.
-  bool show_all = true;               ///< "shown" absent: every segment is shown.
+  /// Segment names or IDs shown; absent ("shown" not in the scene): every segment.
+  std::optional<std::vector<std::string>> shown;
   std::vector<std::string> critical;  ///< Segment names or IDs whose touch is an alert.
   double smoothing_voxels = 1.0;      ///< Sigma of the felt field's Gaussian [voxels of the segmentation].
 };
