@@ -16,7 +16,7 @@ DeviceParams DeviceModelSpec::params(double lever_m) const {
 //              and src/devices/CDeltaDevices.cpp lines 781-1146 (m_maxLinearForce,
 //              m_maxLinearStiffness).
 //   [estimate] derived here. Damping: no identified per-device figure was found in this session,
-//              so b_d = K_chai3d T / 2, the damping with which CHAI3D's own highest stiffness sits
+//              so b_d = K_rated T / 2, the damping with which CHAI3D's own highest stiffness sits
 //              exactly at Colgate and Schenkel's bound K < 2 b / T (Colgate and Schenkel 1997,
 //              "Passivity of a class of sampled-data systems: application to haptic interfaces",
 //              J. Robotic Systems 14(1)). This ties the model to what CHAI3D found stable on the
@@ -38,8 +38,8 @@ const std::vector<DeviceModelSpec>& deviceCatalog() {
       d.encoder_resolution_m = 25.4e-3 / 400.0;  // [vendor] "400 dpi" = 0.0635 mm.
       d.servo_rate_Hz = 1000.0;           // Novint (piglix.com/piglix/Novint), 1 kHz.
       d.max_force_N = 9.0;                // [vendor] ~9 N (CHAI3D: 8.0 N).
-      d.rated_stiffness_N_per_m = 3000.0; // No vendor stiffness found; [CHAI3D] 3000 N/m used.
-      d.chai3d_stiffness_N_per_m = 3000.0;  // [CHAI3D] CDeltaDevices.cpp, DHD_DEVICE_FALCON.
+      d.vendor_stiffness_N_per_m = 0.0;    // No vendor stiffness found.
+      d.rated_stiffness_N_per_m = 3000.0;  // [CHAI3D] CDeltaDevices.cpp, DHD_DEVICE_FALCON.
       c.push_back(d);
     }
     {
@@ -51,8 +51,8 @@ const std::vector<DeviceModelSpec>& deviceCatalog() {
       d.encoder_resolution_m = 0.055e-3;  // [vendor] nominal position resolution 0.055 mm.
       d.servo_rate_Hz = 1000.0;           // [vendor] OpenHaptics servo loop, 1 kHz.
       d.max_force_N = 3.3;                // [vendor] 3.3 N; [CHAI3D] 3.3 N.
-      d.rated_stiffness_N_per_m = 1260.0; // [vendor] x axis 1.26 N/mm.
-      d.chai3d_stiffness_N_per_m = 400.0; // [CHAI3D] CPhantomDevices.cpp, "Touch".
+      d.vendor_stiffness_N_per_m = 1260.0; // [vendor] x axis 1.26 N/mm.
+      d.rated_stiffness_N_per_m = 400.0; // [CHAI3D] CPhantomDevices.cpp, "Touch".
       c.push_back(d);
     }
     {
@@ -63,8 +63,8 @@ const std::vector<DeviceModelSpec>& deviceCatalog() {
       d.encoder_resolution_m = 0.023e-3;  // [vendor] 0.023 mm.
       d.servo_rate_Hz = 1000.0;           // [vendor] OpenHaptics servo loop, 1 kHz.
       d.max_force_N = 7.9;                // [vendor] 7.9 N; [CHAI3D] 7.9 N (PHANTOM Desktop).
-      d.rated_stiffness_N_per_m = 1860.0; // [vendor] x axis 1.86 N/mm.
-      d.chai3d_stiffness_N_per_m = 1000.0;  // [CHAI3D] "PHANTOM Desktop", the Touch X's predecessor
+      d.vendor_stiffness_N_per_m = 1860.0; // [vendor] x axis 1.86 N/mm.
+      d.rated_stiffness_N_per_m = 1000.0;  // [CHAI3D] "PHANTOM Desktop", the Touch X's predecessor
                                             // (CHAI3D 3.2 has no "Touch X" entry).
       c.push_back(d);
     }
@@ -77,8 +77,8 @@ const std::vector<DeviceModelSpec>& deviceCatalog() {
       d.encoder_resolution_m = 0.01e-3;   // [vendor] translation resolution < 0.01 mm (bound used).
       d.servo_rate_Hz = 4000.0;           // [estimate] see the header comment.
       d.max_force_N = 12.0;               // [vendor] 12 N; [CHAI3D] 12 N.
-      d.rated_stiffness_N_per_m = 14500.0;  // [vendor] closed-loop stiffness 14.5 N/mm.
-      d.chai3d_stiffness_N_per_m = 5000.0;  // [CHAI3D] CDeltaDevices.cpp, omega.6.
+      d.vendor_stiffness_N_per_m = 14500.0;  // [vendor] closed-loop stiffness 14.5 N/mm.
+      d.rated_stiffness_N_per_m = 5000.0;  // [CHAI3D] CDeltaDevices.cpp, omega.6.
       c.push_back(d);
     }
     {
@@ -91,8 +91,9 @@ const std::vector<DeviceModelSpec>& deviceCatalog() {
                                           // not verified in this session.
       d.servo_rate_Hz = 4000.0;           // [estimate] see the header comment.
       d.max_force_N = 20.0;               // [vendor] 20 N (CHAI3D: 12 N).
-      d.rated_stiffness_N_per_m = 14500.0;  // [vendor] 14.5 N/mm.
-      d.chai3d_stiffness_N_per_m = 4000.0;  // [CHAI3D] CDeltaDevices.cpp, sigma.7.
+      d.torque_actuated = true;           // [vendor] active rotations: 6-DOF force feedback + gripper.
+      d.vendor_stiffness_N_per_m = 14500.0;  // [vendor] 14.5 N/mm.
+      d.rated_stiffness_N_per_m = 4000.0;  // [CHAI3D] CDeltaDevices.cpp, sigma.7.
       c.push_back(d);
     }
     {
@@ -104,8 +105,10 @@ const std::vector<DeviceModelSpec>& deviceCatalog() {
       d.encoder_resolution_m = 0.03e-3;   // [vendor] 0.03 mm.
       d.servo_rate_Hz = 1000.0;           // [vendor] OpenHaptics servo loop, 1 kHz.
       d.max_force_N = 8.5;                // [vendor] 8.5 N; [CHAI3D] 8.5 N.
-      d.rated_stiffness_N_per_m = 3500.0; // [vendor] 3.5 N/mm.
-      d.chai3d_stiffness_N_per_m = 800.0; // [CHAI3D] "PHANTOM Premium 1.5 6DOF".
+      d.torque_actuated = false;          // [vendor] the Premium 1.5 renders force only (its
+                                          // "6DOF" variant, CHAI3D's entry, adds torque motors).
+      d.vendor_stiffness_N_per_m = 3500.0; // [vendor] 3.5 N/mm.
+      d.rated_stiffness_N_per_m = 800.0; // [CHAI3D] "PHANTOM Premium 1.5 6DOF".
       c.push_back(d);
     }
     return c;
@@ -131,7 +134,8 @@ Eigen::Vector3d quantize(const Eigen::Vector3d& x_m, double q_m) noexcept {
 DeviceIo::DeviceIo(const DeviceModelSpec& spec)
     : q_m_(spec.encoder_resolution_m),
       max_force_N_(spec.max_force_N > 0.0 ? spec.max_force_N : INFINITY),
-      delay_(spec.delay_ticks) {
+      delay_(spec.delay_ticks),
+      torque_actuated_(spec.torque_actuated) {
   if (delay_ < 0 || delay_ > kMaxDelayTicks)
     throw std::invalid_argument("DeviceIo: delay_ticks " + std::to_string(delay_) + " is outside [0, " +
                                 std::to_string(kMaxDelayTicks) + "]");
@@ -163,7 +167,8 @@ Eigen::Vector3d DeviceIo::actuate(const Eigen::Vector3d& command_N) noexcept {
 }
 
 Eigen::Vector3d DeviceIo::actuateTorque(const Eigen::Vector3d& command_Nm) noexcept {
-  return pushPop(torque_line_, head_t_, delay_, command_Nm);
+  const Eigen::Vector3d t = pushPop(torque_line_, head_t_, delay_, command_Nm);
+  return torque_actuated_ ? t : Eigen::Vector3d::Zero();
 }
 
 void DeviceIo::reset() noexcept {

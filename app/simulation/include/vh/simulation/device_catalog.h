@@ -33,9 +33,16 @@ struct DeviceModelSpec {
   double encoder_resolution_m = 0.0;       ///< Position quantum at the handle [m] (0: exact).
   double servo_rate_Hz = 1000.0;           ///< Rate of the device's servo loop = coupling thread [Hz].
   double max_force_N = 0.0;                ///< Peak force the device can exert [N].
-  double rated_stiffness_N_per_m = 0.0;    ///< Vendor's rated (max) stiffness [N/m].
-  double chai3d_stiffness_N_per_m = 0.0;   ///< CHAI3D's m_maxLinearStiffness for it [N/m].
+  /// Rated max stiffness [N/m]: the maximum closed-loop stiffness the device's open driver ships
+  /// for it, CHAI3D's m_maxLinearStiffness ("maximum closed loop linear stiffness"), the figure
+  /// CHAI3D's applications scale their materials to. The paper's 5,000 N/m on Force Dimension
+  /// devices matches it.
+  double rated_stiffness_N_per_m = 0.0;
+  /// The vendor's "stiffness" figure [N/m] where one is published (0: none); a mechanism figure,
+  /// reported beside the rated one and swept, not promised.
+  double vendor_stiffness_N_per_m = 0.0;
   int delay_ticks = 1;                     ///< Force command takes effect this many ticks late.
+  bool torque_actuated = false;            ///< Motors on the rotations (6-DOF force feedback).
 
   /// Servo period T = 1 / servo_rate_Hz [s].
   double servoPeriod_s() const { return 1.0 / servo_rate_Hz; }
@@ -66,8 +73,7 @@ class DeviceIo {
   Eigen::Vector3d sense(const Eigen::Vector3d& c_true_m) const noexcept;
   /// Pushes this tick's command and returns the force applied over this tick [N].
   Eigen::Vector3d actuate(const Eigen::Vector3d& command_N) noexcept;
-  /// Torque goes through the same delay line (no saturation: the 3-DOF-force devices' torque is
-  /// modelled as available, see the README).
+  /// Torque goes through the same delay line (not saturated); zero when !torque_actuated.
   Eigen::Vector3d actuateTorque(const Eigen::Vector3d& command_Nm) noexcept;
   void reset() noexcept;
   int saturatedTicks() const noexcept { return saturated_; }
@@ -75,6 +81,7 @@ class DeviceIo {
  private:
   double q_m_, max_force_N_;
   int delay_;
+  bool torque_actuated_;
   std::array<Eigen::Vector3d, kMaxDelayTicks + 1> force_line_{}, torque_line_{};
   int head_f_ = 0, head_t_ = 0;
   int saturated_ = 0;
