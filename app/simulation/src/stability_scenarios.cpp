@@ -359,6 +359,46 @@ StiffnessResult evaluate(const std::vector<Scenario>& scenarios, double k_lin, c
   return s;
 }
 
+ControllerPrice controllerPrice(const DeviceModelSpec& device, double k_lin, const HandParams& hand) {
+  const Scenario sc = slowPressScenario();
+  SweepOptions o = withDevice(device);
+  o.check_penetration = false;
+  const SimulationResult off = runScenario(sc, k_lin, device.params(kLever_m), hand, o);
+  o.passivity_control = true;
+  const SimulationResult on = runScenario(sc, k_lin, device.params(kLever_m), hand, o);
+  ControllerPrice p;
+  p.device = device.name;
+  p.k_lin = k_lin;
+  p.peak_force_N = off.peak_force_N;
+  p.dissipated_J = on.controller_dissipated_J;
+  p.work_in_J = off.energy_in_J;
+  p.active_ticks = on.controller_active_ticks;
+  std::vector<double> err;
+  const std::size_t n = std::min(off.ticks.size(), on.ticks.size());
+  double sum = 0.0;
+  int in_contact = 0;
+  for (std::size_t i = 0; i < n; ++i) {
+    const double e = (on.ticks[i].force - off.ticks[i].force).norm() / std::max(p.peak_force_N, 1e-9);
+    err.push_back(e);
+    if (off.ticks[i].contacts > 0 || on.ticks[i].contacts > 0) {
+      sum += e;
+      ++in_contact;
+    }
+  }
+  if (!err.empty()) {
+    std::vector<double> sorted = err;
+    std::sort(sorted.begin(), sorted.end());
+    p.max_force_error_rel = sorted.back();
+    p.p999_force_error_rel = sorted[std::min(sorted.size() - 1, static_cast<std::size_t>(0.999 * (sorted.size() - 1) + 0.5))];
+  }
+  p.mean_force_error_rel = in_contact > 0 ? sum / in_contact : 0.0;
+  const Window& w = sc.settle.front();
+  const auto fn = [&w](const TickRecord& t) { return t.force.dot(w.normal_W); };
+  const double f_off = mean(off, w.t0_s, w.t1_s, fn), f_on = mean(on, w.t0_s, w.t1_s, fn);
+  p.hold_force_error_rel = std::abs(f_on - f_off) / std::max(std::abs(f_off), 1e-9);
+  return p;
+}
+
 std::string markdownTable(const std::vector<StiffnessResult>& rows) {
   std::ostringstream o;
   o << "| gains | dev | m [kg] | b_d [N s/m] | K [N/m] | K_ang [N m/rad] | 2b_d/T | 2(b_d+b_h)/T | K* (rho=1) | rho | max E_gen [J] "

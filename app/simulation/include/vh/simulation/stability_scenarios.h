@@ -169,6 +169,23 @@ StiffnessResult evaluate(const std::vector<Scenario>& scenarios, double k_lin, c
 /// The stiffness at which contactSpectralRadius() reaches 1 (bisection over [1, 1e7] N/m).
 double linearStabilityLimit(double m, double b, double k_h, double b_h, double T);
 
+/// The passivity controller's price on one device (issue 19): slowPressScenario() at stiffness
+/// k_lin run twice through the device's signal path, without and with the controller; the
+/// forces the hand got are compared tick by tick.
+struct ControllerPrice {
+  std::string device;
+  double k_lin = 0.0;
+  double peak_force_N = 0.0;             ///< Largest |F| without the controller.
+  double max_force_error_rel = 0.0;      ///< max_k |F_with - F_without| / peak_force_N.
+  double p999_force_error_rel = 0.0;     ///< 99.9th percentile of the same.
+  double mean_force_error_rel = 0.0;     ///< Mean of the same over the ticks in contact.
+  double hold_force_error_rel = 0.0;     ///< |mean F_with - mean F_without| / mean F_without, hold window.
+  double dissipated_J = 0.0;             ///< Work the controller took from the hand's port.
+  double work_in_J = 0.0;                ///< Energy the hand put into the coupling without it.
+  long active_ticks = 0;
+};
+ControllerPrice controllerPrice(const DeviceModelSpec& device, double k_lin, const HandParams& hand);
+
 /// Markdown table of a sweep.
 std::string markdownTable(const std::vector<StiffnessResult>& rows);
 /// JSON report of a sweep (written by hand: the core has no JSON library).
