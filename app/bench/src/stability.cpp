@@ -416,6 +416,95 @@ fs::path runStability(const CommonOptions& options) {
   }
   report["stiffness_sweep"] = sweep;
 
+  // --- Device models and the passivity controller (issue 19) -------------------------------
+  // Each catalogue model at its own servo rate, with its encoder, one tick of delay and its force
+  // limit, on the plane, sphere and wedge; without and with the passivity controller.
+  const std::vector<Scenario> device_scenes = deviceScenarios();
+  const std::vector<double> model_ks =
+      short_run ? std::vector<double>{50000} : std::vector<double>{1000, 3000, 10000, 20000, 50000};
+  std::cout << "bench stability: device models, " << deviceCatalog().size() << " models x " << (model_ks.size() + 1)
+            << " stiffnesses x 2 (passivity controller off / on) x " << device_scenes.size() << " scenes\n";
+  md << "\n### Device models, with and without the passivity controller\n\n"
+        "Each model of `vh::simulation::deviceCatalog()` (figures and sources in device_catalog.cpp) in the plane "
+        "press-slide-tilt, sphere press-slide and wedge press-slide scenes, the coupling thread at the device's "
+        "own servo rate, positions quantised to its encoder, every command one tick late and clamped to its "
+        "force limit; 3-DOF force devices get no torque. K_rated is the closed-loop stiffness CHAI3D ships for "
+        "the device (m_maxLinearStiffness). Verdict over the hold windows: settled (force ptp < 2 % of its mean, "
+        "or the encoder's dither floor: handle within 2 counts, force ptp <= 2 K q), decaying, or LIMIT CYCLE. "
+        "PC: the passivity controller (haptics::PassivityController). Dissipated: the work it took from the "
+        "hand's port, summed over the three scenes.\n\n";
+  md << "| device | rate [Hz] | K [N/m] | PC | verdict | hold ptp [N] (rel.) | handle travel [counts] | contact lost "
+        "[ticks] | dissipated [mJ] | PC active [ticks] | saturated [ticks] | crossings |\n"
+        "|---|---|---|---|---|---|---|---|---|---|---|---|\n";
+  nlohmann::ordered_json models = nlohmann::ordered_json::array();
+  std::vector<StiffnessResult> model_rows;
+  for (const DeviceModelSpec& d : deviceCatalog()) {
+    std::vector<double> ks_d{d.rated_stiffness_N_per_m};
+    for (double k : model_ks)
+      if (k > d.rated_stiffness_N_per_m) ks_d.push_back(k);
+    for (double k : ks_d)
+      for (bool pc : {false, true}) {
+        SweepOptions o = withDevice(d);
+        o.passivity_control = pc;
+        o.verify_step_voxels = 0.05;
+        const StiffnessResult s = evaluate(device_scenes, k, d.params(kLever_m), hand, o);
+        model_rows.push_back(s);
+        nlohmann::ordered_json j;
+        j["device"] = d.name;
+        j["servo_rate_Hz"] = d.servo_rate_Hz;
+        j["k_lin_N_per_m"] = k;
+        j["rated"] = k == d.rated_stiffness_N_per_m;
+        j["passivity_control"] = pc;
+        j["behaviour"] = toString(s.behaviour);
+        j["stable"] = s.stable();
+        j["hold_ptp_N"] = finiteOr(s.settled_ptp_N);
+        j["hold_ptp_rel"] = finiteOr(s.settled_ptp_rel);
+        j["hold_travel_counts"] = finiteOr(s.hold_ptp_counts);
+        j["contact_lost_ticks"] = s.contact_lost_ticks;
+        j["controller_dissipated_J"] = finiteOr(s.controller_dissipated_J);
+        j["controller_active_ticks"] = s.controller_active_ticks;
+        j["saturated_ticks"] = s.saturated_ticks;
+        j["crossings"] = s.crossings;
+        j["max_penetration_over_epsilon"] = finiteOr(s.max_penetration_over_eps);
+        models.push_back(j);
+        md << "| " << d.name << " | " << format("%.0f", d.servo_rate_Hz) << " | " << format("%.0f", k)
+           << (k == d.rated_stiffness_N_per_m ? " (rated)" : "") << " | " << (pc ? "on" : "off") << " | "
+           << toString(s.behaviour) << " | " << format("%.3f (%.3f)", s.settled_ptp_N, s.settled_ptp_rel) << " | "
+           << format("%.1f", s.hold_ptp_counts) << " | " << s.contact_lost_ticks << " | "
+           << format("%.3g", 1e3 * s.controller_dissipated_J) << " | " << s.controller_active_ticks << " | "
+           << s.saturated_ticks << " | " << s.crossings << " |\n";
+      }
+    std::cout << "  " << d.name << " done\n";
+  }
+  report["device_models"] = models;
+
+  md << "\n#### The controller's price: a slow press at the rated stiffness\n\n"
+        "The box lowered onto the plane at up to 5.8 mm/s to 5 mm past contact, held, lifted (scenario `plane slow "
+        "press`), run without and with the controller through the same device path; force error = |F_with - "
+        "F_without| per tick over the peak force.\n\n"
+        "| device | K_rated [N/m] | peak force [N] | held-force error | mean error (in contact) | p99.9 error | "
+        "max error | dissipated [mJ] | energy in [mJ] | PC active [ticks] |\n|---|---|---|---|---|---|---|---|---|---|\n";
+  nlohmann::ordered_json prices = nlohmann::ordered_json::array();
+  for (const DeviceModelSpec& d : deviceCatalog()) {
+    const ControllerPrice p = controllerPrice(d, d.rated_stiffness_N_per_m, hand);
+    prices.push_back({{"device", d.name},
+                      {"k_lin_N_per_m", p.k_lin},
+                      {"peak_force_N", p.peak_force_N},
+                      {"hold_force_error_rel", p.hold_force_error_rel},
+                      {"mean_force_error_rel", p.mean_force_error_rel},
+                      {"p999_force_error_rel", p.p999_force_error_rel},
+                      {"max_force_error_rel", p.max_force_error_rel},
+                      {"dissipated_J", p.dissipated_J},
+                      {"energy_in_J", p.work_in_J},
+                      {"active_ticks", p.active_ticks}});
+    md << "| " << d.name << " | " << format("%.0f", p.k_lin) << " | " << format("%.2f", p.peak_force_N) << " | "
+       << format("%.2f %%", 100 * p.hold_force_error_rel) << " | " << format("%.2f %%", 100 * p.mean_force_error_rel)
+       << " | " << format("%.1f %%", 100 * p.p999_force_error_rel) << " | "
+       << format("%.1f %%", 100 * p.max_force_error_rel) << " | " << format("%.3g", 1e3 * p.dissipated_J) << " | "
+       << format("%.3g", 1e3 * p.work_in_J) << " | " << p.active_ticks << " |\n";
+  }
+  report["controller_price"] = prices;
+
   // --- Extreme cases ---------------------------------------------------------------------
   std::cout << "bench stability: extreme cases (both detection modes)\n";
   nlohmann::ordered_json extreme = nlohmann::ordered_json::array();
@@ -475,6 +564,20 @@ fs::path runStability(const CommonOptions& options) {
     if (plotXY(out / "stability_oscillation.png", "Force oscillation after settling", "stiffness K [N/m]",
                "force peak-to-peak / mean force", series, true, true))
       plots.push_back("stability_oscillation.png");
+    std::vector<Series> model_series;
+    for (const DeviceModelSpec& d : deviceCatalog())
+      for (bool pc : {false, true}) {
+        Series s{d.name + (pc ? ", PC on" : ", PC off"), {}, {}, false};
+        for (const StiffnessResult& r : model_rows)
+          if (r.device == d.name && r.passivity_control == pc) {
+            s.x.push_back(r.k_lin);
+            s.y.push_back(std::max(r.hold_ptp_counts, 0.1));
+          }
+        model_series.push_back(s);
+      }
+    if (plotXY(out / "stability_device_models.png", "Handle travel in the hold windows, per device model",
+               "stiffness K [N/m]", "handle travel [encoder counts]", model_series, true, true))
+      plots.push_back("stability_device_models.png");
   }
   writeReport(out, "stability", report, md, plots);
   return out;

@@ -12,6 +12,8 @@
 #include <Eigen/Eigenvalues>
 
 #include "vh/haptics/configuration_solver.h"
+#include "vh/haptics/passivity_controller.h"
+#include "vh/simulation/device_catalog.h"
 
 namespace vh::stability {
 
@@ -171,9 +173,26 @@ SimulationResult simulate(HapticRenderer& renderer, const SimulationConfig& cfg,
   Eigen::Quaterniond q = start.R_W.normalized();
   double w_out = 0.0, d_dev = 0.0, v0 = 0.0;
 
+  // The device's signal path and the optional passivity controller (issue 19).
+  DeviceModelSpec path;
+  path.encoder_resolution_m = cfg.encoder_resolution_m;
+  path.delay_ticks = cfg.delay_ticks;
+  path.max_force_N = cfg.max_force_N;
+  path.torque_actuated = cfg.torque_actuated;
+  DeviceIo io(path);
+  haptics::PassivityOptions pc_options;
+  pc_options.delay_ticks = cfg.delay_ticks;
+  haptics::PassivityController pc_force(pc_options), pc_torque(pc_options);
+  // The same path fed the renderer's own commands: what the hand would have got without the
+  // controller, for its exact price.
+  DeviceIo io_uncontrolled(path);
+  Eigen::Vector3d c_sensed_prev = quantize(c, cfg.encoder_resolution_m);
+  Eigen::Quaterniond q_prev = q;
+
   for (int k = 0; k < n_ticks; ++k) {
     const double t = k * T;
-    const Pose X_WD{q, c - q * mass.p_TCm_m};
+    const Eigen::Vector3d c_sensed = io.sense(c);
+    const Pose X_WD{q, c_sensed - q * mass.p_TCm_m};
     const Pose P_prev = renderer.proxyPose();
     const haptics::TickOutput out = renderer.tick(X_WD, cfg.isovalue);
     TickRecord rec;
@@ -184,8 +203,7 @@ SimulationResult simulate(HapticRenderer& renderer, const SimulationConfig& cfg,
     rec.w_D = w;
     rec.c_P = cp.cm(out.X_WP);
     rec.theta = rotationVector(X_WD.R_AB * out.X_WP.R_AB.conjugate());
-    rec.force = out.force_W_N;
-    rec.torque = out.torque_W_Nm;
+    rec.force_rendered = out.force_W_N;
     rec.contacts = out.stats.contacts;
     if (out.stats.bad_input) ++res.bad_inputs;
     if (!out.force_W_N.allFinite() || !out.torque_W_Nm.allFinite() || !out.X_WP.allFinite()) {
@@ -240,15 +258,37 @@ SimulationResult simulate(HapticRenderer& renderer, const SimulationConfig& cfg,
       rec.penetration_m = penetration(renderer.volume(), renderer.tool(), out.X_WP, cfg.isovalue);
       res.max_penetration_m = std::max(res.max_penetration_m, rec.penetration_m);
     }
-    res.peak_force_N = std::max(res.peak_force_N, out.force_W_N.norm());
+
     if (verifier) {
       const int crossed = verifier->check(renderer.lastMotion(), renderer.lastTimeOfContact(), cfg.isovalue).crossing_points;
       res.crossings += crossed > 0;
       res.crossing_points += crossed;
     }
 
-    // Plant over the hold interval: the coupling wrench is held (zero-order hold).
-    const Eigen::Vector3d F = out.force_W_N, tau = out.torque_W_Nm;
+    // The commands: the renderer's wrench, through the passivity controller when it is on
+    // (each port told its displacement over the last tick and the energy its spring holds),
+    // then the device's delay line and saturation.
+    Eigen::Vector3d F_cmd = out.force_W_N, tau_cmd = out.torque_W_Nm;
+    if (cfg.passivity_control) {
+      const Eigen::Vector3d d_lin = cp.cm(X_WD) - cp.cm(out.X_WP);
+      const double stored_lin = 0.5 * cp.k_lin * d_lin.squaredNorm();
+      const auto sf = pc_force.step(F_cmd, c_sensed - c_sensed_prev, T, stored_lin);
+      const auto st = pc_torque.step(tau_cmd, rotationVector(q * q_prev.conjugate()), T,
+                                     std::max(0.0, rec.stored_J - stored_lin));
+      res.controller_active_ticks += (sf.alpha > 0.0 || st.alpha > 0.0) ? 1 : 0;
+      F_cmd = sf.effort_W;
+      tau_cmd = st.effort_W;
+    }
+    c_sensed_prev = c_sensed;
+    q_prev = q;
+    const Eigen::Vector3d F = io.actuate(F_cmd), tau = io.actuateTorque(tau_cmd);
+    const Eigen::Vector3d F_free = io_uncontrolled.actuate(out.force_W_N);
+    const Eigen::Vector3d tau_free = io_uncontrolled.actuateTorque(out.torque_W_Nm);
+    rec.force = F;
+    rec.torque = tau;
+    res.peak_force_N = std::max(res.peak_force_N, F.norm());
+
+    // Plant over the hold interval: the applied wrench is held (zero-order hold).
     PlantState y{c, v, q, w, Eigen::Vector3d::Zero(), 0.0};
     const Eigen::Vector3d c_start = c;
     for (int s = 0; s < cfg.substeps; ++s) y = rk4Step(y, t + s * h, h, F, tau, dev, hp, hand);
@@ -256,6 +296,8 @@ SimulationResult simulate(HapticRenderer& renderer, const SimulationConfig& cfg,
     // with the state (RK4): the energy books close to O(h^4), see
     // StabilityHarness.FreeBounceMatchesTheZeroOrderHoldPrediction.
     const double tick_work = F.dot(y.c - c_start) + tau.dot(y.phi);
+    // The controller's share: the damping it added, held over this tick, against the motion.
+    res.controller_dissipated_J += (F_free - F).dot(y.c - c_start) + (tau_free - tau).dot(y.phi);
     d_dev += y.damper_J;
     c = y.c;
     v = y.v;
@@ -270,6 +312,7 @@ SimulationResult simulate(HapticRenderer& renderer, const SimulationConfig& cfg,
     }
     res.ticks.push_back(rec);
   }
+  res.saturated_ticks = io.saturatedTicks();
   return res;
 }
 

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <numbers>
 #include <sstream>
 
 #include "vh/datasets/synthetic.h"
@@ -157,6 +158,70 @@ Scenario pegScenario() {
   return sc;
 }
 
+Scenario wedgeScenario() {
+  Scenario sc;
+  sc.name = "wedge press-slide";
+  // Solid: below either face, n1 . p < 0 or n2 . p < 0 (union: the larger signed distance).
+  const double a = std::numbers::pi / 4.0;
+  const Eigen::Vector3d n1(std::sin(a), 0.0, std::cos(a)), n2(-std::sin(a), 0.0, std::cos(a));
+  sc.volume = std::make_shared<const haptics::ScalarVolume>(datasets::makeVolumeFromSignedDistance(
+      grid1mm(), [n1, n2](const Eigen::Vector3d& p) { return std::max(-n1.dot(p), -n2.dot(p)); }));
+  sc.tool = meshTool(datasets::makeBuiltinTool("sphere"), 1e-3);
+  const double r_tool = 0.005, z_rest = r_tool / std::cos(a);  // touching both faces
+  const Eigen::Vector3d c0(0, -0.005, z_rest + 0.002);
+  sc.X_WP0 = poseOfCm(*sc.tool, c0, Eigen::Quaterniond::Identity());
+  sc.start.c_W_m = c0;
+  const double drop = 0.002 + kDepth_m;
+  sc.hand = [c0, drop](double t) {
+    HandTarget h;
+    h.c_W_m = c0 + Eigen::Vector3d(0.0, 0.010 * ramp(t, 0.85, 1.15), -drop * ramp(t, 0.05, 0.25));
+    h.v_W_mps = Eigen::Vector3d(0.0, 0.010 * rampRate(t, 0.85, 1.15), -drop * rampRate(t, 0.05, 0.25));
+    return h;
+  };
+  sc.duration_s = 1.55;
+  sc.settle = {{0.75, 0.85, Eigen::Vector3d::UnitZ()}, {1.45, 1.55, Eigen::Vector3d::UnitZ()}};
+  return sc;
+}
+
+std::vector<Scenario> deviceScenarios() {
+  std::vector<Scenario> all = defaultScenarios(), out;
+  for (Scenario& sc : all)
+    if (sc.name == "plane press-slide-tilt" || sc.name == "sphere press-slide") out.push_back(std::move(sc));
+  out.push_back(wedgeScenario());
+  return out;
+}
+
+Scenario slowPressScenario() {
+  Scenario sc;
+  sc.name = "plane slow press";
+  sc.volume = std::make_shared<const haptics::ScalarVolume>(
+      datasets::makePlaneVolume(grid1mm(), Eigen::Vector3d::UnitZ(), 0.0));
+  sc.tool = meshTool(datasets::makeBoxMesh({0.005, 0.005, 0.002}), 1e-3);
+  const Eigen::Vector3d c0(0, 0, 0.002 + 0.0002);  // 0.2 mm above the plane
+  sc.X_WP0 = poseOfCm(*sc.tool, c0, Eigen::Quaterniond::Identity());
+  sc.start.c_W_m = c0;
+  const double drop = 0.0002 + kDepth_m;
+  sc.hand = [c0, drop](double t) {
+    HandTarget h;
+    const double s = ramp(t, 0.2, 1.2) - ramp(t, 1.6, 2.6), ds = rampRate(t, 0.2, 1.2) - rampRate(t, 1.6, 2.6);
+    h.c_W_m = c0 - Eigen::Vector3d::UnitZ() * drop * s;
+    h.v_W_mps = -Eigen::Vector3d::UnitZ() * drop * ds;
+    return h;
+  };
+  sc.duration_s = 2.8;
+  sc.settle = {{1.3, 1.5, Eigen::Vector3d::UnitZ()}};
+  return sc;
+}
+
+SweepOptions withDevice(const DeviceModelSpec& device, SweepOptions base) {
+  base.servo_period_s = device.servoPeriod_s();
+  base.encoder_resolution_m = device.encoder_resolution_m;
+  base.delay_ticks = device.delay_ticks;
+  base.max_force_N = device.max_force_N;
+  base.torque_actuated = device.torque_actuated;
+  return base;
+}
+
 const char* toString(Behaviour b) {
   switch (b) {
     case Behaviour::kSettled: return "settled";
@@ -185,6 +250,12 @@ SimulationResult runScenario(const Scenario& sc, double k_lin, const DeviceParam
   cfg.lift_bound_m = 2.0 * o.standoff_fraction * r.epsilon_m();
   cfg.check_penetration = options.check_penetration;
   cfg.verify_step_voxels = options.verify_step_voxels;
+  cfg.servo_period_s = options.servo_period_s;
+  cfg.encoder_resolution_m = options.encoder_resolution_m;
+  cfg.delay_ticks = options.delay_ticks;
+  cfg.max_force_N = options.max_force_N;
+  cfg.torque_actuated = options.torque_actuated;
+  cfg.passivity_control = options.passivity_control;
   return simulate(r, cfg, sc.hand, sc.start);
 }
 
@@ -209,7 +280,9 @@ StiffnessResult evaluate(const std::vector<Scenario>& scenarios, double k_lin, c
   s.device = device.name;
   s.mass_kg = device.mass_kg;
   s.damping = device.damping_Ns_per_m;
-  const double T = 1e-3;
+  s.servo_rate_Hz = 1.0 / options.servo_period_s;
+  s.passivity_control = options.passivity_control;
+  const double T = options.servo_period_s;
   s.colgate_k_max = colgateMaxStiffness(device.damping_Ns_per_m, T);
   s.colgate_k_max_hand = colgateMaxStiffness(device.damping_Ns_per_m + hand.damping_Ns_per_m, T);
   s.spectral_radius = contactSpectralRadius(device.mass_kg, device.damping_Ns_per_m, hand.stiffness_N_per_m,
@@ -230,6 +303,9 @@ StiffnessResult evaluate(const std::vector<Scenario>& scenarios, double k_lin, c
     s.crossings += r.crossings;
     s.crossing_points += r.crossing_points;
     s.max_force_error_rel = std::max(s.max_force_error_rel, r.max_force_error_rel);
+    s.controller_dissipated_J += r.controller_dissipated_J;
+    s.controller_active_ticks += r.controller_active_ticks;
+    s.saturated_ticks += r.saturated_ticks;
     s.max_e_gen_J = std::max(s.max_e_gen_J, r.max_e_gen_J);
     s.peak_force_N = std::max(s.peak_force_N, r.peak_force_N);
     passive &= r.max_e_gen_J <= passivityTolerance(r.energy_in_J + r.energy_out_J);
@@ -249,7 +325,16 @@ StiffnessResult evaluate(const std::vector<Scenario>& scenarios, double k_lin, c
       s.settled_ptp_N = std::max(s.settled_ptp_N, ptp);
       const double ratio = ptp / std::max(ptp_before, 1e-300);
       s.decay_ratio = std::max(s.decay_ratio, ratio);
-      const bool window_settled = rel < kSettledPtp && avg > 0.0 && lost == 0;
+      // A quantised encoder cannot hold the sensed position between two counts: a contact whose
+      // handle stays within kDitherCounts counts and whose force moves by at most that many
+      // counts' worth of spring (K q each) plus kSettledPtp is at rest, dithering at the floor.
+      const double q = options.encoder_resolution_m;
+      const double travel_counts =
+          q > 0.0 ? peakToPeak(r, w.t0_s, w.t1_s, [n](const TickRecord& t) { return t.c_D.dot(n); }) / q : 0.0;
+      const bool at_floor = q > 0.0 && travel_counts <= kDitherCounts &&
+                            ptp <= kDitherCounts * k_lin * q + kSettledPtp * std::abs(avg);
+      s.hold_ptp_counts = std::max(s.hold_ptp_counts, travel_counts);
+      const bool window_settled = (rel < kSettledPtp || at_floor) && avg > 0.0 && lost == 0;
       settled &= window_settled;
       decaying &= window_settled || (ratio <= 0.5 && avg > 0.0 && lost == 0);
       if (first_hold && sc.name.starts_with("plane")) {
@@ -272,6 +357,46 @@ StiffnessResult evaluate(const std::vector<Scenario>& scenarios, double k_lin, c
   else
     s.behaviour = Behaviour::kLimitCycle;
   return s;
+}
+
+ControllerPrice controllerPrice(const DeviceModelSpec& device, double k_lin, const HandParams& hand) {
+  const Scenario sc = slowPressScenario();
+  SweepOptions o = withDevice(device);
+  o.check_penetration = false;
+  const SimulationResult off = runScenario(sc, k_lin, device.params(kLever_m), hand, o);
+  o.passivity_control = true;
+  const SimulationResult on = runScenario(sc, k_lin, device.params(kLever_m), hand, o);
+  ControllerPrice p;
+  p.device = device.name;
+  p.k_lin = k_lin;
+  p.peak_force_N = off.peak_force_N;
+  p.dissipated_J = on.controller_dissipated_J;
+  p.work_in_J = off.energy_in_J;
+  p.active_ticks = on.controller_active_ticks;
+  std::vector<double> err;
+  const std::size_t n = std::min(off.ticks.size(), on.ticks.size());
+  double sum = 0.0;
+  int in_contact = 0;
+  for (std::size_t i = 0; i < n; ++i) {
+    const double e = (on.ticks[i].force - off.ticks[i].force).norm() / std::max(p.peak_force_N, 1e-9);
+    err.push_back(e);
+    if (off.ticks[i].contacts > 0 || on.ticks[i].contacts > 0) {
+      sum += e;
+      ++in_contact;
+    }
+  }
+  if (!err.empty()) {
+    std::vector<double> sorted = err;
+    std::sort(sorted.begin(), sorted.end());
+    p.max_force_error_rel = sorted.back();
+    p.p999_force_error_rel = sorted[std::min(sorted.size() - 1, static_cast<std::size_t>(0.999 * (sorted.size() - 1) + 0.5))];
+  }
+  p.mean_force_error_rel = in_contact > 0 ? sum / in_contact : 0.0;
+  const Window& w = sc.settle.front();
+  const auto fn = [&w](const TickRecord& t) { return t.force.dot(w.normal_W); };
+  const double f_off = mean(off, w.t0_s, w.t1_s, fn), f_on = mean(on, w.t0_s, w.t1_s, fn);
+  p.hold_force_error_rel = std::abs(f_on - f_off) / std::max(std::abs(f_off), 1e-9);
+  return p;
 }
 
 std::string markdownTable(const std::vector<StiffnessResult>& rows) {

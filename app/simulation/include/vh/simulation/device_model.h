@@ -109,6 +109,18 @@ struct SimulationConfig {
   /// 0 when the stand-off is off. The lift pushes the proxy out of the surface, against the
   /// spring, so a tick may lose up to |F| * lift_bound_m of solver work to it.
   double lift_bound_m = 0.0;
+
+  // The device's signal path (issue 19, device_catalog.h DeviceIo). Defaults: the ideal device
+  // (exact position, the command held from the very tick it was computed, no saturation).
+  double encoder_resolution_m = 0.0;  ///< Position quantum of the sensed handle [m]; 0: exact.
+  int delay_ticks = 0;                ///< Whole ticks before a command's hold starts.
+  double max_force_N = 0.0;           ///< Force saturation [N]; 0: none.
+  /// False: the device has no torque actuators (a 3-DOF force device): the coupling's torque is
+  /// not applied and the hand alone turns the handle.
+  bool torque_actuated = true;
+  /// Time-domain passivity controller (haptics::PassivityController) on both coupling ports,
+  /// between the renderer and the delay line, told the same delay_ticks.
+  bool passivity_control = false;
 };
 
 /// One servo tick, recorded after the renderer ran (device sample at t_s).
@@ -120,8 +132,12 @@ struct TickRecord {
   Eigen::Vector3d w_D = Eigen::Vector3d::Zero();      ///< Device angular velocity, W [rad/s].
   Eigen::Vector3d c_P = Eigen::Vector3d::Zero();      ///< Proxy Cm after the tick [m].
   Eigen::Vector3d theta = Eigen::Vector3d::Zero();    ///< rotvec(R_WD R_WP^T) after the tick [rad].
-  Eigen::Vector3d force = Eigen::Vector3d::Zero();    ///< Force on the hand (held) [N].
+  /// Force the device applies to the hand over [t_s, t_s + T) [N]: the renderer's command after
+  /// the passivity controller, the delay line and saturation (= the renderer's with the ideal
+  /// device).
+  Eigen::Vector3d force = Eigen::Vector3d::Zero();
   Eigen::Vector3d torque = Eigen::Vector3d::Zero();   ///< Torque on the hand about Cm (held) [N*m].
+  Eigen::Vector3d force_rendered = Eigen::Vector3d::Zero();  ///< The renderer's force this tick [N].
   int contacts = 0;
   double solver_work_J = 0.0;        ///< S_k (>= 0: the proxy moved with the spring).
   double solver_work_lin_J = 0.0;    ///< Translational part of S_k (exact).
@@ -157,6 +173,12 @@ struct SimulationResult {
   double energy_out_J = 0.0;          ///< sum of the energy the coupling gave (F.dx > 0 parts).
   double peak_force_N = 0.0;
   double epsilon_m = 0.0;
+  /// Work the passivity controller took out of the hand's port [J]: sum over ticks of (the wrench
+  /// the device would have applied without it - the wrench it applied) . the handle's
+  /// displacement over the tick (both through the same delay and saturation; both ports).
+  double controller_dissipated_J = 0.0;
+  long controller_active_ticks = 0;   ///< Ticks on which either port's damper acted.
+  int saturated_ticks = 0;            ///< Ticks the device clamped the force to max_force_N.
 };
 
 /// Tolerance of the solver-work test for one tick [J]. Two rounding floors, both measured:

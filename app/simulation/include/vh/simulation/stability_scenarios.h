@@ -24,6 +24,7 @@
 #include <string>
 #include <vector>
 
+#include "vh/simulation/device_catalog.h"
 #include "vh/simulation/device_model.h"
 
 namespace vh::stability {
@@ -57,10 +58,20 @@ struct Scenario {
 std::vector<Scenario> defaultScenarios();
 /// The peg-in-hole scenario on the paper's 256^3 block (long runs only).
 Scenario pegScenario();
+/// A V-groove of two 45-degree faces meeting along y at z = 0 (64^3 grid of 1 mm), the 5 mm
+/// ball tool pressed into it (two contacts at once, the wedged contact of issue 19), held
+/// (judged 0.75-0.85 s along +z), slid 10 mm along the groove (0.85-1.15 s), held (1.45-1.55 s).
+Scenario wedgeScenario();
+/// The per-device sweep's scenes (issue 19): plane press-slide-tilt, sphere press-slide, wedge.
+std::vector<Scenario> deviceScenarios();
+/// The passivity controller's price: the box lowered slowly onto the plane (kDepth_m past
+/// contact over 0.2-1.2 s, 5.8 mm/s at most), held, lifted off (1.6-2.6 s). Judged 1.3-1.5 s.
+Scenario slowPressScenario();
 
 /// Verdict on the closed loop with the hand, from the hold windows.
 enum class Behaviour {
-  kSettled,     ///< Every hold window: force peak-to-peak < kSettledPtp of its mean, no contact lost.
+  kSettled,     ///< Every hold window: force peak-to-peak < kSettledPtp of its mean (or at the
+                ///< encoder's dither floor, kDitherCounts), no contact lost.
   kDecaying,    ///< Not yet settled, but the oscillation at least halves over kDecayLag_s and the
                 ///< contact holds through the window: asymptotically stable, under-damped.
   kLimitCycle,  ///< Sustained oscillation or chatter (contact lost and regained): unstable.
@@ -70,6 +81,11 @@ const char* toString(Behaviour b);
 
 /// Largest relative force peak-to-peak in a hold window of a settled contact.
 inline constexpr double kSettledPtp = 0.02;
+/// With a quantised encoder (SweepOptions::encoder_resolution_m > 0) a hold window is also
+/// settled when the handle travels at most this many counts along the normal and the force's
+/// peak-to-peak is at most this many times K q (plus kSettledPtp of the mean): the dither
+/// between adjacent counts that no controller can remove.
+inline constexpr double kDitherCounts = 2.0;
 /// The oscillation is compared with itself this long before the hold window [s].
 inline constexpr double kDecayLag_s = 0.3;
 
@@ -107,6 +123,14 @@ struct StiffnessResult {
   double max_force_error_rel = 0.0;
   bool finite = true;
   int bad_inputs = 0;
+  // The device path and the passivity controller (issue 19).
+  double servo_rate_Hz = 1000.0;
+  bool passivity_control = false;
+  double hold_ptp_counts = 0.0;          ///< Largest handle travel along the normal in a hold window,
+                                         ///< in encoder counts (0 with an exact encoder).
+  double controller_dissipated_J = 0.0;  ///< SimulationResult::controller_dissipated_J, summed.
+  long controller_active_ticks = 0;
+  int saturated_ticks = 0;
 
   bool stable() const { return behaviour == Behaviour::kSettled || behaviour == Behaviour::kDecaying; }
 };
@@ -119,7 +143,17 @@ struct SweepOptions {
   haptics::DetectionMode detection_mode = haptics::DetectionMode::kAccelerated;
   /// > 0: crossings checked after every tick at this step [voxels] (SimulationConfig).
   double verify_step_voxels = 0.0;
+  // The device (issue 19): its servo period and signal path (SimulationConfig's fields).
+  double servo_period_s = 1e-3;
+  double encoder_resolution_m = 0.0;
+  int delay_ticks = 0;
+  double max_force_N = 0.0;
+  bool torque_actuated = true;
+  bool passivity_control = false;
 };
+
+/// `base` with the servo period and signal path of a catalogue device (device_catalog.h).
+SweepOptions withDevice(const DeviceModelSpec& device, SweepOptions base = {});
 
 /// Runs one scenario at linear stiffness k_lin. Torsional stiffness: options.lever_m > 0 gives
 /// k_ang = k_lin lever^2 (the README's diagonal K); <= 0 matches it to the tool's mass metric,
@@ -134,6 +168,23 @@ StiffnessResult evaluate(const std::vector<Scenario>& scenarios, double k_lin, c
 
 /// The stiffness at which contactSpectralRadius() reaches 1 (bisection over [1, 1e7] N/m).
 double linearStabilityLimit(double m, double b, double k_h, double b_h, double T);
+
+/// The passivity controller's price on one device (issue 19): slowPressScenario() at stiffness
+/// k_lin run twice through the device's signal path, without and with the controller; the
+/// forces the hand got are compared tick by tick.
+struct ControllerPrice {
+  std::string device;
+  double k_lin = 0.0;
+  double peak_force_N = 0.0;             ///< Largest |F| without the controller.
+  double max_force_error_rel = 0.0;      ///< max_k |F_with - F_without| / peak_force_N.
+  double p999_force_error_rel = 0.0;     ///< 99.9th percentile of the same.
+  double mean_force_error_rel = 0.0;     ///< Mean of the same over the ticks in contact.
+  double hold_force_error_rel = 0.0;     ///< |mean F_with - mean F_without| / mean F_without, hold window.
+  double dissipated_J = 0.0;             ///< Work the controller took from the hand's port.
+  double work_in_J = 0.0;                ///< Energy the hand put into the coupling without it.
+  long active_ticks = 0;
+};
+ControllerPrice controllerPrice(const DeviceModelSpec& device, double k_lin, const HandParams& hand);
 
 /// Markdown table of a sweep.
 std::string markdownTable(const std::vector<StiffnessResult>& rows);
