@@ -465,7 +465,7 @@ void HapticThread::couplingLoop() noexcept {
   haptics::PassivityController passivity_torque;
   haptics::Pose X_WD_coupled_last;   // the device pose of the previous coupled tick
   bool have_coupled_last = false;    // X_WD_coupled_last is that of the previous tick
-  // I_Cm^-1 in T, for the torsional spring's stored energy (coupledStoredEnergy_J).
+  // I_Cm^-1 in T, for the torsional spring's stored energy (angularStoredEnergy_J).
   const Eigen::Matrix3d I_Cm_inv_T = mass.I_Cm_T_kgm2.inverse();
   const double mean_moment_kgm2 = mass.I_Cm_T_kgm2.trace() / 3.0;
   std::uint64_t passivity_active_ticks = 0;  // summed over controller resets
