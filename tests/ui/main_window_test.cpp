@@ -10,6 +10,7 @@
 #include <memory>
 
 #include <QApplication>
+#include <QCheckBox>
 #include <QComboBox>
 #include <QDockWidget>
 #include <QDoubleSpinBox>
@@ -352,6 +353,14 @@ TEST_F(MainWindowTest, GainsFromThePanelApplyLiveAndPersist) {
   EXPECT_DOUBLE_EQ(window_->gains().angular_Nm_per_rad, 1.5);
   EXPECT_DOUBLE_EQ(window_->preferences().linear_stiffness_N_per_m, 2500.0);
   EXPECT_DOUBLE_EQ(window_->preferences().torsional_stiffness_Nm_per_rad, 1.5);
+  EXPECT_FALSE(window_->gains().passivity_control);
+  panel->passivityControlBox()->setChecked(true);
+  EXPECT_TRUE(window_->gains().passivity_control);
+  EXPECT_DOUBLE_EQ(window_->gains().linear_N_per_m, 2500.0);
+  EXPECT_TRUE(window_->preferences().passivity_control);
+  panel->passivityControlBox()->setChecked(false);
+  EXPECT_FALSE(window_->gains().passivity_control);
+  EXPECT_FALSE(window_->preferences().passivity_control);
   EXPECT_EQ(panel->pointCountLabel()->text().toULongLong(), loaded_->tool->point_shell.size());
   EXPECT_TRUE(window_->hapticsRunning());
   // The start/stop button stops and restarts the thread.

@@ -20,6 +20,7 @@ TEST(PreferencesTest, RoundTripThroughQSettings) {
   p.device = QColor(250, 0, 250);
   p.linear_stiffness_N_per_m = 2345.0;
   p.torsional_stiffness_Nm_per_rad = 0.75;
+  p.passivity_control = true;
   p.mode = RenderMode::kMip;
   p.preset = VolumePreset::kSkin;
   p.orientation_marker = false;

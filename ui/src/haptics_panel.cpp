@@ -3,6 +3,7 @@
 
 #include <cmath>
 
+#include <QCheckBox>
 #include <QComboBox>
 #include <QDoubleSpinBox>
 #include <QFormLayout>
@@ -70,7 +71,13 @@ HapticsPanel::HapticsPanel(QWidget* parent) : QWidget(parent) {
   torsional_->setKeyboardTracking(false);
   torsional_->setToolTip("Torsional stiffness k_ang of the coupling (paper eq. 5)");
   coupling_form->addRow("Linear", linear_);
+  passivity_ = new QCheckBox("Passivity control", coupling);
+  passivity_->setObjectName("passivityControl");
+  passivity_->setToolTip(
+      "Time-domain passivity controller (Hannaford and Ryu 2002): removes energy the sampled, delayed "
+      "coupling would create, so stiffer contact stays stable; slightly softer feel on release. Off by default.");
   coupling_form->addRow("Torsional", torsional_);
+  coupling_form->addRow(passivity_);
   layout->addWidget(coupling);
 
   auto* device = new QGroupBox("Device", this);
@@ -120,6 +127,7 @@ HapticsPanel::HapticsPanel(QWidget* parent) : QWidget(parent) {
   };
   connect(linear_, &QDoubleSpinBox::valueChanged, this, gains_edited);
   connect(torsional_, &QDoubleSpinBox::valueChanged, this, gains_edited);
+  connect(passivity_, &QCheckBox::toggled, this, gains_edited);
   setRunning(false, false);
 }
 
@@ -156,6 +164,7 @@ void HapticsPanel::setGains(const haptics::CouplingGains& gains) {
   updating_ = true;
   linear_->setValue(gains.linear_N_per_m);
   torsional_->setValue(gains.angular_Nm_per_rad);
+  passivity_->setChecked(gains.passivity_control);
   updating_ = false;
 }
 
@@ -163,6 +172,7 @@ haptics::CouplingGains HapticsPanel::gains() const {
   haptics::CouplingGains g;
   g.linear_N_per_m = linear_->value();
   g.angular_Nm_per_rad = torsional_->value();
+  g.passivity_control = passivity_->isChecked();
   return g;
 }
 

@@ -81,7 +81,7 @@ MainWindow::MainWindow(QWidget* parent) : QMainWindow(parent) {
     QSettings settings;
     prefs_ = Preferences::load(settings);
   }
-  session_.setGains({prefs_.linear_stiffness_N_per_m, prefs_.torsional_stiffness_Nm_per_rad});
+  session_.setGains({prefs_.linear_stiffness_N_per_m, prefs_.torsional_stiffness_Nm_per_rad, prefs_.passivity_control});
   tools_ = toolCatalog(runtime::sharedDatasetsDir());
   loader_ = new SceneLoader(this);
   buildUi();
@@ -285,6 +285,7 @@ void MainWindow::onSessionChanged(SessionChange what) {
     // Remembered for the next plain volume.
     prefs_.linear_stiffness_N_per_m = session_.gains().linear_N_per_m;
     prefs_.torsional_stiffness_Nm_per_rad = session_.gains().angular_Nm_per_rad;
+    prefs_.passivity_control = session_.gains().passivity_control;
   }
   if (runtime::has(what, SessionChange::kTool) || runtime::has(what, SessionChange::kScene)) {
     tool_index_ = findOrAddSceneTool(tools_, session_.scene().spec.tool);
@@ -382,7 +383,8 @@ void MainWindow::setScene(ViewerScene v) {
   replay_->onSceneTeardown();
   // A scene file's gains are part of its experiment; plain volumes get the remembered ones.
   if (v.scene.spec.source.empty()) {
-    v.scene.spec.gains = {prefs_.linear_stiffness_N_per_m, prefs_.torsional_stiffness_Nm_per_rad};
+    v.scene.spec.gains = {prefs_.linear_stiffness_N_per_m, prefs_.torsional_stiffness_Nm_per_rad,
+                          prefs_.passivity_control};
   }
   view_->clearScene();
   title_ = v.title;

@@ -38,6 +38,7 @@ Preferences Preferences::load(QSettings& s) {
   p.linear_stiffness_N_per_m = readPositive(s, "haptics/linear_stiffness_N_per_m", p.linear_stiffness_N_per_m);
   p.torsional_stiffness_Nm_per_rad =
       readPositive(s, "haptics/torsional_stiffness_Nm_per_rad", p.torsional_stiffness_Nm_per_rad);
+  p.passivity_control = s.value("haptics/passivity_control", p.passivity_control).toBool();
   const int mode = s.value("view/mode", static_cast<int>(p.mode)).toInt();
   if (mode >= 0 && mode <= static_cast<int>(RenderMode::kMip)) p.mode = static_cast<RenderMode>(mode);
   const int preset = s.value("view/preset", static_cast<int>(p.preset)).toInt();
@@ -60,6 +61,7 @@ void Preferences::save(QSettings& s) const {
   s.setValue("colours/device", device.name());
   s.setValue("haptics/linear_stiffness_N_per_m", linear_stiffness_N_per_m);
   s.setValue("haptics/torsional_stiffness_Nm_per_rad", torsional_stiffness_Nm_per_rad);
+  s.setValue("haptics/passivity_control", passivity_control);
   s.setValue("view/mode", static_cast<int>(mode));
   s.setValue("view/preset", static_cast<int>(preset));
   s.setValue("view/orientation_marker", orientation_marker);

@@ -37,7 +37,7 @@ double clampGain(double g, double max) noexcept {
 
 haptics::CouplingGains clampGains(const haptics::CouplingGains& gains, const DeviceLimits& limits) noexcept {
   return {clampGain(gains.linear_N_per_m, limits.max_linear_stiffness_N_per_m),
-          clampGain(gains.angular_Nm_per_rad, limits.max_angular_stiffness_Nm_per_rad)};
+          clampGain(gains.angular_Nm_per_rad, limits.max_angular_stiffness_Nm_per_rad), gains.passivity_control};
 }
 
 // ---- ForceSafety --------------------------------------------------------------------------------

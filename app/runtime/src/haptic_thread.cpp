@@ -3,6 +3,9 @@
 
 #include "vh/runtime/snapshot_channel.h"
 
+#include "vh/haptics/configuration_solver.h"
+#include "vh/haptics/passivity_controller.h"
+
 #include <pthread.h>
 #include <sched.h>
 #include <sys/mman.h>
@@ -16,6 +19,7 @@
 #include <cmath>
 #include <cstdlib>
 #include <cstring>
+#include <limits>
 #include <stdexcept>
 
 #include <nlohmann/json.hpp>
@@ -146,8 +150,30 @@ struct DeviceInput {
   bool connected = true;         ///< Device::connected() right after the read.
 };
 
+/// Energy the coupling's linear spring holds [J]: 0.5 k_lin |c_D - c_P|^2 = |F|^2 / (2 k_lin)
+/// (virtual_coupling.h: F = -k_lin (c_D - c_P)); 0 without a spring.
+double linearStoredEnergy_J(const Eigen::Vector3d& force_W_N, double k_lin_N_per_m) noexcept {
+  return k_lin_N_per_m > 0.0 ? force_W_N.squaredNorm() / (2.0 * k_lin_N_per_m) : 0.0;
+}
+
+/// Energy the coupling's torsional spring holds [J]. Eq. 5 gives tau = -(k_ang / i) I_W dtheta
+/// (i = trace(I_Cm) / 3, I_W = R_WP I_Cm_T R_WP^T: virtual_coupling.h), the gradient of
+/// 0.5 (k_ang / i) dtheta^T I_W dtheta, which is (i / (2 k_ang)) tau^T I_W^-1 tau. Exact for the
+/// quadratic form in the rotation vector; the rotation manifold's curvature is neglected (small
+/// angles). Infinity (no cap) when it cannot be computed (e.g. a singular inertia); 0 without a
+/// spring.
+double angularStoredEnergy_J(const Eigen::Vector3d& torque_W_Nm, const Eigen::Quaterniond& R_WP,
+                             const Eigen::Matrix3d& I_Cm_inv_T, double mean_moment_kgm2,
+                             double k_ang_Nm_per_rad) noexcept {
+  if (!(k_ang_Nm_per_rad > 0.0)) return 0.0;
+  const Eigen::Vector3d tau_T = R_WP.conjugate() * torque_W_Nm;
+  const double e = mean_moment_kgm2 / (2.0 * k_ang_Nm_per_rad) * tau_T.dot(I_Cm_inv_T * tau_T);
+  return std::isfinite(e) && e >= 0.0 ? e : std::numeric_limits<double>::infinity();
+}
+
 bool sameGains(const haptics::CouplingGains& a, const haptics::CouplingGains& b) noexcept {
-  return a.linear_N_per_m == b.linear_N_per_m && a.angular_Nm_per_rad == b.angular_Nm_per_rad;
+  return a.linear_N_per_m == b.linear_N_per_m && a.angular_Nm_per_rad == b.angular_Nm_per_rad &&
+         a.passivity_control == b.passivity_control;
 }
 
 /// The last `capacity` device samples, numbered 1, 2, ... One producer (the coupling thread)
@@ -180,7 +206,8 @@ class SampleRing {
     s.value[7].store(in.isovalue, std::memory_order_relaxed);
     s.value[8].store(in.gains.linear_N_per_m, std::memory_order_relaxed);
     s.value[9].store(in.gains.angular_Nm_per_rad, std::memory_order_relaxed);
-    s.flags.store((in.ok ? 1u : 0u) | (in.connected ? 2u : 0u), std::memory_order_relaxed);
+    s.flags.store((in.ok ? 1u : 0u) | (in.connected ? 2u : 0u) | (in.gains.passivity_control ? 4u : 0u),
+                  std::memory_order_relaxed);
     s.version.store(v + 2, std::memory_order_release);
     latest_.store(seq, std::memory_order_release);
     return seq;
@@ -205,6 +232,7 @@ class SampleRing {
     out.gains.angular_Nm_per_rad = value[9];
     out.ok = (flags & 1u) != 0;
     out.connected = (flags & 2u) != 0;
+    out.gains.passivity_control = (flags & 4u) != 0;
     return true;
   }
 
@@ -286,6 +314,7 @@ HapticThread::HapticThread(std::unique_ptr<haptics::HapticRenderer> renderer, st
   const haptics::CouplingGains gains = renderer_->coupling().gains();
   gain_linear_.store(gains.linear_N_per_m);
   gain_angular_.store(gains.angular_Nm_per_rad);
+  gain_passivity_.store(gains.passivity_control);
   // Readers see the initial proxy/device pose before the first tick.
   ProxyState& proxy = x_->proxy.writeSlot();
   proxy.X_WP = renderer_->proxyPose();
@@ -311,6 +340,7 @@ HapticThread::~HapticThread() { stop(); }
 void HapticThread::setGains(const haptics::CouplingGains& gains) noexcept {
   gain_linear_.store(gains.linear_N_per_m, std::memory_order_relaxed);
   gain_angular_.store(gains.angular_Nm_per_rad, std::memory_order_relaxed);
+  gain_passivity_.store(gains.passivity_control, std::memory_order_relaxed);
   gains_dirty_.store(true, std::memory_order_release);
   if (recorder_.load(std::memory_order_acquire) == nullptr) return;
   try {
@@ -318,7 +348,10 @@ void HapticThread::setGains(const haptics::CouplingGains& gains) noexcept {
     nlohmann::json d;
     d["linear_N_per_m"] = applied.linear_N_per_m;
     d["angular_Nm_per_rad"] = applied.angular_Nm_per_rad;
-    d["requested"] = {{"linear_N_per_m", gains.linear_N_per_m}, {"angular_Nm_per_rad", gains.angular_Nm_per_rad}};
+    d["passivity_control"] = applied.passivity_control;
+    d["requested"] = {{"linear_N_per_m", gains.linear_N_per_m},
+                      {"angular_Nm_per_rad", gains.angular_Nm_per_rad},
+                      {"passivity_control", gains.passivity_control}};
     recordEvent("gains", d.dump());
   } catch (...) {  // NOLINT(bugprone-empty-catch): the event is best effort, the gains are set
   }
@@ -361,6 +394,8 @@ void mergeSnapshots(const CouplingSnapshot& c, const SolverSnapshot& s, HapticSn
   out.solver = s.timing;
   out.bad_device_samples = c.bad_samples + s.rejected;
   out.skipped_samples = s.skipped;
+  out.passivity_active_ticks = c.passivity_active_ticks;
+  out.passivity_dissipated_J = c.passivity_dissipated_J;
 }
 
 void HapticThread::start() {
@@ -418,9 +453,23 @@ void HapticThread::couplingLoop() noexcept {
   ForceSafety safety(device_->limits(), device_->safetyPolicy(), device_->actuatedDof());
   safety.enable();
   haptics::CouplingGains requested_gains{gain_linear_.load(std::memory_order_relaxed),
-                                         gain_angular_.load(std::memory_order_relaxed)};
+                                         gain_angular_.load(std::memory_order_relaxed),
+                                         gain_passivity_.load(std::memory_order_relaxed)};
   haptics::CouplingGains applied_gains = clampGains(requested_gains, safety.limits());
   haptics::VirtualCoupling coupling(applied_gains);
+  // Passivity control (CouplingGains::passivity_control, passivity_controller.h): one controller
+  // per port, the force with the centre of mass's displacement and the torque with the rotation
+  // vector since the previous coupled sample. Both start afresh when the switch changes and
+  // after any tick without a coupled sample.
+  haptics::PassivityController passivity_force;
+  haptics::PassivityController passivity_torque;
+  haptics::Pose X_WD_coupled_last;   // the device pose of the previous coupled tick
+  bool have_coupled_last = false;    // X_WD_coupled_last is that of the previous tick
+  // I_Cm^-1 in T, for the torsional spring's stored energy (angularStoredEnergy_J).
+  const Eigen::Matrix3d I_Cm_inv_T = mass.I_Cm_T_kgm2.inverse();
+  const double mean_moment_kgm2 = mass.I_Cm_T_kgm2.trace() / 3.0;
+  std::uint64_t passivity_active_ticks = 0;  // summed over controller resets
+  double passivity_dissipated_J = 0.0;
 
   while (true) {
     if (ramp_left < 0 && stop_requested_.load(std::memory_order_acquire)) ramp_left = ramp_ticks;
@@ -437,10 +486,15 @@ void HapticThread::couplingLoop() noexcept {
     //    change alters them).
     safety.setLimits(device_->limits());
     if (gains_dirty_.exchange(false, std::memory_order_acq_rel)) {
-      requested_gains = {gain_linear_.load(std::memory_order_relaxed), gain_angular_.load(std::memory_order_relaxed)};
+      requested_gains = {gain_linear_.load(std::memory_order_relaxed), gain_angular_.load(std::memory_order_relaxed),
+                         gain_passivity_.load(std::memory_order_relaxed)};
     }
     const haptics::CouplingGains gains = clampGains(requested_gains, safety.limits());
     if (!sameGains(gains, applied_gains)) {
+      if (gains.passivity_control != applied_gains.passivity_control) {
+        passivity_force.reset();
+        passivity_torque.reset();
+      }
       applied_gains = gains;
       coupling.setGains(applied_gains);
     }
@@ -458,6 +512,7 @@ void HapticThread::couplingLoop() noexcept {
     x_->proxy.read(proxy);
     Eigen::Vector3d force_W_N = Eigen::Vector3d::Zero();
     Eigen::Vector3d torque_W_Nm = Eigen::Vector3d::Zero();
+    bool coupled = false;
     if (ok) {
       const double qn = sample.X_WD.R_AB.norm();
       if (std::abs(qn - 1.0) <= 1e-3 && !proxy.bad_input) {
@@ -467,8 +522,32 @@ void HapticThread::couplingLoop() noexcept {
         const haptics::Wrench w = coupling.compute(proxy.X_WP, X_WD, mass);
         force_W_N = w.force_W_N;
         torque_W_Nm = w.torque_W_Nm;
+        coupled = true;
+        // 4b. Passivity control on both ports: the hand's motion since the previous coupled
+        //     sample (none after a gap: a zero step), the spring's stored energy as the cap.
+        if (applied_gains.passivity_control) {
+          haptics::Vector6d step_W = haptics::Vector6d::Zero();
+          if (have_coupled_last) step_W = haptics::displacement_W(X_WD_coupled_last, X_WD, mass.p_TCm_m);
+          const auto f = passivity_force.step(force_W_N, step_W.head<3>(), period_s_,
+                                              linearStoredEnergy_J(force_W_N, applied_gains.linear_N_per_m));
+          const auto t = passivity_torque.step(
+              torque_W_Nm, step_W.tail<3>(), period_s_,
+              angularStoredEnergy_J(torque_W_Nm, proxy.X_WP.R_AB, I_Cm_inv_T, mean_moment_kgm2,
+                                    applied_gains.angular_Nm_per_rad));
+          force_W_N = f.effort_W;
+          torque_W_Nm = t.effort_W;
+          if (f.alpha > 0.0) ++passivity_active_ticks;
+          if (t.alpha > 0.0) ++passivity_active_ticks;
+          passivity_dissipated_J += f.predicted_dissipation_J + t.predicted_dissipation_J;
+        }
+        X_WD_coupled_last = X_WD;
       }
     }
+    if (!coupled && have_coupled_last) {  // a gap: the controllers' motion history is broken
+      passivity_force.reset();
+      passivity_torque.reset();
+    }
+    have_coupled_last = coupled;
     if (ramp_left > 0) {
       --ramp_left;
       const double scale = static_cast<double>(ramp_left) / ramp_ticks;  // reaches 0 on the last tick
@@ -509,6 +588,8 @@ void HapticThread::couplingLoop() noexcept {
     snap.force_W_N = force_W_N;
     snap.torque_W_Nm = torque_W_Nm;
     snap.bad_samples = bad_samples;
+    snap.passivity_active_ticks = passivity_active_ticks;
+    snap.passivity_dissipated_J = passivity_dissipated_J;
     snap.timing = clock.timing();
     if (monitor != nullptr) {
       monitor->couplingSlot() = snap;

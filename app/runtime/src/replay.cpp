@@ -64,6 +64,7 @@ ReplayComparison replayRecording(const LoadedScene& scene, const Recording& reco
       haptics::CouplingGains g = scene.spec.gains;
       g.linear_N_per_m = d.value("linear_N_per_m", g.linear_N_per_m);
       g.angular_Nm_per_rad = d.value("angular_Nm_per_rad", g.angular_Nm_per_rad);
+      g.passivity_control = d.value("passivity_control", g.passivity_control);
       gains_changes.push_back({e.tick, g});
     } catch (const nlohmann::json::exception&) {  // a malformed event changes nothing
     }

@@ -89,6 +89,11 @@ class ObjectReader {
     if (!(d > 0.0)) fail(fieldPath(key), "must be > 0, found " + json(d).dump());
     return d;
   }
+  bool boolean(const char* key) const {
+    const json& v = at(key);
+    if (!v.is_boolean()) fail(fieldPath(key), "expected true or false, found " + v.dump());
+    return v.get<bool>();
+  }
   std::size_t count(const char* key) const {
     const json& v = at(key);
     if (!v.is_number_integer() || v.get<long long>() <= 0) {
@@ -293,9 +298,10 @@ SceneSpec parseScene(const std::string& json_text, const std::string& source, co
 
   if (top.has("coupling")) {
     const ObjectReader coupling = top.object("coupling");
-    coupling.allowOnly({"linear_N_per_m", "angular_Nm_per_rad"});
+    coupling.allowOnly({"linear_N_per_m", "angular_Nm_per_rad", "passivity_control"});
     if (coupling.has("linear_N_per_m")) spec.gains.linear_N_per_m = coupling.positive("linear_N_per_m");
     if (coupling.has("angular_Nm_per_rad")) spec.gains.angular_Nm_per_rad = coupling.positive("angular_Nm_per_rad");
+    if (coupling.has("passivity_control")) spec.gains.passivity_control = coupling.boolean("passivity_control");
   }
 
   if (top.has("device")) {

@@ -190,7 +190,9 @@ std::string makeSessionMetadata(const LoadedScene& scene, const SessionInfo& inf
                 {"point_spacing_m", spec.tool.point_spacing_m},
                 {"point_count", spec.tool.point_count},
                 {"initial_pose", poseJson(scene.X_WT_initial)}};
-  sc["coupling"] = {{"linear_N_per_m", spec.gains.linear_N_per_m}, {"angular_Nm_per_rad", spec.gains.angular_Nm_per_rad}};
+  sc["coupling"] = {{"linear_N_per_m", spec.gains.linear_N_per_m},
+                    {"angular_Nm_per_rad", spec.gains.angular_Nm_per_rad},
+                    {"passivity_control", spec.gains.passivity_control}};
   if (scene.segments != nullptr && spec.segmentation) {
     // The choices by name (what a scene file says), and every segment as loaded: the recording
     // names the touched segment by its index into "segments".
@@ -290,6 +292,8 @@ SceneSpec sceneFromSessionMetadata(const std::string& metadata_json) {
     spec.tool.initial_pose_set = true;
     spec.gains.linear_N_per_m = sc.at("coupling").at("linear_N_per_m").get<double>();
     spec.gains.angular_Nm_per_rad = sc.at("coupling").at("angular_Nm_per_rad").get<double>();
+    // Absent in metadata written before the switch existed: off.
+    spec.gains.passivity_control = sc.at("coupling").value("passivity_control", false);
     if (sc.contains("segmentation")) {
       const json& seg = sc.at("segmentation");
       SegmentationSpec s;

@@ -179,6 +179,47 @@ TEST(HapticThread, GainsAndIsovalueAreAppliedWhileRunning) {
   thread->stop();
 }
 
+// CouplingGains::passivity_control on the coupling thread: a device held still does no work, so
+// the passivity controllers leave the coupling's force exactly as it is (and never act); a
+// moving device gets finite forces.
+TEST(HapticThread, PassivityControlLeavesAStillDeviceAlone) {
+  const LoadedScene& scene = test::sphereBallScene();
+  auto device = std::make_shared<SimulatedDevice>(pressedPose(0.003));
+  auto thread = scene.makeHapticThread(device);
+  thread->start();
+  HapticSnapshot snap;
+  ASSERT_TRUE(waitUntil([&] { return thread->latestSnapshot(snap) && snap.tick > 200 && snap.contacts > 0; }));
+  const Eigen::Vector3d force_off_W_N = snap.force_W_N;
+  ASSERT_GT(force_off_W_N.norm(), 1.0);
+
+  thread->setGains({1000.0, 1.0, true});
+  const std::uint64_t on_at = snap.tick;
+  ASSERT_TRUE(waitUntil([&] { thread->latestSnapshot(snap); return snap.tick > on_at + 200; }));
+  EXPECT_TRUE(snap.force_W_N.allFinite());
+  EXPECT_TRUE(snap.torque_W_Nm.allFinite());
+  const Eigen::Vector3d expected = couplingForce(snap, *scene.tool, 1000.0);
+  EXPECT_LT((snap.force_W_N - expected).norm(), 1e-9 * (1.0 + expected.norm()));
+  EXPECT_LT((snap.force_W_N - force_off_W_N).norm(), 1e-6 * force_off_W_N.norm());
+  EXPECT_EQ(snap.passivity_active_ticks, 0u);
+  EXPECT_EQ(snap.passivity_dissipated_J, 0.0);
+
+  // Moving with the controller on: the command stays finite (and the switch turns off again).
+  for (int i = 0; i < 40; ++i) {
+    device->setPose(pressedPose(0.003 + 0.002 * std::sin(0.3 * i)));
+    std::this_thread::sleep_for(2ms);
+  }
+  ASSERT_TRUE(waitUntil([&] { thread->latestSnapshot(snap); return snap.tick > on_at + 400; }));
+  EXPECT_TRUE(snap.force_W_N.allFinite());
+  EXPECT_TRUE(snap.torque_W_Nm.allFinite());
+  EXPECT_TRUE(std::isfinite(snap.passivity_dissipated_J));
+  EXPECT_GE(snap.passivity_dissipated_J, 0.0);
+  thread->setGains({1000.0, 1.0, false});
+  const std::uint64_t off_at = snap.tick;
+  ASSERT_TRUE(waitUntil([&] { thread->latestSnapshot(snap); return snap.tick > off_at + 200; }));
+  EXPECT_LT((snap.force_W_N - couplingForce(snap, *scene.tool, 1000.0)).norm(), 1e-9 * (1.0 + snap.force_W_N.norm()));
+  thread->stop();
+}
+
 /// A device that delivers `good` samples and then nothing (unplugged).
 class FailingDevice final : public Device {
  public:
@@ -277,6 +318,19 @@ TEST(HapticThread, ServoLoopDoesNotAllocate) {
                                        << " ticks";
   EXPECT_EQ(solver.allocations.load(), 0u) << "heap allocations on the solver thread over " << solver.ticks.load()
                                            << " ticks";
+}
+
+TEST(HapticThread, ServoLoopDoesNotAllocateWithPassivityControl) {
+  const LoadedScene& scene = test::sphereBallScene();
+  auto device = std::make_shared<AllocationCountingDevice>(pressedPose(0.003));
+  SolverAllocationCounter solver;
+  HapticThread thread(scene.makeRenderer(), device, scene.isovalue, 1000.0, solver.options());
+  thread.setGains({1000.0, 1.0, true});
+  thread.start();
+  ASSERT_TRUE(waitUntil([&] { return device->reads() > 200 && solver.ticks.load() > 200; }));
+  thread.stop();
+  EXPECT_EQ(device->allocations(), 0u) << "heap allocations on the coupling thread over " << device->reads()
+                                       << " ticks";
 }
 
 TEST(HapticThread, ServoLoopDoesNotAllocateWhileRecording) {

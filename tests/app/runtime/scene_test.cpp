@@ -169,6 +169,26 @@ TEST(SceneFileErrors, MissingVolume) { expectSceneError(R"({"tool": {}})", "volu
 
 TEST(SceneFileErrors, MissingVolumePath) { expectSceneError(R"({"volume": {"isovalue": 3}})", "volume.path: missing"); }
 
+TEST(SceneFile, PassivityControlIsOffUnlessTheSceneAsks) {
+  const fs::path dir = scratchDir();
+  EXPECT_FALSE(loadSceneFile(writeText(dir / "absent.json", R"({"volume": {"path": "builtin:plane"}})"))
+                   .gains.passivity_control);
+  const SceneSpec on = loadSceneFile(writeText(
+      dir / "on.json", R"({"volume": {"path": "builtin:plane"}, "coupling": {"passivity_control": true}})"));
+  EXPECT_TRUE(on.gains.passivity_control);
+  EXPECT_EQ(on.gains.linear_N_per_m, haptics::CouplingGains{}.linear_N_per_m);
+  EXPECT_FALSE(loadSceneFile(writeText(dir / "off.json", R"({"volume": {"path": "builtin:plane"},
+      "coupling": {"linear_N_per_m": 2000, "passivity_control": false}})"))
+                   .gains.passivity_control);
+}
+
+TEST(SceneFileErrors, PassivityControlMustBeABoolean) {
+  expectSceneError(R"({"volume": {"path": "builtin:plane"}, "coupling": {"passivity_control": 1}})",
+                   "coupling.passivity_control: expected true or false, found 1");
+  expectSceneError(R"({"volume": {"path": "builtin:plane"}, "coupling": {"passivity_control": "yes"}})",
+                   "coupling.passivity_control: expected true or false");
+}
+
 TEST(SceneFileErrors, MistypedFields) {
   expectSceneError(R"({"volume": {"path": 12}})", "volume.path: expected a string, found number");
   expectSceneError(R"({"volume": {"path": "builtin:plane", "isovalue": "400"}})",

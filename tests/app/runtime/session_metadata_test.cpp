@@ -61,6 +61,21 @@ TEST(SessionMetadata, StoresTheSceneDatasetToolDeviceAndReloadsTheSameScene) {
   VH_EXPECT_THROW_WITH(sceneFromSessionMetadata("nope"), std::runtime_error, "not JSON");
 }
 
+TEST(SessionMetadata, CarriesThePassivitySwitch) {
+  LoadedScene scene = test::sphereBallScene();  // a copy: the switch is set on it below
+  const std::string off = makeSessionMetadata(scene, {"Simulated device", "simulated", ""});
+  EXPECT_EQ(nlohmann::json::parse(off).at("gains").at("passivity_control"), false);
+  EXPECT_FALSE(sceneFromSessionMetadata(off).gains.passivity_control);
+  scene.spec.gains.passivity_control = true;
+  const std::string on = makeSessionMetadata(scene, {"Simulated device", "simulated", ""});
+  EXPECT_EQ(nlohmann::json::parse(on).at("scene").at("coupling").at("passivity_control"), true);
+  EXPECT_TRUE(sceneFromSessionMetadata(on).gains.passivity_control);
+  // Metadata written before the switch existed: off.
+  nlohmann::json old = nlohmann::json::parse(on);
+  old["scene"]["coupling"].erase("passivity_control");
+  EXPECT_FALSE(sceneFromSessionMetadata(old.dump()).gains.passivity_control);
+}
+
 TEST(SessionMetadata, ChecksumsFollowTheSha256sumRecipeAndCatchAChangedDataset) {
   const fs::path dir = test::scratchDir();
   // A NRRD with detached data: header + data file.

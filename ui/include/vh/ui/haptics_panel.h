@@ -15,6 +15,7 @@
 #include "vh/runtime/session.h"
 #include "vh/ui/tool_catalog.h"
 
+class QCheckBox;
 class QComboBox;
 class QDoubleSpinBox;
 class QLabel;
@@ -61,6 +62,8 @@ class HapticsPanel : public QWidget {
   QDoubleSpinBox* spacingBox() const noexcept { return spacing_mm_; }
   QDoubleSpinBox* linearStiffnessBox() const noexcept { return linear_; }
   QDoubleSpinBox* torsionalStiffnessBox() const noexcept { return torsional_; }
+  /// CouplingGains::passivity_control.
+  QCheckBox* passivityControlBox() const noexcept { return passivity_; }
   QLabel* pointCountLabel() const noexcept { return points_; }
   QComboBox* deviceBox() const noexcept { return device_choice_; }
   QPushButton* rescanButton() const noexcept { return rescan_; }
@@ -84,6 +87,7 @@ class HapticsPanel : public QWidget {
   QLabel* points_;
   QDoubleSpinBox* linear_;
   QDoubleSpinBox* torsional_;
+  QCheckBox* passivity_;
   QComboBox* device_choice_;
   QPushButton* rescan_;
   QLabel* device_name_;

@@ -27,6 +27,7 @@ struct Preferences {
   /// Coupling gains used for volumes opened without a scene file (a scene file's own gains win).
   double linear_stiffness_N_per_m = 1000.0;       ///< [N/m]
   double torsional_stiffness_Nm_per_rad = 1.0;    ///< [N*m/rad]
+  bool passivity_control = false;                 ///< haptics::CouplingGains::passivity_control.
 
   RenderMode mode = RenderMode::kIsosurface;
   VolumePreset preset = VolumePreset::kBone;

@@ -100,6 +100,11 @@ struct HapticSnapshot {
   /// Device samples the solver never used: it runs slower than the device, or fell more than
   /// HapticThreadOptions::max_solver_backlog_s behind (total).
   std::uint64_t skipped_samples = 0;
+  /// Passivity control (CouplingGains::passivity_control): port-ticks on which a controller
+  /// damped (force and torque counted apart) and the energy it took out, as predicted when
+  /// applied [J]; totals since start().
+  std::uint64_t passivity_active_ticks = 0;
+  double passivity_dissipated_J = 0.0;
 };
 
 /// Which device samples the solver thread uses.
@@ -169,7 +174,10 @@ class HapticThread {
   /// Applied at the coupling thread's next tick (clamped to the device's stable stiffness), and
   /// by the solver (its metric) with that tick's sample. While recording, also records a "gains"
   /// event with the clamped (applied) gains
-  /// {"linear_N_per_m": k, "angular_Nm_per_rad": k_r, "requested": {...}}. Not on a haptic thread.
+  /// {"linear_N_per_m": k, "angular_Nm_per_rad": k_r, "passivity_control": b, "requested": {...}}.
+  /// With passivity_control on, the coupling thread runs a time-domain passivity controller
+  /// (haptics/passivity_controller.h) on its force and on its torque, after the coupling and
+  /// before the stop ramp and the safety layer. Not on a haptic thread.
   void setGains(const haptics::CouplingGains& gains) noexcept;
 
   /// Records every solver tick from the next one on into `recorder` (one TickRecord per solver
@@ -216,6 +224,7 @@ class HapticThread {
   std::atomic<double> isovalue_;
   std::atomic<double> gain_linear_;
   std::atomic<double> gain_angular_;
+  std::atomic<bool> gain_passivity_{false};  ///< CouplingGains::passivity_control.
   std::atomic<bool> gains_dirty_{false};
   std::atomic<bool> stop_requested_{false};
   std::atomic<bool> coupling_done_{false};  ///< The coupling thread ended: the solver stops too.

@@ -10,7 +10,8 @@
 ///   "tool": {"mesh": "meshes/drill/drill.stl", "scale_to_m": 0.00044,
 ///            "point_spacing_m": 0.001,            // or "point_count": 500
 ///            "initial_pose": {"p_m": [0, 0, 0.1], "q_wxyz": [1, 0, 0, 0]}},
-///   "coupling": {"linear_N_per_m": 2000, "angular_Nm_per_rad": 2.0},
+///   "coupling": {"linear_N_per_m": 2000, "angular_Nm_per_rad": 2.0,
+///                "passivity_control": false},     // optional (default false): CouplingGains
 ///   "device": {"kind": "simulated"},              // or "scripted" with "trajectory": "T.csv"
 ///   "segmentation": {"path": "case.seg.nrrd",     // optional: 3D Slicer segments (segments.h)
 ///                    "felt": ["facial nerve"], "shown": ["facial nerve", "sigmoid sinus"],

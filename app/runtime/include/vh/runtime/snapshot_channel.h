@@ -37,6 +37,11 @@ struct CouplingSnapshot {
   Eigen::Vector3d force_W_N = Eigen::Vector3d::Zero();    ///< Commanded force on the hand in W [N].
   Eigen::Vector3d torque_W_Nm = Eigen::Vector3d::Zero();  ///< Commanded torque on the hand in W [N*m].
   std::uint64_t bad_samples = 0;   ///< Device reads without a usable sample (total).
+  /// Passivity control (CouplingGains::passivity_control): port-ticks on which a controller
+  /// damped (force and torque ports counted apart), and the energy it took out as predicted when
+  /// applied [J]; totals since start().
+  std::uint64_t passivity_active_ticks = 0;
+  double passivity_dissipated_J = 0.0;
   ThreadTiming timing;             ///< The coupling thread's timing.
 };
 
