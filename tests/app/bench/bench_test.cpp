@@ -313,7 +313,21 @@ TEST(Bench, stabilityShortWritesSweepAndExtremeCases) {
       }
     }
   }
+  // Device models (issue 19): each at its rated stiffness and at 50,000 N/m, controller off and
+  // on; every model stable at its rating without the controller.
+  ASSERT_EQ(report["device_models"].size(), 24u);
+  int rated_stable = 0;
+  for (const json& r : report["device_models"]) {
+    EXPECT_TRUE(r.contains("behaviour"));
+    EXPECT_GE(number(r, "hold_travel_counts"), 0.0);
+    EXPECT_EQ(number(r, "crossings"), 0.0) << r["device"];
+    if (r["rated"].get<bool>() && !r["passivity_control"].get<bool>()) rated_stable += r["stable"].get<bool>() ? 1 : 0;
+  }
+  EXPECT_EQ(rated_stable, 6);
+  ASSERT_EQ(report["controller_price"].size(), 6u);
+  for (const json& p : report["controller_price"]) EXPECT_LE(number(p, "hold_force_error_rel"), 0.05) << p["device"];
   const std::string md = readText(dir / "stability.md");
+  EXPECT_NE(md.find("### Device models, with and without the passivity controller"), std::string::npos);
   EXPECT_NE(md.find("| K [N/m] |"), std::string::npos);
   EXPECT_NE(md.find("| case | set-up |"), std::string::npos);
   EXPECT_NE(md.find("| penetration / epsilon | crossings |"), std::string::npos);
