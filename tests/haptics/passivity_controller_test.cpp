@@ -197,3 +197,74 @@ TEST(PassivityController, AnOldReserveDoesNotPayForANewDeficit) {
 
 }  // namespace
 }  // namespace vh::haptics
+
+namespace vh::haptics {
+namespace {
+
+// The stiffness schedule: a predicted deficit cuts the gain by stiffness_cut, at most once per
+// cut_interval_s, never below min_gain; the gain recovers only in free space.
+TEST(PassivityControllerSchedule, CutsOnADeficitDownToTheFloorAndRecoversOnlyInFreeSpace) {
+  PassivityOptions o;
+  o.delay_ticks = 0;
+  o.min_gain = 0.1;
+  o.stiffness_cut = 0.5;
+  o.cut_interval_s = 0.002;  // two ticks
+  o.gain_recovery_s = 0.01;  // ten ticks from 0 to 1
+  PassivityController pc(o);
+  EXPECT_EQ(pc.gain(), 1.0);
+  // No reserve, and every command pushes the hand the way it moves: a deficit each tick.
+  const Eigen::Vector3d F(0, 0, 2.0), step(0, 0, 1e-4);
+  std::vector<double> gains;
+  for (int k = 0; k < 12; ++k) {
+    const auto s = pc.step(F, step, kT, 0.0);
+    gains.push_back(pc.gain());
+    EXPECT_LE(s.effort_W.z(), pc.gain() * F.z() + 1e-15) << k;  // the cut applies at once
+    EXPECT_GE(s.effort_W.z(), 0.0) << k;
+  }
+  // Cuts on ticks 0, 2, 4, 6 (1 -> 0.5 -> 0.25 -> 0.125 -> floor 0.1), none in between.
+  EXPECT_DOUBLE_EQ(gains[0], 0.5);
+  EXPECT_DOUBLE_EQ(gains[1], 0.5);
+  EXPECT_DOUBLE_EQ(gains[2], 0.25);
+  EXPECT_DOUBLE_EQ(gains[4], 0.125);
+  EXPECT_DOUBLE_EQ(gains[6], 0.1);
+  EXPECT_DOUBLE_EQ(gains[11], 0.1);
+  EXPECT_DOUBLE_EQ(pc.lowestGain(), 0.1);
+  // In contact but still: no recovery.
+  for (int k = 0; k < 20; ++k) pc.step(F, Eigen::Vector3d::Zero(), kT, 1.0);
+  EXPECT_DOUBLE_EQ(pc.gain(), 0.1);
+  // In free space: back to 1 in gain_recovery_s (0.9 of it left: 9 ticks), and no further.
+  for (int k = 0; k < 8; ++k) pc.step(Eigen::Vector3d::Zero(), step, kT, 0.0);
+  EXPECT_NEAR(pc.gain(), 0.9, 1e-12);
+  for (int k = 0; k < 5; ++k) pc.step(Eigen::Vector3d::Zero(), step, kT, 0.0);
+  EXPECT_DOUBLE_EQ(pc.gain(), 1.0);
+  pc.reset();
+  EXPECT_EQ(pc.lowestGain(), 1.0);
+}
+
+// Without a floor below 1 there is no schedule: H&R's controller alone, gain 1 throughout.
+TEST(PassivityControllerSchedule, OffByDefault) {
+  PassivityController pc;
+  for (int k = 0; k < 50; ++k) pc.step(Eigen::Vector3d(0, 0, 2.0), Eigen::Vector3d(0, 0, 1e-4), kT, 0.0);
+  EXPECT_EQ(pc.gain(), 1.0);
+  EXPECT_GT(pc.activeTicks(), 0);  // the damper acted
+}
+
+// With the port's stiffness known, one tick's damper is at most damping_cap g K T.
+TEST(PassivityControllerSchedule, DamperIsCappedByThePortStiffness) {
+  PassivityOptions o;
+  o.delay_ticks = 0;
+  o.port_stiffness = 1000.0;  // N/m
+  o.damping_cap = 1.0;
+  PassivityController pc(o);
+  const Eigen::Vector3d step(0, 0, 1e-5);
+  for (int k = 0; k < 20; ++k) {
+    const auto s = pc.step(Eigen::Vector3d(0, 0, 5.0), step, kT, 0.0);
+    EXPECT_LE(s.alpha, 1.0 * 1000.0 * kT + 1e-12) << k;  // 1 N*s/m
+    EXPECT_GT(s.alpha, 0.0) << k;                         // the deficit is real: it acts
+    // 5 N minus at most alpha v = 1 N*s/m * 0.01 m/s.
+    EXPECT_GE(s.effort_W.z(), 5.0 - 0.01 - 1e-12) << k;
+  }
+}
+
+}  // namespace
+}  // namespace vh::haptics

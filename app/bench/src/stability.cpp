@@ -431,11 +431,13 @@ fs::path runStability(const CommonOptions& options) {
         "force limit; 3-DOF force devices get no torque. K_rated is the closed-loop stiffness CHAI3D ships for "
         "the device (m_maxLinearStiffness). Verdict over the hold windows: settled (force ptp < 2 % of its mean, "
         "or the encoder's dither floor: handle within 2 counts, force ptp <= 2 K q), decaying, or LIMIT CYCLE. "
-        "PC: the passivity controller (haptics::PassivityController). Dissipated: the work it took from the "
-        "hand's port, summed over the three scenes.\n\n";
-  md << "| device | rate [Hz] | K [N/m] | PC | verdict | hold ptp [N] (rel.) | handle travel [counts] | contact lost "
-        "[ticks] | dissipated [mJ] | PC active [ticks] | saturated [ticks] | crossings |\n"
-        "|---|---|---|---|---|---|---|---|---|---|---|---|\n";
+        "PC: the passivity controller (haptics::PassivityController) with its stiffness schedule floored at "
+        "K_rated; rendered K: the stiffness the force port ends up rendering (the lowest over the scenes). "
+        "Work taken: the work the controller took from the hand's port against the same run without it, summed "
+        "over the three scenes (negative: the hand did less work against the softened spring).\n\n";
+  md << "| device | rate [Hz] | K [N/m] | PC | verdict | rendered K [N/m] | hold ptp [N] (rel.) | handle travel [counts] "
+        "| contact lost [ticks] | work taken [mJ] | PC active [ticks] | saturated [ticks] | crossings |\n"
+        "|---|---|---|---|---|---|---|---|---|---|---|---|---|\n";
   nlohmann::ordered_json models = nlohmann::ordered_json::array();
   std::vector<StiffnessResult> model_rows;
   for (const DeviceModelSpec& d : deviceCatalog()) {
@@ -463,13 +465,16 @@ fs::path runStability(const CommonOptions& options) {
         j["contact_lost_ticks"] = s.contact_lost_ticks;
         j["controller_dissipated_J"] = finiteOr(s.controller_dissipated_J);
         j["controller_active_ticks"] = s.controller_active_ticks;
+        j["controller_end_gain"] = finiteOr(s.controller_end_gain);
+        j["rendered_stiffness_N_per_m"] = finiteOr(s.rendered_stiffness_N_per_m);
         j["saturated_ticks"] = s.saturated_ticks;
         j["crossings"] = s.crossings;
         j["max_penetration_over_epsilon"] = finiteOr(s.max_penetration_over_eps);
         models.push_back(j);
         md << "| " << d.name << " | " << format("%.0f", d.servo_rate_Hz) << " | " << format("%.0f", k)
            << (k == d.rated_stiffness_N_per_m ? " (rated)" : "") << " | " << (pc ? "on" : "off") << " | "
-           << toString(s.behaviour) << " | " << format("%.3f (%.3f)", s.settled_ptp_N, s.settled_ptp_rel) << " | "
+           << toString(s.behaviour) << " | " << format("%.0f", s.rendered_stiffness_N_per_m) << " | "
+           << format("%.3f (%.3f)", s.settled_ptp_N, s.settled_ptp_rel) << " | "
            << format("%.1f", s.hold_ptp_counts) << " | " << s.contact_lost_ticks << " | "
            << format("%.3g", 1e3 * s.controller_dissipated_J) << " | " << s.controller_active_ticks << " | "
            << s.saturated_ticks << " | " << s.crossings << " |\n";

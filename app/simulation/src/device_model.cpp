@@ -182,7 +182,12 @@ SimulationResult simulate(HapticRenderer& renderer, const SimulationConfig& cfg,
   DeviceIo io(path);
   haptics::PassivityOptions pc_options;
   pc_options.delay_ticks = cfg.delay_ticks;
-  haptics::PassivityController pc_force(pc_options), pc_torque(pc_options);
+  if (cfg.passivity_floor_N_per_m > 0.0 && cp.k_lin > 0.0)
+    pc_options.min_gain = std::min(1.0, cfg.passivity_floor_N_per_m / cp.k_lin);
+  haptics::PassivityOptions pc_torque_options = pc_options;
+  pc_options.port_stiffness = cp.k_lin;
+  pc_torque_options.port_stiffness = gains.angular_Nm_per_rad;
+  haptics::PassivityController pc_force(pc_options), pc_torque(pc_torque_options);
   // The same path fed the renderer's own commands: what the hand would have got without the
   // controller, for its exact price.
   DeviceIo io_uncontrolled(path);
@@ -313,6 +318,8 @@ SimulationResult simulate(HapticRenderer& renderer, const SimulationConfig& cfg,
     res.ticks.push_back(rec);
   }
   res.saturated_ticks = io.saturatedTicks();
+  res.controller_final_gain = pc_force.gain();
+  res.controller_lowest_gain = pc_force.lowestGain();
   return res;
 }
 

@@ -219,6 +219,7 @@ SweepOptions withDevice(const DeviceModelSpec& device, SweepOptions base) {
   base.delay_ticks = device.delay_ticks;
   base.max_force_N = device.max_force_N;
   base.torque_actuated = device.torque_actuated;
+  base.passivity_floor_N_per_m = device.rated_stiffness_N_per_m;
   return base;
 }
 
@@ -256,6 +257,7 @@ SimulationResult runScenario(const Scenario& sc, double k_lin, const DeviceParam
   cfg.max_force_N = options.max_force_N;
   cfg.torque_actuated = options.torque_actuated;
   cfg.passivity_control = options.passivity_control;
+  cfg.passivity_floor_N_per_m = options.passivity_floor_N_per_m;
   return simulate(r, cfg, sc.hand, sc.start);
 }
 
@@ -306,6 +308,7 @@ StiffnessResult evaluate(const std::vector<Scenario>& scenarios, double k_lin, c
     s.controller_dissipated_J += r.controller_dissipated_J;
     s.controller_active_ticks += r.controller_active_ticks;
     s.saturated_ticks += r.saturated_ticks;
+    s.controller_end_gain = std::min(s.controller_end_gain, r.controller_final_gain);
     s.max_e_gen_J = std::max(s.max_e_gen_J, r.max_e_gen_J);
     s.peak_force_N = std::max(s.peak_force_N, r.peak_force_N);
     passive &= r.max_e_gen_J <= passivityTolerance(r.energy_in_J + r.energy_out_J);
@@ -348,6 +351,7 @@ StiffnessResult evaluate(const std::vector<Scenario>& scenarios, double k_lin, c
     }
   }
   s.passive = passive;
+  s.rendered_stiffness_N_per_m = s.controller_end_gain * k_lin;
   if (!s.finite || s.bad_inputs > 0)
     s.behaviour = Behaviour::kDiverged;
   else if (settled)

@@ -148,23 +148,26 @@ TEST(DeviceModels, TheControllerKeepsTheSlowPressForce) {
   }
 }
 
-// At 50,000 N/m the controller shrinks the oscillation of every model (handle travel in the hold
-// windows, in encoder counts) and keeps everything finite. It does NOT yet remove the limit
-// cycle (README, "Device models and the passivity controller"): this guards what it achieves.
-TEST(DeviceModels, TheControllerShrinksTheOscillationAt50000) {
+// Issue 19's goal: with the controller (and its stiffness schedule, floored at the rated
+// stiffness) every model settles, or decays, at 10,000 and 50,000 N/m on the three scenes, with no
+// contact lost and no crossing; the stiffness it ends up rendering is reported, never below the
+// rating. Without it the same runs are limit cycles (EveryModelSettlesAtItsRatedStiffness).
+TEST(DeviceModels, WithTheControllerEveryModelIsStableUpTo50000) {
   const std::vector<Scenario> scenes = deviceScenarios();
-  for (const DeviceModelSpec& d : deviceCatalog()) {
-    SweepOptions o = withDevice(d);
-    o.check_penetration = false;
-    const StiffnessResult off = evaluate(scenes, 50000.0, d.params(kLever_m), hand(), o);
-    o.passivity_control = true;
-    const StiffnessResult on = evaluate(scenes, 50000.0, d.params(kLever_m), hand(), o);
-    EXPECT_TRUE(on.finite) << d.name;
-    EXPECT_EQ(on.bad_inputs, 0) << d.name;
-    EXPECT_LT(on.hold_ptp_counts, off.hold_ptp_counts) << d.name;
-    EXPECT_LE(on.contact_lost_ticks, off.contact_lost_ticks) << d.name;
-    EXPECT_GT(on.controller_dissipated_J, 0.0) << d.name;
-  }
+  for (const DeviceModelSpec& d : deviceCatalog())
+    for (double k : {10000.0, 50000.0}) {
+      SweepOptions o = withDevice(d);
+      o.passivity_control = true;
+      o.verify_step_voxels = 0.05;
+      const StiffnessResult on = evaluate(scenes, k, d.params(kLever_m), hand(), o);
+      EXPECT_TRUE(on.stable()) << d.name << " at " << k << ": " << toString(on.behaviour) << ", hold ptp "
+                               << on.settled_ptp_N << " N, " << on.hold_ptp_counts << " counts";
+      EXPECT_EQ(on.contact_lost_ticks, 0) << d.name << " at " << k;
+      EXPECT_EQ(on.crossings, 0) << d.name << " at " << k;
+      EXPECT_TRUE(on.finite) << d.name;
+      EXPECT_GE(on.rendered_stiffness_N_per_m, d.rated_stiffness_N_per_m * (1.0 - 1e-9)) << d.name << " at " << k;
+      EXPECT_LE(on.rendered_stiffness_N_per_m, k) << d.name;
+    }
 }
 
 }  // namespace

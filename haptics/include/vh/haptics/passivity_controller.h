@@ -30,9 +30,20 @@
 /// Guards (always on): the damper acts only when this tick's command would give the hand energy
 /// (e(k) . dq(k) > 0) and at most cancels the effort along the motion (alpha |dq|^2 / T <=
 /// e . dq): it only takes force away, never reverses it, and adds nothing in free space (e = 0);
+/// with the port's stiffness K known, alpha is at most damping_cap g K T, the damping that makes
+/// a sampled, delayed spring passive (Colgate and Schenkel's b > K T / 2, plus the delay): a
+/// larger one-tick damper, itself delayed, turns every encoder count into a force spike;
 /// no damping when |dq| < min_step (alpha would blow up as dq -> 0; the deficit is kept and
 /// dissipated once the hand moves again); alpha at most max_damping; non-finite inputs pass e(k)
 /// through without touching the state. The servo step allocates nothing and never throws.
+///
+/// Stiffness schedule (on when min_gain < 1): a deficit predicted beyond what one tick's damper
+/// can take means the coupling is stiffer than the device renders with its delay. The port then
+/// sends g e(k) instead of e(k): g is cut by stiffness_cut (at most once every cut_interval_s),
+/// never below min_gain (the caller's floor, e.g. the device's rated stiffness over the requested
+/// one), and recovers to 1 over gain_recovery_s only in free space (e = 0), where the spring holds
+/// no energy that a higher gain could create. Lowering g lowers the energy the spring holds: it
+/// only ever dissipates.
 ///
 /// stored_J (optional): the energy the coupling spring holds after this tick [J], e.g.
 /// |F|^2 / (2 k_lin). A spring can give back only what it holds, so the observed reserve is
@@ -53,6 +64,16 @@ struct PassivityOptions {
   double min_step = 1e-9;
   /// Largest alpha [N*s/m or N*m*s/rad].
   double max_damping = 1e4;
+  /// Stiffness of the port's spring, k_lin [N/m] or the torsional equivalent [N*m/rad]; 0: not
+  /// known (no damping cap).
+  double port_stiffness = 0.0;
+  /// alpha <= damping_cap g port_stiffness T [ticks of the spring's stiffness].
+  double damping_cap = 1.0;
+  /// The stiffness schedule's floor g_min in (0, 1]; 1: no schedule (H&R's controller alone).
+  double min_gain = 1.0;
+  double stiffness_cut = 0.7;     ///< Fraction of g removed by one cut.
+  double cut_interval_s = 0.02;   ///< Shortest time between two cuts [s].
+  double gain_recovery_s = 0.5;   ///< Time for g to climb back from 0 to 1 in free space [s].
 };
 
 class PassivityController {
@@ -83,6 +104,10 @@ class PassivityController {
   double dissipated_J() const noexcept { return dissipated_J_; }
   /// Ticks on which the damper acted.
   long activeTicks() const noexcept { return active_ticks_; }
+  /// The stiffness schedule's gain g in [min_gain, 1] (1 without a schedule).
+  double gain() const noexcept { return gain_; }
+  /// Lowest g since the last reset.
+  double lowestGain() const noexcept { return lowest_gain_; }
   const PassivityOptions& options() const noexcept { return options_; }
 
  private:
@@ -90,6 +115,9 @@ class PassivityController {
   double energy_J_ = 0.0;
   double dissipated_J_ = 0.0;
   long active_ticks_ = 0;
+  double gain_ = 1.0;
+  double lowest_gain_ = 1.0;
+  int cut_wait_ticks_ = 0;
   // Commands e'(k-1) .. e'(k-1-d), newest first (sent_[0] = e'(k-1)).
   std::array<Eigen::Vector3d, kMaxDelayTicks + 1> sent_{};
 };

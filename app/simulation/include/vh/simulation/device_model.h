@@ -119,8 +119,11 @@ struct SimulationConfig {
   /// not applied and the hand alone turns the handle.
   bool torque_actuated = true;
   /// Time-domain passivity controller (haptics::PassivityController) on both coupling ports,
-  /// between the renderer and the delay line, told the same delay_ticks.
+  /// between the renderer and the delay line, told the same delay_ticks and each port's stiffness.
   bool passivity_control = false;
+  /// Its stiffness schedule's floor [N/m]: the gain never goes below this over k_lin (the same
+  /// ratio on the torque port); 0: no schedule.
+  double passivity_floor_N_per_m = 0.0;
 };
 
 /// One servo tick, recorded after the renderer ran (device sample at t_s).
@@ -178,6 +181,8 @@ struct SimulationResult {
   /// displacement over the tick (both through the same delay and saturation; both ports).
   double controller_dissipated_J = 0.0;
   long controller_active_ticks = 0;   ///< Ticks on which either port's damper acted.
+  double controller_final_gain = 1.0;  ///< The force port's schedule gain at the end.
+  double controller_lowest_gain = 1.0; ///< Its lowest gain over the run.
   int saturated_ticks = 0;            ///< Ticks the device clamped the force to max_force_N.
 };
 

@@ -131,6 +131,10 @@ struct StiffnessResult {
   double controller_dissipated_J = 0.0;  ///< SimulationResult::controller_dissipated_J, summed.
   long controller_active_ticks = 0;
   int saturated_ticks = 0;
+  /// The passivity controller's stiffness schedule: the lowest gain any scene ended with, and the
+  /// stiffness the force port then rendered, gain * K [N/m] (K without the controller).
+  double controller_end_gain = 1.0;
+  double rendered_stiffness_N_per_m = 0.0;
 
   bool stable() const { return behaviour == Behaviour::kSettled || behaviour == Behaviour::kDecaying; }
 };
@@ -150,9 +154,11 @@ struct SweepOptions {
   double max_force_N = 0.0;
   bool torque_actuated = true;
   bool passivity_control = false;
+  double passivity_floor_N_per_m = 0.0;  ///< SimulationConfig::passivity_floor_N_per_m.
 };
 
-/// `base` with the servo period and signal path of a catalogue device (device_catalog.h).
+/// `base` with the servo period and signal path of a catalogue device (device_catalog.h), and
+/// its rated stiffness as the passivity controller's floor.
 SweepOptions withDevice(const DeviceModelSpec& device, SweepOptions base = {});
 
 /// Runs one scenario at linear stiffness k_lin. Torsional stiffness: options.lever_m > 0 gives
