@@ -36,8 +36,12 @@ double clampGain(double g, double max) noexcept {
 }  // namespace
 
 haptics::CouplingGains clampGains(const haptics::CouplingGains& gains, const DeviceLimits& limits) noexcept {
-  return {clampGain(gains.linear_N_per_m, limits.max_linear_stiffness_N_per_m),
-          clampGain(gains.angular_Nm_per_rad, limits.max_angular_stiffness_Nm_per_rad), gains.passivity_control};
+  // With the passivity controller on, up to kPassivityStiffnessHeadroom times the device's rating:
+  // its stiffness schedule renders no more than the device takes, never less than its rating.
+  const double headroom = gains.passivity_control ? kPassivityStiffnessHeadroom : 1.0;
+  return {clampGain(gains.linear_N_per_m, headroom * limits.max_linear_stiffness_N_per_m),
+          clampGain(gains.angular_Nm_per_rad, headroom * limits.max_angular_stiffness_Nm_per_rad),
+          gains.passivity_control};
 }
 
 // ---- ForceSafety --------------------------------------------------------------------------------

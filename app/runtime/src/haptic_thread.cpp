@@ -171,6 +171,19 @@ double angularStoredEnergy_J(const Eigen::Vector3d& torque_W_Nm, const Eigen::Qu
   return std::isfinite(e) && e >= 0.0 ? e : std::numeric_limits<double>::infinity();
 }
 
+/// The passivity controller of one coupling port (passivity_controller.h): told the port's
+/// stiffness (its damper cap) and, when the device states the stiffness it renders stably, a
+/// stiffness schedule floored there (min_gain = that limit / the port's stiffness), so the
+/// controller never renders the port softer than the device's own rating. The default delay (one
+/// tick) is the device models' (app/simulation device_catalog.h).
+haptics::PassivityOptions passivityOptions(double port_stiffness, double device_limit) noexcept {
+  haptics::PassivityOptions o;
+  o.port_stiffness = port_stiffness > 0.0 && std::isfinite(port_stiffness) ? port_stiffness : 0.0;
+  if (o.port_stiffness > 0.0 && device_limit > 0.0 && std::isfinite(device_limit))
+    o.min_gain = std::min(1.0, device_limit / o.port_stiffness);
+  return o;
+}
+
 bool sameGains(const haptics::CouplingGains& a, const haptics::CouplingGains& b) noexcept {
   return a.linear_N_per_m == b.linear_N_per_m && a.angular_Nm_per_rad == b.angular_Nm_per_rad &&
          a.passivity_control == b.passivity_control;
@@ -461,8 +474,10 @@ void HapticThread::couplingLoop() noexcept {
   // per port, the force with the centre of mass's displacement and the torque with the rotation
   // vector since the previous coupled sample. Both start afresh when the switch changes and
   // after any tick without a coupled sample.
-  haptics::PassivityController passivity_force;
-  haptics::PassivityController passivity_torque;
+  haptics::PassivityController passivity_force(
+      passivityOptions(applied_gains.linear_N_per_m, safety.limits().max_linear_stiffness_N_per_m));
+  haptics::PassivityController passivity_torque(
+      passivityOptions(applied_gains.angular_Nm_per_rad, safety.limits().max_angular_stiffness_Nm_per_rad));
   haptics::Pose X_WD_coupled_last;   // the device pose of the previous coupled tick
   bool have_coupled_last = false;    // X_WD_coupled_last is that of the previous tick
   // I_Cm^-1 in T, for the torsional spring's stored energy (angularStoredEnergy_J).
@@ -491,10 +506,11 @@ void HapticThread::couplingLoop() noexcept {
     }
     const haptics::CouplingGains gains = clampGains(requested_gains, safety.limits());
     if (!sameGains(gains, applied_gains)) {
-      if (gains.passivity_control != applied_gains.passivity_control) {
-        passivity_force.reset();
-        passivity_torque.reset();
-      }
+      // New gains: controllers told the new port stiffnesses and schedule floors, afresh.
+      passivity_force = haptics::PassivityController(
+          passivityOptions(gains.linear_N_per_m, safety.limits().max_linear_stiffness_N_per_m));
+      passivity_torque = haptics::PassivityController(
+          passivityOptions(gains.angular_Nm_per_rad, safety.limits().max_angular_stiffness_Nm_per_rad));
       applied_gains = gains;
       coupling.setGains(applied_gains);
     }

@@ -299,6 +299,12 @@ TEST(ClampGains, LimitsStiffnessToTheDevicesAndRejectsNonsense) {
   const haptics::CouplingGains bad = clampGains({kNaN, -1.0}, DeviceLimits{});
   EXPECT_EQ(bad.linear_N_per_m, 0.0);
   EXPECT_EQ(bad.angular_Nm_per_rad, 0.0);
+  // With the passivity controller on, up to the headroom past the rating, and no further.
+  const haptics::CouplingGains pc = clampGains({50000.0, 2.0, true}, limits);
+  EXPECT_EQ(pc.linear_N_per_m, 50000.0);
+  EXPECT_TRUE(pc.passivity_control);
+  const haptics::CouplingGains pc_far = clampGains({1e7, 0.0, true}, limits);
+  EXPECT_EQ(pc_far.linear_N_per_m, kPassivityStiffnessHeadroom * 3000.0);
 }
 
 // ---- Workspace mapping ---------------------------------------------------------------------------

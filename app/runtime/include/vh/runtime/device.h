@@ -100,8 +100,15 @@ struct SafetyPolicy {
   }
 };
 
+/// How far past a device's rated stiffness the coupling may be set while the passivity
+/// controller is on (CouplingGains::passivity_control): its stiffness schedule then renders what
+/// the device takes, never less than the rating (issue 19; README, "Device models and the
+/// passivity controller").
+inline constexpr double kPassivityStiffnessHeadroom = 20.0;
+
 /// The coupling gains limited to what the device renders stably (linear and angular stiffness
-/// clamped to DeviceLimits; a non-finite or negative gain becomes 0).
+/// clamped to DeviceLimits, or to kPassivityStiffnessHeadroom times them with the passivity
+/// controller on; a non-finite or negative gain becomes 0).
 haptics::CouplingGains clampGains(const haptics::CouplingGains& gains, const DeviceLimits& limits) noexcept;
 
 // ---- Samples and the interface -----------------------------------------------------------------
