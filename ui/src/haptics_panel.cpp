@@ -56,7 +56,7 @@ HapticsPanel::HapticsPanel(QWidget* parent) : QWidget(parent) {
   auto* coupling_form = new QFormLayout(coupling);
   linear_ = new QDoubleSpinBox(coupling);
   linear_->setObjectName("linearStiffness");
-  linear_->setRange(0.0, 20000.0);
+  linear_->setRange(0.0, 100000.0);  // past a device's rating only with passivity control (clampGains)
   linear_->setDecimals(0);
   linear_->setSingleStep(100.0);
   linear_->setSuffix(" N/m");
