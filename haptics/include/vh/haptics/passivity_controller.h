@@ -30,15 +30,17 @@
 /// Guards (always on): the damper acts only when this tick's command would give the hand energy
 /// (e(k) . dq(k) > 0) and at most cancels the effort along the motion (alpha |dq|^2 / T <=
 /// e . dq): it only takes force away, never reverses it, and adds nothing in free space (e = 0);
-/// with the port's stiffness K known, alpha is at most damping_cap g K T, the damping that makes
-/// a sampled, delayed spring passive (Colgate and Schenkel's b > K T / 2, plus the delay): a
-/// larger one-tick damper, itself delayed, turns every encoder count into a force spike;
+/// with the port's stiffness K known, alpha is at most damping_cap g K T, the order of the
+/// damping a sampled, delayed spring needs to be passive (Colgate and Schenkel's b > K T / 2 for
+/// the hold, more with the delay): a larger one-tick damper, itself delayed, turns every encoder
+/// count into a force spike;
 /// no damping when |dq| < min_step (alpha would blow up as dq -> 0; the deficit is kept and
 /// dissipated once the hand moves again); alpha at most max_damping; non-finite inputs pass e(k)
 /// through without touching the state. The servo step allocates nothing and never throws.
 ///
-/// Stiffness schedule (on when min_gain < 1): a deficit predicted beyond what one tick's damper
-/// can take means the coupling is stiffer than the device renders with its delay. The port then
+/// Stiffness schedule (on when min_gain < 1): a predicted deficit (this tick's command would give
+/// the hand more than the port holds) means the coupling is stiffer than the device renders with
+/// its delay. The port then
 /// sends g e(k) instead of e(k): g is cut by stiffness_cut (at most once every cut_interval_s),
 /// never below min_gain (the caller's floor, e.g. the device's rated stiffness over the requested
 /// one), and recovers to 1 over gain_recovery_s only in free space (e = 0), where the spring holds
