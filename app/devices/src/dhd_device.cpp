@@ -76,21 +76,9 @@ std::shared_ptr<const DhdApi> loadDhd(const std::vector<std::string>& candidates
 }
 
 VendorStatus probeDhd(const std::vector<std::string>& candidates, std::shared_ptr<const DhdApi>& api) noexcept {
-  VendorStatus status;
-  status.kind = "forcedimension";
-  status.title = "Force Dimension (DHD)";
-  api.reset();
-  try {
-    api = loadDhd(candidates);
-    status.installed = true;
-    status.library = api->library->path();
-    status.detail = api->sdkVersion();
-  } catch (const std::exception& e) {
-    status.detail = notInstalledReason(e.what());
-  } catch (...) {
-    status.detail = "unknown error";
-  }
-  return status;
+  return probeVendor(
+      "forcedimension", "Force Dimension (DHD)", api, [&] { return loadDhd(candidates); },
+      [](const DhdApi& loaded) { return loaded.sdkVersion(); });
 }
 
 runtime::DeviceLimits dhdPublishedLimits(int system_type) noexcept {

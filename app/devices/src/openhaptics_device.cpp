@@ -62,20 +62,9 @@ std::shared_ptr<const HdApi> loadHd(const std::vector<std::string>& candidates) 
 }
 
 VendorStatus probeHd(const std::vector<std::string>& candidates, std::shared_ptr<const HdApi>& api) noexcept {
-  VendorStatus status;
-  status.kind = "openhaptics";
-  status.title = "3D Systems OpenHaptics (HD)";
-  api.reset();
-  try {
-    api = loadHd(candidates);
-    status.installed = true;
-    status.library = api->library->path();
-  } catch (const std::exception& e) {
-    status.detail = notInstalledReason(e.what());
-  } catch (...) {
-    status.detail = "unknown error";
-  }
-  return status;
+  return probeVendor(
+      "openhaptics", "3D Systems OpenHaptics (HD)", api, [&] { return loadHd(candidates); },
+      [](const HdApi&) { return std::string(); });
 }
 
 // ---- OpenHapticsDevice ---------------------------------------------------------------------------

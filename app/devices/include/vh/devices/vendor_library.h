@@ -8,8 +8,10 @@
 /// path, or absolute paths); an environment variable naming one file (e.g. VH_DHD_LIBRARY)
 /// replaces the list, and tests pass the path of a fake library instead.
 
+#include <exception>
 #include <memory>
 #include <string>
+#include <utility>
 #include <vector>
 
 namespace vh::devices {
@@ -69,5 +71,30 @@ struct VendorStatus {
 /// the parentheses around the reason ("not installed (libdhd.so: cannot open ...)" ->
 /// "libdhd.so: cannot open ...").
 std::string notInstalledReason(const std::string& what);
+
+/// Loads a vendor back-end and reports whether it can be used: `load()` returns the loaded API
+/// (a std::shared_ptr<const Api> whose `library` is the VendorLibrary it came from) or throws;
+/// `describe(api)` gives VendorStatus::detail when installed (e.g. the SDK version). `api` holds
+/// the loaded API, or is reset. Never throws: any error is a not-installed status whose detail is
+/// notInstalledReason() of the message.
+template <class Api, class Load, class Describe>
+VendorStatus probeVendor(std::string kind, std::string title, std::shared_ptr<const Api>& api, Load&& load,
+                         Describe&& describe) noexcept {
+  VendorStatus status;
+  status.kind = std::move(kind);
+  status.title = std::move(title);
+  api.reset();
+  try {
+    api = load();
+    status.installed = true;
+    status.library = api->library->path();
+    status.detail = describe(*api);
+  } catch (const std::exception& e) {
+    status.detail = notInstalledReason(e.what());
+  } catch (...) {
+    status.detail = "unknown error";
+  }
+  return status;
+}
 
 }  // namespace vh::devices
