@@ -131,11 +131,11 @@ Eigen::Vector3d quantize(const Eigen::Vector3d& x_m, double q_m) noexcept {
   return {quantize(x_m.x(), q_m), quantize(x_m.y(), q_m), quantize(x_m.z(), q_m)};
 }
 
-DeviceIo::DeviceIo(const DeviceModelSpec& spec)
-    : q_m_(spec.encoder_resolution_m),
-      max_force_N_(spec.max_force_N > 0.0 ? spec.max_force_N : INFINITY),
-      delay_(spec.delay_ticks),
-      torque_actuated_(spec.torque_actuated) {
+DeviceIo::DeviceIo(const DeviceSignalPath& path)
+    : q_m_(path.encoder_resolution_m),
+      max_force_N_(path.max_force_N > 0.0 ? path.max_force_N : INFINITY),
+      delay_(path.delay_ticks),
+      torque_actuated_(path.torque_actuated) {
   if (delay_ < 0 || delay_ > kMaxDelayTicks)
     throw std::invalid_argument("DeviceIo: delay_ticks " + std::to_string(delay_) + " is outside [0, " +
                                 std::to_string(kMaxDelayTicks) + "]");

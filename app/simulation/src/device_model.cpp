@@ -174,14 +174,9 @@ SimulationResult simulate(HapticRenderer& renderer, const SimulationConfig& cfg,
   double w_out = 0.0, d_dev = 0.0, v0 = 0.0;
 
   // The device's signal path and the optional passivity controller (issue 19).
-  DeviceModelSpec path;
-  path.encoder_resolution_m = cfg.encoder_resolution_m;
-  path.delay_ticks = cfg.delay_ticks;
-  path.max_force_N = cfg.max_force_N;
-  path.torque_actuated = cfg.torque_actuated;
-  DeviceIo io(path);
+  DeviceIo io(cfg.signal);
   haptics::PassivityOptions pc_options;
-  pc_options.delay_ticks = cfg.delay_ticks;
+  pc_options.delay_ticks = cfg.signal.delay_ticks;
   if (cfg.passivity_floor_N_per_m > 0.0 && cp.k_lin > 0.0)
     pc_options.min_gain = std::min(1.0, cfg.passivity_floor_N_per_m / cp.k_lin);
   haptics::PassivityOptions pc_torque_options = pc_options;
@@ -190,8 +185,8 @@ SimulationResult simulate(HapticRenderer& renderer, const SimulationConfig& cfg,
   haptics::PassivityController pc_force(pc_options), pc_torque(pc_torque_options);
   // The same path fed the renderer's own commands: what the hand would have got without the
   // controller, for its exact price.
-  DeviceIo io_uncontrolled(path);
-  Eigen::Vector3d c_sensed_prev = quantize(c, cfg.encoder_resolution_m);
+  DeviceIo io_uncontrolled(cfg.signal);
+  Eigen::Vector3d c_sensed_prev = io.sense(c);
   Eigen::Quaterniond q_prev = q;
 
   for (int k = 0; k < n_ticks; ++k) {

@@ -215,10 +215,7 @@ Scenario slowPressScenario() {
 
 SweepOptions withDevice(const DeviceModelSpec& device, SweepOptions base) {
   base.servo_period_s = device.servoPeriod_s();
-  base.encoder_resolution_m = device.encoder_resolution_m;
-  base.delay_ticks = device.delay_ticks;
-  base.max_force_N = device.max_force_N;
-  base.torque_actuated = device.torque_actuated;
+  base.signal = device.signalPath();
   base.passivity_floor_N_per_m = device.rated_stiffness_N_per_m;
   return base;
 }
@@ -252,10 +249,7 @@ SimulationResult runScenario(const Scenario& sc, double k_lin, const DeviceParam
   cfg.check_penetration = options.check_penetration;
   cfg.verify_step_voxels = options.verify_step_voxels;
   cfg.servo_period_s = options.servo_period_s;
-  cfg.encoder_resolution_m = options.encoder_resolution_m;
-  cfg.delay_ticks = options.delay_ticks;
-  cfg.max_force_N = options.max_force_N;
-  cfg.torque_actuated = options.torque_actuated;
+  cfg.signal = options.signal;
   cfg.passivity_control = options.passivity_control;
   cfg.passivity_floor_N_per_m = options.passivity_floor_N_per_m;
   return simulate(r, cfg, sc.hand, sc.start);
@@ -331,7 +325,7 @@ StiffnessResult evaluate(const std::vector<Scenario>& scenarios, double k_lin, c
       // A quantised encoder cannot hold the sensed position between two counts: a contact whose
       // handle stays within kDitherCounts counts and whose force moves by at most that many
       // counts' worth of spring (K q each) plus kSettledPtp is at rest, dithering at the floor.
-      const double q = options.encoder_resolution_m;
+      const double q = options.signal.encoder_resolution_m;
       const double travel_counts =
           q > 0.0 ? peakToPeak(r, w.t0_s, w.t1_s, [n](const TickRecord& t) { return t.c_D.dot(n); }) / q : 0.0;
       const bool at_floor = q > 0.0 && travel_counts <= kDitherCounts &&

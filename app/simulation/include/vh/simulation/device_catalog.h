@@ -48,6 +48,8 @@ struct DeviceModelSpec {
   double servoPeriod_s() const { return 1.0 / servo_rate_Hz; }
   /// The handle's mechanics, rotational axes matched at lever arm `lever_m` (DeviceParams::scaled).
   DeviceParams params(double lever_m) const;
+  /// Its encoder, delay, force limit and torque motors as a signal path for DeviceIo / simulate().
+  DeviceSignalPath signalPath() const { return {encoder_resolution_m, delay_ticks, max_force_N, torque_actuated}; }
   /// Colgate and Schenkel's passivity bound 2 b_d / T of the device alone [N/m].
   double colgateBound_N_per_m() const { return 2.0 * damping_Ns_per_m * servo_rate_Hz; }
 };
@@ -68,8 +70,10 @@ Eigen::Vector3d quantize(const Eigen::Vector3d& x_m, double q_m) noexcept;
 class DeviceIo {
  public:
   static constexpr int kMaxDelayTicks = 8;
-  /// @throws std::invalid_argument if spec.delay_ticks is outside [0, kMaxDelayTicks].
-  explicit DeviceIo(const DeviceModelSpec& spec);
+  /// @throws std::invalid_argument if path.delay_ticks is outside [0, kMaxDelayTicks].
+  explicit DeviceIo(const DeviceSignalPath& path);
+  /// The catalogue device's path (DeviceModelSpec::signalPath()). @throws as above.
+  explicit DeviceIo(const DeviceModelSpec& spec) : DeviceIo(spec.signalPath()) {}
   Eigen::Vector3d sense(const Eigen::Vector3d& c_true_m) const noexcept;
   /// Pushes this tick's command and returns the force applied over this tick [N].
   Eigen::Vector3d actuate(const Eigen::Vector3d& command_N) noexcept;

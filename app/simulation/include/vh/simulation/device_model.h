@@ -93,6 +93,18 @@ struct DeviceState {
   Eigen::Vector3d w_W_radps = Eigen::Vector3d::Zero();
 };
 
+/// The device's signal path between the renderer and the handle (issue 19; DeviceIo in
+/// device_catalog.h). Defaults: the ideal device (exact position, the command held from the very
+/// tick it was computed, no saturation, torque applied).
+struct DeviceSignalPath {
+  double encoder_resolution_m = 0.0;  ///< Position quantum of the sensed handle [m]; 0: exact.
+  int delay_ticks = 0;                ///< Whole ticks before a command's hold starts.
+  double max_force_N = 0.0;           ///< Force saturation [N]; 0: none.
+  /// False: the device has no torque actuators (a 3-DOF force device): the coupling's torque is
+  /// not applied and the hand alone turns the handle.
+  bool torque_actuated = true;
+};
+
 struct SimulationConfig {
   DeviceParams device;
   HandParams hand;
@@ -110,16 +122,9 @@ struct SimulationConfig {
   /// spring, so a tick may lose up to |F| * lift_bound_m of solver work to it.
   double lift_bound_m = 0.0;
 
-  // The device's signal path (issue 19, device_catalog.h DeviceIo). Defaults: the ideal device
-  // (exact position, the command held from the very tick it was computed, no saturation).
-  double encoder_resolution_m = 0.0;  ///< Position quantum of the sensed handle [m]; 0: exact.
-  int delay_ticks = 0;                ///< Whole ticks before a command's hold starts.
-  double max_force_N = 0.0;           ///< Force saturation [N]; 0: none.
-  /// False: the device has no torque actuators (a 3-DOF force device): the coupling's torque is
-  /// not applied and the hand alone turns the handle.
-  bool torque_actuated = true;
+  DeviceSignalPath signal{};  ///< The device's signal path (the ideal device by default).
   /// Time-domain passivity controller (haptics::PassivityController) on both coupling ports,
-  /// between the renderer and the delay line, told the same delay_ticks and each port's stiffness.
+  /// between the renderer and the delay line, told signal.delay_ticks and each port's stiffness.
   bool passivity_control = false;
   /// Its stiffness schedule's floor [N/m]: the gain never goes below this over k_lin (the same
   /// ratio on the torque port); 0: no schedule.

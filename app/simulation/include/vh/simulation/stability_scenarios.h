@@ -81,7 +81,7 @@ const char* toString(Behaviour b);
 
 /// Largest relative force peak-to-peak in a hold window of a settled contact.
 inline constexpr double kSettledPtp = 0.02;
-/// With a quantised encoder (SweepOptions::encoder_resolution_m > 0) a hold window is also
+/// With a quantised encoder (SweepOptions::signal.encoder_resolution_m > 0) a hold window is also
 /// settled when the handle travels at most this many counts along the normal and the force's
 /// peak-to-peak is at most this many times K q (plus kSettledPtp of the mean): the dither
 /// between adjacent counts that no controller can remove.
@@ -149,10 +149,7 @@ struct SweepOptions {
   double verify_step_voxels = 0.0;
   // The device (issue 19): its servo period and signal path (SimulationConfig's fields).
   double servo_period_s = 1e-3;
-  double encoder_resolution_m = 0.0;
-  int delay_ticks = 0;
-  double max_force_N = 0.0;
-  bool torque_actuated = true;
+  DeviceSignalPath signal{};
   bool passivity_control = false;
   double passivity_floor_N_per_m = 0.0;  ///< SimulationConfig::passivity_floor_N_per_m.
 };
