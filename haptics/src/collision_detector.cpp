@@ -122,15 +122,25 @@ int CollisionDetector::buildShellTree(int begin, int end, int depth) {
   return index;
 }
 
-bool CollisionDetector::ballMayBeInside(const Eigen::Vector3d& center_W_m, double radius_m, double isovalue) noexcept {
+bool CollisionDetector::ballMayBeInside(const Eigen::Vector3d& center_W_m, double radius_m, double isovalue,
+                                        double arc_sagitta_m) noexcept {
   ++box_queries_;
   const Eigen::Vector3d g = volume_->gridCoordinates(center_W_m);
   // A W ball maps to an ellipsoid with half-axes radius / spacing along the grid axes (the
   // direction matrix is orthonormal); 1e-6 voxel covers the rounding of both paths.
   const Eigen::Vector3d half = (radius_m * grid_per_m_).array() + 1e-6;
   int nodes_read = 0;
-  const bool may_be_inside = volume_->upperBoundInBox(g - half, g + half, &nodes_read) > isovalue;
+  bool may_be_inside = volume_->upperBoundInBox(g - half, g + half, &nodes_read, arc_sagitta_m) > isovalue;
   tree_nodes_ += nodes_read;
+  if (may_be_inside && arc_sagitta_m > 0.0) {
+    // The arc is within one cell of the ball: no voxel there above the isovalue also proves it
+    // empty (as the segment test's own second criterion), where the Lipschitz bubble of a wild
+    // outlier (a -3e38 "no data" border) cannot.
+    ++box_queries_;
+    may_be_inside = volume_->upperBoundInBox(g - half - Eigen::Vector3d::Ones(), g + half + Eigen::Vector3d::Ones(),
+                                             &nodes_read) > isovalue;
+    tree_nodes_ += nodes_read;
+  }
   return may_be_inside;
 }
 
@@ -141,7 +151,7 @@ bool CollisionDetector::runMayHit(const RigidMotion& motion, int j, std::int64_t
   const double t0 = segmentBegin(j, k);
   const double t1 = k + run >= total ? 1.0 : static_cast<double>(k + run) * dt_[j];
   const double radius = 0.5 * path_[j] * (t1 - t0) * (1.0 + 1e-9) + 1e-12;
-  return ballMayBeInside(motion.pointAt(r0_[j], 0.5 * (t0 + t1)), radius, isovalue - margin(j));
+  return ballMayBeInside(motion.pointAt(r0_[j], 0.5 * (t0 + t1)), radius, isovalue, sagitta_[j]);
 }
 
 bool CollisionDetector::inside(const Eigen::Vector3d& p_W, double isovalue) noexcept {
@@ -191,13 +201,13 @@ SweepResult CollisionDetector::sweep(const RigidMotion& motion, double isovalue)
     std::fill(chord_end_stamp_.begin(), chord_end_stamp_.end(), 0u);
     chord_stamp_ = 1;
   }
-  // The largest arc margin of any point this sweep (for the point-shell tree's node tests):
+  // The largest chord sagitta of any point this sweep (for the point-shell tree's node tests):
   // every point's sagitta is <= min(max_sagitta_, R angle^2 / 8), R the shell's radius.
   const double angle = motion.angle_rad();
-  sweep_margin_ = max_sagitta_ > 0.0 && angle > 0.0
-      ? volume_->lipschitzBound() * std::min(max_sagitta_, shell_radius_m_ * angle * angle / 8.0) * (1.0 + 1e-9)
+  sweep_sagitta_ = max_sagitta_ > 0.0 && angle > 0.0
+      ? std::min(max_sagitta_, shell_radius_m_ * angle * angle / 8.0) * (1.0 + 1e-9)
       : 0.0;
-  return mode_ == DetectionMode::kAccelerated ? sweepAccelerated(motion, isovalue) : sweepPaper(motion, isovalue);
+  return stopClear(mode_ == DetectionMode::kAccelerated ? sweepAccelerated(motion, isovalue) : sweepPaper(motion, isovalue));
 }
 
 void CollisionDetector::setupPath(const RigidMotion& motion, int j) noexcept {
@@ -214,7 +224,7 @@ void CollisionDetector::setupPath(const RigidMotion& motion, int j) noexcept {
     // Chords of the rotation: sagitta delta = rho (angle / segments)^2 / 8 <= max_sagitta_. At
     // the same time the arc is within 4 delta u (1 - u) of its chord (the interpolation error
     // bound with |p''| = rho omega^2), so a chord whose F stays <= s - 4 L delta u (1 - u)
-    // keeps the arc at F <= s (L = lipschitzBound()).
+    // keeps the arc at F <= s (L = the local Lipschitz bound, ScalarVolume::localLipschitzBound()).
     const double sagitta_of_one = rho * angle * angle / 8.0;  // one chord over the whole arc
     if (sagitta_of_one > max_sagitta_ * segments * segments)
       segments = std::ceil(angle * std::sqrt(rho / (8.0 * max_sagitta_)));
@@ -260,12 +270,20 @@ double CollisionDetector::stepSegment(const RigidMotion& motion, int j, std::int
     // The arc's reach beyond its chord (the sagitta), per grid axis, for the grid's border.
     const Eigen::Vector3d reach = sagitta_[j] * grid_per_m_;
     const SegmentEntry entry = volume_->firstEntryOnSegment(a, b, isovalue, u_limit,
-                                                            bisection_tolerance_ / (path_[j] * span), reach, margin(j));
+                                                            bisection_tolerance_ / (path_[j] * span), reach, sagitta_[j]);
     cells_ += entry.cells;
     cells_walked_ += entry.cells_walked;
     if (!entry.hit) return t_end;
     lo = entry.u_outside >= 1.0 ? t_end : t_begin + entry.u_outside * span;
     hi = entry.u_inside >= 1.0 ? t_end : t_begin + entry.u_inside * span;
+    // A rotating point's hit may be the bubble's alone (a contact resting on the surface and
+    // turning along it: its chord dips under the arc by the sagitta). Confirm it on finer
+    // chords over [t_begin, hi]: none of them hitting proves the arc free there.
+    if (sagitta_[j] > 0.0) {
+      const double t_limit = result.t >= t_end ? t_end : result.t;
+      if (!refineArcEntry(motion, j, t_begin, t_end, sagitta_[j], isovalue, t_limit, kArcRefinements, lo, hi))
+        return t_end;
+    }
   } else {
     if (!inside(motion.pointAt(r0_[j], t_end), isovalue)) return t_end;
     while (path_[j] * (hi - lo) >= bisection_tolerance_) {
@@ -280,6 +298,34 @@ double CollisionDetector::stepSegment(const RigidMotion& motion, int j, std::int
     result.hit_point = j;
   }
   return -1.0;
+}
+
+bool CollisionDetector::refineArcEntry(const RigidMotion& motion, int j, double t0, double t1, double sagitta_m,
+                                       double isovalue, double t_limit, int depth, double& lo, double& hi) noexcept {
+  // Four chords of a quarter of the time each: a sixteenth of the sagitta (delta ~ angle^2).
+  const double step = 0.25 * (t1 - t0);
+  const double sub_sagitta = sagitta_m / 16.0;
+  for (int k = 0; k < 4; ++k) {
+    const double a_t = t0 + k * step, b_t = k == 3 ? t1 : t0 + (k + 1) * step;
+    if (a_t > t_limit) return false;
+    samples_ += 2;
+    const Eigen::Vector3d a = volume_->gridCoordinates(motion.pointAt(r0_[j], a_t));
+    const Eigen::Vector3d b = volume_->gridCoordinates(motion.pointAt(r0_[j], b_t));
+    const double span = b_t - a_t;
+    const double u_limit = t_limit >= b_t ? 1.0 : (t_limit - a_t) / span;
+    const SegmentEntry entry = volume_->firstEntryOnSegment(a, b, isovalue, u_limit, bisection_tolerance_ / (path_[j] * span),
+                                                            sub_sagitta * grid_per_m_, sub_sagitta);
+    cells_ += entry.cells;
+    cells_walked_ += entry.cells_walked;
+    if (!entry.hit) continue;
+    if (depth <= 1) {
+      lo = entry.u_outside >= 1.0 ? b_t : a_t + entry.u_outside * span;
+      hi = entry.u_inside >= 1.0 ? b_t : a_t + entry.u_inside * span;
+      return true;
+    }
+    if (refineArcEntry(motion, j, a_t, b_t, sub_sagitta, isovalue, t_limit, depth - 1, lo, hi)) return true;
+  }
+  return false;
 }
 
 std::size_t CollisionDetector::collectActive(const RigidMotion& motion, double t_max, double isovalue,
@@ -315,7 +361,7 @@ std::size_t CollisionDetector::collectActive(const RigidMotion& motion, double t
     const double radius =
         (0.5 * t_max * motion.pathLengthBound(r_c) + node.radius_m + epsilon_) * (1.0 + 1e-9) + 1e-12;
     // Culled points are not touched at all (addContactsAt visits only the active ones).
-    if (!ballMayBeInside(c_mid + R_mid * r_c, radius, isovalue - sweep_margin_)) continue;
+    if (!ballMayBeInside(c_mid + R_mid * r_c, radius, isovalue, sweep_sagitta_)) continue;
     if (node.left >= 0) {
       stack_[top++] = node.right;
       stack_[top++] = node.left;
@@ -331,7 +377,7 @@ std::size_t CollisionDetector::collectActive(const RigidMotion& motion, double t
       // wrench 62 % of the points with several segments, which otherwise cost about two run
       // tests and two heap steps each).
       const double radius_j = 0.5 * t_max * path_[j] * (1.0 + 1e-9) + 1e-12;
-      if (!ballMayBeInside(c_mid + R_mid * r0_[j], radius_j, isovalue - margin(j))) {
+      if (!ballMayBeInside(c_mid + R_mid * r0_[j], radius_j, isovalue, sagitta_[j])) {
         clear_until_[j] = t_max;
         continue;
       }
@@ -368,7 +414,19 @@ SweepResult CollisionDetector::resumeSweep() noexcept {
     std::fill(chord_end_stamp_.begin(), chord_end_stamp_.end(), 0u);
     chord_stamp_ = 1;
   }
-  return runAccelerated();
+  return stopClear(runAccelerated());
+}
+
+SweepResult CollisionDetector::stopClear(SweepResult result) const noexcept {
+  // The bisection's outside end may lie a rounding error from the surface; a contact that then
+  // turns along the surface (a probe spun on a ball) has chords that dip under it by less than
+  // any sagitta can be made, and would be held for good. Stopping the hit point a further
+  // epsilon / 128 of its own travel earlier (proven free: it is before the first hit) leaves it
+  // a clearance that the arc refinement resolves (its finest sagitta is epsilon / 262,144).
+  if (result.hit_point < 0 || result.budget_cut || !(result.t > 0.0)) return result;
+  const double path = path_[static_cast<std::size_t>(result.hit_point)];
+  if (path > 0.0) result.t = std::max(0.0, result.t - kStopClearanceFraction * epsilon_ / path);
+  return result;
 }
 
 SweepResult CollisionDetector::runAccelerated() noexcept {

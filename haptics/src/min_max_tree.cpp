@@ -4,6 +4,7 @@
 #include <cmath>
 #include <cstdint>
 #include <limits>
+#include <stdexcept>
 
 namespace vh::haptics {
 namespace {
@@ -77,7 +78,7 @@ MinMaxTree MinMaxTree::Build(const T* voxels, const std::array<int, 3>& dims) {
     }
     return range;
   };
-  tree.levels_.push_back({n, interleave(lo, hi)});
+  tree.levels_.push_back({n, interleave(lo, hi), {}});
   while (n[0] > 1 || n[1] > 1 || n[2] > 1) {
     for (int axis = 0; axis < 3; ++axis) {
       std::vector<float> out_lo, out_hi;
@@ -87,7 +88,7 @@ MinMaxTree MinMaxTree::Build(const T* voxels, const std::array<int, 3>& dims) {
       hi.swap(out_hi);
       n = n_out;
     }
-    tree.levels_.push_back({n, interleave(lo, hi)});
+    tree.levels_.push_back({n, interleave(lo, hi), {}});
   }
   return tree;
 }
@@ -96,8 +97,8 @@ MinMaxTree MinMaxTree::Build(const T* voxels, const std::array<int, 3>& dims) {
 // few per axis. 1 (8 reads) culled too little for the point-shell tree's balls; 3 (64 reads)
 // was the fastest on the Table 1 scenes (Engine mean -25 %), 7 slower again.
 constexpr int kSpan = 3;
-int MinMaxTree::rawRangeSpread(const int* b0, const int* b1, int spread, float& raw_min,
-                               float& raw_max) const noexcept {
+int MinMaxTree::rawRangeSpread(const int* b0, const int* b1, int spread, float& raw_min, float& raw_max,
+                               float* lipschitz_max) const noexcept {
   // The finest level at which the box spans at most kSpan + 1 nodes per axis.
   int level = 0;
   while ((spread >> level) > kSpan && level + 1 < levels()) ++level;
@@ -117,8 +118,38 @@ int MinMaxTree::rawRangeSpread(const int* b0, const int* b1, int spread, float& 
     }
   raw_min = lo;
   raw_max = hi;
+  if (lipschitz_max != nullptr && !l.lipschitz.empty()) {
+    float lip = 0.0f;
+    for (int c = b0[2] >> level; c <= (b1[2] >> level); ++c)
+      for (int b = b0[1] >> level; b <= (b1[1] >> level); ++b) {
+        const std::size_t row = static_cast<std::size_t>(l.n[0]) * (b + static_cast<std::size_t>(l.n[1]) * c);
+        for (int a = b0[0] >> level; a <= (b1[0] >> level); ++a) lip = std::max(lip, l.lipschitz[row + a]);
+      }
+    *lipschitz_max = lip;
+  }
   return ((b1[0] >> level) - (b0[0] >> level) + 1) * ((b1[1] >> level) - (b0[1] >> level) + 1) *
          ((b1[2] >> level) - (b0[2] >> level) + 1);
+}
+
+void MinMaxTree::setLipschitz(std::vector<float> per_brick) {
+  if (levels_.empty()) return;
+  const std::array<int, 3> n0 = levels_[0].n;
+  if (per_brick.size() != static_cast<std::size_t>(n0[0]) * n0[1] * n0[2])
+    throw std::invalid_argument("MinMaxTree::setLipschitz: one value per level-0 brick expected");
+  std::vector<float> cur = std::move(per_brick);
+  std::array<int, 3> n = n0;
+  levels_[0].lipschitz = cur;
+  // The same 2 x 2 x 2 merges as Build(), taking the maximum.
+  for (std::size_t level = 1; level < levels_.size(); ++level) {
+    for (int axis = 0; axis < 3; ++axis) {
+      std::vector<float> out_lo, out_hi;
+      std::array<int, 3> n_out;
+      mergeAxis(cur, cur, n, axis, out_lo, out_hi, n_out);
+      cur.swap(out_hi);
+      n = n_out;
+    }
+    levels_[level].lipschitz = cur;
+  }
 }
 
 template MinMaxTree MinMaxTree::Build<std::uint8_t>(const std::uint8_t*, const std::array<int, 3>&);

@@ -2,6 +2,8 @@
 
 #include <cmath>
 #include <cstring>
+#include <algorithm>
+#include <array>
 #include <limits>
 #include <stdexcept>
 #include <string>
@@ -37,21 +39,32 @@ template <> constexpr VoxelType voxelTypeOf<std::int16_t>() { return VoxelType::
 template <> constexpr VoxelType voxelTypeOf<std::uint16_t>() { return VoxelType::kUInt16; }
 template <> constexpr VoxelType voxelTypeOf<float>() { return VoxelType::kFloat32; }
 
-// One pass over the raw voxels: their range, and the largest |v(i + 1) - v(i)| along each grid
-// axis (the Lipschitz bound's steps). Stops at the first non-finite value (only float32 holds
-// one) with finite = false.
+// One pass over the raw voxels: their range, and per level-0 brick of the min-max tree the
+// largest |v(i + 1) - v(i)| along each grid axis over the edges of the brick's cells (the local
+// Lipschitz bound's steps). Stops at the first non-finite value (only float32 holds one) with
+// finite = false and its index.
 struct VoxelScan {
   double lo = 0.0, hi = 0.0;
-  Eigen::Vector3d step = Eigen::Vector3d::Zero();
   bool finite = true;
+  std::array<std::ptrdiff_t, 3> first_nonfinite{0, 0, 0};
+  std::array<int, 3> bricks{0, 0, 0};
+  std::vector<double> step[3];  // per brick, per axis: largest raw step of the edges booked to it
 };
 
 template <typename T>
 VoxelScan scanVoxels(const std::vector<std::byte>& bytes, const std::array<int, 3>& dims) {
   const T* d = reinterpret_cast<const T*>(bytes.data());
   const std::ptrdiff_t nx = dims[0], ny = dims[1], nz = dims[2];
+  constexpr int kB = MinMaxTree::kBrickCells;
   VoxelScan scan;
-  double mn = std::numeric_limits<double>::infinity(), mx = -mn, sx = 0.0, sy = 0.0, sz = 0.0;
+  for (int a = 0; a < 3; ++a) scan.bricks[a] = std::max(1, (dims[a] - 1 + kB - 1) / kB);
+  const std::size_t brick_count = static_cast<std::size_t>(scan.bricks[0]) * scan.bricks[1] * scan.bricks[2];
+  for (auto& s : scan.step) s.assign(brick_count, 0.0);
+  const auto brick = [&](std::ptrdiff_t ci, std::ptrdiff_t cj, std::ptrdiff_t ck) {
+    return static_cast<std::size_t>(ci / kB) +
+           static_cast<std::size_t>(scan.bricks[0]) * (cj / kB + static_cast<std::size_t>(scan.bricks[1]) * (ck / kB));
+  };
+  double mn = std::numeric_limits<double>::infinity(), mx = -mn;
   for (std::ptrdiff_t k = 0; k < nz; ++k)
     for (std::ptrdiff_t j = 0; j < ny; ++j) {
       const T* row = d + nx * (j + ny * k);
@@ -59,18 +72,31 @@ VoxelScan scanVoxels(const std::vector<std::byte>& bytes, const std::array<int, 
         const double v = row[i];
         if (!std::isfinite(v)) {
           scan.finite = false;
+          scan.first_nonfinite = {i, j, k};
           return scan;
         }
         mn = std::min(mn, v);
         mx = std::max(mx, v);
-        if (i + 1 < nx) sx = std::max(sx, std::abs(static_cast<double>(row[i + 1]) - v));
-        if (j + 1 < ny) sy = std::max(sy, std::abs(static_cast<double>(row[i + nx]) - v));
-        if (k + 1 < nz) sz = std::max(sz, std::abs(static_cast<double>(row[i + nx * ny]) - v));
+      }
+    }
+  // Edges; the values are finite here. Each edge is booked to the brick of its home cell (the
+  // cell at its voxel, clipped to the cells); its other cells are within one cell of that one,
+  // so within one brick: the 3 x 3 x 3 dilation in initialise() covers them.
+  for (std::ptrdiff_t k = 0; k < nz; ++k)
+    for (std::ptrdiff_t j = 0; j < ny; ++j) {
+      const T* row = d + nx * (j + ny * k);
+      const std::ptrdiff_t cj = std::min<std::ptrdiff_t>(j, ny - 2), ck = std::min<std::ptrdiff_t>(k, nz - 2);
+      for (std::ptrdiff_t i = 0; i < nx; ++i) {
+        const double v = row[i];
+        const std::size_t home = brick(std::min<std::ptrdiff_t>(i, nx - 2), cj, ck);
+        if (i + 1 < nx) scan.step[0][home] = std::max(scan.step[0][home], std::abs(static_cast<double>(row[i + 1]) - v));
+        if (j + 1 < ny) scan.step[1][home] = std::max(scan.step[1][home], std::abs(static_cast<double>(row[i + nx]) - v));
+        if (k + 1 < nz)
+          scan.step[2][home] = std::max(scan.step[2][home], std::abs(static_cast<double>(row[i + nx * ny]) - v));
       }
     }
   scan.lo = mn;
   scan.hi = mx;
-  scan.step = {sx, sy, sz};
   return scan;
 }
 }  // namespace
@@ -130,15 +156,47 @@ void ScalarVolume::initialise() {
     case VoxelType::kUInt16: scan = scanVoxels<std::uint16_t>(bytes_, g.dims); break;
     case VoxelType::kFloat32: scan = scanVoxels<float>(bytes_, g.dims); break;
   }
-  if (!scan.finite) throw std::invalid_argument("ScalarVolume: voxel data contains NaN or infinity");
+  if (!scan.finite) {
+    const auto& at = scan.first_nonfinite;
+    throw std::invalid_argument("ScalarVolume: voxel data contains NaN or infinity, the first at voxel (" +
+                                std::to_string(at[0]) + ", " + std::to_string(at[1]) + ", " + std::to_string(at[2]) +
+                                ") (i, j, k from 0)");
+  }
   switch (type_) {
     case VoxelType::kUInt8: tree_ = MinMaxTree::Build(reinterpret_cast<const std::uint8_t*>(bytes_.data()), g.dims); break;
     case VoxelType::kInt16: tree_ = MinMaxTree::Build(reinterpret_cast<const std::int16_t*>(bytes_.data()), g.dims); break;
     case VoxelType::kUInt16: tree_ = MinMaxTree::Build(reinterpret_cast<const std::uint16_t*>(bytes_.data()), g.dims); break;
     case VoxelType::kFloat32: tree_ = MinMaxTree::Build(reinterpret_cast<const float*>(bytes_.data()), g.dims); break;
   }
-  // |dF/dx_a| <= |scale| step_a / spacing_a inside every cell; 1e-9 relative for rounding.
-  lipschitz_ = std::abs(scale_) * scan.step.cwiseQuotient(g.spacing_m).norm() * (1.0 + 1e-9);
+  // Local Lipschitz bounds: |dF/dx_a| <= |scale| step_a / spacing_a inside a cell (a bilinear
+  // blend of its four edge differences along a), so |grad F| <= |scale| |(step / spacing)| over
+  // the cells whose edges a brick holds; 1e-9 relative and rounding up to float for rounding.
+  // Each brick then takes the largest value of its 3 x 3 x 3 neighbourhood, so its bound holds
+  // for every cell within one cell of its own (their edges are booked within one brick): an arc that leaves its chord by far less than a voxel stays covered, and
+  // one outlier voxel raises the bound only within a brick of it (not the whole volume).
+  const std::array<int, 3> nb = scan.bricks;
+  std::vector<float> own(scan.step[0].size());
+  lipschitz_ = 0.0;
+  for (std::size_t b = 0; b < own.size(); ++b) {
+    const Eigen::Vector3d step(scan.step[0][b], scan.step[1][b], scan.step[2][b]);
+    const double L = std::abs(scale_) * step.cwiseQuotient(g.spacing_m).norm() * (1.0 + 1e-9);
+    // Capped at the largest float: a brick next to a -3e38 "no data" fill keeps a finite bound.
+    const float f = static_cast<float>(std::min(L, static_cast<double>(std::numeric_limits<float>::max())));
+    own[b] = static_cast<double>(f) >= L || f == std::numeric_limits<float>::max() ? f : std::nextafter(f, std::numeric_limits<float>::infinity());
+    lipschitz_ = std::max(lipschitz_, static_cast<double>(own[b]));
+  }
+  std::vector<float> dilated(own.size(), 0.0f);
+  for (int c = 0; c < nb[2]; ++c)
+    for (int b = 0; b < nb[1]; ++b)
+      for (int a = 0; a < nb[0]; ++a) {
+        float m = 0.0f;
+        for (int z = std::max(0, c - 1); z <= std::min(nb[2] - 1, c + 1); ++z)
+          for (int y = std::max(0, b - 1); y <= std::min(nb[1] - 1, b + 1); ++y)
+            for (int x = std::max(0, a - 1); x <= std::min(nb[0] - 1, a + 1); ++x)
+              m = std::max(m, own[static_cast<std::size_t>(x) + static_cast<std::size_t>(nb[0]) * (y + static_cast<std::size_t>(nb[1]) * z)]);
+        dilated[static_cast<std::size_t>(a) + static_cast<std::size_t>(nb[0]) * (b + static_cast<std::size_t>(nb[1]) * c)] = m;
+      }
+  tree_.setLipschitz(std::move(dilated));
   min_value_ = std::min(scale_ * scan.lo + offset_, scale_ * scan.hi + offset_);
   max_value_ = std::max(scale_ * scan.lo + offset_, scale_ * scan.hi + offset_);
 }

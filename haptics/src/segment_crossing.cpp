@@ -107,7 +107,18 @@ SegmentEntry ScalarVolume::firstEntry(const Eigen::Vector3d& a, const Eigen::Vec
     const double c001 = c[sz], c101 = c[1 + sz], c011 = c[sy + sz], c111 = c[1 + sy + sz];
     const double corner_max = sign > 0.0 ? std::max({c000, c100, c010, c110, c001, c101, c011, c111})
                                          : std::min({c000, c100, c010, c110, c001, c101, c011, c111});
-    if (scale_ * corner_max + offset_ + bubble.height <= threshold) {
+    // The bubble's height over this cell: the local Lipschitz bound (valid within a cell of
+    // this one, where the arc is) times the sagitta.
+    const double height = bubble.sagitta_m > 0.0
+        ? static_cast<double>(tree_.brickLipschitz(cell[0], cell[1], cell[2])) * bubble.sagitta_m
+        : 0.0;
+    // A cell is skipped when the chord with its bubble stays below the threshold, or, for an
+    // arc, when no voxel of this cell and the cells next to it (where the arc is) rises above
+    // it: near a wild outlier (a -3e38 "no data" border) the Lipschitz bubble is huge while
+    // the field itself stays low.
+    if (scale_ * corner_max + offset_ + height <= threshold ||
+        (height > 0.0 && upperBoundInBox(Eigen::Vector3d(cell[0] - 1.0, cell[1] - 1.0, cell[2] - 1.0),
+                                         Eigen::Vector3d(cell[0] + 2.0, cell[1] + 2.0, cell[2] + 2.0)) <= threshold)) {
       inside_run = false;  // the whole cell is outside
     } else {
       ++result.cells;
@@ -123,7 +134,7 @@ SegmentEntry ScalarVolume::firstEntry(const Eigen::Vector3d& a, const Eigen::Vec
       const double r2 = k4 * dx * dy + k5 * dx * dz + k6 * dy * dz + k7 * (x * dy * dz + dx * y * dz + dx * dy * z);
       const double r3 = k7 * dx * dy * dz;
       // The bubble 4 h U (1 - U), U = U0 + D (u + w) the parameter of the whole chord.
-      const double Uc = bubble.u0 + bubble.du * u, D = bubble.du, h4 = 4.0 * bubble.height;
+      const double Uc = bubble.u0 + bubble.du * u, D = bubble.du, h4 = 4.0 * height;
       const Cubic g{scale_ * r0 + offset_ - threshold + h4 * Uc * (1.0 - Uc), scale_ * r1 + h4 * D * (1.0 - 2.0 * Uc),
                     scale_ * r2 - h4 * D * D, scale_ * r3};
       double breaks[4];
@@ -213,9 +224,9 @@ SegmentEntry ScalarVolume::walkSegment(const Eigen::Vector3d& a, const Eigen::Ve
 
 SegmentEntry ScalarVolume::firstEntryOnSegment(const Eigen::Vector3d& a_ijk, const Eigen::Vector3d& b_ijk,
                                                double threshold, double u_limit, double u_tolerance,
-                                               const Eigen::Vector3d& reach_ijk, double bubble_height) const noexcept {
+                                               const Eigen::Vector3d& reach_ijk, double arc_sagitta_m) const noexcept {
   if (!(reach_ijk.maxCoeff() > 0.0))
-    return walkSegment(a_ijk, b_ijk, threshold, u_limit, u_tolerance, true, {bubble_height, 0.0, 1.0});
+    return walkSegment(a_ijk, b_ijk, threshold, u_limit, u_tolerance, true, {arc_sagitta_m, 0.0, 1.0});
   // A point within reach of the segment may be in the grid's box while the segment is not:
   // walk the segment's projection onto the box (clamped per axis: a polyline in the box, one
   // piece between consecutive crossings of a box plane) where the segment is within reach of
@@ -255,7 +266,7 @@ SegmentEntry ScalarVolume::firstEntryOnSegment(const Eigen::Vector3d& a_ijk, con
     const Eigen::Vector3d pb = (a_ijk + q * d).cwiseMax(Eigen::Vector3d::Zero()).cwiseMin(upper_);
     const double span = q - p;
     const SegmentEntry e = walkSegment(pa, pb, threshold, (u_limit - p) / span, u_tolerance / span, p == 0.0,
-                                       {bubble_height, p, span});
+                                       {arc_sagitta_m, p, span});
     result.cells += e.cells;
     result.cells_walked += e.cells_walked;
     if (e.hit) {

@@ -191,7 +191,8 @@ TEST(CollisionDetector, AcceleratedStopsAtABlockingContactWithoutWalkingTheTree)
   paper.addContactsAt(drop, hp, 0.0);
   fast.addContactsAt(drop, hf, 0.0);
   ASSERT_GT(fast.contacts().size(), 1u);
-  const Pose X_rest = drop.poseAt(hf.t);
+  // At the bracket's outside end itself (the sweep stops a little before it, kStopClearanceFraction).
+  const Pose X_rest = drop.poseAt(hf.t + CollisionDetector::kStopClearanceFraction * eps / 0.006);
   paper.refreshPositions(X_rest);
   fast.refreshPositions(X_rest);
   // Pushed down again from the resting pose: blocked at once.

@@ -1,7 +1,9 @@
 #include "vh/haptics/scalar_volume.h"
 
 #include <cstdint>
+#include <limits>
 #include <random>
+#include <string>
 
 #include <Eigen/Geometry>
 #include <gtest/gtest.h>
@@ -113,6 +115,91 @@ TEST(ScalarVolume, RejectsBadGeometryWithAClearMessage) {
   g.dims = {4, 4, 4};
   v[5] = std::numeric_limits<float>::quiet_NaN();
   EXPECT_THROW(ScalarVolume::FromVoxels(g, v), std::invalid_argument);
+  // The message names the first non-finite voxel (index 5 + 4 * 2 = (1, 2, 0)).
+  v[5] = 0.0f;
+  v[9] = std::numeric_limits<float>::infinity();
+  v[40] = std::numeric_limits<float>::quiet_NaN();
+  try {
+    (void)ScalarVolume::FromVoxels(g, v);
+    ADD_FAILURE() << "no exception";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("(1, 2, 0)"), std::string::npos) << e.what();
+  }
+}
+
+TEST(ScalarVolume, LocalLipschitzBoundHoldsNearEachCellAndIgnoresFarOutliers) {
+  // Oracle: |F(p) - F(q)| <= L_local(p) |p - q| for random p and q within one voxel of p (the
+  // local bound is valid over p's cell and the cells next to it), on a random int16 field with
+  // anisotropic voxels in a rotated grid and a negative value scale; and one outlier voxel (1e30)
+  // or a -3e38 border raise the local bound only within two bricks (8 voxels) of themselves.
+  std::mt19937 rng(11);
+  std::uniform_real_distribution<double> U(0.0, 1.0);
+  VolumeGeometry g = rotatedGeometry();
+  g.dims = {20, 18, 16};
+  std::vector<std::int16_t> raw(g.voxelCount());
+  for (auto& v : raw) v = static_cast<std::int16_t>(static_cast<int>(rng() % 4001) - 2000);
+  // A smooth region (small steps) beside the noise, so that the local bounds differ.
+  for (int k = 0; k < g.dims[2]; ++k)
+    for (int j = 0; j < g.dims[1]; ++j)
+      for (int i = 0; i < 10; ++i) raw[i + g.dims[0] * (j + g.dims[1] * k)] = static_cast<std::int16_t>(i + j + k);
+  const ScalarVolume vol = ScalarVolume::FromVoxels(g, raw, -0.5, 3.0);
+  const Eigen::Matrix3d A = g.direction_W * g.spacing_m.asDiagonal();
+  const Eigen::Vector3d upper(g.dims[0] - 1, g.dims[1] - 1, g.dims[2] - 1);
+  double worst = 0.0, smallest_local = std::numeric_limits<double>::infinity();
+  for (int n = 0; n < 40000; ++n) {
+    const Eigen::Vector3d a = upper.cwiseProduct(Eigen::Vector3d(U(rng), U(rng), U(rng)));
+    const Eigen::Vector3d b = (a + 2.0 * Eigen::Vector3d(U(rng) - 0.5, U(rng) - 0.5, U(rng) - 0.5)).cwiseMax(0.0).cwiseMin(upper);
+    const Eigen::Vector3d p = g.origin_W_m + A * a, q = g.origin_W_m + A * b;
+    if ((p - q).norm() == 0.0) continue;
+    const double L = vol.localLipschitzBound(a);
+    ASSERT_LE(L, vol.lipschitzBound() * (1.0 + 1e-6));
+    const double ratio = std::abs(vol.sample(p) - vol.sample(q)) / (p - q).norm();
+    ASSERT_LE(ratio, L) << "pair " << n << " at " << a.transpose() << " and " << b.transpose();
+    worst = std::max(worst, ratio / L);
+    smallest_local = std::min(smallest_local, L);
+  }
+  EXPECT_GT(worst, 0.2);                                       // not a vacuous bound
+  EXPECT_LT(smallest_local, 0.05 * vol.lipschitzBound());      // and local: the smooth part is far below
+
+  // Outliers: a float ball field with one far voxel at 1e30, then a -3e38 border.
+  VolumeGeometry gb;
+  gb.dims = {64, 64, 64};
+  gb.spacing_m = Eigen::Vector3d::Constant(0.5e-3);
+  std::vector<float> ball(gb.voxelCount());
+  const auto at = [&](int i, int j, int k) -> float& { return ball[i + 64 * (j + 64 * static_cast<std::size_t>(k))]; };
+  for (int k = 0; k < 64; ++k)
+    for (int j = 0; j < 64; ++j)
+      for (int i = 0; i < 64; ++i) at(i, j, k) = static_cast<float>(10.0 - Eigen::Vector3d(i - 31.5, j - 31.5, k - 31.5).norm());
+  const ScalarVolume clean = ScalarVolume::FromVoxels(gb, ball);
+  std::vector<float> clean_voxels = ball;
+  at(62, 62, 62) = 1e30f;
+  const ScalarVolume outlier = ScalarVolume::FromVoxels(gb, ball);
+  ball = clean_voxels;
+  for (int k = 0; k < 64; ++k)
+    for (int j = 0; j < 64; ++j)
+      for (int i = 0; i < 64; ++i)
+        if (i == 0 || j == 0 || k == 0 || i == 63 || j == 63 || k == 63) at(i, j, k) = -3e38f;
+  const ScalarVolume border = ScalarVolume::FromVoxels(gb, ball);
+  EXPECT_GT(outlier.lipschitzBound(), 1e30);
+  EXPECT_GT(border.lipschitzBound(), 1e38);
+  int compared = 0;
+  for (int k = 0; k < 63; ++k)
+    for (int j = 0; j < 63; ++j)
+      for (int i = 0; i < 63; ++i) {
+        const Eigen::Vector3d c(i + 0.5, j + 0.5, k + 0.5);
+        const double L0 = clean.localLipschitzBound(c);
+        if (std::max({std::abs(i - 62), std::abs(j - 62), std::abs(k - 62)}) > 8) {
+          ASSERT_EQ(outlier.localLipschitzBound(c), L0) << "cell " << c.transpose();
+        }
+        if (std::min({i, j, k, 62 - i, 62 - j, 62 - k}) > 8) {
+          ASSERT_EQ(border.localLipschitzBound(c), L0) << "cell " << c.transpose();
+          ++compared;
+        }
+      }
+  EXPECT_GT(compared, 40 * 40 * 40);
+  // The clean ball's local bound is about its gradient, |grad F| = 1 per voxel = 2000 per m,
+  // times sqrt(3) at most (the per-axis steps of a brick may come from different voxels).
+  EXPECT_LT(clean.localLipschitzBound(Eigen::Vector3d(31.5, 31.5, 41.5)), 2000.0 * std::sqrt(3.0) * 1.01);
 }
 
 TEST(ScalarVolume, BoundsCoverTheRotatedGrid) {

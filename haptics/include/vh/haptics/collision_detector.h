@@ -85,6 +85,11 @@ class CollisionDetector {
                     std::size_t max_contacts = 256, DetectionMode mode = DetectionMode::kAccelerated,
                     double segment_fraction = 1.0, SegmentTest segment_test = SegmentTest::kExact);
 
+  /// A finished sweep with a hit stops this fraction of epsilon of the hit point's own travel
+  /// before the bisection bracket's outside end (proven free), so that a contact is never left
+  /// a rounding error from the surface, where a turn along the surface would hold it for good.
+  static constexpr double kStopClearanceFraction = 1.0 / 128.0;
+
   DetectionMode mode() const noexcept { return mode_; }
   SegmentTest segmentTest() const noexcept { return segment_test_; }
   /// Largest deviation of a rotating point's arc from the chords it is tested along [m]
@@ -249,8 +254,10 @@ class CollisionDetector {
   int walk_top_ = 0;             // collectActive(): traversal stack height when the budget stopped it
   std::size_t walk_count_ = 0;   // collectActive(): heap entries written so far
   int buildShellTree(int begin, int end, int depth);
-  // False when no point of the W ball (centre, radius) can be inside (min-max tree bound).
-  bool ballMayBeInside(const Eigen::Vector3d& center_W_m, double radius_m, double isovalue) noexcept;
+  // False when no point of the W ball (centre, radius), nor within arc_sagitta_m of it, can be
+  // inside (min-max tree bound with the local Lipschitz bounds).
+  bool ballMayBeInside(const Eigen::Vector3d& center_W_m, double radius_m, double isovalue,
+                       double arc_sagitta_m = 0.0) noexcept;
   // Start time of segment k of point j (the same double the paper path computes).
   double segmentBegin(int j, std::int64_t k) const noexcept { return k == 0 ? 0.0 : static_cast<double>(k) * dt_[j]; }
   // False when the swept ball of segments [k, k + run) of point j holds no inside point.
@@ -264,6 +271,17 @@ class CollisionDetector {
   // and record in `result` when inside). Returns the segment's end time, or -1 when inside.
   double stepSegment(const RigidMotion& motion, int j, std::int64_t segment, double t_begin, double isovalue,
                      SweepResult& result) noexcept;
+  // kExact, a rotating point j whose chord over [t0, t1] (sagitta sagitta_m) reported a hit:
+  // tests four chords of a quarter of the time each (a sixteenth of the sagitta) in time order,
+  // recursing into the first that hits, `depth` levels in all; the first hit of the finest level
+  // is the arc's (bracket [lo, hi] in time). False when none hits: the coarse hit came from the
+  // bubble (the chord's own pessimism), and the arc is free over [t0, min(t1, t_limit)].
+  bool refineArcEntry(const RigidMotion& motion, int j, double t0, double t1, double sagitta_m, double isovalue,
+                      double t_limit, int depth, double& lo, double& hi) noexcept;
+  static constexpr int kArcRefinements = 3;  // down to 1/4096 of the sagitta
+  // A finished sweep's hit: the proxy stops kStopClearanceFraction * epsilon of the hit point's
+  // travel before the bracket's outside end (see the definition).
+  SweepResult stopClear(SweepResult result) const noexcept;
   // kAccelerated: walks the point-shell tree over the arc [0, t_max] (plus epsilon) and fills
   // active_ with the points not culled; with `queue`, also tests each point's path over
   // [0, t_max] and writes heap entries from heap_[queued_]. Returns the entries written.
@@ -283,7 +301,7 @@ class CollisionDetector {
   double feature_;
   double max_sagitta_ = 0.0;  // kExact: largest chord sagitta of an arc [m]
   double shell_radius_m_ = 0.0;  // largest |p_T - Cm| over the point shell
-  double sweep_margin_ = 0.0;    // per sweep: largest margin(j) of any point (node tests)
+  double sweep_sagitta_ = 0.0;   // per sweep: largest sagitta_[j] of any point (node tests)
   double segment_length_m_;  // feature size * segment_fraction
   double epsilon_;
   double bisection_tolerance_;
@@ -291,8 +309,6 @@ class CollisionDetector {
   std::vector<double> dt_;               // per point segment length in time
   std::vector<double> path_;             // per point path-length bound
   std::vector<double> sagitta_;          // per point: its chords' sagitta [m] (kExact with rotation, else 0)
-  // The threshold lowering that covers point j's arc: L * sagitta (data units).
-  double margin(int j) const noexcept { return volume_->lipschitzBound() * sagitta_[j]; }
   std::vector<Eigen::Vector3d> chord_end_ijk_;   // per point: grid coordinates of the last chord's end
   std::vector<double> chord_end_t_;              // ... and its time
   std::vector<std::uint32_t> chord_end_stamp_;   // ... valid when equal to chord_stamp_ (this sweep)

@@ -40,10 +40,28 @@ class MinMaxTree {
   /// @param nodes_read when set, receives the number of tree nodes read (0 when the box misses
   ///        the grid, 1 for one brick or the root, at most (kSpan + 1)^3 = 64): a query's cost,
   ///        which the work budget counts (issue 13).
+  /// @param lipschitz_max when set, receives the largest local Lipschitz bound (see
+  ///        setLipschitz()) over the same nodes; 0 until setLipschitz() was called.
   /// @return false when the box does not meet the grid (no sample there is in bounds); the
   ///         whole volume's range when a coordinate is not finite.
   bool rawRange(const Eigen::Vector3d& lo_ijk, const Eigen::Vector3d& hi_ijk, float& raw_min,
-                float& raw_max, int* nodes_read = nullptr) const noexcept;
+                float& raw_max, int* nodes_read = nullptr, float* lipschitz_max = nullptr) const noexcept;
+
+  /// Stores a local Lipschitz bound per level-0 brick (data units per metre, one float per
+  /// brick, a fastest: `nodes(0)` of them) and the maximum over each node of the upper levels.
+  /// The caller (ScalarVolume) makes each brick's value valid for every point within one brick
+  /// of it, so a bound read for a box also covers points slightly outside the box.
+  /// @throws std::invalid_argument when the size does not match nodes(0).
+  void setLipschitz(std::vector<float> per_brick);
+  /// Local Lipschitz bound of the level-0 brick holding cell (i, j, k) (clamped to the grid).
+  float brickLipschitz(int i, int j, int k) const noexcept {
+    const Level& l = levels_[0];
+    const int a = std::clamp(i / kBrickCells, 0, l.n[0] - 1), b = std::clamp(j / kBrickCells, 0, l.n[1] - 1),
+              c = std::clamp(k / kBrickCells, 0, l.n[2] - 1);
+    return l.lipschitz.empty() ? 0.0f
+                               : l.lipschitz[static_cast<std::size_t>(a) +
+                                             static_cast<std::size_t>(l.n[0]) * (b + static_cast<std::size_t>(l.n[1]) * c)];
+  }
 
   /// Number of levels (0 when empty).
   int levels() const noexcept { return static_cast<int>(levels_.size()); }
@@ -57,10 +75,12 @@ class MinMaxTree {
   struct Level {
     std::array<int, 3> n{0, 0, 0};
     std::vector<float> range;  // (min, max) per node, n[0] * n[1] * n[2] nodes, a fastest
+    std::vector<float> lipschitz;  // local Lipschitz bound per node (empty until setLipschitz())
   };
   // rawRange() for a box that spans several level-0 bricks (out of line: the rare case).
   // Returns the number of nodes read.
-  int rawRangeSpread(const int* b0, const int* b1, int spread, float& raw_min, float& raw_max) const noexcept;
+  int rawRangeSpread(const int* b0, const int* b1, int spread, float& raw_min, float& raw_max,
+                     float* lipschitz_max) const noexcept;
 
   std::array<int, 3> dims_{0, 0, 0};
   std::vector<Level> levels_;
@@ -76,12 +96,14 @@ inline void MinMaxTree::node(int level, int a, int b, int c, float& raw_min, flo
 }
 
 inline bool MinMaxTree::rawRange(const Eigen::Vector3d& lo_ijk, const Eigen::Vector3d& hi_ijk, float& raw_min,
-                                 float& raw_max, int* nodes_read) const noexcept {
+                                 float& raw_max, int* nodes_read, float* lipschitz_max) const noexcept {
   if (nodes_read != nullptr) *nodes_read = 0;
+  if (lipschitz_max != nullptr) *lipschitz_max = 0.0f;
   if (levels_.empty()) return false;
   if (!lo_ijk.allFinite() || !hi_ijk.allFinite()) {
     node(levels() - 1, 0, 0, 0, raw_min, raw_max);
     if (nodes_read != nullptr) *nodes_read = 1;
+    if (lipschitz_max != nullptr && !levels_.back().lipschitz.empty()) *lipschitz_max = levels_.back().lipschitz[0];
     return true;
   }
   int b0[3], b1[3];
@@ -98,9 +120,10 @@ inline bool MinMaxTree::rawRange(const Eigen::Vector3d& lo_ijk, const Eigen::Vec
   if (spread == 0) {  // one brick: the common case of a short segment
     node(0, b0[0], b0[1], b0[2], raw_min, raw_max);
     if (nodes_read != nullptr) *nodes_read = 1;
+    if (lipschitz_max != nullptr) *lipschitz_max = brickLipschitz(b0[0] * kBrickCells, b0[1] * kBrickCells, b0[2] * kBrickCells);
     return true;
   }
-  const int read = rawRangeSpread(b0, b1, spread, raw_min, raw_max);
+  const int read = rawRangeSpread(b0, b1, spread, raw_min, raw_max, lipschitz_max);
   if (nodes_read != nullptr) *nodes_read = read;
   return true;
 }

@@ -7,7 +7,9 @@
 /// Values: F = value_scale * raw + value_offset, in the data's units (HU for CT). The raw
 /// voxels are kept unmodified in their stored type.
 
+#include <algorithm>
 #include <array>
+#include <cmath>
 #include <cstddef>
 #include <cstdint>
 #include <string>
@@ -132,10 +134,12 @@ class ScalarVolume {
   /// onto) is not stopped while F decreases along it (it is leaving); it is stopped where F
   /// starts to increase while still inside (going deeper), and at any later entry.
   /// Cells that start after u_limit are not examined (the caller knows an earlier hit).
-  /// With bubble_height h > 0 the threshold is lowered along the segment to
-  /// threshold - 4 h u (1 - u) (h at the middle, none at the ends; the test stays a cubic): for a
-  /// rotating point whose arc leaves its chord by at most 4 delta u (1 - u) (delta the sagitta),
-  /// h = lipschitzBound() * delta makes "no entry" a statement about the arc itself.
+  /// With arc_sagitta_m delta > 0 [m] the threshold is lowered along the segment, in each cell,
+  /// to threshold - 4 h u (1 - u), h = delta times the cell's local Lipschitz bound
+  /// (localLipschitzBound(); h at the middle, none at the ends; the test stays a cubic): for a
+  /// rotating point whose arc leaves its chord by at most 4 delta u (1 - u), this makes "no
+  /// entry" a statement about the arc itself. delta must be below one voxel (the local bound
+  /// holds within a cell of the cell it is read for); the detector's is below 1/128 voxel.
   /// With reach_ijk > 0 (per grid axis, in voxels), points of the grid's box within that reach
   /// of the segment count too: the segment's projection onto the box is walked where the
   /// segment is within reach of the box (for the arcs of rotating points, which may leave their
@@ -146,13 +150,24 @@ class ScalarVolume {
   SegmentEntry firstEntryOnSegment(const Eigen::Vector3d& a_ijk, const Eigen::Vector3d& b_ijk, double threshold,
                                    double u_limit, double u_tolerance,
                                    const Eigen::Vector3d& reach_ijk = Eigen::Vector3d::Zero(),
-                                   double bubble_height = 0.0) const noexcept;
+                                   double arc_sagitta_m = 0.0) const noexcept;
 
   /// Lipschitz bound of F over the whole grid [data units per metre]: |F(p) - F(q)| <=
   /// lipschitzBound() |p - q| for p, q in W (trilinear partial derivatives are bounded by the
   /// largest difference of neighbouring voxels along their axis, divided by the spacing).
-  /// Used to cover the deviation of a rotating point's arc from its chord (issue 12).
+  /// Diagnostics only: the segment test and the culling use the local bounds below, so that
+  /// one outlier voxel (a 1e30, a -3e38 "no data" border) weighs only near itself.
   double lipschitzBound() const noexcept { return lipschitz_; }
+  /// Local Lipschitz bound [data units per metre] at the cell holding grid coordinates ijk: valid
+  /// for every point of that cell and of the cells next to it (per brick of the min-max tree,
+  /// taken over the brick and its 26 neighbours). Used to cover the deviation of a rotating
+  /// point's arc from its chord (haptics/README.md, "Never through").
+  double localLipschitzBound(const Eigen::Vector3d& ijk) const noexcept {
+    const auto cell = [&](int a) {
+      return static_cast<int>(std::clamp(std::floor(ijk[a]), 0.0, static_cast<double>(geometry_.dims[a] - 2)));
+    };
+    return ijk.allFinite() ? tree_.brickLipschitz(cell(0), cell(1), cell(2)) : lipschitz_;
+  }
 
   /// Min/max bricks over the raw voxels (built once with the volume; independent of any
   /// isovalue). See haptics/README.md, "Speed".
@@ -162,9 +177,13 @@ class ScalarVolume {
   /// that isInside() could report inside: -infinity when the box misses the grid's box (out of
   /// bounds is never inside). Conservative under rounding: sampleGrid(g) <= the bound for every
   /// in-bounds g in the box, so "bound <= isovalue" proves that no point of the box is inside.
+  /// With arc_sagitta_m delta > 0 [m], the bound also covers every point within delta of an
+  /// in-bounds point of the box: the largest local Lipschitz bound over the box times delta is
+  /// added (delta below one voxel; as the segment test's bubble, so a cull never skips what the
+  /// segment test would find).
   /// @param nodes_read when set, receives the min-max tree nodes read (MinMaxTree::rawRange()).
   double upperBoundInBox(const Eigen::Vector3d& lo_ijk, const Eigen::Vector3d& hi_ijk,
-                         int* nodes_read = nullptr) const noexcept;
+                         int* nodes_read = nullptr, double arc_sagitta_m = 0.0) const noexcept;
 
   /// Axis-aligned bounding box of the grid in W [m].
   Eigen::Vector3d boundsMin_W_m() const noexcept;
@@ -174,9 +193,9 @@ class ScalarVolume {
   void initialise();  // validates and caches derived data
   template <typename T>
   double trilinear(const Eigen::Vector3d& ijk) const noexcept;
-  // The bubble over a piece of a chord: height h, chord parameter U = u0 + du * (piece's u).
+  // The bubble over a piece of a chord: sagitta, chord parameter U = u0 + du * (piece's u).
   struct SegmentBubble {
-    double height = 0.0, u0 = 0.0, du = 1.0;
+    double sagitta_m = 0.0, u0 = 0.0, du = 1.0;  // height per cell: local Lipschitz bound x sagitta
   };
   template <typename T>
   SegmentEntry firstEntry(const Eigen::Vector3d& a, const Eigen::Vector3d& b, double threshold, double u_limit,
