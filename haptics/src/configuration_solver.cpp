@@ -4,10 +4,12 @@
 
 namespace vh::haptics {
 
-Vector6d displacement_W(const Pose& X_WA, const Pose& X_WB, const Eigen::Vector3d& p_TCm_m) noexcept {
+Vector6d displacement_W(const Pose& X_WA, const Pose& X_WB, const Eigen::Vector3d& p_TCm_m,
+                        const Eigen::Vector3d* rotation_reference_rad) noexcept {
   Vector6d dx;
   dx.head<3>() = X_WB * p_TCm_m - X_WA * p_TCm_m;
   dx.tail<3>() = rotationVector(X_WB.R_AB * X_WA.R_AB.conjugate());
+  if (rotation_reference_rad != nullptr) dx.tail<3>() = unwrapRotationVector(dx.tail<3>(), *rotation_reference_rad);
   return dx;
 }
 
@@ -41,9 +43,10 @@ Eigen::Vector3d ConfigurationSolver::standoffTranslation(std::span<const Contact
 }
 
 RigidMotion ConfigurationSolver::constrainedMotion(const Pose& X_WP, const Pose& X_WD, const MassProperties& mass,
-                                                   std::span<const Contact> contacts, double standoff_m) noexcept {
+                                                   std::span<const Contact> contacts, double standoff_m,
+                                                   const Eigen::Vector3d* rotation_reference_rad) noexcept {
   // Step 1: a_u = 2 dx takes the proxy to the device in a unit step (section 2.4).
-  a_u_ = 2.0 * displacement_W(X_WP, X_WD, mass.p_TCm_m);
+  a_u_ = 2.0 * displacement_W(X_WP, X_WD, mass.p_TCm_m, rotation_reference_rad);
   // The projection is invariant to a scale of the metric; normalising keeps the numbers O(1).
   Matrix6d M = mass.massMatrix_W(X_WP.R_AB.toRotationMatrix()) / mass.mass_kg;
   if (has_gains_ && gains_.linear_N_per_m > 0.0) {

@@ -40,6 +40,7 @@ void HapticRenderer::resetProxy(const Pose& X_WP) noexcept {
   X_WP_.R_AB.normalize();
   collision_.abandonSweep();
   collision_.clearContacts();
+  coupling_.resetTracking();
   embedded_scan_needed_ = true;
 }
 
@@ -146,7 +147,8 @@ TickOutput HapticRenderer::tick(const Pose& X_WD_in, double isovalue) noexcept {
     RigidMotion motion;
     SweepResult hit;
     for (int attempt = 0; attempt < 3; ++attempt) {
-      motion = solver_.constrainedMotion(X_WP_, X_WD, mass, collision_.contacts(), standoff_m);
+      motion = solver_.constrainedMotion(X_WP_, X_WD, mass, collision_.contacts(), standoff_m,
+                                         &coupling_.trackedRotation_W());
       {
         const auto now = Clock::now();
         out.stats.solve_us += us_since(phase, now);
@@ -193,8 +195,8 @@ TickOutput HapticRenderer::tick(const Pose& X_WD_in, double isovalue) noexcept {
     out.stats.budget_cut = hit.budget_cut;
     out.stats.time_of_contact = hit.t;
   }
-  // Step 6: virtual coupling.
-  const Wrench w = coupling_.compute(X_WP_, X_WD, mass);
+  // Step 6: virtual coupling (the relative rotation tracked through the ticks: continuous past pi).
+  const Wrench w = coupling_.track(X_WP_, X_WD, mass);
 
   out.X_WP = X_WP_;
   out.force_W_N = w.force_W_N;

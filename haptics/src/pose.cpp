@@ -15,6 +15,22 @@ Eigen::Vector3d rotationVector(const Eigen::Quaterniond& q_in) noexcept {
   return v * (angle / s);
 }
 
+Eigen::Vector3d unwrapRotationVector(const Eigen::Vector3d& theta, const Eigen::Vector3d& reference,
+                                     double max_step_rad) noexcept {
+  constexpr double kTwoPi = 2.0 * 3.14159265358979323846;
+  const double ref_norm = reference.norm();
+  if (!(ref_norm > 0.0) || !reference.allFinite() || !theta.allFinite()) return theta;
+  const double angle = theta.norm();
+  const Eigen::Vector3d axis = angle >= 1e-6 ? Eigen::Vector3d(theta / angle) : Eigen::Vector3d(reference / ref_norm);
+  // theta = angle * axis, and the same rotation is (angle + 2 pi k) * axis: the k whose value
+  // along the axis is nearest the reference's component along it.
+  const double along = axis.dot(reference);
+  const double k = std::round((along - angle) / kTwoPi);
+  if (k == 0.0) return theta;
+  const Eigen::Vector3d unwrapped = (angle + kTwoPi * k) * axis;
+  return (unwrapped - reference).norm() <= max_step_rad ? unwrapped : theta;
+}
+
 Eigen::Quaterniond quaternionFromRotationVector(const Eigen::Vector3d& theta) noexcept {
   const double angle = theta.norm();
   if (angle < 1e-12) {

@@ -136,5 +136,73 @@ TEST(EdgeCases, AProbePressedOnABallTurnsAndSlidesAtEveryPointSpacing) {
     }
 }
 
+TEST(EdgeCases, TheCouplingTorqueGrowsPastPiWithoutReversing) {
+  // Oracle: the device turned by theta about a fixed axis against a proxy held still: the
+  // spring's torque is -k_ang (I_W / i) theta along the axis for every theta, past pi too.
+  const auto tool = test::meshTool(datasets::makeBoxMesh({0.01, 0.01, 0.01}), 2e-3);  // I_W = i Id
+  CouplingGains k;
+  k.angular_Nm_per_rad = 0.5;
+  VirtualCoupling coupling(k);
+  const Eigen::Vector3d axis = Eigen::Vector3d(0.2, -0.3, 1.0).normalized();
+  const Pose X_WP;
+  for (int n = 0; n <= 400; ++n) {
+    const double theta = 4.0 * n / 400.0;
+    Pose X_WD;
+    X_WD.R_AB = Eigen::Quaterniond(Eigen::AngleAxisd(theta, axis));
+    X_WD.p_AB_m = tool->mass.p_TCm_m - X_WD.R_AB * tool->mass.p_TCm_m;  // turned about Cm
+    const Wrench w = coupling.track(X_WP, X_WD, tool->mass);
+    ASSERT_NEAR(w.torque_W_Nm.dot(axis), -k.angular_Nm_per_rad * theta, 1e-6) << "theta " << theta;
+    ASSERT_LT(w.force_W_N.norm(), 1e-9);
+  }
+  // Back down from 4 rad to 0 the same way (the tracking follows both directions).
+  for (int n = 400; n >= 0; --n) {
+    const double theta = 4.0 * n / 400.0;
+    Pose X_WD;
+    X_WD.R_AB = Eigen::Quaterniond(Eigen::AngleAxisd(theta, axis));
+    X_WD.p_AB_m = tool->mass.p_TCm_m - X_WD.R_AB * tool->mass.p_TCm_m;
+    ASSERT_NEAR(coupling.track(X_WP, X_WD, tool->mass).torque_W_Nm.dot(axis), -k.angular_Nm_per_rad * theta, 1e-6);
+  }
+}
+
+TEST(EdgeCases, APegHeldInItsHoleTwistedToFourRadiansNeverFlipsItsTorqueNorSnaps) {
+  auto vol = std::make_shared<ScalarVolume>(datasets::makeBlockWithBlindHoleVolume(256, -0.004));
+  PointShellOptions ps;
+  ps.point_count = 1307;
+  auto tool = std::make_shared<ToolModel>(makeToolModel(datasets::makeCylinderMesh(datasets::kPegRadius_m, 0.08, 64), ps));
+  const double s = datasets::kBlockIsovalue;
+  RendererOptions o;
+  o.work_budget = 0;
+  const Pose X_top = Pose::FromTranslation({0, 0, 0.02});
+  HapticRenderer r(vol, tool, o, X_top, s);
+  const Pose X_deep = Pose::FromTranslation({0, 0, -0.002});
+  for (int t = 0; t < 1000; ++t) {
+    Pose X = X_top;
+    X.p_AB_m = X_top.p_AB_m + (X_deep.p_AB_m - X_top.p_AB_m) * std::min(1.0, t / 800.0);
+    r.tick(X, s);
+  }
+  // Twisted about x (prying) through the device's centre of mass, 0 -> 4 rad over 2000 ticks.
+  const Eigen::Vector3d c_W = X_deep * tool->mass.p_TCm_m;
+  double worst_snap_rad = 0.0, largest_positive_torque = 0.0, torque_at_pi = 0.0, torque_at_end = 0.0;
+  Eigen::Quaterniond last = r.proxyPose().R_AB;
+  for (int t = 0; t <= 2000; ++t) {
+    const double theta = 4.0 * t / 2000.0;
+    Pose X_WD;
+    X_WD.R_AB = Eigen::Quaterniond(Eigen::AngleAxisd(theta, Eigen::Vector3d::UnitX()));
+    X_WD.p_AB_m = c_W - X_WD.R_AB * tool->mass.p_TCm_m;
+    const TickOutput out = r.tick(X_WD, s);
+    worst_snap_rad = std::max(worst_snap_rad, Eigen::AngleAxisd(out.X_WP.R_AB * last.conjugate()).angle());
+    last = out.X_WP.R_AB;
+    if (theta > 0.3) largest_positive_torque = std::max(largest_positive_torque, out.torque_W_Nm.x());
+    if (std::abs(theta - std::numbers::pi) < 1e-3) torque_at_pi = out.torque_W_Nm.x();
+    torque_at_end = out.torque_W_Nm.x();
+    ASSERT_TRUE(out.torque_W_Nm.allFinite());
+  }
+  std::printf("twist to 4 rad: torque x at pi %.3f N*m, at 4 rad %.3f N*m, largest positive %.3g, largest proxy step %.4f rad\n",
+              torque_at_pi, torque_at_end, largest_positive_torque, worst_snap_rad);
+  EXPECT_LE(largest_positive_torque, 0.0);
+  EXPECT_LT(torque_at_end, torque_at_pi);  // still growing past pi
+  EXPECT_LT(worst_snap_rad, 0.01);
+}
+
 }  // namespace
 }  // namespace vh::haptics

@@ -535,7 +535,7 @@ void HapticThread::couplingLoop() noexcept {
         haptics::Pose X_WD = sample.X_WD;
         X_WD.R_AB.coeffs() /= qn;
         X_WD_last = X_WD;
-        const haptics::Wrench w = coupling.compute(proxy.X_WP, X_WD, mass);
+        const haptics::Wrench w = coupling.track(proxy.X_WP, X_WD, mass);
         force_W_N = w.force_W_N;
         torque_W_Nm = w.torque_W_Nm;
         coupled = true;

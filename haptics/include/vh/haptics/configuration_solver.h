@@ -19,8 +19,10 @@
 namespace vh::haptics {
 
 /// Generalised 6-D displacement of the centre of mass from X_WA to X_WB, in W:
-/// (c_B - c_A [m], rotation vector of R_WB R_WA^T [rad]).
-Vector6d displacement_W(const Pose& X_WA, const Pose& X_WB, const Eigen::Vector3d& p_TCm_m) noexcept;
+/// (c_B - c_A [m], rotation vector of R_WB R_WA^T [rad]). With rotation_reference_rad, the
+/// rotation vector is the one nearest it (unwrapRotationVector(): may exceed pi).
+Vector6d displacement_W(const Pose& X_WA, const Pose& X_WB, const Eigen::Vector3d& p_TCm_m,
+                        const Eigen::Vector3d* rotation_reference_rad = nullptr) noexcept;
 
 /// Constraint row of eq. 4 for a contact at p_W with normal n_W on a body rotating about c_W:
 /// (n^T, ((p - c) x n)^T).
@@ -43,8 +45,11 @@ class ConfigurationSolver {
   /// Step 1 + 3: constrained motion for the proxy at X_WP pulled towards X_WD under the
   /// contacts. Returns the motion from X_WP to the target x_t = x_i + a_c / 2, plus the
   /// contact stand-off translation (see standoffTranslation()) when standoff_m > 0.
+  /// rotation_reference_rad: the relative rotation proxy -> device tracked by the coupling
+  /// (VirtualCoupling::trackedRotation_W()), so that a twist past pi keeps its direction.
   RigidMotion constrainedMotion(const Pose& X_WP, const Pose& X_WD, const MassProperties& mass,
-                                std::span<const Contact> contacts, double standoff_m = 0.0) noexcept;
+                                std::span<const Contact> contacts, double standoff_m = 0.0,
+                                const Eigen::Vector3d* rotation_reference_rad = nullptr) noexcept;
 
   /// Translation [m, W] that lifts every contact closer than standoff_m / 2 to a clearance of
   /// standoff_m along its normal (projected Gauss-Seidel over the deficits, three sweeps; the

@@ -33,6 +33,18 @@ struct Pose {
 
 /// Rotation vector (axis * angle [rad], angle in [0, pi]) of a unit quaternion.
 Eigen::Vector3d rotationVector(const Eigen::Quaterniond& q) noexcept;
+/// The rotation vector of the same rotation as `theta_rad` (axis * angle, angle in [0, pi],
+/// as rotationVector() gives it) that is nearest `reference_rad`: theta + 2 pi k * axis for the
+/// integer k that makes it continuous with the reference (phase unwrapping, Itoh 1982, applied
+/// to the angle about the rotation's axis). A relative rotation tracked tick by tick this way
+/// grows past pi instead of jumping to the other side (the virtual coupling's torque then
+/// never reverses while a twist keeps growing). With a zero reference, theta itself.
+/// Near the identity (|theta| < 1e-6 rad) the axis is taken from the reference. When even the
+/// nearest candidate is farther than max_step_rad from the reference (a jump no hand makes in
+/// one servo tick: a glitch or a scripted jump, where "nearest" means nothing), theta itself,
+/// the shortest rotation, is returned.
+Eigen::Vector3d unwrapRotationVector(const Eigen::Vector3d& theta_rad, const Eigen::Vector3d& reference_rad,
+                                     double max_step_rad = 0.25) noexcept;
 /// Unit quaternion of a rotation vector (axis * angle [rad]); exact for tiny angles.
 Eigen::Quaterniond quaternionFromRotationVector(const Eigen::Vector3d& theta_rad) noexcept;
 

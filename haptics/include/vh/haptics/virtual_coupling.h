@@ -39,11 +39,24 @@ class VirtualCoupling {
   void setGains(const CouplingGains& gains) noexcept { gains_ = gains; }
   const CouplingGains& gains() const noexcept { return gains_; }
 
-  /// Step 6: eq. 5 for the proxy at X_WP and the device at X_WD.
+  /// Step 6: eq. 5 for the proxy at X_WP and the device at X_WD, with the relative rotation
+  /// taken nearest the tracked one (trackedRotation_W(); nothing is updated).
   Wrench compute(const Pose& X_WP, const Pose& X_WD, const MassProperties& mass) const noexcept;
+  /// As compute(), and the relative rotation becomes the tracked one: call once per servo tick
+  /// with the tick's poses. The rotation from proxy to device is then followed continuously
+  /// (unwrapRotationVector(), phase unwrapping): a twist that keeps growing past pi keeps its
+  /// torque's direction and grows it, where the shortest rotation would reverse it at pi and
+  /// snap the proxy the other way. The device's torque limit bounds what the hand feels.
+  Wrench track(const Pose& X_WP, const Pose& X_WD, const MassProperties& mass) noexcept;
+  /// The relative rotation proxy -> device [rad, W] at the last track() (zero at first).
+  const Eigen::Vector3d& trackedRotation_W() const noexcept { return tracked_theta_W_rad_; }
+  /// Forgets the tracked rotation (the proxy was reset).
+  void resetTracking() noexcept { tracked_theta_W_rad_.setZero(); }
 
  private:
+  Wrench wrenchFor(const Vector6d& a_u, const Pose& X_WP, const MassProperties& mass) const noexcept;
   CouplingGains gains_;
+  Eigen::Vector3d tracked_theta_W_rad_ = Eigen::Vector3d::Zero();
 };
 
 }  // namespace vh::haptics
