@@ -772,6 +772,36 @@ void CollisionDetector::refreshPositions(const Pose& X_WP) noexcept {
   for (std::size_t i = 0; i < contact_count_; ++i) contacts_[i].p_W_m = X_WP * points[contacts_[i].point_index];
 }
 
+double CollisionDetector::maxFieldOnShell(const Pose& X_WP, double floor) noexcept {
+  const auto& points = tool_->point_shell.points_T_m();
+  double m = floor;
+  const auto visit = [&](int j) {
+    if (embedded_[j]) return;
+    ++samples_;
+    const Eigen::Vector3d p = X_WP * points[j];
+    if (!volume_->inBounds(p)) return;  // out of the grid is never inside, at any isovalue
+    m = std::max(m, volume_->sample(p));
+  };
+  if (mode_ == DetectionMode::kAccelerated) {
+    // A node whose ball lies in bricks whose values stay <= m cannot raise m.
+    int top = 0;
+    stack_[top++] = 0;
+    while (top > 0) {
+      const ShellNode& node = nodes_[stack_[--top]];
+      if (!ballMayBeInside(X_WP * node.center_T_m, node.radius_m * (1.0 + 1e-9) + 1e-12, m)) continue;
+      if (node.left >= 0) {
+        stack_[top++] = node.right;
+        stack_[top++] = node.left;
+      } else {
+        for (int i = node.begin; i < node.end; ++i) visit(order_[i]);
+      }
+    }
+  } else {
+    for (std::size_t j = 0; j < points.size(); ++j) visit(static_cast<int>(j));
+  }
+  return m;
+}
+
 int CollisionDetector::updateEmbedded(const Pose& X_WP, double isovalue) noexcept {
   const auto& points = tool_->point_shell.points_T_m();
   embedded_count_ = 0;

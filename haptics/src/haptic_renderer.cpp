@@ -19,13 +19,16 @@ HapticRenderer::HapticRenderer(std::shared_ptr<const ScalarVolume> volume, std::
       solver_(),
       coupling_(options.gains),
       X_WP_(X_WP_initial),
-      last_isovalue_(isovalue) {
+      last_isovalue_(isovalue),
+      felt_isovalue_(isovalue) {
   if (!X_WP_initial.allFinite()) throw std::invalid_argument("HapticRenderer: the initial proxy pose is not finite");
   if (!std::isfinite(isovalue)) throw std::invalid_argument("HapticRenderer: the isovalue is not finite");
   if (options.max_contacts < 1 || options.max_contacts > 256)
     throw std::invalid_argument("HapticRenderer: max_contacts " + std::to_string(options.max_contacts) +
                                 " must be in [1, 256]");
   X_WP_.R_AB.normalize();
+  // 1e-9 of the field's range: the proxy's nearest points stay strictly outside the felt surface.
+  isovalue_margin_ = 1e-9 * std::max(1.0, volume_->maxValue() - volume_->minValue());
   solver_.setGains(options.gains);
   collision_.setContactCap(static_cast<std::size_t>(options.max_contacts));
   collision_.setWorkBudget(options.work_budget >= 0 ? options.work_budget
@@ -44,7 +47,7 @@ void HapticRenderer::resetProxy(const Pose& X_WP) noexcept {
   embedded_scan_needed_ = true;
 }
 
-TickOutput HapticRenderer::tick(const Pose& X_WD_in, double isovalue) noexcept {
+TickOutput HapticRenderer::tick(const Pose& X_WD_in, double requested_isovalue) noexcept {
   using Clock = std::chrono::steady_clock;
   const auto start = Clock::now();
   TickOutput out;
@@ -53,7 +56,7 @@ TickOutput HapticRenderer::tick(const Pose& X_WD_in, double isovalue) noexcept {
   // Validate the device sample: zero force, proxy in place, counted (bad input never throws).
   Pose X_WD = X_WD_in;
   const double qn = X_WD.R_AB.norm();
-  const bool finite = X_WD.allFinite() && std::isfinite(isovalue);
+  const bool finite = X_WD.allFinite() && std::isfinite(requested_isovalue);
   if (!finite || std::abs(qn - 1.0) > 1e-3 ||
       (X_WD.p_AB_m - X_WP_.p_AB_m).norm() > options_.max_device_distance_m) {
     ++bad_inputs_;
@@ -61,11 +64,25 @@ TickOutput HapticRenderer::tick(const Pose& X_WD_in, double isovalue) noexcept {
     last_t_ = 0.0;
     out.X_WP = X_WP_;
     out.stats.bad_input = true;
+    out.stats.felt_isovalue = felt_isovalue_;
     out.stats.contacts = static_cast<int>(collision_.contacts().size());
     out.stats.exec_time_us = std::chrono::duration<double, std::micro>(Clock::now() - start).count();
     return out;
   }
   X_WD.R_AB.coeffs() /= qn;
+
+  // The isovalue the hand feels. Raised, it shrinks the solid: at once. Lowered, the surface
+  // advances towards the tool and could swallow part of it, or grow a thin wall through it:
+  // the hand feels it lowered only as far as no point of the proxy is inside (the largest F on
+  // the shell), and the rest follows as the tool moves away. Nothing is pushed, so the force
+  // never jumps; the proxy never ends inside, and the sweep works at this value as always.
+  double isovalue = requested_isovalue;
+  if (requested_isovalue < felt_isovalue_) {
+    const double highest = collision_.maxFieldOnShell(X_WP_, requested_isovalue);
+    if (highest > requested_isovalue) isovalue = std::min(felt_isovalue_, highest + isovalue_margin_);
+  }
+  felt_isovalue_ = isovalue;
+  out.stats.felt_isovalue = isovalue;
 
   const auto us_since = [](Clock::time_point a, Clock::time_point b) {
     return std::chrono::duration<double, std::micro>(b - a).count();

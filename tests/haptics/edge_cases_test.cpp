@@ -204,5 +204,52 @@ TEST(EdgeCases, APegHeldInItsHoleTwistedToFourRadiansNeverFlipsItsTorqueNorSnaps
   EXPECT_LT(worst_snap_rad, 0.01);
 }
 
+TEST(EdgeCases, LoweringTheIsovalueWhilePressingOnAThinPlateNeverLetsTheToolSinkOrPass) {
+  // The one-voxel plate (255 in the slice k = 32 of 1 mm voxels, 0 elsewhere): at isovalue s its
+  // solid is |z - z_k| < h (1 - s / 255) (the trilinear ramp, written here independently). A
+  // 5 mm ball is pressed 2 mm onto it at s = 250 (a plate 0.04 mm thick) while the requested
+  // isovalue drops to 10 (1.9 mm thick) over 200 ticks. Oracle: no shell point is ever inside
+  // the plate at the isovalue the hand felt, nor below its mid-plane; lifted, the felt isovalue
+  // reaches the requested one; pressed again, the ball rests on the thick plate.
+  for (const DetectionMode mode : {DetectionMode::kPaper, DetectionMode::kAccelerated}) {
+    auto vol = std::make_shared<const ScalarVolume>(datasets::makeThinPlateVolume(test::grid1mm()));
+    const double z_k = vol->geometry().origin_W_m.z() + 32e-3, h = 1e-3;
+    const auto tool = test::meshTool(datasets::makeBuiltinTool("sphere"), 1e-3);
+    RendererOptions o;
+    o.detection_mode = mode;
+    o.work_budget = 0;
+    const Pose above = Pose::FromTranslation({0.0003, 0.0002, z_k + 0.008});
+    HapticRenderer r(vol, tool, o, above, 250.0);
+    const Pose pressed = Pose::FromTranslation({0.0003, 0.0002, z_k + 0.005 - 0.002});
+    double worst_depth_m = -1.0, lowest_felt = 250.0;
+    const auto check = [&](const TickOutput& out, int tick) {
+      const double half = h * (1.0 - out.stats.felt_isovalue / 255.0);
+      for (const auto& p : tool->point_shell.points_T_m()) {
+        const double z = (out.X_WP * p).z() - z_k;
+        worst_depth_m = std::max(worst_depth_m, half - std::abs(z));
+        ASSERT_GT(z, 0.0) << "tick " << tick << ": a point passed the plate's mid-plane";
+      }
+      lowest_felt = std::min(lowest_felt, out.stats.felt_isovalue);
+    };
+    int tick = 0;
+    for (int t = 0; t < 300; ++t, ++tick) check(r.tick(t < 100 ? above : pressed, 250.0), tick);
+    for (int t = 0; t <= 200; ++t, ++tick) check(r.tick(pressed, 250.0 - 240.0 * t / 200.0), tick);
+    TickOutput out;
+    for (int t = 0; t < 300; ++t, ++tick) check(out = r.tick(pressed, 10.0), tick);
+    std::printf("%s: pressed while the isovalue dropped 250 -> 10: felt %.2f at the end, deepest point %.3g mm %s the felt plate\n",
+                toString(mode), out.stats.felt_isovalue, std::abs(worst_depth_m) * 1e3, worst_depth_m > 0 ? "inside" : "outside");
+    EXPECT_LE(worst_depth_m, 0.0);
+    EXPECT_GT(out.stats.felt_isovalue, 200.0);  // the hand still presses on the thin plate
+    // Lifted 8 mm: the felt isovalue follows the requested one; pressed again: the thick plate.
+    for (int t = 0; t < 200; ++t, ++tick) check(out = r.tick(above, 10.0), tick);
+    EXPECT_EQ(out.stats.felt_isovalue, 10.0);
+    for (int t = 0; t < 400; ++t, ++tick) check(out = r.tick(pressed, 10.0), tick);
+    EXPECT_LE(worst_depth_m, 0.0);
+    const double ball_bottom = out.X_WP.p_AB_m.z() - 0.005 - z_k;
+    EXPECT_NEAR(ball_bottom, h * (1.0 - 10.0 / 255.0), 0.1e-3);
+    EXPECT_GT(out.force_W_N.z(), 0.5);
+  }
+}
+
 }  // namespace
 }  // namespace vh::haptics

@@ -157,6 +157,11 @@ class CollisionDetector {
   /// outside. Called when the isovalue changed or the proxy was reset (see haptics/README.md).
   /// @return number of embedded points.
   int updateEmbedded(const Pose& X_WP, double isovalue) noexcept;
+  /// The largest F over the point shell's points at pose X_WP that are not embedded and lie in
+  /// the grid, or `floor` when none exceeds it [data units]. The renderer lowers the isovalue
+  /// the hand feels no further than this (HapticRenderer::tick(), "Isovalue changes").
+  /// kAccelerated culls the point-shell tree's nodes that cannot exceed the running maximum.
+  double maxFieldOnShell(const Pose& X_WP, double floor) noexcept;
   /// Re-tests only the embedded points (cheap when there are none).
   int releaseEmbedded(const Pose& X_WP, double isovalue) noexcept;
   int embeddedCount() const noexcept { return embedded_count_; }

@@ -13,6 +13,7 @@
 /// act on the user's hand at the tool's centre of mass.
 
 #include <cstdint>
+#include <limits>
 #include <memory>
 #include <span>
 
@@ -101,6 +102,10 @@ struct TickStats {
   /// every attempt), step 5's contact update (contacts).
   double prune_us = 0.0, solve_us = 0.0, sweep_us = 0.0, contacts_us = 0.0;
   bool bad_input = false;           ///< The device pose was rejected this tick.
+  /// The isovalue the hand felt this tick [data units]: the requested one, except while a
+  /// lowered isovalue would swallow part of the proxy; then the lowest value that swallows none
+  /// (haptics/README.md, "Isovalue changes"). NaN until the first tick.
+  double felt_isovalue = std::numeric_limits<double>::quiet_NaN();
 };
 
 /// Result of one tick.
@@ -125,8 +130,10 @@ class HapticRenderer {
   HapticRenderer(std::shared_ptr<const ScalarVolume> volume, std::shared_ptr<const ToolModel> tool,
                  const RendererOptions& options, const Pose& X_WP_initial, double isovalue);
 
-  /// Runs the six steps once for the device pose X_WD and the isovalue s (data units); the
-  /// isovalue takes effect on this tick (nothing depends on it beforehand).
+  /// Runs the six steps once for the device pose X_WD and the requested isovalue s (data
+  /// units). A raised isovalue takes effect on this tick; a lowered one moves the surface
+  /// towards the tool and is felt only as far as it swallows no point of the proxy (the rest
+  /// follows, tick by tick, as the tool moves away: TickStats::felt_isovalue).
   /// A non-finite pose, a quaternion whose norm is off by more than 1e-3, or a jump beyond
   /// max_device_distance_m yields zero force, leaves the proxy in place and counts a bad sample.
   TickOutput tick(const Pose& X_WD, double isovalue) noexcept;
@@ -148,6 +155,8 @@ class HapticRenderer {
   /// Current contact set (points on the proxy within epsilon of the surface).
   std::span<const Contact> contacts() const noexcept { return collision_.contacts(); }
   std::int64_t badInputCount() const noexcept { return bad_inputs_; }
+  /// The isovalue the hand feels now (TickStats::felt_isovalue of the last tick) [data units].
+  double feltIsovalue() const noexcept { return felt_isovalue_; }
   double epsilon_m() const noexcept { return collision_.epsilon_m(); }
   const ScalarVolume& volume() const noexcept { return *volume_; }
   const ToolModel& tool() const noexcept { return *tool_; }
@@ -166,6 +175,8 @@ class HapticRenderer {
   RigidMotion last_motion_;
   double last_t_ = 0.0;
   double last_isovalue_;
+  double felt_isovalue_;        // see TickStats::felt_isovalue
+  double isovalue_margin_ = 0.0;  // a felt isovalue this far above the shell's largest F
   bool embedded_scan_needed_ = false;
   bool blocked_last_tick_ = false;
   double motion_scale_ = 1.0;  // < 1 after ticks the work budget cut (RendererOptions::work_budget)  // the last sweep stopped before 1 % of its path
