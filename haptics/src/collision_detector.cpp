@@ -92,6 +92,61 @@ CollisionDetector::CollisionDetector(const ScalarVolume& volume, const ToolModel
   reduce_distance_.resize(n + contacts_.size());
   reduce_chosen_.resize(n + contacts_.size());
   grid_per_m_ = volume.geometry().spacing_m.cwiseInverse();
+  edges_ = makeShellEdges(tool.point_shell);
+}
+
+bool CollisionDetector::edgeCrosses(const Pose& X_WP, int j, double isovalue) noexcept {
+  if (embedded_[j]) return false;
+  const auto& points = tool_->point_shell.points_T_m();
+  // Each end moved epsilon into the tool along its normal: the surface is allowed to come
+  // within epsilon of the tool between its points, as at its points (a facet of the tool
+  // resting on a curved trilinear surface touches it by fractions of a micrometre between
+  // two points); a wall that passes through the tool is found all the same.
+  const bool inset = tool_->point_shell.hasNormals();
+  const auto end = [&](int i) {
+    ++samples_;
+    const Eigen::Vector3d p_T = inset ? Eigen::Vector3d(points[i] - epsilon_ * tool_->point_shell.normals_T()[i]) : points[i];
+    return volume_->gridCoordinates(X_WP * p_T);
+  };
+  const Eigen::Vector3d a = end(j);
+  for (int e = edges_.offsets[j]; e < edges_.offsets[j + 1]; ++e) {
+    const int k = edges_.targets[e];
+    if (embedded_[k]) continue;
+    const Eigen::Vector3d b = end(k);
+    // Only whether it enters: a coarse bracket is enough.
+    const SegmentEntry entry = volume_->firstEntryOnSegment(a, b, isovalue, 1.0, 0.5);
+    cells_ += entry.cells;
+    cells_walked_ += entry.cells_walked;
+    if (entry.hit) {
+      return true;
+    }
+  }
+  return false;
+}
+
+bool CollisionDetector::edgesCrossAt(const Pose& X_WP, double isovalue) noexcept {
+  if (edges_.size() == 0) return false;
+  if (mode_ == DetectionMode::kAccelerated) {
+    // Point j's edges lie within the longest edge of j: a node's ball dilated by it holds them.
+    int top = 0;
+    stack_[top++] = 0;
+    while (top > 0) {
+      const ShellNode& node = nodes_[stack_[--top]];
+      if (!ballMayBeInside(X_WP * node.center_T_m, (node.radius_m + edges_.max_length_m) * (1.0 + 1e-9) + 1e-12, isovalue))
+        continue;
+      if (node.left >= 0) {
+        stack_[top++] = node.right;
+        stack_[top++] = node.left;
+        continue;
+      }
+      for (int i = node.begin; i < node.end; ++i)
+        if (edgeCrosses(X_WP, order_[i], isovalue)) return true;
+    }
+    return false;
+  }
+  for (int j = 0; j + 1 < static_cast<int>(edges_.offsets.size()); ++j)
+    if (edgeCrosses(X_WP, j, isovalue)) return true;
+  return false;
 }
 
 int CollisionDetector::buildShellTree(int begin, int end, int depth) {

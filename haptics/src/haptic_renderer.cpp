@@ -35,6 +35,39 @@ HapticRenderer::HapticRenderer(std::shared_ptr<const ScalarVolume> volume, std::
                           : options.detection_mode == DetectionMode::kAccelerated ? RendererOptions::kDefaultWorkBudget
                                                                                   : 0);
   collision_.updateEmbedded(X_WP_, isovalue);
+  edge_test_ = options.edge_test > 0 ||
+               (options.edge_test < 0 && options.detection_mode == DetectionMode::kAccelerated &&
+                options.segment_test == SegmentTest::kExact);
+}
+
+double HapticRenderer::edgeSafeTime(const RigidMotion& motion, double t_from, double t_to, double isovalue,
+                                    bool& stopped) noexcept {
+  stopped = false;
+  if (!edge_test_ || !(t_to > t_from)) return t_to;
+  if (!collision_.edgesCrossAt(motion.poseAt(t_to), isovalue)) return t_to;
+  // Already crossing where the move starts (after a reset, or an edge that a lowered isovalue
+  // grew a wall through): not held, as embedded points are not.
+  if (collision_.edgesCrossAt(motion.poseAt(t_from), isovalue)) return t_to;
+  stopped = true;
+  // Sub-steps of at most a quarter of the point spacing of travel at the farthest point, in
+  // order; then the first crossing one is bisected (8 halvings).
+  const double travel_m = (motion.speed_m() + motion.angle_rad() * collision_.shellRadius_m()) * (t_to - t_from);
+  const double spacing_m = std::max(collision_.shellEdges().spacing_m, collision_.epsilon_m());
+  const int steps = static_cast<int>(std::clamp(std::ceil(travel_m / (0.25 * spacing_m)), 1.0, 64.0));
+  double free_t = t_from, cross_t = t_to;
+  for (int k = 1; k < steps; ++k) {
+    const double t = t_from + (t_to - t_from) * k / steps;
+    if (collision_.edgesCrossAt(motion.poseAt(t), isovalue)) {
+      cross_t = t;
+      break;
+    }
+    free_t = t;
+  }
+  for (int i = 0; i < 8; ++i) {
+    const double mid = 0.5 * (free_t + cross_t);
+    if (collision_.edgesCrossAt(motion.poseAt(mid), isovalue)) cross_t = mid; else free_t = mid;
+  }
+  return free_t;
 }
 
 void HapticRenderer::resetProxy(const Pose& X_WP) noexcept {
@@ -122,12 +155,18 @@ TickOutput HapticRenderer::tick(const Pose& X_WD_in, double requested_isovalue) 
         t = t_try;
       }
     }
+    bool edge_stop = false;
+    t = edgeSafeTime(pending_motion, pending_t_, t, isovalue, edge_stop);
+    out.stats.edge_stop = edge_stop;
     last_motion_ = pending_motion.part(pending_t_, t);
     last_t_ = 1.0;
     X_WP_ = pending_motion.poseAt(t);
     pending_t_ = t;
     collision_.refreshPositions(X_WP_);
-    if (!hit.budget_cut) {
+    if (edge_stop) {
+      collision_.abandonSweep();
+      blocked_last_tick_ = true;
+    } else if (!hit.budget_cut) {
       const auto contacts_start = Clock::now();
       // The contacts at the hit, when the proxy got there.
       if (hit.hit_point >= 0 && t == hit.t) collision_.addContactsAt(pending_motion, hit, isovalue);
@@ -193,12 +232,16 @@ TickOutput HapticRenderer::tick(const Pose& X_WD_in, double requested_isovalue) 
       }
       if (attempt == 2 || hit.budget_cut || !collision_.refineStuckContact(motion, hit)) break;
     }
-    blocked_last_tick_ = hit.hit_point >= 0 && hit.t < 0.01;
     // Step 5: move the proxy to the first contact (or the target, or as far as the budget
-    // proved free).
-    X_WP_ = motion.poseAt(hit.t);
+    // proved free), and no farther than the tool's surface between its points allows.
+    bool edge_stop = false;
+    const double t_move = edgeSafeTime(motion, 0.0, hit.t, isovalue, edge_stop);
+    out.stats.edge_stop = edge_stop;
+    if (edge_stop) collision_.abandonSweep();
+    blocked_last_tick_ = (hit.hit_point >= 0 || edge_stop) && t_move < 0.01;
+    X_WP_ = motion.poseAt(t_move);
     last_motion_ = motion;
-    last_t_ = hit.t;
+    last_t_ = t_move;
     collision_.refreshPositions(X_WP_);
     if (collision_.sweepPending()) {  // cut: goes on next tick
       pending_t_ = hit.t;
@@ -207,10 +250,10 @@ TickOutput HapticRenderer::tick(const Pose& X_WD_in, double requested_isovalue) 
     } else if (motion_scale_ < 1.0) {
       motion_scale_ = std::min(1.0, 2.0 * motion_scale_);
     }
-    if (hit.hit_point >= 0 && !hit.budget_cut) collision_.addContactsAt(motion, hit, isovalue);
+    if (hit.hit_point >= 0 && !hit.budget_cut && !edge_stop) collision_.addContactsAt(motion, hit, isovalue);
     out.stats.contacts_us = us_since(phase, Clock::now());
     out.stats.budget_cut = hit.budget_cut;
-    out.stats.time_of_contact = hit.t;
+    out.stats.time_of_contact = t_move;
   }
   // Step 6: virtual coupling (the relative rotation tracked through the ticks: continuous past pi).
   const Wrench w = coupling_.track(X_WP_, X_WD, mass);

@@ -5,7 +5,9 @@
 #include <limits>
 #include <random>
 #include <stdexcept>
+#include <cstdint>
 #include <unordered_map>
+#include <utility>
 
 namespace vh::haptics {
 
@@ -30,6 +32,99 @@ double PointShell::meanNearestNeighbourSpacing_m() const {
     sum += std::sqrt(best);
   }
   return sum / static_cast<double>(points_.size());
+}
+
+namespace {
+
+// Points of `points` binned in cubic cells of side `cell_m`.
+struct PointGrid {
+  double cell_m = 1.0;
+  Eigen::Vector3d origin = Eigen::Vector3d::Zero();
+  std::unordered_map<std::int64_t, std::vector<int>> cells;
+  std::int64_t key(int x, int y, int z) const {
+    return (static_cast<std::int64_t>(x) * 2097152 + y) * 2097152 + z;
+  }
+  Eigen::Vector3i index(const Eigen::Vector3d& p) const {
+    return ((p - origin) / cell_m).array().floor().cast<int>();
+  }
+  PointGrid(const std::vector<Eigen::Vector3d>& points, double cell) : cell_m(cell) {
+    origin = points[0];
+    for (const auto& p : points) origin = origin.cwiseMin(p);
+    for (std::size_t i = 0; i < points.size(); ++i) {
+      const Eigen::Vector3i c = index(points[i]);
+      cells[key(c.x(), c.y(), c.z())].push_back(static_cast<int>(i));
+    }
+  }
+  template <typename F>
+  void near(const Eigen::Vector3d& p, F&& f) const {
+    const Eigen::Vector3i c = index(p);
+    for (int z = c.z() - 1; z <= c.z() + 1; ++z)
+      for (int y = c.y() - 1; y <= c.y() + 1; ++y)
+        for (int x = c.x() - 1; x <= c.x() + 1; ++x) {
+          const auto it = cells.find(key(x, y, z));
+          if (it != cells.end())
+            for (int k : it->second) f(k);
+        }
+  }
+};
+
+}  // namespace
+
+ShellEdges makeShellEdges(const PointShell& shell) {
+  ShellEdges edges;
+  const auto& points = shell.points_T_m();
+  const std::size_t n = points.size();
+  edges.offsets.assign(n + 1, 0);
+  if (n < 2) return edges;
+  // The spacing: the median nearest-neighbour distance, searched within a first guess (a
+  // surface of extent D sampled by n points has a spacing near D / sqrt(n)).
+  Eigen::Vector3d lo = points[0], hi = points[0];
+  for (const auto& p : points) {
+    lo = lo.cwiseMin(p);
+    hi = hi.cwiseMax(p);
+  }
+  const double guess = std::max((hi - lo).norm() / std::sqrt(static_cast<double>(n)), 1e-9);
+  std::vector<double> nearest(n, guess);
+  {
+    const PointGrid grid(points, guess);
+    for (std::size_t j = 0; j < n; ++j)
+      grid.near(points[j], [&](int k) {
+        if (static_cast<std::size_t>(k) != j) nearest[j] = std::min(nearest[j], (points[k] - points[j]).norm());
+      });
+  }
+  std::nth_element(nearest.begin(), nearest.begin() + static_cast<std::ptrdiff_t>(n / 2), nearest.end());
+  edges.spacing_m = nearest[n / 2];
+  edges.max_length_m = ShellEdges::kLengthFactor * edges.spacing_m;
+  if (!(edges.max_length_m > 0.0)) return edges;
+  const PointGrid grid(points, edges.max_length_m);
+  std::vector<std::pair<double, int>> candidates;
+  std::vector<std::vector<int>> adjacency(n);
+  for (std::size_t j = 0; j < n; ++j) {
+    candidates.clear();
+    grid.near(points[j], [&](int k) {
+      if (static_cast<std::size_t>(k) == j) return;
+      const double d = (points[k] - points[j]).norm();
+      if (d > edges.max_length_m) return;
+      if (shell.hasNormals() && shell.normals_T()[j].dot(shell.normals_T()[k]) <= 0.3) return;
+      candidates.emplace_back(d, k);
+    });
+    const std::size_t keep = std::min<std::size_t>(candidates.size(), ShellEdges::kMaxNeighbours);
+    std::partial_sort(candidates.begin(), candidates.begin() + static_cast<std::ptrdiff_t>(keep), candidates.end());
+    for (std::size_t c = 0; c < keep; ++c) {
+      const int k = candidates[c].second;
+      const int a = std::min(static_cast<int>(j), k), b = std::max(static_cast<int>(j), k);
+      adjacency[static_cast<std::size_t>(a)].push_back(b);
+    }
+  }
+  for (std::size_t j = 0; j < n; ++j) {
+    auto& row = adjacency[j];
+    std::sort(row.begin(), row.end());
+    row.erase(std::unique(row.begin(), row.end()), row.end());
+    edges.offsets[j + 1] = edges.offsets[j] + static_cast<int>(row.size());
+  }
+  edges.targets.reserve(static_cast<std::size_t>(edges.offsets[n]));
+  for (const auto& row : adjacency) edges.targets.insert(edges.targets.end(), row.begin(), row.end());
+  return edges;
 }
 
 namespace {

@@ -162,6 +162,15 @@ class CollisionDetector {
   /// the hand feels no further than this (HapticRenderer::tick(), "Isovalue changes").
   /// kAccelerated culls the point-shell tree's nodes that cannot exceed the running maximum.
   double maxFieldOnShell(const Pose& X_WP, double floor) noexcept;
+  /// Whether the tool's surface between its points meets the isosurface at pose X_WP: each edge
+  /// of the point shell's neighbour graph (shellEdges()) whose two ends are not embedded is
+  /// tested as a segment with the exact segment test (ScalarVolume::firstEntryOnSegment), so a
+  /// wall thinner than the point spacing that lies between two points is found however thin.
+  /// kAccelerated culls the point-shell tree's nodes (balls dilated by the longest edge) that
+  /// the min-max tree proves empty. Counts its work like a sweep's.
+  bool edgesCrossAt(const Pose& X_WP, double isovalue) noexcept;
+  /// The neighbour graph edgesCrossAt() tests (built in the constructor).
+  const ShellEdges& shellEdges() const noexcept { return edges_; }
   /// Re-tests only the embedded points (cheap when there are none).
   int releaseEmbedded(const Pose& X_WP, double isovalue) noexcept;
   int embeddedCount() const noexcept { return embedded_count_; }
@@ -301,6 +310,8 @@ class CollisionDetector {
 
   const ScalarVolume* volume_;
   const ToolModel* tool_;
+  ShellEdges edges_;
+  bool edgeCrosses(const Pose& X_WP, int j, double isovalue) noexcept;  // the edges (j, k > j)
   DetectionMode mode_;
   SegmentTest segment_test_;
   double feature_;

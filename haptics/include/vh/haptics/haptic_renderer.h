@@ -78,6 +78,13 @@ struct RendererOptions {
   int max_contacts = 64;
   /// Coupling gains (section 2.5); may be changed between ticks with setGains().
   CouplingGains gains;
+  /// The tool's surface between its points (haptics/README.md, "Between the points"): after
+  /// each move, the point shell's neighbour edges are tested at the new pose; when one meets
+  /// the isosurface, the move is subdivided and the proxy stops before the first sub-step where
+  /// one does. 0 (default) off; 1 on; -1 on in kAccelerated with SegmentTest::kExact, off in
+  /// kPaper (the paper's algorithm as published). Off by default until it shares the work
+  /// budget (its cost is not yet bounded: see haptics/README.md, "Between the points").
+  int edge_test = 0;
   /// Largest device translation accepted from one tick to the next [m]; farther jumps and
   /// device poses farther than this from the volume are treated as bad input (zero force).
   double max_device_distance_m = 10.0;
@@ -102,6 +109,9 @@ struct TickStats {
   /// every attempt), step 5's contact update (contacts).
   double prune_us = 0.0, solve_us = 0.0, sweep_us = 0.0, contacts_us = 0.0;
   bool bad_input = false;           ///< The device pose was rejected this tick.
+  /// The move was shortened because the tool's surface between two shell points would have met
+  /// the isosurface (RendererOptions::edge_test).
+  bool edge_stop = false;
   /// The isovalue the hand felt this tick [data units]: the requested one, except while a
   /// lowered isovalue would swallow part of the proxy; then the lowest value that swallows none
   /// (haptics/README.md, "Isovalue changes"). NaN until the first tick.
@@ -174,6 +184,10 @@ class HapticRenderer {
   Pose X_WP_;
   RigidMotion last_motion_;
   double last_t_ = 0.0;
+  // RendererOptions::edge_test: the move along `motion` from t_from (edges free there) to t_to
+  // (points proven free), shortened to before the first sub-step where an edge crosses.
+  double edgeSafeTime(const RigidMotion& motion, double t_from, double t_to, double isovalue, bool& stopped) noexcept;
+  bool edge_test_ = false;
   double last_isovalue_;
   double felt_isovalue_;        // see TickStats::felt_isovalue
   double isovalue_margin_ = 0.0;  // a felt isovalue this far above the shell's largest F

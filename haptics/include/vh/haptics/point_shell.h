@@ -36,6 +36,26 @@ class PointShell {
   std::vector<Eigen::Vector3d> normals_;
 };
 
+/// The point shell's neighbour graph: the edges along which the tool's surface between its
+/// points is tested (haptics/README.md, "Between the points"). Each point is joined to at most
+/// kMaxNeighbours of its nearest points within max_length_m whose normals differ by less than
+/// about 73 degrees (dot > 0.3; no test without normals), so an edge runs along the tool's
+/// surface, never across a concave corner of the tool (where the solid may touch the tool
+/// legitimately between its points). Stored once per edge (j < k), in compressed rows.
+struct ShellEdges {
+  static constexpr int kMaxNeighbours = 8;
+  std::vector<int> offsets;   ///< Edges of point j: targets[offsets[j], offsets[j + 1]) (size n + 1).
+  std::vector<int> targets;   ///< Indices k > j.
+  double spacing_m = 0.0;     ///< Median nearest-neighbour distance of the shell [m].
+  double max_length_m = 0.0;  ///< Longest edge allowed [m] (kLengthFactor x spacing_m).
+  static constexpr double kLengthFactor = 1.8;
+  std::size_t size() const noexcept { return targets.size(); }
+};
+
+/// Builds the neighbour graph of `shell` (a uniform grid of cells of the edge length; O(n)).
+/// An empty or one-point shell has no edges.
+ShellEdges makeShellEdges(const PointShell& shell);
+
 /// How to resample a mesh into a point shell.
 struct PointShellOptions {
   /// Target spacing between neighbouring points [m]; used when point_count == 0.
