@@ -251,5 +251,50 @@ TEST(EdgeCases, LoweringTheIsovalueWhilePressingOnAThinPlateNeverLetsTheToolSink
   }
 }
 
+TEST(EdgeCases, AnUprightProbeMovedEdgeOnIntoAThinPlateStopsAtItsEdge) {
+  // The built-in one-voxel plate (slice k = 32 of 64^3 voxels of 1 mm, the grid's box ending at
+  // x = 31.5 mm) at isovalue 250: 0.04 mm thick, far thinner than the probe's point spacing. The
+  // upright probe (1 mm shaft radius) is moved sideways along -x from outside the grid into the
+  // plate's edge, the plate crossing the shaft 20 mm above its tip at several heights between
+  // shell points. Oracle (the plate's extent, written here): the shaft's axis stays outside the
+  // plate by the shaft's radius (its 16-sided mesh: 0.98 mm), less epsilon and a margin.
+  auto vol = std::make_shared<const ScalarVolume>(datasets::makeThinPlateVolume(test::grid1mm()));
+  const double z_k = vol->geometry().origin_W_m.z() + 32e-3;
+  const double edge_x = vol->geometry().origin_W_m.x() + 63e-3;
+  int through_without = 0, through_with = 0, runs = 0;
+  for (const double spacing : {1e-3, 2e-3}) {
+    const auto tool = test::meshTool(datasets::makeBuiltinTool("probe"), spacing);
+    for (int phase = 0; phase < 8; ++phase) {
+      const double tip_z = z_k - 0.020 - phase * spacing / 8.0;
+      double axis_x[2] = {0.0, 0.0};
+      for (const int edge_test : {0, 1}) {
+        RendererOptions o;
+        o.edge_test = edge_test;
+        HapticRenderer r(vol, tool, o, Pose::FromTranslation({edge_x + 0.008, 0.0003, tip_z}), 250.0);
+        for (int t = 0; t < 400; ++t) {
+          const double u = std::min(1.0, t / 300.0);
+          r.tick(Pose::FromTranslation({edge_x + 0.008 - 0.030 * u, 0.0003, tip_z}), 250.0);
+        }
+        axis_x[edge_test] = r.proxyPose().p_AB_m.x();
+      }
+      ++runs;
+      // Between the graph's edges a wall may reach in by an edge's sagitta on the shaft, at most
+      // L^2 / (8 r) for edges of length L <= 1.8 x spacing (all of the radius at 2 mm spacing:
+      // then only "never past the axis" is promised).
+      const double r_shaft = 0.98e-3, L = 1.8 * spacing;
+      const double limit = edge_x + r_shaft - std::min(r_shaft, L * L / (8.0 * r_shaft)) - 0.1e-3;
+      through_without += axis_x[0] < edge_x - r_shaft;  // the plate cut through the whole shaft
+      through_with += axis_x[1] < edge_x - r_shaft;
+      EXPECT_GE(axis_x[1], limit) << "spacing " << spacing << ", phase " << phase;
+      std::printf("spacing %.0f mm, phase %d: shaft axis %.3f mm from the plate's edge (without the edge test %.3f)\n",
+                  spacing * 1e3, phase, (axis_x[1] - edge_x) * 1e3, (axis_x[0] - edge_x) * 1e3);
+      EXPECT_LT(axis_x[1], edge_x + 1.5e-3) << "stopped too early";
+    }
+  }
+  std::printf("probe edge-on into the plate at 250: through in %d of %d runs without the edge test, %d with it\n",
+              through_without, runs, through_with);
+  EXPECT_GT(through_without, 0);  // the case is real: the points alone let it through
+}
+
 }  // namespace
 }  // namespace vh::haptics
