@@ -16,7 +16,10 @@ namespace {
 
 using detail::steadySeconds;
 
-runtime::DeviceLimits limitsOf(double force_N, double torque_Nm, double stiffness_N_per_m, double radius_m) noexcept {
+/// `moving_mass_kg`: the handle's moving mass, for the speed limit (handleMaxSpeed_m_per_s();
+/// app/simulation device_catalog.cpp's figures).
+runtime::DeviceLimits limitsOf(double force_N, double torque_Nm, double stiffness_N_per_m, double radius_m,
+                               double moving_mass_kg) noexcept {
   runtime::DeviceLimits l;
   l.max_force_N = force_N;
   l.max_torque_Nm = torque_Nm;
@@ -24,6 +27,7 @@ runtime::DeviceLimits limitsOf(double force_N, double torque_Nm, double stiffnes
   // Rotational stiffness is not published; a conservative value for the wrists.
   l.max_angular_stiffness_Nm_per_rad = torque_Nm > 0.0 ? 1.0 : 0.0;
   l.workspace_radius_m = radius_m;
+  l.max_speed_m_per_s = runtime::handleMaxSpeed_m_per_s(force_N, radius_m, moving_mass_kg);
   return l;
 }
 
@@ -88,16 +92,16 @@ runtime::DeviceLimits dhdPublishedLimits(int system_type) noexcept {
     case dhd::kDeviceOmega33Left:
     case dhd::kDeviceOmega331:
     case dhd::kDeviceOmega331Left:
-      return limitsOf(12.0, 0.0, 14500.0, 0.055);   // omega.x: 12 N, 14.5 N/mm, 160 x 110 mm
+      return limitsOf(12.0, 0.0, 14500.0, 0.055, 0.2);   // omega.x: 12 N, 14.5 N/mm, 160 x 110 mm; 5.6 m/s
     case dhd::kDeviceDelta3:
-      return limitsOf(20.0, 0.0, 14500.0, 0.13);    // delta.3: 20 N, 14.5 N/mm, 400 x 260 mm
+      return limitsOf(20.0, 0.0, 14500.0, 0.13, 0.5);    // delta.3: 20 N, 14.5 N/mm, 400 x 260 mm; 6.6 m/s
     case dhd::kDeviceSigma331:
     case dhd::kDeviceSigma331Left:
-      return limitsOf(20.0, 0.4, 14500.0, 0.065);   // sigma.7: 20 N, 0.4 N*m, 190 x 130 mm
+      return limitsOf(20.0, 0.4, 14500.0, 0.065, 0.5);   // sigma.7: 20 N, 0.4 N*m, 190 x 130 mm; 5.2 m/s
     case dhd::kDeviceFalcon:
-      return limitsOf(8.0, 0.0, 3000.0, 0.04);      // as falconLimits() (devices.md)
+      return limitsOf(8.0, 0.0, 3000.0, 0.04, 0.15);      // as falconLimits() (devices.md); 4.9 m/s
     default:
-      return limitsOf(8.0, 0.1, 2000.0, 0.05);      // unknown: conservative
+      return limitsOf(8.0, 0.1, 2000.0, 0.05, 0.2);      // unknown: conservative; 4.8 m/s
   }
 }
 

@@ -216,6 +216,8 @@ runtime::DeviceLimits falconLimits() noexcept {
   l.max_linear_stiffness_N_per_m = 3000.0;
   l.max_angular_stiffness_Nm_per_rad = 0.0;
   l.workspace_radius_m = 0.04;
+  // 8 N on the catalogue's 0.15 kg moving mass (app/simulation device_catalog.cpp): 4.9 m/s.
+  l.max_speed_m_per_s = runtime::handleMaxSpeed_m_per_s(l.max_force_N, l.workspace_radius_m, 0.15);
   return l;
 }
 

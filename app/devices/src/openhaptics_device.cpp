@@ -2,6 +2,7 @@
 
 #include "device_clock.h"
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
@@ -155,6 +156,15 @@ void OpenHapticsDevice::openAndStart() {
       half_mm = i == 0 ? h : std::min(half_mm, h);
     }
     if (half_mm > 0.0) limits_.workspace_radius_m = half_mm * 1e-3;
+    double longest_half_mm = 0.0;
+    for (int i = 0; i < 3; ++i) {
+      limits_.workspace_centre_m[i] = 0.5e-3 * (workspace_mm[i] + workspace_mm[i + 3]);
+      longest_half_mm = std::max(longest_half_mm, 0.5 * (workspace_mm[i + 3] - workspace_mm[i]));
+    }
+    // Speed limit: the lightest 3D Systems mechanism, the Touch's 45 g apparent mass
+    // (app/simulation device_catalog.cpp), across the box's longest side: e.g. Touch 3.3 N,
+    // 160 mm: 6.8 m/s; Touch X 7.9 N: 9.5 m/s.
+    limits_.max_speed_m_per_s = runtime::handleMaxSpeed_m_per_s(limits_.max_force_N, longest_half_mm * 1e-3, 0.045);
     error = a.takeErrors("reading the device's properties");
     if (!error.empty()) throw std::runtime_error("OpenHaptics: " + error);
 

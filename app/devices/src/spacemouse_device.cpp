@@ -49,6 +49,11 @@ runtime::DeviceLimits SpaceMouseDevice::limits() const noexcept {
   l.max_force_N = 0.0;
   l.max_torque_Nm = 0.0;
   l.workspace_radius_m = options_.rate.workspace_radius_m;
+  // Rate control: the pose is integrated from the puck's deflection in steps of up to
+  // max_step_s, so it cannot jump (a bad report is a bounded rate), and it stays inside the
+  // workspace ball, which the plausibility test checks: no speed limit.
+  l.max_speed_m_per_s = runtime::DeviceLimits::kUnbounded;
+  l.max_angular_speed_rad_per_s = runtime::DeviceLimits::kUnbounded;
   return l;
 }
 

@@ -59,6 +59,12 @@ void ForceSafety::enable() noexcept {
 void ForceSafety::rearm() noexcept {
   state_ = State::kWaitingForSmallForce;
   ramp_elapsed_s_ = 0.0;
+  outage_ = false;
+  hold_age_s_ = 0.0;
+  held_force_W_N_.setZero();
+  held_torque_W_Nm_.setZero();
+  ramp_from_force_W_N_.setZero();
+  ramp_from_torque_W_Nm_.setZero();
 }
 
 double ForceSafety::rampFactor() const noexcept {
@@ -78,15 +84,19 @@ void ForceSafety::step(const SafetyInput& in, Eigen::Vector3d& force_W_N, Eigen:
   torque_W_Nm.setZero();
   const bool enabled = state_ != State::kOff;
   const double dt = std::isfinite(in.tick_interval_s) && in.tick_interval_s > 0.0 ? in.tick_interval_s : 0.0;
+  const double period = std::isfinite(in.period_s) && in.period_s > 0.0 ? in.period_s : dt;
 
-  // 1. Watchdog.
-  bool trip = false;
+  // 1 and 2: what kind of tick this is.
+  bool gate = false;   // re-arm the engage gate: the hand may be anywhere
+  bool fault = false;  // hold the last good command
+  bool stall = false;  // a stall longer than a silent device: an outage at once
   if (!in.sample_ok) {
     ++stats_.missing_samples;
-    trip = true;
+    fault = true;
   } else {
+    if (in.reseeded) gate = true;
     if (!have_connection_ || in.connection != connection_) {
-      if (have_connection_) trip = true;  // a new connection: the hand may be anywhere
+      if (have_connection_) gate = true;  // a new connection
       connection_ = in.connection;
       have_connection_ = true;
       stale_s_ = 0.0;
@@ -102,23 +112,52 @@ void ForceSafety::step(const SafetyInput& in, Eigen::Vector3d& force_W_N, Eigen:
     if (stale_s_ > policy_.silent_s) {
       if (!silent_) ++stats_.silent_trips;
       silent_ = true;
-      trip = true;
+      fault = true;
     }
   }
   if (in.tick_interval_s > policy_.watchdog_s) {
     ++stats_.watchdog_trips;
-    trip = true;
+    fault = true;
+    stall = in.tick_interval_s > policy_.silent_s;
   }
-  // 2. Non-finite commands.
   if (!in.force_W_N.allFinite() || !in.torque_W_Nm.allFinite()) {
     ++stats_.nonfinite_commands;
-    trip = true;
+    gate = true;
   }
-  if (trip || !enabled) {
-    if (enabled) rearm();
+  if (!enabled) {
     ++stats_.zeroed_ticks;
     return;
   }
+  if (gate) {
+    rearm();
+    ++stats_.zeroed_ticks;
+    return;
+  }
+  if (fault) {
+    // The last good command, decaying linearly over the hold; an outage once it is spent.
+    hold_age_s_ += period;
+    const double hold_s = std::isfinite(policy_.fault_hold_s) ? std::max(policy_.fault_hold_s, 0.0) : 0.0;
+    const double scale = stall || !(hold_s > 0.0) ? 0.0 : std::max(0.0, 1.0 - hold_age_s_ / hold_s);
+    if (scale > 0.0 && state_ != State::kWaitingForSmallForce) {
+      force_W_N = scale * held_force_W_N_;
+      torque_W_Nm = scale * held_torque_W_Nm_;
+      ++stats_.held_ticks;
+    } else {
+      ++stats_.zeroed_ticks;
+    }
+    if (scale == 0.0 && !outage_ && state_ != State::kWaitingForSmallForce) {
+      // Re-armed for an outage: good ticks ramp up from where the output is now (zero).
+      outage_ = true;
+      ++stats_.outages;
+      state_ = State::kRamping;
+      ramp_elapsed_s_ = 0.0;
+      ramp_from_force_W_N_.setZero();
+      ramp_from_torque_W_Nm_.setZero();
+    }
+    return;
+  }
+  hold_age_s_ = 0.0;
+  outage_ = false;
 
   // 3. Degrees of freedom the device renders.
   Eigen::Vector3d f = in.force_W_N;
@@ -139,6 +178,8 @@ void ForceSafety::step(const SafetyInput& in, Eigen::Vector3d& force_W_N, Eigen:
     if (f.norm() <= policy_.engage_force_N && tau.norm() <= policy_.engage_torque_Nm) {
       state_ = policy_.ramp_time_s > 0.0 ? State::kRamping : State::kEngaged;
       ramp_elapsed_s_ = 0.0;
+      ramp_from_force_W_N_.setZero();
+      ramp_from_torque_W_Nm_.setZero();
     } else {
       ++stats_.zeroed_ticks;
       return;
@@ -150,16 +191,21 @@ void ForceSafety::step(const SafetyInput& in, Eigen::Vector3d& force_W_N, Eigen:
   const bool clamped_t = clampNorm(tau, limits_.max_torque_Nm);
   if (clamped_f || clamped_t) ++stats_.clamped_ticks;
 
-  // 6. Ramp.
-  double scale = 1.0;
+  // 6. Ramp from where it started to the computed command.
   if (state_ == State::kRamping) {
     ramp_elapsed_s_ += dt;
-    scale = std::clamp(ramp_elapsed_s_ / policy_.ramp_time_s, 0.0, 1.0);
-    if (scale >= 1.0) state_ = State::kEngaged;
+    const double a =
+        policy_.ramp_time_s > 0.0 ? std::clamp(ramp_elapsed_s_ / policy_.ramp_time_s, 0.0, 1.0) : 1.0;
+    if (a >= 1.0) state_ = State::kEngaged;
+    f = ramp_from_force_W_N_ + a * (f - ramp_from_force_W_N_);
+    tau = ramp_from_torque_W_Nm_ + a * (tau - ramp_from_torque_W_Nm_);
   }
-  force_W_N = scale * f;
-  torque_W_Nm = scale * tau;
-  if (scale == 0.0) ++stats_.zeroed_ticks;
+  force_W_N = f;
+  torque_W_Nm = tau;
+  held_force_W_N_ = f;
+  held_torque_W_Nm_ = tau;
+  if (f.isZero(0.0) && tau.isZero(0.0) && !(in.force_W_N.isZero(0.0) && in.torque_W_Nm.isZero(0.0)))
+    ++stats_.zeroed_ticks;
 }
 
 // ---- WorkspaceMapping ---------------------------------------------------------------------------
@@ -176,6 +222,8 @@ DeviceLimits WorkspaceMapping::limitsInWorld(const DeviceLimits& d) const noexce
   w.max_linear_stiffness_N_per_m = d.max_linear_stiffness_N_per_m / scale;
   w.max_linear_damping_N_s_per_m = d.max_linear_damping_N_s_per_m / scale;
   w.workspace_radius_m = d.workspace_radius_m * scale;
+  w.workspace_centre_m = X_WB.p_AB_m + scale * (X_WB.R_AB * d.workspace_centre_m);
+  w.max_speed_m_per_s = d.max_speed_m_per_s * scale;
   return w;
 }
 

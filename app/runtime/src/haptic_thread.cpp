@@ -5,6 +5,8 @@
 
 #include "vh/haptics/configuration_solver.h"
 #include "vh/haptics/passivity_controller.h"
+#include "vh/runtime/passivity_port.h"
+#include "vh/runtime/sample_filter.h"
 
 #include <pthread.h>
 #include <sched.h>
@@ -169,19 +171,6 @@ double angularStoredEnergy_J(const Eigen::Vector3d& torque_W_Nm, const Eigen::Qu
   const Eigen::Vector3d tau_T = R_WP.conjugate() * torque_W_Nm;
   const double e = mean_moment_kgm2 / (2.0 * k_ang_Nm_per_rad) * tau_T.dot(I_Cm_inv_T * tau_T);
   return std::isfinite(e) && e >= 0.0 ? e : std::numeric_limits<double>::infinity();
-}
-
-/// The passivity controller of one coupling port (passivity_controller.h): told the port's
-/// stiffness (its damper cap) and, when the device states the stiffness it renders stably, a
-/// stiffness schedule floored there (min_gain = that limit / the port's stiffness), so the
-/// controller never renders the port softer than the device's own rating. The default delay (one
-/// tick) is the device models' (app/simulation device_catalog.h).
-haptics::PassivityOptions passivityOptions(double port_stiffness, double device_limit) noexcept {
-  haptics::PassivityOptions o;
-  o.port_stiffness = port_stiffness > 0.0 && std::isfinite(port_stiffness) ? port_stiffness : 0.0;
-  if (o.port_stiffness > 0.0 && device_limit > 0.0 && std::isfinite(device_limit))
-    o.min_gain = std::min(1.0, device_limit / o.port_stiffness);
-  return o;
 }
 
 bool sameGains(const haptics::CouplingGains& a, const haptics::CouplingGains& b) noexcept {
@@ -406,6 +395,8 @@ void mergeSnapshots(const CouplingSnapshot& c, const SolverSnapshot& s, HapticSn
   out.coupling = c.timing;
   out.solver = s.timing;
   out.bad_device_samples = c.bad_samples + s.rejected;
+  out.implausible_samples = c.implausible_samples;
+  out.held_ticks = c.held_ticks;
   out.skipped_samples = s.skipped;
   out.passivity_active_ticks = c.passivity_active_ticks;
   out.passivity_dissipated_J = c.passivity_dissipated_J;
@@ -460,30 +451,36 @@ void HapticThread::couplingLoop() noexcept {
   const haptics::MassProperties& mass = renderer_->tool().mass;  // immutable: shared with the solver
   SnapshotChannel* const monitor = options_.monitor.get();  // optional second consumer
 
-  // Every command goes through the one safety layer: the device's limits, engage gate, ramp,
-  // watchdog, actuated DOF (device.h, ForceSafety). Coupling gains are kept within the device's
-  // stable stiffness.
+  // Every command goes through the one safety layer: the device's limits, engage gate, fault
+  // hold, ramp, watchdog, actuated DOF (device.h, ForceSafety). Every sample goes through the
+  // plausibility test first (sample_filter.h): a glitch is never coupled to. Coupling gains are
+  // kept within the device's stable stiffness.
   ForceSafety safety(device_->limits(), device_->safetyPolicy(), device_->actuatedDof());
   safety.enable();
+  SampleFilter filter(safety.limits());
+  std::uint64_t implausible = 0;
   haptics::CouplingGains requested_gains{gain_linear_.load(std::memory_order_relaxed),
                                          gain_angular_.load(std::memory_order_relaxed),
                                          gain_passivity_.load(std::memory_order_relaxed)};
   haptics::CouplingGains applied_gains = clampGains(requested_gains, safety.limits());
   haptics::VirtualCoupling coupling(applied_gains);
-  // Passivity control (CouplingGains::passivity_control, passivity_controller.h): one controller
-  // per port, the force with the centre of mass's displacement and the torque with the rotation
-  // vector since the previous coupled sample. Both start afresh when the switch changes and
-  // after any tick without a coupled sample.
-  haptics::PassivityController passivity_force(
-      passivityOptions(applied_gains.linear_N_per_m, safety.limits().max_linear_stiffness_N_per_m));
-  haptics::PassivityController passivity_torque(
-      passivityOptions(applied_gains.angular_Nm_per_rad, safety.limits().max_angular_stiffness_Nm_per_rad));
-  haptics::Pose X_WD_coupled_last;   // the device pose of the previous coupled tick
-  bool have_coupled_last = false;    // X_WD_coupled_last is that of the previous tick
+  // Passivity control (CouplingGains::passivity_control, passivity_port.h): one controller per
+  // port, the force with the centre of mass's displacement and the torque with the rotation
+  // vector since the previous coupled sample. Their state is kept across gain changes (the
+  // rendered stiffness stays continuous) and short faults; they start afresh when the switch
+  // turns on and after an outage (ForceSafety re-armed).
+  PassivityPort passivity_force;
+  PassivityPort passivity_torque;
+  passivity_force.configure(applied_gains.linear_N_per_m, safety.limits().max_linear_stiffness_N_per_m);
+  passivity_torque.configure(applied_gains.angular_Nm_per_rad, safety.limits().max_angular_stiffness_Nm_per_rad);
+  haptics::Pose X_WD_coupled_last;   // the device pose of the last coupled tick
+  bool have_coupled_last = false;    // X_WD_coupled_last is valid (no outage since)
+  std::uint64_t ticks_since_coupled = 0;
+  std::uint64_t outages_seen = 0;
   // I_Cm^-1 in T, for the torsional spring's stored energy (angularStoredEnergy_J).
   const Eigen::Matrix3d I_Cm_inv_T = mass.I_Cm_T_kgm2.inverse();
   const double mean_moment_kgm2 = mass.I_Cm_T_kgm2.trace() / 3.0;
-  std::uint64_t passivity_active_ticks = 0;  // summed over controller resets
+  std::uint64_t passivity_active_ticks = 0;  // summed over controller restarts
   double passivity_dissipated_J = 0.0;
 
   while (true) {
@@ -493,24 +490,34 @@ void HapticThread::couplingLoop() noexcept {
     const std::int64_t begin_ns = monotonicNs();
     if (missed) x_->sticky_flags.fetch_or(kRecordFlagDeadlineMiss, std::memory_order_relaxed);
 
-    // 1. Device sample (a non-finite pose is no sample).
-    const bool ok = device_->read(sample) && sample.valid && sample.X_WD.allFinite();
+    // 1. Device sample, tested before anything is computed from it: missing, non-finite,
+    //    outside the workspace or faster than the device moves is no sample (never rendered,
+    //    never handed to the solver, which keeps the last good one).
+    safety.setLimits(device_->limits());
+    filter.setLimits(safety.limits());
+    const bool read_ok = device_->read(sample);
+    const SampleFilter::Verdict verdict = filter.check(sample, read_ok, clock.interval_s());
+    const bool ok = verdict == SampleFilter::Verdict::kGood || verdict == SampleFilter::Verdict::kReseeded;
     const bool connected = device_->connected();
     if (!ok) ++bad_samples;
+    if (verdict == SampleFilter::Verdict::kImplausible) ++implausible;
     // 2. Pending GUI commands; gains within the device's current limits (a workspace scale
     //    change alters them).
-    safety.setLimits(device_->limits());
     if (gains_dirty_.exchange(false, std::memory_order_acq_rel)) {
       requested_gains = {gain_linear_.load(std::memory_order_relaxed), gain_angular_.load(std::memory_order_relaxed),
                          gain_passivity_.load(std::memory_order_relaxed)};
     }
     const haptics::CouplingGains gains = clampGains(requested_gains, safety.limits());
     if (!sameGains(gains, applied_gains)) {
-      // New gains: controllers told the new port stiffnesses and schedule floors, afresh.
-      passivity_force = haptics::PassivityController(
-          passivityOptions(gains.linear_N_per_m, safety.limits().max_linear_stiffness_N_per_m));
-      passivity_torque = haptics::PassivityController(
-          passivityOptions(gains.angular_Nm_per_rad, safety.limits().max_angular_stiffness_Nm_per_rad));
+      if (gains.passivity_control && !applied_gains.passivity_control) {
+        // Switched on: afresh, at the stiffness rendered so far (then the step below).
+        passivity_force.configure(applied_gains.linear_N_per_m, safety.limits().max_linear_stiffness_N_per_m);
+        passivity_torque.configure(applied_gains.angular_Nm_per_rad,
+                                   safety.limits().max_angular_stiffness_Nm_per_rad);
+      }
+      // The controllers keep their state; the rendered stiffness moves on without a step.
+      passivity_force.setStiffness(gains.linear_N_per_m, safety.limits().max_linear_stiffness_N_per_m);
+      passivity_torque.setStiffness(gains.angular_Nm_per_rad, safety.limits().max_angular_stiffness_Nm_per_rad);
       applied_gains = gains;
       coupling.setGains(applied_gains);
     }
@@ -523,47 +530,43 @@ void HapticThread::couplingLoop() noexcept {
     x_->samples.push(input);
     // 4. Virtual coupling (eq. 5) to the solver's latest proxy pose, with the device pose
     //    normalised as the renderer does (so that the same pair gives the same bits). A pose
-    //    the renderer would reject (quaternion off unit length), or one it rejected on its
-    //    latest tick, gives no force.
+    //    the renderer rejected on its latest tick gives no force.
     x_->proxy.read(proxy);
     Eigen::Vector3d force_W_N = Eigen::Vector3d::Zero();
     Eigen::Vector3d torque_W_Nm = Eigen::Vector3d::Zero();
     bool coupled = false;
-    if (ok) {
-      const double qn = sample.X_WD.R_AB.norm();
-      if (std::abs(qn - 1.0) <= 1e-3 && !proxy.bad_input) {
-        haptics::Pose X_WD = sample.X_WD;
-        X_WD.R_AB.coeffs() /= qn;
-        X_WD_last = X_WD;
-        const haptics::Wrench w = coupling.track(proxy.X_WP, X_WD, mass);
-        force_W_N = w.force_W_N;
-        torque_W_Nm = w.torque_W_Nm;
-        coupled = true;
-        // 4b. Passivity control on both ports: the hand's motion since the previous coupled
-        //     sample (none after a gap: a zero step), the spring's stored energy as the cap.
-        if (applied_gains.passivity_control) {
-          haptics::Vector6d step_W = haptics::Vector6d::Zero();
-          if (have_coupled_last) step_W = haptics::displacement_W(X_WD_coupled_last, X_WD, mass.p_TCm_m);
-          const auto f = passivity_force.step(force_W_N, step_W.head<3>(), period_s_,
-                                              linearStoredEnergy_J(force_W_N, applied_gains.linear_N_per_m));
-          const auto t = passivity_torque.step(
-              torque_W_Nm, step_W.tail<3>(), period_s_,
-              angularStoredEnergy_J(torque_W_Nm, proxy.X_WP.R_AB, I_Cm_inv_T, mean_moment_kgm2,
-                                    applied_gains.angular_Nm_per_rad));
-          force_W_N = f.effort_W;
-          torque_W_Nm = t.effort_W;
-          if (f.alpha > 0.0) ++passivity_active_ticks;
-          if (t.alpha > 0.0) ++passivity_active_ticks;
-          passivity_dissipated_J += f.predicted_dissipation_J + t.predicted_dissipation_J;
-        }
-        X_WD_coupled_last = X_WD;
+    ++ticks_since_coupled;
+    if (ok && !proxy.bad_input) {
+      haptics::Pose X_WD = sample.X_WD;
+      X_WD.R_AB.coeffs() /= sample.X_WD.R_AB.norm();
+      X_WD_last = X_WD;
+      const haptics::Wrench w = coupling.track(proxy.X_WP, X_WD, mass);
+      force_W_N = w.force_W_N;
+      torque_W_Nm = w.torque_W_Nm;
+      coupled = true;
+      // 4b. Passivity control on both ports: the hand's motion since the last coupled sample
+      //     (over the ticks since: a short fault keeps the controllers' state), the spring's
+      //     stored energy as the cap.
+      if (applied_gains.passivity_control) {
+        haptics::Vector6d step_W = haptics::Vector6d::Zero();
+        if (have_coupled_last) step_W = haptics::displacement_W(X_WD_coupled_last, X_WD, mass.p_TCm_m);
+        const double dt_s = period_s_ * static_cast<double>(have_coupled_last ? ticks_since_coupled : 1);
+        const auto f = passivity_force.step(force_W_N, step_W.head<3>(), dt_s,
+                                            linearStoredEnergy_J(force_W_N, applied_gains.linear_N_per_m));
+        const auto t = passivity_torque.step(
+            torque_W_Nm, step_W.tail<3>(), dt_s,
+            angularStoredEnergy_J(torque_W_Nm, proxy.X_WP.R_AB, I_Cm_inv_T, mean_moment_kgm2,
+                                  applied_gains.angular_Nm_per_rad));
+        force_W_N = f.effort_W;
+        torque_W_Nm = t.effort_W;
+        if (f.alpha > 0.0) ++passivity_active_ticks;
+        if (t.alpha > 0.0) ++passivity_active_ticks;
+        passivity_dissipated_J += f.predicted_dissipation_J + t.predicted_dissipation_J;
       }
+      X_WD_coupled_last = X_WD;
+      have_coupled_last = true;
+      ticks_since_coupled = 0;
     }
-    if (!coupled && have_coupled_last) {  // a gap: the controllers' motion history is broken
-      passivity_force.reset();
-      passivity_torque.reset();
-    }
-    have_coupled_last = coupled;
     if (ramp_left > 0) {
       --ramp_left;
       const double scale = static_cast<double>(ramp_left) / ramp_ticks;  // reaches 0 on the last tick
@@ -572,7 +575,9 @@ void HapticThread::couplingLoop() noexcept {
     }
     // 5. Safety layer, then command (never NaN, never beyond the device's limits).
     SafetyInput safety_in;
-    safety_in.sample_ok = ok;
+    safety_in.sample_ok = coupled;
+    safety_in.reseeded = verdict == SampleFilter::Verdict::kReseeded;
+    safety_in.period_s = period_s_;
     safety_in.sample_time_s = sample.time_s;
     safety_in.connection = sample.connection;
     safety_in.tick_interval_s = clock.interval_s();
@@ -588,6 +593,12 @@ void HapticThread::couplingLoop() noexcept {
                          std::memcmp(torque_rendered_W_Nm.data(), torque_W_Nm.data(), 3 * sizeof(double)) != 0;
     device_->command(force_W_N, torque_W_Nm);
     const bool zeroed = safety.stats().zeroed_ticks != zeroed_before;
+    if (safety.stats().outages != outages_seen) {  // an outage: the motion history is broken
+      outages_seen = safety.stats().outages;
+      passivity_force.restart();
+      passivity_torque.restart();
+      have_coupled_last = false;
+    }
     x_->command_flags.store((zeroed ? kRecordFlagForceZeroed : 0u) | (nonfinite ? kRecordFlagNonFinite : 0u) |
                                 (ramp_left >= 0 ? kRecordFlagStopping : 0u) |
                                 (limited || zeroed ? kRecordFlagForceLimited : 0u),
@@ -604,6 +615,8 @@ void HapticThread::couplingLoop() noexcept {
     snap.force_W_N = force_W_N;
     snap.torque_W_Nm = torque_W_Nm;
     snap.bad_samples = bad_samples;
+    snap.implausible_samples = implausible;
+    snap.held_ticks = safety.stats().held_ticks;
     snap.passivity_active_ticks = passivity_active_ticks;
     snap.passivity_dissipated_J = passivity_dissipated_J;
     snap.timing = clock.timing();

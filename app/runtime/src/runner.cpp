@@ -18,10 +18,26 @@
 #include "vh/runtime/device.h"
 #include "vh/runtime/placement.h"
 #include "vh/runtime/recording.h"
+#include "vh/runtime/sample_filter.h"
 #include "vh/runtime/session_metadata.h"
 #include "vh/runtime/snapshot_channel.h"
 
 namespace vh::runtime {
+
+namespace {
+
+/// The trace's `sample` column: what the plausibility test made of the tick's device sample.
+const char* sampleVerdictName(SampleFilter::Verdict v) noexcept {
+  switch (v) {
+    case SampleFilter::Verdict::kGood: return "good";
+    case SampleFilter::Verdict::kMissing: return "missing";
+    case SampleFilter::Verdict::kImplausible: return "implausible";
+    case SampleFilter::Verdict::kReseeded: return "reseeded";
+  }
+  return "?";
+}
+
+}  // namespace
 
 double nearestRankPercentile(std::span<const double> sorted, double q) noexcept {
   if (sorted.empty()) return 0.0;
@@ -75,6 +91,17 @@ RunReport runHeadless(const LoadedScene& scene, const Trajectory& trajectory, co
     r.crossing_points = 0;
   }
   ScriptedDevice device(trajectory, 1.0 / options.servo_rate_Hz);
+  device.setLimits(options.device_limits);
+  device.setSafetyPolicy(options.safety_policy);
+  device.setActuatedDof(options.actuated_dof);
+  // The same plausibility test and safety layer as the coupling thread (HapticThread): a sample
+  // faster than the device moves, outside its workspace or not finite is never rendered; the
+  // command the device gets is the safety layer's (fault hold, ramp, clamp).
+  const double period_s = 1.0 / options.servo_rate_Hz;
+  SampleFilter filter(device.limits());
+  ForceSafety safety(device.limits(), device.safetyPolicy(), device.actuatedDof());
+  safety.enable();
+  haptics::Pose X_WD_used = X_WD_first;  // the last sample the renderer ticked with
 
   const auto n = static_cast<std::uint64_t>(std::floor(trajectory.duration_s() * options.servo_rate_Hz + 1e-9)) + 1;
   std::vector<double> times_us;
@@ -84,7 +111,8 @@ RunReport runHeadless(const LoadedScene& scene, const Trajectory& trajectory, co
     trace.open(options.trace_csv);
     if (!trace) throw std::runtime_error(options.trace_csv.string() + ": cannot write the trace");
     trace << "tick,t_s,xd_m,yd_m,zd_m,xp_m,yp_m,zp_m,fx_N,fy_N,fz_N,tx_Nm,ty_Nm,tz_Nm,contacts,exec_us,penetration_m,"
-             "qw_p,qx_p,qy_p,qz_p,time_of_contact,crossing_points\n"
+             "qw_p,qx_p,qy_p,qz_p,time_of_contact,crossing_points,cmd_fx_N,cmd_fy_N,cmd_fz_N,cmd_tx_Nm,cmd_ty_Nm,"
+             "cmd_tz_Nm,sample,isovalue,felt_isovalue\n"
           << std::setprecision(9);
   }
   std::unique_ptr<RecordingWriter> recorder;
@@ -116,16 +144,40 @@ RunReport runHeadless(const LoadedScene& scene, const Trajectory& trajectory, co
   const auto wall_begin = std::chrono::steady_clock::now();
   for (std::uint64_t i = 0; i < n; ++i) {
     DeviceSample sample;
-    device.read(sample);
-    const haptics::TickOutput out = renderer.tick(sample.X_WD, s);
-    device.command(out.force_W_N, out.torque_W_Nm);
+    const bool read_ok = device.read(sample);
+    const SampleFilter::Verdict verdict = filter.check(sample, read_ok, i == 0 ? 0.0 : period_s);
+    const bool sample_ok = verdict == SampleFilter::Verdict::kGood || verdict == SampleFilter::Verdict::kReseeded;
+    // The isovalue asked for this tick: the trajectory's ninth column, else the scene's.
+    const double isovalue = trajectory.isovalueAt(sample.time_s, s);
+    haptics::TickOutput out;
+    if (sample_ok) {
+      out = renderer.tick(sample.X_WD, isovalue);
+      X_WD_used = sample.X_WD;
+    } else {
+      out.X_WP = renderer.proxyPose();  // not rendered: the proxy stays, no force
+      out.stats.contacts = static_cast<int>(renderer.contacts().size());
+      if (verdict == SampleFilter::Verdict::kImplausible) ++r.implausible_samples;
+    }
+    SafetyInput safety_in;
+    safety_in.sample_ok = sample_ok && !out.stats.bad_input;
+    safety_in.reseeded = verdict == SampleFilter::Verdict::kReseeded;
+    safety_in.sample_time_s = sample.time_s;
+    safety_in.connection = sample.connection;
+    safety_in.tick_interval_s = period_s;
+    safety_in.period_s = period_s;
+    safety_in.force_W_N = out.force_W_N;
+    safety_in.torque_W_Nm = out.torque_W_Nm;
+    Eigen::Vector3d command_W_N, command_W_Nm;
+    safety.step(safety_in, command_W_N, command_W_Nm);
+    device.command(command_W_N, command_W_Nm);
 
     // Everything below is outside the timed section (exec_time_us is measured by tick()).
     times_us.push_back(out.stats.exec_time_us);
     r.budget_cuts += out.stats.budget_cut;
     r.max_work = std::max(r.max_work, out.stats.work);
-    if (reference) {
-      const haptics::TickOutput ref = reference->tick(sample.X_WD, s);
+    r.max_command_force_N = std::max(r.max_command_force_N, command_W_N.norm());
+    if (reference && sample_ok) {
+      const haptics::TickOutput ref = reference->tick(sample.X_WD, isovalue);
       if (ref.X_WP.allFinite() && out.X_WP.allFinite()) lag.add(out.X_WP, ref.X_WP);
     }
     if (out.stats.exec_time_us > 1000.0) ++r.ticks_over_1ms;
@@ -136,17 +188,21 @@ RunReport runHeadless(const LoadedScene& scene, const Trajectory& trajectory, co
       ++r.ticks_in_contact;
       if (r.first_contact_tick < 0) r.first_contact_tick = static_cast<std::int64_t>(i);
     }
-    if (out.stats.bad_input) ++r.bad_device_samples;
+    if (out.stats.bad_input || !sample_ok) ++r.bad_device_samples;
     const bool finite = out.force_W_N.allFinite() && out.torque_W_Nm.allFinite() && out.X_WP.allFinite();
     const int segment = scene.segments ? scene.segments->segmentOf(renderer.contacts()) : -1;
     if (segment_tally) segment_tally->add(segment, out.force_W_N.norm(), 1.0 / options.servo_rate_Hz);
     int crossing_points = -1;
-    if (verifier && finite) {
+    // The checks below use the isovalue the renderer rendered this tick (it may lag the
+    // requested one while the tool presses on the surface: a lowered isovalue is deferred for
+    // the hand), and the trace writes both.
+    const double felt_isovalue = std::isfinite(out.stats.felt_isovalue) ? out.stats.felt_isovalue : isovalue;
+    if (verifier && finite && sample_ok) {
       // The path the proxy moved along this tick, sampled densely: a point outside at its start
       // and inside later was carried into (or through) the isosurface.
       const auto v0 = std::chrono::steady_clock::now();
       const haptics::CrossingVerifier::Result check =
-          verifier->check(renderer.lastMotion(), renderer.lastTimeOfContact(), s);
+          verifier->check(renderer.lastMotion(), renderer.lastTimeOfContact(), felt_isovalue);
       r.verify_s += std::chrono::duration<double>(std::chrono::steady_clock::now() - v0).count();
       crossing_points = check.crossing_points;
       if (check.crossing_points > 0) {
@@ -162,10 +218,10 @@ RunReport runHeadless(const LoadedScene& scene, const Trajectory& trajectory, co
       r.max_force_N = std::max(r.max_force_N, out.force_W_N.norm());
       r.max_torque_Nm = std::max(r.max_torque_Nm, out.torque_W_Nm.norm());
       r.final_force_N = out.force_W_N.norm();
-      r.final_proxy_device_distance_m = (out.X_WP.p_AB_m - sample.X_WD.p_AB_m).norm();
+      r.final_proxy_device_distance_m = (out.X_WP.p_AB_m - X_WD_used.p_AB_m).norm();
       r.max_proxy_device_distance_m = std::max(r.max_proxy_device_distance_m, r.final_proxy_device_distance_m);
       if (options.check_penetration) {
-        depth = haptics::maxPenetration_m(volume, tool.point_shell, out.X_WP, s);
+        depth = haptics::maxPenetration_m(volume, tool.point_shell, out.X_WP, felt_isovalue);
         if (depth > r.epsilon_m) ++r.ticks_penetrating;
         if (depth > r.max_penetration_m) {
           r.max_penetration_m = depth;
@@ -178,21 +234,21 @@ RunReport runHeadless(const LoadedScene& scene, const Trajectory& trajectory, co
       rec.time_s = static_cast<double>(i) / options.servo_rate_Hz;
       rec.tick = i + 1;
       for (int k = 0; k < 3; ++k) {
-        rec.p_WD_m[k] = sample.X_WD.p_AB_m[k];
+        rec.p_WD_m[k] = X_WD_used.p_AB_m[k];
         rec.force_W_N[k] = out.force_W_N[k];
         rec.torque_W_Nm[k] = out.torque_W_Nm[k];
       }
-      rec.q_WD[0] = sample.X_WD.R_AB.w(); rec.q_WD[1] = sample.X_WD.R_AB.x();
-      rec.q_WD[2] = sample.X_WD.R_AB.y(); rec.q_WD[3] = sample.X_WD.R_AB.z();
+      rec.q_WD[0] = X_WD_used.R_AB.w(); rec.q_WD[1] = X_WD_used.R_AB.x();
+      rec.q_WD[2] = X_WD_used.R_AB.y(); rec.q_WD[3] = X_WD_used.R_AB.z();
       const haptics::Pose& X_WP_now = renderer.proxyPose();
       for (int k = 0; k < 3; ++k) rec.p_WP_m[k] = X_WP_now.p_AB_m[k];
       rec.q_WP[0] = X_WP_now.R_AB.w(); rec.q_WP[1] = X_WP_now.R_AB.x();
       rec.q_WP[2] = X_WP_now.R_AB.y(); rec.q_WP[3] = X_WP_now.R_AB.z();
-      rec.isovalue = s;
+      rec.isovalue = isovalue;
       rec.tick_time_s = 1e-6 * out.stats.exec_time_us;
       rec.contacts = static_cast<std::uint32_t>(renderer.contacts().size());
       rec.flags = (rec.contacts > 0 ? kRecordFlagContact : 0u) | (finite ? 0u : kRecordFlagNonFinite) |
-                  recordSegmentBits(segment);
+                  (sample_ok ? 0u : kRecordFlagBadSample) | recordSegmentBits(segment);
       recorder->pushWaiting(rec);
     }
     if (trace.is_open()) {
@@ -203,20 +259,24 @@ RunReport runHeadless(const LoadedScene& scene, const Trajectory& trajectory, co
             << out.force_W_N.z() << ',' << out.torque_W_Nm.x() << ',' << out.torque_W_Nm.y() << ','
             << out.torque_W_Nm.z() << ',' << out.stats.contacts << ',' << out.stats.exec_time_us << ',' << depth << ','
             << out.X_WP.R_AB.w() << ',' << out.X_WP.R_AB.x() << ',' << out.X_WP.R_AB.y() << ',' << out.X_WP.R_AB.z()
-            << ',' << out.stats.time_of_contact << ',' << crossing_points << '\n';
+            << ',' << out.stats.time_of_contact << ',' << crossing_points << ',' << command_W_N.x() << ','
+            << command_W_N.y() << ',' << command_W_N.z() << ',' << command_W_Nm.x() << ',' << command_W_Nm.y() << ','
+            << command_W_Nm.z() << ',' << sampleVerdictName(verdict) << ',' << isovalue << ',' << felt_isovalue << '\n';
     }
     if (SnapshotChannel* monitor = options.monitor.get()) {
       CouplingSnapshot& c = monitor->couplingSlot();
       c.tick = i + 1;
       c.time_ns = std::chrono::duration_cast<std::chrono::nanoseconds>(std::chrono::steady_clock::now().time_since_epoch()).count();
       c.X_WP = out.X_WP;
-      c.X_WD = sample.X_WD;
-      c.force_W_N = out.force_W_N;
-      c.torque_W_Nm = out.torque_W_Nm;
+      c.X_WD = X_WD_used;
+      c.force_W_N = command_W_N;
+      c.torque_W_Nm = command_W_Nm;
+      c.implausible_samples = r.implausible_samples;
+      c.held_ticks = safety.stats().held_ticks;
       monitor->publishCoupling();
       SolverSnapshot& solver = monitor->solverSlot();
       solver.tick = i + 1;
-      solver.isovalue = s;
+      solver.isovalue = isovalue;
       solver.contacts = static_cast<int>(renderer.contacts().size());
       solver.segment = segment;
       monitor->publishSolver();
@@ -232,6 +292,7 @@ RunReport runHeadless(const LoadedScene& scene, const Trajectory& trajectory, co
   }
   r.total_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - wall_begin).count();
   r.ticks = n;
+  r.held_ticks = safety.stats().held_ticks;
   double sum = 0.0;
   for (double t : times_us) {
     sum += t;
@@ -299,6 +360,9 @@ std::string RunReport::toJson() const {
   j["first_crossing_tick"] = checked(first_crossing_tick);
   j["verify_s"] = verify_s;
   j["bad_device_samples"] = bad_device_samples;
+  j["implausible_samples"] = implausible_samples;
+  j["held_ticks"] = held_ticks;
+  j["max_command_force_N"] = max_command_force_N;
   j["initial_points_inside"] = initial_points_inside;
   j["final_force_N"] = final_force_N;
   j["final_proxy_device_distance_m"] = final_proxy_device_distance_m;

@@ -19,7 +19,8 @@ using haptics::Pose;
 
 namespace {
 
-constexpr std::array<std::string_view, 8> kColumns{"t_s", "x_m", "y_m", "z_m", "qw", "qx", "qy", "qz"};
+constexpr std::array<std::string_view, 9> kColumns{"t_s", "x_m", "y_m", "z_m", "qw", "qx", "qy", "qz", "isovalue"};
+constexpr std::size_t kPoseColumns = 8;  // the isovalue column is optional
 
 std::string_view trim(std::string_view s) {
   const auto first = s.find_first_not_of(" \t\r\n");
@@ -54,9 +55,9 @@ std::string lowercase(std::string_view s) {
   return out;
 }
 
-std::string columnList() {
+std::string columnList(std::size_t n = kPoseColumns) {
   std::string out;
-  for (std::size_t i = 0; i < kColumns.size(); ++i) {
+  for (std::size_t i = 0; i < n; ++i) {
     if (i) out += ',';
     out += kColumns[i];
   }
@@ -69,7 +70,7 @@ Trajectory::Trajectory(std::vector<TrajectorySample> samples) : samples_(std::mo
   if (samples_.empty()) throw std::invalid_argument("trajectory: no samples");
   for (std::size_t i = 0; i < samples_.size(); ++i) {
     TrajectorySample& s = samples_[i];
-    if (!std::isfinite(s.t_s) || !s.X_WD.allFinite()) {
+    if (!std::isfinite(s.t_s) || !s.X_WD.allFinite() || std::isinf(s.isovalue)) {
       throw std::invalid_argument("trajectory: sample " + std::to_string(i) + " is not finite");
     }
     const double norm = s.X_WD.R_AB.norm();
@@ -121,11 +122,29 @@ Pose Trajectory::poseAt(double t_s, std::size_t& cursor) const noexcept {
   return interpolate(i, t_s);
 }
 
+bool Trajectory::hasIsovalues() const noexcept {
+  return std::any_of(samples_.begin(), samples_.end(), [](const TrajectorySample& s) { return !std::isnan(s.isovalue); });
+}
+
+double Trajectory::isovalueAt(double t_s, double fallback) const noexcept {
+  if (samples_.empty()) return fallback;
+  const auto at = [fallback](const TrajectorySample& s) { return std::isnan(s.isovalue) ? fallback : s.isovalue; };
+  if (!(t_s > samples_.front().t_s)) return at(samples_.front());  // also NaN
+  if (t_s >= samples_.back().t_s) return at(samples_.back());
+  const auto it = std::upper_bound(samples_.begin(), samples_.end(), t_s,
+                                   [](double t, const TrajectorySample& s) { return t < s.t_s; });
+  const TrajectorySample& b = *it;
+  const TrajectorySample& a = *(it - 1);
+  const double alpha = std::clamp((t_s - a.t_s) / (b.t_s - a.t_s), 0.0, 1.0);
+  return at(a) + alpha * (at(b) - at(a));
+}
+
 Trajectory parseTrajectoryCsv(std::istream& in, const std::string& source_name) {
   std::vector<TrajectorySample> samples;
   std::string line;
   int line_number = 0;
   bool first_content_line = true;
+  std::size_t header_columns = 0;  // 0: no header (8 or 9 values per row)
   auto fail = [&](const std::string& problem) {
     throw std::runtime_error(source_name + ":" + std::to_string(line_number) + ": " + problem);
   };
@@ -138,24 +157,35 @@ Trajectory parseTrajectoryCsv(std::istream& in, const std::string& source_name) 
     first_content_line = false;
     double probe = 0.0;
     if (is_first && !parseDouble(fields.front(), probe)) {
-      // A header line: it must name the expected columns.
-      bool matches = fields.size() == kColumns.size();
+      // A header line: it must name the expected columns (the pose's 8, or those and isovalue).
+      bool matches = fields.size() == kPoseColumns || fields.size() == kColumns.size();
       for (std::size_t i = 0; matches && i < fields.size(); ++i) matches = lowercase(fields[i]) == kColumns[i];
-      if (!matches) fail("header must be '" + columnList() + "', found '" + std::string(content) + "'");
+      if (!matches) {
+        fail("header must be '" + columnList() + "' or '" + columnList(kColumns.size()) + "', found '" +
+             std::string(content) + "'");
+      }
+      header_columns = fields.size();
       continue;
     }
-    if (fields.size() != kColumns.size()) {
-      fail("expected " + std::to_string(kColumns.size()) + " comma-separated values (" + columnList() +
-           "), found " + std::to_string(fields.size()));
+    if (header_columns != 0 ? fields.size() != header_columns
+                            : fields.size() != kPoseColumns && fields.size() != kColumns.size()) {
+      const std::string expected = header_columns != 0
+                                       ? std::to_string(header_columns) + " comma-separated values (" +
+                                             columnList(header_columns) + ", as the header says)"
+                                       : "8 or 9 comma-separated values (" + columnList(kColumns.size()) + ")";
+      fail("expected " + expected + ", found " + std::to_string(fields.size()));
     }
-    std::array<double, 8> v{};
+    std::array<double, 9> v{};
+    v[8] = std::numeric_limits<double>::quiet_NaN();
     for (std::size_t i = 0; i < fields.size(); ++i) {
+      if (i == 8 && fields[i].empty()) continue;  // blank isovalue: the scene's
       if (!parseDouble(fields[i], v[i])) {
         fail("column " + std::string(kColumns[i]) + ": '" + std::string(fields[i]) + "' is not a number");
       }
       if (!std::isfinite(v[i])) fail("column " + std::string(kColumns[i]) + ": value is not finite");
     }
     TrajectorySample s;
+    s.isovalue = v[8];
     s.t_s = v[0];
     s.X_WD.p_AB_m = Eigen::Vector3d(v[1], v[2], v[3]);
     s.X_WD.R_AB = Eigen::Quaterniond(v[4], v[5], v[6], v[7]);
@@ -187,11 +217,17 @@ Trajectory loadTrajectoryCsv(const std::filesystem::path& path) {
 void writeTrajectoryCsv(const Trajectory& trajectory, const std::filesystem::path& path) {
   std::ofstream out(path);
   if (!out) throw std::runtime_error(path.string() + ": cannot write the trajectory file");
-  out << columnList() << '\n' << std::setprecision(17);
+  const bool isovalues = trajectory.hasIsovalues();
+  out << columnList(isovalues ? kColumns.size() : kPoseColumns) << '\n' << std::setprecision(17);
   for (const TrajectorySample& s : trajectory.samples()) {
     const Eigen::Quaterniond& q = s.X_WD.R_AB;
     out << s.t_s << ',' << s.X_WD.p_AB_m.x() << ',' << s.X_WD.p_AB_m.y() << ',' << s.X_WD.p_AB_m.z() << ','
-        << q.w() << ',' << q.x() << ',' << q.y() << ',' << q.z() << '\n';
+        << q.w() << ',' << q.x() << ',' << q.y() << ',' << q.z();
+    if (isovalues) {
+      out << ',';
+      if (!std::isnan(s.isovalue)) out << s.isovalue;
+    }
+    out << '\n';
   }
   out.flush();
   if (!out) throw std::runtime_error(path.string() + ": write failed");

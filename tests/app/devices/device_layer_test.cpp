@@ -136,7 +136,9 @@ TEST(ForceSafety, AHundredNewtonsRightAfterEngagingAreClampedAndRamped) {
   }
 }
 
-TEST(ForceSafety, AMissingSampleZeroesAtOnceAndReArmsTheGate) {
+TEST(ForceSafety, AMissingSampleHoldsTheLastCommandAndDecaysIt) {
+  // Pressing on a wall with 4 N: one missing sample must not drop the wall (nor wait for the
+  // hand to let go): the held command decays linearly over the 10 ms hold.
   SafetyPolicy policy = SafetyPolicy::forHardware();
   policy.ramp_time_s = 0.0;
   ForceSafety safety(falconLikeLimits(), policy, kDofTranslation);
@@ -146,20 +148,63 @@ TEST(ForceSafety, AMissingSampleZeroesAtOnceAndReArmsTheGate) {
   safety.step(t.next({0.0, 0.0, 0.1}), f, tau);
   safety.step(t.next({0.0, 0.0, 4.0}), f, tau);
   ASSERT_EQ(f.z(), 4.0);
-  SafetyInput gone = t.next({0.0, 0.0, 4.0});
+  SafetyInput gone = t.next({0.0, 0.0, 0.0});  // no sample: nothing computed
   gone.sample_ok = false;
   safety.step(gone, f, tau);
-  EXPECT_EQ(f, Eigen::Vector3d::Zero());
+  EXPECT_NEAR(f.z(), 0.9 * 4.0, 1e-12);  // 1 ms of the 10 ms hold
   EXPECT_EQ(safety.stats().missing_samples, 1u);
-  // Samples again, but the force is large: it stays off until small.
-  safety.step(t.next({0.0, 0.0, 4.0}), f, tau);
-  EXPECT_EQ(f, Eigen::Vector3d::Zero());
-  safety.step(t.next({0.0, 0.0, 0.1}), f, tau);
+  EXPECT_EQ(safety.stats().held_ticks, 1u);
+  // Samples again, still pressing with 4 N: the full force at once.
   safety.step(t.next({0.0, 0.0, 4.0}), f, tau);
   EXPECT_EQ(f.z(), 4.0);
+  EXPECT_EQ(safety.state(), ForceSafety::State::kEngaged);
 }
 
-TEST(ForceSafety, ASilentDeviceIsZeroedAfterItsTimeout) {
+TEST(ForceSafety, TheHoldDecaysLinearlyToZeroOverTheHoldTime) {
+  SafetyPolicy policy = SafetyPolicy::forHardware();
+  policy.ramp_time_s = 0.0;
+  ForceSafety safety(falconLikeLimits(), policy, kDofTranslation);
+  safety.enable();
+  Ticker t;
+  Eigen::Vector3d f, tau;
+  safety.step(t.next(Eigen::Vector3d::Zero()), f, tau);
+  safety.step(t.next({2.0, 0.0, 0.0}), f, tau);
+  for (int k = 1; k <= 15; ++k) {
+    SafetyInput gone = t.next(Eigen::Vector3d::Zero());
+    gone.sample_ok = false;
+    gone.period_s = kTick_s;
+    safety.step(gone, f, tau);
+    EXPECT_NEAR(f.x(), 2.0 * std::max(0.0, 1.0 - k * kTick_s / policy.fault_hold_s), 1e-12) << "fault tick " << k;
+  }
+  EXPECT_EQ(safety.stats().outages, 1u);
+}
+
+TEST(ForceSafety, ALongOutageRampsUpFromTheHeldValueWithoutTheEngageGate) {
+  // 30 ms without samples (longer than the hold): zero, then, while the hand still presses with
+  // 5 N, the output ramps from the held value (zero by then) over the 0.25 s ramp; it never
+  // waits for the force to drop under 0.3 N.
+  ForceSafety safety(falconLikeLimits(), SafetyPolicy::forHardware(), kDofTranslation);
+  safety.enable();
+  Ticker t;
+  Eigen::Vector3d f, tau;
+  safety.step(t.next(Eigen::Vector3d::Zero()), f, tau);
+  for (int i = 0; i < 300; ++i) safety.step(t.next({0.0, 0.0, 5.0}), f, tau);
+  ASSERT_EQ(f.z(), 5.0);
+  for (int i = 0; i < 30; ++i) {
+    SafetyInput gone = t.next(Eigen::Vector3d::Zero());
+    gone.sample_ok = false;
+    safety.step(gone, f, tau);
+  }
+  EXPECT_TRUE(f.isZero(0.0));
+  EXPECT_EQ(safety.state(), ForceSafety::State::kRamping);
+  for (int i = 1; i <= 250; ++i) {
+    safety.step(t.next({0.0, 0.0, 5.0}), f, tau);
+    ASSERT_NEAR(f.z(), 5.0 * i / 250.0, 1e-9) << "ramp tick " << i;
+  }
+  EXPECT_EQ(safety.state(), ForceSafety::State::kEngaged);
+}
+
+TEST(ForceSafety, ASilentDeviceIsHeldThenZeroedAfterItsTimeout) {
   SafetyPolicy policy = SafetyPolicy::forHardware();
   policy.ramp_time_s = 0.0;
   ForceSafety safety(falconLikeLimits(), policy, kDofTranslation);
@@ -180,16 +225,17 @@ TEST(ForceSafety, ASilentDeviceIsZeroedAfterItsTimeout) {
       EXPECT_TRUE(f.isZero(0.0)) << "tick " << i;
     }
   }
-  EXPECT_NEAR(zero_from, 50, 1);  // stale for 50 ms (up to rounding of the summed intervals)
+  // Silent once stale for 50 ms (tick 49 or 50, up to rounding of the summed intervals): that
+  // tick is the hold's first, the tenth (10 ms) is zero.
+  EXPECT_NEAR(zero_from, 59, 1);
   EXPECT_EQ(safety.stats().silent_trips, 1u);
-  // It speaks again: the gate waits for a small force.
+  // It speaks again: the output comes back (ramp 0 here) without waiting for a small force.
   safety.step(t.next({0.0, 2.0, 0.0}), f, tau);
-  EXPECT_TRUE(f.isZero(0.0));
-  safety.step(t.next({0.0, 0.1, 0.0}), f, tau);
+  EXPECT_EQ(f, Eigen::Vector3d(0.0, 2.0, 0.0));
   EXPECT_EQ(safety.state(), ForceSafety::State::kEngaged);
 }
 
-TEST(ForceSafety, MissedTicksTripTheWatchdog) {
+TEST(ForceSafety, ALateTickHoldsTheLastCommand) {
   SafetyPolicy policy = SafetyPolicy::forHardware();
   policy.ramp_time_s = 0.0;
   ForceSafety safety(falconLikeLimits(), policy, kDofTranslation);
@@ -199,11 +245,35 @@ TEST(ForceSafety, MissedTicksTripTheWatchdog) {
   safety.step(t.next(Eigen::Vector3d::Zero()), f, tau);
   safety.step(t.next({1.0, 0.0, 0.0}), f, tau);
   ASSERT_EQ(f.x(), 1.0);
-  SafetyInput late = t.next({1.0, 0.0, 0.0});
+  SafetyInput late = t.next({3.0, 0.0, 0.0});  // computed after the stall: not sent
   late.tick_interval_s = 0.015;  // 14 ticks missed (watchdog 10 ms)
+  late.period_s = kTick_s;
   safety.step(late, f, tau);
-  EXPECT_TRUE(f.isZero(0.0));
+  EXPECT_NEAR(f.x(), 0.9, 1e-12);  // the held command, one tick into the hold
   EXPECT_EQ(safety.stats().watchdog_trips, 1u);
+  EXPECT_EQ(safety.state(), ForceSafety::State::kEngaged);
+  safety.step(t.next({3.0, 0.0, 0.0}), f, tau);
+  EXPECT_EQ(f.x(), 3.0);
+  // A stall longer than the silent time (50 ms) is an outage: zero, no hold.
+  SafetyInput stalled = t.next({3.0, 0.0, 0.0});
+  stalled.tick_interval_s = 0.2;
+  safety.step(stalled, f, tau);
+  EXPECT_TRUE(f.isZero(0.0));
+  EXPECT_EQ(safety.stats().outages, 1u);
+}
+
+TEST(ForceSafety, AReseededSampleReArmsTheGate) {
+  SafetyPolicy policy = SafetyPolicy::forHardware();
+  policy.ramp_time_s = 0.0;
+  ForceSafety safety(falconLikeLimits(), policy, kDofTranslation);
+  safety.enable();
+  Ticker t;
+  Eigen::Vector3d f, tau;
+  safety.step(t.next(Eigen::Vector3d::Zero()), f, tau);
+  SafetyInput moved = t.next({0.0, 0.0, 4.0});
+  moved.reseeded = true;
+  safety.step(moved, f, tau);
+  EXPECT_TRUE(f.isZero(0.0));
   EXPECT_EQ(safety.state(), ForceSafety::State::kWaitingForSmallForce);
 }
 
@@ -548,7 +618,17 @@ TEST(HapticThreadSafety, AHundredNewtonsAreRampedAndClampedToTheDeviceMaximum) {
   EXPECT_GT(snap.force_W_N.z(), 0.0);             // pushing the hand out of the sphere
 }
 
-TEST(HapticThreadSafety, ADeviceThatStopsAnsweringGetsZeroForceAtOnce) {
+/// A fault from tick 700 on: the command of tick 699 held, decaying linearly over the 10 ms
+/// hold (SafetyPolicy::fault_hold_s), then zero.
+void expectHeldThenZero(const FaultyDevice& device) {
+  const double pressing = device.force(699);
+  EXPECT_GT(pressing, 1.0);  // pressing, ramping up
+  for (std::uint64_t k = 0; k < 9; ++k)
+    EXPECT_NEAR(device.force(700 + k), (1.0 - 0.1 * static_cast<double>(k + 1)) * pressing, 1e-9) << "hold tick " << k;
+  for (std::uint64_t i = 710; i < 800; ++i) ASSERT_EQ(device.force(i), 0.0) << "tick " << i;
+}
+
+TEST(HapticThreadSafety, ADeviceThatStopsAnsweringIsHeldBrieflyThenGetsZeroForce) {
   auto device = std::make_shared<FaultyDevice>(pressingDevice(), FaultyDevice::Fault::kStopsAnswering, 700);
   auto thread = sphereScene().makeHapticThread(device);
   thread->start();
@@ -556,8 +636,7 @@ TEST(HapticThreadSafety, ADeviceThatStopsAnsweringGetsZeroForceAtOnce) {
   HapticSnapshot snap;
   thread->latestSnapshot(snap);
   thread->stop();
-  EXPECT_GT(device->force(699), 1.0);  // pressing, ramping up
-  for (std::uint64_t i = 700; i < 800; ++i) ASSERT_EQ(device->force(i), 0.0) << "tick " << i;
+  expectHeldThenZero(*device);
   EXPECT_EQ(snap.force_W_N, Eigen::Vector3d::Zero());
   EXPECT_GE(snap.bad_device_samples, 100u);
 }
@@ -583,7 +662,7 @@ TEST(HapticThreadSafety, ASilentDeviceGetsZeroForceAfterItsTimeout) {
   for (std::uint64_t i = first_zero; i < 900; ++i) ASSERT_EQ(device->force(i), 0.0) << "tick " << i;
 }
 
-TEST(HapticThreadSafety, ANaNPoseGetsZeroForceAtOnce) {
+TEST(HapticThreadSafety, ANaNPoseIsNeverRenderedHeldBrieflyThenZero) {
   auto device = std::make_shared<FaultyDevice>(pressingDevice(), FaultyDevice::Fault::kNaNPose, 700);
   auto thread = sphereScene().makeHapticThread(device);
   thread->start();
@@ -591,8 +670,8 @@ TEST(HapticThreadSafety, ANaNPoseGetsZeroForceAtOnce) {
   HapticSnapshot snap;
   thread->latestSnapshot(snap);
   thread->stop();
-  EXPECT_GT(device->force(699), 1.0);
-  for (std::uint64_t i = 700; i < 800; ++i) ASSERT_EQ(device->force(i), 0.0) << "tick " << i;
+  expectHeldThenZero(*device);
+  EXPECT_GE(snap.implausible_samples, 90u);
   EXPECT_TRUE(snap.force_W_N.allFinite());
   EXPECT_TRUE(snap.X_WP.allFinite());
 }

@@ -4,10 +4,12 @@
 // pulls in a VTK or Qt header fails the build.
 #include "vh/runtime/device.h"
 #include "vh/runtime/haptic_thread.h"
+#include "vh/runtime/passivity_port.h"
 #include "vh/runtime/placement.h"
 #include "vh/runtime/recording.h"
 #include "vh/runtime/replay.h"
 #include "vh/runtime/runner.h"
+#include "vh/runtime/sample_filter.h"
 #include "vh/runtime/scene.h"
 #include "vh/runtime/session.h"
 #include "vh/runtime/session_metadata.h"

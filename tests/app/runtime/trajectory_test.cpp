@@ -4,6 +4,8 @@
 #include "vh/runtime/trajectory.h"
 
 #include <cmath>
+#include <filesystem>
+#include <limits>
 #include <random>
 #include <sstream>
 
@@ -65,6 +67,58 @@ TEST(TrajectoryCsvErrors, NameSourceAndLine) {
   VH_EXPECT_THROW_WITH(parse("time,x,y,z,qw,qx,qy,qz\n"), std::runtime_error, "t.csv:1: header must be");
   VH_EXPECT_THROW_WITH(parse("# nothing\n\n"), std::runtime_error, "t.csv: no samples");
   VH_EXPECT_THROW_WITH(loadTrajectoryCsv("/no/such/t.csv"), std::runtime_error, "/no/such/t.csv", "not found");
+}
+
+TEST(TrajectoryCsv, TheNinthColumnGivesTheIsovalueBlankMeansTheScenes) {
+  const Trajectory t = parse(
+      "t_s,x_m,y_m,z_m,qw,qx,qy,qz,isovalue\n"
+      "0,0,0,0,1,0,0,0,\n"
+      "1,0,0,0,1,0,0,0,500\n"
+      "2,0,0,0,1,0,0,0,-250.5\n");
+  ASSERT_EQ(t.size(), 3u);
+  EXPECT_TRUE(std::isnan(t.samples()[0].isovalue));
+  EXPECT_EQ(t.samples()[1].isovalue, 500.0);
+  EXPECT_EQ(t.samples()[2].isovalue, -250.5);
+  EXPECT_TRUE(t.hasIsovalues());
+  // Linear between keys; the blank key counts as the fallback (the scene's isovalue, here 100).
+  EXPECT_DOUBLE_EQ(t.isovalueAt(0.0, 100.0), 100.0);
+  EXPECT_DOUBLE_EQ(t.isovalueAt(0.5, 100.0), 300.0);
+  EXPECT_DOUBLE_EQ(t.isovalueAt(1.5, 100.0), 124.75);
+  EXPECT_DOUBLE_EQ(t.isovalueAt(9.0, 100.0), -250.5);
+  EXPECT_DOUBLE_EQ(t.isovalueAt(-1.0, 100.0), 100.0);
+  // The 8-column form has none: always the fallback.
+  const Trajectory eight = parse("t_s,x_m,y_m,z_m,qw,qx,qy,qz\n0,0,0,0,1,0,0,0\n1,0,0,0,1,0,0,0\n");
+  EXPECT_FALSE(eight.hasIsovalues());
+  EXPECT_DOUBLE_EQ(eight.isovalueAt(0.5, 7.0), 7.0);
+  // Without a header, rows of 8 and 9 values mix.
+  const Trajectory mixed = parse("0,0,0,0,1,0,0,0\n1,0,0,0,1,0,0,0,3\n");
+  EXPECT_DOUBLE_EQ(mixed.isovalueAt(1.0, 0.0), 3.0);
+}
+
+TEST(TrajectoryCsvErrors, BadIsovaluesAndColumnCountsNameTheLine) {
+  VH_EXPECT_THROW_WITH(parse("t_s,x_m,y_m,z_m,qw,qx,qy,qz,isovalue\n0,0,0,0,1,0,0,0,1\n1,0,0,0,1,0,0,0,abc\n"),
+                       std::runtime_error, "t.csv:3: column isovalue: 'abc' is not a number");
+  VH_EXPECT_THROW_WITH(parse("0,0,0,0,1,0,0,0,inf\n"), std::runtime_error, "t.csv:1: column isovalue: value is not finite");
+  VH_EXPECT_THROW_WITH(parse("t_s,x_m,y_m,z_m,qw,qx,qy,qz\n0,0,0,0,1,0,0,0,5\n"), std::runtime_error,
+                       "t.csv:2: expected 8 comma-separated values", "as the header says", "found 9");
+  VH_EXPECT_THROW_WITH(parse("t_s,x_m,y_m,z_m,qw,qx,qy,qz,isovalue\n\n0,0,0,0,1,0,0,0\n"), std::runtime_error,
+                       "t.csv:3: expected 9 comma-separated values", "found 8");
+  VH_EXPECT_THROW_WITH(parse("0,0,0,0,1,0,0,0,1,2\n"), std::runtime_error, "t.csv:1: expected 8 or 9", "found 10");
+  VH_EXPECT_THROW_WITH(parse("t_s,x_m,y_m,z_m,qw,qx,qy,qz,iso\n"), std::runtime_error, "t.csv:1: header must be",
+                       "isovalue");
+}
+
+TEST(TrajectoryCsv, IsovaluesRoundTrip) {
+  std::vector<TrajectorySample> samples;
+  samples.push_back({0.0, Pose::Identity(), std::numeric_limits<double>::quiet_NaN()});
+  samples.push_back({0.5, Pose::Identity(), 0.1 + 0.2});
+  const Trajectory original(samples);
+  const std::filesystem::path path = test::scratchDir() / "iso.csv";
+  writeTrajectoryCsv(original, path);
+  const Trajectory back = loadTrajectoryCsv(path);
+  ASSERT_EQ(back.size(), 2u);
+  EXPECT_TRUE(std::isnan(back.samples()[0].isovalue));
+  EXPECT_EQ(back.samples()[1].isovalue, 0.1 + 0.2);  // bit for bit
 }
 
 TEST(TrajectoryCsv, WriteReadRoundTripIsExact) {

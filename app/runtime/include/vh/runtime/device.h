@@ -15,6 +15,7 @@
 /// Hardware drivers live in vh::devices (app/devices/); this header knows no hardware.
 
 #include <atomic>
+#include <cmath>
 #include <cstdint>
 #include <limits>
 #include <memory>
@@ -67,7 +68,40 @@ struct DeviceLimits {
   double max_angular_stiffness_Nm_per_rad = kUnbounded; ///< Stable at 1 kHz [N*m/rad].
   double max_linear_damping_N_s_per_m = kUnbounded;     ///< [N*s/m].
   double workspace_radius_m = kUnbounded;               ///< Radius of the reachable ball [m].
+  /// Centre of the reachable ball, in the frame of the samples [m] (B's origin for a hardware
+  /// driver; p_WB for a MappedDevice).
+  Eigen::Vector3d workspace_centre_m = Eigen::Vector3d::Zero();
+  /// Fastest the handle's origin can move [m/s]: a sample farther from the last good one than
+  /// this speed allows is a glitch (SampleFilter). Default kHandleMaxSpeed_m_per_s; hardware
+  /// drivers state their model's (README, "Implausible device samples").
+  double max_speed_m_per_s = kHandleMaxSpeed_m_per_s;
+  /// Fastest the handle can turn [rad/s]; default kHandleMaxAngularSpeed_rad_per_s.
+  double max_angular_speed_rad_per_s = kHandleMaxAngularSpeed_rad_per_s;
+
+  /// [estimate] The default speed limit [m/s], for devices that state none (simulated,
+  /// scripted): about handleMaxSpeed_m_per_s() of the Falcon (4.9 m/s), the device the
+  /// simulated one stands in for. Hardware drivers state their model's.
+  static constexpr double kHandleMaxSpeed_m_per_s = 5.0;
+  /// [estimate] The default angular speed limit [rad/s]: fast wrist rotations peak at about
+  /// 10-15 rad/s (600-900 deg/s); twice that.
+  static constexpr double kHandleMaxAngularSpeed_rad_per_s = 30.0;
 };
+
+/// [estimate] The hand's own top speed with a grounded handle [m/s]: fast, deliberate arm
+/// movements peak at about 2 m/s at the hand.
+inline constexpr double kHandSpeed_m_per_s = 2.0;
+
+/// [estimate] The fastest a grounded haptic handle can move [m/s]: the hand's speed
+/// (kHandSpeed_m_per_s) plus what the device's own peak force F [N] gives its moving mass m [kg]
+/// released across its workspace (diameter 2 r [m]): sqrt(4 F r / m) (uniform acceleration
+/// F / m over 2 r). E.g. the Falcon (8 N, r 0.04 m, 0.15 kg): 2 + 2.9 = 4.9 m/s. The moving
+/// masses are app/simulation device_catalog.cpp's. Non-positive inputs: kHandSpeed_m_per_s.
+inline double handleMaxSpeed_m_per_s(double max_force_N, double workspace_radius_m, double moving_mass_kg) noexcept {
+  const double a = max_force_N > 0.0 && workspace_radius_m > 0.0 && moving_mass_kg > 0.0
+                       ? 4.0 * max_force_N * workspace_radius_m / moving_mass_kg
+                       : 0.0;
+  return kHandSpeed_m_per_s + (a > 0.0 && a < std::numeric_limits<double>::infinity() ? std::sqrt(a) : 0.0);
+}
 
 /// How the safety layer (ForceSafety) engages and watches a device. Defaults disable every
 /// gate: they fit devices without a hand on them (simulated, scripted); hardware drivers return
@@ -80,15 +114,24 @@ struct SafetyPolicy {
   double engage_torque_Nm = kNever;  ///< [N*m]; infinity: engage at once.
   /// Once engaged, the output is scaled from 0 to 1 linearly over this time [s]; 0: no ramp.
   double ramp_time_s = 0.0;
-  /// A tick that starts more than this after the previous one (missed ticks) zeroes the output
-  /// and re-arms the engage gate [s]; infinity: never.
+  /// A tick that starts more than this after the previous one (the loop stalled) is a fault
+  /// tick: the device held the last command through the gap, and this tick holds it again
+  /// (fault_hold_s) instead of commanding a force computed after the stall [s]; a stall longer
+  /// than silent_s is an outage (re-arm, see fault_hold_s). Infinity: never.
   double watchdog_s = kNever;
-  /// A device whose valid samples keep the same time_s for longer than this is silent: the
-  /// output is zeroed and the gate re-armed [s]; infinity: never.
+  /// A device whose valid samples keep the same time_s for longer than this is silent: its
+  /// ticks are fault ticks (held and decayed, fault_hold_s) [s]; infinity: never.
   double silent_s = kNever;
+  /// A short fault (a tick without a usable sample, a late tick) holds the last good command and
+  /// decays it linearly to zero over this much servo time [s] (each fault tick ages the hold by
+  /// one nominal period: after one missed tick at 1 kHz 90 % is left, after 5 ms 50 %). When
+  /// the hold has decayed to zero the layer re-arms for an outage: once good ticks return the
+  /// output ramps up from zero over ramp_time_s, with no engage gate. 0: zero at once.
+  double fault_hold_s = kDefaultFaultHold_s;
+  static constexpr double kDefaultFaultHold_s = 0.010;
 
   /// Hardware defaults: engage below 0.3 N and 0.02 N*m, 0.25 s ramp, 10 ms watchdog (10 missed
-  /// ticks at 1 kHz), silent after 50 ms without a new sample.
+  /// ticks at 1 kHz), silent after 50 ms without a new sample, 10 ms fault hold.
   static SafetyPolicy forHardware() noexcept {
     SafetyPolicy p;
     p.engage_force_N = 0.3;
@@ -173,21 +216,33 @@ struct SafetyInput {
   bool sample_ok = false;        ///< read() succeeded with a valid sample and a finite pose.
   double sample_time_s = 0.0;    ///< The sample's DeviceSample::time_s.
   std::uint32_t connection = 0;  ///< The sample's DeviceSample::connection.
+  /// SampleFilter re-seeded on this sample (the device is somewhere else than its last good
+  /// sample said): the engage gate re-arms as for a new connection.
+  bool reseeded = false;
   double tick_interval_s = 0.0;  ///< Wall time since the previous tick started [s].
+  /// The servo loop's nominal period [s], the age one fault tick adds to a hold
+  /// (SafetyPolicy::fault_hold_s); 0: tick_interval_s.
+  double period_s = 0.0;
   Eigen::Vector3d force_W_N = Eigen::Vector3d::Zero();    ///< Computed force [N] in W.
   Eigen::Vector3d torque_W_Nm = Eigen::Vector3d::Zero();  ///< Computed torque [N*m] in W.
 };
 
-/// The one safety layer between the renderer and every device (used by HapticThread). Per tick,
-/// in this order:
-///   1. watchdog: no usable sample, a silent device (SafetyPolicy::silent_s), a late tick
-///      (SafetyPolicy::watchdog_s) or a new connection zero the output and re-arm the gate;
-///   2. a non-finite force or torque is never sent: zero output, gate re-armed;
+/// The one safety layer between the renderer and every device (used by HapticThread and the
+/// headless runner). Per tick, in this order:
+///   1. a new connection (the hand may be anywhere) or a non-finite force or torque: zero
+///      output, engage gate re-armed;
+///   2. fault tick: no usable sample (missing, or rejected by SampleFilter), a silent device
+///      (SafetyPolicy::silent_s) or a late tick (SafetyPolicy::watchdog_s): the last good
+///      command is held and decays linearly to zero over SafetyPolicy::fault_hold_s (the wall a
+///      hand presses on stays); once it has decayed to zero, or after a stall longer than
+///      silent_s, the layer re-arms for an outage: good ticks then ramp the output up from the
+///      held value (zero) over ramp_time_s, without waiting for the hand to let go;
 ///   3. degrees of freedom the device does not actuate are dropped (torque of a 3-DOF device);
-///   4. engage gate: after enable() or a re-arm, the output stays zero until the computed force
-///      and torque are small (SafetyPolicy::engage_force_N / engage_torque_Nm);
+///   4. engage gate: after enable() or a gate re-arm, the output stays zero until the computed
+///      force and torque are small (SafetyPolicy::engage_force_N / engage_torque_Nm);
 ///   5. clamp |force| and |torque| to DeviceLimits (direction kept);
-///   6. ramp: once engaged the output is scaled up linearly over SafetyPolicy::ramp_time_s.
+///   6. ramp: once engaged the output goes linearly from the value it starts from (zero, or the
+///      held value after an outage) to the computed one over SafetyPolicy::ramp_time_s.
 /// step() never allocates, blocks or throws; every output is finite and within the limits.
 class ForceSafety {
  public:
@@ -206,6 +261,8 @@ class ForceSafety {
     std::uint64_t missing_samples = 0;     ///< Ticks without a usable sample.
     std::uint64_t silent_trips = 0;        ///< Times the device was found silent.
     std::uint64_t watchdog_trips = 0;      ///< Late ticks (missed ticks).
+    std::uint64_t held_ticks = 0;          ///< Fault ticks that sent the held, decaying command.
+    std::uint64_t outages = 0;             ///< Re-arms after an outage (hold decayed or long stall).
     std::uint64_t dropped_dof_ticks = 0;   ///< Ticks with a non-zero force/torque the device cannot render.
   };
 
@@ -236,6 +293,12 @@ class ForceSafety {
   void rearm() noexcept;
 
   DeviceLimits limits_;
+  Eigen::Vector3d held_force_W_N_ = Eigen::Vector3d::Zero();    // the last good tick's output
+  Eigen::Vector3d held_torque_W_Nm_ = Eigen::Vector3d::Zero();
+  Eigen::Vector3d ramp_from_force_W_N_ = Eigen::Vector3d::Zero();  // where the ramp starts
+  Eigen::Vector3d ramp_from_torque_W_Nm_ = Eigen::Vector3d::Zero();
+  double hold_age_s_ = 0.0;  // servo time the current hold has decayed for
+  bool outage_ = false;      // re-armed for an outage: the hold is spent
   SafetyPolicy policy_;
   DofMask actuated_ = kDofAll;
   State state_ = State::kOff;

@@ -5,11 +5,14 @@
 /// virtual coupling runs on a thread of its own):
 ///
 ///   * the **coupling thread**, at the device's rate (`servo_rate_Hz`, 1 kHz by default; e.g.
-///     4 kHz): reads the device, applies the GUI's gains (clamped to the device's stable
+///     4 kHz): reads the device and tests the sample (SampleFilter: a glitch faster than the
+///     device moves, outside its workspace or not finite is no sample: never coupled to, never
+///     handed to the solver), applies the GUI's gains (clamped to the device's stable
 ///     stiffness) and isovalue, hands the sample to the solver, takes the latest proxy pose the
 ///     solver published, computes the wrench with its own haptics::VirtualCoupling (eq. 5, the
 ///     same code and gains as the renderer's step 6), applies the stop ramp (~50 ms) and the
-///     safety layer (ForceSafety) and commands the device. It never waits for the solver: when
+///     safety layer (ForceSafety: a tick without a usable sample holds the last good command,
+///     decaying over SafetyPolicy::fault_hold_s) and commands the device. It never waits for the solver: when
 ///     the solver is late the coupling keeps rendering the spring to the last proxy pose.
 ///   * the **solver thread**, at the solver rate (HapticThreadOptions::solver_rate_Hz; by
 ///     default the device's), runs HapticRenderer::tick() (steps 1-6 of section 2.1) on the
@@ -97,6 +100,13 @@ struct HapticSnapshot {
   ThreadTiming solver;                    ///< The solver (HapticRenderer::tick()) thread.
   /// Device reads without a usable sample plus device poses the renderer rejected (total).
   std::uint64_t bad_device_samples = 0;
+  /// Of bad_device_samples: samples the coupling thread rejected before computing any force
+  /// from them (SampleFilter: faster than the device moves, outside its workspace, not finite);
+  /// never rendered, never handed to the solver (total).
+  std::uint64_t implausible_samples = 0;
+  /// Coupling ticks that held the last good command, decaying, through a short fault
+  /// (SafetyPolicy::fault_hold_s; total).
+  std::uint64_t held_ticks = 0;
   /// Device samples the solver never used: it runs slower than the device, or fell more than
   /// HapticThreadOptions::max_solver_backlog_s behind (total).
   std::uint64_t skipped_samples = 0;
@@ -177,7 +187,8 @@ class HapticThread {
   /// {"linear_N_per_m": k, "angular_Nm_per_rad": k_r, "passivity_control": b, "requested": {...}}.
   /// With passivity_control on, the coupling thread runs a time-domain passivity controller
   /// (haptics/passivity_controller.h) on its force and on its torque, after the coupling and
-  /// before the stop ramp and the safety layer. Not on a haptic thread.
+  /// before the stop ramp and the safety layer; a gain change keeps the controllers' state and
+  /// the rendered stiffness continuous (PassivityPort). Not on a haptic thread.
   void setGains(const haptics::CouplingGains& gains) noexcept;
 
   /// Records every solver tick from the next one on into `recorder` (one TickRecord per solver

@@ -23,6 +23,7 @@
 #include <Eigen/Core>
 
 #include "vh/haptics/pose.h"
+#include "vh/runtime/device.h"
 #include "vh/runtime/scene.h"
 #include "vh/runtime/trajectory.h"
 
@@ -37,16 +38,29 @@ struct RunOptions {
   /// voxel side; see haptics::CrossingVerifier); 0 turns the check off (the report's crossing
   /// fields are then -1, null in JSON: not checked). Outside the timed section.
   double verify_step_voxels = 0.01;
-  /// Non-empty: also write one CSV row per tick here (t_s, device and proxy positions [m],
-  /// force [N], torque [N*m], contacts, exec_us, penetration_m, proxy quaternion, time of
-  /// contact, crossing_points: -1 when not checked) for inspecting a run.
+  /// Non-empty: also write one CSV row per tick here for inspecting a run: tick, t_s, the device
+  /// position as read (rendered only when `sample` says good or reseeded) and the proxy's [m], the renderer's force fx_N.. [N]
+  /// and torque tx_Nm.. [N*m], contacts, exec_us, penetration_m, proxy quaternion, time of
+  /// contact, crossing_points (-1 when not checked or the sample was not rendered), the command
+  /// the device got after the plausibility test and the safety layer cmd_fx_N.. [N] and
+  /// cmd_tx_Nm.. [N*m], sample (good, missing, implausible, reseeded: SampleFilter), isovalue
+  /// (requested that tick) and felt_isovalue (rendered; the requested one until the renderer
+  /// reports it).
   std::filesystem::path trace_csv;
   /// Non-empty: also write a session recording (recording.h) here: makeSessionMetadata() with
   /// the trajectory's first pose as the initial pose and device kind "scripted", one TickRecord
   /// per tick (tick i + 1, time_s = i / servo_rate_Hz, tick_time_s = the renderer's exec time;
-  /// no safety layer, so forces are the renderer's), and the events the writer derives. Replays
+  /// forces are the renderer's, before the safety layer; a sample SampleFilter rejected is
+  /// recorded as a bad sample at the last good pose), and the events the writer derives. Replays
   /// bit for bit with replayRecording() (default RendererOptions, as the runner uses).
   std::filesystem::path record;
+  /// The scripted device's limits and safety policy, e.g. to stand in for a hardware device
+  /// (defaults: a device without hardware; DeviceLimits' default speed limits apply). The
+  /// samples pass the same plausibility test (SampleFilter) and the commands the same safety
+  /// layer (ForceSafety) as on the coupling thread.
+  DeviceLimits device_limits;
+  SafetyPolicy safety_policy;
+  DofMask actuated_dof = kDofAll;
   std::string record_note;  ///< SessionInfo::note of the recording.
   /// The price of the work budget (issue 13): also run the same samples through a renderer
   /// without it (outside the timed section) and report how far and how long the budgeted proxy
@@ -128,7 +142,12 @@ struct RunReport {
   std::int64_t crossing_points = -1;     ///< Sum over ticks of the points that crossed.
   std::int64_t first_crossing_tick = -1; ///< First tick with a crossing; -1: none (or not checked).
   double verify_s = 0.0;                 ///< Time spent in the crossing check [s] (in total_s).
-  std::uint64_t bad_device_samples = 0;  ///< Samples the renderer rejected.
+  std::uint64_t bad_device_samples = 0;  ///< Samples not rendered (implausible) or the renderer rejected.
+  /// Of those, samples SampleFilter rejected: faster than the device moves, outside its
+  /// workspace, not finite.
+  std::uint64_t implausible_samples = 0;
+  std::uint64_t held_ticks = 0;          ///< Ticks the safety layer held the last good command.
+  double max_command_force_N = 0.0;      ///< Largest |force| commanded (after the safety layer) [N].
   int initial_points_inside = 0;         ///< Shell points inside at the first proxy pose.
   double final_force_N = 0.0;            ///< |force| on the last tick.
   double final_proxy_device_distance_m = 0.0;  ///< |p_P - p_D| (tool origins) on the last tick.

@@ -37,6 +37,10 @@ struct CouplingSnapshot {
   Eigen::Vector3d force_W_N = Eigen::Vector3d::Zero();    ///< Commanded force on the hand in W [N].
   Eigen::Vector3d torque_W_Nm = Eigen::Vector3d::Zero();  ///< Commanded torque on the hand in W [N*m].
   std::uint64_t bad_samples = 0;   ///< Device reads without a usable sample (total).
+  /// Of those, samples SampleFilter rejected as implausible: a jump faster than the device
+  /// moves, a pose outside its workspace, a non-finite pose (total).
+  std::uint64_t implausible_samples = 0;
+  std::uint64_t held_ticks = 0;    ///< Fault ticks that sent the held, decaying command (total).
   /// Passivity control (CouplingGains::passivity_control): port-ticks on which a controller
   /// damped (force and torque ports counted apart), and the energy it took out as predicted when
   /// applied [J]; totals since start().

@@ -5,13 +5,17 @@
 /// rotation), and generated in code for scripted tests ("push into the surface and slide").
 ///
 /// CSV format (one header line optional, '#' comment lines and blank lines ignored):
-///   t_s,x_m,y_m,z_m,qw,qx,qy,qz
+///   t_s,x_m,y_m,z_m,qw,qx,qy,qz[,isovalue]
 /// t_s strictly increasing [s]; (x, y, z) = origin of the device frame D in W [m]; (qw..qz) the
-/// rotation R_WD as a quaternion (normalised on load; it must not be zero).
+/// rotation R_WD as a quaternion (normalised on load; it must not be zero); isovalue, optional,
+/// the isovalue the headless run asks the renderer for at that key (data units; a blank field
+/// or an 8-column row: the scene's). A header names either the 8 or the 9 columns, and then
+/// every row has that many fields; without a header a row may have 8 or 9.
 
 #include <cstddef>
 #include <filesystem>
 #include <iosfwd>
+#include <limits>
 #include <string>
 #include <vector>
 
@@ -27,6 +31,8 @@ namespace vh::runtime {
 struct TrajectorySample {
   double t_s = 0.0;     ///< Time [s].
   haptics::Pose X_WD;   ///< Device pose in W [m], unit quaternion.
+  /// Isovalue requested at this key (data units); NaN: none (the scene's).
+  double isovalue = std::numeric_limits<double>::quiet_NaN();
 };
 
 /// A piecewise-linear (slerp for rotation) device trajectory; immutable once built.
@@ -36,7 +42,8 @@ class Trajectory {
   /// @param samples (n >= 1) key poses with strictly increasing, finite times; quaternions are
   ///        normalised.
   /// @throws std::invalid_argument for no samples, non-increasing or non-finite times, a
-  ///         non-finite pose or a zero quaternion (the message gives the sample's index).
+  ///         non-finite pose, a zero quaternion or an infinite isovalue (NaN is "none") (the
+  ///         message gives the sample's index).
   explicit Trajectory(std::vector<TrajectorySample> samples);
 
   bool empty() const noexcept { return samples_.empty(); }
@@ -51,6 +58,12 @@ class Trajectory {
   haptics::Pose poseAt(double t_s) const noexcept;
   /// Same, with a segment hint `cursor` (updated) that makes monotonic access O(1) amortised.
   haptics::Pose poseAt(double t_s, std::size_t& cursor) const noexcept;
+  /// Whether any key requests an isovalue.
+  bool hasIsovalues() const noexcept;
+  /// Isovalue requested at time t [s] (data units): linear between the two keys around t, a
+  /// key without one counting as `fallback` (the scene's); clamped to the first / last key
+  /// outside [start, end]; `fallback` for an empty trajectory. O(log n); allocation free.
+  double isovalueAt(double t_s, double fallback) const noexcept;
 
  private:
   haptics::Pose interpolate(std::size_t segment, double t_s) const noexcept;
@@ -58,16 +71,18 @@ class Trajectory {
 };
 
 /// Parses trajectory CSV text; `source_name` (usually the file name) prefixes every error.
-/// @throws std::runtime_error "SOURCE:LINE: problem" for a wrong column count, a value that is
-///         not a number, a time that does not increase, a zero quaternion; "SOURCE: no samples"
-///         for an empty file.
+/// @throws std::runtime_error "SOURCE:LINE: problem" for a header that names other columns, a
+///         wrong column count, a value that is not a number or not finite (naming the column),
+///         a time that does not increase, a zero quaternion; "SOURCE: no samples" for an empty
+///         file.
 Trajectory parseTrajectoryCsv(std::istream& in, const std::string& source_name);
 
 /// Reads a trajectory CSV file.
 /// @throws std::runtime_error naming the file: missing/unreadable file, or as parseTrajectoryCsv.
 Trajectory loadTrajectoryCsv(const std::filesystem::path& path);
 
-/// Writes a trajectory as CSV with a header line (17 significant digits: lossless round trip).
+/// Writes a trajectory as CSV with a header line (17 significant digits: lossless round trip);
+/// the ninth column (isovalue, blank where a key has none) only when hasIsovalues().
 /// @throws std::runtime_error naming the file when it cannot be written.
 void writeTrajectoryCsv(const Trajectory& trajectory, const std::filesystem::path& path);
 
