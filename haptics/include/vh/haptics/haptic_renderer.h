@@ -85,8 +85,10 @@ struct RendererOptions {
   /// kPaper (the paper's algorithm as published). Off by default until it shares the work
   /// budget (its cost is not yet bounded: see haptics/README.md, "Between the points").
   int edge_test = 0;
-  /// Largest device translation accepted from one tick to the next [m]; farther jumps and
-  /// device poses farther than this from the volume are treated as bad input (zero force).
+  /// Largest distance accepted between the device pose and the proxy [m]; a device farther
+  /// from the proxy is treated as bad input (zero force, the proxy stays). A last line only:
+  /// implausible jumps between samples are rejected before the renderer, at the coupling
+  /// thread (runtime's SampleFilter, with each device's speed limit).
   double max_device_distance_m = 10.0;
 };
 
