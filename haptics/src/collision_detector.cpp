@@ -332,9 +332,11 @@ double CollisionDetector::stepSegment(const RigidMotion& motion, int j, std::int
     lo = entry.u_outside >= 1.0 ? t_end : t_begin + entry.u_outside * span;
     hi = entry.u_inside >= 1.0 ? t_end : t_begin + entry.u_inside * span;
     // A rotating point's hit may be the bubble's alone (a contact resting on the surface and
-    // turning along it: its chord dips under the arc by the sagitta). Confirm it on finer
-    // chords over [t_begin, hi]: none of them hitting proves the arc free there.
-    if (sagitta_[j] > 0.0) {
+    // turning along it: its chord dips under the arc by the sagitta). When the arc itself is
+    // inside at the bracket's inside end, the hit is real (the arc is free up to its outside
+    // end): one sample. Otherwise confirm it on finer chords over [t_begin, hi]: none of them
+    // hitting proves the arc free there.
+    if (sagitta_[j] > 0.0 && (++samples_, !volume_->isInside(motion.pointAt(r0_[j], hi), isovalue))) {
       const double t_limit = result.t >= t_end ? t_end : result.t;
       if (!refineArcEntry(motion, j, t_begin, t_end, sagitta_[j], isovalue, t_limit, kArcRefinements, lo, hi))
         return t_end;

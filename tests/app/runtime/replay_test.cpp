@@ -32,10 +32,10 @@ namespace fs = std::filesystem;
 /// History: 0xe15ea5f027d7d0c8 with epsilon f / 4; 0xb895b7cddfa47c21 since the default epsilon
 /// became f / 8 (chosen by `volume-haptics bench accuracy`); 0xfc8cdc0c6234c5cb since issue 13's
 /// defaults (work budget, 64-contact cap, 4 mm per tick, warm-started projection);
-/// 0x7f68018b57bf316a since a hit stops epsilon / 128 of travel before its bracket, arc hits are
+/// 0x28159a4d3b72d906 since a hit stops epsilon / 128 of travel before its bracket, arc hits are
 /// confirmed on finer chords with local Lipschitz bounds, and the coupling tracks the relative
 /// rotation past pi.
-constexpr std::uint64_t kPinnedPaperSessionHash = 0x7f68018b57bf316aull;
+constexpr std::uint64_t kPinnedPaperSessionHash = 0x28159a4d3b72d906ull;
 constexpr std::size_t kSessionTicks = 10000;
 constexpr std::uint64_t kIsovalueChangeTick = 5000;
 constexpr double kChangedIsovalue = 1.0;  // the sphere's F is in mm: its surface moves 1 mm in
