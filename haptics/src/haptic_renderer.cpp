@@ -176,8 +176,9 @@ TickOutput HapticRenderer::tick(const Pose& X_WD_in, double requested_isovalue) 
     out.stats.budget_cut = hit.budget_cut;
     out.stats.time_of_contact = t;
   } else {
-    // A new isovalue moves the surface under the proxy: points it swallowed are embedded and
-    // released once outside again (see haptics/README.md, "Isovalue changes").
+    // A new felt isovalue, or a reset: points inside (only after a reset or at the first pose;
+    // a lowered isovalue is deferred for the hand, see above) are embedded and released once
+    // outside again (see haptics/README.md, "Isovalue changes").
     if (embedded_scan_needed_ || isovalue != last_isovalue_) {
       collision_.updateEmbedded(X_WP_, isovalue);
       last_isovalue_ = isovalue;
