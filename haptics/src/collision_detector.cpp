@@ -6,6 +6,7 @@
 #include <limits>
 #include <stdexcept>
 #include <string>
+#include <vector>
 
 namespace vh::haptics {
 namespace {
@@ -85,6 +86,7 @@ CollisionDetector::CollisionDetector(const ScalarVolume& volume, const ToolModel
     backoff_.assign(n, 0);
     clear_segments_.assign(n, 0);
     active_.resize(n);
+    setLanesPartition(1);
   }
   candidate_.resize(n);
   setup_work_ = std::max<std::int64_t>(1, static_cast<std::int64_t>(n) / 5000);
@@ -104,7 +106,7 @@ bool CollisionDetector::edgeCrosses(const Pose& X_WP, int j, double isovalue) no
   // two points); a wall that passes through the tool is found all the same.
   const bool inset = tool_->point_shell.hasNormals();
   const auto end = [&](int i) {
-    ++samples_;
+    ++counters_.samples;
     const Eigen::Vector3d p_T = inset ? Eigen::Vector3d(points[i] - epsilon_ * tool_->point_shell.normals_T()[i]) : points[i];
     return volume_->gridCoordinates(X_WP * p_T);
   };
@@ -115,8 +117,8 @@ bool CollisionDetector::edgeCrosses(const Pose& X_WP, int j, double isovalue) no
     const Eigen::Vector3d b = end(k);
     // Only whether it enters: a coarse bracket is enough.
     const SegmentEntry entry = volume_->firstEntryOnSegment(a, b, isovalue, 1.0, 0.5);
-    cells_ += entry.cells;
-    cells_walked_ += entry.cells_walked;
+    counters_.cells += entry.cells;
+    counters_.cells_walked += entry.cells_walked;
     if (entry.hit) {
       return true;
     }
@@ -132,7 +134,7 @@ bool CollisionDetector::edgesCrossAt(const Pose& X_WP, double isovalue) noexcept
     stack_[top++] = 0;
     while (top > 0) {
       const ShellNode& node = nodes_[stack_[--top]];
-      if (!ballMayBeInside(X_WP * node.center_T_m, (node.radius_m + edges_.max_length_m) * (1.0 + 1e-9) + 1e-12, isovalue))
+      if (!ballMayBeInside(counters_, X_WP * node.center_T_m, (node.radius_m + edges_.max_length_m) * (1.0 + 1e-9) + 1e-12, isovalue))
         continue;
       if (node.left >= 0) {
         stack_[top++] = node.right;
@@ -177,45 +179,45 @@ int CollisionDetector::buildShellTree(int begin, int end, int depth) {
   return index;
 }
 
-bool CollisionDetector::ballMayBeInside(const Eigen::Vector3d& center_W_m, double radius_m, double isovalue,
-                                        double arc_sagitta_m) noexcept {
-  ++box_queries_;
+bool CollisionDetector::ballMayBeInside(WorkCounters& k, const Eigen::Vector3d& center_W_m, double radius_m,
+                                        double isovalue, double arc_sagitta_m) const noexcept {
+  ++k.box_queries;
   const Eigen::Vector3d g = volume_->gridCoordinates(center_W_m);
   // A W ball maps to an ellipsoid with half-axes radius / spacing along the grid axes (the
   // direction matrix is orthonormal); 1e-6 voxel covers the rounding of both paths.
   const Eigen::Vector3d half = (radius_m * grid_per_m_).array() + 1e-6;
   int nodes_read = 0;
   bool may_be_inside = volume_->upperBoundInBox(g - half, g + half, &nodes_read, arc_sagitta_m) > isovalue;
-  tree_nodes_ += nodes_read;
+  k.tree_nodes += nodes_read;
   if (may_be_inside && arc_sagitta_m > 0.0) {
     // The arc is within one cell of the ball: no voxel there above the isovalue also proves it
     // empty (as the segment test's own second criterion), where the Lipschitz bubble of a wild
     // outlier (a -3e38 "no data" border) cannot.
-    ++box_queries_;
+    ++k.box_queries;
     may_be_inside = volume_->upperBoundInBox(g - half - Eigen::Vector3d::Ones(), g + half + Eigen::Vector3d::Ones(),
                                              &nodes_read) > isovalue;
-    tree_nodes_ += nodes_read;
+    k.tree_nodes += nodes_read;
   }
   return may_be_inside;
 }
 
-bool CollisionDetector::runMayHit(const RigidMotion& motion, int j, std::int64_t k, std::int64_t run,
-                                  double isovalue) noexcept {
+bool CollisionDetector::runMayHit(WorkCounters& w, const RigidMotion& motion, int j, std::int64_t k,
+                                  std::int64_t run, double isovalue) noexcept {
   // The run's points stay within half its path-length bound of its mid-time position.
   const std::int64_t total = segments_[j];
   const double t0 = segmentBegin(j, k);
   const double t1 = k + run >= total ? 1.0 : static_cast<double>(k + run) * dt_[j];
   const double radius = 0.5 * path_[j] * (t1 - t0) * (1.0 + 1e-9) + 1e-12;
-  return ballMayBeInside(motion.pointAt(r0_[j], 0.5 * (t0 + t1)), radius, isovalue, sagitta_[j]);
+  return ballMayBeInside(w, motion.pointAt(r0_[j], 0.5 * (t0 + t1)), radius, isovalue, sagitta_[j]);
 }
 
 bool CollisionDetector::inside(const Eigen::Vector3d& p_W, double isovalue) noexcept {
-  ++samples_;
+  ++counters_.samples;
   return volume_->isInside(p_W, isovalue);
 }
 
 void CollisionDetector::measureContact(Contact& c, double isovalue) noexcept {
-  samples_ += 6;
+  counters_.samples += 6;
   const Eigen::Vector3d g = c.crossing_normal ? volume_->interpolantGradient(c.p_W_m) : volume_->gradient(c.p_W_m);
   const double norm = g.norm();
   if (norm > 0.0 && std::isfinite(norm)) c.n_W = -g / norm;  // else keep the previous/fallback
@@ -265,8 +267,8 @@ SweepResult CollisionDetector::sweep(const RigidMotion& motion, double isovalue)
   return stopClear(mode_ == DetectionMode::kAccelerated ? sweepAccelerated(motion, isovalue) : sweepPaper(motion, isovalue));
 }
 
-void CollisionDetector::setupPath(const RigidMotion& motion, int j) noexcept {
-  other_work_ += setup_work_;  // a point's path set-up: its state is touched (see setup_work_)
+void CollisionDetector::setupPath(WorkCounters& k, const RigidMotion& motion, int j) noexcept {
+  k.other += setup_work_;  // a point's path set-up: its state is touched (see setup_work_)
   r0_[j] = motion.radial_W(tool_->point_shell.points_T_m()[j]);
   const double angle = motion.angle_rad();
   const double rho = motion.radiusAboutAxis(r0_[j]);
@@ -289,16 +291,16 @@ void CollisionDetector::setupPath(const RigidMotion& motion, int j) noexcept {
   if (mode_ == DetectionMode::kAccelerated) segments_[j] = static_cast<std::int64_t>(segments);
 }
 
-void CollisionDetector::startPoint(const RigidMotion& motion, int j) noexcept {
-  setupPath(motion, j);
+void CollisionDetector::startPoint(WorkCounters& k, const RigidMotion& motion, int j) noexcept {
+  setupPath(k, motion, j);
   clear_until_[j] = -1.0;
   if (embedded_[j] || !(path_[j] > 0.0)) return;
   clear_segments_[j] = 0;
   backoff_[j] = 0;
 }
 
-double CollisionDetector::stepSegment(const RigidMotion& motion, int j, std::int64_t segment, double t_begin,
-                                      double isovalue, SweepResult& result) noexcept {
+double CollisionDetector::stepSegment(WorkCounters& k, const RigidMotion& motion, int j, std::int64_t segment,
+                                      double t_begin, double isovalue, double t_limit, SweepResult& result) noexcept {
   const std::int64_t next = segment + 1;
   const double t_end = (static_cast<double>(next) * dt_[j] >= 1.0 - 1e-12) ? 1.0 : static_cast<double>(next) * dt_[j];
   double lo = t_begin, hi = t_end;
@@ -313,21 +315,21 @@ double CollisionDetector::stepSegment(const RigidMotion& motion, int j, std::int
     if (chord_end_t_[j] == t_begin && chord_end_stamp_[j] == chord_stamp_) {
       a = chord_end_ijk_[j];
     } else {
-      ++samples_;
+      ++k.samples;
       a = volume_->gridCoordinates(motion.pointAt(r0_[j], t_begin));
     }
-    ++samples_;
+    ++k.samples;
     const Eigen::Vector3d b = volume_->gridCoordinates(motion.pointAt(r0_[j], t_end));
     chord_end_ijk_[j] = b;
     chord_end_t_[j] = t_end;
     chord_end_stamp_[j] = chord_stamp_;
-    const double u_limit = result.t >= t_end ? 1.0 : (result.t - t_begin) / span;
+    const double u_limit = t_limit >= t_end ? 1.0 : (t_limit - t_begin) / span;
     // The arc's reach beyond its chord (the sagitta), per grid axis, for the grid's border.
     const Eigen::Vector3d reach = sagitta_[j] * grid_per_m_;
     const SegmentEntry entry = volume_->firstEntryOnSegment(a, b, isovalue, u_limit,
                                                             bisection_tolerance_ / (path_[j] * span), reach, sagitta_[j]);
-    cells_ += entry.cells;
-    cells_walked_ += entry.cells_walked;
+    k.cells += entry.cells;
+    k.cells_walked += entry.cells_walked;
     if (!entry.hit) return t_end;
     lo = entry.u_outside >= 1.0 ? t_end : t_begin + entry.u_outside * span;
     hi = entry.u_inside >= 1.0 ? t_end : t_begin + entry.u_inside * span;
@@ -336,16 +338,20 @@ double CollisionDetector::stepSegment(const RigidMotion& motion, int j, std::int
     // inside at the bracket's inside end, the hit is real (the arc is free up to its outside
     // end): one sample. Otherwise confirm it on finer chords over [t_begin, hi]: none of them
     // hitting proves the arc free there.
-    if (sagitta_[j] > 0.0 && (++samples_, !volume_->isInside(motion.pointAt(r0_[j], hi), isovalue))) {
-      const double t_limit = result.t >= t_end ? t_end : result.t;
-      if (!refineArcEntry(motion, j, t_begin, t_end, sagitta_[j], isovalue, t_limit, kArcRefinements, lo, hi))
+    if (sagitta_[j] > 0.0 && (++k.samples, !volume_->isInside(motion.pointAt(r0_[j], hi), isovalue))) {
+      if (!refineArcEntry(k, motion, j, t_begin, t_end, sagitta_[j], isovalue, std::min(t_limit, t_end), kArcRefinements,
+                          lo, hi))
         return t_end;
     }
   } else {
-    if (!inside(motion.pointAt(r0_[j], t_end), isovalue)) return t_end;
+    const auto inside_at = [&](double t) {
+      ++k.samples;
+      return volume_->isInside(motion.pointAt(r0_[j], t), isovalue);
+    };
+    if (!inside_at(t_end)) return t_end;
     while (path_[j] * (hi - lo) >= bisection_tolerance_) {
       const double mid = 0.5 * (lo + hi);
-      if (inside(motion.pointAt(r0_[j], mid), isovalue)) hi = mid; else lo = mid;
+      if (inside_at(mid)) hi = mid; else lo = mid;
     }
   }
   // Of tied points, the lower index among those popped (the paper path: the first popped).
@@ -357,36 +363,38 @@ double CollisionDetector::stepSegment(const RigidMotion& motion, int j, std::int
   return -1.0;
 }
 
-bool CollisionDetector::refineArcEntry(const RigidMotion& motion, int j, double t0, double t1, double sagitta_m,
-                                       double isovalue, double t_limit, int depth, double& lo, double& hi) noexcept {
+bool CollisionDetector::refineArcEntry(WorkCounters& w, const RigidMotion& motion, int j, double t0, double t1,
+                                       double sagitta_m, double isovalue, double t_limit, int depth, double& lo,
+                                       double& hi) noexcept {
   // Four chords of a quarter of the time each: a sixteenth of the sagitta (delta ~ angle^2).
   const double step = 0.25 * (t1 - t0);
   const double sub_sagitta = sagitta_m / 16.0;
   for (int k = 0; k < 4; ++k) {
     const double a_t = t0 + k * step, b_t = k == 3 ? t1 : t0 + (k + 1) * step;
     if (a_t > t_limit) return false;
-    samples_ += 2;
+    w.samples += 2;
     const Eigen::Vector3d a = volume_->gridCoordinates(motion.pointAt(r0_[j], a_t));
     const Eigen::Vector3d b = volume_->gridCoordinates(motion.pointAt(r0_[j], b_t));
     const double span = b_t - a_t;
     const double u_limit = t_limit >= b_t ? 1.0 : (t_limit - a_t) / span;
     const SegmentEntry entry = volume_->firstEntryOnSegment(a, b, isovalue, u_limit, bisection_tolerance_ / (path_[j] * span),
                                                             sub_sagitta * grid_per_m_, sub_sagitta);
-    cells_ += entry.cells;
-    cells_walked_ += entry.cells_walked;
+    w.cells += entry.cells;
+    w.cells_walked += entry.cells_walked;
     if (!entry.hit) continue;
     if (depth <= 1) {
       lo = entry.u_outside >= 1.0 ? b_t : a_t + entry.u_outside * span;
       hi = entry.u_inside >= 1.0 ? b_t : a_t + entry.u_inside * span;
       return true;
     }
-    if (refineArcEntry(motion, j, a_t, b_t, sub_sagitta, isovalue, t_limit, depth - 1, lo, hi)) return true;
+    if (refineArcEntry(w, motion, j, a_t, b_t, sub_sagitta, isovalue, t_limit, depth - 1, lo, hi)) return true;
   }
   return false;
 }
 
-std::size_t CollisionDetector::collectActive(const RigidMotion& motion, double t_max, double isovalue,
+std::size_t CollisionDetector::collectActive(Lane& lane, const RigidMotion& motion, double t_max, double isovalue,
                                              bool queue, bool resume) noexcept {
+  WorkCounters& k = lane.counters;
   const double angle = motion.omega_W_rad().norm();
   const Eigen::Matrix3d R_mid = angle > 0.0 && t_max > 0.0
       ? Eigen::AngleAxisd(0.5 * t_max * angle, motion.omega_W_rad() / angle).toRotationMatrix()
@@ -398,51 +406,118 @@ std::size_t CollisionDetector::collectActive(const RigidMotion& motion, double t
   // radius of the node centre's position at t_max / 2.
   std::size_t count = 0;
   int top = 0;
+  int* const stack = lane.stack.data();
+  QueueEntry* const heap = lane.heap.data() + lane.queued;
   if (resume) {
-    count = walk_count_;
-    top = walk_top_;
+    count = lane.walk_count;
+    top = lane.walk_top;
   } else {
-    active_count_ = 0;
-    stack_[top++] = 0;
+    lane.active_count = 0;
+    for (auto it = lane.roots.rbegin(); it != lane.roots.rend(); ++it) stack[top++] = *it;
   }
-  budget_stopped_ = false;
+  lane.walk_stopped = false;
   while (top > 0) {
-    if (overBudget()) {
-      budget_stopped_ = true;
-      walk_top_ = top;
-      walk_count_ = count;
+    if (overBudget(lane)) {
+      lane.walk_stopped = true;
+      lane.walk_top = top;
+      lane.walk_count = count;
       return count;
     }
-    const ShellNode& node = nodes_[stack_[--top]];
+    const ShellNode& node = nodes_[stack[--top]];
     const Eigen::Vector3d r_c = motion.radial_W(node.center_T_m);
     const double radius =
         (0.5 * t_max * motion.pathLengthBound(r_c) + node.radius_m + epsilon_) * (1.0 + 1e-9) + 1e-12;
     // Culled points are not touched at all (addContactsAt visits only the active ones).
-    if (!ballMayBeInside(c_mid + R_mid * r_c, radius, isovalue, sweep_sagitta_)) continue;
+    if (!ballMayBeInside(k, c_mid + R_mid * r_c, radius, isovalue, sweep_sagitta_)) continue;
     if (node.left >= 0) {
-      stack_[top++] = node.right;
-      stack_[top++] = node.left;
+      stack[top++] = node.right;
+      stack[top++] = node.left;
       continue;
     }
     for (int i = node.begin; i < node.end; ++i) {
       const int j = order_[i];
-      active_[active_count_++] = j;
+      lane.active[lane.active_count++] = j;
       if (started_[j] == sweep_stamp_) continue;  // a contact point: started (and queued) already
-      startPoint(motion, j);
+      startPoint(k, motion, j);
       if (!queue || embedded_[j] || !(path_[j] > 0.0)) continue;
       // The path over [0, t_max] first: its own ball culls the point at once (on the Engine
       // wrench 62 % of the points with several segments, which otherwise cost about two run
       // tests and two heap steps each).
       const double radius_j = 0.5 * t_max * path_[j] * (1.0 + 1e-9) + 1e-12;
-      if (!ballMayBeInside(c_mid + R_mid * r0_[j], radius_j, isovalue, sagitta_[j])) {
+      if (!ballMayBeInside(k, c_mid + R_mid * r0_[j], radius_j, isovalue, sagitta_[j])) {
         clear_until_[j] = t_max;
         continue;
       }
       // One segment: sample it; several: resolved lazily, in time order.
-      heap_[queued_ + count++] = {0.0, j, 0, segments_[j] == 1 ? 0 : 1};
+      heap[count++] = {0.0, j, 0, segments_[j] == 1 ? 0 : 1};
     }
   }
   return count;
+}
+
+void CollisionDetector::mergeActive() noexcept {
+  if (lanes_.size() == 1) {  // one lane: its list is the whole list
+    const Lane& lane = lanes_[0];
+    std::copy_n(lane.active.begin(), lane.active_count, active_.begin());
+    active_count_ = lane.active_count;
+    return;
+  }
+  active_count_ = 0;
+  for (const Lane& lane : lanes_) {
+    std::copy_n(lane.active.begin(), lane.active_count, active_.begin() + static_cast<std::ptrdiff_t>(active_count_));
+    active_count_ += lane.active_count;
+  }
+}
+
+void CollisionDetector::setLanes(int lanes) {
+  if (lanes < 1 || lanes > WorkerPool::kMaxLanes)
+    throw std::invalid_argument("CollisionDetector: " + std::to_string(lanes) + " lanes, must be in [1, " +
+                                std::to_string(WorkerPool::kMaxLanes) + "]");
+  if (mode_ != DetectionMode::kAccelerated) return;
+  pending_.active = false;  // a sweep in progress was dealt to the old lanes
+  pool_.reset();
+  setLanesPartition(lanes);
+  if (lanes_.size() > 1) pool_ = std::make_unique<WorkerPool>(static_cast<int>(lanes_.size()));
+}
+
+void CollisionDetector::setLanesPartition(int lanes) {
+  // The tree's upper nodes, split until there are 8 per lane (or only leaves): dealt round robin
+  // in tree order, so that the part of the tool near a surface (a spatial cluster of nodes) is
+  // shared by the lanes instead of falling to one.
+  std::vector<int> frontier{0};
+  const std::size_t wanted = static_cast<std::size_t>(lanes) * 8;
+  while (lanes > 1 && frontier.size() < wanted) {
+    std::vector<int> next;
+    bool split = false;
+    for (const int node : frontier) {
+      if (nodes_[node].left >= 0) {
+        next.push_back(nodes_[node].left);
+        next.push_back(nodes_[node].right);
+        split = true;
+      } else {
+        next.push_back(node);
+      }
+    }
+    frontier.swap(next);
+    if (!split) break;
+  }
+  const int used = static_cast<int>(std::min<std::size_t>(static_cast<std::size_t>(lanes), frontier.size()));
+  lanes_.assign(static_cast<std::size_t>(used), Lane{});
+  lane_of_.assign(tool_->point_shell.size(), 0);
+  std::vector<std::size_t> points(static_cast<std::size_t>(used), 0);
+  for (std::size_t i = 0; i < frontier.size(); ++i) {
+    const int lane = static_cast<int>(i % static_cast<std::size_t>(used));
+    const ShellNode& node = nodes_[frontier[i]];
+    lanes_[lane].roots.push_back(frontier[i]);
+    points[lane] += static_cast<std::size_t>(node.end - node.begin);
+    for (int p = node.begin; p < node.end; ++p) lane_of_[order_[p]] = lane;
+  }
+  for (int lane = 0; lane < used; ++lane) {
+    Lane& l = lanes_[lane];
+    l.heap.resize(std::max<std::size_t>(points[lane], 1));
+    l.active.resize(std::max<std::size_t>(points[lane], 1));
+    l.stack.resize(nodes_.size() + 1);
+  }
 }
 
 SweepResult CollisionDetector::sweepAccelerated(const RigidMotion& motion, double isovalue) noexcept {
@@ -454,13 +529,14 @@ SweepResult CollisionDetector::sweepAccelerated(const RigidMotion& motion, doubl
     std::fill(started_.begin(), started_.end(), 0u);
     sweep_stamp_ = 1;
   }
-  queued_ = 0;
+  for (Lane& lane : lanes_) {
+    lane.queued = 0;
+    lane.active_count = 0;
+  }
   pending_.motion = motion;
   pending_.isovalue = isovalue;
   pending_.phase = 0;
   pending_.contact_index = 0;
-  pending_.count = 0;
-  pending_.pop_pending = false;
   pending_.result = SweepResult{};
   return runAccelerated();
 }
@@ -486,6 +562,12 @@ SweepResult CollisionDetector::stopClear(SweepResult result) const noexcept {
   return result;
 }
 
+void CollisionDetector::laneJob(void* detector, int lane) noexcept {
+  auto* self = static_cast<CollisionDetector*>(detector);
+  Lane& l = self->lanes_[static_cast<std::size_t>(lane)];
+  if (l.phase == 1 || l.phase == 2) self->runLane(l);
+}
+
 SweepResult CollisionDetector::runAccelerated() noexcept {
   PendingSweep& st = pending_;
   const RigidMotion& motion = st.motion;
@@ -498,7 +580,7 @@ SweepResult CollisionDetector::runAccelerated() noexcept {
   // starting at t = 0 in. A hit here bounds the search: the tree and the other points are then
   // only tested over [0, t]; a hit at t = 0 ends the sweep at once (addContactsAt then
   // collects the points near the proxy itself).
-  // Budget cut before the queue: nothing is proven for the points not yet looked at; the
+  // Budget cut before the lanes: nothing is proven for the points not yet looked at; the
   // sweep can be resumed where it stopped (issue 13).
   const auto cutAtStart = [&] {
     st.active = true;
@@ -513,12 +595,15 @@ SweepResult CollisionDetector::runAccelerated() noexcept {
       if (overBudget()) return cutAtStart();
       const int j = contacts_[st.contact_index].point_index;
       if (embedded_[j]) continue;
-      startPoint(motion, j);
+      startPoint(counters_, motion, j);
       if (!(path_[j] > 0.0)) continue;
       started_[j] = sweep_stamp_;
-      const double t_end = stepSegment(motion, j, 0, 0.0, isovalue, result);
-      // Outside at the end of its first segment: a run test next.
-      if (t_end >= 0.0 && t_end < 1.0) heap_[queued_++] = {t_end, j, 1, 1};
+      const double t_end = stepSegment(counters_, motion, j, 0, 0.0, isovalue, result.t, result);
+      // Outside at the end of its first segment: a run test next (in the lane that holds it).
+      if (t_end >= 0.0 && t_end < 1.0) {
+        Lane& lane = lanes_[static_cast<std::size_t>(lane_of_[j])];
+        lane.heap[lane.queued++] = {t_end, j, 1, 1};
+      }
       if (result.t == 0.0) break;  // nothing can come earlier
     }
     if (result.t == 0.0) {
@@ -526,16 +611,84 @@ SweepResult CollisionDetector::runAccelerated() noexcept {
       return result;
     }
     st.phase = 1;
-    st.count = queued_ + collectActive(motion, result.t, isovalue, true);
-  } else if (st.phase == 1) {
-    st.count = queued_ + collectActive(motion, result.t, isovalue, true, true);
+    st.walk_t = result.t;
+    for (Lane& lane : lanes_) {
+      lane.phase = 1;
+      lane.walk_top = -1;  // not started
+      lane.count = 0;
+      lane.cut = false;
+      lane.result = SweepResult{};
+    }
   }
-  if (st.phase == 1) {
-    if (budget_stopped_) return cutAtStart();
-    std::make_heap(heap_.begin(), heap_.begin() + static_cast<std::ptrdiff_t>(st.count), Later{});
-    st.phase = 2;
-    st.pop_pending = false;
-    active_complete_ = true;  // the walk is done: active_ holds every point not culled
+  // The lanes: each walks its share of the point-shell tree, then searches its points in time
+  // order, all bounded by the earliest hit any has found.
+  bound_->store(result.t, std::memory_order_relaxed);
+  const std::int64_t base_work = budgetWork();
+  for (Lane& lane : lanes_) {
+    lane.base_work = base_work;
+    lane.counters = {};
+    lane.clock = clock_;
+    lane.cut = false;
+    if (lane.phase == 3 && lane.result.t < bound_->load(std::memory_order_relaxed))
+      bound_->store(lane.result.t, std::memory_order_relaxed);
+  }
+  if (pool_) {
+    pool_->run(&CollisionDetector::laneJob, this);
+  } else {
+    for (Lane& lane : lanes_)
+      if (lane.phase == 1 || lane.phase == 2) runLane(lane);
+  }
+  // Join: the work adds up; the budget counts the busiest lane (they ran side by side).
+  std::int64_t busiest = 0, sum = 0;
+  SweepResult best = result;
+  double cut_t = 2.0;
+  bool walked = true;
+  for (Lane& lane : lanes_) {
+    const std::int64_t w = lane.counters.total();
+    counters_ += lane.counters;
+    sum += w;
+    busiest = std::max(busiest, w);
+    if (lane.clock.late) deadline_hit_ = true;
+    if (lane.phase == 1) walked = false;
+    if (lane.cut) cut_t = std::min(cut_t, lane.cut_t);
+    const SweepResult& r = lane.result;
+    if (r.hit_point >= 0 && (r.t < best.t || (r.t == best.t && (best.hit_point < 0 || r.hit_point < best.hit_point))))
+      best = r;
+  }
+  parallel_credit_ += sum - busiest;
+  if (!(best.t <= cut_t)) {
+    // A lane was stopped before every path up to the first hit was proven free: proven free up
+    // to the earliest place a lane stopped (0 while a lane still walks the tree).
+    st.active = true;
+    active_complete_ = walked;
+    if (walked) mergeActive();
+    SweepResult cut;
+    cut.t = cut.t_inside = walked ? std::min(cut_t, best.t) : 0.0;
+    cut.budget_cut = true;
+    return cut;
+  }
+  active_complete_ = true;
+  mergeActive();
+  return best;
+}
+
+void CollisionDetector::runLane(Lane& lane) noexcept {
+  PendingSweep& st = pending_;
+  const RigidMotion& motion = st.motion;
+  const double isovalue = st.isovalue;
+  WorkCounters& k = lane.counters;
+  SweepResult& result = lane.result;
+  if (lane.phase == 1) {
+    const bool resume = lane.walk_top >= 0;
+    lane.count = lane.queued + collectActive(lane, motion, st.walk_t, isovalue, true, resume);
+    if (lane.walk_stopped) {
+      lane.cut = true;
+      lane.cut_t = 0.0;
+      return;
+    }
+    std::make_heap(lane.heap.begin(), lane.heap.begin() + static_cast<std::ptrdiff_t>(lane.count), Later{});
+    lane.phase = 2;
+    lane.pop_pending = false;
   }
   // The paper's time-ordered search over the segments that remain; the samples and the
   // bisection are the paper's, so the first time of contact is the same double.
@@ -547,9 +700,12 @@ SweepResult CollisionDetector::runAccelerated() noexcept {
   // Each step replaces the minimum by at most one successor (replaceTop: one sift).
   // The minimum stays at the root while it is processed; push() (at most once per step) puts
   // its successor there, else it is popped at the top of the next step.
-  QueueEntry* const heap = heap_.data();
-  std::size_t& count = st.count;
-  bool& pop_pending = st.pop_pending;
+  // With several lanes the search stops at the earliest hit of any lane (bound_).
+  QueueEntry* const heap = lane.heap.data();
+  std::size_t& count = lane.count;
+  bool& pop_pending = lane.pop_pending;
+  std::atomic<double>& bound = *bound_;
+  const bool shared = lanes_.size() > 1;
   const auto push = [&](const QueueEntry& entry) {
     replaceTop(heap, count, entry);
     pop_pending = false;
@@ -559,13 +715,12 @@ SweepResult CollisionDetector::runAccelerated() noexcept {
       pop_pending = false;
       if (--count > 0) replaceTop(heap, count, heap[count]);
     }
-    if (!(count > 0 && heap[0].t_begin < result.t)) break;
-    if (overBudget()) {  // every path is proven free up to the queue's front
-      st.active = true;
-      SweepResult cut;
-      cut.t = cut.t_inside = heap[0].t_begin;
-      cut.budget_cut = true;
-      return cut;
+    const double limit = shared ? std::min(result.t, bound.load(std::memory_order_relaxed)) : std::min(result.t, st.result.t);
+    if (!(count > 0 && heap[0].t_begin < limit)) break;
+    if (overBudget(lane)) {  // every path of the lane is proven free up to the queue's front
+      lane.cut = true;
+      lane.cut_t = heap[0].t_begin;
+      return;
     }
     const QueueEntry e = heap[0];
     pop_pending = true;
@@ -573,7 +728,7 @@ SweepResult CollisionDetector::runAccelerated() noexcept {
     const std::int64_t total = segments_[j];
     if (e.run > 0) {  // an unresolved run
       const std::int64_t run = std::min(e.run, total - e.segment);
-      if (!runMayHit(motion, j, e.segment, run, isovalue)) {
+      if (!runMayHit(k, motion, j, e.segment, run, isovalue)) {
         backoff_[j] = 0;
         const std::int64_t after = e.segment + run;
         if (clear_segments_[j] == e.segment) {
@@ -586,7 +741,12 @@ SweepResult CollisionDetector::runAccelerated() noexcept {
       }
       continue;
     }
-    const double t_end = stepSegment(motion, j, e.segment, e.t_begin, isovalue, result);
+    const double t_end = stepSegment(k, motion, j, e.segment, e.t_begin, isovalue, limit, result);
+    if (shared && result.hit_point == j && result.t < bound.load(std::memory_order_relaxed)) {
+      double seen = bound.load(std::memory_order_relaxed);
+      while (result.t < seen && !bound.compare_exchange_weak(seen, result.t, std::memory_order_relaxed)) {
+      }
+    }
     if (t_end >= 0.0 && t_end < 1.0) {
       // Near the surface, after a failed test of one segment (run 0): 2^b direct steps (-2^b,
       // counting up to -1), then test a run again (1); b grows with each failure in a row and
@@ -602,7 +762,7 @@ SweepResult CollisionDetector::runAccelerated() noexcept {
       push({t_end, j, e.segment + 1, successor});
     }
   }
-  return result;
+  lane.phase = 3;
 }
 
 SweepResult CollisionDetector::sweepPaper(const RigidMotion& motion, double isovalue) noexcept {
@@ -611,7 +771,7 @@ SweepResult CollisionDetector::sweepPaper(const RigidMotion& motion, double isov
   const int n = static_cast<int>(tool_->point_shell.size());
   std::size_t count = 0;
   for (int j = 0; j < n; ++j) {
-    setupPath(motion, j);
+    setupPath(counters_, motion, j);
     if (embedded_[j] || !(path_[j] > 0.0)) continue;
     heap_[count++] = {0.0, j, 0};
   }
@@ -630,7 +790,7 @@ SweepResult CollisionDetector::sweepPaper(const RigidMotion& motion, double isov
     // The segment's test (exact, or the paper's end sample), then interval bisection until the
     // point travels less than epsilon over the interval (here epsilon / 8: a stop within the
     // full epsilon can be t = 0 for every small step).
-    const double t_end = stepSegment(motion, e.point, e.segment, e.t_begin, isovalue, result);
+    const double t_end = stepSegment(counters_, motion, e.point, e.segment, e.t_begin, isovalue, result.t, result);
     if (t_end >= 0.0 && t_end < 1.0) {
       heap_[count++] = {t_end, e.point, e.segment + 1};
       std::push_heap(heap_.begin(), heap_.begin() + static_cast<std::ptrdiff_t>(count), Later{});
@@ -688,8 +848,19 @@ void CollisionDetector::addContactsAt(const RigidMotion& motion, const SweepResu
     // This walk shares the work budget: cut, it leaves fewer candidates (the contact set is an
     // aid to the solver; the sweep alone keeps the proxy out).
     if (!active_complete_) {
-      collectActive(motion, t, isovalue, false);
-      active_complete_ = !budget_stopped_;
+      bool stopped = false;
+      for (Lane& lane : lanes_) lane.active_count = 0;
+      for (Lane& lane : lanes_) {
+        lane.base_work = budgetWork();
+        lane.counters = {};
+        lane.clock = clock_;
+        collectActive(lane, motion, t, isovalue, false);
+        counters_ += lane.counters;
+        clock_ = lane.clock;
+        if ((stopped = lane.walk_stopped)) break;
+      }
+      mergeActive();
+      active_complete_ = !stopped;
     }
     // Only the points the sweep did not cull, in index order; a point whose look-ahead time lies
     // in its proven-outside prefix is skipped. The skip tests first, then only the few
@@ -707,7 +878,7 @@ void CollisionDetector::addContactsAt(const RigidMotion& motion, const SweepResu
     // order, which the budget may stop early and reduceContacts() thins out anyway.
     if (kept <= 4 * contact_cap_) {
       std::sort(active_.begin(), active_.begin() + static_cast<std::ptrdiff_t>(kept));
-      other_work_ += static_cast<std::int64_t>(kept * static_cast<std::size_t>(std::bit_width(kept)) / 8);
+      counters_.other += static_cast<std::int64_t>(kept * static_cast<std::size_t>(std::bit_width(kept)) / 8);
     }
     for (std::size_t i = 0; i < kept && !overBudget(); ++i) {
       const int j = active_[i];
@@ -785,7 +956,7 @@ void CollisionDetector::reduceContacts(const RigidMotion& motion, double t, int 
         best = u;
       }
     }
-    other_work_ += static_cast<std::int64_t>(total / 16 + 1);  // ~16 distance updates per sample's cost
+    counters_.other += static_cast<std::int64_t>(total / 16 + 1);  // ~16 distance updates per sample's cost
     if (farthest < 0.0) break;
     next = best;
   }
@@ -811,7 +982,7 @@ bool CollisionDetector::refineStuckContact(const RigidMotion& motion, const Swee
   for (std::size_t i = 0; i < contact_count_; ++i) {
     Contact& c = contacts_[i];
     if (c.point_index != j) continue;
-    samples_ += 6;
+    counters_.samples += 6;
     const Eigen::Vector3d g = volume_->interpolantGradient(motion.pointAt(r0_[j], hit.t_inside));
     const double norm = g.norm();
     if (!(norm > 0.0) || !std::isfinite(norm)) return false;
@@ -834,7 +1005,7 @@ double CollisionDetector::maxFieldOnShell(const Pose& X_WP, double floor) noexce
   double m = floor;
   const auto visit = [&](int j) {
     if (embedded_[j]) return;
-    ++samples_;
+    ++counters_.samples;
     const Eigen::Vector3d p = X_WP * points[j];
     if (!volume_->inBounds(p)) return;  // out of the grid is never inside, at any isovalue
     m = std::max(m, volume_->sample(p));
@@ -845,7 +1016,7 @@ double CollisionDetector::maxFieldOnShell(const Pose& X_WP, double floor) noexce
     stack_[top++] = 0;
     while (top > 0) {
       const ShellNode& node = nodes_[stack_[--top]];
-      if (!ballMayBeInside(X_WP * node.center_T_m, node.radius_m * (1.0 + 1e-9) + 1e-12, m)) continue;
+      if (!ballMayBeInside(counters_, X_WP * node.center_T_m, node.radius_m * (1.0 + 1e-9) + 1e-12, m)) continue;
       if (node.left >= 0) {
         stack_[top++] = node.right;
         stack_[top++] = node.left;
@@ -869,7 +1040,7 @@ int CollisionDetector::updateEmbedded(const Pose& X_WP, double isovalue) noexcep
     stack_[top++] = 0;
     while (top > 0) {
       const ShellNode& node = nodes_[stack_[--top]];
-      if (!ballMayBeInside(X_WP * node.center_T_m, node.radius_m * (1.0 + 1e-9) + 1e-12, isovalue)) {
+      if (!ballMayBeInside(counters_, X_WP * node.center_T_m, node.radius_m * (1.0 + 1e-9) + 1e-12, isovalue)) {
         for (int i = node.begin; i < node.end; ++i) embedded_[order_[i]] = 0;
       } else if (node.left >= 0) {
         stack_[top++] = node.right;

@@ -34,6 +34,9 @@ HapticRenderer::HapticRenderer(std::shared_ptr<const ScalarVolume> volume, std::
   collision_.setWorkBudget(options.work_budget >= 0 ? options.work_budget
                           : options.detection_mode == DetectionMode::kAccelerated ? RendererOptions::kDefaultWorkBudget
                                                                                   : 0);
+  if (!(options.deadline_us >= 0.0) || !std::isfinite(options.deadline_us))
+    throw std::invalid_argument("HapticRenderer: deadline_us must be finite and >= 0");
+  collision_.setLanes(options.solver_lanes);
   collision_.updateEmbedded(X_WP_, isovalue);
   edge_test_ = options.edge_test > 0 ||
                (options.edge_test < 0 && options.detection_mode == DetectionMode::kAccelerated &&
@@ -85,6 +88,9 @@ TickOutput HapticRenderer::tick(const Pose& X_WD_in, double requested_isovalue) 
   const auto start = Clock::now();
   TickOutput out;
   collision_.resetSampleCount();
+  if (options_.deadline_us > 0.0)
+    collision_.setDeadline(start + std::chrono::duration_cast<Clock::duration>(
+                                       std::chrono::duration<double, std::micro>(options_.deadline_us)));
 
   // Validate the device sample: zero force, proxy in place, counted (bad input never throws).
   Pose X_WD = X_WD_in;
@@ -271,6 +277,7 @@ TickOutput HapticRenderer::tick(const Pose& X_WD_in, double requested_isovalue) 
   out.stats.work = collision_.work();
   // Also a tick whose sweep finished but whose contact update (or re-solve) the budget shortened.
   out.stats.budget_cut = out.stats.budget_cut || collision_.budgetSpent();
+  out.stats.deadline_cut = out.stats.budget_cut && collision_.deadlineReached();
   out.stats.exec_time_us = std::chrono::duration<double, std::micro>(Clock::now() - start).count();
   return out;
 }

@@ -4,7 +4,10 @@
 /// proxy's motion arc (paper section 2.3) and contact-set pruning (step 2).
 
 #include <algorithm>
+#include <atomic>
+#include <chrono>
 #include <cstdint>
+#include <memory>
 #include <ostream>
 #include <span>
 #include <vector>
@@ -15,6 +18,7 @@
 #include "vh/haptics/rigid_motion.h"
 #include "vh/haptics/scalar_volume.h"
 #include "vh/haptics/tool_model.h"
+#include "vh/haptics/worker_pool.h"
 
 namespace vh::haptics {
 
@@ -179,15 +183,15 @@ class CollisionDetector {
   std::span<const Contact> contacts() const noexcept { return {contacts_.data(), contact_count_}; }
 
   /// Trilinear samples taken since the last resetSampleCount() (a gradient counts 6).
-  std::int64_t sampleCount() const noexcept { return samples_; }
+  std::int64_t sampleCount() const noexcept { return counters_.samples; }
   /// Min-max tree box queries since the last resetSampleCount() (kAccelerated only).
-  std::int64_t boxQueryCount() const noexcept { return box_queries_; }
+  std::int64_t boxQueryCount() const noexcept { return counters_.box_queries; }
   /// Min-max tree nodes those box queries read (1 to 64 each: MinMaxTree::rawRange()).
-  std::int64_t treeNodeCount() const noexcept { return tree_nodes_; }
+  std::int64_t treeNodeCount() const noexcept { return counters_.tree_nodes; }
   /// Cells walked by the exact segment test whose cubic was examined, since the last resetSampleCount().
-  std::int64_t cellCount() const noexcept { return cells_; }
+  std::int64_t cellCount() const noexcept { return counters_.cells; }
   /// Every cell the exact segment test visited (examined or skipped by its corners).
-  std::int64_t cellsWalkedCount() const noexcept { return cells_walked_; }
+  std::int64_t cellsWalkedCount() const noexcept { return counters_.cells_walked; }
   /// Relative costs, in trilinear samples, of a min-max tree box query (plus 1 per
   /// kTreeNodesPerWork nodes it reads), of a cell the exact segment test walks, and of the extra
   /// for a cell whose cubic it examines. A least-squares fit of the thread CPU time of 40,000
@@ -204,10 +208,10 @@ class CollisionDetector {
   /// kTreeNodesPerWork + kCellWalkWork * walked cells + kCellWork * examined cells, plus the
   /// other work counted in sample units: a point's path set-up, the contact candidates' sort and
   /// reduction, and addWork().
-  std::int64_t work() const noexcept {
-    return samples_ + other_work_ + kCellWork * cells_ + kCellWalkWork * cells_walked_ +
-           kBoxQueryWork * box_queries_ + tree_nodes_ / kTreeNodesPerWork;
-  }
+  std::int64_t work() const noexcept { return counters_.total(); }
+  /// The work the budget counts: work() less what the lanes did beside the busiest one while
+  /// the sweep ran on several cores (the budget stands for time, and lanes run side by side).
+  std::int64_t budgetWork() const noexcept { return counters_.total() - parallel_credit_; }
   /// Work budget per resetSampleCount() period (a servo tick), 0 = none (issue 13). Once work()
   /// reaches it, sweep() stops at the time up to which every path is proven free (the
   /// time-ordered queue's front; 0 before the queue starts) and addContactsAt() adds only the
@@ -218,19 +222,42 @@ class CollisionDetector {
   void setContactCap(std::size_t cap) noexcept { contact_cap_ = std::clamp<std::size_t>(cap, 1, contacts_.size()); }
   std::size_t contactCap() const noexcept { return std::min(contact_cap_, contacts_.size()); }
   void setWorkBudget(std::int64_t units) noexcept { work_budget_ = units > 0 ? units : 0; }
+  /// The deadline on the clock, the budget's last line: once the steady clock passes it, the
+  /// detector stops as at an exhausted work budget (the same guarantees: the proxy moves only
+  /// as far as every path is proven free, and the sweep goes on next tick). The clock is read
+  /// between chunks of work, every kClockCheckWork units (about 10 us), so a tick ends at most
+  /// about one chunk past it. Holds until clearDeadline(); resetSampleCount() re-arms it.
+  void setDeadline(std::chrono::steady_clock::time_point deadline) noexcept {
+    deadline_ = deadline;
+    has_deadline_ = true;
+    clock_ = {};
+  }
+  void clearDeadline() noexcept { has_deadline_ = false; }
+  /// True when the deadline stopped work since the last resetSampleCount().
+  bool deadlineReached() const noexcept { return deadline_hit_ || clock_.late; }
+  static constexpr std::int64_t kClockCheckWork = 200;
+  /// Runs the accelerated sweep's point-shell walk and time-ordered search on `lanes` cores
+  /// (haptics/README.md, "Several cores"): the point-shell tree's upper nodes are dealt round
+  /// robin to the lanes, each lane searches its points in time order with its own queue, and
+  /// the lanes share the first time of contact found so far (an atomic bound). The result is
+  /// the same first time of contact as one lane (on an exact tie between points of different
+  /// lanes, the lower index); the contact pass, pruning and contact set stay on the caller.
+  /// kPaper ignores it. Starts lanes - 1 threads (not on the servo path: call it at set-up).
+  /// @throws std::invalid_argument when lanes is outside [1, WorkerPool::kMaxLanes];
+  ///         std::system_error when a thread cannot be started.
+  void setLanes(int lanes);
+  int lanes() const noexcept { return static_cast<int>(lanes_.size()); }
   /// Work done outside the detector that shares the tick's budget (the configuration solver's
   /// cone projection, issue 13), counted as samples.
-  void addWork(std::int64_t units) noexcept { other_work_ += units > 0 ? units : 0; }
+  void addWork(std::int64_t units) noexcept { counters_.other += units > 0 ? units : 0; }
   /// True once work() has reached a non-zero work budget.
   bool budgetSpent() const noexcept { return overBudget(); }
   std::int64_t workBudget() const noexcept { return work_budget_; }
   void resetSampleCount() noexcept {
-    other_work_ = 0;
-    cells_ = 0;
-    samples_ = 0;
-    box_queries_ = 0;
-    tree_nodes_ = 0;
-    cells_walked_ = 0;
+    counters_ = {};
+    parallel_credit_ = 0;
+    clock_ = {};
+    deadline_hit_ = false;
   }
 
  private:
@@ -249,61 +276,109 @@ class CollisionDetector {
     int begin = 0, end = 0;
     int left = -1, right = -1;  // children, -1 for a leaf
   };
+  // Work counted in the units of work() (see there), per thread of work.
+  struct WorkCounters {
+    std::int64_t samples = 0, box_queries = 0, tree_nodes = 0, cells_walked = 0, cells = 0;
+    std::int64_t other = 0;  // beyond samples, cells and box queries (sample units)
+    std::int64_t total() const noexcept {
+      return samples + other + kCellWork * cells + kCellWalkWork * cells_walked + kBoxQueryWork * box_queries +
+             tree_nodes / kTreeNodesPerWork;
+    }
+    WorkCounters& operator+=(const WorkCounters& o) noexcept {
+      samples += o.samples;
+      box_queries += o.box_queries;
+      tree_nodes += o.tree_nodes;
+      cells_walked += o.cells_walked;
+      cells += o.cells;
+      other += o.other;
+      return *this;
+    }
+  };
+  // When the clock was last read, in work units, and whether the deadline had passed then.
+  struct ClockCheck {
+    std::int64_t next = 0;
+    bool late = false;
+  };
+  // One lane of the accelerated sweep (setLanes()): its share of the point-shell tree, its own
+  // queue and counters. Lane 0 runs on the caller.
+  struct Lane {
+    WorkCounters counters;
+    ClockCheck clock;
+    std::int64_t base_work = 0;       // budgetWork() when the lanes were forked
+    std::vector<int> roots;           // point-shell tree nodes it walks, in order
+    std::vector<QueueEntry> heap;     // capacity: its points
+    std::vector<int> stack;           // traversal stack, capacity = nodes
+    std::vector<int> active;          // its points not culled by the walk, capacity: its points
+    std::size_t active_count = 0;
+    std::size_t queued = 0;           // heap entries of the contact pass (at the front)
+    std::size_t count = 0;            // heap entries
+    std::size_t walk_count = 0;       // collectActive(): entries written when the budget stopped it
+    int walk_top = 0;                 // collectActive(): stack height when the budget stopped it
+    int phase = 0;                    // 1: walk, 2: time-ordered queue, 3: done
+    bool walk_stopped = false;        // the walk was stopped by the budget
+    bool pop_pending = false;
+    bool cut = false;                 // stopped by the budget; proven free over [0, cut_t]
+    double cut_t = 0.0;
+    SweepResult result;               // its first hit so far
+  };
   SweepResult sweepPaper(const RigidMotion& motion, double isovalue) noexcept;
   SweepResult sweepAccelerated(const RigidMotion& motion, double isovalue) noexcept;
   // kAccelerated: runs (or resumes) the sweep held in pending_.
   SweepResult runAccelerated() noexcept;
+  // kAccelerated: one lane's walk and time-ordered search (resumable).
+  void runLane(Lane& lane) noexcept;
+  static void laneJob(void* detector, int lane) noexcept;
   // The state of an accelerated sweep between ticks (issue 13's resumable sweep).
   struct PendingSweep {
     bool active = false;         // a cut sweep can be resumed
     RigidMotion motion;
     double isovalue = 0.0;
-    int phase = 0;               // 0: contact points, 1: point-shell tree walk, 2: time-ordered queue
+    int phase = 0;               // 0: contact points, 1: the lanes (walk, then time-ordered queue)
     std::size_t contact_index = 0;
-    std::size_t count = 0;       // heap entries
-    bool pop_pending = false;
-    SweepResult result;          // first hit so far
+    double walk_t = 1.0;         // the lanes walk the tree over [0, walk_t] (the contact pass's hit)
+    SweepResult result;          // first hit of the contact pass
   };
   PendingSweep pending_;
-  int walk_top_ = 0;             // collectActive(): traversal stack height when the budget stopped it
-  std::size_t walk_count_ = 0;   // collectActive(): heap entries written so far
   int buildShellTree(int begin, int end, int depth);
   // False when no point of the W ball (centre, radius), nor within arc_sagitta_m of it, can be
   // inside (min-max tree bound with the local Lipschitz bounds).
-  bool ballMayBeInside(const Eigen::Vector3d& center_W_m, double radius_m, double isovalue,
-                       double arc_sagitta_m = 0.0) noexcept;
+  bool ballMayBeInside(WorkCounters& k, const Eigen::Vector3d& center_W_m, double radius_m, double isovalue,
+                       double arc_sagitta_m = 0.0) const noexcept;
   // Start time of segment k of point j (the same double the paper path computes).
   double segmentBegin(int j, std::int64_t k) const noexcept { return k == 0 ? 0.0 : static_cast<double>(k) * dt_[j]; }
   // False when the swept ball of segments [k, k + run) of point j holds no inside point.
-  bool runMayHit(const RigidMotion& motion, int j, std::int64_t k, std::int64_t run, double isovalue) noexcept;
+  bool runMayHit(WorkCounters& w, const RigidMotion& motion, int j, std::int64_t k, std::int64_t run,
+                 double isovalue) noexcept;
   bool inside(const Eigen::Vector3d& p_W, double isovalue) noexcept;
   // r0, path, segments, segment time and arc margin of point j for `motion` (both modes).
-  void setupPath(const RigidMotion& motion, int j) noexcept;
+  void setupPath(WorkCounters& k, const RigidMotion& motion, int j) noexcept;
   // kAccelerated: setupPath() and clears the proven-empty prefix of point j.
-  void startPoint(const RigidMotion& motion, int j) noexcept;
-  // kAccelerated: the paper's step for segment `segment` of point j (sample its end; bisect
-  // and record in `result` when inside). Returns the segment's end time, or -1 when inside.
-  double stepSegment(const RigidMotion& motion, int j, std::int64_t segment, double t_begin, double isovalue,
-                     SweepResult& result) noexcept;
+  void startPoint(WorkCounters& k, const RigidMotion& motion, int j) noexcept;
+  // The paper's step for segment `segment` of point j (kExact: the first entry along its
+  // chord; kEndSample: its end sampled; a hit bisected) looking no later than t_limit (<=
+  // result.t), a hit recorded in `result`. Returns the segment's end time, or -1 when inside.
+  double stepSegment(WorkCounters& k, const RigidMotion& motion, int j, std::int64_t segment, double t_begin,
+                     double isovalue, double t_limit, SweepResult& result) noexcept;
   // kExact, a rotating point j whose chord over [t0, t1] (sagitta sagitta_m) reported a hit:
   // tests four chords of a quarter of the time each (a sixteenth of the sagitta) in time order,
   // recursing into the first that hits, `depth` levels in all; the first hit of the finest level
   // is the arc's (bracket [lo, hi] in time). False when none hits: the coarse hit came from the
   // bubble (the chord's own pessimism), and the arc is free over [t0, min(t1, t_limit)].
-  bool refineArcEntry(const RigidMotion& motion, int j, double t0, double t1, double sagitta_m, double isovalue,
-                      double t_limit, int depth, double& lo, double& hi) noexcept;
+  bool refineArcEntry(WorkCounters& k, const RigidMotion& motion, int j, double t0, double t1, double sagitta_m,
+                      double isovalue, double t_limit, int depth, double& lo, double& hi) noexcept;
   static constexpr int kArcRefinements = 3;  // down to 1/4096 of the sagitta
   // A finished sweep's hit: the proxy stops kStopClearanceFraction * epsilon of the hit point's
   // travel before the bracket's outside end (see the definition).
   SweepResult stopClear(SweepResult result) const noexcept;
-  // kAccelerated: walks the point-shell tree over the arc [0, t_max] (plus epsilon) and fills
-  // active_ with the points not culled; with `queue`, also tests each point's path over
-  // [0, t_max] and writes heap entries from heap_[queued_]. Returns the entries written.
-  // With `queue`, the walk stops when the work budget runs out and sets budget_stopped_.
-  // With `resume`, goes on with a walk the budget stopped (the stack and active_ kept).
-  std::size_t collectActive(const RigidMotion& motion, double t_max, double isovalue, bool queue,
+  // kAccelerated: walks the lane's share of the point-shell tree over the arc [0, t_max] (plus
+  // epsilon) and fills lane.active with the points not culled; with `queue`, also tests each
+  // point's path over [0, t_max] and writes heap entries from lane.heap[lane.queued]. Returns
+  // the entries written. With `queue`, the walk stops when the work budget runs out and sets
+  // lane.walk_stopped. With `resume`, goes on with a walk the budget stopped.
+  std::size_t collectActive(Lane& lane, const RigidMotion& motion, double t_max, double isovalue, bool queue,
                             bool resume = false) noexcept;
-  bool budget_stopped_ = false;
+  // Gathers the lanes' active points into active_ (lane order).
+  void mergeActive() noexcept;
   // Fills c.n_W and c.clearance_m at c.p_W_m (7 samples).
   void measureContact(Contact& c, double isovalue) noexcept;
   void appendContact(int point, const Eigen::Vector3d& p_W, const Eigen::Vector3d& fallback_n_W, double isovalue) noexcept;
@@ -329,33 +404,38 @@ class CollisionDetector {
   std::vector<double> chord_end_t_;              // ... and its time
   std::vector<std::uint32_t> chord_end_stamp_;   // ... valid when equal to chord_stamp_ (this sweep)
   std::uint32_t chord_stamp_ = 0;
-  std::vector<QueueEntry> heap_;         // capacity = number of points
+  std::vector<QueueEntry> heap_;         // kPaper's queue, capacity = number of points
   // kAccelerated state (see haptics/README.md, "Speed").
   std::vector<ShellNode> nodes_;         // point-shell tree, root at 0
   std::vector<int> order_;               // point indices in tree order
-  std::vector<int> stack_;               // traversal stack, capacity = nodes
+  std::vector<int> stack_;               // traversal stack of the caller's walks, capacity = nodes
   std::vector<std::int64_t> segments_;   // per point segment count of the last sweep
   std::vector<double> clear_until_;      // per point: proven outside over [0, clear_until] of the last sweep
   std::vector<std::int64_t> clear_segments_;  // per point: leading segments proven empty
-  std::vector<int> active_;              // points not culled by the last sweep, capacity = points
+  std::vector<int> active_;              // points not culled by the last sweep (mergeActive()), capacity = points
   std::size_t active_count_ = 0;
   bool active_complete_ = true;          // false: the last sweep stopped before collecting active_
   std::vector<std::uint32_t> started_;   // per point: sweep_stamp_ when started by the contact pre-pass
   std::uint32_t sweep_stamp_ = 0;
   std::vector<unsigned char> backoff_;   // per point: direct steps after a failed test = 2^backoff
-  std::size_t queued_ = 0;               // heap entries written by the contact pre-pass
+  std::vector<Lane> lanes_;              // at least one (setLanes())
+  std::vector<int> lane_of_;             // per point: the lane whose share of the tree holds it
+  std::unique_ptr<WorkerPool> pool_;     // lanes - 1 threads, none for one lane
+  // The lanes' shared first time of contact so far (read relaxed: a stale value only costs work).
+  std::unique_ptr<std::atomic<double>> bound_ = std::make_unique<std::atomic<double>>(1.0);
+  void setLanesPartition(int lanes);
   Eigen::Vector3d grid_per_m_ = Eigen::Vector3d::Ones();  // 1 / spacing per grid axis
   std::vector<unsigned char> embedded_;  // per point
   std::vector<unsigned char> in_set_;    // per point: in the contact set
   int embedded_count_ = 0;
   std::vector<Contact> contacts_;
   std::size_t contact_count_ = 0;
-  std::int64_t samples_ = 0;
-  std::int64_t box_queries_ = 0;
-  std::int64_t tree_nodes_ = 0;
-  std::int64_t cells_walked_ = 0;
-  std::int64_t cells_ = 0;
-  std::int64_t other_work_ = 0;  // work() beyond samples, cells and box queries (sample units)
+  WorkCounters counters_;               // the caller's work, plus the lanes' after each fork
+  std::int64_t parallel_credit_ = 0;    // the lanes' work beside the busiest lane (budgetWork())
+  std::chrono::steady_clock::time_point deadline_{};
+  bool has_deadline_ = false;
+  bool deadline_hit_ = false;           // a lane stopped at the deadline since resetSampleCount()
+  mutable ClockCheck clock_;            // the caller's clock reads
   std::int64_t work_budget_ = 0;
   std::size_t contact_cap_ = static_cast<std::size_t>(-1);
   // Work units of one point's path set-up: max(1, points / 5000). The per-point state of a large
@@ -370,7 +450,23 @@ class CollisionDetector {
   std::vector<unsigned char> reduce_chosen_;
   void reduceContacts(const RigidMotion& motion, double t, int hit_point, std::size_t& candidates,
                       std::size_t cap) noexcept;
-  bool overBudget() const noexcept { return work_budget_ > 0 && work() >= work_budget_; }
+  // The deadline has passed (read every kClockCheckWork units of `work`).
+  bool pastDeadline(ClockCheck& clock, std::int64_t work) const noexcept {
+    if (!has_deadline_) return false;
+    if (clock.late) return true;
+    if (work < clock.next) return false;
+    clock.next = work + kClockCheckWork;
+    clock.late = std::chrono::steady_clock::now() >= deadline_;
+    return clock.late;
+  }
+  bool overBudget() const noexcept {
+    const std::int64_t w = budgetWork();
+    return (work_budget_ > 0 && w >= work_budget_) || pastDeadline(clock_, w);
+  }
+  bool overBudget(Lane& lane) const noexcept {
+    const std::int64_t w = lane.base_work + lane.counters.total();
+    return (work_budget_ > 0 && w >= work_budget_) || pastDeadline(lane.clock, w);
+  }
 };
 
 }  // namespace vh::haptics

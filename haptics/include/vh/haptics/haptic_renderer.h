@@ -90,6 +90,15 @@ struct RendererOptions {
   /// implausible jumps between samples are rejected before the renderer, at the coupling
   /// thread (runtime's SampleFilter, with each device's speed limit).
   double max_device_distance_m = 10.0;
+  /// Cores the accelerated sweep runs on (CollisionDetector::setLanes(); haptics/README.md,
+  /// "Several cores"): the caller plus solver_lanes - 1 pool threads, which spin between the
+  /// forks of a tick. 1 (default): no thread is started. The result does not depend on it.
+  int solver_lanes = 1;
+  /// The tick's deadline on the clock [us after tick() starts], the work budget's last line
+  /// (CollisionDetector::setDeadline()): past it the tick stops as at an exhausted budget, so a
+  /// busy machine cannot push a tick past its servo period. 0 (default): none, and every
+  /// result is independent of timing (tests, replays). The application's solver thread sets it.
+  double deadline_us = 0.0;
 };
 
 /// Statistics of one tick.
@@ -105,6 +114,8 @@ struct TickStats {
   /// The work budget was reached: the sweep stopped before its end (and goes on next tick), or
   /// the contact update or the re-solve was shortened.
   bool budget_cut = false;
+  /// Of those, the deadline on the clock stopped it (RendererOptions::deadline_us).
+  bool deadline_cut = false;
   double time_of_contact = 1.0;     ///< Fraction of the constrained path travelled (1 = free).
   /// Wall time of the tick's phases [us] (diagnostics; they sum to about exec_time_us):
   /// embedded-point scan and step 2 (prune), steps 1 + 3 (solve, every attempt), step 4 (sweep,

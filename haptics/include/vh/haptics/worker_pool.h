@@ -1,0 +1,61 @@
+#pragma once
+/// @file
+/// A fixed pool of solver threads for fork-join inside one servo tick (the configuration
+/// solver's collision detection runs its lanes on it: haptics/README.md, "Several cores").
+
+#include <atomic>
+#include <cstdint>
+#include <thread>
+#include <vector>
+
+namespace vh::haptics {
+
+/// Fixed pool of `lanes - 1` threads plus the caller: run() hands lane 0 to the calling thread
+/// and lanes 1 .. lanes - 1 to the pool's threads, and returns when every lane is done.
+///
+/// run() neither allocates nor locks: the job is published through an atomic epoch; the threads
+/// spin on it for about kSpinIterations pauses after each job (servo ticks come every
+/// millisecond, several forks per tick), then sleep on it (std::atomic::wait, a futex), and the
+/// caller wakes them only when one sleeps. The caller spins until the lanes are done.
+/// The threads inherit the creating thread's scheduling policy and affinity; they never run
+/// anything but jobs given to run().
+/// Thread safety: run() from one thread at a time (the solver thread that owns the pool).
+class WorkerPool {
+ public:
+  /// A lane's work: `context` as given to run(), `lane` in [0, lanes()). Must not throw.
+  using Job = void (*)(void* context, int lane) noexcept;
+
+  /// Pauses a thread spins on the epoch before it sleeps (roughly 50 to 200 us).
+  static constexpr int kSpinIterations = 4096;
+  /// Most lanes a pool runs.
+  static constexpr int kMaxLanes = 64;
+
+  /// @param lanes the lanes of each run(), in [1, kMaxLanes]: lanes - 1 threads are started.
+  /// @throws std::invalid_argument when lanes is outside [1, kMaxLanes];
+  ///         std::system_error when a thread cannot be started.
+  explicit WorkerPool(int lanes);
+  /// Stops and joins the threads.
+  ~WorkerPool();
+  WorkerPool(const WorkerPool&) = delete;
+  WorkerPool& operator=(const WorkerPool&) = delete;
+
+  int lanes() const noexcept { return lanes_; }
+
+  /// Runs job(context, lane) for every lane, lane 0 on the caller, and returns when all are
+  /// done (their writes are visible to the caller). No allocation, no lock.
+  void run(Job job, void* context) noexcept;
+
+ private:
+  void threadLoop(int lane) noexcept;
+
+  int lanes_ = 1;
+  Job job_ = nullptr;
+  void* context_ = nullptr;
+  alignas(64) std::atomic<std::uint32_t> epoch_{0};
+  alignas(64) std::atomic<int> running_{0};   // lanes of the current job not yet done
+  alignas(64) std::atomic<int> sleeping_{0};  // threads waiting on epoch_
+  std::atomic<bool> stop_{false};
+  std::vector<std::thread> threads_;
+};
+
+}  // namespace vh::haptics
