@@ -27,10 +27,12 @@ std::vector<int> contactPoints(const CollisionDetector& cd) {
 
 // Random motions of a tool around a surface, with a random isovalue on every motion (the same
 // detectors throughout: nothing may depend on the previous isovalue).
+// `lanes`: the accelerated sweep on that many cores (CollisionDetector::setLanes()).
 void checkEquivalentOnRandomMotions(const ScalarVolume& vol, const ToolModel& tool, double s_lo, double s_hi,
-                                    double reach_m, std::uint32_t seed) {
+                                    double reach_m, std::uint32_t seed, int lanes = 1) {
   CollisionDetector paper(vol, tool, 0.0, 256, DetectionMode::kPaper);
   CollisionDetector fast(vol, tool, 0.0, 256, DetectionMode::kAccelerated);
+  fast.setLanes(lanes);
   std::mt19937 rng(seed);
   std::uniform_real_distribution<double> u(-1.0, 1.0), s_dist(s_lo, s_hi);
   int hits = 0, tie_breaks = 0;
@@ -75,7 +77,7 @@ void checkEquivalentOnRandomMotions(const ScalarVolume& vol, const ToolModel& to
   EXPECT_GT(hits, 40) << "the random motions must exercise contacts";
   ::testing::Test::RecordProperty("hits", hits);
   ::testing::Test::RecordProperty("tie_breaks", tie_breaks);
-  std::cout << hits << " contacts, " << tie_breaks << " tie breaks; sweep samples paper " << samples_paper
+  std::cout << lanes << " lane(s): " << hits << " contacts, " << tie_breaks << " tie breaks; sweep samples paper " << samples_paper
             << ", accelerated " << samples_fast << "\n";
 }
 
@@ -100,9 +102,28 @@ TEST(DetectionEquivalence, OneVoxelPlateUInt8) {
   checkEquivalentOnRandomMotions(vol, *tool, 20.0, 230.0, 0.015, 13);
 }
 
+// Several lanes (the sweep on several cores): the same first time of contact, bit for bit, as
+// the paper's path; the lanes share the point-shell tree round robin, so every lane count from 2
+// to 5 deals the points differently.
+TEST(DetectionEquivalence, LanesGiveThePapersResult) {
+  const ScalarVolume sphere = datasets::makeSphereVolume(test::grid1mm(), Eigen::Vector3d::Zero(), 0.015);
+  const auto box = test::meshTool(datasets::makeBoxMesh({0.004, 0.003, 0.002}), 0.5e-3);
+  const ScalarVolume block = datasets::makeBlockWithBlindHoleVolume(128, -0.004);
+  PointShellOptions ps;
+  ps.point_count = 400;
+  const ToolModel peg = makeToolModel(datasets::makeCylinderMesh(datasets::kPegRadius_m, 0.02, 32), ps);
+  for (int lanes = 2; lanes <= 5; ++lanes) {
+    checkEquivalentOnRandomMotions(sphere, *box, -3.0, 3.0, 0.02, 21 + lanes, lanes);
+    checkEquivalentOnRandomMotions(block, peg, 60.0, 200.0, 0.02, 31 + lanes, lanes);
+  }
+}
+
 // Whole runs: the scripted peg descent gives the same proxy path in both modes (the contact
 // order can differ only after a tie break, so the poses are compared to 1e-9 m, not bit for bit).
-TEST(DetectionEquivalence, RendererRunsAgreeTickByTick) {
+// Also with the accelerated sweep on 3 lanes (RendererOptions::solver_lanes).
+class RendererRuns : public ::testing::TestWithParam<int> {};
+INSTANTIATE_TEST_SUITE_P(Lanes, RendererRuns, ::testing::Values(1, 3));
+TEST_P(RendererRuns, AgreeTickByTick) {
   auto vol = std::make_shared<ScalarVolume>(datasets::makeBlockWithBlindHoleVolume(128, -0.004));
   PointShellOptions ps;
   ps.point_count = 600;
@@ -111,6 +132,7 @@ TEST(DetectionEquivalence, RendererRunsAgreeTickByTick) {
   op.detection_mode = DetectionMode::kPaper;
   of.detection_mode = DetectionMode::kAccelerated;
   op.work_budget = of.work_budget = 0;  // the paths, not the budget (a cut tick moves less far)
+  of.solver_lanes = GetParam();
   const Pose start = Pose::FromTranslation({0.012, 0.0, 0.016});
   HapticRenderer rp(vol, tool, op, start, datasets::kBlockIsovalue);
   HapticRenderer rf(vol, tool, of, start, datasets::kBlockIsovalue);

@@ -1,0 +1,66 @@
+// The solver's worker pool (haptics/README.md, "Several cores"): every lane runs exactly once
+// per run(), on distinct threads, and its writes are visible to the caller when run() returns;
+// the pool survives many back-to-back forks and forks after its threads went to sleep.
+#include <atomic>
+#include <chrono>
+#include <set>
+#include <stdexcept>
+#include <thread>
+#include <vector>
+
+#include <gtest/gtest.h>
+
+#include "vh/haptics/worker_pool.h"
+
+namespace vh::haptics {
+namespace {
+
+struct Tally {
+  std::vector<int> runs;                     // per lane, plain ints: run() must publish them
+  std::vector<std::thread::id> thread_of;    // per lane, the last thread that ran it
+  std::atomic<int> concurrent{0}, most_concurrent{0};
+};
+
+void countLane(void* context, int lane) noexcept {
+  auto* tally = static_cast<Tally*>(context);
+  const int now = tally->concurrent.fetch_add(1) + 1;
+  int seen = tally->most_concurrent.load();
+  while (now > seen && !tally->most_concurrent.compare_exchange_weak(seen, now)) {
+  }
+  ++tally->runs[static_cast<std::size_t>(lane)];
+  tally->thread_of[static_cast<std::size_t>(lane)] = std::this_thread::get_id();
+  // Long enough that the lanes overlap when there are cores for them.
+  const auto until = std::chrono::steady_clock::now() + std::chrono::microseconds(20);
+  while (std::chrono::steady_clock::now() < until) {
+  }
+  tally->concurrent.fetch_sub(1);
+}
+
+TEST(WorkerPool, EveryLaneRunsOncePerRunOnItsOwnThread) {
+  for (int lanes : {1, 2, 3, 5}) {
+    WorkerPool pool(lanes);
+    ASSERT_EQ(pool.lanes(), lanes);
+    Tally tally;
+    tally.runs.assign(static_cast<std::size_t>(lanes), 0);
+    tally.thread_of.assign(static_cast<std::size_t>(lanes), {});
+    constexpr int kRuns = 2000;
+    for (int r = 0; r < kRuns; ++r) {
+      pool.run(&countLane, &tally);
+      if (r == kRuns / 2) std::this_thread::sleep_for(std::chrono::milliseconds(30));  // the threads sleep
+    }
+    std::set<std::thread::id> threads(tally.thread_of.begin(), tally.thread_of.end());
+    for (int lane = 0; lane < lanes; ++lane) EXPECT_EQ(tally.runs[static_cast<std::size_t>(lane)], kRuns) << lanes << " lanes, lane " << lane;
+    EXPECT_EQ(threads.size(), static_cast<std::size_t>(lanes)) << "each lane on its own thread";
+    EXPECT_EQ(tally.thread_of[0], std::this_thread::get_id()) << "lane 0 runs on the caller";
+    EXPECT_LE(tally.most_concurrent.load(), lanes);
+    std::cout << lanes << " lanes: at most " << tally.most_concurrent.load() << " ran at once\n";
+  }
+}
+
+TEST(WorkerPool, RejectsALaneCountOutsideItsRange) {
+  EXPECT_THROW(WorkerPool(0), std::invalid_argument);
+  EXPECT_THROW(WorkerPool(WorkerPool::kMaxLanes + 1), std::invalid_argument);
+}
+
+}  // namespace
+}  // namespace vh::haptics
