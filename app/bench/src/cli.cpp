@@ -67,6 +67,24 @@ CLI::App* addBenchSubcommand(CLI::App& app, std::function<int()>& handler) {
   t1->add_option("--ticks", table1->ticks, "Ticks per scene and mode (default 20000; short 1000)")
       ->check(CLI::PositiveNumber);
   t1->add_flag("!--no-large-tools", table1->large_tools, "Skip the 20,000- and 50,000-point tool runs");
+  t1->add_option("--lanes", table1->lanes,
+                 "Cores the accelerated modes' sweep runs on (RendererOptions::solver_lanes); 0: the application's "
+                 "default (hardware threads less two, 1 to 8)")
+      ->capture_default_str()
+      ->check(CLI::Range(0, 64));
+  t1->add_option("--deadline-us", table1->deadline_us,
+                 "The accelerated mode's deadline per tick on the clock [us] (the work budget's last line); "
+                 "-1: the application's (900 us at 1 kHz); 0: none")
+      ->capture_default_str()
+      ->check(CLI::Range(-1.0, 1e6));
+  t1->add_option("--load", table1->load, "Busy threads run beside the benchmark (a loaded machine)")
+      ->capture_default_str()
+      ->check(CLI::Range(0, 256));
+  t1->add_option("--lanes-sweep", table1->lane_sweep,
+                 "Scaling: also run the accelerated mode without budget or deadline on each of these lane counts "
+                 "(e.g. 1,2,4,8,16), interleaved, with a scaling table")
+      ->delimiter(',')
+      ->check(CLI::Range(1, 64));
   t1->callback([&handler, table1, mode, before] {
     table1->modes = *mode == "paper"         ? ModeSelection::kPaper
                     : *mode == "accelerated" ? ModeSelection::kAccelerated

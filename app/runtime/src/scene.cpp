@@ -1,5 +1,6 @@
 #include "vh/runtime/scene.h"
 
+#include <algorithm>
 #include <cmath>
 #include <cstdlib>
 #include <fstream>
@@ -9,6 +10,7 @@
 #include <set>
 #include <sstream>
 #include <stdexcept>
+#include <thread>
 
 #include <nlohmann/json.hpp>
 
@@ -606,12 +608,30 @@ bool deviceKindAvailable(const std::string& kind) {
   return deviceFactories().count(kind) > 0;
 }
 
+int defaultSolverLanes() {
+  if (const char* env = std::getenv("VH_SOLVER_LANES")) {
+    char* end = nullptr;
+    const long lanes = std::strtol(env, &end, 10);
+    if (end != env && *end == '\0' && lanes >= 1 && lanes <= haptics::WorkerPool::kMaxLanes)
+      return static_cast<int>(lanes);
+  }
+  const int threads = static_cast<int>(std::thread::hardware_concurrency());
+  return std::clamp(threads - 2, 1, 8);
+}
+
+double solverDeadline_us(double servo_rate_Hz) {
+  return servo_rate_Hz > 0.0 && std::isfinite(servo_rate_Hz) ? 0.9e6 / servo_rate_Hz : 0.0;
+}
+
 std::unique_ptr<HapticThread> LoadedScene::makeHapticThread(std::shared_ptr<Device> device, double servo_rate_Hz,
                                                             const std::optional<haptics::Pose>& X_WP,
                                                             const HapticThreadOptions& options) const {
   HapticThreadOptions with_segments = options;
   with_segments.segments = segments;
-  auto thread = std::make_unique<HapticThread>(makeRenderer({}, X_WP), std::move(device), hapticIsovalue(),
+  haptics::RendererOptions live;
+  live.solver_lanes = defaultSolverLanes();
+  live.deadline_us = solverDeadline_us(servo_rate_Hz);
+  auto thread = std::make_unique<HapticThread>(makeRenderer(live, X_WP), std::move(device), hapticIsovalue(),
                                                servo_rate_Hz, with_segments);
   thread->setGains(spec.gains);
   return thread;

@@ -19,6 +19,7 @@
 #include <filesystem>
 #include <functional>
 #include <string>
+#include <vector>
 
 #include "vh/haptics/haptic_renderer.h"
 
@@ -61,6 +62,17 @@ struct Table1Options {
   int ticks = 0;
   /// Also the issue-8 large-tool runs (~20,000 points on Bone and Engine); never in short runs.
   bool large_tools = true;
+  /// The accelerated modes' RendererOptions::solver_lanes (cores of the sweep); 0: the
+  /// application's default (runtime::defaultSolverLanes()).
+  int lanes = 0;
+  /// The accelerated mode's RendererOptions::deadline_us (the budget's last line, on the
+  /// clock); < 0: the application's (runtime::solverDeadline_us() at 1 kHz); 0: none.
+  double deadline_us = -1.0;
+  /// Busy threads run beside the benchmark (a loaded machine); the same columns are reported.
+  int load = 0;
+  /// Scaling: the accelerated mode without budget or deadline also on each of these lane counts
+  /// ("accelerated-lanes-N"), interleaved with the others, with a scaling table.
+  std::vector<int> lane_sweep;
 };
 
 /// `bench bigscan` (issue 14, "Big scans"): a 512 x 512 x N int16 CT series (default N = 2000,

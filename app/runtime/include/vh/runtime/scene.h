@@ -216,14 +216,23 @@ struct LoadedScene {
   std::shared_ptr<Device> makeDevice(double servo_rate_Hz = 1000.0) const;
   /// The one place a renderer and its haptic threads are built (the headless runner's tests,
   /// the GUI through Session): a HapticThread (not started) driving `device` at
-  /// `servo_rate_Hz` with makeRenderer({}, X_WP), naming the segment of each contact when the
-  /// scene has segments (HapticThreadOptions::segments).
+  /// `servo_rate_Hz` with makeRenderer(live, X_WP), live = defaultSolverLanes() lanes and
+  /// solverDeadline_us(servo_rate_Hz), naming the segment of each contact when the scene has
+  /// segments (HapticThreadOptions::segments).
   /// @throws std::invalid_argument as HapticThread's and HapticRenderer's constructors.
   /// `options` as HapticThreadOptions (e.g. the monitor channel the Session shares).
   std::unique_ptr<HapticThread> makeHapticThread(std::shared_ptr<Device> device, double servo_rate_Hz = 1000.0,
                                                  const std::optional<haptics::Pose>& X_WP = {},
                                                  const HapticThreadOptions& options = {}) const;
 };
+
+/// The cores the live solver's sweep runs on (haptics::RendererOptions::solver_lanes): the
+/// machine's hardware threads less two (the coupling thread keeps its core, the GUI and the
+/// ray caster another), at least 1, at most 8. VH_SOLVER_LANES overrides it (1 to 64).
+int defaultSolverLanes();
+/// The live solver's deadline per tick [us] (haptics::RendererOptions::deadline_us): 90 % of a
+/// servo period at `servo_rate_Hz` (900 us at 1 kHz), the rest for the coupling and the mirror.
+double solverDeadline_us(double servo_rate_Hz);
 
 /// The point spacing [m] of a tool whose spec gives none: about 1000 points on the mesh, not
 /// below half the volume's smallest voxel. The one rule (loadScene(), the GUI's tool picker).
