@@ -187,9 +187,12 @@ bool CollisionDetector::ballMayBeInside(WorkCounters& k, const Eigen::Vector3d& 
   // direction matrix is orthonormal); 1e-6 voxel covers the rounding of both paths.
   const Eigen::Vector3d half = (radius_m * grid_per_m_).array() + 1e-6;
   int nodes_read = 0;
-  bool may_be_inside = volume_->upperBoundInBox(g - half, g + half, &nodes_read, arc_sagitta_m) > isovalue;
+  double without_arc = 0.0;
+  bool may_be_inside = volume_->upperBoundInBox(g - half, g + half, &nodes_read, arc_sagitta_m, &without_arc) > isovalue;
   k.tree_nodes += nodes_read;
-  if (may_be_inside && arc_sagitta_m > 0.0) {
+  // Only the bubble's term lifted it over the isovalue: the dilated box may still prove it empty
+  // (a voxel of the box itself above the isovalue decides it at once).
+  if (may_be_inside && arc_sagitta_m > 0.0 && without_arc <= isovalue) {
     // The arc is within one cell of the ball: no voxel there above the isovalue also proves it
     // empty (as the segment test's own second criterion), where the Lipschitz bubble of a wild
     // outlier (a -3e38 "no data" border) cannot.

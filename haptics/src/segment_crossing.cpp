@@ -115,9 +115,10 @@ SegmentEntry ScalarVolume::firstEntry(const Eigen::Vector3d& a, const Eigen::Vec
     // A cell is skipped when the chord with its bubble stays below the threshold, or, for an
     // arc, when no voxel of this cell and the cells next to it (where the arc is) rises above
     // it: near a wild outlier (a -3e38 "no data" border) the Lipschitz bubble is huge while
-    // the field itself stays low.
-    if (scale_ * corner_max + offset_ + height <= threshold ||
-        (height > 0.0 && upperBoundInBox(Eigen::Vector3d(cell[0] - 1.0, cell[1] - 1.0, cell[2] - 1.0),
+    // the field itself stays low. (A corner above it decides at once: the cell is examined.)
+    const double corner_bound = scale_ * corner_max + offset_;
+    if (corner_bound + height <= threshold ||
+        (height > 0.0 && corner_bound <= threshold && upperBoundInBox(Eigen::Vector3d(cell[0] - 1.0, cell[1] - 1.0, cell[2] - 1.0),
                                          Eigen::Vector3d(cell[0] + 2.0, cell[1] + 2.0, cell[2] + 2.0)) <= threshold)) {
       inside_run = false;  // the whole cell is outside
     } else {

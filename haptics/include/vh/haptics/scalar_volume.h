@@ -182,8 +182,11 @@ class ScalarVolume {
   /// added (delta below one voxel; as the segment test's bubble, so a cull never skips what the
   /// segment test would find).
   /// @param nodes_read when set, receives the min-max tree nodes read (MinMaxTree::rawRange()).
+  /// @param without_arc when set, receives the bound of the box itself (the same without the
+  ///        arc_sagitta_m term), from the same nodes.
   double upperBoundInBox(const Eigen::Vector3d& lo_ijk, const Eigen::Vector3d& hi_ijk,
-                         int* nodes_read = nullptr, double arc_sagitta_m = 0.0) const noexcept;
+                         int* nodes_read = nullptr, double arc_sagitta_m = 0.0,
+                         double* without_arc = nullptr) const noexcept;
 
   /// Axis-aligned bounding box of the grid in W [m].
   Eigen::Vector3d boundsMin_W_m() const noexcept;

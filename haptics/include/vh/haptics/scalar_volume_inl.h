@@ -66,17 +66,21 @@ inline bool ScalarVolume::isInside(const Eigen::Vector3d& p_W_m, double isovalue
 }
 
 inline double ScalarVolume::upperBoundInBox(const Eigen::Vector3d& lo_ijk, const Eigen::Vector3d& hi_ijk,
-                                            int* nodes_read, double arc_sagitta_m) const noexcept {
+                                            int* nodes_read, double arc_sagitta_m, double* without_arc) const noexcept {
   float raw_min = 0.0f, raw_max = 0.0f, lipschitz = 0.0f;
-  if (!tree_.rawRange(lo_ijk, hi_ijk, raw_min, raw_max, nodes_read, arc_sagitta_m > 0.0 ? &lipschitz : nullptr))
+  if (!tree_.rawRange(lo_ijk, hi_ijk, raw_min, raw_max, nodes_read, arc_sagitta_m > 0.0 ? &lipschitz : nullptr)) {
+    if (without_arc != nullptr) *without_arc = -std::numeric_limits<double>::infinity();
     return -std::numeric_limits<double>::infinity();
+  }
   // trilinear() lerps in double: a + f (b - a) with f in [0, 1] stays within [a, b] when b - a
   // is exact, which it is for the integer types; for float32 corners of very different
   // magnitude it may not be, so widen by a few units in the last place. F = scale raw + offset
   // is monotone in raw under rounding.
   double raw = scale_ > 0.0 ? static_cast<double>(raw_max) : static_cast<double>(raw_min);
   if (type_ == VoxelType::kFloat32) raw += (scale_ > 0.0 ? 1.0 : -1.0) * std::abs(raw) * 0x1p-40;
-  return scale_ * raw + offset_ + static_cast<double>(lipschitz) * arc_sagitta_m;
+  const double bound = scale_ * raw + offset_;
+  if (without_arc != nullptr) *without_arc = bound;
+  return bound + static_cast<double>(lipschitz) * arc_sagitta_m;
 }
 
 }  // namespace vh::haptics
