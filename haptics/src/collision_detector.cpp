@@ -63,13 +63,7 @@ CollisionDetector::CollisionDetector(const ScalarVolume& volume, const ToolModel
   for (const auto& p : tool.point_shell.points_T_m())
     shell_radius_m_ = std::max(shell_radius_m_, (p - tool.mass.p_TCm_m).norm());
   const std::size_t n = tool.point_shell.size();
-  r0_.resize(n);
-  sagitta_.assign(n, 0.0);
-  chord_end_ijk_.resize(n);
-  chord_end_t_.assign(n, -1.0);
-  chord_end_stamp_.assign(n, 0u);
-  dt_.resize(n);
-  path_.resize(n);
+  pt_.assign(n, PointState{});
   heap_.resize(n);
   embedded_.assign(n, 0);
   in_set_.assign(n, 0);
@@ -80,11 +74,6 @@ CollisionDetector::CollisionDetector(const ScalarVolume& volume, const ToolModel
     nodes_.reserve(2 * n);
     buildShellTree(0, static_cast<int>(n), 0);
     stack_.resize(nodes_.size() + 1);
-    segments_.assign(n, 0);
-    clear_until_.assign(n, 0.0);
-    started_.assign(n, 0u);
-    backoff_.assign(n, 0);
-    clear_segments_.assign(n, 0);
     active_.resize(n);
     setLanesPartition(1);
   }
@@ -207,11 +196,11 @@ bool CollisionDetector::ballMayBeInside(WorkCounters& k, const Eigen::Vector3d& 
 bool CollisionDetector::runMayHit(WorkCounters& w, const RigidMotion& motion, int j, std::int64_t k,
                                   std::int64_t run, double isovalue) noexcept {
   // The run's points stay within half its path-length bound of its mid-time position.
-  const std::int64_t total = segments_[j];
+  const std::int64_t total = pt_[j].segments;
   const double t0 = segmentBegin(j, k);
-  const double t1 = k + run >= total ? 1.0 : static_cast<double>(k + run) * dt_[j];
-  const double radius = 0.5 * path_[j] * (t1 - t0) * (1.0 + 1e-9) + 1e-12;
-  return ballMayBeInside(w, motion.pointAt(r0_[j], 0.5 * (t0 + t1)), radius, isovalue, sagitta_[j]);
+  const double t1 = k + run >= total ? 1.0 : static_cast<double>(k + run) * pt_[j].dt;
+  const double radius = 0.5 * pt_[j].path * (t1 - t0) * (1.0 + 1e-9) + 1e-12;
+  return ballMayBeInside(w, motion.pointAt(pt_[j].r0, 0.5 * (t0 + t1)), radius, isovalue, pt_[j].sagitta);
 }
 
 bool CollisionDetector::inside(const Eigen::Vector3d& p_W, double isovalue) noexcept {
@@ -258,7 +247,7 @@ void CollisionDetector::clearContacts() noexcept {
 
 SweepResult CollisionDetector::sweep(const RigidMotion& motion, double isovalue) noexcept {
   if (++chord_stamp_ == 0) {  // wrapped: forget every cached chord end
-    std::fill(chord_end_stamp_.begin(), chord_end_stamp_.end(), 0u);
+    for (PointState& q : pt_) q.chord_end_stamp = 0u;
     chord_stamp_ = 1;
   }
   // The largest chord sagitta of any point this sweep (for the point-shell tree's node tests):
@@ -272,14 +261,14 @@ SweepResult CollisionDetector::sweep(const RigidMotion& motion, double isovalue)
 
 void CollisionDetector::setupPath(WorkCounters& k, const RigidMotion& motion, int j) noexcept {
   k.other += setup_work_;  // a point's path set-up: its state is touched (see setup_work_)
-  r0_[j] = motion.radial_W(tool_->point_shell.points_T_m()[j]);
+  pt_[j].r0 = motion.radial_W(tool_->point_shell.points_T_m()[j]);
   const double angle = motion.angle_rad();
-  const double rho = motion.radiusAboutAxis(r0_[j]);
-  path_[j] = motion.speed_m() + angle * rho;  // = pathLengthBound(r0), rho computed once
-  if (embedded_[j] || !(path_[j] > 0.0)) return;
+  const double rho = motion.radiusAboutAxis(pt_[j].r0);
+  pt_[j].path = motion.speed_m() + angle * rho;  // = pathLengthBound(r0), rho computed once
+  if (embedded_[j] || !(pt_[j].path > 0.0)) return;
   // ceil(s / f) equal time segments, none longer than the feature size (section 2.3).
-  double segments = std::max(1.0, std::ceil(path_[j] / segment_length_m_));
-  sagitta_[j] = 0.0;
+  double segments = std::max(1.0, std::ceil(pt_[j].path / segment_length_m_));
+  pt_[j].sagitta = 0.0;
   if (max_sagitta_ > 0.0 && rho > 0.0) {
     // Chords of the rotation: sagitta delta = rho (angle / segments)^2 / 8 <= max_sagitta_. At
     // the same time the arc is within 4 delta u (1 - u) of its chord (the interpolation error
@@ -288,24 +277,24 @@ void CollisionDetector::setupPath(WorkCounters& k, const RigidMotion& motion, in
     const double sagitta_of_one = rho * angle * angle / 8.0;  // one chord over the whole arc
     if (sagitta_of_one > max_sagitta_ * segments * segments)
       segments = std::ceil(angle * std::sqrt(rho / (8.0 * max_sagitta_)));
-    sagitta_[j] = sagitta_of_one / (segments * segments) * (1.0 + 1e-9);
+    pt_[j].sagitta = sagitta_of_one / (segments * segments) * (1.0 + 1e-9);
   }
-  dt_[j] = 1.0 / segments;
-  if (mode_ == DetectionMode::kAccelerated) segments_[j] = static_cast<std::int64_t>(segments);
+  pt_[j].dt = 1.0 / segments;
+  if (mode_ == DetectionMode::kAccelerated) pt_[j].segments = static_cast<std::int64_t>(segments);
 }
 
 void CollisionDetector::startPoint(WorkCounters& k, const RigidMotion& motion, int j) noexcept {
   setupPath(k, motion, j);
-  clear_until_[j] = -1.0;
-  if (embedded_[j] || !(path_[j] > 0.0)) return;
-  clear_segments_[j] = 0;
-  backoff_[j] = 0;
+  pt_[j].clear_until = -1.0;
+  if (embedded_[j] || !(pt_[j].path > 0.0)) return;
+  pt_[j].clear_segments = 0;
+  pt_[j].backoff = 0;
 }
 
 double CollisionDetector::stepSegment(WorkCounters& k, const RigidMotion& motion, int j, std::int64_t segment,
                                       double t_begin, double isovalue, double t_limit, SweepResult& result) noexcept {
   const std::int64_t next = segment + 1;
-  const double t_end = (static_cast<double>(next) * dt_[j] >= 1.0 - 1e-12) ? 1.0 : static_cast<double>(next) * dt_[j];
+  const double t_end = (static_cast<double>(next) * pt_[j].dt >= 1.0 - 1e-12) ? 1.0 : static_cast<double>(next) * pt_[j].dt;
   double lo = t_begin, hi = t_end;
   if (segment_test_ == SegmentTest::kExact) {
     // The chord between the arc's points at t_begin and t_end, walked cell by cell; the
@@ -315,22 +304,22 @@ double CollisionDetector::stepSegment(WorkCounters& k, const RigidMotion& motion
     // The chord's start is the previous segment's end when the point's segments are taken in
     // turn (the same double either way: pointAt at the same t).
     Eigen::Vector3d a;
-    if (chord_end_t_[j] == t_begin && chord_end_stamp_[j] == chord_stamp_) {
-      a = chord_end_ijk_[j];
+    if (pt_[j].chord_end_t == t_begin && pt_[j].chord_end_stamp == chord_stamp_) {
+      a = pt_[j].chord_end_ijk;
     } else {
       ++k.samples;
-      a = volume_->gridCoordinates(motion.pointAt(r0_[j], t_begin));
+      a = volume_->gridCoordinates(motion.pointAt(pt_[j].r0, t_begin));
     }
     ++k.samples;
-    const Eigen::Vector3d b = volume_->gridCoordinates(motion.pointAt(r0_[j], t_end));
-    chord_end_ijk_[j] = b;
-    chord_end_t_[j] = t_end;
-    chord_end_stamp_[j] = chord_stamp_;
+    const Eigen::Vector3d b = volume_->gridCoordinates(motion.pointAt(pt_[j].r0, t_end));
+    pt_[j].chord_end_ijk = b;
+    pt_[j].chord_end_t = t_end;
+    pt_[j].chord_end_stamp = chord_stamp_;
     const double u_limit = t_limit >= t_end ? 1.0 : (t_limit - t_begin) / span;
     // The arc's reach beyond its chord (the sagitta), per grid axis, for the grid's border.
-    const Eigen::Vector3d reach = sagitta_[j] * grid_per_m_;
+    const Eigen::Vector3d reach = pt_[j].sagitta * grid_per_m_;
     const SegmentEntry entry = volume_->firstEntryOnSegment(a, b, isovalue, u_limit,
-                                                            bisection_tolerance_ / (path_[j] * span), reach, sagitta_[j]);
+                                                            bisection_tolerance_ / (pt_[j].path * span), reach, pt_[j].sagitta);
     k.cells += entry.cells;
     k.cells_walked += entry.cells_walked;
     if (!entry.hit) return t_end;
@@ -341,18 +330,18 @@ double CollisionDetector::stepSegment(WorkCounters& k, const RigidMotion& motion
     // inside at the bracket's inside end, the hit is real (the arc is free up to its outside
     // end): one sample. Otherwise confirm it on finer chords over [t_begin, hi]: none of them
     // hitting proves the arc free there.
-    if (sagitta_[j] > 0.0 && (++k.samples, !volume_->isInside(motion.pointAt(r0_[j], hi), isovalue))) {
-      if (!refineArcEntry(k, motion, j, t_begin, t_end, sagitta_[j], isovalue, std::min(t_limit, t_end), kArcRefinements,
+    if (pt_[j].sagitta > 0.0 && (++k.samples, !volume_->isInside(motion.pointAt(pt_[j].r0, hi), isovalue))) {
+      if (!refineArcEntry(k, motion, j, t_begin, t_end, pt_[j].sagitta, isovalue, std::min(t_limit, t_end), kArcRefinements,
                           lo, hi))
         return t_end;
     }
   } else {
     const auto inside_at = [&](double t) {
       ++k.samples;
-      return volume_->isInside(motion.pointAt(r0_[j], t), isovalue);
+      return volume_->isInside(motion.pointAt(pt_[j].r0, t), isovalue);
     };
     if (!inside_at(t_end)) return t_end;
-    while (path_[j] * (hi - lo) >= bisection_tolerance_) {
+    while (pt_[j].path * (hi - lo) >= bisection_tolerance_) {
       const double mid = 0.5 * (lo + hi);
       if (inside_at(mid)) hi = mid; else lo = mid;
     }
@@ -376,11 +365,11 @@ bool CollisionDetector::refineArcEntry(WorkCounters& w, const RigidMotion& motio
     const double a_t = t0 + k * step, b_t = k == 3 ? t1 : t0 + (k + 1) * step;
     if (a_t > t_limit) return false;
     w.samples += 2;
-    const Eigen::Vector3d a = volume_->gridCoordinates(motion.pointAt(r0_[j], a_t));
-    const Eigen::Vector3d b = volume_->gridCoordinates(motion.pointAt(r0_[j], b_t));
+    const Eigen::Vector3d a = volume_->gridCoordinates(motion.pointAt(pt_[j].r0, a_t));
+    const Eigen::Vector3d b = volume_->gridCoordinates(motion.pointAt(pt_[j].r0, b_t));
     const double span = b_t - a_t;
     const double u_limit = t_limit >= b_t ? 1.0 : (t_limit - a_t) / span;
-    const SegmentEntry entry = volume_->firstEntryOnSegment(a, b, isovalue, u_limit, bisection_tolerance_ / (path_[j] * span),
+    const SegmentEntry entry = volume_->firstEntryOnSegment(a, b, isovalue, u_limit, bisection_tolerance_ / (pt_[j].path * span),
                                                             sub_sagitta * grid_per_m_, sub_sagitta);
     w.cells += entry.cells;
     w.cells_walked += entry.cells_walked;
@@ -440,19 +429,19 @@ std::size_t CollisionDetector::collectActive(Lane& lane, const RigidMotion& moti
     for (int i = node.begin; i < node.end; ++i) {
       const int j = order_[i];
       lane.active[lane.active_count++] = j;
-      if (started_[j] == sweep_stamp_) continue;  // a contact point: started (and queued) already
+      if (pt_[j].started == sweep_stamp_) continue;  // a contact point: started (and queued) already
       startPoint(k, motion, j);
-      if (!queue || embedded_[j] || !(path_[j] > 0.0)) continue;
+      if (!queue || embedded_[j] || !(pt_[j].path > 0.0)) continue;
       // The path over [0, t_max] first: its own ball culls the point at once (on the Engine
       // wrench 62 % of the points with several segments, which otherwise cost about two run
       // tests and two heap steps each).
-      const double radius_j = 0.5 * t_max * path_[j] * (1.0 + 1e-9) + 1e-12;
-      if (!ballMayBeInside(k, c_mid + R_mid * r0_[j], radius_j, isovalue, sagitta_[j])) {
-        clear_until_[j] = t_max;
+      const double radius_j = 0.5 * t_max * pt_[j].path * (1.0 + 1e-9) + 1e-12;
+      if (!ballMayBeInside(k, c_mid + R_mid * pt_[j].r0, radius_j, isovalue, pt_[j].sagitta)) {
+        pt_[j].clear_until = t_max;
         continue;
       }
       // One segment: sample it; several: resolved lazily, in time order.
-      heap[count++] = {0.0, j, 0, segments_[j] == 1 ? 0 : 1};
+      heap[count++] = {0.0, j, 0, pt_[j].segments == 1 ? 0 : 1};
     }
   }
   return count;
@@ -529,7 +518,7 @@ SweepResult CollisionDetector::sweepAccelerated(const RigidMotion& motion, doubl
   active_complete_ = true;
   if (motion.isStill()) return {};
   if (++sweep_stamp_ == 0) {  // wrapped: forget every old stamp
-    std::fill(started_.begin(), started_.end(), 0u);
+    for (PointState& q : pt_) q.started = 0u;
     sweep_stamp_ = 1;
   }
   for (Lane& lane : lanes_) {
@@ -547,7 +536,7 @@ SweepResult CollisionDetector::sweepAccelerated(const RigidMotion& motion, doubl
 SweepResult CollisionDetector::resumeSweep() noexcept {
   if (!pending_.active) return {};
   if (++chord_stamp_ == 0) {  // a new tick: the cached chord ends are recomputed (same values)
-    std::fill(chord_end_stamp_.begin(), chord_end_stamp_.end(), 0u);
+    for (PointState& q : pt_) q.chord_end_stamp = 0u;
     chord_stamp_ = 1;
   }
   return stopClear(runAccelerated());
@@ -560,7 +549,7 @@ SweepResult CollisionDetector::stopClear(SweepResult result) const noexcept {
   // epsilon / 128 of its own travel earlier (proven free: it is before the first hit) leaves it
   // a clearance that the arc refinement resolves (its finest sagitta is epsilon / 262,144).
   if (result.hit_point < 0 || result.budget_cut || !(result.t > 0.0)) return result;
-  const double path = path_[static_cast<std::size_t>(result.hit_point)];
+  const double path = pt_[static_cast<std::size_t>(result.hit_point)].path;
   if (path > 0.0) result.t = std::max(0.0, result.t - kStopClearanceFraction * epsilon_ / path);
   return result;
 }
@@ -599,8 +588,8 @@ SweepResult CollisionDetector::runAccelerated() noexcept {
       const int j = contacts_[st.contact_index].point_index;
       if (embedded_[j]) continue;
       startPoint(counters_, motion, j);
-      if (!(path_[j] > 0.0)) continue;
-      started_[j] = sweep_stamp_;
+      if (!(pt_[j].path > 0.0)) continue;
+      pt_[j].started = sweep_stamp_;
       const double t_end = stepSegment(counters_, motion, j, 0, 0.0, isovalue, result.t, result);
       // Outside at the end of its first segment: a run test next (in the lane that holds it).
       if (t_end >= 0.0 && t_end < 1.0) {
@@ -728,15 +717,15 @@ void CollisionDetector::runLane(Lane& lane) noexcept {
     const QueueEntry e = heap[0];
     pop_pending = true;
     const int j = e.point;
-    const std::int64_t total = segments_[j];
+    const std::int64_t total = pt_[j].segments;
     if (e.run > 0) {  // an unresolved run
       const std::int64_t run = std::min(e.run, total - e.segment);
       if (!runMayHit(k, motion, j, e.segment, run, isovalue)) {
-        backoff_[j] = 0;
+        pt_[j].backoff = 0;
         const std::int64_t after = e.segment + run;
-        if (clear_segments_[j] == e.segment) {
-          clear_segments_[j] = after;
-          clear_until_[j] = after >= total ? 1.0 : segmentBegin(j, after);
+        if (pt_[j].clear_segments == e.segment) {
+          pt_[j].clear_segments = after;
+          pt_[j].clear_until = after >= total ? 1.0 : segmentBegin(j, after);
         }
         if (after < total) push({segmentBegin(j, after), j, after, std::min(2 * run, total - after)});
       } else {
@@ -757,8 +746,8 @@ void CollisionDetector::runLane(Lane& lane) noexcept {
       // fail nearly always and this keeps them to a few per point instead of one per 2 samples.
       std::int64_t successor = 1;
       if (e.run == 0) {
-        successor = -(std::int64_t{1} << backoff_[j]);
-        if (backoff_[j] < 6) ++backoff_[j];
+        successor = -(std::int64_t{1} << pt_[j].backoff);
+        if (pt_[j].backoff < 6) ++pt_[j].backoff;
       } else if (e.run < -1) {
         successor = e.run + 1;
       }
@@ -775,7 +764,7 @@ SweepResult CollisionDetector::sweepPaper(const RigidMotion& motion, double isov
   std::size_t count = 0;
   for (int j = 0; j < n; ++j) {
     setupPath(counters_, motion, j);
-    if (embedded_[j] || !(path_[j] > 0.0)) continue;
+    if (embedded_[j] || !(pt_[j].path > 0.0)) continue;
     heap_[count++] = {0.0, j, 0};
   }
   std::make_heap(heap_.begin(), heap_.begin() + static_cast<std::ptrdiff_t>(count), Later{});
@@ -837,7 +826,7 @@ void CollisionDetector::addContactsAt(const RigidMotion& motion, const SweepResu
   const int n = static_cast<int>(points.size());
   const double t = hit.t;
   auto direction = [&](int j) {  // fallback normal: against the point's motion
-    const Eigen::Vector3d d = motion.pointAt(r0_[j], t + 1e-3) - motion.pointAt(r0_[j], t);
+    const Eigen::Vector3d d = motion.pointAt(pt_[j].r0, t + 1e-3) - motion.pointAt(pt_[j].r0, t);
     const double nd = d.norm();
     return nd > 0.0 ? Eigen::Vector3d(-d / nd) : Eigen::Vector3d(Eigen::Vector3d::UnitZ());
   };
@@ -872,8 +861,8 @@ void CollisionDetector::addContactsAt(const RigidMotion& motion, const SweepResu
     std::size_t kept = 0;
     for (std::size_t i = 0; i < active_count_; ++i) {
       const int j = active_[i];
-      if (j == hit.hit_point || in_set_[j] || embedded_[j] || !(path_[j] > 0.0)) continue;
-      if (t + epsilon_ / path_[j] <= clear_until_[j]) continue;
+      if (j == hit.hit_point || in_set_[j] || embedded_[j] || !(pt_[j].path > 0.0)) continue;
+      if (t + epsilon_ / pt_[j].path <= pt_[j].clear_until) continue;
       active_[kept++] = j;
     }
     active_count_ = kept;
@@ -885,12 +874,12 @@ void CollisionDetector::addContactsAt(const RigidMotion& motion, const SweepResu
     }
     for (std::size_t i = 0; i < kept && !overBudget(); ++i) {
       const int j = active_[i];
-      if (inside(motion.pointAt(r0_[j], t + epsilon_ / path_[j]), isovalue)) candidate_[candidates++] = j;
+      if (inside(motion.pointAt(pt_[j].r0, t + epsilon_ / pt_[j].path), isovalue)) candidate_[candidates++] = j;
     }
   } else {
     for (int j = 0; j < n && !overBudget(); ++j) {
-      if (j == hit.hit_point || in_set_[j] || embedded_[j] || !(path_[j] > 0.0)) continue;
-      if (inside(motion.pointAt(r0_[j], t + epsilon_ / path_[j]), isovalue)) candidate_[candidates++] = j;
+      if (j == hit.hit_point || in_set_[j] || embedded_[j] || !(pt_[j].path > 0.0)) continue;
+      if (inside(motion.pointAt(pt_[j].r0, t + epsilon_ / pt_[j].path), isovalue)) candidate_[candidates++] = j;
     }
   }
   const std::size_t cap = std::min(contact_cap_, contacts_.size());
@@ -898,7 +887,7 @@ void CollisionDetector::addContactsAt(const RigidMotion& motion, const SweepResu
   for (std::size_t i = 0; i < candidates; ++i) {
     const int j = candidate_[i];
     if (j != hit.hit_point && overBudget()) continue;  // measuring a contact costs 7+ samples
-    appendContact(j, motion.pointAt(r0_[j], t), direction(j), isovalue);
+    appendContact(j, motion.pointAt(pt_[j].r0, t), direction(j), isovalue);
   }
 }
 
@@ -931,7 +920,7 @@ void CollisionDetector::reduceContacts(const RigidMotion& motion, double t, int 
   const std::size_t existing = contact_count_;
   const std::size_t total = existing + candidates;
   auto position = [&](std::size_t u) {
-    return u < existing ? contacts_[u].p_W_m : motion.pointAt(r0_[candidate_[u - existing]], t);
+    return u < existing ? contacts_[u].p_W_m : motion.pointAt(pt_[candidate_[u - existing]].r0, t);
   };
   auto point_of = [&](std::size_t u) { return u < existing ? contacts_[u].point_index : candidate_[u - existing]; };
   for (std::size_t u = 0; u < total; ++u) {
@@ -981,12 +970,12 @@ void CollisionDetector::reduceContacts(const RigidMotion& motion, double t, int 
 bool CollisionDetector::refineStuckContact(const RigidMotion& motion, const SweepResult& hit) noexcept {
   if (hit.hit_point < 0 || !in_set_[hit.hit_point]) return false;
   const int j = hit.hit_point;
-  if (path_[j] * hit.t >= bisection_tolerance_) return false;  // it did make progress
+  if (pt_[j].path * hit.t >= bisection_tolerance_) return false;  // it did make progress
   for (std::size_t i = 0; i < contact_count_; ++i) {
     Contact& c = contacts_[i];
     if (c.point_index != j) continue;
     counters_.samples += 6;
-    const Eigen::Vector3d g = volume_->interpolantGradient(motion.pointAt(r0_[j], hit.t_inside));
+    const Eigen::Vector3d g = volume_->interpolantGradient(motion.pointAt(pt_[j].r0, hit.t_inside));
     const double norm = g.norm();
     if (!(norm > 0.0) || !std::isfinite(norm)) return false;
     const Eigen::Vector3d n = -g / norm;

@@ -1,5 +1,7 @@
 #include "vh/haptics/worker_pool.h"
 
+#include <chrono>
+#include <cmath>
 #include <stdexcept>
 #include <string>
 
@@ -18,10 +20,12 @@ inline void cpuRelax() noexcept {
 }
 }  // namespace
 
-WorkerPool::WorkerPool(int lanes) : lanes_(lanes) {
+WorkerPool::WorkerPool(int lanes, double spin_us) : lanes_(lanes), spin_us_(spin_us) {
   if (lanes < 1 || lanes > kMaxLanes)
     throw std::invalid_argument("WorkerPool: " + std::to_string(lanes) + " lanes, must be in [1, " +
                                 std::to_string(kMaxLanes) + "]");
+  if (!(spin_us >= 0.0) || !std::isfinite(spin_us))
+    throw std::invalid_argument("WorkerPool: the spin time must be finite and >= 0 us");
   threads_.reserve(static_cast<std::size_t>(lanes - 1));
   try {
     for (int lane = 1; lane < lanes; ++lane) threads_.emplace_back([this, lane] { threadLoop(lane); });
@@ -45,9 +49,16 @@ void WorkerPool::threadLoop(int lane) noexcept {
   std::uint32_t seen = 0;
   for (;;) {
     std::uint32_t now = epoch_.load(std::memory_order_acquire);
-    for (int spin = 0; now == seen && spin < kSpinIterations; ++spin) {
-      cpuRelax();
-      now = epoch_.load(std::memory_order_acquire);
+    if (now == seen) {
+      // Spin, reading the clock every 64 pauses, until spin_us has passed since the last job.
+      const auto until = std::chrono::steady_clock::now() +
+                         std::chrono::duration_cast<std::chrono::steady_clock::duration>(
+                             std::chrono::duration<double, std::micro>(spin_us_));
+      for (int spin = 1; now == seen; ++spin) {
+        cpuRelax();
+        now = epoch_.load(std::memory_order_acquire);
+        if ((spin & 63) == 0 && std::chrono::steady_clock::now() >= until) break;
+      }
     }
     while (now == seen) {
       sleeping_.fetch_add(1, std::memory_order_seq_cst);

@@ -301,7 +301,7 @@ class CollisionDetector {
   };
   // One lane of the accelerated sweep (setLanes()): its share of the point-shell tree, its own
   // queue and counters. Lane 0 runs on the caller.
-  struct Lane {
+  struct alignas(64) Lane {  // a cache line of its own: the lanes write their counters all the time
     WorkCounters counters;
     ClockCheck clock;
     std::int64_t base_work = 0;       // budgetWork() when the lanes were forked
@@ -320,6 +320,7 @@ class CollisionDetector {
     bool cut = false;                 // stopped by the budget; proven free over [0, cut_t]
     double cut_t = 0.0;
     SweepResult result;               // its first hit so far
+    alignas(64) char end_of_line = 0;  // nothing of the next lane on this lane's last line
   };
   SweepResult sweepPaper(const RigidMotion& motion, double isovalue) noexcept;
   SweepResult sweepAccelerated(const RigidMotion& motion, double isovalue) noexcept;
@@ -345,7 +346,7 @@ class CollisionDetector {
   bool ballMayBeInside(WorkCounters& k, const Eigen::Vector3d& center_W_m, double radius_m, double isovalue,
                        double arc_sagitta_m = 0.0) const noexcept;
   // Start time of segment k of point j (the same double the paper path computes).
-  double segmentBegin(int j, std::int64_t k) const noexcept { return k == 0 ? 0.0 : static_cast<double>(k) * dt_[j]; }
+  double segmentBegin(int j, std::int64_t k) const noexcept { return k == 0 ? 0.0 : static_cast<double>(k) * pt_[j].dt; }
   // False when the swept ball of segments [k, k + run) of point j holds no inside point.
   bool runMayHit(WorkCounters& w, const RigidMotion& motion, int j, std::int64_t k, std::int64_t run,
                  double isovalue) noexcept;
@@ -396,28 +397,33 @@ class CollisionDetector {
   double segment_length_m_;  // feature size * segment_fraction
   double epsilon_;
   double bisection_tolerance_;
-  std::vector<Eigen::Vector3d> r0_;      // per point radial vector at t = 0 (W)
-  std::vector<double> dt_;               // per point segment length in time
-  std::vector<double> path_;             // per point path-length bound
-  std::vector<double> sagitta_;          // per point: its chords' sagitta [m] (kExact with rotation, else 0)
-  std::vector<Eigen::Vector3d> chord_end_ijk_;   // per point: grid coordinates of the last chord's end
-  std::vector<double> chord_end_t_;              // ... and its time
-  std::vector<std::uint32_t> chord_end_stamp_;   // ... valid when equal to chord_stamp_ (this sweep)
+  // Per point, the state of the current sweep: one record per point, on cache lines of its own,
+  // so that lanes working on different points never write to the same line.
+  struct alignas(64) PointState {
+    Eigen::Vector3d r0 = Eigen::Vector3d::Zero();             // radial vector at t = 0 (W)
+    Eigen::Vector3d chord_end_ijk = Eigen::Vector3d::Zero();  // grid coordinates of the last chord's end
+    double dt = 1.0;                // segment length in time
+    double path = 0.0;              // path-length bound
+    double sagitta = 0.0;           // its chords' sagitta [m] (kExact with rotation, else 0)
+    double chord_end_t = -1.0;      // ... the last chord end's time
+    double clear_until = 0.0;       // kAccelerated: proven outside over [0, clear_until] of the last sweep
+    std::int64_t segments = 0;      // kAccelerated: segment count of the last sweep
+    std::int64_t clear_segments = 0;  // kAccelerated: leading segments proven empty
+    std::uint32_t chord_end_stamp = 0;  // the chord end is valid when equal to chord_stamp_ (this sweep)
+    std::uint32_t started = 0;      // kAccelerated: sweep_stamp_ when started by the contact pre-pass
+    unsigned char backoff = 0;      // kAccelerated: direct steps after a failed test = 2^backoff
+  };
+  std::vector<PointState> pt_;
   std::uint32_t chord_stamp_ = 0;
   std::vector<QueueEntry> heap_;         // kPaper's queue, capacity = number of points
   // kAccelerated state (see haptics/README.md, "Speed").
   std::vector<ShellNode> nodes_;         // point-shell tree, root at 0
   std::vector<int> order_;               // point indices in tree order
   std::vector<int> stack_;               // traversal stack of the caller's walks, capacity = nodes
-  std::vector<std::int64_t> segments_;   // per point segment count of the last sweep
-  std::vector<double> clear_until_;      // per point: proven outside over [0, clear_until] of the last sweep
-  std::vector<std::int64_t> clear_segments_;  // per point: leading segments proven empty
   std::vector<int> active_;              // points not culled by the last sweep (mergeActive()), capacity = points
   std::size_t active_count_ = 0;
   bool active_complete_ = true;          // false: the last sweep stopped before collecting active_
-  std::vector<std::uint32_t> started_;   // per point: sweep_stamp_ when started by the contact pre-pass
   std::uint32_t sweep_stamp_ = 0;
-  std::vector<unsigned char> backoff_;   // per point: direct steps after a failed test = 2^backoff
   std::vector<Lane> lanes_;              // at least one (setLanes())
   std::vector<int> lane_of_;             // per point: the lane whose share of the tree holds it
   std::unique_ptr<WorkerPool> pool_;     // lanes - 1 threads, none for one lane

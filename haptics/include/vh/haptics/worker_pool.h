@@ -14,9 +14,11 @@ namespace vh::haptics {
 /// and lanes 1 .. lanes - 1 to the pool's threads, and returns when every lane is done.
 ///
 /// run() neither allocates nor locks: the job is published through an atomic epoch; the threads
-/// spin on it for about kSpinIterations pauses after each job (servo ticks come every
-/// millisecond, several forks per tick), then sleep on it (std::atomic::wait, a futex), and the
-/// caller wakes them only when one sleeps. The caller spins until the lanes are done.
+/// spin on it for spin_us after each job (servo ticks come every millisecond, several forks per
+/// tick: a thread woken from sleep costs tens to hundreds of microseconds, more than a fork's
+/// work), then sleep on it (std::atomic::wait, a futex), and the caller wakes them only when one
+/// sleeps. The caller spins until the lanes are done. So while the solver runs, the pool's
+/// threads keep their cores busy: give it only cores the coupling thread does not need.
 /// The threads inherit the creating thread's scheduling policy and affinity; they never run
 /// anything but jobs given to run().
 /// Thread safety: run() from one thread at a time (the solver thread that owns the pool).
@@ -25,15 +27,17 @@ class WorkerPool {
   /// A lane's work: `context` as given to run(), `lane` in [0, lanes()). Must not throw.
   using Job = void (*)(void* context, int lane) noexcept;
 
-  /// Pauses a thread spins on the epoch before it sleeps (roughly 50 to 200 us).
-  static constexpr int kSpinIterations = 4096;
+  /// How long a thread spins on the epoch after a job before it sleeps [us]: two servo periods
+  /// at 1 kHz.
+  static constexpr double kDefaultSpin_us = 2000.0;
   /// Most lanes a pool runs.
   static constexpr int kMaxLanes = 64;
 
   /// @param lanes the lanes of each run(), in [1, kMaxLanes]: lanes - 1 threads are started.
-  /// @throws std::invalid_argument when lanes is outside [1, kMaxLanes];
-  ///         std::system_error when a thread cannot be started.
-  explicit WorkerPool(int lanes);
+  /// @param spin_us how long a thread spins for the next job before it sleeps [us], >= 0.
+  /// @throws std::invalid_argument when lanes is outside [1, kMaxLanes] or spin_us is negative
+  ///         or not finite; std::system_error when a thread cannot be started.
+  explicit WorkerPool(int lanes, double spin_us = kDefaultSpin_us);
   /// Stops and joins the threads.
   ~WorkerPool();
   WorkerPool(const WorkerPool&) = delete;
@@ -49,6 +53,7 @@ class WorkerPool {
   void threadLoop(int lane) noexcept;
 
   int lanes_ = 1;
+  double spin_us_ = kDefaultSpin_us;
   Job job_ = nullptr;
   void* context_ = nullptr;
   alignas(64) std::atomic<std::uint32_t> epoch_{0};
