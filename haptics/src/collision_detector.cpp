@@ -469,7 +469,7 @@ void CollisionDetector::setLanes(int lanes) {
   pending_.active = false;  // a sweep in progress was dealt to the old lanes
   pool_.reset();
   setLanesPartition(lanes);
-  if (lanes_.size() > 1) pool_ = std::make_unique<WorkerPool>(static_cast<int>(lanes_.size()));
+  if (lanes_.size() > 1) pool_ = WorkerPool::shared(static_cast<int>(lanes_.size()));
 }
 
 void CollisionDetector::setLanesPartition(int lanes) {

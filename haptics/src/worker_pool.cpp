@@ -2,6 +2,8 @@
 
 #include <chrono>
 #include <cmath>
+#include <map>
+#include <mutex>
 #include <stdexcept>
 #include <string>
 
@@ -73,9 +75,21 @@ void WorkerPool::threadLoop(int lane) noexcept {
   }
 }
 
+std::shared_ptr<WorkerPool> WorkerPool::shared(int lanes) {
+  static std::mutex mutex;
+  static std::map<int, std::weak_ptr<WorkerPool>> pools;
+  const std::lock_guard<std::mutex> lock(mutex);
+  std::shared_ptr<WorkerPool> pool = pools[lanes].lock();
+  if (!pool) {
+    pool = std::make_shared<WorkerPool>(lanes);
+    pools[lanes] = pool;
+  }
+  return pool;
+}
+
 void WorkerPool::run(Job job, void* context) noexcept {
-  if (lanes_ == 1) {
-    job(context, 0);
+  if (lanes_ == 1 || busy_.exchange(true, std::memory_order_acquire)) {
+    for (int lane = 0; lane < lanes_; ++lane) job(context, lane);
     return;
   }
   job_ = job;
@@ -86,6 +100,7 @@ void WorkerPool::run(Job job, void* context) noexcept {
   if (sleeping_.load(std::memory_order_seq_cst) > 0) epoch_.notify_all();
   job(context, 0);
   while (running_.load(std::memory_order_acquire) != 0) cpuRelax();
+  busy_.store(false, std::memory_order_release);
 }
 
 }  // namespace vh::haptics

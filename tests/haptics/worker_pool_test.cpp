@@ -57,6 +57,28 @@ TEST(WorkerPool, EveryLaneRunsOncePerRunOnItsOwnThread) {
   }
 }
 
+// Two threads forking on the one shared pool at once: neither waits for the other (the second
+// runs its lanes itself), and every lane of both runs once per run().
+TEST(WorkerPool, SharedPoolServesTwoCallersAtOnce) {
+  const auto pool = WorkerPool::shared(3);
+  EXPECT_EQ(pool, WorkerPool::shared(3)) << "one pool per lane count";
+  Tally a, b;
+  for (Tally* t : {&a, &b}) {
+    t->runs.assign(3, 0);
+    t->thread_of.assign(3, {});
+  }
+  constexpr int kRuns = 500;
+  std::thread other([&] {
+    for (int r = 0; r < kRuns; ++r) pool->run(&countLane, &b);
+  });
+  for (int r = 0; r < kRuns; ++r) pool->run(&countLane, &a);
+  other.join();
+  for (int lane = 0; lane < 3; ++lane) {
+    EXPECT_EQ(a.runs[static_cast<std::size_t>(lane)], kRuns);
+    EXPECT_EQ(b.runs[static_cast<std::size_t>(lane)], kRuns);
+  }
+}
+
 TEST(WorkerPool, RejectsALaneCountOutsideItsRange) {
   EXPECT_THROW(WorkerPool(0), std::invalid_argument);
   EXPECT_THROW(WorkerPool(WorkerPool::kMaxLanes + 1), std::invalid_argument);

@@ -241,8 +241,10 @@ class CollisionDetector {
   /// robin to the lanes, each lane searches its points in time order with its own queue, and
   /// the lanes share the first time of contact found so far (an atomic bound). The result is
   /// the same first time of contact as one lane (on an exact tie between points of different
-  /// lanes, the lower index); the contact pass, pruning and contact set stay on the caller.
-  /// kPaper ignores it. Starts lanes - 1 threads (not on the servo path: call it at set-up).
+  /// lanes, hit_point may name another tied point); the contact pass, pruning and contact set
+  /// stay on the caller.
+  /// kPaper ignores it. Shares the process's pool of that many lanes (WorkerPool::shared(): lanes - 1
+  /// threads started on first use; not on the servo path, call it at set-up).
   /// @throws std::invalid_argument when lanes is outside [1, WorkerPool::kMaxLanes];
   ///         std::system_error when a thread cannot be started.
   void setLanes(int lanes);
@@ -426,7 +428,7 @@ class CollisionDetector {
   std::uint32_t sweep_stamp_ = 0;
   std::vector<Lane> lanes_;              // at least one (setLanes())
   std::vector<int> lane_of_;             // per point: the lane whose share of the tree holds it
-  std::unique_ptr<WorkerPool> pool_;     // lanes - 1 threads, none for one lane
+  std::shared_ptr<WorkerPool> pool_;     // WorkerPool::shared(lanes), none for one lane
   // The lanes' shared first time of contact so far (read relaxed: a stale value only costs work).
   std::unique_ptr<std::atomic<double>> bound_ = std::make_unique<std::atomic<double>>(1.0);
   void setLanesPartition(int lanes);

@@ -5,6 +5,7 @@
 
 #include <atomic>
 #include <cstdint>
+#include <memory>
 #include <thread>
 #include <vector>
 
@@ -21,7 +22,8 @@ namespace vh::haptics {
 /// threads keep their cores busy: give it only cores the coupling thread does not need.
 /// The threads inherit the creating thread's scheduling policy and affinity; they never run
 /// anything but jobs given to run().
-/// Thread safety: run() from one thread at a time (the solver thread that owns the pool).
+/// Thread safety: run() may be called from any thread (a second concurrent caller runs its lanes
+/// itself).
 class WorkerPool {
  public:
   /// A lane's work: `context` as given to run(), `lane` in [0, lanes()). Must not throw.
@@ -45,8 +47,17 @@ class WorkerPool {
 
   int lanes() const noexcept { return lanes_; }
 
+  /// The process's pool of `lanes` lanes, made on first use and shared by every caller that asks
+  /// for the same count (several renderers in one process: a benchmark's interleaved modes, a
+  /// replay beside the live solver), so that spinning threads never outnumber the cores asked
+  /// for. Not for the servo path (it may start threads).
+  /// @throws as the constructor.
+  static std::shared_ptr<WorkerPool> shared(int lanes);
+
   /// Runs job(context, lane) for every lane, lane 0 on the caller, and returns when all are
-  /// done (their writes are visible to the caller). No allocation, no lock.
+  /// done (their writes are visible to the caller). No allocation, no lock: while another thread
+  /// runs a job on the same pool, this call runs every lane in turn on the caller instead of
+  /// waiting.
   void run(Job job, void* context) noexcept;
 
  private:
@@ -60,6 +71,7 @@ class WorkerPool {
   alignas(64) std::atomic<int> running_{0};   // lanes of the current job not yet done
   alignas(64) std::atomic<int> sleeping_{0};  // threads waiting on epoch_
   std::atomic<bool> stop_{false};
+  std::atomic<bool> busy_{false};  // a job is running
   std::vector<std::thread> threads_;
 };
 
