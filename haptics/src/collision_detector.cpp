@@ -447,18 +447,10 @@ std::size_t CollisionDetector::collectActive(Lane& lane, const RigidMotion& moti
   return count;
 }
 
-void CollisionDetector::mergeActive() noexcept {
-  if (lanes_.size() == 1) {  // one lane: its list is the whole list
-    const Lane& lane = lanes_[0];
-    std::copy_n(lane.active.begin(), lane.active_count, active_.begin());
-    active_count_ = lane.active_count;
-    return;
-  }
-  active_count_ = 0;
-  for (const Lane& lane : lanes_) {
-    std::copy_n(lane.active.begin(), lane.active_count, active_.begin() + static_cast<std::ptrdiff_t>(active_count_));
-    active_count_ += lane.active_count;
-  }
+void CollisionDetector::startLaneWork(Lane& lane) const noexcept {
+  lane.base_work = budgetWork();
+  lane.counters = {};
+  lane.clock = clock_;
 }
 
 void CollisionDetector::setLanes(int lanes) {
@@ -514,7 +506,6 @@ void CollisionDetector::setLanesPartition(int lanes) {
 
 SweepResult CollisionDetector::sweepAccelerated(const RigidMotion& motion, double isovalue) noexcept {
   pending_.active = false;
-  active_count_ = 0;
   active_complete_ = true;
   if (motion.isStill()) return {};
   if (++sweep_stamp_ == 0) {  // wrapped: forget every old stamp
@@ -608,18 +599,14 @@ SweepResult CollisionDetector::runAccelerated() noexcept {
       lane.phase = 1;
       lane.walk_top = -1;  // not started
       lane.count = 0;
-      lane.cut = false;
       lane.result = SweepResult{};
     }
   }
   // The lanes: each walks its share of the point-shell tree, then searches its points in time
   // order, all bounded by the earliest hit any has found.
   bound_->store(result.t, std::memory_order_relaxed);
-  const std::int64_t base_work = budgetWork();
   for (Lane& lane : lanes_) {
-    lane.base_work = base_work;
-    lane.counters = {};
-    lane.clock = clock_;
+    startLaneWork(lane);
     lane.cut = false;
     if (lane.phase == 3 && lane.result.t < bound_->load(std::memory_order_relaxed))
       bound_->store(lane.result.t, std::memory_order_relaxed);
@@ -653,14 +640,12 @@ SweepResult CollisionDetector::runAccelerated() noexcept {
     // to the earliest place a lane stopped (0 while a lane still walks the tree).
     st.active = true;
     active_complete_ = walked;
-    if (walked) mergeActive();
     SweepResult cut;
     cut.t = cut.t_inside = walked ? std::min(cut_t, best.t) : 0.0;
     cut.budget_cut = true;
     return cut;
   }
   active_complete_ = true;
-  mergeActive();
   return best;
 }
 
@@ -697,7 +682,6 @@ void CollisionDetector::runLane(Lane& lane) noexcept {
   std::size_t& count = lane.count;
   bool& pop_pending = lane.pop_pending;
   std::atomic<double>& bound = *bound_;
-  const bool shared = lanes_.size() > 1;
   const auto push = [&](const QueueEntry& entry) {
     replaceTop(heap, count, entry);
     pop_pending = false;
@@ -707,7 +691,7 @@ void CollisionDetector::runLane(Lane& lane) noexcept {
       pop_pending = false;
       if (--count > 0) replaceTop(heap, count, heap[count]);
     }
-    const double limit = shared ? std::min(result.t, bound.load(std::memory_order_relaxed)) : std::min(result.t, st.result.t);
+    const double limit = std::min(result.t, bound.load(std::memory_order_relaxed));
     if (!(count > 0 && heap[0].t_begin < limit)) break;
     if (overBudget(lane)) {  // every path of the lane is proven free up to the queue's front
       lane.cut = true;
@@ -734,7 +718,7 @@ void CollisionDetector::runLane(Lane& lane) noexcept {
       continue;
     }
     const double t_end = stepSegment(k, motion, j, e.segment, e.t_begin, isovalue, limit, result);
-    if (shared && result.hit_point == j && result.t < bound.load(std::memory_order_relaxed)) {
+    if (result.hit_point == j && result.t < bound.load(std::memory_order_relaxed)) {
       double seen = bound.load(std::memory_order_relaxed);
       while (result.t < seen && !bound.compare_exchange_weak(seen, result.t, std::memory_order_relaxed)) {
       }
@@ -843,15 +827,12 @@ void CollisionDetector::addContactsAt(const RigidMotion& motion, const SweepResu
       bool stopped = false;
       for (Lane& lane : lanes_) lane.active_count = 0;
       for (Lane& lane : lanes_) {
-        lane.base_work = budgetWork();
-        lane.counters = {};
-        lane.clock = clock_;
+        startLaneWork(lane);
         collectActive(lane, motion, t, isovalue, false);
         counters_ += lane.counters;
         clock_ = lane.clock;
         if ((stopped = lane.walk_stopped)) break;
       }
-      mergeActive();
       active_complete_ = !stopped;
     }
     // Only the points the sweep did not cull, in index order; a point whose look-ahead time lies
@@ -859,13 +840,14 @@ void CollisionDetector::addContactsAt(const RigidMotion& motion, const SweepResu
     // candidates left are sorted (sorting every active point cost 4 % of a tick on Engine).
     // active_ keeps just the candidates afterwards.
     std::size_t kept = 0;
-    for (std::size_t i = 0; i < active_count_; ++i) {
-      const int j = active_[i];
-      if (j == hit.hit_point || in_set_[j] || embedded_[j] || !(pt_[j].path > 0.0)) continue;
-      if (t + epsilon_ / pt_[j].path <= pt_[j].clear_until) continue;
-      active_[kept++] = j;
+    for (const Lane& lane : lanes_) {
+      for (std::size_t i = 0; i < lane.active_count; ++i) {
+        const int j = lane.active[i];
+        if (j == hit.hit_point || in_set_[j] || embedded_[j] || !(pt_[j].path > 0.0)) continue;
+        if (t + epsilon_ / pt_[j].path <= pt_[j].clear_until) continue;
+        active_[kept++] = j;
+      }
     }
-    active_count_ = kept;
     // Sorted when few (the paper's order); many (a large face landing) are tested in the walk's
     // order, which the budget may stop early and reduceContacts() thins out anyway.
     if (kept <= 4 * contact_cap_) {

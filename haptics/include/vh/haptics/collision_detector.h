@@ -322,8 +322,7 @@ class CollisionDetector {
     bool cut = false;                 // stopped by the budget; proven free over [0, cut_t]
     double cut_t = 0.0;
     SweepResult result;               // its first hit so far
-    alignas(64) char end_of_line = 0;  // nothing of the next lane on this lane's last line
-  };
+  };  // (alignas rounds its size up to whole lines: nothing of the next lane shares its last line)
   SweepResult sweepPaper(const RigidMotion& motion, double isovalue) noexcept;
   SweepResult sweepAccelerated(const RigidMotion& motion, double isovalue) noexcept;
   // kAccelerated: runs (or resumes) the sweep held in pending_.
@@ -380,8 +379,8 @@ class CollisionDetector {
   // lane.walk_stopped. With `resume`, goes on with a walk the budget stopped.
   std::size_t collectActive(Lane& lane, const RigidMotion& motion, double t_max, double isovalue, bool queue,
                             bool resume = false) noexcept;
-  // Gathers the lanes' active points into active_ (lane order).
-  void mergeActive() noexcept;
+  // Readies a lane for work on the caller's budget and clock (base work, counters, clock reads).
+  void startLaneWork(Lane& lane) const noexcept;
   // Fills c.n_W and c.clearance_m at c.p_W_m (7 samples).
   void measureContact(Contact& c, double isovalue) noexcept;
   void appendContact(int point, const Eigen::Vector3d& p_W, const Eigen::Vector3d& fallback_n_W, double isovalue) noexcept;
@@ -422,9 +421,8 @@ class CollisionDetector {
   std::vector<ShellNode> nodes_;         // point-shell tree, root at 0
   std::vector<int> order_;               // point indices in tree order
   std::vector<int> stack_;               // traversal stack of the caller's walks, capacity = nodes
-  std::vector<int> active_;              // points not culled by the last sweep (mergeActive()), capacity = points
-  std::size_t active_count_ = 0;
-  bool active_complete_ = true;          // false: the last sweep stopped before collecting active_
+  std::vector<int> active_;              // addContactsAt(): the lanes' active points it keeps, capacity = points
+  bool active_complete_ = true;          // false: the last sweep stopped before its lanes collected their active points
   std::uint32_t sweep_stamp_ = 0;
   std::vector<Lane> lanes_;              // at least one (setLanes())
   std::vector<int> lane_of_;             // per point: the lane whose share of the tree holds it
