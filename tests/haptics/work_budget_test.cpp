@@ -22,7 +22,7 @@ INSTANTIATE_TEST_SUITE_P(Modes, WorkBudget, ::testing::Values(DetectionMode::kPa
                          [](const ::testing::TestParamInfo<DetectionMode>& p) { return std::string(toString(p.param)); });
 
 struct BudgetRun {
-  std::int64_t max_work = 0, cuts = 0, crossings = 0;
+  std::int64_t max_work = 0, cuts = 0, deadline_cuts = 0, crossings = 0;
   int longest_cut_run = 0;  // most consecutive ticks the budget cut (one resumed sweep)
   double max_depth_m = 0.0;
   Pose final;
@@ -31,7 +31,8 @@ struct BudgetRun {
 // A 5000-point ball over the one-voxel plate: the device teleports from 10 mm above the plate
 // to 40 mm below it with a half turn and back, then presses and holds; the unbudgeted ticks of
 // the jumps walk thousands of segments.
-BudgetRun teleports(DetectionMode mode, std::int64_t budget) {
+// `deadline_us` and `lanes`: RendererOptions::deadline_us and solver_lanes.
+BudgetRun teleports(DetectionMode mode, std::int64_t budget, double deadline_us = 0.0, int lanes = 1) {
   auto vol = std::make_shared<const ScalarVolume>(datasets::makeThinPlateVolume(test::grid1mm()));
   const double s = 200.0;  // 0.43 mm thick
   const double z_plate = vol->geometry().origin_W_m.z() + 32e-3;
@@ -41,6 +42,8 @@ BudgetRun teleports(DetectionMode mode, std::int64_t budget) {
   RendererOptions o;
   o.detection_mode = mode;
   o.work_budget = budget;
+  o.deadline_us = deadline_us;
+  o.solver_lanes = lanes;
   Pose above;
   above.p_AB_m = {0.0, 0.0, z_plate + 0.011};
   HapticRenderer r(vol, tool, o, above, s);
@@ -61,6 +64,8 @@ BudgetRun teleports(DetectionMode mode, std::int64_t budget) {
                 << " z " << (out.X_WP.p_AB_m.z() - z_plate) * 1e3 << " contacts " << out.stats.contacts << "\n";
     run.max_work = std::max(run.max_work, out.stats.work);
     run.cuts += out.stats.budget_cut;
+    run.deadline_cuts += out.stats.deadline_cut;
+    if (out.stats.deadline_cut) EXPECT_TRUE(out.stats.budget_cut);
     cut_run = out.stats.budget_cut ? cut_run + 1 : 0;
     run.longest_cut_run = std::max(run.longest_cut_run, cut_run);
     run.max_depth_m = std::max(run.max_depth_m, maxPenetration_m(*vol, tool->point_shell, out.X_WP, s));
@@ -101,6 +106,24 @@ TEST_P(WorkBudget, NoTickExceedsItsWorkAndTheProxyStillNeverPenetrates) {
   std::cout << "work per tick: unbudgeted max " << free_run.max_work << ", budgeted max " << budgeted.max_work
             << " (budget " << kBudget << "), " << budgeted.cuts << " ticks cut, longest run of cut ticks "
             << budgeted.longest_cut_run << "\n";
+}
+
+// The deadline on the clock through the renderer (RendererOptions::deadline_us), on 2 lanes and
+// without a work budget: a deadline far shorter than the jumps' sweeps cuts ticks and says so
+// (TickStats::deadline_cut), the proxy never crosses the plate nor sinks past epsilon, and the
+// cut sweeps resume until it rests where the unlimited run rests.
+TEST(DeadlineOnTheClock, CutsTicksAndTheProxyNeverCrossesAndCatchesUp) {
+  const BudgetRun free_run = teleports(DetectionMode::kAccelerated, 0);
+  const BudgetRun late = teleports(DetectionMode::kAccelerated, 0, 20.0, 2);
+  EXPECT_GT(late.deadline_cuts, 0);
+  EXPECT_EQ(late.deadline_cuts, late.cuts) << "no work budget: every cut is the clock's";
+  EXPECT_EQ(late.crossings, 0);
+  EXPECT_LE(late.max_depth_m, 0.125 * 0.5e-3);
+  EXPECT_LT((late.final.p_AB_m - free_run.final.p_AB_m).norm(), 0.5e-3);
+  EXPECT_EQ(free_run.deadline_cuts, 0);
+  std::cout << "deadline 20 us on 2 lanes: " << late.deadline_cuts << " ticks cut by the clock, longest run "
+            << late.longest_cut_run << ", final proxy " << 1e3 * (late.final.p_AB_m - free_run.final.p_AB_m).norm()
+            << " mm from the unlimited run's\n";
 }
 
 }  // namespace
