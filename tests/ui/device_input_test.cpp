@@ -51,7 +51,7 @@ struct ViewAndDevice {
     layout->setContentsMargins(0, 0, 0, 0);
     view = new SceneView(&host);
     layout->addWidget(view->widget());
-    view->setScene(sceneActorsSpecFor(scene), scene.X_WT_initial, Preferences{});
+    view->setScene(sceneActorsSpecFor(scene, runtime::LiveValues::initial(scene)), scene.X_WT_initial, Preferences{});
     input = new DeviceInput(session, *view);  // owned by the view
     host.resize(240, 180);
     host.show();
@@ -65,7 +65,7 @@ struct ViewAndDevice {
 
 TEST(DeviceInput, TouchSurfaceSinksTheToolTheDepthAskedIntoTheSphere) {
   ViewAndDevice s;
-  const haptics::PointShell& shell = s.session.scene().tool->point_shell;
+  const haptics::PointShell& shell = s.session.live().tool->point_shell;
   ASSERT_FALSE(shell.empty());
   const Pose start = s.session.simulatedDevice()->pose();
   ASSERT_GT(deepestRadius_m(shell, start), 0.020) << "the probe starts clear of the sphere";

@@ -124,14 +124,14 @@ TEST(IgtlPanel, ImageFromAClientOpensAsTheNewScene) {
 
   ASSERT_TRUE(waitFor([&] { return loaded.count() > 0; }, 20000)) << window.lastError().toStdString();
   ASSERT_TRUE(window.hasScene());
-  const haptics::VolumeGeometry& g = window.scene().volume.field->geometry();
+  const haptics::VolumeGeometry& g = window.session().loaded().volume.field->geometry();
   EXPECT_EQ(g.dims, (std::array<int, 3>{24, 20, 16}));
   EXPECT_NEAR(g.spacing_m.x(), 0.0008, 1e-9);
   EXPECT_NEAR(g.origin_W_m.x(), 0.010, 1e-6);   // R -10 mm is L +10 mm
   EXPECT_NEAR(g.origin_W_m.y(), -0.020, 1e-6);  // A 20 mm is P -20 mm
   EXPECT_NEAR(g.origin_W_m.z(), -0.005, 1e-6);
-  EXPECT_EQ(window.scene().volume.info.format, "OpenIGTLink");
-  EXPECT_EQ(window.scene().spec.volume.path, "igtl:Ball");
+  EXPECT_EQ(window.session().loaded().volume.info.format, "OpenIGTLink");
+  EXPECT_EQ(window.session().loaded().spec.volume.path, "igtl:Ball");
   EXPECT_TRUE(window.preferences().recent_files.isEmpty() ||
               !window.preferences().recent_files.front().contains("igtl:"));
   // Its haptics feed the link.

@@ -102,9 +102,9 @@ TEST(LoadNoticesTest, AGapIsNamedInTheStatusBarTheBannerAndHelpLoadNotes) {
   EXPECT_FALSE(panel->phaseSpinBox()->isVisible()) << "a 3-D series offers no time points";
 
   // The same series is what the scene names (and so a recording), by its UID.
-  EXPECT_FALSE(window.scene().spec.volume.series.empty());
-  EXPECT_EQ(window.scene().spec.volume.series, window.scene().volume.info.series_uid);
-  EXPECT_EQ(window.session().scene().spec.volume.series, window.scene().volume.info.series_uid);
+  EXPECT_FALSE(window.session().loaded().spec.volume.series.empty());
+  EXPECT_EQ(window.session().loaded().spec.volume.series, window.session().loaded().volume.info.series_uid);
+  EXPECT_EQ(window.session().loaded().spec.volume.series, window.session().loaded().volume.info.series_uid);
 
   // Dismissed, then reopened from the Help menu.
   panel->findChild<QToolButton*>("loadNoticeClose")->click();
@@ -202,10 +202,10 @@ TEST(LoadNoticesTest, TheChosenTimePointReachesTheSceneSpec) {
   QSignalSpy loaded(&window, &MainWindow::sceneLoaded);
   window.openDicomSeries(listed.front(), chooser.selectedPhase());
   ASSERT_TRUE(waitFor([&] { return loaded.count() == 1; }, 30000)) << window.lastError().toStdString();
-  EXPECT_EQ(window.scene().spec.volume.phase, 1);
-  EXPECT_EQ(window.scene().spec.volume.series, written.series_uid);
-  EXPECT_EQ(window.scene().volume.info.phase, 1);
-  EXPECT_EQ(window.scene().volume.info.phase_count, 3);
+  EXPECT_EQ(window.session().loaded().spec.volume.phase, 1);
+  EXPECT_EQ(window.session().loaded().spec.volume.series, written.series_uid);
+  EXPECT_EQ(window.session().loaded().volume.info.phase, 1);
+  EXPECT_EQ(window.session().loaded().volume.info.phase_count, 3);
 
   // The banner names the 4-D series and offers its other time points; the choice reloads.
   LoadNoticePanel* panel = window.loadNotices();
@@ -217,10 +217,10 @@ TEST(LoadNoticesTest, TheChosenTimePointReachesTheSceneSpec) {
   panel->phaseSpinBox()->setValue(3);
   panel->phaseLoadButton()->click();
   ASSERT_TRUE(waitFor([&] { return loaded.count() == 2; }, 30000)) << window.lastError().toStdString();
-  EXPECT_EQ(window.scene().spec.volume.phase, 2);
-  EXPECT_EQ(window.scene().volume.info.phase, 2);
-  EXPECT_EQ(window.session().scene().spec.volume.phase, 2) << "what a recording's metadata describes";
-  EXPECT_EQ(window.session().scene().spec.volume.series, written.series_uid);
+  EXPECT_EQ(window.session().loaded().spec.volume.phase, 2);
+  EXPECT_EQ(window.session().loaded().volume.info.phase, 2);
+  EXPECT_EQ(window.session().loaded().spec.volume.phase, 2) << "what a recording's metadata describes";
+  EXPECT_EQ(window.session().loaded().spec.volume.series, written.series_uid);
   window.close();
 }
 

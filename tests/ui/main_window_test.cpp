@@ -383,14 +383,14 @@ TEST_F(MainWindowTest, ChoosingAToolRebuildsTheHapticThread) {
   ASSERT_TRUE(waitFor([&] { return changed.count() > 0; }, 20000)) << "the tool was never rebuilt";
   EXPECT_EQ(window_->currentToolIndex(), sphere);
   EXPECT_NE(window_->proxyActor()->GetMapper()->GetInput()->GetNumberOfCells(), cells_before);
-  EXPECT_EQ(window_->hapticsPanel()->pointCountLabel()->text().toULongLong(), window_->scene().tool->point_shell.size());
+  EXPECT_EQ(window_->hapticsPanel()->pointCountLabel()->text().toULongLong(), window_->session().live().tool->point_shell.size());
   EXPECT_NEAR(window_->hapticsPanel()->pointSpacing_m(), 0.001, 1e-9);
   EXPECT_TRUE(window_->hapticsRunning());
   // The new thread runs with the new tool: the proxy follows the device from the new pose.
   EXPECT_TRUE(waitFor([&] {
     window_->refreshFromHaptics();
     return window_->lastSnapshot().tick > 0 &&
-           (window_->lastSnapshot().X_WP.p_AB_m - window_->scene().X_WT_initial.p_AB_m).norm() < 1e-4;
+           (window_->lastSnapshot().X_WP.p_AB_m - window_->session().live().X_WT_initial.p_AB_m).norm() < 1e-4;
   }, 3000));
 }
 
@@ -416,7 +416,7 @@ TEST_F(MainWindowTest, DevicePickerListsTheSimulatedDeviceAndWhatIsFound) {
   // Another device (not in the list), then back to the simulated one: a new SimulatedDevice
   // drives a running haptic thread whose ticks advance.
   window_->setDevice(std::make_shared<runtime::ScriptedDevice>(
-      runtime::Trajectory({runtime::TrajectorySample{0.0, window_->scene().X_WT_initial}})));
+      runtime::Trajectory({runtime::TrajectorySample{0.0, window_->session().live().X_WT_initial}})));
   EXPECT_EQ(window_->currentDeviceChoice(), -1);
   EXPECT_EQ(box->currentIndex(), -1);
   ASSERT_TRUE(window_->chooseDevice(0));

@@ -1,4 +1,4 @@
-// Session recordings in the GUI (issue 6): recording from the window (records, events and
+// Session recordings in the GUI: recording from the window (records, events and
 // metadata read back), replay (the recorded scene reloads, scrubbing the timeline puts the proxy
 // actor at the recorded pose, one |F| sample per record), video and PNG export (GUI and command
 // line), and a recording whose dataset is missing (error naming it, the scene shown stays).
@@ -204,7 +204,7 @@ TEST_F(RecordingTest, ReplayLoadsTheSceneAndScrubbingMovesTheProxy) {
   ASSERT_TRUE(waitFor([&] { return started.count() > 0 && !w->loading(); }, 60000)) << w->lastError().toStdString();
   ASSERT_TRUE(w->replay()->active());
   EXPECT_FALSE(w->hapticsRunning());
-  EXPECT_EQ(w->scene().spec.volume.path, "builtin:sphere");
+  EXPECT_EQ(w->session().loaded().spec.volume.path, "builtin:sphere");
   // The |F| plot holds one sample per record; one marker in the list.
   EXPECT_EQ(w->replay()->timeline()->sampleCount(), rec.records.size());
   EXPECT_EQ(w->replay()->markerList()->count(), 2);
@@ -342,14 +342,14 @@ TEST_F(RecordingTest, MissingDatasetNamesItAndKeepsTheScene) {
   auto w = smallWindow();
   ASSERT_TRUE(loadInto(*w, sphereScene()));
   w->stopHaptics();
-  const void* image_before = w->scene().volume.image.get();
+  const void* image_before = w->session().loaded().volume.image.get();
   QSignalSpy failed(w.get(), &MainWindow::loadFailed);
   EXPECT_FALSE(w->replay()->openRecording(bad));
   EXPECT_EQ(failed.count(), 1);
   EXPECT_NE(w->lastError().indexOf(QString::fromStdString(missing)), -1) << w->lastError().toStdString();
   EXPECT_FALSE(w->replay()->active());
   EXPECT_FALSE(w->replay()->pending());
-  EXPECT_EQ(w->scene().volume.image.get(), image_before);
+  EXPECT_EQ(w->session().loaded().volume.image.get(), image_before);
 }
 
 TEST(ReplayForceArrow, StartsAtTheToolsExtremePointAgainstTheForce) {

@@ -1,4 +1,4 @@
-// Segments in the GUI (issue 17): the Segments panel, the controller that applies its choices to
+// Segments in the GUI: the Segments panel, the controller that applies its choices to
 // the session, and the segment surfaces. Oracles: the test's own ball (its analytic radius and
 // centre in W, from the geometry the test wrote), the session's segments after each command.
 #include "vh/ui/segments_panel.h"
@@ -154,14 +154,14 @@ TEST(SegmentsController, OpensASegmentationAppliesChoicesAndAlertsOnACriticalTou
   Host host;
   runtime::LoadedScene scene = loadCase(dir, false);
   auto device = scene.makeDevice();
-  const SceneActorsSpec spec = sceneActorsSpecFor(scene);
+  const SceneActorsSpec spec = sceneActorsSpecFor(scene, runtime::LiveValues::initial(scene));
   host.session.setScene(std::move(scene), device);
-  host.view->setScene(spec, host.session.scene().X_WT_initial, Preferences{});
+  host.view->setScene(spec, host.session.live().X_WT_initial, Preferences{});
 
   QSignalSpy errors(host.controller, &SegmentsController::errorReported);
   ASSERT_TRUE(host.controller->open(dir / "case.seg.nrrd"));
-  ASSERT_NE(host.session.scene().segments, nullptr);
-  EXPECT_FALSE(host.session.scene().feltSegments()) << "opening shows; nothing is felt until ticked";
+  ASSERT_NE(host.session.live().segments, nullptr);
+  EXPECT_FALSE(host.session.live().feltSegments()) << "opening shows; nothing is felt until ticked";
   EXPECT_EQ(host.controller->panel()->table()->rowCount(), 2);
   ASSERT_NE(host.view->segmentSurfaces(), nullptr);
   EXPECT_EQ(host.view->segmentSurfaces()->shownSegments(), (std::vector<int>{0, 1}));
@@ -172,9 +172,9 @@ TEST(SegmentsController, OpensASegmentationAppliesChoicesAndAlertsOnACriticalTou
   choices.shown = {0};
   choices.critical = {0};
   ASSERT_TRUE(host.controller->apply(choices));
-  ASSERT_TRUE(host.session.scene().feltSegments());
-  EXPECT_EQ(host.session.scene().spec.segmentation->felt, std::vector<std::string>{"nerve"});
-  EXPECT_EQ(host.session.scene().spec.segmentation->critical, std::vector<std::string>{"nerve"});
+  ASSERT_TRUE(host.session.live().feltSegments());
+  EXPECT_EQ(host.session.live().segmentation->felt, std::vector<std::string>{"nerve"});
+  EXPECT_EQ(host.session.live().segmentation->critical, std::vector<std::string>{"nerve"});
   EXPECT_EQ(host.view->segmentSurfaces()->shownSegments(), std::vector<int>{0});
   ASSERT_NE(host.session.hapticThread(), nullptr) << "the threads are rebuilt on the nerve's surface";
 
@@ -194,7 +194,7 @@ TEST(SegmentsController, OpensASegmentationAppliesChoicesAndAlertsOnACriticalTou
   std::ofstream(dir / "bad.seg.nrrd") << "NRRD0004\ntype: uchar\ndimension: 3\nsizes: 4 4\n\n";
   EXPECT_FALSE(host.controller->open(dir / "bad.seg.nrrd"));
   EXPECT_EQ(errors.count(), 1);
-  EXPECT_TRUE(host.session.scene().feltSegments());
+  EXPECT_TRUE(host.session.live().feltSegments());
   host.session.clear();
   fs::remove_all(dir);
 }

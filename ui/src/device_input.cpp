@@ -73,7 +73,7 @@ void DeviceInput::setDevicePose(const haptics::Pose& X_WD) {
 
 bool DeviceInput::touchSurface(double depth_m) {
   runtime::SimulatedDevice* device = session_.simulatedDevice();
-  const runtime::LoadedScene& scene = session_.scene();
+  const runtime::LiveValues& scene = session_.live();
   if (device == nullptr || scene.tool == nullptr || scene.hapticField() == nullptr) return false;
   // The surface the hand feels: the felt segments' when some are felt, else the scan's.
   const haptics::ScalarVolume& field = *scene.hapticField();
@@ -119,7 +119,7 @@ bool DeviceInput::touchSurface(double depth_m) {
 }
 
 double DeviceInput::wheelStep_m() const {
-  const auto& field = session_.scene().volume.field;
+  const auto& field = session_.live().scan_field;
   if (field == nullptr) return 1e-3;
   const double diagonal = (field->boundsMax_W_m() - field->boundsMin_W_m()).norm();
   return std::clamp(diagonal / 200.0, 0.5e-3, 5e-3);
@@ -133,7 +133,7 @@ bool DeviceInput::handleKey(QKeyEvent* e) {
   }
   runtime::SimulatedDevice* device = session_.simulatedDevice();
   if (device == nullptr) return false;
-  const auto& tool = session_.scene().tool;
+  const auto& tool = session_.live().tool;
   const Eigen::Vector3d p_DCm = tool != nullptr ? tool->mass.p_TCm_m : Eigen::Vector3d::Zero();
   const ViewCamera camera = view_.camera();
   const haptics::Pose X_WD = device->pose();
@@ -153,7 +153,7 @@ bool DeviceInput::handleKey(QKeyEvent* e) {
       setDevicePose(moveAlongView(X_WD, camera, -step_m));
       return true;
     case Qt::Key_Home:
-      setDevicePose(session_.scene().X_WT_initial);
+      setDevicePose(session_.live().X_WT_initial);
       return true;
     default:
       return false;
@@ -172,7 +172,7 @@ bool DeviceInput::eventFilter(QObject* watched, QEvent* event) {
   if (event->type() == QEvent::KeyPress) return handleKey(static_cast<QKeyEvent*>(event));
   runtime::SimulatedDevice* device = session_.simulatedDevice();
   if (device == nullptr) return false;
-  const auto& tool = session_.scene().tool;
+  const auto& tool = session_.live().tool;
   const Eigen::Vector3d p_DCm = tool != nullptr ? tool->mass.p_TCm_m : Eigen::Vector3d::Zero();
   switch (event->type()) {
     case QEvent::MouseButtonPress: {

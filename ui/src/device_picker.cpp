@@ -188,7 +188,7 @@ bool DevicePicker::choose(int index) {
   const devices::FoundDevice found = found_[static_cast<std::size_t>(index - 1)];
   if (picked_ != nullptr && session_.device() == picked_.get() && picked_index_ == index) return true;
   devices::OpenOptions options;
-  options.X_WT_initial = session_.scene().X_WT_initial;
+  options.X_WT_initial = session_.live().X_WT_initial;
   if (found.kind == "falcon") {
     QSettings settings;
     QString firmware = settings.value(kFalconFirmwareKey).toString();

@@ -189,8 +189,8 @@ void HapticsPanel::showSession(const runtime::Session& session, const std::vecto
   setGains(session.gains());
   if (session.hasScene()) {
     setTools(tools, tool_index);
-    const auto& tool = session.scene().tool;
-    setPointShell(session.scene().pointSpacing_m(), tool != nullptr ? tool->point_shell.size() : std::size_t{0});
+    const auto& tool = session.live().tool;
+    setPointShell(session.live().pointSpacing_m(), tool != nullptr ? tool->point_shell.size() : std::size_t{0});
   }
   QString name = "No device: haptics off";
   QString limits;

@@ -218,7 +218,7 @@ void MainWindow::connectParts() {
   connect(haptics_panel_, &HapticsPanel::toolRequested, this, [this](int index, double spacing_m) { selectTool(index, spacing_m); });
   connect(haptics_panel_, &HapticsPanel::gainsChanged, this, &MainWindow::setGains);
   connect(haptics_panel_, &HapticsPanel::resetDeviceRequested, this, [this] {
-    if (hasScene()) setDevicePose(scene().X_WT_initial);
+    if (hasScene()) setDevicePose(session_.live().X_WT_initial);
   });
   connect(haptics_panel_, &HapticsPanel::rescanRequested, device_picker_, &DevicePicker::rescan);
   connect(haptics_panel_, &HapticsPanel::deviceChoiceRequested, device_picker_, &DevicePicker::choose);
@@ -288,11 +288,11 @@ void MainWindow::onSessionChanged(SessionChange what) {
     prefs_.passivity_control = session_.gains().passivity_control;
   }
   if (runtime::has(what, SessionChange::kTool) || runtime::has(what, SessionChange::kScene)) {
-    tool_index_ = findOrAddSceneTool(tools_, session_.scene().spec.tool);
+    tool_index_ = findOrAddSceneTool(tools_, session_.live().tool_spec);
   }
   if (runtime::has(what, SessionChange::kTool) && !runtime::has(what, SessionChange::kScene) &&
-      session_.scene().tool != nullptr) {
-    view_->setTool(*session_.scene().tool, session_.scene().X_WT_initial);
+      session_.live().tool != nullptr) {
+    view_->setTool(*session_.live().tool, session_.live().X_WT_initial);
     have_snapshot_ = false;
   }
   if (runtime::has(what, SessionChange::kDevice)) {
@@ -319,7 +319,7 @@ void MainWindow::startHaptics() {
 }
 
 void MainWindow::selectTool(int choice_index, double point_spacing_m) {
-  if (!hasScene() || scene().volume.field == nullptr || choice_index < 0 ||
+  if (!hasScene() || session_.loaded().volume.field == nullptr || choice_index < 0 ||
       choice_index >= static_cast<int>(tools_.size())) {
     return;
   }
@@ -331,14 +331,14 @@ void MainWindow::selectTool(int choice_index, double point_spacing_m) {
   recorder_->noteTool(q(tools_[static_cast<std::size_t>(choice_index)].label), point_spacing_m);
   haptics_panel_->setBuilding(true);
   loader_->buildTool(choice_index, tools_[static_cast<std::size_t>(choice_index)], point_spacing_m,
-                     scene().hapticField(), scene().hapticIsovalue());
+                     session_.live().hapticField(), session_.live().hapticIsovalue());
 }
 
 void MainWindow::onToolBuilt(std::shared_ptr<RebuiltTool> rebuilt) {
   haptics_panel_->setBuilding(false);
   if (!hasScene()) return;
   const ToolChoice& choice = tools_[static_cast<std::size_t>(rebuilt->choice_index)];
-  runtime::ToolSpec spec = scene().spec.tool;
+  runtime::ToolSpec spec = session_.live().tool_spec;
   spec.mesh = choice.mesh;
   spec.scale_to_m = choice.scale_to_m;
   spec.point_spacing_m = rebuilt->built.point_spacing_m;
@@ -391,10 +391,10 @@ void MainWindow::setScene(ViewerScene v) {
   opened_ = v.opened;
   const Histogram histogram = v.histogram.has_value() ? *v.histogram : computeHistogram(v.scene.volume.image.get(), 256);
   session_.setScene(std::move(v.scene), std::move(v.device));  // observers: bar, recorder, panel
-  SceneActorsSpec spec = sceneActorsSpecFor(session_.scene());
+  SceneActorsSpec spec = sceneActorsSpecFor(session_.loaded(), session_.live());
   spec.show_device = session_.hapticThread() != nullptr && prefs_.show_device;
-  view_->setScene(spec, session_.scene().X_WT_initial, prefs_);
-  iso_bar_->setHistogram(histogram, session_.scene().volume.info.value_unit);
+  view_->setScene(spec, session_.live().X_WT_initial, prefs_);
+  iso_bar_->setHistogram(histogram, session_.loaded().volume.info.value_unit);
   have_snapshot_ = false;
   snapshot_ = runtime::HapticSnapshot{};
   haptics_panel_->setEnabled(true);
@@ -404,7 +404,7 @@ void MainWindow::setScene(ViewerScene v) {
   updateWindowTitle();
   chart_->clear();
   updateStatus();
-  showLoadNotices(session_.scene().volume.info, session_.scene().spec);
+  showLoadNotices(session_.loaded().volume.info, session_.loaded().spec);
 }
 
 void MainWindow::showLoadNotices(const io::VolumeInfo& info, const runtime::SceneSpec& spec) {
@@ -490,7 +490,7 @@ void MainWindow::buildMenus() {
   haptics_action_->setCheckable(true);
   haptics_action_->setShortcut(QKeySequence("Ctrl+H"));
   QAction* reset_device = hapticsMenu->addAction("Reset &Device", this, [this] {
-    if (hasScene()) setDevicePose(scene().X_WT_initial);
+    if (hasScene()) setDevicePose(session_.live().X_WT_initial);
   });
   reset_device->setShortcut(QKeySequence("Ctrl+Home"));
   QAction* touch = hapticsMenu->addAction("&Touch the Surface", this, [this] {
@@ -646,7 +646,7 @@ void MainWindow::onSceneLoaded(std::shared_ptr<LoadedViewerScene> loaded) {
   }
   last_error_.clear();
   // A scene file's "openigtlink" section switches the link on (or moves it to its port / rate).
-  if (const std::optional<runtime::OpenIgtlinkSpec>& o = session_.scene().spec.openigtlink; o.has_value()) {
+  if (const std::optional<runtime::OpenIgtlinkSpec>& o = session_.loaded().spec.openigtlink; o.has_value()) {
     const IgtlSettings now = igtl_->settings();
     if (!igtl_->running() || now.port != o->port || now.rate_Hz != o->rate_Hz) {
       QString error;
@@ -765,8 +765,8 @@ void MainWindow::updateWindowTitle() {
     return;
   }
   if (!title_.empty()) title += " - " + q(title_);
-  const io::VolumeInfo& info = scene().volume.info;
-  const auto& g = scene().volume.field->geometry();
+  const io::VolumeInfo& info = session_.loaded().volume.info;
+  const auto& g = session_.loaded().volume.field->geometry();
   const double lo_mm = g.spacing_m.minCoeff() * 1e3;
   const double hi_mm = g.spacing_m.maxCoeff() * 1e3;
   const QString spacing = hi_mm > lo_mm * 1.001 ? QString("%1..%2 mm").arg(lo_mm, 0, 'g', 3).arg(hi_mm, 0, 'g', 3)
@@ -799,8 +799,8 @@ void MainWindow::setPreset(VolumePreset preset) {
 void MainWindow::resetCamera() { view_->resetCamera(); }
 
 void MainWindow::focusOnTool() {
-  if (scene().tool == nullptr) return;
-  view_->focusOn(*scene().tool, have_snapshot_ ? snapshot_.X_WP : view_->shownProxyPose());
+  if (session_.live().tool == nullptr) return;
+  view_->focusOn(*session_.live().tool, have_snapshot_ ? snapshot_.X_WP : view_->shownProxyPose());
 }
 
 void MainWindow::setStandardView(StandardView v) { view_->setStandardView(v); }

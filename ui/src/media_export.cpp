@@ -4,6 +4,7 @@
 #include <array>
 #include <cmath>
 #include <iostream>
+#include <limits>
 #include <stdexcept>
 #include <string>
 
@@ -55,17 +56,18 @@ double forceNormOf(const runtime::TickRecord& r) {
   return Eigen::Vector3d(r.force_W_N[0], r.force_W_N[1], r.force_W_N[2]).norm();
 }
 
-SceneActorsSpec sceneActorsSpecFor(const runtime::LoadedScene& scene) {
+SceneActorsSpec sceneActorsSpecFor(const runtime::LoadedScene& scene, const runtime::LiveValues& live) {
   SceneActorsSpec spec;
   spec.image = scene.volume.image.get();
   if (scene.volume.field != nullptr) spec.direction_W = scene.volume.field->geometry().direction_W;
-  spec.isovalue = scene.isovalue;
-  if (scene.tool != nullptr) {
-    spec.tool_mesh_T = scene.tool->mesh_T;
-    spec.p_TCm_m = scene.tool->mass.p_TCm_m;
+  spec.isovalue = live.isovalue;
+  if (live.tool != nullptr) {
+    spec.tool_mesh_T = live.tool->mesh_T;
+    spec.p_TCm_m = live.tool->mass.p_TCm_m;
   }
   spec.show_device = true;
   spec.hounsfield = scene.volume.info.value_unit == "HU";
+  spec.isovalue_from_records = !live.feltSegments();
   return spec;
 }
 
@@ -101,7 +103,10 @@ void applyColours(vtkRenderer* renderer, SceneActors* actors, const Preferences&
 
 RecordingFrameRenderer::RecordingFrameRenderer(const SceneActorsSpec& spec, int width, int height,
                                                const Preferences& look)
-    : tool_vertices_T_m_(spec.tool_mesh_T.vertices_T_m), width_(evenUp(width)), height_(evenUp(height)) {
+    : tool_vertices_T_m_(spec.tool_mesh_T.vertices_T_m),
+      isovalue_from_records_(spec.isovalue_from_records),
+      width_(evenUp(width)),
+      height_(evenUp(height)) {
   if (spec.image == nullptr) throw std::invalid_argument("RecordingFrameRenderer: the scene has no image");
   if (width < 16 || height < 16 || width > 8192 || height > 8192) {
     throw std::invalid_argument("RecordingFrameRenderer: frame size " + std::to_string(width) + " x " +
@@ -159,7 +164,9 @@ void RecordingFrameRenderer::copyCamera(vtkCamera* camera) {
 }
 
 void RecordingFrameRenderer::show(const runtime::TickRecord& record) {
-  showRecord(*actors_, record, tool_vertices_T_m_);
+  ToolFrame frame = toolFrameOf(record);
+  if (!isovalue_from_records_) frame.isovalue = std::numeric_limits<double>::quiet_NaN();  // felt segments' level
+  showToolFrame(*actors_, frame, tool_vertices_T_m_);
 }
 
 vtkImageData* RecordingFrameRenderer::render() {
@@ -251,7 +258,7 @@ int exportRecordingMedia(int /*argc*/, char** /*argv*/, const fs::path& recordin
     Preferences look;
     look.mode = options.mode;
     look.preset = options.preset;
-    RecordingFrameRenderer frames(sceneActorsSpecFor(scene), options.width, options.height, look);
+    RecordingFrameRenderer frames(sceneActorsSpecFor(scene, runtime::LiveValues::initial(scene)), options.width, options.height, look);
     frames.show(recording.records.front());
     frames.resetCamera();  // fitted to the volume and the tools where they start
     if (!options.png.empty()) {

@@ -393,7 +393,8 @@ void ReplayController::setTime(double t_s) {
   index_ = recordIndexAt(recording_.records, time_s_);
   const runtime::TickRecord& r = recording_.records[index_];
   // The session owns the isovalue: the bar, the view and (when live again) the hand follow it.
-  if (std::isfinite(r.isovalue)) session_.setIsovalue(r.isovalue);
+  // Ticks of felt segments carry the segments' level, not the scan's isovalue: not applied.
+  if (std::isfinite(r.isovalue) && !session_.live().feltSegments()) session_.setIsovalue(r.isovalue);
   view_.show(toolFrameOf(r));  // the same picture as a live snapshot
   timeline_->setCursor_s(time_s_);
   readout_->setText(readout());
@@ -472,7 +473,7 @@ int ReplayController::exportVideo(const fs::path& path, double fps, int width, i
   const double t_shown = time_s_;
   int frames_written = 0;
   {
-    RecordingFrameRenderer frames(sceneActorsSpecFor(session_.scene()), width, height,
+    RecordingFrameRenderer frames(sceneActorsSpecFor(session_.loaded(), session_.live()), width, height,
                                   prefs_);
     frames.copyCamera(view_.widget()->renderer()->GetActiveCamera());
     frames_written = writeRecordingVideo(frames, recording_, path, fps, 0.0, -1.0, progress);
@@ -487,7 +488,7 @@ void ReplayController::exportPng(const fs::path& path, int width, int height) {
     width = std::max(16, view_.widget()->width());
     height = std::max(16, view_.widget()->height());
   }
-  RecordingFrameRenderer frames(sceneActorsSpecFor(session_.scene()), width, height,
+  RecordingFrameRenderer frames(sceneActorsSpecFor(session_.loaded(), session_.live()), width, height,
                                 prefs_);
   frames.copyCamera(view_.widget()->renderer()->GetActiveCamera());
   writeRecordingPng(frames, recording_, time_s_, path);

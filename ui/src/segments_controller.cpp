@@ -48,7 +48,7 @@ void SegmentsController::onSessionChanged(runtime::SessionChange what) {
   if (!runtime::has(what, runtime::SessionChange::kScene) && !runtime::has(what, runtime::SessionChange::kSegments)) {
     return;
   }
-  const runtime::SegmentSet* set = session_.hasScene() ? session_.scene().segments.get() : nullptr;
+  const runtime::SegmentSet* set = session_.hasScene() ? session_.live().segments.get() : nullptr;
   panel_->showSegments(set);
   names_->set(set);
   if (session_.hasScene()) view_.setSegments(set);
@@ -91,9 +91,9 @@ void SegmentsController::openDialog(const QString& folder) {
 }
 
 bool SegmentsController::apply(const SegmentChoices& choices) {
-  if (!session_.hasScene() || session_.scene().segments == nullptr) return false;
-  const runtime::SegmentSet& current = *session_.scene().segments;
-  runtime::SegmentationSpec spec = session_.scene().spec.segmentation.value_or(runtime::SegmentationSpec{});
+  if (!session_.hasScene() || session_.live().segments == nullptr) return false;
+  const runtime::SegmentSet& current = *session_.live().segments;
+  runtime::SegmentationSpec spec = session_.live().segmentation.value_or(runtime::SegmentationSpec{});
   const io::LoadedSegmentation& seg = current.segmentation();
   spec.felt = segmentNames(seg, choices.felt);
   spec.shown = segmentNames(seg, choices.shown);
@@ -116,7 +116,7 @@ void SegmentsController::showSnapshot(const runtime::HapticSnapshot& snapshot) {
   if (segment == touched_) return;
   touched_ = segment;
   panel_->setTouched(segment);
-  const runtime::SegmentSet* set = session_.scene().segments.get();
+  const runtime::SegmentSet* set = session_.live().segments.get();
   const bool critical = set != nullptr && segment >= 0 && set->isCritical(segment);
   std::string alert;
   if (critical) {

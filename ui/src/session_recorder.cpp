@@ -110,9 +110,9 @@ bool SessionRecorder::start(const fs::path& path) {
     runtime::SessionInfo info;
     if (session_.device() != nullptr) info.device_name = session_.device()->name();
     info.device_kind = session_.simulatedDevice() != nullptr ? "simulated"
-                       : session_.scene().spec.device.has_value() ? session_.scene().spec.device->kind
+                       : session_.loaded().spec.device.has_value() ? session_.loaded().spec.device->kind
                                                                    : "hardware";
-    const std::string metadata = runtime::makeSessionMetadata(session_.scene(), info);
+    const std::string metadata = runtime::makeSessionMetadata(session_.loaded(), session_.live(), info);
     runtime::RecordingWriterOptions options;
     options.servo_rate_Hz = haptics->solverRate_Hz();  // one record per solver tick
     if (options.chunk_records >= options.servo_rate_Hz) {

@@ -31,8 +31,8 @@ QString hapticStatusText(const runtime::Session& session, const runtime::HapticS
           .arg(s.contacts)
           .arg(s.force_W_N.norm(), 0, 'f', 2)
           .arg(s.torque_W_Nm.norm(), 0, 'f', 4);
-  // The structure touched (issue 17).
-  if (const auto& segments = session.scene().segments; segments != nullptr && s.segment >= 0) {
+  // The structure touched.
+  if (const auto& segments = session.live().segments; segments != nullptr && s.segment >= 0) {
     text += "  |  touching " + QString::fromStdString(segments->name(s.segment)) +
             (segments->isCritical(s.segment) ? " (CRITICAL)" : "");
   }

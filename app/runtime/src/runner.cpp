@@ -117,7 +117,7 @@ RunReport runHeadless(const LoadedScene& scene, const Trajectory& trajectory, co
   }
   std::unique_ptr<RecordingWriter> recorder;
   if (!options.record.empty()) {
-    LoadedScene recorded = scene;
+    LiveValues recorded = LiveValues::initial(scene);
     recorded.X_WT_initial = X_WD_first;  // the renderer above starts there
     SessionInfo info;
     info.device_name = device.name();
@@ -128,7 +128,7 @@ RunReport runHeadless(const LoadedScene& scene, const Trajectory& trajectory, co
     writer_options.ring_capacity = std::size_t{1} << 16;
     writer_options.chunk_records =
         std::clamp<std::size_t>(static_cast<std::size_t>(std::ceil(options.servo_rate_Hz / 2.0)), 1, 65535);
-    recorder = std::make_unique<RecordingWriter>(options.record, makeSessionMetadata(recorded, info), writer_options);
+    recorder = std::make_unique<RecordingWriter>(options.record, makeSessionMetadata(scene, recorded, info), writer_options);
   }
   std::optional<SegmentContactTally> segment_tally;
   if (scene.segments) {

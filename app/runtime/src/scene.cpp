@@ -557,16 +557,36 @@ double toolPointSpacing_m(const ToolSpec& spec, const haptics::TriangleMesh& mes
   return automaticPointSpacing_m(mesh_T, volume);
 }
 
-double LoadedScene::pointSpacing_m() const {
+LiveValues LiveValues::initial(const LoadedScene& scene) {
+  LiveValues live;
+  live.scan_field = scene.volume.field;
+  live.isovalue = scene.isovalue;
+  live.gains = scene.spec.gains;
+  live.tool = scene.tool;
+  live.tool_spec = scene.spec.tool;
+  live.X_WT_initial = scene.X_WT_initial;
+  live.segments = scene.segments;
+  live.segmentation = scene.spec.segmentation;
+  return live;
+}
+
+double LiveValues::pointSpacing_m() const {
   if (tool == nullptr || hapticField() == nullptr) return 0.0;
-  return toolPointSpacing_m(spec.tool, tool->mesh_T, *hapticField());
+  return toolPointSpacing_m(tool_spec, tool->mesh_T, *hapticField());
+}
+
+double LoadedScene::pointSpacing_m() const { return LiveValues::initial(*this).pointSpacing_m(); }
+
+std::unique_ptr<haptics::HapticRenderer> makeRenderer(const LiveValues& live, haptics::RendererOptions options,
+                                                      const haptics::Pose& X_WP) {
+  options.gains = live.gains;
+  return std::make_unique<haptics::HapticRenderer>(live.hapticField(), live.tool, options, X_WP,
+                                                   live.hapticIsovalue());
 }
 
 std::unique_ptr<haptics::HapticRenderer> LoadedScene::makeRenderer(haptics::RendererOptions options,
                                                                    const std::optional<haptics::Pose>& X_WP) const {
-  options.gains = spec.gains;
-  return std::make_unique<haptics::HapticRenderer>(hapticField(), tool, options, X_WP.value_or(X_WT_initial),
-                                                   hapticIsovalue());
+  return runtime::makeRenderer(LiveValues::initial(*this), options, X_WP.value_or(X_WT_initial));
 }
 
 std::shared_ptr<Device> LoadedScene::makeDevice(double servo_rate_Hz) const {
@@ -623,18 +643,25 @@ double solverDeadline_us(double servo_rate_Hz) {
   return servo_rate_Hz > 0.0 && std::isfinite(servo_rate_Hz) ? 0.9e6 / servo_rate_Hz : 0.0;
 }
 
+std::unique_ptr<HapticThread> makeHapticThread(const LiveValues& live, std::shared_ptr<Device> device,
+                                               double servo_rate_Hz, const haptics::Pose& X_WP,
+                                               const HapticThreadOptions& options) {
+  HapticThreadOptions with_segments = options;
+  with_segments.segments = live.segments;
+  haptics::RendererOptions solver;
+  solver.solver_lanes = defaultSolverLanes();
+  solver.deadline_us = solverDeadline_us(servo_rate_Hz);
+  auto thread = std::make_unique<HapticThread>(makeRenderer(live, solver, X_WP), std::move(device),
+                                               live.hapticIsovalue(), servo_rate_Hz, with_segments);
+  thread->setGains(live.gains);
+  return thread;
+}
+
 std::unique_ptr<HapticThread> LoadedScene::makeHapticThread(std::shared_ptr<Device> device, double servo_rate_Hz,
                                                             const std::optional<haptics::Pose>& X_WP,
                                                             const HapticThreadOptions& options) const {
-  HapticThreadOptions with_segments = options;
-  with_segments.segments = segments;
-  haptics::RendererOptions live;
-  live.solver_lanes = defaultSolverLanes();
-  live.deadline_us = solverDeadline_us(servo_rate_Hz);
-  auto thread = std::make_unique<HapticThread>(makeRenderer(live, X_WP), std::move(device), hapticIsovalue(),
-                                               servo_rate_Hz, with_segments);
-  thread->setGains(spec.gains);
-  return thread;
+  return runtime::makeHapticThread(LiveValues::initial(*this), std::move(device), servo_rate_Hz,
+                                   X_WP.value_or(X_WT_initial), options);
 }
 
 }  // namespace vh::runtime

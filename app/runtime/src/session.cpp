@@ -46,16 +46,15 @@ void Session::setScene(LoadedScene scene, std::shared_ptr<Device> device) {
   const bool was_running = hapticsRunning();
   if (haptics_ != nullptr) haptics_->stop();
   haptics_.reset();
-  scene_ = std::move(scene);
+  loaded_ = std::move(scene);
   has_scene_ = true;
-  value_min_ = scene_.volume.field->minValue();
-  value_max_ = scene_.volume.field->maxValue();
+  live_ = LiveValues::initial(loaded_);
+  value_min_ = loaded_.volume.field->minValue();
+  value_max_ = loaded_.volume.field->maxValue();
   if (!(value_max_ > value_min_)) value_max_ = value_min_ + 1.0;
-  scene_.isovalue = std::clamp(scene_.isovalue, value_min_, value_max_);
-  scene_.spec.volume.isovalue = scene_.isovalue;
-  scene_.spec.volume.isovalue_set = true;
+  live_.isovalue = std::clamp(live_.isovalue, value_min_, value_max_);
   device_ = std::move(device);
-  rebuildHaptics(scene_.X_WT_initial);
+  rebuildHaptics(live_.X_WT_initial);
   notify(SessionChange::kScene | SessionChange::kIsovalue | SessionChange::kGains | SessionChange::kTool |
          SessionChange::kDevice | (was_running ? SessionChange::kRunning : SessionChange{}));
 }
@@ -64,9 +63,10 @@ void Session::clear() {
   if (haptics_ != nullptr) haptics_->stop();
   haptics_.reset();
   device_.reset();
-  const haptics::CouplingGains gains = scene_.spec.gains;
-  scene_ = LoadedScene{};
-  scene_.spec.gains = gains;
+  const haptics::CouplingGains gains = live_.gains;
+  loaded_ = LoadedScene{};
+  live_ = LiveValues{};
+  live_.gains = gains;
   has_scene_ = false;
   value_min_ = 0.0;
   value_max_ = 1.0;
@@ -76,12 +76,10 @@ void Session::clear() {
 void Session::setIsovalue(double isovalue) {
   if (!std::isfinite(isovalue) || !has_scene_) return;
   const double clamped = std::clamp(isovalue, value_min_, value_max_);
-  if (clamped == scene_.isovalue) return;
-  scene_.isovalue = clamped;
-  scene_.spec.volume.isovalue = clamped;
-  scene_.spec.volume.isovalue_set = true;
+  if (clamped == live_.isovalue) return;
+  live_.isovalue = clamped;
   // Felt segments: the isovalue sets only the scan's picture; the hand keeps the segments' surface.
-  if (haptics_ != nullptr) haptics_->setIsovalue(scene_.hapticIsovalue());
+  if (haptics_ != nullptr) haptics_->setIsovalue(live_.hapticIsovalue());
   notify(SessionChange::kIsovalue);
 }
 
@@ -90,7 +88,7 @@ void Session::setGains(const haptics::CouplingGains& gains) {
       gains.linear_N_per_m < 0.0 || gains.angular_Nm_per_rad < 0.0) {
     return;
   }
-  scene_.spec.gains = gains;
+  live_.gains = gains;
   // While recording, HapticThread::setGains() records a "gains" event.
   if (haptics_ != nullptr) haptics_->setGains(gains);
   notify(SessionChange::kGains);
@@ -103,9 +101,9 @@ void Session::setTool(std::shared_ptr<const haptics::ToolModel> tool, const Tool
   const bool was_running = hapticsRunning();
   if (haptics_ != nullptr) haptics_->stop();  // force ramped to zero before the tool changes in the hand
   haptics_.reset();
-  scene_.tool = std::move(tool);
-  scene_.spec.tool = spec;
-  scene_.X_WT_initial = X_WT_initial;
+  live_.tool = std::move(tool);
+  live_.tool_spec = spec;
+  live_.X_WT_initial = X_WT_initial;
   if (SimulatedDevice* sim = simulatedDevice()) sim->setPose(X_WT_initial);
   rebuildHaptics(X_WT_initial);
   if (was_running && haptics_ != nullptr) haptics_->start();
@@ -119,13 +117,13 @@ void Session::setSegments(std::shared_ptr<const SegmentSet> segments, std::optio
   haptics::Pose X_WP = proxyPose();
   if (haptics_ != nullptr) haptics_->stop();  // force ramped to zero before the surface changes
   haptics_.reset();
-  scene_.segments = std::move(segments);
-  scene_.spec.segmentation = scene_.segments != nullptr ? std::move(spec) : std::nullopt;
+  live_.segments = std::move(segments);
+  live_.segmentation = live_.segments != nullptr ? std::move(spec) : std::nullopt;
   // The proxy must start free of the new surface: where it is, else above the volume.
-  const haptics::ScalarVolume& field = *scene_.hapticField();
-  if (scene_.tool != nullptr &&
-      countPointsInside(field, scene_.tool->point_shell, X_WP, scene_.hapticIsovalue()) > 0) {
-    X_WP = defaultInitialPose(field, scene_.tool->point_shell, X_WP.R_AB, scene_.hapticIsovalue());
+  const haptics::ScalarVolume& field = *live_.hapticField();
+  if (live_.tool != nullptr &&
+      countPointsInside(field, live_.tool->point_shell, X_WP, live_.hapticIsovalue()) > 0) {
+    X_WP = defaultInitialPose(field, live_.tool->point_shell, X_WP.R_AB, live_.hapticIsovalue());
     if (SimulatedDevice* sim = simulatedDevice()) sim->setPose(X_WP);
   }
   rebuildHaptics(X_WP);
@@ -152,10 +150,10 @@ void Session::setDevice(std::shared_ptr<Device> device) {
 
 void Session::rebuildHaptics(const haptics::Pose& X_WP) {
   haptics_.reset();
-  if (device_ == nullptr || !has_scene_ || scene_.volume.field == nullptr || scene_.tool == nullptr) return;
+  if (device_ == nullptr || !has_scene_ || live_.hapticField() == nullptr || live_.tool == nullptr) return;
   HapticThreadOptions options;
   options.monitor = monitor_;
-  haptics_ = scene_.makeHapticThread(device_, servo_rate_Hz_, X_WP, options);
+  haptics_ = makeHapticThread(live_, device_, servo_rate_Hz_, X_WP, options);
 }
 
 void Session::setMonitor(std::shared_ptr<SnapshotChannel> monitor) {
@@ -168,18 +166,13 @@ void Session::setMonitor(std::shared_ptr<SnapshotChannel> monitor) {
   haptics_.reset();
   if (SimulatedDevice* sim = simulatedDevice()) sim->setPose(X_WP);
   rebuildHaptics(X_WP);
-  if (was_running && haptics_ != nullptr) {
-    haptics_->setIsovalue(scene_.isovalue);
-    haptics_->setGains(scene_.spec.gains);
-    haptics_->start();
-  }
+  // Rebuilt from live(): the felt isovalue (the segments' level when segments are felt) and gains.
+  if (was_running && haptics_ != nullptr) haptics_->start();
   notify(SessionChange::kDevice | (was_running != hapticsRunning() ? SessionChange::kRunning : SessionChange{}));
 }
 
 void Session::startHaptics() {
   if (haptics_ == nullptr || haptics_->running()) return;
-  haptics_->setIsovalue(scene_.hapticIsovalue());
-  haptics_->setGains(scene_.spec.gains);
   haptics_->start();
   notify(SessionChange::kRunning);
 }
@@ -205,7 +198,7 @@ haptics::Pose Session::proxyPose() const {
     haptics_->latestSnapshot(snapshot);
     if (snapshot.tick > 0) return snapshot.X_WP;
   }
-  return scene_.X_WT_initial;
+  return live_.X_WT_initial;
 }
 
 }  // namespace vh::runtime

@@ -170,7 +170,7 @@ DatasetChecksum datasetChecksum(const std::string& volume_path) {
   return key.checksum;
 }
 
-std::string makeSessionMetadata(const LoadedScene& scene, const SessionInfo& info) {
+std::string makeSessionMetadata(const LoadedScene& scene, const LiveValues& live, const SessionInfo& info) {
   const SceneSpec& spec = scene.spec;
   json j;
   j["format"] = "volume-haptics session";
@@ -180,30 +180,30 @@ std::string makeSessionMetadata(const LoadedScene& scene, const SessionInfo& inf
 
   json sc;
   sc["source"] = spec.source.string();
-  sc["volume"] = {{"path", spec.volume.path}, {"isovalue", scene.isovalue}};
+  sc["volume"] = {{"path", spec.volume.path}, {"isovalue", live.isovalue}};
   // The series as loaded, by its UID (the folder may hold others), and the time point.
   const std::string series = scene.volume.info.series_uid.empty() ? spec.volume.series : scene.volume.info.series_uid;
   if (!series.empty()) sc["volume"]["series"] = series;
   if (scene.volume.info.phase_count > 1 || spec.volume.phase != 0) sc["volume"]["phase"] = scene.volume.info.phase;
-  sc["tool"] = {{"mesh", spec.tool.mesh},
-                {"scale_to_m", spec.tool.scale_to_m},
-                {"point_spacing_m", spec.tool.point_spacing_m},
-                {"point_count", spec.tool.point_count},
-                {"initial_pose", poseJson(scene.X_WT_initial)}};
-  sc["coupling"] = {{"linear_N_per_m", spec.gains.linear_N_per_m},
-                    {"angular_Nm_per_rad", spec.gains.angular_Nm_per_rad},
-                    {"passivity_control", spec.gains.passivity_control}};
-  if (scene.segments != nullptr && spec.segmentation) {
+  sc["tool"] = {{"mesh", live.tool_spec.mesh},
+                {"scale_to_m", live.tool_spec.scale_to_m},
+                {"point_spacing_m", live.tool_spec.point_spacing_m},
+                {"point_count", live.tool_spec.point_count},
+                {"initial_pose", poseJson(live.X_WT_initial)}};
+  sc["coupling"] = {{"linear_N_per_m", live.gains.linear_N_per_m},
+                    {"angular_Nm_per_rad", live.gains.angular_Nm_per_rad},
+                    {"passivity_control", live.gains.passivity_control}};
+  if (live.segments != nullptr && live.segmentation) {
     // The choices by name (what a scene file says), and every segment as loaded: the recording
     // names the touched segment by its index into "segments".
-    const SegmentSet& set = *scene.segments;
+    const SegmentSet& set = *live.segments;
     const auto names = [&set](const std::vector<int>& indices) {
       std::vector<std::string> out;
       for (const int s : indices) out.push_back(set.name(s));
       return out;
     };
     json seg;
-    seg["path"] = spec.segmentation->path;
+    seg["path"] = live.segmentation->path;
     seg["felt"] = names(set.felt());
     seg["shown"] = names(set.shown());
     seg["critical"] = names(set.critical());
@@ -248,10 +248,10 @@ std::string makeSessionMetadata(const LoadedScene& scene, const SessionInfo& inf
   j["dataset"] = ds;
 
   json tool;
-  tool["mesh"] = spec.tool.mesh;
-  if (scene.tool) {
-    tool["point_count"] = scene.tool->point_shell.size();
-    tool["point_spacing_m"] = scene.tool->point_shell.meanNearestNeighbourSpacing_m();
+  tool["mesh"] = live.tool_spec.mesh;
+  if (live.tool) {
+    tool["point_count"] = live.tool->point_shell.size();
+    tool["point_spacing_m"] = live.tool->point_shell.meanNearestNeighbourSpacing_m();
   }
   j["tool"] = tool;
   j["gains"] = sc["coupling"];

@@ -1,4 +1,4 @@
-// Felt segments (issue 17): a CT in which a nerve and a bone have the same intensity (no
+// Felt segments: a CT in which a nerve and a bone have the same intensity (no
 // isovalue separates them) and a segmentation that names them. The hand feels the chosen
 // segments' smoothed surface with the renderer's guarantees (no penetration, no crossing), each
 // contact is named by its segment, a critical segment gives an event, and the export reports
@@ -206,13 +206,34 @@ TEST(FeltSegments, TheHapticThreadNamesTheSegmentAndKeepsItsSurfaceWhenTheIsoval
       },
       std::chrono::milliseconds(20000));
   EXPECT_TRUE(touched) << "contacts " << snap.contacts << ", segment " << snap.segment;
-  EXPECT_EQ(session.scene().isovalue, 250.0);
+  EXPECT_EQ(session.live().isovalue, 250.0);
   EXPECT_EQ(snap.isovalue, 0.5) << "the hand keeps the segments' surface";
   HapticSnapshot linked;
   EXPECT_TRUE(test::waitUntil([&] { return monitor->read(linked) && linked.contacts > 0 && linked.segment == 0; }));
   EXPECT_EQ(names.name(linked.segment), "facial nerve");
   EXPECT_EQ(names.name(-1), "");
   EXPECT_EQ(names.name(7), "");
+  session.stopHaptics();
+}
+
+TEST(FeltSegments, AMonitorConnectedWhileSegmentsAreFeltKeepsTheSegmentsSurfaceInTheHand) {
+  const fs::path dir = writeCase();
+  LoadedScene scene = loadScene(loadSceneFile(writeScene(dir, R"(["facial nerve", "bone"])", R"(["facial nerve"])")));
+  ASSERT_TRUE(scene.feltSegments());
+  auto device = std::make_shared<SimulatedDevice>(scene.X_WT_initial);
+  Session session;
+  session.setScene(std::move(scene), device);
+  session.startHaptics();
+  session.setIsovalue(250.0);  // the scan's picture; the hand keeps the segments' level
+  // The OpenIGTLink link connects: the threads are rebuilt with the monitor channel.
+  auto monitor = std::make_shared<SnapshotChannel>();
+  session.setMonitor(monitor);
+  ASSERT_TRUE(session.hapticsRunning());
+  EXPECT_EQ(session.hapticThread()->isovalue(), io::kSegmentSurfaceLevel);
+  HapticSnapshot snap;
+  ASSERT_TRUE(test::waitUntil([&] { return monitor->read(snap) && snap.solver_tick > 5; }));
+  EXPECT_EQ(snap.isovalue, io::kSegmentSurfaceLevel) << "felt: the segments' surface, not the scan at 250";
+  EXPECT_EQ(session.isovalue(), 250.0);
   session.stopHaptics();
 }
 
@@ -250,24 +271,24 @@ TEST(FeltSegments, TheSessionSwapsTheFeltSegmentsAndStartsTheProxyFreeOfTheNewSu
   SessionChange heard{};
   session.addObserver([&](SessionChange what) { heard = what; });
   // Feel the nerve instead of the scan.
-  SegmentationSpec spec = *session.scene().spec.segmentation;
+  SegmentationSpec spec = *session.live().segmentation;
   spec.felt = {"facial nerve"};
   session.setSegments(SegmentSet::fromSpec(seg, spec, "test"), spec);
   EXPECT_TRUE(has(heard, SessionChange::kSegments));
-  ASSERT_TRUE(session.scene().feltSegments());
-  EXPECT_EQ(session.scene().spec.segmentation->felt, std::vector<std::string>{"facial nerve"});
+  ASSERT_TRUE(session.live().feltSegments());
+  EXPECT_EQ(session.live().segmentation->felt, std::vector<std::string>{"facial nerve"});
   ASSERT_NE(session.hapticThread(), nullptr);
   // The proxy starts free of the nerve's surface.
   const haptics::Pose X_WP = session.proxyPose();
-  EXPECT_EQ(countPointsInside(*session.scene().hapticField(), session.scene().tool->point_shell, X_WP, 0.5), 0);
+  EXPECT_EQ(countPointsInside(*session.live().hapticField(), session.live().tool->point_shell, X_WP, 0.5), 0);
   session.startHaptics();
   HapticSnapshot snap;
   ASSERT_TRUE(test::waitUntil([&] { return session.latestSnapshot(snap) && snap.solver_tick > 5; }));
   EXPECT_EQ(snap.isovalue, 0.5);
   // Back to the scan.
   session.setSegments(nullptr, std::nullopt);
-  EXPECT_FALSE(session.scene().feltSegments());
-  EXPECT_FALSE(session.scene().spec.segmentation.has_value());
+  EXPECT_FALSE(session.live().feltSegments());
+  EXPECT_FALSE(session.live().segmentation.has_value());
   session.stopHaptics();
 }
 

@@ -1,5 +1,5 @@
-// Tests of vh/runtime/session.h: the session is the one owner of the scene, isovalue, gains,
-// tool, device and haptic threads (issue 16). Oracles: the analytic sphere (radius 20 mm, F =
+// Tests of vh/runtime/session.h: the session is the one owner of the scene (as loaded), the live
+// values (isovalue, gains, tool, segments), the device and the haptic threads. Oracles: the analytic sphere (radius 20 mm, F =
 // signed distance in mm) for where the proxy rests, the field's own min / max for clamping, and
 // the haptic thread's snapshot for what reached the hand.
 #include <chrono>
@@ -15,6 +15,7 @@
 #include "runtime_test_support.h"
 #include "vh/haptics/tool_model.h"
 #include "vh/runtime/session.h"
+#include "vh/runtime/session_metadata.h"
 
 namespace vh::runtime {
 namespace {
@@ -67,7 +68,7 @@ TEST(Session, OwnsTheIsovalueClampedToTheFieldAndSendsItToTheHapticThread) {
   heard.changes.clear();
   session.setIsovalue(-2.0);
   EXPECT_EQ(session.isovalue(), -2.0);
-  EXPECT_EQ(session.scene().spec.volume.isovalue, -2.0);  // what a recording's metadata says
+  EXPECT_EQ(session.live().isovalue, -2.0);  // what a recording's metadata says
   EXPECT_EQ(session.hapticThread()->isovalue(), -2.0);
   ASSERT_EQ(heard.changes.size(), 1u);
   EXPECT_TRUE(has(heard.changes[0], SessionChange::kIsovalue));
@@ -165,9 +166,9 @@ TEST(Session, ASwappedToolReplacesTheSpecAndRestartsAtItsFreePose) {
   spec.point_spacing_m = 0.003;
   const Pose free_pose = Pose::FromTranslation({0.0, 0.0, 0.040});
   session.setTool(coarse, spec, free_pose);
-  EXPECT_EQ(session.scene().tool, coarse);
-  EXPECT_EQ(session.scene().spec.tool.point_spacing_m, 0.003);
-  EXPECT_EQ(session.scene().pointSpacing_m(), 0.003);
+  EXPECT_EQ(session.live().tool, coarse);
+  EXPECT_EQ(session.live().tool_spec.point_spacing_m, 0.003);
+  EXPECT_EQ(session.live().pointSpacing_m(), 0.003);
   EXPECT_TRUE(session.hapticsRunning());
   EXPECT_LT((device->pose().p_AB_m - free_pose.p_AB_m).norm(), 1e-12);
   HapticSnapshot snap;
@@ -175,6 +176,37 @@ TEST(Session, ASwappedToolReplacesTheSpecAndRestartsAtItsFreePose) {
   EXPECT_LT((snap.X_WP.p_AB_m - free_pose.p_AB_m).norm(), 1e-6);
   EXPECT_EQ(snap.contacts, 0);
   EXPECT_THROW(session.setTool(nullptr, spec, free_pose), std::invalid_argument);
+}
+
+TEST(Session, TheLoadedSceneStaysAsLoadedAndTheRecordingDescribesTheLiveValues) {
+  const LoadedScene& loaded = test::sphereBallScene();
+  Session session;
+  session.setScene(loaded, std::make_shared<SimulatedDevice>(loaded.X_WT_initial));
+  session.setIsovalue(-2.0);
+  session.setGains({1234.0, 0.25, false});
+  haptics::PointShellOptions options;
+  options.spacing_m = 0.003;
+  auto coarse = std::make_shared<const haptics::ToolModel>(haptics::makeToolModel(loaded.tool->mesh_T, options));
+  ToolSpec spec = loaded.spec.tool;
+  spec.point_spacing_m = 0.003;
+  const Pose free_pose = Pose::FromTranslation({0.0, 0.0, 0.040});
+  session.setTool(coarse, spec, free_pose);
+  // What was loaded has not moved: one owner of each live value, no mirror in the scene.
+  EXPECT_EQ(session.loaded().isovalue, loaded.isovalue);
+  EXPECT_EQ(session.loaded().tool, loaded.tool);
+  EXPECT_EQ(session.loaded().spec.gains.linear_N_per_m, loaded.spec.gains.linear_N_per_m);
+  EXPECT_EQ(session.loaded().spec.tool.point_spacing_m, loaded.spec.tool.point_spacing_m);
+  EXPECT_EQ(session.loaded().X_WT_initial.p_AB_m, loaded.X_WT_initial.p_AB_m);
+  // A recording started now describes what is felt, and reloads to it.
+  const SceneSpec recorded = sceneFromSessionMetadata(makeSessionMetadata(session.loaded(), session.live(), {}));
+  EXPECT_EQ(recorded.volume.isovalue, -2.0);
+  EXPECT_EQ(recorded.gains.linear_N_per_m, 1234.0);
+  EXPECT_EQ(recorded.gains.angular_Nm_per_rad, 0.25);
+  EXPECT_EQ(recorded.tool.point_spacing_m, 0.003);
+  EXPECT_EQ(recorded.tool.X_WT_initial.p_AB_m, free_pose.p_AB_m);
+  // The haptic thread was rebuilt for the new tool from the live values, not the loaded ones.
+  ASSERT_NE(session.hapticThread(), nullptr);
+  EXPECT_EQ(session.hapticThread()->isovalue(), -2.0);
 }
 
 TEST(Session, ARemovedObserverHearsNothingAndClearForgetsTheScene) {

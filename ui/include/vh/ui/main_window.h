@@ -133,8 +133,6 @@ class MainWindow : public QMainWindow {
   // ---- The session (runtime::Session) and its commands -------------------------------------
   runtime::Session& session() noexcept { return session_; }
   const runtime::Session& session() const noexcept { return session_; }
-  /// The scene as it is now (session().scene()).
-  const runtime::LoadedScene& scene() const noexcept { return session_.scene(); }
   /// The window title's detail of the scene shown.
   const std::string& sceneTitle() const noexcept { return title_; }
   void startHaptics();  ///< Refused while a replay is shown.

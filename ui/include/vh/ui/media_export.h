@@ -1,6 +1,6 @@
 #pragma once
 /// @file
-/// Pictures and videos of a session recording (issue 6): the recorded scene is rendered off
+/// Pictures and videos of a session recording: the recorded scene is rendered off
 /// screen (its own vtkRenderWindow with OffScreenRenderingOn(), no Qt; needs an X display with
 /// OpenGL, e.g. under xvfb-run) with the proxy, device, force arrow and isovalue of the record
 /// shown at each frame's time, read back through vtkWindowToImageFilter and written with
@@ -42,9 +42,10 @@ haptics::Pose devicePoseOf(const runtime::TickRecord& record);
 /// |F| [N] of a record.
 double forceNormOf(const runtime::TickRecord& record);
 
-/// The props' inputs for a loaded scene (image, direction, isovalue, tool mesh; HU when the
-/// volume's unit is HU; the device tool shown).
-SceneActorsSpec sceneActorsSpecFor(const runtime::LoadedScene& scene);
+/// The props' inputs for a loaded scene (image, direction; HU when the volume's unit is HU) with
+/// the live isovalue and tool mesh (Session::live(); LiveValues::initial() for a scene as
+/// loaded); the device tool shown.
+SceneActorsSpec sceneActorsSpecFor(const runtime::LoadedScene& scene, const runtime::LiveValues& live);
 
 /// The picture of `record` (scene_actors.h: ToolFrame): its poses, force and isovalue, no
 /// contact points (recordings keep the count only).
@@ -95,6 +96,7 @@ class RecordingFrameRenderer {
   vtkSmartPointer<vtkWindowToImageFilter> grabber_;
   std::unique_ptr<SceneActors> actors_;
   std::vector<Eigen::Vector3d> tool_vertices_T_m_;
+  bool isovalue_from_records_ = true;  ///< SceneActorsSpec::isovalue_from_records.
   int width_;
   int height_;
 };

@@ -47,6 +47,9 @@ struct SceneActorsSpec {
   bool show_device = true;                                   ///< Draw the device tool.
   std::string hint;                                          ///< Text overlay (may be empty).
   bool hounsfield = false;  ///< Values are HU (CT): the composite presets apply as defined.
+  /// A recording's ticks carry the scan's isovalue (the picture follows them); false when
+  /// segments were felt: the ticks carry the segments' level, and the picture keeps `isovalue`.
+  bool isovalue_from_records = true;
 };
 
 class SceneActors {

@@ -176,13 +176,16 @@ inline constexpr const char* kIgtlVolumePrefix = "igtl:";
 SceneSpec sceneForLoadedVolume(const io::LoadedVolume& volume);
 
 /// A scene with everything loaded: the volume (haptic field + VTK image), the tool (resampled
-/// point shell, mass properties, display mesh), the isovalue and the initial pose. Constant;
-/// makes the renderer, device and haptic thread it describes.
+/// point shell, mass properties, display mesh), the isovalue and the initial pose. Immutable
+/// once loaded: what changes while the program runs (the isovalue slider, the gains, the tool
+/// picker, the felt segments) lives in LiveValues, whose one owner in the GUI is Session
+/// (session.h). The fields below that a user can change are the values the scene was loaded
+/// with (LiveValues::initial()); headless runs (runner.h, the benches) use them as they are.
 struct LoadedScene {
   SceneSpec spec;
   io::LoadedVolume volume;                        ///< Field and image in W [m].
-  std::shared_ptr<const haptics::ToolModel> tool; ///< Tool in its frame T [m].
-  double isovalue = 0.0;                          ///< Isovalue s in the data's units.
+  std::shared_ptr<const haptics::ToolModel> tool; ///< Tool in its frame T [m], as loaded.
+  double isovalue = 0.0;                          ///< Isovalue s in the data's units, as loaded.
   haptics::Pose X_WT_initial;                     ///< Initial proxy and device pose in W [m].
   int initial_points_inside = 0;  ///< Shell points inside F = s at X_WT_initial (0 normally).
   /// The scene's segments (spec.segmentation), or null. When some are felt, the hand feels
@@ -198,13 +201,12 @@ struct LoadedScene {
   /// The isovalue of hapticField(): io::kSegmentSurfaceLevel for felt segments, else isovalue.
   double hapticIsovalue() const noexcept { return feltSegments() ? io::kSegmentSurfaceLevel : isovalue; }
 
-  /// The spacing the tool's point shell was sampled at [m]: toolPointSpacing_m() of spec.tool
-  /// on the tool's mesh and the field (derived, so it cannot disagree with the spec); 0 without
-  /// a tool or a field.
+  /// The spacing the tool's point shell was sampled at [m] (LiveValues::pointSpacing_m() of the
+  /// loaded values); 0 without a tool or a field.
   double pointSpacing_m() const;
 
-  /// A renderer for this scene with the proxy at `X_WP` (X_WT_initial when absent), the spec's
-  /// gains, on hapticField() at hapticIsovalue(); epsilon as `options`.
+  /// A renderer for this scene as loaded (vh::runtime::makeRenderer() of LiveValues::initial())
+  /// with the proxy at `X_WP` (X_WT_initial when absent).
   /// @throws std::invalid_argument as HapticRenderer's constructor.
   std::unique_ptr<haptics::HapticRenderer> makeRenderer(haptics::RendererOptions options = {},
                                                         const std::optional<haptics::Pose>& X_WP = {}) const;
@@ -214,17 +216,63 @@ struct LoadedScene {
   /// @throws std::runtime_error for an unreadable trajectory (naming the file and line), a
   ///         hardware kind without a registered driver, or a device that cannot be opened.
   std::shared_ptr<Device> makeDevice(double servo_rate_Hz = 1000.0) const;
-  /// The one place a renderer and its haptic threads are built (the headless runner's tests,
-  /// the GUI through Session): a HapticThread (not started) driving `device` at
-  /// `servo_rate_Hz` with makeRenderer(live, X_WP), live = defaultSolverLanes() lanes and
-  /// solverDeadline_us(servo_rate_Hz), naming the segment of each contact when the scene has
-  /// segments (HapticThreadOptions::segments).
+  /// The haptic threads for this scene as loaded: vh::runtime::makeHapticThread() of
+  /// LiveValues::initial() (the headless runner's tests).
   /// @throws std::invalid_argument as HapticThread's and HapticRenderer's constructors.
-  /// `options` as HapticThreadOptions (e.g. the monitor channel the Session shares).
   std::unique_ptr<HapticThread> makeHapticThread(std::shared_ptr<Device> device, double servo_rate_Hz = 1000.0,
                                                  const std::optional<haptics::Pose>& X_WP = {},
                                                  const HapticThreadOptions& options = {}) const;
 };
+
+/// What changes while the program runs over a loaded scene: the isovalue (the slider), the
+/// coupling gains, the tool (the tool picker), the segments and which are felt (the Segments
+/// panel), and the scan's field itself (a drill will modify it). In the GUI its one owner is
+/// Session (session.h): the renderer, the recorder's metadata, the monitor, the OpenIGTLink
+/// link and the panels read it there. Headless runs take LiveValues::initial() of their scene.
+struct LiveValues {
+  std::shared_ptr<const haptics::ScalarVolume> scan_field;  ///< The scan's field in W [m] (data units).
+  double isovalue = 0.0;                          ///< The scan's isovalue s (data units; HU for CT).
+  haptics::CouplingGains gains;                   ///< Virtual coupling gains [N/m], [N*m/rad].
+  std::shared_ptr<const haptics::ToolModel> tool; ///< Tool in its frame T [m]; null: none.
+  ToolSpec tool_spec;                             ///< How `tool` was made (mesh, scale, point spacing).
+  haptics::Pose X_WT_initial;                     ///< Where the tool was placed, free, in W [m].
+  std::shared_ptr<const SegmentSet> segments;     ///< The segments shown and felt; null: none.
+  std::optional<SegmentationSpec> segmentation;   ///< What a scene file says of `segments`.
+
+  /// The values `scene` was loaded with (its field, isovalue, spec.gains, tool, spec.tool,
+  /// X_WT_initial, segments, spec.segmentation).
+  static LiveValues initial(const LoadedScene& scene);
+
+  /// True when segments are felt instead of the scan's isosurface.
+  bool feltSegments() const noexcept { return segments != nullptr && segments->feltField() != nullptr; }
+  /// The field the hand feels: the felt segments' smoothed indicator, else scan_field.
+  const std::shared_ptr<const haptics::ScalarVolume>& hapticField() const noexcept {
+    return feltSegments() ? segments->feltField() : scan_field;
+  }
+  /// The isovalue of hapticField(): io::kSegmentSurfaceLevel for felt segments, else isovalue.
+  double hapticIsovalue() const noexcept { return feltSegments() ? io::kSegmentSurfaceLevel : isovalue; }
+  /// The spacing the tool's point shell was sampled at [m]: toolPointSpacing_m() of tool_spec on
+  /// the tool's mesh and hapticField() (derived, so it cannot disagree with the spec); 0 without
+  /// a tool or a field.
+  double pointSpacing_m() const;
+};
+
+/// A renderer on `live`'s felt field (hapticField()) at hapticIsovalue(), with its gains and
+/// tool, the proxy at `X_WP` in W [m]; the rest of `options` as given.
+/// @throws std::invalid_argument as HapticRenderer's constructor (no field, no tool).
+std::unique_ptr<haptics::HapticRenderer> makeRenderer(const LiveValues& live, haptics::RendererOptions options,
+                                                      const haptics::Pose& X_WP);
+
+/// The one place a renderer and its haptic threads are built (the GUI through Session, the
+/// headless tests through LoadedScene): a HapticThread (not started) driving `device` at
+/// `servo_rate_Hz` on makeRenderer(live, options, X_WP) with options defaultSolverLanes() lanes
+/// and solverDeadline_us(servo_rate_Hz), at live's felt isovalue and gains, naming the segment
+/// of each contact when there are segments (HapticThreadOptions::segments); `options` as
+/// HapticThreadOptions (e.g. the monitor channel the Session shares).
+/// @throws std::invalid_argument as HapticThread's and HapticRenderer's constructors.
+std::unique_ptr<HapticThread> makeHapticThread(const LiveValues& live, std::shared_ptr<Device> device,
+                                               double servo_rate_Hz, const haptics::Pose& X_WP,
+                                               const HapticThreadOptions& options = {});
 
 /// The cores the live solver's sweep runs on (haptics::RendererOptions::solver_lanes): the
 /// machine's hardware threads less two (the coupling thread keeps its core, the GUI and the

@@ -1,15 +1,16 @@
 #pragma once
 /// @file
-/// The one owner of an interactive haptic session (issue 16): the loaded scene (volume, tool,
-/// initial pose and the spec that describes them), the device, the haptic threads, the isovalue,
-/// the coupling gains and the tool. No Qt: the GUI's widgets observe it (addObserver()) and send
-/// it commands; nothing else keeps a copy that could disagree. Recordings describe scene().
+/// The one owner of an interactive haptic session: the loaded scene (immutable: volume, tool and
+/// segments as loaded, the spec that describes them), the live values (LiveValues: isovalue,
+/// coupling gains, tool, segments), the device and the haptic threads. No Qt: the GUI's widgets
+/// observe it (addObserver()) and send it commands; nothing else keeps a copy that could
+/// disagree.
 ///
-/// One value, one place: the isovalue is scene().isovalue (scene().spec.volume.isovalue says the
-/// same, written by the same function), the gains scene().spec.gains, the tool scene().tool with
-/// scene().spec.tool (its spacing derived: scene().pointSpacing_m()). The haptic thread receives them as commands
-/// (HapticThread::setIsovalue(), setGains()); it is built in one place, rebuildHaptics(), from
-/// LoadedScene::makeHapticThread().
+/// One value, one place: loaded() is what was opened and never changes until the next scene;
+/// live() is what the user changes, written only here. Every reader (the renderer, the
+/// recorder's metadata, the monitor and the OpenIGTLink link, the panels) takes the live values
+/// from live(). The haptic thread receives them as commands (HapticThread::setIsovalue(),
+/// setGains()) and is built in one place, rebuildHaptics(), by makeHapticThread(live()).
 ///
 /// Threads: every member is called on one thread (the GUI thread); observers run on it,
 /// synchronously, after the change. The haptic threads are read only through
@@ -69,45 +70,49 @@ class Session {
 
   // ---- Scene ---------------------------------------------------------------------------------
   /// Replaces the scene: the old haptic threads stop (force ramped to zero) and go; the new ones
-  /// are built (not started) when `device` is set and the scene has a field and a tool. The
-  /// isovalue is clamped to the field's value range.
+  /// are built (not started) when `device` is set and the scene has a field and a tool. The live
+  /// values start as the scene's (LiveValues::initial()), the isovalue clamped to the field's
+  /// value range.
   /// @throws std::invalid_argument when the scene has no field (nothing to touch or show).
   void setScene(LoadedScene scene, std::shared_ptr<Device> device);
-  /// Stops the haptic threads and forgets the scene and the device.
+  /// Stops the haptic threads and forgets the scene and the device (the gains stay).
   void clear();
   bool hasScene() const noexcept { return has_scene_; }
-  /// The scene as it is now: its spec carries the current isovalue, gains and tool, so a
-  /// recording's metadata (makeSessionMetadata()) describes exactly what is felt.
-  const LoadedScene& scene() const noexcept { return scene_; }
+  /// The scene as it was loaded (immutable until the next setScene()): the volume, its info and
+  /// spec. Its tool, isovalue, gains and segments are the values it was opened with; what is
+  /// felt and shown now is live().
+  const LoadedScene& loaded() const noexcept { return loaded_; }
+  /// The values the user changes, as they are now: what is felt, shown and recorded.
+  const LiveValues& live() const noexcept { return live_; }
   /// The field's value range [min, max] (data units); {0, 1} without a scene.
   std::pair<double, double> valueRange() const noexcept { return {value_min_, value_max_}; }
 
   // ---- Isovalue and gains --------------------------------------------------------------------
-  double isovalue() const noexcept { return scene_.isovalue; }
-  /// Sets the isovalue, clamped to valueRange(); the haptic thread applies it at its next tick.
+  double isovalue() const noexcept { return live_.isovalue; }
+  /// Sets the isovalue, clamped to valueRange(); the haptic thread applies it at its next tick
+  /// (felt segments: the hand keeps the segments' surface, the isovalue sets the scan's picture).
   /// A non-finite value or no scene: ignored.
   void setIsovalue(double isovalue);
-  const haptics::CouplingGains& gains() const noexcept { return scene_.spec.gains; }
+  const haptics::CouplingGains& gains() const noexcept { return live_.gains; }
   /// Sets the coupling gains [N/m], [N*m/rad] (applied at the haptic thread's next tick, clamped
   /// there to the device's stable stiffness). Non-finite or negative gains: ignored. Kept
-  /// without a scene too (the next scene's haptics start with them when setScene() is given
-  /// them in its spec).
+  /// without a scene too; setScene() then starts from the new scene's spec.gains.
   void setGains(const haptics::CouplingGains& gains);
 
   // ---- Tool ----------------------------------------------------------------------------------
   /// Swaps the tool (e.g. one rebuilt by the GUI's tool picker): the haptic threads stop (force
-  /// ramped to zero), the tool and its spec replace the scene's, the device (when simulated)
+  /// ramped to zero), the tool and its spec replace the live ones, the device (when simulated)
   /// moves to `X_WT_initial` (a free pose), the threads are rebuilt there and restarted when
   /// they ran. `spec` should name the spacing the shell was sampled at (point_spacing_m, or
-  /// point_count): scene().pointSpacing_m() derives it from there.
+  /// point_count): live().pointSpacing_m() derives it from there.
   /// @throws std::invalid_argument for a null tool or no scene.
   void setTool(std::shared_ptr<const haptics::ToolModel> tool, const ToolSpec& spec, const haptics::Pose& X_WT_initial);
 
-  // ---- Segments (issue 17) ---------------------------------------------------------------------
-  /// Replaces the scene's segments (null: none) and their spec (what recordings and scene
-  /// files say): the haptic threads stop (force ramped to zero) and are rebuilt on the new felt
-  /// field (LoadedScene::hapticField()) at the proxy's pose when no shell point is inside the
-  /// new surface there, else at a free pose above the volume (defaultInitialPose(); a simulated
+  // ---- Segments ------------------------------------------------------------------------------
+  /// Replaces the live segments (null: none) and their spec (what recordings and scene files
+  /// say): the haptic threads stop (force ramped to zero) and are rebuilt on the new felt field
+  /// (LiveValues::hapticField()) at the proxy's pose when no shell point is inside the new
+  /// surface there, else at a free pose above the volume (defaultInitialPose(); a simulated
   /// device is moved there); restarted when they ran.
   /// @throws std::invalid_argument without a scene, or for segments without a spec.
   void setSegments(std::shared_ptr<const SegmentSet> segments, std::optional<SegmentationSpec> spec);
@@ -124,14 +129,14 @@ class Session {
   /// Null without a device (haptics off) or a scene.
   HapticThread* hapticThread() const noexcept { return haptics_.get(); }
   bool hapticsRunning() const noexcept { return haptics_ != nullptr && haptics_->running(); }
-  /// Starts the haptic threads with the current isovalue and gains (no effect without them).
+  /// Starts the haptic threads (built with the live isovalue and gains; no effect without them).
   void startHaptics();
   /// Ramps the force to zero and joins the threads; idempotent.
   void stopHaptics();
   /// The haptic threads' latest snapshot into `out` (false, `out` untouched, without threads or
   /// before their first tick). Never blocks.
   bool latestSnapshot(HapticSnapshot& out) const;
-  /// The proxy's pose in W [m]: the latest snapshot's, else the scene's initial pose.
+  /// The proxy's pose in W [m]: the latest snapshot's, else live().X_WT_initial.
   haptics::Pose proxyPose() const;
   double servoRate_Hz() const noexcept { return servo_rate_Hz_; }
 
@@ -150,7 +155,8 @@ class Session {
   void notify(SessionChange what);
 
   double servo_rate_Hz_;
-  LoadedScene scene_;
+  LoadedScene loaded_;  ///< As loaded; written only by setScene() and clear().
+  LiveValues live_;     ///< The one copy of every live value.
   bool has_scene_ = false;
   double value_min_ = 0.0;
   double value_max_ = 1.0;

@@ -21,8 +21,9 @@
 ///   "tool": {"mesh": ..., "point_count": N, "point_spacing_m": mean nearest-neighbour spacing},
 ///   "device": {"name": ..., "kind": ...}, "note": ...
 /// }
-/// The isovalue and the initial pose are the loaded scene's (resolved) values, so a reloaded
-/// scene starts exactly where the recorded one did (doubles round-trip bit for bit).
+/// The isovalue and the initial pose are the live values when the recording started (resolved,
+/// never "unset"), so a reloaded scene starts exactly where the recorded one did (doubles
+/// round-trip bit for bit).
 ///
 /// Dataset checksum (SHA-256, own implementation in sha256.h: no dependency provides one):
 ///   - a file: SHA-256 of its bytes; a NRRD with detached data (.nhdr) or a MetaImage header
@@ -71,7 +72,13 @@ DatasetChecksum datasetChecksum(const std::string& volume_path);
 /// writer overwrites it with RecordingWriterOptions::servo_rate_Hz).
 /// Hashes the dataset (datasetChecksum(): cached); call it off the servo thread.
 /// @throws std::runtime_error when the dataset cannot be read for its checksum.
-std::string makeSessionMetadata(const LoadedScene& scene, const SessionInfo& info);
+/// `scene` gives what was loaded (the volume's path, series, phase, dataset identity); `live`
+/// what was felt (isovalue, tool, initial pose, gains, segments: Session::live() in the GUI).
+std::string makeSessionMetadata(const LoadedScene& scene, const LiveValues& live, const SessionInfo& info);
+/// makeSessionMetadata() of a scene with the values it was loaded with (headless runs).
+inline std::string makeSessionMetadata(const LoadedScene& scene, const SessionInfo& info) {
+  return makeSessionMetadata(scene, LiveValues::initial(scene), info);
+}
 
 /// The scene a recording was made on (no device section: a recording replays through
 /// ReplayDevice, replay.h). Initial pose and isovalue are the recorded ones.
