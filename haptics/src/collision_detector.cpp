@@ -564,7 +564,7 @@ SweepResult CollisionDetector::runAccelerated() noexcept {
   // only tested over [0, t]; a hit at t = 0 ends the sweep at once (addContactsAt then
   // collects the points near the proxy itself).
   // Budget cut before the lanes: nothing is proven for the points not yet looked at; the
-  // sweep can be resumed where it stopped (issue 13).
+  // sweep can be resumed where it stopped.
   const auto cutAtStart = [&] {
     st.active = true;
     active_complete_ = false;

@@ -127,7 +127,7 @@ TickOutput HapticRenderer::tick(const Pose& X_WD_in, double requested_isovalue) 
     return std::chrono::duration<double, std::micro>(b - a).count();
   };
   const MassProperties& mass = tool_->mass;
-  // A sweep the work budget cut on an earlier tick goes on where it stopped (issue 13): the
+  // A sweep the work budget cut on an earlier tick goes on where it stopped: the
   // same motion, this tick's budget; the proxy moves as far as every path is proven free. A new
   // isovalue or a reset abandons it (the proxy stays where it is, which is proven free).
   if (collision_.sweepPending() && (embedded_scan_needed_ || isovalue != last_isovalue_)) collision_.abandonSweep();

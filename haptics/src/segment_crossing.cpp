@@ -1,5 +1,6 @@
 // ScalarVolume::firstEntryOnSegment(): the exact first crossing of a straight segment into
-// {F > s}, cell by cell (issue 12; haptics/README.md, "Never through").
+// {F > s}, cell by cell, so the proxy never passes through a thin feature (haptics/README.md,
+// "Never through").
 #include <algorithm>
 #include <cmath>
 #include <cstdint>

@@ -41,7 +41,7 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
   } catch (const vh::io::LoadError& e) {
     vh::fuzz::expected(e);
   }
-  // The same file as a segmentation (issue 17): the header's key/value pairs, the layers of a
+  // The same file as a segmentation: the header's key/value pairs, the layers of a
   // 4-D layered .seg.nrrd, the labels.
   try {
     const vh::io::LoadedSegmentation s = vh::io::loadSegmentation(path);

@@ -33,7 +33,7 @@ double bruteForceFirstContact(const ScalarVolume& vol, const ToolModel& tool, co
   return first;
 }
 
-// Every test runs in both detection modes (issue 8): the paper's path and the accelerated one.
+// Every test runs in both detection modes: the paper's path and the accelerated one.
 class CollisionDetectorModes : public ::testing::TestWithParam<DetectionMode> {};
 INSTANTIATE_TEST_SUITE_P(Modes, CollisionDetectorModes, ::testing::Values(DetectionMode::kPaper, DetectionMode::kAccelerated),
                          [](const ::testing::TestParamInfo<DetectionMode>& p) { return std::string(toString(p.param)); });
@@ -229,7 +229,7 @@ TEST(CollisionDetector, AcceleratedStopsAtABlockingContactWithoutWalkingTheTree)
   EXPECT_FALSE(a.empty());
 }
 
-// Issue 13: a sweep the work budget cuts is resumed on later calls where it stopped. Done, it
+// A sweep the work budget cuts is resumed on later calls where it stopped. Done, it
 // gives the uncut sweep's result bit for bit (time, bracket, point) and so keeps its contract
 // with the brute-force reference; the times reported while cut are proven free (never after
 // the first contact) and never decrease; resuming costs little more work than one uncut sweep.

@@ -124,7 +124,7 @@ TEST(ConeProjection, AgreesWithHildrethsReferenceOnAHundredThousandProblems) {
             << uncertified << " problems the reference could not certify\n";
 }
 
-// Warm starts (issue 13): from the right face, a wrong one, a partial one and junk indices the
+// Warm starts: from the right face, a wrong one, a partial one and junk indices the
 // result is still the projection (Hildreth's independent reference), and the right face takes
 // fewer iterations than a cold start.
 TEST(ConeProjection, WarmStartFromAnyGuessGivesTheSameProjection) {

@@ -1,4 +1,4 @@
-// Issue 13, part: a capped contact set. A flat 30 x 30 mm box pressed onto a plane touches with
+// A capped contact set. A flat 30 x 30 mm box pressed onto a plane touches with
 // hundreds of points; the set keeps at most RendererOptions::max_contacts of them, spread over
 // the face by farthest-point selection. The oracle is the analytic, frictionless plane: the
 // pressed box stays flat, follows the device along the plane, and never enters it.

@@ -1,10 +1,10 @@
-// Issue 12, "Never through": the proxy never carries a shell point through the isosurface, at
+// "Never through": the proxy never carries a shell point through the isosurface, at
 // any isovalue, however thin the feature. Evidence from independent oracles only:
 //   - the exact segment test against dense sampling of the trilinear field along the segment;
 //   - every tick of a scripted run checked by CrossingVerifier (each point's true arc sampled
 //     every 1/1000 voxel, isInside() at each sample), in both detection modes;
 //   - outcome checks from the geometry (no point of the tool ends beyond the wall's mid-surface).
-// A control run with issue 8's end-sample test shows that the oracle does catch tunnels.
+// A control run with the earlier end-sample test shows that the oracle does catch tunnels.
 #include <algorithm>
 #include <cmath>
 #include <functional>
@@ -388,7 +388,7 @@ TEST_P(NeverThrough, RandomArcsOfARotatingPointThroughThinWalls) {
   EXPECT_GT(hits, 100);
 }
 
-// ---- The oracle can fail: issue 8's end-sample test tunnels -------------------------------------
+// ---- The oracle can fail: the end-sample test tunnels ------------------------------------------
 
 TEST(NeverThroughControl, TheOracleCatchesTheEndSampleTunnel) {
   // The issue's report: the 10 mm ball pressed onto the one-voxel plate at 250 of 255 sinks

@@ -1,4 +1,4 @@
-// Both detection modes give the same answers (issue 8). The accelerated path skips only runs of
+// Both detection modes give the same answers. The accelerated path skips only runs of
 // segments that the min-max tree proves free of inside points and samples the rest exactly as
 // the paper's path does, so its first time of contact is the same double; the contact set is
 // the same set. The one documented difference: when two points reach the surface at exactly the

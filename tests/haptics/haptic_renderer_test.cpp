@@ -31,7 +31,7 @@ RendererOptions inMode(DetectionMode mode) {
   return o;
 }
 
-// Every test runs in both detection modes (issue 8): the paper's path and the accelerated one.
+// Every test runs in both detection modes: the paper's path and the accelerated one.
 class HapticRendererModes : public ::testing::TestWithParam<DetectionMode> {};
 INSTANTIATE_TEST_SUITE_P(Modes, HapticRendererModes, ::testing::Values(DetectionMode::kPaper, DetectionMode::kAccelerated),
                          [](const ::testing::TestParamInfo<DetectionMode>& p) { return std::string(toString(p.param)); });
@@ -50,7 +50,7 @@ TEST_P(HapticRendererModes, FreeMotionReachesTheDeviceWithZeroForce) {
   EXPECT_DOUBLE_EQ(out.stats.time_of_contact, 1.0);
 }
 
-// The velocity limit (section 2.3's alternative; issue 13): in free space no shell point moves
+// The velocity limit (section 2.3's alternative): in free space no shell point moves
 // farther than max_travel_per_tick_m in a tick (checked point by point), and the proxy reaches
 // the device after ceil(travel / limit) ticks.
 TEST_P(HapticRendererModes, VelocityLimitBoundsEveryPointsTravelPerTick) {

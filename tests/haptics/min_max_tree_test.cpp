@@ -1,4 +1,4 @@
-// The min-max tree (issue 8) against brute force: its range must contain every trilinear
+// The min-max tree against brute force: its range must contain every trilinear
 // sample in a box (random volumes of every voxel type, random boxes, partly outside the grid),
 // and it must be exact where its definition says so (level-0 bricks, parents).
 #include "vh/haptics/min_max_tree.h"

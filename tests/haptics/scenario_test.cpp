@@ -102,7 +102,7 @@ Pose at(double x, double y, double z) { return Pose::FromTranslation({x, y, z});
 
 // ---- Sliding --------------------------------------------------------------------------------
 
-// Every test runs in both detection modes (issue 8): the paper's path and the accelerated one.
+// Every test runs in both detection modes: the paper's path and the accelerated one.
 class Scenario : public ::testing::TestWithParam<DetectionMode> {};
 INSTANTIATE_TEST_SUITE_P(Modes, Scenario, ::testing::Values(DetectionMode::kPaper, DetectionMode::kAccelerated),
                          [](const ::testing::TestParamInfo<DetectionMode>& p) { return std::string(toString(p.param)); });

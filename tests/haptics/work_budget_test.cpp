@@ -1,4 +1,4 @@
-// Issue 13, part: a tick whose collision-detection work is bounded by construction. The check
+// A tick whose collision-detection work is bounded by construction. The check
 // counts work (samples, cells, box queries: CollisionDetector::work()), never wall-clock time.
 #include <algorithm>
 #include <cmath>

@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# The Debian package (issue 18, packaging/CMakeLists.txt): `cpack -G DEB` from the build tree,
+# The Debian package (packaging/CMakeLists.txt): `cpack -G DEB` from the build tree,
 # unpacked with dpkg-deb into a temporary root, must hold the program, its worker, the desktop
 # entry, the icon, the .vhrec MIME type, the man page, the udev rules and the copyright; its
 # Depends must be computed from the shared libraries; and the unpacked program must run --help,

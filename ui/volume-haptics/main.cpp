@@ -133,7 +133,7 @@ int main(int argc, char** argv) {
       ->check(CLI::NonNegativeNumber);
   bool run_lag_reference = vh::runtime::RunOptions{}.lag_reference;
   run->add_flag("!--no-lag-reference", run_lag_reference,
-                "Skip the unbudgeted reference run that measures the work budget's lag (issue 13)");
+                "Skip the unbudgeted reference run that measures the work budget's lag");
   run->add_flag("--check", run_check,
                 "Exit with 3 when the proxy penetrated deeper than epsilon, a tick produced a non-finite value or "
                 "the proxy crossed into the isosurface (crossings > 0)");
@@ -180,7 +180,7 @@ int main(int argc, char** argv) {
   export_cmd->add_option("--width", export_media.width, "Frame width [px]")->check(CLI::Range(16, 8192));
   export_cmd->add_option("--height", export_media.height, "Frame height [px]")->check(CLI::Range(16, 8192));
 
-  // ---- bench (issue 7) ----
+  // ---- bench ----
   std::function<int()> bench_handler;
   vh::bench::addBenchSubcommand(app, bench_handler);
 

@@ -1,4 +1,4 @@
-// `volume-haptics bench bigscan` (issue 14, "Big scans"): a 512 x 512 x 2000 int16 CT series
+// `volume-haptics bench bigscan` ("Big scans"): a 512 x 512 x 2000 int16 CT series
 // (1 GiB of voxels) loads with progress and cancel, its peak memory against the voxel bytes,
 // the min/max tree build time, and tick times on it next to the small phantom's.
 //
@@ -404,7 +404,7 @@ int childLoad(const BigScanOptions& options) {
   r["peak_concurrent_bytes"] = sampler.stopNow();
   r["peak_rss_bytes"] = procStatusBytes("VmHWM");
   r["rss_after_load_bytes"] = procStatusBytes("VmRSS");
-  // Processes the loader itself started and waited for (a DICOM reading worker, issue 15), if
+  // Processes the loader itself started and waited for (a DICOM reading worker), if
   // any: their peak counts too (the sum of both peaks bounds the memory at any one time).
   rusage children{};
   getrusage(RUSAGE_CHILDREN, &children);
@@ -481,7 +481,7 @@ int childCancel(const BigScanOptions& options) {
   r["peak_rss_bytes"] = procStatusBytes("VmHWM");
   r["rss_after_bytes"] = procStatusBytes("VmRSS");
   rusage children{};
-  getrusage(RUSAGE_CHILDREN, &children);  // the loader's worker process, if any (issue 15)
+  getrusage(RUSAGE_CHILDREN, &children);  // the loader's worker process, if any
   r["loader_children_peak_rss_bytes"] = 1024.0 * static_cast<double>(children.ru_maxrss);
   malloc_trim(0);
   r["rss_after_trim_bytes"] = procStatusBytes("VmRSS");
@@ -790,8 +790,8 @@ fs::path runBigScan(const BigScanOptions& options) {
      << " GiB), generated from the Philips head phantom (0.5 mm slices interpolated between its 1 mm ones, mirrored "
         "along the stack, its top at the top); "
      << (series.generated ? format("written in %.1f s this run", series.generate_s) : std::string("reused"))
-     << ". Loads in fresh child processes; peak memory: the child and the processes the loader started (issue "
-        "15's DICOM worker) together, sampled every 5 ms, and never below the child's own VmHWM (the loader waits "
+     << ". Loads in fresh child processes; peak memory: the child and the processes the loader started (its "
+        "DICOM worker) together, sampled every 5 ms, and never below the child's own VmHWM (the loader waits "
         "for its worker to end before it takes the voxels, so their peaks do not coincide; the sum of the two is "
         "given as a bound). Tick times: "
         "the CPU-time columns are the ones to read on a shared machine (a preempted tick inflates the wall time).\n\n";

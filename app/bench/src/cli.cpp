@@ -35,8 +35,8 @@ int guarded(const char* name, const std::function<void()>& f) {
 
 CLI::App* addBenchSubcommand(CLI::App& app, std::function<int()>& handler) {
   CLI::App* bench = app.add_subcommand(
-      "bench", "Benchmarks (issue 7): the paper's Table 1, error against run time, stiff and extreme cases, "
-               "big scans (issue 14); "
+      "bench", "Benchmarks of the rendering core: the paper's Table 1, error against run time, stiff and "
+               "extreme cases, big scans; "
                "reports (JSON, Markdown, PNG) go into the build tree");
   bench->require_subcommand(1);
 
@@ -55,7 +55,7 @@ CLI::App* addBenchSubcommand(CLI::App& app, std::function<int()>& handler) {
   t1->add_flag("--before", *before,
                "Add the 'before' column (accelerated mode, end-sample segment test) to --mode accelerated or both");
   t1->add_option("--work-budget", table1->work_budget,
-                 "The accelerated mode's work budget per tick (units of one trilinear sample's cost; issue 13); "
+                 "The accelerated mode's work budget per tick (units of one trilinear sample's cost); "
                  "> 0 also runs it unbudgeted and reports the lag; 0: unbudgeted only")
       ->capture_default_str()
       ->check(CLI::NonNegativeNumber);
@@ -112,7 +112,7 @@ CLI::App* addBenchSubcommand(CLI::App& app, std::function<int()>& handler) {
     handler = [stability] { return guarded("stability", [&] { runStability(*stability); }); };
   });
   auto bigscan = std::make_shared<BigScanOptions>();
-  CLI::App* big = bench->add_subcommand("bigscan", "Big scans (issue 14): a 512 x 512 x 2000 int16 CT series "
+  CLI::App* big = bench->add_subcommand("bigscan", "Big scans: a 512 x 512 x 2000 int16 CT series "
                                                    "generated into the build tree, its load time, peak memory, "
                                                    "min/max tree build, a cancelled load, and tick times against "
                                                    "the 140-slice phantom's");

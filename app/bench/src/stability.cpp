@@ -416,7 +416,7 @@ fs::path runStability(const CommonOptions& options) {
   }
   report["stiffness_sweep"] = sweep;
 
-  // --- Device models and the passivity controller (issue 19) -------------------------------
+  // --- Device models and the passivity controller ------------------------------------------
   // Each catalogue model at its own servo rate, with its encoder, one tick of delay and its force
   // limit, on the plane, sphere and wedge; without and with the passivity controller.
   const std::vector<Scenario> device_scenes = deviceScenarios();

@@ -210,14 +210,14 @@ runtime::Trajectory table1Trajectory(const haptics::ScalarVolume& volume, const 
 
 namespace {
 
-/// One column of the table: a detection mode and a segment test (issue 12's "before" column is
-/// the accelerated mode with issue 8's end-sample test).
+/// One column of the table: a detection mode and a segment test (the "before" column of the exact
+/// segment test's comparison is the accelerated mode with the earlier end-sample test).
 struct Variant {
   haptics::DetectionMode mode = haptics::DetectionMode::kAccelerated;
   haptics::SegmentTest segment_test = haptics::SegmentTest::kExact;
   std::string key;    ///< JSON key and file-name part: "paper", "accelerated", "accelerated-end-sample".
   std::string label;  ///< For people: "paper", "accelerated", "accelerated (end-sample, before)".
-  std::int64_t work_budget = 0;  ///< RendererOptions::work_budget (issue 13's bounded tick), 0 = none.
+  std::int64_t work_budget = 0;  ///< RendererOptions::work_budget (the bounded tick), 0 = none.
   int max_contacts = haptics::RendererOptions{}.max_contacts;              ///< RendererOptions::max_contacts.
   double max_travel_m = haptics::RendererOptions{}.max_travel_per_tick_m;  ///< RendererOptions::max_travel_per_tick_m.
   int lanes = 1;             ///< RendererOptions::solver_lanes.
@@ -225,7 +225,7 @@ struct Variant {
 };
 
 /// The accelerated mode without a work budget: the reference the budgeted proxy's lag is
-/// measured against (issue 13).
+/// measured against.
 constexpr const char* kUnbudgetedKey = "accelerated-unbudgeted";
 
 constexpr const char* kBeforeKey = "accelerated-end-sample";
@@ -240,7 +240,7 @@ struct ModeRun {
   std::int64_t crossings = 0, crossing_points = 0, first_crossing_tick = -1;
   double verify_s = 0.0;
   double wall_s = 0.0;
-  // Issue 13: ticks the work budget cut; the lag behind the unbudgeted accelerated proxy.
+  // Ticks the work budget cut; the lag behind the unbudgeted accelerated proxy.
   std::int64_t budget_cuts = 0, deadline_cuts = 0;
   runtime::ProxyLag lag;
   double max_work = 0.0;
@@ -366,7 +366,7 @@ void runScene(const runtime::LoadedScene& scene, std::shared_ptr<const haptics::
   const int i_unbudgeted = indexOf(kUnbudgetedKey);
   const double epsilon_m = runs.front().renderer->epsilon_m();
   double max_mode_difference_m = 0.0, max_before_difference_m = 0.0;
-  // Diagnostics (issue 8): VH_TABLE1_TICK_CSV=DIR writes one CSV per scene and mode with every
+  // Diagnostics: VH_TABLE1_TICK_CSV=DIR writes one CSV per scene and mode with every
   // tick's times and statistics, to find the worst ticks and what they do.
   std::vector<std::unique_ptr<std::ofstream>> tick_csv;
   if (const char* dir = std::getenv("VH_TABLE1_TICK_CSV")) {
@@ -487,7 +487,7 @@ void runScene(const runtime::LoadedScene& scene, std::shared_ptr<const haptics::
     row["max_proxy_difference_between_modes_m"] = max_mode_difference_m;
   }
   if (i_accel >= 0 && i_before >= 0) {
-    // Issue 12: the exact segment test (after) against issue 8's end sample (before), same run,
+    // The exact segment test (after) against the earlier end sample (before), same run,
     // thread CPU time (the 1.3x target is on the means).
     const auto& a = modes_json["accelerated"];
     const auto& b = modes_json[kBeforeKey];
@@ -726,7 +726,7 @@ fs::path runTable1(const Table1Options& options) {
      << " ticks per scene and mode at a simulated 1 kHz, modes interleaved tick by tick; times are "
         "TickStats::exec_time_us (wall) of one tick on one core; the CPU-time column is the thread's CPU time "
         "around tick(), which a busy machine's preemption does not inflate. Every mode uses the exact segment "
-        "test except \"accelerated (end-sample, before)\", issue 8's end sample. "
+        "test except \"accelerated (end-sample, before)\", the earlier end-sample test. "
      << (verified ? format("Crossings: ticks in which haptics::CrossingVerifier, sampling each shell point's path "
                            "over the tick every %g voxel outside the timed section, found a point carried from "
                            "outside into the isosurface.",
@@ -851,7 +851,7 @@ fs::path runTable1(const Table1Options& options) {
   if (any_before) {
     int met = 0, compared = 0;
     std::string over;
-    md << "\nBefore and after the exact segment test (issue 12), accelerated mode, same run, thread CPU time per "
+    md << "\nBefore and after the exact segment test, accelerated mode, same run, thread CPU time per "
           "tick; ratio: exact / end-sample:\n\n";
     md << "| scene | end-sample (before) mean / p99.9 / max [us] | exact (after) mean / p99.9 / max [us] | "
           "mean ratio | cells / tick (exact) | crossings before / after | max proxy difference [mm] |\n"
@@ -871,11 +871,11 @@ fs::path runTable1(const Table1Options& options) {
          << crossingsText(a) << " | " << num(1e3 * row["max_proxy_difference_exact_vs_end_sample_m"].get<double>(), 4)
          << " |\n";
     }
-    md << "\nIssue 12 target: the accelerated mode's mean with the exact test within 1.3x of the end sample's on "
-          "every scene: met on "
+    md << "\nExact segment test target: the accelerated mode's mean with the exact test within 1.3x of the "
+          "end sample's on every scene: met on "
        << met << " of " << compared << (over.empty() ? std::string("") : " (over: " + over + ")") << ".\n";
   }
-  md << "\nIssue 8 targets: mean at most a tenth of the paper's (Bunny 21, Engine 78, Hole 41, Bone 26 us), max "
+  md << "\nSpeed targets: mean at most a tenth of the paper's (Bunny 21, Engine 78, Hole 41, Bone 26 us), max "
         "under 250 us; a 20,000-point tool on Bone and Engine: mean under 200 us, max under 1000 us.\n";
 
   // Plots.

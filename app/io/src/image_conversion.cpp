@@ -227,7 +227,7 @@ LoadedVolume finishVolume(RawVolume raw, const fs::path& path) {
   const bool keep_image = !voxels.converted && raw.value_scale == 1.0 && raw.value_offset == 0.0;
   vtkSmartPointer<vtkDataArray> kept_scalars = keep_image ? scalars : nullptr;
   // The reader's voxels are in the field now: release them before the rendering image is made
-  // (issue 14: a 1 GB scan peaks at two copies of its voxels, not three).
+  // (a 1 GB scan peaks at two copies of its voxels, not three).
   scalars = nullptr;
   raw.image = nullptr;
 

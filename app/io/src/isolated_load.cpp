@@ -1,4 +1,4 @@
-// DICOM loading in a worker process (issue 15): vtk-dicom's parser has crashed (SIGSEGV in
+// DICOM loading in a worker process: vtk-dicom's parser has crashed (SIGSEGV in
 // vtkDICOMParser::ReadMetaData) on damaged files; in a worker such a crash ends the worker, and
 // the application names the file and keeps what it had open.
 //

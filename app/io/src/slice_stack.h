@@ -2,7 +2,8 @@
 /// @file
 /// Regularising a stack of parallel image planes (the slices of a DICOM series as read) onto a
 /// rectilinear grid: gantry tilt and other sheared stacks, missing slices and uneven spacing
-/// (issue 14). What 3D Slicer calls acquisition geometry regularisation. Private to vh::io.
+/// (so every clinical scan opens). What 3D Slicer calls acquisition geometry regularisation.
+/// Private to vh::io.
 ///
 /// Frame: the stack's own plane frame, in millimetres: u along the image rows (the direction in
 /// which the column index grows, DICOM's ImageOrientationPatient first vector), v along the

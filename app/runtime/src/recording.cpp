@@ -238,7 +238,7 @@ void RecordingWriter::deriveEvents(const TickRecord* records, std::size_t count)
         derived.push_back({r.time_s, r.tick, "isovalue", d.dump()});
       }
     }
-    // The touched segment (issue 17): "segment" when it changes, "critical_contact" on entering
+    // The touched segment: "segment" when it changes, "critical_contact" on entering
     // a critical one.
     const int segment = recordSegment(r.flags);
     if (segment != previous_segment_) {

@@ -11,7 +11,8 @@ DeviceParams DeviceModelSpec::params(double lever_m) const {
 }
 
 // Sources (see device_catalog.h for the three kinds):
-//   [vendor]   manufacturer data sheets as quoted in the issue 19 brief; not re-checked here.
+//   [vendor]   manufacturer data sheets as quoted in the device-model requirements; not re-checked
+//              here.
 //   [CHAI3D]   chai3d/chai3d@7c76b1f (CHAI3D 3.2), src/devices/CPhantomDevices.cpp lines 495-580
 //              and src/devices/CDeltaDevices.cpp lines 781-1146 (m_maxLinearForce,
 //              m_maxLinearStiffness).

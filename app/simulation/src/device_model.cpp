@@ -173,7 +173,7 @@ SimulationResult simulate(HapticRenderer& renderer, const SimulationConfig& cfg,
   Eigen::Quaterniond q = start.R_W.normalized();
   double w_out = 0.0, d_dev = 0.0, v0 = 0.0;
 
-  // The device's signal path and the optional passivity controller (issue 19).
+  // The device's signal path and the optional passivity controller.
   DeviceIo io(cfg.signal);
   haptics::PassivityOptions pc_options;
   pc_options.delay_ticks = cfg.signal.delay_ticks;

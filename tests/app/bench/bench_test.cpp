@@ -114,7 +114,7 @@ fs::path outDir(const std::string& name) {
 }
 
 TEST(Bench, table1AcceleratedModeKeepsItsWorkBudgetAndReportsItsLag) {
-  // Issue 13: the accelerated column runs with the work budget (the application's setting) and
+  // The accelerated column runs with the work budget (the application's setting) and
   // beside it without, interleaved. Work is counted, not timed: no tick exceeds the budget by
   // more than the pruning of a capped contact set and one queue step.
   Table1Options options;
@@ -156,7 +156,7 @@ TEST(Bench, table1ShortWritesBothModesForEveryScene) {
   Table1Options options;
   options.common.short_run = true;
   options.common.out_dir = outDir("table1");
-  options.before = true;  // issue 12's "before" column
+  options.before = true;  // the "before" column (end-sample segment test)
   const fs::path dir = runTable1(options);
   const json report = readJson(dir / "table1.json");
   expectNoNull(report);
@@ -167,8 +167,8 @@ TEST(Bench, table1ShortWritesBothModesForEveryScene) {
   EXPECT_FALSE(report["cpu_model"].get<std::string>().empty());
   EXPECT_EQ(report["ticks_per_run"], 1000);
   EXPECT_EQ(report["verify_step_voxels"].get<double>(), 0.01);
-  // Both detection modes, the accelerated one also without its work budget (issue 13), and the
-  // "before" column (issue 12).
+  // Both detection modes, the accelerated one also without its work budget, and the
+  // "before" column (end-sample segment test).
   EXPECT_EQ(report["modes"], json({"paper", "accelerated", "accelerated-unbudgeted", "accelerated-end-sample"}));
   ASSERT_EQ(report["scenes"].size(), 4u) << "one row per Table 1 scene (short runs have no large-tool rows)";
   int ran = 0;
@@ -199,7 +199,7 @@ TEST(Bench, table1ShortWritesBothModesForEveryScene) {
       EXPECT_GE(number(m, "mean_cells"), 0.0);
       EXPECT_GE(number(m, "verify_s"), 0.0);
       const std::int64_t crossings = expectCrossingFields(m, 1000.0);
-      // The exact segment test never lets the proxy through the surface (issue 12); the end sample
+      // The exact segment test never lets the proxy through the surface; the end sample
       // (the "before" column) may. Asserted on the built-in scene; reported for the others.
       if (std::string(mode) != "accelerated-end-sample") {
         if (builtin) {
@@ -239,7 +239,7 @@ TEST(Bench, table1ShortWritesBothModesForEveryScene) {
   EXPECT_NE(md.find("| max penetration [mm] (epsilon) | crossings |"), std::string::npos);
   EXPECT_NE(md.find("| accelerated (end-sample, before) |"), std::string::npos);
   EXPECT_NE(md.find("Before and after the exact segment test"), std::string::npos);
-  EXPECT_NE(md.find("Issue 12 target"), std::string::npos);
+  EXPECT_NE(md.find("Exact segment test target"), std::string::npos);
   EXPECT_NE(md.find(report["cpu_model"].get<std::string>()), std::string::npos);
   expectPngs(dir, report, static_cast<std::size_t>(ran) + 2);
 }
@@ -313,7 +313,7 @@ TEST(Bench, stabilityShortWritesSweepAndExtremeCases) {
       }
     }
   }
-  // Device models (issue 19): each at its rated stiffness and at 50,000 N/m, controller off and
+  // Device models: each at its rated stiffness and at 50,000 N/m, controller off and
   // on; every model stable at its rating without the controller.
   ASSERT_EQ(report["device_models"].size(), 24u);
   int rated_stable = 0;

@@ -1,4 +1,4 @@
-// The udev rules of the Debian package (packaging/70-volume-haptics.rules, issue 18) give every
+// The udev rules of the Debian package (packaging/70-volume-haptics.rules) give every
 // device this program drives to the logged-in user: each SpaceMouse model of knownModels() on
 // the hidraw subsystem and the Falcon's USB ID on the usb subsystem, all with TAG+="uaccess".
 

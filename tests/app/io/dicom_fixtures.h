@@ -1,6 +1,6 @@
 #pragma once
 /// @file
-/// Writers of synthetic-but-real DICOM series for the loader tests (issue 14, "Every clinical
+/// Writers of synthetic-but-real DICOM series for the loader tests ("Every clinical
 /// scan opens"): the voxels of a source volume (the shared small CT head, or a caller's volume)
 /// written through vtk-dicom's vtkDICOMWriter and CT / MR generators, with the geometry and the
 /// faults of real scans: gantry tilt, oblique planes, missing, duplicated and displaced slices,

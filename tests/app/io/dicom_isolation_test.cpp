@@ -1,4 +1,4 @@
-// No input crashes the application (issue 15): DICOM series are read in a worker process
+// No input crashes the application: DICOM series are read in a worker process
 // (vh/io/dicom_worker.h). A parser crash there becomes a LoadError naming the file; damaged
 // copies of a real series never take the test process down.
 
@@ -224,7 +224,7 @@ TEST(DicomIsolation, CancellingKillsTheWorkerAtOnce) {
 }
 
 /// Damages 1 to 3 slices of a copy of the small CT head (bytes changed, cut, inserted or the
-/// file truncated), as issue 15's experiment did.
+/// file truncated), as the experiment that found the parser's crashes did.
 void damageCopy(const fs::path& from, const fs::path& to, std::mt19937& rng) {
   fs::create_directories(to);
   std::vector<fs::path> files;

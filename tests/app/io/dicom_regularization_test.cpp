@@ -1,4 +1,4 @@
-// Every clinical scan opens (issue 14): series written by the fixtures (gantry tilt, missing,
+// Every clinical scan opens: series written by the fixtures (gantry tilt, missing,
 // duplicated and displaced slices, multi-frame, 4-D, oblique, several series) loaded through
 // vh::io::loadVolume(). The oracle is each written series' own geometry: the bone (or ball)
 // centroid of the source voxels at the patient positions they were written to must match the

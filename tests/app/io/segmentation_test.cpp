@@ -1,4 +1,4 @@
-// Segmentations (issue 17): 3D Slicer's .seg.nrrd (label and layered), plain label maps, and the
+// Segmentations: 3D Slicer's .seg.nrrd (label and layered), plain label maps, and the
 // smoothed indicator field of the felt surface, checked against an analytic sphere.
 #include <gtest/gtest.h>
 

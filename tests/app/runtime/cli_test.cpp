@@ -153,7 +153,8 @@ TEST(Cli, RunStreamsOverOpenIgtlinkOnlyWhenAsked) {
 }
 
 TEST(Cli, RunOnAGappedSeriesWarnsAndGoesOn) {
-  // Issue 14: a CT series with a missing slice opens; the headless run says where the gap is.
+  // Every clinical scan opens: a CT series with a missing slice opens; the headless run says
+  // where the gap is.
   const fs::path head = test::sharedDatasets() / "ct" / "ct-head-small";
   if (!fs::exists(head)) GTEST_SKIP() << "shared dataset missing: " << head;
   const fs::path dir = test::scratchDir();

@@ -1,4 +1,4 @@
-// Issue 16: app/runtime's public headers stay free of VTK (and Qt). This file includes every one
+// app/runtime's public headers stay free of VTK (and Qt). This file includes every one
 // of them and is compiled by tests/app/runtime/CMakeLists.txt with only the include folders of
 // the project's haptics, io, datasets and runtime headers, Eigen and nlohmann-json: a header that
 // pulls in a VTK or Qt header fails the build.

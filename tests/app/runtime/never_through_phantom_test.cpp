@@ -1,4 +1,4 @@
-// Issue 12 on real bone: the 10 mm ball (builtin:sphere) pushed onto the vault of the shared
+// "Never through" on real bone: the 10 mm ball (builtin:sphere) pushed onto the vault of the shared
 // skull phantom at a high bone threshold (870 HU), from above at several places and speeds, in
 // both detection modes. The issue's report: shell points were carried through the thin bone
 // between ticks and the ball ended in the cranial cavity. Every tick is checked by the
@@ -89,7 +89,7 @@ TEST_P(NeverThroughPhantom, BallPushedOntoTheVaultAt870HUNeverEntersTheCranium) 
   EXPECT_EQ(pushOntoTheVault(GetParam(), haptics::SegmentTest::kExact), 0);
 }
 
-// The control: issue 8's end-sample test carries points through the vault here, and the
+// The control: the earlier end-sample test carries points through the vault here, and the
 // oracle reports it (so the check above can fail).
 TEST(NeverThroughPhantomControl, TheEndSampleTestCrossesTheVault) {
   if (!phantomPresent()) GTEST_SKIP() << "shared dataset absent: " << test::sharedDatasets() / "ct";

@@ -1,4 +1,4 @@
-// Determinism of session recordings (issue 6): a scripted 10 s session (10,000 ticks at 1 kHz) on
+// Determinism of session recordings: a scripted 10 s session (10,000 ticks at 1 kHz) on
 // the built-in sphere with the ball tool, recorded through the haptic thread (contact, sliding
 // with a twist, an isovalue change at tick 5000, markers), then replayed through the replay
 // device and a fresh renderer of the scene reloaded from the recording's metadata: the proxy
@@ -30,8 +30,8 @@ namespace fs = std::filesystem;
 /// device poses that drove them), recorded in DetectionMode::kPaper. A change means the
 /// renderer's output changed: update it only for an intended change.
 /// History: 0xe15ea5f027d7d0c8 with epsilon f / 4; 0xb895b7cddfa47c21 since the default epsilon
-/// became f / 8 (chosen by `volume-haptics bench accuracy`); 0xfc8cdc0c6234c5cb since issue 13's
-/// defaults (work budget, 64-contact cap, 4 mm per tick, warm-started projection);
+/// became f / 8 (chosen by `volume-haptics bench accuracy`); 0xfc8cdc0c6234c5cb since the
+/// bounded-tick defaults (work budget, 64-contact cap, 4 mm per tick, warm-started projection);
 /// 0x28159a4d3b72d906 since a hit stops epsilon / 128 of travel before its bracket, arc hits are
 /// confirmed on finer chords with local Lipschitz bounds, and the coupling tracks the relative
 /// rotation past pi.

@@ -47,7 +47,7 @@ void expectSoundRun(const RunReport& r, const Trajectory& trajectory, const std:
   EXPECT_LT(r.epsilon_m, r.feature_size_m);
   EXPECT_LE(r.max_penetration_m, r.epsilon_m) << "deepest at tick " << r.max_penetration_tick;
   EXPECT_EQ(r.ticks_penetrating, 0u);
-  // The default run checks every tick's proxy motion for crossings (issue 12): none.
+  // The default run checks every tick's proxy motion for crossings: none.
   EXPECT_TRUE(r.crossingsChecked());
   EXPECT_EQ(r.verify_step_voxels, RunOptions{}.verify_step_voxels);
   EXPECT_EQ(r.crossings, 0) << "first at tick " << r.first_crossing_tick;
@@ -64,7 +64,7 @@ void expectSoundRun(const RunReport& r, const Trajectory& trajectory, const std:
   EXPECT_GT(r.mean_us, 0.0);
   EXPECT_LE(r.p50_us, r.p99_us);
   EXPECT_LE(r.p99_us, r.max_us);
-  // The work budget (issue 13) and its price against the unbudgeted run of the same samples.
+  // The work budget and its price against the unbudgeted run of the same samples.
   EXPECT_EQ(r.work_budget, haptics::RendererOptions::kDefaultWorkBudget);
   EXPECT_LE(r.max_work, r.work_budget + 64 * 12 + 300);
   EXPECT_GE(r.lag_ticks, 0);

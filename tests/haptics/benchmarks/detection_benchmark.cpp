@@ -1,9 +1,9 @@
-// Collision detection, the paper's path against the accelerated one (issue 8), side by side in
+// Collision detection, the paper's path against the accelerated one, side by side in
 // one run. Each benchmark iteration replays one scripted device trajectory through a fresh
 // HapticRenderer and records every tick's time (the renderer's own exec_time_us), its trilinear
 // samples and its min-max tree box queries. After Google Benchmark's table, a ratio table
 // (paper / accelerated) is printed per scene, and the accelerated path's exact segment test
-// (issue 12) against issue 8's end sample (accelerated-end-sample).
+// against the earlier end-sample test (accelerated-end-sample).
 //
 // Scenes:
 //   hole         the paper's Hole scene: 256^3 uint8 block (0.25 mm voxels) with a blind hole
@@ -149,7 +149,7 @@ std::map<std::string, Summary>& summaries() {
   return s;
 }
 
-// The accelerated path with issue 8's end-sample segment test: today's exact test against it.
+// The accelerated path with the earlier end-sample segment test: today's exact test against it.
 std::string variantName(DetectionMode mode, SegmentTest test) {
   return std::string(vh::haptics::toString(mode)) + (test == SegmentTest::kEndSample ? "-end-sample" : "");
 }
@@ -238,7 +238,7 @@ void printRatios() {
                 sp.wall_median_us / sa.wall_median_us,
                 sp.samples_per_tick / std::max(1e-9, sa.samples_per_tick),
                 (sp.final_proxy.p_AB_m - sa.final_proxy.p_AB_m).norm());
-    // Issue 12: the exact segment test against issue 8's end sample, both accelerated.
+    // The exact segment test against the earlier end sample, both accelerated.
     const auto e = summaries().find(scene + "/accelerated-end-sample");
     if (e == summaries().end()) continue;
     const Summary& se = e->second;

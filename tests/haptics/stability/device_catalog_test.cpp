@@ -1,4 +1,4 @@
-// Device models of issue 19 (vh::simulation, device_catalog.h): the catalogue is complete and
+// Models of real haptic devices (vh::simulation, device_catalog.h): the catalogue is complete and
 // consistent, each model's sensing (quantisation), delay and saturation behave as specified, and
 // the closed loop with each model settles at its rated stiffness; the passivity controller's price
 // on a slow press and its effect at 50,000 N/m.
@@ -114,7 +114,7 @@ namespace {
 
 HandParams hand() { return HandParams::scaled(500.0, 5.0, kLever_m); }
 
-// Issue 19, the sweep: each model, with its own servo rate, encoder, one tick of delay and force
+// The sweep: each model, with its own servo rate, encoder, one tick of delay and force
 // limit, settles (or decays) at its rated stiffness on a plane, a sphere and a wedge, with no
 // crossing. The same scenes at 50,000 N/m are limit cycles, so the verdict can fail.
 TEST(DeviceModels, EveryModelSettlesAtItsRatedStiffness) {
@@ -148,8 +148,8 @@ TEST(DeviceModels, TheControllerKeepsTheSlowPressForce) {
   }
 }
 
-// Issue 19's goal: with the controller (and its stiffness schedule, floored at the rated
-// stiffness) every model settles, or decays, at 10,000 and 50,000 N/m on the three scenes, with no
+// The goal: with the controller (and its stiffness schedule, floored at the rated stiffness)
+// every model settles, or decays, at 10,000 and 50,000 N/m on the three scenes, with no
 // contact lost and no crossing; the stiffness it ends up rendering is reported, never below the
 // rating. Without it the same runs are limit cycles (EveryModelSettlesAtItsRatedStiffness).
 TEST(DeviceModels, WithTheControllerEveryModelIsStableUpTo50000) {

@@ -1,4 +1,4 @@
-// Stiff cases (issue 3): the renderer closed around a simulated device and hand, coupling
+// Stiff cases: the renderer closed around a simulated device and hand, coupling
 // stiffness 100 .. 50,000 N/m, torsional stiffness over the matching range. See device_model.h
 // for the model, units and the energy bookkeeping, scenarios.h for the scenes and the verdicts.
 //
@@ -50,7 +50,7 @@ void writeReport(const std::string& file, const std::vector<StiffnessResult>& ro
 
 // --- The harness against closed-form results ---------------------------------------------
 
-// The tests that run the renderer run in both detection modes (issue 8).
+// The tests that run the renderer run in both detection modes.
 std::string modeName(const ::testing::TestParamInfo<haptics::DetectionMode>& p) { return haptics::toString(p.param); }
 #define VH_BOTH_MODES(suite)                                                    \
   class suite : public ::testing::TestWithParam<haptics::DetectionMode> {};     \

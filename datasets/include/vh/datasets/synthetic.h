@@ -56,7 +56,8 @@ haptics::ScalarVolume makeThinPlateVolume(const GridSpec& grid);
 /// A wall one voxel thick along a closed surface, as a CT's partial volume shows thin bone:
 /// uint8, 255 * max(0, 1 - |d| / h) at each voxel centre, d the signed distance to the wall's
 /// mid-surface [m] and h the smallest spacing. At isovalue s (0 < s < 255) the trilinear wall is
-/// about 2 h (1 - s / 255) thick: 0.01 h at 99 % of the range. For issue 12's crossing tests.
+/// about 2 h (1 - s / 255) thick: 0.01 h at 99 % of the range. For the
+/// crossing ("Never through") tests.
 /// `mid_surface` returns d (its sign does not matter).
 haptics::ScalarVolume makeThinWallVolume(const GridSpec& grid, const SignedDistance& mid_surface);
 /// makeThinWallVolume() of a sphere of radius_m about centre_W_m (a thin spherical shell).

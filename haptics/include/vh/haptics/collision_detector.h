@@ -37,7 +37,7 @@ enum class DetectionMode { kPaper, kAccelerated };
 ///   any thickness is found; rotating points' arcs are split into chords of sagitta <= epsilon / 64
 ///   and the threshold is lowered by the Lipschitz bound times the sagitta, so the arc itself is
 ///   covered (haptics/README.md, "Never through").
-/// - kEndSample: issue 8's test, the paper's (section 2.3): sample the segment's end, bisect
+/// - kEndSample: the earlier test, the paper's (section 2.3): sample the segment's end, bisect
 ///   when it is inside. Misses features thinner than a segment (f) that a segment crosses
 ///   between its ends; kept only as the "before" column of `bench table1` and to show that the
 ///   crossing oracle catches tunnels.
@@ -67,7 +67,7 @@ struct SweepResult {
   double t = 1.0;         ///< First time of contact in [0, 1] (1 = no contact).
   double t_inside = 1.0;  ///< End of the bisection interval (the hit point is inside there).
   int hit_point = -1;     ///< Point that collided first, or -1.
-  /// The work budget ran out before the sweep was done (issue 13): t is the time up to which
+  /// The work budget ran out before the sweep was done: t is the time up to which
   /// every point's path is proven free (hit_point -1); the rest of the motion is left for the
   /// next tick.
   bool budget_cut = false;
@@ -117,7 +117,7 @@ class CollisionDetector {
   /// of segments (or a whole node of the point-shell tree) free of inside points: the same t
   /// (bit for bit); on an exact tie between points, hit_point may name another tied point.
   SweepResult sweep(const RigidMotion& motion, double isovalue) noexcept;
-  /// kAccelerated, after a sweep() or resumeSweep() that the work budget cut (issue 13): whether
+  /// kAccelerated, after a sweep() or resumeSweep() that the work budget cut: whether
   /// that sweep can go on. The contact set must not change meanwhile.
   bool sweepPending() const noexcept { return pending_.active; }
   /// The motion of the last accelerated sweep, kept until the next sweep(): while sweepPending(),
@@ -143,7 +143,7 @@ class CollisionDetector {
   /// path puts it inside), with normals, to the contact set. Call after sweep() with the same
   /// motion. When the set would exceed contactCap(), the union of the set and the new points is
   /// reduced to contactCap() by farthest-point selection over positions, seeded with the hit
-  /// point (issue 13: capped contact rows keep pruning and the cone projection bounded).
+  /// point (capped contact rows keep pruning and the cone projection bounded).
   void addContactsAt(const RigidMotion& motion, const SweepResult& hit, double isovalue) noexcept;
 
   /// When the sweep's first hit is a point already in the contact set and the proxy could not
@@ -197,7 +197,7 @@ class CollisionDetector {
   /// for a cell whose cubic it examines. A least-squares fit of the thread CPU time of 40,000
   /// Engine and Hole ticks (2-core Xeon, 2.0 GHz) to the counts gave 0.044 us per sample, 0.07
   /// per box query, 0.001 to 0.025 per tree node, 0.14 per walked cell and 0.02 to 0.2 more per
-  /// examined cell. Walked cells were not counted before (issue 13): Hole's worst ticks walked
+  /// examined cell. Walked cells are counted because, uncounted, Hole's worst ticks walked
   /// about 1,200 cells (150 us) beyond their budget.
   static constexpr std::int64_t kBoxQueryWork = 2;
   static constexpr std::int64_t kTreeNodesPerWork = 4;
@@ -212,12 +212,12 @@ class CollisionDetector {
   /// The work the budget counts: work() less what the lanes did beside the busiest one while
   /// the sweep ran on several cores (the budget stands for time, and lanes run side by side).
   std::int64_t budgetWork() const noexcept { return counters_.total() - parallel_credit_; }
-  /// Work budget per resetSampleCount() period (a servo tick), 0 = none (issue 13). Once work()
+  /// Work budget per resetSampleCount() period (a servo tick), 0 = none. Once work()
   /// reaches it, sweep() stops at the time up to which every path is proven free (the
   /// time-ordered queue's front; 0 before the queue starts) and addContactsAt() adds only the
   /// hit point: the overshoot is at most one queue step. The proxy never crosses the surface
   /// because of it: it moves less far, and the rest of the motion continues next tick.
-  /// Most contacts kept in the set (issue 13; at least 1, at most the capacity given to the
+  /// Most contacts kept in the set (at least 1, at most the capacity given to the
   /// constructor, which is the default). See addContactsAt().
   void setContactCap(std::size_t cap) noexcept { contact_cap_ = std::clamp<std::size_t>(cap, 1, contacts_.size()); }
   std::size_t contactCap() const noexcept { return std::min(contact_cap_, contacts_.size()); }
@@ -250,7 +250,7 @@ class CollisionDetector {
   void setLanes(int lanes);
   int lanes() const noexcept { return static_cast<int>(lanes_.size()); }
   /// Work done outside the detector that shares the tick's budget (the configuration solver's
-  /// cone projection, issue 13), counted as samples.
+  /// cone projection), counted as samples.
   void addWork(std::int64_t units) noexcept { counters_.other += units > 0 ? units : 0; }
   /// True once work() has reached a non-zero work budget.
   bool budgetSpent() const noexcept { return overBudget(); }
@@ -330,7 +330,7 @@ class CollisionDetector {
   // kAccelerated: one lane's walk and time-ordered search (resumable).
   void runLane(Lane& lane) noexcept;
   static void laneJob(void* detector, int lane) noexcept;
-  // The state of an accelerated sweep between ticks (issue 13's resumable sweep).
+  // The state of an accelerated sweep between ticks (a cut sweep resumes on the next tick).
   struct PendingSweep {
     bool active = false;         // a cut sweep can be resumed
     RigidMotion motion;

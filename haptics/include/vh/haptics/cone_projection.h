@@ -43,8 +43,8 @@ class ConeProjector {
   /// @param J_rows constraint rows (m x 6), m <= max_constraints (extra rows are ignored).
   /// @param lambda_out when not empty, receives the m multipliers (>= 0) with
   ///        a_c = a_u + M^-1 J^T lambda.
-  /// @param warm_start indices into J_rows of a guess of the active set (the last tick's, issue
-  ///        13): the iteration starts from the projection onto the guessed face, its rows with a
+  /// @param warm_start indices into J_rows of a guess of the active set (the last tick's):
+  ///        the iteration starts from the projection onto the guessed face, its rows with a
   ///        non-positive coefficient dropped (a dependent or out-of-range index is skipped).
   ///        Wilhelmsen's optimality test is global, so the result is the same projection; a
   ///        good guess saves the iterations that would rebuild the face one row at a time.

@@ -72,7 +72,7 @@ class ConfigurationSolver {
   ConeProjection last_;
   Vector6d a_u_ = Vector6d::Zero();
   // Point-shell indices of the last projection's active set: the next projection starts from
-  // the rows of the same points (a warm start, issue 13).
+  // the rows of the same points (a warm start).
   std::array<int, 6> active_points_{};
   int active_point_count_ = 0;
 };

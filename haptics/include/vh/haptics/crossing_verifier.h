@@ -1,6 +1,6 @@
 #pragma once
 /// @file
-/// Reference check that the proxy never passes through the isosurface (issue 12): each shell
+/// Reference check that the proxy never passes through the isosurface: each shell
 /// point's true path over a tick (eq. 2, the arc the proxy moved along) is sampled densely and
 /// every sample is tested with ScalarVolume::isInside(). Independent of CollisionDetector: it
 /// shares neither its segments, its chords, its cubic nor its min-max tree (it culls with its

@@ -46,12 +46,12 @@ struct RendererOptions {
   /// 1 is the paper's (section 2.3). Smaller trades time for catching thinner features.
   double segment_fraction = 1.0;
   /// How each segment is tested: kExact (default) finds a feature of any thickness; kEndSample
-  /// is issue 8's end sample, kept for the before/after benchmark (see SegmentTest).
+  /// is the earlier end-sample test, kept for the before/after benchmark (see SegmentTest).
   SegmentTest segment_test = SegmentTest::kExact;
   /// Work per tick, in units of one trilinear sample's cost (CollisionDetector::work(): samples,
   /// cells and box queries weighted by their measured cost, plus the cone projection's rows);
-  /// 0 = unbounded (the default). Pruning, the solve and the sweep share it (issue 13, "a tick
-  /// that respects a time budget"). When it runs out, the proxy moves only as far as every
+  /// 0 = unbounded (the default). Pruning, the solve and the sweep share it, so a tick
+  /// respects a time budget. When it runs out, the proxy moves only as far as every
   /// point is proven free; kAccelerated then resumes the same sweep on the next ticks where it
   /// stopped (no work is lost, so it always finishes; shortening the next motion would not
   /// help much, as a sweep's cost near a surface is mostly the points it must look at, and
@@ -65,13 +65,13 @@ struct RendererOptions {
   /// -1 (the default) selects kDefaultWorkBudget in kAccelerated and no budget in kPaper.
   static constexpr std::int64_t kDefaultWorkBudget = 12000;
   std::int64_t work_budget = -1;
-  /// The velocity limit of section 2.3 (issue 13): no point of the shell travels farther than
+  /// The velocity limit of section 2.3: no point of the shell travels farther than
   /// this in one tick [m] (bound |v| + |omega| R, R the shell's radius about the centre of
   /// mass); the constrained motion is scaled down along itself. 0 = unbounded (the paper's).
   /// At 1 kHz the default 4 mm is 4 m/s at the farthest point of the tool; it keeps a lagging
   /// tool's catch-up ticks short (a 0.3 rad turn of the 150 mm wrench swept 22 mm per tick).
   double max_travel_per_tick_m = 0.004;
-  /// Most contacts in the contact set, 1 to 256 (issue 13): more are reduced by farthest-point
+  /// Most contacts in the contact set, 1 to 256: more are reduced by farthest-point
   /// selection (CollisionDetector::addContactsAt()), which bounds the pruning (about 12 work
   /// units per contact) and the cone projection's rows. 256, the set's capacity, is the paper's
   /// path (table1's paper mode); the cap never lets the proxy penetrate (the sweep tests every

@@ -1,7 +1,7 @@
 #pragma once
 /// @file
-/// Min/max bricks over the raw voxel values of a volume, arranged as a tree (issue 8, "Speed"
-/// in haptics/README.md). Independent of the isovalue: built once per volume, it answers "which
+/// Min/max bricks over the raw voxel values of a volume, arranged as a tree ("Speed" in
+/// haptics/README.md). Independent of the isovalue: built once per volume, it answers "which
 /// raw values can a trilinear sample take inside this box?", and the caller compares that with
 /// the isovalue of the current tick, so a moved isovalue slider needs no rebuild.
 
@@ -39,7 +39,7 @@ class MinMaxTree {
   /// ScalarVolume, up to rounding: see ScalarVolume::upperBoundInBox()).
   /// @param nodes_read when set, receives the number of tree nodes read (0 when the box misses
   ///        the grid, 1 for one brick or the root, at most (kSpan + 1)^3 = 64): a query's cost,
-  ///        which the work budget counts (issue 13).
+  ///        which the work budget counts.
   /// @param lipschitz_max when set, receives the largest local Lipschitz bound (see
   ///        setLipschitz()) over the same nodes; 0 until setLipschitz() was called.
   /// @return false when the box does not meet the grid (no sample there is in bounds); the

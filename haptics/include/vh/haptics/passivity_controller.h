@@ -2,7 +2,7 @@
 /// @file
 /// Time-domain passivity observer and controller on one port of the virtual coupling
 /// (Hannaford and Ryu 2002, "Time-domain passivity control of haptic interfaces", IEEE T-RA
-/// 18(1), section III: the impedance-causality form, motion in, effort out). Issue 19. Off by
+/// 18(1), section III: the impedance-causality form, motion in, effort out). Off by
 /// default (CouplingGains::passivity_control). One controller per port: the force with the
 /// translation of the tool's centre of mass, the torque with its rotation.
 ///

@@ -49,7 +49,7 @@ class RigidMotion {
   /// Path-length bound of a point over the unit step [m]: |v| + |omega x r0| (the point's speed
   /// is |v + omega x r(t)| and |omega x r(t)| = |omega| rho stays constant, rho its distance from
   /// the axis). Tighter than the paper's |v| + |omega| |r0| for points near the rotation axis
-  /// (a thin tool spinning about its shaft; issue 13).
+  /// (a thin tool spinning about its shaft).
   double pathLengthBound(const Eigen::Vector3d& r0_W) const noexcept { return speed_ + angle_ * radiusAboutAxis(r0_W); }
   /// Translation over the unit step, |v| [m].
   double speed_m() const noexcept { return speed_; }

@@ -122,7 +122,7 @@ class ScalarVolume {
 
 
   /// Exact first entry of the straight segment g(u) = a + u (b - a), u in [0, 1], given in grid
-  /// coordinates (i, j, k), into {F > threshold} (issue 12). Along a straight line inside one
+  /// coordinates (i, j, k), into {F > threshold}. Along a straight line inside one
   /// cell the trilinear field is a cubic in u: the cells the segment crosses are walked in order
   /// (3-D DDA), a cell whose largest corner is <= threshold is skipped (the trilinear field is a
   /// convex combination of its corners), and in the others the cubic is split at its critical

@@ -22,8 +22,8 @@ namespace vh::haptics {
 struct CouplingGains {
   double linear_N_per_m = 1000.0;      ///< Linear stiffness k_lin [N/m].
   double angular_Nm_per_rad = 1.0;     ///< Torsional stiffness k_ang [N*m/rad].
-  /// Time-domain passivity observer and controller on the coupling's force (issue 19,
-  /// passivity_controller.h). Off by default: it changes the force the user feels.
+  /// Time-domain passivity observer and controller on the coupling's force
+  /// (passivity_controller.h). Off by default: it changes the force the user feels.
   bool passivity_control = false;
 };
 

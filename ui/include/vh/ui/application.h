@@ -52,7 +52,7 @@ struct AppOptions {
   /// there is one).
   int window_width = 1280;
   int window_height = 860;
-  /// Set: the OpenIGTLink server listens on this port from the start (issue 17; it overrides a
+  /// Set: the OpenIGTLink server listens on this port from the start (it overrides a
   /// scene file's "openigtlink" section); unset: off unless the scene or the GUI switches it on.
   std::optional<int> igtl_port;
   /// Its frame rate [Hz] (clamped to the servo rate).

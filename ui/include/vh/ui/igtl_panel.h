@@ -1,6 +1,6 @@
 #pragma once
 /// @file
-/// The GUI's OpenIGTLink switch (issue 17): owns the snapshot channel the session's haptic
+/// The GUI's OpenIGTLink switch: owns the snapshot channel the session's haptic
 /// threads feed (set once, at start-up, so switching the link on never rebuilds them) and the
 /// link (vh::igtl::IgtlLink), off by default; a menu action opens a small dialog (on/off, port,
 /// rate); a permanent status-bar label says "OpenIGTLink: listening on 18944" / "connected to
@@ -49,7 +49,7 @@ class IgtlPanel : public QObject {
 
   /// The channel to give the session (Session::setMonitor()) before the first scene.
   const std::shared_ptr<runtime::SnapshotChannel>& channel() const noexcept { return channel_; }
-  /// The names the link sends as "segment" in ContactState (issue 17's segments), kept up to
+  /// The names the link sends as "segment" in ContactState (the scene's segments), kept up to
   /// date by the window (SegmentsController::names()); applies from the next apply().
   void setSegmentNames(std::shared_ptr<const runtime::SegmentNameTable> names) { names_ = std::move(names); }
   /// "OpenIGTLink Server…": opens the dialog and applies its choice.

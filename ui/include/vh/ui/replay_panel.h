@@ -1,6 +1,6 @@
 #pragma once
 /// @file
-/// Replaying a session recording in the main window (issue 6). File > Open Recording (and a
+/// Replaying a session recording in the main window. File > Open Recording (and a
 /// dropped or command-line `.vhrec`) reads the file (warnings shown, not fatal), reloads its
 /// scene from the metadata (runtime::sceneFromSessionMetadata(); a missing or changed dataset
 /// is an error dialog naming it and the current scene stays), stops the haptic thread and shows

@@ -1,6 +1,6 @@
 #pragma once
 /// @file
-/// The shown segments of a scene as coloured surfaces beside the ray-cast scan (issue 17): each
+/// The shown segments of a scene as coloured surfaces beside the ray-cast scan: each
 /// shown segment's smoothed indicator (io::segmentIndicatorField(), the felt surface's own
 /// field) contoured at F = 0.5 with vtkFlyingEdges3D, in the segment's colour (opaque; when
 /// some segments are felt, the others are drawn translucent as context). Surfaces are

@@ -1,6 +1,6 @@
 #pragma once
 /// @file
-/// Segments in the main window (issue 17): File > Open Segmentation (and a dropped or opened
+/// Segments in the main window: File > Open Segmentation (and a dropped or opened
 /// .seg.nrrd while a scan is shown) reads a 3D Slicer segmentation or a label map for the scan
 /// shown; the Segments dock (SegmentsPanel) chooses what is felt, shown and critical, which the
 /// session applies (runtime::Session::setSegments()); the scene view draws the shown segments;

@@ -1,6 +1,6 @@
 #pragma once
 /// @file
-/// The Segments dock's panel (issue 17): the segments of a 3D Slicer segmentation or label map
+/// The Segments dock's panel: the segments of a 3D Slicer segmentation or label map
 /// with their colours, and for each whether it is felt (the hand feels its smoothed surface
 /// instead of the scan's isosurface), shown (a coloured surface beside the ray-cast scan) and
 /// critical (touching it is an alert and an event in the recording); the felt surface's

@@ -1,6 +1,6 @@
 #pragma once
 /// @file
-/// Recording a session from the main window (issue 6): Haptics > Record Session (Ctrl+Shift+R,
+/// Recording a session from the main window: Haptics > Record Session (Ctrl+Shift+R,
 /// and the Record button in the Haptics dock) writes a `.vhrec` (runtime::RecordingWriter, one
 /// TickRecord per servo tick) with the scene's metadata (runtime::makeSessionMetadata()), plus
 /// events: "marker" (Haptics > Add Marker, key M) and "tool" (a tool swap was asked for). The

@@ -1,16 +1,16 @@
 #pragma once
 /// @file
-/// Benchmarks of the rendering core (issue 7), run by `volume-haptics bench ...`:
+/// Benchmarks of the rendering core, run by `volume-haptics bench ...`:
 ///   table1     the paper's Table 1 (section 3.2): four scenes, scripted device trajectories,
 ///              tick times per detection mode (paper / accelerated) side by side with their ratio,
-///              and the accelerated mode with issue 8's end-sample segment test (the "before"
-///              column of issue 12) against the exact test; every tick's proxy motion checked
+///              and the accelerated mode with the earlier end-sample segment test (the "before"
+///              column) against the exact test; every tick's proxy motion checked
 ///              for crossings by haptics::CrossingVerifier outside the timed section;
 ///   accuracy   contact-position and normal error against tick time on volumes with exact
 ///              isosurfaces, swept over epsilon, segment_fraction and point-shell density;
 ///   stability  the coupling-stiffness sweep with the simulated device (vh::simulation) and a
 ///              table of extreme cases with their outcomes;
-///   bigscan    a ~1 GB CT series (issue 14): load time, peak memory, tree build, cancel, and
+///   bigscan    a ~1 GB CT series: load time, peak memory, tree build, cancel, and
 ///              tick times against the small phantom's.
 /// Each writes a JSON report, a Markdown report and PNG plots (VTK charts rendered off screen;
 /// skipped with a message when no X display is available) into an output folder.
@@ -45,13 +45,13 @@ struct CommonOptions {
 struct Table1Options {
   CommonOptions common;
   ModeSelection modes = ModeSelection::kBoth;
-  /// When the accelerated mode runs: also run it with SegmentTest::kEndSample (issue 8's test, the
-  /// "before" column of issue 12), interleaved with the others, and compare it with the exact test.
+  /// When the accelerated mode runs: also run it with SegmentTest::kEndSample (the earlier test,
+  /// the "before" column), interleaved with the others, and compare it with the exact test.
   bool before = false;
   /// Crossing check after every tick (haptics::CrossingVerifier, outside the timed section):
   /// sampling step along each shell point's path [voxels]; 0: off (crossings reported as -1).
   double verify_step_voxels = 0.01;
-  /// Issue 13: the accelerated mode's RendererOptions::work_budget (the application's default).
+  /// The accelerated mode's RendererOptions::work_budget (the application's default).
   /// > 0 also runs the accelerated mode without it ("accelerated-unbudgeted"), interleaved, and
   /// reports the budgeted proxy's lag behind it (mm, rad, ticks), the cut ticks and the "Never
   /// late" table with the targets; 0 runs the accelerated mode unbudgeted only.
@@ -60,7 +60,7 @@ struct Table1Options {
   std::string scene;
   /// Ticks per scene and mode; 0: 20,000 (short: 1,000).
   int ticks = 0;
-  /// Also the issue-8 large-tool runs (~20,000 points on Bone and Engine); never in short runs.
+  /// Also the large-tool runs (~20,000 points on Bone and Engine); never in short runs.
   bool large_tools = true;
   /// The accelerated modes' RendererOptions::solver_lanes (cores of the sweep); 0: the
   /// application's default (runtime::defaultSolverLanes()).
@@ -75,7 +75,7 @@ struct Table1Options {
   std::vector<int> lane_sweep;
 };
 
-/// `bench bigscan` (issue 14, "Big scans"): a 512 x 512 x N int16 CT series (default N = 2000,
+/// `bench bigscan` ("Big scans"): a 512 x 512 x N int16 CT series (default N = 2000,
 /// about 1 GB of voxels) generated once into the build tree from the shared Philips head
 /// phantom, loaded by io::loadVolume in fresh child processes (load time, peak resident memory
 /// against the voxel bytes, min/max tree build time; a load cancelled at 30 % progress), and

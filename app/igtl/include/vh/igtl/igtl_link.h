@@ -1,6 +1,6 @@
 #pragma once
 /// @file
-/// The OpenIGTLink link (issue 17, "Work with 3D Slicer"): a TCP server on its own thread that
+/// The OpenIGTLink link ("Work with 3D Slicer"): a TCP server on its own thread that
 /// streams the haptic session to one client (3D Slicer's OpenIGTLinkIF module, or any
 /// OpenIGTLink client) and receives volumes from it.
 ///
@@ -73,8 +73,8 @@ struct LinkOptions {
   /// Largest message body accepted [bytes] (a 512^3 int16 volume is 256 MiB); larger ones are
   /// refused and the client closed (the stream cannot be resynchronised cheaply).
   std::uint64_t max_message_bytes = std::uint64_t{1} << 30;
-  /// Hook for the segment under the tool (issue 17's segmentations): called on the link's
-  /// thread once per frame with the latest snapshot; a non-empty result is sent as
+  /// Hook for the segment under the tool (the felt segments of a segmentation): called on the
+  /// link's thread once per frame with the latest snapshot; a non-empty result is sent as
   /// "segment" in ContactState, else null. Must not throw (an exception is caught and the
   /// segment left null).
   std::function<std::string(const runtime::HapticSnapshot& snapshot)> segment_name;

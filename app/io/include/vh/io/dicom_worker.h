@@ -1,6 +1,6 @@
 #pragma once
 /// @file
-/// The DICOM worker process (issue 15: no input crashes the application). loadVolume() reads
+/// The DICOM worker process, so that no input crashes the application. loadVolume() reads
 /// DICOM series in `volume-haptics-dicom-worker`, a small program built beside
 /// `volume-haptics`, and takes the voxels back through a temporary file; a crash of vtk-dicom's
 /// parser on a damaged file ends the worker, and the load fails with a LoadError that names the

@@ -1,6 +1,6 @@
 #pragma once
 /// @file
-/// Segmentations (issue 17): 3D Slicer's `.seg.nrrd` and plain label-map NRRDs, and the smoothed
+/// Segmentations: 3D Slicer's `.seg.nrrd` and plain label-map NRRDs, and the smoothed
 /// indicator field whose isosurface is the felt surface of chosen segments.
 ///
 /// A `.seg.nrrd` (3D Slicer's Segmentations module, vtkMRMLSegmentationStorageNode) is a NRRD

@@ -38,7 +38,7 @@ class LoadCancelled : public LoadError {
   using LoadError::LoadError;
 };
 
-/// Where a volume file is read (issue 15; the name is historical: DICOM, NRRD and MetaImage
+/// Where a volume file is read (the name is historical: DICOM, NRRD and MetaImage
 /// alike). vtk-dicom's parser and VTK's NRRD and MetaImage readers have crashed on damaged
 /// files; in a worker process (the `volume-haptics-dicom-worker` program, see dicom_worker.h)
 /// such a crash ends the worker and the load fails with a LoadError naming the file.

@@ -145,7 +145,7 @@ struct SafetyPolicy {
 
 /// How far past a device's rated stiffness the coupling may be set while the passivity
 /// controller is on (CouplingGains::passivity_control): its stiffness schedule then renders what
-/// the device takes, never less than the rating (issue 19; README, "Device models and the
+/// the device takes, never less than the rating (docs/benchmarks.md, "Device models and the
 /// passivity controller").
 inline constexpr double kPassivityStiffnessHeadroom = 20.0;
 

@@ -293,7 +293,7 @@ void writeRecordingEventsCsv(const Recording& recording, const std::filesystem::
 /// pretty-printed JSON. @throws std::runtime_error when it cannot be written.
 void writeRecordingJson(const Recording& recording, const std::filesystem::path& path);
 
-/// Time in contact, peak force and touches per segment of a recording (issue 17), from the
+/// Time in contact, peak force and touches per segment of a recording, from the
 /// segment each record names (recordSegment()) and the segments its metadata lists
 /// ("scene": {"segmentation": {"segments": [{"name", "critical"}, ...]}}); empty when it has none.
 std::vector<SegmentContact> segmentContacts(const Recording& recording);

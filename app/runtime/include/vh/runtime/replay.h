@@ -3,7 +3,7 @@
 /// Replaying recordings (recording.h): ReplayDevice feeds the recorded device poses back one per
 /// read, and replayRecording() re-runs a recording through a fresh renderer of the same scene
 /// and reports the first tick whose proxy pose, force or torque differs bit for bit from the
-/// recorded one (the determinism check of issue 6).
+/// recorded one (the determinism check).
 
 #include <atomic>
 #include <cstdint>

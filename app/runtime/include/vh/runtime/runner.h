@@ -8,7 +8,7 @@
 /// non-finite force, torque or proxy pose, and checks with haptics::CrossingVerifier that the
 /// tick's proxy motion (HapticRenderer::lastMotion() over [0, lastTimeOfContact()]) carried no
 /// shell point from outside the isosurface into it (a crossing: the proxy went into or through
-/// the surface, issue 12).
+/// the surface).
 
 #include <algorithm>
 #include <array>
@@ -62,7 +62,7 @@ struct RunOptions {
   SafetyPolicy safety_policy;
   DofMask actuated_dof = kDofAll;
   std::string record_note;  ///< SessionInfo::note of the recording.
-  /// The price of the work budget (issue 13): also run the same samples through a renderer
+  /// The price of the work budget: also run the same samples through a renderer
   /// without it (outside the timed section) and report how far and how long the budgeted proxy
   /// was from it. Off: the lag fields are -1.
   bool lag_reference = true;
@@ -79,7 +79,7 @@ struct RunOptions {
   bool realtime = false;
 };
 
-/// The work budget's price (issue 13): how far a budgeted proxy is from an unbudgeted one driven
+/// The work budget's price: how far a budgeted proxy is from an unbudgeted one driven
 /// by the same device samples. Used by the run report and `bench table1`.
 struct ProxyLag {
   std::int64_t ticks = 0;   ///< Ticks whose poses differed (by more than 1e-9 m or rad).
@@ -126,7 +126,7 @@ struct RunReport {
   std::int64_t first_contact_tick = -1;  ///< -1: never.
   double max_force_N = 0.0;              ///< Largest |force|.
   double max_torque_Nm = 0.0;            ///< Largest |torque|.
-  /// Felt segments (issue 17): time in contact, peak force and touches per segment of the
+  /// Felt segments: time in contact, peak force and touches per segment of the
   /// scene's segmentation (empty without one).
   std::vector<SegmentContact> segment_contacts;
   double mean_volume_samples = 0.0;      ///< Trilinear samples per tick.
@@ -154,7 +154,7 @@ struct RunReport {
   /// Largest |p_P - p_D| over the run [m]: about the push depth when the proxy slides along the
   /// surface with the device; much more means the proxy lagged or stuck.
   double max_proxy_device_distance_m = 0.0;
-  // The work budget (issue 13; haptics::RendererOptions::work_budget) and its price.
+  // The work budget (haptics::RendererOptions::work_budget) and its price.
   std::int64_t work_budget = 0;          ///< Work units per tick; 0: unbounded.
   std::uint64_t budget_cuts = 0;         ///< Ticks the budget cut (the sweep went on next tick).
   std::int64_t max_work = 0;             ///< Largest work of a tick [units].

@@ -1,6 +1,6 @@
 #pragma once
 /// @file
-/// Segments in a scene (issue 17): which segments of a segmentation (3D Slicer .seg.nrrd or a
+/// Segments in a scene: which segments of a segmentation (3D Slicer .seg.nrrd or a
 /// label map) are felt, shown and critical, the felt field, and which segment a contact touches.
 ///
 /// Felt: the haptic field becomes io::segmentIndicatorField() of the felt segments (smoothed

@@ -1,6 +1,6 @@
 #pragma once
 /// @file
-/// Models of real haptic devices for the stability sweep (issue 19), and the sensing/actuation
+/// Models of real haptic devices for the stability sweep, and the sensing/actuation
 /// path a real device puts between the renderer and its handle: encoder quantisation of the
 /// position, a delay of whole servo ticks on the force command, and force saturation.
 ///

@@ -1,7 +1,7 @@
 #pragma once
 /// @file
 /// A simulated haptic device held by a simulated hand, closed around vh::haptics::HapticRenderer
-/// the way a real servo loop closes it (issue 3, "Stiff cases").
+/// the way a real servo loop closes it ("Stiff cases": stiffness against stability).
 ///
 /// Model (SI units: m, s, kg, N, rad; every vector in the volume frame W):
 ///
@@ -93,7 +93,7 @@ struct DeviceState {
   Eigen::Vector3d w_W_radps = Eigen::Vector3d::Zero();
 };
 
-/// The device's signal path between the renderer and the handle (issue 19; DeviceIo in
+/// The device's signal path between the renderer and the handle (DeviceIo in
 /// device_catalog.h). Defaults: the ideal device (exact position, the command held from the very
 /// tick it was computed, no saturation, torque applied).
 struct DeviceSignalPath {
@@ -114,7 +114,7 @@ struct SimulationConfig {
   double isovalue = 0.0;
   bool check_penetration = true;  ///< Measure the proxy's depth inside the isosurface each tick.
   /// > 0: after every tick, haptics::CrossingVerifier samples each shell point's path over the
-  /// tick every this many voxels (issue 12); 0: crossings are not checked.
+  /// tick every this many voxels; 0: crossings are not checked.
   double verify_step_voxels = 0.0;
   /// Largest translation the renderer's contact stand-off may add to one proxy move [m]
   /// (2 * standoff_fraction * epsilon, the cap of ConfigurationSolver::standoffTranslation);

@@ -1,6 +1,6 @@
 #pragma once
 /// @file
-/// Scripted hand scenarios on synthetic volumes for the stiffness sweep (issue 3, "Stiff cases"),
+/// Scripted hand scenarios on synthetic volumes for the stiffness sweep ("Stiff cases"),
 /// and the classification of one stiffness as passive / stable.
 ///
 /// Scenes (W: the volume frame; z up; metres):
@@ -59,10 +59,10 @@ std::vector<Scenario> defaultScenarios();
 /// The peg-in-hole scenario on the paper's 256^3 block (long runs only).
 Scenario pegScenario();
 /// A V-groove of two 45-degree faces meeting along y at z = 0 (64^3 grid of 1 mm), the 5 mm
-/// ball tool pressed into it (two contacts at once, the wedged contact of issue 19), held
+/// ball tool pressed into it (two contacts at once: a wedged contact), held
 /// (judged 0.75-0.85 s along +z), slid 10 mm along the groove (0.85-1.15 s), held (1.45-1.55 s).
 Scenario wedgeScenario();
-/// The per-device sweep's scenes (issue 19): plane press-slide-tilt, sphere press-slide, wedge.
+/// The per-device sweep's scenes: plane press-slide-tilt, sphere press-slide, wedge.
 std::vector<Scenario> deviceScenarios();
 /// The passivity controller's price: the box lowered slowly onto the plane (kDepth_m past
 /// contact over 0.2-1.2 s, 5.8 mm/s at most), held, lifted off (1.6-2.6 s). Judged 1.3-1.5 s.
@@ -123,7 +123,7 @@ struct StiffnessResult {
   double max_force_error_rel = 0.0;
   bool finite = true;
   int bad_inputs = 0;
-  // The device path and the passivity controller (issue 19).
+  // The device path and the passivity controller.
   double servo_rate_Hz = 1000.0;
   bool passivity_control = false;
   double hold_ptp_counts = 0.0;          ///< Largest handle travel along the normal in a hold window,
@@ -143,11 +143,11 @@ struct SweepOptions {
   double standoff_fraction = -1.0;  ///< < 0: the renderer's default.
   double lever_m = kLever_m;        ///< k_ang = k_lin lever^2; <= 0: k_ang = k_lin i / m (scalar k).
   bool check_penetration = true;    ///< Measure the proxy's depth every tick (a third of the cost).
-  /// Collision-detection path of the renderer (both must pass the same tests, issue 8).
+  /// Collision-detection path of the renderer (both must pass the same tests).
   haptics::DetectionMode detection_mode = haptics::DetectionMode::kAccelerated;
   /// > 0: crossings checked after every tick at this step [voxels] (SimulationConfig).
   double verify_step_voxels = 0.0;
-  // The device (issue 19): its servo period and signal path (SimulationConfig's fields).
+  // The device: its servo period and signal path (SimulationConfig's fields).
   double servo_period_s = 1e-3;
   DeviceSignalPath signal{};
   bool passivity_control = false;
@@ -172,7 +172,7 @@ StiffnessResult evaluate(const std::vector<Scenario>& scenarios, double k_lin, c
 /// The stiffness at which contactSpectralRadius() reaches 1 (bisection over [1, 1e7] N/m).
 double linearStabilityLimit(double m, double b, double k_h, double b_h, double T);
 
-/// The passivity controller's price on one device (issue 19): slowPressScenario() at stiffness
+/// The passivity controller's price on one device: slowPressScenario() at stiffness
 /// k_lin run twice through the device's signal path, without and with the controller; the
 /// forces the hand got are compared tick by tick.
 struct ControllerPrice {
