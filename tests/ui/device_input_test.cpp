@@ -2,7 +2,7 @@
 // with the probe above it and a simulated device. Oracles: the analytic sphere (how deep the
 // tool's point shell goes after touchSurface()), the field's bounds (the wheel step) and the
 // scene's initial pose (the Home key).
-#include "vh/ui/device_input.h"
+#include "vh/ui/devices/device_input.h"
 
 #include <algorithm>
 #include <cmath>
@@ -23,9 +23,9 @@
 #include "vh/haptics/point_shell.h"
 #include "vh/runtime/scene.h"
 #include "vh/runtime/session.h"
-#include "vh/ui/media_export.h"
-#include "vh/ui/scene_view.h"
-#include "vh/ui/vtk_view.h"
+#include "vh/ui/export/media_export.h"
+#include "vh/ui/view/scene_view.h"
+#include "vh/ui/view/vtk_view.h"
 
 namespace vh::ui {
 namespace {

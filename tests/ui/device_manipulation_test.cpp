@@ -1,5 +1,5 @@
 // Mouse -> device mapping: pure geometry with exact answers.
-#include "vh/ui/device_manipulation.h"
+#include "vh/ui/view/device_manipulation.h"
 
 #include <cmath>
 #include <numbers>

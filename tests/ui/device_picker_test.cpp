@@ -1,7 +1,7 @@
 // DevicePicker and deviceLimitsText() on the built-in sphere without hardware: entry 0 is the
 // simulated device, which the picker puts into the session at the proxy's pose; a device's
 // limits read as text.
-#include "vh/ui/device_picker.h"
+#include "vh/ui/devices/device_picker.h"
 
 #include <cstdlib>
 #include <memory>

@@ -1,6 +1,6 @@
 // DisplayPanel: the user's choices become signals, the window's setters show values without
 // emitting, and the clipping widgets read back what was set.
-#include "vh/ui/display_panel.h"
+#include "vh/ui/panels/display_panel.h"
 
 #include <vector>
 

@@ -1,6 +1,6 @@
 // Tests of vh/ui/haptics_panel.h: the passivity-control check box shows and edits
 // CouplingGains::passivity_control the way the stiffness spin boxes do.
-#include "vh/ui/haptics_panel.h"
+#include "vh/ui/panels/haptics_panel.h"
 
 #include <QCheckBox>
 #include <QDoubleSpinBox>

@@ -1,5 +1,5 @@
 // Histogram of a volume's values (ui/histogram.h): bins, range, totals, VTK scalar types.
-#include "vh/ui/histogram.h"
+#include "vh/ui/panels/histogram.h"
 
 #include <atomic>
 #include <cmath>

@@ -1,6 +1,6 @@
 // Tests of vh/ui/igtl_panel.h: the OpenIGTLink switch off by default, on with a port and rate,
 // its status-bar text, and an IMAGE sent by a client opening as the main window's new scene.
-#include "vh/ui/igtl_panel.h"
+#include "vh/ui/panels/igtl_panel.h"
 
 #include <netinet/in.h>
 #include <signal.h>

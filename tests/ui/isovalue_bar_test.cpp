@@ -1,7 +1,7 @@
 // IsovalueBar against runtime::Session on the built-in sphere (F = 20 mm - r in mm, 64^3 voxels
 // of 1 mm). Oracles: the field's own minimum and maximum (the slider maps 0..1000 linearly onto
 // them) and the values handed to the session.
-#include "vh/ui/isovalue_bar.h"
+#include "vh/ui/panels/isovalue_bar.h"
 
 #include <cmath>
 #include <memory>
@@ -14,7 +14,7 @@
 
 #include "vh/runtime/scene.h"
 #include "vh/runtime/session.h"
-#include "vh/ui/histogram_slider.h"
+#include "vh/ui/panels/histogram_slider.h"
 
 namespace vh::ui {
 namespace {

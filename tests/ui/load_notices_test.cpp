@@ -1,7 +1,7 @@
 // What the loader corrected or chose, shown where the user looks (ui/load_notices.h): the status
 // bar, the banner above the view, Help > Load Notes; progress and cancel of a scene load
 // (ui/scene_loader.h); the time point of a 4-D series reaching the scene spec.
-#include "vh/ui/load_notices.h"
+#include "vh/ui/panels/load_notices.h"
 
 #include <atomic>
 #include <chrono>
@@ -27,7 +27,7 @@
 #include "vh/io/dicom_series.h"
 #include "vh/ui/main_window.h"
 #include "vh/ui/scene_loader.h"
-#include "vh/ui/series_chooser.h"
+#include "vh/ui/panels/series_chooser.h"
 
 namespace vh::ui {
 namespace {

@@ -41,12 +41,12 @@
 #include "vh/runtime/device.h"
 #include "vh/runtime/placement.h"
 #include "vh/runtime/scene.h"
-#include "vh/ui/device_manipulation.h"
-#include "vh/ui/haptics_panel.h"
-#include "vh/ui/histogram_slider.h"
-#include "vh/ui/scene_actors.h"
+#include "vh/ui/view/device_manipulation.h"
+#include "vh/ui/panels/haptics_panel.h"
+#include "vh/ui/panels/histogram_slider.h"
+#include "vh/ui/view/scene_actors.h"
 #include "vh/ui/scene_loader.h"
-#include "vh/ui/vtk_view.h"
+#include "vh/ui/view/vtk_view.h"
 
 namespace vh::ui {
 namespace {

@@ -28,10 +28,10 @@
 #include "vh/runtime/recording.h"
 #include "vh/runtime/scene.h"
 #include "vh/ui/main_window.h"
-#include "vh/ui/media_export.h"
-#include "vh/ui/replay_panel.h"
-#include "vh/ui/session_recorder.h"
-#include "vh/ui/vtk_view.h"
+#include "vh/ui/export/media_export.h"
+#include "vh/ui/replay/replay_panel.h"
+#include "vh/ui/replay/session_recorder.h"
+#include "vh/ui/view/vtk_view.h"
 
 namespace vh::ui {
 namespace {

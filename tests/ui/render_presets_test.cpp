@@ -1,5 +1,5 @@
 // Transfer functions of the rendering modes (ui/render_presets.h).
-#include "vh/ui/render_presets.h"
+#include "vh/ui/view/render_presets.h"
 
 #include <gtest/gtest.h>
 

@@ -2,7 +2,7 @@
 // Oracles: the poses handed in (the proxy actor's matrix), the tool mesh's own vertices (the
 // force arrow starts at the lowest one, found by brute force) and the volume's bounds (the
 // clipping plane's position).
-#include "vh/ui/scene_view.h"
+#include "vh/ui/view/scene_view.h"
 
 #include <algorithm>
 #include <cmath>
@@ -25,8 +25,8 @@
 
 #include "ui_test_util.h"
 #include "vh/runtime/scene.h"
-#include "vh/ui/media_export.h"
-#include "vh/ui/vtk_view.h"
+#include "vh/ui/export/media_export.h"
+#include "vh/ui/view/vtk_view.h"
 
 namespace vh::ui {
 namespace {

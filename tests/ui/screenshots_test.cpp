@@ -15,8 +15,8 @@
 #include "ui_test_util.h"
 #include "vh/io/dicom_series.h"
 #include "vh/ui/main_window.h"
-#include "vh/ui/series_chooser.h"
-#include "vh/ui/vtk_view.h"
+#include "vh/ui/panels/series_chooser.h"
+#include "vh/ui/view/vtk_view.h"
 
 namespace vh::ui {
 namespace {

@@ -1,7 +1,7 @@
 // Segments in the GUI: the Segments panel, the controller that applies its choices to
 // the session, and the segment surfaces. Oracles: the test's own ball (its analytic radius and
 // centre in W, from the geometry the test wrote), the session's segments after each command.
-#include "vh/ui/segments_panel.h"
+#include "vh/ui/panels/segments_panel.h"
 
 #include <cmath>
 #include <filesystem>
@@ -23,11 +23,11 @@
 #include "ui_test_util.h"
 #include "vh/runtime/scene.h"
 #include "vh/runtime/session.h"
-#include "vh/ui/scene_view.h"
-#include "vh/ui/segment_surfaces.h"
+#include "vh/ui/view/scene_view.h"
+#include "vh/ui/view/segment_surfaces.h"
 #include "vh/ui/segments_controller.h"
-#include "vh/ui/media_export.h"
-#include "vh/ui/vtk_view.h"
+#include "vh/ui/export/media_export.h"
+#include "vh/ui/view/vtk_view.h"
 
 namespace vh::ui {
 namespace {

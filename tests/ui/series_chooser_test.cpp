@@ -1,6 +1,6 @@
 // Listing the DICOM series of a folder (io/dicom_series.h), loading a chosen one, and the series
 // chooser's model and dialog (ui/series_chooser.h).
-#include "vh/ui/series_chooser.h"
+#include "vh/ui/panels/series_chooser.h"
 
 #include <filesystem>
 

@@ -1,7 +1,7 @@
 // hapticStatusText() and StatusLine: what the status line says in each state of a
 // runtime::Session (no scan, haptics off, stopped, starting, running with known numbers,
 // replaying).
-#include "vh/ui/status_line.h"
+#include "vh/ui/panels/status_line.h"
 
 #include <memory>
 

@@ -1,5 +1,5 @@
 // The live strip chart (ui/strip_chart.h): samples kept over the window, batched redraws.
-#include "vh/ui/strip_chart.h"
+#include "vh/ui/panels/strip_chart.h"
 
 #include <QChart>
 #include <QChartView>

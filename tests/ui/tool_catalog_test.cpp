@@ -9,7 +9,7 @@
 #include "vh/datasets/synthetic.h"
 #include "vh/runtime/placement.h"
 #include "vh/runtime/scene.h"
-#include "vh/ui/about_dialog.h"
+#include "vh/ui/panels/about_dialog.h"
 
 namespace vh::ui {
 namespace {

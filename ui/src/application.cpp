@@ -12,9 +12,9 @@
 #include <QTimer>
 
 #include "vh/runtime/scene.h"
-#include "vh/ui/igtl_panel.h"
+#include "vh/ui/panels/igtl_panel.h"
 #include "vh/ui/main_window.h"
-#include "vh/ui/vtk_view.h"
+#include "vh/ui/view/vtk_view.h"
 
 namespace vh::ui {
 namespace {

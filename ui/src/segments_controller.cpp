@@ -8,8 +8,8 @@
 #include <QStatusBar>
 
 #include "vh/io/segmentation.h"
-#include "vh/ui/scene_view.h"
-#include "vh/ui/segments_panel.h"
+#include "vh/ui/view/scene_view.h"
+#include "vh/ui/panels/segments_panel.h"
 
 namespace vh::ui {
 namespace {

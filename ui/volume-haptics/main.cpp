@@ -34,7 +34,7 @@
 #include "vh/runtime/snapshot_channel.h"
 #include "vh/runtime/trajectory.h"
 #include "vh/ui/application.h"
-#include "vh/ui/media_export.h"
+#include "vh/ui/export/media_export.h"
 
 namespace fs = std::filesystem;
 

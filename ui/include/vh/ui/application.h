@@ -14,7 +14,7 @@
 #include <optional>
 
 #include "vh/haptics/pose.h"
-#include "vh/ui/render_presets.h"
+#include "vh/ui/view/render_presets.h"
 
 namespace vh::runtime {
 struct SceneSpec;

@@ -32,10 +32,10 @@
 #include "vh/runtime/haptic_thread.h"
 #include "vh/runtime/scene.h"
 #include "vh/runtime/session.h"
-#include "vh/ui/histogram.h"
+#include "vh/ui/panels/histogram.h"
 #include "vh/ui/preferences.h"
-#include "vh/ui/render_presets.h"
-#include "vh/ui/scene_view.h"
+#include "vh/ui/view/render_presets.h"
+#include "vh/ui/view/scene_view.h"
 #include "vh/ui/tool_catalog.h"
 
 class QAction;

@@ -9,7 +9,7 @@
 #include <QString>
 #include <QStringList>
 
-#include "vh/ui/render_presets.h"
+#include "vh/ui/view/render_presets.h"
 
 class QSettings;
 

@@ -25,7 +25,7 @@
 
 #include "vh/io/dicom_series.h"
 #include "vh/runtime/scene.h"
-#include "vh/ui/histogram.h"
+#include "vh/ui/panels/histogram.h"
 #include "vh/ui/tool_catalog.h"
 
 namespace vh::ui {

@@ -1,0 +1,140 @@
+#pragma once
+/// @file
+/// Pictures and videos of a session recording: the recorded scene is rendered off
+/// screen (its own vtkRenderWindow with OffScreenRenderingOn(), no Qt; needs an X display with
+/// OpenGL, e.g. under xvfb-run) with the proxy, device, force arrow and isovalue of the record
+/// shown at each frame's time, read back through vtkWindowToImageFilter and written with
+/// vtkOggTheoraWriter (Ogg/Theora video) or vtkPNGWriter.
+///
+/// Frame times: frame k of a video shows the record at t = start_s + k / fps (the last record
+/// with time_s <= t; recordIndexAt()), up to end_s.
+
+#include <cstddef>
+#include <filesystem>
+#include <functional>
+#include <memory>
+#include <vector>
+
+#include <Eigen/Core>
+#include <vtkSmartPointer.h>
+
+#include "vh/haptics/pose.h"
+#include "vh/runtime/recording.h"
+#include "vh/runtime/scene.h"
+#include "vh/ui/preferences.h"
+#include "vh/ui/view/render_presets.h"
+#include "vh/ui/view/scene_actors.h"
+
+class vtkCamera;
+class vtkImageData;
+class vtkRenderWindow;
+class vtkRenderer;
+class vtkWindowToImageFilter;
+
+namespace vh::ui {
+
+/// Index of the record shown at recording time `t_s` [s]: the last record with time_s <= t_s
+/// (0 before the first; the last one after the end). @throws std::invalid_argument when empty.
+std::size_t recordIndexAt(const std::vector<runtime::TickRecord>& records, double t_s);
+/// The record's proxy pose X_WP / device pose X_WD (W, metres).
+haptics::Pose proxyPoseOf(const runtime::TickRecord& record);
+haptics::Pose devicePoseOf(const runtime::TickRecord& record);
+/// |F| [N] of a record.
+double forceNormOf(const runtime::TickRecord& record);
+
+/// The props' inputs for a loaded scene (image, direction; HU when the volume's unit is HU) with
+/// the live isovalue and tool mesh (Session::live(); LiveValues::initial() for a scene as
+/// loaded); the device tool shown.
+SceneActorsSpec sceneActorsSpecFor(const runtime::LoadedScene& scene, const runtime::LiveValues& live);
+
+/// The picture of `record` (scene_actors.h: ToolFrame): its poses, force and isovalue, no
+/// contact points (recordings keep the count only).
+ToolFrame toolFrameOf(const runtime::TickRecord& record);
+
+/// Shows `record` on `actors` (showToolFrame(toolFrameOf(record))).
+void showRecord(SceneActors& actors, const runtime::TickRecord& record,
+                const std::vector<Eigen::Vector3d>& tool_vertices_T_m);
+
+/// An off-screen render window with the scene's props, for frames of a recording.
+class RecordingFrameRenderer {
+ public:
+  /// @param width, height frame size [px] (at least 16; rounded up to even for video).
+  /// @param look colours, rendering mode and preset (a default Preferences: the app's defaults).
+  /// @throws std::invalid_argument for a spec without image or a bad size.
+  RecordingFrameRenderer(const SceneActorsSpec& spec, int width, int height,
+                         const Preferences& look = Preferences{});
+  ~RecordingFrameRenderer();
+  RecordingFrameRenderer(const RecordingFrameRenderer&) = delete;
+  RecordingFrameRenderer& operator=(const RecordingFrameRenderer&) = delete;
+
+  /// The main window's default view: from anterior, 30 degrees to the patient's right and 25
+  /// degrees up, fitted to the props (the volume and the tools where the last show() put them).
+  void resetCamera();
+  /// Uses a copy of `camera` (e.g. the main view's) for the next frames.
+  void copyCamera(vtkCamera* camera);
+  /// Shows `record` (see showRecord()).
+  void show(const runtime::TickRecord& record);
+  /// Renders a frame and returns its pixels (RGB, vtkWindowToImageFilter; bottom row first).
+  vtkImageData* render();
+  /// The filter render() reads the window through (input of the writers).
+  vtkWindowToImageFilter* imageFilter() const noexcept;
+
+  int width() const noexcept { return width_; }
+  int height() const noexcept { return height_; }
+  SceneActors& actors() noexcept { return *actors_; }
+  vtkRenderer* renderer() const noexcept;
+  vtkRenderWindow* renderWindow() const noexcept;
+
+ private:
+  vtkSmartPointer<vtkRenderWindow> window_;
+  vtkSmartPointer<vtkRenderer> renderer_;
+  vtkSmartPointer<vtkWindowToImageFilter> grabber_;
+  std::unique_ptr<SceneActors> actors_;
+  std::vector<Eigen::Vector3d> tool_vertices_T_m_;
+  bool isovalue_from_records_ = true;  ///< SceneActorsSpec::isovalue_from_records.
+  int width_;
+  int height_;
+};
+
+/// Called after each video frame: (frames written, frames in all); return false to cancel.
+using FrameProgress = std::function<bool(int done, int total)>;
+
+/// Writes an Ogg/Theora video of `recording` from `start_s` to `end_s` (negative: its end) at
+/// `fps` frames per second [1, 120], one rendered frame per frame time.
+/// @return the frames written (fewer when cancelled; the file then holds those).
+/// @throws std::invalid_argument for an empty recording or a bad fps / time range;
+///         std::runtime_error naming the file when it cannot be written.
+int writeRecordingVideo(RecordingFrameRenderer& frames, const runtime::Recording& recording,
+                        const std::filesystem::path& path, double fps, double start_s = 0.0,
+                        double end_s = -1.0, const FrameProgress& progress = {});
+
+/// Writes a PNG of the record at `t_s` [s]. @throws std::invalid_argument for an empty
+/// recording; std::runtime_error naming the file when it cannot be written.
+void writeRecordingPng(RecordingFrameRenderer& frames, const runtime::Recording& recording, double t_s,
+                       const std::filesystem::path& path);
+
+/// What `volume-haptics export` renders besides CSV / JSON.
+struct MediaExportOptions {
+  std::filesystem::path video;  ///< Ogg/Theora video (.ogv) to write; empty: none.
+  std::filesystem::path png;    ///< PNG to write; empty: none.
+  double png_time_s = 0.0;      ///< Recording time of the PNG [s] (clamped to the recording).
+  double fps = 30.0;            ///< Video frame rate [frames/s], 1..120.
+  int width = 640;              ///< Frame width [px].
+  int height = 480;             ///< Frame height [px].
+  double start_s = 0.0;         ///< Video start [s].
+  double end_s = -1.0;          ///< Video end [s]; negative: the recording's end.
+  RenderMode mode = RenderMode::kIsosurface;  ///< How the volume is drawn.
+  VolumePreset preset = VolumePreset::kBone;  ///< Composite preset.
+};
+
+/// Command line export: reads `recording` (warnings to stderr), reloads its scene
+/// (runtime::sceneFromSessionMetadata(), runtime::loadScene()), renders off screen (no Qt
+/// application; needs an X display with OpenGL, e.g. xvfb-run) and writes the video and / or
+/// PNG, printing what was written. `argc` / `argv` are accepted for symmetry with
+/// runApplication() and not used.
+/// @return 0 on success; 1 with a message on stderr naming the file and problem (unreadable
+///         recording, missing dataset, unwritable output).
+int exportRecordingMedia(int argc, char** argv, const std::filesystem::path& recording,
+                         const MediaExportOptions& options);
+
+}  // namespace vh::ui

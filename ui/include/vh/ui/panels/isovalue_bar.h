@@ -1,0 +1,54 @@
+#pragma once
+/// @file
+/// The isovalue bar above the view: a label with the data's unit, the slider with the volume's
+/// histogram behind it, and a spin box in the data's units. It observes runtime::Session (the
+/// one owner of the isovalue) and sends it setIsovalue(); it keeps no isovalue of its own.
+/// GUI thread only.
+
+#include <QWidget>
+
+#include "vh/runtime/session.h"
+#include "vh/ui/panels/histogram.h"
+
+class QDoubleSpinBox;
+class QLabel;
+
+namespace vh::ui {
+
+class HistogramSlider;
+
+class IsovalueBar : public QWidget {
+  Q_OBJECT
+
+ public:
+  /// Observes `session`, which must outlive the bar.
+  IsovalueBar(runtime::Session& session, QWidget* parent = nullptr);
+  ~IsovalueBar() override;
+
+  /// The histogram of the new scene's volume (data units), its unit ("HU": CT tissue labels).
+  void setHistogram(const Histogram& histogram, const std::string& unit);
+  /// One spin-box step up (+1) or down (-1) (the [ and ] keys).
+  void step(int direction);
+  /// The slider position <-> data value mapping over the session's value range.
+  double sliderToValue(int position) const;
+  int valueToSlider(double value) const;
+
+  HistogramSlider* slider() const noexcept { return slider_; }
+  QDoubleSpinBox* spinBox() const noexcept { return spin_; }
+
+ signals:
+  /// The slider's handle was pressed / released (interactive frames meanwhile).
+  void dragStarted();
+  void dragEnded();
+
+ private:
+  void showSession(runtime::SessionChange what);
+
+  runtime::Session& session_;
+  int observer_ = 0;
+  QLabel* label_ = nullptr;
+  HistogramSlider* slider_ = nullptr;
+  QDoubleSpinBox* spin_ = nullptr;
+};
+
+}  // namespace vh::ui

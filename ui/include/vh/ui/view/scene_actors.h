@@ -1,0 +1,183 @@
+#pragma once
+/// @file
+/// The VTK side of the main view (no Qt): the volume's isosurface (GPU ray casting), the proxy
+/// and device tools, contact points, the force arrow and the on-screen hint. The main window
+/// edits the scene only through this class; it never touches the mapper directly.
+///
+/// Frames: everything is drawn in the world frame W [m]. The vtkImageData has spacing and origin
+/// in metres but no direction; the volume prop's user matrix applies the direction D about the
+/// origin o: p_W = o + D (p_image - o).
+
+#include <limits>
+#include <span>
+#include <string>
+#include <vector>
+
+#include <Eigen/Core>
+
+#include <vtkNew.h>
+#include <vtkSmartPointer.h>
+
+#include "vh/haptics/pose.h"
+#include "vh/haptics/triangle_mesh.h"
+#include "vh/ui/view/render_presets.h"
+
+class vtkActor;
+class vtkColorTransferFunction;
+class vtkGPUVolumeRayCastMapper;
+class vtkImageData;
+class vtkPiecewiseFunction;
+class vtkPlane;
+class vtkPoints;
+class vtkPolyData;
+class vtkRenderer;
+class vtkTextActor;
+class vtkVolume;
+class vtkVolumeProperty;
+
+namespace vh::ui {
+
+/// Inputs of the scene's props.
+struct SceneActorsSpec {
+  vtkSmartPointer<vtkImageData> image;                      ///< Scalars in data units, metres.
+  Eigen::Matrix3d direction_W = Eigen::Matrix3d::Identity(); ///< Columns: image i, j, k axes in W.
+  double isovalue = 0.0;                                     ///< Data units (HU for CT).
+  haptics::TriangleMesh tool_mesh_T;                         ///< Tool display mesh in T [m].
+  Eigen::Vector3d p_TCm_m = Eigen::Vector3d::Zero();         ///< Tool centre of mass in T [m].
+  bool show_device = true;                                   ///< Draw the device tool.
+  std::string hint;                                          ///< Text overlay (may be empty).
+  bool hounsfield = false;  ///< Values are HU (CT): the composite presets apply as defined.
+  /// A recording's ticks carry the scan's isovalue (the picture follows them); false when
+  /// segments were felt: the ticks carry the segments' level, and the picture keeps `isovalue`.
+  bool isovalue_from_records = true;
+};
+
+class SceneActors {
+ public:
+  /// Builds the props and adds them to `renderer`, which must already be in its render window:
+  /// contacts and the force arrow go to an overlay renderer (layer 1, same camera) added to it.
+  SceneActors(vtkRenderer* renderer, const SceneActorsSpec& spec);
+  ~SceneActors();
+  SceneActors(const SceneActors&) = delete;
+  SceneActors& operator=(const SceneActors&) = delete;
+
+  /// Isosurface value in data units.
+  void setIsovalue(double isovalue);
+  double isovalue() const;
+
+  /// How the volume is drawn: the isosurface (the haptic surface, in the surface colour), a
+  /// composite ray cast with `preset`'s transfer functions, or a MIP.
+  void setRenderMode(RenderMode mode, VolumePreset preset = VolumePreset::kBone);
+  RenderMode renderMode() const noexcept { return mode_; }
+  VolumePreset preset() const noexcept { return preset_; }
+  /// Colours, RGB in [0, 1]: the isosurface, the proxy tool (solid), the device tool (lines).
+  void setSurfaceColour(double r, double g, double b);
+  void setToolColour(double r, double g, double b);
+  void setDeviceColour(double r, double g, double b);
+  /// Replaces the tool's display mesh (in T [m]) of both tool actors; `p_TCm_m` its centre of
+  /// mass sets the force arrow's scale.
+  void setToolMesh(const haptics::TriangleMesh& mesh_T, const Eigen::Vector3d& p_TCm_m);
+  /// Clips the volume (not the tools) with the plane through p_W_origin_m [m] with normal
+  /// n_W; the half space the normal points into is kept. Visual only: the haptic surface stays
+  /// whole.
+  void setClipPlane(bool enabled, const Eigen::Vector3d& p_W_origin_m = Eigen::Vector3d::Zero(),
+                    const Eigen::Vector3d& n_W = Eigen::Vector3d::UnitZ());
+  bool clipping() const noexcept { return clipping_; }
+  /// Text in the top left corner (empty: none).
+  void setHint(const std::string& hint);
+  /// The volume's world bounds in W [m] (xmin, xmax, ymin, ymax, zmin, zmax).
+  void volumeBounds_W(double bounds[6]) const;
+
+  void setProxyPose(const haptics::Pose& X_WP);
+  void setDevicePose(const haptics::Pose& X_WD);
+  void setDeviceVisible(bool visible);
+  /// Contact points in W [m] (small spheres drawn over everything).
+  void setContacts(std::span<const Eigen::Vector3d> p_W_m);
+  /// Force on the user's hand [N], drawn over everything as an arrow from p_W_origin_m; its
+  /// length is arrowReferenceLength_m() per 3 N (clamped to 0.15..2.5 times); hidden below 1 mN.
+  void setForce(const Eigen::Vector3d& p_W_origin_m, const Eigen::Vector3d& force_W_N);
+
+  /// Rendering quality of the volume. Still frames sample rays every half voxel at full
+  /// resolution; interactive frames (camera drags, moving tools, slider drags) sample every voxel
+  /// and cast fewer rays (image sample distance) so software GL stays responsive.
+  void setInteractive(bool interactive);
+  bool interactive() const noexcept { return interactive_; }
+  /// Adapts the quality to the wall time of the frame just rendered [ms]: interactive frames
+  /// aim at `interactive_target_ms` (image sample distance 1..4 pixels); still frames that take
+  /// over a second (software GL, large views) step down to voxel-spaced samples, then to 1.5
+  /// pixel image sampling, and step back up when they get fast again.
+  void adaptQuality(double last_frame_ms, double interactive_target_ms = 80.0);
+  /// Back to the best still quality (half-voxel samples, every pixel).
+  void resetQuality();
+  /// Ray sample distance [m] and image sample distance [px] now in use.
+  double sampleDistance_m() const;
+  double imageSampleDistance_px() const;
+
+  /// Length [m] of the arrow drawn for 3 N: half the tool's bounding-box diagonal.
+  double arrowReferenceLength_m() const noexcept { return arrow_reference_m_; }
+
+  vtkVolume* volume() const noexcept;
+  vtkGPUVolumeRayCastMapper* volumeMapper() const noexcept;
+  vtkActor* proxyActor() const noexcept;
+  vtkActor* deviceActor() const noexcept;
+  vtkActor* contactActor() const noexcept;
+  vtkActor* forceActor() const noexcept;
+  vtkRenderer* overlayRenderer() const noexcept;
+  vtkTextActor* hintActor() const noexcept;
+
+ private:
+  vtkRenderer* renderer_;  // not owned
+  vtkNew<vtkRenderer> overlay_;
+  vtkNew<vtkGPUVolumeRayCastMapper> volume_mapper_;
+  vtkNew<vtkVolumeProperty> volume_property_;
+  vtkNew<vtkColorTransferFunction> colour_;
+  vtkNew<vtkPiecewiseFunction> opacity_;
+  vtkNew<vtkVolume> volume_;
+  vtkNew<vtkActor> proxy_actor_;
+  vtkNew<vtkActor> device_actor_;
+  vtkNew<vtkPoints> contact_points_;
+  vtkNew<vtkPolyData> contact_poly_;
+  vtkNew<vtkActor> contact_actor_;
+  vtkNew<vtkActor> force_actor_;
+  vtkNew<vtkTextActor> hint_actor_;
+  vtkNew<vtkPlane> clip_plane_;
+  double arrow_reference_m_ = 0.01;
+  void applyQuality();
+  void applyLook();
+  RenderMode mode_ = RenderMode::kIsosurface;
+  VolumePreset preset_ = VolumePreset::kBone;
+  bool hounsfield_ = false;
+  bool clipping_ = false;
+  double range_[2] = {0.0, 1.0};
+  double surface_rgb_[3] = {0.93, 0.87, 0.74};
+  double min_spacing_m_ = 1e-3;
+  int still_level_ = 0;  // 0 best; see adaptQuality()
+  double interactive_image_sample_ = 1.0;
+  bool interactive_ = false;
+  static constexpr double kReferenceForce_N = 3.0;
+};
+
+/// One picture of the tools: what a live haptic snapshot and a recorded tick both become, so
+/// the live view and the replay (and its exports) draw the same thing the same way.
+struct ToolFrame {
+  haptics::Pose X_WP;                                   ///< Proxy pose in W [m].
+  haptics::Pose X_WD;                                   ///< Device pose in W [m].
+  Eigen::Vector3d force_W_N = Eigen::Vector3d::Zero();  ///< Force on the hand in W [N].
+  /// Isovalue (data units); NaN: leave the shown one.
+  double isovalue = std::numeric_limits<double>::quiet_NaN();
+  /// Contact points in W [m] (recordings keep none: empty).
+  std::span<const Eigen::Vector3d> contacts_W_m;
+};
+
+/// Where the force arrow starts: the proxy tool's extreme point against the force (the vertex of
+/// `tool_vertices_T_m` (tool frame T, metres) with the least F.p in W: where the surface pushes
+/// when one side of the tool touches, e.g. a probe's tip pushed up); the proxy's origin when
+/// there is no force (below 1 mN) or no vertex. The one rule for live and replayed frames.
+Eigen::Vector3d forceOrigin_W(const haptics::Pose& X_WP, const Eigen::Vector3d& force_W_N,
+                              const std::vector<Eigen::Vector3d>& tool_vertices_T_m);
+
+/// Shows `frame` on `actors`: proxy and device poses, the contact points, the force arrow from
+/// forceOrigin_W(), and the isovalue when finite.
+void showToolFrame(SceneActors& actors, const ToolFrame& frame, const std::vector<Eigen::Vector3d>& tool_vertices_T_m);
+
+}  // namespace vh::ui

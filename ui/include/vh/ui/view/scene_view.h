@@ -1,0 +1,143 @@
+#pragma once
+/// @file
+/// The scene view (Slicer's displayable manager): the one owner of the main view's VTK props
+/// (SceneActors), its orientation marker and welcome text, the camera (reset, standard views,
+/// focus on the tool) and the clipping plane; it turns a live haptic snapshot and a recorded
+/// tick into the same picture (ToolFrame, showToolFrame()). It draws; it holds none of the
+/// session's values (the isovalue, the tool and the poses it shows come from runtime::Session
+/// through the window, or from a recording).
+///
+/// Frames: W the scene frame [m] (patient LPS for scans: +x left, +y posterior, +z superior).
+/// Threads: GUI thread only.
+
+#include <limits>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include <Eigen/Core>
+#include <QObject>
+
+#include "vh/haptics/pose.h"
+#include "vh/haptics/tool_model.h"
+#include "vh/ui/view/device_manipulation.h"
+#include "vh/ui/preferences.h"
+#include "vh/ui/view/render_presets.h"
+#include "vh/ui/view/scene_actors.h"
+#include "vh/ui/view/segment_surfaces.h"
+
+class QTimer;
+class QWidget;
+class vtkTextActor;
+
+namespace vh::ui {
+
+class OrientationMarker;
+class VtkView;
+
+/// Standard camera directions for a patient frame W = LPS (+x left, +y posterior, +z superior).
+enum class StandardView { kAnterior, kPosterior, kLeft, kRight, kSuperior, kInferior };
+
+/// Axis of the clipping plane in W.
+enum class ClipAxis { kX, kY, kZ };
+
+class SceneView : public QObject {
+  Q_OBJECT
+
+ public:
+  /// Creates the VTK view widget (a child of `parent`) with the welcome text of an empty window.
+  explicit SceneView(QWidget* parent);
+  ~SceneView() override;  ///< Releases the props with the view's GL context current.
+
+  VtkView* widget() const noexcept { return view_; }
+
+  // ---- Scene ---------------------------------------------------------------------------------
+  /// Builds the props for `spec` (replacing any; the segment surfaces stay), the tools at
+  /// `X_WT`, the look of `look`, and resets the camera; hides the welcome text. @throws std::invalid_argument without an image.
+  void setScene(const SceneActorsSpec& spec, const haptics::Pose& X_WT, const Preferences& look);
+  /// Removes the props and the segment surfaces (the welcome text stays hidden once a scene was
+  /// shown).
+  void clearScene();
+  bool hasScene() const noexcept { return actors_ != nullptr; }
+  /// The props; only while hasScene().
+  SceneActors& actors() const noexcept { return *actors_; }
+  OrientationMarker* marker() const noexcept { return marker_.get(); }
+  /// Shows the shown segments of `set` as coloured surfaces (null: none; SegmentSurfaces).
+  void setSegments(const runtime::SegmentSet* set);
+  /// Emphasises the touched segment (-1: none); a non-empty `alert` is shown in red at the top
+  /// of the view (a critical segment touched), an empty one hides it.
+  void setTouchedSegment(int segment, const std::string& alert);
+  /// The segment surfaces (null before the first scene).
+  const SegmentSurfaces* segmentSurfaces() const noexcept { return segments_.get(); }
+  /// The alert text shown now ("" when none).
+  std::string alertText() const;
+  /// A new tool's display mesh, both tools at `X_WT`, no contacts, no force.
+  void setTool(const haptics::ToolModel& tool, const haptics::Pose& X_WT);
+
+  // ---- The tools -----------------------------------------------------------------------------
+  /// Shows `frame` (showToolFrame(): poses, contacts, force arrow, isovalue). A new frame is
+  /// asked for only when something moved visibly (poses, contact count, force by 10 mN).
+  /// @return true when it did.
+  bool show(const ToolFrame& frame);
+  /// The device tool at `X_WD` now (mouse feedback before the haptic thread answers).
+  void showDevicePose(const haptics::Pose& X_WD);
+  /// The proxy's pose last shown [m].
+  const haptics::Pose& shownProxyPose() const noexcept { return shown_X_WP_; }
+  void setIsovalue(double isovalue);
+  void setDeviceVisible(bool visible);
+  void setHint(const std::string& hint);
+
+  // ---- Look ----------------------------------------------------------------------------------
+  void setRenderMode(RenderMode mode, VolumePreset preset);
+  /// Background gradient, surface, tool and device colours.
+  void applyColours(const Preferences& look);
+  void setMarkerVisible(bool visible);
+
+  // ---- Camera and clipping -------------------------------------------------------------------
+  /// From anterior, 30 degrees to the patient's right and 25 degrees up, fitted to the props.
+  void resetCamera();
+  /// Keeps the viewing direction; looks at `tool`'s centre of mass at `X_WP` from about 2.5
+  /// tool lengths.
+  void focusOn(const haptics::ToolModel& tool, const haptics::Pose& X_WP);
+  void setStandardView(StandardView view);
+  /// The camera now, for the mouse and key manipulation of the device.
+  ViewCamera camera() const;
+  /// Clips the volume (visual only) normal to `axis` at `fraction` (0..1) of its extent;
+  /// `flip` keeps the lower side.
+  void setClipping(bool enabled, ClipAxis axis, double fraction, bool flip);
+
+  // ---- Frames --------------------------------------------------------------------------------
+  void requestRender();
+  /// Interactive (cheaper) frames until 300 ms after the last motion.
+  void noteMotion();
+  /// While true (a camera or slider drag) frames stay interactive.
+  void setInteracting(bool interacting);
+  /// Ends interactive frames now; `best_quality` also resets the still quality (screenshots).
+  void renderStill(bool best_quality = false);
+
+ private:
+  void fitCamera(const double direction_W[3], const double up_W[3], double zoom);
+
+  VtkView* view_ = nullptr;
+  std::unique_ptr<SceneActors> actors_;
+  std::unique_ptr<SegmentSurfaces> segments_;
+  vtkTextActor* alert_ = nullptr;  // owned by the renderer
+  std::unique_ptr<OrientationMarker> marker_;
+  vtkTextActor* welcome_ = nullptr;  // owned by the renderer while shown
+  QTimer* settle_timer_ = nullptr;
+  bool interacting_ = false;
+  bool camera_dragging_ = false;
+  std::uint64_t scene_frame_ = 0;  // the view's frame count when the props were built
+  std::vector<Eigen::Vector3d> tool_vertices_T_m_;
+  haptics::Pose shown_X_WP_;
+  haptics::Pose shown_X_WD_;
+  int shown_contacts_ = -1;
+  Eigen::Vector3d shown_force_W_N_ = Eigen::Vector3d::Zero();
+};
+
+/// The colours of `look` (RGB from the preferences' QColors): `renderer`'s background gradient
+/// (bottom, top) and, when `actors` is set, the isosurface, proxy tool and device tool. The one
+/// place both the main view (SceneView) and exported frames take their colours from.
+void applyColours(vtkRenderer* renderer, SceneActors* actors, const Preferences& look);
+
+}  // namespace vh::ui

@@ -1,0 +1,267 @@
+#include "vh/ui/export/media_export.h"
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <iostream>
+#include <limits>
+#include <stdexcept>
+#include <string>
+
+#include <vtkCamera.h>
+#include <vtkImageData.h>
+#include <vtkNew.h>
+#include <vtkOggTheoraWriter.h>
+#include <vtkPNGWriter.h>
+#include <vtkRenderWindow.h>
+#include <vtkRenderer.h>
+#include <vtkWindowToImageFilter.h>
+
+#include "vh/runtime/session_metadata.h"
+#include "vh/ui/view/scene_view.h"
+
+namespace vh::ui {
+namespace {
+
+namespace fs = std::filesystem;
+
+
+int evenUp(int v) { return v + (v % 2); }
+
+}  // namespace
+
+std::size_t recordIndexAt(const std::vector<runtime::TickRecord>& records, double t_s) {
+  if (records.empty()) throw std::invalid_argument("recordIndexAt: the recording has no records");
+  const auto after = std::upper_bound(records.begin(), records.end(), t_s,
+                                      [](double t, const runtime::TickRecord& r) { return t < r.time_s; });
+  if (after == records.begin()) return 0;
+  return static_cast<std::size_t>(after - records.begin()) - 1;
+}
+
+haptics::Pose proxyPoseOf(const runtime::TickRecord& r) {
+  haptics::Pose X;
+  X.p_AB_m = Eigen::Vector3d(r.p_WP_m[0], r.p_WP_m[1], r.p_WP_m[2]);
+  X.R_AB = Eigen::Quaterniond(r.q_WP[0], r.q_WP[1], r.q_WP[2], r.q_WP[3]).normalized();
+  return X;
+}
+
+haptics::Pose devicePoseOf(const runtime::TickRecord& r) {
+  haptics::Pose X;
+  X.p_AB_m = Eigen::Vector3d(r.p_WD_m[0], r.p_WD_m[1], r.p_WD_m[2]);
+  X.R_AB = Eigen::Quaterniond(r.q_WD[0], r.q_WD[1], r.q_WD[2], r.q_WD[3]).normalized();
+  return X;
+}
+
+double forceNormOf(const runtime::TickRecord& r) {
+  return Eigen::Vector3d(r.force_W_N[0], r.force_W_N[1], r.force_W_N[2]).norm();
+}
+
+SceneActorsSpec sceneActorsSpecFor(const runtime::LoadedScene& scene, const runtime::LiveValues& live) {
+  SceneActorsSpec spec;
+  spec.image = scene.volume.image.get();
+  if (scene.volume.field != nullptr) spec.direction_W = scene.volume.field->geometry().direction_W;
+  spec.isovalue = live.isovalue;
+  if (live.tool != nullptr) {
+    spec.tool_mesh_T = live.tool->mesh_T;
+    spec.p_TCm_m = live.tool->mass.p_TCm_m;
+  }
+  spec.show_device = true;
+  spec.hounsfield = scene.volume.info.value_unit == "HU";
+  spec.isovalue_from_records = !live.feltSegments();
+  return spec;
+}
+
+ToolFrame toolFrameOf(const runtime::TickRecord& record) {
+  ToolFrame frame;
+  frame.X_WP = proxyPoseOf(record);
+  frame.X_WD = devicePoseOf(record);
+  frame.force_W_N = Eigen::Vector3d(record.force_W_N[0], record.force_W_N[1], record.force_W_N[2]);
+  frame.isovalue = record.isovalue;
+  return frame;
+}
+
+void showRecord(SceneActors& actors, const runtime::TickRecord& record,
+                const std::vector<Eigen::Vector3d>& tool_vertices_T_m) {
+  showToolFrame(actors, toolFrameOf(record), tool_vertices_T_m);
+}
+
+// ---- RecordingFrameRenderer ----------------------------------------------------------------------
+
+RecordingFrameRenderer::RecordingFrameRenderer(const SceneActorsSpec& spec, int width, int height,
+                                               const Preferences& look)
+    : tool_vertices_T_m_(spec.tool_mesh_T.vertices_T_m),
+      isovalue_from_records_(spec.isovalue_from_records),
+      width_(evenUp(width)),
+      height_(evenUp(height)) {
+  if (spec.image == nullptr) throw std::invalid_argument("RecordingFrameRenderer: the scene has no image");
+  if (width < 16 || height < 16 || width > 8192 || height > 8192) {
+    throw std::invalid_argument("RecordingFrameRenderer: frame size " + std::to_string(width) + " x " +
+                                std::to_string(height) + " is outside 16 .. 8192 pixels");
+  }
+  window_ = vtkSmartPointer<vtkRenderWindow>::New();
+  window_->SetOffScreenRendering(1);
+  window_->SetMultiSamples(0);
+  window_->SetSize(width_, height_);
+  window_->SetWindowName("volume-haptics export");
+  renderer_ = vtkSmartPointer<vtkRenderer>::New();
+  window_->AddRenderer(renderer_);
+  renderer_->GradientBackgroundOn();
+  actors_ = std::make_unique<SceneActors>(renderer_, spec);
+  applyColours(renderer_, actors_.get(), look);
+  actors_->setRenderMode(look.mode, look.preset);
+  actors_->setInteractive(false);
+  actors_->resetQuality();
+  grabber_ = vtkSmartPointer<vtkWindowToImageFilter>::New();
+  grabber_->SetInput(window_);
+  grabber_->SetInputBufferTypeToRGB();
+  grabber_->ReadFrontBufferOff();
+  grabber_->ShouldRerenderOff();  // render() renders first
+  resetCamera();
+}
+
+RecordingFrameRenderer::~RecordingFrameRenderer() {
+  grabber_ = nullptr;
+  if (window_ != nullptr) window_->MakeCurrent();
+  actors_.reset();  // props leave the renderer while its window (and context) still exists
+  if (window_ != nullptr) window_->Finalize();
+}
+
+void RecordingFrameRenderer::resetCamera() {
+  vtkCamera* cam = renderer_->GetActiveCamera();
+  double bounds[6];
+  actors_->volumeBounds_W(bounds);
+  const double c[3] = {0.5 * (bounds[0] + bounds[1]), 0.5 * (bounds[2] + bounds[3]), 0.5 * (bounds[4] + bounds[5])};
+  cam->SetFocalPoint(c);
+  cam->SetPosition(c[0], c[1] - 1.0, c[2]);  // from anterior (-y in LPS)
+  cam->SetViewUp(0.0, 0.0, 1.0);
+  renderer_->ResetCamera();
+  cam->Azimuth(-30.0);
+  cam->Elevation(25.0);
+  cam->OrthogonalizeViewUp();
+  renderer_->ResetCamera();
+  cam->Zoom(1.2);
+  renderer_->ResetCameraClippingRange();
+}
+
+void RecordingFrameRenderer::copyCamera(vtkCamera* camera) {
+  if (camera == nullptr) return;
+  renderer_->GetActiveCamera()->DeepCopy(camera);
+  renderer_->ResetCameraClippingRange();
+}
+
+void RecordingFrameRenderer::show(const runtime::TickRecord& record) {
+  ToolFrame frame = toolFrameOf(record);
+  if (!isovalue_from_records_) frame.isovalue = std::numeric_limits<double>::quiet_NaN();  // felt segments' level
+  showToolFrame(*actors_, frame, tool_vertices_T_m_);
+}
+
+vtkImageData* RecordingFrameRenderer::render() {
+  renderer_->ResetCameraClippingRange();
+  window_->Render();
+  grabber_->Modified();
+  grabber_->Update();
+  return grabber_->GetOutput();
+}
+
+vtkWindowToImageFilter* RecordingFrameRenderer::imageFilter() const noexcept { return grabber_; }
+vtkRenderer* RecordingFrameRenderer::renderer() const noexcept { return renderer_; }
+vtkRenderWindow* RecordingFrameRenderer::renderWindow() const noexcept { return window_; }
+
+// ---- Writers -------------------------------------------------------------------------------------
+
+int writeRecordingVideo(RecordingFrameRenderer& frames, const runtime::Recording& recording, const fs::path& path,
+                        double fps, double start_s, double end_s, const FrameProgress& progress) {
+  if (recording.records.empty()) throw std::invalid_argument(path.string() + ": the recording has no records");
+  if (!(fps >= 1.0 && fps <= 120.0)) {
+    throw std::invalid_argument(path.string() + ": frame rate " + std::to_string(fps) + " is outside 1 .. 120 fps");
+  }
+  const double last_s = recording.records.back().time_s;
+  const double first_s = recording.records.front().time_s;
+  const double begin = std::max(first_s, start_s);
+  const double end = end_s < 0.0 ? last_s : std::min(end_s, last_s);
+  if (!(end >= begin)) {
+    throw std::invalid_argument(path.string() + ": empty time range " + std::to_string(begin) + " .. " +
+                                std::to_string(end) + " s");
+  }
+  const int total = static_cast<int>(std::floor((end - begin) * fps + 1e-9)) + 1;
+  vtkNew<vtkOggTheoraWriter> writer;
+  writer->SetInputConnection(frames.imageFilter()->GetOutputPort());
+  writer->SetFileName(path.string().c_str());
+  writer->SetRate(std::max(1, static_cast<int>(std::lround(fps))));
+  writer->SetQuality(2);
+  writer->SetSubsampling(0);
+  frames.show(recording.records[recordIndexAt(recording.records, begin)]);
+  frames.render();
+  writer->Start();
+  int done = 0;
+  for (int k = 0; k < total; ++k) {
+    const double t = begin + static_cast<double>(k) / fps;
+    frames.show(recording.records[recordIndexAt(recording.records, t)]);
+    frames.render();
+    writer->Write();
+    if (writer->GetError() != 0) break;
+    ++done;
+    if (progress && !progress(done, total)) break;
+  }
+  writer->End();
+  if (writer->GetError() != 0) throw std::runtime_error(path.string() + ": the video could not be written");
+  std::error_code ec;
+  if (!fs::exists(path, ec) || fs::file_size(path, ec) == 0) {
+    throw std::runtime_error(path.string() + ": the video could not be written");
+  }
+  return done;
+}
+
+void writeRecordingPng(RecordingFrameRenderer& frames, const runtime::Recording& recording, double t_s,
+                       const fs::path& path) {
+  if (recording.records.empty()) throw std::invalid_argument(path.string() + ": the recording has no records");
+  frames.show(recording.records[recordIndexAt(recording.records, t_s)]);
+  frames.render();
+  vtkNew<vtkPNGWriter> writer;
+  writer->SetInputConnection(frames.imageFilter()->GetOutputPort());
+  writer->SetFileName(path.string().c_str());
+  writer->Write();
+  std::error_code ec;
+  if (writer->GetErrorCode() != 0 || !fs::exists(path, ec) || fs::file_size(path, ec) == 0) {
+    throw std::runtime_error(path.string() + ": the PNG could not be written");
+  }
+}
+
+int exportRecordingMedia(int /*argc*/, char** /*argv*/, const fs::path& recording_path,
+                         const MediaExportOptions& options) {
+  try {
+    if (options.video.empty() && options.png.empty()) return 0;
+    const runtime::Recording recording = runtime::readRecording(recording_path);
+    for (const std::string& w : recording.warnings) {
+      std::cerr << "volume-haptics export: warning: " << recording_path.string() << ": " << w << '\n';
+    }
+    if (recording.records.empty()) {
+      throw std::runtime_error(recording_path.string() + ": the recording has no records to render");
+    }
+    runtime::SceneSpec spec = runtime::sceneFromSessionMetadata(recording.metadata_json);
+    spec.device.reset();
+    const runtime::LoadedScene scene = runtime::loadScene(spec);
+    Preferences look;
+    look.mode = options.mode;
+    look.preset = options.preset;
+    RecordingFrameRenderer frames(sceneActorsSpecFor(scene, runtime::LiveValues::initial(scene)), options.width, options.height, look);
+    frames.show(recording.records.front());
+    frames.resetCamera();  // fitted to the volume and the tools where they start
+    if (!options.png.empty()) {
+      writeRecordingPng(frames, recording, options.png_time_s, options.png);
+      std::cout << "volume-haptics export: " << options.png.string() << " (" << frames.width() << " x "
+                << frames.height() << ", t = " << options.png_time_s << " s)\n";
+    }
+    if (!options.video.empty()) {
+      const int n = writeRecordingVideo(frames, recording, options.video, options.fps, options.start_s, options.end_s);
+      std::cout << "volume-haptics export: " << options.video.string() << " (" << n << " frames at "
+                << options.fps << " fps, " << frames.width() << " x " << frames.height() << ")\n";
+    }
+    return 0;
+  } catch (const std::exception& e) {
+    std::cerr << "volume-haptics export: error: " << e.what() << '\n';
+    return 1;
+  }
+}
+
+}  // namespace vh::ui

@@ -1,0 +1,230 @@
+#include "vh/ui/panels/haptics_panel.h"
+#include "vh/ui/devices/device_picker.h"
+
+#include <cmath>
+
+#include <QCheckBox>
+#include <QComboBox>
+#include <QDoubleSpinBox>
+#include <QFormLayout>
+#include <QGroupBox>
+#include <QHBoxLayout>
+#include <QLabel>
+#include <QPushButton>
+#include <QSignalBlocker>
+#include <QTimer>
+#include <QVBoxLayout>
+
+namespace vh::ui {
+
+HapticsPanel::HapticsPanel(QWidget* parent) : QWidget(parent) {
+  auto* layout = new QVBoxLayout(this);
+  layout->setContentsMargins(6, 6, 6, 6);
+
+  auto* buttons = new QHBoxLayout();
+  start_stop_ = new QPushButton("Start haptics", this);
+  start_stop_->setObjectName("startStopHaptics");
+  start_stop_->setToolTip("Start or stop the 1 kHz haptic thread (stopping ramps the force to zero)");
+  reset_device_ = new QPushButton("Reset device", this);
+  reset_device_->setToolTip("Move the simulated device back to the tool's starting pose");
+  buttons->addWidget(start_stop_);
+  buttons->addWidget(reset_device_);
+  layout->addLayout(buttons);
+
+  auto* tool_box = new QGroupBox("Tool", this);
+  auto* tool_form = new QFormLayout(tool_box);
+  tool_ = new QComboBox(tool_box);
+  tool_->setObjectName("toolChoice");
+  tool_->setSizeAdjustPolicy(QComboBox::AdjustToMinimumContentsLengthWithIcon);
+  tool_->setMinimumContentsLength(18);
+  spacing_mm_ = new QDoubleSpinBox(tool_box);
+  spacing_mm_->setObjectName("pointSpacing");
+  spacing_mm_->setDecimals(2);
+  spacing_mm_->setRange(0.1, 20.0);
+  spacing_mm_->setSingleStep(0.1);
+  spacing_mm_->setSuffix(" mm");
+  spacing_mm_->setKeyboardTracking(false);
+  spacing_mm_->setToolTip("Distance between neighbouring points of the tool's point shell");
+  points_ = new QLabel("-", tool_box);
+  points_->setObjectName("pointCount");
+  tool_form->addRow("Mesh", tool_);
+  tool_form->addRow("Point spacing", spacing_mm_);
+  tool_form->addRow("Points", points_);
+  layout->addWidget(tool_box);
+
+  auto* coupling = new QGroupBox("Virtual coupling", this);
+  auto* coupling_form = new QFormLayout(coupling);
+  linear_ = new QDoubleSpinBox(coupling);
+  linear_->setObjectName("linearStiffness");
+  linear_->setRange(0.0, 100000.0);  // past a device's rating only with passivity control (clampGains)
+  linear_->setDecimals(0);
+  linear_->setSingleStep(100.0);
+  linear_->setSuffix(" N/m");
+  linear_->setKeyboardTracking(false);
+  linear_->setToolTip("Linear stiffness k_lin of the spring between device and proxy (paper eq. 5)");
+  torsional_ = new QDoubleSpinBox(coupling);
+  torsional_->setObjectName("torsionalStiffness");
+  torsional_->setRange(0.0, 50.0);
+  torsional_->setDecimals(3);
+  torsional_->setSingleStep(0.1);
+  torsional_->setSuffix(QString::fromUtf8(" N\u00b7m/rad"));
+  torsional_->setKeyboardTracking(false);
+  torsional_->setToolTip("Torsional stiffness k_ang of the coupling (paper eq. 5)");
+  coupling_form->addRow("Linear", linear_);
+  passivity_ = new QCheckBox("Passivity control", coupling);
+  passivity_->setObjectName("passivityControl");
+  passivity_->setToolTip(
+      "Time-domain passivity controller (Hannaford and Ryu 2002): removes energy the sampled, delayed "
+      "coupling would create, so stiffer contact stays stable; slightly softer feel on release. Off by default.");
+  coupling_form->addRow("Torsional", torsional_);
+  coupling_form->addRow(passivity_);
+  layout->addWidget(coupling);
+
+  auto* device = new QGroupBox("Device", this);
+  auto* device_layout = new QVBoxLayout(device);
+  auto* device_row = new QHBoxLayout();
+  device_choice_ = new QComboBox(device);
+  device_choice_->setObjectName("deviceChoice");
+  device_choice_->setSizeAdjustPolicy(QComboBox::AdjustToMinimumContentsLengthWithIcon);
+  device_choice_->setMinimumContentsLength(18);
+  device_choice_->setPlaceholderText("Device named by the scene");
+  device_choice_->setToolTip("The device that drives the tool: the simulated one or a connected haptic device");
+  rescan_ = new QPushButton("Rescan", device);
+  rescan_->setObjectName("rescanDevices");
+  rescan_->setToolTip("List the connected devices again");
+  device_row->addWidget(device_choice_, 1);
+  device_row->addWidget(rescan_);
+  device_layout->addLayout(device_row);
+  device_name_ = new QLabel("-", device);
+  device_name_->setObjectName("deviceName");
+  device_name_->setWordWrap(true);
+  device_limits_ = new QLabel("", device);
+  device_limits_->setObjectName("deviceLimits");
+  device_limits_->setWordWrap(true);
+  device_limits_->setTextInteractionFlags(Qt::TextSelectableByMouse);
+  device_layout->addWidget(device_name_);
+  device_layout->addWidget(device_limits_);
+  layout->addWidget(device);
+  layout->addStretch(1);
+
+  spacing_timer_ = new QTimer(this);
+  spacing_timer_->setSingleShot(true);
+  spacing_timer_->setInterval(400);
+
+  connect(start_stop_, &QPushButton::clicked, this, [this] { emit startStopRequested(!running_); });
+  connect(reset_device_, &QPushButton::clicked, this, &HapticsPanel::resetDeviceRequested);
+  connect(rescan_, &QPushButton::clicked, this, &HapticsPanel::rescanRequested);
+  connect(device_choice_, &QComboBox::activated, this, &HapticsPanel::deviceChoiceRequested);
+  connect(tool_, &QComboBox::currentIndexChanged, this, [this](int index) {
+    if (!updating_ && index >= 0) emit toolRequested(index, pointSpacing_m());
+  });
+  connect(spacing_mm_, &QDoubleSpinBox::valueChanged, this, [this] {
+    if (!updating_) spacing_timer_->start();
+  });
+  connect(spacing_timer_, &QTimer::timeout, this, [this] { emit toolRequested(currentTool(), pointSpacing_m()); });
+  auto gains_edited = [this] {
+    if (!updating_) emit gainsChanged(gains());
+  };
+  connect(linear_, &QDoubleSpinBox::valueChanged, this, gains_edited);
+  connect(torsional_, &QDoubleSpinBox::valueChanged, this, gains_edited);
+  connect(passivity_, &QCheckBox::toggled, this, gains_edited);
+  setRunning(false, false);
+}
+
+void HapticsPanel::setTools(const std::vector<ToolChoice>& tools, int current) {
+  updating_ = true;
+  tool_->clear();
+  for (const ToolChoice& t : tools) {
+    tool_->addItem(QString::fromStdString(t.label));
+    QString tip = QString::fromStdString(t.mesh);
+    if (!t.credit.empty()) tip += "\n" + QString::fromStdString(t.credit);
+    tool_->setItemData(tool_->count() - 1, tip, Qt::ToolTipRole);
+  }
+  tool_->setCurrentIndex(current);
+  updating_ = false;
+}
+
+int HapticsPanel::currentTool() const { return tool_->currentIndex(); }
+
+void HapticsPanel::setPointShell(double spacing_m, std::size_t point_count) {
+  updating_ = true;
+  spacing_mm_->setValue(spacing_m * 1e3);
+  updating_ = false;
+  points_->setText(QString::number(static_cast<qulonglong>(point_count)));
+}
+
+double HapticsPanel::pointSpacing_m() const { return spacing_mm_->value() * 1e-3; }
+
+void HapticsPanel::setBuilding(bool building) {
+  if (building) points_->setText("building...");
+  tool_->setEnabled(!building);
+}
+
+void HapticsPanel::setGains(const haptics::CouplingGains& gains) {
+  updating_ = true;
+  linear_->setValue(gains.linear_N_per_m);
+  torsional_->setValue(gains.angular_Nm_per_rad);
+  passivity_->setChecked(gains.passivity_control);
+  updating_ = false;
+}
+
+haptics::CouplingGains HapticsPanel::gains() const {
+  haptics::CouplingGains g;
+  g.linear_N_per_m = linear_->value();
+  g.angular_Nm_per_rad = torsional_->value();
+  g.passivity_control = passivity_->isChecked();
+  return g;
+}
+
+void HapticsPanel::setRunning(bool running, bool available) {
+  running_ = running;
+  start_stop_->setEnabled(available);
+  start_stop_->setText(running ? "Stop haptics" : "Start haptics");
+  start_stop_->setChecked(running);
+}
+
+void HapticsPanel::showSession(const runtime::Session& session, const std::vector<ToolChoice>& tools, int tool_index,
+                               const QString& hardware_limits, bool replaying) {
+  setRunning(session.hapticsRunning(), session.hapticThread() != nullptr && !replaying);
+  setGains(session.gains());
+  if (session.hasScene()) {
+    setTools(tools, tool_index);
+    const auto& tool = session.live().tool;
+    setPointShell(session.live().pointSpacing_m(), tool != nullptr ? tool->point_shell.size() : std::size_t{0});
+  }
+  QString name = "No device: haptics off";
+  QString limits;
+  if (const runtime::Device* device = session.device()) {
+    name = QString::fromStdString(device->name());
+    limits = hardware_limits;
+    if (limits.isEmpty()) {
+      if (session.simulatedDevice() != nullptr) limits = "Moved with the mouse and keys; its force is computed and shown, not felt.";
+      const QString reported = deviceLimitsText(*device);
+      if (!reported.isEmpty()) limits += (limits.isEmpty() ? "" : "\n") + reported;
+    }
+  }
+  setDevice(name, limits);
+}
+
+void HapticsPanel::setDevice(const QString& name, const QString& limits) {
+  device_name_->setText(name);
+  device_limits_->setText(limits);
+  device_limits_->setVisible(!limits.isEmpty());
+}
+
+void HapticsPanel::setDeviceChoices(const QStringList& labels, int current, const QString& problems) {
+  const QSignalBlocker block(device_choice_);
+  device_choice_->clear();
+  device_choice_->addItems(labels);
+  device_choice_->setCurrentIndex(current);
+  const QString tip = "The device that drives the tool: the simulated one or a connected haptic device";
+  device_choice_->setToolTip(problems.isEmpty() ? tip : tip + "\n\nProblems while listing devices:\n" + problems);
+  rescan_->setToolTip(problems.isEmpty() ? "List the connected devices again" : problems);
+}
+
+void HapticsPanel::setDeviceChoice(int index) {
+  const QSignalBlocker block(device_choice_);
+  device_choice_->setCurrentIndex(index);
+}
+
+}  // namespace vh::ui

@@ -1,0 +1,98 @@
+#include "vh/ui/panels/isovalue_bar.h"
+
+#include <algorithm>
+#include <cmath>
+
+#include <QDoubleSpinBox>
+#include <QHBoxLayout>
+#include <QLabel>
+#include <QSignalBlocker>
+
+#include "vh/ui/panels/histogram_slider.h"
+
+namespace vh::ui {
+namespace {
+
+constexpr int kSliderSteps = 1000;
+
+int decimalsFor(double range) {
+  if (range >= 100.0) return 0;
+  if (range >= 1.0) return 2;
+  return 4;
+}
+
+}  // namespace
+
+IsovalueBar::IsovalueBar(runtime::Session& session, QWidget* parent) : QWidget(parent), session_(session) {
+  auto* layout = new QHBoxLayout(this);
+  layout->setContentsMargins(0, 0, 0, 0);
+  label_ = new QLabel("Isovalue", this);
+  slider_ = new HistogramSlider(this);
+  slider_->setObjectName("isovalueSlider");
+  slider_->setRange(0, kSliderSteps);
+  slider_->setMinimumWidth(240);
+  slider_->setToolTip(
+      "Isosurface value: the rendered and the felt surface follow it live. Behind the slider: the "
+      "volume's histogram (log scale).");
+  spin_ = new QDoubleSpinBox(this);
+  spin_->setObjectName("isovalueSpinBox");
+  spin_->setKeyboardTracking(false);
+  spin_->setMinimumWidth(90);
+  spin_->setToolTip("Isovalue in the data's units (HU for CT)");
+  layout->addWidget(label_);
+  layout->addWidget(slider_, 1);
+  layout->addWidget(spin_);
+
+  connect(slider_, &QSlider::valueChanged, this, [this](int position) { session_.setIsovalue(sliderToValue(position)); });
+  connect(slider_, &QSlider::sliderPressed, this, &IsovalueBar::dragStarted);
+  connect(slider_, &QSlider::sliderReleased, this, &IsovalueBar::dragEnded);
+  connect(spin_, &QDoubleSpinBox::valueChanged, this, [this](double value) { session_.setIsovalue(value); });
+  observer_ = session_.addObserver([this](runtime::SessionChange what) { showSession(what); });
+  showSession(runtime::SessionChange::kScene);
+}
+
+IsovalueBar::~IsovalueBar() { session_.removeObserver(observer_); }
+
+void IsovalueBar::setHistogram(const Histogram& histogram, const std::string& unit) {
+  label_->setText(QString::fromStdString(unit.empty() ? "Isovalue" : "Isovalue [" + unit + "]"));
+  const auto [lo, hi] = session_.valueRange();
+  slider_->setHistogram(histogram, lo, hi, unit == "HU");
+}
+
+void IsovalueBar::step(int direction) { session_.setIsovalue(session_.isovalue() + direction * spin_->singleStep()); }
+
+double IsovalueBar::sliderToValue(int position) const {
+  const auto [lo, hi] = session_.valueRange();
+  return lo + (hi - lo) * static_cast<double>(position) / kSliderSteps;
+}
+
+int IsovalueBar::valueToSlider(double value) const {
+  const auto [lo, hi] = session_.valueRange();
+  const double t = (value - lo) / (hi - lo);
+  return static_cast<int>(std::lround(std::clamp(t, 0.0, 1.0) * kSliderSteps));
+}
+
+void IsovalueBar::showSession(runtime::SessionChange what) {
+  if (!runtime::has(what, runtime::SessionChange::kScene) && !runtime::has(what, runtime::SessionChange::kIsovalue)) {
+    return;
+  }
+  const bool on = session_.hasScene();
+  slider_->setEnabled(on);
+  spin_->setEnabled(on);
+  const QSignalBlocker block_slider(slider_);
+  const QSignalBlocker block_spin(spin_);
+  if (runtime::has(what, runtime::SessionChange::kScene)) {
+    const auto [lo, hi] = session_.valueRange();
+    const double range = hi - lo;
+    spin_->setDecimals(decimalsFor(range));
+    spin_->setRange(lo, hi);
+    spin_->setSingleStep(range >= 100.0 ? std::max(1.0, std::round(range / 200.0)) : range / 200.0);
+    if (!on) slider_->clearHistogram();
+  }
+  if (on) {
+    spin_->setValue(session_.isovalue());
+    slider_->setValue(valueToSlider(session_.isovalue()));
+  }
+}
+
+}  // namespace vh::ui

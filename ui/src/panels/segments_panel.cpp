@@ -1,0 +1,158 @@
+// The Segments dock's panel (see segments_panel.h).
+#include "vh/ui/panels/segments_panel.h"
+
+#include <QCheckBox>
+#include <QDoubleSpinBox>
+#include <QFormLayout>
+#include <QHeaderView>
+#include <QLabel>
+#include <QPixmap>
+#include <QPushButton>
+#include <QTableWidget>
+#include <QVBoxLayout>
+
+namespace vh::ui {
+namespace {
+
+QString q(const std::string& s) { return QString::fromStdString(s); }
+
+QIcon swatch(const std::array<double, 3>& rgb) {
+  QPixmap p(14, 14);
+  p.fill(QColor::fromRgbF(static_cast<float>(rgb[0]), static_cast<float>(rgb[1]), static_cast<float>(rgb[2])));
+  return QIcon(p);
+}
+
+}  // namespace
+
+SegmentsPanel::SegmentsPanel(QWidget* parent) : QWidget(parent) {
+  auto* layout = new QVBoxLayout(this);
+  open_ = new QPushButton("Open Segmentation...", this);
+  open_->setToolTip("A 3D Slicer segmentation (.seg.nrrd) or a label-map NRRD on the open scan's patient frame");
+  source_ = new QLabel(this);
+  source_->setWordWrap(true);
+  table_ = new QTableWidget(0, 4, this);
+  table_->setHorizontalHeaderLabels({"Segment", "Felt", "Shown", "Critical"});
+  table_->horizontalHeaderItem(kFelt)->setToolTip("Feel this segment's surface instead of the scan's isosurface");
+  table_->horizontalHeaderItem(kShown)->setToolTip("Draw this segment as a coloured surface beside the scan");
+  table_->horizontalHeaderItem(kCritical)->setToolTip("Alert (and record an event) when the tool touches it");
+  table_->horizontalHeader()->setSectionResizeMode(kName, QHeaderView::Stretch);
+  for (int c = kFelt; c <= kCritical; ++c) table_->horizontalHeader()->setSectionResizeMode(c, QHeaderView::ResizeToContents);
+  table_->verticalHeader()->hide();
+  table_->setSelectionMode(QAbstractItemView::NoSelection);
+  table_->setEditTriggers(QAbstractItemView::NoEditTriggers);
+  auto* form = new QFormLayout;
+  smoothing_ = new QDoubleSpinBox(this);
+  smoothing_->setRange(0.0, 3.0);
+  smoothing_->setSingleStep(0.25);
+  smoothing_->setValue(1.0);
+  smoothing_->setSuffix(" voxel");
+  smoothing_->setToolTip("Gaussian sigma of the felt surface: 0 keeps the voxels' steps; 1 smooths them "
+                         "and stays within about half a voxel of the segment");
+  form->addRow("Smoothing:", smoothing_);
+  sound_ = new QCheckBox("Sound when a critical segment is touched", this);
+  touched_ = new QLabel("Touching: nothing", this);
+  touched_->setWordWrap(true);
+  layout->addWidget(open_);
+  layout->addWidget(source_);
+  layout->addWidget(table_, 1);
+  layout->addLayout(form);
+  layout->addWidget(sound_);
+  layout->addWidget(touched_);
+
+  connect(table_, &QTableWidget::itemChanged, this, [this](QTableWidgetItem*) {
+    if (!filling_) emit choicesChanged(choices());
+  });
+  connect(smoothing_, &QDoubleSpinBox::editingFinished, this, [this] {
+    if (!filling_) emit choicesChanged(choices());
+  });
+  connect(open_, &QPushButton::clicked, this, &SegmentsPanel::openRequested);
+  showSegments(nullptr);
+}
+
+void SegmentsPanel::showSegments(const runtime::SegmentSet* set) {
+  filling_ = true;
+  table_->setRowCount(0);
+  names_.clear();
+  critical_.clear();
+  if (set == nullptr) {
+    source_->setText("No segmentation. Open a 3D Slicer segmentation (.seg.nrrd) or a label map to feel and "
+                     "show its segments.");
+    table_->setEnabled(false);
+    smoothing_->setEnabled(false);
+    filling_ = false;
+    setTouched(-1);
+    return;
+  }
+  const auto& seg = set->segmentation();
+  source_->setText(QString("%1: %2 segment(s)%3")
+                       .arg(q(seg.source.filename().string()))
+                       .arg(seg.segments.size())
+                       .arg(set->felt().empty() ? QString("; the scan's isosurface is felt")
+                                                : QString("; the felt segments replace the scan's isosurface")));
+  table_->setEnabled(true);
+  smoothing_->setEnabled(true);
+  smoothing_->setValue(set->smoothingVoxels());
+  table_->setRowCount(static_cast<int>(seg.segments.size()));
+  for (int s = 0; s < static_cast<int>(seg.segments.size()); ++s) {
+    const io::SegmentInfo& info = seg.segments[static_cast<std::size_t>(s)];
+    auto* name = new QTableWidgetItem(swatch(info.color_rgb), q(info.name));
+    name->setToolTip(QString("%1, label %2, layer %3, %4 voxels")
+                         .arg(q(info.id))
+                         .arg(info.label_value)
+                         .arg(info.layer)
+                         .arg(static_cast<qulonglong>(info.voxel_count)));
+    table_->setItem(s, kName, name);
+    const auto check = [&](Column c, bool on) {
+      auto* item = new QTableWidgetItem;
+      item->setFlags(Qt::ItemIsUserCheckable | Qt::ItemIsEnabled);
+      item->setCheckState(on ? Qt::Checked : Qt::Unchecked);
+      table_->setItem(s, c, item);
+    };
+    check(kFelt, set->isFelt(s));
+    check(kShown, set->isShown(s));
+    check(kCritical, set->isCritical(s));
+    names_.push_back(q(info.name));
+    critical_.push_back(set->isCritical(s));
+  }
+  filling_ = false;
+  setTouched(touched_segment_);
+}
+
+void SegmentsPanel::setTouched(int segment) {
+  touched_segment_ = segment;
+  for (int r = 0; r < table_->rowCount(); ++r) {
+    if (QTableWidgetItem* item = table_->item(r, kName)) {
+      QFont f = item->font();
+      f.setBold(r == segment);
+      const QSignalBlocker block(table_);
+      item->setFont(f);
+    }
+  }
+  if (segment < 0 || static_cast<std::size_t>(segment) >= names_.size()) {
+    touched_->setText("Touching: nothing");
+    touched_->setStyleSheet({});
+    return;
+  }
+  const bool critical = critical_[static_cast<std::size_t>(segment)];
+  touched_->setText("Touching: " + names_[static_cast<std::size_t>(segment)] + (critical ? " (CRITICAL)" : ""));
+  touched_->setStyleSheet(critical ? "color: white; background: #c0392b; font-weight: bold; padding: 2px;" : "");
+}
+
+SegmentChoices SegmentsPanel::choices() const {
+  SegmentChoices c;
+  c.smoothing_voxels = smoothing_->value();
+  for (int r = 0; r < table_->rowCount(); ++r) {
+    const auto on = [&](Column col) {
+      const QTableWidgetItem* item = table_->item(r, col);
+      return item != nullptr && item->checkState() == Qt::Checked;
+    };
+    if (on(kFelt)) c.felt.push_back(r);
+    if (on(kShown)) c.shown.push_back(r);
+    if (on(kCritical)) c.critical.push_back(r);
+  }
+  return c;
+}
+
+bool SegmentsPanel::alertSound() const { return sound_->isChecked(); }
+
+}  // namespace vh::ui

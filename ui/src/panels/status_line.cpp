@@ -1,0 +1,102 @@
+#include "vh/ui/panels/status_line.h"
+
+#include <QHBoxLayout>
+#include <QLabel>
+#include <QProgressBar>
+#include <QStatusBar>
+#include <QToolButton>
+
+namespace vh::ui {
+
+QString hapticStatusText(const runtime::Session& session, const runtime::HapticSnapshot* snapshot,
+                         const QString& replaying) {
+  if (!session.hasScene()) return "No scan open";
+  if (!replaying.isEmpty()) return "Replaying " + replaying + ": haptics stopped (Close Replay in the Replay dock to go live)";
+  if (session.hapticThread() == nullptr) return "Haptics off: the scene has no device";
+  if (!session.hapticsRunning()) return "Haptic thread stopped (Haptics > Run, Ctrl+H)";
+  if (snapshot == nullptr) return "Haptic thread starting...";
+  // Two threads (paper section 3.2): the coupling thread renders the force at the device's
+  // rate, the solver thread moves the proxy (HapticRenderer::tick()) at its own.
+  const runtime::HapticSnapshot& s = *snapshot;
+  QString text =
+      QString::fromUtf8("Coupling %1 Hz (jitter %2 \u00b5s, misses %3)  |  Solver %4 Hz (tick %5 / %6 \u00b5s "
+                        "mean / max, misses %7)  |  contacts %8  |  |F| %9 N  |  |\u03c4| %10 N\u00b7m")
+          .arg(s.coupling.rate_Hz, 0, 'f', 0)
+          .arg(s.coupling.jitter_us, 0, 'f', 0)
+          .arg(static_cast<qulonglong>(s.coupling.deadline_misses))
+          .arg(s.solver.rate_Hz, 0, 'f', 0)
+          .arg(s.solver.mean_tick_us, 0, 'f', 1)
+          .arg(s.solver.max_tick_us, 0, 'f', 1)
+          .arg(static_cast<qulonglong>(s.solver.deadline_misses))
+          .arg(s.contacts)
+          .arg(s.force_W_N.norm(), 0, 'f', 2)
+          .arg(s.torque_W_Nm.norm(), 0, 'f', 4);
+  // The structure touched.
+  if (const auto& segments = session.live().segments; segments != nullptr && s.segment >= 0) {
+    text += "  |  touching " + QString::fromStdString(segments->name(s.segment)) +
+            (segments->isCritical(s.segment) ? " (CRITICAL)" : "");
+  }
+  if (s.skipped_samples > 0) {
+    text += QString("  |  solver skipped %1 device samples").arg(static_cast<qulonglong>(s.skipped_samples));
+  }
+  return text;
+}
+
+StatusLine::StatusLine(QStatusBar* bar) : QObject(bar) {
+  label_ = new QLabel(bar);
+  label_->setObjectName("hapticStatus");
+  label_->setTextInteractionFlags(Qt::TextSelectableByMouse);
+  label_->setToolTip(
+      "Coupling: the thread that reads the device and sends the force (virtual coupling), at the "
+      "device's rate; jitter is the largest deviation of its wake-up interval from the period over "
+      "the last second.\nSolver: the thread that moves the proxy against the surface; tick is its "
+      "computing time per tick over the last second.\nMisses: ticks that started more than one period "
+      "late (total).");
+  bar->addWidget(label_, 1);
+  // A message (a load notice, "Loading cancelled") replaces the statistics while it lasts; the
+  // status bar alone leaves both painted over each other once the label's text changes.
+  connect(bar, &QStatusBar::messageChanged, label_, [this](const QString& message) { label_->setVisible(message.isEmpty()); });
+
+  progress_box_ = new QWidget(bar);
+  auto* layout = new QHBoxLayout(progress_box_);
+  layout->setContentsMargins(0, 0, 0, 0);
+  progress_label_ = new QLabel(progress_box_);
+  progress_label_->setObjectName("progressLabel");
+  progress_bar_ = new QProgressBar(progress_box_);
+  progress_bar_->setObjectName("progressBar");
+  progress_bar_->setFixedWidth(160);
+  progress_bar_->setMaximumHeight(16);
+  progress_cancel_ = new QToolButton(progress_box_);
+  progress_cancel_->setObjectName("progressCancel");
+  progress_cancel_->setText("Cancel");
+  progress_cancel_->setToolTip("Stop loading; what is open stays (Esc)");
+  layout->addWidget(progress_label_);
+  layout->addWidget(progress_bar_);
+  layout->addWidget(progress_cancel_);
+  bar->addPermanentWidget(progress_box_);
+  progress_box_->hide();
+  connect(progress_cancel_, &QToolButton::clicked, this, &StatusLine::cancelRequested);
+}
+
+void StatusLine::showHaptics(const runtime::Session& session, const runtime::HapticSnapshot* snapshot,
+                             const QString& replaying) {
+  label_->setText(hapticStatusText(session, snapshot, replaying));
+}
+
+QString StatusLine::text() const { return label_->text(); }
+
+void StatusLine::showProgress(const QString& stage, int percent, bool cancellable) {
+  progress_label_->setText(stage);
+  if (percent < 0) {
+    progress_bar_->setRange(0, 0);  // busy indicator
+  } else {
+    progress_bar_->setRange(0, 100);
+    progress_bar_->setValue(percent);
+  }
+  progress_cancel_->setVisible(cancellable);
+  progress_box_->show();
+}
+
+void StatusLine::hideProgress() { progress_box_->hide(); }
+
+}  // namespace vh::ui

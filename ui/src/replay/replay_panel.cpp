@@ -1,0 +1,563 @@
+#include "vh/ui/replay/replay_panel.h"
+
+#include <algorithm>
+#include <cmath>
+#include <iostream>
+#include <stdexcept>
+
+#include <QAction>
+#include <QApplication>
+#include <QComboBox>
+#include <QDir>
+#include <QDockWidget>
+#include <QFileDialog>
+#include <QFileInfo>
+#include <QHBoxLayout>
+#include <QInputDialog>
+#include <QLabel>
+#include <QListWidget>
+#include <QMainWindow>
+#include <QMenu>
+#include <QMessageBox>
+#include <QMouseEvent>
+#include <QPainter>
+#include <QPainterPath>
+#include <QProgressDialog>
+#include <QPushButton>
+#include <QSignalBlocker>
+#include <QStatusBar>
+#include <QTimer>
+#include <QVBoxLayout>
+
+#include <nlohmann/json.hpp>
+#include <vtkRenderer.h>
+
+#include "vh/runtime/session_metadata.h"
+#include "vh/runtime/scene.h"
+#include "vh/runtime/session.h"
+#include "vh/ui/preferences.h"
+#include "vh/ui/view/scene_view.h"
+#include "vh/ui/view/vtk_view.h"
+#include "vh/ui/export/media_export.h"
+#include "vh/ui/view/scene_actors.h"
+
+namespace vh::ui {
+namespace {
+
+namespace fs = std::filesystem;
+
+constexpr int kPlayPeriodMs = 33;
+constexpr double kSpeeds[] = {0.25, 0.5, 1.0, 2.0, 4.0};
+
+QString q(const std::string& s) { return QString::fromStdString(s); }
+
+/// A marker event's label ({"label": ...}), else its detail text.
+QString markerLabel(const runtime::RecordingEvent& e) {
+  try {
+    const nlohmann::json j = nlohmann::json::parse(e.detail_json);
+    if (j.is_object() && j.contains("label") && j["label"].is_string()) return q(j["label"].get<std::string>());
+  } catch (const std::exception&) {
+  }
+  return q(e.detail_json);
+}
+
+}  // namespace
+
+// ---- ForceTimeline -------------------------------------------------------------------------------
+
+ForceTimeline::ForceTimeline(QWidget* parent) : QWidget(parent) {
+  setObjectName("forceTimeline");
+  setMinimumHeight(90);
+  setMouseTracking(false);
+  setToolTip("|F| over the recording; click or drag to move in time. Lines: markers.");
+}
+
+QSize ForceTimeline::sizeHint() const { return {600, 120}; }
+
+void ForceTimeline::setSamples(std::vector<double> time_s, std::vector<double> force_N) {
+  if (time_s.size() != force_N.size()) throw std::invalid_argument("ForceTimeline: times and forces differ in length");
+  time_s_ = std::move(time_s);
+  force_N_ = std::move(force_N);
+  max_force_N_ = 0.0;
+  for (double f : force_N_) {
+    if (std::isfinite(f)) max_force_N_ = std::max(max_force_N_, f);
+  }
+  update();
+}
+
+void ForceTimeline::setMarkers(std::vector<double> time_s, QStringList labels) {
+  marker_s_ = std::move(time_s);
+  marker_labels_ = std::move(labels);
+  update();
+}
+
+void ForceTimeline::setCursor_s(double t_s) {
+  cursor_s_ = t_s;
+  update();
+}
+
+QRectF ForceTimeline::plotRect() const { return QRectF(50.0, 6.0, std::max(10.0, width() - 58.0), std::max(10.0, height() - 24.0)); }
+
+double ForceTimeline::timeAtX(double x) const {
+  if (time_s_.empty()) return 0.0;
+  const QRectF r = plotRect();
+  const double u = std::clamp((x - r.left()) / r.width(), 0.0, 1.0);
+  return time_s_.front() + u * duration_s();
+}
+
+double ForceTimeline::xAtTime(double t_s) const {
+  const QRectF r = plotRect();
+  const double d = duration_s();
+  if (time_s_.empty() || !(d > 0.0)) return r.left();
+  return r.left() + std::clamp((t_s - time_s_.front()) / d, 0.0, 1.0) * r.width();
+}
+
+void ForceTimeline::paintEvent(QPaintEvent*) {
+  QPainter p(this);
+  p.setRenderHint(QPainter::Antialiasing, true);
+  p.fillRect(rect(), QColor(24, 27, 33));
+  const QRectF r = plotRect();
+  p.setPen(QColor(70, 76, 88));
+  p.drawRect(r);
+  p.setPen(QColor(180, 186, 196));
+  const double top_N = max_force_N_ > 0.0 ? max_force_N_ * 1.1 : 1.0;
+  p.drawText(QRectF(0, r.top() - 2, 46, 14), Qt::AlignRight | Qt::AlignTop, QString::number(top_N, 'g', 2) + " N");
+  p.drawText(QRectF(0, r.bottom() - 12, 46, 14), Qt::AlignRight | Qt::AlignBottom, "0 N");
+  if (!time_s_.empty()) {
+    p.drawText(QRectF(r.left(), r.bottom() + 2, 80, 14), Qt::AlignLeft | Qt::AlignTop,
+               QString("%1 s").arg(time_s_.front(), 0, 'f', 1));
+    p.drawText(QRectF(r.right() - 80, r.bottom() + 2, 80, 14), Qt::AlignRight | Qt::AlignTop,
+               QString("%1 s").arg(time_s_.back(), 0, 'f', 1));
+  }
+  // |F|: per pixel column the largest value of the samples under it.
+  const int columns = std::max(1, static_cast<int>(r.width()));
+  if (time_s_.size() >= 2) {
+    std::vector<double> column_max(static_cast<std::size_t>(columns), -1.0);
+    for (std::size_t i = 0; i < time_s_.size(); ++i) {
+      const int c = std::clamp(static_cast<int>(xAtTime(time_s_[i]) - r.left()), 0, columns - 1);
+      const double f = std::isfinite(force_N_[i]) ? force_N_[i] : 0.0;
+      column_max[static_cast<std::size_t>(c)] = std::max(column_max[static_cast<std::size_t>(c)], f);
+    }
+    QPainterPath curve;
+    curve.moveTo(r.left(), r.bottom());
+    double last = 0.0;
+    for (int c = 0; c < columns; ++c) {
+      double f = column_max[static_cast<std::size_t>(c)];
+      if (f < 0.0) f = last;  // no sample under this column: hold
+      last = f;
+      curve.lineTo(r.left() + c, r.bottom() - std::min(1.0, f / top_N) * r.height());
+    }
+    curve.lineTo(r.right(), r.bottom());
+    curve.closeSubpath();
+    p.fillPath(curve, QColor(240, 200, 60, 110));
+    p.setPen(QPen(QColor(250, 210, 70), 1.2));
+    p.drawPath(curve);
+  }
+  // Markers.
+  p.setPen(QPen(QColor(90, 200, 255), 1.0, Qt::DashLine));
+  for (std::size_t i = 0; i < marker_s_.size(); ++i) {
+    const double x = xAtTime(marker_s_[i]);
+    p.drawLine(QPointF(x, r.top()), QPointF(x, r.bottom()));
+    if (static_cast<qsizetype>(i) < marker_labels_.size()) {
+      p.drawText(QPointF(x + 3, r.top() + 12), marker_labels_[static_cast<qsizetype>(i)]);
+    }
+  }
+  // Cursor.
+  const double x = xAtTime(cursor_s_);
+  p.setPen(QPen(QColor(255, 80, 80), 2.0));
+  p.drawLine(QPointF(x, r.top()), QPointF(x, r.bottom()));
+}
+
+void ForceTimeline::mousePressEvent(QMouseEvent* event) {
+  if (event->button() == Qt::LeftButton && !time_s_.empty()) emit scrubbed(timeAtX(event->position().x()));
+}
+
+void ForceTimeline::mouseMoveEvent(QMouseEvent* event) {
+  if ((event->buttons() & Qt::LeftButton) != 0 && !time_s_.empty()) emit scrubbed(timeAtX(event->position().x()));
+}
+
+// ---- ReplayController ----------------------------------------------------------------------------
+
+ReplayController::ReplayController(runtime::Session& session, SceneView& view, Preferences& prefs, QMainWindow* window,
+                                   QDockWidget* tab_with)
+    : QObject(window), session_(session), view_(view), prefs_(prefs), window_(window), tab_with_(tab_with) {
+  setObjectName("replayController");
+  play_timer_ = new QTimer(this);
+  play_timer_->setInterval(kPlayPeriodMs);
+  connect(play_timer_, &QTimer::timeout, this, &ReplayController::advance);
+}
+
+ReplayController::~ReplayController() = default;
+
+void ReplayController::addFileMenuActions(QMenu* file) {
+  QAction* open = file->addAction("Open Re&cording...", this, [this] {
+    const QString path = QFileDialog::getOpenFileName(window_, "Open a session recording", prefs_.last_folder,
+                                                      "Session recordings (*.vhrec);;All files (*)");
+    if (!path.isEmpty()) openRecording(fs::path(path.toStdString()));
+  });
+  open->setObjectName("openRecordingAction");
+  open->setShortcut(QKeySequence("Ctrl+Shift+P"));
+  QMenu* exports = file->addMenu("E&xport Recording");
+  exports->setObjectName("exportRecordingMenu");
+  const char* names[] = {"&CSV (one row per tick)...", "&JSON (metadata, summary, events)...",
+                         "&Video (Ogg/Theora) of the Replay...", "&Screenshot (PNG) of the View..."};
+  for (int kind = 0; kind < 4; ++kind) {
+    QAction* a = exports->addAction(names[kind], this, [this, kind] { exportFromMenu(kind); });
+    export_actions_.push_back(a);
+  }
+  export_actions_[2]->setToolTip("Renders the replayed recording frame by frame from the view's camera");
+  updateActions();
+}
+
+void ReplayController::updateActions() {
+  if (export_actions_.size() == 4) export_actions_[2]->setEnabled(active_);
+}
+
+bool ReplayController::openRecording(const fs::path& path) {
+  const QString file = q(path.string());
+  runtime::Recording recording;
+  try {
+    recording = runtime::readRecording(path);
+  } catch (const std::exception& e) {
+    emit errorReported(file, QString::fromUtf8(e.what()));
+    return false;
+  }
+  if (recording.records.empty()) {
+    emit errorReported(file, file + ": the recording holds no ticks to replay");
+    return false;
+  }
+  runtime::SceneSpec spec;
+  try {
+    spec = runtime::sceneFromSessionMetadata(recording.metadata_json);
+  } catch (const std::exception& e) {
+    emit errorReported(file, file + ": cannot reload the recorded scene: " + QString::fromUtf8(e.what()));
+    return false;
+  }
+  // A simulated device (not started) so the device tool is drawn and Close Replay goes live.
+  spec.device = runtime::DeviceSpec{};
+  if (!recording.warnings.empty()) {
+    QStringList lines;
+    for (const std::string& w : recording.warnings) {
+      lines << q(w);
+      std::cerr << "volume-haptics: " << path.string() << ": warning: " << w << '\n';
+    }
+    emit noticeRequested("Damaged recording: " + lines.join("; "), 10000);
+    if (interactive_) {
+      auto* box = new QMessageBox(QMessageBox::Warning, "VolumeHaptics", "The recording is damaged at its end",
+                                  QMessageBox::Ok, window_);
+      box->setObjectName("recordingWarningBox");
+      box->setInformativeText(lines.join("\n") + "\n\nThe ticks before the damage are replayed.");
+      box->setAttribute(Qt::WA_DeleteOnClose);
+      box->open();
+    }
+  }
+  session_.stopHaptics();
+  pending_ = std::move(recording);
+  pending_path_ = path;
+  prefs_.last_folder = QFileInfo(file).absolutePath();
+  emit openSceneRequested(spec, path);
+  return true;
+}
+
+void ReplayController::onLoadFailed() {
+  if (!pending_.has_value()) return;
+  pending_.reset();
+  // The scene shown before stays; so does its replay (when one was shown).
+  if (!active_) session_.startHaptics();
+}
+
+void ReplayController::onSceneShown() {
+  if (!pending_.has_value()) return;
+  recording_ = std::move(*pending_);
+  pending_.reset();
+  path_ = pending_path_;
+  session_.stopHaptics();
+  if (dock_ == nullptr) buildDock();
+  std::vector<double> t, f;
+  t.reserve(recording_.records.size());
+  f.reserve(recording_.records.size());
+  for (const runtime::TickRecord& r : recording_.records) {
+    t.push_back(r.time_s);
+    f.push_back(forceNormOf(r));
+  }
+  timeline_->setSamples(std::move(t), std::move(f));
+  marker_times_s_.clear();
+  QStringList labels;
+  marker_list_->clear();
+  for (const runtime::RecordingEvent& e : recording_.events) {
+    if (e.type != "marker") continue;
+    marker_times_s_.push_back(e.time_s);
+    labels << markerLabel(e);
+    marker_list_->addItem(QString("%1 s   %2").arg(e.time_s, 0, 'f', 3).arg(labels.back()));
+  }
+  timeline_->setMarkers(marker_times_s_, labels);
+  dock_->setWindowTitle("Replay: " + QFileInfo(q(path_.string())).fileName());
+  active_ = true;
+  dock_->show();
+  dock_->raise();
+  speed_box_->setCurrentIndex(2);
+  speed_ = 1.0;
+  setTime(recording_.records.front().time_s);
+  updateActions();
+  dock_->setToolTip(QString("%1: %2 ticks, %3 s, %4 markers")
+                        .arg(q(path_.string()))
+                        .arg(recording_.records.size())
+                        .arg(timeline_->duration_s(), 0, 'f', 2)
+                        .arg(marker_times_s_.size()));
+  emit replayStarted();
+}
+
+void ReplayController::onSceneTeardown() {
+  if (!active_) return;
+  pause();
+  active_ = false;
+  if (dock_ != nullptr) dock_->hide();
+  updateActions();
+  emit replayClosed();
+}
+
+void ReplayController::closeReplay() {
+  if (!active_) return;
+  onSceneTeardown();
+  if (session_.hasScene()) {
+    if (view_.hasScene()) view_.actors().setForce(Eigen::Vector3d::Zero(), Eigen::Vector3d::Zero());
+    session_.startHaptics();
+  }
+}
+
+void ReplayController::buildDock() {
+  auto* panel = new QWidget(window_);
+  auto* layout = new QVBoxLayout(panel);
+  layout->setContentsMargins(6, 4, 6, 4);
+  auto* row = new QHBoxLayout();
+  play_button_ = new QPushButton("Play", panel);
+  play_button_->setObjectName("replayPlay");
+  play_button_->setToolTip("Play / pause the recording (Space)");
+  play_button_->setShortcut(QKeySequence(Qt::Key_Space));
+  speed_box_ = new QComboBox(panel);
+  speed_box_->setObjectName("replaySpeed");
+  for (double s : kSpeeds) speed_box_->addItem(QString("%1x").arg(s), s);
+  speed_box_->setCurrentIndex(2);
+  readout_ = new QLabel(panel);
+  readout_->setObjectName("replayReadout");
+  readout_->setTextInteractionFlags(Qt::TextSelectableByMouse);
+  auto* close = new QPushButton("Close Replay", panel);
+  close->setObjectName("replayClose");
+  close->setToolTip("Back to live haptics on this scene");
+  row->addWidget(play_button_);
+  row->addWidget(new QLabel("Speed", panel));
+  row->addWidget(speed_box_);
+  row->addWidget(readout_, 1);
+  row->addWidget(close);
+  layout->addLayout(row);
+  auto* body = new QHBoxLayout();
+  timeline_ = new ForceTimeline(panel);
+  marker_list_ = new QListWidget(panel);
+  marker_list_->setObjectName("replayMarkers");
+  marker_list_->setToolTip("Markers: click one to jump to it");
+  marker_list_->setMaximumWidth(220);
+  body->addWidget(timeline_, 1);
+  body->addWidget(marker_list_);
+  layout->addLayout(body, 1);
+
+  dock_ = new QDockWidget("Replay", window_);
+  dock_->setObjectName("replayDock");
+  dock_->setWidget(panel);
+  dock_->setFeatures(QDockWidget::DockWidgetMovable | QDockWidget::DockWidgetFloatable);
+  window_->addDockWidget(Qt::BottomDockWidgetArea, dock_);
+  if (tab_with_ != nullptr) window_->tabifyDockWidget(tab_with_, dock_);
+
+  connect(play_button_, &QPushButton::clicked, this, [this] { playing() ? pause() : play(); });
+  connect(speed_box_, &QComboBox::currentIndexChanged, this,
+          [this](int i) { setSpeed(speed_box_->itemData(i).toDouble()); });
+  connect(close, &QPushButton::clicked, this, &ReplayController::closeReplay);
+  connect(timeline_, &ForceTimeline::scrubbed, this, [this](double t) {
+    pause();
+    setTime(t);
+  });
+  const auto jump = [this](int row_index) {
+    if (row_index < 0 || row_index >= static_cast<int>(marker_times_s_.size())) return;
+    pause();
+    setTime(marker_times_s_[static_cast<std::size_t>(row_index)]);
+  };
+  connect(marker_list_, &QListWidget::currentRowChanged, this, jump);
+  connect(marker_list_, &QListWidget::itemClicked, this,
+          [this, jump](QListWidgetItem* item) { jump(marker_list_->row(item)); });
+}
+
+void ReplayController::setTime(double t_s) {
+  if (!active_ || recording_.records.empty() || !session_.hasScene() || !view_.hasScene()) return;
+  const double first = recording_.records.front().time_s;
+  const double last = recording_.records.back().time_s;
+  time_s_ = std::clamp(std::isfinite(t_s) ? t_s : first, first, last);
+  index_ = recordIndexAt(recording_.records, time_s_);
+  const runtime::TickRecord& r = recording_.records[index_];
+  // The session owns the isovalue: the bar, the view and (when live again) the hand follow it.
+  // Ticks of felt segments carry the segments' level, not the scan's isovalue: not applied.
+  if (std::isfinite(r.isovalue) && !session_.live().feltSegments()) session_.setIsovalue(r.isovalue);
+  view_.show(toolFrameOf(r));  // the same picture as a live snapshot
+  timeline_->setCursor_s(time_s_);
+  readout_->setText(readout());
+  view_.noteMotion();
+  view_.requestRender();
+}
+
+QString ReplayController::readout() const {
+  if (recording_.records.empty()) return {};
+  const runtime::TickRecord& r = recording_.records[index_];
+  return QString::fromUtf8("t %1 / %2 s   tick %3   |F| %4 N   contacts %5")
+      .arg(r.time_s, 0, 'f', 3)
+      .arg(recording_.records.back().time_s, 0, 'f', 2)
+      .arg(static_cast<qulonglong>(r.tick))
+      .arg(forceNormOf(r), 0, 'f', 2)
+      .arg(r.contacts);
+}
+
+void ReplayController::play() {
+  if (!active_) return;
+  if (time_s_ >= recording_.records.back().time_s) setTime(recording_.records.front().time_s);
+  play_origin_s_ = time_s_;
+  play_clock_.start();
+  play_timer_->start();
+  if (play_button_ != nullptr) play_button_->setText("Pause");
+}
+
+void ReplayController::pause() {
+  play_timer_->stop();
+  if (play_button_ != nullptr) play_button_->setText("Play");
+}
+
+bool ReplayController::playing() const noexcept { return play_timer_->isActive(); }
+
+void ReplayController::setSpeed(double factor) {
+  speed_ = std::clamp(factor, 0.25, 4.0);
+  if (playing()) {
+    play_origin_s_ = time_s_;
+    play_clock_.start();
+  }
+  if (speed_box_ != nullptr) {
+    for (int i = 0; i < speed_box_->count(); ++i) {
+      if (speed_box_->itemData(i).toDouble() == speed_ && speed_box_->currentIndex() != i) {
+        const QSignalBlocker block(speed_box_);
+        speed_box_->setCurrentIndex(i);
+      }
+    }
+  }
+}
+
+void ReplayController::advance() {
+  const double t = play_origin_s_ + 1e-3 * static_cast<double>(play_clock_.elapsed()) * speed_;
+  setTime(t);
+  if (t >= recording_.records.back().time_s) pause();
+}
+
+// ---- Exports -------------------------------------------------------------------------------------
+
+void ReplayController::exportCsv(const fs::path& path) const {
+  if (!active_) throw std::logic_error("exportCsv: no recording is replayed");
+  runtime::writeRecordingCsv(recording_, path);
+}
+
+void ReplayController::exportJson(const fs::path& path) const {
+  if (!active_) throw std::logic_error("exportJson: no recording is replayed");
+  runtime::writeRecordingJson(recording_, path);
+}
+
+int ReplayController::exportVideo(const fs::path& path, double fps, int width, int height,
+                                  const std::function<bool(int, int)>& progress) {
+  if (!active_) throw std::logic_error("exportVideo: no recording is replayed");
+  if (width <= 0 || height <= 0) {
+    width = std::max(16, view_.widget()->width());
+    height = std::max(16, view_.widget()->height());
+  }
+  const double t_shown = time_s_;
+  int frames_written = 0;
+  {
+    RecordingFrameRenderer frames(sceneActorsSpecFor(session_.loaded(), session_.live()), width, height,
+                                  prefs_);
+    frames.copyCamera(view_.widget()->renderer()->GetActiveCamera());
+    frames_written = writeRecordingVideo(frames, recording_, path, fps, 0.0, -1.0, progress);
+  }
+  setTime(t_shown);
+  return frames_written;
+}
+
+void ReplayController::exportPng(const fs::path& path, int width, int height) {
+  if (!active_) throw std::logic_error("exportPng: no recording is replayed");
+  if (width <= 0 || height <= 0) {
+    width = std::max(16, view_.widget()->width());
+    height = std::max(16, view_.widget()->height());
+  }
+  RecordingFrameRenderer frames(sceneActorsSpecFor(session_.loaded(), session_.live()), width, height,
+                                prefs_);
+  frames.copyCamera(view_.widget()->renderer()->GetActiveCamera());
+  writeRecordingPng(frames, recording_, time_s_, path);
+}
+
+void ReplayController::exportFromMenu(int kind) {
+  const QString folder = path_.empty() ? prefs_.last_folder : q(path_.parent_path().string());
+  const QString stem = path_.empty() ? QString("session") : q(path_.stem().string());
+  try {
+    if (kind == 0 || kind == 1) {
+      runtime::Recording loaded;
+      const runtime::Recording* source = active_ ? &recording_ : nullptr;
+      if (source == nullptr) {
+        const QString in = QFileDialog::getOpenFileName(window_, "Export which recording?", folder,
+                                                        "Session recordings (*.vhrec)");
+        if (in.isEmpty()) return;
+        loaded = runtime::readRecording(fs::path(in.toStdString()));
+        source = &loaded;
+      }
+      const QString ext = kind == 0 ? "csv" : "json";
+      const QString out = QFileDialog::getSaveFileName(window_, "Export the recording as " + ext.toUpper(),
+                                                       QDir(folder).filePath(stem + "." + ext),
+                                                       ext.toUpper() + " files (*." + ext + ")");
+      if (out.isEmpty()) return;
+      if (kind == 0) {
+        runtime::writeRecordingCsv(*source, fs::path(out.toStdString()));
+      } else {
+        runtime::writeRecordingJson(*source, fs::path(out.toStdString()));
+      }
+      emit noticeRequested("Exported " + QFileInfo(out).fileName());
+      return;
+    }
+    if (kind == 2) {
+      if (!active_) return;
+      const QString out = QFileDialog::getSaveFileName(window_, "Export a video of the replay",
+                                                       QDir(folder).filePath(stem + ".ogv"), "Ogg/Theora video (*.ogv)");
+      if (out.isEmpty()) return;
+      bool ok = false;
+      const int fps = QInputDialog::getInt(window_, "Video", "Frames per second:", 30, 1, 120, 1, &ok);
+      if (!ok) return;
+      pause();
+      const double duration = timeline_->duration_s();
+      QProgressDialog progress("Rendering the video...", "Cancel", 0,
+                               static_cast<int>(std::floor(duration * fps)) + 1, window_);
+      progress.setWindowModality(Qt::WindowModal);
+      progress.setMinimumDuration(0);
+      const int n = exportVideo(fs::path(out.toStdString()), fps, 0, 0, [&](int done, int total) {
+        progress.setMaximum(total);
+        progress.setValue(done);
+        QApplication::processEvents();
+        return !progress.wasCanceled();
+      });
+      progress.reset();
+      emit noticeRequested(QString("Video written: %1 (%2 frames)").arg(QFileInfo(out).fileName()).arg(n));
+      return;
+    }
+    // Screenshot of the view.
+    const QString out = QFileDialog::getSaveFileName(window_, "Save a PNG of the view",
+                                                     QDir(folder).filePath(stem + ".png"), "PNG images (*.png)");
+    if (out.isEmpty()) return;
+    if (active_) {
+      exportPng(fs::path(out.toStdString()));
+    } else if (!view_.widget()->grabFrame().save(out, "PNG")) {
+      throw std::runtime_error(out.toStdString() + ": the PNG could not be written");
+    }
+    emit noticeRequested("Saved " + QFileInfo(out).fileName());
+  } catch (const std::exception& e) {
+    emit errorReported(q(path_.string()), QString::fromUtf8(e.what()));
+  }
+}
+
+}  // namespace vh::ui

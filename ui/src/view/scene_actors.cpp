@@ -1,0 +1,460 @@
+#include "vh/ui/view/scene_actors.h"
+
+#include <algorithm>
+#include <cmath>
+
+#include <vtkActor.h>
+#include <vtkArrowSource.h>
+#include <vtkCellArray.h>
+#include <vtkColorTransferFunction.h>
+#include <vtkContourValues.h>
+#include <vtkGPUVolumeRayCastMapper.h>
+#include <vtkImageData.h>
+#include <vtkMatrix4x4.h>
+#include <vtkPiecewiseFunction.h>
+#include <vtkPlane.h>
+#include <vtkPoints.h>
+#include <vtkPolyData.h>
+#include <vtkPolyDataMapper.h>
+#include <vtkPolyDataNormals.h>
+#include <vtkProperty.h>
+#include <vtkRenderWindow.h>
+#include <vtkRenderer.h>
+#include <vtkTextActor.h>
+#include <vtkTextProperty.h>
+#include <vtkVolume.h>
+#include <vtkVolumeProperty.h>
+
+namespace vh::ui {
+namespace {
+
+// Colours (RGB in [0, 1]).
+constexpr double kBone[3] = {0.93, 0.87, 0.74};
+constexpr double kSteel[3] = {0.62, 0.65, 0.70};
+constexpr double kDevice[3] = {0.30, 0.75, 1.00};
+constexpr double kContact[3] = {1.00, 0.25, 0.20};
+constexpr double kForce[3] = {1.00, 0.80, 0.10};
+
+vtkSmartPointer<vtkPolyData> polyDataFromMesh(const haptics::TriangleMesh& mesh) {
+  vtkNew<vtkPoints> points;
+  points->SetDataTypeToDouble();
+  points->SetNumberOfPoints(static_cast<vtkIdType>(mesh.vertices_T_m.size()));
+  for (std::size_t i = 0; i < mesh.vertices_T_m.size(); ++i) {
+    const Eigen::Vector3d& v = mesh.vertices_T_m[i];
+    points->SetPoint(static_cast<vtkIdType>(i), v.x(), v.y(), v.z());
+  }
+  vtkNew<vtkCellArray> polys;
+  polys->AllocateExact(static_cast<vtkIdType>(mesh.triangles.size()),
+                       static_cast<vtkIdType>(3 * mesh.triangles.size()));
+  for (const auto& t : mesh.triangles) {
+    const vtkIdType ids[3] = {t[0], t[1], t[2]};
+    polys->InsertNextCell(3, ids);
+  }
+  auto poly = vtkSmartPointer<vtkPolyData>::New();
+  poly->SetPoints(points);
+  poly->SetPolys(polys);
+  return poly;
+}
+
+/// 4x4 matrix of a pose (rotation and translation), row-major into VTK.
+void setMatrix(vtkMatrix4x4* m, const Eigen::Matrix3d& R, const Eigen::Vector3d& p) {
+  for (int r = 0; r < 3; ++r) {
+    for (int c = 0; c < 3; ++c) {
+      m->SetElement(r, c, R(r, c));
+    }
+    m->SetElement(r, 3, p(r));
+    m->SetElement(3, r, 0.0);
+  }
+  m->SetElement(3, 3, 1.0);
+}
+
+void setUserPose(vtkActor* actor, const haptics::Pose& X) {
+  vtkMatrix4x4* m = actor->GetUserMatrix();
+  if (m == nullptr) {
+    vtkNew<vtkMatrix4x4> fresh;
+    actor->SetUserMatrix(fresh);
+    m = actor->GetUserMatrix();
+  }
+  setMatrix(m, X.R_AB.normalized().toRotationMatrix(), X.p_AB_m);
+  m->Modified();
+  actor->Modified();
+}
+
+}  // namespace
+
+SceneActors::SceneActors(vtkRenderer* renderer, const SceneActorsSpec& spec) : renderer_(renderer) {
+  // --- Volume: GPU ray-cast isosurface, shaded, one bone colour, opaque at the surface.
+  double range[2] = {0.0, 1.0};
+  spec.image->GetScalarRange(range);
+  volume_mapper_->SetInputData(spec.image);
+  volume_mapper_->SetBlendModeToIsoSurface();
+  // Explicit quality control (setInteractive()): VTK's automatic adjustment splits the frame
+  // budget evenly over all props and picks poor still-frame sample distances for thin bone.
+  {
+    double spacing[3] = {1e-3, 1e-3, 1e-3};
+    spec.image->GetSpacing(spacing);
+    min_spacing_m_ = std::min({spacing[0], spacing[1], spacing[2]});
+  }
+  volume_mapper_->SetAutoAdjustSampleDistances(0);
+  volume_mapper_->SetLockSampleDistanceToInputSpacing(0);
+  applyQuality();
+  range_[0] = range[0];
+  range_[1] = range[1] > range[0] ? range[1] : range[0] + 1.0;
+  hounsfield_ = spec.hounsfield;
+  surface_rgb_[0] = kBone[0];
+  surface_rgb_[1] = kBone[1];
+  surface_rgb_[2] = kBone[2];
+  volume_property_->SetColor(colour_);
+  volume_property_->SetScalarOpacity(opacity_);
+  volume_property_->SetInterpolationTypeToLinear();
+  applyLook();
+  volume_property_->GetIsoSurfaceValues()->SetNumberOfContours(1);
+  volume_property_->GetIsoSurfaceValues()->SetValue(0, spec.isovalue);
+  volume_->SetMapper(volume_mapper_);
+  volume_->SetProperty(volume_property_);
+  {
+    // p_W = o + D (p_image - o)  =>  [D | o - D o].
+    double origin[3];
+    spec.image->GetOrigin(origin);
+    const Eigen::Vector3d o(origin[0], origin[1], origin[2]);
+    vtkNew<vtkMatrix4x4> m;
+    setMatrix(m, spec.direction_W, o - spec.direction_W * o);
+    volume_->SetUserMatrix(m);
+  }
+  renderer_->AddVolume(volume_);
+
+  // --- Tools: the proxy solid steel, the device as a wireframe (lines write depth, so the
+  // part inside the bone is hidden correctly; translucency would not be).
+  vtkNew<vtkPolyDataNormals> normals;
+  normals->SetInputData(polyDataFromMesh(spec.tool_mesh_T));
+  normals->SetFeatureAngle(40.0);
+  normals->SplittingOn();
+  normals->ConsistencyOn();
+  normals->Update();
+  vtkNew<vtkPolyDataMapper> tool_mapper;
+  tool_mapper->SetInputConnection(normals->GetOutputPort());
+  tool_mapper->ScalarVisibilityOff();
+
+  proxy_actor_->SetMapper(tool_mapper);
+  proxy_actor_->GetProperty()->SetColor(kSteel[0], kSteel[1], kSteel[2]);
+  proxy_actor_->GetProperty()->SetAmbient(0.15);
+  proxy_actor_->GetProperty()->SetDiffuse(0.75);
+  proxy_actor_->GetProperty()->SetSpecular(0.6);
+  proxy_actor_->GetProperty()->SetSpecularPower(40.0);
+  proxy_actor_->PickableOff();
+  renderer_->AddActor(proxy_actor_);
+
+  // The device shares the mesh but not the mapper. Where device and proxy coincide (free
+  // motion, or sliding along a side) the solid proxy must win over the device's lines: the
+  // proxy's polygons are pulled forward in depth with a slope-scaled offset (which also works at
+  // grazing angles, unlike offsets on lines), the device's lines keep no forward pull.
+  // Offsets only apply in polygon-offset mode, which VTK leaves off; its default parameters are
+  // zero for polygons, so turning it on changes nothing else but lines and points drawn over
+  // surfaces (pulled slightly forward, which is what they want).
+  vtkMapper::SetResolveCoincidentTopologyToPolygonOffset();
+  tool_mapper->SetRelativeCoincidentTopologyPolygonOffsetParameters(-2.0, -60.0);
+  vtkNew<vtkPolyDataMapper> device_mapper;
+  device_mapper->SetInputConnection(normals->GetOutputPort());
+  device_mapper->ScalarVisibilityOff();
+  device_mapper->SetRelativeCoincidentTopologyLineOffsetParameters(0.0, 4.0);
+  device_mapper->SetRelativeCoincidentTopologyPolygonOffsetParameters(0.0, 4.0);
+  device_actor_->SetMapper(device_mapper);
+  device_actor_->GetProperty()->SetRepresentationToWireframe();
+  device_actor_->GetProperty()->SetColor(kDevice[0], kDevice[1], kDevice[2]);
+  device_actor_->GetProperty()->LightingOff();
+  device_actor_->GetProperty()->SetLineWidth(1.0);
+  device_actor_->PickableOff();
+  device_actor_->SetVisibility(spec.show_device);
+  renderer_->AddActor(device_actor_);
+
+  setProxyPose(haptics::Pose::Identity());
+  setDevicePose(haptics::Pose::Identity());
+
+  // --- Overlay layer for contacts and force: drawn over everything (same camera), because
+  // both sit where the tool meets the surface and the tool would hide them.
+  if (vtkRenderWindow* window = renderer_->GetRenderWindow()) {
+    window->SetNumberOfLayers(std::max(2, window->GetNumberOfLayers()));
+    window->AddRenderer(overlay_);
+  }
+  overlay_->SetLayer(1);
+  overlay_->SetActiveCamera(renderer_->GetActiveCamera());
+  overlay_->InteractiveOff();
+  overlay_->PreserveDepthBufferOff();
+
+  // --- Contacts: points drawn as spheres (shader impostors; cheap on llvmpipe too).
+  contact_points_->SetDataTypeToDouble();
+  contact_poly_->SetPoints(contact_points_);
+  vtkNew<vtkCellArray> verts;
+  contact_poly_->SetVerts(verts);
+  vtkNew<vtkPolyDataMapper> contact_mapper;
+  contact_mapper->SetInputData(contact_poly_);
+  contact_actor_->SetMapper(contact_mapper);
+  contact_actor_->GetProperty()->SetColor(kContact[0], kContact[1], kContact[2]);
+  contact_actor_->GetProperty()->SetPointSize(7.0);
+  contact_actor_->GetProperty()->SetRenderPointsAsSpheres(true);
+  contact_actor_->PickableOff();
+  overlay_->AddActor(contact_actor_);
+
+  // --- Force arrow: a unit arrow along +x, placed and scaled by the user matrix.
+  const Eigen::Vector3d extent = spec.tool_mesh_T.empty()
+                                     ? Eigen::Vector3d(0.02, 0.02, 0.02)
+                                     : Eigen::Vector3d(spec.tool_mesh_T.boundsMax_T_m() -
+                                                       spec.tool_mesh_T.boundsMin_T_m());
+  arrow_reference_m_ = std::max(0.5 * extent.norm(), 1e-3);
+  vtkNew<vtkArrowSource> arrow;
+  arrow->SetShaftRadius(0.04);
+  arrow->SetTipRadius(0.1);
+  arrow->SetTipLength(0.3);
+  arrow->SetShaftResolution(16);
+  arrow->SetTipResolution(16);
+  vtkNew<vtkPolyDataMapper> arrow_mapper;
+  arrow_mapper->SetInputConnection(arrow->GetOutputPort());
+  force_actor_->SetMapper(arrow_mapper);
+  force_actor_->GetProperty()->SetColor(kForce[0], kForce[1], kForce[2]);
+  force_actor_->GetProperty()->SetAmbient(0.3);
+  force_actor_->PickableOff();
+  force_actor_->VisibilityOff();
+  vtkNew<vtkMatrix4x4> arrow_matrix;
+  force_actor_->SetUserMatrix(arrow_matrix);
+  overlay_->AddActor(force_actor_);
+
+  // --- Hint text (screen space, top left).
+  hint_actor_->SetInput(spec.hint.c_str());
+  hint_actor_->GetTextProperty()->SetFontSize(13);
+  hint_actor_->GetTextProperty()->SetColor(0.92, 0.92, 0.92);
+  hint_actor_->GetTextProperty()->ShadowOn();
+  hint_actor_->GetTextProperty()->SetVerticalJustificationToTop();
+  hint_actor_->GetPositionCoordinate()->SetCoordinateSystemToNormalizedViewport();
+  hint_actor_->GetPositionCoordinate()->SetValue(0.01, 0.985);
+  hint_actor_->SetVisibility(!spec.hint.empty());
+  renderer_->AddActor2D(hint_actor_);
+}
+
+SceneActors::~SceneActors() {
+  renderer_->RemoveVolume(volume_);
+  renderer_->RemoveActor(proxy_actor_);
+  renderer_->RemoveActor(device_actor_);
+  overlay_->RemoveActor(contact_actor_);
+  overlay_->RemoveActor(force_actor_);
+  if (vtkRenderWindow* window = renderer_->GetRenderWindow()) {
+    window->RemoveRenderer(overlay_);
+  }
+  renderer_->RemoveActor2D(hint_actor_);
+}
+
+void SceneActors::applyLook() {
+  VolumeLook look;
+  switch (mode_) {
+    case RenderMode::kIsosurface:
+      volume_mapper_->SetBlendModeToIsoSurface();
+      look = isosurfaceLook(range_[0], range_[1], surface_rgb_[0], surface_rgb_[1], surface_rgb_[2]);
+      break;
+    case RenderMode::kComposite:
+      volume_mapper_->SetBlendModeToComposite();
+      look = compositeLook(preset_, range_[0], range_[1], hounsfield_);
+      break;
+    case RenderMode::kMip:
+      volume_mapper_->SetBlendModeToMaximumIntensity();
+      look = mipLook(range_[0], range_[1], hounsfield_);
+      break;
+  }
+  colour_->RemoveAllPoints();
+  for (const ColourPoint& c : look.colour) colour_->AddRGBPoint(c.value, c.r, c.g, c.b);
+  opacity_->RemoveAllPoints();
+  for (const OpacityPoint& o : look.opacity) opacity_->AddPoint(o.value, o.opacity);
+  volume_property_->SetShade(look.shade ? 1 : 0);
+  volume_property_->SetAmbient(look.ambient);
+  volume_property_->SetDiffuse(look.diffuse);
+  volume_property_->SetSpecular(look.specular);
+  volume_property_->SetSpecularPower(look.specular_power);
+  // Opacities are per voxel of ray (the image is in metres: VTK's default unit distance, 1, would
+  // be a metre and make every composite rendering nearly transparent).
+  volume_property_->SetScalarOpacityUnitDistance(look.opacity_unit_distance_voxels * min_spacing_m_);
+  volume_property_->Modified();
+}
+
+void SceneActors::setRenderMode(RenderMode mode, VolumePreset preset) {
+  mode_ = mode;
+  preset_ = preset;
+  applyLook();
+}
+
+void SceneActors::setSurfaceColour(double r, double g, double b) {
+  surface_rgb_[0] = r;
+  surface_rgb_[1] = g;
+  surface_rgb_[2] = b;
+  if (mode_ == RenderMode::kIsosurface) applyLook();
+}
+
+void SceneActors::setToolColour(double r, double g, double b) { proxy_actor_->GetProperty()->SetColor(r, g, b); }
+void SceneActors::setDeviceColour(double r, double g, double b) { device_actor_->GetProperty()->SetColor(r, g, b); }
+
+void SceneActors::setToolMesh(const haptics::TriangleMesh& mesh_T, const Eigen::Vector3d& /*p_TCm_m*/) {
+  // Both tool mappers read the same normals filter; replacing its input updates both.
+  auto* proxy_mapper = vtkPolyDataMapper::SafeDownCast(proxy_actor_->GetMapper());
+  if (proxy_mapper == nullptr) return;
+  auto* normals = vtkPolyDataNormals::SafeDownCast(proxy_mapper->GetInputAlgorithm());
+  if (normals == nullptr) return;
+  normals->SetInputData(polyDataFromMesh(mesh_T));
+  normals->Update();
+  const Eigen::Vector3d extent = mesh_T.empty() ? Eigen::Vector3d(0.02, 0.02, 0.02)
+                                                : Eigen::Vector3d(mesh_T.boundsMax_T_m() - mesh_T.boundsMin_T_m());
+  arrow_reference_m_ = std::max(0.5 * extent.norm(), 1e-3);
+}
+
+void SceneActors::setClipPlane(bool enabled, const Eigen::Vector3d& p_W_origin_m, const Eigen::Vector3d& n_W) {
+  clipping_ = enabled && p_W_origin_m.allFinite() && n_W.norm() > 0.0;
+  volume_mapper_->RemoveAllClippingPlanes();
+  if (!clipping_) return;
+  // The GPU ray caster takes clipping planes in world coordinates (it applies the prop's user
+  // matrix itself; VTK's TestGPURayCastClippingUserTransform).
+  const Eigen::Vector3d n = n_W.normalized();
+  clip_plane_->SetOrigin(p_W_origin_m.x(), p_W_origin_m.y(), p_W_origin_m.z());
+  clip_plane_->SetNormal(n.x(), n.y(), n.z());
+  volume_mapper_->AddClippingPlane(clip_plane_);
+}
+
+void SceneActors::setHint(const std::string& hint) {
+  hint_actor_->SetInput(hint.c_str());
+  hint_actor_->SetVisibility(!hint.empty());
+}
+
+void SceneActors::volumeBounds_W(double bounds[6]) const { volume_->GetBounds(bounds); }
+
+void SceneActors::setIsovalue(double isovalue) {
+  volume_property_->GetIsoSurfaceValues()->SetValue(0, isovalue);
+  volume_property_->Modified();
+}
+
+double SceneActors::isovalue() const {
+  return volume_property_->GetIsoSurfaceValues()->GetValue(0);
+}
+
+namespace {
+// Still-frame quality levels: ray sample distance in voxels, image sample distance in pixels.
+constexpr double kStillSampleVoxels[3] = {0.5, 1.0, 1.0};
+constexpr double kStillImageSample[3] = {1.0, 1.0, 1.5};
+constexpr double kStillSlowMs = 1000.0;  // a still frame slower than this steps quality down
+constexpr double kStillFastMs = 250.0;   // ... faster than this steps it back up
+}  // namespace
+
+void SceneActors::applyQuality() {
+  if (interactive_) {
+    volume_mapper_->SetSampleDistance(static_cast<float>(min_spacing_m_));
+    volume_mapper_->SetImageSampleDistance(
+        static_cast<float>(std::max(interactive_image_sample_, kStillImageSample[still_level_])));
+  } else {
+    volume_mapper_->SetSampleDistance(
+        static_cast<float>(kStillSampleVoxels[still_level_] * min_spacing_m_));
+    volume_mapper_->SetImageSampleDistance(static_cast<float>(kStillImageSample[still_level_]));
+  }
+}
+
+void SceneActors::setInteractive(bool interactive) {
+  if (interactive != interactive_) {
+    interactive_ = interactive;
+    applyQuality();
+  }
+}
+
+void SceneActors::resetQuality() {
+  still_level_ = 0;
+  applyQuality();
+}
+
+double SceneActors::sampleDistance_m() const { return volume_mapper_->GetSampleDistance(); }
+double SceneActors::imageSampleDistance_px() const { return volume_mapper_->GetImageSampleDistance(); }
+
+void SceneActors::adaptQuality(double last_frame_ms, double interactive_target_ms) {
+  if (!(last_frame_ms > 0.0) || !(interactive_target_ms > 0.0)) {
+    return;
+  }
+  if (interactive_) {
+    // Cost ~ rays ~ 1 / distance^2; damped so the picture does not flicker between settings.
+    const double wanted = interactive_image_sample_ * std::sqrt(last_frame_ms / interactive_target_ms);
+    interactive_image_sample_ = std::clamp(0.5 * (interactive_image_sample_ + wanted), 1.0, 4.0);
+  } else {
+    // A still frame: guess the interactive setting from it (half the samples per ray), and keep
+    // still frames from freezing the GUI for seconds on software GL.
+    // Cost ~ (1 / sample distance) * (1 / image sample distance)^2.
+    const double per_ray = kStillSampleVoxels[still_level_] * kStillImageSample[still_level_] *
+                           kStillImageSample[still_level_];
+    interactive_image_sample_ =
+        std::clamp(std::sqrt(per_ray * last_frame_ms / interactive_target_ms), 1.0, 4.0);
+    if (last_frame_ms > kStillSlowMs && still_level_ < 2) {
+      ++still_level_;
+    } else if (last_frame_ms < kStillFastMs && still_level_ > 0) {
+      --still_level_;
+    }
+  }
+  applyQuality();
+}
+
+void SceneActors::setProxyPose(const haptics::Pose& X_WP) { setUserPose(proxy_actor_, X_WP); }
+void SceneActors::setDevicePose(const haptics::Pose& X_WD) { setUserPose(device_actor_, X_WD); }
+void SceneActors::setDeviceVisible(bool visible) { device_actor_->SetVisibility(visible); }
+
+void SceneActors::setContacts(std::span<const Eigen::Vector3d> p_W_m) {
+  contact_points_->SetNumberOfPoints(static_cast<vtkIdType>(p_W_m.size()));
+  vtkNew<vtkCellArray> verts;
+  verts->AllocateExact(static_cast<vtkIdType>(p_W_m.size()), static_cast<vtkIdType>(p_W_m.size()));
+  for (std::size_t i = 0; i < p_W_m.size(); ++i) {
+    contact_points_->SetPoint(static_cast<vtkIdType>(i), p_W_m[i].x(), p_W_m[i].y(), p_W_m[i].z());
+    const vtkIdType id = static_cast<vtkIdType>(i);
+    verts->InsertNextCell(1, &id);
+  }
+  contact_points_->Modified();
+  contact_poly_->SetVerts(verts);
+  contact_poly_->Modified();
+  contact_actor_->SetVisibility(!p_W_m.empty());
+}
+
+void SceneActors::setForce(const Eigen::Vector3d& p_W_origin_m, const Eigen::Vector3d& force_W_N) {
+  const double magnitude = force_W_N.norm();
+  if (!(magnitude > 1e-3) || !p_W_origin_m.allFinite()) {
+    force_actor_->VisibilityOff();
+    return;
+  }
+  const double length = arrow_reference_m_ * std::clamp(magnitude / kReferenceForce_N, 0.15, 2.5);
+  const Eigen::Vector3d x = force_W_N / magnitude;
+  const Eigen::Vector3d y = x.unitOrthogonal();
+  const Eigen::Vector3d z = x.cross(y);
+  Eigen::Matrix3d M;
+  M.col(0) = length * x;
+  M.col(1) = length * y;
+  M.col(2) = length * z;
+  setMatrix(force_actor_->GetUserMatrix(), M, p_W_origin_m);
+  force_actor_->GetUserMatrix()->Modified();
+  force_actor_->Modified();
+  force_actor_->VisibilityOn();
+}
+
+vtkVolume* SceneActors::volume() const noexcept { return volume_; }
+vtkGPUVolumeRayCastMapper* SceneActors::volumeMapper() const noexcept { return volume_mapper_; }
+vtkActor* SceneActors::proxyActor() const noexcept { return proxy_actor_; }
+vtkActor* SceneActors::deviceActor() const noexcept { return device_actor_; }
+vtkActor* SceneActors::contactActor() const noexcept { return contact_actor_; }
+vtkActor* SceneActors::forceActor() const noexcept { return force_actor_; }
+vtkTextActor* SceneActors::hintActor() const noexcept { return hint_actor_; }
+vtkRenderer* SceneActors::overlayRenderer() const noexcept { return overlay_; }
+
+Eigen::Vector3d forceOrigin_W(const haptics::Pose& X_WP, const Eigen::Vector3d& force_W_N,
+                              const std::vector<Eigen::Vector3d>& tool_vertices_T_m) {
+  if (tool_vertices_T_m.empty() || !(force_W_N.norm() > 1e-3)) return X_WP.p_AB_m;
+  const Eigen::Vector3d f_T = X_WP.R_AB.inverse() * force_W_N;  // the force in T
+  const auto least = std::min_element(tool_vertices_T_m.begin(), tool_vertices_T_m.end(),
+                                      [&](const Eigen::Vector3d& a, const Eigen::Vector3d& b) {
+                                        return f_T.dot(a) < f_T.dot(b);
+                                      });
+  return X_WP * *least;
+}
+
+void showToolFrame(SceneActors& actors, const ToolFrame& frame, const std::vector<Eigen::Vector3d>& tool_vertices_T_m) {
+  actors.setProxyPose(frame.X_WP);
+  actors.setDevicePose(frame.X_WD);
+  actors.setContacts(frame.contacts_W_m);
+  actors.setForce(forceOrigin_W(frame.X_WP, frame.force_W_N, tool_vertices_T_m), frame.force_W_N);
+  if (std::isfinite(frame.isovalue)) actors.setIsovalue(frame.isovalue);
+}
+
+}  // namespace vh::ui

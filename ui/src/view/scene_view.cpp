@@ -1,0 +1,377 @@
+#include "vh/ui/view/scene_view.h"
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <numbers>
+#include <stdexcept>
+
+#include <QTimer>
+#include <vtkCamera.h>
+#include <vtkGenericOpenGLRenderWindow.h>
+#include <vtkNew.h>
+#include <vtkRenderer.h>
+#include <vtkTextActor.h>
+#include <vtkTextProperty.h>
+
+#include "vh/ui/view/orientation_marker.h"
+#include "vh/ui/view/vtk_view.h"
+
+namespace vh::ui {
+namespace {
+
+std::array<double, 3> rgbOf(const QColor& c) { return {c.redF(), c.greenF(), c.blueF()}; }
+
+constexpr int kSettleMs = 300;  // still frame this long after the last motion
+
+bool posesDiffer(const haptics::Pose& a, const haptics::Pose& b) {
+  return (a.p_AB_m - b.p_AB_m).norm() > 1e-6 || a.R_AB.angularDistance(b.R_AB) > 1e-4;
+}
+
+
+}  // namespace
+
+SceneView::SceneView(QWidget* parent) : QObject(parent) {
+  view_ = new VtkView(parent);
+  view_->setObjectName("vtkView");
+  marker_ = std::make_unique<OrientationMarker>(view_->renderWindow(), view_->renderer());
+  marker_->setVisible(false);  // shown with a scene
+  view_->renderer()->GradientBackgroundOn();
+
+  // What an empty window says.
+  vtkNew<vtkTextActor> welcome;
+  welcome->SetInput(
+      "Open a scan: File > Open DICOM Folder (Ctrl+D), Open Volume File (Ctrl+O) or Open Scene\n"
+      "(Ctrl+Shift+O) - or drop a DICOM folder, a NRRD / MetaImage file or a scene .json here.");
+  welcome->GetTextProperty()->SetFontSize(15);
+  welcome->GetTextProperty()->SetColor(0.9, 0.9, 0.9);
+  welcome->GetTextProperty()->SetJustificationToCentered();
+  welcome->GetTextProperty()->SetVerticalJustificationToCentered();
+  welcome->GetPositionCoordinate()->SetCoordinateSystemToNormalizedViewport();
+  welcome->GetPositionCoordinate()->SetValue(0.5, 0.5);
+  view_->renderer()->AddActor2D(welcome);
+  welcome_ = welcome;
+
+  // A critical segment touched: red text at the top of the view.
+  vtkNew<vtkTextActor> alert;
+  alert->GetTextProperty()->SetFontSize(22);
+  alert->GetTextProperty()->SetBold(true);
+  alert->GetTextProperty()->SetColor(1.0, 1.0, 1.0);
+  alert->GetTextProperty()->SetBackgroundColor(0.75, 0.1, 0.1);
+  alert->GetTextProperty()->SetBackgroundOpacity(0.9);
+  alert->GetTextProperty()->SetJustificationToCentered();
+  alert->GetTextProperty()->SetVerticalJustificationToTop();
+  alert->GetPositionCoordinate()->SetCoordinateSystemToNormalizedViewport();
+  alert->GetPositionCoordinate()->SetValue(0.5, 0.88);  // below the hint lines
+  alert->SetVisibility(false);
+  view_->renderer()->AddActor2D(alert);
+  alert_ = alert;
+
+  // Interactive (cheaper) frames while something moves, a full-quality one when it settles.
+  settle_timer_ = new QTimer(this);
+  settle_timer_->setSingleShot(true);
+  settle_timer_->setInterval(kSettleMs);
+  connect(settle_timer_, &QTimer::timeout, this, [this] {
+    if (!camera_dragging_ && !interacting_) renderStill();
+  });
+  connect(view_, &VtkView::interactionStarted, this, [this] {
+    camera_dragging_ = true;
+    noteMotion();
+  });
+  connect(view_, &VtkView::interactionEnded, this, [this] {
+    camera_dragging_ = false;
+    settle_timer_->start();
+  });
+  connect(view_, &VtkView::frameRendered, this, [this] {
+    // The first frame of a scene also compiles shaders and uploads the volume.
+    if (actors_ != nullptr && view_->frameCount() > scene_frame_ + 1) actors_->adaptQuality(view_->lastFrameMs());
+  });
+}
+
+SceneView::~SceneView() {
+  // VTK props release their GL objects when they leave the renderer: give them the context.
+  if (view_->context() != nullptr) {
+    view_->makeCurrent();
+    actors_.reset();
+    segments_.reset();
+    marker_.reset();
+    view_->doneCurrent();
+  }
+  actors_.reset();
+  segments_.reset();
+  marker_.reset();
+}
+
+void SceneView::setScene(const SceneActorsSpec& spec, const haptics::Pose& X_WT, const Preferences& look) {
+  if (spec.image == nullptr) throw std::invalid_argument("SceneView: the scene's volume has no image to render");
+  // The scan's props only: the segment surfaces follow the session's segments (setSegments()).
+  if (view_->context() != nullptr) {
+    view_->makeCurrent();
+    actors_.reset();
+    view_->doneCurrent();
+  }
+  actors_ = std::make_unique<SceneActors>(view_->renderer(), spec);
+  tool_vertices_T_m_ = spec.tool_mesh_T.vertices_T_m;
+  actors_->setProxyPose(X_WT);
+  actors_->setDevicePose(X_WT);
+  actors_->setRenderMode(look.mode, look.preset);
+  shown_X_WP_ = shown_X_WD_ = X_WT;
+  shown_contacts_ = -1;
+  shown_force_W_N_.setZero();
+  scene_frame_ = view_->frameCount();
+  if (welcome_ != nullptr) welcome_->SetVisibility(false);
+  marker_->setVisible(look.orientation_marker);
+  applyColours(look);
+  resetCamera();
+  requestRender();
+}
+
+void SceneView::clearScene() {
+  if (actors_ == nullptr) return;
+  if (view_->context() != nullptr) {
+    view_->makeCurrent();
+    actors_.reset();
+    segments_.reset();
+    view_->doneCurrent();
+  }
+  actors_.reset();
+  segments_.reset();
+  if (alert_ != nullptr) alert_->SetVisibility(false);
+}
+
+void SceneView::setSegments(const runtime::SegmentSet* set) {
+  if (segments_ == nullptr) segments_ = std::make_unique<SegmentSurfaces>(view_->renderer());
+  segments_->show(set);
+  requestRender();
+}
+
+void SceneView::setTouchedSegment(int segment, const std::string& alert) {
+  if (segments_ != nullptr) segments_->setTouched(segment);
+  if (alert_ != nullptr) {
+    alert_->SetInput(alert.c_str());
+    alert_->SetVisibility(!alert.empty());
+  }
+  requestRender();
+}
+
+std::string SceneView::alertText() const {
+  return alert_ != nullptr && alert_->GetVisibility() && alert_->GetInput() != nullptr ? alert_->GetInput() : "";
+}
+
+void SceneView::setTool(const haptics::ToolModel& tool, const haptics::Pose& X_WT) {
+  if (actors_ == nullptr) return;
+  tool_vertices_T_m_ = tool.mesh_T.vertices_T_m;
+  actors_->setToolMesh(tool.mesh_T, tool.mass.p_TCm_m);
+  ToolFrame frame;
+  frame.X_WP = frame.X_WD = X_WT;
+  showToolFrame(*actors_, frame, tool_vertices_T_m_);
+  shown_X_WP_ = shown_X_WD_ = X_WT;
+  shown_contacts_ = -1;
+  requestRender();
+}
+
+bool SceneView::show(const ToolFrame& frame) {
+  if (actors_ == nullptr) return false;
+  const int contacts = static_cast<int>(frame.contacts_W_m.size());
+  const bool changed = posesDiffer(frame.X_WP, shown_X_WP_) || posesDiffer(frame.X_WD, shown_X_WD_) ||
+                       contacts != shown_contacts_ || (frame.force_W_N - shown_force_W_N_).norm() > 0.01;
+  // The tools always show the latest frame exactly; a new picture is asked for only when
+  // something moved visibly.
+  actors_->setProxyPose(frame.X_WP);
+  actors_->setDevicePose(frame.X_WD);
+  if (!changed) return false;
+  showToolFrame(*actors_, frame, tool_vertices_T_m_);
+  shown_X_WP_ = frame.X_WP;
+  shown_X_WD_ = frame.X_WD;
+  shown_contacts_ = contacts;
+  shown_force_W_N_ = frame.force_W_N;
+  noteMotion();
+  requestRender();
+  return true;
+}
+
+void SceneView::showDevicePose(const haptics::Pose& X_WD) {
+  if (actors_ == nullptr) return;
+  actors_->setDevicePose(X_WD);
+  shown_X_WD_ = X_WD;
+  noteMotion();
+  requestRender();
+}
+
+void SceneView::setIsovalue(double isovalue) {
+  if (actors_ == nullptr) return;
+  actors_->setIsovalue(isovalue);
+  requestRender();
+}
+
+void SceneView::setDeviceVisible(bool visible) {
+  if (actors_ == nullptr) return;
+  actors_->setDeviceVisible(visible);
+  requestRender();
+}
+
+void SceneView::setHint(const std::string& hint) {
+  if (actors_ != nullptr) actors_->setHint(hint);
+}
+
+void SceneView::setRenderMode(RenderMode mode, VolumePreset preset) {
+  if (actors_ == nullptr) return;
+  actors_->setRenderMode(mode, preset);
+  requestRender();
+}
+
+void SceneView::applyColours(const Preferences& look) {
+  ui::applyColours(view_->renderer(), actors_.get(), look);
+  requestRender();
+}
+
+void SceneView::setMarkerVisible(bool visible) {
+  marker_->setVisible(visible && actors_ != nullptr);
+  requestRender();
+}
+
+void SceneView::fitCamera(const double direction_W[3], const double up_W[3], double zoom) {
+  if (actors_ == nullptr) return;
+  vtkRenderer* renderer = view_->renderer();
+  vtkCamera* cam = renderer->GetActiveCamera();
+  double bounds[6];
+  actors_->volumeBounds_W(bounds);
+  const double c[3] = {0.5 * (bounds[0] + bounds[1]), 0.5 * (bounds[2] + bounds[3]), 0.5 * (bounds[4] + bounds[5])};
+  cam->SetFocalPoint(c);
+  cam->SetPosition(c[0] + direction_W[0], c[1] + direction_W[1], c[2] + direction_W[2]);
+  cam->SetViewUp(up_W[0], up_W[1], up_W[2]);
+  cam->OrthogonalizeViewUp();
+  renderer->ResetCamera();  // fits the visible props (volume and tools)
+  cam->Zoom(zoom);          // the fit is to the props' bounding sphere: generous
+  renderer->ResetCameraClippingRange();
+}
+
+void SceneView::resetCamera() {
+  if (actors_ == nullptr) return;
+  // Default view: from the front (-y: anterior for LPS) turned 30 degrees to the patient's right
+  // and 25 degrees up, +z up.
+  vtkCamera* cam = view_->renderer()->GetActiveCamera();
+  const double front[3] = {0.0, -1.0, 0.0};
+  const double up[3] = {0.0, 0.0, 1.0};
+  fitCamera(front, up, 1.0);
+  cam->Azimuth(-30.0);
+  cam->Elevation(25.0);
+  cam->OrthogonalizeViewUp();
+  view_->renderer()->ResetCamera();
+  cam->Zoom(1.2);
+  view_->renderer()->ResetCameraClippingRange();
+}
+
+void SceneView::focusOn(const haptics::ToolModel& tool, const haptics::Pose& X_WP) {
+  if (actors_ == nullptr) return;
+  const Eigen::Vector3d c_W = X_WP * tool.mass.p_TCm_m;
+  const Eigen::Vector3d extent = tool.mesh_T.empty() ? Eigen::Vector3d(0.05, 0.05, 0.05)
+                                                     : Eigen::Vector3d(tool.mesh_T.boundsMax_T_m() - tool.mesh_T.boundsMin_T_m());
+  vtkCamera* cam = view_->renderer()->GetActiveCamera();
+  double dop[3];
+  cam->GetDirectionOfProjection(dop);
+  const double half_height_m = 0.75 * extent.norm();
+  const double distance_m = half_height_m / std::tan(0.5 * cam->GetViewAngle() * std::numbers::pi / 180.0);
+  cam->SetFocalPoint(c_W.x(), c_W.y(), c_W.z());
+  cam->SetPosition(c_W.x() - distance_m * dop[0], c_W.y() - distance_m * dop[1], c_W.z() - distance_m * dop[2]);
+  view_->renderer()->ResetCameraClippingRange();
+  noteMotion();
+  requestRender();
+}
+
+void SceneView::setStandardView(StandardView v) {
+  // W = patient LPS: the camera sits on the named side of the patient.
+  double dir[3] = {0, 0, 0};
+  double up[3] = {0, 0, 1};
+  switch (v) {
+    case StandardView::kAnterior: dir[1] = -1; break;
+    case StandardView::kPosterior: dir[1] = 1; break;
+    case StandardView::kLeft: dir[0] = 1; break;
+    case StandardView::kRight: dir[0] = -1; break;
+    case StandardView::kSuperior:
+      dir[2] = 1;
+      up[2] = 0;
+      up[1] = -1;  // anterior up
+      break;
+    case StandardView::kInferior:
+      dir[2] = -1;
+      up[2] = 0;
+      up[1] = -1;
+      break;
+  }
+  fitCamera(dir, up, 1.2);
+  noteMotion();
+  requestRender();
+}
+
+ViewCamera SceneView::camera() const {
+  vtkCamera* cam = view_->renderer()->GetActiveCamera();
+  ViewCamera c;
+  double v[3];
+  cam->GetPosition(v);
+  c.position_W_m = Eigen::Vector3d(v[0], v[1], v[2]);
+  cam->GetFocalPoint(v);
+  c.focal_point_W_m = Eigen::Vector3d(v[0], v[1], v[2]);
+  cam->GetViewUp(v);
+  c.view_up_W = Eigen::Vector3d(v[0], v[1], v[2]);
+  c.view_angle_deg = cam->GetViewAngle();
+  c.parallel = cam->GetParallelProjection() != 0;
+  c.parallel_scale_m = cam->GetParallelScale();
+  const int* size = view_->renderer()->GetSize();
+  c.viewport_height_px = std::max(1, size[1] > 0 ? size[1] : view_->height());
+  return c;
+}
+
+void SceneView::setClipping(bool enabled, ClipAxis axis, double fraction, bool flip) {
+  if (actors_ == nullptr) return;
+  const int a = static_cast<int>(axis);
+  double b[6];
+  actors_->volumeBounds_W(b);
+  const double f = std::clamp(fraction, 0.0, 1.0);
+  Eigen::Vector3d origin(0.5 * (b[0] + b[1]), 0.5 * (b[2] + b[3]), 0.5 * (b[4] + b[5]));
+  origin[a] = b[2 * a] + f * (b[2 * a + 1] - b[2 * a]);
+  Eigen::Vector3d normal = Eigen::Vector3d::Zero();
+  normal[a] = flip ? -1.0 : 1.0;
+  actors_->setClipPlane(enabled, origin, normal);
+  requestRender();
+}
+
+void SceneView::requestRender() { view_->requestRender(); }
+
+void SceneView::noteMotion() {
+  if (actors_ == nullptr) return;
+  actors_->setInteractive(true);
+  settle_timer_->start();  // restarts: the still frame comes kSettleMs after the last motion
+}
+
+void SceneView::setInteracting(bool interacting) {
+  interacting_ = interacting;
+  if (interacting) noteMotion();
+  else settle_timer_->start();
+}
+
+void SceneView::renderStill(bool best_quality) {
+  settle_timer_->stop();
+  if (actors_ == nullptr) return;
+  if (actors_->interactive() || best_quality) {
+    actors_->setInteractive(false);
+    if (best_quality) actors_->resetQuality();
+    requestRender();
+  }
+}
+
+void applyColours(vtkRenderer* renderer, SceneActors* actors, const Preferences& look) {
+  const auto bottom = rgbOf(look.background_bottom);
+  const auto top = rgbOf(look.background_top);
+  renderer->SetBackground(bottom[0], bottom[1], bottom[2]);
+  renderer->SetBackground2(top[0], top[1], top[2]);
+  if (actors == nullptr) return;
+  const auto s = rgbOf(look.surface);
+  const auto t = rgbOf(look.tool);
+  const auto d = rgbOf(look.device);
+  actors->setSurfaceColour(s[0], s[1], s[2]);
+  actors->setToolColour(t[0], t[1], t[2]);
+  actors->setDeviceColour(d[0], d[1], d[2]);
+}
+
+}  // namespace vh::ui
