@@ -60,127 +60,298 @@ Eigen::Vector3d toVector(const std::vector<double>& v, const char* option) {
   return {v[0], v[1], v[2]};
 }
 
+// ---- GUI (default) ----
+
+/// The GUI's command line (no subcommand).
+struct GuiArgs {
+  std::string input;
+  vh::ui::AppOptions options;
+  std::string screenshot;
+  std::optional<double> isovalue;
+};
+
+void addGuiOptions(CLI::App& app, GuiArgs& gui) {
+  app.add_option("path", gui.input,
+                 "DICOM folder, NRRD (.nrrd/.nhdr) or MetaImage (.mha/.mhd) file, or scene .json "
+                 "(default: the built-in block with a hole and a peg)");
+  app.add_option("--screenshot", gui.screenshot, "Save a PNG of the window after loading, then quit");
+  app.add_option("--screenshot-delay-ms", gui.options.screenshot_delay_ms,
+                 "Time from showing the window to the screenshot [ms]")
+      ->check(CLI::NonNegativeNumber);
+  app.add_option("--isovalue", gui.isovalue, "Initial isovalue in the data's units (HU for CT)");
+  app.add_flag("--touch", gui.options.touch,
+               "Move the simulated device towards the volume's centre until the tool rests on the surface, after load");
+  app.add_option("--touch-depth-m", gui.options.touch_depth_m, "How far past the surface --touch goes [m]")
+      ->check(CLI::NonNegativeNumber);
+  app.add_option("--igtl-port", gui.options.igtl_port,
+                 "Listen for an OpenIGTLink client (3D Slicer) on this port (18944 is Slicer's default); off without it")
+      ->check(CLI::Range(1, 65535));
+  app.add_option("--igtl-rate", gui.options.igtl_rate_Hz, "OpenIGTLink frames per second [Hz] (clamped to the servo rate)")
+      ->check(CLI::Range(1.0, 100000.0));
+  app.add_option("--width", gui.options.window_width, "Window width [logical pixels]")->check(CLI::PositiveNumber);
+  app.add_option("--height", gui.options.window_height, "Window height [logical pixels]")->check(CLI::PositiveNumber);
+}
+
+// ---- run ----
+
+/// `run`'s command line.
+struct RunArgs {
+  std::string scene, trajectory, report;
+  std::optional<double> isovalue;
+  bool check = false;
+  std::optional<std::string> series;
+  std::optional<int> phase;
+  std::string segmentation;
+  std::vector<std::string> felt, critical;
+  std::string trace;
+  std::optional<int> igtl_port;
+  double igtl_rate_Hz = 60.0;
+  std::string record;
+  double verify_step = vh::runtime::RunOptions{}.verify_step_voxels;
+  bool lag_reference = vh::runtime::RunOptions{}.lag_reference;
+};
+
+CLI::App* addRunSubcommand(CLI::App& app, RunArgs& a) {
+  CLI::App* run = app.add_subcommand("run", "Headless: replay a device trajectory through the renderer and "
+                                            "report timing, contacts and penetration (no display needed)");
+  run->add_option("--scene", a.scene, "Scene .json (its device section is ignored)")->required();
+  run->add_option("--trajectory", a.trajectory, "Trajectory CSV: t_s,x_m,y_m,z_m,qw,qx,qy,qz")->required();
+  run->add_option("--report", a.report, "Write the JSON report here");
+  run->add_option("--isovalue", a.isovalue, "Override the scene's isovalue");
+  run->add_option("--series", a.series,
+                  "DICOM folder: the series to load (number, Series Instance UID or text of its description); default: the scene's, else the largest");
+  run->add_option("--phase", a.phase, "4-D DICOM series: the time point (phase, echo) to load, 0-based")
+      ->check(CLI::NonNegativeNumber);
+  run->add_option("--segmentation", a.segmentation,
+                  "3D Slicer segmentation (.seg.nrrd) or label map on the scan (overrides the scene's)");
+  run->add_option("--felt", a.felt,
+                  "A segment to feel instead of the scan's isosurface (name or ID; repeat for more)");
+  run->add_option("--critical", a.critical, "A segment whose touch is reported as critical (repeatable)");
+  run->add_option("--igtl-port", a.igtl_port,
+                  "Stream the run over OpenIGTLink on this port (the run then plays in real time)")
+      ->check(CLI::Range(1, 65535));
+  run->add_option("--igtl-rate", a.igtl_rate_Hz, "OpenIGTLink frames per second [Hz] (clamped to the servo rate)")
+      ->check(CLI::Range(1.0, 100000.0));
+  run->add_option("--trace", a.trace, "Also write one CSV row per tick (poses, force, contacts, time, depth)");
+  run->add_option("--record", a.record,
+                  "Also write a session recording (.vhrec: metadata, one record per tick, events) here");
+  run->add_option("--verify-step", a.verify_step,
+                  "Crossing check after every tick, outside the timed part: sample each shell point's path with "
+                  "this step [voxels]; 0 turns it off")
+      ->capture_default_str()
+      ->check(CLI::NonNegativeNumber);
+  run->add_flag("!--no-lag-reference", a.lag_reference,
+                "Skip the unbudgeted reference run that measures the work budget's lag");
+  run->add_flag("--check", a.check,
+                "Exit with 3 when the proxy penetrated deeper than epsilon, a tick produced a non-finite value or "
+                "the proxy crossed into the isosurface (crossings > 0)");
+  return run;
+}
+
+/// The scene file with `run`'s overrides (isovalue, series, phase, segmentation, felt, critical).
+vh::runtime::SceneSpec runScene(const RunArgs& a) {
+  vh::runtime::SceneSpec spec = vh::runtime::loadSceneFile(a.scene);
+  if (a.isovalue) {
+    spec.volume.isovalue = *a.isovalue;
+    spec.volume.isovalue_set = true;
+  }
+  if (a.series) spec.volume.series = *a.series;
+  if (a.phase) spec.volume.phase = *a.phase;
+  if (!a.segmentation.empty()) {
+    spec.segmentation = vh::runtime::SegmentationSpec{};
+    spec.segmentation->path = std::filesystem::absolute(a.segmentation).string();
+  }
+  if ((!a.felt.empty() || !a.critical.empty()) && !spec.segmentation) {
+    throw std::runtime_error("--felt and --critical need a segmentation (--segmentation or the scene's)");
+  }
+  if (!a.felt.empty()) spec.segmentation->felt = a.felt;
+  if (!a.critical.empty()) spec.segmentation->critical = a.critical;
+  return spec;
+}
+
+/// OpenIGTLink for `run`: the command line's port, else the scene file's section; the run plays in
+/// real time so the client sees the motion at its speed. Null when neither asks for it.
+std::unique_ptr<vh::igtl::IgtlLink> startRunLink(const RunArgs& a, vh::runtime::SceneSpec& spec,
+                                                 vh::runtime::RunOptions& run_options) {
+  std::unique_ptr<vh::igtl::IgtlLink> link;
+  if (a.igtl_port) spec.openigtlink = vh::runtime::OpenIgtlinkSpec{*a.igtl_port, a.igtl_rate_Hz};
+  if (!spec.openigtlink) return link;
+  run_options.monitor = std::make_shared<vh::runtime::SnapshotChannel>();
+  run_options.realtime = true;
+  vh::igtl::LinkOptions link_options;
+  link_options.port = spec.openigtlink->port;
+  link_options.rate_Hz = spec.openigtlink->rate_Hz;
+  link_options.servo_rate_Hz = run_options.servo_rate_Hz;
+  if (spec.segmentation) {  // ContactState names the segment touched
+    auto names = std::make_shared<vh::runtime::SegmentNameTable>();
+    vh::runtime::SegmentationSpec names_only;  // nothing felt: just the names
+    names_only.path = spec.segmentation->path;
+    const auto seg = vh::runtime::SegmentSet::fromSpec(vh::io::loadSegmentation(names_only.path), names_only, a.scene);
+    names->set(seg.get());
+    link_options.segment_name = [names](const vh::runtime::HapticSnapshot& snapshot) {
+      return names->name(snapshot.contacts > 0 ? snapshot.segment : -1);
+    };
+  }
+  link = std::make_unique<vh::igtl::IgtlLink>(run_options.monitor, link_options);
+  link->start();
+  std::cout << "volume-haptics run: " << link->statusText() << " at " << link->rate_Hz() << " Hz" << std::endl;
+  return link;
+}
+
+/// `run`'s report: written and summarised; with --check, the exit code of the check.
+int finishRun(const RunArgs& a, const vh::runtime::RunReport& report) {
+  if (!a.report.empty()) vh::runtime::writeRunReport(report, a.report);
+  std::cout << "volume-haptics run: " << report.summary() << std::endl;
+  if (!a.record.empty()) std::cout << "volume-haptics run: recording written to " << a.record << std::endl;
+  if (a.check && !report.crossingsChecked())
+    std::cerr << "volume-haptics run: warning: --check without the crossing check (--verify-step 0)" << std::endl;
+  if (a.check && (report.max_penetration_m > report.epsilon_m || report.nan_ticks > 0 || report.crossings > 0)) {
+    std::cerr << "volume-haptics run: check failed: penetration " << report.max_penetration_m * 1e3
+              << " mm (epsilon " << report.epsilon_m * 1e3 << " mm), non-finite ticks " << report.nan_ticks
+              << ", crossings ";
+    if (report.crossingsChecked()) std::cerr << report.crossings;
+    else std::cerr << "not checked";
+    if (report.crossings > 0)
+      std::cerr << " (" << report.crossing_points << (report.crossing_points == 1 ? " point" : " points")
+                << ", first at tick " << report.first_crossing_tick << ")";
+    std::cerr << std::endl;
+    return kExitCheckFailed;
+  }
+  return EXIT_SUCCESS;
+}
+
+int runCommand(const RunArgs& a) {
+  vh::runtime::SceneSpec spec = runScene(a);
+  vh::runtime::RunOptions run_options;
+  run_options.on_notice = [](const std::string& notice) {
+    std::cerr << "volume-haptics run: warning: " << notice << std::endl;
+  };
+  run_options.trace_csv = a.trace;
+  run_options.record = a.record;
+  run_options.verify_step_voxels = a.verify_step;
+  run_options.lag_reference = a.lag_reference;
+  std::unique_ptr<vh::igtl::IgtlLink> link = startRunLink(a, spec, run_options);
+  const vh::runtime::RunReport report = vh::runtime::runHeadless(spec, a.trajectory, run_options);
+  if (link) {
+    const vh::igtl::LinkStatus st = link->status();
+    link->stop();
+    std::cout << "volume-haptics run: OpenIGTLink sent " << st.frames_sent << " frames to " << st.clients
+              << (st.clients == 1 ? " client" : " clients") << std::endl;
+  }
+  return finishRun(a, report);
+}
+
+// ---- make-trajectory ----
+
+/// `make-trajectory`'s command line.
+struct MakeTrajectoryArgs {
+  std::string scene, out;
+  std::optional<double> isovalue;
+  vh::runtime::PushSlideOptions push;
+  std::vector<double> approach_dir, slide_dir, ray_start;
+};
+
+CLI::App* addMakeTrajectorySubcommand(CLI::App& app, MakeTrajectoryArgs& a) {
+  CLI::App* make = app.add_subcommand(
+      "make-trajectory",
+      "Headless: cast the scene's tool down onto the surface and write a push-and-slide trajectory CSV");
+  make->add_option("--scene", a.scene, "Scene .json")->required();
+  make->add_option("--out", a.out, "Trajectory CSV to write")->required();
+  make->add_option("--isovalue", a.isovalue, "Override the scene's isovalue");
+  make->add_option("--ray-start", a.ray_start,
+                   "Tool origin where the ray starts, x y z in W [m] (default: above the volume's centre)")
+      ->expected(3);
+  make->add_option("--approach-dir", a.approach_dir, "Push direction x y z in W (default 0 0 -1)")->expected(3);
+  make->add_option("--slide-dir", a.slide_dir, "Slide direction x y z in W (default: perpendicular axis)")->expected(3);
+  make->add_option("--clearance-m", a.push.start_clearance_m, "Start this far before the first contact [m]");
+  make->add_option("--push-depth-m", a.push.push_depth_m, "Push the device this far past the contact [m]");
+  make->add_option("--slide-m", a.push.slide_m, "Slide this far tangentially [m]");
+  make->add_option("--slide-rotation-rad", a.push.slide_rotation_rad, "Rotate this much while sliding [rad]");
+  return make;
+}
+
+int makeTrajectoryCommand(MakeTrajectoryArgs& a) {
+  vh::runtime::SceneSpec spec = vh::runtime::loadSceneFile(a.scene);
+  if (a.isovalue) {
+    spec.volume.isovalue = *a.isovalue;
+    spec.volume.isovalue_set = true;
+  }
+  const vh::runtime::LoadedScene scene = vh::runtime::loadScene(spec);
+  if (!a.approach_dir.empty()) a.push.approach_dir_W = toVector(a.approach_dir, "--approach-dir");
+  if (!a.slide_dir.empty()) a.push.slide_dir_W = toVector(a.slide_dir, "--slide-dir");
+  // The surface the hand feels (the felt segments' when the scene has some).
+  vh::haptics::Pose start = vh::runtime::poseAboveVolume(*scene.hapticField(), scene.tool->point_shell,
+                                                         scene.X_WT_initial.R_AB, 0.01);
+  if (!a.ray_start.empty()) start.p_AB_m = toVector(a.ray_start, "--ray-start");
+  const vh::runtime::PushSlidePlan plan = vh::runtime::makePushSlideTrajectory(
+      *scene.hapticField(), scene.tool->point_shell, scene.hapticIsovalue(), start, a.push);
+  vh::runtime::writeTrajectoryCsv(plan.trajectory, a.out);
+  std::cout << "volume-haptics make-trajectory: first contact at (" << plan.X_WD_contact.p_AB_m.transpose()
+            << ") m; " << plan.trajectory.size() << " key poses over " << plan.trajectory.duration_s()
+            << " s written to " << a.out << std::endl;
+  return EXIT_SUCCESS;
+}
+
+// ---- export ----
+
+/// `export`'s command line.
+struct ExportArgs {
+  std::string recording;
+  std::string csv;
+  std::string json;
+  std::string events_csv;
+  vh::ui::MediaExportOptions media;
+};
+
+CLI::App* addExportSubcommand(CLI::App& app, ExportArgs& a) {
+  CLI::App* export_cmd = app.add_subcommand("export", "Export a session recording (.vhrec) as CSV (one row per tick, "
+                                               "SI units) and/or JSON metadata; a damaged tail is reported");
+  export_cmd->add_option("recording", a.recording, "Recording file (.vhrec)")->required();
+  export_cmd->add_option("--csv", a.csv, "CSV to write: one row per tick, units in the header");
+  export_cmd->add_option("--json", a.json, "JSON to write: the session metadata, a summary and the events");
+  export_cmd->add_option("--events-csv", a.events_csv, "CSV to write: one row per event (t_s,tick,type,detail_json)");
+  export_cmd->add_option("--video", a.media.video,
+                         "Ogg/Theora video (.ogv) of the replay, rendered off screen (needs an X display with "
+                         "OpenGL, e.g. xvfb-run)");
+  export_cmd->add_option("--png", a.media.png, "PNG of the replay at --at-s");
+  export_cmd->add_option("--at-s", a.media.png_time_s, "Recording time of the --png frame [s]")
+      ->check(CLI::NonNegativeNumber);
+  export_cmd->add_option("--fps", a.media.fps, "Video frame rate [frames/s]")->check(CLI::Range(1.0, 120.0));
+  export_cmd->add_option("--width", a.media.width, "Frame width [px]")->check(CLI::Range(16, 8192));
+  export_cmd->add_option("--height", a.media.height, "Frame height [px]")->check(CLI::Range(16, 8192));
+  return export_cmd;
+}
+
+int exportCommand(int argc, char** argv, const ExportArgs& a) {
+  const vh::runtime::Recording recording = vh::runtime::readRecording(a.recording);
+  for (const std::string& w : recording.warnings) std::cerr << "volume-haptics export: warning: " << w << std::endl;
+  if (!a.csv.empty()) vh::runtime::writeRecordingCsv(recording, std::filesystem::path(a.csv));
+  if (!a.json.empty()) vh::runtime::writeRecordingJson(recording, a.json);
+  if (!a.events_csv.empty()) vh::runtime::writeRecordingEventsCsv(recording, std::filesystem::path(a.events_csv));
+  if (!a.media.video.empty() || !a.media.png.empty()) {
+    if (vh::ui::exportRecordingMedia(argc, argv, a.recording, a.media) != 0) return kExitError;
+  }
+  std::cout << "volume-haptics export: " << recording.records.size() << " records, " << recording.events.size()
+            << " events in " << recording.chunks << " chunks, " << recording.dropped_records << " dropped"
+            << std::endl;
+  return EXIT_SUCCESS;
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
   CLI::App app{"VolumeHaptics: feel the isosurfaces of CT/MR volumes with a 6-DOF haptic tool "
                "(Chan et al., WHC 2011)."};
   app.require_subcommand(0, 1);
-
-  // ---- GUI (default) ----
-  std::string gui_input;
-  vh::ui::AppOptions gui;
-  std::string screenshot;
-  std::optional<double> gui_isovalue;
-  app.add_option("path", gui_input,
-                 "DICOM folder, NRRD (.nrrd/.nhdr) or MetaImage (.mha/.mhd) file, or scene .json "
-                 "(default: the built-in block with a hole and a peg)");
-  app.add_option("--screenshot", screenshot, "Save a PNG of the window after loading, then quit");
-  app.add_option("--screenshot-delay-ms", gui.screenshot_delay_ms, "Time from showing the window to the screenshot [ms]")
-      ->check(CLI::NonNegativeNumber);
-  app.add_option("--isovalue", gui_isovalue, "Initial isovalue in the data's units (HU for CT)");
-  app.add_flag("--touch", gui.touch, "Move the simulated device towards the volume's centre until the tool rests on the surface, after load");
-  app.add_option("--touch-depth-m", gui.touch_depth_m, "How far past the surface --touch goes [m]")
-      ->check(CLI::NonNegativeNumber);
-  app.add_option("--igtl-port", gui.igtl_port,
-                 "Listen for an OpenIGTLink client (3D Slicer) on this port (18944 is Slicer's default); off without it")
-      ->check(CLI::Range(1, 65535));
-  app.add_option("--igtl-rate", gui.igtl_rate_Hz, "OpenIGTLink frames per second [Hz] (clamped to the servo rate)")
-      ->check(CLI::Range(1.0, 100000.0));
-  app.add_option("--width", gui.window_width, "Window width [logical pixels]")->check(CLI::PositiveNumber);
-  app.add_option("--height", gui.window_height, "Window height [logical pixels]")->check(CLI::PositiveNumber);
-
-  // ---- run ----
-  CLI::App* run = app.add_subcommand("run", "Headless: replay a device trajectory through the renderer and "
-                                            "report timing, contacts and penetration (no display needed)");
-  std::string run_scene, run_trajectory, run_report;
-  std::optional<double> run_isovalue;
-  bool run_check = false;
-  run->add_option("--scene", run_scene, "Scene .json (its device section is ignored)")->required();
-  run->add_option("--trajectory", run_trajectory, "Trajectory CSV: t_s,x_m,y_m,z_m,qw,qx,qy,qz")->required();
-  run->add_option("--report", run_report, "Write the JSON report here");
-  run->add_option("--isovalue", run_isovalue, "Override the scene's isovalue");
-  std::optional<std::string> run_series;
-  std::optional<int> run_phase;
-  run->add_option("--series", run_series,
-                  "DICOM folder: the series to load (number, Series Instance UID or text of its description); default: the scene's, else the largest");
-  run->add_option("--phase", run_phase, "4-D DICOM series: the time point (phase, echo) to load, 0-based")
-      ->check(CLI::NonNegativeNumber);
-  std::string run_segmentation;
-  std::vector<std::string> run_felt, run_critical;
-  run->add_option("--segmentation", run_segmentation,
-                  "3D Slicer segmentation (.seg.nrrd) or label map on the scan (overrides the scene's)");
-  run->add_option("--felt", run_felt,
-                  "A segment to feel instead of the scan's isosurface (name or ID; repeat for more)");
-  run->add_option("--critical", run_critical, "A segment whose touch is reported as critical (repeatable)");
-  std::string run_trace;
-  std::optional<int> run_igtl_port;
-  double run_igtl_rate_Hz = 60.0;
-  run->add_option("--igtl-port", run_igtl_port,
-                  "Stream the run over OpenIGTLink on this port (the run then plays in real time)")
-      ->check(CLI::Range(1, 65535));
-  run->add_option("--igtl-rate", run_igtl_rate_Hz, "OpenIGTLink frames per second [Hz] (clamped to the servo rate)")
-      ->check(CLI::Range(1.0, 100000.0));
-  run->add_option("--trace", run_trace, "Also write one CSV row per tick (poses, force, contacts, time, depth)");
-  std::string run_record;
-  run->add_option("--record", run_record,
-                  "Also write a session recording (.vhrec: metadata, one record per tick, events) here");
-  double run_verify_step = vh::runtime::RunOptions{}.verify_step_voxels;
-  run->add_option("--verify-step", run_verify_step,
-                  "Crossing check after every tick, outside the timed part: sample each shell point's path with "
-                  "this step [voxels]; 0 turns it off")
-      ->capture_default_str()
-      ->check(CLI::NonNegativeNumber);
-  bool run_lag_reference = vh::runtime::RunOptions{}.lag_reference;
-  run->add_flag("!--no-lag-reference", run_lag_reference,
-                "Skip the unbudgeted reference run that measures the work budget's lag");
-  run->add_flag("--check", run_check,
-                "Exit with 3 when the proxy penetrated deeper than epsilon, a tick produced a non-finite value or "
-                "the proxy crossed into the isosurface (crossings > 0)");
-
-  // ---- make-trajectory ----
-  CLI::App* make = app.add_subcommand(
-      "make-trajectory",
-      "Headless: cast the scene's tool down onto the surface and write a push-and-slide trajectory CSV");
-  std::string make_scene, make_out;
-  std::optional<double> make_isovalue;
-  vh::runtime::PushSlideOptions push;
-  std::vector<double> approach_dir, slide_dir, ray_start;
-  make->add_option("--scene", make_scene, "Scene .json")->required();
-  make->add_option("--out", make_out, "Trajectory CSV to write")->required();
-  make->add_option("--isovalue", make_isovalue, "Override the scene's isovalue");
-  make->add_option("--ray-start", ray_start,
-                   "Tool origin where the ray starts, x y z in W [m] (default: above the volume's centre)")
-      ->expected(3);
-  make->add_option("--approach-dir", approach_dir, "Push direction x y z in W (default 0 0 -1)")->expected(3);
-  make->add_option("--slide-dir", slide_dir, "Slide direction x y z in W (default: perpendicular axis)")->expected(3);
-  make->add_option("--clearance-m", push.start_clearance_m, "Start this far before the first contact [m]");
-  make->add_option("--push-depth-m", push.push_depth_m, "Push the device this far past the contact [m]");
-  make->add_option("--slide-m", push.slide_m, "Slide this far tangentially [m]");
-  make->add_option("--slide-rotation-rad", push.slide_rotation_rad, "Rotate this much while sliding [rad]");
-
-  std::string export_rec;
-  std::string export_csv;
-  std::string export_json;
-  CLI::App* export_cmd = app.add_subcommand("export", "Export a session recording (.vhrec) as CSV (one row per tick, "
-                                               "SI units) and/or JSON metadata; a damaged tail is reported");
-  export_cmd->add_option("recording", export_rec, "Recording file (.vhrec)")->required();
-  export_cmd->add_option("--csv", export_csv, "CSV to write: one row per tick, units in the header");
-  export_cmd->add_option("--json", export_json, "JSON to write: the session metadata, a summary and the events");
-  std::string export_events_csv;
-  export_cmd->add_option("--events-csv", export_events_csv, "CSV to write: one row per event (t_s,tick,type,detail_json)");
-  vh::ui::MediaExportOptions export_media;
-  export_cmd->add_option("--video", export_media.video,
-                         "Ogg/Theora video (.ogv) of the replay, rendered off screen (needs an X display with "
-                         "OpenGL, e.g. xvfb-run)");
-  export_cmd->add_option("--png", export_media.png, "PNG of the replay at --at-s");
-  export_cmd->add_option("--at-s", export_media.png_time_s, "Recording time of the --png frame [s]")
-      ->check(CLI::NonNegativeNumber);
-  export_cmd->add_option("--fps", export_media.fps, "Video frame rate [frames/s]")->check(CLI::Range(1.0, 120.0));
-  export_cmd->add_option("--width", export_media.width, "Frame width [px]")->check(CLI::Range(16, 8192));
-  export_cmd->add_option("--height", export_media.height, "Frame height [px]")->check(CLI::Range(16, 8192));
-
-  // ---- bench ----
+  // The subcommands in the order --help lists them.
+  GuiArgs gui;
+  addGuiOptions(app, gui);
+  RunArgs run_args;
+  CLI::App* run = addRunSubcommand(app, run_args);
+  MakeTrajectoryArgs make_args;
+  CLI::App* make = addMakeTrajectorySubcommand(app, make_args);
+  ExportArgs export_args;
+  CLI::App* export_cmd = addExportSubcommand(app, export_args);
   std::function<int()> bench_handler;
   vh::bench::addBenchSubcommand(app, bench_handler);
 
@@ -193,129 +364,16 @@ int main(int argc, char** argv) {
   try {
     // Hardware kinds ("spacemouse", "falcon") for the scene files parsed below.
     vh::devices::registerDeviceKinds();
-    if (*run) {
-      vh::runtime::SceneSpec spec = vh::runtime::loadSceneFile(run_scene);
-      if (run_isovalue) {
-        spec.volume.isovalue = *run_isovalue;
-        spec.volume.isovalue_set = true;
-      }
-      if (run_series) spec.volume.series = *run_series;
-      if (run_phase) spec.volume.phase = *run_phase;
-      if (!run_segmentation.empty()) {
-        spec.segmentation = vh::runtime::SegmentationSpec{};
-        spec.segmentation->path = std::filesystem::absolute(run_segmentation).string();
-      }
-      if ((!run_felt.empty() || !run_critical.empty()) && !spec.segmentation) {
-        throw std::runtime_error("--felt and --critical need a segmentation (--segmentation or the scene's)");
-      }
-      if (!run_felt.empty()) spec.segmentation->felt = run_felt;
-      if (!run_critical.empty()) spec.segmentation->critical = run_critical;
-      vh::runtime::RunOptions run_options;
-      run_options.on_notice = [](const std::string& notice) {
-        std::cerr << "volume-haptics run: warning: " << notice << std::endl;
-      };
-      run_options.trace_csv = run_trace;
-      run_options.record = run_record;
-      run_options.verify_step_voxels = run_verify_step;
-      run_options.lag_reference = run_lag_reference;
-      // OpenIGTLink: the command line's port, else the scene file's section; the run plays in
-      // real time so the client sees the motion at its speed.
-      std::unique_ptr<vh::igtl::IgtlLink> link;
-      if (run_igtl_port) spec.openigtlink = vh::runtime::OpenIgtlinkSpec{*run_igtl_port, run_igtl_rate_Hz};
-      if (spec.openigtlink) {
-        run_options.monitor = std::make_shared<vh::runtime::SnapshotChannel>();
-        run_options.realtime = true;
-        vh::igtl::LinkOptions link_options;
-        link_options.port = spec.openigtlink->port;
-        link_options.rate_Hz = spec.openigtlink->rate_Hz;
-        link_options.servo_rate_Hz = run_options.servo_rate_Hz;
-        if (spec.segmentation) {  // ContactState names the segment touched
-          auto names = std::make_shared<vh::runtime::SegmentNameTable>();
-          vh::runtime::SegmentationSpec names_only;  // nothing felt: just the names
-          names_only.path = spec.segmentation->path;
-          const auto seg =
-              vh::runtime::SegmentSet::fromSpec(vh::io::loadSegmentation(names_only.path), names_only, run_scene);
-          names->set(seg.get());
-          link_options.segment_name = [names](const vh::runtime::HapticSnapshot& snapshot) {
-            return names->name(snapshot.contacts > 0 ? snapshot.segment : -1);
-          };
-        }
-        link = std::make_unique<vh::igtl::IgtlLink>(run_options.monitor, link_options);
-        link->start();
-        std::cout << "volume-haptics run: " << link->statusText() << " at " << link->rate_Hz() << " Hz" << std::endl;
-      }
-      const vh::runtime::RunReport report = vh::runtime::runHeadless(spec, run_trajectory, run_options);
-      if (link) {
-        const vh::igtl::LinkStatus st = link->status();
-        link->stop();
-        std::cout << "volume-haptics run: OpenIGTLink sent " << st.frames_sent << " frames to " << st.clients
-                  << (st.clients == 1 ? " client" : " clients") << std::endl;
-      }
-      if (!run_report.empty()) vh::runtime::writeRunReport(report, run_report);
-      std::cout << "volume-haptics run: " << report.summary() << std::endl;
-      if (!run_record.empty()) std::cout << "volume-haptics run: recording written to " << run_record << std::endl;
-      if (run_check && !report.crossingsChecked())
-        std::cerr << "volume-haptics run: warning: --check without the crossing check (--verify-step 0)" << std::endl;
-      if (run_check &&
-          (report.max_penetration_m > report.epsilon_m || report.nan_ticks > 0 || report.crossings > 0)) {
-        std::cerr << "volume-haptics run: check failed: penetration " << report.max_penetration_m * 1e3
-                  << " mm (epsilon " << report.epsilon_m * 1e3 << " mm), non-finite ticks " << report.nan_ticks
-                  << ", crossings ";
-        if (report.crossingsChecked()) std::cerr << report.crossings;
-        else std::cerr << "not checked";
-        if (report.crossings > 0)
-          std::cerr << " (" << report.crossing_points << (report.crossing_points == 1 ? " point" : " points")
-                    << ", first at tick " << report.first_crossing_tick << ")";
-        std::cerr << std::endl;
-        return kExitCheckFailed;
-      }
-      return EXIT_SUCCESS;
-    }
-
-    if (*export_cmd) {
-      const vh::runtime::Recording recording = vh::runtime::readRecording(export_rec);
-      for (const std::string& w : recording.warnings) std::cerr << "volume-haptics export: warning: " << w << std::endl;
-      if (!export_csv.empty()) vh::runtime::writeRecordingCsv(recording, std::filesystem::path(export_csv));
-      if (!export_json.empty()) vh::runtime::writeRecordingJson(recording, export_json);
-      if (!export_events_csv.empty()) vh::runtime::writeRecordingEventsCsv(recording, std::filesystem::path(export_events_csv));
-      if (!export_media.video.empty() || !export_media.png.empty()) {
-        if (vh::ui::exportRecordingMedia(argc, argv, export_rec, export_media) != 0) return kExitError;
-      }
-      std::cout << "volume-haptics export: " << recording.records.size() << " records, " << recording.events.size()
-                << " events in " << recording.chunks << " chunks, " << recording.dropped_records << " dropped"
-                << std::endl;
-      return EXIT_SUCCESS;
-    }
-
-    if (*make) {
-      vh::runtime::SceneSpec spec = vh::runtime::loadSceneFile(make_scene);
-      if (make_isovalue) {
-        spec.volume.isovalue = *make_isovalue;
-        spec.volume.isovalue_set = true;
-      }
-      const vh::runtime::LoadedScene scene = vh::runtime::loadScene(spec);
-      if (!approach_dir.empty()) push.approach_dir_W = toVector(approach_dir, "--approach-dir");
-      if (!slide_dir.empty()) push.slide_dir_W = toVector(slide_dir, "--slide-dir");
-      // The surface the hand feels (the felt segments' when the scene has some).
-      vh::haptics::Pose start = vh::runtime::poseAboveVolume(*scene.hapticField(), scene.tool->point_shell,
-                                                             scene.X_WT_initial.R_AB, 0.01);
-      if (!ray_start.empty()) start.p_AB_m = toVector(ray_start, "--ray-start");
-      const vh::runtime::PushSlidePlan plan = vh::runtime::makePushSlideTrajectory(
-          *scene.hapticField(), scene.tool->point_shell, scene.hapticIsovalue(), start, push);
-      vh::runtime::writeTrajectoryCsv(plan.trajectory, make_out);
-      std::cout << "volume-haptics make-trajectory: first contact at (" << plan.X_WD_contact.p_AB_m.transpose()
-                << ") m; " << plan.trajectory.size() << " key poses over " << plan.trajectory.duration_s()
-                << " s written to " << make_out << std::endl;
-      return EXIT_SUCCESS;
-    }
-
+    if (*run) return runCommand(run_args);
+    if (*export_cmd) return exportCommand(argc, argv, export_args);
+    if (*make) return makeTrajectoryCommand(make_args);
     if (bench_handler) return bench_handler();
 
     // GUI.
-    const vh::runtime::SceneSpec scene = sceneForPath(gui_input);
-    gui.screenshot = screenshot;
-    gui.isovalue = gui_isovalue;
-    return vh::ui::runApplication(argc, argv, scene, gui);
+    const vh::runtime::SceneSpec scene = sceneForPath(gui.input);
+    gui.options.screenshot = gui.screenshot;
+    gui.options.isovalue = gui.isovalue;
+    return vh::ui::runApplication(argc, argv, scene, gui.options);
   } catch (const std::exception& e) {
     std::cerr << "volume-haptics: error: " << e.what() << std::endl;
     return kExitError;

@@ -383,305 +383,325 @@ void IgtlLink::notice(std::string text) {
   while (notices_.size() > kMaxNotices) notices_.pop_front();
 }
 
+namespace {
+
+/// Packs `message` stamped with `stamp` onto the end of `output`.
+void appendMessage(std::vector<unsigned char>& output, ::igtl::MessageBase& message,
+                   ::igtl::TimeStamp::Pointer& stamp) {
+  message.SetTimeStamp(stamp);
+  message.Pack();
+  const auto* p = static_cast<const unsigned char*>(message.GetPackPointer());
+  output.insert(output.end(), p, p + message.GetPackSize());
+}
+
+/// Bytes per voxel of an IMAGE scalar type; 0 for an unknown type.
+std::uint64_t scalarSize(int type) noexcept {
+  switch (type) {
+    case ::igtl::ImageMessage::TYPE_INT8: case ::igtl::ImageMessage::TYPE_UINT8: return 1;
+    case ::igtl::ImageMessage::TYPE_INT16: case ::igtl::ImageMessage::TYPE_UINT16: return 2;
+    case ::igtl::ImageMessage::TYPE_INT32: case ::igtl::ImageMessage::TYPE_UINT32:
+    case ::igtl::ImageMessage::TYPE_FLOAT32: return 4;
+    case ::igtl::ImageMessage::TYPE_FLOAT64: return 8;
+    default: return 0;
+  }
+}
+
+/// The image's voxel-to-RAS matrix X_RAS_IJK [mm]. Geometry: unit axes (columns 0..2) and the
+/// image centre (column 3), OpenIGTLink's convention; the first voxel's centre is (dims - 1) / 2
+/// voxels back from it. @return false for a zero or non-finite axis.
+bool imageIjkToRas_mm(::igtl::ImageMessage& image, const int (&dims)[3], Eigen::Matrix4d& X) {
+  ::igtl::Matrix4x4 matrix;
+  image.GetMatrix(matrix);
+  float spacing[3];
+  image.GetSpacing(spacing);
+  X = Eigen::Matrix4d::Identity();
+  Eigen::Vector3d centre;
+  for (int r = 0; r < 3; ++r) centre[r] = matrix[r][3];
+  for (int a = 0; a < 3; ++a) {
+    Eigen::Vector3d axis(matrix[0][a], matrix[1][a], matrix[2][a]);
+    const double n = axis.norm();
+    if (!(n > 0.0) || !std::isfinite(n)) return false;
+    X.block<3, 1>(0, a) = axis / n * static_cast<double>(spacing[a]);
+  }
+  X.block<3, 1>(0, 3) = centre - X.topLeftCorner<3, 3>() * Eigen::Vector3d(0.5 * (dims[0] - 1), 0.5 * (dims[1] - 1), 0.5 * (dims[2] - 1));
+  if (image.GetCoordinateSystem() == ::igtl::ImageMessage::COORDINATE_LPS) {
+    X.topRows<2>() *= -1.0;  // LPS -> RAS
+  }
+  return true;
+}
+
+}  // namespace
+
+void IgtlLink::closeClient(const std::string& why) {
+  Impl& m = *impl_;
+  if (m.client_fd < 0) return;
+  if (m.in_body || m.header_got > 0) {
+    notice("OpenIGTLink: a message from " + m.peer + " was cut off (" + std::to_string(m.in_body ? m.body_got : m.header_got) +
+           " bytes of it received)");
+  }
+  notice("OpenIGTLink: client " + m.peer + " " + why);
+  m.client->CloseSocket();
+  m.client = nullptr;
+  m.client_fd = -1;
+  m.output.clear();
+  m.output_sent = 0;
+  m.header_got = 0;
+  m.in_body = false;
+  m.body.clear();
+  m.body.shrink_to_fit();
+  const std::lock_guard<std::mutex> lock(mutex_);
+  status_.connected = false;
+  status_.peer.clear();
+}
+
+void IgtlLink::reject(const std::string& why) {
+  notice("OpenIGTLink: rejected a message from " + impl_->peer + ": " + why);
+  const std::lock_guard<std::mutex> lock(mutex_);
+  ++status_.messages_rejected;
+}
+
+bool IgtlLink::flush() {
+  Impl& m = *impl_;
+  while (m.output_sent < m.output.size()) {
+    const ssize_t n = ::send(m.client_fd, m.output.data() + m.output_sent, m.output.size() - m.output_sent,
+                             MSG_NOSIGNAL | MSG_DONTWAIT);
+    if (n > 0) {
+      m.output_sent += static_cast<std::size_t>(n);
+      continue;
+    }
+    if (n < 0 && (errno == EAGAIN || errno == EWOULDBLOCK)) return true;
+    if (n < 0 && errno == EINTR) continue;
+    return false;
+  }
+  m.output.clear();
+  m.output_sent = 0;
+  return true;
+}
+
+void IgtlLink::sendFrame() {
+  Impl& m = *impl_;
+  if (channel_ != nullptr && channel_->read(m.snapshot)) m.have_snapshot = true;
+  if (m.client_fd < 0 || !m.have_snapshot) return;
+  if (m.output.size() - m.output_sent > kMaxPendingOutput) {
+    const std::lock_guard<std::mutex> lock(mutex_);
+    ++status_.frames_skipped;
+    return;
+  }
+  const runtime::HapticSnapshot& s = m.snapshot;
+  const std::int64_t t_ns = s.time_ns != 0 ? s.time_ns + m.wall_minus_steady_ns : wallNs();
+  m.stamp->SetTime(static_cast<::igtl_uint32>(t_ns / kNsPerS), static_cast<::igtl_uint32>(t_ns % kNsPerS));
+  ::igtl::Matrix4x4 matrix;
+  toIgtl(toRasMatrix_mm(s.X_WP), matrix);
+  m.proxy->SetMatrix(matrix);
+  appendMessage(m.output, *m.proxy, m.stamp);
+  toIgtl(toRasMatrix_mm(s.X_WD), matrix);
+  m.device->SetMatrix(matrix);
+  appendMessage(m.output, *m.device, m.stamp);
+  const Eigen::Vector3d force_RAS_N = toRas(s.force_W_N);
+  for (unsigned i = 0; i < 3; ++i) m.force->SetValue(i, force_RAS_N[static_cast<int>(i)]);
+  appendMessage(m.output, *m.force, m.stamp);
+  nlohmann::json state;
+  state["tick"] = s.tick;
+  state["contacts"] = s.contacts;
+  state["force_N"] = s.force_W_N.allFinite() ? s.force_W_N.norm() : 0.0;
+  std::string segment;
+  if (options_.segment_name) {
+    try {
+      segment = options_.segment_name(s);
+    } catch (...) {  // NOLINT(bugprone-empty-catch): the hook's failure leaves the segment null
+      segment.clear();
+    }
+  }
+  state["segment"] = segment.empty() ? nlohmann::json(nullptr) : nlohmann::json(segment);
+  std::string text = state.dump();
+  m.contact->SetString(text);
+  appendMessage(m.output, *m.contact, m.stamp);
+  if (!flush()) {
+    closeClient("disconnected (send failed)");
+    return;
+  }
+  const std::lock_guard<std::mutex> lock(mutex_);
+  ++status_.frames_sent;
+}
+
+void IgtlLink::handleImage() {
+  Impl& m = *impl_;
+  const std::uint16_t version = static_cast<std::uint16_t>(readBigEndian(m.header.data(), 2));
+  const std::string name = fixedString(m.header.data() + 14, 20);
+  std::array<unsigned char, kHeaderSize> v1_header = m.header;
+  const unsigned char* content = m.body.data();
+  std::uint64_t content_size = m.body.size();
+  if (version == 2) {
+    // Header version 2 (protocol 3): extended header, content, metadata. libOpenIGTLink 1.11
+    // knows version 1 only: check the CRC over the whole body here, then hand it the content.
+    if (m.body.size() < kExtendedHeaderSize) return reject("IMAGE '" + name + "': body shorter than its extended header");
+    const std::uint64_t crc = crc64(m.body.data(), m.body.size(), 0ULL);
+    if (crc != readBigEndian(m.header.data() + 50, 8)) return reject("IMAGE '" + name + "': CRC mismatch");
+    const std::uint64_t ext = readBigEndian(m.body.data(), 2);
+    const std::uint64_t meta_header = readBigEndian(m.body.data() + 2, 2);
+    const std::uint64_t meta = readBigEndian(m.body.data() + 4, 4);
+    if (ext < kExtendedHeaderSize || ext + meta_header + meta > m.body.size()) {
+      return reject("IMAGE '" + name + "': extended header sizes exceed the body");
+    }
+    content = m.body.data() + ext;
+    content_size = m.body.size() - ext - meta_header - meta;
+    writeBigEndian(v1_header.data(), 2, 1);
+    writeBigEndian(v1_header.data() + 42, 8, content_size);
+    writeBigEndian(v1_header.data() + 50, 8, crc64(const_cast<unsigned char*>(content), content_size, 0ULL));
+  } else if (version != 1) {
+    return reject("IMAGE '" + name + "': unknown header version " + std::to_string(version));
+  }
+  if (content_size < kImageHeaderSize) return reject("IMAGE '" + name + "': body shorter than the image header");
+  ::igtl::MessageHeader::Pointer header = ::igtl::MessageHeader::New();
+  header->InitPack();
+  std::memcpy(header->GetPackPointer(), v1_header.data(), kHeaderSize);
+  header->Unpack();
+  ::igtl::ImageMessage::Pointer image = ::igtl::ImageMessage::New();
+  image->SetMessageHeader(header);
+  image->AllocatePack();
+  if (static_cast<std::uint64_t>(image->GetPackBodySize()) != content_size) {
+    return reject("IMAGE '" + name + "': body size mismatch");
+  }
+  std::memcpy(image->GetPackBodyPointer(), content, content_size);
+  if (!(image->Unpack(1) & ::igtl::MessageHeader::UNPACK_BODY)) {
+    return reject("IMAGE '" + name + "': CRC mismatch or unknown image header version");
+  }
+  int dims[3], sub_dims[3], sub_off[3];
+  image->GetDimensions(dims);
+  image->GetSubVolume(sub_dims, sub_off);
+  if (image->GetNumComponents() != 1) {
+    return reject("IMAGE '" + name + "': " + std::to_string(image->GetNumComponents()) + " components (only scalar volumes)");
+  }
+  for (int a = 0; a < 3; ++a) {
+    if (dims[a] < 2) {
+      return reject("IMAGE '" + name + "': " + std::to_string(dims[0]) + " x " + std::to_string(dims[1]) + " x " +
+                    std::to_string(dims[2]) + " voxels (at least 2 along every axis)");
+    }
+    if (sub_dims[a] != dims[a] || sub_off[a] != 0) return reject("IMAGE '" + name + "': a sub-volume (only whole volumes)");
+  }
+  const int type = image->GetScalarType();
+  const std::uint64_t scalar_size = scalarSize(type);
+  if (scalar_size == 0) return reject("IMAGE '" + name + "': unknown scalar type " + std::to_string(type));
+  const std::uint64_t count =
+      static_cast<std::uint64_t>(dims[0]) * static_cast<std::uint64_t>(dims[1]) * static_cast<std::uint64_t>(dims[2]);
+  if (kImageHeaderSize + count * scalar_size != content_size) {
+    return reject("IMAGE '" + name + "': " + std::to_string(content_size - kImageHeaderSize) + " bytes of voxels, expected " +
+                  std::to_string(count * scalar_size));
+  }
+  auto* voxels = static_cast<unsigned char*>(image->GetScalarPointer());
+  const bool little_host = igtl_is_little_endian() != 0;
+  const bool little_data = image->GetEndian() == ::igtl::ImageMessage::ENDIAN_LITTLE;
+  if (scalar_size > 1 && little_host != little_data) {
+    for (std::uint64_t i = 0; i < count; ++i) std::reverse(voxels + i * scalar_size, voxels + (i + 1) * scalar_size);
+  }
+  Eigen::Matrix4d X;
+  if (!imageIjkToRas_mm(*image, dims, X)) return reject("IMAGE '" + name + "': a zero or non-finite axis");
+  try {
+    std::vector<std::byte> bytes;
+    const haptics::VoxelType voxel_type = convertVoxels(type, voxels, static_cast<std::size_t>(count), bytes);
+    io::LoadedVolume volume =
+        volumeFromIjkToRas({dims[0], dims[1], dims[2]}, X, voxel_type, std::move(bytes), name);
+    notice("OpenIGTLink: received volume '" + name + "' (" + std::to_string(dims[0]) + " x " + std::to_string(dims[1]) +
+           " x " + std::to_string(dims[2]) + ")");
+    const std::lock_guard<std::mutex> lock(mutex_);
+    inbox_.push_back(std::move(volume));
+    ++status_.images_received;
+  } catch (const std::exception& e) {
+    reject("IMAGE '" + name + "': " + e.what());
+  }
+}
+
+bool IgtlLink::receive() {
+  Impl& m = *impl_;
+  for (;;) {
+    unsigned char* target = nullptr;
+    std::size_t want = 0;
+    if (!m.in_body) {
+      target = m.header.data() + m.header_got;
+      want = kHeaderSize - m.header_got;
+    } else if (m.keep_body) {
+      target = m.body.data() + m.body_got;
+      want = static_cast<std::size_t>(m.body_size - m.body_got);
+    } else {
+      target = m.scratch.data();
+      want = static_cast<std::size_t>(std::min<std::uint64_t>(m.scratch.size(), m.body_size - m.body_got));
+    }
+    if (want > 0) {
+      const ssize_t n = ::recv(m.client_fd, target, want, MSG_DONTWAIT);
+      if (n == 0) return false;
+      if (n < 0) {
+        if (errno == EAGAIN || errno == EWOULDBLOCK) return true;
+        if (errno == EINTR) continue;
+        return false;
+      }
+      if (!m.in_body) m.header_got += static_cast<std::size_t>(n);
+      else m.body_got += static_cast<std::uint64_t>(n);
+    }
+    if (!m.in_body && m.header_got == kHeaderSize) {
+      m.body_size = readBigEndian(m.header.data() + 42, 8);
+      const std::string type = fixedString(m.header.data() + 2, 12);
+      if (m.body_size > options_.max_message_bytes) {
+        reject(type + " '" + fixedString(m.header.data() + 14, 20) + "': body of " + std::to_string(m.body_size) +
+               " bytes exceeds the limit of " + std::to_string(options_.max_message_bytes));
+        m.header_got = 0;
+        return false;  // cannot skip that much safely: drop the client
+      }
+      m.in_body = true;
+      m.body_got = 0;
+      m.keep_body = type == "IMAGE";
+      if (m.keep_body) {
+        try {
+          m.body.assign(static_cast<std::size_t>(m.body_size), 0);
+        } catch (const std::bad_alloc&) {
+          reject("IMAGE: out of memory for " + std::to_string(m.body_size) + " bytes");
+          m.in_body = false;
+          m.header_got = 0;
+          return false;
+        }
+      }
+    }
+    if (m.in_body && m.body_got == m.body_size) {
+      m.in_body = false;
+      m.header_got = 0;
+      {
+        const std::lock_guard<std::mutex> lock(mutex_);
+        ++status_.messages_received;
+      }
+      if (m.keep_body) {
+        handleImage();
+        m.body.clear();
+        m.body.shrink_to_fit();
+      }
+    }
+  }
+}
+
+void IgtlLink::acceptClient() {
+  Impl& m = *impl_;
+  ::igtl::ClientSocket::Pointer socket = m.server->WaitForConnection(1);
+  if (socket.IsNull()) return;
+  if (m.client_fd >= 0) closeClient("replaced by a new connection");
+  m.client = socket;
+  m.client_fd = SocketDescriptor::of(*socket);
+  setsockopt(m.client_fd, SOL_SOCKET, SO_SNDBUF, &kClientSendBuffer, sizeof(kClientSendBuffer));
+  sockaddr_in address{};
+  socklen_t length = sizeof(address);
+  char text[INET_ADDRSTRLEN] = "?";
+  if (getpeername(m.client_fd, reinterpret_cast<sockaddr*>(&address), &length) == 0) {
+    inet_ntop(AF_INET, &address.sin_addr, text, sizeof(text));
+  }
+  m.peer = std::string(text) + ":" + std::to_string(ntohs(address.sin_port));
+  notice("OpenIGTLink: client " + m.peer + " connected");
+  const std::lock_guard<std::mutex> lock(mutex_);
+  status_.connected = true;
+  status_.peer = m.peer;
+  ++status_.clients;
+}
+
 void IgtlLink::run() noexcept {
   Impl& m = *impl_;
   const auto period_ns = static_cast<std::int64_t>(std::llround(1e9 / rate_Hz_));
   std::int64_t next_frame_ns = steadyNs();
-
-  const auto closeClient = [&](const std::string& why) {
-    if (m.client_fd < 0) return;
-    if (m.in_body || m.header_got > 0) {
-      notice("OpenIGTLink: a message from " + m.peer + " was cut off (" + std::to_string(m.in_body ? m.body_got : m.header_got) +
-             " bytes of it received)");
-    }
-    notice("OpenIGTLink: client " + m.peer + " " + why);
-    m.client->CloseSocket();
-    m.client = nullptr;
-    m.client_fd = -1;
-    m.output.clear();
-    m.output_sent = 0;
-    m.header_got = 0;
-    m.in_body = false;
-    m.body.clear();
-    m.body.shrink_to_fit();
-    const std::lock_guard<std::mutex> lock(mutex_);
-    status_.connected = false;
-    status_.peer.clear();
-  };
-  const auto reject = [&](const std::string& why) {
-    notice("OpenIGTLink: rejected a message from " + m.peer + ": " + why);
-    const std::lock_guard<std::mutex> lock(mutex_);
-    ++status_.messages_rejected;
-  };
-
-  // Writes what it can of the output buffer; false when the client is gone.
-  const auto flush = [&]() -> bool {
-    while (m.output_sent < m.output.size()) {
-      const ssize_t n = ::send(m.client_fd, m.output.data() + m.output_sent, m.output.size() - m.output_sent,
-                               MSG_NOSIGNAL | MSG_DONTWAIT);
-      if (n > 0) {
-        m.output_sent += static_cast<std::size_t>(n);
-        continue;
-      }
-      if (n < 0 && (errno == EAGAIN || errno == EWOULDBLOCK)) return true;
-      if (n < 0 && errno == EINTR) continue;
-      return false;
-    }
-    m.output.clear();
-    m.output_sent = 0;
-    return true;
-  };
-  const auto append = [&](::igtl::MessageBase& message) {
-    message.SetTimeStamp(m.stamp);
-    message.Pack();
-    const auto* p = static_cast<const unsigned char*>(message.GetPackPointer());
-    m.output.insert(m.output.end(), p, p + message.GetPackSize());
-  };
-
-  // One frame: the four messages from the latest snapshot.
-  const auto sendFrame = [&]() {
-    if (channel_ != nullptr && channel_->read(m.snapshot)) m.have_snapshot = true;
-    if (m.client_fd < 0 || !m.have_snapshot) return;
-    if (m.output.size() - m.output_sent > kMaxPendingOutput) {
-      const std::lock_guard<std::mutex> lock(mutex_);
-      ++status_.frames_skipped;
-      return;
-    }
-    const runtime::HapticSnapshot& s = m.snapshot;
-    const std::int64_t t_ns = s.time_ns != 0 ? s.time_ns + m.wall_minus_steady_ns : wallNs();
-    m.stamp->SetTime(static_cast<::igtl_uint32>(t_ns / kNsPerS), static_cast<::igtl_uint32>(t_ns % kNsPerS));
-    ::igtl::Matrix4x4 matrix;
-    toIgtl(toRasMatrix_mm(s.X_WP), matrix);
-    m.proxy->SetMatrix(matrix);
-    append(*m.proxy);
-    toIgtl(toRasMatrix_mm(s.X_WD), matrix);
-    m.device->SetMatrix(matrix);
-    append(*m.device);
-    const Eigen::Vector3d force_RAS_N = toRas(s.force_W_N);
-    for (unsigned i = 0; i < 3; ++i) m.force->SetValue(i, force_RAS_N[static_cast<int>(i)]);
-    append(*m.force);
-    nlohmann::json state;
-    state["tick"] = s.tick;
-    state["contacts"] = s.contacts;
-    state["force_N"] = s.force_W_N.allFinite() ? s.force_W_N.norm() : 0.0;
-    std::string segment;
-    if (options_.segment_name) {
-      try {
-        segment = options_.segment_name(s);
-      } catch (...) {  // NOLINT(bugprone-empty-catch): the hook's failure leaves the segment null
-        segment.clear();
-      }
-    }
-    state["segment"] = segment.empty() ? nlohmann::json(nullptr) : nlohmann::json(segment);
-    std::string text = state.dump();
-    m.contact->SetString(text);
-    append(*m.contact);
-    if (!flush()) {
-      closeClient("disconnected (send failed)");
-      return;
-    }
-    const std::lock_guard<std::mutex> lock(mutex_);
-    ++status_.frames_sent;
-  };
-
-  // A whole message arrived (header in m.header, IMAGE body in m.body).
-  const auto handleImage = [&]() {
-    const std::uint16_t version = static_cast<std::uint16_t>(readBigEndian(m.header.data(), 2));
-    const std::string name = fixedString(m.header.data() + 14, 20);
-    std::array<unsigned char, kHeaderSize> v1_header = m.header;
-    const unsigned char* content = m.body.data();
-    std::uint64_t content_size = m.body.size();
-    if (version == 2) {
-      // Header version 2 (protocol 3): extended header, content, metadata. libOpenIGTLink 1.11
-      // knows version 1 only: check the CRC over the whole body here, then hand it the content.
-      if (m.body.size() < kExtendedHeaderSize) return reject("IMAGE '" + name + "': body shorter than its extended header");
-      const std::uint64_t crc = crc64(m.body.data(), m.body.size(), 0ULL);
-      if (crc != readBigEndian(m.header.data() + 50, 8)) return reject("IMAGE '" + name + "': CRC mismatch");
-      const std::uint64_t ext = readBigEndian(m.body.data(), 2);
-      const std::uint64_t meta_header = readBigEndian(m.body.data() + 2, 2);
-      const std::uint64_t meta = readBigEndian(m.body.data() + 4, 4);
-      if (ext < kExtendedHeaderSize || ext + meta_header + meta > m.body.size()) {
-        return reject("IMAGE '" + name + "': extended header sizes exceed the body");
-      }
-      content = m.body.data() + ext;
-      content_size = m.body.size() - ext - meta_header - meta;
-      writeBigEndian(v1_header.data(), 2, 1);
-      writeBigEndian(v1_header.data() + 42, 8, content_size);
-      writeBigEndian(v1_header.data() + 50, 8, crc64(const_cast<unsigned char*>(content), content_size, 0ULL));
-    } else if (version != 1) {
-      return reject("IMAGE '" + name + "': unknown header version " + std::to_string(version));
-    }
-    if (content_size < kImageHeaderSize) return reject("IMAGE '" + name + "': body shorter than the image header");
-    ::igtl::MessageHeader::Pointer header = ::igtl::MessageHeader::New();
-    header->InitPack();
-    std::memcpy(header->GetPackPointer(), v1_header.data(), kHeaderSize);
-    header->Unpack();
-    ::igtl::ImageMessage::Pointer image = ::igtl::ImageMessage::New();
-    image->SetMessageHeader(header);
-    image->AllocatePack();
-    if (static_cast<std::uint64_t>(image->GetPackBodySize()) != content_size) {
-      return reject("IMAGE '" + name + "': body size mismatch");
-    }
-    std::memcpy(image->GetPackBodyPointer(), content, content_size);
-    if (!(image->Unpack(1) & ::igtl::MessageHeader::UNPACK_BODY)) {
-      return reject("IMAGE '" + name + "': CRC mismatch or unknown image header version");
-    }
-    int dims[3], sub_dims[3], sub_off[3];
-    image->GetDimensions(dims);
-    image->GetSubVolume(sub_dims, sub_off);
-    if (image->GetNumComponents() != 1) {
-      return reject("IMAGE '" + name + "': " + std::to_string(image->GetNumComponents()) + " components (only scalar volumes)");
-    }
-    for (int a = 0; a < 3; ++a) {
-      if (dims[a] < 2) {
-        return reject("IMAGE '" + name + "': " + std::to_string(dims[0]) + " x " + std::to_string(dims[1]) + " x " +
-                      std::to_string(dims[2]) + " voxels (at least 2 along every axis)");
-      }
-      if (sub_dims[a] != dims[a] || sub_off[a] != 0) return reject("IMAGE '" + name + "': a sub-volume (only whole volumes)");
-    }
-    const int type = image->GetScalarType();
-    std::uint64_t scalar_size = 0;
-    switch (type) {
-      case ::igtl::ImageMessage::TYPE_INT8: case ::igtl::ImageMessage::TYPE_UINT8: scalar_size = 1; break;
-      case ::igtl::ImageMessage::TYPE_INT16: case ::igtl::ImageMessage::TYPE_UINT16: scalar_size = 2; break;
-      case ::igtl::ImageMessage::TYPE_INT32: case ::igtl::ImageMessage::TYPE_UINT32:
-      case ::igtl::ImageMessage::TYPE_FLOAT32: scalar_size = 4; break;
-      case ::igtl::ImageMessage::TYPE_FLOAT64: scalar_size = 8; break;
-      default: return reject("IMAGE '" + name + "': unknown scalar type " + std::to_string(type));
-    }
-    const std::uint64_t count =
-        static_cast<std::uint64_t>(dims[0]) * static_cast<std::uint64_t>(dims[1]) * static_cast<std::uint64_t>(dims[2]);
-    if (kImageHeaderSize + count * scalar_size != content_size) {
-      return reject("IMAGE '" + name + "': " + std::to_string(content_size - kImageHeaderSize) + " bytes of voxels, expected " +
-                    std::to_string(count * scalar_size));
-    }
-    auto* voxels = static_cast<unsigned char*>(image->GetScalarPointer());
-    const bool little_host = igtl_is_little_endian() != 0;
-    const bool little_data = image->GetEndian() == ::igtl::ImageMessage::ENDIAN_LITTLE;
-    if (scalar_size > 1 && little_host != little_data) {
-      for (std::uint64_t i = 0; i < count; ++i) std::reverse(voxels + i * scalar_size, voxels + (i + 1) * scalar_size);
-    }
-    // Geometry: unit axes (columns 0..2) and the image centre (column 3), OpenIGTLink's
-    // convention; the first voxel's centre is (dims - 1) / 2 voxels back from it.
-    ::igtl::Matrix4x4 matrix;
-    image->GetMatrix(matrix);
-    float spacing[3];
-    image->GetSpacing(spacing);
-    Eigen::Matrix4d X = Eigen::Matrix4d::Identity();
-    Eigen::Vector3d centre;
-    for (int r = 0; r < 3; ++r) centre[r] = matrix[r][3];
-    for (int a = 0; a < 3; ++a) {
-      Eigen::Vector3d axis(matrix[0][a], matrix[1][a], matrix[2][a]);
-      const double n = axis.norm();
-      if (!(n > 0.0) || !std::isfinite(n)) return reject("IMAGE '" + name + "': a zero or non-finite axis");
-      X.block<3, 1>(0, a) = axis / n * static_cast<double>(spacing[a]);
-    }
-    X.block<3, 1>(0, 3) = centre - X.topLeftCorner<3, 3>() * Eigen::Vector3d(0.5 * (dims[0] - 1), 0.5 * (dims[1] - 1), 0.5 * (dims[2] - 1));
-    if (image->GetCoordinateSystem() == ::igtl::ImageMessage::COORDINATE_LPS) {
-      X.topRows<2>() *= -1.0;  // LPS -> RAS
-    }
-    try {
-      std::vector<std::byte> bytes;
-      const haptics::VoxelType voxel_type = convertVoxels(type, voxels, static_cast<std::size_t>(count), bytes);
-      io::LoadedVolume volume =
-          volumeFromIjkToRas({dims[0], dims[1], dims[2]}, X, voxel_type, std::move(bytes), name);
-      notice("OpenIGTLink: received volume '" + name + "' (" + std::to_string(dims[0]) + " x " + std::to_string(dims[1]) +
-             " x " + std::to_string(dims[2]) + ")");
-      const std::lock_guard<std::mutex> lock(mutex_);
-      inbox_.push_back(std::move(volume));
-      ++status_.images_received;
-    } catch (const std::exception& e) {
-      reject("IMAGE '" + name + "': " + e.what());
-    }
-  };
-
-  // Reads what the client has sent; false when it is gone (or sent something that cannot be
-  // skipped).
-  const auto receive = [&]() -> bool {
-    for (;;) {
-      unsigned char* target = nullptr;
-      std::size_t want = 0;
-      if (!m.in_body) {
-        target = m.header.data() + m.header_got;
-        want = kHeaderSize - m.header_got;
-      } else if (m.keep_body) {
-        target = m.body.data() + m.body_got;
-        want = static_cast<std::size_t>(m.body_size - m.body_got);
-      } else {
-        target = m.scratch.data();
-        want = static_cast<std::size_t>(std::min<std::uint64_t>(m.scratch.size(), m.body_size - m.body_got));
-      }
-      if (want > 0) {
-        const ssize_t n = ::recv(m.client_fd, target, want, MSG_DONTWAIT);
-        if (n == 0) return false;
-        if (n < 0) {
-          if (errno == EAGAIN || errno == EWOULDBLOCK) return true;
-          if (errno == EINTR) continue;
-          return false;
-        }
-        if (!m.in_body) m.header_got += static_cast<std::size_t>(n);
-        else m.body_got += static_cast<std::uint64_t>(n);
-      }
-      if (!m.in_body && m.header_got == kHeaderSize) {
-        m.body_size = readBigEndian(m.header.data() + 42, 8);
-        const std::string type = fixedString(m.header.data() + 2, 12);
-        if (m.body_size > options_.max_message_bytes) {
-          reject(type + " '" + fixedString(m.header.data() + 14, 20) + "': body of " + std::to_string(m.body_size) +
-                 " bytes exceeds the limit of " + std::to_string(options_.max_message_bytes));
-          m.header_got = 0;
-          return false;  // cannot skip that much safely: drop the client
-        }
-        m.in_body = true;
-        m.body_got = 0;
-        m.keep_body = type == "IMAGE";
-        if (m.keep_body) {
-          try {
-            m.body.assign(static_cast<std::size_t>(m.body_size), 0);
-          } catch (const std::bad_alloc&) {
-            reject("IMAGE: out of memory for " + std::to_string(m.body_size) + " bytes");
-            m.in_body = false;
-            m.header_got = 0;
-            return false;
-          }
-        }
-      }
-      if (m.in_body && m.body_got == m.body_size) {
-        m.in_body = false;
-        m.header_got = 0;
-        {
-          const std::lock_guard<std::mutex> lock(mutex_);
-          ++status_.messages_received;
-        }
-        if (m.keep_body) {
-          handleImage();
-          m.body.clear();
-          m.body.shrink_to_fit();
-        }
-      }
-    }
-  };
-
-  const auto acceptClient = [&]() {
-    ::igtl::ClientSocket::Pointer socket = m.server->WaitForConnection(1);
-    if (socket.IsNull()) return;
-    if (m.client_fd >= 0) closeClient("replaced by a new connection");
-    m.client = socket;
-    m.client_fd = SocketDescriptor::of(*socket);
-    setsockopt(m.client_fd, SOL_SOCKET, SO_SNDBUF, &kClientSendBuffer, sizeof(kClientSendBuffer));
-    sockaddr_in address{};
-    socklen_t length = sizeof(address);
-    char text[INET_ADDRSTRLEN] = "?";
-    if (getpeername(m.client_fd, reinterpret_cast<sockaddr*>(&address), &length) == 0) {
-      inet_ntop(AF_INET, &address.sin_addr, text, sizeof(text));
-    }
-    m.peer = std::string(text) + ":" + std::to_string(ntohs(address.sin_port));
-    notice("OpenIGTLink: client " + m.peer + " connected");
-    const std::lock_guard<std::mutex> lock(mutex_);
-    status_.connected = true;
-    status_.peer = m.peer;
-    ++status_.clients;
-  };
-
   try {
     while (!stop_requested_.load(std::memory_order_acquire)) {
       const std::int64_t now = steadyNs();

@@ -26,6 +26,40 @@ bool clampNorm(Eigen::Vector3d& v, double max_norm) noexcept {
   return true;
 }
 
+/// How long the device's samples have not changed: `stale_s` grows by the tick's `dt_s` while
+/// the sample time repeats; a new sample time resets it and ends a silence.
+inline void trackStaleness(double sample_time_s, double last_sample_time_s, double dt_s, double& stale_s,
+                           bool& silent) noexcept {
+  if (sample_time_s == last_sample_time_s) {
+    stale_s += dt_s;
+  } else {
+    stale_s = 0.0;
+    silent = false;
+  }
+}
+
+/// Zeroes the parts of the command the device does not actuate. @return true when a non-zero
+/// part was dropped.
+inline bool dropUnactuated(DofMask actuated, Eigen::Vector3d& f, Eigen::Vector3d& tau) noexcept {
+  bool dropped = false;
+  if ((actuated & kDofTranslation) != kDofTranslation) {
+    dropped = dropped || !f.isZero(0.0);
+    f.setZero();
+  }
+  if ((actuated & kDofRotation) != kDofRotation) {
+    dropped = dropped || !tau.isZero(0.0);
+    tau.setZero();
+  }
+  return dropped;
+}
+
+/// The fault hold's output scale after `hold_age_s` of faults: 1 falling linearly to 0 over
+/// `fault_hold_s`; 0 at once on a stall or without a (finite, positive) hold.
+inline double faultHoldScale(double hold_age_s, double fault_hold_s, bool stall) noexcept {
+  const double hold_s = std::isfinite(fault_hold_s) ? std::max(fault_hold_s, 0.0) : 0.0;
+  return stall || !(hold_s > 0.0) ? 0.0 : std::max(0.0, 1.0 - hold_age_s / hold_s);
+}
+
 /// Gain g limited to [0, max]; non-finite or negative gains become 0.
 double clampGain(double g, double max) noexcept {
   if (!std::isfinite(g) || g < 0.0) return 0.0;
@@ -102,12 +136,7 @@ void ForceSafety::step(const SafetyInput& in, Eigen::Vector3d& force_W_N, Eigen:
       stale_s_ = 0.0;
       silent_ = false;
     }
-    if (in.sample_time_s == last_sample_time_s_) {
-      stale_s_ += dt;
-    } else {
-      stale_s_ = 0.0;
-      silent_ = false;
-    }
+    trackStaleness(in.sample_time_s, last_sample_time_s_, dt, stale_s_, silent_);
     last_sample_time_s_ = in.sample_time_s;
     if (stale_s_ > policy_.silent_s) {
       if (!silent_) ++stats_.silent_trips;
@@ -136,8 +165,7 @@ void ForceSafety::step(const SafetyInput& in, Eigen::Vector3d& force_W_N, Eigen:
   if (fault) {
     // The last good command, decaying linearly over the hold; an outage once it is spent.
     hold_age_s_ += period;
-    const double hold_s = std::isfinite(policy_.fault_hold_s) ? std::max(policy_.fault_hold_s, 0.0) : 0.0;
-    const double scale = stall || !(hold_s > 0.0) ? 0.0 : std::max(0.0, 1.0 - hold_age_s_ / hold_s);
+    const double scale = faultHoldScale(hold_age_s_, policy_.fault_hold_s, stall);
     if (scale > 0.0 && state_ != State::kWaitingForSmallForce) {
       force_W_N = scale * held_force_W_N_;
       torque_W_Nm = scale * held_torque_W_Nm_;
@@ -162,16 +190,7 @@ void ForceSafety::step(const SafetyInput& in, Eigen::Vector3d& force_W_N, Eigen:
   // 3. Degrees of freedom the device renders.
   Eigen::Vector3d f = in.force_W_N;
   Eigen::Vector3d tau = in.torque_W_Nm;
-  bool dropped = false;
-  if ((actuated_ & kDofTranslation) != kDofTranslation) {
-    dropped = dropped || !f.isZero(0.0);
-    f.setZero();
-  }
-  if ((actuated_ & kDofRotation) != kDofRotation) {
-    dropped = dropped || !tau.isZero(0.0);
-    tau.setZero();
-  }
-  if (dropped) ++stats_.dropped_dof_ticks;
+  if (dropUnactuated(actuated_, f, tau)) ++stats_.dropped_dof_ticks;
 
   // 4. Engage gate (on what the device would render, before clamping).
   if (state_ == State::kWaitingForSmallForce) {

@@ -22,6 +22,7 @@
 #include <cstdlib>
 #include <cstring>
 #include <limits>
+#include <span>
 #include <stdexcept>
 
 #include <nlohmann/json.hpp>
@@ -431,6 +432,227 @@ void HapticThread::stop() {
   if (solver_thread_.joinable()) solver_thread_.join();
 }
 
+namespace {
+
+// ---- Helpers of the servo loops: no allocation, no throw, no lock; inlined into the loops. ----
+
+/// The coupling thread's passivity control (CouplingGains::passivity_control, passivity_port.h):
+/// one controller per port, the force with the centre of mass's displacement and the torque with
+/// the rotation vector since the previous coupled sample. Their state is kept across gain changes
+/// (the rendered stiffness stays continuous) and short faults; they start afresh when the switch
+/// turns on and after an outage (ForceSafety re-armed).
+struct CouplingPassivity {
+  explicit CouplingPassivity(const haptics::MassProperties& mass) noexcept
+      : I_Cm_inv_T(mass.I_Cm_T_kgm2.inverse()), mean_moment_kgm2(mass.I_Cm_T_kgm2.trace() / 3.0) {}
+
+  /// Both controllers afresh for `gains` on a device rated `limits`.
+  void configure(const haptics::CouplingGains& gains, const DeviceLimits& limits) noexcept {
+    force.configure(gains.linear_N_per_m, limits.max_linear_stiffness_N_per_m);
+    torque.configure(gains.angular_Nm_per_rad, limits.max_angular_stiffness_Nm_per_rad);
+  }
+
+  /// A gain change: the controllers keep their state; the rendered stiffness moves on without a step.
+  void setStiffness(const haptics::CouplingGains& gains, const DeviceLimits& limits) noexcept {
+    force.setStiffness(gains.linear_N_per_m, limits.max_linear_stiffness_N_per_m);
+    torque.setStiffness(gains.angular_Nm_per_rad, limits.max_angular_stiffness_Nm_per_rad);
+  }
+
+  /// A coupled tick at the device pose X_WD: with passivity control on, the wrench goes through
+  /// both controllers (the hand's motion since the last coupled sample, over the ticks since: a
+  /// short fault keeps the controllers' state; the spring's stored energy as the cap). Then
+  /// X_WD is the last coupled pose.
+  inline void coupled(Eigen::Vector3d& force_W_N, Eigen::Vector3d& torque_W_Nm, const haptics::Pose& X_WD,
+                      const haptics::Pose& X_WP, const haptics::MassProperties& mass,
+                      const haptics::CouplingGains& gains, double period_s) noexcept {
+    if (gains.passivity_control) {
+      haptics::Vector6d step_W = haptics::Vector6d::Zero();
+      if (have_coupled_last) step_W = haptics::displacement_W(X_WD_coupled_last, X_WD, mass.p_TCm_m);
+      const double dt_s = period_s * static_cast<double>(have_coupled_last ? ticks_since_coupled : 1);
+      const auto f =
+          force.step(force_W_N, step_W.head<3>(), dt_s, linearStoredEnergy_J(force_W_N, gains.linear_N_per_m));
+      const auto t = torque.step(
+          torque_W_Nm, step_W.tail<3>(), dt_s,
+          angularStoredEnergy_J(torque_W_Nm, X_WP.R_AB, I_Cm_inv_T, mean_moment_kgm2, gains.angular_Nm_per_rad));
+      force_W_N = f.effort_W;
+      torque_W_Nm = t.effort_W;
+      if (f.alpha > 0.0) ++active_ticks;
+      if (t.alpha > 0.0) ++active_ticks;
+      dissipated_J += f.predicted_dissipation_J + t.predicted_dissipation_J;
+    }
+    X_WD_coupled_last = X_WD;
+    have_coupled_last = true;
+    ticks_since_coupled = 0;
+  }
+
+  /// After the safety layer's step: an outage (a new count in `outages`) breaks the motion history.
+  inline void afterSafety(std::uint64_t outages) noexcept {
+    if (outages == outages_seen) return;
+    outages_seen = outages;
+    force.restart();
+    torque.restart();
+    have_coupled_last = false;
+  }
+
+  PassivityPort force;
+  PassivityPort torque;
+  haptics::Pose X_WD_coupled_last;         ///< The device pose of the last coupled tick.
+  bool have_coupled_last = false;          ///< X_WD_coupled_last is valid (no outage since).
+  std::uint64_t ticks_since_coupled = 0;
+  std::uint64_t outages_seen = 0;
+  const Eigen::Matrix3d I_Cm_inv_T;        ///< I_Cm^-1 in T, for the torsional spring's stored energy.
+  const double mean_moment_kgm2;
+  std::uint64_t active_ticks = 0;          ///< Summed over controller restarts.
+  double dissipated_J = 0.0;
+};
+
+/// The coupling thread's counters since start() (CouplingSnapshot).
+struct CouplingCounts {
+  std::uint64_t tick = 0;
+  std::uint64_t bad_samples = 0;
+  std::uint64_t implausible = 0;
+};
+
+/// Applies `gains` (the requested ones within the device's current `limits`) when they differ
+/// from `applied`; switching passivity control on starts its controllers afresh at the stiffness
+/// rendered so far.
+inline void applyGains(const haptics::CouplingGains& gains, const DeviceLimits& limits,
+                       haptics::CouplingGains& applied, CouplingPassivity& passivity,
+                       haptics::VirtualCoupling& coupling) noexcept {
+  if (sameGains(gains, applied)) return;
+  if (gains.passivity_control && !applied.passivity_control) {
+    // Switched on: afresh, at the stiffness rendered so far (then the step below).
+    passivity.configure(applied, limits);
+  }
+  passivity.setStiffness(gains, limits);
+  applied = gains;
+  coupling.setGains(applied);
+}
+
+/// While stopping, scales the command down linearly over `ramp_ticks` (`ramp_left` > 0: ticks
+/// left; it reaches 0 on the last tick).
+inline void rampDown(int& ramp_left, int ramp_ticks, Eigen::Vector3d& force_W_N,
+                     Eigen::Vector3d& torque_W_Nm) noexcept {
+  if (ramp_left <= 0) return;
+  --ramp_left;
+  const double scale = static_cast<double>(ramp_left) / ramp_ticks;  // reaches 0 on the last tick
+  force_W_N *= scale;
+  torque_W_Nm *= scale;
+}
+
+/// The safety layer's input for a coupling tick.
+inline SafetyInput couplingSafetyInput(bool coupled, SampleFilter::Verdict verdict, double period_s,
+                                       const DeviceSample& sample, double tick_interval_s,
+                                       const Eigen::Vector3d& force_W_N, const Eigen::Vector3d& torque_W_Nm) noexcept {
+  SafetyInput in;
+  in.sample_ok = coupled;
+  in.reseeded = verdict == SampleFilter::Verdict::kReseeded;
+  in.period_s = period_s;
+  in.sample_time_s = sample.time_s;
+  in.connection = sample.connection;
+  in.tick_interval_s = tick_interval_s;
+  in.force_W_N = force_W_N;
+  in.torque_W_Nm = torque_W_Nm;
+  return in;
+}
+
+/// What the safety layer did to a tick's command.
+struct SafetyOutcome {
+  bool nonfinite = false;  ///< The command asked for was not finite.
+  bool limited = false;    ///< The command sent differs from the one asked for (bit comparison).
+  bool zeroed = false;     ///< The safety layer counted the tick as zeroed.
+};
+
+/// The command through the safety layer, then to the device (never NaN, never beyond the
+/// device's limits); `force_W_N` and `torque_W_Nm` become what was sent.
+inline SafetyOutcome commandThroughSafety(ForceSafety& safety, const SafetyInput& safety_in, Device& device,
+                                          Eigen::Vector3d& force_W_N, Eigen::Vector3d& torque_W_Nm) noexcept {
+  SafetyOutcome o;
+  o.nonfinite = !force_W_N.allFinite() || !torque_W_Nm.allFinite();
+  const std::uint64_t zeroed_before = safety.stats().zeroed_ticks;
+  const Eigen::Vector3d force_rendered_W_N = force_W_N;
+  const Eigen::Vector3d torque_rendered_W_Nm = torque_W_Nm;
+  safety.step(safety_in, force_W_N, torque_W_Nm);
+  // Bit comparison (a NaN that was zeroed counts as changed).
+  o.limited = std::memcmp(force_rendered_W_N.data(), force_W_N.data(), 3 * sizeof(double)) != 0 ||
+              std::memcmp(torque_rendered_W_Nm.data(), torque_W_Nm.data(), 3 * sizeof(double)) != 0;
+  device.command(force_W_N, torque_W_Nm);
+  o.zeroed = safety.stats().zeroed_ticks != zeroed_before;
+  return o;
+}
+
+/// The recording's flags for the latest command (HapticThread::Exchange::command_flags).
+inline std::uint32_t commandFlags(const SafetyOutcome& o, bool stopping) noexcept {
+  return (o.zeroed ? kRecordFlagForceZeroed : 0u) | (o.nonfinite ? kRecordFlagNonFinite : 0u) |
+         (stopping ? kRecordFlagStopping : 0u) | (o.limited || o.zeroed ? kRecordFlagForceLimited : 0u);
+}
+
+/// A coupling tick's snapshot (the timing is set by the caller).
+inline void fillCouplingSnapshot(CouplingSnapshot& snap, const CouplingCounts& counts, std::int64_t begin_ns,
+                                 const haptics::Pose& X_WP, const haptics::Pose& X_WD,
+                                 const Eigen::Vector3d& force_W_N, const Eigen::Vector3d& torque_W_Nm,
+                                 std::uint64_t held_ticks, const CouplingPassivity& passivity) noexcept {
+  snap.tick = counts.tick;
+  snap.time_ns = begin_ns;
+  snap.X_WP = X_WP;
+  snap.X_WD = X_WD;
+  snap.force_W_N = force_W_N;
+  snap.torque_W_Nm = torque_W_Nm;
+  snap.bad_samples = counts.bad_samples;
+  snap.implausible_samples = counts.implausible;
+  snap.held_ticks = held_ticks;
+  snap.passivity_active_ticks = passivity.active_ticks;
+  snap.passivity_dissipated_J = passivity.dissipated_J;
+}
+
+/// The poses and wrench of a solver tick into its record: the device pose it ticked with
+/// (X_WD), the proxy pose after it (X_WP) and the renderer's wrench.
+inline void writeRecordPoses(TickRecord& rec, const haptics::Pose& X_WD, const haptics::Pose& X_WP,
+                             const haptics::TickOutput& out) noexcept {
+  for (int k = 0; k < 3; ++k) {
+    rec.p_WD_m[k] = X_WD.p_AB_m[k];
+    rec.p_WP_m[k] = X_WP.p_AB_m[k];
+    rec.force_W_N[k] = out.force_W_N[k];
+    rec.torque_W_Nm[k] = out.torque_W_Nm[k];
+  }
+  rec.q_WD[0] = X_WD.R_AB.w(); rec.q_WD[1] = X_WD.R_AB.x();
+  rec.q_WD[2] = X_WD.R_AB.y(); rec.q_WD[3] = X_WD.R_AB.z();
+  rec.q_WP[0] = X_WP.R_AB.w(); rec.q_WP[1] = X_WP.R_AB.x();
+  rec.q_WP[2] = X_WP.R_AB.y(); rec.q_WP[3] = X_WP.R_AB.z();
+}
+
+/// A solver tick's own recording flags: contact, bad sample, non-finite wrench, device
+/// disconnected, the segment touched.
+inline std::uint32_t solverRecordFlags(std::uint32_t contacts, const DeviceInput& in, const haptics::TickOutput& out,
+                                       int segment) noexcept {
+  const bool nonfinite = !out.force_W_N.allFinite() || !out.torque_W_Nm.allFinite();
+  return (contacts > 0 ? kRecordFlagContact : 0u) | (in.ok ? 0u : kRecordFlagBadSample) |
+         (nonfinite ? kRecordFlagNonFinite : 0u) | (in.connected ? 0u : kRecordFlagDeviceDisconnected) |
+         recordSegmentBits(segment);
+}
+
+/// Gives the renderer the gains the coupling thread applied to this sample when they changed.
+inline void followGains(const haptics::CouplingGains& sample_gains, haptics::CouplingGains& gains,
+                        haptics::HapticRenderer& renderer) noexcept {
+  if (sameGains(sample_gains, gains)) return;
+  gains = sample_gains;
+  renderer.setGains(gains);
+}
+
+/// A solver tick's contacts into its snapshot: their number, the segment touched and the first
+/// ones (at most HapticSnapshot::kMaxContactsShown).
+inline void showContacts(SolverSnapshot& snap, std::span<const haptics::Contact> contacts, int segment) noexcept {
+  snap.contacts = static_cast<int>(contacts.size());
+  snap.segment = segment;
+  const int shown = std::min<int>(snap.contacts, HapticSnapshot::kMaxContactsShown);
+  snap.contacts_shown = shown;
+  for (int i = 0; i < shown; ++i) {
+    snap.contact_p_W_m[static_cast<std::size_t>(i)] = contacts[static_cast<std::size_t>(i)].p_W_m;
+    snap.contact_n_W[static_cast<std::size_t>(i)] = contacts[static_cast<std::size_t>(i)].n_W;
+  }
+}
+
+}  // namespace
+
 void HapticThread::couplingLoop() noexcept {
   bool fifo = false, locked = false;
   configureRealtime(kCouplingPriority, true, fifo, locked);
@@ -439,8 +661,7 @@ void HapticThread::couplingLoop() noexcept {
 
   const int ramp_ticks = std::max(1, static_cast<int>(std::lround(0.050 / period_s_)));  // ~50 ms
   int ramp_left = -1;  // -1: not stopping
-  std::uint64_t tick = 0;
-  std::uint64_t bad_samples = 0;
+  CouplingCounts counts;
   PeriodicClock clock(period_s_, 0);
 
   DeviceSample sample;
@@ -458,30 +679,13 @@ void HapticThread::couplingLoop() noexcept {
   ForceSafety safety(device_->limits(), device_->safetyPolicy(), device_->actuatedDof());
   safety.enable();
   SampleFilter filter(safety.limits());
-  std::uint64_t implausible = 0;
   haptics::CouplingGains requested_gains{gain_linear_.load(std::memory_order_relaxed),
                                          gain_angular_.load(std::memory_order_relaxed),
                                          gain_passivity_.load(std::memory_order_relaxed)};
   haptics::CouplingGains applied_gains = clampGains(requested_gains, safety.limits());
   haptics::VirtualCoupling coupling(applied_gains);
-  // Passivity control (CouplingGains::passivity_control, passivity_port.h): one controller per
-  // port, the force with the centre of mass's displacement and the torque with the rotation
-  // vector since the previous coupled sample. Their state is kept across gain changes (the
-  // rendered stiffness stays continuous) and short faults; they start afresh when the switch
-  // turns on and after an outage (ForceSafety re-armed).
-  PassivityPort passivity_force;
-  PassivityPort passivity_torque;
-  passivity_force.configure(applied_gains.linear_N_per_m, safety.limits().max_linear_stiffness_N_per_m);
-  passivity_torque.configure(applied_gains.angular_Nm_per_rad, safety.limits().max_angular_stiffness_Nm_per_rad);
-  haptics::Pose X_WD_coupled_last;   // the device pose of the last coupled tick
-  bool have_coupled_last = false;    // X_WD_coupled_last is valid (no outage since)
-  std::uint64_t ticks_since_coupled = 0;
-  std::uint64_t outages_seen = 0;
-  // I_Cm^-1 in T, for the torsional spring's stored energy (angularStoredEnergy_J).
-  const Eigen::Matrix3d I_Cm_inv_T = mass.I_Cm_T_kgm2.inverse();
-  const double mean_moment_kgm2 = mass.I_Cm_T_kgm2.trace() / 3.0;
-  std::uint64_t passivity_active_ticks = 0;  // summed over controller restarts
-  double passivity_dissipated_J = 0.0;
+  CouplingPassivity passivity(mass);
+  passivity.configure(applied_gains, safety.limits());
 
   while (true) {
     if (ramp_left < 0 && stop_requested_.load(std::memory_order_acquire)) ramp_left = ramp_ticks;
@@ -499,28 +703,15 @@ void HapticThread::couplingLoop() noexcept {
     const SampleFilter::Verdict verdict = filter.check(sample, read_ok, clock.interval_s());
     const bool ok = verdict == SampleFilter::Verdict::kGood || verdict == SampleFilter::Verdict::kReseeded;
     const bool connected = device_->connected();
-    if (!ok) ++bad_samples;
-    if (verdict == SampleFilter::Verdict::kImplausible) ++implausible;
+    if (!ok) ++counts.bad_samples;
+    if (verdict == SampleFilter::Verdict::kImplausible) ++counts.implausible;
     // 2. Pending GUI commands; gains within the device's current limits (a workspace scale
     //    change alters them).
     if (gains_dirty_.exchange(false, std::memory_order_acq_rel)) {
       requested_gains = {gain_linear_.load(std::memory_order_relaxed), gain_angular_.load(std::memory_order_relaxed),
                          gain_passivity_.load(std::memory_order_relaxed)};
     }
-    const haptics::CouplingGains gains = clampGains(requested_gains, safety.limits());
-    if (!sameGains(gains, applied_gains)) {
-      if (gains.passivity_control && !applied_gains.passivity_control) {
-        // Switched on: afresh, at the stiffness rendered so far (then the step below).
-        passivity_force.configure(applied_gains.linear_N_per_m, safety.limits().max_linear_stiffness_N_per_m);
-        passivity_torque.configure(applied_gains.angular_Nm_per_rad,
-                                   safety.limits().max_angular_stiffness_Nm_per_rad);
-      }
-      // The controllers keep their state; the rendered stiffness moves on without a step.
-      passivity_force.setStiffness(gains.linear_N_per_m, safety.limits().max_linear_stiffness_N_per_m);
-      passivity_torque.setStiffness(gains.angular_Nm_per_rad, safety.limits().max_angular_stiffness_Nm_per_rad);
-      applied_gains = gains;
-      coupling.setGains(applied_gains);
-    }
+    applyGains(clampGains(requested_gains, safety.limits()), safety.limits(), applied_gains, passivity, coupling);
     // 3. Hand the sample to the solver, with this tick's isovalue and gains.
     input.X_WD = ok ? sample.X_WD : X_WD_last;
     input.isovalue = isovalue_.load(std::memory_order_relaxed);
@@ -530,12 +721,12 @@ void HapticThread::couplingLoop() noexcept {
     x_->samples.push(input);
     // 4. Virtual coupling (eq. 5) to the solver's latest proxy pose, with the device pose
     //    normalised as the renderer does (so that the same pair gives the same bits). A pose
-    //    the renderer rejected on its latest tick gives no force.
+    //    the renderer rejected on its latest tick gives no force. 4b: passivity control.
     x_->proxy.read(proxy);
     Eigen::Vector3d force_W_N = Eigen::Vector3d::Zero();
     Eigen::Vector3d torque_W_Nm = Eigen::Vector3d::Zero();
     bool coupled = false;
-    ++ticks_since_coupled;
+    ++passivity.ticks_since_coupled;
     if (ok && !proxy.bad_input) {
       haptics::Pose X_WD = sample.X_WD;
       X_WD.R_AB.coeffs() /= sample.X_WD.R_AB.norm();
@@ -544,81 +735,22 @@ void HapticThread::couplingLoop() noexcept {
       force_W_N = w.force_W_N;
       torque_W_Nm = w.torque_W_Nm;
       coupled = true;
-      // 4b. Passivity control on both ports: the hand's motion since the last coupled sample
-      //     (over the ticks since: a short fault keeps the controllers' state), the spring's
-      //     stored energy as the cap.
-      if (applied_gains.passivity_control) {
-        haptics::Vector6d step_W = haptics::Vector6d::Zero();
-        if (have_coupled_last) step_W = haptics::displacement_W(X_WD_coupled_last, X_WD, mass.p_TCm_m);
-        const double dt_s = period_s_ * static_cast<double>(have_coupled_last ? ticks_since_coupled : 1);
-        const auto f = passivity_force.step(force_W_N, step_W.head<3>(), dt_s,
-                                            linearStoredEnergy_J(force_W_N, applied_gains.linear_N_per_m));
-        const auto t = passivity_torque.step(
-            torque_W_Nm, step_W.tail<3>(), dt_s,
-            angularStoredEnergy_J(torque_W_Nm, proxy.X_WP.R_AB, I_Cm_inv_T, mean_moment_kgm2,
-                                  applied_gains.angular_Nm_per_rad));
-        force_W_N = f.effort_W;
-        torque_W_Nm = t.effort_W;
-        if (f.alpha > 0.0) ++passivity_active_ticks;
-        if (t.alpha > 0.0) ++passivity_active_ticks;
-        passivity_dissipated_J += f.predicted_dissipation_J + t.predicted_dissipation_J;
-      }
-      X_WD_coupled_last = X_WD;
-      have_coupled_last = true;
-      ticks_since_coupled = 0;
+      passivity.coupled(force_W_N, torque_W_Nm, X_WD, proxy.X_WP, mass, applied_gains, period_s_);
     }
-    if (ramp_left > 0) {
-      --ramp_left;
-      const double scale = static_cast<double>(ramp_left) / ramp_ticks;  // reaches 0 on the last tick
-      force_W_N *= scale;
-      torque_W_Nm *= scale;
-    }
+    rampDown(ramp_left, ramp_ticks, force_W_N, torque_W_Nm);
     // 5. Safety layer, then command (never NaN, never beyond the device's limits).
-    SafetyInput safety_in;
-    safety_in.sample_ok = coupled;
-    safety_in.reseeded = verdict == SampleFilter::Verdict::kReseeded;
-    safety_in.period_s = period_s_;
-    safety_in.sample_time_s = sample.time_s;
-    safety_in.connection = sample.connection;
-    safety_in.tick_interval_s = clock.interval_s();
-    safety_in.force_W_N = force_W_N;
-    safety_in.torque_W_Nm = torque_W_Nm;
-    const bool nonfinite = !force_W_N.allFinite() || !torque_W_Nm.allFinite();
-    const std::uint64_t zeroed_before = safety.stats().zeroed_ticks;
-    const Eigen::Vector3d force_rendered_W_N = force_W_N;
-    const Eigen::Vector3d torque_rendered_W_Nm = torque_W_Nm;
-    safety.step(safety_in, force_W_N, torque_W_Nm);
-    // Bit comparison (a NaN that was zeroed counts as changed).
-    const bool limited = std::memcmp(force_rendered_W_N.data(), force_W_N.data(), 3 * sizeof(double)) != 0 ||
-                         std::memcmp(torque_rendered_W_Nm.data(), torque_W_Nm.data(), 3 * sizeof(double)) != 0;
-    device_->command(force_W_N, torque_W_Nm);
-    const bool zeroed = safety.stats().zeroed_ticks != zeroed_before;
-    if (safety.stats().outages != outages_seen) {  // an outage: the motion history is broken
-      outages_seen = safety.stats().outages;
-      passivity_force.restart();
-      passivity_torque.restart();
-      have_coupled_last = false;
-    }
-    x_->command_flags.store((zeroed ? kRecordFlagForceZeroed : 0u) | (nonfinite ? kRecordFlagNonFinite : 0u) |
-                                (ramp_left >= 0 ? kRecordFlagStopping : 0u) |
-                                (limited || zeroed ? kRecordFlagForceLimited : 0u),
-                            std::memory_order_relaxed);
-    ++tick;
+    const SafetyInput safety_in =
+        couplingSafetyInput(coupled, verdict, period_s_, sample, clock.interval_s(), force_W_N, torque_W_Nm);
+    const SafetyOutcome outcome = commandThroughSafety(safety, safety_in, *device_, force_W_N, torque_W_Nm);
+    passivity.afterSafety(safety.stats().outages);
+    x_->command_flags.store(commandFlags(outcome, ramp_left >= 0), std::memory_order_relaxed);
+    ++counts.tick;
 
     // 6. Statistics and snapshot.
     clock.tick(begin_ns, monotonicNs());
     CouplingSnapshot& snap = x_->gui.couplingSlot();
-    snap.tick = tick;
-    snap.time_ns = begin_ns;
-    snap.X_WP = proxy.X_WP;
-    snap.X_WD = X_WD_last;
-    snap.force_W_N = force_W_N;
-    snap.torque_W_Nm = torque_W_Nm;
-    snap.bad_samples = bad_samples;
-    snap.implausible_samples = implausible;
-    snap.held_ticks = safety.stats().held_ticks;
-    snap.passivity_active_ticks = passivity_active_ticks;
-    snap.passivity_dissipated_J = passivity_dissipated_J;
+    fillCouplingSnapshot(snap, counts, begin_ns, proxy.X_WP, X_WD_last, force_W_N, torque_W_Nm,
+                         safety.stats().held_ticks, passivity);
     snap.timing = clock.timing();
     if (monitor != nullptr) {
       monitor->couplingSlot() = snap;
@@ -659,10 +791,7 @@ void HapticThread::solverLoop() noexcept {
   // One solver tick on `in`: render, publish the proxy, record, publish the snapshot.
   const auto solve = [&](const DeviceInput& in) noexcept {
     const std::int64_t begin_ns = monotonicNs();
-    if (!sameGains(in.gains, gains)) {
-      gains = in.gains;
-      renderer_->setGains(gains);
-    }
+    followGains(in.gains, gains, *renderer_);
     haptics::TickOutput out;
     bool bad_input = false;
     if (in.ok) {
@@ -694,25 +823,11 @@ void HapticThread::solverLoop() noexcept {
       TickRecord rec;
       rec.time_s = static_cast<double>(tick - record_first_tick) * solver_period_s_;
       rec.tick = tick;
-      const haptics::Pose& X_WP = renderer_->proxyPose();
-      const haptics::Pose& X_WD = in.ok ? in.X_WD : X_WD_used;
-      for (int k = 0; k < 3; ++k) {
-        rec.p_WD_m[k] = X_WD.p_AB_m[k];
-        rec.p_WP_m[k] = X_WP.p_AB_m[k];
-        rec.force_W_N[k] = out.force_W_N[k];
-        rec.torque_W_Nm[k] = out.torque_W_Nm[k];
-      }
-      rec.q_WD[0] = X_WD.R_AB.w(); rec.q_WD[1] = X_WD.R_AB.x();
-      rec.q_WD[2] = X_WD.R_AB.y(); rec.q_WD[3] = X_WD.R_AB.z();
-      rec.q_WP[0] = X_WP.R_AB.w(); rec.q_WP[1] = X_WP.R_AB.x();
-      rec.q_WP[2] = X_WP.R_AB.y(); rec.q_WP[3] = X_WP.R_AB.z();
+      writeRecordPoses(rec, in.ok ? in.X_WD : X_WD_used, renderer_->proxyPose(), out);
       rec.isovalue = in.isovalue;
       rec.tick_time_s = 1e-9 * static_cast<double>(end_ns - begin_ns);
       rec.contacts = static_cast<std::uint32_t>(contacts.size());
-      const bool nonfinite = !out.force_W_N.allFinite() || !out.torque_W_Nm.allFinite();
-      rec.flags = (rec.contacts > 0 ? kRecordFlagContact : 0u) | (in.ok ? 0u : kRecordFlagBadSample) |
-                  (nonfinite ? kRecordFlagNonFinite : 0u) | wake_flags | coupling_flags |
-                  (in.connected ? 0u : kRecordFlagDeviceDisconnected) | recordSegmentBits(segment);
+      rec.flags = solverRecordFlags(rec.contacts, in, out, segment) | wake_flags | coupling_flags;
       (void)recorder->push(rec);
       latest_recorded_tick_.store(tick, std::memory_order_release);
     }
@@ -722,14 +837,7 @@ void HapticThread::solverLoop() noexcept {
     SolverSnapshot& snap = x_->gui.solverSlot();
     snap.tick = tick;
     snap.isovalue = in.isovalue;
-    snap.contacts = static_cast<int>(contacts.size());
-    snap.segment = segment;
-    const int shown = std::min<int>(snap.contacts, HapticSnapshot::kMaxContactsShown);
-    snap.contacts_shown = shown;
-    for (int i = 0; i < shown; ++i) {
-      snap.contact_p_W_m[static_cast<std::size_t>(i)] = contacts[static_cast<std::size_t>(i)].p_W_m;
-      snap.contact_n_W[static_cast<std::size_t>(i)] = contacts[static_cast<std::size_t>(i)].n_W;
-    }
+    showContacts(snap, contacts, segment);
     snap.rejected = rejected;
     snap.skipped = skipped;
     snap.timing = clock.timing();

@@ -46,6 +46,247 @@ double nearestRankPercentile(std::span<const double> sorted, double q) noexcept 
   return sorted[k];
 }
 
+namespace {
+
+/// The report's inputs: the scene, volume, tool and run settings.
+void describeRun(RunReport& r, const LoadedScene& scene, const haptics::ScalarVolume& volume,
+                 const haptics::ToolModel& tool, double isovalue, const Trajectory& trajectory,
+                 const RunOptions& options) {
+  r.scene = scene.spec.source.empty() ? std::string("builtin") : scene.spec.source.string();
+  r.volume = scene.spec.volume.path;
+  r.volume_notices = scene.volume.info.notices;
+  r.volume_dims = volume.geometry().dims;
+  r.volume_spacing_m = volume.geometry().spacing_m;
+  r.isovalue = isovalue;
+  r.tool = scene.spec.tool.mesh;
+  r.point_count = tool.point_shell.size();
+  r.point_spacing_m = tool.point_shell.meanNearestNeighbourSpacing_m();
+  r.feature_size_m = volume.featureSize_m();
+  r.servo_rate_Hz = options.servo_rate_Hz;
+  r.trajectory_duration_s = trajectory.duration_s();
+}
+
+/// The per-tick trace CSV with its header written (RunOptions::trace_csv), or a closed stream
+/// when none is asked for.
+std::ofstream openTrace(const std::filesystem::path& trace_csv) {
+  std::ofstream trace;
+  if (!trace_csv.empty()) {
+    trace.open(trace_csv);
+    if (!trace) throw std::runtime_error(trace_csv.string() + ": cannot write the trace");
+    trace << "tick,t_s,xd_m,yd_m,zd_m,xp_m,yp_m,zp_m,fx_N,fy_N,fz_N,tx_Nm,ty_Nm,tz_Nm,contacts,exec_us,penetration_m,"
+             "qw_p,qx_p,qy_p,qz_p,time_of_contact,crossing_points,cmd_fx_N,cmd_fy_N,cmd_fz_N,cmd_tx_Nm,cmd_ty_Nm,"
+             "cmd_tz_Nm,sample,isovalue,felt_isovalue\n"
+          << std::setprecision(9);
+  }
+  return trace;
+}
+
+/// The session recording's writer (RunOptions::record), or null when none is asked for.
+std::unique_ptr<RecordingWriter> openRecorder(const LoadedScene& scene, const haptics::Pose& X_WD_first,
+                                              const Device& device, const RunOptions& options) {
+  if (options.record.empty()) return nullptr;
+  LiveValues recorded = LiveValues::initial(scene);
+  recorded.X_WT_initial = X_WD_first;  // the renderer starts there
+  SessionInfo info;
+  info.device_name = device.name();
+  info.device_kind = "scripted";
+  info.note = options.record_note;
+  RecordingWriterOptions writer_options;
+  writer_options.servo_rate_Hz = options.servo_rate_Hz;
+  writer_options.ring_capacity = std::size_t{1} << 16;
+  writer_options.chunk_records =
+      std::clamp<std::size_t>(static_cast<std::size_t>(std::ceil(options.servo_rate_Hz / 2.0)), 1, 65535);
+  return std::make_unique<RecordingWriter>(options.record, makeSessionMetadata(scene, recorded, info), writer_options);
+}
+
+/// The contact tally per segment when the scene has segments.
+std::optional<SegmentContactTally> segmentTally(const LoadedScene& scene) {
+  std::optional<SegmentContactTally> tally;
+  if (scene.segments) {
+    std::vector<std::string> names;
+    std::vector<bool> critical;
+    for (int k = 0; k < static_cast<int>(scene.segments->size()); ++k) {
+      names.push_back(scene.segments->name(k));
+      critical.push_back(scene.segments->isCritical(k));
+    }
+    tally.emplace(names, critical);
+  }
+  return tally;
+}
+
+/// The safety layer's input for a run tick (one servo period after the previous).
+SafetyInput runSafetyInput(bool sample_ok, SampleFilter::Verdict verdict, const DeviceSample& sample, double period_s,
+                           const haptics::TickOutput& out) {
+  SafetyInput safety_in;
+  safety_in.sample_ok = sample_ok;
+  safety_in.reseeded = verdict == SampleFilter::Verdict::kReseeded;
+  safety_in.sample_time_s = sample.time_s;
+  safety_in.connection = sample.connection;
+  safety_in.tick_interval_s = period_s;
+  safety_in.period_s = period_s;
+  safety_in.force_W_N = out.force_W_N;
+  safety_in.torque_W_Nm = out.torque_W_Nm;
+  return safety_in;
+}
+
+/// Work, command, contact and sample counts of tick `i` into the report and the sums for its means.
+void addTickCounts(RunReport& r, const haptics::TickOutput& out, const Eigen::Vector3d& command_W_N, std::uint64_t i,
+                   bool sample_ok, double& contact_sum, double& samples_sum) {
+  r.budget_cuts += out.stats.budget_cut;
+  r.max_work = std::max(r.max_work, out.stats.work);
+  r.max_command_force_N = std::max(r.max_command_force_N, command_W_N.norm());
+  if (out.stats.exec_time_us > 1000.0) ++r.ticks_over_1ms;
+  r.max_contacts = std::max(r.max_contacts, out.stats.contacts);
+  contact_sum += out.stats.contacts;
+  samples_sum += static_cast<double>(out.stats.volume_samples);
+  if (out.stats.contacts > 0) {
+    ++r.ticks_in_contact;
+    if (r.first_contact_tick < 0) r.first_contact_tick = static_cast<std::int64_t>(i);
+  }
+  if (out.stats.bad_input || !sample_ok) ++r.bad_device_samples;
+}
+
+/// The crossing check of tick `i`, outside the timed section: the path the proxy moved along
+/// this tick, sampled densely; a point outside at its start and inside later was carried into
+/// (or through) the isosurface. @return the points that crossed.
+int checkCrossings(RunReport& r, const haptics::CrossingVerifier& verifier, const haptics::HapticRenderer& renderer,
+                   double felt_isovalue, std::uint64_t i) {
+  const auto v0 = std::chrono::steady_clock::now();
+  const haptics::CrossingVerifier::Result check =
+      verifier.check(renderer.lastMotion(), renderer.lastTimeOfContact(), felt_isovalue);
+  r.verify_s += std::chrono::duration<double>(std::chrono::steady_clock::now() - v0).count();
+  if (check.crossing_points > 0) {
+    ++r.crossings;
+    r.crossing_points += check.crossing_points;
+    if (r.first_crossing_tick < 0) r.first_crossing_tick = static_cast<std::int64_t>(i);
+  }
+  return check.crossing_points;
+}
+
+/// Force, torque, proxy-device distance and (with RunOptions::check_penetration) penetration of a
+/// finite tick `i` into the report. @return the penetration depth [m] (0 when not checked).
+double addForceAndDepth(RunReport& r, const haptics::TickOutput& out, const haptics::Pose& X_WD_used,
+                        const haptics::ScalarVolume& volume, const haptics::ToolModel& tool, double felt_isovalue,
+                        bool check_penetration, std::uint64_t i) {
+  r.max_force_N = std::max(r.max_force_N, out.force_W_N.norm());
+  r.max_torque_Nm = std::max(r.max_torque_Nm, out.torque_W_Nm.norm());
+  r.final_force_N = out.force_W_N.norm();
+  r.final_proxy_device_distance_m = (out.X_WP.p_AB_m - X_WD_used.p_AB_m).norm();
+  r.max_proxy_device_distance_m = std::max(r.max_proxy_device_distance_m, r.final_proxy_device_distance_m);
+  double depth = 0.0;
+  if (check_penetration) {
+    depth = haptics::maxPenetration_m(volume, tool.point_shell, out.X_WP, felt_isovalue);
+    if (depth > r.epsilon_m) ++r.ticks_penetrating;
+    if (depth > r.max_penetration_m) {
+      r.max_penetration_m = depth;
+      r.max_penetration_tick = static_cast<std::int64_t>(i);
+    }
+  }
+  return depth;
+}
+
+/// The recording's record of tick `i`: the device pose rendered (X_WD_used), the proxy pose after
+/// the tick (X_WP_now) and the renderer's wrench.
+TickRecord runRecord(std::uint64_t i, double servo_rate_Hz, const haptics::Pose& X_WD_used,
+                     const haptics::Pose& X_WP_now, const haptics::TickOutput& out, double isovalue,
+                     std::size_t contacts, bool finite, bool sample_ok, int segment) {
+  TickRecord rec;
+  rec.time_s = static_cast<double>(i) / servo_rate_Hz;
+  rec.tick = i + 1;
+  for (int k = 0; k < 3; ++k) {
+    rec.p_WD_m[k] = X_WD_used.p_AB_m[k];
+    rec.force_W_N[k] = out.force_W_N[k];
+    rec.torque_W_Nm[k] = out.torque_W_Nm[k];
+  }
+  rec.q_WD[0] = X_WD_used.R_AB.w(); rec.q_WD[1] = X_WD_used.R_AB.x();
+  rec.q_WD[2] = X_WD_used.R_AB.y(); rec.q_WD[3] = X_WD_used.R_AB.z();
+  for (int k = 0; k < 3; ++k) rec.p_WP_m[k] = X_WP_now.p_AB_m[k];
+  rec.q_WP[0] = X_WP_now.R_AB.w(); rec.q_WP[1] = X_WP_now.R_AB.x();
+  rec.q_WP[2] = X_WP_now.R_AB.y(); rec.q_WP[3] = X_WP_now.R_AB.z();
+  rec.isovalue = isovalue;
+  rec.tick_time_s = 1e-6 * out.stats.exec_time_us;
+  rec.contacts = static_cast<std::uint32_t>(contacts);
+  rec.flags = (rec.contacts > 0 ? kRecordFlagContact : 0u) | (finite ? 0u : kRecordFlagNonFinite) |
+              (sample_ok ? 0u : kRecordFlagBadSample) | recordSegmentBits(segment);
+  return rec;
+}
+
+/// What a tick wrote besides the renderer's output: the command sent, the checks' results and
+/// the isovalues (the trace's columns).
+struct TraceExtras {
+  double depth_m = 0.0;
+  int crossing_points = -1;
+  const Eigen::Vector3d& command_W_N;
+  const Eigen::Vector3d& command_W_Nm;
+  SampleFilter::Verdict verdict;
+  double isovalue = 0.0;
+  double felt_isovalue = 0.0;
+};
+
+/// One row of the trace CSV (openTrace()'s columns).
+void writeTraceRow(std::ofstream& trace, std::uint64_t i, const DeviceSample& sample, const haptics::TickOutput& out,
+                   const TraceExtras& x) {
+  const Eigen::Vector3d& pd = sample.X_WD.p_AB_m;
+  const Eigen::Vector3d& pp = out.X_WP.p_AB_m;
+  trace << i << ',' << sample.time_s << ',' << pd.x() << ',' << pd.y() << ',' << pd.z() << ',' << pp.x() << ','
+        << pp.y() << ',' << pp.z() << ',' << out.force_W_N.x() << ',' << out.force_W_N.y() << ','
+        << out.force_W_N.z() << ',' << out.torque_W_Nm.x() << ',' << out.torque_W_Nm.y() << ','
+        << out.torque_W_Nm.z() << ',' << out.stats.contacts << ',' << out.stats.exec_time_us << ',' << x.depth_m << ','
+        << out.X_WP.R_AB.w() << ',' << out.X_WP.R_AB.x() << ',' << out.X_WP.R_AB.y() << ',' << out.X_WP.R_AB.z()
+        << ',' << out.stats.time_of_contact << ',' << x.crossing_points << ',' << x.command_W_N.x() << ','
+        << x.command_W_N.y() << ',' << x.command_W_N.z() << ',' << x.command_W_Nm.x() << ',' << x.command_W_Nm.y()
+        << ',' << x.command_W_Nm.z() << ',' << sampleVerdictName(x.verdict) << ',' << x.isovalue << ','
+        << x.felt_isovalue << '\n';
+}
+
+/// Tick `i` to the monitor (RunOptions::monitor) as the coupling and solver threads publish it.
+void publishRunTick(SnapshotChannel& monitor, std::uint64_t i, const RunReport& r, const haptics::TickOutput& out,
+                    const haptics::Pose& X_WD_used, const Eigen::Vector3d& command_W_N,
+                    const Eigen::Vector3d& command_W_Nm, std::uint64_t held_ticks, double isovalue,
+                    std::size_t contacts, int segment) {
+  CouplingSnapshot& c = monitor.couplingSlot();
+  c.tick = i + 1;
+  c.time_ns = std::chrono::duration_cast<std::chrono::nanoseconds>(std::chrono::steady_clock::now().time_since_epoch()).count();
+  c.X_WP = out.X_WP;
+  c.X_WD = X_WD_used;
+  c.force_W_N = command_W_N;
+  c.torque_W_Nm = command_W_Nm;
+  c.implausible_samples = r.implausible_samples;
+  c.held_ticks = held_ticks;
+  monitor.publishCoupling();
+  SolverSnapshot& solver = monitor.solverSlot();
+  solver.tick = i + 1;
+  solver.isovalue = isovalue;
+  solver.contacts = static_cast<int>(contacts);
+  solver.segment = segment;
+  monitor.publishSolver();
+}
+
+/// The work budget's lag behind the unbudgeted reference run.
+void reportLag(RunReport& r, const ProxyLag& lag) {
+  r.lag_ticks = lag.ticks;
+  r.max_lag_m = lag.max_m;
+  r.max_lag_rad = lag.max_rad;
+}
+
+/// The tick-time statistics and the means over the run's `n` ticks (sorts `times_us`).
+void summariseTicks(RunReport& r, std::vector<double>& times_us, std::uint64_t n, double contact_sum,
+                    double samples_sum) {
+  double sum = 0.0;
+  for (double t : times_us) {
+    sum += t;
+    r.max_us = std::max(r.max_us, t);
+  }
+  r.mean_us = n ? sum / static_cast<double>(n) : 0.0;
+  std::sort(times_us.begin(), times_us.end());
+  r.p50_us = nearestRankPercentile(times_us, 0.50);
+  r.p99_us = nearestRankPercentile(times_us, 0.99);
+  r.mean_contacts = n ? contact_sum / static_cast<double>(n) : 0.0;
+  r.mean_volume_samples = n ? samples_sum / static_cast<double>(n) : 0.0;
+}
+
+}  // namespace
+
 RunReport runHeadless(const LoadedScene& scene, const Trajectory& trajectory, const RunOptions& options) {
   if (trajectory.empty()) throw std::runtime_error("runHeadless: empty trajectory");
   if (!(options.servo_rate_Hz > 0.0)) throw std::invalid_argument("runHeadless: servo rate must be > 0");
@@ -56,18 +297,7 @@ RunReport runHeadless(const LoadedScene& scene, const Trajectory& trajectory, co
   const double s = scene.hapticIsovalue();
 
   RunReport r;
-  r.scene = scene.spec.source.empty() ? std::string("builtin") : scene.spec.source.string();
-  r.volume = scene.spec.volume.path;
-  r.volume_notices = scene.volume.info.notices;
-  r.volume_dims = volume.geometry().dims;
-  r.volume_spacing_m = volume.geometry().spacing_m;
-  r.isovalue = s;
-  r.tool = scene.spec.tool.mesh;
-  r.point_count = tool.point_shell.size();
-  r.point_spacing_m = tool.point_shell.meanNearestNeighbourSpacing_m();
-  r.feature_size_m = volume.featureSize_m();
-  r.servo_rate_Hz = options.servo_rate_Hz;
-  r.trajectory_duration_s = trajectory.duration_s();
+  describeRun(r, scene, volume, tool, s, trajectory, options);
 
   const haptics::Pose X_WD_first = trajectory.samples().front().X_WD;
   r.initial_points_inside = countPointsInside(volume, tool.point_shell, X_WD_first, s);
@@ -106,40 +336,9 @@ RunReport runHeadless(const LoadedScene& scene, const Trajectory& trajectory, co
   const auto n = static_cast<std::uint64_t>(std::floor(trajectory.duration_s() * options.servo_rate_Hz + 1e-9)) + 1;
   std::vector<double> times_us;
   times_us.reserve(n);
-  std::ofstream trace;
-  if (!options.trace_csv.empty()) {
-    trace.open(options.trace_csv);
-    if (!trace) throw std::runtime_error(options.trace_csv.string() + ": cannot write the trace");
-    trace << "tick,t_s,xd_m,yd_m,zd_m,xp_m,yp_m,zp_m,fx_N,fy_N,fz_N,tx_Nm,ty_Nm,tz_Nm,contacts,exec_us,penetration_m,"
-             "qw_p,qx_p,qy_p,qz_p,time_of_contact,crossing_points,cmd_fx_N,cmd_fy_N,cmd_fz_N,cmd_tx_Nm,cmd_ty_Nm,"
-             "cmd_tz_Nm,sample,isovalue,felt_isovalue\n"
-          << std::setprecision(9);
-  }
-  std::unique_ptr<RecordingWriter> recorder;
-  if (!options.record.empty()) {
-    LiveValues recorded = LiveValues::initial(scene);
-    recorded.X_WT_initial = X_WD_first;  // the renderer above starts there
-    SessionInfo info;
-    info.device_name = device.name();
-    info.device_kind = "scripted";
-    info.note = options.record_note;
-    RecordingWriterOptions writer_options;
-    writer_options.servo_rate_Hz = options.servo_rate_Hz;
-    writer_options.ring_capacity = std::size_t{1} << 16;
-    writer_options.chunk_records =
-        std::clamp<std::size_t>(static_cast<std::size_t>(std::ceil(options.servo_rate_Hz / 2.0)), 1, 65535);
-    recorder = std::make_unique<RecordingWriter>(options.record, makeSessionMetadata(scene, recorded, info), writer_options);
-  }
-  std::optional<SegmentContactTally> segment_tally;
-  if (scene.segments) {
-    std::vector<std::string> names;
-    std::vector<bool> critical;
-    for (int k = 0; k < static_cast<int>(scene.segments->size()); ++k) {
-      names.push_back(scene.segments->name(k));
-      critical.push_back(scene.segments->isCritical(k));
-    }
-    segment_tally.emplace(names, critical);
-  }
+  std::ofstream trace = openTrace(options.trace_csv);
+  std::unique_ptr<RecordingWriter> recorder = openRecorder(scene, X_WD_first, device, options);
+  std::optional<SegmentContactTally> segment_tally = segmentTally(scene);
   double contact_sum = 0.0, samples_sum = 0.0;
   const auto wall_begin = std::chrono::steady_clock::now();
   for (std::uint64_t i = 0; i < n; ++i) {
@@ -158,152 +357,51 @@ RunReport runHeadless(const LoadedScene& scene, const Trajectory& trajectory, co
       out.stats.contacts = static_cast<int>(renderer.contacts().size());
       if (verdict == SampleFilter::Verdict::kImplausible) ++r.implausible_samples;
     }
-    SafetyInput safety_in;
-    safety_in.sample_ok = sample_ok && !out.stats.bad_input;
-    safety_in.reseeded = verdict == SampleFilter::Verdict::kReseeded;
-    safety_in.sample_time_s = sample.time_s;
-    safety_in.connection = sample.connection;
-    safety_in.tick_interval_s = period_s;
-    safety_in.period_s = period_s;
-    safety_in.force_W_N = out.force_W_N;
-    safety_in.torque_W_Nm = out.torque_W_Nm;
+    const SafetyInput safety_in = runSafetyInput(sample_ok && !out.stats.bad_input, verdict, sample, period_s, out);
     Eigen::Vector3d command_W_N, command_W_Nm;
     safety.step(safety_in, command_W_N, command_W_Nm);
     device.command(command_W_N, command_W_Nm);
 
     // Everything below is outside the timed section (exec_time_us is measured by tick()).
     times_us.push_back(out.stats.exec_time_us);
-    r.budget_cuts += out.stats.budget_cut;
-    r.max_work = std::max(r.max_work, out.stats.work);
-    r.max_command_force_N = std::max(r.max_command_force_N, command_W_N.norm());
     if (reference && sample_ok) {
       const haptics::TickOutput ref = reference->tick(sample.X_WD, isovalue);
       if (ref.X_WP.allFinite() && out.X_WP.allFinite()) lag.add(out.X_WP, ref.X_WP);
     }
-    if (out.stats.exec_time_us > 1000.0) ++r.ticks_over_1ms;
-    r.max_contacts = std::max(r.max_contacts, out.stats.contacts);
-    contact_sum += out.stats.contacts;
-    samples_sum += static_cast<double>(out.stats.volume_samples);
-    if (out.stats.contacts > 0) {
-      ++r.ticks_in_contact;
-      if (r.first_contact_tick < 0) r.first_contact_tick = static_cast<std::int64_t>(i);
-    }
-    if (out.stats.bad_input || !sample_ok) ++r.bad_device_samples;
+    addTickCounts(r, out, command_W_N, i, sample_ok, contact_sum, samples_sum);
     const bool finite = out.force_W_N.allFinite() && out.torque_W_Nm.allFinite() && out.X_WP.allFinite();
     const int segment = scene.segments ? scene.segments->segmentOf(renderer.contacts()) : -1;
     if (segment_tally) segment_tally->add(segment, out.force_W_N.norm(), 1.0 / options.servo_rate_Hz);
-    int crossing_points = -1;
     // The checks below use the isovalue the renderer rendered this tick (it may lag the
     // requested one while the tool presses on the surface: a lowered isovalue is deferred for
     // the hand), and the trace writes both.
     const double felt_isovalue = std::isfinite(out.stats.felt_isovalue) ? out.stats.felt_isovalue : isovalue;
-    if (verifier && finite && sample_ok) {
-      // The path the proxy moved along this tick, sampled densely: a point outside at its start
-      // and inside later was carried into (or through) the isosurface.
-      const auto v0 = std::chrono::steady_clock::now();
-      const haptics::CrossingVerifier::Result check =
-          verifier->check(renderer.lastMotion(), renderer.lastTimeOfContact(), felt_isovalue);
-      r.verify_s += std::chrono::duration<double>(std::chrono::steady_clock::now() - v0).count();
-      crossing_points = check.crossing_points;
-      if (check.crossing_points > 0) {
-        ++r.crossings;
-        r.crossing_points += check.crossing_points;
-        if (r.first_crossing_tick < 0) r.first_crossing_tick = static_cast<std::int64_t>(i);
-      }
-    }
+    const int crossing_points =
+        verifier && finite && sample_ok ? checkCrossings(r, *verifier, renderer, felt_isovalue, i) : -1;
     double depth = 0.0;
-    if (!finite) {
-      ++r.nan_ticks;
-    } else {
-      r.max_force_N = std::max(r.max_force_N, out.force_W_N.norm());
-      r.max_torque_Nm = std::max(r.max_torque_Nm, out.torque_W_Nm.norm());
-      r.final_force_N = out.force_W_N.norm();
-      r.final_proxy_device_distance_m = (out.X_WP.p_AB_m - X_WD_used.p_AB_m).norm();
-      r.max_proxy_device_distance_m = std::max(r.max_proxy_device_distance_m, r.final_proxy_device_distance_m);
-      if (options.check_penetration) {
-        depth = haptics::maxPenetration_m(volume, tool.point_shell, out.X_WP, felt_isovalue);
-        if (depth > r.epsilon_m) ++r.ticks_penetrating;
-        if (depth > r.max_penetration_m) {
-          r.max_penetration_m = depth;
-          r.max_penetration_tick = static_cast<std::int64_t>(i);
-        }
-      }
-    }
+    if (!finite) ++r.nan_ticks;
+    else depth = addForceAndDepth(r, out, X_WD_used, volume, tool, felt_isovalue, options.check_penetration, i);
     if (recorder) {
-      TickRecord rec;
-      rec.time_s = static_cast<double>(i) / options.servo_rate_Hz;
-      rec.tick = i + 1;
-      for (int k = 0; k < 3; ++k) {
-        rec.p_WD_m[k] = X_WD_used.p_AB_m[k];
-        rec.force_W_N[k] = out.force_W_N[k];
-        rec.torque_W_Nm[k] = out.torque_W_Nm[k];
-      }
-      rec.q_WD[0] = X_WD_used.R_AB.w(); rec.q_WD[1] = X_WD_used.R_AB.x();
-      rec.q_WD[2] = X_WD_used.R_AB.y(); rec.q_WD[3] = X_WD_used.R_AB.z();
-      const haptics::Pose& X_WP_now = renderer.proxyPose();
-      for (int k = 0; k < 3; ++k) rec.p_WP_m[k] = X_WP_now.p_AB_m[k];
-      rec.q_WP[0] = X_WP_now.R_AB.w(); rec.q_WP[1] = X_WP_now.R_AB.x();
-      rec.q_WP[2] = X_WP_now.R_AB.y(); rec.q_WP[3] = X_WP_now.R_AB.z();
-      rec.isovalue = isovalue;
-      rec.tick_time_s = 1e-6 * out.stats.exec_time_us;
-      rec.contacts = static_cast<std::uint32_t>(renderer.contacts().size());
-      rec.flags = (rec.contacts > 0 ? kRecordFlagContact : 0u) | (finite ? 0u : kRecordFlagNonFinite) |
-                  (sample_ok ? 0u : kRecordFlagBadSample) | recordSegmentBits(segment);
-      recorder->pushWaiting(rec);
+      recorder->pushWaiting(runRecord(i, options.servo_rate_Hz, X_WD_used, renderer.proxyPose(), out, isovalue,
+                                      renderer.contacts().size(), finite, sample_ok, segment));
     }
     if (trace.is_open()) {
-      const Eigen::Vector3d& pd = sample.X_WD.p_AB_m;
-      const Eigen::Vector3d& pp = out.X_WP.p_AB_m;
-      trace << i << ',' << sample.time_s << ',' << pd.x() << ',' << pd.y() << ',' << pd.z() << ',' << pp.x() << ','
-            << pp.y() << ',' << pp.z() << ',' << out.force_W_N.x() << ',' << out.force_W_N.y() << ','
-            << out.force_W_N.z() << ',' << out.torque_W_Nm.x() << ',' << out.torque_W_Nm.y() << ','
-            << out.torque_W_Nm.z() << ',' << out.stats.contacts << ',' << out.stats.exec_time_us << ',' << depth << ','
-            << out.X_WP.R_AB.w() << ',' << out.X_WP.R_AB.x() << ',' << out.X_WP.R_AB.y() << ',' << out.X_WP.R_AB.z()
-            << ',' << out.stats.time_of_contact << ',' << crossing_points << ',' << command_W_N.x() << ','
-            << command_W_N.y() << ',' << command_W_N.z() << ',' << command_W_Nm.x() << ',' << command_W_Nm.y() << ','
-            << command_W_Nm.z() << ',' << sampleVerdictName(verdict) << ',' << isovalue << ',' << felt_isovalue << '\n';
+      writeTraceRow(trace, i, sample, out,
+                    {depth, crossing_points, command_W_N, command_W_Nm, verdict, isovalue, felt_isovalue});
     }
     if (SnapshotChannel* monitor = options.monitor.get()) {
-      CouplingSnapshot& c = monitor->couplingSlot();
-      c.tick = i + 1;
-      c.time_ns = std::chrono::duration_cast<std::chrono::nanoseconds>(std::chrono::steady_clock::now().time_since_epoch()).count();
-      c.X_WP = out.X_WP;
-      c.X_WD = X_WD_used;
-      c.force_W_N = command_W_N;
-      c.torque_W_Nm = command_W_Nm;
-      c.implausible_samples = r.implausible_samples;
-      c.held_ticks = safety.stats().held_ticks;
-      monitor->publishCoupling();
-      SolverSnapshot& solver = monitor->solverSlot();
-      solver.tick = i + 1;
-      solver.isovalue = isovalue;
-      solver.contacts = static_cast<int>(renderer.contacts().size());
-      solver.segment = segment;
-      monitor->publishSolver();
+      publishRunTick(*monitor, i, r, out, X_WD_used, command_W_N, command_W_Nm, safety.stats().held_ticks, isovalue,
+                     renderer.contacts().size(), segment);
     }
     if (options.realtime) std::this_thread::sleep_until(wall_begin + std::chrono::nanoseconds(static_cast<std::int64_t>(1e9 * static_cast<double>(i + 1) / options.servo_rate_Hz)));
   }
   if (recorder) recorder->close();  // throws naming the file when a write failed
   if (segment_tally) r.segment_contacts = segment_tally->segments();
-  if (reference) {
-    r.lag_ticks = lag.ticks;
-    r.max_lag_m = lag.max_m;
-    r.max_lag_rad = lag.max_rad;
-  }
+  if (reference) reportLag(r, lag);
   r.total_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - wall_begin).count();
   r.ticks = n;
   r.held_ticks = safety.stats().held_ticks;
-  double sum = 0.0;
-  for (double t : times_us) {
-    sum += t;
-    r.max_us = std::max(r.max_us, t);
-  }
-  r.mean_us = n ? sum / static_cast<double>(n) : 0.0;
-  std::sort(times_us.begin(), times_us.end());
-  r.p50_us = nearestRankPercentile(times_us, 0.50);
-  r.p99_us = nearestRankPercentile(times_us, 0.99);
-  r.mean_contacts = n ? contact_sum / static_cast<double>(n) : 0.0;
-  r.mean_volume_samples = n ? samples_sum / static_cast<double>(n) : 0.0;
+  summariseTicks(r, times_us, n, contact_sum, samples_sum);
   return r;
 }
 

@@ -244,6 +244,145 @@ fs::path generatedDataDir() {
   return fs::path(VH_DEFAULT_GENERATED_DATA_DIR).lexically_normal();
 }
 
+namespace {
+
+/// The "volume" section (required) into `v` (which holds the defaults).
+void readVolume(const ObjectReader& volume, const fs::path& base_dir, VolumeSpec& v) {
+  volume.allowOnly({"path", "isovalue", "series", "phase"});
+  v.path = resolveDataPath(volume, "path", volume.string("path"), base_dir);
+  if (volume.has("isovalue")) {
+    v.isovalue = volume.number("isovalue");
+    v.isovalue_set = true;
+  }
+  if (volume.has("series")) v.series = volume.stringOrInteger("series");
+  if (volume.has("phase")) v.phase = static_cast<int>(volume.index("phase"));
+}
+
+/// The "tool" section into `t` (which holds the defaults).
+void readTool(const ObjectReader& tool, const fs::path& base_dir, ToolSpec& t) {
+  tool.allowOnly({"mesh", "scale_to_m", "point_spacing_m", "point_count", "initial_pose"});
+  if (tool.has("mesh")) t.mesh = resolveDataPath(tool, "mesh", tool.string("mesh"), base_dir);
+  if (tool.has("scale_to_m")) t.scale_to_m = tool.positive("scale_to_m");
+  if (tool.has("point_spacing_m") && tool.has("point_count")) {
+    tool.fail("tool", "give point_spacing_m or point_count, not both");
+  }
+  if (tool.has("point_spacing_m")) t.point_spacing_m = tool.positive("point_spacing_m");
+  if (tool.has("point_count")) t.point_count = tool.count("point_count");
+  if (tool.has("initial_pose")) {
+    const ObjectReader pose = tool.object("initial_pose");
+    pose.allowOnly({"p_m", "q_wxyz"});
+    if (!pose.has("p_m") && !pose.has("q_wxyz")) pose.fail(tool.fieldPath("initial_pose"), "needs p_m and/or q_wxyz");
+    if (pose.has("q_wxyz")) {
+      const Eigen::Vector4d q = pose.vector<4>("q_wxyz");
+      if (!(q.norm() > 1e-9)) pose.fail(pose.fieldPath("q_wxyz"), "zero quaternion");
+      t.X_WT_initial.R_AB = Eigen::Quaterniond(q[0], q[1], q[2], q[3]).normalized();
+    }
+    if (pose.has("p_m")) {
+      t.X_WT_initial.p_AB_m = pose.vector<3>("p_m");
+      t.initial_pose_set = true;
+    } else {
+      t.initial_orientation_set = true;
+    }
+  }
+}
+
+/// The "coupling" section into `gains` (which holds the defaults).
+void readCoupling(const ObjectReader& coupling, haptics::CouplingGains& gains) {
+  coupling.allowOnly({"linear_N_per_m", "angular_Nm_per_rad", "passivity_control"});
+  if (coupling.has("linear_N_per_m")) gains.linear_N_per_m = coupling.positive("linear_N_per_m");
+  if (coupling.has("angular_Nm_per_rad")) gains.angular_Nm_per_rad = coupling.positive("angular_Nm_per_rad");
+  if (coupling.has("passivity_control")) gains.passivity_control = coupling.boolean("passivity_control");
+}
+
+/// Throws unless `kind` is one this program can make: the built-in ones and the registered
+/// drivers.
+void checkDeviceKind(const ObjectReader& device, const std::string& kind, bool hardware) {
+  if (hardware && !deviceKindAvailable(kind)) {
+    const bool known_driver = kind == "spacemouse" || kind == "falcon";  // built-time libraries
+    device.fail(device.fieldPath("kind"),
+                "unknown device kind '" + kind + "'" +
+                    (known_driver ? std::string(" in this program (its driver registers with "
+                                                "vh::devices::registerDeviceKinds() when built with ") +
+                                        (kind == "falcon" ? "libusb" : "hidapi") + ")"
+                                  : std::string(" (expected \"simulated\", \"scripted\", \"spacemouse\", \"falcon\", "
+                                                "\"forcedimension\" or \"openhaptics\")")));
+  }
+}
+
+/// The hardware device's "workspace" section into `w`.
+void readWorkspace(const ObjectReader& ws, WorkspaceSpec& w) {
+  ws.allowOnly({"scale", "offset_m", "q_wxyz"});
+  if (ws.has("scale")) w.scale = ws.positive("scale");
+  if (ws.has("offset_m")) w.offset_W_m = ws.vector<3>("offset_m");
+  if (ws.has("q_wxyz")) {
+    const Eigen::Vector4d q = ws.vector<4>("q_wxyz");
+    if (!(q.norm() > 1e-9)) ws.fail(ws.fieldPath("q_wxyz"), "zero quaternion");
+    w.R_WB = Eigen::Quaterniond(q[0], q[1], q[2], q[3]).normalized();
+  }
+}
+
+/// The "device" section.
+DeviceSpec readDevice(const ObjectReader& device, const fs::path& base_dir) {
+  device.allowOnly({"kind", "trajectory", "firmware", "select", "workspace"});
+  DeviceSpec d;
+  if (device.has("kind")) d.kind = device.string("kind");
+  const bool hardware = d.kind != "simulated" && d.kind != "scripted";
+  checkDeviceKind(device, d.kind, hardware);
+  if (d.kind == "scripted") {
+    if (!device.has("trajectory")) device.fail(device.fieldPath("trajectory"), "missing (needed by kind \"scripted\")");
+    d.trajectory = resolveDataPath(device, "trajectory", device.string("trajectory"), base_dir);
+  } else if (device.has("trajectory")) {
+    device.fail(device.fieldPath("trajectory"), "only for kind \"scripted\"");
+  }
+  if (device.has("firmware")) {
+    if (d.kind != "falcon") device.fail(device.fieldPath("firmware"), "only for kind \"falcon\"");
+    d.firmware = resolveDataPath(device, "firmware", device.string("firmware"), base_dir);
+  }
+  if (device.has("select")) {
+    if (!hardware) device.fail(device.fieldPath("select"), "only for hardware kinds (e.g. \"spacemouse\", \"falcon\")");
+    d.select = device.string("select");
+  }
+  if (device.has("workspace")) {
+    if (!hardware) device.fail(device.fieldPath("workspace"), "only for hardware kinds (e.g. \"spacemouse\", \"falcon\")");
+    readWorkspace(device.object("workspace"), d.workspace);
+  }
+  return d;
+}
+
+/// The "segmentation" section.
+SegmentationSpec readSegmentation(const ObjectReader& seg, const fs::path& base_dir) {
+  seg.allowOnly({"path", "felt", "shown", "critical", "smoothing_voxels"});
+  SegmentationSpec s;
+  s.path = resolveDataPath(seg, "path", seg.string("path"), base_dir);
+  s.felt = seg.strings("felt");
+  if (seg.has("shown")) s.shown = seg.strings("shown");
+  s.critical = seg.strings("critical");
+  if (seg.has("smoothing_voxels")) {
+    s.smoothing_voxels = seg.number("smoothing_voxels");
+    if (!(s.smoothing_voxels >= 0.0 && s.smoothing_voxels <= 10.0)) {
+      seg.fail(seg.fieldPath("smoothing_voxels"), "expected a number of voxels in [0, 10]");
+    }
+  }
+  return s;
+}
+
+/// The "openigtlink" section.
+OpenIgtlinkSpec readOpenIgtlink(const ObjectReader& igtl) {
+  igtl.allowOnly({"port", "rate_Hz"});
+  OpenIgtlinkSpec o;
+  if (igtl.has("port")) {
+    const json& v = igtl.at("port");
+    if (!v.is_number_integer() || v.get<long long>() < 1 || v.get<long long>() > 65535) {
+      igtl.fail(igtl.fieldPath("port"), "expected an integer port in 1..65535, found " + v.dump());
+    }
+    o.port = static_cast<int>(v.get<long long>());
+  }
+  if (igtl.has("rate_Hz")) o.rate_Hz = igtl.positive("rate_Hz");
+  return o;
+}
+
+}  // namespace
+
 SceneSpec parseScene(const std::string& json_text, const std::string& source, const fs::path& base_dir) {
   json root;
   try {
@@ -259,130 +398,12 @@ SceneSpec parseScene(const std::string& json_text, const std::string& source, co
 
   SceneSpec spec;
   spec.source = source;
-
-  const ObjectReader volume = top.object("volume");
-  volume.allowOnly({"path", "isovalue", "series", "phase"});
-  spec.volume.path = resolveDataPath(volume, "path", volume.string("path"), base_dir);
-  if (volume.has("isovalue")) {
-    spec.volume.isovalue = volume.number("isovalue");
-    spec.volume.isovalue_set = true;
-  }
-  if (volume.has("series")) spec.volume.series = volume.stringOrInteger("series");
-  if (volume.has("phase")) spec.volume.phase = static_cast<int>(volume.index("phase"));
-
-  if (top.has("tool")) {
-    const ObjectReader tool = top.object("tool");
-    tool.allowOnly({"mesh", "scale_to_m", "point_spacing_m", "point_count", "initial_pose"});
-    if (tool.has("mesh")) spec.tool.mesh = resolveDataPath(tool, "mesh", tool.string("mesh"), base_dir);
-    if (tool.has("scale_to_m")) spec.tool.scale_to_m = tool.positive("scale_to_m");
-    if (tool.has("point_spacing_m") && tool.has("point_count")) {
-      tool.fail("tool", "give point_spacing_m or point_count, not both");
-    }
-    if (tool.has("point_spacing_m")) spec.tool.point_spacing_m = tool.positive("point_spacing_m");
-    if (tool.has("point_count")) spec.tool.point_count = tool.count("point_count");
-    if (tool.has("initial_pose")) {
-      const ObjectReader pose = tool.object("initial_pose");
-      pose.allowOnly({"p_m", "q_wxyz"});
-      if (!pose.has("p_m") && !pose.has("q_wxyz")) pose.fail(tool.fieldPath("initial_pose"), "needs p_m and/or q_wxyz");
-      if (pose.has("q_wxyz")) {
-        const Eigen::Vector4d q = pose.vector<4>("q_wxyz");
-        if (!(q.norm() > 1e-9)) pose.fail(pose.fieldPath("q_wxyz"), "zero quaternion");
-        spec.tool.X_WT_initial.R_AB = Eigen::Quaterniond(q[0], q[1], q[2], q[3]).normalized();
-      }
-      if (pose.has("p_m")) {
-        spec.tool.X_WT_initial.p_AB_m = pose.vector<3>("p_m");
-        spec.tool.initial_pose_set = true;
-      } else {
-        spec.tool.initial_orientation_set = true;
-      }
-    }
-  }
-
-  if (top.has("coupling")) {
-    const ObjectReader coupling = top.object("coupling");
-    coupling.allowOnly({"linear_N_per_m", "angular_Nm_per_rad", "passivity_control"});
-    if (coupling.has("linear_N_per_m")) spec.gains.linear_N_per_m = coupling.positive("linear_N_per_m");
-    if (coupling.has("angular_Nm_per_rad")) spec.gains.angular_Nm_per_rad = coupling.positive("angular_Nm_per_rad");
-    if (coupling.has("passivity_control")) spec.gains.passivity_control = coupling.boolean("passivity_control");
-  }
-
-  if (top.has("device")) {
-    const ObjectReader device = top.object("device");
-    device.allowOnly({"kind", "trajectory", "firmware", "select", "workspace"});
-    DeviceSpec d;
-    if (device.has("kind")) d.kind = device.string("kind");
-    // Kinds are those this program can make: the built-in ones and the registered drivers.
-    const bool hardware = d.kind != "simulated" && d.kind != "scripted";
-    if (hardware && !deviceKindAvailable(d.kind)) {
-      const bool known_driver = d.kind == "spacemouse" || d.kind == "falcon";  // built-time libraries
-      device.fail(device.fieldPath("kind"),
-                  "unknown device kind '" + d.kind + "'" +
-                      (known_driver ? std::string(" in this program (its driver registers with "
-                                                  "vh::devices::registerDeviceKinds() when built with ") +
-                                          (d.kind == "falcon" ? "libusb" : "hidapi") + ")"
-                                    : std::string(" (expected \"simulated\", \"scripted\", \"spacemouse\", \"falcon\", "
-                                                  "\"forcedimension\" or \"openhaptics\")")));
-    }
-    if (d.kind == "scripted") {
-      if (!device.has("trajectory")) device.fail(device.fieldPath("trajectory"), "missing (needed by kind \"scripted\")");
-      d.trajectory = resolveDataPath(device, "trajectory", device.string("trajectory"), base_dir);
-    } else if (device.has("trajectory")) {
-      device.fail(device.fieldPath("trajectory"), "only for kind \"scripted\"");
-    }
-    if (device.has("firmware")) {
-      if (d.kind != "falcon") device.fail(device.fieldPath("firmware"), "only for kind \"falcon\"");
-      d.firmware = resolveDataPath(device, "firmware", device.string("firmware"), base_dir);
-    }
-    if (device.has("select")) {
-      if (!hardware) device.fail(device.fieldPath("select"), "only for hardware kinds (e.g. \"spacemouse\", \"falcon\")");
-      d.select = device.string("select");
-    }
-    if (device.has("workspace")) {
-      if (!hardware) device.fail(device.fieldPath("workspace"), "only for hardware kinds (e.g. \"spacemouse\", \"falcon\")");
-      const ObjectReader ws = device.object("workspace");
-      ws.allowOnly({"scale", "offset_m", "q_wxyz"});
-      if (ws.has("scale")) d.workspace.scale = ws.positive("scale");
-      if (ws.has("offset_m")) d.workspace.offset_W_m = ws.vector<3>("offset_m");
-      if (ws.has("q_wxyz")) {
-        const Eigen::Vector4d q = ws.vector<4>("q_wxyz");
-        if (!(q.norm() > 1e-9)) ws.fail(ws.fieldPath("q_wxyz"), "zero quaternion");
-        d.workspace.R_WB = Eigen::Quaterniond(q[0], q[1], q[2], q[3]).normalized();
-      }
-    }
-    spec.device = d;
-  }
-
-  if (top.has("segmentation")) {
-    const ObjectReader seg = top.object("segmentation");
-    seg.allowOnly({"path", "felt", "shown", "critical", "smoothing_voxels"});
-    SegmentationSpec s;
-    s.path = resolveDataPath(seg, "path", seg.string("path"), base_dir);
-    s.felt = seg.strings("felt");
-    if (seg.has("shown")) s.shown = seg.strings("shown");
-    s.critical = seg.strings("critical");
-    if (seg.has("smoothing_voxels")) {
-      s.smoothing_voxels = seg.number("smoothing_voxels");
-      if (!(s.smoothing_voxels >= 0.0 && s.smoothing_voxels <= 10.0)) {
-        seg.fail(seg.fieldPath("smoothing_voxels"), "expected a number of voxels in [0, 10]");
-      }
-    }
-    spec.segmentation = s;
-  }
-
-  if (top.has("openigtlink")) {
-    const ObjectReader igtl = top.object("openigtlink");
-    igtl.allowOnly({"port", "rate_Hz"});
-    OpenIgtlinkSpec o;
-    if (igtl.has("port")) {
-      const json& v = igtl.at("port");
-      if (!v.is_number_integer() || v.get<long long>() < 1 || v.get<long long>() > 65535) {
-        igtl.fail(igtl.fieldPath("port"), "expected an integer port in 1..65535, found " + v.dump());
-      }
-      o.port = static_cast<int>(v.get<long long>());
-    }
-    if (igtl.has("rate_Hz")) o.rate_Hz = igtl.positive("rate_Hz");
-    spec.openigtlink = o;
-  }
+  readVolume(top.object("volume"), base_dir, spec.volume);
+  if (top.has("tool")) readTool(top.object("tool"), base_dir, spec.tool);
+  if (top.has("coupling")) readCoupling(top.object("coupling"), spec.gains);
+  if (top.has("device")) spec.device = readDevice(top.object("device"), base_dir);
+  if (top.has("segmentation")) spec.segmentation = readSegmentation(top.object("segmentation"), base_dir);
+  if (top.has("openigtlink")) spec.openigtlink = readOpenIgtlink(top.object("openigtlink"));
   return spec;
 }
 

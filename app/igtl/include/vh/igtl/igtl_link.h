@@ -153,6 +153,14 @@ class IgtlLink {
   struct Impl;  // sockets and messages (igtl types stay out of this header)
   void run() noexcept;
   void notice(std::string text);
+  // The jobs of run()'s loop (the link's thread only).
+  void sendFrame();                        ///< One frame: the four messages from the latest snapshot.
+  bool flush();                            ///< Writes what it can of the output; false when the client is gone.
+  bool receive();                          ///< Reads what the client sent; false when it is gone.
+  void handleImage();                      ///< A whole IMAGE message arrived (header and body in Impl).
+  void acceptClient();                     ///< Takes a pending connection (replacing the client).
+  void closeClient(const std::string& why);
+  void reject(const std::string& why);     ///< Counts and reports a rejected message.
 
   std::shared_ptr<runtime::SnapshotChannel> channel_;
   LinkOptions options_;
