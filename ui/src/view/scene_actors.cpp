@@ -83,6 +83,12 @@ void setUserPose(vtkActor* actor, const haptics::Pose& X) {
 }  // namespace
 
 SceneActors::SceneActors(vtkRenderer* renderer, const SceneActorsSpec& spec) : renderer_(renderer) {
+  buildVolume(spec);
+  buildTools(spec);
+  buildOverlay(spec);
+}
+
+void SceneActors::buildVolume(const SceneActorsSpec& spec) {
   // --- Volume: GPU ray-cast isosurface, shaded, one bone colour, opaque at the surface.
   double range[2] = {0.0, 1.0};
   spec.image->GetScalarRange(range);
@@ -122,7 +128,9 @@ SceneActors::SceneActors(vtkRenderer* renderer, const SceneActorsSpec& spec) : r
     volume_->SetUserMatrix(m);
   }
   renderer_->AddVolume(volume_);
+}
 
+void SceneActors::buildTools(const SceneActorsSpec& spec) {
   // --- Tools: the proxy solid steel, the device as a wireframe (lines write depth, so the
   // part inside the bone is hidden correctly; translucency would not be).
   vtkNew<vtkPolyDataNormals> normals;
@@ -169,7 +177,9 @@ SceneActors::SceneActors(vtkRenderer* renderer, const SceneActorsSpec& spec) : r
 
   setProxyPose(haptics::Pose::Identity());
   setDevicePose(haptics::Pose::Identity());
+}
 
+void SceneActors::buildOverlay(const SceneActorsSpec& spec) {
   // --- Overlay layer for contacts and force: drawn over everything (same camera), because
   // both sit where the tool meets the surface and the tool would hide them.
   if (vtkRenderWindow* window = renderer_->GetRenderWindow()) {

@@ -126,6 +126,13 @@ class SceneActors {
   vtkTextActor* hintActor() const noexcept;
 
  private:
+  /// The GPU ray-cast volume (isosurface at spec.isovalue, quality policy, image-to-W matrix).
+  void buildVolume(const SceneActorsSpec& spec);
+  /// The proxy (solid) and device (wireframe) tools sharing the display mesh.
+  void buildTools(const SceneActorsSpec& spec);
+  /// The overlay layer (contacts, force arrow) and the hint text.
+  void buildOverlay(const SceneActorsSpec& spec);
+
   vtkRenderer* renderer_;  // not owned
   vtkNew<vtkRenderer> overlay_;
   vtkNew<vtkGPUVolumeRayCastMapper> volume_mapper_;
