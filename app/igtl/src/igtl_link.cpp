@@ -26,6 +26,7 @@
 #include <Eigen/SVD>
 #include <nlohmann/json.hpp>
 
+#include "vh/io/patient_frames.h"
 #include "vh/runtime/scene.h"
 
 #include <igtlClientSocket.h>
@@ -210,7 +211,7 @@ haptics::VoxelType convertVoxels(int scalar_type, const unsigned char* raw, std:
 // ---- Conversions ---------------------------------------------------------------------------
 
 Eigen::Matrix4d toRasMatrix_mm(const haptics::Pose& X_WT) {
-  const Eigen::Matrix3d F = Eigen::Vector3d(-1.0, -1.0, 1.0).asDiagonal();
+  const Eigen::Matrix3d F = io::rasFromLpsMatrix();
   Eigen::Matrix4d X = Eigen::Matrix4d::Identity();
   X.topLeftCorner<3, 3>() = F * X_WT.R_AB.toRotationMatrix() * F;
   X.topRightCorner<3, 1>() = 1000.0 * (F * X_WT.p_AB_m);
@@ -221,7 +222,7 @@ io::LoadedVolume volumeFromIjkToRas(const std::array<int, 3>& dims, const Eigen:
                                     haptics::VoxelType type, std::vector<std::byte> bytes,
                                     const std::string& name) {
   if (!X_RAS_IJK_mm.allFinite()) throw std::invalid_argument("the IJK-to-RAS matrix is not finite");
-  const Eigen::Matrix3d F = Eigen::Vector3d(-1.0, -1.0, 1.0).asDiagonal();
+  const Eigen::Matrix3d F = io::lpsFromRasMatrix();
   haptics::VolumeGeometry g;
   g.dims = dims;
   Eigen::Matrix3d D_RAS;
@@ -425,7 +426,7 @@ bool imageIjkToRas_mm(::igtl::ImageMessage& image, const int (&dims)[3], Eigen::
   }
   X.block<3, 1>(0, 3) = centre - X.topLeftCorner<3, 3>() * Eigen::Vector3d(0.5 * (dims[0] - 1), 0.5 * (dims[1] - 1), 0.5 * (dims[2] - 1));
   if (image.GetCoordinateSystem() == ::igtl::ImageMessage::COORDINATE_LPS) {
-    X.topRows<2>() *= -1.0;  // LPS -> RAS
+    X.topRows<3>() = io::rasFromLpsMatrix() * X.topRows<3>();  // LPS -> RAS
   }
   return true;
 }

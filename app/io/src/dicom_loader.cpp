@@ -318,61 +318,73 @@ vtkSmartPointer<vtkImageData> resampled(vtkImageData* image, const SliceStack& s
   return done ? out : nullptr;
 }
 
-/// Reads the chosen files as one volume, regularised when needed; notices appended to `raw`.
-RawVolume readSeries(vtkStringArray* series_files, const fs::path& path, const fs::path& folder,
-                     const VolumeLoadOptions& options) {
-  VtkErrorCapture capture;
-  RawVolume raw;
-  auto files = vtkSmartPointer<vtkStringArray>::New();
-  files->DeepCopy(series_files);
-  auto reader = makeReader(files, capture);
-  reader->UpdateInformation();
-  vtkDICOMMetaData* md = reader->GetMetaData();
-  // Exact duplicates first: the sorter would take them for a second time point.
-  if (md != nullptr && md->GetNumberOfInstances() > 1) {
-    std::string which;
-    const std::vector<int> duplicates = duplicateFiles(md, files, which);
-    if (!duplicates.empty()) {
-      auto kept = vtkSmartPointer<vtkStringArray>::New();
-      for (vtkIdType f = 0; f < files->GetNumberOfValues(); ++f) {
-        if (std::find(duplicates.begin(), duplicates.end(), static_cast<int>(f)) == duplicates.end()) {
-          kept->InsertNextValue(files->GetValue(f));
-        }
-      }
-      raw.info.notices.push_back("dropped " + std::to_string(duplicates.size()) + " duplicate slice" +
-                                 (duplicates.size() > 1 ? "s" : "") + ": " + which);
-      files = kept;
-      capture.clear();
-      reader = makeReader(files, capture);
-      reader->UpdateInformation();
-      md = reader->GetMetaData();
+/// A series' reader, with the file list it reads.
+struct OpenedSeries {
+  vtkSmartPointer<vtkStringArray> files;
+  vtkSmartPointer<vtkDICOMReader> reader;
+  vtkDICOMMetaData* md = nullptr;  ///< The reader's (after UpdateInformation); may be null.
+};
+
+/// Opens `series_files` with exact duplicate files dropped (a notice in `info` names them): the
+/// slice sorter would take them for a second time point.
+OpenedSeries openWithoutDuplicates(vtkStringArray* series_files, VtkErrorCapture& capture, VolumeInfo& info) {
+  OpenedSeries s;
+  s.files = vtkSmartPointer<vtkStringArray>::New();
+  s.files->DeepCopy(series_files);
+  s.reader = makeReader(s.files, capture);
+  s.reader->UpdateInformation();
+  s.md = s.reader->GetMetaData();
+  if (s.md == nullptr || s.md->GetNumberOfInstances() <= 1) return s;
+  std::string which;
+  const std::vector<int> duplicates = duplicateFiles(s.md, s.files, which);
+  if (duplicates.empty()) return s;
+  auto kept = vtkSmartPointer<vtkStringArray>::New();
+  for (vtkIdType f = 0; f < s.files->GetNumberOfValues(); ++f) {
+    if (std::find(duplicates.begin(), duplicates.end(), static_cast<int>(f)) == duplicates.end()) {
+      kept->InsertNextValue(s.files->GetValue(f));
     }
   }
-  if (capture.hasErrors()) failRead(path, files, capture.firstError());
-  if (md == nullptr || md->GetNumberOfInstances() == 0) fail(path, "no DICOM slices could be read");
-  checkConsistentSlices(md, files, path);
+  info.notices.push_back("dropped " + std::to_string(duplicates.size()) + " duplicate slice" +
+                         (duplicates.size() > 1 ? "s" : "") + ": " + which);
+  s.files = kept;
+  capture.clear();
+  s.reader = makeReader(s.files, capture);
+  s.reader->UpdateInformation();
+  s.md = s.reader->GetMetaData();
+  return s;
+}
 
-  // 4-D series (cardiac phases, dynamic frames, echoes): one time point.
+/// 4-D series (cardiac phases, dynamic frames, echoes): sets the reader to time point
+/// options.dicom_phase, recorded in `info` (with a notice for a 4-D series).
+/// @throws LoadError naming `path` when the series has no such time point.
+void chooseTimePoint(vtkDICOMReader* reader, const VolumeLoadOptions& options, const fs::path& path,
+                     VolumeInfo& info) {
   const int time_points = std::max(1, reader->GetTimeDimension());
-  raw.info.phase_count = time_points;
+  info.phase_count = time_points;
   if (options.dicom_phase < 0 || options.dicom_phase >= time_points) {
     fail(path, "time point " + std::to_string(options.dicom_phase + 1) + " asked for, but the series has " +
                    std::to_string(time_points) + (time_points == 1 ? " (it is not 4-D)" : ""));
   }
-  raw.info.phase = options.dicom_phase;
+  info.phase = options.dicom_phase;
   reader->SetDesiredTimeIndex(options.dicom_phase);
   if (time_points > 1) {
-    raw.info.notices.push_back("4-D series with " + std::to_string(time_points) +
-                               " time points (phases or echoes): loaded time point " +
-                               std::to_string(options.dicom_phase + 1) + " (choose another with the phase option)");
+    info.notices.push_back("4-D series with " + std::to_string(time_points) +
+                           " time points (phases or echoes): loaded time point " +
+                           std::to_string(options.dicom_phase + 1) + " (choose another with the phase option)");
   }
+}
 
-  double slope = 1.0;
-  double intercept = 0.0;
-  const bool keep_stored = uniformRescale(md, slope, intercept);
-  if (!keep_stored) {
-    // Per-slice rescaling: let vtkDICOM convert to data units (int16 when exact, else float).
-    reader->AutoRescaleOn();
+/// Reads the voxels (progress 0 to 0.7 of the load). The stored values are kept when every
+/// slice has the same rescaling (`slope`, `intercept` set to it), else vtkDICOM converts to data
+/// units (int16 when exact, else float) and they are 1 and 0.
+/// @return the reader's output (owned by `reader`).
+/// @throws LoadError naming `path` for a read error or no voxels; LoadCancelled.
+vtkImageData* readVoxels(const OpenedSeries& series, VtkErrorCapture& capture, const VolumeLoadOptions& options,
+                         const fs::path& path, double& slope, double& intercept) {
+  slope = 1.0;
+  intercept = 0.0;
+  if (!uniformRescale(series.md, slope, intercept)) {
+    series.reader->AutoRescaleOn();
     slope = 1.0;
     intercept = 0.0;
   }
@@ -380,141 +392,215 @@ RawVolume readSeries(vtkStringArray* series_files, const fs::path& path, const f
   auto observer = vtkSmartPointer<vtkCallbackCommand>::New();
   observer->SetCallback(&ReaderProgress::callback);
   observer->SetClientData(&progress);
-  reader->AddObserver(vtkCommand::ProgressEvent, observer);
-  reader->Update();
+  const unsigned long tag = series.reader->AddObserver(vtkCommand::ProgressEvent, observer);
+  series.reader->Update();
+  series.reader->RemoveObserver(tag);  // `progress` ends here
   if (cancelled(options)) failCancelled(path);
-  if (capture.hasErrors()) failRead(path, files, capture.firstError());
-  vtkImageData* out = reader->GetOutput();
+  if (capture.hasErrors()) failRead(path, series.files, capture.firstError());
+  vtkImageData* out = series.reader->GetOutput();
   if (out == nullptr) fail(path, "no voxel data was read");
+  return out;
+}
 
-  // Geometry: p_LPS[mm] = M * (o + S * ijk); M = patient matrix (rotation + translation).
+/// The reader's patient matrix M: p_LPS[mm] = M * (o + S * ijk) (rotation and translation);
+/// identity when it has none.
+void patientMatrixOf(vtkDICOMReader* reader, Eigen::Matrix3d& rotation, Eigen::Vector3d& translation_mm) {
+  rotation.setIdentity();
+  translation_mm.setZero();
   vtkMatrix4x4* m = reader->GetPatientMatrix();
-  Eigen::Matrix3d rotation = Eigen::Matrix3d::Identity();
-  Eigen::Vector3d translation = Eigen::Vector3d::Zero();
-  if (m != nullptr) {
-    for (int r = 0; r < 3; ++r) {
-      for (int c = 0; c < 3; ++c) rotation(r, c) = m->GetElement(r, c);
-      translation[r] = m->GetElement(r, 3);
+  if (m == nullptr) return;
+  for (int r = 0; r < 3; ++r) {
+    for (int c = 0; c < 3; ++c) rotation(r, c) = m->GetElement(r, c);
+    translation_mm[r] = m->GetElement(r, 3);
+  }
+}
+
+/// The image plane of the first slice: its row and column directions (unit, patient LPS) and
+/// its pixel spacing [mm] into `stack`, from ImageOrientationPatient and PixelSpacing (per frame
+/// or in the shared functional groups for multi-frame files). False, nothing changed, when
+/// absent.
+bool readImagePlane(vtkDICOMMetaData* md, Eigen::Vector3d& row_dir, Eigen::Vector3d& col_dir, SliceStack& stack) {
+  const auto iop = values(md, 0, DC::ImageOrientationPatient);
+  const auto spacing = values(md, 0, DC::PixelSpacing);
+  if (iop.size() == 6 && spacing.size() == 2) {
+    row_dir = Eigen::Vector3d(iop[0], iop[1], iop[2]).normalized();
+    col_dir = Eigen::Vector3d(iop[3], iop[4], iop[5]).normalized();
+    stack.row_spacing_mm = spacing[0];
+    stack.column_spacing_mm = spacing[1];
+    return true;
+  }
+  const int file = std::max(0, md->GetFileIndex(0));
+  const int frame = std::max(0, md->GetFrameIndex(0));
+  const vtkDICOMValue& o6 = md->Get(file, frame, DC::ImageOrientationPatient);
+  const vtkDICOMValue& ps = md->Get(file, frame, DC::PixelSpacing);
+  if (!(o6.IsValid() && o6.GetNumberOfValues() == 6 && ps.IsValid() && ps.GetNumberOfValues() == 2)) return false;
+  double q[6], sp[2];
+  o6.GetValues(q, 6);
+  ps.GetValues(sp, 2);
+  row_dir = Eigen::Vector3d(q[0], q[1], q[2]).normalized();
+  col_dir = Eigen::Vector3d(q[3], q[4], q[5]).normalized();
+  stack.row_spacing_mm = sp[0];
+  stack.column_spacing_mm = sp[1];
+  return true;
+}
+
+/// Each slice's ImagePositionPatient [mm, patient LPS], slices 0 .. `slices` - 1 in the
+/// reader's order; false when one is missing.
+bool readSlicePositions(vtkDICOMMetaData* md, int slices, std::vector<Eigen::Vector3d>& positions_mm) {
+  for (int k = 0; k < slices; ++k) {
+    const int file = md->GetFileIndex(k);
+    const int frame = std::max(0, md->GetFrameIndex(k));
+    if (file < 0) return false;
+    const vtkDICOMValue& v = md->Get(file, frame, DC::ImagePositionPatient);
+    if (!v.IsValid() || v.GetNumberOfValues() != 3) return false;
+    double p[3];
+    v.GetValues(p, 3);
+    positions_mm.emplace_back(p[0], p[1], p[2]);
+  }
+  return true;
+}
+
+/// The slices as acquired, in the plane frame (u, v, d) of the first slice: u = row_dir,
+/// v = col_dir, d = normal (unit, patient LPS, d growing with k), first = slice 0's first pixel
+/// [mm, LPS]. `analysis` is left default (regular, no median) when the positions or the plane
+/// are missing or the plane axes are not orthogonal.
+struct SliceGeometry {
+  SliceStack stack;
+  Eigen::Vector3d row_dir, col_dir, normal;
+  Eigen::Vector3d first_mm = Eigen::Vector3d::Zero();
+  StackAnalysis analysis;
+};
+
+/// The slice geometry of a read with `dims` voxels; the plane axes default to the patient
+/// matrix's `rotation` columns.
+/// @throws LoadError naming `path` when two slices lie at the same position.
+SliceGeometry sliceGeometry(vtkDICOMMetaData* md, vtkStringArray* files, const Eigen::Matrix3d& rotation,
+                            const int dims[3], const fs::path& path) {
+  SliceGeometry g;
+  g.row_dir = rotation.col(0).normalized();
+  g.col_dir = rotation.col(1).normalized();
+  bool have_positions = dims[2] >= 2;
+  if (!readImagePlane(md, g.row_dir, g.col_dir, g.stack)) have_positions = false;
+  g.normal = g.row_dir.cross(g.col_dir);
+  std::vector<Eigen::Vector3d> positions;
+  if (have_positions) have_positions = readSlicePositions(md, dims[2], positions);
+  if (!have_positions || !(std::abs(g.row_dir.dot(g.col_dir)) < 1e-3) || !(g.stack.row_spacing_mm > 0.0) ||
+      !(g.stack.column_spacing_mm > 0.0)) {
+    return g;
+  }
+  g.first_mm = positions.front();
+  if (g.normal.dot(positions.back() - g.first_mm) < 0.0) g.normal = -g.normal;  // d grows with k
+  g.normal.normalize();
+  g.stack.columns = dims[0];
+  g.stack.rows = dims[1];
+  for (const auto& p : positions) {
+    const Eigen::Vector3d q = p - g.first_mm;
+    g.stack.offset_mm.emplace_back(q.dot(g.row_dir), q.dot(g.col_dir), q.dot(g.normal));
+  }
+  for (std::size_t k = 1; k < g.stack.offset_mm.size(); ++k) {
+    if (!(g.stack.offset_mm[k].z() > g.stack.offset_mm[k - 1].z())) {
+      fail(path, "inconsistent slices in the series: two slices at the same position (" +
+                     fileName(files, md->GetFileIndex(static_cast<int>(k - 1))) + " and " +
+                     fileName(files, md->GetFileIndex(static_cast<int>(k))) + ") with different pixels or times");
     }
   }
+  g.analysis = analyseStack(g.stack);
+  return g;
+}
+
+/// The notices of a regularised stack: shear (gantry tilt), missing slices, uneven spacing.
+void regularisationNotices(const SliceGeometry& g, const RegularGrid& grid, vtkDICOMMetaData* md,
+                           vtkStringArray* files, const std::string& modality, VolumeInfo& info) {
+  const StackAnalysis& analysis = g.analysis;
+  if (analysis.sheared) {
+    const vtkDICOMValue& tilt = md->Get(0, DC::GantryDetectorTilt);
+    const bool is_tilt = modality == "CT" || (tilt.IsValid() && tilt.AsDouble() != 0.0);
+    info.notices.push_back(std::string(is_tilt ? "resampled from a gantry tilt of " :
+                                                 "resampled from a sheared slice stack of ") +
+                           fixed(analysis.shear_deg, 1) + " deg");
+  }
+  const double d0_mm = g.first_mm.dot(g.normal);
+  for (const SliceGap& gap : analysis.gaps) {
+    const int before = md->GetFileIndex(gap.slice), after = md->GetFileIndex(gap.slice + 1);
+    info.notices.push_back(
+        "missing slice" + std::string(gap.missing > 1 ? "s" : "") + ": a gap of " +
+        fixed(gap.d_after_mm - gap.d_before_mm, 2) + " mm (about " + std::to_string(gap.missing) +
+        " slice" + (gap.missing > 1 ? "s" : "") + ") between " + fileName(files, before) + " at " +
+        fixed(d0_mm + gap.d_before_mm, 2) + " mm and " + fileName(files, after) + " at " +
+        fixed(d0_mm + gap.d_after_mm, 2) + " mm along the slice normal, filled by linear interpolation");
+  }
+  if (analysis.uneven) {
+    info.notices.push_back("uneven slice spacing (" + fixed(analysis.min_spacing_mm, 3) + " to " +
+                           fixed(analysis.max_spacing_mm, 3) + " mm): resampled to " +
+                           fixed(grid.spacing_mm.z(), 3) + " mm (the median spacing)");
+  }
+}
+
+/// Regularises an irregular stack: resamples `out` onto the grid of the image planes (u, v, d)
+/// with the median spacing (progress 0.7 to 1), into raw.image and raw.geometry (W = patient
+/// LPS [m]), with notices.
+/// @throws LoadError naming `path` when no grid fits; LoadCancelled.
+void regularise(vtkImageData* out, const SliceGeometry& g, vtkDICOMMetaData* md, vtkStringArray* files,
+                const std::string& modality, const VolumeLoadOptions& options, const fs::path& path, RawVolume& raw) {
+  RegularGrid grid;
+  try {
+    grid = regularGridFor(g.stack, g.analysis);
+  } catch (const std::invalid_argument& e) {
+    fail(path, std::string("cannot regularise the slice stack: ") + e.what());
+  }
+  regularisationNotices(g, grid, md, files, modality, raw.info);
+  vtkSmartPointer<vtkImageData> regular = resampled(out, g.stack, grid, options, 0.7);
+  if (regular == nullptr) failCancelled(path);
+  raw.image = regular;
+  raw.geometry.direction_W.col(0) = g.row_dir;
+  raw.geometry.direction_W.col(1) = g.col_dir;
+  raw.geometry.direction_W.col(2) = g.normal;
+  raw.geometry.spacing_m = grid.spacing_mm * 1e-3;
+  raw.geometry.origin_W_m = (g.first_mm + grid.origin_mm.x() * g.row_dir + grid.origin_mm.y() * g.col_dir +
+                             grid.origin_mm.z() * g.normal) * 1e-3;
+}
+
+/// The series' description fields into `info` (the folder's name when it has no description).
+void describeSeries(vtkDICOMMetaData* md, const std::string& modality, const fs::path& folder, VolumeInfo& info) {
+  info.format = "DICOM";
+  info.modality = modality;
+  if (info.modality == "CT") info.value_unit = "HU";
+  info.description = md->Get(0, DC::SeriesDescription).AsUTF8String();
+  if (info.description.empty()) info.description = folder.filename().string();
+  info.patient_name = md->Get(0, DC::PatientName).AsUTF8String();
+  info.series_uid = md->Get(0, DC::SeriesInstanceUID).AsString();
+  info.series_number = md->Get(0, DC::SeriesNumber).AsInt();
+}
+
+/// Reads the chosen files as one volume, regularised when needed; notices appended to `raw`.
+RawVolume readSeries(vtkStringArray* series_files, const fs::path& path, const fs::path& folder,
+                     const VolumeLoadOptions& options) {
+  VtkErrorCapture capture;
+  RawVolume raw;
+  const OpenedSeries series = openWithoutDuplicates(series_files, capture, raw.info);
+  vtkDICOMMetaData* md = series.md;
+  if (capture.hasErrors()) failRead(path, series.files, capture.firstError());
+  if (md == nullptr || md->GetNumberOfInstances() == 0) fail(path, "no DICOM slices could be read");
+  checkConsistentSlices(md, series.files, path);
+  chooseTimePoint(series.reader, options, path, raw.info);
+  double slope = 1.0;
+  double intercept = 0.0;
+  vtkImageData* out = readVoxels(series, capture, options, path, slope, intercept);
+
+  Eigen::Matrix3d rotation;
+  Eigen::Vector3d translation_mm;
+  patientMatrixOf(series.reader, rotation, translation_mm);
   double s[3];
   double o[3];
   out->GetSpacing(s);
   out->GetOrigin(o);
   int dims[3];
   out->GetDimensions(dims);
-
-  // The slices as acquired: each one's ImagePositionPatient, in the plane frame (u, v, d).
-  SliceStack stack;
-  bool have_positions = dims[2] >= 2;
-  Eigen::Vector3d row_dir = rotation.col(0).normalized(), col_dir = rotation.col(1).normalized();
-  Eigen::Vector3d first = Eigen::Vector3d::Zero();
-  {
-    const auto iop = values(md, 0, DC::ImageOrientationPatient);
-    const auto spacing = values(md, 0, DC::PixelSpacing);
-    if (iop.size() == 6 && spacing.size() == 2) {
-      row_dir = Eigen::Vector3d(iop[0], iop[1], iop[2]).normalized();
-      col_dir = Eigen::Vector3d(iop[3], iop[4], iop[5]).normalized();
-      stack.row_spacing_mm = spacing[0];
-      stack.column_spacing_mm = spacing[1];
-    } else {
-      // Multi-frame files keep these per frame or in the shared functional groups.
-      const int file = std::max(0, md->GetFileIndex(0));
-      const int frame = std::max(0, md->GetFrameIndex(0));
-      const vtkDICOMValue& o6 = md->Get(file, frame, DC::ImageOrientationPatient);
-      const vtkDICOMValue& ps = md->Get(file, frame, DC::PixelSpacing);
-      if (o6.IsValid() && o6.GetNumberOfValues() == 6 && ps.IsValid() && ps.GetNumberOfValues() == 2) {
-        double q[6], sp[2];
-        o6.GetValues(q, 6);
-        ps.GetValues(sp, 2);
-        row_dir = Eigen::Vector3d(q[0], q[1], q[2]).normalized();
-        col_dir = Eigen::Vector3d(q[3], q[4], q[5]).normalized();
-        stack.row_spacing_mm = sp[0];
-        stack.column_spacing_mm = sp[1];
-      } else {
-        have_positions = false;
-      }
-    }
-  }
-  Eigen::Vector3d normal = row_dir.cross(col_dir);
-  std::vector<Eigen::Vector3d> positions;
-  for (int k = 0; have_positions && k < dims[2]; ++k) {
-    const int file = md->GetFileIndex(k);
-    const int frame = std::max(0, md->GetFrameIndex(k));
-    if (file < 0) {
-      have_positions = false;
-      break;
-    }
-    const vtkDICOMValue& v = md->Get(file, frame, DC::ImagePositionPatient);
-    if (!v.IsValid() || v.GetNumberOfValues() != 3) {
-      have_positions = false;
-      break;
-    }
-    double p[3];
-    v.GetValues(p, 3);
-    positions.emplace_back(p[0], p[1], p[2]);
-  }
-  StackAnalysis analysis;
-  if (have_positions && std::abs(row_dir.dot(col_dir)) < 1e-3 && stack.row_spacing_mm > 0.0 &&
-      stack.column_spacing_mm > 0.0) {
-    first = positions.front();
-    if (normal.dot(positions.back() - first) < 0.0) normal = -normal;  // d grows with k
-    normal.normalize();
-    stack.columns = dims[0];
-    stack.rows = dims[1];
-    for (const auto& p : positions) {
-      const Eigen::Vector3d q = p - first;
-      stack.offset_mm.emplace_back(q.dot(row_dir), q.dot(col_dir), q.dot(normal));
-    }
-    for (std::size_t k = 1; k < stack.offset_mm.size(); ++k) {
-      if (!(stack.offset_mm[k].z() > stack.offset_mm[k - 1].z())) {
-        fail(path, "inconsistent slices in the series: two slices at the same position (" +
-                       fileName(files, md->GetFileIndex(static_cast<int>(k - 1))) + " and " +
-                       fileName(files, md->GetFileIndex(static_cast<int>(k))) + ") with different pixels or times");
-      }
-    }
-    analysis = analyseStack(stack);
-  }
+  const SliceGeometry slices = sliceGeometry(md, series.files, rotation, dims, path);
 
   const std::string modality = md->Get(0, DC::Modality).AsString();
-  if (!analysis.regular() && analysis.median_spacing_mm > 0.0) {
-    // Regularise: resample onto the grid of the image planes (u, v, d) with the median spacing.
-    RegularGrid grid;
-    try {
-      grid = regularGridFor(stack, analysis);
-    } catch (const std::invalid_argument& e) {
-      fail(path, std::string("cannot regularise the slice stack: ") + e.what());
-    }
-    if (analysis.sheared) {
-      const vtkDICOMValue& tilt = md->Get(0, DC::GantryDetectorTilt);
-      const bool is_tilt = modality == "CT" || (tilt.IsValid() && tilt.AsDouble() != 0.0);
-      raw.info.notices.push_back(std::string(is_tilt ? "resampled from a gantry tilt of " :
-                                                       "resampled from a sheared slice stack of ") +
-                                 fixed(analysis.shear_deg, 1) + " deg");
-    }
-    for (const SliceGap& gap : analysis.gaps) {
-      const int before = md->GetFileIndex(gap.slice), after = md->GetFileIndex(gap.slice + 1);
-      raw.info.notices.push_back(
-          "missing slice" + std::string(gap.missing > 1 ? "s" : "") + ": a gap of " +
-          fixed(gap.d_after_mm - gap.d_before_mm, 2) + " mm (about " + std::to_string(gap.missing) +
-          " slice" + (gap.missing > 1 ? "s" : "") + ") between " + fileName(files, before) + " at " +
-          fixed(first.dot(normal) + gap.d_before_mm, 2) + " mm and " + fileName(files, after) + " at " +
-          fixed(first.dot(normal) + gap.d_after_mm, 2) + " mm along the slice normal, filled by linear interpolation");
-    }
-    if (analysis.uneven) {
-      raw.info.notices.push_back("uneven slice spacing (" + fixed(analysis.min_spacing_mm, 3) + " to " +
-                                 fixed(analysis.max_spacing_mm, 3) + " mm): resampled to " +
-                                 fixed(grid.spacing_mm.z(), 3) + " mm (the median spacing)");
-    }
-    vtkSmartPointer<vtkImageData> regular = resampled(out, stack, grid, options, 0.7);
-    if (regular == nullptr) failCancelled(path);
-    raw.image = regular;
-    raw.geometry.direction_W.col(0) = row_dir;
-    raw.geometry.direction_W.col(1) = col_dir;
-    raw.geometry.direction_W.col(2) = normal;
-    raw.geometry.spacing_m = grid.spacing_mm * 1e-3;
-    raw.geometry.origin_W_m = (first + grid.origin_mm.x() * row_dir + grid.origin_mm.y() * col_dir +
-                               grid.origin_mm.z() * normal) * 1e-3;
+  if (!slices.analysis.regular() && slices.analysis.median_spacing_mm > 0.0) {
+    regularise(out, slices, md, series.files, modality, options, path, raw);
   } else {
     Eigen::Matrix3d direction;
     Eigen::Vector3d axis_lengths;
@@ -522,18 +608,11 @@ RawVolume readSeries(vtkStringArray* series_files, const fs::path& path, const f
     raw.image = out;
     raw.geometry.spacing_m = Eigen::Vector3d(s[0], s[1], s[2]).cwiseAbs().cwiseProduct(axis_lengths) * 1e-3;
     raw.geometry.direction_W = direction;
-    raw.geometry.origin_W_m = (rotation * Eigen::Vector3d(o[0], o[1], o[2]) + translation) * 1e-3;
+    raw.geometry.origin_W_m = (rotation * Eigen::Vector3d(o[0], o[1], o[2]) + translation_mm) * 1e-3;
   }
   raw.value_scale = slope;
   raw.value_offset = intercept;
-  raw.info.format = "DICOM";
-  raw.info.modality = modality;
-  if (raw.info.modality == "CT") raw.info.value_unit = "HU";
-  raw.info.description = md->Get(0, DC::SeriesDescription).AsUTF8String();
-  if (raw.info.description.empty()) raw.info.description = folder.filename().string();
-  raw.info.patient_name = md->Get(0, DC::PatientName).AsUTF8String();
-  raw.info.series_uid = md->Get(0, DC::SeriesInstanceUID).AsString();
-  raw.info.series_number = md->Get(0, DC::SeriesNumber).AsInt();
+  describeSeries(md, modality, folder, raw.info);
   return raw;
 }
 

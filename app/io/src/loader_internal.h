@@ -46,19 +46,19 @@ LoadedVolume finishVolume(RawVolume raw, const fs::path& path);
 inline constexpr int kDicomScanDepth = 4;
 
 /// Format loaders. `path` exists; each throws LoadError naming the file and the problem.
-/// loadDicom() reads in a worker process when one is available (isolated_load.cpp: a parser
+/// loadDicom() reads in the reader process when one is available (isolated_load.cpp: a parser
 /// crash cannot take the application down), else in this process through loadDicomRaw().
 LoadedVolume loadDicom(const fs::path& path, const VolumeLoadOptions& options);
-/// loadMesh() in this process (the worker's "mesh"; VTK's mesh readers crash on some damaged
+/// loadMesh() in this process (the reader process's "mesh" mode; VTK's mesh readers crash on some damaged
 /// files: see tests/fuzz/known-crashes).
 haptics::TriangleMesh loadMeshInProcess(const fs::path& path, double scale_to_m);
 
-/// listDicomSeries() in this process (the worker's "list"; see dicom_series.h).
+/// listDicomSeries() in this process (the reader process's "list" mode; see dicom_series.h).
 std::vector<DicomSeriesInfo> listDicomSeriesInProcess(const fs::path& folder,
                                                       const std::function<void(int, int)>& progress,
                                                       const std::atomic<bool>* cancel);
 
-/// A NRRD or MetaImage read in the worker process when it is found (VTK's readers crash or hang
+/// A NRRD or MetaImage read in the reader process when it is found (VTK's readers crash or hang
 /// on some damaged files: tests/fuzz/known-crashes), else `in_process()`.
 LoadedVolume loadFileIsolated(const fs::path& path, const VolumeLoadOptions& options,
                               const std::function<LoadedVolume()>& in_process);

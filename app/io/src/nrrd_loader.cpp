@@ -33,6 +33,7 @@
 #include <zlib.h>
 
 #include "loader_internal.h"
+#include "vh/io/patient_frames.h"
 #include "vtk_error_capture.h"
 
 namespace vh::io::detail {
@@ -289,17 +290,17 @@ std::vector<std::optional<Eigen::Vector3d>> parseVectors(const std::string& valu
   return out;
 }
 
-/// Sign flips taking a NRRD `space` into patient LPS (W); identity for non-anatomical spaces.
-Eigen::Matrix3d spaceToLps(const std::string& space_in, const fs::path& path) {
+/// The sign flip taking coordinates in a NRRD `space` into patient LPS (W)
+/// (vh/io/patient_frames.h); identity for LPS and the non-anatomical spaces.
+/// @throws LoadError naming `path` for a space that is not 3-D.
+Eigen::Matrix3d lpsFromSpace(const std::string& space_in, const fs::path& path) {
   const std::string s = toLower(space_in);
   if (s.empty() || s == "left-posterior-superior" || s == "lps" || s == "scanner-xyz" ||
       s == "3d-right-handed" || s == "3d-left-handed") {
     return Eigen::Matrix3d::Identity();
   }
-  if (s == "right-anterior-superior" || s == "ras") {
-    return Eigen::Vector3d(-1, -1, 1).asDiagonal();
-  }
-  if (s == "left-anterior-superior" || s == "las") return Eigen::Vector3d(1, -1, 1).asDiagonal();
+  if (s == "right-anterior-superior" || s == "ras") return lpsFromRasMatrix();
+  if (s == "left-anterior-superior" || s == "las") return lpsFromLasMatrix();
   fail(path, "unsupported NRRD space \"" + space_in + "\" (only 3-D spaces are supported)");
 }
 
@@ -470,62 +471,76 @@ vtkSmartPointer<vtkImageData> readWithVtk(const NrrdHeader& h, const fs::path& p
   return out;
 }
 
-}  // namespace
+/// What the header says about the values, checked: their count, type and encoding, and the
+/// grid. For a layered NRRD the list axis is taken off `size_words` and `kinds`.
+struct NrrdLayout {
+  bool layered = false;  ///< 4-D with a leading "list" axis: a stack of 3-D layers.
+  int layer_count = 1;
+  std::vector<std::string> size_words;  ///< The 3 spatial sizes as written.
+  std::vector<std::string> kinds;       ///< The 3 spatial axes' kinds (lower case), if given.
+  std::array<int, 3> sizes{};           ///< The grid [voxels].
+  std::uintmax_t voxel_count = 0;       ///< Voxels of one layer.
+  std::uintmax_t value_count = 0;       ///< Values in the file (all layers).
+  std::string type;                     ///< The "type" as written.
+  NrrdType value_type;
+  bool raw = false, gzip = false, text = false;  ///< The encoding.
+};
 
-std::map<std::string, std::string> readNrrdKeyValues(const fs::path& path) { return readHeader(path).key_values; }
-
-LoadedVolume loadNrrd(const fs::path& path, int layer) {
-  const NrrdHeader h = readHeader(path);
-
-  // --- fields needed for the checks ---
+/// "dimension", "kinds" and "sizes": a 3-D volume or a 4-D layered one with `layer` in it.
+/// @throws LoadError naming `path` otherwise, or for absurd sizes.
+void checkDimensions(const NrrdHeader& h, const fs::path& path, int layer, NrrdLayout& l) {
   const auto dimension = parseInt(field(h, "dimension"));
   if (!dimension) fail(path, "NRRD header has no valid \"dimension\"");
   // A 4-D NRRD whose first (fastest) axis is a list is a stack of 3-D layers: 3D Slicer's
   // segmentation with overlapping segments (.seg.nrrd, "kinds: list domain domain domain").
-  std::vector<std::string> kinds = splitWords(toLower(field(h, "kinds")));
-  const bool layered = *dimension == 4 && !kinds.empty() && kinds[0] == "list";
-  if (*dimension != 3 && !layered) {
+  l.kinds = splitWords(toLower(field(h, "kinds")));
+  l.layered = *dimension == 4 && !l.kinds.empty() && l.kinds[0] == "list";
+  if (*dimension != 3 && !l.layered) {
     fail(path, "is a " + std::to_string(*dimension) +
                    "-D NRRD; only 3-D scalar volumes (and 4-D layered segmentations whose first "
                    "axis is a \"list\") are supported");
   }
-  auto size_words = splitWords(field(h, "sizes"));
-  if (size_words.size() != static_cast<std::size_t>(*dimension)) {
+  l.size_words = splitWords(field(h, "sizes"));
+  if (l.size_words.size() != static_cast<std::size_t>(*dimension)) {
     fail(path, "NRRD \"sizes\" must list " + std::to_string(*dimension) + " sizes");
   }
-  int layer_count = 1;
-  if (layered) {
-    const auto n = parseInt(size_words[0]);
-    if (!n || *n <= 0 || *n > 256) fail(path, "NRRD \"sizes\" has an invalid layer count \"" + size_words[0] + "\"");
-    layer_count = static_cast<int>(*n);
-    size_words.erase(size_words.begin());
-    kinds.erase(kinds.begin());
+  if (l.layered) {
+    const auto n = parseInt(l.size_words[0]);
+    if (!n || *n <= 0 || *n > 256) fail(path, "NRRD \"sizes\" has an invalid layer count \"" + l.size_words[0] + "\"");
+    l.layer_count = static_cast<int>(*n);
+    l.size_words.erase(l.size_words.begin());
+    l.kinds.erase(l.kinds.begin());
   }
-  if (layer < 0 || layer >= layer_count) {
-    fail(path, "has " + std::to_string(layer_count) + " layer(s); layer " + std::to_string(layer) +
+  if (layer < 0 || layer >= l.layer_count) {
+    fail(path, "has " + std::to_string(l.layer_count) + " layer(s); layer " + std::to_string(layer) +
                    " was asked for");
   }
   std::uintmax_t voxel_count = 1;
-  for (const auto& w : size_words) {
+  for (const auto& w : l.size_words) {
     const auto v = parseInt(w);
     if (!v || *v <= 0) fail(path, "NRRD \"sizes\" has an invalid size \"" + w + "\"");
     if (*v > (1 << 20) || voxel_count > (std::uintmax_t{1} << 40)) fail(path, "NRRD \"sizes\" announce an absurd number of values");
     voxel_count *= static_cast<std::uintmax_t>(*v);
   }
-  if (voxel_count > (std::uintmax_t{1} << 40) / static_cast<std::uintmax_t>(layer_count)) {
+  if (voxel_count > (std::uintmax_t{1} << 40) / static_cast<std::uintmax_t>(l.layer_count)) {
     fail(path, "NRRD \"sizes\" announce an absurd number of values");
   }
-  const std::uintmax_t value_count = voxel_count * static_cast<std::uintmax_t>(layer_count);
-  const std::string type = field(h, "type");
-  if (type.empty()) fail(path, "NRRD header has no \"type\"");
-  const NrrdType value_type = nrrdType(type);
-  const std::size_t type_size = value_type.size;
-  if (type_size == 0) fail(path, "unsupported NRRD type \"" + type + "\"");
+  l.voxel_count = voxel_count;
+  l.value_count = voxel_count * static_cast<std::uintmax_t>(l.layer_count);
+}
+
+/// "type", "encoding", line / byte skips and the spatial axes' kinds.
+/// @throws LoadError naming `path` for what is not supported.
+void checkValues(const NrrdHeader& h, const fs::path& path, NrrdLayout& l) {
+  l.type = field(h, "type");
+  if (l.type.empty()) fail(path, "NRRD header has no \"type\"");
+  l.value_type = nrrdType(l.type);
+  if (l.value_type.size == 0) fail(path, "unsupported NRRD type \"" + l.type + "\"");
   const std::string encoding = toLower(field(h, "encoding"));
-  const bool raw = encoding == "raw";
-  const bool gzip = encoding == "gzip" || encoding == "gz";
-  const bool text = encoding == "ascii" || encoding == "text" || encoding == "txt";
-  if (!raw && !gzip && !text) {
+  l.raw = encoding == "raw";
+  l.gzip = encoding == "gzip" || encoding == "gz";
+  l.text = encoding == "ascii" || encoding == "text" || encoding == "txt";
+  if (!l.raw && !l.gzip && !l.text) {
     fail(path, "unsupported NRRD encoding \"" + field(h, "encoding") +
                    "\" (raw, gzip and ascii are supported)");
   }
@@ -534,14 +549,18 @@ LoadedVolume loadNrrd(const fs::path& path, int layer) {
       fail(path, std::string("NRRD \"") + key + "\" is not supported (by vtkNrrdReader)");
     }
   }
-  {
-    for (std::size_t a = 0; a < kinds.size(); ++a) {
-      if (kinds[a] != "domain" && kinds[a] != "space" && kinds[a] != "???" && kinds[a] != "none") {
-        fail(path, "axis " + std::to_string(a) + " has kind \"" + kinds[a] +
-                       "\"; only scalar volumes (3 spatial axes) are supported");
-      }
+  for (std::size_t a = 0; a < l.kinds.size(); ++a) {
+    if (l.kinds[a] != "domain" && l.kinds[a] != "space" && l.kinds[a] != "???" && l.kinds[a] != "none") {
+      fail(path, "axis " + std::to_string(a) + " has kind \"" + l.kinds[a] +
+                     "\"; only scalar volumes (3 spatial axes) are supported");
     }
   }
+}
+
+/// The data files: ranges and file lists vtkNrrdReader can read, present, long enough (raw) and
+/// starting with a gzip header (gzip).
+/// @throws LoadError naming `path` otherwise.
+void checkDataFiles(const NrrdHeader& h, const fs::path& path, const NrrdLayout& l) {
   const std::string data_file = field(h, "data file").empty() ? field(h, "datafile") : field(h, "data file");
   if (const auto words = splitWords(data_file); words.size() >= 4 &&
                                                               words[0].find('%') != std::string::npos) {
@@ -550,12 +569,12 @@ LoadedVolume loadNrrd(const fs::path& path, int layer) {
                  "vtkNrrdReader; list the files with \"data file: LIST\" instead");
     }
   }
-  if (h.data_files.size() > 1 && !text) {
+  if (h.data_files.size() > 1 && !l.text) {
     // vtkNrrdReader reads file lists as one 2-D slice per file only, and crashes on file lists
     // of volumes whose fastest axis it takes for vector components (<= 9 voxels).
-    if (gzip) fail(path, "gzip data split over several files is not supported by vtkNrrdReader");
-    const auto nz = parseInt(size_words[2]).value_or(0);
-    const auto nx = parseInt(size_words[0]).value_or(0);
+    if (l.gzip) fail(path, "gzip data split over several files is not supported by vtkNrrdReader");
+    const auto nz = parseInt(l.size_words[2]).value_or(0);
+    const auto nx = parseInt(l.size_words[0]).value_or(0);
     if (static_cast<long long>(h.data_files.size()) != nz) {
       fail(path, "data split over " + std::to_string(h.data_files.size()) + " files for " +
                      std::to_string(nz) + " slices; vtkNrrdReader needs one 2-D slice per file");
@@ -568,35 +587,46 @@ LoadedVolume loadNrrd(const fs::path& path, int layer) {
   for (const auto& f : h.data_files) {
     if (!fs::exists(f)) fail(path, "data file " + f.string() + " is missing");
   }
-  if (raw) checkRawSizes(h, path, value_count * type_size);
-  if (gzip) {
+  if (l.raw) checkRawSizes(h, path, l.value_count * l.value_type.size);
+  if (l.gzip) {
     const fs::path data = h.detached ? h.data_files.front() : path;
     if (!startsWithGzipMagic(data, h.detached ? 0 : h.header_bytes)) {
       fail(path, "corrupt gzip voxel data: " + (h.detached ? data.filename().string() : std::string("the data")) +
                      " does not start with a gzip header");
     }
   }
-  std::array<int, 3> sizes{};
-  for (int a = 0; a < 3; ++a) {
-    sizes[static_cast<std::size_t>(a)] = static_cast<int>(*parseInt(size_words[static_cast<std::size_t>(a)]));
-  }
+}
 
-  // --- voxels (through VTK, except ascii) ---
-  vtkSmartPointer<vtkImageData> out;
-  if (layered) {
+/// The header read and checked for a load of `layer`.
+/// @throws LoadError naming `path` for what cannot be read.
+NrrdLayout checkedLayout(const NrrdHeader& h, const fs::path& path, int layer) {
+  NrrdLayout l;
+  checkDimensions(h, path, layer, l);
+  checkValues(h, path, l);
+  checkDataFiles(h, path, l);
+  for (int a = 0; a < 3; ++a) {
+    l.sizes[static_cast<std::size_t>(a)] = static_cast<int>(*parseInt(l.size_words[static_cast<std::size_t>(a)]));
+  }
+  return l;
+}
+
+/// The voxels (layer `layer` of a layered NRRD): through VTK, except ascii and layers.
+vtkSmartPointer<vtkImageData> readVoxels(const NrrdHeader& h, const fs::path& path, const NrrdLayout& l, int layer) {
+  if (l.layered) {
     // vtkNrrdReader 9.1 reads only the first three sizes of a 4-D NRRD: the layers are decoded
     // here (raw, or gzip through zlib) and the chosen one is extracted.
-    if (text) fail(path, "ascii-encoded layered NRRD is not supported");
+    if (l.text) fail(path, "ascii-encoded layered NRRD is not supported");
     if (h.data_files.size() > 1) fail(path, "a layered NRRD split over several data files is not supported");
-    out = readLayer(h, path, gzip, value_type.vtk_type, type_size, layer_count, layer, sizes);
-  } else if (text) {
-    out = readAscii(h, path, value_type.vtk_type, sizes, voxel_count);
-  } else {
-    out = readWithVtk(h, path, gzip, type, type_size, voxel_count, sizes);
+    return readLayer(h, path, l.gzip, l.value_type.vtk_type, l.value_type.size, l.layer_count, layer, l.sizes);
   }
+  if (l.text) return readAscii(h, path, l.value_type.vtk_type, l.sizes, l.voxel_count);
+  return readWithVtk(h, path, l.gzip, l.type, l.value_type.size, l.voxel_count, l.sizes);
+}
 
-
-  // --- geometry in W (patient LPS) [m] ---
+/// The grid axes in the NRRD space (columns: axis i, j, k scaled by the spacing, in the space's
+/// length unit): "space directions", else the diagonal of "spacings" (1 where absent or 0).
+/// @throws LoadError naming `path` for malformed or non-spatial directions.
+Eigen::Matrix3d gridAxes(const NrrdHeader& h, const fs::path& path, bool layered) {
   Eigen::Matrix3d axes = Eigen::Matrix3d::Identity();
   const std::string directions = field(h, "space directions");
   if (!directions.empty()) {
@@ -614,57 +644,77 @@ LoadedVolume loadNrrd(const fs::path& path, int layer) {
       }
       axes.col(c) = *vectors[static_cast<std::size_t>(c)];
     }
-  } else {
-    const auto words = splitWords(field(h, "spacings"));
-    for (int c = 0; c < 3; ++c) {
-      double s = 1.0;
-      if (static_cast<std::size_t>(c) < words.size()) {
-        if (const auto d = parseDouble(words[static_cast<std::size_t>(c)]); d && *d != 0.0) s = *d;
-      }
-      axes(c, c) = s;
+    return axes;
+  }
+  const auto words = splitWords(field(h, "spacings"));
+  for (int c = 0; c < 3; ++c) {
+    double s = 1.0;
+    if (static_cast<std::size_t>(c) < words.size()) {
+      if (const auto d = parseDouble(words[static_cast<std::size_t>(c)]); d && *d != 0.0) s = *d;
     }
+    axes(c, c) = s;
   }
-  Eigen::Matrix3d direction = Eigen::Matrix3d::Identity();
-  Eigen::Vector3d spacing = Eigen::Vector3d::Ones();
-  splitAxes(axes, path, direction, spacing);
+  return axes;
+}
 
-  Eigen::Vector3d origin = Eigen::Vector3d::Zero();
-  if (const std::string o = field(h, "space origin"); !o.empty()) {
-    const auto vectors = parseVectors(o, path, "space origin");
-    if (vectors.size() != 1 || !vectors[0]) fail(path, "invalid \"space origin\": \"" + o + "\"");
-    origin = *vectors[0];
-  }
-  const Eigen::Matrix3d to_lps = spaceToLps(field(h, "space"), path);
+/// "space origin" in the NRRD space (its length unit); zero when absent.
+/// @throws LoadError naming `path` when malformed.
+Eigen::Vector3d spaceOrigin(const NrrdHeader& h, const fs::path& path) {
+  const std::string o = field(h, "space origin");
+  if (o.empty()) return Eigen::Vector3d::Zero();
+  const auto vectors = parseVectors(o, path, "space origin");
+  if (vectors.size() != 1 || !vectors[0]) fail(path, "invalid \"space origin\": \"" + o + "\"");
+  return *vectors[0];
+}
 
-  // Units: "space units" (quoted, one per space axis) or "units"; none means millimetres.
+/// Metres per length unit of the space: "space units" (quoted, one per space axis) or "units";
+/// none means millimetres.
+/// @throws LoadError naming `path` for an unknown unit or axes in different units.
+double lengthUnitToM(const NrrdHeader& h, const fs::path& path) {
   std::string units = field(h, "space units");
   if (units.empty()) units = field(h, "units");
   double to_m = 1e-3;
-  {
-    static const std::regex kQuoted(R"re("([^"]*)")re");
-    bool first = true;
-    for (auto it = std::sregex_iterator(units.begin(), units.end(), kQuoted);
-         it != std::sregex_iterator(); ++it) {
-      const std::string u = (*it)[1];
-      const auto factor = lengthUnitToMetres(u);
-      if (!factor) fail(path, "unsupported length unit \"" + u + "\" in the NRRD header");
-      if (!first && *factor != to_m) fail(path, "NRRD axes have different length units");
-      to_m = *factor;
-      first = false;
-    }
+  static const std::regex kQuoted(R"re("([^"]*)")re");
+  bool first = true;
+  for (auto it = std::sregex_iterator(units.begin(), units.end(), kQuoted); it != std::sregex_iterator(); ++it) {
+    const std::string u = (*it)[1];
+    const auto factor = lengthUnitToMetres(u);
+    if (!factor) fail(path, "unsupported length unit \"" + u + "\" in the NRRD header");
+    if (!first && *factor != to_m) fail(path, "NRRD axes have different length units");
+    to_m = *factor;
+    first = false;
   }
+  return to_m;
+}
+
+}  // namespace
+
+std::map<std::string, std::string> readNrrdKeyValues(const fs::path& path) { return readHeader(path).key_values; }
+
+LoadedVolume loadNrrd(const fs::path& path, int layer) {
+  const NrrdHeader h = readHeader(path);
+  const NrrdLayout layout = checkedLayout(h, path, layer);
+  vtkSmartPointer<vtkImageData> out = readVoxels(h, path, layout, layer);
+
+  // --- geometry in W (patient LPS) [m] ---
+  Eigen::Matrix3d direction = Eigen::Matrix3d::Identity();
+  Eigen::Vector3d spacing = Eigen::Vector3d::Ones();
+  splitAxes(gridAxes(h, path, layout.layered), path, direction, spacing);
+  const Eigen::Vector3d origin = spaceOrigin(h, path);
+  const Eigen::Matrix3d lps_from_space = lpsFromSpace(field(h, "space"), path);
+  const double to_m = lengthUnitToM(h, path);
 
   RawVolume raw_volume;
   raw_volume.image = out;
   raw_volume.geometry.spacing_m = spacing * to_m;
-  raw_volume.geometry.direction_W = to_lps * direction;
-  raw_volume.geometry.origin_W_m = to_lps * origin * to_m;
+  raw_volume.geometry.direction_W = lps_from_space * direction;
+  raw_volume.geometry.origin_W_m = lps_from_space * origin * to_m;
   raw_volume.info.format = "NRRD";
   const std::string content = field(h, "content");
   raw_volume.info.description = content.empty() ? path.filename().string() : content;
-  if (layered) {
-    raw_volume.info.notices.push_back("layer " + std::to_string(layer + 1) + " of " + std::to_string(layer_count) +
-                                      " of a layered segmentation");
+  if (layout.layered) {
+    raw_volume.info.notices.push_back("layer " + std::to_string(layer + 1) + " of " +
+                                      std::to_string(layout.layer_count) + " of a layered segmentation");
   }
   return finishVolume(std::move(raw_volume), path);
 }

@@ -139,7 +139,7 @@ LoadedSegmentation loadSegmentation(const fs::path& path, const VolumeLoadOption
   }
   seg.from_slicer = !seg.segments.empty();
 
-  // The label layers, read like any NRRD (in the reader worker when it is found).
+  // The label layers, read like any NRRD (in the reader process when it is found).
   for (int layer = 0; layer <= max_layer; ++layer) {
     VolumeLoadOptions layer_options = options;
     layer_options.nrrd_layer = layer;

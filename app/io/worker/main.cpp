@@ -1,5 +1,6 @@
-// volume-haptics-dicom-worker: reads a DICOM series for volume-haptics in a process of its own,
-// so that a parser crash on a damaged file cannot end the application (see vh/io/dicom_worker.h).
-#include "vh/io/dicom_worker.h"
+// volume-haptics-dicom-worker: the reader process of volume-haptics. It reads scans (DICOM,
+// NRRD, MetaImage) and tool meshes in a process of its own, so that a reader crash on a damaged
+// file cannot end the application (see vh/io/reader_process.h).
+#include "vh/io/reader_process.h"
 
-int main(int argc, char** argv) { return vh::io::runDicomWorker(argc, argv); }
+int main(int argc, char** argv) { return vh::io::readerProcessMain(argc, argv); }

@@ -148,6 +148,132 @@ PlantState rk4Step(const PlantState& y, double t, double h, const Eigen::Vector3
   return o;
 }
 
+/// Options of a passivity controller port of stiffness `port_stiffness` (N/m or Nm/rad): the
+/// device's delay, and a gain floor from cfg.passivity_floor_N_per_m relative to the linear
+/// coupling stiffness `k_lin` [N/m].
+haptics::PassivityOptions passivityOptions(const SimulationConfig& cfg, double k_lin, double port_stiffness) {
+  haptics::PassivityOptions options;
+  options.delay_ticks = cfg.signal.delay_ticks;
+  if (cfg.passivity_floor_N_per_m > 0.0 && k_lin > 0.0)
+    options.min_gain = std::min(1.0, cfg.passivity_floor_N_per_m / k_lin);
+  options.port_stiffness = port_stiffness;
+  return options;
+}
+
+/// The device's signal path and the optional passivity controller (force and torque ports),
+/// with the same path fed the renderer's own commands: what the hand would have got without
+/// the controller, for its exact price. Also what the controller's ports were told last tick.
+struct CommandPath {
+  DeviceIo io;
+  haptics::PassivityController pc_force, pc_torque;
+  DeviceIo io_uncontrolled;
+  Eigen::Vector3d c_sensed_prev;  ///< Sensed handle centre of mass, last tick [m, W].
+  Eigen::Quaterniond q_prev;      ///< Handle orientation, last tick (W).
+
+  CommandPath(const SimulationConfig& cfg, const Coupling& cp, double k_ang_Nm_per_rad, const Eigen::Vector3d& c,
+              const Eigen::Quaterniond& q)
+      : io(cfg.signal),
+        pc_force(passivityOptions(cfg, cp.k_lin, cp.k_lin)),
+        pc_torque(passivityOptions(cfg, cp.k_lin, k_ang_Nm_per_rad)),
+        io_uncontrolled(cfg.signal),
+        c_sensed_prev(io.sense(c)),
+        q_prev(q) {}
+};
+
+/// The wrench applied to the handle over a tick [N, Nm, W], and the one the renderer's own
+/// commands would have given (`_free`).
+struct AppliedWrench {
+  Eigen::Vector3d F, tau, F_free, tau_free;
+};
+
+/// The commands: the renderer's wrench, through the passivity controller when it is on (each
+/// port told its displacement over the last tick and the energy its spring holds,
+/// `stored_J` in all), then the device's delay line and saturation.
+AppliedWrench actuate(CommandPath& path, const SimulationConfig& cfg, const Coupling& cp, const Pose& X_WD,
+                      const haptics::TickOutput& out, const Eigen::Vector3d& c_sensed, const Eigen::Quaterniond& q,
+                      double stored_J, SimulationResult& res) {
+  const double T = cfg.servo_period_s;
+  Eigen::Vector3d F_cmd = out.force_W_N, tau_cmd = out.torque_W_Nm;
+  if (cfg.passivity_control) {
+    const Eigen::Vector3d d_lin = cp.cm(X_WD) - cp.cm(out.X_WP);
+    const double stored_lin = 0.5 * cp.k_lin * d_lin.squaredNorm();
+    const auto sf = path.pc_force.step(F_cmd, c_sensed - path.c_sensed_prev, T, stored_lin);
+    const auto st = path.pc_torque.step(tau_cmd, rotationVector(q * path.q_prev.conjugate()), T,
+                                        std::max(0.0, stored_J - stored_lin));
+    res.controller_active_ticks += (sf.alpha > 0.0 || st.alpha > 0.0) ? 1 : 0;
+    F_cmd = sf.effort_W;
+    tau_cmd = st.effort_W;
+  }
+  path.c_sensed_prev = c_sensed;
+  path.q_prev = q;
+  AppliedWrench a;
+  a.F = path.io.actuate(F_cmd);
+  a.tau = path.io.actuateTorque(tau_cmd);
+  a.F_free = path.io_uncontrolled.actuate(out.force_W_N);
+  a.tau_free = path.io_uncontrolled.actuateTorque(out.torque_W_Nm);
+  return a;
+}
+
+/// The hand's wrench (eq. 5) at the start (P_prev: f0, t0) and the end (P_k: f1, t1) of the
+/// proxy's move over a tick [N, Nm, W].
+struct MoveWrenches {
+  Eigen::Vector3d f0, t0, f1, t1;
+};
+
+/// Solver work: the proxy's move from `P_prev` to `X_WP` under the spring to `X_WD` (trapezoid)
+/// into `rec` with its tolerance; tick `k`'s share of the run's worst case and violations (a
+/// lift bound of `lift_bound_m` [m]) into `res`. `c` is the handle's centre of mass [m, W].
+MoveWrenches bookSolverWork(const Coupling& cp, const Pose& P_prev, const Pose& X_WP, const Pose& X_WD,
+                            const Eigen::Vector3d& c, int k, double lift_bound_m, TickRecord& rec,
+                            SimulationResult& res) {
+  MoveWrenches m;
+  cp.handWrench(P_prev, X_WD, m.f0, m.t0);
+  cp.handWrench(X_WP, X_WD, m.f1, m.t1);
+  const Eigen::Vector3d dc = cp.cm(X_WP) - cp.cm(P_prev);
+  const Eigen::Vector3d dth = rotationVector(X_WP.R_AB * P_prev.R_AB.conjugate());
+  // On the proxy the wrench is the opposite of the hand's.
+  rec.solver_work_lin_J = -0.5 * (m.f0 + m.f1).dot(dc);
+  rec.solver_work_ang_J = -0.5 * (m.t0 + m.t1).dot(dth);
+  rec.solver_work_J = rec.solver_work_lin_J + rec.solver_work_ang_J;
+  rec.solver_gross_J = 0.5 * ((m.f0.cwiseAbs() + m.f1.cwiseAbs()).dot(dc.cwiseAbs()) +
+                              (m.t0.cwiseAbs() + m.t1.cwiseAbs()).dot(dth.cwiseAbs()));
+  const double coord = std::max({c.norm(), rec.c_P.norm(), cp.cm(P_prev).norm()});
+  rec.solver_tolerance_J = solverWorkTolerance(rec.solver_gross_J, std::max(m.f0.norm(), m.f1.norm()),
+                                               std::max(m.t0.norm(), m.t1.norm()), coord);
+  const double tol = rec.solver_tolerance_J;
+  if (k == 0) {
+    res.min_solver_margin_J = rec.solver_work_J + tol;
+    res.worst_solver_work_J = rec.solver_work_J;
+  }
+  res.min_solver_margin_J = std::min(res.min_solver_margin_J, rec.solver_work_J + tol);
+  if (rec.solver_work_J < res.worst_solver_work_J) {
+    res.worst_solver_work_J = rec.solver_work_J;
+    res.worst_solver_work_rel = rec.solver_work_J / std::max(rec.solver_gross_J, 1e-300);
+  }
+  if (rec.solver_work_J < -tol) {
+    ++res.solver_violations;
+    res.solver_injected_J -= rec.solver_work_J;
+  }
+  if (rec.solver_work_J < -(tol + std::max(m.f0.norm(), m.f1.norm()) * lift_bound_m)) ++res.lift_bound_violations;
+  return m;
+}
+
+/// The tick's record before the checks: the device and proxy poses and the rendered force.
+TickRecord startRecord(double t, const Pose& X_WD, const Eigen::Vector3d& c, const Eigen::Vector3d& v,
+                       const Eigen::Vector3d& w, const Coupling& cp, const haptics::TickOutput& out) {
+  TickRecord rec;
+  rec.t_s = t;
+  rec.X_WD = X_WD;
+  rec.c_D = c;
+  rec.v_D = v;
+  rec.w_D = w;
+  rec.c_P = cp.cm(out.X_WP);
+  rec.theta = rotationVector(X_WD.R_AB * out.X_WP.R_AB.conjugate());
+  rec.force_rendered = out.force_W_N;
+  rec.contacts = out.stats.contacts;
+  return rec;
+}
+
 }  // namespace
 
 SimulationResult simulate(HapticRenderer& renderer, const SimulationConfig& cfg, const HandTrajectory& hand,
@@ -158,8 +284,6 @@ SimulationResult simulate(HapticRenderer& renderer, const SimulationConfig& cfg,
   const haptics::CouplingGains& gains = renderer.coupling().gains();
   const Coupling cp{gains.linear_N_per_m, gains.angular_Nm_per_rad / (mass.I_Cm_T_kgm2.trace() / 3.0),
                     mass.I_Cm_T_kgm2, mass.p_TCm_m};
-  const DeviceParams& dev = cfg.device;
-  const HandParams& hp = cfg.hand;
   const double T = cfg.servo_period_s;
   const double h = T / cfg.substeps;
   const int n_ticks = static_cast<int>(std::lround(cfg.duration_s / T));
@@ -172,80 +296,26 @@ SimulationResult simulate(HapticRenderer& renderer, const SimulationConfig& cfg,
   Eigen::Vector3d c = start.c_W_m, v = start.v_W_mps, w = start.w_W_radps;
   Eigen::Quaterniond q = start.R_W.normalized();
   double w_out = 0.0, d_dev = 0.0, v0 = 0.0;
-
-  // The device's signal path and the optional passivity controller.
-  DeviceIo io(cfg.signal);
-  haptics::PassivityOptions pc_options;
-  pc_options.delay_ticks = cfg.signal.delay_ticks;
-  if (cfg.passivity_floor_N_per_m > 0.0 && cp.k_lin > 0.0)
-    pc_options.min_gain = std::min(1.0, cfg.passivity_floor_N_per_m / cp.k_lin);
-  haptics::PassivityOptions pc_torque_options = pc_options;
-  pc_options.port_stiffness = cp.k_lin;
-  pc_torque_options.port_stiffness = gains.angular_Nm_per_rad;
-  haptics::PassivityController pc_force(pc_options), pc_torque(pc_torque_options);
-  // The same path fed the renderer's own commands: what the hand would have got without the
-  // controller, for its exact price.
-  DeviceIo io_uncontrolled(cfg.signal);
-  Eigen::Vector3d c_sensed_prev = io.sense(c);
-  Eigen::Quaterniond q_prev = q;
+  CommandPath path(cfg, cp, gains.angular_Nm_per_rad, c, q);
 
   for (int k = 0; k < n_ticks; ++k) {
     const double t = k * T;
-    const Eigen::Vector3d c_sensed = io.sense(c);
+    const Eigen::Vector3d c_sensed = path.io.sense(c);
     const Pose X_WD{q, c_sensed - q * mass.p_TCm_m};
     const Pose P_prev = renderer.proxyPose();
     const haptics::TickOutput out = renderer.tick(X_WD, cfg.isovalue);
-    TickRecord rec;
-    rec.t_s = t;
-    rec.X_WD = X_WD;
-    rec.c_D = c;
-    rec.v_D = v;
-    rec.w_D = w;
-    rec.c_P = cp.cm(out.X_WP);
-    rec.theta = rotationVector(X_WD.R_AB * out.X_WP.R_AB.conjugate());
-    rec.force_rendered = out.force_W_N;
-    rec.contacts = out.stats.contacts;
+    TickRecord rec = startRecord(t, X_WD, c, v, w, cp, out);
     if (out.stats.bad_input) ++res.bad_inputs;
     if (!out.force_W_N.allFinite() || !out.torque_W_Nm.allFinite() || !out.X_WP.allFinite()) {
       res.finite = false;
       res.ticks.push_back(rec);
       break;
     }
-
-    // Solver work: the proxy's move from P_prev to P_k under the spring to D_k (trapezoid).
-    Eigen::Vector3d f0, t0, f1, t1;
-    cp.handWrench(P_prev, X_WD, f0, t0);
-    cp.handWrench(out.X_WP, X_WD, f1, t1);
-    const Eigen::Vector3d dc = cp.cm(out.X_WP) - cp.cm(P_prev);
-    const Eigen::Vector3d dth = rotationVector(out.X_WP.R_AB * P_prev.R_AB.conjugate());
-    // On the proxy the wrench is the opposite of the hand's.
-    rec.solver_work_lin_J = -0.5 * (f0 + f1).dot(dc);
-    rec.solver_work_ang_J = -0.5 * (t0 + t1).dot(dth);
-    rec.solver_work_J = rec.solver_work_lin_J + rec.solver_work_ang_J;
-    rec.solver_gross_J = 0.5 * ((f0.cwiseAbs() + f1.cwiseAbs()).dot(dc.cwiseAbs()) +
-                                (t0.cwiseAbs() + t1.cwiseAbs()).dot(dth.cwiseAbs()));
-    const double coord = std::max({c.norm(), rec.c_P.norm(), cp.cm(P_prev).norm()});
-    rec.solver_tolerance_J = solverWorkTolerance(rec.solver_gross_J, std::max(f0.norm(), f1.norm()),
-                                                 std::max(t0.norm(), t1.norm()), coord);
-    const double tol = rec.solver_tolerance_J;
-    if (k == 0) {
-      res.min_solver_margin_J = rec.solver_work_J + tol;
-      res.worst_solver_work_J = rec.solver_work_J;
-    }
-    res.min_solver_margin_J = std::min(res.min_solver_margin_J, rec.solver_work_J + tol);
-    if (rec.solver_work_J < res.worst_solver_work_J) {
-      res.worst_solver_work_J = rec.solver_work_J;
-      res.worst_solver_work_rel = rec.solver_work_J / std::max(rec.solver_gross_J, 1e-300);
-    }
-    if (rec.solver_work_J < -tol) {
-      ++res.solver_violations;
-      res.solver_injected_J -= rec.solver_work_J;
-    }
-    if (rec.solver_work_J < -(tol + std::max(f0.norm(), f1.norm()) * cfg.lift_bound_m)) ++res.lift_bound_violations;
+    const MoveWrenches m = bookSolverWork(cp, P_prev, out.X_WP, X_WD, c, k, cfg.lift_bound_m, rec, res);
 
     // Force consistency with eq. 5 recomputed here.
-    rec.force_error_rel = ((out.force_W_N - f1).norm() + (out.torque_W_Nm - t1).norm() / 0.02) /
-                          std::max(f1.norm() + t1.norm() / 0.02, 1e-3);
+    rec.force_error_rel = ((out.force_W_N - m.f1).norm() + (out.torque_W_Nm - m.t1).norm() / 0.02) /
+                          std::max(m.f1.norm() + m.t1.norm() / 0.02, 1e-3);
     res.max_force_error_rel = std::max(res.max_force_error_rel, rec.force_error_rel);
 
     rec.stored_J = cp.stored(out.X_WP, X_WD);
@@ -258,46 +328,27 @@ SimulationResult simulate(HapticRenderer& renderer, const SimulationConfig& cfg,
       rec.penetration_m = penetration(renderer.volume(), renderer.tool(), out.X_WP, cfg.isovalue);
       res.max_penetration_m = std::max(res.max_penetration_m, rec.penetration_m);
     }
-
     if (verifier) {
       const int crossed = verifier->check(renderer.lastMotion(), renderer.lastTimeOfContact(), cfg.isovalue).crossing_points;
       res.crossings += crossed > 0;
       res.crossing_points += crossed;
     }
 
-    // The commands: the renderer's wrench, through the passivity controller when it is on
-    // (each port told its displacement over the last tick and the energy its spring holds),
-    // then the device's delay line and saturation.
-    Eigen::Vector3d F_cmd = out.force_W_N, tau_cmd = out.torque_W_Nm;
-    if (cfg.passivity_control) {
-      const Eigen::Vector3d d_lin = cp.cm(X_WD) - cp.cm(out.X_WP);
-      const double stored_lin = 0.5 * cp.k_lin * d_lin.squaredNorm();
-      const auto sf = pc_force.step(F_cmd, c_sensed - c_sensed_prev, T, stored_lin);
-      const auto st = pc_torque.step(tau_cmd, rotationVector(q * q_prev.conjugate()), T,
-                                     std::max(0.0, rec.stored_J - stored_lin));
-      res.controller_active_ticks += (sf.alpha > 0.0 || st.alpha > 0.0) ? 1 : 0;
-      F_cmd = sf.effort_W;
-      tau_cmd = st.effort_W;
-    }
-    c_sensed_prev = c_sensed;
-    q_prev = q;
-    const Eigen::Vector3d F = io.actuate(F_cmd), tau = io.actuateTorque(tau_cmd);
-    const Eigen::Vector3d F_free = io_uncontrolled.actuate(out.force_W_N);
-    const Eigen::Vector3d tau_free = io_uncontrolled.actuateTorque(out.torque_W_Nm);
-    rec.force = F;
-    rec.torque = tau;
-    res.peak_force_N = std::max(res.peak_force_N, F.norm());
+    const AppliedWrench a = actuate(path, cfg, cp, X_WD, out, c_sensed, q, rec.stored_J, res);
+    rec.force = a.F;
+    rec.torque = a.tau;
+    res.peak_force_N = std::max(res.peak_force_N, a.F.norm());
 
     // Plant over the hold interval: the applied wrench is held (zero-order hold).
     PlantState y{c, v, q, w, Eigen::Vector3d::Zero(), 0.0};
     const Eigen::Vector3d c_start = c;
-    for (int s = 0; s < cfg.substeps; ++s) y = rk4Step(y, t + s * h, h, F, tau, dev, hp, hand);
+    for (int s = 0; s < cfg.substeps; ++s) y = rk4Step(y, t + s * h, h, a.F, a.tau, cfg.device, cfg.hand, hand);
     // Exact work of the held wrench along the integrated path; the damper's work integrated
     // with the state (RK4): the energy books close to O(h^4), see
     // StabilityHarness.FreeBounceMatchesTheZeroOrderHoldPrediction.
-    const double tick_work = F.dot(y.c - c_start) + tau.dot(y.phi);
+    const double tick_work = a.F.dot(y.c - c_start) + a.tau.dot(y.phi);
     // The controller's share: the damping it added, held over this tick, against the motion.
-    res.controller_dissipated_J += (F_free - F).dot(y.c - c_start) + (tau_free - tau).dot(y.phi);
+    res.controller_dissipated_J += (a.F_free - a.F).dot(y.c - c_start) + (a.tau_free - a.tau).dot(y.phi);
     d_dev += y.damper_J;
     c = y.c;
     v = y.v;
@@ -312,9 +363,9 @@ SimulationResult simulate(HapticRenderer& renderer, const SimulationConfig& cfg,
     }
     res.ticks.push_back(rec);
   }
-  res.saturated_ticks = io.saturatedTicks();
-  res.controller_final_gain = pc_force.gain();
-  res.controller_lowest_gain = pc_force.lowestGain();
+  res.saturated_ticks = path.io.saturatedTicks();
+  res.controller_final_gain = path.pc_force.gain();
+  res.controller_lowest_gain = path.pc_force.lowestGain();
   return res;
 }
 

@@ -1,5 +1,5 @@
-// No input crashes the application: DICOM series are read in a worker process
-// (vh/io/dicom_worker.h). A parser crash there becomes a LoadError naming the file; damaged
+// No input crashes the application: scans and meshes are read in the reader process
+// (vh/io/reader_process.h). A reader crash there becomes a LoadError naming the file; damaged
 // copies of a real series never take the test process down.
 
 #include <unistd.h>
@@ -15,7 +15,7 @@
 
 #include "io_test_support.h"
 #include "vh/io/dicom_series.h"
-#include "vh/io/dicom_worker.h"
+#include "vh/io/reader_process.h"
 #include "vh/io/volume_loader.h"
 
 namespace vh::io::test {
@@ -44,19 +44,19 @@ class ScopedEnv {
 TEST(DicomIsolation, TheWorkerIsLookedForBesideTheProgramThenInTheInstalledLayout) {
   // An installed or unpacked package (packaging/): PREFIX/bin/volume-haptics finds
   // PREFIX/libexec/volume-haptics/volume-haptics-dicom-worker before the build tree's worker.
-  const auto candidates = dicomWorkerCandidates("/opt/vh/usr/bin");
+  const auto candidates = readerProcessCandidates("/opt/vh/usr/bin");
   ASSERT_GE(candidates.size(), 3u);
   EXPECT_EQ(candidates[0], std::filesystem::path("/opt/vh/usr/bin/volume-haptics-dicom-worker"));
   EXPECT_EQ(candidates[1], std::filesystem::path("/opt/vh/usr/libexec/volume-haptics/volume-haptics-dicom-worker"));
   EXPECT_EQ(candidates.back().filename(), "volume-haptics-dicom-worker");
   EXPECT_EQ(candidates.back().parent_path().filename(), "app") << "the build tree's build/app/ comes last";
   // Without the executable's folder only the build tree's worker is left.
-  EXPECT_EQ(dicomWorkerCandidates({}).size(), 1u);
+  EXPECT_EQ(readerProcessCandidates({}).size(), 1u);
 }
 
 TEST(DicomIsolation, TheWorkerIsBuiltAndGivesTheSameVolumeAsTheInProcessRead) {
   VH_REQUIRE_SHARED(phantom, "ct/philips-head-phantom-bone");
-  ASSERT_FALSE(dicomWorkerPath().empty()) << "volume-haptics-dicom-worker not found";
+  ASSERT_FALSE(readerProcessPath().empty()) << "volume-haptics-dicom-worker not found";
   VolumeLoadOptions worker, in_process;
   worker.dicom_isolation = DicomIsolation::kWorker;
   in_process.dicom_isolation = DicomIsolation::kInProcess;
@@ -104,7 +104,7 @@ TEST(DicomIsolation, AWorkerCrashNamesTheFileAndLoadsNothing) {
 
 TEST(DicomIsolation, ListingSeriesRunsInTheWorkerToo) {
   VH_REQUIRE_SHARED(phantom, "ct/philips-head-phantom-bone");
-  ASSERT_FALSE(dicomWorkerPath().empty());
+  ASSERT_FALSE(readerProcessPath().empty());
   int last_done = -1, last_total = -1;
   const auto listed = listDicomSeries(phantom, [&](int done, int total) {
     last_done = done;
@@ -127,8 +127,8 @@ TEST(DicomIsolation, ListingSeriesRunsInTheWorkerToo) {
 
 TEST(DicomIsolation, MeshesThatCrashVtkReadersAreRefusedNotFatal) {
   // Inputs the fuzzing campaign found to crash VTK 9.1's OBJ and PLY readers in process
-  // (tests/fuzz/known-crashes/mesh); through the worker each is a LoadError.
-  ASSERT_FALSE(dicomWorkerPath().empty());
+  // (tests/fuzz/known-crashes/mesh); through the reader process each is a LoadError.
+  ASSERT_FALSE(readerProcessPath().empty());
   const fs::path known = fs::path(VH_SOURCE_DIR) / "tests" / "fuzz" / "known-crashes" / "mesh";
   if (!fs::exists(known)) GTEST_SKIP() << "no known crashes in " << known;
   TempDir tmp("crash_meshes");
@@ -148,8 +148,8 @@ TEST(DicomIsolation, MeshesThatCrashVtkReadersAreRefusedNotFatal) {
 
 TEST(DicomIsolation, VolumeFilesThatCrashVtkReadersAreRefusedNotFatal) {
   // NRRD and MetaImage inputs that crash VTK 9.1's readers in process (known-crashes; the
-  // hang and the allocation bomb left out): read in the worker, each is a LoadError.
-  ASSERT_FALSE(dicomWorkerPath().empty());
+  // hang and the allocation bomb left out): read in the reader process, each is a LoadError.
+  ASSERT_FALSE(readerProcessPath().empty());
   const fs::path known = fs::path(VH_SOURCE_DIR) / "tests" / "fuzz" / "known-crashes";
   if (!fs::exists(known / "nrrd")) GTEST_SKIP() << "no known crashes in " << known;
   TempDir tmp("crash_volumes");
@@ -174,7 +174,7 @@ TEST(DicomIsolation, AReaderStuckOnADamagedFileIsStoppedByTheWatchdog) {
   // vtkmetaio's MET_Read loops forever on this header (found by fuzz_metaimage). Read in the
   // worker with a 1 s watchdog (plus 1 s per 8 MiB: nothing for a file this small), the load
   // fails with a LoadError naming the file instead of waiting for ever.
-  ASSERT_FALSE(dicomWorkerPath().empty());
+  ASSERT_FALSE(readerProcessPath().empty());
   const fs::path hang = fs::path(VH_SOURCE_DIR) / "tests/fuzz/known-crashes/metaimage/hang-vtkmetaio-MET_Read.mha";
   if (!fs::exists(hang)) GTEST_SKIP() << "no " << hang;
   TempDir tmp("stuck_reader");
@@ -256,7 +256,7 @@ void damageCopy(const fs::path& from, const fs::path& to, std::mt19937& rng) {
 
 TEST(DicomIsolation, DamagedCopiesOfARealSeriesNeverCrashTheProcess) {
   VH_REQUIRE_SHARED(head, kCtHead);
-  ASSERT_FALSE(dicomWorkerPath().empty());
+  ASSERT_FALSE(readerProcessPath().empty());
   // CI: 20 copies; the experiment: VH_DAMAGED_COPIES=300.
   const char* env = std::getenv("VH_DAMAGED_COPIES");
   const int copies = env != nullptr ? std::atoi(env) : 20;
@@ -276,7 +276,7 @@ TEST(DicomIsolation, DamagedCopiesOfARealSeriesNeverCrashTheProcess) {
     }
   }
   std::cout << "[damaged copies] " << copies << " copies: " << loaded << " loaded, " << refused << " refused ("
-            << crashed << " of them a worker crash, named); the test process never crashed\n";
+            << crashed << " of them a reader process crash, named); the test process never crashed\n";
   EXPECT_EQ(loaded + refused, copies);
 }
 

@@ -51,6 +51,7 @@
 
 #include "vh/haptics/pose.h"
 #include "vh/haptics/scalar_volume.h"
+#include "vh/io/patient_frames.h"
 #include "vh/io/volume_loader.h"
 #include "vh/runtime/haptic_thread.h"
 #include "vh/runtime/snapshot_channel.h"
@@ -100,7 +101,7 @@ struct LinkStatus {
 Eigen::Matrix4d toRasMatrix_mm(const haptics::Pose& X_WT);
 
 /// A vector in W (LPS) expressed in RAS: F v = (-x, -y, z) (same units).
-inline Eigen::Vector3d toRas(const Eigen::Vector3d& v_W) { return {-v_W.x(), -v_W.y(), v_W.z()}; }
+inline Eigen::Vector3d toRas(const Eigen::Vector3d& v_W) { return io::rasFromLps(v_W); }
 
 /// A volume in W from an image in RAS millimetres (as an IMAGE message carries it, after the
 /// centre-to-corner shift of its origin).

@@ -46,7 +46,7 @@ struct DicomSeriesInfo {
 /// @param progress when set, called with (series done, series total) while each series' slice
 ///        geometry is read; may be called from the calling thread only.
 /// @param cancel when set and it becomes true, the listing stops early and returns what it has.
-/// Runs in the DICOM worker process when it is found (dicom_worker.h): a parser crash on a
+/// Runs in the reader process when it is found (reader_process.h): a parser crash on a
 /// damaged file becomes a LoadError naming it.
 /// @throws LoadError naming the folder: missing, not a folder, or no DICOM image series in it;
 ///         a crash of the reader on a damaged file.

@@ -49,7 +49,7 @@ struct LoadedSegmentation {
 };
 
 /// Loads a segmentation (.seg.nrrd, or a label-map .nrrd / .nhdr). The voxels are read by
-/// loadVolume() (in the reader worker when it is found), the segment names from the header.
+/// loadVolume() (in the reader process when it is found), the segment names from the header.
 /// @param options as loadVolume()'s (cancel, progress, watchdog); its nrrd_layer is ignored.
 /// @throws LoadError naming the file and the problem: not a NRRD, a damaged file, a segment
 ///         whose layer is missing, non-integer labels, more than 4096 distinct labels in a label

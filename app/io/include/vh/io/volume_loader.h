@@ -40,12 +40,12 @@ class LoadCancelled : public LoadError {
 
 /// Where a volume file is read (the name is historical: DICOM, NRRD and MetaImage
 /// alike). vtk-dicom's parser and VTK's NRRD and MetaImage readers have crashed on damaged
-/// files; in a worker process (the `volume-haptics-dicom-worker` program, see dicom_worker.h)
-/// such a crash ends the worker and the load fails with a LoadError naming the file.
+/// files; in the reader process (the `volume-haptics-dicom-worker` program, see reader_process.h)
+/// such a crash ends that process and the load fails with a LoadError naming the file.
 enum class DicomIsolation {
-  kAuto,       ///< In a worker when the program is found, else in this process (with a notice).
-  kWorker,     ///< Only in a worker; a LoadError when the program is missing.
-  kInProcess,  ///< In this process (the worker itself; tests of the reading code).
+  kAuto,       ///< In the reader process when its program is found, else in this process (with a notice).
+  kWorker,     ///< Only in the reader process; a LoadError when its program is missing.
+  kInProcess,  ///< In this process (the reader process itself; tests of the reading code).
 };
 
 /// How loadVolume() picks and reads a volume. The series and phase apply to DICOM only.
@@ -64,12 +64,12 @@ struct VolumeLoadOptions {
   /// When set and it becomes true, the load stops and throws LoadCancelled.
   const std::atomic<bool>* cancel = nullptr;
   DicomIsolation dicom_isolation = DicomIsolation::kAuto;
-  /// Watchdog of the reader worker [s]: a worker that reports nothing (no progress line) for
+  /// Watchdog of the reader process [s]: a reader that reports nothing (no progress line) for
   /// this long is killed and the load fails with a LoadError naming the file ("the reader
   /// stopped responding"): a reader stuck on a damaged file (vtkmetaio's `MET_Read` loops
   /// forever on some headers) must not hang the program. Readers that report no progress while
   /// reading one file (NRRD, MetaImage, meshes) get 1 s more per 8 MiB of that file. 0 = no
-  /// watchdog. Ignored in process (DicomIsolation::kInProcess or no worker program).
+  /// watchdog. Ignored in process (DicomIsolation::kInProcess or no reader program).
   double worker_stall_timeout_s = 60.0;
 };
 
@@ -120,7 +120,7 @@ struct LoadedVolume {
 LoadedVolume loadVolume(const std::filesystem::path& path, const VolumeLoadOptions& options = {});
 
 /// Loads a triangle mesh (STL, OBJ, PLY), triangulated, coordinates multiplied by `scale_to_m`.
-/// Read in the worker process when it is found (dicom_worker.h): VTK 9.1's PLY and OBJ readers
+/// Read in the reader process when it is found (reader_process.h): VTK 9.1's PLY and OBJ readers
 /// crash on some damaged files (tests/fuzz/known-crashes), which then becomes a LoadError.
 /// @throws LoadError for a missing or unreadable file, a mesh with no triangles, or a reader
 ///         crash.

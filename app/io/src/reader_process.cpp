@@ -1,0 +1,237 @@
+// The application's side of the reader process: finding the reader program, starting it with
+// posix_spawn, its stdout line protocol under a watchdog, killing it, and the crash or stall
+// of a reader turned into a LoadError (reader_process_internal.h).
+#include <fcntl.h>
+#include <poll.h>
+#include <signal.h>
+#include <spawn.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <atomic>
+#include <cerrno>
+#include <chrono>
+#include <cstdio>
+#include <cstdlib>
+#include <cstring>
+
+#include "loader_internal.h"
+#include "reader_process_internal.h"
+#include "vh/io/reader_process.h"
+
+extern char** environ;
+
+namespace vh::io {
+namespace detail {
+namespace {
+
+/// Waits at most this long per poll of the reader's stdout [ms].
+constexpr int kPollMs = 50;
+
+/// A running reader program with its stdout; killed (SIGKILL) and reaped when destroyed.
+class ReaderProcess {
+ public:
+  /// Starts `args[0]` with `args`, stdout into a pipe, stderr into /dev/null.
+  /// @throws LoadError when the pipe or the process cannot be made.
+  explicit ReaderProcess(const std::vector<std::string>& args) {
+    int fds[2];
+    if (pipe2(fds, O_CLOEXEC) != 0) {
+      throw LoadError(std::string("cannot start the reader process: ") + std::strerror(errno));
+    }
+    posix_spawn_file_actions_t actions;
+    posix_spawn_file_actions_init(&actions);
+    posix_spawn_file_actions_adddup2(&actions, fds[1], STDOUT_FILENO);
+    // A crashing reader's last words (glibc's "*** buffer overflow detected ***", VTK text that
+    // escaped the capture) are not the user's console's: the crash itself is reported.
+    posix_spawn_file_actions_addopen(&actions, STDERR_FILENO, "/dev/null", O_WRONLY, 0);
+    std::vector<char*> argv;
+    for (const auto& a : args) argv.push_back(const_cast<char*>(a.c_str()));
+    argv.push_back(nullptr);
+    const int rc = posix_spawn(&pid_, argv[0], &actions, nullptr, argv.data(), environ);
+    posix_spawn_file_actions_destroy(&actions);
+    close(fds[1]);
+    out_ = fds[0];
+    if (rc != 0) {
+      close(out_);
+      throw LoadError(std::string("cannot start the reader process ") + args[0] + ": " + std::strerror(rc));
+    }
+  }
+  ~ReaderProcess() {
+    if (pid_ > 0) {
+      kill(pid_, SIGKILL);
+      waitpid(pid_, nullptr, 0);
+    }
+    if (out_ >= 0) close(out_);
+  }
+  ReaderProcess(const ReaderProcess&) = delete;
+  ReaderProcess& operator=(const ReaderProcess&) = delete;
+
+  /// Next line of stdout; false at the end. Waits at most `timeout_ms` (then `line` is empty
+  /// and true is returned).
+  bool readLine(std::string& line, int timeout_ms) {
+    line.clear();
+    for (;;) {
+      const auto nl = buffer_.find('\n');
+      if (nl != std::string::npos) {
+        line = buffer_.substr(0, nl);
+        buffer_.erase(0, nl + 1);
+        return true;
+      }
+      pollfd p{out_, POLLIN, 0};
+      const int ready = poll(&p, 1, timeout_ms);
+      if (ready == 0) return true;
+      if (ready < 0) {
+        if (errno == EINTR) continue;
+        return false;
+      }
+      char chunk[4096];
+      const ssize_t got = read(out_, chunk, sizeof(chunk));
+      if (got < 0 && errno == EINTR) continue;
+      if (got <= 0) {
+        if (!buffer_.empty()) {
+          line.swap(buffer_);
+          return true;
+        }
+        return false;
+      }
+      buffer_.append(chunk, static_cast<std::size_t>(got));
+    }
+  }
+  /// Waits for the end; the wait status.
+  int wait() {
+    int status = 0;
+    while (waitpid(pid_, &status, 0) < 0 && errno == EINTR) {
+    }
+    pid_ = -1;
+    return status;
+  }
+  void kill9() {
+    if (pid_ > 0) {
+      kill(pid_, SIGKILL);
+      wait();
+    }
+  }
+
+ private:
+  pid_t pid_ = -1;
+  int out_ = -1;
+  std::string buffer_;
+};
+
+std::string signalName(int sig) {
+  const char* abbrev = sigabbrev_np(sig);
+  return abbrev != nullptr ? std::string("SIG") + abbrev : "signal " + std::to_string(sig);
+}
+
+double secondsSince(std::chrono::steady_clock::time_point t) {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now() - t).count();
+}
+
+std::atomic<int> g_output_counter{0};
+
+}  // namespace
+
+double stallLimitFor(const fs::path& file, double base_s) {
+  if (!(base_s > 0.0)) return 0.0;
+  std::error_code ec;
+  const auto bytes = fs::is_regular_file(file, ec) ? fs::file_size(file, ec) : 0;
+  return base_s + (ec ? 0.0 : static_cast<double>(bytes) / (8.0 * 1024 * 1024));
+}
+
+ReaderOutputFile::ReaderOutputFile(const char* kind) {
+  std::error_code ec;
+  path_ = fs::temp_directory_path(ec) /
+          ("vh-" + std::string(kind) + "-" + std::to_string(getpid()) + "-" + std::to_string(g_output_counter++));
+}
+
+ReaderOutputFile::~ReaderOutputFile() {
+  std::error_code ec;
+  fs::remove(path_, ec);
+}
+
+std::string findCulpritFile(const fs::path& program, const fs::path& path, double stall_s) {
+  ReaderProcess probe({program.string(), "probe", path.string()});
+  std::string line, last;
+  auto last_line = std::chrono::steady_clock::now();
+  while (probe.readLine(line, kPollMs)) {
+    if (line.empty()) {
+      if (stall_s > 0.0 && secondsSince(last_line) > stall_s) {
+        probe.kill9();
+        return last;
+      }
+      continue;
+    }
+    last_line = std::chrono::steady_clock::now();
+    if (line.rfind("file ", 0) == 0) last = line.substr(5);
+    if (line == "ok") last.clear();
+  }
+  const int status = probe.wait();
+  return WIFSIGNALED(status) ? last : std::string();
+}
+
+bool runReaderToEnd(const std::vector<std::string>& args, const fs::path& named, double stall_s,
+                    const std::function<void(const std::string&)>& on_line, const std::atomic<bool>* cancel,
+                    const std::function<std::string(const std::string&)>& problem) {
+  ReaderProcess run(args);
+  std::string line, error;
+  auto last_line = std::chrono::steady_clock::now();
+  while (run.readLine(line, kPollMs)) {
+    if (cancel != nullptr && cancel->load(std::memory_order_relaxed)) {
+      run.kill9();
+      return false;
+    }
+    const auto now = std::chrono::steady_clock::now();
+    if (line.empty()) {
+      if (stall_s > 0.0 && std::chrono::duration<double>(now - last_line).count() > stall_s) {
+        run.kill9();
+        char seconds[32];
+        std::snprintf(seconds, sizeof(seconds), "%.0f", stall_s);
+        fail(named, problem(std::string("stopped responding (nothing for ") + seconds + " s)"));
+      }
+      continue;
+    }
+    last_line = now;
+    if (line.rfind("error ", 0) == 0) error = line.substr(6);
+    else if (on_line) on_line(line);
+  }
+  const int status = run.wait();
+  if (WIFSIGNALED(status)) fail(named, problem("crashed (" + signalName(WTERMSIG(status)) + ")"));
+  if (WEXITSTATUS(status) != 0) {
+    if (!error.empty()) throw LoadError(error);
+    fail(named, "the reader process " + args[0] + " failed (exit status " + std::to_string(WEXITSTATUS(status)) + ")");
+  }
+  return true;
+}
+
+}  // namespace detail
+
+namespace fs = std::filesystem;
+
+std::vector<fs::path> readerProcessCandidates(const fs::path& exe_dir) {
+  std::vector<fs::path> candidates;
+  if (!exe_dir.empty()) {
+    candidates.push_back(exe_dir / detail::kReaderProgramName);
+#ifdef VH_READER_PROCESS_INSTALL_RELATIVE_PATH
+    candidates.push_back((exe_dir / VH_READER_PROCESS_INSTALL_RELATIVE_PATH).lexically_normal());
+#endif
+  }
+#ifdef VH_READER_PROCESS_BUILD_PATH
+  candidates.emplace_back(VH_READER_PROCESS_BUILD_PATH);
+#endif
+  return candidates;
+}
+
+fs::path readerProcessPath() {
+  std::error_code ec;
+  if (const char* env = std::getenv("VH_DICOM_WORKER"); env != nullptr && *env != '\0') {
+    return fs::exists(env, ec) ? fs::path(env) : fs::path();
+  }
+  fs::path exe_dir = fs::read_symlink("/proc/self/exe", ec).parent_path();
+  if (ec) exe_dir.clear();
+  for (const fs::path& candidate : readerProcessCandidates(exe_dir)) {
+    if (fs::exists(candidate, ec)) return candidate;
+  }
+  return {};
+}
+
+}  // namespace vh::io

@@ -1,0 +1,62 @@
+#pragma once
+/// @file
+/// The application's side of the reader process (vh/io/reader_process.h): starting the reader
+/// program, reading its stdout line protocol under a watchdog, killing it, and turning a crash
+/// or a stall into a LoadError. Private to vh::io.
+///
+/// Line protocol (the reader's stdout, one message a line): "progress ..." while it reads,
+/// "error MESSAGE" before exiting 1 on a LoadError; in `probe` mode "file NAME" before and "ok"
+/// after each file parsed.
+
+#include <atomic>
+#include <filesystem>
+#include <functional>
+#include <string>
+#include <vector>
+
+namespace vh::io::detail {
+
+namespace fs = std::filesystem;
+
+/// File name of the reader program (historical: it reads every format, not only DICOM).
+inline constexpr char kReaderProgramName[] = "volume-haptics-dicom-worker";
+/// The watchdog for readers run without VolumeLoadOptions (meshes, series listing) [s].
+inline constexpr double kDefaultStallS = 60.0;
+
+/// Seconds the watchdog allows a single-file reader that reports no progress: `base_s` plus
+/// 1 s per 8 MiB of `file`; 0 (no watchdog) stays 0.
+double stallLimitFor(const fs::path& file, double base_s);
+
+/// A temporary file for the reader's output (in the temporary folder, named after `kind`, this
+/// process's id and a counter), removed again when it goes out of scope.
+class ReaderOutputFile {
+ public:
+  explicit ReaderOutputFile(const char* kind);
+  ~ReaderOutputFile();
+  ReaderOutputFile(const ReaderOutputFile&) = delete;
+  ReaderOutputFile& operator=(const ReaderOutputFile&) = delete;
+  const fs::path& path() const { return path_; }
+
+ private:
+  fs::path path_;
+};
+
+/// Runs the reader program to its end; `args[0]` is the program. `on_line` sees each line it
+/// prints but its "error MESSAGE"; `cancel` set kills it at once (returns false). A crash throws
+/// the LoadError that `problem("crashed (SIGSEGV)")` describes (naming `named`); so does a
+/// stall, when the reader prints nothing for `stall_s` seconds (0 = no watchdog): it is killed
+/// and `problem` gets "stopped responding (nothing for N s)". A failure throws the reader's
+/// error message, else one naming `named` and the exit status.
+/// @return true when the reader finished, false when cancelled.
+/// @throws LoadError as above, or when the program cannot be started.
+bool runReaderToEnd(const std::vector<std::string>& args, const fs::path& named, double stall_s,
+                    const std::function<void(const std::string&)>& on_line, const std::atomic<bool>* cancel,
+                    const std::function<std::string(const std::string&)>& problem);
+
+/// After a crash or a stall: the file the reader `program`'s DICOM probe of `path` crashes or
+/// stops on, or "". The probe has its own watchdog (`stall_s`, 0 = none): a file it stays on
+/// that long is the culprit.
+/// @throws LoadError when the program cannot be started.
+std::string findCulpritFile(const fs::path& program, const fs::path& path, double stall_s);
+
+}  // namespace vh::io::detail

@@ -1,0 +1,268 @@
+// The reader process's output files: volumes, series lists and meshes written by the reader
+// process and read back by the application (formats in reader_transfer.h).
+#include "reader_transfer.h"
+
+#include <array>
+#include <cstdint>
+#include <cstring>
+#include <fstream>
+#include <memory>
+#include <stdexcept>
+
+#include <nlohmann/json.hpp>
+#include <vtkDataArray.h>
+#include <vtkImageData.h>
+#include <vtkPointData.h>
+#include <vtkSmartPointer.h>
+
+namespace vh::io::detail {
+namespace {
+
+using json = nlohmann::json;
+
+constexpr char kMagic[] = "VHRAW1\n";
+/// Largest JSON header accepted [bytes]: a damaged output file must not allocate without bound.
+constexpr std::uint64_t kMaxHeaderBytes = 1u << 26;
+
+json toJson(const Eigen::Vector3d& v) { return {v.x(), v.y(), v.z()}; }
+Eigen::Vector3d vec(const json& j) { return {j.at(0).get<double>(), j.at(1).get<double>(), j.at(2).get<double>()}; }
+
+json geometryToJson(const Eigen::Vector3d& spacing_m, const Eigen::Vector3d& origin_W_m,
+                    const Eigen::Matrix3d& direction_W) {
+  return {{"spacing_m", toJson(spacing_m)},
+          {"origin_W_m", toJson(origin_W_m)},
+          {"direction_W", {toJson(direction_W.col(0)), toJson(direction_W.col(1)), toJson(direction_W.col(2))}}};
+}
+
+/// Spacing, origin and directions of a header (dims are read by the caller).
+void geometryFromJson(const json& h, haptics::VolumeGeometry& g) {
+  g.spacing_m = vec(h.at("spacing_m"));
+  g.origin_W_m = vec(h.at("origin_W_m"));
+  for (int c = 0; c < 3; ++c) g.direction_W.col(c) = vec(h.at("direction_W").at(c));
+}
+
+/// kMagic, the JSON header's length (8 bytes) and the header; the voxels follow.
+void writeHeader(std::ofstream& f, const json& h) {
+  const std::string header = h.dump(-1, ' ', false, json::error_handler_t::replace);
+  const std::uint64_t n = header.size();
+  f.write(kMagic, sizeof(kMagic) - 1);
+  f.write(reinterpret_cast<const char*>(&n), sizeof(n));
+  f.write(header.data(), static_cast<std::streamsize>(header.size()));
+}
+
+/// Reads what writeHeader() wrote (a LoadError naming `source` when it cannot).
+json readHeader(std::ifstream& f, const fs::path& source) {
+  char magic[sizeof(kMagic) - 1];
+  std::uint64_t n = 0;
+  f.read(magic, sizeof(magic));
+  f.read(reinterpret_cast<char*>(&n), sizeof(n));
+  if (!f || std::memcmp(magic, kMagic, sizeof(magic)) != 0 || n > kMaxHeaderBytes) {
+    fail(source, "the reader process's output is unreadable");
+  }
+  std::string header(n, '\0');
+  f.read(header.data(), static_cast<std::streamsize>(n));
+  try {
+    return json::parse(header);
+  } catch (const json::exception& e) {
+    fail(source, std::string("the reader process's output is unreadable: ") + e.what());
+  }
+}
+
+json infoToJson(const VolumeInfo& i) {
+  return {{"format", i.format},           {"modality", i.modality},         {"value_unit", i.value_unit},
+          {"description", i.description}, {"patient_name", i.patient_name}, {"series_uid", i.series_uid},
+          {"series_number", i.series_number}, {"phase", i.phase},           {"phase_count", i.phase_count},
+          {"notices", i.notices}};
+}
+
+VolumeInfo infoFromJson(const json& i) {
+  VolumeInfo info;
+  info.format = i.at("format").get<std::string>();
+  info.modality = i.at("modality").get<std::string>();
+  info.value_unit = i.at("value_unit").get<std::string>();
+  info.description = i.at("description").get<std::string>();
+  info.patient_name = i.at("patient_name").get<std::string>();
+  info.series_uid = i.at("series_uid").get<std::string>();
+  info.series_number = i.at("series_number").get<int>();
+  info.phase = i.at("phase").get<int>();
+  info.phase_count = i.at("phase_count").get<int>();
+  info.notices = i.at("notices").get<std::vector<std::string>>();
+  return info;
+}
+
+json seriesToJson(const DicomSeriesInfo& i) {
+  std::vector<std::string> files;
+  for (const auto& f : i.files) files.push_back(f.string());
+  return {{"folder", i.folder.string()},
+          {"index", i.index},
+          {"patient_name", i.patient_name},
+          {"patient_id", i.patient_id},
+          {"study_description", i.study_description},
+          {"study_date", i.study_date},
+          {"series_description", i.series_description},
+          {"series_uid", i.series_uid},
+          {"series_number", i.series_number},
+          {"modality", i.modality},
+          {"file_count", i.file_count},
+          {"slice_count", i.slice_count},
+          {"rows", i.rows},
+          {"columns", i.columns},
+          {"spacing_mm", toJson(i.spacing_mm)},
+          {"files", files}};
+}
+
+DicomSeriesInfo seriesFromJson(const json& j) {
+  DicomSeriesInfo i;
+  i.folder = j.at("folder").get<std::string>();
+  i.index = j.at("index").get<int>();
+  i.patient_name = j.at("patient_name").get<std::string>();
+  i.patient_id = j.at("patient_id").get<std::string>();
+  i.study_description = j.at("study_description").get<std::string>();
+  i.study_date = j.at("study_date").get<std::string>();
+  i.series_description = j.at("series_description").get<std::string>();
+  i.series_uid = j.at("series_uid").get<std::string>();
+  i.series_number = j.at("series_number").get<int>();
+  i.modality = j.at("modality").get<std::string>();
+  i.file_count = j.at("file_count").get<int>();
+  i.slice_count = j.at("slice_count").get<int>();
+  i.rows = j.at("rows").get<int>();
+  i.columns = j.at("columns").get<int>();
+  i.spacing_mm = vec(j.at("spacing_mm"));
+  for (const auto& f : j.at("files")) i.files.emplace_back(f.get<std::string>());
+  return i;
+}
+
+}  // namespace
+
+void writeField(const haptics::ScalarVolume& field, const VolumeInfo& info, const fs::path& out) {
+  const auto& g = field.geometry();
+  json h = geometryToJson(g.spacing_m, g.origin_W_m, g.direction_W);
+  h["dims"] = g.dims;
+  h["voxel_type"] = static_cast<int>(field.voxelType());
+  h["value_scale"] = field.valueScale();
+  h["value_offset"] = field.valueOffset();
+  h["info"] = infoToJson(info);
+  std::ofstream f(out, std::ios::binary);
+  writeHeader(f, h);
+  f.write(reinterpret_cast<const char*>(field.bytes().data()), static_cast<std::streamsize>(field.bytes().size()));
+  if (!f) throw LoadError(out.string() + ": cannot write the loaded volume (disk full?)");
+}
+
+LoadedVolume readField(const fs::path& in, const fs::path& source) {
+  std::ifstream f(in, std::ios::binary);
+  const json h = readHeader(f, source);
+  LoadedVolume out;
+  try {
+    haptics::VolumeGeometry g;
+    g.dims = h.at("dims").get<std::array<int, 3>>();
+    geometryFromJson(h, g);
+    const auto type = static_cast<haptics::VoxelType>(h.at("voxel_type").get<int>());
+    std::vector<std::byte> bytes(g.voxelCount() * haptics::voxelTypeSize(type));
+    f.read(reinterpret_cast<char*>(bytes.data()), static_cast<std::streamsize>(bytes.size()));
+    if (static_cast<std::size_t>(f.gcount()) != bytes.size()) fail(source, "the reader process's output is cut short");
+    auto field = std::make_shared<haptics::ScalarVolume>(haptics::ScalarVolume::FromBytes(
+        g, type, std::move(bytes), h.at("value_scale").get<double>(), h.at("value_offset").get<double>()));
+    out.image = imageFromField(*field);
+    out.field = std::move(field);
+    out.info = infoFromJson(h.at("info"));
+    out.info.source = source;
+  } catch (const json::exception& e) {
+    fail(source, std::string("the reader process's output is unreadable: ") + e.what());
+  } catch (const std::invalid_argument& e) {
+    fail(source, std::string("the reader process's output is invalid: ") + e.what());
+  }
+  return out;
+}
+
+void writeRaw(const RawVolume& raw, const fs::path& out) {
+  int dims[3];
+  raw.image->GetDimensions(dims);
+  vtkDataArray* scalars = raw.image->GetPointData()->GetScalars();
+  if (scalars == nullptr) throw LoadError(out.string() + ": the reader produced no voxels");
+  json h = geometryToJson(raw.geometry.spacing_m, raw.geometry.origin_W_m, raw.geometry.direction_W);
+  h["dims"] = {dims[0], dims[1], dims[2]};
+  h["components"] = scalars->GetNumberOfComponents();
+  h["vtk_type"] = scalars->GetDataType();
+  h["value_scale"] = raw.value_scale;
+  h["value_offset"] = raw.value_offset;
+  h["info"] = infoToJson(raw.info);
+  std::ofstream f(out, std::ios::binary);
+  writeHeader(f, h);
+  const auto bytes = static_cast<std::streamsize>(scalars->GetNumberOfValues()) * scalars->GetDataTypeSize();
+  f.write(static_cast<const char*>(scalars->GetVoidPointer(0)), bytes);
+  if (!f) throw LoadError(out.string() + ": cannot write the loaded volume (disk full?)");
+}
+
+RawVolume readRaw(const fs::path& in, const fs::path& source) {
+  std::ifstream f(in, std::ios::binary);
+  const json h = readHeader(f, source);
+  RawVolume raw;
+  try {
+    const auto dims = h.at("dims").get<std::array<int, 3>>();
+    raw.image = vtkSmartPointer<vtkImageData>::New();
+    raw.image->SetDimensions(dims[0], dims[1], dims[2]);
+    raw.image->AllocateScalars(h.at("vtk_type").get<int>(), h.at("components").get<int>());
+    vtkDataArray* scalars = raw.image->GetPointData()->GetScalars();
+    const auto bytes = static_cast<std::streamsize>(scalars->GetNumberOfValues()) * scalars->GetDataTypeSize();
+    f.read(static_cast<char*>(scalars->GetVoidPointer(0)), bytes);
+    if (f.gcount() != bytes) fail(source, "the reader process's output is cut short");
+    geometryFromJson(h, raw.geometry);
+    raw.value_scale = h.at("value_scale").get<double>();
+    raw.value_offset = h.at("value_offset").get<double>();
+    raw.info = infoFromJson(h.at("info"));
+  } catch (const json::exception& e) {
+    fail(source, std::string("the reader process's output is unreadable: ") + e.what());
+  }
+  return raw;
+}
+
+void writeSeriesList(const std::vector<DicomSeriesInfo>& series, const fs::path& out) {
+  json list = json::array();
+  for (const auto& i : series) list.push_back(seriesToJson(i));
+  std::ofstream(out) << list.dump(-1, ' ', false, json::error_handler_t::replace);
+}
+
+std::vector<DicomSeriesInfo> readSeriesList(const fs::path& in, const fs::path& source) {
+  std::vector<DicomSeriesInfo> series;
+  try {
+    std::ifstream f(in);
+    for (const auto& j : json::parse(f)) series.push_back(seriesFromJson(j));
+  } catch (const json::exception& e) {
+    fail(source, std::string("the reader process's series list is unreadable: ") + e.what());
+  }
+  return series;
+}
+
+void writeMesh(const haptics::TriangleMesh& mesh, const fs::path& out, const fs::path& source) {
+  std::ofstream f(out, std::ios::binary);
+  const std::uint64_t nv = mesh.vertices_T_m.size(), nt = mesh.triangles.size();
+  f.write(reinterpret_cast<const char*>(&nv), sizeof(nv));
+  f.write(reinterpret_cast<const char*>(&nt), sizeof(nt));
+  for (const auto& v : mesh.vertices_T_m) f.write(reinterpret_cast<const char*>(v.data()), 3 * sizeof(double));
+  for (const auto& t : mesh.triangles) f.write(reinterpret_cast<const char*>(t.data()), 3 * sizeof(int));
+  if (!f) throw LoadError(source.string() + ": cannot hand the mesh back (disk full?)");
+}
+
+haptics::TriangleMesh readMesh(const fs::path& in, const fs::path& source) {
+  std::ifstream f(in, std::ios::binary);
+  std::uint64_t nv = 0, nt = 0;
+  f.read(reinterpret_cast<char*>(&nv), sizeof(nv));
+  f.read(reinterpret_cast<char*>(&nt), sizeof(nt));
+  if (!f || nv > (1ull << 31) || nt > (1ull << 31)) fail(source, "the reader process's mesh output is unreadable");
+  haptics::TriangleMesh mesh;
+  mesh.vertices_T_m.resize(nv);
+  mesh.triangles.resize(nt);
+  for (auto& v : mesh.vertices_T_m) f.read(reinterpret_cast<char*>(v.data()), 3 * sizeof(double));
+  for (auto& t : mesh.triangles) f.read(reinterpret_cast<char*>(t.data()), 3 * sizeof(int));
+  if (!f) fail(source, "the reader process's mesh output is cut short");
+  for (const auto& t : mesh.triangles) {
+    for (int v : t) {
+      if (v < 0 || static_cast<std::uint64_t>(v) >= nv) {
+        fail(source, "the reader process's mesh output is inconsistent");
+      }
+    }
+  }
+  return mesh;
+}
+
+}  // namespace vh::io::detail
