@@ -8,6 +8,7 @@
 #include <cmath>
 #include <iostream>
 #include <map>
+#include <optional>
 #include <sstream>
 #include <tuple>
 
@@ -194,24 +195,30 @@ RunResult runOne(const Surface& surf, std::shared_ptr<const haptics::ScalarVolum
   return r;
 }
 
-}  // namespace
-
-fs::path runAccuracy(const CommonOptions& options) {
-  const fs::path out = outputDir(options, "accuracy");
-  const bool short_run = options.short_run;
-  const int ticks = short_run ? 300 : 1200;
-  const std::vector<double> resolutions_m = short_run ? std::vector<double>{1e-3} : std::vector<double>{2e-3, 1e-3, 5e-4};
-  // One-factor-at-a-time sweeps around the paper's setting (epsilon f/4, segment 1, 0.5 mm spacing).
+/// The sweeps of one run: grid resolutions [m], and one factor at a time around the paper's
+/// setting (epsilon f/4, segment 1, 0.5 mm spacing): epsilon / f, segment fractions and
+/// point-shell spacings [m], with the settings they make.
+struct Sweep {
+  std::vector<double> resolutions_m, eps, segs, spacings;
   std::vector<Config> configs;
-  const std::vector<double> eps = short_run ? std::vector<double>{0.5, 0.25, 0.125} : std::vector<double>{0.5, 0.25, 0.125, 0.0625};
-  const std::vector<double> segs = short_run ? std::vector<double>{1.0, 0.5} : std::vector<double>{1.0, 0.5, 0.25};
-  const std::vector<double> spacings = short_run ? std::vector<double>{1e-3, 5e-4} : std::vector<double>{1e-3, 5e-4, 3.5e-4};
-  for (double e : eps) configs.push_back({e, 1.0, 5e-4, "epsilon"});
-  for (double s : segs)
-    if (s != 1.0) configs.push_back({0.25, s, 5e-4, "segment"});
-  for (double sp : spacings)
-    if (sp != 5e-4) configs.push_back({0.25, 1.0, sp, "density"});
+};
 
+Sweep accuracySweep(bool short_run) {
+  Sweep w;
+  w.resolutions_m = short_run ? std::vector<double>{1e-3} : std::vector<double>{2e-3, 1e-3, 5e-4};
+  w.eps = short_run ? std::vector<double>{0.5, 0.25, 0.125} : std::vector<double>{0.5, 0.25, 0.125, 0.0625};
+  w.segs = short_run ? std::vector<double>{1.0, 0.5} : std::vector<double>{1.0, 0.5, 0.25};
+  w.spacings = short_run ? std::vector<double>{1e-3, 5e-4} : std::vector<double>{1e-3, 5e-4, 3.5e-4};
+  for (double e : w.eps) w.configs.push_back({e, 1.0, 5e-4, "epsilon"});
+  for (double s : w.segs)
+    if (s != 1.0) w.configs.push_back({0.25, s, 5e-4, "segment"});
+  for (double sp : w.spacings)
+    if (sp != 5e-4) w.configs.push_back({0.25, 1.0, sp, "density"});
+  return w;
+}
+
+/// The 4 mm ball's tool model at each point-shell spacing [m].
+std::map<double, std::shared_ptr<const haptics::ToolModel>> ballTools(const std::vector<double>& spacings) {
   std::map<double, std::shared_ptr<const haptics::ToolModel>> tools;
   for (double sp : spacings) {
     haptics::PointShellOptions po;
@@ -219,57 +226,60 @@ fs::path runAccuracy(const CommonOptions& options) {
     tools[sp] = std::make_shared<const haptics::ToolModel>(
         haptics::makeToolModel(datasets::makeSphereMesh(kToolRadius_m, 4), po));
   }
+  return tools;
+}
 
-  nlohmann::ordered_json report = reportHeader("accuracy", short_run);
-  report["ticks_per_run"] = ticks;
-  report["tool"] = "ball, radius 4 mm";
-  report["push_depth_m"] = kPush_m;
-  report["verify_step_voxels"] = kVerifyStepVoxels;
-  nlohmann::ordered_json runs = nlohmann::ordered_json::array();
-  std::cout << "bench accuracy: " << surfaces().size() << " surfaces x " << resolutions_m.size() << " resolutions x "
-            << configs.size() << " settings, " << ticks << " ticks each\n";
+/// One run's line of the report: the surface, the grid's voxel [m], the setting and the result.
+nlohmann::ordered_json runJson(const Surface& surf, double voxel_m, const Config& cfg, const RunResult& r) {
+  nlohmann::ordered_json j;
+  j["surface"] = surf.name;
+  j["voxel_m"] = voxel_m;
+  j["family"] = cfg.family;
+  j["epsilon_over_f"] = cfg.epsilon_fraction;
+  j["epsilon_m"] = r.epsilon_m;
+  j["segment_fraction"] = cfg.segment_fraction;
+  j["point_spacing_m"] = cfg.spacing_m;
+  j["points"] = r.points;
+  j["ticks"] = r.ticks;
+  j["mean_us"] = r.mean_us;
+  j["p99_us"] = r.p99_us;
+  j["cpu_mean_us"] = r.cpu_mean_us;
+  j["contact_samples"] = r.contact_samples;
+  j["position_error_mean_m"] = r.pos_err_mean_m;
+  j["position_error_max_m"] = r.pos_err_max_m;
+  j["normal_error_mean_deg"] = r.normal_err_mean_deg;
+  j["normal_error_max_deg"] = r.normal_err_max_deg;
+  j["max_penetration_m"] = r.max_penetration_m;
+  j["crossings"] = r.crossings;
+  j["crossing_points"] = r.crossing_points;
+  j["verify_s"] = r.verify_s;
+  j["finite"] = r.finite;
+  j["resolved_by_grid"] = surf.min_feature_m >= voxel_m;
+  return j;
+}
 
-  struct Agg {
-    double us = 0, pos_vox = 0, normal_deg = 0, pen_over_eps = 0;  // pen: the maximum over runs
-    int n = 0;
-    int crossings = 0;  // summed over the runs
-  };
-  std::map<Config, Agg> agg;
-  std::vector<std::string> unresolved;
+/// Sums per setting over the runs whose grid holds the shape and that made contact.
+struct Agg {
+  double us = 0, pos_vox = 0, normal_deg = 0, pen_over_eps = 0;  // pen: the maximum over runs
+  int n = 0;
+  int crossings = 0;  // summed over the runs
+};
+
+/// Every surface at every resolution in every setting of `sweep`, `ticks` each: each run's line
+/// into `runs`, the sums per setting into `agg`, and the runs without any contact into
+/// `unresolved`.
+void runSweep(const Sweep& sweep, const std::map<double, std::shared_ptr<const haptics::ToolModel>>& tools, int ticks,
+              nlohmann::ordered_json& runs, std::map<Config, Agg>& agg, std::vector<std::string>& unresolved) {
   for (const Surface& surf : surfaces()) {
-    for (double h : resolutions_m) {
+    for (double h : sweep.resolutions_m) {
       datasets::GridSpec grid;
       const int dims = static_cast<int>(std::lround(0.064 / h));
       grid.dims = {dims, dims, dims};
       grid.spacing_m = Eigen::Vector3d::Constant(h);
       auto volume = std::make_shared<const haptics::ScalarVolume>(datasets::makeVolumeFromSignedDistance(grid, surf.sdf));
-      for (const Config& cfg : configs) {
+      for (const Config& cfg : sweep.configs) {
         const RunResult r = runOne(surf, volume, tools.at(cfg.spacing_m), cfg, ticks);
-        nlohmann::ordered_json j;
-        j["surface"] = surf.name;
-        j["voxel_m"] = h;
-        j["family"] = cfg.family;
-        j["epsilon_over_f"] = cfg.epsilon_fraction;
-        j["epsilon_m"] = r.epsilon_m;
-        j["segment_fraction"] = cfg.segment_fraction;
-        j["point_spacing_m"] = cfg.spacing_m;
-        j["points"] = r.points;
-        j["ticks"] = r.ticks;
-        j["mean_us"] = r.mean_us;
-        j["p99_us"] = r.p99_us;
-        j["cpu_mean_us"] = r.cpu_mean_us;
-        j["contact_samples"] = r.contact_samples;
-        j["position_error_mean_m"] = r.pos_err_mean_m;
-        j["position_error_max_m"] = r.pos_err_max_m;
-        j["normal_error_mean_deg"] = r.normal_err_mean_deg;
-        j["normal_error_max_deg"] = r.normal_err_max_deg;
-        j["max_penetration_m"] = r.max_penetration_m;
-        j["crossings"] = r.crossings;
-        j["crossing_points"] = r.crossing_points;
-        j["verify_s"] = r.verify_s;
-        j["finite"] = r.finite;
-        j["resolved_by_grid"] = surf.min_feature_m >= h;
-        runs.push_back(j);
+        runs.push_back(runJson(surf, h, cfg, r));
         if (surf.min_feature_m < h) continue;
         if (r.contact_samples == 0) {
           unresolved.push_back(format("%s at %.2g mm voxels (%s)", surf.name.c_str(), h * 1e3, cfg.label().c_str()));
@@ -286,74 +296,70 @@ fs::path runAccuracy(const CommonOptions& options) {
       std::cout << "  " << surf.name << ", " << h * 1e3 << " mm voxels: done\n";
     }
   }
-  report["runs"] = runs;
+}
 
-  // Aggregate per setting and the Pareto front over (mean tick time, mean position error in voxels).
-  struct Point {
-    Config cfg;
-    double us, pos_vox, normal_deg, pen_over_eps;
-    int crossings;
-  };
+/// One setting averaged over its runs: CPU time per tick [us], mean contact error [voxels],
+/// mean normal error [deg], the worst penetration / epsilon and the crossings summed.
+struct Point {
+  Config cfg;
+  double us, pos_vox, normal_deg, pen_over_eps;
+  int crossings;
+};
+
+/// The settings' averages, cheapest first.
+std::vector<Point> settingPoints(const std::map<Config, Agg>& agg) {
   std::vector<Point> points;
   for (const auto& [cfg, a] : agg)
     if (a.n > 0)
       points.push_back({cfg, a.us / a.n, a.pos_vox / a.n, a.normal_deg / a.n, a.pen_over_eps, a.crossings});
   std::sort(points.begin(), points.end(), [](const Point& a, const Point& b) { return a.us < b.us; });
-  std::vector<Point> front;
-  for (const Point& p : points)
-    if (front.empty() || p.pos_vox < front.back().pos_vox) front.push_back(p);
-  // Recommendation (epsilon and segment fraction; the point spacing belongs to the tool): over the
-  // settings at the reference spacing, the cheapest point of their front within 10 % (or 0.02
-  // voxel) of its best error.
+  return points;
+}
+
+/// Recommendation (epsilon and segment fraction; the point spacing belongs to the tool): over the
+/// settings at the reference spacing, the cheapest point of their front within 10 % (or 0.02
+/// voxel) of its best error. `best` gets that front's best error [voxels] (1e300: none).
+/// @return the pick; none when no setting qualifies.
+std::optional<Point> recommendedSetting(const std::vector<Point>& points, double& best) {
   std::vector<Point> front_ref;
   for (const Point& p : points)
     if (p.cfg.spacing_m == 5e-4 && p.pen_over_eps <= 1.0 && p.crossings == 0 &&
         (front_ref.empty() || p.pos_vox < front_ref.back().pos_vox))
       front_ref.push_back(p);
-  double best = 1e300;
+  best = 1e300;
   for (const Point& p : front_ref) best = std::min(best, p.pos_vox);
-  const Point* pick = nullptr;
   for (const Point& p : front_ref)
-    if (p.pos_vox <= std::max(1.10 * best, best + 0.02)) {
-      pick = &p;
-      break;
-    }
+    if (p.pos_vox <= std::max(1.10 * best, best + 0.02)) return p;
+  return std::nullopt;
+}
+
+/// The paper's setting, the sweeps' centre (epsilon f/4, segment 1, 0.5 mm spacing), in
+/// `points`; nullptr when it made no contact anywhere.
+const Point* sweepCentre(const std::vector<Point>& points) {
   const Point* current = nullptr;
   for (const Point& p : points)
     if (p.cfg.epsilon_fraction == 0.25 && p.cfg.segment_fraction == 1.0 && p.cfg.spacing_m == 5e-4) current = &p;
+  return current;
+}
 
-  nlohmann::ordered_json settings = nlohmann::ordered_json::array(), front_json = nlohmann::ordered_json::array();
-  const auto pointJson = [](const Point& p) {
-    return nlohmann::ordered_json{{"epsilon_over_f", p.cfg.epsilon_fraction}, {"segment_fraction", p.cfg.segment_fraction},
-                                  {"point_spacing_m", p.cfg.spacing_m}, {"family", p.cfg.family},
-                                  {"mean_us", p.us}, {"position_error_mean_voxels", p.pos_vox},
-                                  {"normal_error_mean_deg", p.normal_deg},
-                                  {"max_penetration_over_epsilon", p.pen_over_eps},
-                                  {"crossings", p.crossings}};
-  };
-  for (const Point& p : points) settings.push_back(pointJson(p));
-  for (const Point& p : front) front_json.push_back(pointJson(p));
-  report["settings"] = settings;
-  report["pareto_front"] = front_json;
-  report["unresolved"] = unresolved;
-  bool penetration_within_epsilon = true;
-  for (const auto& j : runs)
-    if (j["resolved_by_grid"].get<bool>())
-      penetration_within_epsilon =
-        penetration_within_epsilon && j["max_penetration_m"].get<double>() <= j["epsilon_m"].get<double>();
-  report["penetration_within_epsilon_everywhere"] = penetration_within_epsilon;
-  int crossings_total = 0;
-  for (const auto& j : runs) crossings_total += j["crossings"].get<int>();
-  report["crossings_total"] = crossings_total;
-  if (pick) report["recommended"] = pointJson(*pick);
+nlohmann::ordered_json pointJson(const Point& p) {
+  return nlohmann::ordered_json{{"epsilon_over_f", p.cfg.epsilon_fraction}, {"segment_fraction", p.cfg.segment_fraction},
+                                {"point_spacing_m", p.cfg.spacing_m}, {"family", p.cfg.family},
+                                {"mean_us", p.us}, {"position_error_mean_voxels", p.pos_vox},
+                                {"normal_error_mean_deg", p.normal_deg},
+                                {"max_penetration_over_epsilon", p.pen_over_eps},
+                                {"crossings", p.crossings}};
+}
 
-  std::ostringstream md;
+/// The Markdown's heading, how the runs were made, and one line per run.
+void writeRunsTable(std::ostringstream& md, const nlohmann::ordered_json& report, const nlohmann::ordered_json& runs,
+                    int ticks, std::size_t resolutions, bool short_run) {
   md << "## Error against run time (`volume-haptics bench accuracy" << (short_run ? " --short" : "") << "`)\n\n";
   md << "Run " << report["date_utc"].get<std::string>() << " on " << report["cpu_model"].get<std::string>()
      << ". A 4 mm ball pressed " << kPush_m * 1e3
      << " mm past contact and slid 12 mm along the surface (" << ticks
      << " ticks) on exact isosurfaces (signed distance sampled into float32 grids of 64 mm) at "
-     << resolutions_m.size() << " resolution(s). Position error: distance of each reported contact point to the "
+     << resolutions << " resolution(s). Position error: distance of each reported contact point to the "
         "true surface; normal error: angle between the contact normal and the true normal; penetration: deepest "
         "shell point inside the true surface. Default detection mode (accelerated). Times: mean wall time per "
         "tick per run; the per-setting summary and the Pareto front use the thread's CPU time per tick, which "
@@ -377,6 +383,11 @@ fs::path runAccuracy(const CommonOptions& options) {
        << " | " << format("%.4f (%.4f)", 1e3 * j["max_penetration_m"].get<double>(), 1e3 * j["epsilon_m"].get<double>())
        << " | " << j["crossings"].get<int>() << " |\n";
   }
+}
+
+/// One line per setting (marked when on the Pareto front), then the runs without any contact.
+void writeSettingsTable(std::ostringstream& md, const std::vector<Point>& points, const std::vector<Point>& front,
+                        const std::vector<std::string>& unresolved) {
   md << "\nPer setting, averaged over the surfaces and resolutions whose grid holds the shape (the 1.5 mm shell "
         "on 2 mm voxels is left out: its sampled isosurface is another shape); errors in voxels of each grid; "
         "penetration: the worst run; crossings: summed over the runs:\n\n";
@@ -395,86 +406,158 @@ fs::path runAccuracy(const CommonOptions& options) {
     for (std::size_t i = 0; i < unresolved.size(); ++i) md << (i ? "; " : "") << unresolved[i];
     md << ".\n";
   }
-  md << "\n### Recommended defaults\n\n";
-  if (pick) {
-    md << "Rule: among the settings at the reference point spacing (0.5 mm) whose penetration stayed within "
-          "epsilon of the true surface and that crossed no surface in every resolved run, the cheapest one on their Pareto front (CPU time "
-          "per tick against mean contact error) whose error is within 10 % (or 0.02 voxel) of that front's best. "
-          "Picked: **"
-       << pick->cfg.label() << "**: " << format("%.1f us", pick->us) << " per tick, contact error "
-       << format("%.4f", pick->pos_vox) << " voxel, normal error " << format("%.2f deg", pick->normal_deg)
-       << " (front's best: " << format("%.4f", best) << " voxel).";
-    if (current)
-      md << " The sweep's centre (epsilon f/4, segment 1: the paper's setting and the renderer's default until this benchmark) measures "
-         << format("%.1f us, %.4f voxel, %.2f deg", current->us, current->pos_vox, current->normal_deg) << ".";
-    // The reasoning, from the numbers above.
-    std::string eps_err, eps_pen;
-    double t_min = 1e300, t_max = 0.0, d_min = 1e300, d_max = 0.0;
-    for (double e : eps)
-      for (const Point& p : points)
-        if (p.cfg.family == "epsilon" && p.cfg.epsilon_fraction == e) {
-          eps_err += format("%sf/%g: %.3f", eps_err.empty() ? "" : ", ", 1.0 / e, p.pos_vox);
-          eps_pen += format("%sf/%g: %.2f", eps_pen.empty() ? "" : ", ", 1.0 / e, p.pen_over_eps);
-        }
-    for (const Point& p : points) {
-      if (p.cfg.spacing_m == 5e-4) {
-        t_min = std::min(t_min, p.us);
-        t_max = std::max(t_max, p.us);
+}
+
+/// The reasoning behind the recommendation, from the numbers of the settings table: the error
+/// and penetration per epsilon of `eps`, and the spread of the CPU time per tick.
+void writeReasoning(std::ostringstream& md, const std::vector<Point>& points, const std::vector<double>& eps) {
+  std::string eps_err, eps_pen;
+  double t_min = 1e300, t_max = 0.0, d_min = 1e300, d_max = 0.0;
+  for (double e : eps)
+    for (const Point& p : points)
+      if (p.cfg.family == "epsilon" && p.cfg.epsilon_fraction == e) {
+        eps_err += format("%sf/%g: %.3f", eps_err.empty() ? "" : ", ", 1.0 / e, p.pos_vox);
+        eps_pen += format("%sf/%g: %.2f", eps_pen.empty() ? "" : ", ", 1.0 / e, p.pen_over_eps);
       }
-      if (p.cfg.family == "density" || p.cfg.spacing_m == 5e-4) {
-        d_min = std::min(d_min, p.us);
-        d_max = std::max(d_max, p.us);
-      }
+  for (const Point& p : points) {
+    if (p.cfg.spacing_m == 5e-4) {
+      t_min = std::min(t_min, p.us);
+      t_max = std::max(t_max, p.us);
     }
-    md << "\n\nReasoning, from the table: the contact error follows epsilon (" << eps_err
-       << " voxel), because a contact is reported anywhere within epsilon of the surface; at the reference spacing "
-          "the CPU time per tick hardly depends on epsilon or the segment fraction ("
-       << format("%.1f to %.1f us", t_min, t_max)
-       << ": bisection adds one sample per halving of epsilon), while the point spacing sets the cost ("
-       << format("%.1f to %.1f us", d_min, d_max)
-       << " over the spacings measured) and is a property of the tool (the smallest tool feature that is felt), so "
-          "it is reported, not defaulted. The worst penetration against the true surface, in units of epsilon, was "
-       << eps_pen
-       << ": the trilinear isosurface itself departs from the true one by a fraction of a voxel on curved "
-          "surfaces and the renderer keeps the proxy outside the isosurface it sees, so a very small epsilon no "
-          "longer bounds the depth below the true surface; the settings that broke the bound were excluded. "
-          "The renderer's default epsilon (RendererOptions::epsilon_m = 0) is f/8 since this benchmark; the "
-          "segment fraction stays 1 (the paper's): smaller fractions bought no accuracy here.\n";
-  } else {
-    md << "No setting produced contacts; nothing to recommend.\n";
+    if (p.cfg.family == "density" || p.cfg.spacing_m == 5e-4) {
+      d_min = std::min(d_min, p.us);
+      d_max = std::max(d_max, p.us);
+    }
   }
+  md << "\n\nReasoning, from the table: the contact error follows epsilon (" << eps_err
+     << " voxel), because a contact is reported anywhere within epsilon of the surface; at the reference spacing "
+        "the CPU time per tick hardly depends on epsilon or the segment fraction ("
+     << format("%.1f to %.1f us", t_min, t_max)
+     << ": bisection adds one sample per halving of epsilon), while the point spacing sets the cost ("
+     << format("%.1f to %.1f us", d_min, d_max)
+     << " over the spacings measured) and is a property of the tool (the smallest tool feature that is felt), so "
+        "it is reported, not defaulted. The worst penetration against the true surface, in units of epsilon, was "
+     << eps_pen
+     << ": the trilinear isosurface itself departs from the true one by a fraction of a voxel on curved "
+        "surfaces and the renderer keeps the proxy outside the isosurface it sees, so a very small epsilon no "
+        "longer bounds the depth below the true surface; the settings that broke the bound were excluded. "
+        "The renderer's default epsilon (RendererOptions::epsilon_m = 0) is f/8 since this benchmark; the "
+        "segment fraction stays 1 (the paper's): smaller fractions bought no accuracy here.\n";
+}
+
+/// The "Recommended defaults" section: the rule, the pick against the sweep's centre (`current`,
+/// may be null) and the reasoning; `best`: the front's best error [voxels].
+void writeRecommendation(std::ostringstream& md, const std::optional<Point>& pick, const Point* current, double best,
+                         const std::vector<Point>& points, const std::vector<double>& eps) {
+  md << "\n### Recommended defaults\n\n";
+  if (!pick) {
+    md << "No setting produced contacts; nothing to recommend.\n";
+    return;
+  }
+  md << "Rule: among the settings at the reference point spacing (0.5 mm) whose penetration stayed within "
+        "epsilon of the true surface and that crossed no surface in every resolved run, the cheapest one on their Pareto front (CPU time "
+        "per tick against mean contact error) whose error is within 10 % (or 0.02 voxel) of that front's best. "
+        "Picked: **"
+     << pick->cfg.label() << "**: " << format("%.1f us", pick->us) << " per tick, contact error "
+     << format("%.4f", pick->pos_vox) << " voxel, normal error " << format("%.2f deg", pick->normal_deg)
+     << " (front's best: " << format("%.4f", best) << " voxel).";
+  if (current)
+    md << " The sweep's centre (epsilon f/4, segment 1: the paper's setting and the renderer's default until this benchmark) measures "
+       << format("%.1f us, %.4f voxel, %.2f deg", current->us, current->pos_vox, current->normal_deg) << ".";
+  writeReasoning(md, points, eps);
+}
+
+/// The PNG charts: contact and normal error against CPU time per tick, per sweep (each with the
+/// sweeps' centre), and the Pareto front. @return the files written (in `out`).
+std::vector<std::string> accuracyPlots(const fs::path& out, const std::vector<Point>& points,
+                                       const std::vector<Point>& front) {
+  std::vector<std::string> plots;
+  std::vector<Series> err_series, normal_series;
+  for (const char* fam : {"epsilon", "segment", "density"}) {
+    Series s{std::string(fam) + " sweep", {}, {}, true}, n{std::string(fam) + " sweep", {}, {}, true};
+    for (const Point& p : points)
+      if (p.cfg.family == fam || (p.cfg.epsilon_fraction == 0.25 && p.cfg.segment_fraction == 1.0 && p.cfg.spacing_m == 5e-4)) {
+        s.x.push_back(p.us);
+        s.y.push_back(p.pos_vox);
+        n.x.push_back(p.us);
+        n.y.push_back(p.normal_deg);
+      }
+    err_series.push_back(s);
+    normal_series.push_back(n);
+  }
+  Series f{"Pareto front", {}, {}, false};
+  for (const Point& p : front) {
+    f.x.push_back(p.us);
+    f.y.push_back(p.pos_vox);
+  }
+  err_series.push_back(f);
+  if (plotXY(out / "accuracy_error_vs_time.png", "Contact error against tick time", "CPU time per tick [us]",
+             "mean contact error [voxels]", err_series))
+    plots.push_back("accuracy_error_vs_time.png");
+  if (plotXY(out / "accuracy_normal_vs_time.png", "Normal error against tick time", "CPU time per tick [us]",
+             "mean normal error [deg]", normal_series))
+    plots.push_back("accuracy_normal_vs_time.png");
+  return plots;
+}
+
+}  // namespace
+
+fs::path runAccuracy(const CommonOptions& options) {
+  const fs::path out = outputDir(options, "accuracy");
+  const bool short_run = options.short_run;
+  const int ticks = short_run ? 300 : 1200;
+  const Sweep sweep = accuracySweep(short_run);
+  const std::map<double, std::shared_ptr<const haptics::ToolModel>> tools = ballTools(sweep.spacings);
+
+  nlohmann::ordered_json report = reportHeader("accuracy", short_run);
+  report["ticks_per_run"] = ticks;
+  report["tool"] = "ball, radius 4 mm";
+  report["push_depth_m"] = kPush_m;
+  report["verify_step_voxels"] = kVerifyStepVoxels;
+  nlohmann::ordered_json runs = nlohmann::ordered_json::array();
+  std::cout << "bench accuracy: " << surfaces().size() << " surfaces x " << sweep.resolutions_m.size()
+            << " resolutions x " << sweep.configs.size() << " settings, " << ticks << " ticks each\n";
+  std::map<Config, Agg> agg;
+  std::vector<std::string> unresolved;
+  runSweep(sweep, tools, ticks, runs, agg, unresolved);
+  report["runs"] = runs;
+
+  // Aggregate per setting and the Pareto front over (mean tick time, mean position error in voxels).
+  const std::vector<Point> points = settingPoints(agg);
+  std::vector<Point> front;
+  for (const Point& p : points)
+    if (front.empty() || p.pos_vox < front.back().pos_vox) front.push_back(p);
+  double best = 1e300;
+  const std::optional<Point> pick = recommendedSetting(points, best);
+  const Point* current = sweepCentre(points);
+
+  nlohmann::ordered_json settings = nlohmann::ordered_json::array(), front_json = nlohmann::ordered_json::array();
+  for (const Point& p : points) settings.push_back(pointJson(p));
+  for (const Point& p : front) front_json.push_back(pointJson(p));
+  report["settings"] = settings;
+  report["pareto_front"] = front_json;
+  report["unresolved"] = unresolved;
+  bool penetration_within_epsilon = true;
+  for (const auto& j : runs)
+    if (j["resolved_by_grid"].get<bool>())
+      penetration_within_epsilon =
+        penetration_within_epsilon && j["max_penetration_m"].get<double>() <= j["epsilon_m"].get<double>();
+  report["penetration_within_epsilon_everywhere"] = penetration_within_epsilon;
+  int crossings_total = 0;
+  for (const auto& j : runs) crossings_total += j["crossings"].get<int>();
+  report["crossings_total"] = crossings_total;
+  if (pick) report["recommended"] = pointJson(*pick);
+
+  std::ostringstream md;
+  writeRunsTable(md, report, runs, ticks, sweep.resolutions_m.size(), short_run);
+  writeSettingsTable(md, points, front, unresolved);
+  writeRecommendation(md, pick, current, best, points, sweep.eps);
   report["recommendation_rule"] =
       "at 0.5 mm point spacing, penetration <= epsilon and no crossing in every resolved run: the cheapest Pareto setting "
       "within 10 % (or 0.02 voxel) of the front's best mean contact error";
 
   std::vector<std::string> plots;
-  if (options.plots) {
-    std::vector<Series> err_series, normal_series;
-    for (const char* fam : {"epsilon", "segment", "density"}) {
-      Series s{std::string(fam) + " sweep", {}, {}, true}, n{std::string(fam) + " sweep", {}, {}, true};
-      for (const Point& p : points)
-        if (p.cfg.family == fam || (p.cfg.epsilon_fraction == 0.25 && p.cfg.segment_fraction == 1.0 && p.cfg.spacing_m == 5e-4)) {
-          s.x.push_back(p.us);
-          s.y.push_back(p.pos_vox);
-          n.x.push_back(p.us);
-          n.y.push_back(p.normal_deg);
-        }
-      err_series.push_back(s);
-      normal_series.push_back(n);
-    }
-    Series f{"Pareto front", {}, {}, false};
-    for (const Point& p : front) {
-      f.x.push_back(p.us);
-      f.y.push_back(p.pos_vox);
-    }
-    err_series.push_back(f);
-    if (plotXY(out / "accuracy_error_vs_time.png", "Contact error against tick time", "CPU time per tick [us]",
-               "mean contact error [voxels]", err_series))
-      plots.push_back("accuracy_error_vs_time.png");
-    if (plotXY(out / "accuracy_normal_vs_time.png", "Normal error against tick time", "CPU time per tick [us]",
-               "mean normal error [deg]", normal_series))
-      plots.push_back("accuracy_normal_vs_time.png");
-  }
+  if (options.plots) plots = accuracyPlots(out, points, front);
   writeReport(out, "accuracy", report, md, plots);
   return out;
 }

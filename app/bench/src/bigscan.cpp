@@ -205,29 +205,11 @@ int fineSlice(int k, int nz, int fine_last, bool top_at_k_max) {
   return r <= fine_last ? r : 2 * fine_last - r;
 }
 
-/// Generates (or finds complete) the big series in `dir` from the phantom at `phantom_dir`.
-/// @throws std::runtime_error when too little disk space is free or writing fails.
-SeriesInfo generateSeries(const fs::path& dir, const fs::path& phantom_dir, int nz) {
-  SeriesInfo info;
-  info.dir = dir;
-  if (seriesComplete(dir, nz, info)) {
-    std::cout << "bench bigscan: reusing the complete series in " << dir.string() << " (" << nz << " files, "
-              << format("%.2f", gib(info.disk_bytes)) << " GiB)\n";
-    return info;
-  }
-  const auto t0 = std::chrono::steady_clock::now();
+/// Refuses to generate when the disk of `dir` has less than 3 times the voxel bytes of an
+/// nx x ny x nz int16 series free (the files take the voxel bytes plus headers); removes `dir`
+/// then. @throws std::runtime_error saying how much is free and needed.
+void requireFreeSpace(const fs::path& dir, int nx, int ny, int nz) {
   std::error_code ec;
-  fs::remove_all(dir, ec);  // an incomplete earlier attempt
-  fs::create_directories(dir, ec);
-  if (ec) throw std::runtime_error(dir.string() + ": cannot create the series folder: " + ec.message());
-
-  std::cout << "bench bigscan: reading the phantom " << phantom_dir.string() << " ..." << std::endl;
-  const io::LoadedVolume phantom = io::loadVolume(phantom_dir);
-  const haptics::ScalarVolume& pf = *phantom.field;
-  const haptics::VolumeGeometry& pg = pf.geometry();
-  const int nx = pg.dims[0], ny = pg.dims[1], pn = pg.dims[2];
-
-  // Disk: the files take the voxel bytes plus headers; refuse below 3 times the voxel bytes.
   const double voxel_bytes = 2.0 * nx * ny * static_cast<double>(nz);
   const double need = std::max(3.0 * voxel_bytes, 64.0 * 1024 * 1024);
   const fs::space_info space = fs::space(dir, ec);
@@ -242,9 +224,15 @@ SeriesInfo generateSeries(const fs::path& dir, const fs::path& phantom_dir, int 
                                     gib(static_cast<double>(space.available)), dir.string().c_str(), nz,
                                     gib(need)));
   }
+}
 
-  // Stored int16 = HU + 1024 (rescale slope 1, intercept -1024), phantom slices in HU.
-  const double slope = 1.0, intercept = -1024.0;
+/// The big scan's voxels in stored int16 (HU = slope * stored + intercept): nz slices of the
+/// phantom `pf` dx x dy x dz [mm] apart, slice k showing fineSlice() (a phantom slice, or the
+/// mean of two neighbours), its top at k = nz - 1 when top_at_k_max.
+vtkSmartPointer<vtkImageData> resampledStack(const haptics::ScalarVolume& pf, int nz, double dx, double dy, double dz,
+                                             bool top_at_k_max, double slope, double intercept) {
+  const haptics::VolumeGeometry& pg = pf.geometry();
+  const int nx = pg.dims[0], ny = pg.dims[1], pn = pg.dims[2];
   std::vector<float> hu(static_cast<std::size_t>(nx) * ny * pn);
   for (int k = 0; k < pn; ++k)
     for (int j = 0; j < ny; ++j)
@@ -253,13 +241,6 @@ SeriesInfo generateSeries(const fs::path& dir, const fs::path& phantom_dir, int 
   const auto stored = [&](double v) {
     return static_cast<short>(std::clamp(std::round((v - intercept) / slope), -32768.0, 32767.0));
   };
-
-  // Geometry: the phantom's rows, columns and stacking direction; 0.5 mm between slices.
-  const Eigen::Matrix3d& D = pg.direction_W;
-  const Eigen::Vector3d row = D.col(0), col = D.col(1), w = D.col(2);
-  const double dx = 1e3 * pg.spacing_m.x(), dy = 1e3 * pg.spacing_m.y(), dz = kSliceSpacing_mm;
-  const Eigen::Vector3d o_mm = 1e3 * pg.origin_W_m;  // W is patient LPS [m]
-  const bool top_at_k_max = w.z() > 0.0;
   const int fine_last = 2 * (pn - 1);
 
   auto staging = vtkSmartPointer<vtkImageData>::New();
@@ -279,8 +260,26 @@ SeriesInfo generateSeries(const fs::path& dir, const fs::path& phantom_dir, int 
       for (std::size_t p = 0; p < plane; ++p) out[p] = stored(0.5 * (static_cast<double>(a[p]) + b[p]));
     }
   }
-  std::vector<float>().swap(hu);
+  return staging;
+}
 
+/// Where the series lies in patient LPS [mm]: the phantom's row and column directions, its
+/// stacking direction w, its first voxel o_mm, and dz between slices.
+struct SeriesGeometry {
+  Eigen::Vector3d row, col, w, o_mm;
+  double dz = 0.0;
+};
+
+/// Writes `staging` as one DICOM file per slice (CT0000.dcm ...) into `dir`, with each file's
+/// position, orientation, slice location and instance number from `geo`; progress every 10 %.
+/// Releases `staging` before it returns. @throws std::runtime_error (removing `dir`) on failure.
+void writeDicomSeries(const fs::path& dir, vtkSmartPointer<vtkImageData> staging, const SeriesGeometry& geo,
+                      double slope, double intercept) {
+  int dims[3];
+  staging->GetDimensions(dims);
+  const int nx = dims[0], ny = dims[1], nz = dims[2];
+  const Eigen::Vector3d &row = geo.row, &col = geo.col, &w = geo.w, &o_mm = geo.o_mm;
+  const double dz = geo.dz;
   auto tags = vtkSmartPointer<vtkDICOMMetaData>::New();
   tags->Set(DC::Modality, "CT");
   tags->Set(DC::PatientName, "VolumeHaptics^BigScan");
@@ -337,13 +336,17 @@ SeriesInfo generateSeries(const fs::path& dir, const fs::path& phantom_dir, int 
             << dir.string() << " ..." << std::endl;
   writer->Write();
   if (writer->GetErrorCode() != 0) {
+    std::error_code ec;
     fs::remove_all(dir, ec);
     throw std::runtime_error(dir.string() + ": vtkDICOMWriter failed (error code " +
                              std::to_string(writer->GetErrorCode()) + ")");
   }
-  staging = nullptr;
-  writer = nullptr;
+}
 
+/// The marker file that makes a series complete (seriesComplete()): the generator version, the
+/// size and spacing [mm], the phantom it came from and the rescale of its stored values.
+void writeSeriesMarker(const fs::path& dir, const fs::path& phantom_dir, int nx, int ny, int nz, double dx, double dy,
+                       double dz, double slope, double intercept) {
   nlohmann::json marker;
   marker["version"] = kGeneratorVersion;
   marker["nx"] = nx;
@@ -354,6 +357,43 @@ SeriesInfo generateSeries(const fs::path& dir, const fs::path& phantom_dir, int 
   marker["rescale"] = {{"slope", slope}, {"intercept", intercept}};
   marker["date_utc"] = utcNow();
   writeText(dir / kMarker, marker.dump(2) + "\n");
+}
+
+/// Generates (or finds complete) the big series in `dir` from the phantom at `phantom_dir`.
+/// @throws std::runtime_error when too little disk space is free or writing fails.
+SeriesInfo generateSeries(const fs::path& dir, const fs::path& phantom_dir, int nz) {
+  SeriesInfo info;
+  info.dir = dir;
+  if (seriesComplete(dir, nz, info)) {
+    std::cout << "bench bigscan: reusing the complete series in " << dir.string() << " (" << nz << " files, "
+              << format("%.2f", gib(info.disk_bytes)) << " GiB)\n";
+    return info;
+  }
+  const auto t0 = std::chrono::steady_clock::now();
+  std::error_code ec;
+  fs::remove_all(dir, ec);  // an incomplete earlier attempt
+  fs::create_directories(dir, ec);
+  if (ec) throw std::runtime_error(dir.string() + ": cannot create the series folder: " + ec.message());
+
+  std::cout << "bench bigscan: reading the phantom " << phantom_dir.string() << " ..." << std::endl;
+  const io::LoadedVolume phantom = io::loadVolume(phantom_dir);
+  const haptics::ScalarVolume& pf = *phantom.field;
+  const haptics::VolumeGeometry& pg = pf.geometry();
+  const int nx = pg.dims[0], ny = pg.dims[1];
+
+  requireFreeSpace(dir, nx, ny, nz);
+
+  // Stored int16 = HU + 1024 (rescale slope 1, intercept -1024), phantom slices in HU.
+  const double slope = 1.0, intercept = -1024.0;
+  // Geometry: the phantom's rows, columns and stacking direction; 0.5 mm between slices.
+  const Eigen::Matrix3d& D = pg.direction_W;
+  const Eigen::Vector3d row = D.col(0), col = D.col(1), w = D.col(2);
+  const double dx = 1e3 * pg.spacing_m.x(), dy = 1e3 * pg.spacing_m.y(), dz = kSliceSpacing_mm;
+  const Eigen::Vector3d o_mm = 1e3 * pg.origin_W_m;  // W is patient LPS [m]
+  const bool top_at_k_max = w.z() > 0.0;
+  writeDicomSeries(dir, resampledStack(pf, nz, dx, dy, dz, top_at_k_max, slope, intercept),
+                   SeriesGeometry{row, col, w, o_mm, dz}, slope, intercept);
+  writeSeriesMarker(dir, phantom_dir, nx, ny, nz, dx, dy, dz, slope, intercept);
   if (!seriesComplete(dir, nz, info)) throw std::runtime_error(dir.string() + ": the written series is incomplete");
   info.generated = true;
   info.generate_s = seconds(t0);
@@ -694,61 +734,23 @@ nlohmann::ordered_json touchSideBySide(const fs::path& small_path, const fs::pat
   return j;
 }
 
-}  // namespace
-
-int runBigScanChild(const BigScanOptions& options) {
-  try {
-    if (options.child == "load") return childLoad(options);
-    if (options.child == "cancel") return childCancel(options);
-    std::cerr << "volume-haptics bench bigscan: error: unknown --child '" << options.child << "'\n";
-  } catch (const std::exception& e) {
-    std::cerr << "volume-haptics bench bigscan --child " << options.child << ": error: " << e.what() << std::endl;
-  }
-  return 1;
+/// The generated series for the report: where, its size and spacing, its files and whether
+/// this run wrote it; voxel_bytes: its int16 voxels' bytes.
+nlohmann::ordered_json seriesJson(const SeriesInfo& series, double voxel_bytes) {
+  return {{"dir", series.dir.string()},
+          {"dims", {series.nx, series.ny, series.nz}},
+          {"spacing_mm", {series.spacing_mm[0], series.spacing_mm[1], series.spacing_mm[2]}},
+          {"voxel_type", "int16"},
+          {"voxel_bytes", voxel_bytes},
+          {"files", series.nz},
+          {"disk_bytes", series.disk_bytes},
+          {"generated_now", series.generated},
+          {"generate_s", series.generate_s},
+          {"source", std::string(kPhantom) + ", resampled to 0.5 mm slices, mirrored along the stack"}};
 }
 
-fs::path runBigScan(const BigScanOptions& options) {
-  const fs::path out = outputDir(options.common, "bigscan");
-  const bool short_run = options.common.short_run;
-  const int nz = options.slices > 0 ? options.slices : (short_run ? kShortSlices : kFullSlices);
-  const int ticks = options.ticks > 0 ? options.ticks : (short_run ? 1000 : 20000);
-  const int locations = short_run ? 1 : 4;
-  if (nz < 2) throw std::runtime_error("--slices must be >= 2");
-  if (!(options.cancel_at > 0.0 && options.cancel_at < 1.0)) throw std::runtime_error("--cancel-at must be in (0, 1)");
-  BigScanOptions o = options;
-  if (o.series_dir.empty()) o.series_dir = defaultOutputDir() / "bigscan" / format("series-512x512x%d", nz);
-
-  nlohmann::ordered_json report = reportHeader("bigscan", short_run);
-  std::ostringstream md;
-  md << "## Big scans (`volume-haptics bench bigscan" << (short_run ? " --short" : "") << "`)\n\n";
-
-  const fs::path phantom = runtime::sharedDatasetsDir() / kPhantom;
-  if (!fs::exists(phantom)) {
-    const std::string why = phantom.string() + " is absent: the big series is generated from it";
-    std::cout << "bench bigscan: skipped: " << why << "\n";
-    report["status"] = "skipped";
-    report["reason"] = why;
-    md << "Skipped: " << why << ".\n";
-    writeReport(out, "bigscan", report, md, {});
-    return out;
-  }
-  report["status"] = "ran";
-
-  // 1. The series.
-  const SeriesInfo series = generateSeries(o.series_dir, phantom, nz);
-  const double voxel_bytes = 2.0 * series.nx * series.ny * static_cast<double>(series.nz);
-  report["series"] = {{"dir", series.dir.string()},
-                      {"dims", {series.nx, series.ny, series.nz}},
-                      {"spacing_mm", {series.spacing_mm[0], series.spacing_mm[1], series.spacing_mm[2]}},
-                      {"voxel_type", "int16"},
-                      {"voxel_bytes", voxel_bytes},
-                      {"files", series.nz},
-                      {"disk_bytes", series.disk_bytes},
-                      {"generated_now", series.generated},
-                      {"generate_s", series.generate_s},
-                      {"source", std::string(kPhantom) + ", resampled to 0.5 mm slices, mirrored along the stack"}};
-
-  // 2. The load in a fresh process.
+/// The load in a fresh process: its result with the peak memory against `voxel_bytes`.
+nlohmann::json measureLoad(const BigScanOptions& o, const SeriesInfo& series, double voxel_bytes) {
   std::cout << "bench bigscan: loading " << series.nx << " x " << series.ny << " x " << series.nz
             << " in a fresh process (io::loadVolume) ..." << std::endl;
   nlohmann::json load = runChild("load", o);
@@ -764,24 +766,30 @@ fs::path runBigScan(const BigScanOptions& options) {
   // on a small scan it dominates, so the growth during the load is reported as well.
   load["peak_above_start_over_voxel_bytes"] = (peak - load["rss_before_bytes"].get<double>()) / voxel_bytes;
   load["within_2_5x"] = ratio <= 2.5;
-  report["load"] = load;
+  return load;
+}
 
-  // 3. A cancelled load in another fresh process.
+/// A cancelled load in another fresh process: its result, with whether the memory was released
+/// (grew by less than a tenth of `voxel_bytes`).
+nlohmann::json measureCancel(const BigScanOptions& o, double voxel_bytes) {
   std::cout << "bench bigscan: loading again, cancelled at " << format("%.0f", 100.0 * o.cancel_at)
             << " % progress ..." << std::endl;
   nlohmann::json cancel = runChild("cancel", o);
   const double rss_before = cancel["rss_before_bytes"].get<double>();
   const double rss_after = cancel["rss_after_bytes"].get<double>();
   cancel["released"] = rss_after - rss_before < 0.1 * voxel_bytes;
-  report["cancel"] = cancel;
+  return cancel;
+}
 
-  // 4. Ticks side by side with the 140-slice phantom.
-  report["touch"] = touchSideBySide(phantom, series.dir, ticks, locations);
-
-  // Markdown.
+/// The paragraph on the scan and how it was measured, and the table of the load and the cancel.
+void writeLoadTable(std::ostringstream& md, const nlohmann::ordered_json& report, const SeriesInfo& series,
+                    double voxel_bytes) {
   const auto& ld = report["load"];
   const auto& cc = report["cancel"];
-  const auto& touch = report["touch"];
+  const double peak = ld["peak_total_bytes"].get<double>();
+  const double ratio = ld["peak_over_voxel_bytes"].get<double>();
+  const double rss_before = cc["rss_before_bytes"].get<double>();
+  const double rss_after = cc["rss_after_bytes"].get<double>();
   md << "Run " << report["date_utc"].get<std::string>() << " on " << report["cpu_model"].get<std::string>() << " ("
      << cpuCount() << " CPUs, " << report["build"].get<std::string>() << "). The scan: " << series.nx << " x "
      << series.ny << " x " << series.nz << " int16 CT, "
@@ -841,7 +849,10 @@ fs::path runBigScan(const BigScanOptions& options) {
     md << "| cancel: the loader's worker process's peak before it ended | "
        << format("%.0f MiB", mib(cc["loader_children_peak_rss_bytes"].get<double>())) << " |\n";
   md << "\n";
+}
 
+/// The touch run's table: tick times on the phantom and on the big scan, and their ratio.
+void writeTouchTable(std::ostringstream& md, const nlohmann::ordered_json& touch, int ticks, int locations) {
   const auto& tp = touch["phantom"];
   const auto& tb = touch["bigscan"];
   const auto& tr = touch["ratio_bigscan_over_phantom"];
@@ -869,13 +880,82 @@ fs::path runBigScan(const BigScanOptions& options) {
      << format("%.2fx / %.2fx / %.2fx", tr["cpu_mean"].get<double>(), tr["cpu_p99_9"].get<double>(),
                tr["cpu_max"].get<double>())
      << " | | | |\n";
-  writeReport(out, "bigscan", report, md, {});
+}
+
+/// The one-line summary on stdout (the CLI test looks for "bench bigscan: load ... s, peak ... MiB").
+void printSummary(const nlohmann::ordered_json& report) {
+  const auto& ld = report["load"];
+  const auto& cc = report["cancel"];
+  const auto& tr = report["touch"]["ratio_bigscan_over_phantom"];
+  const double peak = ld["peak_total_bytes"].get<double>();
+  const double ratio = ld["peak_over_voxel_bytes"].get<double>();
   std::cout << "bench bigscan: load " << format("%.2f", ld["load_s"].get<double>()) << " s, peak "
             << format("%.0f", mib(peak)) << " MiB = " << format("%.2f", ratio) << "x the voxel bytes; tree "
             << format("%.3f", ld["tree_build_median_s"].get<double>()) << " s; cancel latency "
             << format("%.1f", cc["latency_ms"].get<double>()) << " ms; bigscan / phantom tick: mean "
             << format("%.2f", tr["mean"].get<double>()) << "x, p99.9 " << format("%.2f", tr["p99_9"].get<double>())
             << "x, max " << format("%.2f", tr["max"].get<double>()) << "x\n";
+}
+
+}  // namespace
+
+int runBigScanChild(const BigScanOptions& options) {
+  try {
+    if (options.child == "load") return childLoad(options);
+    if (options.child == "cancel") return childCancel(options);
+    std::cerr << "volume-haptics bench bigscan: error: unknown --child '" << options.child << "'\n";
+  } catch (const std::exception& e) {
+    std::cerr << "volume-haptics bench bigscan --child " << options.child << ": error: " << e.what() << std::endl;
+  }
+  return 1;
+}
+
+fs::path runBigScan(const BigScanOptions& options) {
+  const fs::path out = outputDir(options.common, "bigscan");
+  const bool short_run = options.common.short_run;
+  const int nz = options.slices > 0 ? options.slices : (short_run ? kShortSlices : kFullSlices);
+  const int ticks = options.ticks > 0 ? options.ticks : (short_run ? 1000 : 20000);
+  const int locations = short_run ? 1 : 4;
+  if (nz < 2) throw std::runtime_error("--slices must be >= 2");
+  if (!(options.cancel_at > 0.0 && options.cancel_at < 1.0)) throw std::runtime_error("--cancel-at must be in (0, 1)");
+  BigScanOptions o = options;
+  if (o.series_dir.empty()) o.series_dir = defaultOutputDir() / "bigscan" / format("series-512x512x%d", nz);
+
+  nlohmann::ordered_json report = reportHeader("bigscan", short_run);
+  std::ostringstream md;
+  md << "## Big scans (`volume-haptics bench bigscan" << (short_run ? " --short" : "") << "`)\n\n";
+
+  const fs::path phantom = runtime::sharedDatasetsDir() / kPhantom;
+  if (!fs::exists(phantom)) {
+    const std::string why = phantom.string() + " is absent: the big series is generated from it";
+    std::cout << "bench bigscan: skipped: " << why << "\n";
+    report["status"] = "skipped";
+    report["reason"] = why;
+    md << "Skipped: " << why << ".\n";
+    writeReport(out, "bigscan", report, md, {});
+    return out;
+  }
+  report["status"] = "ran";
+
+  // 1. The series.
+  const SeriesInfo series = generateSeries(o.series_dir, phantom, nz);
+  const double voxel_bytes = 2.0 * series.nx * series.ny * static_cast<double>(series.nz);
+  report["series"] = seriesJson(series, voxel_bytes);
+
+  // 2. The load in a fresh process.
+  report["load"] = measureLoad(o, series, voxel_bytes);
+
+  // 3. A cancelled load in another fresh process.
+  report["cancel"] = measureCancel(o, voxel_bytes);
+
+  // 4. Ticks side by side with the 140-slice phantom.
+  report["touch"] = touchSideBySide(phantom, series.dir, ticks, locations);
+
+  // Markdown.
+  writeLoadTable(md, report, series, voxel_bytes);
+  writeTouchTable(md, report["touch"], ticks, locations);
+  writeReport(out, "bigscan", report, md, {});
+  printSummary(report);
   return out;
 }
 

@@ -124,6 +124,195 @@ double noise(const Eigen::Vector3d& p) {
   return sum / 2.0;
 }
 
+/// True for a pose below the height z_m [m] of W: the proxy crossed a plate there.
+std::function<bool(const Pose&)> belowHeight(double z_m) {
+  return [z_m](const Pose& X) { return X.p_AB_m.z() < z_m; };
+}
+
+/// Many coplanar contacts: a flat box pressed onto a plane, slid and tilted.
+ExtremeCase manyContactsCase(std::shared_ptr<const haptics::ScalarVolume> plane, int scale) {
+  ExtremeCase c;
+  c.name = "40+ simultaneous contacts";
+  c.setup = "12 x 12 x 4 mm box (0.7 mm point spacing) pressed 2 mm into a plane, slid 10 mm, tilted 0.1 rad";
+  c.criterion = "more than 40 contacts; penetration <= epsilon; finite";
+  c.volume = std::move(plane);
+  c.tool = makeTool(datasets::makeBoxMesh({0.006, 0.006, 0.002}), 7e-4);
+  c.ticks = 500 * scale;
+  const int n = c.ticks;
+  c.device = [n](int i) {
+    const double u = static_cast<double>(i) / n;
+    const double z = u < 0.3 ? lerp(0.005, 0.0, u / 0.3) : 0.0;  // box bottom at z - 2 mm
+    const double x = u < 0.4 ? 0.0 : lerp(0.0, 0.010, (u - 0.4) / 0.3);
+    const double tilt = u < 0.75 ? 0.0 : lerp(0.0, 0.1, (u - 0.75) / 0.2);
+    return at({x, 0.0, z}, Eigen::Quaterniond(Eigen::AngleAxisd(tilt, Eigen::Vector3d::UnitY())));
+  };
+  c.isovalue = [](int) { return 0.0; };
+  return c;
+}
+
+/// One-voxel plate (isovalue plate_s, at height plate_z [m]), fast.
+ExtremeCase fastPlateCase(std::shared_ptr<const haptics::ScalarVolume> plate, double plate_s, double plate_z,
+                          std::shared_ptr<const haptics::ToolModel> ball5, int scale) {
+  ExtremeCase c;
+  c.name = "one-voxel plate at 1 m/s and 20 rad/s";
+  c.setup = "5 mm ball driven down through a 1 mm plate at 1 m/s (1 mm per tick) spinning at 20 rad/s, then "
+            "swept sideways at 1 m/s 40 mm below it";
+  c.criterion = "the proxy never crosses the plate; penetration <= epsilon; finite";
+  c.volume = std::move(plate);
+  c.tool = std::move(ball5);
+  c.ticks = 200 * scale;
+  c.device = [plate_z](int i) {
+    const double z = std::max(plate_z + 0.020 - 0.001 * i, plate_z - 0.040);
+    const double x = i > 60 ? 0.001 * ((i - 60) % 40 < 20 ? (i - 60) % 40 : 40 - (i - 60) % 40) - 0.010 : 0.0;
+    return at({x, 0.0, z}, Eigen::Quaterniond(Eigen::AngleAxisd(0.02 * i, Eigen::Vector3d::UnitX())));
+  };
+  c.isovalue = [plate_s](int) { return plate_s; };
+  c.crossed = belowHeight(plate_z);
+  return c;
+}
+
+/// Teleport across the plate of fastPlateCase().
+ExtremeCase teleportCase(std::shared_ptr<const haptics::ScalarVolume> plate, double plate_s, double plate_z,
+                         std::shared_ptr<const haptics::ToolModel> ball5, int scale) {
+  ExtremeCase c;
+  c.name = "device teleport";
+  c.setup = "device jumps in one tick from 10 mm above the plate to 40 mm below it with a half turn; later a 20 m "
+            "jump (a unit error) and back";
+  c.criterion = "no crossing; the 20 m sample is rejected (zero force, counted); finite";
+  c.volume = std::move(plate);
+  c.tool = std::move(ball5);
+  c.ticks = 100 * scale;
+  const int n = c.ticks;
+  c.device = [plate_z, n](int i) {
+    if (i < n / 4) return at({0.0, 0.0, plate_z + 0.010});
+    if (i == n / 2) return at({20.0, 0.0, 0.0});
+    return at({0.0, 0.0, plate_z - 0.040}, Eigen::Quaterniond(Eigen::AngleAxisd(M_PI, Eigen::Vector3d::UnitX())));
+  };
+  c.isovalue = [plate_s](int) { return plate_s; };
+  c.crossed = belowHeight(plate_z);
+  return c;
+}
+
+/// Isovalue swept through the tool (a 20 mm sphere, F = r - |p| [mm]).
+ExtremeCase isovalueSweepCase(std::shared_ptr<const haptics::ScalarVolume> sphere,
+                              std::shared_ptr<const haptics::ToolModel> ball5, int scale) {
+  ExtremeCase c;
+  c.name = "isovalue swept through the tool";
+  c.setup = "5 mm ball pressed 1 mm onto a 20 mm sphere; the isovalue goes 0 -> -12 mm (the surface grows through "
+            "the whole tool) -> +4 mm -> 0 while the device holds still, then lifts and presses again";
+  c.criterion = "force during the sweep never above the force before it (+1 %); contact again after re-pressing; "
+                "penetration <= epsilon before the sweep and after the lift (the swallowed tool is inside by "
+                "design in between); finite";
+  c.volume = std::move(sphere);
+  c.tool = std::move(ball5);
+  c.ticks = 400 * scale;
+  const int n = c.ticks;
+  c.device = [n](int i) {  // down, hold through the sweep, lift and press again
+    const double u = static_cast<double>(i) / n;
+    if (u < 0.8) return at({0.0, 0.0, lerp(0.030, 0.024, u / 0.2)});
+    if (u < 0.9) return at({0.0, 0.0, lerp(0.024, 0.032, (u - 0.8) / 0.05)});
+    return at({0.0, 0.0, lerp(0.032, 0.024, (u - 0.9) / 0.05)});
+  };
+  c.isovalue = [n](int i) {
+    const double u = static_cast<double>(i) / n;
+    if (u < 0.3) return 0.0;
+    if (u < 0.5) return lerp(0.0, -12.0, (u - 0.3) / 0.2);
+    if (u < 0.7) return lerp(-12.0, 4.0, (u - 0.5) / 0.2);
+    return lerp(4.0, 0.0, (u - 0.7) / 0.1);
+  };
+  c.penetration_judged = [n](int i) { return i < static_cast<int>(0.3 * n) || i >= static_cast<int>(0.85 * n); };
+  return c;
+}
+
+/// Anisotropic voxels.
+ExtremeCase anisotropicCase(std::shared_ptr<const haptics::ToolModel> ball5, int scale) {
+  datasets::GridSpec ga;
+  ga.dims = {192, 192, 28};
+  ga.spacing_m = {0.25e-3, 0.25e-3, 2e-3};
+  ExtremeCase c;
+  c.name = "anisotropic voxels";
+  c.setup = "sphere r 20 mm sampled on 0.25 x 0.25 x 2 mm voxels; 5 mm ball pressed 1.5 mm and slid 0.4 rad "
+            "around it";
+  c.criterion = "penetration <= epsilon (f = 0.125 mm); finite";
+  c.volume = std::make_shared<const haptics::ScalarVolume>(
+      datasets::makeSphereVolume(ga, Eigen::Vector3d::Zero(), 0.020));
+  c.tool = std::move(ball5);
+  c.ticks = 500 * scale;
+  const int n = c.ticks;
+  c.device = [n](int i) {
+    const double u = static_cast<double>(i) / n;
+    const double r = u < 0.3 ? lerp(0.030, 0.0235, u / 0.3) : 0.0235;
+    const double a = u < 0.3 ? 0.0 : lerp(0.0, 0.4, (u - 0.3) / 0.6);
+    return at({r * std::sin(a), 0.0, r * std::cos(a)});
+  };
+  c.isovalue = [](int) { return 0.0; };
+  return c;
+}
+
+/// Noisy CT, on the grid `gn`.
+ExtremeCase noisyCtCase(const datasets::GridSpec& gn, std::shared_ptr<const haptics::ToolModel> ball5, int scale) {
+  ExtremeCase c;
+  c.name = "noisy CT";
+  c.setup = "sphere r 20 mm in int16 with voxel noise of 0.3 mm standard deviation (in distance units); 5 mm ball "
+            "pressed, held, slid";
+  c.criterion = "penetration <= epsilon; finite (force ripple reported)";
+  c.volume = std::make_shared<const haptics::ScalarVolume>(datasets::makeVolumeFromSignedDistance(
+      gn, [](const Eigen::Vector3d& p) { return 0.020 - p.norm() + 0.3e-3 / 0.58 * noise(p); },
+      haptics::VoxelType::kInt16));
+  c.tool = std::move(ball5);
+  c.ticks = 600 * scale;
+  const int n = c.ticks;
+  c.device = [n](int i) {
+    const double u = static_cast<double>(i) / n;
+    const double r = u < 0.2 ? lerp(0.030, 0.0235, u / 0.2) : 0.0235;
+    const double a = u < 0.5 ? 0.0 : lerp(0.0, 0.4, (u - 0.5) / 0.4);
+    return at({r * std::sin(a), 0.0, r * std::cos(a)});
+  };
+  c.isovalue = [](int) { return 0.0; };
+  return c;
+}
+
+/// Tool larger than the volume.
+ExtremeCase largeToolCase(int scale) {
+  datasets::GridSpec gs;
+  gs.dims = {16, 16, 16};
+  ExtremeCase c;
+  c.name = "tool larger than the volume";
+  c.setup = "40 x 40 x 10 mm box (1 mm spacing) pressed onto a 6 mm sphere in a 16 mm grid, slid 10 mm";
+  c.criterion = "contact made; penetration <= epsilon; finite";
+  c.volume = std::make_shared<const haptics::ScalarVolume>(
+      datasets::makeSphereVolume(gs, Eigen::Vector3d::Zero(), 0.006));
+  c.tool = makeTool(datasets::makeBoxMesh({0.020, 0.020, 0.005}), 1e-3);
+  c.ticks = 400 * scale;
+  const int n = c.ticks;
+  c.device = [n](int i) {
+    const double u = static_cast<double>(i) / n;
+    return at({u < 0.5 ? 0.0 : lerp(0.0, 0.010, (u - 0.5) / 0.4), 0.0, lerp(0.020, 0.009, u / 0.4)});
+  };
+  c.isovalue = [](int) { return 0.0; };
+  return c;
+}
+
+/// Tool leaving the volume.
+ExtremeCase leavingCase(std::shared_ptr<const haptics::ScalarVolume> plane,
+                        std::shared_ptr<const haptics::ToolModel> ball5, int scale) {
+  ExtremeCase c;
+  c.name = "tool leaving the volume";
+  c.setup = "5 mm ball pressed 2 mm into the plane and slid 60 mm in x, off the grid's edge at x = 31.5 mm";
+  c.criterion = "contact while over the grid; no contact and zero force once outside; finite";
+  c.volume = std::move(plane);
+  c.tool = std::move(ball5);
+  c.ticks = 600 * scale;
+  const int n = c.ticks;
+  c.device = [n](int i) {
+    const double u = static_cast<double>(i) / n;
+    return at({u < 0.2 ? 0.0 : lerp(0.0, 0.060, (u - 0.2) / 0.6), 0.0, lerp(0.010, 0.003, u / 0.15)});
+  };
+  c.isovalue = [](int) { return 0.0; };
+  return c;
+}
+
+/// The extreme cases, in the order of the report (the full run: three times the ticks).
 std::vector<ExtremeCase> extremeCases(bool short_run) {
   std::vector<ExtremeCase> cases;
   const int scale = short_run ? 1 : 3;
@@ -131,178 +320,20 @@ std::vector<ExtremeCase> extremeCases(bool short_run) {
   auto plane = std::make_shared<const haptics::ScalarVolume>(
       datasets::makePlaneVolume(g64, Eigen::Vector3d::UnitZ(), 0.0));  // inside z < 0
   auto ball5 = makeTool(datasets::makeBuiltinTool("sphere"), 1e-3);    // r 5 mm about the origin of T
-
-  {  // Many coplanar contacts: a flat box pressed onto a plane, slid and tilted.
-    ExtremeCase c;
-    c.name = "40+ simultaneous contacts";
-    c.setup = "12 x 12 x 4 mm box (0.7 mm point spacing) pressed 2 mm into a plane, slid 10 mm, tilted 0.1 rad";
-    c.criterion = "more than 40 contacts; penetration <= epsilon; finite";
-    c.volume = plane;
-    c.tool = makeTool(datasets::makeBoxMesh({0.006, 0.006, 0.002}), 7e-4);
-    c.ticks = 500 * scale;
-    const int n = c.ticks;
-    c.device = [n](int i) {
-      const double u = static_cast<double>(i) / n;
-      const double z = u < 0.3 ? lerp(0.005, 0.0, u / 0.3) : 0.0;  // box bottom at z - 2 mm
-      const double x = u < 0.4 ? 0.0 : lerp(0.0, 0.010, (u - 0.4) / 0.3);
-      const double tilt = u < 0.75 ? 0.0 : lerp(0.0, 0.1, (u - 0.75) / 0.2);
-      return at({x, 0.0, z}, Eigen::Quaterniond(Eigen::AngleAxisd(tilt, Eigen::Vector3d::UnitY())));
-    };
-    c.isovalue = [](int) { return 0.0; };
-    cases.push_back(c);
-  }
+  cases.push_back(manyContactsCase(plane, scale));
   auto plate = std::make_shared<const haptics::ScalarVolume>(datasets::makeThinPlateVolume(g64));
   const double plate_s = datasets::builtinIsovalue("thin-plate");
   const double plate_z = plate->geometry().origin_W_m.z() + plate->geometry().spacing_m.z() * (g64.dims[2] / 2);
-  const auto below_plate = [plate_z](const Pose& X) { return X.p_AB_m.z() < plate_z; };
-  {  // One-voxel plate, fast.
-    ExtremeCase c;
-    c.name = "one-voxel plate at 1 m/s and 20 rad/s";
-    c.setup = "5 mm ball driven down through a 1 mm plate at 1 m/s (1 mm per tick) spinning at 20 rad/s, then "
-              "swept sideways at 1 m/s 40 mm below it";
-    c.criterion = "the proxy never crosses the plate; penetration <= epsilon; finite";
-    c.volume = plate;
-    c.tool = ball5;
-    c.ticks = 200 * scale;
-    c.device = [plate_z](int i) {
-      const double z = std::max(plate_z + 0.020 - 0.001 * i, plate_z - 0.040);
-      const double x = i > 60 ? 0.001 * ((i - 60) % 40 < 20 ? (i - 60) % 40 : 40 - (i - 60) % 40) - 0.010 : 0.0;
-      return at({x, 0.0, z}, Eigen::Quaterniond(Eigen::AngleAxisd(0.02 * i, Eigen::Vector3d::UnitX())));
-    };
-    c.isovalue = [plate_s](int) { return plate_s; };
-    c.crossed = below_plate;
-    cases.push_back(c);
-  }
-  {  // Teleport.
-    ExtremeCase c;
-    c.name = "device teleport";
-    c.setup = "device jumps in one tick from 10 mm above the plate to 40 mm below it with a half turn; later a 20 m "
-              "jump (a unit error) and back";
-    c.criterion = "no crossing; the 20 m sample is rejected (zero force, counted); finite";
-    c.volume = plate;
-    c.tool = ball5;
-    c.ticks = 100 * scale;
-    const int n = c.ticks;
-    c.device = [plate_z, n](int i) {
-      if (i < n / 4) return at({0.0, 0.0, plate_z + 0.010});
-      if (i == n / 2) return at({20.0, 0.0, 0.0});
-      return at({0.0, 0.0, plate_z - 0.040}, Eigen::Quaterniond(Eigen::AngleAxisd(M_PI, Eigen::Vector3d::UnitX())));
-    };
-    c.isovalue = [plate_s](int) { return plate_s; };
-    c.crossed = below_plate;
-    cases.push_back(c);
-  }
+  cases.push_back(fastPlateCase(plate, plate_s, plate_z, ball5, scale));
+  cases.push_back(teleportCase(plate, plate_s, plate_z, ball5, scale));
   datasets::GridSpec g64f = g64;
   auto sphere = std::make_shared<const haptics::ScalarVolume>(
       datasets::makeSphereVolume(g64f, Eigen::Vector3d::Zero(), 0.020));  // F = r - |p| [mm]
-  {  // Isovalue swept through the tool.
-    ExtremeCase c;
-    c.name = "isovalue swept through the tool";
-    c.setup = "5 mm ball pressed 1 mm onto a 20 mm sphere; the isovalue goes 0 -> -12 mm (the surface grows through "
-              "the whole tool) -> +4 mm -> 0 while the device holds still, then lifts and presses again";
-    c.criterion = "force during the sweep never above the force before it (+1 %); contact again after re-pressing; "
-                  "penetration <= epsilon before the sweep and after the lift (the swallowed tool is inside by "
-                  "design in between); finite";
-    c.volume = sphere;
-    c.tool = ball5;
-    c.ticks = 400 * scale;
-    const int n = c.ticks;
-    c.device = [n](int i) {  // down, hold through the sweep, lift and press again
-      const double u = static_cast<double>(i) / n;
-      if (u < 0.8) return at({0.0, 0.0, lerp(0.030, 0.024, u / 0.2)});
-      if (u < 0.9) return at({0.0, 0.0, lerp(0.024, 0.032, (u - 0.8) / 0.05)});
-      return at({0.0, 0.0, lerp(0.032, 0.024, (u - 0.9) / 0.05)});
-    };
-    c.isovalue = [n](int i) {
-      const double u = static_cast<double>(i) / n;
-      if (u < 0.3) return 0.0;
-      if (u < 0.5) return lerp(0.0, -12.0, (u - 0.3) / 0.2);
-      if (u < 0.7) return lerp(-12.0, 4.0, (u - 0.5) / 0.2);
-      return lerp(4.0, 0.0, (u - 0.7) / 0.1);
-    };
-    c.penetration_judged = [n](int i) { return i < static_cast<int>(0.3 * n) || i >= static_cast<int>(0.85 * n); };
-    cases.push_back(c);
-  }
-  {  // Anisotropic voxels.
-    datasets::GridSpec ga;
-    ga.dims = {192, 192, 28};
-    ga.spacing_m = {0.25e-3, 0.25e-3, 2e-3};
-    ExtremeCase c;
-    c.name = "anisotropic voxels";
-    c.setup = "sphere r 20 mm sampled on 0.25 x 0.25 x 2 mm voxels; 5 mm ball pressed 1.5 mm and slid 0.4 rad "
-              "around it";
-    c.criterion = "penetration <= epsilon (f = 0.125 mm); finite";
-    c.volume = std::make_shared<const haptics::ScalarVolume>(
-        datasets::makeSphereVolume(ga, Eigen::Vector3d::Zero(), 0.020));
-    c.tool = ball5;
-    c.ticks = 500 * scale;
-    const int n = c.ticks;
-    c.device = [n](int i) {
-      const double u = static_cast<double>(i) / n;
-      const double r = u < 0.3 ? lerp(0.030, 0.0235, u / 0.3) : 0.0235;
-      const double a = u < 0.3 ? 0.0 : lerp(0.0, 0.4, (u - 0.3) / 0.6);
-      return at({r * std::sin(a), 0.0, r * std::cos(a)});
-    };
-    c.isovalue = [](int) { return 0.0; };
-    cases.push_back(c);
-  }
-  {  // Noisy CT.
-    datasets::GridSpec gn = g64;
-    ExtremeCase c;
-    c.name = "noisy CT";
-    c.setup = "sphere r 20 mm in int16 with voxel noise of 0.3 mm standard deviation (in distance units); 5 mm ball "
-              "pressed, held, slid";
-    c.criterion = "penetration <= epsilon; finite (force ripple reported)";
-    c.volume = std::make_shared<const haptics::ScalarVolume>(datasets::makeVolumeFromSignedDistance(
-        gn, [](const Eigen::Vector3d& p) { return 0.020 - p.norm() + 0.3e-3 / 0.58 * noise(p); },
-        haptics::VoxelType::kInt16));
-    c.tool = ball5;
-    c.ticks = 600 * scale;
-    const int n = c.ticks;
-    c.device = [n](int i) {
-      const double u = static_cast<double>(i) / n;
-      const double r = u < 0.2 ? lerp(0.030, 0.0235, u / 0.2) : 0.0235;
-      const double a = u < 0.5 ? 0.0 : lerp(0.0, 0.4, (u - 0.5) / 0.4);
-      return at({r * std::sin(a), 0.0, r * std::cos(a)});
-    };
-    c.isovalue = [](int) { return 0.0; };
-    cases.push_back(c);
-  }
-  {  // Tool larger than the volume.
-    datasets::GridSpec gs;
-    gs.dims = {16, 16, 16};
-    ExtremeCase c;
-    c.name = "tool larger than the volume";
-    c.setup = "40 x 40 x 10 mm box (1 mm spacing) pressed onto a 6 mm sphere in a 16 mm grid, slid 10 mm";
-    c.criterion = "contact made; penetration <= epsilon; finite";
-    c.volume = std::make_shared<const haptics::ScalarVolume>(
-        datasets::makeSphereVolume(gs, Eigen::Vector3d::Zero(), 0.006));
-    c.tool = makeTool(datasets::makeBoxMesh({0.020, 0.020, 0.005}), 1e-3);
-    c.ticks = 400 * scale;
-    const int n = c.ticks;
-    c.device = [n](int i) {
-      const double u = static_cast<double>(i) / n;
-      return at({u < 0.5 ? 0.0 : lerp(0.0, 0.010, (u - 0.5) / 0.4), 0.0, lerp(0.020, 0.009, u / 0.4)});
-    };
-    c.isovalue = [](int) { return 0.0; };
-    cases.push_back(c);
-  }
-  {  // Tool leaving the volume.
-    ExtremeCase c;
-    c.name = "tool leaving the volume";
-    c.setup = "5 mm ball pressed 2 mm into the plane and slid 60 mm in x, off the grid's edge at x = 31.5 mm";
-    c.criterion = "contact while over the grid; no contact and zero force once outside; finite";
-    c.volume = plane;
-    c.tool = ball5;
-    c.ticks = 600 * scale;
-    const int n = c.ticks;
-    c.device = [n](int i) {
-      const double u = static_cast<double>(i) / n;
-      return at({u < 0.2 ? 0.0 : lerp(0.0, 0.060, (u - 0.2) / 0.6), 0.0, lerp(0.010, 0.003, u / 0.15)});
-    };
-    c.isovalue = [](int) { return 0.0; };
-    cases.push_back(c);
-  }
+  cases.push_back(isovalueSweepCase(sphere, ball5, scale));
+  cases.push_back(anisotropicCase(ball5, scale));
+  cases.push_back(noisyCtCase(g64, ball5, scale));
+  cases.push_back(largeToolCase(scale));
+  cases.push_back(leavingCase(plane, ball5, scale));
   return cases;
 }
 
@@ -338,23 +369,14 @@ std::string judge(const ExtremeCase& c, const CaseResult& r) {
   return s;
 }
 
-}  // namespace
-
-fs::path runStability(const CommonOptions& options) {
-  const fs::path out = outputDir(options, "stability");
-  const bool short_run = options.short_run;
-  nlohmann::ordered_json report = reportHeader("stability", short_run);
-  report["verify_step_voxels"] = kVerifyStepVoxels;
-
-  // --- Stiffness sweep --------------------------------------------------------------------
+/// The coupling-stiffness sweep: every stiffness ks [N/m] with every device and coupling (lever
+/// [m]; 0: scalar k) in `scenarios`, each tick's motion checked for crossings.
+std::vector<vh::stability::StiffnessResult> runStiffnessSweep(const std::vector<vh::stability::Scenario>& scenarios,
+                                                              const std::vector<double>& ks,
+                                                              const std::vector<vh::stability::DeviceParams>& devices,
+                                                              const std::vector<double>& levers,
+                                                              const vh::stability::HandParams& hand) {
   using namespace vh::stability;
-  const std::vector<double> ks = short_run ? std::vector<double>{1000, 5000, 50000}
-                                           : std::vector<double>{100, 300, 1000, 3000, 5000, 10000, 30000, 50000};
-  std::vector<DeviceParams> devices{DeviceParams::scaled("A", 0.2, 1.0, kLever_m)};
-  if (!short_run) devices.push_back(DeviceParams::scaled("B", 0.1, 0.0, kLever_m));
-  const std::vector<double> levers = short_run ? std::vector<double>{kLever_m} : std::vector<double>{kLever_m, 0.0};
-  const HandParams hand = HandParams::scaled(500.0, 5.0, kLever_m);
-  std::vector<Scenario> scenarios = defaultScenarios();
   std::cout << "bench stability: stiffness sweep, " << ks.size() << " stiffnesses x " << devices.size()
             << " devices x " << levers.size() << " couplings x " << scenarios.size() << " scenarios\n";
   std::vector<StiffnessResult> rows;
@@ -365,8 +387,15 @@ fs::path runStability(const CommonOptions& options) {
         sweep_options.verify_step_voxels = kVerifyStepVoxels;
         rows.push_back(evaluate(scenarios, k, d, hand, sweep_options));
       }
+  return rows;
+}
+
+/// The Markdown's heading, how the sweep was made, and its table; the sweep into `report`
+/// ("stiffness_sweep").
+void writeStiffnessSweep(std::ostringstream& md, nlohmann::ordered_json& report,
+                         const std::vector<vh::stability::StiffnessResult>& rows, bool short_run) {
+  using namespace vh::stability;
   nlohmann::ordered_json sweep = nlohmann::ordered_json::array();
-  std::ostringstream md;
   md << "## Stiff and extreme cases (`volume-haptics bench stability" << (short_run ? " --short" : "") << "`)\n\n";
   md << "Run " << report["date_utc"].get<std::string>() << " on " << report["cpu_model"].get<std::string>()
      << ". The renderer closed around the simulated device (vh::simulation: mass-damper handle, 1 kHz zero-order "
@@ -415,10 +444,14 @@ fs::path runStability(const CommonOptions& options) {
        << format("%.3f", s.max_penetration_over_eps) << " | " << s.crossings << " |\n";
   }
   report["stiffness_sweep"] = sweep;
+}
 
-  // --- Device models and the passivity controller ------------------------------------------
-  // Each catalogue model at its own servo rate, with its encoder, one tick of delay and its force
-  // limit, on the plane, sphere and wedge; without and with the passivity controller.
+/// Device models and the passivity controller: each catalogue model at its own servo rate, with
+/// its encoder, one tick of delay and its force limit, on the plane, sphere and wedge; without and
+/// with the passivity controller. Into `md` and `report` ("device_models"). @return the runs.
+std::vector<vh::stability::StiffnessResult> runDeviceModels(std::ostringstream& md, nlohmann::ordered_json& report,
+                                                            const vh::stability::HandParams& hand, bool short_run) {
+  using namespace vh::stability;
   const std::vector<Scenario> device_scenes = deviceScenarios();
   const std::vector<double> model_ks =
       short_run ? std::vector<double>{50000} : std::vector<double>{1000, 3000, 10000, 20000, 50000};
@@ -482,7 +515,14 @@ fs::path runStability(const CommonOptions& options) {
     std::cout << "  " << d.name << " done\n";
   }
   report["device_models"] = models;
+  return model_rows;
+}
 
+/// The controller's price: a slow press at the rated stiffness of each model, without and with
+/// the passivity controller. Into `md` and `report` ("controller_price").
+void writeControllerPrice(std::ostringstream& md, nlohmann::ordered_json& report,
+                          const vh::stability::HandParams& hand) {
+  using namespace vh::stability;
   md << "\n#### The controller's price: a slow press at the rated stiffness\n\n"
         "The box lowered onto the plane at up to 5.8 mm/s to 5 mm past contact, held, lifted (scenario `plane slow "
         "press`), run without and with the controller through the same device path; force error = |F_with - "
@@ -509,8 +549,10 @@ fs::path runStability(const CommonOptions& options) {
        << format("%.3g", 1e3 * p.work_in_J) << " | " << p.active_ticks << " |\n";
   }
   report["controller_price"] = prices;
+}
 
-  // --- Extreme cases ---------------------------------------------------------------------
+/// The extreme cases in both detection modes, judged. Into `md` and `report` ("extreme_cases").
+void runExtremeCases(std::ostringstream& md, nlohmann::ordered_json& report, bool short_run) {
   std::cout << "bench stability: extreme cases (both detection modes)\n";
   nlohmann::ordered_json extreme = nlohmann::ordered_json::array();
   md << "\nExtreme cases, both detection modes (coupling 1000 N/m, 1 N*m/rad; scripted device). Crossings: ticks in "
@@ -552,38 +594,77 @@ fs::path runStability(const CommonOptions& options) {
     extreme.push_back(j);
   }
   report["extreme_cases"] = extreme;
+}
+
+/// The PNG charts: the sweep's force oscillation against stiffness per coupling and device, and
+/// the handle travel per device model without and with the controller. @return the files written.
+std::vector<std::string> stabilityPlots(const fs::path& out, const std::vector<double>& levers,
+                                        const std::vector<vh::stability::DeviceParams>& devices,
+                                        const std::vector<vh::stability::StiffnessResult>& rows,
+                                        const std::vector<vh::stability::StiffnessResult>& model_rows) {
+  using namespace vh::stability;
+  std::vector<std::string> plots;
+  std::vector<Series> series;
+  for (double lever : levers)
+    for (const DeviceParams& d : devices) {
+      Series s{std::string(lever > 0 ? "diag" : "scalar") + ", device " + d.name, {}, {}, false};
+      for (const StiffnessResult& r : rows)
+        if (r.device == d.name && r.gains == (lever > 0 ? "diag" : "scalar")) {
+          s.x.push_back(r.k_lin);
+          s.y.push_back(std::max(r.settled_ptp_rel, 1e-6));
+        }
+      series.push_back(s);
+    }
+  if (plotXY(out / "stability_oscillation.png", "Force oscillation after settling", "stiffness K [N/m]",
+             "force peak-to-peak / mean force", series, true, true))
+    plots.push_back("stability_oscillation.png");
+  std::vector<Series> model_series;
+  for (const DeviceModelSpec& d : deviceCatalog())
+    for (bool pc : {false, true}) {
+      Series s{d.name + (pc ? ", PC on" : ", PC off"), {}, {}, false};
+      for (const StiffnessResult& r : model_rows)
+        if (r.device == d.name && r.passivity_control == pc) {
+          s.x.push_back(r.k_lin);
+          s.y.push_back(std::max(r.hold_ptp_counts, 0.1));
+        }
+      model_series.push_back(s);
+    }
+  if (plotXY(out / "stability_device_models.png", "Handle travel in the hold windows, per device model",
+             "stiffness K [N/m]", "handle travel [encoder counts]", model_series, true, true))
+    plots.push_back("stability_device_models.png");
+  return plots;
+}
+
+}  // namespace
+
+fs::path runStability(const CommonOptions& options) {
+  const fs::path out = outputDir(options, "stability");
+  const bool short_run = options.short_run;
+  nlohmann::ordered_json report = reportHeader("stability", short_run);
+  report["verify_step_voxels"] = kVerifyStepVoxels;
+
+  // --- Stiffness sweep --------------------------------------------------------------------
+  using namespace vh::stability;
+  const std::vector<double> ks = short_run ? std::vector<double>{1000, 5000, 50000}
+                                           : std::vector<double>{100, 300, 1000, 3000, 5000, 10000, 30000, 50000};
+  std::vector<DeviceParams> devices{DeviceParams::scaled("A", 0.2, 1.0, kLever_m)};
+  if (!short_run) devices.push_back(DeviceParams::scaled("B", 0.1, 0.0, kLever_m));
+  const std::vector<double> levers = short_run ? std::vector<double>{kLever_m} : std::vector<double>{kLever_m, 0.0};
+  const HandParams hand = HandParams::scaled(500.0, 5.0, kLever_m);
+  std::vector<Scenario> scenarios = defaultScenarios();
+  const std::vector<StiffnessResult> rows = runStiffnessSweep(scenarios, ks, devices, levers, hand);
+  std::ostringstream md;
+  writeStiffnessSweep(md, report, rows, short_run);
+
+  // --- Device models and the passivity controller ------------------------------------------
+  const std::vector<StiffnessResult> model_rows = runDeviceModels(md, report, hand, short_run);
+  writeControllerPrice(md, report, hand);
+
+  // --- Extreme cases ---------------------------------------------------------------------
+  runExtremeCases(md, report, short_run);
 
   std::vector<std::string> plots;
-  if (options.plots) {
-    std::vector<Series> series;
-    for (double lever : levers)
-      for (const DeviceParams& d : devices) {
-        Series s{std::string(lever > 0 ? "diag" : "scalar") + ", device " + d.name, {}, {}, false};
-        for (const StiffnessResult& r : rows)
-          if (r.device == d.name && r.gains == (lever > 0 ? "diag" : "scalar")) {
-            s.x.push_back(r.k_lin);
-            s.y.push_back(std::max(r.settled_ptp_rel, 1e-6));
-          }
-        series.push_back(s);
-      }
-    if (plotXY(out / "stability_oscillation.png", "Force oscillation after settling", "stiffness K [N/m]",
-               "force peak-to-peak / mean force", series, true, true))
-      plots.push_back("stability_oscillation.png");
-    std::vector<Series> model_series;
-    for (const DeviceModelSpec& d : deviceCatalog())
-      for (bool pc : {false, true}) {
-        Series s{d.name + (pc ? ", PC on" : ", PC off"), {}, {}, false};
-        for (const StiffnessResult& r : model_rows)
-          if (r.device == d.name && r.passivity_control == pc) {
-            s.x.push_back(r.k_lin);
-            s.y.push_back(std::max(r.hold_ptp_counts, 0.1));
-          }
-        model_series.push_back(s);
-      }
-    if (plotXY(out / "stability_device_models.png", "Handle travel in the hold windows, per device model",
-               "stiffness K [N/m]", "handle travel [encoder counts]", model_series, true, true))
-      plots.push_back("stability_device_models.png");
-  }
+  if (options.plots) plots = stabilityPlots(out, levers, devices, rows, model_rows);
   writeReport(out, "stability", report, md, plots);
   return out;
 }

@@ -321,6 +321,121 @@ Series downsampleMax(const std::string& name, const std::vector<double>& v, std:
   return s;
 }
 
+/// One run per variant, each with its renderer at the trajectory's first pose and its per-tick
+/// vectors reserved for `ticks` (no allocation in the tick loop).
+std::vector<ModeRun> makeModeRuns(const runtime::LoadedScene& scene,
+                                  const std::shared_ptr<const haptics::ToolModel>& tool,
+                                  const std::vector<Variant>& variants, const haptics::Pose& X_WD0, double isovalue,
+                                  int ticks) {
+  std::vector<ModeRun> runs;
+  for (const Variant& variant : variants) {
+    ModeRun m;
+    m.variant = variant;
+    haptics::RendererOptions options;
+    options.detection_mode = variant.mode;
+    options.segment_test = variant.segment_test;
+    options.work_budget = variant.work_budget;
+    options.max_contacts = variant.max_contacts;
+    options.max_travel_per_tick_m = variant.max_travel_m;
+    options.solver_lanes = variant.lanes;
+    options.deadline_us = variant.deadline_us;
+    options.gains = scene.spec.gains;
+    m.renderer = std::make_unique<haptics::HapticRenderer>(scene.volume.field, tool, options, X_WD0, isovalue);
+    m.times_us.reserve(static_cast<std::size_t>(ticks));
+    m.cpu_us.reserve(static_cast<std::size_t>(ticks));
+    m.contacts.reserve(static_cast<std::size_t>(ticks));
+    m.samples.reserve(static_cast<std::size_t>(ticks));
+    runs.push_back(std::move(m));
+  }
+  return runs;
+}
+
+/// Index of the run of the variant `key` in `runs`, or -1 when that variant does not run.
+int runIndex(const std::vector<ModeRun>& runs, const std::string& key) {
+  for (std::size_t r = 0; r < runs.size(); ++r)
+    if (runs[r].variant.key == key) return static_cast<int>(r);
+  return -1;
+}
+
+/// Diagnostics: VH_TABLE1_TICK_CSV=DIR writes one CSV per scene and mode with every
+/// tick's times and statistics, to find the worst ticks and what they do.
+/// @return one stream per run (header written), or none when the variable is not set.
+std::vector<std::unique_ptr<std::ofstream>> openTickCsvs(const std::vector<ModeRun>& runs,
+                                                         const std::string& scene_name) {
+  std::vector<std::unique_ptr<std::ofstream>> tick_csv;
+  if (const char* dir = std::getenv("VH_TABLE1_TICK_CSV")) {
+    for (const ModeRun& m : runs) {
+      tick_csv.push_back(std::make_unique<std::ofstream>(fs::path(dir) / (scene_name + "_" + m.variant.key + ".csv")));
+      *tick_csv.back() << "tick,wall_us,cpu_us,contacts,samples,box_queries,tree_nodes,cells,cells_walked,time_of_contact,device_step_m,"
+                          "device_step_rad,proxy_device_m,proxy_device_rad,crossing_points,prune_us,solve_us,sweep_us,contacts_us,work,"
+                          "budget_cut\n";
+    }
+  }
+  return tick_csv;
+}
+
+/// What one scene ran on and with, into `row`: the volume, the tool's points, the trajectory and
+/// the checks (verify_step_voxels 0: no crossing check).
+void describeSceneRun(nlohmann::ordered_json& row, const haptics::ScalarVolume& volume, std::size_t points,
+                      double isovalue, double epsilon_m, int ticks, const runtime::Trajectory& traj, int locations,
+                      const std::vector<std::string>& notes, int inside0, int penetration_stride,
+                      double verify_step_voxels) {
+  row["status"] = "ran";
+  row["isovalue"] = isovalue;
+  row["volume_dims"] = volume.geometry().dims;
+  row["volume_spacing_m"] = {volume.geometry().spacing_m.x(), volume.geometry().spacing_m.y(),
+                             volume.geometry().spacing_m.z()};
+  row["points"] = points;
+  row["epsilon_m"] = epsilon_m;
+  row["feature_size_m"] = volume.featureSize_m();
+  row["ticks"] = ticks;
+  row["trajectory"] = {{"duration_s", traj.duration_s()}, {"key_poses", traj.size()}, {"spots", locations},
+                       {"notes", notes}};
+  row["initial_points_inside"] = inside0;
+  row["penetration_every_n_ticks"] = penetration_stride;
+  row["verify_step_voxels"] = verify_step_voxels;
+}
+
+/// Each mode's statistics into `row` ("modes") and its tick times into `plot_series`; with both
+/// modes, the paper / accelerated ratios, and with the "before" column, exact / end-sample.
+/// The largest proxy differences [m] come from the tick loop.
+void addModeResults(nlohmann::ordered_json& row, const std::vector<ModeRun>& runs, double epsilon_m, bool verified,
+                    bool both_modes, bool with_before, double max_mode_difference_m, double max_before_difference_m,
+                    std::vector<Series>& plot_series) {
+  nlohmann::ordered_json modes_json;
+  for (const ModeRun& m : runs) {
+    modes_json[m.variant.key] = modeJson(m, epsilon_m, verified);
+    plot_series.push_back(
+        downsampleMax(m.variant.key == kBeforeKey ? m.variant.label : m.variant.label + " mode", m.times_us, 1500));
+  }
+  row["modes"] = modes_json;
+  const auto ratio = [](double num, double den) { return den > 0.0 ? num / den : 0.0; };
+  if (both_modes) {
+    const auto& p = modes_json["paper"];
+    const auto& a = modes_json["accelerated"];
+    row["ratio_paper_over_accelerated"] = {
+        {"mean", ratio(p["mean_us"], a["mean_us"])},
+        {"p99", ratio(p["p99_us"], a["p99_us"])},
+        {"max", ratio(p["max_us"], a["max_us"])},
+        {"volume_samples", ratio(p["mean_volume_samples"], a["mean_volume_samples"])}};
+    row["max_proxy_difference_between_modes_m"] = max_mode_difference_m;
+  }
+  if (with_before) {
+    // The exact segment test (after) against the earlier end sample (before), same run,
+    // thread CPU time (the 1.3x target is on the means).
+    const auto& a = modes_json["accelerated"];
+    const auto& b = modes_json[kBeforeKey];
+    const double mean_ratio = ratio(a["cpu_mean_us"], b["cpu_mean_us"]);
+    row["ratio_exact_over_end_sample"] = {{"cpu_mean", mean_ratio},
+                                          {"cpu_p99_9", ratio(a["cpu_p99_9_us"], b["cpu_p99_9_us"])},
+                                          {"cpu_max", ratio(a["cpu_max_us"], b["cpu_max_us"])},
+                                          {"wall_mean", ratio(a["mean_us"], b["mean_us"])},
+                                          {"volume_samples", ratio(a["mean_volume_samples"], b["mean_volume_samples"])},
+                                          {"within_1_3x", mean_ratio <= 1.3}};
+    row["max_proxy_difference_exact_vs_end_sample_m"] = max_before_difference_m;
+  }
+}
+
 /// Runs one scene (loaded) in the selected variants, interleaved tick by tick so that all see
 /// the same machine load. After each tick, outside the timed section, a CrossingVerifier
 /// (verify_step_voxels > 0) checks the path the proxy moved along. Fills `row`.
@@ -337,47 +452,13 @@ void runScene(const runtime::LoadedScene& scene, std::shared_ptr<const haptics::
   std::optional<haptics::CrossingVerifier> verifier;
   if (verify_step_voxels > 0.0) verifier.emplace(volume, tool->point_shell, verify_step_voxels);
 
-  std::vector<ModeRun> runs;
-  for (const Variant& variant : variants) {
-    ModeRun m;
-    m.variant = variant;
-    haptics::RendererOptions options;
-    options.detection_mode = variant.mode;
-    options.segment_test = variant.segment_test;
-    options.work_budget = variant.work_budget;
-    options.max_contacts = variant.max_contacts;
-    options.max_travel_per_tick_m = variant.max_travel_m;
-    options.solver_lanes = variant.lanes;
-    options.deadline_us = variant.deadline_us;
-    options.gains = scene.spec.gains;
-    m.renderer = std::make_unique<haptics::HapticRenderer>(scene.volume.field, tool, options, X_WD0, s);
-    m.times_us.reserve(static_cast<std::size_t>(ticks));
-    m.cpu_us.reserve(static_cast<std::size_t>(ticks));
-    m.contacts.reserve(static_cast<std::size_t>(ticks));
-    m.samples.reserve(static_cast<std::size_t>(ticks));
-    runs.push_back(std::move(m));
-  }
-  const auto indexOf = [&](const std::string& key) {
-    for (std::size_t r = 0; r < runs.size(); ++r)
-      if (runs[r].variant.key == key) return static_cast<int>(r);
-    return -1;
-  };
-  const int i_paper = indexOf("paper"), i_accel = indexOf("accelerated"), i_before = indexOf(kBeforeKey);
-  const int i_unbudgeted = indexOf(kUnbudgetedKey);
+  std::vector<ModeRun> runs = makeModeRuns(scene, tool, variants, X_WD0, s, ticks);
+  const int i_paper = runIndex(runs, "paper"), i_accel = runIndex(runs, "accelerated");
+  const int i_before = runIndex(runs, kBeforeKey);
+  const int i_unbudgeted = runIndex(runs, kUnbudgetedKey);
   const double epsilon_m = runs.front().renderer->epsilon_m();
   double max_mode_difference_m = 0.0, max_before_difference_m = 0.0;
-  // Diagnostics: VH_TABLE1_TICK_CSV=DIR writes one CSV per scene and mode with every
-  // tick's times and statistics, to find the worst ticks and what they do.
-  std::vector<std::unique_ptr<std::ofstream>> tick_csv;
-  if (const char* dir = std::getenv("VH_TABLE1_TICK_CSV")) {
-    for (const ModeRun& m : runs) {
-      tick_csv.push_back(std::make_unique<std::ofstream>(fs::path(dir) /
-                                                         (row["name"].get<std::string>() + "_" + m.variant.key + ".csv")));
-      *tick_csv.back() << "tick,wall_us,cpu_us,contacts,samples,box_queries,tree_nodes,cells,cells_walked,time_of_contact,device_step_m,"
-                          "device_step_rad,proxy_device_m,proxy_device_rad,crossing_points,prune_us,solve_us,sweep_us,contacts_us,work,"
-                          "budget_cut\n";
-    }
-  }
+  std::vector<std::unique_ptr<std::ofstream>> tick_csv = openTickCsvs(runs, row["name"].get<std::string>());
   haptics::Pose X_WD_last = X_WD0;
   std::size_t cursor = 0;
   std::vector<Eigen::Vector3d> proxy(runs.size(), Eigen::Vector3d::Zero());
@@ -454,52 +535,10 @@ void runScene(const runtime::LoadedScene& scene, std::shared_ptr<const haptics::
     X_WD_last = X_WD;
   }
 
-  row["status"] = "ran";
-  row["isovalue"] = s;
-  row["volume_dims"] = volume.geometry().dims;
-  row["volume_spacing_m"] = {volume.geometry().spacing_m.x(), volume.geometry().spacing_m.y(),
-                             volume.geometry().spacing_m.z()};
-  row["points"] = tool->point_shell.size();
-  row["epsilon_m"] = epsilon_m;
-  row["feature_size_m"] = volume.featureSize_m();
-  row["ticks"] = ticks;
-  row["trajectory"] = {{"duration_s", traj.duration_s()}, {"key_poses", traj.size()}, {"spots", locations},
-                       {"notes", notes}};
-  row["initial_points_inside"] = inside0;
-  row["penetration_every_n_ticks"] = penetration_stride;
-  row["verify_step_voxels"] = verifier ? verify_step_voxels : 0.0;
-  nlohmann::ordered_json modes_json;
-  for (const ModeRun& m : runs) {
-    modes_json[m.variant.key] = modeJson(m, epsilon_m, verifier.has_value());
-    plot_series.push_back(
-        downsampleMax(m.variant.key == kBeforeKey ? m.variant.label : m.variant.label + " mode", m.times_us, 1500));
-  }
-  row["modes"] = modes_json;
-  const auto ratio = [](double num, double den) { return den > 0.0 ? num / den : 0.0; };
-  if (i_paper >= 0 && i_accel >= 0) {
-    const auto& p = modes_json["paper"];
-    const auto& a = modes_json["accelerated"];
-    row["ratio_paper_over_accelerated"] = {
-        {"mean", ratio(p["mean_us"], a["mean_us"])},
-        {"p99", ratio(p["p99_us"], a["p99_us"])},
-        {"max", ratio(p["max_us"], a["max_us"])},
-        {"volume_samples", ratio(p["mean_volume_samples"], a["mean_volume_samples"])}};
-    row["max_proxy_difference_between_modes_m"] = max_mode_difference_m;
-  }
-  if (i_accel >= 0 && i_before >= 0) {
-    // The exact segment test (after) against the earlier end sample (before), same run,
-    // thread CPU time (the 1.3x target is on the means).
-    const auto& a = modes_json["accelerated"];
-    const auto& b = modes_json[kBeforeKey];
-    const double mean_ratio = ratio(a["cpu_mean_us"], b["cpu_mean_us"]);
-    row["ratio_exact_over_end_sample"] = {{"cpu_mean", mean_ratio},
-                                          {"cpu_p99_9", ratio(a["cpu_p99_9_us"], b["cpu_p99_9_us"])},
-                                          {"cpu_max", ratio(a["cpu_max_us"], b["cpu_max_us"])},
-                                          {"wall_mean", ratio(a["mean_us"], b["mean_us"])},
-                                          {"volume_samples", ratio(a["mean_volume_samples"], b["mean_volume_samples"])},
-                                          {"within_1_3x", mean_ratio <= 1.3}};
-    row["max_proxy_difference_exact_vs_end_sample_m"] = max_before_difference_m;
-  }
+  describeSceneRun(row, volume, tool->point_shell.size(), s, epsilon_m, ticks, traj, locations, notes, inside0,
+                   penetration_stride, verifier ? verify_step_voxels : 0.0);
+  addModeResults(row, runs, epsilon_m, verifier.has_value(), i_paper >= 0 && i_accel >= 0,
+                 i_accel >= 0 && i_before >= 0, max_mode_difference_m, max_before_difference_m, plot_series);
 }
 
 std::string num(double v, int digits = 0) { return format("%.*f", digits, v); }
@@ -514,32 +553,27 @@ std::string crossingsText(const nlohmann::ordered_json& m) {
                 points == 1 ? "" : "s", static_cast<long long>(m["first_crossing_tick"].get<std::int64_t>()));
 }
 
-}  // namespace
+/// Busy threads beside the run (a loaded machine, --load) until this object goes out of scope.
+class BusyLoad {
+ public:
+  explicit BusyLoad(int threads) {
+    for (int i = 0; i < threads; ++i)
+      threads_.emplace_back([this] {
+        volatile double x = 1.0;
+        while (!stop_.load(std::memory_order_relaxed))
+          for (int k = 0; k < 10000; ++k) x = x * 1.0000001 + 1e-9;
+      });
+  }
+  ~BusyLoad() { stop_.store(true); }  // then threads_ joins them
 
-fs::path runTable1(const Table1Options& options) {
-  const fs::path out = outputDir(options.common, "table1");
-  const bool short_run = options.common.short_run;
-  const int ticks = options.ticks > 0 ? options.ticks : (short_run ? 1000 : 20000);
-  const int locations = short_run ? 1 : 4;
-  if (!(options.verify_step_voxels >= 0.0) || !std::isfinite(options.verify_step_voxels))
-    throw std::runtime_error("the crossing-check step must be >= 0 voxels (0: off)");
-  const bool verified = options.verify_step_voxels > 0.0;
-  const int lanes = options.lanes > 0 ? options.lanes : runtime::defaultSolverLanes();
-  const double deadline_us = options.deadline_us < 0.0 ? runtime::solverDeadline_us(1000.0) : options.deadline_us;
-  if (options.load < 0 || options.load > 256) throw std::runtime_error("--load must be in [0, 256] threads");
-  // A loaded machine: busy threads beside the run until it ends.
-  std::atomic<bool> load_stop{false};
-  std::vector<std::jthread> load_threads;
-  for (int i = 0; i < options.load; ++i)
-    load_threads.emplace_back([&load_stop] {
-      volatile double x = 1.0;
-      while (!load_stop.load(std::memory_order_relaxed))
-        for (int k = 0; k < 10000; ++k) x = x * 1.0000001 + 1e-9;
-    });
-  struct StopLoad {
-    std::atomic<bool>& stop;
-    ~StopLoad() { stop.store(true); }
-  } stop_load{load_stop};
+ private:
+  std::atomic<bool> stop_{false};
+  std::vector<std::jthread> threads_;
+};
+
+/// The table's columns for `options`, with the accelerated mode's solver lanes and deadline [us].
+/// @throws std::runtime_error for a lane count of --lanes-sweep outside [1, 64].
+std::vector<Variant> table1Variants(const Table1Options& options, int lanes, double deadline_us) {
   std::vector<Variant> variants;
   using haptics::DetectionMode;
   using haptics::SegmentTest;
@@ -577,15 +611,378 @@ fs::path runTable1(const Table1Options& options) {
       variants.push_back({DetectionMode::kAccelerated, SegmentTest::kEndSample, kBeforeKey,
                           "accelerated (end-sample, before)", options.work_budget});
   }
+  return variants;
+}
 
+/// The scenes to run: all of Table 1's, or the one named (case-insensitive; empty: all).
+/// @throws std::runtime_error for an unknown name.
+std::vector<SceneDef> selectScenes(const std::string& scene) {
   std::vector<SceneDef> defs = table1Scenes();
-  if (!options.scene.empty()) {
+  if (!scene.empty()) {
     const auto it = std::find_if(defs.begin(), defs.end(),
-                                 [&](const SceneDef& d) { return lower(d.name) == lower(options.scene); });
+                                 [&](const SceneDef& d) { return lower(d.name) == lower(scene); });
     if (it == defs.end())
-      throw std::runtime_error("unknown scene '" + options.scene + "' (Bunny, Engine, Hole, Bone)");
+      throw std::runtime_error("unknown scene '" + scene + "' (Bunny, Engine, Hole, Bone)");
     defs = {*it};
   }
+  return defs;
+}
+
+/// A row's identity: the scene, its tool and the paper's figures (none for the resampled tools).
+/// large: 0 the paper's tool, 1 and 2 the same tool resampled to `large_points`.
+nlohmann::ordered_json rowHeader(const SceneDef& def, int large, int large_points) {
+  nlohmann::ordered_json row;
+  row["name"] = large == 0 ? def.name : large == 1 ? def.name + " (large tool)" : def.name + " (50k tool)";
+  row["large_tool"] = large > 0;
+  row["volume"] = def.volume;
+  row["tool"] = def.tool_label;
+  row["tool_mesh"] = def.tool_mesh;
+  row["paper_points"] = large ? large_points : def.paper_points;
+  row["paper"] = {{"mean_us", large ? 0.0 : def.paper_mean_us},
+                  {"max_us", large ? 0.0 : def.paper_max_us},
+                  {"resolution", def.paper_resolution}};
+  return row;
+}
+
+/// The scene spec of `def` with a tool of `point_count` points: its volume and tool mesh found
+/// (the CT bunny unpacked when needed). @return false with `why` when one of them is absent.
+bool resolveSceneSpec(const SceneDef& def, std::size_t point_count, runtime::SceneSpec& spec, std::string& why) {
+  std::optional<fs::path> volume_path;
+  if (def.volume.rfind("builtin:", 0) == 0) {
+    spec.volume.path = def.volume;
+  } else if (def.from_archive) {
+    volume_path = findOrUnpackBunny(why);
+  } else {
+    const fs::path p = runtime::sharedDatasetsDir() / def.volume;
+    if (fs::exists(p)) volume_path = p;
+    else why = p.string() + " is absent";
+  }
+  if (def.volume.rfind("builtin:", 0) != 0) {
+    if (!volume_path) return false;
+    spec.volume.path = volume_path->string();
+  }
+  if (def.tool_mesh.rfind("builtin:", 0) == 0) {
+    spec.tool.mesh = def.tool_mesh;
+  } else {
+    const fs::path p = runtime::sharedDatasetsDir() / def.tool_mesh;
+    if (!fs::exists(p)) {
+      why = p.string() + " is absent";
+      return false;
+    }
+    spec.tool.mesh = p.string();
+  }
+  if (def.isovalue) {
+    spec.volume.isovalue = *def.isovalue;
+    spec.volume.isovalue_set = true;
+  }
+  spec.tool.scale_to_m = def.tool_scale_to_m;
+  spec.tool.point_count = point_count;
+  spec.tool.X_WT_initial.R_AB = def.R_WT;
+  spec.tool.initial_orientation_set = true;
+  return true;
+}
+
+/// Prints a row's results per mode, the budget's cuts and lag, and the ratios between modes.
+void printRowResults(nlohmann::ordered_json& row) {
+  for (const auto& [mode, m] : row["modes"].items()) {
+    std::cout << "  " << m["label"].get<std::string>() << ": mean " << num(m["mean_us"], 1) << " us, p50 " << num(m["p50_us"], 1)
+              << ", p99 " << num(m["p99_us"], 1) << ", p99.9 " << num(m["p99_9_us"], 1) << ", max "
+              << num(m["max_us"], 1) << " us (CPU mean " << num(m["cpu_mean_us"], 1) << ", max "
+              << num(m["cpu_max_us"], 1) << "); contacts mean " << num(m["mean_contacts"], 2) << " max "
+              << num(m["max_contacts"]) << "; samples/tick " << num(m["mean_volume_samples"]) << "; penetration "
+              << num(1e3 * m["max_penetration_m"].get<double>(), 4) << " mm; crossings "
+              << crossingsText(m) << "\n";
+    if (m.contains("work_budget"))
+      std::cout << "    work budget " << num(m["work_budget"]) << ": max work " << num(m["max_work"]) << ", "
+                << num(m["budget_cuts"]) << " ticks cut; lag behind the unbudgeted proxy: max "
+                << num(1e3 * m["max_lag_m"].get<double>(), 4) << " mm, " << num(m["max_lag_rad"].get<double>(), 4)
+                << " rad, " << num(m["lag_ticks"]) << " ticks\n";
+  }
+  if (row.contains("ratio_paper_over_accelerated"))
+    std::cout << "  paper / accelerated: mean " << num(row["ratio_paper_over_accelerated"]["mean"], 2)
+              << "x, max " << num(row["ratio_paper_over_accelerated"]["max"], 2) << "x\n";
+  if (row.contains("ratio_exact_over_end_sample")) {
+    const auto& a = row["modes"]["accelerated"];
+    const auto& b = row["modes"][kBeforeKey];
+    const auto& q = row["ratio_exact_over_end_sample"];
+    std::cout << "  exact / end-sample (before), accelerated, CPU time: mean " << num(a["cpu_mean_us"], 1)
+              << " / " << num(b["cpu_mean_us"], 1) << " us = " << num(q["cpu_mean"], 2) << "x"
+              << (q["within_1_3x"].get<bool>() ? " (within 1.3x)" : " (OVER 1.3x)") << ", p99.9 "
+              << num(a["cpu_p99_9_us"], 1) << " / " << num(b["cpu_p99_9_us"], 1) << " us, max "
+              << num(a["cpu_max_us"], 1) << " / " << num(b["cpu_max_us"], 1) << " us; crossings "
+              << crossingsText(a) << " / " << crossingsText(b) << "\n";
+  }
+}
+
+/// One row of the table: `def` with the paper's tool (large 0) or with it resampled to 20,000
+/// (1) or 50,000 points (2), loaded and run in `variants`. @return false when its data are
+/// absent (`row` then says "skipped" and why); `series` gets its tick-time plot series.
+bool runTableRow(const SceneDef& def, int large, const std::vector<Variant>& variants, int ticks, int locations,
+                 double verify_step_voxels, nlohmann::ordered_json& row, std::vector<Series>& series) {
+  // The paper's tool, then the same tool resampled to 20,000 and 50,000 points.
+  const int large_points = large == 1 ? 20000 : 50000;
+  row = rowHeader(def, large, large_points);
+  runtime::SceneSpec spec;
+  std::string why;
+  if (!resolveSceneSpec(def, large ? large_points : def.paper_points, spec, why)) {
+    std::cout << "bench table1: " << def.name << ": skipped: " << why << "\n";
+    row["status"] = "skipped";
+    row["reason"] = why;
+    return false;
+  }
+  const auto t_load = std::chrono::steady_clock::now();
+  const runtime::LoadedScene scene = runtime::loadScene(spec);
+  const double load_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t_load).count();
+  const int run_ticks = large == 0 ? ticks : large == 1 ? std::max(1000, ticks / 4) : std::max(500, ticks / 10);
+  std::cout << "bench table1: " << row["name"].get<std::string>() << ": " << spec.volume.path << " ("
+            << scene.volume.field->geometry().dims[0] << " x " << scene.volume.field->geometry().dims[1] << " x "
+            << scene.volume.field->geometry().dims[2] << ", isovalue " << scene.isovalue << "), "
+            << def.tool_label << ", " << scene.tool->point_shell.size() << " points (paper "
+            << row["paper_points"].get<std::size_t>() << "); loaded in " << num(load_s, 1) << " s; "
+            << run_ticks << " ticks ..." << std::endl;
+  const auto t_run = std::chrono::steady_clock::now();
+  runScene(scene, scene.tool, variants, run_ticks, locations, large ? 5 : 1, verify_step_voxels, row, series);
+  row["load_s"] = load_s;
+  row["run_s"] = std::chrono::duration<double>(std::chrono::steady_clock::now() - t_run).count();
+  printRowResults(row);
+  return true;
+}
+
+/// The Markdown's heading and the paragraph on how the run was made.
+void writeMarkdownIntro(std::ostringstream& md, const nlohmann::ordered_json& report, const Table1Options& options,
+                        int ticks, bool short_run, bool verified) {
+  md << "## Table 1 (`volume-haptics bench table1" << (short_run ? " --short" : "") << "`)\n\n";
+  md << "Run " << report["date_utc"].get<std::string>() << " on " << report["cpu_model"].get<std::string>() << " ("
+     << cpuCount() << " CPUs, " << report["build"].get<std::string>() << "); the paper: "
+     << report["paper_machine"].get<std::string>() << ". " << ticks
+     << " ticks per scene and mode at a simulated 1 kHz, modes interleaved tick by tick; times are "
+        "TickStats::exec_time_us (wall) of one tick on one core; the CPU-time column is the thread's CPU time "
+        "around tick(), which a busy machine's preemption does not inflate. Every mode uses the exact segment "
+        "test except \"accelerated (end-sample, before)\", the earlier end-sample test. "
+     << (verified ? format("Crossings: ticks in which haptics::CrossingVerifier, sampling each shell point's path "
+                           "over the tick every %g voxel outside the timed section, found a point carried from "
+                           "outside into the isosurface.",
+                           options.verify_step_voxels)
+                  : std::string("Crossings: not checked (--verify-step 0)."))
+     << "\n\n";
+}
+
+/// The main table: one line per scene and mode (a skipped scene: one line with the reason).
+void writeTimesTable(std::ostringstream& md, const nlohmann::ordered_json& rows) {
+  md << "| scene | tool | points (paper) | mode | mean [us] | p50 | p99 | p99.9 | max [us] | paper mean (max) [us] | "
+        "CPU time mean / max [us] | contacts mean / max | samples / tick | max penetration [mm] (epsilon) | "
+        "crossings |\n";
+  md << "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n";
+  for (const auto& row : rows) {
+    if (row["status"] != "ran") {
+      md << "| " << row["name"].get<std::string>() << " | " << row["tool"].get<std::string>()
+         << " | | skipped | " << row["reason"].get<std::string>() << " | | | | | | | | | | |\n";
+      continue;
+    }
+    for (const auto& [mode, m] : row["modes"].items()) {
+      const bool large = row["large_tool"].get<bool>();
+      md << "| " << row["name"].get<std::string>() << " | " << row["tool"].get<std::string>() << " | "
+         << row["points"].get<std::size_t>() << " (" << row["paper_points"].get<std::size_t>() << ") | "
+         << m["label"].get<std::string>() << " | " << num(m["mean_us"], 1) << " | " << num(m["p50_us"], 1) << " | "
+         << num(m["p99_us"], 1) << " | " << num(m["p99_9_us"], 1) << " | " << num(m["max_us"], 1) << " | "
+         << (large ? std::string("-")
+                   : num(row["paper"]["mean_us"]) + " (" + num(row["paper"]["max_us"]) + ")")
+         << " | " << num(m["cpu_mean_us"], 1) << " / " << num(m["cpu_max_us"], 1) << " | " << num(m["mean_contacts"], 2) << " / " << num(m["max_contacts"]) << " | "
+         << num(m["mean_volume_samples"]) << " | " << num(1e3 * m["max_penetration_m"].get<double>(), 4) << " ("
+         << num(1e3 * row["epsilon_m"].get<double>(), 4) << ") | " << crossingsText(m) << " |\n";
+    }
+  }
+}
+
+/// "Never behind": the full solve inside the 1 ms servo period, the budget and the deadline only
+/// a last line. Targets: the paper's four scenes, 0 ticks cut and every tick under 1 ms; the
+/// 20,000-point tools, lag <= 1 mm and <= 0.01 rad behind the full solve and every tick under
+/// 1 ms; the 50,000-point tools reported. Adds each verdict to its row ("never_behind").
+/// `load_threads`: the busy threads beside the run (--load). @return false (and writes nothing)
+/// when no row ran the accelerated mode with a budget or a deadline.
+bool writeNeverBehindTable(std::ostringstream& md, nlohmann::ordered_json& rows, int load_threads) {
+  bool any_budget = false;
+  for (const auto& row : rows)
+    any_budget = any_budget || (row["status"] == "ran" && row["modes"].contains("accelerated") &&
+                                row["modes"]["accelerated"].contains("budget_cuts"));
+  if (!any_budget) return false;
+  md << "\nNever behind: the accelerated mode as the application runs it (work budget, deadline, lanes) beside the "
+        "same without budget or deadline (the full solve). Wall and thread CPU time per tick (the caller's thread; "
+        "the lanes' threads run beside it), the ticks the budget or the deadline cut and the lag behind the full "
+        "solve's proxy on the same device samples. Targets: the paper's scenes 0 ticks cut and max < 1000 us; "
+        "20,000-point tools lag <= 1 mm and <= 0.01 rad and max < 1000 us; 50,000-point tools reported"
+     << (load_threads > 0 ? format("; %d busy threads ran beside it (--load)", load_threads) : std::string())
+     << ":\n\n";
+  md << "| scene | points | lanes | budget / deadline [us] | wall mean / p99.9 / max [us] | CPU mean / p99.9 / max [us] "
+        "| full solve wall p99.9 / max, CPU max [us] | ticks cut (by the deadline) | lag max [mm] / [rad] | target | met |\n"
+        "|---|---|---|---|---|---|---|---|---|---|---|\n";
+  for (auto& row : rows) {
+    if (row["status"] != "ran" || !row["modes"].contains("accelerated")) continue;
+    const auto& a = row["modes"]["accelerated"];
+    if (!a.contains("budget_cuts")) continue;
+    const bool large = row["large_tool"].get<bool>();
+    const bool fifty = row["points"].get<std::size_t>() > 30000;
+    const double mx = std::max(a["max_us"].get<double>(), a["cpu_max_us"].get<double>());
+    const double cuts = a["budget_cuts"], lag_m = a["max_lag_m"], lag_rad = a["max_lag_rad"];
+    std::string full = "-";
+    if (row["modes"].contains(kUnbudgetedKey)) {
+      const auto& u = row["modes"][kUnbudgetedKey];
+      full = num(u["p99_9_us"], 1) + " / " + num(u["max_us"], 1) + ", " + num(u["cpu_max_us"], 1);
+    }
+    const std::string target = !large ? "0 cut, max < 1000" : fifty ? "reported" : "lag <= 1 mm, 0.01 rad; max < 1000";
+    const bool met = !large ? (cuts == 0.0 && mx < 1000.0)
+                     : fifty ? true
+                             : (lag_m <= 1e-3 && lag_rad <= 0.01 && mx < 1000.0);
+    md << "| " << row["name"].get<std::string>() << " | " << row["points"].get<std::size_t>() << " | "
+       << num(a["lanes"]) << " | " << num(a["work_budget"]) << " / "
+       << (a.contains("deadline_us") ? num(a["deadline_us"]) : std::string("-")) << " | " << num(a["mean_us"], 1)
+       << " / " << num(a["p99_9_us"], 1) << " / " << num(a["max_us"], 1) << " | " << num(a["cpu_mean_us"], 1)
+       << " / " << num(a["cpu_p99_9_us"], 1) << " / " << num(a["cpu_max_us"], 1) << " | " << full << " | "
+       << num(cuts) << " (" << num(a["deadline_cuts"]) << ") | " << num(1e3 * lag_m, 3) << " / " << num(lag_rad, 4)
+       << " | " << target << " | " << (fifty ? "-" : met ? "yes" : "NO") << " |\n";
+    // Last: a new key moves row's members (ordered_map), which `a` refers into.
+    row["never_behind"] = {{"target", target}, {"met", met}};
+  }
+  return true;
+}
+
+/// Scaling: the full solve on each lane count of --lanes-sweep, side by side in one run (nothing
+/// without --lanes-sweep).
+void writeScalingTable(std::ostringstream& md, const nlohmann::ordered_json& rows, const Table1Options& options) {
+  if (options.lane_sweep.empty()) return;
+  md << "\nScaling: the accelerated mode without budget or deadline on 1 to N lanes (cores), interleaved tick by "
+        "tick in one run on "
+     << cpuCount() << " CPUs"
+     << (options.load > 0 ? format(" with %d busy threads beside it", options.load) : std::string())
+     << "; speed-up = the first lane count's time / this one's; paper / this = the paper mode's mean in the same "
+        "run / this mean (where the paper mode ran):\n\n";
+  md << "| scene | points | lanes | wall mean / p99.9 / max [us] | ticks over 1 ms | speed-up mean / max | paper / this (mean) |\n"
+        "|---|---|---|---|---|---|---|\n";
+  for (const auto& row : rows) {
+    if (row["status"] != "ran") continue;
+    const std::string first_key = "accelerated-lanes-" + std::to_string(options.lane_sweep.front());
+    if (!row["modes"].contains(first_key)) continue;
+    const auto& f = row["modes"][first_key];
+    for (const int n : options.lane_sweep) {
+      const auto& m = row["modes"]["accelerated-lanes-" + std::to_string(n)];
+      const double mean = m["mean_us"], mx = m["max_us"];
+      md << "| " << row["name"].get<std::string>() << " | " << row["points"].get<std::size_t>() << " | " << n << " | "
+         << num(mean, 1) << " / " << num(m["p99_9_us"], 1) << " / " << num(mx, 1) << " | " << num(m["ticks_over_1ms"])
+         << " | " << num(f["mean_us"].get<double>() / mean, 2) << "x / " << num(f["max_us"].get<double>() / mx, 2)
+         << "x | "
+         << (row["modes"].contains("paper") ? num(row["modes"]["paper"]["mean_us"].get<double>() / mean, 1) + "x"
+                                            : std::string("-"))
+         << " |\n";
+    }
+  }
+}
+
+/// Speed-up of the accelerated path over the paper's, per scene where both modes ran.
+void writeSpeedupTable(std::ostringstream& md, const nlohmann::ordered_json& rows) {
+  bool any_ratio = false;
+  for (const auto& row : rows) any_ratio = any_ratio || row.contains("ratio_paper_over_accelerated");
+  if (!any_ratio) return;
+  md << "\nSpeed-up of the accelerated path (paper-mode time / accelerated-mode time, same run):\n\n";
+  md << "| scene | mean | p99 | max | volume samples | max proxy difference between modes [mm] |\n|---|---|---|---|---|---|\n";
+  for (const auto& row : rows) {
+    if (!row.contains("ratio_paper_over_accelerated")) continue;
+    const auto& r = row["ratio_paper_over_accelerated"];
+    md << "| " << row["name"].get<std::string>() << " | " << num(r["mean"], 2) << "x | " << num(r["p99"], 2)
+       << "x | " << num(r["max"], 2) << "x | " << num(r["volume_samples"], 2) << "x | "
+       << num(1e3 * row["max_proxy_difference_between_modes_m"].get<double>(), 4) << " |\n";
+  }
+}
+
+/// The exact segment test (after) against the earlier end sample (before), per scene where the
+/// "before" column ran, and the 1.3x target's verdict.
+void writeBeforeAfterTable(std::ostringstream& md, const nlohmann::ordered_json& rows) {
+  bool any_before = false;
+  for (const auto& row : rows) any_before = any_before || row.contains("ratio_exact_over_end_sample");
+  if (!any_before) return;
+  int met = 0, compared = 0;
+  std::string over;
+  md << "\nBefore and after the exact segment test, accelerated mode, same run, thread CPU time per "
+        "tick; ratio: exact / end-sample:\n\n";
+  md << "| scene | end-sample (before) mean / p99.9 / max [us] | exact (after) mean / p99.9 / max [us] | "
+        "mean ratio | cells / tick (exact) | crossings before / after | max proxy difference [mm] |\n"
+        "|---|---|---|---|---|---|---|\n";
+  for (const auto& row : rows) {
+    if (!row.contains("ratio_exact_over_end_sample")) continue;
+    const auto& a = row["modes"]["accelerated"];
+    const auto& b = row["modes"][kBeforeKey];
+    const auto& q = row["ratio_exact_over_end_sample"];
+    ++compared;
+    if (q["within_1_3x"].get<bool>()) ++met;
+    else over += (over.empty() ? "" : ", ") + row["name"].get<std::string>() + " " + num(q["cpu_mean"], 2) + "x";
+    md << "| " << row["name"].get<std::string>() << " | " << num(b["cpu_mean_us"], 1) << " / "
+       << num(b["cpu_p99_9_us"], 1) << " / " << num(b["cpu_max_us"], 1) << " | " << num(a["cpu_mean_us"], 1)
+       << " / " << num(a["cpu_p99_9_us"], 1) << " / " << num(a["cpu_max_us"], 1) << " | "
+       << num(q["cpu_mean"], 2) << "x | " << num(a["mean_cells"], 1) << " | " << crossingsText(b) << " / "
+       << crossingsText(a) << " | " << num(1e3 * row["max_proxy_difference_exact_vs_end_sample_m"].get<double>(), 4)
+       << " |\n";
+  }
+  md << "\nExact segment test target: the accelerated mode's mean with the exact test within 1.3x of the "
+        "end sample's on every scene: met on "
+     << met << " of " << compared << (over.empty() ? std::string("") : " (over: " + over + ")") << ".\n";
+}
+
+/// The PNG charts: each scene's tick times, and the mean and worst tick per scene of the paper's
+/// tools beside the paper's figures. @return the files written (in `out`).
+std::vector<std::string> table1Plots(const fs::path& out,
+                                     const std::vector<std::pair<std::string, std::vector<Series>>>& scene_plots,
+                                     const nlohmann::ordered_json& rows, const std::vector<std::string>& mode_names,
+                                     const std::vector<std::string>& mode_labels) {
+  std::vector<std::string> plots;
+  for (const auto& [name, series] : scene_plots) {
+    std::string file = "table1_" + lower(name) + ".png";
+    std::replace(file.begin(), file.end(), ' ', '_');
+    file.erase(std::remove_if(file.begin(), file.end(), [](char c) { return c == '(' || c == ')'; }), file.end());
+    if (plotXY(out / file, name + ": tick time (max per bin)", "tick", "exec time [us]", series, false, true))
+      plots.push_back(file);
+  }
+  std::vector<std::string> cats;
+  std::vector<Series> mean_series{{"paper (2.67 GHz i7)", {}, {}}}, max_series{{"paper (2.67 GHz i7)", {}, {}}};
+  for (std::size_t k = 0; k < mode_labels.size(); ++k) {
+    const std::string name = "ours, " + mode_labels[k] + (mode_names[k] == kBeforeKey ? "" : " mode");
+    mean_series.push_back({name, {}, {}});
+    max_series.push_back({name, {}, {}});
+  }
+  for (const auto& row : rows) {
+    if (row["status"] != "ran" || row["large_tool"].get<bool>()) continue;
+    cats.push_back(row["name"].get<std::string>());
+    mean_series[0].y.push_back(row["paper"]["mean_us"]);
+    max_series[0].y.push_back(row["paper"]["max_us"]);
+    for (std::size_t k = 0; k < mode_names.size(); ++k) {
+      mean_series[k + 1].y.push_back(row["modes"][mode_names[k]]["mean_us"]);
+      max_series[k + 1].y.push_back(row["modes"][mode_names[k]]["max_us"]);
+    }
+  }
+  if (!cats.empty()) {
+    if (plotBars(out / "table1_mean.png", "Mean tick time per scene", cats, "mean [us]", mean_series, true))
+      plots.push_back("table1_mean.png");
+    if (plotBars(out / "table1_max.png", "Worst tick per scene", cats, "max [us]", max_series, true))
+      plots.push_back("table1_max.png");
+  }
+  return plots;
+}
+
+}  // namespace
+
+fs::path runTable1(const Table1Options& options) {
+  const fs::path out = outputDir(options.common, "table1");
+  const bool short_run = options.common.short_run;
+  const int ticks = options.ticks > 0 ? options.ticks : (short_run ? 1000 : 20000);
+  const int locations = short_run ? 1 : 4;
+  if (!(options.verify_step_voxels >= 0.0) || !std::isfinite(options.verify_step_voxels))
+    throw std::runtime_error("the crossing-check step must be >= 0 voxels (0: off)");
+  const bool verified = options.verify_step_voxels > 0.0;
+  const int lanes = options.lanes > 0 ? options.lanes : runtime::defaultSolverLanes();
+  const double deadline_us = options.deadline_us < 0.0 ? runtime::solverDeadline_us(1000.0) : options.deadline_us;
+  if (options.load < 0 || options.load > 256) throw std::runtime_error("--load must be in [0, 256] threads");
+  // A loaded machine: busy threads beside the run until it ends.
+  BusyLoad load(options.load);
+  const std::vector<Variant> variants = table1Variants(options, lanes, deadline_us);
+  const std::vector<SceneDef> defs = selectScenes(options.scene);
 
   nlohmann::ordered_json report = reportHeader("table1", short_run);
   report["ticks_per_run"] = ticks;
@@ -611,307 +1008,27 @@ fs::path runTable1(const Table1Options& options) {
   for (const SceneDef& def : defs) {
     for (int large = 0; large < 3; ++large) {
       if (large && (short_run || !options.large_tools || (def.name != "Bone" && def.name != "Engine"))) continue;
-      // The paper's tool, then the same tool resampled to 20,000 and 50,000 points.
-      const int large_points = large == 1 ? 20000 : 50000;
       nlohmann::ordered_json row;
-      row["name"] = large == 0 ? def.name : large == 1 ? def.name + " (large tool)" : def.name + " (50k tool)";
-      row["large_tool"] = large > 0;
-      row["volume"] = def.volume;
-      row["tool"] = def.tool_label;
-      row["tool_mesh"] = def.tool_mesh;
-      row["paper_points"] = large ? large_points : def.paper_points;
-      row["paper"] = {{"mean_us", large ? 0.0 : def.paper_mean_us},
-                      {"max_us", large ? 0.0 : def.paper_max_us},
-                      {"resolution", def.paper_resolution}};
-      // Resolve the data.
-      runtime::SceneSpec spec;
-      std::string why;
-      std::optional<fs::path> volume_path;
-      if (def.volume.rfind("builtin:", 0) == 0) {
-        spec.volume.path = def.volume;
-      } else if (def.from_archive) {
-        volume_path = findOrUnpackBunny(why);
-      } else {
-        const fs::path p = runtime::sharedDatasetsDir() / def.volume;
-        if (fs::exists(p)) volume_path = p;
-        else why = p.string() + " is absent";
-      }
-      if (def.volume.rfind("builtin:", 0) != 0) {
-        if (!volume_path) {
-          std::cout << "bench table1: " << def.name << ": skipped: " << why << "\n";
-          row["status"] = "skipped";
-          row["reason"] = why;
-          rows.push_back(row);
-          continue;
-        }
-        spec.volume.path = volume_path->string();
-      }
-      if (def.tool_mesh.rfind("builtin:", 0) == 0) {
-        spec.tool.mesh = def.tool_mesh;
-      } else {
-        const fs::path p = runtime::sharedDatasetsDir() / def.tool_mesh;
-        if (!fs::exists(p)) {
-          std::cout << "bench table1: " << def.name << ": skipped: " << p.string() << " is absent\n";
-          row["status"] = "skipped";
-          row["reason"] = p.string() + " is absent";
-          rows.push_back(row);
-          continue;
-        }
-        spec.tool.mesh = p.string();
-      }
-      if (def.isovalue) {
-        spec.volume.isovalue = *def.isovalue;
-        spec.volume.isovalue_set = true;
-      }
-      spec.tool.scale_to_m = def.tool_scale_to_m;
-      spec.tool.point_count = large ? large_points : def.paper_points;
-      spec.tool.X_WT_initial.R_AB = def.R_WT;
-      spec.tool.initial_orientation_set = true;
-      const auto t_load = std::chrono::steady_clock::now();
-      const runtime::LoadedScene scene = runtime::loadScene(spec);
-      const double load_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t_load).count();
-      const int run_ticks = large == 0 ? ticks : large == 1 ? std::max(1000, ticks / 4) : std::max(500, ticks / 10);
-      std::cout << "bench table1: " << row["name"].get<std::string>() << ": " << spec.volume.path << " ("
-                << scene.volume.field->geometry().dims[0] << " x " << scene.volume.field->geometry().dims[1] << " x "
-                << scene.volume.field->geometry().dims[2] << ", isovalue " << scene.isovalue << "), "
-                << def.tool_label << ", " << scene.tool->point_shell.size() << " points (paper "
-                << row["paper_points"].get<std::size_t>() << "); loaded in " << num(load_s, 1) << " s; "
-                << run_ticks << " ticks ..." << std::endl;
       std::vector<Series> series;
-      const auto t_run = std::chrono::steady_clock::now();
-      runScene(scene, scene.tool, variants, run_ticks, locations, large ? 5 : 1, options.verify_step_voxels, row,
-               series);
-      row["load_s"] = load_s;
-      row["run_s"] = std::chrono::duration<double>(std::chrono::steady_clock::now() - t_run).count();
-      for (const auto& [mode, m] : row["modes"].items()) {
-        std::cout << "  " << m["label"].get<std::string>() << ": mean " << num(m["mean_us"], 1) << " us, p50 " << num(m["p50_us"], 1)
-                  << ", p99 " << num(m["p99_us"], 1) << ", p99.9 " << num(m["p99_9_us"], 1) << ", max "
-                  << num(m["max_us"], 1) << " us (CPU mean " << num(m["cpu_mean_us"], 1) << ", max "
-                  << num(m["cpu_max_us"], 1) << "); contacts mean " << num(m["mean_contacts"], 2) << " max "
-                  << num(m["max_contacts"]) << "; samples/tick " << num(m["mean_volume_samples"]) << "; penetration "
-                  << num(1e3 * m["max_penetration_m"].get<double>(), 4) << " mm; crossings "
-                  << crossingsText(m) << "\n";
-        if (m.contains("work_budget"))
-          std::cout << "    work budget " << num(m["work_budget"]) << ": max work " << num(m["max_work"]) << ", "
-                    << num(m["budget_cuts"]) << " ticks cut; lag behind the unbudgeted proxy: max "
-                    << num(1e3 * m["max_lag_m"].get<double>(), 4) << " mm, " << num(m["max_lag_rad"].get<double>(), 4)
-                    << " rad, " << num(m["lag_ticks"]) << " ticks\n";
-      }
-      if (row.contains("ratio_paper_over_accelerated"))
-        std::cout << "  paper / accelerated: mean " << num(row["ratio_paper_over_accelerated"]["mean"], 2)
-                  << "x, max " << num(row["ratio_paper_over_accelerated"]["max"], 2) << "x\n";
-      if (row.contains("ratio_exact_over_end_sample")) {
-        const auto& a = row["modes"]["accelerated"];
-        const auto& b = row["modes"][kBeforeKey];
-        const auto& q = row["ratio_exact_over_end_sample"];
-        std::cout << "  exact / end-sample (before), accelerated, CPU time: mean " << num(a["cpu_mean_us"], 1)
-                  << " / " << num(b["cpu_mean_us"], 1) << " us = " << num(q["cpu_mean"], 2) << "x"
-                  << (q["within_1_3x"].get<bool>() ? " (within 1.3x)" : " (OVER 1.3x)") << ", p99.9 "
-                  << num(a["cpu_p99_9_us"], 1) << " / " << num(b["cpu_p99_9_us"], 1) << " us, max "
-                  << num(a["cpu_max_us"], 1) << " / " << num(b["cpu_max_us"], 1) << " us; crossings "
-                  << crossingsText(a) << " / " << crossingsText(b) << "\n";
-      }
-      scene_plots.emplace_back(row["name"].get<std::string>(), std::move(series));
+      if (runTableRow(def, large, variants, ticks, locations, options.verify_step_voxels, row, series))
+        scene_plots.emplace_back(row["name"].get<std::string>(), std::move(series));
       rows.push_back(row);
     }
   }
   report["scenes"] = rows;
 
-  // Markdown.
   std::ostringstream md;
-  md << "## Table 1 (`volume-haptics bench table1" << (short_run ? " --short" : "") << "`)\n\n";
-  md << "Run " << report["date_utc"].get<std::string>() << " on " << report["cpu_model"].get<std::string>() << " ("
-     << cpuCount() << " CPUs, " << report["build"].get<std::string>() << "); the paper: "
-     << report["paper_machine"].get<std::string>() << ". " << ticks
-     << " ticks per scene and mode at a simulated 1 kHz, modes interleaved tick by tick; times are "
-        "TickStats::exec_time_us (wall) of one tick on one core; the CPU-time column is the thread's CPU time "
-        "around tick(), which a busy machine's preemption does not inflate. Every mode uses the exact segment "
-        "test except \"accelerated (end-sample, before)\", the earlier end-sample test. "
-     << (verified ? format("Crossings: ticks in which haptics::CrossingVerifier, sampling each shell point's path "
-                           "over the tick every %g voxel outside the timed section, found a point carried from "
-                           "outside into the isosurface.",
-                           options.verify_step_voxels)
-                  : std::string("Crossings: not checked (--verify-step 0)."))
-     << "\n\n";
-  md << "| scene | tool | points (paper) | mode | mean [us] | p50 | p99 | p99.9 | max [us] | paper mean (max) [us] | "
-        "CPU time mean / max [us] | contacts mean / max | samples / tick | max penetration [mm] (epsilon) | "
-        "crossings |\n";
-  md << "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n";
-  for (const auto& row : rows) {
-    if (row["status"] != "ran") {
-      md << "| " << row["name"].get<std::string>() << " | " << row["tool"].get<std::string>()
-         << " | | skipped | " << row["reason"].get<std::string>() << " | | | | | | | | | | |\n";
-      continue;
-    }
-    for (const auto& [mode, m] : row["modes"].items()) {
-      const bool large = row["large_tool"].get<bool>();
-      md << "| " << row["name"].get<std::string>() << " | " << row["tool"].get<std::string>() << " | "
-         << row["points"].get<std::size_t>() << " (" << row["paper_points"].get<std::size_t>() << ") | "
-         << m["label"].get<std::string>() << " | " << num(m["mean_us"], 1) << " | " << num(m["p50_us"], 1) << " | "
-         << num(m["p99_us"], 1) << " | " << num(m["p99_9_us"], 1) << " | " << num(m["max_us"], 1) << " | "
-         << (large ? std::string("-")
-                   : num(row["paper"]["mean_us"]) + " (" + num(row["paper"]["max_us"]) + ")")
-         << " | " << num(m["cpu_mean_us"], 1) << " / " << num(m["cpu_max_us"], 1) << " | " << num(m["mean_contacts"], 2) << " / " << num(m["max_contacts"]) << " | "
-         << num(m["mean_volume_samples"]) << " | " << num(1e3 * m["max_penetration_m"].get<double>(), 4) << " ("
-         << num(1e3 * row["epsilon_m"].get<double>(), 4) << ") | " << crossingsText(m) << " |\n";
-    }
-  }
-  // "Never behind": the full solve inside the 1 ms servo period, the budget and the deadline only
-  // a last line. Targets: the paper's four scenes, 0 ticks cut and every tick under 1 ms; the
-  // 20,000-point tools, lag <= 1 mm and <= 0.01 rad behind the full solve and every tick under
-  // 1 ms; the 50,000-point tools reported.
-  bool any_budget = false;
-  for (const auto& row : rows)
-    any_budget = any_budget || (row["status"] == "ran" && row["modes"].contains("accelerated") &&
-                                row["modes"]["accelerated"].contains("budget_cuts"));
-  if (any_budget) {
-    md << "\nNever behind: the accelerated mode as the application runs it (work budget, deadline, lanes) beside the "
-          "same without budget or deadline (the full solve). Wall and thread CPU time per tick (the caller's thread; "
-          "the lanes' threads run beside it), the ticks the budget or the deadline cut and the lag behind the full "
-          "solve's proxy on the same device samples. Targets: the paper's scenes 0 ticks cut and max < 1000 us; "
-          "20,000-point tools lag <= 1 mm and <= 0.01 rad and max < 1000 us; 50,000-point tools reported"
-       << (options.load > 0 ? format("; %d busy threads ran beside it (--load)", options.load) : std::string())
-       << ":\n\n";
-    md << "| scene | points | lanes | budget / deadline [us] | wall mean / p99.9 / max [us] | CPU mean / p99.9 / max [us] "
-          "| full solve wall p99.9 / max, CPU max [us] | ticks cut (by the deadline) | lag max [mm] / [rad] | target | met |\n"
-          "|---|---|---|---|---|---|---|---|---|---|---|\n";
-    for (auto& row : rows) {
-      if (row["status"] != "ran" || !row["modes"].contains("accelerated")) continue;
-      const auto& a = row["modes"]["accelerated"];
-      if (!a.contains("budget_cuts")) continue;
-      const bool large = row["large_tool"].get<bool>();
-      const bool fifty = row["points"].get<std::size_t>() > 30000;
-      const double mx = std::max(a["max_us"].get<double>(), a["cpu_max_us"].get<double>());
-      const double cuts = a["budget_cuts"], lag_m = a["max_lag_m"], lag_rad = a["max_lag_rad"];
-      std::string full = "-";
-      if (row["modes"].contains(kUnbudgetedKey)) {
-        const auto& u = row["modes"][kUnbudgetedKey];
-        full = num(u["p99_9_us"], 1) + " / " + num(u["max_us"], 1) + ", " + num(u["cpu_max_us"], 1);
-      }
-      const std::string target = !large ? "0 cut, max < 1000" : fifty ? "reported" : "lag <= 1 mm, 0.01 rad; max < 1000";
-      const bool met = !large ? (cuts == 0.0 && mx < 1000.0)
-                       : fifty ? true
-                               : (lag_m <= 1e-3 && lag_rad <= 0.01 && mx < 1000.0);
-      md << "| " << row["name"].get<std::string>() << " | " << row["points"].get<std::size_t>() << " | "
-         << num(a["lanes"]) << " | " << num(a["work_budget"]) << " / "
-         << (a.contains("deadline_us") ? num(a["deadline_us"]) : std::string("-")) << " | " << num(a["mean_us"], 1)
-         << " / " << num(a["p99_9_us"], 1) << " / " << num(a["max_us"], 1) << " | " << num(a["cpu_mean_us"], 1)
-         << " / " << num(a["cpu_p99_9_us"], 1) << " / " << num(a["cpu_max_us"], 1) << " | " << full << " | "
-         << num(cuts) << " (" << num(a["deadline_cuts"]) << ") | " << num(1e3 * lag_m, 3) << " / " << num(lag_rad, 4)
-         << " | " << target << " | " << (fifty ? "-" : met ? "yes" : "NO") << " |\n";
-      // Last: a new key moves row's members (ordered_map), which `a` refers into.
-      row["never_behind"] = {{"target", target}, {"met", met}};
-    }
-    report["scenes"] = rows;  // with the never_behind verdicts
-  }
-  // Scaling: the full solve on each lane count of --lanes-sweep, side by side in one run.
-  if (!options.lane_sweep.empty()) {
-    md << "\nScaling: the accelerated mode without budget or deadline on 1 to N lanes (cores), interleaved tick by "
-          "tick in one run on "
-       << cpuCount() << " CPUs"
-       << (options.load > 0 ? format(" with %d busy threads beside it", options.load) : std::string())
-       << "; speed-up = the first lane count's time / this one's; paper / this = the paper mode's mean in the same "
-          "run / this mean (where the paper mode ran):\n\n";
-    md << "| scene | points | lanes | wall mean / p99.9 / max [us] | ticks over 1 ms | speed-up mean / max | paper / this (mean) |\n"
-          "|---|---|---|---|---|---|---|\n";
-    for (const auto& row : rows) {
-      if (row["status"] != "ran") continue;
-      const std::string first_key = "accelerated-lanes-" + std::to_string(options.lane_sweep.front());
-      if (!row["modes"].contains(first_key)) continue;
-      const auto& f = row["modes"][first_key];
-      for (const int n : options.lane_sweep) {
-        const auto& m = row["modes"]["accelerated-lanes-" + std::to_string(n)];
-        const double mean = m["mean_us"], mx = m["max_us"];
-        md << "| " << row["name"].get<std::string>() << " | " << row["points"].get<std::size_t>() << " | " << n << " | "
-           << num(mean, 1) << " / " << num(m["p99_9_us"], 1) << " / " << num(mx, 1) << " | " << num(m["ticks_over_1ms"])
-           << " | " << num(f["mean_us"].get<double>() / mean, 2) << "x / " << num(f["max_us"].get<double>() / mx, 2)
-           << "x | "
-           << (row["modes"].contains("paper") ? num(row["modes"]["paper"]["mean_us"].get<double>() / mean, 1) + "x"
-                                              : std::string("-"))
-           << " |\n";
-      }
-    }
-  }
-  bool any_ratio = false, any_before = false;
-  for (const auto& row : rows) {
-    any_ratio = any_ratio || row.contains("ratio_paper_over_accelerated");
-    any_before = any_before || row.contains("ratio_exact_over_end_sample");
-  }
-  if (any_ratio) {
-    md << "\nSpeed-up of the accelerated path (paper-mode time / accelerated-mode time, same run):\n\n";
-    md << "| scene | mean | p99 | max | volume samples | max proxy difference between modes [mm] |\n|---|---|---|---|---|---|\n";
-    for (const auto& row : rows) {
-      if (!row.contains("ratio_paper_over_accelerated")) continue;
-      const auto& r = row["ratio_paper_over_accelerated"];
-      md << "| " << row["name"].get<std::string>() << " | " << num(r["mean"], 2) << "x | " << num(r["p99"], 2)
-         << "x | " << num(r["max"], 2) << "x | " << num(r["volume_samples"], 2) << "x | "
-         << num(1e3 * row["max_proxy_difference_between_modes_m"].get<double>(), 4) << " |\n";
-    }
-  }
-  if (any_before) {
-    int met = 0, compared = 0;
-    std::string over;
-    md << "\nBefore and after the exact segment test, accelerated mode, same run, thread CPU time per "
-          "tick; ratio: exact / end-sample:\n\n";
-    md << "| scene | end-sample (before) mean / p99.9 / max [us] | exact (after) mean / p99.9 / max [us] | "
-          "mean ratio | cells / tick (exact) | crossings before / after | max proxy difference [mm] |\n"
-          "|---|---|---|---|---|---|---|\n";
-    for (const auto& row : rows) {
-      if (!row.contains("ratio_exact_over_end_sample")) continue;
-      const auto& a = row["modes"]["accelerated"];
-      const auto& b = row["modes"][kBeforeKey];
-      const auto& q = row["ratio_exact_over_end_sample"];
-      ++compared;
-      if (q["within_1_3x"].get<bool>()) ++met;
-      else over += (over.empty() ? "" : ", ") + row["name"].get<std::string>() + " " + num(q["cpu_mean"], 2) + "x";
-      md << "| " << row["name"].get<std::string>() << " | " << num(b["cpu_mean_us"], 1) << " / "
-         << num(b["cpu_p99_9_us"], 1) << " / " << num(b["cpu_max_us"], 1) << " | " << num(a["cpu_mean_us"], 1)
-         << " / " << num(a["cpu_p99_9_us"], 1) << " / " << num(a["cpu_max_us"], 1) << " | "
-         << num(q["cpu_mean"], 2) << "x | " << num(a["mean_cells"], 1) << " | " << crossingsText(b) << " / "
-         << crossingsText(a) << " | " << num(1e3 * row["max_proxy_difference_exact_vs_end_sample_m"].get<double>(), 4)
-         << " |\n";
-    }
-    md << "\nExact segment test target: the accelerated mode's mean with the exact test within 1.3x of the "
-          "end sample's on every scene: met on "
-       << met << " of " << compared << (over.empty() ? std::string("") : " (over: " + over + ")") << ".\n";
-  }
+  writeMarkdownIntro(md, report, options, ticks, short_run, verified);
+  writeTimesTable(md, rows);
+  if (writeNeverBehindTable(md, rows, options.load)) report["scenes"] = rows;  // with the never_behind verdicts
+  writeScalingTable(md, rows, options);
+  writeSpeedupTable(md, rows);
+  writeBeforeAfterTable(md, rows);
   md << "\nSpeed targets: mean at most a tenth of the paper's (Bunny 21, Engine 78, Hole 41, Bone 26 us), max "
         "under 250 us; a 20,000-point tool on Bone and Engine: mean under 200 us, max under 1000 us.\n";
 
-  // Plots.
   std::vector<std::string> plots;
-  if (options.common.plots) {
-    for (const auto& [name, series] : scene_plots) {
-      std::string file = "table1_" + lower(name) + ".png";
-      std::replace(file.begin(), file.end(), ' ', '_');
-      file.erase(std::remove_if(file.begin(), file.end(), [](char c) { return c == '(' || c == ')'; }), file.end());
-      if (plotXY(out / file, name + ": tick time (max per bin)", "tick", "exec time [us]", series, false, true))
-        plots.push_back(file);
-    }
-    std::vector<std::string> cats;
-    std::vector<Series> mean_series{{"paper (2.67 GHz i7)", {}, {}}}, max_series{{"paper (2.67 GHz i7)", {}, {}}};
-    for (std::size_t k = 0; k < mode_labels.size(); ++k) {
-      const std::string name = "ours, " + mode_labels[k] + (mode_names[k] == kBeforeKey ? "" : " mode");
-      mean_series.push_back({name, {}, {}});
-      max_series.push_back({name, {}, {}});
-    }
-    for (const auto& row : rows) {
-      if (row["status"] != "ran" || row["large_tool"].get<bool>()) continue;
-      cats.push_back(row["name"].get<std::string>());
-      mean_series[0].y.push_back(row["paper"]["mean_us"]);
-      max_series[0].y.push_back(row["paper"]["max_us"]);
-      for (std::size_t k = 0; k < mode_names.size(); ++k) {
-        mean_series[k + 1].y.push_back(row["modes"][mode_names[k]]["mean_us"]);
-        max_series[k + 1].y.push_back(row["modes"][mode_names[k]]["max_us"]);
-      }
-    }
-    if (!cats.empty()) {
-      if (plotBars(out / "table1_mean.png", "Mean tick time per scene", cats, "mean [us]", mean_series, true))
-        plots.push_back("table1_mean.png");
-      if (plotBars(out / "table1_max.png", "Worst tick per scene", cats, "max [us]", max_series, true))
-        plots.push_back("table1_max.png");
-    }
-  }
+  if (options.common.plots) plots = table1Plots(out, scene_plots, rows, mode_names, mode_labels);
   writeReport(out, "table1", report, md, plots);
   return out;
 }
