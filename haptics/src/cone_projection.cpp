@@ -4,7 +4,9 @@
 #include <array>
 #include <cmath>
 #include <limits>
+#include <span>
 #include <stdexcept>
+#include <vector>
 
 #include <Eigen/Cholesky>
 #include <Eigen/LU>
@@ -54,6 +56,153 @@ double relativeResidual(const Vector6d* const* cols, int k, const Vector6d& g) {
   return r.norm() / g.norm();
 }
 
+// Mass metric -> Euclidean: M = L L^T, generators g_i = L^-1 j_i (rows that are zero or not
+// finite are excluded), all multipliers zero.
+inline void setUpGenerators(const Eigen::LLT<Matrix6d>& llt, std::span<const Vector6d> J_rows, int m,
+                            std::vector<Vector6d>& g, std::vector<double>& gnorm, std::vector<double>& lambda,
+                            std::vector<unsigned char>& excluded) noexcept {
+  const auto L = llt.matrixL();
+  for (int i = 0; i < m; ++i) {
+    g[i] = L.solve(J_rows[i]);
+    gnorm[i] = g[i].norm();
+    lambda[i] = 0.0;
+    excluded[i] = !(gnorm[i] > 0.0) || !g[i].allFinite();
+  }
+}
+
+// Warm start: the guessed face's independent rows, then drop non-positive coefficients until
+// the least-squares coefficients on the face are all positive (z is then the projection of y
+// onto that face's cone, a valid Wilhelmsen iterate). Returns the active set's size k
+// (active[0..k), their lambda > 0); 0 for a cold start.
+inline int warmStart(std::span<const int> warm_start, int m, const Vector6d& y, const std::vector<Vector6d>& g,
+                     std::vector<double>& lambda, const std::vector<unsigned char>& excluded, int* active) noexcept {
+  int k = 0;
+  for (const int i : warm_start) {
+    if (k == kDim || i < 0 || i >= m || excluded[i] || lambda[i] != 0.0) continue;
+    const Vector6d* cols[kDim];
+    for (int c = 0; c < k; ++c) cols[c] = &g[active[c]];
+    if (k > 0 && relativeResidual(cols, k, g[i]) < 1e-9) continue;
+    active[k++] = i;
+    lambda[i] = 1.0;  // marks "in the guess" until the coefficients are known
+  }
+  while (k > 0) {
+    const Vector6d* cols[kDim];
+    for (int c = 0; c < k; ++c) cols[c] = &g[active[c]];
+    double mu[kDim];
+    if (!leastSquares(cols, k, y, mu)) {  // cannot happen for independent rows; start cold
+      for (int c = 0; c < k; ++c) lambda[active[c]] = 0.0;
+      k = 0;
+      break;
+    }
+    int kept = 0;
+    for (int c = 0; c < k; ++c) {
+      if (mu[c] > 0.0) {
+        lambda[active[c]] = mu[c];
+        active[kept++] = active[c];
+      } else {
+        lambda[active[c]] = 0.0;
+      }
+    }
+    if (kept == k) break;
+    for (int c = 0; c < kept; ++c) lambda[active[c]] = 1.0;
+    k = kept;
+  }
+  return k;
+}
+
+// Wilhelmsen's algorithm from the iterate z = sum lambda_i g_i over active[0..k): grow the
+// active set by the generator that most reduces the distance to y, project onto the active
+// span, and when a coefficient would turn negative walk back to the face where it vanishes and
+// drop it. Returns the iterations used; converged: no generator reduces the distance by > tol.
+inline int wilhelmsen(int m, const Vector6d& y, double tol, const std::vector<Vector6d>& g,
+                      const std::vector<double>& gnorm, std::vector<double>& lambda,
+                      std::vector<unsigned char>& excluded, int* active, int& k, Vector6d& z,
+                      bool& converged) noexcept {
+  const int max_iterations = 4 * m + 40;
+  int it = 0;
+  for (; it < max_iterations; ++it) {
+    const Vector6d r = y - z;
+    int best = -1;
+    double best_w = tol;
+    for (int i = 0; i < m; ++i) {
+      if (excluded[i] || lambda[i] > 0.0) continue;
+      const double w = g[i].dot(r) / gnorm[i];
+      if (w > best_w) {
+        best_w = w;
+        best = i;
+      }
+    }
+    if (best < 0) {
+      converged = true;
+      break;
+    }
+    const Vector6d* cols[kDim];
+    for (int c = 0; c < k; ++c) cols[c] = &g[active[c]];
+    if (k == kDim || relativeResidual(cols, k, g[best]) < 1e-9) {
+      excluded[best] = 1;  // (numerically) in the span of the active set: cannot reduce further
+      continue;
+    }
+    active[k++] = best;
+    // Inner loop: restore positive coefficients.
+    for (int inner = 0; inner < kDim + 2; ++inner) {
+      for (int c = 0; c < k; ++c) cols[c] = &g[active[c]];
+      double mu[kDim];
+      if (!leastSquares(cols, k, y, mu)) {
+        excluded[active[k - 1]] = 1;
+        lambda[active[k - 1]] = 0.0;
+        --k;
+        continue;
+      }
+      bool all_positive = true;
+      for (int c = 0; c < k; ++c) all_positive &= mu[c] > 0.0;
+      if (all_positive) {
+        for (int c = 0; c < k; ++c) lambda[active[c]] = mu[c];
+        break;
+      }
+      double theta = 1.0;
+      for (int c = 0; c < k; ++c)
+        if (mu[c] <= 0.0) {
+          const double l = lambda[active[c]];
+          theta = std::min(theta, l / (l - mu[c]));
+        }
+      int kept = 0;
+      for (int c = 0; c < k; ++c) {
+        double& l = lambda[active[c]];
+        l += theta * (mu[c] - l);
+        if (l > 1e-15 * (1.0 + std::abs(mu[c]))) {
+          active[kept++] = active[c];
+        } else {
+          if (active[c] == best && theta == 0.0) excluded[best] = 1;  // no progress possible with it
+          l = 0.0;
+        }
+      }
+      k = kept;
+      if (k == 0) break;
+    }
+    z.setZero();
+    for (int c = 0; c < k; ++c) z += lambda[active[c]] * g[active[c]];
+  }
+  return it;
+}
+
+// The result: the final active set, a_c = L^-T (x + z) (P_C(x) back in the mass metric), the
+// multipliers; a non-finite a_c becomes zero (never hand a NaN to the collision detector).
+inline void finishProjection(const Eigen::LLT<Matrix6d>& llt, const Vector6d& x, const Vector6d& z, int it,
+                             bool converged, int k, const int* active, int m, const std::vector<double>& lambda,
+                             std::span<double> lambda_out, ConeProjection& out) noexcept {
+  const auto L = llt.matrixL();
+  out.iterations = it;
+  out.converged = converged;
+  out.active = k;
+  for (int c = 0; c < k; ++c) out.active_rows[static_cast<std::size_t>(c)] = active[c];
+  out.a_c = L.transpose().solve(x + z);
+  for (int i = 0; i < m && i < static_cast<int>(lambda_out.size()); ++i) lambda_out[i] = lambda[i];
+  if (!out.a_c.allFinite()) {  // stay still
+    out.a_c.setZero();
+    out.converged = false;
+  }
+}
+
 }  // namespace
 
 ConeProjector::ConeProjector(std::size_t max_constraints)
@@ -69,135 +218,21 @@ ConeProjection ConeProjector::project(const Matrix6d& M, const Vector6d& a_u, st
     out.converged = true;
     return out;
   }
-  // Mass metric -> Euclidean: M = L L^T, b = L^T a, generators g_i = L^-1 j_i.
+  // Mass metric -> Euclidean (section 2.4, eq. 3-4): M = L L^T, b = L^T a, generators g_i = L^-1 j_i.
   const Eigen::LLT<Matrix6d> llt(M);
-  const auto L = llt.matrixL();
-  const Vector6d x = L.transpose() * a_u;
+  const Vector6d x = llt.matrixL().transpose() * a_u;
   const Vector6d y = -x;  // P_C(x) = x + P_K(-x), K = cone(g_i)
-  for (int i = 0; i < m; ++i) {
-    g_[i] = L.solve(J_rows[i]);
-    gnorm_[i] = g_[i].norm();
-    lambda_[i] = 0.0;
-    excluded_[i] = !(gnorm_[i] > 0.0) || !g_[i].allFinite();
-  }
+  setUpGenerators(llt, J_rows, m, g_, gnorm_, lambda_, excluded_);
   const double ynorm = y.norm();
   const double tol = 1e-13 * std::max(ynorm, std::numeric_limits<double>::min());
 
-  // Wilhelmsen's algorithm: grow the active set by the generator that most reduces the
-  // distance, project onto the active span, and when a coefficient would turn negative walk
-  // back to the face where it vanishes and drop it.
   int active[kDim];
-  int k = 0;
+  int k = warmStart(warm_start, m, y, g_, lambda_, excluded_, active);
   Vector6d z = Vector6d::Zero();
-  // Warm start: the guessed face's independent rows, then drop non-positive coefficients until
-  // the least-squares coefficients on the face are all positive (z is then the projection of y
-  // onto that face's cone, a valid Wilhelmsen iterate).
-  for (const int i : warm_start) {
-    if (k == kDim || i < 0 || i >= m || excluded_[i] || lambda_[i] != 0.0) continue;
-    const Vector6d* cols[kDim];
-    for (int c = 0; c < k; ++c) cols[c] = &g_[active[c]];
-    if (k > 0 && relativeResidual(cols, k, g_[i]) < 1e-9) continue;
-    active[k++] = i;
-    lambda_[i] = 1.0;  // marks "in the guess" until the coefficients are known
-  }
-  while (k > 0) {
-    const Vector6d* cols[kDim];
-    for (int c = 0; c < k; ++c) cols[c] = &g_[active[c]];
-    double mu[kDim];
-    if (!leastSquares(cols, k, y, mu)) {  // cannot happen for independent rows; start cold
-      for (int c = 0; c < k; ++c) lambda_[active[c]] = 0.0;
-      k = 0;
-      break;
-    }
-    int kept = 0;
-    for (int c = 0; c < k; ++c) {
-      if (mu[c] > 0.0) {
-        lambda_[active[c]] = mu[c];
-        active[kept++] = active[c];
-      } else {
-        lambda_[active[c]] = 0.0;
-      }
-    }
-    if (kept == k) break;
-    for (int c = 0; c < kept; ++c) lambda_[active[c]] = 1.0;
-    k = kept;
-  }
   for (int c = 0; c < k; ++c) z += lambda_[active[c]] * g_[active[c]];
-  const int max_iterations = 4 * m + 40;
-  int it = 0;
   bool converged = false;
-  for (; it < max_iterations; ++it) {
-    const Vector6d r = y - z;
-    int best = -1;
-    double best_w = tol;
-    for (int i = 0; i < m; ++i) {
-      if (excluded_[i] || lambda_[i] > 0.0) continue;
-      const double w = g_[i].dot(r) / gnorm_[i];
-      if (w > best_w) {
-        best_w = w;
-        best = i;
-      }
-    }
-    if (best < 0) {
-      converged = true;
-      break;
-    }
-    const Vector6d* cols[kDim];
-    for (int c = 0; c < k; ++c) cols[c] = &g_[active[c]];
-    if (k == kDim || relativeResidual(cols, k, g_[best]) < 1e-9) {
-      excluded_[best] = 1;  // (numerically) in the span of the active set: cannot reduce further
-      continue;
-    }
-    active[k++] = best;
-    // Inner loop: restore positive coefficients.
-    for (int inner = 0; inner < kDim + 2; ++inner) {
-      for (int c = 0; c < k; ++c) cols[c] = &g_[active[c]];
-      double mu[kDim];
-      if (!leastSquares(cols, k, y, mu)) {
-        excluded_[active[k - 1]] = 1;
-        lambda_[active[k - 1]] = 0.0;
-        --k;
-        continue;
-      }
-      bool all_positive = true;
-      for (int c = 0; c < k; ++c) all_positive &= mu[c] > 0.0;
-      if (all_positive) {
-        for (int c = 0; c < k; ++c) lambda_[active[c]] = mu[c];
-        break;
-      }
-      double theta = 1.0;
-      for (int c = 0; c < k; ++c)
-        if (mu[c] <= 0.0) {
-          const double l = lambda_[active[c]];
-          theta = std::min(theta, l / (l - mu[c]));
-        }
-      int kept = 0;
-      for (int c = 0; c < k; ++c) {
-        double& l = lambda_[active[c]];
-        l += theta * (mu[c] - l);
-        if (l > 1e-15 * (1.0 + std::abs(mu[c]))) {
-          active[kept++] = active[c];
-        } else {
-          if (active[c] == best && theta == 0.0) excluded_[best] = 1;  // no progress possible with it
-          l = 0.0;
-        }
-      }
-      k = kept;
-      if (k == 0) break;
-    }
-    z.setZero();
-    for (int c = 0; c < k; ++c) z += lambda_[active[c]] * g_[active[c]];
-  }
-  out.iterations = it;
-  out.converged = converged;
-  out.active = k;
-  for (int c = 0; c < k; ++c) out.active_rows[static_cast<std::size_t>(c)] = active[c];
-  out.a_c = L.transpose().solve(x + z);
-  for (int i = 0; i < m && i < static_cast<int>(lambda_out.size()); ++i) lambda_out[i] = lambda_[i];
-  if (!out.a_c.allFinite()) {  // never hand a NaN to the collision detector: stay still
-    out.a_c.setZero();
-    out.converged = false;
-  }
+  const int it = wilhelmsen(m, y, tol, g_, gnorm_, lambda_, excluded_, active, k, z, converged);
+  finishProjection(llt, x, z, it, converged, k, active, m, lambda_, lambda_out, out);
   return out;
 }
 

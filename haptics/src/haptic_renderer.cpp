@@ -83,8 +83,209 @@ void HapticRenderer::resetProxy(const Pose& X_WP) noexcept {
   embedded_scan_needed_ = true;
 }
 
+namespace {
+
+using Clock = std::chrono::steady_clock;
+
+inline double usSince(Clock::time_point a, Clock::time_point b) noexcept {
+  return std::chrono::duration<double, std::micro>(b - a).count();
+}
+
+// Validates the device sample in place: finite, a unit quaternion to 1e-3 (then normalised),
+// within max_device_distance_m of the proxy. False: the sample is rejected.
+inline bool acceptDeviceSample(Pose& X_WD, double requested_isovalue, const Pose& X_WP,
+                               double max_device_distance_m) noexcept {
+  const double qn = X_WD.R_AB.norm();
+  const bool finite = X_WD.allFinite() && std::isfinite(requested_isovalue);
+  if (!finite || std::abs(qn - 1.0) > 1e-3 || (X_WD.p_AB_m - X_WP.p_AB_m).norm() > max_device_distance_m)
+    return false;
+  X_WD.R_AB.coeffs() /= qn;
+  return true;
+}
+
+// A rejected device sample: zero force, proxy in place (at rest), counted; bad input never throws.
+inline TickOutput rejectedTick(const CollisionDetector& collision, const MassProperties& mass, const Pose& X_WP,
+                               double felt_isovalue, Clock::time_point start, std::int64_t& bad_inputs,
+                               RigidMotion& last_motion, double& last_t) noexcept {
+  TickOutput out;
+  ++bad_inputs;
+  last_motion = RigidMotion::FromVelocity(X_WP, mass.p_TCm_m, Eigen::Vector3d::Zero(), Eigen::Vector3d::Zero());
+  last_t = 0.0;
+  out.X_WP = X_WP;
+  out.stats.bad_input = true;
+  out.stats.felt_isovalue = felt_isovalue;
+  out.stats.contacts = static_cast<int>(collision.contacts().size());
+  out.stats.exec_time_us = usSince(start, Clock::now());
+  return out;
+}
+
+// The isovalue the hand feels. Raised, it shrinks the solid: at once. Lowered, the surface
+// advances towards the tool and could swallow part of it, or grow a thin wall through it:
+// the hand feels it lowered only as far as no point of the proxy is inside (the largest F on
+// the shell), and the rest follows as the tool moves away. Nothing is pushed, so the force
+// never jumps; the proxy never ends inside, and the sweep works at this value as always.
+inline double limitLoweredIsovalue(CollisionDetector& collision, const Pose& X_WP, double requested_isovalue,
+                           double felt_isovalue, double isovalue_margin) noexcept {
+  double isovalue = requested_isovalue;
+  if (requested_isovalue < felt_isovalue) {
+    const double highest = collision.maxFieldOnShell(X_WP, requested_isovalue);
+    if (highest > requested_isovalue) isovalue = std::min(felt_isovalue, highest + isovalue_margin);
+  }
+  return isovalue;
+}
+
+// The renderer's proxy state that a tick's sweep moves (HapticRenderer's members, by reference).
+struct ProxyState {
+  Pose& X_WP;
+  RigidMotion& last_motion;
+  double& last_t;
+  double& pending_t;
+  bool& blocked_last_tick;
+};
+
+// A sweep the work budget cut on an earlier tick goes on where it stopped: the same motion,
+// this tick's budget; the proxy moves as far as every path is proven free. edge_safe is
+// HapticRenderer::edgeSafeTime().
+template <typename EdgeSafe>
+inline void resumeCutSweep(CollisionDetector& collision, const VirtualCoupling& coupling, const Pose& X_WD,
+                           const MassProperties& mass, double isovalue, ProxyState& state, TickStats& stats,
+                           EdgeSafe&& edge_safe) noexcept {
+  const auto phase = Clock::now();
+  // The detector keeps it until the next sweep() (resumeSweep() only ends the sweep).
+  const RigidMotion& pending_motion = collision.pendingMotion();
+  const SweepResult hit = collision.resumeSweep();
+  stats.sweep_us = usSince(phase, Clock::now());
+  // The motion was solved for an older device pose: along it, the proxy moves to the point,
+  // among eight from where it is to where the sweep has proven free, where the coupling to
+  // the device now has done the most positive work on it (a line search; the trapezoidal
+  // work of the coupling wrench over the move). Never negative work (the solver's own
+  // guarantee, ConfigurationSolver::setGains(), for the pose it solved for); when every
+  // candidate would do negative work the proxy waits, proven free where it is, while the
+  // sweep goes on.
+  const double pending_t = state.pending_t;
+  double t = pending_t;
+  const Pose X_from = pending_motion.poseAt(pending_t);
+  const Wrench w0 = coupling.compute(X_from, X_WD, mass);
+  const double t_end = std::max(pending_t, hit.t);
+  double best_work_J = 0.0;
+  for (int k = 1; k <= 8 && t_end > pending_t; ++k) {
+    const double t_try = k == 8 ? t_end : pending_t + (t_end - pending_t) * (k / 8.0);
+    const Pose X_to = pending_motion.poseAt(t_try);
+    const Wrench w1 = coupling.compute(X_to, X_WD, mass);
+    const Vector6d dx = displacement_W(X_from, X_to, mass.p_TCm_m);
+    const double work_J = -0.5 * ((w0.force_W_N + w1.force_W_N).dot(dx.head<3>()) +
+                                  (w0.torque_W_Nm + w1.torque_W_Nm).dot(dx.tail<3>()));
+    if (work_J > best_work_J) {
+      best_work_J = work_J;
+      t = t_try;
+    }
+  }
+  bool edge_stop = false;
+  t = edge_safe(pending_motion, pending_t, t, isovalue, edge_stop);
+  stats.edge_stop = edge_stop;
+  state.last_motion = pending_motion.part(pending_t, t);
+  state.last_t = 1.0;
+  state.X_WP = pending_motion.poseAt(t);
+  state.pending_t = t;
+  collision.refreshPositions(state.X_WP);
+  if (edge_stop) {
+    collision.abandonSweep();
+    state.blocked_last_tick = true;
+  } else if (!hit.budget_cut) {
+    const auto contacts_start = Clock::now();
+    // The contacts at the hit, when the proxy got there.
+    if (hit.hit_point >= 0 && t == hit.t) collision.addContactsAt(pending_motion, hit, isovalue);
+    stats.contacts_us = usSince(contacts_start, Clock::now());
+    state.blocked_last_tick = hit.hit_point >= 0 && hit.t < 0.01;
+  }
+  stats.budget_cut = hit.budget_cut;
+  stats.time_of_contact = t;
+}
+
+// A new felt isovalue, or a reset: points inside (only after a reset or at the first pose;
+// a lowered isovalue is deferred for the hand, see limitLoweredIsovalue()) are embedded and released
+// once outside again (see haptics/README.md, "Isovalue changes"). Then step 2: verify and
+// prune the contact set.
+inline void prepareContactSet(CollisionDetector& collision, const Pose& X_WP, const Pose& X_WD, double isovalue,
+                              bool& embedded_scan_needed, double& last_isovalue) noexcept {
+  if (embedded_scan_needed || isovalue != last_isovalue) {
+    collision.updateEmbedded(X_WP, isovalue);
+    last_isovalue = isovalue;
+    embedded_scan_needed = false;
+  } else {
+    collision.releaseEmbedded(X_WP, isovalue);
+  }
+  collision.pruneContacts(X_WP, X_WD, isovalue);
+}
+
+// Steps 1 and 3: unconstrained, then constrained motion (Gauss' principle); step 4: collision
+// detection along the constrained path. When a contact blocks its own tangent step (its eq. 1
+// normal disagrees with the trilinear surface), its normal is refined and steps 3-4 are solved
+// again, at most twice per tick. phase: the time the last phase ended (solve_us, sweep_us).
+inline void solveAndSweep(ConfigurationSolver& solver, CollisionDetector& collision, const VirtualCoupling& coupling,
+                          const RendererOptions& options, double motion_scale, const Pose& X_WP, const Pose& X_WD,
+                          const MassProperties& mass, double standoff_m, double isovalue, RigidMotion& motion,
+                          SweepResult& hit, TickStats& stats, Clock::time_point& phase) noexcept {
+  for (int attempt = 0; attempt < 3; ++attempt) {
+    motion = solver.constrainedMotion(X_WP, X_WD, mass, collision.contacts(), standoff_m,
+                                      &coupling.trackedRotation_W());
+    {
+      const auto now = Clock::now();
+      stats.solve_us += usSince(phase, now);
+      phase = now;
+    }
+    // The motion per tick is bounded (the velocity limit of section 2.3): no point of the
+    // shell travels farther than max_travel_per_tick_m (path bound |v| + |omega| R, R the
+    // shell's radius about the centre of mass), and after ticks the work budget cut, a
+    // shorter step along the same constrained motion: fewer segments, smaller balls. Scaling
+    // keeps the motion in the cone of allowed motions (eq. 4).
+    double scale = motion_scale;
+    const double travel_m = motion.speed_m() + motion.angle_rad() * collision.shellRadius_m();
+    if (options.max_travel_per_tick_m > 0.0 && travel_m * scale > options.max_travel_per_tick_m)
+      scale = options.max_travel_per_tick_m / travel_m;
+    if (scale < 1.0)
+      motion = RigidMotion::FromVelocity(X_WP, mass.p_TCm_m, motion.v_W_m() * scale, motion.omega_W_rad() * scale);
+    // The projection shares the work budget: about a sample's cost per 4 rows per iteration.
+    const ConeProjection& projection = solver.lastProjection();
+    collision.addWork(static_cast<std::int64_t>(collision.contacts().size()) * (projection.iterations + 2) / 4);
+    hit = collision.sweep(motion, isovalue);
+    {
+      const auto now = Clock::now();
+      stats.sweep_us += usSince(phase, now);
+      phase = now;
+    }
+    if (attempt == 2 || hit.budget_cut || !collision.refineStuckContact(motion, hit)) break;
+  }
+}
+
+// The step length after this tick's sweep: after a cut for good (kPaper), halved for the next
+// tick (at least 1/4096); after a full sweep, doubled back towards 1.
+inline void adaptMotionScale(bool budget_cut, double& motion_scale) noexcept {
+  if (budget_cut) {
+    motion_scale = std::max(1.0 / 4096.0, 0.5 * motion_scale);
+  } else if (motion_scale < 1.0) {
+    motion_scale = std::min(1.0, 2.0 * motion_scale);
+  }
+}
+
+// The tick's work counters from the detector, and its wall time.
+inline void fillWorkStatistics(const CollisionDetector& collision, Clock::time_point start, TickStats& stats) noexcept {
+  stats.contacts = static_cast<int>(collision.contacts().size());
+  stats.volume_samples = collision.sampleCount();
+  stats.box_queries = collision.boxQueryCount();
+  stats.tree_nodes = collision.treeNodeCount();
+  stats.cells_walked = collision.cellsWalkedCount();
+  stats.cells = collision.cellCount();
+  stats.work = collision.work();
+  // Also a tick whose sweep finished but whose contact update (or re-solve) the budget shortened.
+  stats.budget_cut = stats.budget_cut || collision.budgetSpent();
+  stats.deadline_cut = stats.budget_cut && collision.deadlineReached();
+  stats.exec_time_us = usSince(start, Clock::now());
+}
+
+}  // namespace
+
 TickOutput HapticRenderer::tick(const Pose& X_WD_in, double requested_isovalue) noexcept {
-  using Clock = std::chrono::steady_clock;
   const auto start = Clock::now();
   TickOutput out;
   collision_.resetSampleCount();
@@ -92,115 +293,28 @@ TickOutput HapticRenderer::tick(const Pose& X_WD_in, double requested_isovalue) 
     collision_.setDeadline(start + std::chrono::duration_cast<Clock::duration>(
                                        std::chrono::duration<double, std::micro>(options_.deadline_us)));
 
-  // Validate the device sample: zero force, proxy in place, counted (bad input never throws).
+  const MassProperties& mass = tool_->mass;
   Pose X_WD = X_WD_in;
-  const double qn = X_WD.R_AB.norm();
-  const bool finite = X_WD.allFinite() && std::isfinite(requested_isovalue);
-  if (!finite || std::abs(qn - 1.0) > 1e-3 ||
-      (X_WD.p_AB_m - X_WP_.p_AB_m).norm() > options_.max_device_distance_m) {
-    ++bad_inputs_;
-    last_motion_ = RigidMotion::FromVelocity(X_WP_, tool_->mass.p_TCm_m, Eigen::Vector3d::Zero(), Eigen::Vector3d::Zero());
-    last_t_ = 0.0;
-    out.X_WP = X_WP_;
-    out.stats.bad_input = true;
-    out.stats.felt_isovalue = felt_isovalue_;
-    out.stats.contacts = static_cast<int>(collision_.contacts().size());
-    out.stats.exec_time_us = std::chrono::duration<double, std::micro>(Clock::now() - start).count();
-    return out;
-  }
-  X_WD.R_AB.coeffs() /= qn;
+  if (!acceptDeviceSample(X_WD, requested_isovalue, X_WP_, options_.max_device_distance_m))
+    return rejectedTick(collision_, mass, X_WP_, felt_isovalue_, start, bad_inputs_, last_motion_, last_t_);
 
-  // The isovalue the hand feels. Raised, it shrinks the solid: at once. Lowered, the surface
-  // advances towards the tool and could swallow part of it, or grow a thin wall through it:
-  // the hand feels it lowered only as far as no point of the proxy is inside (the largest F on
-  // the shell), and the rest follows as the tool moves away. Nothing is pushed, so the force
-  // never jumps; the proxy never ends inside, and the sweep works at this value as always.
-  double isovalue = requested_isovalue;
-  if (requested_isovalue < felt_isovalue_) {
-    const double highest = collision_.maxFieldOnShell(X_WP_, requested_isovalue);
-    if (highest > requested_isovalue) isovalue = std::min(felt_isovalue_, highest + isovalue_margin_);
-  }
+  const double isovalue =
+      limitLoweredIsovalue(collision_, X_WP_, requested_isovalue, felt_isovalue_, isovalue_margin_);
   felt_isovalue_ = isovalue;
   out.stats.felt_isovalue = isovalue;
 
-  const auto us_since = [](Clock::time_point a, Clock::time_point b) {
-    return std::chrono::duration<double, std::micro>(b - a).count();
-  };
-  const MassProperties& mass = tool_->mass;
-  // A sweep the work budget cut on an earlier tick goes on where it stopped: the
-  // same motion, this tick's budget; the proxy moves as far as every path is proven free. A new
-  // isovalue or a reset abandons it (the proxy stays where it is, which is proven free).
+  const auto edge_safe = [this](const RigidMotion& motion, double t_from, double t_to, double iso,
+                                bool& stopped) noexcept { return edgeSafeTime(motion, t_from, t_to, iso, stopped); };
+  ProxyState state{X_WP_, last_motion_, last_t_, pending_t_, blocked_last_tick_};
+  // A cut sweep goes on (resumeCutSweep()); a new isovalue or a reset abandons it (the proxy
+  // stays where it is, which is proven free).
   if (collision_.sweepPending() && (embedded_scan_needed_ || isovalue != last_isovalue_)) collision_.abandonSweep();
   if (collision_.sweepPending()) {
-    const auto phase = Clock::now();
-    // The detector keeps it until the next sweep() (resumeSweep() only ends the sweep).
-    const RigidMotion& pending_motion = collision_.pendingMotion();
-    const SweepResult hit = collision_.resumeSweep();
-    out.stats.sweep_us = us_since(phase, Clock::now());
-    // The motion was solved for an older device pose: along it, the proxy moves to the point,
-    // among eight from where it is to where the sweep has proven free, where the coupling to
-    // the device now has done the most positive work on it (a line search; the trapezoidal
-    // work of the coupling wrench over the move). Never negative work (the solver's own
-    // guarantee, ConfigurationSolver::setGains(), for the pose it solved for); when every
-    // candidate would do negative work the proxy waits, proven free where it is, while the
-    // sweep goes on.
-    double t = pending_t_;
-    const Pose X_from = pending_motion.poseAt(pending_t_);
-    const Wrench w0 = coupling_.compute(X_from, X_WD, mass);
-    const double t_end = std::max(pending_t_, hit.t);
-    double best_work_J = 0.0;
-    for (int k = 1; k <= 8 && t_end > pending_t_; ++k) {
-      const double t_try = k == 8 ? t_end : pending_t_ + (t_end - pending_t_) * (k / 8.0);
-      const Pose X_to = pending_motion.poseAt(t_try);
-      const Wrench w1 = coupling_.compute(X_to, X_WD, mass);
-      const Vector6d dx = displacement_W(X_from, X_to, mass.p_TCm_m);
-      const double work_J = -0.5 * ((w0.force_W_N + w1.force_W_N).dot(dx.head<3>()) +
-                                    (w0.torque_W_Nm + w1.torque_W_Nm).dot(dx.tail<3>()));
-      if (work_J > best_work_J) {
-        best_work_J = work_J;
-        t = t_try;
-      }
-    }
-    bool edge_stop = false;
-    t = edgeSafeTime(pending_motion, pending_t_, t, isovalue, edge_stop);
-    out.stats.edge_stop = edge_stop;
-    last_motion_ = pending_motion.part(pending_t_, t);
-    last_t_ = 1.0;
-    X_WP_ = pending_motion.poseAt(t);
-    pending_t_ = t;
-    collision_.refreshPositions(X_WP_);
-    if (edge_stop) {
-      collision_.abandonSweep();
-      blocked_last_tick_ = true;
-    } else if (!hit.budget_cut) {
-      const auto contacts_start = Clock::now();
-      // The contacts at the hit, when the proxy got there.
-      if (hit.hit_point >= 0 && t == hit.t) collision_.addContactsAt(pending_motion, hit, isovalue);
-      out.stats.contacts_us = us_since(contacts_start, Clock::now());
-      blocked_last_tick_ = hit.hit_point >= 0 && hit.t < 0.01;
-    }
-    out.stats.budget_cut = hit.budget_cut;
-    out.stats.time_of_contact = t;
+    resumeCutSweep(collision_, coupling_, X_WD, mass, isovalue, state, out.stats, edge_safe);
   } else {
-    // A new felt isovalue, or a reset: points inside (only after a reset or at the first pose;
-    // a lowered isovalue is deferred for the hand, see above) are embedded and released once
-    // outside again (see haptics/README.md, "Isovalue changes").
-    if (embedded_scan_needed_ || isovalue != last_isovalue_) {
-      collision_.updateEmbedded(X_WP_, isovalue);
-      last_isovalue_ = isovalue;
-      embedded_scan_needed_ = false;
-    } else {
-      collision_.releaseEmbedded(X_WP_, isovalue);
-    }
-
-    // Step 2: verify and prune the contact set.
-    collision_.pruneContacts(X_WP_, X_WD, isovalue);
+    prepareContactSet(collision_, X_WP_, X_WD, isovalue, embedded_scan_needed_, last_isovalue_);
     auto phase = Clock::now();
-    out.stats.prune_us = us_since(start, phase);
-    // Steps 1 and 3: unconstrained, then constrained motion (Gauss' principle); step 4:
-    // collision detection along the constrained path. When a contact blocks its own tangent step
-    // (its eq. 1 normal disagrees with the trilinear surface), its normal is refined and steps
-    // 3-4 are solved again, at most twice per tick.
+    out.stats.prune_us = usSince(start, phase);
     // The stand-off lift (an option, off by default) is a recovery: only after a tick that was
     // blocked almost at once (a lift on every tick drove a hook hanging from one contact into a
     // 2-cycle), and never while the surface has swallowed part of the tool (a moving surface must
@@ -209,36 +323,8 @@ TickOutput HapticRenderer::tick(const Pose& X_WD_in, double requested_isovalue) 
     const double standoff_m = lift ? options_.standoff_fraction * collision_.epsilon_m() : 0.0;
     RigidMotion motion;
     SweepResult hit;
-    for (int attempt = 0; attempt < 3; ++attempt) {
-      motion = solver_.constrainedMotion(X_WP_, X_WD, mass, collision_.contacts(), standoff_m,
-                                         &coupling_.trackedRotation_W());
-      {
-        const auto now = Clock::now();
-        out.stats.solve_us += us_since(phase, now);
-        phase = now;
-      }
-      // The motion per tick is bounded (the velocity limit of section 2.3): no point of the
-      // shell travels farther than max_travel_per_tick_m (path bound |v| + |omega| R, R the
-      // shell's radius about the centre of mass), and after ticks the work budget cut, a
-      // shorter step along the same constrained motion: fewer segments, smaller balls. Scaling
-      // keeps the motion in the cone of allowed motions (eq. 4).
-      double scale = motion_scale_;
-      const double travel_m = motion.speed_m() + motion.angle_rad() * collision_.shellRadius_m();
-      if (options_.max_travel_per_tick_m > 0.0 && travel_m * scale > options_.max_travel_per_tick_m)
-        scale = options_.max_travel_per_tick_m / travel_m;
-      if (scale < 1.0)
-        motion = RigidMotion::FromVelocity(X_WP_, mass.p_TCm_m, motion.v_W_m() * scale, motion.omega_W_rad() * scale);
-      // The projection shares the work budget: about a sample's cost per 4 rows per iteration.
-      const ConeProjection& projection = solver_.lastProjection();
-      collision_.addWork(static_cast<std::int64_t>(collision_.contacts().size()) * (projection.iterations + 2) / 4);
-      hit = collision_.sweep(motion, isovalue);
-      {
-        const auto now = Clock::now();
-        out.stats.sweep_us += us_since(phase, now);
-        phase = now;
-      }
-      if (attempt == 2 || hit.budget_cut || !collision_.refineStuckContact(motion, hit)) break;
-    }
+    solveAndSweep(solver_, collision_, coupling_, options_, motion_scale_, X_WP_, X_WD, mass, standoff_m, isovalue,
+                  motion, hit, out.stats, phase);
     // Step 5: move the proxy to the first contact (or the target, or as far as the budget
     // proved free), and no farther than the tool's surface between its points allows.
     bool edge_stop = false;
@@ -252,13 +338,11 @@ TickOutput HapticRenderer::tick(const Pose& X_WD_in, double requested_isovalue) 
     collision_.refreshPositions(X_WP_);
     if (collision_.sweepPending()) {  // cut: goes on next tick
       pending_t_ = hit.t;
-    } else if (hit.budget_cut) {  // cut for good (kPaper): a shorter step next tick
-      motion_scale_ = std::max(1.0 / 4096.0, 0.5 * motion_scale_);
-    } else if (motion_scale_ < 1.0) {
-      motion_scale_ = std::min(1.0, 2.0 * motion_scale_);
+    } else {
+      adaptMotionScale(hit.budget_cut, motion_scale_);
     }
     if (hit.hit_point >= 0 && !hit.budget_cut && !edge_stop) collision_.addContactsAt(motion, hit, isovalue);
-    out.stats.contacts_us = us_since(phase, Clock::now());
+    out.stats.contacts_us = usSince(phase, Clock::now());
     out.stats.budget_cut = hit.budget_cut;
     out.stats.time_of_contact = t_move;
   }
@@ -268,17 +352,7 @@ TickOutput HapticRenderer::tick(const Pose& X_WD_in, double requested_isovalue) 
   out.X_WP = X_WP_;
   out.force_W_N = w.force_W_N;
   out.torque_W_Nm = w.torque_W_Nm;
-  out.stats.contacts = static_cast<int>(collision_.contacts().size());
-  out.stats.volume_samples = collision_.sampleCount();
-  out.stats.box_queries = collision_.boxQueryCount();
-  out.stats.tree_nodes = collision_.treeNodeCount();
-  out.stats.cells_walked = collision_.cellsWalkedCount();
-  out.stats.cells = collision_.cellCount();
-  out.stats.work = collision_.work();
-  // Also a tick whose sweep finished but whose contact update (or re-solve) the budget shortened.
-  out.stats.budget_cut = out.stats.budget_cut || collision_.budgetSpent();
-  out.stats.deadline_cut = out.stats.budget_cut && collision_.deadlineReached();
-  out.stats.exec_time_us = std::chrono::duration<double, std::micro>(Clock::now() - start).count();
+  fillWorkStatistics(collision_, start, out.stats);
   return out;
 }
 

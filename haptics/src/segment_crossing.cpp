@@ -2,6 +2,7 @@
 // {F > s}, cell by cell, so the proxy never passes through a thin feature (haptics/README.md,
 // "Never through").
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <cstdint>
 #include <limits>
@@ -40,6 +41,111 @@ int criticalPoints(const Cubic& g, double w_end, double* out) noexcept {
   return m;
 }
 
+// The box test: clips u in [0, 1] to the grid's box of voxel centres [0, upper] per axis (slab
+// method). False: the segment misses the box (or, parallel to an axis, lies outside it).
+inline bool clipToGrid(const Eigen::Vector3d& a, const Eigen::Vector3d& d, const Eigen::Vector3d& upper,
+                       double& u_lo, double& u_hi) noexcept {
+  for (int axis = 0; axis < 3; ++axis) {
+    if (d[axis] == 0.0) {
+      if (a[axis] < 0.0 || a[axis] > upper[axis]) return false;
+      continue;
+    }
+    double t0 = (0.0 - a[axis]) / d[axis], t1 = (upper[axis] - a[axis]) / d[axis];
+    if (t0 > t1) std::swap(t0, t1);
+    u_lo = std::max(u_lo, t0);
+    u_hi = std::min(u_hi, t1);
+  }
+  return u_lo <= u_hi;
+}
+
+// The walk's start (a 3-D DDA over the cells): the cell containing start = a + u_lo d, stepping
+// into the one the segment moves into when the start lies on a cell face; per axis the step
+// (-1, 0, 1), the u of the next face and the u between faces.
+inline void startCellWalk(const Eigen::Vector3d& a, const Eigen::Vector3d& d, const Eigen::Vector3d& start,
+                          const std::array<int, 3>& dims, int (&cell)[3], int (&step)[3], double (&u_next)[3],
+                          double (&u_delta)[3]) noexcept {
+  for (int axis = 0; axis < 3; ++axis) {
+    const int top = dims[axis] - 2;
+    double fl = std::floor(start[axis]);
+    if (d[axis] < 0.0 && fl == start[axis]) fl -= 1.0;
+    cell[axis] = static_cast<int>(std::clamp(fl, 0.0, static_cast<double>(top)));
+    step[axis] = d[axis] > 0.0 ? 1 : (d[axis] < 0.0 ? -1 : 0);
+    if (step[axis] == 0) {
+      u_next[axis] = u_delta[axis] = std::numeric_limits<double>::infinity();
+    } else {
+      const double face = step[axis] > 0 ? cell[axis] + 1.0 : static_cast<double>(cell[axis]);
+      u_next[axis] = (face - a[axis]) / d[axis];
+      u_delta[axis] = 1.0 / std::abs(d[axis]);
+    }
+  }
+}
+
+// The root refinement in one examined cell: g (the cell's cubic with the bubble, minus the
+// threshold, in w = u' - u from the cell's entry u) on [0, w_end], split at its critical points
+// into monotone pieces, each bisected to u_tolerance where it crosses 0. inside_run: entered
+// before this cell (only a start inside, leaving); first: the segment's own start. True when
+// the walk ends here: result.hit with u_outside and u_inside set.
+inline bool refineInCell(const Cubic& g, double w_end, double u, double u_lo, double u_tolerance, bool first,
+                         bool& inside_run, SegmentEntry& result) noexcept {
+  double breaks[4];
+  int nb = 0;
+  breaks[nb++] = 0.0;
+  nb += criticalPoints(g, w_end, breaks + nb);
+  breaks[nb++] = w_end;
+  double gp = g(0.0);
+  if (first) {
+    inside_run = gp > 0.0;  // the segment starts inside
+  } else if (!inside_run && gp > 0.0) {
+    // Entered exactly on a cell face (the previous cell's cubic rounded to <= 0 there), or on
+    // the grid box's face from outside it (out of bounds is outside).
+    result.hit = true;
+    result.u_outside = u == u_lo && u_lo > 0.0 ? std::max(0.0, u - u_tolerance) : u;
+    result.u_inside = u;
+    return true;
+  } else if (inside_run && gp <= 0.0) {
+    inside_run = false;
+  }
+  for (int i = 0; i + 1 < nb; ++i) {
+    double p = breaks[i], q = breaks[i + 1];
+    const double gq = g(q);
+    if (inside_run) {
+      if (gq > gp) {  // going deeper while inside: stop here
+        result.hit = true;
+        result.u_outside = result.u_inside = u + p;
+        return true;
+      }
+      if (gq > 0.0) {  // still inside at q
+        gp = gq;
+        continue;
+      }
+      // Leaves in (p, q]: find the exit (g decreasing), then outside up to q.
+      while (q - p > u_tolerance) {
+        const double m = 0.5 * (p + q);
+        if (g(m) > 0.0) p = m; else q = m;
+      }
+      inside_run = false;
+      gp = gq;
+      continue;
+    }
+    if (gq > 0.0) {  // enters in (p, q]: g increases on the piece, g(p) <= 0
+      // An entry within the tolerance of the piece's start stops there (a contact resting
+      // within the tolerance and pushed in is blocked at once, as the paper's bisection
+      // from the segment's start does); else bisect.
+      if (q - p > u_tolerance && g(p + u_tolerance) > 0.0) q = p + u_tolerance;
+      while (q - p > u_tolerance) {
+        const double m = 0.5 * (p + q);
+        if (g(m) > 0.0) q = m; else p = m;
+      }
+      result.hit = true;
+      result.u_outside = u + p;
+      result.u_inside = u + q;
+      return true;
+    }
+    gp = gq;
+  }
+  return false;
+}
+
 }  // namespace
 
 template <typename T>
@@ -55,41 +161,16 @@ SegmentEntry ScalarVolume::firstEntry(const Eigen::Vector3d& a, const Eigen::Vec
   };
   if (!a.allFinite() || !b.allFinite()) return stopAt(0.0);
   const Eigen::Vector3d d = b - a;
-  // Clip u in [0, 1] to the grid's box of voxel centres [0, n - 1] per axis (slab method).
+  // The box test: only the part of the segment in the grid's box of voxel centres is walked.
   double u_lo = 0.0, u_hi = 1.0;
-  for (int axis = 0; axis < 3; ++axis) {
-    if (d[axis] == 0.0) {
-      if (a[axis] < 0.0 || a[axis] > upper_[axis]) return result;
-      continue;
-    }
-    double t0 = (0.0 - a[axis]) / d[axis], t1 = (upper_[axis] - a[axis]) / d[axis];
-    if (t0 > t1) std::swap(t0, t1);
-    u_lo = std::max(u_lo, t0);
-    u_hi = std::min(u_hi, t1);
-  }
-  if (!(u_lo <= u_hi)) return result;
+  if (!clipToGrid(a, d, upper_, u_lo, u_hi)) return result;
 
   const T* data = reinterpret_cast<const T*>(bytes_.data());
   const std::ptrdiff_t sy = geometry_.dims[0], sz = sy * geometry_.dims[1];
-  // The cell containing the start, stepping into the one the segment moves into when the start
-  // lies on a cell face.
-  const Eigen::Vector3d start = a + u_lo * d;
+  // The walk (a 3-D DDA) starts in the cell containing the clipped segment's start.
   int cell[3], step[3];
   double u_next[3], u_delta[3];
-  for (int axis = 0; axis < 3; ++axis) {
-    const int top = geometry_.dims[axis] - 2;
-    double fl = std::floor(start[axis]);
-    if (d[axis] < 0.0 && fl == start[axis]) fl -= 1.0;
-    cell[axis] = static_cast<int>(std::clamp(fl, 0.0, static_cast<double>(top)));
-    step[axis] = d[axis] > 0.0 ? 1 : (d[axis] < 0.0 ? -1 : 0);
-    if (step[axis] == 0) {
-      u_next[axis] = u_delta[axis] = std::numeric_limits<double>::infinity();
-    } else {
-      const double face = step[axis] > 0 ? cell[axis] + 1.0 : static_cast<double>(cell[axis]);
-      u_next[axis] = (face - a[axis]) / d[axis];
-      u_delta[axis] = 1.0 / std::abs(d[axis]);
-    }
-  }
+  startCellWalk(a, d, a + u_lo * d, geometry_.dims, cell, step, u_next, u_delta);
   // State along the walk: inside (entered before this point; only a start inside, leaving).
   bool inside_run = false;
   bool first = at_segment_start && u_lo == 0.0;  // the segment's own start: inside there may mean leaving
@@ -139,62 +220,7 @@ SegmentEntry ScalarVolume::firstEntry(const Eigen::Vector3d& a, const Eigen::Vec
       const double Uc = bubble.u0 + bubble.du * u, D = bubble.du, h4 = 4.0 * height;
       const Cubic g{scale_ * r0 + offset_ - threshold + h4 * Uc * (1.0 - Uc), scale_ * r1 + h4 * D * (1.0 - 2.0 * Uc),
                     scale_ * r2 - h4 * D * D, scale_ * r3};
-      double breaks[4];
-      int nb = 0;
-      breaks[nb++] = 0.0;
-      nb += criticalPoints(g, w_end, breaks + nb);
-      breaks[nb++] = w_end;
-      double gp = g(0.0);
-      if (first) {
-        inside_run = gp > 0.0;  // the segment starts inside
-      } else if (!inside_run && gp > 0.0) {
-        // Entered exactly on a cell face (the previous cell's cubic rounded to <= 0 there), or on
-        // the grid box's face from outside it (out of bounds is outside).
-        result.hit = true;
-        result.u_outside = u == u_lo && u_lo > 0.0 ? std::max(0.0, u - u_tolerance) : u;
-        result.u_inside = u;
-        return result;
-      } else if (inside_run && gp <= 0.0) {
-        inside_run = false;
-      }
-      for (int i = 0; i + 1 < nb; ++i) {
-        double p = breaks[i], q = breaks[i + 1];
-        const double gq = g(q);
-        if (inside_run) {
-          if (gq > gp) {  // going deeper while inside: stop here
-            result.hit = true;
-            result.u_outside = result.u_inside = u + p;
-            return result;
-          }
-          if (gq > 0.0) {  // still inside at q
-            gp = gq;
-            continue;
-          }
-          // Leaves in (p, q]: find the exit (g decreasing), then outside up to q.
-          while (q - p > u_tolerance) {
-            const double m = 0.5 * (p + q);
-            if (g(m) > 0.0) p = m; else q = m;
-          }
-          inside_run = false;
-          gp = gq;
-          continue;
-        }
-        if (gq > 0.0) {  // enters in (p, q]: g increases on the piece, g(p) <= 0
-          // An entry within the tolerance of the piece's start stops there (a contact resting
-          // within the tolerance and pushed in is blocked at once, as the paper's bisection
-          // from the segment's start does); else bisect.
-          if (q - p > u_tolerance && g(p + u_tolerance) > 0.0) q = p + u_tolerance;
-          while (q - p > u_tolerance) {
-            const double m = 0.5 * (p + q);
-            if (g(m) > 0.0) q = m; else p = m;
-          }
-          result.hit = true;
-          result.u_outside = u + p;
-          result.u_inside = u + q;
-          return result;
-        }
-        gp = gq;
-      }
+      if (refineInCell(g, w_end, u, u_lo, u_tolerance, first, inside_run, result)) return result;
     }
     first = false;
     if (u_exit >= u_hi) break;
