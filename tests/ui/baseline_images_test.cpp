@@ -123,12 +123,13 @@ struct BaselineView {
     view->resetCamera();
   }
 
-  /// The proxy resting on the sphere's top, tilted 20 degrees, and the device 4 mm inside and
-  /// to the side of it (the virtual coupling's stretch), with its force.
-  void showPressedTool() {
+  /// The proxy tilted 20 degrees with its tip at height `z_m` above the sphere's centre (0.0205:
+  /// resting on the top), the device 4 mm inside and to the side of it (the virtual coupling's
+  /// stretch), with its force.
+  void showPressedTool(double z_m = 0.0205) {
     ToolFrame frame;
     frame.X_WP.R_AB = Eigen::Quaterniond(Eigen::AngleAxisd(20.0 * std::numbers::pi / 180.0, Eigen::Vector3d::UnitX()));
-    frame.X_WP.p_AB_m = Eigen::Vector3d(0.0, 0.0, 0.0205);
+    frame.X_WP.p_AB_m = Eigen::Vector3d(0.0, 0.0, z_m);
     frame.X_WD = frame.X_WP;
     frame.X_WD.p_AB_m += Eigen::Vector3d(0.004, 0.0, -0.004);
     frame.force_W_N = Eigen::Vector3d(-1.0, 0.0, 2.0);
@@ -168,35 +169,10 @@ TEST(BaselineImages, TheMaximumIntensityProjection) {
 
 TEST(BaselineImages, ASegmentSurfaceBesideTheScan) {
   BaselineView v;
-  // One segment: a ball of radius 8 mm on the sphere's grid, centred 14 mm to the side and
-  // 14 mm up, so that it stands out of the scan's surface.
-  const haptics::ScalarVolume& scan = *sphereProbeScene().volume.field;
-  const haptics::VolumeGeometry& g = scan.geometry();
-  std::vector<std::uint8_t> labels(g.voxelCount(), 0);
-  const Eigen::Vector3d centre_W(0.014, 0.0, 0.014);
-  std::size_t n = 0;
-  std::size_t inside = 0;
-  for (int k = 0; k < g.dims[2]; ++k) {
-    for (int j = 0; j < g.dims[1]; ++j) {
-      for (int i = 0; i < g.dims[0]; ++i, ++n) {
-        const Eigen::Vector3d p_W = g.origin_W_m + g.direction_W * Eigen::Vector3d(i, j, k).cwiseProduct(g.spacing_m);
-        if ((p_W - centre_W).norm() <= 0.008) {
-          labels[n] = 1;
-          ++inside;
-        }
-      }
-    }
-  }
-  io::LoadedSegmentation seg;
-  seg.source = "in-memory";
-  io::SegmentInfo info;
-  info.id = "Segment_1";
-  info.name = "nodule";
-  info.color_rgb = {0.9, 0.3, 0.2};
-  info.label_value = 1;
-  info.voxel_count = inside;
-  seg.segments.push_back(info);
-  seg.layers.push_back(std::make_shared<const haptics::ScalarVolume>(haptics::ScalarVolume::FromVoxels(g, labels)));
+  // One segment: a ball of radius 8 mm centred 14 mm to the side and 14 mm up, so that it
+  // stands out of the scan's surface.
+  const io::LoadedSegmentation seg =
+      test::ballSegmentation(*sphereProbeScene().volume.field, Eigen::Vector3d(0.014, 0.0, 0.014), 0.008);
   const auto set = std::make_shared<const runtime::SegmentSet>(seg, std::vector<int>{}, std::vector<int>{0},
                                                                std::vector<int>{}, 1.0);
   v.view->setSegments(set.get());
@@ -208,14 +184,7 @@ TEST(BaselineImages, TheComparisonSeesAProxyMovedBy5mm) {
   // The metric has teeth: the same scene with the proxy 5 mm higher is not the baseline.
   if (std::getenv("VH_UPDATE_BASELINES") != nullptr) GTEST_SKIP() << "renewing the baselines";
   BaselineView v;
-  v.showPressedTool();
-  ToolFrame moved;
-  moved.X_WP.R_AB = Eigen::Quaterniond(Eigen::AngleAxisd(20.0 * std::numbers::pi / 180.0, Eigen::Vector3d::UnitX()));
-  moved.X_WP.p_AB_m = Eigen::Vector3d(0.0, 0.0, 0.0255);
-  moved.X_WD = moved.X_WP;
-  moved.X_WD.p_AB_m += Eigen::Vector3d(0.004, 0.0, -0.004);
-  moved.force_W_N = Eigen::Vector3d(-1.0, 0.0, 2.0);
-  v.view->show(moved);
+  v.showPressedTool(0.0255);
   v.view->setRenderMode(RenderMode::kIsosurface, VolumePreset::kBone);
   double error = 0.0;
   ASSERT_TRUE(fs::exists(kBaselineDir / "isosurface-proxy-device.png"));

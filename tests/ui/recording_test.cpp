@@ -368,5 +368,34 @@ TEST(ReplayForceArrow, StartsAtTheToolsExtremePointAgainstTheForce) {
   EXPECT_EQ(forceOrigin_W(X_WP, Eigen::Vector3d::Zero(), vertices_T), X_WP.p_AB_m);
 }
 
+TEST(ReplayIsovalue, TicksOfFeltSegmentsLeaveThePicturesIsovalueAlone) {
+  // A tick records the isovalue the hand felt: the scan's, or the segments' level (0.5) when
+  // segments are felt. Only the scan's may move the picture.
+  const runtime::LoadedScene& scene = test::sphereProbeScene();
+  runtime::TickRecord record;
+  record.isovalue = io::kSegmentSurfaceLevel;
+  record.p_WP_m[2] = record.p_WD_m[2] = 0.05;
+
+  runtime::LiveValues scan = runtime::LiveValues::initial(scene);
+  scan.isovalue = 3.0;
+  const SceneActorsSpec scan_spec = sceneActorsSpecFor(scene, scan);
+  EXPECT_TRUE(scan_spec.isovalue_from_records);
+  RecordingFrameRenderer scan_frames(scan_spec, 64, 64, Preferences{});
+  EXPECT_EQ(scan_frames.isovalue(), 3.0);
+  scan_frames.show(record);
+  EXPECT_EQ(scan_frames.isovalue(), io::kSegmentSurfaceLevel) << "the scan's isovalue changed while recording";
+
+  runtime::LiveValues felt = scan;
+  felt.segments = std::make_shared<const runtime::SegmentSet>(
+      test::ballSegmentation(*scene.volume.field, Eigen::Vector3d::Zero(), 0.010), std::vector<int>{0},
+      std::vector<int>{0}, std::vector<int>{}, 1.0);
+  ASSERT_TRUE(felt.feltSegments());
+  const SceneActorsSpec felt_spec = sceneActorsSpecFor(scene, felt);
+  EXPECT_FALSE(felt_spec.isovalue_from_records);
+  RecordingFrameRenderer felt_frames(felt_spec, 64, 64, Preferences{});
+  felt_frames.show(record);
+  EXPECT_EQ(felt_frames.isovalue(), 3.0) << "the segments' level must not become the scan's isovalue";
+}
+
 }  // namespace
 }  // namespace vh::ui

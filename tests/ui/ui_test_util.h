@@ -2,15 +2,21 @@
 // Helpers shared by the GUI tests: event-loop waits and picture comparisons.
 
 #include <chrono>
+#include <cstdint>
 #include <cstdlib>
 #include <filesystem>
 #include <functional>
+#include <memory>
 #include <thread>
+#include <vector>
 
 #include <QApplication>
 #include <QImage>
 
+#include "vh/haptics/scalar_volume.h"
+#include "vh/io/segmentation.h"
 #include "vh/runtime/scene.h"
+#include "vh/runtime/segments.h"
 
 namespace vh::ui::test {
 
@@ -29,6 +35,38 @@ inline const runtime::LoadedScene& sphereProbeScene() {
     return runtime::loadScene(spec);
   }();
   return scene;
+}
+
+/// A segmentation on `scan`'s grid with one segment, "nodule" (red): the voxels within
+/// `radius_m` of `centre_W` [m] (label 1).
+inline io::LoadedSegmentation ballSegmentation(const haptics::ScalarVolume& scan, const Eigen::Vector3d& centre_W,
+                                               double radius_m) {
+  const haptics::VolumeGeometry& g = scan.geometry();
+  std::vector<std::uint8_t> labels(g.voxelCount(), 0);
+  std::size_t n = 0;
+  std::size_t inside = 0;
+  for (int k = 0; k < g.dims[2]; ++k) {
+    for (int j = 0; j < g.dims[1]; ++j) {
+      for (int i = 0; i < g.dims[0]; ++i, ++n) {
+        const Eigen::Vector3d p_W = g.origin_W_m + g.direction_W * Eigen::Vector3d(i, j, k).cwiseProduct(g.spacing_m);
+        if ((p_W - centre_W).norm() <= radius_m) {
+          labels[n] = 1;
+          ++inside;
+        }
+      }
+    }
+  }
+  io::LoadedSegmentation seg;
+  seg.source = "in-memory";
+  io::SegmentInfo info;
+  info.id = "Segment_1";
+  info.name = "nodule";
+  info.color_rgb = {0.9, 0.3, 0.2};
+  info.label_value = 1;
+  info.voxel_count = inside;
+  seg.segments.push_back(info);
+  seg.layers.push_back(std::make_shared<const haptics::ScalarVolume>(haptics::ScalarVolume::FromVoxels(g, labels)));
+  return seg;
 }
 
 /// How much longer waits may take in a sanitizer build (VH_SANITIZE): ThreadSanitizer runs

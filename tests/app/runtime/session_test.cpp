@@ -28,6 +28,13 @@ using test::waitUntil;
 /// The ball tool's centre `depth_m` below the top of the sphere (its lowest point 5 mm lower).
 Pose pressedPose(double depth_m) { return Pose::FromTranslation({0.0, 0.0, 0.020 + 0.005 - depth_m}); }
 
+/// The scene's tool resampled at 3 mm point spacing (a tool picker's rebuild).
+std::shared_ptr<const haptics::ToolModel> coarseTool(const LoadedScene& loaded) {
+  haptics::PointShellOptions options;
+  options.spacing_m = 0.003;
+  return std::make_shared<const haptics::ToolModel>(haptics::makeToolModel(loaded.tool->mesh_T, options));
+}
+
 /// Records what observers were told.
 struct Heard {
   std::vector<SessionChange> changes;
@@ -159,9 +166,7 @@ TEST(Session, ASwappedToolReplacesTheSpecAndRestartsAtItsFreePose) {
   auto device = std::make_shared<SimulatedDevice>(pressedPose(0.003));
   session.setScene(loaded, device);
   session.startHaptics();
-  haptics::PointShellOptions options;
-  options.spacing_m = 0.003;
-  auto coarse = std::make_shared<const haptics::ToolModel>(haptics::makeToolModel(loaded.tool->mesh_T, options));
+  const auto coarse = coarseTool(loaded);
   ToolSpec spec = loaded.spec.tool;
   spec.point_spacing_m = 0.003;
   const Pose free_pose = Pose::FromTranslation({0.0, 0.0, 0.040});
@@ -184,9 +189,7 @@ TEST(Session, TheLoadedSceneStaysAsLoadedAndTheRecordingDescribesTheLiveValues) 
   session.setScene(loaded, std::make_shared<SimulatedDevice>(loaded.X_WT_initial));
   session.setIsovalue(-2.0);
   session.setGains({1234.0, 0.25, false});
-  haptics::PointShellOptions options;
-  options.spacing_m = 0.003;
-  auto coarse = std::make_shared<const haptics::ToolModel>(haptics::makeToolModel(loaded.tool->mesh_T, options));
+  const auto coarse = coarseTool(loaded);
   ToolSpec spec = loaded.spec.tool;
   spec.point_spacing_m = 0.003;
   const Pose free_pose = Pose::FromTranslation({0.0, 0.0, 0.040});

@@ -165,6 +165,7 @@ vtkImageData* RecordingFrameRenderer::render() {
 
 vtkWindowToImageFilter* RecordingFrameRenderer::imageFilter() const noexcept { return grabber_; }
 vtkRenderer* RecordingFrameRenderer::renderer() const noexcept { return renderer_; }
+double RecordingFrameRenderer::isovalue() const { return actors_->isovalue(); }
 vtkRenderWindow* RecordingFrameRenderer::renderWindow() const noexcept { return window_; }
 
 // ---- Writers -------------------------------------------------------------------------------------

@@ -83,6 +83,9 @@ class RecordingFrameRenderer {
   int height() const noexcept { return height_; }
   SceneActors& actors() noexcept { return *actors_; }
   vtkRenderer* renderer() const noexcept;
+  /// The isovalue the picture shows now (data units): the spec's, then each shown record's
+  /// unless SceneActorsSpec::isovalue_from_records is false.
+  double isovalue() const;
   vtkRenderWindow* renderWindow() const noexcept;
 
  private:
