@@ -4,8 +4,9 @@
 /// chart, Replay), opening files (dialogs, recent files, drag and drop, the series chooser),
 /// settings, and the wiring of its parts:
 ///
-///   runtime::Session   the one owner of the scene, device, haptic threads, isovalue, gains
-///                      and tool (no Qt); every part below observes it or sends it commands;
+///   runtime::Session   the one owner of the scene as loaded (loaded()) and of the live values
+///                      (live(): isovalue, gains, tool, segments), the device and the haptic
+///                      threads (no Qt); every part below observes it or sends it commands;
 ///   SceneView          the VTK props, camera and clipping: turns a live snapshot and a
 ///                      recorded tick into the same picture;
 ///   IsovalueBar, DisplayPanel, HapticsPanel, DevicePicker, DeviceInput, StatusLine,
@@ -77,7 +78,7 @@ struct RebuiltTool;
 /// What the main window opens: a loaded scene with its device (null: haptics off) and what the
 /// window shows about it. The session builds the haptic threads.
 struct ViewerScene {
-  runtime::LoadedScene scene;               ///< Volume (field + image), tool, isovalue, pose, spec.
+  runtime::LoadedScene scene;               ///< As loaded: volume (field + image), tool, isovalue, pose, spec.
   std::shared_ptr<runtime::Device> device;  ///< Null: no device (haptics off).
   std::optional<Histogram> histogram;       ///< Absent: computed when shown.
   std::string title;                        ///< Window title detail (e.g. file name).
