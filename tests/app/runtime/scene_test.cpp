@@ -2,8 +2,14 @@
 // loading a scene into a renderer, and the default placement of the tool.
 #include "vh/runtime/scene.h"
 
+#include <algorithm>
 #include <cmath>
+#include <cstdlib>
+#include <limits>
+#include <optional>
 #include <stdexcept>
+#include <string>
+#include <thread>
 
 #include <gtest/gtest.h>
 #include <vtkImageData.h>  // the image LoadedScene shares for rendering
@@ -355,6 +361,65 @@ TEST(SceneLoading, CtWithoutAnIsovalueOpensAtBone) {
   spec.volume.isovalue = -300.0;
   spec.volume.isovalue_set = true;
   EXPECT_DOUBLE_EQ(loadScene(spec).isovalue, -300.0);
+}
+
+}  // namespace
+}  // namespace vh::runtime
+
+namespace vh::runtime {
+namespace {
+
+/// Sets an environment variable for one scope and restores it after.
+class ScopedEnv {
+ public:
+  ScopedEnv(const char* name, const char* value) : name_(name) {
+    if (const char* old = std::getenv(name)) old_ = old;
+    ::setenv(name, value, 1);
+  }
+  ~ScopedEnv() {
+    if (old_) {
+      ::setenv(name_, old_->c_str(), 1);
+    } else {
+      ::unsetenv(name_);
+    }
+  }
+  ScopedEnv(const ScopedEnv&) = delete;
+  ScopedEnv& operator=(const ScopedEnv&) = delete;
+
+ private:
+  const char* name_;
+  std::optional<std::string> old_;
+};
+
+TEST(SolverLanes, TheMachineLessTwoCoresAtMostEightAndTheEnvironmentOverridesValidCounts) {
+  // Oracle: the rule as documented, from std::thread::hardware_concurrency() itself.
+  const int machine = std::clamp(static_cast<int>(std::thread::hardware_concurrency()) - 2, 1, 8);
+  {
+    ScopedEnv unset("VH_SOLVER_LANES", "");
+    ::unsetenv("VH_SOLVER_LANES");
+    EXPECT_EQ(defaultSolverLanes(), machine);
+  }
+  {
+    ScopedEnv three("VH_SOLVER_LANES", "3");
+    EXPECT_EQ(defaultSolverLanes(), 3);
+  }
+  {
+    ScopedEnv most("VH_SOLVER_LANES", "64");
+    EXPECT_EQ(defaultSolverLanes(), 64);
+  }
+  // Anything that is not a whole count in 1..64 is ignored (the machine's rule applies).
+  for (const char* bad : {"0", "-2", "65", "abc", "3x", "", "2.5"}) {
+    ScopedEnv env("VH_SOLVER_LANES", bad);
+    EXPECT_EQ(defaultSolverLanes(), machine) << "VH_SOLVER_LANES=\"" << bad << "\"";
+  }
+}
+
+TEST(SolverLanes, TheDeadlineIsNinetyPercentOfTheServoPeriod) {
+  EXPECT_DOUBLE_EQ(solverDeadline_us(1000.0), 900.0);
+  EXPECT_DOUBLE_EQ(solverDeadline_us(4000.0), 225.0);
+  for (const double bad : {0.0, -1000.0, std::numeric_limits<double>::quiet_NaN(), std::numeric_limits<double>::infinity()}) {
+    EXPECT_EQ(solverDeadline_us(bad), 0.0) << bad;  // no deadline rather than a wrong one
+  }
 }
 
 }  // namespace
