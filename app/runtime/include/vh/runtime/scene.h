@@ -175,6 +175,20 @@ inline constexpr const char* kIgtlVolumePrefix = "igtl:";
 /// sceneForVolume(). Open it with loadScene(spec, volume).
 SceneSpec sceneForLoadedVolume(const io::LoadedVolume& volume);
 
+/// The surface the hand feels, one rule for a scene as loaded and for the live values: the felt
+/// segments' smoothed indicator field at io::kSegmentSurfaceLevel when `segments` has some felt,
+/// else `scan_field` at `scan_isovalue` (data units).
+inline bool feltSegmentsIn(const std::shared_ptr<const SegmentSet>& segments) noexcept {
+  return segments != nullptr && segments->feltField() != nullptr;
+}
+inline const std::shared_ptr<const haptics::ScalarVolume>& feltFieldOf(
+    const std::shared_ptr<const SegmentSet>& segments, const std::shared_ptr<const haptics::ScalarVolume>& scan_field) noexcept {
+  return feltSegmentsIn(segments) ? segments->feltField() : scan_field;
+}
+inline double feltIsovalueOf(const std::shared_ptr<const SegmentSet>& segments, double scan_isovalue) noexcept {
+  return feltSegmentsIn(segments) ? io::kSegmentSurfaceLevel : scan_isovalue;
+}
+
 /// A scene with everything loaded: the volume (haptic field + VTK image), the tool (resampled
 /// point shell, mass properties, display mesh), the isovalue and the initial pose. Immutable
 /// once loaded: what changes while the program runs (the isovalue slider, the gains, the tool
@@ -193,13 +207,13 @@ struct LoadedScene {
   std::shared_ptr<const SegmentSet> segments;
 
   /// True when segments are felt instead of the scan's isosurface.
-  bool feltSegments() const noexcept { return segments != nullptr && segments->feltField() != nullptr; }
+  bool feltSegments() const noexcept { return feltSegmentsIn(segments); }
   /// The field the hand feels: the felt segments' smoothed indicator, else the scan's field.
   const std::shared_ptr<const haptics::ScalarVolume>& hapticField() const noexcept {
-    return feltSegments() ? segments->feltField() : volume.field;
+    return feltFieldOf(segments, volume.field);
   }
   /// The isovalue of hapticField(): io::kSegmentSurfaceLevel for felt segments, else isovalue.
-  double hapticIsovalue() const noexcept { return feltSegments() ? io::kSegmentSurfaceLevel : isovalue; }
+  double hapticIsovalue() const noexcept { return feltIsovalueOf(segments, isovalue); }
 
   /// The spacing the tool's point shell was sampled at [m] (LiveValues::pointSpacing_m() of the
   /// loaded values); 0 without a tool or a field.
@@ -244,13 +258,13 @@ struct LiveValues {
   static LiveValues initial(const LoadedScene& scene);
 
   /// True when segments are felt instead of the scan's isosurface.
-  bool feltSegments() const noexcept { return segments != nullptr && segments->feltField() != nullptr; }
+  bool feltSegments() const noexcept { return feltSegmentsIn(segments); }
   /// The field the hand feels: the felt segments' smoothed indicator, else scan_field.
   const std::shared_ptr<const haptics::ScalarVolume>& hapticField() const noexcept {
-    return feltSegments() ? segments->feltField() : scan_field;
+    return feltFieldOf(segments, scan_field);
   }
   /// The isovalue of hapticField(): io::kSegmentSurfaceLevel for felt segments, else isovalue.
-  double hapticIsovalue() const noexcept { return feltSegments() ? io::kSegmentSurfaceLevel : isovalue; }
+  double hapticIsovalue() const noexcept { return feltIsovalueOf(segments, isovalue); }
   /// The spacing the tool's point shell was sampled at [m]: toolPointSpacing_m() of tool_spec on
   /// the tool's mesh and hapticField() (derived, so it cannot disagree with the spec); 0 without
   /// a tool or a field.
