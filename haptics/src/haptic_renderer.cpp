@@ -134,74 +134,6 @@ inline double limitLoweredIsovalue(CollisionDetector& collision, const Pose& X_W
   return isovalue;
 }
 
-// The renderer's proxy state that a tick's sweep moves (HapticRenderer's members, by reference).
-struct ProxyState {
-  Pose& X_WP;
-  RigidMotion& last_motion;
-  double& last_t;
-  double& pending_t;
-  bool& blocked_last_tick;
-};
-
-// A sweep the work budget cut on an earlier tick goes on where it stopped: the same motion,
-// this tick's budget; the proxy moves as far as every path is proven free. edge_safe is
-// HapticRenderer::edgeSafeTime().
-template <typename EdgeSafe>
-inline void resumeCutSweep(CollisionDetector& collision, const VirtualCoupling& coupling, const Pose& X_WD,
-                           const MassProperties& mass, double isovalue, ProxyState& state, TickStats& stats,
-                           EdgeSafe&& edge_safe) noexcept {
-  const auto phase = Clock::now();
-  // The detector keeps it until the next sweep() (resumeSweep() only ends the sweep).
-  const RigidMotion& pending_motion = collision.pendingMotion();
-  const SweepResult hit = collision.resumeSweep();
-  stats.sweep_us = usSince(phase, Clock::now());
-  // The motion was solved for an older device pose: along it, the proxy moves to the point,
-  // among eight from where it is to where the sweep has proven free, where the coupling to
-  // the device now has done the most positive work on it (a line search; the trapezoidal
-  // work of the coupling wrench over the move). Never negative work (the solver's own
-  // guarantee, ConfigurationSolver::setGains(), for the pose it solved for); when every
-  // candidate would do negative work the proxy waits, proven free where it is, while the
-  // sweep goes on.
-  const double pending_t = state.pending_t;
-  double t = pending_t;
-  const Pose X_from = pending_motion.poseAt(pending_t);
-  const Wrench w0 = coupling.compute(X_from, X_WD, mass);
-  const double t_end = std::max(pending_t, hit.t);
-  double best_work_J = 0.0;
-  for (int k = 1; k <= 8 && t_end > pending_t; ++k) {
-    const double t_try = k == 8 ? t_end : pending_t + (t_end - pending_t) * (k / 8.0);
-    const Pose X_to = pending_motion.poseAt(t_try);
-    const Wrench w1 = coupling.compute(X_to, X_WD, mass);
-    const Vector6d dx = displacement_W(X_from, X_to, mass.p_TCm_m);
-    const double work_J = -0.5 * ((w0.force_W_N + w1.force_W_N).dot(dx.head<3>()) +
-                                  (w0.torque_W_Nm + w1.torque_W_Nm).dot(dx.tail<3>()));
-    if (work_J > best_work_J) {
-      best_work_J = work_J;
-      t = t_try;
-    }
-  }
-  bool edge_stop = false;
-  t = edge_safe(pending_motion, pending_t, t, isovalue, edge_stop);
-  stats.edge_stop = edge_stop;
-  state.last_motion = pending_motion.part(pending_t, t);
-  state.last_t = 1.0;
-  state.X_WP = pending_motion.poseAt(t);
-  state.pending_t = t;
-  collision.refreshPositions(state.X_WP);
-  if (edge_stop) {
-    collision.abandonSweep();
-    state.blocked_last_tick = true;
-  } else if (!hit.budget_cut) {
-    const auto contacts_start = Clock::now();
-    // The contacts at the hit, when the proxy got there.
-    if (hit.hit_point >= 0 && t == hit.t) collision.addContactsAt(pending_motion, hit, isovalue);
-    stats.contacts_us = usSince(contacts_start, Clock::now());
-    state.blocked_last_tick = hit.hit_point >= 0 && hit.t < 0.01;
-  }
-  stats.budget_cut = hit.budget_cut;
-  stats.time_of_contact = t;
-}
-
 // A new felt isovalue, or a reset: points inside (only after a reset or at the first pose;
 // a lowered isovalue is deferred for the hand, see limitLoweredIsovalue()) are embedded and released
 // once outside again (see haptics/README.md, "Isovalue changes"). Then step 2: verify and
@@ -285,6 +217,62 @@ inline void fillWorkStatistics(const CollisionDetector& collision, Clock::time_p
 
 }  // namespace
 
+// A sweep the work budget cut on an earlier tick goes on where it stopped: the same motion,
+// this tick's budget; the proxy moves as far as every path is proven free.
+void HapticRenderer::resumeCutSweep(const Pose& X_WD, double isovalue, TickStats& stats) noexcept {
+  const MassProperties& mass = tool_->mass;
+  const auto phase = Clock::now();
+  // The detector keeps it until the next sweep() (resumeSweep() only ends the sweep).
+  const RigidMotion& pending_motion = collision_.pendingMotion();
+  const SweepResult hit = collision_.resumeSweep();
+  stats.sweep_us = usSince(phase, Clock::now());
+  // The motion was solved for an older device pose: along it, the proxy moves to the point,
+  // among eight from where it is to where the sweep has proven free, where the coupling to
+  // the device now has done the most positive work on it (a line search; the trapezoidal
+  // work of the coupling wrench over the move). Never negative work (the solver's own
+  // guarantee, ConfigurationSolver::setGains(), for the pose it solved for); when every
+  // candidate would do negative work the proxy waits, proven free where it is, while the
+  // sweep goes on.
+  const double pending_t = pending_t_;
+  double t = pending_t;
+  const Pose X_from = pending_motion.poseAt(pending_t);
+  const Wrench w0 = coupling_.compute(X_from, X_WD, mass);
+  const double t_end = std::max(pending_t, hit.t);
+  double best_work_J = 0.0;
+  for (int k = 1; k <= 8 && t_end > pending_t; ++k) {
+    const double t_try = k == 8 ? t_end : pending_t + (t_end - pending_t) * (k / 8.0);
+    const Pose X_to = pending_motion.poseAt(t_try);
+    const Wrench w1 = coupling_.compute(X_to, X_WD, mass);
+    const Vector6d dx = displacement_W(X_from, X_to, mass.p_TCm_m);
+    const double work_J = -0.5 * ((w0.force_W_N + w1.force_W_N).dot(dx.head<3>()) +
+                                  (w0.torque_W_Nm + w1.torque_W_Nm).dot(dx.tail<3>()));
+    if (work_J > best_work_J) {
+      best_work_J = work_J;
+      t = t_try;
+    }
+  }
+  bool edge_stop = false;
+  t = edgeSafeTime(pending_motion, pending_t, t, isovalue, edge_stop);
+  stats.edge_stop = edge_stop;
+  last_motion_ = pending_motion.part(pending_t, t);
+  last_t_ = 1.0;
+  X_WP_ = pending_motion.poseAt(t);
+  pending_t_ = t;
+  collision_.refreshPositions(X_WP_);
+  if (edge_stop) {
+    collision_.abandonSweep();
+    blocked_last_tick_ = true;
+  } else if (!hit.budget_cut) {
+    const auto contacts_start = Clock::now();
+    // The contacts at the hit, when the proxy got there.
+    if (hit.hit_point >= 0 && t == hit.t) collision_.addContactsAt(pending_motion, hit, isovalue);
+    stats.contacts_us = usSince(contacts_start, Clock::now());
+    blocked_last_tick_ = hit.hit_point >= 0 && hit.t < 0.01;
+  }
+  stats.budget_cut = hit.budget_cut;
+  stats.time_of_contact = t;
+}
+
 TickOutput HapticRenderer::tick(const Pose& X_WD_in, double requested_isovalue) noexcept {
   const auto start = Clock::now();
   TickOutput out;
@@ -303,14 +291,11 @@ TickOutput HapticRenderer::tick(const Pose& X_WD_in, double requested_isovalue) 
   felt_isovalue_ = isovalue;
   out.stats.felt_isovalue = isovalue;
 
-  const auto edge_safe = [this](const RigidMotion& motion, double t_from, double t_to, double iso,
-                                bool& stopped) noexcept { return edgeSafeTime(motion, t_from, t_to, iso, stopped); };
-  ProxyState state{X_WP_, last_motion_, last_t_, pending_t_, blocked_last_tick_};
   // A cut sweep goes on (resumeCutSweep()); a new isovalue or a reset abandons it (the proxy
   // stays where it is, which is proven free).
   if (collision_.sweepPending() && (embedded_scan_needed_ || isovalue != last_isovalue_)) collision_.abandonSweep();
   if (collision_.sweepPending()) {
-    resumeCutSweep(collision_, coupling_, X_WD, mass, isovalue, state, out.stats, edge_safe);
+    resumeCutSweep(X_WD, isovalue, out.stats);
   } else {
     prepareContactSet(collision_, X_WP_, X_WD, isovalue, embedded_scan_needed_, last_isovalue_);
     auto phase = Clock::now();

@@ -201,6 +201,9 @@ class HapticRenderer {
   // RendererOptions::edge_test: the move along `motion` from t_from (edges free there) to t_to
   // (points proven free), shortened to before the first sub-step where an edge crosses.
   double edgeSafeTime(const RigidMotion& motion, double t_from, double t_to, double isovalue, bool& stopped) noexcept;
+  // Goes on with the sweep the work budget cut on an earlier tick (CollisionDetector::
+  // resumeSweep()) and moves the proxy along its motion as far as proven free.
+  void resumeCutSweep(const Pose& X_WD, double isovalue, TickStats& stats) noexcept;
   bool edge_test_ = false;
   double last_isovalue_;
   double felt_isovalue_;        // see TickStats::felt_isovalue
