@@ -273,6 +273,10 @@ struct HapticThread::Exchange {
   std::atomic<bool> solver_fifo{false};
   /// The samples a kEverySample solver may fall behind before it skips to the newest.
   std::uint64_t backlog_limit = 1;
+  /// The newest sample when start() was called: the solver begins with the one after it. Set by
+  /// start() before either thread exists, so the coupling thread's first sample is never taken
+  /// for an old one, however late the solver thread gets going.
+  std::uint64_t first_sample_after = 0;
 };
 
 HapticThread::HapticThread(std::unique_ptr<haptics::HapticRenderer> renderer, std::shared_ptr<Device> device,
@@ -408,6 +412,7 @@ void HapticThread::start() {
   stop_requested_.store(false, std::memory_order_release);
   coupling_done_.store(false, std::memory_order_release);
   running_.store(true, std::memory_order_release);
+  x_->first_sample_after = x_->samples.latest();
   try {
     solver_thread_ = std::thread([this] { solverLoop(); });
   } catch (...) {
@@ -778,7 +783,7 @@ void HapticThread::solverLoop() noexcept {
   PeriodicClock clock(solver_period_s_, 0);
   SnapshotChannel* const monitor = options_.monitor.get();  // optional second consumer
   // Samples from before this start() are not used (a restart begins with the next one).
-  std::uint64_t consumed = x_->samples.latest();
+  std::uint64_t consumed = x_->first_sample_after;
   DeviceInput input, last_input;
   bool have_last = false;
   // The renderer's gains (and the solver's metric) are set before the first tick, as

@@ -53,8 +53,16 @@ TEST(HapticThread, TicksPublishesConsistentSnapshotsAndStops) {
 
   thread->start();
   EXPECT_TRUE(thread->running());
+  // The hand moves to the pressed pose in 0.5 mm steps: within the sample filter's 1 mm slack
+  // whatever the interval between two coupling ticks (a jump would be "faster than the device
+  // moves" whenever a loaded machine delivers two ticks close together, and be rejected).
   const Pose target = pressedPose(0.003);
-  device->setPose(target);
+  const Eigen::Vector3d from = scene.X_WT_initial.p_AB_m;
+  const int steps = 1 + static_cast<int>((target.p_AB_m - from).norm() / 0.0005);
+  for (int i = 1; i <= steps; ++i) {
+    device->setPose(Pose::FromTranslation(from + (target.p_AB_m - from) * (static_cast<double>(i) / steps)));
+    std::this_thread::sleep_for(2ms);
+  }
   std::this_thread::sleep_for(200ms);
   ASSERT_TRUE(waitUntil([&] { return thread->latestSnapshot(snap) && snap.tick >= 50 && snap.contacts > 0; }))
       << "ticks " << snap.tick << ", contacts " << snap.contacts;
