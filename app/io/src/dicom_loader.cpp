@@ -3,7 +3,8 @@
 // World frame W = DICOM patient LPS, in metres. Stored pixel values are kept as stored with the
 // series' RescaleSlope / RescaleIntercept as the field's value_scale / value_offset when they
 // are the same for every slice; otherwise vtkDICOM rescales (AutoRescale) and the field holds
-// data units directly.
+// data units directly. A PET series in Bq/ml becomes SUV (body weight) through the same scale
+// and offset (pet_suv.h).
 #include <algorithm>
 #include <cmath>
 #include <iomanip>
@@ -31,6 +32,7 @@
 #include <vtkStringArray.h>
 
 #include "loader_internal.h"
+#include "pet_suv.h"
 #include "slice_stack.h"
 #include "vtk_error_capture.h"
 
@@ -572,6 +574,19 @@ void describeSeries(vtkDICOMMetaData* md, const std::string& modality, const fs:
   info.series_number = md->Get(0, DC::SeriesNumber).AsInt();
 }
 
+/// A PET series in SUV (body weight) when its header allows (pet_suv.h): the factor times the
+/// value scale and offset, so the field, the rendering image, the isovalue range and the
+/// histogram are all in SUV; the unit ("SUVbw", else "Bq/ml" or none) and a notice either way.
+void applyPetSuv(vtkDICOMMetaData* md, RawVolume& raw) {
+  const PetSuv suv = petSuv(md);
+  if (suv.in_suv) {
+    raw.value_scale *= suv.factor;
+    raw.value_offset *= suv.factor;
+  }
+  raw.info.value_unit = suv.unit;
+  if (!suv.notice.empty()) raw.info.notices.push_back(suv.notice);
+}
+
 /// Reads the chosen files as one volume, regularised when needed; notices appended to `raw`.
 RawVolume readSeries(vtkStringArray* series_files, const fs::path& path, const fs::path& folder,
                      const VolumeLoadOptions& options) {
@@ -613,6 +628,7 @@ RawVolume readSeries(vtkStringArray* series_files, const fs::path& path, const f
   raw.value_scale = slope;
   raw.value_offset = intercept;
   describeSeries(md, modality, folder, raw.info);
+  if (modality == "PT") applyPetSuv(md, raw);
   return raw;
 }
 

@@ -86,6 +86,9 @@ vtkDICOMValue sequenceOf(const vtkDICOMItem& item) {
   return vtkDICOMValue(seq);
 }
 
+/// PET Image Storage (DICOM PS3.4 B.5).
+constexpr const char* kPetImageStorage = "1.2.840.10008.5.1.4.1.1.128";
+
 bool contains(const std::vector<int>& v, int x) { return std::find(v.begin(), v.end(), x) != v.end(); }
 
 }  // namespace
@@ -213,7 +216,9 @@ WrittenSeries writeSeries(const fs::path& folder, const SourceVolume& source,
         "dcmmkdir is installed");
   }
   const bool ct = spec.modality == "CT";
-  if (!ct && spec.modality != "MR") throw std::runtime_error("modality must be CT or MR");
+  const bool pet = spec.modality == "PT";
+  if (!ct && !pet && spec.modality != "MR") throw std::runtime_error("modality must be CT, MR or PT");
+  if (pet && spec.multi_frame) throw std::runtime_error("PT: single-frame files only");
   if (!source.image) throw std::runtime_error("no source image");
   if (spec.time_points < 1 || spec.echoes < 1 || spec.subsample < 1) {
     throw std::runtime_error("time_points, echoes and subsample must be >= 1");
@@ -355,10 +360,17 @@ WrittenSeries writeSeries(const fs::path& folder, const SourceVolume& source,
         meta->Set(i, DC::TriggerTime, 100.0 * slot.t);
         meta->Set(i, DC::AcquisitionNumber, slot.t + 1);
       }
-      if (!ct) {
+      if (spec.modality == "MR") {
         meta->Set(i, DC::EchoTime, 10.0 * (slot.e + 1));
         meta->Set(i, DC::EchoNumbers, slot.e + 1);
       }
+      if (pet) {
+        meta->Set(i, DC::Modality, "PT");
+        meta->Set(i, DC::SOPClassUID, kPetImageStorage);
+        meta->Set(i, DC::MediaStorageSOPClassUID, kPetImageStorage);
+        meta->Set(i, DC::ImageType, "ORIGINAL\\PRIMARY");
+      }
+      if (spec.instance_tags) spec.instance_tags(meta, i, slot.k);
     }
     return true;
   };

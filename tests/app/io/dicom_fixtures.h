@@ -2,15 +2,17 @@
 /// @file
 /// Writers of synthetic-but-real DICOM series for the loader tests ("Every clinical
 /// scan opens"): the voxels of a source volume (the shared small CT head, or a caller's volume)
-/// written through vtk-dicom's vtkDICOMWriter and CT / MR generators, with the geometry and the
-/// faults of real scans: gantry tilt, oblique planes, missing, duplicated and displaced slices,
-/// enhanced multi-frame files, 4-D (temporal) and multi-echo series.
+/// written through vtk-dicom's vtkDICOMWriter and CT / MR generators (PET through the MR one),
+/// with the geometry and the faults of real scans: gantry tilt, oblique planes, missing,
+/// duplicated and displaced slices, enhanced multi-frame files, 4-D (temporal) and multi-echo
+/// series.
 ///
 /// Frames: every position here is patient LPS in millimetres, as DICOM writes it. A voxel index
 /// (i, j, k) is the SOURCE volume's (column, row, slice); the writer puts source column i of row
 /// j of slice k at pixel (i / subsample, j / subsample) of the file(s) for slice k.
 
 #include <filesystem>
+#include <functional>
 #include <string>
 #include <utility>
 #include <vector>
@@ -71,7 +73,10 @@ enum class TiltConvention {
 /// What to write. u, v, w are the source's unit column, row and slice axes in LPS (for the CT
 /// head: L, P, S); spacings and the first voxel's position are the source's.
 struct SeriesSpec {
-  std::string modality = "CT";  ///< "CT" (CT Image Storage) or "MR" (MR Image Storage).
+  /// "CT" (CT Image Storage), "MR" (MR Image Storage) or "PT" (PET Image Storage, written
+  /// through the MR generator with the SOP class and Modality changed; the PET tags come from
+  /// `instance_tags`).
+  std::string modality = "CT";
   /// CT gantry tilt [deg], also written as GantryDetectorTilt (0018,1120).
   double gantry_tilt_deg = 0.0;
   TiltConvention tilt_convention = TiltConvention::kTiltedPlane;
@@ -100,6 +105,10 @@ struct SeriesSpec {
   int subsample = 1;       ///< Keep every n-th column and row (smaller files).
   /// File name prefix inside the folder; empty: "S<series_number>_".
   std::string file_prefix;
+  /// When set, called last for each written file (single-frame series): (metadata, instance,
+  /// source slice k), to add or replace tags, e.g. the PET Series and Isotope modules or a
+  /// per-file RescaleSlope.
+  std::function<void(vtkDICOMMetaData* meta, int instance, int k)> instance_tags;
 };
 
 /// What was written.

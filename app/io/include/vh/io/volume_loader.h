@@ -1,7 +1,8 @@
 #pragma once
 /// @file
 /// Loading volumes (DICOM series, NRRD, MetaImage) and tool meshes (STL, OBJ, PLY) through VTK.
-/// Units are converted once, here, into metres; values stay in the data's units (HU for CT).
+/// Units are converted once, here, into metres; values stay in the data's units (HU for CT),
+/// except PET in Bq/ml, which becomes SUV (body weight).
 
 #include <atomic>
 #include <filesystem>
@@ -78,7 +79,9 @@ struct VolumeInfo {
   std::filesystem::path source;  ///< File or folder loaded.
   std::string format;            ///< "DICOM", "NRRD", "MetaImage".
   std::string modality;          ///< "CT", "MR", ... or empty.
-  std::string value_unit;        ///< "HU" for CT, else empty.
+  /// "HU" for CT; "SUVbw" for PET in SUV (body weight), "Bq/ml" for PET in Bq/ml whose header
+  /// lacks what SUV needs (a notice names it); else empty.
+  std::string value_unit;
   std::string description;       ///< Series description or file name.
   std::string patient_name;      ///< DICOM patient name, or empty.
   std::string series_uid;        ///< DICOM Series Instance UID, or empty.
@@ -107,7 +110,9 @@ struct LoadedVolume {
 /// duplicate slices are dropped, and a sheared stack (gantry tilt) or one with missing slices
 /// or uneven spacing is resampled onto a rectilinear grid in the image planes' frame with the
 /// median slice spacing (bilinear in plane, linear between slices); VolumeInfo::notices says
-/// what was done.
+/// what was done. PET (Modality PT) in Bq/ml is scaled to SUVbw = Bq/ml * PatientWeight [kg] *
+/// 1000 / injected dose [Bq] decayed to the images' decay-correction time (QIBA vendor-neutral
+/// SUV pseudo-code; DICOM PS3.3 C.8.9.1), with a notice giving the factor, or why not.
 /// @throws LoadError naming the file and the problem: missing path, not a volume, corrupt or
 ///         truncated file, inconsistent slices, no series matching options.dicom_series, a
 ///         phase out of range; LoadCancelled when options.cancel was set.
