@@ -113,7 +113,7 @@ DhdDevice::DhdDevice(std::shared_ptr<const DhdApi> api, DhdOptions options) : ap
 }
 
 DhdDevice::~DhdDevice() {
-  stopIo();
+  stopIoThread();
   closeDevice();
 }
 
@@ -175,56 +175,36 @@ void DhdDevice::openAndStart() {
     closeDevice();
     throw;
   }
-  {
-    const std::lock_guard<std::mutex> lock(problem_mutex_);
-    problem_.clear();
-  }
+  clearProblem();
   wrenches_.writeSlot() = Wrench{};
   wrenches_.publish();
-  connection_.fetch_add(1, std::memory_order_acq_rel);
-  stop_.store(false, std::memory_order_release);
-  connected_.store(true, std::memory_order_release);
-  io_ = std::thread([this] { ioLoop(); });
-}
-
-void DhdDevice::stopIo() noexcept {
-  stop_.store(true, std::memory_order_release);
-  if (io_.joinable()) io_.join();
+  startIoThread([this] { ioLoop(); });
 }
 
 void DhdDevice::reconnect() {
-  stopIo();
+  stopIoThread();
   closeDevice();
-  connected_.store(false, std::memory_order_release);
+  markDisconnected();
   openAndStart();
-}
-
-std::string DhdDevice::problem() const {
-  const std::lock_guard<std::mutex> lock(problem_mutex_);
-  return problem_;
 }
 
 void DhdDevice::fail(const std::string& text) noexcept {
   // Zero force at once (the device may not answer any more), forces off, then report.
   api_->setForceAndTorque(0, 0, 0, 0, 0, 0, id_);
   api_->enableForce(0, id_);
-  connected_.store(false, std::memory_order_release);
-  try {
-    const std::lock_guard<std::mutex> lock(problem_mutex_);
-    problem_ = identity_.model + ": " + text + "; forces off (pick the device again to reconnect)";
-  } catch (...) {
-  }
+  markDisconnected();
+  setProblem({identity_.model, ": ", text, "; forces off (pick the device again to reconnect)"});
 }
 
 void DhdDevice::ioLoop() noexcept {
   const DhdApi& a = *api_;
-  const std::uint32_t connection = connection_.load(std::memory_order_acquire);
+  const std::uint32_t this_connection = connection();
   const auto period = std::chrono::duration_cast<std::chrono::steady_clock::duration>(
       std::chrono::duration<double>(options_.io_period_s));
   auto next = std::chrono::steady_clock::now();
   VelocityFilter velocity(options_.velocity_cutoff_Hz);
   Wrench wrench;
-  while (!stop_.load(std::memory_order_acquire)) {
+  while (!stopRequested()) {
     double px = 0.0, py = 0.0, pz = 0.0;
     double m[3][3] = {{1, 0, 0}, {0, 1, 0}, {0, 0, 1}};
     const int r = has_wrist_ ? a.getPositionAndOrientationFrame(&px, &py, &pz, m, id_) : a.getPosition(&px, &py, &pz, id_);
@@ -245,7 +225,7 @@ void DhdDevice::ioLoop() noexcept {
     s.v_WD_m_per_s = velocity.velocity();
     s.w_WD_rad_per_s.setZero();
     s.buttons = a.getButtonMask(id_);
-    s.connection = connection;
+    s.connection = this_connection;
     s.valid = p_BH.allFinite() && s.X_WD.R_AB.coeffs().allFinite();
     samples_.publish();
 

@@ -237,16 +237,6 @@ runtime::DeviceIdentity FalconDevice::identity() const {
   return {"Novint Falcon", "Novint", info_.serial, backend_->name() + " " + info_.path};
 }
 
-std::string FalconDevice::problem() const {
-  const std::lock_guard<std::mutex> lock(problem_mutex_);
-  return problem_;
-}
-
-void FalconDevice::setProblem(const std::string& text) {
-  const std::lock_guard<std::mutex> lock(problem_mutex_);
-  problem_ = text;
-}
-
 void FalconDevice::openAndStart() {
   const std::string where = "Novint Falcon at " + info_.path;
   std::unique_ptr<UsbTransport> usb = backend_->open(info_);
@@ -276,21 +266,17 @@ void FalconDevice::openAndStart() {
   }
   transport_ = std::move(usb);
   setProblem(options_.require_homing ? "not homed yet: move the grip through its whole range" : "");
-  stop_.store(false, std::memory_order_release);
-  connection_.fetch_add(1, std::memory_order_acq_rel);
-  connected_.store(true, std::memory_order_release);
-  io_ = std::thread([this] { ioLoop(); });
+  startIoThread([this] { ioLoop(); });
 }
 
 void FalconDevice::stopIo() noexcept {
-  stop_.store(true, std::memory_order_release);
-  if (io_.joinable()) io_.join();
+  stopIoThread();
   transport_.reset();
 }
 
 void FalconDevice::reconnect() {
   stopIo();
-  connected_.store(false, std::memory_order_release);
+  markDisconnected();
   std::vector<UsbDeviceInfo> found = backend_->enumerate(falcon::kVendorId, falcon::kProductId);
   const auto same = std::find_if(found.begin(), found.end(), [&](const UsbDeviceInfo& d) {
     return !info_.serial.empty() ? d.serial == info_.serial : true;
@@ -305,9 +291,9 @@ void FalconDevice::reconnect() {
 
 bool FalconDevice::read(runtime::DeviceSample& sample) noexcept {
   samples_.read(servo_sample_);
-  if (!connected_.load(std::memory_order_acquire)) return false;
+  if (!connected()) return false;
   // Nothing measured since (re)connecting yet: no stale sample of the previous connection.
-  if (servo_sample_.connection != connection_.load(std::memory_order_acquire)) return false;
+  if (servo_sample_.connection != connection()) return false;
   sample = servo_sample_;
   return true;
 }
@@ -328,18 +314,18 @@ void FalconDevice::ioLoop() noexcept {
   VelocityFilter velocity(options_.velocity_cutoff_Hz);
   double last_time_s = 0.0;
   const double t0_s = steadySeconds();
-  const std::uint32_t connection = connection_.load(std::memory_order_acquire);
+  const std::uint32_t this_connection = connection();
   int consecutive_errors = 0;
   bool was_homed = false;
   std::uint8_t raw[falcon::kUsbPacketBytes];
   std::uint8_t data[falcon::kUsbPacketBytes];
 
   auto disconnect = [&](const std::string& why) {
-    connected_.store(false, std::memory_order_release);
+    markDisconnected();
     setProblem(why);
   };
 
-  while (!stop_.load(std::memory_order_acquire)) {
+  while (!stopRequested()) {
     // Command: force through the Jacobian at the latest position, LEDs / homing.
     Eigen::Vector3d force_B_N = Eigen::Vector3d::Zero();
     forces_.read(force_B_N);
@@ -405,12 +391,12 @@ void FalconDevice::ioLoop() noexcept {
     s.v_WD_m_per_s = velocity.velocity();
     s.w_WD_rad_per_s.setZero();
     s.buttons = status.buttons;
-    s.connection = connection;
+    s.connection = this_connection;
     s.valid = have_position && (homed_now || !options_.require_homing);
     samples_.publish();
   }
   // Leave the motors off when the device is still there.
-  if (connected_.load(std::memory_order_acquire)) {
+  if (connected()) {
     const falcon::Packet zero = falcon::encodeCommand({});
     usb.bulkWrite(falcon::kEndpointOut, zero.data(), static_cast<int>(zero.size()), options_.io_timeout_ms);
     std::uint8_t drain[falcon::kUsbPacketBytes];

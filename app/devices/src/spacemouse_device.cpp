@@ -57,31 +57,19 @@ runtime::DeviceLimits SpaceMouseDevice::limits() const noexcept {
   return l;
 }
 
-std::string SpaceMouseDevice::problem() const {
-  const std::lock_guard<std::mutex> lock(problem_mutex_);
-  return problem_;
-}
-
 void SpaceMouseDevice::openAndStart() {
   transport_ = backend_->open(info_.path);
   if (options_.led) {
     const auto led = spacemouse::ledReport(true);
     transport_->write(led.data(), led.size());  // best effort: not every model has the LED report
   }
-  {
-    const std::lock_guard<std::mutex> lock(problem_mutex_);
-    problem_.clear();
-  }
-  stop_.store(false, std::memory_order_release);
-  connection_.fetch_add(1, std::memory_order_acq_rel);
-  connected_.store(true, std::memory_order_release);
-  io_ = std::thread([this] { ioLoop(); });
+  clearProblem();
+  startIoThread([this] { ioLoop(); });
 }
 
 void SpaceMouseDevice::stopIo() noexcept {
-  stop_.store(true, std::memory_order_release);
-  if (io_.joinable()) io_.join();
-  if (transport_ && connected_.load(std::memory_order_acquire) && options_.led) {
+  stopIoThread();
+  if (transport_ && connected() && options_.led) {
     const auto led = spacemouse::ledReport(false);
     transport_->write(led.data(), led.size());
   }
@@ -90,7 +78,7 @@ void SpaceMouseDevice::stopIo() noexcept {
 
 void SpaceMouseDevice::reconnect() {
   stopIo();
-  connected_.store(false, std::memory_order_release);
+  markDisconnected();
   const std::vector<HidDeviceInfo> found = backend_->enumerate();
   for (const HidDeviceInfo& d : found) {
     if (d.vendor_id != info_.vendor_id || d.product_id != info_.product_id) continue;
@@ -107,15 +95,12 @@ void SpaceMouseDevice::ioLoop() noexcept {
   HidTransport& hid = *transport_;
   spacemouse::State state;
   std::uint8_t report[64];
-  while (!stop_.load(std::memory_order_acquire)) {
+  while (!stopRequested()) {
     const int n = hid.read(report, sizeof report, options_.read_timeout_ms);
     if (n < 0) {
-      std::string why = hid.lastError();
-      {
-        const std::lock_guard<std::mutex> lock(problem_mutex_);
-        problem_ = "unplugged or failed: " + why;
-      }
-      connected_.store(false, std::memory_order_release);
+      const std::string why = hid.lastError();
+      setProblem({"unplugged or failed: ", why});
+      markDisconnected();
       break;
     }
     if (n == 0) continue;
@@ -130,7 +115,7 @@ void SpaceMouseDevice::ioLoop() noexcept {
 
 bool SpaceMouseDevice::read(runtime::DeviceSample& sample) noexcept {
   const double now_s = steadySeconds() - t0_s_;
-  if (!connected_.load(std::memory_order_acquire)) {
+  if (!connected()) {
     last_read_s_ = now_s;  // no motion is integrated over the gap
     return false;
   }
@@ -144,7 +129,7 @@ bool SpaceMouseDevice::read(runtime::DeviceSample& sample) noexcept {
   sample.v_WD_m_per_s = controller_.velocity_m_per_s();
   sample.w_WD_rad_per_s = controller_.angularVelocity_rad_per_s();
   sample.buttons = servo_state_.buttons;
-  sample.connection = connection_.load(std::memory_order_acquire);
+  sample.connection = connection();
   sample.valid = true;
   return true;
 }

@@ -21,18 +21,18 @@
 ///
 /// Threads: the constructor and reconnect() run on the caller's thread; one I/O thread reads
 /// the pose and sends the latest force at about 1 kHz (DHD calls block on USB I/O and report
-/// errors per thread); read() / command() touch only triple buffers and atomics.
+/// errors per thread); read() / command() touch only triple buffers and atomics. The thread,
+/// the connected flag, the connection counter and the problem text are IoThreadDevice's.
 
 #include <atomic>
 #include <cstdint>
 #include <memory>
-#include <mutex>
 #include <string>
-#include <thread>
 #include <vector>
 
 #include <Eigen/Core>
 
+#include "vh/devices/io_thread_device.h"
 #include "vh/devices/vendor_library.h"
 #include "vh/runtime/device.h"
 
@@ -105,7 +105,7 @@ struct DhdOptions {
 };
 
 /// A Force Dimension device through a loaded DHD library.
-class DhdDevice final : public runtime::Device {
+class DhdDevice final : public IoThreadDevice {
  public:
   /// Opens device `options.index`, checks its calibration, enables forces and starts the I/O
   /// thread.
@@ -125,8 +125,6 @@ class DhdDevice final : public runtime::Device {
   runtime::DofMask sensedDof() const noexcept override { return sensed_; }
   /// Translation, plus rotation with an active wrist (sigma.7); never torque otherwise.
   runtime::DofMask actuatedDof() const noexcept override { return actuated_; }
-  bool connected() const noexcept override { return connected_.load(std::memory_order_acquire); }
-  std::string problem() const override;
   /// Closes and reopens the device (after an error).
   /// @throws std::runtime_error as the constructor.
   void reconnect() override;
@@ -146,7 +144,6 @@ class DhdDevice final : public runtime::Device {
     Eigen::Vector3d torque_Nm = Eigen::Vector3d::Zero();
   };
   void openAndStart();
-  void stopIo() noexcept;
   void closeDevice() noexcept;
   void ioLoop() noexcept;
   void fail(const std::string& text) noexcept;
@@ -161,16 +158,10 @@ class DhdDevice final : public runtime::Device {
   runtime::DofMask sensed_ = runtime::kDofTranslation;
   runtime::DofMask actuated_ = runtime::kDofTranslation;
   bool has_wrist_ = false;
-  std::thread io_;
-  std::atomic<bool> stop_{false};
-  std::atomic<bool> connected_{false};
-  std::atomic<std::uint32_t> connection_{0};
   std::atomic<std::uint64_t> cycles_{0};
   runtime::TripleBuffer<runtime::DeviceSample> samples_;  // I/O thread -> servo thread
   runtime::TripleBuffer<Wrench> wrenches_;                // servo thread -> I/O thread
   runtime::DeviceSample servo_sample_;                    // servo thread only
-  mutable std::mutex problem_mutex_;
-  std::string problem_;
 };
 
 }  // namespace vh::devices

@@ -6,7 +6,8 @@
 ///
 /// Threads: the constructor and reconnect() run on the caller's (GUI or loader) thread; one I/O
 /// thread exchanges 16-byte packets with the device as fast as it answers (about 1 kHz); the
-/// servo thread's read() / command() only touch lock-free triple buffers and atomics.
+/// servo thread's read() / command() only touch lock-free triple buffers and atomics. The
+/// thread, the connected flag, the connection counter and the problem text are IoThreadDevice's.
 ///
 /// Samples are in the device base frame B (falcon_kinematics.h: x right, y up, z towards the
 /// user, origin at the workspace centre): wrap the device in a runtime::MappedDevice (the
@@ -16,15 +17,14 @@
 #include <cstdint>
 #include <filesystem>
 #include <memory>
-#include <mutex>
 #include <span>
 #include <string>
-#include <thread>
 #include <vector>
 
 #include <Eigen/Core>
 
 #include "vh/devices/falcon_protocol.h"
+#include "vh/devices/io_thread_device.h"
 #include "vh/devices/transport.h"
 #include "vh/runtime/device.h"
 
@@ -76,7 +76,7 @@ struct FalconOptions {
 };
 
 /// A Novint Falcon.
-class FalconDevice final : public runtime::Device {
+class FalconDevice final : public IoThreadDevice {
  public:
   /// Opens `device` through `backend`, uploads the firmware when needed, starts the I/O thread.
   /// @throws std::runtime_error naming the device and the problem (cannot open, firmware
@@ -92,7 +92,6 @@ class FalconDevice final : public runtime::Device {
   runtime::SafetyPolicy safetyPolicy() const noexcept override { return runtime::SafetyPolicy::forHardware(); }
   runtime::DofMask sensedDof() const noexcept override { return runtime::kDofTranslation; }
   runtime::DofMask actuatedDof() const noexcept override { return runtime::kDofTranslation; }
-  bool connected() const noexcept override { return connected_.load(std::memory_order_acquire); }
   /// Re-finds the Falcon (same serial when known, else the first one), reopens it (uploading the
   /// firmware again when needed) and restarts the I/O thread.
   /// @throws std::runtime_error when it cannot be found or opened.
@@ -103,8 +102,7 @@ class FalconDevice final : public runtime::Device {
   /// Servo thread: force [N] in B (torque ignored: not actuated).
   void command(const Eigen::Vector3d& force_B_N, const Eigen::Vector3d& torque_B_Nm) noexcept override;
 
-  /// Any thread: why the device is disconnected or not yet usable (empty when fine).
-  std::string problem() const override;
+  // problem() (IoThreadDevice): why the device is disconnected or not homed yet; empty when fine.
   /// Any thread: status packets received, I/O errors (counters since opening).
   std::uint64_t packetsReceived() const noexcept { return packets_.load(std::memory_order_relaxed); }
   std::uint64_t ioErrors() const noexcept { return io_errors_.load(std::memory_order_relaxed); }
@@ -113,27 +111,21 @@ class FalconDevice final : public runtime::Device {
 
  private:
   void openAndStart();
+  /// Stops and joins the I/O thread, then drops the transport (closing the device).
   void stopIo() noexcept;
   void ioLoop() noexcept;
-  void setProblem(const std::string& text);
 
   std::shared_ptr<UsbBackend> backend_;
   UsbDeviceInfo info_;
   FalconOptions options_;
   std::vector<std::uint8_t> firmware_;  // read once, kept for reconnects
   std::unique_ptr<UsbTransport> transport_;  // I/O thread while it runs
-  std::thread io_;
-  std::atomic<bool> stop_{false};
-  std::atomic<bool> connected_{false};
   std::atomic<bool> homed_{false};
-  std::atomic<std::uint32_t> connection_{0};
   std::atomic<std::uint64_t> packets_{0};
   std::atomic<std::uint64_t> io_errors_{0};
   runtime::TripleBuffer<runtime::DeviceSample> samples_;  // I/O thread -> servo thread
   runtime::TripleBuffer<Eigen::Vector3d> forces_;         // servo thread -> I/O thread
   runtime::DeviceSample servo_sample_;                    // servo thread only
-  mutable std::mutex problem_mutex_;
-  std::string problem_;
 };
 
 }  // namespace vh::devices

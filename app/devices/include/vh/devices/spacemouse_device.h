@@ -6,18 +6,18 @@
 ///
 /// Threads: one I/O thread reads HID reports (about 60 per second while the puck moves) and
 /// hands the decoded state to the servo thread through a triple buffer; read() / command()
-/// never block, allocate or throw.
+/// never block, allocate or throw. The thread, the connected flag, the connection counter and
+/// the problem text are IoThreadDevice's.
 ///
 /// Samples are in the device base frame B (spacemouse_protocol.h): wrap the device in a
 /// runtime::MappedDevice (the DeviceCatalog does) to use it in W.
 
 #include <atomic>
 #include <memory>
-#include <mutex>
 #include <optional>
 #include <string>
-#include <thread>
 
+#include "vh/devices/io_thread_device.h"
 #include "vh/devices/spacemouse_protocol.h"
 #include "vh/devices/transport.h"
 #include "vh/runtime/device.h"
@@ -37,7 +37,7 @@ struct SpaceMouseOptions {
 };
 
 /// A SpaceMouse (any model of spacemouse::knownModels()).
-class SpaceMouseDevice final : public runtime::Device {
+class SpaceMouseDevice final : public IoThreadDevice {
  public:
   /// Opens `device` through `backend` and starts the I/O thread; the handle starts at rest at
   /// B's origin.
@@ -54,7 +54,6 @@ class SpaceMouseDevice final : public runtime::Device {
   runtime::DeviceLimits limits() const noexcept override;
   runtime::DofMask sensedDof() const noexcept override { return runtime::kDofAll; }
   runtime::DofMask actuatedDof() const noexcept override { return runtime::kDofNone; }
-  bool connected() const noexcept override { return connected_.load(std::memory_order_acquire); }
   /// Re-finds the same model (same serial when known) and reopens it; the handle keeps its pose.
   /// @throws std::runtime_error when it cannot be found or opened.
   void reconnect() override;
@@ -71,12 +70,12 @@ class SpaceMouseDevice final : public runtime::Device {
   /// Any thread: reports decoded so far; battery percent (-1: not reported).
   std::uint64_t reportsReceived() const noexcept { return reports_.load(std::memory_order_relaxed); }
   int batteryPercent() const noexcept { return battery_.load(std::memory_order_relaxed); }
-  /// Any thread: why the device is disconnected (empty when fine).
-  std::string problem() const override;
+  // problem() (IoThreadDevice): why the device is disconnected; empty when fine.
   const spacemouse::Model& model() const noexcept { return *model_; }
 
  private:
   void openAndStart();
+  /// Stops and joins the I/O thread, turns the LED off when still connected, drops the transport.
   void stopIo() noexcept;
   void ioLoop() noexcept;
 
@@ -86,11 +85,7 @@ class SpaceMouseDevice final : public runtime::Device {
   const spacemouse::Model* model_;
   spacemouse::AxisMap axes_;
   std::unique_ptr<HidTransport> transport_;  // I/O thread while it runs
-  std::thread io_;
-  std::atomic<bool> stop_{false};
-  std::atomic<bool> connected_{false};
   std::atomic<bool> recentre_{false};
-  std::atomic<std::uint32_t> connection_{0};
   std::atomic<std::uint64_t> reports_{0};
   std::atomic<int> battery_{-1};
   runtime::TripleBuffer<spacemouse::State> states_;  // I/O thread -> servo thread
@@ -100,8 +95,6 @@ class SpaceMouseDevice final : public runtime::Device {
   spacemouse::RateController controller_;
   double t0_s_ = 0.0;
   double last_read_s_ = -1.0;
-  mutable std::mutex problem_mutex_;
-  std::string problem_;
 };
 
 }  // namespace vh::devices
