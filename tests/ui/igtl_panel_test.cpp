@@ -122,7 +122,7 @@ TEST(IgtlPanel, ImageFromAClientOpensAsTheNewScene) {
   ASSERT_EQ(client->ConnectToServer("127.0.0.1", port), 0);
   ASSERT_EQ(client->Send(image->GetPackPointer(), image->GetPackSize()), 1);
 
-  ASSERT_TRUE(waitFor([&] { return loaded.count() > 0; }, 20000)) << window.lastError().toStdString();
+  ASSERT_TRUE(waitFor([&] { return loaded.count() > 0; }, 20000)) << window.opener()->lastError().toStdString();
   ASSERT_TRUE(window.hasScene());
   const haptics::VolumeGeometry& g = window.session().loaded().volume.field->geometry();
   EXPECT_EQ(g.dims, (std::array<int, 3>{24, 20, 16}));
@@ -136,7 +136,7 @@ TEST(IgtlPanel, ImageFromAClientOpensAsTheNewScene) {
               !window.preferences().recent_files.front().contains("igtl:"));
   // Its haptics feed the link.
   runtime::HapticSnapshot s;
-  ASSERT_TRUE(waitFor([&] { return window.hapticsRunning(); }, 5000));
+  ASSERT_TRUE(waitFor([&] { return window.session().hapticsRunning(); }, 5000));
   EXPECT_TRUE(waitFor([&] { return window.igtlPanel()->channel()->read(s) && s.tick > 20; }, 5000));
   window.session().stopHaptics();
 }

@@ -26,6 +26,7 @@
 #include "ui_test_util.h"
 #include "vh/io/dicom_series.h"
 #include "vh/ui/main_window.h"
+#include "vh/ui/view_controller.h"
 #include "vh/ui/scene_loader.h"
 #include "vh/ui/panels/series_chooser.h"
 
@@ -88,7 +89,7 @@ TEST(LoadNoticesTest, AGapIsNamedInTheStatusBarTheBannerAndHelpLoadNotes) {
 
   QSignalSpy loaded(&window, &MainWindow::sceneLoaded);
   window.openPath(qs(gapped));
-  ASSERT_TRUE(waitFor([&] { return loaded.count() > 0; }, 30000)) << window.lastError().toStdString();
+  ASSERT_TRUE(waitFor([&] { return loaded.count() > 0; }, 30000)) << window.opener()->lastError().toStdString();
 
   const QString status = window.statusBar()->currentMessage();
   EXPECT_TRUE(status.contains("missing slice")) << status.toStdString();
@@ -125,13 +126,13 @@ TEST(LoadNoticesTest, CancellingAReadShowsItsProgressAndKeepsThePreviousScene) {
   window.show();
   QSignalSpy loaded(&window, &MainWindow::sceneLoaded);
   window.openPath(qs(kHead));
-  ASSERT_TRUE(waitFor([&] { return loaded.count() > 0; }, 30000)) << window.lastError().toStdString();
-  ASSERT_TRUE(waitFor([&] { return !window.loading(); }, 30000));
-  ASSERT_TRUE(window.hapticsRunning());
-  vtkVolume* shown = window.volumeProp();
+  ASSERT_TRUE(waitFor([&] { return loaded.count() > 0; }, 30000)) << window.opener()->lastError().toStdString();
+  ASSERT_TRUE(waitFor([&] { return !window.opener()->loading(); }, 30000));
+  ASSERT_TRUE(window.session().hapticsRunning());
+  vtkVolume* shown = window.sceneView()->actors().volume();
   const std::string title = window.sceneTitle();
-  ASSERT_TRUE(waitFor([&] { window.refreshFromHaptics(); return window.lastSnapshot().tick > 0; }, 3000));
-  const auto ticks_before = window.lastSnapshot().tick;
+  ASSERT_TRUE(waitFor([&] { window.viewController()->refresh(); return window.viewController()->lastSnapshot().tick > 0; }, 3000));
+  const auto ticks_before = window.viewController()->lastSnapshot().tick;
 
   // A read that reports a quarter done, then waits for the cancel as io::loadVolume does.
   std::atomic<bool> saw_cancel{false};
@@ -156,7 +157,7 @@ TEST(LoadNoticesTest, CancellingAReadShowsItsProgressAndKeepsThePreviousScene) {
   ASSERT_NE(cancel, nullptr);
   EXPECT_TRUE(cancel->isVisible());
   cancel->click();
-  EXPECT_FALSE(window.loading());
+  EXPECT_FALSE(window.opener()->loading());
   EXPECT_TRUE(window.statusBar()->currentMessage().contains("cancelled", Qt::CaseInsensitive))
       << window.statusBar()->currentMessage().toStdString();
   window.loader()->waitForIdle();
@@ -164,10 +165,10 @@ TEST(LoadNoticesTest, CancellingAReadShowsItsProgressAndKeepsThePreviousScene) {
   EXPECT_TRUE(saw_cancel.load()) << "the read was told to stop";
   EXPECT_EQ(failed.count(), 0) << "a cancel is no error";
   EXPECT_EQ(loaded.count(), 1);
-  EXPECT_EQ(window.volumeProp(), shown);
+  EXPECT_EQ(window.sceneView()->actors().volume(), shown);
   EXPECT_EQ(window.sceneTitle(), title);
-  EXPECT_TRUE(window.hapticsRunning()) << "the haptic thread runs on";
-  EXPECT_TRUE(waitFor([&] { window.refreshFromHaptics(); return window.lastSnapshot().tick > ticks_before + 10; }, 3000))
+  EXPECT_TRUE(window.session().hapticsRunning()) << "the haptic thread runs on";
+  EXPECT_TRUE(waitFor([&] { window.viewController()->refresh(); return window.viewController()->lastSnapshot().tick > ticks_before + 10; }, 3000))
       << "the haptic thread still ticks";
   EXPECT_FALSE(bar->isVisible());
   window.close();
@@ -200,8 +201,8 @@ TEST(LoadNoticesTest, TheChosenTimePointReachesTheSceneSpec) {
   window.resize(1000, 700);
   window.show();
   QSignalSpy loaded(&window, &MainWindow::sceneLoaded);
-  window.openDicomSeries(listed.front(), chooser.selectedPhase());
-  ASSERT_TRUE(waitFor([&] { return loaded.count() == 1; }, 30000)) << window.lastError().toStdString();
+  window.opener()->openDicomSeries(listed.front(), chooser.selectedPhase());
+  ASSERT_TRUE(waitFor([&] { return loaded.count() == 1; }, 30000)) << window.opener()->lastError().toStdString();
   EXPECT_EQ(window.session().loaded().spec.volume.phase, 1);
   EXPECT_EQ(window.session().loaded().spec.volume.series, written.series_uid);
   EXPECT_EQ(window.session().loaded().volume.info.phase, 1);
@@ -216,7 +217,7 @@ TEST(LoadNoticesTest, TheChosenTimePointReachesTheSceneSpec) {
   EXPECT_EQ(panel->phaseSpinBox()->maximum(), 3);
   panel->phaseSpinBox()->setValue(3);
   panel->phaseLoadButton()->click();
-  ASSERT_TRUE(waitFor([&] { return loaded.count() == 2; }, 30000)) << window.lastError().toStdString();
+  ASSERT_TRUE(waitFor([&] { return loaded.count() == 2; }, 30000)) << window.opener()->lastError().toStdString();
   EXPECT_EQ(window.session().loaded().spec.volume.phase, 2);
   EXPECT_EQ(window.session().loaded().volume.info.phase, 2);
   EXPECT_EQ(window.session().loaded().spec.volume.phase, 2) << "what a recording's metadata describes";

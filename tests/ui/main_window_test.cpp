@@ -3,6 +3,11 @@
 // actors against the haptic state, the mouse-driven device, loading off the GUI thread (and its
 // errors and cancel), the haptics panel (gains, tool change).
 #include "vh/ui/main_window.h"
+#include "vh/ui/devices/device_input.h"
+#include "vh/ui/devices/device_picker.h"
+#include "vh/ui/panels/isovalue_bar.h"
+#include "vh/ui/tool_picker.h"
+#include "vh/ui/view_controller.h"
 
 #include <cmath>
 #include <filesystem>
@@ -97,14 +102,14 @@ class MainWindowTest : public ::testing::Test {
     for (auto* dock : window_->findChildren<QDockWidget*>()) dock->hide();
     window_->resize(640, 540);
     window_->show();
-    ASSERT_TRUE(waitFor([this] { return window_->view()->frameCount() > 0; }, 20000)) << "the view never rendered";
+    ASSERT_TRUE(waitFor([this] { return window_->sceneView()->widget()->frameCount() > 0; }, 20000)) << "the view never rendered";
     window_->startHaptics();
   }
 
   void TearDown() override {
     if (window_ != nullptr) {
       window_->close();
-      EXPECT_FALSE(window_->hapticThread() != nullptr && window_->hapticThread()->running())
+      EXPECT_FALSE(window_->session().hapticThread() != nullptr && window_->session().hapticThread()->running())
           << "closing the window must stop the haptic thread";
       window_.reset();
     }
@@ -113,8 +118,8 @@ class MainWindowTest : public ::testing::Test {
   /// Sends a mouse event to the view.
   void mouse(QEvent::Type type, QPointF pos, Qt::MouseButton button, Qt::MouseButtons buttons,
              Qt::KeyboardModifiers modifiers) {
-    QMouseEvent event(type, pos, window_->view()->mapToGlobal(pos), button, buttons, modifiers);
-    QApplication::sendEvent(window_->view(), &event);
+    QMouseEvent event(type, pos, window_->sceneView()->widget()->mapToGlobal(pos), button, buttons, modifiers);
+    QApplication::sendEvent(window_->sceneView()->widget(), &event);
   }
 
   static std::unique_ptr<runtime::LoadedScene> loaded_;
@@ -124,23 +129,23 @@ class MainWindowTest : public ::testing::Test {
 std::unique_ptr<runtime::LoadedScene> MainWindowTest::loaded_;
 
 TEST_F(MainWindowTest, IsovalueSliderChangesThePictureAndTheHapticIsovalue) {
-  VtkView* view = window_->view();
+  VtkView* view = window_->sceneView()->widget();
   const QImage before = view->grabFrame();
   ASSERT_FALSE(before.isNull());
   EXPECT_GT(brightFraction(before), 0.03) << "the isosurface should cover part of the view";
 
-  QSlider* slider = window_->isovalueSlider();
-  const double old_isovalue = window_->isovalue();
+  QSlider* slider = window_->isovalueBar()->slider();
+  const double old_isovalue = window_->session().isovalue();
   // Move to the other side of the range: the skin (low values) vs the bone (high values).
   const int target = slider->value() < 400 ? 600 : 150;
   slider->setValue(target);
-  const double new_isovalue = window_->isovalue();
+  const double new_isovalue = window_->session().isovalue();
   ASSERT_NE(new_isovalue, old_isovalue);
-  EXPECT_DOUBLE_EQ(window_->actors().isovalue(), new_isovalue);
-  EXPECT_NEAR(window_->isovalueSpinBox()->value(), new_isovalue,
-              std::pow(10.0, -window_->isovalueSpinBox()->decimals()));
-  ASSERT_NE(window_->hapticThread(), nullptr);
-  EXPECT_DOUBLE_EQ(window_->hapticThread()->isovalue(), new_isovalue);
+  EXPECT_DOUBLE_EQ(window_->sceneView()->actors().isovalue(), new_isovalue);
+  EXPECT_NEAR(window_->isovalueBar()->spinBox()->value(), new_isovalue,
+              std::pow(10.0, -window_->isovalueBar()->spinBox()->decimals()));
+  ASSERT_NE(window_->session().hapticThread(), nullptr);
+  EXPECT_DOUBLE_EQ(window_->session().hapticThread()->isovalue(), new_isovalue);
 
   const QImage after = view->grabFrame();
   const double changed = differingFraction(before, after);
@@ -148,111 +153,111 @@ TEST_F(MainWindowTest, IsovalueSliderChangesThePictureAndTheHapticIsovalue) {
 
   // The servo loop applies the new isovalue on its next tick.
   EXPECT_TRUE(waitFor([&] {
-    window_->refreshFromHaptics();
-    return window_->lastSnapshot().isovalue == new_isovalue;
-  }, 3000)) << "snapshot isovalue " << window_->lastSnapshot().isovalue;
+    window_->viewController()->refresh();
+    return window_->viewController()->lastSnapshot().isovalue == new_isovalue;
+  }, 3000)) << "snapshot isovalue " << window_->viewController()->lastSnapshot().isovalue;
 
   // The spin box drives it too.
-  window_->isovalueSpinBox()->setValue(old_isovalue);
-  EXPECT_NEAR(window_->isovalue(), old_isovalue, std::pow(10.0, -window_->isovalueSpinBox()->decimals()));
-  EXPECT_DOUBLE_EQ(window_->hapticThread()->isovalue(), window_->isovalue());
+  window_->isovalueBar()->spinBox()->setValue(old_isovalue);
+  EXPECT_NEAR(window_->session().isovalue(), old_isovalue, std::pow(10.0, -window_->isovalueBar()->spinBox()->decimals()));
+  EXPECT_DOUBLE_EQ(window_->session().hapticThread()->isovalue(), window_->session().isovalue());
 }
 
 TEST_F(MainWindowTest, HistogramIsDrawnBehindTheSlider) {
-  const Histogram& h = window_->histogramSlider()->histogram();
+  const Histogram& h = window_->isovalueBar()->slider()->histogram();
   ASSERT_FALSE(h.empty());
   EXPECT_EQ(h.total(), 64u * 64u * 93u);
-  EXPECT_LE(h.min_value, window_->isovalueSpinBox()->minimum() + 1e-9);
-  EXPECT_GE(h.max_value, window_->isovalueSpinBox()->maximum() - 1e-9);
+  EXPECT_LE(h.min_value, window_->isovalueBar()->spinBox()->minimum() + 1e-9);
+  EXPECT_GE(h.max_value, window_->isovalueBar()->spinBox()->maximum() - 1e-9);
   // The slider paints it: its pixels differ from a plain slider's.
-  const QImage with = window_->histogramSlider()->grab().toImage();
-  window_->histogramSlider()->clearHistogram();
-  const QImage without = window_->histogramSlider()->grab().toImage();
+  const QImage with = window_->isovalueBar()->slider()->grab().toImage();
+  window_->isovalueBar()->slider()->clearHistogram();
+  const QImage without = window_->isovalueBar()->slider()->grab().toImage();
   EXPECT_GT(differingFraction(with, without, 8), 0.05);
 }
 
 TEST_F(MainWindowTest, RenderingModesChangeThePicture) {
-  VtkView* view = window_->view();
-  ASSERT_EQ(window_->renderMode(), RenderMode::kIsosurface);
+  VtkView* view = window_->sceneView()->widget();
+  ASSERT_EQ(window_->preferences().mode, RenderMode::kIsosurface);
   // Each picture at the same (best) quality.
   auto grab = [&] {
-    window_->renderStill(true);
+    window_->sceneView()->renderStill(true);
     return view->grabFrame();
   };
   const QImage iso = grab();
-  window_->setPreset(VolumePreset::kBone);
-  window_->setRenderMode(RenderMode::kComposite);
-  EXPECT_EQ(window_->actors().renderMode(), RenderMode::kComposite);
+  window_->viewController()->setPreset(VolumePreset::kBone);
+  window_->viewController()->setRenderMode(RenderMode::kComposite);
+  EXPECT_EQ(window_->sceneView()->actors().renderMode(), RenderMode::kComposite);
   const QImage composite = grab();
-  window_->setRenderMode(RenderMode::kMip);
+  window_->viewController()->setRenderMode(RenderMode::kMip);
   const QImage mip = grab();
   EXPECT_GT(differingFraction(iso, composite), 0.02);
   EXPECT_GT(differingFraction(iso, mip), 0.02);
   EXPECT_GT(differingFraction(composite, mip), 0.02);
   EXPECT_GT(brightFraction(composite), 0.01) << "the bone preset should show something";
-  window_->setPreset(VolumePreset::kSkin);
-  window_->setRenderMode(RenderMode::kComposite);
+  window_->viewController()->setPreset(VolumePreset::kSkin);
+  window_->viewController()->setRenderMode(RenderMode::kComposite);
   EXPECT_GT(differingFraction(composite, grab()), 0.02) << "skin vs bone preset";
-  window_->setRenderMode(RenderMode::kIsosurface);
+  window_->viewController()->setRenderMode(RenderMode::kIsosurface);
   EXPECT_LT(differingFraction(iso, grab()), 0.01) << "back to the same isosurface";
 }
 
 TEST_F(MainWindowTest, StandardViewsAndClipping) {
-  vtkCamera* camera = window_->view()->renderer()->GetActiveCamera();
+  vtkCamera* camera = window_->sceneView()->widget()->renderer()->GetActiveCamera();
   double dop[3], up[3];
-  window_->setStandardView(StandardView::kAnterior);
+  window_->sceneView()->setStandardView(StandardView::kAnterior);
   camera->GetDirectionOfProjection(dop);
   EXPECT_NEAR(dop[1], 1.0, 1e-9) << "anterior: looking from -y (A) towards +y (P)";
-  window_->setStandardView(StandardView::kLeft);
+  window_->sceneView()->setStandardView(StandardView::kLeft);
   camera->GetDirectionOfProjection(dop);
   EXPECT_NEAR(dop[0], -1.0, 1e-9) << "left lateral: looking from +x (L)";
-  window_->setStandardView(StandardView::kSuperior);
+  window_->sceneView()->setStandardView(StandardView::kSuperior);
   camera->GetDirectionOfProjection(dop);
   camera->GetViewUp(up);
   EXPECT_NEAR(dop[2], -1.0, 1e-9) << "superior: looking down";
   EXPECT_NEAR(up[1], -1.0, 1e-9) << "anterior up";
 
-  window_->setStandardView(StandardView::kAnterior);
-  const QImage whole = window_->view()->grabFrame();
-  window_->setClipping(true, ClipAxis::kY, 0.5);
-  EXPECT_TRUE(window_->actors().clipping());
-  const QImage clipped = window_->view()->grabFrame();
+  window_->sceneView()->setStandardView(StandardView::kAnterior);
+  const QImage whole = window_->sceneView()->widget()->grabFrame();
+  window_->viewController()->setClipping(true, ClipAxis::kY, 0.5);
+  EXPECT_TRUE(window_->sceneView()->actors().clipping());
+  const QImage clipped = window_->sceneView()->widget()->grabFrame();
   EXPECT_GT(differingFraction(whole, clipped), 0.02) << "a coronal cut opens the head";
-  window_->setClipping(false);
-  EXPECT_FALSE(window_->actors().clipping());
+  window_->viewController()->setClipping(false);
+  EXPECT_FALSE(window_->sceneView()->actors().clipping());
 }
 
 TEST_F(MainWindowTest, ToolActorsExistAndFollowTheHapticThread) {
-  vtkRenderer* renderer = window_->view()->renderer();
-  ASSERT_NE(window_->proxyActor(), nullptr);
-  ASSERT_NE(window_->deviceActor(), nullptr);
-  EXPECT_TRUE(renderer->HasViewProp(window_->proxyActor()));
-  EXPECT_TRUE(renderer->HasViewProp(window_->deviceActor()));
-  EXPECT_TRUE(renderer->HasViewProp(window_->volumeProp()));
-  EXPECT_TRUE(window_->proxyActor()->GetVisibility());
-  EXPECT_TRUE(window_->deviceActor()->GetVisibility());
-  EXPECT_GT(window_->proxyActor()->GetMapper()->GetInput()->GetNumberOfCells(), 0);
+  vtkRenderer* renderer = window_->sceneView()->widget()->renderer();
+  ASSERT_NE(window_->sceneView()->actors().proxyActor(), nullptr);
+  ASSERT_NE(window_->sceneView()->actors().deviceActor(), nullptr);
+  EXPECT_TRUE(renderer->HasViewProp(window_->sceneView()->actors().proxyActor()));
+  EXPECT_TRUE(renderer->HasViewProp(window_->sceneView()->actors().deviceActor()));
+  EXPECT_TRUE(renderer->HasViewProp(window_->sceneView()->actors().volume()));
+  EXPECT_TRUE(window_->sceneView()->actors().proxyActor()->GetVisibility());
+  EXPECT_TRUE(window_->sceneView()->actors().deviceActor()->GetVisibility());
+  EXPECT_GT(window_->sceneView()->actors().proxyActor()->GetMapper()->GetInput()->GetNumberOfCells(), 0);
 
   // Lift the device 5 mm (free space): the proxy follows it.
-  ASSERT_NE(window_->simulatedDevice(), nullptr);
-  haptics::Pose target = window_->simulatedDevice()->pose();
+  ASSERT_NE(window_->session().simulatedDevice(), nullptr);
+  haptics::Pose target = window_->session().simulatedDevice()->pose();
   target.p_AB_m.z() += 0.005;
-  window_->setDevicePose(target);
+  window_->deviceInput()->setDevicePose(target);
   EXPECT_TRUE(waitFor([&] {
-    window_->refreshFromHaptics();
-    return (translationOf(window_->proxyActor()) - target.p_AB_m).norm() < 1e-4;
-  }, 3000)) << "proxy at " << translationOf(window_->proxyActor()).transpose();
-  EXPECT_LT((translationOf(window_->deviceActor()) - target.p_AB_m).norm(), 1e-6);
+    window_->viewController()->refresh();
+    return (translationOf(window_->sceneView()->actors().proxyActor()) - target.p_AB_m).norm() < 1e-4;
+  }, 3000)) << "proxy at " << translationOf(window_->sceneView()->actors().proxyActor()).transpose();
+  EXPECT_LT((translationOf(window_->sceneView()->actors().deviceActor()) - target.p_AB_m).norm(), 1e-6);
   EXPECT_TRUE(waitFor([&] {
-    window_->refreshFromHaptics();
+    window_->viewController()->refresh();
     return window_->statusText().contains("Hz");
   }, 3000)) << window_->statusText().toStdString();
   EXPECT_GT(window_->stripChart() != nullptr, 0);
 }
 
 TEST_F(MainWindowTest, CtrlDragMovesTheDeviceAndPlainDragTheCamera) {
-  VtkView* view = window_->view();
-  runtime::SimulatedDevice* device = window_->simulatedDevice();
+  VtkView* view = window_->sceneView()->widget();
+  runtime::SimulatedDevice* device = window_->session().simulatedDevice();
   ASSERT_NE(device, nullptr);
   vtkCamera* camera = view->renderer()->GetActiveCamera();
   double cam_before[3];
@@ -316,32 +321,32 @@ TEST_F(MainWindowTest, CtrlDragMovesTheDeviceAndPlainDragTheCamera) {
 }
 
 TEST_F(MainWindowTest, DeviceDrivenIntoTheSurfaceLeavesTheProxyOutsideWhereTheActorShowsIt) {
-  ASSERT_TRUE(window_->touchSurface(0.003));
+  ASSERT_TRUE(window_->deviceInput()->touchSurface(0.003));
   EXPECT_TRUE(waitFor([&] {
-    window_->refreshFromHaptics();
-    const runtime::HapticSnapshot& s = window_->lastSnapshot();
+    window_->viewController()->refresh();
+    const runtime::HapticSnapshot& s = window_->viewController()->lastSnapshot();
     return s.contacts > 0 && s.force_W_N.norm() > 0.1;
-  }, 10000)) << "contacts " << window_->lastSnapshot().contacts << ", |F| "
-            << window_->lastSnapshot().force_W_N.norm() << " N";
+  }, 10000)) << "contacts " << window_->viewController()->lastSnapshot().contacts << ", |F| "
+            << window_->viewController()->lastSnapshot().force_W_N.norm() << " N";
   // Freeze the haptic state (the force ramps down; the proxy stays), then read it once more.
-  window_->stopHaptics();
-  window_->refreshFromHaptics(true);
-  const runtime::HapticSnapshot& s = window_->lastSnapshot();
+  window_->session().stopHaptics();
+  window_->viewController()->refresh(true);
+  const runtime::HapticSnapshot& s = window_->viewController()->lastSnapshot();
   // The proxy actor shows exactly the haptic thread's proxy pose.
-  const haptics::Pose shown = poseOf(window_->proxyActor());
+  const haptics::Pose shown = poseOf(window_->sceneView()->actors().proxyActor());
   EXPECT_LT((shown.p_AB_m - s.X_WP.p_AB_m).norm(), 1e-12);
   EXPECT_LT(shown.R_AB.angularDistance(s.X_WP.R_AB), 1e-9);
-  EXPECT_LT((translationOf(window_->deviceActor()) - s.X_WD.p_AB_m).norm(), 1e-12);
+  EXPECT_LT((translationOf(window_->sceneView()->actors().deviceActor()) - s.X_WD.p_AB_m).norm(), 1e-12);
   // The device sank in; the proxy stayed outside the isosurface (within the collision tolerance).
   EXPECT_GT((s.X_WD.p_AB_m - s.X_WP.p_AB_m).norm(), 1e-3);
   const haptics::ScalarVolume& field = *loaded_->volume.field;
-  const double depth_m = haptics::maxPenetration_m(field, loaded_->tool->point_shell, shown, window_->isovalue());
+  const double depth_m = haptics::maxPenetration_m(field, loaded_->tool->point_shell, shown, window_->session().isovalue());
   EXPECT_LE(depth_m, 0.25 * field.featureSize_m()) << "proxy " << depth_m * 1e3 << " mm inside";
-  EXPECT_GT(haptics::maxPenetration_m(field, loaded_->tool->point_shell, s.X_WD, window_->isovalue()), 1e-3)
+  EXPECT_GT(haptics::maxPenetration_m(field, loaded_->tool->point_shell, s.X_WD, window_->session().isovalue()), 1e-3)
       << "the device itself is inside";
   // The force arrow and contacts are drawn.
-  EXPECT_TRUE(window_->actors().contactActor()->GetVisibility());
-  EXPECT_FALSE(window_->view()->grabFrame().isNull());
+  EXPECT_TRUE(window_->sceneView()->actors().contactActor()->GetVisibility());
+  EXPECT_FALSE(window_->sceneView()->widget()->grabFrame().isNull());
 }
 
 TEST_F(MainWindowTest, GainsFromThePanelApplyLiveAndPersist) {
@@ -349,48 +354,48 @@ TEST_F(MainWindowTest, GainsFromThePanelApplyLiveAndPersist) {
   ASSERT_NE(panel, nullptr);
   panel->linearStiffnessBox()->setValue(2500.0);
   panel->torsionalStiffnessBox()->setValue(1.5);
-  EXPECT_DOUBLE_EQ(window_->gains().linear_N_per_m, 2500.0);
-  EXPECT_DOUBLE_EQ(window_->gains().angular_Nm_per_rad, 1.5);
+  EXPECT_DOUBLE_EQ(window_->session().gains().linear_N_per_m, 2500.0);
+  EXPECT_DOUBLE_EQ(window_->session().gains().angular_Nm_per_rad, 1.5);
   EXPECT_DOUBLE_EQ(window_->preferences().linear_stiffness_N_per_m, 2500.0);
   EXPECT_DOUBLE_EQ(window_->preferences().torsional_stiffness_Nm_per_rad, 1.5);
-  EXPECT_FALSE(window_->gains().passivity_control);
+  EXPECT_FALSE(window_->session().gains().passivity_control);
   panel->passivityControlBox()->setChecked(true);
-  EXPECT_TRUE(window_->gains().passivity_control);
-  EXPECT_DOUBLE_EQ(window_->gains().linear_N_per_m, 2500.0);
+  EXPECT_TRUE(window_->session().gains().passivity_control);
+  EXPECT_DOUBLE_EQ(window_->session().gains().linear_N_per_m, 2500.0);
   EXPECT_TRUE(window_->preferences().passivity_control);
   panel->passivityControlBox()->setChecked(false);
-  EXPECT_FALSE(window_->gains().passivity_control);
+  EXPECT_FALSE(window_->session().gains().passivity_control);
   EXPECT_FALSE(window_->preferences().passivity_control);
   EXPECT_EQ(panel->pointCountLabel()->text().toULongLong(), loaded_->tool->point_shell.size());
-  EXPECT_TRUE(window_->hapticsRunning());
+  EXPECT_TRUE(window_->session().hapticsRunning());
   // The start/stop button stops and restarts the thread.
   panel->startStopButton()->click();
-  EXPECT_FALSE(window_->hapticsRunning());
+  EXPECT_FALSE(window_->session().hapticsRunning());
   panel->startStopButton()->click();
-  EXPECT_TRUE(window_->hapticsRunning());
+  EXPECT_TRUE(window_->session().hapticsRunning());
 }
 
 TEST_F(MainWindowTest, ChoosingAToolRebuildsTheHapticThread) {
-  const auto& tools = window_->toolChoices();
+  const auto& tools = window_->toolPicker()->choices();
   int sphere = -1;
   for (std::size_t i = 0; i < tools.size(); ++i) {
     if (tools[i].id == "builtin:sphere") sphere = static_cast<int>(i);
   }
   ASSERT_GE(sphere, 0);
-  const vtkIdType cells_before = window_->proxyActor()->GetMapper()->GetInput()->GetNumberOfCells();
-  QSignalSpy changed(window_.get(), &MainWindow::toolChanged);
-  window_->selectTool(sphere, 0.001);
+  const vtkIdType cells_before = window_->sceneView()->actors().proxyActor()->GetMapper()->GetInput()->GetNumberOfCells();
+  QSignalSpy changed(window_->toolPicker(), &ToolPicker::toolChanged);
+  window_->toolPicker()->select(sphere, 0.001);
   ASSERT_TRUE(waitFor([&] { return changed.count() > 0; }, 20000)) << "the tool was never rebuilt";
-  EXPECT_EQ(window_->currentToolIndex(), sphere);
-  EXPECT_NE(window_->proxyActor()->GetMapper()->GetInput()->GetNumberOfCells(), cells_before);
+  EXPECT_EQ(window_->toolPicker()->currentIndex(), sphere);
+  EXPECT_NE(window_->sceneView()->actors().proxyActor()->GetMapper()->GetInput()->GetNumberOfCells(), cells_before);
   EXPECT_EQ(window_->hapticsPanel()->pointCountLabel()->text().toULongLong(), window_->session().live().tool->point_shell.size());
   EXPECT_NEAR(window_->hapticsPanel()->pointSpacing_m(), 0.001, 1e-9);
-  EXPECT_TRUE(window_->hapticsRunning());
+  EXPECT_TRUE(window_->session().hapticsRunning());
   // The new thread runs with the new tool: the proxy follows the device from the new pose.
   EXPECT_TRUE(waitFor([&] {
-    window_->refreshFromHaptics();
-    return window_->lastSnapshot().tick > 0 &&
-           (window_->lastSnapshot().X_WP.p_AB_m - window_->session().live().X_WT_initial.p_AB_m).norm() < 1e-4;
+    window_->viewController()->refresh();
+    return window_->viewController()->lastSnapshot().tick > 0 &&
+           (window_->viewController()->lastSnapshot().X_WP.p_AB_m - window_->session().live().X_WT_initial.p_AB_m).norm() < 1e-4;
   }, 3000));
 }
 
@@ -398,8 +403,8 @@ TEST_F(MainWindowTest, DevicePickerListsTheSimulatedDeviceAndWhatIsFound) {
   // Entry 0 is the simulated device, then whatever the catalog finds (none on a build machine).
   devices::DeviceCatalog catalog;
   const std::vector<devices::FoundDevice> found = catalog.enumerate();
-  window_->rescanDevices();
-  const QStringList choices = window_->deviceChoices();
+  window_->devicePicker()->rescan();
+  const QStringList choices = window_->devicePicker()->choices();
   ASSERT_EQ(choices.size(), static_cast<qsizetype>(found.size() + 1));
   EXPECT_EQ(choices.front().toStdString(), "Simulated device (mouse/keyboard)");
   for (std::size_t i = 0; i < found.size(); ++i) EXPECT_EQ(choices[static_cast<qsizetype>(i + 1)].toStdString(), found[i].label());
@@ -408,38 +413,38 @@ TEST_F(MainWindowTest, DevicePickerListsTheSimulatedDeviceAndWhatIsFound) {
   ASSERT_NE(box, nullptr);
   ASSERT_EQ(box->count(), choices.size());
   for (int i = 0; i < box->count(); ++i) EXPECT_EQ(box->itemText(i).toStdString(), choices[i].toStdString());
-  ASSERT_NE(window_->deviceMenu(), nullptr);
-  EXPECT_EQ(window_->deviceMenu()->actions().front()->text().toStdString(), choices.front().toStdString());
-  EXPECT_EQ(window_->currentDeviceChoice(), 0) << "the scene's simulated device is entry 0";
+  ASSERT_NE(window_->devicePicker()->menu(), nullptr);
+  EXPECT_EQ(window_->devicePicker()->menu()->actions().front()->text().toStdString(), choices.front().toStdString());
+  EXPECT_EQ(window_->devicePicker()->currentChoice(), 0) << "the scene's simulated device is entry 0";
   EXPECT_EQ(box->currentIndex(), 0);
 
   // Another device (not in the list), then back to the simulated one: a new SimulatedDevice
   // drives a running haptic thread whose ticks advance.
-  window_->setDevice(std::make_shared<runtime::ScriptedDevice>(
+  window_->session().setDevice(std::make_shared<runtime::ScriptedDevice>(
       runtime::Trajectory({runtime::TrajectorySample{0.0, window_->session().live().X_WT_initial}})));
-  EXPECT_EQ(window_->currentDeviceChoice(), -1);
+  EXPECT_EQ(window_->devicePicker()->currentChoice(), -1);
   EXPECT_EQ(box->currentIndex(), -1);
-  ASSERT_TRUE(window_->chooseDevice(0));
-  EXPECT_EQ(window_->currentDeviceChoice(), 0);
+  ASSERT_TRUE(window_->devicePicker()->choose(0));
+  EXPECT_EQ(window_->devicePicker()->currentChoice(), 0);
   EXPECT_EQ(box->currentIndex(), 0);
-  ASSERT_NE(window_->simulatedDevice(), nullptr);
-  EXPECT_TRUE(window_->hapticsRunning());
-  ASSERT_TRUE(waitFor([&] { window_->refreshFromHaptics(); return window_->lastSnapshot().tick > 0; }, 3000));
-  const auto first = window_->lastSnapshot().tick;
-  EXPECT_TRUE(waitFor([&] { window_->refreshFromHaptics(); return window_->lastSnapshot().tick > first + 10; }, 3000))
+  ASSERT_NE(window_->session().simulatedDevice(), nullptr);
+  EXPECT_TRUE(window_->session().hapticsRunning());
+  ASSERT_TRUE(waitFor([&] { window_->viewController()->refresh(); return window_->viewController()->lastSnapshot().tick > 0; }, 3000));
+  const auto first = window_->viewController()->lastSnapshot().tick;
+  EXPECT_TRUE(waitFor([&] { window_->viewController()->refresh(); return window_->viewController()->lastSnapshot().tick > first + 10; }, 3000))
       << "the haptic thread stopped ticking";
   // Choosing it again keeps the same device; an entry past the list is refused.
-  runtime::Device* sim = window_->device();
-  EXPECT_TRUE(window_->chooseDevice(0));
-  EXPECT_EQ(window_->device(), sim);
-  EXPECT_FALSE(window_->chooseDevice(static_cast<int>(choices.size())));
-  EXPECT_EQ(window_->device(), sim);
+  runtime::Device* sim = window_->session().device();
+  EXPECT_TRUE(window_->devicePicker()->choose(0));
+  EXPECT_EQ(window_->session().device(), sim);
+  EXPECT_FALSE(window_->devicePicker()->choose(static_cast<int>(choices.size())));
+  EXPECT_EQ(window_->session().device(), sim);
 }
 
 TEST_F(MainWindowTest, LoadingErrorKeepsThePreviousScene) {
-  vtkVolume* volume_before = window_->volumeProp();
-  runtime::HapticThread* thread_before = window_->hapticThread();
-  const double isovalue_before = window_->isovalue();
+  vtkVolume* volume_before = window_->sceneView()->actors().volume();
+  runtime::HapticThread* thread_before = window_->session().hapticThread();
+  const double isovalue_before = window_->session().isovalue();
   QTemporaryDir dir;
   const QString bad = dir.filePath("broken.nrrd");
   {
@@ -449,23 +454,23 @@ TEST_F(MainWindowTest, LoadingErrorKeepsThePreviousScene) {
   QSignalSpy failed(window_.get(), &MainWindow::loadFailed);
   window_->openPath(bad);
   ASSERT_TRUE(waitFor([&] { return failed.count() > 0; }, 10000)) << "no error reported";
-  EXPECT_TRUE(window_->lastError().contains("broken.nrrd")) << window_->lastError().toStdString();
-  EXPECT_FALSE(window_->loading());
-  EXPECT_EQ(window_->volumeProp(), volume_before);
-  EXPECT_EQ(window_->hapticThread(), thread_before);
-  EXPECT_TRUE(window_->hapticsRunning());
-  EXPECT_DOUBLE_EQ(window_->isovalue(), isovalue_before);
+  EXPECT_TRUE(window_->opener()->lastError().contains("broken.nrrd")) << window_->opener()->lastError().toStdString();
+  EXPECT_FALSE(window_->opener()->loading());
+  EXPECT_EQ(window_->sceneView()->actors().volume(), volume_before);
+  EXPECT_EQ(window_->session().hapticThread(), thread_before);
+  EXPECT_TRUE(window_->session().hapticsRunning());
+  EXPECT_DOUBLE_EQ(window_->session().isovalue(), isovalue_before);
 
   // A missing path fails at once; interactively the error dialog names the file.
   window_->setInteractive(true);
   window_->openPath(dir.filePath("missing.mha"));
-  EXPECT_TRUE(window_->lastError().contains("missing.mha"));
+  EXPECT_TRUE(window_->opener()->lastError().contains("missing.mha"));
   auto* box = window_->findChild<QMessageBox*>("errorBox");
   ASSERT_NE(box, nullptr);
   EXPECT_TRUE(box->text().contains("missing.mha"));
   EXPECT_TRUE(box->informativeText().contains("kept"));
   box->close();
-  EXPECT_EQ(window_->volumeProp(), volume_before);
+  EXPECT_EQ(window_->sceneView()->actors().volume(), volume_before);
 }
 
 // ---- Windows that load by themselves ------------------------------------------------------------
@@ -487,25 +492,25 @@ TEST(MainWindowLoadTest, OpensADroppedFolderOffTheGuiThreadAndCancels) {
   QDropEvent drop(QPointF(400, 300), Qt::CopyAction, &mime, Qt::LeftButton, Qt::NoModifier);
   QApplication::sendEvent(&window, &drop);
   EXPECT_TRUE(drop.isAccepted());
-  EXPECT_TRUE(window.loading()) << "the load runs on the worker";
-  ASSERT_TRUE(waitFor([&] { return loaded.count() > 0; }, 20000)) << window.lastError().toStdString();
+  EXPECT_TRUE(window.opener()->loading()) << "the load runs on the worker";
+  ASSERT_TRUE(waitFor([&] { return loaded.count() > 0; }, 20000)) << window.opener()->lastError().toStdString();
   ASSERT_TRUE(window.hasScene());
-  EXPECT_TRUE(waitFor([&] { return !window.loading(); }, 20000)) << "first frame (GPU upload) never came";
-  EXPECT_TRUE(window.hapticsRunning()) << "haptics start after a load";
-  EXPECT_FALSE(window.histogramSlider()->histogram().empty()) << "histogram computed on the loader thread";
+  EXPECT_TRUE(waitFor([&] { return !window.opener()->loading(); }, 20000)) << "first frame (GPU upload) never came";
+  EXPECT_TRUE(window.session().hapticsRunning()) << "haptics start after a load";
+  EXPECT_FALSE(window.isovalueBar()->slider()->histogram().empty()) << "histogram computed on the loader thread";
   EXPECT_TRUE(window.windowTitle().contains("ct-head-small")) << window.windowTitle().toStdString();
   ASSERT_FALSE(window.preferences().recent_files.isEmpty());
   EXPECT_TRUE(window.preferences().recent_files.front().endsWith("ct-head-small"));
-  EXPECT_GE(window.recentFilesMenu()->actions().size(), 1);
+  EXPECT_GE(window.opener()->recentFilesMenu()->actions().size(), 1);
 
   // Cancel: the running load is abandoned, the scene shown stays.
-  vtkVolume* shown = window.volumeProp();
+  vtkVolume* shown = window.sceneView()->actors().volume();
   window.openPath(QString::fromStdString(kHead.string()));
-  window.cancelLoading();
-  EXPECT_FALSE(window.loading());
+  window.opener()->cancelLoading();
+  EXPECT_FALSE(window.opener()->loading());
   window.loader()->waitForIdle();
   test::pump(200);
-  EXPECT_EQ(window.volumeProp(), shown);
+  EXPECT_EQ(window.sceneView()->actors().volume(), shown);
   EXPECT_EQ(loaded.count(), 1);
   window.close();
 }

@@ -28,6 +28,10 @@
 #include "vh/runtime/recording.h"
 #include "vh/runtime/scene.h"
 #include "vh/ui/main_window.h"
+#include "vh/ui/devices/device_input.h"
+#include "vh/ui/panels/histogram_slider.h"
+#include "vh/ui/panels/isovalue_bar.h"
+#include "vh/ui/tool_picker.h"
 #include "vh/ui/export/media_export.h"
 #include "vh/ui/replay/replay_panel.h"
 #include "vh/ui/replay/session_recorder.h"
@@ -57,8 +61,8 @@ std::unique_ptr<MainWindow> smallWindow() {
 
 bool loadInto(MainWindow& w, const runtime::SceneSpec& spec) {
   QSignalSpy loaded(&w, &MainWindow::sceneLoaded);
-  w.openScene(spec);
-  return waitFor([&] { return loaded.count() > 0 && !w.loading(); }, 60000);
+  w.opener()->openScene(spec);
+  return waitFor([&] { return loaded.count() > 0 && !w.opener()->loading(); }, 60000);
 }
 
 Eigen::Vector3d translationOf(vtkActor* actor) {
@@ -92,10 +96,10 @@ class RecordingTest : public ::testing::Test {
     path_ = fs::path(dir_->path().toStdString()) / "session.vhrec";
     auto w = smallWindow();
     if (!loadInto(*w, sphereScene())) {
-      setup_error_ = "the built-in sphere scene did not load: " + w->lastError().toStdString();
+      setup_error_ = "the built-in sphere scene did not load: " + w->opener()->lastError().toStdString();
       return;
     }
-    if (!w->hapticsRunning()) {
+    if (!w->session().hapticsRunning()) {
       setup_error_ = "the haptic thread did not start";
       return;
     }
@@ -104,7 +108,7 @@ class RecordingTest : public ::testing::Test {
       return;
     }
     test::pump(250);
-    if (!w->touchSurface(0.004)) {
+    if (!w->deviceInput()->touchSurface(0.004)) {
       setup_error_ = "touchSurface found no surface";
       return;
     }
@@ -114,31 +118,31 @@ class RecordingTest : public ::testing::Test {
     // need the active window (Xvfb without a window manager: activate it by hand).
     w->activateWindow();
     key_window_active_ = QTest::qWaitForWindowActive(w.get(), 3000);
-    QTest::keyClick(w->view(), Qt::Key_M);
+    QTest::keyClick(w->sceneView()->widget(), Qt::Key_M);
     rec_status_ = w->recorder()->statusText().toStdString();
     if (const char* shots = std::getenv("VH_UI_SHOTS_DIR"); shots != nullptr && *shots != '\0') {
       w->resize(1100, 760);
       test::pump(400);
       w->grab().toImage().save(QString::fromStdString((fs::path(shots) / "recording.png").string()), "PNG");
     }
-    iso_before_ = w->isovalue();
-    w->isovalueSlider()->setValue(w->isovalueSlider()->value() + 40);  // as a user's slider move
-    iso_after_ = w->isovalue();
-    haptics::CouplingGains gains = w->gains();
+    iso_before_ = w->session().isovalue();
+    w->isovalueBar()->slider()->setValue(w->isovalueBar()->slider()->value() + 40);  // as a user's slider move
+    iso_after_ = w->session().isovalue();
+    haptics::CouplingGains gains = w->session().gains();
     gains.linear_N_per_m *= 0.8;
-    w->setGains(gains);  // as from the haptics panel
+    w->session().setGains(gains);  // as from the haptics panel
     test::pump(500);
     // A tool swap records a "tool" event, then ends the recording (the haptic thread is rebuilt).
-    const int other_tool = w->currentToolIndex() == 0 ? 1 : 0;
-    tool_label_ = w->toolChoices()[static_cast<std::size_t>(other_tool)].label;
-    QSignalSpy tool_changed(w.get(), &MainWindow::toolChanged);
-    w->selectTool(other_tool);
+    const int other_tool = w->toolPicker()->currentIndex() == 0 ? 1 : 0;
+    tool_label_ = w->toolPicker()->choices()[static_cast<std::size_t>(other_tool)].label;
+    QSignalSpy tool_changed(w->toolPicker(), &ToolPicker::toolChanged);
+    w->toolPicker()->select(other_tool);
     if (!waitFor([&] { return tool_changed.count() > 0; }, 60000)) {
       setup_error_ = "the tool swap did not finish";
       return;
     }
     recording_after_stop_ = w->recorder()->recording();
-    w->stopHaptics();
+    w->session().stopHaptics();
   }
   static void TearDownTestSuite() {
     delete dir_;
@@ -201,9 +205,9 @@ TEST_F(RecordingTest, ReplayLoadsTheSceneAndScrubbingMovesTheProxy) {
   auto w = smallWindow();
   QSignalSpy started(w->replay(), &ReplayController::replayStarted);
   w->openPath(QString::fromStdString(path_.string()));  // as a dropped / command-line file
-  ASSERT_TRUE(waitFor([&] { return started.count() > 0 && !w->loading(); }, 60000)) << w->lastError().toStdString();
+  ASSERT_TRUE(waitFor([&] { return started.count() > 0 && !w->opener()->loading(); }, 60000)) << w->opener()->lastError().toStdString();
   ASSERT_TRUE(w->replay()->active());
-  EXPECT_FALSE(w->hapticsRunning());
+  EXPECT_FALSE(w->session().hapticsRunning());
   EXPECT_EQ(w->session().loaded().spec.volume.path, "builtin:sphere");
   // The |F| plot holds one sample per record; one marker in the list.
   EXPECT_EQ(w->replay()->timeline()->sampleCount(), rec.records.size());
@@ -228,10 +232,10 @@ TEST_F(RecordingTest, ReplayLoadsTheSceneAndScrubbingMovesTheProxy) {
     const std::size_t i = w->replay()->currentIndex();
     EXPECT_EQ(i, recordIndexAt(rec.records, timeline->timeAtX(x)));
     const haptics::Pose X_WP = proxyPoseOf(rec.records[i]);
-    EXPECT_LT((translationOf(w->proxyActor()) - X_WP.p_AB_m).norm(), 1e-9);
-    EXPECT_LT(rotationOf(w->proxyActor()).angularDistance(X_WP.R_AB), 1e-6);
-    EXPECT_LT((translationOf(w->deviceActor()) - devicePoseOf(rec.records[i]).p_AB_m).norm(), 1e-9);
-    EXPECT_DOUBLE_EQ(w->isovalue(), rec.records[i].isovalue);
+    EXPECT_LT((translationOf(w->sceneView()->actors().proxyActor()) - X_WP.p_AB_m).norm(), 1e-9);
+    EXPECT_LT(rotationOf(w->sceneView()->actors().proxyActor()).angularDistance(X_WP.R_AB), 1e-6);
+    EXPECT_LT((translationOf(w->sceneView()->actors().deviceActor()) - devicePoseOf(rec.records[i]).p_AB_m).norm(), 1e-9);
+    EXPECT_DOUBLE_EQ(w->session().isovalue(), rec.records[i].isovalue);
   }
   // Jumping to the marker.
   w->replay()->markerList()->setCurrentRow(0);
@@ -242,7 +246,7 @@ TEST_F(RecordingTest, ReplayLoadsTheSceneAndScrubbingMovesTheProxy) {
     w->resize(1100, 760);
     test::pump(300);
     w->replay()->setTime(rec.records[far].time_s);
-    w->renderStill(/*best_quality=*/true);
+    w->sceneView()->renderStill(/*best_quality=*/true);
     test::pump(800);
     const QString out = QString::fromStdString((fs::path(shots) / "replay.png").string());
     EXPECT_TRUE(w->grab().toImage().save(out, "PNG")) << out.toStdString();
@@ -251,15 +255,15 @@ TEST_F(RecordingTest, ReplayLoadsTheSceneAndScrubbingMovesTheProxy) {
   // Close Replay: live haptics again on the same scene.
   w->replay()->closeReplay();
   EXPECT_FALSE(w->replay()->active());
-  EXPECT_TRUE(w->hapticsRunning());
-  w->stopHaptics();
+  EXPECT_TRUE(w->session().hapticsRunning());
+  w->session().stopHaptics();
 }
 
 TEST_F(RecordingTest, VideoAndPngExport) {
   auto w = smallWindow();
   QSignalSpy started(w->replay(), &ReplayController::replayStarted);
   ASSERT_TRUE(w->replay()->openRecording(path_));
-  ASSERT_TRUE(waitFor([&] { return started.count() > 0 && !w->loading(); }, 60000));
+  ASSERT_TRUE(waitFor([&] { return started.count() > 0 && !w->opener()->loading(); }, 60000));
   const fs::path dir(dir_->path().toStdString());
   const double duration = w->replay()->timeline()->duration_s();
   const double fps = 4.0;
@@ -341,12 +345,12 @@ TEST_F(RecordingTest, MissingDatasetNamesItAndKeepsTheScene) {
   }
   auto w = smallWindow();
   ASSERT_TRUE(loadInto(*w, sphereScene()));
-  w->stopHaptics();
+  w->session().stopHaptics();
   const void* image_before = w->session().loaded().volume.image.get();
   QSignalSpy failed(w.get(), &MainWindow::loadFailed);
   EXPECT_FALSE(w->replay()->openRecording(bad));
   EXPECT_EQ(failed.count(), 1);
-  EXPECT_NE(w->lastError().indexOf(QString::fromStdString(missing)), -1) << w->lastError().toStdString();
+  EXPECT_NE(w->opener()->lastError().indexOf(QString::fromStdString(missing)), -1) << w->opener()->lastError().toStdString();
   EXPECT_FALSE(w->replay()->active());
   EXPECT_FALSE(w->replay()->pending());
   EXPECT_EQ(w->session().loaded().volume.image.get(), image_before);

@@ -15,6 +15,7 @@
 #include "ui_test_util.h"
 #include "vh/io/dicom_series.h"
 #include "vh/ui/main_window.h"
+#include "vh/ui/view_controller.h"
 #include "vh/ui/panels/series_chooser.h"
 #include "vh/ui/view/vtk_view.h"
 
@@ -33,15 +34,15 @@ TEST(UiScreenshots, DialogsAndPanels) {
   window.show();
   window.grab().save(out + "/empty-window.png");
   window.openPath(QString::fromStdString(test::kHead.string()));
-  ASSERT_TRUE(test::waitFor([&] { return window.hasScene() && !window.loading(); }, 30000));
+  ASSERT_TRUE(test::waitFor([&] { return window.hasScene() && !window.opener()->loading(); }, 30000));
   test::pump(1500);
   window.findChild<QDockWidget*>("displayDock")->raise();
-  window.setRenderMode(RenderMode::kComposite);
-  window.setPreset(VolumePreset::kSoftTissue);
-  window.setClipping(true, ClipAxis::kY, 0.5);
-  window.setStandardView(StandardView::kLeft);
+  window.viewController()->setRenderMode(RenderMode::kComposite);
+  window.viewController()->setPreset(VolumePreset::kSoftTissue);
+  window.viewController()->setClipping(true, ClipAxis::kY, 0.5);
+  window.sceneView()->setStandardView(StandardView::kLeft);
   test::pump(500);
-  window.renderStill(true);
+  window.sceneView()->renderStill(true);
   window.grab().save(out + "/display-panel-soft-tissue-clipped.png");
 
   // The series chooser over a folder holding two series.

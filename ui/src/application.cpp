@@ -14,6 +14,9 @@
 #include "vh/runtime/scene.h"
 #include "vh/ui/panels/igtl_panel.h"
 #include "vh/ui/main_window.h"
+#include "vh/ui/scene_opener.h"
+#include "vh/ui/devices/device_input.h"
+#include "vh/ui/view_controller.h"
 #include "vh/ui/view/vtk_view.h"
 
 namespace vh::ui {
@@ -78,8 +81,8 @@ int runApplication(int argc, char** argv, const runtime::SceneSpec& scene, const
   window->setInteractive(!scripted);
   window->resize(options.window_width, options.window_height);
   if (!scripted) window->restoreLayout();
-  if (options.render_mode.has_value()) window->setRenderMode(*options.render_mode);
-  if (options.preset.has_value()) window->setPreset(*options.preset);
+  if (options.render_mode.has_value()) window->viewController()->setRenderMode(*options.render_mode);
+  if (options.preset.has_value()) window->viewController()->setPreset(*options.preset);
   if (options.igtl_port.has_value()) {
     // The command line's server wins over a scene file's "openigtlink" section; it listens from
     // now on, before the scene has loaded.
@@ -101,26 +104,26 @@ int runApplication(int argc, char** argv, const runtime::SceneSpec& scene, const
     if (loaded_once) return;  // scripting applies to the first scene only
     loaded_once = true;
     if (options.device_pose.has_value()) {
-      window->setDevicePose(*options.device_pose);
+      window->deviceInput()->setDevicePose(*options.device_pose);
     } else if (options.touch) {
-      if (!window->touchSurface(options.touch_depth_m)) {
+      if (!window->deviceInput()->touchSurface(options.touch_depth_m)) {
         std::cerr << "volume-haptics: touch: no simulated device, or no surface towards the "
                      "volume's centre\n";
       } else {
         // Frame the contact once the proxy rests on the surface.
         QTimer::singleShot(std::min(800, std::max(0, options.screenshot_delay_ms / 2)), window.get(), [&] {
-          window->refreshFromHaptics(true);
-          window->focusOnTool();
+          window->viewController()->refresh(true);
+          window->viewController()->focusOnTool();
         });
       }
     }
     if (!scripted) return;
     QTimer::singleShot(std::max(0, options.screenshot_delay_ms), window.get(), [&] {
-      window->refreshFromHaptics(/*update_status_now=*/true);
-      window->renderStill(/*best_quality=*/true);
+      window->viewController()->refresh(/*update_status_now=*/true);
+      window->sceneView()->renderStill(/*best_quality=*/true);
       // QWidget::grab() renders the GL view (paintGL) and composites it with the widgets.
       const QImage shot = window->grab().toImage();
-      const QRect view_rect(window->view()->mapTo(window.get(), QPoint(0, 0)), window->view()->size());
+      const QRect view_rect(window->sceneView()->widget()->mapTo(window.get(), QPoint(0, 0)), window->sceneView()->widget()->size());
       const double bright = brightFraction(shot.copy(view_rect));
       if (bright < 0.005) {
         std::cerr << "volume-haptics: screenshot: the view looks empty (" << bright * 100.0
@@ -134,7 +137,7 @@ int runApplication(int argc, char** argv, const runtime::SceneSpec& scene, const
         std::cout << "Screenshot saved: " << options.screenshot.string() << " (" << shot.width() << " x "
                   << shot.height() << ", status: " << window->statusText().toStdString() << ")\n";
       }
-      window->stopHaptics();
+      window->session().stopHaptics();
       QApplication::exit(screenshot_status);
     });
   });
@@ -151,11 +154,11 @@ int runApplication(int argc, char** argv, const runtime::SceneSpec& scene, const
   } else {
     fs::path opened = spec.source;
     if (opened.empty() && spec.volume.path.rfind("builtin:", 0) != 0) opened = volume_path;
-    window->openScene(spec, opened);
+    window->opener()->openScene(spec, opened);
   }
 
   const int code = QApplication::exec();
-  window->stopHaptics();
+  window->session().stopHaptics();
   window.reset();  // VTK objects go while the application still exists
   return code;
 }

@@ -126,4 +126,10 @@ void IgtlPanel::openDialog() {
   if (!apply({enabled->isChecked(), port->value(), rate->value()}, &error)) emit message(error, 8000);
 }
 
+bool IgtlPanel::applySceneSection(const std::optional<runtime::OpenIgtlinkSpec>& section, QString* error) {
+  if (!section.has_value()) return true;
+  if (running() && settings_.port == section->port && settings_.rate_Hz == section->rate_Hz) return true;
+  return apply({true, section->port, section->rate_Hz}, error);
+}
+
 }  // namespace vh::ui

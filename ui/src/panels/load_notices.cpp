@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <array>
 #include <cctype>
+#include <iostream>
 #include <string_view>
 
 #include <QHBoxLayout>
@@ -39,6 +40,14 @@ std::string primaryNotice(const std::vector<std::string>& notices) {
     return noticeRank(a) < noticeRank(b);
   });
   return best == notices.end() ? std::string() : *best;
+}
+
+QString statusNote(const std::vector<std::string>& notices) {
+  const std::string first = primaryNotice(notices);
+  if (first.empty()) return {};
+  QString text = "Note: " + QString::fromStdString(first);
+  if (notices.size() > 1) text += QString(" (+%1 more, see Help > Load Notes)").arg(notices.size() - 1);
+  return text;
 }
 
 LoadNoticePanel::LoadNoticePanel(QWidget* parent)
@@ -94,6 +103,7 @@ LoadNoticePanel::LoadNoticePanel(QWidget* parent)
 
 void LoadNoticePanel::setLoaded(const QString& title, const runtime::SceneSpec& spec, const io::VolumeInfo& info,
                                 const std::filesystem::path& opened) {
+  for (const std::string& n : info.notices) std::cerr << "volume-haptics: note: " << n << '\n';
   title_ = title;
   spec_ = spec;
   opened_ = opened;

@@ -123,6 +123,12 @@ void StripChart::redraw() {
   axis_tick_->setRange(0.0, niceCeil(std::max(100.0, 1.1 * top_tick)));
 }
 
+void StripChart::addSnapshot(const runtime::HapticSnapshot& snapshot) {
+  if (!since_start_.isValid()) since_start_.start();
+  addSample(1e-3 * static_cast<double>(since_start_.elapsed()), snapshot.force_W_N.norm(), snapshot.solver.mean_tick_us,
+            snapshot.solver.max_tick_us, snapshot.coupling.jitter_us);
+}
+
 void StripChart::clear() {
   samples_.clear();
   redraw();

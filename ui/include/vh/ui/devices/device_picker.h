@@ -46,6 +46,8 @@ class DevicePicker : public QObject {
 
   /// Fills `menu` with the entries (and Rescan) from now on.
   void setMenu(QMenu* menu);
+  /// The Haptics > Device submenu given to setMenu() (null before).
+  QMenu* menu() const noexcept { return menu_; }
   /// Dialogs (firmware file, open errors) when true; else messages go to stderr only.
   void setInteractive(bool interactive) { interactive_ = interactive; }
 

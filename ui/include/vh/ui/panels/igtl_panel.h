@@ -17,6 +17,7 @@
 
 #include "vh/igtl/igtl_link.h"
 #include "vh/io/volume_loader.h"
+#include "vh/runtime/scene.h"
 #include "vh/runtime/snapshot_channel.h"
 
 class QAction;
@@ -60,6 +61,10 @@ class IgtlPanel : public QObject {
   ///         the port cannot be bound; the link is then off.
   bool apply(const IgtlSettings& settings, QString* error = nullptr);
   IgtlSettings settings() const noexcept { return settings_; }
+  /// A scene file's "openigtlink" section: switches the link on, or moves it to the section's
+  /// port and rate when it runs elsewhere; nothing without a section.
+  /// @return false with `error` set, as apply(), when the port cannot be bound.
+  bool applySceneSection(const std::optional<runtime::OpenIgtlinkSpec>& section, QString* error = nullptr);
  private:
   std::shared_ptr<const runtime::SegmentNameTable> names_;
 

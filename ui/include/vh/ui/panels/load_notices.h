@@ -34,6 +34,10 @@ int noticeRank(const std::string& notice);
 /// when there is none.
 std::string primaryNotice(const std::vector<std::string>& notices);
 
+/// The status bar's line for `notices`: "Note: " + primaryNotice(), and how many more there are
+/// (Help > Load Notes); empty when there is none.
+QString statusNote(const std::vector<std::string>& notices);
+
 /// The banner above the view. Hidden while there is nothing to say; close() hides it and
 /// reopen() shows it again with the last volume's notices.
 class LoadNoticePanel : public QFrame {

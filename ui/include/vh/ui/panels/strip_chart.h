@@ -12,6 +12,8 @@
 #include <QElapsedTimer>
 #include <QWidget>
 
+#include "vh/runtime/haptic_thread.h"
+
 class QChart;
 class QChartView;
 class QLineSeries;
@@ -28,6 +30,9 @@ class StripChart : public QWidget {
   /// One sample at time t_s [s] (any monotonic clock): |F| [N], the solver's mean and max tick
   /// time [us] and the coupling thread's jitter [us] (HapticSnapshot::solver / ::coupling).
   void addSample(double t_s, double force_N, double mean_tick_us, double max_tick_us, double jitter_us = 0.0);
+  /// A haptic snapshot's |F|, solver tick times and coupling jitter, at the time since the
+  /// chart was made [s].
+  void addSnapshot(const runtime::HapticSnapshot& snapshot);
   /// Redraws with every sample so far now (normally at most ~8 times a second).
   void flush();
   /// Forgets every sample (e.g. a new scene).
@@ -54,6 +59,7 @@ class StripChart : public QWidget {
   };
   std::deque<Sample> samples_;  // oldest first, at most window_s (+1 s) old
   QElapsedTimer since_redraw_;
+  QElapsedTimer since_start_;  // addSnapshot()'s time base
 };
 
 }  // namespace vh::ui

@@ -1,0 +1,66 @@
+#pragma once
+/// @file
+/// The Haptics dock and the Haptics menu: shows the Session (running, gains, tool and its point
+/// shell, device and its limits) in the HapticsPanel whenever the session changes, and sends the
+/// panel's and the menu's commands to the session, the tool picker and the device picker. While
+/// a replay is shown the haptic thread waits: starting it is refused with a notice.
+///
+/// Data flows one way: Session -> this -> HapticsPanel; panel and menu -> this -> Session.
+/// GUI thread only.
+
+#include <QObject>
+#include <QString>
+
+class QAction;
+class QMenuBar;
+class QWidget;
+
+namespace vh::runtime {
+class Session;
+}
+
+namespace vh::ui {
+
+class DeviceInput;
+class DevicePicker;
+class HapticsPanel;
+class ReplayController;
+class SessionRecorder;
+class ToolPicker;
+
+class HapticsController : public QObject {
+  Q_OBJECT
+
+ public:
+  /// Observes `session` from now on; every reference outlives this.
+  HapticsController(runtime::Session& session, HapticsPanel& panel, ToolPicker& tools, DevicePicker& devices,
+                    DeviceInput& input, SessionRecorder& recorder, ReplayController& replay, QObject* parent = nullptr);
+  ~HapticsController() override;
+
+  /// Starts the haptic threads; refused (a notice) while a replay is shown.
+  void start();
+  /// Adds the Haptics menu to `bar`: run, reset device, touch, record, marker (M anywhere in
+  /// `window`), the device submenu.
+  void addMenu(QMenuBar* bar, QWidget* window);
+  /// Shows the session in the panel and the menu now.
+  void refresh();
+
+ signals:
+  /// A short text for the status bar.
+  void message(const QString& text, int timeout_ms);
+
+ private:
+  bool replaying() const;
+
+  runtime::Session& session_;
+  HapticsPanel& panel_;
+  ToolPicker& tools_;
+  DevicePicker& devices_;
+  DeviceInput& input_;
+  SessionRecorder& recorder_;
+  ReplayController& replay_;
+  QAction* run_action_ = nullptr;
+  int observer_ = 0;
+};
+
+}  // namespace vh::ui

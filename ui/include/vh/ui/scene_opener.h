@@ -1,0 +1,133 @@
+#pragma once
+/// @file
+/// Opening files the way a user does: File menu dialogs, recent files, drag and drop, a DICOM
+/// folder's series chooser, a volume received over OpenIGTLink. Turns what was opened into a
+/// runtime::SceneSpec for SceneLoader (which reads it off the GUI thread) and reports progress,
+/// failures (a dialog naming the file and the problem; what is open stays) and cancellation.
+/// A recording (.vhrec) or a segmentation of the open scan is handed on by a signal.
+///
+/// Data flows one way: a path -> SceneLoader -> (the window shows the scene) -> sceneShown().
+/// GUI thread only.
+
+#include <cstdint>
+#include <filesystem>
+#include <memory>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include <QObject>
+#include <QString>
+
+#include "vh/io/dicom_series.h"
+#include "vh/io/volume_loader.h"
+#include "vh/runtime/device.h"
+#include "vh/runtime/scene.h"
+#include "vh/ui/panels/histogram.h"
+
+class QMenu;
+class QMimeData;
+class QStatusBar;
+class QWidget;
+
+namespace vh::runtime {
+class Session;
+}
+
+namespace vh::ui {
+
+class SceneLoader;
+class StatusLine;
+struct LoadedViewerScene;
+struct Preferences;
+
+/// What the main window opens: a loaded scene with its device (null: haptics off) and what the
+/// window shows about it. The session builds the haptic threads.
+struct ViewerScene {
+  runtime::LoadedScene scene;               ///< As loaded: volume (field + image), tool, isovalue, pose, spec.
+  std::shared_ptr<runtime::Device> device;  ///< Null: no device (haptics off).
+  std::optional<Histogram> histogram;       ///< Absent: computed when shown.
+  std::string title;                        ///< Window title detail (e.g. file name).
+  std::filesystem::path opened;             ///< What the user opened (recent files).
+};
+
+/// A ViewerScene for `loaded` driving `device` (null: haptics off), titled by its file name.
+ViewerScene makeViewerScene(const runtime::LoadedScene& loaded, std::shared_ptr<runtime::Device> device);
+/// The ViewerScene of a finished load: its histogram, what was opened, and a title of the file
+/// name and, for DICOM, the series description.
+ViewerScene viewerSceneFor(LoadedViewerScene& loaded);
+/// "VolumeHaptics - TITLE (FORMAT MODALITY  NXxNYxNZ  SPACING)" for the session's loaded scene;
+/// "VolumeHaptics" without one.
+QString windowTitleFor(const std::string& title, const runtime::Session& session);
+
+class SceneOpener : public QObject {
+  Q_OBJECT
+
+ public:
+  /// File dialogs and error boxes are parented to `window`; notes go to `status_bar`. All
+  /// references outlive this.
+  SceneOpener(SceneLoader& loader, const runtime::Session& session, Preferences& prefs, StatusLine& status,
+              QStatusBar* status_bar, QWidget* window);
+
+  /// Opens `path`: a scene .json, a recording .vhrec (recordingRequested()), a DICOM folder (a
+  /// chooser when it holds several series), a segmentation .seg.nrrd (segmentationRequested()
+  /// while a scan is open, else its own scan), or a NRRD / MetaImage / DICOM file. Asynchronous.
+  void openPath(const QString& path);
+  /// Loads a parsed scene; `opened` goes to the recent files once it is shown.
+  void openScene(const runtime::SceneSpec& spec, const std::filesystem::path& opened = {});
+  /// Opens a volume already in memory (received over OpenIGTLink) with the default tool.
+  void openLoadedVolume(io::LoadedVolume volume);
+  /// Loads series `series` of a listed DICOM folder, time point `phase` (0-based).
+  void openDicomSeries(const io::DicomSeriesInfo& series, int phase = 0);
+  /// The path a drop of `mime` opens (several files of one series: their folder); empty: none.
+  static QString droppedPath(const QMimeData& mime);
+
+  /// Adds Open DICOM Folder / Volume File / Scene to `file`.
+  void addFileMenuActions(QMenu* file);
+  /// The recent files, each opened with openPath(); disabled while empty.
+  QMenu* recentFilesMenu() const noexcept { return recent_menu_; }
+
+  /// The window shows the loaded scene now; `opened` joins the recent files; loading() stays
+  /// true until the view has rendered frame `frames_rendered` + 1 (the volume's GPU upload).
+  void sceneShown(const std::filesystem::path& opened, std::uint64_t frames_rendered);
+  /// The view rendered its frame number `frame_count`.
+  void frameRendered(std::uint64_t frame_count);
+  /// True from a load's start until its scene is shown and rendered once (or it failed).
+  bool loading() const noexcept;
+  /// Abandons the running load; what is open stays.
+  void cancelLoading();
+
+  /// Dialogs (errors, the series chooser) when true; otherwise errors go to stderr only and the
+  /// largest DICOM series is taken (scripted runs, tests).
+  void setInteractive(bool interactive) { interactive_ = interactive; }
+  /// Shows `message` about `what` (a path) and emits loadFailed().
+  void reportError(const QString& what, const QString& message);
+  /// The last error ("FILE: problem"); empty when none or after a successful load.
+  QString lastError() const { return last_error_; }
+
+ signals:
+  void loadStarted();
+  void loadFailed(const QString& message);
+  void loadCancelled();
+  void recordingRequested(const std::filesystem::path& path);
+  void segmentationRequested(const std::filesystem::path& path);
+
+ private:
+  void onSeriesListed(const QString& folder, const std::vector<io::DicomSeriesInfo>& series);
+  void openFileDialog(int kind);
+  void rebuildRecentMenu();
+
+  SceneLoader& loader_;
+  const runtime::Session& session_;
+  Preferences& prefs_;
+  StatusLine& status_;
+  QStatusBar* status_bar_;
+  QWidget* window_;
+  QMenu* recent_menu_ = nullptr;
+  bool interactive_ = true;
+  bool upload_pending_ = false;  // a new scene waits for its first frame (GPU upload)
+  std::uint64_t upload_frame_ = 0;
+  QString last_error_;
+};
+
+}  // namespace vh::ui

@@ -1,0 +1,82 @@
+#pragma once
+/// @file
+/// The scene view's controller: shows the Session in the SceneView (its scene, isovalue, tool
+/// and device as they change, and the haptic thread's latest snapshot ~30 times a second while
+/// the threads run), and applies the Display panel's choices (render mode, preset, clipping,
+/// marker, device tool, colours) to the view and the preferences.
+///
+/// Data flows one way: Session -> this -> SceneView; DisplayPanel -> this -> Preferences and
+/// SceneView. Threads: GUI thread only; the haptic thread is read through
+/// Session::latestSnapshot(), which never blocks.
+
+#include <QObject>
+#include <QString>
+
+#include "vh/runtime/haptic_thread.h"
+#include "vh/runtime/session.h"
+#include "vh/ui/preferences.h"
+#include "vh/ui/view/render_presets.h"
+#include "vh/ui/view/scene_view.h"
+
+class QColor;
+class QMenu;
+class QTimer;
+class QWidget;
+
+
+namespace vh::ui {
+
+class DisplayPanel;
+
+class ViewController : public QObject {
+  Q_OBJECT
+
+ public:
+  /// Observes `session` from now on. Register it before other observers that draw into `view`
+  /// (the segment surfaces): a new scene clears the view first. All references outlive this.
+  ViewController(runtime::Session& session, SceneView& view, DisplayPanel& panel, Preferences& prefs,
+                 QObject* parent = nullptr);
+  ~ViewController() override;
+
+  /// Reads the session's latest snapshot now and shows it; snapshotShown() follows.
+  /// @return true when something visible changed.
+  bool refresh(bool update_status_now = false);
+  /// The last snapshot read; null before the first of this scene, tool or device.
+  const runtime::HapticSnapshot* snapshot() const noexcept { return have_snapshot_ ? &snapshot_ : nullptr; }
+  /// The last snapshot read (default-constructed before the first of this scene).
+  const runtime::HapticSnapshot& lastSnapshot() const noexcept { return snapshot_; }
+
+  void setRenderMode(RenderMode mode);
+  void setPreset(VolumePreset preset);
+  void setClipping(bool enabled, ClipAxis axis = ClipAxis::kX, double fraction = 0.5, bool flip = false);
+  void setOrientationMarkerVisible(bool visible);
+  void setDeviceToolVisible(bool visible);
+  /// The tool's bounding sphere in view, at the proxy's latest pose.
+  void focusOnTool();
+  /// The preferences' colours on the view.
+  void applyColours();
+  /// Adds View > Colours (a colour dialog per colour, parented to `dialog_parent`; reset).
+  void addColoursMenu(QMenu* view_menu, QWidget* dialog_parent);
+
+ signals:
+  /// A snapshot was read and shown (strip chart, status line, segment alerts follow it).
+  void snapshotShown(const vh::runtime::HapticSnapshot& snapshot, bool update_status_now);
+
+ private:
+  void onSessionChanged(runtime::SessionChange what);
+  void showScene();
+  void applyClippingFromPanel();
+  void updateHint();
+  void chooseColour(QColor Preferences::*field, const QString& title, QWidget* parent);
+
+  runtime::Session& session_;
+  SceneView& view_;
+  DisplayPanel& panel_;
+  Preferences& prefs_;
+  QTimer* timer_ = nullptr;
+  runtime::HapticSnapshot snapshot_;
+  bool have_snapshot_ = false;
+  int observer_ = 0;
+};
+
+}  // namespace vh::ui

@@ -1,0 +1,97 @@
+#include "vh/ui/haptics_controller.h"
+
+#include <QAction>
+#include <QMenu>
+#include <QMenuBar>
+#include <QSignalBlocker>
+#include <QWidget>
+
+#include "vh/runtime/session.h"
+#include "vh/ui/devices/device_input.h"
+#include "vh/ui/devices/device_picker.h"
+#include "vh/ui/panels/haptics_panel.h"
+#include "vh/ui/replay/replay_panel.h"
+#include "vh/ui/replay/session_recorder.h"
+#include "vh/ui/tool_picker.h"
+
+namespace vh::ui {
+
+HapticsController::HapticsController(runtime::Session& session, HapticsPanel& panel, ToolPicker& tools,
+                                     DevicePicker& devices, DeviceInput& input, SessionRecorder& recorder,
+                                     ReplayController& replay, QObject* parent)
+    : QObject(parent), session_(session), panel_(panel), tools_(tools), devices_(devices), input_(input),
+      recorder_(recorder), replay_(replay) {
+  observer_ = session_.addObserver([this](runtime::SessionChange what) {
+    if (runtime::has(what, runtime::SessionChange::kDevice)) devices_.sync();
+    refresh();
+  });
+  connect(&panel_, &HapticsPanel::startStopRequested, this, [this](bool run) { run ? start() : session_.stopHaptics(); });
+  connect(&panel_, &HapticsPanel::toolRequested, &tools_, &ToolPicker::select);
+  connect(&panel_, &HapticsPanel::gainsChanged, this, [this](const haptics::CouplingGains& g) { session_.setGains(g); });
+  connect(&panel_, &HapticsPanel::resetDeviceRequested, this, [this] {
+    if (session_.hasScene()) input_.setDevicePose(session_.live().X_WT_initial);
+  });
+  connect(&panel_, &HapticsPanel::rescanRequested, &devices_, &DevicePicker::rescan);
+  connect(&panel_, &HapticsPanel::deviceChoiceRequested, &devices_, &DevicePicker::choose);
+  connect(&devices_, &DevicePicker::choicesChanged, &panel_, &HapticsPanel::setDeviceChoices);
+  connect(&devices_, &DevicePicker::choiceChanged, &panel_, &HapticsPanel::setDeviceChoice);
+  connect(&tools_, &ToolPicker::buildStarted, this, [this](const QString& label, double spacing_m) {
+    recorder_.noteTool(label, spacing_m);
+    panel_.setBuilding(true);
+  });
+  connect(&tools_, &ToolPicker::buildEnded, this, [this] {
+    panel_.setBuilding(false);
+    refresh();
+  });
+  const auto replay_changed = [this] {
+    recorder_.setReplayActive(replay_.active());
+    refresh();
+  };
+  connect(&replay_, &ReplayController::replayStarted, this, replay_changed);
+  connect(&replay_, &ReplayController::replayClosed, this, replay_changed);
+}
+
+HapticsController::~HapticsController() { session_.removeObserver(observer_); }
+
+bool HapticsController::replaying() const { return replay_.active(); }
+
+void HapticsController::start() {
+  if (replaying()) {
+    recorder_.showNotice("A recording is replayed: Close Replay first", 4000);
+    return;
+  }
+  session_.startHaptics();
+}
+
+void HapticsController::refresh() {
+  panel_.showSession(session_, tools_.choices(), tools_.currentIndex(), devices_.limitsText(), replaying());
+  if (run_action_ != nullptr) {
+    const QSignalBlocker block(run_action_);
+    run_action_->setEnabled(session_.hapticThread() != nullptr && !replaying());
+    run_action_->setChecked(session_.hapticsRunning());
+  }
+}
+
+void HapticsController::addMenu(QMenuBar* bar, QWidget* window) {
+  QMenu* menu = bar->addMenu("&Haptics");
+  run_action_ = menu->addAction("&Run Haptic Thread", this, [this](bool on) { on ? start() : session_.stopHaptics(); });
+  run_action_->setCheckable(true);
+  run_action_->setShortcut(QKeySequence("Ctrl+H"));
+  menu->addAction("Reset &Device", this, [this] {
+        if (session_.hasScene()) input_.setDevicePose(session_.live().X_WT_initial);
+      })->setShortcut(QKeySequence("Ctrl+Home"));
+  QAction* touch = menu->addAction("&Touch the Surface", this, [this] {
+    if (!input_.touchSurface(0.003)) emit message("No simulated device, or no surface towards the volume's centre", 4000);
+  });
+  touch->setShortcut(QKeySequence("Ctrl+T"));
+  touch->setToolTip("Moves the simulated device straight towards the volume's centre until the tool rests on the surface");
+  menu->addSeparator();
+  menu->addAction(recorder_.recordAction());
+  menu->addAction(recorder_.markerAction());
+  window->addAction(recorder_.markerAction());  // M works wherever the focus is in the window
+  menu->addSeparator();
+  devices_.setMenu(menu->addMenu("De&vice"));
+  refresh();
+}
+
+}  // namespace vh::ui

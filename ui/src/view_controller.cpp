@@ -1,0 +1,172 @@
+#include "vh/ui/view_controller.h"
+
+#include <algorithm>
+#include <span>
+
+#include <QColorDialog>
+#include <QMenu>
+#include <QTimer>
+
+#include "vh/ui/devices/device_input.h"
+#include "vh/ui/export/media_export.h"
+#include "vh/ui/panels/display_panel.h"
+#include "vh/ui/view/scene_actors.h"
+
+namespace vh::ui {
+namespace {
+
+constexpr int kDisplayPeriodMs = 33;  // ~30 Hz prop updates
+
+}  // namespace
+
+ViewController::ViewController(runtime::Session& session, SceneView& view, DisplayPanel& panel, Preferences& prefs,
+                               QObject* parent)
+    : QObject(parent), session_(session), view_(view), panel_(panel), prefs_(prefs) {
+  timer_ = new QTimer(this);
+  timer_->setInterval(kDisplayPeriodMs);
+  connect(timer_, &QTimer::timeout, this, [this] { refresh(); });
+  observer_ = session_.addObserver([this](runtime::SessionChange what) { onSessionChanged(what); });
+
+  panel_.setMarkerVisible(prefs_.orientation_marker);
+  panel_.setDeviceToolVisible(prefs_.show_device);
+  panel_.setPreset(prefs_.preset);
+  panel_.setRenderMode(prefs_.mode);
+  connect(&panel_, &DisplayPanel::renderModeChosen, this, &ViewController::setRenderMode);
+  connect(&panel_, &DisplayPanel::presetChosen, this, &ViewController::setPreset);
+  connect(&panel_, &DisplayPanel::standardViewRequested, this, [this](StandardView v) { view_.setStandardView(v); });
+  connect(&panel_, &DisplayPanel::resetViewRequested, this, [this] {
+    view_.resetCamera();
+    view_.requestRender();
+  });
+  connect(&panel_, &DisplayPanel::clippingChanged, this, [this](bool moving) {
+    if (moving) view_.noteMotion();
+    applyClippingFromPanel();
+  });
+  connect(&panel_, &DisplayPanel::markerToggled, this, &ViewController::setOrientationMarkerVisible);
+  connect(&panel_, &DisplayPanel::deviceToolToggled, this, &ViewController::setDeviceToolVisible);
+  applyColours();
+}
+
+ViewController::~ViewController() { session_.removeObserver(observer_); }
+
+void ViewController::onSessionChanged(runtime::SessionChange what) {
+  using runtime::SessionChange;
+  if (runtime::has(what, SessionChange::kScene)) showScene();
+  if (runtime::has(what, SessionChange::kIsovalue)) view_.setIsovalue(session_.isovalue());
+  if (runtime::has(what, SessionChange::kTool) && !runtime::has(what, SessionChange::kScene) &&
+      session_.live().tool != nullptr) {
+    view_.setTool(*session_.live().tool, session_.live().X_WT_initial);
+    have_snapshot_ = false;
+  }
+  if (runtime::has(what, SessionChange::kDevice)) {
+    view_.setDeviceVisible(session_.hapticThread() != nullptr && prefs_.show_device);
+    have_snapshot_ = false;
+    updateHint();
+  }
+  if (session_.hapticsRunning()) {
+    timer_->start();
+  } else {
+    timer_->stop();
+  }
+}
+
+void ViewController::showScene() {
+  view_.clearScene();
+  have_snapshot_ = false;
+  snapshot_ = runtime::HapticSnapshot{};
+  if (!session_.hasScene()) return;
+  SceneActorsSpec spec = sceneActorsSpecFor(session_.loaded(), session_.live());
+  spec.show_device = session_.hapticThread() != nullptr && prefs_.show_device;
+  view_.setScene(spec, session_.live().X_WT_initial, prefs_);
+  applyClippingFromPanel();
+}
+
+bool ViewController::refresh(bool update_status_now) {
+  if (!session_.hasScene() || !view_.hasScene() || !session_.latestSnapshot(snapshot_)) return false;
+  have_snapshot_ = true;
+  ToolFrame frame;
+  frame.X_WP = snapshot_.X_WP;
+  frame.X_WD = snapshot_.X_WD;
+  frame.force_W_N = snapshot_.force_W_N;
+  const int n = std::clamp(snapshot_.contacts_shown, 0, runtime::HapticSnapshot::kMaxContactsShown);
+  frame.contacts_W_m = std::span<const Eigen::Vector3d>(snapshot_.contact_p_W_m.data(), static_cast<std::size_t>(n));
+  const bool changed = view_.show(frame);
+  emit snapshotShown(snapshot_, update_status_now);
+  return changed;
+}
+
+void ViewController::setRenderMode(RenderMode mode) {
+  prefs_.mode = mode;
+  panel_.setRenderMode(mode);
+  view_.setRenderMode(prefs_.mode, prefs_.preset);
+}
+
+void ViewController::setPreset(VolumePreset preset) {
+  prefs_.preset = preset;
+  panel_.setPreset(preset);
+  view_.setRenderMode(prefs_.mode, prefs_.preset);
+}
+
+void ViewController::setClipping(bool enabled, ClipAxis axis, double fraction, bool flip) {
+  panel_.setClipping(enabled, axis, fraction, flip);
+  applyClippingFromPanel();
+}
+
+void ViewController::applyClippingFromPanel() {
+  view_.setClipping(panel_.clippingEnabled(), panel_.clipAxis(), panel_.clipFraction(), panel_.clipFlipped());
+}
+
+void ViewController::setOrientationMarkerVisible(bool visible) {
+  prefs_.orientation_marker = visible;
+  view_.setMarkerVisible(visible);
+  panel_.setMarkerVisible(visible);
+}
+
+void ViewController::setDeviceToolVisible(bool visible) {
+  prefs_.show_device = visible;
+  panel_.setDeviceToolVisible(visible);
+  view_.setDeviceVisible(visible && session_.hapticThread() != nullptr);
+}
+
+void ViewController::focusOnTool() {
+  if (session_.live().tool == nullptr || !view_.hasScene()) return;
+  view_.focusOn(*session_.live().tool, have_snapshot_ ? snapshot_.X_WP : view_.shownProxyPose());
+}
+
+void ViewController::updateHint() {
+  if (view_.hasScene()) view_.setHint(DeviceInput::hint(session_));
+}
+
+void ViewController::applyColours() { view_.applyColours(prefs_); }
+
+void ViewController::chooseColour(QColor Preferences::*field, const QString& title, QWidget* parent) {
+  const QColor chosen = QColorDialog::getColor(prefs_.*field, parent, title);
+  if (chosen.isValid()) {
+    prefs_.*field = chosen;
+    applyColours();
+  }
+}
+
+void ViewController::addColoursMenu(QMenu* view_menu, QWidget* dialog_parent) {
+  QMenu* colours = view_menu->addMenu("C&olours");
+  const auto add = [&](const char* label, QColor Preferences::*field, const char* title) {
+    colours->addAction(label, this, [this, field, title, dialog_parent] { chooseColour(field, title, dialog_parent); });
+  };
+  add("Background (top)...", &Preferences::background_top, "Background, top");
+  add("Background (bottom)...", &Preferences::background_bottom, "Background, bottom");
+  add("Surface...", &Preferences::surface, "Isosurface colour");
+  add("Tool (proxy)...", &Preferences::tool, "Tool colour");
+  add("Device (wire)...", &Preferences::device, "Device colour");
+  colours->addSeparator();
+  colours->addAction("Reset Colours", this, [this] {
+    const Preferences defaults;
+    prefs_.background_top = defaults.background_top;
+    prefs_.background_bottom = defaults.background_bottom;
+    prefs_.surface = defaults.surface;
+    prefs_.tool = defaults.tool;
+    prefs_.device = defaults.device;
+    applyColours();
+  });
+}
+
+}  // namespace vh::ui
