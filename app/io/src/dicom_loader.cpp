@@ -571,6 +571,7 @@ void describeSeries(vtkDICOMMetaData* md, const std::string& modality, const fs:
   if (info.description.empty()) info.description = folder.filename().string();
   info.patient_name = md->Get(0, DC::PatientName).AsUTF8String();
   info.series_uid = md->Get(0, DC::SeriesInstanceUID).AsString();
+  info.frame_of_reference_uid = md->Get(0, DC::FrameOfReferenceUID).AsString();
   info.series_number = md->Get(0, DC::SeriesNumber).AsInt();
 }
 

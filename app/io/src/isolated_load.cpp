@@ -1,11 +1,12 @@
-// Loading in the reader process (vh/io/reader_process.h): loadMesh(), listDicomSeries() and the
-// DICOM, NRRD and MetaImage loads start the reader program, pass the request on its command
-// line, take the result back from its output file and name the damaged file when a reader
-// crashes or stalls. Without the reader program they read in this process.
+// Loading in the reader process (vh/io/reader_process.h): loadMesh(), listDicomSeries(), the
+// DICOM SEG read and the DICOM, NRRD and MetaImage loads start the reader program, pass the
+// request on its command line, take the result back from its output file and name the damaged
+// file when a reader crashes or stalls. Without the reader program they read in this process.
 //
 // Why: vtk-dicom's parser has crashed (SIGSEGV in vtkDICOMParser::ReadMetaData) on damaged
 // files, and VTK's NRRD, MetaImage, OBJ and PLY readers crash or hang on some
-// (tests/fuzz/known-crashes); in the reader process such a crash ends that process, and the
+// (tests/fuzz/known-crashes); DCMTK's dcmseg reads whole multi-frame files that may be as
+// damaged; in the reader process such a crash ends that process, and the
 // application names the file and keeps what it had open. After a DICOM reader's crash the
 // reader's `probe` mode parses the files one by one: the last one named is the damaged file.
 #include <cmath>
@@ -13,6 +14,7 @@
 #include <cstdlib>
 #include <sstream>
 
+#include "dicom_seg_internal.h"
 #include "loader_internal.h"
 #include "reader_process_internal.h"
 #include "reader_transfer.h"
@@ -96,6 +98,30 @@ LoadedVolume loadFileIsolated(const fs::path& path, const VolumeLoadOptions& opt
                                        });
   if (!finished) throw LoadCancelled(path.string() + ": loading cancelled");
   return readField(out.path(), path);
+}
+
+DicomSegFile readDicomSeg(const fs::path& path, const VolumeLoadOptions& options) {
+  const fs::path reader = readerFor(options.dicom_isolation);
+  if (reader.empty()) {
+    if (options.dicom_isolation == DicomIsolation::kWorker) {
+      fail(path, std::string("the reader program (") + kReaderProgramName + ") was not found");
+    }
+    DicomSegFile seg = readDicomSegInProcess(path);
+    if (options.dicom_isolation == DicomIsolation::kAuto) {
+      seg.notices.push_back(std::string("read in this process: the reader program (") + kReaderProgramName +
+                            ") was not found, so a damaged file could end the program");
+    }
+    return seg;
+  }
+  std::error_code ec;
+  const ReaderOutputFile out("dicom-seg");
+  const bool finished = runReaderToEnd({reader.string(), "seg", fs::absolute(path, ec).string(), out.path().string()},
+                                       path, stallLimitFor(path, options.worker_stall_timeout_s), {}, options.cancel,
+                                       [](const std::string& what) {
+                                         return "the DICOM SEG reader " + what + ": a damaged file; nothing was loaded";
+                                       });
+  if (!finished) throw LoadCancelled(path.string() + ": loading cancelled");
+  return readDicomSegTransfer(out.path(), path);
 }
 
 LoadedVolume loadDicom(const fs::path& path, const VolumeLoadOptions& options) {

@@ -2,6 +2,7 @@
 /// @file
 /// Pieces shared by the format loaders of vh::io. Private to the library.
 
+#include <array>
 #include <cstdint>
 #include <filesystem>
 #include <functional>
@@ -74,6 +75,10 @@ LoadedVolume loadNrrd(const fs::path& path, int layer = 0);
 /// @throws LoadError naming the file for a missing file or a malformed header.
 std::map<std::string, std::string> readNrrdKeyValues(const fs::path& path);
 LoadedVolume loadMetaImage(const fs::path& path);
+
+/// Display colour n of the segments that name none (a qualitative palette, repeating), each in
+/// 0..1.
+std::array<double, 3> segmentPaletteColour(std::size_t n);
 
 // --- small text and geometry helpers -------------------------------------------------------
 

@@ -72,7 +72,7 @@ json infoToJson(const VolumeInfo& i) {
   return {{"format", i.format},           {"modality", i.modality},         {"value_unit", i.value_unit},
           {"description", i.description}, {"patient_name", i.patient_name}, {"series_uid", i.series_uid},
           {"series_number", i.series_number}, {"phase", i.phase},           {"phase_count", i.phase_count},
-          {"notices", i.notices}};
+          {"frame_of_reference_uid", i.frame_of_reference_uid}, {"notices", i.notices}};
 }
 
 VolumeInfo infoFromJson(const json& i) {
@@ -86,6 +86,7 @@ VolumeInfo infoFromJson(const json& i) {
   info.series_number = i.at("series_number").get<int>();
   info.phase = i.at("phase").get<int>();
   info.phase_count = i.at("phase_count").get<int>();
+  info.frame_of_reference_uid = i.at("frame_of_reference_uid").get<std::string>();
   info.notices = i.at("notices").get<std::vector<std::string>>();
   return info;
 }
@@ -132,7 +133,99 @@ DicomSeriesInfo seriesFromJson(const json& j) {
   return i;
 }
 
+json segmentToJson(const DicomSegSegment& s) {
+  return {{"number", s.number}, {"label", s.label}, {"category", s.category}, {"type", s.type},
+          {"has_lab", s.has_lab}, {"lab", s.lab},     {"rgb", s.rgb}};
+}
+
+DicomSegSegment segmentFromJson(const json& j) {
+  DicomSegSegment s;
+  s.number = j.at("number").get<int>();
+  s.label = j.at("label").get<std::string>();
+  s.category = j.at("category").get<std::string>();
+  s.type = j.at("type").get<std::string>();
+  s.has_lab = j.at("has_lab").get<bool>();
+  s.lab = j.at("lab").get<std::array<int, 3>>();
+  s.rgb = j.at("rgb").get<std::array<double, 3>>();
+  return s;
+}
+
+json framePlaneToJson(const DicomSegFrame& f) {
+  return {{"segment", f.segment},
+          {"position_mm", toJson(f.position_mm)},
+          {"row_dir", toJson(f.row_dir)},
+          {"col_dir", toJson(f.col_dir)},
+          {"row_spacing_mm", f.row_spacing_mm},
+          {"column_spacing_mm", f.column_spacing_mm}};
+}
+
+DicomSegFrame framePlaneFromJson(const json& j) {
+  DicomSegFrame f;
+  f.segment = j.at("segment").get<int>();
+  f.position_mm = vec(j.at("position_mm"));
+  f.row_dir = vec(j.at("row_dir"));
+  f.col_dir = vec(j.at("col_dir"));
+  f.row_spacing_mm = j.at("row_spacing_mm").get<double>();
+  f.column_spacing_mm = j.at("column_spacing_mm").get<double>();
+  return f;
+}
+
 }  // namespace
+
+void writeDicomSeg(const DicomSegFile& seg, const fs::path& out) {
+  json h = {{"series_uid", seg.series_uid},
+            {"frame_of_reference_uid", seg.frame_of_reference_uid},
+            {"referenced_series_uids", seg.referenced_series_uids},
+            {"fractional", seg.fractional},
+            {"rows", seg.rows},
+            {"columns", seg.columns},
+            {"slice_thickness_mm", seg.slice_thickness_mm},
+            {"spacing_between_slices_mm", seg.spacing_between_slices_mm},
+            {"notices", seg.notices}};
+  h["segments"] = json::array();
+  for (const auto& s : seg.segments) h["segments"].push_back(segmentToJson(s));
+  h["frames"] = json::array();
+  for (const auto& f : seg.frames) h["frames"].push_back(framePlaneToJson(f));
+  std::ofstream f(out, std::ios::binary);
+  writeHeader(f, h);
+  for (const auto& frame : seg.frames) {
+    f.write(reinterpret_cast<const char*>(frame.mask.data()), static_cast<std::streamsize>(frame.mask.size()));
+  }
+  if (!f) throw LoadError(out.string() + ": cannot write the DICOM SEG read (disk full?)");
+}
+
+DicomSegFile readDicomSegTransfer(const fs::path& in, const fs::path& source) {
+  std::ifstream f(in, std::ios::binary);
+  const json h = readHeader(f, source);
+  DicomSegFile seg;
+  try {
+    seg.series_uid = h.at("series_uid").get<std::string>();
+    seg.frame_of_reference_uid = h.at("frame_of_reference_uid").get<std::string>();
+    seg.referenced_series_uids = h.at("referenced_series_uids").get<std::vector<std::string>>();
+    seg.fractional = h.at("fractional").get<bool>();
+    seg.rows = h.at("rows").get<int>();
+    seg.columns = h.at("columns").get<int>();
+    seg.slice_thickness_mm = h.at("slice_thickness_mm").get<double>();
+    seg.spacing_between_slices_mm = h.at("spacing_between_slices_mm").get<double>();
+    seg.notices = h.at("notices").get<std::vector<std::string>>();
+    for (const auto& s : h.at("segments")) seg.segments.push_back(segmentFromJson(s));
+    if (seg.rows < 1 || seg.columns < 1 || seg.rows > 65535 || seg.columns > 65535) {
+      fail(source, "the reader process's output is invalid: frames of " + std::to_string(seg.columns) + " x " +
+                       std::to_string(seg.rows) + " pixels");
+    }
+    const std::size_t bytes = maskBytes(static_cast<std::size_t>(seg.rows) * static_cast<std::size_t>(seg.columns));
+    for (const auto& j : h.at("frames")) {
+      DicomSegFrame frame = framePlaneFromJson(j);
+      frame.mask.resize(bytes);
+      f.read(reinterpret_cast<char*>(frame.mask.data()), static_cast<std::streamsize>(bytes));
+      if (static_cast<std::size_t>(f.gcount()) != bytes) fail(source, "the reader process's output is cut short");
+      seg.frames.push_back(std::move(frame));
+    }
+  } catch (const json::exception& e) {
+    fail(source, std::string("the reader process's output is unreadable: ") + e.what());
+  }
+  return seg;
+}
 
 void writeField(const haptics::ScalarVolume& field, const VolumeInfo& info, const fs::path& out) {
   const auto& g = field.geometry();

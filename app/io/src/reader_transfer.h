@@ -8,10 +8,13 @@
 /// value scale and offset, VolumeInfo, the voxel type), then the voxels as stored.
 /// Series lists ("list"): a JSON array of DicomSeriesInfo. Meshes ("mesh"): the vertex and
 /// triangle counts (uint64 each), the vertices (3 doubles each, [m]), the triangles (3 ints).
+/// DICOM SEGs ("seg"): the header (the SEG's UIDs, segments, and each frame's segment and plane),
+/// then each frame's packed inside pixels (DicomSegFrame::mask), frame after frame.
 
 #include <filesystem>
 #include <vector>
 
+#include "dicom_seg_internal.h"
 #include "loader_internal.h"
 #include "vh/haptics/scalar_volume.h"
 #include "vh/io/dicom_series.h"
@@ -45,5 +48,12 @@ void writeMesh(const haptics::TriangleMesh& mesh, const fs::path& out, const fs:
 /// Reads what writeMesh() wrote to `in`, checking counts and triangle indices.
 /// @throws LoadError naming `source` when `in` is unreadable, cut short or inconsistent.
 haptics::TriangleMesh readMesh(const fs::path& in, const fs::path& source);
+
+/// Writes a DICOM SEG as read (dicom_seg_internal.h) to `out`.
+/// @throws LoadError naming `out` when it cannot be written.
+void writeDicomSeg(const DicomSegFile& seg, const fs::path& out);
+/// Reads what writeDicomSeg() wrote to `in`.
+/// @throws LoadError naming `source` when `in` is unreadable, cut short or invalid.
+DicomSegFile readDicomSegTransfer(const fs::path& in, const fs::path& source);
 
 }  // namespace vh::io::detail

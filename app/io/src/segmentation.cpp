@@ -1,4 +1,5 @@
-// Segmentations: 3D Slicer's .seg.nrrd and label-map NRRDs (see segmentation.h).
+// Segmentations: 3D Slicer's .seg.nrrd and label-map NRRDs (see segmentation.h); DICOM SEGs are
+// recognised here and read by dicom_seg.cpp / dicom_seg_grid.cpp.
 #include "vh/io/segmentation.h"
 
 #include <algorithm>
@@ -13,7 +14,9 @@
 #include <vtkPointData.h>
 #include <vtkSmartPointer.h>
 
+#include "dicom_seg_internal.h"
 #include "loader_internal.h"
+#include "vh/io/dicom_seg.h"
 
 namespace vh::io {
 namespace {
@@ -75,7 +78,27 @@ std::string segmentKey(const std::map<std::string, std::string>& kv, int n, cons
   return it == kv.end() ? std::string() : detail::trim(it->second);
 }
 
+/// Loads a NRRD segmentation (.seg.nrrd or label map) on its own grid.
+LoadedSegmentation loadNrrdSegmentation(const fs::path& path, const VolumeLoadOptions& options);
+
+/// The reader for `path`: a NRRD segmentation by its extension, a DICOM SEG by ".dcm" or the
+/// DICOM preamble (a DICOM file of another kind gets the DICOM SEG reader's error naming its SOP
+/// Class), else "not a segmentation".
+LoadedSegmentation loadAnySegmentation(const fs::path& path, const LoadedVolume* scan,
+                                       const VolumeLoadOptions& options) {
+  const auto ext = lower(path.extension().string());
+  if (ext == ".nrrd" || ext == ".nhdr") return loadNrrdSegmentation(path, options);
+  if (ext == ".dcm" || detail::hasDicomPreamble(path)) return loadDicomSegmentation(path, scan, options);
+  fail(path, "not a segmentation: expected a 3D Slicer .seg.nrrd, a label-map .nrrd / .nhdr or a DICOM SEG");
+}
+
 }  // namespace
+
+namespace detail {
+
+std::array<double, 3> segmentPaletteColour(std::size_t n) { return kPalette[n % kPalette.size()]; }
+
+}  // namespace detail
 
 int LoadedSegmentation::find(const std::string& name_or_id) const {
   const std::string wanted = lower(detail::trim(name_or_id));
@@ -96,10 +119,16 @@ int LoadedSegmentation::label(int layer, int i, int j, int k) const noexcept {
 }
 
 LoadedSegmentation loadSegmentation(const fs::path& path, const VolumeLoadOptions& options) {
-  const auto ext = lower(path.extension().string());
-  if (ext != ".nrrd" && ext != ".nhdr") {
-    fail(path, "not a segmentation: expected a 3D Slicer .seg.nrrd or a label-map .nrrd / .nhdr");
-  }
+  return loadAnySegmentation(path, nullptr, options);
+}
+
+LoadedSegmentation loadSegmentation(const fs::path& path, const LoadedVolume& scan, const VolumeLoadOptions& options) {
+  return loadAnySegmentation(path, &scan, options);
+}
+
+namespace {
+
+LoadedSegmentation loadNrrdSegmentation(const fs::path& path, const VolumeLoadOptions& options) {
   if (!fs::exists(path)) fail(path, "no such file");
   const std::map<std::string, std::string> kv = detail::readNrrdKeyValues(path);
 
@@ -129,7 +158,7 @@ LoadedSegmentation loadSegmentation(const fs::path& path, const VolumeLoadOption
     s.layer = static_cast<int>(*layer_value);
     max_layer = std::max(max_layer, s.layer);
     const auto rgb = detail::splitWords(segmentKey(kv, n, "Color"));
-    s.color_rgb = kPalette[static_cast<std::size_t>(n) % kPalette.size()];
+    s.color_rgb = detail::segmentPaletteColour(static_cast<std::size_t>(n));
     if (rgb.size() == 3) {
       for (std::size_t c = 0; c < 3; ++c) {
         if (const auto v = detail::parseDouble(rgb[c])) s.color_rgb[c] = std::clamp(*v, 0.0, 1.0);
@@ -170,7 +199,7 @@ LoadedSegmentation loadSegmentation(const fs::path& path, const VolumeLoadOption
       s.name = "Label " + std::to_string(label);
       s.label_value = label;
       s.voxel_count = count;
-      s.color_rgb = kPalette[n++ % kPalette.size()];
+      s.color_rgb = detail::segmentPaletteColour(n++);
       seg.segments.push_back(std::move(s));
     }
     seg.notices.push_back("a label map without segment names: " + std::to_string(seg.segments.size()) +
@@ -180,12 +209,14 @@ LoadedSegmentation loadSegmentation(const fs::path& path, const VolumeLoadOption
   return seg;
 }
 
+}  // namespace
+
 bool isSegmentationFile(const fs::path& path) noexcept {
   try {
     const std::string name = lower(path.filename().string());
     if (name.size() > 9 && name.compare(name.size() - 9, 9, ".seg.nrrd") == 0) return true;
     const auto ext = lower(path.extension().string());
-    if (ext != ".nrrd" && ext != ".nhdr") return false;
+    if (ext != ".nrrd" && ext != ".nhdr") return isDicomSegmentationFile(path);
     const auto kv = detail::readNrrdKeyValues(path);
     return kv.count("Segment0_LabelValue") != 0 || kv.count("Segment0_Name") != 0;
   } catch (...) {
@@ -194,7 +225,7 @@ bool isSegmentationFile(const fs::path& path) noexcept {
 }
 
 std::string segmentationFileDialogFilter() {
-  return "Segmentations (*.seg.nrrd *.nrrd *.nhdr);;All files (*)";
+  return "Segmentations (*.seg.nrrd *.nrrd *.nhdr *.dcm);;All files (*)";
 }
 
 std::shared_ptr<const haptics::ScalarVolume> segmentIndicatorField(const LoadedSegmentation& seg,

@@ -522,8 +522,9 @@ void loadToolAndPose(LoadedScene& scene, const std::string& where, const std::at
   if (spec.segmentation) {
     io::VolumeLoadOptions options;
     options.cancel = cancel;
-    scene.segments = SegmentSet::fromSpec(io::loadSegmentation(spec.segmentation->path, options), *spec.segmentation,
-                                          where);
+    // On the scan: a DICOM SEG is placed on the scan's voxels and checked against its series.
+    scene.segments = SegmentSet::fromSpec(io::loadSegmentation(spec.segmentation->path, scene.volume, options),
+                                          *spec.segmentation, where);
   }
   const haptics::ScalarVolume& field = *scene.hapticField();
 

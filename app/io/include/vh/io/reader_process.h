@@ -1,7 +1,7 @@
 #pragma once
 /// @file
 /// The reader process, so that no input file crashes the application. loadVolume() (DICOM,
-/// NRRD, MetaImage), listDicomSeries() and loadMesh() read in `volume-haptics-dicom-worker` (the
+/// NRRD, MetaImage), listDicomSeries(), loadMesh() and loadDicomSegmentation() read in `volume-haptics-dicom-worker` (the
 /// program's historical name: it reads every format), a small program built beside
 /// `volume-haptics`, and take the result back through a temporary file. A crash of a reader on
 /// a damaged file (vtk-dicom's parser, VTK's NRRD, MetaImage, OBJ and PLY readers) ends the
@@ -34,6 +34,8 @@ std::vector<std::filesystem::path> readerProcessCandidates(const std::filesystem
 ///  - `list FOLDER OUT`: writes listDicomSeries() as JSON, printing "progress DONE TOTAL" lines;
 ///  - `mesh PATH OUT SCALE`: reads a tool mesh (VTK's mesh readers crash on some damaged files
 ///    too) and writes its vertices [m] and triangles;
+///  - `seg FILE OUT`: reads a DICOM SEG with DCMTK (dicom_seg.h) and writes its segments and
+///    each frame's plane and inside pixels;
 ///  - `probe PATH`: parses each DICOM file of PATH alone, printing "file NAME" before and "ok"
 ///    after each (a crash names the file).
 /// A LoadError (any exception) prints "error MESSAGE" and exits with status 1.

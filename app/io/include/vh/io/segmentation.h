@@ -1,7 +1,8 @@
 #pragma once
 /// @file
-/// Segmentations: 3D Slicer's `.seg.nrrd` and plain label-map NRRDs, and the smoothed
-/// indicator field whose isosurface is the felt surface of chosen segments.
+/// Segmentations: 3D Slicer's `.seg.nrrd`, plain label-map NRRDs and DICOM Segmentation
+/// objects (DICOM SEG, read through DCMTK: dicom_seg.h), and the smoothed indicator field whose
+/// isosurface is the felt surface of chosen segments.
 ///
 /// A `.seg.nrrd` (3D Slicer's Segmentations module, vtkMRMLSegmentationStorageNode) is a NRRD
 /// of integer labels, 3-D (one layer) or 4-D with a leading "list" axis (one layer per group of
@@ -9,7 +10,8 @@
 /// `SegmentN_ID`, `SegmentN_Name`, `SegmentN_Color` (r g b in 0..1), `SegmentN_LabelValue`,
 /// `SegmentN_Layer`, `SegmentN_Extent`, ... Segment N occupies the voxels of layer
 /// `SegmentN_Layer` whose value is `SegmentN_LabelValue`. A NRRD without these keys is read as a
-/// label map: each distinct non-zero value is one segment, "Label V".
+/// label map: each distinct non-zero value is one segment, "Label V". A DICOM SEG gives the same
+/// segments and layers (dicom_seg.h), placed on the scan's grid when it is opened on a scan.
 ///
 /// Frames and units as loadVolume(): W is patient LPS in metres (a RAS file is converted).
 #include <array>
@@ -25,12 +27,14 @@ namespace vh::io {
 
 /// One segment of a segmentation.
 struct SegmentInfo {
-  std::string id;                      ///< Slicer's SegmentN_ID ("Segment_1"), or "Label_V".
-  std::string name;                    ///< Slicer's SegmentN_Name ("right lung"), or "Label V".
+  std::string id;    ///< Slicer's SegmentN_ID ("Segment_1"), "Label_V", or "Segment_N" (DICOM SEG).
+  std::string name;  ///< Slicer's SegmentN_Name ("right lung"), "Label V", or the DICOM Segment Label.
   std::array<double, 3> color_rgb{0.5, 0.5, 0.5};  ///< Display colour, each in 0..1.
   int label_value = 1;                 ///< The voxel value that marks the segment in its layer.
   int layer = 0;                       ///< Which layer (0 for a 3-D file).
   std::size_t voxel_count = 0;         ///< Voxels of the segment (0: empty).
+  std::string category;  ///< DICOM SEG: Segmented Property Category's meaning ("Tissue"); else empty.
+  std::string type;      ///< DICOM SEG: Segmented Property Type's meaning ("Bone"); else empty.
 };
 
 /// A loaded segmentation: its segments and the label layers they live in.
@@ -40,6 +44,10 @@ struct LoadedSegmentation {
   /// Label layers (values as stored; one per layer of the file), all on the same grid in W [m].
   std::vector<std::shared_ptr<const haptics::ScalarVolume>> layers;
   bool from_slicer = false;            ///< The header named the segments (a .seg.nrrd).
+  bool from_dicom_seg = false;         ///< A DICOM SEG (its Segment Sequence named the segments).
+  std::string frame_of_reference_uid;  ///< DICOM SEG: its Frame of Reference UID; else empty.
+  /// DICOM SEG: the Series Instance UIDs its Referenced Series Sequence names; else empty.
+  std::vector<std::string> referenced_series_uids;
   std::vector<std::string> notices;    ///< What the loader chose or corrected, one sentence each.
 
   /// Index of the segment whose name or ID is `name_or_id` (case-insensitive), or -1.
@@ -48,16 +56,28 @@ struct LoadedSegmentation {
   int label(int layer, int i, int j, int k) const noexcept;
 };
 
-/// Loads a segmentation (.seg.nrrd, or a label-map .nrrd / .nhdr). The voxels are read by
-/// loadVolume() (in the reader process when it is found), the segment names from the header.
+/// Loads a segmentation (.seg.nrrd, a label-map .nrrd / .nhdr, or a DICOM SEG: a ".dcm" file or
+/// any file with the DICOM preamble). NRRD: the voxels are read by loadVolume() (in the reader
+/// process when it is found), the segment names from the header, on the file's own grid. DICOM
+/// SEG: loadDicomSegmentation() without a scan, on the grid its frames span.
 /// @param options as loadVolume()'s (cancel, progress, watchdog); its nrrd_layer is ignored.
-/// @throws LoadError naming the file and the problem: not a NRRD, a damaged file, a segment
-///         whose layer is missing, non-integer labels, more than 4096 distinct labels in a label
-///         map, or no segment at all.
+/// @throws LoadError naming the file and the problem: not a NRRD or DICOM SEG, a damaged file, a
+///         segment whose layer is missing, non-integer labels, more than 4096 distinct labels in a
+///         label map, or no segment at all; for a DICOM SEG as loadDicomSegmentation().
 LoadedSegmentation loadSegmentation(const std::filesystem::path& path, const VolumeLoadOptions& options = {});
 
-/// True when `path` names a 3D Slicer segmentation: its name ends in ".seg.nrrd", or it is a
-/// NRRD whose header has "Segment0_" keys. Never throws (false when unreadable).
+/// Loads a segmentation opened on `scan`: a DICOM SEG is placed on the scan's grid, voxel for
+/// voxel, and its referenced series and frame of reference checked against the scan's
+/// (loadDicomSegmentation()); a NRRD is read as by the overload without a scan (its own grid).
+/// @throws LoadError as loadSegmentation(path, options), and for a DICOM SEG that does not fit
+///         the scan (another series or frame of reference, frames off the scan's grid).
+LoadedSegmentation loadSegmentation(const std::filesystem::path& path, const LoadedVolume& scan,
+                                    const VolumeLoadOptions& options = {});
+
+/// True when `path` names a segmentation that names its segments: a 3D Slicer segmentation (its
+/// name ends in ".seg.nrrd", or a NRRD whose header has "Segment0_" keys) or a DICOM SEG (SOP
+/// Class UID Segmentation Storage, from the file's meta header). Never throws (false when
+/// unreadable).
 bool isSegmentationFile(const std::filesystem::path& path) noexcept;
 
 /// Name filter for a Qt file dialog that opens segmentations.

@@ -85,6 +85,7 @@ struct VolumeInfo {
   std::string description;       ///< Series description or file name.
   std::string patient_name;      ///< DICOM patient name, or empty.
   std::string series_uid;        ///< DICOM Series Instance UID, or empty.
+  std::string frame_of_reference_uid;  ///< DICOM Frame of Reference UID, or empty.
   int series_number = 0;         ///< DICOM Series Number, 0 when absent.
   int phase = 0;                 ///< The time point loaded of a 4-D series (0-based).
   int phase_count = 1;           ///< Time points (phases, echoes) of the series; 1 when 3-D.

@@ -1,0 +1,77 @@
+#pragma once
+/// @file
+/// A DICOM SEG as read (dicom_seg.h), before it is placed on a grid: what the reader process
+/// hands back (reader_transfer.h), so that DCMTK runs only there. Private to vh::io.
+///
+/// Frames: positions and directions are patient LPS, lengths in millimetres, as in the file.
+
+#include <array>
+#include <cstddef>
+#include <cstdint>
+#include <filesystem>
+#include <string>
+#include <vector>
+
+#include <Eigen/Core>
+
+#include "vh/io/volume_loader.h"
+
+namespace vh::io::detail {
+
+namespace fs = std::filesystem;
+
+/// One item of the Segment Sequence (PS3.3 C.8.20.2).
+struct DicomSegSegment {
+  int number = 0;                            ///< Segment Number (frames refer to it).
+  std::string label;                         ///< Segment Label.
+  std::string category;                      ///< Segmented Property Category Code Sequence's Code Meaning.
+  std::string type;                          ///< Segmented Property Type Code Sequence's Code Meaning.
+  bool has_lab = false;                      ///< Recommended Display CIELab Value present.
+  std::array<int, 3> lab{};                  ///< That value as stored: L, a, b in 0..65535 (PS3.3 C.10.7.1.1).
+  std::array<double, 3> rgb{0.5, 0.5, 0.5};  ///< That colour in sRGB, each in 0..1 (when has_lab).
+};
+
+/// One frame: one segment on one image plane.
+struct DicomSegFrame {
+  int segment = 0;                                        ///< Referenced Segment Number.
+  Eigen::Vector3d position_mm = Eigen::Vector3d::Zero();  ///< Image Position (Patient), LPS [mm].
+  Eigen::Vector3d row_dir = Eigen::Vector3d::UnitX();     ///< Along a row (column index grows), LPS.
+  Eigen::Vector3d col_dir = Eigen::Vector3d::UnitY();     ///< Down a column (row index grows), LPS.
+  double row_spacing_mm = 1.0;                            ///< Pixel Spacing[0]: between rows (centres), along col_dir.
+  double column_spacing_mm = 1.0;                         ///< Pixel Spacing[1]: between columns, along row_dir.
+  /// Inside pixels, packed: bit (n % 8) of byte n / 8 for pixel n = column + columns * row.
+  std::vector<std::uint8_t> mask;
+  bool inside(std::size_t pixel) const noexcept { return ((mask[pixel >> 3] >> (pixel & 7u)) & 1u) != 0; }
+};
+
+/// What a DICOM SEG holds that a segmentation needs.
+struct DicomSegFile {
+  std::string series_uid;              ///< The SEG's own Series Instance UID.
+  std::string frame_of_reference_uid;  ///< Frame of Reference UID (empty when absent).
+  /// Series Instance UIDs of its Referenced Series Sequence (Common Instance Reference Module).
+  std::vector<std::string> referenced_series_uids;
+  bool fractional = false;                 ///< Segmentation Type FRACTIONAL (else BINARY).
+  int rows = 0, columns = 0;               ///< Every frame's size.
+  double slice_thickness_mm = 0.0;         ///< Pixel Measures' Slice Thickness (0: absent).
+  double spacing_between_slices_mm = 0.0;  ///< Pixel Measures' Spacing Between Slices (0: absent).
+  std::vector<DicomSegSegment> segments;   ///< In the file's order.
+  std::vector<DicomSegFrame> frames;       ///< In the file's order.
+  std::vector<std::string> notices;        ///< What the reader chose, one sentence each.
+};
+
+/// Bytes of a packed mask of `pixels` pixels.
+inline std::size_t maskBytes(std::size_t pixels) { return (pixels + 7) / 8; }
+
+/// Reads a DICOM SEG in this process with DCMTK (the reader process's "seg" mode).
+/// @throws LoadError naming `path` (see loadDicomSegmentation()).
+DicomSegFile readDicomSegInProcess(const fs::path& path);
+
+/// Reads a DICOM SEG in the reader process when it is found (isolated_load.cpp), else through
+/// readDicomSegInProcess() (with a notice when `options` allow either).
+/// @throws LoadError naming `path`; LoadCancelled.
+DicomSegFile readDicomSeg(const fs::path& path, const VolumeLoadOptions& options);
+
+/// True when `path` starts with the DICOM preamble: 128 bytes, then "DICM". Never throws.
+bool hasDicomPreamble(const fs::path& path) noexcept;
+
+}  // namespace vh::io::detail
