@@ -118,7 +118,7 @@ struct BaselineView {
     host.resize(320, 240);
     host.show();
     const runtime::LoadedScene& scene = sphereProbeScene();
-    view->setScene(sceneActorsSpecFor(scene, runtime::LiveValues::initial(scene)), scene.X_WT_initial, Preferences{});
+    view->setScene(sceneActorsSpecFor(scene, runtime::LiveValues::initial(scene)), scene.X_WT_initial, ViewLook{});
     view->setMarkerVisible(false);
     view->resetCamera();
   }

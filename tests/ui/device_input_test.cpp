@@ -51,7 +51,7 @@ struct ViewAndDevice {
     layout->setContentsMargins(0, 0, 0, 0);
     view = new SceneView(&host);
     layout->addWidget(view->widget());
-    view->setScene(sceneActorsSpecFor(scene, runtime::LiveValues::initial(scene)), scene.X_WT_initial, Preferences{});
+    view->setScene(sceneActorsSpecFor(scene, runtime::LiveValues::initial(scene)), scene.X_WT_initial, ViewLook{});
     input = new DeviceInput(session, *view);  // owned by the view
     host.resize(240, 180);
     host.show();

@@ -384,7 +384,7 @@ TEST(ReplayIsovalue, TicksOfFeltSegmentsLeaveThePicturesIsovalueAlone) {
   scan.isovalue = 3.0;
   const SceneActorsSpec scan_spec = sceneActorsSpecFor(scene, scan);
   EXPECT_TRUE(scan_spec.isovalue_from_records);
-  RecordingFrameRenderer scan_frames(scan_spec, 64, 64, Preferences{});
+  RecordingFrameRenderer scan_frames(scan_spec, 64, 64, ViewLook{});
   EXPECT_EQ(scan_frames.isovalue(), 3.0);
   scan_frames.show(record);
   EXPECT_EQ(scan_frames.isovalue(), io::kSegmentSurfaceLevel) << "the scan's isovalue changed while recording";
@@ -396,7 +396,7 @@ TEST(ReplayIsovalue, TicksOfFeltSegmentsLeaveThePicturesIsovalueAlone) {
   ASSERT_TRUE(felt.feltSegments());
   const SceneActorsSpec felt_spec = sceneActorsSpecFor(scene, felt);
   EXPECT_FALSE(felt_spec.isovalue_from_records);
-  RecordingFrameRenderer felt_frames(felt_spec, 64, 64, Preferences{});
+  RecordingFrameRenderer felt_frames(felt_spec, 64, 64, ViewLook{});
   felt_frames.show(record);
   EXPECT_EQ(felt_frames.isovalue(), 3.0) << "the segments' level must not become the scan's isovalue";
 }

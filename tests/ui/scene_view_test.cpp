@@ -46,7 +46,7 @@ struct ViewWindow {
     host.resize(240, 180);
     host.show();
   }
-  void load() { view->setScene(sceneActorsSpecFor(sphereProbeScene(), runtime::LiveValues::initial(sphereProbeScene())), sphereProbeScene().X_WT_initial, Preferences{}); }
+  void load() { view->setScene(sceneActorsSpecFor(sphereProbeScene(), runtime::LiveValues::initial(sphereProbeScene())), sphereProbeScene().X_WT_initial, ViewLook{}); }
 
   QWidget host;
   SceneView* view = nullptr;

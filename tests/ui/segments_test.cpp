@@ -156,7 +156,7 @@ TEST(SegmentsController, OpensASegmentationAppliesChoicesAndAlertsOnACriticalTou
   auto device = scene.makeDevice();
   const SceneActorsSpec spec = sceneActorsSpecFor(scene, runtime::LiveValues::initial(scene));
   host.session.setScene(std::move(scene), device);
-  host.view->setScene(spec, host.session.live().X_WT_initial, Preferences{});
+  host.view->setScene(spec, host.session.live().X_WT_initial, ViewLook{});
 
   QSignalSpy errors(host.controller, &SegmentsController::errorReported);
   ASSERT_TRUE(host.controller->open(dir / "case.seg.nrrd"));

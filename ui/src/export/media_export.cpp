@@ -88,7 +88,7 @@ void showRecord(SceneActors& actors, const runtime::TickRecord& record,
 // ---- RecordingFrameRenderer ----------------------------------------------------------------------
 
 RecordingFrameRenderer::RecordingFrameRenderer(const SceneActorsSpec& spec, int width, int height,
-                                               const Preferences& look)
+                                               const ViewLook& look)
     : tool_vertices_T_m_(spec.tool_mesh_T.vertices_T_m),
       isovalue_from_records_(spec.isovalue_from_records),
       width_(evenUp(width)),
@@ -242,7 +242,7 @@ int exportRecordingMedia(int /*argc*/, char** /*argv*/, const fs::path& recordin
     runtime::SceneSpec spec = runtime::sceneFromSessionMetadata(recording.metadata_json);
     spec.device.reset();
     const runtime::LoadedScene scene = runtime::loadScene(spec);
-    Preferences look;
+    ViewLook look;
     look.mode = options.mode;
     look.preset = options.preset;
     RecordingFrameRenderer frames(sceneActorsSpecFor(scene, runtime::LiveValues::initial(scene)), options.width, options.height, look);

@@ -20,8 +20,6 @@
 namespace vh::ui {
 namespace {
 
-std::array<double, 3> rgbOf(const QColor& c) { return {c.redF(), c.greenF(), c.blueF()}; }
-
 constexpr int kSettleMs = 300;  // still frame this long after the last motion
 
 bool posesDiffer(const haptics::Pose& a, const haptics::Pose& b) {
@@ -102,7 +100,7 @@ SceneView::~SceneView() {
   marker_.reset();
 }
 
-void SceneView::setScene(const SceneActorsSpec& spec, const haptics::Pose& X_WT, const Preferences& look) {
+void SceneView::setScene(const SceneActorsSpec& spec, const haptics::Pose& X_WT, const ViewLook& look) {
   if (spec.image == nullptr) throw std::invalid_argument("SceneView: the scene's volume has no image to render");
   // The scan's props only: the segment surfaces follow the session's segments (setSegments()).
   if (view_->context() != nullptr) {
@@ -220,7 +218,7 @@ void SceneView::setRenderMode(RenderMode mode, VolumePreset preset) {
   requestRender();
 }
 
-void SceneView::applyColours(const Preferences& look) {
+void SceneView::applyColours(const ViewLook& look) {
   ui::applyColours(view_->renderer(), actors_.get(), look);
   requestRender();
 }
@@ -358,20 +356,6 @@ void SceneView::renderStill(bool best_quality) {
     if (best_quality) actors_->resetQuality();
     requestRender();
   }
-}
-
-void applyColours(vtkRenderer* renderer, SceneActors* actors, const Preferences& look) {
-  const auto bottom = rgbOf(look.background_bottom);
-  const auto top = rgbOf(look.background_top);
-  renderer->SetBackground(bottom[0], bottom[1], bottom[2]);
-  renderer->SetBackground2(top[0], top[1], top[2]);
-  if (actors == nullptr) return;
-  const auto s = rgbOf(look.surface);
-  const auto t = rgbOf(look.tool);
-  const auto d = rgbOf(look.device);
-  actors->setSurfaceColour(s[0], s[1], s[2]);
-  actors->setToolColour(t[0], t[1], t[2]);
-  actors->setDeviceColour(d[0], d[1], d[2]);
 }
 
 }  // namespace vh::ui

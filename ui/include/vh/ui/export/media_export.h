@@ -21,7 +21,7 @@
 #include "vh/haptics/pose.h"
 #include "vh/runtime/recording.h"
 #include "vh/runtime/scene.h"
-#include "vh/ui/preferences.h"
+#include "vh/ui/view/view_look.h"
 #include "vh/ui/view/render_presets.h"
 #include "vh/ui/view/scene_actors.h"
 
@@ -59,10 +59,10 @@ void showRecord(SceneActors& actors, const runtime::TickRecord& record,
 class RecordingFrameRenderer {
  public:
   /// @param width, height frame size [px] (at least 16; rounded up to even for video).
-  /// @param look colours, rendering mode and preset (a default Preferences: the app's defaults).
+  /// @param look colours, rendering mode and preset (the defaults: the app's defaults).
   /// @throws std::invalid_argument for a spec without image or a bad size.
   RecordingFrameRenderer(const SceneActorsSpec& spec, int width, int height,
-                         const Preferences& look = Preferences{});
+                         const ViewLook& look = ViewLook{});
   ~RecordingFrameRenderer();
   RecordingFrameRenderer(const RecordingFrameRenderer&) = delete;
   RecordingFrameRenderer& operator=(const RecordingFrameRenderer&) = delete;

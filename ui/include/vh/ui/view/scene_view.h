@@ -21,7 +21,7 @@
 #include "vh/haptics/pose.h"
 #include "vh/haptics/tool_model.h"
 #include "vh/ui/view/device_manipulation.h"
-#include "vh/ui/preferences.h"
+#include "vh/ui/view/view_look.h"
 #include "vh/ui/view/render_presets.h"
 #include "vh/ui/view/scene_actors.h"
 #include "vh/ui/view/segment_surfaces.h"
@@ -54,7 +54,7 @@ class SceneView : public QObject {
   // ---- Scene ---------------------------------------------------------------------------------
   /// Builds the props for `spec` (replacing any; the segment surfaces stay), the tools at
   /// `X_WT`, the look of `look`, and resets the camera; hides the welcome text. @throws std::invalid_argument without an image.
-  void setScene(const SceneActorsSpec& spec, const haptics::Pose& X_WT, const Preferences& look);
+  void setScene(const SceneActorsSpec& spec, const haptics::Pose& X_WT, const ViewLook& look);
   /// Removes the props and the segment surfaces (the welcome text stays hidden once a scene was
   /// shown).
   void clearScene();
@@ -90,7 +90,7 @@ class SceneView : public QObject {
   // ---- Look ----------------------------------------------------------------------------------
   void setRenderMode(RenderMode mode, VolumePreset preset);
   /// Background gradient, surface, tool and device colours.
-  void applyColours(const Preferences& look);
+  void applyColours(const ViewLook& look);
   void setMarkerVisible(bool visible);
 
   // ---- Camera and clipping -------------------------------------------------------------------
@@ -134,10 +134,5 @@ class SceneView : public QObject {
   int shown_contacts_ = -1;
   Eigen::Vector3d shown_force_W_N_ = Eigen::Vector3d::Zero();
 };
-
-/// The colours of `look` (RGB from the preferences' QColors): `renderer`'s background gradient
-/// (bottom, top) and, when `actors` is set, the isosurface, proxy tool and device tool. The one
-/// place both the main view (SceneView) and exported frames take their colours from.
-void applyColours(vtkRenderer* renderer, SceneActors* actors, const Preferences& look);
 
 }  // namespace vh::ui
