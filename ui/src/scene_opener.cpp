@@ -13,6 +13,7 @@
 #include <QStatusBar>
 #include <QUrl>
 
+#include "vh/io/dicom_seg.h"
 #include "vh/io/segmentation.h"
 #include "vh/runtime/session.h"
 #include "vh/ui/panels/series_chooser.h"
@@ -123,8 +124,13 @@ void SceneOpener::openPath(const QString& path) {
     emit recordingRequested(p);
     return;
   }
-  if ((ext == ".nrrd" || ext == ".nhdr") && io::isSegmentationFile(p)) {
-    // A segmentation: the segments of the scan shown; alone, it is its own scan.
+  const bool dicom_seg = ext != ".nrrd" && ext != ".nhdr" && io::isDicomSegmentationFile(p);
+  if (dicom_seg && !session_.hasScene()) {
+    reportError(path, path + ": a DICOM SEG is opened on the scan it segments: open that scan first");
+    return;
+  }
+  if (dicom_seg || ((ext == ".nrrd" || ext == ".nhdr") && io::isSegmentationFile(p))) {
+    // A segmentation: the segments of the scan shown; alone, a .seg.nrrd is its own scan.
     if (session_.hasScene()) {
       emit segmentationRequested(p);
     } else {

@@ -67,7 +67,8 @@ bool SegmentsController::open(const std::filesystem::path& path) {
   }
   try {
     WaitCursor wait;
-    io::LoadedSegmentation seg = io::loadSegmentation(path);
+    // On the scan shown: a DICOM SEG is placed on its grid and checked against its series.
+    io::LoadedSegmentation seg = io::loadSegmentation(path, session_.loaded().volume);
     runtime::SegmentationSpec spec;
     spec.path = std::filesystem::absolute(path).lexically_normal().string();
     auto set = runtime::SegmentSet::fromSpec(std::move(seg), spec, path.filename().string());  // all shown
@@ -85,7 +86,7 @@ bool SegmentsController::open(const std::filesystem::path& path) {
 }
 
 void SegmentsController::openDialog(const QString& folder) {
-  const QString path = QFileDialog::getOpenFileName(window_, "Open a segmentation (3D Slicer .seg.nrrd or label map)",
+  const QString path = QFileDialog::getOpenFileName(window_, "Open a segmentation (3D Slicer .seg.nrrd, DICOM SEG or label map)",
                                                     folder, q(io::segmentationFileDialogFilter()));
   if (!path.isEmpty()) open(path.toStdString());
 }
