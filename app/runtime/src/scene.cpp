@@ -15,6 +15,7 @@
 #include <nlohmann/json.hpp>
 
 #include "vh/datasets/synthetic.h"
+#include "vh/runtime/default_isovalue.h"
 #include "vh/runtime/placement.h"
 
 #ifndef VH_DEFAULT_SHARED_DATASETS_DIR
@@ -453,14 +454,6 @@ SceneSpec sceneForLoadedVolume(const io::LoadedVolume& volume) {
 
 namespace {
 
-/// The isovalue a volume file starts with: bone (400 HU) for CT in HU, which is what a
-/// clinician feels first; otherwise midway.
-double defaultFileIsovalue(const io::LoadedVolume& volume) {
-  const auto* f = volume.field.get();
-  if (volume.info.value_unit == "HU" && f->minValue() < 400.0 && f->maxValue() > 400.0) return 400.0;
-  return 0.5 * (f->minValue() + f->maxValue());
-}
-
 /// The part of loading after the volume: the spec's isovalue, the segmentation, the tool, the
 /// initial pose. `cancel` as loadScene()'s (the segmentation's read).
 void loadToolAndPose(LoadedScene& scene, const std::string& where, const std::atomic<bool>* cancel = nullptr);
@@ -474,7 +467,7 @@ LoadedScene loadScene(const SceneSpec& spec, io::LoadedVolume preloaded) {
   scene.spec = spec;
   scene.volume = std::move(preloaded);
   if (scene.volume.image == nullptr) scene.volume.image = io::imageFromField(*scene.volume.field);
-  scene.isovalue = defaultFileIsovalue(scene.volume);
+  scene.isovalue = defaultIsovalue(scene.volume);
   loadToolAndPose(scene, where);
   return scene;
 }
@@ -508,7 +501,7 @@ LoadedScene loadScene(const SceneSpec& spec, const std::function<void(double)>& 
     options.progress = progress;
     options.cancel = cancel;
     scene.volume = io::loadVolume(spec.volume.path, options);
-    scene.isovalue = defaultFileIsovalue(scene.volume);
+    scene.isovalue = defaultIsovalue(scene.volume);
   }
   loadToolAndPose(scene, where, cancel);
   return scene;
