@@ -21,7 +21,13 @@ constexpr int kDisplayPeriodMs = 33;  // ~30 Hz prop updates
 
 ViewController::ViewController(runtime::Session& session, SceneView& view, DisplayPanel& panel, Preferences& prefs,
                                QObject* parent)
-    : QObject(parent), session_(session), view_(view), panel_(panel), prefs_(prefs) {
+    : QObject(parent),
+      session_(session),
+      view_(view),
+      panel_(panel),
+      prefs_(prefs),
+      opening_mode_(prefs.mode),
+      opening_preset_(prefs.preset) {
   timer_ = new QTimer(this);
   timer_->setInterval(kDisplayPeriodMs);
   connect(timer_, &QTimer::timeout, this, [this] { refresh(); });
@@ -75,6 +81,10 @@ void ViewController::showScene() {
   have_snapshot_ = false;
   snapshot_ = runtime::HapticSnapshot{};
   if (!session_.hasScene()) return;
+  prefs_.mode = opening_mode_;
+  prefs_.preset = opening_preset_;
+  panel_.setRenderMode(prefs_.mode);
+  panel_.setPreset(prefs_.preset);
   SceneActorsSpec spec = sceneActorsSpecFor(session_.loaded(), session_.live());
   spec.show_device = session_.hapticThread() != nullptr && prefs_.show_device;
   view_.setScene(spec, session_.live().X_WT_initial, prefs_);
@@ -96,12 +106,14 @@ bool ViewController::refresh(bool update_status_now) {
 }
 
 void ViewController::setRenderMode(RenderMode mode) {
+  if (!session_.hasScene()) opening_mode_ = mode;
   prefs_.mode = mode;
   panel_.setRenderMode(mode);
   view_.setRenderMode(prefs_.mode, prefs_.preset);
 }
 
 void ViewController::setPreset(VolumePreset preset) {
+  if (!session_.hasScene()) opening_preset_ = preset;
   prefs_.preset = preset;
   panel_.setPreset(preset);
   view_.setRenderMode(prefs_.mode, prefs_.preset);

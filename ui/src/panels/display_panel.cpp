@@ -167,6 +167,8 @@ QAction* DisplayPanel::addViewMenuActions(QMenu* menu, QWidget* shortcut_owner) 
   return marker_action_;
 }
 
+RenderMode DisplayPanel::renderMode() const { return static_cast<RenderMode>(mode_box_->currentData().toInt()); }
+
 void DisplayPanel::setRenderMode(RenderMode mode) {
   const QSignalBlocker block(mode_box_);
   mode_box_->setCurrentIndex(mode_box_->findData(static_cast<int>(mode)));

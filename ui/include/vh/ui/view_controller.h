@@ -46,6 +46,9 @@ class ViewController : public QObject {
   /// The last snapshot read (default-constructed before the first of this scene).
   const runtime::HapticSnapshot& lastSnapshot() const noexcept { return snapshot_; }
 
+  /// The rendering mode and preset of the scan shown. Chosen while no scan is shown (the
+  /// preferences at start, `--render-mode`), they are also what every scan opens with: a MIP
+  /// chosen for one scan does not carry over to the next file or to a replay.
   void setRenderMode(RenderMode mode);
   void setPreset(VolumePreset preset);
   void setClipping(bool enabled, ClipAxis axis = ClipAxis::kX, double fraction = 0.5, bool flip = false);
@@ -74,6 +77,8 @@ class ViewController : public QObject {
   DisplayPanel& panel_;
   Preferences& prefs_;
   QTimer* timer_ = nullptr;
+  RenderMode opening_mode_;      // what a new scan opens with (see setRenderMode())
+  VolumePreset opening_preset_;
   runtime::HapticSnapshot snapshot_;
   bool have_snapshot_ = false;
   int observer_ = 0;

@@ -35,6 +35,8 @@ class DisplayPanel : public QWidget {
 
   // Shown values (no signal is emitted).
   void setRenderMode(RenderMode mode);
+  /// The mode the panel shows.
+  RenderMode renderMode() const;
   void setPreset(VolumePreset preset);
   void setClipping(bool enabled, ClipAxis axis, double fraction, bool flip);
   void setMarkerVisible(bool visible);
