@@ -9,6 +9,7 @@
 #include <thread>
 
 #include <QAction>
+#include <QApplication>
 #include <QLabel>
 #include <QMenu>
 #include <QMenuBar>
@@ -19,6 +20,7 @@
 #include <QStatusBar>
 #include <QTemporaryDir>
 #include <QToolButton>
+#include <QVBoxLayout>
 
 #include <gtest/gtest.h>
 
@@ -72,6 +74,60 @@ TEST(LoadNoticesTest, TheTiltOrAGapComesBeforeTheSeriesChoice) {
   EXPECT_LT(noticeRank("dropped 2 duplicate slices: a.dcm"), noticeRank(series));
 }
 
+TEST(LoadNoticesTest, ManyNotesTakeOneLineUntilAskedAndABoundedListThen) {
+  // A scan with 15 long notes (the two-part GE head CT had that many): the banner is one summary
+  // line, the details a list of at most kMaxDetailLines lines, and the status bar names the count
+  // and where to read them before the first note (a long line is cut at its end).
+  QWidget host;
+  auto* layout = new QVBoxLayout(&host);
+  auto* panel = new LoadNoticePanel(&host);
+  layout->addWidget(panel);
+  layout->addStretch(1);
+  host.resize(1000, 700);
+  host.show();
+  io::VolumeInfo info;
+  std::vector<std::string> notes;
+  for (int i = 0; i < 15; ++i) {
+    notes.push_back("slices " + std::to_string(i) + " and " + std::to_string(i + 1) +
+                    ": a change of slice thickness that the loader resampled to the finest spacing the "
+                    "series supports, so that the volume is regular for the haptic rendering");
+  }
+  info.notices = notes;
+  panel->setLoaded("ct-two-part - None", runtime::SceneSpec{}, info, {});
+  QApplication::processEvents();
+  const int line = panel->fontMetrics().lineSpacing();
+  EXPECT_TRUE(panel->isVisible());
+  EXPECT_FALSE(panel->detailsShown()) << "a new scan shows its summary line only";
+  EXPECT_LE(panel->height(), 3 * line) << "collapsed: one line and margins";
+  auto* summary = panel->findChild<QLabel*>("loadNoticeSummary");
+  ASSERT_NE(summary, nullptr);
+  EXPECT_TRUE(summary->text().contains("15 load notes")) << summary->text().toStdString();
+
+  panel->setDetailsShown(true);
+  QApplication::processEvents();
+  EXPECT_TRUE(panel->detailsShown());
+  EXPECT_LE(panel->height(), (LoadNoticePanel::kMaxDetailLines + 4) * line) << "the details list is bounded";
+  EXPECT_LT(panel->height(), host.height() / 4) << "the view keeps most of the window";
+  EXPECT_TRUE(panel->findChild<QLabel*>("loadNoticeText")->text().contains("slices 14 and 15"));
+
+  const QString status = statusNote(notes);
+  EXPECT_TRUE(status.startsWith("15 load notes (Help > Load Notes): ")) << status.toStdString();
+  EXPECT_TRUE(status.contains("slices 0 and 1")) << status.toStdString();
+}
+
+TEST(LoadNoticesTest, ASeriesDescribedAsNoneAddsNothingToTheTitle) {
+  LoadedViewerScene loaded;
+  loaded.scene = test::sphereProbeScene();
+  loaded.scene.volume.info.format = "DICOM";
+  loaded.title = "ct-missing-slice";
+  for (const char* nothing : {"None", "NONE", "  ", ""}) {
+    loaded.scene.volume.info.description = nothing;
+    EXPECT_EQ(viewerSceneFor(loaded).title, "ct-missing-slice") << "description '" << nothing << "'";
+  }
+  loaded.scene.volume.info.description = "HEAD 5mm";
+  EXPECT_EQ(viewerSceneFor(loaded).title, "ct-missing-slice - HEAD 5mm");
+}
+
 TEST(LoadNoticesTest, AGapIsNamedInTheStatusBarTheBannerAndHelpLoadNotes) {
   if (!fs::exists(kHead / "CTHead50.dcm")) GTEST_SKIP() << "dataset absent: " << kHead;
   QTemporaryDir dir;
@@ -99,7 +155,8 @@ TEST(LoadNoticesTest, AGapIsNamedInTheStatusBarTheBannerAndHelpLoadNotes) {
   ASSERT_FALSE(panel->notices().isEmpty());
   const QString text = panel->findChild<QLabel*>("loadNoticeText")->text();
   EXPECT_TRUE(text.contains("CTHead49.dcm") && text.contains("CTHead51.dcm")) << text.toStdString();
-  EXPECT_TRUE(text.contains("ct-head-gap")) << "titled with the scan: " << text.toStdString();
+  const QString summary = panel->findChild<QLabel*>("loadNoticeSummary")->text();
+  EXPECT_TRUE(summary.contains("ct-head-gap")) << "titled with the scan: " << summary.toStdString();
   EXPECT_FALSE(panel->phaseSpinBox()->isVisible()) << "a 3-D series offers no time points";
 
   // The same series is what the scene names (and so a recording), by its UID.

@@ -77,7 +77,10 @@ ViewerScene viewerSceneFor(LoadedViewerScene& loaded) {
   v.opened = loaded.opened;
   if (!loaded.title.empty()) v.title = loaded.title;
   const std::string& description = loaded.scene.volume.info.description;
-  if (!description.empty() && loaded.scene.volume.info.format == "DICOM" && description != v.title) {
+  // Some scanners write the text "None" where the series has no description: no title part.
+  const QString words = q(description).trimmed();
+  const bool says_nothing = words.isEmpty() || words.compare("none", Qt::CaseInsensitive) == 0;
+  if (!says_nothing && loaded.scene.volume.info.format == "DICOM" && description != v.title) {
     v.title += " - " + description;
   }
   return v;

@@ -9,6 +9,8 @@
 #include <QHBoxLayout>
 #include <QLabel>
 #include <QPushButton>
+#include <QScrollArea>
+#include <QSignalBlocker>
 #include <QSpinBox>
 #include <QToolButton>
 #include <QVBoxLayout>
@@ -45,14 +47,16 @@ std::string primaryNotice(const std::vector<std::string>& notices) {
 QString statusNote(const std::vector<std::string>& notices) {
   const std::string first = primaryNotice(notices);
   if (first.empty()) return {};
-  QString text = "Note: " + QString::fromStdString(first);
-  if (notices.size() > 1) text += QString(" (+%1 more, see Help > Load Notes)").arg(notices.size() - 1);
-  return text;
+  const QString count = notices.size() == 1 ? QString("1 load note") : QString("%1 load notes").arg(notices.size());
+  return count + " (Help > Load Notes): " + QString::fromStdString(first);
 }
 
 LoadNoticePanel::LoadNoticePanel(QWidget* parent)
     : QFrame(parent),
-      text_(new QLabel(this)),
+      summary_(new QLabel(this)),
+      details_(new QToolButton(this)),
+      details_area_(new QScrollArea(this)),
+      text_(new QLabel),
       close_(new QToolButton(this)),
       phase_row_(new QWidget(this)),
       phase_label_(new QLabel(phase_row_)),
@@ -64,10 +68,25 @@ LoadNoticePanel::LoadNoticePanel(QWidget* parent)
   setStyleSheet(
       "#loadNoticePanel { background: #fff4ce; border: 1px solid #d9a400; border-radius: 3px; }"
       "#loadNoticePanel QLabel { color: #3a2e00; }");
+  summary_->setObjectName("loadNoticeSummary");
+  summary_->setTextFormat(Qt::RichText);
+  summary_->setTextInteractionFlags(Qt::TextSelectableByMouse);
+  summary_->setMinimumWidth(1);  // elided by the layout, never widening the window
+  details_->setObjectName("loadNoticeDetails");
+  details_->setCheckable(true);
+  details_->setAutoRaise(true);
   text_->setObjectName("loadNoticeText");
   text_->setWordWrap(true);
   text_->setTextFormat(Qt::RichText);
   text_->setTextInteractionFlags(Qt::TextSelectableByMouse);
+  text_->setStyleSheet("background: transparent;");
+  details_area_->setObjectName("loadNoticeDetailsArea");
+  details_area_->setWidget(text_);
+  details_area_->setWidgetResizable(true);
+  details_area_->setFrameShape(QFrame::NoFrame);
+  details_area_->setStyleSheet("QScrollArea, QScrollArea > QWidget > QWidget { background: transparent; }");
+  details_area_->setMaximumHeight(kMaxDetailLines * fontMetrics().lineSpacing() + 8);
+  details_area_->hide();
   close_->setObjectName("loadNoticeClose");
   close_->setText(QString::fromUtf8("\u2715"));
   close_->setAutoRaise(true);
@@ -84,15 +103,21 @@ LoadNoticePanel::LoadNoticePanel(QWidget* parent)
   phase_layout->addWidget(phase_load_);
   phase_layout->addStretch(1);
 
+  auto* summary_row = new QHBoxLayout();
+  summary_row->addWidget(summary_, 1);
+  summary_row->addWidget(details_, 0, Qt::AlignTop);
   auto* column = new QVBoxLayout();
-  column->addWidget(text_);
+  column->setSpacing(2);
+  column->addLayout(summary_row);
+  column->addWidget(details_area_);
   column->addWidget(phase_row_);
   auto* layout = new QHBoxLayout(this);
-  layout->setContentsMargins(8, 4, 4, 4);
+  layout->setContentsMargins(8, 2, 4, 2);
   layout->addLayout(column, 1);
   layout->addWidget(close_, 0, Qt::AlignTop);
 
   connect(close_, &QToolButton::clicked, this, &QWidget::hide);
+  connect(details_, &QToolButton::toggled, this, &LoadNoticePanel::setDetailsShown);
   connect(phase_load_, &QPushButton::clicked, this, [this] {
     runtime::SceneSpec spec = spec_;
     spec.volume.phase = phase_spin_->value() - 1;
@@ -113,26 +138,50 @@ void LoadNoticePanel::setLoaded(const QString& title, const runtime::SceneSpec& 
   phase_spin_->setRange(1, phase_count_);
   phase_spin_->setValue(std::clamp(info.phase + 1, 1, phase_count_));
   phase_label_->setText(QString("of %1").arg(phase_count_));
+  details_->setChecked(false);  // a new scan: the summary line only
   refresh();
   setVisible(!notices_.isEmpty() || phase_count_ > 1);
 }
 
 void LoadNoticePanel::reopen() {
   refresh();
+  setDetailsShown(true);
   show();
 }
 
+void LoadNoticePanel::setDetailsShown(bool shown) {
+  const bool any = notices_.size() > 1;
+  details_area_->setVisible(shown && any);
+  const QSignalBlocker block(details_);
+  details_->setChecked(shown && any);
+  details_->setText(shown ? "Less" : QString("All %1").arg(notices_.size()));
+}
+
+bool LoadNoticePanel::detailsShown() const { return details_area_->isVisibleTo(this); }
+
 void LoadNoticePanel::refresh() {
   const QString name = title_.isEmpty() ? QString("the volume") : title_.toHtmlEscaped();
-  QString html;
   if (notices_.isEmpty()) {
-    html = QString("<b>Load notes for %1:</b> none; the scan was read as stored.").arg(name);
+    summary_->setText(QString("<b>Load notes for %1:</b> none; the scan was read as stored.").arg(name));
+    text_->clear();
   } else {
-    html = QString("<b>Load notes for %1</b> - the loader corrected or chose:<ul style=\"margin: 0\">").arg(name);
+    const std::vector<std::string> all = [this] {
+      std::vector<std::string> v;
+      for (const QString& n : notices_) v.push_back(n.toStdString());
+      return v;
+    }();
+    const QString first = QString::fromStdString(primaryNotice(all)).toHtmlEscaped();
+    summary_->setText(notices_.size() == 1 ? QString("<b>Load note for %1:</b> %2").arg(name, first)
+                                           : QString("<b>%1 load notes for %2</b>, first: %3")
+                                                 .arg(notices_.size())
+                                                 .arg(name, first));
+    QString html = "The loader corrected or chose:<ul style=\"margin: 0\">";
     for (const QString& n : notices_) html += "<li>" + n.toHtmlEscaped() + "</li>";
-    html += "</ul>";
+    text_->setText(html + "</ul>");
   }
-  text_->setText(html);
+  summary_->setToolTip(notices_.join("\n"));
+  details_->setVisible(notices_.size() > 1);
+  setDetailsShown(details_->isChecked());
   phase_row_->setVisible(phase_count_ > 1);
 }
 

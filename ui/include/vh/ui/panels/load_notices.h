@@ -19,6 +19,7 @@
 
 class QLabel;
 class QPushButton;
+class QScrollArea;
 class QSpinBox;
 class QToolButton;
 class QWidget;
@@ -34,16 +35,21 @@ int noticeRank(const std::string& notice);
 /// when there is none.
 std::string primaryNotice(const std::vector<std::string>& notices);
 
-/// The status bar's line for `notices`: "Note: " + primaryNotice(), and how many more there are
-/// (Help > Load Notes); empty when there is none.
+/// The status bar's line for `notices`: how many there are and where to read them first (a long
+/// line is cut at its end, so the pointer survives), then primaryNotice(); empty when none.
 QString statusNote(const std::vector<std::string>& notices);
 
-/// The banner above the view. Hidden while there is nothing to say; close() hides it and
-/// reopen() shows it again with the last volume's notices.
+/// The banner above the view: one summary line (the count and the most important notice) with a
+/// Details switch; the details are a list of bounded height (kMaxDetailLines, scrolled beyond),
+/// so that a scan with many notes never squeezes the view. Hidden while there is nothing to say;
+/// the close button hides it and reopen() (Help > Load Notes) shows it again, details open.
 class LoadNoticePanel : public QFrame {
   Q_OBJECT
 
  public:
+  /// Lines of the details list shown at most; more scroll.
+  static constexpr int kMaxDetailLines = 6;
+
   explicit LoadNoticePanel(QWidget* parent = nullptr);
 
   /// Lists `info.notices` of the volume just shown, titled with `title` (the window's scene
@@ -56,6 +62,9 @@ class LoadNoticePanel : public QFrame {
   void reopen();
 
   const QStringList& notices() const noexcept { return notices_; }
+  /// Shows or hides the details list (the summary line stays).
+  void setDetailsShown(bool shown);
+  bool detailsShown() const;
   /// The time point chooser (1-based, as shown); hidden unless the volume is 4-D.
   QSpinBox* phaseSpinBox() const noexcept { return phase_spin_; }
   /// Reloads the chosen time point (emits reloadRequested()).
@@ -68,6 +77,9 @@ class LoadNoticePanel : public QFrame {
  private:
   void refresh();
 
+  QLabel* summary_;
+  QToolButton* details_;
+  QScrollArea* details_area_;
   QLabel* text_;
   QToolButton* close_;
   QWidget* phase_row_;
