@@ -24,6 +24,7 @@
 
 #include <CLI/CLI.hpp>
 
+#include "vh_version.h"
 #include "vh/bench/bench.h"
 #include "vh/devices/device_catalog.h"
 #include "vh/igtl/igtl_link.h"
@@ -343,6 +344,8 @@ int main(int argc, char** argv) {
   CLI::App app{"VolumeHaptics: feel the isosurfaces of CT/MR volumes with a 6-DOF haptic tool "
                "(Chan et al., WHC 2011)."};
   app.require_subcommand(0, 1);
+  app.set_version_flag("--version", std::string("volume-haptics ") + VH_VERSION + " (git " + VH_GIT_REVISION + ")",
+                       "The version and the git revision it was built from, then exit");
   // The subcommands in the order --help lists them.
   GuiArgs gui;
   addGuiOptions(app, gui);
