@@ -1,6 +1,8 @@
 // Segments in the GUI: the Segments panel, the controller that applies its choices to
 // the session, and the segment surfaces. Oracles: the test's own ball (its analytic radius and
-// centre in W, from the geometry the test wrote), the session's segments after each command.
+// centre in W, from the geometry the test wrote), the session's segments after each command,
+// and for a DICOM SEG opened in the window the label map it was written from with DCMTK
+// (dicom_seg_fixtures.h), compared voxel for voxel.
 #include "vh/ui/panels/segments_panel.h"
 
 #include <cmath>
@@ -15,11 +17,13 @@
 #include <QMainWindow>
 #include <QSignalSpy>
 #include <QTableWidget>
+#include <QTemporaryDir>
 
 #include <gtest/gtest.h>
 #include <vtkMatrix4x4.h>
 #include <vtkPolyData.h>
 
+#include "dicom_seg_fixtures.h"
 #include "ui_test_util.h"
 #include "vh/runtime/scene.h"
 #include "vh/runtime/session.h"
@@ -27,6 +31,8 @@
 #include "vh/ui/view/segment_surfaces.h"
 #include "vh/ui/segments_controller.h"
 #include "vh/ui/export/media_export.h"
+#include "vh/ui/main_window.h"
+#include "vh/ui/scene_opener.h"
 #include "vh/ui/view/vtk_view.h"
 
 namespace vh::ui {
@@ -226,6 +232,159 @@ TEST(SegmentSurfaces, TheNervesSurfaceIsTheBallInTheSceneFrame) {
   EXPECT_LT(mean_error_mm, 0.6);
   EXPECT_LT(max_error_mm, 1.5);
   fs::remove_all(dir);
+}
+
+
+// ---- a DICOM SEG opened in the main window --------------------------------------------------
+
+QString qs(const fs::path& p) { return QString::fromStdString(p.string()); }
+
+/// A main window, not interactive (errors to lastError(), no dialogs), haptics not started.
+struct SegWindow {
+  SegWindow() {
+    window.setInteractive(false);
+    window.setAutoStartHaptics(false);
+    window.resize(1000, 700);
+    window.show();
+  }
+  /// Opens the DICOM folder `ct` and waits until its scene is shown and rendered.
+  ::testing::AssertionResult openScan(const fs::path& ct) {
+    QSignalSpy loaded(&window, &MainWindow::sceneLoaded);
+    window.openPath(qs(ct));
+    if (!test::waitFor([&] { return loaded.count() > 0; }, 30000))
+      return ::testing::AssertionFailure() << "the scan did not load: " << window.opener()->lastError().toStdString();
+    if (!test::waitFor([&] { return !window.opener()->loading(); }, 30000))
+      return ::testing::AssertionFailure() << "the scan was never rendered";
+    return ::testing::AssertionSuccess();
+  }
+  MainWindow window;
+};
+
+/// The segments' names in the Segments panel, top to bottom.
+std::vector<std::string> panelNames(const MainWindow& window) {
+  std::vector<std::string> names;
+  QTableWidget* table = window.segments()->panel()->table();
+  for (int row = 0; row < table->rowCount(); ++row)
+    names.push_back(table->item(row, SegmentsPanel::kName)->text().toStdString());
+  return names;
+}
+
+TEST(Segments, ADicomSegOpensOnTheScanShownVoxelForVoxel) {
+  QTemporaryDir dir;
+  ASSERT_TRUE(dir.isValid());
+  const fs::path root(dir.path().toStdString());
+  const io::test::CtSeries ct = io::test::syntheticCt(root / "ct");
+  ASSERT_EQ(ct.slices.size(), 12u);
+  // Two named segments that overlap (the two balls): two layers of the SEG's one grid.
+  const io::test::LabelMap m =
+      io::test::firstSegments(io::test::shapes(ct.columns, ct.rows, static_cast<int>(ct.slices.size())), 2);
+  ASSERT_EQ(m.names, (std::vector<std::string>{"ball A", "ball B"}));
+  std::size_t both = 0;
+  for (std::size_t n = 0; n < m.inside[0].size(); ++n) both += m.inside[0][n] != 0 && m.inside[1][n] != 0;
+  ASSERT_GT(both, 0u) << "the segments overlap";
+  const fs::path seg_path = root / "ct-seg.dcm";
+  ASSERT_NO_FATAL_FAILURE(io::test::writeSeg(seg_path, ct, m, io::test::SegSpec{}));
+
+  SegWindow w;
+  ASSERT_TRUE(w.openScan(root / "ct"));
+  ASSERT_TRUE(w.window.session().hasScene());
+  EXPECT_EQ(w.window.session().loaded().volume.info.series_uid, ct.series_uid);
+  EXPECT_EQ(w.window.session().live().segments, nullptr);
+  EXPECT_TRUE(panelNames(w.window).empty());
+
+  w.window.openPath(qs(seg_path));  // the segments are opened on the scan at once
+  EXPECT_TRUE(w.window.opener()->lastError().isEmpty()) << w.window.opener()->lastError().toStdString();
+  EXPECT_FALSE(w.window.opener()->loading()) << "a segmentation is no new scene";
+  const auto& segments = w.window.session().live().segments;
+  ASSERT_NE(segments, nullptr);
+  ASSERT_EQ(segments->size(), 2u);
+  EXPECT_EQ(segments->segment(0).name, "ball A");
+  EXPECT_EQ(segments->segment(1).name, "ball B");
+  EXPECT_TRUE(segments->segmentation().from_dicom_seg);
+  EXPECT_NE(segments->segment(0).layer, segments->segment(1).layer) << "overlapping segments share no layer";
+  ASSERT_TRUE(w.window.session().live().segmentation.has_value());
+  EXPECT_EQ(fs::path(w.window.session().live().segmentation->path), fs::absolute(seg_path).lexically_normal());
+  EXPECT_EQ(panelNames(w.window), (std::vector<std::string>{"ball A", "ball B"}));
+  ASSERT_NE(w.window.sceneView()->segmentSurfaces(), nullptr);
+  EXPECT_EQ(w.window.sceneView()->segmentSurfaces()->shownSegments(), (std::vector<int>{0, 1}));
+
+  // Every voxel of each segment is the label map's, on the scan the window shows.
+  const io::LoadedVolume& scan = w.window.session().loaded().volume;
+  for (std::size_t s = 0; s < 2; ++s) EXPECT_EQ(segments->segment(static_cast<int>(s)).voxel_count, m.count(s));
+  EXPECT_EQ(io::test::mismatches(segments->segmentation(), scan, ct, m), 0u);
+  // The comparison sees one voxel of ball B changed in the label map after the SEG was written.
+  io::test::LabelMap changed = m;
+  const std::size_t n = changed.at(ct.columns / 2, ct.rows / 2, static_cast<int>(ct.slices.size()) / 2);
+  changed.inside[1][n] = changed.inside[1][n] != 0 ? 0 : 1;
+  EXPECT_EQ(io::test::mismatches(segments->segmentation(), scan, ct, changed), 1u);
+  w.window.close();
+}
+
+TEST(Segments, ADicomSegWithoutAScanSaysToOpenThatScanFirst) {
+  QTemporaryDir dir;
+  ASSERT_TRUE(dir.isValid());
+  const fs::path root(dir.path().toStdString());
+  const io::test::CtSeries ct = io::test::syntheticCt(root / "ct");
+  const io::test::LabelMap m =
+      io::test::firstSegments(io::test::shapes(ct.columns, ct.rows, static_cast<int>(ct.slices.size())), 2);
+  const fs::path seg_path = root / "ct-seg.dcm";
+  ASSERT_NO_FATAL_FAILURE(io::test::writeSeg(seg_path, ct, m, io::test::SegSpec{}));
+
+  SegWindow w;
+  QSignalSpy failed(&w.window, &MainWindow::loadFailed);
+  QSignalSpy loaded(&w.window, &MainWindow::sceneLoaded);
+  w.window.openPath(qs(seg_path));
+  const std::string error = w.window.opener()->lastError().toStdString();
+  EXPECT_NE(error.find("open that scan first"), std::string::npos) << error;
+  EXPECT_NE(error.find("ct-seg.dcm"), std::string::npos) << error;
+  EXPECT_EQ(failed.count(), 1);
+  test::pump(300);  // nothing is loading in the background either
+  EXPECT_FALSE(w.window.opener()->loading());
+  EXPECT_EQ(loaded.count(), 0);
+  EXPECT_FALSE(w.window.hasScene());
+  EXPECT_FALSE(w.window.session().hasScene());
+  EXPECT_TRUE(panelNames(w.window).empty());
+  w.window.close();
+}
+
+TEST(Segments, ADicomSegOfAnotherSeriesIsRefusedAndTheScanStays) {
+  QTemporaryDir dir;
+  ASSERT_TRUE(dir.isValid());
+  const fs::path root(dir.path().toStdString());
+  const io::test::CtSeries ct = io::test::syntheticCt(root / "ct");
+  const io::test::LabelMap m =
+      io::test::firstSegments(io::test::shapes(ct.columns, ct.rows, static_cast<int>(ct.slices.size())), 2);
+  io::test::SegSpec other;
+  other.referenced_series = "1.2.826.0.1.3680043.8.498.77";
+  const fs::path seg_path = root / "other-series-seg.dcm";
+  ASSERT_NO_FATAL_FAILURE(io::test::writeSeg(seg_path, ct, m, other));
+
+  SegWindow w;
+  ASSERT_TRUE(w.openScan(root / "ct"));
+  const runtime::Session& session = w.window.session();
+  const auto field = session.loaded().volume.field;
+  const std::string title = w.window.sceneTitle();
+  ASSERT_NE(field, nullptr);
+  EXPECT_TRUE(w.window.opener()->lastError().isEmpty());
+
+  QSignalSpy loaded(&w.window, &MainWindow::sceneLoaded);
+  w.window.openPath(qs(seg_path));
+  const std::string error = w.window.opener()->lastError().toStdString();
+  EXPECT_NE(error.find("other-series-seg.dcm"), std::string::npos) << error;
+  EXPECT_NE(error.find("another series"), std::string::npos) << error;
+  EXPECT_NE(error.find("1.2.826.0.1.3680043.8.498.77"), std::string::npos) << error;
+  test::pump(300);
+  EXPECT_EQ(loaded.count(), 0);
+  EXPECT_FALSE(w.window.opener()->loading());
+  // The scan shown is the one it was, and it still has no segments.
+  ASSERT_TRUE(session.hasScene());
+  EXPECT_EQ(session.loaded().volume.field, field);
+  EXPECT_EQ(session.loaded().volume.info.series_uid, ct.series_uid);
+  EXPECT_EQ(w.window.sceneTitle(), title);
+  EXPECT_EQ(session.live().segments, nullptr);
+  EXPECT_FALSE(session.live().segmentation.has_value());
+  EXPECT_TRUE(panelNames(w.window).empty());
+  w.window.close();
 }
 
 }  // namespace
