@@ -142,11 +142,13 @@ int runApplication(int argc, char** argv, const runtime::SceneSpec& scene, const
     });
   });
 
-  // A folder given on its own goes through the series chooser; everything else loads as given.
+  // A folder given on its own (no --series, --phase or --isovalue) goes through the series
+  // chooser; everything else loads as given.
   std::error_code ec;
   const fs::path volume_path(spec.volume.path);
-  const bool plain_folder = spec.source.empty() && !options.isovalue.has_value() &&
-                            spec.volume.path.rfind("builtin:", 0) != 0 && fs::is_directory(volume_path, ec);
+  const bool plain_folder = spec.source.empty() && !options.isovalue.has_value() && spec.volume.series.empty() &&
+                            spec.volume.phase == 0 && spec.volume.path.rfind("builtin:", 0) != 0 &&
+                            fs::is_directory(volume_path, ec);
   // A session recording (.vhrec) opens in replay (MainWindow::openPath()).
   const bool recording = spec.source.empty() && volume_path.extension() == ".vhrec";
   if (plain_folder || recording) {

@@ -69,6 +69,8 @@ struct GuiArgs {
   vh::ui::AppOptions options;
   std::string screenshot;
   std::optional<double> isovalue;
+  std::optional<std::string> series;
+  std::optional<int> phase;
 };
 
 void addGuiOptions(CLI::App& app, GuiArgs& gui) {
@@ -80,6 +82,11 @@ void addGuiOptions(CLI::App& app, GuiArgs& gui) {
                  "Time from showing the window to the screenshot [ms]")
       ->check(CLI::NonNegativeNumber);
   app.add_option("--isovalue", gui.isovalue, "Initial isovalue in the data's units (HU for CT)");
+  app.add_option("--series", gui.series,
+                 "DICOM folder: the series to open (number, Series Instance UID or text of its description), as `run "
+                 "--series`; default: the series chooser");
+  app.add_option("--phase", gui.phase, "4-D DICOM series: the time point (phase, echo) to open, 0-based, as `run --phase`")
+      ->check(CLI::NonNegativeNumber);
   app.add_flag("--touch", gui.options.touch,
                "Move the simulated device towards the volume's centre until the tool rests on the surface, after load");
   app.add_option("--touch-depth-m", gui.options.touch_depth_m, "How far past the surface --touch goes [m]")
@@ -373,7 +380,9 @@ int main(int argc, char** argv) {
     if (bench_handler) return bench_handler();
 
     // GUI.
-    const vh::runtime::SceneSpec scene = sceneForPath(gui.input);
+    vh::runtime::SceneSpec scene = sceneForPath(gui.input);
+    if (gui.series) scene.volume.series = *gui.series;
+    if (gui.phase) scene.volume.phase = *gui.phase;
     gui.options.screenshot = gui.screenshot;
     gui.options.isovalue = gui.isovalue;
     return vh::ui::runApplication(argc, argv, scene, gui.options);
