@@ -56,12 +56,37 @@ TEST(StatusLine, ShowsTheSnapshotsNumbers) {
   EXPECT_TRUE(contains(text, "|F| 3.01 N")) << text.toStdString();
   EXPECT_FALSE(contains(text, "skipped")) << "no skipped samples: not mentioned";
 
-  // The widget shows the same text in its label.
+  // The widget shows the same text in its label, with the misses of the last minute.
   QStatusBar bar;
   StatusLine line(&bar);
+  s.coupling.deadline_misses = 7;
   line.showHaptics(session, &s, {});
-  EXPECT_EQ(line.text(), text);
+  MissWindow window;
+  window.add(s.time_ns, 7, 0);
+  EXPECT_EQ(line.text(), hapticStatusText(session, &s, {}, &window));
+  EXPECT_TRUE(contains(line.text(), "misses 7/min")) << line.text().toStdString();
   session.stopHaptics();
+}
+
+TEST(StatusLine, DeadlineMissesAreCountedOverTheLastMinuteNotSinceTheStart) {
+  constexpr std::int64_t s = 1000000000;
+  MissWindow w;
+  w.add(0, 100, 5);  // the threads missed 100 and 5 since they started
+  EXPECT_EQ(w.coupling(), 100u);
+  EXPECT_EQ(w.solver(), 5u);
+  w.add(30 * s, 100, 5);
+  EXPECT_EQ(w.coupling(), 100u) << "within the first minute: since the start";
+  w.add(61 * s, 100, 5);
+  EXPECT_EQ(w.coupling(), 0u) << "none in the last minute";
+  w.add(90 * s, 103, 5);
+  EXPECT_EQ(w.coupling(), 3u);
+  EXPECT_EQ(w.solver(), 0u);
+  w.add(200 * s, 103, 6);
+  EXPECT_EQ(w.coupling(), 0u) << "the 3 misses at 90 s are more than a minute old";
+  EXPECT_EQ(w.solver(), 1u);
+  w.add(201 * s, 2, 0);  // new threads: totals start again
+  EXPECT_EQ(w.coupling(), 2u);
+  EXPECT_EQ(w.solver(), 0u);
 }
 
 TEST(StatusLine, AReplayNamesTheRecording) {

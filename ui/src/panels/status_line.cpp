@@ -8,8 +8,29 @@
 
 namespace vh::ui {
 
+void MissWindow::add(std::int64_t time_ns, std::uint64_t coupling_total, std::uint64_t solver_total) {
+  if (!entries_.empty()) {
+    const Entry& last = entries_.back();
+    if (time_ns < last.time_ns || coupling_total < last.coupling || solver_total < last.solver) entries_.clear();
+  }
+  // The threads count from their start: the first snapshot's totals are misses since then.
+  if (entries_.empty()) entries_.push_back({time_ns, 0, 0});
+  entries_.push_back({time_ns, coupling_total, solver_total});
+  // Keep one entry at or before the window's start as the baseline.
+  const auto window_ns = static_cast<std::int64_t>(kWindow_s * 1e9);
+  while (entries_.size() > 2 && entries_[1].time_ns <= time_ns - window_ns) entries_.pop_front();
+}
+
+std::uint64_t MissWindow::coupling() const noexcept {
+  return entries_.empty() ? 0 : entries_.back().coupling - entries_.front().coupling;
+}
+
+std::uint64_t MissWindow::solver() const noexcept {
+  return entries_.empty() ? 0 : entries_.back().solver - entries_.front().solver;
+}
+
 QString hapticStatusText(const runtime::Session& session, const runtime::HapticSnapshot* snapshot,
-                         const QString& replaying) {
+                         const QString& replaying, const MissWindow* misses) {
   if (!session.hasScene()) return "No scan open";
   if (!replaying.isEmpty()) return "Replaying " + replaying + ": haptics stopped (Close Replay in the Replay dock to go live)";
   if (session.hapticThread() == nullptr) return "Haptics off: the scene has no device";
@@ -23,11 +44,13 @@ QString hapticStatusText(const runtime::Session& session, const runtime::HapticS
                         "mean / max, misses %7)  |  contacts %8  |  |F| %9 N  |  |\u03c4| %10 N\u00b7m")
           .arg(s.coupling.rate_Hz, 0, 'f', 0)
           .arg(s.coupling.jitter_us, 0, 'f', 0)
-          .arg(static_cast<qulonglong>(s.coupling.deadline_misses))
+          .arg(misses != nullptr ? QString("%1/min").arg(misses->coupling())
+                                 : QString::number(static_cast<qulonglong>(s.coupling.deadline_misses)))
           .arg(s.solver.rate_Hz, 0, 'f', 0)
           .arg(s.solver.mean_tick_us, 0, 'f', 1)
           .arg(s.solver.max_tick_us, 0, 'f', 1)
-          .arg(static_cast<qulonglong>(s.solver.deadline_misses))
+          .arg(misses != nullptr ? QString("%1/min").arg(misses->solver())
+                                 : QString::number(static_cast<qulonglong>(s.solver.deadline_misses)))
           .arg(s.contacts)
           .arg(s.force_W_N.norm(), 0, 'f', 2)
           .arg(s.torque_W_Nm.norm(), 0, 'f', 4);
@@ -51,7 +74,7 @@ StatusLine::StatusLine(QStatusBar* bar) : QObject(bar) {
       "device's rate; jitter is the largest deviation of its wake-up interval from the period over "
       "the last second.\nSolver: the thread that moves the proxy against the surface; tick is its "
       "computing time per tick over the last second.\nMisses: ticks that started more than one period "
-      "late (total).");
+      "late, over the last minute.");
   bar->addWidget(label_, 1);
   // A message (a load notice, "Loading cancelled") replaces the statistics while it lasts; the
   // status bar alone leaves both painted over each other once the label's text changes.
@@ -80,7 +103,12 @@ StatusLine::StatusLine(QStatusBar* bar) : QObject(bar) {
 
 void StatusLine::showHaptics(const runtime::Session& session, const runtime::HapticSnapshot* snapshot,
                              const QString& replaying) {
-  label_->setText(hapticStatusText(session, snapshot, replaying));
+  if (snapshot != nullptr && replaying.isEmpty()) {
+    misses_.add(snapshot->time_ns, snapshot->coupling.deadline_misses, snapshot->solver.deadline_misses);
+  } else {
+    misses_.clear();
+  }
+  label_->setText(hapticStatusText(session, snapshot, replaying, misses_.empty() ? nullptr : &misses_));
 }
 
 QString StatusLine::text() const { return label_->text(); }

@@ -5,6 +5,9 @@
 /// (load notices, "Loading cancelled") replace the statistics while they last.
 /// GUI thread only.
 
+#include <cstdint>
+#include <deque>
+
 #include <QObject>
 #include <QString>
 
@@ -19,11 +22,36 @@ class QWidget;
 
 namespace vh::ui {
 
+/// Deadline misses of the two haptic threads over the last minute, from the totals of successive
+/// snapshots (the threads count from their start, so on a busy machine a total only grows and
+/// says nothing of now). Until a minute has passed since the first snapshot, the misses since the
+/// threads started. Totals or time that go back (new threads) start it afresh.
+class MissWindow {
+ public:
+  static constexpr double kWindow_s = 60.0;
+
+  /// The totals of a snapshot taken at `time_ns` (steady clock [ns]).
+  void add(std::int64_t time_ns, std::uint64_t coupling_total, std::uint64_t solver_total);
+  void clear() { entries_.clear(); }
+  bool empty() const noexcept { return entries_.empty(); }
+  /// Misses within the window.
+  std::uint64_t coupling() const noexcept;
+  std::uint64_t solver() const noexcept;
+
+ private:
+  struct Entry {
+    std::int64_t time_ns;
+    std::uint64_t coupling, solver;
+  };
+  std::deque<Entry> entries_;  // oldest first; the first is the window's baseline
+};
+
 /// The statistics text for `session` (its latest snapshot `snapshot`, null before the first),
 /// or why there are none; `replaying` names the recording a replay shows (empty: live). With
-/// segments, it names the one the tool touches ("touching facial nerve (CRITICAL)").
+/// segments, it names the one the tool touches ("touching facial nerve (CRITICAL)"). Deadline
+/// misses per minute from `misses` when given (StatusLine), else the snapshot's totals.
 QString hapticStatusText(const runtime::Session& session, const runtime::HapticSnapshot* snapshot,
-                         const QString& replaying);
+                         const QString& replaying, const MissWindow* misses = nullptr);
 
 class StatusLine : public QObject {
   Q_OBJECT
@@ -48,6 +76,7 @@ class StatusLine : public QObject {
   QLabel* progress_label_ = nullptr;
   QProgressBar* progress_bar_ = nullptr;
   QToolButton* progress_cancel_ = nullptr;
+  MissWindow misses_;
 };
 
 }  // namespace vh::ui
