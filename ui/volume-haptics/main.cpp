@@ -330,7 +330,22 @@ CLI::App* addExportSubcommand(CLI::App& app, ExportArgs& a) {
   return export_cmd;
 }
 
+/// True when a window can be opened: an X display (VTK renders through GLX), a Wayland one for
+/// the Qt window, or a Qt platform chosen on purpose (QT_QPA_PLATFORM, e.g. offscreen).
+bool hasDisplay(bool x11_only) {
+  const auto set = [](const char* name) {
+    const char* v = std::getenv(name);
+    return v != nullptr && *v != '\0';
+  };
+  return set("DISPLAY") || (!x11_only && (set("WAYLAND_DISPLAY") || set("QT_QPA_PLATFORM")));
+}
+
 int exportCommand(int argc, char** argv, const ExportArgs& a) {
+  // Video frames and pictures are rendered by VTK's X11 render window, which aborts without one.
+  if ((!a.media.video.empty() || !a.media.png.empty()) && !hasDisplay(/*x11_only=*/true)) {
+    throw std::runtime_error("export --video and --png render with OpenGL and need a display: run it under "
+                             "xvfb-run (xvfb-run -a volume-haptics export ...); --csv, --json and --events-csv do not");
+  }
   const vh::runtime::Recording recording = vh::runtime::readRecording(a.recording);
   for (const std::string& w : recording.warnings) std::cerr << "volume-haptics export: warning: " << w << std::endl;
   if (!a.csv.empty()) vh::runtime::writeRecordingCsv(recording, std::filesystem::path(a.csv));
@@ -380,6 +395,11 @@ int main(int argc, char** argv) {
     if (bench_handler) return bench_handler();
 
     // GUI.
+    if (!hasDisplay(/*x11_only=*/false)) {
+      throw std::runtime_error("the window needs a display (none in DISPLAY or WAYLAND_DISPLAY): run it on a "
+                               "desktop, or under xvfb-run for a --screenshot; the headless subcommands (run, "
+                               "export --csv, make-trajectory, bench) need none");
+    }
     vh::runtime::SceneSpec scene = sceneForPath(gui.input);
     if (gui.series) scene.volume.series = *gui.series;
     if (gui.phase) scene.volume.phase = *gui.phase;
