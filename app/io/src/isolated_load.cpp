@@ -1,7 +1,7 @@
 // Loading in the reader process (vh/io/reader_process.h): loadMesh(), listDicomSeries(), the
-// DICOM SEG read and the DICOM, NRRD and MetaImage loads start the reader program, pass the
-// request on its command line, take the result back from its output file and name the damaged
-// file when a reader crashes or stalls. Without the reader program they read in this process.
+// DICOM SEG and RT Structure Set reads and the DICOM, NRRD and MetaImage loads start the reader
+// program, pass the request on its command line, take the result back from its output file and
+// name the damaged file when a reader crashes or stalls. Without the reader program they read in this process.
 //
 // Why: vtk-dicom's parser has crashed (SIGSEGV in vtkDICOMParser::ReadMetaData) on damaged
 // files, and VTK's NRRD, MetaImage, OBJ and PLY readers crash or hang on some
@@ -14,6 +14,7 @@
 #include <cstdlib>
 #include <sstream>
 
+#include "dicom_rtstruct_internal.h"
 #include "dicom_seg_internal.h"
 #include "loader_internal.h"
 #include "reader_process_internal.h"
@@ -122,6 +123,31 @@ DicomSegFile readDicomSeg(const fs::path& path, const VolumeLoadOptions& options
                                        });
   if (!finished) throw LoadCancelled(path.string() + ": loading cancelled");
   return readDicomSegTransfer(out.path(), path);
+}
+
+RtStructFile readDicomRtStruct(const fs::path& path, const VolumeLoadOptions& options) {
+  const fs::path reader = readerFor(options.dicom_isolation);
+  if (reader.empty()) {
+    if (options.dicom_isolation == DicomIsolation::kWorker) {
+      fail(path, std::string("the reader program (") + kReaderProgramName + ") was not found");
+    }
+    RtStructFile rs = readDicomRtStructInProcess(path);
+    if (options.dicom_isolation == DicomIsolation::kAuto) {
+      rs.notices.push_back(std::string("read in this process: the reader program (") + kReaderProgramName +
+                           ") was not found, so a damaged file could end the program");
+    }
+    return rs;
+  }
+  std::error_code ec;
+  const ReaderOutputFile out("dicom-rtstruct");
+  const bool finished =
+      runReaderToEnd({reader.string(), "rtstruct", fs::absolute(path, ec).string(), out.path().string()}, path,
+                     stallLimitFor(path, options.worker_stall_timeout_s), {}, options.cancel,
+                     [](const std::string& what) {
+                       return "the RT Structure Set reader " + what + ": a damaged file; nothing was loaded";
+                     });
+  if (!finished) throw LoadCancelled(path.string() + ": loading cancelled");
+  return readDicomRtStructTransfer(out.path(), path);
 }
 
 LoadedVolume loadDicom(const fs::path& path, const VolumeLoadOptions& options) {

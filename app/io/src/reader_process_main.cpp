@@ -11,6 +11,7 @@
 #include <vtkDICOMParser.h>
 #include <vtkSmartPointer.h>
 
+#include "dicom_rtstruct_internal.h"
 #include "dicom_seg_internal.h"
 #include "loader_internal.h"
 #include "reader_transfer.h"
@@ -24,7 +25,7 @@ namespace fs = std::filesystem;
 
 constexpr char kUsage[] =
     "usage: volume-haptics-dicom-worker load PATH OUT [--series S] [--phase N] | volume FILE OUT | list FOLDER OUT | "
-    "mesh PATH OUT SCALE | seg FILE OUT | probe PATH";
+    "mesh PATH OUT SCALE | seg FILE OUT | rtstruct FILE OUT | probe PATH";
 
 /// Runs `read`; an exception becomes the protocol's "error MESSAGE" line (on one line) and exit
 /// status 1, else 0.
@@ -96,6 +97,12 @@ int segMode(const fs::path& path, const fs::path& out) {
   return reportingErrors([&] { detail::writeDicomSeg(detail::readDicomSegInProcess(path), out); });
 }
 
+/// `rtstruct FILE OUT`: an RT Structure Set read with DCMTK's dcmrt (dicom_rtstruct.h), not yet
+/// rasterised on a scan.
+int rtstructMode(const fs::path& path, const fs::path& out) {
+  return reportingErrors([&] { detail::writeDicomRtStruct(detail::readDicomRtStructInProcess(path), out); });
+}
+
 /// `list FOLDER OUT`: the DICOM series of a folder, with "progress DONE TOTAL" lines.
 int listMode(const fs::path& folder, const fs::path& out) {
   return reportingErrors([&] {
@@ -139,6 +146,7 @@ int readerProcessMain(int argc, char** argv) {
   if (mode == "volume" && argc >= 4) return volumeMode(path, argv[3], argc, argv);
   if (mode == "mesh" && argc >= 5) return meshMode(path, argv[3], argv[4]);
   if (mode == "seg" && argc >= 4) return segMode(path, argv[3]);
+  if (mode == "rtstruct" && argc >= 4) return rtstructMode(path, argv[3]);
   if (mode == "list" && argc >= 4) return listMode(path, argv[3]);
   if (mode == "load" && argc >= 4) return loadMode(path, argv[3], argc, argv);
   std::cerr << kUsage << std::endl;

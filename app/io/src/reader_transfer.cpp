@@ -227,6 +227,65 @@ DicomSegFile readDicomSegTransfer(const fs::path& in, const fs::path& source) {
   return seg;
 }
 
+void writeDicomRtStruct(const RtStructFile& rs, const fs::path& out) {
+  json h = {{"series_uid", rs.series_uid},
+            {"frame_of_reference_uids", rs.frame_of_reference_uids},
+            {"referenced_series_uids", rs.referenced_series_uids},
+            {"notices", rs.notices}};
+  h["rois"] = json::array();
+  for (const auto& roi : rs.rois) {
+    json contours = json::array();
+    for (const auto& c : roi.contours) {
+      std::vector<double> xyz;  // x\y\z per point, LPS [mm]
+      for (const auto& p : c.points_mm) xyz.insert(xyz.end(), {p.x(), p.y(), p.z()});
+      contours.push_back({{"type", c.type}, {"points_mm", xyz}});
+    }
+    h["rois"].push_back({{"number", roi.number},
+                         {"name", roi.name},
+                         {"frame_of_reference_uid", roi.frame_of_reference_uid},
+                         {"has_color", roi.has_color},
+                         {"color", roi.color},
+                         {"contours", contours}});
+  }
+  std::ofstream f(out, std::ios::binary);
+  writeHeader(f, h);
+  if (!f) throw LoadError(out.string() + ": cannot write the RT Structure Set read (disk full?)");
+}
+
+RtStructFile readDicomRtStructTransfer(const fs::path& in, const fs::path& source) {
+  std::ifstream f(in, std::ios::binary);
+  const json h = readHeader(f, source);
+  RtStructFile rs;
+  try {
+    rs.series_uid = h.at("series_uid").get<std::string>();
+    rs.frame_of_reference_uids = h.at("frame_of_reference_uids").get<std::vector<std::string>>();
+    rs.referenced_series_uids = h.at("referenced_series_uids").get<std::vector<std::string>>();
+    rs.notices = h.at("notices").get<std::vector<std::string>>();
+    for (const auto& j : h.at("rois")) {
+      RtStructRoi roi;
+      roi.number = j.at("number").get<int>();
+      roi.name = j.at("name").get<std::string>();
+      roi.frame_of_reference_uid = j.at("frame_of_reference_uid").get<std::string>();
+      roi.has_color = j.at("has_color").get<bool>();
+      roi.color = j.at("color").get<std::array<int, 3>>();
+      for (const auto& c : j.at("contours")) {
+        RtStructContour contour;
+        contour.type = c.at("type").get<std::string>();
+        const auto xyz = c.at("points_mm").get<std::vector<double>>();
+        if (xyz.size() % 3 != 0) fail(source, "the reader process's output is invalid: contour data not in triples");
+        for (std::size_t p = 0; p + 2 < xyz.size(); p += 3) {
+          contour.points_mm.emplace_back(xyz[p], xyz[p + 1], xyz[p + 2]);
+        }
+        roi.contours.push_back(std::move(contour));
+      }
+      rs.rois.push_back(std::move(roi));
+    }
+  } catch (const json::exception& e) {
+    fail(source, std::string("the reader process's output is unreadable: ") + e.what());
+  }
+  return rs;
+}
+
 void writeField(const haptics::ScalarVolume& field, const VolumeInfo& info, const fs::path& out) {
   const auto& g = field.geometry();
   json h = geometryToJson(g.spacing_m, g.origin_W_m, g.direction_W);

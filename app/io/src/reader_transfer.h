@@ -10,10 +10,12 @@
 /// triangle counts (uint64 each), the vertices (3 doubles each, [m]), the triangles (3 ints).
 /// DICOM SEGs ("seg"): the header (the SEG's UIDs, segments, and each frame's segment and plane),
 /// then each frame's packed inside pixels (DicomSegFrame::mask), frame after frame.
+/// RT Structure Sets ("rtstruct"): the header alone (UIDs, ROIs, contour points in LPS mm).
 
 #include <filesystem>
 #include <vector>
 
+#include "dicom_rtstruct_internal.h"
 #include "dicom_seg_internal.h"
 #include "loader_internal.h"
 #include "vh/haptics/scalar_volume.h"
@@ -55,5 +57,12 @@ void writeDicomSeg(const DicomSegFile& seg, const fs::path& out);
 /// Reads what writeDicomSeg() wrote to `in`.
 /// @throws LoadError naming `source` when `in` is unreadable, cut short or invalid.
 DicomSegFile readDicomSegTransfer(const fs::path& in, const fs::path& source);
+
+/// Writes an RT Structure Set as read (dicom_rtstruct_internal.h) to `out`.
+/// @throws LoadError naming `out` when it cannot be written.
+void writeDicomRtStruct(const RtStructFile& rs, const fs::path& out);
+/// Reads what writeDicomRtStruct() wrote to `in`.
+/// @throws LoadError naming `source` when `in` is unreadable, cut short or invalid.
+RtStructFile readDicomRtStructTransfer(const fs::path& in, const fs::path& source);
 
 }  // namespace vh::io::detail

@@ -1,5 +1,6 @@
 // Segmentations: 3D Slicer's .seg.nrrd and label-map NRRDs (see segmentation.h); DICOM SEGs are
-// recognised here and read by dicom_seg.cpp / dicom_seg_grid.cpp.
+// recognised here and read by dicom_seg.cpp / dicom_seg_grid.cpp, RT Structure Sets by
+// dicom_rtstruct.cpp / dicom_rtstruct_grid.cpp.
 #include "vh/io/segmentation.h"
 
 #include <algorithm>
@@ -16,6 +17,7 @@
 
 #include "dicom_seg_internal.h"
 #include "loader_internal.h"
+#include "vh/io/dicom_rtstruct.h"
 #include "vh/io/dicom_seg.h"
 
 namespace vh::io {
@@ -82,14 +84,18 @@ std::string segmentKey(const std::map<std::string, std::string>& kv, int n, cons
 LoadedSegmentation loadNrrdSegmentation(const fs::path& path, const VolumeLoadOptions& options);
 
 /// The reader for `path`: a NRRD segmentation by its extension, a DICOM SEG by ".dcm" or the
-/// DICOM preamble (a DICOM file of another kind gets the DICOM SEG reader's error naming its SOP
-/// Class), else "not a segmentation".
+/// DICOM preamble (an RT Structure Set, by the SOP Class of its meta header, is rasterised on the
+/// scan; a DICOM file of another kind gets the DICOM SEG reader's error naming its SOP Class),
+/// else "not a segmentation".
 LoadedSegmentation loadAnySegmentation(const fs::path& path, const LoadedVolume* scan,
                                        const VolumeLoadOptions& options) {
   const auto ext = lower(path.extension().string());
   if (ext == ".nrrd" || ext == ".nhdr") return loadNrrdSegmentation(path, options);
+  if (isDicomRtStructFile(path)) return loadDicomRtStruct(path, scan, options);
   if (ext == ".dcm" || detail::hasDicomPreamble(path)) return loadDicomSegmentation(path, scan, options);
-  fail(path, "not a segmentation: expected a 3D Slicer .seg.nrrd, a label-map .nrrd / .nhdr or a DICOM SEG");
+  fail(path,
+       "not a segmentation: expected a 3D Slicer .seg.nrrd, a label-map .nrrd / .nhdr, a DICOM SEG or an RT "
+       "Structure Set");
 }
 
 }  // namespace
@@ -216,7 +222,7 @@ bool isSegmentationFile(const fs::path& path) noexcept {
     const std::string name = lower(path.filename().string());
     if (name.size() > 9 && name.compare(name.size() - 9, 9, ".seg.nrrd") == 0) return true;
     const auto ext = lower(path.extension().string());
-    if (ext != ".nrrd" && ext != ".nhdr") return isDicomSegmentationFile(path);
+    if (ext != ".nrrd" && ext != ".nhdr") return isDicomSegmentationFile(path) || isDicomRtStructFile(path);
     const auto kv = detail::readNrrdKeyValues(path);
     return kv.count("Segment0_LabelValue") != 0 || kv.count("Segment0_Name") != 0;
   } catch (...) {
