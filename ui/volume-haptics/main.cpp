@@ -19,6 +19,7 @@
 #include <iostream>
 #include <memory>
 #include <optional>
+#include <sstream>
 #include <string>
 #include <vector>
 
@@ -291,8 +292,21 @@ int makeTrajectoryCommand(MakeTrajectoryArgs& a) {
   vh::haptics::Pose start = vh::runtime::poseAboveVolume(*scene.hapticField(), scene.tool->point_shell,
                                                          scene.X_WT_initial.R_AB, 0.01);
   if (!a.ray_start.empty()) start.p_AB_m = toVector(a.ray_start, "--ray-start");
-  const vh::runtime::PushSlidePlan plan = vh::runtime::makePushSlideTrajectory(
-      *scene.hapticField(), scene.tool->point_shell, scene.hapticIsovalue(), start, a.push);
+  vh::runtime::PushSlidePlan plan;
+  try {
+    plan = vh::runtime::makePushSlideTrajectory(*scene.hapticField(), scene.tool->point_shell, scene.hapticIsovalue(),
+                                                start, a.push);
+  } catch (const std::runtime_error& e) {
+    // The default ray runs down W's z axis: for a scan in patient coordinates (LPS, +z towards
+    // the head) that is along the body, from above the head, where a CT may have no surface.
+    const vh::haptics::ScalarVolume& f = *scene.hapticField();
+    std::ostringstream hint;
+    hint << e.what() << ". The scan spans (" << f.boundsMin_W_m().transpose() << ") to ("
+         << f.boundsMax_W_m().transpose() << ") m in W (patient LPS for DICOM: +z towards the head); choose "
+         << "--ray-start X Y Z outside the body and --approach-dir towards it (e.g. 0 1 0 from the front, "
+         << "1 0 0 from the right), or another --isovalue";
+    throw std::runtime_error(hint.str());
+  }
   vh::runtime::writeTrajectoryCsv(plan.trajectory, a.out);
   std::cout << "volume-haptics make-trajectory: first contact at (" << plan.X_WD_contact.p_AB_m.transpose()
             << ") m; " << plan.trajectory.size() << " key poses over " << plan.trajectory.duration_s()
