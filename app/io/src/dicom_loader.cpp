@@ -462,6 +462,22 @@ bool readSlicePositions(vtkDICOMMetaData* md, int slices, std::vector<Eigen::Vec
   return true;
 }
 
+/// Each slice's SliceThickness [mm], slices 0 .. `slices` - 1 in the reader's order (per file,
+/// or per frame of a multi-frame file); empty when a slice has none or a non-positive one.
+std::vector<double> readSliceThickness(vtkDICOMMetaData* md, int slices) {
+  std::vector<double> thickness_mm;
+  for (int k = 0; k < slices; ++k) {
+    const int file = md->GetFileIndex(k);
+    const int frame = std::max(0, md->GetFrameIndex(k));
+    if (file < 0) return {};
+    const vtkDICOMValue& v = md->Get(file, frame, DC::SliceThickness);
+    const double t = v.IsValid() && v.GetNumberOfValues() > 0 ? v.AsDouble() : 0.0;
+    if (!(t > 0.0) || !std::isfinite(t)) return {};
+    thickness_mm.push_back(t);
+  }
+  return thickness_mm;
+}
+
 /// The slices as acquired, in the plane frame (u, v, d) of the first slice: u = row_dir,
 /// v = col_dir, d = normal (unit, patient LPS, d growing with k), first = slice 0's first pixel
 /// [mm, LPS]. `analysis` is left default (regular, no median) when the positions or the plane
@@ -506,11 +522,24 @@ SliceGeometry sliceGeometry(vtkDICOMMetaData* md, vtkStringArray* files, const E
                      fileName(files, md->GetFileIndex(static_cast<int>(k))) + ") with different pixels or times");
     }
   }
+  g.stack.thickness_mm = readSliceThickness(md, dims[2]);
   g.analysis = analyseStack(g.stack);
   return g;
 }
 
-/// The notices of a regularised stack: shear (gantry tilt), missing slices, uneven spacing.
+/// "slices in 2 parts: 14 at 4.00 mm (4.00 mm thick), then 13 at 7.00 mm (7.00 mm thick)"
+std::string partsText(const std::vector<SlicePart>& parts) {
+  std::string out = "slices in " + std::to_string(parts.size()) + " parts: ";
+  for (std::size_t p = 0; p < parts.size(); ++p) {
+    out += (p > 0 ? ", then " : "") + std::to_string(parts[p].slices()) + " at " + fixed(parts[p].spacing_mm, 2) +
+           " mm";
+    if (parts[p].thickness_mm > 0.0) out += " (" + fixed(parts[p].thickness_mm, 2) + " mm thick)";
+  }
+  return out;
+}
+
+/// The notices of a regularised stack: shear (gantry tilt), parts of different spacing, missing
+/// slices, uneven spacing (only where the parts and gaps do not explain it).
 void regularisationNotices(const SliceGeometry& g, const RegularGrid& grid, vtkDICOMMetaData* md,
                            vtkStringArray* files, const std::string& modality, VolumeInfo& info) {
   const StackAnalysis& analysis = g.analysis;
@@ -520,6 +549,9 @@ void regularisationNotices(const SliceGeometry& g, const RegularGrid& grid, vtkD
     info.notices.push_back(std::string(is_tilt ? "resampled from a gantry tilt of " :
                                                  "resampled from a sheared slice stack of ") +
                            fixed(analysis.shear_deg, 1) + " deg");
+  }
+  if (!analysis.parts.empty()) {
+    info.notices.push_back(partsText(analysis.parts) + ": resampled to " + fixed(grid.spacing_mm.z(), 2) + " mm");
   }
   const double d0_mm = g.first_mm.dot(g.normal);
   for (const SliceGap& gap : analysis.gaps) {
@@ -531,16 +563,17 @@ void regularisationNotices(const SliceGeometry& g, const RegularGrid& grid, vtkD
         fixed(d0_mm + gap.d_before_mm, 2) + " mm and " + fileName(files, after) + " at " +
         fixed(d0_mm + gap.d_after_mm, 2) + " mm along the slice normal, filled by linear interpolation");
   }
-  if (analysis.uneven) {
+  if (analysis.uneven && (analysis.parts.empty() || analysis.irregular_steps)) {
     info.notices.push_back("uneven slice spacing (" + fixed(analysis.min_spacing_mm, 3) + " to " +
                            fixed(analysis.max_spacing_mm, 3) + " mm): resampled to " +
-                           fixed(grid.spacing_mm.z(), 3) + " mm (the median spacing)");
+                           fixed(grid.spacing_mm.z(), 3) + " mm (" +
+                           (analysis.parts.empty() ? "the median spacing" : "the finest part's spacing") + ")");
   }
 }
 
 /// Regularises an irregular stack: resamples `out` onto the grid of the image planes (u, v, d)
-/// with the median spacing (progress 0.7 to 1), into raw.image and raw.geometry (W = patient
-/// LPS [m]), with notices.
+/// with the median spacing, or the finest part's for a stack in parts (progress 0.7 to 1), into
+/// raw.image and raw.geometry (W = patient LPS [m]), with notices.
 /// @throws LoadError naming `path` when no grid fits; LoadCancelled.
 void regularise(vtkImageData* out, const SliceGeometry& g, vtkDICOMMetaData* md, vtkStringArray* files,
                 const std::string& modality, const VolumeLoadOptions& options, const fs::path& path, RawVolume& raw) {

@@ -9,6 +9,111 @@
 
 namespace vh::io::detail {
 
+namespace {
+
+/// The tolerance within which two spacings near `spacing_mm` count as equal: 1 % + 1 micrometre
+/// (the rounding of the positions that scanners write).
+double toleranceFor(double spacing_mm) { return 0.01 * spacing_mm + 1e-3; }
+
+double medianOf(std::vector<double> v) {
+  std::nth_element(v.begin(), v.begin() + static_cast<std::ptrdiff_t>(v.size() / 2), v.end());
+  return v[v.size() / 2];
+}
+
+/// A run of equal steps: steps first .. last (step k joins slices k and k + 1).
+struct Run {
+  std::size_t first = 0, last = 0;
+  double sum_mm = 0;  ///< Of its steps.
+  int steps = 0;
+};
+
+/// The parts of a stack with steps `step`: runs of at least 2 equal steps, neighbouring runs of
+/// one spacing merged (what lies between them is a gap or jitter within the part); empty unless
+/// at least 2 parts of different spacing remain. Then `run_spacing` holds, per step, the spacing
+/// of the run it belongs to (0 for a step in no run).
+std::vector<SlicePart> partsOf(const std::vector<double>& step, const std::vector<double>& thickness,
+                               std::vector<double>& run_spacing) {
+  run_spacing.assign(step.size(), 0.0);
+  std::vector<Run> runs;
+  for (std::size_t k = 0; k < step.size(); ++k) {
+    Run* run = runs.empty() ? nullptr : &runs.back();
+    const double reference = run != nullptr ? run->sum_mm / run->steps : 0.0;
+    if (run != nullptr && run->last + 1 == k && std::abs(step[k] - reference) <= toleranceFor(reference)) {
+      run->last = k;
+      run->sum_mm += step[k];
+      ++run->steps;
+    } else {
+      if (run != nullptr && run->steps < 2) runs.pop_back();  // a lone step is no part
+      runs.push_back({k, k, step[k], 1});
+    }
+  }
+  if (!runs.empty() && runs.back().steps < 2) runs.pop_back();
+  std::vector<Run> merged;
+  for (const Run& r : runs) {
+    if (!merged.empty()) {
+      Run& m = merged.back();
+      const double s = m.sum_mm / m.steps;
+      if (std::abs(r.sum_mm / r.steps - s) <= toleranceFor(s)) {
+        m.last = r.last;
+        m.sum_mm += r.sum_mm;
+        m.steps += r.steps;
+        continue;
+      }
+    }
+    merged.push_back(r);
+  }
+  if (merged.size() < 2) return {};
+  std::vector<SlicePart> parts;
+  for (const Run& r : runs) {
+    for (std::size_t k = r.first; k <= r.last; ++k) run_spacing[k] = r.sum_mm / r.steps;
+  }
+  for (const Run& r : merged) {
+    SlicePart p;
+    // A slice shared by two runs that meet without a transition step belongs to the first.
+    p.first = static_cast<int>(r.first);
+    if (!parts.empty()) p.first = std::max(p.first, parts.back().last + 1);
+    p.last = static_cast<int>(r.last) + 1;
+    p.spacing_mm = r.sum_mm / r.steps;
+    if (!thickness.empty()) {
+      p.thickness_mm = medianOf(std::vector<double>(thickness.begin() + p.first, thickness.begin() + p.last + 1));
+    }
+    parts.push_back(p);
+  }
+  return parts;
+}
+
+/// The spacing around step k (between slices k and k + 1): the median without parts; else that
+/// of the run it belongs to, or else the finer of the parts before and after it.
+double spacingAround(std::size_t k, const std::vector<SlicePart>& parts, const std::vector<double>& run_spacing,
+                     double median_mm) {
+  if (parts.empty()) return median_mm;
+  if (run_spacing[k] > 0.0) return run_spacing[k];
+  double before = 0.0, after = 0.0;
+  for (const SlicePart& p : parts) {
+    if (p.first <= static_cast<int>(k)) before = p.spacing_mm;
+    if (after == 0.0 && p.last >= static_cast<int>(k) + 1) after = p.spacing_mm;
+  }
+  if (before == 0.0 || after == 0.0) return std::max(before, after);
+  return std::min(before, after);
+}
+
+/// Whether step k of `g_mm` lies between the spacings of the parts around it (within the
+/// tolerance): a step inside a part, or the transition from one part to the next.
+bool explainedByParts(std::size_t k, double g_mm, const std::vector<SlicePart>& parts) {
+  const SlicePart* before = nullptr;
+  const SlicePart* after = nullptr;
+  for (const SlicePart& p : parts) {
+    if (p.first <= static_cast<int>(k)) before = &p;
+    if (after == nullptr && p.last >= static_cast<int>(k) + 1) after = &p;
+  }
+  if (before == nullptr || after == nullptr) return false;
+  const double lo = std::min(before->spacing_mm, after->spacing_mm);
+  const double hi = std::max(before->spacing_mm, after->spacing_mm);
+  return g_mm >= lo - toleranceFor(lo) && g_mm <= hi + toleranceFor(hi);
+}
+
+}  // namespace
+
 StackAnalysis analyseStack(const SliceStack& stack) {
   StackAnalysis a;
   const std::size_t n = stack.offset_mm.size();
@@ -20,19 +125,33 @@ StackAnalysis analyseStack(const SliceStack& stack) {
     if (g > 0.0) spacing.push_back(g);
   }
   if (spacing.empty()) return a;
-  std::vector<double> sorted = spacing;
-  std::nth_element(sorted.begin(), sorted.begin() + static_cast<std::ptrdiff_t>(sorted.size() / 2), sorted.end());
-  a.median_spacing_mm = sorted[sorted.size() / 2];
+  a.median_spacing_mm = medianOf(spacing);
   a.min_spacing_mm = *std::min_element(spacing.begin(), spacing.end());
   a.max_spacing_mm = *std::max_element(spacing.begin(), spacing.end());
-  const double tolerance = 0.01 * a.median_spacing_mm + 1e-3;
+  const bool thickness_known = stack.thickness_mm.size() == n;
+  std::vector<double> step(n - 1);
+  for (std::size_t k = 0; k + 1 < n; ++k) step[k] = stack.offset_mm[k + 1].z() - stack.offset_mm[k].z();
+  std::vector<double> run_spacing;
+  a.parts = partsOf(step, thickness_known ? stack.thickness_mm : std::vector<double>{}, run_spacing);
+  a.grid_spacing_mm = a.median_spacing_mm;
+  for (const SlicePart& p : a.parts) a.grid_spacing_mm = std::min(a.grid_spacing_mm, p.spacing_mm);
+  const double tolerance = toleranceFor(a.median_spacing_mm);
   for (std::size_t k = 0; k + 1 < n; ++k) {
     const double d0 = stack.offset_mm[k].z(), d1 = stack.offset_mm[k + 1].z();
     const double g = d1 - d0;
     if (std::abs(g - a.median_spacing_mm) > tolerance) a.uneven = true;
-    if (g > 1.5 * a.median_spacing_mm) {
-      a.gaps.push_back({static_cast<int>(k), d0, d1,
-                        std::max(1, static_cast<int>(std::lround(g / a.median_spacing_mm)) - 1)});
+    const double around = spacingAround(k, a.parts, run_spacing, a.median_spacing_mm);
+    bool gap = g > 1.5 * around;
+    if (thickness_known) {
+      // What the two slices cover: half of each one's thickness. A step within it is a change
+      // of slice thickness (or of spacing), not missing slices.
+      const double cover = 0.5 * (stack.thickness_mm[k] + stack.thickness_mm[k + 1]);
+      gap = gap && g > cover + toleranceFor(cover);
+    }
+    if (gap) {
+      a.gaps.push_back({static_cast<int>(k), d0, d1, std::max(1, static_cast<int>(std::lround(g / around)) - 1)});
+    } else if (!a.parts.empty() && run_spacing[k] == 0.0 && !explainedByParts(k, g, a.parts)) {
+      a.irregular_steps = true;
     }
   }
   double max_offset = 0.0;
@@ -63,13 +182,14 @@ RegularGrid regularGridFor(const SliceStack& stack, const StackAnalysis& analysi
     grid.dims[axis] = static_cast<int>(std::ceil(cells - 1e-6)) + 1;
   }
   const double depth = stack.offset_mm.back().z() - stack.offset_mm.front().z();
-  grid.dims[2] = static_cast<int>(std::lround(depth / analysis.median_spacing_mm)) + 1;
+  const double spacing = analysis.grid_spacing_mm > 0.0 ? analysis.grid_spacing_mm : analysis.median_spacing_mm;
+  grid.dims[2] = static_cast<int>(std::lround(depth / spacing)) + 1;
   const double voxels = static_cast<double>(grid.dims[0]) * grid.dims[1] * grid.dims[2];
   if (grid.dims[2] < 2 || voxels > 2147483647.0) {
     throw std::invalid_argument("the regular grid of the slice stack would be empty or too large");
   }
   grid.origin_mm = Eigen::Vector3d(lo.x(), lo.y(), stack.offset_mm.front().z());
-  // The grid spans exactly the first to the last slice: the median spacing, evened out.
+  // The grid spans exactly the first to the last slice: the chosen spacing, evened out.
   grid.spacing_mm = Eigen::Vector3d(pixel.x(), pixel.y(), depth / (grid.dims[2] - 1));
   return grid;
 }

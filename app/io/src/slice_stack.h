@@ -30,14 +30,26 @@ struct SliceStack {
   double row_spacing_mm = 1;      ///< Distance between neighbouring rows, along v [mm].
   /// Per slice k: (u_k, v_k, d_k) of its first pixel relative to slice 0's first pixel [mm].
   std::vector<Eigen::Vector3d> offset_mm;
+  /// Per slice k: its thickness along d [mm] (DICOM's SliceThickness); empty when unknown for
+  /// any slice.
+  std::vector<double> thickness_mm;
 };
 
-/// A gap in a stack: between slices k and k + 1 the distance along d is well over the median.
+/// A gap in a stack: slices are missing between slices k and k + 1 (see analyseStack()).
 struct SliceGap {
   int slice = 0;           ///< The slice before the gap (0-based, in d order).
   double d_before_mm = 0;  ///< d of slice `slice` [mm].
   double d_after_mm = 0;   ///< d of slice `slice` + 1 [mm].
-  int missing = 0;         ///< About how many slices of the median spacing are missing.
+  int missing = 0;         ///< About how many slices of the spacing around the gap are missing.
+};
+
+/// A part of a stack acquired at one spacing (a two-part head CT: 4 mm slices, then 7 mm).
+struct SlicePart {
+  int first = 0;             ///< Its first slice (0-based, in d order).
+  int last = 0;              ///< Its last slice.
+  double spacing_mm = 0;     ///< The mean of its equal steps along d.
+  double thickness_mm = 0;   ///< The median thickness of its slices; 0 when unknown.
+  int slices() const { return last - first + 1; }
 };
 
 /// What regularising a stack has to correct.
@@ -49,20 +61,33 @@ struct StackAnalysis {
   /// between the line through the slices' first pixels and the normal.
   bool sheared = false;
   double shear_deg = 0;
-  /// Spacing along d uneven beyond the tolerance (missing slices, irregular acquisition).
+  /// Spacing along d uneven beyond the tolerance (missing slices, parts of different spacing,
+  /// irregular acquisition).
   bool uneven = false;
-  std::vector<SliceGap> gaps;  ///< Spacings over 1.5 times the median.
+  std::vector<SliceGap> gaps;  ///< Where slices are missing.
+  /// Parts of different spacing, in d order; empty when the stack has one spacing (at most
+  /// jittered or gapped).
+  std::vector<SlicePart> parts;
+  /// Steps along d that neither the parts, their transitions nor the gaps explain.
+  bool irregular_steps = false;
+  /// The slice spacing to resample to: the finest part's spacing, else the median.
+  double grid_spacing_mm = 0;
   bool regular() const { return !sheared && !uneven; }
 };
 
 /// Measures the stack. Tolerances: a shear below 0.01 pixel over the whole stack, and spacings
-/// within 1 % (+ 1 micrometre) of the median, count as regular (the rounding of the positions
-/// that scanners write). Needs at least 2 slices with distinct d.
+/// within 1 % (+ 1 micrometre) of the median (or of each other within a part), count as regular
+/// (the rounding of the positions that scanners write). Parts: runs of at least 2 equal steps,
+/// neighbouring runs of one spacing merged. A gap is a step over 1.5 times the spacing around
+/// it (the median, or the finer neighbouring part's); where every slice's thickness is known it
+/// must also exceed what the two slices cover, half of each thickness (+ the tolerance), so a
+/// change of slice thickness is not a gap. Needs at least 2 slices with distinct d.
 StackAnalysis analyseStack(const SliceStack& stack);
 
 /// The rectilinear grid a stack is resampled onto: axes u, v, d; in-plane spacings those of the
-/// slices, slice spacing the median; in-plane extent the union of every slice's footprint (a
-/// tilted stack's anatomy is kept, not cropped), d from slice 0 to the last slice.
+/// slices, slice spacing analysis.grid_spacing_mm (the median when that is 0), evened out so
+/// that the grid spans d from slice 0 to the last slice exactly; in-plane extent the union of
+/// every slice's footprint (a tilted stack's anatomy is kept, not cropped).
 struct RegularGrid {
   std::array<int, 3> dims{0, 0, 0};
   Eigen::Vector3d origin_mm = Eigen::Vector3d::Zero();   ///< (u, v, d) of voxel (0, 0, 0).

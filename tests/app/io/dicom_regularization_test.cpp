@@ -10,6 +10,8 @@
 #include <string>
 
 #include <gtest/gtest.h>
+#include <vtkDICOMDictHash.h>
+#include <vtkDICOMMetaData.h>
 #include <vtkImageData.h>
 
 #include "dicom_fixtures.h"
@@ -184,6 +186,94 @@ TEST_F(DicomRegularization, UnevenSpacingIsResampledToTheMedian) {
   EXPECT_NEAR(v.field->geometry().spacing_m.z(), 1.5e-3, 1e-6);
 }
 
+/// A two-part head CT as GE writes it: 14 slices 4 mm thick at 4 mm, then 13 slices 7 mm
+/// thick at 7 mm (the step between the parts, 5.5 mm, what the two slices cover), with
+/// SliceThickness per file. The stored values are linear in the written LPS position (exact
+/// integers), so the loaded field's value at each voxel tells where that voxel lies.
+struct TwoPartSeries {
+  static constexpr int kThin = 14, kThick = 13;
+  static double dMm(int k) { return k < kThin ? 4.0 * k : 4.0 * (kThin - 1) + 5.5 + 7.0 * (k - kThin); }
+  static double value(const Eigen::Vector3d& p_mm) { return 10.0 + 3.0 * p_mm.x() + 2.0 * p_mm.y() + 20.0 * p_mm.z(); }
+  static SourceVolume source() {
+    const Eigen::Vector3d origin(-16.0, -16.0, 0.0);
+    SourceVolume src = ballVolume({16, 16, kThin + kThick}, {2.0, 2.0, 4.0}, origin, origin, 0.0);
+    auto* p = static_cast<short*>(src.image->GetScalarPointer());
+    for (int k = 0; k < kThin + kThick; ++k)
+      for (int j = 0; j < 16; ++j)
+        for (int i = 0; i < 16; ++i) {
+          *p++ = static_cast<short>(value(origin + Eigen::Vector3d(2.0 * i, 2.0 * j, dMm(k))));
+        }
+    return src;
+  }
+  static SeriesSpec spec() {
+    SeriesSpec spec;
+    for (int k = kThin; k < kThin + kThick; ++k) spec.jitter_slices.emplace_back(k, dMm(k) - 4.0 * k);
+    spec.instance_tags = [](vtkDICOMMetaData* meta, int instance, int k) {
+      meta->Set(instance, DC::SliceThickness, k < kThin ? 4.0 : 7.0);
+    };
+    return spec;
+  }
+};
+
+/// The largest distance [mm] along the slice normal between where the loaded field's voxels are
+/// and where their values were written (TwoPartSeries::value; 1/20 mm per unit).
+double twoPartErrorMm(const LoadedVolume& v) {
+  const auto& g = v.field->geometry();
+  double worst = 0.0;
+  for (int k = 0; k < g.dims[2]; ++k)
+    for (int j = 0; j < g.dims[1]; ++j)
+      for (int i = 0; i < g.dims[0]; ++i) {
+        const Eigen::Vector3d p_mm =
+            (g.origin_W_m + g.direction_W * g.spacing_m.cwiseProduct(Eigen::Vector3d(i, j, k))) * 1e3;
+        worst = std::max(worst, std::abs(v.field->voxel(i, j, k) - TwoPartSeries::value(p_mm)) / 20.0);
+      }
+  return worst;
+}
+
+TEST_F(DicomRegularization, AChangeOfSliceThicknessIsNotAGap) {
+  const SourceVolume src = TwoPartSeries::source();
+  const WrittenSeries s = writeSeries(folder("two-part"), src, TwoPartSeries::spec());
+  const LoadedVolume v = loadVolume(s.folder);
+  std::cout << "[two parts]" << notices(v) << "\n";
+  ASSERT_EQ(v.info.notices.size(), 1u) << notices(v);
+  EXPECT_CONTAINS(v.info.notices[0],
+                  "slices in 2 parts: 14 at 4.00 mm (4.00 mm thick), then 13 at 7.00 mm (7.00 mm thick): resampled to");
+  EXPECT_FALSE(anyNotice(v, "missing")) << notices(v);
+  EXPECT_FALSE(anyNotice(v, "uneven")) << notices(v);
+  // The finest part's spacing, evened out to span 0 .. 141.5 mm: 35 steps of 4.04 mm.
+  const auto& g = v.field->geometry();
+  EXPECT_EQ(g.dims[2], 36);
+  EXPECT_NEAR(g.spacing_m.z(), 141.5e-3 / 35, 1e-9);
+  EXPECT_NEAR(g.spacing_m.z(), 4e-3, 0.05e-3);
+  // Every voxel within a tenth of a voxel (0.4 mm) of where its value was written; the
+  // linear field makes the interpolation exact, so the bound is the rounding to integers.
+  const double error_mm = twoPartErrorMm(v);
+  std::cout << "[two parts] worst position error " << error_mm << " mm\n";
+  EXPECT_LT(error_mm, 0.1 * 4.0);
+  EXPECT_LT(error_mm, 0.05);
+}
+
+TEST_F(DicomRegularization, AMissingSliceOfAThinPartIsStillAGap) {
+  const SourceVolume src = TwoPartSeries::source();
+  SeriesSpec spec = TwoPartSeries::spec();
+  spec.drop_slices = {6};
+  const WrittenSeries s = writeSeries(folder("two-part-gap"), src, spec);
+  const LoadedVolume v = loadVolume(s.folder);
+  std::cout << "[two parts, gap]" << notices(v) << "\n";
+  EXPECT_TRUE(anyNotice(v, "slices in 2 parts: 13 at 4.00 mm (4.00 mm thick), then 13 at 7.00 mm")) << notices(v);
+  // Files 6 and 7 (0-based 5 and 6 in writing order) hold source slices 5 and 7.
+  EXPECT_TRUE(anyNotice(v, "missing slice: a gap of 8.00 mm (about 1 slice) between " +
+                               s.files[5].filename().string() + " at 20.00 mm and " +
+                               s.files[6].filename().string() + " at 28.00 mm"))
+      << notices(v);
+  EXPECT_EQ(std::count_if(v.info.notices.begin(), v.info.notices.end(),
+                          [](const std::string& n) { return n.find("missing") != std::string::npos; }),
+            1);
+  EXPECT_FALSE(anyNotice(v, "uneven")) << notices(v);
+  EXPECT_EQ(v.field->geometry().dims[2], 36);
+  EXPECT_LT(twoPartErrorMm(v), 0.05);
+}
+
 TEST_F(DicomRegularization, EnhancedMultiFrameOpens) {
   VH_REQUIRE_SHARED(shared, kCtHead);
   const SourceVolume src = ctHeadSmall();
@@ -351,6 +441,58 @@ TEST(SliceStack, ResamplingIsExactForLinearFieldsOnShearedGappedStacks) {
         }
       }
   EXPECT_GT(inside, 50);
+}
+
+/// The stack of a two-part head CT: 14 slices 4 mm thick at 4 mm, a 5.5 mm step, 13 slices
+/// 7 mm thick at 7 mm; `thickness` false leaves the thickness unknown.
+detail::SliceStack twoPartStack(bool thickness) {
+  detail::SliceStack stack;
+  stack.columns = stack.rows = 4;
+  for (int k = 0; k < 27; ++k) {
+    stack.offset_mm.emplace_back(0.0, 0.0, k < 14 ? 4.0 * k : 57.5 + 7.0 * (k - 14));
+    if (thickness) stack.thickness_mm.push_back(k < 14 ? 4.0 : 7.0);
+  }
+  return stack;
+}
+
+TEST(SliceStack, PartsOfDifferentThicknessAreNoGaps) {
+  for (bool thickness : {true, false}) {
+    const detail::StackAnalysis a = detail::analyseStack(twoPartStack(thickness));
+    EXPECT_TRUE(a.uneven);
+    EXPECT_TRUE(a.gaps.empty()) << thickness;
+    EXPECT_FALSE(a.irregular_steps);
+    ASSERT_EQ(a.parts.size(), 2u);
+    EXPECT_EQ(a.parts[0].first, 0);
+    EXPECT_EQ(a.parts[0].slices(), 14);
+    EXPECT_EQ(a.parts[1].first, 14);
+    EXPECT_EQ(a.parts[1].slices(), 13);
+    EXPECT_NEAR(a.parts[0].spacing_mm, 4.0, 1e-12);
+    EXPECT_NEAR(a.parts[1].spacing_mm, 7.0, 1e-12);
+    EXPECT_EQ(a.parts[1].thickness_mm, thickness ? 7.0 : 0.0);
+    EXPECT_NEAR(a.grid_spacing_mm, 4.0, 1e-12);
+    const detail::RegularGrid grid = detail::regularGridFor(twoPartStack(thickness), a);
+    EXPECT_EQ(grid.dims[2], 36);
+    EXPECT_NEAR(grid.origin_mm.z() + 35 * grid.spacing_mm.z(), 141.5, 1e-9);
+  }
+  // The parts meet without a transition step (the 7 mm part's first step starts at the last
+  // 4 mm slice): 1.5 mm uncovered, no slice missing.
+  detail::SliceStack abrupt = twoPartStack(true);
+  for (int k = 14; k < 27; ++k) abrupt.offset_mm[k].z() += 1.5;
+  const detail::StackAnalysis b = detail::analyseStack(abrupt);
+  EXPECT_TRUE(b.gaps.empty());
+  EXPECT_EQ(b.parts.size(), 2u);
+  // A 4 mm slice missing is a gap; where thick slices cover the step, it is not.
+  detail::SliceStack gapped = twoPartStack(true);
+  gapped.offset_mm.erase(gapped.offset_mm.begin() + 6);
+  gapped.thickness_mm.erase(gapped.thickness_mm.begin() + 6);
+  const detail::StackAnalysis c = detail::analyseStack(gapped);
+  ASSERT_EQ(c.gaps.size(), 1u);
+  EXPECT_EQ(c.gaps[0].slice, 5);
+  EXPECT_EQ(c.gaps[0].missing, 1);
+  EXPECT_EQ(c.parts.size(), 2u);
+  EXPECT_FALSE(c.irregular_steps);
+  for (double& t : gapped.thickness_mm) t = 8.0;
+  EXPECT_TRUE(detail::analyseStack(gapped).gaps.empty());
 }
 
 TEST(SliceStack, RegularStacksAreRecognised) {
