@@ -311,7 +311,7 @@ void MainWindow::updateWindowTitle() { setWindowTitle(windowTitleFor(title_, ses
 void MainWindow::buildMenus() {
   QMenu* file = menuBar()->addMenu("&File");
   opener_->addFileMenuActions(file);
-  file->addAction("Open Se&gmentation (.seg.nrrd, DICOM SEG)...", this, [this] { segments_->openDialog(prefs_.last_folder); })
+  file->addAction("Open Se&gmentation (.seg.nrrd, DICOM SEG, RTSTRUCT)...", this, [this] { segments_->openDialog(prefs_.last_folder); })
       ->setShortcut(QKeySequence("Ctrl+G"));
   file->addMenu(opener_->recentFilesMenu());
   file->addSeparator();

@@ -13,6 +13,7 @@
 #include <QStatusBar>
 #include <QUrl>
 
+#include "vh/io/dicom_rtstruct.h"
 #include "vh/io/dicom_seg.h"
 #include "vh/io/segmentation.h"
 #include "vh/runtime/session.h"
@@ -127,9 +128,11 @@ void SceneOpener::openPath(const QString& path) {
     emit recordingRequested(p);
     return;
   }
-  const bool dicom_seg = ext != ".nrrd" && ext != ".nhdr" && io::isDicomSegmentationFile(p);
+  // A DICOM SEG or RT Structure Set: segments drawn on a scan, placed on it.
+  const bool dicom_seg =
+      ext != ".nrrd" && ext != ".nhdr" && (io::isDicomSegmentationFile(p) || io::isDicomRtStructFile(p));
   if (dicom_seg && !session_.hasScene()) {
-    reportError(path, path + ": a DICOM SEG is opened on the scan it segments: open that scan first");
+    reportError(path, path + ": a DICOM SEG or RT Structure Set is opened on the scan it segments: open that scan first");
     return;
   }
   if (dicom_seg || ((ext == ".nrrd" || ext == ".nhdr") && io::isSegmentationFile(p))) {

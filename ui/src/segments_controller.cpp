@@ -86,7 +86,7 @@ bool SegmentsController::open(const std::filesystem::path& path) {
 }
 
 void SegmentsController::openDialog(const QString& folder) {
-  const QString path = QFileDialog::getOpenFileName(window_, "Open a segmentation (3D Slicer .seg.nrrd, DICOM SEG or label map)",
+  const QString path = QFileDialog::getOpenFileName(window_, "Open a segmentation (3D Slicer .seg.nrrd, DICOM SEG, RT Structure Set or label map)",
                                                     folder, q(io::segmentationFileDialogFilter()));
   if (!path.isEmpty()) open(path.toStdString());
 }

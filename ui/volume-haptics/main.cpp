@@ -181,6 +181,7 @@ vh::runtime::SceneSpec runScene(const RunArgs& a) {
 /// OpenIGTLink for `run`: the command line's port, else the scene file's section; the run plays in
 /// real time so the client sees the motion at its speed. Null when neither asks for it.
 std::unique_ptr<vh::igtl::IgtlLink> startRunLink(const RunArgs& a, vh::runtime::SceneSpec& spec,
+                                                 const vh::runtime::SegmentSet* segments,
                                                  vh::runtime::RunOptions& run_options) {
   std::unique_ptr<vh::igtl::IgtlLink> link;
   if (a.igtl_port) spec.openigtlink = vh::runtime::OpenIgtlinkSpec{*a.igtl_port, a.igtl_rate_Hz};
@@ -191,12 +192,9 @@ std::unique_ptr<vh::igtl::IgtlLink> startRunLink(const RunArgs& a, vh::runtime::
   link_options.port = spec.openigtlink->port;
   link_options.rate_Hz = spec.openigtlink->rate_Hz;
   link_options.servo_rate_Hz = run_options.servo_rate_Hz;
-  if (spec.segmentation) {  // ContactState names the segment touched
+  if (segments != nullptr) {  // ContactState names the segment touched
     auto names = std::make_shared<vh::runtime::SegmentNameTable>();
-    vh::runtime::SegmentationSpec names_only;  // nothing felt: just the names
-    names_only.path = spec.segmentation->path;
-    const auto seg = vh::runtime::SegmentSet::fromSpec(vh::io::loadSegmentation(names_only.path), names_only, a.scene);
-    names->set(seg.get());
+    names->set(segments);
     link_options.segment_name = [names](const vh::runtime::HapticSnapshot& snapshot) {
       return names->name(snapshot.contacts > 0 ? snapshot.segment : -1);
     };
@@ -239,8 +237,14 @@ int runCommand(const RunArgs& a) {
   run_options.record = a.record;
   run_options.verify_step_voxels = a.verify_step;
   run_options.lag_reference = a.lag_reference;
-  std::unique_ptr<vh::igtl::IgtlLink> link = startRunLink(a, spec, run_options);
-  const vh::runtime::RunReport report = vh::runtime::runHeadless(spec, a.trajectory, run_options);
+  // The scene is loaded once, here: the link names the segments of the scan they were opened on
+  // (a DICOM SEG or RT Structure Set is placed on its scan).
+  const vh::runtime::Trajectory trajectory = vh::runtime::loadTrajectoryCsv(a.trajectory);
+  const vh::runtime::LoadedScene scene = vh::runtime::loadScene(spec);
+  for (const std::string& notice : scene.volume.info.notices) run_options.on_notice(notice);
+  std::unique_ptr<vh::igtl::IgtlLink> link = startRunLink(a, spec, scene.segments.get(), run_options);
+  vh::runtime::RunReport report = vh::runtime::runHeadless(scene, trajectory, run_options);
+  report.trajectory = a.trajectory;
   if (link) {
     const vh::igtl::LinkStatus st = link->status();
     link->stop();
