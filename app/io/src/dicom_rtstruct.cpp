@@ -40,12 +40,6 @@ void initDcmrt() {
 
 std::string text(const OFString& s) { return trim(std::string_view(s.c_str(), s.length())); }
 
-/// "CTImageStorage (1.2.840.10008.5.1.4.1.1.2)", or the UID alone when DCMTK does not know it.
-std::string sopClassName(const std::string& uid) {
-  const char* name = dcmFindNameOfUID(uid.c_str(), nullptr);
-  return name == nullptr ? uid : std::string(name) + " (" + uid + ")";
-}
-
 void addUnique(std::vector<std::string>& list, const std::string& uid) {
   if (!uid.empty() && std::find(list.begin(), list.end(), uid) == list.end()) list.push_back(uid);
 }
@@ -185,20 +179,7 @@ RtStructFile readDicomRtStructInProcess(const fs::path& path) {
 }  // namespace detail
 
 bool isDicomRtStructFile(const std::filesystem::path& path) noexcept {
-  try {
-    if (!detail::hasDicomPreamble(path)) return false;
-    detail::initDcmrt();
-    DcmFileFormat file;  // the meta header only: (0002,0002) Media Storage SOP Class UID
-    if (file.loadFile(path.c_str(), EXS_Unknown, EGL_noChange, DCM_MaxReadLength, ERM_metaOnly).bad()) return false;
-    OFString uid;
-    if (file.getMetaInfo() == nullptr ||
-        file.getMetaInfo()->findAndGetOFString(DCM_MediaStorageSOPClassUID, uid).bad()) {
-      return false;
-    }
-    return detail::text(uid) == kRtStructureSetStorageUid;
-  } catch (...) {
-    return false;
-  }
+  return detail::mediaStorageSopClassUid(path) == kRtStructureSetStorageUid;
 }
 
 }  // namespace vh::io

@@ -53,12 +53,6 @@ void initDcmtk() {
 
 std::string text(const OFString& s) { return trim(std::string_view(s.c_str(), s.length())); }
 
-/// "CTImageStorage (1.2.840.10008.5.1.4.1.1.2)", or the UID alone when DCMTK does not know it.
-std::string sopClassName(const std::string& uid) {
-  const char* name = dcmFindNameOfUID(uid.c_str(), nullptr);
-  return name == nullptr ? uid : std::string(name) + " (" + uid + ")";
-}
-
 /// The checks DCMTK 3.6.7 leaves to the caller before its frames may be used: Segmentation
 /// Storage, BINARY or FRACTIONAL, and as many frames as per-frame functional groups
 /// (DcmSegmentation::getFrame() indexes its frames unchecked when they disagree).
@@ -254,6 +248,27 @@ void readReferences(DcmSegmentation& seg, DicomSegFile& out) {
 
 }  // namespace
 
+std::string sopClassName(const std::string& uid) {
+  const char* name = dcmFindNameOfUID(uid.c_str(), nullptr);
+  return name == nullptr ? uid : std::string(name) + " (" + uid + ")";
+}
+
+std::string mediaStorageSopClassUid(const fs::path& path) noexcept {
+  try {
+    if (!hasDicomPreamble(path)) return {};
+    initDcmtk();
+    DcmFileFormat file;  // the meta header only
+    if (file.loadFile(path.c_str(), EXS_Unknown, EGL_noChange, DCM_MaxReadLength, ERM_metaOnly).bad()) return {};
+    OFString uid;
+    if (file.getMetaInfo() == nullptr || file.getMetaInfo()->findAndGetOFString(DCM_MediaStorageSOPClassUID, uid).bad()) {
+      return {};
+    }
+    return text(uid);
+  } catch (...) {
+    return {};
+  }
+}
+
 bool hasDicomPreamble(const fs::path& path) noexcept {
   try {
     std::ifstream f(path, std::ios::binary);
@@ -299,20 +314,7 @@ DicomSegFile readDicomSegInProcess(const fs::path& path) {
 }  // namespace detail
 
 bool isDicomSegmentationFile(const std::filesystem::path& path) noexcept {
-  try {
-    if (!detail::hasDicomPreamble(path)) return false;
-    detail::initDcmtk();
-    DcmFileFormat file;  // the meta header only: (0002,0002) Media Storage SOP Class UID
-    if (file.loadFile(path.c_str(), EXS_Unknown, EGL_noChange, DCM_MaxReadLength, ERM_metaOnly).bad()) return false;
-    OFString uid;
-    if (file.getMetaInfo() == nullptr ||
-        file.getMetaInfo()->findAndGetOFString(DCM_MediaStorageSOPClassUID, uid).bad()) {
-      return false;
-    }
-    return detail::text(uid) == kSegmentationStorageUid;
-  } catch (...) {
-    return false;
-  }
+  return detail::mediaStorageSopClassUid(path) == kSegmentationStorageUid;
 }
 
 }  // namespace vh::io

@@ -74,4 +74,11 @@ DicomSegFile readDicomSeg(const fs::path& path, const VolumeLoadOptions& options
 /// True when `path` starts with the DICOM preamble: 128 bytes, then "DICM". Never throws.
 bool hasDicomPreamble(const fs::path& path) noexcept;
 
+/// The Media Storage SOP Class UID (0002,0002) of a DICOM file's meta header, read by DCMTK
+/// (nothing past the meta header); empty when `path` is not a readable DICOM file. Never throws.
+std::string mediaStorageSopClassUid(const fs::path& path) noexcept;
+
+/// "CTImageStorage (1.2.840.10008.5.1.4.1.1.2)", or the UID alone when DCMTK does not know it.
+std::string sopClassName(const std::string& uid);
+
 }  // namespace vh::io::detail
