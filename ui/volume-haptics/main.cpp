@@ -412,13 +412,13 @@ int main(int argc, char** argv) {
     if (*make) return makeTrajectoryCommand(make_args);
     if (bench_handler) return bench_handler();
 
-    // GUI.
+    // GUI: the path first (a missing file is said as such), then the display.
+    vh::runtime::SceneSpec scene = sceneForPath(gui.input);
     if (!hasDisplay(/*x11_only=*/false)) {
       throw std::runtime_error("the window needs a display (none in DISPLAY or WAYLAND_DISPLAY): run it on a "
                                "desktop, or under xvfb-run for a --screenshot; the headless subcommands (run, "
                                "export --csv, make-trajectory, bench) need none");
     }
-    vh::runtime::SceneSpec scene = sceneForPath(gui.input);
     if (gui.series) scene.volume.series = *gui.series;
     if (gui.phase) scene.volume.phase = *gui.phase;
     gui.options.screenshot = gui.screenshot;
