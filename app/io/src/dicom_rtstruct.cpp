@@ -13,7 +13,6 @@
 #include <algorithm>
 #include <cmath>
 #include <map>
-#include <mutex>
 
 #include <dcmtk/config/osconfig.h>  // DCMTK's configuration first
 #include <dcmtk/dcmdata/dcdeftag.h>
@@ -21,7 +20,6 @@
 #include <dcmtk/dcmdata/dcfilefo.h>
 #include <dcmtk/dcmdata/dcuid.h>
 #include <dcmtk/dcmrt/drtstrct.h>
-#include <dcmtk/oflog/oflog.h>
 
 #include "dicom_seg_internal.h"
 #include "loader_internal.h"
@@ -30,13 +28,6 @@
 namespace vh::io {
 namespace detail {
 namespace {
-
-/// DCMTK's console log off once per process (its messages would reach stderr; the LoadError
-/// says what went wrong instead).
-void initDcmrt() {
-  static std::once_flag once;
-  std::call_once(once, [] { OFLog::configure(OFLogger::OFF_LOG_LEVEL); });
-}
 
 std::string text(const OFString& s) { return trim(std::string_view(s.c_str(), s.length())); }
 
@@ -145,18 +136,8 @@ void readContours(DRTStructureSetIOD& rs, const fs::path& path, RtStructFile& ou
 }  // namespace
 
 RtStructFile readDicomRtStructInProcess(const fs::path& path) {
-  initDcmrt();
-  std::error_code ec;
-  if (!fs::exists(path, ec)) fail(path, "no such file");
-  if (!fs::is_regular_file(path, ec)) fail(path, "not an RT Structure Set: not a file");
-  if (!dcmDataDict.isDictionaryLoaded()) {
-    fail(path, "DCMTK's DICOM dictionary is not loaded (dicom.dic of libdcmtk17; see DCMDICTPATH)");
-  }
   DcmFileFormat file;
-  const OFCondition loaded = file.loadFile(path.c_str());
-  if (loaded.bad() || file.getDataset() == nullptr) {
-    fail(path, std::string("not a readable DICOM file (damaged, cut short or not DICOM): ") + loaded.text());
-  }
+  loadDicomFile(path, "an RT Structure Set", file);
   DcmDataset& ds = *file.getDataset();
   OFString value;
   ds.findAndGetOFString(DCM_SOPClassUID, value);

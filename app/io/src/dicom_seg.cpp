@@ -280,21 +280,25 @@ bool hasDicomPreamble(const fs::path& path) noexcept {
   }
 }
 
-DicomSegFile readDicomSegInProcess(const fs::path& path) {
+void loadDicomFile(const fs::path& path, const std::string& kind, DcmFileFormat& file) {
   initDcmtk();
   std::error_code ec;
   if (!fs::exists(path, ec)) fail(path, "no such file");
-  if (!fs::is_regular_file(path, ec)) fail(path, "not a DICOM SEG: not a file");
+  if (!fs::is_regular_file(path, ec)) fail(path, "not " + kind + ": not a file");
   if (!dcmDataDict.isDictionaryLoaded()) {
     fail(path, "DCMTK's DICOM dictionary is not loaded (dicom.dic of libdcmtk17; see DCMDICTPATH)");
   }
-  // DcmSegmentation::loadFile() is DcmFileFormat::loadFile() then loadDataset(); done here in
-  // two steps so that the dataset can be checked first (checkDataset()).
-  DcmFileFormat file;
   const OFCondition loaded = file.loadFile(path.c_str());
   if (loaded.bad() || file.getDataset() == nullptr) {
     fail(path, std::string("not a readable DICOM file (damaged, cut short or not DICOM): ") + loaded.text());
   }
+}
+
+DicomSegFile readDicomSegInProcess(const fs::path& path) {
+  // DcmSegmentation::loadFile() is DcmFileFormat::loadFile() then loadDataset(); done here in
+  // two steps so that the dataset can be checked first (checkDataset()).
+  DcmFileFormat file;
+  loadDicomFile(path, "a DICOM SEG", file);
   DcmDataset& ds = *file.getDataset();
   int frames = 0;
   checkDataset(ds, path, frames);

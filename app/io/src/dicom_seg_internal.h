@@ -16,6 +16,8 @@
 
 #include "vh/io/volume_loader.h"
 
+class DcmFileFormat;
+
 namespace vh::io::detail {
 
 namespace fs = std::filesystem;
@@ -80,5 +82,12 @@ std::string mediaStorageSopClassUid(const fs::path& path) noexcept;
 
 /// "CTImageStorage (1.2.840.10008.5.1.4.1.1.2)", or the UID alone when DCMTK does not know it.
 std::string sopClassName(const std::string& uid);
+
+/// Reads the whole DICOM file `path` into `file` with DCMTK (its log off, the RLE decoder
+/// registered), for the SEG and RT Structure Set readers; `kind` names what the file should be
+/// ("a DICOM SEG") in the error for a path that is no file. Afterwards file.getDataset() is set.
+/// @throws LoadError naming `path`: no such file, not a file, DCMTK's dictionary not loaded, or a
+///         damaged, cut short or non-DICOM file (with DCMTK's reason).
+void loadDicomFile(const fs::path& path, const std::string& kind, DcmFileFormat& file);
 
 }  // namespace vh::io::detail
