@@ -17,6 +17,7 @@
 #include <cstdio>
 
 #include "dicom_rtstruct_internal.h"
+#include "dicom_seg_internal.h"
 #include "loader_internal.h"
 #include "vh/io/dicom_rtstruct.h"
 
@@ -27,10 +28,10 @@ namespace fs = std::filesystem;
 using detail::fail;
 using detail::RtStructContour;
 using detail::RtStructFile;
+using detail::SegmentLayers;
 using detail::RtStructRoi;
 
 /// Labels per layer (the layers are uint8).
-constexpr int kLabelsPerLayer = 255;
 /// Self-intersection is looked for in contours of at most this many points (the test is
 /// quadratic in the points; it only decides a notice).
 constexpr std::size_t kMaxPointsCheckedForCrossing = 2000;
@@ -235,27 +236,14 @@ std::vector<std::size_t> rasterise(const RtStructRoi& roi, const haptics::Volume
 }
 
 /// The label layers being filled: voxels on the grid (0 = no ROI), labels used per layer.
-struct Layers {
-  std::size_t voxel_count = 0;
-  std::vector<std::vector<std::uint8_t>> voxels;
-  std::vector<int> used;
-};
-
 /// Puts `voxels` into the first layer where none is taken (a new one when none) as the next
 /// label of that layer; sets info.layer, info.label_value and info.voxel_count.
-void place(Layers& layers, const std::vector<std::size_t>& voxels, SegmentInfo& info) {
-  std::size_t l = 0;
-  while (l < layers.voxels.size() &&
-         (layers.used[l] >= kLabelsPerLayer ||
-          std::any_of(voxels.begin(), voxels.end(), [&](std::size_t n) { return layers.voxels[l][n] != 0; }))) {
-    ++l;
-  }
-  if (l == layers.voxels.size()) {
-    layers.voxels.emplace_back(layers.voxel_count, 0);
-    layers.used.push_back(0);
-  }
+void place(SegmentLayers& layers, const std::vector<std::size_t>& voxels, SegmentInfo& info) {
+  const auto [l, label] = layers.take([&](const std::vector<std::uint8_t>& layer) {
+    return std::none_of(voxels.begin(), voxels.end(), [&](std::size_t n) { return layer[n] != 0; });
+  });
   info.layer = static_cast<int>(l);
-  info.label_value = ++layers.used[l];
+  info.label_value = label;
   for (const std::size_t n : voxels) layers.voxels[l][n] = static_cast<std::uint8_t>(info.label_value);
   info.voxel_count = voxels.size();
 }
@@ -276,7 +264,7 @@ LoadedSegmentation loadDicomRtStruct(const fs::path& path, const LoadedVolume* s
   seg.referenced_series_uids = file.referenced_series_uids;
   checkReferences(file, scan->info, path, seg.notices);
   const haptics::VolumeGeometry& g = scan->field->geometry();
-  Layers layers;
+  SegmentLayers layers;
   layers.voxel_count = g.voxelCount();
   for (const RtStructRoi& roi : file.rois) {
     if (options.cancel != nullptr && options.cancel->load()) throw LoadCancelled(path.string() + ": loading cancelled");

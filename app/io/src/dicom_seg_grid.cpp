@@ -19,11 +19,24 @@
 #include "vh/io/dicom_seg.h"
 
 namespace vh::io {
+
+std::pair<std::size_t, int> detail::SegmentLayers::take(
+    const std::function<bool(const std::vector<std::uint8_t>& layer)>& fits) {
+  std::size_t l = 0;
+  while (l < voxels.size() && (used[l] >= kLabelsPerLayer || !fits(voxels[l]))) ++l;
+  if (l == voxels.size()) {
+    voxels.emplace_back(voxel_count, 0);
+    used.push_back(0);
+  }
+  return {l, ++used[l]};
+}
+
 namespace {
 
 namespace fs = std::filesystem;
 using detail::DicomSegFile;
 using detail::DicomSegFrame;
+using detail::SegmentLayers;
 using detail::fail;
 
 /// A frame within this fraction of a voxel of a grid position is on it (DICOM writes positions
@@ -34,7 +47,6 @@ constexpr double kDirectionCosine = 1e-3;
 /// Spacings agree within this fraction.
 constexpr double kSpacingFraction = 1e-3;
 /// Labels per layer (the layers are uint8).
-constexpr int kLabelsPerLayer = 255;
 
 std::string num(double v, int decimals = 3) {
   char s[64];
@@ -191,12 +203,6 @@ std::vector<SegmentInfo> segmentInfos(const DicomSegFile& file) {
 }
 
 /// The label layers being filled: voxels on the grid (0 = no segment), labels used per layer.
-struct Layers {
-  std::size_t voxel_count = 0;
-  std::vector<std::vector<std::uint8_t>> voxels;
-  std::vector<int> used;
-};
-
 /// Voxel index on the grid of frame pixel n of a frame on slice k.
 std::size_t voxelOf(const DicomSegFile& file, int k, std::size_t n) {
   return n + static_cast<std::size_t>(file.rows) * static_cast<std::size_t>(file.columns) * static_cast<std::size_t>(k);
@@ -229,19 +235,11 @@ bool fitsIn(const std::vector<std::uint8_t>& layer, const DicomSegFile& file, co
 
 /// Puts the segment of `frames` into the first layer it fits in (a new one when none), as the
 /// next label of that layer; sets info.layer, info.label_value and info.voxel_count.
-void placeSegment(Layers& layers, const DicomSegFile& file, const std::vector<std::size_t>& frames,
+void placeSegment(SegmentLayers& layers, const DicomSegFile& file, const std::vector<std::size_t>& frames,
                   const std::vector<int>& k_of, SegmentInfo& info) {
-  std::size_t l = 0;
-  while (l < layers.voxels.size() &&
-         (layers.used[l] >= kLabelsPerLayer || !fitsIn(layers.voxels[l], file, frames, k_of))) {
-    ++l;
-  }
-  if (l == layers.voxels.size()) {
-    layers.voxels.emplace_back(layers.voxel_count, 0);
-    layers.used.push_back(0);
-  }
+  const auto [l, label] = layers.take([&](const std::vector<std::uint8_t>& layer) { return fitsIn(layer, file, frames, k_of); });
   info.layer = static_cast<int>(l);
-  info.label_value = ++layers.used[l];
+  info.label_value = label;
   std::vector<std::uint8_t>& layer = layers.voxels[l];
   for (const std::size_t f : frames) {
     forEachInside(file, file.frames[f], [&](std::size_t n) {
@@ -275,7 +273,7 @@ LoadedSegmentation assemble(const DicomSegFile& file, const haptics::VolumeGeome
     }
     frames_of[it->second].push_back(f);
   }
-  Layers layers;
+  SegmentLayers layers;
   layers.voxel_count = g.voxelCount();
   for (std::size_t s = 0; s < seg.segments.size(); ++s) {
     if (options.cancel != nullptr && options.cancel->load()) throw LoadCancelled(path.string() + ": loading cancelled");

@@ -9,6 +9,7 @@
 #include <cstddef>
 #include <cstdint>
 #include <filesystem>
+#include <functional>
 #include <string>
 #include <vector>
 
@@ -72,6 +73,20 @@ DicomSegFile readDicomSegInProcess(const fs::path& path);
 /// readDicomSegInProcess() (with a notice when `options` allow either).
 /// @throws LoadError naming `path`; LoadCancelled.
 DicomSegFile readDicomSeg(const fs::path& path, const VolumeLoadOptions& options);
+
+/// Segments as labels in uint8 layers on the scan's grid (LoadedSegmentation's layered form):
+/// each segment takes the next label of the first layer where it overlaps no other, a new layer
+/// when none fits, at most kLabelsPerLayer labels a layer.
+struct SegmentLayers {
+  static constexpr int kLabelsPerLayer = 255;
+  std::size_t voxel_count = 0;                     ///< Voxels of the grid (each layer's size).
+  std::vector<std::vector<std::uint8_t>> voxels;   ///< The layers' labels, 0: none.
+  std::vector<int> used;                           ///< Labels taken in each layer.
+
+  /// The first layer with a free label where `fits(layer)` holds (a new layer when none), and
+  /// its next label, now taken. @return {layer index, label (1..kLabelsPerLayer)}.
+  std::pair<std::size_t, int> take(const std::function<bool(const std::vector<std::uint8_t>& layer)>& fits);
+};
 
 /// True when `path` starts with the DICOM preamble: 128 bytes, then "DICM". Never throws.
 bool hasDicomPreamble(const fs::path& path) noexcept;
