@@ -7,6 +7,7 @@
 #include <memory>
 
 #include <QDoubleSpinBox>
+#include <QLabel>
 
 #include <gtest/gtest.h>
 
@@ -82,6 +83,48 @@ TEST(IsovalueBar, IsDisabledWithoutAScene) {
   session.clear();
   EXPECT_FALSE(bar.slider()->isEnabled());
   EXPECT_FALSE(bar.spinBox()->isEnabled());
+}
+
+// The label names the unit of every modality, as the loader read it. The oracle: the units
+// written into the scene's VolumeInfo by hand, one per modality and PET variant.
+TEST(IsovalueBar, TheLabelNamesTheUnitOfEveryModality) {
+  struct Case {
+    std::string modality, value_unit, label, meaning_word;
+  };
+  const Case cases[] = {
+      {"CT", "HU", "Isovalue [HU]", "Hounsfield"},
+      {"PT", "SUVbw", "Isovalue [SUVbw]", "uptake"},
+      {"PT", "Bq/ml", "Isovalue [Bq/ml]", "SUV needs"},
+      {"PT", "", "Isovalue [a.u.]", "names no unit"},
+      {"MR", "", "Isovalue [a.u.]", "scanner"},
+      {"", "", "Isovalue [a.u.]", "names no unit"},
+  };
+  for (const Case& c : cases) {
+    runtime::LoadedScene scene = sphereProbeScene();
+    scene.volume.info.modality = c.modality;
+    scene.volume.info.value_unit = c.value_unit;
+    runtime::Session session;
+    IsovalueBar bar(session);
+    EXPECT_EQ(bar.label()->text().toStdString(), "Isovalue") << "no scene, no unit";
+    session.setScene(scene, nullptr);
+    EXPECT_EQ(bar.label()->text().toStdString(), c.label) << c.modality << " " << c.value_unit;
+    EXPECT_NE(bar.label()->toolTip().toStdString().find(c.meaning_word), std::string::npos)
+        << c.modality << ": " << bar.label()->toolTip().toStdString();
+    session.clear();
+    EXPECT_EQ(bar.label()->text().toStdString(), "Isovalue") << "the unit leaves with the scene";
+  }
+  // A new scene of another modality replaces the unit (no carry-over from the last scan).
+  runtime::Session session;
+  IsovalueBar bar(session);
+  runtime::LoadedScene ct = sphereProbeScene();
+  ct.volume.info.modality = "CT";
+  ct.volume.info.value_unit = "HU";
+  runtime::LoadedScene mr = sphereProbeScene();
+  mr.volume.info.modality = "MR";
+  mr.volume.info.value_unit.clear();
+  session.setScene(ct, nullptr);
+  session.setScene(mr, nullptr);
+  EXPECT_EQ(bar.label()->text().toStdString(), "Isovalue [a.u.]");
 }
 
 }  // namespace

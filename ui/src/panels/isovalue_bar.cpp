@@ -23,6 +23,19 @@ int decimalsFor(double range) {
 
 }  // namespace
 
+ValueUnit valueUnitOf(const io::VolumeInfo& info) {
+  const std::string& u = info.value_unit;
+  if (u == "HU") return {u, "Hounsfield units (CT): air -1000, water 0, bone 400 and above"};
+  if (u == "SUVbw") return {u, "standardised uptake value (body weight): the activity per gram over the dose per gram of body"};
+  if (u == "Bq/ml") return {u, "activity concentration in Bq/ml as stored: the header lacks what SUV needs (see Help > Load Notes)"};
+  if (!u.empty()) return {u, u + ", as the file names it"};
+  if (info.modality == "MR") {
+    return {"a.u.", "arbitrary units: MR intensities are the scanner's, with no physical scale; they differ between scanners and series"};
+  }
+  if (info.modality == "PT") return {"a.u.", "arbitrary units: PET values as stored, the header names no unit (see Help > Load Notes)"};
+  return {"a.u.", "arbitrary units: the file names no unit for its values"};
+}
+
 IsovalueBar::IsovalueBar(runtime::Session& session, QWidget* parent) : QWidget(parent), session_(session) {
   auto* layout = new QHBoxLayout(this);
   layout->setContentsMargins(0, 0, 0, 0);
@@ -38,7 +51,7 @@ IsovalueBar::IsovalueBar(runtime::Session& session, QWidget* parent) : QWidget(p
   spin_->setObjectName("isovalueSpinBox");
   spin_->setKeyboardTracking(false);
   spin_->setMinimumWidth(90);
-  spin_->setToolTip("Isovalue in the data's units (HU for CT)");
+  spin_->setToolTip("Isovalue in the data's units (HU for CT, SUV or Bq/ml for PET, arbitrary units for MR)");
   layout->addWidget(label_);
   layout->addWidget(slider_, 1);
   layout->addWidget(spin_);
@@ -54,7 +67,6 @@ IsovalueBar::IsovalueBar(runtime::Session& session, QWidget* parent) : QWidget(p
 IsovalueBar::~IsovalueBar() { session_.removeObserver(observer_); }
 
 void IsovalueBar::setHistogram(const Histogram& histogram, const std::string& unit) {
-  label_->setText(QString::fromStdString(unit.empty() ? "Isovalue" : "Isovalue [" + unit + "]"));
   const auto [lo, hi] = session_.valueRange();
   slider_->setHistogram(histogram, lo, hi, unit == "HU");
 }
@@ -88,6 +100,14 @@ void IsovalueBar::showSession(runtime::SessionChange what) {
     spin_->setRange(lo, hi);
     spin_->setSingleStep(range >= 100.0 ? std::max(1.0, std::round(range / 200.0)) : range / 200.0);
     if (!on) slider_->clearHistogram();
+    if (on) {
+      const ValueUnit unit = valueUnitOf(session_.loaded().volume.info);
+      label_->setText(QString::fromStdString("Isovalue [" + unit.symbol + "]"));
+      label_->setToolTip(QString::fromStdString("Isovalue in " + unit.symbol + ": " + unit.meaning));
+    } else {
+      label_->setText("Isovalue");
+      label_->setToolTip({});
+    }
   }
   if (on) {
     spin_->setValue(session_.isovalue());

@@ -7,6 +7,9 @@
 
 #include <QWidget>
 
+#include <string>
+
+#include "vh/io/volume_loader.h"
 #include "vh/runtime/session.h"
 #include "vh/ui/panels/histogram.h"
 
@@ -17,6 +20,18 @@ namespace vh::ui {
 
 class HistogramSlider;
 
+/// The unit the isovalue bar puts on a volume's values.
+struct ValueUnit {
+  std::string symbol;   ///< Short, on the label: "HU", "SUVbw", "Bq/ml", "a.u.".
+  std::string meaning;  ///< One sentence for the tooltip: what the values are.
+};
+
+/// The unit of `info`'s values, for every modality: the loader's unit when it names one (CT:
+/// "HU"; PET: "SUVbw" or "Bq/ml" as loaded), else arbitrary units, "a.u." (MR intensities
+/// have no physical scale: they are the scanner's; a PET without Units or a file without a
+/// modality say that the file names no unit).
+ValueUnit valueUnitOf(const io::VolumeInfo& info);
+
 class IsovalueBar : public QWidget {
   Q_OBJECT
 
@@ -26,7 +41,10 @@ class IsovalueBar : public QWidget {
   ~IsovalueBar() override;
 
   /// The histogram of the new scene's volume (data units), its unit ("HU": CT tissue labels).
+  /// The label's unit comes from the session's scene (valueUnitOf()), shown on every scene.
   void setHistogram(const Histogram& histogram, const std::string& unit);
+  /// The label before the slider, "Isovalue [HU]" ("Isovalue" without a scene).
+  QLabel* label() const noexcept { return label_; }
   /// One spin-box step up (+1) or down (-1) (the [ and ] keys).
   void step(int direction);
   /// The slider position <-> data value mapping over the session's value range.
