@@ -19,8 +19,11 @@ packages=(cmake ninja-build g++ pkg-config libeigen3-dev libgtest-dev libgmock-d
 # test also builds and checks the Debian package (tests/packaging/deb_test.sh): dpkg-shlibdeps
 # (dpkg-dev) and file for cpack's Depends, help2man for the man page, desktop-file-utils and
 # shared-mime-info to validate the desktop entry and compile the MIME type.
+# test also starts a real PACS for the PACS client's tests (tests/app/io/pacs_orthanc_fixture.sh):
+# Orthanc, run from the build tree with its own configuration (the package's service is not
+# used), and DCMTK's command-line tools (dcmtk: storescu stores the test series in it).
 if [[ $mode == test ]]; then
-  packages+=(clang libclang-rt-14-dev dpkg-dev file help2man desktop-file-utils shared-mime-info)
+  packages+=(clang libclang-rt-14-dev dpkg-dev file help2man desktop-file-utils shared-mime-info orthanc dcmtk)
 fi
 missing=()
 for p in "${packages[@]}"; do

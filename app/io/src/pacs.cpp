@@ -1,0 +1,485 @@
+// A PACS client on DCMTK's dcmnet (DcmSCU): C-ECHO, C-FIND (Study Root, STUDY and SERIES
+// levels) and C-GET of one series. See vh/io/pacs.h.
+
+#include "vh/io/pacs.h"
+
+#include <algorithm>
+#include <chrono>
+#include <cstdio>
+#include <memory>
+#include <mutex>
+#include <string_view>
+#include <system_error>
+
+#include <dcmtk/config/osconfig.h>  // first, as DCMTK requires
+#include <dcmtk/dcmdata/dcdeftag.h>
+#include <dcmtk/dcmdata/dcfilefo.h>
+#include <dcmtk/dcmdata/dcuid.h>
+#include <dcmtk/dcmnet/diutil.h>
+#include <dcmtk/dcmnet/scu.h>
+#include <dcmtk/oflog/oflog.h>
+
+namespace vh::io {
+namespace {
+
+namespace fs = std::filesystem;
+using Clock = std::chrono::steady_clock;
+
+// DIMSE statuses (PS3.4 C.4.1.1.4, C.4.3.1.4, PS3.7 C).
+constexpr Uint16 kStatusSuccess = 0x0000;
+constexpr Uint16 kStatusCancel = 0xFE00;
+constexpr Uint16 kStatusPending = 0xFF00;
+constexpr Uint16 kStatusPendingWarning = 0xFF01;
+constexpr Uint16 kStatusStoreOutOfResources = 0xA700;
+// A C-GET ending "with one or more failures or warnings" (PS3.4 C.4.3.1.4).
+constexpr Uint16 kStatusGetWarning = 0xB000;
+
+/// dcmnet's console log off (its messages would reach stderr; PacsError says what failed).
+void initDcmtk() {
+  static std::once_flag once;
+  std::call_once(once, [] { OFLog::configure(OFLogger::OFF_LOG_LEVEL); });
+}
+
+std::string trim(std::string_view s) {
+  const auto first = s.find_first_not_of(" \t\r\n");
+  if (first == std::string_view::npos) return {};
+  return std::string(s.substr(first, s.find_last_not_of(" \t\r\n") - first + 1));
+}
+
+std::string hex4(Uint16 v) {
+  char buf[8];
+  std::snprintf(buf, sizeof buf, "0x%04X", static_cast<unsigned>(v));
+  return buf;
+}
+
+PacsError fail(const PacsServer& server, const std::string& what) {
+  return PacsError("PACS " + server.describe() + ": " + what);
+}
+
+/// The settings a DICOM association needs, checked before any connection.
+void checkServer(const PacsServer& s) {
+  if (trim(s.host).empty()) throw fail(s, "no host name given");
+  if (s.port < 1 || s.port > 65535) throw fail(s, "port " + std::to_string(s.port) + " is not in 1..65535");
+  const auto check_aet = [&](const std::string& aet, const char* whose) {
+    const std::string t = trim(aet);
+    if (t.empty() || t.size() > 16 || t.find('\\') != std::string::npos) {
+      throw fail(s, std::string(whose) + " AE title '" + aet + "' must have 1 to 16 characters, no backslash");
+    }
+  };
+  check_aet(s.called_aet, "the called (server's)");
+  check_aet(s.calling_aet, "the calling (our)");
+}
+
+std::string text(DcmItem* ds, const DcmTagKey& tag) {
+  OFString v;
+  if (ds == nullptr || ds->findAndGetOFStringArray(tag, v).bad()) return {};
+  return trim(std::string_view(v.c_str(), v.length()));
+}
+
+int number(DcmItem* ds, const DcmTagKey& tag) {
+  const std::string v = text(ds, tag);
+  try {
+    std::size_t used = 0;
+    const int n = std::stoi(v, &used);
+    return used == v.size() && n >= 0 ? n : -1;
+  } catch (const std::exception&) {
+    return -1;
+  }
+}
+
+/// Our DcmSCU: an association to `server`, and for C-GET the files written as they come.
+class Scu : public DcmSCU {
+ public:
+  explicit Scu(const PacsServer& server) : server_(server) {
+    initDcmtk();
+    checkServer(server);
+    setAETitle(trim(server.calling_aet).c_str());
+    setPeerAETitle(trim(server.called_aet).c_str());
+    setPeerHostName(trim(server.host).c_str());
+    setPeerPort(static_cast<Uint16>(server.port));
+    const int connect_s = std::max(1, server.connect_timeout_s);
+    // A process-wide DCMTK setting (the TCP connection's timeout): every association sets it.
+    setConnectionTimeout(connect_s);
+    setACSETimeout(static_cast<Uint32>(connect_s));
+    setDIMSEBlockingMode(DIMSE_NONBLOCKING);
+    setDIMSETimeout(static_cast<Uint32>(std::max(1, server.response_timeout_s)));
+    setVerbosePCMode(OFFalse);
+  }
+  ~Scu() override {
+    if (isConnected()) abortAssociation();
+  }
+  Scu(const Scu&) = delete;
+  Scu& operator=(const Scu&) = delete;
+
+  /// Proposes `abstract_syntax` (as SCU) in the uncompressed transfer syntaxes.
+  void propose(const char* abstract_syntax, T_ASC_SC_ROLE role = ASC_SC_ROLE_DEFAULT) {
+    OFList<OFString> syntaxes;
+    syntaxes.push_back(UID_LittleEndianExplicitTransferSyntax);
+    syntaxes.push_back(UID_LittleEndianImplicitTransferSyntax);
+    if (addPresentationContext(abstract_syntax, syntaxes, role).bad()) {
+      throw fail(server_, std::string("cannot propose ") + dcmFindNameOfUID(abstract_syntax, abstract_syntax));
+    }
+  }
+
+  /// Opens the association; throws what failed, naming the server.
+  void connect() {
+    OFCondition cond = initNetwork();
+    if (cond.bad()) throw fail(server_, std::string("cannot start the network: ") + cond.text());
+    cond = negotiateAssociation();
+    if (cond.good()) return;
+    const std::string why = cond.text();
+    if (cond == DUL_ASSOCIATIONREJECTED) {
+      throw fail(server_, "the server rejected the association (" + why + "): check the called AE title '" +
+                              trim(server_.called_aet) + "' and that the server knows the calling AE title '" +
+                              trim(server_.calling_aet) + "'");
+    }
+    if (cond == NET_EC_NoAcceptablePresentationContexts) {
+      throw fail(server_, "the server accepts none of the services asked for (" + why + ")");
+    }
+    throw fail(server_, "no connection (" + why + "): is the server running on that host and port?");
+  }
+
+  /// The accepted presentation context for `abstract_syntax`; throws when the server refused it.
+  T_ASC_PresentationContextID contextFor(const char* abstract_syntax, const char* what) {
+    const T_ASC_PresentationContextID id = findAnyPresentationContextID(abstract_syntax, "");
+    if (id == 0) throw fail(server_, std::string("the server does not offer ") + what);
+    return id;
+  }
+
+  /// Ends the association politely (a failed release is no error: the work is done).
+  void release() {
+    if (isConnected()) releaseAssociation();
+  }
+
+  // ---- C-GET ----
+
+  /// Prepares the C-STORE sub-operations' handling: files go to `folder`.
+  void startRetrieve(const fs::path& folder, const PacsRetrieveOptions& options, T_ASC_PresentationContextID get_id) {
+    folder_ = folder;
+    options_ = &options;
+    get_id_ = get_id;
+    progress_.total = options.expected_instances;
+  }
+
+  const std::vector<fs::path>& files() const { return files_; }
+  bool cancelRequested() const { return options_ != nullptr && options_->cancel != nullptr && options_->cancel->load(); }
+  bool cancelSent() const { return cancel_sent_; }
+  Uint16 finalStatus() const { return final_status_; }
+  bool finalReceived() const { return final_received_; }
+  int failedSubops() const { return failed_; }
+  const std::string& writeError() const { return write_error_; }
+
+ protected:
+  OFCondition handleSTORERequest(const T_ASC_PresentationContextID /*presID*/, DcmDataset* incoming,
+                                 OFBool& continue_session, Uint16& store_status) override {
+    std::unique_ptr<DcmDataset> dataset(incoming);
+    if (!dataset) return DIMSE_NULLKEY;
+    const std::string sop_uid = text(dataset.get(), DCM_SOPInstanceUID);
+    std::string name = sop_uid.empty() ? "instance-" + std::to_string(files_.size() + 1) : sop_uid;
+    for (char& c : name) {
+      if (c != '.' && (c < '0' || c > '9') && (c < 'A' || c > 'Z') && (c < 'a' || c > 'z') && c != '-') c = '_';
+    }
+    const fs::path path = folder_ / (name + ".dcm");
+    DcmFileFormat file(dataset.release(), OFFalse /* takes ownership */);
+    const OFCondition cond = file.saveFile(path.c_str(), EXS_Unknown, EET_ExplicitLength, EGL_recalcGL,
+                                           EPD_noChange, 0, 0, EWM_fileformat);
+    if (cond.bad()) {
+      std::error_code ec;
+      fs::remove(path, ec);
+      if (write_error_.empty()) write_error_ = "cannot write " + path.string() + ": " + cond.text();
+      store_status = kStatusStoreOutOfResources;
+      continue_session = OFFalse;
+      return EC_Normal;
+    }
+    if (std::find(files_.begin(), files_.end(), path) == files_.end()) files_.push_back(path);
+    store_status = kStatusSuccess;
+    progress_.received = static_cast<int>(files_.size());
+    progress_.last_file = path;
+    if (options_->progress) options_->progress(progress_);
+    if (cancelRequested()) onCancel(continue_session);
+    return EC_Normal;
+  }
+
+  OFCondition handleCGETResponse(const T_ASC_PresentationContextID presID, RetrieveResponse* response,
+                                 OFBool& continue_session) override {
+    const OFCondition cond = DcmSCU::handleCGETResponse(presID, response, continue_session);
+    if (response == nullptr) return cond;
+    const Uint16 status = response->m_status;
+    failed_ = std::max(failed_, static_cast<int>(response->m_numberOfFailedSubops));
+    if (status == kStatusPending || status == kStatusPendingWarning) {
+      saw_pending_ = true;
+      const int total = static_cast<int>(response->m_numberOfCompletedSubops + response->m_numberOfFailedSubops +
+                                         response->m_numberOfWarningSubops + response->m_numberOfRemainingSubops);
+      if (progress_.total < 0 && total > 0) progress_.total = total;
+      progress_.failed = failed_;
+      // Between two sub-operations: the moment to ask the server to stop.
+      if (cancelRequested()) onCancel(continue_session);
+    } else {
+      final_received_ = true;
+      final_status_ = status;
+      continue_session = OFFalse;
+    }
+    return cond;
+  }
+
+ private:
+  /// Asks the server to stop (C-CANCEL, once); gives up waiting after the grace period.
+  void onCancel(OFBool& continue_session) {
+    if (!cancel_sent_) {
+      cancel_sent_ = true;
+      cancel_time_ = Clock::now();
+      sendCANCELRequest(get_id_);
+      return;
+    }
+    const double waited = std::chrono::duration<double>(Clock::now() - cancel_time_).count();
+    if (waited > options_->cancel_grace_s) continue_session = OFFalse;
+  }
+
+  PacsServer server_;
+  fs::path folder_;
+  const PacsRetrieveOptions* options_ = nullptr;
+  T_ASC_PresentationContextID get_id_ = 0;
+  PacsRetrieveProgress progress_;
+  std::vector<fs::path> files_;
+  std::string write_error_;
+  bool saw_pending_ = false;
+  bool cancel_sent_ = false;
+  Clock::time_point cancel_time_;
+  bool final_received_ = false;
+  Uint16 final_status_ = kStatusSuccess;
+  int failed_ = 0;
+};
+
+/// Runs one C-FIND of `keys` at `level`; returns the matches' datasets.
+std::vector<std::unique_ptr<DcmDataset>> find(const PacsServer& server, DcmDataset& keys) {
+  Scu scu(server);
+  scu.propose(UID_FINDStudyRootQueryRetrieveInformationModel);
+  scu.connect();
+  const T_ASC_PresentationContextID id =
+      scu.contextFor(UID_FINDStudyRootQueryRetrieveInformationModel, "queries (C-FIND, Study Root model)");
+  OFList<QRResponse*> responses;
+  const OFCondition cond = scu.sendFINDRequest(id, &keys, &responses);
+  std::vector<std::unique_ptr<DcmDataset>> matches;
+  Uint16 final_status = kStatusSuccess;
+  bool final_seen = false;
+  for (QRResponse* r : responses) {
+    std::unique_ptr<QRResponse> owned(r);
+    if (r->m_status == kStatusPending || r->m_status == kStatusPendingWarning) {
+      if (r->m_dataset != nullptr) {
+        matches.emplace_back(r->m_dataset);
+        r->m_dataset = nullptr;  // now ours
+      }
+    } else {
+      final_seen = true;
+      final_status = r->m_status;
+    }
+  }
+  if (cond.bad()) throw fail(server, std::string("C-FIND failed: ") + cond.text());
+  if (!final_seen) throw fail(server, "C-FIND failed: the server sent no final response");
+  if (final_status != kStatusSuccess) {
+    throw fail(server, "C-FIND failed: status " + hex4(final_status) + " (" + DU_cfindStatusString(final_status) + ")");
+  }
+  scu.release();
+  return matches;
+}
+
+PacsSeries seriesFrom(DcmDataset* ds) {
+  PacsSeries s;
+  s.study_uid = text(ds, DCM_StudyInstanceUID);
+  s.series_uid = text(ds, DCM_SeriesInstanceUID);
+  s.modality = text(ds, DCM_Modality);
+  s.description = text(ds, DCM_SeriesDescription);
+  s.number = number(ds, DCM_SeriesNumber);
+  s.instance_count = number(ds, DCM_NumberOfSeriesRelatedInstances);
+  return s;
+}
+
+/// The keys of a SERIES-level query: what we want back, `study_uid` / `series_uid` / `modality`
+/// as matching keys when not empty.
+void seriesKeys(DcmDataset& keys, const std::string& study_uid, const std::string& series_uid,
+                const std::string& modality) {
+  keys.putAndInsertString(DCM_QueryRetrieveLevel, "SERIES");
+  keys.putAndInsertString(DCM_StudyInstanceUID, study_uid.c_str());
+  keys.putAndInsertString(DCM_SeriesInstanceUID, series_uid.c_str());
+  keys.putAndInsertString(DCM_Modality, modality.c_str());
+  keys.putAndInsertString(DCM_SeriesDescription, "");
+  keys.putAndInsertString(DCM_SeriesNumber, "");
+  keys.putAndInsertString(DCM_NumberOfSeriesRelatedInstances, "");
+}
+
+}  // namespace
+
+std::string PacsServer::describe() const {
+  return trim(called_aet) + " at " + trim(host) + ":" + std::to_string(port);
+}
+
+void pacsEcho(const PacsServer& server) {
+  Scu scu(server);
+  scu.propose(UID_VerificationSOPClass);
+  scu.connect();
+  const T_ASC_PresentationContextID id = scu.contextFor(UID_VerificationSOPClass, "verification (C-ECHO)");
+  const OFCondition cond = scu.sendECHORequest(id);
+  if (cond.bad()) throw fail(server, std::string("C-ECHO failed: ") + cond.text());
+  scu.release();
+}
+
+std::vector<PacsStudy> pacsFindStudies(const PacsServer& server, const PacsStudyQuery& query) {
+  DcmDataset keys;
+  keys.putAndInsertString(DCM_QueryRetrieveLevel, "STUDY");
+  keys.putAndInsertString(DCM_PatientName, query.patient_name.c_str());
+  keys.putAndInsertString(DCM_PatientID, query.patient_id.c_str());
+  keys.putAndInsertString(DCM_PatientBirthDate, "");
+  keys.putAndInsertString(DCM_PatientSex, "");
+  keys.putAndInsertString(DCM_StudyInstanceUID, "");
+  keys.putAndInsertString(DCM_StudyDate, query.study_date.c_str());
+  keys.putAndInsertString(DCM_StudyTime, "");
+  keys.putAndInsertString(DCM_StudyDescription, "");
+  keys.putAndInsertString(DCM_AccessionNumber, "");
+  keys.putAndInsertString(DCM_ModalitiesInStudy, "");
+  keys.putAndInsertString(DCM_NumberOfStudyRelatedSeries, "");
+  std::vector<PacsStudy> studies;
+  for (const auto& ds : find(server, keys)) {
+    PacsStudy s;
+    s.patient_name = text(ds.get(), DCM_PatientName);
+    s.patient_id = text(ds.get(), DCM_PatientID);
+    s.patient_birth_date = text(ds.get(), DCM_PatientBirthDate);
+    s.patient_sex = text(ds.get(), DCM_PatientSex);
+    s.study_uid = text(ds.get(), DCM_StudyInstanceUID);
+    s.study_date = text(ds.get(), DCM_StudyDate);
+    s.study_time = text(ds.get(), DCM_StudyTime);
+    s.description = text(ds.get(), DCM_StudyDescription);
+    s.accession_number = text(ds.get(), DCM_AccessionNumber);
+    s.modalities = text(ds.get(), DCM_ModalitiesInStudy);
+    s.series_count = number(ds.get(), DCM_NumberOfStudyRelatedSeries);
+    if (!s.study_uid.empty()) studies.push_back(std::move(s));
+  }
+  return studies;
+}
+
+std::vector<PacsSeries> pacsFindSeries(const PacsServer& server, const std::string& study_uid,
+                                       const std::string& modality) {
+  if (trim(study_uid).empty()) throw fail(server, "a series query needs the Study Instance UID");
+  DcmDataset keys;
+  seriesKeys(keys, trim(study_uid), "", trim(modality));
+  std::vector<PacsSeries> series;
+  for (const auto& ds : find(server, keys)) {
+    PacsSeries s = seriesFrom(ds.get());
+    if (s.study_uid.empty()) s.study_uid = trim(study_uid);
+    if (!s.series_uid.empty()) series.push_back(std::move(s));
+  }
+  std::stable_sort(series.begin(), series.end(), [](const PacsSeries& a, const PacsSeries& b) { return a.number < b.number; });
+  return series;
+}
+
+PacsSeries pacsFindSeriesByUid(const PacsServer& server, const std::string& series_uid) {
+  if (trim(series_uid).empty()) throw fail(server, "no Series Instance UID given");
+  DcmDataset keys;
+  seriesKeys(keys, "", trim(series_uid), "");
+  for (const auto& ds : find(server, keys)) {
+    PacsSeries s = seriesFrom(ds.get());
+    if (s.series_uid == trim(series_uid) && !s.study_uid.empty()) return s;
+  }
+  throw fail(server, "no series with Series Instance UID " + trim(series_uid));
+}
+
+std::vector<PacsPatient> pacsPatientsOf(const std::vector<PacsStudy>& studies) {
+  std::vector<PacsPatient> patients;
+  for (const PacsStudy& s : studies) {
+    const auto same = [&](const PacsPatient& p) {
+      return s.patient_id.empty() ? p.id.empty() && p.name == s.patient_name : p.id == s.patient_id;
+    };
+    auto it = std::find_if(patients.begin(), patients.end(), same);
+    if (it == patients.end()) {
+      patients.push_back({s.patient_name, s.patient_id, s.patient_birth_date, s.patient_sex, {}});
+      it = std::prev(patients.end());
+    }
+    it->studies.push_back(s);
+  }
+  return patients;
+}
+
+PacsRetrieveResult pacsRetrieveSeries(const PacsServer& server, const std::string& study_uid,
+                                      const std::string& series_uid, const fs::path& out_dir,
+                                      const PacsRetrieveOptions& options) {
+  const auto t0 = Clock::now();
+  PacsRetrieveOptions opts = options;
+  std::string study = trim(study_uid);
+  const std::string series = trim(series_uid);
+  if (series.empty()) throw fail(server, "no Series Instance UID given");
+  if (study.empty() || opts.expected_instances < 0) {
+    const PacsSeries found = pacsFindSeriesByUid(server, series);
+    if (study.empty()) study = found.study_uid;
+    if (opts.expected_instances < 0) opts.expected_instances = found.instance_count;
+  }
+  std::error_code ec;
+  fs::create_directories(out_dir, ec);
+  if (ec || !fs::is_directory(out_dir)) {
+    throw fail(server, "cannot create the folder " + out_dir.string() + (ec ? ": " + ec.message() : ""));
+  }
+
+  Scu scu(server);
+  scu.propose(UID_GETStudyRootQueryRetrieveInformationModel);
+  // The files come back as C-STORE sub-operations on this association: we are their SCP.
+  for (int i = 0; i < numberOfDcmLongSCUStorageSOPClassUIDs; ++i) {
+    scu.propose(dcmLongSCUStorageSOPClassUIDs[i], ASC_SC_ROLE_SCP);
+  }
+  scu.connect();
+  const T_ASC_PresentationContextID id =
+      scu.contextFor(UID_GETStudyRootQueryRetrieveInformationModel, "retrieval by C-GET (Study Root model)");
+  DcmDataset keys;
+  keys.putAndInsertString(DCM_QueryRetrieveLevel, "SERIES");
+  keys.putAndInsertString(DCM_StudyInstanceUID, study.c_str());
+  keys.putAndInsertString(DCM_SeriesInstanceUID, series.c_str());
+  scu.startRetrieve(out_dir, opts, id);
+  const OFCondition cond = scu.sendCGETRequest(id, &keys, nullptr);
+
+  PacsRetrieveResult result;
+  result.folder = out_dir;
+  result.failed = scu.failedSubops();
+  const bool cancelled = scu.cancelRequested() && (scu.cancelSent() || !scu.finalReceived());
+  if (cancelled) {
+    // Stopped on purpose: the server ended the C-GET (status Cancel) or we stop listening.
+    if (scu.finalReceived()) {
+      result.cancel_acknowledged = scu.finalStatus() == kStatusCancel;
+      scu.release();
+    } else {
+      scu.abortAssociation();
+    }
+    for (const fs::path& f : scu.files()) fs::remove(f, ec);
+    result.cancelled = true;
+    result.seconds = std::chrono::duration<double>(Clock::now() - t0).count();
+    return result;
+  }
+  const auto remove_files = [&] {
+    for (const fs::path& f : scu.files()) fs::remove(f, ec);
+  };
+  if (!scu.writeError().empty()) {
+    remove_files();
+    throw fail(server, "C-GET of series " + series + ": " + scu.writeError());
+  }
+  if (cond.bad()) {
+    remove_files();
+    throw fail(server, "C-GET of series " + series + " failed after " + std::to_string(scu.files().size()) +
+                           " files: " + cond.text());
+  }
+  const Uint16 status = scu.finalStatus();
+  const bool warning = status == kStatusGetWarning || (status & 0xF000) == 0xB000;
+  if (!scu.finalReceived() || (status != kStatusSuccess && !warning && status != kStatusCancel)) {
+    remove_files();
+    throw fail(server, "C-GET of series " + series + " failed: status " + hex4(status) + " (" +
+                           DU_cgetStatusString(status) + ")");
+  }
+  scu.release();
+  if (scu.files().empty()) {
+    throw fail(server, "C-GET of series " + series + " brought no files" +
+                           (result.failed > 0 ? " (" + std::to_string(result.failed) +
+                                                    " failed on the server: a storage class or transfer syntax we "
+                                                    "did not offer?)"
+                                              : ""));
+  }
+  result.files = scu.files();
+  result.seconds = std::chrono::duration<double>(Clock::now() - t0).count();
+  return result;
+}
+
+}  // namespace vh::io
