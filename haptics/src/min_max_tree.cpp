@@ -152,6 +152,106 @@ void MinMaxTree::setLipschitz(std::vector<float> per_brick) {
   }
 }
 
+namespace {
+// Clips a box of node indices to a level's nodes; false when it is empty.
+bool clipBox(std::array<int, 3>& lo, std::array<int, 3>& hi, const std::array<int, 3>& n) {
+  for (int a = 0; a < 3; ++a) {
+    lo[a] = std::max(lo[a], 0);
+    hi[a] = std::min(hi[a], n[a] - 1);
+    if (lo[a] > hi[a]) return false;
+  }
+  return true;
+}
+}  // namespace
+
+template <typename T>
+void MinMaxTree::refreshBricks(const T* voxels, std::array<int, 3> lo, std::array<int, 3> hi) noexcept {
+  if (levels_.empty() || !clipBox(lo, hi, levels_[0].n)) return;
+  const std::ptrdiff_t sy = dims_[0], sz = static_cast<std::ptrdiff_t>(dims_[0]) * dims_[1];
+  Level& l0 = levels_[0];
+  for (int c = lo[2]; c <= hi[2]; ++c)
+    for (int b = lo[1]; b <= hi[1]; ++b)
+      for (int a = lo[0]; a <= hi[0]; ++a) {
+        // As Build(): brick a reads voxels [4a, 4a + 4] clipped to the grid.
+        float l = kInf, h = -kInf;
+        const int x1 = std::min(kBrickCells * a + kBrickCells, dims_[0] - 1);
+        const int y1 = std::min(kBrickCells * b + kBrickCells, dims_[1] - 1);
+        const int z1 = std::min(kBrickCells * c + kBrickCells, dims_[2] - 1);
+        for (int z = kBrickCells * c; z <= z1; ++z)
+          for (int y = kBrickCells * b; y <= y1; ++y) {
+            const T* row = voxels + z * sz + y * sy;
+            for (int x = kBrickCells * a; x <= x1; ++x) {
+              const float v = static_cast<float>(row[x]);
+              l = std::min(l, v);
+              h = std::max(h, v);
+            }
+          }
+        const std::size_t o = static_cast<std::size_t>(a) + static_cast<std::size_t>(l0.n[0]) * (b + static_cast<std::size_t>(l0.n[1]) * c);
+        l0.range[2 * o] = l;
+        l0.range[2 * o + 1] = h;
+      }
+  // Each upper node merges the 2 x 2 x 2 nodes below it (clipped), as Build()'s mergeAxis().
+  for (std::size_t level = 1; level < levels_.size(); ++level) {
+    const Level& below = levels_[level - 1];
+    Level& l = levels_[level];
+    for (int a = 0; a < 3; ++a) {
+      lo[a] >>= 1;
+      hi[a] >>= 1;
+    }
+    clipBox(lo, hi, l.n);
+    for (int c = lo[2]; c <= hi[2]; ++c)
+      for (int b = lo[1]; b <= hi[1]; ++b)
+        for (int a = lo[0]; a <= hi[0]; ++a) {
+          float mn = kInf, mx = -kInf;
+          for (int z = 2 * c; z <= std::min(2 * c + 1, below.n[2] - 1); ++z)
+            for (int y = 2 * b; y <= std::min(2 * b + 1, below.n[1] - 1); ++y)
+              for (int x = 2 * a; x <= std::min(2 * a + 1, below.n[0] - 1); ++x) {
+                const std::size_t i = static_cast<std::size_t>(x) + static_cast<std::size_t>(below.n[0]) * (y + static_cast<std::size_t>(below.n[1]) * z);
+                mn = std::min(mn, below.range[2 * i]);
+                mx = std::max(mx, below.range[2 * i + 1]);
+              }
+          const std::size_t o = static_cast<std::size_t>(a) + static_cast<std::size_t>(l.n[0]) * (b + static_cast<std::size_t>(l.n[1]) * c);
+          l.range[2 * o] = mn;
+          l.range[2 * o + 1] = mx;
+        }
+  }
+}
+
+void MinMaxTree::setBrickLipschitz(int a, int b, int c, float value) noexcept {
+  if (levels_.empty() || levels_[0].lipschitz.empty()) return;
+  Level& l = levels_[0];
+  if (a < 0 || b < 0 || c < 0 || a >= l.n[0] || b >= l.n[1] || c >= l.n[2]) return;
+  l.lipschitz[static_cast<std::size_t>(a) + static_cast<std::size_t>(l.n[0]) * (b + static_cast<std::size_t>(l.n[1]) * c)] = value;
+}
+
+void MinMaxTree::propagateLipschitz(std::array<int, 3> lo, std::array<int, 3> hi) noexcept {
+  if (levels_.empty() || levels_[0].lipschitz.empty() || !clipBox(lo, hi, levels_[0].n)) return;
+  for (std::size_t level = 1; level < levels_.size(); ++level) {
+    const Level& below = levels_[level - 1];
+    Level& l = levels_[level];
+    for (int a = 0; a < 3; ++a) {
+      lo[a] >>= 1;
+      hi[a] >>= 1;
+    }
+    clipBox(lo, hi, l.n);
+    for (int c = lo[2]; c <= hi[2]; ++c)
+      for (int b = lo[1]; b <= hi[1]; ++b)
+        for (int a = lo[0]; a <= hi[0]; ++a) {
+          float m = 0.0f;
+          for (int z = 2 * c; z <= std::min(2 * c + 1, below.n[2] - 1); ++z)
+            for (int y = 2 * b; y <= std::min(2 * b + 1, below.n[1] - 1); ++y)
+              for (int x = 2 * a; x <= std::min(2 * a + 1, below.n[0] - 1); ++x)
+                m = std::max(m, below.lipschitz[static_cast<std::size_t>(x) + static_cast<std::size_t>(below.n[0]) * (y + static_cast<std::size_t>(below.n[1]) * z)]);
+          l.lipschitz[static_cast<std::size_t>(a) + static_cast<std::size_t>(l.n[0]) * (b + static_cast<std::size_t>(l.n[1]) * c)] = m;
+        }
+  }
+}
+
+template void MinMaxTree::refreshBricks<std::uint8_t>(const std::uint8_t*, std::array<int, 3>, std::array<int, 3>) noexcept;
+template void MinMaxTree::refreshBricks<std::int16_t>(const std::int16_t*, std::array<int, 3>, std::array<int, 3>) noexcept;
+template void MinMaxTree::refreshBricks<std::uint16_t>(const std::uint16_t*, std::array<int, 3>, std::array<int, 3>) noexcept;
+template void MinMaxTree::refreshBricks<float>(const float*, std::array<int, 3>, std::array<int, 3>) noexcept;
+
 template MinMaxTree MinMaxTree::Build<std::uint8_t>(const std::uint8_t*, const std::array<int, 3>&);
 template MinMaxTree MinMaxTree::Build<std::int16_t>(const std::int16_t*, const std::array<int, 3>&);
 template MinMaxTree MinMaxTree::Build<std::uint16_t>(const std::uint16_t*, const std::array<int, 3>&);

@@ -175,14 +175,12 @@ void ScalarVolume::initialise() {
   // for every cell within one cell of its own (their edges are booked within one brick): an arc that leaves its chord by far less than a voxel stays covered, and
   // one outlier voxel raises the bound only within a brick of it (not the whole volume).
   const std::array<int, 3> nb = scan.bricks;
+  bricks_ = nb;
   std::vector<float> own(scan.step[0].size());
   lipschitz_ = 0.0;
   for (std::size_t b = 0; b < own.size(); ++b) {
-    const Eigen::Vector3d step(scan.step[0][b], scan.step[1][b], scan.step[2][b]);
-    const double L = std::abs(scale_) * step.cwiseQuotient(g.spacing_m).norm() * (1.0 + 1e-9);
-    // Capped at the largest float: a brick next to a -3e38 "no data" fill keeps a finite bound.
-    const float f = static_cast<float>(std::min(L, static_cast<double>(std::numeric_limits<float>::max())));
-    own[b] = static_cast<double>(f) >= L || f == std::numeric_limits<float>::max() ? f : std::nextafter(f, std::numeric_limits<float>::infinity());
+    const double step[3] = {scan.step[0][b], scan.step[1][b], scan.step[2][b]};
+    own[b] = brickBound(step);
     lipschitz_ = std::max(lipschitz_, static_cast<double>(own[b]));
   }
   std::vector<float> dilated(own.size(), 0.0f);
@@ -197,8 +195,118 @@ void ScalarVolume::initialise() {
         dilated[static_cast<std::size_t>(a) + static_cast<std::size_t>(nb[0]) * (b + static_cast<std::size_t>(nb[1]) * c)] = m;
       }
   tree_.setLipschitz(std::move(dilated));
+  own_lipschitz_ = std::move(own);
+  raw_min_ = scan.lo;
+  raw_max_ = scan.hi;
   min_value_ = std::min(scale_ * scan.lo + offset_, scale_ * scan.hi + offset_);
   max_value_ = std::max(scale_ * scan.lo + offset_, scale_ * scan.hi + offset_);
+}
+
+float ScalarVolume::brickBound(const double* step) const noexcept {
+  const Eigen::Vector3d s(step[0], step[1], step[2]);
+  const double L = std::abs(scale_) * s.cwiseQuotient(geometry_.spacing_m).norm() * (1.0 + 1e-9);
+  // Capped at the largest float: a brick next to a -3e38 "no data" fill keeps a finite bound.
+  const float f = static_cast<float>(std::min(L, static_cast<double>(std::numeric_limits<float>::max())));
+  return static_cast<double>(f) >= L || f == std::numeric_limits<float>::max()
+             ? f
+             : std::nextafter(f, std::numeric_limits<float>::infinity());
+}
+
+double ScalarVolume::rawAt(std::size_t idx) const noexcept {
+  switch (type_) {
+    case VoxelType::kUInt8: return reinterpret_cast<const std::uint8_t*>(bytes_.data())[idx];
+    case VoxelType::kInt16: return reinterpret_cast<const std::int16_t*>(bytes_.data())[idx];
+    case VoxelType::kUInt16: return reinterpret_cast<const std::uint16_t*>(bytes_.data())[idx];
+    case VoxelType::kFloat32: return reinterpret_cast<const float*>(bytes_.data())[idx];
+  }
+  return 0.0;
+}
+
+void ScalarVolume::writeRaw(std::size_t idx, double raw) noexcept {
+  switch (type_) {
+    case VoxelType::kUInt8: reinterpret_cast<std::uint8_t*>(bytes_.data())[idx] = static_cast<std::uint8_t>(raw); break;
+    case VoxelType::kInt16: reinterpret_cast<std::int16_t*>(bytes_.data())[idx] = static_cast<std::int16_t>(raw); break;
+    case VoxelType::kUInt16: reinterpret_cast<std::uint16_t*>(bytes_.data())[idx] = static_cast<std::uint16_t>(raw); break;
+    case VoxelType::kFloat32: reinterpret_cast<float*>(bytes_.data())[idx] = static_cast<float>(raw); break;
+  }
+}
+
+void ScalarVolume::refreshRegion(std::array<int, 3> lo, std::array<int, 3> hi) noexcept {
+  for (int a = 0; a < 3; ++a) {
+    lo[a] = std::max(lo[a], 0);
+    hi[a] = std::min(hi[a], geometry_.dims[a] - 1);
+    if (lo[a] > hi[a] || bytes_.empty()) return;
+  }
+  switch (type_) {
+    case VoxelType::kUInt8: refreshRegionT<std::uint8_t>(lo, hi); break;
+    case VoxelType::kInt16: refreshRegionT<std::int16_t>(lo, hi); break;
+    case VoxelType::kUInt16: refreshRegionT<std::uint16_t>(lo, hi); break;
+    case VoxelType::kFloat32: refreshRegionT<float>(lo, hi); break;
+  }
+}
+
+template <typename T>
+void ScalarVolume::refreshRegionT(const std::array<int, 3>& lo, const std::array<int, 3>& hi) noexcept {
+  constexpr int kB = MinMaxTree::kBrickCells;
+  const auto& n = geometry_.dims;
+  const T* d = reinterpret_cast<const T*>(bytes_.data());
+  const std::ptrdiff_t sy = n[0], sz = static_cast<std::ptrdiff_t>(n[0]) * n[1];
+  const auto brickIndex = [&](int a, int b, int c) {
+    return static_cast<std::size_t>(a) + static_cast<std::size_t>(bricks_[0]) * (b + static_cast<std::size_t>(bricks_[1]) * c);
+  };
+  // Ranges: brick a reads voxels [4a, 4a + 4], so the bricks with 4a <= hi and 4a + 4 >= lo.
+  std::array<int, 3> r0, r1, e0, e1;
+  for (int a = 0; a < 3; ++a) {
+    r0[a] = std::max(0, (lo[a] + kB - 1) / kB - 1);
+    r1[a] = std::min(bricks_[a] - 1, hi[a] / kB);
+    // Edges (v, v + 1) are booked to the brick of cell min(v, n - 2); those touching a written
+    // voxel x have v in {x - 1, x}.
+    e0[a] = std::max(0, lo[a] - 1) / kB;
+    e1[a] = std::min(bricks_[a] - 1, std::min(hi[a], n[a] - 2) / kB);
+  }
+  tree_.refreshBricks(d, r0, r1);
+  for (int c = e0[2]; c <= e1[2]; ++c)
+    for (int b = e0[1]; b <= e1[1]; ++b)
+      for (int a = e0[0]; a <= e1[0]; ++a) {
+        // The voxels whose home cell lies in this brick: [4a, 4a + 3], and n - 1 in the last one.
+        const int brick[3] = {a, b, c};
+        int v0[3], v1[3];
+        for (int ax = 0; ax < 3; ++ax) {
+          v0[ax] = kB * brick[ax];
+          v1[ax] = kB * brick[ax] + kB - 1 >= n[ax] - 2 ? n[ax] - 1 : kB * brick[ax] + kB - 1;
+        }
+        double step[3] = {0.0, 0.0, 0.0};
+        for (std::ptrdiff_t k = v0[2]; k <= v1[2]; ++k)
+          for (std::ptrdiff_t j = v0[1]; j <= v1[1]; ++j) {
+            const T* row = d + k * sz + j * sy;
+            for (std::ptrdiff_t i = v0[0]; i <= v1[0]; ++i) {
+              const double v = row[i];
+              if (i + 1 < n[0]) step[0] = std::max(step[0], std::abs(static_cast<double>(row[i + 1]) - v));
+              if (j + 1 < n[1]) step[1] = std::max(step[1], std::abs(static_cast<double>(row[i + sy]) - v));
+              if (k + 1 < n[2]) step[2] = std::max(step[2], std::abs(static_cast<double>(row[i + sz]) - v));
+            }
+          }
+        const float f = brickBound(step);
+        own_lipschitz_[brickIndex(a, b, c)] = f;
+        lipschitz_ = std::max(lipschitz_, static_cast<double>(f));
+      }
+  // The dilated bounds of the recomputed bricks' neighbours (as initialise()).
+  std::array<int, 3> g0, g1;
+  for (int a = 0; a < 3; ++a) {
+    g0[a] = std::max(0, e0[a] - 1);
+    g1[a] = std::min(bricks_[a] - 1, e1[a] + 1);
+  }
+  for (int c = g0[2]; c <= g1[2]; ++c)
+    for (int b = g0[1]; b <= g1[1]; ++b)
+      for (int a = g0[0]; a <= g1[0]; ++a) {
+        float m = 0.0f;
+        for (int z = std::max(0, c - 1); z <= std::min(bricks_[2] - 1, c + 1); ++z)
+          for (int y = std::max(0, b - 1); y <= std::min(bricks_[1] - 1, b + 1); ++y)
+            for (int x = std::max(0, a - 1); x <= std::min(bricks_[0] - 1, a + 1); ++x)
+              m = std::max(m, own_lipschitz_[brickIndex(x, y, z)]);
+        tree_.setBrickLipschitz(a, b, c, m);
+      }
+  tree_.propagateLipschitz(g0, g1);
 }
 
 double ScalarVolume::voxel(int i, int j, int k) const noexcept {

@@ -63,6 +63,19 @@ class MinMaxTree {
                                              static_cast<std::size_t>(l.n[0]) * (b + static_cast<std::size_t>(l.n[1]) * c)];
   }
 
+  /// Recomputes the ranges of the level-0 bricks in the box [lo_brick, hi_brick] (brick indices,
+  /// inclusive, clipped to the grid) from `voxels` (the same grid as Build()), and of their
+  /// ancestors on every upper level; nothing else is read or written (material removal: only the
+  /// bricks touched, no rebuild). No allocation.
+  template <typename T>
+  void refreshBricks(const T* voxels, std::array<int, 3> lo_brick, std::array<int, 3> hi_brick) noexcept;
+  /// Sets the local Lipschitz bound of level-0 brick (a, b, c) (see setLipschitz()); the upper
+  /// levels follow with propagateLipschitz(). No allocation; a no-op before setLipschitz().
+  void setBrickLipschitz(int a, int b, int c, float value) noexcept;
+  /// Recomputes the upper levels' Lipschitz maxima over the ancestors of the level-0 bricks in
+  /// the box [lo_brick, hi_brick] (inclusive, clipped). No allocation.
+  void propagateLipschitz(std::array<int, 3> lo_brick, std::array<int, 3> hi_brick) noexcept;
+
   /// Number of levels (0 when empty).
   int levels() const noexcept { return static_cast<int>(levels_.size()); }
   /// Nodes per axis at `level`.

@@ -188,6 +188,28 @@ class ScalarVolume {
                          int* nodes_read = nullptr, double arc_sagitta_m = 0.0,
                          double* without_arc = nullptr) const noexcept;
 
+  // ---- Material removal (drilling) -------------------------------------------------------------
+  // The volume is immutable to every holder of a const reference. MaterialRemoval, which holds
+  // the one non-const reference to a renderer's private copy, carves it on the servo thread
+  // between ticks (no query runs concurrently): writeRaw() then refreshRegion().
+
+  /// Raw value (stored type, as double) that gives the lowest F of the volume as built: what a
+  /// removed voxel becomes (air or background in a scan).
+  double lowestRaw() const noexcept { return scale_ > 0.0 ? raw_min_ : raw_max_; }
+  /// Raw value of the voxel at linear index `index` (x fastest); no bounds check.
+  double rawAt(std::size_t index) const noexcept;
+  /// Writes the raw value of the voxel at linear index `index` (converted to the stored type; no
+  /// bounds check). The min-max tree and Lipschitz bounds are stale until refreshRegion().
+  /// Not thread safe: no other thread may query the volume meanwhile.
+  void writeRaw(std::size_t index, double raw) noexcept;
+  /// Brings the min-max tree (ranges) and the local Lipschitz bounds up to date after writeRaw()
+  /// on voxels inside the box [lo, hi] (voxel indices i, j, k, inclusive; clipped to the grid):
+  /// only the level-0 bricks that read those voxels or book their edges, their neighbours'
+  /// dilated bounds and their ancestors are recomputed (haptics/README.md, "Drilling"). No
+  /// allocation. lipschitzBound() only grows; minValue() and maxValue() keep the values of the
+  /// volume as built (bounds of the carved one).
+  void refreshRegion(std::array<int, 3> lo, std::array<int, 3> hi) noexcept;
+
   /// Axis-aligned bounding box of the grid in W [m].
   Eigen::Vector3d boundsMin_W_m() const noexcept;
   Eigen::Vector3d boundsMax_W_m() const noexcept;
@@ -216,6 +238,12 @@ class ScalarVolume {
   double min_value_ = 0.0;
   double max_value_ = 0.0;
   double lipschitz_ = 0.0;  // see lipschitzBound()
+  double raw_min_ = 0.0, raw_max_ = 0.0;  // range of the raw voxels as built
+  std::vector<float> own_lipschitz_;      // per level-0 brick, before the 3 x 3 x 3 dilation
+  std::array<int, 3> bricks_{0, 0, 0};    // level-0 bricks per axis
+  float brickBound(const double* step) const noexcept;  // Lipschitz bound from a brick's raw steps
+  template <typename T>
+  void refreshRegionT(const std::array<int, 3>& lo, const std::array<int, 3>& hi) noexcept;
   Eigen::Matrix3d W_to_grid_ = Eigen::Matrix3d::Identity();  // (D diag(s))^-1
   Eigen::Vector3d upper_{0, 0, 0};                           // n - 1 per axis
   MinMaxTree tree_;
