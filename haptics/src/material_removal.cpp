@@ -93,7 +93,7 @@ CutResult MaterialRemoval::cut(const Eigen::Vector3d& burr_center_W_m, double bu
   };
   // The box of voxel centres is empty when the burr is far outside the grid.
   if (!c.allFinite() || (c.array() < -1e6).any() || (c.array() > 1e9).any()) return result;
-  double reach = burr_radius_m + 0.5 * s.maxCoeff();
+  double reach = burr_radius_m;
   gather(reach);
   if (!felt) {
     // The surface touches the burr but its voxels lie farther: cut the nearest layer of them

@@ -8,9 +8,8 @@
 /// angular speed omega with radius r converts the power P = |F| omega r (|F| the contact force
 /// the hand pushes with) into removed material, each material taking its specific cutting energy
 /// e [J/mm^3] (its hardness) per mm^3 removed:  dV/dt = P / e.  Per servo tick of dt seconds the
-/// energy P dt is shared among the voxels within the burr's reach (centre distance <= r + half
-/// the largest voxel side), weighted by how deep they lie inside that reach (the deepest go
-/// first); a voxel whose material reaches zero is removed: its raw value becomes the volume's
+/// energy P dt is shared among the voxels within the burr's reach (voxel centres inside the
+/// burr, distance < r), weighted by how deep they lie inside that reach (the deepest go first); a voxel whose material reaches zero is removed: its raw value becomes the volume's
 /// lowest (ScalarVolume::lowestRaw(): air), so F only ever decreases, the felt surface retreats
 /// and never moves onto the proxy. When the burr touches the surface but no voxel above the
 /// isovalue lies within that reach (a surface up to one voxel diagonal from its voxels), the
