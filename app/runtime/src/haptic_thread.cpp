@@ -799,11 +799,16 @@ void HapticThread::solverLoop() noexcept {
     followGains(in.gains, gains, *renderer_);
     haptics::TickOutput out;
     bool bad_input = false;
+    std::uint32_t drill_flags = 0;
     if (in.ok) {
       X_WD_used = in.X_WD;
       out = renderer_->tick(in.X_WD, in.isovalue);
       bad_input = out.stats.bad_input;
       if (bad_input) ++rejected;
+      if (options_.drill != nullptr && drilling_.load(std::memory_order_relaxed)) {
+        (void)options_.drill->step(*renderer_, out);
+        drill_flags = kRecordFlagDrillOn;
+      }
     }
     ProxyState& proxy = x_->proxy.writeSlot();
     proxy.X_WP = renderer_->proxyPose();
@@ -832,7 +837,7 @@ void HapticThread::solverLoop() noexcept {
       rec.isovalue = in.isovalue;
       rec.tick_time_s = 1e-9 * static_cast<double>(end_ns - begin_ns);
       rec.contacts = static_cast<std::uint32_t>(contacts.size());
-      rec.flags = solverRecordFlags(rec.contacts, in, out, segment) | wake_flags | coupling_flags;
+      rec.flags = solverRecordFlags(rec.contacts, in, out, segment) | wake_flags | coupling_flags | drill_flags;
       (void)recorder->push(rec);
       latest_recorded_tick_.store(tick, std::memory_order_release);
     }

@@ -70,7 +70,17 @@ ReplayComparison replayRecording(const LoadedScene& scene, const Recording& reco
     }
   }
 
-  std::unique_ptr<haptics::HapticRenderer> renderer = scene.makeRenderer(options);
+  // With a drill, the renderer feels its own copy of the field, carved on the ticks the
+  // recording flags (kRecordFlagDrillOn) exactly as the solver thread did.
+  const double servo_rate_Hz = [&] {
+    try {
+      return nlohmann::json::parse(recording.metadata_json).value("servo_rate_Hz", 1000.0);
+    } catch (const nlohmann::json::exception&) {
+      return 1000.0;
+    }
+  }();
+  DrillingRenderer servo = makeServoRenderer(LiveValues::initial(scene), options, scene.X_WT_initial, servo_rate_Hz);
+  std::unique_ptr<haptics::HapticRenderer> renderer = std::move(servo.renderer);
   renderer->setGains(renderer->coupling().gains());  // as the haptic thread does before its first tick
   ReplayDevice device(recording.records, "replayRecording");
   ReplayComparison result;
@@ -94,6 +104,7 @@ ReplayComparison replayRecording(const LoadedScene& scene, const Recording& reco
     if (ok) {
       out = renderer->tick(sample.X_WD, r.isovalue);
       ++result.ticks_replayed;
+      if (servo.drill != nullptr && (r.flags & kRecordFlagDrillOn) != 0) servo.drill->step(*renderer, out);
     }
     const haptics::Pose& X_WP = renderer->proxyPose();
     for (int k = 0; k < 3; ++k)
@@ -110,6 +121,7 @@ ReplayComparison replayRecording(const LoadedScene& scene, const Recording& reco
       ++result.forces_compared;
     }
   }
+  if (servo.drill != nullptr) result.drilled_field = std::make_shared<haptics::ScalarVolume>(servo.drill->removal().volume());
   return result;
 }
 

@@ -16,6 +16,7 @@
 
 #include "vh/haptics/crossing_verifier.h"
 #include "vh/runtime/device.h"
+#include "vh/runtime/sha256.h"
 #include "vh/runtime/placement.h"
 #include "vh/runtime/recording.h"
 #include "vh/runtime/sample_filter.h"
@@ -287,6 +288,32 @@ void summariseTicks(RunReport& r, std::vector<double>& times_us, std::uint64_t n
 
 }  // namespace
 
+namespace {
+/// Removed volume per material (the HU classes and the segments).
+DrillReport drillReport(const Drill& drill, const LoadedScene& scene) {
+  DrillReport d;
+  const haptics::MaterialRemoval& removal = drill.removal();
+  d.burr_radius_m = drill.burr().radius_m;
+  d.removed_mm3 = drill.removed_mm3();
+  d.eroded_mm3 = removal.erodedVolume_mm3();
+  Sha256 sha;
+  sha.update(removal.volume().bytes().data(), removal.volume().bytes().size());
+  d.drilled_field_sha256 = sha.hexDigest();
+  for (std::size_t m = 0; m < removal.materials().size(); ++m) {
+    const auto& material = removal.materials()[m];
+    DrillReport::Material row;
+    row.name = material.name;
+    row.segment = drill.segmentOfMaterial(static_cast<int>(m)) >= 0 && scene.segments ? material.name : "";
+    row.critical = material.critical;
+    row.voxels = removal.removedVoxels(static_cast<int>(m));
+    row.removed_mm3 = static_cast<double>(row.voxels) * removal.voxelVolume_mm3();
+    row.specific_energy_J_per_mm3 = material.specific_energy_J_per_mm3;
+    d.materials.push_back(row);
+  }
+  return d;
+}
+}  // namespace
+
 RunReport runHeadless(const LoadedScene& scene, const Trajectory& trajectory, const RunOptions& options) {
   if (trajectory.empty()) throw std::runtime_error("runHeadless: empty trajectory");
   if (!(options.servo_rate_Hz > 0.0)) throw std::invalid_argument("runHeadless: servo rate must be > 0");
@@ -303,7 +330,13 @@ RunReport runHeadless(const LoadedScene& scene, const Trajectory& trajectory, co
   r.initial_points_inside = countPointsInside(volume, tool.point_shell, X_WD_first, s);
   haptics::RendererOptions renderer_options;
   renderer_options.gains = scene.spec.gains;
-  haptics::HapticRenderer renderer(scene.hapticField(), scene.tool, renderer_options, X_WD_first, s);
+  // With a "drill" section the renderer feels its own copy of the field, which the burr carves
+  // after each tick's checks; the checks read that carved field.
+  DrillingRenderer servo = makeServoRenderer(LiveValues::initial(scene), renderer_options, X_WD_first, options.servo_rate_Hz);
+  haptics::HapticRenderer& renderer = *servo.renderer;
+  Drill* const drill = servo.drill.get();
+  const bool drilling = drill != nullptr && scene.spec.drill && scene.spec.drill->on;
+  const haptics::ScalarVolume& felt = drill != nullptr ? drill->removal().volume() : volume;
   r.epsilon_m = renderer.epsilon_m();
   r.work_budget = renderer.workBudget();
   std::optional<haptics::HapticRenderer> reference;  // the same without the budget: the lag
@@ -315,7 +348,7 @@ RunReport runHeadless(const LoadedScene& scene, const Trajectory& trajectory, co
   }
   std::optional<haptics::CrossingVerifier> verifier;
   if (options.verify_step_voxels > 0.0) {
-    verifier.emplace(volume, tool.point_shell, options.verify_step_voxels);
+    verifier.emplace(felt, tool.point_shell, options.verify_step_voxels);
     r.verify_step_voxels = options.verify_step_voxels;
     r.crossings = 0;
     r.crossing_points = 0;
@@ -380,10 +413,14 @@ RunReport runHeadless(const LoadedScene& scene, const Trajectory& trajectory, co
         verifier && finite && sample_ok ? checkCrossings(r, *verifier, renderer, felt_isovalue, i) : -1;
     double depth = 0.0;
     if (!finite) ++r.nan_ticks;
-    else depth = addForceAndDepth(r, out, X_WD_used, volume, tool, felt_isovalue, options.check_penetration, i);
+    else depth = addForceAndDepth(r, out, X_WD_used, felt, tool, felt_isovalue, options.check_penetration, i);
+    // The burr cuts after the checks (they test this tick's motion against the field it moved in).
+    if (drilling && sample_ok && !out.stats.bad_input) drill->step(renderer, out);
     if (recorder) {
-      recorder->pushWaiting(runRecord(i, options.servo_rate_Hz, X_WD_used, renderer.proxyPose(), out, isovalue,
-                                      renderer.contacts().size(), finite, sample_ok, segment));
+      TickRecord rec = runRecord(i, options.servo_rate_Hz, X_WD_used, renderer.proxyPose(), out, isovalue,
+                                 renderer.contacts().size(), finite, sample_ok, segment);
+      if (drilling && sample_ok && !out.stats.bad_input) rec.flags |= kRecordFlagDrillOn;
+      recorder->pushWaiting(rec);
     }
     if (trace.is_open()) {
       writeTraceRow(trace, i, sample, out,
@@ -397,6 +434,7 @@ RunReport runHeadless(const LoadedScene& scene, const Trajectory& trajectory, co
   }
   if (recorder) recorder->close();  // throws naming the file when a write failed
   if (segment_tally) r.segment_contacts = segment_tally->segments();
+  if (drill != nullptr) r.drill = drillReport(*drill, scene);
   if (reference) reportLag(r, lag);
   r.total_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - wall_begin).count();
   r.ticks = n;
@@ -480,6 +518,20 @@ std::string RunReport::toJson() const {
                              {"peak_force_N", c.peak_force_N},
                              {"touches", c.touches}});
   }
+  if (drill) {
+    j["removed_mm3"] = drill->removed_mm3;
+    j["eroded_mm3"] = drill->eroded_mm3;
+    j["burr_radius_m"] = drill->burr_radius_m;
+    j["drilled_field_sha256"] = drill->drilled_field_sha256;
+    j["removed"] = nlohmann::ordered_json::array();
+    for (const auto& m : drill->materials)
+      j["removed"].push_back({{"material", m.name},
+                              {"segment", m.segment.empty() ? nlohmann::ordered_json(nullptr) : nlohmann::ordered_json(m.segment)},
+                              {"critical", m.critical},
+                              {"voxels", m.voxels},
+                              {"removed_mm3", m.removed_mm3},
+                              {"specific_energy_J_per_mm3", m.specific_energy_J_per_mm3}});
+  }
   return j.dump(2) + "\n";
 }
 
@@ -513,6 +565,17 @@ std::string RunReport::summary() const {
                     max_lag_m * 1e3, max_lag_rad, static_cast<long long>(lag_ticks));
       out += line;
     }
+  }
+  if (drill) {
+    std::snprintf(line, sizeof line, "; drilled %.2f mm^3", drill->removed_mm3);
+    out += line;
+    for (const auto& m : drill->materials) {
+      if (m.voxels == 0) continue;
+      std::snprintf(line, sizeof line, "%s %s %.2f mm^3%s", m.name == drill->materials.front().name ? " (" : ", ",
+                    m.name.c_str(), m.removed_mm3, m.critical ? " CRITICAL" : "");
+      out += line;
+    }
+    if (drill->removed_mm3 > 0.0) out += ")";
   }
   for (const SegmentContact& c : segment_contacts) {
     if (c.ticks == 0) continue;

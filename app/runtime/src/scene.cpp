@@ -382,6 +382,34 @@ OpenIgtlinkSpec readOpenIgtlink(const ObjectReader& igtl) {
   return o;
 }
 
+/// The "drill" section.
+DrillSpec readDrill(const ObjectReader& drill) {
+  drill.allowOnly({"on", "burr_radius_m", "burr_center_T_m", "burr_speed_rpm", "hardness"});
+  DrillSpec d;
+  if (drill.has("on")) d.on = drill.boolean("on");
+  if (drill.has("burr_radius_m")) {
+    d.burr_radius_m = drill.number("burr_radius_m");
+    if (!(d.burr_radius_m >= 0.001 && d.burr_radius_m <= 0.006))
+      drill.fail(drill.fieldPath("burr_radius_m"), "expected 0.001 to 0.006 (1 to 6 mm), found " + json(d.burr_radius_m).dump());
+  }
+  if (drill.has("burr_center_T_m")) {
+    const json& v = drill.at("burr_center_T_m");
+    if (!v.is_array() || v.size() != 3 || !v[0].is_number() || !v[1].is_number() || !v[2].is_number())
+      drill.fail(drill.fieldPath("burr_center_T_m"), "expected [x, y, z] in metres, found " + v.dump());
+    d.burr_center_T_m = Eigen::Vector3d(v[0].get<double>(), v[1].get<double>(), v[2].get<double>());
+  }
+  if (drill.has("burr_speed_rpm")) d.burr_speed_rpm = drill.positive("burr_speed_rpm");
+  if (drill.has("hardness")) {
+    const ObjectReader h(drill.at("hardness"), drill.fieldPath("hardness"), "");
+    for (auto it = drill.at("hardness").begin(); it != drill.at("hardness").end(); ++it) {
+      if (!it.value().is_number() || !(it.value().get<double>() > 0.0))
+        drill.fail(drill.fieldPath("hardness") + "." + it.key(), "expected a specific energy > 0 [J/mm^3], found " + it.value().dump());
+      d.hardness_J_per_mm3[it.key()] = it.value().get<double>();
+    }
+  }
+  return d;
+}
+
 }  // namespace
 
 SceneSpec parseScene(const std::string& json_text, const std::string& source, const fs::path& base_dir) {
@@ -395,7 +423,7 @@ SceneSpec parseScene(const std::string& json_text, const std::string& source, co
     throw std::runtime_error(source + ": invalid JSON: " + (pos == std::string::npos ? what : what.substr(pos + 2)));
   }
   const ObjectReader top(root, "", source);
-  top.allowOnly({"description", "volume", "tool", "coupling", "device", "segmentation", "openigtlink"});
+  top.allowOnly({"description", "volume", "tool", "coupling", "device", "segmentation", "openigtlink", "drill"});
 
   SceneSpec spec;
   spec.source = source;
@@ -405,6 +433,7 @@ SceneSpec parseScene(const std::string& json_text, const std::string& source, co
   if (top.has("device")) spec.device = readDevice(top.object("device"), base_dir);
   if (top.has("segmentation")) spec.segmentation = readSegmentation(top.object("segmentation"), base_dir);
   if (top.has("openigtlink")) spec.openigtlink = readOpenIgtlink(top.object("openigtlink"));
+  if (top.has("drill")) spec.drill = readDrill(top.object("drill"));
   return spec;
 }
 
@@ -582,6 +611,8 @@ LiveValues LiveValues::initial(const LoadedScene& scene) {
   live.X_WT_initial = scene.X_WT_initial;
   live.segments = scene.segments;
   live.segmentation = scene.spec.segmentation;
+  live.drill = scene.spec.drill;
+  live.scan_in_HU = scene.volume.info.modality == "CT";
   return live;
 }
 
@@ -658,6 +689,19 @@ double solverDeadline_us(double servo_rate_Hz) {
   return servo_rate_Hz > 0.0 && std::isfinite(servo_rate_Hz) ? 0.9e6 / servo_rate_Hz : 0.0;
 }
 
+DrillingRenderer makeServoRenderer(const LiveValues& live, const haptics::RendererOptions& options,
+                                   const haptics::Pose& X_WP, double servo_rate_Hz) {
+  if (!live.drill) return {makeRenderer(live, options, X_WP), nullptr};
+  if (live.hapticField() == nullptr || live.scan_field == nullptr)
+    throw std::invalid_argument("drilling needs a volume");
+  haptics::RendererOptions with_gains = options;
+  with_gains.gains = live.gains;
+  return makeDrillingRenderer(*live.hapticField(), live.hapticIsovalue(), live.tool,
+                              makeDrillMaterials(*live.hapticField(), *live.scan_field, live.scan_in_HU,
+                                                 live.segments.get(), *live.drill),
+                              *live.drill, with_gains, X_WP, servo_rate_Hz);
+}
+
 std::unique_ptr<HapticThread> makeHapticThread(const LiveValues& live, std::shared_ptr<Device> device,
                                                double servo_rate_Hz, const haptics::Pose& X_WP,
                                                const HapticThreadOptions& options) {
@@ -666,9 +710,13 @@ std::unique_ptr<HapticThread> makeHapticThread(const LiveValues& live, std::shar
   haptics::RendererOptions solver;
   solver.solver_lanes = defaultSolverLanes();
   solver.deadline_us = solverDeadline_us(servo_rate_Hz);
-  auto thread = std::make_unique<HapticThread>(makeRenderer(live, solver, X_WP), std::move(device),
-                                               live.hapticIsovalue(), servo_rate_Hz, with_segments);
+  DrillingRenderer r = makeServoRenderer(live, solver, X_WP,
+                                         options.solver_rate_Hz > 0.0 ? options.solver_rate_Hz : servo_rate_Hz);
+  with_segments.drill = r.drill;
+  auto thread = std::make_unique<HapticThread>(std::move(r.renderer), std::move(device), live.hapticIsovalue(),
+                                               servo_rate_Hz, with_segments);
   thread->setGains(live.gains);
+  if (live.drill) thread->setDrilling(live.drill->on);
   return thread;
 }
 

@@ -221,6 +221,18 @@ std::string makeSessionMetadata(const LoadedScene& scene, const LiveValues& live
     }
     sc["segmentation"] = seg;
   }
+  if (live.drill) {  // what a replay needs to cut as the session did
+    json drill;
+    drill["on"] = live.drill->on;
+    if (live.drill->burr_radius_m > 0.0) drill["burr_radius_m"] = live.drill->burr_radius_m;
+    if (live.drill->burr_center_T_m) {
+      const Eigen::Vector3d& c = *live.drill->burr_center_T_m;
+      drill["burr_center_T_m"] = {c.x(), c.y(), c.z()};
+    }
+    drill["burr_speed_rpm"] = live.drill->burr_speed_rpm;
+    drill["hardness"] = live.drill->hardness_J_per_mm3;
+    sc["drill"] = drill;
+  }
   j["scene"] = sc;
 
   const DatasetChecksum checksum = datasetChecksum(spec.volume.path);
@@ -303,6 +315,20 @@ SceneSpec sceneFromSessionMetadata(const std::string& metadata_json) {
       s.critical = seg.at("critical").get<std::vector<std::string>>();
       s.smoothing_voxels = seg.at("smoothing_voxels").get<double>();
       spec.segmentation = s;
+    }
+    if (sc.contains("drill")) {
+      const json& d = sc.at("drill");
+      DrillSpec drill;
+      drill.on = d.value("on", false);
+      drill.burr_radius_m = d.value("burr_radius_m", 0.0);
+      if (d.contains("burr_center_T_m")) {
+        const auto c = d.at("burr_center_T_m").get<std::vector<double>>();
+        if (c.size() != 3) throw std::runtime_error("scene.drill.burr_center_T_m: expected [x, y, z]");
+        drill.burr_center_T_m = Eigen::Vector3d(c[0], c[1], c[2]);
+      }
+      drill.burr_speed_rpm = d.value("burr_speed_rpm", drill.burr_speed_rpm);
+      if (d.contains("hardness")) drill.hardness_J_per_mm3 = d.at("hardness").get<std::map<std::string, double>>();
+      spec.drill = drill;
     }
   } catch (const json::exception& e) {
     throw std::runtime_error(std::string("session metadata: bad \"scene\": ") + e.what());

@@ -52,6 +52,7 @@
 
 #include "vh/haptics/haptic_renderer.h"
 #include "vh/runtime/device.h"
+#include "vh/runtime/drilling.h"
 #include "vh/runtime/segments.h"
 #include "vh/runtime/recording.h"
 #include "vh/runtime/triple_buffer.h"
@@ -147,6 +148,11 @@ struct HapticThreadOptions {
   /// rebuilt with the same options keeps feeding it. Only one HapticThread may feed a channel
   /// at a time (the next one once the previous one stopped).
   std::shared_ptr<SnapshotChannel> monitor;
+  /// Drilling (drilling.h): the burr and the removal that carves the renderer's own field (the
+  /// same object the renderer holds: makeServoRenderer()). While setDrilling(true), every solver
+  /// tick with a usable sample runs Drill::step() after the renderer's tick, on the solver
+  /// thread (no allocation, no lock), and its record carries kRecordFlagDrillOn. Null: no drill.
+  std::shared_ptr<Drill> drill;
 };
 
 /// Runs the coupling and the solver threads (see the file comment).
@@ -190,6 +196,14 @@ class HapticThread {
   /// before the stop ramp and the safety layer; a gain change keeps the controllers' state and
   /// the rendered stiffness continuous (PassivityPort). Not on a haptic thread.
   void setGains(const haptics::CouplingGains& gains) noexcept;
+
+  /// Starts or stops the burr (a key, a device button, the Haptics panel); applied at the solver's
+  /// next tick. A no-op without HapticThreadOptions::drill. Any thread.
+  void setDrilling(bool on) noexcept { drilling_.store(on, std::memory_order_relaxed); }
+  bool drilling() const noexcept { return options_.drill != nullptr && drilling_.load(std::memory_order_relaxed); }
+  /// The drill (HapticThreadOptions::drill), or null. Its removal log (MaterialRemoval::
+  /// drainRemoved()) has one consumer: the picture.
+  const std::shared_ptr<Drill>& drill() const noexcept { return options_.drill; }
 
   /// Records every solver tick from the next one on into `recorder` (one TickRecord per solver
   /// tick, pushed without blocking or allocating; a full ring drops the record and the recorder
@@ -237,6 +251,7 @@ class HapticThread {
   std::atomic<double> gain_angular_;
   std::atomic<bool> gain_passivity_{false};  ///< CouplingGains::passivity_control.
   std::atomic<bool> gains_dirty_{false};
+  std::atomic<bool> drilling_{false};
   std::atomic<bool> stop_requested_{false};
   std::atomic<bool> coupling_done_{false};  ///< The coupling thread ended: the solver stops too.
   std::atomic<bool> running_{false};

@@ -119,6 +119,9 @@ constexpr int recordSegment(std::uint32_t flags) noexcept { return static_cast<i
 /// (HapticThread records the coupling's force for the record's own proxy and device poses and
 /// takes this flag, ForceZeroed and Stopping from the coupling thread's latest command.)
 inline constexpr std::uint32_t kRecordFlagForceLimited = 1u << 7;
+/// The drill's burr was spinning after this tick's renderer step (drilling.h): a replay cuts
+/// on exactly these ticks, so it rebuilds the drilled volume bit for bit.
+inline constexpr std::uint32_t kRecordFlagDrillOn = 1u << 8;
 
 /// One servo tick, fixed size, trivially copyable (its byte image is what the file stores).
 /// Frames: W is the scene (world) frame; D the device (tool) frame; P the proxy frame.

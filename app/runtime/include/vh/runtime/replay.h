@@ -57,6 +57,9 @@ struct ReplayComparison {
   std::optional<std::uint64_t> first_mismatch_tick;
   std::size_t first_mismatch_index = 0;
   std::string mismatch;
+  /// With a drill in the scene: the felt field as carved by the replay when it finished (null
+  /// otherwise); compare its bytes with the live run's.
+  std::shared_ptr<const haptics::ScalarVolume> drilled_field;
 };
 
 /// Re-runs `recording` through a fresh renderer of `scene` (scene.makeRenderer(options), so the

@@ -17,6 +17,7 @@
 #include <functional>
 #include <memory>
 #include <span>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -95,6 +96,24 @@ struct ProxyLag {
   }
 };
 
+/// What the drill removed in a run (scenes with a "drill" section that is on).
+struct DrillReport {
+  struct Material {
+    std::string name;              ///< "cortical bone", a segment's name, ...
+    std::string segment;           ///< The segment's name when the material is a segment; else empty.
+    bool critical = false;         ///< A critical segment.
+    std::uint64_t voxels = 0;      ///< Voxels removed.
+    double removed_mm3 = 0.0;      ///< voxels x voxel volume [mm^3].
+    double specific_energy_J_per_mm3 = 0.0;  ///< Its hardness.
+  };
+  double burr_radius_m = 0.0;      ///< The burr [m].
+  double removed_mm3 = 0.0;        ///< Whole voxels removed, all materials [mm^3].
+  double eroded_mm3 = 0.0;         ///< Material the energy removed, whole voxels and parts [mm^3].
+  std::vector<Material> materials; ///< Per material (HU classes, then segments).
+  /// SHA-256 of the carved field's raw voxels at the end (a replay's must match).
+  std::string drilled_field_sha256;
+};
+
 /// What one headless run measured. Times are the renderer's TickStats::exec_time_us.
 struct RunReport {
   // Inputs.
@@ -129,6 +148,8 @@ struct RunReport {
   /// Felt segments: time in contact, peak force and touches per segment of the
   /// scene's segmentation (empty without one).
   std::vector<SegmentContact> segment_contacts;
+  /// Drilling: removed volume in all and per material / segment ("removed_mm3", "removed").
+  std::optional<DrillReport> drill;
   double mean_volume_samples = 0.0;      ///< Trilinear samples per tick.
   // Correctness.
   double max_penetration_m = 0.0;        ///< Largest first-order depth over all ticks [m].

@@ -45,6 +45,7 @@
 #include "vh/haptics/tool_model.h"
 #include "vh/io/volume_loader.h"
 #include "vh/runtime/device.h"
+#include "vh/runtime/drilling.h"
 #include "vh/runtime/haptic_thread.h"
 #include "vh/runtime/segments.h"
 
@@ -126,6 +127,7 @@ struct SceneSpec {
   std::optional<DeviceSpec> device;  ///< Absent: no haptic thread.
   std::optional<SegmentationSpec> segmentation;  ///< Absent: no segments.
   std::optional<OpenIgtlinkSpec> openigtlink;  ///< Absent: no OpenIGTLink server (the default).
+  std::optional<DrillSpec> drill;  ///< Absent: the tool only touches (no drilling state at all).
 };
 
 /// Parses a scene file.
@@ -252,6 +254,10 @@ struct LiveValues {
   haptics::Pose X_WT_initial;                     ///< Where the tool was placed, free, in W [m].
   std::shared_ptr<const SegmentSet> segments;     ///< The segments shown and felt; null: none.
   std::optional<SegmentationSpec> segmentation;   ///< What a scene file says of `segments`.
+  /// Drilling (drilling.h): the burr and the hardness; null: the tool only touches. Whether the
+  /// burr spins is the haptic thread's (HapticThread::setDrilling()).
+  std::optional<DrillSpec> drill;
+  bool scan_in_HU = false;                        ///< The scan is CT in HU (drilling's hardness classes).
 
   /// The values `scene` was loaded with (its field, isovalue, spec.gains, tool, spec.tool,
   /// X_WT_initial, segments, spec.segmentation).
@@ -276,6 +282,13 @@ struct LiveValues {
 /// @throws std::invalid_argument as HapticRenderer's constructor (no field, no tool).
 std::unique_ptr<haptics::HapticRenderer> makeRenderer(const LiveValues& live, haptics::RendererOptions options,
                                                       const haptics::Pose& X_WP);
+
+/// The renderer of `live` for a haptic thread or a replay: makeRenderer() when live.drill is
+/// absent; else makeDrillingRenderer() on a private copy of the felt field, with the hardness of
+/// makeDrillMaterials() (slow: one pass over the field's voxels).
+/// @throws std::invalid_argument as makeRenderer() and makeDrillingRenderer().
+DrillingRenderer makeServoRenderer(const LiveValues& live, const haptics::RendererOptions& options,
+                                   const haptics::Pose& X_WP, double servo_rate_Hz);
 
 /// The one place a renderer and its haptic threads are built (the GUI through Session, the
 /// headless tests through LoadedScene): a HapticThread (not started) driving `device` at

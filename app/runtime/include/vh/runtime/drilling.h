@@ -1,0 +1,126 @@
+#pragma once
+/// @file
+/// Drilling in a scene: the scene file's "drill" section, the burr on the tool, the hardness of
+/// each voxel (per segment, else from HU) and the step that follows each renderer tick on the
+/// servo thread and in a replay alike (haptics/material_removal.h for the removal itself).
+///
+/// A scene without a "drill" section starts none of it (no copy of the field, no material state).
+/// With one, the renderer feels a private copy of the felt field, which the burr carves between
+/// ticks on the solver thread; the scene's own field (the picture's source) is never written.
+///
+/// Frames and units: W the scene frame [m]; T the tool frame [m]; hardness as the specific
+/// cutting energy [J/mm^3] (MaterialRemoval's model, after Agus et al., Presence 2003).
+
+#include <map>
+#include <memory>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include <Eigen/Core>
+
+#include "vh/haptics/haptic_renderer.h"
+#include "vh/haptics/material_removal.h"
+#include "vh/haptics/scalar_volume.h"
+#include "vh/haptics/tool_model.h"
+#include "vh/runtime/segments.h"
+
+namespace vh::runtime {
+
+/// The scene file's "drill" section.
+struct DrillSpec {
+  bool on = false;                                ///< "on": the burr spins from the start (else a key or button starts it).
+  double burr_radius_m = 0.0;                     ///< "burr_radius_m", 1 to 6 mm; 0: from the tool (burrOf()).
+  std::optional<Eigen::Vector3d> burr_center_T_m; ///< "burr_center_T_m" in T [m]; absent: from the tool.
+  double burr_speed_rpm = 80000.0;                ///< "burr_speed_rpm", > 0.
+  /// "hardness": specific cutting energy [J/mm^3] by material name: a segment's name or ID, or
+  /// "cortical bone", "cancellous bone", "soft tissue" (CT in HU), "tissue" (other data).
+  std::map<std::string, double> hardness_J_per_mm3;
+};
+
+/// Default hardness of the HU classes [J/mm^3] and their limits [HU]: soft tissue below
+/// kCancellousFrom_HU, cancellous bone up to kCorticalFrom_HU, cortical bone above (limits after
+/// the usual CT windows of trabecular and compact bone).
+inline constexpr double kCancellousFrom_HU = 250.0;
+inline constexpr double kCorticalFrom_HU = 800.0;
+inline constexpr double kSoftTissue_J_per_mm3 = 0.1;
+inline constexpr double kCancellousBone_J_per_mm3 = 0.6;
+inline constexpr double kCorticalBone_J_per_mm3 = 2.0;
+/// Hardness of data not in HU (MR, a built-in volume) [J/mm^3].
+inline constexpr double kTissue_J_per_mm3 = 0.6;
+
+/// The burr: a sphere on the tool.
+struct Burr {
+  Eigen::Vector3d center_T_m = Eigen::Vector3d::Zero();  ///< Centre in T [m].
+  double radius_m = 0.0025;                             ///< Radius [m].
+};
+
+/// The burr of `tool` under `spec`: the spec's centre and radius where given; else the tool's
+/// tip: the mesh vertex farthest from the centre of mass, the centre one radius inside it
+/// towards the centre of mass, radius 2.5 mm (the built-in drill's ball: centre at T's origin).
+/// @throws std::invalid_argument for a radius outside 1 to 6 mm or a non-finite centre.
+Burr burrOf(const haptics::ToolModel& tool, const DrillSpec& spec);
+
+/// Materials of the voxels of a felt field.
+struct DrillMaterials {
+  std::vector<std::uint8_t> voxel_material;        ///< Per voxel of the felt field (x fastest).
+  std::vector<haptics::CuttingMaterial> materials; ///< Indexed by voxel_material.
+  /// The segment of each material (index into the SegmentSet), -1 for the HU classes.
+  std::vector<int> segment_of_material;
+};
+
+/// The hardness of each voxel of `felt` (the field the hand feels, in W): the segment whose label
+/// covers the voxel's centre (nearest voxel of its layer) when `segments` is given, with the
+/// spec's hardness for the segment's name or ID, else the HU class of its mean scan value;
+/// outside every segment, or without segments, the HU class of the scan's value there
+/// (`hounsfield`: the scan is CT in HU), else one material "tissue". A segment marked critical
+/// makes a critical material. Off the servo thread (allocates; about 30 ns per voxel).
+/// @throws std::invalid_argument for a hardness in the spec that is not > 0 or names no material.
+DrillMaterials makeDrillMaterials(const haptics::ScalarVolume& felt, const haptics::ScalarVolume& scan,
+                                  bool hounsfield, const SegmentSet* segments, const DrillSpec& spec);
+
+/// The burr and its removal on one renderer's private field: what the solver thread (and a
+/// replay) runs after each renderer tick while the drill is on.
+class Drill {
+ public:
+  /// @param removal carves the renderer's field (the same object). @param dt_s one solver period [s].
+  Drill(std::shared_ptr<haptics::MaterialRemoval> removal, Burr burr, double dt_s,
+        std::vector<int> segment_of_material);
+
+  /// After renderer.tick() returned `out`: the burr at the proxy cuts with |out.force_W_N| when one
+  /// of the contacts lies on it (within its radius plus the collision tolerance, twice).
+  /// No allocation, no exception, no lock.
+  haptics::CutResult step(const haptics::HapticRenderer& renderer, const haptics::TickOutput& out) noexcept;
+
+  haptics::MaterialRemoval& removal() noexcept { return *removal_; }
+  const haptics::MaterialRemoval& removal() const noexcept { return *removal_; }
+  const Burr& burr() const noexcept { return burr_; }
+  /// The segment of material m (index into the scene's SegmentSet), or -1.
+  int segmentOfMaterial(int m) const noexcept {
+    return m >= 0 && static_cast<std::size_t>(m) < segment_of_material_.size() ? segment_of_material_[m] : -1;
+  }
+  /// Removed volume so far [mm^3], all materials (whole voxels).
+  double removed_mm3() const noexcept {
+    return static_cast<double>(removal_->removedVoxels()) * removal_->voxelVolume_mm3();
+  }
+
+ private:
+  std::shared_ptr<haptics::MaterialRemoval> removal_;
+  Burr burr_;
+  double dt_s_;
+  std::vector<int> segment_of_material_;
+};
+
+/// A renderer on a private copy of `felt` (so that drilling never writes a shared field) with
+/// `options`, `tool`, proxy at X_WP, and the Drill that carves that copy at `servo_rate_Hz`.
+/// @throws std::invalid_argument as HapticRenderer's and MaterialRemoval's constructors, burrOf().
+struct DrillingRenderer {
+  std::unique_ptr<haptics::HapticRenderer> renderer;
+  std::shared_ptr<Drill> drill;
+};
+DrillingRenderer makeDrillingRenderer(const haptics::ScalarVolume& felt, double felt_isovalue,
+                                      std::shared_ptr<const haptics::ToolModel> tool, DrillMaterials materials,
+                                      const DrillSpec& spec, const haptics::RendererOptions& options,
+                                      const haptics::Pose& X_WP, double servo_rate_Hz);
+
+}  // namespace vh::runtime
