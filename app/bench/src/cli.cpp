@@ -5,11 +5,23 @@
 #include <CLI/CLI.hpp>
 
 #include "common.h"
+#include "vh/runtime/scene.h"
 
 namespace vh::bench {
 
 std::filesystem::path defaultOutputDir() {
   if (const char* env = std::getenv("VH_BENCH_OUT_DIR"); env != nullptr && *env != '\0') return env;
+  // Installed, the build machine's folders mean nothing here: the user's data folder (XDG Base
+  // Directory), else the current folder.
+  if (!runtime::installedDataDir().empty()) {
+    if (const char* xdg = std::getenv("XDG_DATA_HOME"); xdg != nullptr && *xdg == '/') {
+      return std::filesystem::path(xdg) / "volume-haptics" / "bench";
+    }
+    if (const char* home = std::getenv("HOME"); home != nullptr && *home == '/') {
+      return std::filesystem::path(home) / ".local" / "share" / "volume-haptics" / "bench";
+    }
+    return std::filesystem::current_path() / "volume-haptics-bench";
+  }
   return VH_BENCH_DEFAULT_OUT_DIR;
 }
 
@@ -17,7 +29,7 @@ namespace {
 
 void addCommon(CLI::App* cmd, CommonOptions& common) {
   cmd->add_flag("--short", common.short_run, "Short version (about 1,000 ticks per run; for tests)");
-  cmd->add_option("--out", common.out_dir, "Output folder (default: the build tree's bench/NAME)");
+  cmd->add_option("--out", common.out_dir, "Output folder (default: " + (defaultOutputDir() / cmd->get_name()).string() + ")");
   cmd->add_flag("!--no-plots", common.plots, "Do not write PNG plots");
 }
 
@@ -37,7 +49,7 @@ CLI::App* addBenchSubcommand(CLI::App& app, std::function<int()>& handler) {
   CLI::App* bench = app.add_subcommand(
       "bench", "Benchmarks of the rendering core: the paper's Table 1, error against run time, stiff and "
                "extreme cases, big scans; "
-               "reports (JSON, Markdown, PNG) go into the build tree");
+               "reports (JSON, Markdown, PNG) go into " + defaultOutputDir().string() + "/NAME");
   bench->require_subcommand(1);
 
   auto table1 = std::make_shared<Table1Options>();
@@ -111,9 +123,17 @@ CLI::App* addBenchSubcommand(CLI::App& app, std::function<int()>& handler) {
   stab->callback([&handler, stability] {
     handler = [stability] { return guarded("stability", [&] { runStability(*stability); }); };
   });
+  auto drilling = std::make_shared<CommonOptions>();
+  CLI::App* drill = bench->add_subcommand("drilling", "Drilling: the removal against the swept capsule, and the "
+                                                      "solver's tick times drilling against touching alone on the "
+                                                      "CT head phantom");
+  addCommon(drill, *drilling);
+  drill->callback([&handler, drilling] {
+    handler = [drilling] { return guarded("drilling", [&] { runDrilling(*drilling); }); };
+  });
   auto bigscan = std::make_shared<BigScanOptions>();
   CLI::App* big = bench->add_subcommand("bigscan", "Big scans: a 512 x 512 x 2000 int16 CT series "
-                                                   "generated into the build tree, its load time, peak memory, "
+                                                   "generated into the output folder, its load time, peak memory, "
                                                    "min/max tree build, a cancelled load, and tick times against "
                                                    "the 140-slice phantom's");
   addCommon(big, bigscan->common);
@@ -122,8 +142,8 @@ CLI::App* addBenchSubcommand(CLI::App& app, std::function<int()>& handler) {
   big->add_option("--ticks", bigscan->ticks, "Ticks of the touch run on each volume (default 20000; short 1000)")
       ->check(CLI::PositiveNumber);
   big->add_option("--series-dir", bigscan->series_dir,
-                  "Where the series is generated and reused (default: the build tree's bench/bigscan/"
-                  "series-512x512xN)");
+                  "Where the series is generated and reused (default: " +
+                      (defaultOutputDir() / "bigscan").string() + "/series-512x512xN)");
   big->add_option("--cancel-at", bigscan->cancel_at, "Progress fraction at which the cancel run cancels")
       ->capture_default_str()
       ->check(CLI::Range(0.01, 0.99));

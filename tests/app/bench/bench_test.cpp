@@ -337,3 +337,29 @@ TEST(Bench, stabilityShortWritesSweepAndExtremeCases) {
 
 }  // namespace
 }  // namespace vh::bench
+
+namespace vh::bench {
+namespace {
+// Drilling: the six capsule cases within one voxel layer of the analytic swept volume (the
+// oracle), and the drilling/touching ratios of one run, side by side (no timing threshold here:
+// the target lives in the report).
+TEST(Bench, drillingShortWritesCapsuleCasesAndRatios) {
+  CommonOptions options;
+  options.short_run = true;
+  options.out_dir = std::filesystem::path(VH_BENCH_TEST_OUTPUT_DIR) / "drilling";
+  const std::filesystem::path dir = runDrilling(options);
+  std::ifstream in(dir / "drilling.json");
+  const nlohmann::json report = nlohmann::json::parse(in);
+  ASSERT_EQ(report["capsule_cases"].size(), 6u);
+  for (const auto& c : report["capsule_cases"]) {
+    EXPECT_LE(c["error_voxel_layers"].get<double>(), 1.0) << c.dump();
+    EXPECT_GT(c["removed_mm3"].get<double>(), 0.0);
+  }
+  if (report.contains("timing_skipped")) GTEST_SKIP() << report["timing_skipped"].get<std::string>();
+  EXPECT_GT(report["p99_9_ratio"].get<double>(), 0.0);
+  EXPECT_GT(report["max_ratio"].get<double>(), 0.0);
+  EXPECT_GT(report["removed_mm3"].get<double>(), 0.0) << "the scripted press reaches the skull and cuts";
+  EXPECT_GT(report["contact_ticks"].get<int>(), 0);
+}
+}  // namespace
+}  // namespace vh::bench

@@ -115,8 +115,16 @@ std::filesystem::path runAccuracy(const CommonOptions& options);
 
 /// Stiffness sweep and extreme cases (see the file comment). @return the output folder.
 std::filesystem::path runStability(const CommonOptions& options);
+/// `bench drilling`: the burr's removal against the swept capsule (three burr radii, two voxel
+/// sizes: capsule_cases, each with error_voxel_layers) and the solver's thread CPU time per tick
+/// on the CT head phantom, drilling against touching alone on the same trajectory in the same
+/// run (p99_9_ratio, max_ratio); writes drilling.json and drilling.md.
+std::filesystem::path runDrilling(const CommonOptions& options);
 
-/// The build tree's benchmark folder (`BUILD/bench`), or $VH_BENCH_OUT_DIR when set.
+/// Where the benchmarks write: $VH_BENCH_OUT_DIR when set; installed
+/// (runtime::installedDataDir()), $XDG_DATA_HOME/volume-haptics/bench, else
+/// ~/.local/share/volume-haptics/bench, else ./volume-haptics-bench; from the build tree,
+/// its `BUILD/bench`.
 std::filesystem::path defaultOutputDir();
 
 /// Adds `bench` with the subcommands `table1`, `accuracy`, `stability` and `bigscan` to `app`. After
