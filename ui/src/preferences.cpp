@@ -48,6 +48,11 @@ Preferences Preferences::load(QSettings& s) {
   p.recent_files = s.value("files/recent").toStringList();
   while (p.recent_files.size() > kMaxRecentFiles) p.recent_files.removeLast();
   p.last_folder = s.value("files/last_folder").toString();
+  p.pacs.host = s.value("pacs/host", QString::fromStdString(p.pacs.host)).toString().toStdString();
+  const int port = s.value("pacs/port", p.pacs.port).toInt();
+  if (port >= 1 && port <= 65535) p.pacs.port = port;
+  p.pacs.called_aet = s.value("pacs/called_aet", QString::fromStdString(p.pacs.called_aet)).toString().toStdString();
+  p.pacs.calling_aet = s.value("pacs/calling_aet", QString::fromStdString(p.pacs.calling_aet)).toString().toStdString();
   s.endGroup();
   return p;
 }
@@ -68,6 +73,10 @@ void Preferences::save(QSettings& s) const {
   s.setValue("view/show_device", show_device);
   s.setValue("files/recent", recent_files);
   s.setValue("files/last_folder", last_folder);
+  s.setValue("pacs/host", QString::fromStdString(pacs.host));
+  s.setValue("pacs/port", pacs.port);
+  s.setValue("pacs/called_aet", QString::fromStdString(pacs.called_aet));
+  s.setValue("pacs/calling_aet", QString::fromStdString(pacs.calling_aet));
   s.endGroup();
 }
 

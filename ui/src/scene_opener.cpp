@@ -17,6 +17,7 @@
 #include "vh/io/dicom_seg.h"
 #include "vh/io/segmentation.h"
 #include "vh/runtime/session.h"
+#include "vh/ui/panels/pacs_dialog.h"
 #include "vh/ui/panels/series_chooser.h"
 #include "vh/ui/panels/status_line.h"
 #include "vh/ui/preferences.h"
@@ -257,10 +258,20 @@ void SceneOpener::reportError(const QString& what, const QString& message) {
 void SceneOpener::addFileMenuActions(QMenu* file) {
   file->addAction("Open &DICOM Folder...", this, [this] { openFileDialog(kDicomFolder); })
       ->setShortcut(QKeySequence("Ctrl+D"));
+  file->addAction("Open from &PACS...", this, &SceneOpener::openFromPacs)->setShortcut(QKeySequence("Ctrl+Shift+D"));
   file->addAction("&Open Volume File (NRRD, MetaImage)...", this, [this] { openFileDialog(kVolumeFile); })
       ->setShortcut(QKeySequence::Open);
   file->addAction("Open &Scene...", this, [this] { openFileDialog(kSceneFile); })
       ->setShortcut(QKeySequence("Ctrl+Shift+O"));
+}
+
+void SceneOpener::openFromPacs() {
+  PacsBrowserDialog dialog(prefs_.pacs, [this](const io::PacsServer& server) { prefs_.pacs = server; }, window_);
+  if (dialog.exec() != QDialog::Accepted || dialog.retrievedFolder().empty()) return;
+  // Opened as any DICOM folder; the file dialogs keep starting where the user left them, not in the cache.
+  const QString last_folder = prefs_.last_folder;
+  openPath(q(dialog.retrievedFolder().string()));
+  prefs_.last_folder = last_folder;
 }
 
 void SceneOpener::rebuildRecentMenu() {

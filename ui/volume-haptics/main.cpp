@@ -6,6 +6,7 @@
 //   volume-haptics export R.vhrec [--csv C] [--json J] [--events-csv E] [--video V.ogv] [--png P --at-s T]
 //   volume-haptics make-trajectory --scene S.json --out T.csv [...]
 //   volume-haptics bench table1|accuracy|stability [--short] [--out DIR]   benchmarks (vh::bench)
+//   volume-haptics pacs echo|find|get [--host H --port P --aet A] ...   a DICOM server (vh/io/pacs.h)
 //
 // PATH is a DICOM folder, a NRRD / MetaImage file or a scene .json; without it the built-in
 // block-with-hole scene opens. `run` and `make-trajectory` are headless: they never create Qt
@@ -25,6 +26,7 @@
 
 #include <CLI/CLI.hpp>
 
+#include "pacs_command.h"
 #include "vh_version.h"
 #include "vh/bench/bench.h"
 #include "vh/devices/device_catalog.h"
@@ -398,6 +400,8 @@ int main(int argc, char** argv) {
   std::function<int()> bench_handler;
   vh::bench::addBenchSubcommand(app, bench_handler);
 
+  std::function<int()> pacs_handler;
+  vh::app::addPacsSubcommand(app, pacs_handler);
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
@@ -412,12 +416,13 @@ int main(int argc, char** argv) {
     if (*make) return makeTrajectoryCommand(make_args);
     if (bench_handler) return bench_handler();
 
+    if (pacs_handler) return pacs_handler();
     // GUI: the path first (a missing file is said as such), then the display.
     vh::runtime::SceneSpec scene = sceneForPath(gui.input);
     if (!hasDisplay(/*x11_only=*/false)) {
       throw std::runtime_error("the window needs a display (none in DISPLAY or WAYLAND_DISPLAY): run it on a "
                                "desktop, or under xvfb-run for a --screenshot; the headless subcommands (run, "
-                               "export --csv, make-trajectory, bench) need none");
+                               "export --csv, make-trajectory, bench, pacs) need none");
     }
     if (gui.series) scene.volume.series = *gui.series;
     if (gui.phase) scene.volume.phase = *gui.phase;

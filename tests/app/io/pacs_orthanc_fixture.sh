@@ -50,6 +50,7 @@ case "$mode" in
   stop)
     stop_orthanc
     rm -rf "$state/db"
+    [[ -d $state ]] && printf 'status=unavailable\nreason=the test PACS was stopped (run the tests through ctest)\n' >"$env_file"
     echo "orthanc fixture: stopped"
     exit 0
     ;;

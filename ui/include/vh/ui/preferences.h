@@ -2,13 +2,14 @@
 /// @file
 /// What the application remembers between runs (QSettings): the view's look (ViewLook: colours,
 /// rendering mode and preset, orientation marker, device tool), the last coupling gains, recent
-/// files and the last folder.
+/// files and the last folder, and the PACS server File > Open from PACS queries.
 /// Window geometry and dock layout are stored by MainWindow beside these ("window/geometry",
 /// "window/state").
 
 #include <QString>
 #include <QStringList>
 
+#include "vh/io/pacs.h"
 #include "vh/ui/view/view_look.h"
 
 class QSettings;
@@ -25,6 +26,10 @@ struct Preferences : ViewLook {
 
   QStringList recent_files;                       ///< Most recent first, at most kMaxRecentFiles.
   QString last_folder;                            ///< Where the last file dialog ended.
+
+  /// The DICOM server of File > Open from PACS: host, port, its AE title and ours (timeouts
+  /// keep io::PacsServer's defaults and are not stored).
+  io::PacsServer pacs;
 
   /// Puts `path` first in recent_files (removing an older entry of it), keeping kMaxRecentFiles.
   void addRecentFile(const QString& path);

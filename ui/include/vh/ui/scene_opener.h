@@ -82,7 +82,11 @@ class SceneOpener : public QObject {
   /// The path a drop of `mime` opens (several files of one series: their folder); empty: none.
   static QString droppedPath(const QMimeData& mime);
 
-  /// Adds Open DICOM Folder / Volume File / Scene to `file`.
+  /// File > Open from PACS: the browser (PacsBrowserDialog) on the server of the preferences;
+  /// the series it retrieves into the cache opens as a DICOM folder (openPath()).
+  void openFromPacs();
+
+  /// Adds Open DICOM Folder / from PACS / Volume File / Scene to `file`.
   void addFileMenuActions(QMenu* file);
   /// The recent files, each opened with openPath(); disabled while empty.
   QMenu* recentFilesMenu() const noexcept { return recent_menu_; }

@@ -33,6 +33,8 @@ struct PacsServer {
 
   /// "CALLED at HOST:PORT", how messages name the server.
   std::string describe() const;
+
+  bool operator==(const PacsServer& other) const = default;
 };
 
 /// A PACS operation failed; what() names the server and what went wrong, e.g.

@@ -1,0 +1,201 @@
+// File > Open from PACS (ui/panels/pacs_dialog.h): the tree filled from a C-FIND result, and
+// the dialog against a real PACS, Orthanc, started by the ctest fixture of the io tests
+// (tests/app/io/pacs_orthanc_fixture.sh) with the shared small CT head in it: search, expand,
+// retrieve into the cache, cancel, a closed port. The oracle is the dataset folder itself.
+
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <map>
+#include <string>
+
+#include <QLineEdit>
+#include <QProgressDialog>
+#include <QPushButton>
+#include <QTemporaryDir>
+#include <QTreeWidget>
+#include <QTreeWidgetItemIterator>
+
+#include <gtest/gtest.h>
+
+#include "ui_test_util.h"
+#include "vh/io/volume_loader.h"
+#include "vh/ui/panels/pacs_dialog.h"
+
+namespace vh::ui {
+namespace {
+
+namespace fs = std::filesystem;
+
+std::map<std::string, std::string> fixtureValues() {
+  std::map<std::string, std::string> v;
+  std::ifstream in(VH_PACS_FIXTURE_ENV);
+  std::string line;
+  while (std::getline(in, line)) {
+    const auto eq = line.find('=');
+    if (eq != std::string::npos) v[line.substr(0, eq)] = line.substr(eq + 1);
+  }
+  return v;
+}
+
+io::PacsServer fixtureServer(const std::map<std::string, std::string>& v) {
+  io::PacsServer s;
+  s.host = v.at("host");
+  s.port = std::stoi(v.at("dicom_port"));
+  s.called_aet = v.at("aet");
+  s.calling_aet = v.at("client_aet");
+  s.connect_timeout_s = 5;
+  return s;
+}
+
+#define VH_REQUIRE_ORTHANC(values)                                                                              \
+  const auto values = fixtureValues();                                                                          \
+  if (!values.count("status") || values.at("status") != "ready") {                                              \
+    GTEST_SKIP() << "no test PACS: " << (values.count("reason") ? values.at("reason") : "fixture not started"); \
+  }
+
+std::size_t dicomFilesIn(const fs::path& folder) {
+  std::size_t n = 0;
+  std::error_code ec;
+  for (const auto& e : fs::directory_iterator(folder, ec)) n += e.path().extension() == ".dcm" ? 1 : 0;
+  return n;
+}
+
+/// The dialog's first series item once its study is expanded (null on timeout).
+QTreeWidgetItem* firstSeries(PacsBrowserDialog& dialog) {
+  QTreeWidgetItem* series = nullptr;
+  test::waitFor(
+      [&] {
+        for (QTreeWidgetItemIterator it(dialog.tree()); *it != nullptr; ++it) {
+          if ((*it)->data(0, kPacsKindRole).toInt() == kPacsSeries) series = *it;
+        }
+        return series != nullptr;
+      },
+      20000);
+  return series;
+}
+
+TEST(PacsTree, FilledFromAFindResult) {
+  io::PacsStudy a{"DOE^JANE", "P1", "19700101", "F", "1.2.3.1", "20240131", "", "Head", "A1", "CT\\PT", 2};
+  io::PacsStudy b = a;
+  b.study_uid = "1.2.3.2";
+  b.description = "";
+  io::PacsStudy c{"ROE^RICHARD", "P2", "", "M", "1.2.3.3", "20230101", "", "Knee", "", "MR", 1};
+  QTreeWidget tree;
+  fillPacsTree(tree, io::pacsPatientsOf({a, c, b}));
+  ASSERT_EQ(tree.topLevelItemCount(), 2);  // two patients: P1 with two studies, P2 with one
+  QTreeWidgetItem* jane = tree.topLevelItem(0);
+  EXPECT_EQ(jane->text(0), "DOE, JANE  (P1)");
+  ASSERT_EQ(jane->childCount(), 2);
+  EXPECT_EQ(jane->child(0)->text(0), "Head");
+  EXPECT_EQ(jane->child(0)->text(1), "2024-01-31");
+  EXPECT_EQ(jane->child(0)->text(2), "CT, PT");
+  EXPECT_EQ(jane->child(0)->data(0, kPacsUidRole).toString(), "1.2.3.1");
+  EXPECT_EQ(jane->child(1)->text(0), "(study without description)");
+  EXPECT_EQ(tree.topLevelItem(1)->childCount(), 1);
+
+  io::PacsSeries s1{"1.2.3.1", "1.2.3.1.7", "CT", "Bone", 7, 93};
+  io::PacsSeries s2{"1.2.3.1", "1.2.3.1.8", "PT", "", -1, -1};
+  fillPacsSeries(*jane->child(0), {s1, s2});
+  ASSERT_EQ(jane->child(0)->childCount(), 2);
+  EXPECT_EQ(jane->child(0)->child(0)->text(0), "#7 Bone");
+  EXPECT_EQ(jane->child(0)->child(0)->text(3), "93");
+  EXPECT_EQ(jane->child(0)->child(0)->data(0, kPacsInstancesRole).toInt(), 93);
+  EXPECT_EQ(jane->child(0)->child(1)->text(3), "?");
+  EXPECT_EQ(jane->child(0)->child(1)->data(0, kPacsStudyUidRole).toString(), "1.2.3.1");
+}
+
+TEST(PacsTree, CacheFolderIsPerSeriesAndHarmless) {
+  EXPECT_EQ(pacsCacheFolder("1.2.840.5", "/tmp/c"), fs::path("/tmp/c/pacs/1.2.840.5"));
+  EXPECT_EQ(pacsCacheFolder("../../etc", "/tmp/c"), fs::path("/tmp/c/pacs/.._..____"));
+  EXPECT_EQ(pacsCacheFolder("..", "/tmp/c"), fs::path("/tmp/c/pacs/unnamed"));
+}
+
+TEST(PacsDialog, SearchExpandAndRetrieveIntoTheCache) {
+  VH_REQUIRE_ORTHANC(values);
+  QTemporaryDir cache;
+  PacsBrowserDialog dialog(fixtureServer(values), {}, nullptr, fs::path(cache.path().toStdString()));
+  dialog.show();
+  dialog.patientFilter()->setText("Aus");  // the CT head's patient is "Austrialian"; a prefix matches
+  dialog.search();
+  ASSERT_TRUE(test::waitFor([&] { return dialog.tree()->topLevelItemCount() > 0; }, 20000)) << dialog.statusText().toStdString();
+  ASSERT_EQ(dialog.tree()->topLevelItemCount(), 1);
+  QTreeWidgetItem* study = dialog.tree()->topLevelItem(0)->child(0);
+  ASSERT_NE(study, nullptr);
+  study->setExpanded(true);  // lists its series
+  QTreeWidgetItem* series = firstSeries(dialog);
+  ASSERT_NE(series, nullptr) << dialog.statusText().toStdString();
+  const int instances = std::stoi(values.at("instances"));
+  EXPECT_EQ(series->text(2), "CT");
+  EXPECT_EQ(series->text(3).toInt(), instances);
+
+  dialog.tree()->setCurrentItem(series);
+  series->setSelected(true);
+  int files = -1;
+  QObject::connect(&dialog, &PacsBrowserDialog::retrievalFinished, [&](int n, bool, const QString&) { files = n; });
+  dialog.retrieveSelected();
+  ASSERT_TRUE(test::waitFor([&] { return files >= 0; }, 60000)) << dialog.statusText().toStdString();
+  EXPECT_EQ(files, instances) << dialog.statusText().toStdString();
+  EXPECT_EQ(dialog.result(), QDialog::Accepted);
+  const fs::path folder = dialog.retrievedFolder();
+  EXPECT_EQ(folder, pacsCacheFolder(series->text(4).toStdString(), fs::path(cache.path().toStdString())));
+  EXPECT_EQ(dicomFilesIn(folder), static_cast<std::size_t>(instances));
+  // What SceneOpener then opens: the folder loads as the original does.
+  const io::LoadedVolume retrieved = io::loadVolume(folder);
+  const io::LoadedVolume original = io::loadVolume(values.at("dataset"));
+  EXPECT_EQ(retrieved.field->geometry().dims, original.field->geometry().dims);
+}
+
+TEST(PacsDialog, CancelInTheProgressDialogKeepsNothing) {
+  VH_REQUIRE_ORTHANC(values);
+  QTemporaryDir cache;
+  PacsBrowserDialog dialog(fixtureServer(values), {}, nullptr, fs::path(cache.path().toStdString()));
+  dialog.show();
+  dialog.search();
+  ASSERT_TRUE(test::waitFor([&] { return dialog.tree()->topLevelItemCount() > 0; }, 20000));
+  dialog.tree()->topLevelItem(0)->child(0)->setExpanded(true);
+  QTreeWidgetItem* series = firstSeries(dialog);
+  ASSERT_NE(series, nullptr);
+  series->setSelected(true);
+  bool cancelled = false, finished = false;
+  QObject::connect(&dialog, &PacsBrowserDialog::retrievalFinished, [&](int, bool c, const QString&) {
+    finished = true;
+    cancelled = c;
+  });
+  dialog.retrieveSelected();
+  QProgressDialog* progress = nullptr;
+  ASSERT_TRUE(test::waitFor(
+      [&] {
+        progress = dialog.findChild<QProgressDialog*>("pacsProgress");
+        return progress != nullptr && progress->value() >= 2;
+      },
+      30000));
+  QPushButton* cancel_button = progress->findChild<QPushButton*>();
+  ASSERT_NE(cancel_button, nullptr);
+  EXPECT_EQ(cancel_button->text(), "Cancel");
+  const int received_at_cancel = progress->value();
+  cancel_button->click();
+  ASSERT_TRUE(test::waitFor([&] { return finished; }, 20000));
+  EXPECT_TRUE(cancelled) << dialog.statusText().toStdString();
+  std::printf("[ CANCEL   ] the dialog showed %d of %s files when Cancel was clicked\n", received_at_cancel,
+              values.at("instances").c_str());
+  EXPECT_NE(dialog.result(), QDialog::Accepted);
+  EXPECT_TRUE(dialog.statusText().contains("cancelled")) << dialog.statusText().toStdString();
+  EXPECT_EQ(dicomFilesIn(pacsCacheFolder(series->text(4).toStdString(), fs::path(cache.path().toStdString()))), 0u);
+}
+
+TEST(PacsDialog, AClosedPortIsSaidInTheDialog) {
+  VH_REQUIRE_ORTHANC(values);
+  io::PacsServer server = fixtureServer(values);
+  server.port = std::stoi(values.at("http_port")) + 9;
+  PacsBrowserDialog dialog(server, {}, nullptr);
+  dialog.show();
+  dialog.search();
+  ASSERT_TRUE(test::waitFor([&] { return !dialog.busy(); }, 20000));
+  EXPECT_TRUE(dialog.statusText().contains("no connection")) << dialog.statusText().toStdString();
+  EXPECT_TRUE(dialog.statusText().contains(QString::fromStdString(server.describe())));
+  EXPECT_EQ(dialog.tree()->topLevelItemCount(), 0);
+}
+
+}  // namespace
+}  // namespace vh::ui

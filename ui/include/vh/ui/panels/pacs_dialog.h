@@ -1,0 +1,132 @@
+#pragma once
+/// @file
+/// File > Open from PACS: the PACS section of the preferences (PacsSettingsDialog: host, port,
+/// the server's and our AE titles, with a connection test) and the browser (PacsBrowserDialog:
+/// patients > studies > series from C-FIND, one series retrieved by C-GET into the cache with a
+/// progress dialog and Cancel). Every network call runs on a thread of its own, never on the GUI
+/// thread; the dialogs only show what comes back. The retrieved folder is then opened as any
+/// DICOM folder (SceneOpener::openPath()).
+
+#include <atomic>
+#include <filesystem>
+#include <memory>
+#include <functional>
+#include <vector>
+
+#include <QDialog>
+#include <QList>
+#include <QString>
+
+#include "vh/io/pacs.h"
+
+class QLabel;
+class QLineEdit;
+class QProgressDialog;
+class QPushButton;
+class QSpinBox;
+class QThread;
+class QTimer;
+class QTreeWidget;
+class QTreeWidgetItem;
+
+namespace vh::ui {
+
+/// The PACS settings: host, port, called AE title (the server's), calling AE title (ours), and a
+/// Test button (C-ECHO, off the GUI thread) that says whether the server answers.
+class PacsSettingsDialog : public QDialog {
+  Q_OBJECT
+
+ public:
+  PacsSettingsDialog(const io::PacsServer& server, QWidget* parent = nullptr);
+  ~PacsSettingsDialog() override;
+  /// The settings as edited.
+  io::PacsServer server() const;
+
+ private:
+  QLineEdit* host_;
+  QSpinBox* port_;
+  QLineEdit* called_;
+  QLineEdit* calling_;
+  QLabel* test_result_;
+  QThread* test_thread_ = nullptr;
+  io::PacsServer base_;
+};
+
+/// The cache folder of a retrieved series: CACHE/pacs/SERIES_UID (CACHE: the user's cache,
+/// QStandardPaths::CacheLocation, unless `cache_root` is given).
+std::filesystem::path pacsCacheFolder(const std::string& series_uid, const std::filesystem::path& cache_root = {});
+
+/// Tree item roles and kinds of PacsBrowserDialog's tree.
+enum PacsItemKind { kPacsPatient = 1, kPacsStudy = 2, kPacsSeries = 3 };
+constexpr int kPacsKindRole = 0x0100 + 1;       ///< Qt::UserRole + 1: a PacsItemKind.
+constexpr int kPacsUidRole = 0x0100 + 2;        ///< The study's or series' UID.
+constexpr int kPacsStudyUidRole = 0x0100 + 3;   ///< A series' study UID.
+constexpr int kPacsInstancesRole = 0x0100 + 4;  ///< A series' instance count (-1: unknown).
+
+/// Fills `tree` with one item per patient, its studies below (columns: name / description,
+/// date, modality, files, UID). Studies get a placeholder child until their series are listed.
+void fillPacsTree(QTreeWidget& tree, const std::vector<io::PacsPatient>& patients);
+/// Puts `series` under `study_item` (replacing what was there).
+void fillPacsSeries(QTreeWidgetItem& study_item, const std::vector<io::PacsSeries>& series);
+
+/// Browses the server of `server` and retrieves one series. Accepted once a series has been
+/// retrieved: retrievedFolder() names its folder.
+class PacsBrowserDialog : public QDialog {
+  Q_OBJECT
+
+ public:
+  /// `settings_changed` is called with new settings edited through the Server button (the
+  /// caller stores them). `cache_root` empty: the user's cache.
+  PacsBrowserDialog(const io::PacsServer& server, std::function<void(const io::PacsServer&)> settings_changed,
+                    QWidget* parent = nullptr, std::filesystem::path cache_root = {});
+  /// Cancels a retrieval and waits for the network threads (each bounded by the server's timeouts).
+  ~PacsBrowserDialog() override;
+
+  /// Lists the studies whose patient name matches the filter field (asynchronous).
+  void search();
+  /// Lists the series of `study_item` (asynchronous; done once per study).
+  void listSeries(QTreeWidgetItem* study_item);
+  /// Retrieves the selected series into the cache (asynchronous, with the progress dialog).
+  void retrieveSelected();
+
+  QTreeWidget* tree() const { return tree_; }
+  QLineEdit* patientFilter() const { return filter_; }
+  /// What the dialog says now: the last result or error.
+  QString statusText() const;
+  /// True while a network call runs.
+  bool busy() const { return !threads_.isEmpty(); }
+  /// The folder of the retrieved series (valid once accepted).
+  const std::filesystem::path& retrievedFolder() const { return retrieved_; }
+  /// Asks a running retrieval to stop (as the progress dialog's Cancel does).
+  void cancelRetrieval() { cancel_ = true; }
+
+ signals:
+  /// A retrieval ended: `files` received, `cancelled` or with `error` (empty when none).
+  void retrievalFinished(int files, bool cancelled, const QString& error);
+
+ private:
+  /// Runs `work` on a thread of its own, then `done` on the GUI thread (unless the dialog is gone).
+  void runInBackground(std::function<void()> work, std::function<void()> done);
+  void setStatus(const QString& text, bool error = false);
+  void updateButtons();
+  void editServer();
+
+  io::PacsServer server_;
+  std::function<void(const io::PacsServer&)> settings_changed_;
+  std::filesystem::path cache_root_;
+  QLabel* server_label_;
+  QLineEdit* filter_;
+  QPushButton* search_button_;
+  QTreeWidget* tree_;
+  QLabel* status_;
+  QPushButton* open_button_;
+  QProgressDialog* progress_ = nullptr;
+  QTimer* progress_timer_ = nullptr;
+  QList<QThread*> threads_;
+  std::atomic<bool> cancel_{false};
+  std::atomic<int> received_{0};
+  std::atomic<int> total_{-1};
+  std::filesystem::path retrieved_;
+};
+
+}  // namespace vh::ui

@@ -1,0 +1,470 @@
+#include "vh/ui/panels/pacs_dialog.h"
+
+#include <algorithm>
+#include <exception>
+#include <system_error>
+
+#include <QDialogButtonBox>
+#include <QFormLayout>
+#include <QHBoxLayout>
+#include <QHeaderView>
+#include <QLabel>
+#include <QLineEdit>
+#include <QProgressDialog>
+#include <QPushButton>
+#include <QSpinBox>
+#include <QStandardPaths>
+#include <QThread>
+#include <QTimer>
+#include <QTreeWidget>
+#include <QTreeWidgetItemIterator>
+#include <QVBoxLayout>
+
+namespace vh::ui {
+namespace {
+
+namespace fs = std::filesystem;
+
+constexpr int kProgressPollMs = 100;  // how often the progress dialog reads the retrieval's counters
+constexpr int kSeriesAskedRole = Qt::UserRole + 5;  // a study item: its series were asked for
+
+QString q(const std::string& s) { return QString::fromStdString(s); }
+
+/// "20240131" -> "2024-01-31"; other text unchanged.
+QString dicomDate(const std::string& d) {
+  if (d.size() != 8) return q(d);
+  return q(d.substr(0, 4) + "-" + d.substr(4, 2) + "-" + d.substr(6, 2));
+}
+
+/// A DICOM person name for people: "Family^Given" -> "Family, Given".
+QString personName(const std::string& pn) {
+  QString s = q(pn);
+  const int caret = s.indexOf('^');
+  if (caret >= 0) s = s.left(caret) + ", " + s.mid(caret + 1).replace('^', ' ');
+  s = s.trimmed();
+  if (s.endsWith(',')) s.chop(1);
+  return s.isEmpty() ? QString("(no name)") : s;
+}
+
+/// A thread running `work`, owned by the caller.
+QThread* startThread(std::function<void()> work) {
+  QThread* t = QThread::create(std::move(work));
+  t->start();
+  return t;
+}
+
+}  // namespace
+
+fs::path pacsCacheFolder(const std::string& series_uid, const fs::path& cache_root) {
+  fs::path root = cache_root;
+  if (root.empty()) root = fs::path(QStandardPaths::writableLocation(QStandardPaths::CacheLocation).toStdString());
+  std::string name = series_uid;
+  for (char& c : name) {
+    if (c != '.' && (c < '0' || c > '9')) c = '_';  // a UID is digits and dots; anything else is made harmless
+  }
+  if (name.empty() || name == "." || name == "..") name = "unnamed";
+  return root / "pacs" / name;
+}
+
+// ---- settings ----
+
+PacsSettingsDialog::PacsSettingsDialog(const io::PacsServer& server, QWidget* parent) : QDialog(parent), base_(server) {
+  setWindowTitle("PACS Server");
+  setObjectName("pacsSettingsDialog");
+  auto* form = new QFormLayout;
+  host_ = new QLineEdit(q(server.host));
+  host_->setObjectName("pacsHost");
+  port_ = new QSpinBox;
+  port_->setObjectName("pacsPort");
+  port_->setRange(1, 65535);
+  port_->setValue(server.port);
+  called_ = new QLineEdit(q(server.called_aet));
+  called_->setObjectName("pacsCalledAet");
+  called_->setMaxLength(16);
+  calling_ = new QLineEdit(q(server.calling_aet));
+  calling_->setObjectName("pacsCallingAet");
+  calling_->setMaxLength(16);
+  form->addRow("Host:", host_);
+  form->addRow("Port:", port_);
+  form->addRow("Server's AE title (called):", called_);
+  form->addRow("Our AE title (calling):", calling_);
+  auto* hint = new QLabel("The server must know our AE title, with this computer's address, to answer queries and "
+                          "retrievals (C-FIND, C-GET).");
+  hint->setWordWrap(true);
+  auto* test = new QPushButton("Test Connection");
+  test->setObjectName("pacsTest");
+  test_result_ = new QLabel;
+  test_result_->setObjectName("pacsTestResult");
+  test_result_->setWordWrap(true);
+  auto* buttons = new QDialogButtonBox(QDialogButtonBox::Ok | QDialogButtonBox::Cancel);
+  connect(buttons, &QDialogButtonBox::accepted, this, &QDialog::accept);
+  connect(buttons, &QDialogButtonBox::rejected, this, &QDialog::reject);
+  connect(test, &QPushButton::clicked, this, [this, test] {
+    if (test_thread_ != nullptr) return;
+    test->setEnabled(false);
+    test_result_->setText("Testing...");
+    auto error = std::make_shared<std::string>();
+    const io::PacsServer s = this->server();
+    test_thread_ = startThread([s, error] {
+      try {
+        io::pacsEcho(s);
+      } catch (const std::exception& e) {
+        *error = e.what();
+      }
+    });
+    connect(test_thread_, &QThread::finished, this, [this, test, error, s] {
+      test_thread_->wait();  // finished() comes just before the thread ends
+      test_thread_->deleteLater();
+      test_thread_ = nullptr;
+      test->setEnabled(true);
+      test_result_->setText(error->empty() ? q(s.describe() + " answers (C-ECHO).") : q(*error));
+    });
+  });
+  auto* layout = new QVBoxLayout(this);
+  layout->addLayout(form);
+  layout->addWidget(hint);
+  auto* test_row = new QHBoxLayout;
+  test_row->addWidget(test);
+  test_row->addWidget(test_result_, 1);
+  layout->addLayout(test_row);
+  layout->addWidget(buttons);
+}
+
+PacsSettingsDialog::~PacsSettingsDialog() {
+  if (test_thread_ != nullptr) {
+    test_thread_->wait();  // an echo ends within the connection timeout
+    delete test_thread_;
+  }
+}
+
+io::PacsServer PacsSettingsDialog::server() const {
+  io::PacsServer s = base_;
+  s.host = host_->text().trimmed().toStdString();
+  s.port = port_->value();
+  s.called_aet = called_->text().trimmed().toStdString();
+  s.calling_aet = calling_->text().trimmed().toStdString();
+  return s;
+}
+
+// ---- the tree ----
+
+void fillPacsTree(QTreeWidget& tree, const std::vector<io::PacsPatient>& patients) {
+  tree.clear();
+  for (const io::PacsPatient& p : patients) {
+    auto* pi = new QTreeWidgetItem(&tree);
+    pi->setText(0, personName(p.name) + (p.id.empty() ? QString() : "  (" + q(p.id) + ")"));
+    pi->setText(1, dicomDate(p.birth_date));
+    pi->setToolTip(1, "Birth date");
+    pi->setData(0, kPacsKindRole, kPacsPatient);
+    pi->setData(0, kPacsUidRole, q(p.id));
+    for (const io::PacsStudy& s : p.studies) {
+      auto* si = new QTreeWidgetItem(pi);
+      si->setText(0, s.description.empty() ? QString("(study without description)") : q(s.description));
+      si->setText(1, dicomDate(s.study_date));
+      si->setText(2, q(s.modalities).replace('\\', ", "));
+      if (s.series_count >= 0) si->setText(3, QString("%1 series").arg(s.series_count));
+      si->setText(4, q(s.study_uid));
+      si->setData(0, kPacsKindRole, kPacsStudy);
+      si->setData(0, kPacsUidRole, q(s.study_uid));
+      auto* placeholder = new QTreeWidgetItem(si);  // makes the study expandable; replaced by its series
+      placeholder->setText(0, "Listing the series...");
+      placeholder->setFlags(Qt::ItemIsEnabled);
+    }
+    pi->setExpanded(true);
+  }
+}
+
+void fillPacsSeries(QTreeWidgetItem& study_item, const std::vector<io::PacsSeries>& series) {
+  qDeleteAll(study_item.takeChildren());
+  for (const io::PacsSeries& s : series) {
+    auto* item = new QTreeWidgetItem(&study_item);
+    QString name = s.number >= 0 ? QString("#%1 ").arg(s.number) : QString();
+    name += s.description.empty() ? QString("(series without description)") : q(s.description);
+    item->setText(0, name);
+    item->setText(2, q(s.modality));
+    item->setText(3, s.instance_count >= 0 ? QString::number(s.instance_count) : QString("?"));
+    item->setToolTip(3, "Files (instances) in the series");
+    item->setText(4, q(s.series_uid));
+    item->setData(0, kPacsKindRole, kPacsSeries);
+    item->setData(0, kPacsUidRole, q(s.series_uid));
+    item->setData(0, kPacsStudyUidRole, q(s.study_uid));
+    item->setData(0, kPacsInstancesRole, s.instance_count);
+  }
+  if (series.empty()) {
+    auto* none = new QTreeWidgetItem(&study_item);
+    none->setText(0, "(no series)");
+    none->setFlags(Qt::ItemIsEnabled);
+  }
+}
+
+// ---- the browser ----
+
+PacsBrowserDialog::PacsBrowserDialog(const io::PacsServer& server,
+                                     std::function<void(const io::PacsServer&)> settings_changed, QWidget* parent,
+                                     fs::path cache_root)
+    : QDialog(parent), server_(server), settings_changed_(std::move(settings_changed)), cache_root_(std::move(cache_root)) {
+  setWindowTitle("Open from PACS");
+  setObjectName("pacsBrowserDialog");
+  resize(820, 520);
+  server_label_ = new QLabel;
+  server_label_->setObjectName("pacsServerLabel");
+  auto* server_button = new QPushButton("Server...");
+  server_button->setObjectName("pacsServerButton");
+  connect(server_button, &QPushButton::clicked, this, &PacsBrowserDialog::editServer);
+  filter_ = new QLineEdit;
+  filter_->setObjectName("pacsPatientFilter");
+  filter_->setPlaceholderText("Patient's name (empty: all; * and ? as wildcards)");
+  search_button_ = new QPushButton("Search");
+  search_button_->setObjectName("pacsSearch");
+  search_button_->setDefault(true);  // Enter in the filter field searches
+  connect(search_button_, &QPushButton::clicked, this, &PacsBrowserDialog::search);
+  tree_ = new QTreeWidget;
+  tree_->setObjectName("pacsTree");
+  tree_->setHeaderLabels({"Patient / study / series", "Date", "Modality", "Files", "UID"});
+  tree_->setSelectionMode(QAbstractItemView::SingleSelection);
+  tree_->header()->setSectionResizeMode(0, QHeaderView::Stretch);
+  connect(tree_, &QTreeWidget::itemExpanded, this, [this](QTreeWidgetItem* item) {
+    if (item->data(0, kPacsKindRole).toInt() == kPacsStudy) listSeries(item);
+  });
+  connect(tree_, &QTreeWidget::itemSelectionChanged, this, [this] {
+    const auto selected = tree_->selectedItems();
+    if (!selected.isEmpty() && selected.front()->data(0, kPacsKindRole).toInt() == kPacsStudy) {
+      listSeries(selected.front());
+    }
+    updateButtons();
+  });
+  connect(tree_, &QTreeWidget::itemDoubleClicked, this, [this](QTreeWidgetItem* item) {
+    if (item->data(0, kPacsKindRole).toInt() == kPacsSeries) retrieveSelected();
+  });
+  status_ = new QLabel;
+  status_->setObjectName("pacsStatus");
+  status_->setWordWrap(true);
+  status_->setTextInteractionFlags(Qt::TextSelectableByMouse);
+  open_button_ = new QPushButton("Retrieve and Open");
+  open_button_->setObjectName("pacsOpen");
+  connect(open_button_, &QPushButton::clicked, this, &PacsBrowserDialog::retrieveSelected);
+  auto* close = new QPushButton("Close");
+  connect(close, &QPushButton::clicked, this, &QDialog::reject);
+
+  auto* top = new QHBoxLayout;
+  top->addWidget(server_label_, 1);
+  top->addWidget(server_button);
+  auto* find_row = new QHBoxLayout;
+  find_row->addWidget(filter_, 1);
+  find_row->addWidget(search_button_);
+  auto* bottom = new QHBoxLayout;
+  bottom->addWidget(status_, 1);
+  bottom->addWidget(open_button_);
+  bottom->addWidget(close);
+  auto* layout = new QVBoxLayout(this);
+  layout->addLayout(top);
+  layout->addLayout(find_row);
+  layout->addWidget(tree_, 1);
+  layout->addLayout(bottom);
+  server_label_->setText("Server: " + q(server_.describe()) + ", we are " + q(server_.calling_aet));
+  setStatus("Search lists the server's patients and studies; expand a study for its series.");
+  updateButtons();
+}
+
+PacsBrowserDialog::~PacsBrowserDialog() {
+  cancel_ = true;
+  const QList<QThread*> threads = threads_;
+  threads_.clear();
+  for (QThread* t : threads) {
+    t->wait();  // each network call ends within the server's timeouts; a retrieval stops at once
+    delete t;
+  }
+}
+
+void PacsBrowserDialog::runInBackground(std::function<void()> work, std::function<void()> done) {
+  QThread* t = QThread::create(std::move(work));
+  threads_.append(t);
+  // Queued to the GUI thread; dropped if the dialog is gone (its destructor waits for `t`).
+  connect(t, &QThread::finished, this, [this, t, done = std::move(done)] {
+    threads_.removeOne(t);
+    t->wait();  // finished() comes just before the thread ends: let it end before it is deleted
+    t->deleteLater();
+    done();
+    updateButtons();
+  });
+  updateButtons();
+  t->start();
+}
+
+void PacsBrowserDialog::setStatus(const QString& text, bool error) {
+  status_->setText(text);
+  status_->setStyleSheet(error ? "color: #c0392b;" : "");
+}
+
+QString PacsBrowserDialog::statusText() const { return status_->text(); }
+
+void PacsBrowserDialog::updateButtons() {
+  const auto selected = tree_->selectedItems();
+  const bool series = !selected.isEmpty() && selected.front()->data(0, kPacsKindRole).toInt() == kPacsSeries;
+  open_button_->setEnabled(series && progress_ == nullptr);
+  search_button_->setEnabled(progress_ == nullptr);
+}
+
+void PacsBrowserDialog::editServer() {
+  PacsSettingsDialog dialog(server_, this);
+  if (dialog.exec() != QDialog::Accepted) return;
+  server_ = dialog.server();
+  if (settings_changed_) settings_changed_(server_);
+  server_label_->setText("Server: " + q(server_.describe()) + ", we are " + q(server_.calling_aet));
+  tree_->clear();
+  setStatus("Server changed: Search again.");
+}
+
+void PacsBrowserDialog::search() {
+  io::PacsStudyQuery query;
+  query.patient_name = filter_->text().trimmed().toStdString();
+  // A plain name matches its beginning, as people expect of a search field.
+  if (!query.patient_name.empty() && query.patient_name.find_first_of("*?") == std::string::npos) {
+    query.patient_name += '*';
+  }
+  const io::PacsServer server = server_;
+  auto patients = std::make_shared<std::vector<io::PacsPatient>>();
+  auto studies = std::make_shared<std::size_t>(0);
+  auto error = std::make_shared<std::string>();
+  setStatus("Searching " + q(server.describe()) + "...");
+  runInBackground(
+      [server, query, patients, studies, error] {
+        try {
+          const std::vector<io::PacsStudy> found = io::pacsFindStudies(server, query);
+          *studies = found.size();
+          *patients = io::pacsPatientsOf(found);
+        } catch (const std::exception& e) {
+          *error = e.what();
+        }
+      },
+      [this, patients, studies, error] {
+        if (!error->empty()) {
+          setStatus(q(*error), true);
+          return;
+        }
+        fillPacsTree(*tree_, *patients);
+        setStatus(QString("%1 patients, %2 studies. Expand a study for its series; choose one to open.")
+                      .arg(patients->size())
+                      .arg(*studies));
+      });
+}
+
+void PacsBrowserDialog::listSeries(QTreeWidgetItem* study_item) {
+  if (study_item == nullptr || study_item->data(0, kPacsKindRole).toInt() != kPacsStudy) return;
+  if (study_item->data(0, kSeriesAskedRole).toBool()) return;
+  study_item->setData(0, kSeriesAskedRole, true);
+  const std::string study_uid = study_item->data(0, kPacsUidRole).toString().toStdString();
+  const io::PacsServer server = server_;
+  auto series = std::make_shared<std::vector<io::PacsSeries>>();
+  auto error = std::make_shared<std::string>();
+  runInBackground(
+      [server, study_uid, series, error] {
+        try {
+          *series = io::pacsFindSeries(server, study_uid);
+        } catch (const std::exception& e) {
+          *error = e.what();
+        }
+      },
+      [this, study_uid, series, error] {
+        // The tree may have been refilled meanwhile: find the study again by its UID.
+        QTreeWidgetItem* item = nullptr;
+        for (QTreeWidgetItemIterator it(tree_); *it != nullptr && item == nullptr; ++it) {
+          if ((*it)->data(0, kPacsKindRole).toInt() == kPacsStudy &&
+              (*it)->data(0, kPacsUidRole).toString().toStdString() == study_uid) {
+            item = *it;
+          }
+        }
+        if (!error->empty()) {
+          if (item != nullptr) item->setData(0, kSeriesAskedRole, false);  // may be asked again
+          setStatus(q(*error), true);
+          return;
+        }
+        if (item != nullptr) fillPacsSeries(*item, *series);
+      });
+}
+
+void PacsBrowserDialog::retrieveSelected() {
+  const auto selected = tree_->selectedItems();
+  if (selected.isEmpty() || progress_ != nullptr) return;
+  const QTreeWidgetItem* item = selected.front();
+  if (item->data(0, kPacsKindRole).toInt() != kPacsSeries) return;
+  const std::string series_uid = item->data(0, kPacsUidRole).toString().toStdString();
+  const std::string study_uid = item->data(0, kPacsStudyUidRole).toString().toStdString();
+  const int expected = item->data(0, kPacsInstancesRole).toInt();
+  const fs::path folder = pacsCacheFolder(series_uid, cache_root_);
+  const io::PacsServer server = server_;
+
+  cancel_ = false;
+  received_ = 0;
+  total_ = expected;
+  progress_ = new QProgressDialog("Retrieving the series from " + q(server.describe()) + "...", "Cancel", 0,
+                                  std::max(expected, 0), this);
+  progress_->setObjectName("pacsProgress");
+  progress_->setWindowTitle("Open from PACS");
+  progress_->setWindowModality(Qt::WindowModal);
+  progress_->setAutoClose(false);
+  progress_->setAutoReset(false);
+  progress_->setMinimumDuration(0);
+  progress_->setValue(0);
+  connect(progress_, &QProgressDialog::canceled, this, [this] {
+    cancel_ = true;
+    if (progress_ != nullptr) progress_->setLabelText("Cancelling...");
+  });
+  progress_timer_ = new QTimer(this);
+  connect(progress_timer_, &QTimer::timeout, this, [this] {
+    if (progress_ != nullptr && progress_->wasCanceled()) cancel_ = true;  // cancelled by Esc or cancel()
+    if (progress_ == nullptr || cancel_) return;
+    const int total = total_;
+    if (total > 0 && progress_->maximum() != total) progress_->setMaximum(total);
+    progress_->setValue(received_);
+    progress_->setLabelText(total > 0 ? QString("Retrieved %1 of %2 files").arg(received_.load()).arg(total)
+                                      : QString("Retrieved %1 files").arg(received_.load()));
+  });
+  progress_timer_->start(kProgressPollMs);
+  setStatus("Retrieving into " + q(folder.string()) + "...");
+  updateButtons();
+
+  auto result = std::make_shared<io::PacsRetrieveResult>();
+  auto error = std::make_shared<std::string>();
+  runInBackground(
+      [this, server, study_uid, series_uid, folder, expected, result, error] {
+        try {
+          std::error_code ec;
+          fs::remove_all(folder, ec);  // an earlier, perhaps partial, copy of this series
+          io::PacsRetrieveOptions options;
+          options.expected_instances = expected;
+          options.cancel = &cancel_;  // the dialog outlives this thread (its destructor waits)
+          options.progress = [this](const io::PacsRetrieveProgress& p) {
+            received_ = p.received;
+            if (p.total > 0) total_ = p.total;
+          };
+          *result = io::pacsRetrieveSeries(server, study_uid, series_uid, folder, options);
+        } catch (const std::exception& e) {
+          *error = e.what();
+        }
+      },
+      [this, result, error] {
+        progress_timer_->stop();
+        progress_timer_->deleteLater();
+        progress_timer_ = nullptr;
+        progress_->close();
+        progress_->deleteLater();
+        progress_ = nullptr;
+        if (!error->empty()) {
+          setStatus(q(*error), true);
+          emit retrievalFinished(0, false, q(*error));
+          return;
+        }
+        if (result->cancelled) {
+          setStatus("Retrieval cancelled; nothing was kept.");
+          emit retrievalFinished(0, true, {});
+          return;
+        }
+        retrieved_ = result->folder;
+        setStatus(QString("Retrieved %1 files in %2 s.").arg(result->files.size()).arg(result->seconds, 0, 'f', 1));
+        emit retrievalFinished(static_cast<int>(result->files.size()), false, {});
+        accept();
+      });
+}
+
+}  // namespace vh::ui
