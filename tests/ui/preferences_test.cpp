@@ -28,6 +28,10 @@ TEST(PreferencesTest, RoundTripThroughQSettings) {
   p.addRecentFile("/data/a.nrrd");
   p.addRecentFile("/data/dicom");
   p.last_folder = "/data";
+  p.pacs.host = "pacs.example.org";
+  p.pacs.port = 11112;
+  p.pacs.called_aet = "HOSPITAL";
+  p.pacs.calling_aet = "WORKSTATION7";
   {
     QSettings s(file, QSettings::IniFormat);
     p.save(s);
@@ -38,6 +42,8 @@ TEST(PreferencesTest, RoundTripThroughQSettings) {
   EXPECT_EQ(back.recent_files, (QStringList{"/data/dicom", "/data/a.nrrd"}));
   EXPECT_EQ(back.mode, RenderMode::kMip);
   EXPECT_EQ(back.surface, QColor(200, 100, 50));
+  EXPECT_EQ(back.pacs.describe(), "HOSPITAL at pacs.example.org:11112");
+  EXPECT_EQ(back.pacs.calling_aet, "WORKSTATION7");
 }
 
 TEST(PreferencesTest, MissingOrInvalidEntriesKeepTheDefaults) {
@@ -46,11 +52,13 @@ TEST(PreferencesTest, MissingOrInvalidEntriesKeepTheDefaults) {
   s.setValue("preferences/colours/surface", "not a colour");
   s.setValue("preferences/haptics/linear_stiffness_N_per_m", -5.0);
   s.setValue("preferences/view/mode", 42);
+  s.setValue("preferences/pacs/port", 70000);
   const Preferences p = Preferences::load(s);
   const Preferences defaults;
   EXPECT_EQ(p.surface, defaults.surface);
   EXPECT_EQ(p.linear_stiffness_N_per_m, defaults.linear_stiffness_N_per_m);
   EXPECT_EQ(p.mode, defaults.mode);
+  EXPECT_EQ(p.pacs.port, defaults.pacs.port);
   EXPECT_TRUE(p == defaults);
 }
 

@@ -133,6 +133,14 @@ class Scu : public DcmSCU {
                               trim(server_.called_aet) + "' and that the server knows the calling AE title '" +
                               trim(server_.calling_aet) + "'");
     }
+    if (cond.module() == OFM_dcmnet && cond.code() == DULC_READTIMEOUT) {
+      throw fail(server_, "no answer to the association request within " +
+                              std::to_string(std::max(1, server_.connect_timeout_s)) + " s (" + why +
+                              "): is a DICOM server listening on that port?");
+    }
+    if (cond.module() == OFM_dcmnet && (cond.code() == DULC_UNRECOGNIZEDPDUTYPE || cond.code() == DULC_ILLEGALPDU)) {
+      throw fail(server_, "what answers on that port is not a DICOM server (" + why + ")");
+    }
     if (cond == NET_EC_NoAcceptablePresentationContexts) {
       throw fail(server_, "the server accepts none of the services asked for (" + why + ")");
     }
@@ -250,7 +258,18 @@ class Scu : public DcmSCU {
   int failed_ = 0;
 };
 
-/// Runs one C-FIND of `keys` at `level`; returns the matches' datasets.
+/// `cond` as the end of a message; when the server dropped the association mid-operation, the
+/// likely reason: it does not allow our AE title that operation.
+std::string why(const OFCondition& cond, const PacsServer& server) {
+  std::string text = cond.text();
+  if (cond == DUL_PEERABORTEDASSOCIATION) {
+    text += ": the server ended the association; does it know the calling AE title '" + trim(server.calling_aet) +
+            "' and allow it this?";
+  }
+  return text;
+}
+
+/// Runs one C-FIND of `keys`; returns the matches' datasets.
 std::vector<std::unique_ptr<DcmDataset>> find(const PacsServer& server, DcmDataset& keys) {
   Scu scu(server);
   scu.propose(UID_FINDStudyRootQueryRetrieveInformationModel);
@@ -274,7 +293,7 @@ std::vector<std::unique_ptr<DcmDataset>> find(const PacsServer& server, DcmDatas
       final_status = r->m_status;
     }
   }
-  if (cond.bad()) throw fail(server, std::string("C-FIND failed: ") + cond.text());
+  if (cond.bad()) throw fail(server, "C-FIND failed: " + why(cond, server));
   if (!final_seen) throw fail(server, "C-FIND failed: the server sent no final response");
   if (final_status != kStatusSuccess) {
     throw fail(server, "C-FIND failed: status " + hex4(final_status) + " (" + DU_cfindStatusString(final_status) + ")");
@@ -460,7 +479,7 @@ PacsRetrieveResult pacsRetrieveSeries(const PacsServer& server, const std::strin
   if (cond.bad()) {
     remove_files();
     throw fail(server, "C-GET of series " + series + " failed after " + std::to_string(scu.files().size()) +
-                           " files: " + cond.text());
+                           " files: " + why(cond, server));
   }
   const Uint16 status = scu.finalStatus();
   const bool warning = status == kStatusGetWarning || (status & 0xF000) == 0xB000;

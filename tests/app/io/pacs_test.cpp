@@ -12,6 +12,11 @@
 #include <map>
 #include <string>
 
+#include <arpa/inet.h>
+#include <netinet/in.h>
+#include <sys/socket.h>
+#include <unistd.h>
+
 #include <gtest/gtest.h>
 #include <vtkImageData.h>
 #include <vtkPointData.h>
@@ -126,6 +131,19 @@ std::uint64_t voxelChecksum(vtkImageData* image) {
   vtkDataArray* a = image->GetPointData()->GetScalars();
   mix(a->GetVoidPointer(0), static_cast<std::size_t>(a->GetNumberOfValues()) * static_cast<std::size_t>(a->GetDataTypeSize()));
   return h;
+}
+
+/// A loopback port that nothing listens on: one the kernel just gave out, closed again.
+int closedPort() {
+  const int fd = ::socket(AF_INET, SOCK_STREAM, 0);
+  sockaddr_in addr{};
+  addr.sin_family = AF_INET;
+  addr.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+  socklen_t len = sizeof addr;
+  const bool ok = ::bind(fd, reinterpret_cast<sockaddr*>(&addr), sizeof addr) == 0 &&
+                  ::getsockname(fd, reinterpret_cast<sockaddr*>(&addr), &len) == 0;
+  ::close(fd);
+  return ok ? ntohs(addr.sin_port) : 9;  // 9: discard, unused on test machines
 }
 
 TEST(Pacs, EchoAnswers) {
@@ -270,7 +288,7 @@ TEST(Pacs, CancelStopsARetrievalPartWay) {
 TEST(Pacs, AWrongPortFailsClearlyInBoundedTime) {
   VH_REQUIRE_ORTHANC();
   PacsServer server = fixture().server();
-  server.port = std::stoi(fixture().get("http_port")) + 7;  // nothing listens there (the fixture's ports are its own)
+  server.port = closedPort();
   const auto t0 = Clock::now();
   try {
     pacsEcho(server);
@@ -281,6 +299,50 @@ TEST(Pacs, AWrongPortFailsClearlyInBoundedTime) {
     EXPECT_CONTAINS(e.what(), "no connection");
   }
   EXPECT_LT(secondsSince(t0), server.connect_timeout_s + 2.0);
+}
+
+TEST(Pacs, AnHttpPortIsNotTakenForADicomServer) {
+  VH_REQUIRE_ORTHANC();
+  PacsServer server = fixture().server();
+  server.port = std::stoi(fixture().get("http_port"));  // Orthanc's web server answers there
+  const auto t0 = Clock::now();
+  try {
+    pacsEcho(server);
+    ADD_FAILURE() << "an echo to an HTTP server succeeded";
+  } catch (const PacsError& e) {
+    std::printf("[ TIMING   ] HTTP port: failed in %.3f s: %s\n", secondsSince(t0), e.what());
+    EXPECT_CONTAINS(e.what(), "not a DICOM server");
+  }
+  EXPECT_LT(secondsSince(t0), server.connect_timeout_s + 2.0);
+}
+
+TEST(Pacs, ASilentServerFailsAfterTheConnectionTimeout) {
+  // A socket that accepts connections (the kernel's backlog) and never says a word.
+  const int listener = ::socket(AF_INET, SOCK_STREAM, 0);
+  ASSERT_GE(listener, 0);
+  sockaddr_in addr{};
+  addr.sin_family = AF_INET;
+  addr.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+  addr.sin_port = 0;  // any free port
+  ASSERT_EQ(::bind(listener, reinterpret_cast<sockaddr*>(&addr), sizeof addr), 0);
+  ASSERT_EQ(::listen(listener, 4), 0);
+  socklen_t len = sizeof addr;
+  ASSERT_EQ(::getsockname(listener, reinterpret_cast<sockaddr*>(&addr), &len), 0);
+  PacsServer server;
+  server.host = "127.0.0.1";
+  server.port = ntohs(addr.sin_port);
+  server.connect_timeout_s = 2;
+  const auto t0 = Clock::now();
+  try {
+    pacsFindStudies(server);
+    ADD_FAILURE() << "a query to a silent server succeeded";
+  } catch (const PacsError& e) {
+    std::printf("[ TIMING   ] silent server: failed in %.3f s: %s\n", secondsSince(t0), e.what());
+    EXPECT_CONTAINS(e.what(), "no answer to the association request within 2 s");
+  }
+  EXPECT_GE(secondsSince(t0), 1.5);
+  EXPECT_LT(secondsSince(t0), 5.0);
+  ::close(listener);
 }
 
 TEST(Pacs, AnUnknownCalledAeTitleIsRejected) {
@@ -305,7 +367,10 @@ TEST(Pacs, AnUnknownCallingAeTitleMayNotQuery) {
     pacsFindStudies(server);
     ADD_FAILURE() << "an unknown AE's query succeeded";
   } catch (const PacsError& e) {
+    std::printf("[ MESSAGE  ] unknown calling AE title: %s\n", e.what());
     EXPECT_CONTAINS(e.what(), "PACS " + server.describe());
+    EXPECT_CONTAINS(e.what(), "C-FIND failed");
+    EXPECT_CONTAINS(e.what(), "calling AE title 'STRANGER'");
   }
 }
 
