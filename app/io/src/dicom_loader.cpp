@@ -259,6 +259,9 @@ vtkSmartPointer<vtkDICOMReader> makeReader(vtkStringArray* files, VtkErrorCaptur
   return reader;
 }
 
+/// SOP Class UID of a DICOM Segmentation Storage object (DICOM PS3.4 B.5).
+constexpr const char* kSegmentationSopClass = "1.2.840.10008.5.1.4.1.1.66.4";
+
 /// Files of a single-frame series at the same position and time point / echo as an earlier
 /// file (exact duplicates, e.g. a slice exported twice): their indices, with a description.
 std::vector<int> duplicateFiles(vtkDICOMMetaData* md, vtkStringArray* files, std::string& description) {
@@ -630,6 +633,12 @@ RawVolume readSeries(vtkStringArray* series_files, const fs::path& path, const f
   vtkDICOMMetaData* md = series.md;
   if (capture.hasErrors()) failRead(path, series.files, capture.firstError());
   if (md == nullptr || md->GetNumberOfInstances() == 0) fail(path, "no DICOM slices could be read");
+  // A segmentation's frames are the segments, several at each slice position: read as a scan it
+  // would be refused for "two slices at the same position", naming one file twice.
+  if (md->Get(0, DC::Modality).AsString() == "SEG" || md->Get(0, DC::SOPClassUID).AsString() == kSegmentationSopClass) {
+    fail(path, "a DICOM Segmentation (SEG), not a scan: open the scan it segments first, then this file with "
+               "File > Open Segmentation (Ctrl+G); on the command line, run --segmentation FILE with the scan's scene");
+  }
   checkConsistentSlices(md, series.files, path);
   chooseTimePoint(series.reader, options, path, raw.info);
   double slope = 1.0;

@@ -33,9 +33,15 @@ fs::path readerFor(DicomIsolation isolation) {
 }
 
 /// The LoadError text for a DICOM reader that crashed or stalled (`what`): names the file the
-/// probe stops on, else `doing` ("reading the series").
-std::string dicomReaderProblem(const std::string& what, const std::string& culprit, const char* doing) {
-  return "the DICOM reader " + what + (culprit.empty() ? std::string(" ") + doing : " on " + culprit);
+/// probe stops on, else `doing` ("reading the series"), then `consequence`; with a file named,
+/// how to open the series without it (the folder is scanned with its sub-folders, so the file
+/// must leave the folder).
+std::string dicomReaderProblem(const std::string& what, const std::string& culprit, const char* doing,
+                               const char* consequence) {
+  if (culprit.empty()) return "the DICOM reader " + what + " " + doing + ": a damaged file" + consequence;
+  return "the DICOM reader " + what + " on " + culprit + ": a damaged file" + consequence +
+         ". To open the series without it, move " + fs::path(culprit).filename().string() +
+         " out of the folder (and its sub-folders) and open the folder again";
 }
 
 }  // namespace
@@ -72,7 +78,7 @@ std::vector<DicomSeriesInfo> listDicomSeries(const fs::path& folder, const std::
       {reader.string(), "list", fs::absolute(folder, ec).string(), out.path().string()}, folder,
       detail::kDefaultStallS, on_line, cancel, [&](const std::string& what) {
         const std::string file = detail::findCulpritFile(reader, folder, detail::kDefaultStallS);
-        return dicomReaderProblem(what, file, "listing the folder") + ": a damaged file";
+        return dicomReaderProblem(what, file, "listing the folder", "");
       });
   if (!finished) return {};
   return detail::readSeriesList(out.path(), folder);
@@ -175,7 +181,7 @@ LoadedVolume loadDicom(const fs::path& path, const VolumeLoadOptions& options) {
   const double stall_s = stallLimitFor(path, options.worker_stall_timeout_s);
   const bool finished = runReaderToEnd(args, path, stall_s, on_line, options.cancel, [&](const std::string& what) {
     const std::string file = findCulpritFile(reader, path, stall_s);
-    return dicomReaderProblem(what, file, "reading the series") + ": a damaged file; nothing was loaded";
+    return dicomReaderProblem(what, file, "reading the series", "; nothing was loaded");
   });
   if (!finished) throw LoadCancelled(path.string() + ": loading cancelled");
   RawVolume raw = readRaw(out.path(), path);

@@ -100,6 +100,7 @@ TEST(DicomIsolation, AWorkerCrashNamesTheFileAndLoadsNothing) {
   const std::string msg = loadErrorOf([&] { loadVolume(head); });
   EXPECT_CONTAINS(msg, "the DICOM reader crashed (SIGSEGV) on " + (head / "CTHead8.dcm").string());
   EXPECT_CONTAINS(msg, "nothing was loaded");
+  EXPECT_CONTAINS(msg, "To open the series without it, move CTHead8.dcm out of the folder");
 }
 
 TEST(DicomIsolation, ListingSeriesRunsInTheWorkerToo) {
@@ -123,6 +124,7 @@ TEST(DicomIsolation, ListingSeriesRunsInTheWorkerToo) {
   ScopedEnv env("VH_DICOM_WORKER", script.string());
   const std::string msg = loadErrorOf([&] { listDicomSeries(phantom); });
   EXPECT_CONTAINS(msg, "the DICOM reader crashed (SIGSEGV) on " + (phantom / "I10").string());
+  EXPECT_CONTAINS(msg, "To open the series without it, move I10 out of the folder");
 }
 
 TEST(DicomIsolation, MeshesThatCrashVtkReadersAreRefusedNotFatal) {

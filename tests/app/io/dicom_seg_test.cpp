@@ -231,5 +231,27 @@ TEST(DicomSeg, DamagedFilesAndOtherDicomAreRefusedWithoutACrash) {
   EXPECT_FALSE(isSegmentationFile(dir / "garbage.dcm"));
 }
 
+// A SEG opened as a scan (the file, or a folder holding only it) names itself and says how to
+// open it, instead of "two slices at the same position (X.dcm and X.dcm)": its frames are the
+// segments, several at each slice position.
+TEST(DicomSeg, ASegOpenedAsAScanNamesItselfAndPointsToOpenSegmentation) {
+  TempDir dir("dicom-seg-as-scan");
+  const CtSeries ct = syntheticCt(dir / "ct");
+  const LabelMap m = shapes(ct.columns, ct.rows, static_cast<int>(ct.slices.size()));
+  std::filesystem::create_directories(dir / "seg-only");
+  ASSERT_NO_FATAL_FAILURE(writeSeg(dir / "seg-only" / "seg.dcm", ct, m, SegSpec{}));
+  for (const DicomIsolation isolation : {DicomIsolation::kAuto, DicomIsolation::kInProcess}) {
+    VolumeLoadOptions options;
+    options.dicom_isolation = isolation;
+    for (const std::filesystem::path& path : {dir / "seg-only" / "seg.dcm", dir / "seg-only"}) {
+      const std::string e = test::loadErrorOf([&] { (void)loadVolume(path, options); });
+      EXPECT_CONTAINS(e, "a DICOM Segmentation (SEG), not a scan");
+      EXPECT_CONTAINS(e, "File > Open Segmentation");
+      EXPECT_CONTAINS(e, "--segmentation");
+      EXPECT_EQ(e.find("same position"), std::string::npos) << e;
+    }
+  }
+}
+
 }  // namespace
 }  // namespace vh::io
