@@ -3,13 +3,22 @@
 // (tests/app/io/pacs_orthanc_fixture.sh) with the shared small CT head in it: search, expand,
 // retrieve into the cache, cancel, a closed port. The oracle is the dataset folder itself.
 
+#include <arpa/inet.h>
+#include <netinet/in.h>
+#include <sys/socket.h>
+#include <unistd.h>
+
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
 #include <map>
 #include <string>
 
+#include <QAction>
+#include <QApplication>
 #include <QLineEdit>
+#include <QSignalSpy>
+#include <QTimer>
 #include <QProgressDialog>
 #include <QPushButton>
 #include <QTemporaryDir>
@@ -20,7 +29,10 @@
 
 #include "ui_test_util.h"
 #include "vh/io/volume_loader.h"
+#include "vh/ui/main_window.h"
 #include "vh/ui/panels/pacs_dialog.h"
+#include "vh/ui/scene_opener.h"
+#include "vh/runtime/session.h"
 
 namespace vh::ui {
 namespace {
@@ -53,6 +65,19 @@ io::PacsServer fixtureServer(const std::map<std::string, std::string>& v) {
   if (!values.count("status") || values.at("status") != "ready") {                                              \
     GTEST_SKIP() << "no test PACS: " << (values.count("reason") ? values.at("reason") : "fixture not started"); \
   }
+
+/// A loopback port that nothing listens on: one the kernel just gave out, closed again.
+int closedPort() {
+  const int fd = ::socket(AF_INET, SOCK_STREAM, 0);
+  sockaddr_in addr{};
+  addr.sin_family = AF_INET;
+  addr.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+  socklen_t len = sizeof addr;
+  const bool ok = ::bind(fd, reinterpret_cast<sockaddr*>(&addr), sizeof addr) == 0 &&
+                  ::getsockname(fd, reinterpret_cast<sockaddr*>(&addr), &len) == 0;
+  ::close(fd);
+  return ok ? ntohs(addr.sin_port) : 9;
+}
 
 std::size_t dicomFilesIn(const fs::path& folder) {
   std::size_t n = 0;
@@ -187,7 +212,7 @@ TEST(PacsDialog, CancelInTheProgressDialogKeepsNothing) {
 TEST(PacsDialog, AClosedPortIsSaidInTheDialog) {
   VH_REQUIRE_ORTHANC(values);
   io::PacsServer server = fixtureServer(values);
-  server.port = std::stoi(values.at("http_port")) + 9;
+  server.port = closedPort();
   PacsBrowserDialog dialog(server, {}, nullptr);
   dialog.show();
   dialog.search();
@@ -195,6 +220,66 @@ TEST(PacsDialog, AClosedPortIsSaidInTheDialog) {
   EXPECT_TRUE(dialog.statusText().contains("no connection")) << dialog.statusText().toStdString();
   EXPECT_TRUE(dialog.statusText().contains(QString::fromStdString(server.describe())));
   EXPECT_EQ(dialog.tree()->topLevelItemCount(), 0);
+}
+
+// The whole path in the window: File > Open from PACS, the dialog driven as a user would (a
+// timer acts inside its modal loop), and the retrieved series opened as a DICOM folder.
+TEST(PacsMainWindow, OpensTheRetrievedSeriesAsADicomFolder) {
+  VH_REQUIRE_ORTHANC(values);
+  MainWindow window;
+  window.setInteractive(false);
+  window.preferences().pacs = fixtureServer(values);
+  window.resize(800, 600);
+  window.show();
+  QSignalSpy loaded(&window, &MainWindow::sceneLoaded);
+  QAction* open_from_pacs = nullptr;
+  for (QAction* a : window.findChildren<QAction*>()) {
+    if (a->text() == "Open from &PACS...") open_from_pacs = a;
+  }
+  ASSERT_NE(open_from_pacs, nullptr) << "File > Open from PACS";
+  EXPECT_EQ(open_from_pacs->shortcut(), QKeySequence("Ctrl+Shift+D"));
+
+  int step = 0;
+  std::string series_uid;
+  QTimer driver;
+  QObject::connect(&driver, &QTimer::timeout, [&] {
+    auto* dialog = qobject_cast<PacsBrowserDialog*>(QApplication::activeModalWidget());
+    if (dialog == nullptr || dialog->busy()) return;
+    if (step == 0) {
+      dialog->search();
+      step = 1;
+    } else if (step == 1 && dialog->tree()->topLevelItemCount() > 0) {
+      dialog->tree()->topLevelItem(0)->child(0)->setExpanded(true);
+      step = 2;
+    } else if (step == 2) {
+      for (QTreeWidgetItemIterator it(dialog->tree()); *it != nullptr; ++it) {
+        if ((*it)->data(0, kPacsKindRole).toInt() == kPacsSeries) {
+          series_uid = (*it)->text(4).toStdString();
+          (*it)->setSelected(true);
+          dialog->retrieveSelected();  // accepts the dialog once the files are in
+          step = 3;
+          break;
+        }
+      }
+    }
+  });
+  driver.start(50);
+  open_from_pacs->trigger();  // returns once the dialog is closed
+  driver.stop();
+  ASSERT_EQ(step, 3) << "the dialog closed before a series was retrieved";
+  ASSERT_TRUE(test::waitFor([&] { return loaded.count() > 0; }, 30000)) << window.opener()->lastError().toStdString();
+  ASSERT_TRUE(window.hasScene());
+  const auto& dims = window.session().loaded().volume.field->geometry().dims;
+  const io::LoadedVolume original = io::loadVolume(values.at("dataset"));
+  EXPECT_EQ(dims, original.field->geometry().dims);
+  EXPECT_EQ(window.session().loaded().volume.info.modality, "CT");
+  const fs::path cached = pacsCacheFolder(series_uid);
+  ASSERT_FALSE(window.preferences().recent_files.isEmpty());
+  EXPECT_EQ(window.preferences().recent_files.front().toStdString(), fs::absolute(cached).lexically_normal().string());
+  EXPECT_EQ(dicomFilesIn(cached), static_cast<std::size_t>(std::stoi(values.at("instances"))));
+  window.close();
+  std::error_code ec;
+  fs::remove_all(cached, ec);  // the test-mode cache (QStandardPaths::setTestModeEnabled)
 }
 
 }  // namespace
