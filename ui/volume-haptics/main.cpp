@@ -399,9 +399,9 @@ int main(int argc, char** argv) {
   CLI::App* export_cmd = addExportSubcommand(app, export_args);
   std::function<int()> bench_handler;
   vh::bench::addBenchSubcommand(app, bench_handler);
-
   std::function<int()> pacs_handler;
   vh::app::addPacsSubcommand(app, pacs_handler);
+
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
@@ -415,8 +415,8 @@ int main(int argc, char** argv) {
     if (*export_cmd) return exportCommand(argc, argv, export_args);
     if (*make) return makeTrajectoryCommand(make_args);
     if (bench_handler) return bench_handler();
-
     if (pacs_handler) return pacs_handler();
+
     // GUI: the path first (a missing file is said as such), then the display.
     vh::runtime::SceneSpec scene = sceneForPath(gui.input);
     if (!hasDisplay(/*x11_only=*/false)) {
