@@ -72,7 +72,7 @@ void HapticsController::refresh() {
   }
 }
 
-void HapticsController::addMenu(QMenuBar* bar, QWidget* window) {
+QMenu* HapticsController::addMenu(QMenuBar* bar, QWidget* window) {
   QMenu* menu = bar->addMenu("&Haptics");
   run_action_ = menu->addAction("&Run Haptic Thread", this, [this](bool on) { on ? start() : session_.stopHaptics(); });
   run_action_->setCheckable(true);
@@ -81,10 +81,10 @@ void HapticsController::addMenu(QMenuBar* bar, QWidget* window) {
         if (session_.hasScene()) input_.setDevicePose(session_.live().X_WT_initial);
       })->setShortcut(QKeySequence("Ctrl+Home"));
   QAction* touch = menu->addAction("&Touch the Surface", this, [this] {
-    if (!input_.touchSurface(0.003)) emit message("No simulated device, or no surface towards the volume's centre", 4000);
+    if (!input_.touchSurface(0.003)) emit message("No simulated device, or no surface along the view through the volume's centre", 4000);
   });
   touch->setShortcut(QKeySequence("Ctrl+T"));
-  touch->setToolTip("Moves the simulated device straight towards the volume's centre until the tool rests on the surface");
+  touch->setToolTip("Brings the simulated device from outside the volume, along the view through its centre, until the tool rests on the surface");
   menu->addSeparator();
   menu->addAction(recorder_.recordAction());
   menu->addAction(recorder_.markerAction());
@@ -92,6 +92,7 @@ void HapticsController::addMenu(QMenuBar* bar, QWidget* window) {
   menu->addSeparator();
   devices_.setMenu(menu->addMenu("De&vice"));
   refresh();
+  return menu;
 }
 
 }  // namespace vh::ui

@@ -34,6 +34,7 @@
 #include "vh/ui/scene_loader.h"
 #include "vh/ui/scene_opener.h"
 #include "vh/ui/segments_controller.h"
+#include "vh/ui/drill_controller.h"
 #include "vh/ui/tool_picker.h"
 #include "vh/ui/view/vtk_view.h"
 #include "vh/ui/view_controller.h"
@@ -147,6 +148,7 @@ void MainWindow::buildDocks() {
   chart_dock_->setWidget(chart_);
   addDockWidget(Qt::BottomDockWidgetArea, chart_dock_);
   segments_ = new SegmentsController(session_, *view_, this, statusBar());
+  drill_ = new DrillController(session_, *view_, this);
   // Display, Segments and Haptics share the right side as tabs (Haptics in front): together they
   // would be taller than a laptop screen.
   tabifyDockWidget(display_dock_, segments_->dock());
@@ -181,6 +183,7 @@ void MainWindow::connectParts() {
   connect(igtl_, &IgtlPanel::message, this, show_message);
   connect(tool_picker_, &ToolPicker::message, this, show_message);
   connect(haptics_, &HapticsController::message, this, show_message);
+  connect(drill_, &DrillController::message, this, show_message);
   device_picker_->rescan();
 
   // Opening files -> the window; the recorder and the replay.
@@ -324,6 +327,7 @@ void MainWindow::buildMenus() {
     if (!path.isEmpty() && !saveScreenshot(path)) opener_->reportError(path, path + ": the screenshot could not be written");
   });
   shot->setShortcut(QKeySequence("Ctrl+Shift+S"));
+  drill_->addMenuActions(nullptr, file, this);
   file->addSeparator();
   file->addAction("&Quit", this, &QWidget::close)->setShortcut(QKeySequence::Quit);
 
@@ -341,7 +345,9 @@ void MainWindow::buildMenus() {
   view_menu->addAction(haptics_dock_->toggleViewAction());
   view_menu->addAction(chart_dock_->toggleViewAction());
 
-  haptics_->addMenu(menuBar(), this);
+  QMenu* haptics_menu = haptics_->addMenu(menuBar(), this);
+  haptics_menu->addSeparator();
+  drill_->addMenuActions(haptics_menu, nullptr, this);
   menuBar()->addMenu("&Connections")->addAction(igtl_->action());
 
   QMenu* help = menuBar()->addMenu("H&elp");

@@ -131,6 +131,35 @@ void Session::setSegments(std::shared_ptr<const SegmentSet> segments, std::optio
   notify(SessionChange::kSegments | (was_running != hapticsRunning() ? SessionChange::kRunning : SessionChange{}));
 }
 
+void Session::setDrilling(bool on) {
+  if (!has_scene_) return;
+  if (!live_.drill) {
+    if (!on) return;
+    const bool was_running = hapticsRunning();
+    const haptics::Pose X_WP = proxyPose();
+    if (haptics_ != nullptr) haptics_->stop();
+    haptics_.reset();
+    live_.drill = DrillSpec{};
+    live_.drill->on = true;
+    if (SimulatedDevice* sim = simulatedDevice()) sim->setPose(X_WP);
+    try {
+      rebuildHaptics(X_WP);
+    } catch (...) {
+      live_.drill.reset();
+      rebuildHaptics(X_WP);
+      if (was_running && haptics_ != nullptr) haptics_->start();
+      throw;
+    }
+    if (was_running && haptics_ != nullptr) haptics_->start();
+    notify(SessionChange::kDrill | (was_running != hapticsRunning() ? SessionChange::kRunning : SessionChange{}));
+    return;
+  }
+  if (live_.drill->on == on) return;
+  live_.drill->on = on;
+  if (haptics_ != nullptr) haptics_->setDrilling(on);
+  notify(SessionChange::kDrill);
+}
+
 void Session::setDevice(std::shared_ptr<Device> device) {
   if (!has_scene_) {
     device_ = std::move(device);

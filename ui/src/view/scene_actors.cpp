@@ -22,10 +22,101 @@
 #include <vtkRenderer.h>
 #include <vtkTextActor.h>
 #include <vtkTextProperty.h>
+#include <vtkDataArray.h>
+#include <vtkObjectFactory.h>
+#include <vtkOpenGLGPUVolumeRayCastMapper.h>
+#include <vtkPointData.h>
+#include <vtkTextureObject.h>
 #include <vtkVolume.h>
+#include <vtkVolumeInputHelper.h>
 #include <vtkVolumeProperty.h>
+#include <vtkVolumeTexture.h>
+#include <vtk_glew.h>
 
 namespace vh::ui {
+
+/// VTK's GPU ray caster, plus one thing: a box of changed voxels (drilling) goes into its volume
+/// texture with glTexSubImage3D before the next frame, instead of a re-upload of the whole volume
+/// (VTK 9.1 re-uploads everything when the image is Modified()). The image's scalars are written
+/// in place without Modified(); the box is sent where the texture is one block holding the
+/// image's own scalar type (no partitions, no conversion); otherwise the image is Modified() and
+/// VTK uploads it whole, as before.
+class DrillableVolumeMapper : public vtkOpenGLGPUVolumeRayCastMapper {
+ public:
+  static DrillableVolumeMapper* New();
+  vtkTypeMacro(DrillableVolumeMapper, vtkOpenGLGPUVolumeRayCastMapper);
+
+  /// Adds the voxel box [lo, hi] (inclusive) to what the next frame uploads.
+  void markChanged(const int lo[3], const int hi[3]) {
+    for (int a = 0; a < 3; ++a) {
+      lo_[a] = std::min(lo_[a], lo[a]);
+      hi_[a] = std::max(hi_[a], hi[a]);
+    }
+    pending_ = true;
+  }
+  void clearPending() {
+    pending_ = false;
+    for (int a = 0; a < 3; ++a) lo_[a] = VTK_INT_MAX, hi_[a] = VTK_INT_MIN;
+  }
+  std::uint64_t partial_uploads = 0, full_uploads = 0;
+
+ protected:
+  void GPURender(vtkRenderer* ren, vtkVolume* vol) override {
+    if (pending_) uploadPending();
+    Superclass::GPURender(ren, vol);
+  }
+
+ private:
+  void uploadPending() {
+    vtkImageData* image = vtkImageData::SafeDownCast(GetInput());
+    const auto it = AssembledInputs.find(0);
+    vtkTextureObject* texture = nullptr;
+    if (image != nullptr && it != AssembledInputs.end() && it->second.Texture != nullptr &&
+        it->second.Texture->GetCurrentBlock() != nullptr)
+      texture = it->second.Texture->GetCurrentBlock()->TextureObject;
+    vtkDataArray* scalars = image != nullptr ? image->GetPointData()->GetScalars() : nullptr;
+    int dims[3] = {0, 0, 0};
+    if (image != nullptr) image->GetDimensions(dims);
+    const bool whole_block = texture != nullptr && texture->GetHandle() != 0 &&
+                             static_cast<int>(texture->GetWidth()) == dims[0] &&
+                             static_cast<int>(texture->GetHeight()) == dims[1] &&
+                             static_cast<int>(texture->GetDepth()) == dims[2];
+    if (!whole_block || scalars == nullptr || scalars->GetNumberOfComponents() != 1 ||
+        texture->GetVTKDataType() != scalars->GetDataType()) {
+      if (image != nullptr) image->Modified();  // VTK uploads the whole volume
+      ++full_uploads;
+      clearPending();
+      return;
+    }
+    const int type = scalars->GetDataType();
+    const int size = scalars->GetDataTypeSize();
+    int lo[3], n[3];
+    for (int a = 0; a < 3; ++a) {
+      lo[a] = std::clamp(lo_[a], 0, dims[a] - 1);
+      n[a] = std::clamp(hi_[a], 0, dims[a] - 1) - lo[a] + 1;
+    }
+    const auto* base = static_cast<const unsigned char*>(scalars->GetVoidPointer(0));
+    const std::size_t offset =
+        (static_cast<std::size_t>(lo[2]) * dims[1] * dims[0] + static_cast<std::size_t>(lo[1]) * dims[0] + lo[0]) * size;
+    texture->Bind();
+    glPixelStorei(GL_UNPACK_ALIGNMENT, 1);
+    glPixelStorei(GL_UNPACK_ROW_LENGTH, dims[0]);
+    glPixelStorei(GL_UNPACK_IMAGE_HEIGHT, dims[1]);
+    glTexSubImage3D(GL_TEXTURE_3D, 0, lo[0], lo[1], lo[2], n[0], n[1], n[2],
+                    texture->GetFormat(type, 1, false), texture->GetDataType(type), base + offset);
+    glPixelStorei(GL_UNPACK_ROW_LENGTH, 0);
+    glPixelStorei(GL_UNPACK_IMAGE_HEIGHT, 0);
+    glPixelStorei(GL_UNPACK_ALIGNMENT, 4);
+    ++partial_uploads;
+    clearPending();
+  }
+
+  bool pending_ = false;
+  int lo_[3] = {VTK_INT_MAX, VTK_INT_MAX, VTK_INT_MAX};
+  int hi_[3] = {VTK_INT_MIN, VTK_INT_MIN, VTK_INT_MIN};
+};
+vtkStandardNewMacro(DrillableVolumeMapper);
+
 namespace {
 
 // Colours (RGB in [0, 1]).
@@ -83,10 +174,54 @@ void setUserPose(vtkActor* actor, const haptics::Pose& X) {
 }  // namespace
 
 SceneActors::SceneActors(vtkRenderer* renderer, const SceneActorsSpec& spec) : renderer_(renderer) {
+  drillable_ = DrillableVolumeMapper::New();
+  volume_mapper_.TakeReference(drillable_);
+  image_ = spec.image;
   buildVolume(spec);
   buildTools(spec);
   buildOverlay(spec);
 }
+
+void SceneActors::removeVoxels(std::span<const std::uint64_t> indices, double value) {
+  if (indices.empty() || image_ == nullptr) return;
+  if (drilled_image_ == nullptr) {
+    drilled_image_ = vtkSmartPointer<vtkImageData>::New();
+    drilled_image_->DeepCopy(image_);
+    volume_mapper_->SetInputData(drilled_image_);  // one whole upload, on the next frame
+    drillable_->clearPending();
+  }
+  vtkDataArray* scalars = drilled_image_->GetPointData()->GetScalars();
+  int dims[3];
+  drilled_image_->GetDimensions(dims);
+  const auto count = static_cast<std::uint64_t>(scalars->GetNumberOfTuples());
+  int lo[3] = {VTK_INT_MAX, VTK_INT_MAX, VTK_INT_MAX}, hi[3] = {VTK_INT_MIN, VTK_INT_MIN, VTK_INT_MIN};
+  for (const std::uint64_t index : indices) {
+    if (index >= count) continue;
+    scalars->SetComponent(static_cast<vtkIdType>(index), 0, value);
+    const int ijk[3] = {static_cast<int>(index % static_cast<std::uint64_t>(dims[0])),
+                        static_cast<int>((index / static_cast<std::uint64_t>(dims[0])) % static_cast<std::uint64_t>(dims[1])),
+                        static_cast<int>(index / (static_cast<std::uint64_t>(dims[0]) * static_cast<std::uint64_t>(dims[1])))};
+    for (int a = 0; a < 3; ++a) {
+      lo[a] = std::min(lo[a], ijk[a]);
+      hi[a] = std::max(hi[a], ijk[a]);
+    }
+  }
+  if (lo[0] <= hi[0]) drillable_->markChanged(lo, hi);
+}
+
+void SceneActors::restoreVolume() {
+  if (drilled_image_ == nullptr) return;
+  drilled_image_ = nullptr;
+  drillable_->clearPending();
+  volume_mapper_->SetInputData(image_);
+}
+
+vtkImageData* SceneActors::shownImage() const noexcept {
+  return drilled_image_ != nullptr ? drilled_image_.Get() : image_.Get();
+}
+
+std::uint64_t SceneActors::partialUploads() const noexcept { return drillable_->partial_uploads; }
+std::uint64_t SceneActors::fullUploads() const noexcept { return drillable_->full_uploads; }
 
 void SceneActors::buildVolume(const SceneActorsSpec& spec) {
   // --- Volume: GPU ray-cast isosurface, shaded, one bone colour, opaque at the surface.

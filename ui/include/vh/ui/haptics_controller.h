@@ -12,6 +12,7 @@
 #include <QString>
 
 class QAction;
+class QMenu;
 class QMenuBar;
 class QWidget;
 
@@ -40,8 +41,8 @@ class HapticsController : public QObject {
   /// Starts the haptic threads; refused (a notice) while a replay is shown.
   void start();
   /// Adds the Haptics menu to `bar`: run, reset device, touch, record, marker (M anywhere in
-  /// `window`), the device submenu.
-  void addMenu(QMenuBar* bar, QWidget* window);
+  /// `window`), the device submenu. @return the menu (others add their actions to it).
+  QMenu* addMenu(QMenuBar* bar, QWidget* window);
   /// Shows the session in the panel and the menu now.
   void refresh();
 

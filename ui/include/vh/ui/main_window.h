@@ -53,6 +53,7 @@ class ReplayController;
 class SceneLoader;
 class SceneOpener;
 class SegmentsController;
+class DrillController;
 class SessionRecorder;
 class StatusLine;
 class StripChart;
@@ -164,6 +165,7 @@ class MainWindow : public QMainWindow {
   DeviceInput* device_input_ = nullptr;
   StatusLine* status_ = nullptr;
   SegmentsController* segments_ = nullptr;
+  DrillController* drill_ = nullptr;
   StripChart* chart_ = nullptr;
   SessionRecorder* recorder_ = nullptr;
   ReplayController* replay_ = nullptr;

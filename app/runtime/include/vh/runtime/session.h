@@ -44,6 +44,7 @@ enum class SessionChange : std::uint32_t {
   kDevice = 1u << 4,    ///< device(); the haptic thread was rebuilt.
   kRunning = 1u << 5,   ///< hapticsRunning()
   kSegments = 1u << 6,  ///< scene().segments (felt, shown, critical); the haptic thread was rebuilt.
+  kDrill = 1u << 7,     ///< drilling() or live().drill; the haptic thread may have been rebuilt.
 };
 constexpr SessionChange operator|(SessionChange a, SessionChange b) {
   return static_cast<SessionChange>(static_cast<std::uint32_t>(a) | static_cast<std::uint32_t>(b));
@@ -116,6 +117,18 @@ class Session {
   /// device is moved there); restarted when they ran.
   /// @throws std::invalid_argument without a scene, or for segments without a spec.
   void setSegments(std::shared_ptr<const SegmentSet> segments, std::optional<SegmentationSpec> spec);
+
+  // ---- Drilling --------------------------------------------------------------------------------
+  /// Starts or stops the burr (drilling.h). In a scene without a "drill" section the first start
+  /// adds one (DrillSpec's defaults: the tool's tip, 2.5 mm, hardness from HU or segments) and
+  /// rebuilds the haptic threads at the proxy's pose, restarted when they ran (one pass over the
+  /// field for the hardness: about a second on a 512 x 512 x 140 CT); then the burr only spins up
+  /// or down (HapticThread::setDrilling()). Rebuilding the threads for another reason (tool,
+  /// segments, device) starts again from the undrilled field. No scene: ignored.
+  /// @throws std::invalid_argument as makeDrillingRenderer() (e.g. a tool too small for a burr).
+  void setDrilling(bool on);
+  /// Whether the burr spins.
+  bool drilling() const noexcept { return live_.drill.has_value() && live_.drill->on; }
 
   // ---- Device and haptic threads -------------------------------------------------------------
   /// Drives `device` instead (null: haptics off): the threads are rebuilt with the current tool

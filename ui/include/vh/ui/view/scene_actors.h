@@ -37,6 +37,8 @@ class vtkVolumeProperty;
 
 namespace vh::ui {
 
+class DrillableVolumeMapper;  // scene_actors.cpp
+
 /// Inputs of the scene's props.
 struct SceneActorsSpec {
   vtkSmartPointer<vtkImageData> image;                      ///< Scalars in data units, metres.
@@ -60,6 +62,21 @@ class SceneActors {
   ~SceneActors();
   SceneActors(const SceneActors&) = delete;
   SceneActors& operator=(const SceneActors&) = delete;
+
+  /// Drilling: the voxels at `indices` (linear, x fastest, of the scene's image) take `value`
+  /// (data units) in a private copy of the image, made on the first call (the scene's image is
+  /// never written); the next frame uploads only the box that holds them into the GPU's volume
+  /// texture (glTexSubImage3D), not the whole volume, where the texture is one block of the
+  /// image's own type (else the whole volume once per frame). Indices out of range are ignored.
+  void removeVoxels(std::span<const std::uint64_t> indices, double value);
+  /// Back to the scene's own image (drilling undone for the eyes: a rebuilt haptic thread).
+  void restoreVolume();
+  /// Volume texture uploads so far: boxes uploaded alone, and whole-volume uploads the removal
+  /// needed (a texture the partial path could not reach).
+  std::uint64_t partialUploads() const noexcept;
+  std::uint64_t fullUploads() const noexcept;
+  /// The image the volume shows now: the drilled copy, else the scene's.
+  vtkImageData* shownImage() const noexcept;
 
   /// Isosurface value in data units.
   void setIsovalue(double isovalue);
@@ -135,7 +152,10 @@ class SceneActors {
 
   vtkRenderer* renderer_;  // not owned
   vtkNew<vtkRenderer> overlay_;
-  vtkNew<vtkGPUVolumeRayCastMapper> volume_mapper_;
+  vtkSmartPointer<vtkGPUVolumeRayCastMapper> volume_mapper_;  // a DrillableVolumeMapper
+  DrillableVolumeMapper* drillable_ = nullptr;                 // the same object
+  vtkSmartPointer<vtkImageData> image_;          // the scene's image (never written)
+  vtkSmartPointer<vtkImageData> drilled_image_;  // a private copy once voxels were removed
   vtkNew<vtkVolumeProperty> volume_property_;
   vtkNew<vtkColorTransferFunction> colour_;
   vtkNew<vtkPiecewiseFunction> opacity_;

@@ -1,0 +1,167 @@
+// Drilling in the GUI, checked as a person would see it under Xvfb:
+//  * the picture after a removal uploaded as a box (glTexSubImage3D) equals a fresh view of the
+//    same drilled image uploaded whole (the independent path: VTK's own upload);
+//  * Haptics > Drill on the built-in sphere: the burr pressed into it by the simulated device
+//    removes voxels, the picture shows them removed within frames, and File > Export writes a
+//    NRRD that VTK's own NRRD reader reads back voxel for voxel and a .seg.nrrd whose one segment
+//    "drilled" holds exactly the removed voxels.
+#include <cstdio>
+#include <filesystem>
+
+#include <QMainWindow>
+#include <QSignalSpy>
+#include <QStatusBar>
+
+#include <gtest/gtest.h>
+#include <vtkDataArray.h>
+#include <vtkImageData.h>
+#include <vtkNrrdReader.h>
+#include <vtkPointData.h>
+
+#include "ui_test_util.h"
+#include "vh/io/segmentation.h"
+#include "vh/runtime/scene.h"
+#include "vh/runtime/session.h"
+#include "vh/ui/drill_controller.h"
+#include "vh/ui/export/media_export.h"
+#include "vh/ui/view/scene_view.h"
+#include "vh/ui/view/vtk_view.h"
+
+namespace vh::ui {
+namespace {
+namespace fs = std::filesystem;
+
+struct ViewHost {
+  ViewHost() {
+    view = new SceneView(&window);
+    window.setCentralWidget(view->widget());
+    window.resize(400, 300);
+    window.show();
+  }
+  QMainWindow window;
+  SceneView* view = nullptr;
+};
+
+fs::path outputDir() {
+  const fs::path dir = fs::temp_directory_path() / "vh-ui-drilling";
+  fs::create_directories(dir);
+  return dir;
+}
+
+runtime::LoadedScene drillScene() {
+  return runtime::loadScene(runtime::parseScene(
+      R"({"volume": {"path": "builtin:sphere"}, "tool": {"mesh": "builtin:drill", "point_spacing_m": 0.001},
+          "coupling": {"linear_N_per_m": 400}, "device": {"kind": "simulated"}})",
+      "drill.json", "."));
+}
+
+TEST(DrillingView, BoxUploadShowsWhatAWholeUploadShows) {
+  const runtime::LoadedScene scene = drillScene();
+  const SceneActorsSpec spec = sceneActorsSpecFor(scene, runtime::LiveValues::initial(scene));
+  ViewHost a;
+  a.view->setScene(spec, scene.X_WT_initial, ViewLook{});
+  a.view->setDeviceVisible(false);
+  const QImage before = a.view->widget()->grabFrame();
+  // A cavity: the voxels within 8 mm of the sphere's top pole (0, 0, 20 mm).
+  const auto& g = scene.volume.field->geometry();
+  std::vector<std::uint64_t> cavity;
+  for (int k = 0; k < g.dims[2]; ++k)
+    for (int j = 0; j < g.dims[1]; ++j)
+      for (int i = 0; i < g.dims[0]; ++i) {
+        const Eigen::Vector3d p = g.origin_W_m + g.spacing_m.cwiseProduct(Eigen::Vector3d(i, j, k));
+        if ((p - Eigen::Vector3d(0, 0, 0.020)).norm() < 0.008)
+          cavity.push_back(static_cast<std::uint64_t>(i + g.dims[0] * (j + g.dims[1] * k)));
+      }
+  ASSERT_GT(cavity.size(), 100u);
+  double range[2];
+  spec.image->GetScalarRange(range);
+  a.view->actors().removeVoxels(cavity, range[0]);  // first call: the copy, uploaded whole
+  const QImage first_bite = a.view->widget()->grabFrame();
+  const std::uint64_t partial_before = a.view->actors().partialUploads();
+  std::vector<std::uint64_t> more;  // then a second bite, uploaded as a box
+  for (const std::uint64_t index : cavity) more.push_back(index + 3);
+  a.view->actors().removeVoxels(more, range[0]);
+  const QImage drilled = a.view->widget()->grabFrame();
+  EXPECT_EQ(a.view->actors().partialUploads(), partial_before + 1) << "the second bite went up as a box";
+  EXPECT_EQ(a.view->actors().fullUploads(), 0u);
+  EXPECT_GT(test::differingFraction(before, drilled), 0.002) << "the cavity shows";
+  const double second_bite = test::differingFraction(first_bite, drilled);
+  std::printf("pixels changed by the second bite (box upload): %.4f\n", second_bite);
+  EXPECT_GT(second_bite, 0.001) << "the box upload reached the texture";
+
+  // The oracle: a fresh view of the drilled image, uploaded whole by VTK.
+  SceneActorsSpec whole = spec;
+  whole.image = vtkSmartPointer<vtkImageData>::New();
+  whole.image->DeepCopy(a.view->actors().shownImage());
+  ViewHost b;
+  b.view->setScene(whole, scene.X_WT_initial, ViewLook{});
+  b.view->setDeviceVisible(false);
+  const QImage reference = b.view->widget()->grabFrame();
+  ASSERT_EQ(reference.size(), drilled.size());
+  EXPECT_LT(test::differingFraction(reference, drilled), 0.001);
+}
+
+TEST(DrillingView, DrillMenuCutsShowsAndExports) {
+  ViewHost host;
+  runtime::Session session;
+  DrillController drill(session, *host.view);
+  runtime::LoadedScene scene = drillScene();
+  const SceneActorsSpec spec = sceneActorsSpecFor(scene, runtime::LiveValues::initial(scene));
+  auto device = scene.makeDevice();
+  session.setScene(std::move(scene), device);
+  host.view->setScene(spec, session.live().X_WT_initial, ViewLook{});
+  EXPECT_THROW(drill.exportDrilled(outputDir() / "none.nrrd", outputDir() / "none.seg.nrrd"), std::runtime_error)
+      << "nothing drilled yet";
+
+  drill.setDrilling(true);
+  ASSERT_TRUE(session.drilling());
+  ASSERT_NE(session.hapticThread(), nullptr);
+  ASSERT_NE(session.hapticThread()->drill(), nullptr) << "the first Drill builds the drill";
+  session.startHaptics();
+  // Press the burr 8 mm into the sphere's top, straight down.
+  haptics::Pose X_WD = session.live().X_WT_initial;
+  X_WD.p_AB_m = Eigen::Vector3d(0, 0, 0.020 + 0.0025 - 0.008);
+  session.simulatedDevice()->setPose(X_WD);
+  ASSERT_TRUE(test::waitFor(
+      [&] {
+        drill.drain();
+        return drill.removed_mm3() > 20.0;
+      },
+      8000 * test::kSanitizerSlowdown))
+      << "removed " << drill.removed_mm3() << " mm^3";
+  drill.setDrilling(false);
+  EXPECT_FALSE(session.drilling());
+  session.stopHaptics();
+  drill.drain();
+
+  const fs::path nrrd = outputDir() / "drilled.nrrd", seg = outputDir() / "drilled.seg.nrrd";
+  drill.exportDrilled(nrrd, seg);
+  vtkNew<vtkNrrdReader> reader;
+  reader->SetFileName(nrrd.string().c_str());
+  reader->Update();
+  vtkImageData* read = reader->GetOutput();
+  vtkImageData* shown = host.view->actors().shownImage();
+  int dr[3], ds[3];
+  read->GetDimensions(dr);
+  shown->GetDimensions(ds);
+  ASSERT_EQ(std::vector<int>(dr, dr + 3), std::vector<int>(ds, ds + 3));
+  vtkDataArray* rs = read->GetPointData()->GetScalars();
+  vtkDataArray* ss = shown->GetPointData()->GetScalars();
+  ASSERT_EQ(rs->GetNumberOfTuples(), ss->GetNumberOfTuples());
+  std::int64_t differing = 0, at_min = 0;
+  double range[2];
+  spec.image->GetScalarRange(range);
+  for (vtkIdType i = 0; i < rs->GetNumberOfTuples(); ++i) {
+    differing += rs->GetComponent(i, 0) != ss->GetComponent(i, 0);
+    at_min += ss->GetComponent(i, 0) == range[0] && spec.image->GetPointData()->GetScalars()->GetComponent(i, 0) != range[0];
+  }
+  EXPECT_EQ(differing, 0);
+  EXPECT_EQ(static_cast<std::uint64_t>(at_min), drill.removedVoxels()) << "the picture shows every removed voxel";
+  const io::LoadedSegmentation removed = io::loadSegmentation(seg);
+  ASSERT_EQ(removed.segments.size(), 1u);
+  EXPECT_EQ(removed.segments[0].name, "drilled");
+  EXPECT_EQ(removed.segments[0].voxel_count, drill.removedVoxels());
+}
+
+}  // namespace
+}  // namespace vh::ui

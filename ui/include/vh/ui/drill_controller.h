@@ -1,0 +1,81 @@
+#pragma once
+/// @file
+/// Drilling in the GUI: Haptics > Drill (Ctrl+B) spins the burr up or down (Session::
+/// setDrilling()); while the haptic threads drill, the voxels they remove reach the picture
+/// within a frame (the removal log, drained every 20 ms into SceneActors::removeVoxels(), which
+/// uploads only the touched box to the GPU); removing voxels of a critical segment is an alert
+/// and a "critical_removed" event in the recording ({"segment", "voxels", "mm3"}); File > Export
+/// Drilled Volume writes the drilled scan (NRRD) and the removed region as a segment (.seg.nrrd)
+/// for 3D Slicer.
+///
+/// Data flows one way: Session and the haptic thread's drill -> this -> SceneView; the menu ->
+/// this -> Session. GUI thread only.
+
+#include <cstdint>
+#include <filesystem>
+#include <vector>
+
+#include <QObject>
+#include <QString>
+
+class QAction;
+class QMenu;
+class QTimer;
+class QWidget;
+
+namespace vh::runtime {
+class Session;
+enum class SessionChange : std::uint32_t;
+}  // namespace vh::runtime
+
+namespace vh::ui {
+
+class SceneView;
+
+class DrillController : public QObject {
+  Q_OBJECT
+
+ public:
+  /// Observes `session` from now on; `session` and `view` outlive this.
+  DrillController(runtime::Session& session, SceneView& view, QObject* parent = nullptr);
+  ~DrillController() override;
+
+  /// Adds Haptics > Drill (checkable, Ctrl+B) to `haptics_menu` and File > Export Drilled Volume
+  /// to `file_menu` (either may be null).
+  void addMenuActions(QMenu* haptics_menu, QMenu* file_menu, QWidget* dialog_parent);
+  /// Starts or stops the burr; a message says why when it cannot (no scene, a tool too small).
+  void setDrilling(bool on);
+  /// Moves the removed voxels to the picture now (the timer does it every 20 ms).
+  void drain();
+  /// Voxels removed so far in this drilling session (as drained).
+  std::uint64_t removedVoxels() const noexcept { return removed_; }
+  /// Removed volume so far [mm^3].
+  double removed_mm3() const noexcept { return removed_mm3_; }
+  /// Writes the drilled scan to `nrrd_path` (NRRD, the scan's type, LPS in mm) and the removed
+  /// region as one segment "drilled" to `seg_path` (.seg.nrrd, 3D Slicer's keys).
+  /// @throws std::runtime_error naming the file when nothing was drilled or a write fails.
+  void exportDrilled(const std::filesystem::path& nrrd_path, const std::filesystem::path& seg_path) const;
+
+ signals:
+  /// A short text for the status bar (on, off, critical removal).
+  void message(const QString& text, int timeout_ms);
+
+ private:
+  void onSessionChanged(runtime::SessionChange what);
+  void reset();
+
+  runtime::Session& session_;
+  SceneView& view_;
+  int observer_ = 0;
+  QTimer* timer_ = nullptr;
+  QAction* action_ = nullptr;
+  const void* drill_seen_ = nullptr;            // the drill whose log is drained
+  std::vector<std::uint64_t> buffer_;           // drained felt-grid indices
+  std::vector<std::uint64_t> image_indices_;    // the same on the picture's grid
+  std::vector<std::uint8_t> removed_mask_;      // per voxel of the picture: 1 when removed
+  std::vector<std::uint64_t> critical_seen_;    // per material: removed voxels already reported
+  std::uint64_t removed_ = 0;
+  double removed_mm3_ = 0.0;
+};
+
+}  // namespace vh::ui

@@ -1,0 +1,220 @@
+#include "vh/ui/drill_controller.h"
+
+#include <cmath>
+#include <stdexcept>
+
+#include <QAction>
+#include <QDir>
+#include <QFileDialog>
+#include <QKeySequence>
+#include <QMenu>
+#include <QMessageBox>
+#include <QTimer>
+
+#include <nlohmann/json.hpp>
+#include <vtkDataArray.h>
+#include <vtkImageData.h>
+#include <vtkPointData.h>
+#include <vtkType.h>
+
+#include "vh/io/nrrd_writer.h"
+#include "vh/runtime/session.h"
+#include "vh/ui/view/scene_view.h"
+
+namespace vh::ui {
+
+namespace {
+constexpr int kDrainPeriod_ms = 20;
+constexpr std::size_t kDrainBatch = 1u << 16;
+
+const char* nrrdType(int vtk_type) {
+  switch (vtk_type) {
+    case VTK_UNSIGNED_CHAR: return "uchar";
+    case VTK_SHORT: return "short";
+    case VTK_UNSIGNED_SHORT: return "ushort";
+    case VTK_FLOAT: return "float";
+    default: return nullptr;
+  }
+}
+}  // namespace
+
+DrillController::DrillController(runtime::Session& session, SceneView& view, QObject* parent)
+    : QObject(parent), session_(session), view_(view) {
+  buffer_.resize(kDrainBatch);
+  observer_ = session_.addObserver([this](runtime::SessionChange what) { onSessionChanged(what); });
+  timer_ = new QTimer(this);
+  timer_->setInterval(kDrainPeriod_ms);
+  connect(timer_, &QTimer::timeout, this, &DrillController::drain);
+  timer_->start();
+}
+
+DrillController::~DrillController() { session_.removeObserver(observer_); }
+
+void DrillController::addMenuActions(QMenu* haptics_menu, QMenu* file_menu, QWidget* dialog_parent) {
+  if (haptics_menu != nullptr) {
+    action_ = haptics_menu->addAction("&Drill (Spin the Burr)", this, [this](bool on) { setDrilling(on); });
+    action_->setCheckable(true);
+    action_->setShortcut(QKeySequence("Ctrl+B"));
+    action_->setToolTip("The tool's burr removes the bone it presses on: harder bone slower (hardness from HU or "
+                        "the segments); critical segments raise an alert when cut");
+  }
+  if (file_menu != nullptr) {
+    file_menu->addAction("Export &Drilled Volume...", this, [this, dialog_parent] {
+      const QString path = QFileDialog::getSaveFileName(dialog_parent, "Export the drilled volume (NRRD) and the removed region (.seg.nrrd)",
+                                                        QDir::home().filePath("drilled.nrrd"), "NRRD volumes (*.nrrd)");
+      if (path.isEmpty()) return;
+      std::filesystem::path nrrd = path.toStdString();
+      if (nrrd.extension() != ".nrrd") nrrd += ".nrrd";
+      std::filesystem::path seg = nrrd;
+      seg.replace_extension(".seg.nrrd");
+      try {
+        exportDrilled(nrrd, seg);
+        emit message(QString("Wrote %1 and %2").arg(QString::fromStdString(nrrd.string()), QString::fromStdString(seg.filename().string())), 6000);
+      } catch (const std::exception& e) {
+        QMessageBox::warning(dialog_parent, "Export Drilled Volume", e.what());
+      }
+    });
+  }
+}
+
+void DrillController::setDrilling(bool on) {
+  try {
+    session_.setDrilling(on);
+    if (on && session_.drilling()) {
+      const auto& drill = session_.hapticThread() != nullptr ? session_.hapticThread()->drill() : nullptr;
+      const double r_mm = drill != nullptr ? drill->burr().radius_m * 1e3 : 0.0;
+      emit message(QString("Drill on: the %1 mm burr removes what it presses on (Ctrl+B stops it)").arg(r_mm, 0, 'f', 1), 5000);
+    } else if (!on) {
+      emit message("Drill off", 3000);
+    } else {
+      emit message("Drilling needs a scan and a tool", 4000);
+    }
+  } catch (const std::exception& e) {
+    emit message(QString("Cannot drill: %1").arg(e.what()), 6000);
+  }
+  if (action_ != nullptr) {
+    const QSignalBlocker block(action_);
+    action_->setChecked(session_.drilling());
+  }
+}
+
+void DrillController::onSessionChanged(runtime::SessionChange what) {
+  if (action_ != nullptr) {
+    const QSignalBlocker block(action_);
+    action_->setChecked(session_.drilling());
+    action_->setEnabled(session_.hasScene());
+  }
+  // A new scene, or haptic threads rebuilt for another reason: the field is undrilled again.
+  if (runtime::has(what, runtime::SessionChange::kScene) || runtime::has(what, runtime::SessionChange::kTool) ||
+      runtime::has(what, runtime::SessionChange::kSegments) || runtime::has(what, runtime::SessionChange::kDevice))
+    reset();
+}
+
+void DrillController::reset() {
+  drain();
+  drill_seen_ = nullptr;
+  removed_ = 0;
+  removed_mm3_ = 0.0;
+  removed_mask_.clear();
+  critical_seen_.clear();
+  if (view_.hasScene()) view_.actors().restoreVolume();
+}
+
+void DrillController::drain() {
+  runtime::HapticThread* thread = session_.hapticThread();
+  if (thread == nullptr || thread->drill() == nullptr || !view_.hasScene() || !session_.hasScene()) return;
+  runtime::Drill& drill = *thread->drill();
+  if (drill_seen_ != &drill) {  // a new drill: its log starts empty, the picture from the scan
+    drill_seen_ = &drill;
+    critical_seen_.assign(drill.removal().materials().size(), 0);
+  }
+  const haptics::ScalarVolume& felt = drill.removal().volume();
+  const haptics::ScalarVolume& scan = *session_.live().scan_field;
+  const auto& fg = felt.geometry();
+  const auto& sg = scan.geometry();
+  const bool same_grid = fg.dims == sg.dims && fg.origin_W_m == sg.origin_W_m && fg.spacing_m == sg.spacing_m &&
+                         fg.direction_W == sg.direction_W;
+  vtkImageData* image = view_.actors().shownImage();
+  if (image == nullptr) return;
+  double range[2];
+  image->GetScalarRange(range);
+  if (removed_mask_.empty()) removed_mask_.assign(sg.voxelCount(), 0);
+  for (;;) {
+    const std::size_t n = drill.removal().drainRemoved(buffer_);
+    if (n == 0) break;
+    image_indices_.clear();
+    for (std::size_t i = 0; i < n; ++i) {
+      std::uint64_t index = buffer_[i];
+      if (!same_grid) {  // the felt segment's grid: the scan voxel nearest to the removed voxel's centre
+        const std::uint64_t nx = static_cast<std::uint64_t>(fg.dims[0]), ny = static_cast<std::uint64_t>(fg.dims[1]);
+        const Eigen::Vector3d ijk(static_cast<double>(index % nx), static_cast<double>((index / nx) % ny),
+                                  static_cast<double>(index / (nx * ny)));
+        const Eigen::Vector3d p_W = fg.origin_W_m + fg.direction_W * fg.spacing_m.cwiseProduct(ijk);
+        const Eigen::Vector3d g = scan.gridCoordinates(p_W);
+        const long a = std::lround(g.x()), b = std::lround(g.y()), c = std::lround(g.z());
+        if (a < 0 || b < 0 || c < 0 || a >= sg.dims[0] || b >= sg.dims[1] || c >= sg.dims[2]) continue;
+        index = static_cast<std::uint64_t>(a + sg.dims[0] * (b + static_cast<long>(sg.dims[1]) * c));
+      }
+      if (index < removed_mask_.size()) removed_mask_[index] = 1;
+      image_indices_.push_back(index);
+    }
+    view_.actors().removeVoxels(image_indices_, range[0]);
+    removed_ += n;
+    removed_mm3_ += static_cast<double>(n) * drill.removal().voxelVolume_mm3();
+    view_.requestRender();
+  }
+  // Critical segments: every removal is an alert and an event in the recording.
+  const auto& materials = drill.removal().materials();
+  for (std::size_t m = 0; m < materials.size() && m < critical_seen_.size(); ++m) {
+    if (!materials[m].critical) continue;
+    const std::uint64_t now = drill.removal().removedVoxels(static_cast<int>(m));
+    if (now <= critical_seen_[m]) continue;
+    const std::uint64_t delta = now - critical_seen_[m];
+    critical_seen_[m] = now;
+    const double mm3 = static_cast<double>(delta) * drill.removal().voxelVolume_mm3();
+    nlohmann::json detail{{"segment", materials[m].name}, {"voxels", delta}, {"mm3", mm3}};
+    thread->recordEvent("critical_removed", detail.dump());
+    emit message(QString("CRITICAL: the burr removed %1 voxels (%2 mm3) of %3")
+                     .arg(delta)
+                     .arg(mm3, 0, 'f', 2)
+                     .arg(QString::fromStdString(materials[m].name)),
+                 8000);
+  }
+}
+
+void DrillController::exportDrilled(const std::filesystem::path& nrrd_path, const std::filesystem::path& seg_path) const {
+  if (!view_.hasScene() || removed_ == 0 || !session_.hasScene())
+    throw std::runtime_error(nrrd_path.string() + ": nothing was drilled yet (Haptics > Drill, then press on bone)");
+  vtkImageData* image = view_.actors().shownImage();
+  const haptics::ScalarVolume& scan = *session_.live().scan_field;
+  const auto& g = scan.geometry();
+  vtkDataArray* scalars = image->GetPointData()->GetScalars();
+  const char* type = scalars != nullptr ? nrrdType(scalars->GetDataType()) : nullptr;
+  if (type == nullptr || scalars->GetNumberOfTuples() != static_cast<vtkIdType>(g.voxelCount()))
+    throw std::runtime_error(nrrd_path.string() + ": the scan's voxel type cannot be written as NRRD");
+  io::NrrdVolume volume;
+  volume.dims = g.dims;
+  volume.spacing_m = g.spacing_m;
+  volume.origin_W_m = g.origin_W_m;
+  volume.direction_W = g.direction_W;
+  volume.type = type;
+  volume.voxels = scalars->GetVoidPointer(0);
+  io::writeNrrd(nrrd_path, volume);
+  // The removed region as 3D Slicer's segmentation: one binary layer, label 1, "drilled".
+  io::NrrdVolume seg = volume;
+  seg.type = "uchar";
+  seg.voxels = removed_mask_.data();
+  seg.key_values = {{"Segment0_ID", "drilled"},
+                    {"Segment0_Name", "drilled"},
+                    {"Segment0_Color", "0.9 0.3 0.2"},
+                    {"Segment0_LabelValue", "1"},
+                    {"Segment0_Layer", "0"},
+                    {"Segment0_Extent", "0 " + std::to_string(g.dims[0] - 1) + " 0 " + std::to_string(g.dims[1] - 1) +
+                                            " 0 " + std::to_string(g.dims[2] - 1)},
+                    {"Segmentation_MasterRepresentation", "Binary labelmap"},
+                    {"Segmentation_ContainedRepresentationNames", "Binary labelmap|"},
+                    {"Segmentation_ReferenceImageExtentOffset", "0 0 0"}};
+  io::writeNrrd(seg_path, seg);
+}
+
+}  // namespace vh::ui
