@@ -8,6 +8,7 @@
 #include <sys/socket.h>
 #include <unistd.h>
 
+#include <chrono>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
@@ -134,6 +135,28 @@ TEST(PacsTree, CacheFolderIsPerSeriesAndHarmless) {
   EXPECT_EQ(pacsCacheFolder("1.2.840.5", "/tmp/c"), fs::path("/tmp/c/pacs/1.2.840.5"));
   EXPECT_EQ(pacsCacheFolder("../../etc", "/tmp/c"), fs::path("/tmp/c/pacs/.._..____"));
   EXPECT_EQ(pacsCacheFolder("..", "/tmp/c"), fs::path("/tmp/c/pacs/unnamed"));
+}
+
+TEST(PacsTree, TheCacheDropsItsOldestSeriesBeyondItsSize) {
+  QTemporaryDir dir;
+  const fs::path pacs = fs::path(dir.path().toStdString()) / "pacs";
+  const auto now = fs::file_time_type::clock::now();
+  // Four series of 1000 bytes each, written 4, 3, 2 and 1 hours ago; "b" is the one just retrieved.
+  const char* names[] = {"a", "b", "c", "d"};
+  for (int i = 0; i < 4; ++i) {
+    fs::create_directories(pacs / names[i]);
+    std::ofstream(pacs / names[i] / "1.dcm") << std::string(1000, 'x');
+    fs::last_write_time(pacs / names[i], now - std::chrono::hours(4 - i));
+  }
+  const std::vector<fs::path> removed = prunePacsCache(pacs, 2500, pacs / "b");
+  // 4000 bytes > 2500: "a" goes (oldest), "b" is kept though older than "c", then "c" goes.
+  ASSERT_EQ(removed.size(), 2u);
+  EXPECT_EQ(removed[0].filename(), "a");
+  EXPECT_EQ(removed[1].filename(), "c");
+  EXPECT_TRUE(fs::exists(pacs / "b" / "1.dcm"));
+  EXPECT_TRUE(fs::exists(pacs / "d" / "1.dcm"));
+  EXPECT_FALSE(fs::exists(pacs / "a"));
+  EXPECT_TRUE(prunePacsCache(pacs, 2500, pacs / "b").empty()) << "within its size: nothing goes";
 }
 
 TEST(PacsDialog, SearchExpandAndRetrieveIntoTheCache) {

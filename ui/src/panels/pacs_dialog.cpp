@@ -66,6 +66,37 @@ fs::path pacsCacheFolder(const std::string& series_uid, const fs::path& cache_ro
   return root / "pacs" / name;
 }
 
+std::vector<fs::path> prunePacsCache(const fs::path& pacs_folder, std::uintmax_t max_bytes, const fs::path& keep) {
+  struct Entry {
+    fs::path folder;
+    fs::file_time_type time;
+    std::uintmax_t bytes = 0;
+  };
+  std::vector<Entry> entries;
+  std::uintmax_t total = 0;
+  std::error_code ec;
+  for (const auto& e : fs::directory_iterator(pacs_folder, ec)) {
+    if (!e.is_directory(ec)) continue;
+    Entry entry{e.path(), fs::last_write_time(e.path(), ec), 0};
+    for (const auto& f : fs::recursive_directory_iterator(e.path(), ec)) {
+      if (f.is_regular_file(ec)) entry.bytes += f.file_size(ec);
+    }
+    total += entry.bytes;
+    entries.push_back(std::move(entry));
+  }
+  std::sort(entries.begin(), entries.end(), [](const Entry& a, const Entry& b) { return a.time < b.time; });
+  std::vector<fs::path> removed;
+  for (const Entry& e : entries) {
+    if (total <= max_bytes) break;
+    if (fs::equivalent(e.folder, keep, ec)) continue;
+    if (fs::remove_all(e.folder, ec) != static_cast<std::uintmax_t>(-1) && !ec) {
+      total -= e.bytes;
+      removed.push_back(e.folder);
+    }
+  }
+  return removed;
+}
+
 // ---- settings ----
 
 PacsSettingsDialog::PacsSettingsDialog(const io::PacsServer& server, QWidget* parent) : QDialog(parent), base_(server) {
@@ -439,6 +470,7 @@ void PacsBrowserDialog::retrieveSelected() {
             if (p.total > 0) total_ = p.total;
           };
           *result = io::pacsRetrieveSeries(server, study_uid, series_uid, folder, options);
+          if (!result->cancelled) prunePacsCache(folder.parent_path(), kPacsCacheMaxBytes, folder);
         } catch (const std::exception& e) {
           *error = e.what();
         }

@@ -8,6 +8,7 @@
 /// DICOM folder (SceneOpener::openPath()).
 
 #include <atomic>
+#include <cstdint>
 #include <filesystem>
 #include <memory>
 #include <functional>
@@ -55,6 +56,15 @@ class PacsSettingsDialog : public QDialog {
 /// The cache folder of a retrieved series: CACHE/pacs/SERIES_UID (CACHE: the user's cache,
 /// QStandardPaths::CacheLocation, unless `cache_root` is given).
 std::filesystem::path pacsCacheFolder(const std::string& series_uid, const std::filesystem::path& cache_root = {});
+
+/// The most the PACS cache keeps [bytes]: after each retrieval the oldest series go beyond it.
+constexpr std::uintmax_t kPacsCacheMaxBytes = std::uintmax_t{4} << 30;  // 4 GiB
+
+/// Removes the oldest series folders (by last write time) of `pacs_folder` (CACHE/pacs) until
+/// the files left take at most `max_bytes`; `keep` (the series just retrieved) always stays.
+/// Files that cannot be removed are left (no error). @return the folders removed, oldest first.
+std::vector<std::filesystem::path> prunePacsCache(const std::filesystem::path& pacs_folder, std::uintmax_t max_bytes,
+                                                  const std::filesystem::path& keep);
 
 /// Tree item roles and kinds of PacsBrowserDialog's tree.
 enum PacsItemKind { kPacsPatient = 1, kPacsStudy = 2, kPacsSeries = 3 };
