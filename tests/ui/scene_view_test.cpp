@@ -6,6 +6,9 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdint>
+#include <filesystem>
+#include <fstream>
 #include <limits>
 #include <numbers>
 #include <string>
@@ -14,7 +17,9 @@
 #include <QWidget>
 
 #include <gtest/gtest.h>
+#include <unistd.h>
 #include <vtkActor.h>
+#include <vtkCamera.h>
 #include <vtkActor2DCollection.h>
 #include <vtkGPUVolumeRayCastMapper.h>
 #include <vtkMatrix4x4.h>
@@ -175,6 +180,111 @@ TEST(SceneView, TheWelcomeTextGoesWithTheFirstScene) {
   w.view->clearScene();
   EXPECT_FALSE(w.view->hasScene());
   EXPECT_FALSE(welcome->GetVisibility()) << "once a scene was shown the welcome text stays hidden";
+}
+
+/// A whole-body PET's shape: 40 x 30 x 320 voxels of 12 x 12 x 6 mm (0.48 x 0.36 x 1.92 m,
+/// long along +z, the patient's head to feet), an elliptic cylinder of value 100 in zeros,
+/// written as a NRRD in LPS and loaded as the application loads a file.
+const runtime::LoadedScene& longBodyScene() {
+  static const runtime::LoadedScene scene = [] {
+    const std::filesystem::path file =
+        std::filesystem::temp_directory_path() / ("vh_long_body_" + std::to_string(::getpid()) + ".nrrd");
+    const int nx = 40, ny = 30, nz = 320;
+    {
+      std::ofstream out(file, std::ios::binary);
+      out << "NRRD0004\ntype: uint8\ndimension: 3\nspace: left-posterior-superior\nsizes: " << nx << " " << ny << " "
+          << nz << "\nspace directions: (12,0,0) (0,12,0) (0,0,6)\nspace origin: (-240,-180,-1900)\nencoding: raw\n\n";
+      std::vector<std::uint8_t> voxels(static_cast<std::size_t>(nx) * ny * nz, 0);
+      std::size_t n = 0;
+      for (int k = 0; k < nz; ++k) {
+        for (int j = 0; j < ny; ++j) {
+          for (int i = 0; i < nx; ++i, ++n) {
+            const double x = (i - 0.5 * (nx - 1)) / (0.4 * nx), y = (j - 0.5 * (ny - 1)) / (0.4 * ny);
+            if (x * x + y * y <= 1.0 && k > 2 && k < nz - 3) voxels[n] = 100;
+          }
+        }
+      }
+      out.write(reinterpret_cast<const char*>(voxels.data()), static_cast<std::streamsize>(voxels.size()));
+    }
+    runtime::SceneSpec spec;
+    spec.volume.path = file.string();
+    spec.tool.mesh = "builtin:probe";
+    spec.device = runtime::DeviceSpec{};
+    runtime::LoadedScene loaded = runtime::loadScene(spec);
+    std::filesystem::remove(file);
+    return loaded;
+  }();
+  return scene;
+}
+
+/// The display positions [px] of the 8 corners of the view's volume bounds, by VTK's own
+/// world-to-display transform of the renderer (the oracle, independent of the framing code).
+std::vector<std::array<double, 2>> projectedCorners(SceneView& view) {
+  double b[6];
+  view.actors().volumeBounds_W(b);
+  vtkRenderer* renderer = view.widget()->renderer();
+  std::vector<std::array<double, 2>> out;
+  for (int corner = 0; corner < 8; ++corner) {
+    renderer->SetWorldPoint(b[(corner & 1) ? 1 : 0], b[(corner & 2) ? 3 : 2], b[(corner & 4) ? 5 : 4], 1.0);
+    renderer->WorldToDisplay();
+    const double* d = renderer->GetDisplayPoint();
+    out.push_back({d[0], d[1]});
+  }
+  return out;
+}
+
+/// Checks that every corner of the volume's bounds projects inside the viewport, and that the
+/// volume is not a speck: its projection spans at least `min_span` of the width or height (the
+/// tools, framed with it, take the rest).
+void expectVolumeFramed(SceneView& view, const std::string& what, double min_span = 0.6) {
+  const int* size = view.widget()->renderer()->GetSize();
+  ASSERT_GT(size[0], 0);
+  ASSERT_GT(size[1], 0);
+  double lo_x = 1e9, hi_x = -1e9, lo_y = 1e9, hi_y = -1e9;
+  for (const auto& [x, y] : projectedCorners(view)) {
+    EXPECT_GE(x, 0.0) << what << ": a corner left of the view";
+    EXPECT_LE(x, size[0]) << what << ": a corner right of the view";
+    EXPECT_GE(y, 0.0) << what << ": a corner below the view";
+    EXPECT_LE(y, size[1]) << what << ": a corner above the view";
+    lo_x = std::min(lo_x, x);
+    hi_x = std::max(hi_x, x);
+    lo_y = std::min(lo_y, y);
+    hi_y = std::max(hi_y, y);
+  }
+  EXPECT_GT(std::max((hi_x - lo_x) / size[0], (hi_y - lo_y) / size[1]), min_span)
+      << what << ": the volume spans " << (hi_x - lo_x) << " x " << (hi_y - lo_y) << " px of " << size[0] << " x "
+      << size[1];
+}
+
+TEST(SceneView, EveryLoadFramesTheWholeVolumeAWholeBodyScanHeadToFeet) {
+  ViewWindow w;
+  ASSERT_TRUE(test::waitFor([&] { return w.view->widget()->renderer()->GetSize()[1] > 0; }, 20000));
+  w.load();
+  expectVolumeFramed(*w.view, "the sphere", 0.4);  // the probe above it is framed too
+  // The user zooms far in on the sphere; the next scan is a whole body, long along z.
+  w.view->widget()->renderer()->GetActiveCamera()->Zoom(8.0);
+  const runtime::LoadedScene& body = longBodyScene();
+  ASSERT_GT(body.volume.field->geometry().dims[2], 300);
+  w.view->setScene(sceneActorsSpecFor(body, runtime::LiveValues::initial(body)), body.X_WT_initial, ViewLook{});
+  expectVolumeFramed(*w.view, "the whole body on load");
+  w.view->widget()->renderer()->GetActiveCamera()->Zoom(3.0);
+  w.view->resetCamera();
+  expectVolumeFramed(*w.view, "the whole body after a reset");
+  for (const StandardView v : {StandardView::kAnterior, StandardView::kPosterior, StandardView::kLeft,
+                               StandardView::kRight, StandardView::kSuperior, StandardView::kInferior}) {
+    w.view->setStandardView(v);
+    expectVolumeFramed(*w.view, "standard view " + std::to_string(static_cast<int>(v)), 0.5);
+  }
+  // A tall, narrow view: the width limits the fit.
+  w.host.resize(160, 400);
+  ASSERT_TRUE(test::waitFor([&] {
+    w.view->renderStill();
+    const int* size = w.view->widget()->renderer()->GetSize();
+    return size[0] < size[1];
+  }, 20000)) << "the view is still " << w.view->widget()->renderer()->GetSize()[0] << " x "
+             << w.view->widget()->renderer()->GetSize()[1];
+  w.view->resetCamera();
+  expectVolumeFramed(*w.view, "the whole body in a narrow view");
 }
 
 }  // namespace

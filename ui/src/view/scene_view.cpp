@@ -7,6 +7,7 @@
 #include <stdexcept>
 
 #include <QTimer>
+#include <vtkActor.h>
 #include <vtkCamera.h>
 #include <vtkGenericOpenGLRenderWindow.h>
 #include <vtkNew.h>
@@ -228,26 +229,83 @@ void SceneView::setMarkerVisible(bool visible) {
   requestRender();
 }
 
+namespace {
+
+/// Fraction of the viewport's half width and half height the volume's bounds may fill when the
+/// camera frames them: a margin of 5 % on each side.
+constexpr double kFrameFill = 0.9;
+
+/// Moves `cam` along its direction of projection (and sets the parallel scale) so that the 8
+/// corners of `bounds` [m, W: xmin xmax ymin ymax zmin zmax] project inside `fill` (0..1) of
+/// the viewport of aspect `aspect` (width / height), the focal point at the bounds' centre.
+/// The direction of projection and the view up are kept. Exact for the box's corners (the
+/// perspective of the nearer corners included), unlike vtkRenderer::ResetCamera(), which fits
+/// the bounding sphere and cuts a long body off once zoomed.
+void frameBounds(vtkCamera* cam, const double bounds[6], double aspect, double fill) {
+  const Eigen::Vector3d centre(0.5 * (bounds[0] + bounds[1]), 0.5 * (bounds[2] + bounds[3]),
+                               0.5 * (bounds[4] + bounds[5]));
+  double v[3];
+  cam->GetDirectionOfProjection(v);
+  const Eigen::Vector3d dop = Eigen::Vector3d(v[0], v[1], v[2]).normalized();
+  cam->GetViewUp(v);
+  const Eigen::Vector3d up = Eigen::Vector3d(v[0], v[1], v[2]).normalized();
+  const Eigen::Vector3d right = dop.cross(up).normalized();
+  const double tan_v = fill * std::tan(0.5 * cam->GetViewAngle() * std::numbers::pi / 180.0);
+  const double tan_h = tan_v * aspect;
+  double distance = 0.0;      // camera to focal point [m] (perspective)
+  double half_height = 0.0;   // parallel scale [m]
+  double nearest = 0.0;       // the corner nearest the camera, along -dop from the centre [m]
+  for (int corner = 0; corner < 8; ++corner) {
+    const Eigen::Vector3d p(bounds[(corner & 1) ? 1 : 0], bounds[(corner & 2) ? 3 : 2], bounds[(corner & 4) ? 5 : 4]);
+    const Eigen::Vector3d d = p - centre;
+    const double towards = -d.dot(dop);  // nearer the camera than the focal point
+    const double x = std::abs(d.dot(right));
+    const double y = std::abs(d.dot(up));
+    distance = std::max({distance, towards + y / tan_v, towards + x / tan_h});
+    half_height = std::max({half_height, y / fill, x / (fill * aspect)});
+    nearest = std::max(nearest, towards);
+  }
+  if (cam->GetParallelProjection() != 0) distance = std::max(distance, 2.0 * nearest + 1e-3);
+  distance = std::max(distance, 1e-3);
+  cam->SetFocalPoint(centre.x(), centre.y(), centre.z());
+  cam->SetPosition(centre.x() - distance * dop.x(), centre.y() - distance * dop.y(), centre.z() - distance * dop.z());
+  cam->SetParallelScale(std::max(half_height, 1e-4));
+}
+
+}  // namespace
+
 void SceneView::fitCamera(const double direction_W[3], const double up_W[3], double zoom) {
   if (actors_ == nullptr) return;
   vtkRenderer* renderer = view_->renderer();
   vtkCamera* cam = renderer->GetActiveCamera();
+  // The whole volume, and the tools where they are (at load, just above it).
   double bounds[6];
   actors_->volumeBounds_W(bounds);
+  for (vtkActor* tool : {actors_->proxyActor(), actors_->deviceActor()}) {
+    if (tool == nullptr || tool->GetVisibility() == 0) continue;
+    const double* b = tool->GetBounds();
+    if (b == nullptr || !(b[0] <= b[1])) continue;
+    for (int i = 0; i < 3; ++i) {
+      bounds[2 * i] = std::min(bounds[2 * i], b[2 * i]);
+      bounds[2 * i + 1] = std::max(bounds[2 * i + 1], b[2 * i + 1]);
+    }
+  }
   const double c[3] = {0.5 * (bounds[0] + bounds[1]), 0.5 * (bounds[2] + bounds[3]), 0.5 * (bounds[4] + bounds[5])};
   cam->SetFocalPoint(c);
   cam->SetPosition(c[0] + direction_W[0], c[1] + direction_W[1], c[2] + direction_W[2]);
   cam->SetViewUp(up_W[0], up_W[1], up_W[2]);
   cam->OrthogonalizeViewUp();
-  renderer->ResetCamera();  // fits the visible props (volume and tools)
-  cam->Zoom(zoom);          // the fit is to the props' bounding sphere: generous
+  const int* size = renderer->GetSize();
+  const double aspect = size[0] > 0 && size[1] > 0 ? static_cast<double>(size[0]) / size[1] : 1.0;
+  frameBounds(cam, bounds, aspect, kFrameFill);  // the whole volume, whatever its shape
+  cam->Zoom(zoom);                               // > 1 magnifies beyond the framed volume
   renderer->ResetCameraClippingRange();
 }
 
 void SceneView::resetCamera() {
   if (actors_ == nullptr) return;
   // Default view: from the front (-y: anterior for LPS) turned 30 degrees to the patient's right
-  // and 25 degrees up, +z up.
+  // and 25 degrees up, +z up; the whole volume in view (a whole-body scan head to feet).
   vtkCamera* cam = view_->renderer()->GetActiveCamera();
   const double front[3] = {0.0, -1.0, 0.0};
   const double up[3] = {0.0, 0.0, 1.0};
@@ -255,9 +313,11 @@ void SceneView::resetCamera() {
   cam->Azimuth(-30.0);
   cam->Elevation(25.0);
   cam->OrthogonalizeViewUp();
-  view_->renderer()->ResetCamera();
-  cam->Zoom(1.2);
-  view_->renderer()->ResetCameraClippingRange();
+  const double direction[3] = {cam->GetPosition()[0] - cam->GetFocalPoint()[0], cam->GetPosition()[1] - cam->GetFocalPoint()[1],
+                               cam->GetPosition()[2] - cam->GetFocalPoint()[2]};
+  double view_up[3];
+  cam->GetViewUp(view_up);
+  fitCamera(direction, view_up, 1.0);
 }
 
 void SceneView::focusOn(const haptics::ToolModel& tool, const haptics::Pose& X_WP) {
@@ -297,7 +357,7 @@ void SceneView::setStandardView(StandardView v) {
       up[1] = -1;
       break;
   }
-  fitCamera(dir, up, 1.2);
+  fitCamera(dir, up, 1.0);
   noteMotion();
   requestRender();
 }
