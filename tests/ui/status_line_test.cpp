@@ -68,6 +68,37 @@ TEST(StatusLine, ShowsTheSnapshotsNumbers) {
   session.stopHaptics();
 }
 
+// The force is the spring between the proxy and the device, the contacts the solver's contact
+// set: a force without contacts is the proxy trailing the device, never "contacts 0" beside 8 N.
+TEST(StatusLine, AForceWithoutContactsIsSaidToBeTheProxyTrailingNotZeroContacts) {
+  runtime::Session session;
+  session.setScene(sphereProbeScene(), std::make_shared<runtime::SimulatedDevice>(sphereProbeScene().X_WT_initial));
+  session.startHaptics();
+  ASSERT_TRUE(session.hapticsRunning());
+  runtime::HapticSnapshot s;
+  s.coupling.rate_Hz = 1000.0;
+  s.solver.rate_Hz = 1000.0;
+
+  s.contacts = 0;
+  s.force_W_N = Eigen::Vector3d(0.0, 0.0, 8.0);
+  QString text = hapticStatusText(session, &s, {});
+  EXPECT_FALSE(contains(text, "contacts 0")) << text.toStdString();
+  EXPECT_TRUE(contains(text, "no contact (the proxy trails the device)")) << text.toStdString();
+  EXPECT_TRUE(contains(text, "|F| 8.00 N")) << text.toStdString();
+
+  s.force_W_N = Eigen::Vector3d(0.0, 0.01, 0.0);  // the spring settling: free
+  text = hapticStatusText(session, &s, {});
+  EXPECT_TRUE(contains(text, "|  no contact  |")) << text.toStdString();
+  EXPECT_FALSE(contains(text, "trails")) << text.toStdString();
+
+  s.contacts = 5;
+  s.force_W_N = Eigen::Vector3d(0.0, 0.0, 8.0);
+  text = hapticStatusText(session, &s, {});
+  EXPECT_TRUE(contains(text, "contacts 5")) << text.toStdString();
+  EXPECT_FALSE(contains(text, "no contact")) << text.toStdString();
+  session.stopHaptics();
+}
+
 TEST(StatusLine, DeadlineMissesAreCountedOverTheLastMinuteNotSinceTheStart) {
   constexpr std::int64_t s = 1000000000;
   MissWindow w;

@@ -29,6 +29,25 @@ std::uint64_t MissWindow::solver() const noexcept {
   return entries_.empty() ? 0 : entries_.back().solver - entries_.front().solver;
 }
 
+namespace {
+
+/// Below this force [N] a tool without contacts is simply free: the spring's remainder as the
+/// proxy settles on the device.
+constexpr double kTrailingForce_N = 0.05;
+
+/// The contact figure beside the force, never at odds with it. The force is the coupling's
+/// spring to the proxy; the contacts are the solver's contact set, both from one snapshot. A
+/// force without contacts is the proxy trailing the device (the solver moves it at most
+/// max_travel_per_tick_m per tick, or finishes a sweep over several ticks), not a press, and
+/// is said so instead of "contacts 0" beside a force.
+QString contactText(int contacts, double force_N) {
+  if (contacts > 0) return QString("contacts %1").arg(contacts);
+  if (force_N < kTrailingForce_N) return "no contact";
+  return "no contact (the proxy trails the device)";
+}
+
+}  // namespace
+
 QString hapticStatusText(const runtime::Session& session, const runtime::HapticSnapshot* snapshot,
                          const QString& replaying, const MissWindow* misses) {
   if (!session.hasScene()) return "No scan open";
@@ -41,7 +60,7 @@ QString hapticStatusText(const runtime::Session& session, const runtime::HapticS
   const runtime::HapticSnapshot& s = *snapshot;
   QString text =
       QString::fromUtf8("Coupling %1 Hz (jitter %2 \u00b5s, misses %3)  |  Solver %4 Hz (tick %5 / %6 \u00b5s "
-                        "mean / max, misses %7)  |  contacts %8  |  |F| %9 N  |  |\u03c4| %10 N\u00b7m")
+                        "mean / max, misses %7)  |  %8  |  |F| %9 N  |  |\u03c4| %10 N\u00b7m")
           .arg(s.coupling.rate_Hz, 0, 'f', 0)
           .arg(s.coupling.jitter_us, 0, 'f', 0)
           .arg(misses != nullptr ? QString("%1/min").arg(misses->coupling())
@@ -51,7 +70,7 @@ QString hapticStatusText(const runtime::Session& session, const runtime::HapticS
           .arg(s.solver.max_tick_us, 0, 'f', 1)
           .arg(misses != nullptr ? QString("%1/min").arg(misses->solver())
                                  : QString::number(static_cast<qulonglong>(s.solver.deadline_misses)))
-          .arg(s.contacts)
+          .arg(contactText(s.contacts, s.force_W_N.norm()))
           .arg(s.force_W_N.norm(), 0, 'f', 2)
           .arg(s.torque_W_Nm.norm(), 0, 'f', 4);
   // The structure touched.
@@ -74,7 +93,9 @@ StatusLine::StatusLine(QStatusBar* bar) : QObject(bar) {
       "device's rate; jitter is the largest deviation of its wake-up interval from the period over "
       "the last second.\nSolver: the thread that moves the proxy against the surface; tick is its "
       "computing time per tick over the last second.\nMisses: ticks that started more than one period "
-      "late, over the last minute.");
+      "late, over the last minute.\nContacts: the points where the tool's proxy touches the surface. "
+      "|F|: the force on the hand, the spring between the proxy and the device; without contacts it "
+      "is the proxy trailing a fast-moving device, not a press.");
   bar->addWidget(label_, 1);
   // A message (a load notice, "Loading cancelled") replaces the statistics while it lasts; the
   // status bar alone leaves both painted over each other once the label's text changes.
