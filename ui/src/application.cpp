@@ -107,8 +107,8 @@ int runApplication(int argc, char** argv, const runtime::SceneSpec& scene, const
       window->deviceInput()->setDevicePose(*options.device_pose);
     } else if (options.touch) {
       if (!window->deviceInput()->touchSurface(options.touch_depth_m)) {
-        std::cerr << "volume-haptics: touch: no simulated device, or no surface towards the "
-                     "volume's centre\n";
+        std::cerr << "volume-haptics: touch: no simulated device, or no surface along the view "
+                     "through the volume's centre\n";
       } else {
         // Frame the contact once the proxy rests on the surface.
         QTimer::singleShot(std::min(800, std::max(0, options.screenshot_delay_ms / 2)), window.get(), [&] {

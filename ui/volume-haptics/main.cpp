@@ -91,7 +91,8 @@ void addGuiOptions(CLI::App& app, GuiArgs& gui) {
   app.add_option("--phase", gui.phase, "4-D DICOM series: the time point (phase, echo) to open, 0-based, as `run --phase`")
       ->check(CLI::NonNegativeNumber);
   app.add_flag("--touch", gui.options.touch,
-               "Move the simulated device towards the volume's centre until the tool rests on the surface, after load");
+               "After load, bring the simulated device from outside the volume, along the view through its centre, "
+               "until the tool rests on the surface");
   app.add_option("--touch-depth-m", gui.options.touch_depth_m, "How far past the surface --touch goes [m]")
       ->check(CLI::NonNegativeNumber);
   app.add_option("--igtl-port", gui.options.igtl_port,

@@ -38,10 +38,14 @@ class DeviceInput : public QObject {
   /// Moves the simulated device to `X_WD` [m] and shows it at once (no effect without one, or
   /// for a non-finite pose).
   void setDevicePose(const haptics::Pose& X_WD);
-  /// Moves the simulated device from its pose towards the volume's centre until the tool's point
-  /// shell meets the isosurface, then `depth_m` [m] further; where the central ray meets nothing,
-  /// parallel rays on rings around it are tried (the device then goes sideways first and in
-  /// 0.3 s later). @return false without a simulated device or when no ray meets the surface.
+  /// Brings the simulated device onto the surface from outside the volume: along the view
+  /// direction through the volume's centre, from a start outside the volume's bounding box, until
+  /// the tool's point shell meets the isosurface, then `depth_m` [m] further; where that ray
+  /// meets nothing, parallel rays on rings around it are tried. With the haptic threads running
+  /// the device goes there in steps the proxy can follow through free space (out of the box the
+  /// shortest free way, round it, to the start, in), each once the proxy caught up (or after
+  /// 1.5 s); without them it goes to the end at once.
+  /// @return false without a simulated device or when no ray meets the surface.
   bool touchSurface(double depth_m);
   /// One step of the device's keyboard motion and of the mouse wheel [m]: 1/200 of the volume's
   /// diagonal, 0.5 to 5 mm.
