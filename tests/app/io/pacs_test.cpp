@@ -11,6 +11,7 @@
 #include <fstream>
 #include <map>
 #include <string>
+#include <thread>
 
 #include <arpa/inet.h>
 #include <netinet/in.h>
@@ -26,6 +27,8 @@
 #include <dcmtk/dcmdata/dcdeftag.h>
 #include <dcmtk/dcmdata/dcfilefo.h>
 #include <dcmtk/dcmdata/dcelem.h>
+#include <dcmtk/dcmdata/dcuid.h>
+#include <dcmtk/dcmnet/scp.h>
 
 #include "io_test_support.h"
 #include "vh/io/pacs.h"
@@ -343,6 +346,70 @@ TEST(Pacs, ASilentServerFailsAfterTheConnectionTimeout) {
   EXPECT_GE(secondsSince(t0), 1.5);
   EXPECT_LT(secondsSince(t0), 5.0);
   ::close(listener);
+}
+
+/// A DICOM server (DCMTK's DcmSCP) that answers every C-FIND with a failure status.
+class FailingFindServer : public DcmSCP {
+ public:
+  static constexpr Uint16 kStatus = 0xC000;  // Failed: unable to process (PS3.4 C.4.1.1.4)
+
+  explicit FailingFindServer(Uint16 port) {
+    OFList<OFString> syntaxes;
+    syntaxes.push_back(UID_LittleEndianExplicitTransferSyntax);
+    syntaxes.push_back(UID_LittleEndianImplicitTransferSyntax);
+    getConfig().setAETitle("FAILINGPACS");
+    getConfig().setPort(port);
+    getConfig().addPresentationContext(UID_VerificationSOPClass, syntaxes);
+    getConfig().addPresentationContext(UID_FINDStudyRootQueryRetrieveInformationModel, syntaxes);
+    getConfig().setConnectionBlockingMode(DUL_NOBLOCK);  // so that listen() can stop
+    getConfig().setConnectionTimeout(1);
+  }
+  std::atomic<bool> stop{false};
+
+ protected:
+  OFBool stopAfterConnectionTimeout() override { return stop.load(); }
+  OFCondition handleIncomingCommand(T_DIMSE_Message* msg, const DcmPresentationContextInfo& info) override {
+    if (msg->CommandField != DIMSE_C_FIND_RQ) return DcmSCP::handleIncomingCommand(msg, info);
+    DcmDataset* keys = nullptr;
+    const OFCondition cond = receiveFINDRequest(msg->msg.CFindRQ, info.presentationContextID, keys);
+    delete keys;
+    if (cond.bad()) return cond;
+    return sendFINDResponse(info.presentationContextID, msg->msg.CFindRQ.MessageID,
+                            msg->msg.CFindRQ.AffectedSOPClassUID, nullptr, kStatus);
+  }
+};
+
+TEST(Pacs, AFindFailureStatusIsNamed) {
+  const int port = closedPort();
+  FailingFindServer scp(static_cast<Uint16>(port));
+  std::thread listening([&] { scp.listen(); });
+  PacsServer server;
+  server.host = "127.0.0.1";
+  server.port = port;
+  server.called_aet = "FAILINGPACS";
+  server.calling_aet = "VHTEST";
+  server.connect_timeout_s = 2;
+  // Up once it answers an echo.
+  bool up = false;
+  for (int i = 0; i < 50 && !up; ++i) {
+    try {
+      pacsEcho(server);
+      up = true;
+    } catch (const PacsError&) {
+      std::this_thread::sleep_for(std::chrono::milliseconds(100));
+    }
+  }
+  EXPECT_TRUE(up) << "the test server did not start on port " << port;
+  try {
+    pacsFindStudies(server);
+    ADD_FAILURE() << "a failed C-FIND returned";
+  } catch (const PacsError& e) {
+    std::printf("[ MESSAGE  ] C-FIND failure: %s\n", e.what());
+    EXPECT_CONTAINS(e.what(), "PACS FAILINGPACS at 127.0.0.1:" + std::to_string(port));
+    EXPECT_CONTAINS(e.what(), "C-FIND failed: status 0xC000");
+  }
+  scp.stop = true;
+  listening.join();
 }
 
 TEST(Pacs, AnUnknownCalledAeTitleIsRejected) {
