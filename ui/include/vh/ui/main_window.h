@@ -109,6 +109,7 @@ class MainWindow : public QMainWindow {
   SceneView* sceneView() const noexcept { return view_; }
   ViewController* viewController() const noexcept { return view_controller_; }
   ToolPicker* toolPicker() const noexcept { return tool_picker_; }
+  DrillController* drillController() const noexcept { return drill_; }
   IsovalueBar* isovalueBar() const noexcept { return iso_bar_; }
   HapticsPanel* hapticsPanel() const noexcept { return haptics_panel_; }
   HapticsController* haptics() const noexcept { return haptics_; }
