@@ -204,7 +204,9 @@ class Scu : public DcmSCU {
     progress_.received = static_cast<int>(files_.size());
     progress_.last_file = path;
     if (options_->progress) options_->progress(progress_);
-    if (cancelRequested()) onCancel(continue_session);
+    // A server that answers each sub-operation with a pending C-GET response is asked to stop
+    // there, between two sub-operations; one that does not, here.
+    if (cancelRequested() && (!saw_pending_ || cancel_sent_)) onCancel(continue_session);
     return EC_Normal;
   }
 
