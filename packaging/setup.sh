@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # One-command set-up for a fresh Debian 12 machine.
 #   packaging/setup.sh run [ARGS...]  install missing Debian packages, build, open the application
-#   packaging/setup.sh test           install missing Debian packages, build, run ctest
+#   packaging/setup.sh test           install missing Debian packages, build, run ctest, leave
+#                                     the Debian package in the build folder
 # Environment: VH_BUILD_DIR (default build), VH_FUZZ_BUILD_DIR (default build-fuzz), VH_JOBS
 # (default nproc).
 set -euo pipefail
@@ -43,6 +44,8 @@ case "$mode" in
   test)
     cd "$build_dir"
     ctest --output-on-failure -j "$jobs" --timeout 1500
+    # The Debian package, left in the build tree (the package test builds its own and removes it).
+    cpack -G DEB >/dev/null && echo "setup: the Debian package: $(ls "$build_dir"/volume-haptics_*.deb)"
     # Fuzz targets (clang, their own build folder), each briefly on the committed corpus.
     VH_JOBS="$jobs" bash "$here/tests/fuzz/ci.sh" "${VH_FUZZ_BUILD_DIR:-$here/build-fuzz}"
     ;;

@@ -3,8 +3,9 @@
 # unpacked with dpkg-deb into a temporary root, must hold the program, its worker, the desktop
 # entry, the icon, the .vhrec MIME type, the man page, the udev rules and the copyright; its
 # Depends must be computed from the shared libraries; and the unpacked program must run --help,
-# a headless run on an installed scene, and load an NRRD through its own (unpacked) worker,
-# without naming the build machine's folders.
+# a headless run on an installed scene, open every installed scene, and load an NRRD through its
+# own (unpacked) worker, without naming the build machine's folders; bench's default output lies
+# under the user's data folder; the Description has no stray ';'.
 #   usage: [CPACK=/path/to/cpack] deb_test.sh BUILD_DIR SOURCE_DIR
 # Exit 77 (skipped, with a message) when a Debian packaging tool is missing.
 set -euo pipefail
@@ -47,6 +48,10 @@ for lib in 'libc6 ' 'libqt6' 'libvtk' 'libstdc++6' 'libhidapi-hidraw0' 'libusb-1
 done
 grep -q '^ Section: science' "$tmp/info" || fail "Section is not science"
 grep -q '^ Package: volume-haptics$' "$tmp/info" || fail "the package is not named volume-haptics"
+# The Description as dpkg shows it: no stray ';' (a CMake list written as one string).
+description="$(sed -n '/^ Description:/,/^ [A-Z][A-Za-z-]*:/p' "$tmp/info")"
+[[ -n $description ]] || fail "the package has no Description"
+[[ $description != *';'* ]] || fail "the Description carries a ';': $description"
 
 # ---- contents ----
 step "dpkg-deb -c"
@@ -107,6 +112,28 @@ vh run --scene "$scene" --trajectory "$tmp/work/sphere.csv" --report "$tmp/work/
   fail "run on $scene"
 grep -q '"scene"' "$tmp/work/sphere.json" || fail "the run wrote no report"
 echo "run: $(($(date +%s) - t2)) s"
+
+step "every installed scene opens from the package alone"
+# Each scene loads (its volume, tool and device) and runs headless on the sphere's device path.
+nscenes=0
+for scene in "$root"/usr/share/volume-haptics/scenes/*.json; do
+  name="$(basename "$scene" .json)"
+  vh run --scene "$scene" --trajectory "$tmp/work/sphere.csv" --report "$tmp/work/$name-report.json" \
+    >"$tmp/$name.log" 2>&1 || { cat "$tmp/$name.log"; fail "the installed scene $name does not open"; }
+  grep -q '"scene"' "$tmp/work/$name-report.json" || fail "the run of $name wrote no report"
+  nscenes=$((nscenes + 1))
+done
+((nscenes >= 2)) || fail "only $nscenes installed scenes"
+echo "scenes: $nscenes open"
+
+step "bench writes under the user's data folder"
+vh bench table1 --help >"$tmp/bench-help.txt" || fail "bench table1 --help exited with $?"
+grep -q "$tmp/home/.local/share/volume-haptics/bench/table1" "$tmp/bench-help.txt" ||
+  { cat "$tmp/bench-help.txt"; fail "bench's default output folder is not ~/.local/share/volume-haptics/bench"; }
+(cd "$tmp/work" && env -i PATH=/usr/bin:/bin HOME="$tmp/home" XDG_DATA_HOME="$tmp/xdg" QT_QPA_PLATFORM=offscreen \
+  "$exe" bench table1 --help) | grep -q "$tmp/xdg/volume-haptics/bench/table1" ||
+  fail "bench's default output folder does not follow XDG_DATA_HOME"
+if grep -q "$build" "$tmp/bench-help.txt"; then fail "bench --help names the build tree $build"; fi
 
 step "an NRRD read through the unpacked worker"
 # A 24^3 ball (unsigned char, 1 mm voxels, 128 at radius 8 mm), written here.
