@@ -134,7 +134,10 @@ CutResult MaterialRemoval::cut(const Eigen::Vector3d& burr_center_W_m, double bu
         v.writeRaw(idx, removed_raw_);
         removed_[static_cast<std::size_t>(m)].fetch_add(1, std::memory_order_relaxed);
         ++result.voxels_removed;
-        if (materials_[static_cast<std::size_t>(m)].critical) ++result.critical_removed;
+        if (materials_[static_cast<std::size_t>(m)].critical) {
+          ++result.critical_removed;
+          if (result.critical_material < 0) result.critical_material = m;
+        }
         if (head - tail < log_.size()) {
           log_[head % log_.size()] = idx;
           ++head;

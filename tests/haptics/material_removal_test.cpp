@@ -206,7 +206,11 @@ TEST(MaterialRemoval, CriticalMaterialIsCounted) {
     if ((i / (41 * 41)) < 20) material[i] = 1;  // the lower half is a "nerve"
   MaterialRemoval drill(volume, material, {{"bone", 1.0, false}, {"nerve", 1.0, true}});
   int critical = 0;
-  for (int t = 0; t < 400; ++t) critical += drill.cut({0, 0, 0.006 - 2e-5 * t}, 2e-3, 1e9, 1e-3, 100.0, true).critical_removed;
+  for (int t = 0; t < 400; ++t) {
+    const CutResult cut = drill.cut({0, 0, 0.006 - 2e-5 * t}, 2e-3, 1e9, 1e-3, 100.0, true);
+    critical += cut.critical_removed;
+    EXPECT_EQ(cut.critical_material, cut.critical_removed > 0 ? 1 : -1);
+  }
   EXPECT_GT(drill.removedVoxels(0), 0u);
   EXPECT_GT(drill.removedVoxels(1), 0u);
   EXPECT_EQ(static_cast<std::uint64_t>(critical), drill.removedVoxels(1));

@@ -415,7 +415,21 @@ RunReport runHeadless(const LoadedScene& scene, const Trajectory& trajectory, co
     if (!finite) ++r.nan_ticks;
     else depth = addForceAndDepth(r, out, X_WD_used, felt, tool, felt_isovalue, options.check_penetration, i);
     // The burr cuts after the checks (they test this tick's motion against the field it moved in).
-    if (drilling && sample_ok && !out.stats.bad_input) drill->step(renderer, out);
+    if (drilling && sample_ok && !out.stats.bad_input) {
+      const haptics::CutResult cut = drill->step(renderer, out);
+      if (cut.critical_removed > 0 && recorder) {
+        // As the GUI does: every removal of a critical segment is an event with its count.
+        RecordingEvent event;
+        event.time_s = static_cast<double>(i) / options.servo_rate_Hz;
+        event.tick = i + 1;
+        event.type = "critical_removed";
+        event.detail_json = nlohmann::json{{"segment", drill->removal().materials()[static_cast<std::size_t>(cut.critical_material)].name},
+                                           {"voxels", cut.critical_removed},
+                                           {"mm3", cut.critical_removed * drill->removal().voxelVolume_mm3()}}
+                                .dump();
+        recorder->addEvent(event);
+      }
+    }
     if (recorder) {
       TickRecord rec = runRecord(i, options.servo_rate_Hz, X_WD_used, renderer.proxyPose(), out, isovalue,
                                  renderer.contacts().size(), finite, sample_ok, segment);

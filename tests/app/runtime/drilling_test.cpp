@@ -3,7 +3,10 @@
 // replay round trip that rebuilds the drilled field bit for bit (SHA-256 of its voxels).
 #include "vh/runtime/drilling.h"
 
+#include <fstream>
+
 #include <gtest/gtest.h>
+#include <nlohmann/json.hpp>
 
 #include "runtime_test_support.h"
 #include "vh/runtime/recording.h"
@@ -109,6 +112,80 @@ TEST(Drilling, HeadlessRunDrillsAndReplaysBitForBit) {
   Sha256 untouched;
   untouched.update(scene.hapticField()->bytes().data(), scene.hapticField()->bytes().size());
   EXPECT_NE(untouched.hexDigest(), report.drill->drilled_field_sha256);
+}
+
+// A bone slab (1200 HU, z 4 to 9 mm) with a "nerve" segment inside it (z 6 to 7 mm), critical,
+// each segment with the scene's hardness: drilling down through the bone reaches the nerve; its voxels
+// are counted apart in the report and every removal of them is a critical_removed event.
+TEST(Drilling, CriticalSegmentRemovalIsReportedAndRecorded) {
+  const auto dir = test::scratchDir();
+  constexpr int kN = 60;  // 0.5 mm voxels
+  std::string ct, labels;
+  for (int k = 0; k < kN; ++k)
+    for (int j = 0; j < kN; ++j)
+      for (int i = 0; i < kN; ++i) {
+        const double x = i * 0.5, y = j * 0.5, z = k * 0.5;
+        const bool bone = x >= 3 && x <= 27 && y >= 3 && y <= 27 && z >= 4 && z <= 9;
+        const bool nerve = bone && z >= 6 && z <= 7;
+        const std::int16_t hu = bone ? 1200 : -1000;
+        ct.append(reinterpret_cast<const char*>(&hu), 2);
+        labels.push_back(static_cast<char>(nerve ? 1 : bone ? 2 : 0));
+      }
+  const auto header = [](const std::string& type, const std::string& extra) {
+    return "NRRD0004\ntype: " + type + "\ndimension: 3\nspace: left-posterior-superior\nsizes: 60 60 60\n"
+           "space directions: (0.5,0,0) (0,0.5,0) (0,0,0.5)\nkinds: domain domain domain\nendian: little\n"
+           "encoding: raw\nspace origin: (0,0,0)\n" + extra + "\n";
+  };
+  std::ofstream(dir / "ct.nrrd", std::ios::binary) << header("short", "") << ct;
+  std::ofstream(dir / "case.seg.nrrd", std::ios::binary)
+      << header("unsigned char",
+                "Segment0_ID:=Segment_1\nSegment0_LabelValue:=1\nSegment0_Layer:=0\nSegment0_Name:=nerve\n"
+                "Segment1_ID:=Segment_2\nSegment1_LabelValue:=2\nSegment1_Layer:=0\nSegment1_Name:=bone\n")
+      << labels;
+  const auto scene_path = test::writeText(dir / "drill.json", R"({
+    "volume": {"path": "ct.nrrd", "isovalue": 400},
+    "tool": {"mesh": "builtin:drill", "point_spacing_m": 0.0008},
+    "coupling": {"linear_N_per_m": 1000},
+    "segmentation": {"path": "case.seg.nrrd", "critical": ["nerve"]},
+    "drill": {"on": true, "hardness": {"nerve": 0.5, "bone": 2.5}}
+  })");
+  const LoadedScene scene = loadScene(loadSceneFile(scene_path));
+  const auto at = [](double t, double z) {
+    TrajectorySample s;
+    s.t_s = t;
+    s.X_WD.p_AB_m = {0.015, 0.015, z};
+    return s;
+  };
+  const Trajectory press({at(0.0, 0.016), at(0.5, 0.002), at(3.0, 0.002)});
+  RunOptions options;
+  options.record = dir / "drill.vhrec";
+  options.lag_reference = false;
+  options.verify_step_voxels = 0.05;
+  const RunReport report = runHeadless(scene, press, options);
+  ASSERT_TRUE(report.drill.has_value());
+  EXPECT_EQ(report.crossings, 0);
+  const DrillReport::Material* nerve = nullptr;
+  const DrillReport::Material* bone = nullptr;
+  for (const auto& m : report.drill->materials) {
+    if (m.name == "nerve") nerve = &m;
+    if (m.name == "bone") bone = &m;
+  }
+  ASSERT_NE(nerve, nullptr);
+  ASSERT_NE(bone, nullptr);
+  EXPECT_TRUE(nerve->critical);
+  EXPECT_EQ(nerve->segment, "nerve");
+  EXPECT_DOUBLE_EQ(nerve->specific_energy_J_per_mm3, 0.5);
+  EXPECT_DOUBLE_EQ(bone->specific_energy_J_per_mm3, 2.5);
+  EXPECT_GT(bone->voxels, 0u);
+  EXPECT_GT(nerve->voxels, 0u) << "the burr went through the bone into the nerve";
+  const Recording recording = readRecording(options.record);
+  std::uint64_t recorded = 0;
+  for (const auto& e : recording.events)
+    if (e.type == "critical_removed") {
+      EXPECT_NE(e.detail_json.find("\"segment\":\"nerve\""), std::string::npos) << e.detail_json;
+      recorded += static_cast<std::uint64_t>(nlohmann::json::parse(e.detail_json).at("voxels").get<int>());
+    }
+  EXPECT_EQ(recorded, nerve->voxels) << "every removed nerve voxel is in an event";
 }
 
 }  // namespace

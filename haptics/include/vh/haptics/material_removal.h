@@ -60,6 +60,7 @@ struct CutResult {
   int voxels_in_reach = 0;         ///< Voxels (not yet removed) that shared the energy.
   int voxels_removed = 0;          ///< Voxels removed on this tick.
   int critical_removed = 0;        ///< Of those, voxels of a critical material.
+  int critical_material = -1;      ///< The (first) critical material they belong to, or -1.
   double energy_J = 0.0;           ///< Energy the burr delivered, P dt [J].
   bool widened = false;            ///< The reach grew to one voxel diagonal (see the file comment).
 };
