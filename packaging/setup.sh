@@ -22,9 +22,10 @@ packages=(cmake ninja-build g++ pkg-config libeigen3-dev libgtest-dev libgmock-d
 # shared-mime-info to validate the desktop entry and compile the MIME type.
 # test also starts a real PACS for the PACS client's tests (tests/app/io/pacs_orthanc_fixture.sh):
 # Orthanc, run from the build tree with its own configuration (the package's service is not
-# used), and DCMTK's command-line tools (dcmtk: storescu stores the test series in it).
+# used), DCMTK's command-line tools (dcmtk: storescu stores the test series in it) and curl (asks
+# Orthanc's REST API whether it is up and holds the series).
 if [[ $mode == test ]]; then
-  packages+=(clang libclang-rt-14-dev dpkg-dev file help2man desktop-file-utils shared-mime-info orthanc dcmtk)
+  packages+=(clang libclang-rt-14-dev dpkg-dev file help2man desktop-file-utils shared-mime-info orthanc dcmtk curl)
 fi
 missing=()
 for p in "${packages[@]}"; do

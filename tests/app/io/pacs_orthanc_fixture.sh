@@ -67,6 +67,7 @@ rm -rf "$state/db" "$env_file"
 
 [[ -x $orthanc ]] || unavailable "Orthanc is not installed (Debian package orthanc; packaging/setup.sh test installs it)"
 [[ -x $storescu ]] || unavailable "storescu is not installed (Debian package dcmtk; packaging/setup.sh test installs it)"
+command -v curl >/dev/null || unavailable "curl is not installed (packaging/setup.sh test installs it)"
 [[ -d $dataset ]] || unavailable "shared dataset missing: $dataset"
 instances=$(find "$dataset" -maxdepth 1 -type f -name '*.dcm' | wc -l)
 ((instances > 0)) || unavailable "no .dcm files in $dataset"
