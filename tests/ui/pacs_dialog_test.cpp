@@ -13,6 +13,7 @@
 #include <filesystem>
 #include <fstream>
 #include <map>
+#include <memory>
 #include <string>
 
 #include <QAction>
@@ -243,6 +244,61 @@ TEST(PacsDialog, AClosedPortIsSaidInTheDialog) {
   EXPECT_TRUE(dialog.statusText().contains("no connection")) << dialog.statusText().toStdString();
   EXPECT_TRUE(dialog.statusText().contains(QString::fromStdString(server.describe())));
   EXPECT_EQ(dialog.tree()->topLevelItemCount(), 0);
+}
+
+TEST(PacsDialog, ClosingNeverWaitsForTheNetwork) {
+  // A server that accepts the connection and never answers: the search waits its 3 s out.
+  const int listener = ::socket(AF_INET, SOCK_STREAM, 0);
+  ASSERT_GE(listener, 0);
+  sockaddr_in addr{};
+  addr.sin_family = AF_INET;
+  addr.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+  socklen_t len = sizeof addr;
+  ASSERT_EQ(::bind(listener, reinterpret_cast<sockaddr*>(&addr), sizeof addr), 0);
+  ASSERT_EQ(::listen(listener, 4), 0);
+  ASSERT_EQ(::getsockname(listener, reinterpret_cast<sockaddr*>(&addr), &len), 0);
+  io::PacsServer silent;
+  silent.host = "127.0.0.1";
+  silent.port = ntohs(addr.sin_port);
+  silent.connect_timeout_s = 3;
+  auto dialog = std::make_unique<PacsBrowserDialog>(silent, nullptr, nullptr);
+  dialog->show();
+  dialog->search();
+  test::pump(200);
+  ASSERT_TRUE(dialog->busy());
+  auto t0 = std::chrono::steady_clock::now();
+  dialog.reset();  // closed while the search waits
+  const double close_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  std::printf("[ TIMING   ] closed during a search of a silent server in %.3f s\n", close_s);
+  EXPECT_LT(close_s, 0.5);
+  test::pump(3500);  // the search's thread ends on its own (connection timeout)
+  ::close(listener);
+}
+
+TEST(PacsDialog, ClosingDuringARetrievalCancelsIt) {
+  VH_REQUIRE_ORTHANC(values);
+  QTemporaryDir cache;
+  auto dialog = std::make_unique<PacsBrowserDialog>(fixtureServer(values), nullptr, nullptr,
+                                                    fs::path(cache.path().toStdString()));
+  dialog->show();
+  dialog->search();
+  ASSERT_TRUE(test::waitFor([&] { return dialog->tree()->topLevelItemCount() > 0; }, 20000));
+  dialog->tree()->topLevelItem(0)->child(0)->setExpanded(true);
+  QTreeWidgetItem* series = firstSeries(*dialog);
+  ASSERT_NE(series, nullptr);
+  const fs::path folder = pacsCacheFolder(series->text(4).toStdString(), fs::path(cache.path().toStdString()));
+  series->setSelected(true);
+  dialog->retrieveSelected();
+  ASSERT_TRUE(test::waitFor([&] { return dicomFilesIn(folder) >= 3; }, 30000));
+  const auto t0 = std::chrono::steady_clock::now();
+  dialog.reset();  // closed mid-retrieval
+  const double close_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  EXPECT_LT(close_s, 0.5);
+  // The retrieval's thread stops (C-CANCEL) and deletes what it received.
+  EXPECT_TRUE(test::waitFor([&] { return dicomFilesIn(folder) == 0; }, 10000)) << dicomFilesIn(folder) << " files left";
+  std::printf("[ TIMING   ] closed during a retrieval in %.3f s; its files gone %.3f s later\n", close_s,
+              std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count());
+  test::pump(500);  // the thread's last steps (releasing the association)
 }
 
 // The whole path in the window: File > Open from PACS, the dialog driven as a user would (a

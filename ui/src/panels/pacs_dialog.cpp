@@ -46,9 +46,11 @@ QString personName(const std::string& pn) {
   return s.isEmpty() ? QString("(no name)") : s;
 }
 
-/// A thread running `work`, owned by the caller.
+/// Starts `work` on a thread of its own that deletes itself when done (it may outlive whoever
+/// started it: `work` must own what it uses). @return the thread, for its finished() signal.
 QThread* startThread(std::function<void()> work) {
   QThread* t = QThread::create(std::move(work));
+  QObject::connect(t, &QThread::finished, t, &QObject::deleteLater);
   t->start();
   return t;
 }
@@ -131,22 +133,21 @@ PacsSettingsDialog::PacsSettingsDialog(const io::PacsServer& server, QWidget* pa
   connect(buttons, &QDialogButtonBox::accepted, this, &QDialog::accept);
   connect(buttons, &QDialogButtonBox::rejected, this, &QDialog::reject);
   connect(test, &QPushButton::clicked, this, [this, test] {
-    if (test_thread_ != nullptr) return;
+    if (testing_) return;
+    testing_ = true;
     test->setEnabled(false);
     test_result_->setText("Testing...");
     auto error = std::make_shared<std::string>();
     const io::PacsServer s = this->server();
-    test_thread_ = startThread([s, error] {
+    QThread* thread = startThread([s, error] {
       try {
         io::pacsEcho(s);
       } catch (const std::exception& e) {
         *error = e.what();
       }
     });
-    connect(test_thread_, &QThread::finished, this, [this, test, error, s] {
-      test_thread_->wait();  // finished() comes just before the thread ends
-      test_thread_->deleteLater();
-      test_thread_ = nullptr;
+    connect(thread, &QThread::finished, this, [this, test, error, s] {
+      testing_ = false;
       test->setEnabled(true);
       test_result_->setText(error->empty() ? q(s.describe() + " answers (C-ECHO).") : q(*error));
     });
@@ -159,13 +160,6 @@ PacsSettingsDialog::PacsSettingsDialog(const io::PacsServer& server, QWidget* pa
   test_row->addWidget(test_result_, 1);
   layout->addLayout(test_row);
   layout->addWidget(buttons);
-}
-
-PacsSettingsDialog::~PacsSettingsDialog() {
-  if (test_thread_ != nullptr) {
-    test_thread_->wait();  // an echo ends within the connection timeout
-    delete test_thread_;
-  }
 }
 
 io::PacsServer PacsSettingsDialog::server() const {
@@ -298,28 +292,19 @@ PacsBrowserDialog::PacsBrowserDialog(const io::PacsServer& server,
 }
 
 PacsBrowserDialog::~PacsBrowserDialog() {
-  cancel_ = true;
-  const QList<QThread*> threads = threads_;
-  threads_.clear();
-  for (QThread* t : threads) {
-    t->wait();  // each network call ends within the server's timeouts; a retrieval stops at once
-    delete t;
-  }
+  if (retrieval_) retrieval_->cancel = true;  // its thread stops and deletes what it received
 }
 
 void PacsBrowserDialog::runInBackground(std::function<void()> work, std::function<void()> done) {
-  QThread* t = QThread::create(std::move(work));
-  threads_.append(t);
-  // Queued to the GUI thread; dropped if the dialog is gone (its destructor waits for `t`).
-  connect(t, &QThread::finished, this, [this, t, done = std::move(done)] {
-    threads_.removeOne(t);
-    t->wait();  // finished() comes just before the thread ends: let it end before it is deleted
-    t->deleteLater();
+  QThread* t = startThread(std::move(work));
+  ++running_;
+  // Queued to the GUI thread; dropped when the dialog is gone.
+  connect(t, &QThread::finished, this, [this, done = std::move(done)] {
+    --running_;
     done();
     updateButtons();
   });
   updateButtons();
-  t->start();
 }
 
 void PacsBrowserDialog::setStatus(const QString& text, bool error) {
@@ -425,9 +410,9 @@ void PacsBrowserDialog::retrieveSelected() {
   const fs::path folder = pacsCacheFolder(series_uid, cache_root_);
   const io::PacsServer server = server_;
 
-  cancel_ = false;
-  received_ = 0;
-  total_ = expected;
+  auto state = std::make_shared<Retrieval>();
+  state->total = expected;
+  retrieval_ = state;
   progress_ = new QProgressDialog("Retrieving the series from " + q(server.describe()) + "...", "Cancel", 0,
                                   std::max(expected, 0), this);
   progress_->setObjectName("pacsProgress");
@@ -437,19 +422,20 @@ void PacsBrowserDialog::retrieveSelected() {
   progress_->setAutoReset(false);
   progress_->setMinimumDuration(0);
   progress_->setValue(0);
-  connect(progress_, &QProgressDialog::canceled, this, [this] {
-    cancel_ = true;
+  connect(progress_, &QProgressDialog::canceled, this, [this, state] {
+    state->cancel = true;
     if (progress_ != nullptr) progress_->setLabelText("Cancelling...");
   });
   progress_timer_ = new QTimer(this);
-  connect(progress_timer_, &QTimer::timeout, this, [this] {
-    if (progress_ != nullptr && progress_->wasCanceled()) cancel_ = true;  // cancelled by Esc or cancel()
-    if (progress_ == nullptr || cancel_) return;
-    const int total = total_;
+  connect(progress_timer_, &QTimer::timeout, this, [this, state] {
+    if (progress_ != nullptr && progress_->wasCanceled()) state->cancel = true;  // by Esc or cancel()
+    if (progress_ == nullptr || state->cancel) return;
+    const int total = state->total;
+    const int received = state->received;
     if (total > 0 && progress_->maximum() != total) progress_->setMaximum(total);
-    progress_->setValue(received_);
-    progress_->setLabelText(total > 0 ? QString("Retrieved %1 of %2 files").arg(received_.load()).arg(total)
-                                      : QString("Retrieved %1 files").arg(received_.load()));
+    progress_->setValue(received);
+    progress_->setLabelText(total > 0 ? QString("Retrieved %1 of %2 files").arg(received).arg(total)
+                                      : QString("Retrieved %1 files").arg(received));
   });
   progress_timer_->start(kProgressPollMs);
   setStatus("Retrieving into " + q(folder.string()) + "...");
@@ -458,16 +444,16 @@ void PacsBrowserDialog::retrieveSelected() {
   auto result = std::make_shared<io::PacsRetrieveResult>();
   auto error = std::make_shared<std::string>();
   runInBackground(
-      [this, server, study_uid, series_uid, folder, expected, result, error] {
+      [state, server, study_uid, series_uid, folder, expected, result, error] {
         try {
           std::error_code ec;
           fs::remove_all(folder, ec);  // an earlier, perhaps partial, copy of this series
           io::PacsRetrieveOptions options;
           options.expected_instances = expected;
-          options.cancel = &cancel_;  // the dialog outlives this thread (its destructor waits)
-          options.progress = [this](const io::PacsRetrieveProgress& p) {
-            received_ = p.received;
-            if (p.total > 0) total_ = p.total;
+          options.cancel = &state->cancel;  // `state` lives as long as this thread
+          options.progress = [state](const io::PacsRetrieveProgress& p) {
+            state->received = p.received;
+            if (p.total > 0) state->total = p.total;
           };
           *result = io::pacsRetrieveSeries(server, study_uid, series_uid, folder, options);
           if (!result->cancelled) prunePacsCache(folder.parent_path(), kPacsCacheMaxBytes, folder);
@@ -476,6 +462,7 @@ void PacsBrowserDialog::retrieveSelected() {
         }
       },
       [this, result, error] {
+        retrieval_.reset();
         progress_timer_->stop();
         progress_timer_->deleteLater();
         progress_timer_ = nullptr;

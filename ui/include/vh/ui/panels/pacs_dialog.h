@@ -4,7 +4,8 @@
 /// the server's and our AE titles, with a connection test) and the browser (PacsBrowserDialog:
 /// patients > studies > series from C-FIND, one series retrieved by C-GET into the cache with a
 /// progress dialog and Cancel). Every network call runs on a thread of its own, never on the GUI
-/// thread; the dialogs only show what comes back. The retrieved folder is then opened as any
+/// thread; the dialogs only show what comes back, and closing one never waits for the network (a
+/// call still running ends on its own, bounded by the server's timeouts; a retrieval is cancelled). The retrieved folder is then opened as any
 /// DICOM folder (SceneOpener::openPath()).
 
 #include <atomic>
@@ -15,7 +16,6 @@
 #include <vector>
 
 #include <QDialog>
-#include <QList>
 #include <QString>
 
 #include "vh/io/pacs.h"
@@ -25,7 +25,6 @@ class QLineEdit;
 class QProgressDialog;
 class QPushButton;
 class QSpinBox;
-class QThread;
 class QTimer;
 class QTreeWidget;
 class QTreeWidgetItem;
@@ -39,7 +38,6 @@ class PacsSettingsDialog : public QDialog {
 
  public:
   PacsSettingsDialog(const io::PacsServer& server, QWidget* parent = nullptr);
-  ~PacsSettingsDialog() override;
   /// The settings as edited.
   io::PacsServer server() const;
 
@@ -49,7 +47,7 @@ class PacsSettingsDialog : public QDialog {
   QLineEdit* called_;
   QLineEdit* calling_;
   QLabel* test_result_;
-  QThread* test_thread_ = nullptr;
+  bool testing_ = false;
   io::PacsServer base_;
 };
 
@@ -89,7 +87,8 @@ class PacsBrowserDialog : public QDialog {
   /// caller stores them). `cache_root` empty: the user's cache.
   PacsBrowserDialog(const io::PacsServer& server, std::function<void(const io::PacsServer&)> settings_changed,
                     QWidget* parent = nullptr, std::filesystem::path cache_root = {});
-  /// Cancels a retrieval and waits for the network threads (each bounded by the server's timeouts).
+  /// Cancels a running retrieval (its files are deleted); network calls still running end on
+  /// their own threads without it.
   ~PacsBrowserDialog() override;
 
   /// Lists the studies whose patient name matches the filter field (asynchronous).
@@ -104,18 +103,28 @@ class PacsBrowserDialog : public QDialog {
   /// What the dialog says now: the last result or error.
   QString statusText() const;
   /// True while a network call runs.
-  bool busy() const { return !threads_.isEmpty(); }
+  bool busy() const { return running_ > 0; }
   /// The folder of the retrieved series (valid once accepted).
   const std::filesystem::path& retrievedFolder() const { return retrieved_; }
   /// Asks a running retrieval to stop (as the progress dialog's Cancel does).
-  void cancelRetrieval() { cancel_ = true; }
+  void cancelRetrieval() {
+    if (retrieval_) retrieval_->cancel = true;
+  }
 
  signals:
   /// A retrieval ended: `files` received, `cancelled` or with `error` (empty when none).
   void retrievalFinished(int files, bool cancelled, const QString& error);
 
  private:
-  /// Runs `work` on a thread of its own, then `done` on the GUI thread (unless the dialog is gone).
+  /// What a retrieval's thread and the dialog share; the thread keeps it alive after the dialog.
+  struct Retrieval {
+    std::atomic<bool> cancel{false};
+    std::atomic<int> received{0};  ///< Files so far.
+    std::atomic<int> total{-1};    ///< Files expected; -1: unknown.
+  };
+
+  /// Runs `work` on a thread of its own, then `done` on the GUI thread unless the dialog is gone.
+  /// `work` must not use the dialog: it may outlive it.
   void runInBackground(std::function<void()> work, std::function<void()> done);
   void setStatus(const QString& text, bool error = false);
   void updateButtons();
@@ -132,10 +141,8 @@ class PacsBrowserDialog : public QDialog {
   QPushButton* open_button_;
   QProgressDialog* progress_ = nullptr;
   QTimer* progress_timer_ = nullptr;
-  QList<QThread*> threads_;
-  std::atomic<bool> cancel_{false};
-  std::atomic<int> received_{0};
-  std::atomic<int> total_{-1};
+  int running_ = 0;                     // network calls under way
+  std::shared_ptr<Retrieval> retrieval_;  // the running retrieval, if any
   std::filesystem::path retrieved_;
 };
 
