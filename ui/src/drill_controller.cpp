@@ -38,6 +38,27 @@ const char* nrrdType(int vtk_type) {
 }
 }  // namespace
 
+std::vector<std::uint64_t> pictureIndices(const haptics::ScalarVolume& felt, const haptics::ScalarVolume& scan,
+                                          std::span<const std::uint64_t> felt_indices) {
+  const auto& fg = felt.geometry();
+  const auto& sg = scan.geometry();
+  if (fg.dims == sg.dims && fg.origin_W_m == sg.origin_W_m && fg.spacing_m == sg.spacing_m &&
+      fg.direction_W == sg.direction_W)
+    return {felt_indices.begin(), felt_indices.end()};
+  std::vector<std::uint64_t> out;
+  out.reserve(felt_indices.size());
+  const std::uint64_t nx = static_cast<std::uint64_t>(fg.dims[0]), ny = static_cast<std::uint64_t>(fg.dims[1]);
+  for (const std::uint64_t index : felt_indices) {
+    const Eigen::Vector3d ijk(static_cast<double>(index % nx), static_cast<double>((index / nx) % ny),
+                              static_cast<double>(index / (nx * ny)));
+    const Eigen::Vector3d g = scan.gridCoordinates(fg.origin_W_m + fg.direction_W * fg.spacing_m.cwiseProduct(ijk));
+    const long a = std::lround(g.x()), b = std::lround(g.y()), c = std::lround(g.z());
+    if (a < 0 || b < 0 || c < 0 || a >= sg.dims[0] || b >= sg.dims[1] || c >= sg.dims[2]) continue;
+    out.push_back(static_cast<std::uint64_t>(a + sg.dims[0] * (b + static_cast<long>(sg.dims[1]) * c)));
+  }
+  return out;
+}
+
 DrillController::DrillController(runtime::Session& session, SceneView& view, QObject* parent)
     : QObject(parent), session_(session), view_(view) {
   buffer_.resize(kDrainBatch);
@@ -130,34 +151,17 @@ void DrillController::drain() {
   }
   const haptics::ScalarVolume& felt = drill.removal().volume();
   const haptics::ScalarVolume& scan = *session_.live().scan_field;
-  const auto& fg = felt.geometry();
-  const auto& sg = scan.geometry();
-  const bool same_grid = fg.dims == sg.dims && fg.origin_W_m == sg.origin_W_m && fg.spacing_m == sg.spacing_m &&
-                         fg.direction_W == sg.direction_W;
   vtkImageData* image = view_.actors().shownImage();
   if (image == nullptr) return;
   double range[2];
   image->GetScalarRange(range);
-  if (removed_mask_.empty()) removed_mask_.assign(sg.voxelCount(), 0);
+  if (removed_mask_.empty()) removed_mask_.assign(scan.geometry().voxelCount(), 0);
   for (;;) {
     const std::size_t n = drill.removal().drainRemoved(buffer_);
     if (n == 0) break;
-    image_indices_.clear();
-    for (std::size_t i = 0; i < n; ++i) {
-      std::uint64_t index = buffer_[i];
-      if (!same_grid) {  // the felt segment's grid: the scan voxel nearest to the removed voxel's centre
-        const std::uint64_t nx = static_cast<std::uint64_t>(fg.dims[0]), ny = static_cast<std::uint64_t>(fg.dims[1]);
-        const Eigen::Vector3d ijk(static_cast<double>(index % nx), static_cast<double>((index / nx) % ny),
-                                  static_cast<double>(index / (nx * ny)));
-        const Eigen::Vector3d p_W = fg.origin_W_m + fg.direction_W * fg.spacing_m.cwiseProduct(ijk);
-        const Eigen::Vector3d g = scan.gridCoordinates(p_W);
-        const long a = std::lround(g.x()), b = std::lround(g.y()), c = std::lround(g.z());
-        if (a < 0 || b < 0 || c < 0 || a >= sg.dims[0] || b >= sg.dims[1] || c >= sg.dims[2]) continue;
-        index = static_cast<std::uint64_t>(a + sg.dims[0] * (b + static_cast<long>(sg.dims[1]) * c));
-      }
+    image_indices_ = pictureIndices(felt, scan, std::span<const std::uint64_t>(buffer_.data(), n));
+    for (const std::uint64_t index : image_indices_)
       if (index < removed_mask_.size()) removed_mask_[index] = 1;
-      image_indices_.push_back(index);
-    }
     view_.actors().removeVoxels(image_indices_, range[0]);
     removed_ += n;
     removed_mm3_ += static_cast<double>(n) * drill.removal().voxelVolume_mm3();

@@ -106,6 +106,12 @@ ReplayComparison replayRecording(const LoadedScene& scene, const Recording& reco
       ++result.ticks_replayed;
       if (servo.drill != nullptr && (r.flags & kRecordFlagDrillOn) != 0) servo.drill->step(*renderer, out);
     }
+    if (servo.drill != nullptr) {  // the removal log, record by record
+      std::uint64_t buffer[4096];
+      for (std::size_t n; (n = servo.drill->removal().drainRemoved(buffer)) > 0;)
+        result.removed_voxels.insert(result.removed_voxels.end(), buffer, buffer + n);
+      result.removed_after_record.push_back(result.removed_voxels.size());
+    }
     const haptics::Pose& X_WP = renderer->proxyPose();
     for (int k = 0; k < 3; ++k)
       if (!sameBits(X_WP.p_AB_m[k], r.p_WP_m[k])) return fail(r, i, "proxy position");

@@ -1,5 +1,8 @@
 #include "vh/ui/replay/replay_panel.h"
 
+#include "vh/ui/drill_controller.h"
+#include "vh/runtime/replay.h"
+
 #include <algorithm>
 #include <cmath>
 #include <iostream>
@@ -30,6 +33,7 @@
 #include <QVBoxLayout>
 
 #include <nlohmann/json.hpp>
+#include <vtkImageData.h>
 #include <vtkRenderer.h>
 
 #include "vh/runtime/session_metadata.h"
@@ -297,6 +301,7 @@ void ReplayController::onSceneShown() {
   dock_->raise();
   speed_box_->setCurrentIndex(2);
   speed_ = 1.0;
+  replayDrilling();
   setTime(recording_.records.front().time_s);
   updateActions();
   dock_->setToolTip(QString("%1: %2 ticks, %3 s, %4 markers")
@@ -396,10 +401,51 @@ void ReplayController::setTime(double t_s) {
   // Ticks of felt segments carry the segments' level, not the scan's isovalue: not applied.
   if (std::isfinite(r.isovalue) && !session_.live().feltSegments()) session_.setIsovalue(r.isovalue);
   view_.show(toolFrameOf(r));  // the same picture as a live snapshot
+  showDrillingAt(index_);
   timeline_->setCursor_s(time_s_);
   readout_->setText(readout());
   view_.noteMotion();
   view_.requestRender();
+}
+
+void ReplayController::replayDrilling() {
+  drill_removed_.clear();
+  drill_after_record_.clear();
+  drill_shown_ = 0;
+  if (view_.hasScene()) view_.actors().restoreVolume();
+  const bool drilled = std::any_of(recording_.records.begin(), recording_.records.end(), [](const runtime::TickRecord& r) {
+    return (r.flags & runtime::kRecordFlagDrillOn) != 0;
+  });
+  if (!drilled || !session_.hasScene() || !session_.loaded().spec.drill) return;
+  // The same renderer and drill as the session's, fed the recorded samples: the same voxels go.
+  try {
+    const runtime::ReplayComparison replay = runtime::replayRecording(session_.loaded(), recording_);
+    const runtime::LiveValues live = runtime::LiveValues::initial(session_.loaded());
+    drill_removed_ = pictureIndices(*live.hapticField(), *live.scan_field, replay.removed_voxels);
+    // Felt indices map one to one onto picture indices (or are dropped outside the scan); the
+    // counts per record are kept as they are, clipped to what was mapped.
+    drill_after_record_ = replay.removed_after_record;
+    for (auto& n : drill_after_record_) n = std::min<std::uint64_t>(n, drill_removed_.size());
+  } catch (const std::exception&) {  // the picture stays undrilled; the replay goes on
+    drill_removed_.clear();
+    drill_after_record_.clear();
+  }
+}
+
+void ReplayController::showDrillingAt(std::size_t record_index) {
+  if (drill_after_record_.empty() || !view_.hasScene()) return;
+  const std::uint64_t target = drill_after_record_[std::min(record_index, drill_after_record_.size() - 1)];
+  if (target == drill_shown_) return;
+  if (target < drill_shown_) {  // scrubbed back: from the undrilled picture again
+    view_.actors().restoreVolume();
+    drill_shown_ = 0;
+  }
+  double range[2];
+  view_.actors().shownImage()->GetScalarRange(range);
+  view_.actors().removeVoxels(
+      std::span<const std::uint64_t>(drill_removed_.data() + drill_shown_, static_cast<std::size_t>(target - drill_shown_)),
+      range[0]);
+  drill_shown_ = target;
 }
 
 QString ReplayController::readout() const {

@@ -13,6 +13,7 @@
 
 #include <cstdint>
 #include <filesystem>
+#include <span>
 #include <vector>
 
 #include <QObject>
@@ -23,6 +24,9 @@ class QMenu;
 class QTimer;
 class QWidget;
 
+namespace vh::haptics {
+class ScalarVolume;
+}
 namespace vh::runtime {
 class Session;
 enum class SessionChange : std::uint32_t;
@@ -31,6 +35,12 @@ enum class SessionChange : std::uint32_t;
 namespace vh::ui {
 
 class SceneView;
+
+/// The picture's voxels (linear indices of the scan's grid, x fastest) of voxels removed from the
+/// felt field (its linear indices): the same indices where the two grids agree, else the scan
+/// voxel nearest to each removed voxel's centre (those outside the scan are dropped).
+std::vector<std::uint64_t> pictureIndices(const haptics::ScalarVolume& felt, const haptics::ScalarVolume& scan,
+                                          std::span<const std::uint64_t> felt_indices);
 
 class DrillController : public QObject {
   Q_OBJECT

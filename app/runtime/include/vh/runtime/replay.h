@@ -60,6 +60,11 @@ struct ReplayComparison {
   /// With a drill in the scene: the felt field as carved by the replay when it finished (null
   /// otherwise); compare its bytes with the live run's.
   std::shared_ptr<const haptics::ScalarVolume> drilled_field;
+  /// With a drill: the voxels the replay removed (linear indices of the felt field, x fastest),
+  /// in removal order, and after each record how many of them were removed by then (one entry
+  /// per record replayed): what a viewer applies to show the cavity at any time of the replay.
+  std::vector<std::uint64_t> removed_voxels;
+  std::vector<std::uint64_t> removed_after_record;
 };
 
 /// Re-runs `recording` through a fresh renderer of `scene` (scene.makeRenderer(options), so the

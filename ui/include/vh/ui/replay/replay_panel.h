@@ -198,6 +198,13 @@ class ReplayController : public QObject {
   QLabel* readout_ = nullptr;
   QListWidget* marker_list_ = nullptr;
   std::vector<double> marker_times_s_;
+  // Drilling: the voxels a deterministic replay removed (picture indices) and how many by each
+  // record; the picture shows the first drill_shown_ of them.
+  std::vector<std::uint64_t> drill_removed_;
+  std::vector<std::uint64_t> drill_after_record_;
+  std::uint64_t drill_shown_ = 0;
+  void replayDrilling();
+  void showDrillingAt(std::size_t record_index);
   std::vector<QAction*> export_actions_;
 };
 
