@@ -231,7 +231,7 @@ TEST(DeviceInput, TouchSurfaceApproachesFromOutsideTheBodyNotFromInsideTheChest)
     test::waitFor([&] {
       touching = session.latestSnapshot(snap) && snap.contacts > 0 &&
                  (snap.X_WD.p_AB_m - session.simulatedDevice()->pose().p_AB_m).norm() < 1e-9 &&
-                 input->findChildren<QTimer*>("touchPath").isEmpty();
+                 !input->touchInProgress();
       return touching;
     }, 10000 * test::kSanitizerSlowdown);
     ASSERT_TRUE(touching) << "the tool never came to rest on the surface";

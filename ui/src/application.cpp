@@ -1,6 +1,7 @@
 #include "vh/ui/application.h"
 
 #include <algorithm>
+#include <functional>
 #include <iostream>
 #include <memory>
 #include <string>
@@ -97,6 +98,8 @@ int runApplication(int argc, char** argv, const runtime::SceneSpec& scene, const
 
   bool loaded_once = false;
   int screenshot_status = 0;
+  bool touch_pending = false;  // --touch: the device is on its way and the view not yet on it
+  std::function<void()> shoot;
   QObject::connect(window.get(), &MainWindow::loadFailed, window.get(), [&](const QString&) {
     if (scripted && !loaded_once) QApplication::exit(1);
   });
@@ -110,15 +113,31 @@ int runApplication(int argc, char** argv, const runtime::SceneSpec& scene, const
         std::cerr << "volume-haptics: touch: no simulated device, or no surface along the view "
                      "through the volume's centre\n";
       } else {
-        // Frame the contact once the proxy rests on the surface.
-        QTimer::singleShot(std::min(800, std::max(0, options.screenshot_delay_ms / 2)), window.get(), [&] {
-          window->viewController()->refresh(true);
-          window->viewController()->focusOnTool();
+        // Frame the contact once the device has arrived (it leads the proxy in steps from
+        // outside the volume) and the proxy rests on the surface.
+        touch_pending = true;
+        auto* arrival = new QTimer(window.get());
+        arrival->setInterval(50);
+        QObject::connect(arrival, &QTimer::timeout, window.get(), [&window, &touch_pending, arrival] {
+          if (window->deviceInput()->touchInProgress()) return;
+          arrival->stop();
+          arrival->deleteLater();
+          QTimer::singleShot(300, window.get(), [&window, &touch_pending] {
+            window->viewController()->refresh(true);
+            window->viewController()->focusOnTool();
+            touch_pending = false;
+          });
         });
+        arrival->start();
       }
     }
     if (!scripted) return;
-    QTimer::singleShot(std::max(0, options.screenshot_delay_ms), window.get(), [&] {
+    // The screenshot after the delay, and after a --touch has arrived and been framed.
+    shoot = [&] {
+      if (touch_pending) {
+        QTimer::singleShot(100, window.get(), shoot);
+        return;
+      }
       window->viewController()->refresh(/*update_status_now=*/true);
       window->sceneView()->renderStill(/*best_quality=*/true);
       // QWidget::grab() renders the GL view (paintGL) and composites it with the widgets.
@@ -139,7 +158,8 @@ int runApplication(int argc, char** argv, const runtime::SceneSpec& scene, const
       }
       window->session().stopHaptics();
       QApplication::exit(screenshot_status);
-    });
+    };
+    QTimer::singleShot(std::max(0, options.screenshot_delay_ms), window.get(), shoot);
   });
 
   // A folder given on its own (no --series, --phase or --isovalue) goes through the series

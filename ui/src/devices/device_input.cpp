@@ -4,6 +4,7 @@
 #include <cmath>
 #include <numbers>
 #include <optional>
+#include <limits>
 #include <memory>
 #include <utility>
 #include <vector>
@@ -190,27 +191,43 @@ bool DeviceInput::touchSurface(double depth_m) {
   path.push_back(*start);
   path.push_back(*target);
   // One waypoint at a time: the next once the proxy has caught up with the device (within 1 mm),
-  // or after 1.5 s (a proxy held back by the surface).
+  // or has stood still for 100 ms (held by the surface: the last step ends so, resting on it),
+  // or after 1.5 s.
+  struct Progress {
+    std::size_t next = 0;
+    int elapsed_ms = 0, still_ms = 0;
+    Eigen::Vector3d last_p_W = Eigen::Vector3d::Constant(std::numeric_limits<double>::infinity());
+  };
   auto* timer = new QTimer(this);
   timer->setObjectName("touchPath");
   timer->setInterval(10);
-  auto next = std::make_shared<std::size_t>(0);
-  auto since = std::make_shared<int>(0);
+  auto progress = std::make_shared<Progress>();
   setDevicePose(path[0]);
-  connect(timer, &QTimer::timeout, this, [this, timer, path, next, since] {
-    const haptics::Pose X_WP = session_.proxyPose();
-    const bool caught_up = (X_WP.p_AB_m - path[*next].p_AB_m).norm() < 1e-3;
-    if (!caught_up && (*since += 10) < 1500) return;
-    if (++*next >= path.size() || session_.simulatedDevice() == nullptr) {
+  connect(timer, &QTimer::timeout, this, [this, timer, path, progress] {
+    Progress& p = *progress;
+    const Eigen::Vector3d p_W = session_.proxyPose().p_AB_m;
+    p.elapsed_ms += 10;
+    p.still_ms = (p_W - p.last_p_W).norm() < 0.02e-3 ? p.still_ms + 10 : 0;
+    p.last_p_W = p_W;
+    const bool caught_up = (p_W - path[p.next].p_AB_m).norm() < 1e-3;
+    if (!caught_up && p.still_ms < 100 && p.elapsed_ms < 1500) return;
+    if (++p.next >= path.size() || session_.simulatedDevice() == nullptr) {
       timer->stop();
       timer->deleteLater();
       return;
     }
-    *since = 0;
-    setDevicePose(path[*next]);
+    p.elapsed_ms = p.still_ms = 0;
+    setDevicePose(path[p.next]);
   });
   timer->start();
   return true;
+}
+
+bool DeviceInput::touchInProgress() const {
+  for (const QTimer* t : findChildren<QTimer*>("touchPath", Qt::FindDirectChildrenOnly)) {
+    if (t->isActive()) return true;
+  }
+  return false;
 }
 
 double DeviceInput::wheelStep_m() const {

@@ -24,7 +24,8 @@ namespace vh::ui {
 
 /// Options of one application run (command line of volume-haptics).
 struct AppOptions {
-  /// Non-empty: after the scene loaded and `screenshot_delay_ms` of haptic ticks and frames,
+  /// Non-empty: after the scene loaded and `screenshot_delay_ms` of haptic ticks and frames
+  /// (with `touch`, and once the tool rests on the surface and the view is on it),
   /// save a PNG of the main window (the VTK view composited in) here, then quit with 0
   /// (1 when the file could not be written).
   std::filesystem::path screenshot;

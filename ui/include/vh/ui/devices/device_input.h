@@ -43,10 +43,12 @@ class DeviceInput : public QObject {
   /// the tool's point shell meets the isosurface, then `depth_m` [m] further; where that ray
   /// meets nothing, parallel rays on rings around it are tried. With the haptic threads running
   /// the device goes there in steps the proxy can follow through free space (out of the box the
-  /// shortest free way, round it, to the start, in), each once the proxy caught up (or after
-  /// 1.5 s); without them it goes to the end at once.
+  /// shortest free way, round it, to the start, in), each once the proxy caught up, stood still
+  /// for 100 ms (held by the surface) or after 1.5 s; without them it goes to the end at once.
   /// @return false without a simulated device or when no ray meets the surface.
   bool touchSurface(double depth_m);
+  /// Whether a touchSurface() is still leading the device in steps.
+  bool touchInProgress() const;
   /// One step of the device's keyboard motion and of the mouse wheel [m]: 1/200 of the volume's
   /// diagonal, 0.5 to 5 mm.
   double wheelStep_m() const;
