@@ -32,11 +32,19 @@ MaterialRemoval::MaterialRemoval(std::shared_ptr<ScalarVolume> volume, std::vect
   if (model_.log_capacity == 0) throw std::invalid_argument("MaterialRemoval: the removal log needs a capacity");
   const Eigen::Vector3d s_mm = 1e3 * volume_->geometry().spacing_m;
   voxel_mm3_ = s_mm.prod();
-  for (const auto& m : materials_) energy_J_per_voxel_.push_back(m.specific_energy_J_per_mm3 * voxel_mm3_);
+  for (std::size_t m = 0; m < materials_.size(); ++m)
+    energy_J_per_voxel_[m].store(materials_[m].specific_energy_J_per_mm3 * voxel_mm3_, std::memory_order_relaxed);
   removed_raw_ = volume_->lowestRaw();
   remaining_.resize(n);
   for (std::size_t i = 0; i < n; ++i) remaining_[i] = volume_->rawAt(i) == removed_raw_ ? 0 : kWhole;
   log_.resize(model_.log_capacity);
+}
+
+void MaterialRemoval::setSpecificEnergy(int material, double J_per_mm3) noexcept {
+  if (material < 0 || static_cast<std::size_t>(material) >= materials_.size() || !(J_per_mm3 > 0.0) ||
+      !std::isfinite(J_per_mm3))
+    return;
+  energy_J_per_voxel_[static_cast<std::size_t>(material)].store(J_per_mm3 * voxel_mm3_, std::memory_order_relaxed);
 }
 
 std::uint64_t MaterialRemoval::removedVoxels() const noexcept {
@@ -118,7 +126,8 @@ CutResult MaterialRemoval::cut(const Eigen::Vector3d& burr_center_W_m, double bu
         const double d = Eigen::Vector3d((i - c[0]) * s[0], (j - c[1]) * s[1], (k - c[2]) * s[2]).norm();
         if (d >= reach) continue;
         const int m = materialOf(idx);
-        const double fraction = energy_J * (reach - d) / sum_w / energy_J_per_voxel_[static_cast<std::size_t>(m)];
+        const double fraction =
+            energy_J * (reach - d) / sum_w / energy_J_per_voxel_[static_cast<std::size_t>(m)].load(std::memory_order_relaxed);
         // Rounded down, the remainder carried to the next voxel (and tick): the removed material
         // never exceeds the energy delivered, and a light press on hard bone still cuts.
         const double exact = std::min(fraction, 1.0) * kWhole + carry_;

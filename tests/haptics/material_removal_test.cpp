@@ -171,6 +171,22 @@ TEST(MaterialRemoval, RemovalFollowsForceOverHardness) {
   EXPECT_NEAR(pressed / soft, 2.0, 0.3) << "twice the force";
 }
 
+// A hardness changed while drilling applies from the next cut: ten times harder, a tenth as fast.
+TEST(MaterialRemoval, HardnessChangesLive) {
+  const auto eroded = [](double factor) {
+    auto volume = uniformBlock(41, 0.5e-3);
+    MaterialRemoval drill(volume, {}, oneMaterial(1.0));
+    drill.setSpecificEnergy(0, 1.0 * factor);
+    drill.setSpecificEnergy(0, -1.0);  // refused
+    drill.setSpecificEnergy(3, 5.0);   // no such material: ignored
+    EXPECT_DOUBLE_EQ(drill.specificEnergy(0), factor);
+    Eigen::Vector3d c(0, 0, 0.0095);
+    for (int t = 0; t < 1000; ++t, c.z() -= 2e-6) drill.cut(c, 1e-3, 1.0, 1e-3, 100.0, true);
+    return drill.erodedVolume_mm3();
+  };
+  EXPECT_NEAR(eroded(10.0) / eroded(1.0), 0.1, 0.05);
+}
+
 // F only decreases (nothing is added), voxels out of reach keep their values, no force cuts
 // nothing, and cut() allocates nothing.
 TEST(MaterialRemoval, OnlyLowersTheFieldAndAllocatesNothing) {

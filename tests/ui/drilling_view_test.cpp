@@ -14,6 +14,7 @@
 #include <QMainWindow>
 #include <QSignalSpy>
 #include <QStatusBar>
+#include <QTableWidget>
 
 #include <gtest/gtest.h>
 #include <vtkDataArray.h>
@@ -28,6 +29,7 @@
 #include "vh/ui/drill_controller.h"
 #include "vh/runtime/runner.h"
 #include "vh/ui/main_window.h"
+#include "vh/ui/panels/segments_panel.h"
 #include "vh/ui/replay/replay_panel.h"
 #include "vh/ui/tool_picker.h"
 #include "vh/ui/export/media_export.h"
@@ -176,6 +178,38 @@ TEST(DrillingView, DrillMenuCutsShowsAndExports) {
   ASSERT_EQ(removed.segments.size(), 1u);
   EXPECT_EQ(removed.segments[0].name, "drilled");
   EXPECT_EQ(removed.segments[0].voxel_count, drill.removedVoxels());
+}
+
+// The Segments panel's Hardness column: an edit to a number > 0 reaches the session as that
+// segment's hardness (shown back in the cell); anything else is refused and reverted.
+TEST(DrillingView, SegmentsPanelSetsTheHardness) {
+  const runtime::LoadedScene& scene = test::sphereProbeScene();
+  runtime::Session session;
+  session.setScene(scene, scene.makeDevice());
+  auto set = std::make_shared<const runtime::SegmentSet>(
+      test::ballSegmentation(*scene.volume.field, Eigen::Vector3d(0, 0, 0.015), 0.006), std::vector<int>{},
+      std::vector<int>{0}, std::vector<int>{0}, 1.0);
+  runtime::SegmentationSpec spec;
+  spec.path = "in-memory";
+  session.setSegments(set, spec);
+  SegmentsPanel panel;
+  panel.showSegments(session.live().segments.get());
+  QObject::connect(&panel, &SegmentsPanel::hardnessChanged, [&](int segment, double e) {
+    session.setHardness(session.live().segments->name(segment), e);
+    panel.showHardness(session.hardness());
+  });
+  QTableWidgetItem* cell = panel.table()->item(0, SegmentsPanel::kHardness);
+  ASSERT_NE(cell, nullptr);
+  EXPECT_TRUE(cell->flags() & Qt::ItemIsEditable);
+  EXPECT_FALSE(panel.table()->item(0, SegmentsPanel::kName)->flags() & Qt::ItemIsEditable);
+  cell->setText("1.5");
+  EXPECT_DOUBLE_EQ(session.hardness().at("nodule"), 1.5);
+  EXPECT_EQ(cell->text(), "1.5");
+  cell->setText("soft");
+  EXPECT_EQ(cell->text(), "1.5") << "refused and reverted";
+  EXPECT_DOUBLE_EQ(session.hardness().at("nodule"), 1.5);
+  cell->setText("-2");
+  EXPECT_DOUBLE_EQ(session.hardness().at("nodule"), 1.5);
 }
 
 // A drilled session replayed in the window: the cavity grows with the replay's time, all of it at

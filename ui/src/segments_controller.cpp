@@ -39,17 +39,28 @@ SegmentsController::SegmentsController(runtime::Session& session, SceneView& vie
   dock_->setWidget(panel_);
   window->addDockWidget(Qt::RightDockWidgetArea, dock_);
   connect(panel_, &SegmentsPanel::choicesChanged, this, [this](const SegmentChoices& c) { apply(c); });
+  connect(panel_, &SegmentsPanel::hardnessChanged, this, [this](int segment, double J_per_mm3) {
+    const runtime::SegmentSet* set = session_.hasScene() ? session_.live().segments.get() : nullptr;
+    if (set == nullptr || segment < 0 || static_cast<std::size_t>(segment) >= set->size()) return;
+    try {
+      session_.setHardness(set->name(segment), J_per_mm3);
+    } catch (const std::exception& e) {
+      emit errorReported("Segments", q(e.what()));
+    }
+  });
   observer_ = session_.addObserver([this](runtime::SessionChange what) { onSessionChanged(what); });
 }
 
 SegmentsController::~SegmentsController() { session_.removeObserver(observer_); }
 
 void SegmentsController::onSessionChanged(runtime::SessionChange what) {
+  if (runtime::has(what, runtime::SessionChange::kDrill) && session_.hasScene()) panel_->showHardness(session_.hardness());
   if (!runtime::has(what, runtime::SessionChange::kScene) && !runtime::has(what, runtime::SessionChange::kSegments)) {
     return;
   }
   const runtime::SegmentSet* set = session_.hasScene() ? session_.live().segments.get() : nullptr;
   panel_->showSegments(set);
+  if (session_.hasScene()) panel_->showHardness(session_.hardness());
   names_->set(set);
   if (session_.hasScene()) view_.setSegments(set);
   // A scene that comes with segments shows them in front (where to choose what is felt).

@@ -1,6 +1,7 @@
 // Replaying recordings: the replay device and the bit-for-bit re-run (vh/runtime/replay.h).
 #include "vh/runtime/replay.h"
 
+#include <cctype>
 #include <cstring>
 #include <stdexcept>
 
@@ -81,6 +82,32 @@ ReplayComparison replayRecording(const LoadedScene& scene, const Recording& reco
   }();
   DrillingRenderer servo = makeServoRenderer(LiveValues::initial(scene), options, scene.X_WT_initial, servo_rate_Hz);
   std::unique_ptr<haptics::HapticRenderer> renderer = std::move(servo.renderer);
+  // "hardness" events (Session::setHardness()), applied like the gains: before the first record
+  // after their tick.
+  struct HardnessChange {
+    std::uint64_t tick;
+    std::string material;
+    double J_per_mm3;
+  };
+  std::vector<HardnessChange> hardness_changes;
+  for (const RecordingEvent& e : recording.events) {
+    if (e.type != "hardness" || servo.drill == nullptr) continue;
+    try {
+      const nlohmann::json d = nlohmann::json::parse(e.detail_json);
+      hardness_changes.push_back({e.tick, d.at("material").get<std::string>(), d.at("J_per_mm3").get<double>()});
+    } catch (const nlohmann::json::exception&) {  // a malformed event changes nothing
+    }
+  }
+  std::size_t next_hardness = 0;
+  const auto applyHardness = [&](const HardnessChange& h) {
+    haptics::MaterialRemoval& removal = servo.drill->removal();
+    for (std::size_t m = 0; m < removal.materials().size(); ++m) {
+      std::string a = removal.materials()[m].name, b = h.material;
+      for (char& c : a) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+      for (char& c : b) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+      if (a == b) removal.setSpecificEnergy(static_cast<int>(m), h.J_per_mm3);
+    }
+  };
   renderer->setGains(renderer->coupling().gains());  // as the haptic thread does before its first tick
   ReplayDevice device(recording.records, "replayRecording");
   ReplayComparison result;
@@ -94,6 +121,8 @@ ReplayComparison replayRecording(const LoadedScene& scene, const Recording& reco
   };
   for (std::size_t i = 0; i < recording.records.size(); ++i) {
     const TickRecord& r = recording.records[i];
+    while (next_hardness < hardness_changes.size() && hardness_changes[next_hardness].tick < r.tick)
+      applyHardness(hardness_changes[next_hardness++]);
     while (next_gains < gains_changes.size() && gains_changes[next_gains].tick < r.tick) {
       renderer->setGains(gains_changes[next_gains].gains);
       ++next_gains;

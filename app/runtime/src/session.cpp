@@ -4,9 +4,12 @@
 #include "vh/runtime/snapshot_channel.h"
 
 #include <algorithm>
+#include <cctype>
 #include <cmath>
 #include <stdexcept>
 #include <string>
+
+#include <nlohmann/json.hpp>
 
 namespace vh::runtime {
 
@@ -141,6 +144,7 @@ void Session::setDrilling(bool on) {
     haptics_.reset();
     live_.drill = DrillSpec{};
     live_.drill->on = true;
+    live_.drill->hardness_J_per_mm3 = hardness_for_drill_;
     if (SimulatedDevice* sim = simulatedDevice()) sim->setPose(X_WP);
     try {
       rebuildHaptics(X_WP);
@@ -157,6 +161,34 @@ void Session::setDrilling(bool on) {
   if (live_.drill->on == on) return;
   live_.drill->on = on;
   if (haptics_ != nullptr) haptics_->setDrilling(on);
+  notify(SessionChange::kDrill);
+}
+
+void Session::setHardness(const std::string& material, double J_per_mm3) {
+  if (!(J_per_mm3 > 0.0) || !std::isfinite(J_per_mm3))
+    throw std::invalid_argument("Session::setHardness: '" + material + "' needs a specific energy > 0 J/mm^3");
+  if (!has_scene_) return;
+  if (!live_.drill) {
+    hardness_for_drill_[material] = J_per_mm3;
+    notify(SessionChange::kDrill);
+    return;
+  }
+  live_.drill->hardness_J_per_mm3[material] = J_per_mm3;
+  if (haptics_ != nullptr && haptics_->drill() != nullptr) {
+    haptics::MaterialRemoval& removal = haptics_->drill()->removal();
+    const auto same = [](std::string a, std::string b) {
+      for (char& c : a) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+      for (char& c : b) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+      return a == b;
+    };
+    for (std::size_t m = 0; m < removal.materials().size(); ++m) {
+      const int segment = haptics_->drill()->segmentOfMaterial(static_cast<int>(m));
+      const bool named = same(removal.materials()[m].name, material) ||
+                         (segment >= 0 && live_.segments != nullptr && same(live_.segments->segment(segment).id, material));
+      if (named) removal.setSpecificEnergy(static_cast<int>(m), J_per_mm3);
+    }
+    haptics_->recordEvent("hardness", nlohmann::json{{"material", material}, {"J_per_mm3", J_per_mm3}}.dump());
+  }
   notify(SessionChange::kDrill);
 }
 

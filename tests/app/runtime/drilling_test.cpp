@@ -13,6 +13,7 @@
 #include "vh/runtime/replay.h"
 #include "vh/runtime/runner.h"
 #include "vh/runtime/scene.h"
+#include "vh/runtime/session.h"
 #include "vh/runtime/session_metadata.h"
 #include "vh/runtime/sha256.h"
 
@@ -112,6 +113,30 @@ TEST(Drilling, HeadlessRunDrillsAndReplaysBitForBit) {
   Sha256 untouched;
   untouched.update(scene.hapticField()->bytes().data(), scene.hapticField()->bytes().size());
   EXPECT_NE(untouched.hexDigest(), report.drill->drilled_field_sha256);
+}
+
+// Hardness set in the session: kept until the burr's first start, then live on the drill (no
+// rebuild: the haptic thread stays the same object).
+TEST(Drilling, SessionHardnessReachesTheDrillWithoutARebuild) {
+  Session session;
+  LoadedScene scene = loadScene(parseScene(R"({"volume": {"path": "builtin:sphere"}, "tool": {"mesh": "builtin:drill",
+      "point_spacing_m": 0.001}, "device": {"kind": "simulated"}})", "s.json", "."));
+  auto device = scene.makeDevice();
+  session.setScene(std::move(scene), device);
+  EXPECT_THROW(session.setHardness("tissue", 0.0), std::invalid_argument);
+  session.setHardness("tissue", 3.0);
+  ASSERT_EQ(session.hapticThread()->drill(), nullptr) << "no drill before the burr starts";
+  session.setDrilling(true);
+  ASSERT_NE(session.hapticThread()->drill(), nullptr);
+  EXPECT_DOUBLE_EQ(session.hapticThread()->drill()->removal().specificEnergy(0), 3.0);
+  const HapticThread* thread = session.hapticThread();
+  session.setHardness("tissue", 0.25);
+  EXPECT_EQ(session.hapticThread(), thread) << "no rebuild";
+  EXPECT_NEAR(session.hapticThread()->drill()->removal().specificEnergy(0), 0.25, 1e-12);
+  EXPECT_DOUBLE_EQ(session.hardness().at("tissue"), 0.25);
+  session.setDrilling(false);
+  EXPECT_FALSE(session.drilling());
+  EXPECT_EQ(session.hapticThread(), thread);
 }
 
 // A bone slab (1200 HU, z 4 to 9 mm) with a "nerve" segment inside it (z 6 to 7 mm), critical,

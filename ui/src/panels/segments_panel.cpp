@@ -1,6 +1,10 @@
 // The Segments dock's panel (see segments_panel.h).
 #include "vh/ui/panels/segments_panel.h"
 
+#include <cmath>
+
+#include <QSignalBlocker>
+
 #include <QCheckBox>
 #include <QDoubleSpinBox>
 #include <QFormLayout>
@@ -30,16 +34,19 @@ SegmentsPanel::SegmentsPanel(QWidget* parent) : QWidget(parent) {
   open_->setToolTip("A 3D Slicer segmentation (.seg.nrrd) or a label-map NRRD on the open scan's patient frame");
   source_ = new QLabel(this);
   source_->setWordWrap(true);
-  table_ = new QTableWidget(0, 4, this);
-  table_->setHorizontalHeaderLabels({"Segment", "Felt", "Shown", "Critical"});
+  table_ = new QTableWidget(0, 5, this);
+  table_->setHorizontalHeaderLabels({"Segment", "Felt", "Shown", "Critical", "Hardness"});
   table_->horizontalHeaderItem(kFelt)->setToolTip("Feel this segment's surface instead of the scan's isosurface");
   table_->horizontalHeaderItem(kShown)->setToolTip("Draw this segment as a coloured surface beside the scan");
   table_->horizontalHeaderItem(kCritical)->setToolTip("Alert (and record an event) when the tool touches it");
+  table_->horizontalHeaderItem(kHardness)->setToolTip(
+      "Drilling: the energy to remove 1 mm^3 [J/mm^3] (double-click to edit); empty: from the segment's HU "
+      "(cortical bone 2.0, cancellous 0.6, soft tissue 0.1)");
   table_->horizontalHeader()->setSectionResizeMode(kName, QHeaderView::Stretch);
-  for (int c = kFelt; c <= kCritical; ++c) table_->horizontalHeader()->setSectionResizeMode(c, QHeaderView::ResizeToContents);
+  for (int c = kFelt; c <= kHardness; ++c) table_->horizontalHeader()->setSectionResizeMode(c, QHeaderView::ResizeToContents);
   table_->verticalHeader()->hide();
   table_->setSelectionMode(QAbstractItemView::NoSelection);
-  table_->setEditTriggers(QAbstractItemView::NoEditTriggers);
+  table_->setEditTriggers(QAbstractItemView::DoubleClicked | QAbstractItemView::EditKeyPressed);  // hardness only
   auto* form = new QFormLayout;
   smoothing_ = new QDoubleSpinBox(this);
   smoothing_->setRange(0.0, 3.0);
@@ -59,8 +66,20 @@ SegmentsPanel::SegmentsPanel(QWidget* parent) : QWidget(parent) {
   layout->addWidget(sound_);
   layout->addWidget(touched_);
 
-  connect(table_, &QTableWidget::itemChanged, this, [this](QTableWidgetItem*) {
-    if (!filling_) emit choicesChanged(choices());
+  connect(table_, &QTableWidget::itemChanged, this, [this](QTableWidgetItem* item) {
+    if (filling_) return;
+    if (item != nullptr && item->column() == kHardness) {
+      bool ok = false;
+      const double e = item->text().trimmed().toDouble(&ok);
+      if (ok && e > 0.0 && std::isfinite(e)) {
+        emit hardnessChanged(item->row(), e);
+      } else {
+        const QSignalBlocker block(table_);
+        item->setText(item->data(Qt::UserRole).toString());  // refused: back to what it was
+      }
+      return;
+    }
+    emit choicesChanged(choices());
   });
   connect(smoothing_, &QDoubleSpinBox::editingFinished, this, [this] {
     if (!filling_) emit choicesChanged(choices());
@@ -73,6 +92,7 @@ void SegmentsPanel::showSegments(const runtime::SegmentSet* set) {
   filling_ = true;
   table_->setRowCount(0);
   names_.clear();
+  ids_.clear();
   critical_.clear();
   if (set == nullptr) {
     source_->setText("No segmentation. Open a 3D Slicer segmentation (.seg.nrrd) or a label map to feel and "
@@ -96,6 +116,7 @@ void SegmentsPanel::showSegments(const runtime::SegmentSet* set) {
   for (int s = 0; s < static_cast<int>(seg.segments.size()); ++s) {
     const io::SegmentInfo& info = seg.segments[static_cast<std::size_t>(s)];
     auto* name = new QTableWidgetItem(swatch(info.color_rgb), q(info.name));
+    name->setFlags(name->flags() & ~Qt::ItemIsEditable);
     name->setToolTip(QString("%1, label %2, layer %3, %4 voxels")
                          .arg(q(info.id))
                          .arg(info.label_value)
@@ -111,11 +132,32 @@ void SegmentsPanel::showSegments(const runtime::SegmentSet* set) {
     check(kFelt, set->isFelt(s));
     check(kShown, set->isShown(s));
     check(kCritical, set->isCritical(s));
+    auto* hardness = new QTableWidgetItem;
+    hardness->setFlags(Qt::ItemIsEnabled | Qt::ItemIsEditable);
+    hardness->setToolTip("J/mm^3; empty: from the segment's HU");
+    table_->setItem(s, kHardness, hardness);
     names_.push_back(q(info.name));
+    ids_.push_back(q(info.id));
     critical_.push_back(set->isCritical(s));
   }
   filling_ = false;
   setTouched(touched_segment_);
+}
+
+void SegmentsPanel::showHardness(const std::map<std::string, double>& hardness) {
+  filling_ = true;
+  const auto lower = [](QString t) { return t.toLower(); };
+  for (int r = 0; r < table_->rowCount() && static_cast<std::size_t>(r) < names_.size(); ++r) {
+    QTableWidgetItem* item = table_->item(r, kHardness);
+    if (item == nullptr) continue;
+    QString text;
+    for (const auto& [key, e] : hardness)
+      if (lower(q(key)) == lower(names_[static_cast<std::size_t>(r)]) || lower(q(key)) == lower(ids_[static_cast<std::size_t>(r)]))
+        text = QString::number(e, 'g', 4);
+    item->setText(text);
+    item->setData(Qt::UserRole, text);
+  }
+  filling_ = false;
 }
 
 void SegmentsPanel::setTouched(int segment) {

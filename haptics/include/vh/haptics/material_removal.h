@@ -91,6 +91,15 @@ class MaterialRemoval {
   CutResult cut(const Eigen::Vector3d& burr_center_W_m, double burr_radius_m, double force_N, double dt_s,
                 double isovalue, bool burr_touches) noexcept;
 
+  /// Changes material m's specific energy [J/mm^3] from the next cut() on (the Segments panel's
+  /// hardness); any thread, lock-free. Ignored for an index out of range or an energy that is
+  /// not finite and > 0.
+  void setSpecificEnergy(int material, double J_per_mm3) noexcept;
+  /// Material m's specific energy now [J/mm^3] (materials() keeps the one it was built with).
+  double specificEnergy(int material) const noexcept {
+    return energy_J_per_voxel_[static_cast<std::size_t>(material)].load(std::memory_order_relaxed) / voxel_mm3_;
+  }
+
   const ScalarVolume& volume() const noexcept { return *volume_; }
   const std::vector<CuttingMaterial>& materials() const noexcept { return materials_; }
   const RemovalModel& model() const noexcept { return model_; }
@@ -120,7 +129,7 @@ class MaterialRemoval {
   std::shared_ptr<ScalarVolume> volume_;
   std::vector<std::uint8_t> voxel_material_;
   std::vector<CuttingMaterial> materials_;
-  std::vector<double> energy_J_per_voxel_;  // per material: energy to remove one whole voxel
+  std::array<std::atomic<double>, 256> energy_J_per_voxel_{};  // per material: energy to remove one whole voxel
   RemovalModel model_;
   std::vector<std::uint16_t> remaining_;    // per voxel, kWhole = intact, 0 = removed
   double voxel_mm3_ = 0.0;

@@ -21,6 +21,7 @@
 
 #include <cstdint>
 #include <functional>
+#include <map>
 #include <memory>
 #include <optional>
 #include <utility>
@@ -129,6 +130,19 @@ class Session {
   void setDrilling(bool on);
   /// Whether the burr spins.
   bool drilling() const noexcept { return live_.drill.has_value() && live_.drill->on; }
+  /// Sets the hardness of a drilling material, its specific cutting energy [J/mm^3]: a segment's
+  /// name or ID, or "cortical bone", "cancellous bone", "soft tissue", "tissue" (drilling.h).
+  /// Kept in live().drill (without one, kept for the burr's first start); a drill that exists
+  /// cuts with it from its next tick (no rebuild: the cavity stays), and a recording gets a
+  /// "hardness" event {"material": NAME, "J_per_mm3": E}, which a replay applies from the next
+  /// record on. No scene: ignored.
+  /// @throws std::invalid_argument for an energy that is not finite and > 0.
+  void setHardness(const std::string& material, double J_per_mm3);
+  /// The hardness set so far by material or segment [J/mm^3] (live().drill's, else the ones kept
+  /// for the burr's first start).
+  const std::map<std::string, double>& hardness() const noexcept {
+    return live_.drill ? live_.drill->hardness_J_per_mm3 : hardness_for_drill_;
+  }
 
   // ---- Device and haptic threads -------------------------------------------------------------
   /// Drives `device` instead (null: haptics off): the threads are rebuilt with the current tool
@@ -176,6 +190,7 @@ class Session {
   std::shared_ptr<Device> device_;
   std::unique_ptr<HapticThread> haptics_;
   std::shared_ptr<SnapshotChannel> monitor_;
+  std::map<std::string, double> hardness_for_drill_;  ///< setHardness() before any drill
   std::vector<std::pair<int, Observer>> observers_;
   int next_observer_ = 1;
 };

@@ -6,6 +6,8 @@
 /// critical (touching it is an alert and an event in the recording); the felt surface's
 /// smoothing; the segment touched now. It edits and shows; the main window acts on its signals
 /// (runtime::Session::setSegments()). GUI thread only.
+#include <map>
+#include <string>
 #include <vector>
 
 #include <QMetaType>
@@ -33,12 +35,15 @@ class SegmentsPanel : public QWidget {
 
  public:
   /// Table columns.
-  enum Column { kName = 0, kFelt = 1, kShown = 2, kCritical = 3 };
+  enum Column { kName = 0, kFelt = 1, kShown = 2, kCritical = 3, kHardness = 4 };
 
   explicit SegmentsPanel(QWidget* parent = nullptr);
 
   /// Shows `set`'s segments and choices (null: none, with a hint how to open some). No signal.
   void showSegments(const runtime::SegmentSet* set);
+  /// Shows each segment's drilling hardness [J/mm^3] (by name or ID; a segment not in the map
+  /// shows an empty cell: the default from its HU). No signal.
+  void showHardness(const std::map<std::string, double>& hardness_J_per_mm3);
   /// Marks the row of the touched segment (-1: none) and says so under the table.
   void setTouched(int segment);
   /// The choices as the check boxes say now.
@@ -54,6 +59,8 @@ class SegmentsPanel : public QWidget {
   void choicesChanged(const vh::ui::SegmentChoices& choices);
   /// "Open Segmentation..." was pressed.
   void openRequested();
+  /// A hardness cell was edited to a number > 0 [J/mm^3] (anything else is refused and reverted).
+  void hardnessChanged(int segment, double J_per_mm3);
 
  private:
   QLabel* source_ = nullptr;
@@ -63,6 +70,7 @@ class SegmentsPanel : public QWidget {
   QLabel* touched_ = nullptr;
   QPushButton* open_ = nullptr;
   std::vector<QString> names_;
+  std::vector<QString> ids_;
   std::vector<bool> critical_;
   int touched_segment_ = -1;
   bool filling_ = false;
