@@ -3,7 +3,12 @@
 #include <algorithm>
 #include <cctype>
 #include <iostream>
+#include <stdexcept>
+#include <string>
+#include <system_error>
 
+#include <QAbstractButton>
+#include <QCoreApplication>
 #include <QDir>
 #include <QFileDialog>
 #include <QFileInfo>
@@ -238,12 +243,78 @@ void SceneOpener::cancelLoading() {
   emit loadCancelled();
 }
 
+fs::path damagedFileNamed(const QString& message) {
+  const QString tail = ": a damaged file";
+  const qsizetype end = message.indexOf(tail);
+  if (end < 0) return {};
+  const qsizetype on = message.lastIndexOf(" on ", end);
+  if (on < 0) return {};
+  return fs::path(message.mid(on + 4, end - on - 4).toStdString());
+}
+
+fs::path folderWithout(const fs::path& folder, const fs::path& without) {
+  std::error_code ec;
+  if (!fs::is_directory(folder, ec)) throw std::runtime_error(folder.string() + ": not a folder");
+  const fs::path base = fs::path(QDir::tempPath().toStdString());
+  fs::path out;
+  for (int n = 0; n < 1000; ++n) {
+    out = base / ("volume-haptics-" + folder.filename().string() + "-without-" + without.filename().string() + "-" +
+                  std::to_string(QCoreApplication::applicationPid()) + "-" + std::to_string(n));
+    if (fs::create_directory(out, ec)) break;
+    out.clear();
+  }
+  if (out.empty()) throw std::runtime_error(folder.string() + ": cannot make a folder in " + base.string());
+  const fs::path skip = fs::weakly_canonical(without, ec);
+  for (auto it = fs::recursive_directory_iterator(folder, ec); !ec && it != fs::recursive_directory_iterator();
+       it.increment(ec)) {
+    const fs::path rel = it->path().lexically_relative(folder);
+    if (it->is_directory(ec)) {
+      fs::create_directories(out / rel, ec);
+      continue;
+    }
+    if (fs::weakly_canonical(it->path(), ec) == skip) continue;
+    std::error_code link_ec;
+    fs::create_symlink(fs::absolute(it->path()), out / rel, link_ec);
+    if (link_ec) fs::copy_file(it->path(), out / rel, link_ec);
+    if (link_ec) throw std::runtime_error((out / rel).string() + ": cannot link or copy " + it->path().string());
+  }
+  if (ec) throw std::runtime_error(folder.string() + ": cannot list it (" + ec.message() + ")");
+  return out;
+}
+
 void SceneOpener::reportError(const QString& what, const QString& message) {
   last_error_ = message;
   status_.hideProgress();
   std::cerr << "volume-haptics: " << message.toStdString() << '\n';
   emit loadFailed(message);
   if (!interactive_) return;
+  // A damaged file of a folder: offer the series without it.
+  std::error_code ec;
+  const fs::path folder = fs::path(what.toStdString());
+  const fs::path damaged = damagedFileNamed(message);
+  const fs::path within = damaged.empty() ? fs::path() : fs::relative(damaged, folder, ec);
+  const bool inside = !ec && !within.empty() && *within.begin() != "..";
+  if (inside && fs::is_directory(folder, ec) && fs::is_regular_file(damaged, ec)) {
+    auto* box = new QMessageBox(QMessageBox::Question, "VolumeHaptics",
+                                QString("Cannot open %1: %2 is damaged").arg(QFileInfo(what).fileName(),
+                                                                             QString::fromStdString(damaged.filename().string())),
+                                QMessageBox::Open | QMessageBox::Cancel, window_);
+    box->setObjectName("damagedFileBox");
+    box->setInformativeText(message + "\n\nOpen the series without " + QString::fromStdString(damaged.filename().string()) +
+                            "? (The folder is left as it is; the other files are opened from a temporary folder.)");
+    box->button(QMessageBox::Open)->setText("Open Without It");
+    box->setAttribute(Qt::WA_DeleteOnClose);
+    connect(box, &QMessageBox::finished, this, [this, box, folder, damaged](int) {
+      if (box->clickedButton() != box->button(QMessageBox::Open)) return;
+      try {
+        openPath(QString::fromStdString(folderWithout(folder, damaged).string()));
+      } catch (const std::exception& e) {
+        reportError(QString::fromStdString(folder.string()), QString::fromUtf8(e.what()));
+      }
+    });
+    box->open();
+    return;
+  }
   const QString name = QFileInfo(what).fileName().isEmpty() ? what : QFileInfo(what).fileName();
   auto* box = new QMessageBox(QMessageBox::Critical, "VolumeHaptics", QString("Cannot open %1").arg(name),
                               QMessageBox::Ok, window_);

@@ -36,6 +36,15 @@ class Session;
 
 namespace vh::ui {
 
+/// The file a reader's error names as damaged ("... on PATH: a damaged file ..."), or empty.
+std::filesystem::path damagedFileNamed(const QString& message);
+
+/// A new temporary folder that mirrors `folder` and its sub-folders with a symbolic link (a copy
+/// where links fail) to every file but `without`: the series opened without a damaged file,
+/// the original folder untouched.
+/// @throws std::runtime_error naming the folder when it cannot be made.
+std::filesystem::path folderWithout(const std::filesystem::path& folder, const std::filesystem::path& without);
+
 class SceneLoader;
 class StatusLine;
 struct LoadedViewerScene;
@@ -104,7 +113,8 @@ class SceneOpener : public QObject {
   /// Dialogs (errors, the series chooser) when true; otherwise errors go to stderr only and the
   /// largest DICOM series is taken (scripted runs, tests).
   void setInteractive(bool interactive) { interactive_ = interactive; }
-  /// Shows `message` about `what` (a path) and emits loadFailed().
+  /// Shows `message` about `what` (a path) and emits loadFailed(). When it names a damaged file
+  /// of the folder `what`, the dialog offers to open the series without it (folderWithout()).
   void reportError(const QString& what, const QString& message);
   /// The last error ("FILE: problem"); empty when none or after a successful load.
   QString lastError() const { return last_error_; }
