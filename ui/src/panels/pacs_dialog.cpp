@@ -2,6 +2,8 @@
 
 #include <algorithm>
 #include <exception>
+#include <mutex>
+#include <thread>
 #include <system_error>
 
 #include <QDialogButtonBox>
@@ -14,7 +16,6 @@
 #include <QPushButton>
 #include <QSpinBox>
 #include <QStandardPaths>
-#include <QThread>
 #include <QTimer>
 #include <QTreeWidget>
 #include <QTreeWidgetItemIterator>
@@ -46,13 +47,55 @@ QString personName(const std::string& pn) {
   return s.isEmpty() ? QString("(no name)") : s;
 }
 
-/// Starts `work` on a thread of its own that deletes itself when done (it may outlive whoever
-/// started it: `work` must own what it uses). @return the thread, for its finished() signal.
-QThread* startThread(std::function<void()> work) {
-  QThread* t = QThread::create(std::move(work));
-  QObject::connect(t, &QThread::finished, t, &QObject::deleteLater);
-  t->start();
-  return t;
+}  // namespace
+
+/// How a network thread hands its result to the dialog that started it: the thread puts a
+/// closure here and wakes the dialog with a queued call; the dialog runs it on the GUI thread.
+/// Once the dialog is gone (close()), nothing more is put or posted, and events already posted to
+/// it die with it. The threads are plain std::threads, detached: they own what they use and may
+/// outlive the dialog; the hand-over is this mutex, which ThreadSanitizer sees (as SceneLoader's).
+class PacsMailbox : public std::enable_shared_from_this<PacsMailbox> {
+ public:
+  explicit PacsMailbox(QObject* receiver) : receiver_(receiver) {}
+
+  /// From any thread: `done` is run on the receiver's thread, unless it is gone.
+  void post(std::function<void()> done) {
+    const std::lock_guard<std::mutex> lock(mutex_);
+    if (receiver_ == nullptr) return;
+    inbox_.push_back(std::move(done));
+    QMetaObject::invokeMethod(
+        receiver_, [mailbox = shared_from_this()] { mailbox->drain(); }, Qt::QueuedConnection);
+  }
+  /// The receiver is going: nothing more for it.
+  void close() {
+    const std::lock_guard<std::mutex> lock(mutex_);
+    receiver_ = nullptr;
+    inbox_.clear();
+  }
+
+ private:
+  void drain() {
+    std::vector<std::function<void()>> items;
+    {
+      const std::lock_guard<std::mutex> lock(mutex_);
+      items.swap(inbox_);
+    }
+    for (auto& f : items) f();
+  }
+
+  std::mutex mutex_;
+  QObject* receiver_;  // guarded by mutex_
+  std::vector<std::function<void()>> inbox_;
+};
+
+namespace {
+
+/// Runs `work` on a detached thread of its own, then `done` through `mailbox` on the GUI thread.
+void runDetached(const std::shared_ptr<PacsMailbox>& mailbox, std::function<void()> work, std::function<void()> done) {
+  std::thread([mailbox, work = std::move(work), done = std::move(done)]() mutable {
+    work();
+    mailbox->post(std::move(done));
+  }).detach();
 }
 
 }  // namespace
@@ -101,7 +144,8 @@ std::vector<fs::path> prunePacsCache(const fs::path& pacs_folder, std::uintmax_t
 
 // ---- settings ----
 
-PacsSettingsDialog::PacsSettingsDialog(const io::PacsServer& server, QWidget* parent) : QDialog(parent), base_(server) {
+PacsSettingsDialog::PacsSettingsDialog(const io::PacsServer& server, QWidget* parent)
+    : QDialog(parent), base_(server), mailbox_(std::make_shared<PacsMailbox>(this)) {
   setWindowTitle("PACS Server");
   setObjectName("pacsSettingsDialog");
   auto* form = new QFormLayout;
@@ -139,18 +183,20 @@ PacsSettingsDialog::PacsSettingsDialog(const io::PacsServer& server, QWidget* pa
     test_result_->setText("Testing...");
     auto error = std::make_shared<std::string>();
     const io::PacsServer s = this->server();
-    QThread* thread = startThread([s, error] {
-      try {
-        io::pacsEcho(s);
-      } catch (const std::exception& e) {
-        *error = e.what();
-      }
-    });
-    connect(thread, &QThread::finished, this, [this, test, error, s] {
-      testing_ = false;
-      test->setEnabled(true);
-      test_result_->setText(error->empty() ? q(s.describe() + " answers (C-ECHO).") : q(*error));
-    });
+    runDetached(
+        mailbox_,
+        [s, error] {
+          try {
+            io::pacsEcho(s);
+          } catch (const std::exception& e) {
+            *error = e.what();
+          }
+        },
+        [this, test, error, s] {
+          testing_ = false;
+          test->setEnabled(true);
+          test_result_->setText(error->empty() ? q(s.describe() + " answers (C-ECHO).") : q(*error));
+        });
   });
   auto* layout = new QVBoxLayout(this);
   layout->addLayout(form);
@@ -161,6 +207,8 @@ PacsSettingsDialog::PacsSettingsDialog(const io::PacsServer& server, QWidget* pa
   layout->addLayout(test_row);
   layout->addWidget(buttons);
 }
+
+PacsSettingsDialog::~PacsSettingsDialog() { mailbox_->close(); }
 
 io::PacsServer PacsSettingsDialog::server() const {
   io::PacsServer s = base_;
@@ -227,7 +275,11 @@ void fillPacsSeries(QTreeWidgetItem& study_item, const std::vector<io::PacsSerie
 PacsBrowserDialog::PacsBrowserDialog(const io::PacsServer& server,
                                      std::function<void(const io::PacsServer&)> settings_changed, QWidget* parent,
                                      fs::path cache_root)
-    : QDialog(parent), server_(server), settings_changed_(std::move(settings_changed)), cache_root_(std::move(cache_root)) {
+    : QDialog(parent),
+      server_(server),
+      settings_changed_(std::move(settings_changed)),
+      cache_root_(std::move(cache_root)),
+      mailbox_(std::make_shared<PacsMailbox>(this)) {
   setWindowTitle("Open from PACS");
   setObjectName("pacsBrowserDialog");
   resize(820, 520);
@@ -292,14 +344,13 @@ PacsBrowserDialog::PacsBrowserDialog(const io::PacsServer& server,
 }
 
 PacsBrowserDialog::~PacsBrowserDialog() {
+  mailbox_->close();
   if (retrieval_) retrieval_->cancel = true;  // its thread stops and deletes what it received
 }
 
 void PacsBrowserDialog::runInBackground(std::function<void()> work, std::function<void()> done) {
-  QThread* t = startThread(std::move(work));
   ++running_;
-  // Queued to the GUI thread; dropped when the dialog is gone.
-  connect(t, &QThread::finished, this, [this, done = std::move(done)] {
+  runDetached(mailbox_, std::move(work), [this, done = std::move(done)] {
     --running_;
     done();
     updateButtons();
@@ -432,10 +483,12 @@ void PacsBrowserDialog::retrieveSelected() {
     if (progress_ == nullptr || state->cancel) return;
     const int total = state->total;
     const int received = state->received;
-    if (total > 0 && progress_->maximum() != total) progress_->setMaximum(total);
-    progress_->setValue(received);
     progress_->setLabelText(total > 0 ? QString("Retrieved %1 of %2 files").arg(received).arg(total)
                                       : QString("Retrieved %1 files").arg(received));
+    if (total > 0 && progress_->maximum() != total) progress_->setMaximum(total);
+    // Last: a modal progress dialog's setValue() processes events, among them perhaps the end of
+    // the retrieval, which deletes the progress dialog.
+    progress_->setValue(received);
   });
   progress_timer_->start(kProgressPollMs);
   setStatus("Retrieving into " + q(folder.string()) + "...");

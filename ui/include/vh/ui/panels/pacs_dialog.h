@@ -31,6 +31,8 @@ class QTreeWidgetItem;
 
 namespace vh::ui {
 
+class PacsMailbox;  // how the network threads hand their results back (pacs_dialog.cpp)
+
 /// The PACS settings: host, port, called AE title (the server's), calling AE title (ours), and a
 /// Test button (C-ECHO, off the GUI thread) that says whether the server answers.
 class PacsSettingsDialog : public QDialog {
@@ -38,6 +40,8 @@ class PacsSettingsDialog : public QDialog {
 
  public:
   PacsSettingsDialog(const io::PacsServer& server, QWidget* parent = nullptr);
+  /// A connection test still running ends on its own thread; its answer is dropped.
+  ~PacsSettingsDialog() override;
   /// The settings as edited.
   io::PacsServer server() const;
 
@@ -49,6 +53,7 @@ class PacsSettingsDialog : public QDialog {
   QLabel* test_result_;
   bool testing_ = false;
   io::PacsServer base_;
+  std::shared_ptr<PacsMailbox> mailbox_;
 };
 
 /// The cache folder of a retrieved series: CACHE/pacs/SERIES_UID (CACHE: the user's cache,
@@ -143,6 +148,7 @@ class PacsBrowserDialog : public QDialog {
   QTimer* progress_timer_ = nullptr;
   int running_ = 0;                     // network calls under way
   std::shared_ptr<Retrieval> retrieval_;  // the running retrieval, if any
+  std::shared_ptr<PacsMailbox> mailbox_;  // the network threads' answers
   std::filesystem::path retrieved_;
 };
 
