@@ -22,6 +22,7 @@ readonly kStoreAet=VHSTORE      # storescu's AE title (stores are allowed from a
 mode="${1:-}"
 state="${2:-}"
 [[ -n $mode && -n $state ]] || { echo "usage: $0 start STATE_DIR DATASET_DIR [ORTHANC] [STORESCU] | stop STATE_DIR" >&2; exit 2; }
+state="$(realpath -m "$state")"  # one spelling, so that stop finds the Orthanc that start began
 env_file="$state/fixture.env"
 pid_file="$state/orthanc.pid"
 
