@@ -37,6 +37,28 @@ void mergeAxis(const std::vector<float>& in_lo, const std::vector<float>& in_hi,
         out_hi[o] = hi;
       }
 }
+// The raw range of level-0 brick (a, b, c): voxels [4a, 4a + 4] on each axis, clipped to the grid
+// (Build() and refreshBricks() alike).
+template <typename T>
+void brickRange(const T* voxels, const std::array<int, 3>& dims, int a, int b, int c, float& lo, float& hi) {
+  constexpr int kB = MinMaxTree::kBrickCells;
+  const std::ptrdiff_t sy = dims[0], sz = static_cast<std::ptrdiff_t>(dims[0]) * dims[1];
+  float l = kInf, h = -kInf;
+  const int x1 = std::min(kB * a + kB, dims[0] - 1), y1 = std::min(kB * b + kB, dims[1] - 1),
+            z1 = std::min(kB * c + kB, dims[2] - 1);
+  for (int z = kB * c; z <= z1; ++z)
+    for (int y = kB * b; y <= y1; ++y) {
+      const T* row = voxels + z * sz + y * sy;
+      for (int x = kB * a; x <= x1; ++x) {
+        const float v = static_cast<float>(row[x]);
+        l = std::min(l, v);
+        h = std::max(h, v);
+      }
+    }
+  lo = l;
+  hi = h;
+}
+
 }  // namespace
 
 template <typename T>
@@ -49,27 +71,10 @@ MinMaxTree MinMaxTree::Build(const T* voxels, const std::array<int, 3>& dims) {
   for (int a = 0; a < 3; ++a) n[a] = std::max(1, (dims[a] - 1 + kBrickCells - 1) / kBrickCells);
   const std::size_t count = static_cast<std::size_t>(n[0]) * n[1] * n[2];
   std::vector<float> lo(count, kInf), hi(count, -kInf);
-  const std::ptrdiff_t sy = dims[0], sz = static_cast<std::ptrdiff_t>(dims[0]) * dims[1];
   std::size_t o = 0;
   for (int c = 0; c < n[2]; ++c)
     for (int b = 0; b < n[1]; ++b)
-      for (int a = 0; a < n[0]; ++a, ++o) {
-        float l = kInf, h = -kInf;
-        const int x1 = std::min(kBrickCells * a + kBrickCells, dims[0] - 1);
-        const int y1 = std::min(kBrickCells * b + kBrickCells, dims[1] - 1);
-        const int z1 = std::min(kBrickCells * c + kBrickCells, dims[2] - 1);
-        for (int z = kBrickCells * c; z <= z1; ++z)
-          for (int y = kBrickCells * b; y <= y1; ++y) {
-            const T* row = voxels + z * sz + y * sy;
-            for (int x = kBrickCells * a; x <= x1; ++x) {
-              const float v = static_cast<float>(row[x]);
-              l = std::min(l, v);
-              h = std::max(h, v);
-            }
-          }
-        lo[o] = l;
-        hi[o] = h;
-      }
+      for (int a = 0; a < n[0]; ++a, ++o) brickRange(voxels, dims, a, b, c, lo[o], hi[o]);
   const auto interleave = [](const std::vector<float>& mins, const std::vector<float>& maxs) {
     std::vector<float> range(2 * mins.size());
     for (std::size_t i = 0; i < mins.size(); ++i) {
@@ -167,28 +172,12 @@ bool clipBox(std::array<int, 3>& lo, std::array<int, 3>& hi, const std::array<in
 template <typename T>
 void MinMaxTree::refreshBricks(const T* voxels, std::array<int, 3> lo, std::array<int, 3> hi) noexcept {
   if (levels_.empty() || !clipBox(lo, hi, levels_[0].n)) return;
-  const std::ptrdiff_t sy = dims_[0], sz = static_cast<std::ptrdiff_t>(dims_[0]) * dims_[1];
   Level& l0 = levels_[0];
   for (int c = lo[2]; c <= hi[2]; ++c)
     for (int b = lo[1]; b <= hi[1]; ++b)
       for (int a = lo[0]; a <= hi[0]; ++a) {
-        // As Build(): brick a reads voxels [4a, 4a + 4] clipped to the grid.
-        float l = kInf, h = -kInf;
-        const int x1 = std::min(kBrickCells * a + kBrickCells, dims_[0] - 1);
-        const int y1 = std::min(kBrickCells * b + kBrickCells, dims_[1] - 1);
-        const int z1 = std::min(kBrickCells * c + kBrickCells, dims_[2] - 1);
-        for (int z = kBrickCells * c; z <= z1; ++z)
-          for (int y = kBrickCells * b; y <= y1; ++y) {
-            const T* row = voxels + z * sz + y * sy;
-            for (int x = kBrickCells * a; x <= x1; ++x) {
-              const float v = static_cast<float>(row[x]);
-              l = std::min(l, v);
-              h = std::max(h, v);
-            }
-          }
         const std::size_t o = static_cast<std::size_t>(a) + static_cast<std::size_t>(l0.n[0]) * (b + static_cast<std::size_t>(l0.n[1]) * c);
-        l0.range[2 * o] = l;
-        l0.range[2 * o + 1] = h;
+        brickRange(voxels, dims_, a, b, c, l0.range[2 * o], l0.range[2 * o + 1]);
       }
   // Each upper node merges the 2 x 2 x 2 nodes below it (clipped), as Build()'s mergeAxis().
   for (std::size_t level = 1; level < levels_.size(); ++level) {
