@@ -1,0 +1,384 @@
+#include "vh/runtime/session_metrics.h"
+
+#include <algorithm>
+#include <cmath>
+#include <fstream>
+#include <limits>
+#include <stdexcept>
+
+#include <nlohmann/json.hpp>
+
+#include "vh/runtime/runner.h"
+
+namespace vh::runtime {
+namespace {
+
+Eigen::Vector3d devicePosition(const TickRecord& r) { return {r.p_WD_m[0], r.p_WD_m[1], r.p_WD_m[2]}; }
+Eigen::Vector3d proxyPosition(const TickRecord& r) { return {r.p_WP_m[0], r.p_WP_m[1], r.p_WP_m[2]}; }
+double norm3(const double v[3]) { return std::sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2]); }
+
+/// A string member of a JSON object, "" when absent or not a string.
+std::string stringAt(const nlohmann::json& j, const char* key) {
+  if (!j.is_object()) return {};
+  const auto it = j.find(key);
+  return it != j.end() && it->is_string() ? it->get<std::string>() : std::string{};
+}
+
+/// The metadata's identity fields and servo rate (0 when absent).
+void readIdentity(const Recording& recording, SessionMetrics& m) {
+  nlohmann::json meta;
+  try {
+    meta = nlohmann::json::parse(recording.metadata_json);
+  } catch (const nlohmann::json::exception&) {
+    m.notices.push_back("the recording's metadata is not JSON: no scene, dataset or servo rate");
+    return;
+  }
+  if (!meta.is_object()) return;
+  const nlohmann::json scene = meta.value("scene", nlohmann::json::object());
+  m.scene = stringAt(scene, "source");
+  if (m.scene.empty() && scene.is_object()) m.scene = stringAt(scene.value("volume", nlohmann::json::object()), "path");
+  m.dataset_sha256 = stringAt(meta.value("dataset", nlohmann::json::object()), "sha256");
+  m.label = stringAt(meta, "user");
+  if (m.label.empty()) m.label = stringAt(meta, "note");
+  m.start_time_utc = stringAt(meta, "start_time_utc");
+  const auto rate = meta.find("servo_rate_Hz");
+  if (rate != meta.end() && rate->is_number() && rate->get<double>() > 0.0) m.servo_rate_Hz = rate->get<double>();
+}
+
+/// The servo period when the metadata lacks the rate: the median spacing of time_s.
+double medianPeriod(const std::vector<TickRecord>& records) {
+  std::vector<double> d;
+  d.reserve(records.size());
+  for (std::size_t i = 1; i < records.size(); ++i) d.push_back(records[i].time_s - records[i - 1].time_s);
+  if (d.empty()) return 0.0;
+  std::nth_element(d.begin(), d.begin() + static_cast<std::ptrdiff_t>(d.size() / 2), d.end());
+  return d[d.size() / 2];
+}
+
+/// Path length, peak speed and the jerk measures of the device (file comment of the header).
+void motionMetrics(const std::vector<TickRecord>& records, double dt, const MetricsOptions& options,
+                   SessionMetrics& m) {
+  const std::size_t n = records.size();
+  for (std::size_t i = 1; i < n; ++i) {
+    m.path_length_m += (devicePosition(records[i]) - devicePosition(records[i - 1])).norm();
+    m.proxy_path_length_m += (proxyPosition(records[i]) - proxyPosition(records[i - 1])).norm();
+  }
+  if (m.duration_s > 0.0) m.mean_speed_m_per_s = m.path_length_m / m.duration_s;
+  const std::size_t k = std::max<std::size_t>(1, static_cast<std::size_t>(std::lround(options.derivative_step_s / dt)));
+  const double h = static_cast<double>(k) * dt;
+  const auto p = [&](std::size_t i) { return devicePosition(records[i]); };
+  for (std::size_t i = k; i + k < n; ++i)
+    m.peak_speed_m_per_s = std::max(m.peak_speed_m_per_s, ((p(i + k) - p(i - k)) / (2.0 * h)).norm());
+  double jerk_sq_sum = 0.0;
+  std::size_t jerk_samples = 0;
+  for (std::size_t i = 2 * k; i + 2 * k < n; ++i) {
+    const Eigen::Vector3d jerk = (p(i + 2 * k) - 2.0 * p(i + k) + 2.0 * p(i - k) - p(i - 2 * k)) / (2.0 * h * h * h);
+    jerk_sq_sum += jerk.squaredNorm();
+    ++jerk_samples;
+  }
+  if (jerk_samples == 0) return;
+  m.integrated_squared_jerk = jerk_sq_sum / static_cast<double>(jerk_samples) * m.duration_s;
+  if (m.peak_speed_m_per_s > 0.0) {
+    m.dimensionless_jerk =
+        m.integrated_squared_jerk * std::pow(m.duration_s, 3) / (m.peak_speed_m_per_s * m.peak_speed_m_per_s);
+    if (m.dimensionless_jerk > 0.0) m.log_dimensionless_jerk = -std::log(m.dimensionless_jerk);
+  }
+}
+
+/// Force, torque, contact, drilling and timing counts, tick by tick.
+void tickMetrics(const std::vector<TickRecord>& records, double dt, double threshold_N, SessionMetrics& m) {
+  std::vector<double> forces;
+  forces.reserve(records.size());
+  double force_sum = 0.0, contact_force_sum = 0.0, torque_sum = 0.0, tick_sum = 0.0;
+  std::uint64_t above = 0, contact = 0, drill = 0;
+  for (const TickRecord& r : records) {
+    const double f = norm3(r.force_W_N);
+    const double t = norm3(r.torque_W_Nm);
+    forces.push_back(f);
+    force_sum += f;
+    torque_sum += t;
+    m.max_force_N = std::max(m.max_force_N, f);
+    m.max_torque_Nm = std::max(m.max_torque_Nm, t);
+    if (f > threshold_N) ++above;
+    if (r.contacts > 0) {
+      ++contact;
+      contact_force_sum += f;
+    }
+    if (r.flags & kRecordFlagDrillOn) ++drill;
+    if (r.flags & kRecordFlagDeadlineMiss) ++m.deadline_misses;
+    if (r.flags & kRecordFlagBadSample) ++m.bad_samples;
+    if (r.flags & kRecordFlagForceLimited) ++m.force_limited_ticks;
+    if (r.flags & kRecordFlagNonFinite) ++m.non_finite_ticks;
+    tick_sum += r.tick_time_s;
+    m.max_tick_s = std::max(m.max_tick_s, r.tick_time_s);
+  }
+  const auto n = static_cast<double>(records.size());
+  m.mean_force_N = force_sum / n;
+  m.mean_torque_Nm = torque_sum / n;
+  m.mean_tick_s = tick_sum / n;
+  if (contact > 0) m.mean_contact_force_N = contact_force_sum / static_cast<double>(contact);
+  std::sort(forces.begin(), forces.end());
+  m.p95_force_N = nearestRankPercentile(forces, 0.95);
+  m.time_above_threshold_s = static_cast<double>(above) * dt;
+  m.time_in_contact_s = static_cast<double>(contact) * dt;
+  m.drill_on_s = static_cast<double>(drill) * dt;
+}
+
+/// Per segment: contact (segmentContacts(), rescaled to dt) and the critical_removed events.
+void segmentMetrics(const Recording& recording, double dt, SessionMetrics& m) {
+  for (const SegmentContact& c : segmentContacts(recording)) {
+    SegmentMetrics s;
+    s.name = c.name;
+    s.critical = c.critical;
+    s.time_in_contact_s = static_cast<double>(c.ticks) * dt;
+    s.peak_force_N = c.peak_force_N;
+    s.touches = c.touches;
+    if (s.critical) {
+      m.critical_contact_s += s.time_in_contact_s;
+      m.critical_touches += s.touches;
+    }
+    m.segments.push_back(s);
+  }
+  for (const RecordingEvent& e : recording.events) {
+    if (e.type == "marker") ++m.markers;
+    if (e.type != "critical_removed") continue;
+    const nlohmann::json d = nlohmann::json::parse(e.detail_json.empty() ? "{}" : e.detail_json, nullptr, false);
+    if (!d.is_object()) continue;
+    const std::string name = stringAt(d, "segment");
+    const auto voxels = d.value("voxels", std::uint64_t{0});
+    const double mm3 = d.value("mm3", 0.0);
+    m.critical_removed_voxels += voxels;
+    m.critical_removed_mm3 += mm3;
+    auto it = std::find_if(m.segments.begin(), m.segments.end(), [&](const SegmentMetrics& s) { return s.name == name; });
+    if (it == m.segments.end()) {
+      SegmentMetrics s;
+      s.name = name;
+      s.critical = true;
+      it = m.segments.insert(m.segments.end(), s);
+    }
+    it->removed_voxels += voxels;
+    it->removed_mm3 += mm3;
+  }
+}
+
+/// RFC 4180 field: quoted when it holds a comma, quote or line break; inner quotes doubled.
+std::string csvField(const std::string& s) {
+  if (s.find_first_of(",\"\r\n") == std::string::npos) return s;
+  std::string out = "\"";
+  for (char c : s) {
+    if (c == '"') out += '"';
+    out += c;
+  }
+  return out + '"';
+}
+
+std::string joined(const std::vector<std::string>& parts, const char* separator) {
+  std::string out;
+  for (const std::string& p : parts) out += (out.empty() ? "" : separator) + p;
+  return out;
+}
+
+}  // namespace
+
+SessionMetrics computeSessionMetrics(const Recording& recording, const MetricsOptions& options) {
+  if (!std::isfinite(options.force_threshold_N) || options.force_threshold_N < 0.0)
+    throw std::invalid_argument("the force threshold must be a finite number >= 0 N");
+  if (!(options.derivative_step_s > 0.0) || !std::isfinite(options.derivative_step_s))
+    throw std::invalid_argument("the derivative step must be > 0 s");
+  SessionMetrics m;
+  m.notices = recording.warnings;
+  m.force_threshold_N = options.force_threshold_N;
+  m.records = recording.records.size();
+  m.dropped_records = recording.dropped_records;
+  readIdentity(recording, m);
+  const std::vector<TickRecord>& records = recording.records;
+  if (m.servo_rate_Hz <= 0.0) {
+    const double period = medianPeriod(records);
+    m.servo_rate_Hz = period > 0.0 ? 1.0 / period : 1000.0;
+    m.notices.push_back("the metadata names no servo rate: " + std::to_string(m.servo_rate_Hz) +
+                        " Hz taken from the records' times");
+  }
+  if (m.dropped_records > 0)
+    m.notices.push_back(std::to_string(m.dropped_records) +
+                        " records were dropped while recording: times in contact and above the threshold "
+                        "count the records kept");
+  if (records.empty()) {
+    m.notices.push_back("the recording holds no ticks: every metric is 0");
+    return m;
+  }
+  const double dt = 1.0 / m.servo_rate_Hz;
+  m.duration_s = records.back().time_s - records.front().time_s;
+  tickMetrics(records, dt, options.force_threshold_N, m);
+  motionMetrics(records, dt, options, m);
+  segmentMetrics(recording, dt, m);
+  return m;
+}
+
+std::vector<MetricValue> metricValues(const SessionMetrics& m) {
+  const auto count = [](std::uint64_t v) { return static_cast<double>(v); };
+  return {
+      {"duration_s", "Duration", "s", m.duration_s},
+      {"records", "Servo ticks recorded", "", count(m.records)},
+      {"path_length_m", "Path length of the device", "m", m.path_length_m},
+      {"proxy_path_length_m", "Path length of the proxy", "m", m.proxy_path_length_m},
+      {"mean_speed_m_per_s", "Mean speed of the device", "m/s", m.mean_speed_m_per_s},
+      {"peak_speed_m_per_s", "Peak speed of the device", "m/s", m.peak_speed_m_per_s},
+      {"integrated_squared_jerk_m2_per_s5", "Integrated squared jerk of the device", "m^2/s^5",
+       m.integrated_squared_jerk},
+      {"dimensionless_jerk", "Dimensionless jerk (Hogan & Sternad 2009)", "", m.dimensionless_jerk},
+      {"log_dimensionless_jerk", "Log dimensionless jerk (higher is smoother)", "", m.log_dimensionless_jerk},
+      {"mean_force_N", "Mean |F|", "N", m.mean_force_N},
+      {"mean_contact_force_N", "Mean |F| in contact", "N", m.mean_contact_force_N},
+      {"p95_force_N", "95th percentile of |F|", "N", m.p95_force_N},
+      {"max_force_N", "Peak |F|", "N", m.max_force_N},
+      {"force_threshold_N", "Force threshold", "N", m.force_threshold_N},
+      {"time_above_threshold_s", "Time with |F| above the threshold", "s", m.time_above_threshold_s},
+      {"mean_torque_Nm", "Mean |torque|", "N*m", m.mean_torque_Nm},
+      {"max_torque_Nm", "Peak |torque|", "N*m", m.max_torque_Nm},
+      {"time_in_contact_s", "Time in contact", "s", m.time_in_contact_s},
+      {"critical_contact_s", "Time touching critical segments", "s", m.critical_contact_s},
+      {"critical_touches", "Touches of critical segments", "", count(m.critical_touches)},
+      {"drill_on_s", "Time with the burr spinning", "s", m.drill_on_s},
+      {"critical_removed_voxels", "Critical voxels drilled away", "", count(m.critical_removed_voxels)},
+      {"critical_removed_mm3", "Critical volume drilled away", "mm^3", m.critical_removed_mm3},
+      {"markers", "Markers", "", count(m.markers)},
+      {"deadline_misses", "Servo deadline misses", "", count(m.deadline_misses)},
+      {"mean_tick_s", "Mean solver tick time", "s", m.mean_tick_s},
+      {"max_tick_s", "Longest solver tick", "s", m.max_tick_s},
+      {"bad_samples", "Ticks without a device sample", "", count(m.bad_samples)},
+      {"force_limited_ticks", "Ticks the safety layer limited", "", count(m.force_limited_ticks)},
+      {"non_finite_ticks", "Ticks with a non-finite result", "", count(m.non_finite_ticks)},
+      {"dropped_records", "Records dropped by the writer", "", count(m.dropped_records)},
+  };
+}
+
+std::vector<Eigen::Vector3d> devicePathSamples(const Recording& recording, std::size_t count) {
+  const std::size_t n = recording.records.size();
+  std::vector<Eigen::Vector3d> out;
+  if (n == 0 || count == 0) return out;
+  if (n <= count || count == 1) {
+    const std::size_t step = count == 1 ? n : 1;
+    for (std::size_t i = 0; i < n; i += step) out.push_back(devicePosition(recording.records[i]));
+    return out;
+  }
+  out.reserve(count);
+  for (std::size_t j = 0; j < count; ++j) {
+    const auto i = static_cast<std::size_t>(
+        std::llround(static_cast<double>(j) * static_cast<double>(n - 1) / static_cast<double>(count - 1)));
+    out.push_back(devicePosition(recording.records[i]));
+  }
+  return out;
+}
+
+DtwAlignment dynamicTimeWarping(const std::vector<Eigen::Vector3d>& a, const std::vector<Eigen::Vector3d>& b) {
+  if (a.empty() || b.empty()) throw std::invalid_argument("dynamic time warping needs two non-empty paths");
+  const std::size_t n = a.size(), m = b.size();
+  constexpr double kInf = std::numeric_limits<double>::infinity();
+  std::vector<double> D(n * m, kInf);
+  const auto at = [&](std::size_t i, std::size_t j) -> double& { return D[i * m + j]; };
+  for (std::size_t i = 0; i < n; ++i) {
+    for (std::size_t j = 0; j < m; ++j) {
+      const double d = (a[i] - b[j]).norm();
+      double best = 0.0;
+      if (i > 0 || j > 0) {
+        best = kInf;
+        if (i > 0) best = std::min(best, at(i - 1, j));
+        if (j > 0) best = std::min(best, at(i, j - 1));
+        if (i > 0 && j > 0) best = std::min(best, at(i - 1, j - 1));
+      }
+      at(i, j) = d + best;
+    }
+  }
+  DtwAlignment result;
+  result.total_distance_m = at(n - 1, m - 1);
+  // Back from (n-1, m-1), preferring the diagonal on ties.
+  std::size_t i = n - 1, j = m - 1;
+  result.path.emplace_back(i, j);
+  while (i > 0 || j > 0) {
+    if (i == 0) --j;
+    else if (j == 0) --i;
+    else {
+      const double diag = at(i - 1, j - 1), up = at(i - 1, j), left = at(i, j - 1);
+      if (diag <= up && diag <= left) --i, --j;
+      else if (up <= left) --i;
+      else --j;
+    }
+    result.path.emplace_back(i, j);
+  }
+  std::reverse(result.path.begin(), result.path.end());
+  result.mean_distance_m = result.total_distance_m / static_cast<double>(result.path.size());
+  return result;
+}
+
+ReferenceComparison compareWithReference(const Recording& session, const SessionMetrics& session_metrics,
+                                         const Recording& reference, const SessionMetrics& reference_metrics,
+                                         std::size_t path_samples) {
+  const auto identity = [](const SessionMetrics& m) {
+    return m.dataset_sha256.empty() ? "volume " + (m.scene.empty() ? std::string("(unnamed)") : m.scene)
+                                    : "dataset " + m.dataset_sha256.substr(0, 12);
+  };
+  const bool same = !session_metrics.dataset_sha256.empty() || !reference_metrics.dataset_sha256.empty()
+                        ? session_metrics.dataset_sha256 == reference_metrics.dataset_sha256
+                        : session_metrics.scene == reference_metrics.scene;
+  if (!same)
+    throw std::invalid_argument("the reference was recorded on another scene (" + identity(reference_metrics) +
+                                ", this session " + identity(session_metrics) +
+                                "): paths can only be compared on the same dataset");
+  if (session.records.empty() || reference.records.empty())
+    throw std::invalid_argument("a comparison needs ticks in both recordings");
+  ReferenceComparison c;
+  c.session = metricValues(session_metrics);
+  c.reference = metricValues(reference_metrics);
+  c.path_samples = path_samples;
+  c.session_path = devicePathSamples(session, path_samples);
+  c.reference_path = devicePathSamples(reference, path_samples);
+  c.alignment = dynamicTimeWarping(c.session_path, c.reference_path);
+  return c;
+}
+
+std::vector<std::filesystem::path> findRecordings(const std::filesystem::path& dir) {
+  std::error_code ec;
+  if (!std::filesystem::is_directory(dir, ec)) throw std::runtime_error(dir.string() + ": not a folder");
+  std::vector<std::filesystem::path> out;
+  std::filesystem::recursive_directory_iterator it(dir, std::filesystem::directory_options::skip_permission_denied, ec);
+  if (ec) throw std::runtime_error(dir.string() + ": cannot be listed (" + ec.message() + ")");
+  for (; it != std::filesystem::recursive_directory_iterator(); it.increment(ec)) {
+    if (ec) throw std::runtime_error(dir.string() + ": cannot be listed (" + ec.message() + ")");
+    if (it->is_regular_file(ec) && it->path().extension() == ".vhrec") out.push_back(it->path());
+  }
+  std::sort(out.begin(), out.end());
+  return out;
+}
+
+std::size_t writeCohortTable(const std::filesystem::path& dir, const std::filesystem::path& csv,
+                             const MetricsOptions& options,
+                             const std::function<void(std::size_t, std::size_t)>& progress) {
+  const std::vector<std::filesystem::path> files = findRecordings(dir);
+  std::ofstream out(csv, std::ios::binary);
+  if (!out) throw std::runtime_error(csv.string() + ": cannot be written");
+  out << "file,scene,dataset_sha256,label,start_time_utc";
+  const std::vector<MetricValue> columns = metricValues(SessionMetrics{});
+  for (const MetricValue& v : columns) out << ',' << v.key;
+  out << ",notices\n";
+  out.precision(9);
+  for (std::size_t i = 0; i < files.size(); ++i) {
+    out << csvField(std::filesystem::relative(files[i], dir).generic_string());
+    try {
+      const SessionMetrics m = computeSessionMetrics(readRecording(files[i]), options);
+      out << ',' << csvField(m.scene) << ',' << m.dataset_sha256 << ',' << csvField(m.label) << ','
+          << csvField(m.start_time_utc);
+      for (const MetricValue& v : metricValues(m)) out << ',' << v.value;
+      out << ',' << csvField(joined(m.notices, "; ")) << '\n';
+    } catch (const std::runtime_error& e) {
+      out << ",,,,";
+      for (std::size_t c = 0; c < columns.size(); ++c) out << ',';
+      out << ',' << csvField(std::string("not read: ") + e.what()) << '\n';
+    }
+    if (progress) progress(i + 1, files.size());
+  }
+  out.flush();
+  if (!out) throw std::runtime_error(csv.string() + ": write failed");
+  return files.size();
+}
+
+}  // namespace vh::runtime
