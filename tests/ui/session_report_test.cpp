@@ -1,0 +1,159 @@
+// The session report (vh/ui/export/session_report.h): its pictures are present, decode as PNGs
+// of the stated size and are not blank; a damaged recording gives a report with a notice; a
+// reference of another scene is refused. Runs on Qt's offscreen platform (no display).
+#include "vh/ui/export/session_report.h"
+
+#include <cmath>
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <set>
+#include <string>
+#include <vector>
+
+#include <QApplication>
+#include <QByteArray>
+#include <QImage>
+#include <gtest/gtest.h>
+#include <nlohmann/json.hpp>
+
+namespace vh::ui {
+namespace {
+
+namespace fs = std::filesystem;
+using runtime::Recording;
+using runtime::TickRecord;
+
+/// 6 s at 1 kHz: the device circles (radius 2 cm, 0.5 Hz) and presses on a surface in the
+/// middle 2 s with a force rising to 4 N; a marker at 1 s.
+Recording pressSession(const std::string& sha) {
+  Recording rec;
+  rec.metadata_json = nlohmann::json{{"servo_rate_Hz", 1000}, {"dataset", {{"sha256", sha}}},
+                                     {"scene", {{"source", "press.json"}}}, {"note", "trainee <A>"}}
+                          .dump();
+  for (int i = 0; i < 6000; ++i) {
+    TickRecord t;
+    t.time_s = i * 1e-3;
+    t.tick = static_cast<std::uint64_t>(i);
+    t.p_WD_m[0] = 0.02 * std::cos(M_PI * t.time_s);
+    t.p_WD_m[1] = 0.02 * std::sin(M_PI * t.time_s);
+    t.p_WD_m[2] = 0.01 * t.time_s;
+    for (int k = 0; k < 3; ++k) t.p_WP_m[k] = t.p_WD_m[k];
+    const double f = i >= 2000 && i < 4000 ? 4.0 * (i - 2000) / 2000.0 : 0.0;
+    t.force_W_N[2] = f;
+    t.torque_W_Nm[0] = f > 0 ? 0.01 : 0.0;
+    t.contacts = f > 0 ? 2u : 0u;
+    t.tick_time_s = 5e-5;
+    rec.records.push_back(t);
+  }
+  rec.events.push_back({1.0, 1000, "marker", R"({"label":"start"})"});
+  return rec;
+}
+
+struct Image {
+  QImage image;
+  std::string alt;
+};
+
+/// Every inline PNG of the page, decoded (a plain search: std::regex recurses per character and
+/// overflows the stack on a picture's base64).
+std::vector<Image> inlineImages(const std::string& html) {
+  std::vector<Image> out;
+  const std::string alt_key = "alt=\"", src_key = "src=\"data:image/png;base64,";
+  for (std::size_t at = html.find("<img "); at != std::string::npos; at = html.find("<img ", at + 1)) {
+    const std::size_t alt = html.find(alt_key, at) + alt_key.size();
+    const std::size_t src = html.find(src_key, at);
+    if (src == std::string::npos) break;
+    const std::size_t begin = src + src_key.size(), end = html.find('"', begin);
+    Image im;
+    im.alt = html.substr(alt, html.find('"', alt) - alt);
+    im.image = QImage::fromData(QByteArray::fromBase64(QByteArray::fromStdString(html.substr(begin, end - begin))), "PNG");
+    out.push_back(im);
+  }
+  return out;
+}
+
+/// Distinct colours of an image (a blank or single-colour picture has 1 or 2).
+std::size_t colours(const QImage& image) {
+  std::set<QRgb> seen;
+  for (int y = 0; y < image.height(); y += 2)
+    for (int x = 0; x < image.width(); x += 2) seen.insert(image.pixel(x, y));
+  return seen.size();
+}
+
+TEST(SessionReport, PicturesArePresentDecodeAndAreNotBlank) {
+  SessionReportOptions options;
+  const std::string html = sessionReportHtml(pressSession("abc"), "press.vhrec", options);
+  EXPECT_EQ(html.find("http://"), std::string::npos) << "no network";
+  EXPECT_EQ(html.find("https://"), std::string::npos) << "no network";
+  EXPECT_NE(html.find("trainee &lt;A&gt;"), std::string::npos) << "the label, escaped";
+  const std::vector<Image> images = inlineImages(html);
+  ASSERT_EQ(images.size(), 5u) << "force, speed, three contact projections";
+  EXPECT_EQ(images[0].image.width(), options.chart_width);
+  EXPECT_EQ(images[0].image.height(), options.chart_height);
+  for (const Image& im : images) {
+    ASSERT_FALSE(im.image.isNull()) << im.alt;
+    EXPECT_GT(colours(im.image), 20u) << im.alt << ": a drawn chart has axes, text, lines";
+  }
+  // The force chart draws the force: the blue |F| line's pixels are there.
+  int blue = 0;
+  const QImage& force = images[0].image;
+  for (int y = 0; y < force.height(); ++y)
+    for (int x = 0; x < force.width(); ++x) {
+      const QColor c(force.pixel(x, y));
+      blue += c.blue() > 150 && c.red() < 80 && c.green() > 90 && c.green() < 150;
+    }
+  EXPECT_GT(blue, 200);
+  // The metrics table: peak force 4 N to 4 digits, time in contact 2 s (1999 ticks).
+  EXPECT_NE(html.find("<td class=\"n\">3.998</td>"), std::string::npos);
+  EXPECT_NE(html.find("<td class=\"n\">1.999</td>"), std::string::npos);
+}
+
+TEST(SessionReport, TruncatedRecordingGivesAReportWithANotice) {
+  const fs::path dir = fs::path(VH_TEST_OUTPUT_DIR) / "session-report";
+  fs::create_directories(dir);
+  const fs::path path = dir / "cut.vhrec";
+  {
+    runtime::RecordingWriter writer(path, pressSession("abc").metadata_json);
+    for (const TickRecord& t : pressSession("abc").records) writer.pushWaiting(t);
+    writer.close();
+  }
+  fs::resize_file(path, fs::file_size(path) - 3000);
+  const std::vector<std::string> notices = writeSessionReport(path, dir / "cut.html");
+  ASSERT_FALSE(notices.empty());
+  std::ifstream in(dir / "cut.html");
+  const std::string html{std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
+  EXPECT_NE(html.find("Read with notices"), std::string::npos);
+  EXPECT_NE(html.find("truncated"), std::string::npos);
+  EXPECT_EQ(inlineImages(html).size(), 5u);
+  // Not a recording at all: an error naming it, no report.
+  std::ofstream(dir / "junk.vhrec") << "junk";
+  EXPECT_THROW(writeSessionReport(dir / "junk.vhrec", dir / "junk.html"), std::runtime_error);
+}
+
+TEST(SessionReport, ReferenceOfTheSameSceneIsDrawnAnotherIsRefused) {
+  const Recording session = pressSession("abc");
+  Recording expert = pressSession("abc");
+  for (TickRecord& t : expert.records) t.p_WD_m[2] += 0.001;  // 1 mm above, all along
+  const std::string html = sessionReportHtml(session, "s", {}, &expert, "expert.vhrec");
+  EXPECT_NE(html.find("Against the reference expert.vhrec"), std::string::npos);
+  EXPECT_NE(html.find("<b>1 mm</b>"), std::string::npos) << "the DTW mean distance of a 1 mm offset";
+  EXPECT_EQ(inlineImages(html).size(), 7u) << "two path projections more";
+  const Recording other = pressSession("def");
+  try {
+    sessionReportHtml(session, "s", {}, &other, "other.vhrec");
+    FAIL() << "another scene was not refused";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("another scene"), std::string::npos) << e.what();
+  }
+}
+
+}  // namespace
+}  // namespace vh::ui
+
+int main(int argc, char** argv) {
+  setenv("QT_QPA_PLATFORM", "offscreen", 1);
+  QApplication app(argc, argv);
+  ::testing::InitGoogleTest(&argc, argv);
+  return RUN_ALL_TESTS();
+}
