@@ -1,6 +1,7 @@
 #include "vh/ui/replay/replay_panel.h"
 
 #include "vh/ui/drill_controller.h"
+#include "vh/ui/export/session_report.h"
 #include "vh/runtime/replay.h"
 
 #include <algorithm>
@@ -210,6 +211,9 @@ void ReplayController::addFileMenuActions(QMenu* file) {
     export_actions_.push_back(a);
   }
   export_actions_[2]->setToolTip("Renders the replayed recording frame by frame from the view's camera");
+  QAction* report = file->addAction("Session &Report...", this, [this] { reportFromMenu(); });
+  report->setObjectName("sessionReportAction");
+  report->setToolTip("An HTML page of the recording for a teacher: force, motion, contacts, segments, timing");
   updateActions();
 }
 
@@ -540,20 +544,59 @@ void ReplayController::exportPng(const fs::path& path, int width, int height) {
   writeRecordingPng(frames, recording_, time_s_, path);
 }
 
+const runtime::Recording* ReplayController::recordingToExport(runtime::Recording& loaded, fs::path& from,
+                                                              const QString& folder) const {
+  if (active_) {
+    from = path_;
+    return &recording_;
+  }
+  const QString in =
+      QFileDialog::getOpenFileName(window_, "Export which recording?", folder, "Session recordings (*.vhrec)");
+  if (in.isEmpty()) return nullptr;
+  loaded = runtime::readRecording(fs::path(in.toStdString()));
+  from = fs::path(in.toStdString());
+  return &loaded;
+}
+
+void ReplayController::exportReport(const fs::path& path) const {
+  if (!active_) throw std::logic_error("exportReport: no recording is replayed");
+  writeSessionReport(recording_, path_.filename().string(), path);
+}
+
+void ReplayController::reportFromMenu() {
+  const QString folder = path_.empty() ? prefs_.last_folder : q(path_.parent_path().string());
+  try {
+    runtime::Recording loaded;
+    fs::path from;
+    const runtime::Recording* source = recordingToExport(loaded, from, folder);
+    if (source == nullptr) return;
+    const QString out = QFileDialog::getSaveFileName(window_, "Write a session report",
+                                                     QDir(folder).filePath(q(from.stem().string()) + "-report.html"),
+                                                     "HTML pages (*.html)");
+    if (out.isEmpty()) return;
+    QApplication::setOverrideCursor(Qt::WaitCursor);
+    try {
+      writeSessionReport(*source, from.filename().string(), fs::path(out.toStdString()));
+    } catch (...) {
+      QApplication::restoreOverrideCursor();
+      throw;
+    }
+    QApplication::restoreOverrideCursor();
+    emit noticeRequested("Session report written: " + QFileInfo(out).fileName());
+  } catch (const std::exception& e) {
+    emit errorReported(q(path_.string()), QString::fromUtf8(e.what()));
+  }
+}
+
 void ReplayController::exportFromMenu(int kind) {
   const QString folder = path_.empty() ? prefs_.last_folder : q(path_.parent_path().string());
   const QString stem = path_.empty() ? QString("session") : q(path_.stem().string());
   try {
     if (kind == 0 || kind == 1) {
       runtime::Recording loaded;
-      const runtime::Recording* source = active_ ? &recording_ : nullptr;
-      if (source == nullptr) {
-        const QString in = QFileDialog::getOpenFileName(window_, "Export which recording?", folder,
-                                                        "Session recordings (*.vhrec)");
-        if (in.isEmpty()) return;
-        loaded = runtime::readRecording(fs::path(in.toStdString()));
-        source = &loaded;
-      }
+      fs::path from;
+      const runtime::Recording* source = recordingToExport(loaded, from, folder);
+      if (source == nullptr) return;
       const QString ext = kind == 0 ? "csv" : "json";
       const QString out = QFileDialog::getSaveFileName(window_, "Export the recording as " + ext.toUpper(),
                                                        QDir(folder).filePath(stem + "." + ext),

@@ -102,7 +102,8 @@ class ReplayController : public QObject {
                    QDockWidget* tab_with);
   ~ReplayController() override;
 
-  /// Adds Open Recording... and Export Recording > CSV / JSON / Video / Screenshot to `file`.
+  /// Adds Open Recording..., Export Recording > CSV / JSON / Video / Screenshot and Session
+  /// Report... to `file`.
   void addFileMenuActions(QMenu* file);
 
   /// Reads `path`, checks its dataset and asks for its scene (openSceneRequested(); then
@@ -147,6 +148,8 @@ class ReplayController : public QObject {
                   const std::function<bool(int, int)>& progress = {});
   /// PNG of the record shown now, from the view's camera at the view's size (or the size given).
   void exportPng(const std::filesystem::path& path, int width = 0, int height = 0);
+  /// The session report (export/session_report.h) of the replayed recording as an HTML page.
+  void exportReport(const std::filesystem::path& path) const;
 
   /// The main window calls this when its scene is about to be replaced.
   void onSceneTeardown();
@@ -172,6 +175,12 @@ class ReplayController : public QObject {
   void buildDock();
   void advance();
   void exportFromMenu(int kind);
+  /// File > Session Report: of the replayed recording, else of one the user picks.
+  void reportFromMenu();
+  /// The replayed recording, else one the user picks (read into `loaded`; null when cancelled);
+  /// `from` is set to its file.
+  const runtime::Recording* recordingToExport(runtime::Recording& loaded, std::filesystem::path& from,
+                                              const QString& folder) const;
   void updateActions();
 
   runtime::Session& session_;
