@@ -21,11 +21,7 @@
 #include "vh/ui/view/vtk_view.h"
 
 namespace vh::ui {
-namespace {
 
-namespace fs = std::filesystem;
-
-/// The default surface format VTK needs; must be set before the QApplication exists.
 void setDefaultSurfaceFormat() {
   QSurfaceFormat format;
   format.setRenderableType(QSurfaceFormat::OpenGL);
@@ -41,6 +37,10 @@ void setDefaultSurfaceFormat() {
   format.setSamples(0);
   QSurfaceFormat::setDefaultFormat(format);
 }
+
+namespace {
+
+namespace fs = std::filesystem;
 
 /// Fraction of the image's pixels brighter than the view's background gradient (which stays
 /// below ~0.31 in every channel): a cheap check that a screenshot shows something.

@@ -5,7 +5,8 @@
 //                      [--igtl-port N [--igtl-rate HZ]]
 //   volume-haptics export R.vhrec [--csv C] [--json J] [--events-csv E] [--video V.ogv] [--png P --at-s T]
 //   volume-haptics make-trajectory --scene S.json --out T.csv [...]
-//   volume-haptics bench table1|accuracy|stability [--short] [--out DIR]   benchmarks (vh::bench)
+//   volume-haptics bench table1|accuracy|stability|drilling|bigscan|render [--short] [--out DIR]   benchmarks
+//                      (vh::bench; render: vh::ui_bench)
 //   volume-haptics pacs echo|find|get [--host H --port P --aet A] ...   a DICOM server (vh/io/pacs.h)
 //
 // PATH is a DICOM folder, a NRRD / MetaImage file or a scene .json; without it the built-in
@@ -38,6 +39,7 @@
 #include "vh/runtime/snapshot_channel.h"
 #include "vh/runtime/trajectory.h"
 #include "vh/ui/application.h"
+#include "vh/ui/bench/render_bench.h"
 #include "vh/ui/export/media_export.h"
 
 namespace fs = std::filesystem;
@@ -399,7 +401,8 @@ int main(int argc, char** argv) {
   ExportArgs export_args;
   CLI::App* export_cmd = addExportSubcommand(app, export_args);
   std::function<int()> bench_handler;
-  vh::bench::addBenchSubcommand(app, bench_handler);
+  CLI::App* bench = vh::bench::addBenchSubcommand(app, bench_handler);
+  vh::ui::addRenderBenchSubcommand(*bench, bench_handler);  // renders with the window's view
   std::function<int()> pacs_handler;
   vh::app::addPacsSubcommand(app, pacs_handler);
 

@@ -49,7 +49,7 @@
 #include <vtkIntArray.h>
 #include <vtkObjectFactory.h>
 
-#include "common.h"
+#include "vh/bench/report.h"
 #include "vh/haptics/haptic_renderer.h"
 #include "vh/haptics/min_max_tree.h"
 #include "vh/io/volume_loader.h"
@@ -67,7 +67,6 @@ runtime::Trajectory table1Trajectory(const haptics::ScalarVolume& volume, const 
                                      std::vector<std::string>* notes);
 
 namespace fs = std::filesystem;
-using namespace detail;
 
 namespace {
 
@@ -898,6 +897,13 @@ void printSummary(const nlohmann::ordered_json& report) {
 }
 
 }  // namespace
+
+fs::path bigScanSeries(const fs::path& dir, int slices) {
+  if (slices < 2) throw std::runtime_error("a CT series needs at least 2 slices");
+  const fs::path phantom = runtime::sharedDatasetsDir() / kPhantom;
+  if (!fs::exists(phantom)) throw std::runtime_error(phantom.string() + " is absent: the CT series is made from it");
+  return generateSeries(dir, phantom, slices).dir;
+}
 
 int runBigScanChild(const BigScanOptions& options) {
   try {

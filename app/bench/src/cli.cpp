@@ -4,7 +4,7 @@
 
 #include <CLI/CLI.hpp>
 
-#include "common.h"
+#include "vh/bench/report.h"
 #include "vh/runtime/scene.h"
 
 namespace vh::bench {
@@ -25,15 +25,13 @@ std::filesystem::path defaultOutputDir() {
   return VH_BENCH_DEFAULT_OUT_DIR;
 }
 
-namespace {
-
-void addCommon(CLI::App* cmd, CommonOptions& common) {
-  cmd->add_flag("--short", common.short_run, "Short version (about 1,000 ticks per run; for tests)");
-  cmd->add_option("--out", common.out_dir, "Output folder (default: " + (defaultOutputDir() / cmd->get_name()).string() + ")");
-  cmd->add_flag("!--no-plots", common.plots, "Do not write PNG plots");
+void addCommonOptions(CLI::App& cmd, CommonOptions& common) {
+  cmd.add_flag("--short", common.short_run, "Short version (about 1,000 ticks per run; for tests)");
+  cmd.add_option("--out", common.out_dir, "Output folder (default: " + (defaultOutputDir() / cmd.get_name()).string() + ")");
+  cmd.add_flag("!--no-plots", common.plots, "Do not write PNG plots");
 }
 
-int guarded(const char* name, const std::function<void()>& f) {
+int runGuarded(const char* name, const std::function<void()>& f) {
   try {
     f();
     return EXIT_SUCCESS;
@@ -43,7 +41,6 @@ int guarded(const char* name, const std::function<void()>& f) {
   }
 }
 
-}  // namespace
 
 CLI::App* addBenchSubcommand(CLI::App& app, std::function<int()>& handler) {
   CLI::App* bench = app.add_subcommand(
@@ -58,7 +55,7 @@ CLI::App* addBenchSubcommand(CLI::App& app, std::function<int()>& handler) {
   CLI::App* t1 = bench->add_subcommand("table1", "The paper's Table 1: four scenes, tick times in both detection "
                                                  "modes side by side, the accelerated mode before and after the "
                                                  "exact segment test, plus the large-tool runs");
-  addCommon(t1, table1->common);
+  addCommonOptions(*t1, table1->common);
   t1->add_option("--mode", *mode,
                  "Detection path(s): paper, accelerated, both (paper and accelerated) or all (both, plus the "
                  "accelerated mode with the end-sample segment test: the 'before' column)")
@@ -105,38 +102,38 @@ CLI::App* addBenchSubcommand(CLI::App& app, std::function<int()>& handler) {
     if (*mode == "paper" && *before)
       throw CLI::ValidationError("--before", "compares the accelerated mode's segment tests: use --mode accelerated, "
                                              "both or all");
-    handler = [table1] { return guarded("table1", [&] { runTable1(*table1); }); };
+    handler = [table1] { return runGuarded("table1", [&] { runTable1(*table1); }); };
   });
 
   auto accuracy = std::make_shared<CommonOptions>();
   CLI::App* acc = bench->add_subcommand("accuracy", "Contact-position and normal error against tick time on exact "
                                                     "isosurfaces; Pareto front and recommended defaults");
-  addCommon(acc, *accuracy);
+  addCommonOptions(*acc, *accuracy);
   acc->callback([&handler, accuracy] {
-    handler = [accuracy] { return guarded("accuracy", [&] { runAccuracy(*accuracy); }); };
+    handler = [accuracy] { return runGuarded("accuracy", [&] { runAccuracy(*accuracy); }); };
   });
 
   auto stability = std::make_shared<CommonOptions>();
   CLI::App* stab = bench->add_subcommand("stability", "Coupling-stiffness sweep with the simulated device, and "
                                                       "extreme cases with their outcomes");
-  addCommon(stab, *stability);
+  addCommonOptions(*stab, *stability);
   stab->callback([&handler, stability] {
-    handler = [stability] { return guarded("stability", [&] { runStability(*stability); }); };
+    handler = [stability] { return runGuarded("stability", [&] { runStability(*stability); }); };
   });
   auto drilling = std::make_shared<CommonOptions>();
   CLI::App* drill = bench->add_subcommand("drilling", "Drilling: the removal against the swept capsule, and the "
                                                       "solver's tick times drilling against touching alone on the "
                                                       "CT head phantom");
-  addCommon(drill, *drilling);
+  addCommonOptions(*drill, *drilling);
   drill->callback([&handler, drilling] {
-    handler = [drilling] { return guarded("drilling", [&] { runDrilling(*drilling); }); };
+    handler = [drilling] { return runGuarded("drilling", [&] { runDrilling(*drilling); }); };
   });
   auto bigscan = std::make_shared<BigScanOptions>();
   CLI::App* big = bench->add_subcommand("bigscan", "Big scans: a 512 x 512 x 2000 int16 CT series "
                                                    "generated into the output folder, its load time, peak memory, "
                                                    "min/max tree build, a cancelled load, and tick times against "
                                                    "the 140-slice phantom's");
-  addCommon(big, bigscan->common);
+  addCommonOptions(*big, bigscan->common);
   big->add_option("--slices", bigscan->slices, "Slices of the generated scan (default 2000; short 64)")
       ->check(CLI::Range(2, 100000));
   big->add_option("--ticks", bigscan->ticks, "Ticks of the touch run on each volume (default 20000; short 1000)")
@@ -154,7 +151,7 @@ CLI::App* addBenchSubcommand(CLI::App& app, std::function<int()>& handler) {
       handler = [bigscan] { return runBigScanChild(*bigscan); };
       return;
     }
-    handler = [bigscan] { return guarded("bigscan", [&] { runBigScan(*bigscan); }); };
+    handler = [bigscan] { return runGuarded("bigscan", [&] { runBigScan(*bigscan); }); };
   });
   return bench;
 }

@@ -1,4 +1,4 @@
-#include "common.h"
+#include "vh/bench/report.h"
 
 #include <algorithm>
 #include <chrono>
@@ -15,7 +15,7 @@
 
 #include "vh/runtime/runner.h"
 
-namespace vh::bench::detail {
+namespace vh::bench {
 
 namespace fs = std::filesystem;
 
@@ -114,4 +114,4 @@ nlohmann::ordered_json reportHeader(const std::string& benchmark, bool short_run
   return report;
 }
 
-}  // namespace vh::bench::detail
+}  // namespace vh::bench

@@ -14,7 +14,7 @@
 
 #include <nlohmann/json.hpp>
 
-#include "common.h"
+#include "vh/bench/report.h"
 #include "vh/bench/bench.h"
 #include "vh/haptics/material_removal.h"
 #include "vh/runtime/drilling.h"
@@ -22,7 +22,6 @@
 
 namespace vh::bench {
 namespace fs = std::filesystem;
-using namespace detail;
 
 namespace {
 

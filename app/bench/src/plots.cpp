@@ -21,9 +21,9 @@
 #include <vtkTextProperty.h>
 #include <vtkWindowToImageFilter.h>
 
-#include "common.h"
+#include "vh/bench/report.h"
 
-namespace vh::bench::detail {
+namespace vh::bench {
 
 namespace {
 
@@ -155,4 +155,4 @@ bool plotBars(const std::filesystem::path& png, const std::string& title, const 
   return render(view, png, width, height);
 }
 
-}  // namespace vh::bench::detail
+}  // namespace vh::bench

@@ -9,7 +9,7 @@
 
 #include <Eigen/Geometry>
 
-#include "common.h"
+#include "vh/bench/report.h"
 #include "vh/datasets/synthetic.h"
 #include "vh/haptics/crossing_verifier.h"
 #include "vh/haptics/haptic_renderer.h"
@@ -19,7 +19,6 @@
 namespace vh::bench {
 
 namespace fs = std::filesystem;
-using namespace detail;
 
 namespace {
 

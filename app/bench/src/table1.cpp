@@ -16,7 +16,7 @@
 
 #include <Eigen/Geometry>
 
-#include "common.h"
+#include "vh/bench/report.h"
 #include "vh/haptics/crossing_verifier.h"
 #include "vh/haptics/haptic_renderer.h"
 #include "vh/haptics/penetration.h"
@@ -28,7 +28,6 @@
 namespace vh::bench {
 
 namespace fs = std::filesystem;
-using namespace detail;
 
 namespace {
 

@@ -60,6 +60,10 @@ struct AppOptions {
   double igtl_rate_Hz = 60.0;
 };
 
+/// Sets the default surface format VTK's rendering needs (OpenGL 3.2 core, RGBA 8 bits, depth 24,
+/// stencil 8, double buffered, no multisampling); call it before the QApplication exists.
+void setDefaultSurfaceFormat();
+
 /// Creates the QApplication (default surface format set before: OpenGL 3.2 core, depth 24,
 /// stencil 8, samples 0), shows the main window at once and loads `scene` on a worker thread
 /// with a progress bar (a DICOM folder with several series asks which one). Errors: a dialog

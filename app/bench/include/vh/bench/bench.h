@@ -102,6 +102,13 @@ struct BigScanOptions {
 ///         are free where the series is generated, or when a child process fails.
 std::filesystem::path runBigScan(const BigScanOptions& options);
 
+/// A 512 x 512 x `slices` int16 CT series (bench bigscan's: the shared Philips head phantom
+/// resampled to 0.5 mm between slices, mirrored along the stack), written into `dir` once and
+/// reused while complete. @return `dir`.
+/// @throws std::runtime_error when the phantom is absent, fewer than 3 times the voxel bytes are
+///         free in `dir`, or writing fails.
+std::filesystem::path bigScanSeries(const std::filesystem::path& dir, int slices);
+
 /// The child part named by options.child (see BigScanOptions::child). @return the exit code.
 int runBigScanChild(const BigScanOptions& options);
 
@@ -126,6 +133,13 @@ std::filesystem::path runDrilling(const CommonOptions& options);
 /// ~/.local/share/volume-haptics/bench, else ./volume-haptics-bench; from the build tree,
 /// its `BUILD/bench`.
 std::filesystem::path defaultOutputDir();
+
+/// Adds the options every benchmark takes to `cmd`: --short, --out DIR (the default named after
+/// `cmd`), --no-plots.
+void addCommonOptions(CLI::App& cmd, CommonOptions& common);
+/// Runs `f`; an exception is printed as "volume-haptics bench NAME: error: ..." and returns 1.
+/// @return the process exit code (0 when `f` returned).
+int runGuarded(const char* name, const std::function<void()>& f);
 
 /// Adds `bench` with the subcommands `table1`, `accuracy`, `stability` and `bigscan` to `app`. After
 /// app.parse(), `handler` is set when a bench subcommand was chosen; calling it runs the

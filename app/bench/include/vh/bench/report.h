@@ -1,5 +1,9 @@
 #pragma once
-// Helpers shared by the benchmarks (internal to vh::bench).
+/// @file
+/// What every benchmark's report is made of: statistics of tick times, the machine, the output
+/// folder, the JSON and Markdown files, and PNG charts (VTK charts rendered off screen). Shared by
+/// the benchmarks of vh::bench and those that need the window's rendering (the render benchmark in
+/// ui/bench/). Not part of the servo loop: allocates, prints and throws freely.
 #include <cstdint>
 #include <filesystem>
 #include <sstream>
@@ -11,7 +15,7 @@
 #include "vh/bench/bench.h"
 #include "vh/runtime/recording.h"
 
-namespace vh::bench::detail {
+namespace vh::bench {
 
 /// Summary of a sample of tick times [us] (or any values).
 struct Stats {
@@ -70,4 +74,4 @@ bool plotBars(const std::filesystem::path& png, const std::string& title, const 
               const std::string& y_label, const std::vector<Series>& series, bool log_y = false, int width = 900,
               int height = 500);
 
-}  // namespace vh::bench::detail
+}  // namespace vh::bench

@@ -1,0 +1,106 @@
+// vh::ui_bench: `bench render` in its short version (the small CT head, two small windows, half a
+// second a row) writes a well-formed report. No timing thresholds: only structure, finiteness,
+// counts and the consistency of the figures with one another are checked.
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <string>
+
+#include <gtest/gtest.h>
+#include <nlohmann/json.hpp>
+
+#include "vh/ui/bench/render_bench.h"
+
+namespace vh::ui {
+namespace {
+
+namespace fs = std::filesystem;
+using nlohmann::json;
+
+double number(const json& j, const std::string& key) {
+  if (!j.contains(key) || !j[key].is_number()) {
+    ADD_FAILURE() << key << " is missing or not a number in " << j.dump();
+    return std::nan("");
+  }
+  return j[key].get<double>();
+}
+
+void expectStats(const json& s, const std::string& where) {
+  SCOPED_TRACE(where);
+  EXPECT_GT(number(s, "n"), 0.0);
+  const double p50 = number(s, "p50"), p99 = number(s, "p99"), p999 = number(s, "p99_9"), max = number(s, "max");
+  EXPECT_GT(p50, 0.0);
+  EXPECT_LE(p50, p99);
+  EXPECT_LE(p99, p999);
+  EXPECT_LE(p999, max);
+  EXPECT_LT(max, 1e6) << "a solver tick of a second or more: not a tick time in microseconds";
+}
+
+TEST(RenderBench, ShortRunWritesRowsAndServoFiguresOnAndOff) {
+  const fs::path head = fs::path(VH_SHARED_DATASETS_DIR) / "ct" / "ct-head-small";
+  if (!fs::exists(head)) GTEST_SKIP() << head << " is absent";
+  RenderBenchOptions o;
+  o.common.short_run = true;
+  o.common.out_dir = fs::path(VH_UI_BENCH_TEST_OUTPUT_DIR) / "render";
+  o.sizes = {{320, 240}, {480, 270}};
+  o.row_seconds = 0.3;
+  fs::remove_all(o.common.out_dir);
+  const fs::path out = runRenderBench(o);
+  ASSERT_EQ(out, o.common.out_dir);
+
+  std::ifstream in(out / "render.json");
+  ASSERT_TRUE(in.good());
+  const json report = json::parse(in);
+  EXPECT_EQ(report["benchmark"], "render");
+  EXPECT_TRUE(fs::exists(out / "render.md"));
+  EXPECT_FALSE(fs::exists(out / "render-ticks.vhrec")) << "the tick recording is a temporary file";
+  ASSERT_TRUE(report["renderer"].is_string());
+  const std::string renderer = report["renderer"];
+  EXPECT_FALSE(renderer.empty());
+  EXPECT_NE(renderer, "unknown");
+  EXPECT_GE(number(report, "max_3d_texture"), 256.0);
+  EXPECT_EQ(report["volume"]["dims"], json({64, 64, 93}));
+
+  // 2 sizes x (isosurface, composite, MIP, drilling), each at the size asked for.
+  const json& rows = report["rows"];
+  ASSERT_TRUE(rows.is_array());
+  ASSERT_EQ(rows.size(), 8u);
+  const char* modes[] = {"isosurface", "composite", "mip", "drilling"};
+  for (std::size_t i = 0; i < rows.size(); ++i) {
+    const json& r = rows[i];
+    SCOPED_TRACE(r.dump());
+    EXPECT_EQ(r["mode"], modes[i % 4]);
+    EXPECT_EQ(number(r, "width"), i < 4 ? 320.0 : 480.0);
+    EXPECT_EQ(number(r, "height"), i < 4 ? 240.0 : 270.0);
+    EXPECT_EQ(r["renderer"], renderer);
+    EXPECT_GE(number(r, "frames"), 3.0);
+    const double fps = number(r, "fps_mean"), mean = number(r, "frame_ms_mean"), p99 = number(r, "frame_ms_p99"),
+                 max = number(r, "frame_ms_max");
+    EXPECT_GT(fps, 0.0);
+    EXPECT_GT(mean, 0.0);
+    EXPECT_LE(mean, max);
+    EXPECT_LE(p99, max);
+    // The frames fill the row: frames per second and the mean frame time describe the same frames.
+    EXPECT_NEAR(fps * mean / 1000.0, 1.0, 0.35);
+    EXPECT_GT(number(r, "still_frame_ms"), 0.0);
+    EXPECT_DOUBLE_EQ(number(r, "still_image_sample_px"), 1.0) << "a still frame casts a ray per pixel";
+    EXPECT_GE(number(r, "interactive_image_sample_px"), 1.0);
+    if (r["mode"] == "drilling") {
+      EXPECT_TRUE(r.contains("removed_voxels"));
+      EXPECT_TRUE(r.contains("partial_uploads"));
+      EXPECT_TRUE(r.contains("full_uploads"));
+    }
+  }
+
+  // The servo figures, rendering on and off, from the same run.
+  const json& servo = report["servo"];
+  expectStats(servo["solver_tick_us"]["rendering_on"], "solver, rendering on");
+  expectStats(servo["solver_tick_us"]["rendering_off"], "solver, rendering off");
+  for (const char* k : {"rendering_on", "rendering_off"}) {
+    EXPECT_GT(number(servo["coupling_max_tick_us"], k), 0.0) << k;
+    EXPECT_TRUE(servo["deadline_misses"][k].is_number_unsigned()) << k;
+  }
+}
+
+}  // namespace
+}  // namespace vh::ui

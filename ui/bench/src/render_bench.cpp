@@ -1,0 +1,484 @@
+// `volume-haptics bench render`: the main view's frame rate while the haptic threads run, and
+// the haptic threads' tick times with rendering on and off (see render_bench.h).
+#include "vh/ui/bench/render_bench.h"
+
+#include <algorithm>
+#include <cctype>
+#include <chrono>
+#include <cmath>
+#include <cstdint>
+#include <iostream>
+#include <memory>
+#include <numbers>
+#include <sstream>
+#include <stdexcept>
+#include <string>
+#include <thread>
+
+#include <CLI/CLI.hpp>
+#include <QApplication>
+#include <QVBoxLayout>
+#include <QWidget>
+#include <vtkCamera.h>
+#include <vtkGenericOpenGLRenderWindow.h>
+#include <vtkImageData.h>
+#include <vtkRenderer.h>
+#include <vtkTextureObject.h>
+
+#include "vh/bench/report.h"
+#include "vh/runtime/haptic_thread.h"
+#include "vh/runtime/recording.h"
+#include "vh/runtime/scene.h"
+#include "vh/runtime/trajectory.h"
+#include "vh/ui/application.h"
+#include "vh/ui/drill_controller.h"
+#include "vh/ui/export/media_export.h"
+#include "vh/ui/view/scene_view.h"
+#include "vh/ui/view/vtk_view.h"
+
+namespace vh::ui {
+namespace {
+
+namespace fs = std::filesystem;
+using Clock = std::chrono::steady_clock;
+
+constexpr double kServoRate_Hz = 1000.0;
+constexpr double kIsovalue_HU = 400.0;       // bone
+constexpr int kGeneratedSlices = 275;        // an abdomen CT's slice count
+constexpr double kCameraStep_deg = 0.25;     // camera turn per frame: a slow drag
+constexpr double kPressDepth_m = 0.003;      // the device this far past the first contact
+constexpr double kCircleRadius_m = 0.004;    // the circle the device draws on the surface
+constexpr double kCirclePeriod_s = 3.0;
+
+double msSince(Clock::time_point t0) { return std::chrono::duration<double, std::milli>(Clock::now() - t0).count(); }
+
+/// The mode's name as the report spells it: "isosurface", "composite", "mip".
+std::string rowName(RenderMode mode) {
+  std::string name = modeName(mode);
+  for (char& c : name) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+  return name;
+}
+
+/// A shown (not felt) segment for the picture: a sphere of a fifth of the scan's smallest extent
+/// at its centre, on a grid four times coarser than the scan's.
+std::shared_ptr<const runtime::SegmentSet> sphereSegment(const haptics::ScalarVolume& scan) {
+  constexpr int kStep = 4;
+  const haptics::VolumeGeometry& g = scan.geometry();
+  haptics::VolumeGeometry sg = g;
+  for (int a = 0; a < 3; ++a) {
+    sg.dims[static_cast<std::size_t>(a)] = std::max(2, (g.dims[static_cast<std::size_t>(a)] + kStep - 1) / kStep);
+    sg.spacing_m[a] = g.spacing_m[a] * kStep;
+  }
+  const Eigen::Vector3d extent_m(g.spacing_m.x() * (g.dims[0] - 1), g.spacing_m.y() * (g.dims[1] - 1),
+                                 g.spacing_m.z() * (g.dims[2] - 1));
+  const double radius_m = 0.2 * extent_m.minCoeff();
+  std::vector<std::uint8_t> labels(sg.voxelCount(), 0);
+  std::size_t count = 0;
+  for (int k = 0; k < sg.dims[2]; ++k)
+    for (int j = 0; j < sg.dims[1]; ++j)
+      for (int i = 0; i < sg.dims[0]; ++i) {
+        const Eigen::Vector3d p(i * sg.spacing_m.x(), j * sg.spacing_m.y(), k * sg.spacing_m.z());
+        if ((p - 0.5 * extent_m).norm() > radius_m) continue;
+        labels[static_cast<std::size_t>(i) + static_cast<std::size_t>(sg.dims[0]) * (j + static_cast<std::size_t>(sg.dims[1]) * k)] = 1;
+        ++count;
+      }
+  io::LoadedSegmentation seg;
+  seg.source = "bench render: a sphere";
+  io::SegmentInfo info;
+  info.id = "Segment_1";
+  info.name = "sphere";
+  info.color_rgb = {0.85, 0.35, 0.3};
+  info.voxel_count = count;
+  seg.segments.push_back(info);
+  seg.layers.push_back(std::make_shared<const haptics::ScalarVolume>(haptics::ScalarVolume::FromVoxels(sg, labels)));
+  return std::make_shared<const runtime::SegmentSet>(std::move(seg), std::vector<int>{}, std::vector<int>{0},
+                                                     std::vector<int>{}, 1.0);
+}
+
+/// The device's path: from the initial pose down to the first contact of the tool below it and
+/// kPressDepth_m beyond, then circles of kCircleRadius_m on the surface until `duration_s`.
+/// @throws std::runtime_error when the tool meets no surface below its initial pose.
+runtime::Trajectory pressAndCircle(const runtime::LoadedScene& scene, double duration_s) {
+  const runtime::PushSlidePlan plan = runtime::makePushSlideTrajectory(
+      *scene.hapticField(), scene.tool->point_shell, scene.hapticIsovalue(), scene.X_WT_initial);
+  std::vector<runtime::TrajectorySample> keys;
+  keys.push_back({0.0, scene.X_WT_initial});
+  for (double t = 1.0; t <= duration_s + 1.0; t += 0.02) {
+    runtime::TrajectorySample s{t, plan.X_WD_contact};
+    const double r = kCircleRadius_m * std::min(1.0, t - 1.0);
+    const double phase = 2.0 * std::numbers::pi * (t - 1.0) / kCirclePeriod_s;
+    s.X_WD.p_AB_m += Eigen::Vector3d(r * std::cos(phase) - r, r * std::sin(phase), -kPressDepth_m);
+    keys.push_back(s);
+  }
+  return runtime::Trajectory(std::move(keys));
+}
+
+/// A stretch of the run: the haptic threads' solver ticks [begin, end), rendering or not, and the
+/// coupling thread's largest one-second figures seen meanwhile.
+struct Phase {
+  bool rendering = false;
+  std::uint64_t begin = 0, end = 0;
+  double coupling_max_tick_us = 0.0;
+  double coupling_jitter_us = 0.0;
+  std::uint64_t misses_begin = 0, misses_end = 0;
+};
+
+/// The window, its view and the haptic threads feeding it.
+struct Bench {
+  QWidget window;
+  SceneView* view = nullptr;  // owned by the window
+  runtime::HapticThread* thread = nullptr;
+  const haptics::ScalarVolume* scan = nullptr;
+  runtime::HapticSnapshot snapshot;
+  std::vector<Phase> phases;
+  std::vector<std::uint64_t> drained, picture;
+
+  void poll(Phase& phase) {
+    if (!thread->latestSnapshot(snapshot)) return;
+    phase.coupling_max_tick_us = std::max(phase.coupling_max_tick_us, snapshot.coupling.max_tick_us);
+    phase.coupling_jitter_us = std::max(phase.coupling_jitter_us, snapshot.coupling.jitter_us);
+  }
+  Phase begin(bool rendering) {
+    Phase p;
+    p.rendering = rendering;
+    thread->latestSnapshot(snapshot);
+    p.begin = snapshot.solver_tick;
+    p.misses_begin = snapshot.coupling.deadline_misses + snapshot.solver.deadline_misses;
+    return p;
+  }
+  void end(Phase& p) {
+    thread->latestSnapshot(snapshot);
+    p.end = snapshot.solver_tick;
+    p.misses_end = snapshot.coupling.deadline_misses + snapshot.solver.deadline_misses;
+    phases.push_back(p);
+  }
+  /// Moves the drill's removed voxels into the picture (as the window's DrillController does).
+  std::uint64_t drain() {
+    const auto& drill = thread->drill();
+    if (drill == nullptr) return 0;
+    std::uint64_t total = 0;
+    double range[2];
+    view->actors().shownImage()->GetScalarRange(range);
+    for (;;) {
+      const std::size_t n = drill->removal().drainRemoved(drained);
+      if (n == 0) break;
+      picture = pictureIndices(drill->removal().volume(), *scan, std::span<const std::uint64_t>(drained.data(), n));
+      view->actors().removeVoxels(picture, range[0]);
+      total += n;
+    }
+    return total;
+  }
+  /// One frame as the window draws it while someone works: the camera turned a little, the
+  /// latest haptic snapshot shown, painted now. @return its wall time [ms].
+  double frame(Phase& phase, bool drilling, std::uint64_t& removed, std::vector<double>& paint_ms) {
+    const auto t0 = Clock::now();
+    poll(phase);
+    if (drilling) removed += drain();
+    view->widget()->renderer()->GetActiveCamera()->Azimuth(kCameraStep_deg);
+    view->noteMotion();
+    ToolFrame f;
+    f.X_WP = snapshot.X_WP;
+    f.X_WD = snapshot.X_WD;
+    f.force_W_N = snapshot.force_W_N;
+    f.contacts_W_m = std::span<const Eigen::Vector3d>(snapshot.contact_p_W_m.data(),
+                                                      static_cast<std::size_t>(snapshot.contacts_shown));
+    view->show(f);
+    view->widget()->repaint();
+    paint_ms.push_back(view->widget()->lastFrameMs());
+    QCoreApplication::processEvents();
+    return msSince(t0);
+  }
+  void idle(double seconds) {
+    Phase p = begin(false);
+    const auto t0 = Clock::now();
+    while (msSince(t0) < 1e3 * seconds) {
+      QCoreApplication::processEvents();
+      poll(p);
+      std::this_thread::sleep_for(std::chrono::milliseconds(5));
+    }
+    end(p);
+  }
+  void resizeView(int width, int height) {
+    window.resize(width, height);
+    const auto t0 = Clock::now();
+    while ((view->widget()->width() != width || view->widget()->height() != height) && msSince(t0) < 2000.0)
+      QCoreApplication::processEvents();
+  }
+};
+
+/// The GL renderer, version and 3-D texture limit of the view's context (after its first frame).
+struct GlInfo {
+  std::string renderer = "unknown", version = "unknown";
+  int max_3d_texture = -1;
+};
+GlInfo glInfo(VtkView& view) {
+  GlInfo info;
+  view.makeCurrent();
+  vtkGenericOpenGLRenderWindow* window = view.renderWindow();
+  const std::string caps = window->ReportCapabilities() != nullptr ? window->ReportCapabilities() : "";
+  std::istringstream lines(caps);
+  for (std::string line; std::getline(lines, line);) {
+    const auto value = [&] {
+      std::string v = line.substr(line.find(':') + 1);
+      v.erase(0, v.find_first_not_of(" \t"));
+      return v;
+    };
+    if (line.find("OpenGL renderer string") != std::string::npos) info.renderer = value();
+    if (line.find("OpenGL version string") != std::string::npos) info.version = value();
+  }
+  info.max_3d_texture = vtkTextureObject::GetMaximumTextureSize3D(window);
+  view.doneCurrent();
+  return info;
+}
+
+nlohmann::ordered_json statsJson(const bench::Stats& s) {
+  return {{"n", s.n}, {"mean", s.mean}, {"p50", s.p50}, {"p99", s.p99}, {"p99_9", s.p999}, {"max", s.max}};
+}
+
+}  // namespace
+
+fs::path runRenderBench(const RenderBenchOptions& o) {
+  using namespace bench;
+  if (!displayAvailable())
+    throw std::runtime_error("bench render draws in a window and needs an X display with OpenGL: run it under "
+                             "xvfb-run -a -s \"-screen 0 1920x1080x24\"");
+  if (o.sizes.empty()) throw std::runtime_error("bench render: no window size to render");
+  const bool short_run = o.common.short_run;
+  const fs::path out = outputDir(o.common, "render");
+  const double row_s = o.row_seconds > 0.0 ? o.row_seconds : (short_run ? 0.5 : 4.0);
+
+  // The scan.
+  fs::path volume = o.volume;
+  if (volume.empty() && short_run) volume = runtime::sharedDatasetsDir() / "ct" / "ct-head-small";
+  if (volume.empty()) {
+    const int slices = o.slices > 0 ? o.slices : kGeneratedSlices;
+    const fs::path dir = o.series_dir.empty() ? defaultOutputDir() / "render" / format("ct-512x512x%d", slices) : o.series_dir;
+    volume = bigScanSeries(dir, slices);
+  }
+  std::cout << "bench render: loading " << volume.string() << " ..." << std::endl;
+  runtime::SceneSpec spec = runtime::sceneForVolume(volume);
+  spec.volume.isovalue = kIsovalue_HU;
+  spec.volume.isovalue_set = true;
+  spec.tool.mesh = "builtin:drill";
+  spec.tool.point_spacing_m = 0.001;
+  spec.drill = runtime::DrillSpec{};
+  spec.drill->on = false;  // spun up for the drilling rows
+  const runtime::LoadedScene scene = runtime::loadScene(spec);
+  runtime::LiveValues live = runtime::LiveValues::initial(scene);
+  live.segments = sphereSegment(*scene.volume.field);
+
+  // The rows, each followed by as long without rendering; the trajectory outlasts them all.
+  std::vector<std::pair<RenderMode, bool>> kinds = {
+      {RenderMode::kIsosurface, false}, {RenderMode::kComposite, false}, {RenderMode::kMip, false}};
+  if (o.drilling) kinds.push_back({RenderMode::kIsosurface, true});
+  const double planned_s = static_cast<double>(o.sizes.size() * kinds.size()) * (2.0 * row_s + 10.0) + 60.0;
+  auto device = std::make_shared<runtime::ScriptedDevice>(pressAndCircle(scene, planned_s), 1.0 / kServoRate_Hz,
+                                                          "bench render");
+  const std::unique_ptr<runtime::HapticThread> thread =
+      runtime::makeHapticThread(live, device, kServoRate_Hz, scene.X_WT_initial);
+  const fs::path ticks_path = out / "render-ticks.vhrec";
+  auto writer = std::make_unique<runtime::RecordingWriter>(ticks_path, "{}");
+  thread->setRecorder(writer.get());
+
+  std::unique_ptr<QApplication> app;
+  static int argc = 1;
+  static char name[] = "volume-haptics";
+  static char* argv[] = {name, nullptr};
+  if (QCoreApplication::instance() == nullptr) {
+    setDefaultSurfaceFormat();
+    app = std::make_unique<QApplication>(argc, argv);
+  }
+
+  nlohmann::ordered_json report = reportHeader("render", short_run);
+  nlohmann::ordered_json rows = nlohmann::ordered_json::array();
+  GlInfo gl;
+  {
+    Bench b;
+    b.thread = thread.get();
+    b.scan = scene.volume.field.get();
+    b.drained.resize(1 << 16);
+    b.window.setWindowTitle("VolumeHaptics: bench render");
+    auto* layout = new QVBoxLayout(&b.window);
+    layout->setContentsMargins(0, 0, 0, 0);
+    b.view = new SceneView(&b.window);
+    layout->addWidget(b.view->widget());
+    ViewLook look;
+    b.view->setScene(sceneActorsSpecFor(scene, live), scene.X_WT_initial, look);
+    b.view->setSegments(live.segments.get());
+    b.resizeView(o.sizes.front()[0], o.sizes.front()[1]);
+    b.window.show();
+    b.view->widget()->repaint();  // shaders, the volume's upload
+    gl = glInfo(*b.view->widget());
+    std::cout << "bench render: " << gl.renderer << " (OpenGL " << gl.version << ", 3-D textures up to "
+              << gl.max_3d_texture << ")" << std::endl;
+
+    thread->start();
+    b.idle(1.5);  // the device reaches the surface
+    b.phases.clear();
+    for (const auto& size : o.sizes) {
+      for (const auto& [mode, drilling] : kinds) {
+        b.resizeView(size[0], size[1]);
+        b.view->setRenderMode(mode, look.preset);
+        b.view->resetCamera();
+        auto t0 = Clock::now();
+        b.view->widget()->repaint();  // a new mode compiles its shader
+        const double first_ms = msSince(t0);
+        thread->setDrilling(drilling);
+        const std::uint64_t partial0 = b.view->actors().partialUploads(), full0 = b.view->actors().fullUploads();
+        std::uint64_t removed = 0;
+        std::vector<double> frames, paint_ms;
+        Phase on = b.begin(true);
+        t0 = Clock::now();
+        while (msSince(t0) < 1e3 * row_s || frames.size() < 3) frames.push_back(b.frame(on, drilling, removed, paint_ms));
+        const double elapsed_s = 1e-3 * msSince(t0);
+        b.end(on);
+        thread->setDrilling(false);
+        const double interactive_px = b.view->actors().imageSampleDistance_px();
+        // A still frame, full quality (as when the hand rests).
+        b.view->renderStill(/*best_quality=*/true);
+        const double still_sample_voxels = b.view->actors().sampleDistance_m() /
+                                           scene.volume.field->geometry().spacing_m.minCoeff();
+        const double still_px = b.view->actors().imageSampleDistance_px();
+        t0 = Clock::now();
+        b.view->widget()->repaint();
+        const double still_ms = msSince(t0);
+        b.idle(row_s);
+
+        const Stats s = summarize(frames);
+        nlohmann::ordered_json row;
+        row["mode"] = drilling ? std::string("drilling") : rowName(mode);
+        row["width"] = b.view->widget()->width();
+        row["height"] = b.view->widget()->height();
+        row["frames"] = frames.size();
+        row["fps_mean"] = static_cast<double>(frames.size()) / elapsed_s;
+        row["frame_ms_mean"] = s.mean;
+        row["frame_ms_p99"] = s.p99;
+        row["frame_ms_max"] = s.max;
+        row["paint_ms_mean"] = summarize(paint_ms).mean;  // VTK's render and the blit (paintGL), without Qt's compose
+        row["first_frame_ms"] = first_ms;
+        row["interactive_image_sample_px"] = interactive_px;
+        row["still_frame_ms"] = still_ms;
+        row["still_sample_voxels"] = still_sample_voxels;
+        row["still_image_sample_px"] = still_px;
+        if (drilling) {
+          row["removed_voxels"] = removed;
+          row["partial_uploads"] = b.view->actors().partialUploads() - partial0;
+          row["full_uploads"] = b.view->actors().fullUploads() - full0;
+        }
+        row["contacts"] = b.snapshot.contacts;  // the haptic threads' last snapshot of the row
+        row["force_N"] = b.snapshot.force_W_N.norm();
+        row["renderer"] = gl.renderer;
+        std::cout << format("bench render: %-10s %4d x %4d  %6.1f fps  mean %6.1f  p99 %6.1f  max %6.1f ms  still %6.0f ms",
+                            row["mode"].get<std::string>().c_str(), row["width"].get<int>(), row["height"].get<int>(),
+                            row["fps_mean"].get<double>(), s.mean, s.p99, s.max, still_ms)
+                  << std::endl;
+        rows.push_back(row);
+      }
+    }
+    thread->stop();
+    b.view->actors().restoreVolume();
+    thread->setRecorder(nullptr);
+    writer->close();
+    writer.reset();
+
+    // The solver's tick times of each stretch, rendering on and off.
+    const runtime::Recording recording = runtime::readRecording(ticks_path);
+    std::vector<double> on_us, off_us;
+    double coupling_on = 0.0, coupling_off = 0.0, jitter_on = 0.0, jitter_off = 0.0;
+    std::uint64_t misses_on = 0, misses_off = 0;
+    for (const runtime::TickRecord& r : recording.records) {
+      for (const Phase& p : b.phases) {
+        if (r.tick < p.begin || r.tick >= p.end) continue;
+        (p.rendering ? on_us : off_us).push_back(1e6 * r.tick_time_s);
+        break;
+      }
+    }
+    for (const Phase& p : b.phases) {
+      (p.rendering ? coupling_on : coupling_off) = std::max(p.rendering ? coupling_on : coupling_off, p.coupling_max_tick_us);
+      (p.rendering ? jitter_on : jitter_off) = std::max(p.rendering ? jitter_on : jitter_off, p.coupling_jitter_us);
+      (p.rendering ? misses_on : misses_off) += p.misses_end - p.misses_begin;
+    }
+    std::error_code ec;
+    fs::remove(ticks_path, ec);
+    const Stats son = summarize(on_us), soff = summarize(off_us);
+    nlohmann::ordered_json servo;
+    servo["rate_Hz"] = kServoRate_Hz;
+    servo["realtime_scheduling"] = thread->realtimeScheduling();
+    servo["solver_tick_us"] = {{"rendering_on", statsJson(son)}, {"rendering_off", statsJson(soff)}};
+    servo["coupling_max_tick_us"] = {{"rendering_on", coupling_on}, {"rendering_off", coupling_off}};
+    servo["coupling_jitter_us"] = {{"rendering_on", jitter_on}, {"rendering_off", jitter_off}};
+    servo["deadline_misses"] = {{"rendering_on", misses_on}, {"rendering_off", misses_off}};
+    servo["dropped_records"] = recording.dropped_records;
+    report["servo"] = servo;
+  }
+
+  const haptics::VolumeGeometry& g = scene.volume.field->geometry();
+  report["volume"] = {{"path", volume.string()},
+                      {"dims", g.dims},
+                      {"spacing_mm", {1e3 * g.spacing_m.x(), 1e3 * g.spacing_m.y(), 1e3 * g.spacing_m.z()}},
+                      {"isovalue", scene.isovalue}};
+  report["renderer"] = gl.renderer;
+  report["gl_version"] = gl.version;
+  report["max_3d_texture"] = gl.max_3d_texture;
+  report["row_seconds"] = row_s;
+  report["rows"] = rows;
+
+  std::ostringstream md;
+  md << "## Frame rate of the main view (`volume-haptics bench render" << (short_run ? " --short" : "") << "`)\n\n"
+     << format("Scan %d x %d x %d, ", g.dims[0], g.dims[1], g.dims[2]) << "renderer " << gl.renderer << ", CPU "
+     << report["cpu_model"].get<std::string>() << " (" << report["cpus"].get<unsigned>() << " CPUs); "
+     << format("%.1f s per row, the haptic threads at 1 kHz throughout.\n\n", row_s)
+     << "| mode | window | fps | mean [ms] | p99 [ms] | max [ms] | still frame [ms] |\n|---|---|---|---|---|---|---|\n";
+  for (const auto& r : rows)
+    md << format("| %s | %d x %d | %.1f | %.1f | %.1f | %.1f | %.0f |\n", r["mode"].get<std::string>().c_str(),
+                 r["width"].get<int>(), r["height"].get<int>(), r["fps_mean"].get<double>(),
+                 r["frame_ms_mean"].get<double>(), r["frame_ms_p99"].get<double>(), r["frame_ms_max"].get<double>(),
+                 r["still_frame_ms"].get<double>());
+  const auto& st = report["servo"]["solver_tick_us"];
+  md << "\n| haptic threads | solver p99 [us] | solver p99.9 [us] | solver max [us] | coupling max [us] | deadline misses |\n"
+     << "|---|---|---|---|---|---|\n";
+  for (const char* k : {"rendering_on", "rendering_off"})
+    md << format("| %s | %.1f | %.1f | %.1f | %.1f | %llu |\n", k, st[k]["p99"].get<double>(),
+                 st[k]["p99_9"].get<double>(), st[k]["max"].get<double>(),
+                 report["servo"]["coupling_max_tick_us"][k].get<double>(),
+                 static_cast<unsigned long long>(report["servo"]["deadline_misses"][k].get<std::uint64_t>()));
+  writeReport(out, "render", report, md, {});
+  return out;
+}
+
+void addRenderBenchSubcommand(CLI::App& bench, std::function<int()>& handler) {
+  auto options = std::make_shared<RenderBenchOptions>();
+  auto sizes = std::make_shared<std::vector<std::string>>();
+  CLI::App* cmd = bench.add_subcommand(
+      "render", "Frames per second of the main view (isosurface, composite, MIP, drilling; the tools and a segment "
+                "surface) while the haptic threads run a scripted trajectory, and the haptic threads' tick times with "
+                "rendering on and off; needs an X display (xvfb-run -a -s \"-screen 0 1920x1080x24\")");
+  bench::addCommonOptions(*cmd, options->common);
+  cmd->add_option("--volume", options->volume,
+                  "The scan to render (default: a 512 x 512 x 275 CT generated from the shared head phantom; short: the "
+                  "small CT head)");
+  cmd->add_option("--slices", options->slices, "Slices of the generated CT (default 275)")->check(CLI::Range(2, 100000));
+  cmd->add_option("--series-dir", options->series_dir,
+                  "Where the generated CT is written and reused (default: " +
+                      (bench::defaultOutputDir() / "render").string() + "/ct-512x512xN)");
+  cmd->add_option("--sizes", *sizes, "Window sizes WxH, comma separated (default 1280x720,1920x1080)")->delimiter(',');
+  cmd->add_option("--seconds", options->row_seconds, "Rendering time of each row [s], and as long without (default 4; short 0.5)")
+      ->check(CLI::Range(0.05, 600.0));
+  cmd->add_flag("!--no-drilling", options->drilling, "Skip the drilling rows");
+  cmd->callback([&handler, options, sizes] {
+    if (!sizes->empty()) {
+      options->sizes.clear();
+      for (const std::string& s : *sizes) {
+        int w = 0, h = 0;
+        char x = 0;
+        std::istringstream in(s);
+        if (!(in >> w >> x >> h) || (x != 'x' && x != 'X') || w < 64 || h < 64 || w > 8192 || h > 8192)
+          throw CLI::ValidationError("--sizes", "'" + s + "': expected WIDTHxHEIGHT, 64 to 8192 each, e.g. 1280x720");
+        options->sizes.push_back({w, h});
+      }
+    }
+    handler = [options] { return bench::runGuarded("render", [&] { runRenderBench(*options); }); };
+  });
+}
+
+}  // namespace vh::ui
