@@ -86,7 +86,7 @@ QValueAxis* addAxis(QChart* chart, Qt::Alignment where, const QString& title, do
   axis->setTitleText(title);
   if (!(hi > lo)) hi = lo + 1.0;
   axis->setRange(lo, hi);
-  axis->setLabelFormat("%.3g");
+  axis->setLabelFormat("%.4g");
   chart->addAxis(axis, where);
   return axis;
 }
@@ -134,9 +134,12 @@ std::string forceChart(const Recording& rec, const SessionMetrics& m, const Sess
       thinnedByMax(rec.records, 2000, [](const TickRecord& r) { return norm3(r.torque_W_Nm); });
   const double t0 = rec.records.front().time_s, t1 = rec.records.back().time_s;
   QValueAxis* x = addAxis(chart, Qt::AlignBottom, "time [s]", t0, t1);
+  x->applyNiceNumbers();
   const double fmax = std::max(m.max_force_N, m.force_threshold_N) * 1.1;
   QValueAxis* yf = addAxis(chart, Qt::AlignLeft, "|F| [N]", 0.0, fmax > 0 ? fmax : 1.0);
   QValueAxis* yt = addAxis(chart, Qt::AlignRight, "|torque| [N*m]", 0.0, m.max_torque_Nm > 0 ? m.max_torque_Nm * 1.1 : 1.0);
+  yf->applyNiceNumbers();
+  yt->applyNiceNumbers();
   QLineSeries* f = lineSeries("|F| [N]", QColor(0x1f, 0x77, 0xb4));
   f->replace(force);
   QLineSeries* t = lineSeries("|torque| [N*m]", QColor(0xff, 0x7f, 0x0e), 1.0);
@@ -186,7 +189,9 @@ std::string speedChart(const Recording& rec, const SessionMetrics& m, const Sess
     points.append(QPointF(r[i].time_s, v));
   }
   QValueAxis* x = addAxis(chart, Qt::AlignBottom, "time [s]", r.front().time_s, r.back().time_s);
+  x->applyNiceNumbers();
   QValueAxis* y = addAxis(chart, Qt::AlignLeft, "speed [m/s]", 0.0, vmax > 0 ? vmax * 1.1 : 1.0);
+  y->applyNiceNumbers();
   QLineSeries* s = lineSeries("speed", QColor(0x94, 0x67, 0xbd));
   s->replace(points);
   chart->addSeries(s);
@@ -202,7 +207,7 @@ void equalRanges(const QList<QPointF>& pts, double& x0, double& x1, double& y0, 
     ax = std::min(ax, p.x()), bx = std::max(bx, p.x()), ay = std::min(ay, p.y()), by = std::max(by, p.y());
   }
   if (pts.isEmpty()) ax = ay = -0.01, bx = by = 0.01;
-  const double half = std::max({(bx - ax) / 2, (by - ay) / 2, 1e-4}) * 1.1;
+  const double half = std::max({(bx - ax) / 2, (by - ay) / 2, 1.0}) * 1.1;  // mm
   const double cx = (ax + bx) / 2, cy = (ay + by) / 2;
   x0 = cx - half, x1 = cx + half, y0 = cy - half, y1 = cy + half;
 }
@@ -250,7 +255,7 @@ std::string contactMap(const Recording& rec, const SessionMetrics& m, const Sess
     std::vector<QList<QPointF>> data(4);
     for (int band = 0; band < 4; ++band) {
       auto* s = new QScatterSeries;
-      s->setName(QString("%1-%2 N").arg(fmax * band / 4, 0, 'g', 2).arg(fmax * (band + 1) / 4, 0, 'g', 2));
+      s->setName(QString("%1-%2").arg(fmax * band / 4, 0, 'g', 2).arg(fmax * (band + 1) / 4, 0, 'g', 2));
       s->setMarkerSize(5);
       s->setColor(kBand[band]);
       s->setBorderColor(kBand[band]);
@@ -262,7 +267,7 @@ std::string contactMap(const Recording& rec, const SessionMetrics& m, const Sess
       data[static_cast<std::size_t>(band)].append(project(contacts[i]->p_WP_m, plane[0], plane[1]));
     }
     static const char* kAxis[] = {"x", "y", "z"};
-    const QString title = QString("Contacts, %1-%2 plane").arg(kAxis[plane[0]]).arg(kAxis[plane[1]]);
+    const QString title = QString("Contacts, %1-%2 plane, |F| [N]").arg(kAxis[plane[0]]).arg(kAxis[plane[1]]);
     html += imageTag(projectionChart(title, plane[0], plane[1], series, data, true, o.map_size),
                      title.toStdString(), "map");
   }
