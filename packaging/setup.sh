@@ -24,8 +24,11 @@ packages=(cmake ninja-build g++ pkg-config libeigen3-dev libgtest-dev libgmock-d
 # Orthanc, run from the build tree with its own configuration (the package's service is not
 # used), DCMTK's command-line tools (dcmtk: storescu stores the test series in it) and curl (asks
 # Orthanc's REST API whether it is up and holds the series).
+# test also opens a session report in a real browser engine (headless Chromium:
+# tests/ui/report_cli_test.sh) to check that its inline pictures decode.
 if [[ $mode == test ]]; then
-  packages+=(clang libclang-rt-14-dev dpkg-dev file help2man desktop-file-utils shared-mime-info orthanc dcmtk curl)
+  packages+=(clang libclang-rt-14-dev dpkg-dev file help2man desktop-file-utils shared-mime-info orthanc dcmtk curl
+    chromium)
 fi
 missing=()
 for p in "${packages[@]}"; do

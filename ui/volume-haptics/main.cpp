@@ -4,6 +4,7 @@
 //   volume-haptics run --scene S.json --trajectory T.csv [--report R.json] [--check] [--record R.vhrec] [--verify-step V]
 //                      [--igtl-port N [--igtl-rate HZ]]
 //   volume-haptics export R.vhrec [--csv C] [--json J] [--events-csv E] [--video V.ogv] [--png P --at-s T]
+//   volume-haptics report R.vhrec --html OUT.html [--reference E.vhrec] | report DIR --table OUT.csv
 //   volume-haptics make-trajectory --scene S.json --out T.csv [...]
 //   volume-haptics bench table1|accuracy|stability|drilling|bigscan|render [--short] [--out DIR]   benchmarks
 //                      (vh::bench; render: vh::ui_bench)
@@ -28,6 +29,7 @@
 #include <CLI/CLI.hpp>
 
 #include "pacs_command.h"
+#include "report_command.h"
 #include "vh_version.h"
 #include "vh/bench/bench.h"
 #include "vh/devices/device_catalog.h"
@@ -400,6 +402,8 @@ int main(int argc, char** argv) {
   CLI::App* make = addMakeTrajectorySubcommand(app, make_args);
   ExportArgs export_args;
   CLI::App* export_cmd = addExportSubcommand(app, export_args);
+  std::function<int()> report_handler;
+  vh::app::addReportSubcommand(app, report_handler);
   std::function<int()> bench_handler;
   CLI::App* bench = vh::bench::addBenchSubcommand(app, bench_handler);
   vh::ui::addRenderBenchSubcommand(*bench, bench_handler);  // renders with the window's view
@@ -418,6 +422,7 @@ int main(int argc, char** argv) {
     if (*run) return runCommand(run_args);
     if (*export_cmd) return exportCommand(argc, argv, export_args);
     if (*make) return makeTrajectoryCommand(make_args);
+    if (report_handler) return report_handler();
     if (bench_handler) return bench_handler();
     if (pacs_handler) return pacs_handler();
 
