@@ -4,14 +4,20 @@
 // between ticks and the ball ended in the cranial cavity. Every tick is checked by the
 // independent oracle (CrossingVerifier, each point's true arc sampled every 1/1000 voxel).
 // Skipped with a message when the shared datasets are absent.
+#include <algorithm>
+#include <cmath>
 #include <filesystem>
+#include <initializer_list>
 #include <iostream>
+#include <memory>
 
 #include <gtest/gtest.h>
 
 #include "runtime_test_support.h"
+#include "vh/datasets/synthetic.h"
 #include "vh/haptics/crossing_verifier.h"
 #include "vh/haptics/haptic_renderer.h"
+#include "vh/haptics/tool_model.h"
 #include "vh/runtime/placement.h"
 #include "vh/runtime/scene.h"
 
@@ -94,6 +100,132 @@ TEST_P(NeverThroughPhantom, BallPushedOntoTheVaultAt870HUNeverEntersTheCranium) 
 TEST(NeverThroughPhantomControl, TheEndSampleTestCrossesTheVault) {
   if (!phantomPresent()) GTEST_SKIP() << "shared dataset absent: " << test::sharedDatasets() / "ct";
   EXPECT_GT(pushOntoTheVault(haptics::DetectionMode::kAccelerated, haptics::SegmentTest::kEndSample), 0);
+}
+
+
+// The tool's surface, not its points: a dense sample of the tool mesh's own triangles (each
+// cut into sub-triangles of about `spacing_m`, their corners kept), every sample moved epsilon
+// into the tool along its triangle's normal (the surface may come within epsilon of the tool,
+// as at its points). Independent of the renderer's point shell and of its neighbour graph.
+haptics::PointShell denseSurface(const haptics::TriangleMesh& mesh, double spacing_m, double inset_m) {
+  std::vector<Eigen::Vector3d> points;
+  for (const auto& tri : mesh.triangles) {
+    const Eigen::Vector3d& a = mesh.vertices_T_m[tri[0]];
+    const Eigen::Vector3d& b = mesh.vertices_T_m[tri[1]];
+    const Eigen::Vector3d& c = mesh.vertices_T_m[tri[2]];
+    const Eigen::Vector3d n = (b - a).cross(c - a).normalized();
+    const double longest = std::max({(b - a).norm(), (c - b).norm(), (a - c).norm()});
+    const int m = std::max(1, static_cast<int>(std::ceil(longest / spacing_m)));
+    for (int i = 0; i <= m; ++i)
+      for (int j = 0; i + j <= m; ++j) {
+        const double u = static_cast<double>(i) / m, v = static_cast<double>(j) / m;
+        points.push_back(a + u * (b - a) + v * (c - a) - inset_m * n);
+      }
+  }
+  return haptics::PointShell(std::move(points));
+}
+
+struct SurfaceRun {
+  int approaches = 0, max_contacts = 0, edge_stops = 0;
+  int point_crossing_ticks = 0;    // the renderer's own points (the guarantee per point)
+  int surface_crossing_ticks = 0;  // a dense sample (inset by the reach-in depth) entered bone
+  double reach_in_bound_m = 0.0;   // epsilon + a quarter of the point spacing [m]
+  int through = 0;                 // approaches whose ball centre ended beyond bone
+};
+
+// The 5 mm ball (a 2.5 mm radius sphere mesh, 1 mm point spacing) pushed onto the skull's vault
+// at 870 HU from 16 directions (two cones about the superior axis, eight azimuths each), at
+// `steps_m` per tick for 12 mm past the first contact, then held. Each run starts 2 mm before the
+// vault meets the tool's surface. Every tick is checked by the point oracle (the shell's own
+// points) and by a dense oracle of the tool's surface: 0.15 mm samples of the tool mesh's
+// triangles, inset by epsilon plus a quarter of the point spacing (the edge test's sub-step),
+// their paths sampled every 1/100 voxel. After each run, whether the ball's centre went through
+// bone (its straight path from start to end, sampled every 0.05 mm).
+SurfaceRun pushBallFrom16Directions(int edge_test, std::initializer_list<double> steps_m) {
+  const SceneSpec spec = parseScene(R"({"volume": {"path": "ct/philips-head-phantom-bone", "isovalue": 870}})",
+                                    "vault16.json", test::sourceDir());
+  const LoadedScene scene = loadScene(spec);
+  const auto& volume = scene.volume.field;
+  const double s = scene.isovalue;
+  constexpr double kRadius_m = 0.0025;
+  haptics::PointShellOptions shell_options;
+  shell_options.spacing_m = 1e-3;
+  const auto tool = std::make_shared<const haptics::ToolModel>(
+      haptics::makeToolModel(datasets::makeSphereMesh(kRadius_m, 4), shell_options));
+  const auto& g = volume->geometry();
+  const Eigen::Vector3d centre_W =
+      g.origin_W_m + g.direction_W * (0.5 * g.spacing_m.cwiseProduct(Eigen::Vector3d(g.dims[0] - 1, g.dims[1] - 1, g.dims[2] - 1)));
+  haptics::RendererOptions o;
+  o.detection_mode = haptics::DetectionMode::kAccelerated;
+  o.edge_test = edge_test;
+  const double epsilon_m = haptics::HapticRenderer(volume, tool, o, haptics::Pose{}, s).epsilon_m();
+  SurfaceRun run;
+  run.reach_in_bound_m = epsilon_m + 0.25 * shell_options.spacing_m;
+  const haptics::PointShell near = denseSurface(tool->mesh_T, 1.5e-4, epsilon_m);
+  const haptics::PointShell core = denseSurface(tool->mesh_T, 1.5e-4, run.reach_in_bound_m);
+  const haptics::CrossingVerifier points_oracle(*volume, tool->point_shell, 1e-2);
+  const haptics::CrossingVerifier surface_oracle(*volume, core, 1e-2);
+  for (const double tilt : {0.35, 0.7})
+    for (int k = 0; k < 8; ++k)
+      for (const double step_m : steps_m) {
+        const double azimuth = (k + 0.5 * (tilt > 0.5)) * M_PI / 4.0;
+        const Eigen::Vector3d out(std::sin(tilt) * std::cos(azimuth), std::sin(tilt) * std::sin(azimuth), std::cos(tilt));
+        haptics::Pose start;
+        start.p_AB_m = centre_W + 0.2 * out;
+        // 2 mm before the vault meets the tool's surface (its dense samples; its points alone
+        // would place bone between them).
+        const auto d = firstContactDistance(*volume, near, start, -out, 0.4, s);
+        if (!d) continue;
+        start.p_AB_m -= (*d - 0.002) * out;
+        haptics::HapticRenderer r(volume, tool, o, start, s);
+        ++run.approaches;
+        const double travel_m = 0.014;
+        for (int i = 0; i < static_cast<int>(travel_m / step_m) + 30; ++i) {
+          haptics::Pose X_WD = start;
+          X_WD.p_AB_m -= std::min(travel_m, step_m * i) * out;
+          const auto result = r.tick(X_WD, s);
+          run.max_contacts = std::max(run.max_contacts, result.stats.contacts);
+          run.edge_stops += result.stats.edge_stop;
+          run.point_crossing_ticks += points_oracle.check(r.lastMotion(), r.lastTimeOfContact(), s).crossing_points > 0;
+          const auto c = surface_oracle.check(r.lastMotion(), r.lastTimeOfContact(), s);
+          if (c.crossing_points > 0 || c.started_inside > 0) ++run.surface_crossing_ticks;
+        }
+        // Through the vault: the straight path of the ball's centre from start to end meets bone.
+        const Eigen::Vector3d from = start.p_AB_m, to = r.proxyPose().p_AB_m;
+        const int n = static_cast<int>(std::ceil((to - from).norm() / 5e-5)) + 1;
+        for (int i = 0; i <= n; ++i)
+          if (volume->isInside(from + (to - from) * (static_cast<double>(i) / n), s)) {
+            ++run.through;
+            break;
+          }
+      }
+  std::cout << "edge test " << edge_test << ": " << run.approaches << " approaches, up to " << run.max_contacts
+            << " contacts, " << run.edge_stops << " edge stops; ticks with a crossing: points " << run.point_crossing_ticks
+            << ", surface (" << core.size() << " samples inset by " << run.reach_in_bound_m * 1e3 << " mm) "
+            << run.surface_crossing_ticks << "; " << run.through << " through the vault\n";
+  return run;
+}
+
+// With the edge test the ball never goes through the vault. Its surface is still reached between
+// its points by small pieces of bone during a move (the edge test checks the move's end, not the
+// sweep: haptics/README.md, "Between the points"); the count is printed, not yet asserted.
+TEST(NeverThroughPhantomSurface, WithTheEdgeTestTheFiveMillimetreBallNeverGoesThroughTheVault) {
+  if (!phantomPresent()) GTEST_SKIP() << "shared dataset absent: " << test::sharedDatasets() / "ct";
+  const SurfaceRun run = pushBallFrom16Directions(1, {0.5e-3, 4e-3});
+  EXPECT_GE(run.approaches, 24) << "most directions meet the vault";
+  EXPECT_GT(run.max_contacts, 0);
+  EXPECT_EQ(run.point_crossing_ticks, 0);
+  EXPECT_EQ(run.through, 0);
+}
+
+// The control, the case as first reported: without the edge test no point's own path crosses,
+// yet bone passes between the points, and the dense oracle sees it (so it can fail).
+TEST(NeverThroughPhantomSurface, ControlWithoutTheEdgeTestBonePassesBetweenThePoints) {
+  if (!phantomPresent()) GTEST_SKIP() << "shared dataset absent: " << test::sharedDatasets() / "ct";
+  const SurfaceRun run = pushBallFrom16Directions(0, {4e-3});
+  EXPECT_GE(run.approaches, 12) << "most directions meet the vault";
+  EXPECT_EQ(run.point_crossing_ticks, 0);
+  EXPECT_GT(run.surface_crossing_ticks, 0);
 }
 
 }  // namespace
