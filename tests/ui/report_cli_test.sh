@@ -19,6 +19,7 @@ grep -q 'Session report: session.vhrec' "$out/session.html" || fail "no title"
 images=$(grep -o 'src="data:image/png;base64,' "$out/session.html" | wc -l)
 ((images >= 5)) || fail "$images inline pictures, expected at least 5"
 grep -q -E 'src="(https?:|file:)' "$out/session.html" && fail "the page loads something from outside"
+grep -q 'over the felt surface' "$out/session.html" || fail "the contact map is not drawn over the scene's surface"
 
 # A crash's truncated recording: a report of what could be read, with the notice.
 size=$(stat -c %s "$out/cohort/session.vhrec")

@@ -104,6 +104,8 @@ TEST(SessionReport, PicturesArePresentDecodeAndAreNotBlank) {
       blue += c.blue() > 150 && c.red() < 80 && c.green() > 90 && c.green() < 150;
     }
   EXPECT_GT(blue, 200);
+  // A recording whose metadata names no scene: the contact map without the surface, and why.
+  EXPECT_NE(html.find("the scan could not be reloaded"), std::string::npos);
   // The metrics table: peak force 4 N to 4 digits, time in contact 2 s (1999 ticks).
   EXPECT_NE(html.find("<td class=\"n\">3.998</td>"), std::string::npos);
   EXPECT_NE(html.find("<td class=\"n\">1.999</td>"), std::string::npos);

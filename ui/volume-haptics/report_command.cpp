@@ -46,7 +46,7 @@ int reportCommand(const ReportArgs& a) {
   char* qt_argv[] = {name, nullptr};
   QApplication qt(qt_argc, qt_argv);
   for (const std::string& n : ui::writeSessionReport(a.input, a.html, a.options, a.reference))
-    std::cerr << "volume-haptics report: warning: " << a.input << ": " << n << std::endl;
+    std::cerr << "volume-haptics report: warning: " << n << std::endl;
   std::cout << "volume-haptics report: " << a.html << std::endl;
   return EXIT_SUCCESS;
 }
@@ -69,6 +69,8 @@ CLI::App* addReportSubcommand(CLI::App& app, std::function<int()>& handler) {
                   "Force above which time is counted [N]")
       ->capture_default_str()
       ->check(CLI::NonNegativeNumber);
+  cmd->add_flag("!--no-anatomy", a->options.anatomy,
+                "Draw the contact map without the scan behind it (the scan is not reloaded)");
   cmd->callback([&handler, a] { handler = [a] { return reportCommand(*a); }; });
   return cmd;
 }

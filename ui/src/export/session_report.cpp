@@ -4,6 +4,7 @@
 #include <cmath>
 #include <cstdio>
 #include <fstream>
+#include <future>
 #include <memory>
 #include <stdexcept>
 
@@ -21,6 +22,10 @@
 #include <QtCharts/QValueAxis>
 
 #include <nlohmann/json.hpp>
+
+#include "vh/haptics/scalar_volume.h"
+#include "vh/runtime/scene.h"
+#include "vh/runtime/session_metadata.h"
 
 namespace vh::ui {
 namespace {
@@ -56,8 +61,9 @@ std::string number(double v) {
   return buf;
 }
 
-/// Renders `chart` (owned here) off screen and returns it as a data: URI of a PNG.
-std::string chartImage(QChart* chart, int width, int height) {
+/// Renders `chart` (owned here) off screen and returns it as a data: URI of a PNG. A non-null
+/// `plot_background` is drawn stretched over the plot area, under the series and grid.
+std::string chartImage(QChart* chart, int width, int height, const QImage& plot_background = QImage()) {
   QGraphicsScene scene;
   scene.addItem(chart);  // the scene owns and deletes the chart
   chart->setAnimationOptions(QChart::NoAnimation);
@@ -68,6 +74,12 @@ std::string chartImage(QChart* chart, int width, int height) {
   {
     QPainter painter(&image);
     painter.setRenderHint(QPainter::Antialiasing);
+    if (!plot_background.isNull()) {
+      chart->setBackgroundVisible(false);
+      chart->setPlotAreaBackgroundVisible(false);
+      painter.setRenderHint(QPainter::SmoothPixmapTransform);
+      painter.drawImage(chart->plotArea(), plot_background);
+    }
     scene.render(&painter, QRectF(0, 0, width, height), QRectF(0, 0, width, height));
   }
   QByteArray png;
@@ -212,9 +224,48 @@ void equalRanges(const QList<QPointF>& pts, double& x0, double& x1, double& y0, 
   x0 = cx - half, x1 = cx + half, y0 = cy - half, y1 = cy + half;
 }
 
-/// One projection chart (plane axes a, b of W) of the given series, equal scales.
+/// The felt surface of the recorded scene, for the contact map's background.
+struct Anatomy {
+  std::shared_ptr<const haptics::ScalarVolume> field;  ///< The felt field, in W [m].
+  double isovalue = 0.0;                               ///< Its surface's level.
+};
+
+/// The felt surface seen from +c, the axis normal to the plane (a, b) of W, over [x0, x1] x
+/// [y0, y1] [mm]: each pixel's ray is marched down c (steps of a voxel, at most 160 per ray) to
+/// its first point inside the surface, shaded by that point's height (nearer the viewer:
+/// lighter), transparent where the ray meets nothing. Row 0 is the top (largest b).
+QImage anatomyProjection(const Anatomy& anatomy, int a, int b, double x0, double x1, double y0, double y1) {
+  constexpr int kPixels = 110;
+  const int c = 3 - a - b;
+  const haptics::ScalarVolume& f = *anatomy.field;
+  const Eigen::Vector3d lo = f.boundsMin_W_m(), hi = f.boundsMax_W_m();
+  const double step = std::max(f.geometry().minSpacing(), (hi[c] - lo[c]) / 160.0);
+  QImage image(kPixels, kPixels, QImage::Format_ARGB32);
+  image.fill(Qt::transparent);
+  for (int row = 0; row < kPixels; ++row) {
+    for (int col = 0; col < kPixels; ++col) {
+      Eigen::Vector3d p = Eigen::Vector3d::Zero();
+      p[a] = (x0 + (x1 - x0) * (col + 0.5) / kPixels) * 1e-3;
+      p[b] = (y1 - (y1 - y0) * (row + 0.5) / kPixels) * 1e-3;
+      if (p[a] < lo[a] || p[a] > hi[a] || p[b] < lo[b] || p[b] > hi[b]) continue;
+      for (double z = hi[c]; z >= lo[c]; z -= step) {
+        p[c] = z;
+        if (!f.isInside(p, anatomy.isovalue)) continue;
+        const double height = (z - lo[c]) / std::max(hi[c] - lo[c], 1e-9);
+        const int grey = static_cast<int>(130 + 100 * height);
+        image.setPixelColor(col, row, QColor(grey, grey - 4, grey - 12));
+        break;
+      }
+    }
+  }
+  return image;
+}
+
+/// One projection chart (plane axes a, b of W) of the given series, equal scales, over the
+/// anatomy's projection when given.
 std::string projectionChart(const QString& title, int a, int b, std::vector<QXYSeries*> series,
-                            const std::vector<QList<QPointF>>& data, bool legend, int size) {
+                            const std::vector<QList<QPointF>>& data, bool legend, int size,
+                            const Anatomy* anatomy = nullptr) {
   auto* chart = new QChart;
   chart->setTitle(title);
   if (!legend) chart->legend()->hide();
@@ -233,13 +284,17 @@ std::string projectionChart(const QString& title, int a, int b, std::vector<QXYS
     series[i]->attachAxis(ax);
     series[i]->attachAxis(ay);
   }
-  return chartImage(chart, size, size + (legend ? 40 : 0));
+  QImage background;
+  if (anatomy != nullptr)
+    background = anatomyProjection(*anatomy, a, b, ax->min(), ax->max(), ay->min(), ay->max());
+  return chartImage(chart, size, size + (legend ? 40 : 0), background);
 }
 
 QPointF project(const double p[3], int a, int b) { return QPointF(p[a] * 1e3, p[b] * 1e3); }
 
 /// The contact map: proxy positions in contact on the three planes, in four force bands.
-std::string contactMap(const Recording& rec, const SessionMetrics& m, const SessionReportOptions& o) {
+std::string contactMap(const Recording& rec, const SessionMetrics& m, const SessionReportOptions& o,
+                       const Anatomy* anatomy) {
   std::vector<const TickRecord*> contacts;
   for (const TickRecord& r : rec.records)
     if (r.contacts > 0) contacts.push_back(&r);
@@ -268,13 +323,13 @@ std::string contactMap(const Recording& rec, const SessionMetrics& m, const Sess
     }
     static const char* kAxis[] = {"x", "y", "z"};
     const QString title = QString("Contacts, %1-%2 plane, |F| [N]").arg(kAxis[plane[0]]).arg(kAxis[plane[1]]);
-    html += imageTag(projectionChart(title, plane[0], plane[1], series, data, true, o.map_size),
+    html += imageTag(projectionChart(title, plane[0], plane[1], series, data, true, o.map_size, anatomy),
                      title.toStdString(), "map");
   }
   return html + "</div>\n";
 }
 
-std::string pathsChart(const runtime::ReferenceComparison& c, int a, int b, int size) {
+std::string pathsChart(const runtime::ReferenceComparison& c, int a, int b, int size, const Anatomy* anatomy) {
   std::vector<QList<QPointF>> data(2);
   for (const auto& p : c.session_path) data[0].append(QPointF(p[a] * 1e3, p[b] * 1e3));
   for (const auto& p : c.reference_path) data[1].append(QPointF(p[a] * 1e3, p[b] * 1e3));
@@ -283,7 +338,7 @@ std::string pathsChart(const runtime::ReferenceComparison& c, int a, int b, int 
   return imageTag(projectionChart(title, a, b,
                                   {lineSeries("this session", QColor(0x1f, 0x77, 0xb4)),
                                    lineSeries("reference", QColor(0x7f, 0x7f, 0x7f), 1.5, Qt::DashLine)},
-                                  data, true, size),
+                                  data, true, size, anatomy),
                   title.toStdString(), "map");
 }
 
@@ -327,7 +382,7 @@ std::string eventsTable(const Recording& rec) {
 }
 
 std::string comparisonSection(const runtime::ReferenceComparison& c, const std::string& reference_title,
-                              const SessionReportOptions& o) {
+                              const SessionReportOptions& o, const Anatomy* anatomy) {
   std::string html = "<h2>Against the reference " + escapeHtml(reference_title) + "</h2>\n";
   html += "<p>Mean distance between the two device paths after aligning them in time by dynamic time "
           "warping (Sakoe &amp; Chiba 1978), each thinned to " +
@@ -335,7 +390,7 @@ std::string comparisonSection(const runtime::ReferenceComparison& c, const std::
           " mm</b> (" + std::to_string(c.alignment.path.size()) +
           " aligned pairs). Both recordings are in the same scene frame, so the paths are compared "
           "without moving either.</p>\n";
-  html += "<div class=\"maps\">\n" + pathsChart(c, 0, 1, o.map_size + 80) + pathsChart(c, 0, 2, o.map_size + 80) +
+  html += "<div class=\"maps\">\n" + pathsChart(c, 0, 1, o.map_size + 80, anatomy) + pathsChart(c, 0, 2, o.map_size + 80, anatomy) +
           "</div>\n";
   html += "<table>\n<tr><th>metric</th><th>this session</th><th>reference</th><th>difference</th><th>unit</th></tr>\n";
   for (std::size_t i = 0; i < c.session.size() && i < c.reference.size(); ++i)
@@ -364,6 +419,25 @@ std::string metadataLine(const Recording& rec, const SessionMetrics& m) {
   return html + "</table>\n";
 }
 
+/// The recorded scene's felt surface (its scan, or its felt segments), reloaded from the
+/// metadata; null with `why` set when it cannot be (a missing or changed dataset).
+std::unique_ptr<Anatomy> loadAnatomy(const Recording& rec, std::string& why) {
+  try {
+    runtime::SceneSpec spec = runtime::sceneFromSessionMetadata(rec.metadata_json);
+    spec.device.reset();
+    spec.openigtlink.reset();
+    const runtime::LoadedScene scene = runtime::loadScene(spec);
+    auto anatomy = std::make_unique<Anatomy>();
+    anatomy->field = scene.hapticField();
+    anatomy->isovalue = scene.hapticIsovalue();
+    if (anatomy->field == nullptr || anatomy->field->empty()) throw std::runtime_error("the scene has no volume");
+    return anatomy;
+  } catch (const std::exception& e) {
+    why = e.what();
+    return nullptr;
+  }
+}
+
 constexpr const char* kStyle = R"(<style>
 body { font-family: sans-serif; margin: 2em; color: #222; max-width: 1100px; }
 h1 { font-size: 1.5em; } h2 { font-size: 1.2em; margin-top: 1.6em; border-bottom: 1px solid #ccc; }
@@ -382,6 +456,12 @@ std::string sessionReportHtml(const Recording& recording, const std::string& tit
                               const std::string& reference_title) {
   if (options.chart_width < 64 || options.chart_height < 64 || options.map_size < 64)
     throw std::invalid_argument("report charts must be at least 64 pixels wide and high");
+  // The scan is reloaded on a second thread while the metrics and the time charts are drawn.
+  std::string why;
+  std::future<std::unique_ptr<Anatomy>> anatomy_loading;
+  if (options.anatomy && !recording.records.empty())
+    anatomy_loading = std::async(std::launch::async, [&recording, &why] { return loadAnatomy(recording, why); });
+  std::unique_ptr<Anatomy> anatomy;
   const SessionMetrics m = runtime::computeSessionMetrics(recording, options.metrics);
   // The reference is checked before anything is drawn: another scene is refused.
   std::unique_ptr<runtime::ReferenceComparison> comparison;
@@ -401,9 +481,12 @@ std::string sessionReportHtml(const Recording& recording, const std::string& tit
   if (!recording.records.empty()) {
     html += "<h2>Force</h2>\n" + imageTag(forceChart(recording, m, options), "force and torque over time");
     html += "<h2>Motion</h2>\n" + imageTag(speedChart(recording, m, options), "speed of the device over time");
+    if (anatomy_loading.valid()) anatomy = anatomy_loading.get();
     html += "<h2>Where the tool touched</h2>\n<p class=\"small\">The proxy's position at each tick in "
-            "contact (scene frame, mm), coloured by |F|; the anatomy is not drawn behind it.</p>\n" +
-            contactMap(recording, m, options);
+            "contact (scene frame, mm), coloured by |F|";
+    if (anatomy) html += ", over the felt surface seen from the third axis' positive side (grey: lighter is nearer)";
+    else if (options.anatomy) html += "; the scan could not be reloaded to draw it behind (" + escapeHtml(why) + ")";
+    html += ".</p>\n" + contactMap(recording, m, options, anatomy.get());
   }
   html += "<h2>Metrics</h2>\n<p class=\"small\">Speed and jerk are of the device (the hand), central differences "
           "over " + number(options.metrics.derivative_step_s * 1e3) +
@@ -412,7 +495,7 @@ std::string sessionReportHtml(const Recording& recording, const std::string& tit
           metricsTable(runtime::metricValues(m));
   html += "<h2>Segments</h2>\n" + segmentsTable(m);
   html += "<h2>Events</h2>\n" + eventsTable(recording);
-  if (comparison) html += comparisonSection(*comparison, reference_title, options);
+  if (comparison) html += comparisonSection(*comparison, reference_title, options, anatomy.get());
   html += "<h2>Sources</h2>\n<ul class=\"small\"><li>N. Hogan, D. Sternad, \"Sensitivity of smoothness measures "
           "to movement duration, amplitude, and arrests\", J. Motor Behavior 41(6), 2009.</li>\n<li>H. Sakoe, "
           "S. Chiba, \"Dynamic programming algorithm optimization for spoken word recognition\", IEEE Trans. "

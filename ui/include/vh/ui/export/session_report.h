@@ -8,8 +8,9 @@
 ///     critical events;
 ///   - the device's speed over time;
 ///   - a contact map: the proxy's positions while in contact, projected on the three planes of
-///     the scene frame W (x-y, x-z, y-z, equal scales), coloured by |F|. Positions only: the
-///     anatomy itself is not drawn behind them;
+///     the scene frame W (x-y, x-z, y-z, equal scales), coloured by |F|, over the felt surface of
+///     the recorded scene seen from the third axis' positive side (the scan reloaded from the
+///     metadata, shaded by height: lighter is nearer);
 ///   - tables of the metrics, the segments touched, the markers and events;
 ///   - with a reference recording: the metrics side by side with their differences, the mean
 ///     distance after dynamic time warping (Sakoe and Chiba 1978) and both device paths in the
@@ -36,6 +37,9 @@ struct SessionReportOptions {
   int chart_height = 320;           ///< Time charts' height [px].
   int map_size = 360;               ///< Each contact-map and path projection's side [px].
   std::size_t dtw_samples = 1000;   ///< Points per device path for the alignment.
+  /// Draw the felt surface behind the contact map: the recorded scene is reloaded from the
+  /// metadata (runtime::loadScene(); a missing or changed dataset gives a note instead).
+  bool anatomy = true;
 };
 
 /// The report of `recording` as one HTML document. `title` names it (the file's name).
