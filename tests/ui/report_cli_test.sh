@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # `volume-haptics report` end to end, without a display: a recording made by `run --record` on
 # the block-and-peg scene becomes an HTML report whose pictures a real browser engine (headless
-# Chromium) decodes; a truncated copy gives a report with a notice; a folder becomes a table.
+# Chromium) decodes; a truncated copy gives a report with a notice; a reference recorded on
+# another scene (the built-in sphere) is refused; a folder becomes a table.
 #   report_cli_test.sh VOLUME_HAPTICS SCENE TRAJECTORY OUT_DIR
 # Exit 77 (skipped) when no Chromium is installed for the browser part (packaging/setup.sh test
 # installs it); everything before it has run by then.
@@ -32,6 +33,16 @@ grep -q 'Read with notices' "$out/cut.html" || fail "no notice in the truncated 
 "$app" report "$out/cohort/session.vhrec" --html "$out/compare.html" --reference "$out/cohort/group/cut.vhrec" \
   || fail "comparison with a reference of the same scene"
 grep -q 'Against the reference cut.vhrec' "$out/compare.html" || fail "no comparison section"
+# A reference recorded on another scene (the built-in sphere) is refused, naming both datasets.
+sphere="$(dirname "$scene")/sphere-probe.json"
+"$app" make-trajectory --scene "$sphere" --out "$out/sphere.csv" >/dev/null
+"$app" run --scene "$sphere" --trajectory "$out/sphere.csv" --record "$out/sphere.vhrec" --verify-step 0 \
+  --no-lag-reference >/dev/null
+if "$app" report "$out/cohort/session.vhrec" --html "$out/other.html" --reference "$out/sphere.vhrec" 2>"$out/other.err"; then
+  fail "a reference of another scene was accepted"
+fi
+grep -q 'error: the reference was recorded on another scene (dataset [0-9a-f]*, this session dataset [0-9a-f]*)' \
+  "$out/other.err" || fail "refusal without its reason: $(cat "$out/other.err")"
 "$app" report "$out/cohort" --table "$out/cohort.csv" 2>"$out/table.err" || fail "cohort table"
 grep -q '2 of 2 recordings' "$out/table.err" || fail "no progress: $(cat "$out/table.err")"
 (($(wc -l <"$out/cohort.csv") == 3)) || fail "cohort table: $(cat "$out/cohort.csv")"
