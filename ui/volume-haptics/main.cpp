@@ -345,7 +345,8 @@ CLI::App* addExportSubcommand(CLI::App& app, ExportArgs& a) {
   export_cmd->add_option("--events-csv", a.events_csv, "CSV to write: one row per event (t_s,tick,type,detail_json)");
   export_cmd->add_option("--video", a.media.video,
                          "Ogg/Theora video (.ogv) of the replay, rendered off screen (needs an X display with "
-                         "OpenGL, e.g. xvfb-run)");
+                         "OpenGL, e.g. xvfb-run); prints the frames done and the time left, Ctrl+C ends it there "
+                         "(a shorter video that plays)");
   export_cmd->add_option("--png", a.media.png, "PNG of the replay at --at-s");
   export_cmd->add_option("--at-s", a.media.png_time_s, "Recording time of the --png frame [s]")
       ->check(CLI::NonNegativeNumber);

@@ -2,7 +2,11 @@
 
 #include <algorithm>
 #include <array>
+#include <atomic>
+#include <chrono>
 #include <cmath>
+#include <csignal>
+#include <cstdio>
 #include <iostream>
 #include <limits>
 #include <stdexcept>
@@ -228,6 +232,47 @@ void writeRecordingPng(RecordingFrameRenderer& frames, const runtime::Recording&
   }
 }
 
+namespace {
+
+std::atomic<bool> interrupted{false};  // Ctrl+C during `export --video`
+extern "C" void onInterrupt(int /*signal*/) { interrupted.store(true); }
+
+/// `export --video` on the console: a line with the frames done of the total and the time left,
+/// at most twice a second; Ctrl+C (SIGINT) ends the video after the frame being written, a
+/// valid shorter file. The previous SIGINT handler is back when this goes.
+class ConsoleVideoProgress {
+ public:
+  ConsoleVideoProgress() {
+    interrupted.store(false);
+    struct sigaction action{};
+    action.sa_handler = onInterrupt;
+    sigemptyset(&action.sa_mask);
+    sigaction(SIGINT, &action, &previous_);
+  }
+  ~ConsoleVideoProgress() { sigaction(SIGINT, &previous_, nullptr); }
+  ConsoleVideoProgress(const ConsoleVideoProgress&) = delete;
+  ConsoleVideoProgress& operator=(const ConsoleVideoProgress&) = delete;
+
+  /// FrameProgress: prints, and returns false once Ctrl+C was pressed.
+  bool operator()(int done, int total) {
+    const double elapsed_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0_).count();
+    if (done == total || elapsed_s - printed_s_ >= 0.5) {
+      printed_s_ = elapsed_s;
+      const double left_s = done > 0 ? elapsed_s * (total - done) / done : 0.0;
+      std::fprintf(stderr, "volume-haptics export: frame %d of %d, %.0f s left\n", done, total, left_s);
+    }
+    return !interrupted.load();
+  }
+  bool wasInterrupted() const { return interrupted.load(); }
+
+ private:
+  struct sigaction previous_{};
+  std::chrono::steady_clock::time_point t0_ = std::chrono::steady_clock::now();
+  double printed_s_ = -1.0;
+};
+
+}  // namespace
+
 int exportRecordingMedia(int /*argc*/, char** /*argv*/, const fs::path& recording_path,
                          const MediaExportOptions& options) {
   try {
@@ -254,9 +299,12 @@ int exportRecordingMedia(int /*argc*/, char** /*argv*/, const fs::path& recordin
                 << frames.height() << ", t = " << options.png_time_s << " s)\n";
     }
     if (!options.video.empty()) {
-      const int n = writeRecordingVideo(frames, recording, options.video, options.fps, options.start_s, options.end_s);
+      ConsoleVideoProgress progress;
+      const int n = writeRecordingVideo(frames, recording, options.video, options.fps, options.start_s, options.end_s,
+                                        [&progress](int done, int total) { return progress(done, total); });
       std::cout << "volume-haptics export: " << options.video.string() << " (" << n << " frames at "
-                << options.fps << " fps, " << frames.width() << " x " << frames.height() << ")\n";
+                << options.fps << " fps, " << frames.width() << " x " << frames.height() << ")"
+                << (progress.wasInterrupted() ? ", stopped by Ctrl+C: the video ends there" : "") << "\n";
     }
     return 0;
   } catch (const std::exception& e) {
