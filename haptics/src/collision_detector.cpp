@@ -109,10 +109,51 @@ bool CollisionDetector::edgeCrosses(const Pose& X_WP, int j, double isovalue) no
     counters_.cells += entry.cells;
     counters_.cells_walked += entry.cells_walked;
     if (entry.hit) {
+      edge_hit_ = {j, k, X_WP};
       return true;
     }
   }
   return false;
+}
+
+void CollisionDetector::addEdgeContact(const Pose& X_WP, double isovalue) noexcept {
+  if (edge_hit_.j < 0 || contact_count_ >= std::min(contact_cap_, contacts_.size())) return;
+  const auto& shell = tool_->point_shell;
+  const auto inset = [&](int i) {
+    return shell.hasNormals() ? Eigen::Vector3d(shell.points_T_m()[i] - epsilon_ * shell.normals_T()[i])
+                              : shell.points_T_m()[i];
+  };
+  const Eigen::Vector3d a = inset(edge_hit_.j), b = inset(edge_hit_.k);
+  // Where the isosurface entered the edge at the crossing pose, to epsilon / 16 along it (the
+  // test itself brackets it coarsely: whether it enters is all it asks).
+  const double length_m = (b - a).norm();
+  ++counters_.samples;
+  const SegmentEntry entry = volume_->firstEntryOnSegment(
+      volume_->gridCoordinates(edge_hit_.X_WP * a), volume_->gridCoordinates(edge_hit_.X_WP * b), isovalue, 1.0,
+      length_m > 0.0 ? std::min(0.5, epsilon_ / (16.0 * length_m)) : 0.5);
+  counters_.cells += entry.cells;
+  counters_.cells_walked += entry.cells_walked;
+  const Eigen::Vector3d p_T = a + (entry.hit ? entry.u_outside : 0.5) * (b - a);
+  // Against the tool's own outward normal there, when the gradient is flat.
+  Eigen::Vector3d fallback_n_W = Eigen::Vector3d::UnitZ();
+  if (shell.hasNormals()) {
+    const Eigen::Vector3d n_T = shell.normals_T()[edge_hit_.j] + shell.normals_T()[edge_hit_.k];
+    if (n_T.norm() > 0.0) fallback_n_W = -(X_WP.R_AB * n_T).normalized();
+  }
+  // One contact per place on the tool: a new one within a quarter spacing of an earlier edge
+  // contact replaces it.
+  std::size_t slot = contact_count_;
+  for (std::size_t i = 0; i < contact_count_; ++i)
+    if (contacts_[i].point_index < 0 && (contacts_[i].p_T_m - p_T).norm() < 0.25 * epsilon_) slot = i;
+  Contact& c = contacts_[slot];
+  c.point_index = -1;
+  c.p_T_m = p_T;
+  c.p_W_m = X_WP * p_T;
+  c.n_W = fallback_n_W;
+  c.crossing_normal = false;
+  measureContact(c, isovalue);
+  if (slot == contact_count_) ++contact_count_;
+  edge_hit_ = {};
 }
 
 bool CollisionDetector::edgesCrossAt(const Pose& X_WP, double isovalue) noexcept {
@@ -233,6 +274,7 @@ void CollisionDetector::appendContact(int point, const Eigen::Vector3d& p_W, con
   if (in_set_[point] || contact_count_ >= contacts_.size()) return;
   Contact& c = contacts_[contact_count_++];
   c.point_index = point;
+  c.p_T_m = tool_->point_shell.points_T_m()[point];
   c.p_W_m = p_W;
   c.n_W = fallback_n_W;
   c.crossing_normal = false;
@@ -241,7 +283,8 @@ void CollisionDetector::appendContact(int point, const Eigen::Vector3d& p_W, con
 }
 
 void CollisionDetector::clearContacts() noexcept {
-  for (std::size_t i = 0; i < contact_count_; ++i) in_set_[contacts_[i].point_index] = 0;
+  for (std::size_t i = 0; i < contact_count_; ++i)
+    if (contacts_[i].point_index >= 0) in_set_[contacts_[i].point_index] = 0;
   contact_count_ = 0;
 }
 
@@ -577,7 +620,7 @@ SweepResult CollisionDetector::runAccelerated() noexcept {
     for (; st.contact_index < contact_count_; ++st.contact_index) {
       if (overBudget()) return cutAtStart();
       const int j = contacts_[st.contact_index].point_index;
-      if (embedded_[j]) continue;
+      if (j < 0 || embedded_[j]) continue;  // an edge contact has no path of its own
       startPoint(counters_, motion, j);
       if (!(pt_[j].path > 0.0)) continue;
       pt_[j].started = sweep_stamp_;
@@ -777,16 +820,15 @@ SweepResult CollisionDetector::sweepPaper(const RigidMotion& motion, double isov
 
 void CollisionDetector::pruneContacts(const Pose& X_WP, const Pose& X_WD, double isovalue) noexcept {
   const RigidMotion motion = RigidMotion::Between(X_WP, X_WD, tool_->mass.p_TCm_m);
-  const auto& points = tool_->point_shell.points_T_m();
   std::size_t kept = 0;
   for (std::size_t i = 0; i < contact_count_; ++i) {
     Contact c = contacts_[i];
     const int j = c.point_index;
-    const Eigen::Vector3d r0 = motion.radial_W(points[j]);
+    const Eigen::Vector3d r0 = motion.radial_W(c.p_T_m);
     const double path = motion.pathLengthBound(r0);
     bool keep = false;
-    if (path > 0.0 && !embedded_[j]) {
-      c.p_W_m = X_WP * points[j];
+    if (path > 0.0 && (j < 0 || !embedded_[j])) {
+      c.p_W_m = X_WP * c.p_T_m;
       measureContact(c, isovalue);
       // Move the point epsilon towards the target; still inside means it still blocks. A
       // contact within epsilon of the surface (held at the stand-off clearance) also blocks when
@@ -797,7 +839,7 @@ void CollisionDetector::pruneContacts(const Pose& X_WP, const Pose& X_WD, double
     }
     if (keep) {
       contacts_[kept++] = c;
-    } else {
+    } else if (j >= 0) {
       in_set_[j] = 0;
     }
   }
@@ -938,7 +980,7 @@ void CollisionDetector::reduceContacts(const RigidMotion& motion, double t, int 
   for (std::size_t u = 0; u < existing; ++u) {
     if (reduce_chosen_[u]) {
       contacts_[kept++] = contacts_[u];
-    } else {
+    } else if (contacts_[u].point_index >= 0) {
       in_set_[contacts_[u].point_index] = 0;
     }
   }
@@ -970,8 +1012,7 @@ bool CollisionDetector::refineStuckContact(const RigidMotion& motion, const Swee
 }
 
 void CollisionDetector::refreshPositions(const Pose& X_WP) noexcept {
-  const auto& points = tool_->point_shell.points_T_m();
-  for (std::size_t i = 0; i < contact_count_; ++i) contacts_[i].p_W_m = X_WP * points[contacts_[i].point_index];
+  for (std::size_t i = 0; i < contact_count_; ++i) contacts_[i].p_W_m = X_WP * contacts_[i].p_T_m;
 }
 
 double CollisionDetector::maxFieldOnShell(const Pose& X_WP, double floor) noexcept {
@@ -1036,7 +1077,8 @@ int CollisionDetector::updateEmbedded(const Pose& X_WP, double isovalue) noexcep
   if (embedded_count_ > 0) {  // embedded points leave the contact set
     std::size_t kept = 0;
     for (std::size_t i = 0; i < contact_count_; ++i) {
-      if (embedded_[contacts_[i].point_index]) in_set_[contacts_[i].point_index] = 0;
+      const int j = contacts_[i].point_index;
+      if (j >= 0 && embedded_[j]) in_set_[j] = 0;
       else contacts_[kept++] = contacts_[i];
     }
     contact_count_ = kept;

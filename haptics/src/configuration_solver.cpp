@@ -64,7 +64,7 @@ RigidMotion ConfigurationSolver::constrainedMotion(const Pose& X_WP, const Pose&
   int warm_count = 0;
   for (int a = 0; a < active_point_count_; ++a)
     for (std::size_t i = 0; i < m; ++i)
-      if (contacts[i].point_index == active_points_[static_cast<std::size_t>(a)]) {
+      if (contacts[i].point_index >= 0 && contacts[i].point_index == active_points_[static_cast<std::size_t>(a)]) {
         warm[static_cast<std::size_t>(warm_count++)] = static_cast<int>(i);
         break;
       }

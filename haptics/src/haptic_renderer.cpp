@@ -261,6 +261,7 @@ void HapticRenderer::resumeCutSweep(const Pose& X_WD, double isovalue, TickStats
   collision_.refreshPositions(X_WP_);
   if (edge_stop) {
     collision_.abandonSweep();
+    collision_.addEdgeContact(X_WP_, isovalue);
     blocked_last_tick_ = true;
   } else if (!hit.budget_cut) {
     const auto contacts_start = Clock::now();
@@ -327,6 +328,9 @@ TickOutput HapticRenderer::tick(const Pose& X_WD_in, double requested_isovalue) 
       adaptMotionScale(hit.budget_cut, motion_scale_);
     }
     if (hit.hit_point >= 0 && !hit.budget_cut && !edge_stop) collision_.addContactsAt(motion, hit, isovalue);
+    // Stopped by the tool's surface between its points: that place on the wall joins the contact
+    // set, so that the next tick's configuration solver slides along it.
+    if (edge_stop) collision_.addEdgeContact(X_WP_, isovalue);
     out.stats.contacts_us = usSince(phase, Clock::now());
     out.stats.budget_cut = hit.budget_cut;
     out.stats.time_of_contact = t_move;

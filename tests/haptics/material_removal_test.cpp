@@ -234,29 +234,34 @@ TEST(MaterialRemoval, CriticalMaterialIsCounted) {
 
 // The guarantees stay while drilling: a drill pressed into a block by a device far below it
 // sinks as it cuts, and no point of the proxy is ever inside the carved field (checked against
-// the field after every tick's removal), with a bounded step per tick.
+// the field after every tick's removal), with a bounded step per tick. With the edge test too:
+// a move its edges stop leaves the place in the contact set, so the burr is in contact and cuts.
 TEST(MaterialRemoval, ProxyNeverPenetratesTheCarvedField) {
-  auto volume = uniformBlock(41, 0.5e-3);
-  auto tool = test::meshTool(datasets::makeBuiltinTool("drill"), 0.5e-3);
-  RendererOptions o;
-  o.gains.linear_N_per_m = 500.0;
-  HapticRenderer renderer(volume, tool, o, Pose::FromTranslation({0, 0, 0.012}), 100.0);
-  MaterialRemoval drill(volume, {}, oneMaterial(2.0));
-  const Pose X_WD = Pose::FromTranslation({0, 0, 0.000});  // 12 mm into the block
-  double previous_z = 0.012, max_step = 0.0;
-  for (int t = 0; t < 1000; ++t) {
-    const TickOutput out = renderer.tick(X_WD, 100.0);
-    const Eigen::Vector3d burr = out.X_WP * Eigen::Vector3d::Zero();
-    drill.cut(burr, 2.5e-3, out.force_W_N.norm(), 1e-3, 100.0, out.stats.contacts > 0);
-    for (const auto& p_T : tool->point_shell.points_T_m())
-      ASSERT_FALSE(volume->isInside(out.X_WP * p_T, 100.0)) << "tick " << t;
-    max_step = std::max(max_step, std::abs(out.X_WP.p_AB_m.z() - previous_z));
-    previous_z = out.X_WP.p_AB_m.z();
+  for (const int edge_test : {0, 1}) {
+    SCOPED_TRACE(edge_test ? "edge test on" : "edge test off");
+    auto volume = uniformBlock(41, 0.5e-3);
+    auto tool = test::meshTool(datasets::makeBuiltinTool("drill"), 0.5e-3);
+    RendererOptions o;
+    o.gains.linear_N_per_m = 500.0;
+    o.edge_test = edge_test;
+    HapticRenderer renderer(volume, tool, o, Pose::FromTranslation({0, 0, 0.012}), 100.0);
+    MaterialRemoval drill(volume, {}, oneMaterial(2.0));
+    const Pose X_WD = Pose::FromTranslation({0, 0, 0.000});  // 12 mm into the block
+    double previous_z = 0.012, max_step = 0.0;
+    for (int t = 0; t < 1000; ++t) {
+      const TickOutput out = renderer.tick(X_WD, 100.0);
+      const Eigen::Vector3d burr = out.X_WP * Eigen::Vector3d::Zero();
+      drill.cut(burr, 2.5e-3, out.force_W_N.norm(), 1e-3, 100.0, out.stats.contacts > 0);
+      for (const auto& p_T : tool->point_shell.points_T_m())
+        ASSERT_FALSE(volume->isInside(out.X_WP * p_T, 100.0)) << "tick " << t;
+      max_step = std::max(max_step, std::abs(out.X_WP.p_AB_m.z() - previous_z));
+      previous_z = out.X_WP.p_AB_m.z();
+    }
+    EXPECT_LT(previous_z, 0.0085 + 2.5e-3 - 1e-3) << "the burr sank less than 1 mm into the block";
+    EXPECT_GT(previous_z, 0.0) << "the burr cannot pass the device";
+    EXPECT_LE(max_step, o.max_travel_per_tick_m + 1e-12);
+    EXPECT_GT(drill.removedVoxels(), 0u);
   }
-  EXPECT_LT(previous_z, 0.0085 + 2.5e-3 - 1e-3) << "the burr sank less than 1 mm into the block";
-  EXPECT_GT(previous_z, 0.0) << "the burr cannot pass the device";
-  EXPECT_LE(max_step, o.max_travel_per_tick_m + 1e-12);
-  EXPECT_GT(drill.removedVoxels(), 0u);
 }
 
 TEST(MaterialRemoval, RejectsBadInput) {

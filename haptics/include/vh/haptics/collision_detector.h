@@ -52,7 +52,12 @@ inline std::ostream& operator<<(std::ostream& os, DetectionMode mode) { return o
 
 /// One point of the contact set.
 struct Contact {
-  int point_index = -1;                            ///< Index into the point shell.
+  /// Index into the point shell, or -1 for a contact of the tool's surface between two points
+  /// (an edge of the neighbour graph: CollisionDetector::addEdgeContact()).
+  int point_index = -1;
+  /// The contact's point on the tool, in T [m]: the shell point, or the point of the edge where
+  /// the isosurface met it.
+  Eigen::Vector3d p_T_m = Eigen::Vector3d::Zero();
   Eigen::Vector3d p_W_m = Eigen::Vector3d::Zero(); ///< Point position on the proxy, in W [m].
   Eigen::Vector3d n_W = Eigen::Vector3d::UnitZ();  ///< Unit surface normal -grad F / |grad F|, W.
   /// Distance from p to the isosurface along -n_W [m], measured by bisection with the inside
@@ -173,6 +178,14 @@ class CollisionDetector {
   /// kAccelerated culls the point-shell tree's nodes (balls dilated by the longest edge) that
   /// the min-max tree proves empty. Counts its work like a sweep's.
   bool edgesCrossAt(const Pose& X_WP, double isovalue) noexcept;
+  /// After edgesCrossAt() found a crossing at a pose a little farther along the move, adds the
+  /// point of that edge where the isosurface entered it to the contact set as a contact of the
+  /// tool's surface between points (point_index -1), at the proxy's pose X_WP (where it is
+  /// free): its normal from the volume's gradient there, so that the configuration solver
+  /// slides the tool along the wall it met between its points instead of holding it. A second
+  /// contact on the same edge replaces the first; none is added once the contact set holds the
+  /// contact cap. Pruned like any contact (pruneContacts()).
+  void addEdgeContact(const Pose& X_WP, double isovalue) noexcept;
   /// The neighbour graph edgesCrossAt() tests (built in the constructor).
   const ShellEdges& shellEdges() const noexcept { return edges_; }
   /// Re-tests only the embedded points (cheap when there are none).
@@ -389,6 +402,11 @@ class CollisionDetector {
   const ToolModel* tool_;
   ShellEdges edges_;
   bool edgeCrosses(const Pose& X_WP, int j, double isovalue) noexcept;  // the edges (j, k > j)
+  // The last edge edgesCrossAt() found crossing: its ends and the pose it was tested at.
+  struct EdgeHit {
+    int j = -1, k = -1;
+    Pose X_WP;
+  } edge_hit_;
   DetectionMode mode_;
   SegmentTest segment_test_;
   double feature_;
