@@ -5,10 +5,12 @@
 #include "vh/ui/view/scene_view.h"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <cstdint>
 #include <filesystem>
 #include <fstream>
+#include <iostream>
 #include <limits>
 #include <numbers>
 #include <string>
@@ -185,35 +187,42 @@ TEST(SceneView, TheWelcomeTextGoesWithTheFirstScene) {
 /// A whole-body PET's shape: 40 x 30 x 320 voxels of 12 x 12 x 6 mm (0.48 x 0.36 x 1.92 m,
 /// long along +z, the patient's head to feet), an elliptic cylinder of value 100 in zeros,
 /// written as a NRRD in LPS and loaded as the application loads a file.
-const runtime::LoadedScene& longBodyScene() {
-  static const runtime::LoadedScene scene = [] {
-    const std::filesystem::path file =
-        std::filesystem::temp_directory_path() / ("vh_long_body_" + std::to_string(::getpid()) + ".nrrd");
-    const int nx = 40, ny = 30, nz = 320;
-    {
-      std::ofstream out(file, std::ios::binary);
-      out << "NRRD0004\ntype: uint8\ndimension: 3\nspace: left-posterior-superior\nsizes: " << nx << " " << ny << " "
-          << nz << "\nspace directions: (12,0,0) (0,12,0) (0,0,6)\nspace origin: (-240,-180,-1900)\nencoding: raw\n\n";
-      std::vector<std::uint8_t> voxels(static_cast<std::size_t>(nx) * ny * nz, 0);
-      std::size_t n = 0;
-      for (int k = 0; k < nz; ++k) {
-        for (int j = 0; j < ny; ++j) {
-          for (int i = 0; i < nx; ++i, ++n) {
-            const double x = (i - 0.5 * (nx - 1)) / (0.4 * nx), y = (j - 0.5 * (ny - 1)) / (0.4 * ny);
-            if (x * x + y * y <= 1.0 && k > 2 && k < nz - 3) voxels[n] = 100;
-          }
+/// A scene of a cylinder along z (uint8 100 inside, 0 outside; 4 voxels of air at each end)
+/// in an nx x ny x nz NRRD written to `file` (kept when `keep`), spacing dx x dx x dz [mm].
+runtime::LoadedScene cylinderScene(const std::filesystem::path& file, int nx, int ny, int nz, double dx_mm,
+                                   double dz_mm, bool keep) {
+  if (!std::filesystem::exists(file)) {
+    std::filesystem::create_directories(file.parent_path());
+    std::ofstream out(file, std::ios::binary);
+    out << "NRRD0004\ntype: uint8\ndimension: 3\nspace: left-posterior-superior\nsizes: " << nx << " " << ny << " "
+        << nz << "\nspace directions: (" << dx_mm << ",0,0) (0," << dx_mm << ",0) (0,0," << dz_mm
+        << ")\nspace origin: (" << -0.5 * nx * dx_mm << "," << -0.5 * ny * dx_mm << "," << -0.5 * nz * dz_mm
+        << ")\nencoding: raw\n\n";
+    std::vector<std::uint8_t> voxels(static_cast<std::size_t>(nx) * ny * nz, 0);
+    std::size_t n = 0;
+    for (int k = 0; k < nz; ++k) {
+      for (int j = 0; j < ny; ++j) {
+        for (int i = 0; i < nx; ++i, ++n) {
+          const double x = (i - 0.5 * (nx - 1)) / (0.4 * nx), y = (j - 0.5 * (ny - 1)) / (0.4 * ny);
+          if (x * x + y * y <= 1.0 && k > 2 && k < nz - 3) voxels[n] = 100;
         }
       }
-      out.write(reinterpret_cast<const char*>(voxels.data()), static_cast<std::streamsize>(voxels.size()));
     }
-    runtime::SceneSpec spec;
-    spec.volume.path = file.string();
-    spec.tool.mesh = "builtin:probe";
-    spec.device = runtime::DeviceSpec{};
-    runtime::LoadedScene loaded = runtime::loadScene(spec);
-    std::filesystem::remove(file);
-    return loaded;
-  }();
+    out.write(reinterpret_cast<const char*>(voxels.data()), static_cast<std::streamsize>(voxels.size()));
+  }
+  runtime::SceneSpec spec;
+  spec.volume.path = file.string();
+  spec.tool.mesh = "builtin:probe";
+  spec.device = runtime::DeviceSpec{};
+  runtime::LoadedScene loaded = runtime::loadScene(spec);
+  if (!keep) std::filesystem::remove(file);
+  return loaded;
+}
+
+const runtime::LoadedScene& longBodyScene() {
+  static const runtime::LoadedScene scene = cylinderScene(
+      std::filesystem::temp_directory_path() / ("vh_long_body_" + std::to_string(::getpid()) + ".nrrd"), 40, 30, 320,
+      12.0, 6.0, false);
   return scene;
 }
 
@@ -285,6 +294,38 @@ TEST(SceneView, EveryLoadFramesTheWholeVolumeAWholeBodyScanHeadToFeet) {
              << w.view->widget()->renderer()->GetSize()[1];
   w.view->resetCamera();
   expectVolumeFramed(*w.view, "the whole body in a narrow view");
+}
+
+// A volume longer than the GPU's 3-D texture limit (2048 texels on Mesa's llvmpipe and many
+// GPUs) on one axis: 64 x 64 x 3000 voxels, a cylinder from end to end, made once in the build
+// tree. Each band of the rows it spans shows its surface: none is left blank.
+TEST(SceneView, AVolumeLongerThanTheTextureLimitIsDrawnWhole) {
+  static const runtime::LoadedScene tall = cylinderScene(
+      std::filesystem::path(VH_GENERATED_DATA_DIR) / "tall-cylinder-64x64x3000.nrrd", 64, 64, 3000, 1.0, 0.1, true);
+  ASSERT_EQ(tall.volume.field->geometry().dims[2], 3000);
+  ViewWindow w;
+  w.host.resize(200, 400);
+  ASSERT_TRUE(test::waitFor([&] { return w.view->widget()->renderer()->GetSize()[1] > 300; }, 20000));
+  w.view->setScene(sceneActorsSpecFor(tall, runtime::LiveValues::initial(tall)), tall.X_WT_initial, ViewLook{});
+  w.view->setDeviceVisible(false);
+  w.view->setStandardView(StandardView::kAnterior);  // +z, the long axis, up the view
+  w.view->renderStill(true);
+  const QImage image = w.view->widget()->grabFrame().convertToFormat(QImage::Format_RGB32);
+  ASSERT_FALSE(image.isNull());
+  const std::array<int, 3> blocks = w.view->actors().textureBlocks();
+  std::cout << "texture blocks " << blocks[0] << " x " << blocks[1] << " x " << blocks[2] << "\n";
+  // The volume fills 90 % of the view's height (SceneView frames it); five bands inside that.
+  for (int band = 0; band < 5; ++band) {
+    const int y0 = static_cast<int>((0.1 + 0.16 * band) * image.height()), y1 = static_cast<int>((0.1 + 0.16 * (band + 1)) * image.height());
+    std::size_t bright = 0, all = 0;
+    for (int y = y0; y < y1; ++y) {
+      const auto* p = reinterpret_cast<const QRgb*>(image.constScanLine(y));
+      for (int x = 0; x < image.width(); ++x, ++all) bright += qGray(p[x]) > 100 ? 1 : 0;
+    }
+    EXPECT_GT(static_cast<double>(bright) / static_cast<double>(all), 0.05)
+        << "rows " << y0 << " to " << y1 << " of " << image.height() << " show no surface (blocks " << blocks[0]
+        << " x " << blocks[1] << " x " << blocks[2] << ")";
+  }
 }
 
 }  // namespace

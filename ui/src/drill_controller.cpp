@@ -102,6 +102,7 @@ void DrillController::setDrilling(bool on) {
   try {
     session_.setDrilling(on);
     if (on && session_.drilling()) {
+      if (view_.hasScene()) view_.actors().prepareRemoval();
       const auto& drill = session_.hapticThread() != nullptr ? session_.hapticThread()->drill() : nullptr;
       const double r_mm = drill != nullptr ? drill->burr().radius_m * 1e3 : 0.0;
       emit message(QString("Drill on: the %1 mm burr removes what it presses on (Ctrl+B stops it)").arg(r_mm, 0, 'f', 1), 5000);
@@ -165,6 +166,7 @@ void DrillController::drain() {
     view_.actors().removeVoxels(image_indices_, range[0]);
     removed_ += n;
     removed_mm3_ += static_cast<double>(n) * drill.removal().voxelVolume_mm3();
+    view_.noteMotion();  // a growing cavity is motion: interactive frames until it settles
     view_.requestRender();
   }
   // Critical segments: every removal is an alert and an event in the recording.

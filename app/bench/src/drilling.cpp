@@ -96,6 +96,17 @@ haptics::Pose trajectoryAt(const haptics::Pose& X_WT0, double depth_m, double t_
 
 }  // namespace
 
+runtime::SceneSpec drillingScene(const fs::path& volume, bool drill_on) {
+  runtime::SceneSpec spec = runtime::sceneForVolume(volume);
+  spec.volume.isovalue = kIsovalue_HU;
+  spec.volume.isovalue_set = true;
+  spec.tool.mesh = "builtin:drill";
+  spec.tool.point_spacing_m = 0.001;
+  spec.drill = runtime::DrillSpec{};
+  spec.drill->on = drill_on;
+  return spec;
+}
+
 fs::path runDrilling(const CommonOptions& options) {
   const bool short_run = options.short_run;
   const fs::path out = outputDir(options, "drilling");
@@ -119,14 +130,7 @@ fs::path runDrilling(const CommonOptions& options) {
     writeReport(out, "drilling", report, md, {});
     return out;
   }
-  runtime::SceneSpec spec = runtime::sceneForVolume(phantom);
-  spec.volume.isovalue = kIsovalue_HU;
-  spec.volume.isovalue_set = true;
-  spec.tool.mesh = "builtin:drill";
-  spec.tool.point_spacing_m = 0.001;
-  spec.drill = runtime::DrillSpec{};
-  spec.drill->on = true;
-  const runtime::LoadedScene scene = runtime::loadScene(spec);
+  const runtime::LoadedScene scene = runtime::loadScene(drillingScene(phantom, /*drill_on=*/true));
   const runtime::LiveValues live = runtime::LiveValues::initial(scene);
   haptics::RendererOptions ro;
   ro.gains = scene.spec.gains;

@@ -85,6 +85,10 @@ TEST(RenderBench, ShortRunWritesRowsAndServoFiguresOnAndOff) {
     EXPECT_GT(number(r, "still_frame_ms"), 0.0);
     EXPECT_DOUBLE_EQ(number(r, "still_image_sample_px"), 1.0) << "a still frame casts a ray per pixel";
     EXPECT_GE(number(r, "interactive_image_sample_px"), 1.0);
+    EXPECT_GE(number(r, "interactive_sample_voxels"), 0.99);
+    // Each frame painted once: no still frame slipped in between the interactive ones.
+    EXPECT_GE(number(r, "paints_per_frame"), 1.0);
+    EXPECT_LT(number(r, "paints_per_frame"), 1.5);
     if (r["mode"] == "drilling") {
       EXPECT_TRUE(r.contains("removed_voxels"));
       EXPECT_TRUE(r.contains("partial_uploads"));

@@ -7,6 +7,7 @@
 #include <chrono>
 #include <cmath>
 #include <cstdint>
+#include <fstream>
 #include <iostream>
 #include <memory>
 #include <numbers>
@@ -43,7 +44,6 @@ namespace fs = std::filesystem;
 using Clock = std::chrono::steady_clock;
 
 constexpr double kServoRate_Hz = 1000.0;
-constexpr double kIsovalue_HU = 400.0;       // bone
 constexpr int kGeneratedSlices = 275;        // an abdomen CT's slice count
 constexpr double kCameraStep_deg = 0.25;     // camera turn per frame: a slow drag
 constexpr double kPressDepth_m = 0.003;      // the device this far past the first contact
@@ -231,6 +231,14 @@ GlInfo glInfo(VtkView& view) {
   return info;
 }
 
+/// The 1-minute load average (/proc/loadavg): how busy the machine was besides the benchmark;
+/// -1 when unknown.
+double loadAverage() {
+  std::ifstream in("/proc/loadavg");
+  double load = -1.0;
+  return (in >> load) ? load : -1.0;
+}
+
 nlohmann::ordered_json statsJson(const bench::Stats& s) {
   return {{"n", s.n}, {"mean", s.mean}, {"p50", s.p50}, {"p99", s.p99}, {"p99_9", s.p999}, {"max", s.max}};
 }
@@ -256,14 +264,8 @@ fs::path runRenderBench(const RenderBenchOptions& o) {
     volume = bigScanSeries(dir, slices);
   }
   std::cout << "bench render: loading " << volume.string() << " ..." << std::endl;
-  runtime::SceneSpec spec = runtime::sceneForVolume(volume);
-  spec.volume.isovalue = kIsovalue_HU;
-  spec.volume.isovalue_set = true;
-  spec.tool.mesh = "builtin:drill";
-  spec.tool.point_spacing_m = 0.001;
-  spec.drill = runtime::DrillSpec{};
-  spec.drill->on = false;  // spun up for the drilling rows
-  const runtime::LoadedScene scene = runtime::loadScene(spec);
+  // The burr is spun up for the drilling rows only.
+  const runtime::LoadedScene scene = runtime::loadScene(bench::drillingScene(volume, /*drill_on=*/false));
   runtime::LiveValues live = runtime::LiveValues::initial(scene);
   live.segments = sphereSegment(*scene.volume.field);
 
@@ -290,6 +292,7 @@ fs::path runRenderBench(const RenderBenchOptions& o) {
   }
 
   nlohmann::ordered_json report = reportHeader("render", short_run);
+  report["load_average_before"] = loadAverage();
   nlohmann::ordered_json rows = nlohmann::ordered_json::array();
   GlInfo gl;
   {
@@ -323,10 +326,15 @@ fs::path runRenderBench(const RenderBenchOptions& o) {
         auto t0 = Clock::now();
         b.view->widget()->repaint();  // a new mode compiles its shader
         const double first_ms = msSince(t0);
+        if (drilling) {  // the burr switched on: the picture's copy for the cavity, uploaded once
+          b.view->actors().prepareRemoval();
+          b.view->widget()->repaint();
+        }
         thread->setDrilling(drilling);
         const std::uint64_t partial0 = b.view->actors().partialUploads(), full0 = b.view->actors().fullUploads();
         std::uint64_t removed = 0;
         std::vector<double> frames, paint_ms;
+        const std::uint64_t paints0 = b.view->widget()->frameCount();
         Phase on = b.begin(true);
         t0 = Clock::now();
         while (msSince(t0) < 1e3 * row_s || frames.size() < 3) frames.push_back(b.frame(on, drilling, removed, paint_ms));
@@ -334,8 +342,9 @@ fs::path runRenderBench(const RenderBenchOptions& o) {
         b.end(on);
         thread->setDrilling(false);
         const double interactive_px = b.view->actors().imageSampleDistance_px();
-        // A still frame, full quality (as when the hand rests).
-        b.view->renderStill(/*best_quality=*/true);
+        const double interactive_voxels = b.view->actors().sampleDistance_m() / scene.volume.field->geometry().spacing_m.minCoeff();
+        // The still frame when the hand rests, at the quality the view chooses for it.
+        b.view->renderStill();
         const double still_sample_voxels = b.view->actors().sampleDistance_m() /
                                            scene.volume.field->geometry().spacing_m.minCoeff();
         const double still_px = b.view->actors().imageSampleDistance_px();
@@ -354,9 +363,12 @@ fs::path runRenderBench(const RenderBenchOptions& o) {
         row["frame_ms_mean"] = s.mean;
         row["frame_ms_p99"] = s.p99;
         row["frame_ms_max"] = s.max;
+        // VtkView paints per frame: 1 when each frame is painted once (no queued repaint on top).
+        row["paints_per_frame"] = static_cast<double>(b.view->widget()->frameCount() - paints0) / static_cast<double>(frames.size());
         row["paint_ms_mean"] = summarize(paint_ms).mean;  // VTK's render and the blit (paintGL), without Qt's compose
         row["first_frame_ms"] = first_ms;
-        row["interactive_image_sample_px"] = interactive_px;
+        row["interactive_image_sample_px"] = interactive_px;  // the last interactive frame's
+        row["interactive_sample_voxels"] = interactive_voxels;
         row["still_frame_ms"] = still_ms;
         row["still_sample_voxels"] = still_sample_voxels;
         row["still_image_sample_px"] = still_px;
@@ -417,6 +429,7 @@ fs::path runRenderBench(const RenderBenchOptions& o) {
                       {"dims", g.dims},
                       {"spacing_mm", {1e3 * g.spacing_m.x(), 1e3 * g.spacing_m.y(), 1e3 * g.spacing_m.z()}},
                       {"isovalue", scene.isovalue}};
+  report["load_average_after"] = loadAverage();
   report["renderer"] = gl.renderer;
   report["gl_version"] = gl.version;
   report["max_3d_texture"] = gl.max_3d_texture;
@@ -426,8 +439,10 @@ fs::path runRenderBench(const RenderBenchOptions& o) {
   std::ostringstream md;
   md << "## Frame rate of the main view (`volume-haptics bench render" << (short_run ? " --short" : "") << "`)\n\n"
      << format("Scan %d x %d x %d, ", g.dims[0], g.dims[1], g.dims[2]) << "renderer " << gl.renderer << ", CPU "
-     << report["cpu_model"].get<std::string>() << " (" << report["cpus"].get<unsigned>() << " CPUs); "
-     << format("%.1f s per row, the haptic threads at 1 kHz throughout.\n\n", row_s)
+     << report["cpu_model"].get<std::string>() << " (" << report["cpus"].get<unsigned>() << " CPUs, load average "
+     << format("%.1f before, %.1f after", report["load_average_before"].get<double>(),
+               report["load_average_after"].get<double>())
+     << "); " << format("%.1f s per row, the haptic threads at 1 kHz throughout.\n\n", row_s)
      << "| mode | window | fps | mean [ms] | p99 [ms] | max [ms] | still frame [ms] |\n|---|---|---|---|---|---|---|\n";
   for (const auto& r : rows)
     md << format("| %s | %d x %d | %.1f | %.1f | %.1f | %.1f | %.0f |\n", r["mode"].get<std::string>().c_str(),

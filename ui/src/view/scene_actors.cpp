@@ -1,7 +1,9 @@
 #include "vh/ui/view/scene_actors.h"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
+#include <utility>
 
 #include <vtkActor.h>
 #include <vtkArrowSource.h>
@@ -25,6 +27,7 @@
 #include <vtkDataArray.h>
 #include <vtkObjectFactory.h>
 #include <vtkOpenGLGPUVolumeRayCastMapper.h>
+#include <vtkOpenGLRenderWindow.h>
 #include <vtkPointData.h>
 #include <vtkTextureObject.h>
 #include <vtkVolume.h>
@@ -44,7 +47,7 @@ namespace vh::ui {
 class DrillableVolumeMapper : public vtkOpenGLGPUVolumeRayCastMapper {
  public:
   static DrillableVolumeMapper* New();
-  vtkTypeMacro(DrillableVolumeMapper, vtkOpenGLGPUVolumeRayCastMapper);
+  vtkTypeMacro(DrillableVolumeMapper, vtkOpenGLGPUVolumeRayCastMapper)
 
   /// Adds the voxel box [lo, hi] (inclusive) to what the next frame uploads.
   void markChanged(const int lo[3], const int hi[3]) {
@@ -59,14 +62,38 @@ class DrillableVolumeMapper : public vtkOpenGLGPUVolumeRayCastMapper {
     for (int a = 0; a < 3; ++a) lo_[a] = VTK_INT_MAX, hi_[a] = VTK_INT_MIN;
   }
   std::uint64_t partial_uploads = 0, full_uploads = 0;
+  /// Blocks of the volume texture per axis (1 1 1: one texture), chosen at the first frame.
+  std::array<int, 3> blocks{1, 1, 1};
 
  protected:
   void GPURender(vtkRenderer* ren, vtkVolume* vol) override {
+    if (!partitioned_) partitionForTextureLimit(ren);
     if (pending_) uploadPending();
     Superclass::GPURender(ren, vol);
   }
 
  private:
+  /// A volume longer than the GPU's 3-D texture limit on an axis (2048 on Mesa's llvmpipe and
+  /// many GPUs: a 512 x 512 x 3000 whole-body CT) would be left blank by one texture: it goes
+  /// into blocks instead, each within the limit, ray cast one after the other
+  /// (vtkOpenGLGPUVolumeRayCastMapper::SetPartitions), before its first upload. The limit is
+  /// GL_MAX_3D_TEXTURE_SIZE of the frame's context; the blocks share a voxel plane, so each holds
+  /// at most limit - 2 voxels along an axis.
+  void partitionForTextureLimit(vtkRenderer* ren) {
+    vtkImageData* image = vtkImageData::SafeDownCast(GetInput());
+    auto* window = vtkOpenGLRenderWindow::SafeDownCast(ren->GetRenderWindow());
+    if (image == nullptr || window == nullptr) return;
+    partitioned_ = true;
+    const int limit = vtkTextureObject::GetMaximumTextureSize3D(window);
+    if (limit < 16) return;  // unknown: one texture, as VTK does
+    int dims[3];
+    image->GetDimensions(dims);
+    for (int a = 0; a < 3; ++a) blocks[a] = std::max(1, (dims[a] + limit - 3) / (limit - 2));
+    if (blocks[0] * blocks[1] * blocks[2] > 1)
+      SetPartitions(static_cast<unsigned short>(blocks[0]), static_cast<unsigned short>(blocks[1]),
+                    static_cast<unsigned short>(blocks[2]));
+  }
+
   void uploadPending() {
     vtkImageData* image = vtkImageData::SafeDownCast(GetInput());
     const auto it = AssembledInputs.find(0);
@@ -112,6 +139,7 @@ class DrillableVolumeMapper : public vtkOpenGLGPUVolumeRayCastMapper {
   }
 
   bool pending_ = false;
+  bool partitioned_ = false;
   int lo_[3] = {VTK_INT_MAX, VTK_INT_MAX, VTK_INT_MAX};
   int hi_[3] = {VTK_INT_MIN, VTK_INT_MIN, VTK_INT_MIN};
 };
@@ -182,14 +210,17 @@ SceneActors::SceneActors(vtkRenderer* renderer, const SceneActorsSpec& spec) : r
   buildOverlay(spec);
 }
 
+void SceneActors::prepareRemoval() {
+  if (drilled_image_ != nullptr || image_ == nullptr) return;
+  drilled_image_ = vtkSmartPointer<vtkImageData>::New();
+  drilled_image_->DeepCopy(image_);
+  volume_mapper_->SetInputData(drilled_image_);  // one whole upload, on the next frame
+  drillable_->clearPending();
+}
+
 void SceneActors::removeVoxels(std::span<const std::uint64_t> indices, double value) {
   if (indices.empty() || image_ == nullptr) return;
-  if (drilled_image_ == nullptr) {
-    drilled_image_ = vtkSmartPointer<vtkImageData>::New();
-    drilled_image_->DeepCopy(image_);
-    volume_mapper_->SetInputData(drilled_image_);  // one whole upload, on the next frame
-    drillable_->clearPending();
-  }
+  prepareRemoval();
   vtkDataArray* scalars = drilled_image_->GetPointData()->GetScalars();
   int dims[3];
   drilled_image_->GetDimensions(dims);
@@ -220,6 +251,7 @@ vtkImageData* SceneActors::shownImage() const noexcept {
   return drilled_image_ != nullptr ? drilled_image_.Get() : image_.Get();
 }
 
+std::array<int, 3> SceneActors::textureBlocks() const noexcept { return drillable_->blocks; }
 std::uint64_t SceneActors::partialUploads() const noexcept { return drillable_->partial_uploads; }
 std::uint64_t SceneActors::fullUploads() const noexcept { return drillable_->full_uploads; }
 
@@ -479,15 +511,35 @@ namespace {
 // Still-frame quality levels: ray sample distance in voxels, image sample distance in pixels.
 constexpr double kStillSampleVoxels[3] = {0.5, 1.0, 1.0};
 constexpr double kStillImageSample[3] = {1.0, 1.0, 1.5};
-constexpr double kStillSlowMs = 1000.0;  // a still frame slower than this steps quality down
-constexpr double kStillFastMs = 250.0;   // ... faster than this steps it back up
+// A still frame is full quality (half-voxel samples, a ray per pixel) unless it took longer than
+// this (a very large view on software GL, where it would freeze the window for seconds each time
+// the hand rests): then the next still frames step down, and back up once faster than kStillFastMs.
+constexpr double kStillSlowMs = 3000.0;
+constexpr double kStillFastMs = 750.0;
+// Interactive frames: the work of a ray cast at one sample per voxel and one ray per pixel,
+// divided by the reduction r (1 to kMaxReduction). Rays go first (image sample distance up to
+// kFirstImageSample pixels: the picture gets softer but keeps thin bone), then samples along the
+// rays (up to kMaxSampleVoxels apart), then rays again (up to kMaxImageSample pixels).
+constexpr double kFirstImageSample = 3.0;
+constexpr double kMaxSampleVoxels = 3.0;
+constexpr double kMaxImageSample = 8.0;
+constexpr double kMaxReduction = kMaxImageSample * kMaxImageSample * kMaxSampleVoxels;
+
+/// The ray sample distance [voxels] and image sample distance [px] of the reduction `r`: the
+/// work of a frame falls as 1 / (samples apart x pixels apart^2).
+std::pair<double, double> interactiveSampling(double r) {
+  const double first = std::min(std::sqrt(r), kFirstImageSample);
+  const double samples = std::clamp(r / (first * first), 1.0, kMaxSampleVoxels);
+  const double pixels = std::clamp(std::sqrt(r / samples), 1.0, kMaxImageSample);
+  return {samples, pixels};
+}
 }  // namespace
 
 void SceneActors::applyQuality() {
   if (interactive_) {
-    volume_mapper_->SetSampleDistance(static_cast<float>(min_spacing_m_));
-    volume_mapper_->SetImageSampleDistance(
-        static_cast<float>(std::max(interactive_image_sample_, kStillImageSample[still_level_])));
+    const auto [samples, pixels] = interactiveSampling(interactive_reduction_);
+    volume_mapper_->SetSampleDistance(static_cast<float>(std::max(samples, kStillSampleVoxels[still_level_]) * min_spacing_m_));
+    volume_mapper_->SetImageSampleDistance(static_cast<float>(std::max(pixels, kStillImageSample[still_level_])));
   } else {
     volume_mapper_->SetSampleDistance(
         static_cast<float>(kStillSampleVoxels[still_level_] * min_spacing_m_));
@@ -514,18 +566,16 @@ void SceneActors::adaptQuality(double last_frame_ms, double interactive_target_m
   if (!(last_frame_ms > 0.0) || !(interactive_target_ms > 0.0)) {
     return;
   }
+  const double ratio = last_frame_ms / interactive_target_ms;
   if (interactive_) {
-    // Cost ~ rays ~ 1 / distance^2; damped so the picture does not flicker between settings.
-    const double wanted = interactive_image_sample_ * std::sqrt(last_frame_ms / interactive_target_ms);
-    interactive_image_sample_ = std::clamp(0.5 * (interactive_image_sample_ + wanted), 1.0, 4.0);
+    // Late: at once to what meets the target (the next frame must not be late too); early:
+    // halfway (geometrically), so the picture does not flicker between settings.
+    interactive_reduction_ = std::clamp(interactive_reduction_ * (ratio > 1.0 ? ratio : std::sqrt(ratio)), 1.0, kMaxReduction);
   } else {
-    // A still frame: guess the interactive setting from it (half the samples per ray), and keep
-    // still frames from freezing the GUI for seconds on software GL.
-    // Cost ~ (1 / sample distance) * (1 / image sample distance)^2.
-    const double per_ray = kStillSampleVoxels[still_level_] * kStillImageSample[still_level_] *
-                           kStillImageSample[still_level_];
-    interactive_image_sample_ =
-        std::clamp(std::sqrt(per_ray * last_frame_ms / interactive_target_ms), 1.0, 4.0);
+    // A still frame: the first interactive frame's guess from it (cost ~ 1 / (sample distance x
+    // image sample distance^2)), and still frames kept from freezing the window for seconds.
+    const double still_work = kStillSampleVoxels[still_level_] * kStillImageSample[still_level_] * kStillImageSample[still_level_];
+    interactive_reduction_ = std::clamp(still_work * ratio, 1.0, kMaxReduction);
     if (last_frame_ms > kStillSlowMs && still_level_ < 2) {
       ++still_level_;
     } else if (last_frame_ms < kStillFastMs && still_level_ > 0) {

@@ -10,6 +10,7 @@
 #include <vtkActor.h>
 #include <vtkCamera.h>
 #include <vtkGenericOpenGLRenderWindow.h>
+#include <vtkGenericRenderWindowInteractor.h>
 #include <vtkNew.h>
 #include <vtkRenderer.h>
 #include <vtkTextActor.h>
@@ -22,6 +23,13 @@ namespace vh::ui {
 namespace {
 
 constexpr int kSettleMs = 300;  // still frame this long after the last motion
+// The frame rates asked of VTK (vtkRenderWindowInteractor's desired and still update rates):
+// interactive frames at 25 Hz, 40 ms of VTK's render, which leaves Qt's composition of the
+// window within 50 ms on software GL (Mesa's llvmpipe) at 1280 x 720; still frames unhurried
+// (full quality). The ray caster follows them through SceneActors::adaptQuality(), not through
+// its own automatic sample distances.
+constexpr double kInteractiveRate_Hz = 25.0;
+constexpr double kStillRate_Hz = 0.0001;
 
 bool posesDiffer(const haptics::Pose& a, const haptics::Pose& b) {
   return (a.p_AB_m - b.p_AB_m).norm() > 1e-6 || a.R_AB.angularDistance(b.R_AB) > 1e-4;
@@ -36,6 +44,8 @@ SceneView::SceneView(QWidget* parent) : QObject(parent) {
   marker_ = std::make_unique<OrientationMarker>(view_->renderWindow(), view_->renderer());
   marker_->setVisible(false);  // shown with a scene
   view_->renderer()->GradientBackgroundOn();
+  view_->interactor()->SetDesiredUpdateRate(kInteractiveRate_Hz);
+  view_->interactor()->SetStillUpdateRate(kStillRate_Hz);
 
   // What an empty window says.
   vtkNew<vtkTextActor> welcome;
@@ -83,7 +93,12 @@ SceneView::SceneView(QWidget* parent) : QObject(parent) {
   });
   connect(view_, &VtkView::frameRendered, this, [this] {
     // The first frame of a scene also compiles shaders and uploads the volume.
-    if (actors_ != nullptr && view_->frameCount() > scene_frame_ + 1) actors_->adaptQuality(view_->lastFrameMs());
+    if (actors_ != nullptr && view_->frameCount() > scene_frame_ + 1)
+      actors_->adaptQuality(view_->lastFrameMs(), 1000.0 / view_->interactor()->GetDesiredUpdateRate());
+    // The still frame comes kSettleMs after the last interactive frame was drawn, not after the
+    // motion that asked for it: with frames slower than kSettleMs (software GL), every frame of
+    // a moving tool would otherwise be followed by a still one.
+    if (actors_ != nullptr && actors_->interactive() && settle_timer_->isActive()) settle_timer_->start();
   });
 }
 

@@ -22,6 +22,7 @@
 #include <vector>
 
 #include "vh/haptics/haptic_renderer.h"
+#include "vh/runtime/scene.h"
 
 namespace CLI {
 class App;
@@ -127,6 +128,10 @@ std::filesystem::path runStability(const CommonOptions& options);
 /// on the CT head phantom, drilling against touching alone on the same trajectory in the same
 /// run (p99_9_ratio, max_ratio); writes drilling.json and drilling.md.
 std::filesystem::path runDrilling(const CommonOptions& options);
+
+/// The drilling benchmarks' scene on the CT at `volume`: bone (400 HU) felt, the built-in drill
+/// (2.5 mm ball burr) sampled every 1 mm, its burr spinning from the start when `drill_on`.
+runtime::SceneSpec drillingScene(const std::filesystem::path& volume, bool drill_on);
 
 /// Where the benchmarks write: $VH_BENCH_OUT_DIR when set; installed
 /// (runtime::installedDataDir()), $XDG_DATA_HOME/volume-haptics/bench, else

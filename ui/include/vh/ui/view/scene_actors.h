@@ -8,6 +8,7 @@
 /// in metres but no direction; the volume prop's user matrix applies the direction D about the
 /// origin o: p_W = o + D (p_image - o).
 
+#include <array>
 #include <limits>
 #include <span>
 #include <string>
@@ -69,6 +70,9 @@ class SceneActors {
   /// texture (glTexSubImage3D), not the whole volume, where the texture is one block of the
   /// image's own type (else the whole volume once per frame). Indices out of range are ignored.
   void removeVoxels(std::span<const std::uint64_t> indices, double value);
+  /// Makes the private copy removeVoxels() writes now (the burr started), so that its whole
+  /// upload (a second on software GL for a 512 x 512 x 275 CT) is not a frame of the drilling.
+  void prepareRemoval();
   /// Back to the scene's own image (drilling undone for the eyes: a rebuilt haptic thread).
   void restoreVolume();
   /// Volume texture uploads so far: boxes uploaded alone, and whole-volume uploads the removal
@@ -77,6 +81,10 @@ class SceneActors {
   std::uint64_t fullUploads() const noexcept;
   /// The image the volume shows now: the drilled copy, else the scene's.
   vtkImageData* shownImage() const noexcept;
+  /// Blocks of the volume's texture per axis, chosen at the first frame: 1 1 1 (one texture)
+  /// unless the volume is longer than the GPU's 3-D texture limit on an axis, which then holds
+  /// several blocks each within it (the whole volume is drawn, never a blank view).
+  std::array<int, 3> textureBlocks() const noexcept;
 
   /// Isosurface value in data units.
   void setIsovalue(double isovalue);
@@ -114,16 +122,22 @@ class SceneActors {
   /// length is arrowReferenceLength_m() per 3 N (clamped to 0.15..2.5 times); hidden below 1 mN.
   void setForce(const Eigen::Vector3d& p_W_origin_m, const Eigen::Vector3d& force_W_N);
 
-  /// Rendering quality of the volume. Still frames sample rays every half voxel at full
-  /// resolution; interactive frames (camera drags, moving tools, slider drags) sample every voxel
-  /// and cast fewer rays (image sample distance) so software GL stays responsive.
+  /// Rendering quality of the volume, chosen here on purpose (VTK's automatic adjustment of the
+  /// sample distances is off: it splits a frame budget over all props and blurs thin bone).
+  /// Still frames are full quality: a ray per pixel, sampled every half voxel. Interactive
+  /// frames (camera drags, moving tools, drilling, slider drags) sample every voxel and cast
+  /// fewer rays (image sample distance, adaptQuality()) so that they keep to a frame time.
   void setInteractive(bool interactive);
   bool interactive() const noexcept { return interactive_; }
-  /// Adapts the quality to the wall time of the frame just rendered [ms]: interactive frames
-  /// aim at `interactive_target_ms` (image sample distance 1..4 pixels); still frames that take
-  /// over a second (software GL, large views) step down to voxel-spaced samples, then to 1.5
-  /// pixel image sampling, and step back up when they get fast again.
-  void adaptQuality(double last_frame_ms, double interactive_target_ms = 80.0);
+  /// Adapts the quality to the wall time of the frame just rendered [ms]. Interactive frames
+  /// aim at `interactive_target_ms`: their work (one sample per voxel, one ray per pixel) is
+  /// divided by a reduction, taken first from the rays (image sample distance up to 3 px), then
+  /// from the samples along them (up to 3 voxels apart), then from the rays again (up to 8 px);
+  /// a late frame sets the next one's at once, an early one relaxes it halfway. A still frame
+  /// sets the first interactive frame's guess. Still frames that take over 3 s (software GL,
+  /// very large views) step down to voxel-spaced samples, then to 1.5 pixel image sampling, and
+  /// back up when they get fast again.
+  void adaptQuality(double last_frame_ms, double interactive_target_ms = 40.0);
   /// Back to the best still quality (half-voxel samples, every pixel).
   void resetQuality();
   /// Ray sample distance [m] and image sample distance [px] now in use.
@@ -179,7 +193,7 @@ class SceneActors {
   double surface_rgb_[3] = {0.93, 0.87, 0.74};
   double min_spacing_m_ = 1e-3;
   int still_level_ = 0;  // 0 best; see adaptQuality()
-  double interactive_image_sample_ = 1.0;
+  double interactive_reduction_ = 1.0;  // interactive work divided by this; see adaptQuality()
   bool interactive_ = false;
   static constexpr double kReferenceForce_N = 3.0;
 };
