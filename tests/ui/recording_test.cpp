@@ -21,6 +21,7 @@
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
 #include <vtkActor.h>
+#include <vtkImageData.h>
 #include <vtkMatrix4x4.h>
 
 #include "ui_test_util.h"
@@ -399,6 +400,50 @@ TEST(ReplayIsovalue, TicksOfFeltSegmentsLeaveThePicturesIsovalueAlone) {
   RecordingFrameRenderer felt_frames(felt_spec, 64, 64, ViewLook{});
   felt_frames.show(record);
   EXPECT_EQ(felt_frames.isovalue(), 3.0) << "the segments' level must not become the scan's isovalue";
+}
+
+// The overlay of exported frames: the time, |F| and |torque| of the record shown, a marker's label
+// and a critical segment drilled for two seconds after their events, and none of it when off.
+TEST(ExportOverlay, ShowsTheRecordsFiguresAndTheEventsOfTheLastTwoSeconds) {
+  const runtime::LoadedScene& scene = test::sphereProbeScene();
+  runtime::Recording recording;
+  for (int i = 0; i <= 400; ++i) {
+    runtime::TickRecord r;
+    r.time_s = 0.01 * i;
+    r.tick = static_cast<std::uint64_t>(i);
+    r.p_WP_m[2] = r.p_WD_m[2] = 0.05;
+    r.force_W_N[0] = 3.0, r.force_W_N[1] = 4.0;  // |F| = 5 N
+    r.torque_W_Nm[2] = -0.012;
+    recording.records.push_back(r);
+  }
+  recording.events.push_back({0.5, 50, "marker", R"({"label":"nerve close"})"});
+  recording.events.push_back({0.6, 60, "critical_removed", R"({"segment":"facial nerve","voxels":3,"mm3":0.1})"});
+  const SceneActorsSpec spec = sceneActorsSpecFor(scene, runtime::LiveValues::initial(scene));
+  RecordingFrameRenderer with(spec, 320, 240, ViewLook{});
+  with.setOverlay(&recording);
+  with.show(recording.records[55]);
+  EXPECT_NE(with.overlayText().find("t = 0.55 s"), std::string::npos) << with.overlayText();
+  EXPECT_NE(with.overlayText().find("|F| = 5.00 N"), std::string::npos) << with.overlayText();
+  EXPECT_NE(with.overlayText().find("|torque| = 0.012 N*m"), std::string::npos) << with.overlayText();
+  EXPECT_NE(with.overlayText().find("marker: nerve close"), std::string::npos) << with.overlayText();
+  EXPECT_EQ(with.overlayAlert(), "") << "the critical event comes at 0.6 s";
+  with.show(recording.records[70]);
+  EXPECT_EQ(with.overlayAlert(), "CRITICAL: facial nerve drilled");
+  with.show(recording.records[300]);
+  EXPECT_EQ(with.overlayText().find("marker"), std::string::npos) << "2.4 s after the marker: " << with.overlayText();
+  EXPECT_EQ(with.overlayAlert(), "");
+  // Drawn: the frame differs from the same frame without the overlay where the text is.
+  with.show(recording.records[70]);
+  RecordingFrameRenderer without(spec, 320, 240, ViewLook{});
+  without.show(recording.records[70]);
+  EXPECT_EQ(without.overlayText(), "");
+  vtkImageData* a = with.render();
+  vtkImageData* b = without.render();
+  const auto* pa = static_cast<const unsigned char*>(a->GetScalarPointer());
+  const auto* pb = static_cast<const unsigned char*>(b->GetScalarPointer());
+  std::size_t differing = 0;
+  for (vtkIdType i = 0; i < a->GetNumberOfPoints() * 3; ++i) differing += std::abs(pa[i] - pb[i]) > 40 ? 1 : 0;
+  EXPECT_GT(differing, 300u) << "the overlay's text and alert are not in the picture";
 }
 
 }  // namespace

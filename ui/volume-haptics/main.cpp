@@ -348,6 +348,9 @@ CLI::App* addExportSubcommand(CLI::App& app, ExportArgs& a) {
                          "OpenGL, e.g. xvfb-run); prints the frames done and the time left, Ctrl+C ends it there "
                          "(a shorter video that plays)");
   export_cmd->add_option("--png", a.media.png, "PNG of the replay at --at-s");
+  export_cmd->add_flag("!--no-overlay", a.media.overlay,
+                       "Frames without the overlay (the time, |F| and |torque|, the markers' labels, a critical "
+                       "segment drilled)");
   export_cmd->add_option("--at-s", a.media.png_time_s, "Recording time of the --png frame [s]")
       ->check(CLI::NonNegativeNumber);
   export_cmd->add_option("--fps", a.media.fps, "Video frame rate [frames/s]")->check(CLI::Range(1.0, 120.0));

@@ -19,7 +19,11 @@
 #include <vtkPNGWriter.h>
 #include <vtkRenderWindow.h>
 #include <vtkRenderer.h>
+#include <vtkTextActor.h>
+#include <vtkTextProperty.h>
 #include <vtkWindowToImageFilter.h>
+
+#include <nlohmann/json.hpp>
 
 #include "vh/runtime/session_metadata.h"
 #include "vh/ui/view/scene_view.h"
@@ -157,6 +161,74 @@ void RecordingFrameRenderer::show(const runtime::TickRecord& record) {
   ToolFrame frame = toolFrameOf(record);
   if (!isovalue_from_records_) frame.isovalue = std::numeric_limits<double>::quiet_NaN();  // felt segments' level
   showToolFrame(*actors_, frame, tool_vertices_T_m_);
+  if (overlay_ != nullptr) showOverlay(record);
+}
+
+void RecordingFrameRenderer::setOverlay(const runtime::Recording* recording) {
+  overlay_ = recording;
+  if (overlay_text_ == nullptr) {
+    const double font = std::max(10.0, height_ / 32.0);  // about 22 px at 720 lines
+    overlay_text_ = vtkSmartPointer<vtkTextActor>::New();
+    overlay_text_->GetTextProperty()->SetFontSize(static_cast<int>(font));
+    overlay_text_->GetTextProperty()->SetColor(1.0, 1.0, 1.0);
+    overlay_text_->GetTextProperty()->SetBackgroundColor(0.0, 0.0, 0.0);
+    overlay_text_->GetTextProperty()->SetBackgroundOpacity(0.5);
+    overlay_text_->GetTextProperty()->SetVerticalJustificationToTop();
+    overlay_text_->GetPositionCoordinate()->SetCoordinateSystemToNormalizedViewport();
+    overlay_text_->GetPositionCoordinate()->SetValue(0.01, 0.985);
+    renderer_->AddActor2D(overlay_text_);
+    overlay_alert_ = vtkSmartPointer<vtkTextActor>::New();
+    overlay_alert_->GetTextProperty()->SetFontSize(static_cast<int>(1.2 * font));
+    overlay_alert_->GetTextProperty()->SetBold(true);
+    overlay_alert_->GetTextProperty()->SetColor(1.0, 1.0, 1.0);
+    overlay_alert_->GetTextProperty()->SetBackgroundColor(0.75, 0.1, 0.1);
+    overlay_alert_->GetTextProperty()->SetBackgroundOpacity(0.9);
+    overlay_alert_->GetTextProperty()->SetJustificationToCentered();
+    overlay_alert_->GetTextProperty()->SetVerticalJustificationToBottom();
+    overlay_alert_->GetPositionCoordinate()->SetCoordinateSystemToNormalizedViewport();
+    overlay_alert_->GetPositionCoordinate()->SetValue(0.5, 0.03);
+    renderer_->AddActor2D(overlay_alert_);
+  }
+  overlay_text_->SetVisibility(false);
+  overlay_alert_->SetVisibility(false);
+}
+
+void RecordingFrameRenderer::showOverlay(const runtime::TickRecord& record) {
+  const double t = record.time_s;
+  const double f = std::sqrt(record.force_W_N[0] * record.force_W_N[0] + record.force_W_N[1] * record.force_W_N[1] +
+                             record.force_W_N[2] * record.force_W_N[2]);
+  const double tau = std::sqrt(record.torque_W_Nm[0] * record.torque_W_Nm[0] +
+                               record.torque_W_Nm[1] * record.torque_W_Nm[1] +
+                               record.torque_W_Nm[2] * record.torque_W_Nm[2]);
+  char line[160];
+  std::snprintf(line, sizeof line, "t = %.2f s   |F| = %.2f N   |torque| = %.3f N*m", t, f, tau);
+  std::string text = line, alert;
+  // The events of the last kOverlayHold_s, the newest last.
+  for (const runtime::RecordingEvent& e : overlay_->events) {
+    if (e.time_s > t || e.time_s < t - kOverlayHold_s) continue;
+    const nlohmann::json detail = nlohmann::json::parse(e.detail_json, nullptr, /*allow_exceptions=*/false);
+    const auto field = [&](const char* key) {
+      return detail.is_object() && detail.contains(key) && detail[key].is_string() ? detail[key].get<std::string>() : std::string();
+    };
+    if (e.type == "marker") text = std::string(line) + "\nmarker: " + field("label");
+    if (e.type == "critical_removed") alert = "CRITICAL: " + field("segment") + " drilled";
+  }
+  overlay_text_->SetInput(text.c_str());
+  overlay_text_->SetVisibility(true);
+  overlay_alert_->SetInput(alert.c_str());
+  overlay_alert_->SetVisibility(!alert.empty());
+}
+
+std::string RecordingFrameRenderer::overlayText() const {
+  return overlay_text_ != nullptr && overlay_text_->GetVisibility() && overlay_text_->GetInput() != nullptr
+             ? overlay_text_->GetInput()
+             : "";
+}
+
+std::string RecordingFrameRenderer::overlayAlert() const {
+  return overlay_alert_ != nullptr && overlay_alert_->GetVisibility() && overlay_alert_->GetInput() != nullptr
+             ? overlay_alert_->GetInput()
+             : "";
 }
 
 vtkImageData* RecordingFrameRenderer::render() {
@@ -291,6 +363,7 @@ int exportRecordingMedia(int /*argc*/, char** /*argv*/, const fs::path& recordin
     look.mode = options.mode;
     look.preset = options.preset;
     RecordingFrameRenderer frames(sceneActorsSpecFor(scene, runtime::LiveValues::initial(scene)), options.width, options.height, look);
+    if (options.overlay) frames.setOverlay(&recording);
     frames.show(recording.records.front());
     frames.resetCamera();  // fitted to the volume and the tools where they start
     if (!options.png.empty()) {

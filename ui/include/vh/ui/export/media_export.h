@@ -13,6 +13,7 @@
 #include <filesystem>
 #include <functional>
 #include <memory>
+#include <string>
 #include <vector>
 
 #include <Eigen/Core>
@@ -29,6 +30,7 @@ class vtkCamera;
 class vtkImageData;
 class vtkRenderWindow;
 class vtkRenderer;
+class vtkTextActor;
 class vtkWindowToImageFilter;
 
 namespace vh::ui {
@@ -88,13 +90,29 @@ class RecordingFrameRenderer {
   double isovalue() const;
   vtkRenderWindow* renderWindow() const noexcept;
 
+  /// From the next show() on, draws over each frame what explains it (null: nothing, the
+  /// default): top left the recording time [s], |F| [N] and |torque| [N*m] of the record shown
+  /// and the label of a marker passed within the last kOverlayHold_s; top centre, in red, a
+  /// critical segment drilled (a "critical_removed" event) within as long. `recording` is the one
+  /// whose records show() is given; it must outlive its use here.
+  void setOverlay(const runtime::Recording* recording);
+  /// The overlay's lines and its alert as last shown ("" when none).
+  std::string overlayText() const;
+  std::string overlayAlert() const;
+  /// How long a marker's label or a critical alert stays on the frames after its event [s].
+  static constexpr double kOverlayHold_s = 2.0;
+
  private:
+  void showOverlay(const runtime::TickRecord& record);
+
   vtkSmartPointer<vtkRenderWindow> window_;
   vtkSmartPointer<vtkRenderer> renderer_;
   vtkSmartPointer<vtkWindowToImageFilter> grabber_;
   std::unique_ptr<SceneActors> actors_;
   std::vector<Eigen::Vector3d> tool_vertices_T_m_;
   bool isovalue_from_records_ = true;  ///< SceneActorsSpec::isovalue_from_records.
+  const runtime::Recording* overlay_ = nullptr;  ///< setOverlay(); not owned.
+  vtkSmartPointer<vtkTextActor> overlay_text_, overlay_alert_;
   int width_;
   int height_;
 };
@@ -126,6 +144,9 @@ struct MediaExportOptions {
   int height = 480;             ///< Frame height [px].
   double start_s = 0.0;         ///< Video start [s].
   double end_s = -1.0;          ///< Video end [s]; negative: the recording's end.
+  /// Draw the time, |F|, |torque|, markers and critical alerts over the frames
+  /// (RecordingFrameRenderer::setOverlay()).
+  bool overlay = true;
   RenderMode mode = RenderMode::kIsosurface;  ///< How the volume is drawn.
   VolumePreset preset = VolumePreset::kBone;  ///< Composite preset.
 };
