@@ -167,6 +167,32 @@ bool clipBox(std::array<int, 3>& lo, std::array<int, 3>& hi, const std::array<in
   }
   return true;
 }
+
+// Recomputes the nodes above the level-0 node box [lo, hi], level by level, from their clipped
+// 2 x 2 x 2 children: start(l, o) resets node o of level l, merge(l, o, below, i) folds child i of
+// the level below into it (the ranges after drilling, the Lipschitz bounds: one walk for both).
+template <typename Levels, typename Start, typename Merge>
+void updateAncestors(Levels& levels, std::array<int, 3> lo, std::array<int, 3> hi, Start start, Merge merge) {
+  for (std::size_t level = 1; level < levels.size(); ++level) {
+    const auto& below = levels[level - 1];
+    auto& l = levels[level];
+    for (int a = 0; a < 3; ++a) {
+      lo[a] >>= 1;
+      hi[a] >>= 1;
+    }
+    clipBox(lo, hi, l.n);
+    for (int c = lo[2]; c <= hi[2]; ++c)
+      for (int b = lo[1]; b <= hi[1]; ++b)
+        for (int a = lo[0]; a <= hi[0]; ++a) {
+          const std::size_t o = static_cast<std::size_t>(a) + static_cast<std::size_t>(l.n[0]) * (b + static_cast<std::size_t>(l.n[1]) * c);
+          start(l, o);
+          for (int z = 2 * c; z <= std::min(2 * c + 1, below.n[2] - 1); ++z)
+            for (int y = 2 * b; y <= std::min(2 * b + 1, below.n[1] - 1); ++y)
+              for (int x = 2 * a; x <= std::min(2 * a + 1, below.n[0] - 1); ++x)
+                merge(l, o, below, static_cast<std::size_t>(x) + static_cast<std::size_t>(below.n[0]) * (y + static_cast<std::size_t>(below.n[1]) * z));
+        }
+  }
+}
 }  // namespace
 
 template <typename T>
@@ -180,30 +206,16 @@ void MinMaxTree::refreshBricks(const T* voxels, std::array<int, 3> lo, std::arra
         brickRange(voxels, dims_, a, b, c, l0.range[2 * o], l0.range[2 * o + 1]);
       }
   // Each upper node merges the 2 x 2 x 2 nodes below it (clipped), as Build()'s mergeAxis().
-  for (std::size_t level = 1; level < levels_.size(); ++level) {
-    const Level& below = levels_[level - 1];
-    Level& l = levels_[level];
-    for (int a = 0; a < 3; ++a) {
-      lo[a] >>= 1;
-      hi[a] >>= 1;
-    }
-    clipBox(lo, hi, l.n);
-    for (int c = lo[2]; c <= hi[2]; ++c)
-      for (int b = lo[1]; b <= hi[1]; ++b)
-        for (int a = lo[0]; a <= hi[0]; ++a) {
-          float mn = kInf, mx = -kInf;
-          for (int z = 2 * c; z <= std::min(2 * c + 1, below.n[2] - 1); ++z)
-            for (int y = 2 * b; y <= std::min(2 * b + 1, below.n[1] - 1); ++y)
-              for (int x = 2 * a; x <= std::min(2 * a + 1, below.n[0] - 1); ++x) {
-                const std::size_t i = static_cast<std::size_t>(x) + static_cast<std::size_t>(below.n[0]) * (y + static_cast<std::size_t>(below.n[1]) * z);
-                mn = std::min(mn, below.range[2 * i]);
-                mx = std::max(mx, below.range[2 * i + 1]);
-              }
-          const std::size_t o = static_cast<std::size_t>(a) + static_cast<std::size_t>(l.n[0]) * (b + static_cast<std::size_t>(l.n[1]) * c);
-          l.range[2 * o] = mn;
-          l.range[2 * o + 1] = mx;
-        }
-  }
+  updateAncestors(
+      levels_, lo, hi,
+      [](auto& l, std::size_t o) {
+        l.range[2 * o] = kInf;
+        l.range[2 * o + 1] = -kInf;
+      },
+      [](auto& l, std::size_t o, const auto& below, std::size_t i) {
+        l.range[2 * o] = std::min(l.range[2 * o], below.range[2 * i]);
+        l.range[2 * o + 1] = std::max(l.range[2 * o + 1], below.range[2 * i + 1]);
+      });
 }
 
 void MinMaxTree::setBrickLipschitz(int a, int b, int c, float value) noexcept {
@@ -215,25 +227,9 @@ void MinMaxTree::setBrickLipschitz(int a, int b, int c, float value) noexcept {
 
 void MinMaxTree::propagateLipschitz(std::array<int, 3> lo, std::array<int, 3> hi) noexcept {
   if (levels_.empty() || levels_[0].lipschitz.empty() || !clipBox(lo, hi, levels_[0].n)) return;
-  for (std::size_t level = 1; level < levels_.size(); ++level) {
-    const Level& below = levels_[level - 1];
-    Level& l = levels_[level];
-    for (int a = 0; a < 3; ++a) {
-      lo[a] >>= 1;
-      hi[a] >>= 1;
-    }
-    clipBox(lo, hi, l.n);
-    for (int c = lo[2]; c <= hi[2]; ++c)
-      for (int b = lo[1]; b <= hi[1]; ++b)
-        for (int a = lo[0]; a <= hi[0]; ++a) {
-          float m = 0.0f;
-          for (int z = 2 * c; z <= std::min(2 * c + 1, below.n[2] - 1); ++z)
-            for (int y = 2 * b; y <= std::min(2 * b + 1, below.n[1] - 1); ++y)
-              for (int x = 2 * a; x <= std::min(2 * a + 1, below.n[0] - 1); ++x)
-                m = std::max(m, below.lipschitz[static_cast<std::size_t>(x) + static_cast<std::size_t>(below.n[0]) * (y + static_cast<std::size_t>(below.n[1]) * z)]);
-          l.lipschitz[static_cast<std::size_t>(a) + static_cast<std::size_t>(l.n[0]) * (b + static_cast<std::size_t>(l.n[1]) * c)] = m;
-        }
-  }
+  updateAncestors(
+      levels_, lo, hi, [](auto& l, std::size_t o) { l.lipschitz[o] = 0.0f; },
+      [](auto& l, std::size_t o, const auto& below, std::size_t i) { l.lipschitz[o] = std::max(l.lipschitz[o], below.lipschitz[i]); });
 }
 
 template void MinMaxTree::refreshBricks<std::uint8_t>(const std::uint8_t*, std::array<int, 3>, std::array<int, 3>) noexcept;

@@ -64,10 +64,14 @@ double triangleThreshold(const haptics::ScalarVolume& field, int bins) {
   return lo + (best_bin + (upward ? 1 : 0)) * (hi - lo) / bins;
 }
 
+bool inHounsfieldUnits(const io::LoadedVolume& volume) {
+  return volume.info.modality == "CT" || volume.info.value_unit == "HU";
+}
+
 double defaultIsovalue(const io::LoadedVolume& volume) {
   const haptics::ScalarVolume& f = *volume.field;
   const std::string& modality = volume.info.modality;
-  if (volume.info.value_unit == "HU" && f.minValue() < kBoneHU && f.maxValue() > kBoneHU) return kBoneHU;
+  if (inHounsfieldUnits(volume) && f.minValue() < kBoneHU && f.maxValue() > kBoneHU) return kBoneHU;
   if (modality == "MR" || modality == "PT") return triangleThreshold(f);
   return 0.5 * (f.minValue() + f.maxValue());
 }

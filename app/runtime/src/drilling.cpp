@@ -16,6 +16,8 @@ std::string lower(std::string s) {
 constexpr double kMinBurrRadius_m = 0.001, kMaxBurrRadius_m = 0.006;
 }  // namespace
 
+bool namesMaterial(const std::string& given, const std::string& name) { return lower(given) == lower(name); }
+
 Burr burrOf(const haptics::ToolModel& tool, const DrillSpec& spec) {
   Burr burr;
   if (spec.burr_radius_m != 0.0) {

@@ -1,7 +1,6 @@
 // Replaying recordings: the replay device and the bit-for-bit re-run (vh/runtime/replay.h).
 #include "vh/runtime/replay.h"
 
-#include <cctype>
 #include <cstring>
 #include <stdexcept>
 
@@ -101,12 +100,8 @@ ReplayComparison replayRecording(const LoadedScene& scene, const Recording& reco
   std::size_t next_hardness = 0;
   const auto applyHardness = [&](const HardnessChange& h) {
     haptics::MaterialRemoval& removal = servo.drill->removal();
-    for (std::size_t m = 0; m < removal.materials().size(); ++m) {
-      std::string a = removal.materials()[m].name, b = h.material;
-      for (char& c : a) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
-      for (char& c : b) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
-      if (a == b) removal.setSpecificEnergy(static_cast<int>(m), h.J_per_mm3);
-    }
+    for (std::size_t m = 0; m < removal.materials().size(); ++m)
+      if (namesMaterial(h.material, removal.materials()[m].name)) removal.setSpecificEnergy(static_cast<int>(m), h.J_per_mm3);
   };
   renderer->setGains(renderer->coupling().gains());  // as the haptic thread does before its first tick
   ReplayDevice device(recording.records, "replayRecording");

@@ -612,7 +612,7 @@ LiveValues LiveValues::initial(const LoadedScene& scene) {
   live.segments = scene.segments;
   live.segmentation = scene.spec.segmentation;
   live.drill = scene.spec.drill;
-  live.scan_in_HU = scene.volume.info.modality == "CT" || scene.volume.info.value_unit == "HU";
+  live.scan_in_HU = inHounsfieldUnits(scene.volume);
   return live;
 }
 

@@ -1,10 +1,10 @@
 #include "vh/runtime/session.h"
 
+#include "vh/runtime/drilling.h"
 #include "vh/runtime/placement.h"
 #include "vh/runtime/snapshot_channel.h"
 
 #include <algorithm>
-#include <cctype>
 #include <cmath>
 #include <stdexcept>
 #include <string>
@@ -176,15 +176,10 @@ void Session::setHardness(const std::string& material, double J_per_mm3) {
   live_.drill->hardness_J_per_mm3[material] = J_per_mm3;
   if (haptics_ != nullptr && haptics_->drill() != nullptr) {
     haptics::MaterialRemoval& removal = haptics_->drill()->removal();
-    const auto same = [](std::string a, std::string b) {
-      for (char& c : a) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
-      for (char& c : b) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
-      return a == b;
-    };
     for (std::size_t m = 0; m < removal.materials().size(); ++m) {
       const int segment = haptics_->drill()->segmentOfMaterial(static_cast<int>(m));
-      const bool named = same(removal.materials()[m].name, material) ||
-                         (segment >= 0 && live_.segments != nullptr && same(live_.segments->segment(segment).id, material));
+      const bool named = namesMaterial(material, removal.materials()[m].name) ||
+                         (segment >= 0 && live_.segments != nullptr && namesMaterial(material, live_.segments->segment(segment).id));
       if (named) removal.setSpecificEnergy(static_cast<int>(m), J_per_mm3);
     }
     haptics_->recordEvent("hardness", nlohmann::json{{"material", material}, {"J_per_mm3", J_per_mm3}}.dump());

@@ -20,6 +20,18 @@
 namespace vh::runtime {
 namespace {
 
+// The device at (x, y) [m], lowered from z_from to z_to [m] over the first t_down_s seconds,
+// then held until 3 s.
+Trajectory pressDown(double x, double y, double z_from, double t_down_s, double z_to) {
+  const auto at = [&](double t, double z) {
+    TrajectorySample s;
+    s.t_s = t;
+    s.X_WD.p_AB_m = {x, y, z};
+    return s;
+  };
+  return Trajectory({at(0.0, z_from), at(t_down_s, z_to), at(3.0, z_to)});
+}
+
 const char* kDrillScene = R"({
   "volume": {"path": "builtin:sphere"},
   "tool": {"mesh": "builtin:drill", "point_spacing_m": 0.001},
@@ -80,13 +92,7 @@ TEST(Drilling, HardnessFollowsHounsfieldUnits) {
 TEST(Drilling, HeadlessRunDrillsAndReplaysBitForBit) {
   const auto dir = test::scratchDir();
   const LoadedScene scene = loadScene(parseScene(kDrillScene, "drill.json", "."));
-  const auto at = [](double t, double z) {
-    TrajectorySample s;
-    s.t_s = t;
-    s.X_WD.p_AB_m = {0.0, 0.0, z};
-    return s;
-  };
-  const Trajectory press({at(0.0, 0.030), at(1.0, 0.0125), at(3.0, 0.0125)});
+  const Trajectory press = pressDown(0.0, 0.0, 0.030, 1.0, 0.0125);
   RunOptions options;
   options.record = dir / "drill.vhrec";
   options.lag_reference = false;
@@ -175,13 +181,7 @@ TEST(Drilling, CriticalSegmentRemovalIsReportedAndRecorded) {
     "drill": {"on": true, "hardness": {"nerve": 0.5, "bone": 2.5}}
   })");
   const LoadedScene scene = loadScene(loadSceneFile(scene_path));
-  const auto at = [](double t, double z) {
-    TrajectorySample s;
-    s.t_s = t;
-    s.X_WD.p_AB_m = {0.015, 0.015, z};
-    return s;
-  };
-  const Trajectory press({at(0.0, 0.016), at(0.5, 0.002), at(3.0, 0.002)});
+  const Trajectory press = pressDown(0.015, 0.015, 0.016, 0.5, 0.002);
   RunOptions options;
   options.record = dir / "drill.vhrec";
   options.lag_reference = false;

@@ -24,6 +24,9 @@ namespace vh::runtime {
 ///         peak; the middle of the range for a constant volume.
 double triangleThreshold(const haptics::ScalarVolume& field, int bins = 256);
 
+/// Whether `volume`'s values are Hounsfield units: a CT, or a file that names HU as its unit.
+bool inHounsfieldUnits(const io::LoadedVolume& volume);
+
 /// The isovalue `volume` opens at (see the file comment). `volume.field` must be set.
 double defaultIsovalue(const io::LoadedVolume& volume);
 

@@ -69,6 +69,10 @@ struct DrillMaterials {
   std::vector<int> segment_of_material;
 };
 
+/// Whether `given` (a scene's "hardness" key, a Segments panel edit, a recorded hardness event)
+/// names the material or segment `name`: the same text, ignoring ASCII case.
+bool namesMaterial(const std::string& given, const std::string& name);
+
 /// The hardness of each voxel of `felt` (the field the hand feels, in W): the segment whose label
 /// covers the voxel's centre (nearest voxel of its layer) when `segments` is given, with the
 /// spec's hardness for the segment's name or ID, else the HU class of its mean scan value;
