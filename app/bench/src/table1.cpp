@@ -221,6 +221,7 @@ struct Variant {
   double max_travel_m = haptics::RendererOptions{}.max_travel_per_tick_m;  ///< RendererOptions::max_travel_per_tick_m.
   int lanes = 1;             ///< RendererOptions::solver_lanes.
   double deadline_us = 0.0;  ///< RendererOptions::deadline_us (0: none).
+  int edge_test = 0;         ///< RendererOptions::edge_test.
 };
 
 /// The accelerated mode without a work budget: the reference the budgeted proxy's lag is
@@ -228,6 +229,9 @@ struct Variant {
 constexpr const char* kUnbudgetedKey = "accelerated-unbudgeted";
 
 constexpr const char* kBeforeKey = "accelerated-end-sample";
+
+/// The accelerated mode with the edge test between shell points.
+constexpr const char* kEdgesKey = "accelerated-edges";
 
 struct ModeRun {
   Variant variant;
@@ -338,6 +342,7 @@ std::vector<ModeRun> makeModeRuns(const runtime::LoadedScene& scene,
     options.max_travel_per_tick_m = variant.max_travel_m;
     options.solver_lanes = variant.lanes;
     options.deadline_us = variant.deadline_us;
+    options.edge_test = variant.edge_test;
     options.gains = scene.spec.gains;
     m.renderer = std::make_unique<haptics::HapticRenderer>(scene.volume.field, tool, options, X_WD0, isovalue);
     m.times_us.reserve(static_cast<std::size_t>(ticks));
@@ -432,6 +437,16 @@ void addModeResults(nlohmann::ordered_json& row, const std::vector<ModeRun>& run
                                           {"volume_samples", ratio(a["mean_volume_samples"], b["mean_volume_samples"])},
                                           {"within_1_3x", mean_ratio <= 1.3}};
     row["max_proxy_difference_exact_vs_end_sample_m"] = max_before_difference_m;
+  }
+  if (modes_json.contains(kEdgesKey)) {
+    // The edge test's cost, same run, thread CPU time.
+    const auto& a = modes_json["accelerated"];
+    const auto& e = modes_json[kEdgesKey];
+    const double mean_ratio = ratio(e["cpu_mean_us"], a["cpu_mean_us"]);
+    row["ratio_edges_over_accelerated"] = {{"cpu_mean", mean_ratio},
+                                           {"cpu_p99_9", ratio(e["cpu_p99_9_us"], a["cpu_p99_9_us"])},
+                                           {"cpu_max", ratio(e["cpu_max_us"], a["cpu_max_us"])},
+                                           {"within_1_2x", mean_ratio <= 1.2}};
   }
 }
 
@@ -606,6 +621,13 @@ std::vector<Variant> table1Variants(const Table1Options& options, int lanes, dou
       v.lanes = n;
       variants.push_back(v);
     }
+    if (options.edge_test) {
+      Variant edges = accelerated;
+      edges.key = kEdgesKey;
+      edges.label = "accelerated with the edge test" + budget_text;
+      edges.edge_test = 1;
+      variants.push_back(edges);
+    }
     if (options.before)
       variants.push_back({DetectionMode::kAccelerated, SegmentTest::kEndSample, kBeforeKey,
                           "accelerated (end-sample, before)", options.work_budget});
@@ -700,6 +722,17 @@ void printRowResults(nlohmann::ordered_json& row) {
   if (row.contains("ratio_paper_over_accelerated"))
     std::cout << "  paper / accelerated: mean " << num(row["ratio_paper_over_accelerated"]["mean"], 2)
               << "x, max " << num(row["ratio_paper_over_accelerated"]["max"], 2) << "x\n";
+  if (row.contains("ratio_edges_over_accelerated")) {
+    const auto& a = row["modes"]["accelerated"];
+    const auto& e = row["modes"][kEdgesKey];
+    const auto& q = row["ratio_edges_over_accelerated"];
+    std::cout << "  with / without the edge test, accelerated, CPU time: mean " << num(e["cpu_mean_us"], 1) << " / "
+              << num(a["cpu_mean_us"], 1) << " us = " << num(q["cpu_mean"], 2) << "x"
+              << (q["within_1_2x"].get<bool>() ? " (within 1.2x)" : " (OVER 1.2x)") << ", p99.9 "
+              << num(e["cpu_p99_9_us"], 1) << " / " << num(a["cpu_p99_9_us"], 1) << " us, max "
+              << num(e["cpu_max_us"], 1) << " / " << num(a["cpu_max_us"], 1) << " us; crossings " << crossingsText(e)
+              << " / " << crossingsText(a) << "\n";
+  }
   if (row.contains("ratio_exact_over_end_sample")) {
     const auto& a = row["modes"]["accelerated"];
     const auto& b = row["modes"][kBeforeKey];

@@ -152,6 +152,31 @@ TEST(Bench, table1AcceleratedModeKeepsItsWorkBudgetAndReportsItsLag) {
   EXPECT_NE(text.find("Never behind:"), std::string::npos);
 }
 
+TEST(Bench, table1EdgeTestColumnRunsBesideTheAcceleratedModeAndNeverCrosses) {
+  // --edge-test: the accelerated mode as the application runs it, again with the edge test
+  // between shell points, interleaved; its cost over the accelerated mode in the same run.
+  Table1Options options;
+  options.common.short_run = true;
+  options.common.out_dir = outDir("table1-edges");
+  options.scene = "Hole";
+  options.modes = ModeSelection::kAccelerated;
+  options.large_tools = false;
+  options.edge_test = true;
+  const fs::path dir = runTable1(options);
+  const json report = readJson(dir / "table1.json");
+  ASSERT_EQ(report["scenes"].size(), 1u);
+  const json& row = report["scenes"][0];
+  ASSERT_EQ(row["status"], "ran");
+  ASSERT_TRUE(row["modes"].contains("accelerated-edges"));
+  const json& e = row["modes"]["accelerated-edges"];
+  EXPECT_EQ(number(e, "crossings"), 0.0);
+  EXPECT_GT(number(e, "cpu_mean_us"), 0.0);
+  ASSERT_TRUE(row.contains("ratio_edges_over_accelerated"));
+  const json& q = row["ratio_edges_over_accelerated"];
+  EXPECT_NEAR(number(q, "cpu_mean"), number(e, "cpu_mean_us") / number(row["modes"]["accelerated"], "cpu_mean_us"), 1e-9);
+  EXPECT_EQ(q["within_1_2x"].get<bool>(), number(q, "cpu_mean") <= 1.2);
+}
+
 TEST(Bench, table1ShortWritesBothModesForEveryScene) {
   Table1Options options;
   options.common.short_run = true;

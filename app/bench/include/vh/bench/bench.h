@@ -49,6 +49,10 @@ struct Table1Options {
   /// When the accelerated mode runs: also run it with SegmentTest::kEndSample (the earlier test,
   /// the "before" column), interleaved with the others, and compare it with the exact test.
   bool before = false;
+  /// When the accelerated mode runs: also run it as the application does (budget, deadline,
+  /// lanes) with the edge test between shell points (RendererOptions::edge_test, the
+  /// "accelerated-edges" column), interleaved, and give its cost over the accelerated mode.
+  bool edge_test = false;
   /// Crossing check after every tick (haptics::CrossingVerifier, outside the timed section):
   /// sampling step along each shell point's path [voxels]; 0: off (crossings reported as -1).
   double verify_step_voxels = 0.01;
