@@ -340,6 +340,7 @@ void MainWindow::buildMenus() {
   view_menu->insertAction(first_toggle, focus);
   view_menu->insertSeparator(first_toggle);
   view_controller_->addColoursMenu(view_menu, this);
+  view_controller_->addStereoMenu(view_menu);
   view_menu->addSeparator();
   view_menu->addAction(display_dock_->toggleViewAction());
   view_menu->addAction(haptics_dock_->toggleViewAction());

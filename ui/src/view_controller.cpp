@@ -3,14 +3,18 @@
 #include <algorithm>
 #include <span>
 
+#include <QActionGroup>
 #include <QColorDialog>
 #include <QMenu>
 #include <QTimer>
+#include <vtkGenericOpenGLRenderWindow.h>
 
 #include "vh/ui/devices/device_input.h"
 #include "vh/ui/export/media_export.h"
 #include "vh/ui/panels/display_panel.h"
 #include "vh/ui/view/scene_actors.h"
+#include "vh/ui/view/scene_view.h"
+#include "vh/ui/view/vtk_view.h"
 
 namespace vh::ui {
 namespace {
@@ -157,6 +161,37 @@ void ViewController::chooseColour(QColor Preferences::*field, const QString& tit
     prefs_.*field = chosen;
     applyColours();
   }
+}
+
+void ViewController::setStereo(Stereo mode) {
+  vtkRenderWindow* window = view_.widget()->renderWindow();
+  if (mode == Stereo::kQuadBuffer && window->GetStereoCapableWindow() == 0) mode = Stereo::kOff;
+  stereo_ = mode;
+  switch (mode) {
+    case Stereo::kOff: window->StereoRenderOff(); break;
+    case Stereo::kSideBySide: window->SetStereoTypeToSplitViewportHorizontal(); break;
+    case Stereo::kAnaglyph: window->SetStereoTypeToAnaglyph(); break;
+    case Stereo::kQuadBuffer: window->SetStereoTypeToCrystalEyes(); break;
+  }
+  if (mode != Stereo::kOff) window->StereoRenderOn();
+  view_.requestRender();
+}
+
+void ViewController::addStereoMenu(QMenu* view_menu) {
+  QMenu* stereo = view_menu->addMenu("&Stereo");
+  auto* group = new QActionGroup(stereo);
+  const auto add = [&](const char* label, Stereo mode, bool enabled) {
+    QAction* a = stereo->addAction(label, this, [this, mode] { setStereo(mode); });
+    a->setCheckable(true);
+    a->setChecked(mode == stereo_);
+    a->setEnabled(enabled);
+    group->addAction(a);
+  };
+  add("&Off", Stereo::kOff, true);
+  add("&Side by Side", Stereo::kSideBySide, true);
+  add("&Anaglyph (Red / Cyan)", Stereo::kAnaglyph, true);
+  add("&Quad Buffer (Shutter Glasses)", Stereo::kQuadBuffer,
+      view_.widget()->renderWindow()->GetStereoCapableWindow() != 0);
 }
 
 void ViewController::addColoursMenu(QMenu* view_menu, QWidget* dialog_parent) {

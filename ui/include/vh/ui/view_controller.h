@@ -60,6 +60,16 @@ class ViewController : public QObject {
   void applyColours();
   /// Adds View > Colours (a colour dialog per colour, parented to `dialog_parent`; reset).
   void addColoursMenu(QMenu* view_menu, QWidget* dialog_parent);
+  /// Adds View > Stereo: Off, Side by Side, Anaglyph (red / cyan glasses) and Quad Buffer (shutter
+  /// glasses; enabled only where the display's GL context is stereo capable).
+  void addStereoMenu(QMenu* view_menu);
+
+  /// How the two eyes' pictures are shown (VTK's stereo rendering of the same camera and props,
+  /// so what is seen stays in register with what is felt: only the eye positions change).
+  enum class Stereo { kOff, kSideBySide, kAnaglyph, kQuadBuffer };
+  /// Sets the stereo mode and renders; kQuadBuffer without a stereo capable context is kOff.
+  void setStereo(Stereo mode);
+  Stereo stereo() const noexcept { return stereo_; }
 
  signals:
   /// A snapshot was read and shown (strip chart, status line, segment alerts follow it).
@@ -74,6 +84,7 @@ class ViewController : public QObject {
 
   runtime::Session& session_;
   SceneView& view_;
+  Stereo stereo_ = Stereo::kOff;
   DisplayPanel& panel_;
   Preferences& prefs_;
   QTimer* timer_ = nullptr;
