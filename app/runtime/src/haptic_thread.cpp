@@ -151,6 +151,7 @@ struct DeviceInput {
   haptics::CouplingGains gains;  ///< The gains the coupling thread applied on that tick.
   bool ok = false;               ///< A usable sample (read() true, valid, finite).
   bool connected = true;         ///< Device::connected() right after the read.
+  bool drill_button = false;     ///< The device's first button held (kDrillButton) on a usable sample.
 };
 
 /// Energy the coupling's linear spring holds [J]: 0.5 k_lin |c_D - c_P|^2 = |F|^2 / (2 k_lin)
@@ -209,7 +210,8 @@ class SampleRing {
     s.value[7].store(in.isovalue, std::memory_order_relaxed);
     s.value[8].store(in.gains.linear_N_per_m, std::memory_order_relaxed);
     s.value[9].store(in.gains.angular_Nm_per_rad, std::memory_order_relaxed);
-    s.flags.store((in.ok ? 1u : 0u) | (in.connected ? 2u : 0u) | (in.gains.passivity_control ? 4u : 0u),
+    s.flags.store((in.ok ? 1u : 0u) | (in.connected ? 2u : 0u) | (in.gains.passivity_control ? 4u : 0u) |
+                      (in.drill_button ? 8u : 0u),
                   std::memory_order_relaxed);
     s.version.store(v + 2, std::memory_order_release);
     latest_.store(seq, std::memory_order_release);
@@ -236,6 +238,7 @@ class SampleRing {
     out.ok = (flags & 1u) != 0;
     out.connected = (flags & 2u) != 0;
     out.gains.passivity_control = (flags & 4u) != 0;
+    out.drill_button = (flags & 8u) != 0;
     return true;
   }
 
@@ -723,6 +726,7 @@ void HapticThread::couplingLoop() noexcept {
     input.gains = applied_gains;
     input.ok = ok;
     input.connected = connected;
+    input.drill_button = ok && (sample.buttons & kDrillButton) != 0;
     x_->samples.push(input);
     // 4. Virtual coupling (eq. 5) to the solver's latest proxy pose, with the device pose
     //    normalised as the renderer does (so that the same pair gives the same bits). A pose
@@ -805,7 +809,7 @@ void HapticThread::solverLoop() noexcept {
       out = renderer_->tick(in.X_WD, in.isovalue);
       bad_input = out.stats.bad_input;
       if (bad_input) ++rejected;
-      if (options_.drill != nullptr && drilling_.load(std::memory_order_relaxed)) {
+      if (options_.drill != nullptr && (drilling_.load(std::memory_order_relaxed) || in.drill_button)) {
         (void)options_.drill->step(*renderer_, out);
         drill_flags = kRecordFlagDrillOn;
       }

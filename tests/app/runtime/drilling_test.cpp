@@ -3,12 +3,16 @@
 // replay round trip that rebuilds the drilled field bit for bit (SHA-256 of its voxels).
 #include "vh/runtime/drilling.h"
 
+#include <algorithm>
+#include <atomic>
 #include <fstream>
+#include <iostream>
 
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
 
 #include "runtime_test_support.h"
+#include "vh/runtime/haptic_thread.h"
 #include "vh/runtime/recording.h"
 #include "vh/runtime/replay.h"
 #include "vh/runtime/runner.h"
@@ -211,6 +215,55 @@ TEST(Drilling, CriticalSegmentRemovalIsReportedAndRecorded) {
       recorded += static_cast<std::uint64_t>(nlohmann::json::parse(e.detail_json).at("voxels").get<int>());
     }
   EXPECT_EQ(recorded, nerve->voxels) << "every removed nerve voxel is in an event";
+}
+
+
+// A device lowered onto the sphere's top over its first 500 reads and held there, its first
+// button held from read 300 on when `press_button`.
+class ButtonDevice final : public Device {
+ public:
+  explicit ButtonDevice(bool press_button) : press_button_(press_button) {}
+  std::string name() const override { return "button"; }
+  bool read(DeviceSample& sample) noexcept override {
+    const int i = reads_.load(std::memory_order_relaxed);
+    reads_.store(i + 1, std::memory_order_release);
+    const double a = std::clamp(i / 500.0, 0.0, 1.0);
+    sample.X_WD = haptics::Pose::FromTranslation({0.0, 0.0, 0.030 - a * (0.030 - 0.0125)});
+    sample.time_s = 1e-3 * i;
+    sample.buttons = press_button_ && i >= 300 ? HapticThread::kDrillButton : 0u;
+    sample.valid = true;
+    return true;
+  }
+  void command(const Eigen::Vector3d&, const Eigen::Vector3d&) noexcept override {}
+  int reads() const { return reads_.load(std::memory_order_acquire); }
+
+ private:
+  bool press_button_;
+  std::atomic<int> reads_{0};
+};
+
+// The device's first button spins the burr while held, as a foot pedal: with the drill prepared
+// but switched off, pressing on the sphere removes nothing; holding the button removes voxels.
+TEST(Drilling, TheDevicesFirstButtonSpinsTheBurrWhileHeld) {
+  std::uint64_t removed[2] = {0, 0};
+  for (const bool press : {false, true}) {
+    Session session;
+    LoadedScene scene = loadScene(parseScene(R"({"volume": {"path": "builtin:sphere"}, "tool": {"mesh": "builtin:drill",
+        "point_spacing_m": 0.001}, "coupling": {"linear_N_per_m": 400},
+        "drill": {"on": false, "burr_radius_m": 0.0025, "hardness": {"tissue": 2.0}}})", "s.json", "."));
+    auto device = std::make_shared<ButtonDevice>(press);
+    session.setScene(std::move(scene), device);
+    ASSERT_NE(session.hapticThread()->drill(), nullptr) << "the scene's drill is prepared, switched off";
+    EXPECT_FALSE(session.drilling());
+    session.startHaptics();
+    EXPECT_TRUE(test::waitUntil([&] { return device->reads() >= 1500; }, std::chrono::milliseconds(20000)));
+    session.stopHaptics();
+    removed[press] = session.hapticThread()->drill()->removal().removedVoxels();
+    EXPECT_FALSE(session.drilling()) << "the button does not switch the drill on for good";
+  }
+  std::cout << "removed voxels: button not pressed " << removed[0] << ", held " << removed[1] << "\n";
+  EXPECT_EQ(removed[0], 0u);
+  EXPECT_GT(removed[1], 0u);
 }
 
 }  // namespace

@@ -197,8 +197,12 @@ class HapticThread {
   /// the rendered stiffness continuous (PassivityPort). Not on a haptic thread.
   void setGains(const haptics::CouplingGains& gains) noexcept;
 
-  /// Starts or stops the burr (a key, a device button, the Haptics panel); applied at the solver's
-  /// next tick. A no-op without HapticThreadOptions::drill. Any thread.
+  /// The device button that spins the burr while held (bit 0 of DeviceSample::buttons: a Falcon's
+  /// or a Touch's first button, a SpaceMouse's left key), as a surgeon's foot pedal does.
+  static constexpr unsigned kDrillButton = 1u;
+  /// Starts or stops the burr (a key, the Haptics menu); applied at the solver's next tick. The
+  /// burr also spins while the device's kDrillButton is held (recorded per tick like this
+  /// switch). A no-op without HapticThreadOptions::drill. Any thread.
   void setDrilling(bool on) noexcept { drilling_.store(on, std::memory_order_relaxed); }
   bool drilling() const noexcept { return options_.drill != nullptr && drilling_.load(std::memory_order_relaxed); }
   /// The drill (HapticThreadOptions::drill), or null. Its removal log (MaterialRemoval::
