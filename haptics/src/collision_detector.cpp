@@ -140,7 +140,7 @@ void CollisionDetector::addEdgeContact(const Pose& X_WP, double isovalue) noexce
     const Eigen::Vector3d n_T = shell.normals_T()[edge_hit_.j] + shell.normals_T()[edge_hit_.k];
     if (n_T.norm() > 0.0) fallback_n_W = -(X_WP.R_AB * n_T).normalized();
   }
-  // One contact per place on the tool: a new one within a quarter spacing of an earlier edge
+  // One contact per place on the tool: a new one within a quarter epsilon of an earlier edge
   // contact replaces it.
   std::size_t slot = contact_count_;
   for (std::size_t i = 0; i < contact_count_; ++i)

@@ -113,16 +113,22 @@ fs::path outDir(const std::string& name) {
   return dir;
 }
 
+// A short table1 run of the built-in Hole scene in the accelerated mode only, into `out_name`.
+Table1Options shortAcceleratedHole(const std::string& out_name) {
+  Table1Options options;
+  options.common.short_run = true;
+  options.common.out_dir = outDir(out_name);
+  options.scene = "Hole";
+  options.modes = ModeSelection::kAccelerated;
+  options.large_tools = false;
+  return options;
+}
+
 TEST(Bench, table1AcceleratedModeKeepsItsWorkBudgetAndReportsItsLag) {
   // The accelerated column runs with the work budget (the application's setting) and
   // beside it without, interleaved. Work is counted, not timed: no tick exceeds the budget by
   // more than the pruning of a capped contact set and one queue step.
-  Table1Options options;
-  options.common.short_run = true;
-  options.common.out_dir = outDir("table1-budget");
-  options.scene = "Hole";
-  options.modes = ModeSelection::kAccelerated;
-  options.large_tools = false;
+  Table1Options options = shortAcceleratedHole("table1-budget");
   options.work_budget = 3000;
   const fs::path dir = runTable1(options);
   const json report = readJson(dir / "table1.json");
@@ -155,12 +161,7 @@ TEST(Bench, table1AcceleratedModeKeepsItsWorkBudgetAndReportsItsLag) {
 TEST(Bench, table1EdgeTestColumnRunsBesideTheAcceleratedModeAndNeverCrosses) {
   // --edge-test: the accelerated mode as the application runs it, again with the edge test
   // between shell points, interleaved; its cost over the accelerated mode in the same run.
-  Table1Options options;
-  options.common.short_run = true;
-  options.common.out_dir = outDir("table1-edges");
-  options.scene = "Hole";
-  options.modes = ModeSelection::kAccelerated;
-  options.large_tools = false;
+  Table1Options options = shortAcceleratedHole("table1-edges");
   options.edge_test = true;
   const fs::path dir = runTable1(options);
   const json report = readJson(dir / "table1.json");

@@ -182,9 +182,9 @@ class CollisionDetector {
   /// point of that edge where the isosurface entered it to the contact set as a contact of the
   /// tool's surface between points (point_index -1), at the proxy's pose X_WP (where it is
   /// free): its normal from the volume's gradient there, so that the configuration solver
-  /// slides the tool along the wall it met between its points instead of holding it. A second
-  /// contact on the same edge replaces the first; none is added once the contact set holds the
-  /// contact cap. Pruned like any contact (pruneContacts()).
+  /// slides the tool along the wall it met between its points instead of holding it. A new one
+  /// within epsilon / 4 of an earlier edge contact (in T) replaces it; none is added once the
+  /// contact set holds the contact cap. Pruned like any contact (pruneContacts()).
   void addEdgeContact(const Pose& X_WP, double isovalue) noexcept;
   /// The neighbour graph edgesCrossAt() tests (built in the constructor).
   const ShellEdges& shellEdges() const noexcept { return edges_; }
