@@ -243,7 +243,7 @@ io::LoadedVolume volumeFromIjkToRas(const std::array<int, 3>& dims, const Eigen:
   g.origin_W_m = 1e-3 * (F * X_RAS_IJK_mm.block<3, 1>(0, 3));
   auto field = std::make_shared<const haptics::ScalarVolume>(haptics::ScalarVolume::FromBytes(g, type, std::move(bytes)));
   io::LoadedVolume volume;
-  volume.image = io::imageFromField(*field);
+  volume.image = io::imageFromField(field);
   volume.field = std::move(field);
   volume.info.source = std::string(runtime::kIgtlVolumePrefix) + name;
   volume.info.format = "OpenIGTLink";

@@ -3,6 +3,7 @@
 /// Pieces shared by the format loaders of vh::io. Private to the library.
 
 #include <array>
+#include <cstddef>
 #include <cstdint>
 #include <filesystem>
 #include <functional>
@@ -28,20 +29,32 @@ namespace fs = std::filesystem;
 /// Throws LoadError("<path>: <problem>").
 [[noreturn]] void fail(const fs::path& path, const std::string& problem);
 
-/// A volume as a reader produced it, before conversion into the field's voxel types.
+/// A volume as a reader produced it, before conversion into the field's voxel types: either a
+/// reader's vtkImageData (`image`), or voxels already in a field voxel type (`voxels`, taken
+/// back from the reader process), which become the field's own without a copy.
 struct RawVolume {
   vtkSmartPointer<vtkImageData> image;  ///< Reader output; its spacing and origin are ignored.
-  haptics::VolumeGeometry geometry;     ///< Geometry in W [m].
+  /// When `image` is null: the voxels (x fastest; geometry.dims.prod() of `voxel_type`).
+  std::vector<std::byte> voxels;
+  haptics::VoxelType voxel_type = haptics::VoxelType::kInt16;
+  haptics::VolumeGeometry geometry;     ///< Geometry in W [m]; dims are `image`'s when it is set.
   double value_scale = 1.0;             ///< F = value_scale * stored + value_offset.
   double value_offset = 0.0;
   VolumeInfo info;
 };
 
-/// Validates `raw` (dimensions, one scalar component, voxel count), converts the voxels into a
-/// ScalarVolume (keeping uint8 / int16 / uint16 / float32 as stored, converting other types)
-/// and builds the rendering image (metres, data units).
+/// Validates `raw` (dimensions, one scalar component, voxel count), makes the voxels a
+/// ScalarVolume (keeping uint8 / int16 / uint16 / float32 as stored, converting other types;
+/// an integer rescale whose values fit int16, a CT's RescaleIntercept, is applied once, so the
+/// field holds data units) and builds the rendering image (metres, data units): the field's own
+/// buffer when the field holds data units (imageFromField()), so one copy of the voxels serves
+/// the hand and the picture. `raw`'s image is released as soon as its voxels are converted.
 /// @throws LoadError naming `path`.
 LoadedVolume finishVolume(RawVolume raw, const fs::path& path);
+
+/// The field voxel type that stores a VTK scalar type (VTK_UNSIGNED_CHAR, VTK_SHORT,
+/// VTK_UNSIGNED_SHORT, VTK_FLOAT) as is; nullopt for the others (converted by finishVolume()).
+std::optional<haptics::VoxelType> fieldVoxelTypeOf(int vtk_type);
 
 /// Folder levels a DICOM folder is scanned to: a DICOMDIR tree (DICOM/PA0/ST0/SE0/IM0) is four.
 inline constexpr int kDicomScanDepth = 4;

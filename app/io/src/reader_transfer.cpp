@@ -312,10 +312,9 @@ LoadedVolume readField(const fs::path& in, const fs::path& source) {
     std::vector<std::byte> bytes(g.voxelCount() * haptics::voxelTypeSize(type));
     f.read(reinterpret_cast<char*>(bytes.data()), static_cast<std::streamsize>(bytes.size()));
     if (static_cast<std::size_t>(f.gcount()) != bytes.size()) fail(source, "the reader process's output is cut short");
-    auto field = std::make_shared<haptics::ScalarVolume>(haptics::ScalarVolume::FromBytes(
+    out.field = std::make_shared<haptics::ScalarVolume>(haptics::ScalarVolume::FromBytes(
         g, type, std::move(bytes), h.at("value_scale").get<double>(), h.at("value_offset").get<double>()));
-    out.image = imageFromField(*field);
-    out.field = std::move(field);
+    out.image = imageFromField(out.field);  // the field's own voxels when they are in data units
     out.info = infoFromJson(h.at("info"));
     out.info.source = source;
   } catch (const json::exception& e) {
@@ -351,14 +350,32 @@ RawVolume readRaw(const fs::path& in, const fs::path& source) {
   RawVolume raw;
   try {
     const auto dims = h.at("dims").get<std::array<int, 3>>();
-    raw.image = vtkSmartPointer<vtkImageData>::New();
-    raw.image->SetDimensions(dims[0], dims[1], dims[2]);
-    raw.image->AllocateScalars(h.at("vtk_type").get<int>(), h.at("components").get<int>());
-    vtkDataArray* scalars = raw.image->GetPointData()->GetScalars();
-    const auto bytes = static_cast<std::streamsize>(scalars->GetNumberOfValues()) * scalars->GetDataTypeSize();
-    f.read(static_cast<char*>(scalars->GetVoidPointer(0)), bytes);
-    if (f.gcount() != bytes) fail(source, "the reader process's output is cut short");
+    const int vtk_type = h.at("vtk_type").get<int>();
+    const int components = h.at("components").get<int>();
     geometryFromJson(h, raw.geometry);
+    const auto voxel_type = fieldVoxelTypeOf(vtk_type);
+    if (voxel_type.has_value() && components == 1 && dims[0] > 0 && dims[1] > 0 && dims[2] > 0) {
+      // Straight into the buffer the field will own (finishVolume()): no VTK image in between.
+      raw.geometry.dims = dims;
+      raw.voxel_type = *voxel_type;
+      const std::size_t expected = raw.geometry.voxelCount() * haptics::voxelTypeSize(*voxel_type);
+      std::error_code ec;
+      const auto file_bytes = fs::file_size(in, ec);
+      if (ec || expected > file_bytes) fail(source, "the reader process's output is cut short");
+      raw.voxels.resize(expected);
+      const auto bytes = static_cast<std::streamsize>(raw.voxels.size());
+      f.read(reinterpret_cast<char*>(raw.voxels.data()), bytes);
+      if (f.gcount() != bytes) fail(source, "the reader process's output is cut short");
+    } else {
+      // Other types (converted by finishVolume()) and shapes it refuses with their own message.
+      raw.image = vtkSmartPointer<vtkImageData>::New();
+      raw.image->SetDimensions(dims[0], dims[1], dims[2]);
+      raw.image->AllocateScalars(vtk_type, components);
+      vtkDataArray* scalars = raw.image->GetPointData()->GetScalars();
+      const auto bytes = static_cast<std::streamsize>(scalars->GetNumberOfValues()) * scalars->GetDataTypeSize();
+      f.read(static_cast<char*>(scalars->GetVoidPointer(0)), bytes);
+      if (f.gcount() != bytes) fail(source, "the reader process's output is cut short");
+    }
     raw.value_scale = h.at("value_scale").get<double>();
     raw.value_offset = h.at("value_offset").get<double>();
     raw.info = infoFromJson(h.at("info"));

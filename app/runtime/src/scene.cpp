@@ -495,7 +495,7 @@ LoadedScene loadScene(const SceneSpec& spec, io::LoadedVolume preloaded) {
   LoadedScene scene;
   scene.spec = spec;
   scene.volume = std::move(preloaded);
-  if (scene.volume.image == nullptr) scene.volume.image = io::imageFromField(*scene.volume.field);
+  if (scene.volume.image == nullptr) scene.volume.image = io::imageFromField(scene.volume.field);
   scene.isovalue = defaultIsovalue(scene.volume);
   loadToolAndPose(scene, where);
   return scene;
@@ -514,7 +514,7 @@ LoadedScene loadScene(const SceneSpec& spec, const std::function<void(double)>& 
     const std::string name = builtinName(spec.volume.path);
     try {
       auto field = std::make_shared<const haptics::ScalarVolume>(datasets::makeBuiltinVolume(name));
-      scene.volume.image = io::imageFromField(*field);
+      scene.volume.image = io::imageFromField(field);
       scene.volume.field = std::move(field);
       scene.isovalue = datasets::builtinIsovalue(name);
     } catch (const std::invalid_argument& e) {

@@ -83,6 +83,10 @@ TEST(DicomIsolation, TheWorkerIsBuiltAndGivesTheSameVolumeAsTheInProcessRead) {
   for (int k = 0; k < g.dims[2]; k += 13)
     for (int j = 0; j < g.dims[1]; j += 7)
       for (int i = 0; i < g.dims[0]; i += 7) ASSERT_EQ(a.field->voxel(i, j, k), b.field->voxel(i, j, k));
+  // Both paths keep one copy of the voxels (HU in int16): the picture's scalars are the field's.
+  EXPECT_TRUE(a.field->bytes() == b.field->bytes());
+  EXPECT_EQ(a.image->GetScalarPointer(), static_cast<const void*>(a.field->bytes().data()));
+  EXPECT_EQ(b.image->GetScalarPointer(), static_cast<const void*>(b.field->bytes().data()));
 }
 
 TEST(DicomIsolation, AWorkerCrashNamesTheFileAndLoadsNothing) {

@@ -2,12 +2,16 @@
 #include <chrono>
 #include <cmath>
 #include <iostream>
+#include <memory>
 
 #include <gtest/gtest.h>
 #include <vtkDataArray.h>
 #include <vtkImageData.h>
+#include <vtkNew.h>
 #include <vtkPointData.h>
+#include <vtkSmartPointer.h>
 
+#include "dicom_fixtures.h"
 #include "io_test_support.h"
 #include "vh/io/volume_loader.h"
 
@@ -49,6 +53,11 @@ void expectImageMatchesField(const LoadedVolume& v) {
   EXPECT_NEAR(r[1], v.field->maxValue(), 1e-3);
   // Direction is orthonormal.
   EXPECT_TRUE((g.direction_W.transpose() * g.direction_W).isIdentity(1e-9));
+  // A field in data units is the picture's voxels too: one copy, not two.
+  if (v.field->valueScale() == 1.0 && v.field->valueOffset() == 0.0) {
+    EXPECT_EQ(scalars->GetVoidPointer(0), static_cast<const void*>(v.field->bytes().data()))
+        << "the rendering image holds a copy of the field's voxels";
+  }
 }
 
 double scalarSum(vtkImageData* image) {
@@ -103,16 +112,26 @@ TEST(DicomLoad, PhilipsHeadPhantom) {
   EXPECT_NEAR(g.origin_W_m.y(), -0.00185, 1e-6);
   EXPECT_EQ(v.info.modality, "CT");
   EXPECT_EQ(v.info.description, "BONE BRAIN 1MM");
-  // Stored pixels are kept (unsigned 12-bit in uint16); the DICOM rescale goes into
-  // value_scale / value_offset; the rendering image holds HU as int16.
-  EXPECT_EQ(v.field->voxelType(), VoxelType::kUInt16);
+  // Stored as unsigned 12-bit in uint16 with RescaleIntercept -1024: the integer rescale is
+  // applied once, so the field holds HU as int16 (scale 1, offset 0) and the rendering image
+  // shares its buffer (expectImageMatchesField()).
+  EXPECT_EQ(v.field->voxelType(), VoxelType::kInt16);
   EXPECT_EQ(v.field->valueScale(), 1.0);
-  EXPECT_EQ(v.field->valueOffset(), -1024.0);
+  EXPECT_EQ(v.field->valueOffset(), 0.0);
   EXPECT_EQ(v.image->GetPointData()->GetScalars()->GetDataType(), VTK_SHORT);
-  std::cout << "philips: stored " << vh::haptics::voxelTypeName(v.field->voxelType())
-            << ", F = " << v.field->valueScale() << " * stored + " << v.field->valueOffset()
-            << ", image scalars " << v.image->GetPointData()->GetScalars()->GetDataTypeAsString()
-            << "\n";
+  // The HU are the files' stored values rescaled: vtkDICOMReader's own read of the folder
+  // (stored values and the series' rescale) gives the same sum, whatever the voxel order.
+  const vh::io::test::SourceVolume stored = vh::io::test::readSourceSeries(dir);
+  EXPECT_EQ(stored.rescale_slope, 1.0);
+  EXPECT_EQ(stored.rescale_intercept, -1024.0);
+  vtkDataArray* s = stored.image->GetPointData()->GetScalars();
+  ASSERT_EQ(static_cast<std::size_t>(s->GetNumberOfTuples()), g.voxelCount());
+  double expected_sum = 0.0, field_sum = 0.0;
+  for (vtkIdType i = 0; i < s->GetNumberOfTuples(); ++i)
+    expected_sum += stored.rescale_slope * s->GetTuple1(i) + stored.rescale_intercept;
+  const auto* hu = reinterpret_cast<const std::int16_t*>(v.field->bytes().data());
+  for (std::size_t i = 0; i < g.voxelCount(); ++i) field_sum += hu[i];
+  EXPECT_EQ(field_sum, expected_sum);
   expectImageMatchesField(v);
 }
 
@@ -271,6 +290,49 @@ TEST(ImageFromField, RescalesToDataUnits) {
     EXPECT_FLOAT_EQ(static_cast<float>(b->GetTuple1(i)),
                     static_cast<float>(0.5 * stored[static_cast<std::size_t>(i)] + 0.25));
   }
+}
+
+TEST(ImageFromField, ASharedFieldInDataUnitsIsWrappedNotCopied) {
+  VolumeGeometry g;
+  g.dims = {4, 3, 2};
+  g.spacing_m = {1e-3, 2e-3, 3e-3};
+  std::vector<std::int16_t> voxels(24);
+  for (std::size_t i = 0; i < voxels.size(); ++i) voxels[i] = static_cast<std::int16_t>(100 * i - 1000);
+  auto field = std::make_shared<const ScalarVolume>(ScalarVolume::FromVoxels(g, voxels));
+  const std::weak_ptr<const ScalarVolume> watch = field;
+  vh::io::ImagePtr image = vh::io::imageFromField(field);
+  vtkDataArray* a = image->GetPointData()->GetScalars();
+  ASSERT_NE(a, nullptr);
+  EXPECT_EQ(a->GetDataType(), VTK_SHORT);
+  EXPECT_EQ(a->GetVoidPointer(0), static_cast<const void*>(field->bytes().data()));
+  EXPECT_EQ(image->GetScalarPointer(), static_cast<const void*>(field->bytes().data()));
+  for (vtkIdType i = 0; i < 24; ++i) EXPECT_EQ(a->GetTuple1(i), voxels[static_cast<std::size_t>(i)]);
+  // A carved picture is a DeepCopy: its own buffer, and writing it leaves the field alone.
+  vtkNew<vtkImageData> carved;
+  carved->DeepCopy(image.get());
+  EXPECT_NE(carved->GetScalarPointer(), image->GetScalarPointer());
+  carved->GetPointData()->GetScalars()->SetComponent(5, 0, -1024.0);
+  EXPECT_EQ(field->voxel(1, 1, 0), voxels[5]);
+  // The field lives while a VTK object holds the image, after every other holder is gone.
+  vtkSmartPointer<vtkImageData> held = image.get();
+  field.reset();
+  image.reset();
+  ASSERT_FALSE(watch.expired());
+  EXPECT_EQ(held->GetPointData()->GetScalars()->GetTuple1(23), voxels[23]);
+  held = nullptr;
+  EXPECT_TRUE(watch.expired()) << "the image's array still holds the field after it was destroyed";
+}
+
+TEST(ImageFromField, ASharedFieldWithARescaleGetsARescaledCopy) {
+  VolumeGeometry g;
+  g.dims = {2, 2, 2};
+  std::vector<std::uint16_t> stored{0, 1000, 1024, 2048, 3000, 4095, 10, 20};
+  const auto ct = std::make_shared<const ScalarVolume>(ScalarVolume::FromVoxels(g, stored, 1.0, -1024.0));
+  const auto image = vh::io::imageFromField(ct);
+  vtkDataArray* a = image->GetPointData()->GetScalars();
+  EXPECT_EQ(a->GetDataType(), VTK_SHORT);
+  EXPECT_NE(a->GetVoidPointer(0), static_cast<const void*>(ct->bytes().data()));
+  for (vtkIdType i = 0; i < 8; ++i) EXPECT_EQ(a->GetTuple1(i), stored[static_cast<std::size_t>(i)] - 1024.0);
 }
 
 TEST(ImageFromField, EmptyFieldGivesEmptyImage) {

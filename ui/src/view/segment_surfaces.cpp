@@ -41,7 +41,7 @@ void SegmentSurfaces::show(const runtime::SegmentSet* set) {
     auto& surface = cache_[s];
     if (surface == nullptr) {
       const auto field = io::segmentIndicatorField(set->segmentation(), {s}, set->smoothingVoxels());
-      const io::ImagePtr image = io::imageFromField(*field);
+      const io::ImagePtr image = io::imageFromField(field);
       vtkNew<vtkFlyingEdges3D> contour;
       contour->SetInputData(image.get());
       contour->SetValue(0, io::kSegmentSurfaceLevel);

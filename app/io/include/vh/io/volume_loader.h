@@ -98,10 +98,12 @@ struct VolumeInfo {
 /// A loaded volume: the haptic field and the same voxels as a vtkImageData for rendering.
 /// Both describe the same world frame W [m]: `image` has spacing and origin in metres and no
 /// direction; the renderer applies `field->geometry().direction_W` about the origin
-/// (p_W = origin + D * (p_image - origin)).
+/// (p_W = origin + D * (p_image - origin)). When the field holds data units (value scale 1,
+/// offset 0: every loaded CT whose HU fit int16), `image`'s scalars are the field's own buffer
+/// (imageFromField() of the shared field): one copy of the voxels for the hand and the picture.
 struct LoadedVolume {
   std::shared_ptr<const haptics::ScalarVolume> field;
-  ImagePtr image;  ///< Scalars in data units (rescaled), metres.
+  ImagePtr image;  ///< Scalars in data units (rescaled), metres; read only (may be the field's).
   VolumeInfo info;
 };
 
@@ -120,7 +122,10 @@ struct LoadedVolume {
 /// Geometry: W is the file's patient frame (DICOM / NRRD patient LPS; NRRD RAS/LAS converted to
 /// LPS) in metres; lengths without units are millimetres. Voxels are kept as stored (uint8,
 /// int16, uint16, float32; other types converted to int16 / uint16 when their range fits, else
-/// float32), with a uniform DICOM rescale as the field's value_scale / value_offset.
+/// float32), except that a uniform integer DICOM rescale whose values fit int16 (a CT's
+/// RescaleIntercept, e.g. uint16 stored + -1024) is applied once: the field then holds int16
+/// data units (HU) and the image shares its buffer. Other rescales (fractional, out of int16's
+/// range) stay the field's value_scale / value_offset, with a rescaled copy for the image.
 /// VTK's own error text during the load becomes the LoadError instead of console output.
 /// May be called from any thread (one load per thread at a time).
 LoadedVolume loadVolume(const std::filesystem::path& path, const VolumeLoadOptions& options = {});
@@ -132,9 +137,17 @@ LoadedVolume loadVolume(const std::filesystem::path& path, const VolumeLoadOptio
 ///         crash.
 haptics::TriangleMesh loadMesh(const std::filesystem::path& path, double scale_to_m = 1.0);
 
-/// A vtkImageData (metres, no direction) over the voxels of a field, e.g. for synthetic
-/// volumes; values in data units.
+/// A vtkImageData (metres, no direction) with a copy of the voxels of a field, in data units
+/// (int16 for an integer rescale that fits it, else float32 when the field has a rescale).
 ImagePtr imageFromField(const haptics::ScalarVolume& field);
+
+/// The same image over a shared field, without a copy where VTK allows: when the field holds
+/// data units (valueScale() 1, valueOffset() 0), the image's scalars are the field's own voxel
+/// buffer (a VTK array that does not own it; the field stays alive while any VTK array wraps it,
+/// after its other holders are gone), so GetScalarPointer() is field->bytes().data(). Never
+/// write through such an image: the haptic thread reads the same voxels (carve a DeepCopy).
+/// Otherwise (a rescale, an empty or null field) as imageFromField(*field).
+ImagePtr imageFromField(const std::shared_ptr<const haptics::ScalarVolume>& field);
 
 /// Name filter for a Qt file dialog that opens volumes, e.g.
 /// "Volumes (*.nrrd *.nhdr *.mha *.mhd *.dcm);;...". A DICOM series is opened by folder or by
