@@ -24,6 +24,7 @@
 #include <vtkCamera.h>
 #include <vtkActor2DCollection.h>
 #include <vtkGPUVolumeRayCastMapper.h>
+#include <vtkImageData.h>
 #include <vtkMatrix4x4.h>
 #include <vtkPlane.h>
 #include <vtkPlaneCollection.h>
@@ -294,6 +295,22 @@ TEST(SceneView, EveryLoadFramesTheWholeVolumeAWholeBodyScanHeadToFeet) {
              << w.view->widget()->renderer()->GetSize()[1];
   w.view->resetCamera();
   expectVolumeFramed(*w.view, "the whole body in a narrow view");
+}
+
+// One copy of the voxels: the picture the ray caster uploads is the haptic field's own buffer
+// (the loader's image wraps it), and carving the picture for drilling works on a copy of it.
+TEST(SceneView, ThePictureDrawsTheHapticFieldsOwnVoxels) {
+  const runtime::LoadedScene& body = longBodyScene();
+  ViewWindow w;
+  ASSERT_TRUE(test::waitFor([&] { return w.view->widget()->renderer()->GetSize()[1] > 0; }, 20000));
+  w.view->setScene(sceneActorsSpecFor(body, runtime::LiveValues::initial(body)), body.X_WT_initial, ViewLook{});
+  w.view->renderStill();
+  const void* field_voxels = body.volume.field->bytes().data();
+  EXPECT_EQ(w.view->actors().shownImage()->GetScalarPointer(), field_voxels);
+  w.view->actors().prepareRemoval();
+  EXPECT_NE(w.view->actors().shownImage()->GetScalarPointer(), field_voxels) << "drilling would carve the field";
+  w.view->actors().restoreVolume();
+  EXPECT_EQ(w.view->actors().shownImage()->GetScalarPointer(), field_voxels);
 }
 
 // A volume longer than the GPU's 3-D texture limit (2048 texels on Mesa's llvmpipe and many
