@@ -47,6 +47,28 @@ void MaterialRemoval::setSpecificEnergy(int material, double J_per_mm3) noexcept
   energy_J_per_voxel_[static_cast<std::size_t>(material)].store(J_per_mm3 * voxel_mm3_, std::memory_order_relaxed);
 }
 
+std::size_t MaterialRemoval::removeCavity(std::span<const std::uint64_t> voxels) noexcept {
+  ScalarVolume& v = *volume_;
+  const VolumeGeometry& g = v.geometry();
+  const std::uint64_t nx = static_cast<std::uint64_t>(g.dims[0]), ny = static_cast<std::uint64_t>(g.dims[1]);
+  std::array<int, 3> lo = g.dims, hi = {-1, -1, -1};
+  std::size_t removed = 0;
+  for (const std::uint64_t index : voxels) {
+    if (index >= remaining_.size() || remaining_[index] == 0) continue;
+    remaining_[index] = 0;
+    v.writeRaw(index, removed_raw_);
+    ++removed;
+    const int ijk[3] = {static_cast<int>(index % nx), static_cast<int>((index / nx) % ny),
+                        static_cast<int>(index / (nx * ny))};
+    for (int a = 0; a < 3; ++a) {
+      lo[a] = std::min(lo[a], ijk[a]);
+      hi[a] = std::max(hi[a], ijk[a]);
+    }
+  }
+  if (removed > 0) v.refreshRegion(lo, hi);
+  return removed;
+}
+
 std::uint64_t MaterialRemoval::removedVoxels() const noexcept {
   std::uint64_t total = 0;
   for (std::size_t m = 0; m < materials_.size(); ++m) total += removed_[m].load(std::memory_order_relaxed);

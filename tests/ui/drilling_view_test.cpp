@@ -24,8 +24,11 @@
 
 #include "ui_test_util.h"
 #include "vh/io/segmentation.h"
+#include "vh/runtime/recording.h"
+#include "vh/runtime/replay.h"
 #include "vh/runtime/scene.h"
 #include "vh/runtime/session.h"
+#include "vh/runtime/session_metadata.h"
 #include "vh/ui/drill_controller.h"
 #include "vh/runtime/runner.h"
 #include "vh/ui/main_window.h"
@@ -180,6 +183,86 @@ TEST(DrillingView, DrillMenuCutsShowsAndExports) {
   EXPECT_EQ(removed.segments[0].voxel_count, drill.removedVoxels());
 }
 
+// The cavity outlives rebuilds of the haptic threads in the picture as in the hand: after a tool,
+// a device and a segments change the picture still shows every voxel the solver's field lacks
+// (the oracle: the scan's voxels at the image's minimum in the picture, against the voxels of the
+// solver's field that differ from the scan), without a whole upload; drilling on adds to it.
+TEST(DrillingView, TheCavityStaysInThePictureOverRebuilds) {
+  ViewHost host;
+  runtime::Session session;
+  DrillController drill(session, *host.view);
+  runtime::LoadedScene scene = drillScene();
+  const auto tool = scene.tool;
+  const runtime::ToolSpec tool_spec = scene.spec.tool;
+  const SceneActorsSpec spec = sceneActorsSpecFor(scene, runtime::LiveValues::initial(scene));
+  auto device = scene.makeDevice();
+  session.setScene(std::move(scene), device);
+  host.view->setScene(spec, session.live().X_WT_initial, ViewLook{});
+  const haptics::Pose X_free = session.live().X_WT_initial;
+  double range[2];
+  spec.image->GetScalarRange(range);
+  const auto pictureRemoved = [&] {
+    vtkDataArray* shown = host.view->actors().shownImage()->GetPointData()->GetScalars();
+    vtkDataArray* original = spec.image->GetPointData()->GetScalars();
+    std::uint64_t n = 0;
+    for (vtkIdType i = 0; i < shown->GetNumberOfTuples(); ++i)
+      n += shown->GetComponent(i, 0) == range[0] && original->GetComponent(i, 0) != range[0];
+    return n;
+  };
+  const auto solverRemoved = [&] {  // the renderer's own field against the scan
+    return runtime::cavityOf(session.hapticThread()->drill()->removal().volume(), *session.live().scan_field).voxels.size();
+  };
+  const auto press = [&](double x_m, double mm3) {
+    session.startHaptics();
+    haptics::Pose X_WD = X_free;
+    X_WD.p_AB_m = Eigen::Vector3d(x_m, 0, 0.020 + 0.0025 - 0.008);
+    session.simulatedDevice()->setPose(X_WD);
+    const double before = drill.removed_mm3();
+    EXPECT_TRUE(test::waitFor(
+        [&] {
+          drill.drain();
+          return drill.removed_mm3() > before + mm3;
+        },
+        8000 * test::kSanitizerSlowdown));
+    session.stopHaptics();
+    drill.drain();
+  };
+  drill.setDrilling(true);
+  ASSERT_TRUE(session.drilling());
+  press(0.0, 10.0);
+  const std::uint64_t drilled = solverRemoved();
+  ASSERT_GT(drilled, 10u);
+  EXPECT_EQ(pictureRemoved(), drilled);
+  const std::uint64_t whole_uploads = host.view->actors().fullUploads();
+
+  const auto expectKept = [&](const char* after) {
+    drill.drain();  // the controller's timer does it every 20 ms
+    EXPECT_EQ(solverRemoved(), drilled) << "the hand keeps the cavity after " << after;
+    EXPECT_EQ(pictureRemoved(), drilled) << "the picture keeps the cavity after " << after;
+    EXPECT_EQ(drill.removedVoxels(), drilled) << after;
+  };
+  session.setTool(tool, tool_spec, X_free);
+  expectKept("a tool change");
+  session.setDevice(std::make_shared<runtime::SimulatedDevice>(X_free));
+  expectKept("a device change");
+  auto set = std::make_shared<const runtime::SegmentSet>(
+      test::ballSegmentation(*session.live().scan_field, Eigen::Vector3d(0, 0, 0.015), 0.006), std::vector<int>{},
+      std::vector<int>{0}, std::vector<int>{0}, 1.0);
+  runtime::SegmentationSpec seg_spec;
+  seg_spec.path = "in-memory";
+  session.setSegments(set, seg_spec);
+  expectKept("a segments change");
+  EXPECT_EQ(host.view->actors().fullUploads(), whole_uploads) << "no whole upload for a cavity already shown";
+
+  press(0.004, 5.0);  // drilling on after the rebuilds adds to the same cavity
+  const std::uint64_t more = solverRemoved();
+  std::printf("cavity: %llu voxels, %llu after drilling on past three rebuilds\n",
+              static_cast<unsigned long long>(drilled), static_cast<unsigned long long>(more));
+  EXPECT_GT(more, drilled);
+  EXPECT_EQ(pictureRemoved(), more);
+  EXPECT_EQ(drill.removedVoxels(), more);
+}
+
 // The Segments panel's Hardness column: an edit to a number > 0 reaches the session as that
 // segment's hardness (shown back in the cell); anything else is refused and reverted.
 TEST(DrillingView, SegmentsPanelSetsTheHardness) {
@@ -212,8 +295,9 @@ TEST(DrillingView, SegmentsPanelSetsTheHardness) {
   EXPECT_DOUBLE_EQ(session.hardness().at("nodule"), 1.5);
 }
 
-// A drilled session replayed in the window: the cavity grows with the replay's time, all of it at
-// the end (every voxel the run removed), none at the start (scrubbing back restores the scan).
+// A drilled session replayed in the window: the drilling is replayed on a thread of its own (the
+// dock is up before it is done), then the cavity grows with the replay's time, all of it at the
+// end (every voxel the run removed), none at the start (scrubbing back restores the scan).
 TEST(DrillingView, ReplayShowsTheCavityAtItsTime) {
   const fs::path dir = outputDir() / "replay";
   fs::create_directories(dir);
@@ -243,8 +327,16 @@ TEST(DrillingView, ReplayShowsTheCavityAtItsTime) {
   window.resize(640, 480);
   window.show();
   QSignalSpy started(window.replay(), &ReplayController::replayStarted);
+  QSignalSpy replayed(window.replay(), &ReplayController::drillingReplayed);
+  bool pending_when_shown = false;  // the drilling replays off the GUI thread: the dock shows first
+  QObject::connect(window.replay(), &ReplayController::replayStarted,
+                   [&] { pending_when_shown = window.replay()->drillingPending(); });
   ASSERT_TRUE(window.replay()->openRecording(options.record));
   ASSERT_TRUE(test::waitFor([&] { return started.count() > 0 && !window.opener()->loading(); }, 60000));
+  EXPECT_TRUE(pending_when_shown) << "the replay dock came up before the drilling was replayed";
+  ASSERT_TRUE(test::waitFor([&] { return replayed.count() > 0; }, 60000));
+  EXPECT_TRUE(replayed.front().front().toBool());
+  EXPECT_FALSE(window.replay()->drillingPending());
   const auto removedShown = [&] {
     vtkImageData* shown = window.sceneView()->actors().shownImage();
     vtkImageData* original = window.session().loaded().volume.image.get();
@@ -265,6 +357,79 @@ TEST(DrillingView, ReplayShowsTheCavityAtItsTime) {
   const std::uint64_t middle = removedShown();
   EXPECT_GT(middle, 0u);
   EXPECT_LT(middle, removed);
+}
+
+// A recording that started on a drilled sphere (its metadata carries the cavity) replays from it:
+// the picture shows the cavity at the start, the cavity plus what the run removed at the end
+// (the oracle: the replayed field's cavity, from the runtime), and Close Replay leaves the
+// cavity the live drill starts from, in the hand and in the picture.
+TEST(DrillingView, ReplayStartsFromTheRecordedCavity) {
+  const fs::path dir = outputDir() / "replay-cavity";
+  fs::create_directories(dir);
+  const fs::path scene_path = dir / "drill.json";
+  std::ofstream(scene_path) << R"({"volume": {"path": "builtin:sphere"}, "tool": {"mesh": "builtin:drill", "point_spacing_m": 0.001},
+      "coupling": {"linear_N_per_m": 400}, "device": {"kind": "simulated"}, "drill": {"on": true}})";
+  runtime::LoadedScene scene = runtime::loadScene(runtime::loadSceneFile(scene_path));
+  const auto at = [](double t, double x, double z) {
+    runtime::TrajectorySample s;
+    s.t_s = t;
+    s.X_WD.p_AB_m = {x, 0.0, z};
+    return s;
+  };
+  runtime::RunOptions options;
+  options.record = dir / "first.vhrec";
+  options.lag_reference = false;
+  options.verify_step_voxels = 0.0;
+  const runtime::Trajectory first_press({at(0.0, 0.0, 0.030), at(0.5, 0.0, 0.0125), at(1.5, 0.0, 0.0125)});
+  (void)runtime::runHeadless(scene, first_press, options);
+  const runtime::Recording first = runtime::readRecording(options.record);
+  const runtime::ReplayComparison carved =
+      runtime::replayRecording(runtime::loadScene(runtime::sceneFromSessionMetadata(first.metadata_json)), first);
+  auto cavity = std::make_shared<const runtime::DrilledCavity>(runtime::cavityOf(*carved.drilled_field, *scene.hapticField()));
+  ASSERT_GT(cavity->voxels.size(), 10u);
+  scene.spec.drill->cavity = cavity;
+  options.record = dir / "second.vhrec";
+  (void)runtime::runHeadless(scene, runtime::Trajectory({at(0.0, 0.004, 0.030), at(0.5, 0.004, 0.0125), at(1.5, 0.004, 0.0125)}),
+                             options);
+  const runtime::Recording second = runtime::readRecording(options.record);
+  const runtime::ReplayComparison both_replayed =
+      runtime::replayRecording(runtime::loadScene(runtime::sceneFromSessionMetadata(second.metadata_json)), second);
+  const std::uint64_t both = runtime::cavityOf(*both_replayed.drilled_field, *scene.hapticField()).voxels.size();
+  ASSERT_GT(both, cavity->voxels.size());
+
+  MainWindow window;
+  window.setInteractive(false);
+  window.resize(640, 480);
+  window.show();
+  QSignalSpy started(window.replay(), &ReplayController::replayStarted);
+  QSignalSpy replayed(window.replay(), &ReplayController::drillingReplayed);
+  ASSERT_TRUE(window.replay()->openRecording(options.record));
+  ASSERT_TRUE(test::waitFor([&] { return started.count() > 0 && replayed.count() > 0 && !window.opener()->loading(); }, 60000));
+  const auto removedShown = [&] {
+    vtkImageData* shown = window.sceneView()->actors().shownImage();
+    vtkImageData* original = window.session().loaded().volume.image.get();
+    double range[2];
+    original->GetScalarRange(range);
+    std::uint64_t n = 0;
+    for (vtkIdType i = 0; i < shown->GetNumberOfPoints(); ++i)
+      n += shown->GetPointData()->GetScalars()->GetComponent(i, 0) == range[0] &&
+           original->GetPointData()->GetScalars()->GetComponent(i, 0) != range[0];
+    return n;
+  };
+  window.replay()->setTime(0.0);
+  EXPECT_EQ(removedShown(), cavity->voxels.size()) << "the cavity the recording started from";
+  window.replay()->setTime(window.replay()->recording().records.back().time_s);
+  EXPECT_EQ(removedShown(), both) << "and what the run removed after it";
+  window.replay()->closeReplay();
+  test::pump(100);  // the drill controller's drain
+  window.session().stopHaptics();
+  ASSERT_NE(window.session().hapticThread(), nullptr);
+  const auto& live = window.session().hapticThread()->drill();
+  ASSERT_NE(live, nullptr);
+  const std::uint64_t felt =
+      runtime::cavityOf(live->removal().volume(), *window.session().live().scan_field).voxels.size();
+  EXPECT_EQ(felt, cavity->voxels.size()) << "live again: the drill starts from the recording's cavity";
+  EXPECT_EQ(removedShown(), felt) << "and the picture shows what the hand feels";
 }
 
 // The surgeon's case on the Philips head phantom (512 x 512 x 140, 400 HU): the built-in drill

@@ -126,15 +126,14 @@ void DrillController::onSessionChanged(runtime::SessionChange what) {
     action_->setChecked(session_.drilling());
     action_->setEnabled(session_.hasScene());
   }
-  // A new scene, or haptic threads rebuilt for another reason: the field is undrilled again.
-  if (runtime::has(what, runtime::SessionChange::kScene) || runtime::has(what, runtime::SessionChange::kTool) ||
-      runtime::has(what, runtime::SessionChange::kSegments) || runtime::has(what, runtime::SessionChange::kDevice))
-    reset();
+  // A new scene starts undrilled (or from its recording's cavity: drain() shows it). Haptic
+  // threads rebuilt for another reason keep the cavity: drain() meets their new drill and shows
+  // the cavity it started from.
+  if (runtime::has(what, runtime::SessionChange::kScene)) reset();
 }
 
 void DrillController::reset() {
-  drain();
-  drill_seen_ = nullptr;
+  drill_seen_.reset();
   removed_ = 0;
   removed_mm3_ = 0.0;
   removed_mask_.clear();
@@ -146,10 +145,6 @@ void DrillController::drain() {
   runtime::HapticThread* thread = session_.hapticThread();
   if (thread == nullptr || thread->drill() == nullptr || !view_.hasScene() || !session_.hasScene()) return;
   runtime::Drill& drill = *thread->drill();
-  if (drill_seen_ != &drill) {  // a new drill: its log starts empty, the picture from the scan
-    drill_seen_ = &drill;
-    critical_seen_.assign(drill.removal().materials().size(), 0);
-  }
   const haptics::ScalarVolume& felt = drill.removal().volume();
   const haptics::ScalarVolume& scan = *session_.live().scan_field;
   vtkImageData* image = view_.actors().shownImage();
@@ -157,6 +152,11 @@ void DrillController::drain() {
   double range[2];
   image->GetScalarRange(range);
   if (removed_mask_.empty()) removed_mask_.assign(scan.geometry().voxelCount(), 0);
+  if (drill_seen_.lock().get() != &drill) {  // a new drill: its log starts empty, its field from its cavity
+    drill_seen_ = thread->drill();
+    critical_seen_.assign(drill.removal().materials().size(), 0);
+    showCavity(drill.cavityAtStart().get(), range[0]);
+  }
   for (;;) {
     const std::size_t n = drill.removal().drainRemoved(buffer_);
     if (n == 0) break;
@@ -186,6 +186,32 @@ void DrillController::drain() {
                      .arg(QString::fromStdString(materials[m].name)),
                  8000);
   }
+}
+
+void DrillController::showCavity(const runtime::DrilledCavity* cavity, double removed_value) {
+  const haptics::ScalarVolume& scan = *session_.live().scan_field;
+  const std::vector<std::uint64_t> shown =
+      cavity != nullptr ? runtime::cavityVoxelsOn(*cavity, scan.geometry()) : std::vector<std::uint64_t>{};
+  std::vector<std::uint8_t> target(removed_mask_.size(), 0);
+  for (const std::uint64_t index : shown)
+    if (index < target.size()) target[index] = 1;
+  bool only_more = true;  // the picture shows nothing the cavity lacks
+  for (std::size_t i = 0; i < target.size() && only_more; ++i) only_more = removed_mask_[i] <= target[i];
+  std::vector<std::uint64_t> missing;
+  if (only_more) {
+    for (const std::uint64_t index : shown)
+      if (index < removed_mask_.size() && removed_mask_[index] == 0) missing.push_back(index);
+  } else {  // the cavity shrank (moved onto a coarser felt field): from the scan again
+    view_.actors().restoreVolume();
+    missing = shown;
+  }
+  removed_mask_ = std::move(target);
+  if (!missing.empty()) {
+    view_.actors().removeVoxels(missing, removed_value);
+    view_.requestRender();
+  }
+  removed_ = cavity != nullptr ? cavity->voxels.size() : 0;
+  removed_mm3_ = cavity != nullptr ? static_cast<double>(removed_) * cavity->grid.spacing_m.prod() * 1e9 : 0.0;
 }
 
 void DrillController::exportDrilled(const std::filesystem::path& nrrd_path, const std::filesystem::path& seg_path) const {

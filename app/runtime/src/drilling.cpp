@@ -3,6 +3,10 @@
 #include <algorithm>
 #include <cctype>
 #include <cmath>
+#include <cstdint>
+#include <cstring>
+#include <iterator>
+#include <limits>
 #include <stdexcept>
 
 namespace vh::runtime {
@@ -17,6 +21,83 @@ constexpr double kMinBurrRadius_m = 0.001, kMaxBurrRadius_m = 0.006;
 }  // namespace
 
 bool namesMaterial(const std::string& given, const std::string& name) { return lower(given) == lower(name); }
+
+namespace {
+bool sameGrid(const haptics::VolumeGeometry& a, const haptics::VolumeGeometry& b) {
+  return a.dims == b.dims && a.origin_W_m == b.origin_W_m && a.spacing_m == b.spacing_m && a.direction_W == b.direction_W;
+}
+}  // namespace
+
+DrilledCavity cavityOf(const haptics::ScalarVolume& carved, const haptics::ScalarVolume& undrilled,
+                       const DrilledCavity* started_from) {
+  if (!sameGrid(carved.geometry(), undrilled.geometry()) || carved.bytes().size() != undrilled.bytes().size())
+    throw std::invalid_argument("cavityOf: the carved field and the undrilled one lie on different grids");
+  DrilledCavity cavity;
+  cavity.grid = carved.geometry();
+  const std::size_t n = cavity.grid.voxelCount();
+  const std::size_t bytes_per_voxel = n > 0 ? carved.bytes().size() / n : 0;
+  const std::byte* a = carved.bytes().data();
+  const std::byte* b = undrilled.bytes().data();
+  for (std::size_t i = 0; i < n; ++i)
+    if (std::memcmp(a + i * bytes_per_voxel, b + i * bytes_per_voxel, bytes_per_voxel) != 0) cavity.voxels.push_back(i);
+  if (started_from != nullptr && !started_from->voxels.empty()) {
+    const std::vector<std::uint64_t> before = cavityVoxelsOn(*started_from, cavity.grid);
+    std::vector<std::uint64_t> both;
+    both.reserve(before.size() + cavity.voxels.size());
+    std::set_union(before.begin(), before.end(), cavity.voxels.begin(), cavity.voxels.end(), std::back_inserter(both));
+    cavity.voxels = std::move(both);
+  }
+  return cavity;
+}
+
+std::vector<std::uint64_t> cavityVoxelsOn(const DrilledCavity& cavity, const haptics::VolumeGeometry& grid) {
+  if (sameGrid(cavity.grid, grid) || cavity.voxels.empty()) return cavity.voxels;
+  const haptics::VolumeGeometry& c = cavity.grid;
+  const std::uint64_t cx = static_cast<std::uint64_t>(c.dims[0]), cy = static_cast<std::uint64_t>(c.dims[1]);
+  // The box of the cavity's voxels in its grid, its corners in `grid`'s coordinates.
+  Eigen::Vector3d lo = Eigen::Vector3d::Constant(std::numeric_limits<double>::infinity()), hi = -lo;
+  for (const std::uint64_t index : cavity.voxels) {
+    const Eigen::Vector3d ijk(static_cast<double>(index % cx), static_cast<double>((index / cx) % cy),
+                              static_cast<double>(index / (cx * cy)));
+    lo = lo.cwiseMin(ijk);
+    hi = hi.cwiseMax(ijk);
+  }
+  const auto toW = [](const haptics::VolumeGeometry& g, const Eigen::Vector3d& ijk) {
+    return Eigen::Vector3d(g.origin_W_m + g.direction_W * g.spacing_m.cwiseProduct(ijk));
+  };
+  const Eigen::Matrix3d grid_from_W = grid.direction_W.inverse(), cavity_from_W = c.direction_W.inverse();
+  const auto gridIjk = [&](const Eigen::Vector3d& p_W) {
+    return Eigen::Vector3d((grid_from_W * (p_W - grid.origin_W_m)).cwiseQuotient(grid.spacing_m));
+  };
+  Eigen::Vector3d box_lo = Eigen::Vector3d::Constant(std::numeric_limits<double>::infinity()), box_hi = -box_lo;
+  for (int corner = 0; corner < 8; ++corner) {
+    const Eigen::Vector3d ijk((corner & 1) ? hi.x() + 0.5 : lo.x() - 0.5, (corner & 2) ? hi.y() + 0.5 : lo.y() - 0.5,
+                              (corner & 4) ? hi.z() + 0.5 : lo.z() - 0.5);
+    const Eigen::Vector3d q = gridIjk(toW(c, ijk));
+    box_lo = box_lo.cwiseMin(q);
+    box_hi = box_hi.cwiseMax(q);
+  }
+  int from[3], to[3];
+  for (int a = 0; a < 3; ++a) {
+    from[a] = static_cast<int>(std::max(0.0, std::floor(box_lo[a])));
+    to[a] = static_cast<int>(std::min(static_cast<double>(grid.dims[a] - 1), std::ceil(box_hi[a])));
+  }
+  std::vector<std::uint64_t> out;
+  for (int k = from[2]; k <= to[2]; ++k)
+    for (int j = from[1]; j <= to[1]; ++j)
+      for (int i = from[0]; i <= to[0]; ++i) {
+        const Eigen::Vector3d q =
+            (cavity_from_W * (toW(grid, Eigen::Vector3d(i, j, k)) - c.origin_W_m)).cwiseQuotient(c.spacing_m);
+        const long a = std::lround(q.x()), b = std::lround(q.y()), d = std::lround(q.z());
+        if (a < 0 || b < 0 || d < 0 || a >= c.dims[0] || b >= c.dims[1] || d >= c.dims[2]) continue;
+        const std::uint64_t index = static_cast<std::uint64_t>(a) + cx * (static_cast<std::uint64_t>(b) + cy * static_cast<std::uint64_t>(d));
+        if (std::binary_search(cavity.voxels.begin(), cavity.voxels.end(), index))
+          out.push_back(static_cast<std::uint64_t>(i) +
+                        static_cast<std::uint64_t>(grid.dims[0]) *
+                            (static_cast<std::uint64_t>(j) + static_cast<std::uint64_t>(grid.dims[1]) * static_cast<std::uint64_t>(k)));
+      }
+  return out;
+}
 
 Burr burrOf(const haptics::ToolModel& tool, const DrillSpec& spec) {
   Burr burr;
@@ -159,8 +240,9 @@ DrillMaterials makeDrillMaterials(const haptics::ScalarVolume& felt, const hapti
 }
 
 Drill::Drill(std::shared_ptr<haptics::MaterialRemoval> removal, Burr burr, double dt_s,
-             std::vector<int> segment_of_material)
-    : removal_(std::move(removal)), burr_(burr), dt_s_(dt_s), segment_of_material_(std::move(segment_of_material)) {
+             std::vector<int> segment_of_material, std::shared_ptr<const DrilledCavity> cavity_at_start)
+    : removal_(std::move(removal)), burr_(burr), dt_s_(dt_s), segment_of_material_(std::move(segment_of_material)),
+      cavity_at_start_(std::move(cavity_at_start)) {
   if (removal_ == nullptr) throw std::invalid_argument("Drill: no material removal");
   if (!(dt_s_ > 0.0) || !std::isfinite(dt_s_)) throw std::invalid_argument("Drill: the period must be > 0 s");
 }
@@ -190,10 +272,12 @@ DrillingRenderer makeDrillingRenderer(const haptics::ScalarVolume& felt, double 
   model.burr_speed_rad_per_s = spec.burr_speed_rpm * 2.0 * 3.14159265358979323846 / 60.0;
   auto removal = std::make_shared<haptics::MaterialRemoval>(copy, std::move(materials.voxel_material),
                                                             std::move(materials.materials), model);
+  // The cavity drilled before this renderer, removed before it first reads its field.
+  if (spec.cavity != nullptr) removal->removeCavity(cavityVoxelsOn(*spec.cavity, copy->geometry()));
   DrillingRenderer out;
   out.renderer = std::make_unique<haptics::HapticRenderer>(copy, std::move(tool), options, X_WP, felt_isovalue);
   out.drill = std::make_shared<Drill>(std::move(removal), burr, 1.0 / servo_rate_Hz,
-                                      std::move(materials.segment_of_material));
+                                      std::move(materials.segment_of_material), spec.cavity);
   return out;
 }
 

@@ -49,7 +49,7 @@ bool ReplayDevice::read(DeviceSample& sample) noexcept {
 void ReplayDevice::command(const Eigen::Vector3d& /*force_W_N*/, const Eigen::Vector3d& /*torque_W_Nm*/) noexcept {}
 
 ReplayComparison replayRecording(const LoadedScene& scene, const Recording& recording,
-                                 const haptics::RendererOptions& options) {
+                                 const haptics::RendererOptions& options, const ReplayProgress& progress) {
   if (recording.records.empty()) throw std::invalid_argument("replayRecording: the recording has no records");
   // "gains" events, in tick order (readRecording() sorts events by tick).
   struct GainsChange {
@@ -114,7 +114,15 @@ ReplayComparison replayRecording(const LoadedScene& scene, const Recording& reco
     result.mismatch = what;
     return result;
   };
+  const double record_count = static_cast<double>(recording.records.size());
   for (std::size_t i = 0; i < recording.records.size(); ++i) {
+    if (i % 1000 == 0) {
+      if (progress.cancel != nullptr && progress.cancel->load(std::memory_order_relaxed)) {
+        result.cancelled = true;
+        return result;
+      }
+      if (progress.progress) progress.progress(static_cast<double>(i) / record_count);
+    }
     const TickRecord& r = recording.records[i];
     while (next_hardness < hardness_changes.size() && hardness_changes[next_hardness].tick < r.tick)
       applyHardness(hardness_changes[next_hardness++]);
@@ -152,6 +160,7 @@ ReplayComparison replayRecording(const LoadedScene& scene, const Recording& reco
     }
   }
   if (servo.drill != nullptr) result.drilled_field = std::make_shared<haptics::ScalarVolume>(servo.drill->removal().volume());
+  if (progress.progress) progress.progress(1.0);
   return result;
 }
 

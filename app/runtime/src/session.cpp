@@ -102,8 +102,7 @@ void Session::setTool(std::shared_ptr<const haptics::ToolModel> tool, const Tool
   if (tool == nullptr) throw std::invalid_argument("Session::setTool: no tool");
   if (!has_scene_) throw std::invalid_argument("Session::setTool: no scene");
   const bool was_running = hapticsRunning();
-  if (haptics_ != nullptr) haptics_->stop();  // force ramped to zero before the tool changes in the hand
-  haptics_.reset();
+  retireHaptics();  // force ramped to zero before the tool changes in the hand
   live_.tool = std::move(tool);
   live_.tool_spec = spec;
   live_.X_WT_initial = X_WT_initial;
@@ -118,8 +117,7 @@ void Session::setSegments(std::shared_ptr<const SegmentSet> segments, std::optio
   if (segments != nullptr && !spec) throw std::invalid_argument("Session::setSegments: segments without a spec");
   const bool was_running = hapticsRunning();
   haptics::Pose X_WP = proxyPose();
-  if (haptics_ != nullptr) haptics_->stop();  // force ramped to zero before the surface changes
-  haptics_.reset();
+  retireHaptics();  // force ramped to zero before the surface changes; the cavity, on the old felt field
   live_.segments = std::move(segments);
   live_.segmentation = live_.segments != nullptr ? std::move(spec) : std::nullopt;
   // The proxy must start free of the new surface: where it is, else above the volume.
@@ -140,8 +138,7 @@ void Session::setDrilling(bool on) {
     if (!on) return;
     const bool was_running = hapticsRunning();
     const haptics::Pose X_WP = proxyPose();
-    if (haptics_ != nullptr) haptics_->stop();
-    haptics_.reset();
+    retireHaptics();
     live_.drill = DrillSpec{};
     live_.drill->on = true;
     live_.drill->hardness_J_per_mm3 = hardness_for_drill_;
@@ -195,8 +192,7 @@ void Session::setDevice(std::shared_ptr<Device> device) {
   }
   const bool was_running = hapticsRunning();
   const haptics::Pose X_WP = proxyPose();
-  if (haptics_ != nullptr) haptics_->stop();
-  haptics_.reset();
+  retireHaptics();
   device_ = std::move(device);
   if (SimulatedDevice* sim = simulatedDevice()) sim->setPose(X_WP);
   rebuildHaptics(X_WP);
@@ -204,8 +200,27 @@ void Session::setDevice(std::shared_ptr<Device> device) {
   notify(SessionChange::kDevice | (was_running != hapticsRunning() ? SessionChange::kRunning : SessionChange{}));
 }
 
-void Session::rebuildHaptics(const haptics::Pose& X_WP) {
+void Session::keepCavity() {
+  if (haptics_ == nullptr || haptics_->running() || haptics_->drill() == nullptr || !live_.drill ||
+      live_.hapticField() == nullptr)
+    return;
+  // The drill carved a copy of the felt field the threads were built on (live_.hapticField():
+  // segments change only after retireHaptics()).
+  const Drill& drill = *haptics_->drill();
+  auto cavity = std::make_shared<DrilledCavity>(
+      cavityOf(drill.removal().volume(), *live_.hapticField(), drill.cavityAtStart().get()));
+  live_.drill->cavity = cavity->voxels.empty() ? nullptr : std::move(cavity);
+}
+
+void Session::retireHaptics() {
+  if (haptics_ == nullptr) return;
+  haptics_->stop();
+  keepCavity();
   haptics_.reset();
+}
+
+void Session::rebuildHaptics(const haptics::Pose& X_WP) {
+  retireHaptics();
   if (device_ == nullptr || !has_scene_ || live_.hapticField() == nullptr || live_.tool == nullptr) return;
   HapticThreadOptions options;
   options.monitor = monitor_;
@@ -218,8 +233,7 @@ void Session::setMonitor(std::shared_ptr<SnapshotChannel> monitor) {
   if (haptics_ == nullptr) return;
   const bool was_running = hapticsRunning();
   const haptics::Pose X_WP = proxyPose();
-  haptics_->stop();
-  haptics_.reset();
+  retireHaptics();
   if (SimulatedDevice* sim = simulatedDevice()) sim->setPose(X_WP);
   rebuildHaptics(X_WP);
   // Rebuilt from live(): the felt isovalue (the segments' level when segments are felt) and gains.
@@ -236,6 +250,7 @@ void Session::startHaptics() {
 void Session::stopHaptics() {
   if (haptics_ == nullptr || !haptics_->running()) return;
   haptics_->stop();
+  keepCavity();
   notify(SessionChange::kRunning);
 }
 

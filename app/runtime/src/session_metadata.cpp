@@ -3,7 +3,9 @@
 #include "vh/runtime/session_metadata.h"
 
 #include <algorithm>
+#include <array>
 #include <cctype>
+#include <cstdint>
 #include <ctime>
 #include <fstream>
 #include <map>
@@ -170,6 +172,65 @@ DatasetChecksum datasetChecksum(const std::string& volume_path) {
   return key.checksum;
 }
 
+namespace {
+
+/// A drilled cavity as {"dims", "origin_W_m", "spacing_m", "direction_W" (row by row), "runs":
+/// [first, count, first, count, ...]}: runs of consecutive linear indices, ascending (a cavity's
+/// voxels lie in rows along x, so a run holds several).
+json cavityJson(const DrilledCavity& cavity) {
+  const haptics::VolumeGeometry& g = cavity.grid;
+  json j;
+  j["dims"] = g.dims;
+  j["origin_W_m"] = {g.origin_W_m.x(), g.origin_W_m.y(), g.origin_W_m.z()};
+  j["spacing_m"] = {g.spacing_m.x(), g.spacing_m.y(), g.spacing_m.z()};
+  json direction = json::array();
+  for (int r = 0; r < 3; ++r)
+    for (int c = 0; c < 3; ++c) direction.push_back(g.direction_W(r, c));
+  j["direction_W"] = direction;
+  json runs = json::array();
+  for (std::size_t i = 0; i < cavity.voxels.size();) {
+    std::size_t n = 1;
+    while (i + n < cavity.voxels.size() && cavity.voxels[i + n] == cavity.voxels[i] + n) ++n;
+    runs.push_back(cavity.voxels[i]);
+    runs.push_back(n);
+    i += n;
+  }
+  j["runs"] = runs;
+  return j;
+}
+
+/// @throws std::runtime_error for runs that are not ascending, or that leave the grid.
+DrilledCavity cavityFromJson(const json& j) {
+  DrilledCavity cavity;
+  haptics::VolumeGeometry& g = cavity.grid;
+  g.dims = j.at("dims").get<std::array<int, 3>>();
+  const auto vector3 = [&j](const char* key) {
+    const auto v = j.at(key).get<std::vector<double>>();
+    if (v.size() != 3) throw std::runtime_error(std::string("scene.drill.cavity.") + key + ": expected 3 numbers");
+    return Eigen::Vector3d(v[0], v[1], v[2]);
+  };
+  g.origin_W_m = vector3("origin_W_m");
+  g.spacing_m = vector3("spacing_m");
+  const auto direction = j.at("direction_W").get<std::vector<double>>();
+  if (direction.size() != 9) throw std::runtime_error("scene.drill.cavity.direction_W: expected 9 numbers");
+  for (int r = 0; r < 3; ++r)
+    for (int c = 0; c < 3; ++c) g.direction_W(r, c) = direction[static_cast<std::size_t>(3 * r + c)];
+  const auto runs = j.at("runs").get<std::vector<std::uint64_t>>();
+  if (runs.size() % 2 != 0) throw std::runtime_error("scene.drill.cavity.runs: expected pairs of first, count");
+  const std::uint64_t voxels = g.voxelCount();
+  for (std::size_t r = 0; r < runs.size(); r += 2) {
+    const std::uint64_t first = runs[r], count = runs[r + 1];
+    if ((!cavity.voxels.empty() && first <= cavity.voxels.back()) || count == 0 || first >= voxels ||
+        count > voxels - first)
+      throw std::runtime_error("scene.drill.cavity.runs: run " + std::to_string(r / 2) +
+                               " is not ascending or leaves the grid of " + std::to_string(voxels) + " voxels");
+    for (std::uint64_t i = 0; i < count; ++i) cavity.voxels.push_back(first + i);
+  }
+  return cavity;
+}
+
+}  // namespace
+
 std::string makeSessionMetadata(const LoadedScene& scene, const LiveValues& live, const SessionInfo& info) {
   const SceneSpec& spec = scene.spec;
   json j;
@@ -231,6 +292,8 @@ std::string makeSessionMetadata(const LoadedScene& scene, const LiveValues& live
     }
     drill["burr_speed_rpm"] = live.drill->burr_speed_rpm;
     drill["hardness"] = live.drill->hardness_J_per_mm3;
+    if (live.drill->cavity != nullptr && !live.drill->cavity->voxels.empty())
+      drill["cavity"] = cavityJson(*live.drill->cavity);
     sc["drill"] = drill;
   }
   j["scene"] = sc;
@@ -328,6 +391,7 @@ SceneSpec sceneFromSessionMetadata(const std::string& metadata_json) {
       }
       drill.burr_speed_rpm = d.value("burr_speed_rpm", drill.burr_speed_rpm);
       if (d.contains("hardness")) drill.hardness_J_per_mm3 = d.at("hardness").get<std::map<std::string, double>>();
+      if (d.contains("cavity")) drill.cavity = std::make_shared<const DrilledCavity>(cavityFromJson(d.at("cavity")));
       spec.drill = drill;
     }
   } catch (const json::exception& e) {

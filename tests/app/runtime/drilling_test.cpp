@@ -20,6 +20,7 @@
 #include "vh/runtime/session.h"
 #include "vh/runtime/session_metadata.h"
 #include "vh/runtime/sha256.h"
+#include "vh/runtime/snapshot_channel.h"
 
 namespace vh::runtime {
 namespace {
@@ -125,6 +126,87 @@ TEST(Drilling, HeadlessRunDrillsAndReplaysBitForBit) {
   EXPECT_NE(untouched.hexDigest(), report.drill->drilled_field_sha256);
 }
 
+// A recording that starts on a drilled field (a session that drilled, rebuilt its haptic threads
+// and recorded on): its metadata carries the cavity, and the replay carves on from it to the very
+// same field (SHA-256), which holds both cavities; replayed without the cavity, it is another.
+TEST(Drilling, ARecordingThatStartsDrilledReplaysBitForBit) {
+  const auto dir = test::scratchDir();
+  const LoadedScene scene = loadScene(parseScene(kDrillScene, "drill.json", "."));
+  RunOptions options;
+  options.record = dir / "first.vhrec";
+  options.lag_reference = false;
+  options.verify_step_voxels = 0.0;
+  (void)runHeadless(scene, pressDown(0.0, 0.0, 0.030, 1.0, 0.0125), options);
+  const Recording first_rec = readRecording(options.record);
+  const ReplayComparison first = replayRecording(loadScene(sceneFromSessionMetadata(first_rec.metadata_json)), first_rec);
+  ASSERT_TRUE(first.identical);
+  auto cavity = std::make_shared<const DrilledCavity>(cavityOf(*first.drilled_field, *scene.hapticField()));
+  ASSERT_GT(cavity->voxels.size(), 20u);
+
+  // The second session starts from that cavity and drills 4 mm aside.
+  LoadedScene drilled = scene;
+  drilled.spec.drill->cavity = cavity;
+  options.record = dir / "second.vhrec";
+  const RunReport report = runHeadless(drilled, pressDown(0.004, 0.0, 0.030, 1.0, 0.0125), options);
+  ASSERT_TRUE(report.drill.has_value());
+  EXPECT_GT(report.drill->removed_mm3, 5.0) << "the second press cut too";
+  const Recording rec = readRecording(options.record);
+  const LoadedScene reloaded = loadScene(sceneFromSessionMetadata(rec.metadata_json));
+  ASSERT_TRUE(reloaded.spec.drill.has_value());
+  ASSERT_NE(reloaded.spec.drill->cavity, nullptr) << "the metadata carries the cavity";
+  EXPECT_EQ(reloaded.spec.drill->cavity->voxels, cavity->voxels);
+  const ReplayComparison replay = replayRecording(reloaded, rec);
+  EXPECT_TRUE(replay.identical) << replay.mismatch << " at tick " << replay.first_mismatch_tick.value_or(0);
+  ASSERT_NE(replay.drilled_field, nullptr);
+  Sha256 sha;
+  sha.update(replay.drilled_field->bytes().data(), replay.drilled_field->bytes().size());
+  EXPECT_EQ(sha.hexDigest(), report.drill->drilled_field_sha256);
+  const DrilledCavity both = cavityOf(*replay.drilled_field, *scene.hapticField());
+  std::cout << "cavity at the start " << cavity->voxels.size() << " voxels, at the end " << both.voxels.size() << "\n";
+  EXPECT_TRUE(std::includes(both.voxels.begin(), both.voxels.end(), cavity->voxels.begin(), cavity->voxels.end()));
+  EXPECT_GT(both.voxels.size(), cavity->voxels.size());
+
+  LoadedScene without = reloaded;  // the check can fail: the same records on the undrilled sphere
+  without.spec.drill->cavity = nullptr;
+  const ReplayComparison undrilled = replayRecording(without, rec);
+  EXPECT_FALSE(undrilled.identical) << "the second press overlaps the first cavity: it feels different without it";
+  std::cout << "replayed without the cavity: " << undrilled.mismatch << " differs at tick "
+            << undrilled.first_mismatch_tick.value_or(0) << "\n";
+}
+
+// A cavity moved onto another grid (the felt field changed): the voxels of the finer grid whose
+// nearest voxel of the cavity's grid was removed; the same grid gives the indices back.
+TEST(Drilling, CavityMovesOntoAnotherGridByNearestVoxel) {
+  DrilledCavity ball;
+  ball.grid.dims = {20, 20, 20};
+  ball.grid.spacing_m = Eigen::Vector3d::Constant(0.001);
+  for (int k = 0; k < 20; ++k)
+    for (int j = 0; j < 20; ++j)
+      for (int i = 0; i < 20; ++i)
+        if (Eigen::Vector3d(i - 10, j - 10, k - 10).norm() <= 5.0)
+          ball.voxels.push_back(static_cast<std::uint64_t>(i + 20 * (j + 20 * k)));
+  EXPECT_EQ(cavityVoxelsOn(ball, ball.grid), ball.voxels);
+  haptics::VolumeGeometry fine;
+  fine.dims = {50, 50, 50};
+  fine.spacing_m = Eigen::Vector3d::Constant(0.0005);
+  fine.origin_W_m = Eigen::Vector3d::Constant(-0.002);  // covers the ball's grid and more
+  const std::vector<std::uint64_t> on_fine = cavityVoxelsOn(ball, fine);
+  // Oracle: the same rule evaluated voxel by voxel over the whole fine grid.
+  std::vector<std::uint64_t> expected;
+  for (int k = 0; k < 50; ++k)
+    for (int j = 0; j < 50; ++j)
+      for (int i = 0; i < 50; ++i) {
+        const Eigen::Vector3d p_mm = Eigen::Vector3d(-2.0 + 0.5 * i, -2.0 + 0.5 * j, -2.0 + 0.5 * k);
+        const Eigen::Vector3d nearest(std::lround(p_mm.x()), std::lround(p_mm.y()), std::lround(p_mm.z()));
+        if ((nearest.array() < 0).any() || (nearest.array() > 19).any()) continue;
+        if ((nearest - Eigen::Vector3d::Constant(10)).norm() <= 5.0)
+          expected.push_back(static_cast<std::uint64_t>(i + 50 * (j + 50 * k)));
+      }
+  EXPECT_EQ(on_fine, expected);
+  // About eight fine voxels per coarse one (rounding ties at half-voxel centres aside).
+  EXPECT_NEAR(static_cast<double>(on_fine.size()) / ball.voxels.size(), 8.0, 1.5);
+}
+
 // Hardness set in the session: kept until the burr's first start, then live on the drill (no
 // rebuild: the haptic thread stays the same object).
 TEST(Drilling, SessionHardnessReachesTheDrillWithoutARebuild) {
@@ -217,6 +299,140 @@ TEST(Drilling, CriticalSegmentRemovalIsReportedAndRecorded) {
   EXPECT_EQ(recorded, nerve->voxels) << "every removed nerve voxel is in an event";
 }
 
+
+// Voxels within 9 mm of the sphere's top pole (0, 0, 20 mm) whose value lies below `level`: open
+// space, felt as nothing. Drilling a field adds to it; the oracle of what the solver feels.
+int openVoxelsAtThePole(const haptics::ScalarVolume& field, double level) {
+  const auto& g = field.geometry();
+  int open = 0;
+  for (int k = 0; k < g.dims[2]; ++k)
+    for (int j = 0; j < g.dims[1]; ++j)
+      for (int i = 0; i < g.dims[0]; ++i) {
+        const Eigen::Vector3d p = g.origin_W_m + g.direction_W * g.spacing_m.cwiseProduct(Eigen::Vector3d(i, j, k));
+        if ((p - Eigen::Vector3d(0, 0, 0.020)).norm() < 0.009 && field.voxel(i, j, k) < level) ++open;
+      }
+  return open;
+}
+
+// A ball segment "cap" about (0, 0, 17 mm), radius 8 mm, on the scan's grid.
+std::shared_ptr<const SegmentSet> capSegment(const haptics::ScalarVolume& scan, bool felt) {
+  const auto& g = scan.geometry();
+  std::vector<std::uint8_t> labels(g.voxelCount(), 0);
+  std::size_t n = 0, inside = 0;
+  for (int k = 0; k < g.dims[2]; ++k)
+    for (int j = 0; j < g.dims[1]; ++j)
+      for (int i = 0; i < g.dims[0]; ++i, ++n) {
+        const Eigen::Vector3d p = g.origin_W_m + g.direction_W * g.spacing_m.cwiseProduct(Eigen::Vector3d(i, j, k));
+        if ((p - Eigen::Vector3d(0, 0, 0.017)).norm() <= 0.008) labels[n] = 1, ++inside;
+      }
+  io::LoadedSegmentation seg;
+  seg.source = "in-memory";
+  io::SegmentInfo info;
+  info.id = "Segment_1";
+  info.name = "cap";
+  info.label_value = 1;
+  info.voxel_count = inside;
+  seg.segments.push_back(info);
+  seg.layers.push_back(std::make_shared<const haptics::ScalarVolume>(haptics::ScalarVolume::FromVoxels(g, labels)));
+  return std::make_shared<const SegmentSet>(std::move(seg), felt ? std::vector<int>{0} : std::vector<int>{},
+                                            std::vector<int>{0}, std::vector<int>{}, 1.0);
+}
+
+// The cavity belongs to the session, not to one renderer: drilled into the sphere, it stays in
+// the field the solver reads after every rebuild of the haptic threads (a tool, a device, shown
+// segments, a monitor; felt segments carve the segments' field there and give it back), counted
+// by the oracle (open voxels at the pole beyond the scan's); and the hand feels it: with the burr
+// off, the proxy sinks into the cavity again as deep as it drilled.
+TEST(Drilling, TheCavityOutlivesRebuildsOfTheHapticThreads) {
+  Session session;
+  LoadedScene scene = loadScene(parseScene(R"({"volume": {"path": "builtin:sphere"}, "tool": {"mesh": "builtin:drill",
+      "point_spacing_m": 0.001}, "coupling": {"linear_N_per_m": 400}, "device": {"kind": "simulated"},
+      "drill": {"on": true, "burr_radius_m": 0.0025, "hardness": {"tissue": 0.3}}})", "s.json", "."));
+  const auto tool = scene.tool;
+  const ToolSpec tool_spec = scene.spec.tool;
+  const haptics::Pose X_free = scene.X_WT_initial;
+  auto device = scene.makeDevice();
+  session.setScene(std::move(scene), device);
+  const haptics::ScalarVolume& scan = *session.live().scan_field;
+  const double iso = session.live().hapticIsovalue();
+  const int open_in_scan = openVoxelsAtThePole(scan, iso);
+  const auto solverField = [&]() -> const haptics::ScalarVolume& {
+    return session.hapticThread()->drill()->removal().volume();  // the renderer's own field
+  };
+  haptics::Pose press = X_free;
+  press.p_AB_m = Eigen::Vector3d(0.0, 0.0, 0.0125);  // the burr's centre 7.5 mm into the sphere
+  session.startHaptics();
+  session.simulatedDevice()->setPose(press);
+  // Until the burr's centre is 3.5 mm below where the undrilled pole stops it.
+  ASSERT_TRUE(test::waitUntil([&] { return session.proxyPose().p_AB_m.z() < 0.019; }, std::chrono::milliseconds(30000)))
+      << "the burr's centre at z = " << session.proxyPose().p_AB_m.z() * 1e3 << " mm, "
+      << session.hapticThread()->drill()->removal().removedVoxels() << " voxels removed";
+  session.stopHaptics();
+  const double drilled_to_m = session.proxyPose().p_AB_m.z();
+  const int drilled = openVoxelsAtThePole(solverField(), iso) - open_in_scan;
+  std::cout << "drilled " << drilled << " voxels of the sphere; the burr's centre sank to z = " << drilled_to_m * 1e3
+            << " mm (20 + 2.5 mm on the undrilled surface)\n";
+  ASSERT_GT(drilled, 20);
+  EXPECT_NE(session.live().drill->cavity, nullptr) << "stopping keeps the cavity in the live values";
+  const haptics::ScalarVolume drilled_scan = solverField();  // a copy, for the felt segments below
+
+  const auto expectCavity = [&](const char* after) {
+    ASSERT_NE(session.hapticThread(), nullptr) << after;
+    ASSERT_NE(session.hapticThread()->drill(), nullptr) << after;
+    EXPECT_EQ(openVoxelsAtThePole(solverField(), iso) - open_in_scan, drilled) << "after " << after;
+    EXPECT_EQ(session.hapticThread()->drill()->removal().removedVoxels(), 0u) << "nothing cut since, " << after;
+  };
+  session.setTool(tool, tool_spec, X_free);
+  expectCavity("a tool change");
+  session.setDevice(std::make_shared<SimulatedDevice>(X_free));
+  expectCavity("a device change");
+  SegmentationSpec seg_spec;
+  seg_spec.path = "in-memory";
+  session.setSegments(capSegment(scan, false), seg_spec);
+  expectCavity("shown segments");
+  session.setMonitor(std::make_shared<SnapshotChannel>());
+  expectCavity("a monitor");
+
+  // Felt segments: the hand feels the cap's smoothed indicator (on its own, padded grid); the
+  // cavity moves onto that grid: every voxel drilled from the scan deep inside the cap (indicator
+  // 1) is open in the field the solver reads now.
+  auto felt = capSegment(scan, true);
+  session.setSegments(felt, seg_spec);
+  ASSERT_NE(session.hapticThread()->drill(), nullptr);
+  const haptics::ScalarVolume& cap = *felt->feltField();
+  const haptics::ScalarVolume& carved_cap = solverField();
+  ASSERT_NE(carved_cap.geometry().dims, scan.geometry().dims) << "the test needs the other grid";
+  int checked = 0, open_there = 0;
+  const auto& g = scan.geometry();
+  for (int k = 0; k < g.dims[2]; ++k)
+    for (int j = 0; j < g.dims[1]; ++j)
+      for (int i = 0; i < g.dims[0]; ++i) {
+        if (!(scan.voxel(i, j, k) >= iso && drilled_scan.voxel(i, j, k) < iso)) continue;  // not drilled
+        const Eigen::Vector3d q =
+            cap.gridCoordinates(g.origin_W_m + g.direction_W * g.spacing_m.cwiseProduct(Eigen::Vector3d(i, j, k)));
+        const int a = static_cast<int>(std::lround(q.x())), b = static_cast<int>(std::lround(q.y())),
+                  c = static_cast<int>(std::lround(q.z()));
+        if (cap.voxel(a, b, c) < 0.99) continue;  // outside the cap or near its edge
+        ++checked;
+        open_there += carved_cap.voxel(a, b, c) < io::kSegmentSurfaceLevel;
+      }
+  std::cout << "felt cap: " << open_there << " of the " << checked << " drilled voxels deep in it are open there\n";
+  EXPECT_GT(checked, 10);
+  EXPECT_EQ(open_there, checked) << "the cavity is carved into the felt segment";
+  session.setSegments(nullptr, std::nullopt);
+  expectCavity("the segments felt and dropped again");
+
+  // The hand: burr off, the device pressed where it drilled: the proxy goes back down into the
+  // cavity (on the undrilled sphere it would stop 2.5 mm above the pole, z = 22.5 mm).
+  session.setDrilling(false);
+  session.startHaptics();
+  session.simulatedDevice()->setPose(press);
+  EXPECT_TRUE(test::waitUntil([&] { return session.proxyPose().p_AB_m.z() < drilled_to_m + 0.0005; },
+                              std::chrono::milliseconds(10000)))
+      << "the proxy stays at z = " << session.proxyPose().p_AB_m.z() * 1e3 << " mm";
+  session.stopHaptics();
+  EXPECT_EQ(session.hapticThread()->drill()->removal().removedVoxels(), 0u) << "the burr was off";
+}
 
 // A device lowered onto the sphere's top over its first 500 reads and held there, its first
 // button held from read 300 on when `press_button`.

@@ -192,7 +192,7 @@ ReplayController::ReplayController(runtime::Session& session, SceneView& view, P
   connect(play_timer_, &QTimer::timeout, this, &ReplayController::advance);
 }
 
-ReplayController::~ReplayController() = default;
+ReplayController::~ReplayController() { stopDrillingReplay(); }
 
 void ReplayController::addFileMenuActions(QMenu* file) {
   QAction* open = file->addAction("Open Re&cording...", this, [this] {
@@ -317,6 +317,7 @@ void ReplayController::onSceneShown() {
 }
 
 void ReplayController::onSceneTeardown() {
+  stopDrillingReplay();
   if (!active_) return;
   pause();
   active_ = false;
@@ -328,6 +329,9 @@ void ReplayController::onSceneTeardown() {
 void ReplayController::closeReplay() {
   if (!active_) return;
   onSceneTeardown();
+  // Live again on the recording's scene: its drill starts from the cavity the recording started
+  // from, and so does the picture.
+  showDrilledVoxels(drill_at_start_);
   if (session_.hasScene()) {
     if (view_.hasScene()) view_.actors().setForce(Eigen::Vector3d::Zero(), Eigen::Vector3d::Zero());
     session_.startHaptics();
@@ -413,32 +417,128 @@ void ReplayController::setTime(double t_s) {
 }
 
 void ReplayController::replayDrilling() {
+  stopDrillingReplay();
   drill_removed_.clear();
   drill_after_record_.clear();
   drill_shown_ = 0;
+  drill_at_start_ = 0;
   if (view_.hasScene()) view_.actors().restoreVolume();
   const bool drilled = std::any_of(recording_.records.begin(), recording_.records.end(), [](const runtime::TickRecord& r) {
     return (r.flags & runtime::kRecordFlagDrillOn) != 0;
   });
-  if (!drilled || !session_.hasScene() || !session_.loaded().spec.drill) return;
-  // The same renderer and drill as the session's, fed the recorded samples: the same voxels go.
-  try {
-    const runtime::ReplayComparison replay = runtime::replayRecording(session_.loaded(), recording_);
-    const runtime::LiveValues live = runtime::LiveValues::initial(session_.loaded());
-    drill_removed_ = pictureIndices(*live.hapticField(), *live.scan_field, replay.removed_voxels);
-    // Felt indices map one to one onto picture indices (or are dropped outside the scan); the
-    // counts per record are kept as they are, clipped to what was mapped.
-    drill_after_record_ = replay.removed_after_record;
-    for (auto& n : drill_after_record_) n = std::min<std::uint64_t>(n, drill_removed_.size());
-  } catch (const std::exception&) {  // the picture stays undrilled; the replay goes on
-    drill_removed_.clear();
-    drill_after_record_.clear();
+  if (!session_.hasScene() || !session_.loaded().spec.drill) return;
+  // The cavity the session started from, at once (drilled before the recording started).
+  const runtime::LiveValues live = runtime::LiveValues::initial(session_.loaded());
+  const auto& cavity = session_.loaded().spec.drill->cavity;
+  if (cavity != nullptr) drill_removed_ = runtime::cavityVoxelsOn(*cavity, live.scan_field->geometry());
+  drill_at_start_ = drill_removed_.size();
+  drill_after_record_.assign(1, drill_at_start_);  // every record, until the replay below is done
+  if (!drilled) return;
+
+  // The same renderer and drill as the session's, fed the recorded samples, remove the same
+  // voxels: a few seconds on a big CT, so on a thread of its own (a scene copy without the
+  // picture's VTK image, the records copied), with a progress dialog; the result comes back
+  // through a queued call, the cavity growing with the replay's time from then on.
+  auto scene = std::make_shared<runtime::LoadedScene>(session_.loaded());
+  scene->volume.image = nullptr;  // VTK objects stay on the GUI thread
+  auto recording = std::make_shared<const runtime::Recording>(recording_);
+  const std::uint64_t generation = ++drill_generation_;
+  const std::uint64_t at_start = drill_at_start_;
+  drill_cancel_.store(false);
+  drill_progress_.store(0.0);
+  drill_pending_ = true;
+  drill_thread_ = std::thread([this, scene, recording, generation, at_start] {
+    std::vector<std::uint64_t> removed, after_record;
+    bool ok = false;
+    try {
+      runtime::ReplayProgress progress;
+      progress.cancel = &drill_cancel_;
+      progress.progress = [this](double fraction) { drill_progress_.store(fraction); };
+      const runtime::ReplayComparison replay = runtime::replayRecording(*scene, *recording, {}, progress);
+      if (!replay.cancelled) {
+        const runtime::LiveValues values = runtime::LiveValues::initial(*scene);
+        removed = pictureIndices(*values.hapticField(), *values.scan_field, replay.removed_voxels);
+        // Felt indices map one to one onto picture indices (or are dropped outside the scan);
+        // the counts per record are kept as they are, clipped to what was mapped.
+        after_record = replay.removed_after_record;
+        for (auto& n : after_record) n = at_start + std::min<std::uint64_t>(n, removed.size());
+        ok = true;
+      }
+    } catch (const std::exception& e) {  // the picture keeps the cavity at the start; the replay goes on
+      std::cerr << "volume-haptics: replaying the drilling: " << e.what() << '\n';
+    }
+    QMetaObject::invokeMethod(
+        this,
+        [this, generation, ok, removed = std::move(removed), after_record = std::move(after_record)]() mutable {
+          finishDrillingReplay(generation, ok, std::move(removed), std::move(after_record));
+        },
+        Qt::QueuedConnection);
+  });
+  if (interactive_) {
+    drill_dialog_ = new QProgressDialog("Replaying the drilling (the cavity is shown when done)...", "Cancel", 0, 100,
+                                        window_);
+    drill_dialog_->setObjectName("drillingReplayProgress");
+    drill_dialog_->setWindowModality(Qt::NonModal);
+    drill_dialog_->setMinimumDuration(400);
+    drill_dialog_->setAutoClose(false);
+    drill_dialog_->setAutoReset(false);
+    connect(drill_dialog_, &QProgressDialog::canceled, this, [this] {
+      stopDrillingReplay();
+      emit noticeRequested("Drilling replay cancelled: the picture shows only the cavity the recording started from", 6000);
+    });
+  }
+  if (drill_timer_ == nullptr) {
+    drill_timer_ = new QTimer(this);
+    drill_timer_->setInterval(100);
+    connect(drill_timer_, &QTimer::timeout, this, [this] {
+      if (drill_dialog_ != nullptr) drill_dialog_->setValue(static_cast<int>(100.0 * drill_progress_.load()));
+    });
+  }
+  drill_timer_->start();
+}
+
+void ReplayController::finishDrillingReplay(std::uint64_t generation, bool ok, std::vector<std::uint64_t> removed,
+                                            std::vector<std::uint64_t> after_record) {
+  if (generation != drill_generation_) return;  // cancelled, or another replay since
+  if (drill_thread_.joinable()) drill_thread_.join();  // it posted this as its last act
+  drill_pending_ = false;
+  if (drill_timer_ != nullptr) drill_timer_->stop();
+  if (drill_dialog_ != nullptr) {
+    drill_dialog_->deleteLater();
+    drill_dialog_ = nullptr;
+  }
+  if (ok && active_) {
+    drill_removed_.resize(static_cast<std::size_t>(drill_at_start_));
+    drill_removed_.insert(drill_removed_.end(), removed.begin(), removed.end());
+    drill_after_record_ = std::move(after_record);
+    if (drill_after_record_.empty()) drill_after_record_.assign(1, drill_at_start_);
+    showDrillingAt(index_);
+    view_.requestRender();
+  }
+  emit drillingReplayed(ok);
+}
+
+void ReplayController::stopDrillingReplay() {
+  drill_cancel_.store(true);
+  if (drill_thread_.joinable()) drill_thread_.join();
+  ++drill_generation_;  // a result it posted is dropped
+  drill_pending_ = false;
+  if (drill_timer_ != nullptr) drill_timer_->stop();
+  if (drill_dialog_ != nullptr) {
+    QProgressDialog* dialog = drill_dialog_;
+    drill_dialog_ = nullptr;  // before close(): a cancel it emits finds nothing to stop
+    dialog->blockSignals(true);
+    dialog->deleteLater();
   }
 }
 
 void ReplayController::showDrillingAt(std::size_t record_index) {
   if (drill_after_record_.empty() || !view_.hasScene()) return;
-  const std::uint64_t target = drill_after_record_[std::min(record_index, drill_after_record_.size() - 1)];
+  showDrilledVoxels(drill_after_record_[std::min(record_index, drill_after_record_.size() - 1)]);
+}
+
+void ReplayController::showDrilledVoxels(std::uint64_t target) {
+  if (drill_after_record_.empty() || !view_.hasScene()) return;
   if (target == drill_shown_) return;
   if (target < drill_shown_) {  // scrubbed back: from the undrilled picture again
     view_.actors().restoreVolume();

@@ -91,6 +91,16 @@ class MaterialRemoval {
   CutResult cut(const Eigen::Vector3d& burr_center_W_m, double burr_radius_m, double force_N, double dt_s,
                 double isovalue, bool burr_touches) noexcept;
 
+  /// Removes the voxels at linear indices `voxels` (x fastest) outright, before the first cut():
+  /// a cavity drilled earlier (carried over a rebuild of the haptic threads, or the one a
+  /// recording started with). Each becomes lowestRaw() with no material left, as if cut, but is
+  /// neither counted in removedVoxels() / erodedVolume_mm3() nor put in the removal log (whoever
+  /// shows the cavity has it already). Indices out of range and voxels already removed are
+  /// skipped; the min-max tree and Lipschitz bounds are refreshed over the box of the removed
+  /// ones. Not while another thread queries the volume (call it before the renderer ticks).
+  /// @return the voxels it removed.
+  std::size_t removeCavity(std::span<const std::uint64_t> voxels) noexcept;
+
   /// Changes material m's specific energy [J/mm^3] from the next cut() on (the Segments panel's
   /// hardness); any thread, lock-free. Ignored for an index out of range or an energy that is
   /// not finite and > 0.

@@ -3,7 +3,9 @@
 /// Drilling in the GUI: Haptics > Drill (Ctrl+B) spins the burr up or down (Session::
 /// setDrilling()); while the haptic threads drill, the voxels they remove reach the picture
 /// within a frame (the removal log, drained every 20 ms into SceneActors::removeVoxels(), which
-/// uploads only the touched box to the GPU); removing voxels of a critical segment is an alert
+/// uploads only the touched box to the GPU); haptic threads rebuilt with the cavity (a tool,
+/// segments or device change: Session keeps it) show it at their first drain, so the picture
+/// and the hand keep the same cavity; removing voxels of a critical segment is an alert
 /// and a "critical_removed" event in the recording ({"segment", "voxels", "mm3"}); File > Export
 /// Drilled Volume writes the drilled scan (NRRD) and the removed region as a segment (.seg.nrrd)
 /// for 3D Slicer.
@@ -13,6 +15,7 @@
 
 #include <cstdint>
 #include <filesystem>
+#include <memory>
 #include <span>
 #include <vector>
 
@@ -28,7 +31,9 @@ namespace vh::haptics {
 class ScalarVolume;
 }
 namespace vh::runtime {
+class Drill;
 class Session;
+struct DrilledCavity;
 enum class SessionChange : std::uint32_t;
 }  // namespace vh::runtime
 
@@ -57,7 +62,8 @@ class DrillController : public QObject {
   void setDrilling(bool on);
   /// Moves the removed voxels to the picture now (the timer does it every 20 ms).
   void drain();
-  /// Voxels removed so far in this drilling session (as drained).
+  /// Voxels of the felt field removed so far in this scene: the cavity the haptic threads'
+  /// drill started from, plus those drained from it since.
   std::uint64_t removedVoxels() const noexcept { return removed_; }
   /// Removed volume so far [mm^3].
   double removed_mm3() const noexcept { return removed_mm3_; }
@@ -73,13 +79,16 @@ class DrillController : public QObject {
  private:
   void onSessionChanged(runtime::SessionChange what);
   void reset();
+  /// The picture shows `cavity` (null: none) removed, as a new drill starts from it: only the
+  /// voxels it lacks are uploaded, unless it shows some the cavity lacks (then from the scan).
+  void showCavity(const runtime::DrilledCavity* cavity, double removed_value);
 
   runtime::Session& session_;
   SceneView& view_;
   int observer_ = 0;
   QTimer* timer_ = nullptr;
   QAction* action_ = nullptr;
-  const void* drill_seen_ = nullptr;            // the drill whose log is drained
+  std::weak_ptr<runtime::Drill> drill_seen_;    // the drill whose log is drained (weak: its address stays its own)
   std::vector<std::uint64_t> buffer_;           // drained felt-grid indices
   std::vector<std::uint64_t> image_indices_;    // the same on the picture's grid
   std::vector<std::uint8_t> removed_mask_;      // per voxel of the picture: 1 when removed

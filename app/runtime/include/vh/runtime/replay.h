@@ -7,6 +7,7 @@
 
 #include <atomic>
 #include <cstdint>
+#include <functional>
 #include <optional>
 #include <string>
 #include <vector>
@@ -65,6 +66,20 @@ struct ReplayComparison {
   /// per record replayed): what a viewer applies to show the cavity at any time of the replay.
   std::vector<std::uint64_t> removed_voxels;
   std::vector<std::uint64_t> removed_after_record;
+  /// ReplayProgress::cancel stopped it before the end (nothing after that record compared, no
+  /// drilled_field).
+  bool cancelled = false;
+};
+
+/// Progress of a long replayRecording() (a drilled recording on a big CT takes seconds), for a
+/// caller that runs it on a thread of its own.
+struct ReplayProgress {
+  /// Called on the replaying thread with the fraction of the records replayed (0..1), every 1000
+  /// records and once at the end; may be empty.
+  std::function<void(double fraction)> progress;
+  /// When set and true (written by any thread), the replay stops at the next 1000th record:
+  /// ReplayComparison::cancelled.
+  const std::atomic<bool>* cancel = nullptr;
 };
 
 /// Re-runs `recording` through a fresh renderer of `scene` (scene.makeRenderer(options), so the
@@ -77,10 +92,12 @@ struct ReplayComparison {
 /// After each rendered tick it compares the proxy pose (always), the contact count, and the
 /// force and torque (only on records without kRecordFlagForceLimited, kRecordFlagForceZeroed or
 /// kRecordFlagStopping, where the safety layer sent the renderer's output unchanged), and stops
-/// at the first difference. Not for the servo thread (allocates).
+/// at the first difference. With a drill whose spec has a cavity (the one the recording started
+/// from: its metadata), the drill's field starts with it removed, as the session's did. Not for
+/// the servo thread (allocates). Thread-safe for distinct calls (`scene` is only read).
 /// @throws std::invalid_argument for a recording without records; as HapticRenderer's
 ///         constructor.
 ReplayComparison replayRecording(const LoadedScene& scene, const Recording& recording,
-                                 const haptics::RendererOptions& options = {});
+                                 const haptics::RendererOptions& options = {}, const ReplayProgress& progress = {});
 
 }  // namespace vh::runtime

@@ -242,7 +242,7 @@ struct LoadedScene {
 
 /// What changes while the program runs over a loaded scene: the isovalue (the slider), the
 /// coupling gains, the tool (the tool picker), the segments and which are felt (the Segments
-/// panel), and the scan's field itself (a drill will modify it). In the GUI its one owner is
+/// panel), and what a drill removed (drill->cavity). In the GUI its one owner is
 /// Session (session.h): the renderer, the recorder's metadata, the monitor, the OpenIGTLink
 /// link and the panels read it there. Headless runs take LiveValues::initial() of their scene.
 struct LiveValues {
@@ -254,8 +254,9 @@ struct LiveValues {
   haptics::Pose X_WT_initial;                     ///< Where the tool was placed, free, in W [m].
   std::shared_ptr<const SegmentSet> segments;     ///< The segments shown and felt; null: none.
   std::optional<SegmentationSpec> segmentation;   ///< What a scene file says of `segments`.
-  /// Drilling (drilling.h): the burr and the hardness; null: the tool only touches. Whether the
-  /// burr spins is the haptic thread's (HapticThread::setDrilling()).
+  /// Drilling (drilling.h): the burr, the hardness and the cavity the haptic threads were built
+  /// on (drill->cavity; the threads' drill carves on from it); null: the tool only touches.
+  /// Whether the burr spins is the haptic thread's (HapticThread::setDrilling()).
   std::optional<DrillSpec> drill;
   bool scan_in_HU = false;                        ///< The scan is CT in HU (drilling's hardness classes).
 

@@ -124,8 +124,10 @@ class Session {
   /// adds one (DrillSpec's defaults: the tool's tip, 2.5 mm, hardness from HU or segments) and
   /// rebuilds the haptic threads at the proxy's pose, restarted when they ran (one pass over the
   /// field for the hardness: about a second on a 512 x 512 x 140 CT); then the burr only spins up
-  /// or down (HapticThread::setDrilling()). Rebuilding the threads for another reason (tool,
-  /// segments, device) starts again from the undrilled field. No scene: ignored.
+  /// or down (HapticThread::setDrilling()). The cavity outlives the threads: rebuilding them for
+  /// another reason (tool, segments, device, monitor) keeps it in live().drill->cavity and the
+  /// new drill starts from it (on the new felt field, where the segments changed it); only a new
+  /// scene starts undrilled. No scene: ignored.
   /// @throws std::invalid_argument as makeDrillingRenderer() (e.g. a tool too small for a burr).
   void setDrilling(bool on);
   /// Whether the burr spins.
@@ -158,7 +160,8 @@ class Session {
   bool hapticsRunning() const noexcept { return haptics_ != nullptr && haptics_->running(); }
   /// Starts the haptic threads (built with the live isovalue and gains; no effect without them).
   void startHaptics();
-  /// Ramps the force to zero and joins the threads; idempotent.
+  /// Ramps the force to zero and joins the threads; idempotent. While drilling, live().drill->cavity
+  /// then holds every voxel removed so far (a recording started next carries it).
   void stopHaptics();
   /// The haptic threads' latest snapshot into `out` (false, `out` untouched, without threads or
   /// before their first tick). Never blocks.
@@ -179,6 +182,11 @@ class Session {
   /// The one function that builds the renderer and the haptic threads (not started), with the
   /// proxy at `X_WP`; none without a device, a field or a tool.
   void rebuildHaptics(const haptics::Pose& X_WP);
+  /// Stops the haptic threads (force ramped to zero), keeps their cavity, and drops them.
+  void retireHaptics();
+  /// With the threads stopped: their drill's cavity into live_.drill->cavity (one pass over the
+  /// felt field).
+  void keepCavity();
   void notify(SessionChange what);
 
   double servo_rate_Hz_;

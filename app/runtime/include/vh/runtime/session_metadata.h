@@ -14,7 +14,10 @@
 ///                      "point_spacing_m": 0.001, "point_count": 0,
 ///                      "initial_pose": {"p_m": [x, y, z], "q_wxyz": [w, x, y, z]}},
 ///             "coupling": {"linear_N_per_m": 2000, "angular_Nm_per_rad": 2,
-///                          "passivity_control": false}},
+///                          "passivity_control": false},
+///             "drill": {"on": true, "burr_speed_rpm": 80000, "hardness": {...},  // with a drill
+///                       "cavity": {"dims", "origin_W_m", "spacing_m", "direction_W" (row by row),
+///                                  "runs": [first, count, ...]}}},  // drilled before the start
 ///   "dataset": {"path": ..., "kind": "dicom-folder" | "nrrd" | "metaimage" | "file" | "builtin",
 ///               "dims": [nx, ny, nz], "spacing_m": [sx, sy, sz], "value_unit": ...,
 ///               "sha256": "hex", "checksum_files": ["I10", ...] (the files the checksum covers)},
@@ -23,7 +26,9 @@
 /// }
 /// The isovalue and the initial pose are the live values when the recording started (resolved,
 /// never "unset"), so a reloaded scene starts exactly where the recorded one did (doubles
-/// round-trip bit for bit).
+/// round-trip bit for bit). So does a drilled cavity (LiveValues::drill->cavity: the felt field's
+/// voxels removed before the haptic threads were built or last stopped, as runs of linear
+/// indices on its grid): the replay's drill starts from it, as the session's did.
 ///
 /// Dataset checksum (SHA-256, own implementation in sha256.h: no dependency provides one):
 ///   - a file: SHA-256 of its bytes; a NRRD with detached data (.nhdr) or a MetaImage header

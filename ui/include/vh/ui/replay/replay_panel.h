@@ -12,10 +12,13 @@
 ///
 /// Threads: GUI thread only; the haptic thread is stopped while a replay is shown.
 
+#include <atomic>
+#include <cstdint>
 #include <filesystem>
 #include <functional>
 #include <memory>
 #include <optional>
+#include <thread>
 #include <vector>
 
 #include <QElapsedTimer>
@@ -33,6 +36,7 @@ class QListWidget;
 class QMenu;
 class QPushButton;
 class QMainWindow;
+class QProgressDialog;
 class QTimer;
 
 namespace vh::runtime {
@@ -157,8 +161,13 @@ class ReplayController : public QObject {
   void onSceneShown();
   /// The scene load failed or was cancelled: a pending recording is dropped.
   void onLoadFailed();
-  /// Dialogs (damaged-recording warnings, export file names) when true.
+  /// Dialogs (damaged-recording warnings, export file names, the drilling replay's progress)
+  /// when true.
   void setInteractive(bool interactive) { interactive_ = interactive; }
+  /// True while the drilling of the replayed recording is being replayed (on its own thread,
+  /// with a progress dialog; the picture shows the cavity the recording started from meanwhile,
+  /// then the cavity at the replay's time: drillingReplayed()).
+  bool drillingPending() const noexcept { return drill_pending_; }
 
  signals:
   /// A recording's scene is shown and the replay dock drives it.
@@ -170,6 +179,9 @@ class ReplayController : public QObject {
   void errorReported(const QString& what, const QString& message);
   /// A short message for the status bar.
   void noticeRequested(const QString& text, int ms = 5000);
+  /// The drilling replay finished (`ok`: the cavity now follows the replay's time; false: it
+  /// failed, the picture keeps the cavity the recording started from).
+  void drillingReplayed(bool ok);
 
  private:
   void buildDock();
@@ -207,13 +219,29 @@ class ReplayController : public QObject {
   QLabel* readout_ = nullptr;
   QListWidget* marker_list_ = nullptr;
   std::vector<double> marker_times_s_;
-  // Drilling: the voxels a deterministic replay removed (picture indices) and how many by each
-  // record; the picture shows the first drill_shown_ of them.
+  // Drilling: the cavity the recording started from, then the voxels a deterministic replay
+  // removed (picture indices), and how many by each record; the picture shows the first
+  // drill_shown_ of them.
   std::vector<std::uint64_t> drill_removed_;
   std::vector<std::uint64_t> drill_after_record_;
   std::uint64_t drill_shown_ = 0;
+  std::uint64_t drill_at_start_ = 0;  // of drill_removed_: the cavity the recording started from
   void replayDrilling();
+  void finishDrillingReplay(std::uint64_t generation, bool ok, std::vector<std::uint64_t> removed,
+                            std::vector<std::uint64_t> after_record);
+  /// Cancels a drilling replay under way and waits for its thread (a result it sent is dropped).
+  void stopDrillingReplay();
+  // The drilling replay's thread and what it shares with the GUI thread.
+  std::thread drill_thread_;
+  std::atomic<bool> drill_cancel_{false};
+  std::atomic<double> drill_progress_{0.0};
+  std::uint64_t drill_generation_ = 0;
+  bool drill_pending_ = false;
+  QProgressDialog* drill_dialog_ = nullptr;
+  QTimer* drill_timer_ = nullptr;
   void showDrillingAt(std::size_t record_index);
+  /// The picture shows the first `count` of drill_removed_ removed.
+  void showDrilledVoxels(std::uint64_t count);
   std::vector<QAction*> export_actions_;
 };
 
