@@ -6,8 +6,8 @@
 //   volume-haptics export R.vhrec [--csv C] [--json J] [--events-csv E] [--video V.ogv] [--png P --at-s T]
 //   volume-haptics report R.vhrec --html OUT.html [--reference E.vhrec] | report DIR --table OUT.csv
 //   volume-haptics make-trajectory --scene S.json --out T.csv [...]
-//   volume-haptics bench table1|accuracy|stability|drilling|bigscan|render [--short] [--out DIR]   benchmarks
-//                      (vh::bench; render: vh::ui_bench)
+//   volume-haptics bench table1|accuracy|stability|drilling|bigscan|render|memory [--short] [--out DIR]   benchmarks
+//                      (vh::bench; render, memory: vh::ui_bench)
 //   volume-haptics pacs echo|find|get [--host H --port P --aet A] ...   a DICOM server (vh/io/pacs.h)
 //
 // PATH is a DICOM folder, a NRRD / MetaImage file or a scene .json; without it the built-in
@@ -41,6 +41,7 @@
 #include "vh/runtime/snapshot_channel.h"
 #include "vh/runtime/trajectory.h"
 #include "vh/ui/application.h"
+#include "vh/ui/bench/memory_bench.h"
 #include "vh/ui/bench/render_bench.h"
 #include "vh/ui/export/media_export.h"
 
@@ -411,6 +412,7 @@ int main(int argc, char** argv) {
   std::function<int()> bench_handler;
   CLI::App* bench = vh::bench::addBenchSubcommand(app, bench_handler);
   vh::ui::addRenderBenchSubcommand(*bench, bench_handler);  // renders with the window's view
+  vh::ui::addMemoryBenchSubcommand(*bench, bench_handler);  // measures the window's process
   std::function<int()> pacs_handler;
   vh::app::addPacsSubcommand(app, pacs_handler);
 

@@ -455,6 +455,8 @@ int childLoad(const BigScanOptions& options) {
   r["voxel_type"] = haptics::voxelTypeName(field.voxelType());
   r["voxel_bytes"] = static_cast<double>(field.bytes().size());
   r["image_bytes"] = v.image ? static_cast<double>(v.image->GetActualMemorySize()) * 1024.0 : 0.0;
+  // One copy of the voxels: the rendering image's scalars are the field's own buffer.
+  r["image_shares_field"] = v.image != nullptr && v.image->GetScalarPointer() == static_cast<const void*>(field.bytes().data());
   r["value_range"] = {field.minValue(), field.maxValue()};
   r["notices"] = v.info.notices;
   r["progress"] = printer.timeline;
