@@ -10,6 +10,7 @@
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
+#include <thread>
 
 #include <QMainWindow>
 #include <QSignalSpy>
@@ -261,6 +262,54 @@ TEST(DrillingView, TheCavityStaysInThePictureOverRebuilds) {
   EXPECT_GT(more, drilled);
   EXPECT_EQ(pictureRemoved(), more);
   EXPECT_EQ(drill.removedVoxels(), more);
+}
+
+// A critical segment cut in the last moments before the haptic threads are rebuilt (removals the
+// picture's 20 ms drain had not reached) is still an alert after the rebuild, with every voxel.
+TEST(DrillingView, CriticalRemovalJustBeforeARebuildIsStillTold) {
+  ViewHost host;
+  runtime::Session session;
+  DrillController drill(session, *host.view);
+  runtime::LoadedScene scene = drillScene();
+  const auto tool = scene.tool;
+  const runtime::ToolSpec tool_spec = scene.spec.tool;
+  const SceneActorsSpec spec = sceneActorsSpecFor(scene, runtime::LiveValues::initial(scene));
+  auto device = scene.makeDevice();
+  session.setScene(std::move(scene), device);
+  host.view->setScene(spec, session.live().X_WT_initial, ViewLook{});
+  auto set = std::make_shared<const runtime::SegmentSet>(  // a critical nodule under the pole
+      test::ballSegmentation(*session.live().scan_field, Eigen::Vector3d(0, 0, 0.019), 0.004), std::vector<int>{},
+      std::vector<int>{0}, std::vector<int>{0}, 1.0);
+  runtime::SegmentationSpec seg_spec;
+  seg_spec.path = "in-memory";
+  session.setSegments(set, seg_spec);
+  drill.setDrilling(true);
+  ASSERT_NE(session.hapticThread()->drill(), nullptr);
+  const runtime::Drill& first = *session.hapticThread()->drill();
+  int nodule = -1;
+  for (std::size_t m = 0; m < first.removal().materials().size(); ++m)
+    if (first.removal().materials()[m].critical) nodule = static_cast<int>(m);
+  ASSERT_GE(nodule, 0);
+  drill.drain();  // the controller's timer met this drill (every 20 ms)
+  session.startHaptics();
+  haptics::Pose X_WD = session.live().X_WT_initial;
+  X_WD.p_AB_m = Eigen::Vector3d(0, 0, 0.020 + 0.0025 - 0.006);
+  session.simulatedDevice()->setPose(X_WD);
+  // No events processed meanwhile: the drain timer never runs, as in the last 20 ms before a rebuild.
+  const auto t0 = std::chrono::steady_clock::now();
+  while (first.removal().removedVoxels(nodule) == 0 &&
+         std::chrono::steady_clock::now() - t0 < std::chrono::seconds(10 * test::kSanitizerSlowdown))
+    std::this_thread::sleep_for(std::chrono::milliseconds(5));
+  session.stopHaptics();
+  const std::uint64_t cut = first.removal().removedVoxels(nodule);
+  ASSERT_GT(cut, 0u) << "the burr reached the nodule";
+  QSignalSpy messages(&drill, &DrillController::message);
+  session.setTool(tool, tool_spec, session.live().X_WT_initial);
+  drill.drain();
+  QString alert;
+  for (const auto& m : messages)
+    if (m.front().toString().startsWith("CRITICAL")) alert = m.front().toString();
+  EXPECT_TRUE(alert.contains(QString("removed %1 voxels").arg(cut))) << alert.toStdString();
 }
 
 // The Segments panel's Hardness column: an edit to a number > 0 reaches the session as that

@@ -152,7 +152,10 @@ void DrillController::drain() {
   double range[2];
   image->GetScalarRange(range);
   if (removed_mask_.empty()) removed_mask_.assign(scan.geometry().voxelCount(), 0);
-  if (drill_seen_.lock().get() != &drill) {  // a new drill: its log starts empty, its field from its cavity
+  if (drill_seen_.get() != &drill) {  // a new drill: its log starts empty, its field from its cavity
+    // The threads were rebuilt: what the old drill cut since the last drain is in the new one's
+    // cavity (shown below); its critical removals are still told.
+    if (drill_seen_ != nullptr) reportCritical(*drill_seen_, nullptr);
     drill_seen_ = thread->drill();
     critical_seen_.assign(drill.removal().materials().size(), 0);
     showCavity(drill.cavityAtStart().get(), range[0]);
@@ -169,6 +172,10 @@ void DrillController::drain() {
     view_.noteMotion();  // a growing cavity is motion: interactive frames until it settles
     view_.requestRender();
   }
+  reportCritical(drill, thread);
+}
+
+void DrillController::reportCritical(const runtime::Drill& drill, runtime::HapticThread* thread) {
   // Critical segments: every removal is an alert and an event in the recording.
   const auto& materials = drill.removal().materials();
   for (std::size_t m = 0; m < materials.size() && m < critical_seen_.size(); ++m) {
@@ -179,7 +186,7 @@ void DrillController::drain() {
     critical_seen_[m] = now;
     const double mm3 = static_cast<double>(delta) * drill.removal().voxelVolume_mm3();
     nlohmann::json detail{{"segment", materials[m].name}, {"voxels", delta}, {"mm3", mm3}};
-    thread->recordEvent("critical_removed", detail.dump());
+    if (thread != nullptr) thread->recordEvent("critical_removed", detail.dump());
     emit message(QString("CRITICAL: the burr removed %1 voxels (%2 mm3) of %3")
                      .arg(delta)
                      .arg(mm3, 0, 'f', 2)

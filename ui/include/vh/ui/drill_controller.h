@@ -32,6 +32,7 @@ class ScalarVolume;
 }
 namespace vh::runtime {
 class Drill;
+class HapticThread;
 class Session;
 struct DrilledCavity;
 enum class SessionChange : std::uint32_t;
@@ -82,13 +83,16 @@ class DrillController : public QObject {
   /// The picture shows `cavity` (null: none) removed, as a new drill starts from it: only the
   /// voxels it lacks are uploaded, unless it shows some the cavity lacks (then from the scan).
   void showCavity(const runtime::DrilledCavity* cavity, double removed_value);
+  /// Alerts for the voxels of critical materials `drill` removed since the last report, each
+  /// also a "critical_removed" event recorded through `thread` (null: none).
+  void reportCritical(const runtime::Drill& drill, runtime::HapticThread* thread);
 
   runtime::Session& session_;
   SceneView& view_;
   int observer_ = 0;
   QTimer* timer_ = nullptr;
   QAction* action_ = nullptr;
-  std::weak_ptr<runtime::Drill> drill_seen_;    // the drill whose log is drained (weak: its address stays its own)
+  std::shared_ptr<runtime::Drill> drill_seen_;  // the drill whose log is drained (held: its last removals are told)
   std::vector<std::uint64_t> buffer_;           // drained felt-grid indices
   std::vector<std::uint64_t> image_indices_;    // the same on the picture's grid
   std::vector<std::uint8_t> removed_mask_;      // per voxel of the picture: 1 when removed
