@@ -1,5 +1,6 @@
 #include "vh/haptics/material_removal.h"
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <numbers>
@@ -262,6 +263,57 @@ TEST(MaterialRemoval, ProxyNeverPenetratesTheCarvedField) {
     EXPECT_LE(max_step, o.max_travel_per_tick_m + 1e-12);
     EXPECT_GT(drill.removedVoxels(), 0u);
   }
+}
+
+// A cavity removed before the first cut: its voxels (out of range and already removed ones
+// skipped) take the lowest value and are cut no more, neither counted nor logged, the tree equals a
+// rebuild of the same voxels (the oracle), and a burr pressed there next removes only what is left.
+TEST(MaterialRemoval, RemoveCavityCarvesBeforeTheFirstCutUncountedAndUnlogged) {
+  auto v = uniformBlock(24, 0.001);
+  const auto& g = v->geometry();
+  std::vector<std::uint64_t> cavity;
+  for (int k = 0; k < 24; ++k)
+    for (int j = 0; j < 24; ++j)
+      for (int i = 0; i < 24; ++i)
+        if (Eigen::Vector3d(i - 12, j - 12, k - 20).norm() <= 3.0)
+          cavity.push_back(static_cast<std::uint64_t>(i + 24 * (j + 24 * k)));
+  std::size_t solid = 0;
+  for (const std::uint64_t index : cavity) solid += v->rawAt(index) != 0.0;
+  ASSERT_GT(solid, 20u);
+  ASSERT_LT(solid, cavity.size()) << "the test needs cavity voxels already empty (outside the block)";
+  cavity.push_back(g.voxelCount() + 5);  // out of range: skipped
+  MaterialRemoval removal(v, {}, oneMaterial());
+  EXPECT_EQ(removal.removeCavity(cavity), solid);
+  EXPECT_EQ(removal.removeCavity(cavity), 0u) << "removed already";
+  for (std::size_t n = 0; n + 1 < cavity.size(); ++n) ASSERT_EQ(v->rawAt(cavity[n]), 0.0);
+  EXPECT_EQ(removal.removedVoxels(), 0u);
+  EXPECT_EQ(removal.erodedVolume_mm3(), 0.0);
+  std::uint64_t log[8];
+  EXPECT_EQ(removal.drainRemoved(log), 0u);
+  const ScalarVolume rebuilt = ScalarVolume::FromBytes(g, VoxelType::kUInt8, v->bytes());
+  const MinMaxTree &t1 = v->minMaxTree(), &t2 = rebuilt.minMaxTree();
+  for (int level = 0; level < t1.levels(); ++level) {
+    const auto n = t1.nodes(level);
+    for (int c = 0; c < n[2]; ++c)
+      for (int b = 0; b < n[1]; ++b)
+        for (int a = 0; a < n[0]; ++a) {
+          float lo1, hi1, lo2, hi2;
+          t1.node(level, a, b, c, lo1, hi1);
+          t2.node(level, a, b, c, lo2, hi2);
+          ASSERT_EQ(lo1, lo2) << "level " << level;
+          ASSERT_EQ(hi1, hi2) << "level " << level;
+        }
+  }
+  // The burr inside the cavity, touching only its wall: what it removes was never in the cavity.
+  const Eigen::Vector3d c = g.origin_W_m + g.spacing_m.cwiseProduct(Eigen::Vector3d(12, 12, 19));
+  std::uint64_t cut = 0;
+  for (int tick = 0; tick < 200; ++tick) cut += static_cast<std::uint64_t>(removal.cut(c, 0.0025, 5.0, 1e-3, 100.0, true).voxels_removed);
+  EXPECT_GT(cut, 0u);
+  EXPECT_EQ(removal.removedVoxels(), cut);
+  std::vector<std::uint64_t> drained(cut + 1);
+  ASSERT_EQ(removal.drainRemoved(drained), cut);
+  for (std::uint64_t n = 0; n < cut; ++n)
+    EXPECT_FALSE(std::binary_search(cavity.begin(), cavity.end() - 1, drained[n])) << "voxel " << drained[n];
 }
 
 TEST(MaterialRemoval, RejectsBadInput) {
