@@ -86,8 +86,8 @@ CollisionDetector::CollisionDetector(const ScalarVolume& volume, const ToolModel
   edges_ = makeShellEdges(tool.point_shell);
 }
 
-bool CollisionDetector::edgeCrosses(const Pose& X_WP, int j, double isovalue) noexcept {
-  if (embedded_[j]) return false;
+bool CollisionDetector::segmentCrosses(const Pose& X_WP, int j, int k, double isovalue) noexcept {
+  if (embedded_[j] || embedded_[k]) return false;
   const auto& points = tool_->point_shell.points_T_m();
   // Each end moved epsilon into the tool along its normal: the surface is allowed to come
   // within epsilon of the tool between its points, as at its points (a facet of the tool
@@ -99,20 +99,30 @@ bool CollisionDetector::edgeCrosses(const Pose& X_WP, int j, double isovalue) no
     const Eigen::Vector3d p_T = inset ? Eigen::Vector3d(points[i] - epsilon_ * tool_->point_shell.normals_T()[i]) : points[i];
     return volume_->gridCoordinates(X_WP * p_T);
   };
-  const Eigen::Vector3d a = end(j);
-  for (int e = edges_.offsets[j]; e < edges_.offsets[j + 1]; ++e) {
-    const int k = edges_.targets[e];
-    if (embedded_[k]) continue;
-    const Eigen::Vector3d b = end(k);
-    // Only whether it enters: a coarse bracket is enough.
-    const SegmentEntry entry = volume_->firstEntryOnSegment(a, b, isovalue, 1.0, 0.5);
-    counters_.cells += entry.cells;
-    counters_.cells_walked += entry.cells_walked;
-    if (entry.hit) {
-      edge_hit_ = {j, k, X_WP};
-      return true;
-    }
+  // Only whether it enters: a coarse bracket is enough.
+  const SegmentEntry entry = volume_->firstEntryOnSegment(end(j), end(k), isovalue, 1.0, 0.5);
+  counters_.cells += entry.cells;
+  counters_.cells_walked += entry.cells_walked;
+  if (!entry.hit) return false;
+  edge_hit_ = {j, k, X_WP};
+  if (listed_count_ < kListedEdges) {
+    bool known = false;
+    for (int i = 0; i < listed_count_; ++i) known |= listed_[i].first == j && listed_[i].second == k;
+    if (!known) listed_[listed_count_++] = {j, k};
   }
+  return true;
+}
+
+bool CollisionDetector::edgeCrosses(const Pose& X_WP, int j, double isovalue) noexcept {
+  if (embedded_[j]) return false;
+  for (int e = edges_.offsets[j]; e < edges_.offsets[j + 1]; ++e)
+    if (segmentCrosses(X_WP, j, edges_.targets[e], isovalue)) return true;
+  return false;
+}
+
+bool CollisionDetector::listedEdgesCrossAt(const Pose& X_WP, double isovalue) noexcept {
+  for (int i = 0; i < listed_count_; ++i)
+    if (segmentCrosses(X_WP, listed_[i].first, listed_[i].second, isovalue)) return true;
   return false;
 }
 
@@ -148,10 +158,11 @@ void CollisionDetector::addEdgeContact(const Pose& X_WP, double isovalue) noexce
   Contact& c = contacts_[slot];
   c.point_index = -1;
   c.p_T_m = p_T;
+  c.edge_T = length_m > 0.0 ? Eigen::Vector3d((b - a) / length_m) : Eigen::Vector3d::Zero();
   c.p_W_m = X_WP * p_T;
   c.n_W = fallback_n_W;
   c.crossing_normal = false;
-  measureContact(c, isovalue);
+  measureContact(c, isovalue, X_WP.R_AB);
   if (slot == contact_count_) ++contact_count_;
   edge_hit_ = {};
 }
@@ -249,11 +260,20 @@ bool CollisionDetector::inside(const Eigen::Vector3d& p_W, double isovalue) noex
   return volume_->isInside(p_W, isovalue);
 }
 
-void CollisionDetector::measureContact(Contact& c, double isovalue) noexcept {
+void CollisionDetector::measureContact(Contact& c, double isovalue, const Eigen::Quaterniond& R_WT) noexcept {
   counters_.samples += 6;
   const Eigen::Vector3d g = c.crossing_normal ? volume_->interpolantGradient(c.p_W_m) : volume_->gradient(c.p_W_m);
-  const double norm = g.norm();
-  if (norm > 0.0 && std::isfinite(norm)) c.n_W = -g / norm;  // else keep the previous/fallback
+  double norm = g.norm();
+  if (norm > 0.0 && std::isfinite(norm)) {
+    c.n_W = -g / norm;
+    // Between two points: the part perpendicular to the edge (Contact::edge_T), unless the
+    // gradient runs almost along the edge (then the edge is entering the wall head-on).
+    if (c.point_index < 0 && c.edge_T.squaredNorm() > 0.0) {
+      const Eigen::Vector3d e_W = R_WT * c.edge_T;
+      const Eigen::Vector3d n_perp = c.n_W - c.n_W.dot(e_W) * e_W;
+      if (n_perp.norm() > 0.25) c.n_W = n_perp.normalized();
+    }
+  }  // else keep the previous/fallback
   // Clearance measured with the inside test itself, along -n, up to epsilon: a linearised
   // (s - F) / |grad F| overestimates it where the central difference smooths a sharp edge.
   const Eigen::Vector3d& n = c.n_W;
@@ -278,7 +298,8 @@ void CollisionDetector::appendContact(int point, const Eigen::Vector3d& p_W, con
   c.p_W_m = p_W;
   c.n_W = fallback_n_W;
   c.crossing_normal = false;
-  measureContact(c, isovalue);
+  c.edge_T.setZero();
+  measureContact(c, isovalue, Eigen::Quaterniond::Identity());
   in_set_[point] = 1;
 }
 
@@ -829,7 +850,7 @@ void CollisionDetector::pruneContacts(const Pose& X_WP, const Pose& X_WD, double
     bool keep = false;
     if (path > 0.0 && (j < 0 || !embedded_[j])) {
       c.p_W_m = X_WP * c.p_T_m;
-      measureContact(c, isovalue);
+      measureContact(c, isovalue, X_WP.R_AB);
       // Move the point epsilon towards the target; still inside means it still blocks. A
       // contact within epsilon of the surface (held at the stand-off clearance) also blocks when
       // that move heads into the surface (the same test to first order): without this, two

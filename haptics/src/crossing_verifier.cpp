@@ -106,4 +106,61 @@ CrossingVerifier::Result CrossingVerifier::check(const RigidMotion& motion, doub
   return result;
 }
 
+CrossingVerifier::EdgeResult CrossingVerifier::checkEdges(const RigidMotion& motion, double t_stop, double isovalue,
+                                                          const ShellEdges& edges, double inset_m,
+                                                          int time_samples, double along_step_m) const {
+  const auto& points = shell_->points_T_m();
+  if (edges.offsets.size() != points.size() + 1 && !(edges.offsets.empty() && points.empty()))
+    throw std::invalid_argument("CrossingVerifier::checkEdges: the edges belong to a shell of " +
+                                std::to_string(edges.offsets.size() - 1) + " points, not " + std::to_string(points.size()));
+  if (time_samples < 1) throw std::invalid_argument("CrossingVerifier::checkEdges: time_samples must be >= 1");
+  EdgeResult result;
+  if (!(t_stop > 0.0) || motion.isStill() || edges.size() == 0) return result;
+  const bool normals = shell_->hasNormals();
+  const double step = along_step_m > 0.0 ? along_step_m : step_m_;
+  const auto end_T = [&](int i) {
+    return normals ? Eigen::Vector3d(points[i] - inset_m * shell_->normals_T()[i]) : points[i];
+  };
+  // Whether the edge a-b (in T) has an inside sample at time t.
+  const auto edgeInside = [&](const Eigen::Vector3d& a_T, const Eigen::Vector3d& b_T, double t) {
+    const Pose X = motion.poseAt(t);
+    const Eigen::Vector3d a = X * a_T, b = X * b_T;
+    const double n = std::max(1.0, std::ceil((b - a).norm() / step));
+    for (double i = 0.0; i <= n; i += 1.0) {
+      ++result.samples;
+      if (volume_->isInside(a + (i / n) * (b - a), isovalue)) return true;
+    }
+    return false;
+  };
+  for (int j = 0; j + 1 < static_cast<int>(edges.offsets.size()); ++j) {
+    const Eigen::Vector3d a_T = end_T(j);
+    for (int e = edges.offsets[j]; e < edges.offsets[j + 1]; ++e) {
+      const int k = edges.targets[e];
+      const Eigen::Vector3d b_T = end_T(k);
+      // The edge's ball over the whole move: its midpoint's path-length bound plus half its length.
+      const Eigen::Vector3d mid_T = 0.5 * (a_T + b_T);
+      const Eigen::Vector3d r0 = motion.radial_W(mid_T);
+      const double path = (motion.v_W_m().norm() + motion.omega_W_rad().norm() * r0.norm()) * t_stop;
+      const double radius = 0.5 * path + 0.5 * (b_T - a_T).norm();
+      if (!ballMayBeInside(motion.pointAt(r0, 0.5 * t_stop), radius * (1.0 + 1e-9) + 1e-12, isovalue)) continue;
+      if (edgeInside(a_T, b_T, 0.0)) {
+        ++result.started_inside;
+        continue;
+      }
+      for (int i = 1; i <= time_samples; ++i) {
+        const double t = t_stop * i / time_samples;
+        if (edgeInside(a_T, b_T, t)) {
+          if (result.crossing_edges++ == 0 || t < result.first_t) {
+            result.first_j = j;
+            result.first_k = k;
+            result.first_t = t;
+          }
+          break;
+        }
+      }
+    }
+  }
+  return result;
+}
+
 }  // namespace vh::haptics

@@ -47,30 +47,47 @@ double HapticRenderer::edgeSafeTime(const RigidMotion& motion, double t_from, do
                                     bool& stopped) noexcept {
   stopped = false;
   if (!edge_test_ || !(t_to > t_from)) return t_to;
+  collision_.clearCrossingEdges();
   if (!collision_.edgesCrossAt(motion.poseAt(t_to), isovalue)) return t_to;
   // Already crossing where the move starts (after a reset, or an edge that a lowered isovalue
   // grew a wall through): not held, as embedded points are not.
   if (collision_.edgesCrossAt(motion.poseAt(t_from), isovalue)) return t_to;
   stopped = true;
   // Sub-steps of at most a quarter of the point spacing of travel at the farthest point, in
-  // order; then the first crossing one is bisected (8 halvings).
+  // order, then the first crossing one bisected (8 halvings): on the edges found crossing so
+  // far only (a whole-graph test per sub-step cost up to 72 of them a tick). The pose found is
+  // then tested with the whole graph; an edge crossing there joins the list and the search
+  // starts again from the move's start. After kRounds, the proxy stays where the move started
+  // (tested free above).
+  constexpr int kRounds = 4;
   const double travel_m = (motion.speed_m() + motion.angle_rad() * collision_.shellRadius_m()) * (t_to - t_from);
   const double spacing_m = std::max(collision_.shellEdges().spacing_m, collision_.epsilon_m());
   const int steps = static_cast<int>(std::clamp(std::ceil(travel_m / (0.25 * spacing_m)), 1.0, 64.0));
-  double free_t = t_from, cross_t = t_to;
-  for (int k = 1; k < steps; ++k) {
-    const double t = t_from + (t_to - t_from) * k / steps;
-    if (collision_.edgesCrossAt(motion.poseAt(t), isovalue)) {
-      cross_t = t;
-      break;
+  double cross_t = t_to;
+  for (int round = 0; round < kRounds; ++round) {
+    double free_t = t_from;
+    const double span = cross_t - t_from;
+    for (int k = 1; k < steps; ++k) {
+      const double t = t_from + span * k / steps;
+      if (collision_.listedEdgesCrossAt(motion.poseAt(t), isovalue)) {
+        cross_t = t;
+        break;
+      }
+      free_t = t;
     }
-    free_t = t;
+    for (int i = 0; i < 8; ++i) {
+      const double mid = 0.5 * (free_t + cross_t);
+      if (collision_.listedEdgesCrossAt(motion.poseAt(mid), isovalue)) cross_t = mid; else free_t = mid;
+    }
+    if (free_t <= t_from) return t_from;
+    if (!collision_.edgesCrossAt(motion.poseAt(free_t), isovalue)) {
+      // The edge contact is taken at the crossing pose just past it.
+      collision_.listedEdgesCrossAt(motion.poseAt(cross_t), isovalue);
+      return free_t;
+    }
+    cross_t = free_t;
   }
-  for (int i = 0; i < 8; ++i) {
-    const double mid = 0.5 * (free_t + cross_t);
-    if (collision_.edgesCrossAt(motion.poseAt(mid), isovalue)) cross_t = mid; else free_t = mid;
-  }
-  return free_t;
+  return t_from;
 }
 
 void HapticRenderer::resetProxy(const Pose& X_WP) noexcept {
@@ -81,6 +98,7 @@ void HapticRenderer::resetProxy(const Pose& X_WP) noexcept {
   collision_.clearContacts();
   coupling_.resetTracking();
   embedded_scan_needed_ = true;
+  blocked_last_tick_ = edge_blocked_last_tick_ = false;
 }
 
 namespace {
@@ -263,12 +281,14 @@ void HapticRenderer::resumeCutSweep(const Pose& X_WD, double isovalue, TickStats
     collision_.abandonSweep();
     collision_.addEdgeContact(X_WP_, isovalue);
     blocked_last_tick_ = true;
+    edge_blocked_last_tick_ = t < pending_t + 0.01;
   } else if (!hit.budget_cut) {
     const auto contacts_start = Clock::now();
     // The contacts at the hit, when the proxy got there.
     if (hit.hit_point >= 0 && t == hit.t) collision_.addContactsAt(pending_motion, hit, isovalue);
     stats.contacts_us = usSince(contacts_start, Clock::now());
     blocked_last_tick_ = hit.hit_point >= 0 && hit.t < 0.01;
+    edge_blocked_last_tick_ = false;
   }
   stats.budget_cut = hit.budget_cut;
   stats.time_of_contact = t;
@@ -305,8 +325,15 @@ TickOutput HapticRenderer::tick(const Pose& X_WD_in, double requested_isovalue) 
     // blocked almost at once (a lift on every tick drove a hook hanging from one contact into a
     // 2-cycle), and never while the surface has swallowed part of the tool (a moving surface must
     // not push the proxy against the user).
+    // After a move the tool's surface between its points stopped at once, the lift is on (at
+    // least kEdgeStandoffFraction): an edge contact is found at the crossing itself, with no
+    // clearance, and an edge tangent to a rounded ridge cuts into it at second order as soon as
+    // it turns, so a plain tangent move is stopped again at its start, tick after tick (the
+    // tool held at a convex edge of the block).
     const bool lift = blocked_last_tick_ && collision_.embeddedCount() == 0;
-    const double standoff_m = lift ? options_.standoff_fraction * collision_.epsilon_m() : 0.0;
+    const double fraction =
+        edge_blocked_last_tick_ ? std::max(options_.standoff_fraction, kEdgeStandoffFraction) : options_.standoff_fraction;
+    const double standoff_m = lift ? fraction * collision_.epsilon_m() : 0.0;
     RigidMotion motion;
     SweepResult hit;
     solveAndSweep(solver_, collision_, coupling_, options_, motion_scale_, X_WP_, X_WD, mass, standoff_m, isovalue,
@@ -318,6 +345,7 @@ TickOutput HapticRenderer::tick(const Pose& X_WD_in, double requested_isovalue) 
     out.stats.edge_stop = edge_stop;
     if (edge_stop) collision_.abandonSweep();
     blocked_last_tick_ = (hit.hit_point >= 0 || edge_stop) && t_move < 0.01;
+    edge_blocked_last_tick_ = edge_stop && t_move < 0.01;
     X_WP_ = motion.poseAt(t_move);
     last_motion_ = motion;
     last_t_ = t_move;

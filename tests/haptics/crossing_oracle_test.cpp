@@ -417,5 +417,44 @@ TEST(NeverThroughControl, TheOracleCatchesTheEndSampleTunnel) {
   EXPECT_GE(flagged_runs, tunnelled_runs);
 }
 
+// The oracle of the tool's surface between its points: a vertical edge whose two ends pass above
+// and below the one-voxel plate (never through it) ends with the plate between them. The plate
+// is at z = 0.5 mm, the ends at +-2 mm; the edge starts beside the volume (outside counts as
+// outside) and moves sideways into it.
+TEST(NeverThroughControl, TheEdgeOracleSeesAPlateBetweenTwoPointsThatNeverCrossedIt) {
+  auto vol = std::make_shared<const ScalarVolume>(datasets::makeThinPlateVolume(grid(64, 1e-3)));
+  const double z_plate = vol->geometry().origin_W_m.z() + 32e-3;
+  const PointShell shell({Eigen::Vector3d(0, 0, 2e-3), Eigen::Vector3d(0, 0, -2e-3)});
+  const ShellEdges edges = makeShellEdges(shell);
+  ASSERT_EQ(edges.size(), 1u);
+  const CrossingVerifier oracle(*vol, shell, 1e-2);
+  const auto slide = [&](double x0, double x1) {
+    return RigidMotion::FromVelocity(at(x0, 0, z_plate), Eigen::Vector3d::Zero(), Eigen::Vector3d(x1 - x0, 0, 0),
+                                     Eigen::Vector3d::Zero());
+  };
+  // Into the volume: no point crossed, the edge did.
+  const RigidMotion in = slide(-0.040, 0.0);
+  EXPECT_EQ(oracle.check(in, 1.0, 250.0).crossing_points, 0);
+  const CrossingVerifier::EdgeResult r = oracle.checkEdges(in, 1.0, 250.0, edges, 0.0);
+  EXPECT_EQ(r.crossing_edges, 1);
+  EXPECT_EQ(r.first_j, 0);
+  EXPECT_EQ(r.first_k, 1);
+  EXPECT_EQ(r.started_inside, 0);
+  // Stopped half way, still outside the grid: free.
+  EXPECT_EQ(oracle.checkEdges(in, 0.1, 250.0, edges, 0.0).crossing_edges, 0);
+  // Through the volume and out the other side: free at the end, crossed on the way (only the
+  // swept check sees it).
+  const RigidMotion across = slide(-0.040, 0.040);
+  EXPECT_EQ(oracle.checkEdges(across, 1.0, 250.0, edges, 0.0).crossing_edges, 0);
+  EXPECT_EQ(oracle.checkEdges(across, 1.0, 250.0, edges, 0.0, 16).crossing_edges, 1);
+  // Already across the plate where the move starts: not counted as a crossing.
+  const CrossingVerifier::EdgeResult inside = oracle.checkEdges(slide(0.0, 0.005), 1.0, 250.0, edges, 0.0);
+  EXPECT_EQ(inside.crossing_edges, 0);
+  EXPECT_EQ(inside.started_inside, 1);
+  // An edge of another shell is refused.
+  EXPECT_THROW(oracle.checkEdges(in, 1.0, 250.0, makeShellEdges(PointShell({Eigen::Vector3d::Zero()})), 0.0),
+               std::invalid_argument);
+}
+
 }  // namespace
 }  // namespace vh::haptics

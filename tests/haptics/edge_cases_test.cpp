@@ -5,6 +5,7 @@
 #include <cstdio>
 #include <limits>
 #include <numbers>
+#include <string>
 #include <vector>
 
 #include <Eigen/Geometry>
@@ -294,6 +295,45 @@ TEST(EdgeCases, AnUprightProbeMovedEdgeOnIntoAThinPlateStopsAtItsEdge) {
   std::printf("probe edge-on into the plate at 250: through in %d of %d runs without the edge test, %d with it\n",
               through_without, runs, through_with);
   EXPECT_GT(through_without, 0);  // the case is real: the points alone let it through
+}
+
+TEST(EdgeCases, ABallSlidOverABlocksConvexEdgesWithTheEdgeTestRidesOverThem) {
+  // The block with a hole (0.5 mm voxels, +-24 mm wide, the hole +-8 mm): the 10 mm ball, its
+  // device 1 mm below the top face, slid along +x from beside the block over its outer edge,
+  // across the hole and off the far edge. Oracle: the geometry: past the far edge nothing holds
+  // the ball, so the proxy ends where the device is; no point of the proxy is ever inside.
+  auto vol = std::make_shared<const ScalarVolume>(datasets::makeBlockWithHoleVolume(128));
+  const double s = datasets::kBlockIsovalue;
+  const double z_top = datasets::kBlockHalfHeight_m;
+  const auto tool = test::meshTool(datasets::makeBuiltinTool("sphere"), 1e-3);
+  for (const double speed_mm : {0.2, 1.0}) {
+    for (const int edge_test : {0, 1}) {
+      SCOPED_TRACE(std::to_string(speed_mm) + " mm per tick, edge test " + std::to_string(edge_test));
+      RendererOptions o;
+      o.edge_test = edge_test;
+      HapticRenderer r(vol, tool, o, Pose::FromTranslation({-0.030, 0.002, z_top + 0.006}), s);
+      const int ticks = static_cast<int>(std::lround(60.0 / speed_mm));
+      int max_contacts = 0, edge_stops = 0;
+      double max_depth_m = 0.0;
+      Pose X_WD;
+      for (int t = 0; t < ticks + 200; ++t) {
+        const double u = std::min(1.0, static_cast<double>(t) / ticks);
+        X_WD = Pose::FromTranslation({-0.030 + 0.060 * u, 0.002, z_top + 0.004});
+        const TickOutput out = r.tick(X_WD, s);
+        max_contacts = std::max(max_contacts, out.stats.contacts);
+        edge_stops += out.stats.edge_stop;
+        max_depth_m = std::max(max_depth_m, maxPenetration_m(*vol, tool->point_shell, out.X_WP, s));
+      }
+      std::printf("ball over the block's edges at %.1f mm per tick, edge test %d: ends %.3f mm from the device, "
+                  "%d edge stops, up to %d contacts, depth %.4f mm\n",
+                  speed_mm, edge_test, 1e3 * (r.proxyPose().p_AB_m - X_WD.p_AB_m).norm(), edge_stops, max_contacts,
+                  1e3 * max_depth_m);
+      EXPECT_LT((r.proxyPose().p_AB_m - X_WD.p_AB_m).norm(), 0.5e-3) << "held on the way, at x = "
+                                                                      << 1e3 * r.proxyPose().p_AB_m.x() << " mm";
+      EXPECT_GT(max_contacts, 0);
+      EXPECT_LE(max_depth_m, r.epsilon_m());
+    }
+  }
 }
 
 }  // namespace

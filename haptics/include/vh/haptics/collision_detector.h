@@ -4,6 +4,7 @@
 /// proxy's motion arc (paper section 2.3) and contact-set pruning (step 2).
 
 #include <algorithm>
+#include <array>
 #include <atomic>
 #include <chrono>
 #include <cstdint>
@@ -65,6 +66,10 @@ struct Contact {
   double clearance_m = 0.0;
   /// True when n_W comes from the interpolant's own gradient (see refineStuckContact()).
   bool crossing_normal = false;
+  /// For a contact between two points: the edge's unit direction, in T; zero for a shell point.
+  /// Its normal is the gradient's part perpendicular to the edge (an edge meets a ridge of the
+  /// isosurface along their common perpendicular, not along the ridge's diagonal gradient).
+  Eigen::Vector3d edge_T = Eigen::Vector3d::Zero();
 };
 
 /// Result of a swept query.
@@ -178,6 +183,13 @@ class CollisionDetector {
   /// kAccelerated culls the point-shell tree's nodes (balls dilated by the longest edge) that
   /// the min-max tree proves empty. Counts its work like a sweep's.
   bool edgesCrossAt(const Pose& X_WP, double isovalue) noexcept;
+  /// The edges edgesCrossAt() found crossing since the last clearCrossingEdges() (at most
+  /// kListedEdges, the first ones): whether one of them meets the isosurface at pose X_WP. The
+  /// renderer's subdivision of a stopped move tests these only, and then the whole graph once
+  /// at the pose it stops at (HapticRenderer, "Between the points" in haptics/README.md).
+  bool listedEdgesCrossAt(const Pose& X_WP, double isovalue) noexcept;
+  void clearCrossingEdges() noexcept { listed_count_ = 0; }
+  static constexpr int kListedEdges = 16;
   /// After edgesCrossAt() found a crossing at a pose a little farther along the move, adds the
   /// point of that edge where the isosurface entered it to the contact set as a contact of the
   /// tool's surface between points (point_index -1), at the proxy's pose X_WP (where it is
@@ -394,14 +406,18 @@ class CollisionDetector {
                             bool resume = false) noexcept;
   // Readies a lane for work on the caller's budget and clock (base work, counters, clock reads).
   void startLaneWork(Lane& lane) const noexcept;
-  // Fills c.n_W and c.clearance_m at c.p_W_m (7 samples).
-  void measureContact(Contact& c, double isovalue) noexcept;
+  // Fills c.n_W and c.clearance_m at c.p_W_m (7 samples); R_WT: the tool's orientation (an edge
+  // contact's direction, Contact::edge_T).
+  void measureContact(Contact& c, double isovalue, const Eigen::Quaterniond& R_WT) noexcept;
   void appendContact(int point, const Eigen::Vector3d& p_W, const Eigen::Vector3d& fallback_n_W, double isovalue) noexcept;
 
   const ScalarVolume* volume_;
   const ToolModel* tool_;
   ShellEdges edges_;
   bool edgeCrosses(const Pose& X_WP, int j, double isovalue) noexcept;  // the edges (j, k > j)
+  bool segmentCrosses(const Pose& X_WP, int j, int k, double isovalue) noexcept;  // one edge
+  std::array<std::pair<int, int>, kListedEdges> listed_{};  // edges found crossing (edgesCrossAt())
+  int listed_count_ = 0;
   // The last edge edgesCrossAt() found crossing: its ends and the pose it was tested at.
   struct EdgeHit {
     int j = -1, k = -1;

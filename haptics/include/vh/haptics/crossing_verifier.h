@@ -41,6 +41,28 @@ class CrossingVerifier {
   /// lies in blocks whose largest voxel value is <= isovalue are not sampled.
   Result check(const RigidMotion& motion, double t_stop, double isovalue) const;
 
+  /// Result of checkEdges().
+  struct EdgeResult {
+    int crossing_edges = 0;     ///< Edges free at t = 0 with an inside sample at a checked time.
+    int first_j = -1, first_k = -1;  ///< One such edge's ends (the first found), or -1.
+    double first_t = 1.0;       ///< The first checked time at which an edge was inside.
+    int started_inside = 0;     ///< Edges with an inside sample at t = 0 (not checked).
+    std::int64_t samples = 0;   ///< isInside() calls.
+  };
+
+  /// The tool's surface between its points (haptics/README.md, "Between the points"): each
+  /// edge (j, k) of `edges` (makeShellEdges() of this verifier's shell), its ends moved `inset_m`
+  /// into the tool along their normals, is sampled every step_m() along its length at
+  /// `time_samples` times t_stop * i / time_samples, i = 1 .. time_samples (1: the end of the move
+  /// only, which is what RendererOptions::edge_test guarantees; more: the move swept, which it
+  /// does not), every `along_step_m` along the edge (<= 0: step_m()). An edge counts when it has no inside sample at t = 0 and one at a checked time.
+  /// Edges whose ball (over the whole move) holds no block above the isovalue are skipped.
+  /// @param inset_m >= 0 [m]: the detector's epsilon (CollisionDetector::epsilon_m()).
+  /// @throws std::invalid_argument when `edges` does not belong to a shell of this size or
+  ///         time_samples < 1.
+  EdgeResult checkEdges(const RigidMotion& motion, double t_stop, double isovalue, const ShellEdges& edges,
+                        double inset_m, int time_samples = 1, double along_step_m = 0.0) const;
+
   double step_m() const noexcept { return step_m_; }
 
  private:

@@ -205,6 +205,9 @@ class HapticRenderer {
   // resumeSweep()) and moves the proxy along its motion as far as proven free.
   void resumeCutSweep(const Pose& X_WD, double isovalue, TickStats& stats) noexcept;
   bool edge_test_ = false;
+  bool edge_blocked_last_tick_ = false;  // the last move was stopped at once by an edge
+  // The stand-off lift after such a move, as a fraction of epsilon (see tick()).
+  static constexpr double kEdgeStandoffFraction = 0.5;
   double last_isovalue_;
   double felt_isovalue_;        // see TickStats::felt_isovalue
   double isovalue_margin_ = 0.0;  // a felt isovalue this far above the shell's largest F
