@@ -232,6 +232,8 @@ constexpr const char* kBeforeKey = "accelerated-end-sample";
 
 /// The accelerated mode with the edge test between shell points.
 constexpr const char* kEdgesKey = "accelerated-edges";
+// The crossing check samples the edges between shell points this many path steps apart.
+constexpr double kEdgeStepFactor = 5.0;
 
 struct ModeRun {
   Variant variant;
@@ -241,6 +243,8 @@ struct ModeRun {
   std::uint64_t nan_ticks = 0, over_1ms = 0, in_contact = 0;
   // Crossing check (CrossingVerifier after each tick, outside the timed section).
   std::int64_t crossings = 0, crossing_points = 0, first_crossing_tick = -1;
+  // Of the tool's surface between its points (CrossingVerifier::checkEdges(), the end of each move).
+  std::int64_t edge_crossings = 0, first_edge_crossing_tick = -1;
   double verify_s = 0.0;
   double wall_s = 0.0;
   // Ticks the work budget cut; the lag behind the unbudgeted accelerated proxy.
@@ -303,6 +307,10 @@ nlohmann::ordered_json modeJson(const ModeRun& m, double epsilon_m, bool verifie
   j["crossings"] = verified ? m.crossings : -1;
   j["crossing_points"] = verified ? m.crossing_points : -1;
   j["first_crossing_tick"] = verified ? m.first_crossing_tick : -1;
+  // Ticks at whose end an edge of the point shell's neighbour graph (ends inset by epsilon) was
+  // inside the isosurface while free at the tick's start; -1: not checked.
+  j["edge_crossings"] = verified ? m.edge_crossings : -1;
+  j["first_edge_crossing_tick"] = verified ? m.first_edge_crossing_tick : -1;
   j["verify_s"] = m.verify_s;
   j["wall_s"] = m.wall_s;
   return j;
@@ -464,7 +472,11 @@ void runScene(const runtime::LoadedScene& scene, std::shared_ptr<const haptics::
   const haptics::Pose X_WD0 = traj.samples().front().X_WD;
   const int inside0 = runtime::countPointsInside(volume, tool->point_shell, X_WD0, s);
   std::optional<haptics::CrossingVerifier> verifier;
-  if (verify_step_voxels > 0.0) verifier.emplace(volume, tool->point_shell, verify_step_voxels);
+  haptics::ShellEdges shell_edges;
+  if (verify_step_voxels > 0.0) {
+    verifier.emplace(volume, tool->point_shell, verify_step_voxels);
+    shell_edges = haptics::makeShellEdges(tool->point_shell);
+  }
 
   std::vector<ModeRun> runs = makeModeRuns(scene, tool, variants, X_WD0, s, ticks);
   const int i_paper = runIndex(runs, "paper"), i_accel = runIndex(runs, "accelerated");
@@ -501,6 +513,15 @@ void runScene(const runtime::LoadedScene& scene, std::shared_ptr<const haptics::
           ++m.crossings;
           m.crossing_points += check.crossing_points;
           if (m.first_crossing_tick < 0) m.first_crossing_tick = i;
+        }
+        // The surface between the points at the move's end, along each edge at kEdgeStepFactor
+        // times the path step (the edges near the surface outnumber the points that move).
+        const haptics::CrossingVerifier::EdgeResult edges = verifier->checkEdges(
+            m.renderer->lastMotion(), m.renderer->lastTimeOfContact(), s, shell_edges, epsilon_m, 1,
+            kEdgeStepFactor * verifier->step_m());
+        if (edges.crossing_edges > 0) {
+          ++m.edge_crossings;
+          if (m.first_edge_crossing_tick < 0) m.first_edge_crossing_tick = i;
         }
       }
       if (!tick_csv.empty())
@@ -557,14 +578,21 @@ void runScene(const runtime::LoadedScene& scene, std::shared_ptr<const haptics::
 
 std::string num(double v, int digits = 0) { return format("%.*f", digits, v); }
 
-/// A mode's crossing count for people: "0", "3 (5 points, first at tick 812)", "-" (not checked).
+/// A mode's crossing count for people: "0", "3 (5 points, first at tick 812)", "0; edges 4 (first
+/// at tick 90)" (the tool's surface between its points), "-" (not checked).
 std::string crossingsText(const nlohmann::ordered_json& m) {
   const auto n = m["crossings"].get<std::int64_t>();
   if (n < 0) return "-";
-  if (n == 0) return "0";
+  const auto edges = m.contains("edge_crossings") ? m["edge_crossings"].get<std::int64_t>() : 0;
+  const std::string edge_text =
+      edges > 0 ? format("; edges %lld (first at tick %lld)", static_cast<long long>(edges),
+                         static_cast<long long>(m["first_edge_crossing_tick"].get<std::int64_t>()))
+                : std::string();
+  if (n == 0) return "0" + edge_text;
   const auto points = m["crossing_points"].get<std::int64_t>();
   return format("%lld (%lld point%s, first at tick %lld)", static_cast<long long>(n), static_cast<long long>(points),
-                points == 1 ? "" : "s", static_cast<long long>(m["first_crossing_tick"].get<std::int64_t>()));
+                points == 1 ? "" : "s", static_cast<long long>(m["first_crossing_tick"].get<std::int64_t>())) +
+         edge_text;
 }
 
 /// Busy threads beside the run (a loaded machine, --load) until this object goes out of scope.
@@ -793,8 +821,10 @@ void writeMarkdownIntro(std::ostringstream& md, const nlohmann::ordered_json& re
         "test except \"accelerated (end-sample, before)\", the earlier end-sample test. "
      << (verified ? format("Crossings: ticks in which haptics::CrossingVerifier, sampling each shell point's path "
                            "over the tick every %g voxel outside the timed section, found a point carried from "
-                           "outside into the isosurface.",
-                           options.verify_step_voxels)
+                           "outside into the isosurface; \"edges N\": ticks at whose end the tool's surface "
+                           "between its points (the point shell's neighbour edges, ends inset by epsilon, sampled "
+                           "every %g voxel) was inside while free at the tick's start.",
+                           options.verify_step_voxels, kEdgeStepFactor * options.verify_step_voxels)
                   : std::string("Crossings: not checked (--verify-step 0)."))
      << "\n\n";
 }

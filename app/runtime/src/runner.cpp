@@ -150,11 +150,18 @@ void addTickCounts(RunReport& r, const haptics::TickOutput& out, const Eigen::Ve
 /// The crossing check of tick `i`, outside the timed section: the path the proxy moved along
 /// this tick, sampled densely; a point outside at its start and inside later was carried into
 /// (or through) the isosurface. @return the points that crossed.
-int checkCrossings(RunReport& r, const haptics::CrossingVerifier& verifier, const haptics::HapticRenderer& renderer,
-                   double felt_isovalue, std::uint64_t i) {
+int checkCrossings(RunReport& r, const haptics::CrossingVerifier& verifier, const haptics::ShellEdges& edges,
+                   const haptics::HapticRenderer& renderer, double felt_isovalue, std::uint64_t i) {
   const auto v0 = std::chrono::steady_clock::now();
   const haptics::CrossingVerifier::Result check =
       verifier.check(renderer.lastMotion(), renderer.lastTimeOfContact(), felt_isovalue);
+  // The tool's surface between its points, at the end of the move.
+  const haptics::CrossingVerifier::EdgeResult edge_check =
+      verifier.checkEdges(renderer.lastMotion(), renderer.lastTimeOfContact(), felt_isovalue, edges, r.epsilon_m);
+  if (edge_check.crossing_edges > 0) {
+    ++r.edge_crossings;
+    if (r.first_edge_crossing_tick < 0) r.first_edge_crossing_tick = static_cast<std::int64_t>(i);
+  }
   r.verify_s += std::chrono::duration<double>(std::chrono::steady_clock::now() - v0).count();
   if (check.crossing_points > 0) {
     ++r.crossings;
@@ -347,11 +354,14 @@ RunReport runHeadless(const LoadedScene& scene, const Trajectory& trajectory, co
     reference.emplace(scene.hapticField(), scene.tool, unbudgeted, X_WD_first, s);
   }
   std::optional<haptics::CrossingVerifier> verifier;
+  haptics::ShellEdges shell_edges;
   if (options.verify_step_voxels > 0.0) {
     verifier.emplace(felt, tool.point_shell, options.verify_step_voxels);
     r.verify_step_voxels = options.verify_step_voxels;
     r.crossings = 0;
     r.crossing_points = 0;
+    r.edge_crossings = 0;
+    shell_edges = haptics::makeShellEdges(tool.point_shell);
   }
   ScriptedDevice device(trajectory, 1.0 / options.servo_rate_Hz);
   device.setLimits(options.device_limits);
@@ -410,7 +420,7 @@ RunReport runHeadless(const LoadedScene& scene, const Trajectory& trajectory, co
     // the hand), and the trace writes both.
     const double felt_isovalue = std::isfinite(out.stats.felt_isovalue) ? out.stats.felt_isovalue : isovalue;
     const int crossing_points =
-        verifier && finite && sample_ok ? checkCrossings(r, *verifier, renderer, felt_isovalue, i) : -1;
+        verifier && finite && sample_ok ? checkCrossings(r, *verifier, shell_edges, renderer, felt_isovalue, i) : -1;
     double depth = 0.0;
     if (!finite) ++r.nan_ticks;
     else depth = addForceAndDepth(r, out, X_WD_used, felt, tool, felt_isovalue, options.check_penetration, i);
@@ -508,6 +518,8 @@ std::string RunReport::toJson() const {
   j["crossings"] = checked(crossings);
   j["crossing_points"] = checked(crossing_points);
   j["first_crossing_tick"] = checked(first_crossing_tick);
+  j["edge_crossings"] = checked(edge_crossings);
+  j["first_edge_crossing_tick"] = checked(first_edge_crossing_tick);
   j["verify_s"] = verify_s;
   j["bad_device_samples"] = bad_device_samples;
   j["implausible_samples"] = implausible_samples;
@@ -568,6 +580,15 @@ std::string RunReport::summary() const {
                   static_cast<long long>(crossings), static_cast<long long>(crossing_points),
                   crossing_points == 1 ? "" : "s", static_cast<long long>(first_crossing_tick), verify_step_voxels);
     out += line;
+  }
+  if (crossingsChecked()) {
+    if (edge_crossings == 0) {
+      out += ", edges 0";
+    } else {
+      std::snprintf(line, sizeof line, ", edges %lld (first at tick %lld)", static_cast<long long>(edge_crossings),
+                    static_cast<long long>(first_edge_crossing_tick));
+      out += line;
+    }
   }
   if (work_budget > 0) {
     std::snprintf(line, sizeof line, "; work budget %lld: %llu ticks cut, max work %lld",

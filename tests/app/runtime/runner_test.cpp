@@ -53,6 +53,10 @@ void expectSoundRun(const RunReport& r, const Trajectory& trajectory, const std:
   EXPECT_EQ(r.crossings, 0) << "first at tick " << r.first_crossing_tick;
   EXPECT_EQ(r.crossing_points, 0);
   EXPECT_EQ(r.first_crossing_tick, -1);
+  // The tool's surface between its points is checked too (counted, not promised: the edge test
+  // is off by default).
+  EXPECT_GE(r.edge_crossings, 0);
+  EXPECT_NE(r.summary().find(", edges "), std::string::npos);
   EXPECT_GE(r.verify_s, 0.0);
   EXPECT_LE(r.verify_s, r.total_s);
   EXPECT_GT(r.max_contacts, 0);
@@ -189,7 +193,7 @@ TEST(Runner, ReplayThroughTheCsvIsIdenticalAndTheReportIsComplete) {
   for (const char* key : {"ticks", "mean_us", "p50_us", "p99_us", "max_us", "max_contacts", "mean_contacts",
                           "max_penetration_m", "nan_ticks", "max_force_N", "epsilon_m", "point_count", "volume_dims",
                           "isovalue", "bad_device_samples", "crossings", "crossing_points", "first_crossing_tick",
-                          "verify_step_voxels", "verify_s"}) {
+                          "edge_crossings", "first_edge_crossing_tick", "verify_step_voxels", "verify_s"}) {
     EXPECT_TRUE(j.contains(key)) << key;
   }
   ASSERT_TRUE(j["crossings"].is_number_integer());
@@ -222,12 +226,14 @@ TEST(Runner, CrossingCheckOffIsReportedAsNotCheckedNotAsZero) {
   EXPECT_EQ(r.crossings, -1);
   EXPECT_EQ(r.crossing_points, -1);
   EXPECT_EQ(r.first_crossing_tick, -1);
+  EXPECT_EQ(r.edge_crossings, -1);
   EXPECT_EQ(r.verify_s, 0.0);
   EXPECT_NE(r.summary().find("crossings not checked"), std::string::npos) << r.summary();
   const nlohmann::json j = nlohmann::json::parse(r.toJson());
   EXPECT_TRUE(j["crossings"].is_null());
   EXPECT_TRUE(j["crossing_points"].is_null());
   EXPECT_TRUE(j["first_crossing_tick"].is_null());
+  EXPECT_TRUE(j["edge_crossings"].is_null());
   EXPECT_EQ(j["verify_step_voxels"].get<double>(), 0.0);
   // The lag reference ran (the default); without it the lag is null, not 0.
   EXPECT_TRUE(j["lag_ticks"].is_number());

@@ -162,6 +162,13 @@ struct RunReport {
   std::int64_t crossings = -1;           ///< Ticks in which some shell point crossed into the isosurface.
   std::int64_t crossing_points = -1;     ///< Sum over ticks of the points that crossed.
   std::int64_t first_crossing_tick = -1; ///< First tick with a crossing; -1: none (or not checked).
+  /// Ticks in which the tool's surface between its points crossed: an edge of the point shell's
+  /// neighbour graph (haptics::makeShellEdges(), ends inset by epsilon) free where the move
+  /// started and inside the isosurface where it ended (CrossingVerifier::checkEdges(), sampled
+  /// along each edge at the same step). The renderer guarantees 0 only with
+  /// RendererOptions::edge_test on; -1: not checked.
+  std::int64_t edge_crossings = -1;
+  std::int64_t first_edge_crossing_tick = -1; ///< First tick with an edge crossing; -1: none.
   double verify_s = 0.0;                 ///< Time spent in the crossing check [s] (in total_s).
   std::uint64_t bad_device_samples = 0;  ///< Samples not rendered (implausible) or the renderer rejected.
   /// Of those, samples SampleFilter rejected: faster than the device moves, outside its
@@ -191,8 +198,9 @@ struct RunReport {
   /// counts are null when the check was off).
   std::string toJson() const;
   /// One line: "ticks 4200, exec mean 120 us, ..., penetration 0.01 mm (epsilon 0.03 mm); nan ticks
-  /// 0; bad samples 0; crossings 0 (checked at 0.01 voxel)" ("crossings 3 (5 points, first at
-  /// tick 812; ...)" when some crossed, "crossings not checked" when the check was off).
+  /// 0; bad samples 0; crossings 0 (checked at 0.01 voxel), edges 0" ("crossings 3 (5 points, first
+  /// at tick 812; ...)" when some crossed, "edges 2 (first at tick 40)" when the tool's surface
+  /// between its points did, "crossings not checked" when the check was off).
   std::string summary() const;
 };
 
