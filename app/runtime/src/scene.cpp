@@ -261,7 +261,8 @@ void readVolume(const ObjectReader& volume, const fs::path& base_dir, VolumeSpec
 
 /// The "tool" section into `t` (which holds the defaults).
 void readTool(const ObjectReader& tool, const fs::path& base_dir, ToolSpec& t) {
-  tool.allowOnly({"mesh", "scale_to_m", "point_spacing_m", "point_count", "initial_pose"});
+  tool.allowOnly({"mesh", "scale_to_m", "point_spacing_m", "point_count", "initial_pose", "edge_test"});
+  if (tool.has("edge_test")) t.edge_test = tool.boolean("edge_test");
   if (tool.has("mesh")) t.mesh = resolveDataPath(tool, "mesh", tool.string("mesh"), base_dir);
   if (tool.has("scale_to_m")) t.scale_to_m = tool.positive("scale_to_m");
   if (tool.has("point_spacing_m") && tool.has("point_count")) {
@@ -626,6 +627,7 @@ double LoadedScene::pointSpacing_m() const { return LiveValues::initial(*this).p
 std::unique_ptr<haptics::HapticRenderer> makeRenderer(const LiveValues& live, haptics::RendererOptions options,
                                                       const haptics::Pose& X_WP) {
   options.gains = live.gains;
+  if (live.tool_spec.edge_test) options.edge_test = 1;
   return std::make_unique<haptics::HapticRenderer>(live.hapticField(), live.tool, options, X_WP,
                                                    live.hapticIsovalue());
 }
@@ -696,6 +698,7 @@ DrillingRenderer makeServoRenderer(const LiveValues& live, const haptics::Render
     throw std::invalid_argument("drilling needs a volume");
   haptics::RendererOptions with_gains = options;
   with_gains.gains = live.gains;
+  if (live.tool_spec.edge_test) with_gains.edge_test = 1;
   return makeDrillingRenderer(*live.hapticField(), live.hapticIsovalue(), live.tool,
                               makeDrillMaterials(*live.hapticField(), *live.scan_field, live.scan_in_HU,
                                                  live.segments.get(), *live.drill),

@@ -251,6 +251,8 @@ std::string makeSessionMetadata(const LoadedScene& scene, const LiveValues& live
                 {"point_spacing_m", live.tool_spec.point_spacing_m},
                 {"point_count", live.tool_spec.point_count},
                 {"initial_pose", poseJson(live.X_WT_initial)}};
+  // Only when on: recordings of the default stay as they were.
+  if (live.tool_spec.edge_test) sc["tool"]["edge_test"] = true;
   sc["coupling"] = {{"linear_N_per_m", live.gains.linear_N_per_m},
                     {"angular_Nm_per_rad", live.gains.angular_Nm_per_rad},
                     {"passivity_control", live.gains.passivity_control}};
@@ -358,6 +360,7 @@ SceneSpec sceneFromSessionMetadata(const std::string& metadata_json) {
     spec.tool.scale_to_m = tool.at("scale_to_m").get<double>();
     spec.tool.point_spacing_m = tool.at("point_spacing_m").get<double>();
     spec.tool.point_count = tool.at("point_count").get<std::size_t>();
+    spec.tool.edge_test = tool.value("edge_test", false);
     const json& pose = tool.at("initial_pose");
     const auto p = pose.at("p_m").get<std::vector<double>>();
     const auto q = pose.at("q_wxyz").get<std::vector<double>>();

@@ -188,6 +188,36 @@ TEST(SceneFile, PassivityControlIsOffUnlessTheSceneAsks) {
                    .gains.passivity_control);
 }
 
+// "tool": {"edge_test": true} reaches the renderer: the upright probe (2 mm point spacing) moved
+// sideways into the edge of the built-in one-voxel plate at 250 goes through it without the
+// edge test and stops at the plate's edge with it (the plate's extent is the oracle: its edge at
+// x = 31.5 mm, the probe's shaft radius 0.98 mm).
+TEST(SceneFile, TheEdgeTestIsOnOnlyWhenTheToolAsks) {
+  const fs::path dir = scratchDir();
+  const char* base = R"({"volume": {"path": "builtin:thin-plate", "isovalue": 250},
+      "tool": {"mesh": "builtin:probe", "point_spacing_m": 0.002, "initial_pose": {"p_m": [0.0395, 0.0003, -0.0195]})";
+  const SceneSpec off = loadSceneFile(writeText(dir / "off.json", std::string(base) + "}}"));
+  const SceneSpec on = loadSceneFile(writeText(dir / "on.json", std::string(base) + ", \"edge_test\": true}}"));
+  EXPECT_FALSE(off.tool.edge_test);
+  ASSERT_TRUE(on.tool.edge_test);
+  expectSceneError(R"({"volume": {"path": "builtin:plane"}, "tool": {"edge_test": 1}})",
+                   "tool.edge_test: expected true or false, found 1");
+  const double edge_x = 0.0315;
+  double axis_x[2] = {0.0, 0.0};
+  for (const bool edge_test : {false, true}) {
+    const LoadedScene scene = loadScene(edge_test ? on : off);
+    auto renderer = scene.makeRenderer(haptics::RendererOptions{});
+    for (int t = 0; t < 400; ++t) {
+      haptics::Pose X_WD = scene.X_WT_initial;
+      X_WD.p_AB_m.x() -= 0.030 * std::min(1.0, t / 300.0);
+      renderer->tick(X_WD, scene.isovalue);
+    }
+    axis_x[edge_test] = renderer->proxyPose().p_AB_m.x();
+  }
+  EXPECT_LT(axis_x[0], edge_x - 0.98e-3) << "without the edge test the plate passes between the points";
+  EXPECT_GT(axis_x[1], edge_x - 0.98e-3) << "with it the shaft's axis stays outside the plate";
+}
+
 TEST(SceneFileErrors, PassivityControlMustBeABoolean) {
   expectSceneError(R"({"volume": {"path": "builtin:plane"}, "coupling": {"passivity_control": 1}})",
                    "coupling.passivity_control: expected true or false, found 1");

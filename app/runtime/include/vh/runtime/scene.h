@@ -71,6 +71,11 @@ struct ToolSpec {
   /// Only the orientation of X_WT_initial was given ("initial_pose": {"q_wxyz": [...]}): the
   /// tool keeps it and is placed above the volume's centre (initial_pose_set stays false).
   bool initial_orientation_set = false;
+  /// "edge_test": the tool's surface between its shell points is kept outside the isosurface
+  /// too, not only its points (haptics::RendererOptions::edge_test; haptics/README.md, "Between
+  /// the points"): for thin bone at a coarse point spacing. Off by default: it costs 1.3x to 4x
+  /// the solver's time.
+  bool edge_test = false;
 };
 
 /// Where a hardware device's workspace lands in the scene ("device": {"workspace": {...}}).
