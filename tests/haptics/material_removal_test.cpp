@@ -5,6 +5,7 @@
 #include <cstdio>
 #include <numbers>
 #include <random>
+#include <string>
 #include <vector>
 
 #include <gtest/gtest.h>
@@ -47,6 +48,23 @@ std::vector<CuttingMaterial> oneMaterial(double energy_J_per_mm3 = 1.0) {
 
 // The incremental refresh of the min-max tree and the local Lipschitz bounds equals a rebuild
 // from scratch (the oracle) after scattered writes, on every node and every brick.
+// Every node's range of `t1` equals `t2`'s (a tree refreshed in place against one rebuilt).
+void expectSameRanges(const MinMaxTree& t1, const MinMaxTree& t2, const std::string& what) {
+  ASSERT_EQ(t1.levels(), t2.levels()) << what;
+  for (int level = 0; level < t1.levels(); ++level) {
+    const auto n = t1.nodes(level);
+    for (int c = 0; c < n[2]; ++c)
+      for (int b = 0; b < n[1]; ++b)
+        for (int a = 0; a < n[0]; ++a) {
+          float lo1, hi1, lo2, hi2;
+          t1.node(level, a, b, c, lo1, hi1);
+          t2.node(level, a, b, c, lo2, hi2);
+          ASSERT_EQ(lo1, lo2) << what << " level " << level;
+          ASSERT_EQ(hi1, hi2) << what << " level " << level;
+        }
+  }
+}
+
 TEST(MaterialRemoval, RefreshedTreeEqualsARebuild) {
   std::mt19937 rng(7);
   for (const VoxelType type : {VoxelType::kUInt8, VoxelType::kInt16, VoxelType::kFloat32}) {
@@ -73,19 +91,7 @@ TEST(MaterialRemoval, RefreshedTreeEqualsARebuild) {
     }
     const ScalarVolume rebuilt = ScalarVolume::FromBytes(g, type, carved.bytes());
     const MinMaxTree &t1 = carved.minMaxTree(), &t2 = rebuilt.minMaxTree();
-    ASSERT_EQ(t1.levels(), t2.levels());
-    for (int level = 0; level < t1.levels(); ++level) {
-      const auto n = t1.nodes(level);
-      for (int c = 0; c < n[2]; ++c)
-        for (int b = 0; b < n[1]; ++b)
-          for (int a = 0; a < n[0]; ++a) {
-            float lo1, hi1, lo2, hi2;
-            t1.node(level, a, b, c, lo1, hi1);
-            t2.node(level, a, b, c, lo2, hi2);
-            ASSERT_EQ(lo1, lo2) << voxelTypeName(type) << " level " << level;
-            ASSERT_EQ(hi1, hi2) << voxelTypeName(type) << " level " << level;
-          }
-    }
+    expectSameRanges(t1, t2, voxelTypeName(type));
     const auto n0 = t1.nodes(0);
     for (int c = 0; c < n0[2]; ++c)
       for (int b = 0; b < n0[1]; ++b)
@@ -291,19 +297,7 @@ TEST(MaterialRemoval, RemoveCavityCarvesBeforeTheFirstCutUncountedAndUnlogged) {
   std::uint64_t log[8];
   EXPECT_EQ(removal.drainRemoved(log), 0u);
   const ScalarVolume rebuilt = ScalarVolume::FromBytes(g, VoxelType::kUInt8, v->bytes());
-  const MinMaxTree &t1 = v->minMaxTree(), &t2 = rebuilt.minMaxTree();
-  for (int level = 0; level < t1.levels(); ++level) {
-    const auto n = t1.nodes(level);
-    for (int c = 0; c < n[2]; ++c)
-      for (int b = 0; b < n[1]; ++b)
-        for (int a = 0; a < n[0]; ++a) {
-          float lo1, hi1, lo2, hi2;
-          t1.node(level, a, b, c, lo1, hi1);
-          t2.node(level, a, b, c, lo2, hi2);
-          ASSERT_EQ(lo1, lo2) << "level " << level;
-          ASSERT_EQ(hi1, hi2) << "level " << level;
-        }
-  }
+  expectSameRanges(v->minMaxTree(), rebuilt.minMaxTree(), "uint8");
   // The burr inside the cavity, touching only its wall: what it removes was never in the cavity.
   const Eigen::Vector3d c = g.origin_W_m + g.spacing_m.cwiseProduct(Eigen::Vector3d(12, 12, 19));
   std::uint64_t cut = 0;

@@ -68,6 +68,26 @@ runtime::LoadedScene drillScene() {
       "drill.json", "."));
 }
 
+// The picture and the hand of one session: a window's scene view, a Session on the drill scene
+// (a simulated device) shown in it, and the drill controller between them.
+struct DrillingSession {
+  DrillingSession() : drill(session, *host.view) {
+    runtime::LoadedScene scene = drillScene();
+    tool = scene.tool;
+    tool_spec = scene.spec.tool;
+    spec = sceneActorsSpecFor(scene, runtime::LiveValues::initial(scene));
+    auto device = scene.makeDevice();
+    session.setScene(std::move(scene), device);
+    host.view->setScene(spec, session.live().X_WT_initial, ViewLook{});
+  }
+  ViewHost host;
+  runtime::Session session;
+  DrillController drill;
+  SceneActorsSpec spec;  ///< What the view shows of the scene, as first shown.
+  std::shared_ptr<const haptics::ToolModel> tool;  ///< The scene's tool, as loaded.
+  runtime::ToolSpec tool_spec;
+};
+
 TEST(DrillingView, BoxUploadShowsWhatAWholeUploadShows) {
   const runtime::LoadedScene scene = drillScene();
   const SceneActorsSpec spec = sceneActorsSpecFor(scene, runtime::LiveValues::initial(scene));
@@ -123,14 +143,11 @@ TEST(DrillingView, BoxUploadShowsWhatAWholeUploadShows) {
 }
 
 TEST(DrillingView, DrillMenuCutsShowsAndExports) {
-  ViewHost host;
-  runtime::Session session;
-  DrillController drill(session, *host.view);
-  runtime::LoadedScene scene = drillScene();
-  const SceneActorsSpec spec = sceneActorsSpecFor(scene, runtime::LiveValues::initial(scene));
-  auto device = scene.makeDevice();
-  session.setScene(std::move(scene), device);
-  host.view->setScene(spec, session.live().X_WT_initial, ViewLook{});
+  DrillingSession s;
+  ViewHost& host = s.host;
+  runtime::Session& session = s.session;
+  DrillController& drill = s.drill;
+  const SceneActorsSpec& spec = s.spec;
   EXPECT_THROW(drill.exportDrilled(outputDir() / "none.nrrd", outputDir() / "none.seg.nrrd"), std::runtime_error)
       << "nothing drilled yet";
 
@@ -189,16 +206,13 @@ TEST(DrillingView, DrillMenuCutsShowsAndExports) {
 // (the oracle: the scan's voxels at the image's minimum in the picture, against the voxels of the
 // solver's field that differ from the scan), without a whole upload; drilling on adds to it.
 TEST(DrillingView, TheCavityStaysInThePictureOverRebuilds) {
-  ViewHost host;
-  runtime::Session session;
-  DrillController drill(session, *host.view);
-  runtime::LoadedScene scene = drillScene();
-  const auto tool = scene.tool;
-  const runtime::ToolSpec tool_spec = scene.spec.tool;
-  const SceneActorsSpec spec = sceneActorsSpecFor(scene, runtime::LiveValues::initial(scene));
-  auto device = scene.makeDevice();
-  session.setScene(std::move(scene), device);
-  host.view->setScene(spec, session.live().X_WT_initial, ViewLook{});
+  DrillingSession s;
+  ViewHost& host = s.host;
+  runtime::Session& session = s.session;
+  DrillController& drill = s.drill;
+  const SceneActorsSpec& spec = s.spec;
+  const auto tool = s.tool;
+  const runtime::ToolSpec tool_spec = s.tool_spec;
   const haptics::Pose X_free = session.live().X_WT_initial;
   double range[2];
   spec.image->GetScalarRange(range);
@@ -267,16 +281,11 @@ TEST(DrillingView, TheCavityStaysInThePictureOverRebuilds) {
 // A critical segment cut in the last moments before the haptic threads are rebuilt (removals the
 // picture's 20 ms drain had not reached) is still an alert after the rebuild, with every voxel.
 TEST(DrillingView, CriticalRemovalJustBeforeARebuildIsStillTold) {
-  ViewHost host;
-  runtime::Session session;
-  DrillController drill(session, *host.view);
-  runtime::LoadedScene scene = drillScene();
-  const auto tool = scene.tool;
-  const runtime::ToolSpec tool_spec = scene.spec.tool;
-  const SceneActorsSpec spec = sceneActorsSpecFor(scene, runtime::LiveValues::initial(scene));
-  auto device = scene.makeDevice();
-  session.setScene(std::move(scene), device);
-  host.view->setScene(spec, session.live().X_WT_initial, ViewLook{});
+  DrillingSession s;
+  runtime::Session& session = s.session;
+  DrillController& drill = s.drill;
+  const auto tool = s.tool;
+  const runtime::ToolSpec tool_spec = s.tool_spec;
   auto set = std::make_shared<const runtime::SegmentSet>(  // a critical nodule under the pole
       test::ballSegmentation(*session.live().scan_field, Eigen::Vector3d(0, 0, 0.019), 0.004), std::vector<int>{},
       std::vector<int>{0}, std::vector<int>{0}, 1.0);
