@@ -28,6 +28,9 @@ HapticsController::HapticsController(runtime::Session& session, HapticsPanel& pa
   connect(&panel_, &HapticsPanel::startStopRequested, this, [this](bool run) { run ? start() : session_.stopHaptics(); });
   connect(&panel_, &HapticsPanel::toolRequested, &tools_, &ToolPicker::select);
   connect(&panel_, &HapticsPanel::gainsChanged, this, [this](const haptics::CouplingGains& g) { session_.setGains(g); });
+  connect(&panel_, &HapticsPanel::edgeTestRequested, this, [this](bool on) {
+    if (session_.hasScene()) session_.setEdgeTest(on);
+  });
   connect(&panel_, &HapticsPanel::resetDeviceRequested, this, [this] {
     if (session_.hasScene()) input_.setDevicePose(session_.live().X_WT_initial);
   });

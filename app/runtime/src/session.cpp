@@ -112,6 +112,20 @@ void Session::setTool(std::shared_ptr<const haptics::ToolModel> tool, const Tool
   notify(SessionChange::kTool | (was_running != hapticsRunning() ? SessionChange::kRunning : SessionChange{}));
 }
 
+void Session::setEdgeTest(bool on) {
+  if (!has_scene_) throw std::invalid_argument("Session::setEdgeTest: no scene");
+  if (live_.tool_spec.edge_test == on) return;
+  const bool was_running = hapticsRunning();
+  // Where the proxy is: free of the surface at its points; an edge already crossing there is
+  // not held (the renderer starts no move from a crossing it did not cause).
+  const haptics::Pose X_WP = proxyPose();
+  retireHaptics();  // force ramped to zero before the rule changes
+  live_.tool_spec.edge_test = on;
+  rebuildHaptics(X_WP);
+  if (was_running && haptics_ != nullptr) haptics_->start();
+  notify(SessionChange::kTool | (was_running != hapticsRunning() ? SessionChange::kRunning : SessionChange{}));
+}
+
 void Session::setSegments(std::shared_ptr<const SegmentSet> segments, std::optional<SegmentationSpec> spec) {
   if (!has_scene_) throw std::invalid_argument("Session::setSegments: no scene");
   if (segments != nullptr && !spec) throw std::invalid_argument("Session::setSegments: segments without a spec");

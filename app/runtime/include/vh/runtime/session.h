@@ -109,6 +109,11 @@ class Session {
   /// point_count): live().pointSpacing_m() derives it from there.
   /// @throws std::invalid_argument for a null tool or no scene.
   void setTool(std::shared_ptr<const haptics::ToolModel> tool, const ToolSpec& spec, const haptics::Pose& X_WT_initial);
+  /// Switches the edge test between the tool's shell points (ToolSpec::edge_test): the haptic
+  /// threads stop (force ramped to zero) and are rebuilt with it where the proxy is, then
+  /// restarted when they ran. The same value again: nothing happens.
+  /// @throws std::invalid_argument without a scene.
+  void setEdgeTest(bool on);
 
   // ---- Segments ------------------------------------------------------------------------------
   /// Replaces the live segments (null: none) and their spec (what recordings and scene files

@@ -65,6 +65,8 @@ class HapticsPanel : public QWidget {
   /// CouplingGains::passivity_control.
   QCheckBox* passivityControlBox() const noexcept { return passivity_; }
   QLabel* pointCountLabel() const noexcept { return points_; }
+  /// ToolSpec::edge_test: the tool's surface between its points kept outside too.
+  QCheckBox* edgeTestBox() const noexcept { return edge_test_; }
   QComboBox* deviceBox() const noexcept { return device_choice_; }
   QPushButton* rescanButton() const noexcept { return rescan_; }
 
@@ -73,6 +75,8 @@ class HapticsPanel : public QWidget {
   /// The user picked a tool or a spacing (debounced 400 ms for the spin box): rebuild.
   void toolRequested(int choice_index, double point_spacing_m);
   void gainsChanged(const haptics::CouplingGains& gains);
+  /// The user switched the edge test between shell points (ToolSpec::edge_test).
+  void edgeTestRequested(bool on);
   void resetDeviceRequested();
   /// The user picked entry `index` of the device picker.
   void deviceChoiceRequested(int index);
@@ -85,6 +89,7 @@ class HapticsPanel : public QWidget {
   QComboBox* tool_;
   QDoubleSpinBox* spacing_mm_;
   QLabel* points_;
+  QCheckBox* edge_test_;
   QDoubleSpinBox* linear_;
   QDoubleSpinBox* torsional_;
   QCheckBox* passivity_;
