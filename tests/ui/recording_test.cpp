@@ -296,6 +296,21 @@ TEST_F(RecordingTest, VideoAndPngExport) {
   EXPECT_GT(colours, 0) << "the PNG is one colour";
   // Something besides the background gradient: the sphere or the tools.
   EXPECT_GT(test::brightFraction(png), 0.01);
+  // The overlay is the export's choice: with it, the top left holds the time and forces on a
+  // dark band; without it, that band is the plain picture; below it, both are the same picture.
+  w->replay()->exportPng(dir / "with.png", 320, 240);
+  w->replay()->exportPng(dir / "without.png", 320, 240, false);
+  const QImage with(QString::fromStdString((dir / "with.png").string()));
+  const QImage without(QString::fromStdString((dir / "without.png").string()));
+  ASSERT_EQ(with.size(), without.size());
+  const auto differing = [&](int y0, int y1) {
+    int n = 0;
+    for (int y = y0; y < y1; ++y)
+      for (int x = 0; x < with.width(); ++x) n += with.pixel(x, y) != without.pixel(x, y);
+    return static_cast<double>(n) / (with.width() * (y1 - y0));
+  };
+  EXPECT_GT(differing(0, 24), 0.05) << "no overlay drawn at the top";
+  EXPECT_LT(differing(120, 240), 0.001) << "the pictures below the overlay differ";
   if (const char* shots = std::getenv("VH_UI_SHOTS_DIR"); shots != nullptr && *shots != '\0') {
     fs::copy_file(path_, fs::path(shots) / "session.vhrec", fs::copy_options::overwrite_existing);
     fs::copy_file(dir / "gui.png", fs::path(shots) / "replay-export.png", fs::copy_options::overwrite_existing);

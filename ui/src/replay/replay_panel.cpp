@@ -56,6 +56,14 @@ constexpr double kSpeeds[] = {0.25, 0.5, 1.0, 2.0, 4.0};
 
 QString q(const std::string& s) { return QString::fromStdString(s); }
 
+// Whether an exported picture or video carries the overlay (asked, yes by default).
+bool askOverlay(QWidget* parent) {
+  return QMessageBox::question(parent, "Export",
+                               "Draw the overlay on the pictures: the time, |F|, |torque|, the markers' labels and "
+                               "the critical-segment alert?",
+                               QMessageBox::Yes | QMessageBox::No, QMessageBox::Yes) == QMessageBox::Yes;
+}
+
 /// A marker event's label ({"label": ...}), else its detail text.
 QString markerLabel(const runtime::RecordingEvent& e) {
   try {
@@ -614,7 +622,7 @@ void ReplayController::exportJson(const fs::path& path) const {
 }
 
 int ReplayController::exportVideo(const fs::path& path, double fps, int width, int height,
-                                  const std::function<bool(int, int)>& progress) {
+                                  const std::function<bool(int, int)>& progress, bool overlay) {
   if (!active_) throw std::logic_error("exportVideo: no recording is replayed");
   if (width <= 0 || height <= 0) {
     width = std::max(16, view_.widget()->width());
@@ -626,13 +634,14 @@ int ReplayController::exportVideo(const fs::path& path, double fps, int width, i
     RecordingFrameRenderer frames(sceneActorsSpecFor(session_.loaded(), session_.live()), width, height,
                                   prefs_);
     frames.copyCamera(view_.widget()->renderer()->GetActiveCamera());
+    if (overlay) frames.setOverlay(&recording_);
     frames_written = writeRecordingVideo(frames, recording_, path, fps, 0.0, -1.0, progress);
   }
   setTime(t_shown);
   return frames_written;
 }
 
-void ReplayController::exportPng(const fs::path& path, int width, int height) {
+void ReplayController::exportPng(const fs::path& path, int width, int height, bool overlay) {
   if (!active_) throw std::logic_error("exportPng: no recording is replayed");
   if (width <= 0 || height <= 0) {
     width = std::max(16, view_.widget()->width());
@@ -641,6 +650,7 @@ void ReplayController::exportPng(const fs::path& path, int width, int height) {
   RecordingFrameRenderer frames(sceneActorsSpecFor(session_.loaded(), session_.live()), width, height,
                                 prefs_);
   frames.copyCamera(view_.widget()->renderer()->GetActiveCamera());
+  if (overlay) frames.setOverlay(&recording_);
   writeRecordingPng(frames, recording_, time_s_, path);
 }
 
@@ -718,6 +728,7 @@ void ReplayController::exportFromMenu(int kind) {
       bool ok = false;
       const int fps = QInputDialog::getInt(window_, "Video", "Frames per second:", 30, 1, 120, 1, &ok);
       if (!ok) return;
+      const bool overlay = askOverlay(window_);
       pause();
       const double duration = timeline_->duration_s();
       QProgressDialog progress("Rendering the video...", "Cancel", 0,
@@ -729,7 +740,7 @@ void ReplayController::exportFromMenu(int kind) {
         progress.setValue(done);
         QApplication::processEvents();
         return !progress.wasCanceled();
-      });
+      }, overlay);
       progress.reset();
       emit noticeRequested(QString("Video written: %1 (%2 frames)").arg(QFileInfo(out).fileName()).arg(n));
       return;
@@ -739,7 +750,7 @@ void ReplayController::exportFromMenu(int kind) {
                                                      QDir(folder).filePath(stem + ".png"), "PNG images (*.png)");
     if (out.isEmpty()) return;
     if (active_) {
-      exportPng(fs::path(out.toStdString()));
+      exportPng(fs::path(out.toStdString()), 0, 0, askOverlay(window_));
     } else if (!view_.widget()->grabFrame().save(out, "PNG")) {
       throw std::runtime_error(out.toStdString() + ": the PNG could not be written");
     }

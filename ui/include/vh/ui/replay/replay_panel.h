@@ -147,11 +147,14 @@ class ReplayController : public QObject {
   void exportCsv(const std::filesystem::path& path) const;
   void exportJson(const std::filesystem::path& path) const;
   /// Video of the whole recording at `fps`, frames of `width` x `height` px (0: the view's size)
-  /// seen from the view's camera. @return frames written (fewer when `progress` cancelled).
+  /// seen from the view's camera, with the overlay (time, |F|, |torque|, markers, the critical
+  /// alert: RecordingFrameRenderer::setOverlay()) unless `overlay` is false. @return frames
+  /// written (fewer when `progress` cancelled).
   int exportVideo(const std::filesystem::path& path, double fps = 30.0, int width = 0, int height = 0,
-                  const std::function<bool(int, int)>& progress = {});
-  /// PNG of the record shown now, from the view's camera at the view's size (or the size given).
-  void exportPng(const std::filesystem::path& path, int width = 0, int height = 0);
+                  const std::function<bool(int, int)>& progress = {}, bool overlay = true);
+  /// PNG of the record shown now, from the view's camera at the view's size (or the size given),
+  /// with the overlay unless `overlay` is false.
+  void exportPng(const std::filesystem::path& path, int width = 0, int height = 0, bool overlay = true);
   /// The session report (export/session_report.h) of the replayed recording as an HTML page.
   void exportReport(const std::filesystem::path& path) const;
 
