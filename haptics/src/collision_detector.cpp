@@ -86,21 +86,22 @@ CollisionDetector::CollisionDetector(const ScalarVolume& volume, const ToolModel
   edges_ = makeShellEdges(tool.point_shell);
 }
 
-bool CollisionDetector::segmentCrosses(const Pose& X_WP, int j, int k, double isovalue) noexcept {
-  if (embedded_[j] || embedded_[k]) return false;
-  const auto& points = tool_->point_shell.points_T_m();
-  // Each end moved epsilon into the tool along its normal: the surface is allowed to come
-  // within epsilon of the tool between its points, as at its points (a facet of the tool
-  // resting on a curved trilinear surface touches it by fractions of a micrometre between
-  // two points); a wall that passes through the tool is found all the same.
-  const bool inset = tool_->point_shell.hasNormals();
-  const auto end = [&](int i) {
-    ++counters_.samples;
-    const Eigen::Vector3d p_T = inset ? Eigen::Vector3d(points[i] - epsilon_ * tool_->point_shell.normals_T()[i]) : points[i];
-    return volume_->gridCoordinates(X_WP * p_T);
-  };
+Eigen::Vector3d CollisionDetector::edgeEnd(const Pose& X_WP, int i) noexcept {
+  // Moved epsilon into the tool along its normal: the surface is allowed to come within epsilon
+  // of the tool between its points, as at its points (a facet of the tool resting on a curved
+  // trilinear surface touches it by fractions of a micrometre between two points); a wall that
+  // passes through the tool is found all the same.
+  ++counters_.samples;
+  const auto& shell = tool_->point_shell;
+  const Eigen::Vector3d p_T = shell.hasNormals() ? Eigen::Vector3d(shell.points_T_m()[i] - epsilon_ * shell.normals_T()[i])
+                                                 : shell.points_T_m()[i];
+  return volume_->gridCoordinates(X_WP * p_T);
+}
+
+bool CollisionDetector::segmentCrosses(const Pose& X_WP, int j, const Eigen::Vector3d& a, int k,
+                                       const Eigen::Vector3d& b, double isovalue) noexcept {
   // Only whether it enters: a coarse bracket is enough.
-  const SegmentEntry entry = volume_->firstEntryOnSegment(end(j), end(k), isovalue, 1.0, 0.5);
+  const SegmentEntry entry = volume_->firstEntryOnSegment(a, b, isovalue, 1.0, 0.5);
   counters_.cells += entry.cells;
   counters_.cells_walked += entry.cells_walked;
   if (!entry.hit) return false;
@@ -115,14 +116,20 @@ bool CollisionDetector::segmentCrosses(const Pose& X_WP, int j, int k, double is
 
 bool CollisionDetector::edgeCrosses(const Pose& X_WP, int j, double isovalue) noexcept {
   if (embedded_[j]) return false;
-  for (int e = edges_.offsets[j]; e < edges_.offsets[j + 1]; ++e)
-    if (segmentCrosses(X_WP, j, edges_.targets[e], isovalue)) return true;
+  const Eigen::Vector3d a = edgeEnd(X_WP, j);  // once for all of j's edges
+  for (int e = edges_.offsets[j]; e < edges_.offsets[j + 1]; ++e) {
+    const int k = edges_.targets[e];
+    if (!embedded_[k] && segmentCrosses(X_WP, j, a, k, edgeEnd(X_WP, k), isovalue)) return true;
+  }
   return false;
 }
 
 bool CollisionDetector::listedEdgesCrossAt(const Pose& X_WP, double isovalue) noexcept {
-  for (int i = 0; i < listed_count_; ++i)
-    if (segmentCrosses(X_WP, listed_[i].first, listed_[i].second, isovalue)) return true;
+  for (int i = 0; i < listed_count_; ++i) {
+    const auto [j, k] = listed_[i];
+    if (embedded_[j] || embedded_[k]) continue;
+    if (segmentCrosses(X_WP, j, edgeEnd(X_WP, j), k, edgeEnd(X_WP, k), isovalue)) return true;
+  }
   return false;
 }
 

@@ -415,7 +415,11 @@ class CollisionDetector {
   const ToolModel* tool_;
   ShellEdges edges_;
   bool edgeCrosses(const Pose& X_WP, int j, double isovalue) noexcept;  // the edges (j, k > j)
-  bool segmentCrosses(const Pose& X_WP, int j, int k, double isovalue) noexcept;  // one edge
+  // Point i's end of its edges at pose X_WP, in grid coordinates (inset by epsilon; 1 sample).
+  Eigen::Vector3d edgeEnd(const Pose& X_WP, int i) noexcept;
+  // Edge (j, k) with its ends a, b in grid coordinates: whether the isosurface enters it.
+  bool segmentCrosses(const Pose& X_WP, int j, const Eigen::Vector3d& a, int k, const Eigen::Vector3d& b,
+                      double isovalue) noexcept;
   std::array<std::pair<int, int>, kListedEdges> listed_{};  // edges found crossing (edgesCrossAt())
   int listed_count_ = 0;
   // The last edge edgesCrossAt() found crossing: its ends and the pose it was tested at.
