@@ -68,6 +68,19 @@ runtime::LoadedScene drillScene() {
       "drill.json", "."));
 }
 
+// The voxels the picture shows removed: at the scan's lowest value in `shown` and not in the
+// scan's own image `original`.
+std::uint64_t removedInPicture(vtkImageData* shown, vtkImageData* original) {
+  double range[2];
+  original->GetScalarRange(range);
+  vtkDataArray* shown_values = shown->GetPointData()->GetScalars();
+  vtkDataArray* original_values = original->GetPointData()->GetScalars();
+  std::uint64_t n = 0;
+  for (vtkIdType i = 0; i < shown_values->GetNumberOfTuples(); ++i)
+    n += shown_values->GetComponent(i, 0) == range[0] && original_values->GetComponent(i, 0) != range[0];
+  return n;
+}
+
 // The picture and the hand of one session: a window's scene view, a Session on the drill scene
 // (a simulated device) shown in it, and the drill controller between them.
 struct DrillingSession {
@@ -214,15 +227,8 @@ TEST(DrillingView, TheCavityStaysInThePictureOverRebuilds) {
   const auto tool = s.tool;
   const runtime::ToolSpec tool_spec = s.tool_spec;
   const haptics::Pose X_free = session.live().X_WT_initial;
-  double range[2];
-  spec.image->GetScalarRange(range);
   const auto pictureRemoved = [&] {
-    vtkDataArray* shown = host.view->actors().shownImage()->GetPointData()->GetScalars();
-    vtkDataArray* original = spec.image->GetPointData()->GetScalars();
-    std::uint64_t n = 0;
-    for (vtkIdType i = 0; i < shown->GetNumberOfTuples(); ++i)
-      n += shown->GetComponent(i, 0) == range[0] && original->GetComponent(i, 0) != range[0];
-    return n;
+    return removedInPicture(host.view->actors().shownImage(), spec.image);
   };
   const auto solverRemoved = [&] {  // the renderer's own field against the scan
     return runtime::cavityOf(session.hapticThread()->drill()->removal().volume(), *session.live().scan_field).voxels.size();
@@ -396,15 +402,7 @@ TEST(DrillingView, ReplayShowsTheCavityAtItsTime) {
   EXPECT_TRUE(replayed.front().front().toBool());
   EXPECT_FALSE(window.replay()->drillingPending());
   const auto removedShown = [&] {
-    vtkImageData* shown = window.sceneView()->actors().shownImage();
-    vtkImageData* original = window.session().loaded().volume.image.get();
-    double range[2];
-    original->GetScalarRange(range);
-    std::uint64_t n = 0;
-    for (vtkIdType i = 0; i < shown->GetNumberOfPoints(); ++i)
-      n += shown->GetPointData()->GetScalars()->GetComponent(i, 0) == range[0] &&
-           original->GetPointData()->GetScalars()->GetComponent(i, 0) != range[0];
-    return n;
+    return removedInPicture(window.sceneView()->actors().shownImage(), window.session().loaded().volume.image.get());
   };
   const double end = window.replay()->recording().records.back().time_s;
   window.replay()->setTime(end);
@@ -464,15 +462,7 @@ TEST(DrillingView, ReplayStartsFromTheRecordedCavity) {
   ASSERT_TRUE(window.replay()->openRecording(options.record));
   ASSERT_TRUE(test::waitFor([&] { return started.count() > 0 && replayed.count() > 0 && !window.opener()->loading(); }, 60000));
   const auto removedShown = [&] {
-    vtkImageData* shown = window.sceneView()->actors().shownImage();
-    vtkImageData* original = window.session().loaded().volume.image.get();
-    double range[2];
-    original->GetScalarRange(range);
-    std::uint64_t n = 0;
-    for (vtkIdType i = 0; i < shown->GetNumberOfPoints(); ++i)
-      n += shown->GetPointData()->GetScalars()->GetComponent(i, 0) == range[0] &&
-           original->GetPointData()->GetScalars()->GetComponent(i, 0) != range[0];
-    return n;
+    return removedInPicture(window.sceneView()->actors().shownImage(), window.session().loaded().volume.image.get());
   };
   window.replay()->setTime(0.0);
   EXPECT_EQ(removedShown(), cavity->voxels.size()) << "the cavity the recording started from";

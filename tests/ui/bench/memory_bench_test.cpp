@@ -10,6 +10,7 @@
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
 
+#include "report_json.h"
 #include "vh/ui/bench/memory_bench.h"
 
 namespace vh::ui {
@@ -18,13 +19,7 @@ namespace {
 namespace fs = std::filesystem;
 using nlohmann::json;
 
-double number(const json& j, const std::string& key) {
-  if (!j.contains(key) || !j[key].is_number()) {
-    ADD_FAILURE() << key << " is missing or not a number in " << j.dump();
-    return std::nan("");
-  }
-  return j[key].get<double>();
-}
+using test::number;
 
 TEST(MemoryBench, ShortRunMeasuresTheWindowItsReaderAndTheHeadlessLoad) {
   const fs::path head = fs::path(VH_SHARED_DATASETS_DIR) / "ct" / "ct-head-small";

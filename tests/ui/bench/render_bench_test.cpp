@@ -9,6 +9,7 @@
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
 
+#include "report_json.h"
 #include "vh/ui/bench/render_bench.h"
 
 namespace vh::ui {
@@ -17,13 +18,7 @@ namespace {
 namespace fs = std::filesystem;
 using nlohmann::json;
 
-double number(const json& j, const std::string& key) {
-  if (!j.contains(key) || !j[key].is_number()) {
-    ADD_FAILURE() << key << " is missing or not a number in " << j.dump();
-    return std::nan("");
-  }
-  return j[key].get<double>();
-}
+using test::number;
 
 void expectStats(const json& s, const std::string& where) {
   SCOPED_TRACE(where);
