@@ -37,6 +37,9 @@ HapticRenderer::HapticRenderer(std::shared_ptr<const ScalarVolume> volume, std::
   if (!(options.deadline_us >= 0.0) || !std::isfinite(options.deadline_us))
     throw std::invalid_argument("HapticRenderer: deadline_us must be finite and >= 0");
   collision_.setLanes(options.solver_lanes);
+  stuck_standoff_fraction_ = options.stuck_standoff_fraction >= 0.0 ? options.stuck_standoff_fraction
+                             : options.detection_mode == DetectionMode::kAccelerated ? kStuckStandoffFraction
+                                                                                      : 0.0;
   collision_.updateEmbedded(X_WP_, isovalue);
   edge_test_ = options.edge_test > 0 ||
                (options.edge_test < 0 && options.detection_mode == DetectionMode::kAccelerated &&
@@ -99,6 +102,7 @@ void HapticRenderer::resetProxy(const Pose& X_WP) noexcept {
   coupling_.resetTracking();
   embedded_scan_needed_ = true;
   blocked_last_tick_ = edge_blocked_last_tick_ = false;
+  blocked_ticks_ = 0;
 }
 
 namespace {
@@ -290,6 +294,7 @@ void HapticRenderer::resumeCutSweep(const Pose& X_WD, double isovalue, TickStats
     blocked_last_tick_ = hit.hit_point >= 0 && hit.t < 0.01;
     edge_blocked_last_tick_ = false;
   }
+  blocked_ticks_ = 0;  // a resumed sweep: not a contact stuck at its start
   stats.budget_cut = hit.budget_cut;
   stats.time_of_contact = t;
 }
@@ -330,9 +335,14 @@ TickOutput HapticRenderer::tick(const Pose& X_WD_in, double requested_isovalue) 
     // clearance, and an edge tangent to a rounded ridge cuts into it at second order as soon as
     // it turns, so a plain tangent move is stopped again at its start, tick after tick (the
     // tool held at a convex edge of the block).
+    // A point contact stopped at once on two moves in a row is stuck the same way (a probe spun
+    // about its shaft on a ball at 2 mm point spacing: its one contact creeps along the
+    // interpolant's bumps to zero clearance and holds the turn at 0.43 of 0.5 rad): the lift is
+    // on (at least RendererOptions::stuck_standoff_fraction).
     const bool lift = blocked_last_tick_ && collision_.embeddedCount() == 0;
-    const double fraction =
-        edge_blocked_last_tick_ ? std::max(options_.standoff_fraction, kEdgeStandoffFraction) : options_.standoff_fraction;
+    const double fraction = edge_blocked_last_tick_ ? std::max(options_.standoff_fraction, kEdgeStandoffFraction)
+                            : blocked_ticks_ >= 2   ? std::max(options_.standoff_fraction, stuck_standoff_fraction_)
+                                                    : options_.standoff_fraction;
     const double standoff_m = lift ? fraction * collision_.epsilon_m() : 0.0;
     RigidMotion motion;
     SweepResult hit;
@@ -345,6 +355,7 @@ TickOutput HapticRenderer::tick(const Pose& X_WD_in, double requested_isovalue) 
     out.stats.edge_stop = edge_stop;
     if (edge_stop) collision_.abandonSweep();
     blocked_last_tick_ = (hit.hit_point >= 0 || edge_stop) && t_move < 0.01;
+    blocked_ticks_ = blocked_last_tick_ ? blocked_ticks_ + 1 : 0;
     edge_blocked_last_tick_ = edge_stop && t_move < 0.01;
     X_WP_ = motion.poseAt(t_move);
     last_motion_ = motion;

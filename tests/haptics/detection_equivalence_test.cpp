@@ -132,6 +132,7 @@ TEST_P(RendererRuns, AgreeTickByTick) {
   op.detection_mode = DetectionMode::kPaper;
   of.detection_mode = DetectionMode::kAccelerated;
   op.work_budget = of.work_budget = 0;  // the paths, not the budget (a cut tick moves less far)
+  of.stuck_standoff_fraction = 0.0;     // nor the lift after a stuck contact (not in the paper)
   of.solver_lanes = GetParam();
   const Pose start = Pose::FromTranslation({0.012, 0.0, 0.016});
   HapticRenderer rp(vol, tool, op, start, datasets::kBlockIsovalue);

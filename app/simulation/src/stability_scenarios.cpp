@@ -238,6 +238,9 @@ SimulationResult runScenario(const Scenario& sc, double k_lin, const DeviceParam
       options.lever_m > 0.0 ? k_lin * options.lever_m * options.lever_m
                             : k_lin * sc.tool->mass.I_Cm_T_kgm2.trace() / 3.0 / sc.tool->mass.mass_kg;
   if (options.standoff_fraction >= 0.0) o.standoff_fraction = options.standoff_fraction;
+  // No stand-off at all: nor the lift after a stuck contact (the paper's solver, which never
+  // moves the proxy against the coupling).
+  if (options.standoff_fraction == 0.0) o.stuck_standoff_fraction = 0.0;
   o.detection_mode = options.detection_mode;
   haptics::HapticRenderer r(sc.volume, sc.tool, o, sc.X_WP0, sc.isovalue);
   SimulationConfig cfg;
@@ -245,7 +248,7 @@ SimulationResult runScenario(const Scenario& sc, double k_lin, const DeviceParam
   cfg.hand = sc.bounce ? HandParams::released() : hand;
   cfg.duration_s = sc.duration_s;
   cfg.isovalue = sc.isovalue;
-  cfg.lift_bound_m = 2.0 * o.standoff_fraction * r.epsilon_m();
+  cfg.lift_bound_m = 2.0 * r.largestStandoff_m();
   cfg.check_penetration = options.check_penetration;
   cfg.verify_step_voxels = options.verify_step_voxels;
   cfg.servo_period_s = options.servo_period_s;

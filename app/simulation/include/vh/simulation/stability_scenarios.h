@@ -140,7 +140,7 @@ struct StiffnessResult {
 };
 
 struct SweepOptions {
-  double standoff_fraction = -1.0;  ///< < 0: the renderer's default.
+  double standoff_fraction = -1.0;  ///< < 0: the renderer's default; 0: no lift at all (nor after a stuck contact).
   double lever_m = kLever_m;        ///< k_ang = k_lin lever^2; <= 0: k_ang = k_lin i / m (scalar k).
   bool check_penetration = true;    ///< Measure the proxy's depth every tick (a third of the cost).
   /// Collision-detection path of the renderer (both must pass the same tests).
