@@ -362,8 +362,13 @@ TEST(DrillingView, SegmentsPanelSetsTheHardness) {
 // A drilled session replayed in the window: the drilling is replayed on a thread of its own (the
 // dock is up before it is done), then the cavity grows with the replay's time, all of it at the
 // end (every voxel the run removed), none at the start (scrubbing back restores the scan).
-TEST(DrillingView, ReplayShowsTheCavityAtItsTime) {
-  const fs::path dir = outputDir() / "replay";
+// A headless run on the sphere with the drill on, the burr pressed into it for a second,
+// recorded in `dir`: the recording and the voxels the live run removed (its own count).
+struct DrilledRun {
+  fs::path recording;
+  std::uint64_t removed = 0;
+};
+DrilledRun recordDrilledRun(const fs::path& dir) {
   fs::create_directories(dir);
   const fs::path scene_path = dir / "drill.json";
   std::ofstream(scene_path) << R"({"volume": {"path": "builtin:sphere"}, "tool": {"mesh": "builtin:drill", "point_spacing_m": 0.001},
@@ -381,9 +386,16 @@ TEST(DrillingView, ReplayShowsTheCavityAtItsTime) {
   options.verify_step_voxels = 0.0;
   const runtime::RunReport report =
       runtime::runHeadless(scene, runtime::Trajectory({at(0.0, 0.030), at(0.5, 0.0125), at(1.5, 0.0125)}), options);
-  ASSERT_TRUE(report.drill.has_value());
-  std::uint64_t removed = 0;
-  for (const auto& m : report.drill->materials) removed += m.voxels;
+  DrilledRun run;
+  run.recording = options.record;
+  if (report.drill.has_value())
+    for (const auto& m : report.drill->materials) run.removed += m.voxels;
+  return run;
+}
+
+TEST(DrillingView, ReplayShowsTheCavityAtItsTime) {
+  const DrilledRun run = recordDrilledRun(outputDir() / "replay");
+  const std::uint64_t removed = run.removed;
   ASSERT_GT(removed, 10u);
 
   MainWindow window;
@@ -395,7 +407,7 @@ TEST(DrillingView, ReplayShowsTheCavityAtItsTime) {
   bool pending_when_shown = false;  // the drilling replays off the GUI thread: the dock shows first
   QObject::connect(window.replay(), &ReplayController::replayStarted,
                    [&] { pending_when_shown = window.replay()->drillingPending(); });
-  ASSERT_TRUE(window.replay()->openRecording(options.record));
+  ASSERT_TRUE(window.replay()->openRecording(run.recording));
   ASSERT_TRUE(test::waitFor([&] { return started.count() > 0 && !window.opener()->loading(); }, 60000));
   EXPECT_TRUE(pending_when_shown) << "the replay dock came up before the drilling was replayed";
   ASSERT_TRUE(test::waitFor([&] { return replayed.count() > 0; }, 60000));
@@ -413,6 +425,41 @@ TEST(DrillingView, ReplayShowsTheCavityAtItsTime) {
   const std::uint64_t middle = removedShown();
   EXPECT_GT(middle, 0u);
   EXPECT_LT(middle, removed);
+}
+
+// Exported frames show the cavity as it was at their time, as `volume-haptics export` renders
+// them (the scene reloaded from the recording's metadata, no window): at the end every voxel the
+// live run removed is removed in the picture (the oracle: the run's own count, not the replay),
+// at the start none, half way some; and the command itself writes the PNG.
+TEST(DrillingView, ExportedFramesShowTheCavityAtTheirTime) {
+  const fs::path dir = outputDir() / "export";
+  const DrilledRun run = recordDrilledRun(dir);
+  ASSERT_GT(run.removed, 10u);
+  const runtime::Recording recording = runtime::readRecording(run.recording);
+  runtime::SceneSpec spec = runtime::sceneFromSessionMetadata(recording.metadata_json);
+  spec.device.reset();
+  const runtime::LoadedScene scene = runtime::loadScene(spec);
+  RecordingFrameRenderer frames(sceneActorsSpecFor(scene, runtime::LiveValues::initial(scene)), 320, 240);
+  frames.setDrilling(drillingTimeline(scene, recording));
+  const auto removedAt = [&](double t_s) {
+    writeRecordingPng(frames, recording, t_s, dir / "frame.png");
+    return removedInPicture(frames.actors().shownImage(), scene.volume.image.get());
+  };
+  const double end = recording.records.back().time_s;
+  EXPECT_EQ(removedAt(end), run.removed) << "every voxel the run removed, removed in the exported frame";
+  EXPECT_EQ(removedAt(0.0), 0u) << "the first frame: the undrilled scan";
+  const std::uint64_t middle = removedAt(0.5 * end);
+  EXPECT_GT(middle, 0u);
+  EXPECT_LT(middle, run.removed);
+  EXPECT_EQ(frames.cavityVoxelsShown(), middle);
+
+  MediaExportOptions options;
+  options.png = dir / "end.png";
+  options.png_time_s = end;
+  options.width = 160;
+  options.height = 120;
+  EXPECT_EQ(exportRecordingMedia(0, nullptr, run.recording, options), 0);
+  EXPECT_GT(fs::file_size(options.png), 0u);
 }
 
 // A recording that started on a drilled sphere (its metadata carries the cavity) replays from it:

@@ -25,7 +25,9 @@
 
 #include <nlohmann/json.hpp>
 
+#include "vh/runtime/drilling.h"
 #include "vh/runtime/session_metadata.h"
+#include "vh/ui/drill_controller.h"
 #include "vh/ui/view/scene_view.h"
 
 namespace vh::ui {
@@ -231,6 +233,29 @@ std::string RecordingFrameRenderer::overlayAlert() const {
              : "";
 }
 
+void RecordingFrameRenderer::setDrilling(DrillingTimeline timeline) {
+  drilling_ = std::move(timeline);
+  actors_->restoreVolume();
+  cavity_shown_ = 0;
+}
+
+void RecordingFrameRenderer::showCavityAt(std::size_t record_index) {
+  if (drilling_.picture_voxels.empty()) return;
+  const std::uint64_t target = drilling_.removedAt(record_index);
+  if (target == cavity_shown_) return;
+  if (target < cavity_shown_) {  // an earlier record: from the undrilled picture again
+    actors_->restoreVolume();
+    cavity_shown_ = 0;
+  }
+  // A removed voxel takes the scan's lowest value, as in the live view (DrillController).
+  double range[2];
+  actors_->shownImage()->GetScalarRange(range);
+  actors_->removeVoxels(std::span<const std::uint64_t>(drilling_.picture_voxels.data() + cavity_shown_,
+                                                       static_cast<std::size_t>(target - cavity_shown_)),
+                        range[0]);
+  cavity_shown_ = target;
+}
+
 vtkImageData* RecordingFrameRenderer::render() {
   renderer_->ResetCameraClippingRange();
   window_->Render();
@@ -243,6 +268,36 @@ vtkWindowToImageFilter* RecordingFrameRenderer::imageFilter() const noexcept { r
 vtkRenderer* RecordingFrameRenderer::renderer() const noexcept { return renderer_; }
 double RecordingFrameRenderer::isovalue() const { return actors_->isovalue(); }
 vtkRenderWindow* RecordingFrameRenderer::renderWindow() const noexcept { return window_; }
+
+DrillingTimeline drillingTimeline(const runtime::LoadedScene& scene, const runtime::Recording& recording,
+                                  const runtime::ReplayProgress& progress) {
+  DrillingTimeline timeline;
+  if (!scene.spec.drill) return timeline;
+  const runtime::LiveValues live = runtime::LiveValues::initial(scene);
+  if (live.scan_field == nullptr) return timeline;
+  // The cavity the session started from (drilled before the recording started).
+  if (scene.spec.drill->cavity != nullptr)
+    timeline.picture_voxels = runtime::cavityVoxelsOn(*scene.spec.drill->cavity, live.scan_field->geometry());
+  timeline.at_start = timeline.picture_voxels.size();
+  const bool drilled = std::any_of(recording.records.begin(), recording.records.end(), [](const runtime::TickRecord& r) {
+    return (r.flags & runtime::kRecordFlagDrillOn) != 0;
+  });
+  if (!drilled) return timeline;
+  // The same renderer and drill as the session's, fed the recorded samples, remove the same
+  // voxels (the replay is bit for bit).
+  const runtime::ReplayComparison replay = runtime::replayRecording(scene, recording, {}, progress);
+  if (replay.cancelled) {
+    timeline.cancelled = true;
+    return timeline;
+  }
+  const std::vector<std::uint64_t> removed = pictureIndices(*live.hapticField(), *live.scan_field, replay.removed_voxels);
+  timeline.picture_voxels.insert(timeline.picture_voxels.end(), removed.begin(), removed.end());
+  // Felt indices map one to one onto picture indices (or are dropped outside the scan); the
+  // counts per record are kept as they are, clipped to what was mapped.
+  timeline.after_record = replay.removed_after_record;
+  for (auto& n : timeline.after_record) n = timeline.at_start + std::min<std::uint64_t>(n, removed.size());
+  return timeline;
+}
 
 // ---- Writers -------------------------------------------------------------------------------------
 
@@ -267,13 +322,17 @@ int writeRecordingVideo(RecordingFrameRenderer& frames, const runtime::Recording
   writer->SetRate(std::max(1, static_cast<int>(std::lround(fps))));
   writer->SetQuality(2);
   writer->SetSubsampling(0);
-  frames.show(recording.records[recordIndexAt(recording.records, begin)]);
+  const auto showAt = [&](double t) {
+    const std::size_t i = recordIndexAt(recording.records, t);
+    frames.show(recording.records[i]);
+    frames.showCavityAt(i);
+  };
+  showAt(begin);
   frames.render();
   writer->Start();
   int done = 0;
   for (int k = 0; k < total; ++k) {
-    const double t = begin + static_cast<double>(k) / fps;
-    frames.show(recording.records[recordIndexAt(recording.records, t)]);
+    showAt(begin + static_cast<double>(k) / fps);
     frames.render();
     writer->Write();
     if (writer->GetError() != 0) break;
@@ -292,7 +351,9 @@ int writeRecordingVideo(RecordingFrameRenderer& frames, const runtime::Recording
 void writeRecordingPng(RecordingFrameRenderer& frames, const runtime::Recording& recording, double t_s,
                        const fs::path& path) {
   if (recording.records.empty()) throw std::invalid_argument(path.string() + ": the recording has no records");
-  frames.show(recording.records[recordIndexAt(recording.records, t_s)]);
+  const std::size_t i = recordIndexAt(recording.records, t_s);
+  frames.show(recording.records[i]);
+  frames.showCavityAt(i);
   frames.render();
   vtkNew<vtkPNGWriter> writer;
   writer->SetInputConnection(frames.imageFilter()->GetOutputPort());
@@ -364,6 +425,15 @@ int exportRecordingMedia(int /*argc*/, char** /*argv*/, const fs::path& recordin
     look.preset = options.preset;
     RecordingFrameRenderer frames(sceneActorsSpecFor(scene, runtime::LiveValues::initial(scene)), options.width, options.height, look);
     if (options.overlay) frames.setOverlay(&recording);
+    if (scene.spec.drill) {
+      // The cavity grows in the frames as it did in the session: the recording is replayed
+      // first (a few seconds on a big CT).
+      std::cerr << "volume-haptics export: replaying the drilling for the cavity...\n";
+      DrillingTimeline timeline = drillingTimeline(scene, recording);
+      std::cerr << "volume-haptics export: the cavity grows to " << timeline.removedAt(recording.records.size())
+                << " voxels\n";
+      frames.setDrilling(std::move(timeline));
+    }
     frames.show(recording.records.front());
     frames.resetCamera();  // fitted to the volume and the tools where they start
     if (!options.png.empty()) {

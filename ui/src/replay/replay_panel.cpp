@@ -451,34 +451,25 @@ void ReplayController::replayDrilling() {
   scene->volume.image = nullptr;  // VTK objects stay on the GUI thread
   auto recording = std::make_shared<const runtime::Recording>(recording_);
   const std::uint64_t generation = ++drill_generation_;
-  const std::uint64_t at_start = drill_at_start_;
   drill_cancel_.store(false);
   drill_progress_.store(0.0);
   drill_pending_ = true;
-  drill_thread_ = std::thread([this, scene, recording, generation, at_start] {
-    std::vector<std::uint64_t> removed, after_record;
+  drill_thread_ = std::thread([this, scene, recording, generation] {
+    DrillingTimeline timeline;
     bool ok = false;
     try {
       runtime::ReplayProgress progress;
       progress.cancel = &drill_cancel_;
       progress.progress = [this](double fraction) { drill_progress_.store(fraction); };
-      const runtime::ReplayComparison replay = runtime::replayRecording(*scene, *recording, {}, progress);
-      if (!replay.cancelled) {
-        const runtime::LiveValues values = runtime::LiveValues::initial(*scene);
-        removed = pictureIndices(*values.hapticField(), *values.scan_field, replay.removed_voxels);
-        // Felt indices map one to one onto picture indices (or are dropped outside the scan);
-        // the counts per record are kept as they are, clipped to what was mapped.
-        after_record = replay.removed_after_record;
-        for (auto& n : after_record) n = at_start + std::min<std::uint64_t>(n, removed.size());
-        ok = true;
-      }
+      timeline = drillingTimeline(*scene, *recording, progress);
+      ok = !timeline.cancelled;
     } catch (const std::exception& e) {  // the picture keeps the cavity at the start; the replay goes on
       std::cerr << "volume-haptics: replaying the drilling: " << e.what() << '\n';
     }
     QMetaObject::invokeMethod(
         this,
-        [this, generation, ok, removed = std::move(removed), after_record = std::move(after_record)]() mutable {
-          finishDrillingReplay(generation, ok, std::move(removed), std::move(after_record));
+        [this, generation, ok, timeline = std::move(timeline)]() mutable {
+          finishDrillingReplay(generation, ok, std::move(timeline));
         },
         Qt::QueuedConnection);
   });
@@ -505,8 +496,7 @@ void ReplayController::replayDrilling() {
   drill_timer_->start();
 }
 
-void ReplayController::finishDrillingReplay(std::uint64_t generation, bool ok, std::vector<std::uint64_t> removed,
-                                            std::vector<std::uint64_t> after_record) {
+void ReplayController::finishDrillingReplay(std::uint64_t generation, bool ok, DrillingTimeline timeline) {
   if (generation != drill_generation_) return;  // cancelled, or another replay since
   if (drill_thread_.joinable()) drill_thread_.join();  // it posted this as its last act
   drill_pending_ = false;
@@ -516,9 +506,9 @@ void ReplayController::finishDrillingReplay(std::uint64_t generation, bool ok, s
     drill_dialog_ = nullptr;
   }
   if (ok && active_) {
-    drill_removed_.resize(static_cast<std::size_t>(drill_at_start_));
-    drill_removed_.insert(drill_removed_.end(), removed.begin(), removed.end());
-    drill_after_record_ = std::move(after_record);
+    // The start cavity is the same as the one shown since the replay began (the same scene).
+    drill_removed_ = std::move(timeline.picture_voxels);
+    drill_after_record_ = std::move(timeline.after_record);
     if (drill_after_record_.empty()) drill_after_record_.assign(1, drill_at_start_);
     showDrillingAt(index_);
     view_.requestRender();
@@ -635,6 +625,8 @@ int ReplayController::exportVideo(const fs::path& path, double fps, int width, i
                                   prefs_);
     frames.copyCamera(view_.widget()->renderer()->GetActiveCamera());
     if (overlay) frames.setOverlay(&recording_);
+    // The cavity as the replay shows it (only the start cavity while its replay still runs).
+    frames.setDrilling({drill_removed_, drill_at_start_, drill_after_record_});
     frames_written = writeRecordingVideo(frames, recording_, path, fps, 0.0, -1.0, progress);
   }
   setTime(t_shown);
@@ -651,6 +643,7 @@ void ReplayController::exportPng(const fs::path& path, int width, int height, bo
                                 prefs_);
   frames.copyCamera(view_.widget()->renderer()->GetActiveCamera());
   if (overlay) frames.setOverlay(&recording_);
+  frames.setDrilling({drill_removed_, drill_at_start_, drill_after_record_});
   writeRecordingPng(frames, recording_, time_s_, path);
 }
 

@@ -9,7 +9,9 @@
 /// Frame times: frame k of a video shows the record at t = start_s + k / fps (the last record
 /// with time_s <= t; recordIndexAt()), up to end_s.
 
+#include <algorithm>
 #include <cstddef>
+#include <cstdint>
 #include <filesystem>
 #include <functional>
 #include <memory>
@@ -21,6 +23,7 @@
 
 #include "vh/haptics/pose.h"
 #include "vh/runtime/recording.h"
+#include "vh/runtime/replay.h"
 #include "vh/runtime/scene.h"
 #include "vh/ui/view/view_look.h"
 #include "vh/ui/view/render_presets.h"
@@ -56,6 +59,35 @@ ToolFrame toolFrameOf(const runtime::TickRecord& record);
 /// Shows `record` on `actors` (showToolFrame(toolFrameOf(record))).
 void showRecord(SceneActors& actors, const runtime::TickRecord& record,
                 const std::vector<Eigen::Vector3d>& tool_vertices_T_m);
+
+/// The cavity of a drilled recording over its records, in the picture's voxels (linear indices of
+/// the scan as SceneActors shows it, x fastest): what a view removes to show the cavity as it was
+/// at any record.
+struct DrillingTimeline {
+  /// In removal order: first the cavity the recording started from (`at_start` of them), then
+  /// the voxels its replay removed.
+  std::vector<std::uint64_t> picture_voxels;
+  std::uint64_t at_start = 0;
+  /// Per record: how many of picture_voxels are removed by the end of it (empty: at_start at
+  /// every record).
+  std::vector<std::uint64_t> after_record;
+  /// The replay was cancelled (runtime::ReplayProgress::cancel): only the start cavity is in.
+  bool cancelled = false;
+  /// How many of picture_voxels are removed at record `index` (the last count past the end).
+  std::uint64_t removedAt(std::size_t index) const noexcept {
+    if (after_record.empty()) return std::min<std::uint64_t>(at_start, picture_voxels.size());
+    return std::min<std::uint64_t>(after_record[std::min(index, after_record.size() - 1)], picture_voxels.size());
+  }
+};
+
+/// The drilling of `recording` on `scene` (the scene it was recorded on, or loaded from its
+/// metadata): the cavity the scene's drill starts from and, when a record has the drill on, a
+/// replay of the recording that removes the same voxels (runtime::replayRecording(): seconds on
+/// a big CT), mapped onto the picture's grid (pictureIndices()). Empty for a scene without a
+/// drill. Any thread (no VTK); not the servo thread.
+/// @throws as runtime::replayRecording().
+DrillingTimeline drillingTimeline(const runtime::LoadedScene& scene, const runtime::Recording& recording,
+                                  const runtime::ReplayProgress& progress = {});
 
 /// An off-screen render window with the scene's props, for frames of a recording.
 class RecordingFrameRenderer {
@@ -96,6 +128,14 @@ class RecordingFrameRenderer {
   /// critical segment drilled (a "critical_removed" event) within as long. `recording` is the one
   /// whose records show() is given; it must outlive its use here.
   void setOverlay(const runtime::Recording* recording);
+  /// From now on, frames show the drilled cavity of `timeline` as it was at the record given to
+  /// showCavityAt() (the picture's copy of the scan is carved; going back to an earlier record
+  /// restores the scan first). The writers below call showCavityAt() for every frame.
+  void setDrilling(DrillingTimeline timeline);
+  /// Carves the picture to the cavity at record `record_index` (nothing without setDrilling()).
+  void showCavityAt(std::size_t record_index);
+  /// Voxels of the picture removed now (the cavity shown).
+  std::uint64_t cavityVoxelsShown() const noexcept { return cavity_shown_; }
   /// The overlay's lines and its alert as last shown ("" when none).
   std::string overlayText() const;
   std::string overlayAlert() const;
@@ -112,6 +152,8 @@ class RecordingFrameRenderer {
   std::vector<Eigen::Vector3d> tool_vertices_T_m_;
   bool isovalue_from_records_ = true;  ///< SceneActorsSpec::isovalue_from_records.
   const runtime::Recording* overlay_ = nullptr;  ///< setOverlay(); not owned.
+  DrillingTimeline drilling_;                    ///< setDrilling().
+  std::uint64_t cavity_shown_ = 0;               ///< Of drilling_.picture_voxels, removed in the picture.
   vtkSmartPointer<vtkTextActor> overlay_text_, overlay_alert_;
   int width_;
   int height_;

@@ -27,6 +27,7 @@
 #include <QWidget>
 
 #include "vh/runtime/recording.h"
+#include "vh/ui/export/media_export.h"
 
 class QAction;
 class QComboBox;
@@ -230,8 +231,7 @@ class ReplayController : public QObject {
   std::uint64_t drill_shown_ = 0;
   std::uint64_t drill_at_start_ = 0;  // of drill_removed_: the cavity the recording started from
   void replayDrilling();
-  void finishDrillingReplay(std::uint64_t generation, bool ok, std::vector<std::uint64_t> removed,
-                            std::vector<std::uint64_t> after_record);
+  void finishDrillingReplay(std::uint64_t generation, bool ok, DrillingTimeline timeline);
   /// Cancels a drilling replay under way and waits for its thread (a result it sent is dropped).
   void stopDrillingReplay();
   // The drilling replay's thread and what it shares with the GUI thread.
