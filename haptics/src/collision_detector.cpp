@@ -177,12 +177,14 @@ void CollisionDetector::addEdgeContact(const Pose& X_WP, double isovalue) noexce
 bool CollisionDetector::edgesCrossAt(const Pose& X_WP, double isovalue) noexcept {
   if (edges_.size() == 0) return false;
   if (mode_ == DetectionMode::kAccelerated) {
-    // Point j's edges lie within the longest edge of j: a node's ball dilated by it holds them.
+    // Point j's edges lie within the longest edge of j, plus the epsilon their ends are inset
+    // by (edgeEnd()), of point j: a node's ball dilated by both holds them.
     int top = 0;
     stack_[top++] = 0;
     while (top > 0) {
       const ShellNode& node = nodes_[stack_[--top]];
-      if (!ballMayBeInside(counters_, X_WP * node.center_T_m, (node.radius_m + edges_.max_length_m) * (1.0 + 1e-9) + 1e-12, isovalue))
+      if (!ballMayBeInside(counters_, X_WP * node.center_T_m,
+                           (node.radius_m + edges_.max_length_m + epsilon_) * (1.0 + 1e-9) + 1e-12, isovalue))
         continue;
       if (node.left >= 0) {
         stack_[top++] = node.right;

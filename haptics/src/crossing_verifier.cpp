@@ -125,8 +125,13 @@ CrossingVerifier::EdgeResult CrossingVerifier::checkEdges(const RigidMotion& mot
   const auto edgeInside = [&](const Eigen::Vector3d& a_T, const Eigen::Vector3d& b_T, double t) {
     const Pose X = motion.poseAt(t);
     const Eigen::Vector3d a = X * a_T, b = X * b_T;
-    const double n = std::max(1.0, std::ceil((b - a).norm() / step));
+    const double length = (b - a).norm();
+    const double n = std::max(1.0, std::ceil(length / step));
     for (double i = 0.0; i <= n; i += 1.0) {
+      // Within inset_m of an end the surface is as close to that end's point as a contact
+      // point's own tolerance allows (an inset end just inside a surface its point touches).
+      const double along = (i / n) * length;
+      if (along < inset_m || length - along < inset_m) continue;
       ++result.samples;
       if (volume_->isInside(a + (i / n) * (b - a), isovalue)) return true;
     }

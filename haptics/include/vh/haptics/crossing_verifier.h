@@ -55,7 +55,10 @@ class CrossingVerifier {
   /// into the tool along their normals, is sampled every step_m() along its length at
   /// `time_samples` times t_stop * i / time_samples, i = 1 .. time_samples (1: the end of the move
   /// only, which is what RendererOptions::edge_test guarantees; more: the move swept, which it
-  /// does not), every `along_step_m` along the edge (<= 0: step_m()). An edge counts when it has no inside sample at t = 0 and one at a checked time.
+  /// does not), every `along_step_m` along the edge (<= 0: step_m()), leaving out its first and
+  /// last inset_m (there the surface is within 2 inset_m of the end's point: the point's own
+  /// contact tolerance; the edge test's walk likewise lets an end that starts inside pass while
+  /// it leaves). An edge counts when it has no inside sample at t = 0 and one at a checked time.
   /// Edges whose ball (over the whole move) holds no block above the isovalue are skipped.
   /// @param inset_m >= 0 [m]: the detector's epsilon (CollisionDetector::epsilon_m()).
   /// @throws std::invalid_argument when `edges` does not belong to a shell of this size or
