@@ -192,9 +192,10 @@ class HapticRenderer {
   /// The isovalue the hand feels now (TickStats::felt_isovalue of the last tick) [data units].
   double feltIsovalue() const noexcept { return felt_isovalue_; }
   double epsilon_m() const noexcept { return collision_.epsilon_m(); }
-  /// Largest stand-off lift a tick may apply [m]: RendererOptions::standoff_fraction, the lift
-  /// after a stuck contact (RendererOptions::stuck_standoff_fraction) and, with the edge test, after an edge stop (0.5), times
-  /// epsilon. ConfigurationSolver::standoffTranslation moves the proxy by at most twice it.
+  /// Largest stand-off lift a tick may apply [m]: the largest of RendererOptions::
+  /// standoff_fraction, the lift after a stuck contact (stuck_standoff_fraction) and, with the
+  /// edge test, the lift after an edge stop (0.5), times epsilon.
+  /// ConfigurationSolver::standoffTranslation moves the proxy by at most twice it.
   double largestStandoff_m() const noexcept {
     return std::max({options_.standoff_fraction, stuck_standoff_fraction_, edge_test_ ? kEdgeStandoffFraction : 0.0}) *
            collision_.epsilon_m();
