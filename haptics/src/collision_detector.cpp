@@ -84,6 +84,11 @@ CollisionDetector::CollisionDetector(const ScalarVolume& volume, const ToolModel
   reduce_chosen_.resize(n + contacts_.size());
   grid_per_m_ = volume.geometry().spacing_m.cwiseInverse();
   edges_ = makeShellEdges(tool.point_shell);
+  edge_reach_m_.assign(n, 0.0);
+  for (std::size_t j = 0; j < n; ++j)
+    for (int e = edges_.offsets[j]; e < edges_.offsets[j + 1]; ++e)
+      edge_reach_m_[j] = std::max(edge_reach_m_[j], (tool.point_shell.points_T_m()[static_cast<std::size_t>(edges_.targets[e])] -
+                                                     tool.point_shell.points_T_m()[j]).norm());
 }
 
 Eigen::Vector3d CollisionDetector::edgeEnd(const Pose& X_WP, int i) noexcept {
@@ -191,8 +196,16 @@ bool CollisionDetector::edgesCrossAt(const Pose& X_WP, double isovalue) noexcept
         stack_[top++] = node.left;
         continue;
       }
-      for (int i = node.begin; i < node.end; ++i)
-        if (edgeCrosses(X_WP, order_[i], isovalue)) return true;
+      for (int i = node.begin; i < node.end; ++i) {
+        const int j = order_[i];
+        // The point's own edges, within its longest edge plus epsilon of it: one box query
+        // instead of a walk per edge where the leaf is near the surface but this point is not.
+        if (edges_.offsets[j + 1] == edges_.offsets[j] ||
+            !ballMayBeInside(counters_, X_WP * tool_->point_shell.points_T_m()[j],
+                             (edge_reach_m_[j] + epsilon_) * (1.0 + 1e-9) + 1e-12, isovalue))
+          continue;
+        if (edgeCrosses(X_WP, j, isovalue)) return true;
+      }
     }
     return false;
   }

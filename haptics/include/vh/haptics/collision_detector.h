@@ -414,6 +414,7 @@ class CollisionDetector {
   const ScalarVolume* volume_;
   const ToolModel* tool_;
   ShellEdges edges_;
+  std::vector<double> edge_reach_m_;  // per point j: its longest edge (j, k > j) [m]
   bool edgeCrosses(const Pose& X_WP, int j, double isovalue) noexcept;  // the edges (j, k > j)
   // Point i's end of its edges at pose X_WP, in grid coordinates (inset by epsilon; 1 sample).
   Eigen::Vector3d edgeEnd(const Pose& X_WP, int i) noexcept;
