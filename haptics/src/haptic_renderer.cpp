@@ -101,7 +101,7 @@ void HapticRenderer::resetProxy(const Pose& X_WP) noexcept {
   collision_.clearContacts();
   coupling_.resetTracking();
   embedded_scan_needed_ = true;
-  blocked_last_tick_ = edge_blocked_last_tick_ = false;
+  edge_blocked_last_tick_ = false;
   blocked_ticks_ = 0;
 }
 
@@ -281,20 +281,22 @@ void HapticRenderer::resumeCutSweep(const Pose& X_WD, double isovalue, TickStats
   X_WP_ = pending_motion.poseAt(t);
   pending_t_ = t;
   collision_.refreshPositions(X_WP_);
+  // A resumed sweep counts as at most one blocked move: not a contact stuck at its start.
   if (edge_stop) {
     collision_.abandonSweep();
     collision_.addEdgeContact(X_WP_, isovalue);
-    blocked_last_tick_ = true;
+    blocked_ticks_ = 1;
     edge_blocked_last_tick_ = t < pending_t + 0.01;
   } else if (!hit.budget_cut) {
     const auto contacts_start = Clock::now();
     // The contacts at the hit, when the proxy got there.
     if (hit.hit_point >= 0 && t == hit.t) collision_.addContactsAt(pending_motion, hit, isovalue);
     stats.contacts_us = usSince(contacts_start, Clock::now());
-    blocked_last_tick_ = hit.hit_point >= 0 && hit.t < 0.01;
+    blocked_ticks_ = hit.hit_point >= 0 && hit.t < 0.01 ? 1 : 0;
     edge_blocked_last_tick_ = false;
+  } else {
+    blocked_ticks_ = std::min(blocked_ticks_, 1);
   }
-  blocked_ticks_ = 0;  // a resumed sweep: not a contact stuck at its start
   stats.budget_cut = hit.budget_cut;
   stats.time_of_contact = t;
 }
@@ -339,7 +341,7 @@ TickOutput HapticRenderer::tick(const Pose& X_WD_in, double requested_isovalue) 
     // about its shaft on a ball at 2 mm point spacing: its one contact creeps along the
     // interpolant's bumps to zero clearance and holds the turn at 0.43 of 0.5 rad): the lift is
     // on (at least RendererOptions::stuck_standoff_fraction).
-    const bool lift = blocked_last_tick_ && collision_.embeddedCount() == 0;
+    const bool lift = blocked_ticks_ > 0 && collision_.embeddedCount() == 0;
     const double fraction = edge_blocked_last_tick_ ? std::max(options_.standoff_fraction, kEdgeStandoffFraction)
                             : blocked_ticks_ >= 2   ? std::max(options_.standoff_fraction, stuck_standoff_fraction_)
                                                     : options_.standoff_fraction;
@@ -354,8 +356,7 @@ TickOutput HapticRenderer::tick(const Pose& X_WD_in, double requested_isovalue) 
     const double t_move = edgeSafeTime(motion, 0.0, hit.t, isovalue, edge_stop);
     out.stats.edge_stop = edge_stop;
     if (edge_stop) collision_.abandonSweep();
-    blocked_last_tick_ = (hit.hit_point >= 0 || edge_stop) && t_move < 0.01;
-    blocked_ticks_ = blocked_last_tick_ ? blocked_ticks_ + 1 : 0;
+    blocked_ticks_ = (hit.hit_point >= 0 || edge_stop) && t_move < 0.01 ? blocked_ticks_ + 1 : 0;
     edge_blocked_last_tick_ = edge_stop && t_move < 0.01;
     X_WP_ = motion.poseAt(t_move);
     last_motion_ = motion;

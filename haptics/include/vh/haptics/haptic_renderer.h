@@ -230,12 +230,11 @@ class HapticRenderer {
   // least this fraction (RendererOptions::stuck_standoff_fraction resolved; see tick()).
   static constexpr double kStuckStandoffFraction = 0.25;
   double stuck_standoff_fraction_ = 0.0;
-  int blocked_ticks_ = 0;  // moves in a row stopped before 1 % of their path
+  int blocked_ticks_ = 0;  // moves in a row stopped before 1 % of their path (0: the last was not)
   double last_isovalue_;
   double felt_isovalue_;        // see TickStats::felt_isovalue
   double isovalue_margin_ = 0.0;  // a felt isovalue this far above the shell's largest F
   bool embedded_scan_needed_ = false;
-  bool blocked_last_tick_ = false;  // the last sweep stopped before 1 % of its path
   double motion_scale_ = 1.0;  // < 1 after ticks the work budget cut (RendererOptions::work_budget)
   std::int64_t bad_inputs_ = 0;
   // The time the proxy has reached along the motion of the sweep the work budget cut, which is
