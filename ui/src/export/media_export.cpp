@@ -240,20 +240,23 @@ void RecordingFrameRenderer::setDrilling(DrillingTimeline timeline) {
 }
 
 void RecordingFrameRenderer::showCavityAt(std::size_t record_index) {
-  if (drilling_.picture_voxels.empty()) return;
-  const std::uint64_t target = drilling_.removedAt(record_index);
-  if (target == cavity_shown_) return;
-  if (target < cavity_shown_) {  // an earlier record: from the undrilled picture again
-    actors_->restoreVolume();
-    cavity_shown_ = 0;
+  showDrilledVoxels(*actors_, drilling_, drilling_.removedAt(record_index), cavity_shown_);
+}
+
+void showDrilledVoxels(SceneActors& actors, const DrillingTimeline& timeline, std::uint64_t target,
+                       std::uint64_t& shown) {
+  target = std::min<std::uint64_t>(target, timeline.picture_voxels.size());
+  if (target == shown) return;
+  if (target < shown) {  // an earlier record: from the undrilled picture again
+    actors.restoreVolume();
+    shown = 0;
   }
-  // A removed voxel takes the scan's lowest value, as in the live view (DrillController).
   double range[2];
-  actors_->shownImage()->GetScalarRange(range);
-  actors_->removeVoxels(std::span<const std::uint64_t>(drilling_.picture_voxels.data() + cavity_shown_,
-                                                       static_cast<std::size_t>(target - cavity_shown_)),
-                        range[0]);
-  cavity_shown_ = target;
+  actors.shownImage()->GetScalarRange(range);
+  actors.removeVoxels(std::span<const std::uint64_t>(timeline.picture_voxels.data() + shown,
+                                                     static_cast<std::size_t>(target - shown)),
+                      range[0]);
+  shown = target;
 }
 
 vtkImageData* RecordingFrameRenderer::render() {
@@ -269,26 +272,38 @@ vtkRenderer* RecordingFrameRenderer::renderer() const noexcept { return renderer
 double RecordingFrameRenderer::isovalue() const { return actors_->isovalue(); }
 vtkRenderWindow* RecordingFrameRenderer::renderWindow() const noexcept { return window_; }
 
-DrillingTimeline drillingTimeline(const runtime::LoadedScene& scene, const runtime::Recording& recording,
-                                  const runtime::ReplayProgress& progress) {
+DrillingTimeline drillingAtStart(const runtime::LoadedScene& scene) {
   DrillingTimeline timeline;
-  if (!scene.spec.drill) return timeline;
+  if (!scene.spec.drill || scene.spec.drill->cavity == nullptr) return timeline;
   const runtime::LiveValues live = runtime::LiveValues::initial(scene);
   if (live.scan_field == nullptr) return timeline;
-  // The cavity the session started from (drilled before the recording started).
-  if (scene.spec.drill->cavity != nullptr)
-    timeline.picture_voxels = runtime::cavityVoxelsOn(*scene.spec.drill->cavity, live.scan_field->geometry());
+  timeline.picture_voxels = runtime::cavityVoxelsOn(*scene.spec.drill->cavity, live.scan_field->geometry());
   timeline.at_start = timeline.picture_voxels.size();
+  return timeline;
+}
+
+DrillingTimeline drillingTimeline(const runtime::LoadedScene& scene, const runtime::Recording& recording,
+                                  const runtime::ReplayProgress& progress) {
+  DrillingTimeline timeline = drillingAtStart(scene);
+  addReplayedRemovals(timeline, scene, recording, progress);
+  return timeline;
+}
+
+void addReplayedRemovals(DrillingTimeline& timeline, const runtime::LoadedScene& scene,
+                         const runtime::Recording& recording, const runtime::ReplayProgress& progress) {
+  if (!scene.spec.drill) return;
+  const runtime::LiveValues live = runtime::LiveValues::initial(scene);
+  if (live.scan_field == nullptr) return;
   const bool drilled = std::any_of(recording.records.begin(), recording.records.end(), [](const runtime::TickRecord& r) {
     return (r.flags & runtime::kRecordFlagDrillOn) != 0;
   });
-  if (!drilled) return timeline;
+  if (!drilled) return;
   // The same renderer and drill as the session's, fed the recorded samples, remove the same
   // voxels (the replay is bit for bit).
   const runtime::ReplayComparison replay = runtime::replayRecording(scene, recording, {}, progress);
   if (replay.cancelled) {
     timeline.cancelled = true;
-    return timeline;
+    return;
   }
   const std::vector<std::uint64_t> removed = pictureIndices(*live.hapticField(), *live.scan_field, replay.removed_voxels);
   timeline.picture_voxels.insert(timeline.picture_voxels.end(), removed.begin(), removed.end());
@@ -296,7 +311,6 @@ DrillingTimeline drillingTimeline(const runtime::LoadedScene& scene, const runti
   // counts per record are kept as they are, clipped to what was mapped.
   timeline.after_record = replay.removed_after_record;
   for (auto& n : timeline.after_record) n = timeline.at_start + std::min<std::uint64_t>(n, removed.size());
-  return timeline;
 }
 
 // ---- Writers -------------------------------------------------------------------------------------

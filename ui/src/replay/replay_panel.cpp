@@ -339,7 +339,7 @@ void ReplayController::closeReplay() {
   onSceneTeardown();
   // Live again on the recording's scene: its drill starts from the cavity the recording started
   // from, and so does the picture.
-  showDrilledVoxels(drill_at_start_);
+  if (view_.hasScene()) showDrilledVoxels(view_.actors(), drill_, drill_.at_start, drill_shown_);
   if (session_.hasScene()) {
     if (view_.hasScene()) view_.actors().setForce(Eigen::Vector3d::Zero(), Eigen::Vector3d::Zero());
     session_.startHaptics();
@@ -426,21 +426,16 @@ void ReplayController::setTime(double t_s) {
 
 void ReplayController::replayDrilling() {
   stopDrillingReplay();
-  drill_removed_.clear();
-  drill_after_record_.clear();
+  drill_ = {};
   drill_shown_ = 0;
-  drill_at_start_ = 0;
   if (view_.hasScene()) view_.actors().restoreVolume();
   const bool drilled = std::any_of(recording_.records.begin(), recording_.records.end(), [](const runtime::TickRecord& r) {
     return (r.flags & runtime::kRecordFlagDrillOn) != 0;
   });
   if (!session_.hasScene() || !session_.loaded().spec.drill) return;
-  // The cavity the session started from, at once (drilled before the recording started).
-  const runtime::LiveValues live = runtime::LiveValues::initial(session_.loaded());
-  const auto& cavity = session_.loaded().spec.drill->cavity;
-  if (cavity != nullptr) drill_removed_ = runtime::cavityVoxelsOn(*cavity, live.scan_field->geometry());
-  drill_at_start_ = drill_removed_.size();
-  drill_after_record_.assign(1, drill_at_start_);  // every record, until the replay below is done
+  // The cavity the session started from, at once (drilled before the recording started); every
+  // record shows it until the replay below is done.
+  drill_ = drillingAtStart(session_.loaded());
   if (!drilled) return;
 
   // The same renderer and drill as the session's, fed the recorded samples, remove the same
@@ -454,14 +449,13 @@ void ReplayController::replayDrilling() {
   drill_cancel_.store(false);
   drill_progress_.store(0.0);
   drill_pending_ = true;
-  drill_thread_ = std::thread([this, scene, recording, generation] {
-    DrillingTimeline timeline;
+  drill_thread_ = std::thread([this, scene, recording, generation, timeline = drill_]() mutable {
     bool ok = false;
     try {
       runtime::ReplayProgress progress;
       progress.cancel = &drill_cancel_;
       progress.progress = [this](double fraction) { drill_progress_.store(fraction); };
-      timeline = drillingTimeline(*scene, *recording, progress);
+      addReplayedRemovals(timeline, *scene, *recording, progress);
       ok = !timeline.cancelled;
     } catch (const std::exception& e) {  // the picture keeps the cavity at the start; the replay goes on
       std::cerr << "volume-haptics: replaying the drilling: " << e.what() << '\n';
@@ -506,10 +500,8 @@ void ReplayController::finishDrillingReplay(std::uint64_t generation, bool ok, D
     drill_dialog_ = nullptr;
   }
   if (ok && active_) {
-    // The start cavity is the same as the one shown since the replay began (the same scene).
-    drill_removed_ = std::move(timeline.picture_voxels);
-    drill_after_record_ = std::move(timeline.after_record);
-    if (drill_after_record_.empty()) drill_after_record_.assign(1, drill_at_start_);
+    // It starts with the cavity shown since the replay began (a copy of drill_).
+    drill_ = std::move(timeline);
     showDrillingAt(index_);
     view_.requestRender();
   }
@@ -531,23 +523,7 @@ void ReplayController::stopDrillingReplay() {
 }
 
 void ReplayController::showDrillingAt(std::size_t record_index) {
-  if (drill_after_record_.empty() || !view_.hasScene()) return;
-  showDrilledVoxels(drill_after_record_[std::min(record_index, drill_after_record_.size() - 1)]);
-}
-
-void ReplayController::showDrilledVoxels(std::uint64_t target) {
-  if (drill_after_record_.empty() || !view_.hasScene()) return;
-  if (target == drill_shown_) return;
-  if (target < drill_shown_) {  // scrubbed back: from the undrilled picture again
-    view_.actors().restoreVolume();
-    drill_shown_ = 0;
-  }
-  double range[2];
-  view_.actors().shownImage()->GetScalarRange(range);
-  view_.actors().removeVoxels(
-      std::span<const std::uint64_t>(drill_removed_.data() + drill_shown_, static_cast<std::size_t>(target - drill_shown_)),
-      range[0]);
-  drill_shown_ = target;
+  if (view_.hasScene()) showDrilledVoxels(view_.actors(), drill_, drill_.removedAt(record_index), drill_shown_);
 }
 
 QString ReplayController::readout() const {
@@ -626,7 +602,7 @@ int ReplayController::exportVideo(const fs::path& path, double fps, int width, i
     frames.copyCamera(view_.widget()->renderer()->GetActiveCamera());
     if (overlay) frames.setOverlay(&recording_);
     // The cavity as the replay shows it (only the start cavity while its replay still runs).
-    frames.setDrilling({drill_removed_, drill_at_start_, drill_after_record_});
+    frames.setDrilling(drill_);
     frames_written = writeRecordingVideo(frames, recording_, path, fps, 0.0, -1.0, progress);
   }
   setTime(t_shown);
@@ -643,7 +619,7 @@ void ReplayController::exportPng(const fs::path& path, int width, int height, bo
                                 prefs_);
   frames.copyCamera(view_.widget()->renderer()->GetActiveCamera());
   if (overlay) frames.setOverlay(&recording_);
-  frames.setDrilling({drill_removed_, drill_at_start_, drill_after_record_});
+  frames.setDrilling(drill_);
   writeRecordingPng(frames, recording_, time_s_, path);
 }
 

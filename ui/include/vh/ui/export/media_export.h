@@ -80,14 +80,28 @@ struct DrillingTimeline {
   }
 };
 
-/// The drilling of `recording` on `scene` (the scene it was recorded on, or loaded from its
-/// metadata): the cavity the scene's drill starts from and, when a record has the drill on, a
-/// replay of the recording that removes the same voxels (runtime::replayRecording(): seconds on
-/// a big CT), mapped onto the picture's grid (pictureIndices()). Empty for a scene without a
-/// drill. Any thread (no VTK); not the servo thread.
+/// The cavity the drill of `scene` starts from (drilled before the recording started), on the
+/// picture's grid; no removals after it yet. Empty for a scene without a drill.
+DrillingTimeline drillingAtStart(const runtime::LoadedScene& scene);
+
+/// Adds to `timeline` (drillingAtStart(scene)) what `recording` removed, when a record has the
+/// drill on: a replay of the recording removes the same voxels (runtime::replayRecording():
+/// seconds on a big CT), mapped onto the picture's grid (pictureIndices()); a cancelled replay
+/// sets `cancelled` and adds nothing. Any thread (no VTK); not the servo thread.
 /// @throws as runtime::replayRecording().
+void addReplayedRemovals(DrillingTimeline& timeline, const runtime::LoadedScene& scene,
+                         const runtime::Recording& recording, const runtime::ReplayProgress& progress = {});
+
+/// The drilling of `recording` on `scene` (the scene it was recorded on, or loaded from its
+/// metadata): drillingAtStart() and addReplayedRemovals(). @throws as runtime::replayRecording().
 DrillingTimeline drillingTimeline(const runtime::LoadedScene& scene, const runtime::Recording& recording,
                                   const runtime::ReplayProgress& progress = {});
+
+/// Carves `actors`' picture so that the first `target` of timeline.picture_voxels are removed,
+/// `shown` being removed now (updated): fewer than shown restores the scan first. A removed voxel
+/// takes the scan's lowest value, as in the live view (DrillController).
+void showDrilledVoxels(SceneActors& actors, const DrillingTimeline& timeline, std::uint64_t target,
+                       std::uint64_t& shown);
 
 /// An off-screen render window with the scene's props, for frames of a recording.
 class RecordingFrameRenderer {

@@ -223,13 +223,11 @@ class ReplayController : public QObject {
   QLabel* readout_ = nullptr;
   QListWidget* marker_list_ = nullptr;
   std::vector<double> marker_times_s_;
-  // Drilling: the cavity the recording started from, then the voxels a deterministic replay
-  // removed (picture indices), and how many by each record; the picture shows the first
-  // drill_shown_ of them.
-  std::vector<std::uint64_t> drill_removed_;
-  std::vector<std::uint64_t> drill_after_record_;
+  // Drilling: the cavity the recording started from, then (once replayed) the voxels a
+  // deterministic replay removed and how many by each record; the picture shows the first
+  // drill_shown_ of drill_.picture_voxels.
+  DrillingTimeline drill_;
   std::uint64_t drill_shown_ = 0;
-  std::uint64_t drill_at_start_ = 0;  // of drill_removed_: the cavity the recording started from
   void replayDrilling();
   void finishDrillingReplay(std::uint64_t generation, bool ok, DrillingTimeline timeline);
   /// Cancels a drilling replay under way and waits for its thread (a result it sent is dropped).
@@ -243,8 +241,6 @@ class ReplayController : public QObject {
   QProgressDialog* drill_dialog_ = nullptr;
   QTimer* drill_timer_ = nullptr;
   void showDrillingAt(std::size_t record_index);
-  /// The picture shows the first `count` of drill_removed_ removed.
-  void showDrilledVoxels(std::uint64_t count);
   std::vector<QAction*> export_actions_;
 };
 
