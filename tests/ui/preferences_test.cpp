@@ -25,6 +25,7 @@ TEST(PreferencesTest, RoundTripThroughQSettings) {
   p.preset = VolumePreset::kSkin;
   p.orientation_marker = false;
   p.show_device = false;
+  p.tool_shadow = false;
   p.addRecentFile("/data/a.nrrd");
   p.addRecentFile("/data/dicom");
   p.last_folder = "/data";

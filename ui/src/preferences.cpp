@@ -45,6 +45,7 @@ Preferences Preferences::load(QSettings& s) {
   if (preset >= 0 && preset <= static_cast<int>(VolumePreset::kSkin)) p.preset = static_cast<VolumePreset>(preset);
   p.orientation_marker = s.value("view/orientation_marker", p.orientation_marker).toBool();
   p.show_device = s.value("view/show_device", p.show_device).toBool();
+  p.tool_shadow = s.value("view/tool_shadow", p.tool_shadow).toBool();
   p.recent_files = s.value("files/recent").toStringList();
   while (p.recent_files.size() > kMaxRecentFiles) p.recent_files.removeLast();
   p.last_folder = s.value("files/last_folder").toString();
@@ -71,6 +72,7 @@ void Preferences::save(QSettings& s) const {
   s.setValue("view/preset", static_cast<int>(preset));
   s.setValue("view/orientation_marker", orientation_marker);
   s.setValue("view/show_device", show_device);
+  s.setValue("view/tool_shadow", tool_shadow);
   s.setValue("files/recent", recent_files);
   s.setValue("files/last_folder", last_folder);
   s.setValue("pacs/host", QString::fromStdString(pacs.host));

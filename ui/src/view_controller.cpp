@@ -14,12 +14,17 @@
 #include "vh/ui/panels/display_panel.h"
 #include "vh/ui/view/scene_actors.h"
 #include "vh/ui/view/scene_view.h"
+#include "vh/ui/view/tool_shadow.h"
 #include "vh/ui/view/vtk_view.h"
 
 namespace vh::ui {
 namespace {
 
 constexpr int kDisplayPeriodMs = 33;  // ~30 Hz prop updates
+
+bool shadowInputsDiffer(const haptics::Pose& a, const haptics::Pose& b) {
+  return (a.p_AB_m - b.p_AB_m).norm() > 1e-6 || a.R_AB.angularDistance(b.R_AB) > 1e-4;
+}
 
 }  // namespace
 
@@ -43,10 +48,14 @@ ViewController::ViewController(runtime::Session& session, SceneView& view, Displ
   panel_.setRenderMode(prefs_.mode);
   connect(&panel_, &DisplayPanel::renderModeChosen, this, &ViewController::setRenderMode);
   connect(&panel_, &DisplayPanel::presetChosen, this, &ViewController::setPreset);
-  connect(&panel_, &DisplayPanel::standardViewRequested, this, [this](StandardView v) { view_.setStandardView(v); });
+  connect(&panel_, &DisplayPanel::standardViewRequested, this, [this](StandardView v) {
+    view_.setStandardView(v);
+    updateShadow();
+  });
   connect(&panel_, &DisplayPanel::resetViewRequested, this, [this] {
     view_.resetCamera();
     view_.requestRender();
+    updateShadow();
   });
   connect(&panel_, &DisplayPanel::clippingChanged, this, [this](bool moving) {
     if (moving) view_.noteMotion();
@@ -54,6 +63,12 @@ ViewController::ViewController(runtime::Session& session, SceneView& view, Displ
   });
   connect(&panel_, &DisplayPanel::markerToggled, this, &ViewController::setOrientationMarkerVisible);
   connect(&panel_, &DisplayPanel::deviceToolToggled, this, &ViewController::setDeviceToolVisible);
+  panel_.setToolShadowVisible(prefs_.tool_shadow);
+  connect(&panel_, &DisplayPanel::toolShadowToggled, this, &ViewController::setToolShadowVisible);
+  // The shadow follows the tool, live or replayed; its light turns with the camera: cast again
+  // once a drag ends.
+  connect(&view_, &SceneView::toolFrameShown, this, [this] { updateShadow(); });
+  connect(view_.widget(), &VtkView::interactionEnded, this, [this] { updateShadow(); });
   applyColours();
 }
 
@@ -68,6 +83,12 @@ void ViewController::onSessionChanged(runtime::SessionChange what) {
     view_.setTool(*session_.live().tool, session_.live().X_WT_initial);
     have_snapshot_ = false;
   }
+  if (runtime::has(what, SessionChange::kScene) || runtime::has(what, SessionChange::kTool)) {
+    shadow_samples_T_m_.clear();
+    if (session_.live().tool != nullptr) shadow_samples_T_m_ = toolShadowSamples(*session_.live().tool);
+    shadow_cast_ = false;
+  }
+  updateShadow();  // casts only if its inputs changed (isovalue, felt segments, tool, scene)
   if (runtime::has(what, SessionChange::kDevice)) {
     view_.setDeviceVisible(session_.hapticThread() != nullptr && prefs_.show_device);
     have_snapshot_ = false;
@@ -104,9 +125,41 @@ bool ViewController::refresh(bool update_status_now) {
   frame.force_W_N = snapshot_.force_W_N;
   const int n = std::clamp(snapshot_.contacts_shown, 0, runtime::HapticSnapshot::kMaxContactsShown);
   frame.contacts_W_m = std::span<const Eigen::Vector3d>(snapshot_.contact_p_W_m.data(), static_cast<std::size_t>(n));
-  const bool changed = view_.show(frame);
+  const bool changed = view_.show(frame);  // a new pose casts the shadow (toolFrameShown)
   emit snapshotShown(snapshot_, update_status_now);
   return changed;
+}
+
+bool ViewController::updateShadow() {
+  if (!prefs_.tool_shadow || !session_.hasScene() || !view_.hasScene()) return false;
+  const std::shared_ptr<const haptics::ScalarVolume>& field = session_.live().hapticField();
+  if (field == nullptr) return false;
+  ShadowKey key;
+  key.X_WP = view_.shownProxyPose();  // live or replayed
+  key.direction_W = view_.shadowDirection_W();
+  key.isovalue = session_.live().hapticIsovalue();
+  key.field = field.get();
+  if (shadow_cast_ && !shadowInputsDiffer(key.X_WP, shadow_key_.X_WP) &&
+      (key.direction_W - shadow_key_.direction_W).norm() < 1e-3 && key.isovalue == shadow_key_.isovalue &&
+      key.field == shadow_key_.field) {
+    return false;
+  }
+  const ToolShadow shadow = castToolShadow(*field, key.isovalue, key.X_WP, shadow_samples_T_m_, key.direction_W,
+                                           shadowReach_m(field->geometry()));
+  view_.showShadow(shadow, key.direction_W);
+  shadow_key_ = key;
+  shadow_cast_ = true;
+  return true;
+}
+
+void ViewController::setToolShadowVisible(bool visible) {
+  prefs_.tool_shadow = visible;
+  panel_.setToolShadowVisible(visible);
+  view_.setShadowVisible(visible);
+  if (visible) {
+    shadow_cast_ = false;
+    updateShadow();
+  }
 }
 
 void ViewController::setRenderMode(RenderMode mode) {

@@ -35,6 +35,7 @@
 #include "vh/ui/drill_controller.h"
 #include "vh/ui/export/media_export.h"
 #include "vh/ui/view/scene_view.h"
+#include "vh/ui/view/tool_shadow.h"
 #include "vh/ui/view/vtk_view.h"
 
 namespace vh::ui {
@@ -129,6 +130,9 @@ struct Bench {
   SceneView* view = nullptr;  // owned by the window
   runtime::HapticThread* thread = nullptr;
   const haptics::ScalarVolume* scan = nullptr;
+  const haptics::ScalarVolume* felt = nullptr;  // the haptic field, which the tool's shadow falls on
+  double felt_isovalue = 0.0;
+  std::vector<Eigen::Vector3d> shadow_samples_T_m;
   runtime::HapticSnapshot snapshot;
   std::vector<Phase> phases;
   std::vector<std::uint64_t> drained, picture;
@@ -169,8 +173,10 @@ struct Bench {
     return total;
   }
   /// One frame as the window draws it while someone works: the camera turned a little, the
-  /// latest haptic snapshot shown, painted now. @return its wall time [ms].
-  double frame(Phase& phase, bool drilling, std::uint64_t& removed, std::vector<double>& paint_ms) {
+  /// latest haptic snapshot shown with the tool's shadow cast for it (as ViewController does),
+  /// painted now. @return its wall time [ms]; the shadow's cast alone goes to `shadow_ms`.
+  double frame(Phase& phase, bool drilling, std::uint64_t& removed, std::vector<double>& paint_ms,
+               std::vector<double>& shadow_ms) {
     const auto t0 = Clock::now();
     poll(phase);
     if (drilling) removed += drain();
@@ -183,6 +189,12 @@ struct Bench {
     f.contacts_W_m = std::span<const Eigen::Vector3d>(snapshot.contact_p_W_m.data(),
                                                       static_cast<std::size_t>(snapshot.contacts_shown));
     view->show(f);
+    const auto shadow_t0 = Clock::now();
+    const Eigen::Vector3d down_W = view->shadowDirection_W();
+    view->showShadow(castToolShadow(*felt, felt_isovalue, f.X_WP, shadow_samples_T_m, down_W,
+                                    shadowReach_m(felt->geometry())),
+                     down_W);
+    shadow_ms.push_back(msSince(shadow_t0));
     view->widget()->repaint();
     paint_ms.push_back(view->widget()->lastFrameMs());
     QCoreApplication::processEvents();
@@ -299,6 +311,9 @@ fs::path runRenderBench(const RenderBenchOptions& o) {
     Bench b;
     b.thread = thread.get();
     b.scan = scene.volume.field.get();
+    b.felt = scene.hapticField().get();
+    b.felt_isovalue = scene.hapticIsovalue();
+    b.shadow_samples_T_m = toolShadowSamples(*scene.tool);
     b.drained.resize(1 << 16);
     b.window.setWindowTitle("VolumeHaptics: bench render");
     auto* layout = new QVBoxLayout(&b.window);
@@ -333,11 +348,11 @@ fs::path runRenderBench(const RenderBenchOptions& o) {
         thread->setDrilling(drilling);
         const std::uint64_t partial0 = b.view->actors().partialUploads(), full0 = b.view->actors().fullUploads();
         std::uint64_t removed = 0;
-        std::vector<double> frames, paint_ms;
+        std::vector<double> frames, paint_ms, shadow_ms;
         const std::uint64_t paints0 = b.view->widget()->frameCount();
         Phase on = b.begin(true);
         t0 = Clock::now();
-        while (msSince(t0) < 1e3 * row_s || frames.size() < 3) frames.push_back(b.frame(on, drilling, removed, paint_ms));
+        while (msSince(t0) < 1e3 * row_s || frames.size() < 3) frames.push_back(b.frame(on, drilling, removed, paint_ms, shadow_ms));
         const double elapsed_s = 1e-3 * msSince(t0);
         b.end(on);
         thread->setDrilling(false);
@@ -366,6 +381,9 @@ fs::path runRenderBench(const RenderBenchOptions& o) {
         // VtkView paints per frame: 1 when each frame is painted once (no queued repaint on top).
         row["paints_per_frame"] = static_cast<double>(b.view->widget()->frameCount() - paints0) / static_cast<double>(frames.size());
         row["paint_ms_mean"] = summarize(paint_ms).mean;  // VTK's render and the blit (paintGL), without Qt's compose
+        const Stats shadow = summarize(shadow_ms);  // the tool's shadow cast (inside frame_ms)
+        row["shadow_ms_mean"] = shadow.mean;
+        row["shadow_ms_max"] = shadow.max;
         row["first_frame_ms"] = first_ms;
         row["interactive_image_sample_px"] = interactive_px;  // the last interactive frame's
         row["interactive_sample_voxels"] = interactive_voxels;
@@ -380,9 +398,10 @@ fs::path runRenderBench(const RenderBenchOptions& o) {
         row["contacts"] = b.snapshot.contacts;  // the haptic threads' last snapshot of the row
         row["force_N"] = b.snapshot.force_W_N.norm();
         row["renderer"] = gl.renderer;
-        std::cout << format("bench render: %-10s %4d x %4d  %6.1f fps  mean %6.1f  p99 %6.1f  max %6.1f ms  still %6.0f ms",
+        std::cout << format("bench render: %-10s %4d x %4d  %6.1f fps  mean %6.1f  p99 %6.1f  max %6.1f ms  still %6.0f ms"
+                            "  (shadow %4.1f / %4.1f ms)",
                             row["mode"].get<std::string>().c_str(), row["width"].get<int>(), row["height"].get<int>(),
-                            row["fps_mean"].get<double>(), s.mean, s.p99, s.max, still_ms)
+                            row["fps_mean"].get<double>(), s.mean, s.p99, s.max, still_ms, shadow.mean, shadow.max)
                   << std::endl;
         rows.push_back(row);
       }
@@ -443,12 +462,13 @@ fs::path runRenderBench(const RenderBenchOptions& o) {
      << format("%.1f before, %.1f after", report["load_average_before"].get<double>(),
                report["load_average_after"].get<double>())
      << "); " << format("%.1f s per row, the haptic threads at 1 kHz throughout.\n\n", row_s)
-     << "| mode | window | fps | mean [ms] | p99 [ms] | max [ms] | still frame [ms] |\n|---|---|---|---|---|---|---|\n";
+     << "| mode | window | fps | mean [ms] | p99 [ms] | max [ms] | still frame [ms] | tool shadow mean / max [ms] |\n"
+     << "|---|---|---|---|---|---|---|---|\n";
   for (const auto& r : rows)
-    md << format("| %s | %d x %d | %.1f | %.1f | %.1f | %.1f | %.0f |\n", r["mode"].get<std::string>().c_str(),
+    md << format("| %s | %d x %d | %.1f | %.1f | %.1f | %.1f | %.0f | %.2f / %.2f |\n", r["mode"].get<std::string>().c_str(),
                  r["width"].get<int>(), r["height"].get<int>(), r["fps_mean"].get<double>(),
                  r["frame_ms_mean"].get<double>(), r["frame_ms_p99"].get<double>(), r["frame_ms_max"].get<double>(),
-                 r["still_frame_ms"].get<double>());
+                 r["still_frame_ms"].get<double>(), r["shadow_ms_mean"].get<double>(), r["shadow_ms_max"].get<double>());
   const auto& st = report["servo"]["solver_tick_us"];
   md << "\n| haptic threads | solver p99 [us] | solver p99.9 [us] | solver max [us] | coupling max [us] | deadline misses |\n"
      << "|---|---|---|---|---|---|\n";

@@ -88,6 +88,11 @@ DisplayPanel::DisplayPanel(QWidget* parent) : QWidget(parent) {
   device_box_ = new QCheckBox("Show the device tool (wire)", this);
   layout->addWidget(marker_box_);
   layout->addWidget(device_box_);
+  shadow_box_ = new QCheckBox("Tool shadow on the surface", this);
+  shadow_box_->setObjectName("toolShadow");
+  shadow_box_->setToolTip("A depth cue: the tool's shadow under a light above the view, and a line from the tool "
+                          "to it, on the surface the hand feels");
+  layout->addWidget(shadow_box_);
   layout->addStretch(1);
 
   connect(mode_box_, &QComboBox::currentIndexChanged, this,
@@ -106,6 +111,7 @@ DisplayPanel::DisplayPanel(QWidget* parent) : QWidget(parent) {
   connect(clip_flip_, &QCheckBox::toggled, this, [this] { emit clippingChanged(false); });
   connect(marker_box_, &QCheckBox::toggled, this, &DisplayPanel::markerToggled);
   connect(device_box_, &QCheckBox::toggled, this, &DisplayPanel::deviceToolToggled);
+  connect(shadow_box_, &QCheckBox::toggled, this, &DisplayPanel::toolShadowToggled);
 }
 
 QAction* DisplayPanel::addViewMenuActions(QMenu* menu, QWidget* shortcut_owner) {
@@ -162,6 +168,9 @@ QAction* DisplayPanel::addViewMenuActions(QMenu* menu, QWidget* shortcut_owner) 
   device_action_ = menu->addAction("&Device Tool", this, [this](bool on) { emit deviceToolToggled(on); });
   device_action_->setCheckable(true);
   device_action_->setChecked(device_box_->isChecked());
+  shadow_action_ = menu->addAction("Tool &Shadow", this, [this](bool on) { emit toolShadowToggled(on); });
+  shadow_action_->setCheckable(true);
+  shadow_action_->setChecked(shadow_box_->isChecked());
   setRenderMode(static_cast<RenderMode>(mode_box_->currentData().toInt()));
   setPreset(static_cast<VolumePreset>(preset_box_->currentData().toInt()));
   return marker_action_;
@@ -216,6 +225,15 @@ void DisplayPanel::setDeviceToolVisible(bool visible) {
   if (device_action_ != nullptr) {
     const QSignalBlocker block_action(device_action_);
     device_action_->setChecked(visible);
+  }
+}
+
+void DisplayPanel::setToolShadowVisible(bool visible) {
+  const QSignalBlocker block(shadow_box_);
+  shadow_box_->setChecked(visible);
+  if (shadow_action_ != nullptr) {
+    const QSignalBlocker block_action(shadow_action_);
+    shadow_action_->setChecked(visible);
   }
 }
 

@@ -153,6 +153,8 @@ constexpr double kSteel[3] = {0.62, 0.65, 0.70};
 constexpr double kDevice[3] = {0.30, 0.75, 1.00};
 constexpr double kContact[3] = {1.00, 0.25, 0.20};
 constexpr double kForce[3] = {1.00, 0.80, 0.10};
+constexpr double kShadow[3] = {0.10, 0.10, 0.13};
+constexpr double kGapLine[3] = {0.95, 0.95, 0.75};
 
 vtkSmartPointer<vtkPolyData> polyDataFromMesh(const haptics::TriangleMesh& mesh) {
   vtkNew<vtkPoints> points;
@@ -395,6 +397,40 @@ void SceneActors::buildOverlay(const SceneActorsSpec& spec) {
   force_actor_->SetUserMatrix(arrow_matrix);
   overlay_->AddActor(force_actor_);
 
+  // --- The tool's shadow and drop line: in the scene, not the overlay (the tool hides them).
+  shadow_points_->SetDataTypeToDouble();
+  shadow_poly_->SetPoints(shadow_points_);
+  vtkNew<vtkCellArray> shadow_verts;
+  shadow_poly_->SetVerts(shadow_verts);
+  vtkNew<vtkPolyDataMapper> shadow_mapper;
+  shadow_mapper->SetInputData(shadow_poly_);
+  shadow_actor_->SetMapper(shadow_mapper);
+  shadow_actor_->GetProperty()->SetColor(kShadow[0], kShadow[1], kShadow[2]);
+  shadow_actor_->GetProperty()->SetPointSize(6.0);
+  shadow_actor_->GetProperty()->SetRenderPointsAsSpheres(true);
+  shadow_actor_->GetProperty()->SetAmbient(1.0);
+  shadow_actor_->GetProperty()->SetDiffuse(0.0);
+  shadow_actor_->PickableOff();
+  shadow_actor_->VisibilityOff();
+  renderer_->AddActor(shadow_actor_);
+  gap_points_->SetDataTypeToDouble();
+  gap_points_->SetNumberOfPoints(2);
+  gap_poly_->SetPoints(gap_points_);
+  vtkNew<vtkCellArray> gap_lines;
+  const vtkIdType gap_ids[2] = {0, 1};
+  gap_lines->InsertNextCell(2, gap_ids);
+  gap_poly_->SetLines(gap_lines);
+  vtkNew<vtkPolyDataMapper> gap_mapper;
+  gap_mapper->SetInputData(gap_poly_);
+  gap_actor_->SetMapper(gap_mapper);
+  gap_actor_->GetProperty()->SetColor(kGapLine[0], kGapLine[1], kGapLine[2]);
+  gap_actor_->GetProperty()->SetLineWidth(1.5);
+  gap_actor_->GetProperty()->SetAmbient(1.0);
+  gap_actor_->GetProperty()->SetDiffuse(0.0);
+  gap_actor_->PickableOff();
+  gap_actor_->VisibilityOff();
+  renderer_->AddActor(gap_actor_);
+
   // --- Hint text (screen space, top left).
   hint_actor_->SetInput(spec.hint.c_str());
   hint_actor_->GetTextProperty()->SetFontSize(13);
@@ -413,6 +449,8 @@ SceneActors::~SceneActors() {
   renderer_->RemoveActor(device_actor_);
   overlay_->RemoveActor(contact_actor_);
   overlay_->RemoveActor(force_actor_);
+  renderer_->RemoveActor(shadow_actor_);
+  renderer_->RemoveActor(gap_actor_);
   if (vtkRenderWindow* window = renderer_->GetRenderWindow()) {
     window->RemoveRenderer(overlay_);
   }
@@ -623,6 +661,46 @@ void SceneActors::setForce(const Eigen::Vector3d& p_W_origin_m, const Eigen::Vec
   force_actor_->Modified();
   force_actor_->VisibilityOn();
 }
+
+void SceneActors::setShadow(const ToolShadow& shadow, const Eigen::Vector3d& direction_W) {
+  const double length = direction_W.norm();
+  const Eigen::Vector3d lift_W =
+      length > 0.0 && std::isfinite(length) ? Eigen::Vector3d(-0.5 * min_spacing_m_ / length * direction_W)
+                                            : Eigen::Vector3d::Zero();
+  const std::size_t n = shadow.footprint_W_m.size();
+  shadow_points_->SetNumberOfPoints(static_cast<vtkIdType>(n));
+  vtkNew<vtkCellArray> verts;
+  verts->AllocateExact(static_cast<vtkIdType>(n), static_cast<vtkIdType>(n));
+  for (std::size_t i = 0; i < n; ++i) {
+    const Eigen::Vector3d p = shadow.footprint_W_m[i] + lift_W;
+    shadow_points_->SetPoint(static_cast<vtkIdType>(i), p.x(), p.y(), p.z());
+    const vtkIdType id = static_cast<vtkIdType>(i);
+    verts->InsertNextCell(1, &id);
+  }
+  shadow_points_->Modified();
+  shadow_poly_->SetVerts(verts);
+  shadow_poly_->Modified();
+  if (shadow.has_gap) {
+    const Eigen::Vector3d to = shadow.gap_to_W_m + lift_W;
+    gap_points_->SetPoint(0, shadow.gap_from_W_m.x(), shadow.gap_from_W_m.y(), shadow.gap_from_W_m.z());
+    gap_points_->SetPoint(1, to.x(), to.y(), to.z());
+    gap_points_->Modified();
+    gap_poly_->Modified();
+  }
+  shadow_shown_ = n > 0;
+  gap_shown_ = shadow.has_gap;
+  shadow_actor_->SetVisibility(shadow_on_ && shadow_shown_);
+  gap_actor_->SetVisibility(shadow_on_ && gap_shown_);
+}
+
+void SceneActors::setShadowVisible(bool visible) {
+  shadow_on_ = visible;
+  shadow_actor_->SetVisibility(shadow_on_ && shadow_shown_);
+  gap_actor_->SetVisibility(shadow_on_ && gap_shown_);
+}
+
+vtkActor* SceneActors::shadowActor() const noexcept { return shadow_actor_; }
+vtkActor* SceneActors::gapLineActor() const noexcept { return gap_actor_; }
 
 vtkVolume* SceneActors::volume() const noexcept { return volume_; }
 vtkGPUVolumeRayCastMapper* SceneActors::volumeMapper() const noexcept { return volume_mapper_; }

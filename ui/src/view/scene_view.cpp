@@ -129,6 +129,7 @@ void SceneView::setScene(const SceneActorsSpec& spec, const haptics::Pose& X_WT,
   actors_->setProxyPose(X_WT);
   actors_->setDevicePose(X_WT);
   actors_->setRenderMode(look.mode, look.preset);
+  actors_->setShadowVisible(look.tool_shadow);
   shown_X_WP_ = shown_X_WD_ = X_WT;
   shown_contacts_ = -1;
   shown_force_W_N_.setZero();
@@ -201,6 +202,7 @@ bool SceneView::show(const ToolFrame& frame) {
   shown_force_W_N_ = frame.force_W_N;
   noteMotion();
   requestRender();
+  emit toolFrameShown();
   return true;
 }
 
@@ -222,6 +224,23 @@ void SceneView::setDeviceVisible(bool visible) {
   if (actors_ == nullptr) return;
   actors_->setDeviceVisible(visible);
   requestRender();
+}
+
+void SceneView::showShadow(const ToolShadow& shadow, const Eigen::Vector3d& direction_W) {
+  if (actors_ == nullptr) return;
+  actors_->setShadow(shadow, direction_W);
+  requestRender();
+}
+
+void SceneView::setShadowVisible(bool visible) {
+  if (actors_ == nullptr) return;
+  actors_->setShadowVisible(visible);
+  requestRender();
+}
+
+Eigen::Vector3d SceneView::shadowDirection_W() const {
+  const ViewCamera c = camera();
+  return (-c.up_W() + 0.5 * c.right_W() + 0.5 * c.forward_W()).normalized();
 }
 
 void SceneView::setHint(const std::string& hint) {

@@ -3,7 +3,9 @@
 /// The scene view's controller: shows the Session in the SceneView (its scene, isovalue, tool
 /// and device as they change, and the haptic thread's latest snapshot ~30 times a second while
 /// the threads run), and applies the Display panel's choices (render mode, preset, clipping,
-/// marker, device tool, colours) to the view and the preferences.
+/// marker, device tool, tool shadow, colours) to the view and the preferences. It casts the
+/// tool's shadow (castToolShadow()) on the session's felt field whenever the proxy, the camera's
+/// "down", the isovalue or the tool changed.
 ///
 /// Data flows one way: Session -> this -> SceneView; DisplayPanel -> this -> Preferences and
 /// SceneView. Threads: GUI thread only; the haptic thread is read through
@@ -54,6 +56,14 @@ class ViewController : public QObject {
   void setClipping(bool enabled, ClipAxis axis = ClipAxis::kX, double fraction = 0.5, bool flip = false);
   void setOrientationMarkerVisible(bool visible);
   void setDeviceToolVisible(bool visible);
+  /// The tool's shadow on the surface (a depth cue) on or off.
+  void setToolShadowVisible(bool visible);
+  /// Casts the tool's shadow again if the proxy pose shown, the camera's "down", the isovalue,
+  /// the field or the tool changed since the last cast (at most 128 segment walks).
+  /// @return true when it cast.
+  bool updateShadow();
+  /// Samples of the tool the shadow is cast from (shadowSamples() of its point shell).
+  const std::vector<Eigen::Vector3d>& shadowSamples_T_m() const noexcept { return shadow_samples_T_m_; }
   /// The tool's bounding sphere in view, at the proxy's latest pose.
   void focusOnTool();
   /// The preferences' colours on the view.
@@ -93,6 +103,15 @@ class ViewController : public QObject {
   runtime::HapticSnapshot snapshot_;
   bool have_snapshot_ = false;
   int observer_ = 0;
+  std::vector<Eigen::Vector3d> shadow_samples_T_m_;
+  struct ShadowKey {
+    haptics::Pose X_WP;
+    Eigen::Vector3d direction_W = Eigen::Vector3d::Zero();
+    double isovalue = 0.0;
+    const void* field = nullptr;
+  };
+  ShadowKey shadow_key_;
+  bool shadow_cast_ = false;  // shadow_key_ holds the last cast's inputs
 };
 
 }  // namespace vh::ui

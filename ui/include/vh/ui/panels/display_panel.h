@@ -1,7 +1,8 @@
 #pragma once
 /// @file
 /// The Display dock's panel: rendering mode and composite preset, standard views and Reset
-/// view, the clipping plane (axis, position, side), the orientation marker and the device tool;
+/// view, the clipping plane (axis, position, side), the orientation marker, the device tool and
+/// the tool's shadow;
 /// and the same choices as View menu actions (addViewMenuActions()), kept in step with the dock.
 /// It edits and shows; the main window acts on its signals (preferences and the scene view).
 /// GUI thread only.
@@ -29,7 +30,8 @@ class DisplayPanel : public QWidget {
 
   /// Adds to `menu`: the rendering modes (Ctrl+1..3), Composite Preset, Reset View (Ctrl+R),
   /// Standard Views (Alt+A/P/L/R/S/I, also added to `shortcut_owner` so they work while the
-  /// menu is closed), Orientation Marker (Ctrl+M), Clipping Plane (Ctrl+K) and Device Tool.
+  /// menu is closed), Orientation Marker (Ctrl+M), Clipping Plane (Ctrl+K), Device Tool and
+  /// Tool Shadow.
   /// They emit the panel's signals. @return the Orientation Marker action (the first toggle).
   QAction* addViewMenuActions(QMenu* menu, QWidget* shortcut_owner);
 
@@ -41,6 +43,7 @@ class DisplayPanel : public QWidget {
   void setClipping(bool enabled, ClipAxis axis, double fraction, bool flip);
   void setMarkerVisible(bool visible);
   void setDeviceToolVisible(bool visible);
+  void setToolShadowVisible(bool visible);
 
   bool clippingEnabled() const;
   ClipAxis clipAxis() const;
@@ -58,6 +61,7 @@ class DisplayPanel : public QWidget {
   void clippingChanged(bool moving);
   void markerToggled(bool visible);
   void deviceToolToggled(bool visible);
+  void toolShadowToggled(bool visible);
 
  private:
   QComboBox* mode_box_ = nullptr;
@@ -68,11 +72,13 @@ class DisplayPanel : public QWidget {
   QCheckBox* clip_flip_ = nullptr;
   QCheckBox* marker_box_ = nullptr;
   QCheckBox* device_box_ = nullptr;
+  QCheckBox* shadow_box_ = nullptr;
   QActionGroup* mode_actions_ = nullptr;
   QActionGroup* preset_actions_ = nullptr;
   QAction* marker_action_ = nullptr;
   QAction* clip_action_ = nullptr;
   QAction* device_action_ = nullptr;
+  QAction* shadow_action_ = nullptr;
 };
 
 }  // namespace vh::ui

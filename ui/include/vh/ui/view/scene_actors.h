@@ -22,6 +22,7 @@
 #include "vh/haptics/pose.h"
 #include "vh/haptics/triangle_mesh.h"
 #include "vh/ui/view/render_presets.h"
+#include "vh/ui/view/tool_shadow.h"
 
 class vtkActor;
 class vtkColorTransferFunction;
@@ -121,6 +122,14 @@ class SceneActors {
   /// Force on the user's hand [N], drawn over everything as an arrow from p_W_origin_m; its
   /// length is arrowReferenceLength_m() per 3 N (clamped to 0.15..2.5 times); hidden below 1 mN.
   void setForce(const Eigen::Vector3d& p_W_origin_m, const Eigen::Vector3d& force_W_N);
+  /// The tool's shadow on the isosurface (castToolShadow(), cast along `direction_W`): its
+  /// footprint as dark points and the drop line from the tool's nearest sample to its shadow,
+  /// drawn in the scene (the tool hides what is under it). The points are lifted half a voxel
+  /// back along the direction so that the ray-cast surface they lie on does not hide them.
+  /// Nothing is drawn for an empty shadow or while the shadow is switched off.
+  void setShadow(const ToolShadow& shadow, const Eigen::Vector3d& direction_W);
+  void setShadowVisible(bool visible);
+  bool shadowVisible() const noexcept { return shadow_on_; }
 
   /// Rendering quality of the volume, chosen here on purpose (VTK's automatic adjustment of the
   /// sample distances is off: it splits a frame budget over all props and blurs thin bone).
@@ -153,6 +162,8 @@ class SceneActors {
   vtkActor* deviceActor() const noexcept;
   vtkActor* contactActor() const noexcept;
   vtkActor* forceActor() const noexcept;
+  vtkActor* shadowActor() const noexcept;
+  vtkActor* gapLineActor() const noexcept;
   vtkRenderer* overlayRenderer() const noexcept;
   vtkTextActor* hintActor() const noexcept;
 
@@ -180,6 +191,15 @@ class SceneActors {
   vtkNew<vtkPolyData> contact_poly_;
   vtkNew<vtkActor> contact_actor_;
   vtkNew<vtkActor> force_actor_;
+  vtkNew<vtkPoints> shadow_points_;
+  vtkNew<vtkPolyData> shadow_poly_;
+  vtkNew<vtkActor> shadow_actor_;
+  vtkNew<vtkPoints> gap_points_;
+  vtkNew<vtkPolyData> gap_poly_;
+  vtkNew<vtkActor> gap_actor_;
+  bool shadow_on_ = true;
+  bool shadow_shown_ = false;  // the last setShadow() had a footprint
+  bool gap_shown_ = false;     // ... and a drop line
   vtkNew<vtkTextActor> hint_actor_;
   vtkNew<vtkPlane> clip_plane_;
   double arrow_reference_m_ = 0.01;

@@ -85,6 +85,14 @@ class SceneView : public QObject {
   const haptics::Pose& shownProxyPose() const noexcept { return shown_X_WP_; }
   void setIsovalue(double isovalue);
   void setDeviceVisible(bool visible);
+  /// The tool's shadow cast along `direction_W` (SceneActors::setShadow()); asks for a frame.
+  void showShadow(const ToolShadow& shadow, const Eigen::Vector3d& direction_W);
+  void setShadowVisible(bool visible);
+  /// The direction shadows are cast along, unit: a light above the viewer's left shoulder that
+  /// turns with the camera, -up + right/2 + forward/2 normalised (the screen's down and right
+  /// and into the view). A shadow then falls below, right of and behind the tool, beside it on the
+  /// screen rather than hidden behind it, and meets the tool where the tool touches.
+  Eigen::Vector3d shadowDirection_W() const;
   void setHint(const std::string& hint);
 
   // ---- Look ----------------------------------------------------------------------------------
@@ -114,6 +122,11 @@ class SceneView : public QObject {
   void setInteracting(bool interacting);
   /// Ends interactive frames now; `best_quality` also resets the still quality (screenshots).
   void renderStill(bool best_quality = false);
+
+ signals:
+  /// show() drew a new pose of the tools (a live snapshot or a replayed tick), before the
+  /// frame that shows it is rendered: what follows the tool (its shadow) updates in that frame.
+  void toolFrameShown();
 
  private:
   void fitCamera(const double direction_W[3], const double up_W[3], double zoom);

@@ -25,6 +25,7 @@ struct ViewLook {
   VolumePreset preset = VolumePreset::kBone;
   bool orientation_marker = true;
   bool show_device = true;  ///< Draw the device's (wireframe) tool.
+  bool tool_shadow = true;  ///< Draw the tool's shadow on the surface (a depth cue; ToolShadow).
 
   bool operator==(const ViewLook& other) const = default;
 };

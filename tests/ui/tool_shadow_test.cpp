@@ -1,0 +1,240 @@
+// The tool's shadow on the felt surface (a depth cue). Oracle: the analytic ball (ray-sphere
+// intersection in closed form) under a sampled ball field, and brute-force distances for the
+// sample spread; in the window, the camera's own view up and the pixels of the frame.
+#include "vh/ui/view/tool_shadow.h"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <optional>
+#include <vector>
+
+#include <QImage>
+#include <QVBoxLayout>
+#include <QWidget>
+
+#include <gtest/gtest.h>
+#include <vtkActor.h>
+#include <vtkMapper.h>
+#include <vtkPolyData.h>
+#include <vtkRenderer.h>
+
+#include "ui_test_util.h"
+#include "vh/datasets/synthetic.h"
+#include "vh/runtime/session.h"
+#include "vh/ui/panels/display_panel.h"
+#include "vh/ui/view/scene_actors.h"
+#include "vh/ui/view/scene_view.h"
+#include "vh/ui/view/vtk_view.h"
+#include "vh/ui/view_controller.h"
+
+namespace vh::ui {
+namespace {
+
+using haptics::Pose;
+
+/// Distance t >= 0 along the unit `d` from `a` to the first point of the ball (c, R); none when
+/// the ray misses it or starts inside.
+std::optional<double> rayBall(const Eigen::Vector3d& a, const Eigen::Vector3d& d, const Eigen::Vector3d& c, double R) {
+  const Eigen::Vector3d m = a - c;
+  const double b = m.dot(d);
+  const double q = m.squaredNorm() - R * R;
+  if (q <= 0.0) return std::nullopt;
+  const double disc = b * b - q;
+  if (disc < 0.0 || b > 0.0) return std::nullopt;
+  return -b - std::sqrt(disc);
+}
+
+// A grid of sample points above an off-grid ball, at a tilted pose, cast along a tilted "down":
+// every sample whose ray meets the ball casts a shadow point where the closed form puts it
+// (within 0.05 mm: trilinear distance field of 1 mm voxels, bracket of 1/20 voxel); rays that
+// miss it by more than half a voxel cast nothing; the drop line is the shortest of them.
+TEST(ToolShadow, FallsWhereTheRayMeetsTheAnalyticBallAndTheDropLineIsTheShortest) {
+  datasets::GridSpec grid;  // 64^3 of 1 mm about the origin
+  const Eigen::Vector3d c(0.7e-3, -1.3e-3, 0.4e-3);
+  const double R = 0.020;
+  const haptics::ScalarVolume field = datasets::makeSphereVolume(grid, c, R);
+  Pose X_WP;
+  X_WP.R_AB = Eigen::Quaterniond(Eigen::AngleAxisd(0.5, Eigen::Vector3d(1, 2, 0.5).normalized()));
+  X_WP.p_AB_m = Eigen::Vector3d(2e-3, 1e-3, 26e-3);
+  std::vector<Eigen::Vector3d> samples_T;
+  for (int i = -6; i <= 6; ++i) {
+    for (int j = -6; j <= 6; ++j) samples_T.emplace_back(i * 3.1e-3, j * 3.1e-3, 0.0);
+  }
+  const Eigen::Vector3d down_W = Eigen::Vector3d(0.2, -0.1, -1.0);  // not unit: normalised inside
+  const Eigen::Vector3d d = down_W.normalized();
+  const double reach = 0.08;
+
+  int hits = 0;
+  int misses = 0;
+  double best = std::numeric_limits<double>::infinity();
+  Eigen::Vector3d best_from = Eigen::Vector3d::Zero();
+  for (const Eigen::Vector3d& p_T : samples_T) {
+    const Eigen::Vector3d a = X_WP * p_T;
+    const ToolShadow one = castToolShadow(field, 0.0, X_WP, std::span(&p_T, 1), down_W, reach);
+    const std::optional<double> t = rayBall(a, d, c, R);
+    // Distance of the ray's line from the centre: near R the ray grazes the ball (no oracle).
+    const double miss = ((a - c) - (a - c).dot(d) * d).norm();
+    if (std::abs(miss - R) < 0.5e-3) continue;
+    if (t.has_value() && (a - c).norm() > R) {
+      ASSERT_EQ(one.footprint_W_m.size(), 1u) << "no shadow under " << a.transpose();
+      EXPECT_LT((one.footprint_W_m[0] - (a + *t * d)).norm(), 0.05e-3) << "at " << a.transpose();
+      EXPECT_TRUE(one.has_gap);
+      EXPECT_NEAR(one.gap_m, *t, 0.05e-3);
+      ++hits;
+      if (*t < best) {
+        best = *t;
+        best_from = a;
+      }
+    } else {
+      EXPECT_TRUE(one.footprint_W_m.empty()) << "a shadow where the ray misses, from " << a.transpose();
+      EXPECT_FALSE(one.has_gap);
+      ++misses;
+    }
+  }
+  EXPECT_GT(hits, 50);
+  EXPECT_GT(misses, 10);
+
+  const ToolShadow all = castToolShadow(field, 0.0, X_WP, samples_T, down_W, reach);
+  ASSERT_TRUE(all.has_gap);
+  EXPECT_NEAR(all.gap_m, best, 0.05e-3);
+  EXPECT_LT((all.gap_from_W_m - best_from).norm(), 1e-12);
+  EXPECT_NEAR((all.gap_to_W_m - all.gap_from_W_m).dot(d), all.gap_m, 1e-9);
+
+  // Out of reach, a zero direction, a sample inside the ball: nothing.
+  EXPECT_TRUE(castToolShadow(field, 0.0, X_WP, samples_T, down_W, 0.5 * best).footprint_W_m.empty());
+  EXPECT_TRUE(castToolShadow(field, 0.0, X_WP, samples_T, Eigen::Vector3d::Zero(), reach).footprint_W_m.empty());
+  const Eigen::Vector3d inside_T = X_WP.inverse() * c;
+  EXPECT_TRUE(castToolShadow(field, 0.0, X_WP, std::span(&inside_T, 1), down_W, reach).footprint_W_m.empty());
+}
+
+// Farthest-point sampling of a 100 mm segment: both ends, and every vertex within a quarter of
+// the length of a sample when five are taken (the covering radius, by brute force).
+TEST(ToolShadow, SamplesSpreadOverTheWholeTool) {
+  std::vector<Eigen::Vector3d> v;
+  for (int i = 0; i <= 1000; ++i) v.emplace_back(0.1e-3 * i, 0.0, 0.0);
+  const std::vector<Eigen::Vector3d> s = shadowSamples(v, 5);
+  ASSERT_EQ(s.size(), 5u);
+  const auto has = [&](double x) {
+    return std::any_of(s.begin(), s.end(), [&](const Eigen::Vector3d& p) { return std::abs(p.x() - x) < 1e-12; });
+  };
+  EXPECT_TRUE(has(0.0));
+  EXPECT_TRUE(has(0.1));
+  double cover = 0.0;
+  for (const Eigen::Vector3d& p : v) {
+    double nearest = std::numeric_limits<double>::infinity();
+    for (const Eigen::Vector3d& q : s) nearest = std::min(nearest, (p - q).norm());
+    cover = std::max(cover, nearest);
+  }
+  EXPECT_LE(cover, 0.025 + 1e-12);
+  EXPECT_EQ(shadowSamples(v, 2000).size(), v.size());
+  const std::vector<Eigen::Vector3d> same(10, Eigen::Vector3d(1, 2, 3));
+  EXPECT_EQ(shadowSamples(same, 5).size(), 1u);
+  EXPECT_TRUE(shadowSamples(v, 0).empty());
+}
+
+struct ShadowHost {
+  ShadowHost() {
+    auto* layout = new QVBoxLayout(&widget);
+    view = new SceneView(&widget);
+    layout->addWidget(view->widget());
+    panel = new DisplayPanel(&widget);
+    layout->addWidget(panel);
+    widget.resize(360, 480);
+    widget.show();
+  }
+  ~ShadowHost() {
+    controller.reset();
+    session.clear();
+  }
+  QWidget widget;
+  SceneView* view = nullptr;
+  DisplayPanel* panel = nullptr;
+  Preferences prefs;
+  runtime::Session session;
+  std::unique_ptr<ViewController> controller;
+};
+
+std::vector<Eigen::Vector3d> pointsOf(vtkActor* actor) {
+  std::vector<Eigen::Vector3d> out;
+  auto* poly = vtkPolyData::SafeDownCast(actor->GetMapper()->GetInput());
+  if (poly == nullptr || poly->GetPoints() == nullptr) return out;
+  for (vtkIdType i = 0; i < poly->GetNumberOfPoints(); ++i) {
+    double p[3];
+    poly->GetPoint(i, p);
+    out.emplace_back(p[0], p[1], p[2]);
+  }
+  return out;
+}
+
+// The window: the probe held above the built-in ball (radius 20 mm about the origin) casts its
+// shadow along the light that turns with the camera; the drop line is the closed form's shortest
+// ray from the tool's samples; it follows the camera when the view turns and the tool when a
+// frame shows it elsewhere; the frame shows dark shadow pixels that the same frame without the
+// shadow does not; the toggle hides it.
+TEST(ToolShadow, TheWindowCastsItAlongTheCamerasDownOntoTheFeltBall) {
+  ShadowHost host;
+  host.controller = std::make_unique<ViewController>(host.session, *host.view, *host.panel, host.prefs);
+  host.session.setScene(test::sphereProbeScene(), nullptr);
+  ASSERT_TRUE(test::waitFor([&] { return host.view->widget()->renderer()->GetSize()[1] > 0; }, 20000));
+  ToolFrame frame;
+  frame.X_WP = frame.X_WD = Pose::FromTranslation(Eigen::Vector3d(3e-3, -2e-3, 31e-3));
+  host.view->show(frame);  // casts it (SceneView::toolFrameShown)
+
+  const SceneActors& actors = host.view->actors();
+  const auto checkAgainstTheBall = [&](const char* when) {
+    SCOPED_TRACE(when);
+    const Eigen::Vector3d d = host.view->shadowDirection_W();
+    const ViewCamera cam = host.view->camera();
+    EXPECT_LT((d - (-cam.up_W() + 0.5 * cam.right_W() + 0.5 * cam.forward_W()).normalized()).norm(), 1e-9);
+    double best = std::numeric_limits<double>::infinity();
+    for (const Eigen::Vector3d& p_T : host.controller->shadowSamples_T_m()) {
+      const std::optional<double> t = rayBall(frame.X_WP * p_T, d, Eigen::Vector3d::Zero(), 0.020);
+      if (t.has_value()) best = std::min(best, *t);
+    }
+    ASSERT_TRUE(std::isfinite(best)) << "the closed form sees no shadow: a bad test pose";
+    ASSERT_TRUE(actors.gapLineActor()->GetVisibility());
+    ASSERT_TRUE(actors.shadowActor()->GetVisibility());
+    const std::vector<Eigen::Vector3d> line = pointsOf(actors.gapLineActor());
+    ASSERT_EQ(line.size(), 2u);
+    // The drop line's end is lifted half a voxel (0.5 mm) back along d off the surface.
+    EXPECT_NEAR((line[1] - line[0]).dot(d), best - 0.5e-3, 0.1e-3);
+    EXPECT_LT(((line[1] - line[0]) - (line[1] - line[0]).dot(d) * d).norm(), 1e-9);
+    for (const Eigen::Vector3d& p : pointsOf(actors.shadowActor())) {
+      EXPECT_NEAR((p + 0.5e-3 * d).norm(), 0.020, 0.1e-3) << "a shadow point off the ball";
+    }
+  };
+  checkAgainstTheBall("the opening view");
+  EXPECT_GT(pointsOf(actors.shadowActor()).size(), 10u);
+  EXPECT_FALSE(host.controller->updateShadow()) << "cast again with nothing changed";
+
+  host.view->renderStill(true);
+  const QImage with = host.view->widget()->grabFrame().convertToFormat(QImage::Format_RGB32);
+  host.controller->setToolShadowVisible(false);
+  EXPECT_FALSE(host.prefs.tool_shadow);
+  EXPECT_FALSE(actors.shadowActor()->GetVisibility());
+  EXPECT_FALSE(actors.gapLineActor()->GetVisibility());
+  host.view->renderStill(true);
+  const QImage without = host.view->widget()->grabFrame().convertToFormat(QImage::Format_RGB32);
+  ASSERT_EQ(with.size(), without.size());
+  int darker = 0;
+  for (int y = 0; y < with.height(); ++y) {
+    const auto* a = reinterpret_cast<const QRgb*>(with.constScanLine(y));
+    const auto* b = reinterpret_cast<const QRgb*>(without.constScanLine(y));
+    for (int x = 0; x < with.width(); ++x) darker += qGray(b[x]) - qGray(a[x]) > 60 ? 1 : 0;
+  }
+  EXPECT_GT(darker, 10) << "the shadow is not seen on the surface";
+
+  host.controller->setToolShadowVisible(true);
+  host.view->setStandardView(StandardView::kLeft);
+  EXPECT_TRUE(host.controller->updateShadow()) << "the camera turned: a new down";
+  checkAgainstTheBall("the left view");
+
+  // A replayed tick shows the tool elsewhere through the same SceneView::show(): the shadow follows.
+  frame.X_WP = frame.X_WD = Pose::FromTranslation(Eigen::Vector3d(-6e-3, 4e-3, 27e-3));
+  host.view->show(frame);
+  checkAgainstTheBall("the tool moved");
+}
+
+}  // namespace
+}  // namespace vh::ui

@@ -1,0 +1,65 @@
+#pragma once
+/// @file
+/// The tool's shadow on the felt surface: a depth cue for the eyes. A screen shows where the
+/// tool is across the view but hardly how far it is from the surface along the line of sight;
+/// a shadow cast by a light above the viewer (along the camera's "down", -view up) falls on the
+/// isosurface under the tool and closes on the tool as it approaches, and a drop line from the
+/// tool's nearest point to its shadow measures the gap that is left.
+///
+/// The shadow is cast on the field the hand feels (the haptic field at its isovalue, F(x) = s,
+/// section 2.2 of the paper), with the exact segment test the proxy uses
+/// (haptics::ScalarVolume::firstEntryOnSegment()): a shadow on the surface means the same surface
+/// the hand meets there. No Qt or VTK here; SceneActors draws it.
+
+#include <span>
+#include <vector>
+
+#include <Eigen/Core>
+
+#include "vh/haptics/pose.h"
+#include "vh/haptics/scalar_volume.h"
+#include "vh/haptics/tool_model.h"
+
+namespace vh::ui {
+
+/// Where a tool's sample points, cast along one direction, meet the isosurface.
+struct ToolShadow {
+  /// Shadow points on the isosurface in W [m]: one per sample whose ray meets it within reach
+  /// (the outside end of the crossing's bracket, within u_tolerance of the surface).
+  std::vector<Eigen::Vector3d> footprint_W_m;
+  /// The drop line from the sample nearest to the surface along the direction to its shadow
+  /// point, both in W [m]; only when has_gap (some sample's ray met the surface).
+  bool has_gap = false;
+  Eigen::Vector3d gap_from_W_m = Eigen::Vector3d::Zero();
+  Eigen::Vector3d gap_to_W_m = Eigen::Vector3d::Zero();
+  /// Length of the drop line [m] (the shortest distance along the direction from a sample
+  /// to the surface).
+  double gap_m = 0.0;
+};
+
+/// Casts `samples_T_m` (points of the tool in the tool frame T [m], e.g. its display mesh's
+/// vertices, a few dozen: shadowSamples()) at the pose `X_WP` along `direction_W` (normalised
+/// here; a zero or non-finite one casts nothing) onto the isosurface F = `isovalue` of `field`,
+/// at most `reach_m` [m] far. Samples that start inside the surface (F > isovalue: a display
+/// vertex of a tool in contact) cast nothing. Cost: one segment walk per sample (cells skipped
+/// by their corners while the ray is in empty space).
+ToolShadow castToolShadow(const haptics::ScalarVolume& field, double isovalue, const haptics::Pose& X_WP,
+                          std::span<const Eigen::Vector3d> samples_T_m, const Eigen::Vector3d& direction_W,
+                          double reach_m);
+
+/// How far a shadow is cast [m]: the diagonal of the volume's grid (a ray has left it by then;
+/// its empty cells are skipped by their corners).
+double shadowReach_m(const haptics::VolumeGeometry& geometry);
+
+/// At most `count` of `vertices_T_m`, spread over the tool: farthest-point sampling from the
+/// first vertex (each next sample the vertex farthest from those taken), so a long shaft and a
+/// small tip both cast. All vertices when there are no more than `count`. Deterministic.
+std::vector<Eigen::Vector3d> shadowSamples(std::span<const Eigen::Vector3d> vertices_T_m, int count);
+
+/// The samples the view casts `tool`'s shadow from, in T [m]: kShadowSamples of its point shell
+/// (even over the surface; a mesh's long shaft has vertices only at its ends), else of its display
+/// mesh's vertices.
+inline constexpr int kShadowSamples = 128;
+std::vector<Eigen::Vector3d> toolShadowSamples(const haptics::ToolModel& tool);
+
+}  // namespace vh::ui
