@@ -363,8 +363,13 @@ fs::path runRenderBench(const RenderBenchOptions& o) {
         const double still_sample_voxels = b.view->actors().sampleDistance_m() /
                                            scene.volume.field->geometry().spacing_m.minCoeff();
         const double still_px = b.view->actors().imageSampleDistance_px();
+        // Painted until the view has drawn a new frame (a repaint that draws nothing does not count).
+        const std::uint64_t frames_before_still = b.view->widget()->frameCount();
         t0 = Clock::now();
         b.view->widget()->repaint();
+        while (b.view->widget()->frameCount() == frames_before_still && msSince(t0) < 30000.0) {
+          QCoreApplication::processEvents(QEventLoop::AllEvents, 5);
+        }
         const double still_ms = msSince(t0);
         b.idle(row_s);
 
