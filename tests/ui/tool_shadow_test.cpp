@@ -15,6 +15,7 @@
 
 #include <gtest/gtest.h>
 #include <vtkActor.h>
+#include <vtkCamera.h>
 #include <vtkMapper.h>
 #include <vtkPolyData.h>
 #include <vtkRenderer.h>
@@ -23,6 +24,7 @@
 #include "vh/datasets/synthetic.h"
 #include "vh/runtime/session.h"
 #include "vh/ui/panels/display_panel.h"
+#include "vh/ui/export/media_export.h"
 #include "vh/ui/view/scene_actors.h"
 #include "vh/ui/view/scene_view.h"
 #include "vh/ui/view/vtk_view.h"
@@ -234,6 +236,54 @@ TEST(ToolShadow, TheWindowCastsItAlongTheCamerasDownOntoTheFeltBall) {
   frame.X_WP = frame.X_WD = Pose::FromTranslation(Eigen::Vector3d(-6e-3, 4e-3, 27e-3));
   host.view->show(frame);
   checkAgainstTheBall("the tool moved");
+}
+
+// Exported frames: the same shadow as the view, cast along the export camera's light at each
+// record's isovalue, for each record shown; the look's tool_shadow switch hides it. Oracle: the
+// closed-form ray-ball intersection from the tool's samples.
+TEST(ToolShadow, ExportedFramesCastItAlongTheirCamerasLight) {
+  const runtime::LoadedScene& scene = test::sphereProbeScene();
+  const runtime::LiveValues live = runtime::LiveValues::initial(scene);
+  const std::vector<Eigen::Vector3d> samples = toolShadowSamples(*scene.tool);
+  ASSERT_FALSE(samples.empty());
+  const auto recordAt = [](const Eigen::Vector3d& p_m) {
+    runtime::TickRecord r;
+    for (int a = 0; a < 3; ++a) r.p_WP_m[a] = r.p_WD_m[a] = p_m[a];
+    r.isovalue = 0.0;
+    return r;
+  };
+  for (const bool on : {true, false}) {
+    SCOPED_TRACE(on ? "shadow on" : "shadow off");
+    ViewLook look;
+    look.tool_shadow = on;
+    RecordingFrameRenderer frames(sceneActorsSpecFor(scene, live), 160, 120, look);
+    frames.setShadow(live.hapticField(), live.hapticIsovalue(), samples);
+    for (const Eigen::Vector3d& p : {Eigen::Vector3d(3e-3, -2e-3, 31e-3), Eigen::Vector3d(-6e-3, 4e-3, 27e-3)}) {
+      frames.show(recordAt(p));
+      vtkCamera* cam = frames.renderer()->GetActiveCamera();
+      ViewCamera camera;
+      double v[3];
+      cam->GetPosition(v);
+      camera.position_W_m = Eigen::Vector3d(v[0], v[1], v[2]);
+      cam->GetFocalPoint(v);
+      camera.focal_point_W_m = Eigen::Vector3d(v[0], v[1], v[2]);
+      cam->GetViewUp(v);
+      camera.view_up_W = Eigen::Vector3d(v[0], v[1], v[2]);
+      const Eigen::Vector3d d = shadowLightDirection_W(camera);
+      double best = std::numeric_limits<double>::infinity();
+      for (const Eigen::Vector3d& p_T : samples) {
+        const std::optional<double> t = rayBall(p + p_T, d, Eigen::Vector3d::Zero(), 0.020);
+        if (t.has_value()) best = std::min(best, *t);
+      }
+      ASSERT_TRUE(std::isfinite(best)) << "the closed form sees no shadow: a bad test pose";
+      EXPECT_EQ(static_cast<bool>(frames.actors().shadowActor()->GetVisibility()), on);
+      EXPECT_EQ(static_cast<bool>(frames.actors().gapLineActor()->GetVisibility()), on);
+      const std::vector<Eigen::Vector3d> line = pointsOf(frames.actors().gapLineActor());
+      ASSERT_EQ(line.size(), 2u);
+      EXPECT_NEAR((line[1] - line[0]).dot(d), best - 0.5e-3, 0.1e-3);
+      EXPECT_GT(pointsOf(frames.actors().shadowActor()).size(), 10u);
+    }
+  }
 }
 
 }  // namespace

@@ -352,6 +352,8 @@ CLI::App* addExportSubcommand(CLI::App& app, ExportArgs& a) {
   export_cmd->add_flag("!--no-overlay", a.media.overlay,
                        "Frames without the overlay (the time, |F| and |torque|, the markers' labels, a critical "
                        "segment drilled)");
+  export_cmd->add_flag("!--no-shadow", a.media.shadow,
+                       "Frames without the tool's shadow on the surface (the depth cue of the main view)");
   export_cmd->add_option("--at-s", a.media.png_time_s, "Recording time of the --png frame [s]")
       ->check(CLI::NonNegativeNumber);
   export_cmd->add_option("--fps", a.media.fps, "Video frame rate [frames/s]")->check(CLI::Range(1.0, 120.0));

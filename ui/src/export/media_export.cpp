@@ -29,6 +29,7 @@
 #include "vh/runtime/session_metadata.h"
 #include "vh/ui/drill_controller.h"
 #include "vh/ui/view/scene_view.h"
+#include "vh/ui/view/tool_shadow.h"
 
 namespace vh::ui {
 namespace {
@@ -119,6 +120,7 @@ RecordingFrameRenderer::RecordingFrameRenderer(const SceneActorsSpec& spec, int 
   actors_ = std::make_unique<SceneActors>(renderer_, spec);
   applyColours(renderer_, actors_.get(), look);
   actors_->setRenderMode(look.mode, look.preset);
+  actors_->setShadowVisible(look.tool_shadow);
   actors_->setInteractive(false);
   actors_->resetQuality();
   grabber_ = vtkSmartPointer<vtkWindowToImageFilter>::New();
@@ -163,7 +165,31 @@ void RecordingFrameRenderer::show(const runtime::TickRecord& record) {
   ToolFrame frame = toolFrameOf(record);
   if (!isovalue_from_records_) frame.isovalue = std::numeric_limits<double>::quiet_NaN();  // felt segments' level
   showToolFrame(*actors_, frame, tool_vertices_T_m_);
+  if (shadow_field_ != nullptr) {
+    vtkCamera* cam = renderer_->GetActiveCamera();
+    ViewCamera camera;
+    double v[3];
+    cam->GetPosition(v);
+    camera.position_W_m = Eigen::Vector3d(v[0], v[1], v[2]);
+    cam->GetFocalPoint(v);
+    camera.focal_point_W_m = Eigen::Vector3d(v[0], v[1], v[2]);
+    cam->GetViewUp(v);
+    camera.view_up_W = Eigen::Vector3d(v[0], v[1], v[2]);
+    const Eigen::Vector3d light_W = shadowLightDirection_W(camera);
+    const double isovalue = std::isfinite(record.isovalue) ? record.isovalue : shadow_isovalue_;
+    actors_->setShadow(castToolShadow(*shadow_field_, isovalue, frame.X_WP, shadow_samples_T_m_, light_W,
+                                      shadowReach_m(shadow_field_->geometry())),
+                       light_W);
+  }
   if (overlay_ != nullptr) showOverlay(record);
+}
+
+void RecordingFrameRenderer::setShadow(std::shared_ptr<const haptics::ScalarVolume> field, double isovalue,
+                                       std::vector<Eigen::Vector3d> samples_T_m) {
+  shadow_field_ = std::move(field);
+  shadow_isovalue_ = isovalue;
+  shadow_samples_T_m_ = std::move(samples_T_m);
+  if (shadow_field_ == nullptr) actors_->setShadow(ToolShadow{}, Eigen::Vector3d::UnitZ());
 }
 
 void RecordingFrameRenderer::setOverlay(const runtime::Recording* recording) {
@@ -439,6 +465,9 @@ int exportRecordingMedia(int /*argc*/, char** /*argv*/, const fs::path& recordin
     look.preset = options.preset;
     RecordingFrameRenderer frames(sceneActorsSpecFor(scene, runtime::LiveValues::initial(scene)), options.width, options.height, look);
     if (options.overlay) frames.setOverlay(&recording);
+    if (options.shadow && scene.tool != nullptr) {
+      frames.setShadow(scene.hapticField(), scene.hapticIsovalue(), toolShadowSamples(*scene.tool));
+    }
     if (scene.spec.drill) {
       // The cavity grows in the frames as it did in the session: the recording is replayed
       // first (a few seconds on a big CT).

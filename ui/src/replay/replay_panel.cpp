@@ -45,6 +45,7 @@
 #include "vh/ui/view/vtk_view.h"
 #include "vh/ui/export/media_export.h"
 #include "vh/ui/view/scene_actors.h"
+#include "vh/ui/view/tool_shadow.h"
 
 namespace vh::ui {
 namespace {
@@ -587,6 +588,12 @@ void ReplayController::exportJson(const fs::path& path) const {
   runtime::writeRecordingJson(recording_, path);
 }
 
+void ReplayController::setShadowOf(RecordingFrameRenderer& frames) const {
+  // The tool's shadow as the main view draws it (the look's tool_shadow decides whether it shows).
+  const runtime::LiveValues& live = session_.live();
+  if (live.tool != nullptr) frames.setShadow(live.hapticField(), live.hapticIsovalue(), toolShadowSamples(*live.tool));
+}
+
 int ReplayController::exportVideo(const fs::path& path, double fps, int width, int height,
                                   const std::function<bool(int, int)>& progress, bool overlay) {
   if (!active_) throw std::logic_error("exportVideo: no recording is replayed");
@@ -601,6 +608,7 @@ int ReplayController::exportVideo(const fs::path& path, double fps, int width, i
                                   prefs_);
     frames.copyCamera(view_.widget()->renderer()->GetActiveCamera());
     if (overlay) frames.setOverlay(&recording_);
+    setShadowOf(frames);
     // The cavity as the replay shows it (only the start cavity while its replay still runs).
     frames.setDrilling(drill_);
     frames_written = writeRecordingVideo(frames, recording_, path, fps, 0.0, -1.0, progress);
@@ -619,6 +627,7 @@ void ReplayController::exportPng(const fs::path& path, int width, int height, bo
                                 prefs_);
   frames.copyCamera(view_.widget()->renderer()->GetActiveCamera());
   if (overlay) frames.setOverlay(&recording_);
+  setShadowOf(frames);
   frames.setDrilling(drill_);
   writeRecordingPng(frames, recording_, time_s_, path);
 }

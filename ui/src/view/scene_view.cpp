@@ -1,4 +1,5 @@
 #include "vh/ui/view/scene_view.h"
+#include "vh/ui/view/tool_shadow.h"
 
 #include <algorithm>
 #include <array>
@@ -238,10 +239,7 @@ void SceneView::setShadowVisible(bool visible) {
   requestRender();
 }
 
-Eigen::Vector3d SceneView::shadowDirection_W() const {
-  const ViewCamera c = camera();
-  return (-c.up_W() + 0.5 * c.right_W() + 0.5 * c.forward_W()).normalized();
-}
+Eigen::Vector3d SceneView::shadowDirection_W() const { return shadowLightDirection_W(camera()); }
 
 void SceneView::setHint(const std::string& hint) {
   if (actors_ != nullptr) actors_->setHint(hint);

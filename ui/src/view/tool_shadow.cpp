@@ -45,6 +45,10 @@ std::vector<Eigen::Vector3d> toolShadowSamples(const haptics::ToolModel& tool) {
                        kShadowSamples);
 }
 
+Eigen::Vector3d shadowLightDirection_W(const ViewCamera& camera) {
+  return (-camera.up_W() + 0.5 * camera.right_W() + 0.5 * camera.forward_W()).normalized();
+}
+
 double shadowReach_m(const haptics::VolumeGeometry& g) {
   return Eigen::Vector3d(g.dims[0] * g.spacing_m[0], g.dims[1] * g.spacing_m[1], g.dims[2] * g.spacing_m[2]).norm();
 }

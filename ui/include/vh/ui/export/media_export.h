@@ -148,6 +148,14 @@ class RecordingFrameRenderer {
   void setDrilling(DrillingTimeline timeline);
   /// Carves the picture to the cavity at record `record_index` (nothing without setDrilling()).
   void showCavityAt(std::size_t record_index);
+  /// From the next show() on, frames show the tool's shadow on `field` (the felt field, in W
+  /// [m]) cast from `samples_T_m` (toolShadowSamples()) along the light of the frame's camera
+  /// (shadowLightDirection_W()), at each record's isovalue (the felt one) or `isovalue` when a
+  /// record has none, as the main view shows it live; drawn unless the look's tool_shadow is off.
+  /// A null field: no shadow (the default). The shadow falls on the scan as loaded, not on a
+  /// drilled cavity.
+  void setShadow(std::shared_ptr<const haptics::ScalarVolume> field, double isovalue,
+                 std::vector<Eigen::Vector3d> samples_T_m);
   /// Voxels of the picture removed now (the cavity shown).
   std::uint64_t cavityVoxelsShown() const noexcept { return cavity_shown_; }
   /// The overlay's lines and its alert as last shown ("" when none).
@@ -168,6 +176,9 @@ class RecordingFrameRenderer {
   const runtime::Recording* overlay_ = nullptr;  ///< setOverlay(); not owned.
   DrillingTimeline drilling_;                    ///< setDrilling().
   std::uint64_t cavity_shown_ = 0;               ///< Of drilling_.picture_voxels, removed in the picture.
+  std::shared_ptr<const haptics::ScalarVolume> shadow_field_;  ///< setShadow(); null: none.
+  double shadow_isovalue_ = 0.0;
+  std::vector<Eigen::Vector3d> shadow_samples_T_m_;
   vtkSmartPointer<vtkTextActor> overlay_text_, overlay_alert_;
   int width_;
   int height_;
@@ -203,6 +214,8 @@ struct MediaExportOptions {
   /// Draw the time, |F|, |torque|, markers and critical alerts over the frames
   /// (RecordingFrameRenderer::setOverlay()).
   bool overlay = true;
+  /// Draw the tool's shadow on the surface, as the main view does (RecordingFrameRenderer::setShadow()).
+  bool shadow = true;
   RenderMode mode = RenderMode::kIsosurface;  ///< How the volume is drawn.
   VolumePreset preset = VolumePreset::kBone;  ///< Composite preset.
 };

@@ -191,6 +191,8 @@ class ReplayController : public QObject {
   void buildDock();
   void advance();
   void exportFromMenu(int kind);
+  /// The tool's shadow on the felt field, as the main view casts it, for exported frames.
+  void setShadowOf(RecordingFrameRenderer& frames) const;
   /// File > Session Report: of the replayed recording, else of one the user picks.
   void reportFromMenu();
   /// The replayed recording, else one the user picks (read into `loaded`; null when cancelled);

@@ -88,10 +88,7 @@ class SceneView : public QObject {
   /// The tool's shadow cast along `direction_W` (SceneActors::setShadow()); asks for a frame.
   void showShadow(const ToolShadow& shadow, const Eigen::Vector3d& direction_W);
   void setShadowVisible(bool visible);
-  /// The direction shadows are cast along, unit: a light above the viewer's left shoulder that
-  /// turns with the camera, -up + right/2 + forward/2 normalised (the screen's down and right
-  /// and into the view). A shadow then falls below, right of and behind the tool, beside it on the
-  /// screen rather than hidden behind it, and meets the tool where the tool touches.
+  /// The direction shadows are cast along now: shadowLightDirection_W() of the camera.
   Eigen::Vector3d shadowDirection_W() const;
   void setHint(const std::string& hint);
 

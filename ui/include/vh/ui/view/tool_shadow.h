@@ -19,6 +19,7 @@
 #include "vh/haptics/pose.h"
 #include "vh/haptics/scalar_volume.h"
 #include "vh/haptics/tool_model.h"
+#include "vh/ui/view/device_manipulation.h"
 
 namespace vh::ui {
 
@@ -46,6 +47,12 @@ struct ToolShadow {
 ToolShadow castToolShadow(const haptics::ScalarVolume& field, double isovalue, const haptics::Pose& X_WP,
                           std::span<const Eigen::Vector3d> samples_T_m, const Eigen::Vector3d& direction_W,
                           double reach_m);
+
+/// The direction shadows are cast along for `camera`, unit: a light above the viewer's left
+/// shoulder that turns with the camera, -up + right/2 + forward/2 normalised (the screen's down
+/// and right and into the view). A shadow then falls below, right of and behind the tool, beside
+/// it on the screen rather than hidden behind it, and meets the tool where the tool touches.
+Eigen::Vector3d shadowLightDirection_W(const ViewCamera& camera);
 
 /// How far a shadow is cast [m]: the diagonal of the volume's grid (a ray has left it by then;
 /// its empty cells are skipped by their corners).
