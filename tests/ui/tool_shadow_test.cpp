@@ -10,8 +10,6 @@
 #include <vector>
 
 #include <QImage>
-#include <QVBoxLayout>
-#include <QWidget>
 
 #include <gtest/gtest.h>
 #include <vtkActor.h>
@@ -21,6 +19,7 @@
 #include <vtkRenderer.h>
 
 #include "ui_test_util.h"
+#include "view_host.h"
 #include "vh/datasets/synthetic.h"
 #include "vh/runtime/session.h"
 #include "vh/ui/panels/display_panel.h"
@@ -135,27 +134,6 @@ TEST(ToolShadow, SamplesSpreadOverTheWholeTool) {
   EXPECT_TRUE(shadowSamples(v, 0).empty());
 }
 
-struct ShadowHost {
-  ShadowHost() {
-    auto* layout = new QVBoxLayout(&widget);
-    view = new SceneView(&widget);
-    layout->addWidget(view->widget());
-    panel = new DisplayPanel(&widget);
-    layout->addWidget(panel);
-    widget.resize(360, 480);
-    widget.show();
-  }
-  ~ShadowHost() {
-    controller.reset();
-    session.clear();
-  }
-  QWidget widget;
-  SceneView* view = nullptr;
-  DisplayPanel* panel = nullptr;
-  Preferences prefs;
-  runtime::Session session;
-  std::unique_ptr<ViewController> controller;
-};
 
 std::vector<Eigen::Vector3d> pointsOf(vtkActor* actor) {
   std::vector<Eigen::Vector3d> out;
@@ -175,7 +153,7 @@ std::vector<Eigen::Vector3d> pointsOf(vtkActor* actor) {
 // frame shows it elsewhere; the frame shows dark shadow pixels that the same frame without the
 // shadow does not; the toggle hides it.
 TEST(ToolShadow, TheWindowCastsItAlongTheCamerasDownOntoTheFeltBall) {
-  ShadowHost host;
+  test::ViewControllerHost host;
   host.controller = std::make_unique<ViewController>(host.session, *host.view, *host.panel, host.prefs);
   host.session.setScene(test::sphereProbeScene(), nullptr);
   ASSERT_TRUE(test::waitFor([&] { return host.view->widget()->renderer()->GetSize()[1] > 0; }, 20000));
@@ -260,16 +238,16 @@ TEST(ToolShadow, ExportedFramesCastItAlongTheirCamerasLight) {
     frames.setShadow(live.hapticField(), live.hapticIsovalue(), samples);
     for (const Eigen::Vector3d& p : {Eigen::Vector3d(3e-3, -2e-3, 31e-3), Eigen::Vector3d(-6e-3, 4e-3, 27e-3)}) {
       frames.show(recordAt(p));
+      // The light of the export camera, from its own vectors.
       vtkCamera* cam = frames.renderer()->GetActiveCamera();
-      ViewCamera camera;
-      double v[3];
-      cam->GetPosition(v);
-      camera.position_W_m = Eigen::Vector3d(v[0], v[1], v[2]);
-      cam->GetFocalPoint(v);
-      camera.focal_point_W_m = Eigen::Vector3d(v[0], v[1], v[2]);
-      cam->GetViewUp(v);
-      camera.view_up_W = Eigen::Vector3d(v[0], v[1], v[2]);
-      const Eigen::Vector3d d = shadowLightDirection_W(camera);
+      double pos[3], focal[3], up[3];
+      cam->GetPosition(pos);
+      cam->GetFocalPoint(focal);
+      cam->GetViewUp(up);
+      const Eigen::Vector3d forward = (Eigen::Vector3d(focal[0], focal[1], focal[2]) - Eigen::Vector3d(pos[0], pos[1], pos[2])).normalized();
+      const Eigen::Vector3d right = forward.cross(Eigen::Vector3d(up[0], up[1], up[2])).normalized();
+      const Eigen::Vector3d up_ortho = right.cross(forward);
+      const Eigen::Vector3d d = (-up_ortho + 0.5 * right + 0.5 * forward).normalized();
       double best = std::numeric_limits<double>::infinity();
       for (const Eigen::Vector3d& p_T : samples) {
         const std::optional<double> t = rayBall(p + p_T, d, Eigen::Vector3d::Zero(), 0.020);

@@ -13,6 +13,7 @@
 #include <vtkRenderer.h>
 
 #include "ui_test_util.h"
+#include "view_host.h"
 #include "vh/runtime/session.h"
 #include "vh/ui/panels/display_panel.h"
 #include "vh/ui/view/scene_actors.h"
@@ -24,27 +25,7 @@ namespace {
 
 using test::sphereProbeScene;
 
-struct Host {
-  Host() {
-    auto* layout = new QVBoxLayout(&widget);
-    view = new SceneView(&widget);
-    layout->addWidget(view->widget());
-    panel = new DisplayPanel(&widget);
-    layout->addWidget(panel);
-    widget.resize(320, 400);
-    widget.show();
-  }
-  ~Host() {
-    controller.reset();
-    session.clear();
-  }
-  QWidget widget;
-  SceneView* view = nullptr;
-  DisplayPanel* panel = nullptr;
-  Preferences prefs;
-  runtime::Session session;
-  std::unique_ptr<ViewController> controller;
-};
+using Host = test::ViewControllerHost;
 
 TEST(ViewController, ANewScanOpensInTheModeTheWindowOpenedWithNotTheLastOnesMode) {
   Host host;

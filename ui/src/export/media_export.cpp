@@ -166,16 +166,7 @@ void RecordingFrameRenderer::show(const runtime::TickRecord& record) {
   if (!isovalue_from_records_) frame.isovalue = std::numeric_limits<double>::quiet_NaN();  // felt segments' level
   showToolFrame(*actors_, frame, tool_vertices_T_m_);
   if (shadow_field_ != nullptr) {
-    vtkCamera* cam = renderer_->GetActiveCamera();
-    ViewCamera camera;
-    double v[3];
-    cam->GetPosition(v);
-    camera.position_W_m = Eigen::Vector3d(v[0], v[1], v[2]);
-    cam->GetFocalPoint(v);
-    camera.focal_point_W_m = Eigen::Vector3d(v[0], v[1], v[2]);
-    cam->GetViewUp(v);
-    camera.view_up_W = Eigen::Vector3d(v[0], v[1], v[2]);
-    const Eigen::Vector3d light_W = shadowLightDirection_W(camera);
+    const Eigen::Vector3d light_W = shadowLightDirection_W(viewCameraOf(renderer_->GetActiveCamera(), height_));
     const double isovalue = std::isfinite(record.isovalue) ? record.isovalue : shadow_isovalue_;
     actors_->setShadow(castToolShadow(*shadow_field_, isovalue, frame.X_WP, shadow_samples_T_m_, light_W,
                                       shadowReach_m(shadow_field_->geometry())),

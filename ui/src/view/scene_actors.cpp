@@ -7,6 +7,7 @@
 
 #include <vtkActor.h>
 #include <vtkArrowSource.h>
+#include <vtkCamera.h>
 #include <vtkCellArray.h>
 #include <vtkColorTransferFunction.h>
 #include <vtkContourValues.h>
@@ -710,6 +711,22 @@ vtkActor* SceneActors::contactActor() const noexcept { return contact_actor_; }
 vtkActor* SceneActors::forceActor() const noexcept { return force_actor_; }
 vtkTextActor* SceneActors::hintActor() const noexcept { return hint_actor_; }
 vtkRenderer* SceneActors::overlayRenderer() const noexcept { return overlay_; }
+
+ViewCamera viewCameraOf(vtkCamera* camera, int viewport_height_px) {
+  ViewCamera c;
+  double v[3];
+  camera->GetPosition(v);
+  c.position_W_m = Eigen::Vector3d(v[0], v[1], v[2]);
+  camera->GetFocalPoint(v);
+  c.focal_point_W_m = Eigen::Vector3d(v[0], v[1], v[2]);
+  camera->GetViewUp(v);
+  c.view_up_W = Eigen::Vector3d(v[0], v[1], v[2]);
+  c.view_angle_deg = camera->GetViewAngle();
+  c.parallel = camera->GetParallelProjection() != 0;
+  c.parallel_scale_m = camera->GetParallelScale();
+  c.viewport_height_px = std::max(1, viewport_height_px);
+  return c;
+}
 
 Eigen::Vector3d forceOrigin_W(const haptics::Pose& X_WP, const Eigen::Vector3d& force_W_N,
                               const std::vector<Eigen::Vector3d>& tool_vertices_T_m) {

@@ -395,21 +395,8 @@ void SceneView::setStandardView(StandardView v) {
 }
 
 ViewCamera SceneView::camera() const {
-  vtkCamera* cam = view_->renderer()->GetActiveCamera();
-  ViewCamera c;
-  double v[3];
-  cam->GetPosition(v);
-  c.position_W_m = Eigen::Vector3d(v[0], v[1], v[2]);
-  cam->GetFocalPoint(v);
-  c.focal_point_W_m = Eigen::Vector3d(v[0], v[1], v[2]);
-  cam->GetViewUp(v);
-  c.view_up_W = Eigen::Vector3d(v[0], v[1], v[2]);
-  c.view_angle_deg = cam->GetViewAngle();
-  c.parallel = cam->GetParallelProjection() != 0;
-  c.parallel_scale_m = cam->GetParallelScale();
   const int* size = view_->renderer()->GetSize();
-  c.viewport_height_px = std::max(1, size[1] > 0 ? size[1] : view_->height());
-  return c;
+  return viewCameraOf(view_->renderer()->GetActiveCamera(), size[1] > 0 ? size[1] : view_->height());
 }
 
 void SceneView::setClipping(bool enabled, ClipAxis axis, double fraction, bool flip) {

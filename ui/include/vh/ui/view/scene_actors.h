@@ -25,6 +25,7 @@
 #include "vh/ui/view/tool_shadow.h"
 
 class vtkActor;
+class vtkCamera;
 class vtkColorTransferFunction;
 class vtkGPUVolumeRayCastMapper;
 class vtkImageData;
@@ -229,6 +230,10 @@ struct ToolFrame {
   /// Contact points in W [m] (recordings keep none: empty).
   std::span<const Eigen::Vector3d> contacts_W_m;
 };
+
+/// `camera` as ViewCamera (position, focal point, view up, view angle, projection; W [m]), for a
+/// viewport `viewport_height_px` pixels high.
+ViewCamera viewCameraOf(vtkCamera* camera, int viewport_height_px = 1);
 
 /// Where the force arrow starts: the proxy tool's extreme point against the force (the vertex of
 /// `tool_vertices_T_m` (tool frame T, metres) with the least F.p in W: where the surface pushes

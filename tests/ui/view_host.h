@@ -1,0 +1,41 @@
+#pragma once
+// A window holding a SceneView and a DisplayPanel, with the Session, Preferences and
+// ViewController a test creates over them: the main window's view wiring without the rest of it.
+
+#include <memory>
+
+#include <QVBoxLayout>
+#include <QWidget>
+
+#include "vh/runtime/session.h"
+#include "vh/ui/panels/display_panel.h"
+#include "vh/ui/preferences.h"
+#include "vh/ui/view/scene_view.h"
+#include "vh/ui/view/vtk_view.h"
+#include "vh/ui/view_controller.h"
+
+namespace vh::ui::test {
+
+struct ViewControllerHost {
+  ViewControllerHost() {
+    auto* layout = new QVBoxLayout(&widget);
+    view = new SceneView(&widget);
+    layout->addWidget(view->widget());
+    panel = new DisplayPanel(&widget);
+    layout->addWidget(panel);
+    widget.resize(320, 400);
+    widget.show();
+  }
+  ~ViewControllerHost() {
+    controller.reset();
+    session.clear();
+  }
+  QWidget widget;
+  SceneView* view = nullptr;     // owned by the widget
+  DisplayPanel* panel = nullptr;  // owned by the widget
+  Preferences prefs;
+  runtime::Session session;
+  std::unique_ptr<ViewController> controller;  ///< The test creates it (after setting prefs).
+};
+
+}  // namespace vh::ui::test
