@@ -5,8 +5,6 @@
 #include <algorithm>
 
 #include <QImage>
-#include <QVBoxLayout>
-#include <QWidget>
 
 #include <gtest/gtest.h>
 #include <vtkGenericOpenGLRenderWindow.h>
