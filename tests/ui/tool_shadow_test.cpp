@@ -4,6 +4,8 @@
 #include "vh/ui/view/tool_shadow.h"
 
 #include <algorithm>
+#include <cstdlib>
+#include <filesystem>
 #include <cmath>
 #include <limits>
 #include <optional>
@@ -24,6 +26,9 @@
 #include "vh/runtime/session.h"
 #include "vh/ui/panels/display_panel.h"
 #include "vh/ui/export/media_export.h"
+#include "vh/ui/main_window.h"
+#include "vh/ui/tool_picker.h"
+#include "vh/ui/devices/device_input.h"
 #include "vh/ui/view/scene_actors.h"
 #include "vh/ui/view/scene_view.h"
 #include "vh/ui/view/vtk_view.h"
@@ -33,6 +38,7 @@ namespace vh::ui {
 namespace {
 
 using haptics::Pose;
+namespace fs = std::filesystem;
 
 /// Distance t >= 0 along the unit `d` from `a` to the first point of the ball (c, R); none when
 /// the ray misses it or starts inside.
@@ -262,6 +268,66 @@ TEST(ToolShadow, ExportedFramesCastItAlongTheirCamerasLight) {
       EXPECT_GT(pointsOf(frames.actors().shadowActor()).size(), 10u);
     }
   }
+}
+
+// The clinician's case on the Philips head phantom (512 x 512 x 140, 400 HU): the built-in drill
+// held 8 mm above the skull casts its shadow on the bone. Oracle: dense sampling of the felt field
+// along the drop line (every 0.05 mm): outside up to the shadow point, inside 0.2 mm past it.
+// Writes tool-shadow.png (the README's picture) when VH_UI_SHOTS_DIR is set.
+TEST(ToolShadow, TheDrillHeldAboveTheSkullShadowsTheBone) {
+  const fs::path phantom = test::kSharedData / "ct/philips-head-phantom-bone";
+  if (!fs::exists(phantom)) GTEST_SKIP() << phantom.string() << " is absent";
+  MainWindow window;
+  window.setInteractive(false);
+  window.resize(1280, 860);
+  window.show();
+  window.openPath(QString::fromStdString(phantom.string()));
+  ASSERT_TRUE(test::waitFor([&] { return window.hasScene() && !window.opener()->loading(); }, 60000));
+  runtime::Session& session = window.session();
+  session.setIsovalue(400.0);
+  int drill_index = -1;
+  for (std::size_t i = 0; i < window.toolPicker()->choices().size(); ++i)
+    if (window.toolPicker()->choices()[i].id == "builtin:drill") drill_index = static_cast<int>(i);
+  ASSERT_GE(drill_index, 0);
+  window.toolPicker()->select(drill_index, 0.001);
+  ASSERT_TRUE(test::waitFor([&] { return window.toolPicker()->currentIndex() == drill_index; }, 30000));
+  session.startHaptics();
+  ASSERT_TRUE(session.hapticsRunning());
+  // Down from the free pose to 8 mm above where the burr's lowest point meets the skull.
+  const haptics::ScalarVolume& field = *session.live().hapticField();
+  const haptics::Pose start = session.proxyPose();
+  // The burr (a 2.5 mm ball about the tool's origin) at its lowest point.
+  const Eigen::Vector3d tip = start.p_AB_m - Eigen::Vector3d(0.0, 0.0, 0.0025);
+  double contact_m = 0.0;
+  while (contact_m < 0.15 && !field.isInside(tip - Eigen::Vector3d(0, 0, contact_m), 400.0)) contact_m += 1e-4;
+  ASSERT_LT(contact_m, 0.15) << "no skull below the drill";
+  haptics::Pose hover = start;
+  hover.p_AB_m.z() -= contact_m - 0.008;
+  window.sceneView()->focusOn(*session.live().tool, hover);
+  session.simulatedDevice()->setPose(hover);
+  ASSERT_TRUE(test::waitFor([&] { return (session.proxyPose().p_AB_m - hover.p_AB_m).norm() < 1e-4; }, 20000));
+  test::pump(300);
+  window.viewController()->refresh();
+
+  const SceneActors& actors = window.sceneView()->actors();
+  ASSERT_TRUE(actors.gapLineActor()->GetVisibility()) << "no shadow under a drill 8 mm above the skull";
+  const std::vector<Eigen::Vector3d> line = pointsOf(actors.gapLineActor());
+  ASSERT_EQ(line.size(), 2u);
+  const Eigen::Vector3d d = window.sceneView()->shadowDirection_W();
+  const double spacing = field.geometry().minSpacing();
+  const Eigen::Vector3d hit = line[1] + 0.5 * spacing * d;  // the drawn end is lifted half a voxel
+  const double length = (hit - line[0]).norm();
+  EXPECT_GT(length, 0.005) << "the drill is 8 mm above the bone";
+  for (double t = 0.0; t < length - 0.05e-3; t += 0.05e-3) {
+    ASSERT_FALSE(field.isInside(line[0] + t * d, 400.0)) << "the drop line enters bone " << 1e3 * t << " mm along";
+  }
+  EXPECT_TRUE(field.isInside(hit + 0.2e-3 * d, 400.0) || field.isInside(hit + 0.4e-3 * d, 400.0))
+      << "no bone just past the shadow point";
+  if (const char* dir = std::getenv("VH_UI_SHOTS_DIR")) {
+    window.sceneView()->renderStill(true);
+    window.grab().save(QString::fromLocal8Bit(dir) + "/tool-shadow.png");
+  }
+  session.stopHaptics();
 }
 
 }  // namespace
