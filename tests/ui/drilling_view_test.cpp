@@ -23,6 +23,7 @@
 #include <vtkNrrdReader.h>
 #include <vtkPointData.h>
 
+#include "phantom_window.h"
 #include "ui_test_util.h"
 #include "vh/io/segmentation.h"
 #include "vh/runtime/recording.h"
@@ -532,22 +533,10 @@ TEST(DrillingView, ReplayStartsFromTheRecordedCavity) {
 // shows while it grows. Prints the frames per second the view kept while drilling (no threshold:
 // speed targets live in the benchmarks); writes drilled-cavity.png when VH_UI_SHOTS_DIR is set.
 TEST(DrillingView, CavityInTheHeadPhantomGrowsInTheView) {
-  const fs::path phantom = test::kSharedData / "ct/philips-head-phantom-bone";
-  if (!fs::exists(phantom)) GTEST_SKIP() << phantom.string() << " is absent";
+  if (!fs::exists(test::kHeadPhantom)) GTEST_SKIP() << test::kHeadPhantom.string() << " is absent";
   MainWindow window;
-  window.setInteractive(false);
-  window.resize(1280, 860);
-  window.show();
-  window.openPath(QString::fromStdString(phantom.string()));
-  ASSERT_TRUE(test::waitFor([&] { return window.hasScene() && !window.opener()->loading(); }, 60000));
+  ASSERT_TRUE(test::openPhantomWithDrill(window));
   runtime::Session& session = window.session();
-  session.setIsovalue(400.0);
-  int drill_index = -1;
-  for (std::size_t i = 0; i < window.toolPicker()->choices().size(); ++i)
-    if (window.toolPicker()->choices()[i].id == "builtin:drill") drill_index = static_cast<int>(i);
-  ASSERT_GE(drill_index, 0);
-  window.toolPicker()->select(drill_index, 0.001);
-  ASSERT_TRUE(test::waitFor([&] { return window.toolPicker()->currentIndex() == drill_index; }, 30000));
   window.drillController()->setDrilling(true);
   ASSERT_TRUE(session.drilling());
   session.startHaptics();

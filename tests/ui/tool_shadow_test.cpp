@@ -20,6 +20,7 @@
 #include <vtkPolyData.h>
 #include <vtkRenderer.h>
 
+#include "phantom_window.h"
 #include "ui_test_util.h"
 #include "view_host.h"
 #include "vh/datasets/synthetic.h"
@@ -275,22 +276,10 @@ TEST(ToolShadow, ExportedFramesCastItAlongTheirCamerasLight) {
 // along the drop line (every 0.05 mm): outside up to the shadow point, inside 0.2 mm past it.
 // Writes tool-shadow.png (the README's picture) when VH_UI_SHOTS_DIR is set.
 TEST(ToolShadow, TheDrillHeldAboveTheSkullShadowsTheBone) {
-  const fs::path phantom = test::kSharedData / "ct/philips-head-phantom-bone";
-  if (!fs::exists(phantom)) GTEST_SKIP() << phantom.string() << " is absent";
+  if (!fs::exists(test::kHeadPhantom)) GTEST_SKIP() << test::kHeadPhantom.string() << " is absent";
   MainWindow window;
-  window.setInteractive(false);
-  window.resize(1280, 860);
-  window.show();
-  window.openPath(QString::fromStdString(phantom.string()));
-  ASSERT_TRUE(test::waitFor([&] { return window.hasScene() && !window.opener()->loading(); }, 60000));
+  ASSERT_TRUE(test::openPhantomWithDrill(window));
   runtime::Session& session = window.session();
-  session.setIsovalue(400.0);
-  int drill_index = -1;
-  for (std::size_t i = 0; i < window.toolPicker()->choices().size(); ++i)
-    if (window.toolPicker()->choices()[i].id == "builtin:drill") drill_index = static_cast<int>(i);
-  ASSERT_GE(drill_index, 0);
-  window.toolPicker()->select(drill_index, 0.001);
-  ASSERT_TRUE(test::waitFor([&] { return window.toolPicker()->currentIndex() == drill_index; }, 30000));
   session.startHaptics();
   ASSERT_TRUE(session.hapticsRunning());
   // Down from the free pose to 8 mm above where the burr's lowest point meets the skull.
