@@ -22,10 +22,6 @@ namespace {
 
 constexpr int kDisplayPeriodMs = 33;  // ~30 Hz prop updates
 
-bool shadowInputsDiffer(const haptics::Pose& a, const haptics::Pose& b) {
-  return (a.p_AB_m - b.p_AB_m).norm() > 1e-6 || a.R_AB.angularDistance(b.R_AB) > 1e-4;
-}
-
 }  // namespace
 
 ViewController::ViewController(runtime::Session& session, SceneView& view, DisplayPanel& panel, Preferences& prefs,
@@ -135,17 +131,19 @@ bool ViewController::updateShadow() {
   const std::shared_ptr<const haptics::ScalarVolume>& field = session_.live().hapticField();
   if (field == nullptr) return false;
   ShadowKey key;
-  key.X_WP = view_.shownProxyPose();  // live or replayed
+  // The pose the view shows, live or replayed: it changes only when SceneView::show() found the
+  // tool moved visibly, so the same pose, to the bit, means the same shadow.
+  key.X_WP = view_.shownProxyPose();
   key.direction_W = view_.shadowDirection_W();
   key.isovalue = session_.live().hapticIsovalue();
   key.field = field.get();
-  if (shadow_cast_ && !shadowInputsDiffer(key.X_WP, shadow_key_.X_WP) &&
+  if (shadow_cast_ && key.X_WP.p_AB_m == shadow_key_.X_WP.p_AB_m &&
+      key.X_WP.R_AB.coeffs() == shadow_key_.X_WP.R_AB.coeffs() &&
       (key.direction_W - shadow_key_.direction_W).norm() < 1e-3 && key.isovalue == shadow_key_.isovalue &&
       key.field == shadow_key_.field) {
     return false;
   }
-  const ToolShadow shadow = castToolShadow(*field, key.isovalue, key.X_WP, shadow_samples_T_m_, key.direction_W,
-                                           shadowReach_m(field->geometry()));
+  const ToolShadow shadow = castToolShadow(*field, key.isovalue, key.X_WP, shadow_samples_T_m_, key.direction_W);
   view_.showShadow(shadow, key.direction_W);
   shadow_key_ = key;
   shadow_cast_ = true;

@@ -191,9 +191,7 @@ struct Bench {
     view->show(f);
     const auto shadow_t0 = Clock::now();
     const Eigen::Vector3d down_W = view->shadowDirection_W();
-    view->showShadow(castToolShadow(*felt, felt_isovalue, f.X_WP, shadow_samples_T_m, down_W,
-                                    shadowReach_m(felt->geometry())),
-                     down_W);
+    view->showShadow(castToolShadow(*felt, felt_isovalue, f.X_WP, shadow_samples_T_m, down_W), down_W);
     shadow_ms.push_back(msSince(shadow_t0));
     view->widget()->repaint();
     paint_ms.push_back(view->widget()->lastFrameMs());

@@ -168,9 +168,7 @@ void RecordingFrameRenderer::show(const runtime::TickRecord& record) {
   if (shadow_field_ != nullptr) {
     const Eigen::Vector3d light_W = shadowLightDirection_W(viewCameraOf(renderer_->GetActiveCamera(), height_));
     const double isovalue = std::isfinite(record.isovalue) ? record.isovalue : shadow_isovalue_;
-    actors_->setShadow(castToolShadow(*shadow_field_, isovalue, frame.X_WP, shadow_samples_T_m_, light_W,
-                                      shadowReach_m(shadow_field_->geometry())),
-                       light_W);
+    actors_->setShadow(castToolShadow(*shadow_field_, isovalue, frame.X_WP, shadow_samples_T_m_, light_W), light_W);
   }
   if (overlay_ != nullptr) showOverlay(record);
 }

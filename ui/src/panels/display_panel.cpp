@@ -210,32 +210,24 @@ void DisplayPanel::setClipping(bool enabled, ClipAxis axis, double fraction, boo
   }
 }
 
-void DisplayPanel::setMarkerVisible(bool visible) {
-  const QSignalBlocker block(marker_box_);
-  marker_box_->setChecked(visible);
-  if (marker_action_ != nullptr) {
-    const QSignalBlocker block_action(marker_action_);
-    marker_action_->setChecked(visible);
+namespace {
+
+/// Shows `checked` on a toggle's check box and its View menu action (null before the menu is
+/// built) without emitting.
+void showToggle(QCheckBox* box, QAction* action, bool checked) {
+  const QSignalBlocker block(box);
+  box->setChecked(checked);
+  if (action != nullptr) {
+    const QSignalBlocker block_action(action);
+    action->setChecked(checked);
   }
 }
 
-void DisplayPanel::setDeviceToolVisible(bool visible) {
-  const QSignalBlocker block(device_box_);
-  device_box_->setChecked(visible);
-  if (device_action_ != nullptr) {
-    const QSignalBlocker block_action(device_action_);
-    device_action_->setChecked(visible);
-  }
-}
+}  // namespace
 
-void DisplayPanel::setToolShadowVisible(bool visible) {
-  const QSignalBlocker block(shadow_box_);
-  shadow_box_->setChecked(visible);
-  if (shadow_action_ != nullptr) {
-    const QSignalBlocker block_action(shadow_action_);
-    shadow_action_->setChecked(visible);
-  }
-}
+void DisplayPanel::setMarkerVisible(bool visible) { showToggle(marker_box_, marker_action_, visible); }
+void DisplayPanel::setDeviceToolVisible(bool visible) { showToggle(device_box_, device_action_, visible); }
+void DisplayPanel::setToolShadowVisible(bool visible) { showToggle(shadow_box_, shadow_action_, visible); }
 
 bool DisplayPanel::clippingEnabled() const { return clip_group_->isChecked(); }
 ClipAxis DisplayPanel::clipAxis() const { return static_cast<ClipAxis>(clip_axis_->currentData().toInt()); }

@@ -8,15 +8,18 @@ namespace vh::ui {
 
 ToolShadow castToolShadow(const haptics::ScalarVolume& field, double isovalue, const haptics::Pose& X_WP,
                           std::span<const Eigen::Vector3d> samples_T_m, const Eigen::Vector3d& direction_W,
-                          double reach_m) {
+                          std::optional<double> reach) {
   ToolShadow shadow;
+  const haptics::VolumeGeometry& g = field.geometry();
+  const double reach_m = reach.value_or(
+      Eigen::Vector3d(g.dims[0] * g.spacing_m[0], g.dims[1] * g.spacing_m[1], g.dims[2] * g.spacing_m[2]).norm());
   const double length = direction_W.norm();
   if (field.empty() || !(length > 0.0) || !std::isfinite(length) || !(reach_m > 0.0) || !std::isfinite(isovalue)) {
     return shadow;
   }
   const Eigen::Vector3d d_W = direction_W / length;
   // The bracket's width along the ray: a twentieth of a voxel.
-  const double u_tolerance = std::max(0.05 * field.geometry().minSpacing() / reach_m, 1e-9);
+  const double u_tolerance = std::max(0.05 * g.minSpacing() / reach_m, 1e-9);
   shadow.footprint_W_m.reserve(samples_T_m.size());
   double best = std::numeric_limits<double>::infinity();
   for (const Eigen::Vector3d& p_T : samples_T_m) {
@@ -47,10 +50,6 @@ std::vector<Eigen::Vector3d> toolShadowSamples(const haptics::ToolModel& tool) {
 
 Eigen::Vector3d shadowLightDirection_W(const ViewCamera& camera) {
   return (-camera.up_W() + 0.5 * camera.right_W() + 0.5 * camera.forward_W()).normalized();
-}
-
-double shadowReach_m(const haptics::VolumeGeometry& g) {
-  return Eigen::Vector3d(g.dims[0] * g.spacing_m[0], g.dims[1] * g.spacing_m[1], g.dims[2] * g.spacing_m[2]).norm();
 }
 
 std::vector<Eigen::Vector3d> shadowSamples(std::span<const Eigen::Vector3d> vertices_T_m, int count) {

@@ -5,7 +5,7 @@
 /// the threads run), and applies the Display panel's choices (render mode, preset, clipping,
 /// marker, device tool, tool shadow, colours) to the view and the preferences. It casts the
 /// tool's shadow (castToolShadow()) on the session's felt field whenever the proxy, the camera's
-/// "down", the isovalue or the tool changed.
+/// light, the isovalue or the tool changed.
 ///
 /// Data flows one way: Session -> this -> SceneView; DisplayPanel -> this -> Preferences and
 /// SceneView. Threads: GUI thread only; the haptic thread is read through
@@ -58,7 +58,7 @@ class ViewController : public QObject {
   void setDeviceToolVisible(bool visible);
   /// The tool's shadow on the surface (a depth cue) on or off.
   void setToolShadowVisible(bool visible);
-  /// Casts the tool's shadow again if the proxy pose shown, the camera's "down", the isovalue,
+  /// Casts the tool's shadow again if the proxy pose shown, the camera's light, the isovalue,
   /// the field or the tool changed since the last cast (at most 128 segment walks).
   /// @return true when it cast.
   bool updateShadow();

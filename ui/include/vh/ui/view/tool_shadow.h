@@ -2,15 +2,16 @@
 /// @file
 /// The tool's shadow on the felt surface: a depth cue for the eyes. A screen shows where the
 /// tool is across the view but hardly how far it is from the surface along the line of sight;
-/// a shadow cast by a light above the viewer (along the camera's "down", -view up) falls on the
-/// isosurface under the tool and closes on the tool as it approaches, and a drop line from the
-/// tool's nearest point to its shadow measures the gap that is left.
+/// a shadow cast by a light above the viewer that turns with the camera (shadowLightDirection_W())
+/// falls on the isosurface under the tool and closes on the tool as it approaches, and a drop line
+/// from the tool's nearest point to its shadow measures the gap that is left.
 ///
 /// The shadow is cast on the field the hand feels (the haptic field at its isovalue, F(x) = s,
 /// section 2.2 of the paper), with the exact segment test the proxy uses
 /// (haptics::ScalarVolume::firstEntryOnSegment()): a shadow on the surface means the same surface
 /// the hand meets there. No Qt or VTK here; SceneActors draws it.
 
+#include <optional>
 #include <span>
 #include <vector>
 
@@ -38,25 +39,21 @@ struct ToolShadow {
   double gap_m = 0.0;
 };
 
-/// Casts `samples_T_m` (points of the tool in the tool frame T [m], e.g. its display mesh's
-/// vertices, a few dozen: shadowSamples()) at the pose `X_WP` along `direction_W` (normalised
-/// here; a zero or non-finite one casts nothing) onto the isosurface F = `isovalue` of `field`,
-/// at most `reach_m` [m] far. Samples that start inside the surface (F > isovalue: a display
-/// vertex of a tool in contact) cast nothing. Cost: one segment walk per sample (cells skipped
-/// by their corners while the ray is in empty space).
+/// Casts `samples_T_m` (points of the tool in the tool frame T [m], some hundred:
+/// toolShadowSamples()) at the pose `X_WP` along `direction_W` (normalised here; a zero or
+/// non-finite one casts nothing) onto the isosurface F = `isovalue` of `field`, at most `reach_m`
+/// [m] far (none: the diagonal of the field's grid, which a ray has left by then). Samples that
+/// start inside the surface (F > isovalue: a tool in contact) cast nothing. Cost: one segment walk
+/// per sample (cells skipped by their corners while the ray is in empty space).
 ToolShadow castToolShadow(const haptics::ScalarVolume& field, double isovalue, const haptics::Pose& X_WP,
                           std::span<const Eigen::Vector3d> samples_T_m, const Eigen::Vector3d& direction_W,
-                          double reach_m);
+                          std::optional<double> reach_m = std::nullopt);
 
 /// The direction shadows are cast along for `camera`, unit: a light above the viewer's left
 /// shoulder that turns with the camera, -up + right/2 + forward/2 normalised (the screen's down
 /// and right and into the view). A shadow then falls below, right of and behind the tool, beside
 /// it on the screen rather than hidden behind it, and meets the tool where the tool touches.
 Eigen::Vector3d shadowLightDirection_W(const ViewCamera& camera);
-
-/// How far a shadow is cast [m]: the diagonal of the volume's grid (a ray has left it by then;
-/// its empty cells are skipped by their corners).
-double shadowReach_m(const haptics::VolumeGeometry& geometry);
 
 /// At most `count` of `vertices_T_m`, spread over the tool: farthest-point sampling from the
 /// first vertex (each next sample the vertex farthest from those taken), so a long shaft and a
