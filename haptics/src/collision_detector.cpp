@@ -698,7 +698,7 @@ SweepResult CollisionDetector::runAccelerated() noexcept {
       bound_->store(lane.result.t, std::memory_order_relaxed);
   }
   if (pool_) {
-    pool_->run(&CollisionDetector::laneJob, this);
+    pool_->run(&CollisionDetector::laneJob, this, static_cast<int>(lanes_.size()));
   } else {
     for (Lane& lane : lanes_)
       if (lane.phase == 1 || lane.phase == 2) runLane(lane);

@@ -2,7 +2,6 @@
 
 #include <chrono>
 #include <cmath>
-#include <map>
 #include <mutex>
 #include <stdexcept>
 #include <string>
@@ -70,31 +69,34 @@ void WorkerPool::threadLoop(int lane) noexcept {
     }
     seen = now;
     if (stop_.load(std::memory_order_acquire)) return;
-    job_(context_, lane);
-    running_.fetch_sub(1, std::memory_order_release);
+    if (lane < job_lanes_) {
+      job_(context_, lane);
+      running_.fetch_sub(1, std::memory_order_release);
+    }
   }
 }
 
 std::shared_ptr<WorkerPool> WorkerPool::shared(int lanes) {
   static std::mutex mutex;
-  static std::map<int, std::weak_ptr<WorkerPool>> pools;
+  static std::weak_ptr<WorkerPool> largest;
   const std::lock_guard<std::mutex> lock(mutex);
-  std::shared_ptr<WorkerPool> pool = pools[lanes].lock();
-  if (!pool) {
-    pool = std::make_shared<WorkerPool>(lanes);
-    pools[lanes] = pool;
-  }
-  return pool;
+  std::shared_ptr<WorkerPool> pool = largest.lock();
+  if (pool && pool->lanes() >= lanes) return pool;
+  std::shared_ptr<WorkerPool> made = std::make_shared<WorkerPool>(lanes);
+  largest = made;
+  return made;
 }
 
-void WorkerPool::run(Job job, void* context) noexcept {
-  if (lanes_ == 1 || busy_.exchange(true, std::memory_order_acquire)) {
-    for (int lane = 0; lane < lanes_; ++lane) job(context, lane);
+void WorkerPool::run(Job job, void* context, int lanes) noexcept {
+  const int n = lanes <= 0 || lanes > lanes_ ? lanes_ : lanes;
+  if (n == 1 || busy_.exchange(true, std::memory_order_acquire)) {
+    for (int lane = 0; lane < n; ++lane) job(context, lane);
     return;
   }
   job_ = job;
   context_ = context;
-  running_.store(lanes_ - 1, std::memory_order_relaxed);
+  job_lanes_ = n;
+  running_.store(n - 1, std::memory_order_relaxed);
   epoch_.fetch_add(1, std::memory_order_seq_cst);
   // A thread that announced it sleeps either sees the new epoch in wait() or is woken here.
   if (sleeping_.load(std::memory_order_seq_cst) > 0) epoch_.notify_all();

@@ -61,7 +61,7 @@ TEST(WorkerPool, EveryLaneRunsOncePerRunOnItsOwnThread) {
 // runs its lanes itself), and every lane of both runs once per run().
 TEST(WorkerPool, SharedPoolServesTwoCallersAtOnce) {
   const auto pool = WorkerPool::shared(3);
-  EXPECT_EQ(pool, WorkerPool::shared(3)) << "one pool per lane count";
+  EXPECT_EQ(pool, WorkerPool::shared(3)) << "one pool for callers of the same count";
   Tally a, b;
   for (Tally* t : {&a, &b}) {
     t->runs.assign(3, 0);
@@ -77,6 +77,43 @@ TEST(WorkerPool, SharedPoolServesTwoCallersAtOnce) {
     EXPECT_EQ(a.runs[static_cast<std::size_t>(lane)], kRuns);
     EXPECT_EQ(b.runs[static_cast<std::size_t>(lane)], kRuns);
   }
+}
+
+// A caller of fewer lanes on a larger pool: exactly its lanes run, once each per run(), on
+// distinct threads, lane 0 on the caller; the pool's other threads leave the job alone, and a
+// later full run still reaches every lane.
+TEST(WorkerPool, RunsOnlyTheLanesItIsGivenOnALargerPool) {
+  WorkerPool pool(5);
+  for (int lanes : {1, 2, 3, 5}) {
+    Tally tally;
+    tally.runs.assign(5, 0);
+    tally.thread_of.assign(5, {});
+    constexpr int kRuns = 1000;
+    for (int r = 0; r < kRuns; ++r) {
+      pool.run(&countLane, &tally, lanes);
+      if (r == kRuns / 2) std::this_thread::sleep_for(std::chrono::milliseconds(30));  // the threads sleep
+    }
+    for (int lane = 0; lane < 5; ++lane)
+      EXPECT_EQ(tally.runs[static_cast<std::size_t>(lane)], lane < lanes ? kRuns : 0) << lanes << " lanes, lane " << lane;
+    std::set<std::thread::id> threads(tally.thread_of.begin(), tally.thread_of.begin() + lanes);
+    EXPECT_EQ(threads.size(), static_cast<std::size_t>(lanes)) << "each lane on its own thread";
+    EXPECT_EQ(tally.thread_of[0], std::this_thread::get_id()) << "lane 0 runs on the caller";
+    EXPECT_LE(tally.most_concurrent.load(), lanes);
+  }
+}
+
+// Callers of 2, 4 and 8 lanes share the 8-lane pool asked for first (one set of spinning
+// threads, not three); a caller of more lanes than any live pool gets a new one.
+TEST(WorkerPool, SharedPoolIsTheLargestLiveOne) {
+  const auto eight = WorkerPool::shared(8);
+  ASSERT_EQ(eight->lanes(), 8);
+  EXPECT_EQ(WorkerPool::shared(2), eight);
+  EXPECT_EQ(WorkerPool::shared(4), eight);
+  EXPECT_EQ(WorkerPool::shared(8), eight);
+  const auto nine = WorkerPool::shared(9);
+  EXPECT_NE(nine, eight);
+  EXPECT_EQ(nine->lanes(), 9);
+  EXPECT_EQ(WorkerPool::shared(8), nine) << "the largest live pool serves every smaller caller";
 }
 
 TEST(WorkerPool, RejectsALaneCountOutsideItsRange) {

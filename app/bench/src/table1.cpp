@@ -20,6 +20,7 @@
 #include "vh/haptics/crossing_verifier.h"
 #include "vh/haptics/haptic_renderer.h"
 #include "vh/haptics/penetration.h"
+#include "vh/haptics/worker_pool.h"
 #include "vh/runtime/placement.h"
 #include "vh/runtime/runner.h"
 #include "vh/runtime/scene.h"
@@ -1045,6 +1046,12 @@ fs::path runTable1(const Table1Options& options) {
   BusyLoad load(options.load);
   const std::vector<Variant> variants = table1Variants(options, lanes, deadline_us);
   const std::vector<SceneDef> defs = selectScenes(options.scene);
+  // One set of solver threads for every mode and lane count (the largest asked for first): pools
+  // per lane count would all spin between their interleaved ticks and outnumber the cores.
+  int most_lanes = 1;
+  for (const Variant& v : variants) most_lanes = std::max(most_lanes, v.lanes);
+  const std::shared_ptr<haptics::WorkerPool> solver_threads =
+      most_lanes > 1 ? haptics::WorkerPool::shared(most_lanes) : nullptr;
 
   nlohmann::ordered_json report = reportHeader("table1", short_run);
   report["ticks_per_run"] = ticks;

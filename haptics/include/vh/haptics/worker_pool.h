@@ -47,18 +47,24 @@ class WorkerPool {
 
   int lanes() const noexcept { return lanes_; }
 
-  /// The process's pool of `lanes` lanes, made on first use and shared by every caller that asks
-  /// for the same count (several renderers in one process: a benchmark's interleaved modes, a
-  /// replay beside the live solver), so that spinning threads never outnumber the cores asked
-  /// for. Not for the servo path (it may start threads).
+  /// The process's shared pool for callers of up to `lanes` lanes: the largest live pool when it
+  /// has at least `lanes` lanes, else a new pool of `lanes` lanes (which becomes the largest).
+  /// Several renderers in one process (a benchmark's interleaved modes on different lane counts,
+  /// a replay beside the live solver) so share one set of threads, and the threads that spin
+  /// between jobs never outnumber the most cores one caller asked for: pools per lane count
+  /// would each spin, and on a 16-core machine a sweep over 1 to 16 lanes ran 26 spinning
+  /// threads. Ask for the largest count first (a caller that asks for more later gets a new
+  /// pool beside the old one). Run a smaller caller's jobs with run(job, context, its lanes).
+  /// Not for the servo path (it may start threads).
   /// @throws as the constructor.
   static std::shared_ptr<WorkerPool> shared(int lanes);
 
-  /// Runs job(context, lane) for every lane, lane 0 on the caller, and returns when all are
-  /// done (their writes are visible to the caller). No allocation, no lock: while another thread
-  /// runs a job on the same pool, this call runs every lane in turn on the caller instead of
+  /// Runs job(context, lane) for lane in [0, min(lanes, lanes())) (every lane when lanes <= 0),
+  /// lane 0 on the caller, and returns when all are done (their writes are visible to the
+  /// caller); the pool's other threads skip the job. No allocation, no lock: while another thread
+  /// runs a job on the same pool, this call runs its lanes in turn on the caller instead of
   /// waiting.
-  void run(Job job, void* context) noexcept;
+  void run(Job job, void* context, int lanes = 0) noexcept;
 
  private:
   void threadLoop(int lane) noexcept;
@@ -67,6 +73,7 @@ class WorkerPool {
   double spin_us_ = kDefaultSpin_us;
   Job job_ = nullptr;
   void* context_ = nullptr;
+  int job_lanes_ = 1;  // lanes of the current job; written before epoch_ is published
   alignas(64) std::atomic<std::uint32_t> epoch_{0};
   alignas(64) std::atomic<int> running_{0};   // lanes of the current job not yet done
   alignas(64) std::atomic<int> sleeping_{0};  // threads waiting on epoch_
