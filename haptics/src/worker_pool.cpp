@@ -32,7 +32,7 @@ WorkerPool::WorkerPool(int lanes, double spin_us) : lanes_(lanes), spin_us_(spin
     for (int lane = 1; lane < lanes; ++lane) threads_.emplace_back([this, lane] { threadLoop(lane); });
   } catch (...) {
     stop_.store(true, std::memory_order_release);
-    epoch_.fetch_add(1, std::memory_order_release);
+    epoch_.fetch_add(kEpochStep, std::memory_order_release);
     epoch_.notify_all();
     for (auto& t : threads_) t.join();
     throw;
@@ -41,7 +41,7 @@ WorkerPool::WorkerPool(int lanes, double spin_us) : lanes_(lanes), spin_us_(spin
 
 WorkerPool::~WorkerPool() {
   stop_.store(true, std::memory_order_release);
-  epoch_.fetch_add(1, std::memory_order_release);
+  epoch_.fetch_add(kEpochStep, std::memory_order_release);
   epoch_.notify_all();
   for (auto& t : threads_) t.join();
 }
@@ -69,7 +69,9 @@ void WorkerPool::threadLoop(int lane) noexcept {
     }
     seen = now;
     if (stop_.load(std::memory_order_acquire)) return;
-    if (lane < job_lanes_) {
+    // The job's lane count travels in the epoch word itself: a thread that skipped the last job
+    // may see its epoch only after the caller began writing the next one.
+    if (lane < static_cast<int>(now & kLaneMask)) {
       job_(context_, lane);
       running_.fetch_sub(1, std::memory_order_release);
     }
@@ -95,9 +97,9 @@ void WorkerPool::run(Job job, void* context, int lanes) noexcept {
   }
   job_ = job;
   context_ = context;
-  job_lanes_ = n;
   running_.store(n - 1, std::memory_order_relaxed);
-  epoch_.fetch_add(1, std::memory_order_seq_cst);
+  const std::uint32_t epoch = epoch_.load(std::memory_order_relaxed);
+  epoch_.store(((epoch & ~kLaneMask) + kEpochStep) | static_cast<std::uint32_t>(n), std::memory_order_seq_cst);
   // A thread that announced it sleeps either sees the new epoch in wait() or is woken here.
   if (sleeping_.load(std::memory_order_seq_cst) > 0) epoch_.notify_all();
   job(context, 0);

@@ -102,6 +102,26 @@ TEST(WorkerPool, RunsOnlyTheLanesItIsGivenOnALargerPool) {
   }
 }
 
+// Callers of different lane counts taking turns on one pool, as a benchmark's interleaved
+// modes do: a thread left out of one job may see its epoch late, while the caller already
+// writes the next; every lane must still run exactly once per job that includes it (a lane
+// count read apart from the job's epoch ran a job twice and left the caller waiting forever).
+TEST(WorkerPool, CallersOfDifferentLaneCountsTakeTurns) {
+  WorkerPool pool(5);
+  Tally tally;
+  tally.runs.assign(5, 0);
+  tally.thread_of.assign(5, {});
+  constexpr int kCounts[] = {2, 5, 3, 4, 2, 2, 5};
+  std::vector<int> expected(5, 0);
+  for (int r = 0; r < 4000; ++r) {
+    const int lanes = kCounts[r % 7];
+    pool.run(&countLane, &tally, lanes);
+    for (int lane = 0; lane < lanes; ++lane) ++expected[static_cast<std::size_t>(lane)];
+  }
+  for (int lane = 0; lane < 5; ++lane)
+    EXPECT_EQ(tally.runs[static_cast<std::size_t>(lane)], expected[static_cast<std::size_t>(lane)]) << "lane " << lane;
+}
+
 // Callers of 2, 4 and 8 lanes share the 8-lane pool asked for first (one set of spinning
 // threads, not three); a caller of more lanes than any live pool gets a new one.
 TEST(WorkerPool, SharedPoolIsTheLargestLiveOne) {

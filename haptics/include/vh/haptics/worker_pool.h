@@ -73,7 +73,10 @@ class WorkerPool {
   double spin_us_ = kDefaultSpin_us;
   Job job_ = nullptr;
   void* context_ = nullptr;
-  int job_lanes_ = 1;  // lanes of the current job; written before epoch_ is published
+  // The job's sequence number above kLaneMask and its lane count below: one word, so that a
+  // thread reads the lane count of the very job whose epoch it saw.
+  static constexpr std::uint32_t kLaneMask = 0xFF;
+  static constexpr std::uint32_t kEpochStep = kLaneMask + 1;
   alignas(64) std::atomic<std::uint32_t> epoch_{0};
   alignas(64) std::atomic<int> running_{0};   // lanes of the current job not yet done
   alignas(64) std::atomic<int> sleeping_{0};  // threads waiting on epoch_
