@@ -2,7 +2,7 @@
 # Packs what `bench render` and `bench table1` need on a lent GPU machine that has none of this
 # project's libraries (an Ubuntu image with the NVIDIA driver, no network), in two archives that
 # each travel under the device tool's 64 MiB limit with the working tree:
-#   .gpu-bench/a.tar.zst  the program, its Debian 12 libraries and Qt's xcb plugin, small datasets
+#   .gpu-bench/a.tar.zst  the program and its DICOM reader process, their Debian 12 libraries and Qt's xcb plugin, small datasets
 #   .gpu-bench/b.tar.zst  Xvfb, xkbcomp and Mesa's software driver, the Philips head phantom
 # and, unpacked beside them, a zstd binary, VirtualGL's fakers and the GL loader packages.
 # Usage (from the repository root, after a release build in build/):
@@ -24,10 +24,10 @@ A=$(mktemp -d); B=$(mktemp -d); STUB=$(mktemp -d)
 trap 'rm -rf $A $B $STUB' EXIT
 mkdir -p $A/opt/vh/{lib,bin,plugins/platforms,plugins/xcbglintegrations,datasets/ct,datasets/classic,datasets/meshes}
 mkdir -p $B/opt/vh/{libx,bin,dri,datasets/ct} $B/usr/share/X11 $B/usr/bin $B/usr/share/fonts/truetype/dejavu $B/etc
-cp build/app/volume-haptics $A/opt/vh/bin/
+cp build/app/volume-haptics build/app/volume-haptics-dicom-worker $A/opt/vh/bin/
 cp -L $QP/platforms/libqxcb.so $A/opt/vh/plugins/platforms/
 cp -L $QP/xcbglintegrations/libqxcb-glx-integration.so $A/opt/vh/plugins/xcbglintegrations/
-for f in build/app/volume-haptics $QP/platforms/libqxcb.so $QP/xcbglintegrations/libqxcb-glx-integration.so; do
+for f in build/app/volume-haptics build/app/volume-haptics-dicom-worker $QP/platforms/libqxcb.so $QP/xcbglintegrations/libqxcb-glx-integration.so; do
   ldd $f | awk '/=>/{print $3}'
 done | sort -u > $A/libs.txt
 while read -r l; do skip "$l" || cp -L "$l" $A/opt/vh/lib/; done < $A/libs.txt

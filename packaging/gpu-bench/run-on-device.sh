@@ -2,7 +2,8 @@
 # On the lent GPU machine, from the repository root, with .gpu-bench/ carried (make-bundle.sh):
 #   packaging/gpu-bench/run-on-device.sh STEP...
 # Steps: unpack-b (Xvfb, Mesa, the phantom), unpack-a (the program and its libraries), render
-# (bench render under VirtualGL's EGL back end), table1 (bench table1). Each archive is nearly
+# (bench render under VirtualGL's EGL back end), memory (bench memory, likewise), table1 (bench
+# table1). Each archive is nearly
 # the transfer limit alone, so unpack-b runs in one call (carry .gpu-bench/b.tar.zst,
 # .gpu-bench/bin, .gpu-bench/gl) and unpack-a with the benchmarks in the next, while the machine
 # is still warm (carry .gpu-bench/a.tar.zst, .gpu-bench/bin, .gpu-bench/gl, .gpu-bench/vgl). Results go to $OUT. Environment: RENDER_ARGS, TABLE1_ARGS (extra
@@ -42,6 +43,12 @@ for step in "$@"; do
       env LD_LIBRARY_PATH="$LIBS" LD_PRELOAD="$G/vgl/libdlfaker.so:$G/vgl/libvglfaker.so" \
         /opt/vh/bin/volume-haptics bench render --no-plots --series-dir /tmp/vhgen/ct ${RENDER_ARGS:-} \
         --out "$OUT/render" 2>&1 | grep -v '^\[VGL\]' ;;
+    memory)
+      start_x
+      # shellcheck disable=SC2086
+      env LD_LIBRARY_PATH="$LIBS" LD_PRELOAD="$G/vgl/libdlfaker.so:$G/vgl/libvglfaker.so" \
+        /opt/vh/bin/volume-haptics bench memory --series-dir /tmp/vhgen/ct ${MEMORY_ARGS:-} \
+        --out "$OUT/memory" 2>&1 | grep -v '^\[VGL\]' ;;
     table1)
       # shellcheck disable=SC2086
       env LD_LIBRARY_PATH="$LIBS" /opt/vh/bin/volume-haptics bench table1 --no-plots --verify-step 0 \
