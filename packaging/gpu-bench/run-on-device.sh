@@ -3,11 +3,11 @@
 #   packaging/gpu-bench/run-on-device.sh STEP...
 # Steps: unpack-b (Xvfb, Mesa, the phantom), unpack-a (the program and its libraries), render
 # (bench render under VirtualGL's EGL back end), memory (bench memory, likewise), table1 (bench
-# table1). Each archive is nearly
-# the transfer limit alone, so unpack-b runs in one call (carry .gpu-bench/b.tar.zst,
-# .gpu-bench/bin, .gpu-bench/gl) and unpack-a with the benchmarks in the next, while the machine
-# is still warm (carry .gpu-bench/a.tar.zst, .gpu-bench/bin, .gpu-bench/gl, .gpu-bench/vgl). Results go to $OUT. Environment: RENDER_ARGS, TABLE1_ARGS (extra
-# options), VGL_REFRESHRATE (VirtualGL's emulated display rate; 60 by default).
+# table1). Each archive is nearly the transfer limit alone, so unpack-b runs in one call (carry
+# .gpu-bench/b.tar.zst, .gpu-bench/bin, .gpu-bench/gl) and unpack-a with the benchmarks in the
+# next, while the machine is still warm (carry .gpu-bench/a.tar.zst, .gpu-bench/bin,
+# .gpu-bench/gl, .gpu-bench/vgl). Results go to $OUT. Environment: RENDER_ARGS, MEMORY_ARGS,
+# TABLE1_ARGS (extra options), VGL_REFRESHRATE (VirtualGL's emulated display rate; 60 by default).
 cd "$(dirname "$0")/../.." || exit 1
 OUT=${OUT:-/tmp/out}
 mkdir -p "$OUT"
@@ -22,6 +22,8 @@ export VH_SHARED_DATASETS_DIR=/opt/vh/datasets VH_GENERATED_DATA_DIR=/tmp/vhgen
 export QT_PLUGIN_PATH=/opt/vh/plugins QT_QPA_PLATFORM=xcb FONTCONFIG_PATH=/etc/fonts
 LIBS=/opt/vh/lib:$NV:$G/vgl
 unzst() { LD_LIBRARY_PATH="$G/bin" "$G/bin/zstd" -dc "$1" | tar xf - -C /; }
+# Runs a command with VirtualGL's fakers: its GLX calls rendered on the GPU through EGL.
+under_vgl() { env LD_LIBRARY_PATH="$LIBS" LD_PRELOAD="$G/vgl/libdlfaker.so:$G/vgl/libvglfaker.so" "$@"; }
 start_x() {
   [ -n "${DISPLAY:-}" ] && return
   mkdir -p /var/lib/xkb /tmp/.X11-unix
@@ -37,17 +39,15 @@ for step in "$@"; do
     unpack-b) unzst "$G/b.tar.zst" ;;
     render)
       start_x
-      env LD_LIBRARY_PATH="$LIBS" LD_PRELOAD="$G/vgl/libdlfaker.so:$G/vgl/libvglfaker.so" "$G/vgl/glxinfo" 2>&1 |
+      under_vgl "$G/vgl/glxinfo" 2>&1 |
         grep -E "renderer string|core profile version"
       # shellcheck disable=SC2086
-      env LD_LIBRARY_PATH="$LIBS" LD_PRELOAD="$G/vgl/libdlfaker.so:$G/vgl/libvglfaker.so" \
-        /opt/vh/bin/volume-haptics bench render --no-plots --series-dir /tmp/vhgen/ct ${RENDER_ARGS:-} \
+      under_vgl /opt/vh/bin/volume-haptics bench render --no-plots --series-dir /tmp/vhgen/ct ${RENDER_ARGS:-} \
         --out "$OUT/render" 2>&1 | grep -v '^\[VGL\]' ;;
     memory)
       start_x
       # shellcheck disable=SC2086
-      env LD_LIBRARY_PATH="$LIBS" LD_PRELOAD="$G/vgl/libdlfaker.so:$G/vgl/libvglfaker.so" \
-        /opt/vh/bin/volume-haptics bench memory --series-dir /tmp/vhgen/ct ${MEMORY_ARGS:-} \
+      under_vgl /opt/vh/bin/volume-haptics bench memory --series-dir /tmp/vhgen/ct ${MEMORY_ARGS:-} \
         --out "$OUT/memory" 2>&1 | grep -v '^\[VGL\]' ;;
     table1)
       # shellcheck disable=SC2086

@@ -77,6 +77,7 @@ class WorkerPool {
   // thread reads the lane count of the very job whose epoch it saw.
   static constexpr std::uint32_t kLaneMask = 0xFF;
   static constexpr std::uint32_t kEpochStep = kLaneMask + 1;
+  static_assert(kMaxLanes <= static_cast<int>(kLaneMask), "a job's lane count must fit below the epoch's sequence");
   alignas(64) std::atomic<std::uint32_t> epoch_{0};
   alignas(64) std::atomic<int> running_{0};   // lanes of the current job not yet done
   alignas(64) std::atomic<int> sleeping_{0};  // threads waiting on epoch_
