@@ -27,6 +27,8 @@
 #include "ui_test_util.h"
 #include "vh/runtime/device.h"
 #include "vh/runtime/recording.h"
+#include "vh/runtime/replay.h"
+#include "vh/runtime/session_metadata.h"
 #include "vh/runtime/scene.h"
 #include "vh/ui/main_window.h"
 #include "vh/ui/devices/device_input.h"
@@ -199,6 +201,13 @@ TEST_F(RecordingTest, WindowRecordingReadsBackWithEventsAndMetadata) {
   double max_force = 0.0;
   for (const runtime::TickRecord& r : rec.records) max_force = std::max(max_force, forceNormOf(r));
   EXPECT_GT(max_force, 0.01);
+  // Started while the haptic threads ran (the scene had been felt for a while), the recording
+  // still replays bit for bit: the recorder starts it on fresh threads from its initial pose.
+  const runtime::ReplayComparison replay =
+      runtime::replayRecording(runtime::loadScene(runtime::sceneFromSessionMetadata(rec.metadata_json)), rec);
+  EXPECT_TRUE(replay.identical) << replay.mismatch << " at tick " << replay.first_mismatch_tick.value_or(0) << " of "
+                                << rec.records.size();
+  EXPECT_GT(replay.forces_compared, 100u);
 }
 
 TEST_F(RecordingTest, ReplayLoadsTheSceneAndScrubbingMovesTheProxy) {
@@ -370,6 +379,42 @@ TEST_F(RecordingTest, MissingDatasetNamesItAndKeepsTheScene) {
   EXPECT_FALSE(w->replay()->active());
   EXPECT_FALSE(w->replay()->pending());
   EXPECT_EQ(w->session().loaded().volume.image.get(), image_before);
+}
+
+// Record pressed while the tool already rests on the surface (the hand in contact): the
+// recording still replays bit for bit, and from where the proxy was when it started, not from
+// the scene's free placement (where Reset Device still goes). The threads that had run are
+// rebuilt for the recording; before that, the replay began at the free pose and differed at
+// its first tick.
+TEST(RecordingInContact, ARecordingStartedOnTheSurfaceReplaysBitForBit) {
+  QTemporaryDir dir;
+  const fs::path path = fs::path(dir.path().toStdString()) / "in-contact.vhrec";
+  auto w = smallWindow();
+  ASSERT_TRUE(loadInto(*w, sphereScene()));
+  ASSERT_TRUE(w->session().hapticsRunning());
+  ASSERT_TRUE(w->deviceInput()->touchSurface(0.004));
+  ASSERT_TRUE(waitFor([&] { return !w->deviceInput()->touchInProgress(); }, 10000));
+  test::pump(300);
+  runtime::HapticSnapshot before;
+  ASSERT_TRUE(w->session().latestSnapshot(before));
+  ASSERT_GT(before.contacts, 0) << "the tool rests on the sphere";
+  const haptics::Pose free_pose = w->session().live().X_WT_initial;
+  ASSERT_TRUE(w->recorder()->start(path)) << w->recorder()->lastError().toStdString();
+  EXPECT_TRUE(w->session().hapticsRunning());
+  test::pump(600);
+  w->recorder()->stop();
+  w->session().stopHaptics();
+  EXPECT_EQ(w->session().live().X_WT_initial.p_AB_m, free_pose.p_AB_m) << "Reset Device still goes to the free pose";
+
+  const runtime::Recording rec = runtime::readRecording(path);
+  ASSERT_GT(rec.records.size(), 200u);
+  EXPECT_GT(rec.records.front().contacts, 0u) << "in contact from the first tick";
+  const runtime::LoadedScene scene = runtime::loadScene(runtime::sceneFromSessionMetadata(rec.metadata_json));
+  EXPECT_LT((scene.X_WT_initial.p_AB_m - before.X_WP.p_AB_m).norm(), 0.002) << "starts where the proxy was";
+  const runtime::ReplayComparison replay = runtime::replayRecording(scene, rec);
+  EXPECT_TRUE(replay.identical) << replay.mismatch << " at tick " << replay.first_mismatch_tick.value_or(0) << " of "
+                                << rec.records.size();
+  EXPECT_GT(replay.forces_compared, 200u);
 }
 
 TEST(ReplayForceArrow, StartsAtTheToolsExtremePointAgainstTheForce) {

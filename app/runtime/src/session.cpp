@@ -239,6 +239,22 @@ void Session::rebuildHaptics(const haptics::Pose& X_WP) {
   HapticThreadOptions options;
   options.monitor = monitor_;
   haptics_ = makeHapticThread(live_, device_, servo_rate_Hz_, X_WP, options);
+  haptics_built_X_WP_ = X_WP;
+}
+
+std::optional<haptics::Pose> Session::prepareRecording() {
+  if (!has_scene_ || haptics_ == nullptr) return std::nullopt;
+  HapticSnapshot latest;
+  haptics_->latestSnapshot(latest);
+  if (latest.tick == 0 && !haptics_->running()) return haptics_built_X_WP_;  // fresh threads
+  // Where the proxy stopped: free of the surface (the renderer's own pose); the cavity so far is
+  // kept by retireHaptics() and the new drill starts from it, as the replay's will.
+  haptics_->stop();
+  const haptics::Pose X_WP = proxyPose();
+  retireHaptics();
+  rebuildHaptics(X_WP);
+  notify(SessionChange::kRunning);
+  return X_WP;
 }
 
 void Session::setMonitor(std::shared_ptr<SnapshotChannel> monitor) {

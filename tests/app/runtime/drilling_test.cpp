@@ -434,6 +434,89 @@ TEST(Drilling, TheCavityOutlivesRebuildsOfTheHapticThreads) {
   EXPECT_EQ(session.hapticThread()->drill()->removal().removedVoxels(), 0u) << "the burr was off";
 }
 
+// A recording started in the middle of drilling, with the proxy pressed into its own cavity,
+// replays bit for bit (proxy, force, torque, contacts on every tick, and the drilled field's
+// bytes): the session rebuilds the haptic threads fresh where the proxy stopped, with the cavity
+// so far, before the recorder's first tick, as SessionRecorder does. The oracle that this can
+// fail: the same records replayed from the scene's own free pose, where threads that kept their
+// state would have started for the replay, differ.
+TEST(Drilling, ARecordingStartedWhileDrillingReplaysBitForBit) {
+  const auto dir = test::scratchDir();
+  Session session;
+  LoadedScene scene = loadScene(parseScene(R"({"volume": {"path": "builtin:sphere"}, "tool": {"mesh": "builtin:drill",
+      "point_spacing_m": 0.001}, "coupling": {"linear_N_per_m": 400}, "device": {"kind": "simulated"},
+      "drill": {"on": true, "burr_radius_m": 0.0025, "hardness": {"tissue": 0.3}}})", "s.json", "."));
+  const haptics::Pose X_free = scene.X_WT_initial;
+  auto device = scene.makeDevice();
+  session.setScene(std::move(scene), device);
+  haptics::Pose press = X_free;
+  press.p_AB_m = Eigen::Vector3d(0.0, 0.0, 0.0125);
+  session.startHaptics();
+  session.simulatedDevice()->setPose(press);
+  // Drilling and pressed: the burr's centre 1 mm below where the undrilled pole stops it.
+  ASSERT_TRUE(test::waitUntil([&] { return session.proxyPose().p_AB_m.z() < 0.0215; }, std::chrono::milliseconds(30000)))
+      << "the burr's centre at z = " << session.proxyPose().p_AB_m.z() * 1e3 << " mm";
+
+  const std::optional<haptics::Pose> X_start = session.prepareRecording();
+  ASSERT_TRUE(X_start.has_value());
+  EXPECT_FALSE(session.hapticsRunning()) << "left stopped for the recorder";
+  EXPECT_LT(X_start->p_AB_m.z(), 0.0215) << "rebuilt where the proxy stopped, in its cavity";
+  ASSERT_NE(session.live().drill->cavity, nullptr) << "the cavity so far is kept for the new threads";
+  const std::size_t cavity_at_start = session.live().drill->cavity->voxels.size();
+  LiveValues live = session.live();
+  live.X_WT_initial = *X_start;
+  SessionInfo info;
+  info.device_kind = "simulated";
+  HapticThread* thread = session.hapticThread();
+  ASSERT_NE(thread, nullptr);
+  RecordingWriterOptions writer_options;
+  writer_options.servo_rate_Hz = thread->solverRate_Hz();
+  const auto path = dir / "mid-run.vhrec";
+  auto writer = std::make_unique<RecordingWriter>(path, makeSessionMetadata(session.loaded(), live, info), writer_options);
+  thread->setRecorder(writer.get());
+  session.startHaptics();
+  // Keep pressing, then draw the burr 2 mm aside through the bone.
+  const std::uint64_t removed_before = thread->drill()->removal().removedVoxels();
+  haptics::Pose aside = press;
+  aside.p_AB_m.x() = 0.002;
+  test::waitUntil([] { return false; }, std::chrono::milliseconds(300));
+  session.simulatedDevice()->setPose(aside);
+  ASSERT_TRUE(test::waitUntil([&] { return thread->drill()->removal().removedVoxels() > removed_before + 20; },
+                              std::chrono::milliseconds(30000)));
+  test::waitUntil([] { return false; }, std::chrono::milliseconds(300));
+  session.stopHaptics();
+  thread->setRecorder(nullptr);
+  writer->close();
+  const haptics::ScalarVolume& live_field = thread->drill()->removal().volume();
+
+  const Recording rec = readRecording(path);
+  ASSERT_GT(rec.records.size(), 300u);
+  const LoadedScene reloaded = loadScene(sceneFromSessionMetadata(rec.metadata_json));
+  ASSERT_TRUE(reloaded.spec.drill.has_value());
+  ASSERT_NE(reloaded.spec.drill->cavity, nullptr) << "the metadata carries the cavity drilled before the recording";
+  EXPECT_EQ(reloaded.spec.drill->cavity->voxels.size(), cavity_at_start);
+  EXPECT_EQ(reloaded.X_WT_initial.p_AB_m, X_start->p_AB_m);
+  const ReplayComparison replay = replayRecording(reloaded, rec);
+  EXPECT_TRUE(replay.identical) << replay.mismatch << " at tick " << replay.first_mismatch_tick.value_or(0);
+  EXPECT_GT(replay.ticks_replayed, 300u);
+  ASSERT_NE(replay.drilled_field, nullptr);
+  ASSERT_EQ(replay.drilled_field->bytes().size(), live_field.bytes().size());
+  EXPECT_TRUE(std::equal(live_field.bytes().begin(), live_field.bytes().end(), replay.drilled_field->bytes().begin()))
+      << "the replay carves the field the live drill carved, byte for byte";
+  const std::size_t at_end = cavityOf(live_field, *session.live().hapticField()).voxels.size();
+  std::cout << "recording of " << rec.records.size() << " ticks started with " << cavity_at_start
+            << " voxels drilled, ended with " << at_end << "; the proxy started at z = " << X_start->p_AB_m.z() * 1e3
+            << " mm\n";
+  EXPECT_GT(at_end, cavity_at_start);
+
+  LoadedScene from_free = reloaded;  // the check can fail: the replay from the scene's free pose
+  from_free.X_WT_initial = X_free;
+  const ReplayComparison elsewhere = replayRecording(from_free, rec);
+  EXPECT_FALSE(elsewhere.identical);
+  std::cout << "replayed from the scene's free pose: " << elsewhere.mismatch << " differs at tick "
+            << elsewhere.first_mismatch_tick.value_or(0) << "\n";
+}
+
 // A device lowered onto the sphere's top over its first 500 reads and held there, its first
 // button held from read 300 on when `press_button`.
 class ButtonDevice final : public Device {

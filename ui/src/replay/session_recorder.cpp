@@ -94,15 +94,23 @@ fs::path SessionRecorder::defaultPath() {
 bool SessionRecorder::start(const fs::path& path) {
   if (recording()) stop();
   last_error_.clear();
-  runtime::HapticThread* haptics = session_.hapticThread();
-  if (!session_.hasScene() || haptics == nullptr) {
+  if (!session_.hasScene() || session_.hapticThread() == nullptr) {
     last_error_ = "Nothing to record: the scene has no device and haptic thread";
     updateUi();
     return false;
   }
-  if (!replay_active_) session_.startHaptics();  // the haptic thread waits while a replay is shown
-  if (!session_.hapticsRunning()) {
+  if (replay_active_ && !session_.hapticsRunning()) {  // the haptic thread waits while a replay is shown
     last_error_ = "Nothing to record: the haptic thread is not running (close the replay first)";
+    updateUi();
+    return false;
+  }
+  // A replay re-runs the recording through fresh threads from its initial pose and cavity: the
+  // recording starts with such threads (rebuilt where the proxy is when they had run) and holds
+  // every one of their ticks, so it replays bit for bit whenever it was started.
+  const std::optional<haptics::Pose> X_WP_start = session_.prepareRecording();
+  runtime::HapticThread* haptics = session_.hapticThread();
+  if (!X_WP_start || haptics == nullptr) {
+    last_error_ = "Nothing to record: the haptic thread could not be rebuilt";
     updateUi();
     return false;
   }
@@ -112,7 +120,9 @@ bool SessionRecorder::start(const fs::path& path) {
     info.device_kind = session_.simulatedDevice() != nullptr ? "simulated"
                        : session_.loaded().spec.device.has_value() ? session_.loaded().spec.device->kind
                                                                    : "hardware";
-    const std::string metadata = runtime::makeSessionMetadata(session_.loaded(), session_.live(), info);
+    runtime::LiveValues live = session_.live();
+    live.X_WT_initial = *X_WP_start;
+    const std::string metadata = runtime::makeSessionMetadata(session_.loaded(), live, info);
     runtime::RecordingWriterOptions options;
     options.servo_rate_Hz = haptics->solverRate_Hz();  // one record per solver tick
     if (options.chunk_records >= options.servo_rate_Hz) {
@@ -124,12 +134,14 @@ bool SessionRecorder::start(const fs::path& path) {
     writer_.reset();
     last_error_ = QString::fromStdString(path.string()) + ": " + QString::fromUtf8(e.what());
     std::cerr << "volume-haptics: recording: " << last_error_.toStdString() << '\n';
+    session_.startHaptics();
     updateUi();
     return false;
   }
   path_ = path;
   marker_count_ = 0;
-  haptics->setRecorder(writer_.get());
+  haptics->setRecorder(writer_.get());  // before the threads' first tick
+  session_.startHaptics();
   elapsed_.start();
   status_timer_->start();
   updateUi();

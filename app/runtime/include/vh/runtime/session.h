@@ -168,6 +168,19 @@ class Session {
   /// Ramps the force to zero and joins the threads; idempotent. While drilling, live().drill->cavity
   /// then holds every voxel removed so far (a recording started next carries it).
   void stopHaptics();
+  /// Makes the haptic state one that a recording started next replays bit for bit, and returns
+  /// the proxy pose in W [m] those threads start from (the recording's initial pose; nullopt:
+  /// no scene or no threads, nothing happens). replayRecording() starts a fresh renderer at the
+  /// recorded initial pose with the recorded cavity, so the threads the recording holds must
+  /// start that way too. Threads that have ticked (running, or stopped after running) are
+  /// stopped (force ramped to zero, about 50 ms), keep their cavity (live().drill->cavity) and
+  /// are rebuilt at the pose the proxy stopped at; the device stays where it is (a hand pressing
+  /// on bone presses on the new proxy at once). Threads that never ticked are kept, with the
+  /// pose they were built at. Either way they are left stopped: build the metadata from live()
+  /// with X_WT_initial set to the returned pose (live().X_WT_initial stays the scene's free
+  /// placement, where Reset Device goes), attach the recorder (HapticThread::setRecorder()),
+  /// then startHaptics(), so the recording holds every tick of these threads.
+  std::optional<haptics::Pose> prepareRecording();
   /// The haptic threads' latest snapshot into `out` (false, `out` untouched, without threads or
   /// before their first tick). Never blocks.
   bool latestSnapshot(HapticSnapshot& out) const;
@@ -202,6 +215,7 @@ class Session {
   double value_max_ = 1.0;
   std::shared_ptr<Device> device_;
   std::unique_ptr<HapticThread> haptics_;
+  haptics::Pose haptics_built_X_WP_;  ///< The proxy pose haptics_ was built at (rebuildHaptics()).
   std::shared_ptr<SnapshotChannel> monitor_;
   std::map<std::string, double> hardness_for_drill_;  ///< setHardness() before any drill
   std::vector<std::pair<int, Observer>> observers_;

@@ -24,9 +24,10 @@
 ///   "tool": {"mesh": ..., "point_count": N, "point_spacing_m": mean nearest-neighbour spacing},
 ///   "device": {"name": ..., "kind": ...}, "note": ...
 /// }
-/// The isovalue and the initial pose are the live values when the recording started (resolved,
-/// never "unset"), so a reloaded scene starts exactly where the recorded one did (doubles
-/// round-trip bit for bit). So does a drilled cavity (LiveValues::drill->cavity: the felt field's
+/// The isovalue is the live value when the recording started (resolved, never "unset"); the
+/// initial pose is the proxy pose the recording's haptic threads started from (the GUI rebuilds
+/// threads that had already run there: Session::prepareRecording()), so a reloaded scene starts
+/// exactly where the recorded one did (doubles round-trip bit for bit). So does a drilled cavity (LiveValues::drill->cavity: the felt field's
 /// voxels removed before the haptic threads were built or last stopped, as runs of linear
 /// indices on its grid): the replay's drill starts from it, as the session's did.
 ///
