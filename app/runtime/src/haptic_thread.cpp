@@ -348,6 +348,9 @@ HapticThread::HapticThread(std::unique_ptr<haptics::HapticRenderer> renderer, st
 HapticThread::~HapticThread() { stop(); }
 
 void HapticThread::setGains(const haptics::CouplingGains& gains) noexcept {
+  // The event's tick is read before the change is published: the solver applies it on a later
+  // tick (kRecordFlagGainsApplied), never on this one.
+  const std::uint64_t before_tick = latest_recorded_tick_.load(std::memory_order_acquire);
   gain_linear_.store(gains.linear_N_per_m, std::memory_order_relaxed);
   gain_angular_.store(gains.angular_Nm_per_rad, std::memory_order_relaxed);
   gain_passivity_.store(gains.passivity_control, std::memory_order_relaxed);
@@ -362,19 +365,22 @@ void HapticThread::setGains(const haptics::CouplingGains& gains) noexcept {
     d["requested"] = {{"linear_N_per_m", gains.linear_N_per_m},
                       {"angular_Nm_per_rad", gains.angular_Nm_per_rad},
                       {"passivity_control", gains.passivity_control}};
-    recordEvent("gains", d.dump());
+    recordEventAt("gains", d.dump(), before_tick);
   } catch (...) {  // NOLINT(bugprone-empty-catch): the event is best effort, the gains are set
   }
 }
 
 void HapticThread::recordEvent(const std::string& type, const std::string& detail_json) {
+  recordEventAt(type, detail_json, latest_recorded_tick_.load(std::memory_order_acquire));
+}
+
+void HapticThread::recordEventAt(const std::string& type, const std::string& detail_json, std::uint64_t latest) {
   RecordingWriter* recorder = recorder_.load(std::memory_order_acquire);
   if (recorder == nullptr) return;
   RecordingEvent event;
   event.type = type;
   event.detail_json = detail_json;
   const std::uint64_t first = first_recorded_tick_.load(std::memory_order_acquire);
-  const std::uint64_t latest = latest_recorded_tick_.load(std::memory_order_acquire);
   event.tick = latest;
   event.time_s = first != 0 && latest >= first ? static_cast<double>(latest - first) * solver_period_s_ : 0.0;
   recorder->addEvent(event);
@@ -638,12 +644,14 @@ inline std::uint32_t solverRecordFlags(std::uint32_t contacts, const DeviceInput
          recordSegmentBits(segment);
 }
 
-/// Gives the renderer the gains the coupling thread applied to this sample when they changed.
-inline void followGains(const haptics::CouplingGains& sample_gains, haptics::CouplingGains& gains,
+/// Gives the renderer the gains the coupling thread applied to this sample when they changed
+/// (true then).
+inline bool followGains(const haptics::CouplingGains& sample_gains, haptics::CouplingGains& gains,
                         haptics::HapticRenderer& renderer) noexcept {
-  if (sameGains(sample_gains, gains)) return;
+  if (sameGains(sample_gains, gains)) return false;
   gains = sample_gains;
   renderer.setGains(gains);
+  return true;
 }
 
 /// A solver tick's contacts into its snapshot: their number, the segment touched and the first
@@ -800,7 +808,7 @@ void HapticThread::solverLoop() noexcept {
   // One solver tick on `in`: render, publish the proxy, record, publish the snapshot.
   const auto solve = [&](const DeviceInput& in) noexcept {
     const std::int64_t begin_ns = monotonicNs();
-    followGains(in.gains, gains, *renderer_);
+    const std::uint32_t gains_flags = followGains(in.gains, gains, *renderer_) ? kRecordFlagGainsApplied : 0u;
     haptics::TickOutput out;
     bool bad_input = false;
     std::uint32_t drill_flags = 0;
@@ -841,7 +849,8 @@ void HapticThread::solverLoop() noexcept {
       rec.isovalue = in.isovalue;
       rec.tick_time_s = 1e-9 * static_cast<double>(end_ns - begin_ns);
       rec.contacts = static_cast<std::uint32_t>(contacts.size());
-      rec.flags = solverRecordFlags(rec.contacts, in, out, segment) | wake_flags | coupling_flags | drill_flags;
+      rec.flags =
+          solverRecordFlags(rec.contacts, in, out, segment) | wake_flags | coupling_flags | drill_flags | gains_flags;
       (void)recorder->push(rec);
       latest_recorded_tick_.store(tick, std::memory_order_release);
     }

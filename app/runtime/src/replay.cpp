@@ -1,6 +1,7 @@
 // Replaying recordings: the replay device and the bit-for-bit re-run (vh/runtime/replay.h).
 #include "vh/runtime/replay.h"
 
+#include <algorithm>
 #include <cstring>
 #include <stdexcept>
 
@@ -107,6 +108,8 @@ ReplayComparison replayRecording(const LoadedScene& scene, const Recording& reco
   ReplayDevice device(recording.records, "replayRecording");
   ReplayComparison result;
   std::size_t next_gains = 0;
+  const bool gains_flagged = std::any_of(recording.records.begin(), recording.records.end(),
+                                         [](const TickRecord& r) { return (r.flags & kRecordFlagGainsApplied) != 0; });
   const auto fail = [&result](const TickRecord& r, std::size_t index, const char* what) {
     result.identical = false;
     result.first_mismatch_tick = r.tick;
@@ -126,9 +129,13 @@ ReplayComparison replayRecording(const LoadedScene& scene, const Recording& reco
     const TickRecord& r = recording.records[i];
     while (next_hardness < hardness_changes.size() && hardness_changes[next_hardness].tick < r.tick)
       applyHardness(hardness_changes[next_hardness++]);
-    while (next_gains < gains_changes.size() && gains_changes[next_gains].tick < r.tick) {
-      renderer->setGains(gains_changes[next_gains].gains);
-      ++next_gains;
+    // Where the solver flagged the tick it applied new gains on, there (the latest event stamped
+    // before it); an older recording: on the first record after the event's tick.
+    if (!gains_flagged || (r.flags & kRecordFlagGainsApplied) != 0) {
+      while (next_gains < gains_changes.size() && gains_changes[next_gains].tick < r.tick) {
+        renderer->setGains(gains_changes[next_gains].gains);
+        ++next_gains;
+      }
     }
     DeviceSample sample;
     const bool ok = device.read(sample) && sample.valid && sample.X_WD.allFinite();

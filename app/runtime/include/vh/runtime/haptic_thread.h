@@ -261,6 +261,8 @@ class HapticThread {
   std::atomic<bool> running_{false};
   std::atomic<bool> fifo_{false};
   std::atomic<bool> memory_locked_{false};
+  /// recordEvent() stamped with solver tick `latest` (a recorded tick, 0 before the first).
+  void recordEventAt(const std::string& type, const std::string& detail_json, std::uint64_t latest);
   std::atomic<RecordingWriter*> recorder_{nullptr};
   /// Latest recorded solver tick and the recording's first (solver thread writes; 0 before).
   std::atomic<std::uint64_t> latest_recorded_tick_{0};

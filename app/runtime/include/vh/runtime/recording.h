@@ -122,6 +122,12 @@ inline constexpr std::uint32_t kRecordFlagForceLimited = 1u << 7;
 /// The drill's burr was spinning after this tick's renderer step (drilling.h): a replay cuts
 /// on exactly these ticks, so it rebuilds the drilled volume bit for bit.
 inline constexpr std::uint32_t kRecordFlagDrillOn = 1u << 8;
+/// The solver applied new coupling gains on this tick (a change made with
+/// HapticThread::setGains(), which also records it as a "gains" event stamped with the last
+/// solver tick before the change): a replay applies that event exactly here, whenever the
+/// coupling thread passed it on. Recordings without any such flag (older ones) apply a "gains"
+/// event on the first record after its tick.
+inline constexpr std::uint32_t kRecordFlagGainsApplied = 1u << 9;
 
 /// One servo tick, fixed size, trivially copyable (its byte image is what the file stores).
 /// Frames: W is the scene (world) frame; D the device (tool) frame; P the proxy frame.

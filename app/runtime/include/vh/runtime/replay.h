@@ -88,7 +88,10 @@ struct ReplayProgress {
 /// fed by a ReplayDevice, as the haptic thread drives it: gains set once before the first tick
 /// (the scene's), each record's isovalue, no tick for a record flagged kRecordFlagBadSample.
 /// A "gains" event ({"linear_N_per_m": k, "angular_Nm_per_rad": k_r}) is applied before the
-/// first record after its tick (exact only when the change took effect on the next tick).
+/// record the solver flagged kRecordFlagGainsApplied after the event's tick (exact, unless two
+/// changes came within one solver tick and the solver saw only the second); in a recording
+/// without those flags, before the first record after its tick (exact only when the change
+/// took effect on the next tick).
 /// After each rendered tick it compares the proxy pose (always), the contact count, and the
 /// force and torque (only on records without kRecordFlagForceLimited, kRecordFlagForceZeroed or
 /// kRecordFlagStopping, where the safety layer sent the renderer's output unchanged), and stops
