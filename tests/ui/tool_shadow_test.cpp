@@ -7,11 +7,13 @@
 #include <cstdlib>
 #include <filesystem>
 #include <cmath>
+#include <iostream>
 #include <limits>
 #include <optional>
 #include <vector>
 
 #include <QImage>
+#include <QSignalSpy>
 
 #include <gtest/gtest.h>
 #include <vtkActor.h>
@@ -24,10 +26,14 @@
 #include "ui_test_util.h"
 #include "view_host.h"
 #include "vh/datasets/synthetic.h"
+#include "vh/runtime/drilling.h"
+#include "vh/runtime/scene.h"
 #include "vh/runtime/session.h"
+#include "vh/ui/drill_controller.h"
 #include "vh/ui/panels/display_panel.h"
 #include "vh/ui/export/media_export.h"
 #include "vh/ui/main_window.h"
+#include "vh/ui/scene_opener.h"
 #include "vh/ui/tool_picker.h"
 #include "vh/ui/devices/device_input.h"
 #include "vh/ui/view/scene_actors.h"
@@ -116,6 +122,100 @@ TEST(ToolShadow, FallsWhereTheRayMeetsTheAnalyticBallAndTheDropLineIsTheShortest
   EXPECT_TRUE(castToolShadow(field, 0.0, X_WP, std::span(&inside_T, 1), down_W, reach).footprint_W_m.empty());
 }
 
+// A pit drilled into the ball's top (voxels inside it within 5 mm of the vertical axis, down to
+// 8 mm below the top) carved into a CarvedRegion in three batches (the second inside the box,
+// the third beyond it): straight down from above the pit the shadow falls onto the pit's floor
+// (within a voxel of 8 mm down; the uncarved field puts it on the top), and every shadow, along
+// a tilted light too, is the one cast on a dense copy of the field with the same voxels set to
+// its lowest value (the brute-force oracle), to 1e-9 m.
+TEST(ToolShadow, FallsIntoADrilledPitAsOnACarvedCopyOfTheWholeField) {
+  datasets::GridSpec grid;  // 64^3 of 1 mm about the origin
+  const Eigen::Vector3d c(0.3e-3, -0.2e-3, 0.1e-3);
+  const double R = 0.020, pit_r = 0.005, pit_depth = 0.008;
+  auto field = std::make_shared<const haptics::ScalarVolume>(datasets::makeSphereVolume(grid, c, R));
+  const auto& g = field->geometry();
+  std::vector<std::uint64_t> pit;
+  for (int k = 0; k < g.dims[2]; ++k)
+    for (int j = 0; j < g.dims[1]; ++j)
+      for (int i = 0; i < g.dims[0]; ++i) {
+        const Eigen::Vector3d p = g.origin_W_m + g.spacing_m.cwiseProduct(Eigen::Vector3d(i, j, k));
+        if (field->voxel(i, j, k) > 0.0 && std::hypot(p.x() - c.x(), p.y() - c.y()) < pit_r &&
+            p.z() > c.z() + R - pit_depth)
+          pit.push_back(static_cast<std::uint64_t>(i + g.dims[0] * (j + g.dims[1] * k)));
+      }
+  ASSERT_GT(pit.size(), 300u);
+  // Batches: the pit's lower half (by index: z grows with it), then its upper half but for a
+  // core around the axis halfway down (the box grows: copied again), then that core (inside the
+  // box already: written in place).
+  const auto inCore = [&](std::uint64_t index) {
+    const int i = static_cast<int>(index % 64), j = static_cast<int>((index / 64) % 64), k = static_cast<int>(index / 4096);
+    const Eigen::Vector3d p = g.origin_W_m + g.spacing_m.cwiseProduct(Eigen::Vector3d(i, j, k));
+    return std::hypot(p.x() - c.x(), p.y() - c.y()) < 0.002 && std::abs(p.z() - (c.z() + R - 0.003)) < 0.0011;
+  };
+  std::vector<std::uint64_t> first, second, core;
+  for (std::size_t n = 0; n < pit.size(); ++n) {
+    if (n < pit.size() / 2) first.push_back(pit[n]);
+    else if (inCore(pit[n])) core.push_back(pit[n]);
+    else second.push_back(pit[n]);
+  }
+  ASSERT_GT(core.size(), 5u);
+  pit = first;  // in the order carved, for the dense copy
+  pit.insert(pit.end(), second.begin(), second.end());
+  pit.insert(pit.end(), core.begin(), core.end());
+
+  std::vector<Eigen::Vector3d> samples_T;
+  for (int i = -4; i <= 4; ++i)
+    for (int j = -4; j <= 4; ++j) samples_T.emplace_back(i * 1.1e-3, j * 1.1e-3, 0.0);
+  Pose X_WP;
+  X_WP.p_AB_m = c + Eigen::Vector3d(0.0, 0.0, R + 0.004);
+  const Eigen::Vector3d down(0, 0, -1), tilted = Eigen::Vector3d(0.3, -0.2, -1.0).normalized();
+
+  CarvedRegion carved;
+  carved.reset(field, first);
+  const auto checkAgainstDenseCopy = [&](std::size_t removed, const char* stage) {
+    haptics::ScalarVolume dense = *field;
+    for (std::size_t n = 0; n < removed; ++n) dense.writeRaw(pit[n], field->lowestRaw());
+    dense.refreshRegion({0, 0, 0}, {g.dims[0] - 1, g.dims[1] - 1, g.dims[2] - 1});
+    for (const Eigen::Vector3d& d : {down, tilted}) {
+      const ToolShadow expected = castToolShadow(dense, 0.0, X_WP, samples_T, d, 0.06);
+      const ToolShadow got = castToolShadow(*field, carved, 0.0, X_WP, samples_T, d, 0.06);
+      ASSERT_EQ(got.footprint_W_m.size(), expected.footprint_W_m.size()) << stage;
+      for (std::size_t n = 0; n < got.footprint_W_m.size(); ++n)
+        EXPECT_LT((got.footprint_W_m[n] - expected.footprint_W_m[n]).norm(), 1e-9) << stage << ", sample " << n;
+      EXPECT_NEAR(got.gap_m, expected.gap_m, 1e-9) << stage;
+    }
+  };
+  checkAgainstDenseCopy(first.size(), "lower half");
+  std::uint64_t version = carved.version();
+  carved.remove(second);
+  EXPECT_GT(carved.version(), version);
+  checkAgainstDenseCopy(first.size() + second.size(), "upper half but its core");
+  version = carved.version();
+  carved.remove(core);
+  EXPECT_GT(carved.version(), version);
+  EXPECT_EQ(carved.removedCount(), pit.size());
+  checkAgainstDenseCopy(pit.size(), "whole pit");
+
+  // Straight down over the pit's middle: onto its floor, not the ball's top.
+  const std::vector<Eigen::Vector3d> middle_T{Eigen::Vector3d::Zero()};
+  const ToolShadow into = castToolShadow(*field, carved, 0.0, X_WP, middle_T, down, 0.06);
+  const ToolShadow onto = castToolShadow(*field, 0.0, X_WP, middle_T, down, 0.06);
+  ASSERT_EQ(into.footprint_W_m.size(), 1u);
+  ASSERT_EQ(onto.footprint_W_m.size(), 1u);
+  const double floor_z = c.z() + R - pit_depth;
+  EXPECT_NEAR(into.footprint_W_m[0].z(), floor_z, 1.0e-3) << "the pit's floor";
+  EXPECT_NEAR(onto.footprint_W_m[0].z(), c.z() + R, 0.1e-3) << "the top, uncarved";
+  std::cout << "shadow straight down: on the uncut top at z = " << onto.footprint_W_m[0].z() * 1e3
+            << " mm, into the pit at " << into.footprint_W_m[0].z() * 1e3 << " mm (floor " << floor_z * 1e3 << ")\n";
+
+  // On another field (a rebuilt felt field), or cleared: the plain cast.
+  const auto other = std::make_shared<const haptics::ScalarVolume>(*field);
+  EXPECT_NEAR(castToolShadow(*other, carved, 0.0, X_WP, middle_T, down, 0.06).footprint_W_m[0].z(), c.z() + R, 0.1e-3);
+  carved.clear();
+  EXPECT_EQ(carved.box(), nullptr);
+  EXPECT_NEAR(castToolShadow(*field, carved, 0.0, X_WP, middle_T, down, 0.06).footprint_W_m[0].z(), c.z() + R, 0.1e-3);
+}
+
 // Farthest-point sampling of a 100 mm segment: both ends, and every vertex within a quarter of
 // the length of a sample when five are taken (the covering radius, by brute force).
 TEST(ToolShadow, SamplesSpreadOverTheWholeTool) {
@@ -152,6 +252,66 @@ std::vector<Eigen::Vector3d> pointsOf(vtkActor* actor) {
     out.emplace_back(p[0], p[1], p[2]);
   }
   return out;
+}
+
+// The window while drilling: the drill sinks 4 mm into the built-in ball (radius 20 mm about the
+// origin), the burr stops and the tool is drawn 2 mm back up, inside its pit. Its shadow falls
+// on the pit's walls and floor, as on the field the haptic threads carved (the oracle: that
+// field itself, read once the threads stopped): every point the view shows is one of the cast
+// on it, and some lie below the uncut surface, where the field as loaded has bone.
+TEST(ToolShadow, InTheWindowItFallsIntoTheDrilledPit) {
+  MainWindow window;
+  window.setInteractive(false);
+  window.resize(640, 480);
+  window.show();
+  runtime::SceneSpec spec = runtime::parseScene(R"({"volume": {"path": "builtin:sphere"}, "tool": {"mesh": "builtin:drill",
+      "point_spacing_m": 0.001}, "coupling": {"linear_N_per_m": 400}, "device": {"kind": "simulated"},
+      "drill": {"on": true, "burr_radius_m": 0.0025, "hardness": {"tissue": 0.3}}})", "drill.json", ".");
+  QSignalSpy loaded(&window, &MainWindow::sceneLoaded);
+  window.opener()->openScene(spec);
+  ASSERT_TRUE(test::waitFor([&] { return loaded.count() > 0 && !window.opener()->loading(); }, 60000));
+  runtime::Session& session = window.session();
+  session.startHaptics();
+  ASSERT_TRUE(session.hapticsRunning());
+  Pose press = session.proxyPose();
+  press.p_AB_m = Eigen::Vector3d(0.0, 0.0, 0.0125);
+  session.simulatedDevice()->setPose(press);
+  ASSERT_TRUE(test::waitFor([&] { return session.proxyPose().p_AB_m.z() < 0.0185; }, 30000))
+      << "the burr's centre at z = " << session.proxyPose().p_AB_m.z() * 1e3 << " mm";
+  session.setDrilling(false);
+  Pose up = session.proxyPose();
+  up.p_AB_m.z() += 0.002;
+  session.simulatedDevice()->setPose(up);
+  ASSERT_TRUE(test::waitFor([&] { return (session.proxyPose().p_AB_m - up.p_AB_m).norm() < 1e-4; }, 10000));
+  test::pump(200);
+  session.stopHaptics();
+  window.drillController()->drain();
+  test::pump(200);  // the last snapshot shown, the shadow cast for it
+  window.viewController()->updateShadow();
+
+  const haptics::ScalarVolume& carved_field = session.hapticThread()->drill()->removal().volume();
+  const double iso = session.live().hapticIsovalue();
+  const Pose X_WP = window.sceneView()->shownProxyPose();
+  const Eigen::Vector3d d = window.sceneView()->shadowDirection_W();
+  const auto& samples = window.viewController()->shadowSamples_T_m();
+  const ToolShadow expected = castToolShadow(carved_field, iso, X_WP, samples, d);
+  const ToolShadow uncut = castToolShadow(*session.live().hapticField(), iso, X_WP, samples, d);
+  const double lift_m = 0.5 * carved_field.geometry().minSpacing();
+  const std::vector<Eigen::Vector3d> shown = pointsOf(window.sceneView()->actors().shadowActor());
+  ASSERT_EQ(shown.size(), expected.footprint_W_m.size());
+  int below_uncut = 0;
+  for (const Eigen::Vector3d& p : shown) {
+    const Eigen::Vector3d on_surface = p + lift_m * d;
+    double nearest = std::numeric_limits<double>::infinity();
+    for (const Eigen::Vector3d& q : expected.footprint_W_m) nearest = std::min(nearest, (q - on_surface).norm());
+    EXPECT_LT(nearest, 1e-6) << "a shadow point off the carved field at " << on_surface.transpose();
+    below_uncut += on_surface.norm() < 0.020 - 1e-3;
+  }
+  std::cout << shown.size() << " shadow points, " << below_uncut << " below the uncut surface; the uncut field puts "
+            << uncut.footprint_W_m.size() << " on it; the pit " << window.drillController()->carved().removedCount()
+            << " voxels\n";
+  EXPECT_GE(below_uncut, 3) << "the shadow falls into the pit";
+  EXPECT_GT(window.drillController()->carved().removedCount(), 20u);
 }
 
 // The window: the probe held above the built-in ball (radius 20 mm about the origin) casts its

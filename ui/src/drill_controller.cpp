@@ -138,7 +138,9 @@ void DrillController::reset() {
   removed_mm3_ = 0.0;
   removed_mask_.clear();
   critical_seen_.clear();
+  carved_.clear();
   if (view_.hasScene()) view_.actors().restoreVolume();
+  emit cavityChanged();
 }
 
 void DrillController::drain() {
@@ -159,7 +161,13 @@ void DrillController::drain() {
     drill_seen_ = thread->drill();
     critical_seen_.assign(drill.removal().materials().size(), 0);
     showCavity(drill.cavityAtStart().get(), range[0]);
+    // The shadow's field: the felt field the new drill started from, with its cavity.
+    const auto& start = drill.cavityAtStart();
+    carved_.reset(session_.live().hapticField(),
+                  start != nullptr ? runtime::cavityVoxelsOn(*start, felt.geometry()) : std::vector<std::uint64_t>{});
+    emit cavityChanged();
   }
+  const std::uint64_t carved_before = carved_.version();
   for (;;) {
     const std::size_t n = drill.removal().drainRemoved(buffer_);
     if (n == 0) break;
@@ -167,11 +175,13 @@ void DrillController::drain() {
     for (const std::uint64_t index : image_indices_)
       if (index < removed_mask_.size()) removed_mask_[index] = 1;
     view_.actors().removeVoxels(image_indices_, range[0]);
+    carved_.remove(std::span<const std::uint64_t>(buffer_.data(), n));
     removed_ += n;
     removed_mm3_ += static_cast<double>(n) * drill.removal().voxelVolume_mm3();
     view_.noteMotion();  // a growing cavity is motion: interactive frames until it settles
     view_.requestRender();
   }
+  if (carved_.version() != carved_before) emit cavityChanged();
   reportCritical(drill, thread);
 }
 

@@ -137,13 +137,17 @@ bool ViewController::updateShadow() {
   key.direction_W = view_.shadowDirection_W();
   key.isovalue = session_.live().hapticIsovalue();
   key.field = field.get();
+  key.carved_version = carved_ != nullptr ? carved_->version() : 0;
   if (shadow_cast_ && key.X_WP.p_AB_m == shadow_key_.X_WP.p_AB_m &&
       key.X_WP.R_AB.coeffs() == shadow_key_.X_WP.R_AB.coeffs() &&
       (key.direction_W - shadow_key_.direction_W).norm() < 1e-3 && key.isovalue == shadow_key_.isovalue &&
-      key.field == shadow_key_.field) {
+      key.field == shadow_key_.field && key.carved_version == shadow_key_.carved_version) {
     return false;
   }
-  const ToolShadow shadow = castToolShadow(*field, key.isovalue, key.X_WP, shadow_samples_T_m_, key.direction_W);
+  // Drilled: on the field the hand feels, with the cavity.
+  const ToolShadow shadow =
+      carved_ != nullptr ? castToolShadow(*field, *carved_, key.isovalue, key.X_WP, shadow_samples_T_m_, key.direction_W)
+                         : castToolShadow(*field, key.isovalue, key.X_WP, shadow_samples_T_m_, key.direction_W);
   view_.showShadow(shadow, key.direction_W);
   shadow_key_ = key;
   shadow_cast_ = true;

@@ -22,6 +22,8 @@
 #include <QObject>
 #include <QString>
 
+#include "vh/ui/view/tool_shadow.h"
+
 class QAction;
 class QMenu;
 class QTimer;
@@ -72,10 +74,15 @@ class DrillController : public QObject {
   /// region as one segment "drilled" to `seg_path` (.seg.nrrd, 3D Slicer's keys).
   /// @throws std::runtime_error naming the file when nothing was drilled or a write fails.
   void exportDrilled(const std::filesystem::path& nrrd_path, const std::filesystem::path& seg_path) const;
+  /// The felt field as the hand feels it around the cavity (live().hapticField() carved by every
+  /// voxel removed so far), for the tool's shadow; nothing carved before the first removal.
+  const CarvedRegion& carved() const noexcept { return carved_; }
 
  signals:
   /// A short text for the status bar (on, off, critical removal).
   void message(const QString& text, int timeout_ms);
+  /// The cavity grew or was replaced (carved() changed): the shadow is cast again.
+  void cavityChanged();
 
  private:
   void onSessionChanged(runtime::SessionChange what);
@@ -97,6 +104,7 @@ class DrillController : public QObject {
   std::vector<std::uint64_t> image_indices_;    // the same on the picture's grid
   std::vector<std::uint8_t> removed_mask_;      // per voxel of the picture: 1 when removed
   std::vector<std::uint64_t> critical_seen_;    // per material: removed voxels already reported
+  CarvedRegion carved_;                         // the felt field's voxels removed so far, for the shadow
   std::uint64_t removed_ = 0;
   double removed_mm3_ = 0.0;
 };

@@ -19,6 +19,7 @@
 #include "vh/ui/preferences.h"
 #include "vh/ui/view/render_presets.h"
 #include "vh/ui/view/scene_view.h"
+#include "vh/ui/view/tool_shadow.h"
 
 class QColor;
 class QMenu;
@@ -62,6 +63,9 @@ class ViewController : public QObject {
   /// the field or the tool changed since the last cast (at most 128 segment walks).
   /// @return true when it cast.
   bool updateShadow();
+  /// The shadow falls on the felt field carved by `carved` (DrillController::carved(); not owned,
+  /// it outlives this; null: the field as loaded) and is cast again when it changes.
+  void setCarvedRegion(const CarvedRegion* carved) noexcept { carved_ = carved; }
   /// Samples of the tool the shadow is cast from (shadowSamples() of its point shell).
   const std::vector<Eigen::Vector3d>& shadowSamples_T_m() const noexcept { return shadow_samples_T_m_; }
   /// The tool's bounding sphere in view, at the proxy's latest pose.
@@ -109,7 +113,9 @@ class ViewController : public QObject {
     Eigen::Vector3d direction_W = Eigen::Vector3d::Zero();
     double isovalue = 0.0;
     const void* field = nullptr;
+    std::uint64_t carved_version = 0;
   };
+  const CarvedRegion* carved_ = nullptr;
   ShadowKey shadow_key_;
   bool shadow_cast_ = false;  // shadow_key_ holds the last cast's inputs
 };

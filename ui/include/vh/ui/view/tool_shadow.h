@@ -11,6 +11,9 @@
 /// (haptics::ScalarVolume::firstEntryOnSegment()): a shadow on the surface means the same surface
 /// the hand meets there. No Qt or VTK here; SceneActors draws it.
 
+#include <array>
+#include <cstdint>
+#include <memory>
 #include <optional>
 #include <span>
 #include <vector>
@@ -48,6 +51,47 @@ struct ToolShadow {
 ToolShadow castToolShadow(const haptics::ScalarVolume& field, double isovalue, const haptics::Pose& X_WP,
                           std::span<const Eigen::Vector3d> samples_T_m, const Eigen::Vector3d& direction_W,
                           std::optional<double> reach_m = std::nullopt);
+
+/// The part of a field that drilling changed, carved: the box of voxels within one voxel of any
+/// removed voxel (the only cells whose trilinear field differs from the field as loaded), as a
+/// volume of its own on the same grid, with the removed voxels at the field's lowest value (as
+/// the drill writes them: MaterialRemoval). The shadow then falls into the cavity the hand feels
+/// without a second copy of the whole scan on the GUI's side (the servo thread's own copy is
+/// never read here). Not thread-safe; the GUI thread keeps it (DrillController).
+class CarvedRegion {
+ public:
+  /// Starts over on `field` (the felt field as loaded; kept by pointer, it must outlive this or
+  /// the next reset) with `removed` (linear indices of its grid, x fastest) carved out.
+  void reset(std::shared_ptr<const haptics::ScalarVolume> field, std::span<const std::uint64_t> removed = {});
+  /// Nothing carved, no field.
+  void clear();
+  /// Carves `removed` (linear indices of the field's grid; out of range: ignored) out too; the box
+  /// grows to hold them (copied from the field again) or the new voxels are written into it.
+  void remove(std::span<const std::uint64_t> removed);
+  /// The carved box (null: nothing removed), on the field's grid offset to the box's first voxel.
+  const haptics::ScalarVolume* box() const noexcept { return box_ != nullptr ? box_.get() : nullptr; }
+  /// The field it carves (null after clear()).
+  const std::shared_ptr<const haptics::ScalarVolume>& field() const noexcept { return field_; }
+  /// Voxels carved so far.
+  std::size_t removedCount() const noexcept { return removed_.size(); }
+  /// Changes with every reset, clear and remove that carved something (for a cache's key).
+  std::uint64_t version() const noexcept { return version_; }
+
+ private:
+  void rebuild();
+  std::shared_ptr<const haptics::ScalarVolume> field_;
+  std::vector<std::uint64_t> removed_;  // every carved voxel, in order
+  std::array<int, 3> lo_{0, 0, 0}, hi_{-1, -1, -1};  // the box, inclusive, in the field's voxels
+  std::unique_ptr<haptics::ScalarVolume> box_;
+  std::uint64_t version_ = 0;
+};
+
+/// castToolShadow() on `field` carved by `carved` (its box read where a ray crosses it, `field`
+/// elsewhere): the same shadow as on a copy of the field with the removed voxels set to its
+/// lowest value, up to rounding. `carved` without a box, or on another field: castToolShadow().
+ToolShadow castToolShadow(const haptics::ScalarVolume& field, const CarvedRegion& carved, double isovalue,
+                          const haptics::Pose& X_WP, std::span<const Eigen::Vector3d> samples_T_m,
+                          const Eigen::Vector3d& direction_W, std::optional<double> reach_m = std::nullopt);
 
 /// The direction shadows are cast along for `camera`, unit: a light above the viewer's left
 /// shoulder that turns with the camera, -up + right/2 + forward/2 normalised (the screen's down
