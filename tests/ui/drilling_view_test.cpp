@@ -420,12 +420,16 @@ TEST(DrillingView, ReplayShowsTheCavityAtItsTime) {
   const double end = window.replay()->recording().records.back().time_s;
   window.replay()->setTime(end);
   EXPECT_EQ(removedShown(), removed) << "every voxel the run removed, removed in the picture";
+  // The shadow's field follows (the built-in sphere's felt grid is the picture's).
+  EXPECT_EQ(window.replay()->carved().removedCount(), removed) << "the shadow falls into the whole cavity";
   window.replay()->setTime(0.0);
   EXPECT_EQ(removedShown(), 0u) << "scrubbed back to the start: the undrilled scan";
+  EXPECT_EQ(window.replay()->carved().removedCount(), 0u);
   window.replay()->setTime(0.5 * end);
   const std::uint64_t middle = removedShown();
   EXPECT_GT(middle, 0u);
   EXPECT_LT(middle, removed);
+  EXPECT_EQ(window.replay()->carved().removedCount(), middle);
 }
 
 // Exported frames show the cavity as it was at their time, as `volume-haptics export` renders
@@ -442,17 +446,36 @@ TEST(DrillingView, ExportedFramesShowTheCavityAtTheirTime) {
   const runtime::LoadedScene scene = runtime::loadScene(spec);
   RecordingFrameRenderer frames(sceneActorsSpecFor(scene, runtime::LiveValues::initial(scene)), 320, 240);
   frames.setDrilling(drillingTimeline(scene, recording));
+  frames.setShadow(scene.hapticField(), scene.hapticIsovalue(), toolShadowSamples(*scene.tool));
   const auto removedAt = [&](double t_s) {
     writeRecordingPng(frames, recording, t_s, dir / "frame.png");
     return removedInPicture(frames.actors().shownImage(), scene.volume.image.get());
   };
   const double end = recording.records.back().time_s;
   EXPECT_EQ(removedAt(end), run.removed) << "every voxel the run removed, removed in the exported frame";
+  // The shadow falls on the field the replay carved (the runtime's replay: the oracle), as far
+  // as the frame's time: the built-in sphere's felt grid is the picture's.
+  const runtime::ReplayComparison replayed = runtime::replayRecording(scene, recording);
+  ASSERT_NE(replayed.drilled_field, nullptr);
+  const std::uint64_t felt_removed = runtime::cavityOf(*replayed.drilled_field, *scene.hapticField()).voxels.size();
+  EXPECT_EQ(frames.shadowCarved().removedCount(), felt_removed);
+  ASSERT_NE(frames.shadowCarved().box(), nullptr);
+  for (const std::uint64_t index : replayed.removed_voxels) {
+    const auto& g = scene.hapticField()->geometry();
+    const int i = static_cast<int>(index % static_cast<std::uint64_t>(g.dims[0]));
+    const int j = static_cast<int>((index / static_cast<std::uint64_t>(g.dims[0])) % static_cast<std::uint64_t>(g.dims[1]));
+    const int k = static_cast<int>(index / (static_cast<std::uint64_t>(g.dims[0]) * static_cast<std::uint64_t>(g.dims[1])));
+    const Eigen::Vector3d p = g.origin_W_m + g.direction_W * g.spacing_m.cwiseProduct(Eigen::Vector3d(i, j, k));
+    ASSERT_NEAR(frames.shadowCarved().box()->sample(p), replayed.drilled_field->sample(p), 1e-9)
+        << "removed voxel " << index;  // the box's grid coordinates round differently
+  }
   EXPECT_EQ(removedAt(0.0), 0u) << "the first frame: the undrilled scan";
+  EXPECT_EQ(frames.shadowCarved().removedCount(), 0u) << "and the shadow on it";
   const std::uint64_t middle = removedAt(0.5 * end);
   EXPECT_GT(middle, 0u);
   EXPECT_LT(middle, run.removed);
   EXPECT_EQ(frames.cavityVoxelsShown(), middle);
+  EXPECT_EQ(frames.shadowCarved().removedCount(), middle);
 
   MediaExportOptions options;
   options.png = dir / "end.png";

@@ -206,6 +206,14 @@ void MainWindow::connectParts() {
   connect(replay_, &ReplayController::noticeRequested, recorder_, &SessionRecorder::showNotice);
   connect(replay_, &ReplayController::replayStarted, this, &MainWindow::updateStatus);
   connect(replay_, &ReplayController::replayClosed, this, &MainWindow::updateStatus);
+  // The shadow falls into the cavity shown: the replay's at its time, else the live drill's.
+  connect(replay_, &ReplayController::replayStarted, view_controller_,
+          [this] { view_controller_->setCarvedRegion(&replay_->carved()); });
+  connect(replay_, &ReplayController::replayClosed, view_controller_, [this] {
+    view_controller_->setCarvedRegion(&drill_->carved());
+    view_controller_->updateShadow();
+  });
+  connect(replay_, &ReplayController::cavityShown, view_controller_, [this] { view_controller_->updateShadow(); });
 }
 
 void MainWindow::startHaptics() { haptics_->start(); }

@@ -137,11 +137,13 @@ bool ViewController::updateShadow() {
   key.direction_W = view_.shadowDirection_W();
   key.isovalue = session_.live().hapticIsovalue();
   key.field = field.get();
+  key.carved = carved_;
   key.carved_version = carved_ != nullptr ? carved_->version() : 0;
   if (shadow_cast_ && key.X_WP.p_AB_m == shadow_key_.X_WP.p_AB_m &&
       key.X_WP.R_AB.coeffs() == shadow_key_.X_WP.R_AB.coeffs() &&
       (key.direction_W - shadow_key_.direction_W).norm() < 1e-3 && key.isovalue == shadow_key_.isovalue &&
-      key.field == shadow_key_.field && key.carved_version == shadow_key_.carved_version) {
+      key.field == shadow_key_.field && key.carved == shadow_key_.carved &&
+      key.carved_version == shadow_key_.carved_version) {
     return false;
   }
   // Drilled: on the field the hand feels, with the cavity.

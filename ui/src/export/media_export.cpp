@@ -168,7 +168,8 @@ void RecordingFrameRenderer::show(const runtime::TickRecord& record) {
   if (shadow_field_ != nullptr) {
     const Eigen::Vector3d light_W = shadowLightDirection_W(viewCameraOf(renderer_->GetActiveCamera(), height_));
     const double isovalue = std::isfinite(record.isovalue) ? record.isovalue : shadow_isovalue_;
-    actors_->setShadow(castToolShadow(*shadow_field_, isovalue, frame.X_WP, shadow_samples_T_m_, light_W), light_W);
+    actors_->setShadow(castToolShadow(*shadow_field_, shadow_carved_, isovalue, frame.X_WP, shadow_samples_T_m_, light_W),
+                       light_W);
   }
   if (overlay_ != nullptr) showOverlay(record);
 }
@@ -176,6 +177,7 @@ void RecordingFrameRenderer::show(const runtime::TickRecord& record) {
 void RecordingFrameRenderer::setShadow(std::shared_ptr<const haptics::ScalarVolume> field, double isovalue,
                                        std::vector<Eigen::Vector3d> samples_T_m) {
   shadow_field_ = std::move(field);
+  shadow_carved_.clear();  // carved again by the next showCavityAt()
   shadow_isovalue_ = isovalue;
   shadow_samples_T_m_ = std::move(samples_T_m);
   if (shadow_field_ == nullptr) actors_->setShadow(ToolShadow{}, Eigen::Vector3d::UnitZ());
@@ -252,10 +254,23 @@ void RecordingFrameRenderer::setDrilling(DrillingTimeline timeline) {
   drilling_ = std::move(timeline);
   actors_->restoreVolume();
   cavity_shown_ = 0;
+  shadow_carved_.clear();
 }
 
 void RecordingFrameRenderer::showCavityAt(std::size_t record_index) {
   showDrilledVoxels(*actors_, drilling_, drilling_.removedAt(record_index), cavity_shown_);
+  if (shadow_field_ != nullptr) carveToRecord(shadow_carved_, shadow_field_, drilling_, record_index);
+}
+
+void carveToRecord(CarvedRegion& carved, const std::shared_ptr<const haptics::ScalarVolume>& field,
+                   const DrillingTimeline& timeline, std::size_t record_index) {
+  const std::uint64_t target = timeline.feltRemovedAt(record_index);
+  if (target < carved.removedCount() || carved.field() != field) {
+    carved.reset(field, std::span<const std::uint64_t>(timeline.felt_voxels.data(), target));
+  } else if (target > carved.removedCount()) {
+    carved.remove(std::span<const std::uint64_t>(timeline.felt_voxels.data() + carved.removedCount(),
+                                                 target - carved.removedCount()));
+  }
 }
 
 void showDrilledVoxels(SceneActors& actors, const DrillingTimeline& timeline, std::uint64_t target,
@@ -294,6 +309,10 @@ DrillingTimeline drillingAtStart(const runtime::LoadedScene& scene) {
   if (live.scan_field == nullptr) return timeline;
   timeline.picture_voxels = runtime::cavityVoxelsOn(*scene.spec.drill->cavity, live.scan_field->geometry());
   timeline.at_start = timeline.picture_voxels.size();
+  if (live.hapticField() != nullptr) {
+    timeline.felt_voxels = runtime::cavityVoxelsOn(*scene.spec.drill->cavity, live.hapticField()->geometry());
+    timeline.felt_at_start = timeline.felt_voxels.size();
+  }
   return timeline;
 }
 
@@ -326,6 +345,9 @@ void addReplayedRemovals(DrillingTimeline& timeline, const runtime::LoadedScene&
   // counts per record are kept as they are, clipped to what was mapped.
   timeline.after_record = replay.removed_after_record;
   for (auto& n : timeline.after_record) n = timeline.at_start + std::min<std::uint64_t>(n, removed.size());
+  timeline.felt_voxels.insert(timeline.felt_voxels.end(), replay.removed_voxels.begin(), replay.removed_voxels.end());
+  timeline.felt_after_record = replay.removed_after_record;
+  for (auto& n : timeline.felt_after_record) n += timeline.felt_at_start;
 }
 
 // ---- Writers -------------------------------------------------------------------------------------
@@ -353,8 +375,8 @@ int writeRecordingVideo(RecordingFrameRenderer& frames, const runtime::Recording
   writer->SetSubsampling(0);
   const auto showAt = [&](double t) {
     const std::size_t i = recordIndexAt(recording.records, t);
+    frames.showCavityAt(i);  // the cavity first: the shadow falls into it
     frames.show(recording.records[i]);
-    frames.showCavityAt(i);
   };
   showAt(begin);
   frames.render();
@@ -381,8 +403,8 @@ void writeRecordingPng(RecordingFrameRenderer& frames, const runtime::Recording&
                        const fs::path& path) {
   if (recording.records.empty()) throw std::invalid_argument(path.string() + ": the recording has no records");
   const std::size_t i = recordIndexAt(recording.records, t_s);
+  frames.showCavityAt(i);  // the cavity first: the shadow falls into it
   frames.show(recording.records[i]);
-  frames.showCavityAt(i);
   frames.render();
   vtkNew<vtkPNGWriter> writer;
   writer->SetInputConnection(frames.imageFilter()->GetOutputPort());

@@ -429,6 +429,7 @@ void ReplayController::replayDrilling() {
   stopDrillingReplay();
   drill_ = {};
   drill_shown_ = 0;
+  carved_.clear();
   if (view_.hasScene()) view_.actors().restoreVolume();
   const bool drilled = std::any_of(recording_.records.begin(), recording_.records.end(), [](const runtime::TickRecord& r) {
     return (r.flags & runtime::kRecordFlagDrillOn) != 0;
@@ -525,6 +526,10 @@ void ReplayController::stopDrillingReplay() {
 
 void ReplayController::showDrillingAt(std::size_t record_index) {
   if (view_.hasScene()) showDrilledVoxels(view_.actors(), drill_, drill_.removedAt(record_index), drill_shown_);
+  if (!session_.hasScene()) return;
+  const std::uint64_t version = carved_.version();
+  carveToRecord(carved_, session_.live().hapticField(), drill_, record_index);
+  if (carved_.version() != version) emit cavityShown();
 }
 
 QString ReplayController::readout() const {

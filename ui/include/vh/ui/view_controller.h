@@ -113,6 +113,7 @@ class ViewController : public QObject {
     Eigen::Vector3d direction_W = Eigen::Vector3d::Zero();
     double isovalue = 0.0;
     const void* field = nullptr;
+    const void* carved = nullptr;
     std::uint64_t carved_version = 0;
   };
   const CarvedRegion* carved_ = nullptr;

@@ -28,6 +28,7 @@
 #include "vh/ui/view/view_look.h"
 #include "vh/ui/view/render_presets.h"
 #include "vh/ui/view/scene_actors.h"
+#include "vh/ui/view/tool_shadow.h"
 
 class vtkCamera;
 class vtkImageData;
@@ -71,12 +72,22 @@ struct DrillingTimeline {
   /// Per record: how many of picture_voxels are removed by the end of it (empty: at_start at
   /// every record).
   std::vector<std::uint64_t> after_record;
+  /// The same on the felt field's grid (the field the shadow falls on): the start cavity's
+  /// voxels (felt_at_start), then the replay's, and the counts per record.
+  std::vector<std::uint64_t> felt_voxels;
+  std::uint64_t felt_at_start = 0;
+  std::vector<std::uint64_t> felt_after_record;
   /// The replay was cancelled (runtime::ReplayProgress::cancel): only the start cavity is in.
   bool cancelled = false;
   /// How many of picture_voxels are removed at record `index` (the last count past the end).
   std::uint64_t removedAt(std::size_t index) const noexcept {
     if (after_record.empty()) return std::min<std::uint64_t>(at_start, picture_voxels.size());
     return std::min<std::uint64_t>(after_record[std::min(index, after_record.size() - 1)], picture_voxels.size());
+  }
+  /// How many of felt_voxels are removed at record `index`.
+  std::uint64_t feltRemovedAt(std::size_t index) const noexcept {
+    if (felt_after_record.empty()) return std::min<std::uint64_t>(felt_at_start, felt_voxels.size());
+    return std::min<std::uint64_t>(felt_after_record[std::min(index, felt_after_record.size() - 1)], felt_voxels.size());
   }
 };
 
@@ -96,6 +107,12 @@ void addReplayedRemovals(DrillingTimeline& timeline, const runtime::LoadedScene&
 /// metadata): drillingAtStart() and addReplayedRemovals(). @throws as runtime::replayRecording().
 DrillingTimeline drillingTimeline(const runtime::LoadedScene& scene, const runtime::Recording& recording,
                                   const runtime::ReplayProgress& progress = {});
+
+/// Carves `carved` so that it holds `field` with the first timeline.feltRemovedAt(record_index)
+/// of timeline.felt_voxels removed: on from what it holds, or from `field` again for an earlier
+/// record or another field (the tool's shadow at that record, castToolShadow()).
+void carveToRecord(CarvedRegion& carved, const std::shared_ptr<const haptics::ScalarVolume>& field,
+                   const DrillingTimeline& timeline, std::size_t record_index);
 
 /// Carves `actors`' picture so that the first `target` of timeline.picture_voxels are removed,
 /// `shown` being removed now (updated): fewer than shown restores the scan first. A removed voxel
@@ -152,12 +169,14 @@ class RecordingFrameRenderer {
   /// [m]) cast from `samples_T_m` (toolShadowSamples()) along the light of the frame's camera
   /// (shadowLightDirection_W()), at each record's isovalue (the felt one) or `isovalue` when a
   /// record has none, as the main view shows it live; drawn unless the look's tool_shadow is off.
-  /// A null field: no shadow (the default). The shadow falls on the scan as loaded, not on a
-  /// drilled cavity.
+  /// A null field: no shadow (the default). With setDrilling(), the shadow falls into the cavity
+  /// as it was at the frame's record (showCavityAt() carves it).
   void setShadow(std::shared_ptr<const haptics::ScalarVolume> field, double isovalue,
                  std::vector<Eigen::Vector3d> samples_T_m);
   /// Voxels of the picture removed now (the cavity shown).
   std::uint64_t cavityVoxelsShown() const noexcept { return cavity_shown_; }
+  /// The shadow's field carved to the cavity shown (empty without setShadow()).
+  const CarvedRegion& shadowCarved() const noexcept { return shadow_carved_; }
   /// The overlay's lines and its alert as last shown ("" when none).
   std::string overlayText() const;
   std::string overlayAlert() const;
@@ -177,6 +196,7 @@ class RecordingFrameRenderer {
   DrillingTimeline drilling_;                    ///< setDrilling().
   std::uint64_t cavity_shown_ = 0;               ///< Of drilling_.picture_voxels, removed in the picture.
   std::shared_ptr<const haptics::ScalarVolume> shadow_field_;  ///< setShadow(); null: none.
+  CarvedRegion shadow_carved_;  ///< shadow_field_ carved to the cavity shown (showCavityAt()).
   double shadow_isovalue_ = 0.0;
   std::vector<Eigen::Vector3d> shadow_samples_T_m_;
   vtkSmartPointer<vtkTextActor> overlay_text_, overlay_alert_;

@@ -136,6 +136,9 @@ class ReplayController : public QObject {
   double speed() const noexcept { return speed_; }
 
   const runtime::Recording& recording() const noexcept { return recording_; }
+  /// The felt field carved to the cavity shown at the replay's time, for the tool's shadow (the
+  /// window's ViewController reads it while a replay is shown).
+  const CarvedRegion& carved() const noexcept { return carved_; }
   const std::filesystem::path& path() const noexcept { return path_; }
   ForceTimeline* timeline() const noexcept { return timeline_; }
   QListWidget* markerList() const noexcept { return marker_list_; }
@@ -177,6 +180,8 @@ class ReplayController : public QObject {
   /// A recording's scene is shown and the replay dock drives it.
   void replayStarted();
   void replayClosed();
+  /// The cavity shown changed (carved() with it): the shadow is cast again.
+  void cavityShown();
   /// Open the recording's scene (`opened`: the recording, for the recent files).
   void openSceneRequested(const vh::runtime::SceneSpec& spec, const std::filesystem::path& opened);
   /// `what` (a file) could not be read or written: `message` names it and the problem.
@@ -230,6 +235,7 @@ class ReplayController : public QObject {
   // drill_shown_ of drill_.picture_voxels.
   DrillingTimeline drill_;
   std::uint64_t drill_shown_ = 0;
+  CarvedRegion carved_;  // the felt field carved as the picture is, for the tool's shadow
   void replayDrilling();
   void finishDrillingReplay(std::uint64_t generation, bool ok, DrillingTimeline timeline);
   /// Cancels a drilling replay under way and waits for its thread (a result it sent is dropped).
