@@ -28,6 +28,7 @@
 #include "vh/io/segmentation.h"
 #include "vh/runtime/recording.h"
 #include "vh/runtime/replay.h"
+#include "vh/ui/replay/session_recorder.h"
 #include "vh/runtime/scene.h"
 #include "vh/runtime/session.h"
 #include "vh/runtime/session_metadata.h"
@@ -597,6 +598,18 @@ TEST(DrillingView, CavityInTheHeadPhantomGrowsInTheView) {
               static_cast<unsigned long long>(window.sceneView()->actors().fullUploads()));
   EXPECT_GT(removed, 1.0) << "the burr cut into the skull";
   EXPECT_GT(window.sceneView()->actors().partialUploads(), 0u);
+  // Record pressed while drilling: the haptic threads restart where the proxy is, with the
+  // cavity (what the hand meets as a pause; printed, no threshold).
+  const fs::path record_dir = outputDir() / "phantom-record";
+  fs::create_directories(record_dir);
+  const auto r0 = std::chrono::steady_clock::now();
+  ASSERT_TRUE(window.recorder()->start(record_dir / "mid-drilling.vhrec")) << window.recorder()->lastError().toStdString();
+  const double restart_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - r0).count();
+  EXPECT_TRUE(session.hapticsRunning());
+  test::pump(300);
+  window.recorder()->stop();
+  std::printf("head phantom: Record pressed while drilling started in %.0f ms (the checksum, the haptic threads' "
+              "restart)\n", restart_ms);
   // Lift the drill out and look down into the cavity.
   haptics::Pose lifted = start;
   lifted.p_AB_m += Eigen::Vector3d(0.05, 0.0, 0.03);  // up and aside, out of the line of sight

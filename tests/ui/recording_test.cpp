@@ -3,10 +3,12 @@
 // actor at the recorded pose, one |F| sample per record), video and PNG export (GUI and command
 // line), and a recording whose dataset is missing (error naming it, the scene shown stays).
 // Scenes: the built-in 64^3 sphere (no shared data needed), small windows (llvmpipe).
+#include <chrono>
 #include <cmath>
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
+#include <iostream>
 #include <memory>
 #include <string>
 
@@ -399,7 +401,11 @@ TEST(RecordingInContact, ARecordingStartedOnTheSurfaceReplaysBitForBit) {
   ASSERT_TRUE(w->session().latestSnapshot(before));
   ASSERT_GT(before.contacts, 0) << "the tool rests on the sphere";
   const haptics::Pose free_pose = w->session().live().X_WT_initial;
+  const auto t0 = std::chrono::steady_clock::now();
   ASSERT_TRUE(w->recorder()->start(path)) << w->recorder()->lastError().toStdString();
+  std::cout << "Record pressed in contact: started in "
+            << std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count()
+            << " ms (the checksum, the haptic threads' restart)\n";
   EXPECT_TRUE(w->session().hapticsRunning());
   test::pump(600);
   w->recorder()->stop();

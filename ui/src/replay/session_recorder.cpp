@@ -104,9 +104,20 @@ bool SessionRecorder::start(const fs::path& path) {
     updateUi();
     return false;
   }
+  // The dataset's checksum first (cached from then on): a missing or unreadable scan is told
+  // before the hand is touched, and the hashing does not lengthen the pause below.
+  try {
+    (void)runtime::datasetChecksum(session_.loaded().spec.volume.path);
+  } catch (const std::exception& e) {
+    last_error_ = QString::fromStdString(path.string()) + ": " + QString::fromUtf8(e.what());
+    std::cerr << "volume-haptics: recording: " << last_error_.toStdString() << '\n';
+    updateUi();
+    return false;
+  }
   // A replay re-runs the recording through fresh threads from its initial pose and cavity: the
   // recording starts with such threads (rebuilt where the proxy is when they had run) and holds
-  // every one of their ticks, so it replays bit for bit whenever it was started.
+  // every one of their ticks, so it replays bit for bit whenever it was started. The force lets
+  // go meanwhile (the ramp, the cavity kept, the threads rebuilt: 0.5 s on a drilled CT).
   const std::optional<haptics::Pose> X_WP_start = session_.prepareRecording();
   runtime::HapticThread* haptics = session_.hapticThread();
   if (!X_WP_start || haptics == nullptr) {
