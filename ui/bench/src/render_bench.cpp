@@ -130,7 +130,8 @@ struct Bench {
   SceneView* view = nullptr;  // owned by the window
   runtime::HapticThread* thread = nullptr;
   const haptics::ScalarVolume* scan = nullptr;
-  const haptics::ScalarVolume* felt = nullptr;  // the haptic field, which the tool's shadow falls on
+  std::shared_ptr<const haptics::ScalarVolume> felt;  // the haptic field, which the tool's shadow falls on
+  CarvedRegion carved;  // felt, carved by the drill (as the window's DrillController keeps it)
   double felt_isovalue = 0.0;
   std::vector<Eigen::Vector3d> shadow_samples_T_m;
   runtime::HapticSnapshot snapshot;
@@ -156,8 +157,9 @@ struct Bench {
     p.misses_end = snapshot.coupling.deadline_misses + snapshot.solver.deadline_misses;
     phases.push_back(p);
   }
-  /// Moves the drill's removed voxels into the picture (as the window's DrillController does).
-  std::uint64_t drain() {
+  /// Moves the drill's removed voxels into the picture and into the shadow's carved field (as
+  /// the window's DrillController does); the carving's time goes to `carve_ms`.
+  std::uint64_t drain(double& carve_ms) {
     const auto& drill = thread->drill();
     if (drill == nullptr) return 0;
     std::uint64_t total = 0;
@@ -168,18 +170,23 @@ struct Bench {
       if (n == 0) break;
       picture = pictureIndices(drill->removal().volume(), *scan, std::span<const std::uint64_t>(drained.data(), n));
       view->actors().removeVoxels(picture, range[0]);
+      const auto carve_t0 = Clock::now();
+      carved.remove(std::span<const std::uint64_t>(drained.data(), n));
+      carve_ms += msSince(carve_t0);
       total += n;
     }
     return total;
   }
   /// One frame as the window draws it while someone works: the camera turned a little, the
   /// latest haptic snapshot shown with the tool's shadow cast for it (as ViewController does),
-  /// painted now. @return its wall time [ms]; the shadow's cast alone goes to `shadow_ms`.
+  /// painted now. @return its wall time [ms]; the shadow's cast alone (with the carving of the
+  /// cavity into its field while drilling) goes to `shadow_ms`.
   double frame(Phase& phase, bool drilling, std::uint64_t& removed, std::vector<double>& paint_ms,
                std::vector<double>& shadow_ms) {
     const auto t0 = Clock::now();
     poll(phase);
-    if (drilling) removed += drain();
+    double carve_ms = 0.0;
+    if (drilling) removed += drain(carve_ms);
     view->widget()->renderer()->GetActiveCamera()->Azimuth(kCameraStep_deg);
     view->noteMotion();
     ToolFrame f;
@@ -191,8 +198,8 @@ struct Bench {
     view->show(f);
     const auto shadow_t0 = Clock::now();
     const Eigen::Vector3d down_W = view->shadowDirection_W();
-    view->showShadow(castToolShadow(*felt, felt_isovalue, f.X_WP, shadow_samples_T_m, down_W), down_W);
-    shadow_ms.push_back(msSince(shadow_t0));
+    view->showShadow(castToolShadow(*felt, carved, felt_isovalue, f.X_WP, shadow_samples_T_m, down_W), down_W);
+    shadow_ms.push_back(msSince(shadow_t0) + carve_ms);
     view->widget()->repaint();
     paint_ms.push_back(view->widget()->lastFrameMs());
     QCoreApplication::processEvents();
@@ -309,7 +316,8 @@ fs::path runRenderBench(const RenderBenchOptions& o) {
     Bench b;
     b.thread = thread.get();
     b.scan = scene.volume.field.get();
-    b.felt = scene.hapticField().get();
+    b.felt = scene.hapticField();
+    b.carved.reset(b.felt);
     b.felt_isovalue = scene.hapticIsovalue();
     b.shadow_samples_T_m = toolShadowSamples(*scene.tool);
     b.drained.resize(1 << 16);
