@@ -311,6 +311,11 @@ TEST(ToolShadow, InTheWindowItFallsIntoTheDrilledPit) {
             << uncut.footprint_W_m.size() << " on it; the pit " << window.drillController()->carved().removedCount()
             << " voxels\n";
   EXPECT_GE(below_uncut, 3) << "the shadow falls into the pit";
+  if (const char* shots = std::getenv("VH_UI_SHOTS_DIR"); shots != nullptr && *shots != '\0') {
+    window.sceneView()->focusOn(*session.live().tool, X_WP);
+    window.sceneView()->renderStill(true);
+    window.grab().save(QString::fromLocal8Bit(shots) + "/shadow-in-pit.png");
+  }
   EXPECT_GT(window.drillController()->carved().removedCount(), 20u);
 }
 

@@ -7,6 +7,7 @@
 #include <atomic>
 #include <fstream>
 #include <iostream>
+#include <thread>
 
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
@@ -479,11 +480,11 @@ TEST(Drilling, ARecordingStartedWhileDrillingReplaysBitForBit) {
   const std::uint64_t removed_before = thread->drill()->removal().removedVoxels();
   haptics::Pose aside = press;
   aside.p_AB_m.x() = 0.002;
-  test::waitUntil([] { return false; }, std::chrono::milliseconds(300));
+  std::this_thread::sleep_for(std::chrono::milliseconds(300));
   session.simulatedDevice()->setPose(aside);
   ASSERT_TRUE(test::waitUntil([&] { return thread->drill()->removal().removedVoxels() > removed_before + 20; },
                               std::chrono::milliseconds(30000)));
-  test::waitUntil([] { return false; }, std::chrono::milliseconds(300));
+  std::this_thread::sleep_for(std::chrono::milliseconds(300));
   session.stopHaptics();
   thread->setRecorder(nullptr);
   writer->close();

@@ -61,6 +61,12 @@ std::optional<double> entryOnPiece(const haptics::ScalarVolume& field, const Eig
   return u0 + e.u_outside * (u1 - u0);
 }
 
+/// Voxel (i, j, k) of linear index `index` (x fastest) on a grid of `dims`.
+std::array<int, 3> voxelOf(std::uint64_t index, const std::array<int, 3>& dims) {
+  const std::uint64_t nx = static_cast<std::uint64_t>(dims[0]), ny = static_cast<std::uint64_t>(dims[1]);
+  return {static_cast<int>(index % nx), static_cast<int>((index / nx) % ny), static_cast<int>(index / (nx * ny))};
+}
+
 /// The parameter interval of a -> b (grid coordinates of `box`) inside its box of voxel
 /// centres, or an empty one (u0 > u1).
 std::pair<double, double> clipToBox(const haptics::ScalarVolume& box, const Eigen::Vector3d& a_ijk,
@@ -136,15 +142,13 @@ void CarvedRegion::reset(std::shared_ptr<const haptics::ScalarVolume> field, std
 void CarvedRegion::remove(std::span<const std::uint64_t> removed) {
   if (field_ == nullptr || field_->empty() || removed.empty()) return;
   const auto& g = field_->geometry();
-  const std::uint64_t nx = static_cast<std::uint64_t>(g.dims[0]), ny = static_cast<std::uint64_t>(g.dims[1]);
   std::array<int, 3> lo = lo_, hi = hi_;
   const bool had_box = box_ != nullptr;
   const std::size_t first_new = removed_.size();
   for (const std::uint64_t index : removed) {
     if (index >= g.voxelCount()) continue;
     removed_.push_back(index);
-    const std::array<int, 3> ijk{static_cast<int>(index % nx), static_cast<int>((index / nx) % ny),
-                                 static_cast<int>(index / (nx * ny))};
+    const std::array<int, 3> ijk = voxelOf(index, g.dims);
     for (std::size_t a = 0; a < 3; ++a) {
       // One voxel around it: the cells it is a corner of.
       const int l = std::max(ijk[a] - 1, 0), h = std::min(ijk[a] + 1, g.dims[a] - 1);
@@ -159,7 +163,6 @@ void CarvedRegion::remove(std::span<const std::uint64_t> removed) {
   }
   if (removed_.size() == first_new) return;
   ++version_;
-  // Two voxels at least on every axis: the field has them, and the box spans one each side.
   if (!had_box || lo != lo_ || hi != hi_) {
     // Grown: 8 voxels to spare on every side, so that a burr working outwards copies the box
     // again every few voxels, not at every drain.
@@ -172,15 +175,10 @@ void CarvedRegion::remove(std::span<const std::uint64_t> removed) {
     return;
   }
   // The box already holds them: write the new ones and refresh their bricks.
-  const int bx = hi_[0] - lo_[0] + 1, by = hi_[1] - lo_[1] + 1;
-  std::array<int, 3> rlo{bx, by, hi_[2] - lo_[2] + 1}, rhi{-1, -1, -1};
+  const std::array<int, 3>& dims = box_->geometry().dims;
+  std::array<int, 3> rlo = dims, rhi{-1, -1, -1};
   for (std::size_t n = first_new; n < removed_.size(); ++n) {
-    const std::uint64_t index = removed_[n];
-    const std::array<int, 3> b{static_cast<int>(index % nx) - lo_[0], static_cast<int>((index / nx) % ny) - lo_[1],
-                               static_cast<int>(index / (nx * ny)) - lo_[2]};
-    box_->writeRaw(static_cast<std::size_t>(b[0]) + static_cast<std::size_t>(bx) * (static_cast<std::size_t>(b[1]) +
-                                                      static_cast<std::size_t>(by) * static_cast<std::size_t>(b[2])),
-                   field_->lowestRaw());
+    const std::array<int, 3> b = carveInBox(removed_[n]);
     for (std::size_t a = 0; a < 3; ++a) {
       rlo[a] = std::min(rlo[a], b[a]);
       rhi[a] = std::max(rhi[a], b[a]);
@@ -189,7 +187,20 @@ void CarvedRegion::remove(std::span<const std::uint64_t> removed) {
   box_->refreshRegion(rlo, rhi);
 }
 
+std::array<int, 3> CarvedRegion::carveInBox(std::uint64_t index) {
+  const std::array<int, 3> ijk = voxelOf(index, field_->geometry().dims);
+  const std::array<int, 3>& dims = box_->geometry().dims;
+  const std::array<int, 3> b{ijk[0] - lo_[0], ijk[1] - lo_[1], ijk[2] - lo_[2]};
+  box_->writeRaw(static_cast<std::size_t>(b[0]) +
+                     static_cast<std::size_t>(dims[0]) *
+                         (static_cast<std::size_t>(b[1]) + static_cast<std::size_t>(dims[1]) * static_cast<std::size_t>(b[2])),
+                 field_->lowestRaw());
+  return b;
+}
+
 void CarvedRegion::rebuild() {
+  // At least two voxels on every axis (a volume needs them): the field has them, and the box
+  // spans one voxel each side of every removed voxel.
   const auto& g = field_->geometry();
   haptics::VolumeGeometry bg = g;
   bg.dims = {hi_[0] - lo_[0] + 1, hi_[1] - lo_[1] + 1, hi_[2] - lo_[2] + 1};
@@ -210,14 +221,7 @@ void CarvedRegion::rebuild() {
     }
   box_ = std::make_unique<haptics::ScalarVolume>(haptics::ScalarVolume::FromBytes(
       bg, field_->voxelType(), std::move(bytes), field_->valueScale(), field_->valueOffset()));
-  const std::uint64_t nx = static_cast<std::uint64_t>(g.dims[0]), ny = static_cast<std::uint64_t>(g.dims[1]);
-  for (const std::uint64_t index : removed_) {
-    const std::size_t i = static_cast<std::size_t>(static_cast<int>(index % nx) - lo_[0]);
-    const std::size_t j = static_cast<std::size_t>(static_cast<int>((index / nx) % ny) - lo_[1]);
-    const std::size_t k = static_cast<std::size_t>(static_cast<int>(index / (nx * ny)) - lo_[2]);
-    box_->writeRaw(i + static_cast<std::size_t>(bg.dims[0]) * (j + static_cast<std::size_t>(bg.dims[1]) * k),
-                   field_->lowestRaw());
-  }
+  for (const std::uint64_t index : removed_) (void)carveInBox(index);
   box_->refreshRegion({0, 0, 0}, {bg.dims[0] - 1, bg.dims[1] - 1, bg.dims[2] - 1});
 }
 

@@ -60,8 +60,8 @@ ToolShadow castToolShadow(const haptics::ScalarVolume& field, double isovalue, c
 /// never read here). Not thread-safe; the GUI thread keeps it (DrillController).
 class CarvedRegion {
  public:
-  /// Starts over on `field` (the felt field as loaded; kept by pointer, it must outlive this or
-  /// the next reset) with `removed` (linear indices of its grid, x fastest) carved out.
+  /// Starts over on `field` (the felt field as loaded; shared, kept until the next reset or
+  /// clear) with `removed` (linear indices of its grid, x fastest) carved out.
   void reset(std::shared_ptr<const haptics::ScalarVolume> field, std::span<const std::uint64_t> removed = {});
   /// Nothing carved, no field.
   void clear();
@@ -69,7 +69,7 @@ class CarvedRegion {
   /// grows to hold them (copied from the field again) or the new voxels are written into it.
   void remove(std::span<const std::uint64_t> removed);
   /// The carved box (null: nothing removed), on the field's grid offset to the box's first voxel.
-  const haptics::ScalarVolume* box() const noexcept { return box_ != nullptr ? box_.get() : nullptr; }
+  const haptics::ScalarVolume* box() const noexcept { return box_.get(); }
   /// The field it carves (null after clear()).
   const std::shared_ptr<const haptics::ScalarVolume>& field() const noexcept { return field_; }
   /// Voxels carved so far.
@@ -78,7 +78,11 @@ class CarvedRegion {
   std::uint64_t version() const noexcept { return version_; }
 
  private:
+  /// Copies the box lo_..hi_ from the field and carves every removed voxel into it.
   void rebuild();
+  /// Writes the field's lowest raw value at removed voxel `index` (inside the box); returns its
+  /// voxel in the box.
+  std::array<int, 3> carveInBox(std::uint64_t index);
   std::shared_ptr<const haptics::ScalarVolume> field_;
   std::vector<std::uint64_t> removed_;  // every carved voxel, in order
   std::array<int, 3> lo_{0, 0, 0}, hi_{-1, -1, -1};  // the box, inclusive, in the field's voxels
