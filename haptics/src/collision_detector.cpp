@@ -85,6 +85,7 @@ CollisionDetector::CollisionDetector(const ScalarVolume& volume, const ToolModel
   grid_per_m_ = volume.geometry().spacing_m.cwiseInverse();
   edges_ = makeShellEdges(tool.point_shell);
   edge_reach_m_.assign(n, 0.0);
+  edge_clearance_.assign(n, EdgeClearance{});
   for (std::size_t j = 0; j < n; ++j)
     for (int e = edges_.offsets[j]; e < edges_.offsets[j + 1]; ++e)
       edge_reach_m_[j] = std::max(edge_reach_m_[j], (tool.point_shell.points_T_m()[static_cast<std::size_t>(edges_.targets[e])] -
@@ -104,11 +105,12 @@ Eigen::Vector3d CollisionDetector::edgeEnd(const Pose& X_WP, int i) noexcept {
 }
 
 bool CollisionDetector::segmentCrosses(const Pose& X_WP, int j, const Eigen::Vector3d& a, int k,
-                                       const Eigen::Vector3d& b, double isovalue) noexcept {
+                                       const Eigen::Vector3d& b, double isovalue, double* excess_max) noexcept {
   // Only whether it enters: a coarse bracket is enough.
   const SegmentEntry entry = volume_->firstEntryOnSegment(a, b, isovalue, 1.0, 0.5);
   counters_.cells += entry.cells;
   counters_.cells_walked += entry.cells_walked;
+  if (excess_max != nullptr) *excess_max = entry.excess_max;
   if (!entry.hit) return false;
   edge_hit_ = {j, k, X_WP};
   if (listed_count_ < kListedEdges) {
@@ -119,13 +121,64 @@ bool CollisionDetector::segmentCrosses(const Pose& X_WP, int j, const Eigen::Vec
   return true;
 }
 
+double CollisionDetector::edgeClearance(const Eigen::Vector3d& a, const Eigen::Vector3d& b, double excess_max,
+                                        double isovalue) const noexcept {
+  // Only an edge wholly in the grid's box: outside it the field counts as empty, which no
+  // Lipschitz bound carries across the box's faces.
+  const auto& dims = volume_->geometry().dims;
+  const Eigen::Vector3d upper(dims[0] - 1.0, dims[1] - 1.0, dims[2] - 1.0);
+  if (!(a.minCoeff() >= 0.0 && b.minCoeff() >= 0.0 && (upper - a).minCoeff() >= 0.0 && (upper - b).minCoeff() >= 0.0))
+    return -1.0;
+  // Every point of the edge lies within half its length of an end. Each end's local Lipschitz
+  // bound holds within one brick of the end's brick (MinMaxTree::setLipschitz), so for a move
+  // of at most d with half the length plus d inside one brick, F rises by at most L d from its
+  // largest value on the edge.
+  const Eigen::Vector3d spacing_m = grid_per_m_.cwiseInverse();
+  const double length_m = (b - a).cwiseProduct(spacing_m).norm();
+  const double reach_m = MinMaxTree::kBrickCells * spacing_m.minCoeff() - 0.5 * length_m;
+  const double lipschitz = std::max(volume_->localLipschitzBound(a), volume_->localLipschitzBound(b));
+  if (!(reach_m > 0.0) || !std::isfinite(lipschitz)) return -1.0;
+  // The cubic's value at a rounded critical point: a relative tolerance on the values near here.
+  const double tolerance = 1e-9 * (std::abs(isovalue) + lipschitz * spacing_m.maxCoeff()) + 1e-300;
+  if (!(excess_max + tolerance < 0.0)) return -1.0;
+  if (lipschitz <= 0.0) return reach_m;  // a constant field below the isovalue near the edge
+  return std::min(reach_m, -(excess_max + tolerance) / lipschitz);
+}
+
+bool CollisionDetector::edgesStillClear(const Pose& X_WP, int j) const noexcept {
+  const auto i = static_cast<std::size_t>(j);
+  const EdgeClearance& proven = edge_clearance_[i];
+  if (!(proven.clearance_m > 0.0)) return false;
+  // Each point of j's edges lies within edge_reach_m_[j] + epsilon of point j (edgeEnd()), so
+  // it has moved at most |p_j - p_j'| + |R - R'| (reach + epsilon) since the certificate, with
+  // |R - R'| = 2 sin(theta / 2) = 2 |vec(R'^-1 R)|.
+  const double turn = 2.0 * (proven.R_WT.conjugate() * X_WP.R_AB).vec().norm();
+  const double moved_m = (X_WP * tool_->point_shell.points_T_m()[i] - proven.p_W_m).norm() +
+                         turn * (edge_reach_m_[i] + epsilon_);
+  return moved_m < proven.clearance_m;
+}
+
 bool CollisionDetector::edgeCrosses(const Pose& X_WP, int j, double isovalue) noexcept {
   if (embedded_[j]) return false;
+  const Eigen::Vector3d& p_T = tool_->point_shell.points_T_m()[static_cast<std::size_t>(j)];
+  EdgeClearance& proven = edge_clearance_[static_cast<std::size_t>(j)];
   const Eigen::Vector3d a = edgeEnd(X_WP, j);  // once for all of j's edges
+  double clearance_m = std::numeric_limits<double>::infinity();
   for (int e = edges_.offsets[j]; e < edges_.offsets[j + 1]; ++e) {
     const int k = edges_.targets[e];
-    if (!embedded_[k] && segmentCrosses(X_WP, j, a, k, edgeEnd(X_WP, k), isovalue)) return true;
+    if (embedded_[k]) {  // untested: nothing proven for j's edges
+      clearance_m = -1.0;
+      continue;
+    }
+    const Eigen::Vector3d b = edgeEnd(X_WP, k);
+    double excess_max = 0.0;
+    if (segmentCrosses(X_WP, j, a, k, b, isovalue, &excess_max)) {
+      proven.clearance_m = -1.0;
+      return true;
+    }
+    clearance_m = std::min(clearance_m, edgeClearance(a, b, excess_max, isovalue));
   }
+  proven = {X_WP * p_T, X_WP.R_AB, std::isfinite(clearance_m) ? clearance_m : -1.0};
   return false;
 }
 
@@ -181,6 +234,10 @@ void CollisionDetector::addEdgeContact(const Pose& X_WP, double isovalue) noexce
 
 bool CollisionDetector::edgesCrossAt(const Pose& X_WP, double isovalue) noexcept {
   if (edges_.size() == 0) return false;
+  if (!(isovalue == edge_clearance_isovalue_)) {  // certificates hold for their isovalue only
+    for (auto& proven : edge_clearance_) proven.clearance_m = -1.0;
+    edge_clearance_isovalue_ = isovalue;
+  }
   if (mode_ == DetectionMode::kAccelerated) {
     // Point j's edges lie within the longest edge of j, plus the epsilon their ends are inset
     // by (edgeEnd()), of point j: a node's ball dilated by both holds them.
@@ -200,7 +257,7 @@ bool CollisionDetector::edgesCrossAt(const Pose& X_WP, double isovalue) noexcept
         const int j = order_[i];
         // The point's own edges, within its longest edge plus epsilon of it: one box query
         // instead of a walk per edge where the leaf is near the surface but this point is not.
-        if (edges_.offsets[j + 1] == edges_.offsets[j] ||
+        if (edges_.offsets[j + 1] == edges_.offsets[j] || edgesStillClear(X_WP, j) ||
             !ballMayBeInside(counters_, X_WP * tool_->point_shell.points_T_m()[j],
                              (edge_reach_m_[j] + epsilon_) * (1.0 + 1e-9) + 1e-12, isovalue))
           continue;
@@ -210,7 +267,7 @@ bool CollisionDetector::edgesCrossAt(const Pose& X_WP, double isovalue) noexcept
     return false;
   }
   for (int j = 0; j + 1 < static_cast<int>(edges_.offsets.size()); ++j)
-    if (edgeCrosses(X_WP, j, isovalue)) return true;
+    if (!edgesStillClear(X_WP, j) && edgeCrosses(X_WP, j, isovalue)) return true;
   return false;
 }
 

@@ -93,6 +93,7 @@ inline bool refineInCell(const Cubic& g, double w_end, double u, double u_lo, do
   nb += criticalPoints(g, w_end, breaks + nb);
   breaks[nb++] = w_end;
   double gp = g(0.0);
+  result.excess_max = std::max(result.excess_max, gp);
   if (first) {
     inside_run = gp > 0.0;  // the segment starts inside
   } else if (!inside_run && gp > 0.0) {
@@ -108,6 +109,7 @@ inline bool refineInCell(const Cubic& g, double w_end, double u, double u_lo, do
   for (int i = 0; i + 1 < nb; ++i) {
     double p = breaks[i], q = breaks[i + 1];
     const double gq = g(q);
+    result.excess_max = std::max(result.excess_max, gq);
     if (inside_run) {
       if (gq > gp) {  // going deeper while inside: stop here
         result.hit = true;
@@ -203,6 +205,7 @@ SegmentEntry ScalarVolume::firstEntry(const Eigen::Vector3d& a, const Eigen::Vec
         (height > 0.0 && corner_bound <= threshold && upperBoundInBox(Eigen::Vector3d(cell[0] - 1.0, cell[1] - 1.0, cell[2] - 1.0),
                                          Eigen::Vector3d(cell[0] + 2.0, cell[1] + 2.0, cell[2] + 2.0)) <= threshold)) {
       inside_run = false;  // the whole cell is outside
+      result.excess_max = std::max(result.excess_max, corner_bound + height - threshold);
     } else {
       ++result.cells;
       // Local coordinates at the cell's entry, then the cubic in w = u - u_entry.
@@ -297,6 +300,7 @@ SegmentEntry ScalarVolume::firstEntryOnSegment(const Eigen::Vector3d& a_ijk, con
                                        {arc_sagitta_m, p, span});
     result.cells += e.cells;
     result.cells_walked += e.cells_walked;
+    result.excess_max = std::max(result.excess_max, e.excess_max);
     if (e.hit) {
       result.hit = true;
       result.u_outside = p + e.u_outside * span;

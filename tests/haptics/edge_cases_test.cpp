@@ -5,6 +5,7 @@
 #include <cstdio>
 #include <limits>
 #include <numbers>
+#include <random>
 #include <string>
 #include <vector>
 
@@ -12,6 +13,8 @@
 #include <gtest/gtest.h>
 
 #include "test_tools.h"
+#include "vh/haptics/collision_detector.h"
+#include "vh/haptics/crossing_verifier.h"
 #include "vh/haptics/haptic_renderer.h"
 #include "vh/haptics/penetration.h"
 
@@ -334,6 +337,81 @@ TEST(EdgeCases, ABallSlidOverABlocksConvexEdgesWithTheEdgeTestRidesOverThem) {
       EXPECT_LE(max_depth_m, r.epsilon_m());
     }
   }
+}
+
+TEST(EdgeCases, EdgeClearanceCertificatesNeverHideACrossing) {
+  // The edge test keeps, per shell point, the clearance its last walk proved for the point's
+  // edges, and does not walk them again while the tool has moved them less than that. The
+  // upright probe's 2 mm tip bobs through the surface (its lowest point from 0.35 mm into it to
+  // 0.55 mm above, 100 poses a period) while wandering sideways (steps of 1 to 20 um, every
+  // seventh up to 0.4 mm; every fifth pose turned up to 0.02 rad), over the one-voxel plate at
+  // 250 and over the top of the float ball at 0. Oracles, at every pose: dense sampling of every
+  // edge at the end of the move from the pose before (CrossingVerifier::checkEdges, 1/50 voxel):
+  // an edge it finds entering must be reported; and a detector built afresh at that pose (no
+  // certificates) must give the same answer. The certificates must also save work: the
+  // long-lived detector's stays below the fresh ones'.
+  VolumeGeometry ball_geometry;
+  const std::vector<float> ball = ballVoxels(ball_geometry);
+  auto plate = std::make_shared<const ScalarVolume>(datasets::makeThinPlateVolume(test::grid1mm()));
+  const double plate_z = plate->geometry().origin_W_m.z() + 32e-3;
+  const double plate_x = plate->geometry().origin_W_m.x() + 43e-3;  // 20 mm inside the grid
+  struct Case {
+    std::shared_ptr<const ScalarVolume> volume;
+    double isovalue;
+    Eigen::Vector3d surface_W_m;  // a point of the surface under the tip
+  };
+  const Case cases[] = {
+      {plate, 250.0, {plate_x, 0.0, plate_z}},
+      {std::make_shared<const ScalarVolume>(ScalarVolume::FromVoxels(ball_geometry, ball)), 0.0, {0.0, 0.0, kBallRadius_m}},
+  };
+  const auto tool = test::meshTool(datasets::makeBuiltinTool("probe"), 1e-3);
+  constexpr double kTipRadius_m = 0.002;
+  std::mt19937 rng(2027);
+  std::uniform_real_distribution<double> U(-1.0, 1.0);
+  int oracle_crossings = 0;
+  for (const Case& c : cases) {
+    CollisionDetector kept(*c.volume, *tool, 0.0);
+    const CrossingVerifier oracle(*c.volume, tool->point_shell, 2e-2);
+    int reported = 0, entered = 0, poses = 0;
+    std::int64_t kept_work = 0, fresh_work = 0;
+    Eigen::Vector2d sideways = Eigen::Vector2d::Zero();
+    Pose X = Pose::FromTranslation(c.surface_W_m + Eigen::Vector3d(0, 0, kTipRadius_m + 0.55e-3));
+    for (int step = 1; step <= 400; ++step, ++poses) {
+      const Pose X_before = X;
+      const double length_m = step % 7 == 0 ? 0.4e-3 * std::abs(U(rng)) : 2e-5 * std::abs(U(rng)) + 1e-6;
+      sideways = (sideways + length_m * Eigen::Vector2d(U(rng), U(rng)).normalized()).cwiseMax(-2e-3).cwiseMin(2e-3);
+      const double lowest_m = 0.1e-3 + 0.45e-3 * std::cos(2.0 * std::numbers::pi * step / 100.0);
+      X.p_AB_m = c.surface_W_m + Eigen::Vector3d(sideways.x(), sideways.y(), kTipRadius_m + lowest_m);
+      if (step % 5 == 0) {
+        const Eigen::Quaterniond R =
+            Eigen::Quaterniond(Eigen::AngleAxisd(0.02 * U(rng), Eigen::Vector3d(U(rng), U(rng), U(rng)).normalized())) *
+            X.R_AB;
+        if (Eigen::AngleAxisd(R).angle() < 0.1) X.R_AB = R.normalized();  // about upright
+      }
+      kept.resetSampleCount();
+      const bool crosses = kept.edgesCrossAt(X, c.isovalue);
+      kept_work += kept.work();
+      CollisionDetector fresh(*c.volume, *tool, 0.0);
+      ASSERT_EQ(crosses, fresh.edgesCrossAt(X, c.isovalue)) << "step " << step;
+      fresh_work += fresh.work();
+      const CrossingVerifier::EdgeResult dense = oracle.checkEdges(
+          RigidMotion::Between(X_before, X, tool->mass.p_TCm_m), 1.0, c.isovalue, kept.shellEdges(), kept.epsilon_m());
+      if (dense.crossing_edges > 0) {
+        ++entered;
+        ASSERT_TRUE(crosses) << "step " << step << ": edge (" << dense.first_j << ", " << dense.first_k
+                             << ") enters the isosurface and was not reported";
+      }
+      reported += crosses;
+    }
+    oracle_crossings += entered;
+    std::printf("isovalue %g: %d poses, %d with an edge crossing, %d entering (dense oracle); work %lld kept "
+                "against %lld fresh (%.2fx)\n",
+                c.isovalue, poses, reported, entered, static_cast<long long>(kept_work),
+                static_cast<long long>(fresh_work), static_cast<double>(kept_work) / static_cast<double>(fresh_work));
+    EXPECT_GT(reported, 40) << "the walk seldom met the surface between points";
+    EXPECT_LT(static_cast<double>(kept_work), 0.8 * static_cast<double>(fresh_work)) << "no certificate was reused";
+  }
+  EXPECT_GT(oracle_crossings, 4);
 }
 
 }  // namespace

@@ -8,6 +8,7 @@
 #include <atomic>
 #include <chrono>
 #include <cstdint>
+#include <limits>
 #include <memory>
 #include <ostream>
 #include <span>
@@ -415,12 +416,31 @@ class CollisionDetector {
   const ToolModel* tool_;
   ShellEdges edges_;
   std::vector<double> edge_reach_m_;  // per point j: its longest edge (j, k > j) [m]
-  bool edgeCrosses(const Pose& X_WP, int j, double isovalue) noexcept;  // the edges (j, k > j)
+  // The edges (j, k > j) at pose X_WP (walked; a certificate of their clearance kept when free).
+  bool edgeCrosses(const Pose& X_WP, int j, double isovalue) noexcept;
+  // Whether j's last clearance certificate (EdgeClearance) still holds at pose X_WP.
+  bool edgesStillClear(const Pose& X_WP, int j) const noexcept;
+  // Temporal coherence of the edge test (haptics/README.md, "Between the points"): per point j,
+  // a clearance that the exact walk proved for all of j's edges at the pose they were last
+  // tested at. Until the tool has moved j's edges that far, they cannot meet the isosurface
+  // (the field only ever decreases under drilling), and edgeCrosses() does not walk them again.
+  struct EdgeClearance {
+    Eigen::Vector3d p_W_m = Eigen::Vector3d::Zero();               // point j at that pose, in W [m]
+    Eigen::Quaterniond R_WT = Eigen::Quaterniond::Identity();      // the tool's orientation there
+    double clearance_m = -1.0;                                     // <= 0: nothing proven
+  };
+  std::vector<EdgeClearance> edge_clearance_;
+  double edge_clearance_isovalue_ = std::numeric_limits<double>::quiet_NaN();  // the certificates' isovalue
+  // How far edge (a, b) (grid coordinates), which the walk found free with F - s <= excess_max
+  // on it, may move and stay free [m]; <= 0 when nothing is proven (see EdgeClearance).
+  double edgeClearance(const Eigen::Vector3d& a, const Eigen::Vector3d& b, double excess_max,
+                       double isovalue) const noexcept;
   // Point i's end of its edges at pose X_WP, in grid coordinates (inset by epsilon; 1 sample).
   Eigen::Vector3d edgeEnd(const Pose& X_WP, int i) noexcept;
   // Edge (j, k) with its ends a, b in grid coordinates: whether the isosurface enters it.
+  // With `excess_max`, also F - s's upper bound on the edge (SegmentEntry::excess_max).
   bool segmentCrosses(const Pose& X_WP, int j, const Eigen::Vector3d& a, int k, const Eigen::Vector3d& b,
-                      double isovalue) noexcept;
+                      double isovalue, double* excess_max = nullptr) noexcept;
   std::array<std::pair<int, int>, kListedEdges> listed_{};  // edges found crossing (edgesCrossAt())
   int listed_count_ = 0;
   // The last edge edgesCrossAt() found crossing: its ends and the pose it was tested at.

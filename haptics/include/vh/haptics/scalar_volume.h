@@ -12,6 +12,7 @@
 #include <cmath>
 #include <cstddef>
 #include <cstdint>
+#include <limits>
 #include <string>
 #include <vector>
 
@@ -54,6 +55,13 @@ struct SegmentEntry {
   double u_inside = 1.0;   ///< Inside end of the bracket (u_inside - u_outside < u_tolerance).
   int cells = 0;           ///< Cells whose cubic was examined (cells skipped by their corners not counted).
   int cells_walked = 0;    ///< Every cell visited, skipped or examined (the walk's cost).
+  /// Upper bound of F - threshold [data units] over the walked part of the segment (up to where
+  /// the walk stopped): the largest corner of each skipped cell, the cubic's largest value at
+  /// its ends and critical points in each examined one. With hit false and the whole segment in
+  /// the grid's box, F < threshold + excess_max on the whole segment; a clearance certificate
+  /// (CollisionDetector's edge test reuses it while the tool moves less than it proves).
+  /// -infinity when no cell was walked.
+  double excess_max = -std::numeric_limits<double>::infinity();
 };
 
 /// Immutable sampled volume: trilinear F(x) and central-difference gradient (eq. 1).
