@@ -85,7 +85,8 @@ CollisionDetector::CollisionDetector(const ScalarVolume& volume, const ToolModel
   grid_per_m_ = volume.geometry().spacing_m.cwiseInverse();
   edges_ = makeShellEdges(tool.point_shell);
   edge_reach_m_.assign(n, 0.0);
-  edge_clearance_.assign(n, EdgeClearance{});
+  edge_clearance_.assign(2 * n, EdgeClearance{});
+  edge_slot_.assign(n, 0);
   for (std::size_t j = 0; j < n; ++j)
     for (int e = edges_.offsets[j]; e < edges_.offsets[j + 1]; ++e)
       edge_reach_m_[j] = std::max(edge_reach_m_[j], (tool.point_shell.points_T_m()[static_cast<std::size_t>(edges_.targets[e])] -
@@ -147,21 +148,22 @@ double CollisionDetector::edgeClearance(const Eigen::Vector3d& a, const Eigen::V
 
 bool CollisionDetector::edgesStillClear(const Pose& X_WP, int j) const noexcept {
   const auto i = static_cast<std::size_t>(j);
-  const EdgeClearance& proven = edge_clearance_[i];
-  if (!(proven.clearance_m > 0.0)) return false;
-  // Each point of j's edges lies within edge_reach_m_[j] + epsilon of point j (edgeEnd()), so
-  // it has moved at most |p_j - p_j'| + |R - R'| (reach + epsilon) since the certificate, with
-  // |R - R'| = 2 sin(theta / 2) = 2 |vec(R'^-1 R)|.
-  const double turn = 2.0 * (proven.R_WT.conjugate() * X_WP.R_AB).vec().norm();
-  const double moved_m = (X_WP * tool_->point_shell.points_T_m()[i] - proven.p_W_m).norm() +
-                         turn * (edge_reach_m_[i] + epsilon_);
-  return moved_m < proven.clearance_m;
+  const Eigen::Vector3d p_W = X_WP * tool_->point_shell.points_T_m()[i];
+  for (std::size_t slot = 2 * i; slot < 2 * i + 2; ++slot) {
+    const EdgeClearance& proven = edge_clearance_[slot];
+    if (!(proven.clearance_m > 0.0)) continue;
+    // Each point of j's edges lies within edge_reach_m_[j] + epsilon of point j (edgeEnd()), so
+    // it has moved at most |p_j - p_j'| + |R - R'| (reach + epsilon) since the certificate,
+    // with |R - R'| = 2 sin(theta / 2) = 2 |vec(R'^-1 R)|.
+    const double turn = 2.0 * (proven.R_WT.conjugate() * X_WP.R_AB).vec().norm();
+    if ((p_W - proven.p_W_m).norm() + turn * (edge_reach_m_[i] + epsilon_) < proven.clearance_m) return true;
+  }
+  return false;
 }
 
 bool CollisionDetector::edgeCrosses(const Pose& X_WP, int j, double isovalue) noexcept {
   if (embedded_[j]) return false;
-  const Eigen::Vector3d& p_T = tool_->point_shell.points_T_m()[static_cast<std::size_t>(j)];
-  EdgeClearance& proven = edge_clearance_[static_cast<std::size_t>(j)];
+  const auto i = static_cast<std::size_t>(j);
   const Eigen::Vector3d a = edgeEnd(X_WP, j);  // once for all of j's edges
   double clearance_m = std::numeric_limits<double>::infinity();
   for (int e = edges_.offsets[j]; e < edges_.offsets[j + 1]; ++e) {
@@ -172,13 +174,15 @@ bool CollisionDetector::edgeCrosses(const Pose& X_WP, int j, double isovalue) no
     }
     const Eigen::Vector3d b = edgeEnd(X_WP, k);
     double excess_max = 0.0;
-    if (segmentCrosses(X_WP, j, a, k, b, isovalue, &excess_max)) {
-      proven.clearance_m = -1.0;
-      return true;
-    }
+    if (segmentCrosses(X_WP, j, a, k, b, isovalue, &excess_max)) return true;
     clearance_m = std::min(clearance_m, edgeClearance(a, b, excess_max, isovalue));
   }
-  proven = {X_WP * p_T, X_WP.R_AB, std::isfinite(clearance_m) ? clearance_m : -1.0};
+  // Two certificates a point, the newer replacing the older: a move stopped by an edge tests
+  // the pose it ends at and the one past it in turn, tick after tick.
+  if (std::isfinite(clearance_m) && clearance_m > 0.0) {
+    edge_clearance_[2 * i + edge_slot_[i]] = {X_WP * tool_->point_shell.points_T_m()[i], X_WP.R_AB, clearance_m};
+    edge_slot_[i] ^= 1;
+  }
   return false;
 }
 
@@ -233,6 +237,7 @@ void CollisionDetector::addEdgeContact(const Pose& X_WP, double isovalue) noexce
 }
 
 bool CollisionDetector::edgesCrossAt(const Pose& X_WP, double isovalue) noexcept {
+  edge_cut_ = false;
   if (edges_.size() == 0) return false;
   if (!(isovalue == edge_clearance_isovalue_)) {  // certificates hold for their isovalue only
     for (auto& proven : edge_clearance_) proven.clearance_m = -1.0;
@@ -241,7 +246,7 @@ bool CollisionDetector::edgesCrossAt(const Pose& X_WP, double isovalue) noexcept
   if (mode_ == DetectionMode::kAccelerated) {
     // Point j's edges lie within the longest edge of j, plus the epsilon their ends are inset
     // by (edgeEnd()), of point j: a node's ball dilated by both holds them.
-    int top = 0;
+    int top = 0, walked = 0;
     stack_[top++] = 0;
     while (top > 0) {
       const ShellNode& node = nodes_[stack_[--top]];
@@ -261,13 +266,18 @@ bool CollisionDetector::edgesCrossAt(const Pose& X_WP, double isovalue) noexcept
             !ballMayBeInside(counters_, X_WP * tool_->point_shell.points_T_m()[j],
                              (edge_reach_m_[j] + epsilon_) * (1.0 + 1e-9) + 1e-12, isovalue))
           continue;
+        if (walked++ > 0 && overBudget()) return edge_cut_ = true;
         if (edgeCrosses(X_WP, j, isovalue)) return true;
       }
     }
     return false;
   }
-  for (int j = 0; j + 1 < static_cast<int>(edges_.offsets.size()); ++j)
-    if (!edgesStillClear(X_WP, j) && edgeCrosses(X_WP, j, isovalue)) return true;
+  int walked = 0;
+  for (int j = 0; j + 1 < static_cast<int>(edges_.offsets.size()); ++j) {
+    if (edges_.offsets[j + 1] == edges_.offsets[j] || edgesStillClear(X_WP, j)) continue;
+    if (walked++ > 0 && overBudget()) return edge_cut_ = true;
+    if (edgeCrosses(X_WP, j, isovalue)) return true;
+  }
   return false;
 }
 

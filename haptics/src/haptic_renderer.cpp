@@ -47,14 +47,37 @@ HapticRenderer::HapticRenderer(std::shared_ptr<const ScalarVolume> volume, std::
 }
 
 double HapticRenderer::edgeSafeTime(const RigidMotion& motion, double t_from, double t_to, double isovalue,
-                                    bool& stopped) noexcept {
+                                    bool& stopped, bool& cut) noexcept {
   stopped = false;
+  cut = false;
   if (!edge_test_ || !(t_to > t_from)) return t_to;
   collision_.clearCrossingEdges();
-  if (!collision_.edgesCrossAt(motion.poseAt(t_to), isovalue)) return t_to;
+  // A whole-graph test the budget or the deadline stopped: nothing is known past t_from.
+  const auto crossesAt = [&](double t) {
+    const bool crosses = collision_.edgesCrossAt(motion.poseAt(t), isovalue);
+    cut = cut || collision_.edgeTestCut();
+    return crosses;
+  };
+  // The pose the move ends at, proven free by a whole-graph test: the next move need not test
+  // its start (the field only falls under drilling; a new isovalue or a released point redoes it).
+  const auto provenFree = [&](double t) {
+    edges_free_isovalue_ = isovalue;
+    edges_free_embedded_ = collision_.embeddedCount();
+    return t;
+  };
+  const bool start_proven = edges_free_isovalue_ == isovalue && edges_free_embedded_ == collision_.embeddedCount();
+  if (!crossesAt(t_to)) return provenFree(t_to);
+  if (cut) return t_from;
   // Already crossing where the move starts (after a reset, or an edge that a lowered isovalue
   // grew a wall through): not held, as embedded points are not.
-  if (collision_.edgesCrossAt(motion.poseAt(t_from), isovalue)) return t_to;
+  if (!start_proven) {
+    if (crossesAt(t_from)) {
+      if (cut) return t_from;
+      edges_free_isovalue_ = std::numeric_limits<double>::quiet_NaN();
+      return t_to;
+    }
+    if (cut) return t_from;
+  }
   stopped = true;
   // Sub-steps of at most a quarter of the point spacing of travel at the farthest point, in
   // order, then the first crossing one bisected (8 halvings): on the edges found crossing so
@@ -83,10 +106,15 @@ double HapticRenderer::edgeSafeTime(const RigidMotion& motion, double t_from, do
       if (collision_.listedEdgesCrossAt(motion.poseAt(mid), isovalue)) cross_t = mid; else free_t = mid;
     }
     if (free_t <= t_from) return t_from;
-    if (!collision_.edgesCrossAt(motion.poseAt(free_t), isovalue)) {
+    const bool crosses = crossesAt(free_t);
+    if (cut) {
+      stopped = false;
+      return t_from;
+    }
+    if (!crosses) {
       // The edge contact is taken at the crossing pose just past it.
       collision_.listedEdgesCrossAt(motion.poseAt(cross_t), isovalue);
-      return free_t;
+      return provenFree(free_t);
     }
     cross_t = free_t;
   }
@@ -102,6 +130,7 @@ void HapticRenderer::resetProxy(const Pose& X_WP) noexcept {
   coupling_.resetTracking();
   embedded_scan_needed_ = true;
   edge_blocked_last_tick_ = false;
+  edges_free_isovalue_ = std::numeric_limits<double>::quiet_NaN();
   blocked_ticks_ = 0;
 }
 
@@ -273,8 +302,8 @@ void HapticRenderer::resumeCutSweep(const Pose& X_WD, double isovalue, TickStats
       t = t_try;
     }
   }
-  bool edge_stop = false;
-  t = edgeSafeTime(pending_motion, pending_t, t, isovalue, edge_stop);
+  bool edge_stop = false, edge_cut = false;
+  t = edgeSafeTime(pending_motion, pending_t, t, isovalue, edge_stop, edge_cut);
   stats.edge_stop = edge_stop;
   last_motion_ = pending_motion.part(pending_t, t);
   last_t_ = 1.0;
@@ -287,7 +316,7 @@ void HapticRenderer::resumeCutSweep(const Pose& X_WD, double isovalue, TickStats
     collision_.addEdgeContact(X_WP_, isovalue);
     blocked_ticks_ = 1;
     edge_blocked_last_tick_ = t < pending_t + 0.01;
-  } else if (!hit.budget_cut) {
+  } else if (!hit.budget_cut && !edge_cut) {
     const auto contacts_start = Clock::now();
     // The contacts at the hit, when the proxy got there.
     if (hit.hit_point >= 0 && t == hit.t) collision_.addContactsAt(pending_motion, hit, isovalue);
@@ -297,7 +326,7 @@ void HapticRenderer::resumeCutSweep(const Pose& X_WD, double isovalue, TickStats
   } else {
     blocked_ticks_ = std::min(blocked_ticks_, 1);
   }
-  stats.budget_cut = hit.budget_cut;
+  stats.budget_cut = hit.budget_cut || edge_cut;
   stats.time_of_contact = t;
 }
 
@@ -352,27 +381,30 @@ TickOutput HapticRenderer::tick(const Pose& X_WD_in, double requested_isovalue) 
                   motion, hit, out.stats, phase);
     // Step 5: move the proxy to the first contact (or the target, or as far as the budget
     // proved free), and no farther than the tool's surface between its points allows.
-    bool edge_stop = false;
-    const double t_move = edgeSafeTime(motion, 0.0, hit.t, isovalue, edge_stop);
+    bool edge_stop = false, edge_cut = false;
+    const double t_move = edgeSafeTime(motion, 0.0, hit.t, isovalue, edge_stop, edge_cut);
     out.stats.edge_stop = edge_stop;
     if (edge_stop) collision_.abandonSweep();
-    blocked_ticks_ = (hit.hit_point >= 0 || edge_stop) && t_move < 0.01 ? blocked_ticks_ + 1 : 0;
+    // An edge test the budget stopped holds the proxy like a cut sweep: not a blocked move.
+    if (!edge_cut) blocked_ticks_ = (hit.hit_point >= 0 || edge_stop) && t_move < 0.01 ? blocked_ticks_ + 1 : 0;
     edge_blocked_last_tick_ = edge_stop && t_move < 0.01;
     X_WP_ = motion.poseAt(t_move);
     last_motion_ = motion;
     last_t_ = t_move;
     collision_.refreshPositions(X_WP_);
-    if (collision_.sweepPending()) {  // cut: goes on next tick
-      pending_t_ = hit.t;
+    if (collision_.sweepPending()) {  // cut: goes on next tick, from where the proxy is
+      pending_t_ = t_move;
     } else {
-      adaptMotionScale(hit.budget_cut, motion_scale_);
+      // After a cut edge test, a shorter step too: the edges' clearance certificates then hold
+      // over more of it (CollisionDetector::edgesCrossAt()), so the test gets through.
+      adaptMotionScale(hit.budget_cut || edge_cut, motion_scale_);
     }
-    if (hit.hit_point >= 0 && !hit.budget_cut && !edge_stop) collision_.addContactsAt(motion, hit, isovalue);
+    if (hit.hit_point >= 0 && !hit.budget_cut && !edge_stop && !edge_cut) collision_.addContactsAt(motion, hit, isovalue);
     // Stopped by the tool's surface between its points: that place on the wall joins the contact
     // set, so that the next tick's configuration solver slides along it.
     if (edge_stop) collision_.addEdgeContact(X_WP_, isovalue);
     out.stats.contacts_us = usSince(phase, Clock::now());
-    out.stats.budget_cut = hit.budget_cut;
+    out.stats.budget_cut = hit.budget_cut || edge_cut;
     out.stats.time_of_contact = t_move;
   }
   // Step 6: virtual coupling (the relative rotation tracked through the ticks: continuous past pi).

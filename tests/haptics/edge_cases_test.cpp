@@ -300,6 +300,61 @@ TEST(EdgeCases, AnUprightProbeMovedEdgeOnIntoAThinPlateStopsAtItsEdge) {
   EXPECT_GT(through_without, 0);  // the case is real: the points alone let it through
 }
 
+TEST(EdgeCases, TheEdgeTestSharesTheWorkBudgetAndStillGetsThrough) {
+  // The upright probe moved edge-on into the one-voxel plate (as above, 1 mm spacing) and then
+  // drawn back out, with the edge test under a work budget of a quarter of what its ticks take
+  // unbudgeted. Oracles: the plate's extent (the shaft's axis never passes its edge by more than
+  // the sagitta allowance), the tick's own work counter against the budget, the unbudgeted
+  // run's stop at the plate (the budgeted proxy gets there too: a cut tick holds it where its
+  // edges are proven free), and the device's pose once drawn back (the proxy follows it out:
+  // cut ticks do not glue it to the wall).
+  auto vol = std::make_shared<const ScalarVolume>(datasets::makeThinPlateVolume(test::grid1mm()));
+  const double z_k = vol->geometry().origin_W_m.z() + 32e-3;
+  const double edge_x = vol->geometry().origin_W_m.x() + 63e-3;
+  const auto tool = test::meshTool(datasets::makeBuiltinTool("probe"), 1e-3);
+  const double tip_z = z_k - 0.020 - 3e-3 / 8.0;
+  struct Run {
+    double stop_x = 0.0, end_x = 0.0, device_x = 0.0;
+    std::int64_t max_work = 0;
+    int cut_ticks = 0;
+  };
+  const auto run = [&](std::int64_t budget) {
+    RendererOptions o;
+    o.edge_test = 1;
+    o.work_budget = budget;
+    HapticRenderer r(vol, tool, o, Pose::FromTranslation({edge_x + 0.008, 0.0003, tip_z}), 250.0);
+    Run result;
+    for (int t = 0; t < 700; ++t) {
+      // In to 22 mm past the edge over 300 ticks, held 100, out to the start over 200, held 100.
+      const double u = t < 400 ? std::min(1.0, t / 300.0) : std::max(0.0, 1.0 - (t - 400) / 200.0);
+      const Pose X_WD = Pose::FromTranslation({edge_x + 0.008 - 0.030 * u, 0.0003, tip_z});
+      const TickOutput out = r.tick(X_WD, 250.0);
+      result.max_work = std::max(result.max_work, out.stats.work);
+      result.cut_ticks += out.stats.budget_cut;
+      EXPECT_GE(out.X_WP.p_AB_m.x(), edge_x + 0.98e-3 - 0.0675e-3 - 0.1e-3) << "tick " << t;
+      if (t == 399) result.stop_x = out.X_WP.p_AB_m.x();
+      result.device_x = X_WD.p_AB_m.x();
+    }
+    result.end_x = r.proxyPose().p_AB_m.x();
+    return result;
+  };
+  const Run free = run(0);
+  const std::int64_t budget = free.max_work / 4;
+  const Run budgeted = run(budget);
+  std::printf("edge test unbudgeted: max work %lld a tick, stops %.3f mm from the edge; budget %lld: max work %lld, "
+              "%d ticks cut, stops %.3f mm from the edge, %.3f mm from the device once drawn back\n",
+              static_cast<long long>(free.max_work), 1e3 * (free.stop_x - edge_x), static_cast<long long>(budget),
+              static_cast<long long>(budgeted.max_work), budgeted.cut_ticks, 1e3 * (budgeted.stop_x - edge_x),
+              1e3 * std::abs(budgeted.end_x - budgeted.device_x));
+  EXPECT_GT(budgeted.cut_ticks, 0) << "the budget never cut: the test does not exercise it";
+  // One point's edges (at most 8 walks of a few cells) past the budget, and the sweep's own
+  // overshoot of one queue step.
+  EXPECT_LT(budgeted.max_work, budget + 400);
+  EXPECT_NEAR(budgeted.stop_x, free.stop_x, 0.1e-3) << "the cut ticks kept the proxy from the wall";
+  EXPECT_LT(std::abs(budgeted.end_x - budgeted.device_x), 0.1e-3) << "the proxy stuck to the wall";
+  EXPECT_LT(std::abs(free.end_x - free.device_x), 0.1e-3);
+}
+
 TEST(EdgeCases, ABallSlidOverABlocksConvexEdgesWithTheEdgeTestRidesOverThem) {
   // The block with a hole (0.5 mm voxels, +-24 mm wide, the hole +-8 mm): the 10 mm ball, its
   // device 1 mm below the top face, slid along +x from beside the block over its outer edge,

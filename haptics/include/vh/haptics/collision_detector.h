@@ -182,8 +182,14 @@ class CollisionDetector {
   /// tested as a segment with the exact segment test (ScalarVolume::firstEntryOnSegment), so a
   /// wall thinner than the point spacing that lies between two points is found however thin.
   /// kAccelerated culls the point-shell tree's nodes (balls dilated by the longest edge) that
-  /// the min-max tree proves empty. Counts its work like a sweep's.
+  /// the min-max tree proves empty. Counts its work like a sweep's and shares its budget and
+  /// deadline: once they are spent (checked after each point's edges, the first walked point
+  /// always done) it stops and returns true with edgeTestCut() set, nothing known past there.
+  /// Clearance certificates from its walks are kept across calls (see EdgeClearance), so a
+  /// test stopped on one tick skips, on the next, what it proved then where the tool moved less.
   bool edgesCrossAt(const Pose& X_WP, double isovalue) noexcept;
+  /// Whether the last edgesCrossAt() was stopped by the work budget or the deadline.
+  bool edgeTestCut() const noexcept { return edge_cut_; }
   /// The edges edgesCrossAt() found crossing since the last clearCrossingEdges() (at most
   /// kListedEdges, the first ones): whether one of them meets the isosurface at pose X_WP. The
   /// renderer's subdivision of a stopped move tests these only, and then the whole graph once
@@ -421,15 +427,17 @@ class CollisionDetector {
   // Whether j's last clearance certificate (EdgeClearance) still holds at pose X_WP.
   bool edgesStillClear(const Pose& X_WP, int j) const noexcept;
   // Temporal coherence of the edge test (haptics/README.md, "Between the points"): per point j,
-  // a clearance that the exact walk proved for all of j's edges at the pose they were last
-  // tested at. Until the tool has moved j's edges that far, they cannot meet the isosurface
+  // the clearances that the exact walk proved for all of j's edges at the last two poses they
+  // were found free at. Until the tool has moved j's edges that far, they cannot meet the isosurface
   // (the field only ever decreases under drilling), and edgeCrosses() does not walk them again.
   struct EdgeClearance {
     Eigen::Vector3d p_W_m = Eigen::Vector3d::Zero();               // point j at that pose, in W [m]
     Eigen::Quaterniond R_WT = Eigen::Quaterniond::Identity();      // the tool's orientation there
     double clearance_m = -1.0;                                     // <= 0: nothing proven
   };
-  std::vector<EdgeClearance> edge_clearance_;
+  std::vector<EdgeClearance> edge_clearance_;  // two per point: 2 j and 2 j + 1
+  std::vector<unsigned char> edge_slot_;        // per point: the slot the next certificate replaces
+  bool edge_cut_ = false;  // the last edgesCrossAt() stopped at the budget or the deadline
   double edge_clearance_isovalue_ = std::numeric_limits<double>::quiet_NaN();  // the certificates' isovalue
   // How far edge (a, b) (grid coordinates), which the walk found free with F - s <= excess_max
   // on it, may move and stay free [m]; <= 0 when nothing is proven (see EdgeClearance).

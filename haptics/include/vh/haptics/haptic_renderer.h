@@ -93,8 +93,9 @@ struct RendererOptions {
   /// each move, the point shell's neighbour edges are tested at the new pose; when one meets
   /// the isosurface, the move is subdivided and the proxy stops before the first sub-step where
   /// one does. 0 (default) off; 1 on; -1 on in kAccelerated with SegmentTest::kExact, off in
-  /// kPaper (the paper's algorithm as published). Off by default until it shares the work
-  /// budget (its cost is not yet bounded: see haptics/README.md, "Between the points").
+  /// kPaper (the paper's algorithm as published). It shares the tick's work budget and deadline
+  /// (a test they stop holds the proxy where it is, and the next ticks take shorter steps); off
+  /// by default for its mean cost (haptics/README.md, "Between the points").
   int edge_test = 0;
   /// Largest distance accepted between the device pose and the proxy [m]; a device farther
   /// from the proxy is treated as bad input (zero force, the proxy stays). A last line only:
@@ -217,13 +218,19 @@ class HapticRenderer {
   RigidMotion last_motion_;
   double last_t_ = 0.0;
   // RendererOptions::edge_test: the move along `motion` from t_from (edges free there) to t_to
-  // (points proven free), shortened to before the first sub-step where an edge crosses.
-  double edgeSafeTime(const RigidMotion& motion, double t_from, double t_to, double isovalue, bool& stopped) noexcept;
+  // (points proven free), shortened to before the first sub-step where an edge crosses. When
+  // the work budget or the deadline stops the edge test (cut true), t_from: the proxy stays.
+  double edgeSafeTime(const RigidMotion& motion, double t_from, double t_to, double isovalue, bool& stopped,
+                      bool& cut) noexcept;
   // Goes on with the sweep the work budget cut on an earlier tick (CollisionDetector::
   // resumeSweep()) and moves the proxy along its motion as far as proven free.
   void resumeCutSweep(const Pose& X_WD, double isovalue, TickStats& stats) noexcept;
   bool edge_test_ = false;
   bool edge_blocked_last_tick_ = false;  // the last move was stopped at once by an edge
+  // The edge test proved the proxy's pose free at this isovalue with this many embedded points
+  // (NaN: not proven). Then a stopped move need not test its start again (edgeSafeTime()).
+  double edges_free_isovalue_ = std::numeric_limits<double>::quiet_NaN();
+  int edges_free_embedded_ = -1;
   // The stand-off lift after such a move, as a fraction of epsilon (see tick()).
   static constexpr double kEdgeStandoffFraction = 0.5;
   // After two moves in a row that a point stopped at once (a stuck contact), the lift is on at
