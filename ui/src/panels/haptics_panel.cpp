@@ -54,7 +54,8 @@ HapticsPanel::HapticsPanel(QWidget* parent) : QWidget(parent) {
   edge_test_->setObjectName("edgeTest");
   edge_test_->setToolTip(
       "Keep the tool's surface between its points outside the surface felt, not only the points: bone "
-      "thinner than the point spacing cannot slip between them (costs the solver 1.3x to 4x its time)");
+      "thinner than the point spacing cannot slip between them (costs the solver 1.1x to 2.8x its time; "
+      "within the servo deadline, a heavy tool pressed on bone may lag a little)");
   tool_form->addRow(edge_test_);
   layout->addWidget(tool_box);
 
