@@ -134,7 +134,7 @@ double CollisionDetector::edgeClearance(const Eigen::Vector3d& a, const Eigen::V
   // bound holds within one brick of the end's brick (MinMaxTree::setLipschitz), so for a move
   // of at most d with half the length plus d inside one brick, F rises by at most L d from its
   // largest value on the edge.
-  const Eigen::Vector3d spacing_m = grid_per_m_.cwiseInverse();
+  const Eigen::Vector3d& spacing_m = volume_->geometry().spacing_m;
   const double length_m = (b - a).cwiseProduct(spacing_m).norm();
   const double reach_m = MinMaxTree::kBrickCells * spacing_m.minCoeff() - 0.5 * length_m;
   const double lipschitz = std::max(volume_->localLipschitzBound(a), volume_->localLipschitzBound(b));
