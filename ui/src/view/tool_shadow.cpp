@@ -2,7 +2,6 @@
 
 #include <algorithm>
 #include <cmath>
-#include <cstring>
 #include <limits>
 #include <utility>
 
@@ -60,20 +59,6 @@ std::optional<double> entryOnPiece(const haptics::ScalarVolume& field, const Eig
                                 isovalue, 1.0, std::max(u_tolerance / (u1 - u0), 1e-12));
   if (!e.hit) return std::nullopt;
   return u0 + e.u_outside * (u1 - u0);
-}
-
-// The raw value `raw` (a value of `type`, as ScalarVolume::lowestRaw() gives it) as the bytes
-// that type stores it in (native endianness; the first voxelTypeSize(type) bytes).
-std::array<std::byte, 4> rawBytes(haptics::VoxelType type, double raw) {
-  std::array<std::byte, 4> out{};
-  const auto put = [&out](auto value) { std::memcpy(out.data(), &value, sizeof(value)); };
-  switch (type) {
-    case haptics::VoxelType::kUInt8: put(static_cast<std::uint8_t>(raw)); break;
-    case haptics::VoxelType::kInt16: put(static_cast<std::int16_t>(raw)); break;
-    case haptics::VoxelType::kUInt16: put(static_cast<std::uint16_t>(raw)); break;
-    case haptics::VoxelType::kFloat32: put(static_cast<float>(raw)); break;
-  }
-  return out;
 }
 
 /// Voxel (i, j, k) of linear index `index` (x fastest) on a grid of `dims`.
@@ -234,19 +219,10 @@ void CarvedRegion::rebuild() {
                                  (static_cast<std::size_t>(j) + static_cast<std::size_t>(g.dims[1]) * static_cast<std::size_t>(k));
       std::copy_n(src + at * size, row, dst);
     }
-  // Carved before the volume is built, so that its min-max tree is built once, over the carved
-  // voxels (the lowest raw value in the field's own type).
-  const std::array<std::byte, 4> removed = rawBytes(field_->voxelType(), field_->lowestRaw());
-  for (const std::uint64_t index : removed_) {
-    const std::array<int, 3> ijk = voxelOf(index, g.dims);
-    const std::size_t at = static_cast<std::size_t>(ijk[0] - lo_[0]) +
-                           static_cast<std::size_t>(bg.dims[0]) *
-                               (static_cast<std::size_t>(ijk[1] - lo_[1]) +
-                                static_cast<std::size_t>(bg.dims[1]) * static_cast<std::size_t>(ijk[2] - lo_[2]));
-    std::copy_n(removed.data(), size, bytes.data() + at * size);
-  }
   box_ = std::make_unique<haptics::ScalarVolume>(haptics::ScalarVolume::FromBytes(
       bg, field_->voxelType(), std::move(bytes), field_->valueScale(), field_->valueOffset()));
+  for (const std::uint64_t index : removed_) (void)carveInBox(index);
+  box_->refreshRegion({0, 0, 0}, {bg.dims[0] - 1, bg.dims[1] - 1, bg.dims[2] - 1});
 }
 
 std::vector<Eigen::Vector3d> toolShadowSamples(const haptics::ToolModel& tool) {
