@@ -303,8 +303,8 @@ TEST(EdgeCases, AnUprightProbeMovedEdgeOnIntoAThinPlateStopsAtItsEdge) {
 TEST(EdgeCases, TheEdgeTestSharesTheWorkBudgetAndStillGetsThrough) {
   // The upright probe moved edge-on into the one-voxel plate (as above, 1 mm spacing) and then
   // drawn back out, with the edge test under a work budget of a quarter of what its ticks take
-  // unbudgeted. Oracles: the plate's extent (the shaft's axis never passes its edge by more than
-  // the sagitta allowance), the tick's own work counter against the budget, the unbudgeted
+  // unbudgeted. Oracles: the plate's extent (the shaft's axis stays kAxisClear_m outside its
+  // edge at every tick), the tick's own work counter against the budget, the unbudgeted
   // run's stop at the plate (the budgeted proxy gets there too: a cut tick holds it where its
   // edges are proven free), and the device's pose once drawn back (the proxy follows it out:
   // cut ticks do not glue it to the wall).
@@ -313,6 +313,9 @@ TEST(EdgeCases, TheEdgeTestSharesTheWorkBudgetAndStillGetsThrough) {
   const double edge_x = vol->geometry().origin_W_m.x() + 63e-3;
   const auto tool = test::meshTool(datasets::makeBuiltinTool("probe"), 1e-3);
   const double tip_z = z_k - 0.020 - 3e-3 / 8.0;
+  // The shaft's radius (its 16-sided mesh: 0.98 mm) less 0.17 mm; the unbudgeted run stops with
+  // its axis 0.91 mm outside the edge.
+  constexpr double kAxisClear_m = 0.98e-3 - 0.0675e-3 - 0.1e-3;
   struct Run {
     double stop_x = 0.0, end_x = 0.0, device_x = 0.0;
     std::int64_t max_work = 0;
@@ -331,7 +334,7 @@ TEST(EdgeCases, TheEdgeTestSharesTheWorkBudgetAndStillGetsThrough) {
       const TickOutput out = r.tick(X_WD, 250.0);
       result.max_work = std::max(result.max_work, out.stats.work);
       result.cut_ticks += out.stats.budget_cut;
-      EXPECT_GE(out.X_WP.p_AB_m.x(), edge_x + 0.98e-3 - 0.0675e-3 - 0.1e-3) << "tick " << t;
+      EXPECT_GE(out.X_WP.p_AB_m.x(), edge_x + kAxisClear_m) << "tick " << t;
       if (t == 399) result.stop_x = out.X_WP.p_AB_m.x();
       result.device_x = X_WD.p_AB_m.x();
     }
