@@ -608,8 +608,12 @@ TEST(DrillingView, CavityInTheHeadPhantomGrowsInTheView) {
   EXPECT_TRUE(session.hapticsRunning());
   test::pump(300);
   window.recorder()->stop();
+  const runtime::Session::RestartTiming& restart = session.lastRestart();
   std::printf("head phantom: Record pressed while drilling started in %.0f ms (the checksum, the haptic threads' "
-              "restart)\n", restart_ms);
+              "restart): %.0f ms preparing the new drill with the force on, %.0f ms from the old threads' stop "
+              "to the new threads built\n",
+              restart_ms, restart.while_feeling_ms, restart.without_force_ms);
+  EXPECT_TRUE(restart.prepared_while_feeling) << "the new drill was built before the force let go";
   // Lift the drill out and look down into the cavity.
   haptics::Pose lifted = start;
   lifted.p_AB_m += Eigen::Vector3d(0.05, 0.0, 0.03);  // up and aside, out of the line of sight

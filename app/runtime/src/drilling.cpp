@@ -259,26 +259,46 @@ haptics::CutResult Drill::step(const haptics::HapticRenderer& renderer, const ha
   return removal_->cut(c_W, burr_.radius_m, out.force_W_N.norm(), dt_s_, renderer.feltIsovalue(), touches);
 }
 
+PreparedDrill prepareDrill(const haptics::ScalarVolume& felt, DrillMaterials materials, const DrillSpec& spec) {
+  if (!(spec.burr_speed_rpm > 0.0) || !std::isfinite(spec.burr_speed_rpm))
+    throw std::invalid_argument("drill.burr_speed_rpm: expected a speed > 0");
+  auto copy = std::make_shared<haptics::ScalarVolume>(felt);  // the renderer's own, carved
+  haptics::RemovalModel model;
+  model.burr_speed_rad_per_s = spec.burr_speed_rpm * 2.0 * 3.14159265358979323846 / 60.0;
+  PreparedDrill out;
+  out.removal = std::make_shared<haptics::MaterialRemoval>(std::move(copy), std::move(materials.voxel_material),
+                                                           std::move(materials.materials), model);
+  // The cavity drilled before this renderer, removed before it first reads its field.
+  if (spec.cavity != nullptr)
+    out.removal->removeCavity(cavityVoxelsOn(*spec.cavity, out.removal->volume().geometry()));
+  out.segment_of_material = std::move(materials.segment_of_material);
+  out.cavity = spec.cavity;
+  return out;
+}
+
+DrillingRenderer makeDrillingRenderer(PreparedDrill prepared, double felt_isovalue,
+                                      std::shared_ptr<const haptics::ToolModel> tool, const DrillSpec& spec,
+                                      const haptics::RendererOptions& options, const haptics::Pose& X_WP,
+                                      double servo_rate_Hz) {
+  if (tool == nullptr) throw std::invalid_argument("drilling needs a tool");
+  if (prepared.removal == nullptr) throw std::invalid_argument("drilling: the prepared drill has no removal");
+  const Burr burr = burrOf(*tool, spec);
+  DrillingRenderer out;
+  out.renderer = std::make_unique<haptics::HapticRenderer>(prepared.removal->sharedVolume(), std::move(tool), options,
+                                                           X_WP, felt_isovalue);
+  out.drill = std::make_shared<Drill>(std::move(prepared.removal), burr, 1.0 / servo_rate_Hz,
+                                      std::move(prepared.segment_of_material), std::move(prepared.cavity));
+  return out;
+}
+
 DrillingRenderer makeDrillingRenderer(const haptics::ScalarVolume& felt, double felt_isovalue,
                                       std::shared_ptr<const haptics::ToolModel> tool, DrillMaterials materials,
                                       const DrillSpec& spec, const haptics::RendererOptions& options,
                                       const haptics::Pose& X_WP, double servo_rate_Hz) {
   if (tool == nullptr) throw std::invalid_argument("drilling needs a tool");
-  if (!(spec.burr_speed_rpm > 0.0) || !std::isfinite(spec.burr_speed_rpm))
-    throw std::invalid_argument("drill.burr_speed_rpm: expected a speed > 0");
-  const Burr burr = burrOf(*tool, spec);
-  auto copy = std::make_shared<haptics::ScalarVolume>(felt);  // the renderer's own, carved
-  haptics::RemovalModel model;
-  model.burr_speed_rad_per_s = spec.burr_speed_rpm * 2.0 * 3.14159265358979323846 / 60.0;
-  auto removal = std::make_shared<haptics::MaterialRemoval>(copy, std::move(materials.voxel_material),
-                                                            std::move(materials.materials), model);
-  // The cavity drilled before this renderer, removed before it first reads its field.
-  if (spec.cavity != nullptr) removal->removeCavity(cavityVoxelsOn(*spec.cavity, copy->geometry()));
-  DrillingRenderer out;
-  out.renderer = std::make_unique<haptics::HapticRenderer>(copy, std::move(tool), options, X_WP, felt_isovalue);
-  out.drill = std::make_shared<Drill>(std::move(removal), burr, 1.0 / servo_rate_Hz,
-                                      std::move(materials.segment_of_material), spec.cavity);
-  return out;
+  (void)burrOf(*tool, spec);  // its errors before the copy's cost
+  return makeDrillingRenderer(prepareDrill(felt, std::move(materials), spec), felt_isovalue, std::move(tool), spec,
+                              options, X_WP, servo_rate_Hz);
 }
 
 }  // namespace vh::runtime

@@ -17,6 +17,7 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <chrono>
 #include <cerrno>
 #include <cmath>
 #include <cstdlib>
@@ -24,6 +25,7 @@
 #include <limits>
 #include <span>
 #include <stdexcept>
+#include <thread>
 
 #include <nlohmann/json.hpp>
 
@@ -438,6 +440,26 @@ void HapticThread::start() {
   }
 }
 
+bool HapticThread::holdCutting(double timeout_ms) {
+  if (options_.drill == nullptr) return false;
+  // In the single order of these seq_cst operations: the hold, then this read of the count, then
+  // the solver's next increment, then every later tick's read of the hold. So once the count
+  // passes `before`, the tick that may have missed the hold has finished (its writes to the
+  // field visible here), and every later one sees it.
+  cutting_held_.store(true, std::memory_order_seq_cst);
+  const std::uint64_t before = solver_ticks_.load(std::memory_order_seq_cst);
+  if (!solver_thread_.joinable()) return true;  // no solver thread: nothing cuts
+  const auto until = std::chrono::steady_clock::now() + std::chrono::duration<double, std::milli>(timeout_ms);
+  while (solver_ticks_.load(std::memory_order_seq_cst) <= before) {
+    if (std::chrono::steady_clock::now() > until) {
+      releaseCutting();
+      return false;
+    }
+    std::this_thread::sleep_for(std::chrono::microseconds(100));
+  }
+  return true;
+}
+
 void HapticThread::stop() {
   if (!coupling_thread_.joinable()) return;
   stop_requested_.store(true, std::memory_order_release);
@@ -817,7 +839,10 @@ void HapticThread::solverLoop() noexcept {
       out = renderer_->tick(in.X_WD, in.isovalue);
       bad_input = out.stats.bad_input;
       if (bad_input) ++rejected;
-      if (options_.drill != nullptr && (drilling_.load(std::memory_order_relaxed) || in.drill_button)) {
+      // seq_cst with solver_ticks_ below: holdCutting()'s handshake (a tick that starts after the
+      // one it waited for sees the hold).
+      if (options_.drill != nullptr && !cutting_held_.load(std::memory_order_seq_cst) &&
+          (drilling_.load(std::memory_order_relaxed) || in.drill_button)) {
         (void)options_.drill->step(*renderer_, out);
         drill_flags = kRecordFlagDrillOn;
       }
@@ -869,6 +894,7 @@ void HapticThread::solverLoop() noexcept {
       monitor->publishSolver();
     }
     x_->gui.publishSolver();
+    solver_ticks_.fetch_add(1, std::memory_order_seq_cst);
   };
 
   // The samples waiting at this wake-up.

@@ -691,14 +691,27 @@ double solverDeadline_us(double servo_rate_Hz) {
   return servo_rate_Hz > 0.0 && std::isfinite(servo_rate_Hz) ? 0.9e6 / servo_rate_Hz : 0.0;
 }
 
+PreparedDrill prepareServoDrill(const LiveValues& live) {
+  if (!live.drill) throw std::invalid_argument("prepareServoDrill: the scene has no drill");
+  if (live.hapticField() == nullptr || live.scan_field == nullptr)
+    throw std::invalid_argument("drilling needs a volume");
+  return prepareDrill(*live.hapticField(),
+                      makeDrillMaterials(*live.hapticField(), *live.scan_field, live.scan_in_HU,
+                                         live.segments.get(), *live.drill),
+                      *live.drill);
+}
+
 DrillingRenderer makeServoRenderer(const LiveValues& live, const haptics::RendererOptions& options,
-                                   const haptics::Pose& X_WP, double servo_rate_Hz) {
+                                   const haptics::Pose& X_WP, double servo_rate_Hz, PreparedDrill* prepared) {
   if (!live.drill) return {makeRenderer(live, options, X_WP), nullptr};
   if (live.hapticField() == nullptr || live.scan_field == nullptr)
     throw std::invalid_argument("drilling needs a volume");
   haptics::RendererOptions with_gains = options;
   with_gains.gains = live.gains;
   if (live.tool_spec.edge_test) with_gains.edge_test = 1;
+  if (prepared != nullptr && prepared->removal != nullptr)
+    return makeDrillingRenderer(std::move(*prepared), live.hapticIsovalue(), live.tool, *live.drill, with_gains,
+                                X_WP, servo_rate_Hz);
   return makeDrillingRenderer(*live.hapticField(), live.hapticIsovalue(), live.tool,
                               makeDrillMaterials(*live.hapticField(), *live.scan_field, live.scan_in_HU,
                                                  live.segments.get(), *live.drill),
@@ -707,14 +720,15 @@ DrillingRenderer makeServoRenderer(const LiveValues& live, const haptics::Render
 
 std::unique_ptr<HapticThread> makeHapticThread(const LiveValues& live, std::shared_ptr<Device> device,
                                                double servo_rate_Hz, const haptics::Pose& X_WP,
-                                               const HapticThreadOptions& options) {
+                                               const HapticThreadOptions& options, PreparedDrill* prepared) {
   HapticThreadOptions with_segments = options;
   with_segments.segments = live.segments;
   haptics::RendererOptions solver;
   solver.solver_lanes = defaultSolverLanes();
   solver.deadline_us = solverDeadline_us(servo_rate_Hz);
   DrillingRenderer r = makeServoRenderer(live, solver, X_WP,
-                                         options.solver_rate_Hz > 0.0 ? options.solver_rate_Hz : servo_rate_Hz);
+                                         options.solver_rate_Hz > 0.0 ? options.solver_rate_Hz : servo_rate_Hz,
+                                         prepared);
   with_segments.drill = r.drill;
   auto thread = std::make_unique<HapticThread>(std::move(r.renderer), std::move(device), live.hapticIsovalue(),
                                                servo_rate_Hz, with_segments);

@@ -5,6 +5,7 @@
 #include "vh/runtime/snapshot_channel.h"
 
 #include <algorithm>
+#include <chrono>
 #include <cmath>
 #include <stdexcept>
 #include <string>
@@ -233,12 +234,12 @@ void Session::retireHaptics() {
   haptics_.reset();
 }
 
-void Session::rebuildHaptics(const haptics::Pose& X_WP) {
+void Session::rebuildHaptics(const haptics::Pose& X_WP, PreparedDrill* prepared) {
   retireHaptics();
   if (device_ == nullptr || !has_scene_ || live_.hapticField() == nullptr || live_.tool == nullptr) return;
   HapticThreadOptions options;
   options.monitor = monitor_;
-  haptics_ = makeHapticThread(live_, device_, servo_rate_Hz_, X_WP, options);
+  haptics_ = makeHapticThread(live_, device_, servo_rate_Hz_, X_WP, options, prepared);
   haptics_built_X_WP_ = X_WP;
 }
 
@@ -247,12 +248,42 @@ std::optional<haptics::Pose> Session::prepareRecording() {
   HapticSnapshot latest;
   haptics_->latestSnapshot(latest);
   if (latest.tick == 0 && !haptics_->running()) return haptics_built_X_WP_;  // fresh threads
-  // Where the proxy stopped: free of the surface (the renderer's own pose); the cavity so far is
-  // kept by retireHaptics() and the new drill starts from it, as the replay's will.
+  using Clock = std::chrono::steady_clock;
+  const auto ms = [](Clock::time_point a, Clock::time_point b) {
+    return std::chrono::duration<double, std::milli>(b - a).count();
+  };
+  const Clock::time_point begin = Clock::now();
+  // Running threads with a drill: the new drill's field and materials (0.3 s on a CT) are built
+  // while these threads still render the force, with the burr's removal held, so that the
+  // cavity the new drill starts from is the one these threads end with. Without a drill, or
+  // when the hold or the preparation fails, everything is built after the stop, as before.
+  std::optional<PreparedDrill> prepared;
+  if (haptics_->running() && haptics_->drill() != nullptr && live_.drill && live_.hapticField() != nullptr &&
+      haptics_->holdCutting()) {
+    try {
+      const Drill& drill = *haptics_->drill();
+      auto cavity = std::make_shared<DrilledCavity>(
+          cavityOf(drill.removal().volume(), *live_.hapticField(), drill.cavityAtStart().get()));
+      live_.drill->cavity = cavity->voxels.empty() ? nullptr : std::move(cavity);
+      prepared = prepareServoDrill(live_);
+    } catch (...) {
+      prepared.reset();
+      haptics_->releaseCutting();
+    }
+  }
+  const Clock::time_point stopping = Clock::now();
+  // Where the proxy stopped: free of the surface (the renderer's own pose). The cavity so far is
+  // kept (above, or by retireHaptics()) and the new drill starts from it, as the replay's will.
   haptics_->stop();
   const haptics::Pose X_WP = proxyPose();
-  retireHaptics();
-  rebuildHaptics(X_WP);
+  if (prepared) {
+    haptics_.reset();  // its cavity was kept above, and its field has not changed since
+  } else {
+    retireHaptics();
+  }
+  rebuildHaptics(X_WP, prepared ? &*prepared : nullptr);
+  const Clock::time_point end = Clock::now();
+  last_restart_ = RestartTiming{ms(begin, stopping), ms(stopping, end), prepared.has_value()};
   notify(SessionChange::kRunning);
   return X_WP;
 }

@@ -458,9 +458,18 @@ TEST(Drilling, ARecordingStartedWhileDrillingReplaysBitForBit) {
   ASSERT_TRUE(test::waitUntil([&] { return session.proxyPose().p_AB_m.z() < 0.0215; }, std::chrono::milliseconds(30000)))
       << "the burr's centre at z = " << session.proxyPose().p_AB_m.z() * 1e3 << " mm";
 
+  const std::shared_ptr<Drill> old_drill = session.hapticThread()->drill();
   const std::optional<haptics::Pose> X_start = session.prepareRecording();
   ASSERT_TRUE(X_start.has_value());
   EXPECT_FALSE(session.hapticsRunning()) << "left stopped for the recorder";
+  EXPECT_TRUE(session.lastRestart().prepared_while_feeling) << "the new drill was built with the force on";
+  ASSERT_NE(session.hapticThread()->drill(), nullptr);
+  ASSERT_NE(session.hapticThread()->drill(), old_drill);
+  const auto old_bytes = old_drill->removal().volume().bytes();
+  const auto new_bytes = session.hapticThread()->drill()->removal().volume().bytes();
+  ASSERT_EQ(old_bytes.size(), new_bytes.size());
+  EXPECT_TRUE(std::equal(old_bytes.begin(), old_bytes.end(), new_bytes.begin()))
+      << "the new drill starts from the field the old threads ended with";
   EXPECT_LT(X_start->p_AB_m.z(), 0.0215) << "rebuilt where the proxy stopped, in its cavity";
   ASSERT_NE(session.live().drill->cavity, nullptr) << "the cavity so far is kept for the new threads";
   const std::size_t cavity_at_start = session.live().drill->cavity->voxels.size();
@@ -516,6 +525,46 @@ TEST(Drilling, ARecordingStartedWhileDrillingReplaysBitForBit) {
   EXPECT_FALSE(elsewhere.identical);
   std::cout << "replayed from the scene's free pose: " << elsewhere.mismatch << " differs at tick "
             << elsewhere.first_mismatch_tick.value_or(0) << "\n";
+}
+
+// Holding the cut (what a recording started while drilling does while it builds the new drill):
+// with the burr on and pressed into the sphere, no voxel is removed and the drill's field stays
+// byte for byte the same for 300 ms, while the force still pushes back; released, the burr cuts
+// again (so the drill was cutting all along and the hold is what stopped it).
+TEST(Drilling, HoldingTheCutKeepsTheFieldWhileTheForceGoesOn) {
+  Session session;
+  LoadedScene scene = loadScene(parseScene(R"({"volume": {"path": "builtin:sphere"}, "tool": {"mesh": "builtin:drill",
+      "point_spacing_m": 0.001}, "coupling": {"linear_N_per_m": 400}, "device": {"kind": "simulated"},
+      "drill": {"on": true, "burr_radius_m": 0.0025, "hardness": {"tissue": 0.3}}})", "s.json", "."));
+  auto device = scene.makeDevice();
+  session.setScene(std::move(scene), device);
+  HapticThread* thread = session.hapticThread();
+  ASSERT_NE(thread, nullptr);
+  const haptics::MaterialRemoval& removal = thread->drill()->removal();
+  haptics::Pose press = session.proxyPose();
+  press.p_AB_m = Eigen::Vector3d(0.0, 0.0, 0.0125);
+  session.startHaptics();
+  session.simulatedDevice()->setPose(press);
+  ASSERT_TRUE(test::waitUntil([&] { return removal.removedVoxels() > 20; }, std::chrono::milliseconds(30000)))
+      << "the burr cuts";
+
+  ASSERT_TRUE(thread->holdCutting());
+  EXPECT_TRUE(thread->cuttingHeld());
+  const std::uint64_t held_at = removal.removedVoxels();
+  const std::vector<std::byte> field_at = removal.volume().bytes();
+  std::this_thread::sleep_for(std::chrono::milliseconds(300));
+  HapticSnapshot snapshot;
+  ASSERT_TRUE(session.latestSnapshot(snapshot));
+  EXPECT_GT(snapshot.force_W_N.norm(), 0.5) << "the bone still pushes back on the hand";
+  EXPECT_TRUE(thread->drilling()) << "the burr is still switched on";
+  EXPECT_EQ(removal.removedVoxels(), held_at) << "no voxel removed while held";
+  EXPECT_TRUE(std::equal(field_at.begin(), field_at.end(), removal.volume().bytes().begin()))
+      << "the field is not written while held";
+
+  thread->releaseCutting();
+  EXPECT_TRUE(test::waitUntil([&] { return removal.removedVoxels() > held_at + 5; }, std::chrono::milliseconds(30000)))
+      << "released, the burr cuts again";
+  session.stopHaptics();
 }
 
 // A device lowered onto the sphere's top over its first 500 reads and held there, its first

@@ -117,7 +117,7 @@ bool SessionRecorder::start(const fs::path& path) {
   // A replay re-runs the recording through fresh threads from its initial pose and cavity: the
   // recording starts with such threads (rebuilt where the proxy is when they had run) and holds
   // every one of their ticks, so it replays bit for bit whenever it was started. The force lets
-  // go meanwhile (the ramp, the cavity kept, the threads rebuilt: 0.5 s on a drilled CT).
+  // go meanwhile, for the ramp and the threads' build (0.1 s; a drill is prepared before it).
   const std::optional<haptics::Pose> X_WP_start = session_.prepareRecording();
   runtime::HapticThread* haptics = session_.hapticThread();
   if (!X_WP_start || haptics == nullptr) {

@@ -111,6 +111,8 @@ class MaterialRemoval {
   }
 
   const ScalarVolume& volume() const noexcept { return *volume_; }
+  /// The same field, shared: the renderer that feels what this removal carves holds it too.
+  std::shared_ptr<const ScalarVolume> sharedVolume() const noexcept { return volume_; }
   const std::vector<CuttingMaterial>& materials() const noexcept { return materials_; }
   const RemovalModel& model() const noexcept { return model_; }
   /// Voxels removed so far per material (index as materials()); safe to read from any thread.

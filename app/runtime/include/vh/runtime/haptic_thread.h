@@ -205,6 +205,19 @@ class HapticThread {
   /// switch). A no-op without HapticThreadOptions::drill. Any thread.
   void setDrilling(bool on) noexcept { drilling_.store(on, std::memory_order_relaxed); }
   bool drilling() const noexcept { return options_.drill != nullptr && drilling_.load(std::memory_order_relaxed); }
+  /// Holds the burr's removal from the solver's next tick on, whatever turns the burr (setDrilling(),
+  /// the device's button), while the force goes on; releaseCutting() ends the hold. Returns once
+  /// no removal can run any more: the drill's field is then written by no thread until released,
+  /// so it may be read (cavityOf()) while the threads run, which is how a recording restarts the
+  /// threads on a drilled field without first letting the force go (Session::prepareRecording()).
+  /// Blocks the calling thread (never a haptic thread) for at most one solver tick, or
+  /// `timeout_ms` [ms]. Ticks of the hold record no kRecordFlagDrillOn.
+  /// @return true when held (also before start() and after stop(): nothing cuts); false without a
+  ///         drill, or when the solver did not finish a tick within `timeout_ms` (threads that
+  ///         ended by themselves, a stalled solver); then nothing is held.
+  bool holdCutting(double timeout_ms = 100.0);
+  void releaseCutting() noexcept { cutting_held_.store(false, std::memory_order_seq_cst); }
+  bool cuttingHeld() const noexcept { return cutting_held_.load(std::memory_order_relaxed); }
   /// The drill (HapticThreadOptions::drill), or null. Its removal log (MaterialRemoval::
   /// drainRemoved()) has one consumer: the picture.
   const std::shared_ptr<Drill>& drill() const noexcept { return options_.drill; }
@@ -256,6 +269,8 @@ class HapticThread {
   std::atomic<bool> gain_passivity_{false};  ///< CouplingGains::passivity_control.
   std::atomic<bool> gains_dirty_{false};
   std::atomic<bool> drilling_{false};
+  std::atomic<bool> cutting_held_{false};  ///< holdCutting(); read by the solver each tick (seq_cst).
+  std::atomic<std::uint64_t> solver_ticks_{0};  ///< Solver ticks finished (seq_cst; holdCutting()).
   std::atomic<bool> stop_requested_{false};
   std::atomic<bool> coupling_done_{false};  ///< The coupling thread ended: the solver stops too.
   std::atomic<bool> running_{false};

@@ -289,23 +289,35 @@ struct LiveValues {
 std::unique_ptr<haptics::HapticRenderer> makeRenderer(const LiveValues& live, haptics::RendererOptions options,
                                                       const haptics::Pose& X_WP);
 
+/// The pose-free, costly half of live's drilling renderer (live.drill present): prepareDrill() of
+/// the felt field with the hardness of makeDrillMaterials() (two passes over the field's voxels:
+/// about 0.3 s on a 512 x 512 x 140 CT). Off the servo thread.
+/// @throws std::invalid_argument without live.drill or a field, and as makeDrillMaterials() and
+///         prepareDrill().
+PreparedDrill prepareServoDrill(const LiveValues& live);
+
 /// The renderer of `live` for a haptic thread or a replay: makeRenderer() when live.drill is
 /// absent; else makeDrillingRenderer() on a private copy of the felt field, with the hardness of
-/// makeDrillMaterials() (slow: one pass over the field's voxels).
+/// makeDrillMaterials() (slow: one pass over the field's voxels), or on `prepared` when given
+/// (prepareServoDrill() of the same `live`: the same renderer, only its cost paid earlier; moved
+/// from).
 /// @throws std::invalid_argument as makeRenderer() and makeDrillingRenderer().
 DrillingRenderer makeServoRenderer(const LiveValues& live, const haptics::RendererOptions& options,
-                                   const haptics::Pose& X_WP, double servo_rate_Hz);
+                                   const haptics::Pose& X_WP, double servo_rate_Hz,
+                                   PreparedDrill* prepared = nullptr);
 
 /// The one place a renderer and its haptic threads are built (the GUI through Session, the
 /// headless tests through LoadedScene): a HapticThread (not started) driving `device` at
 /// `servo_rate_Hz` on makeRenderer(live, options, X_WP) with options defaultSolverLanes() lanes
 /// and solverDeadline_us(servo_rate_Hz), at live's felt isovalue and gains, naming the segment
 /// of each contact when there are segments (HapticThreadOptions::segments); `options` as
-/// HapticThreadOptions (e.g. the monitor channel the Session shares).
+/// HapticThreadOptions (e.g. the monitor channel the Session shares); `prepared` as
+/// makeServoRenderer()'s.
 /// @throws std::invalid_argument as HapticThread's and HapticRenderer's constructors.
 std::unique_ptr<HapticThread> makeHapticThread(const LiveValues& live, std::shared_ptr<Device> device,
                                                double servo_rate_Hz, const haptics::Pose& X_WP,
-                                               const HapticThreadOptions& options = {});
+                                               const HapticThreadOptions& options = {},
+                                               PreparedDrill* prepared = nullptr);
 
 /// The cores the live solver's sweep runs on (haptics::RendererOptions::solver_lanes): the
 /// machine's hardware threads less two (the coupling thread keeps its core, the GUI and the

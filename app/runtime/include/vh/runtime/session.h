@@ -174,14 +174,27 @@ class Session {
   /// recorded initial pose with the recorded cavity, so the threads the recording holds must
   /// start that way too. Threads that have ticked (running, or stopped after running) are
   /// stopped (force ramped to zero), keep their cavity (live().drill->cavity) and are rebuilt at
-  /// the pose the proxy stopped at (with a drill on a 512 x 512 x 140 CT: about 0.5 s without
-  /// force, 80 ms of it the ramp); the device stays where it is (a hand pressing
-  /// on bone presses on the new proxy at once). Threads that never ticked are kept, with the
+  /// the pose the proxy stopped at; the device stays where it is (a hand pressing on bone
+  /// presses on the new proxy at once). With a drill the new drill's field and materials are
+  /// prepared before the stop, while the running threads still render the force with the burr's
+  /// removal held (HapticThread::holdCutting(): the cavity they end with is the one it starts
+  /// from), so the force lets go only for the ramp and the rest of the build (on a 512 x 512 x 140
+  /// CT about 0.1 s without force, after 0.4 s of a burr that does not cut; lastRestart()). Threads that never ticked are kept, with the
   /// pose they were built at. Either way they are left stopped: build the metadata from live()
   /// with X_WT_initial set to the returned pose (live().X_WT_initial stays the scene's free
   /// placement, where Reset Device goes), attach the recorder (HapticThread::setRecorder()),
   /// then startHaptics(), so the recording holds every tick of these threads.
   std::optional<haptics::Pose> prepareRecording();
+  /// What the last prepareRecording() that restarted threads cost: the time the old threads
+  /// went on rendering the force while the new drill was prepared [ms], the time from their stop
+  /// (the force's ramp to zero) to the new threads built [ms] (they start with startHaptics()),
+  /// and whether the drill was prepared before the stop (false: no drill, or built after it).
+  struct RestartTiming {
+    double while_feeling_ms = 0.0;
+    double without_force_ms = 0.0;
+    bool prepared_while_feeling = false;
+  };
+  const RestartTiming& lastRestart() const noexcept { return last_restart_; }
   /// The haptic threads' latest snapshot into `out` (false, `out` untouched, without threads or
   /// before their first tick). Never blocks.
   bool latestSnapshot(HapticSnapshot& out) const;
@@ -200,7 +213,7 @@ class Session {
  private:
   /// The one function that builds the renderer and the haptic threads (not started), with the
   /// proxy at `X_WP`; none without a device, a field or a tool.
-  void rebuildHaptics(const haptics::Pose& X_WP);
+  void rebuildHaptics(const haptics::Pose& X_WP, PreparedDrill* prepared = nullptr);
   /// Stops the haptic threads (force ramped to zero), keeps their cavity, and drops them.
   void retireHaptics();
   /// With the threads stopped: their drill's cavity into live_.drill->cavity (one pass over the
@@ -217,6 +230,7 @@ class Session {
   std::shared_ptr<Device> device_;
   std::unique_ptr<HapticThread> haptics_;
   haptics::Pose haptics_built_X_WP_;  ///< The proxy pose haptics_ was built at (rebuildHaptics()).
+  RestartTiming last_restart_;
   std::shared_ptr<SnapshotChannel> monitor_;
   std::map<std::string, double> hardness_for_drill_;  ///< setHardness() before any drill
   std::vector<std::pair<int, Observer>> observers_;
