@@ -709,13 +709,11 @@ DrillingRenderer makeServoRenderer(const LiveValues& live, const haptics::Render
   haptics::RendererOptions with_gains = options;
   with_gains.gains = live.gains;
   if (live.tool_spec.edge_test) with_gains.edge_test = 1;
-  if (prepared != nullptr && prepared->removal != nullptr)
-    return makeDrillingRenderer(std::move(*prepared), live.hapticIsovalue(), live.tool, *live.drill, with_gains,
-                                X_WP, servo_rate_Hz);
-  return makeDrillingRenderer(*live.hapticField(), live.hapticIsovalue(), live.tool,
-                              makeDrillMaterials(*live.hapticField(), *live.scan_field, live.scan_in_HU,
-                                                 live.segments.get(), *live.drill),
-                              *live.drill, with_gains, X_WP, servo_rate_Hz);
+  if (live.tool == nullptr) throw std::invalid_argument("drilling needs a tool");
+  (void)burrOf(*live.tool, *live.drill);  // its errors before the preparation's cost
+  PreparedDrill drill = prepared != nullptr && prepared->removal != nullptr ? std::move(*prepared) : prepareServoDrill(live);
+  return makeDrillingRenderer(std::move(drill), live.hapticIsovalue(), live.tool, *live.drill, with_gains, X_WP,
+                              servo_rate_Hz);
 }
 
 std::unique_ptr<HapticThread> makeHapticThread(const LiveValues& live, std::shared_ptr<Device> device,
