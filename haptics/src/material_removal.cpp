@@ -50,7 +50,6 @@ void MaterialRemoval::setSpecificEnergy(int material, double J_per_mm3) noexcept
 std::size_t MaterialRemoval::removeCavity(std::span<const std::uint64_t> voxels) noexcept {
   ScalarVolume& v = *volume_;
   const VolumeGeometry& g = v.geometry();
-  const std::uint64_t nx = static_cast<std::uint64_t>(g.dims[0]), ny = static_cast<std::uint64_t>(g.dims[1]);
   std::array<int, 3> lo = g.dims, hi = {-1, -1, -1};
   std::size_t removed = 0;
   for (const std::uint64_t index : voxels) {
@@ -58,8 +57,7 @@ std::size_t MaterialRemoval::removeCavity(std::span<const std::uint64_t> voxels)
     remaining_[index] = 0;
     v.writeRaw(index, removed_raw_);
     ++removed;
-    const int ijk[3] = {static_cast<int>(index % nx), static_cast<int>((index / nx) % ny),
-                        static_cast<int>(index / (nx * ny))};
+    const std::array<int, 3> ijk = g.voxelOf(index);
     for (int a = 0; a < 3; ++a) {
       lo[a] = std::min(lo[a], ijk[a]);
       hi[a] = std::max(hi[a], ijk[a]);

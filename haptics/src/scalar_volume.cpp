@@ -355,7 +355,7 @@ Eigen::Vector3d ScalarVolume::boundsMin_W_m() const noexcept {
   Eigen::Vector3d lo = Eigen::Vector3d::Constant(std::numeric_limits<double>::infinity());
   for (int c = 0; c < 8; ++c) {
     const Eigen::Vector3d ijk((c & 1) ? upper_.x() : 0.0, (c & 2) ? upper_.y() : 0.0, (c & 4) ? upper_.z() : 0.0);
-    lo = lo.cwiseMin(geometry_.origin_W_m + geometry_.direction_W * geometry_.spacing_m.cwiseProduct(ijk));
+    lo = lo.cwiseMin(geometry_.pointOf_W(ijk));
   }
   return lo;
 }
@@ -364,7 +364,7 @@ Eigen::Vector3d ScalarVolume::boundsMax_W_m() const noexcept {
   Eigen::Vector3d hi = Eigen::Vector3d::Constant(-std::numeric_limits<double>::infinity());
   for (int c = 0; c < 8; ++c) {
     const Eigen::Vector3d ijk((c & 1) ? upper_.x() : 0.0, (c & 2) ? upper_.y() : 0.0, (c & 4) ? upper_.z() : 0.0);
-    hi = hi.cwiseMax(geometry_.origin_W_m + geometry_.direction_W * geometry_.spacing_m.cwiseProduct(ijk));
+    hi = hi.cwiseMax(geometry_.pointOf_W(ijk));
   }
   return hi;
 }

@@ -1,5 +1,6 @@
 #include "vh/haptics/scalar_volume.h"
 
+#include <array>
 #include <cstdint>
 #include <limits>
 #include <random>
@@ -125,6 +126,36 @@ TEST(ScalarVolume, RejectsBadGeometryWithAClearMessage) {
   } catch (const std::invalid_argument& e) {
     EXPECT_NE(std::string(e.what()).find("(1, 2, 0)"), std::string::npos) << e.what();
   }
+}
+
+// VolumeGeometry's index arithmetic against two independent oracles: the running counter of an
+// x-fastest triple loop (the voxel order of every field), and ScalarVolume::gridCoordinates(),
+// which inverts the grid's map to W, on an anisotropic, rotated, offset grid with odd dims.
+TEST(VolumeGeometry, IndexVoxelAndPointAgreeWithTheVoxelOrderAndTheInverseMap) {
+  VolumeGeometry g;
+  g.dims = {5, 3, 7};
+  g.spacing_m = Eigen::Vector3d(0.4e-3, 0.7e-3, 1.3e-3);
+  g.origin_W_m = Eigen::Vector3d(0.01, -0.02, 0.035);
+  g.direction_W = Eigen::AngleAxisd(0.7, Eigen::Vector3d(1.0, 2.0, -0.5).normalized()).toRotationMatrix();
+  const ScalarVolume volume = ScalarVolume::FromVoxels(g, std::vector<float>(g.voxelCount(), 0.0f));
+  std::uint64_t counter = 0;
+  for (int k = 0; k < g.dims[2]; ++k)
+    for (int j = 0; j < g.dims[1]; ++j)
+      for (int i = 0; i < g.dims[0]; ++i, ++counter) {
+        ASSERT_EQ(g.indexOf(i, j, k), counter) << i << " " << j << " " << k;
+        const std::array<int, 3> v = g.voxelOf(counter);
+        ASSERT_EQ(v, (std::array<int, 3>{i, j, k})) << counter;
+        const Eigen::Vector3d ijk(i + 0.25, j - 0.5, k + 0.75);
+        ASSERT_LT((volume.gridCoordinates(g.pointOf_W(ijk)) - ijk).norm(), 1e-9) << counter;
+      }
+  EXPECT_EQ(counter, g.voxelCount());
+  VolumeGeometry other = g;
+  EXPECT_TRUE(g.sameGridAs(other));
+  other.spacing_m.z() += 1e-12;
+  EXPECT_FALSE(g.sameGridAs(other));
+  other = g;
+  other.direction_W(0, 1) = -other.direction_W(0, 1);
+  EXPECT_FALSE(g.sameGridAs(other));
 }
 
 TEST(ScalarVolume, LocalLipschitzBoundHoldsNearEachCellAndIgnoresFarOutliers) {

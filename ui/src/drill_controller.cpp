@@ -1,5 +1,6 @@
 #include "vh/ui/drill_controller.h"
 
+#include <array>
 #include <cmath>
 #include <stdexcept>
 
@@ -42,19 +43,15 @@ std::vector<std::uint64_t> pictureIndices(const haptics::ScalarVolume& felt, con
                                           std::span<const std::uint64_t> felt_indices) {
   const auto& fg = felt.geometry();
   const auto& sg = scan.geometry();
-  if (fg.dims == sg.dims && fg.origin_W_m == sg.origin_W_m && fg.spacing_m == sg.spacing_m &&
-      fg.direction_W == sg.direction_W)
-    return {felt_indices.begin(), felt_indices.end()};
+  if (fg.sameGridAs(sg)) return {felt_indices.begin(), felt_indices.end()};
   std::vector<std::uint64_t> out;
   out.reserve(felt_indices.size());
-  const std::uint64_t nx = static_cast<std::uint64_t>(fg.dims[0]), ny = static_cast<std::uint64_t>(fg.dims[1]);
   for (const std::uint64_t index : felt_indices) {
-    const Eigen::Vector3d ijk(static_cast<double>(index % nx), static_cast<double>((index / nx) % ny),
-                              static_cast<double>(index / (nx * ny)));
-    const Eigen::Vector3d g = scan.gridCoordinates(fg.origin_W_m + fg.direction_W * fg.spacing_m.cwiseProduct(ijk));
+    const std::array<int, 3> v = fg.voxelOf(index);
+    const Eigen::Vector3d g = scan.gridCoordinates(fg.pointOf_W(Eigen::Vector3d(v[0], v[1], v[2])));
     const long a = std::lround(g.x()), b = std::lround(g.y()), c = std::lround(g.z());
     if (a < 0 || b < 0 || c < 0 || a >= sg.dims[0] || b >= sg.dims[1] || c >= sg.dims[2]) continue;
-    out.push_back(static_cast<std::uint64_t>(a + sg.dims[0] * (b + static_cast<long>(sg.dims[1]) * c)));
+    out.push_back(sg.indexOf(a, b, c));
   }
   return out;
 }

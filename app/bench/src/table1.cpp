@@ -121,7 +121,7 @@ std::optional<fs::path> findOrUnpackBunny(std::string& why) {
 Eigen::Vector3d volumeCentre(const haptics::ScalarVolume& v) {
   const haptics::VolumeGeometry& g = v.geometry();
   const Eigen::Vector3d half((g.dims[0] - 1) * 0.5, (g.dims[1] - 1) * 0.5, (g.dims[2] - 1) * 0.5);
-  return g.origin_W_m + g.direction_W * g.spacing_m.cwiseProduct(half);
+  return g.pointOf_W(half);
 }
 
 Eigen::Vector3d volumeExtent(const haptics::ScalarVolume& v) {

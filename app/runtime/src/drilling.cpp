@@ -23,14 +23,11 @@ constexpr double kMinBurrRadius_m = 0.001, kMaxBurrRadius_m = 0.006;
 bool namesMaterial(const std::string& given, const std::string& name) { return lower(given) == lower(name); }
 
 namespace {
-bool sameGrid(const haptics::VolumeGeometry& a, const haptics::VolumeGeometry& b) {
-  return a.dims == b.dims && a.origin_W_m == b.origin_W_m && a.spacing_m == b.spacing_m && a.direction_W == b.direction_W;
-}
 }  // namespace
 
 DrilledCavity cavityOf(const haptics::ScalarVolume& carved, const haptics::ScalarVolume& undrilled,
                        const DrilledCavity* started_from) {
-  if (!sameGrid(carved.geometry(), undrilled.geometry()) || carved.bytes().size() != undrilled.bytes().size())
+  if (!carved.geometry().sameGridAs(undrilled.geometry()) || carved.bytes().size() != undrilled.bytes().size())
     throw std::invalid_argument("cavityOf: the carved field and the undrilled one lie on different grids");
   DrilledCavity cavity;
   cavity.grid = carved.geometry();
@@ -51,20 +48,16 @@ DrilledCavity cavityOf(const haptics::ScalarVolume& carved, const haptics::Scala
 }
 
 std::vector<std::uint64_t> cavityVoxelsOn(const DrilledCavity& cavity, const haptics::VolumeGeometry& grid) {
-  if (sameGrid(cavity.grid, grid) || cavity.voxels.empty()) return cavity.voxels;
+  if (cavity.grid.sameGridAs(grid) || cavity.voxels.empty()) return cavity.voxels;
   const haptics::VolumeGeometry& c = cavity.grid;
-  const std::uint64_t cx = static_cast<std::uint64_t>(c.dims[0]), cy = static_cast<std::uint64_t>(c.dims[1]);
   // The box of the cavity's voxels in its grid, its corners in `grid`'s coordinates.
   Eigen::Vector3d lo = Eigen::Vector3d::Constant(std::numeric_limits<double>::infinity()), hi = -lo;
   for (const std::uint64_t index : cavity.voxels) {
-    const Eigen::Vector3d ijk(static_cast<double>(index % cx), static_cast<double>((index / cx) % cy),
-                              static_cast<double>(index / (cx * cy)));
+    const std::array<int, 3> v = c.voxelOf(index);
+    const Eigen::Vector3d ijk(v[0], v[1], v[2]);
     lo = lo.cwiseMin(ijk);
     hi = hi.cwiseMax(ijk);
   }
-  const auto toW = [](const haptics::VolumeGeometry& g, const Eigen::Vector3d& ijk) {
-    return Eigen::Vector3d(g.origin_W_m + g.direction_W * g.spacing_m.cwiseProduct(ijk));
-  };
   const Eigen::Matrix3d grid_from_W = grid.direction_W.inverse(), cavity_from_W = c.direction_W.inverse();
   const auto gridIjk = [&](const Eigen::Vector3d& p_W) {
     return Eigen::Vector3d((grid_from_W * (p_W - grid.origin_W_m)).cwiseQuotient(grid.spacing_m));
@@ -73,7 +66,7 @@ std::vector<std::uint64_t> cavityVoxelsOn(const DrilledCavity& cavity, const hap
   for (int corner = 0; corner < 8; ++corner) {
     const Eigen::Vector3d ijk((corner & 1) ? hi.x() + 0.5 : lo.x() - 0.5, (corner & 2) ? hi.y() + 0.5 : lo.y() - 0.5,
                               (corner & 4) ? hi.z() + 0.5 : lo.z() - 0.5);
-    const Eigen::Vector3d q = gridIjk(toW(c, ijk));
+    const Eigen::Vector3d q = gridIjk(c.pointOf_W(ijk));
     box_lo = box_lo.cwiseMin(q);
     box_hi = box_hi.cwiseMax(q);
   }
@@ -87,14 +80,11 @@ std::vector<std::uint64_t> cavityVoxelsOn(const DrilledCavity& cavity, const hap
     for (int j = from[1]; j <= to[1]; ++j)
       for (int i = from[0]; i <= to[0]; ++i) {
         const Eigen::Vector3d q =
-            (cavity_from_W * (toW(grid, Eigen::Vector3d(i, j, k)) - c.origin_W_m)).cwiseQuotient(c.spacing_m);
+            (cavity_from_W * (grid.pointOf_W(Eigen::Vector3d(i, j, k)) - c.origin_W_m)).cwiseQuotient(c.spacing_m);
         const long a = std::lround(q.x()), b = std::lround(q.y()), d = std::lround(q.z());
         if (a < 0 || b < 0 || d < 0 || a >= c.dims[0] || b >= c.dims[1] || d >= c.dims[2]) continue;
-        const std::uint64_t index = static_cast<std::uint64_t>(a) + cx * (static_cast<std::uint64_t>(b) + cy * static_cast<std::uint64_t>(d));
-        if (std::binary_search(cavity.voxels.begin(), cavity.voxels.end(), index))
-          out.push_back(static_cast<std::uint64_t>(i) +
-                        static_cast<std::uint64_t>(grid.dims[0]) *
-                            (static_cast<std::uint64_t>(j) + static_cast<std::uint64_t>(grid.dims[1]) * static_cast<std::uint64_t>(k)));
+        if (std::binary_search(cavity.voxels.begin(), cavity.voxels.end(), c.indexOf(a, b, d)))
+          out.push_back(grid.indexOf(i, j, k));
       }
   return out;
 }
@@ -163,13 +153,8 @@ DrillMaterials makeDrillMaterials(const haptics::ScalarVolume& felt, const hapti
   const auto& g = felt.geometry();
   const std::size_t n = g.voxelCount();
   out.voxel_material.resize(n);
-  const bool same_grid = &felt == &scan || (felt.geometry().dims == scan.geometry().dims &&
-                                            felt.geometry().origin_W_m == scan.geometry().origin_W_m &&
-                                            felt.geometry().spacing_m == scan.geometry().spacing_m &&
-                                            felt.geometry().direction_W == scan.geometry().direction_W);
-  const auto centre = [&](int i, int j, int k) {
-    return Eigen::Vector3d(g.origin_W_m + g.direction_W * g.spacing_m.cwiseProduct(Eigen::Vector3d(i, j, k)));
-  };
+  const bool same_grid = &felt == &scan || g.sameGridAs(scan.geometry());
+  const auto centre = [&](int i, int j, int k) { return g.pointOf_W(Eigen::Vector3d(i, j, k)); };
   const auto scanValue = [&](int i, int j, int k) {
     return same_grid ? scan.voxel(i, j, k) : scan.sample(centre(i, j, k));
   };

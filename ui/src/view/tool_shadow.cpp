@@ -61,12 +61,6 @@ std::optional<double> entryOnPiece(const haptics::ScalarVolume& field, const Eig
   return u0 + e.u_outside * (u1 - u0);
 }
 
-/// Voxel (i, j, k) of linear index `index` (x fastest) on a grid of `dims`.
-std::array<int, 3> voxelOf(std::uint64_t index, const std::array<int, 3>& dims) {
-  const std::uint64_t nx = static_cast<std::uint64_t>(dims[0]), ny = static_cast<std::uint64_t>(dims[1]);
-  return {static_cast<int>(index % nx), static_cast<int>((index / nx) % ny), static_cast<int>(index / (nx * ny))};
-}
-
 /// The parameter interval of a -> b (grid coordinates of `box`) inside its box of voxel
 /// centres, or an empty one (u0 > u1).
 std::pair<double, double> clipToBox(const haptics::ScalarVolume& box, const Eigen::Vector3d& a_ijk,
@@ -148,7 +142,7 @@ void CarvedRegion::remove(std::span<const std::uint64_t> removed) {
   for (const std::uint64_t index : removed) {
     if (index >= g.voxelCount()) continue;
     removed_.push_back(index);
-    const std::array<int, 3> ijk = voxelOf(index, g.dims);
+    const std::array<int, 3> ijk = g.voxelOf(index);
     for (std::size_t a = 0; a < 3; ++a) {
       // One voxel around it: the cells it is a corner of.
       const int l = std::max(ijk[a] - 1, 0), h = std::min(ijk[a] + 1, g.dims[a] - 1);
@@ -188,7 +182,7 @@ void CarvedRegion::remove(std::span<const std::uint64_t> removed) {
 }
 
 std::array<int, 3> CarvedRegion::carveInBox(std::uint64_t index) {
-  const std::array<int, 3> ijk = voxelOf(index, field_->geometry().dims);
+  const std::array<int, 3> ijk = field_->geometry().voxelOf(index);
   const std::array<int, 3>& dims = box_->geometry().dims;
   const std::array<int, 3> b{ijk[0] - lo_[0], ijk[1] - lo_[1], ijk[2] - lo_[2]};
   box_->writeRaw(static_cast<std::size_t>(b[0]) +
@@ -204,7 +198,7 @@ void CarvedRegion::rebuild() {
   const auto& g = field_->geometry();
   haptics::VolumeGeometry bg = g;
   bg.dims = {hi_[0] - lo_[0] + 1, hi_[1] - lo_[1] + 1, hi_[2] - lo_[2] + 1};
-  bg.origin_W_m = g.origin_W_m + g.direction_W * g.spacing_m.cwiseProduct(Eigen::Vector3d(lo_[0], lo_[1], lo_[2]));
+  bg.origin_W_m = g.pointOf_W(Eigen::Vector3d(lo_[0], lo_[1], lo_[2]));
   // The box's raw voxels, copied row by row from the field's (the same type, scale and offset:
   // its trilinear field is the field's, bit for bit, until carved).
   const std::size_t size = haptics::voxelTypeSize(field_->voxelType());

@@ -45,6 +45,28 @@ struct VolumeGeometry {
   }
   /// Smallest voxel side [m].
   double minSpacing() const noexcept { return spacing_m.minCoeff(); }
+  /// Whether `other` is the same grid: dims, spacing, origin and direction exactly equal (so
+  /// linear indices mean the same voxels in both).
+  bool sameGridAs(const VolumeGeometry& other) const noexcept {
+    return dims == other.dims && origin_W_m == other.origin_W_m && spacing_m == other.spacing_m &&
+           direction_W == other.direction_W;
+  }
+  /// Linear index (x fastest) of voxel (i, j, k); the voxel must lie within dims.
+  std::uint64_t indexOf(long i, long j, long k) const noexcept {
+    return static_cast<std::uint64_t>(i) +
+           static_cast<std::uint64_t>(dims[0]) *
+               (static_cast<std::uint64_t>(j) + static_cast<std::uint64_t>(dims[1]) * static_cast<std::uint64_t>(k));
+  }
+  /// Voxel (i, j, k) of the linear index `index` (x fastest); index < voxelCount().
+  std::array<int, 3> voxelOf(std::uint64_t index) const noexcept {
+    const auto nx = static_cast<std::uint64_t>(dims[0]), ny = static_cast<std::uint64_t>(dims[1]);
+    return {static_cast<int>(index % nx), static_cast<int>((index / nx) % ny), static_cast<int>(index / (nx * ny))};
+  }
+  /// The point at voxel coordinates `ijk` (voxel centres at integers; fractions between them) in
+  /// W [m]: origin + D diag(spacing) ijk.
+  Eigen::Vector3d pointOf_W(const Eigen::Vector3d& ijk) const noexcept {
+    return origin_W_m + direction_W * spacing_m.cwiseProduct(ijk);
+  }
 };
 
 /// Result of ScalarVolume::firstEntryOnSegment(): where a straight segment first enters
