@@ -22,9 +22,6 @@ constexpr double kMinBurrRadius_m = 0.001, kMaxBurrRadius_m = 0.006;
 
 bool namesMaterial(const std::string& given, const std::string& name) { return lower(given) == lower(name); }
 
-namespace {
-}  // namespace
-
 DrilledCavity cavityOf(const haptics::ScalarVolume& carved, const haptics::ScalarVolume& undrilled,
                        const DrilledCavity* started_from) {
   if (!carved.geometry().sameGridAs(undrilled.geometry()) || carved.bytes().size() != undrilled.bytes().size())
@@ -274,16 +271,6 @@ DrillingRenderer makeDrillingRenderer(PreparedDrill prepared, double felt_isoval
   out.drill = std::make_shared<Drill>(std::move(prepared.removal), burr, 1.0 / servo_rate_Hz,
                                       std::move(prepared.segment_of_material), std::move(prepared.cavity));
   return out;
-}
-
-DrillingRenderer makeDrillingRenderer(const haptics::ScalarVolume& felt, double felt_isovalue,
-                                      std::shared_ptr<const haptics::ToolModel> tool, DrillMaterials materials,
-                                      const DrillSpec& spec, const haptics::RendererOptions& options,
-                                      const haptics::Pose& X_WP, double servo_rate_Hz) {
-  if (tool == nullptr) throw std::invalid_argument("drilling needs a tool");
-  (void)burrOf(*tool, spec);  // its errors before the copy's cost
-  return makeDrillingRenderer(prepareDrill(felt, std::move(materials), spec), felt_isovalue, std::move(tool), spec,
-                              options, X_WP, servo_rate_Hz);
 }
 
 }  // namespace vh::runtime

@@ -216,8 +216,8 @@ void Session::setDevice(std::shared_ptr<Device> device) {
 }
 
 void Session::keepCavity() {
-  if (haptics_ == nullptr || haptics_->running() || haptics_->drill() == nullptr || !live_.drill ||
-      live_.hapticField() == nullptr)
+  if (haptics_ == nullptr || (haptics_->running() && !haptics_->cuttingHeld()) || haptics_->drill() == nullptr ||
+      !live_.drill || live_.hapticField() == nullptr)
     return;
   // The drill carved a copy of the felt field the threads were built on (live_.hapticField():
   // segments change only after retireHaptics()).
@@ -261,10 +261,7 @@ std::optional<haptics::Pose> Session::prepareRecording() {
   if (haptics_->running() && haptics_->drill() != nullptr && live_.drill && live_.hapticField() != nullptr &&
       haptics_->holdCutting()) {
     try {
-      const Drill& drill = *haptics_->drill();
-      auto cavity = std::make_shared<DrilledCavity>(
-          cavityOf(drill.removal().volume(), *live_.hapticField(), drill.cavityAtStart().get()));
-      live_.drill->cavity = cavity->voxels.empty() ? nullptr : std::move(cavity);
+      keepCavity();
       prepared = prepareServoDrill(live_);
     } catch (...) {
       prepared.reset();

@@ -149,39 +149,35 @@ class Drill {
   std::shared_ptr<const DrilledCavity> cavity_at_start_;
 };
 
-/// A renderer on a private copy of `felt` (so that drilling never writes a shared field) with
-/// `options`, `tool`, proxy at X_WP, and the Drill that carves that copy at `servo_rate_Hz`; the
-/// copy starts with spec.cavity removed (cavityVoxelsOn() the felt grid) before the renderer
-/// first reads it.
-/// @throws std::invalid_argument as HapticRenderer's and MaterialRemoval's constructors, burrOf().
+/// A renderer on a drill's private field and the Drill that carves it (makeDrillingRenderer()).
 struct DrillingRenderer {
   std::unique_ptr<haptics::HapticRenderer> renderer;
   std::shared_ptr<Drill> drill;
 };
 
-/// The costly half of makeDrillingRenderer(), which does not depend on the proxy: the private
-/// copy of `felt` with spec.cavity removed, and the removal (materials, per-voxel remains) that
-/// carves it. About 0.15 s on a 512 x 512 x 140 CT, so that it can be built while the threads it
+/// The costly half of a drilling renderer, which does not depend on the proxy: a private copy of
+/// `felt` (so that drilling never writes a shared field) with spec.cavity removed
+/// (cavityVoxelsOn() the felt grid), and the removal (materials, per-voxel remains) that carves
+/// it. About 0.15 s on a 512 x 512 x 140 CT, so that it can be built while the threads it
 /// replaces still render the force (Session::prepareRecording()). Off the servo thread.
 struct PreparedDrill {
   std::shared_ptr<haptics::MaterialRemoval> removal;  ///< Carves its own copy of the felt field.
   std::vector<int> segment_of_material;                ///< DrillMaterials::segment_of_material.
   std::shared_ptr<const DrilledCavity> cavity;         ///< spec.cavity, removed from the copy.
 };
-/// @throws std::invalid_argument as MaterialRemoval's constructor.
+/// @throws std::invalid_argument for a burr speed that is not > 0, and as MaterialRemoval's
+///         constructor.
 PreparedDrill prepareDrill(const haptics::ScalarVolume& felt, DrillMaterials materials, const DrillSpec& spec);
 
-/// The renderer on `prepared`'s field (felt at `felt_isovalue`) and the Drill that carves it,
-/// as makeDrillingRenderer() below builds them: the same state from the same inputs.
+/// A renderer on `prepared`'s field (felt at `felt_isovalue`) with `options`, `tool`, proxy at
+/// X_WP in W [m], and the Drill with spec's burr that carves that field at `servo_rate_Hz`; the
+/// cavity was removed before the renderer first reads the field. The same inputs give the same
+/// state, whenever `prepared` was built (the live threads and a replay alike).
 /// @throws std::invalid_argument as HapticRenderer's constructor, burrOf(), and for a missing
-///         tool, a burr speed that is not > 0 or a prepared drill without a removal.
+///         tool or a prepared drill without a removal.
 DrillingRenderer makeDrillingRenderer(PreparedDrill prepared, double felt_isovalue,
                                       std::shared_ptr<const haptics::ToolModel> tool, const DrillSpec& spec,
                                       const haptics::RendererOptions& options, const haptics::Pose& X_WP,
                                       double servo_rate_Hz);
-DrillingRenderer makeDrillingRenderer(const haptics::ScalarVolume& felt, double felt_isovalue,
-                                      std::shared_ptr<const haptics::ToolModel> tool, DrillMaterials materials,
-                                      const DrillSpec& spec, const haptics::RendererOptions& options,
-                                      const haptics::Pose& X_WP, double servo_rate_Hz);
 
 }  // namespace vh::runtime

@@ -297,10 +297,9 @@ std::unique_ptr<haptics::HapticRenderer> makeRenderer(const LiveValues& live, ha
 PreparedDrill prepareServoDrill(const LiveValues& live);
 
 /// The renderer of `live` for a haptic thread or a replay: makeRenderer() when live.drill is
-/// absent; else makeDrillingRenderer() on a private copy of the felt field, with the hardness of
-/// makeDrillMaterials() (slow: one pass over the field's voxels), or on `prepared` when given
-/// (prepareServoDrill() of the same `live`: the same renderer, only its cost paid earlier; moved
-/// from).
+/// absent; else makeDrillingRenderer() on prepareServoDrill(live) (slow: passes over the field's
+/// voxels), or on `prepared` when given (prepareServoDrill() of the same `live`: the same
+/// renderer, only its cost paid earlier; moved from).
 /// @throws std::invalid_argument as makeRenderer() and makeDrillingRenderer().
 DrillingRenderer makeServoRenderer(const LiveValues& live, const haptics::RendererOptions& options,
                                    const haptics::Pose& X_WP, double servo_rate_Hz,

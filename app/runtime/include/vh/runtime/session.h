@@ -179,8 +179,8 @@ class Session {
   /// prepared before the stop, while the running threads still render the force with the burr's
   /// removal held (HapticThread::holdCutting(): the cavity they end with is the one it starts
   /// from), so the force lets go only for the ramp and the rest of the build (on a 512 x 512 x 140
-  /// CT about 0.1 s without force, after 0.4 s of a burr that does not cut; lastRestart()). Threads that never ticked are kept, with the
-  /// pose they were built at. Either way they are left stopped: build the metadata from live()
+  /// CT about 0.1 s without force, after 0.4 s of a burr that does not cut; lastRestart()).
+  /// Threads that never ticked are kept, with the pose they were built at. Either way they are left stopped: build the metadata from live()
   /// with X_WT_initial set to the returned pose (live().X_WT_initial stays the scene's free
   /// placement, where Reset Device goes), attach the recorder (HapticThread::setRecorder()),
   /// then startHaptics(), so the recording holds every tick of these threads.
@@ -216,8 +216,8 @@ class Session {
   void rebuildHaptics(const haptics::Pose& X_WP, PreparedDrill* prepared = nullptr);
   /// Stops the haptic threads (force ramped to zero), keeps their cavity, and drops them.
   void retireHaptics();
-  /// With the threads stopped: their drill's cavity into live_.drill->cavity (one pass over the
-  /// felt field).
+  /// With the threads stopped, or their cutting held (HapticThread::holdCutting()): their drill's
+  /// cavity into live_.drill->cavity (one pass over the felt field).
   void keepCavity();
   void notify(SessionChange what);
 
