@@ -567,6 +567,68 @@ TEST(Drilling, HoldingTheCutKeepsTheFieldWhileTheForceGoesOn) {
   session.stopHaptics();
 }
 
+// Stalls the solver inside its tick while `stall` is set (HapticThreadOptions::solver_tick_hook).
+struct SolverStall {
+  std::atomic<bool> stall{false};
+  std::atomic<bool> stalled{false};  // a tick is inside the stall now
+  static void hook(void* context) {
+    auto* self = static_cast<SolverStall*>(context);
+    while (self->stall.load(std::memory_order_acquire)) {
+      self->stalled.store(true, std::memory_order_release);
+      std::this_thread::sleep_for(std::chrono::microseconds(200));
+    }
+    self->stalled.store(false, std::memory_order_release);
+  }
+};
+
+// The hold's way out: a solver that does not finish a tick (stalled inside one that may still be
+// cutting) cannot promise that nothing cuts, so holdCutting() gives up after its timeout, holds
+// nothing (cuttingHeld() false) and says so; once the solver goes on, the burr cuts again (the
+// caller builds after the stop instead, as Session::prepareRecording() does). After stop(),
+// nothing can cut and the hold succeeds at once.
+TEST(Drilling, AStalledSolverMakesTheHoldTimeOutAndHoldNothing) {
+  LoadedScene scene = loadScene(parseScene(R"({"volume": {"path": "builtin:sphere"}, "tool": {"mesh": "builtin:drill",
+      "point_spacing_m": 0.001}, "coupling": {"linear_N_per_m": 400}, "device": {"kind": "simulated"},
+      "drill": {"on": true, "burr_radius_m": 0.0025, "hardness": {"tissue": 0.3}}})", "s.json", "."));
+  auto device = scene.makeDevice();
+  auto* simulated = dynamic_cast<SimulatedDevice*>(device.get());
+  ASSERT_NE(simulated, nullptr);
+  SolverStall stall;
+  HapticThreadOptions options;
+  options.solver_tick_hook = &SolverStall::hook;
+  options.solver_tick_hook_context = &stall;
+  std::unique_ptr<HapticThread> thread = scene.makeHapticThread(device, 1000.0, std::nullopt, options);
+  ASSERT_NE(thread->drill(), nullptr);
+  const haptics::MaterialRemoval& removal = thread->drill()->removal();
+  haptics::Pose press = scene.X_WT_initial;
+  press.p_AB_m = Eigen::Vector3d(0.0, 0.0, 0.0125);
+  simulated->setPose(press);
+  thread->start();
+  ASSERT_TRUE(test::waitUntil([&] { return removal.removedVoxels() > 20; }, std::chrono::milliseconds(30000)))
+      << "the burr cuts";
+
+  stall.stall.store(true, std::memory_order_release);
+  ASSERT_TRUE(test::waitUntil([&] { return stall.stalled.load(std::memory_order_acquire); },
+                              std::chrono::milliseconds(5000)));
+  const auto t0 = std::chrono::steady_clock::now();
+  EXPECT_FALSE(thread->holdCutting(50.0)) << "a stalled solver cannot be held";
+  const double waited_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+  EXPECT_GE(waited_ms, 50.0) << "it waited its timeout";
+  EXPECT_LT(waited_ms, 5000.0) << "and no longer than a scheduler's delay past it";
+  EXPECT_FALSE(thread->cuttingHeld()) << "a failed hold holds nothing";
+  std::cout << "the hold gave up after " << waited_ms << " ms (timeout 50 ms)\n";
+
+  const std::uint64_t after_timeout = removal.removedVoxels();
+  stall.stall.store(false, std::memory_order_release);
+  EXPECT_TRUE(test::waitUntil([&] { return removal.removedVoxels() > after_timeout + 5; },
+                              std::chrono::milliseconds(30000)))
+      << "the solver going on, the burr cuts again: nothing was left held";
+  thread->stop();
+  EXPECT_TRUE(thread->holdCutting(50.0)) << "stopped threads cut nothing";
+  EXPECT_TRUE(thread->cuttingHeld());
+  thread->releaseCutting();
+}
+
 // A device lowered onto the sphere's top over its first 500 reads and held there, its first
 // button held from read 300 on when `press_button`.
 class ButtonDevice final : public Device {
