@@ -176,6 +176,21 @@ TEST(Bench, table1EdgeTestColumnRunsBesideTheAcceleratedModeAndNeverCrosses) {
   const json& q = row["ratio_edges_over_accelerated"];
   EXPECT_NEAR(number(q, "cpu_mean"), number(e, "cpu_mean_us") / number(row["modes"]["accelerated"], "cpu_mean_us"), 1e-9);
   EXPECT_EQ(q["within_1_2x"].get<bool>(), number(q, "cpu_mean") <= 1.2);
+  // Its lag: against the edge test's own full solve (no budget, no deadline), run beside it.
+  ASSERT_TRUE(row["modes"].contains("accelerated-edges-unbudgeted"));
+  const json& full = row["modes"]["accelerated-edges-unbudgeted"];
+  EXPECT_EQ(number(full, "crossings"), 0.0);
+  EXPECT_FALSE(full.contains("budget_cuts")) << "the reference runs the full solve";
+  ASSERT_TRUE(e.contains("max_lag_m"));
+  EXPECT_GE(number(e, "max_lag_m"), 0.0);
+  EXPECT_LE(number(e, "lag_ticks"), number(e, "ticks"));
+  // No tick cut: the same device samples give the full solve's proxy on every tick.
+  if (number(e, "budget_cuts") == 0.0) EXPECT_EQ(number(e, "max_lag_m"), 0.0);
+  ASSERT_TRUE(row.contains("never_behind_edges"));
+  EXPECT_TRUE(row["never_behind_edges"]["met"].is_boolean());
+  std::ifstream md(dir / "table1.md");
+  const std::string text((std::istreambuf_iterator<char>(md)), std::istreambuf_iterator<char>());
+  EXPECT_NE(text.find("| Hole, edge test |"), std::string::npos) << "its row in the Never behind table";
 }
 
 TEST(Bench, table1ShortWritesBothModesForEveryScene) {
