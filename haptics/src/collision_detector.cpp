@@ -618,16 +618,23 @@ void CollisionDetector::setLanes(int lanes) {
 }
 
 void CollisionDetector::setLanesPartition(int lanes) {
-  // The tree's upper nodes, split until there are 8 per lane (or only leaves): dealt round robin
-  // in tree order, so that the part of the tool near a surface (a spatial cluster of nodes) is
-  // shared by the lanes instead of falling to one.
+  // The tree's upper nodes, split until there are kRootsPerLane per lane (or nodes of at most
+  // kMinRootPoints points): dealt round robin in tree order, so that the part of the tool near a
+  // surface (a spatial cluster of nodes) is shared by the lanes instead of falling to one. The
+  // work of a tool touching with a small part of itself (a drill's burr) lies in a few nodes of
+  // the tree: at 8 roots per lane the 20,000-point drill on the CT's bone gained nothing from a
+  // second lane (0.99x), at 64 it ran 1.5x faster. Nodes are not split below kMinRootPoints, so
+  // a small tool keeps the culling of its upper nodes (roots that are single leaves cost a box
+  // query each per tick).
+  constexpr std::size_t kRootsPerLane = 64;
+  constexpr int kMinRootPoints = 32;
   std::vector<int> frontier{0};
-  const std::size_t wanted = static_cast<std::size_t>(lanes) * 8;
+  const std::size_t wanted = static_cast<std::size_t>(lanes) * kRootsPerLane;
   while (lanes > 1 && frontier.size() < wanted) {
     std::vector<int> next;
     bool split = false;
     for (const int node : frontier) {
-      if (nodes_[node].left >= 0) {
+      if (nodes_[node].left >= 0 && nodes_[node].end - nodes_[node].begin > kMinRootPoints) {
         next.push_back(nodes_[node].left);
         next.push_back(nodes_[node].right);
         split = true;
