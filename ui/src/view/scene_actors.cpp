@@ -23,6 +23,7 @@
 #include <vtkProperty.h>
 #include <vtkRenderWindow.h>
 #include <vtkRenderer.h>
+#include <vtkStructuredData.h>
 #include <vtkTextActor.h>
 #include <vtkTextProperty.h>
 #include <vtkDataArray.h>
@@ -232,9 +233,8 @@ void SceneActors::removeVoxels(std::span<const std::uint64_t> indices, double va
   for (const std::uint64_t index : indices) {
     if (index >= count) continue;
     scalars->SetComponent(static_cast<vtkIdType>(index), 0, value);
-    const int ijk[3] = {static_cast<int>(index % static_cast<std::uint64_t>(dims[0])),
-                        static_cast<int>((index / static_cast<std::uint64_t>(dims[0])) % static_cast<std::uint64_t>(dims[1])),
-                        static_cast<int>(index / (static_cast<std::uint64_t>(dims[0]) * static_cast<std::uint64_t>(dims[1])))};
+    int ijk[3];
+    vtkStructuredData::ComputePointStructuredCoords(static_cast<vtkIdType>(index), dims, ijk);
     for (int a = 0; a < 3; ++a) {
       lo[a] = std::min(lo[a], ijk[a]);
       hi[a] = std::max(hi[a], ijk[a]);
