@@ -258,24 +258,24 @@ void RecordingFrameRenderer::setDrilling(DrillingTimeline timeline) {
 }
 
 void RecordingFrameRenderer::showCavityAt(std::size_t record_index) {
-  showDrilledVoxels(*actors_, drilling_, drilling_.removedAt(record_index), cavity_shown_);
+  showDrilledVoxels(*actors_, drilling_, drilling_.picture.removedAt(record_index), cavity_shown_);
   if (shadow_field_ != nullptr) carveToRecord(shadow_carved_, shadow_field_, drilling_, record_index);
 }
 
 void carveToRecord(CarvedRegion& carved, const std::shared_ptr<const haptics::ScalarVolume>& field,
                    const DrillingTimeline& timeline, std::size_t record_index) {
-  const std::uint64_t target = timeline.feltRemovedAt(record_index);
+  const std::uint64_t target = timeline.felt.removedAt(record_index);
   if (target < carved.removedCount() || carved.field() != field) {
-    carved.reset(field, std::span<const std::uint64_t>(timeline.felt_voxels.data(), target));
+    carved.reset(field, std::span<const std::uint64_t>(timeline.felt.voxels.data(), target));
   } else if (target > carved.removedCount()) {
-    carved.remove(std::span<const std::uint64_t>(timeline.felt_voxels.data() + carved.removedCount(),
+    carved.remove(std::span<const std::uint64_t>(timeline.felt.voxels.data() + carved.removedCount(),
                                                  target - carved.removedCount()));
   }
 }
 
 void showDrilledVoxels(SceneActors& actors, const DrillingTimeline& timeline, std::uint64_t target,
                        std::uint64_t& shown) {
-  target = std::min<std::uint64_t>(target, timeline.picture_voxels.size());
+  target = std::min<std::uint64_t>(target, timeline.picture.voxels.size());
   if (target == shown) return;
   if (target < shown) {  // an earlier record: from the undrilled picture again
     actors.restoreVolume();
@@ -283,7 +283,7 @@ void showDrilledVoxels(SceneActors& actors, const DrillingTimeline& timeline, st
   }
   double range[2];
   actors.shownImage()->GetScalarRange(range);
-  actors.removeVoxels(std::span<const std::uint64_t>(timeline.picture_voxels.data() + shown,
+  actors.removeVoxels(std::span<const std::uint64_t>(timeline.picture.voxels.data() + shown,
                                                      static_cast<std::size_t>(target - shown)),
                       range[0]);
   shown = target;
@@ -307,11 +307,11 @@ DrillingTimeline drillingAtStart(const runtime::LoadedScene& scene) {
   if (!scene.spec.drill || scene.spec.drill->cavity == nullptr) return timeline;
   const runtime::LiveValues live = runtime::LiveValues::initial(scene);
   if (live.scan_field == nullptr) return timeline;
-  timeline.picture_voxels = runtime::cavityVoxelsOn(*scene.spec.drill->cavity, live.scan_field->geometry());
-  timeline.at_start = timeline.picture_voxels.size();
+  timeline.picture.voxels = runtime::cavityVoxelsOn(*scene.spec.drill->cavity, live.scan_field->geometry());
+  timeline.picture.at_start = timeline.picture.voxels.size();
   if (live.hapticField() != nullptr) {
-    timeline.felt_voxels = runtime::cavityVoxelsOn(*scene.spec.drill->cavity, live.hapticField()->geometry());
-    timeline.felt_at_start = timeline.felt_voxels.size();
+    timeline.felt.voxels = runtime::cavityVoxelsOn(*scene.spec.drill->cavity, live.hapticField()->geometry());
+    timeline.felt.at_start = timeline.felt.voxels.size();
   }
   return timeline;
 }
@@ -340,14 +340,14 @@ void addReplayedRemovals(DrillingTimeline& timeline, const runtime::LoadedScene&
     return;
   }
   const std::vector<std::uint64_t> removed = pictureIndices(*live.hapticField(), *live.scan_field, replay.removed_voxels);
-  timeline.picture_voxels.insert(timeline.picture_voxels.end(), removed.begin(), removed.end());
+  timeline.picture.voxels.insert(timeline.picture.voxels.end(), removed.begin(), removed.end());
   // Felt indices map one to one onto picture indices (or are dropped outside the scan); the
   // counts per record are kept as they are, clipped to what was mapped.
-  timeline.after_record = replay.removed_after_record;
-  for (auto& n : timeline.after_record) n = timeline.at_start + std::min<std::uint64_t>(n, removed.size());
-  timeline.felt_voxels.insert(timeline.felt_voxels.end(), replay.removed_voxels.begin(), replay.removed_voxels.end());
-  timeline.felt_after_record = replay.removed_after_record;
-  for (auto& n : timeline.felt_after_record) n += timeline.felt_at_start;
+  timeline.picture.after_record = replay.removed_after_record;
+  for (auto& n : timeline.picture.after_record) n = timeline.picture.at_start + std::min<std::uint64_t>(n, removed.size());
+  timeline.felt.voxels.insert(timeline.felt.voxels.end(), replay.removed_voxels.begin(), replay.removed_voxels.end());
+  timeline.felt.after_record = replay.removed_after_record;
+  for (auto& n : timeline.felt.after_record) n += timeline.felt.at_start;
 }
 
 // ---- Writers -------------------------------------------------------------------------------------
@@ -484,7 +484,7 @@ int exportRecordingMedia(int /*argc*/, char** /*argv*/, const fs::path& recordin
       // first (a few seconds on a big CT).
       std::cerr << "volume-haptics export: replaying the drilling for the cavity...\n";
       DrillingTimeline timeline = drillingTimeline(scene, recording);
-      std::cerr << "volume-haptics export: the cavity grows to " << timeline.removedAt(recording.records.size())
+      std::cerr << "volume-haptics export: the cavity grows to " << timeline.picture.removedAt(recording.records.size())
                 << " voxels\n";
       frames.setDrilling(std::move(timeline));
     }

@@ -61,34 +61,31 @@ ToolFrame toolFrameOf(const runtime::TickRecord& record);
 void showRecord(SceneActors& actors, const runtime::TickRecord& record,
                 const std::vector<Eigen::Vector3d>& tool_vertices_T_m);
 
-/// The cavity of a drilled recording over its records, in the picture's voxels (linear indices of
-/// the scan as SceneActors shows it, x fastest): what a view removes to show the cavity as it was
-/// at any record.
-struct DrillingTimeline {
-  /// In removal order: first the cavity the recording started from (`at_start` of them), then
-  /// the voxels its replay removed.
-  std::vector<std::uint64_t> picture_voxels;
+/// A cavity growing over a recording's records, on one grid: its voxels (linear indices, x
+/// fastest) in removal order, first the cavity the recording started from (`at_start` of them),
+/// then the voxels its replay removed, and per record how many are removed by its end.
+struct CavityOrder {
+  std::vector<std::uint64_t> voxels;
   std::uint64_t at_start = 0;
-  /// Per record: how many of picture_voxels are removed by the end of it (empty: at_start at
-  /// every record).
+  /// Per record: how many of `voxels` are removed by the end of it (empty: at_start at every
+  /// record).
   std::vector<std::uint64_t> after_record;
-  /// The same on the felt field's grid (the field the shadow falls on): the start cavity's
-  /// voxels (felt_at_start), then the replay's, and the counts per record.
-  std::vector<std::uint64_t> felt_voxels;
-  std::uint64_t felt_at_start = 0;
-  std::vector<std::uint64_t> felt_after_record;
+  /// How many of `voxels` are removed at record `index` (the last count past the end).
+  std::uint64_t removedAt(std::size_t index) const noexcept {
+    if (after_record.empty()) return std::min<std::uint64_t>(at_start, voxels.size());
+    return std::min<std::uint64_t>(after_record[std::min(index, after_record.size() - 1)], voxels.size());
+  }
+};
+
+/// The cavity of a drilled recording over its records: what a view removes to show the cavity
+/// as it was at any record, and what the tool's shadow falls on then.
+struct DrillingTimeline {
+  /// On the picture's grid (the scan as SceneActors shows it).
+  CavityOrder picture;
+  /// On the felt field's grid (the field the shadow falls on).
+  CavityOrder felt;
   /// The replay was cancelled (runtime::ReplayProgress::cancel): only the start cavity is in.
   bool cancelled = false;
-  /// How many of picture_voxels are removed at record `index` (the last count past the end).
-  std::uint64_t removedAt(std::size_t index) const noexcept {
-    if (after_record.empty()) return std::min<std::uint64_t>(at_start, picture_voxels.size());
-    return std::min<std::uint64_t>(after_record[std::min(index, after_record.size() - 1)], picture_voxels.size());
-  }
-  /// How many of felt_voxels are removed at record `index`.
-  std::uint64_t feltRemovedAt(std::size_t index) const noexcept {
-    if (felt_after_record.empty()) return std::min<std::uint64_t>(felt_at_start, felt_voxels.size());
-    return std::min<std::uint64_t>(felt_after_record[std::min(index, felt_after_record.size() - 1)], felt_voxels.size());
-  }
 };
 
 /// The cavity the drill of `scene` starts from (drilled before the recording started), on the
@@ -108,13 +105,13 @@ void addReplayedRemovals(DrillingTimeline& timeline, const runtime::LoadedScene&
 DrillingTimeline drillingTimeline(const runtime::LoadedScene& scene, const runtime::Recording& recording,
                                   const runtime::ReplayProgress& progress = {});
 
-/// Carves `carved` so that it holds `field` with the first timeline.feltRemovedAt(record_index)
-/// of timeline.felt_voxels removed: on from what it holds, or from `field` again for an earlier
+/// Carves `carved` so that it holds `field` with the first timeline.felt.removedAt(record_index)
+/// of timeline.felt.voxels removed: on from what it holds, or from `field` again for an earlier
 /// record or another field (the tool's shadow at that record, castToolShadow()).
 void carveToRecord(CarvedRegion& carved, const std::shared_ptr<const haptics::ScalarVolume>& field,
                    const DrillingTimeline& timeline, std::size_t record_index);
 
-/// Carves `actors`' picture so that the first `target` of timeline.picture_voxels are removed,
+/// Carves `actors`' picture so that the first `target` of timeline.picture.voxels are removed,
 /// `shown` being removed now (updated): fewer than shown restores the scan first. A removed voxel
 /// takes the scan's lowest value, as in the live view (DrillController).
 void showDrilledVoxels(SceneActors& actors, const DrillingTimeline& timeline, std::uint64_t target,
@@ -194,7 +191,7 @@ class RecordingFrameRenderer {
   bool isovalue_from_records_ = true;  ///< SceneActorsSpec::isovalue_from_records.
   const runtime::Recording* overlay_ = nullptr;  ///< setOverlay(); not owned.
   DrillingTimeline drilling_;                    ///< setDrilling().
-  std::uint64_t cavity_shown_ = 0;               ///< Of drilling_.picture_voxels, removed in the picture.
+  std::uint64_t cavity_shown_ = 0;               ///< Of drilling_.picture.voxels, removed in the picture.
   std::shared_ptr<const haptics::ScalarVolume> shadow_field_;  ///< setShadow(); null: none.
   CarvedRegion shadow_carved_;  ///< shadow_field_ carved to the cavity shown (showCavityAt()).
   double shadow_isovalue_ = 0.0;

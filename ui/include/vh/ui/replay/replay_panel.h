@@ -232,7 +232,7 @@ class ReplayController : public QObject {
   std::vector<double> marker_times_s_;
   // Drilling: the cavity the recording started from, then (once replayed) the voxels a
   // deterministic replay removed and how many by each record; the picture shows the first
-  // drill_shown_ of drill_.picture_voxels.
+  // drill_shown_ of drill_.picture.voxels.
   DrillingTimeline drill_;
   std::uint64_t drill_shown_ = 0;
   CarvedRegion carved_;  // the felt field carved as the picture is, for the tool's shadow
