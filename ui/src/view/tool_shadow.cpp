@@ -183,12 +183,8 @@ void CarvedRegion::remove(std::span<const std::uint64_t> removed) {
 
 std::array<int, 3> CarvedRegion::carveInBox(std::uint64_t index) {
   const std::array<int, 3> ijk = field_->geometry().voxelOf(index);
-  const std::array<int, 3>& dims = box_->geometry().dims;
   const std::array<int, 3> b{ijk[0] - lo_[0], ijk[1] - lo_[1], ijk[2] - lo_[2]};
-  box_->writeRaw(static_cast<std::size_t>(b[0]) +
-                     static_cast<std::size_t>(dims[0]) *
-                         (static_cast<std::size_t>(b[1]) + static_cast<std::size_t>(dims[1]) * static_cast<std::size_t>(b[2])),
-                 field_->lowestRaw());
+  box_->writeRaw(static_cast<std::size_t>(box_->geometry().indexOf(b[0], b[1], b[2])), field_->lowestRaw());
   return b;
 }
 
@@ -208,9 +204,7 @@ void CarvedRegion::rebuild() {
   std::byte* dst = bytes.data();
   for (int k = lo_[2]; k <= hi_[2]; ++k)
     for (int j = lo_[1]; j <= hi_[1]; ++j, dst += row) {
-      const std::size_t at = static_cast<std::size_t>(lo_[0]) +
-                             static_cast<std::size_t>(g.dims[0]) *
-                                 (static_cast<std::size_t>(j) + static_cast<std::size_t>(g.dims[1]) * static_cast<std::size_t>(k));
+      const auto at = static_cast<std::size_t>(g.indexOf(lo_[0], j, k));
       std::copy_n(src + at * size, row, dst);
     }
   box_ = std::make_unique<haptics::ScalarVolume>(haptics::ScalarVolume::FromBytes(
