@@ -93,33 +93,35 @@ CollisionDetector::CollisionDetector(const ScalarVolume& volume, const ToolModel
                                                      tool.point_shell.points_T_m()[j]).norm());
 }
 
-Eigen::Vector3d CollisionDetector::edgeEnd(const Pose& X_WP, int i) noexcept {
+Eigen::Vector3d CollisionDetector::edgeEnd(WorkCounters& w, const Pose& X_WP, int i) const noexcept {
   // Moved epsilon into the tool along its normal: the surface is allowed to come within epsilon
   // of the tool between its points, as at its points (a facet of the tool resting on a curved
   // trilinear surface touches it by fractions of a micrometre between two points); a wall that
   // passes through the tool is found all the same.
-  ++counters_.samples;
+  ++w.samples;
   const auto& shell = tool_->point_shell;
   const Eigen::Vector3d p_T = shell.hasNormals() ? Eigen::Vector3d(shell.points_T_m()[i] - epsilon_ * shell.normals_T()[i])
                                                  : shell.points_T_m()[i];
   return volume_->gridCoordinates(X_WP * p_T);
 }
 
-bool CollisionDetector::segmentCrosses(const Pose& X_WP, int j, const Eigen::Vector3d& a, int k,
-                                       const Eigen::Vector3d& b, double isovalue, double* excess_max) noexcept {
+bool CollisionDetector::segmentCrosses(WorkCounters& w, const Eigen::Vector3d& a, const Eigen::Vector3d& b,
+                                       double isovalue, double* excess_max) const noexcept {
   // Only whether it enters: a coarse bracket is enough.
   const SegmentEntry entry = volume_->firstEntryOnSegment(a, b, isovalue, 1.0, 0.5);
-  counters_.cells += entry.cells;
-  counters_.cells_walked += entry.cells_walked;
+  w.cells += entry.cells;
+  w.cells_walked += entry.cells_walked;
   if (excess_max != nullptr) *excess_max = entry.excess_max;
-  if (!entry.hit) return false;
+  return entry.hit;
+}
+
+void CollisionDetector::recordCrossingEdge(int j, int k, const Pose& X_WP) noexcept {
   edge_hit_ = {j, k, X_WP};
   if (listed_count_ < kListedEdges) {
     bool known = false;
     for (int i = 0; i < listed_count_; ++i) known |= listed_[i].first == j && listed_[i].second == k;
     if (!known) listed_[listed_count_++] = {j, k};
   }
-  return true;
 }
 
 double CollisionDetector::edgeClearance(const Eigen::Vector3d& a, const Eigen::Vector3d& b, double excess_max,
@@ -161,10 +163,10 @@ bool CollisionDetector::edgesStillClear(const Pose& X_WP, int j) const noexcept 
   return false;
 }
 
-bool CollisionDetector::edgeCrosses(const Pose& X_WP, int j, double isovalue) noexcept {
-  if (embedded_[j]) return false;
+int CollisionDetector::edgeCrosses(WorkCounters& w, const Pose& X_WP, int j, double isovalue) noexcept {
+  if (embedded_[j]) return -1;
   const auto i = static_cast<std::size_t>(j);
-  const Eigen::Vector3d a = edgeEnd(X_WP, j);  // once for all of j's edges
+  const Eigen::Vector3d a = edgeEnd(w, X_WP, j);  // once for all of j's edges
   double clearance_m = std::numeric_limits<double>::infinity();
   for (int e = edges_.offsets[j]; e < edges_.offsets[j + 1]; ++e) {
     const int k = edges_.targets[e];
@@ -172,9 +174,9 @@ bool CollisionDetector::edgeCrosses(const Pose& X_WP, int j, double isovalue) no
       clearance_m = -1.0;
       continue;
     }
-    const Eigen::Vector3d b = edgeEnd(X_WP, k);
+    const Eigen::Vector3d b = edgeEnd(w, X_WP, k);
     double excess_max = 0.0;
-    if (segmentCrosses(X_WP, j, a, k, b, isovalue, &excess_max)) return true;
+    if (segmentCrosses(w, a, b, isovalue, &excess_max)) return k;
     clearance_m = std::min(clearance_m, edgeClearance(a, b, excess_max, isovalue));
   }
   // Two certificates a point, the newer replacing the older: a move stopped by an edge tests
@@ -183,14 +185,17 @@ bool CollisionDetector::edgeCrosses(const Pose& X_WP, int j, double isovalue) no
     edge_clearance_[2 * i + edge_slot_[i]] = {X_WP * tool_->point_shell.points_T_m()[i], X_WP.R_AB, clearance_m};
     edge_slot_[i] ^= 1;
   }
-  return false;
+  return -1;
 }
 
 bool CollisionDetector::listedEdgesCrossAt(const Pose& X_WP, double isovalue) noexcept {
   for (int i = 0; i < listed_count_; ++i) {
     const auto [j, k] = listed_[i];
     if (embedded_[j] || embedded_[k]) continue;
-    if (segmentCrosses(X_WP, j, edgeEnd(X_WP, j), k, edgeEnd(X_WP, k), isovalue)) return true;
+    if (segmentCrosses(counters_, edgeEnd(counters_, X_WP, j), edgeEnd(counters_, X_WP, k), isovalue)) {
+      recordCrossingEdge(j, k, X_WP);
+      return true;
+    }
   }
   return false;
 }
@@ -236,6 +241,78 @@ void CollisionDetector::addEdgeContact(const Pose& X_WP, double isovalue) noexce
   edge_hit_ = {};
 }
 
+bool CollisionDetector::edgeSubtreeCrosses(WorkCounters& w, Lane* lane, int root, const Pose& X_WP, double isovalue,
+                                           int& walked, int& j_hit, int& k_hit, bool& cut) noexcept {
+  // Point j's edges lie within the longest edge of j, plus the epsilon their ends are inset by
+  // (edgeEnd()), of point j: a node's ball dilated by both holds them.
+  int* const stack = lane != nullptr ? lane->stack.data() : stack_.data();
+  int top = 0;
+  stack[top++] = root;
+  while (top > 0) {
+    const ShellNode& node = nodes_[stack[--top]];
+    if (!ballMayBeInside(w, X_WP * node.center_T_m,
+                         (node.radius_m + edges_.max_length_m + epsilon_) * (1.0 + 1e-9) + 1e-12, isovalue))
+      continue;
+    if (node.left >= 0) {
+      stack[top++] = node.right;
+      stack[top++] = node.left;
+      continue;
+    }
+    for (int i = node.begin; i < node.end; ++i) {
+      const int j = order_[i];
+      // The point's own edges, within its longest edge plus epsilon of it: one box query
+      // instead of a walk per edge where the leaf is near the surface but this point is not.
+      if (edges_.offsets[j + 1] == edges_.offsets[j] || edgesStillClear(X_WP, j) ||
+          !ballMayBeInside(w, X_WP * tool_->point_shell.points_T_m()[j],
+                           (edge_reach_m_[j] + epsilon_) * (1.0 + 1e-9) + 1e-12, isovalue))
+        continue;
+      if (walked++ > 0 && (lane != nullptr ? overBudget(*lane) : overBudget())) {
+        cut = true;
+        return false;
+      }
+      const int k = edgeCrosses(w, X_WP, j, isovalue);
+      if (k >= 0) {
+        j_hit = j;
+        k_hit = k;
+        return true;
+      }
+    }
+  }
+  return false;
+}
+
+void CollisionDetector::edgeLaneJob(void* detector, int lane) noexcept {
+  auto* self = static_cast<CollisionDetector*>(detector);
+  self->runEdgeLane(self->lanes_[static_cast<std::size_t>(lane)]);
+}
+
+void CollisionDetector::runEdgeLane(Lane& lane) noexcept {
+  // The lane's roots in the single-lane walk's order; a root after one where some lane found a
+  // crossing cannot hold the first crossing of that walk, and is not walked.
+  int walked = 0;
+  std::atomic<int>& bound = *edge_bound_;
+  for (std::size_t r = 0; r < lane.roots.size(); ++r) {
+    const int rank = lane.root_ranks[r];
+    if (rank > bound.load(std::memory_order_relaxed)) return;
+    bool cut = false;
+    int j = -1, k = -1;
+    if (edgeSubtreeCrosses(lane.counters, &lane, lane.roots[r], edge_job_.X_WP, edge_job_.isovalue, walked, j, k,
+                           cut)) {
+      lane.edge_rank = rank;
+      lane.edge_j = j;
+      lane.edge_k = k;
+      int seen = bound.load(std::memory_order_relaxed);
+      while (rank < seen && !bound.compare_exchange_weak(seen, rank, std::memory_order_relaxed)) {
+      }
+      return;
+    }
+    if (cut) {
+      lane.edge_cut_rank = rank;
+      return;
+    }
+  }
+}
+
 bool CollisionDetector::edgesCrossAt(const Pose& X_WP, double isovalue) noexcept {
   edge_cut_ = false;
   if (edges_.size() == 0) return false;
@@ -243,40 +320,58 @@ bool CollisionDetector::edgesCrossAt(const Pose& X_WP, double isovalue) noexcept
     for (auto& proven : edge_clearance_) proven.clearance_m = -1.0;
     edge_clearance_isovalue_ = isovalue;
   }
-  if (mode_ == DetectionMode::kAccelerated) {
-    // Point j's edges lie within the longest edge of j, plus the epsilon their ends are inset
-    // by (edgeEnd()), of point j: a node's ball dilated by both holds them.
-    int top = 0, walked = 0;
-    stack_[top++] = 0;
-    while (top > 0) {
-      const ShellNode& node = nodes_[stack_[--top]];
-      if (!ballMayBeInside(counters_, X_WP * node.center_T_m,
-                           (node.radius_m + edges_.max_length_m + epsilon_) * (1.0 + 1e-9) + 1e-12, isovalue))
-        continue;
-      if (node.left >= 0) {
-        stack_[top++] = node.right;
-        stack_[top++] = node.left;
-        continue;
-      }
-      for (int i = node.begin; i < node.end; ++i) {
-        const int j = order_[i];
-        // The point's own edges, within its longest edge plus epsilon of it: one box query
-        // instead of a walk per edge where the leaf is near the surface but this point is not.
-        if (edges_.offsets[j + 1] == edges_.offsets[j] || edgesStillClear(X_WP, j) ||
-            !ballMayBeInside(counters_, X_WP * tool_->point_shell.points_T_m()[j],
-                             (edge_reach_m_[j] + epsilon_) * (1.0 + 1e-9) + 1e-12, isovalue))
-          continue;
-        if (walked++ > 0 && overBudget()) return edge_cut_ = true;
-        if (edgeCrosses(X_WP, j, isovalue)) return true;
-      }
+  if (mode_ == DetectionMode::kAccelerated && pool_ && lanes_.size() > 1) {
+    // Forked: each lane walks its roots (the tree's upper nodes, in the single-lane walk's
+    // order). The answer is the single-lane walk's: the crossing edge of the lowest-ranked root
+    // that holds one, once every root before it was walked to its end; a lane stopped by the
+    // budget before that leaves nothing known (cut), as the single-lane walk would have been.
+    edge_job_ = {X_WP, isovalue};
+    edge_bound_->store(std::numeric_limits<int>::max(), std::memory_order_relaxed);
+    for (Lane& lane : lanes_) {
+      startLaneWork(lane);
+      lane.edge_rank = lane.edge_cut_rank = std::numeric_limits<int>::max();
+      lane.edge_j = lane.edge_k = -1;
     }
+    pool_->run(&CollisionDetector::edgeLaneJob, this, static_cast<int>(lanes_.size()));
+    std::int64_t busiest = 0, sum = 0;
+    const Lane* found = nullptr;
+    int cut_rank = std::numeric_limits<int>::max();
+    for (Lane& lane : lanes_) {
+      const std::int64_t w = lane.counters.total();
+      counters_ += lane.counters;
+      sum += w;
+      busiest = std::max(busiest, w);
+      if (lane.clock.late) deadline_hit_ = true;
+      cut_rank = std::min(cut_rank, lane.edge_cut_rank);
+      if (lane.edge_j >= 0 && (found == nullptr || lane.edge_rank < found->edge_rank)) found = &lane;
+    }
+    parallel_credit_ += sum - busiest;
+    if (found != nullptr && found->edge_rank < cut_rank) {
+      recordCrossingEdge(found->edge_j, found->edge_k, X_WP);
+      return true;
+    }
+    if (cut_rank != std::numeric_limits<int>::max()) return edge_cut_ = true;
+    return false;
+  }
+  if (mode_ == DetectionMode::kAccelerated) {
+    int walked = 0, j = -1, k = -1;
+    bool cut = false;
+    if (edgeSubtreeCrosses(counters_, nullptr, 0, X_WP, isovalue, walked, j, k, cut)) {
+      recordCrossingEdge(j, k, X_WP);
+      return true;
+    }
+    if (cut) return edge_cut_ = true;
     return false;
   }
   int walked = 0;
   for (int j = 0; j + 1 < static_cast<int>(edges_.offsets.size()); ++j) {
     if (edges_.offsets[j + 1] == edges_.offsets[j] || edgesStillClear(X_WP, j)) continue;
     if (walked++ > 0 && overBudget()) return edge_cut_ = true;
-    if (edgeCrosses(X_WP, j, isovalue)) return true;
+    const int k = edgeCrosses(counters_, X_WP, j, isovalue);
+    if (k >= 0) {
+      recordCrossingEdge(j, k, X_WP);
+      return true;
+    }
   }
   return false;
 }
@@ -653,6 +748,7 @@ void CollisionDetector::setLanesPartition(int lanes) {
     const int lane = static_cast<int>(i % static_cast<std::size_t>(used));
     const ShellNode& node = nodes_[frontier[i]];
     lanes_[lane].roots.push_back(frontier[i]);
+    lanes_[lane].root_ranks.push_back(static_cast<int>(i));
     points[lane] += static_cast<std::size_t>(node.end - node.begin);
     for (int p = node.begin; p < node.end; ++p) lane_of_[order_[p]] = lane;
   }

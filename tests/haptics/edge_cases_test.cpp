@@ -3,6 +3,7 @@
 // far from it; a probe pressed on a ball turns and slides at every point spacing.
 #include <cmath>
 #include <cstdio>
+#include <functional>
 #include <limits>
 #include <numbers>
 #include <random>
@@ -356,6 +357,67 @@ TEST(EdgeCases, TheEdgeTestSharesTheWorkBudgetAndStillGetsThrough) {
   EXPECT_NEAR(budgeted.stop_x, free.stop_x, 0.1e-3) << "the cut ticks kept the proxy from the wall";
   EXPECT_LT(std::abs(budgeted.end_x - budgeted.device_x), 0.1e-3) << "the proxy stuck to the wall";
   EXPECT_LT(std::abs(free.end_x - free.device_x), 0.1e-3);
+}
+
+// The edge test forked over several lanes (RendererOptions::solver_lanes) answers as on one:
+// the crossing edge of the lowest-ranked part of the tree, once every part before it was
+// walked, so the edge contacts, the stops and the proxy are those of one lane. Two runs that
+// stop at edges: the upright probe moved edge-on into the one-voxel plate, and the 10 mm ball
+// slid over the block's convex edges. Oracle: the one-lane run (the edge test's walk in the
+// point-shell tree's order), tick by tick; unbudgeted, so that no lane's share is cut.
+TEST(EdgeCases, TheEdgeTestOnSeveralLanesStopsWhereOneLaneStops) {
+  struct Case {
+    std::shared_ptr<const ScalarVolume> volume;
+    std::shared_ptr<const ToolModel> tool;
+    double isovalue;
+    Pose start;
+    std::function<Pose(int)> device;
+    int ticks;
+  };
+  auto plate = std::make_shared<const ScalarVolume>(datasets::makeThinPlateVolume(test::grid1mm()));
+  const double z_k = plate->geometry().origin_W_m.z() + 32e-3, edge_x = plate->geometry().origin_W_m.x() + 63e-3;
+  const double tip_z = z_k - 0.020 - 3e-3 / 8.0;
+  auto block = std::make_shared<const ScalarVolume>(datasets::makeBlockWithHoleVolume(128));
+  const double z_top = datasets::kBlockHalfHeight_m;
+  const std::vector<Case> cases = {
+      {plate, test::meshTool(datasets::makeBuiltinTool("probe"), 1e-3), 250.0,
+       Pose::FromTranslation({edge_x + 0.008, 0.0003, tip_z}),
+       [=](int t) { return Pose::FromTranslation({edge_x + 0.008 - 0.030 * std::min(1.0, t / 300.0), 0.0003, tip_z}); },
+       400},
+      {block, test::meshTool(datasets::makeBuiltinTool("sphere"), 1e-3), datasets::kBlockIsovalue,
+       Pose::FromTranslation({-0.030, 0.002, z_top + 0.006}),
+       [=](int t) { return Pose::FromTranslation({-0.030 + 0.060 * std::min(1.0, t / 300.0), 0.002, z_top + 0.004}); },
+       400}};
+  for (std::size_t c = 0; c < cases.size(); ++c) {
+    const Case& k = cases[c];
+    RendererOptions one;
+    one.edge_test = 1;
+    one.work_budget = 0;
+    one.solver_lanes = 1;
+    HapticRenderer reference(k.volume, k.tool, one, k.start, k.isovalue);
+    std::vector<Pose> path;
+    std::vector<int> stops;
+    int edge_stops = 0;
+    for (int t = 0; t < k.ticks; ++t) {
+      const TickOutput out = reference.tick(k.device(t), k.isovalue);
+      path.push_back(out.X_WP);
+      stops.push_back(out.stats.edge_stop);
+      edge_stops += out.stats.edge_stop;
+    }
+    ASSERT_GT(edge_stops, 0) << "case " << c << ": no edge stopped the tool; the case does not test the edge test";
+    for (const int lanes : {2, 3, 4}) {
+      RendererOptions several = one;
+      several.solver_lanes = lanes;
+      HapticRenderer r(k.volume, k.tool, several, k.start, k.isovalue);
+      for (int t = 0; t < k.ticks; ++t) {
+        const TickOutput out = r.tick(k.device(t), k.isovalue);
+        ASSERT_EQ(out.stats.edge_stop, stops[t] != 0) << "case " << c << ", " << lanes << " lanes, tick " << t;
+        ASSERT_LT((out.X_WP.p_AB_m - path[t].p_AB_m).norm(), 1e-9) << "case " << c << ", " << lanes << " lanes, tick " << t;
+        ASSERT_LT(out.X_WP.R_AB.angularDistance(path[t].R_AB), 1e-9) << "case " << c << ", " << lanes << " lanes, tick " << t;
+      }
+    }
+    std::printf("case %zu: %d edge stops, the same on 2, 3 and 4 lanes\n", c, edge_stops);
+  }
 }
 
 TEST(EdgeCases, ABallSlidOverABlocksConvexEdgesWithTheEdgeTestRidesOverThem) {

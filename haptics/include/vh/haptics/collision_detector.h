@@ -187,6 +187,9 @@ class CollisionDetector {
   /// always done) it stops and returns true with edgeTestCut() set, nothing known past there.
   /// Clearance certificates from its walks are kept across calls (see EdgeClearance), so a
   /// test stopped on one tick skips, on the next, what it proved then where the tool moved less.
+  /// On several lanes (setLanes(), kAccelerated) the walk is forked over the lanes' shares of
+  /// the tree and gives the one-lane walk's answer and crossing edge (haptics/README.md,
+  /// "Between the points"); the budget counts the busiest lane, as a sweep's does.
   bool edgesCrossAt(const Pose& X_WP, double isovalue) noexcept;
   /// Whether the last edgesCrossAt() was stopped by the work budget or the deadline.
   bool edgeTestCut() const noexcept { return edge_cut_; }
@@ -354,6 +357,11 @@ class CollisionDetector {
     bool cut = false;                 // stopped by the budget; proven free over [0, cut_t]
     double cut_t = 0.0;
     SweepResult result;               // its first hit so far
+    std::vector<int> root_ranks;      // per root: its place in the single-lane walk's order
+    // Its share of a forked edge test (edgesCrossAt()): the rank of the root where it found the
+    // first crossing edge (j, k) or was stopped by the budget; INT_MAX: neither.
+    int edge_rank = std::numeric_limits<int>::max(), edge_cut_rank = std::numeric_limits<int>::max();
+    int edge_j = -1, edge_k = -1;
   };  // (alignas rounds its size up to whole lines: nothing of the next lane shares its last line)
   SweepResult sweepPaper(const RigidMotion& motion, double isovalue) noexcept;
   SweepResult sweepAccelerated(const RigidMotion& motion, double isovalue) noexcept;
@@ -423,7 +431,24 @@ class CollisionDetector {
   ShellEdges edges_;
   std::vector<double> edge_reach_m_;  // per point j: its longest edge (j, k > j) [m]
   // The edges (j, k > j) at pose X_WP (walked; a certificate of their clearance kept when free).
-  bool edgeCrosses(const Pose& X_WP, int j, double isovalue) noexcept;
+  // Returns the first crossing edge's other end, or -1 when none crosses.
+  int edgeCrosses(WorkCounters& w, const Pose& X_WP, int j, double isovalue) noexcept;
+  // Records edge (j, k), found crossing at X_WP: the last hit (addEdgeContact()) and the list.
+  void recordCrossingEdge(int j, int k, const Pose& X_WP) noexcept;
+  // The edge test over the subtree of node `root` (kAccelerated): returns the crossing edge
+  // (j, k) first in the subtree's walk order in `j`, `k`, or stops at the budget (`cut`).
+  // `walked`: points walked so far in this call on this lane (the first is never stopped).
+  bool edgeSubtreeCrosses(WorkCounters& w, Lane* lane, int root, const Pose& X_WP, double isovalue, int& walked,
+                          int& j_hit, int& k_hit, bool& cut) noexcept;
+  // One lane's share of a forked edge test (edgesCrossAt()).
+  void runEdgeLane(Lane& lane) noexcept;
+  static void edgeLaneJob(void* detector, int lane) noexcept;
+  // The pose and isovalue of the forked edge test; the lowest root rank a lane found crossing.
+  struct EdgeJob {
+    Pose X_WP;
+    double isovalue = 0.0;
+  } edge_job_;
+  std::unique_ptr<std::atomic<int>> edge_bound_ = std::make_unique<std::atomic<int>>(0);
   // Whether j's last clearance certificate (EdgeClearance) still holds at pose X_WP.
   bool edgesStillClear(const Pose& X_WP, int j) const noexcept;
   // Temporal coherence of the edge test (haptics/README.md, "Between the points"): per point j,
@@ -444,11 +469,11 @@ class CollisionDetector {
   double edgeClearance(const Eigen::Vector3d& a, const Eigen::Vector3d& b, double excess_max,
                        double isovalue) const noexcept;
   // Point i's end of its edges at pose X_WP, in grid coordinates (inset by epsilon; 1 sample).
-  Eigen::Vector3d edgeEnd(const Pose& X_WP, int i) noexcept;
-  // Edge (j, k) with its ends a, b in grid coordinates: whether the isosurface enters it.
-  // With `excess_max`, also F - s's upper bound on the edge (SegmentEntry::excess_max).
-  bool segmentCrosses(const Pose& X_WP, int j, const Eigen::Vector3d& a, int k, const Eigen::Vector3d& b,
-                      double isovalue, double* excess_max = nullptr) noexcept;
+  Eigen::Vector3d edgeEnd(WorkCounters& w, const Pose& X_WP, int i) const noexcept;
+  // An edge with its ends a, b in grid coordinates: whether the isosurface enters it. With
+  // `excess_max`, also F - s's upper bound on the edge (SegmentEntry::excess_max).
+  bool segmentCrosses(WorkCounters& w, const Eigen::Vector3d& a, const Eigen::Vector3d& b, double isovalue,
+                      double* excess_max = nullptr) const noexcept;
   std::array<std::pair<int, int>, kListedEdges> listed_{};  // edges found crossing (edgesCrossAt())
   int listed_count_ = 0;
   // The last edge edgesCrossAt() found crossing: its ends and the pose it was tested at.
