@@ -241,44 +241,50 @@ void CollisionDetector::addEdgeContact(const Pose& X_WP, double isovalue) noexce
   edge_hit_ = {};
 }
 
-bool CollisionDetector::edgeSubtreeCrosses(WorkCounters& w, Lane* lane, int root, const Pose& X_WP, double isovalue,
-                                           int& walked, int& j_hit, int& k_hit, bool& cut) noexcept {
-  // Point j's edges lie within the longest edge of j, plus the epsilon their ends are inset by
-  // (edgeEnd()), of point j: a node's ball dilated by both holds them.
-  int* const stack = lane != nullptr ? lane->stack.data() : stack_.data();
+template <typename MayHold, typename Visit>
+bool CollisionDetector::walkShellTree(int* stack, int root, MayHold&& may_hold, Visit&& visit) const noexcept {
   int top = 0;
   stack[top++] = root;
   while (top > 0) {
     const ShellNode& node = nodes_[stack[--top]];
-    if (!ballMayBeInside(w, X_WP * node.center_T_m,
-                         (node.radius_m + edges_.max_length_m + epsilon_) * (1.0 + 1e-9) + 1e-12, isovalue))
-      continue;
+    if (!may_hold(node)) continue;
     if (node.left >= 0) {
       stack[top++] = node.right;
       stack[top++] = node.left;
       continue;
     }
-    for (int i = node.begin; i < node.end; ++i) {
-      const int j = order_[i];
-      // The point's own edges, within its longest edge plus epsilon of it: one box query
-      // instead of a walk per edge where the leaf is near the surface but this point is not.
-      if (edges_.offsets[j + 1] == edges_.offsets[j] || edgesStillClear(X_WP, j) ||
-          !ballMayBeInside(w, X_WP * tool_->point_shell.points_T_m()[j],
-                           (edge_reach_m_[j] + epsilon_) * (1.0 + 1e-9) + 1e-12, isovalue))
-        continue;
-      if (walked++ > 0 && (lane != nullptr ? overBudget(*lane) : overBudget())) {
-        cut = true;
-        return false;
-      }
-      const int k = edgeCrosses(w, X_WP, j, isovalue);
-      if (k >= 0) {
-        j_hit = j;
-        k_hit = k;
-        return true;
-      }
-    }
+    for (int i = node.begin; i < node.end; ++i)
+      if (visit(order_[i])) return true;
   }
   return false;
+}
+
+bool CollisionDetector::edgeSubtreeCrosses(WorkCounters& w, Lane* lane, int root, const Pose& X_WP, double isovalue,
+                                           int& walked, int& j_hit, int& k_hit, bool& cut) noexcept {
+  // Point j's edges lie within the longest edge of j, plus the epsilon their ends are inset by
+  // (edgeEnd()), of point j: a node's ball dilated by both holds them.
+  const auto may_hold = [&](const ShellNode& node) {
+    return ballMayBeInside(w, X_WP * node.center_T_m,
+                           (node.radius_m + edges_.max_length_m + epsilon_) * (1.0 + 1e-9) + 1e-12, isovalue);
+  };
+  const auto visit = [&](int j) {
+    // The point's own edges, within its longest edge plus epsilon of it: one box query
+    // instead of a walk per edge where the leaf is near the surface but this point is not.
+    if (edges_.offsets[j + 1] == edges_.offsets[j] || edgesStillClear(X_WP, j) ||
+        !ballMayBeInside(w, X_WP * tool_->point_shell.points_T_m()[j],
+                         (edge_reach_m_[j] + epsilon_) * (1.0 + 1e-9) + 1e-12, isovalue))
+      return false;
+    if (walked++ > 0 && (lane != nullptr ? overBudget(*lane) : overBudget())) {
+      cut = true;
+      return true;
+    }
+    const int k = edgeCrosses(w, X_WP, j, isovalue);
+    if (k < 0) return false;
+    j_hit = j;
+    k_hit = k;
+    return true;
+  };
+  return walkShellTree(lane != nullptr ? lane->stack.data() : stack_.data(), root, may_hold, visit) && !cut;
 }
 
 void CollisionDetector::edgeLaneJob(void* detector, int lane) noexcept {
@@ -333,19 +339,13 @@ bool CollisionDetector::edgesCrossAt(const Pose& X_WP, double isovalue) noexcept
       lane.edge_j = lane.edge_k = -1;
     }
     pool_->run(&CollisionDetector::edgeLaneJob, this, static_cast<int>(lanes_.size()));
-    std::int64_t busiest = 0, sum = 0;
+    joinLaneWork();
     const Lane* found = nullptr;
     int cut_rank = std::numeric_limits<int>::max();
-    for (Lane& lane : lanes_) {
-      const std::int64_t w = lane.counters.total();
-      counters_ += lane.counters;
-      sum += w;
-      busiest = std::max(busiest, w);
-      if (lane.clock.late) deadline_hit_ = true;
+    for (const Lane& lane : lanes_) {
       cut_rank = std::min(cut_rank, lane.edge_cut_rank);
       if (lane.edge_j >= 0 && (found == nullptr || lane.edge_rank < found->edge_rank)) found = &lane;
     }
-    parallel_credit_ += sum - busiest;
     if (found != nullptr && found->edge_rank < cut_rank) {
       recordCrossingEdge(found->edge_j, found->edge_k, X_WP);
       return true;
@@ -873,24 +873,17 @@ SweepResult CollisionDetector::runAccelerated() noexcept {
     for (Lane& lane : lanes_)
       if (lane.phase == 1 || lane.phase == 2) runLane(lane);
   }
-  // Join: the work adds up; the budget counts the busiest lane (they ran side by side).
-  std::int64_t busiest = 0, sum = 0;
+  joinLaneWork();
   SweepResult best = result;
   double cut_t = 2.0;
   bool walked = true;
-  for (Lane& lane : lanes_) {
-    const std::int64_t w = lane.counters.total();
-    counters_ += lane.counters;
-    sum += w;
-    busiest = std::max(busiest, w);
-    if (lane.clock.late) deadline_hit_ = true;
+  for (const Lane& lane : lanes_) {
     if (lane.phase == 1) walked = false;
     if (lane.cut) cut_t = std::min(cut_t, lane.cut_t);
     const SweepResult& r = lane.result;
     if (r.hit_point >= 0 && (r.t < best.t || (r.t == best.t && (best.hit_point < 0 || r.hit_point < best.hit_point))))
       best = r;
   }
-  parallel_credit_ += sum - busiest;
   if (!(best.t <= cut_t)) {
     // A lane was stopped before every path up to the first hit was proven free: proven free up
     // to the earliest place a lane stopped (0 while a lane still walks the tree).
@@ -903,6 +896,19 @@ SweepResult CollisionDetector::runAccelerated() noexcept {
   }
   active_complete_ = true;
   return best;
+}
+
+void CollisionDetector::joinLaneWork() noexcept {
+  // The work adds up; the budget counts the busiest lane (they ran side by side).
+  std::int64_t busiest = 0, sum = 0;
+  for (const Lane& lane : lanes_) {
+    const std::int64_t w = lane.counters.total();
+    counters_ += lane.counters;
+    sum += w;
+    busiest = std::max(busiest, w);
+    if (lane.clock.late) deadline_hit_ = true;
+  }
+  parallel_credit_ += sum - busiest;
 }
 
 void CollisionDetector::runLane(Lane& lane) noexcept {
@@ -1240,18 +1246,15 @@ double CollisionDetector::maxFieldOnShell(const Pose& X_WP, double floor) noexce
   };
   if (mode_ == DetectionMode::kAccelerated) {
     // A node whose ball lies in bricks whose values stay <= m cannot raise m.
-    int top = 0;
-    stack_[top++] = 0;
-    while (top > 0) {
-      const ShellNode& node = nodes_[stack_[--top]];
-      if (!ballMayBeInside(counters_, X_WP * node.center_T_m, node.radius_m * (1.0 + 1e-9) + 1e-12, m)) continue;
-      if (node.left >= 0) {
-        stack_[top++] = node.right;
-        stack_[top++] = node.left;
-      } else {
-        for (int i = node.begin; i < node.end; ++i) visit(order_[i]);
-      }
-    }
+    walkShellTree(
+        stack_.data(), 0,
+        [&](const ShellNode& node) {
+          return ballMayBeInside(counters_, X_WP * node.center_T_m, node.radius_m * (1.0 + 1e-9) + 1e-12, m);
+        },
+        [&](int j) {
+          visit(j);
+          return false;
+        });
   } else {
     for (std::size_t j = 0; j < points.size(); ++j) visit(static_cast<int>(j));
   }
@@ -1263,24 +1266,21 @@ int CollisionDetector::updateEmbedded(const Pose& X_WP, double isovalue) noexcep
   embedded_count_ = 0;
   if (mode_ == DetectionMode::kAccelerated) {
     // The point-shell tree at the pose X_WP: a node whose ball lies in bricks that cannot hold
-    // an inside point has no embedded point (the test of each point is the paper's).
-    int top = 0;
-    stack_[top++] = 0;
-    while (top > 0) {
-      const ShellNode& node = nodes_[stack_[--top]];
-      if (!ballMayBeInside(counters_, X_WP * node.center_T_m, node.radius_m * (1.0 + 1e-9) + 1e-12, isovalue)) {
-        for (int i = node.begin; i < node.end; ++i) embedded_[order_[i]] = 0;
-      } else if (node.left >= 0) {
-        stack_[top++] = node.right;
-        stack_[top++] = node.left;
-      } else {
-        for (int i = node.begin; i < node.end; ++i) {
-          const int j = order_[i];
+    // an inside point has no embedded point (its points are cleared as it is skipped); the test
+    // of each point is the paper's.
+    walkShellTree(
+        stack_.data(), 0,
+        [&](const ShellNode& node) {
+          if (ballMayBeInside(counters_, X_WP * node.center_T_m, node.radius_m * (1.0 + 1e-9) + 1e-12, isovalue))
+            return true;
+          for (int i = node.begin; i < node.end; ++i) embedded_[order_[i]] = 0;
+          return false;
+        },
+        [&](int j) {
           embedded_[j] = inside(X_WP * points[j], isovalue) ? 1 : 0;
           embedded_count_ += embedded_[j];
-        }
-      }
-    }
+          return false;
+        });
   } else {
     for (std::size_t j = 0; j < points.size(); ++j) {
       embedded_[j] = inside(X_WP * points[j], isovalue) ? 1 : 0;

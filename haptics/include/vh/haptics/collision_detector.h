@@ -382,6 +382,12 @@ class CollisionDetector {
   };
   PendingSweep pending_;
   int buildShellTree(int begin, int end, int depth);
+  // Walks the point-shell tree below node `root` depth first, left before right, on `stack`
+  // (capacity: the nodes): a node for which may_hold(node) is false is skipped with all below
+  // it; visit(j) is called on each point of the leaves reached, in tree order, and ends the walk
+  // by returning true. Returns whether a visit ended it.
+  template <typename MayHold, typename Visit>
+  bool walkShellTree(int* stack, int root, MayHold&& may_hold, Visit&& visit) const noexcept;
   // False when no point of the W ball (centre, radius), nor within arc_sagitta_m of it, can be
   // inside (min-max tree bound with the local Lipschitz bounds).
   bool ballMayBeInside(WorkCounters& k, const Eigen::Vector3d& center_W_m, double radius_m, double isovalue,
@@ -421,6 +427,9 @@ class CollisionDetector {
                             bool resume = false) noexcept;
   // Readies a lane for work on the caller's budget and clock (base work, counters, clock reads).
   void startLaneWork(Lane& lane) const noexcept;
+  // After a fork: adds the lanes' work to the caller's (the budget counting the busiest lane's)
+  // and notes a lane that reached the deadline.
+  void joinLaneWork() noexcept;
   // Fills c.n_W and c.clearance_m at c.p_W_m (7 samples); R_WT: the tool's orientation (an edge
   // contact's direction, Contact::edge_T).
   void measureContact(Contact& c, double isovalue, const Eigen::Quaterniond& R_WT) noexcept;
