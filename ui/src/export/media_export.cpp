@@ -258,24 +258,24 @@ void RecordingFrameRenderer::setDrilling(DrillingTimeline timeline) {
 }
 
 void RecordingFrameRenderer::showCavityAt(std::size_t record_index) {
-  showDrilledVoxels(*actors_, drilling_, drilling_.picture.removedAt(record_index), cavity_shown_);
-  if (shadow_field_ != nullptr) carveToRecord(shadow_carved_, shadow_field_, drilling_, record_index);
+  showDrilledVoxels(*actors_, drilling_.picture, drilling_.picture.removedAt(record_index), cavity_shown_);
+  if (shadow_field_ != nullptr) carveToRecord(shadow_carved_, shadow_field_, drilling_.felt, record_index);
 }
 
 void carveToRecord(CarvedRegion& carved, const std::shared_ptr<const haptics::ScalarVolume>& field,
-                   const DrillingTimeline& timeline, std::size_t record_index) {
-  const std::uint64_t target = timeline.felt.removedAt(record_index);
+                   const CavityOrder& felt, std::size_t record_index) {
+  const std::uint64_t target = felt.removedAt(record_index);
   if (target < carved.removedCount() || carved.field() != field) {
-    carved.reset(field, std::span<const std::uint64_t>(timeline.felt.voxels.data(), target));
+    carved.reset(field, std::span<const std::uint64_t>(felt.voxels.data(), target));
   } else if (target > carved.removedCount()) {
-    carved.remove(std::span<const std::uint64_t>(timeline.felt.voxels.data() + carved.removedCount(),
+    carved.remove(std::span<const std::uint64_t>(felt.voxels.data() + carved.removedCount(),
                                                  target - carved.removedCount()));
   }
 }
 
-void showDrilledVoxels(SceneActors& actors, const DrillingTimeline& timeline, std::uint64_t target,
+void showDrilledVoxels(SceneActors& actors, const CavityOrder& picture, std::uint64_t target,
                        std::uint64_t& shown) {
-  target = std::min<std::uint64_t>(target, timeline.picture.voxels.size());
+  target = std::min<std::uint64_t>(target, picture.voxels.size());
   if (target == shown) return;
   if (target < shown) {  // an earlier record: from the undrilled picture again
     actors.restoreVolume();
@@ -283,7 +283,7 @@ void showDrilledVoxels(SceneActors& actors, const DrillingTimeline& timeline, st
   }
   double range[2];
   actors.shownImage()->GetScalarRange(range);
-  actors.removeVoxels(std::span<const std::uint64_t>(timeline.picture.voxels.data() + shown,
+  actors.removeVoxels(std::span<const std::uint64_t>(picture.voxels.data() + shown,
                                                      static_cast<std::size_t>(target - shown)),
                       range[0]);
   shown = target;

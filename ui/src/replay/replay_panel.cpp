@@ -340,7 +340,7 @@ void ReplayController::closeReplay() {
   onSceneTeardown();
   // Live again on the recording's scene: its drill starts from the cavity the recording started
   // from, and so does the picture.
-  if (view_.hasScene()) showDrilledVoxels(view_.actors(), drill_, drill_.picture.at_start, drill_shown_);
+  if (view_.hasScene()) showDrilledVoxels(view_.actors(), drill_.picture, drill_.picture.at_start, drill_shown_);
   if (session_.hasScene()) {
     if (view_.hasScene()) view_.actors().setForce(Eigen::Vector3d::Zero(), Eigen::Vector3d::Zero());
     session_.startHaptics();
@@ -525,10 +525,10 @@ void ReplayController::stopDrillingReplay() {
 }
 
 void ReplayController::showDrillingAt(std::size_t record_index) {
-  if (view_.hasScene()) showDrilledVoxels(view_.actors(), drill_, drill_.picture.removedAt(record_index), drill_shown_);
+  if (view_.hasScene()) showDrilledVoxels(view_.actors(), drill_.picture, drill_.picture.removedAt(record_index), drill_shown_);
   if (!session_.hasScene()) return;
   const std::uint64_t version = carved_.version();
-  carveToRecord(carved_, session_.live().hapticField(), drill_, record_index);
+  carveToRecord(carved_, session_.live().hapticField(), drill_.felt, record_index);
   if (carved_.version() != version) emit cavityShown();
 }
 

@@ -180,10 +180,11 @@ class Session {
   /// removal held (HapticThread::holdCutting(): the cavity they end with is the one it starts
   /// from), so the force lets go only for the ramp and the rest of the build (on a 512 x 512 x 140
   /// CT about 0.1 s without force, after 0.4 s of a burr that does not cut; lastRestart()).
-  /// Threads that never ticked are kept, with the pose they were built at. Either way they are left stopped: build the metadata from live()
-  /// with X_WT_initial set to the returned pose (live().X_WT_initial stays the scene's free
-  /// placement, where Reset Device goes), attach the recorder (HapticThread::setRecorder()),
-  /// then startHaptics(), so the recording holds every tick of these threads.
+  /// Threads that never ticked are kept, with the pose they were built at. Either way they are
+  /// left stopped: build the metadata from live() with X_WT_initial set to the returned pose
+  /// (live().X_WT_initial stays the scene's free placement, where Reset Device goes), attach the
+  /// recorder (HapticThread::setRecorder()), then startHaptics(), so the recording holds every
+  /// tick of these threads.
   std::optional<haptics::Pose> prepareRecording();
   /// What the last prepareRecording() that restarted threads cost: the time the old threads
   /// went on rendering the force while the new drill was prepared [ms], the time from their stop

@@ -105,16 +105,17 @@ void addReplayedRemovals(DrillingTimeline& timeline, const runtime::LoadedScene&
 DrillingTimeline drillingTimeline(const runtime::LoadedScene& scene, const runtime::Recording& recording,
                                   const runtime::ReplayProgress& progress = {});
 
-/// Carves `carved` so that it holds `field` with the first timeline.felt.removedAt(record_index)
-/// of timeline.felt.voxels removed: on from what it holds, or from `field` again for an earlier
-/// record or another field (the tool's shadow at that record, castToolShadow()).
+/// Carves `carved` so that it holds `field` with the first felt.removedAt(record_index) of
+/// felt.voxels removed (`felt`: DrillingTimeline::felt, on `field`'s grid): on from what it
+/// holds, or from `field` again for an earlier record or another field (the tool's shadow at that
+/// record, castToolShadow()).
 void carveToRecord(CarvedRegion& carved, const std::shared_ptr<const haptics::ScalarVolume>& field,
-                   const DrillingTimeline& timeline, std::size_t record_index);
+                   const CavityOrder& felt, std::size_t record_index);
 
-/// Carves `actors`' picture so that the first `target` of timeline.picture.voxels are removed,
-/// `shown` being removed now (updated): fewer than shown restores the scan first. A removed voxel
-/// takes the scan's lowest value, as in the live view (DrillController).
-void showDrilledVoxels(SceneActors& actors, const DrillingTimeline& timeline, std::uint64_t target,
+/// Carves `actors`' picture so that the first `target` of picture.voxels (DrillingTimeline::
+/// picture) are removed, `shown` being removed now (updated): fewer than shown restores the scan
+/// first. A removed voxel takes the scan's lowest value, as in the live view (DrillController).
+void showDrilledVoxels(SceneActors& actors, const CavityOrder& picture, std::uint64_t target,
                        std::uint64_t& shown);
 
 /// An off-screen render window with the scene's props, for frames of a recording.
