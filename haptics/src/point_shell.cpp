@@ -1,6 +1,7 @@
 #include "vh/haptics/point_shell.h"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <limits>
 #include <random>
@@ -212,6 +213,42 @@ std::vector<std::size_t> poissonThin(const std::vector<Candidate>& cand, double 
   return accepted;
 }
 
+// The points' indices in Morton (Z-curve) order over their bounding box, 21 bits an axis: points
+// near each other in space get indices near each other, so a collision query that visits a
+// region of the tool (a node of CollisionDetector's point-shell tree) reads its points' state
+// from a few neighbouring cache lines instead of from all over memory (the thinning keeps
+// points in random order).
+void sortSpatially(const std::vector<Candidate>& cand, std::vector<std::size_t>& chosen) {
+  if (chosen.size() < 2) return;
+  Eigen::Vector3d lo = Eigen::Vector3d::Constant(std::numeric_limits<double>::infinity()), hi = -lo;
+  for (std::size_t c : chosen) {
+    lo = lo.cwiseMin(cand[c].p);
+    hi = hi.cwiseMax(cand[c].p);
+  }
+  constexpr double kCells = double((1u << 21) - 1);
+  const double extent = std::max((hi - lo).maxCoeff(), std::numeric_limits<double>::min());
+  // Spreads the low 21 bits of v to every third bit.
+  const auto spread = [](std::uint64_t v) {
+    v &= 0x1fffff;
+    v = (v | v << 32) & 0x1f00000000ffffULL;
+    v = (v | v << 16) & 0x1f0000ff0000ffULL;
+    v = (v | v << 8) & 0x100f00f00f00f00fULL;
+    v = (v | v << 4) & 0x10c30c30c30c30c3ULL;
+    v = (v | v << 2) & 0x1249249249249249ULL;
+    return v;
+  };
+  std::vector<std::pair<std::uint64_t, std::size_t>> keyed;
+  keyed.reserve(chosen.size());
+  for (std::size_t c : chosen) {
+    const Eigen::Vector3d q = (cand[c].p - lo) / extent * kCells;
+    keyed.emplace_back(spread(static_cast<std::uint64_t>(q.x())) | spread(static_cast<std::uint64_t>(q.y())) << 1 |
+                           spread(static_cast<std::uint64_t>(q.z())) << 2,
+                       c);
+  }
+  std::sort(keyed.begin(), keyed.end());
+  for (std::size_t i = 0; i < keyed.size(); ++i) chosen[i] = keyed[i].second;
+}
+
 }  // namespace
 
 PointShell makePointShell(const TriangleMesh& mesh, const PointShellOptions& options) {
@@ -260,6 +297,7 @@ PointShell makePointShell(const TriangleMesh& mesh, const PointShellOptions& opt
     best.resize(options.point_count);
     chosen = std::move(best);
   }
+  sortSpatially(cand, chosen);
   std::vector<Eigen::Vector3d> points, normals;
   points.reserve(chosen.size());
   normals.reserve(chosen.size());

@@ -1,6 +1,10 @@
 #include "vh/haptics/point_shell.h"
 
+#include <algorithm>
 #include <cmath>
+#include <iostream>
+#include <random>
+#include <vector>
 #include <numbers>
 
 #include <Eigen/Geometry>
@@ -51,6 +55,28 @@ TEST(PointShell, ExactPointCountWhenRequested) {
     o.point_count = n;
     EXPECT_EQ(makePointShell(mesh, o).size(), n);
   }
+}
+
+// Points in spatial order: consecutive indices lie near each other on the tool (the collision
+// detector reads a region's points from neighbouring memory). The oracle: the same points in a
+// random order, whose consecutive points lie about a mean chord of the tool apart.
+TEST(PointShell, PointsComeInSpatialOrder) {
+  const TriangleMesh mesh = datasets::makeBuiltinTool("drill");
+  PointShellOptions o;
+  o.point_count = 2000;
+  const PointShell shell = makePointShell(mesh, o);
+  const auto meanStep = [](const std::vector<Eigen::Vector3d>& p) {
+    double sum = 0.0;
+    for (std::size_t i = 0; i + 1 < p.size(); ++i) sum += (p[i + 1] - p[i]).norm();
+    return sum / static_cast<double>(p.size() - 1);
+  };
+  std::vector<Eigen::Vector3d> shuffled = shell.points_T_m();
+  std::mt19937 rng(7);
+  std::shuffle(shuffled.begin(), shuffled.end(), rng);
+  const double ordered_m = meanStep(shell.points_T_m()), random_m = meanStep(shuffled);
+  std::cout << "mean step between consecutive points: " << ordered_m * 1e3 << " mm in the shell's order, "
+            << random_m * 1e3 << " mm shuffled\n";
+  EXPECT_LT(ordered_m, 0.1 * random_m);
 }
 
 TEST(PointShell, RejectsBadInput) {

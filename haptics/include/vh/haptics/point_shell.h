@@ -68,7 +68,9 @@ struct PointShellOptions {
 
 /// Resamples a triangle mesh into an evenly spaced point shell with per-point normals
 /// (area-weighted dense candidates, then farthest-point / Poisson-disk thinning), because mesh
-/// vertices alone are uneven (section 2.2).
+/// vertices alone are uneven (section 2.2). The points come in Morton (Z-curve) order, so that
+/// points near each other on the tool lie near each other in memory (the collision detector
+/// visits the tool region by region).
 /// @throws std::invalid_argument for an empty mesh, spacing <= 0, or a spacing that would need
 ///         more than 200,000 points.
 PointShell makePointShell(const TriangleMesh& mesh, const PointShellOptions& options);
