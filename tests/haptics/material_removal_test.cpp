@@ -1,8 +1,10 @@
 #include "vh/haptics/material_removal.h"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <cstdio>
+#include <iostream>
 #include <numbers>
 #include <random>
 #include <string>
@@ -308,6 +310,43 @@ TEST(MaterialRemoval, RemoveCavityCarvesBeforeTheFirstCutUncountedAndUnlogged) {
   ASSERT_EQ(removal.drainRemoved(drained), cut);
   for (std::uint64_t n = 0; n < cut; ++n)
     EXPECT_FALSE(std::binary_search(cavity.begin(), cavity.end() - 1, drained[n])) << "voxel " << drained[n];
+}
+
+// The box of cuts since a mark (what a recording restarted while drilling catches up): empty
+// after markCuts(); after cuts in a second place it holds every voxel whose bytes changed since
+// the mark (the oracle: a byte-wise diff of the field), and none of the first place's.
+TEST(MaterialRemoval, TheBoxOfCutsSinceAMarkHoldsEveryVoxelRemovedSinceThen) {
+  auto v = uniformBlock(32, 0.001);
+  const auto& g = v->geometry();
+  MaterialRemoval removal(v, {}, oneMaterial(0.05));
+  std::array<int, 3> lo{}, hi{};
+  EXPECT_FALSE(removal.cutsSinceMark(lo, hi)) << "nothing cut yet";
+  const auto at = [&](double i, double j, double k) { return Eigen::Vector3d(g.origin_W_m + g.spacing_m.cwiseProduct(Eigen::Vector3d(i, j, k))); };
+  std::uint64_t first = 0;
+  for (int tick = 0; tick < 100; ++tick) first += static_cast<std::uint64_t>(removal.cut(at(8, 8, 1.5), 0.002, 5.0, 1e-3, 100.0, true).voxels_removed);
+  ASSERT_GT(first, 0u);
+  ASSERT_TRUE(removal.cutsSinceMark(lo, hi));
+  removal.markCuts();
+  EXPECT_FALSE(removal.cutsSinceMark(lo, hi)) << "empty after the mark";
+  const std::vector<std::byte> at_mark(v->bytes().begin(), v->bytes().end());
+  std::uint64_t second = 0;
+  for (int tick = 0; tick < 100; ++tick) second += static_cast<std::uint64_t>(removal.cut(at(22, 20, 1.5), 0.002, 5.0, 1e-3, 100.0, true).voxels_removed);
+  ASSERT_GT(second, 0u);
+  ASSERT_TRUE(removal.cutsSinceMark(lo, hi));
+  std::uint64_t changed = 0;
+  for (std::size_t index = 0; index < at_mark.size(); ++index) {
+    if (at_mark[index] == v->bytes()[index]) continue;
+    ++changed;
+    const std::array<int, 3> ijk = g.voxelOf(index);
+    for (int a = 0; a < 3; ++a) {
+      EXPECT_GE(ijk[a], lo[a]) << "voxel " << index;
+      EXPECT_LE(ijk[a], hi[a]) << "voxel " << index;
+    }
+  }
+  EXPECT_EQ(changed, second);
+  EXPECT_GT(lo[0], 8 + 2) << "the first place's cuts are not in the box";
+  std::cout << "cut " << first << " voxels, marked, cut " << second << " more in the box [" << lo[0] << ".." << hi[0]
+            << "] x [" << lo[1] << ".." << hi[1] << "] x [" << lo[2] << ".." << hi[2] << "]\n";
 }
 
 TEST(MaterialRemoval, RejectsBadInput) {

@@ -610,9 +610,10 @@ TEST(DrillingView, CavityInTheHeadPhantomGrowsInTheView) {
   window.recorder()->stop();
   const runtime::Session::RestartTiming& restart = session.lastRestart();
   std::printf("head phantom: Record pressed while drilling started in %.0f ms (the checksum, the haptic threads' "
-              "restart): %.0f ms preparing the new drill with the force on, %.0f ms from the old threads' stop "
-              "to the new threads built\n",
-              restart_ms, restart.while_feeling_ms, restart.without_force_ms);
+              "restart): %.0f ms preparing the new drill with the force on (the burr held from cutting for the "
+              "first %.0f ms, then %zu voxels cut), %.0f ms from the old threads' stop to the new threads built\n",
+              restart_ms, restart.while_feeling_ms, restart.cutting_held_ms, restart.voxels_cut_while_preparing,
+              restart.without_force_ms);
   EXPECT_TRUE(restart.prepared_while_feeling) << "the new drill was built before the force let go";
   // Lift the drill out and look down into the cavity.
   haptics::Pose lifted = start;

@@ -23,7 +23,7 @@ constexpr double kMinBurrRadius_m = 0.001, kMaxBurrRadius_m = 0.006;
 bool namesMaterial(const std::string& given, const std::string& name) { return lower(given) == lower(name); }
 
 DrilledCavity cavityOf(const haptics::ScalarVolume& carved, const haptics::ScalarVolume& undrilled,
-                       const DrilledCavity* started_from) {
+                       const DrilledCavity* started_from, const std::optional<VoxelBox>& within) {
   if (!carved.geometry().sameGridAs(undrilled.geometry()) || carved.bytes().size() != undrilled.bytes().size())
     throw std::invalid_argument("cavityOf: the carved field and the undrilled one lie on different grids");
   DrilledCavity cavity;
@@ -32,8 +32,24 @@ DrilledCavity cavityOf(const haptics::ScalarVolume& carved, const haptics::Scala
   const std::size_t bytes_per_voxel = n > 0 ? carved.bytes().size() / n : 0;
   const std::byte* a = carved.bytes().data();
   const std::byte* b = undrilled.bytes().data();
-  for (std::size_t i = 0; i < n; ++i)
-    if (std::memcmp(a + i * bytes_per_voxel, b + i * bytes_per_voxel, bytes_per_voxel) != 0) cavity.voxels.push_back(i);
+  const std::array<int, 3>& dims = cavity.grid.dims;
+  VoxelBox box{{0, 0, 0}, {dims[0] - 1, dims[1] - 1, dims[2] - 1}};
+  if (within) {
+    for (int axis = 0; axis < 3; ++axis) {
+      box.lo[axis] = std::max(box.lo[axis], within->lo[axis]);
+      box.hi[axis] = std::min(box.hi[axis], within->hi[axis]);
+    }
+  }
+  const std::size_t sy = static_cast<std::size_t>(dims[0]), sz = sy * static_cast<std::size_t>(dims[1]);
+  if (n > 0 && box.lo[0] <= box.hi[0] && box.lo[1] <= box.hi[1] && box.lo[2] <= box.hi[2]) {
+    for (int k = box.lo[2]; k <= box.hi[2]; ++k)
+      for (int j = box.lo[1]; j <= box.hi[1]; ++j) {
+        const std::size_t row = static_cast<std::size_t>(k) * sz + static_cast<std::size_t>(j) * sy;
+        for (std::size_t i = row + static_cast<std::size_t>(box.lo[0]); i <= row + static_cast<std::size_t>(box.hi[0]); ++i)
+          if (std::memcmp(a + i * bytes_per_voxel, b + i * bytes_per_voxel, bytes_per_voxel) != 0)
+            cavity.voxels.push_back(i);
+      }
+  }
   if (started_from != nullptr && !started_from->voxels.empty()) {
     const std::vector<std::uint64_t> before = cavityVoxelsOn(*started_from, cavity.grid);
     std::vector<std::uint64_t> both;

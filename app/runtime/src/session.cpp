@@ -5,6 +5,7 @@
 #include "vh/runtime/snapshot_channel.h"
 
 #include <algorithm>
+#include <iterator>
 #include <chrono>
 #include <cmath>
 #include <stdexcept>
@@ -254,14 +255,21 @@ std::optional<haptics::Pose> Session::prepareRecording() {
   };
   const Clock::time_point begin = Clock::now();
   // Running threads with a drill: the new drill's field and materials (0.3 s on a CT) are built
-  // while these threads still render the force, with the burr's removal held, so that the
-  // cavity the new drill starts from is the one these threads end with. Without a drill, or
-  // when the hold or the preparation fails, everything is built after the stop, as before.
+  // while these threads go on rendering the force and cutting. They are held from cutting only
+  // while the cavity so far is read (one pass over the field); what the burr removes after that
+  // is caught up at the stop, from the box it cut in (MaterialRemoval::cutsSinceMark()), so the
+  // new drill starts from the cavity these threads end with, as the replay's will. Without a
+  // drill, or when the hold or the preparation fails, everything is built after the stop.
   std::optional<PreparedDrill> prepared;
-  if (haptics_->running() && haptics_->drill() != nullptr && live_.drill && live_.hapticField() != nullptr &&
+  Drill* const old_drill = haptics_->drill().get();
+  double held_ms = 0.0;
+  if (haptics_->running() && old_drill != nullptr && live_.drill && live_.hapticField() != nullptr &&
       haptics_->holdCutting()) {
     try {
       keepCavity();
+      old_drill->removal().markCuts();
+      haptics_->releaseCutting();
+      held_ms = ms(begin, Clock::now());
       prepared = prepareServoDrill(live_);
     } catch (...) {
       prepared.reset();
@@ -270,17 +278,45 @@ std::optional<haptics::Pose> Session::prepareRecording() {
   }
   const Clock::time_point stopping = Clock::now();
   // Where the proxy stopped: free of the surface (the renderer's own pose). The cavity so far is
-  // kept (above, or by retireHaptics()) and the new drill starts from it, as the replay's will.
+  // kept (below, or by retireHaptics()) and the new drill starts from it, as the replay's will.
   haptics_->stop();
   const haptics::Pose X_WP = proxyPose();
+  std::size_t caught_up = 0;
   if (prepared) {
-    haptics_.reset();  // its cavity was kept above, and its field has not changed since
+    VoxelBox cut;
+    if (old_drill->removal().cutsSinceMark(cut.lo, cut.hi)) {
+      // The voxels cut while the new drill was prepared: in the box cut since the mark, not yet
+      // in the cavity it was prepared from.
+      const DrilledCavity since = cavityOf(old_drill->removal().volume(), *live_.hapticField(), nullptr, cut);
+      const std::shared_ptr<const DrilledCavity> before = live_.drill->cavity;
+      std::vector<std::uint64_t> added;
+      if (before != nullptr) {
+        std::set_difference(since.voxels.begin(), since.voxels.end(), before->voxels.begin(), before->voxels.end(),
+                            std::back_inserter(added));
+      } else {
+        added = since.voxels;
+      }
+      if (!added.empty()) {
+        caught_up = prepared->removal->removeCavity(added);
+        auto cavity = std::make_shared<DrilledCavity>();
+        cavity->grid = since.grid;
+        if (before != nullptr) {
+          std::set_union(before->voxels.begin(), before->voxels.end(), added.begin(), added.end(),
+                         std::back_inserter(cavity->voxels));
+        } else {
+          cavity->voxels = std::move(added);
+        }
+        live_.drill->cavity = cavity;
+        prepared->cavity = std::move(cavity);
+      }
+    }
+    haptics_.reset();  // its cavity is kept above
   } else {
     retireHaptics();
   }
   rebuildHaptics(X_WP, prepared ? &*prepared : nullptr);
   const Clock::time_point end = Clock::now();
-  last_restart_ = RestartTiming{ms(begin, stopping), ms(stopping, end), prepared.has_value()};
+  last_restart_ = RestartTiming{ms(begin, stopping), ms(stopping, end), prepared.has_value(), held_ms, caught_up};
   notify(SessionChange::kRunning);
   return X_WP;
 }

@@ -463,6 +463,12 @@ TEST(Drilling, ARecordingStartedWhileDrillingReplaysBitForBit) {
   ASSERT_TRUE(X_start.has_value());
   EXPECT_FALSE(session.hapticsRunning()) << "left stopped for the recorder";
   EXPECT_TRUE(session.lastRestart().prepared_while_feeling) << "the new drill was built with the force on";
+  std::cout << "restart: " << session.lastRestart().while_feeling_ms << " ms preparing with the force on (the burr held for "
+            << session.lastRestart().cutting_held_ms << " ms, then " << session.lastRestart().voxels_cut_while_preparing
+            << " voxels cut), "
+            << session.lastRestart().without_force_ms << " ms without force\n";
+  EXPECT_GT(session.lastRestart().voxels_cut_while_preparing, 0u)
+      << "the burr, pressed, cut while the new drill was prepared (what the field check below then covers)";
   ASSERT_NE(session.hapticThread()->drill(), nullptr);
   ASSERT_NE(session.hapticThread()->drill(), old_drill);
   const auto old_bytes = old_drill->removal().volume().bytes();

@@ -101,6 +101,16 @@ class MaterialRemoval {
   /// @return the voxels it removed.
   std::size_t removeCavity(std::span<const std::uint64_t> voxels) noexcept;
 
+  /// Starts a new record of where cut() removes voxels (cutsSinceMark()): empty from here on.
+  /// Only while nothing cuts: before the first cut(), while the thread that cuts is held from
+  /// cutting (runtime's HapticThread::holdCutting()), or after it stopped.
+  void markCuts() noexcept;
+  /// The box of the voxels cut() removed since the last markCuts() (or since construction), in
+  /// voxel indices [lo, hi] per axis of the volume's grid. Read under the same condition as
+  /// markCuts(). removeCavity() does not count.
+  /// @return false when nothing was removed since then (lo and hi untouched).
+  bool cutsSinceMark(std::array<int, 3>& lo, std::array<int, 3>& hi) const noexcept;
+
   /// Changes material m's specific energy [J/mm^3] from the next cut() on (the Segments panel's
   /// hardness); any thread, lock-free. Ignored for an index out of range or an energy that is
   /// not finite and > 0.
@@ -147,7 +157,9 @@ class MaterialRemoval {
   double voxel_mm3_ = 0.0;
   double removed_raw_ = 0.0;
   std::uint64_t eroded_ = 0;  // material removed [1/65535 voxel]
-  double carry_ = 0.0;  // rounding remainder of the last share [1/65535 voxel], carried on
+  double carry_ = 0.0;
+  // The box of the voxels cut() removed since markCuts(); cut_hi_ < cut_lo_: none.
+  std::array<int, 3> cut_lo_{0, 0, 0}, cut_hi_{-1, -1, -1};  // rounding remainder of the last share [1/65535 voxel], carried on
   std::array<std::atomic<std::uint64_t>, 256> removed_{};
   // Removal log: ring of linear indices; head written by cut(), tail by drainRemoved().
   std::vector<std::uint64_t> log_;

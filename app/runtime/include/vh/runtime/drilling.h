@@ -13,6 +13,8 @@
 /// Frames and units: W the scene frame [m]; T the tool frame [m]; hardness as the specific
 /// cutting energy [J/mm^3] (MaterialRemoval's model, after Agus et al., Presence 2003).
 
+#include <array>
+#include <cstdint>
 #include <map>
 #include <memory>
 #include <optional>
@@ -38,14 +40,22 @@ struct DrilledCavity {
   std::vector<std::uint64_t> voxels;  ///< Linear indices (x fastest) of the removed voxels, ascending.
 };
 
+/// A box of voxels of a grid: indices [lo, hi] on each axis (i, j, k).
+struct VoxelBox {
+  std::array<int, 3> lo{0, 0, 0};
+  std::array<int, 3> hi{-1, -1, -1};
+};
+
 /// The cavity of `carved` (a drill's copy of `undrilled`, the same grid) on undrilled's grid: the
 /// voxels whose raw value differs from `undrilled`'s (a burr only ever writes a removed voxel),
 /// and those of `started_from` (the cavity the copy started with, cavityVoxelsOn() this grid:
 /// kept even where the field was already at its lowest, e.g. outside a felt segment). One pass
-/// over the voxels (about 40 ms on a 512 x 512 x 140 CT); off the servo thread.
+/// over the voxels (about 40 ms on a 512 x 512 x 140 CT), or over those in `within` only (clipped
+/// to the grid; e.g. where the burr cut since a mark, haptics::MaterialRemoval::cutsSinceMark());
+/// off the servo thread.
 /// @throws std::invalid_argument when the two grids differ.
 DrilledCavity cavityOf(const haptics::ScalarVolume& carved, const haptics::ScalarVolume& undrilled,
-                       const DrilledCavity* started_from = nullptr);
+                       const DrilledCavity* started_from = nullptr, const std::optional<VoxelBox>& within = std::nullopt);
 
 /// The voxels of `grid` (linear indices, x fastest, ascending) that lie in `cavity`: its own
 /// indices on the same grid; on another grid (the felt field changed, or the picture's scan),

@@ -176,10 +176,12 @@ class Session {
   /// stopped (force ramped to zero), keep their cavity (live().drill->cavity) and are rebuilt at
   /// the pose the proxy stopped at; the device stays where it is (a hand pressing on bone
   /// presses on the new proxy at once). With a drill the new drill's field and materials are
-  /// prepared before the stop, while the running threads still render the force with the burr's
-  /// removal held (HapticThread::holdCutting(): the cavity they end with is the one it starts
-  /// from), so the force lets go only for the ramp and the rest of the build (on a 512 x 512 x 140
-  /// CT about 0.1 s without force, after 0.4 s of a burr that does not cut; lastRestart()).
+  /// prepared before the stop, while the running threads still render the force and cut: the
+  /// burr is held (HapticThread::holdCutting()) only while the cavity so far is read, and what it
+  /// removes during the preparation is removed from the new drill's field at the stop (the
+  /// cavity the old threads end with is the one the new ones start from). So the force lets go
+  /// only for the ramp and the rest of the build (on a 512 x 512 x 140 CT about 0.1 s without
+  /// force), and the burr stops cutting only for the one read (lastRestart()).
   /// Threads that never ticked are kept, with the pose they were built at. Either way they are
   /// left stopped: build the metadata from live() with X_WT_initial set to the returned pose
   /// (live().X_WT_initial stays the scene's free placement, where Reset Device goes), attach the
@@ -189,11 +191,15 @@ class Session {
   /// What the last prepareRecording() that restarted threads cost: the time the old threads
   /// went on rendering the force while the new drill was prepared [ms], the time from their stop
   /// (the force's ramp to zero) to the new threads built [ms] (they start with startHaptics()),
-  /// and whether the drill was prepared before the stop (false: no drill, or built after it).
+  /// whether the drill was prepared before the stop (false: no drill, or built after it), the
+  /// time the burr was held from cutting for the read of the cavity [ms] (part of the first),
+  /// and the voxels it cut during the rest of the preparation, caught up in the new drill.
   struct RestartTiming {
     double while_feeling_ms = 0.0;
     double without_force_ms = 0.0;
     bool prepared_while_feeling = false;
+    double cutting_held_ms = 0.0;
+    std::size_t voxels_cut_while_preparing = 0;
   };
   const RestartTiming& lastRestart() const noexcept { return last_restart_; }
   /// The haptic threads' latest snapshot into `out` (false, `out` untouched, without threads or
