@@ -45,7 +45,11 @@ DrilledCavity cavityOf(const haptics::ScalarVolume& carved, const haptics::Scala
     for (int k = box.lo[2]; k <= box.hi[2]; ++k)
       for (int j = box.lo[1]; j <= box.hi[1]; ++j) {
         const std::size_t row = static_cast<std::size_t>(k) * sz + static_cast<std::size_t>(j) * sy;
-        for (std::size_t i = row + static_cast<std::size_t>(box.lo[0]); i <= row + static_cast<std::size_t>(box.hi[0]); ++i)
+        const std::size_t first = row + static_cast<std::size_t>(box.lo[0]), last = row + static_cast<std::size_t>(box.hi[0]);
+        // Most rows are untouched: one comparison of the whole row, then voxel by voxel where it differs.
+        if (std::memcmp(a + first * bytes_per_voxel, b + first * bytes_per_voxel, (last - first + 1) * bytes_per_voxel) == 0)
+          continue;
+        for (std::size_t i = first; i <= last; ++i)
           if (std::memcmp(a + i * bytes_per_voxel, b + i * bytes_per_voxel, bytes_per_voxel) != 0)
             cavity.voxels.push_back(i);
       }

@@ -50,9 +50,9 @@ struct VoxelBox {
 /// voxels whose raw value differs from `undrilled`'s (a burr only ever writes a removed voxel),
 /// and those of `started_from` (the cavity the copy started with, cavityVoxelsOn() this grid:
 /// kept even where the field was already at its lowest, e.g. outside a felt segment). One pass
-/// over the voxels (about 40 ms on a 512 x 512 x 140 CT), or over those in `within` only (clipped
-/// to the grid; e.g. where the burr cut since a mark, haptics::MaterialRemoval::cutsSinceMark());
-/// off the servo thread.
+/// over the voxels, a row at a time where the row is untouched (about 10 ms on a 512 x 512 x 140
+/// CT), or over those in `within` only (clipped to the grid; e.g. where the burr cut since a
+/// mark, haptics::MaterialRemoval::cutsSinceMark()); off the servo thread.
 /// @throws std::invalid_argument when the two grids differ.
 DrilledCavity cavityOf(const haptics::ScalarVolume& carved, const haptics::ScalarVolume& undrilled,
                        const DrilledCavity* started_from = nullptr, const std::optional<VoxelBox>& within = std::nullopt);
