@@ -23,6 +23,7 @@
 #include <cstdlib>
 #include <cstring>
 #include <limits>
+#include <mutex>
 #include <span>
 #include <stdexcept>
 #include <thread>
@@ -55,6 +56,42 @@ std::int64_t monotonicNs() noexcept {
 /// Best effort real-time set-up of the calling thread (devices.md, "Servo loop timing"): 1 ns
 /// timer slack, SCHED_FIFO at `priority` and, when that worked and `lock_memory`, mlockall.
 /// Every failure (EPERM in a container or for a normal user) silently leaves the default.
+// The process's memory lock (mlockall is process-wide): taken by the first coupling thread that
+// may lock, dropped (munlockall) when the last user is gone: the coupling threads that run, and
+// the MemoryLockHolds that keep it over a restart of the threads.
+std::mutex& memoryLockMutex() {
+  static std::mutex m;
+  return m;
+}
+int memory_lock_users = 0;  // guarded by memoryLockMutex()
+bool memory_locked = false;  // guarded by memoryLockMutex()
+
+// A coupling thread's use of the lock: locks the process's memory unless it is locked already.
+// @return whether it is locked (then the caller releases it with releaseMemoryLock()).
+bool acquireMemoryLock() noexcept {
+  const std::lock_guard<std::mutex> guard(memoryLockMutex());
+  if (!memory_locked) {
+#ifdef MCL_ONFAULT
+    // ONFAULT: resident pages are locked now, later ones when first touched (no pre-faulting of
+    // large reservations such as thread stacks).
+    memory_locked = mlockall(MCL_CURRENT | MCL_FUTURE | MCL_ONFAULT) == 0;
+    if (!memory_locked && errno == EINVAL) memory_locked = mlockall(MCL_CURRENT | MCL_FUTURE) == 0;
+#else
+    memory_locked = mlockall(MCL_CURRENT | MCL_FUTURE) == 0;
+#endif
+  }
+  if (memory_locked) ++memory_lock_users;
+  return memory_locked;
+}
+
+void releaseMemoryLock() noexcept {
+  const std::lock_guard<std::mutex> guard(memoryLockMutex());
+  if (memory_lock_users > 0 && --memory_lock_users == 0 && memory_locked) {
+    munlockall();  // tens of ms on a process holding a CT
+    memory_locked = false;
+  }
+}
+
 void configureRealtime(int priority, bool lock_memory, bool& fifo, bool& locked) noexcept {
   prctl(PR_SET_TIMERSLACK, 1UL, 0UL, 0UL, 0UL);
   sched_param param{};
@@ -65,14 +102,7 @@ void configureRealtime(int priority, bool lock_memory, bool& fifo, bool& locked)
   // Lock only when the limit cannot make later allocations fail (root or unlimited).
   rlimit limit{};
   if (geteuid() != 0 && (getrlimit(RLIMIT_MEMLOCK, &limit) != 0 || limit.rlim_cur != RLIM_INFINITY)) return;
-#ifdef MCL_ONFAULT
-  // ONFAULT: resident pages are locked now, later ones when first touched (no pre-faulting of
-  // large reservations such as thread stacks).
-  locked = mlockall(MCL_CURRENT | MCL_FUTURE | MCL_ONFAULT) == 0;
-  if (!locked && errno == EINVAL) locked = mlockall(MCL_CURRENT | MCL_FUTURE) == 0;
-#else
-  locked = mlockall(MCL_CURRENT | MCL_FUTURE) == 0;
-#endif
+  locked = acquireMemoryLock();
 }
 
 /// An absolute-deadline periodic wake-up with the statistics of ThreadTiming: on an overrun of
@@ -416,6 +446,18 @@ void mergeSnapshots(const CouplingSnapshot& c, const SolverSnapshot& s, HapticSn
   out.skipped_samples = s.skipped;
   out.passivity_active_ticks = c.passivity_active_ticks;
   out.passivity_dissipated_J = c.passivity_dissipated_J;
+}
+
+MemoryLockHold::MemoryLockHold() noexcept {
+  const std::lock_guard<std::mutex> guard(memoryLockMutex());
+  if (memory_locked) {
+    ++memory_lock_users;
+    held_ = true;
+  }
+}
+
+MemoryLockHold::~MemoryLockHold() {
+  if (held_) releaseMemoryLock();
 }
 
 void HapticThread::start() {
@@ -800,7 +842,7 @@ void HapticThread::couplingLoop() noexcept {
 
   device_->command(Eigen::Vector3d::Zero(), Eigen::Vector3d::Zero());
   coupling_done_.store(true, std::memory_order_release);
-  if (locked) munlockall();
+  if (locked) releaseMemoryLock();
   running_.store(false, std::memory_order_release);
 }
 

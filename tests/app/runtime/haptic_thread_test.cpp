@@ -7,6 +7,8 @@
 #include <atomic>
 #include <chrono>
 #include <filesystem>
+#include <fstream>
+#include <string>
 #include <cmath>
 #include <functional>
 #include <iostream>
@@ -39,6 +41,49 @@ Eigen::Vector3d couplingForce(const HapticSnapshot& s, const haptics::ToolModel&
   const Eigen::Vector3d c_P = s.X_WP * tool.mass.p_TCm_m;
   const Eigen::Vector3d c_D = s.X_WD * tool.mass.p_TCm_m;
   return -k * (c_D - c_P);
+}
+
+/// The process's locked memory [kB], as the kernel counts it (VmLck of /proc/self/status).
+long lockedMemory_kB() {
+  std::ifstream status("/proc/self/status");
+  std::string line;
+  while (std::getline(status, line))
+    if (line.rfind("VmLck:", 0) == 0) return std::stol(line.substr(6));
+  return -1;
+}
+
+// The memory lock outlives a stop while a MemoryLockHold keeps it (what a recording's restart of
+// the threads does, so that it neither unlocks nor locks again), and goes with the last user.
+// The oracle is the kernel's count of locked memory, not the threads' own flag.
+TEST(HapticThread, AMemoryLockHoldKeepsTheLockOverAStopAndTheLastUserDropsIt) {
+  const LoadedScene& scene = test::sphereBallScene();
+  auto device = std::make_shared<SimulatedDevice>(scene.X_WT_initial);
+  auto thread = scene.makeHapticThread(device);
+  ASSERT_EQ(lockedMemory_kB(), 0) << "nothing locked before the threads run";
+  thread->start();
+  ASSERT_TRUE(waitUntil([&] { HapticSnapshot s; return thread->latestSnapshot(s) && s.tick >= 20; }));
+  if (!thread->memoryLocked()) {
+    thread->stop();
+    GTEST_SKIP() << "the coupling thread may not lock memory here (needs SCHED_FIFO and root or an unlimited "
+                    "RLIMIT_MEMLOCK)";
+  }
+  EXPECT_GT(lockedMemory_kB(), 0);
+  {
+    MemoryLockHold hold;
+    EXPECT_TRUE(hold.holding());
+    thread->stop();
+    EXPECT_GT(lockedMemory_kB(), 0) << "the hold keeps the memory locked after the threads stopped";
+    auto second = scene.makeHapticThread(device);
+    second->start();
+    ASSERT_TRUE(waitUntil([&] { HapticSnapshot s; return second->latestSnapshot(s) && s.tick >= 20; }));
+    EXPECT_TRUE(second->memoryLocked());
+    second->stop();
+    EXPECT_GT(lockedMemory_kB(), 0) << "still held";
+  }
+  EXPECT_EQ(lockedMemory_kB(), 0) << "the last user gone, the memory is unlocked";
+  MemoryLockHold idle;
+  EXPECT_FALSE(idle.holding()) << "a hold made while nothing is locked keeps nothing";
+  EXPECT_EQ(lockedMemory_kB(), 0);
 }
 
 TEST(HapticThread, TicksPublishesConsistentSnapshotsAndStops) {

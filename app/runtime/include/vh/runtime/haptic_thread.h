@@ -155,6 +155,27 @@ struct HapticThreadOptions {
   std::shared_ptr<Drill> drill;
 };
 
+/// Keeps the process's memory lock over a stop and a start of haptic threads. The coupling thread
+/// locks the process's memory when it may (SCHED_FIFO, and root or an unlimited RLIMIT_MEMLOCK:
+/// mlockall, process-wide), and the lock is dropped (munlockall, 20 to 40 ms on a process holding a
+/// 512 x 512 x 140 CT, in the coupling thread's last act, which stop() waits for) only when the last
+/// coupling thread and the last hold are gone. A hold made while the memory is locked keeps it
+/// locked until the hold is destroyed; made while it is not, it does nothing.
+/// Session::prepareRecording() holds one over its restart of the threads, so neither the stop
+/// nor the new threads' start pays for unlocking and locking again.
+class MemoryLockHold {
+ public:
+  MemoryLockHold() noexcept;
+  ~MemoryLockHold();
+  MemoryLockHold(const MemoryLockHold&) = delete;
+  MemoryLockHold& operator=(const MemoryLockHold&) = delete;
+  /// Whether the memory was locked when this hold was made (then it keeps it locked).
+  bool holding() const noexcept { return held_; }
+
+ private:
+  bool held_ = false;
+};
+
 /// Runs the coupling and the solver threads (see the file comment).
 class HapticThread {
  public:
@@ -173,8 +194,8 @@ class HapticThread {
   void stop();
   bool running() const noexcept { return running_.load(std::memory_order_acquire); }
   /// After the threads started: whether both got SCHED_FIFO (coupling priority 80, solver 79;
-  /// else SCHED_OTHER with a 1 ns timer slack) and whether the coupling thread locked the
-  /// process's memory (mlockall; undone when it ends).
+  /// else SCHED_OTHER with a 1 ns timer slack) and whether the process's memory is locked for
+  /// the coupling thread (mlockall, shared with other users: MemoryLockHold).
   bool realtimeScheduling() const noexcept;
   bool memoryLocked() const noexcept { return memory_locked_.load(std::memory_order_acquire); }
   /// The coupling thread's (device) rate [Hz].

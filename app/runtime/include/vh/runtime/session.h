@@ -180,8 +180,9 @@ class Session {
   /// burr is held (HapticThread::holdCutting()) only while the cavity so far is read, and what it
   /// removes during the preparation is removed from the new drill's field at the stop (the
   /// cavity the old threads end with is the one the new ones start from). So the force lets go
-  /// only for the ramp and the rest of the build (on a 512 x 512 x 140 CT about 0.1 s without
-  /// force), and the burr stops cutting only for the one read (lastRestart()).
+  /// only for the ramp and the rest of the build (on a 512 x 512 x 140 CT about 60 ms without
+  /// force: the process's memory stays locked over the restart, MemoryLockHold), and the burr
+  /// stops cutting only for the one read (lastRestart()).
   /// Threads that never ticked are kept, with the pose they were built at. Either way they are
   /// left stopped: build the metadata from live() with X_WT_initial set to the returned pose
   /// (live().X_WT_initial stays the scene's free placement, where Reset Device goes), attach the
@@ -236,6 +237,9 @@ class Session {
   double value_max_ = 1.0;
   std::shared_ptr<Device> device_;
   std::unique_ptr<HapticThread> haptics_;
+  // Keeps the memory lock from prepareRecording()'s restart until these threads stop (their own
+  // coupling thread holds it meanwhile): the restart neither unlocks nor locks again.
+  std::unique_ptr<MemoryLockHold> restart_memory_hold_;
   haptics::Pose haptics_built_X_WP_;  ///< The proxy pose haptics_ was built at (rebuildHaptics()).
   RestartTiming last_restart_;
   std::shared_ptr<SnapshotChannel> monitor_;
