@@ -278,6 +278,34 @@ PreparedDrill prepareDrill(const haptics::ScalarVolume& felt, DrillMaterials mat
   return out;
 }
 
+std::size_t catchUpCavity(const Drill& old_drill, const haptics::ScalarVolume& undrilled,
+                          std::shared_ptr<const DrilledCavity>& cavity, PreparedDrill& prepared) {
+  if (prepared.removal == nullptr) throw std::invalid_argument("catchUpCavity: the prepared drill has no removal");
+  VoxelBox cut;
+  if (!old_drill.removal().cutsSinceMark(cut.lo, cut.hi)) return 0;
+  const DrilledCavity since = cavityOf(old_drill.removal().volume(), undrilled, nullptr, cut);
+  std::vector<std::uint64_t> added;
+  if (cavity != nullptr) {
+    std::set_difference(since.voxels.begin(), since.voxels.end(), cavity->voxels.begin(), cavity->voxels.end(),
+                        std::back_inserter(added));
+  } else {
+    added = since.voxels;
+  }
+  if (added.empty()) return 0;
+  const std::size_t removed = prepared.removal->removeCavity(added);
+  auto grown = std::make_shared<DrilledCavity>();
+  grown->grid = since.grid;
+  if (cavity != nullptr) {
+    std::set_union(cavity->voxels.begin(), cavity->voxels.end(), added.begin(), added.end(),
+                   std::back_inserter(grown->voxels));
+  } else {
+    grown->voxels = std::move(added);
+  }
+  cavity = grown;
+  prepared.cavity = std::move(grown);
+  return removed;
+}
+
 DrillingRenderer makeDrillingRenderer(PreparedDrill prepared, double felt_isovalue,
                                       std::shared_ptr<const haptics::ToolModel> tool, const DrillSpec& spec,
                                       const haptics::RendererOptions& options, const haptics::Pose& X_WP,

@@ -5,7 +5,6 @@
 #include "vh/runtime/snapshot_channel.h"
 
 #include <algorithm>
-#include <iterator>
 #include <chrono>
 #include <cmath>
 #include <stdexcept>
@@ -286,37 +285,14 @@ std::optional<haptics::Pose> Session::prepareRecording() {
   const haptics::Pose X_WP = proxyPose();
   std::size_t caught_up = 0;
   if (prepared) {
-    VoxelBox cut;
-    if (old_drill->removal().cutsSinceMark(cut.lo, cut.hi)) {
-      // The voxels cut while the new drill was prepared: in the box cut since the mark, not yet
-      // in the cavity it was prepared from.
-      const DrilledCavity since = cavityOf(old_drill->removal().volume(), *live_.hapticField(), nullptr, cut);
-      const std::shared_ptr<const DrilledCavity> before = live_.drill->cavity;
-      std::vector<std::uint64_t> added;
-      if (before != nullptr) {
-        std::set_difference(since.voxels.begin(), since.voxels.end(), before->voxels.begin(), before->voxels.end(),
-                            std::back_inserter(added));
-      } else {
-        added = since.voxels;
-      }
-      if (!added.empty()) {
-        caught_up = prepared->removal->removeCavity(added);
-        auto cavity = std::make_shared<DrilledCavity>();
-        cavity->grid = since.grid;
-        if (before != nullptr) {
-          std::set_union(before->voxels.begin(), before->voxels.end(), added.begin(), added.end(),
-                         std::back_inserter(cavity->voxels));
-        } else {
-          cavity->voxels = std::move(added);
-        }
-        live_.drill->cavity = cavity;
-        prepared->cavity = std::move(cavity);
-      }
+    try {
+      caught_up = catchUpCavity(*old_drill, *live_.hapticField(), live_.drill->cavity, *prepared);
+      haptics_.reset();  // its cavity is kept above, the cut since then caught up
+    } catch (...) {
+      prepared.reset();  // built after the stop instead, from the whole cavity
     }
-    haptics_.reset();  // its cavity is kept above
-  } else {
-    retireHaptics();
   }
+  if (!prepared) retireHaptics();
   rebuildHaptics(X_WP, prepared ? &*prepared : nullptr);
   const Clock::time_point end = Clock::now();
   last_restart_ = RestartTiming{ms(begin, stopping), ms(stopping, end), prepared.has_value(), held_ms, caught_up};

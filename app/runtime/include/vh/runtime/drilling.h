@@ -179,6 +179,18 @@ struct PreparedDrill {
 ///         constructor.
 PreparedDrill prepareDrill(const haptics::ScalarVolume& felt, DrillMaterials materials, const DrillSpec& spec);
 
+/// Catches `prepared` up with what `old_drill` cut after `prepared` was built from `cavity` (the
+/// old drill's cavity then, on `undrilled`'s grid): the voxels of the box cut since the old
+/// removal's last markCuts() that differ from `undrilled` and are not in `cavity` are removed from
+/// prepared's field (MaterialRemoval::removeCavity()) and added to `cavity` and prepared.cavity
+/// (a new object; `cavity` may be null before). A recording restarted while drilling builds the
+/// new drill this way while the old threads still cut (Session::prepareRecording()). Only after
+/// the old drill's threads stopped, and before prepared's renderer is built.
+/// @return the voxels removed from prepared's field.
+/// @throws std::invalid_argument as cavityOf().
+std::size_t catchUpCavity(const Drill& old_drill, const haptics::ScalarVolume& undrilled,
+                          std::shared_ptr<const DrilledCavity>& cavity, PreparedDrill& prepared);
+
 /// A renderer on `prepared`'s field (felt at `felt_isovalue`) with `options`, `tool`, proxy at
 /// X_WP in W [m], and the Drill with spec's burr that carves that field at `servo_rate_Hz`; the
 /// cavity was removed before the renderer first reads the field. The same inputs give the same
