@@ -182,18 +182,17 @@ CutResult MaterialRemoval::cut(const Eigen::Vector3d& burr_center_W_m, double bu
   head_.store(head, std::memory_order_release);
   if (result.voxels_removed > 0) {
     v.refreshRegion({changed_lo[0], changed_lo[1], changed_lo[2]}, {changed_hi[0], changed_hi[1], changed_hi[2]});
-    const bool first = cut_hi_[0] < cut_lo_[0];
     for (int a = 0; a < 3; ++a) {
-      cut_lo_[a] = first ? changed_lo[a] : std::min(cut_lo_[a], changed_lo[a]);
-      cut_hi_[a] = first ? changed_hi[a] : std::max(cut_hi_[a], changed_hi[a]);
+      cut_lo_[a] = std::min(cut_lo_[a], changed_lo[a]);
+      cut_hi_[a] = std::max(cut_hi_[a], changed_hi[a]);
     }
   }
   return result;
 }
 
 void MaterialRemoval::markCuts() noexcept {
-  cut_lo_ = {0, 0, 0};
-  cut_hi_ = {-1, -1, -1};
+  cut_lo_ = kNoCutLo;
+  cut_hi_ = kNoCutHi;
 }
 
 bool MaterialRemoval::cutsSinceMark(std::array<int, 3>& lo, std::array<int, 3>& hi) const noexcept {

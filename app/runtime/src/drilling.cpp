@@ -283,24 +283,18 @@ std::size_t catchUpCavity(const Drill& old_drill, const haptics::ScalarVolume& u
   if (prepared.removal == nullptr) throw std::invalid_argument("catchUpCavity: the prepared drill has no removal");
   VoxelBox cut;
   if (!old_drill.removal().cutsSinceMark(cut.lo, cut.hi)) return 0;
-  const DrilledCavity since = cavityOf(old_drill.removal().volume(), undrilled, nullptr, cut);
+  // The cavity and what differs from `undrilled` in the box cut since the mark: the new part is
+  // what the burr cut after `prepared` was built.
+  auto grown = std::make_shared<DrilledCavity>(cavityOf(old_drill.removal().volume(), undrilled, cavity.get(), cut));
   std::vector<std::uint64_t> added;
   if (cavity != nullptr) {
-    std::set_difference(since.voxels.begin(), since.voxels.end(), cavity->voxels.begin(), cavity->voxels.end(),
+    std::set_difference(grown->voxels.begin(), grown->voxels.end(), cavity->voxels.begin(), cavity->voxels.end(),
                         std::back_inserter(added));
   } else {
-    added = since.voxels;
+    added = grown->voxels;
   }
   if (added.empty()) return 0;
   const std::size_t removed = prepared.removal->removeCavity(added);
-  auto grown = std::make_shared<DrilledCavity>();
-  grown->grid = since.grid;
-  if (cavity != nullptr) {
-    std::set_union(cavity->voxels.begin(), cavity->voxels.end(), added.begin(), added.end(),
-                   std::back_inserter(grown->voxels));
-  } else {
-    grown->voxels = std::move(added);
-  }
   cavity = grown;
   prepared.cavity = std::move(grown);
   return removed;

@@ -53,9 +53,6 @@ std::int64_t monotonicNs() noexcept {
   return toNs(t);
 }
 
-/// Best effort real-time set-up of the calling thread (devices.md, "Servo loop timing"): 1 ns
-/// timer slack, SCHED_FIFO at `priority` and, when that worked and `lock_memory`, mlockall.
-/// Every failure (EPERM in a container or for a normal user) silently leaves the default.
 // The process's memory lock (mlockall is process-wide): taken by the first coupling thread that
 // may lock, dropped (munlockall) when the last user is gone: the coupling threads that run, and
 // the MemoryLockHolds that keep it over a restart of the threads.
@@ -92,6 +89,10 @@ void releaseMemoryLock() noexcept {
   }
 }
 
+/// Best effort real-time set-up of the calling thread (devices.md, "Servo loop timing"): 1 ns
+/// timer slack, SCHED_FIFO at `priority` and, when that worked and `lock_memory`, the memory
+/// lock (acquireMemoryLock()). Every failure (EPERM in a container or for a normal user)
+/// silently leaves the default.
 void configureRealtime(int priority, bool lock_memory, bool& fifo, bool& locked) noexcept {
   prctl(PR_SET_TIMERSLACK, 1UL, 0UL, 0UL, 0UL);
   sched_param param{};

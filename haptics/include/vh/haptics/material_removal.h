@@ -27,6 +27,7 @@
 
 #include <array>
 #include <atomic>
+#include <climits>
 #include <cstddef>
 #include <cstdint>
 #include <memory>
@@ -157,9 +158,11 @@ class MaterialRemoval {
   double voxel_mm3_ = 0.0;
   double removed_raw_ = 0.0;
   std::uint64_t eroded_ = 0;  // material removed [1/65535 voxel]
-  double carry_ = 0.0;
-  // The box of the voxels cut() removed since markCuts(); cut_hi_ < cut_lo_: none.
-  std::array<int, 3> cut_lo_{0, 0, 0}, cut_hi_{-1, -1, -1};  // rounding remainder of the last share [1/65535 voxel], carried on
+  double carry_ = 0.0;  // rounding remainder of the last share [1/65535 voxel], carried on
+  // The box of the voxels cut() removed since markCuts(), grown by min / max; empty (hi < lo)
+  // after markCuts().
+  static constexpr std::array<int, 3> kNoCutLo{INT_MAX, INT_MAX, INT_MAX}, kNoCutHi{-1, -1, -1};
+  std::array<int, 3> cut_lo_ = kNoCutLo, cut_hi_ = kNoCutHi;
   std::array<std::atomic<std::uint64_t>, 256> removed_{};
   // Removal log: ring of linear indices; head written by cut(), tail by drainRemoved().
   std::vector<std::uint64_t> log_;
