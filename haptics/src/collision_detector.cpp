@@ -87,6 +87,7 @@ CollisionDetector::CollisionDetector(const ScalarVolume& volume, const ToolModel
   edge_reach_m_.assign(n, 0.0);
   edge_clearance_.assign(2 * n, EdgeClearance{});
   edge_slot_.assign(n, 0);
+  ball_margin_m_ = feature_;  // half a voxel
   for (std::size_t j = 0; j < n; ++j)
     for (int e = edges_.offsets[j]; e < edges_.offsets[j + 1]; ++e)
       edge_reach_m_[j] = std::max(edge_reach_m_[j], (tool.point_shell.points_T_m()[static_cast<std::size_t>(edges_.targets[e])] -
@@ -148,17 +149,18 @@ double CollisionDetector::edgeClearance(const Eigen::Vector3d& a, const Eigen::V
   return std::min(reach_m, -(excess_max + tolerance) / lipschitz);
 }
 
-bool CollisionDetector::edgesStillClear(const Pose& X_WP, int j) const noexcept {
+bool CollisionDetector::edgesStillClear(const Pose& X_WP, int j, const Eigen::Vector3d& p_W) const noexcept {
   const auto i = static_cast<std::size_t>(j);
-  const Eigen::Vector3d p_W = X_WP * tool_->point_shell.points_T_m()[i];
   for (std::size_t slot = 2 * i; slot < 2 * i + 2; ++slot) {
     const EdgeClearance& proven = edge_clearance_[slot];
-    if (!(proven.clearance_m > 0.0)) continue;
-    // Each point of j's edges lies within edge_reach_m_[j] + epsilon of point j (edgeEnd()), so
-    // it has moved at most |p_j - p_j'| + |R - R'| (reach + epsilon) since the certificate,
+    const double moved_m = (p_W - proven.p_W_m).norm();
+    if (!(moved_m < proven.clearance_m)) continue;  // also nothing proven (clearance <= 0)
+    if (proven.arm_m == 0.0) return true;           // a ball about point j: any turn stays in it
+    // Each point of j's edges lies within arm_m (edge_reach_m_[j] + epsilon) of point j
+    // (edgeEnd()), so it has moved at most |p_j - p_j'| + |R - R'| arm_m since the certificate,
     // with |R - R'| = 2 sin(theta / 2) = 2 |vec(R'^-1 R)|.
     const double turn = 2.0 * (proven.R_WT.conjugate() * X_WP.R_AB).vec().norm();
-    if ((p_W - proven.p_W_m).norm() + turn * (edge_reach_m_[i] + epsilon_) < proven.clearance_m) return true;
+    if (moved_m + turn * proven.arm_m < proven.clearance_m) return true;
   }
   return false;
 }
@@ -182,7 +184,8 @@ int CollisionDetector::edgeCrosses(WorkCounters& w, const Pose& X_WP, int j, dou
   // Two certificates a point, the newer replacing the older: a move stopped by an edge tests
   // the pose it ends at and the one past it in turn, tick after tick.
   if (std::isfinite(clearance_m) && clearance_m > 0.0) {
-    edge_clearance_[2 * i + edge_slot_[i]] = {X_WP * tool_->point_shell.points_T_m()[i], X_WP.R_AB, clearance_m};
+    edge_clearance_[2 * i + edge_slot_[i]] = {X_WP * tool_->point_shell.points_T_m()[i], X_WP.R_AB, clearance_m,
+                                              edge_reach_m_[i] + epsilon_};
     edge_slot_[i] ^= 1;
   }
   return -1;
@@ -263,6 +266,7 @@ bool CollisionDetector::edgeSubtreeCrosses(WorkCounters& w, Lane* lane, int root
                                            int& walked, int& j_hit, int& k_hit, bool& cut) noexcept {
   // Point j's edges lie within the longest edge of j, plus the epsilon their ends are inset by
   // (edgeEnd()), of point j: a node's ball dilated by both holds them.
+  const Eigen::Matrix3d R_WT = X_WP.R_AB.toRotationMatrix();
   const auto may_hold = [&](const ShellNode& node) {
     return ballMayBeInside(w, X_WP * node.center_T_m,
                            (node.radius_m + edges_.max_length_m + epsilon_) * (1.0 + 1e-9) + 1e-12, isovalue);
@@ -270,10 +274,17 @@ bool CollisionDetector::edgeSubtreeCrosses(WorkCounters& w, Lane* lane, int root
   const auto visit = [&](int j) {
     // The point's own edges, within its longest edge plus epsilon of it: one box query
     // instead of a walk per edge where the leaf is near the surface but this point is not.
-    if (edges_.offsets[j + 1] == edges_.offsets[j] || edgesStillClear(X_WP, j) ||
-        !ballMayBeInside(w, X_WP * tool_->point_shell.points_T_m()[j],
-                         (edge_reach_m_[j] + epsilon_) * (1.0 + 1e-9) + 1e-12, isovalue))
+    if (edges_.offsets[j + 1] == edges_.offsets[j]) return false;
+    const Eigen::Vector3d p_W = R_WT * tool_->point_shell.points_T_m()[static_cast<std::size_t>(j)] + X_WP.p_AB_m;
+    if (edgesStillClear(X_WP, j, p_W)) return false;
+    // Proven empty with a margin, the ball is a certificate too (EdgeClearance::arm_m = 0):
+    // until point j has moved the margin, its edges stay in the ball however the tool turns.
+    if (!ballMayBeInside(w, p_W, (edge_reach_m_[j] + epsilon_ + ball_margin_m_) * (1.0 + 1e-9) + 1e-12, isovalue)) {
+      const auto i = static_cast<std::size_t>(j);
+      edge_clearance_[2 * i + edge_slot_[i]] = {p_W, X_WP.R_AB, ball_margin_m_, 0.0};
+      edge_slot_[i] ^= 1;
       return false;
+    }
     if (walked++ > 0 && (lane != nullptr ? overBudget(*lane) : overBudget())) {
       cut = true;
       return true;
@@ -365,7 +376,9 @@ bool CollisionDetector::edgesCrossAt(const Pose& X_WP, double isovalue) noexcept
   }
   int walked = 0;
   for (int j = 0; j + 1 < static_cast<int>(edges_.offsets.size()); ++j) {
-    if (edges_.offsets[j + 1] == edges_.offsets[j] || edgesStillClear(X_WP, j)) continue;
+    if (edges_.offsets[j + 1] == edges_.offsets[j] ||
+        edgesStillClear(X_WP, j, X_WP * tool_->point_shell.points_T_m()[static_cast<std::size_t>(j)]))
+      continue;
     if (walked++ > 0 && overBudget()) return edge_cut_ = true;
     const int k = edgeCrosses(counters_, X_WP, j, isovalue);
     if (k >= 0) {

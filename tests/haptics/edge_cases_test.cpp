@@ -534,5 +534,42 @@ TEST(EdgeCases, EdgeClearanceCertificatesNeverHideACrossing) {
   EXPECT_GT(oracle_crossings, 4);
 }
 
+TEST(EdgeCases, ABoxQueryCertificateHoldsForHalfAVoxelOfTravelOnly) {
+  // Where the min-max tree proves the ball about a point's edges free (half a voxel larger than
+  // they need), the edge test skips them until the point has moved half a voxel. A vertical
+  // line of eight points 2 mm apart (one leaf of the point-shell tree) is held over the one-voxel plate (1.5 mm thick at 250) at
+  // heights from 1 to 12 mm, then moved down in one move so that its lowest edge straddles the
+  // plate, both its ends outside. Oracles: the dense samples of every edge
+  // (CrossingVerifier::checkEdges) find it entering, and the detector that made its
+  // certificates up there must report the crossing, as a fresh one does.
+  auto plate = std::make_shared<const ScalarVolume>(datasets::makeThinPlateVolume(test::grid1mm()));
+  const Eigen::Vector3d plate_W_m = plate->geometry().origin_W_m + Eigen::Vector3d(43e-3, 32e-3, 32e-3);
+  std::vector<Eigen::Vector3d> points_T_m;
+  for (int i = 0; i < 8; ++i) points_T_m.emplace_back(0.0, 0.0, 2e-3 * i);
+  ToolModel line;
+  line.point_shell = PointShell(points_T_m);
+  const CrossingVerifier oracle(*plate, line.point_shell, 2e-2);
+  // The lowest edge's middle on the plate's middle.
+  const Pose down = Pose::FromTranslation(plate_W_m - Eigen::Vector3d(0.0, 0.0, 1e-3));
+  ASSERT_FALSE(plate->isInside(down * points_T_m[0], 250.0));
+  ASSERT_FALSE(plate->isInside(down * points_T_m[1], 250.0));
+  int heights = 0;
+  for (double lift_m = 1e-3; lift_m <= 12e-3 + 1e-9; lift_m += 0.2e-3, ++heights) {
+    CollisionDetector kept(*plate, line, 0.0);
+    const Pose up = Pose::FromTranslation(down.p_AB_m + Eigen::Vector3d(0.0, 0.0, lift_m));
+    const bool crosses_up = kept.edgesCrossAt(up, 250.0);
+    CollisionDetector fresh_up(*plate, line, 0.0);
+    ASSERT_EQ(crosses_up, fresh_up.edgesCrossAt(up, 250.0)) << "lift " << 1e3 * lift_m << " mm";
+    const CrossingVerifier::EdgeResult dense = oracle.checkEdges(RigidMotion::Between(up, down, line.mass.p_TCm_m), 1.0,
+                                                                 250.0, kept.shellEdges(), kept.epsilon_m());
+    ASSERT_GT(dense.crossing_edges, 0) << "the lowest edge straddles the plate";
+    EXPECT_TRUE(kept.edgesCrossAt(down, 250.0)) << "lift " << 1e3 * lift_m << " mm: a certificate from up there hid "
+                                                   "the crossing";
+    CollisionDetector fresh(*plate, line, 0.0);
+    EXPECT_TRUE(fresh.edgesCrossAt(down, 250.0));
+  }
+  EXPECT_EQ(heights, 56);
+}
+
 }  // namespace
 }  // namespace vh::haptics

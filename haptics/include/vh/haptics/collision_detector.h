@@ -439,6 +439,10 @@ class CollisionDetector {
   const ToolModel* tool_;
   ShellEdges edges_;
   std::vector<double> edge_reach_m_;  // per point j: its longest edge (j, k > j) [m]
+  // The margin of a box query's certificate (EdgeClearance::arm_m = 0) [m]: the query is for a
+  // ball that much larger than j's edges need; half a voxel barely changes what the min-max
+  // tree's bricks answer.
+  double ball_margin_m_ = 0.0;
   // The edges (j, k > j) at pose X_WP (walked; a certificate of their clearance kept when free).
   // Returns the first crossing edge's other end, or -1 when none crosses.
   int edgeCrosses(WorkCounters& w, const Pose& X_WP, int j, double isovalue) noexcept;
@@ -458,16 +462,22 @@ class CollisionDetector {
     double isovalue = 0.0;
   } edge_job_;
   std::unique_ptr<std::atomic<int>> edge_bound_ = std::make_unique<std::atomic<int>>(0);
-  // Whether j's last clearance certificate (EdgeClearance) still holds at pose X_WP.
-  bool edgesStillClear(const Pose& X_WP, int j) const noexcept;
+  // Whether one of j's clearance certificates (EdgeClearance) still holds at pose X_WP, with
+  // p_W = X_WP * point j (the caller has it).
+  bool edgesStillClear(const Pose& X_WP, int j, const Eigen::Vector3d& p_W) const noexcept;
   // Temporal coherence of the edge test (haptics/README.md, "Between the points"): per point j,
-  // the clearances that the exact walk proved for all of j's edges at the last two poses they
-  // were found free at. Until the tool has moved j's edges that far, they cannot meet the isosurface
-  // (the field only ever decreases under drilling), and edgeCrosses() does not walk them again.
+  // the clearances proven for all of j's edges at the last two poses they were found free at,
+  // by the exact walk or by the box query around them. Until the tool has moved j's edges that
+  // far, they cannot meet the isosurface (the field only ever decreases under drilling), and
+  // neither is done again.
   struct EdgeClearance {
     Eigen::Vector3d p_W_m = Eigen::Vector3d::Zero();               // point j at that pose, in W [m]
     Eigen::Quaterniond R_WT = Eigen::Quaterniond::Identity();      // the tool's orientation there
     double clearance_m = -1.0;                                     // <= 0: nothing proven
+    // The lever the tool's turn since then acts on: j's edge reach plus epsilon for the exact
+    // walk's certificate (its clearance is from the edges themselves); 0 for a box query's (its
+    // clearance is the margin of a ball about point j that holds j's edges however it turns).
+    double arm_m = 0.0;
   };
   std::vector<EdgeClearance> edge_clearance_;  // two per point: 2 j and 2 j + 1
   std::vector<unsigned char> edge_slot_;        // per point: the slot the next certificate replaces
