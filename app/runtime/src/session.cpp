@@ -102,6 +102,7 @@ void Session::setTool(std::shared_ptr<const haptics::ToolModel> tool, const Tool
                       const haptics::Pose& X_WT_initial) {
   if (tool == nullptr) throw std::invalid_argument("Session::setTool: no tool");
   if (!has_scene_) throw std::invalid_argument("Session::setTool: no scene");
+  auto memory_hold = std::make_unique<MemoryLockHold>();  // see restart_memory_hold_
   const bool was_running = hapticsRunning();
   retireHaptics();  // force ramped to zero before the tool changes in the hand
   live_.tool = std::move(tool);
@@ -110,12 +111,14 @@ void Session::setTool(std::shared_ptr<const haptics::ToolModel> tool, const Tool
   if (SimulatedDevice* sim = simulatedDevice()) sim->setPose(X_WT_initial);
   rebuildHaptics(X_WT_initial);
   if (was_running && haptics_ != nullptr) haptics_->start();
+  keepMemoryLock(std::move(memory_hold));
   notify(SessionChange::kTool | (was_running != hapticsRunning() ? SessionChange::kRunning : SessionChange{}));
 }
 
 void Session::setEdgeTest(bool on) {
   if (!has_scene_) throw std::invalid_argument("Session::setEdgeTest: no scene");
   if (live_.tool_spec.edge_test == on) return;
+  auto memory_hold = std::make_unique<MemoryLockHold>();  // see restart_memory_hold_
   const bool was_running = hapticsRunning();
   // Where the proxy is: free of the surface at its points; an edge already crossing there is
   // not held (the renderer starts no move from a crossing it did not cause).
@@ -124,12 +127,14 @@ void Session::setEdgeTest(bool on) {
   live_.tool_spec.edge_test = on;
   rebuildHaptics(X_WP);
   if (was_running && haptics_ != nullptr) haptics_->start();
+  keepMemoryLock(std::move(memory_hold));
   notify(SessionChange::kTool | (was_running != hapticsRunning() ? SessionChange::kRunning : SessionChange{}));
 }
 
 void Session::setSegments(std::shared_ptr<const SegmentSet> segments, std::optional<SegmentationSpec> spec) {
   if (!has_scene_) throw std::invalid_argument("Session::setSegments: no scene");
   if (segments != nullptr && !spec) throw std::invalid_argument("Session::setSegments: segments without a spec");
+  auto memory_hold = std::make_unique<MemoryLockHold>();  // see restart_memory_hold_
   const bool was_running = hapticsRunning();
   haptics::Pose X_WP = proxyPose();
   retireHaptics();  // force ramped to zero before the surface changes; the cavity, on the old felt field
@@ -144,6 +149,7 @@ void Session::setSegments(std::shared_ptr<const SegmentSet> segments, std::optio
   }
   rebuildHaptics(X_WP);
   if (was_running && haptics_ != nullptr) haptics_->start();
+  keepMemoryLock(std::move(memory_hold));
   notify(SessionChange::kSegments | (was_running != hapticsRunning() ? SessionChange::kRunning : SessionChange{}));
 }
 
@@ -151,6 +157,7 @@ void Session::setDrilling(bool on) {
   if (!has_scene_) return;
   if (!live_.drill) {
     if (!on) return;
+    auto memory_hold = std::make_unique<MemoryLockHold>();  // see restart_memory_hold_
     const bool was_running = hapticsRunning();
     const haptics::Pose X_WP = proxyPose();
     retireHaptics();
@@ -164,9 +171,11 @@ void Session::setDrilling(bool on) {
       live_.drill.reset();
       rebuildHaptics(X_WP);
       if (was_running && haptics_ != nullptr) haptics_->start();
+      keepMemoryLock(std::move(memory_hold));
       throw;
     }
     if (was_running && haptics_ != nullptr) haptics_->start();
+    keepMemoryLock(std::move(memory_hold));
     notify(SessionChange::kDrill | (was_running != hapticsRunning() ? SessionChange::kRunning : SessionChange{}));
     return;
   }
@@ -205,6 +214,7 @@ void Session::setDevice(std::shared_ptr<Device> device) {
     notify(SessionChange::kDevice);
     return;
   }
+  auto memory_hold = std::make_unique<MemoryLockHold>();  // see restart_memory_hold_
   const bool was_running = hapticsRunning();
   const haptics::Pose X_WP = proxyPose();
   retireHaptics();
@@ -212,6 +222,7 @@ void Session::setDevice(std::shared_ptr<Device> device) {
   if (SimulatedDevice* sim = simulatedDevice()) sim->setPose(X_WP);
   rebuildHaptics(X_WP);
   if (was_running && haptics_ != nullptr) haptics_->start();
+  keepMemoryLock(std::move(memory_hold));
   notify(SessionChange::kDevice | (was_running != hapticsRunning() ? SessionChange::kRunning : SessionChange{}));
 }
 
@@ -233,6 +244,10 @@ void Session::retireHaptics() {
   keepCavity();
   haptics_.reset();
   restart_memory_hold_.reset();
+}
+
+void Session::keepMemoryLock(std::unique_ptr<MemoryLockHold> hold) {
+  if (hapticsRunning()) restart_memory_hold_ = std::move(hold);
 }
 
 void Session::rebuildHaptics(const haptics::Pose& X_WP, PreparedDrill* prepared) {
@@ -296,7 +311,7 @@ std::optional<haptics::Pose> Session::prepareRecording() {
   rebuildHaptics(X_WP, prepared ? &*prepared : nullptr);
   const Clock::time_point end = Clock::now();
   last_restart_ = RestartTiming{ms(begin, stopping), ms(stopping, end), prepared.has_value(), held_ms, caught_up};
-  restart_memory_hold_ = std::move(memory_hold);
+  keepMemoryLock(std::move(memory_hold));
   notify(SessionChange::kRunning);
   return X_WP;
 }
@@ -305,6 +320,7 @@ void Session::setMonitor(std::shared_ptr<SnapshotChannel> monitor) {
   if (monitor == monitor_) return;
   monitor_ = std::move(monitor);
   if (haptics_ == nullptr) return;
+  auto memory_hold = std::make_unique<MemoryLockHold>();  // see restart_memory_hold_
   const bool was_running = hapticsRunning();
   const haptics::Pose X_WP = proxyPose();
   retireHaptics();
@@ -312,6 +328,7 @@ void Session::setMonitor(std::shared_ptr<SnapshotChannel> monitor) {
   rebuildHaptics(X_WP);
   // Rebuilt from live(): the felt isovalue (the segments' level when segments are felt) and gains.
   if (was_running && haptics_ != nullptr) haptics_->start();
+  keepMemoryLock(std::move(memory_hold));
   notify(SessionChange::kDevice | (was_running != hapticsRunning() ? SessionChange::kRunning : SessionChange{}));
 }
 

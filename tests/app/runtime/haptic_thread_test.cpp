@@ -34,6 +34,7 @@ using haptics::Pose;
 /// lowest point 5 mm further down).
 Pose pressedPose(double depth_m) { return Pose::FromTranslation({0.0, 0.0, 0.020 + 0.005 - depth_m}); }
 
+using test::lockedMemory_kB;
 using test::waitUntil;
 
 /// Force the coupling must produce for a snapshot's poses: -k (c_D - c_P) (eq. 5, linear part).
@@ -41,15 +42,6 @@ Eigen::Vector3d couplingForce(const HapticSnapshot& s, const haptics::ToolModel&
   const Eigen::Vector3d c_P = s.X_WP * tool.mass.p_TCm_m;
   const Eigen::Vector3d c_D = s.X_WD * tool.mass.p_TCm_m;
   return -k * (c_D - c_P);
-}
-
-/// The process's locked memory [kB], as the kernel counts it (VmLck of /proc/self/status).
-long lockedMemory_kB() {
-  std::ifstream status("/proc/self/status");
-  std::string line;
-  while (std::getline(status, line))
-    if (line.rfind("VmLck:", 0) == 0) return std::stol(line.substr(6));
-  return -1;
 }
 
 // The memory lock outlives a stop while a MemoryLockHold keeps it (what a recording's restart of

@@ -33,6 +33,10 @@ const runtime::LoadedScene& sphereBallScene();
 bool waitUntil(const std::function<bool()>& condition,
                std::chrono::milliseconds timeout = std::chrono::milliseconds(3000));
 
+/// The process's locked memory [kB], as the kernel counts it (VmLck of /proc/self/status); -1
+/// when it cannot be read.
+long lockedMemory_kB();
+
 }  // namespace vh::test
 
 /// Expects `statement` to throw `exception_type` whose what() contains every one of the given

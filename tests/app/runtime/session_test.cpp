@@ -2,6 +2,8 @@
 // values (isovalue, gains, tool, segments), the device and the haptic threads. Oracles: the analytic sphere (radius 20 mm, F =
 // signed distance in mm) for where the proxy rests, the field's own min / max for clamping, and
 // the haptic thread's snapshot for what reached the hand.
+#include <atomic>
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <limits>
@@ -15,6 +17,7 @@
 #include "runtime_test_support.h"
 #include "vh/haptics/tool_model.h"
 #include "vh/runtime/session.h"
+#include "vh/runtime/snapshot_channel.h"
 #include "vh/runtime/session_metadata.h"
 
 namespace vh::runtime {
@@ -207,6 +210,49 @@ TEST(Session, TheEdgeTestSwitchesWhereTheProxyIsAndTheHandStillRestsOnTheSphere)
   session.setEdgeTest(true);  // the same value: nothing happens
   EXPECT_TRUE(heard.changes.empty());
   session.stopHaptics();
+}
+
+TEST(Session, RestartsOfRunningThreadsKeepTheMemoryLocked) {
+  // A new tool, edge test, device or monitor restarts the haptic threads. While they run, the
+  // process's memory is locked where the system allows, and a restart must not unlock it (on a
+  // CT, munlockall took 20 to 40 ms of the stop, with the force off, and the new threads then
+  // locked it again). Oracle: the kernel's count of locked memory, read all along on another
+  // thread.
+  const LoadedScene& loaded = test::sphereBallScene();
+  Session session;
+  session.setScene(loaded, std::make_shared<SimulatedDevice>(pressedPose(0.003)));
+  session.startHaptics();
+  HapticSnapshot snap;
+  ASSERT_TRUE(waitUntil([&] { return session.latestSnapshot(snap) && snap.tick > 20; }));
+  if (!session.hapticThread()->memoryLocked()) {
+    session.stopHaptics();
+    GTEST_SKIP() << "the coupling thread may not lock memory here (needs SCHED_FIFO and root or an unlimited "
+                    "RLIMIT_MEMLOCK)";
+  }
+  std::atomic<bool> done{false};
+  std::atomic<long> lowest_kB{std::numeric_limits<long>::max()};
+  std::atomic<int> reads{0};
+  std::thread sampler([&] {
+    while (!done.load()) {
+      lowest_kB.store(std::min(lowest_kB.load(), test::lockedMemory_kB()));
+      reads.fetch_add(1);
+    }
+  });
+  ToolSpec spec = loaded.spec.tool;
+  spec.point_spacing_m = 0.003;
+  session.setTool(coarseTool(loaded), spec, Pose::FromTranslation({0.0, 0.0, 0.040}));
+  session.setEdgeTest(true);
+  session.setDevice(std::make_shared<SimulatedDevice>(Pose::FromTranslation({0.0, 0.0, 0.040})));
+  session.setMonitor(std::make_shared<SnapshotChannel>());
+  ASSERT_TRUE(waitUntil([&] { return session.latestSnapshot(snap) && snap.tick > 20; }));
+  done.store(true);
+  sampler.join();
+  EXPECT_TRUE(session.hapticsRunning());
+  EXPECT_TRUE(session.hapticThread()->memoryLocked());
+  EXPECT_GT(reads.load(), 100);
+  EXPECT_GT(lowest_kB.load(), 0) << "a restart unlocked the memory (over " << reads.load() << " reads)";
+  session.stopHaptics();
+  EXPECT_TRUE(waitUntil([] { return test::lockedMemory_kB() == 0; })) << "the last user gone, the memory is unlocked";
 }
 
 TEST(Session, TheLoadedSceneStaysAsLoadedAndTheRecordingDescribesTheLiveValues) {

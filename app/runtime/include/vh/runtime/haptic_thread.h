@@ -161,8 +161,9 @@ struct HapticThreadOptions {
 /// 512 x 512 x 140 CT, in the coupling thread's last act, which stop() waits for) only when the last
 /// coupling thread and the last hold are gone. A hold made while the memory is locked keeps it
 /// locked until the hold is destroyed; made while it is not, it does nothing.
-/// Session::prepareRecording() holds one over its restart of the threads, so neither the stop
-/// nor the new threads' start pays for unlocking and locking again.
+/// Every restart of running threads by the Session holds one (a recording's, and a new tool,
+/// device, segmentation, edge test, drill or monitor), so neither the stop nor the new threads'
+/// start pays for unlocking and locking again.
 class MemoryLockHold {
  public:
   MemoryLockHold() noexcept;

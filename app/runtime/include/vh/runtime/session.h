@@ -227,6 +227,9 @@ class Session {
   /// With the threads stopped, or their cutting held (HapticThread::holdCutting()): their drill's
   /// cavity into live_.drill->cavity (one pass over the felt field).
   void keepCavity();
+  /// After a restart of running threads: keeps `hold` (made before the stop) in
+  /// restart_memory_hold_ while the new threads run; dropped when they do not.
+  void keepMemoryLock(std::unique_ptr<MemoryLockHold> hold);
   void notify(SessionChange what);
 
   double servo_rate_Hz_;
@@ -237,8 +240,10 @@ class Session {
   double value_max_ = 1.0;
   std::shared_ptr<Device> device_;
   std::unique_ptr<HapticThread> haptics_;
-  // Keeps the memory lock from prepareRecording()'s restart until these threads stop (their own
-  // coupling thread holds it meanwhile): the restart neither unlocks nor locks again.
+  // Keeps the memory lock from a restart of running threads (prepareRecording(), and the setters
+  // that rebuild them: tool, edge test, segments, drill, device, monitor) until these threads
+  // stop: the restart neither unlocks nor locks again. Kept, not dropped when the restart
+  // returns: the new coupling thread takes its own share only once it runs, after start().
   std::unique_ptr<MemoryLockHold> restart_memory_hold_;
   haptics::Pose haptics_built_X_WP_;  ///< The proxy pose haptics_ was built at (rebuildHaptics()).
   RestartTiming last_restart_;
