@@ -222,10 +222,14 @@ inline void solveAndSweep(ConfigurationSolver& solver, CollisionDetector& collis
     // shell's radius about the centre of mass), and after ticks the work budget cut, a
     // shorter step along the same constrained motion: fewer segments, smaller balls. Scaling
     // keeps the motion in the cone of allowed motions (eq. 4).
+    // In contact, the limit in contact (RendererOptions::max_travel_in_contact_per_tick_m).
     double scale = motion_scale;
     const double travel_m = motion.speed_m() + motion.angle_rad() * collision.shellRadius_m();
-    if (options.max_travel_per_tick_m > 0.0 && travel_m * scale > options.max_travel_per_tick_m)
-      scale = options.max_travel_per_tick_m / travel_m;
+    double limit_m = options.max_travel_per_tick_m;
+    if (!collision.contacts().empty() && options.max_travel_in_contact_per_tick_m > 0.0)
+      limit_m = limit_m > 0.0 ? std::min(limit_m, options.max_travel_in_contact_per_tick_m)
+                              : options.max_travel_in_contact_per_tick_m;
+    if (limit_m > 0.0 && travel_m * scale > limit_m) scale = limit_m / travel_m;
     if (scale < 1.0)
       motion = RigidMotion::FromVelocity(X_WP, mass.p_TCm_m, motion.v_W_m() * scale, motion.omega_W_rad() * scale);
     // The projection shares the work budget: about a sample's cost per 4 rows per iteration.

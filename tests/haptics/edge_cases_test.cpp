@@ -326,6 +326,10 @@ TEST(EdgeCases, TheEdgeTestSharesTheWorkBudgetAndStillGetsThrough) {
     RendererOptions o;
     o.edge_test = 1;
     o.work_budget = budget;
+    // Steps of up to 4 mm in contact too, as the budget's case was built: the in-contact limit
+    // halves the unbudgeted ticks' work, and with it the quarter budget, to less than one
+    // whole-graph test at the plate.
+    o.max_travel_in_contact_per_tick_m = 0.0;
     HapticRenderer r(vol, tool, o, Pose::FromTranslation({edge_x + 0.008, 0.0003, tip_z}), 250.0);
     Run result;
     for (int t = 0; t < 700; ++t) {
