@@ -85,7 +85,7 @@ struct RendererOptions {
   /// motion is solved) [m]; 0 = as max_travel_per_tick_m. In contact nearly every point of a
   /// tool lying on a surface or held in a snug hole is near the isosurface, so a sweep's work
   /// grows with the step: the peg turned in its hole at 4 mm a tick took up to 1.5-2.1 ms, at 2
-  /// mm under 0.85 ms (haptics/README.md, "Never behind"). The default 2 mm is 2 m/s at the
+  /// mm under 0.85 ms (haptics/README.md, "Never late"). The default 2 mm is 2 m/s at the
   /// farthest point of the tool, faster than a hand slides a tool along bone.
   double max_travel_in_contact_per_tick_m = 0.002;
   /// Most contacts in the contact set, 1 to 256: more are reduced by farthest-point
