@@ -87,7 +87,6 @@ CollisionDetector::CollisionDetector(const ScalarVolume& volume, const ToolModel
   edge_reach_m_.assign(n, 0.0);
   edge_clearance_.assign(2 * n, EdgeClearance{});
   edge_slot_.assign(n, 0);
-  ball_margin_m_ = feature_;  // half a voxel
   for (std::size_t j = 0; j < n; ++j)
     for (int e = edges_.offsets[j]; e < edges_.offsets[j + 1]; ++e)
       edge_reach_m_[j] = std::max(edge_reach_m_[j], (tool.point_shell.points_T_m()[static_cast<std::size_t>(edges_.targets[e])] -
@@ -165,7 +164,14 @@ bool CollisionDetector::edgesStillClear(const Pose& X_WP, int j, const Eigen::Ve
   return false;
 }
 
-int CollisionDetector::edgeCrosses(WorkCounters& w, const Pose& X_WP, int j, double isovalue) noexcept {
+void CollisionDetector::keepEdgeClearance(int j, const EdgeClearance& proven) noexcept {
+  const auto i = static_cast<std::size_t>(j);
+  edge_clearance_[2 * i + edge_slot_[i]] = proven;
+  edge_slot_[i] ^= 1;
+}
+
+int CollisionDetector::edgeCrosses(WorkCounters& w, const Pose& X_WP, int j, const Eigen::Vector3d& p_W,
+                                   double isovalue) noexcept {
   if (embedded_[j]) return -1;
   const auto i = static_cast<std::size_t>(j);
   const Eigen::Vector3d a = edgeEnd(w, X_WP, j);  // once for all of j's edges
@@ -183,11 +189,8 @@ int CollisionDetector::edgeCrosses(WorkCounters& w, const Pose& X_WP, int j, dou
   }
   // Two certificates a point, the newer replacing the older: a move stopped by an edge tests
   // the pose it ends at and the one past it in turn, tick after tick.
-  if (std::isfinite(clearance_m) && clearance_m > 0.0) {
-    edge_clearance_[2 * i + edge_slot_[i]] = {X_WP * tool_->point_shell.points_T_m()[i], X_WP.R_AB, clearance_m,
-                                              edge_reach_m_[i] + epsilon_};
-    edge_slot_[i] ^= 1;
-  }
+  if (std::isfinite(clearance_m) && clearance_m > 0.0)
+    keepEdgeClearance(j, {p_W, X_WP.R_AB, clearance_m, edge_reach_m_[i] + epsilon_});
   return -1;
 }
 
@@ -279,17 +282,15 @@ bool CollisionDetector::edgeSubtreeCrosses(WorkCounters& w, Lane* lane, int root
     if (edgesStillClear(X_WP, j, p_W)) return false;
     // Proven empty with a margin, the ball is a certificate too (EdgeClearance::arm_m = 0):
     // until point j has moved the margin, its edges stay in the ball however the tool turns.
-    if (!ballMayBeInside(w, p_W, (edge_reach_m_[j] + epsilon_ + ball_margin_m_) * (1.0 + 1e-9) + 1e-12, isovalue)) {
-      const auto i = static_cast<std::size_t>(j);
-      edge_clearance_[2 * i + edge_slot_[i]] = {p_W, X_WP.R_AB, ball_margin_m_, 0.0};
-      edge_slot_[i] ^= 1;
+    if (!ballMayBeInside(w, p_W, (edge_reach_m_[j] + epsilon_ + ballMargin_m()) * (1.0 + 1e-9) + 1e-12, isovalue)) {
+      keepEdgeClearance(j, {p_W, X_WP.R_AB, ballMargin_m(), 0.0});
       return false;
     }
     if (walked++ > 0 && (lane != nullptr ? overBudget(*lane) : overBudget())) {
       cut = true;
       return true;
     }
-    const int k = edgeCrosses(w, X_WP, j, isovalue);
+    const int k = edgeCrosses(w, X_WP, j, p_W, isovalue);
     if (k < 0) return false;
     j_hit = j;
     k_hit = k;
@@ -376,11 +377,11 @@ bool CollisionDetector::edgesCrossAt(const Pose& X_WP, double isovalue) noexcept
   }
   int walked = 0;
   for (int j = 0; j + 1 < static_cast<int>(edges_.offsets.size()); ++j) {
-    if (edges_.offsets[j + 1] == edges_.offsets[j] ||
-        edgesStillClear(X_WP, j, X_WP * tool_->point_shell.points_T_m()[static_cast<std::size_t>(j)]))
-      continue;
+    if (edges_.offsets[j + 1] == edges_.offsets[j]) continue;
+    const Eigen::Vector3d p_W = X_WP * tool_->point_shell.points_T_m()[static_cast<std::size_t>(j)];
+    if (edgesStillClear(X_WP, j, p_W)) continue;
     if (walked++ > 0 && overBudget()) return edge_cut_ = true;
-    const int k = edgeCrosses(counters_, X_WP, j, isovalue);
+    const int k = edgeCrosses(counters_, X_WP, j, p_W, isovalue);
     if (k >= 0) {
       recordCrossingEdge(j, k, X_WP);
       return true;

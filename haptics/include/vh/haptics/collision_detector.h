@@ -440,12 +440,12 @@ class CollisionDetector {
   ShellEdges edges_;
   std::vector<double> edge_reach_m_;  // per point j: its longest edge (j, k > j) [m]
   // The margin of a box query's certificate (EdgeClearance::arm_m = 0) [m]: the query is for a
-  // ball that much larger than j's edges need; half a voxel barely changes what the min-max
-  // tree's bricks answer.
-  double ball_margin_m_ = 0.0;
-  // The edges (j, k > j) at pose X_WP (walked; a certificate of their clearance kept when free).
-  // Returns the first crossing edge's other end, or -1 when none crosses.
-  int edgeCrosses(WorkCounters& w, const Pose& X_WP, int j, double isovalue) noexcept;
+  // ball that much larger than j's edges need; half a voxel (the feature size) barely changes
+  // what the min-max tree's bricks answer.
+  double ballMargin_m() const noexcept { return feature_; }
+  // The edges (j, k > j) at pose X_WP, with p_W = X_WP * point j (walked; a certificate of their
+  // clearance kept when free). Returns the first crossing edge's other end, or -1 when none crosses.
+  int edgeCrosses(WorkCounters& w, const Pose& X_WP, int j, const Eigen::Vector3d& p_W, double isovalue) noexcept;
   // Records edge (j, k), found crossing at X_WP: the last hit (addEdgeContact()) and the list.
   void recordCrossingEdge(int j, int k, const Pose& X_WP) noexcept;
   // The edge test over the subtree of node `root` (kAccelerated): returns the crossing edge
@@ -481,6 +481,8 @@ class CollisionDetector {
   };
   std::vector<EdgeClearance> edge_clearance_;  // two per point: 2 j and 2 j + 1
   std::vector<unsigned char> edge_slot_;        // per point: the slot the next certificate replaces
+  // Keeps `proven` as point j's newer certificate, in place of its older one.
+  void keepEdgeClearance(int j, const EdgeClearance& proven) noexcept;
   bool edge_cut_ = false;  // the last edgesCrossAt() stopped at the budget or the deadline
   double edge_clearance_isovalue_ = std::numeric_limits<double>::quiet_NaN();  // the certificates' isovalue
   // How far edge (a, b) (grid coordinates), which the walk found free with F - s <= excess_max
