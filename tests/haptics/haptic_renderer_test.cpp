@@ -75,6 +75,38 @@ TEST_P(HapticRendererModes, VelocityLimitBoundsEveryPointsTravelPerTick) {
   EXPECT_LT(r.tick(X_WD, 0.0).force_W_N.norm(), 1e-9);
 }
 
+// In contact the limit is max_travel_in_contact_per_tick_m (2 mm): the box pressed on the plane,
+// then the device 30 mm away along it. Every tick that starts in contact moves no shell point
+// farther than 2 mm (checked point by point) and the limit binds; with the in-contact limit off,
+// the same slide takes the free-space limit's 4 mm steps.
+TEST_P(HapticRendererModes, InContactTheVelocityLimitIsTheContactOne) {
+  PlaneScene scene;
+  const auto slide = [&](double in_contact_m) {
+    RendererOptions o = inMode(GetParam());
+    o.max_travel_in_contact_per_tick_m = in_contact_m;
+    HapticRenderer r(scene.volume, scene.tool, o, Pose::FromTranslation({0, 0, 0.003}), 0.0);
+    for (int i = 0; i < 30; ++i) r.tick(Pose::FromTranslation({0, 0, -0.001}), 0.0);  // press
+    EXPECT_GE(r.tick(Pose::FromTranslation({0, 0, -0.001}), 0.0).stats.contacts, 1);
+    const Pose X_WD = Pose::FromTranslation({0.030, 0.0, -0.001});
+    double max_travel_m = 0.0;
+    for (int tick = 0; tick < 40; ++tick) {
+      const Pose before = r.proxyPose();
+      const TickOutput out = r.tick(X_WD, 0.0);
+      EXPECT_GE(out.stats.contacts, 1) << "tick " << tick << ": the box left the plane";
+      for (const auto& p : scene.tool->point_shell.points_T_m())
+        max_travel_m = std::max(max_travel_m, (out.X_WP * p - before * p).norm());
+    }
+    EXPECT_NEAR(r.proxyPose().p_AB_m.x(), 0.030, 1e-6) << "the proxy reaches the device's projection";
+    return max_travel_m;
+  };
+  const double in_contact_m = RendererOptions{}.max_travel_in_contact_per_tick_m;
+  ASSERT_EQ(in_contact_m, 0.002);
+  const double limited_m = slide(in_contact_m);
+  EXPECT_LE(limited_m, in_contact_m * (1.0 + 1e-9));
+  EXPECT_GT(limited_m, 0.9 * in_contact_m);  // the limit binds
+  EXPECT_GT(slide(0.0), 0.9 * RendererOptions{}.max_travel_per_tick_m) << "off: the free-space limit";
+}
+
 TEST_P(HapticRendererModes, PressingIntoAPlaneGivesKTimesDepth) {
   PlaneScene scene;
   RendererOptions o = inMode(GetParam());
