@@ -426,8 +426,9 @@ bool CollisionDetector::ballMayBeInside(WorkCounters& k, const Eigen::Vector3d& 
   // direction matrix is orthonormal); 1e-6 voxel covers the rounding of both paths.
   const Eigen::Vector3d half = (radius_m * grid_per_m_).array() + 1e-6;
   int nodes_read = 0;
-  double without_arc = 0.0;
-  bool may_be_inside = volume_->upperBoundInBox(g - half, g + half, &nodes_read, arc_sagitta_m, &without_arc) > isovalue;
+  double without_arc = 0.0, arc = 0.0;
+  bool may_be_inside =
+      volume_->upperBoundInBox(g - half, g + half, &nodes_read, arc_sagitta_m, &without_arc, &arc) > isovalue;
   k.tree_nodes += nodes_read;
   // Only the bubble's term lifted it over the isovalue: the dilated box may still prove it empty
   // (a voxel of the box itself above the isovalue decides it at once).
@@ -439,6 +440,24 @@ bool CollisionDetector::ballMayBeInside(WorkCounters& k, const Eigen::Vector3d& 
     may_be_inside = volume_->upperBoundInBox(g - half - Eigen::Vector3d::Ones(), g + half + Eigen::Vector3d::Ones(),
                                              &nodes_read) > isovalue;
     k.tree_nodes += nodes_read;
+  }
+  if (may_be_inside) {
+    // The bricks hold the surface; a small box (a voxel or two from it) may still be clear of
+    // it: its own voxels decide (the same two criteria, at one voxel's resolution).
+    int voxels = 0;
+    const double own = volume_->voxelUpperBoundInBox(g - half, g + half, kVoxelQueryMax, &voxels);
+    if (voxels > 0) {
+      ++k.voxel_queries;
+      k.voxels += voxels;
+      may_be_inside = own + arc > isovalue;
+      if (may_be_inside && arc_sagitta_m > 0.0 && own <= isovalue) {
+        ++k.voxel_queries;
+        may_be_inside = volume_->voxelUpperBoundInBox(g - half - Eigen::Vector3d::Ones(),
+                                                      g + half + Eigen::Vector3d::Ones(), 8 * kVoxelQueryMax,
+                                                      &voxels) > isovalue;
+        k.voxels += voxels;
+      }
+    }
   }
   return may_be_inside;
 }

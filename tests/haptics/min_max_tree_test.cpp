@@ -185,5 +185,88 @@ TEST(MinMaxTree, NegativeValueScaleBoundsWithTheRawMinimum) {
   }
 }
 
+// The voxel-level bound (ScalarVolume::voxelUpperBoundInBox) against brute force: it contains
+// every trilinear sample of the box (dense random samples and the box's corners), it is no
+// higher than the largest voxel within one voxel of the box (the voxels a sample there can
+// weigh), it never exceeds the brick-level bound, and it keeps its contract at the edges: a box
+// that misses the grid gives -infinity, one over the voxel limit +infinity and reads nothing.
+template <typename T>
+void checkVoxelBound(std::uint32_t seed, double scale) {
+  std::mt19937 rng(seed);
+  std::uniform_int_distribution<int> dim(2, 15);
+  std::uniform_real_distribution<double> u(0.0, 1.0);
+  int bounded = 0, tighter = 0;
+  for (int volume = 0; volume < 20; ++volume) {
+    const std::array<int, 3> dims{dim(rng), dim(rng), dim(rng)};
+    const ScalarVolume vol = randomVolume<T>(rng, dims, scale);
+    const Eigen::Vector3d upper(dims[0] - 1, dims[1] - 1, dims[2] - 1);
+    for (int box = 0; box < 200; ++box) {
+      Eigen::Vector3d lo, hi;
+      for (int a = 0; a < 3; ++a) {
+        const double c = (1.4 * u(rng) - 0.2) * upper[a], w = 1.6 * u(rng);
+        lo[a] = c - w;
+        hi[a] = c + w;
+      }
+      int read = -1;
+      const double bound = vol.voxelUpperBoundInBox(lo, hi, 64, &read);
+      const bool meets = (hi.array() >= 0.0).all() && (lo.array() <= upper.array()).all();
+      if (!meets) {
+        ASSERT_EQ(bound, -std::numeric_limits<double>::infinity()) << "volume " << volume << " box " << box;
+        ASSERT_EQ(read, 0);
+        continue;
+      }
+      if (bound == std::numeric_limits<double>::infinity()) {
+        ASSERT_EQ(read, 0);
+        ASSERT_EQ(vol.voxelUpperBoundInBox(lo, hi, 1 << 20, &read), vol.voxelUpperBoundInBox(lo, hi, 1 << 20));
+        ASSERT_GT(read, 64) << "refused a box of " << read << " voxels";
+        continue;
+      }
+      ASSERT_GT(read, 0);
+      ASSERT_LE(read, 64);
+      ++bounded;
+      const Eigen::Vector3d clo = lo.cwiseMax(Eigen::Vector3d::Zero()), chi = hi.cwiseMin(upper);
+      for (int k = 0; k < 300; ++k) {
+        Eigen::Vector3d g;
+        for (int a = 0; a < 3; ++a) g[a] = clo[a] + (k < 8 ? ((k >> a) & 1) : u(rng)) * (chi[a] - clo[a]);
+        ASSERT_LE(vol.sample(g), bound) << "volume " << volume << " box " << box << " sample " << g.transpose();
+      }
+      double near = -std::numeric_limits<double>::infinity();
+      for (int z = 0; z < dims[2]; ++z)
+        for (int y = 0; y < dims[1]; ++y)
+          for (int x = 0; x < dims[0]; ++x) {
+            const Eigen::Vector3d v(x, y, z);
+            if (((v - clo).array() >= -1.0).all() && ((v - chi).array() <= 1.0).all())
+              near = std::max(near, vol.voxel(x, y, z));
+          }
+      ASSERT_LE(bound, near + std::abs(near) * 1e-9) << "volume " << volume << " box " << box;
+      const double brick = vol.upperBoundInBox(lo, hi);
+      ASSERT_LE(bound, brick + std::abs(brick) * 1e-9) << "volume " << volume << " box " << box;
+      if (bound < brick) ++tighter;
+    }
+  }
+  EXPECT_GT(bounded, 500) << "too few boxes within the voxel limit to say anything";
+  EXPECT_GT(tighter, 50) << "the voxels never gave a lower bound than the bricks";
+}
+
+TEST(VoxelUpperBound, ContainsEverySampleAndIsNoLooserThanTheVoxelsNearTheBoxUInt8) { checkVoxelBound<std::uint8_t>(11, 1.0); }
+TEST(VoxelUpperBound, ContainsEverySampleAndIsNoLooserThanTheVoxelsNearTheBoxInt16) { checkVoxelBound<std::int16_t>(12, 1.0); }
+TEST(VoxelUpperBound, ContainsEverySampleAndIsNoLooserThanTheVoxelsNearTheBoxUInt16) { checkVoxelBound<std::uint16_t>(13, -0.5); }
+TEST(VoxelUpperBound, ContainsEverySampleAndIsNoLooserThanTheVoxelsNearTheBoxFloat32) { checkVoxelBound<float>(14, 1.0); }
+
+// What the voxel-level bound is for: a box two voxels from a bright voxel in the same brick,
+// which the brick cannot clear.
+TEST(VoxelUpperBound, ClearsABoxNextToTheSurfaceThatItsBrickCannot) {
+  const std::array<int, 3> dims{17, 17, 17};
+  std::vector<std::uint8_t> v(17 * 17 * 17, 0);
+  v[7 + 17 * (7 + 17 * 7)] = 100;  // voxel (7, 7, 7), inside brick [4, 8] on each axis
+  const ScalarVolume vol = ScalarVolume::FromVoxels(unitGeometry(dims), v);
+  const Eigen::Vector3d lo(4.2, 4.2, 4.2), hi(5.8, 5.8, 5.8);  // cells 4 and 5: voxels 4 to 6
+  EXPECT_EQ(vol.upperBoundInBox(lo, hi), 100.0);
+  EXPECT_EQ(vol.voxelUpperBoundInBox(lo, hi, 64), 0.0);
+  // Reaching into cell 6 reads voxel 7: the bound is the voxel's.
+  EXPECT_EQ(vol.voxelUpperBoundInBox(lo, Eigen::Vector3d(6.1, 5.8, 5.8), 64), 0.0);
+  EXPECT_EQ(vol.voxelUpperBoundInBox(lo, Eigen::Vector3d(6.1, 6.1, 6.1), 64), 100.0);
+}
+
 }  // namespace
 }  // namespace vh::haptics

@@ -236,6 +236,13 @@ class CollisionDetector {
   /// about 1,200 cells (150 us) beyond their budget.
   static constexpr std::int64_t kBoxQueryWork = 2;
   static constexpr std::int64_t kTreeNodesPerWork = 4;
+  /// A box query the bricks could not clear is asked again of the voxels themselves
+  /// (ScalarVolume::voxelUpperBoundInBox()) when its box covers at most kVoxelQueryMax voxels
+  /// (4 x 4 x 4: a ball of about one voxel's radius); counted as one sample plus one per
+  /// kVoxelsPerWork voxels read (an estimate from the tree nodes' cost, not fitted). 64 against
+  /// 216 and 512: the same samples saved on table1's scenes, for less reading.
+  static constexpr int kVoxelQueryMax = 64;
+  static constexpr std::int64_t kVoxelsPerWork = 16;
   static constexpr std::int64_t kCellWalkWork = 3;
   static constexpr std::int64_t kCellWork = 3;
   /// Work since the last resetSampleCount(), in units of one trilinear sample's cost (about
@@ -316,14 +323,17 @@ class CollisionDetector {
   // Work counted in the units of work() (see there), per thread of work.
   struct WorkCounters {
     std::int64_t samples = 0, box_queries = 0, tree_nodes = 0, cells_walked = 0, cells = 0;
+    std::int64_t voxel_queries = 0, voxels = 0;  // voxel-level box queries and the voxels they read
     std::int64_t other = 0;  // beyond samples, cells and box queries (sample units)
     std::int64_t total() const noexcept {
       return samples + other + kCellWork * cells + kCellWalkWork * cells_walked + kBoxQueryWork * box_queries +
-             tree_nodes / kTreeNodesPerWork;
+             voxel_queries + voxels / kVoxelsPerWork + tree_nodes / kTreeNodesPerWork;
     }
     WorkCounters& operator+=(const WorkCounters& o) noexcept {
       samples += o.samples;
       box_queries += o.box_queries;
+      voxel_queries += o.voxel_queries;
+      voxels += o.voxels;
       tree_nodes += o.tree_nodes;
       cells_walked += o.cells_walked;
       cells += o.cells;

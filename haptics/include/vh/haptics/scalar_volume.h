@@ -214,9 +214,22 @@ class ScalarVolume {
   /// @param nodes_read when set, receives the min-max tree nodes read (MinMaxTree::rawRange()).
   /// @param without_arc when set, receives the bound of the box itself (the same without the
   ///        arc_sagitta_m term), from the same nodes.
+  /// @param arc_term when set, receives the arc_sagitta_m term alone (what was added to it).
   double upperBoundInBox(const Eigen::Vector3d& lo_ijk, const Eigen::Vector3d& hi_ijk,
                          int* nodes_read = nullptr, double arc_sagitta_m = 0.0,
-                         double* without_arc = nullptr) const noexcept;
+                         double* without_arc = nullptr, double* arc_term = nullptr) const noexcept;
+
+  /// Upper bound of F over the closed box [lo_ijk, hi_ijk] (grid coordinates) from the voxels
+  /// themselves: the largest corner of every cell that trilinear interpolation uses for a point of
+  /// the box (the cell of x is min(floor(x), n - 2), clamped to the grid). The same contract as
+  /// upperBoundInBox() without the arc term, at one voxel's resolution instead of one brick's (a
+  /// level-0 brick spans MinMaxTree::kBrickCells cells): a box a voxel from the surface that the
+  /// brick holding the surface cannot clear is cleared here. Reads at most max_voxels voxels;
+  /// +infinity (no bound) when the box covers more, or is not finite; -infinity when it misses
+  /// the grid.
+  /// @param voxels_read when set, receives the voxels read (0 when none was).
+  double voxelUpperBoundInBox(const Eigen::Vector3d& lo_ijk, const Eigen::Vector3d& hi_ijk, int max_voxels,
+                              int* voxels_read = nullptr) const noexcept;
 
   // ---- Material removal (drilling) -------------------------------------------------------------
   // The volume is immutable to every holder of a const reference. MaterialRemoval, which holds
@@ -248,6 +261,8 @@ class ScalarVolume {
   void initialise();  // validates and caches derived data
   template <typename T>
   double trilinear(const Eigen::Vector3d& ijk) const noexcept;
+  template <typename T>
+  double rawMaxInVoxels(const int* v0, const int* v1) const noexcept;
   // The bubble over a piece of a chord: sagitta, chord parameter U = u0 + du * (piece's u).
   struct SegmentBubble {
     double sagitta_m = 0.0, u0 = 0.0, du = 1.0;  // height per cell: local Lipschitz bound x sagitta

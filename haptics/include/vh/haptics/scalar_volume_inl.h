@@ -66,8 +66,10 @@ inline bool ScalarVolume::isInside(const Eigen::Vector3d& p_W_m, double isovalue
 }
 
 inline double ScalarVolume::upperBoundInBox(const Eigen::Vector3d& lo_ijk, const Eigen::Vector3d& hi_ijk,
-                                            int* nodes_read, double arc_sagitta_m, double* without_arc) const noexcept {
+                                            int* nodes_read, double arc_sagitta_m, double* without_arc,
+                                            double* arc_term) const noexcept {
   float raw_min = 0.0f, raw_max = 0.0f, lipschitz = 0.0f;
+  if (arc_term != nullptr) *arc_term = 0.0;
   if (!tree_.rawRange(lo_ijk, hi_ijk, raw_min, raw_max, nodes_read, arc_sagitta_m > 0.0 ? &lipschitz : nullptr)) {
     if (without_arc != nullptr) *without_arc = -std::numeric_limits<double>::infinity();
     return -std::numeric_limits<double>::infinity();
@@ -80,7 +82,53 @@ inline double ScalarVolume::upperBoundInBox(const Eigen::Vector3d& lo_ijk, const
   if (type_ == VoxelType::kFloat32) raw += (scale_ > 0.0 ? 1.0 : -1.0) * std::abs(raw) * 0x1p-40;
   const double bound = scale_ * raw + offset_;
   if (without_arc != nullptr) *without_arc = bound;
-  return bound + static_cast<double>(lipschitz) * arc_sagitta_m;
+  const double arc = static_cast<double>(lipschitz) * arc_sagitta_m;
+  if (arc_term != nullptr) *arc_term = arc;
+  return bound + arc;
+}
+
+template <typename T>
+double ScalarVolume::rawMaxInVoxels(const int* v0, const int* v1) const noexcept {
+  const T* data = reinterpret_cast<const T*>(bytes_.data());
+  const std::ptrdiff_t sy = geometry_.dims[0], sz = sy * geometry_.dims[1];
+  const bool highest = scale_ > 0.0;  // F grows with raw: the largest raw gives the largest F
+  T best = data[v0[0] + sy * v0[1] + sz * v0[2]];
+  for (int k = v0[2]; k <= v1[2]; ++k)
+    for (int j = v0[1]; j <= v1[1]; ++j) {
+      const T* row = data + sy * j + sz * k;
+      for (int i = v0[0]; i <= v1[0]; ++i) best = highest ? std::max(best, row[i]) : std::min(best, row[i]);
+    }
+  return static_cast<double>(best);
+}
+
+inline double ScalarVolume::voxelUpperBoundInBox(const Eigen::Vector3d& lo_ijk, const Eigen::Vector3d& hi_ijk,
+                                                 int max_voxels, int* voxels_read) const noexcept {
+  if (voxels_read != nullptr) *voxels_read = 0;
+  if (!lo_ijk.allFinite() || !hi_ijk.allFinite()) return std::numeric_limits<double>::infinity();
+  int v0[3], v1[3];
+  long count = 1;
+  for (int a = 0; a < 3; ++a) {
+    const double upper = upper_[a];
+    if (hi_ijk[a] < 0.0 || lo_ijk[a] > upper) return -std::numeric_limits<double>::infinity();
+    const double lo = std::clamp(lo_ijk[a], 0.0, upper), hi = std::clamp(hi_ijk[a], 0.0, upper);
+    // The cells trilinear() reads for x in [lo, hi]: min(floor(x), n - 2); their corners.
+    v0[a] = std::min(static_cast<int>(lo), geometry_.dims[a] - 2);
+    v1[a] = std::min(static_cast<int>(hi), geometry_.dims[a] - 2) + 1;
+    count *= v1[a] - v0[a] + 1;
+  }
+  if (count > max_voxels) return std::numeric_limits<double>::infinity();
+  if (voxels_read != nullptr) *voxels_read = static_cast<int>(count);
+  double raw = 0.0;
+  switch (type_) {
+    case VoxelType::kUInt8: raw = rawMaxInVoxels<std::uint8_t>(v0, v1); break;
+    case VoxelType::kInt16: raw = rawMaxInVoxels<std::int16_t>(v0, v1); break;
+    case VoxelType::kUInt16: raw = rawMaxInVoxels<std::uint16_t>(v0, v1); break;
+    case VoxelType::kFloat32:
+      raw = rawMaxInVoxels<float>(v0, v1);
+      raw += (scale_ > 0.0 ? 1.0 : -1.0) * std::abs(raw) * 0x1p-40;  // as upperBoundInBox()
+      break;
+  }
+  return scale_ * raw + offset_;
 }
 
 }  // namespace vh::haptics
