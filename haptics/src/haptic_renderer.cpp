@@ -36,6 +36,12 @@ HapticRenderer::HapticRenderer(std::shared_ptr<const ScalarVolume> volume, std::
                                                                                   : 0);
   if (!(options.deadline_us >= 0.0) || !std::isfinite(options.deadline_us))
     throw std::invalid_argument("HapticRenderer: deadline_us must be finite and >= 0");
+  // A NaN or negative limit would read as "no limit" below: a typo must not unbound the step.
+  if (!(options.max_travel_per_tick_m >= 0.0) || !std::isfinite(options.max_travel_per_tick_m))
+    throw std::invalid_argument("HapticRenderer: max_travel_per_tick_m must be finite and >= 0 (0: unbounded)");
+  if (!(options.max_travel_in_contact_per_tick_m >= 0.0) || !std::isfinite(options.max_travel_in_contact_per_tick_m))
+    throw std::invalid_argument(
+        "HapticRenderer: max_travel_in_contact_per_tick_m must be finite and >= 0 (0: as max_travel_per_tick_m)");
   collision_.setLanes(options.solver_lanes);
   stuck_standoff_fraction_ = options.stuck_standoff_fraction >= 0.0 ? options.stuck_standoff_fraction
                              : options.detection_mode == DetectionMode::kAccelerated ? kStuckStandoffFraction

@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <cmath>
 #include <iostream>
+#include <limits>
 #include <string>
 
 #include <Eigen/Geometry>
@@ -106,6 +107,25 @@ TEST(ContactCap, RendererRejectsACapOutsideOneTo256) {
   EXPECT_THROW(HapticRenderer(vol, test::pointTool(), o, Pose::FromTranslation({0, 0, 0.01}), 0.0), std::invalid_argument);
   o.max_contacts = 257;
   EXPECT_THROW(HapticRenderer(vol, test::pointTool(), o, Pose::FromTranslation({0, 0, 0.01}), 0.0), std::invalid_argument);
+}
+
+// The velocity limits: 0 means unbounded (or, in contact, the free-space limit); a negative or
+// NaN limit is an error, not silently "unbounded".
+TEST(RendererOptions, RendererRejectsANegativeOrNonFiniteVelocityLimit) {
+  auto vol = std::make_shared<const ScalarVolume>(datasets::makePlaneVolume(test::grid1mm(), Eigen::Vector3d::UnitZ(), 0.0));
+  const Pose X_WP = Pose::FromTranslation({0, 0, 0.01});
+  for (const double bad : {-0.001, std::numeric_limits<double>::quiet_NaN(), std::numeric_limits<double>::infinity()}) {
+    RendererOptions free_space;
+    free_space.max_travel_per_tick_m = bad;
+    EXPECT_THROW(HapticRenderer(vol, test::pointTool(), free_space, X_WP, 0.0), std::invalid_argument) << bad;
+    RendererOptions in_contact;
+    in_contact.max_travel_in_contact_per_tick_m = bad;
+    EXPECT_THROW(HapticRenderer(vol, test::pointTool(), in_contact, X_WP, 0.0), std::invalid_argument) << bad;
+  }
+  RendererOptions off;
+  off.max_travel_per_tick_m = 0.0;
+  off.max_travel_in_contact_per_tick_m = 0.0;
+  EXPECT_NO_THROW(HapticRenderer(vol, test::pointTool(), off, X_WP, 0.0));
 }
 
 }  // namespace

@@ -167,8 +167,9 @@ class HapticRenderer {
   /// @param volume, tool shared, immutable; must outlive nothing (held by shared_ptr).
   /// @param X_WP_initial initial proxy pose; should be outside the isosurface.
   /// @throws std::invalid_argument for an empty volume or point shell, a non-finite pose,
-  ///         epsilon >= feature size, segment_fraction outside (0, 1], or max_contacts outside
-  ///         [1, 256].
+  ///         epsilon >= feature size, segment_fraction outside (0, 1], max_contacts outside
+  ///         [1, 256], a negative or non-finite deadline_us, max_travel_per_tick_m or
+  ///         max_travel_in_contact_per_tick_m.
   HapticRenderer(std::shared_ptr<const ScalarVolume> volume, std::shared_ptr<const ToolModel> tool,
                  const RendererOptions& options, const Pose& X_WP_initial, double isovalue);
 
