@@ -102,81 +102,59 @@ void Session::setTool(std::shared_ptr<const haptics::ToolModel> tool, const Tool
                       const haptics::Pose& X_WT_initial) {
   if (tool == nullptr) throw std::invalid_argument("Session::setTool: no tool");
   if (!has_scene_) throw std::invalid_argument("Session::setTool: no scene");
-  auto memory_hold = std::make_unique<MemoryLockHold>();  // see restart_memory_hold_
-  const bool was_running = hapticsRunning();
-  retireHaptics();  // force ramped to zero before the tool changes in the hand
-  live_.tool = std::move(tool);
-  live_.tool_spec = spec;
-  live_.X_WT_initial = X_WT_initial;
-  if (SimulatedDevice* sim = simulatedDevice()) sim->setPose(X_WT_initial);
-  rebuildHaptics(X_WT_initial);
-  if (was_running && haptics_ != nullptr) haptics_->start();
-  keepMemoryLock(std::move(memory_hold));
-  notify(SessionChange::kTool | (was_running != hapticsRunning() ? SessionChange::kRunning : SessionChange{}));
+  // The new tool starts where it was asked to, not where the old proxy was.
+  restartHaptics(SessionChange::kTool, [&](const haptics::Pose&) {
+    live_.tool = std::move(tool);
+    live_.tool_spec = spec;
+    live_.X_WT_initial = X_WT_initial;
+    if (SimulatedDevice* sim = simulatedDevice()) sim->setPose(X_WT_initial);
+    return X_WT_initial;
+  });
 }
 
 void Session::setEdgeTest(bool on) {
   if (!has_scene_) throw std::invalid_argument("Session::setEdgeTest: no scene");
   if (live_.tool_spec.edge_test == on) return;
-  auto memory_hold = std::make_unique<MemoryLockHold>();  // see restart_memory_hold_
-  const bool was_running = hapticsRunning();
   // Where the proxy is: free of the surface at its points; an edge already crossing there is
   // not held (the renderer starts no move from a crossing it did not cause).
-  const haptics::Pose X_WP = proxyPose();
-  retireHaptics();  // force ramped to zero before the rule changes
-  live_.tool_spec.edge_test = on;
-  rebuildHaptics(X_WP);
-  if (was_running && haptics_ != nullptr) haptics_->start();
-  keepMemoryLock(std::move(memory_hold));
-  notify(SessionChange::kTool | (was_running != hapticsRunning() ? SessionChange::kRunning : SessionChange{}));
+  restartHaptics(SessionChange::kTool, [&](const haptics::Pose& X_WP) {
+    live_.tool_spec.edge_test = on;
+    return X_WP;
+  });
 }
 
 void Session::setSegments(std::shared_ptr<const SegmentSet> segments, std::optional<SegmentationSpec> spec) {
   if (!has_scene_) throw std::invalid_argument("Session::setSegments: no scene");
   if (segments != nullptr && !spec) throw std::invalid_argument("Session::setSegments: segments without a spec");
-  auto memory_hold = std::make_unique<MemoryLockHold>();  // see restart_memory_hold_
-  const bool was_running = hapticsRunning();
-  haptics::Pose X_WP = proxyPose();
-  retireHaptics();  // force ramped to zero before the surface changes; the cavity, on the old felt field
-  live_.segments = std::move(segments);
-  live_.segmentation = live_.segments != nullptr ? std::move(spec) : std::nullopt;
-  // The proxy must start free of the new surface: where it is, else above the volume.
-  const haptics::ScalarVolume& field = *live_.hapticField();
-  if (live_.tool != nullptr &&
-      countPointsInside(field, live_.tool->point_shell, X_WP, live_.hapticIsovalue()) > 0) {
-    X_WP = defaultInitialPose(field, live_.tool->point_shell, X_WP.R_AB, live_.hapticIsovalue());
-    if (SimulatedDevice* sim = simulatedDevice()) sim->setPose(X_WP);
-  }
-  rebuildHaptics(X_WP);
-  if (was_running && haptics_ != nullptr) haptics_->start();
-  keepMemoryLock(std::move(memory_hold));
-  notify(SessionChange::kSegments | (was_running != hapticsRunning() ? SessionChange::kRunning : SessionChange{}));
+  // The cavity so far is kept on the old felt field (the stop comes before the change).
+  restartHaptics(SessionChange::kSegments, [&](const haptics::Pose& X_WP) {
+    live_.segments = std::move(segments);
+    live_.segmentation = live_.segments != nullptr ? std::move(spec) : std::nullopt;
+    // The proxy must start free of the new surface: where it is, else above the volume.
+    const haptics::ScalarVolume& field = *live_.hapticField();
+    if (live_.tool == nullptr || countPointsInside(field, live_.tool->point_shell, X_WP, live_.hapticIsovalue()) == 0)
+      return X_WP;
+    const haptics::Pose free = defaultInitialPose(field, live_.tool->point_shell, X_WP.R_AB, live_.hapticIsovalue());
+    if (SimulatedDevice* sim = simulatedDevice()) sim->setPose(free);
+    return free;
+  });
 }
 
 void Session::setDrilling(bool on) {
   if (!has_scene_) return;
   if (!live_.drill) {
     if (!on) return;
-    auto memory_hold = std::make_unique<MemoryLockHold>();  // see restart_memory_hold_
-    const bool was_running = hapticsRunning();
-    const haptics::Pose X_WP = proxyPose();
-    retireHaptics();
-    live_.drill = DrillSpec{};
-    live_.drill->on = true;
-    live_.drill->hardness_J_per_mm3 = hardness_for_drill_;
-    if (SimulatedDevice* sim = simulatedDevice()) sim->setPose(X_WP);
-    try {
-      rebuildHaptics(X_WP);
-    } catch (...) {
-      live_.drill.reset();
-      rebuildHaptics(X_WP);
-      if (was_running && haptics_ != nullptr) haptics_->start();
-      keepMemoryLock(std::move(memory_hold));
-      throw;
-    }
-    if (was_running && haptics_ != nullptr) haptics_->start();
-    keepMemoryLock(std::move(memory_hold));
-    notify(SessionChange::kDrill | (was_running != hapticsRunning() ? SessionChange::kRunning : SessionChange{}));
+    // A drill that cannot be built leaves the tool touching as it was.
+    restartHaptics(
+        SessionChange::kDrill,
+        [&](const haptics::Pose& X_WP) {
+          live_.drill = DrillSpec{};
+          live_.drill->on = true;
+          live_.drill->hardness_J_per_mm3 = hardness_for_drill_;
+          if (SimulatedDevice* sim = simulatedDevice()) sim->setPose(X_WP);
+          return X_WP;
+        },
+        [&] { live_.drill.reset(); });
     return;
   }
   if (live_.drill->on == on) return;
@@ -214,16 +192,11 @@ void Session::setDevice(std::shared_ptr<Device> device) {
     notify(SessionChange::kDevice);
     return;
   }
-  auto memory_hold = std::make_unique<MemoryLockHold>();  // see restart_memory_hold_
-  const bool was_running = hapticsRunning();
-  const haptics::Pose X_WP = proxyPose();
-  retireHaptics();
-  device_ = std::move(device);
-  if (SimulatedDevice* sim = simulatedDevice()) sim->setPose(X_WP);
-  rebuildHaptics(X_WP);
-  if (was_running && haptics_ != nullptr) haptics_->start();
-  keepMemoryLock(std::move(memory_hold));
-  notify(SessionChange::kDevice | (was_running != hapticsRunning() ? SessionChange::kRunning : SessionChange{}));
+  restartHaptics(SessionChange::kDevice, [&](const haptics::Pose& X_WP) {
+    device_ = std::move(device);
+    if (SimulatedDevice* sim = simulatedDevice()) sim->setPose(X_WP);
+    return X_WP;
+  });
 }
 
 void Session::keepCavity() {
@@ -248,6 +221,28 @@ void Session::retireHaptics() {
 
 void Session::keepMemoryLock(std::unique_ptr<MemoryLockHold> hold) {
   if (hapticsRunning()) restart_memory_hold_ = std::move(hold);
+}
+
+void Session::restartHaptics(SessionChange what, const std::function<haptics::Pose(const haptics::Pose& X_WP)>& change,
+                             const std::function<void()>& undo) {
+  auto memory_hold = std::make_unique<MemoryLockHold>();  // see restart_memory_hold_
+  const bool was_running = hapticsRunning();
+  const haptics::Pose X_WP_before = proxyPose();
+  retireHaptics();  // force ramped to zero before anything the hand feels changes
+  const haptics::Pose X_WP = change(X_WP_before);
+  try {
+    rebuildHaptics(X_WP);
+  } catch (...) {
+    if (!undo) throw;
+    undo();
+    rebuildHaptics(X_WP);
+    if (was_running && haptics_ != nullptr) haptics_->start();
+    keepMemoryLock(std::move(memory_hold));
+    throw;
+  }
+  if (was_running && haptics_ != nullptr) haptics_->start();
+  keepMemoryLock(std::move(memory_hold));
+  notify(what | (was_running != hapticsRunning() ? SessionChange::kRunning : SessionChange{}));
 }
 
 void Session::rebuildHaptics(const haptics::Pose& X_WP, PreparedDrill* prepared) {
@@ -320,16 +315,11 @@ void Session::setMonitor(std::shared_ptr<SnapshotChannel> monitor) {
   if (monitor == monitor_) return;
   monitor_ = std::move(monitor);
   if (haptics_ == nullptr) return;
-  auto memory_hold = std::make_unique<MemoryLockHold>();  // see restart_memory_hold_
-  const bool was_running = hapticsRunning();
-  const haptics::Pose X_WP = proxyPose();
-  retireHaptics();
-  if (SimulatedDevice* sim = simulatedDevice()) sim->setPose(X_WP);
-  rebuildHaptics(X_WP);
   // Rebuilt from live(): the felt isovalue (the segments' level when segments are felt) and gains.
-  if (was_running && haptics_ != nullptr) haptics_->start();
-  keepMemoryLock(std::move(memory_hold));
-  notify(SessionChange::kDevice | (was_running != hapticsRunning() ? SessionChange::kRunning : SessionChange{}));
+  restartHaptics(SessionChange::kDevice, [&](const haptics::Pose& X_WP) {
+    if (SimulatedDevice* sim = simulatedDevice()) sim->setPose(X_WP);
+    return X_WP;
+  });
 }
 
 void Session::startHaptics() {

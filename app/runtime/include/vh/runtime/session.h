@@ -230,6 +230,15 @@ class Session {
   /// After a restart of running threads: keeps `hold` (made before the stop) in
   /// restart_memory_hold_ while the new threads run; dropped when they do not.
   void keepMemoryLock(std::unique_ptr<MemoryLockHold> hold);
+  /// The setters' restart (tool, edge test, segments, drill, device, monitor): with the memory
+  /// lock held throughout, stops the threads (force ramped to zero), lets `change` write the live
+  /// values (it gets the proxy's pose before the stop and returns the pose to rebuild at),
+  /// rebuilds the threads, starts them again when they ran, and notifies `what` (plus kRunning
+  /// when that changed). When the rebuild throws and `undo` is given, `undo` restores the live
+  /// values and the threads are rebuilt as they were before the exception is passed on.
+  /// @throws whatever `change` or the rebuild throws.
+  void restartHaptics(SessionChange what, const std::function<haptics::Pose(const haptics::Pose& X_WP)>& change,
+                      const std::function<void()>& undo = {});
   void notify(SessionChange what);
 
   double servo_rate_Hz_;
