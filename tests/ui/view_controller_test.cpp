@@ -3,8 +3,11 @@
 #include "vh/ui/view_controller.h"
 
 #include <algorithm>
+#include <limits>
+#include <memory>
 
 #include <QImage>
+#include <QScreen>
 
 #include <gtest/gtest.h>
 #include <vtkGenericOpenGLRenderWindow.h>
@@ -12,6 +15,7 @@
 
 #include "ui_test_util.h"
 #include "view_host.h"
+#include "vh/runtime/device.h"
 #include "vh/runtime/session.h"
 #include "vh/ui/panels/display_panel.h"
 #include "vh/ui/view/scene_actors.h"
@@ -107,6 +111,36 @@ TEST(ViewController, StereoModesDrawTwoEyesOfTheSameCamera) {
     host.controller->setStereo(ViewController::Stereo::kQuadBuffer);
     EXPECT_EQ(host.controller->stereo(), ViewController::Stereo::kOff) << "quad buffer without a stereo context";
   }
+}
+
+// The tool is shown at the screen's rate (one new pose per refresh), not at a fixed 30 Hz that
+// no display runs at: the period follows QScreen::refreshRate(), rounded down, within 240 to
+// 30 Hz, 60 Hz where the screen reports none.
+TEST(ViewController, TheHapticSnapshotIsShownOncePerRefreshOfTheScreen) {
+  EXPECT_EQ(displayPeriodMsFor(60.0), 16);
+  EXPECT_EQ(displayPeriodMsFor(59.94), 16);
+  EXPECT_EQ(displayPeriodMsFor(75.0), 13);
+  EXPECT_EQ(displayPeriodMsFor(144.0), 6);
+  EXPECT_EQ(displayPeriodMsFor(240.0), 4);
+  EXPECT_EQ(displayPeriodMsFor(1000.0), 4);
+  EXPECT_EQ(displayPeriodMsFor(24.0), 33);
+  EXPECT_EQ(displayPeriodMsFor(0.0), 16);
+  EXPECT_EQ(displayPeriodMsFor(-5.0), 16);
+  EXPECT_EQ(displayPeriodMsFor(std::numeric_limits<double>::quiet_NaN()), 16);
+  EXPECT_EQ(displayPeriodMsFor(std::numeric_limits<double>::infinity()), 16);
+
+  Host host;
+  host.controller = std::make_unique<ViewController>(host.session, *host.view, *host.panel, host.prefs);
+  const runtime::LoadedScene& scene = sphereProbeScene();
+  host.session.setScene(scene, std::make_shared<runtime::SimulatedDevice>(scene.X_WT_initial));
+  host.session.startHaptics();
+  ASSERT_TRUE(host.session.hapticsRunning());
+  const QScreen* screen = host.view->widget()->screen();
+  ASSERT_NE(screen, nullptr);
+  EXPECT_EQ(host.controller->displayPeriodMs(), displayPeriodMsFor(screen->refreshRate()))
+      << "screen refresh " << screen->refreshRate() << " Hz";
+  EXPECT_LE(host.controller->displayPeriodMs(), 16) << "Xvfb reports 60 Hz: the tool at 30 Hz again";
+  host.session.stopHaptics();
 }
 
 }  // namespace

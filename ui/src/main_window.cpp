@@ -1,5 +1,6 @@
 #include "vh/ui/main_window.h"
 
+#include <algorithm>
 #include <stdexcept>
 
 #include <QAction>
@@ -44,7 +45,7 @@ namespace {
 
 using runtime::SessionChange;
 
-constexpr int kStatusEveryTicks = 6;    // status text at ~5 Hz (readable)
+constexpr int kStatusPeriodMs = 200;   // status text at ~5 Hz (readable), whatever the display rate
 constexpr int kNoticeStatusMs = 10000;  // a load notice stays in the status bar this long
 
 QString q(const std::string& s) { return QString::fromStdString(s); }
@@ -171,7 +172,7 @@ void MainWindow::connectParts() {
             segments_->showSnapshot(snap);
             if (chart_dock_->isVisible()) chart_->addSnapshot(snap);
             if (--status_countdown_ <= 0 || update_status_now) {
-              status_countdown_ = kStatusEveryTicks;
+              status_countdown_ = std::max(1, kStatusPeriodMs / view_controller_->displayPeriodMs());
               updateStatus();
             }
             if (update_status_now) chart_->flush();

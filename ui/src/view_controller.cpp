@@ -1,11 +1,13 @@
 #include "vh/ui/view_controller.h"
 
 #include <algorithm>
+#include <cmath>
 #include <span>
 
 #include <QActionGroup>
 #include <QColorDialog>
 #include <QMenu>
+#include <QScreen>
 #include <QTimer>
 #include <vtkGenericOpenGLRenderWindow.h>
 
@@ -18,11 +20,10 @@
 #include "vh/ui/view/vtk_view.h"
 
 namespace vh::ui {
-namespace {
-
-constexpr int kDisplayPeriodMs = 33;  // ~30 Hz prop updates
-
-}  // namespace
+int displayPeriodMsFor(double screen_refresh_Hz) noexcept {
+  const double hz = std::isfinite(screen_refresh_Hz) && screen_refresh_Hz > 0.0 ? screen_refresh_Hz : 60.0;
+  return std::clamp(static_cast<int>(std::floor(1000.0 / std::clamp(hz, 30.0, 240.0))), 4, 33);
+}
 
 ViewController::ViewController(runtime::Session& session, SceneView& view, DisplayPanel& panel, Preferences& prefs,
                                QObject* parent)
@@ -34,7 +35,8 @@ ViewController::ViewController(runtime::Session& session, SceneView& view, Displ
       opening_mode_(prefs.mode),
       opening_preset_(prefs.preset) {
   timer_ = new QTimer(this);
-  timer_->setInterval(kDisplayPeriodMs);
+  timer_->setTimerType(Qt::PreciseTimer);  // a coarse timer may stretch 16 ms by 5 %
+  timer_->setInterval(displayPeriodMsFor(60.0));
   connect(timer_, &QTimer::timeout, this, [this] { refresh(); });
   observer_ = session_.addObserver([this](runtime::SessionChange what) { onSessionChanged(what); });
 
@@ -70,6 +72,8 @@ ViewController::ViewController(runtime::Session& session, SceneView& view, Displ
 
 ViewController::~ViewController() { session_.removeObserver(observer_); }
 
+int ViewController::displayPeriodMs() const noexcept { return timer_->interval(); }
+
 void ViewController::onSessionChanged(runtime::SessionChange what) {
   using runtime::SessionChange;
   if (runtime::has(what, SessionChange::kScene)) showScene();
@@ -91,6 +95,10 @@ void ViewController::onSessionChanged(runtime::SessionChange what) {
     updateHint();
   }
   if (session_.hapticsRunning()) {
+    if (!timer_->isActive()) {
+      const QScreen* screen = view_.widget()->screen();
+      timer_->setInterval(displayPeriodMsFor(screen != nullptr ? screen->refreshRate() : 0.0));
+    }
     timer_->start();
   } else {
     timer_->stop();

@@ -8,7 +8,7 @@
 ///                      (live(): isovalue, gains, tool, segments), the device and the haptic
 ///                      threads (no Qt);
 ///   SceneOpener        a path, a drop or a menu choice -> SceneLoader -> setScene();
-///   ViewController     Session -> SceneView (the VTK picture) at ~30 Hz; Display panel choices;
+///   ViewController     Session -> SceneView (the VTK picture) at the screen's rate; Display panel choices;
 ///   ToolPicker         the tool choice, rebuilt off the GUI thread -> Session::setTool();
 ///   IsovalueBar, HapticsPanel, SegmentsController, DevicePicker, DeviceInput, StatusLine,
 ///   SessionRecorder, ReplayController, IgtlPanel   the panels and controllers.

@@ -31,6 +31,13 @@ namespace vh::ui {
 
 class DisplayPanel;
 
+/// The period [ms] at which the view takes the haptic threads' latest snapshot while they run:
+/// one per refresh of the screen (QScreen::refreshRate()), rounded down so that no refresh goes
+/// without a new pose; 60 Hz where the screen reports no rate (0, NaN), and between 240 Hz
+/// (4 ms) and 30 Hz (33 ms). A frame that takes longer than the period is simply the next one:
+/// requests in between are coalesced into one paint (VtkView::requestRender()).
+int displayPeriodMsFor(double screen_refresh_Hz) noexcept;
+
 class ViewController : public QObject {
   Q_OBJECT
 
@@ -48,6 +55,9 @@ class ViewController : public QObject {
   const runtime::HapticSnapshot* snapshot() const noexcept { return have_snapshot_ ? &snapshot_ : nullptr; }
   /// The last snapshot read (default-constructed before the first of this scene).
   const runtime::HapticSnapshot& lastSnapshot() const noexcept { return snapshot_; }
+  /// The period [ms] the snapshot is read at while the haptic threads run: displayPeriodMsFor()
+  /// of the view's screen, taken when they start.
+  int displayPeriodMs() const noexcept;
 
   /// The rendering mode and preset of the scan shown. Chosen while no scan is shown (the
   /// preferences at start, `--render-mode`), they are also what every scan opens with: a MIP
