@@ -64,6 +64,8 @@ CollisionDetector::CollisionDetector(const ScalarVolume& volume, const ToolModel
     shell_radius_m_ = std::max(shell_radius_m_, (p - tool.mass.p_TCm_m).norm());
   const std::size_t n = tool.point_shell.size();
   pt_.assign(n, PointState{});
+  search_.assign(n, PointSearch{});
+  started_.assign(n, 0u);
   heap_.resize(n);
   embedded_.assign(n, 0);
   in_set_.assign(n, 0);
@@ -528,7 +530,7 @@ void CollisionDetector::clearContacts() noexcept {
 
 SweepResult CollisionDetector::sweep(const RigidMotion& motion, double isovalue) noexcept {
   if (++chord_stamp_ == 0) {  // wrapped: forget every cached chord end
-    for (PointState& q : pt_) q.chord_end_stamp = 0u;
+    for (PointSearch& q : search_) q.chord_end_stamp = 0u;
     chord_stamp_ = 1;
   }
   // The largest chord sagitta of any point this sweep (for the point-shell tree's node tests):
@@ -567,9 +569,11 @@ void CollisionDetector::setupPath(WorkCounters& k, const RigidMotion& motion, in
 void CollisionDetector::startPoint(WorkCounters& k, const RigidMotion& motion, int j) noexcept {
   setupPath(k, motion, j);
   pt_[j].clear_until = -1.0;
-  if (embedded_[j] || !(pt_[j].path > 0.0)) return;
-  pt_[j].clear_segments = 0;
-  pt_[j].backoff = 0;
+}
+
+void CollisionDetector::startSearch(int j) noexcept {
+  search_[j].clear_segments = 0;
+  search_[j].backoff = 0;
 }
 
 double CollisionDetector::stepSegment(WorkCounters& k, const RigidMotion& motion, int j, std::int64_t segment,
@@ -585,17 +589,17 @@ double CollisionDetector::stepSegment(WorkCounters& k, const RigidMotion& motion
     // The chord's start is the previous segment's end when the point's segments are taken in
     // turn (the same double either way: pointAt at the same t).
     Eigen::Vector3d a;
-    if (pt_[j].chord_end_t == t_begin && pt_[j].chord_end_stamp == chord_stamp_) {
-      a = pt_[j].chord_end_ijk;
+    if (search_[j].chord_end_t == t_begin && search_[j].chord_end_stamp == chord_stamp_) {
+      a = search_[j].chord_end_ijk;
     } else {
       ++k.samples;
       a = volume_->gridCoordinates(motion.pointAt(pt_[j].r0, t_begin));
     }
     ++k.samples;
     const Eigen::Vector3d b = volume_->gridCoordinates(motion.pointAt(pt_[j].r0, t_end));
-    pt_[j].chord_end_ijk = b;
-    pt_[j].chord_end_t = t_end;
-    pt_[j].chord_end_stamp = chord_stamp_;
+    search_[j].chord_end_ijk = b;
+    search_[j].chord_end_t = t_end;
+    search_[j].chord_end_stamp = chord_stamp_;
     const double u_limit = t_limit >= t_end ? 1.0 : (t_limit - t_begin) / span;
     // The arc's reach beyond its chord (the sagitta), per grid axis, for the grid's border.
     const Eigen::Vector3d reach = pt_[j].sagitta * grid_per_m_;
@@ -710,7 +714,7 @@ std::size_t CollisionDetector::collectActive(Lane& lane, const RigidMotion& moti
     for (int i = node.begin; i < node.end; ++i) {
       const int j = order_[i];
       lane.active[lane.active_count++] = j;
-      if (pt_[j].started == sweep_stamp_) continue;  // a contact point: started (and queued) already
+      if (started_[j] == sweep_stamp_) continue;  // a contact point: started (and queued) already
       startPoint(k, motion, j);
       if (!queue || embedded_[j] || !(pt_[j].path > 0.0)) continue;
       // The path over [0, t_max] first: its own ball culls the point at once (on the Engine
@@ -722,6 +726,7 @@ std::size_t CollisionDetector::collectActive(Lane& lane, const RigidMotion& moti
         continue;
       }
       // One segment: sample it; several: resolved lazily, in time order.
+      startSearch(j);
       heap[count++] = {0.0, j, 0, pt_[j].segments == 1 ? 0 : 1};
     }
   }
@@ -798,7 +803,7 @@ SweepResult CollisionDetector::sweepAccelerated(const RigidMotion& motion, doubl
   active_complete_ = true;
   if (motion.isStill()) return {};
   if (++sweep_stamp_ == 0) {  // wrapped: forget every old stamp
-    for (PointState& q : pt_) q.started = 0u;
+    std::fill(started_.begin(), started_.end(), 0u);
     sweep_stamp_ = 1;
   }
   for (Lane& lane : lanes_) {
@@ -816,7 +821,7 @@ SweepResult CollisionDetector::sweepAccelerated(const RigidMotion& motion, doubl
 SweepResult CollisionDetector::resumeSweep() noexcept {
   if (!pending_.active) return {};
   if (++chord_stamp_ == 0) {  // a new tick: the cached chord ends are recomputed (same values)
-    for (PointState& q : pt_) q.chord_end_stamp = 0u;
+    for (PointSearch& q : search_) q.chord_end_stamp = 0u;
     chord_stamp_ = 1;
   }
   return stopClear(runAccelerated());
@@ -869,7 +874,8 @@ SweepResult CollisionDetector::runAccelerated() noexcept {
       if (j < 0 || embedded_[j]) continue;  // an edge contact has no path of its own
       startPoint(counters_, motion, j);
       if (!(pt_[j].path > 0.0)) continue;
-      pt_[j].started = sweep_stamp_;
+      started_[j] = sweep_stamp_;
+      startSearch(j);
       const double t_end = stepSegment(counters_, motion, j, 0, 0.0, isovalue, result.t, result);
       // Outside at the end of its first segment: a run test next (in the lane that holds it).
       if (t_end >= 0.0 && t_end < 1.0) {
@@ -1000,10 +1006,10 @@ void CollisionDetector::runLane(Lane& lane) noexcept {
     if (e.run > 0) {  // an unresolved run
       const std::int64_t run = std::min(e.run, total - e.segment);
       if (!runMayHit(k, motion, j, e.segment, run, isovalue)) {
-        pt_[j].backoff = 0;
+        search_[j].backoff = 0;
         const std::int64_t after = e.segment + run;
-        if (pt_[j].clear_segments == e.segment) {
-          pt_[j].clear_segments = after;
+        if (search_[j].clear_segments == e.segment) {
+          search_[j].clear_segments = after;
           pt_[j].clear_until = after >= total ? 1.0 : segmentBegin(j, after);
         }
         if (after < total) push({segmentBegin(j, after), j, after, std::min(2 * run, total - after)});
@@ -1025,8 +1031,8 @@ void CollisionDetector::runLane(Lane& lane) noexcept {
       // fail nearly always and this keeps them to a few per point instead of one per 2 samples.
       std::int64_t successor = 1;
       if (e.run == 0) {
-        successor = -(std::int64_t{1} << pt_[j].backoff);
-        if (pt_[j].backoff < 6) ++pt_[j].backoff;
+        successor = -(std::int64_t{1} << search_[j].backoff);
+        if (search_[j].backoff < 6) ++search_[j].backoff;
       } else if (e.run < -1) {
         successor = e.run + 1;
       }

@@ -410,8 +410,11 @@ class CollisionDetector {
   bool inside(const Eigen::Vector3d& p_W, double isovalue) noexcept;
   // r0, path, segments, segment time and arc margin of point j for `motion` (both modes).
   void setupPath(WorkCounters& k, const RigidMotion& motion, int j) noexcept;
-  // kAccelerated: setupPath() and clears the proven-empty prefix of point j.
+  // kAccelerated: setupPath() and clears the proven-free time of point j (clear_until).
   void startPoint(WorkCounters& k, const RigidMotion& motion, int j) noexcept;
+  // kAccelerated: point j is queued for the time-ordered search: its proven-empty prefix and its
+  // back-off start afresh (PointSearch; culled points never touch it).
+  void startSearch(int j) noexcept;
   // The paper's step for segment `segment` of point j (kExact: the first entry along its
   // chord; kEndSample: its end sampled; a hit bisected) looking no later than t_limit (<=
   // result.t), a hit recorded in `result`. Returns the segment's end time, or -1 when inside.
@@ -521,23 +524,32 @@ class CollisionDetector {
   double segment_length_m_;  // feature size * segment_fraction
   double epsilon_;
   double bisection_tolerance_;
-  // Per point, the state of the current sweep: one record per point, on cache lines of its own,
-  // so that lanes working on different points never write to the same line.
+  // Per point, the path of the current sweep: one cache line per point, so that lanes working on
+  // different points never write to the same line. Every point the tree walk reaches is set up
+  // here (setupPath()); most are then culled by their own ball and touch nothing else.
   struct alignas(64) PointState {
-    Eigen::Vector3d r0 = Eigen::Vector3d::Zero();             // radial vector at t = 0 (W)
-    Eigen::Vector3d chord_end_ijk = Eigen::Vector3d::Zero();  // grid coordinates of the last chord's end
+    Eigen::Vector3d r0 = Eigen::Vector3d::Zero();  // radial vector at t = 0 (W)
     double dt = 1.0;                // segment length in time
     double path = 0.0;              // path-length bound
     double sagitta = 0.0;           // its chords' sagitta [m] (kExact with rotation, else 0)
-    double chord_end_t = -1.0;      // ... the last chord end's time
     double clear_until = 0.0;       // kAccelerated: proven outside over [0, clear_until] of the last sweep
     std::int64_t segments = 0;      // kAccelerated: segment count of the last sweep
-    std::int64_t clear_segments = 0;  // kAccelerated: leading segments proven empty
-    std::uint32_t chord_end_stamp = 0;  // the chord end is valid when equal to chord_stamp_ (this sweep)
-    std::uint32_t started = 0;      // kAccelerated: sweep_stamp_ when started by the contact pre-pass
-    unsigned char backoff = 0;      // kAccelerated: direct steps after a failed test = 2^backoff
   };
+  static_assert(sizeof(PointState) == 64, "one cache line per point");
   std::vector<PointState> pt_;
+  // Per point, the search's own state: touched only for the points that are sampled or queued
+  // (a line of its own per point, as PointState).
+  struct alignas(64) PointSearch {
+    Eigen::Vector3d chord_end_ijk = Eigen::Vector3d::Zero();  // grid coordinates of the last chord's end
+    double chord_end_t = -1.0;          // ... the last chord end's time
+    std::int64_t clear_segments = 0;    // kAccelerated: leading segments proven empty
+    std::uint32_t chord_end_stamp = 0;  // the chord end is valid when equal to chord_stamp_ (this sweep)
+    unsigned char backoff = 0;          // kAccelerated: direct steps after a failed test = 2^backoff
+  };
+  std::vector<PointSearch> search_;
+  // kAccelerated, per point: sweep_stamp_ when started by the contact pre-pass (written before
+  // the lanes run, read by them).
+  std::vector<std::uint32_t> started_;
   std::uint32_t chord_stamp_ = 0;
   std::vector<QueueEntry> heap_;         // kPaper's queue, capacity = number of points
   // kAccelerated state (see haptics/README.md, "Speed").
