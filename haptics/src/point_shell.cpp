@@ -25,11 +25,67 @@ PointShell::PointShell(std::vector<Eigen::Vector3d> points_T_m, std::vector<Eige
 
 double PointShell::meanNearestNeighbourSpacing_m() const {
   if (points_.size() < 2) return 0.0;
+  // Each point's nearest neighbour from a dense grid over the points' bounding box (about two
+  // points a cell for a surface), searched ring by ring around its cell until no point outside
+  // the rings searched can be nearer: the same minimum as comparing every pair (the same
+  // squared norms), in O(n) instead of O(n^2) (4 s for a 50,000-point shell, on every
+  // recording's start).
+  Eigen::Vector3d lo = points_[0], hi = points_[0];
+  for (const auto& p : points_) {
+    lo = lo.cwiseMin(p);
+    hi = hi.cwiseMax(p);
+  }
+  const Eigen::Vector3d extent = hi - lo;
+  const double area_estimate = extent.x() * extent.y() + extent.y() * extent.z() + extent.z() * extent.x();
+  double cell = std::sqrt(2.0 * area_estimate / static_cast<double>(points_.size()));
+  if (!(cell > 0.0)) cell = std::max(extent.maxCoeff(), std::numeric_limits<double>::min());
+  constexpr double kMaxCells = 4.0 * 1024 * 1024;
+  Eigen::Array3d dims_d = (extent.array() / cell).floor() + 1.0;
+  while (dims_d.prod() > kMaxCells) {
+    cell *= 1.25;
+    dims_d = (extent.array() / cell).floor() + 1.0;
+  }
+  const Eigen::Array3i dims = dims_d.cast<int>();
+  const auto cellOf = [&](const Eigen::Vector3d& p) {
+    return Eigen::Array3i((((p - lo).array() / cell).floor().cast<int>()).min(dims - 1).max(0));
+  };
+  const auto flat = [&](int x, int y, int z) { return (static_cast<std::size_t>(z) * dims.y() + y) * dims.x() + x; };
+  // Counting sort of the points by cell: start[c] .. start[c + 1] index `by_cell`.
+  std::vector<int> start(static_cast<std::size_t>(dims.prod()) + 1, 0), by_cell(points_.size());
+  for (const auto& p : points_) {
+    const Eigen::Array3i c = cellOf(p);
+    ++start[flat(c.x(), c.y(), c.z()) + 1];
+  }
+  for (std::size_t c = 1; c < start.size(); ++c) start[c] += start[c - 1];
+  {
+    std::vector<int> fill(start.begin(), start.end() - 1);
+    for (std::size_t i = 0; i < points_.size(); ++i) {
+      const Eigen::Array3i c = cellOf(points_[i]);
+      by_cell[static_cast<std::size_t>(fill[flat(c.x(), c.y(), c.z())]++)] = static_cast<int>(i);
+    }
+  }
+  const int max_ring = dims.maxCoeff();
   double sum = 0.0;
   for (std::size_t i = 0; i < points_.size(); ++i) {
+    const Eigen::Array3i c = cellOf(points_[i]);
     double best = std::numeric_limits<double>::infinity();
-    for (std::size_t j = 0; j < points_.size(); ++j)
-      if (j != i) best = std::min(best, (points_[i] - points_[j]).squaredNorm());
+    // After ring k every point not yet seen lies at least k cells (k * cell) away.
+    for (int k = 0; k <= max_ring; ++k) {
+      for (int z = std::max(c.z() - k, 0); z <= std::min(c.z() + k, dims.z() - 1); ++z)
+        for (int y = std::max(c.y() - k, 0); y <= std::min(c.y() + k, dims.y() - 1); ++y) {
+          const bool inner = std::abs(z - c.z()) < k && std::abs(y - c.y()) < k;
+          for (int x = std::max(c.x() - k, 0); x <= std::min(c.x() + k, dims.x() - 1);
+               x += (inner && x == c.x() - k) ? 2 * k : 1) {  // the ring only: x = c.x() +- k inside
+            const std::size_t f = flat(x, y, z);
+            for (int q = start[f]; q < start[f + 1]; ++q) {
+              const auto j = static_cast<std::size_t>(by_cell[static_cast<std::size_t>(q)]);
+              if (j != i) best = std::min(best, (points_[i] - points_[j]).squaredNorm());
+            }
+          }
+        }
+      const double reach = k * cell;
+      if (best <= reach * reach) break;
+    }
     sum += std::sqrt(best);
   }
   return sum / static_cast<double>(points_.size());

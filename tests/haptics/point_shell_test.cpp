@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <iostream>
+#include <limits>
 #include <random>
 #include <vector>
 #include <numbers>
@@ -77,6 +78,46 @@ TEST(PointShell, PointsComeInSpatialOrder) {
   std::cout << "mean step between consecutive points: " << ordered_m * 1e3 << " mm in the shell's order, "
             << random_m * 1e3 << " mm shuffled\n";
   EXPECT_LT(ordered_m, 0.1 * random_m);
+}
+
+// The mean nearest-neighbour spacing from the grid search equals the brute force over every
+// pair, to the bit, on shells of every shape the grid can meet: a tool's shell, points on a
+// line, on a plane, in one far cluster and a lone point, duplicates, two points.
+TEST(PointShell, MeanNearestNeighbourSpacingEqualsTheBruteForce) {
+  const auto brute_force = [](const std::vector<Eigen::Vector3d>& p) {
+    double sum = 0.0;
+    for (std::size_t i = 0; i < p.size(); ++i) {
+      double best = std::numeric_limits<double>::infinity();
+      for (std::size_t j = 0; j < p.size(); ++j)
+        if (j != i) best = std::min(best, (p[i] - p[j]).squaredNorm());
+      sum += std::sqrt(best);
+    }
+    return sum / static_cast<double>(p.size());
+  };
+  std::mt19937 rng(7);
+  std::uniform_real_distribution<double> u(-0.05, 0.05);
+  std::vector<std::vector<Eigen::Vector3d>> cases;
+  PointShellOptions o;
+  o.point_count = 3000;
+  cases.push_back(makePointShell(datasets::makeBuiltinTool("drill"), o).points_T_m());
+  std::vector<Eigen::Vector3d> line, plane, clusters, duplicates;
+  for (int i = 0; i < 500; ++i) line.emplace_back(u(rng), 0.0, 0.0);
+  for (int i = 0; i < 2000; ++i) plane.emplace_back(u(rng), u(rng), 0.01);
+  for (int i = 0; i < 400; ++i) clusters.emplace_back(1e-3 * u(rng), 1e-3 * u(rng), 1e-3 * u(rng));
+  clusters.emplace_back(3.0, -2.0, 5.0);  // one point far away: its neighbour is in the cluster
+  for (int i = 0; i < 300; ++i) duplicates.push_back(i % 3 == 0 ? Eigen::Vector3d(0.01, 0.02, 0.03)
+                                                                : Eigen::Vector3d(u(rng), u(rng), u(rng)));
+  cases.push_back(line);
+  cases.push_back(plane);
+  cases.push_back(clusters);
+  cases.push_back(duplicates);
+  cases.push_back({Eigen::Vector3d::Zero(), Eigen::Vector3d(0.0, 0.0, 0.004)});
+  for (std::size_t c = 0; c < cases.size(); ++c) {
+    const double expected = brute_force(cases[c]);
+    EXPECT_EQ(PointShell(cases[c]).meanNearestNeighbourSpacing_m(), expected) << "case " << c;
+    EXPECT_GT(expected, 0.0) << "case " << c;
+  }
+  EXPECT_EQ(PointShell({Eigen::Vector3d::Zero()}).meanNearestNeighbourSpacing_m(), 0.0);
 }
 
 TEST(PointShell, RejectsBadInput) {
