@@ -28,7 +28,8 @@ class PointShell {
   /// Unit outward normals (n x 3) in T, or empty.
   const std::vector<Eigen::Vector3d>& normals_T() const noexcept { return normals_; }
 
-  /// Mean distance from each point to its nearest neighbour [m] (O(n^2); for reports and tests).
+  /// Mean distance from each point to its nearest neighbour [m] (a grid search, O(n) for a
+  /// shell; for reports and tests). 0 for fewer than two points.
   double meanNearestNeighbourSpacing_m() const;
 
  private:
