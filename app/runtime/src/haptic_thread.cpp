@@ -706,7 +706,7 @@ inline std::uint32_t solverRecordFlags(std::uint32_t contacts, const DeviceInput
   const bool nonfinite = !out.force_W_N.allFinite() || !out.torque_W_Nm.allFinite();
   return (contacts > 0 ? kRecordFlagContact : 0u) | (in.ok ? 0u : kRecordFlagBadSample) |
          (nonfinite ? kRecordFlagNonFinite : 0u) | (in.connected ? 0u : kRecordFlagDeviceDisconnected) |
-         recordSegmentBits(segment);
+         (in.ok && out.stats.deadline_cut ? kRecordFlagDeadlineCut : 0u) | recordSegmentBits(segment);
 }
 
 /// Gives the renderer the gains the coupling thread applied to this sample when they changed

@@ -110,11 +110,16 @@ ReplayComparison replayRecording(const LoadedScene& scene, const Recording& reco
   std::size_t next_gains = 0;
   const bool gains_flagged = std::any_of(recording.records.begin(), recording.records.end(),
                                          [](const TickRecord& r) { return (r.flags & kRecordFlagGainsApplied) != 0; });
-  const auto fail = [&result](const TickRecord& r, std::size_t index, const char* what) {
+  const auto fail = [&result, &recording](const TickRecord& r, std::size_t index, const char* what) {
     result.identical = false;
     result.first_mismatch_tick = r.tick;
     result.first_mismatch_index = index;
     result.mismatch = what;
+    for (std::size_t k = 0; k <= index; ++k)
+      if ((recording.records[k].flags & kRecordFlagDeadlineCut) != 0) {
+        result.deadline_cut_tick = recording.records[k].tick;
+        break;
+      }
     return result;
   };
   const double record_count = static_cast<double>(recording.records.size());

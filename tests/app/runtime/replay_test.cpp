@@ -157,7 +157,8 @@ void expectDeterministic(haptics::DetectionMode mode) {
   for (std::size_t i = 0; i < rec.records.size(); ++i) {
     const TickRecord& r = rec.records[i];
     ASSERT_EQ(r.tick, i + 1);
-    ASSERT_EQ(r.flags & (kRecordFlagBadSample | kRecordFlagDeviceDisconnected), 0u) << "tick " << r.tick;
+    ASSERT_EQ(r.flags & (kRecordFlagBadSample | kRecordFlagDeviceDisconnected | kRecordFlagDeadlineCut), 0u)
+        << "tick " << r.tick;
     EXPECT_EQ(r.isovalue, r.tick < kIsovalueChangeTick ? 0.0 : kChangedIsovalue) << "tick " << r.tick;
     contact_ticks += r.contacts > 0 ? 1 : 0;
   }
@@ -221,6 +222,7 @@ void expectDeterministic(haptics::DetectionMode mode) {
   EXPECT_EQ(broken.first_mismatch_tick.value_or(0), altered.records[k].tick);
   EXPECT_EQ(broken.first_mismatch_index, k);
   EXPECT_EQ(broken.mismatch, "force");
+  EXPECT_FALSE(broken.deadline_cut_tick.has_value()) << "no tick of this session was cut by a deadline";
 
   const std::uint64_t hash = sessionHash(rec.records, kSessionTicks);
   std::cout << "[ recording ] " << haptics::toString(mode) << " session hash 0x" << std::hex << hash << std::dec
@@ -303,6 +305,47 @@ TEST(RecordingReplay, DeviceDisconnectAndReconnectAreRecordedAsEventsAndReplay) 
   EXPECT_TRUE(replay.identical) << "first difference at tick " << replay.first_mismatch_tick.value_or(0) << ": "
                                 << replay.mismatch;
   EXPECT_EQ(replay.ticks_replayed, rec.records.size() - 100);
+}
+
+// A tick the solver's deadline on the clock cut (a machine too busy for the servo period) is
+// flagged in the recording, and a replay (no clock: it does the whole tick) that parts from the
+// live run there names it. A deadline of 1 ns cuts every tick with any work at its first clock
+// read, so the live proxy never leaves its start while the replay's follows the device.
+TEST(RecordingReplay, ATickTheDeadlineCutIsFlaggedAndTheReplayNamesIt) {
+  const LoadedScene& scene = test::sphereBallScene();
+  const auto at = [](double t, double x, double z) {
+    TrajectorySample s;
+    s.t_s = t;
+    s.X_WD.p_AB_m = {x, 0.0, z};
+    return s;
+  };
+  auto device = std::make_shared<ScriptedDevice>(Trajectory({at(0.0, 0.0, 0.030), at(0.3, 0.0, 0.023), at(0.6, 0.004, 0.023)}),
+                                                 1e-3, "deadline");
+  const fs::path path = test::scratchDir() / "deadline-cut.vhrec";
+  RecordingWriter writer(path, makeSessionMetadata(scene, {device->name(), "scripted", {}}));
+  {
+    HapticThreadOptions options;
+    options.max_solver_backlog_s = 10.0;  // every sample reaches the solver (see the unplug test)
+    haptics::RendererOptions renderer_options;
+    renderer_options.deadline_us = 1e-3;
+    HapticThread thread(scene.makeRenderer(renderer_options), device, scene.isovalue, 1000.0, options);
+    thread.setRecorder(&writer);
+    thread.start();
+    const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(30);
+    while (!device->finished() && std::chrono::steady_clock::now() < deadline)
+      std::this_thread::sleep_for(std::chrono::milliseconds(10));
+    thread.stop();
+  }
+  writer.close();
+  const Recording rec = readRecording(path);
+  ASSERT_GE(rec.records.size(), 600u);
+  std::size_t cut = 0;
+  for (const TickRecord& r : rec.records) cut += (r.flags & kRecordFlagDeadlineCut) != 0 ? 1 : 0;
+  EXPECT_GT(cut, 500u) << "every tick that moves the proxy is cut";
+  const ReplayComparison replay = replayRecording(scene, rec);
+  ASSERT_FALSE(replay.identical) << "the replay has no deadline: its proxy follows the device";
+  ASSERT_TRUE(replay.deadline_cut_tick.has_value());
+  EXPECT_LE(*replay.deadline_cut_tick, replay.first_mismatch_tick.value_or(0));
 }
 
 TEST(RecordingReplay, ReplayDeviceReturnsTheRecordedPosesOnePerRead) {

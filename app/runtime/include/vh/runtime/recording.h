@@ -128,6 +128,12 @@ inline constexpr std::uint32_t kRecordFlagDrillOn = 1u << 8;
 /// coupling thread passed it on. Recordings without any such flag (older ones) apply a "gains"
 /// event on the first record after its tick.
 inline constexpr std::uint32_t kRecordFlagGainsApplied = 1u << 9;
+/// The solver's deadline on the clock stopped this tick's work (haptics::TickStats::deadline_cut:
+/// the machine gave the solver less than its servo period); the proxy moved only as far as was
+/// proven free and the sweep went on next tick. A replay has no clock and does the whole tick,
+/// so from such a tick on it need not match bit for bit: replayRecording() names the first one
+/// at or before a mismatch (ReplayComparison::deadline_cut_tick).
+inline constexpr std::uint32_t kRecordFlagDeadlineCut = 1u << 10;
 
 /// One servo tick, fixed size, trivially copyable (its byte image is what the file stores).
 /// Frames: W is the scene (world) frame; D the device (tool) frame; P the proxy frame.

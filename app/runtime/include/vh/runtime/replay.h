@@ -58,6 +58,10 @@ struct ReplayComparison {
   std::optional<std::uint64_t> first_mismatch_tick;
   std::size_t first_mismatch_index = 0;
   std::string mismatch;
+  /// With a mismatch: the first record at or before it whose tick the live run's deadline on the
+  /// clock cut (kRecordFlagDeadlineCut), which a replay (no clock) does not reproduce; empty
+  /// when no such tick came before the mismatch (then the mismatch is not the machine's load).
+  std::optional<std::uint64_t> deadline_cut_tick;
   /// With a drill in the scene: the felt field as carved by the replay when it finished (null
   /// otherwise); compare its bytes with the live run's.
   std::shared_ptr<const haptics::ScalarVolume> drilled_field;
