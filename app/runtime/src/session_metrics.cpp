@@ -106,6 +106,7 @@ void tickMetrics(const std::vector<TickRecord>& records, double dt, double thres
     }
     if (r.flags & kRecordFlagDrillOn) ++drill;
     if (r.flags & kRecordFlagDeadlineMiss) ++m.deadline_misses;
+    if (r.flags & kRecordFlagDeadlineCut) ++m.deadline_cuts;
     if (r.flags & kRecordFlagBadSample) ++m.bad_samples;
     if (r.flags & kRecordFlagForceLimited) ++m.force_limited_ticks;
     if (r.flags & kRecordFlagNonFinite) ++m.non_finite_ticks;
@@ -243,6 +244,7 @@ std::vector<MetricValue> metricValues(const SessionMetrics& m) {
       {"critical_removed_mm3", "Critical volume drilled away", "mm^3", m.critical_removed_mm3},
       {"markers", "Markers", "", count(m.markers)},
       {"deadline_misses", "Servo deadline misses", "", count(m.deadline_misses)},
+      {"deadline_cuts", "Ticks the solver's deadline cut short", "", count(m.deadline_cuts)},
       {"mean_tick_s", "Mean solver tick time", "s", m.mean_tick_s},
       {"max_tick_s", "Longest solver tick", "s", m.max_tick_s},
       {"bad_samples", "Ticks without a device sample", "", count(m.bad_samples)},

@@ -85,6 +85,7 @@ TEST(SessionMetrics, ScriptedPressGivesExactForceStatistics) {
     t.contacts = f > 0.0 ? 3u : 0u;
     t.tick_time_s = i == 1234 ? 4e-4 : 1e-4;
     if (i == 77 || i == 78) t.flags |= kRecordFlagDeadlineMiss;
+    if (i >= 300 && i < 305) t.flags |= kRecordFlagDeadlineCut;
     rec.records.push_back(t);
   }
   MetricsOptions options;
@@ -100,6 +101,7 @@ TEST(SessionMetrics, ScriptedPressGivesExactForceStatistics) {
   EXPECT_NEAR(m.time_in_contact_s, 1.999, 1e-12);
   EXPECT_NEAR(m.max_torque_Nm, 0.01 * 0.002 * 1999, 1e-14);
   EXPECT_EQ(m.deadline_misses, 2u);
+  EXPECT_EQ(m.deadline_cuts, 5u);
   EXPECT_DOUBLE_EQ(m.max_tick_s, 4e-4);
   // Another threshold, another time: |F| > 3 N for i = 1501 .. 1999.
   options.force_threshold_N = 3.0;

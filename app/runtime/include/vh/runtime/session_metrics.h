@@ -110,6 +110,9 @@ struct SessionMetrics {
 
   // The run's own quality.
   std::uint64_t deadline_misses = 0;     ///< Ticks flagged kRecordFlagDeadlineMiss.
+  /// Ticks flagged kRecordFlagDeadlineCut: the solver's deadline stopped their work, so the proxy
+  /// moved less far than the full solve would have (the force on time, the proxy behind).
+  std::uint64_t deadline_cuts = 0;
   std::uint64_t bad_samples = 0;         ///< Ticks without a usable device sample.
   std::uint64_t force_limited_ticks = 0; ///< Ticks where the safety layer changed the force.
   std::uint64_t non_finite_ticks = 0;    ///< Ticks where the renderer computed a NaN / inf.
