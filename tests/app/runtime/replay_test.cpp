@@ -263,6 +263,28 @@ class UnpluggedDevice final : public Device {
   std::atomic<bool> unplugged_{false};
 };
 
+/// Records the whole script of `device` through a haptic thread on `renderer` into `path` and
+/// reads it back. Every device sample reaches the solver even when a loaded machine delays it (by
+/// default a solver over 0.25 s behind skips ahead, and the ticks would no longer be the reads).
+template <typename ScriptDevice>
+Recording recordScript(const LoadedScene& scene, const std::shared_ptr<ScriptDevice>& device,
+                       decltype(scene.makeRenderer()) renderer, const fs::path& path) {
+  RecordingWriter writer(path, makeSessionMetadata(scene, {device->name(), "scripted", {}}));
+  {
+    HapticThreadOptions options;
+    options.max_solver_backlog_s = 10.0;  // the longest allowed
+    HapticThread thread(std::move(renderer), device, scene.isovalue, 1000.0, options);
+    thread.setRecorder(&writer);
+    thread.start();
+    const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(30);
+    while (!device->finished() && std::chrono::steady_clock::now() < deadline)
+      std::this_thread::sleep_for(std::chrono::milliseconds(10));
+    thread.stop();
+  }
+  writer.close();
+  return readRecording(path);
+}
+
 TEST(RecordingReplay, DeviceDisconnectAndReconnectAreRecordedAsEventsAndReplay) {
   const LoadedScene& scene = test::sphereBallScene();
   const auto at = [](double t, double z) {
@@ -272,23 +294,7 @@ TEST(RecordingReplay, DeviceDisconnectAndReconnectAreRecordedAsEventsAndReplay) 
     return s;
   };
   auto device = std::make_shared<UnpluggedDevice>(Trajectory({at(0.0, 0.030), at(0.3, 0.023), at(0.6, 0.023)}));
-  const fs::path path = test::scratchDir() / "unplugged.vhrec";
-  RecordingWriter writer(path, makeSessionMetadata(scene, {device->name(), "scripted", {}}));
-  {
-    // Every device sample reaches the solver even when a loaded machine delays it (by default
-    // a solver over 0.25 s behind skips ahead, and the ticks would no longer be the reads).
-    HapticThreadOptions options;
-    options.max_solver_backlog_s = 10.0;  // the longest allowed
-    HapticThread thread(scene.makeRenderer(), device, scene.isovalue, 1000.0, options);
-    thread.setRecorder(&writer);
-    thread.start();
-    const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(30);
-    while (!device->finished() && std::chrono::steady_clock::now() < deadline)
-      std::this_thread::sleep_for(std::chrono::milliseconds(10));
-    thread.stop();
-  }
-  writer.close();
-  const Recording rec = readRecording(path);
+  const Recording rec = recordScript(scene, device, scene.makeRenderer(), test::scratchDir() / "unplugged.vhrec");
   ASSERT_GE(rec.records.size(), 600u);
   for (std::size_t i = 0; i < 400; ++i) {
     const bool unplugged = i + 1 >= 200 && i + 1 < 300;
@@ -321,23 +327,10 @@ TEST(RecordingReplay, ATickTheDeadlineCutIsFlaggedAndTheReplayNamesIt) {
   };
   auto device = std::make_shared<ScriptedDevice>(Trajectory({at(0.0, 0.0, 0.030), at(0.3, 0.0, 0.023), at(0.6, 0.004, 0.023)}),
                                                  1e-3, "deadline");
-  const fs::path path = test::scratchDir() / "deadline-cut.vhrec";
-  RecordingWriter writer(path, makeSessionMetadata(scene, {device->name(), "scripted", {}}));
-  {
-    HapticThreadOptions options;
-    options.max_solver_backlog_s = 10.0;  // every sample reaches the solver (see the unplug test)
-    haptics::RendererOptions renderer_options;
-    renderer_options.deadline_us = 1e-3;
-    HapticThread thread(scene.makeRenderer(renderer_options), device, scene.isovalue, 1000.0, options);
-    thread.setRecorder(&writer);
-    thread.start();
-    const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(30);
-    while (!device->finished() && std::chrono::steady_clock::now() < deadline)
-      std::this_thread::sleep_for(std::chrono::milliseconds(10));
-    thread.stop();
-  }
-  writer.close();
-  const Recording rec = readRecording(path);
+  haptics::RendererOptions renderer_options;
+  renderer_options.deadline_us = 1e-3;
+  const Recording rec =
+      recordScript(scene, device, scene.makeRenderer(renderer_options), test::scratchDir() / "deadline-cut.vhrec");
   ASSERT_GE(rec.records.size(), 600u);
   std::size_t cut = 0;
   for (const TickRecord& r : rec.records) cut += (r.flags & kRecordFlagDeadlineCut) != 0 ? 1 : 0;
