@@ -336,6 +336,7 @@ void CollisionDetector::runEdgeLane(Lane& lane) noexcept {
 bool CollisionDetector::edgesCrossAt(const Pose& X_WP, double isovalue) noexcept {
   edge_cut_ = false;
   if (edges_.size() == 0) return false;
+  prepareTreeStop(isovalue);
   if (!(isovalue == edge_clearance_isovalue_)) {  // certificates hold for their isovalue only
     for (auto& proven : edge_clearance_) proven.clearance_m = -1.0;
     edge_clearance_isovalue_ = isovalue;
@@ -429,8 +430,11 @@ bool CollisionDetector::ballMayBeInside(WorkCounters& k, const Eigen::Vector3d& 
   const Eigen::Vector3d half = (radius_m * grid_per_m_).array() + 1e-6;
   int nodes_read = 0;
   double without_arc = 0.0, arc = 0.0;
-  bool may_be_inside =
-      volume_->upperBoundInBox(g - half, g + half, &nodes_read, arc_sagitta_m, &without_arc, &arc) > isovalue;
+  // The tree stops reading at the first node above the isovalue (the box itself may then hold
+  // the surface: only the arc term is left unknown, 0 here, and computed below where needed).
+  bool may_be_inside = volume_->upperBoundInBox(g - half, g + half, &nodes_read, arc_sagitta_m, &without_arc, &arc,
+                                                isovalue == stop_isovalue_ ? tree_stop_ : MinMaxTree::RawStop{}) > isovalue;
+  const bool arc_unknown = arc_sagitta_m > 0.0 && without_arc > isovalue;
   k.tree_nodes += nodes_read;
   // Only the bubble's term lifted it over the isovalue: the dilated box may still prove it empty
   // (a voxel of the box itself above the isovalue decides it at once).
@@ -451,6 +455,11 @@ bool CollisionDetector::ballMayBeInside(WorkCounters& k, const Eigen::Vector3d& 
     if (voxels > 0) {
       ++k.voxel_queries;
       k.voxels += voxels;
+      if (arc_unknown && own <= isovalue) {  // the arc term decides: the whole tree query
+        ++k.box_queries;
+        volume_->upperBoundInBox(g - half, g + half, &nodes_read, arc_sagitta_m, nullptr, &arc);
+        k.tree_nodes += nodes_read;
+      }
       may_be_inside = own + arc > isovalue;
       if (may_be_inside && arc_sagitta_m > 0.0 && own <= isovalue) {
         ++k.voxel_queries;
@@ -563,7 +572,9 @@ void CollisionDetector::setupPath(WorkCounters& k, const RigidMotion& motion, in
     pt_[j].sagitta = sagitta_of_one / (segments * segments) * (1.0 + 1e-9);
   }
   pt_[j].dt = 1.0 / segments;
-  if (mode_ == DetectionMode::kAccelerated) pt_[j].segments = static_cast<std::int64_t>(segments);
+  // (A path longer than 2^30 segments is some 130 km at the finest feature size: the input
+  // gate stops a device far sooner; capped only so that the conversion stays defined.)
+  if (mode_ == DetectionMode::kAccelerated) pt_[j].segments = static_cast<std::int32_t>(std::min(segments, 0x1p30));
 }
 
 void CollisionDetector::startPoint(WorkCounters& k, const RigidMotion& motion, int j) noexcept {
@@ -607,6 +618,7 @@ double CollisionDetector::stepSegment(WorkCounters& k, const RigidMotion& motion
                                                             bisection_tolerance_ / (pt_[j].path * span), reach, pt_[j].sagitta);
     k.cells += entry.cells;
     k.cells_walked += entry.cells_walked;
+    if (entry.cells > 0) pt_[j].near_surface = 1;
     if (!entry.hit) return t_end;
     lo = entry.u_outside >= 1.0 ? t_end : t_begin + entry.u_outside * span;
     hi = entry.u_inside >= 1.0 ? t_end : t_begin + entry.u_inside * span;
@@ -717,6 +729,16 @@ std::size_t CollisionDetector::collectActive(Lane& lane, const RigidMotion& moti
       if (started_[j] == sweep_stamp_) continue;  // a contact point: started (and queued) already
       startPoint(k, motion, j);
       if (!queue || embedded_[j] || !(pt_[j].path > 0.0)) continue;
+      // A point whose walk met the surface last sweep (near_surface) is walked at once: its
+      // first segment directly, then run tests. Only a cull is skipped, so the first time of
+      // contact is the same; this sweep's walks decide the flag again.
+      const bool near = pt_[j].near_surface != 0;
+      pt_[j].near_surface = 0;
+      if (near) {
+        startSearch(j);
+        heap[count++] = {0.0, j, 0, pt_[j].segments == 1 ? 0 : -1};
+        continue;
+      }
       // The path over [0, t_max] first: its own ball culls the point at once (on the Engine
       // wrench 62 % of the points with several segments, which otherwise cost about two run
       // tests and two heap steps each).
@@ -802,6 +824,7 @@ SweepResult CollisionDetector::sweepAccelerated(const RigidMotion& motion, doubl
   pending_.active = false;
   active_complete_ = true;
   if (motion.isStill()) return {};
+  prepareTreeStop(isovalue);
   if (++sweep_stamp_ == 0) {  // wrapped: forget every old stamp
     std::fill(started_.begin(), started_.end(), 0u);
     sweep_stamp_ = 1;

@@ -185,6 +185,68 @@ TEST(MinMaxTree, NegativeValueScaleBoundsWithTheRawMinimum) {
   }
 }
 
+// The early stop (ScalarVolume::rawStopAbove(), MinMaxTree::RawStop): a query that may stop at
+// the first node above a value answers "may the box hold F > value?" as the whole query does, on
+// every voxel type and both signs of the value scale, with values taken at the voxels' own F
+// (the rounding edge: a box whose largest voxel equals the value must not hold it) and between;
+// the brute-force largest F over the box's cells' corners above the value always gets yes; and
+// the stop does end queries early (fewer nodes read).
+template <typename T>
+void checkStoppedQuery(std::uint32_t seed, double scale) {
+  std::mt19937 rng(seed);
+  std::uniform_int_distribution<int> dim(6, 48);
+  std::uniform_real_distribution<double> u(0.0, 1.0);
+  int stopped = 0, yes = 0, no = 0;
+  for (int volume = 0; volume < 12; ++volume) {
+    const std::array<int, 3> dims{dim(rng), dim(rng), dim(rng)};
+    const ScalarVolume vol = randomVolume<T>(rng, dims, scale);
+    const Eigen::Vector3d upper(dims[0] - 1, dims[1] - 1, dims[2] - 1);
+    for (int box = 0; box < 150; ++box) {
+      Eigen::Vector3d lo, hi;
+      for (int a = 0; a < 3; ++a) {
+        const double c = (1.2 * u(rng) - 0.1) * upper[a], w = (box % 2 == 0 ? 2.0 : 0.5 * upper[a]) * u(rng);
+        lo[a] = c - w;
+        hi[a] = c + w;
+      }
+      // The value: F at a random voxel, exactly, or just above or below it.
+      const int x = static_cast<int>(u(rng) * dims[0]) % dims[0], y = static_cast<int>(u(rng) * dims[1]) % dims[1],
+                z = static_cast<int>(u(rng) * dims[2]) % dims[2];
+      double value = vol.voxel(x, y, z);
+      if (box % 3 == 1) value = std::nextafter(value, std::numeric_limits<double>::infinity());
+      if (box % 3 == 2) value -= 0.25 * std::abs(scale);
+      const MinMaxTree::RawStop stop = vol.rawStopAbove(value);
+      int read_whole = 0, read_stopped = 0;
+      const bool whole = vol.upperBoundInBox(lo, hi, &read_whole) > value;
+      const bool early = vol.upperBoundInBox(lo, hi, &read_stopped, 0.0, nullptr, nullptr, stop) > value;
+      ASSERT_EQ(early, whole) << "volume " << volume << " box " << box << " value " << value;
+      ASSERT_LE(read_stopped, read_whole);
+      if (read_stopped < read_whole) ++stopped;
+      (whole ? yes : no) += 1;
+      // Brute force: the largest F over the corners of the cells the box's samples use.
+      const bool meets = (hi.array() >= 0.0).all() && (lo.array() <= upper.array()).all();
+      if (!meets) continue;
+      double corner_max = -std::numeric_limits<double>::infinity();
+      int v0[3], v1[3];
+      for (int a = 0; a < 3; ++a) {
+        v0[a] = std::min(static_cast<int>(std::clamp(lo[a], 0.0, upper[a])), dims[a] - 2);
+        v1[a] = std::min(static_cast<int>(std::clamp(hi[a], 0.0, upper[a])), dims[a] - 2) + 1;
+      }
+      for (int k = v0[2]; k <= v1[2]; ++k)
+        for (int j = v0[1]; j <= v1[1]; ++j)
+          for (int i = v0[0]; i <= v1[0]; ++i) corner_max = std::max(corner_max, vol.voxel(i, j, k));
+      if (corner_max > value) ASSERT_TRUE(early) << "volume " << volume << " box " << box;
+    }
+  }
+  EXPECT_GT(stopped, 100) << "the stop never ended a query early";
+  EXPECT_GT(yes, 100);
+  EXPECT_GT(no, 100);
+}
+
+TEST(MinMaxTree, AStoppedQueryAnswersAsTheWholeQueryUInt8) { checkStoppedQuery<std::uint8_t>(21, 1.0); }
+TEST(MinMaxTree, AStoppedQueryAnswersAsTheWholeQueryInt16) { checkStoppedQuery<std::int16_t>(22, 0.75); }
+TEST(MinMaxTree, AStoppedQueryAnswersAsTheWholeQueryUInt16NegativeScale) { checkStoppedQuery<std::uint16_t>(23, -0.5); }
+TEST(MinMaxTree, AStoppedQueryAnswersAsTheWholeQueryFloat32) { checkStoppedQuery<float>(24, 1.0); }
+
 // The voxel-level bound (ScalarVolume::voxelUpperBoundInBox) against brute force: it contains
 // every trilinear sample of the box (dense random samples and the box's corners), it is no
 // higher than the largest voxel within one voxel of the box (the voxels a sample there can

@@ -533,7 +533,12 @@ class CollisionDetector {
     double path = 0.0;              // path-length bound
     double sagitta = 0.0;           // its chords' sagitta [m] (kExact with rotation, else 0)
     double clear_until = 0.0;       // kAccelerated: proven outside over [0, clear_until] of the last sweep
-    std::int64_t segments = 0;      // kAccelerated: segment count of the last sweep
+    std::int32_t segments = 0;      // kAccelerated: segment count of the last sweep
+    // kAccelerated: the last sweep's exact walk of this point examined a cell (a cell with a
+    // corner above the threshold: the surface is within a voxel of its path). The next sweep
+    // then walks it without first asking the min-max tree about its path's ball, which near the
+    // surface only says "may hit" (a point resting on the surface, or sliding along it).
+    std::uint8_t near_surface = 0;
   };
   static_assert(sizeof(PointState) == 64, "one cache line per point");
   std::vector<PointState> pt_;
@@ -551,6 +556,15 @@ class CollisionDetector {
   // the lanes run, read by them).
   std::vector<std::uint32_t> started_;
   std::uint32_t chord_stamp_ = 0;
+  // ballMayBeInside()'s early stop in the min-max tree (ScalarVolume::rawStopAbove()) for
+  // stop_isovalue_: set by the caller's thread before the lanes fork (prepareTreeStop()).
+  double stop_isovalue_ = std::numeric_limits<double>::quiet_NaN();
+  MinMaxTree::RawStop tree_stop_{};
+  void prepareTreeStop(double isovalue) noexcept {
+    if (isovalue == stop_isovalue_) return;
+    stop_isovalue_ = isovalue;
+    tree_stop_ = volume_->rawStopAbove(isovalue);
+  }
   std::vector<QueueEntry> heap_;         // kPaper's queue, capacity = number of points
   // kAccelerated state (see haptics/README.md, "Speed").
   std::vector<ShellNode> nodes_;         // point-shell tree, root at 0

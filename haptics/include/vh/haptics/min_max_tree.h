@@ -45,7 +45,25 @@ class MinMaxTree {
   /// @return false when the box does not meet the grid (no sample there is in bounds); the
   ///         whole volume's range when a coordinate is not finite.
   bool rawRange(const Eigen::Vector3d& lo_ijk, const Eigen::Vector3d& hi_ijk, float& raw_min,
-                float& raw_max, int* nodes_read = nullptr, float* lipschitz_max = nullptr) const noexcept;
+                float& raw_max, int* nodes_read = nullptr, float* lipschitz_max = nullptr) const noexcept {
+    return rawRange(lo_ijk, hi_ijk, raw_min, raw_max, nodes_read, lipschitz_max, RawStop{});
+  }
+
+  /// Where a query may stop reading: a caller that only asks whether the box's raw maximum
+  /// reaches `raw` (above) or its minimum falls to it (!above) needs no further node once one
+  /// does. Off by default (raw = NaN).
+  struct RawStop {
+    float raw = std::numeric_limits<float>::quiet_NaN();
+    bool above = true;
+  };
+  /// rawRange() that stops at the first node whose maximum is >= stop.raw (stop.above) or whose
+  /// minimum is <= stop.raw (!stop.above). Stopped, it returns true with the range of the nodes
+  /// read so far in raw_min and raw_max (so raw_max >= stop.raw, or raw_min <= stop.raw),
+  /// nodes_read counting them, and lipschitz_max not computed (0); not stopped, the same as
+  /// rawRange(). The caller's question ("does the box reach the threshold?") has the same answer
+  /// either way.
+  bool rawRange(const Eigen::Vector3d& lo_ijk, const Eigen::Vector3d& hi_ijk, float& raw_min, float& raw_max,
+                int* nodes_read, float* lipschitz_max, RawStop stop) const noexcept;
 
   /// Stores a local Lipschitz bound per level-0 brick (data units per metre, one float per
   /// brick, a fastest: `nodes(0)` of them) and the maximum over each node of the upper levels.
@@ -93,7 +111,7 @@ class MinMaxTree {
   // rawRange() for a box that spans several level-0 bricks (out of line: the rare case).
   // Returns the number of nodes read.
   int rawRangeSpread(const int* b0, const int* b1, int spread, float& raw_min, float& raw_max,
-                     float* lipschitz_max) const noexcept;
+                     float* lipschitz_max, RawStop stop) const noexcept;
 
   std::array<int, 3> dims_{0, 0, 0};
   std::vector<Level> levels_;
@@ -109,7 +127,7 @@ inline void MinMaxTree::node(int level, int a, int b, int c, float& raw_min, flo
 }
 
 inline bool MinMaxTree::rawRange(const Eigen::Vector3d& lo_ijk, const Eigen::Vector3d& hi_ijk, float& raw_min,
-                                 float& raw_max, int* nodes_read, float* lipschitz_max) const noexcept {
+                                 float& raw_max, int* nodes_read, float* lipschitz_max, RawStop stop) const noexcept {
   if (nodes_read != nullptr) *nodes_read = 0;
   if (lipschitz_max != nullptr) *lipschitz_max = 0.0f;
   if (levels_.empty()) return false;
@@ -136,7 +154,7 @@ inline bool MinMaxTree::rawRange(const Eigen::Vector3d& lo_ijk, const Eigen::Vec
     if (lipschitz_max != nullptr) *lipschitz_max = brickLipschitz(b0[0] * kBrickCells, b0[1] * kBrickCells, b0[2] * kBrickCells);
     return true;
   }
-  const int read = rawRangeSpread(b0, b1, spread, raw_min, raw_max, lipschitz_max);
+  const int read = rawRangeSpread(b0, b1, spread, raw_min, raw_max, lipschitz_max, stop);
   if (nodes_read != nullptr) *nodes_read = read;
   return true;
 }

@@ -215,9 +215,18 @@ class ScalarVolume {
   /// @param without_arc when set, receives the bound of the box itself (the same without the
   ///        arc_sagitta_m term), from the same nodes.
   /// @param arc_term when set, receives the arc_sagitta_m term alone (what was added to it).
+  /// @param stop where the tree may stop reading (rawStopAbove(v) for a caller that asks "may the
+  ///        box hold F > v?"): once the bound of the box itself is known to exceed v, the result
+  ///        and without_arc are a smaller bound that still exceeds v, and the arc term is 0. The
+  ///        answer to "result > v" is the same as without it. None by default.
   double upperBoundInBox(const Eigen::Vector3d& lo_ijk, const Eigen::Vector3d& hi_ijk,
                          int* nodes_read = nullptr, double arc_sagitta_m = 0.0,
-                         double* without_arc = nullptr, double* arc_term = nullptr) const noexcept;
+                         double* without_arc = nullptr, double* arc_term = nullptr,
+                         MinMaxTree::RawStop stop = {}) const noexcept;
+  /// The tree's stop for upperBoundInBox() callers that ask whether F may exceed `value` (a
+  /// raw value every node reaching which bounds its box above `value`); none (NaN) when
+  /// `value` is not finite. Computed once per isovalue by its callers (a few divisions).
+  MinMaxTree::RawStop rawStopAbove(double value) const noexcept;
 
   /// Upper bound of F over the closed box [lo_ijk, hi_ijk] (grid coordinates) from the voxels
   /// themselves: the largest corner of every cell that trilinear interpolation uses for a point of
@@ -258,6 +267,9 @@ class ScalarVolume {
   Eigen::Vector3d boundsMax_W_m() const noexcept;
 
  private:
+  // The bound on F of a tree range (upperBoundInBox()'s rounding).
+  double rawBound(float raw_min, float raw_max) const noexcept;
+
   void initialise();  // validates and caches derived data
   template <typename T>
   double trilinear(const Eigen::Vector3d& ijk) const noexcept;

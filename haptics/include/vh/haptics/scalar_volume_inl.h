@@ -65,22 +65,44 @@ inline bool ScalarVolume::isInside(const Eigen::Vector3d& p_W_m, double isovalue
   return gridInBounds(g) && sampleGrid(g) > isovalue;
 }
 
-inline double ScalarVolume::upperBoundInBox(const Eigen::Vector3d& lo_ijk, const Eigen::Vector3d& hi_ijk,
-                                            int* nodes_read, double arc_sagitta_m, double* without_arc,
-                                            double* arc_term) const noexcept {
-  float raw_min = 0.0f, raw_max = 0.0f, lipschitz = 0.0f;
-  if (arc_term != nullptr) *arc_term = 0.0;
-  if (!tree_.rawRange(lo_ijk, hi_ijk, raw_min, raw_max, nodes_read, arc_sagitta_m > 0.0 ? &lipschitz : nullptr)) {
-    if (without_arc != nullptr) *without_arc = -std::numeric_limits<double>::infinity();
-    return -std::numeric_limits<double>::infinity();
-  }
+inline double ScalarVolume::rawBound(float raw_min, float raw_max) const noexcept {
   // trilinear() lerps in double: a + f (b - a) with f in [0, 1] stays within [a, b] when b - a
   // is exact, which it is for the integer types; for float32 corners of very different
   // magnitude it may not be, so widen by a few units in the last place. F = scale raw + offset
   // is monotone in raw under rounding.
   double raw = scale_ > 0.0 ? static_cast<double>(raw_max) : static_cast<double>(raw_min);
   if (type_ == VoxelType::kFloat32) raw += (scale_ > 0.0 ? 1.0 : -1.0) * std::abs(raw) * 0x1p-40;
-  const double bound = scale_ * raw + offset_;
+  return scale_ * raw + offset_;
+}
+
+inline MinMaxTree::RawStop ScalarVolume::rawStopAbove(double value) const noexcept {
+  // A raw value r whose bound rawBound(r, r) exceeds `value`; the bound is monotone in the raw
+  // value (non-decreasing for scale > 0, non-increasing for scale < 0), so every node reaching r
+  // bounds the box above `value` too. None (NaN) when no float is found within a few steps.
+  MinMaxTree::RawStop stop;
+  stop.above = scale_ > 0.0;
+  if (!std::isfinite(value)) return stop;
+  float r = static_cast<float>((value - offset_) / scale_);
+  const float towards = stop.above ? std::numeric_limits<float>::infinity() : -std::numeric_limits<float>::infinity();
+  for (int i = 0; i < 4 && std::isfinite(r); ++i, r = std::nextafter(r, towards))
+    if (rawBound(r, r) > value) {
+      stop.raw = r;
+      break;
+    }
+  return stop;
+}
+
+inline double ScalarVolume::upperBoundInBox(const Eigen::Vector3d& lo_ijk, const Eigen::Vector3d& hi_ijk,
+                                            int* nodes_read, double arc_sagitta_m, double* without_arc,
+                                            double* arc_term, MinMaxTree::RawStop stop) const noexcept {
+  float raw_min = 0.0f, raw_max = 0.0f, lipschitz = 0.0f;
+  if (arc_term != nullptr) *arc_term = 0.0;
+  if (!tree_.rawRange(lo_ijk, hi_ijk, raw_min, raw_max, nodes_read, arc_sagitta_m > 0.0 ? &lipschitz : nullptr,
+                      stop)) {
+    if (without_arc != nullptr) *without_arc = -std::numeric_limits<double>::infinity();
+    return -std::numeric_limits<double>::infinity();
+  }
+  const double bound = rawBound(raw_min, raw_max);
   if (without_arc != nullptr) *without_arc = bound;
   const double arc = static_cast<double>(lipschitz) * arc_sagitta_m;
   if (arc_term != nullptr) *arc_term = arc;
