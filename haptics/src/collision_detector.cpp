@@ -558,8 +558,12 @@ void CollisionDetector::setupPath(WorkCounters& k, const RigidMotion& motion, in
   const double rho = motion.radiusAboutAxis(pt_[j].r0);
   pt_[j].path = motion.speed_m() + angle * rho;  // = pathLengthBound(r0), rho computed once
   if (embedded_[j] || !(pt_[j].path > 0.0)) return;
-  // ceil(s / f) equal time segments, none longer than the feature size (section 2.3).
-  double segments = std::max(1.0, std::ceil(pt_[j].path / segment_length_m_));
+  // ceil(s / f) equal time segments, none longer than the feature size (section 2.3). At most
+  // 2^30 (a path of tens of kilometres at the finest feature size, or not finite: the input
+  // gate stops a device far sooner), so that the count converts to an integer; dt and the
+  // chords' sagitta below are those of the count used.
+  constexpr double kMaxSegments = 0x1p30;
+  double segments = std::min(kMaxSegments, std::max(1.0, std::ceil(pt_[j].path / segment_length_m_)));
   pt_[j].sagitta = 0.0;
   if (max_sagitta_ > 0.0 && rho > 0.0) {
     // Chords of the rotation: sagitta delta = rho (angle / segments)^2 / 8 <= max_sagitta_. At
@@ -568,13 +572,11 @@ void CollisionDetector::setupPath(WorkCounters& k, const RigidMotion& motion, in
     // keeps the arc at F <= s (L = the local Lipschitz bound, ScalarVolume::localLipschitzBound()).
     const double sagitta_of_one = rho * angle * angle / 8.0;  // one chord over the whole arc
     if (sagitta_of_one > max_sagitta_ * segments * segments)
-      segments = std::ceil(angle * std::sqrt(rho / (8.0 * max_sagitta_)));
+      segments = std::min(kMaxSegments, std::ceil(angle * std::sqrt(rho / (8.0 * max_sagitta_))));
     pt_[j].sagitta = sagitta_of_one / (segments * segments) * (1.0 + 1e-9);
   }
   pt_[j].dt = 1.0 / segments;
-  // (A path longer than 2^30 segments is some 130 km at the finest feature size: the input
-  // gate stops a device far sooner; capped only so that the conversion stays defined.)
-  if (mode_ == DetectionMode::kAccelerated) pt_[j].segments = static_cast<std::int32_t>(std::min(segments, 0x1p30));
+  if (mode_ == DetectionMode::kAccelerated) pt_[j].segments = static_cast<std::int32_t>(segments);
 }
 
 void CollisionDetector::startPoint(WorkCounters& k, const RigidMotion& motion, int j) noexcept {
