@@ -434,7 +434,9 @@ bool CollisionDetector::ballMayBeInside(WorkCounters& k, const Eigen::Vector3d& 
   // the surface: only the arc term is left unknown, 0 here, and computed below where needed).
   bool may_be_inside = volume_->upperBoundInBox(g - half, g + half, &nodes_read, arc_sagitta_m, &without_arc, &arc,
                                                 isovalue == stop_isovalue_ ? tree_stop_ : MinMaxTree::RawStop{}) > isovalue;
-  const bool arc_unknown = arc_sagitta_m > 0.0 && without_arc > isovalue;
+  // Stopped, the tree leaves the arc term at 0: a non-zero one is the whole query's already
+  // (always so for a box within one brick, which the tree reads whole).
+  const bool arc_unknown = arc_sagitta_m > 0.0 && without_arc > isovalue && arc == 0.0;
   k.tree_nodes += nodes_read;
   // Only the bubble's term lifted it over the isovalue: the dilated box may still prove it empty
   // (a voxel of the box itself above the isovalue decides it at once).
