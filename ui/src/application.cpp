@@ -140,8 +140,9 @@ int runApplication(int argc, char** argv, const runtime::SceneSpec& scene, const
       }
       window->viewController()->refresh(/*update_status_now=*/true);
       window->sceneView()->renderStill(/*best_quality=*/true);
-      // QWidget::grab() renders the GL view (paintGL) and composites it with the widgets.
-      const QImage shot = window->grab().toImage();
+      // The widgets, with the view's frame rendered into its place (QWidget::grab() alone
+      // leaves the view's native window blank).
+      const QImage shot = grabWithView(*window, *window->sceneView()->widget());
       const QRect view_rect(window->sceneView()->widget()->mapTo(window.get(), QPoint(0, 0)), window->sceneView()->widget()->size());
       const double bright = brightFraction(shot.copy(view_rect));
       if (bright < 0.005) {

@@ -387,8 +387,9 @@ void MainWindow::buildMenus() {
 bool MainWindow::saveScreenshot(const QString& path) {
   view_controller_->refresh(/*update_status_now=*/true);
   view_->renderStill(/*best_quality=*/true);
-  // QWidget::grab() renders the GL view (paintGL) and composites it with the widgets.
-  return grab().toImage().save(path, "PNG");
+  // The widgets, with the view's frame rendered into its place (QWidget::grab() alone leaves the
+  // view's native window blank).
+  return grabWithView(*this, *view_->widget()).save(path, "PNG");
 }
 
 void MainWindow::saveSettings() const {

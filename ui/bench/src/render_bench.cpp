@@ -200,7 +200,7 @@ struct Bench {
     const Eigen::Vector3d down_W = view->shadowDirection_W();
     view->showShadow(castToolShadow(*felt, carved, felt_isovalue, f.X_WP, shadow_samples_T_m, down_W), down_W);
     shadow_ms.push_back(msSince(shadow_t0) + carve_ms);
-    view->widget()->repaint();
+    view->widget()->renderNow();
     paint_ms.push_back(view->widget()->lastFrameMs());
     QCoreApplication::processEvents();
     return msSince(t0);
@@ -331,7 +331,10 @@ fs::path runRenderBench(const RenderBenchOptions& o) {
     b.view->setSegments(live.segments.get());
     b.resizeView(o.sizes.front()[0], o.sizes.front()[1]);
     b.window.show();
-    b.view->widget()->repaint();  // shaders, the volume's upload
+    // The view's first frame comes when its window is exposed: shaders, the volume's upload.
+    for (const auto shown = Clock::now(); b.view->widget()->frameCount() == 0 && msSince(shown) < 10000.0;)
+      QCoreApplication::processEvents(QEventLoop::AllEvents, 5);
+    if (b.view->widget()->frameCount() == 0) throw std::runtime_error("bench render: the view was never shown");
     gl = glInfo(*b.view->widget());
     std::cout << "bench render: " << gl.renderer << " (OpenGL " << gl.version << ", 3-D textures up to "
               << gl.max_3d_texture << ")" << std::endl;
@@ -345,11 +348,11 @@ fs::path runRenderBench(const RenderBenchOptions& o) {
         b.view->setRenderMode(mode, look.preset);
         b.view->resetCamera();
         auto t0 = Clock::now();
-        b.view->widget()->repaint();  // a new mode compiles its shader
+        b.view->widget()->renderNow();  // a new mode compiles its shader
         const double first_ms = msSince(t0);
         if (drilling) {  // the burr switched on: the picture's copy for the cavity, uploaded once
           b.view->actors().prepareRemoval();
-          b.view->widget()->repaint();
+          b.view->widget()->renderNow();
         }
         thread->setDrilling(drilling);
         const std::uint64_t partial0 = b.view->actors().partialUploads(), full0 = b.view->actors().fullUploads();
@@ -372,7 +375,7 @@ fs::path runRenderBench(const RenderBenchOptions& o) {
         // Painted until the view has drawn a new frame (a repaint that draws nothing does not count).
         const std::uint64_t frames_before_still = b.view->widget()->frameCount();
         t0 = Clock::now();
-        b.view->widget()->repaint();
+        b.view->widget()->renderNow();
         while (b.view->widget()->frameCount() == frames_before_still && msSince(t0) < 30000.0) {
           QCoreApplication::processEvents(QEventLoop::AllEvents, 5);
         }
@@ -391,7 +394,7 @@ fs::path runRenderBench(const RenderBenchOptions& o) {
         row["frame_ms_max"] = s.max;
         // VtkView paints per frame: 1 when each frame is painted once (no queued repaint on top).
         row["paints_per_frame"] = static_cast<double>(b.view->widget()->frameCount() - paints0) / static_cast<double>(frames.size());
-        row["paint_ms_mean"] = summarize(paint_ms).mean;  // VTK's render and the blit (paintGL), without Qt's compose
+        row["paint_ms_mean"] = summarize(paint_ms).mean;  // VTK's render and the blit, without the swap
         const Stats shadow = summarize(shadow_ms);  // the tool's shadow cast (inside frame_ms)
         row["shadow_ms_mean"] = shadow.mean;
         row["shadow_ms_max"] = shadow.max;

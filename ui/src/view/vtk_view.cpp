@@ -6,11 +6,18 @@
 
 #include <chrono>
 
+#include <QCoreApplication>
 #include <QEnterEvent>
+#include <QExposeEvent>
 #include <QMouseEvent>
 #include <QOpenGLContext>
 #include <QOpenGLExtraFunctions>
+#include <QPainter>
+#include <QResizeEvent>
+#include <QSurfaceFormat>
+#include <QVBoxLayout>
 #include <QWheelEvent>
+#include <QWindow>
 
 #include <vtkCommand.h>
 #include <vtkGenericOpenGLRenderWindow.h>
@@ -22,22 +29,78 @@
 
 namespace vh::ui {
 
-VtkView::VtkView(QWidget* parent) : QOpenGLWidget(parent) {
+/// The native OpenGL window VTK's frames are swapped into. It never takes the keyboard focus;
+/// its input goes on to the widget that hosts it.
+class VtkView::Surface : public QWindow {
+ public:
+  explicit Surface(VtkView* host) : host_(host) {
+    setSurfaceType(QWindow::OpenGLSurface);
+    QSurfaceFormat format = QSurfaceFormat::defaultFormat();
+    format.setAlphaBufferSize(0);  // an opaque window: nothing shows through where VTK drew alpha < 1
+    setFormat(format);
+    setFlag(Qt::WindowDoesNotAcceptFocus, true);
+  }
+
+ protected:
+  bool event(QEvent* event) override {
+    switch (event->type()) {
+      case QEvent::UpdateRequest:
+        host_->renderNow();
+        return true;
+      case QEvent::MouseButtonPress:
+      case QEvent::MouseButtonDblClick:
+        host_->setFocus(Qt::MouseFocusReason);
+        [[fallthrough]];
+      case QEvent::MouseButtonRelease:
+      case QEvent::Wheel:
+      case QEvent::Enter:
+      case QEvent::Leave:
+      case QEvent::KeyPress:
+      case QEvent::KeyRelease:
+        QCoreApplication::sendEvent(host_, event);
+        return true;
+      case QEvent::MouseMove:
+        // The X server reports every motion over a native window; a widget without mouse
+        // tracking sees moves only while a button is held.
+        if (host_->hasMouseTracking() || static_cast<QMouseEvent*>(event)->buttons() != Qt::NoButton)
+          QCoreApplication::sendEvent(host_, event);
+        return true;
+      default:
+        return QWindow::event(event);
+    }
+  }
+  void exposeEvent(QExposeEvent* /*event*/) override {
+    if (isExposed()) host_->renderNow();
+  }
+  void resizeEvent(QResizeEvent* /*event*/) override { host_->surfaceResized(); }
+
+ private:
+  VtkView* host_;
+};
+
+VtkView::VtkView(QWidget* parent) : QWidget(parent) {
   setFocusPolicy(Qt::StrongFocus);
   setMouseTracking(false);
   setMinimumSize(160, 120);
 
-  // VTK renders into its own framebuffer in Qt's context; paintGL() blits it.
+  surface_ = new Surface(this);
+  QWidget* container = QWidget::createWindowContainer(surface_, this);
+  container->setFocusPolicy(Qt::NoFocus);
+  auto* layout = new QVBoxLayout(this);
+  layout->setContentsMargins(0, 0, 0, 0);
+  layout->addWidget(container);
+
+  // VTK renders into its own framebuffer in the view's context; renderFrame() blits it.
   render_window_->SetOwnContext(false);
   render_window_->SetFrameBlitModeToNoBlit();
-  render_window_->SetReadyForRendering(false);  // until initializeGL()
+  render_window_->SetReadyForRendering(false);  // until the context exists
   render_window_->SetMultiSamples(0);
   render_window_->SetForceMaximumHardwareLineWidth(1);
   render_window_->AddRenderer(renderer_);
 
   interactor_->SetRenderWindow(render_window_);
   interactor_->SetInteractorStyle(style_);
-  interactor_->EnableRenderOff();  // its render requests become update() (RenderEvent below)
+  interactor_->EnableRenderOff();  // its render requests become requestUpdate() (RenderEvent below)
   interactor_->Initialize();       // enables it; never Start(): Qt runs the event loop
 
   observer_ids_[0] = render_window_->AddObserver(vtkCommand::WindowMakeCurrentEvent, this,
@@ -57,12 +120,10 @@ VtkView::VtkView(QWidget* parent) : QOpenGLWidget(parent) {
 VtkView::~VtkView() {
   // Release GL resources while the context still exists, then detach the observers: the render
   // window may outlive this widget when someone else holds a reference to it.
-  if (context() != nullptr) {
-    // ~QOpenGLWidget destroys the context later and would call back into this half-destroyed
-    // object: disconnect first.
-    disconnect(context(), nullptr, this, nullptr);
+  if (context_ != nullptr) {
     makeCurrent();
-    releaseGraphics();
+    render_window_->Finalize();
+    render_window_->SetReadyForRendering(false);
     doneCurrent();
   }
   render_window_->RemoveObserver(observer_ids_[0]);
@@ -76,78 +137,68 @@ VtkView::~VtkView() {
 vtkGenericOpenGLRenderWindow* VtkView::renderWindow() const noexcept { return render_window_; }
 vtkRenderer* VtkView::renderer() const noexcept { return renderer_; }
 vtkGenericRenderWindowInteractor* VtkView::interactor() const noexcept { return interactor_; }
+QOpenGLContext* VtkView::context() const noexcept { return context_.get(); }
+QWindow* VtkView::nativeWindow() const noexcept { return surface_; }
 
-void VtkView::requestRender() { update(); }
+void VtkView::requestRender() { surface_->requestUpdate(); }
 
-QImage VtkView::grabFrame() {
-  // grabFramebuffer() calls paintGL() into a fresh framebuffer and reads it back.
-  return grabFramebuffer();
+bool VtkView::makeCurrent() {
+  return context_ != nullptr && surface_->handle() != nullptr && context_->makeCurrent(surface_);
 }
 
-void VtkView::initializeGL() {
-  // A new context (first show, or after re-parenting): VTK must know it.
-  connect(context(), &QOpenGLContext::aboutToBeDestroyed, this,
-          &VtkView::onContextAboutToBeDestroyed, Qt::UniqueConnection);
-  render_window_->SetReadyForRendering(true);
-  render_window_->OpenGLInitContext();
-  const qreal dpr = devicePixelRatioF();
-  interactor_->UpdateSize(static_cast<int>(width() * dpr), static_cast<int>(height() * dpr));
+void VtkView::doneCurrent() {
+  if (context_ != nullptr) context_->doneCurrent();
 }
 
-void VtkView::onContextAboutToBeDestroyed() {
-  // Re-parenting (or destruction) replaces the context: free VTK's GL objects in the old one,
-  // or the view stays blank afterwards.
-  makeCurrent();
-  releaseGraphics();
-  doneCurrent();
-}
-
-void VtkView::releaseGraphics() {
-  render_window_->Finalize();
-  render_window_->SetReadyForRendering(false);
-}
-
-void VtkView::resizeGL(int w, int h) {
-  const qreal dpr = devicePixelRatioF();
-  interactor_->UpdateSize(static_cast<int>(w * dpr), static_cast<int>(h * dpr));
-}
-
-void VtkView::paintGL() {
-  if (in_paint_) {
-    return;
+bool VtkView::prepareContext() {
+  if (surface_->handle() == nullptr) return false;  // not shown yet: no native window
+  if (context_ == nullptr) {
+    auto context = std::make_unique<QOpenGLContext>();
+    context->setFormat(surface_->requestedFormat());
+    if (!context->create()) return false;
+    context_ = std::move(context);
+    if (!context_->makeCurrent(surface_)) return false;
+    render_window_->SetReadyForRendering(true);
+    render_window_->OpenGLInitContext();
+    surfaceResized();
+    return true;
   }
+  return context_->makeCurrent(surface_);
+}
+
+void VtkView::surfaceResized() {
+  const qreal dpr = surface_->devicePixelRatio();
+  interactor_->UpdateSize(static_cast<int>(surface_->width() * dpr), static_cast<int>(surface_->height() * dpr));
+}
+
+void VtkView::renderFrame() {
   in_paint_ = true;
   const auto t0 = std::chrono::steady_clock::now();
+
+  const qreal dpr = surface_->devicePixelRatio();
+  const int w = static_cast<int>(surface_->width() * dpr);
+  const int h = static_cast<int>(surface_->height() * dpr);
+  const int* size = render_window_->GetSize();
+  if (size[0] != w || size[1] != h) interactor_->UpdateSize(w, h);
 
   vtkOpenGLState* state = render_window_->GetState();
   state->Reset();
   state->Push();
-  state->vtkglDepthFunc(GL_LEQUAL);  // Qt leaves GL_LESS; VTK expects GL_LEQUAL
+  state->vtkglDepthFunc(GL_LEQUAL);  // VTK expects GL_LEQUAL
 
   render_window_->Render();  // into VTK's own render framebuffer, copied to its display one
 
-  // Blit VTK's display framebuffer into the widget's framebuffer.
-  QOpenGLExtraFunctions* f = context()->extraFunctions();
-  f->glBindFramebuffer(GL_DRAW_FRAMEBUFFER, defaultFramebufferObject());
-  const GLenum draw_buffer = GL_COLOR_ATTACHMENT0;
+  // Blit VTK's display framebuffer into the window's back buffer.
+  QOpenGLExtraFunctions* f = context_->extraFunctions();
+  f->glBindFramebuffer(GL_DRAW_FRAMEBUFFER, context_->defaultFramebufferObject());
+  const GLenum draw_buffer = GL_BACK_LEFT;
   f->glDrawBuffers(1, &draw_buffer);
   state->vtkglDisable(GL_SCISSOR_TEST);
   f->glDisable(GL_SCISSOR_TEST);
-
-  const qreal dpr = devicePixelRatioF();
-  const int w = static_cast<int>(width() * dpr);
-  const int h = static_cast<int>(height() * dpr);
+  f->glViewport(0, 0, w, h);
   const int* source_size = render_window_->GetRenderFramebuffer()->GetLastSize();
   render_window_->BlitDisplayFramebuffer(0, 0, 0, source_size[0], source_size[1], 0, 0, w, h,
                                          GL_COLOR_BUFFER_BIT, GL_LINEAR);
-
-  // Alpha 1 everywhere, or the compositor blends the view with what lies behind (Mesa).
-  f->glColorMask(GL_FALSE, GL_FALSE, GL_FALSE, GL_TRUE);
-  f->glClearColor(0.0f, 0.0f, 0.0f, 1.0f);
-  f->glViewport(0, 0, w, h);
-  f->glClear(GL_COLOR_BUFFER_BIT);
-  f->glColorMask(GL_TRUE, GL_TRUE, GL_TRUE, GL_TRUE);
-
   state->Pop();
 
   last_frame_ms_ =
@@ -157,14 +208,50 @@ void VtkView::paintGL() {
   emit frameRendered();
 }
 
+bool VtkView::renderNow() {
+  if (in_paint_ || !surface_->isExposed() || !prepareContext()) return false;
+  renderFrame();
+  context_->swapBuffers(surface_);
+  return true;
+}
+
+QImage VtkView::grabFrame() {
+  if (in_paint_ || !prepareContext()) return {};
+  renderFrame();
+  const qreal dpr = surface_->devicePixelRatio();
+  const int w = static_cast<int>(surface_->width() * dpr);
+  const int h = static_cast<int>(surface_->height() * dpr);
+  if (w <= 0 || h <= 0) return {};
+  QOpenGLExtraFunctions* f = context_->extraFunctions();
+  f->glBindFramebuffer(GL_READ_FRAMEBUFFER, context_->defaultFramebufferObject());
+  f->glReadBuffer(GL_BACK);
+  f->glPixelStorei(GL_PACK_ALIGNMENT, 4);
+  QImage image(w, h, QImage::Format_RGBX8888);
+  f->glReadPixels(0, 0, w, h, GL_RGBA, GL_UNSIGNED_BYTE, image.bits());
+  context_->swapBuffers(surface_);  // and show it
+  QImage top_down = image.mirrored();  // GL's rows run bottom-up
+  top_down.setDevicePixelRatio(dpr);
+  return top_down;
+}
+
+QImage grabWithView(QWidget& window, VtkView& view) {
+  QImage shot = window.grab().toImage();
+  const QImage frame = view.grabFrame();
+  if (frame.isNull() || shot.isNull()) return shot;
+  const QPoint at = view.mapTo(&window, QPoint(0, 0));
+  QPainter painter(&shot);
+  painter.drawImage(QPointF(at), frame);  // both in device-independent coordinates of `window`
+  return shot;
+}
+
 void VtkView::onRenderWindowEvent(vtkObject* /*caller*/, unsigned long event_id, void* call_data) {
   QOpenGLContext* ctx = context();
   switch (event_id) {
     case vtkCommand::WindowMakeCurrentEvent:
-      // Only the context: QOpenGLWidget::makeCurrent() would rebind Qt's framebuffer in the
-      // middle of VTK's render and every frame would come out black.
-      if (ctx != nullptr && QOpenGLContext::currentContext() != ctx) {
-        ctx->makeCurrent(ctx->surface());
+      // The view's context on its window, when another one is current (VTK releasing GL
+      // objects outside a frame); a view never shown has none, and VTK then renders nothing.
+      if (ctx != nullptr && QOpenGLContext::currentContext() != ctx && surface_->handle() != nullptr) {
+        ctx->makeCurrent(surface_);
       }
       break;
     case vtkCommand::WindowIsCurrentEvent:
@@ -173,9 +260,9 @@ void VtkView::onRenderWindowEvent(vtkObject* /*caller*/, unsigned long event_id,
       }
       break;
     case vtkCommand::WindowFrameEvent:
-      // VTK finished a frame; when it rendered outside paintGL() the widget must repaint.
+      // VTK finished a frame; when it rendered outside renderFrame() the window must show one.
       if (!in_paint_) {
-        update();
+        requestRender();
       }
       break;
     default:
@@ -185,7 +272,7 @@ void VtkView::onRenderWindowEvent(vtkObject* /*caller*/, unsigned long event_id,
 
 void VtkView::onInteractorRender(vtkObject* /*caller*/, unsigned long /*event_id*/,
                                  void* /*call_data*/) {
-  update();
+  requestRender();
 }
 
 void VtkView::onStyleInteraction(vtkObject* /*caller*/, unsigned long event_id,
@@ -274,12 +361,12 @@ void VtkView::wheelEvent(QWheelEvent* event) {
 
 void VtkView::enterEvent(QEnterEvent* event) {
   interactor_->InvokeEvent(vtkCommand::EnterEvent, event);
-  QOpenGLWidget::enterEvent(event);
+  QWidget::enterEvent(event);
 }
 
 void VtkView::leaveEvent(QEvent* event) {
   interactor_->InvokeEvent(vtkCommand::LeaveEvent, event);
-  QOpenGLWidget::leaveEvent(event);
+  QWidget::leaveEvent(event);
 }
 
 }  // namespace vh::ui

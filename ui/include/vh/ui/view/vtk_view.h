@@ -1,32 +1,44 @@
 #pragma once
 /// @file
-/// The Qt6 <-> VTK 9.1 bridge: a QOpenGLWidget that hosts a vtkGenericOpenGLRenderWindow.
+/// The Qt6 <-> VTK 9.1 bridge: a widget that hosts a native OpenGL window (a QWindow in a
+/// window container) in which a vtkGenericOpenGLRenderWindow renders.
 ///
 /// Debian 12's VTK Qt module (QVTKOpenGLNativeWidget) is built against Qt5, so this project
 /// carries its own small bridge (../shared/docs/qt6-vtk-embedding.md). With a VTK >= 9.2 built
-/// against Qt6, QVTKOpenGLNativeWidget can replace this class.
+/// against Qt6, QVTKOpenGLWindow in a window container can replace this class.
+///
+/// Why a native window and not a QOpenGLWidget: a QOpenGLWidget makes Qt compose the whole
+/// top-level window with OpenGL on every frame (the widget's texture and every other widget's
+/// pixels drawn into the window, then swapped whole). On software OpenGL (Mesa's llvmpipe) that
+/// composition cost about 25 ms a frame at 1280 x 720 whatever VTK drew; a native window swaps
+/// only the view's own pixels and the panels beside it are not redrawn.
 ///
 /// How it works:
-///  - VTK renders into its own framebuffer inside Qt's context (SetOwnContext(false),
-///    frame blit mode NoBlit); paintGL() renders and blits VTK's display framebuffer into the
-///    widget's framebuffer (defaultFramebufferObject()), then forces alpha to 1.
-///  - WindowMakeCurrentEvent makes only Qt's *context* current: never QOpenGLWidget::
-///    makeCurrent(), which would rebind Qt's framebuffer behind VTK's back (black frames).
-///  - Every render happens in paintGL(): render requests (requestRender(), the interactor's
-///    RenderEvent) only call update(), so many mouse moves share one frame.
-///  - Mouse and wheel events go to a vtkGenericRenderWindowInteractor with
-///    vtkInteractorStyleTrackballCamera (left: rotate, middle: pan, right/wheel: zoom).
-///    Install an event filter on the view to take some events first (the main window does so
-///    for the simulated device's Ctrl/Shift drags).
-///  - GL resources are released when Qt's context goes away (re-parenting or destruction).
+///  - A private QWindow (OpenGL surface) fills the widget through
+///    QWidget::createWindowContainer(); the widget owns the QOpenGLContext, created when the
+///    window is first shown.
+///  - VTK renders into its own framebuffer in that context (SetOwnContext(false), frame blit
+///    mode NoBlit); renderNow() renders, blits VTK's display framebuffer into the window's back
+///    buffer and swaps.
+///  - Render requests (requestRender(), the interactor's RenderEvent, VTK frames rendered
+///    outside renderNow()) are QWindow::requestUpdate(): many mouse moves share one frame, at most
+///    one frame per display refresh.
+///  - The native window never takes keyboard focus; its mouse, wheel and enter/leave events are
+///    sent on to this widget, so event filters installed on the widget (the main window's
+///    simulated-device drags) see them first, and keys go to the widget as before.
+///  - QWidget::grab() cannot see into a native window: screenshots of a window holding the view
+///    use grabWithView().
 
 #include <cstdint>
+#include <memory>
 
 #include <QImage>
-#include <QOpenGLWidget>
+#include <QWidget>
 
 #include <vtkNew.h>
 
+class QOpenGLContext;
+class QWindow;
 class vtkGenericOpenGLRenderWindow;
 class vtkGenericRenderWindowInteractor;
 class vtkInteractorStyleTrackballCamera;
@@ -35,7 +47,7 @@ class vtkRenderer;
 
 namespace vh::ui {
 
-class VtkView : public QOpenGLWidget {
+class VtkView : public QWidget {
   Q_OBJECT
 
  public:
@@ -49,18 +61,35 @@ class VtkView : public QOpenGLWidget {
   vtkRenderer* renderer() const noexcept;
   vtkGenericRenderWindowInteractor* interactor() const noexcept;
 
-  /// Asks for a frame; requests are coalesced into one paintGL() (QWidget::update()).
+  /// Asks for a frame; requests are coalesced into one render at the next display refresh
+  /// (QWindow::requestUpdate()).
   void requestRender();
 
-  /// Renders a frame now and returns the view's pixels (QOpenGLWidget::grabFramebuffer()).
+  /// Renders a frame now and shows it. @return false (nothing rendered) while the view is not
+  /// on screen (its window not exposed).
+  bool renderNow();
+
+  /// Renders a frame now and returns the view's pixels (device pixels, top row first); a null
+  /// image when the view was never shown.
   QImage grabFrame();
 
-  /// Frames rendered so far, and the wall time of the last one [ms].
+  /// The native window the frames are shown in (owned by the view's window container).
+  QWindow* nativeWindow() const noexcept;
+
+  /// The view's OpenGL context: null until the view is first shown.
+  QOpenGLContext* context() const noexcept;
+  /// Makes the view's context current on its window (for releasing GL objects); false while
+  /// there is no context.
+  bool makeCurrent();
+  void doneCurrent();
+
+  /// Frames rendered so far, and the wall time of the last one [ms] (VTK's render and the
+  /// blit; the swap not included).
   std::uint64_t frameCount() const noexcept { return frames_; }
   double lastFrameMs() const noexcept { return last_frame_ms_; }
 
  signals:
-  /// Emitted after each frame was rendered and blitted (inside paintGL()).
+  /// Emitted after each frame was rendered and blitted.
   void frameRendered();
   /// A camera interaction (mouse drag, wheel) started / ended: a chance to lower the quality
   /// of expensive props meanwhile.
@@ -68,10 +97,6 @@ class VtkView : public QOpenGLWidget {
   void interactionEnded();
 
  protected:
-  void initializeGL() override;
-  void resizeGL(int w, int h) override;
-  void paintGL() override;
-
   void mousePressEvent(QMouseEvent* event) override;
   void mouseReleaseEvent(QMouseEvent* event) override;
   void mouseMoveEvent(QMouseEvent* event) override;
@@ -80,24 +105,34 @@ class VtkView : public QOpenGLWidget {
   void enterEvent(QEnterEvent* event) override;
   void leaveEvent(QEvent* event) override;
 
- private slots:
-  void onContextAboutToBeDestroyed();
-
  private:
+  class Surface;
+  friend class Surface;
+
+  /// Creates the context on the first call with a created window; makes it current.
+  bool prepareContext();
+  /// Renders into the window's back buffer (context current); no swap.
+  void renderFrame();
+  void surfaceResized();
   void onRenderWindowEvent(vtkObject* caller, unsigned long event_id, void* call_data);
   void onInteractorRender(vtkObject* caller, unsigned long event_id, void* call_data);
   void onStyleInteraction(vtkObject* caller, unsigned long event_id, void* call_data);
-  void releaseGraphics();
   void forwardMouse(QMouseEvent* event, unsigned long vtk_event, bool repeat);
 
   vtkNew<vtkGenericOpenGLRenderWindow> render_window_;
   vtkNew<vtkRenderer> renderer_;
   vtkNew<vtkGenericRenderWindowInteractor> interactor_;
   vtkNew<vtkInteractorStyleTrackballCamera> style_;
+  Surface* surface_ = nullptr;  // owned by the container (QWidget::createWindowContainer)
+  std::unique_ptr<QOpenGLContext> context_;
   unsigned long observer_ids_[6] = {0, 0, 0, 0, 0, 0};
   bool in_paint_ = false;
   std::uint64_t frames_ = 0;
   double last_frame_ms_ = 0.0;
 };
+
+/// A picture of `window` (a top-level widget) with the view's frame drawn where the view is:
+/// QWidget::grab() leaves a native child window blank. Device pixels of the window.
+QImage grabWithView(QWidget& window, VtkView& view);
 
 }  // namespace vh::ui
