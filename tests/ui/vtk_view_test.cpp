@@ -5,6 +5,7 @@
 #include "vh/ui/view/vtk_view.h"
 
 #include <cmath>
+#include <cstdint>
 
 #include <QGuiApplication>
 #include <QHBoxLayout>
@@ -129,6 +130,28 @@ TEST(VtkView, AScreenshotOfTheWindowShowsTheViewsFrameInItsPlace) {
   }
   EXPECT_EQ(red_in_view, samples) << "the view's frame fills its place in the screenshot";
   EXPECT_EQ(red_in_panel, 0) << "the panel beside it keeps its own pixels";
+}
+
+TEST(VtkView, AFrameRenderedNowAnswersTheRequestsBeforeIt) {
+  // A caller that renders now (an export, a benchmark) after the props asked for a frame must
+  // not get that frame drawn twice: once now, once at the next display refresh.
+  Window w;
+  ASSERT_TRUE(test::waitFor([&] { return w.view->frameCount() > 0; }, 20000)) << "the view never rendered";
+  test::pump(200);  // the first frames settle
+  for (int i = 0; i < 5; ++i) {
+    const std::uint64_t before = w.view->frameCount();
+    w.view->requestRender();
+    w.view->requestRender();
+    ASSERT_TRUE(w.view->renderNow());
+    test::pump(100);  // the display refreshes that would draw a request
+    EXPECT_EQ(w.view->frameCount() - before, 1u) << "round " << i;
+  }
+  // A request alone is drawn, once.
+  const std::uint64_t before = w.view->frameCount();
+  w.view->requestRender();
+  w.view->requestRender();
+  test::pump(100);
+  EXPECT_EQ(w.view->frameCount() - before, 1u);
 }
 
 }  // namespace

@@ -45,7 +45,8 @@ class VtkView::Surface : public QWindow {
   bool event(QEvent* event) override {
     switch (event->type()) {
       case QEvent::UpdateRequest:
-        host_->renderNow();
+        // Only a frame still asked for: renderNow() in between has drawn what was asked.
+        if (host_->render_requested_) host_->renderNow();
         return true;
       case QEvent::MouseButtonPress:
       case QEvent::MouseButtonDblClick:
@@ -140,7 +141,10 @@ vtkGenericRenderWindowInteractor* VtkView::interactor() const noexcept { return 
 QOpenGLContext* VtkView::context() const noexcept { return context_.get(); }
 QWindow* VtkView::nativeWindow() const noexcept { return surface_; }
 
-void VtkView::requestRender() { surface_->requestUpdate(); }
+void VtkView::requestRender() {
+  render_requested_ = true;
+  surface_->requestUpdate();
+}
 
 bool VtkView::makeCurrent() {
   return context_ != nullptr && surface_->handle() != nullptr && context_->makeCurrent(surface_);
@@ -173,6 +177,7 @@ void VtkView::surfaceResized() {
 
 void VtkView::renderFrame() {
   in_paint_ = true;
+  render_requested_ = false;  // a request made while this frame renders asks for the next one
   const auto t0 = std::chrono::steady_clock::now();
 
   const qreal dpr = surface_->devicePixelRatio();

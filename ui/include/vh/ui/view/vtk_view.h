@@ -62,7 +62,7 @@ class VtkView : public QWidget {
   vtkGenericRenderWindowInteractor* interactor() const noexcept;
 
   /// Asks for a frame; requests are coalesced into one render at the next display refresh
-  /// (QWindow::requestUpdate()).
+  /// (QWindow::requestUpdate()), and a renderNow() or grabFrame() before then answers them.
   void requestRender();
 
   /// Renders a frame now and shows it. @return false (nothing rendered) while the view is not
@@ -127,6 +127,7 @@ class VtkView : public QWidget {
   std::unique_ptr<QOpenGLContext> context_;
   unsigned long observer_ids_[6] = {0, 0, 0, 0, 0, 0};
   bool in_paint_ = false;
+  bool render_requested_ = false;  // requestRender() since the last frame began
   std::uint64_t frames_ = 0;
   double last_frame_ms_ = 0.0;
 };
