@@ -34,6 +34,7 @@
 #include "ui_test_util.h"
 #include "vh/runtime/scene.h"
 #include "vh/ui/export/media_export.h"
+#include "vh/ui/view/scene_actors.h"
 #include "vh/ui/view/vtk_view.h"
 
 namespace vh::ui {
@@ -76,6 +77,42 @@ vtkTextActor* welcomeText(SceneView& view) {
     }
   }
   return nullptr;
+}
+
+TEST(SceneActors, HeavilyReducedInteractiveFramesSampleTheNearestVoxelWithHysteresis) {
+  // The quality controller alone (no frame drawn): late interactive frames raise the reduction,
+  // early ones relax it halfway; nearest sampling from a reduction over 16 until it falls
+  // under 4; still frames always trilinear; the first interactive frame after a still one no
+  // less reduced than the last interactive frames.
+  vtkNew<vtkRenderer> renderer;
+  SceneActors actors(renderer, sceneActorsSpecFor(sphereProbeScene(), runtime::LiveValues::initial(sphereProbeScene())));
+  EXPECT_FALSE(actors.nearestSampling()) << "a still frame";
+  actors.setInteractive(true);
+  actors.adaptQuality(400.0, 40.0);  // reduction 10
+  EXPECT_FALSE(actors.nearestSampling()) << "rays about 3 px apart: still trilinear";
+  actors.adaptQuality(400.0, 40.0);  // 100
+  EXPECT_TRUE(actors.nearestSampling());
+  const double px_at_100 = actors.imageSampleDistance_px();
+  EXPECT_GT(px_at_100, 4.0);
+  // Early frames: 50, 25, 12.5, 6.25 keep it (hysteresis), 3.1 goes back to trilinear.
+  for (int i = 0; i < 4; ++i) {
+    actors.adaptQuality(10.0, 40.0);
+    EXPECT_TRUE(actors.nearestSampling()) << "relaxed " << i + 1 << " times";
+  }
+  actors.adaptQuality(10.0, 40.0);
+  EXPECT_FALSE(actors.nearestSampling()) << "reduction about 3";
+  // Late again up to 100, then a still frame: trilinear, whatever the reduction.
+  actors.adaptQuality(400.0, 40.0);
+  actors.adaptQuality(400.0, 40.0);
+  ASSERT_TRUE(actors.nearestSampling());
+  actors.setInteractive(false);
+  EXPECT_FALSE(actors.nearestSampling()) << "still frames are trilinear";
+  // The still frame took 200 ms: its own guess would be a reduction of 2.5 (0.5 voxel samples,
+  // 5x the target), but the motion resumes where the last interactive frames were.
+  actors.adaptQuality(200.0, 40.0);
+  actors.setInteractive(true);
+  EXPECT_TRUE(actors.nearestSampling());
+  EXPECT_GE(actors.imageSampleDistance_px(), px_at_100 - 1e-9);
 }
 
 TEST(SceneView, AMovedProxyAsksForANewFrameAndTheSameFrameDoesNot) {

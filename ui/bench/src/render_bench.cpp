@@ -392,6 +392,7 @@ fs::path runRenderBench(const RenderBenchOptions& o) {
         row["frame_ms_mean"] = s.mean;
         row["frame_ms_p99"] = s.p99;
         row["frame_ms_max"] = s.max;
+        row["frames_ms"] = frames;  // each frame in order: the first ones after the still frame and the mode change show
         // VtkView paints per frame: 1 when each frame is painted once (no queued repaint on top).
         row["paints_per_frame"] = static_cast<double>(b.view->widget()->frameCount() - paints0) / static_cast<double>(frames.size());
         row["paint_ms_mean"] = summarize(paint_ms).mean;  // VTK's render and the blit, without the swap

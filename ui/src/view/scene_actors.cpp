@@ -563,6 +563,11 @@ constexpr double kFirstImageSample = 3.0;
 constexpr double kMaxSampleVoxels = 3.0;
 constexpr double kMaxImageSample = 8.0;
 constexpr double kMaxReduction = kMaxImageSample * kMaxImageSample * kMaxSampleVoxels;
+// Interactive frames sample the nearest voxel above this reduction (rays 4 px apart), and
+// trilinearly again below the lower one: a factor of 4 between them, more than the 2-3x that
+// nearest sampling saves on llvmpipe, so neither choice makes the controller switch back.
+constexpr double kNearestAboveReduction = 16.0;
+constexpr double kLinearBelowReduction = 4.0;
 
 /// The ray sample distance [voxels] and image sample distance [px] of the reduction `r`: the
 /// work of a frame falls as 1 / (samples apart x pixels apart^2).
@@ -575,6 +580,18 @@ std::pair<double, double> interactiveSampling(double r) {
 }  // namespace
 
 void SceneActors::applyQuality() {
+  // Heavily reduced interactive frames sample the nearest voxel: on software GL the trilinear
+  // fetch (8 voxels a sample) is most of a ray's cost, and a picture of rays several pixels
+  // apart loses little more by it. With hysteresis, so that the view does not flicker between
+  // the two where one is late and the other early.
+  if (interactive_reduction_ > kNearestAboveReduction) {
+    nearest_when_interactive_ = true;
+  } else if (interactive_reduction_ < kLinearBelowReduction) {
+    nearest_when_interactive_ = false;
+  }
+  const int interpolation =
+      interactive_ && nearest_when_interactive_ ? VTK_NEAREST_INTERPOLATION : VTK_LINEAR_INTERPOLATION;
+  if (volume_property_->GetInterpolationType() != interpolation) volume_property_->SetInterpolationType(interpolation);
   if (interactive_) {
     const auto [samples, pixels] = interactiveSampling(interactive_reduction_);
     volume_mapper_->SetSampleDistance(static_cast<float>(std::max(samples, kStillSampleVoxels[still_level_]) * min_spacing_m_));
@@ -600,6 +617,7 @@ void SceneActors::resetQuality() {
 
 double SceneActors::sampleDistance_m() const { return volume_mapper_->GetSampleDistance(); }
 double SceneActors::imageSampleDistance_px() const { return volume_mapper_->GetImageSampleDistance(); }
+bool SceneActors::nearestSampling() const { return volume_property_->GetInterpolationType() == VTK_NEAREST_INTERPOLATION; }
 
 void SceneActors::adaptQuality(double last_frame_ms, double interactive_target_ms) {
   if (!(last_frame_ms > 0.0) || !(interactive_target_ms > 0.0)) {
@@ -610,11 +628,15 @@ void SceneActors::adaptQuality(double last_frame_ms, double interactive_target_m
     // Late: at once to what meets the target (the next frame must not be late too); early:
     // halfway (geometrically), so the picture does not flicker between settings.
     interactive_reduction_ = std::clamp(interactive_reduction_ * (ratio > 1.0 ? ratio : std::sqrt(ratio)), 1.0, kMaxReduction);
+    last_interactive_reduction_ = interactive_reduction_;
   } else {
     // A still frame: the first interactive frame's guess from it (cost ~ 1 / (sample distance x
     // image sample distance^2)), and still frames kept from freezing the window for seconds.
     const double still_work = kStillSampleVoxels[still_level_] * kStillImageSample[still_level_] * kStillImageSample[still_level_];
-    interactive_reduction_ = std::clamp(still_work * ratio, 1.0, kMaxReduction);
+    // Nor below the reduction the last interactive frames settled on: the still frame's cost
+    // grows less than in proportion to its work (what each frame costs whatever its rays), so
+    // its guess alone came too low, and each resumed motion began with frames 2-4x late.
+    interactive_reduction_ = std::clamp(std::max(still_work * ratio, last_interactive_reduction_), 1.0, kMaxReduction);
     if (last_frame_ms > kStillSlowMs && still_level_ < 2) {
       ++still_level_;
     } else if (last_frame_ms < kStillFastMs && still_level_ > 0) {

@@ -143,8 +143,11 @@ class SceneActors {
   /// aim at `interactive_target_ms`: their work (one sample per voxel, one ray per pixel) is
   /// divided by a reduction, taken first from the rays (image sample distance up to 3 px), then
   /// from the samples along them (up to 3 voxels apart), then from the rays again (up to 8 px);
-  /// a late frame sets the next one's at once, an early one relaxes it halfway. A still frame
-  /// sets the first interactive frame's guess. Still frames that take over 3 s (software GL,
+  /// a late frame sets the next one's at once, an early one relaxes it halfway. Once rays are
+  /// about 4 px apart (a reduction over 16) interactive frames also sample the nearest voxel
+  /// instead of trilinearly (back below a reduction of 4); still frames are always trilinear. A
+  /// still frame sets the first interactive frame's guess, never below the reduction the last
+  /// interactive frames settled on. Still frames that take over 3 s (software GL,
   /// very large views) step down to voxel-spaced samples, then to 1.5 pixel image sampling, and
   /// back up when they get fast again.
   void adaptQuality(double last_frame_ms, double interactive_target_ms = 40.0);
@@ -153,6 +156,9 @@ class SceneActors {
   /// Ray sample distance [m] and image sample distance [px] now in use.
   double sampleDistance_m() const;
   double imageSampleDistance_px() const;
+  /// Whether the volume is sampled at the nearest voxel now (VTK_NEAREST_INTERPOLATION) rather
+  /// than trilinearly.
+  bool nearestSampling() const;
 
   /// Length [m] of the arrow drawn for 3 N: half the tool's bounding-box diagonal.
   double arrowReferenceLength_m() const noexcept { return arrow_reference_m_; }
@@ -215,6 +221,8 @@ class SceneActors {
   double min_spacing_m_ = 1e-3;
   int still_level_ = 0;  // 0 best; see adaptQuality()
   double interactive_reduction_ = 1.0;  // interactive work divided by this; see adaptQuality()
+  double last_interactive_reduction_ = 1.0;  // where the last interactive frames settled
+  bool nearest_when_interactive_ = false;    // interactive frames sample the nearest voxel
   bool interactive_ = false;
   static constexpr double kReferenceForce_N = 3.0;
 };
