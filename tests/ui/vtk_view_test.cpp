@@ -102,6 +102,20 @@ TEST(VtkView, MouseOverItsNativeWindowReachesTheWidgetAndVtk) {
   EXPECT_NE(QGuiApplication::focusWindow(), native) << "the native window never takes the focus";
 }
 
+TEST(VtkView, TheWidgetsCursorShowsOverItsNativeWindow) {
+  // The simulated device's drags set a cursor on the view widget; the pointer is over the
+  // native window, which must show it.
+  Window w;
+  QWindow* native = w.view->nativeWindow();
+  ASSERT_NE(native, nullptr);
+  w.view->setCursor(Qt::ClosedHandCursor);
+  EXPECT_EQ(native->cursor().shape(), Qt::ClosedHandCursor);
+  w.view->setCursor(Qt::SizeAllCursor);
+  EXPECT_EQ(native->cursor().shape(), Qt::SizeAllCursor);
+  w.view->unsetCursor();
+  EXPECT_EQ(native->cursor().shape(), Qt::ArrowCursor);
+}
+
 TEST(VtkView, AScreenshotOfTheWindowShowsTheViewsFrameInItsPlace) {
   Window w;
   ASSERT_TRUE(test::waitFor([&] { return w.view->frameCount() > 0; }, 20000)) << "the view never rendered";

@@ -141,6 +141,19 @@ vtkGenericRenderWindowInteractor* VtkView::interactor() const noexcept { return 
 QOpenGLContext* VtkView::context() const noexcept { return context_.get(); }
 QWindow* VtkView::nativeWindow() const noexcept { return surface_; }
 
+bool VtkView::event(QEvent* event) {
+  if (event->type() == QEvent::CursorChange) {
+    // The pointer is over the native window, whose own cursor X shows; a widget's cursor would
+    // not reach it.
+    if (testAttribute(Qt::WA_SetCursor)) {
+      surface_->setCursor(cursor());
+    } else {
+      surface_->unsetCursor();
+    }
+  }
+  return QWidget::event(event);
+}
+
 void VtkView::requestRender() {
   render_requested_ = true;
   surface_->requestUpdate();

@@ -26,6 +26,7 @@
 ///  - The native window never takes keyboard focus; its mouse, wheel and enter/leave events are
 ///    sent on to this widget, so event filters installed on the widget (the main window's
 ///    simulated-device drags) see them first, and keys go to the widget as before.
+///  - The widget's cursor (setCursor(), unsetCursor()) is passed on to the native window.
 ///  - QWidget::grab() cannot see into a native window: screenshots of a window holding the view
 ///    use grabWithView().
 
@@ -97,6 +98,8 @@ class VtkView : public QWidget {
   void interactionEnded();
 
  protected:
+  /// Passes the widget's cursor on to the native window, which the pointer is over.
+  bool event(QEvent* event) override;
   void mousePressEvent(QMouseEvent* event) override;
   void mouseReleaseEvent(QMouseEvent* event) override;
   void mouseMoveEvent(QMouseEvent* event) override;
