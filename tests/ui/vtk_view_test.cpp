@@ -116,6 +116,23 @@ TEST(VtkView, TheWidgetsCursorShowsOverItsNativeWindow) {
   EXPECT_EQ(native->cursor().shape(), Qt::ArrowCursor);
 }
 
+TEST(VtkView, AViewWhoseNativeWindowWentFirstStillReleasesItsGraphics) {
+  // At a window's end its QWindow may go before the view (the native window is its child):
+  // nothing is drawn any more, and VTK's GL objects are released in their context all the same.
+  Window w;
+  ASSERT_TRUE(test::waitFor([&] { return w.view->frameCount() > 0; }, 20000)) << "the view never rendered";
+  delete w.view->nativeWindow();
+  EXPECT_EQ(w.view->nativeWindow(), nullptr);
+  EXPECT_TRUE(w.view->makeCurrent()) << "an offscreen surface for the context";
+  w.view->doneCurrent();
+  EXPECT_FALSE(w.view->renderNow());
+  EXPECT_TRUE(w.view->grabFrame().isNull());
+  w.view->requestRender();
+  w.view->setCursor(Qt::SizeAllCursor);
+  test::pump(50);
+  delete w.view;  // releases VTK's GL objects: must not crash
+}
+
 TEST(VtkView, AScreenshotOfTheWindowShowsTheViewsFrameInItsPlace) {
   Window w;
   ASSERT_TRUE(test::waitFor([&] { return w.view->frameCount() > 0; }, 20000)) << "the view never rendered";

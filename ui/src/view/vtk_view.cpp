@@ -11,6 +11,7 @@
 #include <QExposeEvent>
 #include <QMouseEvent>
 #include <QOpenGLContext>
+#include <QOffscreenSurface>
 #include <QOpenGLExtraFunctions>
 #include <QPainter>
 #include <QResizeEvent>
@@ -84,8 +85,9 @@ VtkView::VtkView(QWidget* parent) : QWidget(parent) {
   setMouseTracking(false);
   setMinimumSize(160, 120);
 
-  surface_ = new Surface(this);
-  QWidget* container = QWidget::createWindowContainer(surface_, this);
+  auto* surface = new Surface(this);
+  surface_ = surface;
+  QWidget* container = QWidget::createWindowContainer(surface, this);
   container->setFocusPolicy(Qt::NoFocus);
   auto* layout = new QVBoxLayout(this);
   layout->setContentsMargins(0, 0, 0, 0);
@@ -121,8 +123,7 @@ VtkView::VtkView(QWidget* parent) : QWidget(parent) {
 VtkView::~VtkView() {
   // Release GL resources while the context still exists, then detach the observers: the render
   // window may outlive this widget when someone else holds a reference to it.
-  if (context_ != nullptr) {
-    makeCurrent();
+  if (context_ != nullptr && makeCurrent()) {
     render_window_->Finalize();
     render_window_->SetReadyForRendering(false);
     doneCurrent();
@@ -142,7 +143,7 @@ QOpenGLContext* VtkView::context() const noexcept { return context_.get(); }
 QWindow* VtkView::nativeWindow() const noexcept { return surface_; }
 
 bool VtkView::event(QEvent* event) {
-  if (event->type() == QEvent::CursorChange) {
+  if (event->type() == QEvent::CursorChange && surface_ != nullptr) {
     // The pointer is over the native window, whose own cursor X shows; a widget's cursor would
     // not reach it.
     if (testAttribute(Qt::WA_SetCursor)) {
@@ -156,11 +157,20 @@ bool VtkView::event(QEvent* event) {
 
 void VtkView::requestRender() {
   render_requested_ = true;
-  surface_->requestUpdate();
+  if (surface_ != nullptr) surface_->requestUpdate();
 }
 
 bool VtkView::makeCurrent() {
-  return context_ != nullptr && surface_->handle() != nullptr && context_->makeCurrent(surface_);
+  if (context_ == nullptr) return false;
+  if (surface_ != nullptr && surface_->handle() != nullptr) return context_->makeCurrent(surface_);
+  // The native window has gone (at the end of the window that held it): an offscreen surface,
+  // so that VTK's GL objects are still released in their context.
+  if (offscreen_ == nullptr) {
+    offscreen_ = std::make_unique<QOffscreenSurface>();
+    offscreen_->setFormat(context_->format());
+    offscreen_->create();
+  }
+  return context_->makeCurrent(offscreen_.get());
 }
 
 void VtkView::doneCurrent() {
@@ -168,7 +178,7 @@ void VtkView::doneCurrent() {
 }
 
 bool VtkView::prepareContext() {
-  if (surface_->handle() == nullptr) return false;  // not shown yet: no native window
+  if (surface_ == nullptr || surface_->handle() == nullptr) return false;  // not shown yet: no native window
   if (context_ == nullptr) {
     auto context = std::make_unique<QOpenGLContext>();
     context->setFormat(surface_->requestedFormat());
@@ -184,6 +194,7 @@ bool VtkView::prepareContext() {
 }
 
 void VtkView::surfaceResized() {
+  if (surface_ == nullptr) return;
   const qreal dpr = surface_->devicePixelRatio();
   interactor_->UpdateSize(static_cast<int>(surface_->width() * dpr), static_cast<int>(surface_->height() * dpr));
 }
@@ -227,7 +238,7 @@ void VtkView::renderFrame() {
 }
 
 bool VtkView::renderNow() {
-  if (in_paint_ || !surface_->isExposed() || !prepareContext()) return false;
+  if (in_paint_ || surface_ == nullptr || !surface_->isExposed() || !prepareContext()) return false;
   renderFrame();
   context_->swapBuffers(surface_);
   return true;
@@ -268,8 +279,8 @@ void VtkView::onRenderWindowEvent(vtkObject* /*caller*/, unsigned long event_id,
     case vtkCommand::WindowMakeCurrentEvent:
       // The view's context on its window, when another one is current (VTK releasing GL
       // objects outside a frame); a view never shown has none, and VTK then renders nothing.
-      if (ctx != nullptr && QOpenGLContext::currentContext() != ctx && surface_->handle() != nullptr) {
-        ctx->makeCurrent(surface_);
+      if (ctx != nullptr && QOpenGLContext::currentContext() != ctx) {
+        makeCurrent();
       }
       break;
     case vtkCommand::WindowIsCurrentEvent:

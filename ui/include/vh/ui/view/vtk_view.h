@@ -34,12 +34,14 @@
 #include <memory>
 
 #include <QImage>
+#include <QPointer>
+#include <QWindow>
 #include <QWidget>
 
 #include <vtkNew.h>
 
+class QOffscreenSurface;
 class QOpenGLContext;
-class QWindow;
 class vtkGenericOpenGLRenderWindow;
 class vtkGenericRenderWindowInteractor;
 class vtkInteractorStyleTrackballCamera;
@@ -79,8 +81,8 @@ class VtkView : public QWidget {
 
   /// The view's OpenGL context: null until the view is first shown.
   QOpenGLContext* context() const noexcept;
-  /// Makes the view's context current on its window (for releasing GL objects); false while
-  /// there is no context.
+  /// Makes the view's context current on its window, or on an offscreen surface once the window
+  /// has gone (for releasing GL objects); false while there is no context.
   bool makeCurrent();
   void doneCurrent();
 
@@ -126,8 +128,11 @@ class VtkView : public QWidget {
   vtkNew<vtkRenderer> renderer_;
   vtkNew<vtkGenericRenderWindowInteractor> interactor_;
   vtkNew<vtkInteractorStyleTrackballCamera> style_;
-  Surface* surface_ = nullptr;  // owned by the container (QWidget::createWindowContainer)
+  // Owned by the container (QWidget::createWindowContainer), and a child of the top-level
+  // window's QWindow: null once that has gone, whichever goes first at the window's end.
+  QPointer<QWindow> surface_;
   std::unique_ptr<QOpenGLContext> context_;
+  std::unique_ptr<QOffscreenSurface> offscreen_;  // makeCurrent() once the window has gone
   unsigned long observer_ids_[6] = {0, 0, 0, 0, 0, 0};
   bool in_paint_ = false;
   bool render_requested_ = false;  // requestRender() since the last frame began
