@@ -367,6 +367,14 @@ fs::path runRenderBench(const RenderBenchOptions& o) {
         thread->setDrilling(false);
         const double interactive_px = b.view->actors().imageSampleDistance_px();
         const double interactive_voxels = b.view->actors().sampleDistance_m() / scene.volume.field->geometry().spacing_m.minCoeff();
+        // What the eyes got meanwhile: one more frame at the row's last interactive sampling.
+        std::string picture;
+        if (o.common.plots) {
+          picture = format("interactive-%s-%dx%d.png", drilling ? "drilling" : rowName(mode).c_str(),
+                           b.view->widget()->width(), b.view->widget()->height());
+          if (!b.view->widget()->grabFrame().save(QString::fromStdString((out / picture).string()), "PNG"))
+            picture.clear();
+        }
         // The still frame when the hand rests, at the quality the view chooses for it.
         b.view->renderStill();
         const double still_sample_voxels = b.view->actors().sampleDistance_m() /
@@ -402,6 +410,7 @@ fs::path runRenderBench(const RenderBenchOptions& o) {
         row["first_frame_ms"] = first_ms;
         row["interactive_image_sample_px"] = interactive_px;  // the last interactive frame's
         row["interactive_sample_voxels"] = interactive_voxels;
+        if (!picture.empty()) row["interactive_picture"] = picture;  // beside render.json
         row["still_frame_ms"] = still_ms;
         row["still_sample_voxels"] = still_sample_voxels;
         row["still_image_sample_px"] = still_px;
