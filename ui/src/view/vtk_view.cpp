@@ -41,9 +41,13 @@ class VtkView::Surface : public QWindow {
     setFormat(format);
     setFlag(Qt::WindowDoesNotAcceptFocus, true);
   }
+  /// The host is going: nothing more is passed to it (the window goes with the host's
+  /// container, a moment later).
+  void detach() noexcept { host_ = nullptr; }
 
  protected:
   bool event(QEvent* event) override {
+    if (host_ == nullptr) return QWindow::event(event);
     switch (event->type()) {
       case QEvent::UpdateRequest:
         // Only a frame still asked for: renderNow() in between has drawn what was asked.
@@ -72,9 +76,11 @@ class VtkView::Surface : public QWindow {
     }
   }
   void exposeEvent(QExposeEvent* /*event*/) override {
-    if (isExposed()) host_->renderNow();
+    if (host_ != nullptr && isExposed()) host_->renderNow();
   }
-  void resizeEvent(QResizeEvent* /*event*/) override { host_->surfaceResized(); }
+  void resizeEvent(QResizeEvent* /*event*/) override {
+    if (host_ != nullptr) host_->surfaceResized();
+  }
 
  private:
   VtkView* host_;
@@ -121,6 +127,8 @@ VtkView::VtkView(QWidget* parent) : QWidget(parent) {
 }
 
 VtkView::~VtkView() {
+  // The native window's events stop reaching this half-destroyed widget.
+  if (surface_ != nullptr) static_cast<Surface*>(surface_.data())->detach();
   // Release GL resources while the context still exists, then detach the observers: the render
   // window may outlive this widget when someone else holds a reference to it.
   if (context_ != nullptr && makeCurrent()) {
