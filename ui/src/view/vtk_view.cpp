@@ -201,10 +201,16 @@ bool VtkView::prepareContext() {
   return context_->makeCurrent(surface_);
 }
 
-void VtkView::surfaceResized() {
-  if (surface_ == nullptr) return;
+QSize VtkView::surfacePixels() const {
+  if (surface_ == nullptr) return {};
   const qreal dpr = surface_->devicePixelRatio();
-  interactor_->UpdateSize(static_cast<int>(surface_->width() * dpr), static_cast<int>(surface_->height() * dpr));
+  return {static_cast<int>(surface_->width() * dpr), static_cast<int>(surface_->height() * dpr)};
+}
+
+void VtkView::surfaceResized() {
+  const QSize pixels = surfacePixels();
+  const int* size = render_window_->GetSize();
+  if (size[0] != pixels.width() || size[1] != pixels.height()) interactor_->UpdateSize(pixels.width(), pixels.height());
 }
 
 void VtkView::renderFrame() {
@@ -212,11 +218,9 @@ void VtkView::renderFrame() {
   render_requested_ = false;  // a request made while this frame renders asks for the next one
   const auto t0 = std::chrono::steady_clock::now();
 
-  const qreal dpr = surface_->devicePixelRatio();
-  const int w = static_cast<int>(surface_->width() * dpr);
-  const int h = static_cast<int>(surface_->height() * dpr);
-  const int* size = render_window_->GetSize();
-  if (size[0] != w || size[1] != h) interactor_->UpdateSize(w, h);
+  surfaceResized();  // a resize whose event has not come yet
+  const QSize pixels = surfacePixels();
+  const int w = pixels.width(), h = pixels.height();
 
   vtkOpenGLState* state = render_window_->GetState();
   state->Reset();
@@ -255,9 +259,8 @@ bool VtkView::renderNow() {
 QImage VtkView::grabFrame() {
   if (in_paint_ || !prepareContext()) return {};
   renderFrame();
-  const qreal dpr = surface_->devicePixelRatio();
-  const int w = static_cast<int>(surface_->width() * dpr);
-  const int h = static_cast<int>(surface_->height() * dpr);
+  const QSize pixels = surfacePixels();
+  const int w = pixels.width(), h = pixels.height();
   if (w <= 0 || h <= 0) return {};
   QOpenGLExtraFunctions* f = context_->extraFunctions();
   f->glBindFramebuffer(GL_READ_FRAMEBUFFER, context_->defaultFramebufferObject());
@@ -267,7 +270,7 @@ QImage VtkView::grabFrame() {
   f->glReadPixels(0, 0, w, h, GL_RGBA, GL_UNSIGNED_BYTE, image.bits());
   context_->swapBuffers(surface_);  // and show it
   QImage top_down = image.mirrored();  // GL's rows run bottom-up
-  top_down.setDevicePixelRatio(dpr);
+  top_down.setDevicePixelRatio(surface_->devicePixelRatio());
   return top_down;
 }
 

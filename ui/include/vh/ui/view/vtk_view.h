@@ -112,12 +112,14 @@ class VtkView : public QWidget {
 
  private:
   class Surface;
-  friend class Surface;
 
   /// Creates the context on the first call with a created window; makes it current.
   bool prepareContext();
   /// Renders into the window's back buffer (context current); no swap.
   void renderFrame();
+  /// The native window's size in device pixels (empty once it has gone).
+  QSize surfacePixels() const;
+  /// Tells VTK the window's size in device pixels when it changed.
   void surfaceResized();
   void onRenderWindowEvent(vtkObject* caller, unsigned long event_id, void* call_data);
   void onInteractorRender(vtkObject* caller, unsigned long event_id, void* call_data);
