@@ -28,6 +28,7 @@
 #include <vtkMatrix4x4.h>
 #include <vtkPlane.h>
 #include <vtkPlaneCollection.h>
+#include <vtkRenderWindow.h>
 #include <vtkRenderer.h>
 #include <vtkTextActor.h>
 
@@ -113,6 +114,51 @@ TEST(SceneActors, HeavilyReducedInteractiveFramesSampleTheNearestVoxelWithHyster
   actors.setInteractive(true);
   EXPECT_TRUE(actors.nearestSampling());
   EXPECT_GE(actors.imageSampleDistance_px(), px_at_100 - 1e-9);
+}
+
+TEST(SceneActors, AMotionResumesFromWhereItsRenderModeSettledScaledToTheViewsPixels) {
+  // The quality controller alone, in a 400 x 300 window that is never drawn. A mode's first
+  // motion starts from the largest reduction (rays 8 px apart, 3 voxels between samples), not
+  // from the still frame's guess; later motions resume where that mode's interactive frames
+  // settled, whatever another mode did meanwhile, scaled by the view's pixels.
+  vtkNew<vtkRenderWindow> window;
+  vtkNew<vtkRenderer> renderer;
+  window->AddRenderer(renderer);
+  window->SetSize(400, 300);
+  SceneActors actors(renderer, sceneActorsSpecFor(sphereProbeScene(), runtime::LiveValues::initial(sphereProbeScene())));
+  const double spacing_m = 1e-3;  // the built-in sphere's voxels
+  auto resume = [&](double still_ms) {
+    actors.setInteractive(false);
+    actors.adaptQuality(still_ms, 40.0);
+    actors.setInteractive(true);
+  };
+  resume(200.0);  // alone, the still frame would guess a reduction of 2.5
+  EXPECT_DOUBLE_EQ(actors.imageSampleDistance_px(), 8.0) << "the isosurface's first motion";
+  EXPECT_NEAR(actors.sampleDistance_m(), 3.0 * spacing_m, 1e-9);
+  EXPECT_TRUE(actors.nearestSampling());
+  // Early frames relax it halfway (geometrically) each: 192 -> 96 -> 48 -> 24 -> 12.
+  for (int i = 0; i < 4; ++i) actors.adaptQuality(10.0, 40.0);
+  const double iso_px = actors.imageSampleDistance_px(), iso_sample_m = actors.sampleDistance_m();
+  EXPECT_LT(iso_px * iso_px * iso_sample_m / spacing_m, 13.0);
+  EXPECT_GT(iso_px * iso_px * iso_sample_m / spacing_m, 11.0);
+
+  actors.setRenderMode(RenderMode::kMip);
+  resume(200.0);
+  EXPECT_DOUBLE_EQ(actors.imageSampleDistance_px(), 8.0) << "MIP's first motion, whatever the isosurface's";
+  for (int i = 0; i < 8; ++i) actors.adaptQuality(5.0, 40.0);
+  EXPECT_LT(actors.imageSampleDistance_px(), 2.0);
+
+  actors.setRenderMode(RenderMode::kIsosurface);
+  resume(200.0);
+  EXPECT_NEAR(actors.imageSampleDistance_px(), iso_px, 1e-6) << "where the isosurface settled, not where MIP did";
+  EXPECT_NEAR(actors.sampleDistance_m(), iso_sample_m, 1e-9);
+
+  // Twice the width and height: four times the rays at the same image sample distance, so four
+  // times the reduction: 12 -> 48.
+  window->SetSize(800, 600);
+  resume(200.0);
+  const double px = actors.imageSampleDistance_px(), samples = actors.sampleDistance_m() / spacing_m;
+  EXPECT_NEAR(px * px * samples, 4.0 * iso_px * iso_px * iso_sample_m / spacing_m, 1e-3);
 }
 
 TEST(SceneView, AMovedProxyAsksForANewFrameAndTheSameFrameDoesNot) {

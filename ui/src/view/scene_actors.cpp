@@ -628,15 +628,17 @@ void SceneActors::adaptQuality(double last_frame_ms, double interactive_target_m
     // Late: at once to what meets the target (the next frame must not be late too); early:
     // halfway (geometrically), so the picture does not flicker between settings.
     interactive_reduction_ = std::clamp(interactive_reduction_ * (ratio > 1.0 ? ratio : std::sqrt(ratio)), 1.0, kMaxReduction);
-    last_interactive_reduction_ = interactive_reduction_;
+    const auto mode = static_cast<std::size_t>(mode_);
+    settled_reduction_[mode] = interactive_reduction_;
+    settled_pixels_[mode] = viewPixels();
   } else {
     // A still frame: the first interactive frame's guess from it (cost ~ 1 / (sample distance x
     // image sample distance^2)), and still frames kept from freezing the window for seconds.
     const double still_work = kStillSampleVoxels[still_level_] * kStillImageSample[still_level_] * kStillImageSample[still_level_];
-    // Nor below the reduction the last interactive frames settled on: the still frame's cost
+    // Nor below where this mode's last interactive frames settled: the still frame's cost
     // grows less than in proportion to its work (what each frame costs whatever its rays), so
     // its guess alone came too low, and each resumed motion began with frames 2-4x late.
-    interactive_reduction_ = std::clamp(std::max(still_work * ratio, last_interactive_reduction_), 1.0, kMaxReduction);
+    interactive_reduction_ = std::clamp(std::max(still_work * ratio, resumedReduction()), 1.0, kMaxReduction);
     if (last_frame_ms > kStillSlowMs && still_level_ < 2) {
       ++still_level_;
     } else if (last_frame_ms < kStillFastMs && still_level_ > 0) {
@@ -644,6 +646,21 @@ void SceneActors::adaptQuality(double last_frame_ms, double interactive_target_m
     }
   }
   applyQuality();
+}
+
+double SceneActors::viewPixels() const {
+  const int* size = renderer_->GetSize();
+  return size == nullptr ? 0.0 : static_cast<double>(size[0]) * static_cast<double>(size[1]);
+}
+
+double SceneActors::resumedReduction() const {
+  const auto mode = static_cast<std::size_t>(mode_);
+  // No motion in this mode yet: from the largest reduction, relaxed halfway each early frame (a
+  // few frames too coarse, rather than the first ones late).
+  if (!(settled_reduction_[mode] > 0.0)) return kMaxReduction;
+  // The same picture in a larger view casts more rays.
+  const double now = viewPixels(), then = settled_pixels_[mode];
+  return now > 0.0 && then > 0.0 ? settled_reduction_[mode] * now / then : settled_reduction_[mode];
 }
 
 void SceneActors::setProxyPose(const haptics::Pose& X_WP) { setUserPose(proxy_actor_, X_WP); }

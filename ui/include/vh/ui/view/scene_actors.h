@@ -147,7 +147,10 @@ class SceneActors {
   /// about 4 px apart (a reduction over 16) interactive frames also sample the nearest voxel
   /// instead of trilinearly (back below a reduction of 4); still frames are always trilinear. A
   /// still frame sets the first interactive frame's guess, never below the reduction the last
-  /// interactive frames settled on. Still frames that take over 3 s (software GL,
+  /// interactive frames of the same render mode settled on (scaled by the view's pixels then and
+  /// now), and the first motion of a mode starts from the largest reduction and relaxes from
+  /// there: a frame's fixed cost (the full-size passes around the ray cast, 15 ms at 720p on
+  /// llvmpipe) makes the still frame's guess too low. Still frames that take over 3 s (software GL,
   /// very large views) step down to voxel-spaced samples, then to 1.5 pixel image sampling, and
   /// back up when they get fast again.
   void adaptQuality(double last_frame_ms, double interactive_target_ms = 40.0);
@@ -221,7 +224,12 @@ class SceneActors {
   double min_spacing_m_ = 1e-3;
   int still_level_ = 0;  // 0 best; see adaptQuality()
   double interactive_reduction_ = 1.0;  // interactive work divided by this; see adaptQuality()
-  double last_interactive_reduction_ = 1.0;  // where the last interactive frames settled
+  /// Where the last interactive frames of each render mode settled (0: none yet), and the
+  /// view's size in pixels then: a motion resumes from it, scaled to the view's size now.
+  std::array<double, 3> settled_reduction_{0.0, 0.0, 0.0};
+  std::array<double, 3> settled_pixels_{0.0, 0.0, 0.0};
+  double viewPixels() const;
+  double resumedReduction() const;
   bool nearest_when_interactive_ = false;    // interactive frames sample the nearest voxel
   bool interactive_ = false;
   static constexpr double kReferenceForce_N = 3.0;
