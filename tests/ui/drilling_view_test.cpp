@@ -125,6 +125,7 @@ TEST(DrillingView, BoxUploadShowsWhatAWholeUploadShows) {
   ASSERT_GT(cavity.size(), 100u);
   double range[2];
   spec.image->GetScalarRange(range);
+  EXPECT_EQ(a.view->actors().removedValue(), range[0]) << "a removed voxel shows the scan's lowest value";
   a.view->actors().removeVoxels(cavity, range[0]);  // first call: the copy, uploaded whole
   a.view->renderStill(true);
   const QImage first_bite = a.view->widget()->grabFrame();

@@ -146,10 +146,8 @@ void DrillController::drain() {
   runtime::Drill& drill = *thread->drill();
   const haptics::ScalarVolume& felt = drill.removal().volume();
   const haptics::ScalarVolume& scan = *session_.live().scan_field;
-  vtkImageData* image = view_.actors().shownImage();
-  if (image == nullptr) return;
-  double range[2];
-  image->GetScalarRange(range);
+  if (view_.actors().shownImage() == nullptr) return;
+  const double removed_value = view_.actors().removedValue();
   if (removed_mask_.empty()) removed_mask_.assign(scan.geometry().voxelCount(), 0);
   if (drill_seen_.get() != &drill) {  // a new drill: its log starts empty, its field from its cavity
     // The threads were rebuilt: what the old drill cut since the last drain is in the new one's
@@ -157,7 +155,7 @@ void DrillController::drain() {
     if (drill_seen_ != nullptr) reportCritical(*drill_seen_, nullptr);
     drill_seen_ = thread->drill();
     critical_seen_.assign(drill.removal().materials().size(), 0);
-    showCavity(drill.cavityAtStart().get(), range[0]);
+    showCavity(drill.cavityAtStart().get(), removed_value);
     // The shadow's field: the felt field the new drill started from, with its cavity.
     const auto& start = drill.cavityAtStart();
     carved_.reset(session_.live().hapticField(),
@@ -171,7 +169,7 @@ void DrillController::drain() {
     image_indices_ = pictureIndices(felt, scan, std::span<const std::uint64_t>(buffer_.data(), n));
     for (const std::uint64_t index : image_indices_)
       if (index < removed_mask_.size()) removed_mask_[index] = 1;
-    view_.actors().removeVoxels(image_indices_, range[0]);
+    view_.actors().removeVoxels(image_indices_, removed_value);
     carved_.remove(std::span<const std::uint64_t>(buffer_.data(), n));
     removed_ += n;
     removed_mm3_ += static_cast<double>(n) * drill.removal().voxelVolume_mm3();

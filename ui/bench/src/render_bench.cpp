@@ -163,13 +163,11 @@ struct Bench {
     const auto& drill = thread->drill();
     if (drill == nullptr) return 0;
     std::uint64_t total = 0;
-    double range[2];
-    view->actors().shownImage()->GetScalarRange(range);
     for (;;) {
       const std::size_t n = drill->removal().drainRemoved(drained);
       if (n == 0) break;
       picture = pictureIndices(drill->removal().volume(), *scan, std::span<const std::uint64_t>(drained.data(), n));
-      view->actors().removeVoxels(picture, range[0]);
+      view->actors().removeVoxels(picture, view->actors().removedValue());
       const auto carve_t0 = Clock::now();
       carved.remove(std::span<const std::uint64_t>(drained.data(), n));
       carve_ms += msSince(carve_t0);

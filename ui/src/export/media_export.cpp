@@ -281,11 +281,9 @@ void showDrilledVoxels(SceneActors& actors, const CavityOrder& picture, std::uin
     actors.restoreVolume();
     shown = 0;
   }
-  double range[2];
-  actors.shownImage()->GetScalarRange(range);
   actors.removeVoxels(std::span<const std::uint64_t>(picture.voxels.data() + shown,
                                                      static_cast<std::size_t>(target - shown)),
-                      range[0]);
+                      actors.removedValue());
   shown = target;
 }
 
