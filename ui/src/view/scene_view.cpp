@@ -95,12 +95,21 @@ SceneView::SceneView(QWidget* parent) : QObject(parent) {
   connect(view_, &VtkView::frameRendered, this, [this] {
     // The first frame of a scene also compiles shaders and uploads the volume.
     if (actors_ != nullptr && view_->frameCount() > scene_frame_ + 1)
-      actors_->adaptQuality(view_->lastFrameMs(), 1000.0 / view_->interactor()->GetDesiredUpdateRate());
+      actors_->adaptQuality(view_->lastFrameMs(), interactiveTargetMs());
     // The still frame comes kSettleMs after the last interactive frame was drawn, not after the
     // motion that asked for it: with frames slower than kSettleMs (software GL), every frame of
     // a moving tool would otherwise be followed by a still one.
     if (actors_ != nullptr && actors_->interactive() && settle_timer_->isActive()) settle_timer_->start();
   });
+}
+
+double SceneView::interactiveTargetMs() {
+  const double period_ms = 1000.0 / view_->interactor()->GetDesiredUpdateRate();
+  // Back-to-back interactive frames only: a longer gap is the view at rest, not the GUI's cost.
+  const double gap_ms = view_->lastGapMs();
+  if (actors_ != nullptr && actors_->interactive() && gap_ms >= 0.0 && gap_ms < period_ms)
+    frame_gap_ms_ += 0.3 * (gap_ms - frame_gap_ms_);
+  return std::max(period_ms - frame_gap_ms_, 0.5 * period_ms);
 }
 
 SceneView::~SceneView() {

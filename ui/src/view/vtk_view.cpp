@@ -51,6 +51,7 @@ class VtkView::Surface : public QWindow {
     switch (event->type()) {
       case QEvent::UpdateRequest:
         // Only a frame still asked for: renderNow() in between has drawn what was asked.
+        host_->render_posted_ = false;
         if (host_->render_requested_) host_->renderNow();
         return true;
       case QEvent::MouseButtonPress:
@@ -165,7 +166,13 @@ bool VtkView::event(QEvent* event) {
 
 void VtkView::requestRender() {
   render_requested_ = true;
-  if (surface_ != nullptr) surface_->requestUpdate();
+  // A render event queued behind the events already waiting (input first), at most one at a
+  // time. Not QWindow::requestUpdate(): without a compositor's frame callbacks (X11 without
+  // _NET_WM_FRAME_DRAWN, Xvfb) Qt delivers it through a 5 ms timer, a sixth of a 30 Hz frame.
+  if (surface_ != nullptr && !render_posted_) {
+    render_posted_ = true;
+    QCoreApplication::postEvent(surface_, new QEvent(QEvent::UpdateRequest), Qt::LowEventPriority);
+  }
 }
 
 bool VtkView::makeCurrent() {
@@ -217,6 +224,7 @@ void VtkView::renderFrame() {
   in_paint_ = true;
   render_requested_ = false;  // a request made while this frame renders asks for the next one
   const auto t0 = std::chrono::steady_clock::now();
+  if (frames_ > 0) last_gap_ms_ = std::chrono::duration<double, std::milli>(t0 - last_frame_end_).count();
 
   surfaceResized();  // a resize whose event has not come yet
   const QSize pixels = surfacePixels();
@@ -242,8 +250,8 @@ void VtkView::renderFrame() {
                                          GL_COLOR_BUFFER_BIT, GL_LINEAR);
   state->Pop();
 
-  last_frame_ms_ =
-      std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+  last_frame_end_ = std::chrono::steady_clock::now();
+  last_frame_ms_ = std::chrono::duration<double, std::milli>(last_frame_end_ - t0).count();
   ++frames_;
   in_paint_ = false;
   emit frameRendered();

@@ -138,6 +138,11 @@ class SceneView : public QObject {
   bool interacting_ = false;
   bool camera_dragging_ = false;
   std::uint64_t scene_frame_ = 0;  // the view's frame count when the props were built
+  double frame_gap_ms_ = 0.0;      // between interactive frames, smoothed; see interactiveTargetMs()
+  /// What an interactive frame's render may take [ms]: the interactive period less the time the
+  /// GUI spends between back-to-back interactive frames, so that the frames, not only their
+  /// renders, come at kInteractiveRate_Hz; never under half the period.
+  double interactiveTargetMs();
   std::vector<Eigen::Vector3d> tool_vertices_T_m_;
   haptics::Pose shown_X_WP_;
   haptics::Pose shown_X_WD_;

@@ -30,6 +30,7 @@
 ///  - QWidget::grab() cannot see into a native window: screenshots of a window holding the view
 ///    use grabWithView().
 
+#include <chrono>
 #include <cstdint>
 #include <memory>
 
@@ -90,6 +91,10 @@ class VtkView : public QWidget {
   /// blit; the swap not included).
   std::uint64_t frameCount() const noexcept { return frames_; }
   double lastFrameMs() const noexcept { return last_frame_ms_; }
+  /// The wall time from the end of the previous frame's render to the start of the last one
+  /// [ms]: its swap and whatever the GUI thread did in between (events, timers, other widgets,
+  /// idle time); negative before the second frame.
+  double lastGapMs() const noexcept { return last_gap_ms_; }
 
  signals:
   /// Emitted after each frame was rendered and blitted.
@@ -138,8 +143,11 @@ class VtkView : public QWidget {
   unsigned long observer_ids_[6] = {0, 0, 0, 0, 0, 0};
   bool in_paint_ = false;
   bool render_requested_ = false;  // requestRender() since the last frame began
+  bool render_posted_ = false;     // a render event is queued for the window
   std::uint64_t frames_ = 0;
   double last_frame_ms_ = 0.0;
+  double last_gap_ms_ = -1.0;
+  std::chrono::steady_clock::time_point last_frame_end_{};
 };
 
 /// A picture of `window` (a top-level widget) with the view's frame drawn where the view is:
