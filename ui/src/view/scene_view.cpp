@@ -25,11 +25,12 @@ namespace {
 
 constexpr int kSettleMs = 300;  // still frame this long after the last motion
 // The frame rates asked of VTK (vtkRenderWindowInteractor's desired and still update rates):
-// interactive frames at 30 Hz, 33 ms of VTK's render, which keeps the whole frame within 50 ms
-// on software GL (Mesa's llvmpipe) at 1280 x 720 with room for the machine's noise; still frames
-// unhurried (full quality). The ray caster follows them through SceneActors::adaptQuality(), not through
-// its own automatic sample distances.
-constexpr double kInteractiveRate_Hz = 30.0;
+// interactive frames at 33 Hz (30 ms from one frame to the next, render and the GUI's other work
+// together: 30 frames per second with a tenth to spare for the machine's noise), which keeps the
+// whole frame within 50 ms on software GL (Mesa's llvmpipe) at 1280 x 720; still frames
+// unhurried (full quality). The ray caster follows them through SceneActors::adaptQuality(), not
+// through its own automatic sample distances.
+constexpr double kInteractiveRate_Hz = 33.0;
 constexpr double kStillRate_Hz = 0.0001;
 
 bool posesDiffer(const haptics::Pose& a, const haptics::Pose& b) {
