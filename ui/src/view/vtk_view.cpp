@@ -105,6 +105,9 @@ VtkView::VtkView(QWidget* parent) : QWidget(parent) {
   render_window_->SetFrameBlitModeToNoBlit();
   render_window_->SetReadyForRendering(false);  // until the context exists
   render_window_->SetMultiSamples(0);
+  // No copy of each frame into VTK's display framebuffer (colour and depth, every pixel): the
+  // window's back buffer is filled from VTK's render framebuffer directly (renderFrame()).
+  render_window_->SetSwapBuffers(0);
   render_window_->SetForceMaximumHardwareLineWidth(1);
   render_window_->AddRenderer(renderer_);
 
@@ -235,9 +238,9 @@ void VtkView::renderFrame() {
   state->Push();
   state->vtkglDepthFunc(GL_LEQUAL);  // VTK expects GL_LEQUAL
 
-  render_window_->Render();  // into VTK's own render framebuffer, copied to its display one
+  render_window_->Render();  // into VTK's own render framebuffer (no copy to its display one)
 
-  // Blit VTK's display framebuffer into the window's back buffer.
+  // Blit VTK's render framebuffer into the window's back buffer.
   QOpenGLExtraFunctions* f = context_->extraFunctions();
   f->glBindFramebuffer(GL_DRAW_FRAMEBUFFER, context_->defaultFramebufferObject());
   const GLenum draw_buffer = GL_BACK_LEFT;
@@ -245,9 +248,11 @@ void VtkView::renderFrame() {
   state->vtkglDisable(GL_SCISSOR_TEST);
   f->glDisable(GL_SCISSOR_TEST);
   f->glViewport(0, 0, w, h);
-  const int* source_size = render_window_->GetRenderFramebuffer()->GetLastSize();
-  render_window_->BlitDisplayFramebuffer(0, 0, 0, source_size[0], source_size[1], 0, 0, w, h,
-                                         GL_COLOR_BUFFER_BIT, GL_LINEAR);
+  vtkOpenGLFramebufferObject* rendered = render_window_->GetRenderFramebuffer();
+  const int* source_size = rendered->GetLastSize();
+  rendered->Bind(GL_READ_FRAMEBUFFER);
+  rendered->ActivateReadBuffer(0);
+  f->glBlitFramebuffer(0, 0, source_size[0], source_size[1], 0, 0, w, h, GL_COLOR_BUFFER_BIT, GL_LINEAR);
   state->Pop();
 
   last_frame_end_ = std::chrono::steady_clock::now();

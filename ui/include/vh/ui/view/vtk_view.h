@@ -18,11 +18,11 @@
 ///    QWidget::createWindowContainer(); the widget owns the QOpenGLContext, created when the
 ///    window is first shown.
 ///  - VTK renders into its own framebuffer in that context (SetOwnContext(false), frame blit
-///    mode NoBlit); renderNow() renders, blits VTK's display framebuffer into the window's back
-///    buffer and swaps.
+///    mode NoBlit, SwapBuffers off: no copy into its display framebuffer); renderNow() renders,
+///    blits VTK's render framebuffer into the window's back buffer and swaps.
 ///  - Render requests (requestRender(), the interactor's RenderEvent, VTK frames rendered
-///    outside renderNow()) are QWindow::requestUpdate(): many mouse moves share one frame, at most
-///    one frame per display refresh.
+///    outside renderNow()) post one render event to the window, behind the input already
+///    waiting: many mouse moves share one frame.
 ///  - The native window never takes keyboard focus; its mouse, wheel and enter/leave events are
 ///    sent on to this widget, so event filters installed on the widget (the main window's
 ///    simulated-device drags) see them first, and keys go to the widget as before.
