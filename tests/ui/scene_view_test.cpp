@@ -7,6 +7,8 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <thread>
+#include <chrono>
 #include <cstdint>
 #include <filesystem>
 #include <fstream>
@@ -24,6 +26,7 @@
 #include <vtkCamera.h>
 #include <vtkActor2DCollection.h>
 #include <vtkGPUVolumeRayCastMapper.h>
+#include <vtkGenericRenderWindowInteractor.h>
 #include <vtkImageData.h>
 #include <vtkMatrix4x4.h>
 #include <vtkPlane.h>
@@ -159,6 +162,35 @@ TEST(SceneActors, AMotionResumesFromWhereItsRenderModeSettledScaledToTheViewsPix
   resume(200.0);
   const double px = actors.imageSampleDistance_px(), samples = actors.sampleDistance_m() / spacing_m;
   EXPECT_NEAR(px * px * samples, 4.0 * iso_px * iso_px * iso_sample_m / spacing_m, 1e-3);
+}
+
+TEST(SceneView, InteractiveRendersAimAtThePeriodLessTheGuisTimeBetweenFrames) {
+  // Interactive frames rendered back to back with at least 8 ms of other work between them: the
+  // renders' target falls by that much from the 33 Hz period; pauses longer than the period (the
+  // view at rest) leave it alone, and it never falls under half the period.
+  ViewWindow w;
+  w.load();
+  ASSERT_TRUE(test::waitFor([&] { return w.view->widget()->frameCount() > 1; }, 20000)) << "the view never rendered";
+  const double period_ms = 1000.0 / w.view->widget()->interactor()->GetDesiredUpdateRate();
+  EXPECT_DOUBLE_EQ(w.view->interactiveTargetMs(), period_ms) << "no interactive frames yet";
+  for (int i = 0; i < 20; ++i) {
+    w.view->noteMotion();
+    ASSERT_TRUE(w.view->widget()->renderNow());
+    std::this_thread::sleep_for(std::chrono::milliseconds(8));
+  }
+  const double target_ms = w.view->interactiveTargetMs();
+  EXPECT_LE(target_ms, period_ms - 7.9) << "8 ms or more between frames";
+  EXPECT_GE(target_ms, 0.5 * period_ms);
+  w.view->noteMotion();
+  std::this_thread::sleep_for(std::chrono::milliseconds(static_cast<int>(2.0 * period_ms)));
+  ASSERT_TRUE(w.view->widget()->renderNow());
+  EXPECT_DOUBLE_EQ(w.view->interactiveTargetMs(), target_ms) << "a pause longer than the period is rest";
+  for (int i = 0; i < 20; ++i) {
+    w.view->noteMotion();
+    ASSERT_TRUE(w.view->widget()->renderNow());
+    std::this_thread::sleep_for(std::chrono::milliseconds(static_cast<int>(0.8 * period_ms)));
+  }
+  EXPECT_DOUBLE_EQ(w.view->interactiveTargetMs(), 0.5 * period_ms) << "never under half the period";
 }
 
 TEST(SceneView, AMovedProxyAsksForANewFrameAndTheSameFrameDoesNot) {

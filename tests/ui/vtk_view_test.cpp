@@ -4,8 +4,10 @@
 // widget, the camera VTK's trackball moved, and the renderer's own background colour.
 #include "vh/ui/view/vtk_view.h"
 
+#include <chrono>
 #include <cmath>
 #include <cstdint>
+#include <thread>
 
 #include <QGuiApplication>
 #include <QHBoxLayout>
@@ -183,6 +185,23 @@ TEST(VtkView, AFrameRenderedNowAnswersTheRequestsBeforeIt) {
   w.view->requestRender();
   test::pump(100);
   EXPECT_EQ(w.view->frameCount() - before, 1u);
+}
+
+TEST(VtkView, TheGapBeforeAFrameIsTheTimeSinceThePreviousFrameEnded) {
+  // Oracle: the steady clock around a known pause between two frames rendered now.
+  Window w;
+  ASSERT_TRUE(test::waitFor([&] { return w.view->frameCount() > 0; }, 20000)) << "the view never rendered";
+  const auto before = std::chrono::steady_clock::now();
+  ASSERT_TRUE(w.view->renderNow());
+  const auto ended = std::chrono::steady_clock::now();  // the frame's end and its swap
+  std::this_thread::sleep_for(std::chrono::milliseconds(40));
+  const auto started = std::chrono::steady_clock::now();
+  ASSERT_TRUE(w.view->renderNow());
+  const auto after = std::chrono::steady_clock::now();
+  const auto ms = [](auto d) { return std::chrono::duration<double, std::milli>(d).count(); };
+  EXPECT_GE(w.view->lastGapMs(), ms(started - ended)) << "from the end of the previous frame's render";
+  EXPECT_LE(w.view->lastGapMs(), ms(after - before) - w.view->lastFrameMs() + 1e-6)
+      << "to the start of this frame's render, whose own time is not in it";
 }
 
 }  // namespace

@@ -95,6 +95,7 @@ SceneView::SceneView(QWidget* parent) : QObject(parent) {
   });
   connect(view_, &VtkView::frameRendered, this, [this] {
     // The first frame of a scene also compiles shaders and uploads the volume.
+    noteFrameGap();
     if (actors_ != nullptr && view_->frameCount() > scene_frame_ + 1)
       actors_->adaptQuality(view_->lastFrameMs(), interactiveTargetMs());
     // The still frame comes kSettleMs after the last interactive frame was drawn, not after the
@@ -104,12 +105,16 @@ SceneView::SceneView(QWidget* parent) : QObject(parent) {
   });
 }
 
-double SceneView::interactiveTargetMs() {
-  const double period_ms = 1000.0 / view_->interactor()->GetDesiredUpdateRate();
+void SceneView::noteFrameGap() {
   // Back-to-back interactive frames only: a longer gap is the view at rest, not the GUI's cost.
+  const double period_ms = 1000.0 / view_->interactor()->GetDesiredUpdateRate();
   const double gap_ms = view_->lastGapMs();
   if (actors_ != nullptr && actors_->interactive() && gap_ms >= 0.0 && gap_ms < period_ms)
     frame_gap_ms_ += 0.3 * (gap_ms - frame_gap_ms_);
+}
+
+double SceneView::interactiveTargetMs() const {
+  const double period_ms = 1000.0 / view_->interactor()->GetDesiredUpdateRate();
   return std::max(period_ms - frame_gap_ms_, 0.5 * period_ms);
 }
 

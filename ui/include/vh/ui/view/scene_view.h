@@ -119,6 +119,11 @@ class SceneView : public QObject {
   void setInteracting(bool interacting);
   /// Ends interactive frames now; `best_quality` also resets the still quality (screenshots).
   void renderStill(bool best_quality = false);
+  /// What an interactive frame's render may take [ms]: the interactive period (1 / 33 Hz) less
+  /// the GUI thread's time between back-to-back interactive frames (VtkView::lastGapMs(),
+  /// smoothed), so that frames, not only their renders, come at that rate; never under half the
+  /// period. SceneActors::adaptQuality() aims at it.
+  double interactiveTargetMs() const;
 
  signals:
   /// show() drew a new pose of the tools (a live snapshot or a replayed tick), before the
@@ -139,10 +144,9 @@ class SceneView : public QObject {
   bool camera_dragging_ = false;
   std::uint64_t scene_frame_ = 0;  // the view's frame count when the props were built
   double frame_gap_ms_ = 0.0;      // between interactive frames, smoothed; see interactiveTargetMs()
-  /// What an interactive frame's render may take [ms]: the interactive period less the time the
-  /// GUI spends between back-to-back interactive frames, so that the frames, not only their
-  /// renders, come at kInteractiveRate_Hz; never under half the period.
-  double interactiveTargetMs();
+  /// Folds the gap before the frame just rendered into frame_gap_ms_ (weight 0.3) when that
+  /// frame was interactive and the gap shorter than the interactive period.
+  void noteFrameGap();
   std::vector<Eigen::Vector3d> tool_vertices_T_m_;
   haptics::Pose shown_X_WP_;
   haptics::Pose shown_X_WD_;
