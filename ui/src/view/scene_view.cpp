@@ -94,8 +94,8 @@ SceneView::SceneView(QWidget* parent) : QObject(parent) {
     settle_timer_->start();
   });
   connect(view_, &VtkView::frameRendered, this, [this] {
-    // The first frame of a scene also compiles shaders and uploads the volume.
     noteFrameGap();
+    // The first frame of a scene also compiles shaders and uploads the volume.
     if (actors_ != nullptr && view_->frameCount() > scene_frame_ + 1)
       actors_->adaptQuality(view_->lastFrameMs(), interactiveTargetMs());
     // The still frame comes kSettleMs after the last interactive frame was drawn, not after the
@@ -105,16 +105,17 @@ SceneView::SceneView(QWidget* parent) : QObject(parent) {
   });
 }
 
+double SceneView::interactivePeriodMs() const { return 1000.0 / view_->interactor()->GetDesiredUpdateRate(); }
+
 void SceneView::noteFrameGap() {
   // Back-to-back interactive frames only: a longer gap is the view at rest, not the GUI's cost.
-  const double period_ms = 1000.0 / view_->interactor()->GetDesiredUpdateRate();
   const double gap_ms = view_->lastGapMs();
-  if (actors_ != nullptr && actors_->interactive() && gap_ms >= 0.0 && gap_ms < period_ms)
+  if (actors_ != nullptr && actors_->interactive() && gap_ms >= 0.0 && gap_ms < interactivePeriodMs())
     frame_gap_ms_ += 0.3 * (gap_ms - frame_gap_ms_);
 }
 
 double SceneView::interactiveTargetMs() const {
-  const double period_ms = 1000.0 / view_->interactor()->GetDesiredUpdateRate();
+  const double period_ms = interactivePeriodMs();
   return std::max(period_ms - frame_gap_ms_, 0.5 * period_ms);
 }
 

@@ -113,7 +113,7 @@ VtkView::VtkView(QWidget* parent) : QWidget(parent) {
 
   interactor_->SetRenderWindow(render_window_);
   interactor_->SetInteractorStyle(style_);
-  interactor_->EnableRenderOff();  // its render requests become requestUpdate() (RenderEvent below)
+  interactor_->EnableRenderOff();  // its render requests become requestRender() (RenderEvent below)
   interactor_->Initialize();       // enables it; never Start(): Qt runs the event loop
 
   observer_ids_[0] = render_window_->AddObserver(vtkCommand::WindowMakeCurrentEvent, this,

@@ -147,6 +147,8 @@ class SceneView : public QObject {
   /// Folds the gap before the frame just rendered into frame_gap_ms_ (weight 0.3) when that
   /// frame was interactive and the gap shorter than the interactive period.
   void noteFrameGap();
+  /// The interactive frame period [ms]: 1 / the interactor's desired update rate.
+  double interactivePeriodMs() const;
   std::vector<Eigen::Vector3d> tool_vertices_T_m_;
   haptics::Pose shown_X_WP_;
   haptics::Pose shown_X_WD_;

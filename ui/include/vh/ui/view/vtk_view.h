@@ -65,8 +65,8 @@ class VtkView : public QWidget {
   vtkRenderer* renderer() const noexcept;
   vtkGenericRenderWindowInteractor* interactor() const noexcept;
 
-  /// Asks for a frame; requests are coalesced into one render at the next display refresh
-  /// (QWindow::requestUpdate()), and a renderNow() or grabFrame() before then answers them.
+  /// Asks for a frame; requests are coalesced into one render, posted to the window behind the
+  /// input already waiting, and a renderNow() or grabFrame() before then answers them.
   void requestRender();
 
   /// Renders a frame now and shows it. @return false (nothing rendered) while the view is not
