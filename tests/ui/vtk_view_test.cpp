@@ -202,6 +202,10 @@ TEST(VtkView, TheGapBeforeAFrameIsTheTimeSinceThePreviousFrameEnded) {
   EXPECT_GE(w.view->lastGapMs(), ms(started - ended)) << "from the end of the previous frame's render";
   EXPECT_LE(w.view->lastGapMs(), ms(after - before) - w.view->lastFrameMs() + 1e-6)
       << "to the start of this frame's render, whose own time is not in it";
+  // The swap is the rest of renderNow(): together with the render it fits inside the call, and
+  // the gap (the previous swap and the pause) holds the previous frame's swap.
+  EXPECT_GT(w.view->lastSwapMs(), 0.0);
+  EXPECT_LE(w.view->lastFrameMs() + w.view->lastSwapMs(), ms(after - started) + 1e-6);
 }
 
 }  // namespace

@@ -84,6 +84,15 @@ TEST(RenderBench, ShortRunWritesRowsAndServoFiguresOnAndOff) {
     // Each frame painted once: no still frame slipped in between the interactive ones.
     EXPECT_GE(number(r, "paints_per_frame"), 1.0);
     EXPECT_LT(number(r, "paints_per_frame"), 1.5);
+    // Each frame's render and swap, timed inside it: no frame's parts outlast the frame.
+    ASSERT_EQ(r["frames_paint_ms"].size(), r["frames_ms"].size());
+    ASSERT_EQ(r["frames_swap_ms"].size(), r["frames_ms"].size());
+    for (std::size_t k = 0; k < r["frames_ms"].size(); ++k) {
+      const double paint = r["frames_paint_ms"][k].get<double>(), swap = r["frames_swap_ms"][k].get<double>();
+      EXPECT_GT(paint, 0.0) << "frame " << k;
+      EXPECT_GT(swap, 0.0) << "frame " << k;
+      EXPECT_LE(paint + swap, r["frames_ms"][k].get<double>() + 1e-6) << "frame " << k;
+    }
     if (r["mode"] == "drilling") {
       EXPECT_TRUE(r.contains("removed_voxels"));
       EXPECT_TRUE(r.contains("partial_uploads"));

@@ -180,7 +180,7 @@ struct Bench {
   /// painted now. @return its wall time [ms]; the shadow's cast alone (with the carving of the
   /// cavity into its field while drilling) goes to `shadow_ms`.
   double frame(Phase& phase, bool drilling, std::uint64_t& removed, std::vector<double>& paint_ms,
-               std::vector<double>& shadow_ms) {
+               std::vector<double>& swap_ms, std::vector<double>& shadow_ms) {
     const auto t0 = Clock::now();
     poll(phase);
     double carve_ms = 0.0;
@@ -200,6 +200,7 @@ struct Bench {
     shadow_ms.push_back(msSince(shadow_t0) + carve_ms);
     view->widget()->renderNow();
     paint_ms.push_back(view->widget()->lastFrameMs());
+    swap_ms.push_back(view->widget()->lastSwapMs());
     QCoreApplication::processEvents();
     return msSince(t0);
   }
@@ -355,11 +356,11 @@ fs::path runRenderBench(const RenderBenchOptions& o) {
         thread->setDrilling(drilling);
         const std::uint64_t partial0 = b.view->actors().partialUploads(), full0 = b.view->actors().fullUploads();
         std::uint64_t removed = 0;
-        std::vector<double> frames, paint_ms, shadow_ms;
+        std::vector<double> frames, paint_ms, swap_ms, shadow_ms;
         const std::uint64_t paints0 = b.view->widget()->frameCount();
         Phase on = b.begin(true);
         t0 = Clock::now();
-        while (msSince(t0) < 1e3 * row_s || frames.size() < 3) frames.push_back(b.frame(on, drilling, removed, paint_ms, shadow_ms));
+        while (msSince(t0) < 1e3 * row_s || frames.size() < 3) frames.push_back(b.frame(on, drilling, removed, paint_ms, swap_ms, shadow_ms));
         const double elapsed_s = 1e-3 * msSince(t0);
         b.end(on);
         thread->setDrilling(false);
@@ -401,7 +402,12 @@ fs::path runRenderBench(const RenderBenchOptions& o) {
         row["frames_ms"] = frames;  // each frame in order: the first ones after the still frame and the mode change show
         // VtkView paints per frame: 1 when each frame is painted once (no queued repaint on top).
         row["paints_per_frame"] = static_cast<double>(b.view->widget()->frameCount() - paints0) / static_cast<double>(frames.size());
-        row["paint_ms_mean"] = summarize(paint_ms).mean;  // VTK's render and the blit, without the swap
+        // Each frame's parts: VTK's render and the blit as the CPU issues them (the GPU may still
+        // be working), then the swap (where the driver waits for the GPU and the display).
+        row["paint_ms_mean"] = summarize(paint_ms).mean;
+        row["swap_ms_mean"] = summarize(swap_ms).mean;
+        row["frames_paint_ms"] = paint_ms;
+        row["frames_swap_ms"] = swap_ms;
         const Stats shadow = summarize(shadow_ms);  // the tool's shadow cast (inside frame_ms)
         row["shadow_ms_mean"] = shadow.mean;
         row["shadow_ms_max"] = shadow.max;
@@ -420,10 +426,11 @@ fs::path runRenderBench(const RenderBenchOptions& o) {
         row["contacts"] = b.snapshot.contacts;  // the haptic threads' last snapshot of the row
         row["force_N"] = b.snapshot.force_W_N.norm();
         row["renderer"] = gl.renderer;
-        std::cout << format("bench render: %-10s %4d x %4d  %6.1f fps  mean %6.1f  p99 %6.1f  max %6.1f ms  still %6.0f ms"
-                            "  (shadow %4.1f / %4.1f ms)",
+        std::cout << format("bench render: %-10s %4d x %4d  %6.1f fps  mean %6.1f  p99 %6.1f  max %6.1f ms"
+                            "  (render %4.1f, swap %4.1f)  still %6.0f ms  (shadow %4.1f / %4.1f ms)",
                             row["mode"].get<std::string>().c_str(), row["width"].get<int>(), row["height"].get<int>(),
-                            row["fps_mean"].get<double>(), s.mean, s.p99, s.max, still_ms, shadow.mean, shadow.max)
+                            row["fps_mean"].get<double>(), s.mean, s.p99, s.max, row["paint_ms_mean"].get<double>(),
+                            row["swap_ms_mean"].get<double>(), still_ms, shadow.mean, shadow.max)
                   << std::endl;
         rows.push_back(row);
       }
@@ -484,12 +491,13 @@ fs::path runRenderBench(const RenderBenchOptions& o) {
      << format("%.1f before, %.1f after", report["load_average_before"].get<double>(),
                report["load_average_after"].get<double>())
      << "); " << format("%.1f s per row, the haptic threads at 1 kHz throughout.\n\n", row_s)
-     << "| mode | window | fps | mean [ms] | p99 [ms] | max [ms] | still frame [ms] | tool shadow mean / max [ms] |\n"
-     << "|---|---|---|---|---|---|---|---|\n";
+     << "| mode | window | fps | mean [ms] | p99 [ms] | max [ms] | render / swap mean [ms] | still frame [ms] | tool shadow mean / max [ms] |\n"
+     << "|---|---|---|---|---|---|---|---|---|\n";
   for (const auto& r : rows)
-    md << format("| %s | %d x %d | %.1f | %.1f | %.1f | %.1f | %.0f | %.2f / %.2f |\n", r["mode"].get<std::string>().c_str(),
-                 r["width"].get<int>(), r["height"].get<int>(), r["fps_mean"].get<double>(),
-                 r["frame_ms_mean"].get<double>(), r["frame_ms_p99"].get<double>(), r["frame_ms_max"].get<double>(),
+    md << format("| %s | %d x %d | %.1f | %.1f | %.1f | %.1f | %.1f / %.1f | %.0f | %.2f / %.2f |\n",
+                 r["mode"].get<std::string>().c_str(), r["width"].get<int>(), r["height"].get<int>(),
+                 r["fps_mean"].get<double>(), r["frame_ms_mean"].get<double>(), r["frame_ms_p99"].get<double>(),
+                 r["frame_ms_max"].get<double>(), r["paint_ms_mean"].get<double>(), r["swap_ms_mean"].get<double>(),
                  r["still_frame_ms"].get<double>(), r["shadow_ms_mean"].get<double>(), r["shadow_ms_max"].get<double>());
   const auto& st = report["servo"]["solver_tick_us"];
   md << "\n| haptic threads | solver p99 [us] | solver p99.9 [us] | solver max [us] | coupling max [us] | deadline misses |\n"

@@ -265,7 +265,9 @@ void VtkView::renderFrame() {
 bool VtkView::renderNow() {
   if (in_paint_ || surface_ == nullptr || !surface_->isExposed() || !prepareContext()) return false;
   renderFrame();
+  const auto t0 = std::chrono::steady_clock::now();
   context_->swapBuffers(surface_);
+  last_swap_ms_ = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
   return true;
 }
 

@@ -95,6 +95,10 @@ class VtkView : public QWidget {
   /// [ms]: its swap and whatever the GUI thread did in between (events, timers, other widgets,
   /// idle time); negative before the second frame.
   double lastGapMs() const noexcept { return last_gap_ms_; }
+  /// The wall time of the last renderNow()'s buffer swap [ms]: where the GL driver waits for the
+  /// GPU to finish the frame, and for the display's refresh when the swap is synchronised to it
+  /// (under VirtualGL, its read-back of the frame too); 0 before the first.
+  double lastSwapMs() const noexcept { return last_swap_ms_; }
 
  signals:
   /// Emitted after each frame was rendered and blitted.
@@ -147,6 +151,7 @@ class VtkView : public QWidget {
   std::uint64_t frames_ = 0;
   double last_frame_ms_ = 0.0;
   double last_gap_ms_ = -1.0;
+  double last_swap_ms_ = 0.0;
   std::chrono::steady_clock::time_point last_frame_end_{};
 };
 
