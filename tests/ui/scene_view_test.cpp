@@ -164,6 +164,50 @@ TEST(SceneActors, AMotionResumesFromWhereItsRenderModeSettledScaledToTheViewsPix
   EXPECT_NEAR(px * px * samples, 4.0 * iso_px * iso_px * iso_sample_m / spacing_m, 1e-3);
 }
 
+TEST(SceneActors, AFastViewKeepsFullQualityWhileItsRaysFit) {
+  // The quality controller alone, as on a GPU: a still frame (half-voxel samples) inside the
+  // interactive target lets the mode's first motion start at full quality, not at the largest
+  // reduction; frames that settle early at full quality keep what would just have met the
+  // target (here a quarter of the work), so a view with 2.25 times the pixels resumes at full
+  // quality and one with 9 times at a reduction of 9 / 4.
+  vtkNew<vtkRenderWindow> window;
+  vtkNew<vtkRenderer> renderer;
+  window->AddRenderer(renderer);
+  window->SetSize(400, 300);
+  SceneActors actors(renderer, sceneActorsSpecFor(sphereProbeScene(), runtime::LiveValues::initial(sphereProbeScene())));
+  const double spacing_m = 1e-3;  // the built-in sphere's voxels
+  auto resume = [&](double still_ms) {
+    actors.setInteractive(false);
+    actors.adaptQuality(still_ms, 40.0);
+    actors.setInteractive(true);
+  };
+  auto work_reduction = [&] {
+    const double px = actors.imageSampleDistance_px();
+    return px * px * actors.sampleDistance_m() / spacing_m;
+  };
+  resume(20.0);
+  EXPECT_DOUBLE_EQ(actors.imageSampleDistance_px(), 1.0) << "the first motion, after a still frame inside the target";
+  EXPECT_NEAR(actors.sampleDistance_m(), spacing_m, 1e-9);
+  EXPECT_FALSE(actors.nearestSampling());
+  for (int i = 0; i < 3; ++i) actors.adaptQuality(10.0, 40.0);  // a quarter of the target
+  EXPECT_DOUBLE_EQ(actors.imageSampleDistance_px(), 1.0);
+
+  window->SetSize(600, 450);
+  resume(60.0);  // a still frame over the target: the motion still resumes where it settled
+  EXPECT_DOUBLE_EQ(actors.imageSampleDistance_px(), 1.0) << "2.25 x the rays of a quarter of the target fit";
+  EXPECT_NEAR(work_reduction(), 1.0, 1e-6);
+
+  actors.setInteractive(false);  // no interactive frame in the larger view: it settled at 400 x 300
+  window->SetSize(1200, 900);
+  resume(60.0);
+  EXPECT_NEAR(work_reduction(), 9.0 / 4.0, 1e-4) << "9 x the rays of a quarter of the target";
+
+  // A slow still frame with no motion of the mode yet: from the largest reduction, as before.
+  actors.setRenderMode(RenderMode::kComposite);
+  resume(60.0);
+  EXPECT_DOUBLE_EQ(actors.imageSampleDistance_px(), 8.0);
+}
+
 TEST(SceneView, InteractiveRendersAimAtThePeriodLessTheGuisTimeBetweenFrames) {
   // Interactive frames rendered back to back with at least 8 ms of other work between them: the
   // renders' target falls by that much from the 33 Hz period; pauses longer than the period (the

@@ -152,9 +152,13 @@ class SceneActors {
   /// instead of trilinearly (back below a reduction of 4); still frames are always trilinear. A
   /// still frame sets the first interactive frame's guess, never below the reduction the last
   /// interactive frames of the same render mode settled on (scaled by the view's pixels then and
-  /// now), and the first motion of a mode starts from the largest reduction and relaxes from
-  /// there: a frame's fixed cost (the full-size passes around the ray cast, 15 ms at 720p on
-  /// llvmpipe) makes the still frame's guess too low. Still frames that take over 3 s (software GL,
+  /// now; frames that settled early at full quality keep the reduction that would have just met
+  /// the target, below 1, so a larger view stays at full quality while its rays fit), and the
+  /// first motion of a mode starts from the largest reduction and relaxes from there, unless the
+  /// still frame itself met the interactive target (then at full quality): a frame's fixed cost
+  /// (the full-size passes around the ray cast, 15 ms at 720p on llvmpipe) makes the still
+  /// frame's guess too low, and on a GPU the reductions on the way down render slower than full
+  /// quality (an H100 at 720p: 18 to 27 ms against 10). Still frames that take over 3 s (software GL,
   /// very large views) step down to voxel-spaced samples, then to 1.5 pixel image sampling, and
   /// back up when they get fast again.
   void adaptQuality(double last_frame_ms, double interactive_target_ms = 40.0);
@@ -233,7 +237,9 @@ class SceneActors {
   std::array<double, 3> settled_reduction_{0.0, 0.0, 0.0};
   std::array<double, 3> settled_pixels_{0.0, 0.0, 0.0};
   double viewPixels() const;
-  double resumedReduction() const;
+  /// The reduction a motion resumes from after a still frame that took `still_ratio` times the
+  /// interactive target (may be below 1: the caller clamps).
+  double resumedReduction(double still_ratio) const;
   bool nearest_when_interactive_ = false;    // interactive frames sample the nearest voxel
   bool interactive_ = false;
   static constexpr double kReferenceForce_N = 3.0;
