@@ -180,7 +180,7 @@ struct Bench {
   /// painted now. @return its wall time [ms]; the shadow's cast alone (with the carving of the
   /// cavity into its field while drilling) goes to `shadow_ms`.
   double frame(Phase& phase, bool drilling, std::uint64_t& removed, std::vector<double>& paint_ms,
-               std::vector<double>& swap_ms, std::vector<double>& shadow_ms) {
+               std::vector<double>& swap_ms, std::vector<double>& shadow_ms, std::vector<double>& image_sample_px) {
     const auto t0 = Clock::now();
     poll(phase);
     double carve_ms = 0.0;
@@ -198,6 +198,7 @@ struct Bench {
     const Eigen::Vector3d down_W = view->shadowDirection_W();
     view->showShadow(castToolShadow(*felt, carved, felt_isovalue, f.X_WP, shadow_samples_T_m, down_W), down_W);
     shadow_ms.push_back(msSince(shadow_t0) + carve_ms);
+    image_sample_px.push_back(view->actors().imageSampleDistance_px());  // what this frame casts
     view->widget()->renderNow();
     paint_ms.push_back(view->widget()->lastFrameMs());
     swap_ms.push_back(view->widget()->lastSwapMs());
@@ -356,11 +357,11 @@ fs::path runRenderBench(const RenderBenchOptions& o) {
         thread->setDrilling(drilling);
         const std::uint64_t partial0 = b.view->actors().partialUploads(), full0 = b.view->actors().fullUploads();
         std::uint64_t removed = 0;
-        std::vector<double> frames, paint_ms, swap_ms, shadow_ms;
+        std::vector<double> frames, paint_ms, swap_ms, shadow_ms, image_sample_px;
         const std::uint64_t paints0 = b.view->widget()->frameCount();
         Phase on = b.begin(true);
         t0 = Clock::now();
-        while (msSince(t0) < 1e3 * row_s || frames.size() < 3) frames.push_back(b.frame(on, drilling, removed, paint_ms, swap_ms, shadow_ms));
+        while (msSince(t0) < 1e3 * row_s || frames.size() < 3) frames.push_back(b.frame(on, drilling, removed, paint_ms, swap_ms, shadow_ms, image_sample_px));
         const double elapsed_s = 1e-3 * msSince(t0);
         b.end(on);
         thread->setDrilling(false);
@@ -408,6 +409,7 @@ fs::path runRenderBench(const RenderBenchOptions& o) {
         row["swap_ms_mean"] = summarize(swap_ms).mean;
         row["frames_paint_ms"] = paint_ms;
         row["frames_swap_ms"] = swap_ms;
+        row["frames_image_sample_px"] = image_sample_px;  // each frame's rays apart [px]
         const Stats shadow = summarize(shadow_ms);  // the tool's shadow cast (inside frame_ms)
         row["shadow_ms_mean"] = shadow.mean;
         row["shadow_ms_max"] = shadow.max;
