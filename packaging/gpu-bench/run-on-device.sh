@@ -7,7 +7,7 @@
 # .gpu-bench/b.tar.zst, .gpu-bench/bin, .gpu-bench/gl) and unpack-a with the benchmarks in the
 # next, while the machine is still warm (carry .gpu-bench/a.tar.zst, .gpu-bench/bin,
 # .gpu-bench/gl, .gpu-bench/vgl). Results go to $OUT. Environment: RENDER_ARGS, MEMORY_ARGS,
-# TABLE1_ARGS (extra options), VGL_REFRESHRATE (VirtualGL's emulated display rate; 60 by default).
+# TABLE1_ARGS (extra options), SERIES_DIR (where the generated CT goes; /tmp/vhgen/ct), VGL_REFRESHRATE (VirtualGL's emulated display rate; 60 by default).
 cd "$(dirname "$0")/../.." || exit 1
 OUT=${OUT:-/tmp/out}
 mkdir -p "$OUT"
@@ -42,12 +42,12 @@ for step in "$@"; do
       under_vgl "$G/vgl/glxinfo" 2>&1 |
         grep -E "renderer string|core profile version"
       # shellcheck disable=SC2086
-      under_vgl /opt/vh/bin/volume-haptics bench render --no-plots --series-dir /tmp/vhgen/ct ${RENDER_ARGS:-} \
+      under_vgl /opt/vh/bin/volume-haptics bench render --no-plots --series-dir ${SERIES_DIR:-/tmp/vhgen/ct} ${RENDER_ARGS:-} \
         --out "$OUT/render" 2>&1 | grep -v '^\[VGL\]' ;;
     memory)
       start_x
       # shellcheck disable=SC2086
-      under_vgl /opt/vh/bin/volume-haptics bench memory --series-dir /tmp/vhgen/ct ${MEMORY_ARGS:-} \
+      under_vgl /opt/vh/bin/volume-haptics bench memory --series-dir ${SERIES_DIR:-/tmp/vhgen/ct} ${MEMORY_ARGS:-} \
         --out "$OUT/memory" 2>&1 | grep -v '^\[VGL\]' ;;
     table1)
       # shellcheck disable=SC2086

@@ -568,11 +568,6 @@ constexpr double kMaxReduction = kMaxImageSample * kMaxImageSample * kMaxSampleV
 // nearest sampling saves on llvmpipe, so neither choice makes the controller switch back.
 constexpr double kNearestAboveReduction = 16.0;
 constexpr double kLinearBelowReduction = 4.0;
-// An interactive image sample distance is held while the wanted one stays within this factor of
-// it, the samples along the rays taking up the difference: each change resizes the ray caster's
-// reduced image. On an H100 the frames of a relaxation whose image sample distance changed
-// every frame rendered in 18 to 27 ms, at full quality in 10.
-constexpr double kImageSampleHold = 1.25;
 
 /// The ray sample distance [voxels] and image sample distance [px] of the reduction `r`: the
 /// work of a frame falls as 1 / (samples apart x pixels apart^2).
@@ -598,14 +593,7 @@ void SceneActors::applyQuality() {
       interactive_ && nearest_when_interactive_ ? VTK_NEAREST_INTERPOLATION : VTK_LINEAR_INTERPOLATION;
   if (volume_property_->GetInterpolationType() != interpolation) volume_property_->SetInterpolationType(interpolation);
   if (interactive_) {
-    auto [samples, pixels] = interactiveSampling(interactive_reduction_);
-    const double held = held_image_sample_px_;
-    if (pixels > 1.0 && held > 1.0 && pixels <= held * kImageSampleHold && held <= pixels * kImageSampleHold &&
-        interactive_reduction_ <= held * held * kMaxSampleVoxels) {
-      pixels = held;  // no less reduction than asked where the samples cannot make it up
-      samples = std::clamp(interactive_reduction_ / (held * held), 1.0, kMaxSampleVoxels);
-    }
-    held_image_sample_px_ = pixels;
+    const auto [samples, pixels] = interactiveSampling(interactive_reduction_);
     volume_mapper_->SetSampleDistance(static_cast<float>(std::max(samples, kStillSampleVoxels[still_level_]) * min_spacing_m_));
     volume_mapper_->SetImageSampleDistance(static_cast<float>(std::max(pixels, kStillImageSample[still_level_])));
   } else {
@@ -674,9 +662,8 @@ double SceneActors::resumedReduction(double still_ratio) const {
   // No motion in this mode yet. A still frame that met the interactive target cast twice the
   // samples of a full-quality interactive frame over the same rays: full quality then (a GPU).
   // Otherwise from the largest reduction, relaxed halfway each early frame (a few frames too
-  // coarse, rather than the first ones late). On a GPU the way down costs more than full
-  // quality: on an H100 at 720p its frames (rays 1.5 to 3 px apart, the image sample distance
-  // changing each frame) rendered in 18 to 27 ms, at full quality in 10.
+  // coarse, rather than the first ones late); on a GPU that way down showed a coarse picture for
+  // the first 10 to 20 frames of each mode.
   if (!(settled_reduction_[mode] > 0.0)) return still_ratio <= 1.0 ? 1.0 : kMaxReduction;
   // The same picture in a larger view casts more rays.
   const double now = viewPixels(), then = settled_pixels_[mode];

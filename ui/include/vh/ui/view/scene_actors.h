@@ -147,12 +147,9 @@ class SceneActors {
   /// aim at `interactive_target_ms`: their work (one sample per voxel, one ray per pixel) is
   /// divided by a reduction, taken first from the rays (image sample distance up to 3 px), then
   /// from the samples along them (up to 3 voxels apart), then from the rays again (up to 8 px);
-  /// a late frame sets the next one's at once, an early one relaxes it halfway. The image sample
-  /// distance is held while the one wanted stays within 1.25 times of it (the samples take up the
-  /// difference; never less reduction than asked): each change resizes the ray caster's reduced
-  /// image. Once rays are about 4 px apart (a reduction over 16) interactive frames also sample
-  /// the nearest voxel instead of trilinearly (back below a reduction of 4); still frames are
-  /// always trilinear. A
+  /// a late frame sets the next one's at once, an early one relaxes it halfway. Once rays are
+  /// about 4 px apart (a reduction over 16) interactive frames also sample the nearest voxel
+  /// instead of trilinearly (back below a reduction of 4); still frames are always trilinear. A
   /// still frame sets the first interactive frame's guess, never below the reduction the last
   /// interactive frames of the same render mode settled on (scaled by the view's pixels then and
   /// now; frames that settled early at full quality keep the reduction that would have just met
@@ -160,10 +157,9 @@ class SceneActors {
   /// first motion of a mode starts from the largest reduction and relaxes from there, unless the
   /// still frame itself met the interactive target (then at full quality): a frame's fixed cost
   /// (the full-size passes around the ray cast, 15 ms at 720p on llvmpipe) makes the still
-  /// frame's guess too low, and on a GPU the reductions on the way down render slower than full
-  /// quality (an H100 at 720p: 18 to 27 ms against 10). Still frames that take over 3 s (software GL,
-  /// very large views) step down to voxel-spaced samples, then to 1.5 pixel image sampling, and
-  /// back up when they get fast again.
+  /// frame's guess too low, while a GPU need not show a coarse picture for the first frames of
+  /// each mode. Still frames that take over 3 s (software GL, very large views) step down to
+  /// voxel-spaced samples, then to 1.5 pixel image sampling, and back up when they get fast again.
   void adaptQuality(double last_frame_ms, double interactive_target_ms = 40.0);
   /// Back to the best still quality (half-voxel samples, every pixel).
   void resetQuality();
@@ -235,7 +231,6 @@ class SceneActors {
   double min_spacing_m_ = 1e-3;
   int still_level_ = 0;  // 0 best; see adaptQuality()
   double interactive_reduction_ = 1.0;  // interactive work divided by this; see adaptQuality()
-  double held_image_sample_px_ = 1.0;   // the interactive image sample distance in use; see applyQuality()
   /// Where the last interactive frames of each render mode settled (0: none yet), and the
   /// view's size in pixels then: a motion resumes from it, scaled to the view's size now.
   std::array<double, 3> settled_reduction_{0.0, 0.0, 0.0};
