@@ -7,7 +7,8 @@
 # .gpu-bench/b.tar.zst, .gpu-bench/bin, .gpu-bench/gl) and unpack-a with the benchmarks in the
 # next, while the machine is still warm (carry .gpu-bench/a.tar.zst, .gpu-bench/bin,
 # .gpu-bench/gl, .gpu-bench/vgl). Results go to $OUT. Environment: RENDER_ARGS, MEMORY_ARGS,
-# TABLE1_ARGS (extra options), SERIES_DIR (where the generated CT goes; /tmp/vhgen/ct), VGL_REFRESHRATE (VirtualGL's emulated display rate; 60 by default).
+# TABLE1_ARGS (extra options), SERIES_DIR (where the generated CT goes; /tmp/vhgen/ct),
+# VGL_REFRESHRATE (VirtualGL's emulated display rate; 60 by default).
 cd "$(dirname "$0")/../.." || exit 1
 OUT=${OUT:-/tmp/out}
 mkdir -p "$OUT"
