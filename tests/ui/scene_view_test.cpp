@@ -119,49 +119,66 @@ TEST(SceneActors, HeavilyReducedInteractiveFramesSampleTheNearestVoxelWithHyster
   EXPECT_GE(actors.imageSampleDistance_px(), px_at_100 - 1e-9);
 }
 
-TEST(SceneActors, AMotionResumesFromWhereItsRenderModeSettledScaledToTheViewsPixels) {
-  // The quality controller alone, in a 400 x 300 window that is never drawn. A mode's first
-  // motion starts from the largest reduction (rays 8 px apart, 3 voxels between samples), not
-  // from the still frame's guess; later motions resume where that mode's interactive frames
-  // settled, whatever another mode did meanwhile, scaled by the view's pixels.
+/// A 400 x 300 render window that is never drawn.
+struct QualityWindow {
   vtkNew<vtkRenderWindow> window;
   vtkNew<vtkRenderer> renderer;
-  window->AddRenderer(renderer);
-  window->SetSize(400, 300);
-  SceneActors actors(renderer, sceneActorsSpecFor(sphereProbeScene(), runtime::LiveValues::initial(sphereProbeScene())));
-  const double spacing_m = 1e-3;  // the built-in sphere's voxels
-  auto resume = [&](double still_ms) {
+  QualityWindow() {
+    window->AddRenderer(renderer);
+    window->SetSize(400, 300);
+  }
+};
+/// The quality controller alone, in that window, on the built-in sphere (1 mm voxels), with a
+/// 40 ms interactive target.
+struct QualityController : QualityWindow {
+  static constexpr double kSpacing_m = 1e-3;
+  SceneActors actors{renderer,
+                     sceneActorsSpecFor(sphereProbeScene(), runtime::LiveValues::initial(sphereProbeScene()))};
+  /// The interactive work's reduction now: image sample distance^2 x sample distance [voxels].
+  double workReduction() const {
+    const double px = actors.imageSampleDistance_px();
+    return px * px * actors.sampleDistance_m() / kSpacing_m;
+  }
+  /// A still frame that took `still_ms`, then a motion.
+  void resume(double still_ms) {
     actors.setInteractive(false);
     actors.adaptQuality(still_ms, 40.0);
     actors.setInteractive(true);
-  };
-  resume(200.0);  // alone, the still frame would guess a reduction of 2.5
-  EXPECT_DOUBLE_EQ(actors.imageSampleDistance_px(), 8.0) << "the isosurface's first motion";
-  EXPECT_NEAR(actors.sampleDistance_m(), 3.0 * spacing_m, 1e-9);
-  EXPECT_TRUE(actors.nearestSampling());
+  }
+};
+
+TEST(SceneActors, AMotionResumesFromWhereItsRenderModeSettledScaledToTheViewsPixels) {
+  // A mode's first motion starts from the largest reduction (rays 8 px apart, 3 voxels between
+  // samples), not from the still frame's guess; later motions resume where that mode's
+  // interactive frames settled, whatever another mode did meanwhile, scaled by the view's pixels.
+  QualityController q;
+  q.resume(200.0);  // alone, the still frame would guess a reduction of 2.5
+  EXPECT_DOUBLE_EQ(q.actors.imageSampleDistance_px(), 8.0) << "the isosurface's first motion";
+  EXPECT_NEAR(q.actors.sampleDistance_m(), 3.0 * QualityController::kSpacing_m, 1e-9);
+  EXPECT_TRUE(q.actors.nearestSampling());
   // Early frames relax it halfway (geometrically) each: 192 -> 96 -> 48 -> 24 -> 12.
-  for (int i = 0; i < 4; ++i) actors.adaptQuality(10.0, 40.0);
-  const double iso_px = actors.imageSampleDistance_px(), iso_sample_m = actors.sampleDistance_m();
-  EXPECT_LT(iso_px * iso_px * iso_sample_m / spacing_m, 13.0);
-  EXPECT_GT(iso_px * iso_px * iso_sample_m / spacing_m, 11.0);
+  for (int i = 0; i < 4; ++i) q.actors.adaptQuality(10.0, 40.0);
+  const double iso_px = q.actors.imageSampleDistance_px(), iso_sample_m = q.actors.sampleDistance_m();
+  const double iso_reduction = q.workReduction();
+  EXPECT_LT(iso_reduction, 13.0);
+  EXPECT_GT(iso_reduction, 11.0);
 
-  actors.setRenderMode(RenderMode::kMip);
-  resume(200.0);
-  EXPECT_DOUBLE_EQ(actors.imageSampleDistance_px(), 8.0) << "MIP's first motion, whatever the isosurface's";
-  for (int i = 0; i < 8; ++i) actors.adaptQuality(5.0, 40.0);
-  EXPECT_LT(actors.imageSampleDistance_px(), 2.0);
+  q.actors.setRenderMode(RenderMode::kMip);
+  q.resume(200.0);
+  EXPECT_DOUBLE_EQ(q.actors.imageSampleDistance_px(), 8.0) << "MIP's first motion, whatever the isosurface's";
+  for (int i = 0; i < 8; ++i) q.actors.adaptQuality(5.0, 40.0);
+  EXPECT_LT(q.actors.imageSampleDistance_px(), 2.0);
 
-  actors.setRenderMode(RenderMode::kIsosurface);
-  resume(200.0);
-  EXPECT_NEAR(actors.imageSampleDistance_px(), iso_px, 1e-6) << "where the isosurface settled, not where MIP did";
-  EXPECT_NEAR(actors.sampleDistance_m(), iso_sample_m, 1e-9);
+  q.actors.setRenderMode(RenderMode::kIsosurface);
+  q.resume(200.0);
+  EXPECT_NEAR(q.actors.imageSampleDistance_px(), iso_px, 1e-6) << "where the isosurface settled, not where MIP did";
+  EXPECT_NEAR(q.actors.sampleDistance_m(), iso_sample_m, 1e-9);
 
   // Twice the width and height: four times the rays at the same image sample distance, so four
   // times the reduction: 12 -> 48.
-  window->SetSize(800, 600);
-  resume(200.0);
-  const double px = actors.imageSampleDistance_px(), samples = actors.sampleDistance_m() / spacing_m;
-  EXPECT_NEAR(px * px * samples, 4.0 * iso_px * iso_px * iso_sample_m / spacing_m, 1e-3);
+  q.window->SetSize(800, 600);
+  q.resume(200.0);
+  EXPECT_NEAR(q.workReduction(), 4.0 * iso_reduction, 1e-3);
 }
 
 TEST(SceneActors, AFastViewKeepsFullQualityWhileItsRaysFit) {
@@ -170,42 +187,28 @@ TEST(SceneActors, AFastViewKeepsFullQualityWhileItsRaysFit) {
   // reduction; frames that settle early at full quality keep what would just have met the
   // target (here a quarter of the work), so a view with 2.25 times the pixels resumes at full
   // quality and one with 9 times at a reduction of 9 / 4.
-  vtkNew<vtkRenderWindow> window;
-  vtkNew<vtkRenderer> renderer;
-  window->AddRenderer(renderer);
-  window->SetSize(400, 300);
-  SceneActors actors(renderer, sceneActorsSpecFor(sphereProbeScene(), runtime::LiveValues::initial(sphereProbeScene())));
-  const double spacing_m = 1e-3;  // the built-in sphere's voxels
-  auto resume = [&](double still_ms) {
-    actors.setInteractive(false);
-    actors.adaptQuality(still_ms, 40.0);
-    actors.setInteractive(true);
-  };
-  auto work_reduction = [&] {
-    const double px = actors.imageSampleDistance_px();
-    return px * px * actors.sampleDistance_m() / spacing_m;
-  };
-  resume(20.0);
-  EXPECT_DOUBLE_EQ(actors.imageSampleDistance_px(), 1.0) << "the first motion, after a still frame inside the target";
-  EXPECT_NEAR(actors.sampleDistance_m(), spacing_m, 1e-9);
-  EXPECT_FALSE(actors.nearestSampling());
-  for (int i = 0; i < 3; ++i) actors.adaptQuality(10.0, 40.0);  // a quarter of the target
-  EXPECT_DOUBLE_EQ(actors.imageSampleDistance_px(), 1.0);
+  QualityController q;
+  q.resume(20.0);
+  EXPECT_DOUBLE_EQ(q.actors.imageSampleDistance_px(), 1.0) << "the first motion, after a still frame inside the target";
+  EXPECT_NEAR(q.actors.sampleDistance_m(), QualityController::kSpacing_m, 1e-9);
+  EXPECT_FALSE(q.actors.nearestSampling());
+  for (int i = 0; i < 3; ++i) q.actors.adaptQuality(10.0, 40.0);  // a quarter of the target
+  EXPECT_DOUBLE_EQ(q.actors.imageSampleDistance_px(), 1.0);
 
-  window->SetSize(600, 450);
-  resume(60.0);  // a still frame over the target: the motion still resumes where it settled
-  EXPECT_DOUBLE_EQ(actors.imageSampleDistance_px(), 1.0) << "2.25 x the rays of a quarter of the target fit";
-  EXPECT_NEAR(work_reduction(), 1.0, 1e-6);
+  q.window->SetSize(600, 450);
+  q.resume(60.0);  // a still frame over the target: the motion still resumes where it settled
+  EXPECT_DOUBLE_EQ(q.actors.imageSampleDistance_px(), 1.0) << "2.25 x the rays of a quarter of the target fit";
+  EXPECT_NEAR(q.workReduction(), 1.0, 1e-6);
 
-  actors.setInteractive(false);  // no interactive frame in the larger view: it settled at 400 x 300
-  window->SetSize(1200, 900);
-  resume(60.0);
-  EXPECT_NEAR(work_reduction(), 9.0 / 4.0, 1e-4) << "9 x the rays of a quarter of the target";
+  q.actors.setInteractive(false);  // no interactive frame in the larger view: it settled at 400 x 300
+  q.window->SetSize(1200, 900);
+  q.resume(60.0);
+  EXPECT_NEAR(q.workReduction(), 9.0 / 4.0, 1e-4) << "9 x the rays of a quarter of the target";
 
   // A slow still frame with no motion of the mode yet: from the largest reduction, as before.
-  actors.setRenderMode(RenderMode::kComposite);
-  resume(60.0);
-  EXPECT_DOUBLE_EQ(actors.imageSampleDistance_px(), 8.0);
+  q.actors.setRenderMode(RenderMode::kComposite);
+  q.resume(60.0);
+  EXPECT_DOUBLE_EQ(q.actors.imageSampleDistance_px(), 8.0);
 }
 
 TEST(SceneView, InteractiveRendersAimAtThePeriodLessTheGuisTimeBetweenFrames) {
