@@ -5,6 +5,7 @@
 #include <cmath>
 #include <cstdlib>
 #include <fstream>
+#include <functional>
 #include <iostream>
 #include <optional>
 #include <sstream>
@@ -793,10 +794,12 @@ void printRowResults(nlohmann::ordered_json& row) {
 }
 
 /// One row of the table: `def` with the paper's tool (large 0) or with it resampled to 20,000
-/// (1) or 50,000 points (2), loaded and run in `variants`. @return false when its data are
+/// (1) or 50,000 points (2), loaded and run in the variants `variants_for` gives for the
+/// tool's point count (the application's lanes depend on it). @return false when its data are
 /// absent (`row` then says "skipped" and why); `series` gets its tick-time plot series.
-bool runTableRow(const SceneDef& def, int large, const std::vector<Variant>& variants, int ticks, int locations,
-                 double verify_step_voxels, nlohmann::ordered_json& row, std::vector<Series>& series) {
+bool runTableRow(const SceneDef& def, int large, const std::function<std::vector<Variant>(std::size_t)>& variants_for,
+                 int ticks, int locations, double verify_step_voxels, nlohmann::ordered_json& row,
+                 std::vector<Series>& series) {
   // The paper's tool, then the same tool resampled to 20,000 and 50,000 points.
   const int large_points = large == 1 ? 20000 : 50000;
   row = rowHeader(def, large, large_points);
@@ -819,7 +822,8 @@ bool runTableRow(const SceneDef& def, int large, const std::vector<Variant>& var
             << row["paper_points"].get<std::size_t>() << "); loaded in " << num(load_s, 1) << " s; "
             << run_ticks << " ticks ..." << std::endl;
   const auto t_run = std::chrono::steady_clock::now();
-  runScene(scene, scene.tool, variants, run_ticks, locations, large ? 5 : 1, verify_step_voxels, row, series);
+  runScene(scene, scene.tool, variants_for(scene.tool->point_shell.size()), run_ticks, locations, large ? 5 : 1,
+           verify_step_voxels, row, series);
   row["load_s"] = load_s;
   row["run_s"] = std::chrono::duration<double>(std::chrono::steady_clock::now() - t_run).count();
   printRowResults(row);
@@ -1063,6 +1067,8 @@ fs::path runTable1(const Table1Options& options) {
   if (!(options.verify_step_voxels >= 0.0) || !std::isfinite(options.verify_step_voxels))
     throw std::runtime_error("the crossing-check step must be >= 0 voxels (0: off)");
   const bool verified = options.verify_step_voxels > 0.0;
+  // The accelerated modes' lanes: --lanes, else the application's for each tool
+  // (runtime::solverLanesFor: one lane below 800 points); `lanes` is the most of those.
   const int lanes = options.lanes > 0 ? options.lanes : runtime::defaultSolverLanes();
   const double deadline_us = options.deadline_us < 0.0 ? runtime::solverDeadline_us(1000.0) : options.deadline_us;
   if (options.load < 0 || options.load > 256) throw std::runtime_error("--load must be in [0, 256] threads");
@@ -1103,7 +1109,10 @@ fs::path runTable1(const Table1Options& options) {
       if (large && (short_run || !options.large_tools || (def.name != "Bone" && def.name != "Engine"))) continue;
       nlohmann::ordered_json row;
       std::vector<Series> series;
-      if (runTableRow(def, large, variants, ticks, locations, options.verify_step_voxels, row, series))
+      const auto variants_for = [&](std::size_t points) {
+        return options.lanes > 0 ? variants : table1Variants(options, runtime::solverLanesFor(points), deadline_us);
+      };
+      if (runTableRow(def, large, variants_for, ticks, locations, options.verify_step_voxels, row, series))
         scene_plots.emplace_back(row["name"].get<std::string>(), std::move(series));
       rows.push_back(row);
     }

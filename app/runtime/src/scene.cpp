@@ -7,6 +7,7 @@
 #include <initializer_list>
 #include <map>
 #include <mutex>
+#include <optional>
 #include <set>
 #include <sstream>
 #include <stdexcept>
@@ -676,15 +677,32 @@ bool deviceKindAvailable(const std::string& kind) {
   return deviceFactories().count(kind) > 0;
 }
 
-int defaultSolverLanes() {
+namespace {
+/// VH_SOLVER_LANES when it is a whole count in 1..WorkerPool::kMaxLanes.
+std::optional<int> solverLanesFromEnvironment() {
   if (const char* env = std::getenv("VH_SOLVER_LANES")) {
     char* end = nullptr;
     const long lanes = std::strtol(env, &end, 10);
     if (end != env && *end == '\0' && lanes >= 1 && lanes <= haptics::WorkerPool::kMaxLanes)
       return static_cast<int>(lanes);
   }
+  return std::nullopt;
+}
+}  // namespace
+
+int defaultSolverLanes() {
+  if (const std::optional<int> lanes = solverLanesFromEnvironment()) return *lanes;
   const int threads = static_cast<int>(std::thread::hardware_concurrency());
   return std::clamp(threads - 2, 1, 8);
+}
+
+int solverLanesFor(std::size_t shell_points, int machine_lanes) {
+  return shell_points < kPointsForSeveralLanes ? 1 : std::max(machine_lanes, 1);
+}
+
+int solverLanesFor(std::size_t shell_points) {
+  if (const std::optional<int> lanes = solverLanesFromEnvironment()) return *lanes;
+  return solverLanesFor(shell_points, defaultSolverLanes());
 }
 
 double solverDeadline_us(double servo_rate_Hz) {
@@ -722,7 +740,7 @@ std::unique_ptr<HapticThread> makeHapticThread(const LiveValues& live, std::shar
   HapticThreadOptions with_segments = options;
   with_segments.segments = live.segments;
   haptics::RendererOptions solver;
-  solver.solver_lanes = defaultSolverLanes();
+  solver.solver_lanes = solverLanesFor(live.tool != nullptr ? live.tool->point_shell.size() : 0);
   solver.deadline_us = solverDeadline_us(servo_rate_Hz);
   DrillingRenderer r = makeServoRenderer(live, solver, X_WP,
                                          options.solver_rate_Hz > 0.0 ? options.solver_rate_Hz : servo_rate_Hz,

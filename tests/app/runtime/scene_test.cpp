@@ -444,6 +444,35 @@ TEST(SolverLanes, TheMachineLessTwoCoresAtMostEightAndTheEnvironmentOverridesVal
   }
 }
 
+TEST(SolverLanes, AToolUnderEightHundredPointsRunsOnOneLaneUnlessTheEnvironmentSaysOtherwise) {
+  // Oracle: the documented rule, on both sides of the threshold, on an 8-lane machine (whatever
+  // this one has) and from this machine's own count.
+  for (const std::size_t points : {std::size_t{0}, std::size_t{518}, kPointsForSeveralLanes - 1})
+    EXPECT_EQ(solverLanesFor(points, 8), 1) << points << " points";
+  for (const std::size_t points : {kPointsForSeveralLanes, std::size_t{1307}, std::size_t{20000}})
+    EXPECT_EQ(solverLanesFor(points, 8), 8) << points << " points";
+  EXPECT_EQ(solverLanesFor(20000, 0), 1) << "never fewer than one lane";
+  const int machine = std::clamp(static_cast<int>(std::thread::hardware_concurrency()) - 2, 1, 8);
+  {
+    ScopedEnv unset("VH_SOLVER_LANES", "");
+    ::unsetenv("VH_SOLVER_LANES");
+    for (const std::size_t points : {std::size_t{0}, std::size_t{1}, std::size_t{518}, kPointsForSeveralLanes - 1})
+      EXPECT_EQ(solverLanesFor(points), 1) << points << " points";
+    for (const std::size_t points : {kPointsForSeveralLanes, std::size_t{2126}, std::size_t{20000}})
+      EXPECT_EQ(solverLanesFor(points), machine) << points << " points";
+  }
+  {
+    ScopedEnv three("VH_SOLVER_LANES", "3");
+    EXPECT_EQ(solverLanesFor(518), 3) << "the environment applies to every tool";
+    EXPECT_EQ(solverLanesFor(20000), 3);
+  }
+  {
+    ScopedEnv bad("VH_SOLVER_LANES", "0");
+    EXPECT_EQ(solverLanesFor(518), 1) << "an invalid count is ignored";
+    EXPECT_EQ(solverLanesFor(20000), machine);
+  }
+}
+
 TEST(SolverLanes, TheDeadlineIsNinetyPercentOfTheServoPeriod) {
   EXPECT_DOUBLE_EQ(solverDeadline_us(1000.0), 900.0);
   EXPECT_DOUBLE_EQ(solverDeadline_us(4000.0), 225.0);

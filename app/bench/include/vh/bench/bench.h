@@ -68,7 +68,8 @@ struct Table1Options {
   /// Also the large-tool runs (~20,000 points on Bone and Engine); never in short runs.
   bool large_tools = true;
   /// The accelerated modes' RendererOptions::solver_lanes (cores of the sweep); 0: the
-  /// application's default (runtime::defaultSolverLanes()).
+  /// application's for each tool (runtime::solverLanesFor(): runtime::defaultSolverLanes(), one
+  /// lane for tools under runtime::kPointsForSeveralLanes points).
   int lanes = 0;
   /// The accelerated mode's RendererOptions::deadline_us (the budget's last line, on the
   /// clock); < 0: the application's (runtime::solverDeadline_us() at 1 kHz); 0: none.

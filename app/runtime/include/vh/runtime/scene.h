@@ -34,6 +34,7 @@
 /// an error (typos are caught), as are unreadable or missing referenced files.
 
 #include <atomic>
+#include <cstddef>
 #include <filesystem>
 #include <functional>
 #include <memory>
@@ -307,8 +308,8 @@ DrillingRenderer makeServoRenderer(const LiveValues& live, const haptics::Render
 
 /// The one place a renderer and its haptic threads are built (the GUI through Session, the
 /// headless tests through LoadedScene): a HapticThread (not started) driving `device` at
-/// `servo_rate_Hz` on makeRenderer(live, options, X_WP) with options defaultSolverLanes() lanes
-/// and solverDeadline_us(servo_rate_Hz), at live's felt isovalue and gains, naming the segment
+/// `servo_rate_Hz` on makeRenderer(live, options, X_WP) with options solverLanesFor(the tool's
+/// points) lanes and solverDeadline_us(servo_rate_Hz), at live's felt isovalue and gains, naming the segment
 /// of each contact when there are segments (HapticThreadOptions::segments); `options` as
 /// HapticThreadOptions (e.g. the monitor channel the Session shares); `prepared` as
 /// makeServoRenderer()'s.
@@ -322,6 +323,18 @@ std::unique_ptr<HapticThread> makeHapticThread(const LiveValues& live, std::shar
 /// machine's hardware threads less two (the coupling thread keeps its core, the GUI and the
 /// ray caster another), at least 1, at most 8. VH_SOLVER_LANES overrides it (1 to 64).
 int defaultSolverLanes();
+/// Point shells smaller than this run their sweep on one lane (solverLanesFor()).
+inline constexpr std::size_t kPointsForSeveralLanes = 800;
+/// The lanes of the live solver for a tool of `shell_points` points: defaultSolverLanes() from
+/// kPointsForSeveralLanes points up, one below, so that a small tool starts no solver threads
+/// (VH_SOLVER_LANES, when set, applies to every tool). On 16 cores (docs/benchmarks.md,
+/// 2026-11-26) the 518-point drill's full solve was no faster on 2 to 16 lanes than on one
+/// (0.74x to 0.91x) and its worst tick grew from 50 us on one lane to 336 us on 8 and 1.6 ms on
+/// 16, while the 1,307-point peg gained 1.4x on 2 lanes and 2.3x on 8.
+int solverLanesFor(std::size_t shell_points);
+/// The same rule on a machine whose default is `machine_lanes` (at least 1), the environment
+/// aside.
+int solverLanesFor(std::size_t shell_points, int machine_lanes);
 /// The live solver's deadline per tick [us] (haptics::RendererOptions::deadline_us): 90 % of a
 /// servo period at `servo_rate_Hz` (900 us at 1 kHz), the rest for the coupling and the mirror.
 double solverDeadline_us(double servo_rate_Hz);
