@@ -23,6 +23,7 @@
 #include <gtest/gtest.h>
 #include <unistd.h>
 #include <vtkActor.h>
+#include <vtkCallbackCommand.h>
 #include <vtkCamera.h>
 #include <vtkActor2DCollection.h>
 #include <vtkGPUVolumeRayCastMapper.h>
@@ -31,6 +32,8 @@
 #include <vtkMatrix4x4.h>
 #include <vtkPlane.h>
 #include <vtkPlaneCollection.h>
+#include <vtkPolyData.h>
+#include <vtkPolyDataMapper.h>
 #include <vtkRenderWindow.h>
 #include <vtkRenderer.h>
 #include <vtkTextActor.h>
@@ -238,6 +241,68 @@ TEST(SceneView, InteractiveRendersAimAtThePeriodLessTheGuisTimeBetweenFrames) {
     std::this_thread::sleep_for(std::chrono::milliseconds(static_cast<int>(0.8 * period_ms)));
   }
   EXPECT_DOUBLE_EQ(w.view->interactiveTargetMs(), 0.5 * period_ms) << "never under half the period";
+}
+
+/// Each time `actor`'s mapper is drawn, the number of points it drew (its input's, after the
+/// pipeline's update).
+struct DrawnPoints {
+  std::vector<vtkIdType> counts;
+  vtkNew<vtkCallbackCommand> callback;
+  explicit DrawnPoints(vtkActor* actor) {
+    callback->SetClientData(this);
+    callback->SetCallback([](vtkObject* caller, unsigned long, void* client, void*) {
+      auto* mapper = vtkPolyDataMapper::SafeDownCast(caller);
+      vtkPolyData* input = mapper != nullptr ? mapper->GetInput() : nullptr;
+      static_cast<DrawnPoints*>(client)->counts.push_back(input != nullptr ? input->GetNumberOfPoints() : -1);
+    });
+    actor->GetMapper()->AddObserver(vtkCommand::EndEvent, callback);
+  }
+};
+
+TEST(SceneView, AfterTheScenesFirstFrameThePropsThatComeLaterAreDrawnOnceUnseen) {
+  // Oracle: the mappers' own draw events. Before any contact or shadow, the contact points, the
+  // force arrow, the shadow and its drop line are each drawn once (the points with one point),
+  // after the scene's first frame; then each is shown or hidden as before and empty again, the
+  // volume's sampling is as before, and a second priming leaves the picture as it was, pixel for
+  // pixel.
+  ViewWindow w;
+  w.load();
+  SceneActors& a = w.view->actors();
+  DrawnPoints contacts(a.contactActor()), force(a.forceActor()), shadow(a.shadowActor()), gap(a.gapLineActor());
+  const auto visibilities = [&] {
+    return std::array<int, 5>{a.contactActor()->GetVisibility(), a.forceActor()->GetVisibility(),
+                              a.shadowActor()->GetVisibility(), a.gapLineActor()->GetVisibility(),
+                              a.volume()->GetVisibility()};
+  };
+  const std::array<int, 5> shown = visibilities();
+  EXPECT_TRUE(shown[4]) << "the volume";
+  ASSERT_TRUE(test::waitFor([&] { return w.view->widget()->frameCount() > 0 && !contacts.counts.empty(); }, 20000))
+      << "the later props were never drawn";
+  test::pump(100);
+  EXPECT_EQ(contacts.counts, std::vector<vtkIdType>{1});
+  EXPECT_EQ(shadow.counts, std::vector<vtkIdType>{1});
+  EXPECT_EQ(force.counts.size(), 1u);
+  EXPECT_EQ(gap.counts.size(), 1u);
+  EXPECT_EQ(visibilities(), shown) << "each prop shown or hidden as before";
+  EXPECT_EQ(vtkPolyData::SafeDownCast(a.contactActor()->GetMapper()->GetInput())->GetNumberOfPoints(), 0);
+  EXPECT_EQ(vtkPolyData::SafeDownCast(a.shadowActor()->GetMapper()->GetInput())->GetNumberOfPoints(), 0);
+
+  const QImage before = w.view->widget()->grabFrame();
+  const std::uint64_t frames = w.view->widget()->frameCount();
+  const double px = a.imageSampleDistance_px(), sample_m = a.sampleDistance_m();
+  const bool nearest = a.nearestSampling();
+  a.primeLaterProps([&] {
+    EXPECT_TRUE(a.nearestSampling()) << "the volume as the first interactive frames draw it";
+    EXPECT_GT(a.imageSampleDistance_px(), 1.0);
+    EXPECT_TRUE(w.view->widget()->renderUnseen());
+  });
+  EXPECT_EQ(w.view->widget()->frameCount(), frames) << "an unseen render is no frame";
+  EXPECT_EQ(a.imageSampleDistance_px(), px);
+  EXPECT_EQ(a.sampleDistance_m(), sample_m);
+  EXPECT_EQ(a.nearestSampling(), nearest);
+  const QImage after = w.view->widget()->grabFrame();
+  ASSERT_FALSE(before.isNull());
+  EXPECT_EQ(before, after);
 }
 
 TEST(SceneView, AMovedProxyAsksForANewFrameAndTheSameFrameDoesNot) {

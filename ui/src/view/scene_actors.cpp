@@ -746,6 +746,58 @@ void SceneActors::setShadowVisible(bool visible) {
   gap_actor_->SetVisibility(shadow_on_ && gap_shown_);
 }
 
+void SceneActors::primeLaterProps(const std::function<void()>& render) {
+  // A point at the proxy (inside the tool), for each prop that has none.
+  double at[3] = {0.0, 0.0, 0.0};
+  if (vtkMatrix4x4* m = proxy_actor_->GetUserMatrix()) {
+    for (int i = 0; i < 3; ++i) at[i] = m->GetElement(i, 3);
+  }
+  const bool volume_shown = volume_->GetVisibility() != 0;
+  const bool contacts_shown = contact_actor_->GetVisibility() != 0, force_shown = force_actor_->GetVisibility() != 0;
+  const bool shadow_shown = shadow_actor_->GetVisibility() != 0, gap_shown = gap_actor_->GetVisibility() != 0;
+  const vtkIdType contacts = contact_points_->GetNumberOfPoints(), shadow_points = shadow_points_->GetNumberOfPoints();
+  const auto onePoint = [&](vtkPoints* points, vtkPolyData* poly, vtkIdType count) {
+    if (count > 0) return;
+    points->SetNumberOfPoints(1);
+    points->SetPoint(0, at);
+    vtkNew<vtkCellArray> verts;
+    const vtkIdType id = 0;
+    verts->InsertNextCell(1, &id);
+    poly->SetVerts(verts);
+    points->Modified();
+    poly->Modified();
+  };
+  const auto noPoints = [](vtkPoints* points, vtkPolyData* poly, vtkIdType count) {
+    if (count > 0) return;
+    points->SetNumberOfPoints(0);
+    vtkNew<vtkCellArray> verts;
+    poly->SetVerts(verts);
+    points->Modified();
+    poly->Modified();
+  };
+  onePoint(contact_points_, contact_poly_, contacts);
+  onePoint(shadow_points_, shadow_poly_, shadow_points);
+  for (vtkActor* actor : {contact_actor_.GetPointer(), force_actor_.GetPointer(), shadow_actor_.GetPointer(),
+                          gap_actor_.GetPointer()})
+    actor->SetVisibility(true);
+  // The volume as the first interactive frames draw it: the largest reduction (the ray caster's
+  // reduced image), the nearest voxel.
+  volume_->SetVisibility(true);
+  volume_property_->SetInterpolationType(VTK_NEAREST_INTERPOLATION);
+  const auto [samples, pixels] = interactiveSampling(kMaxReduction);
+  volume_mapper_->SetSampleDistance(static_cast<float>(samples * min_spacing_m_));
+  volume_mapper_->SetImageSampleDistance(static_cast<float>(pixels));
+  render();
+  applyQuality();  // the sampling of the frames in hand again
+  noPoints(contact_points_, contact_poly_, contacts);
+  noPoints(shadow_points_, shadow_poly_, shadow_points);
+  volume_->SetVisibility(volume_shown);
+  contact_actor_->SetVisibility(contacts_shown);
+  force_actor_->SetVisibility(force_shown);
+  shadow_actor_->SetVisibility(shadow_shown);
+  gap_actor_->SetVisibility(gap_shown);
+}
+
 vtkActor* SceneActors::shadowActor() const noexcept { return shadow_actor_; }
 vtkActor* SceneActors::gapLineActor() const noexcept { return gap_actor_; }
 

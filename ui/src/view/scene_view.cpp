@@ -94,6 +94,14 @@ SceneView::SceneView(QWidget* parent) : QObject(parent) {
     settle_timer_->start();
   });
   connect(view_, &VtkView::frameRendered, this, [this] {
+    // After the scene's first frame (shown), an unseen render readies the props that appear
+    // only later, so that the first contact's frame compiles no shaders.
+    if (prime_pending_ && actors_ != nullptr) {
+      prime_pending_ = false;
+      QTimer::singleShot(0, this, [this] {
+        if (actors_ != nullptr) actors_->primeLaterProps([this] { view_->renderUnseen(); });
+      });
+    }
     noteFrameGap();
     // The first frame of a scene also compiles shaders and uploads the volume.
     if (actors_ != nullptr && view_->frameCount() > scene_frame_ + 1)
@@ -151,6 +159,7 @@ void SceneView::setScene(const SceneActorsSpec& spec, const haptics::Pose& X_WT,
   shown_contacts_ = -1;
   shown_force_W_N_.setZero();
   scene_frame_ = view_->frameCount();
+  prime_pending_ = true;
   if (welcome_ != nullptr) welcome_->SetVisibility(false);
   marker_->setVisible(look.orientation_marker);
   applyColours(look);

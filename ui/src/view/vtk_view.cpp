@@ -271,6 +271,19 @@ bool VtkView::renderNow() {
   return true;
 }
 
+bool VtkView::renderUnseen() {
+  if (in_paint_ || surface_ == nullptr || !surface_->isExposed() || !prepareContext()) return false;
+  in_paint_ = true;  // VTK's end-of-frame event asks for no frame to show this one
+  vtkOpenGLState* state = render_window_->GetState();
+  state->Reset();
+  state->Push();
+  state->vtkglDepthFunc(GL_LEQUAL);
+  render_window_->Render();
+  state->Pop();
+  in_paint_ = false;
+  return true;
+}
+
 QImage VtkView::grabFrame() {
   if (in_paint_ || !prepareContext()) return {};
   renderFrame();

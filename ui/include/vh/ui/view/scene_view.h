@@ -143,6 +143,7 @@ class SceneView : public QObject {
   bool interacting_ = false;
   bool camera_dragging_ = false;
   std::uint64_t scene_frame_ = 0;  // the view's frame count when the props were built
+  bool prime_pending_ = false;     // SceneActors::primeLaterProps() after the scene's first frame
   double frame_gap_ms_ = 0.0;      // between interactive frames, smoothed; see interactiveTargetMs()
   /// Folds the gap before the frame just rendered into frame_gap_ms_ (weight 0.3) when that
   /// frame was interactive and the gap shorter than the interactive period.

@@ -73,6 +73,11 @@ class VtkView : public QWidget {
   /// on screen (its window not exposed).
   bool renderNow();
 
+  /// Renders the scene into VTK's own framebuffer without showing it (no blit, no swap, no
+  /// frame counted, no render requested): a render that readies GL state (shaders, buffers) for
+  /// later frames. @return false (nothing rendered) while the view is not on screen.
+  bool renderUnseen();
+
   /// Renders a frame now and returns the view's pixels (device pixels, top row first); a null
   /// image when the view was never shown.
   QImage grabFrame();
