@@ -1104,14 +1104,14 @@ fs::path runTable1(const Table1Options& options) {
   std::cout << "bench table1: " << ticks << " ticks per scene and mode (" << mode_names.size()
             << " modes, interleaved tick by tick) on " << cpuModel() << "; crossing check "
             << (verified ? format("every tick at %g voxel", options.verify_step_voxels) : std::string("off")) << "\n";
+  const auto variants_for = [&](std::size_t points) {
+    return options.lanes > 0 ? variants : table1Variants(options, runtime::solverLanesFor(points), deadline_us);
+  };
   for (const SceneDef& def : defs) {
     for (int large = 0; large < 3; ++large) {
       if (large && (short_run || !options.large_tools || (def.name != "Bone" && def.name != "Engine"))) continue;
       nlohmann::ordered_json row;
       std::vector<Series> series;
-      const auto variants_for = [&](std::size_t points) {
-        return options.lanes > 0 ? variants : table1Variants(options, runtime::solverLanesFor(points), deadline_us);
-      };
       if (runTableRow(def, large, variants_for, ticks, locations, options.verify_step_voxels, row, series))
         scene_plots.emplace_back(row["name"].get<std::string>(), std::move(series));
       rows.push_back(row);

@@ -688,13 +688,15 @@ std::optional<int> solverLanesFromEnvironment() {
   }
   return std::nullopt;
 }
-}  // namespace
 
-int defaultSolverLanes() {
-  if (const std::optional<int> lanes = solverLanesFromEnvironment()) return *lanes;
+/// The machine's rule: its hardware threads less two, 1 to 8.
+int machineSolverLanes() {
   const int threads = static_cast<int>(std::thread::hardware_concurrency());
   return std::clamp(threads - 2, 1, 8);
 }
+}  // namespace
+
+int defaultSolverLanes() { return solverLanesFromEnvironment().value_or(machineSolverLanes()); }
 
 int solverLanesFor(std::size_t shell_points, int machine_lanes) {
   return shell_points < kPointsForSeveralLanes ? 1 : std::max(machine_lanes, 1);
@@ -702,7 +704,7 @@ int solverLanesFor(std::size_t shell_points, int machine_lanes) {
 
 int solverLanesFor(std::size_t shell_points) {
   if (const std::optional<int> lanes = solverLanesFromEnvironment()) return *lanes;
-  return solverLanesFor(shell_points, defaultSolverLanes());
+  return solverLanesFor(shell_points, machineSolverLanes());
 }
 
 double solverDeadline_us(double servo_rate_Hz) {

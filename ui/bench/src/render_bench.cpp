@@ -125,6 +125,13 @@ struct Phase {
 };
 
 /// The window, its view and the haptic threads feeding it.
+/// Each frame of a row in parts [ms], in order: VTK's render and the blit as the CPU issues
+/// them, the swap, the tool's shadow cast (with the cavity's carving while drilling); and the
+/// image sample distance it was cast at [px].
+struct FrameParts {
+  std::vector<double> paint_ms, swap_ms, shadow_ms, image_sample_px;
+};
+
 struct Bench {
   QWidget window;
   SceneView* view = nullptr;  // owned by the window
@@ -177,10 +184,8 @@ struct Bench {
   }
   /// One frame as the window draws it while someone works: the camera turned a little, the
   /// latest haptic snapshot shown with the tool's shadow cast for it (as ViewController does),
-  /// painted now. @return its wall time [ms]; the shadow's cast alone (with the carving of the
-  /// cavity into its field while drilling) goes to `shadow_ms`.
-  double frame(Phase& phase, bool drilling, std::uint64_t& removed, std::vector<double>& paint_ms,
-               std::vector<double>& swap_ms, std::vector<double>& shadow_ms, std::vector<double>& image_sample_px) {
+  /// painted now. @return its wall time [ms]; its parts go to `parts`.
+  double frame(Phase& phase, bool drilling, std::uint64_t& removed, FrameParts& parts) {
     const auto t0 = Clock::now();
     poll(phase);
     double carve_ms = 0.0;
@@ -197,11 +202,11 @@ struct Bench {
     const auto shadow_t0 = Clock::now();
     const Eigen::Vector3d down_W = view->shadowDirection_W();
     view->showShadow(castToolShadow(*felt, carved, felt_isovalue, f.X_WP, shadow_samples_T_m, down_W), down_W);
-    shadow_ms.push_back(msSince(shadow_t0) + carve_ms);
-    image_sample_px.push_back(view->actors().imageSampleDistance_px());  // what this frame casts
+    parts.shadow_ms.push_back(msSince(shadow_t0) + carve_ms);
+    parts.image_sample_px.push_back(view->actors().imageSampleDistance_px());  // what this frame casts
     view->widget()->renderNow();
-    paint_ms.push_back(view->widget()->lastFrameMs());
-    swap_ms.push_back(view->widget()->lastSwapMs());
+    parts.paint_ms.push_back(view->widget()->lastFrameMs());
+    parts.swap_ms.push_back(view->widget()->lastSwapMs());
     QCoreApplication::processEvents();
     return msSince(t0);
   }
@@ -357,11 +362,12 @@ fs::path runRenderBench(const RenderBenchOptions& o) {
         thread->setDrilling(drilling);
         const std::uint64_t partial0 = b.view->actors().partialUploads(), full0 = b.view->actors().fullUploads();
         std::uint64_t removed = 0;
-        std::vector<double> frames, paint_ms, swap_ms, shadow_ms, image_sample_px;
+        std::vector<double> frames;
+        FrameParts parts;
         const std::uint64_t paints0 = b.view->widget()->frameCount();
         Phase on = b.begin(true);
         t0 = Clock::now();
-        while (msSince(t0) < 1e3 * row_s || frames.size() < 3) frames.push_back(b.frame(on, drilling, removed, paint_ms, swap_ms, shadow_ms, image_sample_px));
+        while (msSince(t0) < 1e3 * row_s || frames.size() < 3) frames.push_back(b.frame(on, drilling, removed, parts));
         const double elapsed_s = 1e-3 * msSince(t0);
         b.end(on);
         thread->setDrilling(false);
@@ -405,12 +411,12 @@ fs::path runRenderBench(const RenderBenchOptions& o) {
         row["paints_per_frame"] = static_cast<double>(b.view->widget()->frameCount() - paints0) / static_cast<double>(frames.size());
         // Each frame's parts: VTK's render and the blit as the CPU issues them (the GPU may still
         // be working), then the swap (where the driver waits for the GPU and the display).
-        row["paint_ms_mean"] = summarize(paint_ms).mean;
-        row["swap_ms_mean"] = summarize(swap_ms).mean;
-        row["frames_paint_ms"] = paint_ms;
-        row["frames_swap_ms"] = swap_ms;
-        row["frames_image_sample_px"] = image_sample_px;  // each frame's rays apart [px]
-        const Stats shadow = summarize(shadow_ms);  // the tool's shadow cast (inside frame_ms)
+        row["paint_ms_mean"] = summarize(parts.paint_ms).mean;
+        row["swap_ms_mean"] = summarize(parts.swap_ms).mean;
+        row["frames_paint_ms"] = parts.paint_ms;
+        row["frames_swap_ms"] = parts.swap_ms;
+        row["frames_image_sample_px"] = parts.image_sample_px;  // each frame's rays apart [px]
+        const Stats shadow = summarize(parts.shadow_ms);  // the tool's shadow cast (inside frame_ms)
         row["shadow_ms_mean"] = shadow.mean;
         row["shadow_ms_max"] = shadow.max;
         row["first_frame_ms"] = first_ms;

@@ -674,18 +674,27 @@ void SceneActors::setProxyPose(const haptics::Pose& X_WP) { setUserPose(proxy_ac
 void SceneActors::setDevicePose(const haptics::Pose& X_WD) { setUserPose(device_actor_, X_WD); }
 void SceneActors::setDeviceVisible(bool visible) { device_actor_->SetVisibility(visible); }
 
-void SceneActors::setContacts(std::span<const Eigen::Vector3d> p_W_m) {
-  contact_points_->SetNumberOfPoints(static_cast<vtkIdType>(p_W_m.size()));
+namespace {
+/// `poly` (whose points are `points`) as one vertex per point of p_W_m, each moved by offset_W.
+void setVertices(vtkPoints* points, vtkPolyData* poly, std::span<const Eigen::Vector3d> p_W_m,
+                 const Eigen::Vector3d& offset_W = Eigen::Vector3d::Zero()) {
+  const auto n = static_cast<vtkIdType>(p_W_m.size());
+  points->SetNumberOfPoints(n);
   vtkNew<vtkCellArray> verts;
-  verts->AllocateExact(static_cast<vtkIdType>(p_W_m.size()), static_cast<vtkIdType>(p_W_m.size()));
-  for (std::size_t i = 0; i < p_W_m.size(); ++i) {
-    contact_points_->SetPoint(static_cast<vtkIdType>(i), p_W_m[i].x(), p_W_m[i].y(), p_W_m[i].z());
-    const vtkIdType id = static_cast<vtkIdType>(i);
-    verts->InsertNextCell(1, &id);
+  verts->AllocateExact(n, n);
+  for (vtkIdType i = 0; i < n; ++i) {
+    const Eigen::Vector3d p = p_W_m[static_cast<std::size_t>(i)] + offset_W;
+    points->SetPoint(i, p.x(), p.y(), p.z());
+    verts->InsertNextCell(1, &i);
   }
-  contact_points_->Modified();
-  contact_poly_->SetVerts(verts);
-  contact_poly_->Modified();
+  points->Modified();
+  poly->SetVerts(verts);
+  poly->Modified();
+}
+}  // namespace
+
+void SceneActors::setContacts(std::span<const Eigen::Vector3d> p_W_m) {
+  setVertices(contact_points_, contact_poly_, p_W_m);
   contact_actor_->SetVisibility(!p_W_m.empty());
 }
 
@@ -715,18 +724,7 @@ void SceneActors::setShadow(const ToolShadow& shadow, const Eigen::Vector3d& dir
       length > 0.0 && std::isfinite(length) ? Eigen::Vector3d(-0.5 * min_spacing_m_ / length * direction_W)
                                             : Eigen::Vector3d::Zero();
   const std::size_t n = shadow.footprint_W_m.size();
-  shadow_points_->SetNumberOfPoints(static_cast<vtkIdType>(n));
-  vtkNew<vtkCellArray> verts;
-  verts->AllocateExact(static_cast<vtkIdType>(n), static_cast<vtkIdType>(n));
-  for (std::size_t i = 0; i < n; ++i) {
-    const Eigen::Vector3d p = shadow.footprint_W_m[i] + lift_W;
-    shadow_points_->SetPoint(static_cast<vtkIdType>(i), p.x(), p.y(), p.z());
-    const vtkIdType id = static_cast<vtkIdType>(i);
-    verts->InsertNextCell(1, &id);
-  }
-  shadow_points_->Modified();
-  shadow_poly_->SetVerts(verts);
-  shadow_poly_->Modified();
+  setVertices(shadow_points_, shadow_poly_, shadow.footprint_W_m, lift_W);
   if (shadow.has_gap) {
     const Eigen::Vector3d to = shadow.gap_to_W_m + lift_W;
     gap_points_->SetPoint(0, shadow.gap_from_W_m.x(), shadow.gap_from_W_m.y(), shadow.gap_from_W_m.z());
@@ -748,35 +746,17 @@ void SceneActors::setShadowVisible(bool visible) {
 
 void SceneActors::primeLaterProps(const std::function<void()>& render) {
   // A point at the proxy (inside the tool), for each prop that has none.
-  double at[3] = {0.0, 0.0, 0.0};
+  Eigen::Vector3d at_W = Eigen::Vector3d::Zero();
   if (vtkMatrix4x4* m = proxy_actor_->GetUserMatrix()) {
-    for (int i = 0; i < 3; ++i) at[i] = m->GetElement(i, 3);
+    for (int i = 0; i < 3; ++i) at_W[i] = m->GetElement(i, 3);
   }
   const bool volume_shown = volume_->GetVisibility() != 0;
   const bool contacts_shown = contact_actor_->GetVisibility() != 0, force_shown = force_actor_->GetVisibility() != 0;
   const bool shadow_shown = shadow_actor_->GetVisibility() != 0, gap_shown = gap_actor_->GetVisibility() != 0;
-  const vtkIdType contacts = contact_points_->GetNumberOfPoints(), shadow_points = shadow_points_->GetNumberOfPoints();
-  const auto onePoint = [&](vtkPoints* points, vtkPolyData* poly, vtkIdType count) {
-    if (count > 0) return;
-    points->SetNumberOfPoints(1);
-    points->SetPoint(0, at);
-    vtkNew<vtkCellArray> verts;
-    const vtkIdType id = 0;
-    verts->InsertNextCell(1, &id);
-    poly->SetVerts(verts);
-    points->Modified();
-    poly->Modified();
-  };
-  const auto noPoints = [](vtkPoints* points, vtkPolyData* poly, vtkIdType count) {
-    if (count > 0) return;
-    points->SetNumberOfPoints(0);
-    vtkNew<vtkCellArray> verts;
-    poly->SetVerts(verts);
-    points->Modified();
-    poly->Modified();
-  };
-  onePoint(contact_points_, contact_poly_, contacts);
-  onePoint(shadow_points_, shadow_poly_, shadow_points);
+  const bool no_contacts = contact_points_->GetNumberOfPoints() == 0, no_shadow = shadow_points_->GetNumberOfPoints() == 0;
+  const std::span<const Eigen::Vector3d> one_point(&at_W, 1), no_point;
+  if (no_contacts) setVertices(contact_points_, contact_poly_, one_point);
+  if (no_shadow) setVertices(shadow_points_, shadow_poly_, one_point);
   for (vtkActor* actor : {contact_actor_.GetPointer(), force_actor_.GetPointer(), shadow_actor_.GetPointer(),
                           gap_actor_.GetPointer()})
     actor->SetVisibility(true);
@@ -789,8 +769,8 @@ void SceneActors::primeLaterProps(const std::function<void()>& render) {
   volume_mapper_->SetImageSampleDistance(static_cast<float>(pixels));
   render();
   applyQuality();  // the sampling of the frames in hand again
-  noPoints(contact_points_, contact_poly_, contacts);
-  noPoints(shadow_points_, shadow_poly_, shadow_points);
+  if (no_contacts) setVertices(contact_points_, contact_poly_, no_point);
+  if (no_shadow) setVertices(shadow_points_, shadow_poly_, no_point);
   volume_->SetVisibility(volume_shown);
   contact_actor_->SetVisibility(contacts_shown);
   force_actor_->SetVisibility(force_shown);

@@ -233,12 +233,7 @@ void VtkView::renderFrame() {
   const QSize pixels = surfacePixels();
   const int w = pixels.width(), h = pixels.height();
 
-  vtkOpenGLState* state = render_window_->GetState();
-  state->Reset();
-  state->Push();
-  state->vtkglDepthFunc(GL_LEQUAL);  // VTK expects GL_LEQUAL
-
-  render_window_->Render();  // into VTK's own render framebuffer (no copy to its display one)
+  vtkOpenGLState* state = renderVtk();
 
   // Blit VTK's render framebuffer into the window's back buffer.
   QOpenGLExtraFunctions* f = context_->extraFunctions();
@@ -262,8 +257,21 @@ void VtkView::renderFrame() {
   emit frameRendered();
 }
 
+vtkOpenGLState* VtkView::renderVtk() {
+  vtkOpenGLState* state = render_window_->GetState();
+  state->Reset();
+  state->Push();
+  state->vtkglDepthFunc(GL_LEQUAL);  // VTK expects GL_LEQUAL
+  render_window_->Render();  // into VTK's own render framebuffer (no copy to its display one)
+  return state;
+}
+
+bool VtkView::readyToRender() {
+  return !in_paint_ && surface_ != nullptr && surface_->isExposed() && prepareContext();
+}
+
 bool VtkView::renderNow() {
-  if (in_paint_ || surface_ == nullptr || !surface_->isExposed() || !prepareContext()) return false;
+  if (!readyToRender()) return false;
   renderFrame();
   const auto t0 = std::chrono::steady_clock::now();
   context_->swapBuffers(surface_);
@@ -272,14 +280,9 @@ bool VtkView::renderNow() {
 }
 
 bool VtkView::renderUnseen() {
-  if (in_paint_ || surface_ == nullptr || !surface_->isExposed() || !prepareContext()) return false;
+  if (!readyToRender()) return false;
   in_paint_ = true;  // VTK's end-of-frame event asks for no frame to show this one
-  vtkOpenGLState* state = render_window_->GetState();
-  state->Reset();
-  state->Push();
-  state->vtkglDepthFunc(GL_LEQUAL);
-  render_window_->Render();
-  state->Pop();
+  renderVtk()->Pop();
   in_paint_ = false;
   return true;
 }

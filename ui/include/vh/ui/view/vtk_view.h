@@ -47,6 +47,7 @@ class vtkGenericOpenGLRenderWindow;
 class vtkGenericRenderWindowInteractor;
 class vtkInteractorStyleTrackballCamera;
 class vtkObject;
+class vtkOpenGLState;
 class vtkRenderer;
 
 namespace vh::ui {
@@ -131,6 +132,11 @@ class VtkView : public QWidget {
   bool prepareContext();
   /// Renders into the window's back buffer (context current); no swap.
   void renderFrame();
+  /// VTK's render into its own framebuffer (context current), with VTK's GL state reset and
+  /// pushed: the caller pops it when done with the frame. @return that state.
+  vtkOpenGLState* renderVtk();
+  /// Not inside a frame, the window exposed, and the context current on it.
+  bool readyToRender();
   /// The native window's size in device pixels (empty once it has gone).
   QSize surfacePixels() const;
   /// Tells VTK the window's size in device pixels when it changed.
