@@ -1,6 +1,7 @@
 // The `volume-haptics bench` subcommands (CLI11).
 #include <cstdlib>
 #include <iostream>
+#include <string>
 
 #include <CLI/CLI.hpp>
 
@@ -81,7 +82,8 @@ CLI::App* addBenchSubcommand(CLI::App& app, std::function<int()>& handler) {
   t1->add_flag("!--no-large-tools", table1->large_tools, "Skip the 20,000- and 50,000-point tool runs");
   t1->add_option("--lanes", table1->lanes,
                  "Cores the accelerated modes' sweep runs on (RendererOptions::solver_lanes); 0: the application's "
-                 "default (hardware threads less two, 1 to 8; one lane for tools under 800 points)")
+                 "default (hardware threads less two, 1 to 8; one lane for tools under " +
+                     std::to_string(runtime::kPointsForSeveralLanes) + " points)")
       ->capture_default_str()
       ->check(CLI::Range(0, 64));
   t1->add_option("--deadline-us", table1->deadline_us,
