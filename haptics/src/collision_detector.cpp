@@ -316,8 +316,11 @@ void CollisionDetector::runEdgeLane(Lane& lane) noexcept {
     if (rank > bound.load(std::memory_order_relaxed)) return;
     bool cut = false;
     int j = -1, k = -1;
-    if (edgeSubtreeCrosses(lane.counters, &lane, lane.roots[r], edge_job_.X_WP, edge_job_.isovalue, walked, j, k,
-                           cut)) {
+    std::int64_t mark = lane.counters.total();
+    const bool crosses = edgeSubtreeCrosses(lane.counters, &lane, lane.roots[r], edge_job_.X_WP, edge_job_.isovalue,
+                                            walked, j, k, cut);
+    if (balanced_lanes_) chargeRoot(lane, rank, mark);
+    if (crosses) {
       lane.edge_rank = rank;
       lane.edge_j = j;
       lane.edge_k = k;
@@ -706,11 +709,20 @@ std::size_t CollisionDetector::collectActive(Lane& lane, const RigidMotion& moti
     top = lane.walk_top;
   } else {
     lane.active_count = 0;
-    for (auto it = lane.roots.rbegin(); it != lane.roots.rend(); ++it) stack[top++] = *it;
+    lane.walk_root = 0;
   }
   lane.walk_stopped = false;
-  while (top > 0) {
+  // The lane's roots one after the other (the order of pushing them all at once), each one's
+  // work charged to it for the next deal (rebalanceLanes()).
+  std::int64_t mark = k.total();
+  for (;;) {
+    if (top == 0) {
+      if (balanced_lanes_ && lane.walk_root > 0) chargeRoot(lane, lane.root_ranks[lane.walk_root - 1], mark);
+      if (lane.walk_root == lane.roots.size()) break;
+      stack[top++] = lane.roots[lane.walk_root++];
+    }
     if (overBudget(lane)) {
+      if (balanced_lanes_) chargeRoot(lane, lane.root_ranks[lane.walk_root - 1], mark);
       lane.walk_stopped = true;
       lane.walk_top = top;
       lane.walk_count = count;
@@ -778,8 +790,9 @@ void CollisionDetector::setLanes(int lanes) {
 
 void CollisionDetector::setLanesPartition(int lanes) {
   // The tree's upper nodes, split until there are kRootsPerLane per lane (or nodes of at most
-  // kMinRootPoints points): dealt round robin in tree order, so that the part of the tool near a
-  // surface (a spatial cluster of nodes) is shared by the lanes instead of falling to one. The
+  // kMinRootPoints points): dealt round robin in tree order for the first sweep (then by their
+  // work, rebalanceLanes()), so that the part of the tool near a surface (a spatial cluster of
+  // nodes) is shared by the lanes instead of falling to one. The
   // work of a tool touching with a small part of itself (a drill's burr) lies in a few nodes of
   // the tree: at 8 roots per lane the 20,000-point drill on the CT's bone gained nothing from a
   // second lane (0.99x), at 64 it ran 1.5x faster. Nodes are not split below kMinRootPoints, so
@@ -805,22 +818,73 @@ void CollisionDetector::setLanesPartition(int lanes) {
     if (!split) break;
   }
   const int used = static_cast<int>(std::min<std::size_t>(static_cast<std::size_t>(lanes), frontier.size()));
+  const std::size_t n = tool_->point_shell.size();
+  balanced_lanes_ = used > 1 && used <= kMaxBalancedLanes;
   lanes_.assign(static_cast<std::size_t>(used), Lane{});
-  lane_of_.assign(tool_->point_shell.size(), 0);
+  lane_of_.assign(n, 0);
+  rank_of_point_.assign(n, 0);
+  root_lane_.assign(frontier.size(), 0);
+  root_weight_.assign(frontier.size(), 0);
   std::vector<std::size_t> points(static_cast<std::size_t>(used), 0);
+  for (Lane& l : lanes_) {
+    l.roots.reserve(frontier.size());  // a rebalance never allocates
+    l.root_ranks.reserve(frontier.size());
+    if (balanced_lanes_) l.root_work.assign(frontier.size(), 0);
+  }
   for (std::size_t i = 0; i < frontier.size(); ++i) {
     const int lane = static_cast<int>(i % static_cast<std::size_t>(used));
     const ShellNode& node = nodes_[frontier[i]];
     lanes_[lane].roots.push_back(frontier[i]);
     lanes_[lane].root_ranks.push_back(static_cast<int>(i));
+    root_lane_[i] = lane;
     points[lane] += static_cast<std::size_t>(node.end - node.begin);
-    for (int p = node.begin; p < node.end; ++p) lane_of_[order_[p]] = lane;
+    for (int p = node.begin; p < node.end; ++p) {
+      lane_of_[order_[p]] = lane;
+      rank_of_point_[order_[p]] = static_cast<int>(i);
+    }
   }
   for (int lane = 0; lane < used; ++lane) {
     Lane& l = lanes_[lane];
-    l.heap.resize(std::max<std::size_t>(points[lane], 1));
-    l.active.resize(std::max<std::size_t>(points[lane], 1));
+    const std::size_t room = balanced_lanes_ ? n : points[lane];  // balanced: any share fits
+    l.heap.resize(std::max<std::size_t>(room, 1));
+    l.active.resize(std::max<std::size_t>(room, 1));
     l.stack.resize(nodes_.size() + 1);
+  }
+  frontier_ = std::move(frontier);
+}
+
+void CollisionDetector::rebalanceLanes() noexcept {
+  // The first deal is round robin (setLanesPartition()); from then on each lane gets a
+  // contiguous run of the upper nodes whose work last time adds up to about 1 / lanes of the
+  // whole. A node goes to the lane its middle falls in (so an empty lane is possible when one
+  // node outweighs a lane's share); every node weighs at least 1, so unworked ones spread too.
+  const std::size_t roots = frontier_.size();
+  std::int64_t total = 0, measured = 0;
+  for (std::size_t r = 0; r < roots; ++r) {
+    std::int64_t& work = lanes_[static_cast<std::size_t>(root_lane_[r])].root_work[r];
+    measured += work;
+    root_weight_[r] = work + 1;
+    total += work + 1;
+    work = 0;
+  }
+  if (measured == 0) return;  // no lane has worked since the last deal (a sweep ended at its contacts)
+  const auto lanes = static_cast<std::int64_t>(lanes_.size());
+  for (Lane& lane : lanes_) {
+    lane.roots.clear();  // within their reserved capacity from here on
+    lane.root_ranks.clear();
+  }
+  std::int64_t before = 0;
+  for (std::size_t r = 0; r < roots; ++r) {
+    const std::int64_t w = root_weight_[r];
+    const int lane = static_cast<int>(std::min(lanes - 1, (2 * before + w) * lanes / (2 * total)));
+    before += w;
+    if (lane != root_lane_[r]) {
+      root_lane_[r] = lane;
+      const ShellNode& node = nodes_[static_cast<std::size_t>(frontier_[r])];
+      for (int p = node.begin; p < node.end; ++p) lane_of_[static_cast<std::size_t>(order_[p])] = lane;
+    }
+    lanes_[static_cast<std::size_t>(lane)].roots.push_back(frontier_[r]);
+    lanes_[static_cast<std::size_t>(lane)].root_ranks.push_back(static_cast<int>(r));
   }
 }
 
@@ -833,6 +897,7 @@ SweepResult CollisionDetector::sweepAccelerated(const RigidMotion& motion, doubl
     std::fill(started_.begin(), started_.end(), 0u);
     sweep_stamp_ = 1;
   }
+  if (balanced_lanes_) rebalanceLanes();
   for (Lane& lane : lanes_) {
     lane.queued = 0;
     lane.active_count = 0;
@@ -1014,7 +1079,14 @@ void CollisionDetector::runLane(Lane& lane) noexcept {
     replaceTop(heap, count, entry);
     pop_pending = false;
   };
+  // Each step's work is charged to the upper node holding its point (rebalanceLanes()).
+  std::int64_t mark = k.total();
+  int stepped = -1;
+  const auto charge = [&] {
+    if (balanced_lanes_ && stepped >= 0) chargeRoot(lane, rank_of_point_[static_cast<std::size_t>(stepped)], mark);
+  };
   for (;;) {
+    charge();
     if (pop_pending) {
       pop_pending = false;
       if (--count > 0) replaceTop(heap, count, heap[count]);
@@ -1029,6 +1101,7 @@ void CollisionDetector::runLane(Lane& lane) noexcept {
     const QueueEntry e = heap[0];
     pop_pending = true;
     const int j = e.point;
+    stepped = j;
     const std::int64_t total = pt_[j].segments;
     if (e.run > 0) {  // an unresolved run
       const std::int64_t run = std::min(e.run, total - e.segment);

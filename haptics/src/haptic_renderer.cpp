@@ -270,6 +270,7 @@ inline void fillWorkStatistics(const CollisionDetector& collision, Clock::time_p
   stats.cells_walked = collision.cellsWalkedCount();
   stats.cells = collision.cellCount();
   stats.work = collision.work();
+  stats.critical_work = collision.budgetWork();
   // Also a tick whose sweep finished but whose contact update (or re-solve) the budget shortened.
   stats.budget_cut = stats.budget_cut || collision.budgetSpent();
   stats.deadline_cut = stats.budget_cut && collision.deadlineReached();

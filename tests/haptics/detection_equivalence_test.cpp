@@ -103,8 +103,9 @@ TEST(DetectionEquivalence, OneVoxelPlateUInt8) {
 }
 
 // Several lanes (the sweep on several cores): the same first time of contact, bit for bit, as
-// the paper's path; the lanes share the point-shell tree round robin, so every lane count from 2
-// to 5 deals the points differently.
+// the paper's path; the lanes share the point-shell tree round robin on the first sweep and by
+// each node's work after it, so every lane count from 2 to 5, and every motion, deals the points
+// differently.
 TEST(DetectionEquivalence, LanesGiveThePapersResult) {
   const ScalarVolume sphere = datasets::makeSphereVolume(test::grid1mm(), Eigen::Vector3d::Zero(), 0.015);
   const auto box = test::meshTool(datasets::makeBoxMesh({0.004, 0.003, 0.002}), 0.5e-3);

@@ -255,6 +255,8 @@ struct ModeRun {
   std::int64_t budget_cuts = 0, deadline_cuts = 0;
   runtime::ProxyLag lag;
   double max_work = 0.0;
+  // Sums over the ticks of TickStats::work and TickStats::critical_work (the lanes' balance).
+  double work_sum = 0.0, critical_work_sum = 0.0;
 };
 
 /// CPU time of this thread [us] (not advanced while the thread is preempted).
@@ -281,6 +283,12 @@ nlohmann::ordered_json modeJson(const ModeRun& m, double epsilon_m, bool verifie
     j["lag_ticks"] = m.lag.ticks;
     j["max_lag_m"] = m.lag.max_m;
     j["max_lag_rad"] = m.lag.max_rad;
+  }
+  // How evenly the lanes shared the work: all work / (lanes x the work on the ticks' critical
+  // paths); 1 on one lane, and on several when every lane did the same share.
+  if (m.critical_work_sum > 0.0 && m.renderer) {
+    j["lanes_used"] = m.renderer->solverLanes();
+    j["lane_efficiency"] = m.work_sum / (m.renderer->solverLanes() * m.critical_work_sum);
   }
   j["ticks"] = t.n;
   j["mean_us"] = t.mean;
@@ -546,6 +554,8 @@ void runScene(const runtime::LoadedScene& scene, std::shared_ptr<const haptics::
       m.budget_cuts += out.stats.budget_cut;
       m.deadline_cuts += out.stats.deadline_cut;
       m.max_work = std::max(m.max_work, static_cast<double>(out.stats.work));
+      m.work_sum += static_cast<double>(out.stats.work);
+      m.critical_work_sum += static_cast<double>(out.stats.critical_work);
       if (out.stats.exec_time_us > 1000.0) ++m.over_1ms;
       if (out.stats.contacts > 0) ++m.in_contact;
       proxy_finite[r] = finite;
@@ -947,8 +957,9 @@ void writeScalingTable(std::ostringstream& md, const nlohmann::ordered_json& row
      << (options.load > 0 ? format(" with %d busy threads beside it", options.load) : std::string())
      << "; speed-up = the first lane count's time / this one's; paper / this = the paper mode's mean in the same "
         "run / this mean (where the paper mode ran):\n\n";
-  md << "| scene | points | lanes | wall mean / p99.9 / max [us] | ticks over 1 ms | speed-up mean / max | paper / this (mean) |\n"
-        "|---|---|---|---|---|---|---|\n";
+  md << "| scene | points | lanes | wall mean / p99.9 / max [us] | ticks over 1 ms | speed-up mean / max | lane "
+        "efficiency | paper / this (mean) |\n"
+        "|---|---|---|---|---|---|---|---|\n";
   for (const auto& row : rows) {
     if (row["status"] != "ran") continue;
     const std::string first_key = "accelerated-lanes-" + std::to_string(options.lane_sweep.front());
@@ -960,7 +971,7 @@ void writeScalingTable(std::ostringstream& md, const nlohmann::ordered_json& row
       md << "| " << row["name"].get<std::string>() << " | " << row["points"].get<std::size_t>() << " | " << n << " | "
          << num(mean, 1) << " / " << num(m["p99_9_us"], 1) << " / " << num(mx, 1) << " | " << num(m["ticks_over_1ms"])
          << " | " << num(f["mean_us"].get<double>() / mean, 2) << "x / " << num(f["max_us"].get<double>() / mx, 2)
-         << "x | "
+         << "x | " << (m.contains("lane_efficiency") ? num(m["lane_efficiency"], 2) : std::string("-")) << " | "
          << (row["modes"].contains("paper") ? num(row["modes"]["paper"]["mean_us"].get<double>() / mean, 1) + "x"
                                             : std::string("-"))
          << " |\n";

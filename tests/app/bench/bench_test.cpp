@@ -193,6 +193,35 @@ TEST(Bench, table1EdgeTestColumnRunsBesideTheAcceleratedModeAndNeverCrosses) {
   EXPECT_NE(text.find("| Hole, edge test |"), std::string::npos) << "its row in the Never behind table";
 }
 
+TEST(Bench, table1LanesSweepReportsHowEvenlyTheLanesSharedTheWork) {
+  // --lanes-sweep: the full solve on each lane count, with the lanes' share of the work: all of
+  // it over lanes x the work on the ticks' critical paths (TickStats::critical_work). Exactly 1
+  // on one lane (nothing ran beside the caller), within (1 / lanes, 1] on several.
+  Table1Options options = shortAcceleratedHole("table1-lanes");
+  options.lane_sweep = {1, 2};
+  const fs::path dir = runTable1(options);
+  const json report = readJson(dir / "table1.json");
+  ASSERT_EQ(report["scenes"].size(), 1u);
+  const json& row = report["scenes"][0];
+  ASSERT_EQ(row["status"], "ran");
+  for (const int lanes : {1, 2}) {
+    const std::string key = "accelerated-lanes-" + std::to_string(lanes);
+    ASSERT_TRUE(row["modes"].contains(key)) << key;
+    const json& m = row["modes"][key];
+    EXPECT_EQ(number(m, "lanes_used"), lanes) << key;
+    const double share = number(m, "lane_efficiency");
+    if (lanes == 1) {
+      EXPECT_EQ(share, 1.0);
+    } else {
+      EXPECT_GT(share, 1.0 / lanes) << "both lanes must have worked";
+      EXPECT_LE(share, 1.0);
+    }
+  }
+  std::ifstream md(dir / "table1.md");
+  const std::string text((std::istreambuf_iterator<char>(md)), std::istreambuf_iterator<char>());
+  EXPECT_NE(text.find("| lane efficiency |"), std::string::npos) << "the scaling table's column";
+}
+
 TEST(Bench, table1ShortWritesBothModesForEveryScene) {
   Table1Options options;
   options.common.short_run = true;

@@ -280,11 +280,13 @@ class CollisionDetector {
   static constexpr std::int64_t kClockCheckWork = 200;
   /// Runs the accelerated sweep's point-shell walk and time-ordered search on `lanes` cores
   /// (haptics/README.md, "Several cores"): the point-shell tree's upper nodes are dealt round
-  /// robin to the lanes, each lane searches its points in time order with its own queue, and
-  /// the lanes share the first time of contact found so far (an atomic bound). The result is
-  /// the same first time of contact as one lane (on an exact tie between points of different
-  /// lanes, hit_point may name another tied point); the contact pass, pruning and contact set
-  /// stay on the caller.
+  /// robin to the lanes for the first sweep, then before each new sweep in contiguous runs of
+  /// about equal work as the last sweep measured it (up to 16 lanes, kMaxBalancedLanes, whose
+  /// queues then hold room for every point); each lane searches its points in time order with
+  /// its own queue, and the lanes share the first time of contact found so far (an atomic
+  /// bound). The result is the same first time of contact as one lane (on an exact tie between
+  /// points of different lanes, hit_point may name another tied point); the contact pass,
+  /// pruning and contact set stay on the caller.
   /// kPaper ignores it. Shares the process's pool of that many lanes (WorkerPool::shared(): lanes - 1
   /// threads started on first use; not on the servo path, call it at set-up).
   /// @throws std::invalid_argument when lanes is outside [1, WorkerPool::kMaxLanes];
@@ -368,6 +370,10 @@ class CollisionDetector {
     double cut_t = 0.0;
     SweepResult result;               // its first hit so far
     std::vector<int> root_ranks;      // per root: its place in the single-lane walk's order
+    // Per rank (frontier_): the work this lane did on that root since the last rebalance
+    // (only the lane holding a root writes its entry; rebalanceLanes() reads and clears it).
+    std::vector<std::int64_t> root_work;
+    std::size_t walk_root = 0;        // collectActive(): roots started so far
     // Its share of a forked edge test (edgesCrossAt()): the rank of the root where it found the
     // first crossing edge (j, k) or was stopped by the budget; INT_MAX: neither.
     int edge_rank = std::numeric_limits<int>::max(), edge_cut_rank = std::numeric_limits<int>::max();
@@ -575,6 +581,25 @@ class CollisionDetector {
   std::uint32_t sweep_stamp_ = 0;
   std::vector<Lane> lanes_;              // at least one (setLanes())
   std::vector<int> lane_of_;             // per point: the lane whose share of the tree holds it
+  // The lanes' shares (setLanesPartition(), rebalanceLanes()): the tree's upper nodes in the
+  // single-lane walk's order (a node's rank is its index), per rank the lane holding it, per
+  // point the rank of the node that holds it.
+  std::vector<int> frontier_, root_lane_, rank_of_point_;
+  std::vector<std::int64_t> root_weight_;  // rebalanceLanes()' scratch, per rank
+  bool balanced_lanes_ = false;          // the shares follow the work (rebalanceLanes())
+  // Up to this many lanes the shares follow the measured work; each lane's queue then has room
+  // for every point (36 bytes a point a lane).
+  static constexpr int kMaxBalancedLanes = 16;
+  // Before a new sweep: deals the upper nodes again, in contiguous runs of their order of about
+  // equal work, from the work each node cost since the last deal (its walk, its points' queue
+  // steps and edge tests). Kept as it is when no lane has worked since.
+  void rebalanceLanes() noexcept;
+  // The work a lane did since `mark` (its counters' total), charged to the node of rank `rank`.
+  static void chargeRoot(Lane& lane, int rank, std::int64_t& mark) noexcept {
+    const std::int64_t now = lane.counters.total();
+    lane.root_work[static_cast<std::size_t>(rank)] += now - mark;
+    mark = now;
+  }
   std::shared_ptr<WorkerPool> pool_;     // WorkerPool::shared(lanes), none for one lane
   // The lanes' shared first time of contact so far (read relaxed: a stale value only costs work).
   std::unique_ptr<std::atomic<double>> bound_ = std::make_unique<std::atomic<double>>(1.0);

@@ -130,6 +130,10 @@ struct TickStats {
   std::int64_t cells = 0;           ///< Cells whose cubic the exact segment test examined.
   std::int64_t cells_walked = 0;    ///< Cells the exact segment test visited (examined or skipped).
   std::int64_t work = 0;            ///< CollisionDetector::work(): samples, box queries, tree nodes, cells (RendererOptions::work_budget's unit).
+  /// CollisionDetector::budgetWork(): the tick's work on its critical path, the busiest lane's
+  /// share of each forked part plus the serial rest (what the work budget counts). work /
+  /// (lanes x critical_work) is how evenly the lanes shared the tick (1 = perfectly).
+  std::int64_t critical_work = 0;
   /// The work budget was reached: the sweep stopped before its end (and goes on next tick), or
   /// the contact update or the re-solve was shortened.
   bool budget_cut = false;
@@ -214,6 +218,9 @@ class HapticRenderer {
   const VirtualCoupling& coupling() const noexcept { return coupling_; }
   /// The work budget in force (RendererOptions::work_budget with its default resolved); 0: none.
   std::int64_t workBudget() const noexcept { return collision_.workBudget(); }
+  /// Lanes the accelerated sweep runs on: RendererOptions::solver_lanes, fewer for a tool whose
+  /// point-shell tree has fewer upper nodes (CollisionDetector::lanes()); 1 in kPaper.
+  int solverLanes() const noexcept { return std::max(1, collision_.lanes()); }
 
  private:
   std::shared_ptr<const ScalarVolume> volume_;
