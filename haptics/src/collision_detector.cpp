@@ -821,7 +821,6 @@ void CollisionDetector::setLanesPartition(int lanes) {
   const std::size_t n = tool_->point_shell.size();
   balanced_lanes_ = used > 1 && used <= kMaxBalancedLanes;
   lanes_.assign(static_cast<std::size_t>(used), Lane{});
-  lane_of_.assign(n, 0);
   rank_of_point_.assign(n, 0);
   root_lane_.assign(frontier.size(), 0);
   root_weight_.assign(frontier.size(), 0);
@@ -838,10 +837,7 @@ void CollisionDetector::setLanesPartition(int lanes) {
     lanes_[lane].root_ranks.push_back(static_cast<int>(i));
     root_lane_[i] = lane;
     points[lane] += static_cast<std::size_t>(node.end - node.begin);
-    for (int p = node.begin; p < node.end; ++p) {
-      lane_of_[order_[p]] = lane;
-      rank_of_point_[order_[p]] = static_cast<int>(i);
-    }
+    for (int p = node.begin; p < node.end; ++p) rank_of_point_[order_[p]] = static_cast<int>(i);
   }
   for (int lane = 0; lane < used; ++lane) {
     Lane& l = lanes_[lane];
@@ -854,35 +850,31 @@ void CollisionDetector::setLanesPartition(int lanes) {
 }
 
 void CollisionDetector::rebalanceLanes() noexcept {
-  // The first deal is round robin (setLanesPartition()); from then on each lane gets a
-  // contiguous run of the upper nodes whose work last time adds up to about 1 / lanes of the
-  // whole. A node goes to the lane its middle falls in (so an empty lane is possible when one
-  // node outweighs a lane's share); every node weighs at least 1, so unworked ones spread too.
+  // The first deal is round robin (setLanesPartition()); from then on the nodes, in the tree's
+  // order, each go to the lane with the least work so far, weighed by their work last time
+  // (every node at least 1, so unworked ones spread too). Neighbouring heavy nodes (a drill's
+  // burr) so go to different lanes, as round robin would deal them, and light ones fill the rest.
   const std::size_t roots = frontier_.size();
-  std::int64_t total = 0, measured = 0;
+  std::int64_t measured = 0;
   for (std::size_t r = 0; r < roots; ++r) {
     std::int64_t& work = lanes_[static_cast<std::size_t>(root_lane_[r])].root_work[r];
     measured += work;
     root_weight_[r] = work + 1;
-    total += work + 1;
     work = 0;
   }
   if (measured == 0) return;  // no lane has worked since the last deal (a sweep ended at its contacts)
-  const auto lanes = static_cast<std::int64_t>(lanes_.size());
+  std::array<std::int64_t, kMaxBalancedLanes> load{};
+  const int lanes = static_cast<int>(lanes_.size());
   for (Lane& lane : lanes_) {
     lane.roots.clear();  // within their reserved capacity from here on
     lane.root_ranks.clear();
   }
-  std::int64_t before = 0;
   for (std::size_t r = 0; r < roots; ++r) {
-    const std::int64_t w = root_weight_[r];
-    const int lane = static_cast<int>(std::min(lanes - 1, (2 * before + w) * lanes / (2 * total)));
-    before += w;
-    if (lane != root_lane_[r]) {
-      root_lane_[r] = lane;
-      const ShellNode& node = nodes_[static_cast<std::size_t>(frontier_[r])];
-      for (int p = node.begin; p < node.end; ++p) lane_of_[static_cast<std::size_t>(order_[p])] = lane;
-    }
+    int lane = 0;
+    for (int l = 1; l < lanes; ++l)
+      if (load[static_cast<std::size_t>(l)] < load[static_cast<std::size_t>(lane)]) lane = l;
+    load[static_cast<std::size_t>(lane)] += root_weight_[r];
+    root_lane_[r] = lane;
     lanes_[static_cast<std::size_t>(lane)].roots.push_back(frontier_[r]);
     lanes_[static_cast<std::size_t>(lane)].root_ranks.push_back(static_cast<int>(r));
   }
@@ -971,7 +963,7 @@ SweepResult CollisionDetector::runAccelerated() noexcept {
       const double t_end = stepSegment(counters_, motion, j, 0, 0.0, isovalue, result.t, result);
       // Outside at the end of its first segment: a run test next (in the lane that holds it).
       if (t_end >= 0.0 && t_end < 1.0) {
-        Lane& lane = lanes_[static_cast<std::size_t>(lane_of_[j])];
+        Lane& lane = lanes_[static_cast<std::size_t>(root_lane_[static_cast<std::size_t>(rank_of_point_[j])])];
         lane.heap[lane.queued++] = {t_end, j, 1, 1};
       }
       if (result.t == 0.0) break;  // nothing can come earlier

@@ -280,9 +280,9 @@ class CollisionDetector {
   static constexpr std::int64_t kClockCheckWork = 200;
   /// Runs the accelerated sweep's point-shell walk and time-ordered search on `lanes` cores
   /// (haptics/README.md, "Several cores"): the point-shell tree's upper nodes are dealt round
-  /// robin to the lanes for the first sweep, then before each new sweep in contiguous runs of
-  /// about equal work as the last sweep measured it (up to 16 lanes, kMaxBalancedLanes, whose
-  /// queues then hold room for every point); each lane searches its points in time order with
+  /// robin to the lanes for the first sweep, then before each new sweep each to the lane with
+  /// the least work so far, weighed by the work the last sweep measured on it (up to 16 lanes,
+  /// kMaxBalancedLanes, whose queues then hold room for every point); each lane searches its points in time order with
   /// its own queue, and the lanes share the first time of contact found so far (an atomic
   /// bound). The result is the same first time of contact as one lane (on an exact tie between
   /// points of different lanes, hit_point may name another tied point); the contact pass,
@@ -580,19 +580,18 @@ class CollisionDetector {
   bool active_complete_ = true;          // false: the last sweep stopped before its lanes collected their active points
   std::uint32_t sweep_stamp_ = 0;
   std::vector<Lane> lanes_;              // at least one (setLanes())
-  std::vector<int> lane_of_;             // per point: the lane whose share of the tree holds it
   // The lanes' shares (setLanesPartition(), rebalanceLanes()): the tree's upper nodes in the
   // single-lane walk's order (a node's rank is its index), per rank the lane holding it, per
-  // point the rank of the node that holds it.
+  // point the rank of the node that holds it (so point j's lane is root_lane_[rank_of_point_[j]]).
   std::vector<int> frontier_, root_lane_, rank_of_point_;
   std::vector<std::int64_t> root_weight_;  // rebalanceLanes()' scratch, per rank
   bool balanced_lanes_ = false;          // the shares follow the work (rebalanceLanes())
   // Up to this many lanes the shares follow the measured work; each lane's queue then has room
   // for every point (36 bytes a point a lane).
   static constexpr int kMaxBalancedLanes = 16;
-  // Before a new sweep: deals the upper nodes again, in contiguous runs of their order of about
-  // equal work, from the work each node cost since the last deal (its walk, its points' queue
-  // steps and edge tests). Kept as it is when no lane has worked since.
+  // Before a new sweep: deals the upper nodes again, in order, each to the lane with the least
+  // work so far, weighed by the work the node cost since the last deal (its walk, its points'
+  // queue steps and edge tests). Kept as it is when no lane has worked since.
   void rebalanceLanes() noexcept;
   // The work a lane did since `mark` (its counters' total), charged to the node of rank `rank`.
   static void chargeRoot(Lane& lane, int rank, std::int64_t& mark) noexcept {
