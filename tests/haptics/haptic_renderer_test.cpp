@@ -226,10 +226,12 @@ TEST_P(HapticRendererModes, ProxyComesToRestWhenTheDeviceIsStill) {
   EXPECT_LE(maxPenetration(*vol, *tool, out.X_WP, 0.0), r.epsilon_m());
 }
 
-TEST_P(HapticRendererModes, TickDoesNotAllocate) {
+// The drill swung over the ball, half the ticks at another isovalue: no tick allocates.
+void expectTicksDoNotAllocate(const RendererOptions& options, double spacing_m, int lanes = 1) {
   auto vol = std::make_shared<ScalarVolume>(datasets::makeSphereVolume(test::grid1mm(), Eigen::Vector3d::Zero(), 0.015));
-  const auto tool = test::meshTool(datasets::makeBuiltinTool("drill"), 1.5e-3);
-  HapticRenderer r(vol, tool, inMode(GetParam()), Pose::FromTranslation({0, 0, 0.02}), 0.0);
+  const auto tool = test::meshTool(datasets::makeBuiltinTool("drill"), spacing_m);
+  HapticRenderer r(vol, tool, options, Pose::FromTranslation({0, 0, 0.02}), 0.0);
+  ASSERT_EQ(r.solverLanes(), lanes);
   Pose X_WD = Pose::FromTranslation({0.002, 0.0, 0.012});
   X_WD.R_AB = Eigen::Quaterniond(Eigen::AngleAxisd(0.2, Eigen::Vector3d::UnitX()));
   r.tick(X_WD, 0.0);  // warm-up
@@ -241,6 +243,17 @@ TEST_P(HapticRendererModes, TickDoesNotAllocate) {
   }
   EXPECT_EQ(guard.count(), 0u);
   EXPECT_GT(contacts, 0);
+}
+
+TEST_P(HapticRendererModes, TickDoesNotAllocate) { expectTicksDoNotAllocate(inMode(GetParam()), 1.5e-3); }
+
+// On several lanes the tree's nodes are dealt to them again before every sweep, on the servo
+// thread (CollisionDetector::rebalanceLanes()), and the edge test is forked too.
+TEST(HapticRenderer, TickOnSeveralLanesWithTheEdgeTestDoesNotAllocate) {
+  RendererOptions o = inMode(DetectionMode::kAccelerated);
+  o.solver_lanes = 3;
+  o.edge_test = true;
+  expectTicksDoNotAllocate(o, 0.7e-3, 3);
 }
 
 TEST_P(HapticRendererModes, ReportsStatistics) {
