@@ -823,7 +823,6 @@ void CollisionDetector::setLanesPartition(int lanes) {
   lanes_.assign(static_cast<std::size_t>(used), Lane{});
   rank_of_point_.assign(n, 0);
   root_lane_.assign(frontier.size(), 0);
-  root_weight_.assign(frontier.size(), 0);
   std::vector<std::size_t> points(static_cast<std::size_t>(used), 0);
   for (Lane& l : lanes_) {
     l.roots.reserve(frontier.size());  // a rebalance never allocates
@@ -855,14 +854,10 @@ void CollisionDetector::rebalanceLanes() noexcept {
   // (every node at least 1, so unworked ones spread too). Neighbouring heavy nodes (a drill's
   // burr) so go to different lanes, as round robin would deal them, and light ones fill the rest.
   const std::size_t roots = frontier_.size();
-  std::int64_t measured = 0;
-  for (std::size_t r = 0; r < roots; ++r) {
-    std::int64_t& work = lanes_[static_cast<std::size_t>(root_lane_[r])].root_work[r];
-    measured += work;
-    root_weight_[r] = work + 1;
-    work = 0;
-  }
-  if (measured == 0) return;  // no lane has worked since the last deal (a sweep ended at its contacts)
+  bool measured = false;
+  for (std::size_t r = 0; r < roots && !measured; ++r)
+    measured = lanes_[static_cast<std::size_t>(root_lane_[r])].root_work[r] > 0;
+  if (!measured) return;  // no lane has worked since the last deal (a sweep ended at its contacts)
   std::array<std::int64_t, kMaxBalancedLanes> load{};
   const int lanes = static_cast<int>(lanes_.size());
   for (Lane& lane : lanes_) {
@@ -870,10 +865,15 @@ void CollisionDetector::rebalanceLanes() noexcept {
     lane.root_ranks.clear();
   }
   for (std::size_t r = 0; r < roots; ++r) {
+    // The work charged to node r since the last deal, by the lane that held it (read and
+    // cleared before the node changes lanes below).
+    std::int64_t& work = lanes_[static_cast<std::size_t>(root_lane_[r])].root_work[r];
+    const std::int64_t weight = work + 1;
+    work = 0;
     int lane = 0;
     for (int l = 1; l < lanes; ++l)
       if (load[static_cast<std::size_t>(l)] < load[static_cast<std::size_t>(lane)]) lane = l;
-    load[static_cast<std::size_t>(lane)] += root_weight_[r];
+    load[static_cast<std::size_t>(lane)] += weight;
     root_lane_[r] = lane;
     lanes_[static_cast<std::size_t>(lane)].roots.push_back(frontier_[r]);
     lanes_[static_cast<std::size_t>(lane)].root_ranks.push_back(static_cast<int>(r));

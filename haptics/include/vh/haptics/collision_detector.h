@@ -282,9 +282,9 @@ class CollisionDetector {
   /// (haptics/README.md, "Several cores"): the point-shell tree's upper nodes are dealt round
   /// robin to the lanes for the first sweep, then before each new sweep each to the lane with
   /// the least work so far, weighed by the work the last sweep measured on it (up to 16 lanes,
-  /// kMaxBalancedLanes, whose queues then hold room for every point); each lane searches its points in time order with
-  /// its own queue, and the lanes share the first time of contact found so far (an atomic
-  /// bound). The result is the same first time of contact as one lane (on an exact tie between
+  /// kMaxBalancedLanes, whose queues then hold room for every point); each lane searches its
+  /// points in time order with its own queue, and the lanes share the first time of contact
+  /// found so far (an atomic bound). The result is the same first time of contact as one lane (on an exact tie between
   /// points of different lanes, hit_point may name another tied point); the contact pass,
   /// pruning and contact set stay on the caller.
   /// kPaper ignores it. Shares the process's pool of that many lanes (WorkerPool::shared(): lanes - 1
@@ -584,7 +584,6 @@ class CollisionDetector {
   // single-lane walk's order (a node's rank is its index), per rank the lane holding it, per
   // point the rank of the node that holds it (so point j's lane is root_lane_[rank_of_point_[j]]).
   std::vector<int> frontier_, root_lane_, rank_of_point_;
-  std::vector<std::int64_t> root_weight_;  // rebalanceLanes()' scratch, per rank
   bool balanced_lanes_ = false;          // the shares follow the work (rebalanceLanes())
   // Up to this many lanes the shares follow the measured work; each lane's queue then has room
   // for every point (36 bytes a point a lane).
