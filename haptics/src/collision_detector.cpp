@@ -85,6 +85,7 @@ CollisionDetector::CollisionDetector(const ScalarVolume& volume, const ToolModel
   reduce_distance_.resize(n + contacts_.size());
   reduce_chosen_.resize(n + contacts_.size());
   grid_per_m_ = volume.geometry().spacing_m.cwiseInverse();
+  grid_from_W_ = grid_per_m_.asDiagonal() * volume.geometry().direction_W.transpose();
   edges_ = makeShellEdges(tool.point_shell);
   edge_reach_m_.assign(n, 0.0);
   edge_clearance_.assign(2 * n, EdgeClearance{});
@@ -163,6 +164,27 @@ bool CollisionDetector::edgesStillClear(const Pose& X_WP, int j, const Eigen::Ve
     const double turn = 2.0 * (proven.R_WT.conjugate() * X_WP.R_AB).vec().norm();
     if (moved_m + turn * proven.arm_m < proven.clearance_m) return true;
   }
+  // The directional certificates: each point q of j's edges has moved by d = (p_j' - p_j) +
+  // (R' - R)(q - p_j), so along grid axis a by d_a within r_a = |row a of grid_from_W| |R' - R|
+  // arm of point j's own move. While that stays within the certificate's reach, F rose on the
+  // straight path by at most sum_a max(step_lo_a d_a, step_hi_a d_a), largest at an end of each
+  // axis' interval (the sum is convex in d).
+  for (std::size_t slot = 2 * i; slot < 2 * i + 2; ++slot) {
+    const EdgeClearance& proven = edge_clearance_[slot];
+    if (!(proven.margin > 0.0)) continue;
+    const Eigen::Vector3d d = grid_from_W_ * (p_W - proven.p_W_m);
+    const double lever_m = 2.0 * (proven.R_WT.conjugate() * X_WP.R_AB).vec().norm() * proven.arm_m;
+    double rise = 0.0;
+    bool within = true;
+    for (int a = 0; a < 3; ++a) {
+      const double r = lever_m * grid_per_m_[a];
+      const double lo = d[a] - r, hi = d[a] + r;
+      within = within && -lo <= kCertificateReachSteps && hi <= kCertificateReachSteps;
+      const auto rise_along = [&](double x) { return x >= 0.0 ? proven.step_hi[a] * x : proven.step_lo[a] * x; };
+      rise += std::max(rise_along(lo), rise_along(hi));
+    }
+    if (within && rise * (1.0 + 1e-9) < proven.margin) return true;
+  }
   return false;
 }
 
@@ -178,21 +200,37 @@ int CollisionDetector::edgeCrosses(WorkCounters& w, const Pose& X_WP, int j, con
   const auto i = static_cast<std::size_t>(j);
   const Eigen::Vector3d a = edgeEnd(w, X_WP, j);  // once for all of j's edges
   double clearance_m = std::numeric_limits<double>::infinity();
+  double excess_all = -std::numeric_limits<double>::infinity();  // F - s's bound over all of j's edges
+  Eigen::Vector3d box_lo = a, box_hi = a;                         // their box, grid coordinates
   for (int e = edges_.offsets[j]; e < edges_.offsets[j + 1]; ++e) {
     const int k = edges_.targets[e];
     if (embedded_[k]) {  // untested: nothing proven for j's edges
       clearance_m = -1.0;
+      excess_all = std::numeric_limits<double>::infinity();
       continue;
     }
     const Eigen::Vector3d b = edgeEnd(w, X_WP, k);
     double excess_max = 0.0;
     if (segmentCrosses(w, a, b, isovalue, &excess_max)) return k;
     clearance_m = std::min(clearance_m, edgeClearance(a, b, excess_max, isovalue));
+    excess_all = std::max(excess_all, excess_max);
+    box_lo = box_lo.cwiseMin(b);
+    box_hi = box_hi.cwiseMax(b);
   }
   // Two certificates a point, the newer replacing the older: a move stopped by an edge tests
   // the pose it ends at and the one past it in turn, tick after tick.
-  if (std::isfinite(clearance_m) && clearance_m > 0.0)
-    keepEdgeClearance(j, {p_W, X_WP.R_AB, clearance_m, edge_reach_m_[i] + epsilon_});
+  EdgeClearance proven{p_W, X_WP.R_AB, std::isfinite(clearance_m) && clearance_m > 0.0 ? clearance_m : -1.0,
+                       edge_reach_m_[i] + epsilon_};
+  if (excess_all < 0.0) {
+    const Eigen::Vector3d reach = Eigen::Vector3d::Constant(kCertificateReachSteps);
+    if (volume_->gridStepRange(box_lo - reach, box_hi + reach, proven.step_lo, proven.step_hi)) {
+      // The cubic's value at a rounded critical point: a relative tolerance, as edgeClearance().
+      const double steepest = std::max(proven.step_lo.cwiseAbs().maxCoeff(), proven.step_hi.cwiseAbs().maxCoeff());
+      proven.margin = -(excess_all + 1e-9 * (std::abs(isovalue) + steepest) + 1e-300);
+      ++w.samples;  // the box's voxels: about as many reads as a walk's cells
+    }
+  }
+  if (proven.clearance_m > 0.0 || proven.margin > 0.0) keepEdgeClearance(j, proven);
   return -1;
 }
 
@@ -341,7 +379,7 @@ bool CollisionDetector::edgesCrossAt(const Pose& X_WP, double isovalue) noexcept
   if (edges_.size() == 0) return false;
   prepareTreeStop(isovalue);
   if (!(isovalue == edge_clearance_isovalue_)) {  // certificates hold for their isovalue only
-    for (auto& proven : edge_clearance_) proven.clearance_m = -1.0;
+    for (auto& proven : edge_clearance_) proven.clearance_m = proven.margin = -1.0;
     edge_clearance_isovalue_ = isovalue;
   }
   if (mode_ == DetectionMode::kAccelerated && pool_ && lanes_.size() > 1) {

@@ -575,5 +575,54 @@ TEST(EdgeCases, ABoxQueryCertificateHoldsForHalfAVoxelOfTravelOnly) {
   EXPECT_EQ(heights, 56);
 }
 
+TEST(EdgeCases, ADirectionalCertificateExpiresBeforeItsEdgesLeaveTheBoxItKnows) {
+  // The exact walk's directional certificate bounds F's rise by the range of F's derivatives
+  // near the edges, so a move along a flat floor (dF/dx = 0 there) raises nothing it knows of;
+  // the range says nothing two voxels on. A line of three points 3 mm apart along x, 0.2 mm
+  // over a floor (a 1 mm uint8 grid, 255 up to k = 20, the surface at 20.5 at 128), slides
+  // along x in steps of 0.25 mm into a one-voxel wall (i = 40, up to k = 30) that passes
+  // between its points. Oracles: the dense samples of every edge (CrossingVerifier::checkEdges)
+  // and a detector built afresh at each pose; the long-lived detector, which proved the edges
+  // free far from the wall, must report the same crossings.
+  VolumeGeometry g;
+  g.dims = {64, 24, 40};
+  g.spacing_m = Eigen::Vector3d::Constant(1e-3);
+  std::vector<std::uint8_t> voxels(g.voxelCount(), 0);
+  for (int k = 0; k < g.dims[2]; ++k)
+    for (int j = 0; j < g.dims[1]; ++j)
+      for (int i = 0; i < g.dims[0]; ++i)
+        if (k <= 20 || (i == 40 && k <= 30)) voxels[g.indexOf(i, j, k)] = 255;
+  const ScalarVolume floor_and_wall = ScalarVolume::FromVoxels(g, voxels);
+  ToolModel line;
+  line.point_shell = PointShell({{0.0, 0.0, 0.0}, {3e-3, 0.0, 0.0}, {6e-3, 0.0, 0.0}});
+  const CrossingVerifier oracle(floor_and_wall, line.point_shell, 2e-2);
+  CollisionDetector kept(floor_and_wall, line, 0.0);
+  int crossing = 0, entering = 0;
+  std::int64_t kept_work = 0, fresh_work = 0;
+  Pose before = Pose::FromTranslation(Eigen::Vector3d(6e-3, 12e-3, 20.7e-3));
+  for (double x_m = 6e-3; x_m <= 45e-3 + 1e-9; x_m += 0.25e-3) {
+    const Pose X = Pose::FromTranslation(Eigen::Vector3d(x_m, 12e-3, 20.7e-3));
+    kept.resetSampleCount();
+    const bool crosses = kept.edgesCrossAt(X, 128.0);
+    kept_work += kept.work();
+    CollisionDetector fresh(floor_and_wall, line, 0.0);
+    ASSERT_EQ(crosses, fresh.edgesCrossAt(X, 128.0)) << "x " << 1e3 * x_m << " mm";
+    fresh_work += fresh.work();
+    const CrossingVerifier::EdgeResult dense = oracle.checkEdges(RigidMotion::Between(before, X, line.mass.p_TCm_m),
+                                                                 1.0, 128.0, kept.shellEdges(), kept.epsilon_m());
+    if (dense.crossing_edges > 0) {
+      ++entering;
+      ASSERT_TRUE(crosses) << "x " << 1e3 * x_m << " mm: the wall enters an edge and was not reported";
+    }
+    crossing += crosses;
+    before = X;
+  }
+  std::printf("%d poses with an edge crossing, %d entering (dense oracle); work %lld kept against %lld fresh\n",
+              crossing, entering, static_cast<long long>(kept_work), static_cast<long long>(fresh_work));
+  EXPECT_GE(crossing, 16) << "the wall never passed between the points";
+  EXPECT_GE(entering, 1);
+  EXPECT_LT(static_cast<double>(kept_work), 0.8 * static_cast<double>(fresh_work)) << "no certificate was reused";
+}
+
 }  // namespace
 }  // namespace vh::haptics

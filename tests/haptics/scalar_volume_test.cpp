@@ -233,6 +233,87 @@ TEST(ScalarVolume, LocalLipschitzBoundHoldsNearEachCellAndIgnoresFarOutliers) {
   EXPECT_LT(clean.localLipschitzBound(Eigen::Vector3d(31.5, 31.5, 41.5)), 2000.0 * std::sqrt(3.0) * 1.01);
 }
 
+TEST(ScalarVolume, GridStepRangeBoundsEveryMoveInItsBoxByItsDirection) {
+  // Oracle: for x and x + d in a box, F(x + d) - F(x) lies between sum_a min(lo_a d_a, hi_a d_a)
+  // and sum_a max(...) with [lo, hi] = gridStepRange(box) (F sampled in W, so the trilinear
+  // interpolant is the oracle), on the random int16 field with a smooth corner (anisotropic
+  // voxels, rotated grid, negative value scale) of the Lipschitz test. On a ramp the range is
+  // the ramp's slope itself; after a voxel is written and its region refreshed, the range there
+  // takes the new step in and keeps its old width far away.
+  std::mt19937 rng(12);
+  std::uniform_real_distribution<double> U(0.0, 1.0);
+  VolumeGeometry g = rotatedGeometry();
+  g.dims = {20, 18, 16};
+  std::vector<std::int16_t> raw(g.voxelCount());
+  for (auto& v : raw) v = static_cast<std::int16_t>(static_cast<int>(rng() % 4001) - 2000);
+  for (int k = 0; k < g.dims[2]; ++k)
+    for (int j = 0; j < g.dims[1]; ++j)
+      for (int i = 0; i < 10; ++i) raw[i + g.dims[0] * (j + g.dims[1] * k)] = static_cast<std::int16_t>(2 * i - j + 3 * k);
+  const ScalarVolume vol = ScalarVolume::FromVoxels(g, raw, -0.5, 3.0);
+  const Eigen::Vector3d upper(g.dims[0] - 1, g.dims[1] - 1, g.dims[2] - 1);
+  double tightest = 0.0;
+  for (int n = 0; n < 40000; ++n) {
+    Eigen::Vector3d lo = upper.cwiseProduct(Eigen::Vector3d(U(rng), U(rng), U(rng)));
+    Eigen::Vector3d hi = (lo + 4.0 * Eigen::Vector3d(U(rng), U(rng), U(rng))).cwiseMin(upper);
+    Eigen::Vector3d step_lo, step_hi;
+    ASSERT_TRUE(vol.gridStepRange(lo, hi, step_lo, step_hi));
+    ASSERT_TRUE((step_lo.array() <= step_hi.array()).all());
+    // Every edge of the box's cells (voxel by voxel) lies in the range.
+    const auto F = [&](int i, int j, int k) { return -0.5 * raw[g.indexOf(i, j, k)] + 3.0; };
+    for (int k = static_cast<int>(lo[2]); k <= std::min(static_cast<int>(hi[2]), g.dims[2] - 2) + 1; ++k)
+      for (int j = static_cast<int>(lo[1]); j <= std::min(static_cast<int>(hi[1]), g.dims[1] - 2) + 1; ++j)
+        for (int i = static_cast<int>(lo[0]); i <= std::min(static_cast<int>(hi[0]), g.dims[0] - 2) + 1; ++i) {
+          const int cell[3] = {i, j, k};
+          for (int a = 0; a < 3; ++a) {
+            if (cell[a] > std::min(static_cast<int>(hi[a]), g.dims[a] - 2)) continue;  // the far voxels start no edge along a
+            const int next[3] = {i + (a == 0), j + (a == 1), k + (a == 2)};
+            const double step = F(next[0], next[1], next[2]) - F(i, j, k);
+            ASSERT_GE(step, step_lo[a]) << "axis " << a << " at " << i << " " << j << " " << k;
+            ASSERT_LE(step, step_hi[a]) << "axis " << a << " at " << i << " " << j << " " << k;
+          }
+        }
+    const auto inBox = [&]() -> Eigen::Vector3d { return lo + (hi - lo).cwiseProduct(Eigen::Vector3d(U(rng), U(rng), U(rng))); };
+    const Eigen::Vector3d x = inBox(), y = inBox(), d = y - x;
+    double rise_max = 0.0, rise_min = 0.0;
+    for (int a = 0; a < 3; ++a) {
+      rise_max += std::max(step_lo[a] * d[a], step_hi[a] * d[a]);
+      rise_min += std::min(step_lo[a] * d[a], step_hi[a] * d[a]);
+    }
+    const double rise = vol.sample(g.pointOf_W(y)) - vol.sample(g.pointOf_W(x));
+    const double slack = 1e-9 * (std::abs(vol.sample(g.pointOf_W(x))) + 1.0);
+    ASSERT_LE(rise, rise_max + slack) << "box " << lo.transpose() << " to " << hi.transpose();
+    ASSERT_GE(rise, rise_min - slack) << "box " << lo.transpose() << " to " << hi.transpose();
+    if (rise_max > 1.0) tightest = std::max(tightest, rise / rise_max);
+  }
+  EXPECT_GT(tightest, 0.2);  // not a vacuous bound
+  // The smooth corner: raw 2 i - j + 3 k, F = -0.5 raw + 3, so dF/di = -1, dF/dj = 0.5,
+  // dF/dk = -1.5 per step exactly (its bricks book no edge of the noise: cells up to i = 3).
+  Eigen::Vector3d step_lo, step_hi;
+  ASSERT_TRUE(vol.gridStepRange(Eigen::Vector3d(0.5, 2.0, 2.0), Eigen::Vector3d(2.5, 9.0, 12.0), step_lo, step_hi));
+  EXPECT_NEAR(step_lo[0], -1.0, 1e-6);
+  EXPECT_NEAR(step_hi[0], -1.0, 1e-6);
+  EXPECT_NEAR(step_lo[1], 0.5, 1e-6);
+  EXPECT_NEAR(step_hi[1], 0.5, 1e-6);
+  EXPECT_NEAR(step_lo[2], -1.5, 1e-6);
+  EXPECT_NEAR(step_hi[2], -1.5, 1e-6);
+  // Outside the grid's box of voxel centres, or not finite: nothing.
+  EXPECT_FALSE(vol.gridStepRange(Eigen::Vector3d(-0.1, 1, 1), Eigen::Vector3d(2, 2, 2), step_lo, step_hi));
+  EXPECT_FALSE(vol.gridStepRange(Eigen::Vector3d(1, 1, 1), Eigen::Vector3d(2, 2, upper[2] + 0.1), step_lo, step_hi));
+  EXPECT_FALSE(vol.gridStepRange(Eigen::Vector3d(1, 1, 1), Eigen::Vector3d(2, std::nan(""), 2), step_lo, step_hi));
+
+  // Written and refreshed (as drilling does): a voxel of the smooth corner set to 1000 raw.
+  ScalarVolume carved = ScalarVolume::FromVoxels(g, raw, -0.5, 3.0);
+  carved.writeRaw(g.indexOf(1, 5, 6), 1000.0);
+  carved.refreshRegion({1, 5, 6}, {1, 5, 6});
+  const double old_step = 2 * 2 - 5 + 3 * 6;  // raw at (2, 5, 6): its step from (1, 5, 6) is now old - 1000
+  ASSERT_TRUE(carved.gridStepRange(Eigen::Vector3d(1.0, 5.0, 6.0), Eigen::Vector3d(1.5, 5.5, 6.5), step_lo, step_hi));
+  EXPECT_LE(step_lo[0], -0.5 * (old_step - 1000.0) - 1.0 + 1e-6);  // F falls by 1000 / 2 - ... then rises
+  EXPECT_GE(step_hi[0], -0.5 * (old_step - 1000.0) - 1e-6);
+  ASSERT_TRUE(carved.gridStepRange(Eigen::Vector3d(0.5, 14.0, 2.0), Eigen::Vector3d(2.5, 16.0, 4.0), step_lo, step_hi));
+  EXPECT_NEAR(step_lo[0], -1.0, 1e-6);  // far from it, as before
+  EXPECT_NEAR(step_hi[0], -1.0, 1e-6);
+}
+
 TEST(ScalarVolume, BoundsCoverTheRotatedGrid) {
   const VolumeGeometry g = rotatedGeometry();
   const ScalarVolume vol = linearVolume<float>(g, 0.0, Eigen::Vector3d(1, 1, 1));

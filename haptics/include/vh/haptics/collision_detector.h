@@ -497,7 +497,19 @@ class CollisionDetector {
     // walk's certificate (its clearance is from the edges themselves); 0 for a box query's (its
     // clearance is the margin of a ball about point j that holds j's edges however it turns).
     double arm_m = 0.0;
+    // The exact walk's directional certificate: F - s <= -margin on all of j's edges there, and
+    // F's derivative per grid step along each grid axis within [step_lo, step_hi] over the
+    // cells within kCertificateReachSteps of them (ScalarVolume::gridStepRange()); <= 0: none.
+    // A tool sliding along a wall moves its edges along the wall, where F hardly changes, and
+    // away from it, where F falls: a bound that knows the move's direction keeps them proven
+    // for many ticks where the distance (clearance_m) lasts about one.
+    double margin = -1.0;
+    Eigen::Vector3d step_lo = Eigen::Vector3d::Zero(), step_hi = Eigen::Vector3d::Zero();
   };
+  // How far (grid steps per axis) a directional certificate's edges may move: the box whose
+  // derivative ranges it keeps is its edges' box dilated by this much.
+  static constexpr double kCertificateReachSteps = 2.0;
+  Eigen::Matrix3d grid_from_W_ = Eigen::Matrix3d::Identity();  // grid steps per metre along W's axes
   std::vector<EdgeClearance> edge_clearance_;  // two per point: 2 j and 2 j + 1
   std::vector<unsigned char> edge_slot_;        // per point: the slot the next certificate replaces
   // Keeps `proven` as point j's newer certificate, in place of its older one.

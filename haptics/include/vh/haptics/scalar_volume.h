@@ -199,6 +199,20 @@ class ScalarVolume {
     return ijk.allFinite() ? tree_.brickLipschitz(cell(0), cell(1), cell(2)) : lipschitz_;
   }
 
+  /// The range of F's partial derivatives along each grid axis over the cells that meet the box
+  /// [lo_ijk, hi_ijk] (grid coordinates), in data units per grid step: for every point of those
+  /// cells, step_lo[a] <= dF/di_a <= step_hi[a] (inside a cell dF/di_a is a bilinear blend of
+  /// the differences of its four edges along a, so their smallest and largest bound it). With
+  /// them, F(x + d) - F(x) <= sum_a max(step_lo[a] d_a, step_hi[a] d_a) whenever the straight
+  /// path from x to x + d stays in the box: a bound that knows the direction of a move, where a
+  /// Lipschitz bound knows only its length (the edge test's directional certificates,
+  /// haptics/README.md, "Between the points").
+  /// @return false, with nothing written, when the box is not inside the grid's box of voxel
+  ///         centres or is not finite. Reads the ranges kept per brick of the min-max tree
+  ///         (the bricks that book the cells' edges: usually 1 to 8), no voxel; no allocation.
+  bool gridStepRange(const Eigen::Vector3d& lo_ijk, const Eigen::Vector3d& hi_ijk, Eigen::Vector3d& step_lo,
+                     Eigen::Vector3d& step_hi) const noexcept;
+
   /// Min/max bricks over the raw voxels (built once with the volume; independent of any
   /// isovalue). See haptics/README.md, "Speed".
   const MinMaxTree& minMaxTree() const noexcept { return tree_; }
@@ -297,6 +311,9 @@ class ScalarVolume {
   double lipschitz_ = 0.0;  // see lipschitzBound()
   double raw_min_ = 0.0, raw_max_ = 0.0;  // range of the raw voxels as built
   std::vector<float> own_lipschitz_;      // per level-0 brick, before the 3 x 3 x 3 dilation
+  // Per level-0 brick, the smallest raw steps v(i + 1) - v(i) along i, j, k of the edges booked
+  // to it, then the largest (gridStepRange()); rounded outward to float.
+  std::vector<float> own_steps_;
   std::array<int, 3> bricks_{0, 0, 0};    // level-0 bricks per axis
   float brickBound(const double* step) const noexcept;  // Lipschitz bound from a brick's raw steps
   template <typename T>
