@@ -39,16 +39,19 @@ template <> constexpr VoxelType voxelTypeOf<std::int16_t>() { return VoxelType::
 template <> constexpr VoxelType voxelTypeOf<std::uint16_t>() { return VoxelType::kUInt16; }
 template <> constexpr VoxelType voxelTypeOf<float>() { return VoxelType::kFloat32; }
 
-// One pass over the raw voxels: their range, and per level-0 brick of the min-max tree the
-// smallest and largest v(i + 1) - v(i) along each grid axis over the edges booked to the brick
-// (the local Lipschitz bound's steps and the edge test's derivative ranges). Stops at the first
-// non-finite value (only float32 holds one) with finite = false and its index.
+// One pass over the raw voxels: their range; per level-0 brick of the min-max tree the largest
+// |v(i + 1) - v(i)| along each grid axis over the edges booked to the brick (the local
+// Lipschitz bound's steps); per step brick (ScalarVolume::kStepBrickCells) the smallest and
+// largest v(i + 1) - v(i) (the edge test's derivative ranges). Stops at the first non-finite
+// value (only float32 holds one) with finite = false and its index.
 struct VoxelScan {
   double lo = 0.0, hi = 0.0;
   bool finite = true;
   std::array<std::ptrdiff_t, 3> first_nonfinite{0, 0, 0};
   std::array<int, 3> bricks{0, 0, 0};
-  std::vector<float> steps;  // per brick: the smallest steps along i, j, k, then the largest
+  std::vector<double> step[3];  // per brick, per axis: largest raw step of the edges booked to it
+  std::array<int, 3> step_bricks{0, 0, 0};
+  std::vector<float> steps;     // per step brick: the smallest steps along i, j, k, then the largest
 };
 
 // Widens a brick's range of steps along axis a (steps[a] the smallest, steps[3 + a] the largest)
@@ -61,9 +64,12 @@ inline void bookStep(float* steps, int a, double step) noexcept {
   steps[3 + a] = std::max(steps[3 + a], hi);
 }
 
-// The largest |step| along each axis of a brick's range (+infinity from an overflowing float).
-inline void absSteps(const float* steps, double* out) noexcept {
-  for (int a = 0; a < 3; ++a) out[a] = std::max({0.0, -static_cast<double>(steps[a]), static_cast<double>(steps[3 + a])});
+// A step brick's range before any edge is booked to it.
+inline void emptySteps(float* steps) noexcept {
+  for (int a = 0; a < 3; ++a) {
+    steps[a] = std::numeric_limits<float>::infinity();
+    steps[3 + a] = -std::numeric_limits<float>::infinity();
+  }
 }
 
 template <typename T>
@@ -74,12 +80,18 @@ VoxelScan scanVoxels(const std::vector<std::byte>& bytes, const std::array<int, 
   VoxelScan scan;
   for (int a = 0; a < 3; ++a) scan.bricks[a] = std::max(1, (dims[a] - 1 + kB - 1) / kB);
   const std::size_t brick_count = static_cast<std::size_t>(scan.bricks[0]) * scan.bricks[1] * scan.bricks[2];
-  scan.steps.assign(6 * brick_count, 0.0f);
-  for (std::size_t b = 0; b < brick_count; ++b)
-    for (int a = 0; a < 3; ++a) {
-      scan.steps[6 * b + a] = std::numeric_limits<float>::infinity();
-      scan.steps[6 * b + 3 + a] = -std::numeric_limits<float>::infinity();
-    }
+  for (auto& s : scan.step) s.assign(brick_count, 0.0);
+  constexpr int kS = ScalarVolume::kStepBrickCells;
+  for (int a = 0; a < 3; ++a) scan.step_bricks[a] = std::max(1, (dims[a] - 1 + kS - 1) / kS);
+  const std::size_t step_brick_count =
+      static_cast<std::size_t>(scan.step_bricks[0]) * scan.step_bricks[1] * scan.step_bricks[2];
+  scan.steps.resize(6 * step_brick_count);
+  for (std::size_t b = 0; b < step_brick_count; ++b) emptySteps(scan.steps.data() + 6 * b);
+  const auto step_brick = [&](std::ptrdiff_t ci, std::ptrdiff_t cj, std::ptrdiff_t ck) {
+    return static_cast<std::size_t>(ci / kS) +
+           static_cast<std::size_t>(scan.step_bricks[0]) *
+               (cj / kS + static_cast<std::size_t>(scan.step_bricks[1]) * (ck / kS));
+  };
   const auto brick = [&](std::ptrdiff_t ci, std::ptrdiff_t cj, std::ptrdiff_t ck) {
     return static_cast<std::size_t>(ci / kB) +
            static_cast<std::size_t>(scan.bricks[0]) * (cj / kB + static_cast<std::size_t>(scan.bricks[1]) * (ck / kB));
@@ -108,10 +120,24 @@ VoxelScan scanVoxels(const std::vector<std::byte>& bytes, const std::array<int, 
       const std::ptrdiff_t cj = std::min<std::ptrdiff_t>(j, ny - 2), ck = std::min<std::ptrdiff_t>(k, nz - 2);
       for (std::ptrdiff_t i = 0; i < nx; ++i) {
         const double v = row[i];
-        float* steps = scan.steps.data() + 6 * brick(std::min<std::ptrdiff_t>(i, nx - 2), cj, ck);
-        if (i + 1 < nx) bookStep(steps, 0, static_cast<double>(row[i + 1]) - v);
-        if (j + 1 < ny) bookStep(steps, 1, static_cast<double>(row[i + nx]) - v);
-        if (k + 1 < nz) bookStep(steps, 2, static_cast<double>(row[i + nx * ny]) - v);
+        const std::ptrdiff_t ci = std::min<std::ptrdiff_t>(i, nx - 2);
+        const std::size_t home = brick(ci, cj, ck);
+        float* steps = scan.steps.data() + 6 * step_brick(ci, cj, ck);
+        if (i + 1 < nx) {
+          const double step = static_cast<double>(row[i + 1]) - v;
+          scan.step[0][home] = std::max(scan.step[0][home], std::abs(step));
+          bookStep(steps, 0, step);
+        }
+        if (j + 1 < ny) {
+          const double step = static_cast<double>(row[i + nx]) - v;
+          scan.step[1][home] = std::max(scan.step[1][home], std::abs(step));
+          bookStep(steps, 1, step);
+        }
+        if (k + 1 < nz) {
+          const double step = static_cast<double>(row[i + nx * ny]) - v;
+          scan.step[2][home] = std::max(scan.step[2][home], std::abs(step));
+          bookStep(steps, 2, step);
+        }
       }
     }
   scan.lo = mn;
@@ -195,11 +221,10 @@ void ScalarVolume::initialise() {
   // one outlier voxel raises the bound only within a brick of it (not the whole volume).
   const std::array<int, 3> nb = scan.bricks;
   bricks_ = nb;
-  std::vector<float> own(scan.steps.size() / 6);
+  std::vector<float> own(scan.step[0].size());
   lipschitz_ = 0.0;
   for (std::size_t b = 0; b < own.size(); ++b) {
-    double step[3];
-    absSteps(scan.steps.data() + 6 * b, step);
+    const double step[3] = {scan.step[0][b], scan.step[1][b], scan.step[2][b]};
     own[b] = brickBound(step);
     lipschitz_ = std::max(lipschitz_, static_cast<double>(own[b]));
   }
@@ -216,7 +241,8 @@ void ScalarVolume::initialise() {
       }
   tree_.setLipschitz(std::move(dilated));
   own_lipschitz_ = std::move(own);
-  own_steps_ = std::move(scan.steps);
+  step_bricks_ = scan.step_bricks;
+  steps_ = std::move(scan.steps);
   raw_min_ = scan.lo;
   raw_max_ = scan.hi;
   min_value_ = std::min(scale_ * scan.lo + offset_, scale_ * scan.hi + offset_);
@@ -296,23 +322,17 @@ void ScalarVolume::refreshRegionT(const std::array<int, 3>& lo, const std::array
           v0[ax] = kB * brick[ax];
           v1[ax] = kB * brick[ax] + kB - 1 >= n[ax] - 2 ? n[ax] - 1 : kB * brick[ax] + kB - 1;
         }
-        float* steps = own_steps_.data() + 6 * brickIndex(a, b, c);
-        for (int ax = 0; ax < 3; ++ax) {
-          steps[ax] = std::numeric_limits<float>::infinity();
-          steps[3 + ax] = -std::numeric_limits<float>::infinity();
-        }
+        double step[3] = {0.0, 0.0, 0.0};
         for (std::ptrdiff_t k = v0[2]; k <= v1[2]; ++k)
           for (std::ptrdiff_t j = v0[1]; j <= v1[1]; ++j) {
             const T* row = d + k * sz + j * sy;
             for (std::ptrdiff_t i = v0[0]; i <= v1[0]; ++i) {
               const double v = row[i];
-              if (i + 1 < n[0]) bookStep(steps, 0, static_cast<double>(row[i + 1]) - v);
-              if (j + 1 < n[1]) bookStep(steps, 1, static_cast<double>(row[i + sy]) - v);
-              if (k + 1 < n[2]) bookStep(steps, 2, static_cast<double>(row[i + sz]) - v);
+              if (i + 1 < n[0]) step[0] = std::max(step[0], std::abs(static_cast<double>(row[i + 1]) - v));
+              if (j + 1 < n[1]) step[1] = std::max(step[1], std::abs(static_cast<double>(row[i + sy]) - v));
+              if (k + 1 < n[2]) step[2] = std::max(step[2], std::abs(static_cast<double>(row[i + sz]) - v));
             }
           }
-        double step[3];
-        absSteps(steps, step);
         const float f = brickBound(step);
         own_lipschitz_[brickIndex(a, b, c)] = f;
         lipschitz_ = std::max(lipschitz_, static_cast<double>(f));
@@ -334,14 +354,37 @@ void ScalarVolume::refreshRegionT(const std::array<int, 3>& lo, const std::array
         tree_.setBrickLipschitz(a, b, c, m);
       }
   tree_.propagateLipschitz(g0, g1);
+  // The derivative ranges only widen: every edge that touches a written voxel (from voxel
+  // lo - 1 to hi per axis) adds its new step to its step brick; an edge not touching one kept
+  // its step, which the range holds already (looser than a recount where a step vanished,
+  // never too narrow).
+  constexpr int kS = kStepBrickCells;
+  const auto stepBrick = [&](std::ptrdiff_t i, std::ptrdiff_t j, std::ptrdiff_t k) {
+    const std::ptrdiff_t ci = std::min<std::ptrdiff_t>(i, n[0] - 2), cj = std::min<std::ptrdiff_t>(j, n[1] - 2),
+                         ck = std::min<std::ptrdiff_t>(k, n[2] - 2);
+    return steps_.data() + 6 * (static_cast<std::size_t>(ci / kS) +
+                                static_cast<std::size_t>(step_bricks_[0]) *
+                                    (cj / kS + static_cast<std::size_t>(step_bricks_[1]) * (ck / kS)));
+  };
+  for (std::ptrdiff_t k = std::max(0, lo[2] - 1); k <= hi[2]; ++k)
+    for (std::ptrdiff_t j = std::max(0, lo[1] - 1); j <= hi[1]; ++j) {
+      const T* row = d + k * sz + j * sy;
+      for (std::ptrdiff_t i = std::max(0, lo[0] - 1); i <= hi[0]; ++i) {
+        const double v = row[i];
+        float* steps = stepBrick(i, j, k);
+        if (i + 1 < n[0]) bookStep(steps, 0, static_cast<double>(row[i + 1]) - v);
+        if (j + 1 < n[1]) bookStep(steps, 1, static_cast<double>(row[i + sy]) - v);
+        if (k + 1 < n[2]) bookStep(steps, 2, static_cast<double>(row[i + sz]) - v);
+      }
+    }
 }
 
 bool ScalarVolume::gridStepRange(const Eigen::Vector3d& lo_ijk, const Eigen::Vector3d& hi_ijk,
                                  Eigen::Vector3d& step_lo, Eigen::Vector3d& step_hi) const noexcept {
-  if (!lo_ijk.allFinite() || !hi_ijk.allFinite() || own_steps_.empty()) return false;
+  if (!lo_ijk.allFinite() || !hi_ijk.allFinite() || steps_.empty()) return false;
   // The cells [floor(lo), floor(hi)] (the last cell holds the grid's far face); their edges are
-  // booked to the bricks of the cells up to one further along each axis (scanVoxels()).
-  constexpr int kB = MinMaxTree::kBrickCells;
+  // booked to the step bricks of the cells up to one further along each axis (scanVoxels()).
+  constexpr int kB = kStepBrickCells;
   int b0[3], b1[3];
   for (int a = 0; a < 3; ++a) {
     if (!(lo_ijk[a] >= 0.0 && hi_ijk[a] <= upper_[a] && lo_ijk[a] <= hi_ijk[a])) return false;
@@ -358,8 +401,8 @@ bool ScalarVolume::gridStepRange(const Eigen::Vector3d& lo_ijk, const Eigen::Vec
     for (int b = b0[1]; b <= b1[1]; ++b)
       for (int a = b0[0]; a <= b1[0]; ++a) {
         const float* steps =
-            own_steps_.data() + 6 * (static_cast<std::size_t>(a) + static_cast<std::size_t>(bricks_[0]) *
-                                                                        (b + static_cast<std::size_t>(bricks_[1]) * c));
+            steps_.data() + 6 * (static_cast<std::size_t>(a) + static_cast<std::size_t>(step_bricks_[0]) *
+                                                                    (b + static_cast<std::size_t>(step_bricks_[1]) * c));
         for (int ax = 0; ax < 3; ++ax) {
           lo[ax] = std::min(lo[ax], static_cast<double>(steps[ax]));
           hi[ax] = std::max(hi[ax], static_cast<double>(steps[3 + ax]));

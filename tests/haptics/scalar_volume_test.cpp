@@ -287,7 +287,7 @@ TEST(ScalarVolume, GridStepRangeBoundsEveryMoveInItsBoxByItsDirection) {
   }
   EXPECT_GT(tightest, 0.2);  // not a vacuous bound
   // The smooth corner: raw 2 i - j + 3 k, F = -0.5 raw + 3, so dF/di = -1, dF/dj = 0.5,
-  // dF/dk = -1.5 per step exactly (its bricks book no edge of the noise: cells up to i = 3).
+  // dF/dk = -1.5 per step exactly (its step brick books no edge of the noise: cells up to i = 7).
   Eigen::Vector3d step_lo, step_hi;
   ASSERT_TRUE(vol.gridStepRange(Eigen::Vector3d(0.5, 2.0, 2.0), Eigen::Vector3d(2.5, 9.0, 12.0), step_lo, step_hi));
   EXPECT_NEAR(step_lo[0], -1.0, 1e-6);
