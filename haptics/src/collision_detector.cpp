@@ -523,7 +523,41 @@ bool CollisionDetector::runMayHit(WorkCounters& w, const RigidMotion& motion, in
   const double t0 = segmentBegin(j, k);
   const double t1 = k + run >= total ? 1.0 : static_cast<double>(k + run) * pt_[j].dt;
   const double radius = 0.5 * pt_[j].path * (t1 - t0) * (1.0 + 1e-9) + 1e-12;
+  // The directional bound first: it is cheaper than the ball's tree query, and proves the runs
+  // of a tool grazing a wall free where the ball, which holds the wall, cannot.
+  if (runFreeAlongItsDirection(w, motion, j, t0, t1, isovalue)) return false;
   return ballMayBeInside(w, motion.pointAt(pt_[j].r0, 0.5 * (t0 + t1)), radius, isovalue, pt_[j].sagitta);
+}
+
+bool CollisionDetector::runFreeAlongItsDirection(WorkCounters& w, const RigidMotion& motion, int j, double t0,
+                                                 double t1, double isovalue) const noexcept {
+  // The run's arc lies within its sagitta delta = rho (angle (t1 - t0))^2 / 8 of its chord a -> b
+  // at the same parameter (the interpolation error bound, as setupPath()), so in the box of the
+  // chord dilated by delta per grid axis. There F's derivative per grid step along axis i is
+  // within [lo_i, hi_i] (ScalarVolume::gridStepRange()), so at the arc's point of parameter u
+  // F <= F(a) + u sum_i max(lo_i D_i, hi_i D_i) + sum_i delta_i max(|lo_i|, |hi_i|), D = b - a:
+  // below the isovalue at both ends of u, below it on the whole run. A tool sliding along a
+  // wall, or leaving it, is proven free here where the ball about its run holds the wall.
+  w.samples += 2;
+  const Eigen::Vector3d p0_W = motion.pointAt(pt_[j].r0, t0);
+  const Eigen::Vector3d a = volume_->gridCoordinates(p0_W);
+  const Eigen::Vector3d b = volume_->gridCoordinates(motion.pointAt(pt_[j].r0, t1));
+  const double turn = motion.angle_rad() * (t1 - t0);
+  const Eigen::Vector3d bulge =
+      (motion.radiusAboutAxis(pt_[j].r0) * turn * turn / 8.0 * (1.0 + 1e-9) + 1e-12) * grid_per_m_;
+  Eigen::Vector3d lo, hi;
+  if (!volume_->gridStepRange(a.cwiseMin(b) - bulge, a.cwiseMax(b) + bulge, lo, hi)) return false;
+  const Eigen::Vector3d d = b - a;
+  double rise = 0.0, off_chord = 0.0, size = 0.0;
+  for (int i = 0; i < 3; ++i) {
+    const double steepest = std::max(std::abs(lo[i]), std::abs(hi[i]));
+    rise += std::max(lo[i] * d[i], hi[i] * d[i]);
+    off_chord += bulge[i] * steepest;
+    size += steepest * std::abs(d[i]);
+  }
+  const double f0 = volume_->sample(p0_W);
+  const double tolerance = 1e-9 * (std::abs(isovalue) + std::abs(f0) + size + off_chord) + 1e-300;
+  return f0 + std::max(0.0, rise) + off_chord + tolerance < isovalue;
 }
 
 bool CollisionDetector::inside(const Eigen::Vector3d& p_W, double isovalue) noexcept {
@@ -788,6 +822,12 @@ std::size_t CollisionDetector::collectActive(Lane& lane, const RigidMotion& moti
       // contact is the same; this sweep's walks decide the flag again.
       const bool near = pt_[j].near_surface != 0;
       pt_[j].near_surface = 0;
+      // Near the surface, its whole path proven free by F at its start and the most F can rise
+      // along it: a point gliding along a wall or leaving it is neither walked nor queued.
+      if (near && runFreeAlongItsDirection(k, motion, j, 0.0, t_max, isovalue)) {
+        pt_[j].clear_until = t_max;
+        continue;
+      }
       if (near) {
         startSearch(j);
         heap[count++] = {0.0, j, 0, pt_[j].segments == 1 ? 0 : -1};

@@ -171,6 +171,60 @@ TEST(CollisionDetector, AcceleratedCullsAWholeFreePathWithOneQuery) {
   ::testing::Test::RecordProperty("sample_free_with_run_tests", more_queries);
 }
 
+// A point gliding 0.3 mm over a flat floor (1 mm uint8 grid, 255 up to k = 20, the isosurface
+// at 128 at k = 20.5) in 1 mm moves, into a one-voxel wall (i = 40, up to k = 30). The ball about
+// each move holds the floor; F at the move's start plus the most F can rise along the move's
+// direction (the floor's dF/dx is 0) proves the glide free without walking a cell (up to 29 mm,
+// where the ranges it reads, per 8-voxel brick, do not reach the wall's steps), and the
+// same bound cannot hide the wall: the sweep stops where the trilinear field reaches 128 at
+// that height (x* = 39 + (128 - 76.5) / 178.5 mm: F = 0.3 x 255 at i = 39, 255 at i = 40),
+// within epsilon before it and never past it, in both modes.
+TEST_P(CollisionDetectorModes, AGlideAlongAFloorIsProvenFreeByItsDirectionAndStopsAtTheWall) {
+  VolumeGeometry g;
+  g.dims = {64, 24, 40};
+  g.spacing_m = Eigen::Vector3d::Constant(1e-3);
+  std::vector<std::uint8_t> voxels(g.voxelCount(), 0);
+  for (int k = 0; k < g.dims[2]; ++k)
+    for (int j = 0; j < g.dims[1]; ++j)
+      for (int i = 0; i < g.dims[0]; ++i)
+        if (k <= 20 || (i == 40 && k <= 30)) voxels[g.indexOf(i, j, k)] = 255;
+  const ScalarVolume vol = ScalarVolume::FromVoxels(g, voxels);
+  const auto tool = test::pointTool();
+  CollisionDetector cd(vol, *tool, 0.0, 256, GetParam());
+  const double wall_x_m = 39e-3 + (128.0 - 76.5) / 178.5 * 1e-3;
+  Pose X = Pose::FromTranslation({10e-3, 12e-3, 20.7e-3});
+  std::int64_t glide_cells = 0;
+  bool stopped = false;
+  for (int tick = 0; tick < 40 && !stopped; ++tick) {
+    const Pose next = Pose::FromTranslation(X.p_AB_m + Eigen::Vector3d(1e-3, 0.0, 0.0));
+    const RigidMotion motion = RigidMotion::Between(X, next, tool->mass.p_TCm_m);
+    cd.resetSampleCount();
+    const SweepResult r = cd.sweep(motion, 128.0);
+    if (r.hit_point < 0) {
+      if (next.p_AB_m.x() < 29.5e-3) glide_cells += cd.cellCount();  // 8-cell bricks clear of the wall's
+      X = next;
+      continue;
+    }
+    stopped = true;
+    const Eigen::Vector3d p = motion.poseAt(r.t).p_AB_m;
+    EXPECT_FALSE(vol.isInside(p, 128.0));
+    EXPECT_LE(p.x(), wall_x_m + 1e-12);
+    EXPECT_GE(p.x(), wall_x_m - cd.epsilon_m()) << "stopped " << 1e3 * (wall_x_m - p.x()) << " mm before the wall";
+  }
+  EXPECT_TRUE(stopped) << "went through the wall";
+  if (GetParam() == DetectionMode::kAccelerated) EXPECT_EQ(glide_cells, 0) << "the glide walked cells";
+  // The same glide in one 35 mm move, by a detector that has walked nothing yet (no point near
+  // the surface): only the bounds of its runs stand between it and the wall.
+  CollisionDetector fresh(vol, *tool, 0.0, 256, GetParam());
+  const RigidMotion long_move = RigidMotion::Between(Pose::FromTranslation({10e-3, 12e-3, 20.7e-3}),
+                                                     Pose::FromTranslation({45e-3, 12e-3, 20.7e-3}), tool->mass.p_TCm_m);
+  const SweepResult r = fresh.sweep(long_move, 128.0);
+  ASSERT_EQ(r.hit_point, 0) << "went through the wall in one move";
+  const Eigen::Vector3d p = long_move.poseAt(r.t).p_AB_m;
+  EXPECT_LE(p.x(), wall_x_m + 1e-12);
+  EXPECT_GE(p.x(), wall_x_m - fresh.epsilon_m());
+}
+
 // A tool resting on a plane and pushed into it is blocked at t = 0 by its own contacts: the
 // accelerated sweep tests the contact points first and stops there, without walking the
 // point-shell tree (no box query); the time of contact and the contact set added afterwards

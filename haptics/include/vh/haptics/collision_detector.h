@@ -413,6 +413,10 @@ class CollisionDetector {
   // False when the swept ball of segments [k, k + run) of point j holds no inside point.
   bool runMayHit(WorkCounters& w, const RigidMotion& motion, int j, std::int64_t k, std::int64_t run,
                  double isovalue) noexcept;
+  // True when point j's arc over [t0, t1] is proven free by F at its start and the most F can
+  // rise along its direction (ScalarVolume::gridStepRange()); false proves nothing.
+  bool runFreeAlongItsDirection(WorkCounters& w, const RigidMotion& motion, int j, double t0, double t1,
+                                double isovalue) const noexcept;
   bool inside(const Eigen::Vector3d& p_W, double isovalue) noexcept;
   // r0, path, segments, segment time and arc margin of point j for `motion` (both modes).
   void setupPath(WorkCounters& k, const RigidMotion& motion, int j) noexcept;
