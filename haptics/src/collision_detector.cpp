@@ -155,25 +155,26 @@ bool CollisionDetector::edgesStillClear(const Pose& X_WP, int j, const Eigen::Ve
   const auto i = static_cast<std::size_t>(j);
   for (std::size_t slot = 2 * i; slot < 2 * i + 2; ++slot) {
     const EdgeClearance& proven = edge_clearance_[slot];
-    const double moved_m = (p_W - proven.p_W_m).norm();
-    if (!(moved_m < proven.clearance_m)) continue;  // also nothing proven (clearance <= 0)
-    if (proven.arm_m == 0.0) return true;           // a ball about point j: any turn stays in it
+    const bool by_distance = proven.clearance_m > 0.0, by_direction = proven.margin > 0.0;
+    if (!by_distance && !by_direction) continue;  // nothing proven
+    const Eigen::Vector3d moved_W = p_W - proven.p_W_m;
+    const double moved_m = moved_W.norm();
+    if (proven.arm_m == 0.0) {  // a ball about point j: any turn stays in it
+      if (moved_m < proven.clearance_m) return true;
+      continue;
+    }
+    if (!by_direction && !(moved_m < proven.clearance_m)) continue;
     // Each point of j's edges lies within arm_m (edge_reach_m_[j] + epsilon) of point j
-    // (edgeEnd()), so it has moved at most |p_j - p_j'| + |R - R'| arm_m since the certificate,
-    // with |R - R'| = 2 sin(theta / 2) = 2 |vec(R'^-1 R)|.
-    const double turn = 2.0 * (proven.R_WT.conjugate() * X_WP.R_AB).vec().norm();
-    if (moved_m + turn * proven.arm_m < proven.clearance_m) return true;
-  }
-  // The directional certificates: each point q of j's edges has moved by d = (p_j' - p_j) +
-  // (R' - R)(q - p_j), so along grid axis a by d_a within r_a = |row a of grid_from_W| |R' - R|
-  // arm of point j's own move. While that stays within the certificate's reach, F rose on the
-  // straight path by at most sum_a max(step_lo_a d_a, step_hi_a d_a), largest at an end of each
-  // axis' interval (the sum is convex in d).
-  for (std::size_t slot = 2 * i; slot < 2 * i + 2; ++slot) {
-    const EdgeClearance& proven = edge_clearance_[slot];
-    if (!(proven.margin > 0.0)) continue;
-    const Eigen::Vector3d d = grid_from_W_ * (p_W - proven.p_W_m);
+    // (edgeEnd()), so it has moved by point j's move plus at most |R - R'| arm_m since the
+    // certificate, with |R - R'| = 2 sin(theta / 2) = 2 |vec(R'^-1 R)|.
     const double lever_m = 2.0 * (proven.R_WT.conjugate() * X_WP.R_AB).vec().norm() * proven.arm_m;
+    if (moved_m + lever_m < proven.clearance_m) return true;
+    if (!by_direction) continue;
+    // The directional certificate: along grid axis a each point of j's edges has moved by d_a
+    // within r_a = |row a of grid_from_W| lever of point j's own move. While that stays within
+    // the certificate's reach, F rose on the straight path by at most sum_a max(step_lo_a d_a,
+    // step_hi_a d_a), largest at an end of each axis' interval (the sum is convex in d).
+    const Eigen::Vector3d d = grid_from_W_ * moved_W;
     double rise = 0.0;
     bool within = true;
     for (int a = 0; a < 3; ++a) {
