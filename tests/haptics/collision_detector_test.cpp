@@ -180,15 +180,7 @@ TEST(CollisionDetector, AcceleratedCullsAWholeFreePathWithOneQuery) {
 // that height (x* = 39 + (128 - 76.5) / 178.5 mm: F = 0.3 x 255 at i = 39, 255 at i = 40),
 // within epsilon before it and never past it, in both modes.
 TEST_P(CollisionDetectorModes, AGlideAlongAFloorIsProvenFreeByItsDirectionAndStopsAtTheWall) {
-  VolumeGeometry g;
-  g.dims = {64, 24, 40};
-  g.spacing_m = Eigen::Vector3d::Constant(1e-3);
-  std::vector<std::uint8_t> voxels(g.voxelCount(), 0);
-  for (int k = 0; k < g.dims[2]; ++k)
-    for (int j = 0; j < g.dims[1]; ++j)
-      for (int i = 0; i < g.dims[0]; ++i)
-        if (k <= 20 || (i == 40 && k <= 30)) voxels[g.indexOf(i, j, k)] = 255;
-  const ScalarVolume vol = ScalarVolume::FromVoxels(g, voxels);
+  const ScalarVolume vol = test::floorAndWallVolume();
   const auto tool = test::pointTool();
   CollisionDetector cd(vol, *tool, 0.0, 256, GetParam());
   const double wall_x_m = 39e-3 + (128.0 - 76.5) / 178.5 * 1e-3;

@@ -585,15 +585,7 @@ TEST(EdgeCases, ADirectionalCertificateExpiresBeforeItsEdgesLeaveTheBoxItKnows) 
   // between its points. Oracles: the dense samples of every edge (CrossingVerifier::checkEdges)
   // and a detector built afresh at each pose; the long-lived detector, which proved the edges
   // free far from the wall, must report the same crossings.
-  VolumeGeometry g;
-  g.dims = {64, 24, 40};
-  g.spacing_m = Eigen::Vector3d::Constant(1e-3);
-  std::vector<std::uint8_t> voxels(g.voxelCount(), 0);
-  for (int k = 0; k < g.dims[2]; ++k)
-    for (int j = 0; j < g.dims[1]; ++j)
-      for (int i = 0; i < g.dims[0]; ++i)
-        if (k <= 20 || (i == 40 && k <= 30)) voxels[g.indexOf(i, j, k)] = 255;
-  const ScalarVolume floor_and_wall = ScalarVolume::FromVoxels(g, voxels);
+  const ScalarVolume floor_and_wall = test::floorAndWallVolume();
   ToolModel line;
   line.point_shell = PointShell({{0.0, 0.0, 0.0}, {3e-3, 0.0, 0.0}, {6e-3, 0.0, 0.0}});
   const CrossingVerifier oracle(floor_and_wall, line.point_shell, 2e-2);

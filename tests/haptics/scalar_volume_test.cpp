@@ -34,6 +34,17 @@ ScalarVolume linearVolume(const VolumeGeometry& g, double a, const Eigen::Vector
   return ScalarVolume::FromVoxels(g, v, 2.0, -5.0);
 }
 
+// Random int16 voxels in [-2000, 2000], except i < 10: the ramp slope . (i, j, k).
+std::vector<std::int16_t> noiseBesideARamp(const VolumeGeometry& g, std::mt19937& rng, const std::array<int, 3>& slope) {
+  std::vector<std::int16_t> raw(g.voxelCount());
+  for (auto& v : raw) v = static_cast<std::int16_t>(static_cast<int>(rng() % 4001) - 2000);
+  for (int k = 0; k < g.dims[2]; ++k)
+    for (int j = 0; j < g.dims[1]; ++j)
+      for (int i = 0; i < 10; ++i)
+        raw[g.indexOf(i, j, k)] = static_cast<std::int16_t>(slope[0] * i + slope[1] * j + slope[2] * k);
+  return raw;
+}
+
 template <typename T>
 void expectExactOnLinearField() {
   const VolumeGeometry g = rotatedGeometry();
@@ -167,12 +178,8 @@ TEST(ScalarVolume, LocalLipschitzBoundHoldsNearEachCellAndIgnoresFarOutliers) {
   std::uniform_real_distribution<double> U(0.0, 1.0);
   VolumeGeometry g = rotatedGeometry();
   g.dims = {20, 18, 16};
-  std::vector<std::int16_t> raw(g.voxelCount());
-  for (auto& v : raw) v = static_cast<std::int16_t>(static_cast<int>(rng() % 4001) - 2000);
   // A smooth region (small steps) beside the noise, so that the local bounds differ.
-  for (int k = 0; k < g.dims[2]; ++k)
-    for (int j = 0; j < g.dims[1]; ++j)
-      for (int i = 0; i < 10; ++i) raw[i + g.dims[0] * (j + g.dims[1] * k)] = static_cast<std::int16_t>(i + j + k);
+  const std::vector<std::int16_t> raw = noiseBesideARamp(g, rng, {1, 1, 1});
   const ScalarVolume vol = ScalarVolume::FromVoxels(g, raw, -0.5, 3.0);
   const Eigen::Matrix3d A = g.direction_W * g.spacing_m.asDiagonal();
   const Eigen::Vector3d upper(g.dims[0] - 1, g.dims[1] - 1, g.dims[2] - 1);
@@ -244,11 +251,7 @@ TEST(ScalarVolume, GridStepRangeBoundsEveryMoveInItsBoxByItsDirection) {
   std::uniform_real_distribution<double> U(0.0, 1.0);
   VolumeGeometry g = rotatedGeometry();
   g.dims = {20, 18, 16};
-  std::vector<std::int16_t> raw(g.voxelCount());
-  for (auto& v : raw) v = static_cast<std::int16_t>(static_cast<int>(rng() % 4001) - 2000);
-  for (int k = 0; k < g.dims[2]; ++k)
-    for (int j = 0; j < g.dims[1]; ++j)
-      for (int i = 0; i < 10; ++i) raw[i + g.dims[0] * (j + g.dims[1] * k)] = static_cast<std::int16_t>(2 * i - j + 3 * k);
+  const std::vector<std::int16_t> raw = noiseBesideARamp(g, rng, {2, -1, 3});
   const ScalarVolume vol = ScalarVolume::FromVoxels(g, raw, -0.5, 3.0);
   const Eigen::Vector3d upper(g.dims[0] - 1, g.dims[1] - 1, g.dims[2] - 1);
   double tightest = 0.0;

@@ -1,6 +1,8 @@
 #pragma once
 // Small tools and volumes shared by the core's tests.
+#include <cstdint>
 #include <memory>
+#include <vector>
 
 #include "vh/datasets/synthetic.h"
 #include "vh/haptics/tool_model.h"
@@ -29,6 +31,22 @@ inline datasets::GridSpec grid1mm(int n = 64) {
   g.dims = {n, n, n};
   g.spacing_m = Eigen::Vector3d::Constant(1e-3);
   return g;
+}
+
+/// A flat floor and a one-voxel wall standing on it: a 64 x 24 x 40 uint8 grid of 1 mm from
+/// the origin, 255 up to k = 20 (the isosurface at 128 lies at k = 20.5) and on the column
+/// i = 40 up to k = 30, 0 elsewhere. Along x at a height z in (20, 21) mm above the floor,
+/// F = 255 (21 - z) up to i = 39, rising linearly to 255 at i = 40.
+inline haptics::ScalarVolume floorAndWallVolume() {
+  haptics::VolumeGeometry g;
+  g.dims = {64, 24, 40};
+  g.spacing_m = Eigen::Vector3d::Constant(1e-3);
+  std::vector<std::uint8_t> voxels(g.voxelCount(), 0);
+  for (int k = 0; k < g.dims[2]; ++k)
+    for (int j = 0; j < g.dims[1]; ++j)
+      for (int i = 0; i < g.dims[0]; ++i)
+        if (k <= 20 || (i == 40 && k <= 30)) voxels[g.indexOf(i, j, k)] = 255;
+  return haptics::ScalarVolume::FromVoxels(g, voxels);
 }
 
 }  // namespace vh::test
