@@ -513,7 +513,7 @@ class CollisionDetector {
   // How far (grid steps per axis) a directional certificate's edges may move: the box whose
   // derivative ranges it keeps is its edges' box dilated by this much.
   static constexpr double kCertificateReachSteps = 2.0;
-  Eigen::Matrix3d grid_from_W_ = Eigen::Matrix3d::Identity();  // grid steps per metre along W's axes
+  Eigen::Matrix3d grid_from_W_ = Eigen::Matrix3d::Identity();  // a move in W [m] -> grid steps
   std::vector<EdgeClearance> edge_clearance_;  // two per point: 2 j and 2 j + 1
   std::vector<unsigned char> edge_slot_;        // per point: the slot the next certificate replaces
   // Keeps `proven` as point j's newer certificate, in place of its older one.

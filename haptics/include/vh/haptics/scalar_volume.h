@@ -199,21 +199,22 @@ class ScalarVolume {
     return ijk.allFinite() ? tree_.brickLipschitz(cell(0), cell(1), cell(2)) : lipschitz_;
   }
 
+  /// Cells per side of the bricks gridStepRange() keeps its ranges for: 24 bytes per 512
+  /// voxels (ranges per 4-cell brick of the min-max tree, 8x the memory, made the edge test no
+  /// cheaper on the paper's scenes).
+  static constexpr int kStepBrickCells = 8;
   /// The range of F's partial derivatives along each grid axis over the cells that meet the box
   /// [lo_ijk, hi_ijk] (grid coordinates), in data units per grid step: for every point of those
   /// cells, step_lo[a] <= dF/di_a <= step_hi[a] (inside a cell dF/di_a is a bilinear blend of
   /// the differences of its four edges along a, so their smallest and largest bound it). With
   /// them, F(x + d) - F(x) <= sum_a max(step_lo[a] d_a, step_hi[a] d_a) whenever the straight
   /// path from x to x + d stays in the box: a bound that knows the direction of a move, where a
-  /// Lipschitz bound knows only its length (the edge test's directional certificates,
-  /// haptics/README.md, "Between the points").
+  /// Lipschitz bound knows only its length (the edge test's directional certificates and the
+  /// sweep's runs proven free along their direction, haptics/README.md, "Between the points"
+  /// and "Speed").
   /// @return false, with nothing written, when the box is not inside the grid's box of voxel
   ///         centres or is not finite. Reads the ranges kept per step brick (the bricks that
   ///         book the cells' edges: usually 1 to 8), no voxel; no allocation.
-  /// Cells per side of the bricks gridStepRange() keeps its ranges for: 24 bytes per 512
-  /// voxels (ranges per 4-cell brick of the min-max tree, 8x the memory, made the edge test no
-  /// cheaper on the paper's scenes).
-  static constexpr int kStepBrickCells = 8;
   bool gridStepRange(const Eigen::Vector3d& lo_ijk, const Eigen::Vector3d& hi_ijk, Eigen::Vector3d& step_lo,
                      Eigen::Vector3d& step_hi) const noexcept;
 
