@@ -228,7 +228,7 @@ int CollisionDetector::edgeCrosses(WorkCounters& w, const Pose& X_WP, int j, con
       // The cubic's value at a rounded critical point: a relative tolerance, as edgeClearance().
       const double steepest = std::max(proven.step_lo.cwiseAbs().maxCoeff(), proven.step_hi.cwiseAbs().maxCoeff());
       proven.margin = -(excess_all + 1e-9 * (std::abs(isovalue) + steepest) + 1e-300);
-      ++w.samples;  // the box's voxels: about as many reads as a walk's cells
+      ++w.samples;  // the ranges of 1 to 8 step bricks, charged as one sample
     }
   }
   if (proven.clearance_m > 0.0 || proven.margin > 0.0) keepEdgeClearance(j, proven);
@@ -823,13 +823,13 @@ std::size_t CollisionDetector::collectActive(Lane& lane, const RigidMotion& moti
       // contact is the same; this sweep's walks decide the flag again.
       const bool near = pt_[j].near_surface != 0;
       pt_[j].near_surface = 0;
-      // Near the surface, its whole path proven free by F at its start and the most F can rise
-      // along it: a point gliding along a wall or leaving it is neither walked nor queued.
-      if (near && runFreeAlongItsDirection(k, motion, j, 0.0, t_max, isovalue)) {
-        pt_[j].clear_until = t_max;
-        continue;
-      }
       if (near) {
+        // Unless its whole path is proven free by F at its start and the most F can rise along
+        // it: a point gliding along a wall or leaving it is neither walked nor queued.
+        if (runFreeAlongItsDirection(k, motion, j, 0.0, t_max, isovalue)) {
+          pt_[j].clear_until = t_max;
+          continue;
+        }
         startSearch(j);
         heap[count++] = {0.0, j, 0, pt_[j].segments == 1 ? 0 : -1};
         continue;

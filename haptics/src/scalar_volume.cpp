@@ -359,17 +359,14 @@ void ScalarVolume::refreshRegionT(const std::array<int, 3>& lo, const std::array
   // its step, which the range holds already (looser than a recount where a step vanished,
   // never too narrow).
   constexpr int kS = kStepBrickCells;
-  const auto stepBrick = [&](std::ptrdiff_t i, std::ptrdiff_t j, std::ptrdiff_t k) {
-    const std::ptrdiff_t ci = std::min<std::ptrdiff_t>(i, n[0] - 2), cj = std::min<std::ptrdiff_t>(j, n[1] - 2),
-                         ck = std::min<std::ptrdiff_t>(k, n[2] - 2);
-    return steps_.data() + 6 * (static_cast<std::size_t>(ci / kS) +
-                                static_cast<std::size_t>(step_bricks_[0]) *
-                                    (cj / kS + static_cast<std::size_t>(step_bricks_[1]) * (ck / kS)));
+  const auto stepBrick = [&](int i, int j, int k) {  // of the edges from voxel (i, j, k)
+    return steps_.data() + stepBrickOffset(std::min(i, n[0] - 2) / kS, std::min(j, n[1] - 2) / kS,
+                                           std::min(k, n[2] - 2) / kS);
   };
-  for (std::ptrdiff_t k = std::max(0, lo[2] - 1); k <= hi[2]; ++k)
-    for (std::ptrdiff_t j = std::max(0, lo[1] - 1); j <= hi[1]; ++j) {
+  for (int k = std::max(0, lo[2] - 1); k <= hi[2]; ++k)
+    for (int j = std::max(0, lo[1] - 1); j <= hi[1]; ++j) {
       const T* row = d + k * sz + j * sy;
-      for (std::ptrdiff_t i = std::max(0, lo[0] - 1); i <= hi[0]; ++i) {
+      for (int i = std::max(0, lo[0] - 1); i <= hi[0]; ++i) {
         const double v = row[i];
         float* steps = stepBrick(i, j, k);
         if (i + 1 < n[0]) bookStep(steps, 0, static_cast<double>(row[i + 1]) - v);
@@ -400,9 +397,7 @@ bool ScalarVolume::gridStepRange(const Eigen::Vector3d& lo_ijk, const Eigen::Vec
   for (int c = b0[2]; c <= b1[2]; ++c)
     for (int b = b0[1]; b <= b1[1]; ++b)
       for (int a = b0[0]; a <= b1[0]; ++a) {
-        const float* steps =
-            steps_.data() + 6 * (static_cast<std::size_t>(a) + static_cast<std::size_t>(step_bricks_[0]) *
-                                                                    (b + static_cast<std::size_t>(step_bricks_[1]) * c));
+        const float* steps = steps_.data() + stepBrickOffset(a, b, c);
         for (int ax = 0; ax < 3; ++ax) {
           lo[ax] = std::min(lo[ax], static_cast<double>(steps[ax]));
           hi[ax] = std::max(hi[ax], static_cast<double>(steps[3 + ax]));

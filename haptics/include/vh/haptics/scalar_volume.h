@@ -321,6 +321,11 @@ class ScalarVolume {
   // float. Drilling only widens them (refreshRegion()).
   std::vector<float> steps_;
   std::array<int, 3> step_bricks_{0, 0, 0};  // step bricks per axis
+  // Where step brick (a, b, c)'s six values start in steps_.
+  std::size_t stepBrickOffset(int a, int b, int c) const noexcept {
+    return 6 * (static_cast<std::size_t>(a) +
+                static_cast<std::size_t>(step_bricks_[0]) * (b + static_cast<std::size_t>(step_bricks_[1]) * c));
+  }
   std::array<int, 3> bricks_{0, 0, 0};    // level-0 bricks per axis
   float brickBound(const double* step) const noexcept;  // Lipschitz bound from a brick's raw steps
   template <typename T>
