@@ -617,5 +617,29 @@ TEST(EdgeCases, ADirectionalCertificateExpiresBeforeItsEdgesLeaveTheBoxItKnows) 
   EXPECT_LT(static_cast<double>(kept_work), 0.8 * static_cast<double>(fresh_work)) << "no certificate was reused";
 }
 
+TEST(EdgeCases, ANewIsovalueDropsTheDirectionalCertificates) {
+  // Certificates hold for the isovalue they were proven at. A line of points 3 mm apart lies
+  // across the top of the floor-and-wall volume's one-voxel wall (points at x = 38, 41, 44 mm,
+  // 0.6 mm above the wall's top voxel, where F = 0.4 x 255 = 102 at x = 40): at 128 its edges
+  // are walked (the ball about them holds the wall's top) and proven free with a margin; at
+  // 100, not moved, the wall enters the first edge, its ends still outside, as a fresh
+  // detector says.
+  const ScalarVolume floor_and_wall = test::floorAndWallVolume();
+  ToolModel line;
+  line.point_shell = PointShell({{0.0, 0.0, 0.0}, {3e-3, 0.0, 0.0}, {6e-3, 0.0, 0.0}});
+  const Pose X = Pose::FromTranslation(Eigen::Vector3d(38e-3, 12e-3, 30.6e-3));
+  CollisionDetector kept(floor_and_wall, line, 0.0);
+  kept.resetSampleCount();
+  ASSERT_FALSE(kept.edgesCrossAt(X, 128.0));
+  ASSERT_GT(kept.cellCount(), 0) << "the edges were not walked: no certificate of the walk's";
+  ASSERT_FALSE(kept.edgesCrossAt(X, 128.0));
+  ASSERT_TRUE(floor_and_wall.isInside(Eigen::Vector3d(40e-3, 12e-3, 30.6e-3), 100.0));  // the wall in the first edge
+  ASSERT_FALSE(floor_and_wall.isInside(X.p_AB_m, 100.0));                               // its ends outside
+  ASSERT_FALSE(floor_and_wall.isInside(Eigen::Vector3d(41e-3, 12e-3, 30.6e-3), 100.0));
+  CollisionDetector fresh(floor_and_wall, line, 0.0);
+  EXPECT_TRUE(fresh.edgesCrossAt(X, 100.0));
+  EXPECT_TRUE(kept.edgesCrossAt(X, 100.0)) << "a certificate proven at 128 hid the wall at 100";
+}
+
 }  // namespace
 }  // namespace vh::haptics
