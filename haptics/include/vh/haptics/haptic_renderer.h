@@ -67,13 +67,15 @@ struct RendererOptions {
   /// 1/4096, doubling back after each tick that finishes; its sweep samples every point's first segment, so a
   /// budget below the point count stalls it: the paper-faithful runs set 0). The overshoot is at
   /// most one queue step, and the pruning of a full contact set before the sweep (about 8 units
-  /// per contact). The default, 40,000 units, is 1.0 to 1.8 ms of one 2.0-2.1 GHz core (24 to 44
-  /// ns a unit, measured on Engine and Hole): more than the servo period, so where the
-  /// application sets deadline_us (900 us) the clock decides and the budget is the last line of
-  /// defence, not the way the deadline is met. At 12,000 (0.3 to 0.5 ms) it cut 101 Engine ticks
-  /// whose full solve took under 0.5 ms.
+  /// per contact). The default, 150,000 units, is more than the servo period on every tool
+  /// measured (a unit cost 18 ns with Engine's 2,126-point wrench, 15 ns with its 20,000-point
+  /// one, 7 to 10 ns with its 50,000-point one, on a 2.6 GHz EPYC core): where the application
+  /// sets deadline_us (900 us) the clock decides and the budget is the last line of defence,
+  /// not the way the deadline is met. At 40,000 (0.4 to 0.7 ms there) it cut 1,015 of the
+  /// 20,000-point wrench's 5,000 table1 ticks, where the clock alone cut 53; at 12,000 it cut
+  /// 101 Engine ticks whose full solve took under 0.5 ms.
   /// -1 (the default) selects kDefaultWorkBudget in kAccelerated and no budget in kPaper.
-  static constexpr std::int64_t kDefaultWorkBudget = 40000;
+  static constexpr std::int64_t kDefaultWorkBudget = 150000;
   std::int64_t work_budget = -1;
   /// The velocity limit of section 2.3: no point of the shell travels farther than
   /// this in one tick [m] (bound |v| + |omega| R, R the shell's radius about the centre of
