@@ -413,8 +413,8 @@ void describeSceneRun(nlohmann::ordered_json& row, const haptics::ScalarVolume& 
   row["epsilon_m"] = epsilon_m;
   row["feature_size_m"] = volume.featureSize_m();
   row["ticks"] = ticks;
-  row["trajectory"] = {{"duration_s", traj.duration_s()}, {"run_s", 1e-3 * (ticks - 1)}, {"key_poses", traj.size()},
-                       {"spots", locations}, {"notes", notes}};
+  row["trajectory"] = {{"duration_s", traj.duration_s()}, {"key_poses", traj.size()}, {"spots", locations},
+                       {"notes", notes}};
   row["initial_points_inside"] = inside0;
   row["penetration_every_n_ticks"] = penetration_stride;
   row["verify_step_voxels"] = verify_step_voxels;
