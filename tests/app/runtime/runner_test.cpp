@@ -93,6 +93,38 @@ TEST(Runner, NearestRankPercentileIsTheValueAtRankCeilQN) {
   EXPECT_EQ(nearestRankPercentile(std::vector<double>{7.0}, 0.99), 7.0);
 }
 
+TEST(Runner, ProxyLagSeparatesApartFromBehind) {
+  // The device at the origin, turned 0.3 rad about z. Reference proxy 1 mm along +x and turned
+  // 0.1 rad; the budgeted proxy 3 mm along -x and turned 0.6 rad: 4 mm and 0.5 rad apart, and
+  // 2 mm and 0.1 rad farther from the device than the reference (behind). Then a budgeted proxy
+  // as far from the device as the reference, on the other side: apart, but not behind.
+  const auto pose = [](double x_m, double angle_rad) {
+    haptics::Pose X;
+    X.p_AB_m = Eigen::Vector3d(x_m, 0.0, 0.0);
+    X.R_AB = Eigen::Quaterniond(Eigen::AngleAxisd(angle_rad, Eigen::Vector3d::UnitZ()));
+    return X;
+  };
+  const haptics::Pose X_WD = pose(0.0, 0.3);
+  ProxyLag lag;
+  lag.add(pose(-3e-3, 0.6), pose(1e-3, 0.1), X_WD);
+  EXPECT_NEAR(lag.max_m, 4e-3, 1e-12);
+  EXPECT_NEAR(lag.max_rad, 0.5, 1e-9);
+  EXPECT_NEAR(lag.max_behind_m, 2e-3, 1e-12);
+  EXPECT_NEAR(lag.max_behind_rad, 0.1, 1e-9);
+  EXPECT_EQ(lag.ticks, 1);
+  ProxyLag mirrored;
+  mirrored.add(pose(-1e-3, 0.5), pose(1e-3, 0.1), X_WD);
+  EXPECT_NEAR(mirrored.max_m, 2e-3, 1e-12);
+  EXPECT_NEAR(mirrored.max_rad, 0.4, 1e-9);
+  EXPECT_NEAR(mirrored.max_behind_m, 0.0, 1e-12);
+  EXPECT_NEAR(mirrored.max_behind_rad, 0.0, 1e-9);
+  // Closer to the device than the reference: never negative (the maximum starts at 0).
+  ProxyLag ahead;
+  ahead.add(pose(0.5e-3, 0.3), pose(1e-3, 0.1), X_WD);
+  EXPECT_EQ(ahead.max_behind_m, 0.0);
+  EXPECT_EQ(ahead.max_behind_rad, 0.0);
+}
+
 TEST(Runner, PegPushedOntoTheBlockAndSlidAlongIt) {
   const LoadedScene& scene = blockScene();
   const auto& field = *scene.volume.field;

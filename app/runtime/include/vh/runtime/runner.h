@@ -82,10 +82,19 @@ struct RunOptions {
 
 /// The work budget's price: how far a budgeted proxy is from an unbudgeted one driven
 /// by the same device samples. Used by the run report and `bench table1`.
+/// Two figures, because a quasi-static proxy's path depends on its history: once a cut tick
+/// has put the two proxies on different sides of a choice (which contact holds, which way a
+/// wedged tool slides), they stay apart although neither is late.
+/// - max_m / max_rad: how far apart the two proxies are (the force differs by the coupling's
+///   stiffness times this);
+/// - max_behind_m / max_behind_rad: how much farther from the device the budgeted proxy is
+///   than the reference (the extra stretch of the coupling spring: the proxy behind).
 struct ProxyLag {
   std::int64_t ticks = 0;   ///< Ticks whose poses differed (by more than 1e-9 m or rad).
   double max_m = 0.0;       ///< Largest distance of the tool origins [m].
   double max_rad = 0.0;     ///< Largest angle between the orientations [rad].
+  double max_behind_m = 0.0;    ///< Largest excess of the budgeted proxy's distance to the device [m].
+  double max_behind_rad = 0.0;  ///< Largest excess of its angle to the device [rad].
   /// One tick: the budgeted proxy's pose and the unbudgeted one's (both in W).
   void add(const haptics::Pose& X_WP_budgeted, const haptics::Pose& X_WP_reference) noexcept {
     const double m = (X_WP_budgeted.p_AB_m - X_WP_reference.p_AB_m).norm();
@@ -93,6 +102,15 @@ struct ProxyLag {
     max_m = std::max(max_m, m);
     max_rad = std::max(max_rad, rad);
     if (m > 1e-9 || rad > 1e-9) ++ticks;
+  }
+  /// The same, and the behind figures against the device pose X_WD of the tick (W).
+  void add(const haptics::Pose& X_WP_budgeted, const haptics::Pose& X_WP_reference,
+           const haptics::Pose& X_WD) noexcept {
+    add(X_WP_budgeted, X_WP_reference);
+    max_behind_m = std::max(max_behind_m, (X_WD.p_AB_m - X_WP_budgeted.p_AB_m).norm() -
+                                              (X_WD.p_AB_m - X_WP_reference.p_AB_m).norm());
+    max_behind_rad = std::max(max_behind_rad, X_WD.R_AB.angularDistance(X_WP_budgeted.R_AB) -
+                                                  X_WD.R_AB.angularDistance(X_WP_reference.R_AB));
   }
 };
 
