@@ -73,7 +73,7 @@ CLI::App* addBenchSubcommand(CLI::App& app, std::function<int()>& handler) {
       ->capture_default_str()
       ->check(CLI::NonNegativeNumber);
   t1->add_option("--verify-step", table1->verify_step_voxels,
-                 "Crossing check after every tick, outside the timed part: path sampling step [voxels]; 0: off")
+                 "Crossing check of every tick's move, after the run (its reads of the volume do not share the timed ticks' caches): path sampling step [voxels]; 0: off")
       ->capture_default_str()
       ->check(CLI::NonNegativeNumber);
   t1->add_option("--scene", table1->scene, "Only this scene: Bunny, Engine, Hole or Bone");

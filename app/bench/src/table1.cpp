@@ -238,6 +238,10 @@ constexpr const char* kEdgesKey = "accelerated-edges";
 constexpr const char* kEdgesUnbudgetedKey = "accelerated-edges-unbudgeted";
 // The crossing check samples the edges between shell points this many path steps apart.
 constexpr double kEdgeStepFactor = 5.0;
+/// The full solve's own sensitivity to its history (the control beside the budget's lag): the
+/// same full solve run again with one device sample in this many held (the previous sample
+/// repeated, as when a USB packet is lost), and its distance from the full solve.
+constexpr int kHeldSampleEvery = 1000;
 
 struct ModeRun {
   Variant variant;
@@ -250,10 +254,21 @@ struct ModeRun {
   // Of the tool's surface between its points (CrossingVerifier::checkEdges(), the end of each move).
   std::int64_t edge_crossings = 0, first_edge_crossing_tick = -1;
   double verify_s = 0.0;
+  // Each tick's move (its motion and time of contact), for the crossing check after the run.
+  struct Move {
+    haptics::RigidMotion motion;
+    double t = 0.0;
+    int tick = 0;
+  };
+  std::vector<Move> moves;
   double wall_s = 0.0;
   // Ticks the work budget cut; the lag behind the unbudgeted accelerated proxy.
   std::int64_t budget_cuts = 0, deadline_cuts = 0;
   runtime::ProxyLag lag;
+  // The full solve only: the same again with one device sample in kHeldSampleEvery held, and how
+  // far its proxy was from this one's (held_samples -1: not run).
+  runtime::ProxyLag held;
+  std::int64_t held_samples = -1;
   double max_work = 0.0;
   // Sums over the ticks of TickStats::work and TickStats::critical_work (the lanes' balance).
   double work_sum = 0.0, critical_work_sum = 0.0;
@@ -283,6 +298,8 @@ nlohmann::ordered_json modeJson(const ModeRun& m, double epsilon_m, bool verifie
     j["lag_ticks"] = m.lag.ticks;
     j["max_lag_m"] = m.lag.max_m;
     j["max_lag_rad"] = m.lag.max_rad;
+    j["max_behind_m"] = m.lag.max_behind_m;
+    j["max_behind_rad"] = m.lag.max_behind_rad;
   }
   // How evenly the lanes shared the work: all work / (lanes x the work on the ticks' critical
   // paths); 1 on one lane, and on several when every lane did the same share.
@@ -323,6 +340,12 @@ nlohmann::ordered_json modeJson(const ModeRun& m, double epsilon_m, bool verifie
   // inside the isosurface while free at the tick's start; -1: not checked.
   j["edge_crossings"] = verified ? m.edge_crossings : -1;
   j["first_edge_crossing_tick"] = verified ? m.first_edge_crossing_tick : -1;
+  if (m.held_samples >= 0) {
+    j["held_samples"] = m.held_samples;
+    j["held_every"] = kHeldSampleEvery;
+    j["held_apart_max_m"] = m.held.max_m;
+    j["held_apart_max_rad"] = m.held.max_rad;
+  }
   j["verify_s"] = m.verify_s;
   j["wall_s"] = m.wall_s;
   return j;
@@ -381,6 +404,60 @@ int runIndex(const std::vector<ModeRun>& runs, const std::string& key) {
   return -1;
 }
 
+/// The crossing check of every move a run made (CrossingVerifier, after the run): the points'
+/// paths, and the tool's surface between its points (the neighbour graph's edges, ends inset by
+/// epsilon) at each move's end, along each edge at kEdgeStepFactor times the path step.
+void checkMoves(haptics::CrossingVerifier& verifier, const haptics::ShellEdges& shell_edges, double isovalue,
+                double epsilon_m, ModeRun& m) {
+  const auto v0 = std::chrono::steady_clock::now();
+  for (const ModeRun::Move& move : m.moves) {
+    const haptics::CrossingVerifier::Result check = verifier.check(move.motion, move.t, isovalue);
+    if (check.crossing_points > 0) {
+      ++m.crossings;
+      m.crossing_points += check.crossing_points;
+      if (m.first_crossing_tick < 0) m.first_crossing_tick = move.tick;
+    }
+    const haptics::CrossingVerifier::EdgeResult edges = verifier.checkEdges(
+        move.motion, move.t, isovalue, shell_edges, epsilon_m, 1, kEdgeStepFactor * verifier.step_m());
+    if (edges.crossing_edges > 0) {
+      ++m.edge_crossings;
+      if (m.first_edge_crossing_tick < 0) m.first_edge_crossing_tick = move.tick;
+    }
+  }
+  m.verify_s += std::chrono::duration<double>(std::chrono::steady_clock::now() - v0).count();
+  m.moves = {};
+}
+
+/// The control beside the budget's lag: the full solve (`full`'s variant) driven again by the
+/// same device samples but for one in kHeldSampleEvery, held (the previous sample repeated, as
+/// when a USB packet is lost), and how far its proxy gets from the full solve's proxy
+/// (`full_solve_poses`, one per tick). A quasi-static proxy's path depends on its history; this
+/// is how far one late sample alone moves it, with no budget anywhere. Untimed; after the run,
+/// so it does not share the timed columns' caches.
+void runHeldSampleControl(const runtime::LoadedScene& scene, const std::shared_ptr<const haptics::ToolModel>& tool,
+                          const runtime::Trajectory& traj, const haptics::Pose& X_WD0, double isovalue, int ticks,
+                          const std::vector<haptics::Pose>& full_solve_poses, ModeRun& full, std::ostream* lag_csv) {
+  std::vector<ModeRun> control = makeModeRuns(scene, tool, {full.variant}, X_WD0, isovalue, 0);
+  haptics::HapticRenderer& renderer = *control.front().renderer;
+  std::size_t cursor = 0;
+  haptics::Pose X_WD_last = X_WD0;
+  full.held = runtime::ProxyLag{};
+  full.held_samples = 0;
+  for (int i = 0; i < ticks && static_cast<std::size_t>(i) < full_solve_poses.size(); ++i) {
+    const haptics::Pose X_WD = traj.poseAt(i * 1e-3, cursor);
+    const bool hold = i % kHeldSampleEvery == kHeldSampleEvery / 2;
+    full.held_samples += hold;
+    const haptics::TickOutput out = renderer.tick(hold ? X_WD_last : X_WD, isovalue);
+    if (!hold) X_WD_last = X_WD;
+    const haptics::Pose& X_WP_full = full_solve_poses[static_cast<std::size_t>(i)];
+    if (!out.X_WP.allFinite() || !X_WP_full.allFinite()) continue;
+    full.held.add(out.X_WP, X_WP_full);
+    if (lag_csv)
+      *lag_csv << i << ",held-control," << (out.X_WP.p_AB_m - X_WP_full.p_AB_m).norm() << ','
+               << out.X_WP.R_AB.angularDistance(X_WP_full.R_AB) << ",0,0\n";
+  }
+}
+
 /// Diagnostics: VH_TABLE1_TICK_CSV=DIR writes one CSV per scene and mode with every
 /// tick's times and statistics, to find the worst ticks and what they do.
 /// @return one stream per run (header written), or none when the variable is not set.
@@ -391,7 +468,7 @@ std::vector<std::unique_ptr<std::ofstream>> openTickCsvs(const std::vector<ModeR
     for (const ModeRun& m : runs) {
       tick_csv.push_back(std::make_unique<std::ofstream>(fs::path(dir) / (scene_name + "_" + m.variant.key + ".csv")));
       *tick_csv.back() << "tick,wall_us,cpu_us,contacts,samples,box_queries,tree_nodes,cells,cells_walked,time_of_contact,device_step_m,"
-                          "device_step_rad,proxy_device_m,proxy_device_rad,crossing_points,prune_us,solve_us,sweep_us,contacts_us,work,"
+                          "device_step_rad,proxy_device_m,proxy_device_rad,prune_us,solve_us,sweep_us,contacts_us,work,"
                           "budget_cut\n";
     }
   }
@@ -494,6 +571,8 @@ void runScene(const runtime::LoadedScene& scene, std::shared_ptr<const haptics::
   }
 
   std::vector<ModeRun> runs = makeModeRuns(scene, tool, variants, X_WD0, s, ticks);
+  if (verifier)
+    for (ModeRun& m : runs) m.moves.reserve(static_cast<std::size_t>(ticks));
   const int i_paper = runIndex(runs, "paper"), i_accel = runIndex(runs, "accelerated");
   const int i_before = runIndex(runs, kBeforeKey);
   const int i_unbudgeted = runIndex(runs, kUnbudgetedKey);
@@ -501,6 +580,16 @@ void runScene(const runtime::LoadedScene& scene, std::shared_ptr<const haptics::
   const double epsilon_m = runs.front().renderer->epsilon_m();
   double max_mode_difference_m = 0.0, max_before_difference_m = 0.0;
   std::vector<std::unique_ptr<std::ofstream>> tick_csv = openTickCsvs(runs, row["name"].get<std::string>());
+  // With the tick CSVs, each budgeted mode's lag behind its full solve, tick by tick.
+  std::unique_ptr<std::ofstream> lag_csv;
+  if (!tick_csv.empty()) {
+    lag_csv = std::make_unique<std::ofstream>(fs::path(std::getenv("VH_TABLE1_TICK_CSV")) /
+                                              (row["name"].get<std::string>() + "_lag.csv"));
+    *lag_csv << "tick,mode,lag_m,lag_rad,behind_m,behind_rad\n";
+  }
+  // The full solve's proxy on every tick: the held-sample control is compared with it afterwards.
+  std::vector<haptics::Pose> full_solve_poses;
+  if (i_unbudgeted >= 0) full_solve_poses.reserve(static_cast<std::size_t>(ticks));
   haptics::Pose X_WD_last = X_WD0;
   std::size_t cursor = 0;
   std::vector<Eigen::Vector3d> proxy(runs.size(), Eigen::Vector3d::Zero());
@@ -518,28 +607,10 @@ void runScene(const runtime::LoadedScene& scene, std::shared_ptr<const haptics::
       m.wall_s += std::chrono::duration<double>(std::chrono::steady_clock::now() - w0).count();
       // Everything below is outside the timed section.
       const bool finite = out.force_W_N.allFinite() && out.torque_W_Nm.allFinite() && out.X_WP.allFinite();
-      int crossing_points = -1;
-      if (verifier && finite) {
-        const auto v0 = std::chrono::steady_clock::now();
-        const haptics::CrossingVerifier::Result check =
-            verifier->check(m.renderer->lastMotion(), m.renderer->lastTimeOfContact(), s);
-        m.verify_s += std::chrono::duration<double>(std::chrono::steady_clock::now() - v0).count();
-        crossing_points = check.crossing_points;
-        if (check.crossing_points > 0) {
-          ++m.crossings;
-          m.crossing_points += check.crossing_points;
-          if (m.first_crossing_tick < 0) m.first_crossing_tick = i;
-        }
-        // The surface between the points at the move's end, along each edge at kEdgeStepFactor
-        // times the path step (the edges near the surface outnumber the points that move).
-        const haptics::CrossingVerifier::EdgeResult edges = verifier->checkEdges(
-            m.renderer->lastMotion(), m.renderer->lastTimeOfContact(), s, shell_edges, epsilon_m, 1,
-            kEdgeStepFactor * verifier->step_m());
-        if (edges.crossing_edges > 0) {
-          ++m.edge_crossings;
-          if (m.first_edge_crossing_tick < 0) m.first_edge_crossing_tick = i;
-        }
-      }
+      // The crossing check runs after the run (checkMoves()): between ticks its dense reads of the
+      // volume would evict the timed columns' state from the caches, which the application's
+      // servo thread does not suffer.
+      if (verifier && finite) m.moves.push_back({m.renderer->lastMotion(), m.renderer->lastTimeOfContact(), i});
       if (!tick_csv.empty())
         *tick_csv[r] << i << ',' << out.stats.exec_time_us << ',' << m.cpu_us.back() << ',' << out.stats.contacts << ','
                      << out.stats.volume_samples << ',' << out.stats.box_queries << ',' << out.stats.tree_nodes << ','
@@ -547,7 +618,7 @@ void runScene(const runtime::LoadedScene& scene, std::shared_ptr<const haptics::
                      << out.stats.time_of_contact << ',' << (X_WD.p_AB_m - X_WD_last.p_AB_m).norm() << ','
                      << X_WD.R_AB.angularDistance(X_WD_last.R_AB) << ','
                      << (X_WD.p_AB_m - X_WP_before.p_AB_m).norm() << ','
-                     << X_WD.R_AB.angularDistance(X_WP_before.R_AB) << ',' << crossing_points << ','
+                     << X_WD.R_AB.angularDistance(X_WP_before.R_AB) << ','
                      << out.stats.prune_us << ',' << out.stats.solve_us << ',' << out.stats.sweep_us << ','
                      << out.stats.contacts_us << ',' << out.stats.work << ',' << int(out.stats.budget_cut) << '\n';
       m.times_us.push_back(out.stats.exec_time_us);
@@ -585,13 +656,24 @@ void runScene(const runtime::LoadedScene& scene, std::shared_ptr<const haptics::
       if (budgeted < 0 || full < 0 || !proxy_finite[static_cast<std::size_t>(budgeted)] ||
           !proxy_finite[static_cast<std::size_t>(full)])
         return;
-      runs[static_cast<std::size_t>(budgeted)].lag.add(runs[static_cast<std::size_t>(budgeted)].renderer->proxyPose(),
-                                                        runs[static_cast<std::size_t>(full)].renderer->proxyPose());
+      ModeRun& b = runs[static_cast<std::size_t>(budgeted)];
+      const haptics::Pose X_WP_b = b.renderer->proxyPose();
+      const haptics::Pose X_WP_f = runs[static_cast<std::size_t>(full)].renderer->proxyPose();
+      b.lag.add(X_WP_b, X_WP_f, X_WD);
+      if (lag_csv)
+        *lag_csv << i << ',' << b.variant.key << ',' << (X_WP_b.p_AB_m - X_WP_f.p_AB_m).norm() << ','
+                 << X_WP_b.R_AB.angularDistance(X_WP_f.R_AB) << ','
+                 << (X_WD.p_AB_m - X_WP_b.p_AB_m).norm() - (X_WD.p_AB_m - X_WP_f.p_AB_m).norm() << ','
+                 << X_WD.R_AB.angularDistance(X_WP_b.R_AB) - X_WD.R_AB.angularDistance(X_WP_f.R_AB) << '\n';
     };
+    if (i_unbudgeted >= 0) full_solve_poses.push_back(runs[static_cast<std::size_t>(i_unbudgeted)].renderer->proxyPose());
     addLag(i_accel, i_unbudgeted);
     addLag(i_edges, i_edges_unbudgeted);
     X_WD_last = X_WD;
   }
+  if (verifier)
+    for (ModeRun& m : runs) checkMoves(*verifier, shell_edges, s, epsilon_m, m);
+  if (i_unbudgeted >= 0) runHeldSampleControl(scene, tool, traj, X_WD0, s, ticks, full_solve_poses, runs[static_cast<std::size_t>(i_unbudgeted)], lag_csv.get());
 
   describeSceneRun(row, volume, tool->point_shell.size(), s, epsilon_m, ticks, traj, locations, notes, inside0,
                    penetration_stride, verifier ? verify_step_voxels : 0.0);
@@ -777,7 +859,12 @@ void printRowResults(nlohmann::ordered_json& row) {
       std::cout << "    work budget " << num(m["work_budget"]) << ": max work " << num(m["max_work"]) << ", "
                 << num(m["budget_cuts"]) << " ticks cut; lag behind the unbudgeted proxy: max "
                 << num(1e3 * m["max_lag_m"].get<double>(), 4) << " mm, " << num(m["max_lag_rad"].get<double>(), 4)
-                << " rad, " << num(m["lag_ticks"]) << " ticks\n";
+                << " rad, " << num(m["lag_ticks"]) << " ticks; behind max " << num(1e3 * m["max_behind_m"].get<double>(), 4)
+                << " mm, " << num(m["max_behind_rad"].get<double>(), 4) << " rad\n";
+    if (m.contains("held_samples"))
+      std::cout << "    control: the same full solve with " << num(m["held_samples"]) << " device samples held, apart max "
+                << num(1e3 * m["held_apart_max_m"].get<double>(), 4) << " mm, "
+                << num(m["held_apart_max_rad"].get<double>(), 4) << " rad\n";
   }
   if (row.contains("ratio_paper_over_accelerated"))
     std::cout << "  paper / accelerated: mean " << num(row["ratio_paper_over_accelerated"]["mean"], 2)
@@ -857,7 +944,7 @@ void writeMarkdownIntro(std::ostringstream& md, const nlohmann::ordered_json& re
         "around tick(), which a busy machine's preemption does not inflate. Every mode uses the exact segment "
         "test except \"accelerated (end-sample, before)\", the earlier end-sample test. "
      << (verified ? format("Crossings: ticks in which haptics::CrossingVerifier, sampling each shell point's path "
-                           "over the tick every %g voxel outside the timed section, found a point carried from "
+                           "over the tick every %g voxel (after the run, outside the timed section), found a point carried from "
                            "outside into the isosurface; \"edges N\": ticks at whose end the tool's surface "
                            "between its points (the point shell's neighbour edges, ends inset by epsilon, sampled "
                            "every %g voxel) was inside while free at the tick's start.",
@@ -908,13 +995,21 @@ bool writeNeverBehindTable(std::ostringstream& md, nlohmann::ordered_json& rows,
   md << "\nNever behind: the accelerated mode as the application runs it (work budget, deadline, lanes) beside the "
         "same without budget or deadline (the full solve). Wall and thread CPU time per tick (the caller's thread; "
         "the lanes' threads run beside it), the ticks the budget or the deadline cut and the lag behind the full "
-        "solve's proxy on the same device samples. Targets: the paper's scenes 0 ticks cut and max < 1000 us; "
-        "20,000-point tools lag <= 1 mm and <= 0.01 rad and max < 1000 us; 50,000-point tools reported"
+        "solve's proxy on the same device samples (how far apart the two proxies are), with how much farther from "
+        "the device the budgeted proxy is (behind: the coupling spring's extra stretch) and, as the control, how far "
+        "the full solve moves from itself when one device sample in " +
+            format("%d", kHeldSampleEvery) +
+            " is held (the previous one repeated, as when a USB packet is lost; no budget anywhere): a quasi-static "
+            "proxy's path depends on its history, and once the two proxies took different sides of a choice (which "
+            "contact holds, which way a wedged tool slides) they stay apart although neither is late. Targets: the "
+            "paper's scenes 0 ticks cut and max < 1000 us; 20,000-point tools lag <= 1 mm and <= 0.01 rad and max < "
+            "1000 us; 50,000-point tools reported"
      << (load_threads > 0 ? format("; %d busy threads ran beside it (--load)", load_threads) : std::string())
      << ":\n\n";
   md << "| scene | points | lanes | budget / deadline [us] | wall mean / p99.9 / max [us] | CPU mean / p99.9 / max [us] "
-        "| full solve wall p99.9 / max, CPU max [us] | ticks cut (by the deadline) | lag max [mm] / [rad] | target | met |\n"
-        "|---|---|---|---|---|---|---|---|---|---|---|\n";
+        "| full solve wall p99.9 / max, CPU max [us] | ticks cut (by the deadline) | lag max [mm] / [rad] | behind max "
+        "[mm] / [rad] | control: full solve, one sample held, apart max [mm] / [rad] | target | met |\n"
+        "|---|---|---|---|---|---|---|---|---|---|---|---|---|\n";
   // The accelerated mode, then (with --edge-test) the same with the edge test between shell
   // points against its own full solve.
   const std::pair<const char*, const char*> kModes[] = {{"accelerated", kUnbudgetedKey},
@@ -929,11 +1024,17 @@ bool writeNeverBehindTable(std::ostringstream& md, nlohmann::ordered_json& rows,
       const bool fifty = row["points"].get<std::size_t>() > 30000;
       const double mx = std::max(a["max_us"].get<double>(), a["cpu_max_us"].get<double>());
       const double cuts = a["budget_cuts"], lag_m = a["max_lag_m"], lag_rad = a["max_lag_rad"];
-      std::string full = "-";
+      std::string full = "-", control = "-";
       if (row["modes"].contains(full_key)) {
         const auto& u = row["modes"][full_key];
         full = num(u["p99_9_us"], 1) + " / " + num(u["max_us"], 1) + ", " + num(u["cpu_max_us"], 1);
+        if (u.contains("held_apart_max_m"))
+          control = num(1e3 * u["held_apart_max_m"].get<double>(), 3) + " / " + num(u["held_apart_max_rad"], 4) +
+                    " (" + num(u["held_samples"]) + " held)";
       }
+      const std::string behind = a.contains("max_behind_m") ? num(1e3 * a["max_behind_m"].get<double>(), 3) + " / " +
+                                                                   num(a["max_behind_rad"], 4)
+                                                             : std::string("-");
       const std::string target = !large ? "0 cut, max < 1000" : fifty ? "reported" : "lag <= 1 mm, 0.01 rad; max < 1000";
       const bool met = !large ? (cuts == 0.0 && mx < 1000.0)
                        : fifty ? true
@@ -944,7 +1045,7 @@ bool writeNeverBehindTable(std::ostringstream& md, nlohmann::ordered_json& rows,
          << " / " << num(a["p99_9_us"], 1) << " / " << num(a["max_us"], 1) << " | " << num(a["cpu_mean_us"], 1)
          << " / " << num(a["cpu_p99_9_us"], 1) << " / " << num(a["cpu_max_us"], 1) << " | " << full << " | "
          << num(cuts) << " (" << num(a["deadline_cuts"]) << ") | " << num(1e3 * lag_m, 3) << " / " << num(lag_rad, 4)
-         << " | " << target << " | " << (fifty ? "-" : met ? "yes" : "NO") << " |\n";
+         << " | " << behind << " | " << control << " | " << target << " | " << (fifty ? "-" : met ? "yes" : "NO") << " |\n";
       // Last: a new key moves row's members (ordered_map), which `a` refers into.
       row[edges ? "never_behind_edges" : "never_behind"] = {{"target", target}, {"met", met}};
     }

@@ -146,6 +146,20 @@ TEST(Bench, table1AcceleratedModeKeepsItsWorkBudgetAndReportsItsLag) {
     EXPECT_GE(number(m, "lag_ticks"), 0.0);
     EXPECT_GE(number(m, "max_lag_m"), 0.0);
     EXPECT_GE(number(m, "max_lag_rad"), 0.0);
+    // Behind: the budgeted proxy's distance to the device less the full solve's, which the
+    // triangle inequality bounds by their distance from each other (the lag).
+    EXPECT_LE(number(m, "max_behind_m"), number(m, "max_lag_m") + 1e-12);
+    EXPECT_LE(number(m, "max_behind_rad"), number(m, "max_lag_rad") + 1e-9);
+    // The control: the full solve again with one device sample in 1,000 held (at tick 500 of
+    // each thousand), its distance from the full solve.
+    const json& full = row["modes"]["accelerated-unbudgeted"];
+    ASSERT_TRUE(full.contains("held_samples")) << row["name"];
+    const auto ticks = static_cast<std::int64_t>(number(full, "ticks"));
+    EXPECT_EQ(number(full, "held_every"), 1000.0);
+    EXPECT_EQ(number(full, "held_samples"), static_cast<double>((ticks + 499) / 1000));
+    EXPECT_GE(number(full, "held_apart_max_m"), 0.0);
+    EXPECT_GE(number(full, "held_apart_max_rad"), 0.0);
+    EXPECT_FALSE(m.contains("held_samples")) << "the control runs beside the full solve only";
     EXPECT_EQ(number(m, "crossings"), 0.0) << row["name"];
     EXPECT_EQ(number(row["modes"]["accelerated-unbudgeted"], "crossings"), 0.0) << row["name"];
     EXPECT_FALSE(row["modes"]["accelerated-unbudgeted"].contains("work_budget"));

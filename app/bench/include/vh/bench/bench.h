@@ -53,8 +53,9 @@ struct Table1Options {
   /// lanes) with the edge test between shell points (RendererOptions::edge_test, the
   /// "accelerated-edges" column), interleaved, and give its cost over the accelerated mode.
   bool edge_test = false;
-  /// Crossing check after every tick (haptics::CrossingVerifier, outside the timed section):
-  /// sampling step along each shell point's path [voxels]; 0: off (crossings reported as -1).
+  /// Crossing check of every tick's move (haptics::CrossingVerifier; table1 checks the moves
+  /// after the run, so its reads of the volume do not evict the timed ticks' state from the
+  /// caches): sampling step along each shell point's path [voxels]; 0: off (crossings -1).
   double verify_step_voxels = 0.01;
   /// The accelerated mode's RendererOptions::work_budget (the application's default).
   /// > 0 also runs the accelerated mode without it ("accelerated-unbudgeted"), interleaved, and
