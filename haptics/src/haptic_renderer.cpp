@@ -242,6 +242,7 @@ inline void solveAndSweep(ConfigurationSolver& solver, CollisionDetector& collis
     const ConeProjection& projection = solver.lastProjection();
     collision.addWork(static_cast<std::int64_t>(collision.contacts().size()) * (projection.iterations + 2) / 4);
     hit = collision.sweep(motion, isovalue);
+    ++stats.sweeps;
     {
       const auto now = Clock::now();
       stats.sweep_us += usSince(phase, now);

@@ -468,7 +468,7 @@ std::vector<std::unique_ptr<std::ofstream>> openTickCsvs(const std::vector<ModeR
     for (const ModeRun& m : runs) {
       tick_csv.push_back(std::make_unique<std::ofstream>(fs::path(dir) / (scene_name + "_" + m.variant.key + ".csv")));
       *tick_csv.back() << "tick,wall_us,cpu_us,contacts,samples,box_queries,tree_nodes,cells,cells_walked,time_of_contact,device_step_m,"
-                          "device_step_rad,proxy_device_m,proxy_device_rad,prune_us,solve_us,sweep_us,contacts_us,work,"
+                          "device_step_rad,proxy_device_m,proxy_device_rad,prune_us,solve_us,sweep_us,sweeps,contacts_us,work,"
                           "budget_cut\n";
     }
   }
@@ -619,7 +619,7 @@ void runScene(const runtime::LoadedScene& scene, std::shared_ptr<const haptics::
                      << X_WD.R_AB.angularDistance(X_WD_last.R_AB) << ','
                      << (X_WD.p_AB_m - X_WP_before.p_AB_m).norm() << ','
                      << X_WD.R_AB.angularDistance(X_WP_before.R_AB) << ','
-                     << out.stats.prune_us << ',' << out.stats.solve_us << ',' << out.stats.sweep_us << ','
+                     << out.stats.prune_us << ',' << out.stats.solve_us << ',' << out.stats.sweep_us << ',' << out.stats.sweeps << ','
                      << out.stats.contacts_us << ',' << out.stats.work << ',' << int(out.stats.budget_cut) << '\n';
       m.times_us.push_back(out.stats.exec_time_us);
       m.contacts.push_back(out.stats.contacts);

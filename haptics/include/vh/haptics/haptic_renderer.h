@@ -146,6 +146,9 @@ struct TickStats {
   /// embedded-point scan and step 2 (prune), steps 1 + 3 (solve, every attempt), step 4 (sweep,
   /// every attempt), step 5's contact update (contacts).
   double prune_us = 0.0, solve_us = 0.0, sweep_us = 0.0, contacts_us = 0.0;
+  /// Sweeps this tick ran (steps 3-4 solved again after a stuck contact's normal was refined:
+  /// 1 to 3; 0 on a tick that only resumed a cut sweep or rejected its sample).
+  int sweeps = 0;
   bool bad_input = false;           ///< The device pose was rejected this tick.
   /// The move was shortened because the tool's surface between two shell points would have met
   /// the isosurface (RendererOptions::edge_test).
