@@ -281,7 +281,8 @@ TEST(Bench, table1ShortWritesBothModesForEveryScene) {
       EXPECT_LE(number(m, "cpu_mean_us"), number(m, "cpu_max_us"));
       EXPECT_LE(number(m, "cpu_p99_9_us"), number(m, "cpu_max_us"));
       EXPECT_GE(number(m, "mean_cells"), 0.0);
-      EXPECT_GE(number(m, "verify_s"), 0.0);
+      // The crossing check ran on every mode's moves (after the run, outside the timed ticks).
+      EXPECT_GT(number(m, "verify_s"), 0.0);
       const std::int64_t crossings = expectCrossingFields(m, 1000.0);
       // The exact segment test never lets the proxy through the surface; the end sample
       // (the "before" column) may. Asserted on the built-in scene; reported for the others.
