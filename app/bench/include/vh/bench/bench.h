@@ -59,8 +59,10 @@ struct Table1Options {
   double verify_step_voxels = 0.01;
   /// The accelerated mode's RendererOptions::work_budget (the application's default).
   /// > 0 also runs the accelerated mode without it ("accelerated-unbudgeted"), interleaved, and
-  /// reports the budgeted proxy's lag behind it (mm, rad, ticks), the cut ticks and the "Never
-  /// late" table with the targets; 0 runs the accelerated mode unbudgeted only.
+  /// reports the budgeted proxy's lag behind it (how far apart: mm, rad, ticks), how much farther
+  /// from the device it is (behind), the cut ticks and the "Never behind" table with the targets,
+  /// and after the run the control: the unbudgeted mode again with one device sample in 1,000
+  /// held, and how far that gets from it; 0 runs the accelerated mode unbudgeted only.
   std::int64_t work_budget = haptics::RendererOptions::kDefaultWorkBudget;
   /// Run only this scene ("Bunny", "Engine", "Hole", "Bone", case-insensitive); empty: all.
   std::string scene;
