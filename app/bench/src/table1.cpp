@@ -452,9 +452,10 @@ void runHeldSampleControl(const runtime::LoadedScene& scene, const std::shared_p
     const haptics::Pose& X_WP_full = full_solve_poses[static_cast<std::size_t>(i)];
     if (!out.X_WP.allFinite() || !X_WP_full.allFinite()) continue;
     full.held.add(out.X_WP, X_WP_full);
-    if (lag_csv)
-      *lag_csv << i << ",held-control," << (out.X_WP.p_AB_m - X_WP_full.p_AB_m).norm() << ','
-               << out.X_WP.R_AB.angularDistance(X_WP_full.R_AB) << ",0,0\n";
+    if (lag_csv) {
+      const runtime::ProxyLag::Gap apart = runtime::ProxyLag::apart(out.X_WP, X_WP_full);
+      *lag_csv << i << ",held-control," << apart.m << ',' << apart.rad << ",0,0\n";
+    }
   }
 }
 
@@ -660,11 +661,12 @@ void runScene(const runtime::LoadedScene& scene, std::shared_ptr<const haptics::
       const haptics::Pose X_WP_b = b.renderer->proxyPose();
       const haptics::Pose X_WP_f = runs[static_cast<std::size_t>(full)].renderer->proxyPose();
       b.lag.add(X_WP_b, X_WP_f, X_WD);
-      if (lag_csv)
-        *lag_csv << i << ',' << b.variant.key << ',' << (X_WP_b.p_AB_m - X_WP_f.p_AB_m).norm() << ','
-                 << X_WP_b.R_AB.angularDistance(X_WP_f.R_AB) << ','
-                 << (X_WD.p_AB_m - X_WP_b.p_AB_m).norm() - (X_WD.p_AB_m - X_WP_f.p_AB_m).norm() << ','
-                 << X_WD.R_AB.angularDistance(X_WP_b.R_AB) - X_WD.R_AB.angularDistance(X_WP_f.R_AB) << '\n';
+      if (lag_csv) {
+        const runtime::ProxyLag::Gap apart = runtime::ProxyLag::apart(X_WP_b, X_WP_f);
+        const runtime::ProxyLag::Gap behind = runtime::ProxyLag::behind(X_WP_b, X_WP_f, X_WD);
+        *lag_csv << i << ',' << b.variant.key << ',' << apart.m << ',' << apart.rad << ',' << behind.m << ','
+                 << behind.rad << '\n';
+      }
     };
     if (i_unbudgeted >= 0) full_solve_poses.push_back(runs[static_cast<std::size_t>(i_unbudgeted)].renderer->proxyPose());
     addLag(i_accel, i_unbudgeted);

@@ -95,22 +95,36 @@ struct ProxyLag {
   double max_rad = 0.0;     ///< Largest angle between the orientations [rad].
   double max_behind_m = 0.0;    ///< Largest excess of the budgeted proxy's distance to the device [m].
   double max_behind_rad = 0.0;  ///< Largest excess of its angle to the device [rad].
+  /// A distance in translation [m] and rotation [rad].
+  struct Gap {
+    double m = 0.0;
+    double rad = 0.0;
+  };
+  /// How far apart two poses are (W).
+  static Gap apart(const haptics::Pose& X_WA, const haptics::Pose& X_WB) noexcept {
+    return {(X_WA.p_AB_m - X_WB.p_AB_m).norm(), X_WA.R_AB.angularDistance(X_WB.R_AB)};
+  }
+  /// How much farther from the device pose X_WD the budgeted proxy is than the reference (W);
+  /// negative when it is the closer.
+  static Gap behind(const haptics::Pose& X_WP_budgeted, const haptics::Pose& X_WP_reference,
+                    const haptics::Pose& X_WD) noexcept {
+    const Gap b = apart(X_WD, X_WP_budgeted), r = apart(X_WD, X_WP_reference);
+    return {b.m - r.m, b.rad - r.rad};
+  }
   /// One tick: the budgeted proxy's pose and the unbudgeted one's (both in W).
   void add(const haptics::Pose& X_WP_budgeted, const haptics::Pose& X_WP_reference) noexcept {
-    const double m = (X_WP_budgeted.p_AB_m - X_WP_reference.p_AB_m).norm();
-    const double rad = X_WP_budgeted.R_AB.angularDistance(X_WP_reference.R_AB);
-    max_m = std::max(max_m, m);
-    max_rad = std::max(max_rad, rad);
-    if (m > 1e-9 || rad > 1e-9) ++ticks;
+    const Gap g = apart(X_WP_budgeted, X_WP_reference);
+    max_m = std::max(max_m, g.m);
+    max_rad = std::max(max_rad, g.rad);
+    if (g.m > 1e-9 || g.rad > 1e-9) ++ticks;
   }
   /// The same, and the behind figures against the device pose X_WD of the tick (W).
   void add(const haptics::Pose& X_WP_budgeted, const haptics::Pose& X_WP_reference,
            const haptics::Pose& X_WD) noexcept {
     add(X_WP_budgeted, X_WP_reference);
-    max_behind_m = std::max(max_behind_m, (X_WD.p_AB_m - X_WP_budgeted.p_AB_m).norm() -
-                                              (X_WD.p_AB_m - X_WP_reference.p_AB_m).norm());
-    max_behind_rad = std::max(max_behind_rad, X_WD.R_AB.angularDistance(X_WP_budgeted.R_AB) -
-                                                  X_WD.R_AB.angularDistance(X_WP_reference.R_AB));
+    const Gap b = behind(X_WP_budgeted, X_WP_reference, X_WD);
+    max_behind_m = std::max(max_behind_m, b.m);
+    max_behind_rad = std::max(max_behind_rad, b.rad);
   }
 };
 
