@@ -435,7 +435,7 @@ void checkMoves(haptics::CrossingVerifier& verifier, const haptics::ShellEdges& 
 /// is how far one late sample alone moves it, with no budget anywhere. Untimed; after the run,
 /// so it does not share the timed columns' caches.
 void runHeldSampleControl(const runtime::LoadedScene& scene, const std::shared_ptr<const haptics::ToolModel>& tool,
-                          const runtime::Trajectory& traj, const haptics::Pose& X_WD0, double isovalue, int ticks,
+                          const runtime::Trajectory& traj, const haptics::Pose& X_WD0, double isovalue,
                           const std::vector<haptics::Pose>& full_solve_poses, ModeRun& full, std::ostream* lag_csv) {
   std::vector<ModeRun> control = makeModeRuns(scene, tool, {full.variant}, X_WD0, isovalue, 0);
   haptics::HapticRenderer& renderer = *control.front().renderer;
@@ -443,7 +443,7 @@ void runHeldSampleControl(const runtime::LoadedScene& scene, const std::shared_p
   haptics::Pose X_WD_last = X_WD0;
   full.held = runtime::ProxyLag{};
   full.held_samples = 0;
-  for (int i = 0; i < ticks && static_cast<std::size_t>(i) < full_solve_poses.size(); ++i) {
+  for (int i = 0; static_cast<std::size_t>(i) < full_solve_poses.size(); ++i) {
     const haptics::Pose X_WD = traj.poseAt(i * 1e-3, cursor);
     const bool hold = i % kHeldSampleEvery == kHeldSampleEvery / 2;
     full.held_samples += hold;
@@ -454,9 +454,15 @@ void runHeldSampleControl(const runtime::LoadedScene& scene, const std::shared_p
     full.held.add(out.X_WP, X_WP_full);
     if (lag_csv) {
       const runtime::ProxyLag::Gap apart = runtime::ProxyLag::apart(out.X_WP, X_WP_full);
-      *lag_csv << i << ",held-control," << apart.m << ',' << apart.rad << ",0,0\n";
+      *lag_csv << i << ",held-control," << apart.m << ',' << apart.rad << ",,\n";
     }
   }
+}
+
+/// Diagnostics: the folder VH_TABLE1_TICK_CSV names, or nothing when it is not set.
+std::optional<fs::path> tickCsvDir() {
+  const char* dir = std::getenv("VH_TABLE1_TICK_CSV");
+  return dir ? std::optional<fs::path>(dir) : std::nullopt;
 }
 
 /// Diagnostics: VH_TABLE1_TICK_CSV=DIR writes one CSV per scene and mode with every
@@ -465,9 +471,9 @@ void runHeldSampleControl(const runtime::LoadedScene& scene, const std::shared_p
 std::vector<std::unique_ptr<std::ofstream>> openTickCsvs(const std::vector<ModeRun>& runs,
                                                          const std::string& scene_name) {
   std::vector<std::unique_ptr<std::ofstream>> tick_csv;
-  if (const char* dir = std::getenv("VH_TABLE1_TICK_CSV")) {
+  if (const std::optional<fs::path> dir = tickCsvDir()) {
     for (const ModeRun& m : runs) {
-      tick_csv.push_back(std::make_unique<std::ofstream>(fs::path(dir) / (scene_name + "_" + m.variant.key + ".csv")));
+      tick_csv.push_back(std::make_unique<std::ofstream>(*dir / (scene_name + "_" + m.variant.key + ".csv")));
       *tick_csv.back() << "tick,wall_us,cpu_us,contacts,samples,box_queries,tree_nodes,cells,cells_walked,time_of_contact,device_step_m,"
                           "device_step_rad,proxy_device_m,proxy_device_rad,prune_us,solve_us,sweep_us,sweeps,contacts_us,work,"
                           "budget_cut\n";
@@ -581,11 +587,11 @@ void runScene(const runtime::LoadedScene& scene, std::shared_ptr<const haptics::
   const double epsilon_m = runs.front().renderer->epsilon_m();
   double max_mode_difference_m = 0.0, max_before_difference_m = 0.0;
   std::vector<std::unique_ptr<std::ofstream>> tick_csv = openTickCsvs(runs, row["name"].get<std::string>());
-  // With the tick CSVs, each budgeted mode's lag behind its full solve, tick by tick.
+  // With the tick CSVs, each budgeted mode's lag behind its full solve, tick by tick (and the
+  // held-sample control's distance from the full solve, whose behind is left empty).
   std::unique_ptr<std::ofstream> lag_csv;
-  if (!tick_csv.empty()) {
-    lag_csv = std::make_unique<std::ofstream>(fs::path(std::getenv("VH_TABLE1_TICK_CSV")) /
-                                              (row["name"].get<std::string>() + "_lag.csv"));
+  if (const std::optional<fs::path> dir = tickCsvDir()) {
+    lag_csv = std::make_unique<std::ofstream>(*dir / (row["name"].get<std::string>() + "_lag.csv"));
     *lag_csv << "tick,mode,lag_m,lag_rad,behind_m,behind_rad\n";
   }
   // The full solve's proxy on every tick: the held-sample control is compared with it afterwards.
@@ -675,7 +681,9 @@ void runScene(const runtime::LoadedScene& scene, std::shared_ptr<const haptics::
   }
   if (verifier)
     for (ModeRun& m : runs) checkMoves(*verifier, shell_edges, s, epsilon_m, m);
-  if (i_unbudgeted >= 0) runHeldSampleControl(scene, tool, traj, X_WD0, s, ticks, full_solve_poses, runs[static_cast<std::size_t>(i_unbudgeted)], lag_csv.get());
+  if (i_unbudgeted >= 0)
+    runHeldSampleControl(scene, tool, traj, X_WD0, s, full_solve_poses, runs[static_cast<std::size_t>(i_unbudgeted)],
+                         lag_csv.get());
 
   describeSceneRun(row, volume, tool->point_shell.size(), s, epsilon_m, ticks, traj, locations, notes, inside0,
                    penetration_stride, verifier ? verify_step_voxels : 0.0);
