@@ -266,6 +266,28 @@ TEST_P(HapticRendererModes, ReportsStatistics) {
   EXPECT_GT(out.stats.exec_time_us, 0.0);
   EXPECT_LT(out.stats.time_of_contact, 1.0);
   EXPECT_GT(out.stats.contacts, 0);
+  // One sweep at least (steps 3-4), at most three (two re-solves after refined stuck contacts).
+  EXPECT_GE(out.stats.sweeps, 1);
+  EXPECT_LE(out.stats.sweeps, 3);
+  // A rejected device sample runs none.
+  const double nan = std::numeric_limits<double>::quiet_NaN();
+  EXPECT_EQ(r.tick(Pose::FromTranslation({nan, 0.0, 0.0}), 0.0).stats.sweeps, 0);
+}
+
+TEST(HapticRenderer, ATickThatOnlyResumesACutSweepRunsNoNewSweep) {
+  // A work budget too small for one sweep: the first tick sweeps and is cut; the next ones go on
+  // with the same sweep (CollisionDetector::resumeSweep()) and solve nothing new.
+  PlaneScene scene;
+  RendererOptions o;
+  o.detection_mode = DetectionMode::kAccelerated;
+  o.work_budget = 20;
+  o.deadline_us = 0.0;
+  HapticRenderer r(scene.volume, scene.tool, o, Pose::FromTranslation({0, 0, 0.003}), 0.0);
+  const TickOutput first = r.tick(Pose::FromTranslation({0, 0, -0.002}), 0.0);
+  ASSERT_TRUE(first.stats.budget_cut);
+  EXPECT_EQ(first.stats.sweeps, 1);
+  const TickOutput second = r.tick(Pose::FromTranslation({0, 0, -0.002}), 0.0);
+  EXPECT_EQ(second.stats.sweeps, 0);
 }
 
 }  // namespace
