@@ -70,6 +70,9 @@ struct Table1Options {
   int ticks = 0;
   /// Also the large-tool runs (~20,000 points on Bone and Engine); never in short runs.
   bool large_tools = true;
+  /// Run only the rows of this tool: "paper" (the paper's tool), "20000" or "50000" (the
+  /// resampled large tools); empty: all (subject to large_tools).
+  std::string tool_rows;
   /// The accelerated modes' RendererOptions::solver_lanes (cores of the sweep); 0: the
   /// application's for each tool (runtime::solverLanesFor(): runtime::defaultSolverLanes(), one
   /// lane for tools under runtime::kPointsForSeveralLanes points).
