@@ -13,6 +13,10 @@ RigidMotion RigidMotion::FromVelocity(const Pose& X_WT0, const Eigen::Vector3d& 
   m.speed_ = v_W_m.norm();
   m.angle_ = omega_W_rad.norm();
   m.axis_ = m.angle_ > 0.0 ? Eigen::Vector3d(omega_W_rad / m.angle_) : Eigen::Vector3d::UnitX();
+  m.cos_start_ = std::cos(m.angle_ * 0.0);
+  m.sin_start_ = std::sin(m.angle_ * 0.0);
+  m.cos_end_ = std::cos(m.angle_ * 1.0);
+  m.sin_end_ = std::sin(m.angle_ * 1.0);
   return m;
 }
 

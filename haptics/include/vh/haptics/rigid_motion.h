@@ -33,8 +33,20 @@ class RigidMotion {
   Eigen::Vector3d radial_W(const Eigen::Vector3d& p_T_m) const noexcept { return R0_ * (p_T_m - p_TCm_); }
   /// Eq. 2: position at time t of the point with radial vector r0_W.
   Eigen::Vector3d pointAt(const Eigen::Vector3d& r0_W, double t) const noexcept {
-    const double angle = angle_ * t;
-    const double c = std::cos(angle), s = std::sin(angle);
+    // The step's ends, which most sweeps sample for most points, reuse the cosine and sine
+    // computed with the motion (the same doubles).
+    double c, s;
+    if (t == 1.0) {
+      c = cos_end_;
+      s = sin_end_;
+    } else if (t == 0.0) {
+      c = cos_start_;
+      s = sin_start_;
+    } else {
+      const double angle = angle_ * t;
+      c = std::cos(angle);
+      s = std::sin(angle);
+    }
     // Rodrigues' formula about the unit axis k.
     const Eigen::Vector3d rotated = r0_W * c + axis_.cross(r0_W) * s + axis_ * (axis_.dot(r0_W) * (1.0 - c));
     return c0_ + v_ * t + rotated;
@@ -69,6 +81,8 @@ class RigidMotion {
   Eigen::Vector3d omega_ = Eigen::Vector3d::Zero();
   Eigen::Vector3d axis_ = Eigen::Vector3d::UnitX();  // unit rotation axis
   double angle_ = 0.0;                               // |omega|
+  // cos and sin of angle_ * 0 and angle_ * 1 (pointAt() at the step's ends).
+  double cos_start_ = 1.0, sin_start_ = 0.0, cos_end_ = 1.0, sin_end_ = 0.0;
   double speed_ = 0.0;                               // |v|
   Eigen::Quaterniond R0_ = Eigen::Quaterniond::Identity();
   Eigen::Vector3d p_TCm_ = Eigen::Vector3d::Zero();
