@@ -76,6 +76,7 @@ CollisionDetector::CollisionDetector(const ScalarVolume& volume, const ToolModel
     nodes_.reserve(2 * n);
     buildShellTree(0, static_cast<int>(n), 0);
     stack_.resize(nodes_.size() + 1);
+    node_near_.assign(nodes_.size(), 0);
     active_.resize(n);
     setLanesPartition(1);
   }
@@ -531,7 +532,8 @@ bool CollisionDetector::runMayHit(WorkCounters& w, const RigidMotion& motion, in
 }
 
 bool CollisionDetector::runFreeAlongItsDirection(WorkCounters& w, const RigidMotion& motion, int j, double t0,
-                                                 double t1, double isovalue) const noexcept {
+                                                 double t1, double isovalue, const Eigen::Vector3d* ranges_lo,
+                                                 const Eigen::Vector3d* ranges_hi, bool* within_a_voxel) const noexcept {
   // The run's arc lies within its sagitta delta = rho (angle (t1 - t0))^2 / 8 of its chord a -> b
   // at the same parameter (the interpolation error bound, as setupPath()), so in the box of the
   // chord dilated by delta per grid axis. There F's derivative per grid step along axis i is
@@ -547,16 +549,24 @@ bool CollisionDetector::runFreeAlongItsDirection(WorkCounters& w, const RigidMot
   const Eigen::Vector3d bulge =
       (motion.radiusAboutAxis(pt_[j].r0) * turn * turn / 8.0 * (1.0 + 1e-9) + 1e-12) * grid_per_m_;
   Eigen::Vector3d lo, hi;
-  if (!volume_->gridStepRange(a.cwiseMin(b) - bulge, a.cwiseMax(b) + bulge, lo, hi)) return false;
+  if (ranges_lo) {
+    lo = *ranges_lo;
+    hi = *ranges_hi;
+  } else if (!volume_->gridStepRange(a.cwiseMin(b) - bulge, a.cwiseMax(b) + bulge, lo, hi)) {
+    return false;
+  }
   const Eigen::Vector3d d = b - a;
-  double rise = 0.0, off_chord = 0.0, size = 0.0;
+  double rise = 0.0, off_chord = 0.0, size = 0.0, voxel_rise = 0.0;
   for (int i = 0; i < 3; ++i) {
     const double steepest = std::max(std::abs(lo[i]), std::abs(hi[i]));
     rise += std::max(lo[i] * d[i], hi[i] * d[i]);
     off_chord += bulge[i] * steepest;
     size += steepest * std::abs(d[i]);
+    voxel_rise += steepest;
   }
   const double f0 = volume_->sample(p0_W);
+  // A hint, not a proof: F could reach the isovalue within a grid step along each axis.
+  if (within_a_voxel) *within_a_voxel = f0 + voxel_rise >= isovalue;
   const double tolerance = 1e-9 * (std::abs(isovalue) + std::abs(f0) + size + off_chord) + 1e-300;
   return f0 + std::max(0.0, rise) + off_chord + tolerance < isovalue;
 }
@@ -773,6 +783,12 @@ std::size_t CollisionDetector::collectActive(Lane& lane, const RigidMotion& moti
   // further travel (addContactsAt's look-ahead), lie in bricks that cannot hold an inside point
   // is skipped. A point at r = r_c + d (|d| <= node radius) stays within t_max path(r_c) / 2 +
   // radius of the node centre's position at t_max / 2.
+  // The ball in W about the node centre's position at t_max / 2 that holds all its points' arcs.
+  const auto nodeBall = [&](const ShellNode& node, Eigen::Vector3d& centre_W) {
+    const Eigen::Vector3d r_c = motion.radial_W(node.center_T_m);
+    centre_W = c_mid + R_mid * r_c;
+    return (0.5 * t_max * motion.pathLengthBound(r_c) + node.radius_m + epsilon_) * (1.0 + 1e-9) + 1e-12;
+  };
   std::size_t count = 0;
   int top = 0;
   int* const stack = lane.stack.data();
@@ -783,6 +799,7 @@ std::size_t CollisionDetector::collectActive(Lane& lane, const RigidMotion& moti
   } else {
     lane.active_count = 0;
     lane.walk_root = 0;
+    lane.walk_logged = 0;
   }
   lane.walk_stopped = false;
   // The lane's roots one after the other (the order of pushing them all at once), each one's
@@ -791,7 +808,10 @@ std::size_t CollisionDetector::collectActive(Lane& lane, const RigidMotion& moti
   for (;;) {
     if (top == 0) {
       if (balanced_lanes_ && lane.walk_root > 0) chargeRoot(lane, lane.root_ranks[lane.walk_root - 1], mark);
-      if (lane.walk_root == lane.roots.size()) break;
+      if (lane.walk_root == lane.roots.size()) {
+        markNearNodes(lane);
+        break;
+      }
       stack[top++] = lane.roots[lane.walk_root++];
     }
     if (overBudget(lane)) {
@@ -801,21 +821,42 @@ std::size_t CollisionDetector::collectActive(Lane& lane, const RigidMotion& moti
       lane.walk_count = count;
       return count;
     }
-    const ShellNode& node = nodes_[stack[--top]];
-    const Eigen::Vector3d r_c = motion.radial_W(node.center_T_m);
-    const double radius =
-        (0.5 * t_max * motion.pathLengthBound(r_c) + node.radius_m + epsilon_) * (1.0 + 1e-9) + 1e-12;
-    // Culled points are not touched at all (addContactsAt visits only the active ones).
-    if (!ballMayBeInside(k, c_mid + R_mid * r_c, radius, isovalue, sweep_sagitta_)) continue;
+    const int node_index = stack[--top];
+    const ShellNode& node = nodes_[node_index];
+    // A node near the surface in the last walk is let through unasked (node_near_; a leaf only
+    // in a walk that tests its points one by one).
+    if (!node_near_[node_index] || (node.left < 0 && !queue)) {
+      Eigen::Vector3d centre_W;
+      const double radius = nodeBall(node, centre_W);
+      // Culled points are not touched at all (addContactsAt visits only the active ones).
+      if (!ballMayBeInside(k, centre_W, radius, isovalue, sweep_sagitta_)) {
+        lane.walk_log[lane.walk_logged++] = ~node_index;
+        continue;
+      }
+    }
+    const std::size_t logged = lane.walk_logged++;
+    lane.walk_log[logged] = node_index;
     if (node.left >= 0) {
       stack[top++] = node.right;
       stack[top++] = node.left;
       continue;
     }
+    // Tested one by one, a leaf is near when one of its points is not culled by its own test.
+    if (queue) lane.walk_log[logged] = ~node_index;
+    // F's steps per grid axis over the leaf's ball, for its points' direction tests: one read
+    // of the step bricks per leaf instead of one per point. The ball holds every point's arc
+    // over [0, t_max], and so its chord and the straight lines from the chord to the arc that
+    // runFreeAlongItsDirection() bounds F along (the ball is convex). 0: not read yet; -1: the
+    // ball leaves the grid (each point then reads its own).
+    int leaf_ranges = 0;
+    Eigen::Vector3d leaf_lo, leaf_hi;
     for (int i = node.begin; i < node.end; ++i) {
       const int j = order_[i];
       lane.active[lane.active_count++] = j;
-      if (started_[j] == sweep_stamp_) continue;  // a contact point: started (and queued) already
+      if (started_[j] == sweep_stamp_) {  // a contact point: started (and queued) already
+        lane.walk_log[logged] = node_index;
+        continue;
+      }
       startPoint(k, motion, j);
       if (!queue || embedded_[j] || !(pt_[j].path > 0.0)) continue;
       // A point whose walk met the surface last sweep (near_surface) is walked at once: its
@@ -826,10 +867,24 @@ std::size_t CollisionDetector::collectActive(Lane& lane, const RigidMotion& moti
       if (near) {
         // Unless its whole path is proven free by F at its start and the most F can rise along
         // it: a point gliding along a wall or leaving it is neither walked nor queued.
-        if (runFreeAlongItsDirection(k, motion, j, 0.0, t_max, isovalue)) {
+        if (leaf_ranges == 0) {
+          Eigen::Vector3d centre_W;
+          const double radius = nodeBall(node, centre_W);
+          const Eigen::Vector3d g = volume_->gridCoordinates(centre_W);
+          const Eigen::Vector3d half = (radius * grid_per_m_).array() + 1e-6;  // as ballMayBeInside()
+          leaf_ranges = volume_->gridStepRange(g - half, g + half, leaf_lo, leaf_hi) ? 1 : -1;
+        }
+        bool within_a_voxel = false;
+        if (runFreeAlongItsDirection(k, motion, j, 0.0, t_max, isovalue, leaf_ranges > 0 ? &leaf_lo : nullptr,
+                                     leaf_ranges > 0 ? &leaf_hi : nullptr, &within_a_voxel)) {
           pt_[j].clear_until = t_max;
+          // Still within about a voxel of the surface: the same test next sweep, where its
+          // ball would only say "may hit" and a walk follow; farther, the ball culls it.
+          pt_[j].near_surface = within_a_voxel ? 1 : 0;
+          if (within_a_voxel) lane.walk_log[logged] = node_index;
           continue;
         }
+        lane.walk_log[logged] = node_index;
         startSearch(j);
         heap[count++] = {0.0, j, 0, pt_[j].segments == 1 ? 0 : -1};
         continue;
@@ -843,11 +898,28 @@ std::size_t CollisionDetector::collectActive(Lane& lane, const RigidMotion& moti
         continue;
       }
       // One segment: sample it; several: resolved lazily, in time order.
+      lane.walk_log[logged] = node_index;
       startSearch(j);
       heap[count++] = {0.0, j, 0, pt_[j].segments == 1 ? 0 : 1};
     }
   }
   return count;
+}
+
+void CollisionDetector::markNearNodes(Lane& lane) noexcept {
+  // Backwards through the walk's preorder: a node's children (both logged after it whenever it
+  // was passed on) are marked before it.
+  for (std::size_t e = lane.walk_logged; e-- > 0;) {
+    const int logged = lane.walk_log[e];
+    if (logged < 0) {
+      node_near_[static_cast<std::size_t>(~logged)] = 0;
+      continue;
+    }
+    const ShellNode& node = nodes_[static_cast<std::size_t>(logged)];
+    node_near_[static_cast<std::size_t>(logged)] =
+        node.left < 0 ? 1 : static_cast<std::uint8_t>(node_near_[node.left] | node_near_[node.right]);
+  }
+  lane.walk_logged = 0;
 }
 
 void CollisionDetector::startLaneWork(Lane& lane) const noexcept {
@@ -923,6 +995,8 @@ void CollisionDetector::setLanesPartition(int lanes) {
     l.heap.resize(std::max<std::size_t>(room, 1));
     l.active.resize(std::max<std::size_t>(room, 1));
     l.stack.resize(nodes_.size() + 1);
+    l.walk_log.resize(nodes_.size() + 1);
+    l.walk_logged = 0;
   }
   frontier_ = std::move(frontier);
 }

@@ -217,6 +217,93 @@ TEST_P(CollisionDetectorModes, AGlideAlongAFloorIsProvenFreeByItsDirectionAndSto
   EXPECT_GE(p.x(), wall_x_m - fresh.epsilon_m());
 }
 
+// Temporal coherence of the point-shell tree's walk: a 20 x 20 x 2 mm plate (about 1,200 points)
+// gliding 0.3 mm over a plane, 0.3 mm a sweep. Its bottom face lies within a brick of the
+// surface, so every upper node's ball holds it: the first sweep asks the min-max tree about each
+// of them; later sweeps let the nodes found near the surface through unasked and prove the
+// face's points free along their direction. What they still ask is about the points of the
+// plate's sides and top, within the plane's 4 mm brick, each about its own path (526 against
+// 1,509 on the first sweep, 979 when every node is asked). Lifted 20 mm, the plate is asked
+// about again and culled at the root by the third sweep up there. Every sweep gives the paper
+// path's answer (no hit, the same double), the oracle for what a skipped question must never
+// change. Fails with the walk asking every node, or with near nodes never asked again.
+TEST(CollisionDetector, AGlidingToolsWalkAsksOnlyWhereTheSurfaceMayHaveMoved) {
+  const ScalarVolume vol = datasets::makePlaneVolume(test::grid1mm(), Eigen::Vector3d::UnitZ(), 0.0);
+  const auto tool = test::meshTool(datasets::makeBoxMesh({0.01, 0.01, 0.001}), 0.7e-3);
+  ASSERT_GT(tool->point_shell.size(), 1000u);
+  CollisionDetector paper(vol, *tool, 0.0, 256, DetectionMode::kPaper);
+  CollisionDetector fast(vol, *tool, 0.0, 256, DetectionMode::kAccelerated);
+  Pose X = Pose::FromTranslation({-0.006, 0.0, 0.001 + 0.0003});
+  std::vector<std::int64_t> queries;
+  const auto move = [&](const Eigen::Vector3d& d_m) {
+    const Pose next = Pose::FromTranslation(X.p_AB_m + d_m);
+    const RigidMotion motion = RigidMotion::Between(X, next, tool->mass.p_TCm_m);
+    fast.resetSampleCount();
+    const SweepResult rp = paper.sweep(motion, 0.0), rf = fast.sweep(motion, 0.0);
+    EXPECT_EQ(rf.hit_point, rp.hit_point);
+    EXPECT_EQ(rf.t, rp.t);
+    queries.push_back(fast.boxQueryCount());
+    X = next;
+  };
+  for (int i = 0; i < 30; ++i) move({0.0003, 0.0, 0.0});
+  const std::int64_t first = queries.front();
+  std::int64_t later_max = 0;
+  for (std::size_t i = 2; i < queries.size(); ++i) later_max = std::max(later_max, queries[i]);
+  std::cout << "glide: box queries first sweep " << first << ", later sweeps at most " << later_max << ":";
+  for (const std::int64_t q : queries) std::cout << " " << q;
+  std::cout << "\n";
+  EXPECT_GT(first, 100);
+  EXPECT_LT(later_max * 5, first * 2) << "the walk asked again about the nodes near the surface";
+  move({0.0, 0.0, 0.02});  // lifted: the nodes near the plane are let through once more
+  move({0.0003, 0.0, 0.0});
+  move({0.0003, 0.0, 0.0});
+  std::cout << "lifted: box queries " << queries[queries.size() - 3] << ", " << queries[queries.size() - 2] << ", "
+            << queries.back() << "\n";
+  EXPECT_LE(queries.back(), 2) << "the lifted plate was not culled at the root again";
+  ::testing::Test::RecordProperty("first_sweep_box_queries", static_cast<int>(first));
+  ::testing::Test::RecordProperty("later_sweeps_box_queries_max", static_cast<int>(later_max));
+}
+
+// A plate of points gliding 0.3 mm over a floor into a one-voxel wall (test::floorAndWallVolume()),
+// 0.5 mm a sweep: near the floor its points are proven free along their direction with F's steps
+// read once per point-shell leaf, over the leaf's ball. Those steps are looser than a point's
+// own, never wrong: every sweep gives the paper path's first time of contact (the same double),
+// and the plate stops before the wall, within epsilon, never in it.
+TEST(CollisionDetector, ALeafsStepsProveAGlideFreeAndStillStopAtTheWall) {
+  const ScalarVolume vol = test::floorAndWallVolume();
+  const auto tool = test::meshTool(datasets::makeBoxMesh({0.003, 0.003, 0.0005}), 0.5e-3);
+  ASSERT_GT(tool->point_shell.size(), 100u);
+  CollisionDetector paper(vol, *tool, 0.0, 256, DetectionMode::kPaper);
+  CollisionDetector fast(vol, *tool, 0.0, 256, DetectionMode::kAccelerated);
+  const double floor_z_m = 20.5e-3;
+  Pose X = Pose::FromTranslation({8e-3, 12e-3, floor_z_m + 0.0005 + 0.00005});
+  bool stopped = false;
+  std::int64_t glide_cells = 0;
+  for (int tick = 0; tick < 80 && !stopped; ++tick) {
+    const Pose next = Pose::FromTranslation(X.p_AB_m + Eigen::Vector3d(0.5e-3, 0.0, 0.0));
+    const RigidMotion motion = RigidMotion::Between(X, next, tool->mass.p_TCm_m);
+    fast.resetSampleCount();
+    const SweepResult rp = paper.sweep(motion, 128.0), rf = fast.sweep(motion, 128.0);
+    ASSERT_EQ(rf.t, rp.t) << "tick " << tick;
+    if (rp.hit_point < 0) {
+      if (tick >= 2 && next.p_AB_m.x() + 0.003 < 28.5e-3) glide_cells += fast.cellCount();  // bricks clear of the wall's
+      X = next;
+      continue;
+    }
+    stopped = true;
+    // The plate's leading face (x + 3 mm) stops before the wall's isosurface, which lies at
+    // x = 39.38 mm at the bottom face's height (F = 51 on the floor there) and 39.50 mm above
+    // z = 21 mm, and no point of the plate is inside.
+    const double front_x_m = motion.poseAt(rf.t).p_AB_m.x() + 0.003;
+    EXPECT_LT(front_x_m, 39.51e-3);
+    EXPECT_GT(front_x_m, 39.37e-3 - 1e-3) << "stopped more than a step before the wall";
+    for (const Eigen::Vector3d& p_T : tool->point_shell.points_T_m())
+      EXPECT_FALSE(vol.isInside(motion.poseAt(rf.t) * p_T, 128.0));
+  }
+  EXPECT_TRUE(stopped) << "went through the wall";
+  EXPECT_EQ(glide_cells, 0) << "the glide over the floor walked cells";
+}
+
 // A tool resting on a plane and pushed into it is blocked at t = 0 by its own contacts: the
 // accelerated sweep tests the contact points first and stops there, without walking the
 // point-shell tree (no box query); the time of contact and the contact set added afterwards

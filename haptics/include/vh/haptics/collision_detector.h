@@ -357,6 +357,10 @@ class CollisionDetector {
     std::vector<int> roots;           // point-shell tree nodes it walks, in order
     std::vector<QueueEntry> heap;     // capacity: its points
     std::vector<int> stack;           // traversal stack, capacity = nodes
+    // collectActive(): the nodes its walk reached, in walk order (~node when culled), capacity =
+    // nodes; read backwards when the walk is done, to mark the nodes it found near the surface.
+    std::vector<int> walk_log;
+    std::size_t walk_logged = 0;
     std::vector<int> active;          // its points not culled by the walk, capacity: its points
     std::size_t active_count = 0;
     std::size_t queued = 0;           // heap entries of the contact pass (at the front)
@@ -398,6 +402,8 @@ class CollisionDetector {
   };
   PendingSweep pending_;
   int buildShellTree(int begin, int end, int depth);
+  // After a lane's walk: node_near_ of the nodes it reached, from its walk_log, leaves first.
+  void markNearNodes(Lane& lane) noexcept;
   // Walks the point-shell tree below node `root` depth first, left before right, on `stack`
   // (capacity: the nodes): a node for which may_hold(node) is false is skipped with all below
   // it; visit(j) is called on each point of the leaves reached, in tree order, and ends the walk
@@ -414,9 +420,14 @@ class CollisionDetector {
   bool runMayHit(WorkCounters& w, const RigidMotion& motion, int j, std::int64_t k, std::int64_t run,
                  double isovalue) noexcept;
   // True when point j's arc over [t0, t1] is proven free by F at its start and the most F can
-  // rise along its direction (ScalarVolume::gridStepRange()); false proves nothing.
+  // rise along its direction (ScalarVolume::gridStepRange() over the box of its chord dilated by
+  // the arc's sagitta, or ranges_lo/hi when given: F's steps over a convex region that holds
+  // the arc, such as its point-shell leaf's ball); false proves nothing. within_a_voxel, when
+  // given: whether F at the start plus one grid step's steepest rise per axis reaches the
+  // isovalue (the surface may be about a voxel away; a hint for the next sweep).
   bool runFreeAlongItsDirection(WorkCounters& w, const RigidMotion& motion, int j, double t0, double t1,
-                                double isovalue) const noexcept;
+                                double isovalue, const Eigen::Vector3d* ranges_lo = nullptr,
+                                const Eigen::Vector3d* ranges_hi = nullptr, bool* within_a_voxel = nullptr) const noexcept;
   bool inside(const Eigen::Vector3d& p_W, double isovalue) noexcept;
   // r0, path, segments, segment time and arc margin of point j for `motion` (both modes).
   void setupPath(WorkCounters& k, const RigidMotion& motion, int j) noexcept;
@@ -557,9 +568,10 @@ class CollisionDetector {
     double clear_until = 0.0;       // kAccelerated: proven outside over [0, clear_until] of the last sweep
     std::int32_t segments = 0;      // kAccelerated: segment count of the last sweep
     // kAccelerated: the last sweep's exact walk of this point examined a cell (a cell with a
-    // corner above the threshold: the surface is within a voxel of its path). The next sweep
-    // then walks it without first asking the min-max tree about its path's ball, which near the
-    // surface only says "may hit" (a point resting on the surface, or sliding along it).
+    // corner above the threshold: the surface is within a voxel of its path), or a near point's
+    // path was proven free along its direction. The next sweep then tests it along its
+    // direction and walks it without first asking the min-max tree about its path's ball, which
+    // near the surface only says "may hit" (a point resting on the surface, or sliding along it).
     std::uint8_t near_surface = 0;
   };
   static_assert(sizeof(PointState) == 64, "one cache line per point");
@@ -590,6 +602,15 @@ class CollisionDetector {
   std::vector<QueueEntry> heap_;         // kPaper's queue, capacity = number of points
   // kAccelerated state (see haptics/README.md, "Speed").
   std::vector<ShellNode> nodes_;         // point-shell tree, root at 0
+  // Per node of nodes_ (temporal coherence): 1 when the last walk that reached it found a point
+  // below it near the surface (in a walk that tests points one by one: a point its own test did
+  // not cull; else a leaf its ball test let through). The next walk lets such a node through
+  // without asking the min-max tree: near the surface the answer seldom changes from one tick
+  // to the next, and a node let through that its ball would have culled costs only its
+  // children's (or its points') own tests, which cull what it would have. The walk reaches a
+  // superset of the points, each proven free or searched as before, so the first time of
+  // contact is the same double. Written by the lane that walks the node (markNearNodes()).
+  std::vector<std::uint8_t> node_near_;
   std::vector<int> order_;               // point indices in tree order
   std::vector<int> stack_;               // traversal stack of the caller's walks, capacity = nodes
   std::vector<int> active_;              // addContactsAt(): the lanes' active points it keeps, capacity = points
