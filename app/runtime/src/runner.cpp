@@ -275,6 +275,8 @@ void reportLag(RunReport& r, const ProxyLag& lag) {
   r.lag_ticks = lag.ticks;
   r.max_lag_m = lag.max_m;
   r.max_lag_rad = lag.max_rad;
+  r.max_behind_m = lag.max_behind_m;
+  r.max_behind_rad = lag.max_behind_rad;
 }
 
 /// The tick-time statistics and the means over the run's `n` ticks (sorts `times_us`).
@@ -409,7 +411,7 @@ RunReport runHeadless(const LoadedScene& scene, const Trajectory& trajectory, co
     times_us.push_back(out.stats.exec_time_us);
     if (reference && sample_ok) {
       const haptics::TickOutput ref = reference->tick(sample.X_WD, isovalue);
-      if (ref.X_WP.allFinite() && out.X_WP.allFinite()) lag.add(out.X_WP, ref.X_WP);
+      if (ref.X_WP.allFinite() && out.X_WP.allFinite()) lag.add(out.X_WP, ref.X_WP, sample.X_WD);
     }
     addTickCounts(r, out, command_W_N, i, sample_ok, contact_sum, samples_sum);
     const bool finite = out.force_W_N.allFinite() && out.torque_W_Nm.allFinite() && out.X_WP.allFinite();
@@ -536,6 +538,8 @@ std::string RunReport::toJson() const {
   j["lag_ticks"] = lag_ticks >= 0 ? nlohmann::ordered_json(lag_ticks) : nlohmann::ordered_json(nullptr);
   j["max_lag_m"] = max_lag_m >= 0.0 ? nlohmann::ordered_json(max_lag_m) : nlohmann::ordered_json(nullptr);
   j["max_lag_rad"] = max_lag_rad >= 0.0 ? nlohmann::ordered_json(max_lag_rad) : nlohmann::ordered_json(nullptr);
+  j["max_behind_m"] = lag_ticks >= 0 ? nlohmann::ordered_json(max_behind_m) : nlohmann::ordered_json(nullptr);
+  j["max_behind_rad"] = lag_ticks >= 0 ? nlohmann::ordered_json(max_behind_rad) : nlohmann::ordered_json(nullptr);
   j["segments"] = nlohmann::ordered_json::array();
   for (const SegmentContact& c : segment_contacts) {
     j["segments"].push_back({{"name", c.name},
@@ -596,8 +600,10 @@ std::string RunReport::summary() const {
                   static_cast<long long>(max_work));
     out += line;
     if (lag_ticks >= 0) {
-      std::snprintf(line, sizeof line, ", lag behind the unbudgeted proxy %.3f mm, %.4f rad (%lld ticks)",
-                    max_lag_m * 1e3, max_lag_rad, static_cast<long long>(lag_ticks));
+      std::snprintf(line, sizeof line,
+                    ", lag behind the unbudgeted proxy %.3f mm, %.4f rad (%lld ticks), behind %.3f mm, %.4f rad",
+                    max_lag_m * 1e3, max_lag_rad, static_cast<long long>(lag_ticks), max_behind_m * 1e3,
+                    max_behind_rad);
       out += line;
     }
   }

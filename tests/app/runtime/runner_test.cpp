@@ -75,6 +75,12 @@ void expectSoundRun(const RunReport& r, const Trajectory& trajectory, const std:
   EXPECT_LE(static_cast<std::uint64_t>(r.lag_ticks), r.ticks);
   EXPECT_GE(r.max_lag_m, 0.0);
   EXPECT_GE(r.max_lag_rad, 0.0);
+  // Behind: the extra distance to the device, never more than how far apart the proxies are
+  // (the triangle inequality), and not negative (0 on a tick where they agree).
+  EXPECT_GE(r.max_behind_m, 0.0);
+  EXPECT_GE(r.max_behind_rad, 0.0);
+  EXPECT_LE(r.max_behind_m, r.max_lag_m + 1e-12);
+  EXPECT_LE(r.max_behind_rad, r.max_lag_rad + 1e-12);
   if (r.budget_cuts == 0) {
     EXPECT_EQ(r.lag_ticks, 0) << "no tick cut, yet the proxy differs from the unbudgeted one";
   }
@@ -269,10 +275,13 @@ TEST(Runner, CrossingCheckOffIsReportedAsNotCheckedNotAsZero) {
   EXPECT_EQ(j["verify_step_voxels"].get<double>(), 0.0);
   // The lag reference ran (the default); without it the lag is null, not 0.
   EXPECT_TRUE(j["lag_ticks"].is_number());
+  EXPECT_TRUE(j["max_behind_m"].is_number());
+  EXPECT_TRUE(j["max_behind_rad"].is_number());
   options.lag_reference = false;
   const nlohmann::json j2 = nlohmann::json::parse(runHeadless(scene, plan.trajectory, options).toJson());
   EXPECT_TRUE(j2["lag_ticks"].is_null());
   EXPECT_TRUE(j2["max_lag_m"].is_null());
+  EXPECT_TRUE(j2["max_behind_m"].is_null());
   EXPECT_EQ(j2["work_budget"].get<std::int64_t>(), haptics::RendererOptions::kDefaultWorkBudget);
 
   options.verify_step_voxels = -1.0;

@@ -222,6 +222,10 @@ struct RunReport {
   /// proxy pose differed, and the largest distance of the tool origins [m] and angle [rad].
   std::int64_t lag_ticks = -1;
   double max_lag_m = -1.0, max_lag_rad = -1.0;
+  /// Against the same run (else -1): how much farther from the device the budgeted proxy was
+  /// than the unbudgeted one at most [m], [rad] (ProxyLag::behind(): the coupling spring's extra
+  /// stretch; at most the lag).
+  double max_behind_m = -1.0, max_behind_rad = -1.0;
 
   /// True when the crossing check ran (verify_step_voxels > 0).
   bool crossingsChecked() const noexcept { return verify_step_voxels > 0.0; }
