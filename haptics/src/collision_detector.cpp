@@ -464,18 +464,26 @@ int CollisionDetector::buildShellTree(int begin, int end, int depth) {
   return index;
 }
 
-bool CollisionDetector::ballMayBeInside(WorkCounters& k, const Eigen::Vector3d& center_W_m, double radius_m,
-                                        double isovalue, double arc_sagitta_m) const noexcept {
-  ++k.box_queries;
-  const Eigen::Vector3d g = volume_->gridCoordinates(center_W_m);
+void CollisionDetector::ballGridBox(const Eigen::Vector3d& centre_W_m, double radius_m, Eigen::Vector3d& lo_ijk,
+                                    Eigen::Vector3d& hi_ijk) const noexcept {
+  const Eigen::Vector3d g = volume_->gridCoordinates(centre_W_m);
   // A W ball maps to an ellipsoid with half-axes radius / spacing along the grid axes (the
   // direction matrix is orthonormal); 1e-6 voxel covers the rounding of both paths.
   const Eigen::Vector3d half = (radius_m * grid_per_m_).array() + 1e-6;
+  lo_ijk = g - half;
+  hi_ijk = g + half;
+}
+
+bool CollisionDetector::ballMayBeInside(WorkCounters& k, const Eigen::Vector3d& center_W_m, double radius_m,
+                                        double isovalue, double arc_sagitta_m) const noexcept {
+  ++k.box_queries;
+  Eigen::Vector3d lo, hi;
+  ballGridBox(center_W_m, radius_m, lo, hi);
   int nodes_read = 0;
   double without_arc = 0.0, arc = 0.0;
   // The tree stops reading at the first node above the isovalue (the box itself may then hold
   // the surface: only the arc term is left unknown, 0 here, and computed below where needed).
-  bool may_be_inside = volume_->upperBoundInBox(g - half, g + half, &nodes_read, arc_sagitta_m, &without_arc, &arc,
+  bool may_be_inside = volume_->upperBoundInBox(lo, hi, &nodes_read, arc_sagitta_m, &without_arc, &arc,
                                                 isovalue == stop_isovalue_ ? tree_stop_ : MinMaxTree::RawStop{}) > isovalue;
   // Stopped, the tree leaves the arc term at 0: a non-zero one is the whole query's already
   // (always so for a box within one brick, which the tree reads whole).
@@ -488,7 +496,7 @@ bool CollisionDetector::ballMayBeInside(WorkCounters& k, const Eigen::Vector3d& 
     // empty (as the segment test's own second criterion), where the Lipschitz bubble of a wild
     // outlier (a -3e38 "no data" border) cannot.
     ++k.box_queries;
-    may_be_inside = volume_->upperBoundInBox(g - half - Eigen::Vector3d::Ones(), g + half + Eigen::Vector3d::Ones(),
+    may_be_inside = volume_->upperBoundInBox(lo - Eigen::Vector3d::Ones(), hi + Eigen::Vector3d::Ones(),
                                              &nodes_read) > isovalue;
     k.tree_nodes += nodes_read;
   }
@@ -496,20 +504,20 @@ bool CollisionDetector::ballMayBeInside(WorkCounters& k, const Eigen::Vector3d& 
     // The bricks hold the surface; a small box (a voxel or two from it) may still be clear of
     // it: its own voxels decide (the same two criteria, at one voxel's resolution).
     int voxels = 0;
-    const double own = volume_->voxelUpperBoundInBox(g - half, g + half, kVoxelQueryMax, &voxels);
+    const double own = volume_->voxelUpperBoundInBox(lo, hi, kVoxelQueryMax, &voxels);
     if (voxels > 0) {
       ++k.voxel_queries;
       k.voxels += voxels;
       if (arc_unknown && own <= isovalue) {  // the arc term decides: the whole tree query
         ++k.box_queries;
-        volume_->upperBoundInBox(g - half, g + half, &nodes_read, arc_sagitta_m, nullptr, &arc);
+        volume_->upperBoundInBox(lo, hi, &nodes_read, arc_sagitta_m, nullptr, &arc);
         k.tree_nodes += nodes_read;
       }
       may_be_inside = own + arc > isovalue;
       if (may_be_inside && arc_sagitta_m > 0.0 && own <= isovalue) {
         ++k.voxel_queries;
-        may_be_inside = volume_->voxelUpperBoundInBox(g - half - Eigen::Vector3d::Ones(),
-                                                      g + half + Eigen::Vector3d::Ones(), 8 * kVoxelQueryMax,
+        may_be_inside = volume_->voxelUpperBoundInBox(lo - Eigen::Vector3d::Ones(),
+                                                      hi + Eigen::Vector3d::Ones(), 8 * kVoxelQueryMax,
                                                       &voxels) > isovalue;
         k.voxels += voxels;
       }
@@ -868,11 +876,10 @@ std::size_t CollisionDetector::collectActive(Lane& lane, const RigidMotion& moti
         // Unless its whole path is proven free by F at its start and the most F can rise along
         // it: a point gliding along a wall or leaving it is neither walked nor queued.
         if (leaf_ranges == 0) {
-          Eigen::Vector3d centre_W;
+          Eigen::Vector3d centre_W, box_lo, box_hi;
           const double radius = nodeBall(node, centre_W);
-          const Eigen::Vector3d g = volume_->gridCoordinates(centre_W);
-          const Eigen::Vector3d half = (radius * grid_per_m_).array() + 1e-6;  // as ballMayBeInside()
-          leaf_ranges = volume_->gridStepRange(g - half, g + half, leaf_lo, leaf_hi) ? 1 : -1;
+          ballGridBox(centre_W, radius, box_lo, box_hi);
+          leaf_ranges = volume_->gridStepRange(box_lo, box_hi, leaf_lo, leaf_hi) ? 1 : -1;
         }
         bool within_a_voxel = false;
         if (runFreeAlongItsDirection(k, motion, j, 0.0, t_max, isovalue, leaf_ranges > 0 ? &leaf_lo : nullptr,

@@ -412,6 +412,9 @@ class CollisionDetector {
   bool walkShellTree(int* stack, int root, MayHold&& may_hold, Visit&& visit) const noexcept;
   // False when no point of the W ball (centre, radius), nor within arc_sagitta_m of it, can be
   // inside (min-max tree bound with the local Lipschitz bounds).
+  // The box in grid coordinates [voxels] that holds the ball of radius_m [m] about centre_W_m (W).
+  void ballGridBox(const Eigen::Vector3d& centre_W_m, double radius_m, Eigen::Vector3d& lo_ijk,
+                   Eigen::Vector3d& hi_ijk) const noexcept;
   bool ballMayBeInside(WorkCounters& k, const Eigen::Vector3d& center_W_m, double radius_m, double isovalue,
                        double arc_sagitta_m = 0.0) const noexcept;
   // Start time of segment k of point j (the same double the paper path computes).
