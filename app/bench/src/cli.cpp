@@ -84,7 +84,7 @@ CLI::App* addBenchSubcommand(CLI::App& app, std::function<int()>& handler) {
   t1->add_flag("!--no-large-tools", table1->large_tools, "Skip the 20,000- and 50,000-point tool runs");
   t1->add_option("--tool-rows", table1->tool_rows,
                  "Only the rows of this tool: paper (the paper's tool), 20000 or 50000 (the large tools on Bone and Engine)")
-      ->check(CLI::IsMember({"paper", "20000", "50000"}));
+      ->check(CLI::IsMember(std::vector<std::string>(Table1Options::kToolRows.begin(), Table1Options::kToolRows.end())));
   t1->add_option("--lanes", table1->lanes,
                  "Cores the accelerated modes' sweep runs on (RendererOptions::solver_lanes); 0: the application's "
                  "default (hardware threads less two, 1 to 8; one lane for tools under " +

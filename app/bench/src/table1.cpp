@@ -1237,8 +1237,8 @@ fs::path runTable1(const Table1Options& options) {
   for (const SceneDef& def : defs) {
     for (int large = 0; large < 3; ++large) {
       if (large && (short_run || !options.large_tools || (def.name != "Bone" && def.name != "Engine"))) continue;
-      static const char* const kToolRows[3] = {"paper", "20000", "50000"};
-      if (!options.tool_rows.empty() && options.tool_rows != kToolRows[large]) continue;
+      if (!options.tool_rows.empty() && options.tool_rows != Table1Options::kToolRows[static_cast<std::size_t>(large)])
+        continue;
       nlohmann::ordered_json row;
       std::vector<Series> series;
       if (runTableRow(def, large, variants_for, ticks, locations, options.verify_step_voxels, row, series))

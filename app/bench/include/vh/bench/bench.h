@@ -16,6 +16,7 @@
 /// skipped with a message when no X display is available) into an output folder.
 /// Not part of the servo loop: allocates, prints and throws freely.
 
+#include <array>
 #include <filesystem>
 #include <functional>
 #include <string>
@@ -70,9 +71,11 @@ struct Table1Options {
   int ticks = 0;
   /// Also the large-tool runs (~20,000 points on Bone and Engine); never in short runs.
   bool large_tools = true;
-  /// Run only the rows of this tool: "paper" (the paper's tool), "20000" or "50000" (the
-  /// resampled large tools); empty: all (subject to large_tools).
+  /// Run only the rows of this tool, one of kToolRows: "paper" (the paper's tool), "20000" or
+  /// "50000" (the resampled large tools); empty: all (subject to large_tools).
   std::string tool_rows;
+  /// The values of tool_rows, in table order (index 0: the paper's tool, 1 and 2: the large ones).
+  static constexpr std::array<const char*, 3> kToolRows = {"paper", "20000", "50000"};
   /// The accelerated modes' RendererOptions::solver_lanes (cores of the sweep); 0: the
   /// application's for each tool (runtime::solverLanesFor(): runtime::defaultSolverLanes(), one
   /// lane for tools under runtime::kPointsForSeveralLanes points).
