@@ -95,6 +95,12 @@ CollisionDetector::CollisionDetector(const ScalarVolume& volume, const ToolModel
     for (int e = edges_.offsets[j]; e < edges_.offsets[j + 1]; ++e)
       edge_reach_m_[j] = std::max(edge_reach_m_[j], (tool.point_shell.points_T_m()[static_cast<std::size_t>(edges_.targets[e])] -
                                                      tool.point_shell.points_T_m()[j]).norm());
+  node_edge_near_.assign(nodes_.size(), 0);
+  // The certificates in tree order where there is a tree: a leaf's points read theirs together.
+  edge_clearance_index_.resize(n);
+  for (std::size_t j = 0; j < n; ++j) edge_clearance_index_[j] = static_cast<int>(j);
+  if (!order_.empty())
+    for (std::size_t i = 0; i < n; ++i) edge_clearance_index_[static_cast<std::size_t>(order_[i])] = static_cast<int>(i);
 }
 
 Eigen::Vector3d CollisionDetector::edgeEnd(WorkCounters& w, const Pose& X_WP, int i) const noexcept {
@@ -152,24 +158,28 @@ double CollisionDetector::edgeClearance(const Eigen::Vector3d& a, const Eigen::V
   return std::min(reach_m, -(excess_max + tolerance) / lipschitz);
 }
 
-bool CollisionDetector::edgesStillClear(const Pose& X_WP, int j, const Eigen::Vector3d& p_W) const noexcept {
-  const auto i = static_cast<std::size_t>(j);
+int CollisionDetector::edgesStillClear(const Pose& X_WP, int j, const Eigen::Vector3d& p_W) const noexcept {
+  const auto i = static_cast<std::size_t>(edge_clearance_index_[static_cast<std::size_t>(j)]);
   for (std::size_t slot = 2 * i; slot < 2 * i + 2; ++slot) {
     const EdgeClearance& proven = edge_clearance_[slot];
-    const bool by_distance = proven.clearance_m > 0.0, by_direction = proven.margin > 0.0;
+    const double clearance_m = proven.clearance_m;
+    const bool by_distance = clearance_m > 0.0, by_direction = proven.margin > 0.0;
     if (!by_distance && !by_direction) continue;  // nothing proven
     const Eigen::Vector3d moved_W = p_W - proven.p_W_m;
-    const double moved_m = moved_W.norm();
+    const double moved2 = moved_W.squaredNorm();  // (moved_m < c) == (moved_m^2 < c^2) for c > 0
     if (proven.arm_m == 0.0) {  // a ball about point j: any turn stays in it
-      if (moved_m < proven.clearance_m) return true;
+      if (by_distance && moved2 < clearance_m * clearance_m) return 1;
       continue;
     }
-    if (!by_direction && !(moved_m < proven.clearance_m)) continue;
+    if (!by_direction && !(moved2 < clearance_m * clearance_m)) continue;
     // Each point of j's edges lies within arm_m (edge_reach_m_[j] + epsilon) of point j
     // (edgeEnd()), so it has moved by point j's move plus at most |R - R'| arm_m since the
-    // certificate, with |R - R'| = 2 sin(theta / 2) = 2 |vec(R'^-1 R)|.
-    const double lever_m = 2.0 * (proven.R_WT.conjugate() * X_WP.R_AB).vec().norm() * proven.arm_m;
-    if (moved_m + lever_m < proven.clearance_m) return true;
+    // certificate, with |R - R'| = 2 sin(theta / 2) = 2 |vec(R'^-1 R)| = 2 sqrt(1 - (q'.q)^2)
+    // for unit quaternions; 4e-16 under the root covers its rounding (the lever errs long).
+    const double cos_half = std::abs(proven.R_WT.dot(X_WP.R_AB));
+    const double lever_m =
+        2.0 * std::sqrt(std::max(0.0, (1.0 - cos_half) * (1.0 + cos_half)) + 4e-16) * proven.arm_m;
+    if (by_distance && lever_m < clearance_m && moved2 < (clearance_m - lever_m) * (clearance_m - lever_m)) return 2;
     if (!by_direction) continue;
     // The directional certificate: along grid axis a each point of j's edges has moved by d_a
     // within r_a = |row a of grid_from_W| lever of point j's own move. While that stays within
@@ -185,15 +195,16 @@ bool CollisionDetector::edgesStillClear(const Pose& X_WP, int j, const Eigen::Ve
       const auto rise_along = [&](double x) { return x >= 0.0 ? proven.step_hi[a] * x : proven.step_lo[a] * x; };
       rise += std::max(rise_along(lo), rise_along(hi));
     }
-    if (within && rise * (1.0 + 1e-9) < proven.margin) return true;
+    if (within && rise * (1.0 + 1e-9) < proven.margin) return 2;
   }
-  return false;
+  return 0;
 }
 
 void CollisionDetector::keepEdgeClearance(int j, const EdgeClearance& proven) noexcept {
   const auto i = static_cast<std::size_t>(j);
-  edge_clearance_[2 * i + edge_slot_[i]] = proven;
-  edge_slot_[i] ^= 1;
+  const auto at = static_cast<std::size_t>(edge_clearance_index_[i]);
+  edge_clearance_[2 * at + edge_slot_[at]] = proven;
+  edge_slot_[at] ^= 1;
 }
 
 int CollisionDetector::edgeCrosses(WorkCounters& w, const Pose& X_WP, int j, const Eigen::Vector3d& p_W,
@@ -307,38 +318,61 @@ bool CollisionDetector::walkShellTree(int* stack, int root, MayHold&& may_hold, 
   return false;
 }
 
-bool CollisionDetector::edgeSubtreeCrosses(WorkCounters& w, Lane* lane, int root, const Pose& X_WP, double isovalue,
-                                           int& walked, int& j_hit, int& k_hit, bool& cut) noexcept {
+int CollisionDetector::edgeNodeWalk(WorkCounters& w, Lane* lane, int index, const Pose& X_WP,
+                                     const Eigen::Matrix3d& R_WT, double isovalue, int& walked, int& j_hit,
+                                     int& k_hit) noexcept {
+  const ShellNode& node = nodes_[static_cast<std::size_t>(index)];
+  std::uint8_t& near = node_edge_near_[static_cast<std::size_t>(index)];
   // Point j's edges lie within the longest edge of j, plus the epsilon their ends are inset by
   // (edgeEnd()), of point j: a node's ball dilated by both holds them.
-  const Eigen::Matrix3d R_WT = X_WP.R_AB.toRotationMatrix();
-  const auto may_hold = [&](const ShellNode& node) {
-    return ballMayBeInside(w, X_WP * node.center_T_m,
-                           (node.radius_m + edges_.max_length_m + epsilon_) * (1.0 + 1e-9) + 1e-12, isovalue);
-  };
-  const auto visit = [&](int j) {
-    // The point's own edges, within its longest edge plus epsilon of it: one box query
-    // instead of a walk per edge where the leaf is near the surface but this point is not.
-    if (edges_.offsets[j + 1] == edges_.offsets[j]) return false;
-    const Eigen::Vector3d p_W = R_WT * tool_->point_shell.points_T_m()[static_cast<std::size_t>(j)] + X_WP.p_AB_m;
-    if (edgesStillClear(X_WP, j, p_W)) return false;
-    // Proven empty with a margin, the ball is a certificate too (EdgeClearance::arm_m = 0):
-    // until point j has moved the margin, its edges stay in the ball however the tool turns.
-    if (!ballMayBeInside(w, p_W, (edge_reach_m_[j] + epsilon_ + ballMargin_m()) * (1.0 + 1e-9) + 1e-12, isovalue)) {
-      keepEdgeClearance(j, {p_W, X_WP.R_AB, ballMargin_m(), 0.0});
-      return false;
+  const bool asked = near == 0;
+  if (asked && !ballMayBeInside(w, R_WT * node.center_T_m + X_WP.p_AB_m,
+                                (node.radius_m + edges_.max_length_m + epsilon_) * (1.0 + 1e-9) + 1e-12, isovalue))
+    return kEdgeWalkClear;
+  bool found_near = false;
+  if (node.left >= 0) {
+    for (const int child : {node.left, node.right}) {
+      const int result = edgeNodeWalk(w, lane, child, X_WP, R_WT, isovalue, walked, j_hit, k_hit);
+      if (result != kEdgeWalkClear) return result;
+      found_near = found_near || node_edge_near_[static_cast<std::size_t>(child)] != 0;
     }
-    if (walked++ > 0 && (lane != nullptr ? overBudget(*lane) : overBudget())) {
-      cut = true;
-      return true;
+  } else {
+    for (int i = node.begin; i < node.end; ++i) {
+      const int j = order_[static_cast<std::size_t>(i)];
+      if (edges_.offsets[j + 1] == edges_.offsets[j]) continue;
+      const Eigen::Vector3d p_W = R_WT * tool_->point_shell.points_T_m()[static_cast<std::size_t>(j)] + X_WP.p_AB_m;
+      const int held = edgesStillClear(X_WP, j, p_W);
+      if (held != 0) {
+        found_near = found_near || held == 2;
+        continue;
+      }
+      // The point's own edges, within its longest edge plus epsilon of it: one box query
+      // instead of a walk per edge where the leaf is near the surface but this point is not.
+      // Proven empty with a margin, the ball is a certificate too (EdgeClearance::arm_m = 0):
+      // until point j has moved the margin, its edges stay in the ball however the tool turns.
+      if (!ballMayBeInside(w, p_W, (edge_reach_m_[j] + epsilon_ + ballMargin_m()) * (1.0 + 1e-9) + 1e-12, isovalue)) {
+        keepEdgeClearance(j, {p_W, X_WP.R_AB, ballMargin_m(), 0.0});
+        continue;
+      }
+      found_near = true;
+      if (walked++ > 0 && (lane != nullptr ? overBudget(*lane) : overBudget())) return kEdgeWalkCut;
+      const int k = edgeCrosses(w, X_WP, j, p_W, isovalue);
+      if (k >= 0) {
+        j_hit = j;
+        k_hit = k;
+        return kEdgeWalkCrossing;
+      }
     }
-    const int k = edgeCrosses(w, X_WP, j, p_W, isovalue);
-    if (k < 0) return false;
-    j_hit = j;
-    k_hit = k;
-    return true;
-  };
-  return walkShellTree(lane != nullptr ? lane->stack.data() : stack_.data(), root, may_hold, visit) && !cut;
+  }
+  near = found_near ? 1 : 0;
+  return kEdgeWalkClear;
+}
+
+bool CollisionDetector::edgeSubtreeCrosses(WorkCounters& w, Lane* lane, int root, const Pose& X_WP, double isovalue,
+                                           int& walked, int& j_hit, int& k_hit, bool& cut) noexcept {
+  const int result = edgeNodeWalk(w, lane, root, X_WP, X_WP.R_AB.toRotationMatrix(), isovalue, walked, j_hit, k_hit);
+  cut = result == kEdgeWalkCut;
+  return result == kEdgeWalkCrossing;
 }
 
 void CollisionDetector::edgeLaneJob(void* detector, int lane) noexcept {
@@ -425,7 +459,7 @@ bool CollisionDetector::edgesCrossAt(const Pose& X_WP, double isovalue) noexcept
   for (int j = 0; j + 1 < static_cast<int>(edges_.offsets.size()); ++j) {
     if (edges_.offsets[j + 1] == edges_.offsets[j]) continue;
     const Eigen::Vector3d p_W = X_WP * tool_->point_shell.points_T_m()[static_cast<std::size_t>(j)];
-    if (edgesStillClear(X_WP, j, p_W)) continue;
+    if (edgesStillClear(X_WP, j, p_W) != 0) continue;
     if (walked++ > 0 && overBudget()) return edge_cut_ = true;
     const int k = edgeCrosses(counters_, X_WP, j, p_W, isovalue);
     if (k >= 0) {

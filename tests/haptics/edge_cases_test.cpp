@@ -576,6 +576,79 @@ TEST(EdgeCases, ABoxQueryCertificateHoldsForHalfAVoxelOfTravelOnly) {
   EXPECT_EQ(heights, 56);
 }
 
+TEST(EdgeCases, AGlidingToolsEdgeTestAsksOnlyWhereTheSurfaceMayHaveMoved) {
+  // The edge test lets a node of the point-shell tree through without a box query where its
+  // last walk found a point near the surface below it. A 20 x 20 x 2 mm plate (0.7 mm point
+  // spacing) glides 0.3 mm over a plane, 0.3 mm a test: after the first test, the nodes along
+  // the plane are not asked again. Lifted 20 mm, the nodes let through find nothing near, and
+  // the root is culled by its own query again. Oracle: a detector built afresh at each pose
+  // (nothing kept) gives the same answer.
+  const ScalarVolume plane = datasets::makePlaneVolume(test::grid1mm(), Eigen::Vector3d::UnitZ(), 0.0);
+  const auto plate = test::meshTool(datasets::makeBoxMesh({0.01, 0.01, 0.001}), 0.7e-3);
+  ASSERT_GT(plate->point_shell.size(), 1000u);
+  CollisionDetector kept(plane, *plate, 0.0);
+  std::vector<std::int64_t> queries;
+  Pose X = Pose::FromTranslation({-0.006, 0.0, 0.001 + 0.0003});
+  const auto test_at = [&](const Pose& next) {
+    X = next;
+    kept.resetSampleCount();
+    const bool crosses = kept.edgesCrossAt(X, 0.0);
+    queries.push_back(kept.boxQueryCount());
+    CollisionDetector fresh(plane, *plate, 0.0);
+    EXPECT_EQ(crosses, fresh.edgesCrossAt(X, 0.0)) << "test " << queries.size();
+    EXPECT_FALSE(crosses) << "0.3 mm over the plane";
+  };
+  for (int i = 0; i < 30; ++i) test_at(Pose::FromTranslation(X.p_AB_m + Eigen::Vector3d(0.0003, 0.0, 0.0)));
+  // Where every point's certificate still holds, only the root and the nodes that the walk
+  // last found clear are asked; elsewhere the points whose certificates ran out ask their own.
+  const std::int64_t first = queries.front();
+  std::int64_t later_min = first, later_sum = 0;
+  for (std::size_t i = 1; i < queries.size(); ++i) {
+    later_min = std::min(later_min, queries[i]);
+    later_sum += queries[i];
+  }
+  for (const std::int64_t q : queries) std::printf(" %lld", static_cast<long long>(q));
+  std::printf("\nedge test gliding: box queries first %lld, later at least %lld, %lld in all\n",
+              static_cast<long long>(first), static_cast<long long>(later_min), static_cast<long long>(later_sum));
+  EXPECT_GT(first, 1000);
+  EXPECT_LE(later_min, 10) << "the walk asked again about the nodes near the surface";
+  EXPECT_LT(later_sum, 10 * first) << "the walk asked again about the nodes near the surface";
+  for (int i = 0; i < 3; ++i) test_at(Pose::FromTranslation(X.p_AB_m + Eigen::Vector3d(0.0003, 0.0, i == 0 ? 0.02 : 0.0)));
+  std::printf("lifted: box queries %lld, %lld, %lld\n", static_cast<long long>(queries[queries.size() - 3]),
+              static_cast<long long>(queries[queries.size() - 2]), static_cast<long long>(queries.back()));
+  EXPECT_LE(queries.back(), 2) << "the lifted plate was not culled at the root again";
+
+  // Into a one-voxel wall (test::floorAndWallVolume(), i = 40, its isosurface 1 mm thick at
+  // 128) that passes between the points of a 12 x 12 x 1 mm plate at 1.5 mm spacing, gliding 0.3 mm over the
+  // floor in steps of 0.25 mm: the same answer as a fresh detector at every pose, and every
+  // edge that the dense oracle (CrossingVerifier::checkEdges, 1/50 voxel) finds entering is
+  // reported.
+  const ScalarVolume wall = test::floorAndWallVolume();
+  const auto coarse = test::meshTool(datasets::makeBoxMesh({0.006, 0.006, 0.0005}), 1.5e-3);
+  CollisionDetector walled(wall, *coarse, 0.0);
+  const CrossingVerifier oracle(wall, coarse->point_shell, 2e-2);
+  int crossing = 0, entering = 0;
+  Pose before = Pose::FromTranslation({20e-3, 12e-3, 20.5e-3 + 0.0005 + 0.0003});
+  for (double x_m = 20e-3; x_m <= 50e-3 + 1e-9; x_m += 0.25e-3) {
+    const Pose at = Pose::FromTranslation({x_m, 12e-3, 20.5e-3 + 0.0005 + 0.0003});
+    const bool crosses = walled.edgesCrossAt(at, 128.0);
+    CollisionDetector fresh(wall, *coarse, 0.0);
+    ASSERT_EQ(crosses, fresh.edgesCrossAt(at, 128.0)) << "x " << 1e3 * x_m << " mm";
+    const CrossingVerifier::EdgeResult dense = oracle.checkEdges(RigidMotion::Between(before, at, coarse->mass.p_TCm_m),
+                                                                 1.0, 128.0, walled.shellEdges(), walled.epsilon_m());
+    if (dense.crossing_edges > 0) {
+      ++entering;
+      ASSERT_TRUE(crosses) << "x " << 1e3 * x_m << " mm: the wall enters an edge and was not reported";
+    }
+    crossing += crosses;
+    before = at;
+  }
+  std::printf("into the wall: %d poses with an edge crossing, %d entering (dense oracle)\n", crossing, entering);
+  EXPECT_GE(entering, 4);
+  ::testing::Test::RecordProperty("first_box_queries", static_cast<int>(first));
+  ::testing::Test::RecordProperty("later_box_queries_total", static_cast<int>(later_sum));
+}
+
 TEST(EdgeCases, ADirectionalCertificateExpiresBeforeItsEdgesLeaveTheBoxItKnows) {
   // The exact walk's directional certificate bounds F's rise by the range of F's derivatives
   // near the edges, so a move along a flat floor (dF/dx = 0 there) raises nothing it knows of;

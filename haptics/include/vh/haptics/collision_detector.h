@@ -500,8 +500,22 @@ class CollisionDetector {
   } edge_job_;
   std::unique_ptr<std::atomic<int>> edge_bound_ = std::make_unique<std::atomic<int>>(0);
   // Whether one of j's clearance certificates (EdgeClearance) still holds at pose X_WP, with
-  // p_W = X_WP * point j (the caller has it).
-  bool edgesStillClear(const Pose& X_WP, int j, const Eigen::Vector3d& p_W) const noexcept;
+  // p_W = X_WP * point j (the caller has it): 0 none, 1 a box query's, 2 an exact walk's (the
+  // edges are near the surface).
+  int edgesStillClear(const Pose& X_WP, int j, const Eigen::Vector3d& p_W) const noexcept;
+  // The edge test's walk below node `index` (kAccelerated): kEdgeWalkCrossing with the first
+  // crossing edge (j, k) in walk order, kEdgeWalkCut where the budget stopped it, else
+  // kEdgeWalkClear.
+  static constexpr int kEdgeWalkClear = 0, kEdgeWalkCrossing = 1, kEdgeWalkCut = 2;
+  int edgeNodeWalk(WorkCounters& w, Lane* lane, int index, const Pose& X_WP, const Eigen::Matrix3d& R_WT,
+                   double isovalue, int& walked, int& j_hit, int& k_hit) noexcept;
+  // Per node of nodes_ (the edge test's temporal coherence): 1 when its last walk found a point
+  // below it whose edges are near the surface (walked, or asked by a box query that did not
+  // prove them free, or held by an exact walk's certificate). The next walk lets it through
+  // without a box query of its own: near the surface the answer seldom changes from one tick
+  // to the next, and a node let through that its ball would have culled costs only its points'
+  // own tests, which cull what it would have. Written by the lane that walks the node.
+  std::vector<std::uint8_t> node_edge_near_;
   // Temporal coherence of the edge test (haptics/README.md, "Between the points"): per point j,
   // the clearances proven for all of j's edges at the last two poses they were found free at,
   // by the exact walk or by the box query around them. Until the tool has moved j's edges that
@@ -529,6 +543,7 @@ class CollisionDetector {
   static constexpr double kCertificateReachSteps = 2.0;
   Eigen::Matrix3d grid_from_W_ = Eigen::Matrix3d::Identity();  // a move in W [m] -> grid steps
   std::vector<EdgeClearance> edge_clearance_;  // two per point: 2 j and 2 j + 1
+  std::vector<int> edge_clearance_index_;       // per point: where its two are (its place in order_)
   std::vector<unsigned char> edge_slot_;        // per point: the slot the next certificate replaces
   // Keeps `proven` as point j's newer certificate, in place of its older one.
   void keepEdgeClearance(int j, const EdgeClearance& proven) noexcept;
