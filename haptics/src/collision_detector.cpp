@@ -160,7 +160,10 @@ double CollisionDetector::edgeClearance(const Eigen::Vector3d& a, const Eigen::V
 
 int CollisionDetector::edgesStillClear(const Pose& X_WP, int j, const Eigen::Vector3d& p_W) const noexcept {
   const auto i = static_cast<std::size_t>(edge_clearance_index_[static_cast<std::size_t>(j)]);
-  for (std::size_t slot = 2 * i; slot < 2 * i + 2; ++slot) {
+  // The newer first (edge_slot_ names the older, which the next certificate replaces): it is
+  // the one that holds where either does, more often than not.
+  const std::size_t newer = 2 * i + (edge_slot_[i] ^ 1u);
+  for (const std::size_t slot : {newer, newer ^ 1u}) {
     const EdgeClearance& proven = edge_clearance_[slot];
     const double clearance_m = proven.clearance_m;
     const bool by_distance = clearance_m > 0.0, by_direction = proven.margin > 0.0;
