@@ -165,24 +165,20 @@ int CollisionDetector::edgesStillClear(const Pose& X_WP, int j, const Eigen::Vec
   const std::size_t newer = 2 * i + (edge_slot_[i] ^ 1u);
   for (const std::size_t slot : {newer, newer ^ 1u}) {
     const EdgeClearance& proven = edge_clearance_[slot];
-    const double clearance_m = proven.clearance_m;
-    const bool by_distance = clearance_m > 0.0, by_direction = proven.margin > 0.0;
+    const bool by_distance = proven.clearance_m > 0.0, by_direction = proven.margin > 0.0;
     if (!by_distance && !by_direction) continue;  // nothing proven
     const Eigen::Vector3d moved_W = p_W - proven.p_W_m;
-    const double moved2 = moved_W.squaredNorm();  // (moved_m < c) == (moved_m^2 < c^2) for c > 0
+    const double moved_m = moved_W.norm();
     if (proven.arm_m == 0.0) {  // a ball about point j: any turn stays in it
-      if (by_distance && moved2 < clearance_m * clearance_m) return 1;
+      if (moved_m < proven.clearance_m) return 1;
       continue;
     }
-    if (!by_direction && !(moved2 < clearance_m * clearance_m)) continue;
+    if (!by_direction && !(moved_m < proven.clearance_m)) continue;
     // Each point of j's edges lies within arm_m (edge_reach_m_[j] + epsilon) of point j
     // (edgeEnd()), so it has moved by point j's move plus at most |R - R'| arm_m since the
-    // certificate, with |R - R'| = 2 sin(theta / 2) = 2 |vec(R'^-1 R)| = 2 sqrt(1 - (q'.q)^2)
-    // for unit quaternions; 4e-16 under the root covers its rounding (the lever errs long).
-    const double cos_half = std::abs(proven.R_WT.dot(X_WP.R_AB));
-    const double lever_m =
-        2.0 * std::sqrt(std::max(0.0, (1.0 - cos_half) * (1.0 + cos_half)) + 4e-16) * proven.arm_m;
-    if (by_distance && lever_m < clearance_m && moved2 < (clearance_m - lever_m) * (clearance_m - lever_m)) return 2;
+    // certificate, with |R - R'| = 2 sin(theta / 2) = 2 |vec(R'^-1 R)|.
+    const double lever_m = 2.0 * (proven.R_WT.conjugate() * X_WP.R_AB).vec().norm() * proven.arm_m;
+    if (moved_m + lever_m < proven.clearance_m) return 2;
     if (!by_direction) continue;
     // The directional certificate: along grid axis a each point of j's edges has moved by d_a
     // within r_a = |row a of grid_from_W| lever of point j's own move. While that stays within
