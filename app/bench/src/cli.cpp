@@ -71,7 +71,8 @@ CLI::App* addBenchSubcommand(CLI::App& app, std::function<int()>& handler) {
                  "The accelerated mode's work budget per tick (units of one trilinear sample's cost); "
                  "> 0 also runs it unbudgeted and reports the lag (how far apart the two proxies are) and behind "
                  "(how much farther from the device the budgeted one is), beside the control: the full solve again "
-                 "with one device sample in 1,000 held, and how far it gets from itself; 0: unbudgeted only")
+                 "with one device sample in " + std::to_string(Table1Options::kHeldSampleEvery) +
+                     " held, and how far it gets from itself; 0: unbudgeted only")
       ->capture_default_str()
       ->check(CLI::NonNegativeNumber);
   t1->add_option("--verify-step", table1->verify_step_voxels,

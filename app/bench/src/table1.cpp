@@ -239,9 +239,9 @@ constexpr const char* kEdgesUnbudgetedKey = "accelerated-edges-unbudgeted";
 // The crossing check samples the edges between shell points this many path steps apart.
 constexpr double kEdgeStepFactor = 5.0;
 /// The full solve's own sensitivity to its history (the control beside the budget's lag): the
-/// same full solve run again with one device sample in this many held (the previous sample
-/// repeated, as when a USB packet is lost), and its distance from the full solve.
-constexpr int kHeldSampleEvery = 1000;
+/// same full solve run again with one device sample in Table1Options::kHeldSampleEvery held,
+/// and its distance from the full solve.
+constexpr int kHeldSampleEvery = Table1Options::kHeldSampleEvery;
 
 struct ModeRun {
   Variant variant;

@@ -62,9 +62,13 @@ struct Table1Options {
   /// > 0 also runs the accelerated mode without it ("accelerated-unbudgeted"), interleaved, and
   /// reports the budgeted proxy's lag behind it (how far apart: mm, rad, ticks), how much farther
   /// from the device it is (behind), the cut ticks and the "Never behind" table with the targets,
-  /// and after the run the control: the unbudgeted mode again with one device sample in 1,000
-  /// held, and how far that gets from it; 0 runs the accelerated mode unbudgeted only.
+  /// and after the run the control: the unbudgeted mode again with one device sample in
+  /// kHeldSampleEvery held, and how far that gets from it; 0 runs the accelerated mode
+  /// unbudgeted only.
   std::int64_t work_budget = haptics::RendererOptions::kDefaultWorkBudget;
+  /// The control's held samples: one device sample in this many is held (the previous sample
+  /// repeated, as when a USB packet is lost).
+  static constexpr int kHeldSampleEvery = 1000;
   /// Run only this scene ("Bunny", "Engine", "Hole", "Bone", case-insensitive); empty: all.
   std::string scene;
   /// Ticks per scene and mode; 0: 20,000 (short: 1,000).
