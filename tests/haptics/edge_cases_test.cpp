@@ -40,6 +40,31 @@ std::vector<float> ballVoxels(VolumeGeometry& g) {
   return v;
 }
 
+// One pose of a long-lived detector's edge test (`kept`, its certificates from the poses before)
+// against two oracles: a detector built afresh at X (nothing kept) must give the same answer,
+// and every edge that the dense samples (CrossingVerifier::checkEdges, 1/50 voxel) find
+// entering over the move from `before` must be reported. `crosses`: kept's answer;
+// `entering`: whether the dense samples found an edge entering; `fresh_work`: the fresh
+// detector's work, added.
+::testing::AssertionResult edgeTestAgreesWithOracles(CollisionDetector& kept, const ScalarVolume& volume,
+                                                     const ToolModel& tool, const CrossingVerifier& oracle,
+                                                     const Pose& before, const Pose& X, double isovalue, bool& crosses,
+                                                     bool& entering, std::int64_t* fresh_work = nullptr) {
+  crosses = kept.edgesCrossAt(X, isovalue);
+  CollisionDetector fresh(volume, tool, 0.0);
+  const bool fresh_crosses = fresh.edgesCrossAt(X, isovalue);
+  if (fresh_work != nullptr) *fresh_work += fresh.work();
+  if (crosses != fresh_crosses)
+    return ::testing::AssertionFailure() << "kept says " << crosses << ", a fresh detector " << fresh_crosses;
+  const CrossingVerifier::EdgeResult dense = oracle.checkEdges(RigidMotion::Between(before, X, tool.mass.p_TCm_m), 1.0,
+                                                               isovalue, kept.shellEdges(), kept.epsilon_m());
+  entering = dense.crossing_edges > 0;
+  if (entering && !crosses)
+    return ::testing::AssertionFailure() << "edge (" << dense.first_j << ", " << dense.first_k
+                                         << ") enters the isosurface and was not reported";
+  return ::testing::AssertionSuccess();
+}
+
 // The probe (2 mm ball tip at the origin of T, shaft along +z) with its tip `gap_m` above the
 // ball's top (negative: pressed into it), turned by `angle` about the x axis through the tool's
 // centre of mass over 500 ticks, then held 200 ticks. Returns the proxy's final rotation angle.
@@ -514,18 +539,12 @@ TEST(EdgeCases, EdgeClearanceCertificatesNeverHideACrossing) {
         if (Eigen::AngleAxisd(R).angle() < 0.1) X.R_AB = R.normalized();  // about upright
       }
       kept.resetSampleCount();
-      const bool crosses = kept.edgesCrossAt(X, c.isovalue);
+      bool crosses = false, entering = false;
+      ASSERT_TRUE(edgeTestAgreesWithOracles(kept, *c.volume, *tool, oracle, X_before, X, c.isovalue, crosses, entering,
+                                            &fresh_work))
+          << "step " << step;
       kept_work += kept.work();
-      CollisionDetector fresh(*c.volume, *tool, 0.0);
-      ASSERT_EQ(crosses, fresh.edgesCrossAt(X, c.isovalue)) << "step " << step;
-      fresh_work += fresh.work();
-      const CrossingVerifier::EdgeResult dense = oracle.checkEdges(
-          RigidMotion::Between(X_before, X, tool->mass.p_TCm_m), 1.0, c.isovalue, kept.shellEdges(), kept.epsilon_m());
-      if (dense.crossing_edges > 0) {
-        ++entered;
-        ASSERT_TRUE(crosses) << "step " << step << ": edge (" << dense.first_j << ", " << dense.first_k
-                             << ") enters the isosurface and was not reported";
-      }
+      entered += entering;
       reported += crosses;
     }
     oracle_crossings += entered;
@@ -631,15 +650,10 @@ TEST(EdgeCases, AGlidingToolsEdgeTestAsksOnlyWhereTheSurfaceMayHaveMoved) {
   Pose before = Pose::FromTranslation({20e-3, 12e-3, 20.5e-3 + 0.0005 + 0.0003});
   for (double x_m = 20e-3; x_m <= 50e-3 + 1e-9; x_m += 0.25e-3) {
     const Pose at = Pose::FromTranslation({x_m, 12e-3, 20.5e-3 + 0.0005 + 0.0003});
-    const bool crosses = walled.edgesCrossAt(at, 128.0);
-    CollisionDetector fresh(wall, *coarse, 0.0);
-    ASSERT_EQ(crosses, fresh.edgesCrossAt(at, 128.0)) << "x " << 1e3 * x_m << " mm";
-    const CrossingVerifier::EdgeResult dense = oracle.checkEdges(RigidMotion::Between(before, at, coarse->mass.p_TCm_m),
-                                                                 1.0, 128.0, walled.shellEdges(), walled.epsilon_m());
-    if (dense.crossing_edges > 0) {
-      ++entering;
-      ASSERT_TRUE(crosses) << "x " << 1e3 * x_m << " mm: the wall enters an edge and was not reported";
-    }
+    bool crosses = false, entered = false;
+    ASSERT_TRUE(edgeTestAgreesWithOracles(walled, wall, *coarse, oracle, before, at, 128.0, crosses, entered))
+        << "x " << 1e3 * x_m << " mm";
+    entering += entered;
     crossing += crosses;
     before = at;
   }
@@ -669,17 +683,12 @@ TEST(EdgeCases, ADirectionalCertificateExpiresBeforeItsEdgesLeaveTheBoxItKnows) 
   for (double x_m = 6e-3; x_m <= 45e-3 + 1e-9; x_m += 0.25e-3) {
     const Pose X = Pose::FromTranslation(Eigen::Vector3d(x_m, 12e-3, 20.7e-3));
     kept.resetSampleCount();
-    const bool crosses = kept.edgesCrossAt(X, 128.0);
+    bool crosses = false, entered = false;
+    ASSERT_TRUE(edgeTestAgreesWithOracles(kept, floor_and_wall, line, oracle, before, X, 128.0, crosses, entered,
+                                          &fresh_work))
+        << "x " << 1e3 * x_m << " mm";
     kept_work += kept.work();
-    CollisionDetector fresh(floor_and_wall, line, 0.0);
-    ASSERT_EQ(crosses, fresh.edgesCrossAt(X, 128.0)) << "x " << 1e3 * x_m << " mm";
-    fresh_work += fresh.work();
-    const CrossingVerifier::EdgeResult dense = oracle.checkEdges(RigidMotion::Between(before, X, line.mass.p_TCm_m),
-                                                                 1.0, 128.0, kept.shellEdges(), kept.epsilon_m());
-    if (dense.crossing_edges > 0) {
-      ++entering;
-      ASSERT_TRUE(crosses) << "x " << 1e3 * x_m << " mm: the wall enters an edge and was not reported";
-    }
+    entering += entered;
     crossing += crosses;
     before = X;
   }
