@@ -158,7 +158,8 @@ double CollisionDetector::edgeClearance(const Eigen::Vector3d& a, const Eigen::V
   return std::min(reach_m, -(excess_max + tolerance) / lipschitz);
 }
 
-int CollisionDetector::edgesStillClear(const Pose& X_WP, int j, const Eigen::Vector3d& p_W) const noexcept {
+CollisionDetector::EdgeHold CollisionDetector::edgesStillClear(const Pose& X_WP, int j,
+                                                               const Eigen::Vector3d& p_W) const noexcept {
   const auto i = static_cast<std::size_t>(edge_clearance_index_[static_cast<std::size_t>(j)]);
   // The newer first (edge_slot_ names the older, which the next certificate replaces): it is
   // the one that holds where either does, more often than not.
@@ -170,7 +171,7 @@ int CollisionDetector::edgesStillClear(const Pose& X_WP, int j, const Eigen::Vec
     const Eigen::Vector3d moved_W = p_W - proven.p_W_m;
     const double moved_m = moved_W.norm();
     if (proven.arm_m == 0.0) {  // a ball about point j: any turn stays in it
-      if (moved_m < proven.clearance_m) return 1;
+      if (moved_m < proven.clearance_m) return EdgeHold::kBoxQuery;
       continue;
     }
     if (!by_direction && !(moved_m < proven.clearance_m)) continue;
@@ -178,7 +179,7 @@ int CollisionDetector::edgesStillClear(const Pose& X_WP, int j, const Eigen::Vec
     // (edgeEnd()), so it has moved by point j's move plus at most |R - R'| arm_m since the
     // certificate, with |R - R'| = 2 sin(theta / 2) = 2 |vec(R'^-1 R)|.
     const double lever_m = 2.0 * (proven.R_WT.conjugate() * X_WP.R_AB).vec().norm() * proven.arm_m;
-    if (moved_m + lever_m < proven.clearance_m) return 2;
+    if (moved_m + lever_m < proven.clearance_m) return EdgeHold::kWalk;
     if (!by_direction) continue;
     // The directional certificate: along grid axis a each point of j's edges has moved by d_a
     // within r_a = |row a of grid_from_W| lever of point j's own move. While that stays within
@@ -194,9 +195,9 @@ int CollisionDetector::edgesStillClear(const Pose& X_WP, int j, const Eigen::Vec
       const auto rise_along = [&](double x) { return x >= 0.0 ? proven.step_hi[a] * x : proven.step_lo[a] * x; };
       rise += std::max(rise_along(lo), rise_along(hi));
     }
-    if (within && rise * (1.0 + 1e-9) < proven.margin) return 2;
+    if (within && rise * (1.0 + 1e-9) < proven.margin) return EdgeHold::kWalk;
   }
-  return 0;
+  return EdgeHold::kNone;
 }
 
 void CollisionDetector::keepEdgeClearance(int j, const EdgeClearance& proven) noexcept {
@@ -317,9 +318,9 @@ bool CollisionDetector::walkShellTree(int* stack, int root, MayHold&& may_hold, 
   return false;
 }
 
-int CollisionDetector::edgeNodeWalk(WorkCounters& w, Lane* lane, int index, const Pose& X_WP,
-                                     const Eigen::Matrix3d& R_WT, double isovalue, int& walked, int& j_hit,
-                                     int& k_hit) noexcept {
+CollisionDetector::EdgeWalk CollisionDetector::edgeNodeWalk(WorkCounters& w, Lane* lane, int index, const Pose& X_WP,
+                                                            const Eigen::Matrix3d& R_WT, double isovalue, int& walked,
+                                                            int& j_hit, int& k_hit) noexcept {
   const ShellNode& node = nodes_[static_cast<std::size_t>(index)];
   std::uint8_t& near = node_edge_near_[static_cast<std::size_t>(index)];
   // Point j's edges lie within the longest edge of j, plus the epsilon their ends are inset by
@@ -327,12 +328,12 @@ int CollisionDetector::edgeNodeWalk(WorkCounters& w, Lane* lane, int index, cons
   const bool asked = near == 0;
   if (asked && !ballMayBeInside(w, R_WT * node.center_T_m + X_WP.p_AB_m,
                                 (node.radius_m + edges_.max_length_m + epsilon_) * (1.0 + 1e-9) + 1e-12, isovalue))
-    return kEdgeWalkClear;
+    return EdgeWalk::kClear;
   bool found_near = false;
   if (node.left >= 0) {
     for (const int child : {node.left, node.right}) {
-      const int result = edgeNodeWalk(w, lane, child, X_WP, R_WT, isovalue, walked, j_hit, k_hit);
-      if (result != kEdgeWalkClear) return result;
+      const EdgeWalk result = edgeNodeWalk(w, lane, child, X_WP, R_WT, isovalue, walked, j_hit, k_hit);
+      if (result != EdgeWalk::kClear) return result;
       found_near = found_near || node_edge_near_[static_cast<std::size_t>(child)] != 0;
     }
   } else {
@@ -340,9 +341,9 @@ int CollisionDetector::edgeNodeWalk(WorkCounters& w, Lane* lane, int index, cons
       const int j = order_[static_cast<std::size_t>(i)];
       if (edges_.offsets[j + 1] == edges_.offsets[j]) continue;
       const Eigen::Vector3d p_W = R_WT * tool_->point_shell.points_T_m()[static_cast<std::size_t>(j)] + X_WP.p_AB_m;
-      const int held = edgesStillClear(X_WP, j, p_W);
-      if (held != 0) {
-        found_near = found_near || held == 2;
+      const EdgeHold held = edgesStillClear(X_WP, j, p_W);
+      if (held != EdgeHold::kNone) {
+        found_near = found_near || held == EdgeHold::kWalk;
         continue;
       }
       // The point's own edges, within its longest edge plus epsilon of it: one box query
@@ -354,24 +355,17 @@ int CollisionDetector::edgeNodeWalk(WorkCounters& w, Lane* lane, int index, cons
         continue;
       }
       found_near = true;
-      if (walked++ > 0 && (lane != nullptr ? overBudget(*lane) : overBudget())) return kEdgeWalkCut;
+      if (walked++ > 0 && (lane != nullptr ? overBudget(*lane) : overBudget())) return EdgeWalk::kCut;
       const int k = edgeCrosses(w, X_WP, j, p_W, isovalue);
       if (k >= 0) {
         j_hit = j;
         k_hit = k;
-        return kEdgeWalkCrossing;
+        return EdgeWalk::kCrossing;
       }
     }
   }
   near = found_near ? 1 : 0;
-  return kEdgeWalkClear;
-}
-
-bool CollisionDetector::edgeSubtreeCrosses(WorkCounters& w, Lane* lane, int root, const Pose& X_WP, double isovalue,
-                                           int& walked, int& j_hit, int& k_hit, bool& cut) noexcept {
-  const int result = edgeNodeWalk(w, lane, root, X_WP, X_WP.R_AB.toRotationMatrix(), isovalue, walked, j_hit, k_hit);
-  cut = result == kEdgeWalkCut;
-  return result == kEdgeWalkCrossing;
+  return EdgeWalk::kClear;
 }
 
 void CollisionDetector::edgeLaneJob(void* detector, int lane) noexcept {
@@ -384,16 +378,16 @@ void CollisionDetector::runEdgeLane(Lane& lane) noexcept {
   // crossing cannot hold the first crossing of that walk, and is not walked.
   int walked = 0;
   std::atomic<int>& bound = *edge_bound_;
+  const Eigen::Matrix3d R_WT = edge_job_.X_WP.R_AB.toRotationMatrix();
   for (std::size_t r = 0; r < lane.roots.size(); ++r) {
     const int rank = lane.root_ranks[r];
     if (rank > bound.load(std::memory_order_relaxed)) return;
-    bool cut = false;
     int j = -1, k = -1;
     std::int64_t mark = lane.counters.total();
-    const bool crosses = edgeSubtreeCrosses(lane.counters, &lane, lane.roots[r], edge_job_.X_WP, edge_job_.isovalue,
-                                            walked, j, k, cut);
+    const EdgeWalk result =
+        edgeNodeWalk(lane.counters, &lane, lane.roots[r], edge_job_.X_WP, R_WT, edge_job_.isovalue, walked, j, k);
     if (balanced_lanes_) chargeRoot(lane, rank, mark);
-    if (crosses) {
+    if (result == EdgeWalk::kCrossing) {
       lane.edge_rank = rank;
       lane.edge_j = j;
       lane.edge_k = k;
@@ -402,7 +396,7 @@ void CollisionDetector::runEdgeLane(Lane& lane) noexcept {
       }
       return;
     }
-    if (cut) {
+    if (result == EdgeWalk::kCut) {
       lane.edge_cut_rank = rank;
       return;
     }
@@ -446,19 +440,20 @@ bool CollisionDetector::edgesCrossAt(const Pose& X_WP, double isovalue) noexcept
   }
   if (mode_ == DetectionMode::kAccelerated) {
     int walked = 0, j = -1, k = -1;
-    bool cut = false;
-    if (edgeSubtreeCrosses(counters_, nullptr, 0, X_WP, isovalue, walked, j, k, cut)) {
+    const EdgeWalk result =
+        edgeNodeWalk(counters_, nullptr, 0, X_WP, X_WP.R_AB.toRotationMatrix(), isovalue, walked, j, k);
+    if (result == EdgeWalk::kCrossing) {
       recordCrossingEdge(j, k, X_WP);
       return true;
     }
-    if (cut) return edge_cut_ = true;
+    if (result == EdgeWalk::kCut) return edge_cut_ = true;
     return false;
   }
   int walked = 0;
   for (int j = 0; j + 1 < static_cast<int>(edges_.offsets.size()); ++j) {
     if (edges_.offsets[j + 1] == edges_.offsets[j]) continue;
     const Eigen::Vector3d p_W = X_WP * tool_->point_shell.points_T_m()[static_cast<std::size_t>(j)];
-    if (edgesStillClear(X_WP, j, p_W) != 0) continue;
+    if (edgesStillClear(X_WP, j, p_W) != EdgeHold::kNone) continue;
     if (walked++ > 0 && overBudget()) return edge_cut_ = true;
     const int k = edgeCrosses(counters_, X_WP, j, p_W, isovalue);
     if (k >= 0) {

@@ -485,11 +485,6 @@ class CollisionDetector {
   int edgeCrosses(WorkCounters& w, const Pose& X_WP, int j, const Eigen::Vector3d& p_W, double isovalue) noexcept;
   // Records edge (j, k), found crossing at X_WP: the last hit (addEdgeContact()) and the list.
   void recordCrossingEdge(int j, int k, const Pose& X_WP) noexcept;
-  // The edge test over the subtree of node `root` (kAccelerated): returns the crossing edge
-  // (j, k) first in the subtree's walk order in `j`, `k`, or stops at the budget (`cut`).
-  // `walked`: points walked so far in this call on this lane (the first is never stopped).
-  bool edgeSubtreeCrosses(WorkCounters& w, Lane* lane, int root, const Pose& X_WP, double isovalue, int& walked,
-                          int& j_hit, int& k_hit, bool& cut) noexcept;
   // One lane's share of a forked edge test (edgesCrossAt()).
   void runEdgeLane(Lane& lane) noexcept;
   static void edgeLaneJob(void* detector, int lane) noexcept;
@@ -499,16 +494,18 @@ class CollisionDetector {
     double isovalue = 0.0;
   } edge_job_;
   std::unique_ptr<std::atomic<int>> edge_bound_ = std::make_unique<std::atomic<int>>(0);
-  // Whether one of j's clearance certificates (EdgeClearance) still holds at pose X_WP, with
-  // p_W = X_WP * point j (the caller has it): 0 none, 1 a box query's, 2 an exact walk's (the
-  // edges are near the surface).
-  int edgesStillClear(const Pose& X_WP, int j, const Eigen::Vector3d& p_W) const noexcept;
-  // The edge test's walk below node `index` (kAccelerated): kEdgeWalkCrossing with the first
-  // crossing edge (j, k) in walk order, kEdgeWalkCut where the budget stopped it, else
-  // kEdgeWalkClear.
-  static constexpr int kEdgeWalkClear = 0, kEdgeWalkCrossing = 1, kEdgeWalkCut = 2;
-  int edgeNodeWalk(WorkCounters& w, Lane* lane, int index, const Pose& X_WP, const Eigen::Matrix3d& R_WT,
-                   double isovalue, int& walked, int& j_hit, int& k_hit) noexcept;
+  // Which of j's clearance certificates (EdgeClearance) still holds at pose X_WP, with p_W =
+  // X_WP * point j (the caller has it): none, a box query's, or an exact walk's (then j's edges
+  // are near the surface).
+  enum class EdgeHold { kNone, kBoxQuery, kWalk };
+  EdgeHold edgesStillClear(const Pose& X_WP, int j, const Eigen::Vector3d& p_W) const noexcept;
+  // The edge test over the subtree of node `index` (kAccelerated), R_WT = X_WP's rotation:
+  // kCrossing with the crossing edge (j, k) first in the subtree's walk order in `j_hit`,
+  // `k_hit`; kCut where the budget stopped it; else kClear. `walked`: points walked so far in
+  // this edge test on this lane (the first is never stopped).
+  enum class EdgeWalk { kClear, kCrossing, kCut };
+  EdgeWalk edgeNodeWalk(WorkCounters& w, Lane* lane, int index, const Pose& X_WP, const Eigen::Matrix3d& R_WT,
+                        double isovalue, int& walked, int& j_hit, int& k_hit) noexcept;
   // Per node of nodes_ (the edge test's temporal coherence): 1 when its last walk found a point
   // below it whose edges are near the surface (walked, or asked by a box query that did not
   // prove them free, or held by an exact walk's certificate). The next walk lets it through
