@@ -315,7 +315,9 @@ void HapticRenderer::resumeCutSweep(const Pose& X_WD, double isovalue, TickStats
     }
   }
   bool edge_stop = false, edge_cut = false;
+  const auto edge_start = Clock::now();
   t = edgeSafeTime(pending_motion, pending_t, t, isovalue, edge_stop, edge_cut);
+  if (edge_test_) stats.edge_us = usSince(edge_start, Clock::now());
   stats.edge_stop = edge_stop;
   last_motion_ = pending_motion.part(pending_t, t);
   last_t_ = 1.0;
@@ -325,7 +327,9 @@ void HapticRenderer::resumeCutSweep(const Pose& X_WD, double isovalue, TickStats
   // A resumed sweep counts as at most one blocked move: not a contact stuck at its start.
   if (edge_stop) {
     collision_.abandonSweep();
+    const auto edge_contact_start = Clock::now();
     collision_.addEdgeContact(X_WP_, isovalue);
+    stats.edge_us += usSince(edge_contact_start, Clock::now());
     blocked_ticks_ = 1;
     edge_blocked_last_tick_ = t < pending_t + 0.01;
   } else if (!hit.budget_cut && !edge_cut) {
@@ -394,7 +398,9 @@ TickOutput HapticRenderer::tick(const Pose& X_WD_in, double requested_isovalue) 
     // Step 5: move the proxy to the first contact (or the target, or as far as the budget
     // proved free), and no farther than the tool's surface between its points allows.
     bool edge_stop = false, edge_cut = false;
+    const auto edge_start = Clock::now();
     const double t_move = edgeSafeTime(motion, 0.0, hit.t, isovalue, edge_stop, edge_cut);
+    if (edge_test_) out.stats.edge_us = usSince(edge_start, Clock::now());
     out.stats.edge_stop = edge_stop;
     if (edge_stop) collision_.abandonSweep();
     // An edge test the budget stopped holds the proxy like a cut sweep: not a blocked move.
@@ -414,7 +420,11 @@ TickOutput HapticRenderer::tick(const Pose& X_WD_in, double requested_isovalue) 
     if (hit.hit_point >= 0 && !hit.budget_cut && !edge_stop && !edge_cut) collision_.addContactsAt(motion, hit, isovalue);
     // Stopped by the tool's surface between its points: that place on the wall joins the contact
     // set, so that the next tick's configuration solver slides along it.
-    if (edge_stop) collision_.addEdgeContact(X_WP_, isovalue);
+    if (edge_stop) {
+      const auto edge_contact_start = Clock::now();
+      collision_.addEdgeContact(X_WP_, isovalue);
+      out.stats.edge_us += usSince(edge_contact_start, Clock::now());
+    }
     out.stats.contacts_us = usSince(phase, Clock::now());
     out.stats.budget_cut = hit.budget_cut || edge_cut;
     out.stats.time_of_contact = t_move;

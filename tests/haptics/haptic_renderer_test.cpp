@@ -269,9 +269,16 @@ TEST_P(HapticRendererModes, ReportsStatistics) {
   // One sweep at least (steps 3-4), at most three (two re-solves after refined stuck contacts).
   EXPECT_GE(out.stats.sweeps, 1);
   EXPECT_LE(out.stats.sweeps, 3);
+  EXPECT_EQ(out.stats.edge_us, 0.0) << "no edge test: none of its time";
   // A rejected device sample runs none.
   const double nan = std::numeric_limits<double>::quiet_NaN();
   EXPECT_EQ(r.tick(Pose::FromTranslation({nan, 0.0, 0.0}), 0.0).stats.sweeps, 0);
+  // With the edge test, its own time is part of the tick's.
+  o.edge_test = 1;
+  HapticRenderer with_edges(scene.volume, scene.tool, o, Pose::FromTranslation({0, 0, 0.003}), 0.0);
+  const TickOutput edged = with_edges.tick(Pose::FromTranslation({0, 0, -0.002}), 0.0);
+  EXPECT_GT(edged.stats.edge_us, 0.0);
+  EXPECT_LE(edged.stats.edge_us, edged.stats.exec_time_us);
 }
 
 TEST(HapticRenderer, ATickThatOnlyResumesACutSweepRunsNoNewSweep) {

@@ -248,6 +248,7 @@ struct ModeRun {
   std::unique_ptr<haptics::HapticRenderer> renderer;
   std::vector<double> times_us, cpu_us, contacts, samples;
   double max_penetration_m = 0.0, max_force_N = 0.0, cells_sum = 0.0;
+  double edge_us_sum = 0.0;  // TickStats::edge_us over the ticks (the edge test's own wall time)
   std::uint64_t nan_ticks = 0, over_1ms = 0, in_contact = 0;
   // Crossing check (CrossingVerifier after each tick, outside the timed section).
   std::int64_t crossings = 0, crossing_points = 0, first_crossing_tick = -1;
@@ -320,6 +321,13 @@ nlohmann::ordered_json modeJson(const ModeRun& m, double epsilon_m, bool verifie
   j["cpu_p99_us"] = cpu.p99;
   j["cpu_p99_9_us"] = cpu.p999;
   j["cpu_max_us"] = cpu.max;
+  // The edge test's own time (wall, TickStats::edge_us), and the rest of the tick without it:
+  // what the edge test costs by itself, and what the moves it changes (the contacts it adds
+  // between the points) cost the sweep and the solve.
+  if (m.edge_us_sum > 0.0 && t.n > 0) {
+    j["edge_test_mean_us"] = m.edge_us_sum / static_cast<double>(t.n);
+    j["cpu_mean_without_edge_test_us"] = cpu.mean - m.edge_us_sum / static_cast<double>(t.n);
+  }
   j["mean_contacts"] = c.mean;
   j["max_contacts"] = c.max;
   j["ticks_in_contact"] = m.in_contact;
@@ -476,7 +484,7 @@ std::vector<std::unique_ptr<std::ofstream>> openTickCsvs(const std::vector<ModeR
       tick_csv.push_back(std::make_unique<std::ofstream>(*dir / (scene_name + "_" + m.variant.key + ".csv")));
       *tick_csv.back() << "tick,wall_us,cpu_us,contacts,samples,box_queries,tree_nodes,cells,cells_walked,time_of_contact,device_step_m,"
                           "device_step_rad,proxy_device_m,proxy_device_rad,prune_us,solve_us,sweep_us,sweeps,contacts_us,work,"
-                          "budget_cut\n";
+                          "budget_cut,edge_us\n";
     }
   }
   return tick_csv;
@@ -550,6 +558,10 @@ void addModeResults(nlohmann::ordered_json& row, const std::vector<ModeRun>& run
     row["ratio_edges_over_accelerated"] = {{"cpu_mean", mean_ratio},
                                            {"cpu_p99_9", ratio(e["cpu_p99_9_us"], a["cpu_p99_9_us"])},
                                            {"cpu_max", ratio(e["cpu_max_us"], a["cpu_max_us"])},
+                                           {"cpu_mean_without_edge_test",
+                                            e.contains("cpu_mean_without_edge_test_us")
+                                                ? ratio(e["cpu_mean_without_edge_test_us"], a["cpu_mean_us"])
+                                                : 1.0},
                                            {"within_1_2x", mean_ratio <= 1.2}};
   }
 }
@@ -611,6 +623,7 @@ void runScene(const runtime::LoadedScene& scene, std::shared_ptr<const haptics::
       const haptics::Pose X_WP_before = m.renderer->proxyPose();
       const haptics::TickOutput out = m.renderer->tick(X_WD, s);
       m.cpu_us.push_back(threadCpu_us() - c0);
+      m.edge_us_sum += out.stats.edge_us;
       m.wall_s += std::chrono::duration<double>(std::chrono::steady_clock::now() - w0).count();
       // Everything below is outside the timed section.
       const bool finite = out.force_W_N.allFinite() && out.torque_W_Nm.allFinite() && out.X_WP.allFinite();
@@ -627,7 +640,8 @@ void runScene(const runtime::LoadedScene& scene, std::shared_ptr<const haptics::
                      << (X_WD.p_AB_m - X_WP_before.p_AB_m).norm() << ','
                      << X_WD.R_AB.angularDistance(X_WP_before.R_AB) << ','
                      << out.stats.prune_us << ',' << out.stats.solve_us << ',' << out.stats.sweep_us << ',' << out.stats.sweeps << ','
-                     << out.stats.contacts_us << ',' << out.stats.work << ',' << int(out.stats.budget_cut) << '\n';
+                     << out.stats.contacts_us << ',' << out.stats.work << ',' << int(out.stats.budget_cut) << ','
+                     << out.stats.edge_us << '\n';
       m.times_us.push_back(out.stats.exec_time_us);
       m.contacts.push_back(out.stats.contacts);
       m.samples.push_back(static_cast<double>(out.stats.volume_samples));
@@ -889,6 +903,10 @@ void printRowResults(nlohmann::ordered_json& row) {
               << num(e["cpu_p99_9_us"], 1) << " / " << num(a["cpu_p99_9_us"], 1) << " us, max "
               << num(e["cpu_max_us"], 1) << " / " << num(a["cpu_max_us"], 1) << " us; crossings " << crossingsText(e)
               << " / " << crossingsText(a) << "\n";
+    if (e.contains("edge_test_mean_us"))
+      std::cout << "    of which the edge test itself: mean " << num(e["edge_test_mean_us"], 1)
+                << " us; the rest of the tick: mean " << num(e["cpu_mean_without_edge_test_us"], 1) << " us = "
+                << num(q["cpu_mean_without_edge_test"], 2) << "x the tick without the edge test\n";
   }
   if (row.contains("ratio_exact_over_end_sample")) {
     const auto& a = row["modes"]["accelerated"];

@@ -190,6 +190,12 @@ TEST(Bench, table1EdgeTestColumnRunsBesideTheAcceleratedModeAndNeverCrosses) {
   const json& q = row["ratio_edges_over_accelerated"];
   EXPECT_NEAR(number(q, "cpu_mean"), number(e, "cpu_mean_us") / number(row["modes"]["accelerated"], "cpu_mean_us"), 1e-9);
   EXPECT_EQ(q["within_1_2x"].get<bool>(), number(q, "cpu_mean") <= 1.2);
+  // The edge test's own time, and the rest of its ticks beside the ticks without it.
+  EXPECT_GT(number(e, "edge_test_mean_us"), 0.0);
+  EXPECT_NEAR(number(e, "cpu_mean_without_edge_test_us"), number(e, "cpu_mean_us") - number(e, "edge_test_mean_us"), 1e-9);
+  EXPECT_NEAR(number(q, "cpu_mean_without_edge_test"),
+              number(e, "cpu_mean_without_edge_test_us") / number(row["modes"]["accelerated"], "cpu_mean_us"), 1e-9);
+  EXPECT_FALSE(row["modes"]["accelerated"].contains("edge_test_mean_us")) << "no edge test there";
   // Its lag: against the edge test's own full solve (no budget, no deadline), run beside it.
   ASSERT_TRUE(row["modes"].contains("accelerated-edges-unbudgeted"));
   const json& full = row["modes"]["accelerated-edges-unbudgeted"];

@@ -146,6 +146,10 @@ struct TickStats {
   /// embedded-point scan and step 2 (prune), steps 1 + 3 (solve, every attempt), step 4 (sweep,
   /// every attempt), step 5's contact update (contacts).
   double prune_us = 0.0, solve_us = 0.0, sweep_us = 0.0, contacts_us = 0.0;
+  /// The edge test's own wall time [us] (RendererOptions::edge_test: its whole-graph tests, the
+  /// subdivision of a stopped move and the contact that adds; part of contacts_us on a tick
+  /// that sweeps); 0 without it. The rest of the tick cost exec_time_us - edge_us.
+  double edge_us = 0.0;
   /// Sweeps this tick ran (steps 3-4 solved again after a stuck contact's normal was refined:
   /// 1 to 3; 0 on a tick that only resumed a cut sweep or rejected its sample).
   int sweeps = 0;
