@@ -191,7 +191,7 @@ CollisionDetector::EdgeHold CollisionDetector::edgesStillClear(const Pose& X_WP,
     for (int a = 0; a < 3; ++a) {
       const double r = lever_m * grid_per_m_[a];
       const double lo = d[a] - r, hi = d[a] + r;
-      within = within && -lo <= kCertificateReachSteps && hi <= kCertificateReachSteps;
+      within = within && -lo <= proven.reach_lo[a] && hi <= proven.reach_hi[a];
       const auto rise_along = [&](double x) { return x >= 0.0 ? proven.step_hi[a] * x : proven.step_lo[a] * x; };
       rise += std::max(rise_along(lo), rise_along(hi));
     }
@@ -236,10 +236,27 @@ int CollisionDetector::edgeCrosses(WorkCounters& w, const Pose& X_WP, int j, con
                        edge_reach_m_[i] + epsilon_};
   if (excess_all < 0.0) {
     const Eigen::Vector3d reach = Eigen::Vector3d::Constant(kCertificateReachSteps);
-    if (volume_->gridStepRange(box_lo - reach, box_hi + reach, proven.step_lo, proven.step_hi)) {
+    Eigen::Vector3d step_lo, step_hi, valid_lo, valid_hi;
+    if (volume_->gridStepRange(box_lo - reach, box_hi + reach, step_lo, step_hi, &valid_lo, &valid_hi)) {
       // The cubic's value at a rounded critical point: a relative tolerance, as edgeClearance().
-      const double steepest = std::max(proven.step_lo.cwiseAbs().maxCoeff(), proven.step_hi.cwiseAbs().maxCoeff());
+      const double steepest = std::max(step_lo.cwiseAbs().maxCoeff(), step_hi.cwiseAbs().maxCoeff());
       proven.margin = -(excess_all + 1e-9 * (std::abs(isovalue) + steepest) + 1e-300);
+      // Kept as floats: the ranges widened, the reaches shortened by the rounding.
+      constexpr float kInf = std::numeric_limits<float>::infinity();
+      const auto down = [](double x) {
+        const auto f = static_cast<float>(x);
+        return static_cast<double>(f) > x ? std::nextafter(f, -kInf) : f;
+      };
+      const auto up = [](double x) {
+        const auto f = static_cast<float>(x);
+        return static_cast<double>(f) < x ? std::nextafter(f, kInf) : f;
+      };
+      for (int axis = 0; axis < 3; ++axis) {
+        proven.step_lo[axis] = down(step_lo[axis]);
+        proven.step_hi[axis] = up(step_hi[axis]);
+        proven.reach_lo[axis] = down(box_lo[axis] - valid_lo[axis]);
+        proven.reach_hi[axis] = down(valid_hi[axis] - box_hi[axis]);
+      }
       ++w.samples;  // the ranges of 1 to 8 step bricks, charged as one sample
     }
   }

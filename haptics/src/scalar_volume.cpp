@@ -377,7 +377,8 @@ void ScalarVolume::refreshRegionT(const std::array<int, 3>& lo, const std::array
 }
 
 bool ScalarVolume::gridStepRange(const Eigen::Vector3d& lo_ijk, const Eigen::Vector3d& hi_ijk,
-                                 Eigen::Vector3d& step_lo, Eigen::Vector3d& step_hi) const noexcept {
+                                 Eigen::Vector3d& step_lo, Eigen::Vector3d& step_hi, Eigen::Vector3d* valid_lo_ijk,
+                                 Eigen::Vector3d* valid_hi_ijk) const noexcept {
   if (!lo_ijk.allFinite() || !hi_ijk.allFinite() || steps_.empty()) return false;
   // The cells [floor(lo), floor(hi)] (the last cell holds the grid's far face); their edges are
   // booked to the step bricks of the cells up to one further along each axis (scanVoxels()).
@@ -412,7 +413,18 @@ bool ScalarVolume::gridStepRange(const Eigen::Vector3d& lo_ijk, const Eigen::Vec
     step_lo[a] = l - pad;
     step_hi[a] = h + pad;
   }
-  return step_lo.allFinite() && step_hi.allFinite();
+  // The largest box that reads the same bricks: its cells [floor(lo), floor(hi)] run from the
+  // first brick's first cell to the one before the last brick's last cell (a cell's derivative
+  // also reads the edges of the cells one further along each axis), or to the grid's far face.
+  if (!step_lo.allFinite() || !step_hi.allFinite()) return false;
+  for (int a = 0; a < 3; ++a) {
+    if (valid_lo_ijk != nullptr) (*valid_lo_ijk)[a] = static_cast<double>(b0[a] * kB);
+    if (valid_hi_ijk != nullptr)  // just below the last brick's last cell, whose edges go into the next brick
+      (*valid_hi_ijk)[a] = b1[a] == (geometry_.dims[a] - 2) / kB
+                               ? upper_[a]
+                               : std::nextafter(static_cast<double>((b1[a] + 1) * kB - 1), 0.0);
+  }
+  return true;
 }
 
 double ScalarVolume::voxel(int i, int j, int k) const noexcept {

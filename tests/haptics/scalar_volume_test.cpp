@@ -255,20 +255,27 @@ TEST(ScalarVolume, GridStepRangeBoundsEveryMoveInItsBoxByItsDirection) {
   const ScalarVolume vol = ScalarVolume::FromVoxels(g, raw, -0.5, 3.0);
   const Eigen::Vector3d upper(g.dims[0] - 1, g.dims[1] - 1, g.dims[2] - 1);
   double tightest = 0.0;
+  int extended = 0;  // boxes whose ranges hold two steps or more beyond them
   for (int n = 0; n < 40000; ++n) {
     Eigen::Vector3d lo = upper.cwiseProduct(Eigen::Vector3d(U(rng), U(rng), U(rng)));
     Eigen::Vector3d hi = (lo + 4.0 * Eigen::Vector3d(U(rng), U(rng), U(rng))).cwiseMin(upper);
-    Eigen::Vector3d step_lo, step_hi;
-    ASSERT_TRUE(vol.gridStepRange(lo, hi, step_lo, step_hi));
+    Eigen::Vector3d step_lo, step_hi, valid_lo, valid_hi;
+    ASSERT_TRUE(vol.gridStepRange(lo, hi, step_lo, step_hi, &valid_lo, &valid_hi));
     ASSERT_TRUE((step_lo.array() <= step_hi.array()).all());
-    // Every edge of the box's cells (voxel by voxel) lies in the range.
+    // The box the same ranges hold over contains the asked box and stays in the grid.
+    ASSERT_TRUE((valid_lo.array() <= lo.array()).all() && (hi.array() <= valid_hi.array()).all());
+    ASSERT_TRUE((valid_lo.array() >= 0.0).all() && (valid_hi.array() <= upper.array()).all());
+    if (((lo - valid_lo).array() >= 2.0).any() || ((valid_hi - hi).array() >= 2.0).any()) ++extended;
+    // Every edge of the cells of that box (voxel by voxel), and so of the asked box's, lies in
+    // the range.
     const auto F = [&](int i, int j, int k) { return -0.5 * raw[g.indexOf(i, j, k)] + 3.0; };
-    for (int k = static_cast<int>(lo[2]); k <= std::min(static_cast<int>(hi[2]), g.dims[2] - 2) + 1; ++k)
-      for (int j = static_cast<int>(lo[1]); j <= std::min(static_cast<int>(hi[1]), g.dims[1] - 2) + 1; ++j)
-        for (int i = static_cast<int>(lo[0]); i <= std::min(static_cast<int>(hi[0]), g.dims[0] - 2) + 1; ++i) {
+    const auto lastCell = [&](int a) { return std::min(static_cast<int>(valid_hi[a]), g.dims[a] - 2); };
+    for (int k = static_cast<int>(valid_lo[2]); k <= lastCell(2) + 1; ++k)
+      for (int j = static_cast<int>(valid_lo[1]); j <= lastCell(1) + 1; ++j)
+        for (int i = static_cast<int>(valid_lo[0]); i <= lastCell(0) + 1; ++i) {
           const int cell[3] = {i, j, k};
           for (int a = 0; a < 3; ++a) {
-            if (cell[a] > std::min(static_cast<int>(hi[a]), g.dims[a] - 2)) continue;  // the far voxels start no edge along a
+            if (cell[a] > lastCell(a)) continue;  // the far voxels start no edge along a
             const int next[3] = {i + (a == 0), j + (a == 1), k + (a == 2)};
             const double step = F(next[0], next[1], next[2]) - F(i, j, k);
             ASSERT_GE(step, step_lo[a]) << "axis " << a << " at " << i << " " << j << " " << k;
@@ -289,6 +296,7 @@ TEST(ScalarVolume, GridStepRangeBoundsEveryMoveInItsBoxByItsDirection) {
     if (rise_max > 1.0) tightest = std::max(tightest, rise / rise_max);
   }
   EXPECT_GT(tightest, 0.2);  // not a vacuous bound
+  EXPECT_GT(extended, 20000) << "the bricks' ranges hold beyond most boxes";
   // The smooth corner: raw 2 i - j + 3 k, F = -0.5 raw + 3, so dF/di = -1, dF/dj = 0.5,
   // dF/dk = -1.5 per step exactly (its step brick books no edge of the noise: cells up to i = 7).
   Eigen::Vector3d step_lo, step_hi;

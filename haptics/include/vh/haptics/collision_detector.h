@@ -528,15 +528,18 @@ class CollisionDetector {
     double arm_m = 0.0;
     // The exact walk's directional certificate: F - s <= -margin on all of j's edges there, and
     // F's derivative per grid step along each grid axis within [step_lo, step_hi] over the
-    // cells within kCertificateReachSteps of them (ScalarVolume::gridStepRange()); <= 0: none.
-    // A tool sliding along a wall moves its edges along the wall, where F hardly changes, and
-    // away from it, where F falls: a bound that knows the move's direction keeps them proven
-    // for many ticks where the distance (clearance_m) lasts about one.
+    // cells their box reaches, reach_lo below it and reach_hi above it along each grid axis (at
+    // least kCertificateReachSteps: the whole step bricks read, ScalarVolume::gridStepRange());
+    // margin <= 0: none. A tool sliding along a wall moves its edges along the wall, where F
+    // hardly changes, and away from it, where F falls: a bound that knows the move's direction
+    // keeps them proven for many ticks where the distance (clearance_m) lasts about one.
+    // Floats rounded outward (the ranges) and inward (the reaches): 128 bytes a certificate.
     double margin = -1.0;
-    Eigen::Vector3d step_lo = Eigen::Vector3d::Zero(), step_hi = Eigen::Vector3d::Zero();
+    Eigen::Vector3f step_lo = Eigen::Vector3f::Zero(), step_hi = Eigen::Vector3f::Zero();
+    Eigen::Vector3f reach_lo = Eigen::Vector3f::Zero(), reach_hi = Eigen::Vector3f::Zero();  // grid steps
   };
-  // How far (grid steps per axis) a directional certificate's edges may move: the box whose
-  // derivative ranges it keeps is its edges' box dilated by this much.
+  // How far (grid steps per axis) a directional certificate's edges may move at least: the box
+  // whose derivative ranges it reads is its edges' box dilated by this much.
   static constexpr double kCertificateReachSteps = 2.0;
   Eigen::Matrix3d grid_from_W_ = Eigen::Matrix3d::Identity();  // a move in W [m] -> grid steps
   std::vector<EdgeClearance> edge_clearance_;  // two per point: 2 j and 2 j + 1

@@ -212,11 +212,16 @@ class ScalarVolume {
   /// Lipschitz bound knows only its length (the edge test's directional certificates and the
   /// sweep's runs proven free along their direction, haptics/README.md, "Between the points"
   /// and "Speed").
+  /// The ranges are kept per step brick, so they hold beyond the box: where `valid_lo_ijk` and
+  /// `valid_hi_ijk` are given, they receive the largest box (grid coordinates, containing
+  /// [lo_ijk, hi_ijk]) that reads the same bricks, over whose cells the same bounds hold. A
+  /// move may go that far before the ranges are read again (the edge test's certificates).
   /// @return false, with nothing written, when the box is not inside the grid's box of voxel
   ///         centres or is not finite. Reads the ranges kept per step brick (the bricks that
   ///         book the cells' edges: usually 1 to 8), no voxel; no allocation.
   bool gridStepRange(const Eigen::Vector3d& lo_ijk, const Eigen::Vector3d& hi_ijk, Eigen::Vector3d& step_lo,
-                     Eigen::Vector3d& step_hi) const noexcept;
+                     Eigen::Vector3d& step_hi, Eigen::Vector3d* valid_lo_ijk = nullptr,
+                     Eigen::Vector3d* valid_hi_ijk = nullptr) const noexcept;
 
   /// Min/max bricks over the raw voxels (built once with the volume; independent of any
   /// isovalue). See haptics/README.md, "Speed".
