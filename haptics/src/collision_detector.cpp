@@ -8,6 +8,8 @@
 #include <string>
 #include <vector>
 
+#include "float_rounding.h"
+
 namespace vh::haptics {
 namespace {
 // Min-heap on t_begin over a preallocated array.
@@ -242,20 +244,11 @@ int CollisionDetector::edgeCrosses(WorkCounters& w, const Pose& X_WP, int j, con
       const double steepest = std::max(step_lo.cwiseAbs().maxCoeff(), step_hi.cwiseAbs().maxCoeff());
       proven.margin = -(excess_all + 1e-9 * (std::abs(isovalue) + steepest) + 1e-300);
       // Kept as floats: the ranges widened, the reaches shortened by the rounding.
-      constexpr float kInf = std::numeric_limits<float>::infinity();
-      const auto down = [](double x) {
-        const auto f = static_cast<float>(x);
-        return static_cast<double>(f) > x ? std::nextafter(f, -kInf) : f;
-      };
-      const auto up = [](double x) {
-        const auto f = static_cast<float>(x);
-        return static_cast<double>(f) < x ? std::nextafter(f, kInf) : f;
-      };
       for (int axis = 0; axis < 3; ++axis) {
-        proven.step_lo[axis] = down(step_lo[axis]);
-        proven.step_hi[axis] = up(step_hi[axis]);
-        proven.reach_lo[axis] = down(box_lo[axis] - valid_lo[axis]);
-        proven.reach_hi[axis] = down(valid_hi[axis] - box_hi[axis]);
+        proven.step_lo[axis] = floatBelow(step_lo[axis]);
+        proven.step_hi[axis] = floatAbove(step_hi[axis]);
+        proven.reach_lo[axis] = floatBelow(box_lo[axis] - valid_lo[axis]);
+        proven.reach_hi[axis] = floatBelow(valid_hi[axis] - box_hi[axis]);
       }
       ++w.samples;  // the ranges of 1 to 8 step bricks, charged as one sample
     }

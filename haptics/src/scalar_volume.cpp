@@ -10,6 +10,8 @@
 
 #include <Eigen/LU>
 
+#include "float_rounding.h"
+
 namespace vh::haptics {
 
 const char* voxelTypeName(VoxelType type) noexcept {
@@ -57,11 +59,8 @@ struct VoxelScan {
 // Widens a brick's range of steps along axis a (steps[a] the smallest, steps[3 + a] the largest)
 // by `step`, rounded outward to float (exact for the integer types' steps).
 inline void bookStep(float* steps, int a, double step) noexcept {
-  float lo = static_cast<float>(step), hi = lo;
-  if (static_cast<double>(lo) > step) lo = std::nextafter(lo, -std::numeric_limits<float>::infinity());
-  if (static_cast<double>(hi) < step) hi = std::nextafter(hi, std::numeric_limits<float>::infinity());
-  steps[a] = std::min(steps[a], lo);
-  steps[3 + a] = std::max(steps[3 + a], hi);
+  steps[a] = std::min(steps[a], floatBelow(step));
+  steps[3 + a] = std::max(steps[3 + a], floatAbove(step));
 }
 
 // A step brick's range before any edge is booked to it.
@@ -253,10 +252,7 @@ float ScalarVolume::brickBound(const double* step) const noexcept {
   const Eigen::Vector3d s(step[0], step[1], step[2]);
   const double L = std::abs(scale_) * s.cwiseQuotient(geometry_.spacing_m).norm() * (1.0 + 1e-9);
   // Capped at the largest float: a brick next to a -3e38 "no data" fill keeps a finite bound.
-  const float f = static_cast<float>(std::min(L, static_cast<double>(std::numeric_limits<float>::max())));
-  return static_cast<double>(f) >= L || f == std::numeric_limits<float>::max()
-             ? f
-             : std::nextafter(f, std::numeric_limits<float>::infinity());
+  return floatAbove(std::min(L, static_cast<double>(std::numeric_limits<float>::max())));
 }
 
 double ScalarVolume::rawAt(std::size_t idx) const noexcept {
