@@ -367,12 +367,12 @@ TEST_F(MainWindowTest, GainsFromThePanelApplyLiveAndPersist) {
   EXPECT_FALSE(window_->session().gains().passivity_control);
   EXPECT_FALSE(window_->preferences().passivity_control);
   EXPECT_EQ(panel->pointCountLabel()->text().toULongLong(), loaded_->tool->point_shell.size());
-  // The edge test between shell points is the session's, switched from the panel.
-  EXPECT_FALSE(panel->edgeTestBox()->isChecked());
-  panel->edgeTestBox()->setChecked(true);
-  EXPECT_TRUE(window_->session().live().tool_spec.edge_test);
+  // The edge test between shell points is the session's, on by default, switched from the panel.
+  EXPECT_TRUE(panel->edgeTestBox()->isChecked());
   panel->edgeTestBox()->setChecked(false);
   EXPECT_FALSE(window_->session().live().tool_spec.edge_test);
+  panel->edgeTestBox()->setChecked(true);
+  EXPECT_TRUE(window_->session().live().tool_spec.edge_test);
   EXPECT_TRUE(window_->session().hapticsRunning());
   // The start/stop button stops and restarts the thread.
   panel->startStopButton()->click();
@@ -397,6 +397,20 @@ TEST_F(MainWindowTest, ChoosingAToolRebuildsTheHapticThread) {
   EXPECT_EQ(window_->hapticsPanel()->pointCountLabel()->text().toULongLong(), window_->session().live().tool->point_shell.size());
   EXPECT_NEAR(window_->hapticsPanel()->pointSpacing_m(), 0.001, 1e-9);
   EXPECT_TRUE(window_->session().hapticsRunning());
+  // The 5 mm ball at 1 mm spacing is felt within a fraction of a millimetre of its mesh: no warning.
+  const QString gap = window_->hapticsPanel()->feltGapLabel()->text();
+  EXPECT_TRUE(gap.endsWith("mm of the mesh")) << gap.toStdString();
+  EXPECT_LT(gap.split(' ').front().toDouble(), 0.5) << gap.toStdString();
+  // The probe's 1 mm shaft at 2 mm spacing is not: the panel says so, with the gap.
+  int probe = -1;
+  for (std::size_t i = 0; i < tools.size(); ++i)
+    if (tools[i].id == "builtin:probe") probe = static_cast<int>(i);
+  ASSERT_GE(probe, 0);
+  window_->toolPicker()->select(probe, 0.002);
+  ASSERT_TRUE(waitFor([&] { return changed.count() > 1; }, 20000)) << "the probe was never built";
+  const QString coarse = window_->hapticsPanel()->feltGapLabel()->text();
+  EXPECT_TRUE(coarse.contains("too coarse")) << coarse.toStdString();
+  EXPECT_GT(coarse.split(' ').front().toDouble(), 0.5) << coarse.toStdString();
   // The new thread runs with the new tool: the proxy follows the device from the new pose.
   EXPECT_TRUE(waitFor([&] {
     window_->viewController()->refresh();

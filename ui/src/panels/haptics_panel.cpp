@@ -1,5 +1,6 @@
 #include "vh/ui/panels/haptics_panel.h"
 #include "vh/ui/devices/device_picker.h"
+#include "vh/runtime/tool_fidelity.h"
 
 #include <cmath>
 
@@ -50,12 +51,19 @@ HapticsPanel::HapticsPanel(QWidget* parent) : QWidget(parent) {
   tool_form->addRow("Mesh", tool_);
   tool_form->addRow("Point spacing", spacing_mm_);
   tool_form->addRow("Points", points_);
+  felt_gap_ = new QLabel("-", tool_box);
+  felt_gap_->setObjectName("feltGap");
+  felt_gap_->setWordWrap(true);
+  felt_gap_->setToolTip(
+      "The largest distance between the tool's mesh and what is felt of it (its points, and with Surface "
+      "between points the edges between them): a surface can come this far inside the tool before it is felt");
+  tool_form->addRow("Felt within", felt_gap_);
   edge_test_ = new QCheckBox("Surface between points", tool_box);
   edge_test_->setObjectName("edgeTest");
   edge_test_->setToolTip(
       "Keep the tool's surface between its points outside the surface felt, not only the points: bone "
-      "thinner than the point spacing cannot slip between them (costs the solver 1.1x to 2.8x its time; "
-      "within the servo deadline, a heavy tool pressed on bone may lag a little)");
+      "thinner than the point spacing cannot slip between them. On by default; off gives the paper's "
+      "points-only proxy, for comparison with the published method (about half the solver's time)");
   tool_form->addRow(edge_test_);
   layout->addWidget(tool_box);
 
@@ -204,6 +212,7 @@ void HapticsPanel::showSession(const runtime::Session& session, const std::vecto
     updating_ = true;
     edge_test_->setChecked(session.live().tool_spec.edge_test);
     updating_ = false;
+    showFeltGap(session);
   }
   QString name = "No device: haptics off";
   QString limits;
@@ -217,6 +226,28 @@ void HapticsPanel::showSession(const runtime::Session& session, const std::vecto
     }
   }
   setDevice(name, limits);
+}
+
+void HapticsPanel::showFeltGap(const runtime::Session& session) {
+  const auto& tool = session.live().tool;
+  const bool edges = session.live().tool_spec.edge_test;
+  if (tool == nullptr) {
+    felt_gap_->setText("-");
+    gap_tool_ = nullptr;
+    return;
+  }
+  if (tool.get() == gap_tool_ && edges == gap_edges_) return;
+  gap_tool_ = tool.get();
+  gap_edges_ = edges;
+  const haptics::ShellFidelity gap = runtime::feltGap(*tool, edges);
+  const QString mm = QString::number(gap.max_gap_m * 1e3, 'f', 2) + " mm of the mesh";
+  if (gap.max_gap_m > haptics::kShellGapWarning_m) {
+    felt_gap_->setText(mm + ": too coarse for this tool's features; choose a finer spacing");
+    felt_gap_->setStyleSheet("color: #b35900; font-weight: bold;");
+  } else {
+    felt_gap_->setText(mm);
+    felt_gap_->setStyleSheet({});
+  }
 }
 
 void HapticsPanel::setDevice(const QString& name, const QString& limits) {

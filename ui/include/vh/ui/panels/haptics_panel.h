@@ -65,6 +65,9 @@ class HapticsPanel : public QWidget {
   /// CouplingGains::passivity_control.
   QCheckBox* passivityControlBox() const noexcept { return passivity_; }
   QLabel* pointCountLabel() const noexcept { return points_; }
+  /// How closely the tool's mesh is felt (runtime::feltGap()): the largest gap between the mesh
+  /// and the felt points and edges, in warning colours past haptics::kShellGapWarning_m.
+  QLabel* feltGapLabel() const noexcept { return felt_gap_; }
   /// ToolSpec::edge_test: the tool's surface between its points kept outside too.
   QCheckBox* edgeTestBox() const noexcept { return edge_test_; }
   QComboBox* deviceBox() const noexcept { return device_choice_; }
@@ -89,6 +92,7 @@ class HapticsPanel : public QWidget {
   QComboBox* tool_;
   QDoubleSpinBox* spacing_mm_;
   QLabel* points_;
+  QLabel* felt_gap_;
   QCheckBox* edge_test_;
   QDoubleSpinBox* linear_;
   QDoubleSpinBox* torsional_;
@@ -100,6 +104,10 @@ class HapticsPanel : public QWidget {
   QTimer* spacing_timer_;
   bool running_ = false;
   bool updating_ = false;  // programmatic changes emit nothing
+  // The felt gap of the tool last shown (measured once per tool and edge setting).
+  const void* gap_tool_ = nullptr;
+  bool gap_edges_ = false;
+  void showFeltGap(const runtime::Session& session);
 };
 
 }  // namespace vh::ui
