@@ -18,6 +18,7 @@
 #include "vh/datasets/synthetic.h"
 #include "vh/runtime/default_isovalue.h"
 #include "vh/runtime/placement.h"
+#include "vh/runtime/tool_fidelity.h"
 
 #ifndef VH_DEFAULT_SHARED_DATASETS_DIR
 #define VH_DEFAULT_SHARED_DATASETS_DIR ""
@@ -577,6 +578,10 @@ void loadToolAndPose(LoadedScene& scene, const std::string& where, const std::at
   } catch (const std::invalid_argument& e) {
     throw std::runtime_error(where + ": tool '" + spec.tool.mesh + "': " + e.what());
   }
+  // A spacing too coarse for the tool's features (a 1 mm shaft at 2 mm) is said at once.
+  const std::string gap_notice = feltGapNotice(feltGap(*scene.tool, spec.tool.edge_test),
+                                               toolPointSpacing_m(spec.tool, scene.tool->mesh_T, field));
+  if (!gap_notice.empty()) scene.volume.info.notices.push_back(gap_notice);
 
   // Initial pose.
   if (spec.tool.initial_pose_set) {
@@ -628,7 +633,7 @@ double LoadedScene::pointSpacing_m() const { return LiveValues::initial(*this).p
 std::unique_ptr<haptics::HapticRenderer> makeRenderer(const LiveValues& live, haptics::RendererOptions options,
                                                       const haptics::Pose& X_WP) {
   options.gains = live.gains;
-  if (live.tool_spec.edge_test) options.edge_test = 1;
+  options.edge_test = live.tool_spec.edge_test ? 1 : 0;
   return std::make_unique<haptics::HapticRenderer>(live.hapticField(), live.tool, options, X_WP,
                                                    live.hapticIsovalue());
 }
@@ -728,7 +733,7 @@ DrillingRenderer makeServoRenderer(const LiveValues& live, const haptics::Render
     throw std::invalid_argument("drilling needs a volume");
   haptics::RendererOptions with_gains = options;
   with_gains.gains = live.gains;
-  if (live.tool_spec.edge_test) with_gains.edge_test = 1;
+  with_gains.edge_test = live.tool_spec.edge_test ? 1 : 0;
   if (live.tool == nullptr) throw std::invalid_argument("drilling needs a tool");
   (void)burrOf(*live.tool, *live.drill);  // its errors before the preparation's cost
   PreparedDrill drill = prepared != nullptr && prepared->removal != nullptr ? std::move(*prepared) : prepareServoDrill(live);

@@ -251,8 +251,9 @@ std::string makeSessionMetadata(const LoadedScene& scene, const LiveValues& live
                 {"point_spacing_m", live.tool_spec.point_spacing_m},
                 {"point_count", live.tool_spec.point_count},
                 {"initial_pose", poseJson(live.X_WT_initial)}};
-  // Only when on: recordings of the default stay as they were.
-  if (live.tool_spec.edge_test) sc["tool"]["edge_test"] = true;
+  // Always written: recordings made before the edge test was on by default lack the key and
+  // were made without it (read as false below).
+  sc["tool"]["edge_test"] = live.tool_spec.edge_test;
   sc["coupling"] = {{"linear_N_per_m", live.gains.linear_N_per_m},
                     {"angular_Nm_per_rad", live.gains.angular_Nm_per_rad},
                     {"passivity_control", live.gains.passivity_control}};
