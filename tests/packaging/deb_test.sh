@@ -74,6 +74,14 @@ done
 zcat "$root/usr/share/man/man1/volume-haptics.1.gz" | grep -q '^\.TH VOLUME-HAPTICS "1"' || fail "the man page has no .TH header"
 zcat "$root/usr/share/man/man1/volume-haptics.1.gz" | grep -q 'run' || fail "the man page does not mention run"
 grep -q 'TAG+="uaccess"' "$root/usr/lib/udev/rules.d/70-volume-haptics.rules" || fail "the udev rules give nothing to the seat's user"
+# Real-time scheduling for the servo loop: the group's limits, as a conffile, and the group made.
+limits="$root/etc/security/limits.d/95-volume-haptics-realtime.conf"
+[[ -f $limits ]] || fail "the package lacks the real-time limits file"
+grep -Eq '^@volume-haptics +- +rtprio +80$' "$limits" || fail "the limits file does not grant rtprio 80 to the group"
+dpkg-deb -e "$deb" "$tmp/control"
+grep -qx /etc/security/limits.d/95-volume-haptics-realtime.conf "$tmp/control/conffiles" ||
+  fail "the limits file is not a conffile"
+grep -q 'groupadd --system volume-haptics' "$tmp/control/postinst" || fail "postinst does not create the group"
 if command -v desktop-file-validate >/dev/null 2>&1; then
   desktop-file-validate "$root/usr/share/applications/volume-haptics.desktop" || fail "desktop-file-validate"
 else
