@@ -251,6 +251,17 @@ bool CollisionDetector::refineStuckContact(const RigidMotion& motion, const Swee
     if (!(norm > 0.0) || !std::isfinite(norm)) return false;
     const Eigen::Vector3d n = -g / norm;
     if (c.crossing_normal && (n - c.n_W).norm() < 1e-9) return false;  // nothing new to try
+    // Already the interpolant's own normal and still blocked at once: the point sits on a crease
+    // of the trilinear surface (a cell face, where the gradient jumps), which one normal cannot
+    // hold: each side's normal lets the motion into the other. Both sides are kept, the crease's
+    // other side as a second contact of the point (point_index -1: not the point's own entry).
+    if (c.crossing_normal && contact_count_ < contactCap()) {
+      Contact crease = c;
+      crease.point_index = -1;
+      crease.n_W = n;
+      contacts_[contact_count_++] = crease;
+      return true;
+    }
     c.n_W = n;
     c.crossing_normal = true;
     return true;

@@ -31,9 +31,7 @@ HapticsController::HapticsController(runtime::Session& session, HapticsPanel& pa
   connect(&panel_, &HapticsPanel::edgeTestRequested, this, [this](bool on) {
     if (session_.hasScene()) session_.setEdgeTest(on);
   });
-  connect(&panel_, &HapticsPanel::resetDeviceRequested, this, [this] {
-    if (session_.hasScene()) input_.setDevicePose(session_.live().X_WT_initial);
-  });
+  connect(&panel_, &HapticsPanel::resetDeviceRequested, this, [this] { resetDevice(); });
   connect(&panel_, &HapticsPanel::rescanRequested, &devices_, &DevicePicker::rescan);
   connect(&panel_, &HapticsPanel::deviceChoiceRequested, &devices_, &DevicePicker::choose);
   connect(&devices_, &DevicePicker::choicesChanged, &panel_, &HapticsPanel::setDeviceChoices);
@@ -58,6 +56,12 @@ HapticsController::~HapticsController() { session_.removeObserver(observer_); }
 
 bool HapticsController::replaying() const { return replay_.active(); }
 
+void HapticsController::resetDevice() {
+  if (!session_.hasScene()) return;
+  input_.setDevicePose(session_.live().X_WT_initial);  // the picture's device
+  session_.resetDevice();                               // and the proxy at a legal pose near it
+}
+
 void HapticsController::start() {
   if (replaying()) {
     recorder_.showNotice("A recording is replayed: Close Replay first", 4000);
@@ -80,9 +84,7 @@ QMenu* HapticsController::addMenu(QMenuBar* bar, QWidget* window) {
   run_action_ = menu->addAction("&Run Haptic Thread", this, [this](bool on) { on ? start() : session_.stopHaptics(); });
   run_action_->setCheckable(true);
   run_action_->setShortcut(QKeySequence("Ctrl+H"));
-  menu->addAction("Reset &Device", this, [this] {
-        if (session_.hasScene()) input_.setDevicePose(session_.live().X_WT_initial);
-      })->setShortcut(QKeySequence("Ctrl+Home"));
+  menu->addAction("Reset &Device", this, [this] { resetDevice(); })->setShortcut(QKeySequence("Ctrl+Home"));
   QAction* touch = menu->addAction("&Touch the Surface", this, [this] {
     if (!input_.touchSurface(0.003)) emit message("No simulated device, or no surface along the view through the volume's centre", 4000);
   });

@@ -3,6 +3,9 @@
 
 #include "vh/runtime/snapshot_channel.h"
 
+#include "vh/runtime/jam_detector.h"
+#include "vh/runtime/placement.h"
+
 #include "vh/haptics/configuration_solver.h"
 #include "vh/haptics/passivity_controller.h"
 #include "vh/runtime/passivity_port.h"
@@ -424,6 +427,18 @@ bool HapticThread::realtimeScheduling() const noexcept {
 }
 
 bool HapticThread::latestSnapshot(HapticSnapshot& out) noexcept { return x_->gui.read(out); }
+
+bool HapticThread::placeProxy(const haptics::Pose& X_WP) noexcept {
+  if (running() || coupling_thread_.joinable() || recorder_.load(std::memory_order_acquire) != nullptr ||
+      !X_WP.allFinite())
+    return false;
+  renderer_->resetProxy(X_WP);
+  ProxyState& proxy = x_->proxy.writeSlot();
+  proxy.X_WP = renderer_->proxyPose();
+  proxy.bad_input = false;
+  x_->proxy.publish();
+  return true;
+}
 
 void mergeSnapshots(const CouplingSnapshot& c, const SolverSnapshot& s, HapticSnapshot& out) noexcept {
   out.tick = c.tick;
@@ -869,6 +884,7 @@ void HapticThread::solverLoop() noexcept {
   renderer_->setGains(gains);
   haptics::Pose X_WD_used = renderer_->proxyPose();  // the latest pose the renderer ticked with
   std::uint32_t wake_flags = 0;                      // deadline miss of this wake-up (first tick only)
+  JamDetector jam;                                   // kRecordFlagJam
 
   // One solver tick on `in`: render, publish the proxy, record, publish the snapshot.
   const auto solve = [&](const DeviceInput& in) noexcept {
@@ -877,11 +893,19 @@ void HapticThread::solverLoop() noexcept {
     haptics::TickOutput out;
     bool bad_input = false;
     std::uint32_t drill_flags = 0;
+    bool stuck = false;
     if (in.ok) {
       X_WD_used = in.X_WD;
+      const haptics::Pose X_WP_before = renderer_->proxyPose();
       out = renderer_->tick(in.X_WD, in.isovalue);
       bad_input = out.stats.bad_input;
       if (bad_input) ++rejected;
+      // The jam detector (jam_detector.h); the device's own freedom is tested only on candidates.
+      const haptics::ToolModel& tool = renderer_->tool();
+      stuck = !bad_input &&
+              JamDetector::candidate(X_WP_before, renderer_->proxyPose(), in.X_WD, tool.mass.p_TCm_m,
+                                     static_cast<int>(renderer_->contacts().size())) &&
+              countPointsInside(renderer_->volume(), tool.point_shell, in.X_WD, renderer_->feltIsovalue()) == 0;
       // seq_cst with solver_ticks_ below: holdCutting()'s handshake (a tick that starts after the
       // one it waited for sees the hold).
       if (options_.drill != nullptr && !cutting_held_.load(std::memory_order_seq_cst) &&
@@ -890,6 +914,7 @@ void HapticThread::solverLoop() noexcept {
         drill_flags = kRecordFlagDrillOn;
       }
     }
+    const std::uint32_t jam_flags = jam.update(stuck) ? kRecordFlagJam : 0u;
     ProxyState& proxy = x_->proxy.writeSlot();
     proxy.X_WP = renderer_->proxyPose();
     proxy.bad_input = bad_input;
@@ -918,7 +943,8 @@ void HapticThread::solverLoop() noexcept {
       rec.tick_time_s = 1e-9 * static_cast<double>(end_ns - begin_ns);
       rec.contacts = static_cast<std::uint32_t>(contacts.size());
       rec.flags =
-          solverRecordFlags(rec.contacts, in, out, segment) | wake_flags | coupling_flags | drill_flags | gains_flags;
+          solverRecordFlags(rec.contacts, in, out, segment) | wake_flags | coupling_flags | drill_flags | gains_flags |
+          jam_flags;
       (void)recorder->push(rec);
       latest_recorded_tick_.store(tick, std::memory_order_release);
     }

@@ -125,4 +125,11 @@ Pose defaultInitialPose(const haptics::ScalarVolume& volume, const haptics::Poin
   return translatedBy(above, -std::max(0.0, *contact - back_off) * Eigen::Vector3d::UnitZ());
 }
 
+Pose legalPoseNear(const haptics::ScalarVolume& volume, const haptics::PointShell& shell, const Pose& X_WT,
+                   double isovalue, const std::optional<Pose>& fallback) {
+  if (!anyInside(volume, shell, X_WT, isovalue)) return X_WT;
+  if (fallback && !anyInside(volume, shell, *fallback, isovalue)) return *fallback;
+  return defaultInitialPose(volume, shell, X_WT.R_AB, isovalue);
+}
+
 }  // namespace vh::runtime

@@ -2,6 +2,8 @@
 // The file format is documented in vh/runtime/recording.h.
 #include "vh/runtime/recording.h"
 
+#include "vh/runtime/jam_detector.h"
+
 #include <algorithm>
 #include <array>
 #include <bit>
@@ -258,6 +260,12 @@ void RecordingWriter::deriveEvents(const TickRecord* records, std::size_t count)
         derived.push_back({r.time_s, r.tick, "critical_contact", c.dump()});
       }
       previous_segment_ = segment;
+    }
+    const bool jammed = (r.flags & kRecordFlagJam) != 0;
+    if (jammed != previous_jammed_) {
+      derived.push_back({r.time_s, r.tick, jammed ? "jam" : "jam_cleared",
+                         jammed ? nlohmann::json{{"ticks", kJamTicks + 1}}.dump() : std::string("{}")});
+      previous_jammed_ = jammed;
     }
     previous_disconnected_ = disconnected;
     previous_isovalue_ = r.isovalue;

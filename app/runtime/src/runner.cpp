@@ -1,5 +1,8 @@
 #include "vh/runtime/runner.h"
 
+#include "vh/runtime/jam_detector.h"
+#include "vh/runtime/placement.h"
+
 #include <algorithm>
 #include <chrono>
 #include <cmath>
@@ -385,6 +388,7 @@ RunReport runHeadless(const LoadedScene& scene, const Trajectory& trajectory, co
   std::unique_ptr<RecordingWriter> recorder = openRecorder(scene, X_WD_first, device, options);
   std::optional<SegmentContactTally> segment_tally = segmentTally(scene);
   double contact_sum = 0.0, samples_sum = 0.0;
+  JamDetector jam;
   const auto wall_begin = std::chrono::steady_clock::now();
   for (std::uint64_t i = 0; i < n; ++i) {
     DeviceSample sample;
@@ -394,6 +398,7 @@ RunReport runHeadless(const LoadedScene& scene, const Trajectory& trajectory, co
     // The isovalue asked for this tick: the trajectory's ninth column, else the scene's.
     const double isovalue = trajectory.isovalueAt(sample.time_s, s);
     haptics::TickOutput out;
+    const haptics::Pose X_WP_before = renderer.proxyPose();
     if (sample_ok) {
       out = renderer.tick(sample.X_WD, isovalue);
       X_WD_used = sample.X_WD;
@@ -442,10 +447,18 @@ RunReport runHeadless(const LoadedScene& scene, const Trajectory& trajectory, co
         recorder->addEvent(event);
       }
     }
+    // The jam detector (jam_detector.h): held in contact, far from a device in free space.
+    const bool stuck = sample_ok && !out.stats.bad_input &&
+                       JamDetector::candidate(X_WP_before, renderer.proxyPose(), sample.X_WD, tool.mass.p_TCm_m,
+                                              static_cast<int>(renderer.contacts().size())) &&
+                       countPointsInside(renderer.volume(), tool.point_shell, sample.X_WD, renderer.feltIsovalue()) == 0;
+    const bool jammed = jam.update(stuck);
+    if (jammed && r.first_jam_tick < 0) r.first_jam_tick = static_cast<std::int64_t>(i);
     if (recorder) {
       TickRecord rec = runRecord(i, options.servo_rate_Hz, X_WD_used, renderer.proxyPose(), out, isovalue,
                                  renderer.contacts().size(), finite, sample_ok, segment);
       if (drilling && sample_ok && !out.stats.bad_input) rec.flags |= kRecordFlagDrillOn;
+      if (jammed) rec.flags |= kRecordFlagJam;
       recorder->pushWaiting(rec);
     }
     if (trace.is_open()) {
@@ -465,6 +478,8 @@ RunReport runHeadless(const LoadedScene& scene, const Trajectory& trajectory, co
   r.total_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - wall_begin).count();
   r.ticks = n;
   r.held_ticks = safety.stats().held_ticks;
+  r.jam_ticks = jam.jamTicks();
+  r.jams = jam.jams();
   summariseTicks(r, times_us, n, contact_sum, samples_sum);
   return r;
 }
@@ -531,6 +546,9 @@ std::string RunReport::toJson() const {
   j["final_force_N"] = final_force_N;
   j["final_proxy_device_distance_m"] = final_proxy_device_distance_m;
   j["max_proxy_device_distance_m"] = max_proxy_device_distance_m;
+  j["jams"] = jams;
+  j["jam_ticks"] = jam_ticks;
+  j["first_jam_tick"] = first_jam_tick;
   j["work_budget"] = work_budget;
   j["budget_cuts"] = budget_cuts;
   j["max_work"] = max_work;
@@ -606,6 +624,13 @@ std::string RunReport::summary() const {
                     max_behind_rad);
       out += line;
     }
+  }
+  if (jams == 0) {
+    out += "; jams 0";
+  } else {
+    std::snprintf(line, sizeof line, "; jams %llu (%llu ticks, first at tick %lld)", static_cast<unsigned long long>(jams),
+                  static_cast<unsigned long long>(jam_ticks), static_cast<long long>(first_jam_tick));
+    out += line;
   }
   if (drill) {
     std::snprintf(line, sizeof line, "; drilled %.2f mm^3", drill->removed_mm3);

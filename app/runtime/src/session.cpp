@@ -322,9 +322,44 @@ void Session::setMonitor(std::shared_ptr<SnapshotChannel> monitor) {
   });
 }
 
+namespace {
+
+/// The device's last pose the threads saw (the simulated device's own when there is one).
+std::optional<haptics::Pose> lastDevicePose(HapticThread& thread, SimulatedDevice* sim) {
+  if (sim != nullptr) return sim->pose();
+  HapticSnapshot snapshot;
+  thread.latestSnapshot(snapshot);
+  if (snapshot.tick == 0) return std::nullopt;
+  return snapshot.X_WD;
+}
+
+}  // namespace
+
 void Session::startHaptics() {
   if (haptics_ == nullptr || haptics_->running()) return;
+  HapticSnapshot snapshot;
+  haptics_->latestSnapshot(snapshot);
+  if (snapshot.tick > 0) {  // ran before: from a legal pose near the device, not where it stopped
+    const haptics::HapticRenderer& r = haptics_->renderer();
+    if (const auto X_WD = lastDevicePose(*haptics_, simulatedDevice())) {
+      haptics_->placeProxy(legalPoseNear(r.volume(), r.tool().point_shell, *X_WD, r.feltIsovalue(), r.proxyPose()));
+    }
+  }
   haptics_->start();
+  notify(SessionChange::kRunning);
+}
+
+void Session::resetDevice() {
+  if (!has_scene_) return;
+  SimulatedDevice* sim = simulatedDevice();
+  if (sim != nullptr) sim->setPose(live_.X_WT_initial);
+  if (haptics_ == nullptr) return;
+  const bool was_running = haptics_->running();
+  if (was_running) haptics_->stop();  // force ramped to zero; the drill keeps its field
+  const haptics::HapticRenderer& r = haptics_->renderer();
+  const haptics::Pose X_WD = sim != nullptr ? live_.X_WT_initial : lastDevicePose(*haptics_, nullptr).value_or(live_.X_WT_initial);
+  haptics_->placeProxy(legalPoseNear(r.volume(), r.tool().point_shell, X_WD, r.feltIsovalue()));
+  if (was_running) haptics_->start();
   notify(SessionChange::kRunning);
 }
 

@@ -160,8 +160,11 @@ class CollisionDetector {
   /// When the sweep's first hit is a point already in the contact set and the proxy could not
   /// move (travel below the bisection tolerance), its eq. 1 normal disagrees with the trilinear
   /// surface there; the contact's normal is replaced by the interpolant's own gradient at the
-  /// crossing, which by construction opposes the blocked direction.
-  /// @return true when a normal was replaced (re-solve steps 3-5 within the tick).
+  /// crossing, which by construction opposes the blocked direction. When the contact already has
+  /// the interpolant's normal, the point sits on a crease of the trilinear surface (a cell face):
+  /// the new normal joins the set as a second contact of the same point (point_index -1), so the
+  /// solver holds both sides of the crease.
+  /// @return true when a normal was replaced or added (re-solve steps 3-5 within the tick).
   bool refineStuckContact(const RigidMotion& motion, const SweepResult& hit) noexcept;
 
   /// Moves the stored contact positions to the proxy pose X_WP (after step 5).

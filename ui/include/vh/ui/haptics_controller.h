@@ -52,6 +52,9 @@ class HapticsController : public QObject {
 
  private:
   bool replaying() const;
+  /// Reset Device: the simulated device to the scene's initial pose, the proxy to a legal pose
+  /// near the device (Session::resetDevice()).
+  void resetDevice();
 
   runtime::Session& session_;
   HapticsPanel& panel_;

@@ -268,6 +268,15 @@ class HapticThread {
   /// @throws std::invalid_argument when detail_json is not a JSON object (RecordingWriter::addEvent()).
   void recordEvent(const std::string& type, const std::string& detail_json);
 
+  /// Moves the proxy to X_WP in W [m] without collision checking (HapticRenderer::resetProxy():
+  /// the contact set cleared; points inside become embedded), for the next start(). Only while
+  /// the threads are stopped and nothing records (a recording replays the renderer's own
+  /// motion). @return false (nothing moved) while running or recording.
+  bool placeProxy(const haptics::Pose& X_WP) noexcept;
+  /// The renderer (its carved field, felt isovalue, tool and proxy pose); read it only while the
+  /// threads are stopped.
+  const haptics::HapticRenderer& renderer() const noexcept { return *renderer_; }
+
   /// Latest snapshot (never blocks; one consumer thread). @return true when either thread
   /// published something since the last call.
   bool latestSnapshot(HapticSnapshot& out) noexcept;

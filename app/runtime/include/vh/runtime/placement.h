@@ -47,4 +47,12 @@ haptics::Pose defaultInitialPose(const haptics::ScalarVolume& volume,
                                  const haptics::PointShell& shell, const Eigen::Quaterniond& R_WT,
                                  double isovalue);
 
+/// A pose for the tool near X_WT that no shell point is inside: X_WT itself when it is free,
+/// else `fallback` when given and free, else defaultInitialPose() with X_WT's orientation (above
+/// the volume). Where Reset Device and a restart of the haptic threads put the proxy, rather than
+/// where it may have been held.
+haptics::Pose legalPoseNear(const haptics::ScalarVolume& volume, const haptics::PointShell& shell,
+                            const haptics::Pose& X_WT, double isovalue,
+                            const std::optional<haptics::Pose>& fallback = std::nullopt);
+
 }  // namespace vh::runtime

@@ -72,7 +72,8 @@
 /// itself, which watches the records: an isovalue that differs from the previous record's gives
 /// an "isovalue" event {"from":A,"to":B}; kRecordFlagDeviceDisconnected turning on / off gives
 /// "device_disconnected" / "device_connected" (the first record's state is in the metadata; a
-/// recording that starts disconnected gets a "device_disconnected" event at its first tick).
+/// recording that starts disconnected gets a "device_disconnected" event at its first tick);
+/// kRecordFlagJam turning on / off gives "jam" / "jam_cleared".
 ///
 /// A crash (even `kill -9`) loses only the records not yet written: the writer flushes a chunk
 /// at least every RecordingWriterOptions::max_chunk_wall_s (< 1 s) and every chunk holds at most
@@ -134,6 +135,11 @@ inline constexpr std::uint32_t kRecordFlagGainsApplied = 1u << 9;
 /// so from such a tick on it need not match bit for bit: replayRecording() names the first one
 /// at or before a mismatch (ReplayComparison::deadline_cut_tick).
 inline constexpr std::uint32_t kRecordFlagDeadlineCut = 1u << 10;
+/// The tick is part of a jam (jam_detector.h: the proxy held in contact, far from a device pose
+/// that is itself free, for more than kJamTicks ticks). The writer derives a "jam" event when
+/// the flag turns on ({"ticks": kJamTicks + 1}, stamped with the first flagged record) and
+/// "jam_cleared" when it turns off.
+inline constexpr std::uint32_t kRecordFlagJam = 1u << 11;
 
 /// One servo tick, fixed size, trivially copyable (its byte image is what the file stores).
 /// Frames: W is the scene (world) frame; D the device (tool) frame; P the proxy frame.
@@ -258,6 +264,7 @@ class RecordingWriter {
   std::mutex events_mutex_;
   std::vector<RecordingEvent> pending_events_;  // guarded by events_mutex_
   bool have_previous_ = false;                  // writer thread: deriveEvents() state
+  bool previous_jammed_ = false;                // writer thread: deriveEvents() state
   int previous_segment_ = -1;
   std::vector<std::string> segment_names_;      // from the metadata (constant)
   std::vector<bool> segment_critical_;

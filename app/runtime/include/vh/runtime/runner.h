@@ -214,6 +214,13 @@ struct RunReport {
   /// Largest |p_P - p_D| over the run [m]: about the push depth when the proxy slides along the
   /// surface with the device; much more means the proxy lagged or stuck.
   double max_proxy_device_distance_m = 0.0;
+  /// Jams (jam_detector.h): runs of more than kJamTicks ticks in which the proxy, in contact and
+  /// more than kJamDistance_m from a device pose that is itself free, came no closer to it; the
+  /// ticks of those runs past the first kJamTicks, and the first such tick (-1: none). The
+  /// recording flags the same ticks (kRecordFlagJam).
+  std::uint64_t jams = 0;
+  std::uint64_t jam_ticks = 0;
+  std::int64_t first_jam_tick = -1;
   // The work budget (haptics::RendererOptions::work_budget) and its price.
   std::int64_t work_budget = 0;          ///< Work units per tick; 0: unbounded.
   std::uint64_t budget_cuts = 0;         ///< Ticks the budget cut (the sweep went on next tick).

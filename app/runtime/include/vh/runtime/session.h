@@ -164,7 +164,17 @@ class Session {
   HapticThread* hapticThread() const noexcept { return haptics_.get(); }
   bool hapticsRunning() const noexcept { return haptics_ != nullptr && haptics_->running(); }
   /// Starts the haptic threads (built with the live isovalue and gains; no effect without them).
+  /// Threads that ran before (stopped, not recording) start with the proxy at a legal pose near
+  /// the device (legalPoseNear(): the device's last pose when no shell point is inside there on
+  /// the felt, drilled field, else where the proxy stopped), so a restart never holds the hand
+  /// where the proxy was jammed.
   void startHaptics();
+  /// Reset Device: a simulated device goes back to live().X_WT_initial, and the proxy (threads
+  /// stopped for it, force ramped to zero, restarted when they ran) to a legal pose near the
+  /// device (legalPoseNear() on the felt, drilled field: X_WT_initial when free, else above the
+  /// volume; for a hardware device its last pose). While recording the proxy stays (a recording
+  /// replays the renderer's own motion). No scene: ignored.
+  void resetDevice();
   /// Ramps the force to zero and joins the threads; idempotent. While drilling, live().drill->cavity
   /// then holds every voxel removed so far (a recording started next carries it).
   void stopHaptics();
