@@ -75,10 +75,16 @@ class SceneView : public QObject {
   void setTool(const haptics::ToolModel& tool, const haptics::Pose& X_WT);
 
   // ---- The tools -----------------------------------------------------------------------------
-  /// Shows `frame` (showToolFrame(): poses, contacts, force arrow, isovalue). A new frame is
-  /// asked for only when something moved visibly (poses, contact count, force by 10 mN).
-  /// @return true when it did.
+  /// Shows `frame` (showToolFrame(): poses, contacts, force arrow, isovalue). A new frame, and
+  /// interactive frames until the still one 300 ms later, are asked for only when something
+  /// changed visibly (changedVisibly()). @return true when it did.
   bool show(const ToolFrame& frame);
+  /// Whether `frame` would change the picture against the one shown: the contact count
+  /// changed, a corner of the tool's bounding box (proxy or device) or the force arrow's start
+  /// or tip moved by a pixel or more at its depth in the view, or the arrow appeared or went.
+  /// A proxy resting on a surface under the hand's steady push moves micrometres a tick: no
+  /// change, so the full-quality still frame comes.
+  bool changedVisibly(const ToolFrame& frame) const;
   /// The device tool at `X_WD` now (mouse feedback before the haptic thread answers).
   void showDevicePose(const haptics::Pose& X_WD);
   /// The proxy's pose last shown [m].
@@ -151,6 +157,7 @@ class SceneView : public QObject {
   /// The interactive frame period [ms]: 1 / the interactor's desired update rate.
   double interactivePeriodMs() const;
   std::vector<Eigen::Vector3d> tool_vertices_T_m_;
+  std::vector<Eigen::Vector3d> tool_corners_T_m_{Eigen::Vector3d::Zero()};  // bounding box of the vertices, T [m]
   haptics::Pose shown_X_WP_;
   haptics::Pose shown_X_WD_;
   int shown_contacts_ = -1;
