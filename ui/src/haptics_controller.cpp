@@ -32,7 +32,7 @@ HapticsController::HapticsController(runtime::Session& session, HapticsPanel& pa
     if (session_.hasScene()) session_.setEdgeTest(on);
   });
   connect(&panel_, &HapticsPanel::resetDeviceRequested, this, [this] {
-    if (session_.hasScene()) input_.setDevicePose(session_.live().X_WT_initial);
+    if (session_.hasScene()) input_.place(session_.live().X_WT_initial, session_.live().X_WT_initial);
   });
   connect(&panel_, &HapticsPanel::rescanRequested, &devices_, &DevicePicker::rescan);
   connect(&panel_, &HapticsPanel::deviceChoiceRequested, &devices_, &DevicePicker::choose);
@@ -81,13 +81,13 @@ QMenu* HapticsController::addMenu(QMenuBar* bar, QWidget* window) {
   run_action_->setCheckable(true);
   run_action_->setShortcut(QKeySequence("Ctrl+H"));
   menu->addAction("Reset &Device", this, [this] {
-        if (session_.hasScene()) input_.setDevicePose(session_.live().X_WT_initial);
+        if (session_.hasScene()) input_.place(session_.live().X_WT_initial, session_.live().X_WT_initial);
       })->setShortcut(QKeySequence("Ctrl+Home"));
   QAction* touch = menu->addAction("&Touch the Surface", this, [this] {
     if (!input_.touchSurface(0.003)) emit message("No simulated device, or no surface along the view through the volume's centre", 4000);
   });
   touch->setShortcut(QKeySequence("Ctrl+T"));
-  touch->setToolTip("Brings the simulated device from outside the volume, along the view through its centre, until the tool rests on the surface");
+  touch->setToolTip("Puts the tool on the felt surface (the felt segments, else the scan) along the view direction, resting with the device 3 mm in: a placement, not the hand's motion");
   menu->addSeparator();
   menu->addAction(recorder_.recordAction());
   menu->addAction(recorder_.markerAction());

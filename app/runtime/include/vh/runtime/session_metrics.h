@@ -9,6 +9,11 @@
 /// times [s]. The motion metrics are of the device (the hand: TickRecord::p_WD_m), not of the
 /// proxy, which stays on the surface; the proxy's path length is given beside them.
 ///
+/// Placements (kRecordFlagPlacement: Touch the Surface, Home, Reset Device moved the tools
+/// together) are not the hand's motion: no position difference across one enters the path
+/// lengths, the speeds or the jerk, and the placement's own tick enters no force or torque
+/// figure.
+///
 /// Time base: each record stands for one servo period dt = 1 / servo_rate_Hz (the metadata's
 /// "servo_rate_Hz"; without it the median spacing of the records' time_s, else 1 kHz). Times
 /// "in contact" or "above the threshold" are tick counts times dt, so they are exact for a
