@@ -204,10 +204,11 @@ void SceneView::clearScene() {
   if (alert_ != nullptr) alert_->SetVisibility(false);
 }
 
-void SceneView::setSegments(const runtime::SegmentSet* set) {
+const std::vector<int>& SceneView::setSegments(const runtime::SegmentSet* set) {
   if (segments_ == nullptr) segments_ = std::make_unique<SegmentSurfaces>(view_->renderer());
-  segments_->show(set);
+  segments_->show(set, surface_rgb_);
   requestRender();
+  return segments_->recoloured();
 }
 
 void SceneView::setTouchedSegment(int segment, const std::string& alert) {
@@ -326,6 +327,7 @@ void SceneView::setRenderMode(RenderMode mode, VolumePreset preset) {
 }
 
 void SceneView::applyColours(const ViewLook& look) {
+  surface_rgb_ = {look.surface.redF(), look.surface.greenF(), look.surface.blueF()};
   ui::applyColours(view_->renderer(), actors_.get(), look);
   requestRender();
 }
@@ -466,6 +468,19 @@ void SceneView::setStandardView(StandardView v) {
   fitCamera(dir, up, 1.0);
   noteMotion();
   requestRender();
+}
+
+bool SceneView::frameSegment(int s) {
+  double bounds[6];
+  if (actors_ == nullptr || segments_ == nullptr || !segments_->bounds_W(s, bounds)) return false;
+  vtkRenderer* renderer = view_->renderer();
+  const int* size = renderer->GetSize();
+  const double aspect = size[0] > 0 && size[1] > 0 ? static_cast<double>(size[0]) / size[1] : 1.0;
+  frameBounds(renderer->GetActiveCamera(), bounds, aspect, 0.6);
+  renderer->ResetCameraClippingRange();
+  noteMotion();
+  requestRender();
+  return true;
 }
 
 ViewCamera SceneView::camera() const {

@@ -62,8 +62,10 @@ class SceneView : public QObject {
   /// The props; only while hasScene().
   SceneActors& actors() const noexcept { return *actors_; }
   OrientationMarker* marker() const noexcept { return marker_.get(); }
-  /// Shows the shown segments of `set` as coloured surfaces (null: none; SegmentSurfaces).
-  void setSegments(const runtime::SegmentSet* set);
+  /// Shows the shown segments of `set` as coloured surfaces (null: none; SegmentSurfaces), each
+  /// in a colour that stands out from the scan surface's (the look's last applyColours()).
+  /// @return the segments drawn in another colour than their file's (SegmentSurfaces::recoloured()).
+  const std::vector<int>& setSegments(const runtime::SegmentSet* set);
   /// Emphasises the touched segment (-1: none); a non-empty `alert` is shown in red at the top
   /// of the view (a critical segment touched), an empty one hides it.
   void setTouchedSegment(int segment, const std::string& alert);
@@ -111,6 +113,9 @@ class SceneView : public QObject {
   /// tool lengths.
   void focusOn(const haptics::ToolModel& tool, const haptics::Pose& X_WP);
   void setStandardView(StandardView view);
+  /// "Go to segment": keeps the viewing direction and frames segment `s`'s surface (its
+  /// bounds fill 60% of the view). @return false (nothing moves) when it is not shown.
+  bool frameSegment(int s);
   /// The camera now, for the mouse and key manipulation of the device.
   ViewCamera camera() const;
   /// Clips the volume (visual only) normal to `axis` at `fraction` (0..1) of its extent;
@@ -142,6 +147,7 @@ class SceneView : public QObject {
   VtkView* view_ = nullptr;
   std::unique_ptr<SceneActors> actors_;
   std::unique_ptr<SegmentSurfaces> segments_;
+  Rgb surface_rgb_ = {237.0 / 255.0, 222.0 / 255.0, 189.0 / 255.0};  // ViewLook::surface's default
   vtkTextActor* alert_ = nullptr;  // owned by the renderer
   std::unique_ptr<OrientationMarker> marker_;
   vtkTextActor* welcome_ = nullptr;  // owned by the renderer while shown
