@@ -155,6 +155,14 @@ void segmentMetrics(const Recording& recording, double dt, SessionMetrics& m) {
   }
   for (const RecordingEvent& e : recording.events) {
     if (e.type == "marker") ++m.markers;
+    if (e.type == "drilled") {  // the totals when the recording closed: the last one counts
+      const nlohmann::json d = nlohmann::json::parse(e.detail_json.empty() ? "{}" : e.detail_json, nullptr, false);
+      if (d.is_object()) {
+        m.removed_voxels = d.value("voxels", std::uint64_t{0});
+        m.removed_mm3 = d.value("mm3", 0.0);
+      }
+      continue;
+    }
     if (e.type != "critical_removed") continue;
     const nlohmann::json d = nlohmann::json::parse(e.detail_json.empty() ? "{}" : e.detail_json, nullptr, false);
     if (!d.is_object()) continue;
@@ -253,6 +261,7 @@ std::vector<MetricValue> metricValues(const SessionMetrics& m) {
       {"critical_contact_s", "Time touching critical segments", "s", m.critical_contact_s},
       {"critical_touches", "Touches of critical segments", "", count(m.critical_touches)},
       {"drill_on_s", "Time with the burr spinning", "s", m.drill_on_s},
+      {"removed_mm3", "Volume drilled away", "mm^3", m.removed_mm3},
       {"critical_removed_voxels", "Critical voxels drilled away", "", count(m.critical_removed_voxels)},
       {"critical_removed_mm3", "Critical volume drilled away", "mm^3", m.critical_removed_mm3},
       {"markers", "Markers", "", count(m.markers)},
@@ -380,7 +389,8 @@ std::size_t writeCohortTable(const std::filesystem::path& dir, const std::filesy
     out << csvField(std::filesystem::relative(files[i], dir).generic_string());
     try {
       const SessionMetrics m = computeSessionMetrics(readRecording(files[i]), options);
-      out << ',' << csvField(m.scene) << ',' << m.dataset_sha256 << ',' << csvField(m.label) << ','
+      const std::string label = m.label.empty() ? files[i].stem().string() : m.label;
+      out << ',' << csvField(m.scene) << ',' << m.dataset_sha256 << ',' << csvField(label) << ','
           << csvField(m.start_time_utc);
       for (const MetricValue& v : metricValues(m)) out << ',' << v.value;
       out << ',' << csvField(joined(m.notices, "; ")) << '\n';
