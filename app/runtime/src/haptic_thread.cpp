@@ -185,10 +185,6 @@ struct DeviceInput {
   bool ok = false;               ///< A usable sample (read() true, valid, finite).
   bool connected = true;         ///< Device::connected() right after the read.
   bool drill_button = false;     ///< The device's first button held (kDrillButton) on a usable sample.
-  /// Placements the coupling thread has passed on (HapticThread::place()); the solver resets its
-  /// proxy to X_WP_placed when this exceeds the ones it applied.
-  std::uint64_t placements = 0;
-  haptics::Pose X_WP_placed;     ///< The latest placement's proxy pose [m, W].
 };
 
 /// Energy the coupling's linear spring holds [J]: 0.5 k_lin |c_D - c_P|^2 = |F|^2 / (2 k_lin)
@@ -297,13 +293,21 @@ class SampleRing {
 struct ProxyState {
   haptics::Pose X_WP;
   bool bad_input = false;  ///< The renderer rejected the device pose of the tick that produced it.
-  std::uint64_t placements = 0;  ///< Placements the solver had applied (DeviceInput::placements).
+  std::uint64_t placements = 0;  ///< Placements the solver had applied (PlacedSample::count).
 };
 
 /// A placement asked for by HapticThread::place() (GUI -> coupling thread).
 struct Placement {
   haptics::Pose X_WP;
   haptics::Pose X_WD;
+};
+
+/// A placement the coupling thread passed on (coupling -> solver): the solver resets its proxy
+/// to X_WP before it solves sample number `sample` (or the first one after it that it uses).
+struct PlacedSample {
+  std::uint64_t count = 0;   ///< Placements passed on so far (this one included).
+  std::uint64_t sample = 0;  ///< The number (SampleRing) of the first sample at the placed device pose.
+  haptics::Pose X_WP;
 };
 
 bool samePoseBits(const haptics::Pose& a, const haptics::Pose& b) noexcept {
@@ -318,6 +322,7 @@ struct HapticThread::Exchange {
   SampleRing samples;
   TripleBuffer<ProxyState> proxy;
   TripleBuffer<Placement> placement;  ///< GUI -> coupling: the latest place() (HapticThread::placement_requests_).
+  TripleBuffer<PlacedSample> placed;  ///< Coupling -> solver: the latest placement passed on.
   SnapshotChannel gui;  ///< Both threads -> latestSnapshot().
   /// kRecordFlagForceLimited / ForceZeroed / NonFinite / Stopping of the latest command.
   std::atomic<std::uint32_t> command_flags{0};
@@ -847,6 +852,11 @@ void HapticThread::couplingLoop() noexcept {
       placement_waiting = false;
       ++placements_sent;
       X_WP_placed = placement.X_WP;
+      PlacedSample& placed = x_->placed.writeSlot();  // before the sample is pushed: the solver sees both
+      placed.count = placements_sent;
+      placed.sample = x_->samples.latest() + 1;  // this tick's sample (this thread is the ring's one producer)
+      placed.X_WP = placement.X_WP;
+      x_->placed.publish();
       filter = SampleFilter(safety.limits());
       passivity.have_coupled_last = false;
       coupling.resetTracking();
@@ -870,8 +880,6 @@ void HapticThread::couplingLoop() noexcept {
     input.ok = ok;
     input.connected = connected;
     input.drill_button = ok && (sample.buttons & kDrillButton) != 0;
-    input.placements = placements_sent;
-    input.X_WP_placed = X_WP_placed;
     x_->samples.push(input);
     // 4. Virtual coupling (eq. 5) to the solver's latest proxy pose, with the device pose
     //    normalised as the renderer does (so that the same pair gives the same bits). A pose
@@ -944,7 +952,8 @@ void HapticThread::solverLoop() noexcept {
   haptics::CouplingGains gains = renderer_->coupling().gains();
   renderer_->setGains(gains);
   haptics::Pose X_WD_used = renderer_->proxyPose();  // the latest pose the renderer ticked with
-  std::uint64_t placements = 0;                      // applied (DeviceInput::placements)
+  std::uint64_t placements = 0;                      // applied (PlacedSample::count)
+  PlacedSample placed;                               // the latest placement passed on
   std::uint32_t wake_flags = 0;                      // deadline miss of this wake-up (first tick only)
 
   // One solver tick on `in`: render, publish the proxy, record, publish the snapshot.
@@ -952,9 +961,10 @@ void HapticThread::solverLoop() noexcept {
     const std::int64_t begin_ns = monotonicNs();
     const std::uint32_t gains_flags = followGains(in.gains, gains, *renderer_) ? kRecordFlagGainsApplied : 0u;
     std::uint32_t placement_flags = 0;
-    if (in.placements > placements) {  // a placement: the proxy jumps with the device
-      placements = in.placements;
-      renderer_->resetProxy(in.X_WP_placed);
+    x_->placed.read(placed);
+    if (placed.count > placements && consumed >= placed.sample) {  // a placement: the proxy jumps with the device
+      placements = placed.count;
+      renderer_->resetProxy(placed.X_WP);
       placement_flags = kRecordFlagPlacement;
       placements_applied_.fetch_add(1, std::memory_order_acq_rel);
     }
