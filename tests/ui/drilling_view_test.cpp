@@ -189,7 +189,18 @@ TEST(DrillingView, DrillMenuCutsShowsAndExports) {
   drill.drain();
 
   const fs::path nrrd = outputDir() / "drilled.nrrd", seg = outputDir() / "drilled.seg.nrrd";
-  drill.exportDrilled(nrrd, seg);
+  fs::remove(nrrd);
+  // File > Export Drilled Volume's path: the status bar says when it is done, naming both files.
+  QSignalSpy said(&drill, &DrillController::message);
+  EXPECT_EQ(drill.exportDrilledWithNotice(outputDir() / "drilled"), nrrd) << "the .nrrd extension is added";
+  ASSERT_GE(said.count(), 2) << "a message before the write and one after";
+  EXPECT_TRUE(said.first().at(0).toString().startsWith("Exporting")) << said.first().at(0).toString().toStdString();
+  const QString done = said.last().at(0).toString();
+  EXPECT_TRUE(done.contains(QString::fromStdString(nrrd.string()))) << done.toStdString();
+  EXPECT_TRUE(done.contains("drilled.seg.nrrd")) << done.toStdString();
+  EXPECT_TRUE(done.contains("exported")) << done.toStdString();
+  EXPECT_GT(said.last().at(1).toInt(), 0) << "the notice goes away by itself";
+  ASSERT_TRUE(fs::exists(nrrd) && fs::exists(seg));
   vtkNew<vtkNrrdReader> reader;
   reader->SetFileName(nrrd.string().c_str());
   reader->Update();

@@ -2,12 +2,16 @@
 // of 1 mm). Oracles: the field's own minimum and maximum (the slider maps 0..1000 linearly onto
 // them) and the values handed to the session.
 #include "vh/ui/panels/isovalue_bar.h"
+#include "vh/ui/panels/range_spin_box.h"
 
 #include <cmath>
 #include <memory>
 
 #include <QDoubleSpinBox>
 #include <QLabel>
+#include <QLineEdit>
+#include <QSignalSpy>
+#include <QTest>
 
 #include <gtest/gtest.h>
 
@@ -125,6 +129,42 @@ TEST(IsovalueBar, TheLabelNamesTheUnitOfEveryModality) {
   session.setScene(ct, nullptr);
   session.setScene(mr, nullptr);
   EXPECT_EQ(bar.label()->text().toStdString(), "Isovalue [a.u.]");
+}
+
+TEST(RangeSpinBox, ATypedValueOutOfRangeIsNotTakenAndTheRangeIsSaid) {
+  // The PET's SUV box: 0.00 to 3.41, at 0.23. Typing 30 must not become 3.00 (or 3.41) silently.
+  RangeSpinBox box("the isovalue");
+  box.setDecimals(2);
+  box.setRange(0.0, 3.41);
+  box.setValue(0.23);
+  box.setKeyboardTracking(false);
+  box.show();
+  QSignalSpy said(&box, &RangeSpinBox::outOfRange);
+  QSignalSpy changed(&box, &QDoubleSpinBox::valueChanged);
+  box.lineEdit()->selectAll();
+  QTest::keyClicks(&box, "30");
+  EXPECT_EQ(box.lineEdit()->text(), "30") << "the digits typed stay as typed until Enter";
+  QTest::keyClick(&box, Qt::Key_Return);
+  EXPECT_DOUBLE_EQ(box.value(), 0.23) << "an out-of-range number is not taken";
+  EXPECT_EQ(changed.count(), 0);
+  ASSERT_EQ(said.count(), 1);
+  const QString message = said.first().at(0).toString();
+  EXPECT_TRUE(message.contains("30") && message.contains("0.00 to 3.41") && message.contains("stays 0.23"))
+      << message.toStdString();
+  EXPECT_EQ(box.lineEdit()->text(), "0.23") << "the box shows the value it kept";
+  // A number in range is taken as typed.
+  box.lineEdit()->selectAll();
+  QTest::keyClicks(&box, "2.5");
+  QTest::keyClick(&box, Qt::Key_Return);
+  EXPECT_DOUBLE_EQ(box.value(), 2.5);
+  EXPECT_EQ(said.count(), 1);
+  EXPECT_TRUE(box.lastRangeMessage().isEmpty());
+}
+
+TEST(IsovalueBar, TheSpinBoxSaysTheRangeOfAnOutOfRangeValue) {
+  runtime::Session session;
+  IsovalueBar bar(session);
+  EXPECT_NE(qobject_cast<RangeSpinBox*>(bar.spinBox()), nullptr);
 }
 
 }  // namespace

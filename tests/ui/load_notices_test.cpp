@@ -128,6 +128,19 @@ TEST(LoadNoticesTest, ASeriesDescribedAsNoneAddsNothingToTheTitle) {
   EXPECT_EQ(viewerSceneFor(loaded).title, "ct-missing-slice - HEAD 5mm");
 }
 
+TEST(LoadNoticesTest, ASeriesRetrievedIntoAFolderNamedByItsUidIsNamedByItsDescription) {
+  // A PACS retrieve writes into a folder named by the Series Instance UID: the banner and the
+  // window title name the series by its description instead.
+  LoadedViewerScene loaded;
+  loaded.scene = test::sphereProbeScene();
+  loaded.scene.volume.info.format = "DICOM";
+  loaded.title = "1.3.6.1.4.1.14519.5.2.1.7009.9004.160416029404301360186441590";
+  loaded.scene.volume.info.description = "PET AC WB";
+  EXPECT_EQ(viewerSceneFor(loaded).title, "PET AC WB");
+  loaded.scene.volume.info.description = "None";  // nothing better than the UID
+  EXPECT_EQ(viewerSceneFor(loaded).title, loaded.title);
+}
+
 TEST(LoadNoticesTest, AGapIsNamedInTheStatusBarTheBannerAndHelpLoadNotes) {
   if (!fs::exists(kHead / "CTHead50.dcm")) GTEST_SKIP() << "dataset absent: " << kHead;
   QTemporaryDir dir;

@@ -349,6 +349,35 @@ TEST_F(MainWindowTest, DeviceDrivenIntoTheSurfaceLeavesTheProxyOutsideWhereTheAc
   EXPECT_FALSE(window_->sceneView()->widget()->grabFrame().isNull());
 }
 
+TEST_F(MainWindowTest, ToolRestingOnTheSurfaceGetsTheFullQualityStillFrame) {
+  // The tool pressed onto the skin and left there with the haptic threads running: the proxy
+  // moves micrometres a tick under the steady push, which is no visible motion, so the view
+  // settles on its full-quality still frame (300 ms after the last visible change).
+  ASSERT_TRUE(window_->deviceInput()->touchSurface(0.003));
+  ASSERT_TRUE(waitFor([&] {
+    window_->viewController()->refresh();
+    const runtime::HapticSnapshot& s = window_->viewController()->lastSnapshot();
+    return !window_->deviceInput()->touchInProgress() && s.contacts > 0;
+  }, 20000)) << "the tool never came to rest on the surface";
+  test::pump(2000);  // the hand rests for 2 s
+  ASSERT_TRUE(window_->session().hapticsRunning());
+  window_->viewController()->refresh();
+  const runtime::HapticSnapshot& s = window_->viewController()->lastSnapshot();
+  EXPECT_GT(s.contacts, 0) << "the tool should still rest on the surface";
+  SceneView* view = window_->sceneView();
+  EXPECT_FALSE(view->actors().interactive()) << "still interactive (coarse) frames after 2 s at rest";
+  const double rest_sample_m = view->actors().sampleDistance_m();
+  const double rest_image_px = view->actors().imageSampleDistance_px();
+  const QImage at_rest = view->widget()->grabFrame();  // the frame at the quality it rests at
+  // The oracle: the same frame at the best still quality (the screenshot path).
+  view->renderStill(/*best_quality=*/true);
+  const QImage full = view->widget()->grabFrame();
+  EXPECT_DOUBLE_EQ(rest_sample_m, view->actors().sampleDistance_m());
+  EXPECT_DOUBLE_EQ(rest_image_px, view->actors().imageSampleDistance_px());
+  ASSERT_FALSE(at_rest.isNull());
+  EXPECT_LT(differingFraction(at_rest, full, 8), 0.002) << "the frame at rest differs from a full-quality render";
+}
+
 TEST_F(MainWindowTest, GainsFromThePanelApplyLiveAndPersist) {
   HapticsPanel* panel = window_->hapticsPanel();
   ASSERT_NE(panel, nullptr);

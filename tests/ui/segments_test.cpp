@@ -16,11 +16,14 @@
 #include <QLabel>
 #include <QMainWindow>
 #include <QSignalSpy>
+#include <QStatusBar>
 #include <QTableWidget>
 #include <QTemporaryDir>
 
 #include <gtest/gtest.h>
+#include <vtkCamera.h>
 #include <vtkMatrix4x4.h>
+#include <vtkRenderer.h>
 #include <vtkPolyData.h>
 
 #include "dicom_seg_fixtures.h"
@@ -234,6 +237,69 @@ TEST(SegmentSurfaces, TheNervesSurfaceIsTheBallInTheSceneFrame) {
   fs::remove_all(dir);
 }
 
+
+TEST(SegmentColours, TheDifferenceIsCie1976AndColoursCloseToTheSurfaceAreReplaced) {
+  // CIE 1976 oracles: black and white differ by L* 100 alone; sRGB red is L*a*b* (53.24, 80.09,
+  // 67.20) (the IEC 61966-2-1 / CIE reference values).
+  EXPECT_NEAR(colourDifference_Lab({0.0, 0.0, 0.0}, {1.0, 1.0, 1.0}), 100.0, 1e-3);
+  EXPECT_NEAR(colourDifference_Lab({0.2, 0.4, 0.6}, {0.2, 0.4, 0.6}), 0.0, 1e-12);
+  EXPECT_NEAR(colourDifference_Lab({1.0, 0.0, 0.0}, {0.0, 0.0, 0.0}), std::sqrt(53.24 * 53.24 + 80.09 * 80.09 + 67.20 * 67.20),
+              0.05);
+  const Rgb surface = {237.0 / 255.0, 222.0 / 255.0, 189.0 / 255.0};  // the default bone beige
+  const Rgb beige = {0.93, 0.86, 0.72};                              // a SEG's "Secondary"
+  ASSERT_LT(colourDifference_Lab(beige, surface), kMinSegmentContrast_Lab);
+  const Rgb first = distinctSegmentColour(beige, surface, {});
+  EXPECT_GE(colourDifference_Lab(first, surface), kMinSegmentContrast_Lab);
+  const Rgb second = distinctSegmentColour(beige, surface, {first});
+  EXPECT_GE(colourDifference_Lab(second, first), kMinSegmentContrast_Lab) << "two hidden segments get two colours";
+  const Rgb red = {0.9, 0.3, 0.2};
+  EXPECT_EQ(distinctSegmentColour(red, surface, {}), red) << "a colour that stands out is kept";
+}
+
+TEST(SegmentSurfaces, ASegmentInTheSurfacesColourIsDrawnApartSaidAndFramedOnRequest) {
+  Host host;
+  runtime::LoadedScene scene = test::sphereProbeScene();
+  const SceneActorsSpec spec = sceneActorsSpecFor(scene, runtime::LiveValues::initial(scene));
+  auto device = scene.makeDevice();
+  host.session.setScene(scene, device);
+  host.view->setScene(spec, host.session.live().X_WT_initial, ViewLook{});
+  io::LoadedSegmentation seg =
+      test::ballSegmentation(*scene.volume.field, Eigen::Vector3d(0.014, 0.0, 0.014), 0.008);
+  const QColor beige = ViewLook{}.surface;
+  seg.segments[0].color_rgb = {beige.redF(), beige.greenF(), beige.blueF()};  // the scan surface's own
+  const auto set = std::make_shared<const runtime::SegmentSet>(seg, std::vector<int>{}, std::vector<int>{0},
+                                                               std::vector<int>{}, 1.0);
+  runtime::SegmentationSpec seg_spec;
+  seg_spec.path = "in-memory";
+  host.session.setSegments(set, seg_spec);  // the controller shows them and says what it did
+  const SegmentSurfaces* surfaces = host.view->segmentSurfaces();
+  ASSERT_NE(surfaces, nullptr);
+  EXPECT_EQ(surfaces->recoloured(), std::vector<int>{0});
+  const std::vector<double> c = surfaces->colour(0);
+  ASSERT_EQ(c.size(), 3u);
+  EXPECT_GE(colourDifference_Lab({c[0], c[1], c[2]}, {beige.redF(), beige.greenF(), beige.blueF()}),
+            kMinSegmentContrast_Lab);
+  const QString said = host.window.statusBar()->currentMessage();
+  EXPECT_TRUE(said.contains("nodule") && said.contains("too close")) << said.toStdString();
+
+  // Go to segment: the camera keeps its direction and looks at the segment's centre, closer.
+  vtkCamera* camera = host.view->widget()->renderer()->GetActiveCamera();
+  double dop_before[3], dop_after[3], focal[3];
+  camera->GetDirectionOfProjection(dop_before);
+  const double distance_before = camera->GetDistance();
+  double b[6];
+  ASSERT_TRUE(surfaces->bounds_W(0, b));
+  ASSERT_TRUE(host.view->frameSegment(0));
+  camera->GetDirectionOfProjection(dop_after);
+  camera->GetFocalPoint(focal);
+  for (int i = 0; i < 3; ++i) {
+    EXPECT_NEAR(dop_after[i], dop_before[i], 1e-9);
+    EXPECT_NEAR(focal[i], 0.5 * (b[2 * i] + b[2 * i + 1]), 1e-9);
+  }
+  EXPECT_LT(camera->GetDistance(), distance_before) << "framed closer than the whole volume";
+  EXPECT_FALSE(host.view->frameSegment(3)) << "no such segment shown";
+  host.session.clear();
+}
 
 // ---- a DICOM SEG opened in the main window --------------------------------------------------
 

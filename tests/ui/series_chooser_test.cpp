@@ -4,6 +4,7 @@
 
 #include <filesystem>
 
+#include <QApplication>
 #include <QItemSelectionModel>
 #include <QTableView>
 #include <QTemporaryDir>
@@ -62,6 +63,37 @@ TEST(DicomSeriesModelTest, ShowsPatientStudySeriesModalitySlicesAndSpacing) {
   dialog.selectRow(0);
   EXPECT_EQ(dialog.selectedRow(), 0);
   EXPECT_EQ(dialog.model()->series(dialog.selectedRow()).series_description, "Scout");
+}
+
+TEST(DicomSeriesModelTest, ModalitySlicesAndSpacingShowFirstAndTheWholeDescriptionOnHover) {
+  const std::string long_description =
+      "mocoMEAN_ep2d_bold_moco_TR2000_3mm_iso_resting_state_with_a_very_long_protocol_name";
+  io::DicomSeriesInfo s = series(long_description.c_str(), 36, "MR");
+  s.patient_name = "Doe^Jane^With^A^Long^Name";
+  s.study_description = "Functional MRI of the brain, research protocol, long study description";
+  SeriesChooserDialog dialog("/data/study", {s, series("Scout", 2)});
+  dialog.resize(640, 300);  // a small screen's dialog
+  dialog.show();
+  auto* table = dialog.findChild<QTableView*>("seriesTable");
+  ASSERT_NE(table, nullptr);
+  QApplication::processEvents();
+  // The columns that tell series apart lie wholly inside the visible part of the table, in
+  // this order, on the left.
+  const int visible_px = table->viewport()->width();
+  int left_px = -1;
+  for (const int c : {DicomSeriesModel::kModality, DicomSeriesModel::kSlices, DicomSeriesModel::kSpacing}) {
+    const int x = table->columnViewportPosition(c);
+    EXPECT_GT(x, left_px) << "column " << c;
+    EXPECT_LE(x + table->columnWidth(c), visible_px) << "column " << c << " off-screen";
+    left_px = x;
+  }
+  EXPECT_LT(table->columnViewportPosition(DicomSeriesModel::kModality),
+            table->columnViewportPosition(DicomSeriesModel::kSeries));
+  // The description, cut in its column, is whole in every cell's tooltip, with study and patient.
+  const QString tip = dialog.model()->data(dialog.model()->index(0, DicomSeriesModel::kModality), Qt::ToolTipRole).toString();
+  EXPECT_TRUE(tip.contains(QString::fromStdString(long_description))) << tip.toStdString();
+  EXPECT_TRUE(tip.contains("Functional MRI of the brain, research protocol, long study description")) << tip.toStdString();
+  EXPECT_TRUE(tip.contains("Doe, Jane")) << tip.toStdString();
 }
 
 TEST(DicomSeriesTest, ListsTheSmallHeadAsOneCtSeries) {

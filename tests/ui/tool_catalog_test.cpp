@@ -68,6 +68,9 @@ TEST(AboutTest, NamesThePaperAndTheDataLicences) {
   EXPECT_TRUE(html.contains("BSD-2-Clause")) << "the head phantom's licence from the manifest";
   EXPECT_TRUE(html.contains("CC-BY-4.0")) << "the wrench's licence";
   EXPECT_TRUE(aboutHtml("not json").contains("could not be read"));
+  // Where the datasets are looked for and how to point the program at them.
+  EXPECT_TRUE(html.contains("VH_SHARED_DATASETS_DIR")) << html.toStdString();
+  EXPECT_TRUE(html.contains(QString::fromStdString(runtime::sharedDatasetsDir().string()).toHtmlEscaped()));
 }
 
 }  // namespace

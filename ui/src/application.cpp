@@ -113,8 +113,8 @@ int runApplication(int argc, char** argv, const runtime::SceneSpec& scene, const
         std::cerr << "volume-haptics: touch: no simulated device, or no surface along the view "
                      "through the volume's centre\n";
       } else {
-        // Frame the contact once the device has arrived (it leads the proxy in steps from
-        // outside the volume) and the proxy rests on the surface.
+        // Frame the contact once the placement has reached the haptic threads and the proxy
+        // rests on the surface.
         touch_pending = true;
         auto* arrival = new QTimer(window.get());
         arrival->setInterval(50);

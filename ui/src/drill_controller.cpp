@@ -5,6 +5,7 @@
 #include <stdexcept>
 
 #include <QAction>
+#include <QCoreApplication>
 #include <QDir>
 #include <QFileDialog>
 #include <QKeySequence>
@@ -81,18 +82,37 @@ void DrillController::addMenuActions(QMenu* haptics_menu, QMenu* file_menu, QWid
       const QString path = QFileDialog::getSaveFileName(dialog_parent, "Export the drilled volume (NRRD) and the removed region (.seg.nrrd)",
                                                         QDir::home().filePath("drilled.nrrd"), "NRRD volumes (*.nrrd)");
       if (path.isEmpty()) return;
-      std::filesystem::path nrrd = path.toStdString();
-      if (nrrd.extension() != ".nrrd") nrrd += ".nrrd";
-      std::filesystem::path seg = nrrd;
-      seg.replace_extension(".seg.nrrd");
       try {
-        exportDrilled(nrrd, seg);
-        emit message(QString("Wrote %1 and %2").arg(QString::fromStdString(nrrd.string()), QString::fromStdString(seg.filename().string())), 6000);
+        exportDrilledWithNotice(path.toStdString());
       } catch (const std::exception& e) {
         QMessageBox::warning(dialog_parent, "Export Drilled Volume", e.what());
       }
     });
   }
+}
+
+std::filesystem::path DrillController::exportDrilledWithNotice(std::filesystem::path nrrd) {
+  if (nrrd.extension() != ".nrrd") nrrd += ".nrrd";
+  std::filesystem::path seg = nrrd;
+  seg.replace_extension(".seg.nrrd");
+  const QString name = QString::fromStdString(nrrd.string());
+  emit message("Exporting the drilled volume to " + name + " ...", 0);
+  QCoreApplication::processEvents(QEventLoop::ExcludeUserInputEvents);  // show it before the write
+  try {
+    exportDrilled(nrrd, seg);
+  } catch (...) {
+    emit message(QString(), 0);
+    throw;
+  }
+  std::error_code ec;
+  const auto bytes = std::filesystem::file_size(nrrd, ec);
+  emit message(QString("Drilled volume exported: %1 (%2 MB) and the removed region %3 (%4 mm3)")
+                   .arg(name)
+                   .arg(ec ? 0.0 : static_cast<double>(bytes) / 1e6, 0, 'f', 1)
+                   .arg(QString::fromStdString(seg.filename().string()))
+                   .arg(removed_mm3_, 0, 'f', 1),
+               20000);
+  return nrrd;
 }
 
 void DrillController::setDrilling(bool on) {

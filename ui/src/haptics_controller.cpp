@@ -1,4 +1,5 @@
 #include "vh/ui/haptics_controller.h"
+#include "vh/runtime/placement.h"
 
 #include <QAction>
 #include <QMenu>
@@ -58,8 +59,18 @@ bool HapticsController::replaying() const { return replay_.active(); }
 
 void HapticsController::resetDevice() {
   if (!session_.hasScene()) return;
-  input_.setDevicePose(session_.live().X_WT_initial);  // the picture's device
-  session_.resetDevice();                               // and the proxy at a legal pose near it
+  const runtime::LiveValues& live = session_.live();
+  if (session_.simulatedDevice() != nullptr && live.tool != nullptr && live.hapticField() != nullptr) {
+    // A placement (proxy and device together, recorded as such, no spring stretched over the
+    // jump): the device at the initial pose, the proxy at a legal pose near it (drilling only
+    // lowers the field, so a pose free on the scan is free on the drilled copy).
+    input_.place(runtime::legalPoseNear(*live.hapticField(), live.tool->point_shell, live.X_WT_initial,
+                                        live.hapticIsovalue()),
+                 live.X_WT_initial);
+    return;
+  }
+  input_.setDevicePose(live.X_WT_initial);  // the picture's device
+  session_.resetDevice();                   // and the proxy at a legal pose near it
 }
 
 void HapticsController::start() {
@@ -89,7 +100,7 @@ QMenu* HapticsController::addMenu(QMenuBar* bar, QWidget* window) {
     if (!input_.touchSurface(0.003)) emit message("No simulated device, or no surface along the view through the volume's centre", 4000);
   });
   touch->setShortcut(QKeySequence("Ctrl+T"));
-  touch->setToolTip("Brings the simulated device from outside the volume, along the view through its centre, until the tool rests on the surface");
+  touch->setToolTip("Puts the tool on the felt surface (the felt segments, else the scan) along the view direction, resting with the device 3 mm in: a placement, not the hand's motion");
   menu->addSeparator();
   menu->addAction(recorder_.recordAction());
   menu->addAction(recorder_.markerAction());

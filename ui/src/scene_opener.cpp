@@ -78,6 +78,17 @@ ViewerScene makeViewerScene(const runtime::LoadedScene& loaded, std::shared_ptr<
   return v;
 }
 
+namespace {
+
+/// Whether `name` is a DICOM UID (digits and dots, e.g. the folder a PACS retrieve wrote into),
+/// which names nothing a user recognises.
+bool isDicomUid(const std::string& name) {
+  return name.size() >= 8 && name.find('.') != std::string::npos &&
+         std::all_of(name.begin(), name.end(), [](char c) { return c == '.' || (c >= '0' && c <= '9'); });
+}
+
+}  // namespace
+
 ViewerScene viewerSceneFor(LoadedViewerScene& loaded) {
   ViewerScene v = makeViewerScene(loaded.scene, loaded.device);
   v.histogram = std::move(loaded.histogram);
@@ -88,7 +99,8 @@ ViewerScene viewerSceneFor(LoadedViewerScene& loaded) {
   const QString words = q(description).trimmed();
   const bool says_nothing = words.isEmpty() || words.compare("none", Qt::CaseInsensitive) == 0;
   if (!says_nothing && loaded.scene.volume.info.format == "DICOM" && description != v.title) {
-    v.title += " - " + description;
+    // A folder named by the series UID (a PACS retrieve): the description alone names it.
+    v.title = isDicomUid(v.title) ? description : v.title + " - " + description;
   }
   return v;
 }

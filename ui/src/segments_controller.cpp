@@ -6,6 +6,7 @@
 #include <QFileDialog>
 #include <QMainWindow>
 #include <QStatusBar>
+#include <QStringList>
 
 #include "vh/io/segmentation.h"
 #include "vh/ui/view/scene_view.h"
@@ -48,6 +49,10 @@ SegmentsController::SegmentsController(runtime::Session& session, SceneView& vie
       emit errorReported("Segments", q(e.what()));
     }
   });
+  connect(panel_, &SegmentsPanel::goToSegmentRequested, this, [this](int segment) {
+    if (!view_.frameSegment(segment))
+      status_bar_->showMessage("That segment is not shown: tick Shown to draw it, then double-click it", 5000);
+  });
   observer_ = session_.addObserver([this](runtime::SessionChange what) { onSessionChanged(what); });
 }
 
@@ -62,7 +67,21 @@ void SegmentsController::onSessionChanged(runtime::SessionChange what) {
   panel_->showSegments(set);
   if (session_.hasScene()) panel_->showHardness(session_.hardness());
   names_->set(set);
-  if (session_.hasScene()) view_.setSegments(set);
+  if (session_.hasScene()) {
+    // A segment whose file colour the scan surface would hide is drawn in another: say which.
+    const std::vector<int> recoloured = view_.setSegments(set);
+    QStringList said;
+    for (const int s : recoloured) {
+      const std::vector<double> c = view_.segmentSurfaces()->colour(s);
+      if (c.size() == 3) panel_->setDisplayColour(s, {c[0], c[1], c[2]});
+      said << q(set->name(s));
+    }
+    if (!said.isEmpty())
+      status_bar_->showMessage(QString("Segment %1: its colour is too close to the scan surface's; drawn in a distinct "
+                                       "colour (the swatch in the Segments panel)")
+                                   .arg(said.join(", ")),
+                               12000);
+  }
   // A scene that comes with segments shows them in front (where to choose what is felt).
   if (set != nullptr && runtime::has(what, runtime::SessionChange::kScene)) dock_->raise();
   touched_ = -1;

@@ -26,6 +26,8 @@
 #include <string>
 #include <vector>
 
+#include <unistd.h>
+
 #include <CLI/CLI.hpp>
 
 #include "pacs_command.h"
@@ -124,6 +126,7 @@ struct RunArgs {
   std::optional<int> igtl_port;
   double igtl_rate_Hz = 60.0;
   std::string record;
+  std::string note;
   double verify_step = vh::runtime::RunOptions{}.verify_step_voxels;
   bool lag_reference = vh::runtime::RunOptions{}.lag_reference;
 };
@@ -152,6 +155,8 @@ CLI::App* addRunSubcommand(CLI::App& app, RunArgs& a) {
   run->add_option("--trace", a.trace, "Also write one CSV row per tick (poses, force, contacts, time, depth)");
   run->add_option("--record", a.record,
                   "Also write a session recording (.vhrec: metadata, one record per tick, events) here");
+  run->add_option("--note", a.note,
+                  "Free text kept in the recording's metadata (\"note\"): the cohort table's label (else the file name)");
   run->add_option("--verify-step", a.verify_step,
                   "Crossing check after every tick, outside the timed part: sample each shell point's path with "
                   "this step [voxels]; 0 turns it off")
@@ -159,10 +164,38 @@ CLI::App* addRunSubcommand(CLI::App& app, RunArgs& a) {
       ->check(CLI::NonNegativeNumber);
   run->add_flag("!--no-lag-reference", a.lag_reference,
                 "Skip the unbudgeted reference run that measures the work budget's lag");
+  run->footer(
+      "The summary line: ticks run; exec = the renderer's time per tick (mean, median, 99th percentile, max) [us]; "
+      "points of the tool's point shell; contacts (largest set, mean); max force of the coupling [N]; penetration = "
+      "deepest shell point inside the isosurface against the tolerance epsilon [mm]; nan ticks; bad samples (not "
+      "rendered); crossings = ticks a shell point crossed into the isosurface (must be 0); edges = ticks the tool's "
+      "surface between two neighbouring shell points crossed (0 guaranteed only with the scene's \"edge_test\"); "
+      "work budget: ticks the per-tick work budget cut; lag = the largest distance [mm] and angle [rad] between "
+      "the budgeted proxy and the same run's unbudgeted one, behind = how much farther from the device the budgeted "
+      "one was; drilled = volume the burr removed [mm^3]; touched = per segment time, peak force, touches. "
+      "More in docs/command-line.md.");
   run->add_flag("--check", a.check,
                 "Exit with 3 when the proxy penetrated deeper than epsilon, a tick produced a non-finite value or "
                 "the proxy crossed into the isosurface (crossings > 0)");
   return run;
+}
+
+/// Creates the folder an output file (`path`, given with `option`) goes into, before anything is
+/// loaded, so that a command never fails at its end for want of it.
+/// @throws std::runtime_error naming the option, the file and the folder when the folder cannot
+///         be created or written in.
+void prepareOutputFolder(const std::string& path, const char* option) {
+  if (path.empty()) return;
+  const std::filesystem::path dir = std::filesystem::absolute(std::filesystem::path(path)).parent_path();
+  std::error_code ec;
+  std::filesystem::create_directories(dir, ec);
+  if (ec || !std::filesystem::is_directory(dir)) {
+    throw std::runtime_error(std::string(option) + " " + path + ": cannot create the folder " + dir.string() +
+                             (ec ? ": " + ec.message() : std::string()));
+  }
+  if (::access(dir.c_str(), W_OK) != 0) {
+    throw std::runtime_error(std::string(option) + " " + path + ": the folder " + dir.string() + " is not writable");
+  }
 }
 
 /// The scene file with `run`'s overrides (isovalue, series, phase, segmentation, felt, critical).
@@ -236,6 +269,9 @@ int finishRun(const RunArgs& a, const vh::runtime::RunReport& report) {
 }
 
 int runCommand(const RunArgs& a) {
+  prepareOutputFolder(a.report, "--report");
+  prepareOutputFolder(a.trace, "--trace");
+  prepareOutputFolder(a.record, "--record");
   vh::runtime::SceneSpec spec = runScene(a);
   vh::runtime::RunOptions run_options;
   run_options.on_notice = [](const std::string& notice) {
@@ -243,6 +279,7 @@ int runCommand(const RunArgs& a) {
   };
   run_options.trace_csv = a.trace;
   run_options.record = a.record;
+  run_options.record_note = a.note;
   run_options.verify_step_voxels = a.verify_step;
   run_options.lag_reference = a.lag_reference;
   // The scene is loaded once, here: the link names the segments of the scan they were opened on
@@ -292,6 +329,7 @@ CLI::App* addMakeTrajectorySubcommand(CLI::App& app, MakeTrajectoryArgs& a) {
 }
 
 int makeTrajectoryCommand(MakeTrajectoryArgs& a) {
+  prepareOutputFolder(a.out, "--out");
   vh::runtime::SceneSpec spec = vh::runtime::loadSceneFile(a.scene);
   if (a.isovalue) {
     spec.volume.isovalue = *a.isovalue;
@@ -378,6 +416,11 @@ int exportCommand(int argc, char** argv, const ExportArgs& a) {
     throw std::runtime_error("export --video and --png render with OpenGL and need a display: run it under "
                              "xvfb-run (xvfb-run -a volume-haptics export ...); --csv, --json and --events-csv do not");
   }
+  prepareOutputFolder(a.csv, "--csv");
+  prepareOutputFolder(a.json, "--json");
+  prepareOutputFolder(a.events_csv, "--events-csv");
+  prepareOutputFolder(a.media.video, "--video");
+  prepareOutputFolder(a.media.png, "--png");
   const vh::runtime::Recording recording = vh::runtime::readRecording(a.recording);
   for (const std::string& w : recording.warnings) std::cerr << "volume-haptics export: warning: " << w << std::endl;
   if (!a.csv.empty()) vh::runtime::writeRecordingCsv(recording, std::filesystem::path(a.csv));

@@ -47,7 +47,9 @@ CLI::App* addBenchSubcommand(CLI::App& app, std::function<int()>& handler) {
   CLI::App* bench = app.add_subcommand(
       "bench", "Benchmarks of the rendering core: the paper's Table 1, error against run time, stiff and "
                "extreme cases, big scans; "
-               "reports (JSON, Markdown, PNG) go into " + defaultOutputDir().string() + "/NAME");
+               "reports (JSON, Markdown, PNG) go into --out, by default $VH_BENCH_OUT_DIR/NAME, else for an installed "
+               "copy $XDG_DATA_HOME/volume-haptics/bench/NAME (~/.local/share/...), from a build tree BUILD/bench/NAME "
+               "(each benchmark's --help names the folder)");
   bench->require_subcommand(1);
 
   auto table1 = std::make_shared<Table1Options>();

@@ -296,7 +296,27 @@ class SampleRing {
 struct ProxyState {
   haptics::Pose X_WP;
   bool bad_input = false;  ///< The renderer rejected the device pose of the tick that produced it.
+  std::uint64_t placements = 0;  ///< Placements the solver had applied (PlacedSample::count).
 };
+
+/// A placement asked for by HapticThread::place() (GUI -> coupling thread).
+struct Placement {
+  haptics::Pose X_WP;
+  haptics::Pose X_WD;
+};
+
+/// A placement the coupling thread passed on (coupling -> solver): the solver resets its proxy
+/// to X_WP before it solves sample number `sample` (or the first one after it that it uses).
+struct PlacedSample {
+  std::uint64_t count = 0;   ///< Placements passed on so far (this one included).
+  std::uint64_t sample = 0;  ///< The number (SampleRing) of the first sample at the placed device pose.
+  haptics::Pose X_WP;
+};
+
+bool samePoseBits(const haptics::Pose& a, const haptics::Pose& b) noexcept {
+  return std::memcmp(a.p_AB_m.data(), b.p_AB_m.data(), 3 * sizeof(double)) == 0 &&
+         std::memcmp(a.R_AB.coeffs().data(), b.R_AB.coeffs().data(), 4 * sizeof(double)) == 0;
+}
 
 }  // namespace
 
@@ -304,6 +324,8 @@ struct HapticThread::Exchange {
   explicit Exchange(std::size_t ring_capacity) : samples(ring_capacity) {}
   SampleRing samples;
   TripleBuffer<ProxyState> proxy;
+  TripleBuffer<Placement> placement;  ///< GUI -> coupling: the latest place() (HapticThread::placement_requests_).
+  TripleBuffer<PlacedSample> placed;  ///< Coupling -> solver: the latest placement passed on.
   SnapshotChannel gui;  ///< Both threads -> latestSnapshot().
   /// kRecordFlagForceLimited / ForceZeroed / NonFinite / Stopping of the latest command.
   std::atomic<std::uint32_t> command_flags{0};
@@ -404,6 +426,37 @@ void HapticThread::setGains(const haptics::CouplingGains& gains) noexcept {
     recordEventAt("gains", d.dump(), before_tick);
   } catch (...) {  // NOLINT(bugprone-empty-catch): the event is best effort, the gains are set
   }
+}
+
+bool HapticThread::place(const haptics::Pose& X_WP, const haptics::Pose& X_WD) {
+  SimulatedDevice* device = device_->simulatedDevice();
+  if (device == nullptr || !X_WP.allFinite() || !X_WD.allFinite()) return false;
+  // The event first (stamped before the tick that applies it), then the request, then the
+  // device: the coupling thread applies the placement on its first sample at X_WD.
+  if (recorder_.load(std::memory_order_acquire) != nullptr) {
+    try {
+      const auto pose = [](const haptics::Pose& X) {
+        return nlohmann::json::array({X.p_AB_m.x(), X.p_AB_m.y(), X.p_AB_m.z(), X.R_AB.w(), X.R_AB.x(), X.R_AB.y(), X.R_AB.z()});
+      };
+      recordEvent("placement", nlohmann::json{{"X_WP", pose(X_WP)}, {"X_WD", pose(X_WD)}}.dump());
+    } catch (...) {  // NOLINT(bugprone-empty-catch): the event is best effort, the placement is made
+    }
+  }
+  if (!coupling_thread_.joinable()) {  // no threads to hand it on: the renderer starts there
+    renderer_->resetProxy(X_WP);
+    ProxyState& proxy = x_->proxy.writeSlot();
+    proxy.X_WP = X_WP;
+    x_->proxy.publish();
+    device->setPose(X_WD);
+    return true;
+  }
+  Placement& slot = x_->placement.writeSlot();
+  slot.X_WP = X_WP;
+  slot.X_WD = X_WD;
+  x_->placement.publish();
+  placement_requests_.fetch_add(1, std::memory_order_acq_rel);
+  device->setPose(X_WD);
+  return true;
 }
 
 void HapticThread::recordEvent(const std::string& type, const std::string& detail_json) {
@@ -782,6 +835,13 @@ void HapticThread::couplingLoop() noexcept {
   haptics::VirtualCoupling coupling(applied_gains);
   CouplingPassivity passivity(mass);
   passivity.configure(applied_gains, safety.limits());
+  // Placements (place()): the latest one asked for, whether it waits for its device sample, and
+  // the ones handed to the solver.
+  Placement placement;
+  std::uint64_t placement_requests_seen = placement_requests_.load(std::memory_order_acquire);
+  bool placement_waiting = false;
+  std::uint64_t placements_sent = 0;
+  haptics::Pose X_WP_placed;
 
   while (true) {
     if (ramp_left < 0 && stop_requested_.load(std::memory_order_acquire)) ramp_left = ramp_ticks;
@@ -796,6 +856,26 @@ void HapticThread::couplingLoop() noexcept {
     safety.setLimits(device_->limits());
     filter.setLimits(safety.limits());
     const bool read_ok = device_->read(sample);
+    const std::uint64_t placement_requests = placement_requests_.load(std::memory_order_acquire);
+    if (placement_requests != placement_requests_seen) {
+      placement_requests_seen = placement_requests;
+      x_->placement.read(placement);
+      placement_waiting = true;
+    }
+    if (placement_waiting && read_ok && samePoseBits(sample.X_WD, placement.X_WD)) {
+      // The placed sample: the jump to it is no glitch, and no motion of the hand.
+      placement_waiting = false;
+      ++placements_sent;
+      X_WP_placed = placement.X_WP;
+      PlacedSample& placed = x_->placed.writeSlot();  // before the sample is pushed: the solver sees both
+      placed.count = placements_sent;
+      placed.sample = x_->samples.latest() + 1;  // this tick's sample (this thread is the ring's one producer)
+      placed.X_WP = placement.X_WP;
+      x_->placed.publish();
+      filter = SampleFilter(safety.limits());
+      passivity.have_coupled_last = false;
+      coupling.resetTracking();
+    }
     const SampleFilter::Verdict verdict = filter.check(sample, read_ok, clock.interval_s());
     const bool ok = verdict == SampleFilter::Verdict::kGood || verdict == SampleFilter::Verdict::kReseeded;
     const bool connected = device_->connected();
@@ -820,6 +900,10 @@ void HapticThread::couplingLoop() noexcept {
     //    normalised as the renderer does (so that the same pair gives the same bits). A pose
     //    the renderer rejected on its latest tick gives no force. 4b: passivity control.
     x_->proxy.read(proxy);
+    if (proxy.placements < placements_sent) {  // the solver has not applied the placement yet
+      proxy.X_WP = X_WP_placed;
+      proxy.bad_input = false;
+    }
     Eigen::Vector3d force_W_N = Eigen::Vector3d::Zero();
     Eigen::Vector3d torque_W_Nm = Eigen::Vector3d::Zero();
     bool coupled = false;
@@ -883,6 +967,8 @@ void HapticThread::solverLoop() noexcept {
   haptics::CouplingGains gains = renderer_->coupling().gains();
   renderer_->setGains(gains);
   haptics::Pose X_WD_used = renderer_->proxyPose();  // the latest pose the renderer ticked with
+  std::uint64_t placements = 0;                      // applied (PlacedSample::count)
+  PlacedSample placed;                               // the latest placement passed on
   std::uint32_t wake_flags = 0;                      // deadline miss of this wake-up (first tick only)
   JamDetector jam;                                   // kRecordFlagJam
 
@@ -890,6 +976,14 @@ void HapticThread::solverLoop() noexcept {
   const auto solve = [&](const DeviceInput& in) noexcept {
     const std::int64_t begin_ns = monotonicNs();
     const std::uint32_t gains_flags = followGains(in.gains, gains, *renderer_) ? kRecordFlagGainsApplied : 0u;
+    std::uint32_t placement_flags = 0;
+    x_->placed.read(placed);
+    if (placed.count > placements && consumed >= placed.sample) {  // a placement: the proxy jumps with the device
+      placements = placed.count;
+      renderer_->resetProxy(placed.X_WP);
+      placement_flags = kRecordFlagPlacement;
+      placements_applied_.fetch_add(1, std::memory_order_acq_rel);
+    }
     haptics::TickOutput out;
     bool bad_input = false;
     std::uint32_t drill_flags = 0;
@@ -918,6 +1012,7 @@ void HapticThread::solverLoop() noexcept {
     ProxyState& proxy = x_->proxy.writeSlot();
     proxy.X_WP = renderer_->proxyPose();
     proxy.bad_input = bad_input;
+    proxy.placements = placements;
     x_->proxy.publish();
     ++tick;
     if (options_.solver_tick_hook != nullptr) options_.solver_tick_hook(options_.solver_tick_hook_context);
@@ -944,7 +1039,7 @@ void HapticThread::solverLoop() noexcept {
       rec.contacts = static_cast<std::uint32_t>(contacts.size());
       rec.flags =
           solverRecordFlags(rec.contacts, in, out, segment) | wake_flags | coupling_flags | drill_flags | gains_flags |
-          jam_flags;
+          jam_flags | placement_flags;
       (void)recorder->push(rec);
       latest_recorded_tick_.store(tick, std::memory_order_release);
     }

@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <numbers>
 
 namespace vh::runtime {
 
@@ -130,6 +131,67 @@ Pose legalPoseNear(const haptics::ScalarVolume& volume, const haptics::PointShel
   if (!anyInside(volume, shell, X_WT, isovalue)) return X_WT;
   if (fallback && !anyInside(volume, shell, *fallback, isovalue)) return *fallback;
   return defaultInitialPose(volume, shell, X_WT.R_AB, isovalue);
+}
+
+std::optional<SurfaceTouch> touchSurfacePose(const haptics::ScalarVolume& volume, const haptics::PointShell& shell,
+                                             const Eigen::Vector3d& p_TCm_m, const Eigen::Quaterniond& R_WT,
+                                             const Eigen::Vector3d& dir_W, const Eigen::Vector3d& aim_W,
+                                             double isovalue, double depth_m) {
+  if (!dir_W.allFinite() || dir_W.norm() < 1e-9 || !aim_W.allFinite() || shell.empty()) return std::nullopt;
+  const Eigen::Vector3d dir = dir_W.normalized();
+  const Eigen::Quaterniond R = R_WT.normalized();
+  const Eigen::Vector3d lo = volume.boundsMin_W_m(), hi = volume.boundsMax_W_m();
+  const double diagonal_m = (hi - lo).norm();
+  // The tool's reach about its centre of mass [m]; the box's farthest corner from the aim [m].
+  double reach_m = 0.0;
+  for (const Eigen::Vector3d& p_T : shell.points_T_m()) reach_m = std::max(reach_m, (p_T - p_TCm_m).norm());
+  double corner_m = 0.0;
+  for (int c = 0; c < 8; ++c) {
+    const Eigen::Vector3d corner((c & 1) ? hi.x() : lo.x(), (c & 2) ? hi.y() : lo.y(), (c & 4) ? hi.z() : lo.z());
+    corner_m = std::max(corner_m, (corner - aim_W).norm());
+  }
+  const double margin_m = std::max(0.005, 0.05 * diagonal_m);
+  const double outside_m = corner_m + reach_m + margin_m;  // no shell point in the box from there
+  const double max_travel_m = outside_m + corner_m + reach_m;
+  const auto poseWithCentreAt = [&](const Eigen::Vector3d& c_W) { return Pose{R, c_W - R * p_TCm_m}; };
+  const Eigen::Vector3d e1 = dir.unitOrthogonal();
+  const Eigen::Vector3d e2 = dir.cross(e1);
+  for (const double ring : {0.0, 0.05, 0.1, 0.2, 0.3}) {
+    const int n = ring == 0.0 ? 1 : 8;
+    for (int k = 0; k < n; ++k) {
+      const double a = 2.0 * std::numbers::pi * k / n;
+      const Pose from = poseWithCentreAt(aim_W - outside_m * dir + ring * diagonal_m * (std::cos(a) * e1 + std::sin(a) * e2));
+      const std::optional<double> free_m =
+          firstContactDistance(volume, shell, from, dir, max_travel_m, isovalue, 0.05 * volume.featureSize_m());
+      if (!free_m) continue;
+      SurfaceTouch touch;
+      touch.X_WP = translatedBy(from, *free_m * dir);
+      touch.X_WD = translatedBy(touch.X_WP, std::max(0.0, depth_m) * dir);
+      touch.dir_W = dir;
+      return touch;
+    }
+  }
+  return std::nullopt;
+}
+
+std::optional<Eigen::Vector3d> insideBoxCentre_W(const haptics::ScalarVolume& volume, double isovalue) {
+  const haptics::VolumeGeometry& g = volume.geometry();
+  Eigen::Vector3d lo = Eigen::Vector3d::Constant(std::numeric_limits<double>::infinity());
+  Eigen::Vector3d hi = -lo;
+  bool any = false;
+  for (int k = 0; k < g.dims[2]; ++k) {
+    for (int j = 0; j < g.dims[1]; ++j) {
+      for (int i = 0; i < g.dims[0]; ++i) {
+        if (!(volume.voxel(i, j, k) > isovalue)) continue;
+        const Eigen::Vector3d p_W = g.pointOf_W(Eigen::Vector3d(i, j, k));
+        lo = lo.cwiseMin(p_W);
+        hi = hi.cwiseMax(p_W);
+        any = true;
+      }
+    }
+  }
+  if (!any) return std::nullopt;
+  return Eigen::Vector3d(0.5 * (lo + hi));
 }
 
 }  // namespace vh::runtime

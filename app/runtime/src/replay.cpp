@@ -98,6 +98,22 @@ ReplayComparison replayRecording(const LoadedScene& scene, const Recording& reco
     } catch (const nlohmann::json::exception&) {  // a malformed event changes nothing
     }
   }
+  // Placements (kRecordFlagPlacement): the "placement" events' proxy poses, in order, one per
+  // flagged record.
+  std::vector<haptics::Pose> placements;
+  for (const RecordingEvent& e : recording.events) {
+    if (e.type != "placement") continue;
+    try {
+      const std::vector<double> v = nlohmann::json::parse(e.detail_json).at("X_WP").get<std::vector<double>>();
+      if (v.size() != 7) continue;
+      haptics::Pose X;
+      X.p_AB_m = {v[0], v[1], v[2]};
+      X.R_AB = Eigen::Quaterniond(v[3], v[4], v[5], v[6]);
+      placements.push_back(X);
+    } catch (const nlohmann::json::exception&) {  // a malformed event places nothing
+    }
+  }
+  std::size_t next_placement = 0;
   std::size_t next_hardness = 0;
   const auto applyHardness = [&](const HardnessChange& h) {
     haptics::MaterialRemoval& removal = servo.drill->removal();
@@ -142,6 +158,8 @@ ReplayComparison replayRecording(const LoadedScene& scene, const Recording& reco
         ++next_gains;
       }
     }
+    if ((r.flags & kRecordFlagPlacement) != 0 && next_placement < placements.size())
+      renderer->resetProxy(placements[next_placement++]);
     DeviceSample sample;
     const bool ok = device.read(sample) && sample.valid && sample.X_WD.allFinite();
     haptics::TickOutput out;

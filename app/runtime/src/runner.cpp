@@ -471,6 +471,16 @@ RunReport runHeadless(const LoadedScene& scene, const Trajectory& trajectory, co
     }
     if (options.realtime) std::this_thread::sleep_until(wall_begin + std::chrono::nanoseconds(static_cast<std::int64_t>(1e9 * static_cast<double>(i + 1) / options.servo_rate_Hz)));
   }
+  if (recorder && drill != nullptr && n > 0) {
+    // What the burr removed in all, for the cohort table (session_metrics.h: removed_mm3).
+    RecordingEvent event;
+    event.time_s = static_cast<double>(n - 1) / options.servo_rate_Hz;
+    event.tick = n;
+    event.type = "drilled";
+    event.detail_json =
+        nlohmann::json{{"voxels", drill->removal().removedVoxels()}, {"mm3", drill->removed_mm3()}}.dump();
+    recorder->addEvent(event);
+  }
   if (recorder) recorder->close();  // throws naming the file when a write failed
   if (segment_tally) r.segment_contacts = segment_tally->segments();
   if (drill != nullptr) r.drill = drillReport(*drill, scene);

@@ -196,7 +196,9 @@ std::string resolveDataPath(const ObjectReader& reader, const char* key, const s
     if (fs::exists(c, ec)) return fs::absolute(c, ec).lexically_normal().string();
     looked += (looked.empty() ? "" : " and ") + c.lexically_normal().string();
   }
-  reader.fail(reader.fieldPath(key), "'" + value + "' not found (looked in " + looked + ")" + archiveHint(p));
+  const std::string hint = archiveHint(p);
+  reader.fail(reader.fieldPath(key), "'" + value + "' not found (looked in " + looked + ")" +
+                                         (hint.empty() ? ". " + sharedDatasetsNote() : hint));
 }
 
 /// Factories of the registered hardware device kinds (registerDeviceKind()).
@@ -228,6 +230,17 @@ fs::path sharedDatasetsDir() {
   }
   if (const fs::path installed = installedDataDir(); !installed.empty()) return installed / "datasets";
   return fs::path(VH_DEFAULT_SHARED_DATASETS_DIR).lexically_normal();
+}
+
+std::string sharedDatasetsNote() {
+  std::error_code ec;
+  const fs::path dir = sharedDatasetsDir();
+  const bool present = !dir.empty() && fs::is_directory(dir, ec);
+  return "The shared datasets (scans and tool meshes) are looked for in " + dir.string() +
+         (present ? "" : " (absent)") +
+         ". They are not shipped with the program: download them from the public sources that Help > About "
+         "(and datasets/manifest.json in the source) lists, into one folder keeping their paths (ct/, nrrd/, "
+         "classic/, meshes/), and set VH_SHARED_DATASETS_DIR to that folder.";
 }
 
 fs::path generatedDataDir() {

@@ -59,7 +59,14 @@ double medianPeriod(const std::vector<TickRecord>& records) {
 void motionMetrics(const std::vector<TickRecord>& records, double dt, const MetricsOptions& options,
                    SessionMetrics& m) {
   const std::size_t n = records.size();
+  // A placement (kRecordFlagPlacement on record i: the tools jumped between records i - 1 and i)
+  // is not the hand's motion: no difference across one enters the path, the speed or the jerk.
+  // placed[i] = placements among records 0..i-1, so (a, b] holds one iff placed[b + 1] > placed[a + 1].
+  std::vector<std::size_t> placed(n + 1, 0);
+  for (std::size_t i = 0; i < n; ++i) placed[i + 1] = placed[i] + ((records[i].flags & kRecordFlagPlacement) != 0 ? 1 : 0);
+  const auto jumpIn = [&](std::size_t a, std::size_t b) { return placed[b + 1] > placed[a + 1]; };  // in (a, b]
   for (std::size_t i = 1; i < n; ++i) {
+    if (jumpIn(i - 1, i)) continue;
     m.path_length_m += (devicePosition(records[i]) - devicePosition(records[i - 1])).norm();
     m.proxy_path_length_m += (proxyPosition(records[i]) - proxyPosition(records[i - 1])).norm();
   }
@@ -67,11 +74,14 @@ void motionMetrics(const std::vector<TickRecord>& records, double dt, const Metr
   const std::size_t k = std::max<std::size_t>(1, static_cast<std::size_t>(std::lround(options.derivative_step_s / dt)));
   const double h = static_cast<double>(k) * dt;
   const auto p = [&](std::size_t i) { return devicePosition(records[i]); };
-  for (std::size_t i = k; i + k < n; ++i)
+  for (std::size_t i = k; i + k < n; ++i) {
+    if (jumpIn(i - k, i + k)) continue;
     m.peak_speed_m_per_s = std::max(m.peak_speed_m_per_s, ((p(i + k) - p(i - k)) / (2.0 * h)).norm());
+  }
   double jerk_sq_sum = 0.0;
   std::size_t jerk_samples = 0;
   for (std::size_t i = 2 * k; i + 2 * k < n; ++i) {
+    if (jumpIn(i - 2 * k, i + 2 * k)) continue;
     const Eigen::Vector3d jerk = (p(i + 2 * k) - 2.0 * p(i + k) + 2.0 * p(i - k) - p(i - 2 * k)) / (2.0 * h * h * h);
     jerk_sq_sum += jerk.squaredNorm();
     ++jerk_samples;
@@ -92,6 +102,16 @@ void tickMetrics(const std::vector<TickRecord>& records, double dt, double thres
   double force_sum = 0.0, contact_force_sum = 0.0, torque_sum = 0.0, tick_sum = 0.0;
   std::uint64_t above = 0, contact = 0, drill = 0;
   for (const TickRecord& r : records) {
+    if (r.flags & kRecordFlagDrillOn) ++drill;
+    if (r.flags & kRecordFlagDeadlineMiss) ++m.deadline_misses;
+    if (r.flags & kRecordFlagDeadlineCut) ++m.deadline_cuts;
+    if (r.flags & kRecordFlagBadSample) ++m.bad_samples;
+    if (r.flags & kRecordFlagForceLimited) ++m.force_limited_ticks;
+    if (r.flags & kRecordFlagNonFinite) ++m.non_finite_ticks;
+    tick_sum += r.tick_time_s;
+    m.max_tick_s = std::max(m.max_tick_s, r.tick_time_s);
+    // A placement's tick is not the hand's (the tools jumped just before it): its force is left out.
+    if ((r.flags & kRecordFlagPlacement) != 0) continue;
     const double f = norm3(r.force_W_N);
     const double t = norm3(r.torque_W_Nm);
     forces.push_back(f);
@@ -104,18 +124,11 @@ void tickMetrics(const std::vector<TickRecord>& records, double dt, double thres
       ++contact;
       contact_force_sum += f;
     }
-    if (r.flags & kRecordFlagDrillOn) ++drill;
-    if (r.flags & kRecordFlagDeadlineMiss) ++m.deadline_misses;
-    if (r.flags & kRecordFlagDeadlineCut) ++m.deadline_cuts;
-    if (r.flags & kRecordFlagBadSample) ++m.bad_samples;
-    if (r.flags & kRecordFlagForceLimited) ++m.force_limited_ticks;
-    if (r.flags & kRecordFlagNonFinite) ++m.non_finite_ticks;
-    tick_sum += r.tick_time_s;
-    m.max_tick_s = std::max(m.max_tick_s, r.tick_time_s);
   }
   const auto n = static_cast<double>(records.size());
-  m.mean_force_N = force_sum / n;
-  m.mean_torque_Nm = torque_sum / n;
+  const auto felt = static_cast<double>(std::max<std::size_t>(1, forces.size()));
+  m.mean_force_N = force_sum / felt;
+  m.mean_torque_Nm = torque_sum / felt;
   m.mean_tick_s = tick_sum / n;
   if (contact > 0) m.mean_contact_force_N = contact_force_sum / static_cast<double>(contact);
   std::sort(forces.begin(), forces.end());
@@ -142,6 +155,14 @@ void segmentMetrics(const Recording& recording, double dt, SessionMetrics& m) {
   }
   for (const RecordingEvent& e : recording.events) {
     if (e.type == "marker") ++m.markers;
+    if (e.type == "drilled") {  // the totals when the recording closed: the last one counts
+      const nlohmann::json d = nlohmann::json::parse(e.detail_json.empty() ? "{}" : e.detail_json, nullptr, false);
+      if (d.is_object()) {
+        m.removed_voxels = d.value("voxels", std::uint64_t{0});
+        m.removed_mm3 = d.value("mm3", 0.0);
+      }
+      continue;
+    }
     if (e.type != "critical_removed") continue;
     const nlohmann::json d = nlohmann::json::parse(e.detail_json.empty() ? "{}" : e.detail_json, nullptr, false);
     if (!d.is_object()) continue;
@@ -240,6 +261,7 @@ std::vector<MetricValue> metricValues(const SessionMetrics& m) {
       {"critical_contact_s", "Time touching critical segments", "s", m.critical_contact_s},
       {"critical_touches", "Touches of critical segments", "", count(m.critical_touches)},
       {"drill_on_s", "Time with the burr spinning", "s", m.drill_on_s},
+      {"removed_mm3", "Volume drilled away", "mm^3", m.removed_mm3},
       {"critical_removed_voxels", "Critical voxels drilled away", "", count(m.critical_removed_voxels)},
       {"critical_removed_mm3", "Critical volume drilled away", "mm^3", m.critical_removed_mm3},
       {"markers", "Markers", "", count(m.markers)},
@@ -367,7 +389,8 @@ std::size_t writeCohortTable(const std::filesystem::path& dir, const std::filesy
     out << csvField(std::filesystem::relative(files[i], dir).generic_string());
     try {
       const SessionMetrics m = computeSessionMetrics(readRecording(files[i]), options);
-      out << ',' << csvField(m.scene) << ',' << m.dataset_sha256 << ',' << csvField(m.label) << ','
+      const std::string label = m.label.empty() ? files[i].stem().string() : m.label;
+      out << ',' << csvField(m.scene) << ',' << m.dataset_sha256 << ',' << csvField(label) << ','
           << csvField(m.start_time_utc);
       for (const MetricValue& v : metricValues(m)) out << ',' << v.value;
       out << ',' << csvField(joined(m.notices, "; ")) << '\n';

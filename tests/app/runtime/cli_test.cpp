@@ -14,6 +14,8 @@
 #include <nlohmann/json.hpp>
 
 #include "runtime_test_support.h"
+#include "vh/runtime/recording.h"
+#include "vh/runtime/session_metrics.h"
 #include "vh/runtime/trajectory.h"
 
 namespace vh::runtime {
@@ -57,6 +59,15 @@ TEST(Cli, HelpListsTheSubcommands) {
   EXPECT_NE(r.output.find("--screenshot"), std::string::npos) << r.output;
 }
 
+TEST(Cli, RunHelpExplainsEveryFigureOfTheSummaryLine) {
+  const ProcessResult r = runApp("run --help");
+  EXPECT_EQ(r.exit_code, 0) << r.output;
+  for (const char* figure : {"exec", "points", "contacts", "max force", "penetration", "nan ticks", "bad samples",
+                             "crossings", "edges =", "work budget", "lag =", "behind =", "drilled =", "touched =",
+                             "--note"})
+    EXPECT_NE(r.output.find(figure), std::string::npos) << "run --help does not explain '" << figure << "'";
+}
+
 TEST(Cli, RunNeedsSceneAndTrajectory) {
   const ProcessResult r = runApp("run --trajectory t.csv");
   EXPECT_NE(r.exit_code, 0);
@@ -81,6 +92,36 @@ TEST(Cli, GuiWithAMissingPathFailsBeforeOpeningAWindow) {
   const ProcessResult r = runApp("/no/such/volume.nrrd");
   EXPECT_EQ(r.exit_code, 1) << r.output;
   EXPECT_NE(r.output.find("/no/such/volume.nrrd: no such file or folder"), std::string::npos) << r.output;
+}
+
+TEST(Cli, OutputFoldersAreCreatedOrRefusedBeforeTheLoad) {
+  const fs::path dir = test::scratchDir() / "outputs";
+  fs::remove_all(dir);
+  const fs::path csv = dir / "t.csv";
+  // make-trajectory into a folder that does not exist yet: created.
+  const ProcessResult made = runApp("make-trajectory --scene " + quoted(kBlockScene) +
+                                    " --ray-start 0.015 0 0.04 --slide-m 0.002 --out " + quoted(dir / "traj" / "t.csv"));
+  ASSERT_EQ(made.exit_code, 0) << made.output;
+  ASSERT_TRUE(fs::exists(dir / "traj" / "t.csv"));
+  fs::copy_file(dir / "traj" / "t.csv", csv);
+  // run --record and --report into missing folders: created, the files written.
+  const fs::path rec = dir / "rec" / "a" / "t.vhrec";
+  const ProcessResult ran = runApp("run --verify-step 0 --scene " + quoted(kBlockScene) + " --trajectory " + quoted(csv) +
+                                   " --record " + quoted(rec) + " --note 'trainee A' --report " +
+                                   quoted(dir / "reports" / "r.json"));
+  ASSERT_EQ(ran.exit_code, 0) << ran.output;
+  EXPECT_TRUE(fs::exists(rec));
+  EXPECT_TRUE(fs::exists(dir / "reports" / "r.json"));
+  EXPECT_EQ(computeSessionMetrics(readRecording(rec)).label, "trainee A") << "--note is the cohort table's label";
+  // A folder that cannot be made (a file is in the way): refused before the scene is read (the
+  // scene named does not exist, and the message is about the recording's folder).
+  test::writeText(dir / "blocker", "a file");
+  const ProcessResult refused = runApp("run --scene /no/such/scene.json --trajectory " + quoted(csv) + " --record " +
+                                       quoted(dir / "blocker" / "sub" / "t.vhrec"));
+  EXPECT_EQ(refused.exit_code, 1) << refused.output;
+  EXPECT_NE(refused.output.find("--record"), std::string::npos) << refused.output;
+  EXPECT_NE(refused.output.find("cannot create the folder"), std::string::npos) << refused.output;
+  EXPECT_EQ(refused.output.find("scene file not found"), std::string::npos) << refused.output;
 }
 
 TEST(Cli, MakeTrajectoryThenRunWithoutADisplay) {

@@ -274,6 +274,21 @@ TEST(SceneFileErrors, DataFileNotFoundNamesWhereItLooked) {
   expectSceneError(R"({"volume": {"path": "/abs/volume.nrrd"}})", "volume.path: '/abs/volume.nrrd' not found");
 }
 
+TEST(SceneFileErrors, DataFileNotFoundSaysHowToPointAtTheDatasets) {
+  // An installed copy without the datasets: the message names the folder looked in, that it is
+  // absent, and the variable that points the program at the data, with where to get it.
+  const char* before = std::getenv("VH_SHARED_DATASETS_DIR");
+  const std::string saved = before != nullptr ? before : "";
+  const fs::path missing = scratchDir() / "no-datasets-here";
+  ::setenv("VH_SHARED_DATASETS_DIR", missing.c_str(), 1);
+  expectSceneError(R"({"volume": {"path": "ct/philips-head-phantom-bone"}})",
+                   "'ct/philips-head-phantom-bone' not found", missing.string() + " (absent)",
+                   "VH_SHARED_DATASETS_DIR", "Help > About");
+  EXPECT_NE(sharedDatasetsNote().find(missing.string() + " (absent)"), std::string::npos) << sharedDatasetsNote();
+  if (before != nullptr) ::setenv("VH_SHARED_DATASETS_DIR", saved.c_str(), 1);
+  else ::unsetenv("VH_SHARED_DATASETS_DIR");
+}
+
 TEST(SceneFileErrors, PackedDatasetGetsAHint) {
   const fs::path archive = test::sharedDatasets() / "classic" / "ct-bunny.tar.zst";
   if (!fs::exists(archive)) GTEST_SKIP() << "shared dataset absent: " << archive;

@@ -3,6 +3,7 @@
 // and the cohort table.
 #include "vh/runtime/session_metrics.h"
 
+#include <algorithm>
 #include <cmath>
 #include <cstring>
 #include <fstream>
@@ -265,6 +266,44 @@ TEST(SessionMetrics, TruncatedOrEmptyRecordingGivesMetricsWithANotice) {
   bool said = false;
   for (const std::string& n : empty.notices) said = said || n.find("holds no ticks") != std::string::npos;
   EXPECT_TRUE(said);
+}
+
+TEST(CohortTable, LabelFallsBackToTheFileNameAndRemovedVolumeIsAColumn) {
+  const fs::path dir = test::scratchDir() / "cohort-label";
+  writeCircle(dir / "trainee-07.vhrec", 1.0, "");  // no user, no note
+  {  // a drilling run's recording: its "drilled" event carries the removed volume
+    RecordingWriterOptions opt;
+    opt.ring_capacity = 1u << 15;
+    RecordingWriter writer(dir / "drilled.vhrec", nlohmann::json{{"note", "expert"}}.dump(), opt);
+    for (const TickRecord& t : circleRecording(0.05, kPi, 1000.0, 0.5).records) writer.pushWaiting(t);
+    writer.addEvent({0.499, 500, "drilled", R"({"voxels": 125, "mm3": 12.5})"});
+    writer.close();
+  }
+  const SessionMetrics m = computeSessionMetrics(readRecording(dir / "drilled.vhrec"));
+  EXPECT_EQ(m.removed_voxels, 125u);
+  EXPECT_DOUBLE_EQ(m.removed_mm3, 12.5);
+  ASSERT_EQ(writeCohortTable(dir, dir / "table.csv"), 2u);
+  std::ifstream in(dir / "table.csv");
+  std::vector<std::vector<std::string>> rows;
+  for (std::string line; std::getline(in, line);) {
+    std::vector<std::string> cells(1);
+    for (char c : line) {  // no quoted fields in these rows
+      if (c == ',') cells.emplace_back();
+      else cells.back() += c;
+    }
+    rows.push_back(cells);
+  }
+  ASSERT_EQ(rows.size(), 3u);
+  const auto column = [&](const std::string& key) {
+    return static_cast<std::size_t>(std::find(rows[0].begin(), rows[0].end(), key) - rows[0].begin());
+  };
+  ASSERT_LT(column("removed_mm3"), rows[0].size()) << "no removed_mm3 column";
+  EXPECT_EQ(rows[1][0], "drilled.vhrec");
+  EXPECT_EQ(rows[1][column("label")], "expert") << "the note";
+  EXPECT_DOUBLE_EQ(std::stod(rows[1][column("removed_mm3")]), 12.5);
+  EXPECT_EQ(rows[2][0], "trainee-07.vhrec");
+  EXPECT_EQ(rows[2][column("label")], "trainee-07") << "no user or note: the file name";
+  EXPECT_DOUBLE_EQ(std::stod(rows[2][column("removed_mm3")]), 0.0);
 }
 
 TEST(CohortTable, OneRowPerRecordingInTheTreeWithProgress) {

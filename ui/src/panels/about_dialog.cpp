@@ -9,6 +9,8 @@
 #include <QTextBrowser>
 #include <QVBoxLayout>
 
+#include "vh/runtime/scene.h"
+
 namespace vh::ui {
 namespace {
 
@@ -35,8 +37,9 @@ QString aboutHtml(const QByteArray& manifest_json) {
   const QJsonDocument doc = QJsonDocument::fromJson(text);
   const QJsonArray datasets = doc.object().value("datasets").toArray();
   if (!datasets.isEmpty()) {
-    html += "<h3>Data</h3><p>Public datasets the program uses when present in ../shared/datasets (never "
-            "shipped with it):</p><table cellspacing='0' cellpadding='3' border='0'>";
+    html += "<h3>Data</h3><p>" + QString::fromStdString(runtime::sharedDatasetsNote()).toHtmlEscaped() +
+            "</p><p>The public datasets the program uses when present there:</p>"
+            "<table cellspacing='0' cellpadding='3' border='0'>";
     html += "<tr><th align='left'>dataset</th><th align='left'>credit</th><th align='left'>licence</th></tr>";
     for (const QJsonValue& v : datasets) {
       const QJsonObject d = v.toObject();

@@ -1,4 +1,5 @@
 #include "vh/ui/panels/isovalue_bar.h"
+#include "vh/ui/panels/range_spin_box.h"
 
 #include <algorithm>
 #include <cmath>
@@ -47,7 +48,7 @@ IsovalueBar::IsovalueBar(runtime::Session& session, QWidget* parent) : QWidget(p
   slider_->setToolTip(
       "Isosurface value: the rendered and the felt surface follow it live. Behind the slider: the "
       "volume's histogram (log scale).");
-  spin_ = new QDoubleSpinBox(this);
+  spin_ = new RangeSpinBox("the isovalue", this);
   spin_->setObjectName("isovalueSpinBox");
   spin_->setKeyboardTracking(false);
   spin_->setMinimumWidth(90);

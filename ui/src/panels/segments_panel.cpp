@@ -66,6 +66,9 @@ SegmentsPanel::SegmentsPanel(QWidget* parent) : QWidget(parent) {
   layout->addWidget(sound_);
   layout->addWidget(touched_);
 
+  connect(table_, &QTableWidget::cellDoubleClicked, this, [this](int row, int column) {
+    if (column == kName) emit goToSegmentRequested(row);
+  });
   connect(table_, &QTableWidget::itemChanged, this, [this](QTableWidgetItem* item) {
     if (filling_) return;
     if (item != nullptr && item->column() == kHardness) {
@@ -117,7 +120,7 @@ void SegmentsPanel::showSegments(const runtime::SegmentSet* set) {
     const io::SegmentInfo& info = seg.segments[static_cast<std::size_t>(s)];
     auto* name = new QTableWidgetItem(swatch(info.color_rgb), q(info.name));
     name->setFlags(name->flags() & ~Qt::ItemIsEditable);
-    name->setToolTip(QString("%1, label %2, layer %3, %4 voxels")
+    name->setToolTip(QString("%1, label %2, layer %3, %4 voxels; double-click to frame it in the view")
                          .arg(q(info.id))
                          .arg(info.label_value)
                          .arg(info.layer)
@@ -158,6 +161,13 @@ void SegmentsPanel::showHardness(const std::map<std::string, double>& hardness) 
     item->setData(Qt::UserRole, text);
   }
   filling_ = false;
+}
+
+void SegmentsPanel::setDisplayColour(int segment, const std::array<double, 3>& rgb) {
+  QTableWidgetItem* item = segment >= 0 && segment < table_->rowCount() ? table_->item(segment, kName) : nullptr;
+  if (item == nullptr) return;
+  const QSignalBlocker block(table_);
+  item->setIcon(swatch(rgb));
 }
 
 void SegmentsPanel::setTouched(int segment) {

@@ -55,9 +55,14 @@ QVariant DicomSeriesModel::data(const QModelIndex& index, int role) const {
   if (role == Qt::TextAlignmentRole) {
     return index.column() == kSlices ? QVariant(Qt::AlignRight | Qt::AlignVCenter) : QVariant();
   }
-  if (role == Qt::ToolTipRole) {
+  if (role == Qt::ToolTipRole) {  // the whole row, uncut: descriptions are often longer than their column
     const QString folder = s.files.empty() ? utf8(s.folder.string()) : utf8(s.files.front().parent_path().string());
-    return QString("%1 files in %2\nSeries UID %3").arg(s.file_count).arg(folder, utf8(s.series_uid));
+    QString tip;
+    for (const int c : {kSeries, kStudy, kPatient}) {
+      const QString text = data(this->index(index.row(), c), Qt::DisplayRole).toString();
+      if (!text.isEmpty()) tip += headerData(c, Qt::Horizontal, Qt::DisplayRole).toString() + ": " + text + "\n";
+    }
+    return tip + QString("%1 files in %2\nSeries UID %3").arg(s.file_count).arg(folder, utf8(s.series_uid));
   }
   if (role != Qt::DisplayRole) return {};
   switch (index.column()) {
@@ -138,6 +143,12 @@ SeriesChooserDialog::SeriesChooserDialog(const QString& folder, std::vector<io::
   table_->horizontalHeader()->setStretchLastSection(false);
   table_->horizontalHeader()->setSectionResizeMode(QHeaderView::ResizeToContents);
   table_->horizontalHeader()->setSectionResizeMode(DicomSeriesModel::kSeries, QHeaderView::Stretch);
+  // Study and patient are the same for most rows of a folder: narrow, the user widens them.
+  for (const int c : {DicomSeriesModel::kStudy, DicomSeriesModel::kPatient}) {
+    table_->horizontalHeader()->setSectionResizeMode(c, QHeaderView::Interactive);
+    table_->setColumnWidth(c, 140);
+  }
+  table_->setTextElideMode(Qt::ElideMiddle);
   table_->setAlternatingRowColors(true);
   table_->setWordWrap(false);
   layout->addWidget(table_, 1);

@@ -698,13 +698,18 @@ void SceneActors::setContacts(std::span<const Eigen::Vector3d> p_W_m) {
   contact_actor_->SetVisibility(!p_W_m.empty());
 }
 
+double SceneActors::forceArrowLength_m(double magnitude_N) const noexcept {
+  if (!(magnitude_N > 1e-3)) return 0.0;
+  return arrow_reference_m_ * std::clamp(magnitude_N / kReferenceForce_N, 0.15, 2.5);
+}
+
 void SceneActors::setForce(const Eigen::Vector3d& p_W_origin_m, const Eigen::Vector3d& force_W_N) {
   const double magnitude = force_W_N.norm();
   if (!(magnitude > 1e-3) || !p_W_origin_m.allFinite()) {
     force_actor_->VisibilityOff();
     return;
   }
-  const double length = arrow_reference_m_ * std::clamp(magnitude / kReferenceForce_N, 0.15, 2.5);
+  const double length = forceArrowLength_m(magnitude);
   const Eigen::Vector3d x = force_W_N / magnitude;
   const Eigen::Vector3d y = x.unitOrthogonal();
   const Eigen::Vector3d z = x.cross(y);

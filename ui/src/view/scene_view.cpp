@@ -4,6 +4,7 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <limits>
 #include <numbers>
 #include <stdexcept>
 
@@ -33,8 +34,30 @@ constexpr int kSettleMs = 300;  // still frame this long after the last motion
 constexpr double kInteractiveRate_Hz = 33.0;
 constexpr double kStillRate_Hz = 0.0001;
 
-bool posesDiffer(const haptics::Pose& a, const haptics::Pose& b) {
-  return (a.p_AB_m - b.p_AB_m).norm() > 1e-6 || a.R_AB.angularDistance(b.R_AB) > 1e-4;
+// A point that moved less than this on screen [px] has not moved visibly: the proxy's
+// micro-motion while it rests on a surface (a few micrometres a tick under the hand's steady
+// push) neither redraws the view nor keeps its frames interactive (coarse).
+constexpr double kVisibleShift_px = 1.0;
+
+/// The 8 corners of the axis-aligned box around `vertices_T_m` (T [m]); the origin alone when empty.
+std::vector<Eigen::Vector3d> boxCorners(const std::vector<Eigen::Vector3d>& vertices_T_m) {
+  if (vertices_T_m.empty()) return {Eigen::Vector3d::Zero()};
+  Eigen::Vector3d lo = vertices_T_m.front(), hi = lo;
+  for (const Eigen::Vector3d& v : vertices_T_m) {
+    lo = lo.cwiseMin(v);
+    hi = hi.cwiseMax(v);
+  }
+  std::vector<Eigen::Vector3d> corners;
+  for (int c = 0; c < 8; ++c) corners.emplace_back((c & 1) ? hi.x() : lo.x(), (c & 2) ? hi.y() : lo.y(), (c & 4) ? hi.z() : lo.z());
+  return corners;
+}
+
+/// How far `a_W` lies from `b_W` in pixels of `camera` at a's depth (the whole 3-D distance:
+/// a motion along the view ray counts too, so this never underestimates the shift on screen).
+double shift_px(const ViewCamera& camera, const Eigen::Vector3d& a_W, const Eigen::Vector3d& b_W) {
+  const double m_per_px = camera.metresPerPixelAt(a_W);
+  if (!(m_per_px > 0.0) || !std::isfinite(m_per_px)) return std::numeric_limits<double>::infinity();
+  return (a_W - b_W).norm() / m_per_px;
 }
 
 
@@ -151,6 +174,7 @@ void SceneView::setScene(const SceneActorsSpec& spec, const haptics::Pose& X_WT,
   }
   actors_ = std::make_unique<SceneActors>(view_->renderer(), spec);
   tool_vertices_T_m_ = spec.tool_mesh_T.vertices_T_m;
+  tool_corners_T_m_ = boxCorners(tool_vertices_T_m_);
   actors_->setProxyPose(X_WT);
   actors_->setDevicePose(X_WT);
   actors_->setRenderMode(look.mode, look.preset);
@@ -180,10 +204,11 @@ void SceneView::clearScene() {
   if (alert_ != nullptr) alert_->SetVisibility(false);
 }
 
-void SceneView::setSegments(const runtime::SegmentSet* set) {
+const std::vector<int>& SceneView::setSegments(const runtime::SegmentSet* set) {
   if (segments_ == nullptr) segments_ = std::make_unique<SegmentSurfaces>(view_->renderer());
-  segments_->show(set);
+  segments_->show(set, surface_rgb_);
   requestRender();
+  return segments_->recoloured();
 }
 
 void SceneView::setTouchedSegment(int segment, const std::string& alert) {
@@ -202,6 +227,7 @@ std::string SceneView::alertText() const {
 void SceneView::setTool(const haptics::ToolModel& tool, const haptics::Pose& X_WT) {
   if (actors_ == nullptr) return;
   tool_vertices_T_m_ = tool.mesh_T.vertices_T_m;
+  tool_corners_T_m_ = boxCorners(tool_vertices_T_m_);
   actors_->setToolMesh(tool.mesh_T, tool.mass.p_TCm_m);
   ToolFrame frame;
   frame.X_WP = frame.X_WD = X_WT;
@@ -211,13 +237,37 @@ void SceneView::setTool(const haptics::ToolModel& tool, const haptics::Pose& X_W
   requestRender();
 }
 
+bool SceneView::changedVisibly(const ToolFrame& frame) const {
+  if (static_cast<int>(frame.contacts_W_m.size()) != shown_contacts_) return true;
+  if (!frame.X_WP.allFinite() || !frame.X_WD.allFinite()) return false;  // nothing to draw anew
+  const ViewCamera cam = camera();
+  for (const Eigen::Vector3d& c_T : tool_corners_T_m_) {
+    if (shift_px(cam, frame.X_WP * c_T, shown_X_WP_ * c_T) >= kVisibleShift_px ||
+        shift_px(cam, frame.X_WD * c_T, shown_X_WD_ * c_T) >= kVisibleShift_px)
+      return true;
+  }
+  // The force arrow: shown or hidden, its start (the tool's extreme point against the force)
+  // and its tip.
+  const double length_m = actors_->forceArrowLength_m(frame.force_W_N.norm());
+  const double shown_length_m = actors_->forceArrowLength_m(shown_force_W_N_.norm());
+  if ((length_m > 0.0) != (shown_length_m > 0.0)) return true;
+  if (length_m > 0.0) {
+    const Eigen::Vector3d from_W = forceOrigin_W(frame.X_WP, frame.force_W_N, tool_vertices_T_m_);
+    const Eigen::Vector3d shown_from_W = forceOrigin_W(shown_X_WP_, shown_force_W_N_, tool_vertices_T_m_);
+    const Eigen::Vector3d tip_W = from_W + length_m * frame.force_W_N.normalized();
+    const Eigen::Vector3d shown_tip_W = shown_from_W + shown_length_m * shown_force_W_N_.normalized();
+    if (shift_px(cam, from_W, shown_from_W) >= kVisibleShift_px || shift_px(cam, tip_W, shown_tip_W) >= kVisibleShift_px)
+      return true;
+  }
+  return false;
+}
+
 bool SceneView::show(const ToolFrame& frame) {
   if (actors_ == nullptr) return false;
   const int contacts = static_cast<int>(frame.contacts_W_m.size());
-  const bool changed = posesDiffer(frame.X_WP, shown_X_WP_) || posesDiffer(frame.X_WD, shown_X_WD_) ||
-                       contacts != shown_contacts_ || (frame.force_W_N - shown_force_W_N_).norm() > 0.01;
-  // The tools always show the latest frame exactly; a new picture is asked for only when
-  // something moved visibly.
+  const bool changed = changedVisibly(frame);
+  // The tools always show the latest frame exactly; a new picture (and interactive frames until
+  // it settles) is asked for only when something moved by a pixel or more on screen.
   actors_->setProxyPose(frame.X_WP);
   actors_->setDevicePose(frame.X_WD);
   if (!changed) return false;
@@ -277,6 +327,7 @@ void SceneView::setRenderMode(RenderMode mode, VolumePreset preset) {
 }
 
 void SceneView::applyColours(const ViewLook& look) {
+  surface_rgb_ = {look.surface.redF(), look.surface.greenF(), look.surface.blueF()};
   ui::applyColours(view_->renderer(), actors_.get(), look);
   requestRender();
 }
@@ -417,6 +468,19 @@ void SceneView::setStandardView(StandardView v) {
   fitCamera(dir, up, 1.0);
   noteMotion();
   requestRender();
+}
+
+bool SceneView::frameSegment(int s) {
+  double bounds[6];
+  if (actors_ == nullptr || segments_ == nullptr || !segments_->bounds_W(s, bounds)) return false;
+  vtkRenderer* renderer = view_->renderer();
+  const int* size = renderer->GetSize();
+  const double aspect = size[0] > 0 && size[1] > 0 ? static_cast<double>(size[0]) / size[1] : 1.0;
+  frameBounds(renderer->GetActiveCamera(), bounds, aspect, 0.6);
+  renderer->ResetCameraClippingRange();
+  noteMotion();
+  requestRender();
+  return true;
 }
 
 ViewCamera SceneView::camera() const {

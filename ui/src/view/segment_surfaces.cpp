@@ -2,6 +2,7 @@
 #include "vh/ui/view/segment_surfaces.h"
 
 #include <algorithm>
+#include <cmath>
 
 #include <vtkActor.h>
 #include <vtkFlyingEdges3D.h>
@@ -17,16 +18,71 @@
 
 namespace vh::ui {
 
+namespace {
+
+/// sRGB (0..1) to CIELAB (D65 white), IEC 61966-2-1 and CIE 15.
+std::array<double, 3> toLab(const Rgb& rgb) {
+  const auto linear = [](double c) {
+    c = std::clamp(c, 0.0, 1.0);
+    return c <= 0.04045 ? c / 12.92 : std::pow((c + 0.055) / 1.055, 2.4);
+  };
+  const double r = linear(rgb[0]), g = linear(rgb[1]), b = linear(rgb[2]);
+  const double X = 0.4124564 * r + 0.3575761 * g + 0.1804375 * b;
+  const double Y = 0.2126729 * r + 0.7151522 * g + 0.0721750 * b;
+  const double Z = 0.0193339 * r + 0.1191920 * g + 0.9503041 * b;
+  const auto f = [](double t) {
+    constexpr double d = 6.0 / 29.0;
+    return t > d * d * d ? std::cbrt(t) : t / (3.0 * d * d) + 4.0 / 29.0;
+  };
+  const double fx = f(X / 0.95047), fy = f(Y / 1.0), fz = f(Z / 1.08883);
+  return {116.0 * fy - 16.0, 500.0 * (fx - fy), 200.0 * (fy - fz)};
+}
+
+/// Distinct, saturated colours for segments the file's colour would hide.
+constexpr std::array<Rgb, 8> kPalette = {{{0.20, 0.80, 0.20},
+                                          {0.20, 0.45, 1.00},
+                                          {0.90, 0.20, 0.85},
+                                          {0.10, 0.85, 0.90},
+                                          {1.00, 0.55, 0.05},
+                                          {1.00, 0.95, 0.10},
+                                          {0.90, 0.10, 0.10},
+                                          {0.55, 0.25, 0.90}}};
+
+}  // namespace
+
+double colourDifference_Lab(const Rgb& a, const Rgb& b) {
+  const auto la = toLab(a), lb = toLab(b);
+  return std::sqrt((la[0] - lb[0]) * (la[0] - lb[0]) + (la[1] - lb[1]) * (la[1] - lb[1]) +
+                   (la[2] - lb[2]) * (la[2] - lb[2]));
+}
+
+Rgb distinctSegmentColour(const Rgb& segment_rgb, const Rgb& surface_rgb, const std::vector<Rgb>& taken) {
+  if (colourDifference_Lab(segment_rgb, surface_rgb) >= kMinSegmentContrast_Lab) return segment_rgb;
+  Rgb best = kPalette.front();
+  double best_gap = -1.0;
+  for (const Rgb& c : kPalette) {
+    double gap = colourDifference_Lab(c, surface_rgb);
+    for (const Rgb& t : taken) gap = std::min(gap, colourDifference_Lab(c, t));
+    if (gap > best_gap) {
+      best_gap = gap;
+      best = c;
+    }
+  }
+  return best;
+}
+
 SegmentSurfaces::SegmentSurfaces(vtkRenderer* renderer) : renderer_(renderer) {}
 
 SegmentSurfaces::~SegmentSurfaces() {
   for (auto& [s, actor] : actors_) renderer_->RemoveActor(actor);
 }
 
-void SegmentSurfaces::show(const runtime::SegmentSet* set) {
+void SegmentSurfaces::show(const runtime::SegmentSet* set, const Rgb& surface_rgb) {
   for (auto& [s, actor] : actors_) renderer_->RemoveActor(actor);
   actors_.clear();
   colours_.clear();
+  recoloured_.clear();
+  std::vector<Rgb> taken;
   if (set == nullptr) return;
   const std::string source = set->segmentation().source.string();
   if (source != source_ || set->smoothingVoxels() != smoothing_voxels_) {
@@ -64,7 +120,10 @@ void SegmentSurfaces::show(const runtime::SegmentSet* set) {
     vtkNew<vtkActor> actor;
     actor->SetMapper(mapper);
     actor->SetUserMatrix(matrices_[s]);
-    const auto& rgb = info.color_rgb;
+    const Rgb file_rgb = {info.color_rgb[0], info.color_rgb[1], info.color_rgb[2]};
+    const Rgb rgb = distinctSegmentColour(file_rgb, surface_rgb, taken);
+    if (rgb != file_rgb) recoloured_.push_back(s);
+    taken.push_back(rgb);
     actor->GetProperty()->SetColor(rgb[0], rgb[1], rgb[2]);
     actor->GetProperty()->SetSpecular(0.2);
     // With some segments felt, the others are context: translucent, so the felt ones show.
@@ -87,6 +146,20 @@ void SegmentSurfaces::setTouched(int segment) {
                                    std::min(1.0, c[2] * gain + (s == segment ? 0.15 : 0.0)));
     actor->GetProperty()->SetAmbient(s == segment ? 0.35 : 0.1);
   }
+}
+
+bool SegmentSurfaces::bounds_W(int s, double bounds_W[6]) const {
+  const auto it = actors_.find(s);
+  if (it == actors_.end()) return false;
+  const double* b = it->second->GetBounds();  // with the actor's direction matrix
+  if (b == nullptr || !(b[0] <= b[1])) return false;
+  std::copy(b, b + 6, bounds_W);
+  return true;
+}
+
+std::vector<double> SegmentSurfaces::colour(int s) const {
+  const auto it = colours_.find(s);
+  return it != colours_.end() ? it->second : std::vector<double>{};
 }
 
 std::vector<int> SegmentSurfaces::shownSegments() const {

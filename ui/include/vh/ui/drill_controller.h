@@ -74,6 +74,11 @@ class DrillController : public QObject {
   /// region as one segment "drilled" to `seg_path` (.seg.nrrd, 3D Slicer's keys).
   /// @throws std::runtime_error naming the file when nothing was drilled or a write fails.
   void exportDrilled(const std::filesystem::path& nrrd_path, const std::filesystem::path& seg_path) const;
+  /// File > Export Drilled Volume: exportDrilled() to `nrrd_path` (".nrrd" added when missing)
+  /// and the removed region beside it (NAME.seg.nrrd), telling the status bar (message()) that
+  /// it is writing, then, when done, both files by name, the NRRD's size and the volume removed.
+  /// @return the written NRRD's path. @throws std::runtime_error as exportDrilled().
+  std::filesystem::path exportDrilledWithNotice(std::filesystem::path nrrd_path);
   /// The felt field as the hand feels it around the cavity (live().hapticField() carved by every
   /// voxel removed so far), for the tool's shadow; nothing carved before the first removal.
   const CarvedRegion& carved() const noexcept { return carved_; }

@@ -262,6 +262,20 @@ class HapticThread {
   /// Stopping / NonFinite from the coupling thread's latest command.
   void setRecorder(RecordingWriter* recorder) noexcept { recorder_.store(recorder, std::memory_order_release); }
 
+  /// A placement (Touch the Surface, Home, Reset Device): the proxy goes to `X_WP` and the
+  /// simulated device to `X_WD` [m, W] together, between two ticks, so the coupling renders no
+  /// spring stretched over the jump: the first tick with the device at `X_WD` starts from the
+  /// proxy at `X_WP` (the solver resets it there: HapticRenderer::resetProxy(); the coupling
+  /// thread couples to `X_WP` until the solver has), and the force is the spring between the
+  /// two poses (at rest on a surface: the resting force). `X_WP` should be free (no shell point
+  /// inside the felt surface). While recording: a "placement" event {"X_WP": [x, y, z, qw, qx,
+  /// qy, qz], "X_WD": [...]} and kRecordFlagPlacement on the tick it takes effect. GUI thread;
+  /// the device's sample filter takes the jump as no glitch.
+  /// @return false (nothing changes) without a simulated device or for a non-finite pose.
+  bool place(const haptics::Pose& X_WP, const haptics::Pose& X_WD);
+  /// Placements the solver has applied since construction.
+  std::uint64_t placementsApplied() const noexcept { return placements_applied_.load(std::memory_order_acquire); }
+
   /// Adds an event to the current recording stamped with the latest solver tick and time; a
   /// no-op when not recording. Any thread but the haptic threads (it allocates). The recorder
   /// must not be destroyed concurrently (see setRecorder()).
@@ -302,6 +316,8 @@ class HapticThread {
   std::atomic<bool> drilling_{false};
   std::atomic<bool> cutting_held_{false};  ///< holdCutting(); read by the solver each tick (seq_cst).
   std::atomic<std::uint64_t> solver_ticks_{0};  ///< Solver ticks finished (seq_cst; holdCutting()).
+  std::atomic<std::uint64_t> placement_requests_{0};  ///< place() calls (the latest in Exchange::placement).
+  std::atomic<std::uint64_t> placements_applied_{0};  ///< By the solver.
   std::atomic<bool> stop_requested_{false};
   std::atomic<bool> coupling_done_{false};  ///< The coupling thread ended: the solver stops too.
   std::atomic<bool> running_{false};

@@ -55,4 +55,33 @@ haptics::Pose legalPoseNear(const haptics::ScalarVolume& volume, const haptics::
                             const haptics::Pose& X_WT, double isovalue,
                             const std::optional<haptics::Pose>& fallback = std::nullopt);
 
+/// Where Touch the Surface puts the tools (touchSurfacePose()).
+struct SurfaceTouch {
+  haptics::Pose X_WP;     ///< Free: the tool's shell just meets the isosurface [m, W].
+  haptics::Pose X_WD;     ///< X_WP moved `depth_m` further along the approach [m, W].
+  Eigen::Vector3d dir_W;  ///< The approach direction (unit, W).
+};
+
+/// Touch the Surface's approach, as a placement (proxy and device put there together): the tool
+/// at orientation `R_WT`, its centre of mass (`p_TCm_m`, in T [m]) on the line along `dir_W`
+/// through `aim_W` [m, W], starts outside the volume's bounding box (every corner's distance
+/// from `aim_W` plus the tool's reach about its centre of mass plus a margin of 5% of the
+/// volume's diagonal, at least 5 mm) and moves along `dir_W` until a shell point first meets
+/// the isosurface F = `isovalue` (firstContactDistance(), to 5% of the feature size): X_WP.
+/// Where that line meets nothing (a hole in the surface), parallel lines on rings around it
+/// (5, 10, 20 and 30% of the volume's diagonal, 8 lines each) are tried in turn.
+/// @param dir_W the approach direction (e.g. the camera's view direction); normalised here.
+/// @param depth_m how far the device goes past the contact [m] (negative: 0).
+/// @return nullopt when no line meets the surface, or `dir_W` is zero or not finite.
+std::optional<SurfaceTouch> touchSurfacePose(const haptics::ScalarVolume& volume, const haptics::PointShell& shell,
+                                             const Eigen::Vector3d& p_TCm_m, const Eigen::Quaterniond& R_WT,
+                                             const Eigen::Vector3d& dir_W, const Eigen::Vector3d& aim_W,
+                                             double isovalue, double depth_m);
+
+/// The centre of the axis-aligned box (in W [m]) around the centres of the voxels inside the
+/// isosurface (value > `isovalue`): where Touch the Surface aims at felt segments, whose
+/// surfaces may lie anywhere in the volume. One pass over the voxels.
+/// @return nullopt when no voxel is inside.
+std::optional<Eigen::Vector3d> insideBoxCentre_W(const haptics::ScalarVolume& volume, double isovalue);
+
 }  // namespace vh::runtime

@@ -140,6 +140,12 @@ inline constexpr std::uint32_t kRecordFlagDeadlineCut = 1u << 10;
 /// the flag turns on ({"ticks": kJamTicks + 1}, stamped with the first flagged record) and
 /// "jam_cleared" when it turns off.
 inline constexpr std::uint32_t kRecordFlagJam = 1u << 11;
+/// A placement (Touch the Surface, Home, Reset Device: HapticThread::place()) moved the proxy
+/// and the device together just before this tick: the proxy was put at the "placement" event's
+/// "X_WP" (the events in order, one per flagged record) and the device sample is the placed
+/// one. Not the hand's motion: the session's metrics leave the jump out, and a replay puts its
+/// proxy there before this tick.
+inline constexpr std::uint32_t kRecordFlagPlacement = 1u << 12;
 
 /// One servo tick, fixed size, trivially copyable (its byte image is what the file stores).
 /// Frames: W is the scene (world) frame; D the device (tool) frame; P the proxy frame.

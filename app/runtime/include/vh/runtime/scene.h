@@ -160,6 +160,13 @@ std::filesystem::path installedDataDir();
 /// the folder configured at build time (CMake cache VH_SHARED_DATASETS_DIR).
 std::filesystem::path sharedDatasetsDir();
 
+/// Where the shared datasets are looked for and how to get them, for messages and Help > About:
+/// the folder (sharedDatasetsDir(), "(absent)" when it does not exist), that
+/// VH_SHARED_DATASETS_DIR points the program at another folder holding them (ct/, nrrd/,
+/// classic/, meshes/: the tool meshes too), and that Help > About and datasets/manifest.json
+/// list each dataset with its public source. One paragraph, no trailing newline.
+std::string sharedDatasetsNote();
+
 /// The generated data folder (synthetic volumes, unpacked archives): $VH_GENERATED_DATA_DIR
 /// when set, else for an installed copy $XDG_CACHE_HOME/volume-haptics (or
 /// ~/.cache/volume-haptics; empty without either), else the build tree's data/ folder

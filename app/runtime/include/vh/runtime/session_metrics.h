@@ -9,6 +9,11 @@
 /// times [s]. The motion metrics are of the device (the hand: TickRecord::p_WD_m), not of the
 /// proxy, which stays on the surface; the proxy's path length is given beside them.
 ///
+/// Placements (kRecordFlagPlacement: Touch the Surface, Home, Reset Device moved the tools
+/// together) are not the hand's motion: no position difference across one enters the path
+/// lengths, the speeds or the jerk, and the placement's own tick enters no force or torque
+/// figure.
+///
 /// Time base: each record stands for one servo period dt = 1 / servo_rate_Hz (the metadata's
 /// "servo_rate_Hz"; without it the median spacing of the records' time_s, else 1 kHz). Times
 /// "in contact" or "above the threshold" are tick counts times dt, so they are exact for a
@@ -74,7 +79,7 @@ struct SessionMetrics {
   // Identity, from the metadata ("" when absent).
   std::string scene;           ///< The scene file, else the volume's path or built-in name.
   std::string dataset_sha256;  ///< The dataset's checksum (session_metadata.h).
-  std::string label;           ///< The metadata's "user", else its "note".
+  std::string label;           ///< The metadata's "user", else its "note" (writeCohortTable(): else the file name).
   std::string start_time_utc;  ///< When the recording started (ISO-8601).
   double servo_rate_Hz = 0.0;  ///< The rate dt comes from [Hz].
   std::size_t records = 0;
@@ -105,6 +110,10 @@ struct SessionMetrics {
 
   // Drilling.
   double drill_on_s = 0.0;               ///< Ticks with the burr spinning, times dt [s].
+  /// Voxels the burr removed in all and their volume [mm^3], from the recording's last "drilled"
+  /// event {"voxels": N, "mm3": V} (written when a drilling run's recording closes); 0 without.
+  std::uint64_t removed_voxels = 0;
+  double removed_mm3 = 0.0;
   std::uint64_t critical_removed_voxels = 0;  ///< Sum of the "critical_removed" events.
   double critical_removed_mm3 = 0.0;
 
@@ -185,7 +194,8 @@ ReferenceComparison compareWithReference(const Recording& session, const Session
 std::vector<std::filesystem::path> findRecordings(const std::filesystem::path& dir);
 
 /// Writes the cohort table: one CSV row (RFC 4180) per recording under `dir` (findRecordings()):
-/// file (relative to dir), scene, dataset_sha256, label, start_time_utc, then every
+/// file (relative to dir), scene, dataset_sha256, label (SessionMetrics::label, else the
+/// recording's file name without .vhrec), start_time_utc, then every
 /// metricValues() key, then "notices" (the recording's warnings joined by "; "). A recording
 /// that cannot be read at all still gets a row, with its error in "notices" and empty metrics.
 /// `progress(done, total)` is called after each recording (may be empty).

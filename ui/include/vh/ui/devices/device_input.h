@@ -7,6 +7,7 @@
 /// tool onto the surface. Plain drags stay the camera's. The [ and ] keys step the isovalue with
 /// or without a device. GUI thread only.
 
+#include <cstdint>
 #include <string>
 
 #include <QObject>
@@ -38,16 +39,19 @@ class DeviceInput : public QObject {
   /// Moves the simulated device to `X_WD` [m] and shows it at once (no effect without one, or
   /// for a non-finite pose).
   void setDevicePose(const haptics::Pose& X_WD);
-  /// Brings the simulated device onto the surface from outside the volume: along the view
-  /// direction through the volume's centre, from a start outside the volume's bounding box, until
-  /// the tool's point shell meets the isosurface, then `depth_m` [m] further; where that ray
-  /// meets nothing, parallel rays on rings around it are tried. With the haptic threads running
-  /// the device goes there in steps the proxy can follow through free space (out of the box the
-  /// shortest free way, round it, to the start, in), each once the proxy caught up, stood still
-  /// for 100 ms (held by the surface) or after 1.5 s; without them it goes to the end at once.
-  /// @return false without a simulated device or when no ray meets the surface.
+  /// A placement: the proxy to `X_WP` and the simulated device to `X_WD` [m, W] together
+  /// (runtime::HapticThread::place(): no spring stretched over the jump, recorded as a
+  /// "placement", not as the hand's motion); without haptic threads only the device moves. No
+  /// effect without a simulated device or for a non-finite pose.
+  void place(const haptics::Pose& X_WP, const haptics::Pose& X_WD);
+  /// Touch the Surface, as a placement: the tool approaches along the view direction
+  /// (runtime::touchSurfacePose()) aimed at the felt segments when some are felt (the centre of
+  /// their box), else at the volume's centre, from outside the volume; the proxy is put where
+  /// its point shell first meets the felt isosurface and the device `depth_m` [m] further in,
+  /// so the hand feels the resting force at once and nothing more.
+  /// @return false without a simulated device or when no approach meets the surface.
   bool touchSurface(double depth_m);
-  /// Whether a touchSurface() is still leading the device in steps.
+  /// Whether the last placement has not yet reached the running haptic threads' solver.
   bool touchInProgress() const;
   /// One step of the device's keyboard motion and of the mouse wheel [m]: 1/200 of the volume's
   /// diagonal, 0.5 to 5 mm.
@@ -68,6 +72,8 @@ class DeviceInput : public QObject {
   SceneView& view_;
   DragMode drag_ = DragMode::kNone;
   QPointF drag_last_;
+  const runtime::HapticThread* awaited_thread_ = nullptr;  // the threads of the last placement
+  std::uint64_t awaited_placements_ = 0;                    // placementsApplied() once it is in
 };
 
 }  // namespace vh::ui

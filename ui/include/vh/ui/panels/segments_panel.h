@@ -6,6 +6,7 @@
 /// critical (touching it is an alert and an event in the recording); the felt surface's
 /// smoothing; the segment touched now. It edits and shows; the main window acts on its signals
 /// (runtime::Session::setSegments()). GUI thread only.
+#include <array>
 #include <map>
 #include <string>
 #include <vector>
@@ -46,6 +47,9 @@ class SegmentsPanel : public QWidget {
   void showHardness(const std::map<std::string, double>& hardness_J_per_mm3);
   /// Marks the row of the touched segment (-1: none) and says so under the table.
   void setTouched(int segment);
+  /// Shows segment `segment`'s swatch in `rgb` (0..1): the colour the view draws it in when that
+  /// is not its file's. No signal.
+  void setDisplayColour(int segment, const std::array<double, 3>& rgb);
   /// The choices as the check boxes say now.
   SegmentChoices choices() const;
   /// Sound on touching a critical segment (the window beeps).
@@ -61,6 +65,8 @@ class SegmentsPanel : public QWidget {
   void openRequested();
   /// A hardness cell was edited to a number > 0 [J/mm^3] (anything else is refused and reverted).
   void hardnessChanged(int segment, double J_per_mm3);
+  /// A segment's name was double-clicked: frame it in the view ("go to segment").
+  void goToSegmentRequested(int segment);
 
  private:
   QLabel* source_ = nullptr;

@@ -26,14 +26,16 @@ class DicomSeriesModel : public QAbstractTableModel {
   Q_OBJECT
 
  public:
+  /// What tells series apart comes first (modality, slices, spacing), then the description
+  /// (cut to the column; whole in the row's tooltip), the matrix, the study and the patient.
   enum Column {
-    kPatient,
-    kStudy,
-    kSeries,
     kModality,
     kSlices,
     kSpacing,
+    kSeries,
     kMatrix,
+    kStudy,
+    kPatient,
     kColumnCount
   };
 

@@ -180,6 +180,9 @@ class SceneActors {
 
   /// Length [m] of the arrow drawn for 3 N: half the tool's bounding-box diagonal.
   double arrowReferenceLength_m() const noexcept { return arrow_reference_m_; }
+  /// Length [m] of the arrow drawn for a force of `magnitude_N` [N] (none below 1 mN): the
+  /// reference length scaled by magnitude / 3 N, within 0.15 to 2.5 of it.
+  double forceArrowLength_m(double magnitude_N) const noexcept;
 
   vtkVolume* volume() const noexcept;
   vtkGPUVolumeRayCastMapper* volumeMapper() const noexcept;

@@ -62,8 +62,10 @@ class SceneView : public QObject {
   /// The props; only while hasScene().
   SceneActors& actors() const noexcept { return *actors_; }
   OrientationMarker* marker() const noexcept { return marker_.get(); }
-  /// Shows the shown segments of `set` as coloured surfaces (null: none; SegmentSurfaces).
-  void setSegments(const runtime::SegmentSet* set);
+  /// Shows the shown segments of `set` as coloured surfaces (null: none; SegmentSurfaces), each
+  /// in a colour that stands out from the scan surface's (the look's last applyColours()).
+  /// @return the segments drawn in another colour than their file's (SegmentSurfaces::recoloured()).
+  const std::vector<int>& setSegments(const runtime::SegmentSet* set);
   /// Emphasises the touched segment (-1: none); a non-empty `alert` is shown in red at the top
   /// of the view (a critical segment touched), an empty one hides it.
   void setTouchedSegment(int segment, const std::string& alert);
@@ -75,10 +77,16 @@ class SceneView : public QObject {
   void setTool(const haptics::ToolModel& tool, const haptics::Pose& X_WT);
 
   // ---- The tools -----------------------------------------------------------------------------
-  /// Shows `frame` (showToolFrame(): poses, contacts, force arrow, isovalue). A new frame is
-  /// asked for only when something moved visibly (poses, contact count, force by 10 mN).
-  /// @return true when it did.
+  /// Shows `frame` (showToolFrame(): poses, contacts, force arrow, isovalue). A new frame, and
+  /// interactive frames until the still one 300 ms later, are asked for only when something
+  /// changed visibly (changedVisibly()). @return true when it did.
   bool show(const ToolFrame& frame);
+  /// Whether `frame` would change the picture against the one shown: the contact count
+  /// changed, a corner of the tool's bounding box (proxy or device) or the force arrow's start
+  /// or tip moved by a pixel or more at its depth in the view, or the arrow appeared or went.
+  /// A proxy resting on a surface under the hand's steady push moves micrometres a tick: no
+  /// change, so the full-quality still frame comes.
+  bool changedVisibly(const ToolFrame& frame) const;
   /// The device tool at `X_WD` now (mouse feedback before the haptic thread answers).
   void showDevicePose(const haptics::Pose& X_WD);
   /// The proxy's pose last shown [m].
@@ -105,6 +113,9 @@ class SceneView : public QObject {
   /// tool lengths.
   void focusOn(const haptics::ToolModel& tool, const haptics::Pose& X_WP);
   void setStandardView(StandardView view);
+  /// "Go to segment": keeps the viewing direction and frames segment `s`'s surface (its
+  /// bounds fill 60% of the view). @return false (nothing moves) when it is not shown.
+  bool frameSegment(int s);
   /// The camera now, for the mouse and key manipulation of the device.
   ViewCamera camera() const;
   /// Clips the volume (visual only) normal to `axis` at `fraction` (0..1) of its extent;
@@ -136,6 +147,7 @@ class SceneView : public QObject {
   VtkView* view_ = nullptr;
   std::unique_ptr<SceneActors> actors_;
   std::unique_ptr<SegmentSurfaces> segments_;
+  Rgb surface_rgb_ = {237.0 / 255.0, 222.0 / 255.0, 189.0 / 255.0};  // ViewLook::surface's default
   vtkTextActor* alert_ = nullptr;  // owned by the renderer
   std::unique_ptr<OrientationMarker> marker_;
   vtkTextActor* welcome_ = nullptr;  // owned by the renderer while shown
@@ -151,6 +163,7 @@ class SceneView : public QObject {
   /// The interactive frame period [ms]: 1 / the interactor's desired update rate.
   double interactivePeriodMs() const;
   std::vector<Eigen::Vector3d> tool_vertices_T_m_;
+  std::vector<Eigen::Vector3d> tool_corners_T_m_{Eigen::Vector3d::Zero()};  // bounding box of the vertices, T [m]
   haptics::Pose shown_X_WP_;
   haptics::Pose shown_X_WD_;
   int shown_contacts_ = -1;

@@ -7,6 +7,7 @@
 /// cached per segment, so showing and hiding one costs no new contour.
 ///
 /// Frames: W the scene frame [m] (the segmentation's patient LPS). Threads: GUI thread only.
+#include <array>
 #include <map>
 #include <string>
 #include <vector>
@@ -22,6 +23,25 @@ class vtkRenderer;
 
 namespace vh::ui {
 
+/// An sRGB colour, each channel 0..1.
+using Rgb = std::array<double, 3>;
+
+/// The CIE 1976 colour difference Delta E*ab between two sRGB colours: both converted to CIELAB
+/// (sRGB's transfer function undone, to XYZ with the sRGB primaries, D65 white) and their
+/// Euclidean distance taken. 0 for equal colours; 100 between black and white; about 2.3 is the
+/// smallest difference people notice side by side.
+double colourDifference_Lab(const Rgb& a, const Rgb& b);
+
+/// Segments whose colour lies closer than this (Delta E*ab) to the scan surface's are hard to
+/// tell from it in the view: they are drawn in a distinct colour instead.
+inline constexpr double kMinSegmentContrast_Lab = 20.0;
+
+/// The colour a segment is drawn in: `segment_rgb` (its file's) when it differs from
+/// `surface_rgb` (the scan surface's) by at least kMinSegmentContrast_Lab, else the colour of a
+/// fixed palette (green, blue, magenta, cyan, orange, yellow, red, purple) that lies farthest,
+/// in Delta E*ab, from the surface and from every colour in `taken` (the other segments').
+Rgb distinctSegmentColour(const Rgb& segment_rgb, const Rgb& surface_rgb, const std::vector<Rgb>& taken);
+
 class SegmentSurfaces {
  public:
   /// Adds nothing yet; the actors go into `renderer` (which must outlive this object).
@@ -30,13 +50,21 @@ class SegmentSurfaces {
   SegmentSurfaces(const SegmentSurfaces&) = delete;
   SegmentSurfaces& operator=(const SegmentSurfaces&) = delete;
 
-  /// Shows the shown segments of `set` (null: none). A different segmentation file or smoothing
-  /// drops the cached surfaces.
-  void show(const runtime::SegmentSet* set);
+  /// Shows the shown segments of `set` (null: none), each in distinctSegmentColour() against
+  /// `surface_rgb` (the scan surface's colour) and the segments drawn before it. A different
+  /// segmentation file or smoothing drops the cached surfaces.
+  void show(const runtime::SegmentSet* set, const Rgb& surface_rgb);
+  /// The colour segment `s` is drawn in (empty when it is not shown).
+  std::vector<double> colour(int s) const;
+  /// The shown segments drawn in another colour than their file's (too close to the surface).
+  const std::vector<int>& recoloured() const noexcept { return recoloured_; }
   /// Emphasises `segment` (the one touched; -1: none) by drawing it brighter.
   void setTouched(int segment);
   /// Segments with an actor now.
   std::vector<int> shownSegments() const;
+  /// The bounds of segment `s`'s surface in W [m] (xmin xmax ymin ymax zmin zmax) into
+  /// `bounds_W`; false when it is not shown or empty.
+  bool bounds_W(int s, double bounds_W[6]) const;
   /// The surface of segment `s` in W [m], or null when it is not shown.
   vtkPolyData* surface(int s) const;
 
@@ -48,6 +76,7 @@ class SegmentSurfaces {
   std::map<int, vtkSmartPointer<vtkMatrix4x4>> matrices_;  // direction about the origin
   std::map<int, vtkSmartPointer<vtkActor>> actors_;
   std::map<int, std::vector<double>> colours_;
+  std::vector<int> recoloured_;
   int touched_ = -1;
 };
 
