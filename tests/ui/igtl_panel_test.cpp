@@ -16,7 +16,9 @@
 #include <igtlImageMessage.h>
 
 #include "ui_test_util.h"
+#include "vh/runtime/recording.h"
 #include "vh/ui/main_window.h"
+#include "vh/ui/replay/session_recorder.h"
 
 namespace vh::ui {
 namespace {
@@ -40,12 +42,12 @@ int freePort() {
 }
 
 TEST(IgtlPanel, ClampsTheSettings) {
-  const IgtlSettings s = clampIgtlSettings({true, 70000, 5000.0}, 1000.0);
+  const IgtlSettings s = clampIgtlSettings({true, 70000, 5000.0, "127.0.0.1", {}}, 1000.0);
   EXPECT_EQ(s.port, 65535);
   EXPECT_DOUBLE_EQ(s.rate_Hz, 1000.0);
-  EXPECT_DOUBLE_EQ(clampIgtlSettings({true, 0, 0.1}, 1000.0).rate_Hz, 1.0);
-  EXPECT_EQ(clampIgtlSettings({true, 0, 0.1}, 1000.0).port, 1);
-  EXPECT_DOUBLE_EQ(clampIgtlSettings({true, 18944, std::nan("")}, 1000.0).rate_Hz, 60.0);
+  EXPECT_DOUBLE_EQ(clampIgtlSettings({true, 0, 0.1, "127.0.0.1", {}}, 1000.0).rate_Hz, 1.0);
+  EXPECT_EQ(clampIgtlSettings({true, 0, 0.1, "127.0.0.1", {}}, 1000.0).port, 1);
+  EXPECT_DOUBLE_EQ(clampIgtlSettings({true, 18944, std::nan(""), "127.0.0.1", {}}, 1000.0).rate_Hz, 60.0);
 }
 
 TEST(IgtlPanel, OffByDefaultThenListensWithItsStatusInTheStatusBar) {
@@ -60,16 +62,16 @@ TEST(IgtlPanel, OffByDefaultThenListensWithItsStatusInTheStatusBar) {
 
   const int port = freePort();
   QString error;
-  ASSERT_TRUE(panel.apply({true, port, 120.0}, &error)) << error.toStdString();
+  ASSERT_TRUE(panel.apply({true, port, 120.0, "127.0.0.1", {}}, &error)) << error.toStdString();
   EXPECT_TRUE(panel.running());
   EXPECT_DOUBLE_EQ(panel.link()->rate_Hz(), 120.0);
-  EXPECT_EQ(panel.statusText(), QString("OpenIGTLink: listening on %1").arg(port));
+  EXPECT_EQ(panel.statusText(), QString("OpenIGTLink: listening on 127.0.0.1:%1").arg(port));
   EXPECT_EQ(label->text(), panel.statusText());
 
   // A second server on the same port fails with the reason, and stays off.
   IgtlPanel other(&bar, 1000.0, nullptr);
-  EXPECT_FALSE(other.apply({true, port, 60.0}, &error));
-  EXPECT_TRUE(error.contains(QString("cannot listen on port %1").arg(port))) << error.toStdString();
+  EXPECT_FALSE(other.apply({true, port, 60.0, "127.0.0.1", {}}, &error));
+  EXPECT_TRUE(error.contains(QString("cannot listen on 127.0.0.1:%1").arg(port))) << error.toStdString();
   EXPECT_FALSE(other.running());
 
   // A client connects: the label says so.
@@ -79,7 +81,7 @@ TEST(IgtlPanel, OffByDefaultThenListensWithItsStatusInTheStatusBar) {
   ASSERT_TRUE(waitFor([&] { panel.poll(); return label->text().contains("connected to 127.0.0.1"); }, 3000))
       << label->text().toStdString();
 
-  ASSERT_TRUE(panel.apply({false, port, 120.0}));
+  ASSERT_TRUE(panel.apply({false, port, 120.0, "127.0.0.1", {}}));
   EXPECT_FALSE(panel.running());
   EXPECT_TRUE(label->isHidden());
 }
@@ -92,8 +94,14 @@ TEST(IgtlPanel, ImageFromAClientOpensAsTheNewScene) {
   EXPECT_FALSE(window.igtlPanel()->running()) << "off by default";
   EXPECT_EQ(window.session().monitor(), window.igtlPanel()->channel()) << "the session feeds the link's channel";
   const int port = freePort();
-  ASSERT_TRUE(window.igtlPanel()->apply({true, port, 60.0}));
+  ASSERT_TRUE(window.igtlPanel()->apply({true, port, 60.0, "127.0.0.1", {}}));
   QSignalSpy loaded(&window, &MainWindow::sceneLoaded);
+  std::vector<IgtlVolumeOffer> offers;
+  bool answer = false;
+  window.igtlPanel()->setConfirmVolume([&](const IgtlVolumeOffer& offer) {
+    offers.push_back(offer);
+    return answer;
+  });
 
   // A 24 x 20 x 16 float volume: a ball of radius 5 mm (F = 5 - r [mm]) at spacing (0.8, 0.9,
   // 1.0) mm, axes along RAS, first voxel at (-10, 20, -5) mm RAS.
@@ -120,8 +128,24 @@ TEST(IgtlPanel, ImageFromAClientOpensAsTheNewScene) {
   image->Pack();
   ::igtl::ClientSocket::Pointer client = ::igtl::ClientSocket::New();
   ASSERT_EQ(client->ConnectToServer("127.0.0.1", port), 0);
-  ASSERT_EQ(client->Send(image->GetPackPointer(), image->GetPackSize()), 1);
 
+  // Declined: nothing opens.
+  ASSERT_EQ(client->Send(image->GetPackPointer(), image->GetPackSize()), 1);
+  ASSERT_TRUE(waitFor([&] { return offers.size() == 1; }, 5000));
+  EXPECT_EQ(offers[0].peer.rfind("127.0.0.1:", 0), 0u) << offers[0].peer;
+  EXPECT_EQ(offers[0].name, "Ball");
+  EXPECT_EQ(offers[0].dims, (std::array<int, 3>{24, 20, 16}));
+  EXPECT_NEAR(offers[0].spacing_mm.x(), 0.8, 1e-6);
+  EXPECT_NEAR(offers[0].spacing_mm.z(), 1.0, 1e-6);
+  EXPECT_FALSE(offers[0].recording);
+  const QString text = igtlOfferText(offers[0]);
+  EXPECT_TRUE(text.contains("24 x 20 x 16 voxels") && text.contains("sent by 127.0.0.1:")) << text.toStdString();
+  EXPECT_FALSE(waitFor([&] { return loaded.count() > 0; }, 500));
+  EXPECT_FALSE(window.hasScene());
+
+  // Accepted: it opens.
+  answer = true;
+  ASSERT_EQ(client->Send(image->GetPackPointer(), image->GetPackSize()), 1);
   ASSERT_TRUE(waitFor([&] { return loaded.count() > 0; }, 20000)) << window.opener()->lastError().toStdString();
   ASSERT_TRUE(window.hasScene());
   const haptics::VolumeGeometry& g = window.session().loaded().volume.field->geometry();
@@ -138,6 +162,25 @@ TEST(IgtlPanel, ImageFromAClientOpensAsTheNewScene) {
   runtime::HapticSnapshot s;
   ASSERT_TRUE(waitFor([&] { return window.session().hapticsRunning(); }, 5000));
   EXPECT_TRUE(waitFor([&] { return window.igtlPanel()->channel()->read(s) && s.tick > 20; }, 5000));
+
+  // While a recording runs: the question says it will end; the recording is ended with a
+  // marker saying why and read back whole, before the new scene.
+  const std::filesystem::path rec = std::filesystem::path(::testing::TempDir()) / "igtl_panel_recording.vhrec";
+  ASSERT_TRUE(window.recorder()->start(rec)) << window.recorder()->lastError().toStdString();
+  ASSERT_TRUE(waitFor([&] { return window.recorder()->recordsWritten() > 100; }, 5000));
+  loaded.clear();
+  ASSERT_EQ(client->Send(image->GetPackPointer(), image->GetPackSize()), 1);
+  ASSERT_TRUE(waitFor([&] { return loaded.count() > 0; }, 20000));
+  ASSERT_EQ(offers.size(), 3u);
+  EXPECT_TRUE(offers[2].recording);
+  EXPECT_TRUE(igtlOfferText(offers[2]).contains("recording in progress will be ended"));
+  EXPECT_FALSE(window.recorder()->recording());
+  const runtime::Recording read = runtime::readRecording(rec);
+  EXPECT_TRUE(read.warnings.empty());
+  EXPECT_GT(read.records.size(), 100u);
+  bool why = false;
+  for (const runtime::RecordingEvent& e : read.events) why = why || e.detail_json.find("OpenIGTLink") != std::string::npos;
+  EXPECT_TRUE(why) << "the recording does not say why it ended";
   window.session().stopHaptics();
 }
 

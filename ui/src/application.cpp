@@ -89,7 +89,8 @@ int runApplication(int argc, char** argv, const runtime::SceneSpec& scene, const
     // now on, before the scene has loaded.
     spec.openigtlink = runtime::OpenIgtlinkSpec{*options.igtl_port, options.igtl_rate_Hz};
     QString error;
-    if (!window->igtlPanel()->apply({true, *options.igtl_port, options.igtl_rate_Hz}, &error)) {
+    if (!window->igtlPanel()->apply(
+            {true, *options.igtl_port, options.igtl_rate_Hz, options.igtl_bind, options.igtl_allow}, &error)) {
       std::cerr << "volume-haptics: error: " << error.toStdString() << std::endl;
       return 1;
     }

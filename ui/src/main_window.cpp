@@ -68,7 +68,17 @@ MainWindow::MainWindow(QWidget* parent) : QMainWindow(parent) {
   // rebuilds the haptic threads.
   igtl_ = new IgtlPanel(statusBar(), session_.servoRate_Hz(), this);
   session_.setMonitor(igtl_->channel());
-  igtl_->setOnVolume([this](io::LoadedVolume volume) { opener_->openLoadedVolume(std::move(volume)); });
+  // A received volume reaches here only after the user's yes (IgtlPanel asks, saying that a
+  // recording would end): the recording is ended cleanly, with a marker saying why, before the
+  // new scene replaces the session.
+  igtl_->setRecordingQuery([this] { return recorder_ != nullptr && recorder_->recording(); });
+  igtl_->setOnVolume([this](io::LoadedVolume volume) {
+    if (recorder_->recording()) {
+      recorder_->addMarker("recording ended: a volume received over OpenIGTLink replaces the scene");
+      recorder_->stop();
+    }
+    opener_->openLoadedVolume(std::move(volume));
+  });
   recorder_ = new SessionRecorder(session_, statusBar(), this);
   buildDocks();
   igtl_->setSegmentNames(segments_->names());

@@ -1,8 +1,9 @@
 // volume-haptics: the application.
 //
-//   volume-haptics [PATH] [--screenshot PNG] [--isovalue V] [--igtl-port N [--igtl-rate HZ]] ...   the GUI (vh::ui)
+//   volume-haptics [PATH] [--screenshot PNG] [--isovalue V] [--igtl-port N [--igtl-rate HZ] [--igtl-bind A]
+//                  [--igtl-allow A,...]] ...   the GUI (vh::ui)
 //   volume-haptics run --scene S.json --trajectory T.csv [--report R.json] [--check] [--record R.vhrec] [--verify-step V]
-//                      [--igtl-port N [--igtl-rate HZ]]
+//                      [--igtl-port N [--igtl-rate HZ] [--igtl-bind A] [--igtl-allow A,...] [--igtl-accept-images]]
 //   volume-haptics export R.vhrec [--csv C] [--json J] [--events-csv E] [--video V.ogv] [--png P --at-s T]
 //   volume-haptics report R.vhrec --html OUT.html [--reference E.vhrec] | report DIR --table OUT.csv
 //   volume-haptics make-trajectory --scene S.json --out T.csv [...]
@@ -71,6 +72,18 @@ Eigen::Vector3d toVector(const std::vector<double>& v, const char* option) {
   return {v[0], v[1], v[2]};
 }
 
+/// --igtl-bind and --igtl-allow, the same for the GUI and `run`.
+void addIgtlAccessOptions(CLI::App& app, std::string& bind, std::vector<std::string>& allow) {
+  app.add_option("--igtl-bind", bind,
+                 "OpenIGTLink: the IPv4 address to listen on; 127.0.0.1 (this machine only) unless named, 0.0.0.0 for "
+                 "every interface (then --igtl-allow is required)")
+      ->capture_default_str();
+  app.add_option("--igtl-allow", allow,
+                 "OpenIGTLink: IPv4 addresses of the clients accepted besides 127.0.0.1 (comma-separated or repeated); "
+                 "others are refused and logged")
+      ->delimiter(',');
+}
+
 // ---- GUI (default) ----
 
 /// The GUI's command line (no subcommand).
@@ -107,6 +120,7 @@ void addGuiOptions(CLI::App& app, GuiArgs& gui) {
       ->check(CLI::Range(1, 65535));
   app.add_option("--igtl-rate", gui.options.igtl_rate_Hz, "OpenIGTLink frames per second [Hz] (clamped to the servo rate)")
       ->check(CLI::Range(1.0, 100000.0));
+  addIgtlAccessOptions(app, gui.options.igtl_bind, gui.options.igtl_allow);
   app.add_option("--width", gui.options.window_width, "Window width [logical pixels]")->check(CLI::PositiveNumber);
   app.add_option("--height", gui.options.window_height, "Window height [logical pixels]")->check(CLI::PositiveNumber);
 }
@@ -125,6 +139,9 @@ struct RunArgs {
   std::string trace;
   std::optional<int> igtl_port;
   double igtl_rate_Hz = 60.0;
+  std::string igtl_bind = vh::igtl::LinkOptions{}.bind_address;
+  std::vector<std::string> igtl_allow;
+  bool igtl_accept_images = false;
   std::string record;
   std::string note;
   double verify_step = vh::runtime::RunOptions{}.verify_step_voxels;
@@ -152,6 +169,10 @@ CLI::App* addRunSubcommand(CLI::App& app, RunArgs& a) {
       ->check(CLI::Range(1, 65535));
   run->add_option("--igtl-rate", a.igtl_rate_Hz, "OpenIGTLink frames per second [Hz] (clamped to the servo rate)")
       ->check(CLI::Range(1.0, 100000.0));
+  addIgtlAccessOptions(*run, a.igtl_bind, a.igtl_allow);
+  run->add_flag("--igtl-accept-images", a.igtl_accept_images,
+                "OpenIGTLink: receive IMAGE messages (each is logged with its sender; the run keeps its scene); "
+                "without it they are refused and logged");
   run->add_option("--trace", a.trace, "Also write one CSV row per tick (poses, force, contacts, time, depth)");
   run->add_option("--record", a.record,
                   "Also write a session recording (.vhrec: metadata, one record per tick, events) here");
@@ -233,6 +254,11 @@ std::unique_ptr<vh::igtl::IgtlLink> startRunLink(const RunArgs& a, vh::runtime::
   link_options.port = spec.openigtlink->port;
   link_options.rate_Hz = spec.openigtlink->rate_Hz;
   link_options.servo_rate_Hz = run_options.servo_rate_Hz;
+  link_options.bind_address = a.igtl_bind;
+  link_options.allowed_clients = a.igtl_allow;
+  link_options.accept_images = a.igtl_accept_images;
+  // Every connection, refusal and rejected message is printed as it happens (wire text escaped).
+  link_options.on_notice = [](const std::string& notice) { std::cerr << "volume-haptics run: " << notice << std::endl; };
   if (segments != nullptr) {  // ContactState names the segment touched
     auto names = std::make_shared<vh::runtime::SegmentNameTable>();
     names->set(segments);
@@ -293,8 +319,12 @@ int runCommand(const RunArgs& a) {
   if (link) {
     const vh::igtl::LinkStatus st = link->status();
     link->stop();
+    std::size_t volumes = 0;
+    while (link->takeReceivedImage()) ++volumes;  // logged on arrival; a headless run keeps its scene
     std::cout << "volume-haptics run: OpenIGTLink sent " << st.frames_sent << " frames to " << st.clients
-              << (st.clients == 1 ? " client" : " clients") << std::endl;
+              << (st.clients == 1 ? " client" : " clients") << ", refused " << st.connections_refused
+              << " connections and " << st.messages_rejected << " messages, received " << volumes
+              << (volumes == 1 ? " volume" : " volumes") << " (not applied)" << std::endl;
   }
   return finishRun(a, report);
 }

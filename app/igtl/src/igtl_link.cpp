@@ -1,18 +1,22 @@
 // The OpenIGTLink link of vh/igtl/igtl_link.h.
 //
-// Sockets: libOpenIGTLink's ServerSocket listens and accepts (with SO_REUSEADDR, so a link
-// restarted on the same port binds at once); the accepted client's descriptor is then driven
-// with poll() and non-blocking send()/recv() (MSG_NOSIGNAL: a client that vanished is an EPIPE,
-// not a SIGPIPE), so the link's thread never waits on a client: outgoing frames go through a
-// bounded output buffer (a full one skips frames), incoming bytes feed a message parser. The
-// messages themselves are packed and unpacked (CRC included) by libOpenIGTLink.
+// Sockets: plain POSIX, non-blocking: the server socket is bound to the chosen address (with
+// SO_REUSEADDR, so a link restarted on the same port binds at once) and accepts with accept4();
+// a connection from an address not allowed, or while a client is connected, is closed at once.
+// The client's descriptor is driven with poll() and non-blocking send()/recv() (MSG_NOSIGNAL: a
+// client that vanished is an EPIPE, not a SIGPIPE), so the link's thread never waits on a
+// client: outgoing frames go through a bounded output buffer (a full one skips frames), incoming
+// bytes feed a message parser that keeps only what has arrived. The messages themselves are
+// packed and unpacked (CRC included) by libOpenIGTLink.
 #include "vh/igtl/igtl_link.h"
 
 #include <arpa/inet.h>
 #include <netinet/in.h>
+#include <netinet/tcp.h>
 #include <poll.h>
 #include <sys/socket.h>
 #include <time.h>
+#include <unistd.h>
 
 #include <algorithm>
 #include <cerrno>
@@ -26,14 +30,13 @@
 #include <Eigen/SVD>
 #include <nlohmann/json.hpp>
 
+#include "vh/io/available_memory.h"
 #include "vh/io/patient_frames.h"
 #include "vh/runtime/scene.h"
 
-#include <igtlClientSocket.h>
 #include <igtlImageMessage.h>
 #include <igtlMessageHeader.h>
 #include <igtlSensorMessage.h>
-#include <igtlServerSocket.h>
 #include <igtlStringMessage.h>
 #include <igtlTimeStamp.h>
 #include <igtlTransformMessage.h>
@@ -55,6 +58,11 @@ constexpr std::size_t kMaxPendingOutput = 4 * 1024;
 /// falls behind gets the newest frames once it reads again, not seconds of stale ones.
 constexpr int kClientSendBuffer = 32 * 1024;
 constexpr std::size_t kMaxNotices = 64;
+/// Pending connections the kernel queues before accept (all are looked at, then refused or taken).
+constexpr int kListenBacklog = 8;
+/// TCP keep-alive on the client: idle time before the first probe, interval, probes [s, s, 1]:
+/// a client whose machine vanished frees the link within about 25 s.
+constexpr int kKeepIdle_s = 10, kKeepInterval_s = 5, kKeepCount = 3;
 constexpr std::int64_t kNsPerS = 1'000'000'000;
 
 std::int64_t steadyNs() noexcept {
@@ -87,47 +95,16 @@ std::string fixedString(const unsigned char* p, std::size_t n) {
   return std::string(reinterpret_cast<const char*>(p), len);
 }
 
-/// The descriptor of an igtl socket: Socket keeps it protected; a pointer to the member taken
-/// in a derived class's scope reads it without a cast.
-struct SocketDescriptor : ::igtl::Socket {
-  static int of(::igtl::Socket& socket) { return socket.*(&SocketDescriptor::m_SocketDescriptor); }
-};
+/// An IPv4 address from its dotted text; false when it is not one.
+bool parseIpv4(const std::string& text, in_addr& out) { return inet_pton(AF_INET, text.c_str(), &out) == 1; }
 
-/// ServerSocket::CreateServer() with SO_REUSEADDR (the library sets it only where a VTK macro
-/// is defined): a link stopped and started again on the same port binds even while the
-/// previous connections linger in TIME_WAIT.
-class ReusableServerSocket : public ::igtl::ServerSocket {
- public:
-  typedef ReusableServerSocket Self;
-  typedef ::igtl::ServerSocket Superclass;
-  typedef ::igtl::SmartPointer<Self> Pointer;
-  typedef ::igtl::SmartPointer<const Self> ConstPointer;
-  igtlTypeMacro(ReusableServerSocket, ::igtl::ServerSocket);
-  igtlNewMacro(ReusableServerSocket);
+std::string ipv4Text(const in_addr& address) {
+  char text[INET_ADDRSTRLEN] = "?";
+  inet_ntop(AF_INET, &address, text, sizeof(text));
+  return text;
+}
 
-  /// 0 on success, -1 when the port cannot be bound.
-  int createReusableServer(int port) {
-    if (m_SocketDescriptor != -1) {
-      CloseSocket(m_SocketDescriptor);
-      m_SocketDescriptor = -1;
-    }
-    m_SocketDescriptor = CreateSocket();
-    if (m_SocketDescriptor < 0) return -1;
-    const int on = 1;
-    setsockopt(m_SocketDescriptor, SOL_SOCKET, SO_REUSEADDR, &on, sizeof(on));
-    if (BindSocket(m_SocketDescriptor, port) != 0 || Listen(m_SocketDescriptor) != 0) {
-      CloseSocket(m_SocketDescriptor);
-      m_SocketDescriptor = -1;
-      return -1;
-    }
-    return 0;
-  }
-  int descriptor() const noexcept { return m_SocketDescriptor; }
-
- protected:
-  ReusableServerSocket() = default;
-  ~ReusableServerSocket() override = default;
-};
+bool isLoopback(const in_addr& address) { return (ntohl(address.s_addr) >> 24) == 127; }
 
 /// igtl::Matrix4x4 (float, [row][column]) from an Eigen matrix.
 void toIgtl(const Eigen::Matrix4d& m, ::igtl::Matrix4x4& out) noexcept {
@@ -210,6 +187,25 @@ haptics::VoxelType convertVoxels(int scalar_type, const unsigned char* raw, std:
 
 // ---- Conversions ---------------------------------------------------------------------------
 
+std::string escapeControl(const std::string& text) {
+  static const char* const kHex = "0123456789abcdef";
+  std::string out;
+  out.reserve(text.size());
+  for (const char ch : text) {
+    const auto c = static_cast<unsigned char>(ch);
+    if (c == '\\') {
+      out += "\\\\";
+    } else if (c < 0x20 || c >= 0x7f) {
+      out += "\\x";
+      out += kHex[c >> 4];
+      out += kHex[c & 0xf];
+    } else {
+      out += ch;
+    }
+  }
+  return out;
+}
+
 Eigen::Matrix4d toRasMatrix_mm(const haptics::Pose& X_WT) {
   const Eigen::Matrix3d F = io::rasFromLpsMatrix();
   Eigen::Matrix4d X = Eigen::Matrix4d::Identity();
@@ -254,10 +250,11 @@ io::LoadedVolume volumeFromIjkToRas(const std::array<int, 3>& dims, const Eigen:
 // ---- The link ------------------------------------------------------------------------------
 
 struct IgtlLink::Impl {
-  ReusableServerSocket::Pointer server;
-  ::igtl::ClientSocket::Pointer client;  ///< Owns the client's descriptor (closes it).
-  int client_fd = -1;
+  int server_fd = -1;
+  int client_fd = -1;  ///< Owned (closed by closeClient()).
   std::string peer;
+  std::vector<in_addr> allowed;            ///< 127.0.0.1 and LinkOptions::allowed_clients.
+  std::int64_t last_byte_ns = 0;           ///< When the client's last byte arrived (steady clock).
   std::vector<unsigned char> output;     ///< Packed messages not yet sent.
   std::size_t output_sent = 0;           ///< Bytes of `output` already sent.
 
@@ -268,7 +265,7 @@ struct IgtlLink::Impl {
   bool keep_body = false;  ///< IMAGE: keep the body; else discard it.
   std::uint64_t body_size = 0;
   std::uint64_t body_got = 0;
-  std::vector<unsigned char> body;
+  std::vector<unsigned char> body;  ///< What has arrived of a kept body (grows with it, never ahead).
   std::array<unsigned char, 64 * 1024> scratch{};
 
   // Outgoing messages (built once, packed per frame).
@@ -280,6 +277,11 @@ struct IgtlLink::Impl {
   runtime::HapticSnapshot snapshot;  ///< The consumer's copy (large: kept, not on the stack).
   bool have_snapshot = false;
   std::int64_t wall_minus_steady_ns = 0;
+
+  ~Impl() {
+    if (client_fd >= 0) ::close(client_fd);
+    if (server_fd >= 0) ::close(server_fd);
+  }
 };
 
 IgtlLink::IgtlLink(std::shared_ptr<runtime::SnapshotChannel> channel, LinkOptions options)
@@ -293,6 +295,24 @@ IgtlLink::IgtlLink(std::shared_ptr<runtime::SnapshotChannel> channel, LinkOption
   if (options_.servo_rate_Hz > 0.0 && std::isfinite(options_.servo_rate_Hz)) {
     rate_Hz_ = std::min(rate_Hz_, options_.servo_rate_Hz);
   }
+  if (!(options_.partial_timeout_s > 0.0) || !std::isfinite(options_.partial_timeout_s)) {
+    throw std::invalid_argument("OpenIGTLink: the partial-message timeout must be a positive number of seconds");
+  }
+  in_addr address{};
+  if (!parseIpv4(options_.bind_address, address)) {
+    throw std::invalid_argument("OpenIGTLink: the address to listen on must be an IPv4 address such as 127.0.0.1, not '" +
+                                escapeControl(options_.bind_address) + "'");
+  }
+  for (const std::string& client : options_.allowed_clients) {
+    if (!parseIpv4(client, address)) {
+      throw std::invalid_argument("OpenIGTLink: an allowed client must be an IPv4 address, not '" + escapeControl(client) + "'");
+    }
+  }
+  parseIpv4(options_.bind_address, address);
+  if (!isLoopback(address) && options_.allowed_clients.empty()) {
+    throw std::invalid_argument("OpenIGTLink: listening on " + options_.bind_address +
+                                " lets other machines connect: name the clients allowed (--igtl-allow ADDRESS)");
+  }
   // A body must fit the library's int sizes.
   options_.max_message_bytes = std::min<std::uint64_t>(options_.max_message_bytes, (std::uint64_t{1} << 31) - 4096);
 }
@@ -302,12 +322,29 @@ IgtlLink::~IgtlLink() { stop(); }
 void IgtlLink::start() {
   if (thread_.joinable()) return;
   impl_ = std::make_unique<Impl>();
-  impl_->server = ReusableServerSocket::New();
-  if (impl_->server->createReusableServer(options_.port) != 0) {
-    impl_.reset();
-    throw std::runtime_error("OpenIGTLink: cannot listen on port " + std::to_string(options_.port) + " (in use?)");
-  }
   Impl& m = *impl_;
+  const std::string where = options_.bind_address + ":" + std::to_string(options_.port);
+  sockaddr_in address{};
+  address.sin_family = AF_INET;
+  address.sin_port = htons(static_cast<std::uint16_t>(options_.port));
+  parseIpv4(options_.bind_address, address.sin_addr);
+  m.server_fd = ::socket(AF_INET, SOCK_STREAM | SOCK_NONBLOCK | SOCK_CLOEXEC, 0);
+  const int on = 1;
+  if (m.server_fd < 0 || setsockopt(m.server_fd, SOL_SOCKET, SO_REUSEADDR, &on, sizeof(on)) != 0 ||
+      ::bind(m.server_fd, reinterpret_cast<const sockaddr*>(&address), sizeof(address)) != 0 ||
+      ::listen(m.server_fd, kListenBacklog) != 0) {
+    const std::string why = std::strerror(errno);
+    impl_.reset();
+    throw std::runtime_error("OpenIGTLink: cannot listen on " + where + " (" + why + ")");
+  }
+  in_addr loopback{};
+  loopback.s_addr = htonl(INADDR_LOOPBACK);
+  m.allowed.push_back(loopback);
+  for (const std::string& client : options_.allowed_clients) {
+    in_addr a{};
+    parseIpv4(client, a);
+    m.allowed.push_back(a);
+  }
   m.proxy->SetDeviceName(options_.proxy_name.c_str());
   m.device->SetDeviceName(options_.device_name.c_str());
   m.force->SetDeviceName(options_.force_name.c_str());
@@ -324,6 +361,7 @@ void IgtlLink::start() {
     status_ = LinkStatus{};
     status_.listening = true;
     status_.port = options_.port;
+    status_.bind_address = options_.bind_address;
     status_.rate_Hz = rate_Hz_;
   }
   stop_requested_.store(false, std::memory_order_release);
@@ -356,19 +394,27 @@ LinkStatus IgtlLink::status() const {
 std::string IgtlLink::statusText() const {
   const LinkStatus s = status();
   if (!s.listening) return "OpenIGTLink off";
-  if (s.connected) {
-    const std::string host = s.peer.substr(0, s.peer.rfind(':'));
-    return "OpenIGTLink: connected to " + host + " (port " + std::to_string(s.port) + ")";
+  const std::string where = s.bind_address + ":" + std::to_string(s.port);
+  std::string text = s.connected ? "OpenIGTLink: connected to " + s.peer + " (on " + where + ")"
+                                 : "OpenIGTLink: listening on " + where;
+  if (s.connections_refused > 0) {
+    text += "; refused " + std::to_string(s.connections_refused) + " (last " + s.last_refused + ")";
   }
-  return "OpenIGTLink: listening on " + std::to_string(s.port);
+  return text;
+}
+
+std::optional<ReceivedImage> IgtlLink::takeReceivedImage() {
+  const std::lock_guard<std::mutex> lock(mutex_);
+  if (inbox_.empty()) return std::nullopt;
+  ReceivedImage v = std::move(inbox_.front());
+  inbox_.pop_front();
+  return v;
 }
 
 std::optional<io::LoadedVolume> IgtlLink::takeReceivedVolume() {
-  const std::lock_guard<std::mutex> lock(mutex_);
-  if (inbox_.empty()) return std::nullopt;
-  io::LoadedVolume v = std::move(inbox_.front());
-  inbox_.pop_front();
-  return v;
+  std::optional<ReceivedImage> image = takeReceivedImage();
+  if (!image) return std::nullopt;
+  return std::move(image->volume);
 }
 
 std::vector<std::string> IgtlLink::takeNotices() {
@@ -379,6 +425,12 @@ std::vector<std::string> IgtlLink::takeNotices() {
 }
 
 void IgtlLink::notice(std::string text) {
+  if (options_.on_notice) {
+    try {
+      options_.on_notice(text);
+    } catch (...) {  // NOLINT(bugprone-empty-catch): a failing printer loses one line, not the link
+    }
+  }
   const std::lock_guard<std::mutex> lock(mutex_);
   notices_.push_back(std::move(text));
   while (notices_.size() > kMaxNotices) notices_.pop_front();
@@ -441,8 +493,7 @@ void IgtlLink::closeClient(const std::string& why) {
            " bytes of it received)");
   }
   notice("OpenIGTLink: client " + m.peer + " " + why);
-  m.client->CloseSocket();
-  m.client = nullptr;
+  ::close(m.client_fd);
   m.client_fd = -1;
   m.output.clear();
   m.output_sent = 0;
@@ -453,6 +504,7 @@ void IgtlLink::closeClient(const std::string& why) {
   const std::lock_guard<std::mutex> lock(mutex_);
   status_.connected = false;
   status_.peer.clear();
+  status_.receive_buffer_bytes = 0;
 }
 
 void IgtlLink::reject(const std::string& why) {
@@ -528,7 +580,7 @@ void IgtlLink::sendFrame() {
 void IgtlLink::handleImage() {
   Impl& m = *impl_;
   const std::uint16_t version = static_cast<std::uint16_t>(readBigEndian(m.header.data(), 2));
-  const std::string name = fixedString(m.header.data() + 14, 20);
+  const std::string name = escapeControl(fixedString(m.header.data() + 14, 20));
   std::array<unsigned char, kHeaderSize> v1_header = m.header;
   const unsigned char* content = m.body.data();
   std::uint64_t content_size = m.body.size();
@@ -603,13 +655,51 @@ void IgtlLink::handleImage() {
     io::LoadedVolume volume =
         volumeFromIjkToRas({dims[0], dims[1], dims[2]}, X, voxel_type, std::move(bytes), name);
     notice("OpenIGTLink: received volume '" + name + "' (" + std::to_string(dims[0]) + " x " + std::to_string(dims[1]) +
-           " x " + std::to_string(dims[2]) + ")");
+           " x " + std::to_string(dims[2]) + ") from " + m.peer);
     const std::lock_guard<std::mutex> lock(mutex_);
-    inbox_.push_back(std::move(volume));
+    inbox_.push_back(ReceivedImage{std::move(volume), m.peer});
     ++status_.images_received;
   } catch (const std::exception& e) {
     reject("IMAGE '" + name + "': " + e.what());
   }
+}
+
+bool IgtlLink::startMessage() {
+  Impl& m = *impl_;
+  m.body_size = readBigEndian(m.header.data() + 42, 8);
+  const std::string type = escapeControl(fixedString(m.header.data() + 2, 12));
+  const std::string what = type + " '" + escapeControl(fixedString(m.header.data() + 14, 20)) + "'";
+  m.header_got = 0;
+  if (m.body_size > options_.max_message_bytes) {
+    reject(what + ": body of " + std::to_string(m.body_size) + " bytes exceeds the limit of " +
+           std::to_string(options_.max_message_bytes));
+    return false;  // cannot skip that much safely: drop the client
+  }
+  m.in_body = true;
+  m.body_got = 0;
+  m.keep_body = false;
+  m.body.clear();
+  if (type != "IMAGE") return true;  // skipped as it arrives
+  if (!options_.accept_images) {
+    reject(what + ": receiving images is off (the image is skipped, not opened)");
+    return true;
+  }
+  std::size_t queued = 0;
+  {
+    const std::lock_guard<std::mutex> lock(mutex_);
+    queued = inbox_.size();
+  }
+  if (queued >= options_.max_queued_images) {
+    reject(what + ": a volume received before is still waiting to be opened or declined (the image is skipped)");
+    return true;
+  }
+  if (!io::fitsInMemory(m.body_size)) {
+    reject(what + ": body of " + io::formatBytes(m.body_size) + " but " +
+           io::formatBytes(io::availableMemoryBytes().value_or(0)) + " of memory is available");
+    return false;
+  }
+  m.keep_body = true;  // the buffer grows with what arrives (receive())
+  return true;
 }
 
 bool IgtlLink::receive() {
@@ -620,9 +710,6 @@ bool IgtlLink::receive() {
     if (!m.in_body) {
       target = m.header.data() + m.header_got;
       want = kHeaderSize - m.header_got;
-    } else if (m.keep_body) {
-      target = m.body.data() + m.body_got;
-      want = static_cast<std::size_t>(m.body_size - m.body_got);
     } else {
       target = m.scratch.data();
       want = static_cast<std::size_t>(std::min<std::uint64_t>(m.scratch.size(), m.body_size - m.body_got));
@@ -635,32 +722,19 @@ bool IgtlLink::receive() {
         if (errno == EINTR) continue;
         return false;
       }
-      if (!m.in_body) m.header_got += static_cast<std::size_t>(n);
-      else m.body_got += static_cast<std::uint64_t>(n);
-    }
-    if (!m.in_body && m.header_got == kHeaderSize) {
-      m.body_size = readBigEndian(m.header.data() + 42, 8);
-      const std::string type = fixedString(m.header.data() + 2, 12);
-      if (m.body_size > options_.max_message_bytes) {
-        reject(type + " '" + fixedString(m.header.data() + 14, 20) + "': body of " + std::to_string(m.body_size) +
-               " bytes exceeds the limit of " + std::to_string(options_.max_message_bytes));
-        m.header_got = 0;
-        return false;  // cannot skip that much safely: drop the client
-      }
-      m.in_body = true;
-      m.body_got = 0;
-      m.keep_body = type == "IMAGE";
-      if (m.keep_body) {
-        try {
-          m.body.assign(static_cast<std::size_t>(m.body_size), 0);
-        } catch (const std::bad_alloc&) {
-          reject("IMAGE: out of memory for " + std::to_string(m.body_size) + " bytes");
-          m.in_body = false;
-          m.header_got = 0;
-          return false;
+      m.last_byte_ns = steadyNs();
+      if (!m.in_body) {
+        m.header_got += static_cast<std::size_t>(n);
+      } else {
+        if (m.keep_body) {
+          m.body.insert(m.body.end(), target, target + n);
+          const std::lock_guard<std::mutex> lock(mutex_);
+          status_.receive_buffer_bytes = m.body.capacity();
         }
+        m.body_got += static_cast<std::uint64_t>(n);
       }
     }
+    if (!m.in_body && m.header_got == kHeaderSize && !startMessage()) return false;
     if (m.in_body && m.body_got == m.body_size) {
       m.in_body = false;
       m.header_got = 0;
@@ -672,31 +746,59 @@ bool IgtlLink::receive() {
         handleImage();
         m.body.clear();
         m.body.shrink_to_fit();
+        const std::lock_guard<std::mutex> lock(mutex_);
+        status_.receive_buffer_bytes = 0;
       }
     }
   }
 }
 
-void IgtlLink::acceptClient() {
+void IgtlLink::dropIdlePartial() {
   Impl& m = *impl_;
-  ::igtl::ClientSocket::Pointer socket = m.server->WaitForConnection(1);
-  if (socket.IsNull()) return;
-  if (m.client_fd >= 0) closeClient("replaced by a new connection");
-  m.client = socket;
-  m.client_fd = SocketDescriptor::of(*socket);
-  setsockopt(m.client_fd, SOL_SOCKET, SO_SNDBUF, &kClientSendBuffer, sizeof(kClientSendBuffer));
-  sockaddr_in address{};
-  socklen_t length = sizeof(address);
-  char text[INET_ADDRSTRLEN] = "?";
-  if (getpeername(m.client_fd, reinterpret_cast<sockaddr*>(&address), &length) == 0) {
-    inet_ntop(AF_INET, &address.sin_addr, text, sizeof(text));
+  if (m.client_fd < 0 || (!m.in_body && m.header_got == 0)) return;
+  const auto timeout_ns = static_cast<std::int64_t>(options_.partial_timeout_s * 1e9);
+  if (steadyNs() - m.last_byte_ns < timeout_ns) return;
+  reject("a message was left half sent for " + std::to_string(options_.partial_timeout_s) + " s");
+  closeClient("dropped (a message idle half sent)");
+}
+
+void IgtlLink::acceptClients() {
+  Impl& m = *impl_;
+  for (;;) {
+    sockaddr_in address{};
+    socklen_t length = sizeof(address);
+    const int fd = ::accept4(m.server_fd, reinterpret_cast<sockaddr*>(&address), &length, SOCK_NONBLOCK | SOCK_CLOEXEC);
+    if (fd < 0) {
+      if (errno == EINTR || errno == ECONNABORTED) continue;
+      return;  // EAGAIN: none left (or a transient error: the next poll tries again)
+    }
+    const std::string peer = ipv4Text(address.sin_addr) + ":" + std::to_string(ntohs(address.sin_port));
+    const bool allowed = std::any_of(m.allowed.begin(), m.allowed.end(),
+                                     [&](const in_addr& a) { return a.s_addr == address.sin_addr.s_addr; });
+    if (!allowed || m.client_fd >= 0) {
+      ::close(fd);
+      notice("OpenIGTLink: refused a connection from " + peer +
+             (allowed ? " (one client at a time: " + m.peer + " is connected)" : " (not an allowed client)"));
+      const std::lock_guard<std::mutex> lock(mutex_);
+      ++status_.connections_refused;
+      status_.last_refused = ipv4Text(address.sin_addr);
+      continue;
+    }
+    m.client_fd = fd;
+    setsockopt(fd, SOL_SOCKET, SO_SNDBUF, &kClientSendBuffer, sizeof(kClientSendBuffer));
+    const int on = 1;
+    setsockopt(fd, SOL_SOCKET, SO_KEEPALIVE, &on, sizeof(on));
+    setsockopt(fd, IPPROTO_TCP, TCP_KEEPIDLE, &kKeepIdle_s, sizeof(kKeepIdle_s));
+    setsockopt(fd, IPPROTO_TCP, TCP_KEEPINTVL, &kKeepInterval_s, sizeof(kKeepInterval_s));
+    setsockopt(fd, IPPROTO_TCP, TCP_KEEPCNT, &kKeepCount, sizeof(kKeepCount));
+    m.peer = peer;
+    m.last_byte_ns = steadyNs();
+    notice("OpenIGTLink: client " + m.peer + " connected");
+    const std::lock_guard<std::mutex> lock(mutex_);
+    status_.connected = true;
+    status_.peer = m.peer;
+    ++status_.clients;
   }
-  m.peer = std::string(text) + ":" + std::to_string(ntohs(address.sin_port));
-  notice("OpenIGTLink: client " + m.peer + " connected");
-  const std::lock_guard<std::mutex> lock(mutex_);
-  status_.connected = true;
-  status_.peer = m.peer;
-  ++status_.clients;
 }
 
 void IgtlLink::run() noexcept {
@@ -713,8 +815,9 @@ void IgtlLink::run() noexcept {
       }
       // Wait for the next frame, a connection, data, or room for pending output; at most
       // 50 ms so stop() is prompt.
+      dropIdlePartial();
       pollfd fds[2];
-      fds[0] = {m.server->descriptor(), POLLIN, 0};
+      fds[0] = {m.server_fd, POLLIN, 0};
       nfds_t count = 1;
       if (m.client_fd >= 0) {
         fds[1] = {m.client_fd, static_cast<short>(POLLIN | (m.output.empty() ? 0 : POLLOUT)), 0};
@@ -731,7 +834,7 @@ void IgtlLink::run() noexcept {
           closeClient("disconnected (send failed)");
         }
       }
-      if ((fds[0].revents & POLLIN) != 0) acceptClient();
+      if ((fds[0].revents & POLLIN) != 0) acceptClients();
     }
   } catch (const std::exception& e) {
     notice(std::string("OpenIGTLink: the link stopped: ") + e.what());

@@ -4,6 +4,7 @@
 // survived, and a stalled client never slowing the haptic thread.
 #include "vh/igtl/igtl_link.h"
 
+#include <arpa/inet.h>
 #include <netinet/in.h>
 #include <signal.h>
 #include <sys/socket.h>
@@ -12,7 +13,9 @@
 #include <chrono>
 #include <cmath>
 #include <cstring>
+#include <fstream>
 #include <map>
+#include <sstream>
 #include <thread>
 
 #include <Eigen/Geometry>
@@ -238,6 +241,19 @@ TEST(IgtlConversion, OptionsAreChecked) {
   o.servo_rate_Hz = 1000.0;
   EXPECT_DOUBLE_EQ(IgtlLink(nullptr, o).rate_Hz(), 1000.0);  // clamped to the servo rate
   EXPECT_EQ(IgtlLink(nullptr, o).statusText(), "OpenIGTLink off");
+  o.bind_address = "localhost";  // a name, not an address
+  EXPECT_THROW(IgtlLink(nullptr, o), std::invalid_argument);
+  o.bind_address = "0.0.0.0";  // every interface: only with the clients named
+  EXPECT_THROW(IgtlLink(nullptr, o), std::invalid_argument);
+  o.allowed_clients = {"192.168.1.20"};
+  EXPECT_NO_THROW(IgtlLink(nullptr, o));
+  o.allowed_clients = {"192.168.1.20; rm -rf"};
+  EXPECT_THROW(IgtlLink(nullptr, o), std::invalid_argument);
+}
+
+TEST(IgtlConversion, EscapesControlBytes) {
+  EXPECT_EQ(escapeControl("CT\x1b[2J\n\x7f\\ok"), "CT\\x1b[2J\\x0a\\x7f\\\\ok");
+  EXPECT_EQ(escapeControl("Slicer CT-1"), "Slicer CT-1");
 }
 
 // ---- Streaming -----------------------------------------------------------------------------
@@ -518,7 +534,7 @@ TEST_F(IgtlLinkTest, MalformedMessagesAndDroppedClientsLeaveTheLinkServing) {
   EXPECT_GE(link->status().clients, 6u);
 }
 
-TEST_F(IgtlLinkTest, NewClientReplacesTheCurrentOne) {
+TEST_F(IgtlLinkTest, SecondClientIsRefusedWhileOneIsConnected) {
   auto channel = std::make_shared<runtime::SnapshotChannel>();
   publish(*channel, Pose(), Pose(), Eigen::Vector3d::Zero(), 0, 1, steadyNowNs());
   auto link = startLink(channel, LinkOptions{});
@@ -527,11 +543,242 @@ TEST_F(IgtlLinkTest, NewClientReplacesTheCurrentOne) {
   ASSERT_TRUE(first.connect(link->options().port));
   Received r;
   ASSERT_TRUE(first.read(r));
-  ASSERT_TRUE(second.connect(link->options().port));
-  ASSERT_TRUE(second.read(r));
-  EXPECT_EQ(link->status().clients, 2u);
-  EXPECT_TRUE(link->status().connected);
-  EXPECT_NE(link->statusText().find("connected to 127.0.0.1"), std::string::npos) << link->statusText();
+  ASSERT_TRUE(second.connect(link->options().port));  // the kernel completes the handshake...
+  EXPECT_FALSE(second.read(r));                        // ...the link closes it at once
+  EXPECT_TRUE(first.read(r));                          // the first client keeps its stream
+  const LinkStatus status = link->status();
+  EXPECT_EQ(status.clients, 1u);
+  EXPECT_EQ(status.connections_refused, 1u);
+  EXPECT_TRUE(status.connected);
+  EXPECT_NE(link->statusText().find("connected to 127.0.0.1:"), std::string::npos) << link->statusText();
+  EXPECT_NE(link->statusText().find("refused 1"), std::string::npos) << link->statusText();
+  bool said = false;
+  for (const std::string& n : link->takeNotices()) said = said || n.find("one client at a time") != std::string::npos;
+  EXPECT_TRUE(said);
+  // Once the first leaves, the next one is taken.
+  first.close();
+  ASSERT_TRUE(test::waitUntil([&] { return !link->status().connected; }));
+  Client third;
+  ASSERT_TRUE(third.connect(link->options().port));
+  EXPECT_TRUE(third.read(r));
+}
+
+// ---- Who may connect -----------------------------------------------------------------------
+
+/// The local addresses of the TCP sockets listening on `port`, as the kernel lists them in
+/// /proc/net/tcp (what `ss -ltn` prints): "127.0.0.1", "0.0.0.0".
+std::vector<std::string> listeningAddresses(int port) {
+  std::ifstream in("/proc/net/tcp");
+  std::string line;
+  std::getline(in, line);  // column names
+  std::vector<std::string> out;
+  while (std::getline(in, line)) {
+    std::istringstream fields(line);
+    std::string slot, local, remote, state;
+    fields >> slot >> local >> remote >> state;
+    if (state != "0A") continue;  // TCP_LISTEN
+    const std::size_t colon = local.find(':');
+    if (std::stoi(local.substr(colon + 1), nullptr, 16) != port) continue;
+    in_addr a{};
+    a.s_addr = static_cast<std::uint32_t>(std::stoul(local.substr(0, colon), nullptr, 16));  // as stored: network order
+    char text[INET_ADDRSTRLEN];
+    inet_ntop(AF_INET, &a, text, sizeof(text));
+    out.emplace_back(text);
+  }
+  return out;
+}
+
+/// A plain TCP connection to 127.0.0.1:port from the local address `from` (127.0.0.2 is on lo
+/// too: a second address of this machine, so the allow list decides); -1 when it fails.
+int connectFrom(const char* from, int port) {
+  const int fd = socket(AF_INET, SOCK_STREAM, 0);
+  sockaddr_in local{};
+  local.sin_family = AF_INET;
+  inet_pton(AF_INET, from, &local.sin_addr);
+  sockaddr_in server{};
+  server.sin_family = AF_INET;
+  server.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+  server.sin_port = htons(static_cast<std::uint16_t>(port));
+  if (bind(fd, reinterpret_cast<sockaddr*>(&local), sizeof(local)) != 0 ||
+      connect(fd, reinterpret_cast<sockaddr*>(&server), sizeof(server)) != 0) {
+    close(fd);
+    return -1;
+  }
+  timeval timeout{2, 0};
+  setsockopt(fd, SOL_SOCKET, SO_RCVTIMEO, &timeout, sizeof(timeout));
+  return fd;
+}
+
+/// Reads from `fd` until `bytes` arrived (true) or the link closed it / the 2 s timeout (false).
+bool readsBytes(int fd, std::size_t bytes) {
+  std::vector<char> buffer(bytes);
+  std::size_t got = 0;
+  while (got < bytes) {
+    const ssize_t n = recv(fd, buffer.data() + got, bytes - got, 0);
+    if (n <= 0) return false;
+    got += static_cast<std::size_t>(n);
+  }
+  return true;
+}
+
+/// The process's resident memory [bytes] (the second field of /proc/self/statm, in pages).
+std::int64_t residentBytes() {
+  std::ifstream in("/proc/self/statm");
+  std::int64_t size = 0, resident = 0;
+  in >> size >> resident;
+  return resident * static_cast<std::int64_t>(sysconf(_SC_PAGESIZE));
+}
+
+/// A bare 58-byte header (version 1) of `type` named `name` declaring `body_bytes` of body.
+std::vector<unsigned char> bareHeader(const std::string& type, const std::string& name, std::uint64_t body_bytes) {
+  std::vector<unsigned char> h(IGTL_HEADER_SIZE, 0);
+  h[1] = 1;
+  std::memcpy(h.data() + 2, type.data(), std::min<std::size_t>(type.size(), 12));
+  std::memcpy(h.data() + 14, name.data(), std::min<std::size_t>(name.size(), 20));
+  for (int i = 0; i < 8; ++i) h[42 + i] = static_cast<unsigned char>(body_bytes >> (56 - 8 * i));
+  return h;
+}
+
+TEST_F(IgtlLinkTest, ListensOnLoopbackOnlyUnlessAnotherAddressIsNamed) {
+  auto link = startLink(nullptr, LinkOptions{});
+  ASSERT_NE(link, nullptr);
+  EXPECT_EQ(listeningAddresses(link->options().port), std::vector<std::string>{"127.0.0.1"});
+  EXPECT_EQ(link->status().bind_address, "127.0.0.1");
+  link->stop();
+  EXPECT_TRUE(listeningAddresses(link->options().port).empty());
+
+  LinkOptions every;
+  every.bind_address = "0.0.0.0";
+  every.allowed_clients = {"127.0.0.3"};
+  auto open = startLink(nullptr, every);
+  ASSERT_NE(open, nullptr);
+  EXPECT_EQ(listeningAddresses(open->options().port), std::vector<std::string>{"0.0.0.0"});
+}
+
+TEST_F(IgtlLinkTest, RefusesClientsNotAllowed) {
+  auto channel = std::make_shared<runtime::SnapshotChannel>();
+  publish(*channel, Pose(), Pose(), Eigen::Vector3d::Zero(), 0, 1, steadyNowNs());
+  auto link = startLink(channel, LinkOptions{});
+  ASSERT_NE(link, nullptr);
+  const int port = link->options().port;
+  const int stranger = connectFrom("127.0.0.2", port);
+  ASSERT_GE(stranger, 0) << "cannot connect from 127.0.0.2: " << std::strerror(errno);
+  EXPECT_FALSE(readsBytes(stranger, IGTL_HEADER_SIZE));  // closed without a frame
+  close(stranger);
+  ASSERT_TRUE(test::waitUntil([&] { return link->status().connections_refused == 1; }));
+  EXPECT_EQ(link->status().last_refused, "127.0.0.2");
+  EXPECT_EQ(link->status().clients, 0u);
+  bool logged = false;
+  for (const std::string& n : link->takeNotices()) {
+    logged = logged || (n.find("refused a connection from 127.0.0.2") != std::string::npos &&
+                        n.find("not an allowed client") != std::string::npos);
+  }
+  EXPECT_TRUE(logged);
+  EXPECT_NE(link->statusText().find("last 127.0.0.2"), std::string::npos) << link->statusText();
+  const int local = connectFrom("127.0.0.1", port);  // this machine's own loopback: allowed
+  ASSERT_GE(local, 0);
+  EXPECT_TRUE(readsBytes(local, IGTL_HEADER_SIZE));
+  close(local);
+  link->stop();
+
+  LinkOptions named;
+  named.allowed_clients = {"127.0.0.2"};
+  publish(*channel, Pose(), Pose(), Eigen::Vector3d::Zero(), 0, 2, steadyNowNs());  // a frame for the new link
+  auto allowing = startLink(channel, named);
+  ASSERT_NE(allowing, nullptr);
+  const int friendly = connectFrom("127.0.0.2", allowing->options().port);
+  ASSERT_GE(friendly, 0);
+  EXPECT_TRUE(readsBytes(friendly, IGTL_HEADER_SIZE));
+  EXPECT_EQ(allowing->status().connections_refused, 0u);
+  close(friendly);
+}
+
+TEST_F(IgtlLinkTest, HugeDeclaredBodyAllocatesOnlyWhatArrivesAndIdlePartialIsDropped) {
+  LinkOptions options;
+  options.partial_timeout_s = 1.0;
+  auto link = startLink(nullptr, options);
+  ASSERT_NE(link, nullptr);
+  const int fd = connectFrom("127.0.0.1", link->options().port);
+  ASSERT_GE(fd, 0);
+  const std::int64_t rss_before = residentBytes();
+  std::vector<unsigned char> bytes = bareHeader("IMAGE", "Big", std::uint64_t{1} << 30);
+  bytes.resize(bytes.size() + 100'000, 0x11);  // the first 100 kB of the promised 1 GiB
+  ASSERT_EQ(send(fd, bytes.data(), bytes.size(), MSG_NOSIGNAL), static_cast<ssize_t>(bytes.size()));
+  // Either the link holds what arrived (the machine has 1 GiB to spare) or it refused the
+  // message for want of memory; in neither case 1 GiB is taken.
+  ASSERT_TRUE(test::waitUntil([&] {
+    const LinkStatus s = link->status();
+    return s.receive_buffer_bytes >= 100'000 || s.messages_rejected > 0;
+  }));
+  const LinkStatus held = link->status();
+  const std::int64_t rss_after = residentBytes();
+  std::cout << "[ 2^30 header ] buffer " << held.receive_buffer_bytes << " bytes, RSS " << rss_before / 1024 << " -> "
+            << rss_after / 1024 << " kB\n";
+  EXPECT_LE(held.receive_buffer_bytes, 256u * 1024u);
+  EXPECT_LT(rss_after - rss_before, std::int64_t{64} << 20);
+  // Silent past the timeout: the half message is dropped with its client.
+  if (held.messages_rejected == 0) {
+    EXPECT_TRUE(held.connected);  // waiting for the rest, not dropped yet
+  }
+  ASSERT_TRUE(test::waitUntil([&] { return !link->status().connected; }, 5000ms));
+  EXPECT_EQ(link->status().receive_buffer_bytes, 0u);
+  bool said = false;
+  for (const std::string& n : link->takeNotices()) {
+    said = said || n.find("half sent") != std::string::npos || n.find("memory is available") != std::string::npos;
+  }
+  EXPECT_TRUE(said);
+  close(fd);
+}
+
+TEST_F(IgtlLinkTest, ImagesRefusedWhenNotAcceptedWithTheirNameEscaped) {
+  LinkOptions options;
+  options.accept_images = false;
+  std::vector<std::string> printed;
+  std::mutex printed_mutex;
+  options.on_notice = [&](const std::string& n) {
+    const std::lock_guard<std::mutex> lock(printed_mutex);
+    printed.push_back(n);
+  };
+  auto link = startLink(nullptr, options);
+  ASSERT_NE(link, nullptr);
+  Client client;
+  ASSERT_TRUE(client.connect(link->options().port));
+  ::igtl::ImageMessage::Pointer image = makeImage(obliqueAxes(), Eigen::Vector3d(1, 2, 3));
+  image->SetDeviceName("CT\x1b[2J\a");  // a terminal escape in the name
+  image->Pack();
+  ASSERT_EQ(client.socket().Send(image->GetPackPointer(), image->GetPackSize()), 1);
+  ASSERT_TRUE(test::waitUntil([&] { return link->status().messages_received == 1; }));
+  EXPECT_EQ(link->status().images_received, 0u);
+  EXPECT_EQ(link->status().messages_rejected, 1u);
+  EXPECT_FALSE(link->takeReceivedImage().has_value());
+  EXPECT_TRUE(link->status().connected);  // the image was skipped, the stream goes on
+  std::vector<std::string> notices = link->takeNotices();
+  bool refused = false;
+  for (const std::string& n : notices) {
+    EXPECT_EQ(n.find('\x1b'), std::string::npos) << n;
+    EXPECT_EQ(n.find('\a'), std::string::npos) << n;
+    refused = refused || (n.find("receiving images is off") != std::string::npos && n.find("CT\\x1b[2J\\x07") != std::string::npos);
+  }
+  EXPECT_TRUE(refused);
+  const std::lock_guard<std::mutex> lock(printed_mutex);
+  EXPECT_FALSE(printed.empty());  // the hook saw them as they happened
+}
+
+TEST_F(IgtlLinkTest, AReceivedVolumeWaitingRefusesTheNextAndNamesItsSender) {
+  auto link = startLink(nullptr, LinkOptions{});
+  ASSERT_NE(link, nullptr);
+  Client client;
+  ASSERT_TRUE(client.connect(link->options().port));
+  ::igtl::ImageMessage::Pointer image = makeImage(obliqueAxes(), Eigen::Vector3d(1, 2, 3));
+  ASSERT_EQ(client.socket().Send(image->GetPackPointer(), image->GetPackSize()), 1);
+  ASSERT_EQ(client.socket().Send(image->GetPackPointer(), image->GetPackSize()), 1);
+  ASSERT_TRUE(test::waitUntil([&] { return link->status().messages_received == 2; }));
+  EXPECT_EQ(link->status().images_received, 1u);
+  EXPECT_EQ(link->status().messages_rejected, 1u);
+  std::optional<ReceivedImage> first = link->takeReceivedImage();
+  ASSERT_TRUE(first.has_value());
+  EXPECT_EQ(first->peer.rfind("127.0.0.1:", 0), 0u) << first->peer;
+  EXPECT_FALSE(link->takeReceivedImage().has_value());
 }
 
 // ---- Never blocking the haptic thread ------------------------------------------------------

@@ -185,9 +185,13 @@ TEST(Cli, RunStreamsOverOpenIgtlinkOnlyWhenAsked) {
   const int port = 40000 + static_cast<int>(getpid() % 20000);
   const ProcessResult on = runApp("run --igtl-port " + std::to_string(port) + " --igtl-rate 5000" + common);
   ASSERT_EQ(on.exit_code, 0) << on.output;
-  EXPECT_NE(on.output.find("OpenIGTLink: listening on " + std::to_string(port) + " at 1000 Hz"), std::string::npos)
+  EXPECT_NE(on.output.find("OpenIGTLink: listening on 127.0.0.1:" + std::to_string(port) + " at 1000 Hz"), std::string::npos)
       << "the rate is clamped to the servo rate: " << on.output;
   EXPECT_NE(on.output.find("OpenIGTLink sent 0 frames to 0 clients"), std::string::npos) << on.output;
+  // Every interface only with the clients named.
+  const ProcessResult open = runApp("run --igtl-port " + std::to_string(port) + " --igtl-bind 0.0.0.0" + common);
+  EXPECT_NE(open.exit_code, 0) << open.output;
+  EXPECT_NE(open.output.find("--igtl-allow"), std::string::npos) << open.output;
   const ProcessResult bad = runApp("run --igtl-port 0" + common);
   EXPECT_NE(bad.exit_code, 0);
   EXPECT_NE(bad.output.find("--igtl-port"), std::string::npos) << bad.output;

@@ -12,6 +12,8 @@
 
 #include <filesystem>
 #include <optional>
+#include <string>
+#include <vector>
 
 #include "vh/haptics/pose.h"
 #include "vh/ui/view/render_presets.h"
@@ -56,6 +58,11 @@ struct AppOptions {
   /// Set: the OpenIGTLink server listens on this port from the start (it overrides a
   /// scene file's "openigtlink" section); unset: off unless the scene or the GUI switches it on.
   std::optional<int> igtl_port;
+  /// The OpenIGTLink server's address and the clients allowed besides 127.0.0.1
+  /// (igtl::LinkOptions::bind_address, allowed_clients); only the command line and the dialog
+  /// set them (a scene file cannot open the link to other machines).
+  std::string igtl_bind = "127.0.0.1";
+  std::vector<std::string> igtl_allow;
   /// Its frame rate [Hz] (clamped to the servo rate).
   double igtl_rate_Hz = 60.0;
 };

@@ -3,14 +3,21 @@
 /// The GUI's OpenIGTLink switch: owns the snapshot channel the session's haptic
 /// threads feed (set once, at start-up, so switching the link on never rebuilds them) and the
 /// link (vh::igtl::IgtlLink), off by default; a menu action opens a small dialog (on/off, port,
-/// rate); a permanent status-bar label says "OpenIGTLink: listening on 18944" / "connected to
-/// 127.0.0.1"; a 100 ms timer hands volumes received from the client (IMAGE messages) to the
-/// main window, which opens them as a new scene, and shows the link's notices.
+/// rate, the address to listen on, the clients allowed); a permanent status-bar label says
+/// "OpenIGTLink: listening on 127.0.0.1:18944" / "connected to 127.0.0.1:53412 (...)" and the
+/// connections refused; a 100 ms timer shows the link's notices and, for a volume received from
+/// the client (an IMAGE message), asks the user (sender, size, spacing, and that a recording in
+/// progress will be ended) before handing it to the main window, which opens it as a new scene.
+/// A volume declined is dropped; nothing received is ever opened without a yes.
 
+#include <array>
 #include <functional>
 #include <memory>
 #include <optional>
 #include <string>
+#include <vector>
+
+#include <Eigen/Core>
 
 #include <QObject>
 #include <QString>
@@ -28,12 +35,26 @@ class QWidget;
 
 namespace vh::ui {
 
-/// The dialog's choice: the link on or off, its port and rate.
+/// The dialog's choice: the link on or off, its port and rate, who may connect.
 struct IgtlSettings {
   bool enabled = false;
   int port = igtl::kDefaultPort;  ///< 1..65535
   double rate_Hz = 60.0;          ///< Frames per second [Hz], 1..servo rate.
+  std::string bind_address = "127.0.0.1";    ///< igtl::LinkOptions::bind_address
+  std::vector<std::string> allowed_clients;  ///< igtl::LinkOptions::allowed_clients
 };
+
+/// What the user is asked about a received volume.
+struct IgtlVolumeOffer {
+  std::string peer;                ///< Sender "address:port".
+  std::string name;                ///< The IMAGE's device name (escaped).
+  std::array<int, 3> dims{};       ///< Voxels along i, j, k.
+  Eigen::Vector3d spacing_mm = Eigen::Vector3d::Zero();  ///< [mm]
+  bool recording = false;          ///< A recording runs: opening ends it first.
+};
+
+/// The question's text ("Open the volume 'CT' sent by 10.1.2.3:5000 over OpenIGTLink? ...").
+QString igtlOfferText(const IgtlVolumeOffer& offer);
 
 /// Clamps a requested setting to what the link accepts: port into 1..65535, rate into
 /// [1, servo_rate_Hz] (a non-finite rate becomes the 60 Hz default).
@@ -70,12 +91,17 @@ class IgtlPanel : public QObject {
 
  public:
   bool running() const noexcept { return link_ != nullptr && link_->running(); }
-  /// The status-bar text ("OpenIGTLink: listening on 18944", "OpenIGTLink off").
+  /// The status-bar text ("OpenIGTLink: listening on 127.0.0.1:18944", "OpenIGTLink off").
   QString statusText() const;
   igtl::IgtlLink* link() const noexcept { return link_.get(); }
 
-  /// Called on the GUI thread with each volume a client sent.
+  /// Called on the GUI thread with each volume a client sent and the user accepted.
   void setOnVolume(std::function<void(io::LoadedVolume)> on_volume) { on_volume_ = std::move(on_volume); }
+  /// Whether a recording runs (asked before each offer; the window's recorder).
+  void setRecordingQuery(std::function<bool()> recording) { recording_ = std::move(recording); }
+  /// Asks the user about a received volume; true opens it. Default: a Yes/No message box
+  /// (No is the default button). Tests replace it.
+  void setConfirmVolume(std::function<bool(const IgtlVolumeOffer&)> confirm) { confirm_ = std::move(confirm); }
   /// One timer step (tests call it directly): status label, notices, received volumes.
   void poll();
 
@@ -95,6 +121,9 @@ class IgtlPanel : public QObject {
   QAction* action_ = nullptr;
   QTimer* timer_ = nullptr;
   std::function<void(io::LoadedVolume)> on_volume_;
+  std::function<bool()> recording_;
+  std::function<bool(const IgtlVolumeOffer&)> confirm_;
+  bool asking_ = false;  ///< An offer is on screen (poll() runs again inside the dialog's loop).
 };
 
 }  // namespace vh::ui
