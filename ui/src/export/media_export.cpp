@@ -329,6 +329,8 @@ void RecordingFrameRenderer::draw(bool wait) {
 void RecordingFrameRenderer::setReuseVolume(bool reuse) {
   reuse_volume_ = reuse;
   kept_.valid = false;
+  last_frame_.valid = false;
+  changed_last_frame_ = false;
 }
 
 namespace {
@@ -411,10 +413,22 @@ void RecordingFrameRenderer::keepVolume() {
 
 void RecordingFrameRenderer::drawOverKeptVolume() {
   const KeptKey now{actors_->isovalue(), cavity_shown_, camera_generation_, true};
-  if (!kept_.valid || now.isovalue != kept_.isovalue || now.cavity != kept_.cavity || now.camera != kept_.camera) {
+  const auto same = [](const KeptKey& a, const KeptKey& b) {
+    return a.valid && b.valid && a.isovalue == b.isovalue && a.cavity == b.cavity && a.camera == b.camera;
+  };
+  const bool changed_since_last_frame = !same(now, last_frame_);
+  last_frame_ = now;
+  if (!same(now, kept_)) {
+    // Changing at every frame (a cavity growing while the burr drills): one full render a frame
+    // costs less than keeping a picture (colour and depth) that the next frame throws away.
+    if (changed_since_last_frame && changed_last_frame_) {
+      drawFull();
+      return;
+    }
     keepVolume();
     kept_ = now;
   }
+  changed_last_frame_ = changed_since_last_frame;
   // First pass: the scene's props without the volume, with their depth.
   actors_->volume()->SetVisibility(false);
   backdrop_->SetDraw(false);

@@ -127,8 +127,10 @@ void showDrilledVoxels(SceneActors& actors, const CavityOrder& picture, std::uin
 /// frame draws the tools, the shadow and the overlays (cheap geometry) and lays them over the
 /// kept picture wherever they are nearer than the surface: the same picture as a full render
 /// (where a tool meets the surface the ray caster also stops at the nearer of the two), in a
-/// few tens of milliseconds instead of seconds on software OpenGL. Composite and MIP modes,
-/// whose volume is not an opaque surface, are ray cast at every frame.
+/// few tens of milliseconds instead of seconds on software OpenGL. While what the volume shows
+/// changes at every frame (a cavity growing under the burr), each frame is one full render
+/// instead. Composite and MIP modes, whose volume is not an opaque surface, are ray cast at
+/// every frame.
 class RecordingFrameRenderer {
  public:
   /// @param width, height frame size [px] (at least 16; rounded up to even for video).
@@ -237,7 +239,8 @@ class RecordingFrameRenderer {
     std::uint64_t cavity = 0;
     std::uint64_t camera = 0;
     bool valid = false;
-  } kept_;
+  } kept_, last_frame_;  ///< What the kept picture shows; what the last frame showed.
+  bool changed_last_frame_ = false;  ///< The last frame showed something else than the one before.
   std::vector<unsigned char> kept_rgb_;  ///< The volume's picture, RGB, bottom row first.
   std::vector<float> kept_eye_depth_;    ///< Distance along the view axis of the surface per pixel [world units]; +inf: none.
   vtkSmartPointer<vtkRenderer> backdrop_;  ///< Layer 0 in the second pass: the composite as background, the text.
