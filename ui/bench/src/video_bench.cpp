@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <chrono>
+#include <fstream>
 #include <iostream>
 #include <memory>
 #include <sstream>
@@ -59,6 +60,13 @@ fs::path makeRecording(const fs::path& out, bool short_run) {
   return run.record;
 }
 
+/// The 1-minute load average (/proc/loadavg): how busy the machine was; -1 when unknown.
+double loadAverage() {
+  std::ifstream in("/proc/loadavg");
+  double load = -1.0;
+  return (in >> load) ? load : -1.0;
+}
+
 nlohmann::ordered_json statsJson(const bench::Stats& s) {
   return {{"mean", s.mean}, {"p50", s.p50}, {"p99", s.p99}, {"max", s.max}};
 }
@@ -92,6 +100,7 @@ fs::path runVideoBench(const VideoBenchOptions& o) {
   options.fps = o.fps;
   const Clock::time_point setup_begin = Clock::now();
   const std::unique_ptr<RecordingFrameRenderer> frames = exportFrameRenderer(scene, recording, options, &std::cout);
+  frames->setReuseVolume(!o.full_render);
   const double setup_s = std::chrono::duration<double>(Clock::now() - setup_begin).count();
   const double first_s = recording.records.front().time_s;
   const double end_s = o.frames > 0 ? std::min(recording.records.back().time_s, first_s + (o.frames - 1) / o.fps) : -1.0;
@@ -127,11 +136,14 @@ fs::path runVideoBench(const VideoBenchOptions& o) {
 
   nlohmann::ordered_json report = reportHeader("video", o.common.short_run);
   report["recording"] = recording_path.string();
+  report["load_average"] = loadAverage();
   report["renderer"] = gl_renderer;
   report["width"] = frames->width();
   report["height"] = frames->height();
   report["fps_of_recording_time"] = o.fps;
   report["frames"] = written;
+  report["full_render"] = o.full_render;
+  report["volume_renders"] = frames->volumeRenders();
   report["scene_load_s"] = load_s;
   report["setup_s"] = setup_s;
   report["first_frame_ms"] = first_frame_ms;
@@ -146,12 +158,14 @@ fs::path runVideoBench(const VideoBenchOptions& o) {
                         {"total", statsJson(s_total)}};
   std::ostringstream md;
   md << "## Video export (`volume-haptics bench video" << (o.common.short_run ? " --short" : "") << "`)\n\n"
-     << format("%d frames of %s at %d x %d (%.0f fps of recording time), OpenGL renderer %s, CPU %s (%u CPUs). "
-               "Scene loaded in %.1f s, frame renderer set up in %.2f s, first frame %.0f ms (shaders, volume "
-               "upload); the rest:\n\n",
+     << format("%d frames of %s at %d x %d (%.0f fps of recording time), %s, OpenGL renderer %s, CPU %s (%u CPUs, "
+               "load average %.1f). Scene loaded in %.1f s, frame renderer set up in %.2f s, first frame %.0f ms "
+               "(shaders, volume upload%s); the volume ray cast %llu times in all; the frames after the first:\n\n",
                written, recording_path.filename().string().c_str(), frames->width(), frames->height(), o.fps,
+               o.full_render ? "every frame a full render (--full-render)" : "the volume's picture kept",
                gl_renderer.c_str(), report["cpu_model"].get<std::string>().c_str(), report["cpus"].get<unsigned>(),
-               load_s, setup_s, first_frame_ms)
+               loadAverage(), load_s, setup_s, first_frame_ms, o.full_render ? "" : ", the volume's picture and depth",
+               static_cast<unsigned long long>(frames->volumeRenders()))
      << "| stage | mean [ms] | p50 [ms] | p99 [ms] | max [ms] |\n|---|---|---|---|---|\n";
   const std::pair<const char*, const Stats*> rows[] = {{"show (poses, shadow, overlay)", &s_show},
                                                         {"render (to completion)", &s_render},
@@ -180,6 +194,9 @@ void addVideoBenchSubcommand(CLI::App& bench, std::function<int()>& handler) {
   cmd->add_option("--height", options->height, "Frame height [px] (default 480)")->check(CLI::Range(16, 8192));
   cmd->add_option("--fps", options->fps, "Frames per second of recording time (default 10)")->check(CLI::Range(1.0, 120.0));
   cmd->add_option("--frames", options->frames, "Frames to time (default: the whole recording)")->check(CLI::Range(1, 1000000));
+  cmd->add_flag("--full-render", options->full_render,
+                "Render every frame in full, the volume ray cast each time: the export before its volume picture was "
+                "kept (for a before and after)");
   cmd->callback([&handler, options] {
     handler = [options] { return bench::runGuarded("video", [&] { runVideoBench(*options); }); };
   });

@@ -11,7 +11,7 @@
 /// replayed by the headless runner into `video-bench.vhrec` in the output folder; a short run
 /// uses the shared small CT head instead.
 ///
-/// Writes video.json (the renderer, frame size, fps, frames, frames_per_s, and per stage the
+/// Writes video.json (the renderer, frame size, fps, frames, frames_per_s, volume_renders, and per stage the
 /// mean, p50, p99 and max [ms] of show, render, readback, encode and the whole frame) and
 /// video.md, and prints the table. Needs an X display with OpenGL (xvfb-run -a -s "-screen 0
 /// 1280x1024x24").
@@ -36,6 +36,10 @@ struct VideoBenchOptions {
   double fps = 10.0;  ///< Frames per second of recording time.
   /// The frames to time; 0: the whole recording at `fps`.
   int frames = 0;
+  /// Render every frame in full, the volume ray cast each time
+  /// (RecordingFrameRenderer::setReuseVolume(false)): the export as it was before the volume's
+  /// picture was kept, for a before and after.
+  bool full_render = false;
 };
 
 /// Runs the benchmark (see the file comment). @return the output folder.
