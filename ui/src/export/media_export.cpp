@@ -369,7 +369,8 @@ void RecordingFrameRenderer::drawFull() {
 
 void RecordingFrameRenderer::keepVolume() {
   // The volume alone: every other prop of the scene's renderer hidden, the overlay layer and
-  // the backdrop off.
+  // the backdrop off; the clipping range a full render has.
+  renderer_->ResetCameraClippingRange();
   vtkPropCollection* props = renderer_->GetViewProps();
   std::vector<std::pair<vtkProp*, int>> shown;
   props->InitTraversal();
@@ -381,7 +382,6 @@ void RecordingFrameRenderer::keepVolume() {
   backdrop_->SetDraw(false);
   renderer_->SetDraw(true);
   actors_->overlayRenderer()->SetDraw(false);
-  renderer_->ResetCameraClippingRange();
   window_->Render();
   std::vector<unsigned char>(static_cast<std::size_t>(width_) * height_ * 3).swap(kept_rgb_);
   vtkNew<vtkUnsignedCharArray> rgb;
@@ -429,12 +429,13 @@ void RecordingFrameRenderer::drawOverKeptVolume() {
     kept_ = now;
   }
   changed_last_frame_ = changed_since_last_frame;
-  // First pass: the scene's props without the volume, with their depth.
+  // First pass: the scene's props without the volume, with their depth; the clipping range a
+  // full render has (the volume counted), which the overlay layer shares in the second pass.
+  renderer_->ResetCameraClippingRange();
   actors_->volume()->SetVisibility(false);
   backdrop_->SetDraw(false);
   renderer_->SetDraw(true);
   actors_->overlayRenderer()->SetDraw(false);
-  renderer_->ResetCameraClippingRange();
   window_->Render();
   actors_->volume()->SetVisibility(true);
   vtkNew<vtkUnsignedCharArray> rgb;
