@@ -519,9 +519,6 @@ TEST(ExportOverlay, ShowsTheRecordsFiguresAndTheEventsOfTheLastTwoSeconds) {
   EXPECT_GT(differing, 300u) << "the overlay's text and alert are not in the picture";
 }
 
-}  // namespace
-}  // namespace vh::ui
-
 // Exported frames reuse the volume's ray-cast picture and depth, and lay the tools over it where
 // they are nearer: the frames must be the ones a full render gives (VTK's ray caster stopping at
 // the tools' depth), with the probe above the sphere, pushed into it (the device's lines inside
@@ -584,3 +581,6 @@ TEST(ExportFrames, ReusingTheVolumesPictureGivesTheFullRendersFrames) {
   EXPECT_EQ(kept.volumeRenders(), 2u) << "the volume is ray cast once (picture and depth) for every frame";
   EXPECT_EQ(full.volumeRenders(), records.size());
 }
+
+}  // namespace
+}  // namespace vh::ui
