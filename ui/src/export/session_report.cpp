@@ -635,7 +635,7 @@ std::unique_ptr<Anatomy> loadAnatomy(const Recording& rec, std::string& why) {
 }
 
 constexpr const char* kStyle = R"(<style>
-body { font-family: sans-serif; margin: 2em; color: #222; max-width: 1100px; }
+body { font-family: sans-serif; margin: 2em; color: #222; max-width: 1160px; }
 h1 { font-size: 1.5em; } h2 { font-size: 1.2em; margin-top: 1.6em; border-bottom: 1px solid #ccc; }
 table { border-collapse: collapse; margin: 0.5em 0; } td, th { border: 1px solid #ddd; padding: 2px 8px; text-align: left; }
 td.n { text-align: right; font-variant-numeric: tabular-nums; } tr.critical td { background: #fde0dc; }
