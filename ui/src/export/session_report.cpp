@@ -249,15 +249,24 @@ struct MapView {
 
 /// The three views, each from the side the tool was on: the side the force on the hand pointed
 /// to, summed over the ticks in contact along the view's axis (the force pushes the hand out of
-/// the surface, toward the tool). Without any, the usual radiological sides: axial from below,
+/// the surface, toward the tool), where that sum is at least a quarter of the summed |F|.
+/// Otherwise the usual radiological sides: axial from below,
 /// coronal from the front, sagittal from the left. Anterior is up on the axial view, superior
 /// on the others.
 std::array<MapView, 3> mapViews(const Recording& rec) {
   Eigen::Vector3d force_sum_W = Eigen::Vector3d::Zero();
-  for (const TickRecord& r : rec.records)
-    if (r.contacts > 0) force_sum_W += Eigen::Vector3d(r.force_W_N[0], r.force_W_N[1], r.force_W_N[2]);
+  double magnitude_sum_N = 0.0;
+  for (const TickRecord& r : rec.records) {
+    if (r.contacts == 0) continue;
+    const Eigen::Vector3d f(r.force_W_N[0], r.force_W_N[1], r.force_W_N[2]);
+    force_sum_W += f;
+    magnitude_sum_N += f.norm();
+  }
+  // A side only where the force pointed along the axis for a fair part (a quarter) of its size:
+  // a press on the top of the head says nothing about front or back.
   const auto side = [&](int axis, double otherwise) {
-    return force_sum_W[axis] > 1e-9 ? 1.0 : force_sum_W[axis] < -1e-9 ? -1.0 : otherwise;
+    const double along = force_sum_W[axis], enough = std::max(0.25 * magnitude_sum_N, 1e-9);
+    return along > enough ? 1.0 : along < -enough ? -1.0 : otherwise;
   };
   const Eigen::Vector3d x = Eigen::Vector3d::UnitX(), y = Eigen::Vector3d::UnitY(), z = Eigen::Vector3d::UnitZ();
   std::array<MapView, 3> views;
@@ -327,7 +336,11 @@ QImage anatomyProjection(const Anatomy& anatomy, const MapView& view, const MapF
           (f.isInside(p, anatomy.isovalue) ? in_d : out_d) = mid;
         }
         p[c] = start - toward * in_d;
-        const Eigen::Vector3d g = f.gradient(p);
+        // The normal from the gradient averaged over a voxel around the hit: the trilinear
+        // field's own gradient jumps at every slice and would draw the slices as rings.
+        Eigen::Vector3d g = f.gradient(p);
+        const double r = f.geometry().minSpacing();
+        for (const Eigen::Vector3d& e : {view.right_W, view.up_W, view.out_W}) g += f.gradient(p + r * e) + f.gradient(p - r * e);
         // Inside is above the isovalue: the outward normal is down the gradient.
         const double lambert = g.norm() > 0 ? std::max(0.0, -g.normalized().dot(light_W)) : 0.6;
         const double dim = 1.0 - 0.35 * in_d / depth_m;
@@ -453,11 +466,12 @@ std::string mapImage(const QString& title, const MapView& view, const MapFrame& 
 }
 
 /// A map with its caption: the view in words, the field's width and the scale bar.
-std::string mapFigure(const std::string& uri, const std::string& title, const MapView& view, const MapFrame& frame) {
+std::string mapFigure(const std::string& uri, const std::string& title, const MapView& view, const MapFrame& frame,
+                      int width_px) {
   const std::string words = view.caption() + ". Field " + formatNumber(frame.width_mm(), 2) + " mm across, scale bar " +
                             formatNumber(scaleBar_mm(frame.width_mm())) + " mm.";
-  return "<figure class=\"map\">" + imageTag(uri, title + ". " + words, "map") + "<figcaption>" + escapeHtml(words) +
-         "</figcaption></figure>\n";
+  return "<figure class=\"map\" style=\"width: " + std::to_string(width_px) + "px\">" +
+         imageTag(uri, title + ". " + words, "map") + "<figcaption>" + escapeHtml(words) + "</figcaption></figure>\n";
 }
 
 /// The contact map: proxy positions in contact on the three views, in four force bands.
@@ -488,7 +502,8 @@ std::string contactMap(const Recording& rec, const SessionMetrics& m, const Sess
     }
     const MapFrame frame = frameAround(all);
     const std::string title = "Contacts, " + view.name;
-    html += mapFigure(mapImage(QString::fromStdString(title), view, frame, layers, o.map_size, anatomy), title, view, frame);
+    html += mapFigure(mapImage(QString::fromStdString(title), view, frame, layers, o.map_size, anatomy), title, view, frame,
+                      o.map_size);
   }
   return html + "</div>\n";
 }
@@ -503,7 +518,7 @@ std::string pathsMap(const runtime::ReferenceComparison& c, const MapView& view,
   all = layers[0].points_mm + layers[1].points_mm;
   const MapFrame frame = frameAround(all);
   const std::string title = "Device paths, " + view.name;
-  return mapFigure(mapImage(QString::fromStdString(title), view, frame, layers, size, anatomy), title, view, frame);
+  return mapFigure(mapImage(QString::fromStdString(title), view, frame, layers, size, anatomy), title, view, frame, size);
 }
 
 std::string metricsTable(const std::vector<MetricValue>& values) {
@@ -565,7 +580,8 @@ std::string eventsTable(const Recording& rec) {
   html += "</table>\n";
   if (rows.size() < rec.events.size())
     html += "<p class=\"small\">" + std::to_string(rec.events.size()) + " events in " + std::to_string(rows.size()) +
-            " rows: a kind repeated more than 5 times is one row; <code>volume-haptics export --events-csv</code> "
+            (rows.size() == 1 ? " row" : " rows") +
+            ": a kind repeated more than 5 times is one row; <code>volume-haptics export --events-csv</code> "
             "lists every event.</p>\n";
   return html;
 }
@@ -641,7 +657,7 @@ table { border-collapse: collapse; margin: 0.5em 0; } td, th { border: 1px solid
 td.n { text-align: right; font-variant-numeric: tabular-nums; } tr.critical td { background: #fde0dc; }
 table.meta th { background: #f4f4f4; } .notice { background: #fff3cd; border: 1px solid #e0b000; padding: 0.6em 1em; }
 img.chart { display: block; max-width: 100%; } .maps { display: flex; flex-wrap: wrap; gap: 8px; }
-.small { color: #666; font-size: 0.9em; } figure.map { margin: 0; max-width: 460px; }
+.small { color: #666; font-size: 0.9em; } figure.map { margin: 0; }
 figure.map figcaption { font-size: 0.85em; color: #444; margin-top: 2px; } img.map { display: block; max-width: 100%; }
 </style>
 )";
