@@ -9,6 +9,7 @@
 #include <filesystem>
 #include <fstream>
 #include <iostream>
+#include <limits>
 #include <memory>
 #include <string>
 
@@ -25,6 +26,7 @@
 #include <vtkActor.h>
 #include <vtkImageData.h>
 #include <vtkMatrix4x4.h>
+#include <vtkRenderer.h>
 
 #include "ui_test_util.h"
 #include "vh/runtime/device.h"
@@ -516,6 +518,71 @@ TEST(ExportOverlay, ShowsTheRecordsFiguresAndTheEventsOfTheLastTwoSeconds) {
   std::size_t differing = 0;
   for (vtkIdType i = 0; i < a->GetNumberOfPoints() * 3; ++i) differing += std::abs(pa[i] - pb[i]) > 40 ? 1 : 0;
   EXPECT_GT(differing, 300u) << "the overlay's text and alert are not in the picture";
+}
+
+// Exported frames reuse the volume's ray-cast picture and depth, and lay the tools over it where
+// they are nearer: the frames must be the ones a full render gives (VTK's ray caster stopping at
+// the tools' depth), with the probe above the sphere, pushed into it (the device's lines inside
+// hidden), and behind it from the camera (partly hidden by the sphere), while the volume is ray
+// cast once for all of them.
+TEST(ExportFrames, ReusingTheVolumesPictureGivesTheFullRendersFrames) {
+  const runtime::LoadedScene& scene = test::sphereProbeScene();
+  const haptics::ScalarVolume& field = *scene.hapticField();
+  const double iso = scene.hapticIsovalue();
+  const Eigen::Vector3d centre = 0.5 * (field.boundsMin_W_m() + field.boundsMax_W_m());
+  // The sphere's radius along +y (towards the back: the camera looks from the front).
+  double radius = 0.0;
+  while (field.isInside(centre + Eigen::Vector3d(0, radius + 1e-4, 0), iso)) radius += 1e-4;
+  ASSERT_GT(radius, 0.005);
+  const auto record = [](const Eigen::Vector3d& p_WP, const Eigen::Vector3d& p_WD, double force_z_N) {
+    runtime::TickRecord r;
+    for (int a = 0; a < 3; ++a) r.p_WP_m[a] = p_WP[a], r.p_WD_m[a] = p_WD[a];
+    r.force_W_N[2] = force_z_N;
+    r.isovalue = std::numeric_limits<double>::quiet_NaN();
+    return r;
+  };
+  const Eigen::Vector3d top = scene.X_WT_initial.p_AB_m;  // free, just above the surface
+  const std::vector<runtime::TickRecord> records = {
+      record(top + Eigen::Vector3d(0, 0, 0.01), top + Eigen::Vector3d(0, 0, 0.01), 0.0),  // above
+      record(top, top - Eigen::Vector3d(0, 0, 0.008), 4.0),                             // pressed: device inside
+      record(centre + Eigen::Vector3d(0, radius + 0.004, 0), centre + Eigen::Vector3d(0, radius + 0.004, 0), 0.0),  // behind
+  };
+  const SceneActorsSpec spec = sceneActorsSpecFor(scene, runtime::LiveValues::initial(scene));
+  RecordingFrameRenderer kept(spec, 320, 240, ViewLook{});
+  RecordingFrameRenderer full(spec, 320, 240, ViewLook{});
+  full.setReuseVolume(false);
+  kept.show(records[0]);
+  kept.resetCamera();
+  full.copyCamera(kept.renderer()->GetActiveCamera());
+  RecordingFrameRenderer empty(spec, 320, 240, ViewLook{});  // the sphere without the tools
+  empty.copyCamera(kept.renderer()->GetActiveCamera());
+  empty.actors().proxyActor()->SetVisibility(false);
+  empty.actors().deviceActor()->SetVisibility(false);
+  empty.setReuseVolume(false);
+  const auto pixels = [](vtkImageData* image) {
+    const auto* p = static_cast<const unsigned char*>(image->GetScalarPointer());
+    return std::vector<unsigned char>(p, p + image->GetNumberOfPoints() * 3);
+  };
+  const auto differing = [](const std::vector<unsigned char>& a, const std::vector<unsigned char>& b) {
+    std::size_t n = 0;
+    for (std::size_t i = 0; i < a.size(); i += 3)
+      n += std::abs(a[i] - b[i]) > 24 || std::abs(a[i + 1] - b[i + 1]) > 24 || std::abs(a[i + 2] - b[i + 2]) > 24;
+    return n;
+  };
+  empty.show(records[0]);
+  const std::vector<unsigned char> sphere_alone = pixels(empty.render());
+  const std::size_t frame_pixels = sphere_alone.size() / 3;
+  for (std::size_t k = 0; k < records.size(); ++k) {
+    kept.show(records[k]);
+    full.show(records[k]);
+    const std::vector<unsigned char> a = pixels(kept.render()), b = pixels(full.render());
+    EXPECT_LT(differing(a, b), frame_pixels / 200) << "record " << k << ": the frame differs from a full render's";
+    if (k < 2) {
+      EXPECT_GT(differing(b, sphere_alone), 100u) << "record " << k << ": the probe is not in the picture";
+    }
+  }
+  EXPECT_EQ(kept.volumeRenders(), 2u) << "the volume is ray cast once (picture and depth) for every frame";
+  EXPECT_EQ(full.volumeRenders(), records.size());
 }
 
 }  // namespace

@@ -3,6 +3,8 @@
 // reference of another scene is refused. Runs on Qt's offscreen platform (no display).
 #include "vh/ui/export/session_report.h"
 
+#include <algorithm>
+#include <cctype>
 #include <cmath>
 #include <cstdlib>
 #include <filesystem>
@@ -73,6 +75,18 @@ std::vector<Image> inlineImages(const std::string& html) {
   return out;
 }
 
+/// The page without its inline pictures' data (base64 has letters, digits and '+').
+std::string withoutPictures(const std::string& html) {
+  std::string out;
+  const std::string key = "src=\"data:";
+  std::size_t from = 0;
+  for (std::size_t at = html.find(key); at != std::string::npos; at = html.find(key, from)) {
+    out += html.substr(from, at - from);
+    from = html.find('"', at + key.size());
+  }
+  return out + html.substr(from);
+}
+
 /// Distinct colours of an image (a blank or single-colour picture has 1 or 2).
 std::size_t colours(const QImage& image) {
   std::set<QRgb> seen;
@@ -106,9 +120,104 @@ TEST(SessionReport, PicturesArePresentDecodeAndAreNotBlank) {
   EXPECT_GT(blue, 200);
   // A recording whose metadata names no scene: the contact map without the surface, and why.
   EXPECT_NE(html.find("the scan could not be reloaded"), std::string::npos);
-  // The metrics table: peak force 4 N to 4 digits, time in contact 2 s (1999 ticks).
-  EXPECT_NE(html.find("<td class=\"n\">3.998</td>"), std::string::npos);
-  EXPECT_NE(html.find("<td class=\"n\">1.999</td>"), std::string::npos);
+  // The metrics table: peak force 3.998 N and time in contact 1.999 s (1999 ticks), to 3 digits
+  // with their units.
+  EXPECT_NE(html.find("<td class=\"n\">4 N</td>"), std::string::npos);
+  EXPECT_NE(html.find("<td class=\"n\">2 s</td>"), std::string::npos);
+  // No number in C's exponent notation ("6.392e-06", "1.3e+02") anywhere in the text.
+  const std::string text = withoutPictures(html);
+  for (std::size_t i = 1; i + 2 < text.size(); ++i)
+    if ((text[i] == 'e' || text[i] == 'E') && std::isdigit(static_cast<unsigned char>(text[i - 1])) &&
+        (text[i + 1] == '+' || text[i + 1] == '-') && std::isdigit(static_cast<unsigned char>(text[i + 2])))
+      ADD_FAILURE() << "an exponent in: " << text.substr(i < 40 ? 0 : i - 40, 80);
+}
+
+/// The caption of the map whose title starts with `title` ("Contacts, Axial").
+std::string captionOf(const std::string& html, const std::string& title) {
+  const std::size_t at = html.find("alt=\"" + title);
+  if (at == std::string::npos) return {};
+  const std::size_t begin = html.find("<figcaption>", at), end = html.find("</figcaption>", at);
+  return begin == std::string::npos ? std::string() : html.substr(begin + 12, end - begin - 12);
+}
+
+TEST(SessionReport, ContactMapsAreLabelledInThePatientFrameFromTheToolsSide) {
+  // W is LPS (+x left, +y posterior, +z superior). pressSession pushes the hand up (+z) while in
+  // contact: the tool was above the surface, so the axial view is seen from above the head.
+  // Looking down on the top of the head with the nose (A) up, the patient's right is on the
+  // viewer's right. The coronal and sagittal views have no force along their axis: the usual
+  // radiological sides, from the front (the patient's right on the viewer's left) and from the
+  // left (the face, A, on the left).
+  Recording rec = pressSession("abc");
+  std::string html = sessionReportHtml(rec, "press.vhrec");
+  EXPECT_EQ(captionOf(html, "Contacts, Axial").rfind(
+                "Axial, seen from above the head (superior, S): A at the top, P at the bottom, L on the left, R on the "
+                "right", 0),
+            0u)
+      << captionOf(html, "Contacts, Axial");
+  EXPECT_EQ(captionOf(html, "Contacts, Coronal").rfind(
+                "Coronal, seen from the front (anterior, A): S at the top, I at the bottom, R on the left, L on the right",
+                0),
+            0u)
+      << captionOf(html, "Contacts, Coronal");
+  EXPECT_EQ(captionOf(html, "Contacts, Sagittal").rfind(
+                "Sagittal, seen from the patient's left (L): S at the top, I at the bottom, A on the left, P on the right",
+                0),
+            0u)
+      << captionOf(html, "Contacts, Sagittal");
+  // Pushed down instead (the tool under the surface): seen from below the feet, mirrored left-right.
+  for (TickRecord& t : rec.records) t.force_W_N[2] = -t.force_W_N[2];
+  html = sessionReportHtml(rec, "press.vhrec");
+  EXPECT_EQ(captionOf(html, "Contacts, Axial").rfind(
+                "Axial, seen from below the feet (inferior, I): A at the top, P at the bottom, R on the left, L on the "
+                "right",
+                0),
+            0u)
+      << captionOf(html, "Contacts, Axial");
+}
+
+TEST(SessionReport, ContactMapsShowTheAnatomyAroundTheContactsNotAFewMillimetres) {
+  // The contacts go round a circle of 20 mm radius: 40 mm across. Framed on at least 80 mm, they
+  // cover about half of the map's width (a map zoomed onto them covers nearly all of it).
+  SessionReportOptions options;
+  const std::string html = sessionReportHtml(pressSession("abc"), "press.vhrec", options);
+  const std::vector<Image> images = inlineImages(html);
+  ASSERT_EQ(images.size(), 5u);
+  const QImage& axial = images[2].image;
+  ASSERT_NE(images[2].alt.find("Contacts, Axial"), std::string::npos) << images[2].alt;
+  int left = axial.width(), right = -1;
+  for (int y = 0; y < axial.height() * 3 / 4; ++y)  // above the legend
+    for (int x = 0; x < axial.width(); ++x) {
+      const QColor c(axial.pixel(x, y));
+      const int spread = std::max({c.red(), c.green(), c.blue()}) - std::min({c.red(), c.green(), c.blue()});
+      if (spread > 80) left = std::min(left, x), right = std::max(right, x);  // a force band's colour
+    }
+  ASSERT_GT(right, left) << "no contacts drawn";
+  const double covered = static_cast<double>(right - left) / axial.width();
+  EXPECT_GT(covered, 0.35);
+  EXPECT_LT(covered, 0.6) << "40 mm of contacts in a field of 80 mm";
+  EXPECT_NE(images[2].alt.find("Field 80 mm across, scale bar 20 mm"), std::string::npos) << images[2].alt;
+}
+
+TEST(SessionReport, RepeatedEventsAreSummarisedAndTheComparisonComesFirst) {
+  Recording session = pressSession("abc");
+  for (int i = 0; i < 300; ++i)
+    session.events.push_back({1.5 + 0.01 * i, static_cast<std::uint64_t>(1500 + 10 * i), "isovalue",
+                              "{\"from\":" + std::to_string(250 + 0.5 * i) + ",\"to\":" + std::to_string(250.5 + 0.5 * i) + "}"});
+  Recording expert = pressSession("abc");
+  const std::string html = sessionReportHtml(session, "s", {}, &expert, "expert.vhrec");
+  const std::size_t events_at = html.find("<table class=\"events\">");
+  ASSERT_NE(events_at, std::string::npos);
+  const std::string events = html.substr(events_at, html.find("</table>", events_at) - events_at);
+  std::size_t rows = 0;
+  for (std::size_t at = events.find("<tr"); at != std::string::npos; at = events.find("<tr", at + 1)) ++rows;
+  EXPECT_EQ(rows, 3u) << "the header, the marker, one row for 300 isovalue changes:\n" << events;
+  EXPECT_NE(events.find("Isovalue changed 300 times, 250 → 400"), std::string::npos) << events;
+  EXPECT_NE(events.find("first at 0:01.5, last at 0:04.5"), std::string::npos) << events;
+  // The comparison with the expert before the charts and the tables.
+  const std::size_t comparison = html.find("Against the reference expert.vhrec");
+  ASSERT_NE(comparison, std::string::npos);
+  EXPECT_LT(comparison, html.find("<h2>Force</h2>"));
+  EXPECT_LT(comparison, events_at);
 }
 
 TEST(SessionReport, TruncatedRecordingGivesAReportWithANotice) {

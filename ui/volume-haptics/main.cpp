@@ -46,6 +46,7 @@
 #include "vh/ui/application.h"
 #include "vh/ui/bench/memory_bench.h"
 #include "vh/ui/bench/render_bench.h"
+#include "vh/ui/bench/video_bench.h"
 #include "vh/ui/export/media_export.h"
 
 namespace fs = std::filesystem;
@@ -488,6 +489,7 @@ int main(int argc, char** argv) {
   CLI::App* bench = vh::bench::addBenchSubcommand(app, bench_handler);
   vh::ui::addRenderBenchSubcommand(*bench, bench_handler);  // renders with the window's view
   vh::ui::addMemoryBenchSubcommand(*bench, bench_handler);  // measures the window's process
+  vh::ui::addVideoBenchSubcommand(*bench, bench_handler);   // times `export --video`
   std::function<int()> pacs_handler;
   vh::app::addPacsSubcommand(app, pacs_handler);
 

@@ -13,6 +13,14 @@
 #include <string>
 
 #include <vtkCamera.h>
+#include <vtkDataArray.h>
+#include <vtkFloatArray.h>
+#include <vtkGPUVolumeRayCastMapper.h>
+#include <vtkPointData.h>
+#include <vtkPropCollection.h>
+#include <vtkTexture.h>
+#include <vtkUnsignedCharArray.h>
+#include <vtkVolume.h>
 #include <vtkImageData.h>
 #include <vtkNew.h>
 #include <vtkOggTheoraWriter.h>
@@ -128,6 +136,22 @@ RecordingFrameRenderer::RecordingFrameRenderer(const SceneActorsSpec& spec, int 
   grabber_->SetInputBufferTypeToRGB();
   grabber_->ReadFrontBufferOff();
   grabber_->ShouldRerenderOff();  // render() renders first
+  // The second pass of a frame over the kept volume picture: the composite as the background
+  // texture, the overlay's text over it (setOverlay()), then the overlay layer (contacts, force).
+  backdrop_ = vtkSmartPointer<vtkRenderer>::New();
+  backdrop_->SetLayer(0);
+  backdrop_->InteractiveOff();
+  backdrop_->SetDraw(false);
+  composite_ = vtkSmartPointer<vtkImageData>::New();
+  composite_->SetDimensions(width_, height_, 1);
+  composite_->AllocateScalars(VTK_UNSIGNED_CHAR, 3);
+  vtkNew<vtkTexture> texture;
+  texture->SetInputData(composite_);
+  texture->InterpolateOff();
+  texture->RepeatOff();
+  backdrop_->SetBackgroundTexture(texture);
+  backdrop_->TexturedBackgroundOn();
+  window_->AddRenderer(backdrop_);
   resetCamera();
 }
 
@@ -153,12 +177,14 @@ void RecordingFrameRenderer::resetCamera() {
   renderer_->ResetCamera();
   cam->Zoom(1.2);
   renderer_->ResetCameraClippingRange();
+  ++camera_generation_;
 }
 
 void RecordingFrameRenderer::copyCamera(vtkCamera* camera) {
   if (camera == nullptr) return;
   renderer_->GetActiveCamera()->DeepCopy(camera);
   renderer_->ResetCameraClippingRange();
+  ++camera_generation_;
 }
 
 void RecordingFrameRenderer::show(const runtime::TickRecord& record) {
@@ -195,7 +221,7 @@ void RecordingFrameRenderer::setOverlay(const runtime::Recording* recording) {
     overlay_text_->GetTextProperty()->SetVerticalJustificationToTop();
     overlay_text_->GetPositionCoordinate()->SetCoordinateSystemToNormalizedViewport();
     overlay_text_->GetPositionCoordinate()->SetValue(0.01, 0.985);
-    renderer_->AddActor2D(overlay_text_);
+    backdrop_->AddActor2D(overlay_text_);
     overlay_alert_ = vtkSmartPointer<vtkTextActor>::New();
     overlay_alert_->GetTextProperty()->SetFontSize(static_cast<int>(1.2 * font));
     overlay_alert_->GetTextProperty()->SetBold(true);
@@ -206,7 +232,7 @@ void RecordingFrameRenderer::setOverlay(const runtime::Recording* recording) {
     overlay_alert_->GetTextProperty()->SetVerticalJustificationToBottom();
     overlay_alert_->GetPositionCoordinate()->SetCoordinateSystemToNormalizedViewport();
     overlay_alert_->GetPositionCoordinate()->SetValue(0.5, 0.03);
-    renderer_->AddActor2D(overlay_alert_);
+    backdrop_->AddActor2D(overlay_alert_);
   }
   overlay_text_->SetVisibility(false);
   overlay_alert_->SetVisibility(false);
@@ -288,8 +314,158 @@ void showDrilledVoxels(SceneActors& actors, const CavityOrder& picture, std::uin
 }
 
 vtkImageData* RecordingFrameRenderer::render() {
+  draw();
+  return readBack();
+}
+
+void RecordingFrameRenderer::draw(bool wait) {
+  if (reuse_volume_ && actors_->renderMode() == RenderMode::kIsosurface && actors_->volume()->GetVisibility() != 0)
+    drawOverKeptVolume();
+  else
+    drawFull();
+  if (wait) window_->WaitForCompletion();
+}
+
+void RecordingFrameRenderer::setReuseVolume(bool reuse) {
+  reuse_volume_ = reuse;
+  kept_.valid = false;
+  last_frame_.valid = false;
+  changed_last_frame_ = false;
+}
+
+namespace {
+
+/// Distance along the view axis [world units] of a window depth in [0, 1] (glDepthRange 0..1)
+/// under a camera with clipping range [near, far]; +inf for the far plane (nothing drawn).
+float eyeDepth(float window_depth, double near, double far, bool parallel) {
+  if (!(window_depth < 1.0f)) return std::numeric_limits<float>::infinity();
+  if (parallel) return static_cast<float>(near + window_depth * (far - near));
+  const double ndc = 2.0 * window_depth - 1.0;
+  return static_cast<float>(2.0 * near * far / ((far + near) - ndc * (far - near)));
+}
+
+}  // namespace
+
+void RecordingFrameRenderer::drawFull() {
+  backdrop_->SetDraw(false);
+  renderer_->SetDraw(true);
+  actors_->overlayRenderer()->SetDraw(true);
+  if (overlay_text_ != nullptr) {  // the text is drawn by backdrop_, which a full render leaves out
+    backdrop_->RemoveActor2D(overlay_text_);
+    backdrop_->RemoveActor2D(overlay_alert_);
+    renderer_->AddActor2D(overlay_text_);
+    renderer_->AddActor2D(overlay_alert_);
+  }
   renderer_->ResetCameraClippingRange();
   window_->Render();
+  ++volume_renders_;
+  if (overlay_text_ != nullptr) {
+    renderer_->RemoveActor2D(overlay_text_);
+    renderer_->RemoveActor2D(overlay_alert_);
+    backdrop_->AddActor2D(overlay_text_);
+    backdrop_->AddActor2D(overlay_alert_);
+  }
+}
+
+void RecordingFrameRenderer::keepVolume() {
+  // The volume alone: every other prop of the scene's renderer hidden, the overlay layer and
+  // the backdrop off; the clipping range a full render has.
+  renderer_->ResetCameraClippingRange();
+  vtkPropCollection* props = renderer_->GetViewProps();
+  std::vector<std::pair<vtkProp*, int>> shown;
+  props->InitTraversal();
+  for (vtkProp* prop = props->GetNextProp(); prop != nullptr; prop = props->GetNextProp()) {
+    if (prop == actors_->volume() || prop->GetVisibility() == 0) continue;
+    shown.emplace_back(prop, prop->GetVisibility());
+    prop->SetVisibility(false);
+  }
+  backdrop_->SetDraw(false);
+  renderer_->SetDraw(true);
+  actors_->overlayRenderer()->SetDraw(false);
+  window_->Render();
+  std::vector<unsigned char>(static_cast<std::size_t>(width_) * height_ * 3).swap(kept_rgb_);
+  vtkNew<vtkUnsignedCharArray> rgb;
+  window_->GetPixelData(0, 0, width_ - 1, height_ - 1, /*front=*/0, rgb, /*right=*/0);
+  std::copy(rgb->GetPointer(0), rgb->GetPointer(0) + kept_rgb_.size(), kept_rgb_.begin());
+  // Its depth: the ray caster's own, where it first met the surface (1 where it met nothing).
+  vtkGPUVolumeRayCastMapper* mapper = actors_->volumeMapper();
+  mapper->SetRenderToImage(true);
+  mapper->SetDepthImageScalarTypeToFloat();
+  window_->Render();
+  vtkNew<vtkImageData> depth;
+  mapper->GetDepthImage(depth);
+  mapper->SetRenderToImage(false);
+  volume_renders_ += 2;
+  for (auto& [prop, visibility] : shown) prop->SetVisibility(visibility);
+  int dims[3] = {0, 0, 0};
+  depth->GetDimensions(dims);
+  vtkDataArray* z = depth->GetPointData() != nullptr ? depth->GetPointData()->GetScalars() : nullptr;
+  if (z == nullptr || dims[0] != width_ || dims[1] != height_)
+    throw std::runtime_error("the volume's depth image could not be read back (" + std::to_string(dims[0]) + " x " +
+                             std::to_string(dims[1]) + ")");
+  double range[2];
+  renderer_->GetActiveCamera()->GetClippingRange(range);
+  const bool parallel = renderer_->GetActiveCamera()->GetParallelProjection() != 0;
+  kept_eye_depth_.resize(static_cast<std::size_t>(width_) * height_);
+  for (std::size_t i = 0; i < kept_eye_depth_.size(); ++i)
+    kept_eye_depth_[i] = eyeDepth(static_cast<float>(z->GetComponent(static_cast<vtkIdType>(i), 0)), range[0], range[1], parallel);
+}
+
+void RecordingFrameRenderer::drawOverKeptVolume() {
+  const KeptKey now{actors_->isovalue(), cavity_shown_, camera_generation_, true};
+  const auto same = [](const KeptKey& a, const KeptKey& b) {
+    return a.valid && b.valid && a.isovalue == b.isovalue && a.cavity == b.cavity && a.camera == b.camera;
+  };
+  const bool changed_since_last_frame = !same(now, last_frame_);
+  last_frame_ = now;
+  if (!same(now, kept_)) {
+    // Changing at every frame (a cavity growing while the burr drills): one full render a frame
+    // costs less than keeping a picture (colour and depth) that the next frame throws away.
+    if (changed_since_last_frame && changed_last_frame_) {
+      drawFull();
+      return;
+    }
+    keepVolume();
+    kept_ = now;
+  }
+  changed_last_frame_ = changed_since_last_frame;
+  // First pass: the scene's props without the volume, with their depth; the clipping range a
+  // full render has (the volume counted), which the overlay layer shares in the second pass.
+  renderer_->ResetCameraClippingRange();
+  actors_->volume()->SetVisibility(false);
+  backdrop_->SetDraw(false);
+  renderer_->SetDraw(true);
+  actors_->overlayRenderer()->SetDraw(false);
+  window_->Render();
+  actors_->volume()->SetVisibility(true);
+  vtkNew<vtkUnsignedCharArray> rgb;
+  window_->GetPixelData(0, 0, width_ - 1, height_ - 1, /*front=*/0, rgb, /*right=*/0);
+  vtkNew<vtkFloatArray> z;
+  window_->GetZbufferData(0, 0, width_ - 1, height_ - 1, z);
+  double range[2];
+  renderer_->GetActiveCamera()->GetClippingRange(range);
+  const bool parallel = renderer_->GetActiveCamera()->GetParallelProjection() != 0;
+  // The composite: a prop's pixel where it is nearer than the surface, else the kept picture.
+  auto* out = static_cast<unsigned char*>(composite_->GetScalarPointer());
+  const unsigned char* props_rgb = rgb->GetPointer(0);
+  const float* props_z = z->GetPointer(0);
+  const std::size_t n = kept_eye_depth_.size();
+  for (std::size_t i = 0; i < n; ++i) {
+    const bool prop_in_front = props_z[i] < 1.0f && eyeDepth(props_z[i], range[0], range[1], parallel) < kept_eye_depth_[i];
+    const unsigned char* from = prop_in_front ? props_rgb + 3 * i : kept_rgb_.data() + 3 * i;
+    out[3 * i] = from[0], out[3 * i + 1] = from[1], out[3 * i + 2] = from[2];
+  }
+  composite_->Modified();
+  // Second pass: the composite as the background, the text and the overlay layer over it.
+  renderer_->SetDraw(false);
+  backdrop_->SetDraw(true);
+  actors_->overlayRenderer()->SetDraw(true);
+  window_->Render();
+  renderer_->SetDraw(true);
+  backdrop_->SetDraw(false);
+}
+
+vtkImageData* RecordingFrameRenderer::readBack() {
   grabber_->Modified();
   grabber_->Update();
   return grabber_->GetOutput();
@@ -351,7 +527,8 @@ void addReplayedRemovals(DrillingTimeline& timeline, const runtime::LoadedScene&
 // ---- Writers -------------------------------------------------------------------------------------
 
 int writeRecordingVideo(RecordingFrameRenderer& frames, const runtime::Recording& recording, const fs::path& path,
-                        double fps, double start_s, double end_s, const FrameProgress& progress) {
+                        double fps, double start_s, double end_s, const FrameProgress& progress,
+                        std::vector<VideoFrameTimes>* times) {
   if (recording.records.empty()) throw std::invalid_argument(path.string() + ": the recording has no records");
   if (!(fps >= 1.0 && fps <= 120.0)) {
     throw std::invalid_argument(path.string() + ": frame rate " + std::to_string(fps) + " is outside 1 .. 120 fps");
@@ -380,10 +557,18 @@ int writeRecordingVideo(RecordingFrameRenderer& frames, const runtime::Recording
   frames.render();
   writer->Start();
   int done = 0;
+  using Clock = std::chrono::steady_clock;
+  const auto ms = [](Clock::time_point a, Clock::time_point b) { return std::chrono::duration<double, std::milli>(b - a).count(); };
   for (int k = 0; k < total; ++k) {
+    const Clock::time_point t0 = Clock::now();
     showAt(begin + static_cast<double>(k) / fps);
-    frames.render();
+    const Clock::time_point t1 = Clock::now();
+    frames.draw(/*wait=*/times != nullptr);
+    const Clock::time_point t2 = Clock::now();
+    frames.readBack();
+    const Clock::time_point t3 = Clock::now();
     writer->Write();
+    if (times != nullptr) times->push_back({ms(t0, t1), ms(t1, t2), ms(t2, t3), ms(t3, Clock::now())});
     if (writer->GetError() != 0) break;
     ++done;
     if (progress && !progress(done, total)) break;
@@ -455,6 +640,33 @@ class ConsoleVideoProgress {
 
 }  // namespace
 
+std::unique_ptr<RecordingFrameRenderer> exportFrameRenderer(const runtime::LoadedScene& scene,
+                                                            const runtime::Recording& recording,
+                                                            const MediaExportOptions& options, std::ostream* log) {
+  ViewLook look;
+  look.mode = options.mode;
+  look.preset = options.preset;
+  auto frames = std::make_unique<RecordingFrameRenderer>(sceneActorsSpecFor(scene, runtime::LiveValues::initial(scene)),
+                                                         options.width, options.height, look);
+  if (options.overlay) frames->setOverlay(&recording);
+  if (options.shadow && scene.tool != nullptr) {
+    frames->setShadow(scene.hapticField(), scene.hapticIsovalue(), toolShadowSamples(*scene.tool));
+  }
+  if (scene.spec.drill) {
+    // The cavity grows in the frames as it did in the session: the recording is replayed
+    // first (a few seconds on a big CT).
+    if (log != nullptr) *log << "volume-haptics export: replaying the drilling for the cavity...\n";
+    DrillingTimeline timeline = drillingTimeline(scene, recording);
+    if (log != nullptr)
+      *log << "volume-haptics export: the cavity grows to " << timeline.picture.removedAt(recording.records.size())
+           << " voxels\n";
+    frames->setDrilling(std::move(timeline));
+  }
+  if (!recording.records.empty()) frames->show(recording.records.front());
+  frames->resetCamera();  // fitted to the volume and the tools where they start
+  return frames;
+}
+
 int exportRecordingMedia(int /*argc*/, char** /*argv*/, const fs::path& recording_path,
                          const MediaExportOptions& options) {
   try {
@@ -469,25 +681,8 @@ int exportRecordingMedia(int /*argc*/, char** /*argv*/, const fs::path& recordin
     runtime::SceneSpec spec = runtime::sceneFromSessionMetadata(recording.metadata_json);
     spec.device.reset();
     const runtime::LoadedScene scene = runtime::loadScene(spec);
-    ViewLook look;
-    look.mode = options.mode;
-    look.preset = options.preset;
-    RecordingFrameRenderer frames(sceneActorsSpecFor(scene, runtime::LiveValues::initial(scene)), options.width, options.height, look);
-    if (options.overlay) frames.setOverlay(&recording);
-    if (options.shadow && scene.tool != nullptr) {
-      frames.setShadow(scene.hapticField(), scene.hapticIsovalue(), toolShadowSamples(*scene.tool));
-    }
-    if (scene.spec.drill) {
-      // The cavity grows in the frames as it did in the session: the recording is replayed
-      // first (a few seconds on a big CT).
-      std::cerr << "volume-haptics export: replaying the drilling for the cavity...\n";
-      DrillingTimeline timeline = drillingTimeline(scene, recording);
-      std::cerr << "volume-haptics export: the cavity grows to " << timeline.picture.removedAt(recording.records.size())
-                << " voxels\n";
-      frames.setDrilling(std::move(timeline));
-    }
-    frames.show(recording.records.front());
-    frames.resetCamera();  // fitted to the volume and the tools where they start
+    const std::unique_ptr<RecordingFrameRenderer> renderer = exportFrameRenderer(scene, recording, options, &std::cerr);
+    RecordingFrameRenderer& frames = *renderer;
     if (!options.png.empty()) {
       writeRecordingPng(frames, recording, options.png_time_s, options.png);
       std::cout << "volume-haptics export: " << options.png.string() << " (" << frames.width() << " x "

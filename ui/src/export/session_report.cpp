@@ -1,6 +1,7 @@
 #include "vh/ui/export/session_report.h"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <cstdio>
 #include <fstream>
@@ -15,6 +16,7 @@
 #include <QImage>
 #include <QPainter>
 #include <QPen>
+#include <QPolygonF>
 #include <QtCharts/QChart>
 #include <QtCharts/QLegendMarker>
 #include <QtCharts/QLineSeries>
@@ -26,6 +28,7 @@
 #include "vh/haptics/scalar_volume.h"
 #include "vh/runtime/scene.h"
 #include "vh/runtime/session_metadata.h"
+#include "vh/ui/export/report_format.h"
 
 namespace vh::ui {
 namespace {
@@ -53,17 +56,17 @@ std::string escapeHtml(const std::string& s) {
   return out;
 }
 
-/// A number for people: 4 significant digits, integers as such.
-std::string number(double v) {
-  char buf[64];
-  if (std::isfinite(v) && v == std::floor(v) && std::fabs(v) < 1e15) std::snprintf(buf, sizeof buf, "%.0f", v);
-  else std::snprintf(buf, sizeof buf, "%.4g", v);
-  return buf;
+/// `image` as a data: URI of a PNG.
+std::string pngUri(const QImage& image) {
+  QByteArray png;
+  QBuffer buffer(&png);
+  buffer.open(QIODevice::WriteOnly);
+  if (!image.save(&buffer, "PNG")) throw std::runtime_error("a chart could not be encoded as PNG");
+  return "data:image/png;base64," + png.toBase64().toStdString();
 }
 
-/// Renders `chart` (owned here) off screen and returns it as a data: URI of a PNG. A non-null
-/// `plot_background` is drawn stretched over the plot area, under the series and grid.
-std::string chartImage(QChart* chart, int width, int height, const QImage& plot_background = QImage()) {
+/// Renders `chart` (owned here) off screen and returns it as a data: URI of a PNG.
+std::string chartImage(QChart* chart, int width, int height) {
   QGraphicsScene scene;
   scene.addItem(chart);  // the scene owns and deletes the chart
   chart->setAnimationOptions(QChart::NoAnimation);
@@ -74,19 +77,9 @@ std::string chartImage(QChart* chart, int width, int height, const QImage& plot_
   {
     QPainter painter(&image);
     painter.setRenderHint(QPainter::Antialiasing);
-    if (!plot_background.isNull()) {
-      chart->setBackgroundVisible(false);
-      chart->setPlotAreaBackgroundVisible(false);
-      painter.setRenderHint(QPainter::SmoothPixmapTransform);
-      painter.drawImage(chart->plotArea(), plot_background);
-    }
     scene.render(&painter, QRectF(0, 0, width, height), QRectF(0, 0, width, height));
   }
-  QByteArray png;
-  QBuffer buffer(&png);
-  buffer.open(QIODevice::WriteOnly);
-  if (!image.save(&buffer, "PNG")) throw std::runtime_error("a chart could not be encoded as PNG");
-  return "data:image/png;base64," + png.toBase64().toStdString();
+  return pngUri(image);
 }
 
 std::string imageTag(const std::string& uri, const std::string& alt, const char* cls = "chart") {
@@ -156,7 +149,8 @@ std::string forceChart(const Recording& rec, const SessionMetrics& m, const Sess
   f->replace(force);
   QLineSeries* t = lineSeries("|torque| [N*m]", QColor(0xff, 0x7f, 0x0e), 1.0);
   t->replace(torque);
-  QLineSeries* thr = lineSeries(QString("threshold %1 N").arg(m.force_threshold_N), QColor(0xd6, 0x27, 0x28), 1.0,
+  QLineSeries* thr = lineSeries(QString::fromStdString("threshold " + formatQuantity(m.force_threshold_N, "N")),
+                                QColor(0xd6, 0x27, 0x28), 1.0,
                                 Qt::DashLine);
   thr->append(t0, m.force_threshold_N);
   thr->append(t1, m.force_threshold_N);
@@ -212,48 +206,147 @@ std::string speedChart(const Recording& rec, const SessionMetrics& m, const Sess
   return chartImage(chart, o.chart_width, o.chart_height * 3 / 4);
 }
 
-/// Axis ranges of equal span around the points' centre (both axes of a projection to scale).
-void equalRanges(const QList<QPointF>& pts, double& x0, double& x1, double& y0, double& y1) {
-  double ax = 1e300, bx = -1e300, ay = 1e300, by = -1e300;
-  for (const QPointF& p : pts) {
-    ax = std::min(ax, p.x()), bx = std::max(bx, p.x()), ay = std::min(ay, p.y()), by = std::max(by, p.y());
-  }
-  if (pts.isEmpty()) ax = ay = -0.01, bx = by = 0.01;
-  const double half = std::max({(bx - ax) / 2, (by - ay) / 2, 1.0}) * 1.1;  // mm
-  const double cx = (ax + bx) / 2, cy = (ay + by) / 2;
-  x0 = cx - half, x1 = cx + half, y0 = cy - half, y1 = cy + half;
+// ---- Contact maps and path maps: projections in the patient's frame ------------------------------
+
+/// The patient-frame letter of a W axis direction: W is LPS (+x the patient's left, +y
+/// posterior, +z superior).
+std::string directionLetter(const Eigen::Vector3d& d_W) {
+  int a = 0;
+  d_W.cwiseAbs().maxCoeff(&a);
+  static const char* kPlus[] = {"L", "P", "S"};
+  static const char* kMinus[] = {"R", "A", "I"};
+  return d_W[a] > 0 ? kPlus[a] : kMinus[a];
 }
 
-/// The felt surface of the recorded scene, for the contact map's background.
+/// Where a viewer on the side of `letter` stands, in words.
+std::string sideWords(const std::string& letter) {
+  if (letter == "L") return "the patient's left (L)";
+  if (letter == "R") return "the patient's right (R)";
+  if (letter == "A") return "the front (anterior, A)";
+  if (letter == "P") return "behind (posterior, P)";
+  if (letter == "S") return "above the head (superior, S)";
+  return "below the feet (inferior, I)";
+}
+
+/// One projection of the scene frame W onto a picture: rightward `right_W`, upward `up_W`,
+/// toward the viewer `out_W` (unit W axes, right = up x out: a view, never a mirror image).
+struct MapView {
+  std::string name;  ///< "Axial", "Coronal", "Sagittal".
+  Eigen::Vector3d right_W, up_W, out_W;
+  int depth_axis = 2;  ///< The W axis along out_W.
+
+  QPointF project_mm(const double p_W_m[3]) const {
+    const Eigen::Vector3d p(p_W_m[0], p_W_m[1], p_W_m[2]);
+    return QPointF(p.dot(right_W) * 1e3, p.dot(up_W) * 1e3);
+  }
+  /// "Axial, seen from above the head (superior, S): A at the top, R on the right".
+  std::string caption() const {
+    return name + ", seen from " + sideWords(directionLetter(out_W)) + ": " + directionLetter(up_W) + " at the top, " +
+           directionLetter(-up_W) + " at the bottom, " + directionLetter(-right_W) + " on the left, " +
+           directionLetter(right_W) + " on the right";
+  }
+};
+
+/// The three views, each from the side the tool was on: the side the force on the hand pointed
+/// to, summed over the ticks in contact along the view's axis (the force pushes the hand out of
+/// the surface, toward the tool), where that sum is at least a quarter of the summed |F|.
+/// Otherwise the usual radiological sides: axial from below,
+/// coronal from the front, sagittal from the left. Anterior is up on the axial view, superior
+/// on the others.
+std::array<MapView, 3> mapViews(const Recording& rec) {
+  Eigen::Vector3d force_sum_W = Eigen::Vector3d::Zero();
+  double magnitude_sum_N = 0.0;
+  for (const TickRecord& r : rec.records) {
+    if (r.contacts == 0) continue;
+    const Eigen::Vector3d f(r.force_W_N[0], r.force_W_N[1], r.force_W_N[2]);
+    force_sum_W += f;
+    magnitude_sum_N += f.norm();
+  }
+  // A side only where the force pointed along the axis for a fair part (a quarter) of its size:
+  // a press on the top of the head says nothing about front or back.
+  const auto side = [&](int axis, double otherwise) {
+    const double along = force_sum_W[axis], enough = std::max(0.25 * magnitude_sum_N, 1e-9);
+    return along > enough ? 1.0 : along < -enough ? -1.0 : otherwise;
+  };
+  const Eigen::Vector3d x = Eigen::Vector3d::UnitX(), y = Eigen::Vector3d::UnitY(), z = Eigen::Vector3d::UnitZ();
+  std::array<MapView, 3> views;
+  views[0] = {"Axial", {}, -y, side(2, -1.0) * z, 2};
+  views[1] = {"Coronal", {}, z, side(1, -1.0) * y, 1};
+  views[2] = {"Sagittal", {}, z, side(0, 1.0) * x, 0};
+  for (MapView& v : views) v.right_W = v.up_W.cross(v.out_W);
+  return views;
+}
+
+/// The square a map shows [mm, picture coordinates]: centred on the points' bounding box, at
+/// least kMinField_mm across (the anatomy around the contacts, not a few millimetres of it),
+/// larger when the points spread wider.
+struct MapFrame {
+  double x0 = 0, x1 = 0, y0 = 0, y1 = 0;
+  double width_mm() const { return x1 - x0; }
+};
+constexpr double kMinField_mm = 80.0;
+
+MapFrame frameAround(const QList<QPointF>& pts) {
+  double ax = 1e300, bx = -1e300, ay = 1e300, by = -1e300;
+  for (const QPointF& p : pts)
+    ax = std::min(ax, p.x()), bx = std::max(bx, p.x()), ay = std::min(ay, p.y()), by = std::max(by, p.y());
+  if (pts.isEmpty()) ax = bx = ay = by = 0.0;
+  const double half = std::max(std::max(bx - ax, by - ay) / 2 * 1.15, kMinField_mm / 2);
+  const double cx = (ax + bx) / 2, cy = (ay + by) / 2;
+  return {cx - half, cx + half, cy - half, cy + half};
+}
+
+/// The felt surface of the recorded scene, for the maps' background.
 struct Anatomy {
   std::shared_ptr<const haptics::ScalarVolume> field;  ///< The felt field, in W [m].
   double isovalue = 0.0;                               ///< Its surface's level.
 };
 
-/// The felt surface seen from +c, the axis normal to the plane (a, b) of W, over [x0, x1] x
-/// [y0, y1] [mm]: each pixel's ray is marched down c (steps of a voxel, at most 160 per ray) to
-/// its first point inside the surface, shaded by that point's height (nearer the viewer:
-/// lighter), transparent where the ray meets nothing. Row 0 is the top (largest b).
-QImage anatomyProjection(const Anatomy& anatomy, int a, int b, double x0, double x1, double y0, double y1) {
-  constexpr int kPixels = 110;
-  const int c = 3 - a - b;
+/// The felt surface as the viewer of `view` sees it over `frame`, `pixels` square: each pixel's
+/// ray goes from the viewer's side of the volume along -out (steps of a voxel, at most 400 per
+/// ray) to its first point inside the surface, refined by bisection, and is lit by a light
+/// above-left of the viewer (Lambert on the field's gradient), dimmed with depth; transparent
+/// where it meets nothing. Row 0 is the top.
+QImage anatomyProjection(const Anatomy& anatomy, const MapView& view, const MapFrame& frame, int pixels) {
+  const int c = view.depth_axis;
   const haptics::ScalarVolume& f = *anatomy.field;
   const Eigen::Vector3d lo = f.boundsMin_W_m(), hi = f.boundsMax_W_m();
-  const double step = std::max(f.geometry().minSpacing(), (hi[c] - lo[c]) / 160.0);
-  QImage image(kPixels, kPixels, QImage::Format_ARGB32);
+  const double depth_m = std::max(hi[c] - lo[c], 1e-9);
+  const double step = std::max(f.geometry().minSpacing(), depth_m / 400.0);
+  const double toward = view.out_W[c] > 0 ? 1.0 : -1.0;  // the viewer at hi[c] (+1) or lo[c] (-1)
+  const Eigen::Vector3d light_W = (view.out_W + 0.45 * view.up_W - 0.35 * view.right_W).normalized();
+  QImage image(pixels, pixels, QImage::Format_ARGB32);
   image.fill(Qt::transparent);
-  for (int row = 0; row < kPixels; ++row) {
-    for (int col = 0; col < kPixels; ++col) {
-      Eigen::Vector3d p = Eigen::Vector3d::Zero();
-      p[a] = (x0 + (x1 - x0) * (col + 0.5) / kPixels) * 1e-3;
-      p[b] = (y1 - (y1 - y0) * (row + 0.5) / kPixels) * 1e-3;
-      if (p[a] < lo[a] || p[a] > hi[a] || p[b] < lo[b] || p[b] > hi[b]) continue;
-      for (double z = hi[c]; z >= lo[c]; z -= step) {
-        p[c] = z;
+  for (int row = 0; row < pixels; ++row) {
+    for (int col = 0; col < pixels; ++col) {
+      const double u_m = (frame.x0 + frame.width_mm() * (col + 0.5) / pixels) * 1e-3;
+      const double v_m = (frame.y1 - (frame.y1 - frame.y0) * (row + 0.5) / pixels) * 1e-3;
+      Eigen::Vector3d p = u_m * view.right_W + v_m * view.up_W;
+      bool outside_box = false;
+      for (int a = 0; a < 3; ++a) outside_box |= a != c && (p[a] < lo[a] || p[a] > hi[a]);
+      if (outside_box) continue;
+      const double start = toward > 0 ? hi[c] : lo[c];
+      for (double d = 0.0; d <= depth_m; d += step) {
+        p[c] = start - toward * d;
         if (!f.isInside(p, anatomy.isovalue)) continue;
-        const double height = (z - lo[c]) / std::max(hi[c] - lo[c], 1e-9);
-        const int grey = static_cast<int>(130 + 100 * height);
-        image.setPixelColor(col, row, QColor(grey, grey - 4, grey - 12));
+        double out_d = std::max(0.0, d - step), in_d = d;  // bisection between outside and inside
+        for (int k = 0; k < 5 && d > 0.0; ++k) {
+          const double mid = 0.5 * (out_d + in_d);
+          p[c] = start - toward * mid;
+          (f.isInside(p, anatomy.isovalue) ? in_d : out_d) = mid;
+        }
+        p[c] = start - toward * in_d;
+        // The normal from the gradient averaged over a voxel around the hit: the trilinear
+        // field's own gradient jumps at every slice and would draw the slices as rings.
+        Eigen::Vector3d g = f.gradient(p);
+        const double r = f.geometry().minSpacing();
+        for (const Eigen::Vector3d& e : {view.right_W, view.up_W, view.out_W}) g += f.gradient(p + r * e) + f.gradient(p - r * e);
+        // Inside is above the isovalue: the outward normal is down the gradient.
+        const double lambert = g.norm() > 0 ? std::max(0.0, -g.normalized().dot(light_W)) : 0.6;
+        const double dim = 1.0 - 0.35 * in_d / depth_m;
+        const double shade = (0.28 + 0.72 * lambert) * dim;
+        image.setPixelColor(col, row, QColor::fromRgbF(std::min(1.0, 0.96 * shade), std::min(1.0, 0.92 * shade),
+                                                       std::min(1.0, 0.84 * shade)));
         break;
       }
     }
@@ -261,38 +354,127 @@ QImage anatomyProjection(const Anatomy& anatomy, int a, int b, double x0, double
   return image;
 }
 
-/// One projection chart (plane axes a, b of W) of the given series, equal scales, over the
-/// anatomy's projection when given.
-std::string projectionChart(const QString& title, int a, int b, std::vector<QXYSeries*> series,
-                            const std::vector<QList<QPointF>>& data, bool legend, int size,
-                            const Anatomy* anatomy = nullptr) {
-  auto* chart = new QChart;
-  chart->setTitle(title);
-  if (!legend) chart->legend()->hide();
-  QList<QPointF> all;
-  for (const auto& d : data) all += d;
-  double x0, x1, y0, y1;
-  equalRanges(all, x0, x1, y0, y1);
-  static const char* kAxis[] = {"x", "y", "z"};
-  QValueAxis* ax = addAxis(chart, Qt::AlignBottom, QString("%1 [mm]").arg(kAxis[a]), x0, x1);
-  QValueAxis* ay = addAxis(chart, Qt::AlignLeft, QString("%1 [mm]").arg(kAxis[b]), y0, y1);
-  ax->applyNiceNumbers();
-  ay->applyNiceNumbers();
-  for (std::size_t i = 0; i < series.size(); ++i) {
-    series[i]->replace(data[i]);
-    chart->addSeries(series[i]);
-    series[i]->attachAxis(ax);
-    series[i]->attachAxis(ay);
-  }
-  QImage background;
-  if (anatomy != nullptr)
-    background = anatomyProjection(*anatomy, a, b, ax->min(), ax->max(), ay->min(), ay->max());
-  return chartImage(chart, size, size + (legend ? 40 : 0), background);
+/// One layer of a map: points or a line, with its legend name.
+struct MapLayer {
+  QString name;
+  QColor colour;
+  QList<QPointF> points_mm;  ///< Picture coordinates (MapView::project_mm).
+  bool line = false;
+  Qt::PenStyle style = Qt::SolidLine;
+};
+
+/// The largest of 5, 10, 20, 50, 100, 200 mm that is at most a quarter of `field_mm`.
+double scaleBar_mm(double field_mm) {
+  double best = 5.0;
+  for (double l : {5.0, 10.0, 20.0, 50.0, 100.0, 200.0})
+    if (l <= field_mm / 4) best = l;
+  return best;
 }
 
-QPointF project(const double p[3], int a, int b) { return QPointF(p[a] * 1e3, p[b] * 1e3); }
+/// A map as a PNG data: URI, `size` pixels wide: the title, the square field (`frame`) with the
+/// anatomy behind the layers, the patient-frame letters at its four sides, a scale bar, and the
+/// legend below. The alt text and caption say the same in words.
+std::string mapImage(const QString& title, const MapView& view, const MapFrame& frame,
+                     const std::vector<MapLayer>& layers, int size, const Anatomy* anatomy) {
+  constexpr int kTitle = 30, kMargin = 10, kLegendRow = 22;
+  const int side = size - 2 * kMargin;
+  const int legend_rows = (static_cast<int>(layers.size()) + 1) / 2;
+  QImage image(size, kTitle + side + kMargin + legend_rows * kLegendRow + kMargin, QImage::Format_RGB32);
+  image.fill(Qt::white);
+  QPainter painter(&image);
+  painter.setRenderHint(QPainter::Antialiasing);
+  painter.setRenderHint(QPainter::SmoothPixmapTransform);
+  QFont font = painter.font();
+  font.setPixelSize(14);
+  font.setBold(true);
+  painter.setFont(font);
+  painter.setPen(QColor(0x22, 0x22, 0x22));
+  painter.drawText(QRect(0, 0, size, kTitle), Qt::AlignCenter, title);
+  const QRectF plot(kMargin, kTitle, side, side);
+  painter.fillRect(plot, QColor(0x3a, 0x3f, 0x47));  // dark behind the surface, as a CT viewer
+  if (anatomy != nullptr) painter.drawImage(plot, anatomyProjection(*anatomy, view, frame, std::min(side, 240)));
+  const auto toPixel = [&](const QPointF& p) {
+    return QPointF(plot.left() + (p.x() - frame.x0) / frame.width_mm() * side,
+                   plot.top() + (frame.y1 - p.y()) / (frame.y1 - frame.y0) * side);
+  };
+  painter.setClipRect(plot);
+  for (const MapLayer& layer : layers) {
+    if (layer.line) {
+      QPen pen(layer.colour, 2.0, layer.style);
+      painter.setPen(pen);
+      QPolygonF poly;
+      for (const QPointF& p : layer.points_mm) poly << toPixel(p);
+      painter.drawPolyline(poly);
+    } else {
+      painter.setPen(QPen(layer.colour.darker(150), 0.8));
+      painter.setBrush(layer.colour);
+      for (const QPointF& p : layer.points_mm) painter.drawEllipse(toPixel(p), 2.6, 2.6);
+    }
+  }
+  painter.setClipping(false);
+  painter.setBrush(Qt::NoBrush);
+  painter.setPen(QPen(QColor(0x88, 0x88, 0x88), 1.0));
+  painter.drawRect(plot);
+  // The patient-frame letters, in boxes at the middle of each side.
+  font.setPixelSize(16);
+  painter.setFont(font);
+  const auto letterBox = [&](const QPointF& centre, const std::string& letter) {
+    const QRectF box(centre.x() - 12, centre.y() - 12, 24, 24);
+    painter.setPen(Qt::NoPen);
+    painter.setBrush(QColor(255, 255, 255, 220));
+    painter.drawRoundedRect(box, 4, 4);
+    painter.setPen(QColor(0x10, 0x10, 0x10));
+    painter.drawText(box, Qt::AlignCenter, QString::fromStdString(letter));
+  };
+  letterBox(QPointF(plot.center().x(), plot.top() + 16), directionLetter(view.up_W));
+  letterBox(QPointF(plot.center().x(), plot.bottom() - 16), directionLetter(-view.up_W));
+  letterBox(QPointF(plot.left() + 16, plot.center().y()), directionLetter(-view.right_W));
+  letterBox(QPointF(plot.right() - 16, plot.center().y()), directionLetter(view.right_W));
+  // The scale bar, bottom left.
+  const double bar_mm = scaleBar_mm(frame.width_mm());
+  const double bar_px = bar_mm / frame.width_mm() * side;
+  const QRectF bar_box(plot.left() + 8, plot.bottom() - 40, bar_px + 16, 32);
+  painter.setPen(Qt::NoPen);
+  painter.setBrush(QColor(255, 255, 255, 220));
+  painter.drawRoundedRect(bar_box, 4, 4);
+  painter.setBrush(QColor(0x10, 0x10, 0x10));
+  painter.drawRect(QRectF(bar_box.left() + 8, bar_box.bottom() - 10, bar_px, 4));
+  font.setPixelSize(12);
+  font.setBold(false);
+  painter.setFont(font);
+  painter.setPen(QColor(0x10, 0x10, 0x10));
+  painter.drawText(QRectF(bar_box.left(), bar_box.top() + 2, bar_box.width(), 16), Qt::AlignCenter,
+                   QString::fromStdString(formatNumber(bar_mm) + " mm"));
+  // The legend.
+  const double legend_top = plot.bottom() + kMargin;
+  for (std::size_t i = 0; i < layers.size(); ++i) {
+    const double x = kMargin + (i % 2) * side / 2.0, y = legend_top + (i / 2) * kLegendRow + kLegendRow / 2.0;
+    if (layers[i].line) {
+      painter.setPen(QPen(layers[i].colour, 2.0, layers[i].style));
+      painter.drawLine(QPointF(x + 2, y), QPointF(x + 22, y));
+    } else {
+      painter.setPen(QPen(layers[i].colour.darker(150), 0.8));
+      painter.setBrush(layers[i].colour);
+      painter.drawEllipse(QPointF(x + 12, y), 5, 5);
+    }
+    painter.setPen(QColor(0x22, 0x22, 0x22));
+    painter.drawText(QRectF(x + 28, y - kLegendRow / 2.0, side / 2.0 - 30, kLegendRow), Qt::AlignVCenter | Qt::AlignLeft,
+                     layers[i].name);
+  }
+  painter.end();
+  return pngUri(image);
+}
 
-/// The contact map: proxy positions in contact on the three planes, in four force bands.
+/// A map with its caption: the view in words, the field's width and the scale bar.
+std::string mapFigure(const std::string& uri, const std::string& title, const MapView& view, const MapFrame& frame,
+                      int width_px) {
+  const std::string words = view.caption() + ". Field " + formatNumber(frame.width_mm(), 2) + " mm across, scale bar " +
+                            formatNumber(scaleBar_mm(frame.width_mm())) + " mm.";
+  return "<figure class=\"map\" style=\"width: " + std::to_string(width_px) + "px\">" +
+         imageTag(uri, title + ". " + words, "map") + "<figcaption>" + escapeHtml(words) + "</figcaption></figure>\n";
+}
+
+/// The contact map: proxy positions in contact on the three views, in four force bands.
 std::string contactMap(const Recording& rec, const SessionMetrics& m, const SessionReportOptions& o,
                        const Anatomy* anatomy) {
   std::vector<const TickRecord*> contacts;
@@ -304,101 +486,131 @@ std::string contactMap(const Recording& rec, const SessionMetrics& m, const Sess
   static const QColor kBand[] = {QColor(0x31, 0x82, 0xbd), QColor(0x31, 0xa3, 0x54), QColor(0xfd, 0x8d, 0x3c),
                                  QColor(0xde, 0x2d, 0x26)};
   std::string html = "<div class=\"maps\">\n";
-  const int planes[3][2] = {{0, 1}, {0, 2}, {1, 2}};
-  for (const auto& plane : planes) {
-    std::vector<QXYSeries*> series;
-    std::vector<QList<QPointF>> data(4);
+  for (const MapView& view : mapViews(rec)) {
+    std::vector<MapLayer> layers(4);
     for (int band = 0; band < 4; ++band) {
-      auto* s = new QScatterSeries;
-      s->setName(QString("%1-%2").arg(fmax * band / 4, 0, 'g', 2).arg(fmax * (band + 1) / 4, 0, 'g', 2));
-      s->setMarkerSize(5);
-      s->setColor(kBand[band]);
-      s->setBorderColor(kBand[band]);
-      series.push_back(s);
+      layers[band].name = QString::fromStdString("|F| " + formatRange(fmax * band / 4, fmax * (band + 1) / 4, "N", 2));
+      layers[band].colour = kBand[band];
     }
+    QList<QPointF> all;
     for (std::size_t i = 0; i < contacts.size(); i += stride) {
       const double f = norm3(contacts[i]->force_W_N);
       const int band = std::min(3, static_cast<int>(f / fmax * 4.0));
-      data[static_cast<std::size_t>(band)].append(project(contacts[i]->p_WP_m, plane[0], plane[1]));
+      const QPointF p = view.project_mm(contacts[i]->p_WP_m);
+      layers[static_cast<std::size_t>(band)].points_mm.append(p);
+      all.append(p);
     }
-    static const char* kAxis[] = {"x", "y", "z"};
-    const QString title = QString("Contacts, %1-%2 plane, |F| [N]").arg(kAxis[plane[0]]).arg(kAxis[plane[1]]);
-    html += imageTag(projectionChart(title, plane[0], plane[1], series, data, true, o.map_size, anatomy),
-                     title.toStdString(), "map");
+    const MapFrame frame = frameAround(all);
+    const std::string title = "Contacts, " + view.name;
+    html += mapFigure(mapImage(QString::fromStdString(title), view, frame, layers, o.map_size, anatomy), title, view, frame,
+                      o.map_size);
   }
   return html + "</div>\n";
 }
 
-std::string pathsChart(const runtime::ReferenceComparison& c, int a, int b, int size, const Anatomy* anatomy) {
-  std::vector<QList<QPointF>> data(2);
-  for (const auto& p : c.session_path) data[0].append(QPointF(p[a] * 1e3, p[b] * 1e3));
-  for (const auto& p : c.reference_path) data[1].append(QPointF(p[a] * 1e3, p[b] * 1e3));
-  static const char* kAxis[] = {"x", "y", "z"};
-  const QString title = QString("Device paths, %1-%2 plane").arg(kAxis[a]).arg(kAxis[b]);
-  return imageTag(projectionChart(title, a, b,
-                                  {lineSeries("this session", QColor(0x1f, 0x77, 0xb4)),
-                                   lineSeries("reference", QColor(0x7f, 0x7f, 0x7f), 1.5, Qt::DashLine)},
-                                  data, true, size, anatomy),
-                  title.toStdString(), "map");
+std::string pathsMap(const runtime::ReferenceComparison& c, const MapView& view, int size, const Anatomy* anatomy) {
+  std::vector<MapLayer> layers(2);
+  layers[0] = {"this session", QColor(0x1f, 0x77, 0xb4), {}, true, Qt::SolidLine};
+  layers[1] = {"reference", QColor(0xff, 0x7f, 0x0e), {}, true, Qt::DashLine};
+  QList<QPointF> all;
+  for (const auto& p : c.session_path) layers[0].points_mm.append(view.project_mm(p.data()));
+  for (const auto& p : c.reference_path) layers[1].points_mm.append(view.project_mm(p.data()));
+  all = layers[0].points_mm + layers[1].points_mm;
+  const MapFrame frame = frameAround(all);
+  const std::string title = "Device paths, " + view.name;
+  return mapFigure(mapImage(QString::fromStdString(title), view, frame, layers, size, anatomy), title, view, frame, size);
 }
 
 std::string metricsTable(const std::vector<MetricValue>& values) {
-  std::string html = "<table>\n<tr><th>metric</th><th>value</th><th>unit</th><th>column</th></tr>\n";
+  std::string html = "<table>\n<tr><th>metric</th><th>value</th><th>column in the cohort table</th></tr>\n";
   for (const MetricValue& v : values)
-    html += "<tr><td>" + escapeHtml(v.label) + "</td><td class=\"n\">" + number(v.value) + "</td><td>" +
-            escapeHtml(v.unit) + "</td><td><code>" + v.key + "</code></td></tr>\n";
+    html += "<tr><td>" + escapeHtml(v.label) + "</td><td class=\"n\">" + escapeHtml(formatQuantity(v.value, v.unit)) +
+            "</td><td class=\"small\"><code>" + v.key + "</code></td></tr>\n";
   return html + "</table>\n";
+}
+
+/// The figures a teacher reads first, from the metrics (the full table is further down).
+std::string summaryTable(const std::vector<MetricValue>& values) {
+  static const char* kKeys[] = {"duration_s", "time_in_contact_s", "mean_contact_force_N", "max_force_N",
+                                "time_above_threshold_s", "critical_touches", "critical_removed_mm3"};
+  std::string cells;
+  for (const char* key : kKeys)
+    for (const MetricValue& v : values)
+      if (v.key == key)
+        cells += "<tr><th>" + escapeHtml(v.label) + "</th><td class=\"n\">" + escapeHtml(formatQuantity(v.value, v.unit)) +
+                 "</td></tr>\n";
+  return "<h2>Summary</h2>\n<table class=\"meta\">\n" + cells + "</table>\n";
 }
 
 std::string segmentsTable(const SessionMetrics& m) {
   if (m.segments.empty())
     return "<p>The recording names no segments (no segmentation was open), so no time per segment.</p>\n";
   std::string html =
-      "<table>\n<tr><th>segment</th><th>critical</th><th>time in contact [s]</th><th>touches</th>"
-      "<th>peak |F| [N]</th><th>drilled away (critical) [voxels]</th><th>[mm^3]</th></tr>\n";
+      "<table>\n<tr><th>segment</th><th>critical</th><th>time in contact</th><th>touches</th>"
+      "<th>peak |F|</th><th>drilled away</th></tr>\n";
   for (const auto& s : m.segments)
     html += "<tr" + std::string(s.critical ? " class=\"critical\"" : "") + "><td>" + escapeHtml(s.name) + "</td><td>" +
-            (s.critical ? "yes" : "no") + "</td><td class=\"n\">" + number(s.time_in_contact_s) +
-            "</td><td class=\"n\">" + number(static_cast<double>(s.touches)) + "</td><td class=\"n\">" +
-            number(s.peak_force_N) + "</td><td class=\"n\">" + number(static_cast<double>(s.removed_voxels)) +
-            "</td><td class=\"n\">" + number(s.removed_mm3) + "</td></tr>\n";
+            (s.critical ? "yes" : "no") + "</td><td class=\"n\">" + formatQuantity(s.time_in_contact_s, "s") +
+            "</td><td class=\"n\">" + formatNumber(static_cast<double>(s.touches)) + "</td><td class=\"n\">" +
+            formatQuantity(s.peak_force_N, "N") + "</td><td class=\"n\">" + formatQuantity(s.removed_mm3, "mm^3") + " (" +
+            formatNumber(static_cast<double>(s.removed_voxels)) + " voxels)</td></tr>\n";
   return html + "</table>\n";
+}
+
+/// The scan's value unit from the recording's metadata ("HU", "SUV"; empty when not named).
+std::string valueUnitOf(const Recording& rec) {
+  const nlohmann::json meta = nlohmann::json::parse(rec.metadata_json, nullptr, false);
+  if (meta.is_object() && meta.contains("dataset") && meta["dataset"].is_object())
+    return meta["dataset"].value("value_unit", std::string{});
+  return {};
 }
 
 std::string eventsTable(const Recording& rec) {
   if (rec.events.empty()) return "<p>No events were recorded.</p>\n";
-  constexpr std::size_t kMaxRows = 300;
-  std::string html = "<table>\n<tr><th>t [s]</th><th>event</th><th>detail</th></tr>\n";
-  std::size_t rows = 0;
-  for (const auto& e : rec.events) {
-    if (rows++ == kMaxRows) break;
-    html += "<tr" + std::string(markedEvent(e) ? " class=\"critical\"" : "") + "><td class=\"n\">" + number(e.time_s) +
-            "</td><td>" + escapeHtml(e.type) + "</td><td><code>" + escapeHtml(e.detail_json) + "</code></td></tr>\n";
+  const std::vector<EventRow> rows = summariseEvents(rec.events, valueUnitOf(rec));
+  std::string html = "<table class=\"events\">\n<tr><th>time [m:ss.s]</th><th>event</th></tr>\n";
+  for (const EventRow& r : rows) {
+    std::string text = escapeHtml(r.text);
+    if (r.count > 1)
+      text += " <span class=\"small\">(first at " + formatClock(r.first_s) + ", last at " + formatClock(r.last_s) +
+              ")</span>";
+    html += "<tr" + std::string(r.critical ? " class=\"critical\"" : "") + "><td class=\"n\">" + formatClock(r.first_s) +
+            "</td><td>" + text + "</td></tr>\n";
   }
   html += "</table>\n";
-  if (rec.events.size() > kMaxRows)
-    html += "<p>" + std::to_string(rec.events.size() - kMaxRows) + " more events: `volume-haptics export --events-csv` lists them all.</p>\n";
+  if (rows.size() < rec.events.size())
+    html += "<p class=\"small\">" + std::to_string(rec.events.size()) + " events in " + std::to_string(rows.size()) +
+            (rows.size() == 1 ? " row" : " rows") +
+            ": a kind repeated more than 5 times is one row; <code>volume-haptics export --events-csv</code> "
+            "lists every event.</p>\n";
   return html;
 }
 
+/// A signed difference with its unit ("+1.2 N", "-350 ms", "0").
+std::string signedQuantity(double v, const std::string& unit) {
+  const std::string text = formatQuantity(v, unit);
+  return v > 0 && std::isfinite(v) ? "+" + text : text;
+}
+
 std::string comparisonSection(const runtime::ReferenceComparison& c, const std::string& reference_title,
-                              const SessionReportOptions& o, const Anatomy* anatomy) {
+                              const std::array<MapView, 3>& views, const SessionReportOptions& o, const Anatomy* anatomy) {
   std::string html = "<h2>Against the reference " + escapeHtml(reference_title) + "</h2>\n";
   html += "<p>Mean distance between the two device paths after aligning them in time by dynamic time "
           "warping (Sakoe &amp; Chiba 1978), each thinned to " +
-          std::to_string(c.path_samples) + " points: <b>" + number(c.alignment.mean_distance_m * 1e3) +
-          " mm</b> (" + std::to_string(c.alignment.path.size()) +
+          std::to_string(c.path_samples) + " points: <b>" + formatQuantity(c.alignment.mean_distance_m, "m") +
+          "</b> (" + std::to_string(c.alignment.path.size()) +
           " aligned pairs). Both recordings are in the same scene frame, so the paths are compared "
           "without moving either.</p>\n";
-  html += "<div class=\"maps\">\n" + pathsChart(c, 0, 1, o.map_size + 80, anatomy) + pathsChart(c, 0, 2, o.map_size + 80, anatomy) +
-          "</div>\n";
-  html += "<table>\n<tr><th>metric</th><th>this session</th><th>reference</th><th>difference</th><th>unit</th></tr>\n";
+  html += "<table>\n<tr><th>metric</th><th>this session</th><th>reference</th><th>difference</th></tr>\n";
   for (std::size_t i = 0; i < c.session.size() && i < c.reference.size(); ++i)
-    html += "<tr><td>" + escapeHtml(c.session[i].label) + "</td><td class=\"n\">" + number(c.session[i].value) +
-            "</td><td class=\"n\">" + number(c.reference[i].value) + "</td><td class=\"n\">" +
-            number(c.session[i].value - c.reference[i].value) + "</td><td>" + escapeHtml(c.session[i].unit) +
-            "</td></tr>\n";
-  return html + "</table>\n";
+    html += "<tr><td>" + escapeHtml(c.session[i].label) + "</td><td class=\"n\">" +
+            escapeHtml(formatQuantity(c.session[i].value, c.session[i].unit)) + "</td><td class=\"n\">" +
+            escapeHtml(formatQuantity(c.reference[i].value, c.reference[i].unit)) + "</td><td class=\"n\">" +
+            escapeHtml(signedQuantity(c.session[i].value - c.reference[i].value, c.session[i].unit)) + "</td></tr>\n";
+  html += "</table>\n";
+  html += "<div class=\"maps\">\n" + pathsMap(c, views[0], o.map_size + 80, anatomy) +
+          pathsMap(c, views[1], o.map_size + 80, anatomy) + "</div>\n";
+  return html;
 }
 
 std::string metadataLine(const Recording& rec, const SessionMetrics& m) {
@@ -415,7 +627,7 @@ std::string metadataLine(const Recording& rec, const SessionMetrics& m) {
   row("user / note", m.label);
   row("started (UTC)", m.start_time_utc);
   row("device", device);
-  row("servo rate", number(m.servo_rate_Hz) + " Hz");
+  row("servo rate", formatNumber(m.servo_rate_Hz) + " Hz");
   return html + "</table>\n";
 }
 
@@ -439,13 +651,14 @@ std::unique_ptr<Anatomy> loadAnatomy(const Recording& rec, std::string& why) {
 }
 
 constexpr const char* kStyle = R"(<style>
-body { font-family: sans-serif; margin: 2em; color: #222; max-width: 1100px; }
+body { font-family: sans-serif; margin: 2em; color: #222; max-width: 1160px; }
 h1 { font-size: 1.5em; } h2 { font-size: 1.2em; margin-top: 1.6em; border-bottom: 1px solid #ccc; }
 table { border-collapse: collapse; margin: 0.5em 0; } td, th { border: 1px solid #ddd; padding: 2px 8px; text-align: left; }
 td.n { text-align: right; font-variant-numeric: tabular-nums; } tr.critical td { background: #fde0dc; }
 table.meta th { background: #f4f4f4; } .notice { background: #fff3cd; border: 1px solid #e0b000; padding: 0.6em 1em; }
 img.chart { display: block; max-width: 100%; } .maps { display: flex; flex-wrap: wrap; gap: 8px; }
-.small { color: #666; font-size: 0.9em; }
+.small { color: #666; font-size: 0.9em; } figure.map { margin: 0; }
+figure.map figcaption { font-size: 0.85em; color: #444; margin-top: 2px; } img.map { display: block; max-width: 100%; }
 </style>
 )";
 
@@ -478,24 +691,31 @@ std::string sessionReportHtml(const Recording& recording, const std::string& tit
     for (const std::string& n : m.notices) html += "<li>" + escapeHtml(n) + "</li>\n";
     html += "</ul></div>\n";
   }
+  html += summaryTable(runtime::metricValues(m));
+  const std::array<MapView, 3> views = mapViews(recording);
+  if (comparison) {
+    if (anatomy_loading.valid()) anatomy = anatomy_loading.get();
+    html += comparisonSection(*comparison, reference_title, views, options, anatomy.get());
+  }
   if (!recording.records.empty()) {
     html += "<h2>Force</h2>\n" + imageTag(forceChart(recording, m, options), "force and torque over time");
     html += "<h2>Motion</h2>\n" + imageTag(speedChart(recording, m, options), "speed of the device over time");
     if (anatomy_loading.valid()) anatomy = anatomy_loading.get();
-    html += "<h2>Where the tool touched</h2>\n<p class=\"small\">The proxy's position at each tick in "
-            "contact (scene frame, mm), coloured by |F|";
-    if (anatomy) html += ", over the felt surface seen from the third axis' positive side (grey: lighter is nearer)";
+    html += "<h2>Where the tool touched</h2>\n<p class=\"small\">The proxy's position at each tick in contact, "
+            "coloured by |F|, on three views in the patient's frame (letters at the sides: L/R left/right, A/P "
+            "anterior/posterior, S/I superior/inferior), each seen from the side the tool was on and framed on at "
+            "least " + formatNumber(kMinField_mm) + " mm around the contacts";
+    if (anatomy) html += ", over the felt surface (lit from above-left of the viewer, darker when farther)";
     else if (options.anatomy) html += "; the scan could not be reloaded to draw it behind (" + escapeHtml(why) + ")";
     html += ".</p>\n" + contactMap(recording, m, options, anatomy.get());
   }
-  html += "<h2>Metrics</h2>\n<p class=\"small\">Speed and jerk are of the device (the hand), central differences "
-          "over " + number(options.metrics.derivative_step_s * 1e3) +
-          " ms; jerk as Hogan &amp; Sternad (2009); times are servo ticks times the servo period. Crossings "
-          "into the surface are not in a recording: <code>volume-haptics run --check</code> measures them.</p>\n" +
-          metricsTable(runtime::metricValues(m));
   html += "<h2>Segments</h2>\n" + segmentsTable(m);
   html += "<h2>Events</h2>\n" + eventsTable(recording);
-  if (comparison) html += comparisonSection(*comparison, reference_title, options, anatomy.get());
+  html += "<h2>All metrics</h2>\n<p class=\"small\">Speed and jerk are of the device (the hand), central differences "
+          "over " + formatQuantity(options.metrics.derivative_step_s, "s") +
+          "; jerk as Hogan &amp; Sternad (2009); times are servo ticks times the servo period. Crossings "
+          "into the surface are not in a recording: <code>volume-haptics run --check</code> measures them.</p>\n" +
+          metricsTable(runtime::metricValues(m));
   html += "<h2>Sources</h2>\n<ul class=\"small\"><li>N. Hogan, D. Sternad, \"Sensitivity of smoothness measures "
           "to movement duration, amplitude, and arrests\", J. Motor Behavior 41(6), 2009.</li>\n<li>H. Sakoe, "
           "S. Chiba, \"Dynamic programming algorithm optimization for spoken word recognition\", IEEE Trans. "

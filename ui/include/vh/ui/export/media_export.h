@@ -14,6 +14,7 @@
 #include <cstdint>
 #include <filesystem>
 #include <functional>
+#include <iosfwd>
 #include <memory>
 #include <string>
 #include <vector>
@@ -119,6 +120,17 @@ void showDrilledVoxels(SceneActors& actors, const CavityOrder& picture, std::uin
                        std::uint64_t& shown);
 
 /// An off-screen render window with the scene's props, for frames of a recording.
+///
+/// In isosurface mode the volume is ray cast only when what it shows changes (the camera, the
+/// isovalue, the drilled cavity), not at every frame: its picture and its depth (the ray
+/// caster's depth image, vtkGPUVolumeRayCastMapper::SetRenderToImage()) are kept, and each
+/// frame draws the tools, the shadow and the overlays (cheap geometry) and lays them over the
+/// kept picture wherever they are nearer than the surface: the same picture as a full render
+/// (where a tool meets the surface the ray caster also stops at the nearer of the two), in a
+/// few tens of milliseconds instead of seconds on software OpenGL. While what the volume shows
+/// changes at every frame (a cavity growing under the burr), each frame is one full render
+/// instead. Composite and MIP modes, whose volume is not an opaque surface, are ray cast at
+/// every frame.
 class RecordingFrameRenderer {
  public:
   /// @param width, height frame size [px] (at least 16; rounded up to even for video).
@@ -137,8 +149,19 @@ class RecordingFrameRenderer {
   void copyCamera(vtkCamera* camera);
   /// Shows `record` (see showRecord()).
   void show(const runtime::TickRecord& record);
-  /// Renders a frame and returns its pixels (RGB, vtkWindowToImageFilter; bottom row first).
+  /// Renders a frame and returns its pixels (RGB, vtkWindowToImageFilter; bottom row first):
+  /// draw() then readBack().
   vtkImageData* render();
+  /// Draws a frame in the window; with `wait`, returns once the drawing is done (for timing it).
+  void draw(bool wait = false);
+  /// The pixels of the frame last drawn (RGB, bottom row first).
+  vtkImageData* readBack();
+  /// Whether frames reuse the kept volume picture (see the class comment; on by default). Off:
+  /// every frame is one full render, as the main view draws it.
+  void setReuseVolume(bool reuse);
+  /// Times the volume was ray cast for frames so far (each kept picture costs two: colour and
+  /// depth; a full render one).
+  std::uint64_t volumeRenders() const noexcept { return volume_renders_; }
   /// The filter render() reads the window through (input of the writers).
   vtkWindowToImageFilter* imageFilter() const noexcept;
 
@@ -200,19 +223,52 @@ class RecordingFrameRenderer {
   vtkSmartPointer<vtkTextActor> overlay_text_, overlay_alert_;
   int width_;
   int height_;
+
+  // The kept volume picture (see the class comment).
+  /// Draws the frame as a full render of every prop (the volume ray cast).
+  void drawFull();
+  /// Draws the frame over the kept volume picture, keeping it first when out of date.
+  void drawOverKeptVolume();
+  /// Ray casts the volume alone: its picture (with the background) and its depth.
+  void keepVolume();
+  bool reuse_volume_ = true;
+  std::uint64_t volume_renders_ = 0;
+  std::uint64_t camera_generation_ = 0;  ///< Counts resetCamera() / copyCamera().
+  struct KeptKey {
+    double isovalue = 0.0;
+    std::uint64_t cavity = 0;
+    std::uint64_t camera = 0;
+    bool valid = false;
+  } kept_, last_frame_;  ///< What the kept picture shows; what the last frame showed.
+  bool changed_last_frame_ = false;  ///< The last frame showed something else than the one before.
+  std::vector<unsigned char> kept_rgb_;  ///< The volume's picture, RGB, bottom row first.
+  std::vector<float> kept_eye_depth_;    ///< Distance along the view axis of the surface per pixel [world units]; +inf: none.
+  vtkSmartPointer<vtkRenderer> backdrop_;  ///< Layer 0 in the second pass: the composite as background, the text.
+  vtkSmartPointer<vtkImageData> composite_;  ///< The tools laid over the kept picture (backdrop_'s texture).
 };
 
 /// Called after each video frame: (frames written, frames in all); return false to cancel.
 using FrameProgress = std::function<bool(int done, int total)>;
+
+/// Where one video frame's wall time went [ms] (`volume-haptics bench video`).
+struct VideoFrameTimes {
+  double show_ms = 0.0;      ///< The record's poses, cavity, shadow and overlay set on the props.
+  double render_ms = 0.0;    ///< The window drawn, to completion (vtkRenderWindow::WaitForCompletion()).
+  double readback_ms = 0.0;  ///< Its pixels read back (vtkWindowToImageFilter).
+  double encode_ms = 0.0;    ///< The frame encoded and written (vtkOggTheoraWriter::Write()).
+};
 
 /// Writes an Ogg/Theora video of `recording` from `start_s` to `end_s` (negative: its end) at
 /// `fps` frames per second [1, 120], one rendered frame per frame time.
 /// @return the frames written (fewer when cancelled; the file then holds those).
 /// @throws std::invalid_argument for an empty recording or a bad fps / time range;
 ///         std::runtime_error naming the file when it cannot be written.
+/// With `times` not null, each frame written appends its VideoFrameTimes there (the window is
+/// then waited for after each render, so that drawing and reading back are timed apart).
 int writeRecordingVideo(RecordingFrameRenderer& frames, const runtime::Recording& recording,
                         const std::filesystem::path& path, double fps, double start_s = 0.0,
-                        double end_s = -1.0, const FrameProgress& progress = {});
+                        double end_s = -1.0, const FrameProgress& progress = {},
+                        std::vector<VideoFrameTimes>* times = nullptr);
 
 /// Writes a PNG of the record at `t_s` [s]. @throws std::invalid_argument for an empty
 /// recording; std::runtime_error naming the file when it cannot be written.
@@ -237,6 +293,16 @@ struct MediaExportOptions {
   RenderMode mode = RenderMode::kIsosurface;  ///< How the volume is drawn.
   VolumePreset preset = VolumePreset::kBone;  ///< Composite preset.
 };
+
+/// The frames of `recording` as `volume-haptics export` renders them: `scene` (the recording's,
+/// runtime::loadScene(runtime::sceneFromSessionMetadata()), without its device; it must outlive
+/// the renderer) in the look, size, overlay and shadow of `options`; a drilled scene's cavity
+/// replayed (messages on `log` when not null); the camera fitted to the first record.
+/// @throws as RecordingFrameRenderer and drillingTimeline().
+std::unique_ptr<RecordingFrameRenderer> exportFrameRenderer(const runtime::LoadedScene& scene,
+                                                            const runtime::Recording& recording,
+                                                            const MediaExportOptions& options,
+                                                            std::ostream* log = nullptr);
 
 /// Command line export: reads `recording` (warnings to stderr), reloads its scene
 /// (runtime::sceneFromSessionMetadata(), runtime::loadScene()), renders off screen (no Qt

@@ -2,19 +2,23 @@
 /// @file
 /// The session report: one self-contained HTML page (no network: every picture is an inline
 /// base64 PNG) that a teacher reads after a session. The numbers are runtime::SessionMetrics
-/// (vh/runtime/session_metrics.h, which gives their definitions and sources); this part draws
-/// them with Qt Charts, rendered off screen into PNGs, and lays out the page:
+/// (vh/runtime/session_metrics.h, which gives their definitions and sources), written with
+/// their units to three significant digits (report_format.h); this part draws them with Qt
+/// Charts and QPainter, rendered off screen into PNGs, and lays out the page, in this order:
+///   - the metadata and a summary of the figures a teacher reads first;
+///   - with a reference recording (same scene): the comparison, the metrics side by side with
+///     their differences, the mean distance after dynamic time warping (Sakoe and Chiba 1978)
+///     and both device paths on the axial and coronal views;
 ///   - |F| [N] and |torque| [N*m] over time, with the force threshold, the markers and the
-///     critical events;
-///   - the device's speed over time;
-///   - a contact map: the proxy's positions while in contact, projected on the three planes of
-///     the scene frame W (x-y, x-z, y-z, equal scales), coloured by |F|, over the felt surface of
-///     the recorded scene seen from the third axis' positive side (the scan reloaded from the
-///     metadata, shaded by height: lighter is nearer);
-///   - tables of the metrics, the segments touched, the markers and events;
-///   - with a reference recording: the metrics side by side with their differences, the mean
-///     distance after dynamic time warping (Sakoe and Chiba 1978) and both device paths in the
-///     x-y and x-z planes.
+///     critical events; the device's speed over time;
+///   - the contact maps: the proxy's positions while in contact, coloured by |F|, on an axial,
+///     a coronal and a sagittal view in the patient's frame (W is LPS), labelled L/R, A/P, S/I at
+///     their sides, each seen from the side the tool was on (where the force on the hand
+///     pointed), framed on at least 80 mm around the contacts with a scale bar, over the felt
+///     surface of the recorded scene (the scan reloaded from the metadata, lit, darker when
+///     farther);
+///   - the segments touched; the events in words, a kind repeated more than 5 times in one row
+///     (summariseEvents()); every metric.
 /// A recording with a damaged tail gives the report of what could be read, with the reader's
 /// notice at the top.
 ///
