@@ -110,6 +110,64 @@ def metaimage_seeds(ds):
         struct.pack(">8f", *[0.5 * i for i in range(8)]))
 
 
+def nifti1_header(dims, datatype, bitpix, pixdim, qfac=1.0, quatern=(0, 0, 0), qoffset=(0, 0, 0), srows=None,
+                  scl=(0.0, 0.0), units=2, single=True, endian="<", intent=0):
+    """A NIfTI-1 header (348 bytes, then the 4-byte extension flag of a .nii), fields by offset."""
+    h = bytearray(348)
+    struct.pack_into(endian + "i", h, 0, 348)
+    struct.pack_into(endian + "8h", h, 40, len(dims), *dims, *([1] * (7 - len(dims))))
+    struct.pack_into(endian + "h", h, 68, intent)
+    struct.pack_into(endian + "hh", h, 70, datatype, bitpix)
+    struct.pack_into(endian + "8f", h, 76, qfac, *pixdim, *([1.0] * (7 - len(pixdim))))
+    struct.pack_into(endian + "f", h, 108, 352.0 if single else 0.0)
+    struct.pack_into(endian + "ff", h, 112, *scl)
+    h[123] = units
+    struct.pack_into(endian + "hh", h, 252, 1, 1 if srows else 0)
+    struct.pack_into(endian + "3f", h, 256, *quatern)
+    struct.pack_into(endian + "3f", h, 268, *qoffset)
+    if srows:
+        struct.pack_into(endian + "12f", h, 280, *[v for row in srows for v in row])
+    h[344:348] = b"n+1\0" if single else b"ni1\0"
+    return bytes(h) + (b"\0\0\0\0" if single else b"")
+
+
+def nifti2_header(dims, datatype, bitpix, pixdim, srows, units=2):
+    """A NIfTI-2 header (540 bytes, then the extension flag), sform only."""
+    h = bytearray(540)
+    struct.pack_into("<i", h, 0, 540)
+    h[4:12] = b"n+2\0\r\n\x1a\n"
+    struct.pack_into("<hh", h, 12, datatype, bitpix)
+    struct.pack_into("<8q", h, 16, len(dims), *dims, *([1] * (7 - len(dims))))
+    struct.pack_into("<8d", h, 104, 1.0, *pixdim, *([1.0] * (7 - len(pixdim))))
+    struct.pack_into("<q", h, 168, 544)
+    struct.pack_into("<dd", h, 176, 1.0, 0.0)
+    struct.pack_into("<ii", h, 344, 0, 1)
+    struct.pack_into("<12d", h, 400, *[v for row in srows for v in row])
+    struct.pack_into("<i", h, 500, units)
+    return bytes(h) + b"\0\0\0\0"
+
+
+def nifti_seeds(ds):
+    q = ds / "nrrd/headsq-quarter"
+    data = (q / "quarter.40").read_bytes() + (q / "quarter.41").read_bytes() + (q / "quarter.42").read_bytes()
+    small = shorts_le(downsample(data, (64, 64, 3), 4, [0, 1, 2]))  # 16 x 16 x 3 int16
+    # qform, rotated 90 deg about z (quaternion (0, 0, sqrt(1/2))), qfac -1, scaled values.
+    out("nifti", "headsq-qform-qfac.nii",
+        nifti1_header([16, 16, 3], 4, 16, [12.8, 12.8, 1.5], qfac=-1.0, quatern=(0, 0, 0.70710678),
+                      qoffset=(100, -100, -60), scl=(0.5, -1024.0)) + small)
+    out("nifti", "headsq-sform.nii.gz",
+        gzip.compress(nifti1_header([16, 16, 3], 4, 16, [12.8, 12.8, 1.5],
+                                    srows=[(-12.8, 0, 0, 100), (0, -12.8, 0, 100), (0, 0, 1.5, -60)]) + small, 9))
+    # A pair, big-endian header and voxels, a 4-D label map of 2 time points.
+    labels = bytes((x * y) % 4 for x in range(4) for y in range(4 * 3 * 2))
+    out("nifti", "labels-4d-pair-msb",
+        nifti1_header([4, 4, 3, 2], 2, 8, [1.0, 1.0, 2.0, 1.0], single=False, endian=">", intent=1002) +
+        b"\n#VHDATA#\n" + labels)
+    out("nifti", "float-nifti2.nii",
+        nifti2_header([4, 3, 2], 16, 32, [0.5, 0.5, 0.5], [(0.5, 0, 0, -1), (0, 0.5, 0, -1), (0, 0, 0.5, 1)], units=3) +
+        struct.pack("<24f", *[0.25 * i for i in range(24)]))
+
+
 def mesh_seeds(ds):
     # Binary STL: the drill's first 60 triangles.
     stl = (ds / "meshes/drill/drill.stl").read_bytes()
@@ -248,6 +306,7 @@ def main():
     dicom_seeds(ds)
     nrrd_seeds(ds)
     metaimage_seeds(ds)
+    nifti_seeds(ds)
     mesh_seeds(ds)
     scene_seeds()
     trajectory_seeds(a.trajectory)

@@ -153,7 +153,8 @@ void SceneOpener::openPath(const QString& path) {
     reportError(path, path + ": a DICOM SEG or RT Structure Set is opened on the scan it segments: open that scan first");
     return;
   }
-  if (dicom_seg || ((ext == ".nrrd" || ext == ".nhdr") && io::isSegmentationFile(p))) {
+  const bool nifti = ext == ".nii" || ext == ".gz" || ext == ".hdr";  // a label map says so in its intent_code
+  if (dicom_seg || ((ext == ".nrrd" || ext == ".nhdr" || nifti) && io::isSegmentationFile(p))) {
     // A segmentation: the segments of the scan shown; alone, a .seg.nrrd is its own scan.
     if (session_.hasScene()) {
       emit segmentationRequested(p);

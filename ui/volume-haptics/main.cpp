@@ -99,7 +99,7 @@ struct GuiArgs {
 
 void addGuiOptions(CLI::App& app, GuiArgs& gui) {
   app.add_option("path", gui.input,
-                 "DICOM folder, NRRD (.nrrd/.nhdr) or MetaImage (.mha/.mhd) file, or scene .json "
+                 "DICOM folder, NRRD (.nrrd/.nhdr), MetaImage (.mha/.mhd) or NIfTI (.nii/.nii.gz/.hdr) file, or scene .json "
                  "(default: the built-in block with a hole and a peg)");
   app.add_option("--screenshot", gui.screenshot, "Save a PNG of the window after loading, then quit");
   app.add_option("--screenshot-delay-ms", gui.options.screenshot_delay_ms,

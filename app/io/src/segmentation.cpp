@@ -17,6 +17,7 @@
 
 #include "dicom_seg_internal.h"
 #include "loader_internal.h"
+#include "nifti_internal.h"
 #include "vh/io/dicom_rtstruct.h"
 #include "vh/io/dicom_seg.h"
 
@@ -80,7 +81,7 @@ std::string segmentKey(const std::map<std::string, std::string>& kv, int n, cons
   return it == kv.end() ? std::string() : detail::trim(it->second);
 }
 
-/// Loads a NRRD segmentation (.seg.nrrd or label map) on its own grid.
+/// Loads a NRRD segmentation (.seg.nrrd or label map) or a NIfTI label map on its own grid.
 LoadedSegmentation loadNrrdSegmentation(const fs::path& path, const VolumeLoadOptions& options);
 
 /// The reader for `path`: a NRRD segmentation by its extension, a DICOM SEG by ".dcm" or the
@@ -90,12 +91,12 @@ LoadedSegmentation loadNrrdSegmentation(const fs::path& path, const VolumeLoadOp
 LoadedSegmentation loadAnySegmentation(const fs::path& path, const LoadedVolume* scan,
                                        const VolumeLoadOptions& options) {
   const auto ext = lower(path.extension().string());
-  if (ext == ".nrrd" || ext == ".nhdr") return loadNrrdSegmentation(path, options);
+  if (ext == ".nrrd" || ext == ".nhdr" || detail::isNiftiFileName(path)) return loadNrrdSegmentation(path, options);
   if (isDicomRtStructFile(path)) return loadDicomRtStruct(path, scan, options);
   if (ext == ".dcm" || detail::hasDicomPreamble(path)) return loadDicomSegmentation(path, scan, options);
   fail(path,
-       "not a segmentation: expected a 3D Slicer .seg.nrrd, a label-map .nrrd / .nhdr, a DICOM SEG or an RT "
-       "Structure Set");
+       "not a segmentation: expected a 3D Slicer .seg.nrrd, a label-map .nrrd / .nhdr / .nii / .nii.gz, a DICOM "
+       "SEG or an RT Structure Set");
 }
 
 }  // namespace
@@ -136,7 +137,9 @@ namespace {
 
 LoadedSegmentation loadNrrdSegmentation(const fs::path& path, const VolumeLoadOptions& options) {
   if (!fs::exists(path)) fail(path, "no such file");
-  const std::map<std::string, std::string> kv = detail::readNrrdKeyValues(path);
+  // A NIfTI label map names no segments: each label is one.
+  const std::map<std::string, std::string> kv =
+      detail::isNiftiFileName(path) ? std::map<std::string, std::string>{} : detail::readNrrdKeyValues(path);
 
   LoadedSegmentation seg;
   seg.source = path;
@@ -221,6 +224,7 @@ bool isSegmentationFile(const fs::path& path) noexcept {
   try {
     const std::string name = lower(path.filename().string());
     if (name.size() > 9 && name.compare(name.size() - 9, 9, ".seg.nrrd") == 0) return true;
+    if (detail::isNiftiFileName(path)) return detail::isNiftiLabelMap(path);
     const auto ext = lower(path.extension().string());
     if (ext != ".nrrd" && ext != ".nhdr") return isDicomSegmentationFile(path) || isDicomRtStructFile(path);
     const auto kv = detail::readNrrdKeyValues(path);
@@ -231,7 +235,7 @@ bool isSegmentationFile(const fs::path& path) noexcept {
 }
 
 std::string segmentationFileDialogFilter() {
-  return "Segmentations (*.seg.nrrd *.nrrd *.nhdr *.dcm);;All files (*)";
+  return "Segmentations (*.seg.nrrd *.nrrd *.nhdr *.nii *.nii.gz *.hdr *.dcm);;All files (*)";
 }
 
 std::shared_ptr<const haptics::ScalarVolume> segmentIndicatorField(const LoadedSegmentation& seg,

@@ -13,6 +13,7 @@
 #include <Eigen/Dense>
 
 #include "loader_internal.h"
+#include "nifti_internal.h"
 
 namespace vh::io {
 namespace detail {
@@ -116,7 +117,7 @@ namespace {
 
 namespace fs = std::filesystem;
 
-enum class Format { kDicom, kNrrd, kMetaImage, kUnknown };
+enum class Format { kDicom, kNrrd, kMetaImage, kNifti, kUnknown };
 
 /// Guesses the format from the extension, then from the first bytes.
 Format detectFormat(const fs::path& path) {
@@ -124,6 +125,7 @@ Format detectFormat(const fs::path& path) {
   if (ext == ".nrrd" || ext == ".nhdr") return Format::kNrrd;
   if (ext == ".mha" || ext == ".mhd") return Format::kMetaImage;
   if (ext == ".dcm" || ext == ".dicom" || ext == ".ima") return Format::kDicom;
+  if (detail::isNiftiFileName(path)) return Format::kNifti;
 
   std::ifstream in(path, std::ios::binary);
   std::array<char, 1024> head{};
@@ -131,6 +133,7 @@ Format detectFormat(const fs::path& path) {
   const auto n = static_cast<std::size_t>(in.gcount());
   const std::string_view text(head.data(), n);
   if (text.substr(0, 7) == "NRRD000") return Format::kNrrd;
+  if (detail::hasNiftiMagic(text)) return Format::kNifti;
   if (n >= 132 && text.substr(128, 4) == "DICM") return Format::kDicom;
   if (text.find("ObjectType") != std::string_view::npos ||
       (text.find("NDims") != std::string_view::npos &&
@@ -166,17 +169,19 @@ LoadedVolume loadVolume(const std::filesystem::path& path, const VolumeLoadOptio
       return detail::loadFileIsolated(path, options, [&] { return detail::loadNrrd(path, options.nrrd_layer); });
     case Format::kMetaImage:
       return detail::loadFileIsolated(path, options, [&] { return detail::loadMetaImage(path); });
+    case Format::kNifti:
+      return detail::loadFileIsolated(path, options, [&] { return detail::loadNifti(path); });
     case Format::kUnknown:
       break;
   }
   detail::fail(path,
                "not a volume: unrecognised format (expected a DICOM folder or file, NRRD "
-               ".nrrd/.nhdr, or MetaImage .mha/.mhd)");
+               ".nrrd/.nhdr, MetaImage .mha/.mhd, or NIfTI .nii/.nii.gz/.hdr)");
 }
 
 std::string volumeFileDialogFilter() {
-  return "Volumes (*.nrrd *.nhdr *.mha *.mhd *.dcm);;NRRD (*.nrrd *.nhdr);;"
-         "MetaImage (*.mha *.mhd);;DICOM file of a series (*.dcm *);;All files (*)";
+  return "Volumes (*.nrrd *.nhdr *.mha *.mhd *.nii *.nii.gz *.hdr *.dcm);;NRRD (*.nrrd *.nhdr);;"
+         "MetaImage (*.mha *.mhd);;NIfTI (*.nii *.nii.gz *.hdr);;DICOM file of a series (*.dcm *);;All files (*)";
 }
 
 std::string meshFileDialogFilter() {

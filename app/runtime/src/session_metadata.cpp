@@ -143,6 +143,17 @@ DatasetChecksum datasetChecksum(const std::string& volume_path) {
       kind = ext == ".nhdr" ? "nrrd" : "metaimage";
       files.push_back(path.filename().string());
       for (const std::string& f : detachedDataFiles(path, ext == ".nhdr")) files.push_back(f);
+    } else if (ext == ".hdr") {
+      // A NIfTI (or Analyze) pair: the header and its voxel file beside it.
+      kind = "nifti";
+      files.push_back(path.filename().string());
+      for (const char* img : {".img", ".img.gz"}) {
+        const fs::path data = fs::path(path).replace_extension(img);
+        if (fs::exists(data)) {
+          files.push_back(data.filename().string());
+          break;
+        }
+      }
     } else {
       kind = ext == ".nrrd" ? "nrrd" : ext == ".mha" ? "metaimage" : "file";
       files.push_back(path.filename().string());

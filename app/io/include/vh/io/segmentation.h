@@ -1,6 +1,6 @@
 #pragma once
 /// @file
-/// Segmentations: 3D Slicer's `.seg.nrrd`, plain label-map NRRDs and DICOM Segmentation
+/// Segmentations: 3D Slicer's `.seg.nrrd`, plain label-map NRRDs and NIfTIs and DICOM Segmentation
 /// objects (DICOM SEG, read through DCMTK: dicom_seg.h), and the smoothed indicator field whose
 /// isosurface is the felt surface of chosen segments.
 ///
@@ -56,8 +56,9 @@ struct LoadedSegmentation {
   int label(int layer, int i, int j, int k) const noexcept;
 };
 
-/// Loads a segmentation (.seg.nrrd, a label-map .nrrd / .nhdr, or a DICOM SEG: a ".dcm" file or
-/// any file with the DICOM preamble). NRRD: the voxels are read by loadVolume() (in the reader
+/// Loads a segmentation (.seg.nrrd, a label-map .nrrd / .nhdr, a NIfTI label map (.nii, .nii.gz,
+/// .hdr/.img: each distinct non-zero value one segment, as a NRRD label map), or a DICOM SEG: a
+/// ".dcm" file or any file with the DICOM preamble). NRRD: the voxels are read by loadVolume() (in the reader
 /// process when it is found), the segment names from the header, on the file's own grid. DICOM
 /// SEG: loadDicomSegmentation() without a scan, on the grid its frames span.
 /// @param options as loadVolume()'s (cancel, progress, watchdog); its nrrd_layer is ignored.
@@ -75,8 +76,9 @@ LoadedSegmentation loadSegmentation(const std::filesystem::path& path, const Loa
                                     const VolumeLoadOptions& options = {});
 
 /// True when `path` names a segmentation that names its segments: a 3D Slicer segmentation (its
-/// name ends in ".seg.nrrd", or a NRRD whose header has "Segment0_" keys) or a DICOM SEG (SOP
-/// Class UID Segmentation Storage, from the file's meta header). Never throws (false when
+/// name ends in ".seg.nrrd", or a NRRD whose header has "Segment0_" keys), a NIfTI that says it
+/// holds labels (intent_code NIFTI_INTENT_LABEL, 1002) or a DICOM SEG (SOP Class UID
+/// Segmentation Storage, from the file's meta header). Never throws (false when
 /// unreadable).
 bool isSegmentationFile(const std::filesystem::path& path) noexcept;
 

@@ -1,6 +1,6 @@
 #pragma once
 /// @file
-/// Loading volumes (DICOM series, NRRD, MetaImage) and tool meshes (STL, OBJ, PLY) through VTK.
+/// Loading volumes (DICOM series, NRRD, MetaImage, NIfTI) and tool meshes (STL, OBJ, PLY) through VTK.
 /// Units are converted once, here, into metres; values stay in the data's units (HU for CT),
 /// except PET in Bq/ml, which becomes SUV (body weight).
 
@@ -77,7 +77,7 @@ struct VolumeLoadOptions {
 /// Descriptive facts about a loaded volume, for the UI and session metadata.
 struct VolumeInfo {
   std::filesystem::path source;  ///< File or folder loaded.
-  std::string format;            ///< "DICOM", "NRRD", "MetaImage".
+  std::string format;            ///< "DICOM", "NRRD", "MetaImage", "NIfTI-1", "NIfTI-2".
   std::string modality;          ///< "CT", "MR", ... or empty.
   /// "HU" for CT; "SUVbw" for PET in SUV (body weight), "Bq/ml" for PET in Bq/ml whose header
   /// lacks what SUV needs (a notice names it); else empty.
@@ -107,8 +107,8 @@ struct LoadedVolume {
   VolumeInfo info;
 };
 
-/// Loads a DICOM folder (or one file of a series, or a DICOMDIR), a NRRD (.nrrd/.nhdr) or a
-/// MetaImage (.mha/.mhd). DICOM: the series `options` names, else the largest that loads
+/// Loads a DICOM folder (or one file of a series, or a DICOMDIR), a NRRD (.nrrd/.nhdr), a
+/// MetaImage (.mha/.mhd) or a NIfTI-1 / NIfTI-2 (.nii, .nii.gz, .hdr/.img pair). DICOM: the series `options` names, else the largest that loads
 /// (sorted by position, rescaled to HU, oriented from Image Orientation (Patient)); exact
 /// duplicate slices are dropped, and a sheared stack (gantry tilt) or one with missing slices
 /// or uneven spacing is resampled onto a rectilinear grid in the image planes' frame with the
@@ -120,7 +120,11 @@ struct LoadedVolume {
 ///         truncated file, inconsistent slices, no series matching options.dicom_series, a
 ///         phase out of range; LoadCancelled when options.cancel was set.
 /// Geometry: W is the file's patient frame (DICOM / NRRD patient LPS; NRRD RAS/LAS converted to
-/// LPS) in metres; lengths without units are millimetres. Voxels are kept as stored (uint8,
+/// LPS) in metres; lengths without units are millimetres. NIfTI (RAS+, converted to LPS): the
+/// sform when sform_code > 0 (a sheared sform gives way to the qform when there is one), else
+/// the qform when qform_code > 0, else pixdim alone, as nibabel and ITK; the unit from
+/// xyzt_units; scl_slope / scl_inter applied as the field's value scale; a 4-D file's first
+/// volume, with a notice. Voxels are kept as stored (uint8,
 /// int16, uint16, float32; other types converted to int16 / uint16 when their range fits, else
 /// float32), except that a uniform integer DICOM rescale whose values fit int16 (a CT's
 /// RescaleIntercept, e.g. uint16 stored + -1024) is applied once: the field then holds int16
