@@ -15,6 +15,7 @@
 #include <nlohmann/json.hpp>
 
 #include "vh/haptics/crossing_verifier.h"
+#include "vh/io/private_files.h"
 #include "vh/runtime/device.h"
 #include "vh/runtime/sha256.h"
 #include "vh/runtime/placement.h"
@@ -72,6 +73,11 @@ void describeRun(RunReport& r, const LoadedScene& scene, const haptics::ScalarVo
 std::ofstream openTrace(const std::filesystem::path& trace_csv) {
   std::ofstream trace;
   if (!trace_csv.empty()) {
+    try {
+      io::createPrivateFile(trace_csv);  // 0600: the session's poses and forces
+    } catch (const std::runtime_error&) {
+      throw std::runtime_error(trace_csv.string() + ": cannot write the trace");
+    }
     trace.open(trace_csv);
     if (!trace) throw std::runtime_error(trace_csv.string() + ": cannot write the trace");
     trace << "tick,t_s,xd_m,yd_m,zd_m,xp_m,yp_m,zp_m,fx_N,fy_N,fz_N,tx_Nm,ty_Nm,tz_Nm,contacts,exec_us,penetration_m,"
@@ -629,11 +635,9 @@ std::string RunReport::summary() const {
 }
 
 void writeRunReport(const RunReport& report, const std::filesystem::path& path) {
-  std::ofstream out(path);
-  if (!out) throw std::runtime_error(path.string() + ": cannot write the report");
-  out << report.toJson();
-  out.flush();
-  if (!out) throw std::runtime_error(path.string() + ": write failed");
+  io::PrivateOutput file(path);  // 0600, renamed into place only when whole
+  file.stream() << report.toJson();
+  file.commit();
 }
 
 }  // namespace vh::runtime
