@@ -19,6 +19,7 @@
 #include <QStatusBar>
 #include <QVBoxLayout>
 
+#include "vh/io/private_files.h"
 #include "vh/ui/devices/device_input.h"
 #include "vh/ui/devices/device_picker.h"
 #include "vh/ui/haptics_controller.h"
@@ -399,7 +400,14 @@ bool MainWindow::saveScreenshot(const QString& path) {
   view_->renderStill(/*best_quality=*/true);
   // The widgets, with the view's frame rendered into its place (QWidget::grab() alone leaves the
   // view's native window blank).
-  return grabWithView(*this, *view_->widget()).save(path, "PNG");
+  try {
+    io::PrivateOutput file(std::filesystem::path(path.toStdString()));  // 0600: a picture of the scan
+    if (!grabWithView(*this, *view_->widget()).save(QString::fromStdString(file.tempPath().string()), "PNG")) return false;
+    file.commit();
+    return true;
+  } catch (const std::runtime_error&) {
+    return false;
+  }
 }
 
 void MainWindow::saveSettings() const {

@@ -20,6 +20,7 @@
 
 #include "vh/io/dicom_rtstruct.h"
 #include "vh/io/dicom_seg.h"
+#include "vh/io/private_files.h"
 #include "vh/io/segmentation.h"
 #include "vh/runtime/session.h"
 #include "vh/ui/panels/pacs_dialog.h"
@@ -273,7 +274,10 @@ fs::path folderWithout(const fs::path& folder, const fs::path& without) {
   for (int n = 0; n < 1000; ++n) {
     out = base / ("volume-haptics-" + folder.filename().string() + "-without-" + without.filename().string() + "-" +
                   std::to_string(QCoreApplication::applicationPid()) + "-" + std::to_string(n));
-    if (fs::create_directory(out, ec)) break;
+    if (fs::create_directory(out, ec)) {
+      fs::permissions(out, io::kPrivateDirPerms, ec);  // copies of the patient's files: owner only
+      break;
+    }
     out.clear();
   }
   if (out.empty()) throw std::runtime_error(folder.string() + ": cannot make a folder in " + base.string());

@@ -2,7 +2,11 @@
 //
 // vtkMetaImageReader reads the voxels. It ignores TransformMatrix (the axes' directions), and a
 // short uncompressed data file gives it garbage, so the text header is parsed here as well for
-// the directions and for a size check before VTK reads the data.
+// the directions and for a size check before VTK reads the data. The header is also where
+// hostile files are stopped before VTK sees them: vtkmetaio expands an ElementDataFile holding
+// '%' as a printf format (its list format, "name%03d.raw 1 10 1"), so "%s%n" from a file would
+// reach sprintf: refused here; detached data files must lie beside the header and be regular
+// files; spacings must be positive; and the declared voxels must fit in memory.
 #include <fstream>
 #include <map>
 
@@ -14,6 +18,7 @@
 #include <vtkSmartPointer.h>
 
 #include "loader_internal.h"
+#include "reader_checks.h"
 #include "vtk_error_capture.h"
 
 namespace vh::io::detail {
@@ -110,13 +115,36 @@ LoadedVolume loadMetaImage(const fs::path& path) {
   }
 
   // Size check for an uncompressed single data file (attached "LOCAL" or detached).
+  requireDeclaredFits(path, static_cast<std::uint64_t>(voxel_count) * type_size);
   const std::string data_file = get(h, "ElementDataFile");
+  if (data_file.find('%') != std::string::npos) {
+    fail(path, "ElementDataFile names a file-name pattern (\"" + data_file +
+                   "\"): MetaImage's list format with a pattern is not supported; list the files with "
+                   "\"ElementDataFile = LIST\" or use one data file");
+  }
   const bool compressed = isTrue(get(h, "CompressedData"));
-  const bool list = data_file == "LIST" || data_file.find('%') != std::string::npos;
-  if (!list) {
+  const bool list = splitWords(data_file).size() >= 1 && splitWords(data_file)[0] == "LIST";
+  if (list) {
+    // The file names follow the header, one per line: each must be beside the header.
+    std::ifstream in(path, std::ios::binary);
+    in.seekg(static_cast<std::streamoff>(h.header_bytes));
+    std::string line;
+    for (int n = 0; std::getline(in, line) && n < 100000; ++n) {
+      const std::string name = trim(line);
+      if (name.empty()) continue;
+      fs::path file(name);
+      if (file.is_relative()) file = path.parent_path() / file;
+      requireBesideHeader(path, file);
+      requireRegularFile(file, path);
+    }
+  } else {
     const bool local = data_file == "LOCAL" || data_file == "Local" || data_file == "local";
     fs::path file = local ? path : fs::path(data_file);
     if (!local && file.is_relative()) file = path.parent_path() / file;
+    if (!local) {
+      requireBesideHeader(path, file);
+      requireRegularFile(file, path);
+    }
     const auto size = fileSize(file);
     if (!size) fail(path, "data file " + file.string() + " is missing");
     std::uintmax_t start = local ? h.header_bytes : 0;
@@ -138,6 +166,19 @@ LoadedVolume loadMetaImage(const fs::path& path) {
     }
   }
 
+  // The spacing before VTK reads (VTK cannot parse "nan" and would say only that).
+  std::vector<double> spacing = numbers(get(h, "ElementSpacing"), path, "ElementSpacing");
+  if (spacing.empty()) spacing = numbers(get(h, "ElementSize"), path, "ElementSize");
+  if (spacing.empty()) spacing = {1.0, 1.0, 1.0};
+  if (spacing.size() != 3) fail(path, "MetaImage ElementSpacing must list 3 values");
+  for (const double s : spacing) {
+    // numbers() already refused "nan" and "inf"; a zero or negative spacing would load at a
+    // size, or mirrored, that the file does not mean.
+    if (!(s > 0.0)) {
+      fail(path, "MetaImage ElementSpacing must be 3 positive numbers, found \"" +
+                     (get(h, "ElementSpacing").empty() ? get(h, "ElementSize") : get(h, "ElementSpacing")) + "\"");
+    }
+  }
   VtkErrorCapture capture;
   auto reader = vtkSmartPointer<vtkMetaImageReader>::New();
   capture.watch(reader);
@@ -153,10 +194,6 @@ LoadedVolume loadMetaImage(const fs::path& path) {
 
   // Geometry: MetaImage coordinates are millimetres in the file's world frame (patient LPS for
   // files written by ITK). TransformMatrix rows are the grid axes' directions.
-  std::vector<double> spacing = numbers(get(h, "ElementSpacing"), path, "ElementSpacing");
-  if (spacing.empty()) spacing = numbers(get(h, "ElementSize"), path, "ElementSize");
-  if (spacing.empty()) spacing = {1.0, 1.0, 1.0};
-  if (spacing.size() != 3) fail(path, "MetaImage ElementSpacing must list 3 values");
   std::vector<double> origin;
   for (const char* key : {"Offset", "Position", "Origin"}) {
     origin = numbers(get(h, key), path, key);

@@ -33,6 +33,7 @@
 #include <zlib.h>
 
 #include "loader_internal.h"
+#include "reader_checks.h"
 #include "vh/io/patient_frames.h"
 #include "vtk_error_capture.h"
 
@@ -257,6 +258,7 @@ NrrdHeader readHeader(const fs::path& path) {
   const fs::path folder = path.parent_path();
   for (auto& f : h.data_files) {
     if (f.is_relative()) f = folder / f;
+    requireBesideHeader(path, f);  // "../../etc/passwd" or "/etc/shadow" are not voxels
   }
   return h;
 }
@@ -584,9 +586,7 @@ void checkDataFiles(const NrrdHeader& h, const fs::path& path, const NrrdLayout&
                  "vtkNrrdReader (it reads the fastest axis as vector components)");
     }
   }
-  for (const auto& f : h.data_files) {
-    if (!fs::exists(f)) fail(path, "data file " + f.string() + " is missing");
-  }
+  for (const auto& f : h.data_files) requireRegularFile(f, path);  // also: no FIFO or device
   if (l.raw) checkRawSizes(h, path, l.value_count * l.value_type.size);
   if (l.gzip) {
     const fs::path data = h.detached ? h.data_files.front() : path;
@@ -603,6 +603,7 @@ NrrdLayout checkedLayout(const NrrdHeader& h, const fs::path& path, int layer) {
   NrrdLayout l;
   checkDimensions(h, path, layer, l);
   checkValues(h, path, l);
+  requireDeclaredFits(path, static_cast<std::uint64_t>(l.value_count) * l.value_type.size);
   checkDataFiles(h, path, l);
   for (int a = 0; a < 3; ++a) {
     l.sizes[static_cast<std::size_t>(a)] = static_cast<int>(*parseInt(l.size_words[static_cast<std::size_t>(a)]));
@@ -624,7 +625,9 @@ vtkSmartPointer<vtkImageData> readVoxels(const NrrdHeader& h, const fs::path& pa
 }
 
 /// The grid axes in the NRRD space (columns: axis i, j, k scaled by the spacing, in the space's
-/// length unit): "space directions", else the diagonal of "spacings" (1 where absent or 0).
+/// length unit): "space directions", else the diagonal of "spacings" (1 where absent).
+/// @throws LoadError naming `path` for a spacing that is not a positive number (0, nan,
+///         negative: a grid the file does not describe).
 /// @throws LoadError naming `path` for malformed or non-spatial directions.
 Eigen::Matrix3d gridAxes(const NrrdHeader& h, const fs::path& path, bool layered) {
   Eigen::Matrix3d axes = Eigen::Matrix3d::Identity();
@@ -646,11 +649,16 @@ Eigen::Matrix3d gridAxes(const NrrdHeader& h, const fs::path& path, bool layered
     }
     return axes;
   }
-  const auto words = splitWords(field(h, "spacings"));
+  auto words = splitWords(field(h, "spacings"));
+  if (layered && !words.empty()) words.erase(words.begin());  // the list axis ("nan")
   for (int c = 0; c < 3; ++c) {
     double s = 1.0;
     if (static_cast<std::size_t>(c) < words.size()) {
-      if (const auto d = parseDouble(words[static_cast<std::size_t>(c)]); d && *d != 0.0) s = *d;
+      const auto d = parseDouble(words[static_cast<std::size_t>(c)]);
+      if (!d || !(*d > 0.0)) {
+        fail(path, "\"spacings\" must be positive numbers, found \"" + field(h, "spacings") + "\"");
+      }
+      s = *d;
     }
     axes(c, c) = s;
   }

@@ -3,8 +3,11 @@
 #include <cstdio>
 #include <fstream>
 #include <map>
+#include <optional>
 #include <sstream>
 #include <stdexcept>
+
+#include "vh/io/private_files.h"
 
 namespace vh::io {
 
@@ -28,14 +31,23 @@ void writeNrrd(const std::filesystem::path& path, const NrrdVolume& v) {
     << "space origin: (" << o.x() << "," << o.y() << "," << o.z() << ")\n";
   for (const auto& [key, value] : v.key_values) h << key << ":=" << value << "\n";
   h << "\n";
-  std::ofstream out(path, std::ios::binary | std::ios::trunc);
-  if (!out) throw std::runtime_error(path.string() + ": cannot open the file for writing");
+  // 0600 (a drilled scan is the patient's), renamed into place only when whole.
+  std::optional<PrivateOutput> file;
+  try {
+    file.emplace(path);
+  } catch (const std::runtime_error&) {
+    throw std::runtime_error(path.string() + ": cannot open the file for writing");
+  }
+  std::ofstream& out = file->stream();
   const std::string header = h.str();
   out.write(header.data(), static_cast<std::streamsize>(header.size()));
   const std::size_t bytes = static_cast<std::size_t>(v.dims[0]) * v.dims[1] * v.dims[2] * size->second;
   out.write(static_cast<const char*>(v.voxels), static_cast<std::streamsize>(bytes));
-  out.flush();
-  if (!out) throw std::runtime_error(path.string() + ": the write failed (disk full?)");
+  try {
+    file->commit();
+  } catch (const std::runtime_error&) {
+    throw std::runtime_error(path.string() + ": the write failed (disk full?)");
+  }
 }
 
 }  // namespace vh::io

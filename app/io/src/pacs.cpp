@@ -19,6 +19,8 @@
 #include <dcmtk/dcmnet/scu.h>
 #include <dcmtk/oflog/oflog.h>
 
+#include "vh/io/private_files.h"
+
 namespace vh::io {
 namespace {
 
@@ -189,7 +191,13 @@ class Scu : public DcmSCU {
     }
     const fs::path path = folder_ / (name + ".dcm");
     DcmFileFormat file(dataset.release(), OFFalse /* takes ownership */);
-    const OFCondition cond = file.saveFile(path.c_str(), EXS_Unknown, EET_ExplicitLength, EGL_recalcGL,
+    OFCondition cond = EC_Normal;
+    try {
+      createPrivateFile(path);  // 0600 before DCMTK writes into it (fopen "wb" keeps the mode)
+    } catch (const std::runtime_error& e) {
+      cond = makeOFCondition(OFM_dcmdata, 1, OF_error, e.what());
+    }
+    if (cond.good()) cond = file.saveFile(path.c_str(), EXS_Unknown, EET_ExplicitLength, EGL_recalcGL,
                                            EPD_noChange, 0, 0, EWM_fileformat);
     if (cond.bad()) {
       std::error_code ec;
@@ -432,10 +440,13 @@ PacsRetrieveResult pacsRetrieveSeries(const PacsServer& server, const std::strin
     if (study.empty()) study = found.study_uid;
     if (opts.expected_instances < 0) opts.expected_instances = found.instance_count;
   }
+  // The series folder and its missing parents owner-only (0700), its files 0600: a whole
+  // series with the patient's name and images.
   std::error_code ec;
-  fs::create_directories(out_dir, ec);
-  if (ec || !fs::is_directory(out_dir)) {
-    throw fail(server, "cannot create the folder " + out_dir.string() + (ec ? ": " + ec.message() : ""));
+  try {
+    createPrivateDirectories(out_dir);
+  } catch (const std::runtime_error& e) {
+    throw fail(server, e.what());
   }
 
   Scu scu(server);

@@ -18,6 +18,7 @@
 #include "dicom_seg_internal.h"
 #include "loader_internal.h"
 #include "nifti_internal.h"
+#include "reader_checks.h"
 #include "vh/io/dicom_rtstruct.h"
 #include "vh/io/dicom_seg.h"
 
@@ -90,6 +91,8 @@ LoadedSegmentation loadNrrdSegmentation(const fs::path& path, const VolumeLoadOp
 /// else "not a segmentation".
 LoadedSegmentation loadAnySegmentation(const fs::path& path, const LoadedVolume* scan,
                                        const VolumeLoadOptions& options) {
+  // Before anything opens it: a FIFO would block the open (and the window), a device never end.
+  detail::requireRegularFile(path, path);
   const auto ext = lower(path.extension().string());
   if (ext == ".nrrd" || ext == ".nhdr" || detail::isNiftiFileName(path)) return loadNrrdSegmentation(path, options);
   if (isDicomRtStructFile(path)) return loadDicomRtStruct(path, scan, options);
@@ -222,6 +225,8 @@ LoadedSegmentation loadNrrdSegmentation(const fs::path& path, const VolumeLoadOp
 
 bool isSegmentationFile(const fs::path& path) noexcept {
   try {
+    std::error_code ec;
+    if (!fs::is_regular_file(path, ec)) return false;  // never open a FIFO or device to sniff it
     const std::string name = lower(path.filename().string());
     if (name.size() > 9 && name.compare(name.size() - 9, 9, ".seg.nrrd") == 0) return true;
     if (detail::isNiftiFileName(path)) return detail::isNiftiLabelMap(path);

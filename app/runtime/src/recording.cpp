@@ -18,8 +18,12 @@
 #include <sstream>
 #include <stdexcept>
 
+#include <unistd.h>
+
 #include <nlohmann/json.hpp>
 #include <zlib.h>
+
+#include "vh/io/private_files.h"
 
 static_assert(std::endian::native == std::endian::little,
               "the recording format is little-endian; add byte swapping for this host");
@@ -163,8 +167,18 @@ RecordingWriter::RecordingWriter(const std::filesystem::path& path, const std::s
   segmentList(meta, segment_names_, segment_critical_);
   const std::string text = meta.dump();
 
-  file_ = std::fopen(path.c_str(), "wb");
-  if (file_ == nullptr) throw std::runtime_error("RecordingWriter: cannot create " + path.string());
+  // Owner-only (0600) whatever the umask: a recording names the scan and carries the session.
+  int fd = -1;
+  try {
+    fd = io::openPrivateFile(path);
+  } catch (const std::runtime_error& e) {
+    throw std::runtime_error(std::string("RecordingWriter: ") + e.what());
+  }
+  file_ = ::fdopen(fd, "wb");
+  if (file_ == nullptr) {
+    ::close(fd);
+    throw std::runtime_error("RecordingWriter: cannot create " + path.string());
+  }
   std::array<unsigned char, kFileHeaderBytes> header{};
   std::memcpy(header.data(), kMagic.data(), kMagic.size());
   putU32(header.data() + 8, kRecordingFormatVersion);
@@ -535,11 +549,9 @@ void writeRecordingCsv(const Recording& recording, std::ostream& out) {
 }
 
 void writeRecordingCsv(const Recording& recording, const std::filesystem::path& path) {
-  std::ofstream out(path);
-  if (!out) throw std::runtime_error("writeRecordingCsv: cannot create " + path.string());
-  writeRecordingCsv(recording, out);
-  out.flush();
-  if (!out) throw std::runtime_error("writeRecordingCsv: write failed on " + path.string());
+  io::PrivateOutput file(path);  // 0600, renamed into place only when whole
+  writeRecordingCsv(recording, file.stream());
+  file.commit();
 }
 
 void writeRecordingEventsCsv(const Recording& recording, std::ostream& out) {
@@ -557,11 +569,9 @@ void writeRecordingEventsCsv(const Recording& recording, std::ostream& out) {
 }
 
 void writeRecordingEventsCsv(const Recording& recording, const std::filesystem::path& path) {
-  std::ofstream out(path);
-  if (!out) throw std::runtime_error("writeRecordingEventsCsv: cannot create " + path.string());
-  writeRecordingEventsCsv(recording, out);
-  out.flush();
-  if (!out) throw std::runtime_error("writeRecordingEventsCsv: write failed on " + path.string());
+  io::PrivateOutput file(path);
+  writeRecordingEventsCsv(recording, file.stream());
+  file.commit();
 }
 
 void writeRecordingJson(const Recording& recording, const std::filesystem::path& path) {
@@ -603,11 +613,9 @@ void writeRecordingJson(const Recording& recording, const std::filesystem::path&
                         {"touches", c.touches}});
   }
   j["segments"] = std::move(segments);
-  std::ofstream out(path);
-  if (!out) throw std::runtime_error("writeRecordingJson: cannot create " + path.string());
-  out << j.dump(2) << '\n';
-  out.flush();
-  if (!out) throw std::runtime_error("writeRecordingJson: write failed on " + path.string());
+  io::PrivateOutput file(path);
+  file.stream() << j.dump(2) << '\n';
+  file.commit();
 }
 
 std::vector<SegmentContact> segmentContacts(const Recording& recording) {

@@ -18,6 +18,8 @@
 #include <nlohmann/json.hpp>
 
 #include "vh/haptics/crossing_verifier.h"
+#include "vh/io/available_memory.h"
+#include "vh/io/private_files.h"
 #include "vh/runtime/device.h"
 #include "vh/runtime/sha256.h"
 #include "vh/runtime/placement.h"
@@ -75,6 +77,11 @@ void describeRun(RunReport& r, const LoadedScene& scene, const haptics::ScalarVo
 std::ofstream openTrace(const std::filesystem::path& trace_csv) {
   std::ofstream trace;
   if (!trace_csv.empty()) {
+    try {
+      io::createPrivateFile(trace_csv);  // 0600: the session's poses and forces
+    } catch (const std::runtime_error&) {
+      throw std::runtime_error(trace_csv.string() + ": cannot write the trace");
+    }
     trace.open(trace_csv);
     if (!trace) throw std::runtime_error(trace_csv.string() + ": cannot write the trace");
     trace << "tick,t_s,xd_m,yd_m,zd_m,xp_m,yp_m,zp_m,fx_N,fy_N,fz_N,tx_Nm,ty_Nm,tz_Nm,contacts,exec_us,penetration_m,"
@@ -331,6 +338,16 @@ RunReport runHeadless(const LoadedScene& scene, const Trajectory& trajectory, co
   if (!(options.servo_rate_Hz > 0.0)) throw std::invalid_argument("runHeadless: servo rate must be > 0");
   if (!(options.verify_step_voxels >= 0.0) || !std::isfinite(options.verify_step_voxels))
     throw std::invalid_argument("runHeadless: the crossing-check step must be >= 0 voxels (0: off)");
+  // The tick count in double first: a trajectory ending at 1e19 s would overflow the integer.
+  const double duration_s = trajectory.duration_s();
+  if (!(duration_s >= 0.0 && duration_s <= kMaxRunDuration_s)) {
+    char text[200];
+    std::snprintf(text, sizeof text, "the trajectory lasts %g s (%.3g h); a run replays at most %g s (24 h)", duration_s,
+                  duration_s / 3600.0, kMaxRunDuration_s);
+    throw std::invalid_argument(text);
+  }
+  const double ticks = std::floor(duration_s * options.servo_rate_Hz + 1e-9) + 1.0;
+  io::requireFitsInMemory(static_cast<std::uint64_t>(ticks) * sizeof(double), "the run's per-tick times");
   const haptics::ScalarVolume& volume = *scene.hapticField();
   const haptics::ToolModel& tool = *scene.tool;
   const double s = scene.hapticIsovalue();
@@ -419,7 +436,9 @@ RunReport runHeadless(const LoadedScene& scene, const Trajectory& trajectory, co
       if (ref.X_WP.allFinite() && out.X_WP.allFinite()) lag.add(out.X_WP, ref.X_WP, sample.X_WD);
     }
     addTickCounts(r, out, command_W_N, i, sample_ok, contact_sum, samples_sum);
-    const bool finite = out.force_W_N.allFinite() && out.torque_W_Nm.allFinite() && out.X_WP.allFinite();
+    // |F| itself must be finite: components near 1e300 (a stiffness of 1e300 N/m) square to inf.
+    const bool finite = out.force_W_N.allFinite() && out.torque_W_Nm.allFinite() && out.X_WP.allFinite() &&
+                        std::isfinite(out.force_W_N.norm()) && std::isfinite(out.torque_W_Nm.norm());
     const int segment = scene.segments ? scene.segments->segmentOf(renderer.contacts()) : -1;
     if (segment_tally) segment_tally->add(segment, out.force_W_N.norm(), 1.0 / options.servo_rate_Hz);
     // The checks below use the isovalue the renderer rendered this tick (it may lag the
@@ -664,11 +683,9 @@ std::string RunReport::summary() const {
 }
 
 void writeRunReport(const RunReport& report, const std::filesystem::path& path) {
-  std::ofstream out(path);
-  if (!out) throw std::runtime_error(path.string() + ": cannot write the report");
-  out << report.toJson();
-  out.flush();
-  if (!out) throw std::runtime_error(path.string() + ": write failed");
+  io::PrivateOutput file(path);  // 0600, renamed into place only when whole
+  file.stream() << report.toJson();
+  file.commit();
 }
 
 }  // namespace vh::runtime

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <cstdlib>
 #include <fstream>
 #include <initializer_list>
@@ -306,8 +307,19 @@ void readTool(const ObjectReader& tool, const fs::path& base_dir, ToolSpec& t) {
 /// The "coupling" section into `gains` (which holds the defaults).
 void readCoupling(const ObjectReader& coupling, haptics::CouplingGains& gains) {
   coupling.allowOnly({"linear_N_per_m", "angular_Nm_per_rad", "passivity_control"});
-  if (coupling.has("linear_N_per_m")) gains.linear_N_per_m = coupling.positive("linear_N_per_m");
-  if (coupling.has("angular_Nm_per_rad")) gains.angular_Nm_per_rad = coupling.positive("angular_Nm_per_rad");
+  const auto stiffness = [&](const char* key, double max, const char* unit) {
+    const double k = coupling.positive(key);
+    if (k > max) {
+      char text[120];
+      std::snprintf(text, sizeof text, "must be at most %g %s, found %g", max, unit, k);
+      coupling.fail(coupling.fieldPath(key), text);
+    }
+    return k;
+  };
+  if (coupling.has("linear_N_per_m")) gains.linear_N_per_m = stiffness("linear_N_per_m", kMaxLinearStiffness_N_per_m, "N/m");
+  if (coupling.has("angular_Nm_per_rad")) {
+    gains.angular_Nm_per_rad = stiffness("angular_Nm_per_rad", kMaxAngularStiffness_Nm_per_rad, "N*m/rad");
+  }
   if (coupling.has("passivity_control")) gains.passivity_control = coupling.boolean("passivity_control");
 }
 

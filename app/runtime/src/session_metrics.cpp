@@ -8,6 +8,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include "vh/io/private_files.h"
 #include "vh/runtime/runner.h"
 
 namespace vh::runtime {
@@ -378,8 +379,8 @@ std::size_t writeCohortTable(const std::filesystem::path& dir, const std::filesy
                              const MetricsOptions& options,
                              const std::function<void(std::size_t, std::size_t)>& progress) {
   const std::vector<std::filesystem::path> files = findRecordings(dir);
-  std::ofstream out(csv, std::ios::binary);
-  if (!out) throw std::runtime_error(csv.string() + ": cannot be written");
+  io::PrivateOutput file(csv);  // 0600 (labels and scene names), renamed into place when whole
+  std::ostream& out = file.stream();
   out << "file,scene,dataset_sha256,label,start_time_utc";
   const std::vector<MetricValue> columns = metricValues(SessionMetrics{});
   for (const MetricValue& v : columns) out << ',' << v.key;
@@ -401,8 +402,7 @@ std::size_t writeCohortTable(const std::filesystem::path& dir, const std::filesy
     }
     if (progress) progress(i + 1, files.size());
   }
-  out.flush();
-  if (!out) throw std::runtime_error(csv.string() + ": write failed");
+  file.commit();
   return files.size();
 }
 

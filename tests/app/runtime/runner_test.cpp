@@ -6,6 +6,7 @@
 #include "vh/runtime/runner.h"
 
 #include <cmath>
+#include <cstdio>
 #include <fstream>
 
 #include <gtest/gtest.h>
@@ -314,6 +315,57 @@ TEST(Runner, ErrorsNameTheFile) {
   VH_EXPECT_THROW_WITH(runHeadless(spec, bad), std::runtime_error, bad.string() + ":2:");
   VH_EXPECT_THROW_WITH(writeRunReport(RunReport{}, "/no/such/folder/report.json"), std::runtime_error,
                        "/no/such/folder/report.json");
+}
+
+TEST(Runner, TrajectoriesLongerThanADayAreRefusedBeforeAnyTick) {
+  const LoadedScene& scene = blockScene();
+  const Pose X_WD = poseAboveVolume(*scene.volume.field, scene.tool->point_shell, Eigen::Quaterniond::Identity(), 0.01);
+  // 1e19 s overflowed the tick count (one tick ran), 1e9 s asked for 8 TB of tick times
+  // (std::bad_alloc), 1e6 s ran 10^9 ticks: each is refused with its duration and the limit.
+  const auto still = [&](double end_s) {
+    TrajectorySample a, b;
+    a.X_WD = X_WD;
+    b.X_WD = X_WD;
+    b.t_s = end_s;
+    return Trajectory({a, b});
+  };
+  for (const double end_s : {1e19, 1e9, 1e6, 86400.5}) {
+    const Trajectory t = still(end_s);
+    try {
+      runHeadless(scene, t);
+      ADD_FAILURE() << end_s << " s was run";
+    } catch (const std::invalid_argument& e) {
+      EXPECT_NE(std::string(e.what()).find("at most 86400 s (24 h)"), std::string::npos) << e.what();
+      char duration[32];
+      std::snprintf(duration, sizeof duration, "lasts %g s", end_s);
+      EXPECT_NE(std::string(e.what()).find(duration), std::string::npos) << e.what();
+    }
+  }
+  // A short one still runs (the limit is not the cause of the refusals above).
+  const RunReport r = runHeadless(scene, still(0.01));
+  EXPECT_EQ(r.ticks, 11u);
+}
+
+TEST(Runner, ForcesThatOverflowAreCountedAsNonFinite) {
+  SceneSpec spec = builtinBlockWithHoleScene();
+  spec.tool.point_spacing_m = 0.001;
+  spec.gains.linear_N_per_m = 1e300;  // past the scene file's limit: only the API reaches it
+  const LoadedScene scene = loadScene(spec);
+  const auto& field = *scene.volume.field;
+  Pose start = poseAboveVolume(field, scene.tool->point_shell, Eigen::Quaterniond::Identity(), 0.005);
+  start.p_AB_m.x() = 0.015;  // onto the top face, beside the hole
+  PushSlideOptions push;
+  push.slide_dir_W = Eigen::Vector3d::UnitY();
+  const PushSlidePlan plan = makePushSlideTrajectory(field, scene.tool->point_shell, scene.isovalue, start, push);
+  RunOptions options;
+  options.verify_step_voxels = 0.0;
+  options.lag_reference = false;
+  const RunReport r = runHeadless(scene, plan.trajectory, options);
+  // In contact, |F| = 1e300 N/m x millimetres overflows to inf: those ticks are non-finite (what
+  // `run --check` fails on), and the maximum force stays a number.
+  EXPECT_GT(r.nan_ticks, 0u) << r.summary();
+  EXPECT_TRUE(std::isfinite(r.max_force_N)) << r.summary();
+  EXPECT_EQ(r.summary().find("inf N"), std::string::npos) << r.summary();
 }
 
 }  // namespace

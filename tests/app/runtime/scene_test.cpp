@@ -220,6 +220,11 @@ TEST(SceneFile, TheEdgeTestIsOnUnlessTheToolTurnsItOff) {
 }
 
 TEST(SceneFileErrors, PassivityControlMustBeABoolean) {
+  // Stiffnesses past the stated maxima (a force of 1e300 N/m x 1 mm overflows |F| to inf).
+  expectSceneError(R"({"volume": {"path": "builtin:plane"}, "coupling": {"linear_N_per_m": 1e300}})",
+                   "coupling.linear_N_per_m: must be at most 100000 N/m, found 1e+300");
+  expectSceneError(R"({"volume": {"path": "builtin:plane"}, "coupling": {"angular_Nm_per_rad": 51}})",
+                   "coupling.angular_Nm_per_rad: must be at most 50");
   expectSceneError(R"({"volume": {"path": "builtin:plane"}, "coupling": {"passivity_control": 1}})",
                    "coupling.passivity_control: expected true or false, found 1");
   expectSceneError(R"({"volume": {"path": "builtin:plane"}, "coupling": {"passivity_control": "yes"}})",

@@ -33,6 +33,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include "vh/io/private_files.h"
 #include "vh/runtime/drilling.h"
 #include "vh/runtime/session_metadata.h"
 #include "vh/ui/drill_controller.h"
@@ -542,9 +543,10 @@ int writeRecordingVideo(RecordingFrameRenderer& frames, const runtime::Recording
                                 std::to_string(end) + " s");
   }
   const int total = static_cast<int>(std::floor((end - begin) * fps + 1e-9)) + 1;
+  io::PrivateOutput file(path);  // 0600, renamed into place only when written
   vtkNew<vtkOggTheoraWriter> writer;
   writer->SetInputConnection(frames.imageFilter()->GetOutputPort());
-  writer->SetFileName(path.string().c_str());
+  writer->SetFileName(file.tempPath().string().c_str());
   writer->SetRate(std::max(1, static_cast<int>(std::lround(fps))));
   writer->SetQuality(2);
   writer->SetSubsampling(0);
@@ -576,9 +578,10 @@ int writeRecordingVideo(RecordingFrameRenderer& frames, const runtime::Recording
   writer->End();
   if (writer->GetError() != 0) throw std::runtime_error(path.string() + ": the video could not be written");
   std::error_code ec;
-  if (!fs::exists(path, ec) || fs::file_size(path, ec) == 0) {
+  if (!fs::exists(file.tempPath(), ec) || fs::file_size(file.tempPath(), ec) == 0) {
     throw std::runtime_error(path.string() + ": the video could not be written");
   }
+  file.commit();
   return done;
 }
 
@@ -589,14 +592,16 @@ void writeRecordingPng(RecordingFrameRenderer& frames, const runtime::Recording&
   frames.showCavityAt(i);  // the cavity first: the shadow falls into it
   frames.show(recording.records[i]);
   frames.render();
+  io::PrivateOutput file(path);
   vtkNew<vtkPNGWriter> writer;
   writer->SetInputConnection(frames.imageFilter()->GetOutputPort());
-  writer->SetFileName(path.string().c_str());
+  writer->SetFileName(file.tempPath().string().c_str());
   writer->Write();
   std::error_code ec;
-  if (writer->GetErrorCode() != 0 || !fs::exists(path, ec) || fs::file_size(path, ec) == 0) {
+  if (writer->GetErrorCode() != 0 || !fs::exists(file.tempPath(), ec) || fs::file_size(file.tempPath(), ec) == 0) {
     throw std::runtime_error(path.string() + ": the PNG could not be written");
   }
+  file.commit();
 }
 
 namespace {

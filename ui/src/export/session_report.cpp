@@ -26,6 +26,7 @@
 #include <nlohmann/json.hpp>
 
 #include "vh/haptics/scalar_volume.h"
+#include "vh/io/private_files.h"
 #include "vh/runtime/scene.h"
 #include "vh/runtime/session_metadata.h"
 #include "vh/ui/export/report_format.h"
@@ -727,11 +728,9 @@ void writeSessionReport(const Recording& recording, const std::string& title, co
                         const SessionReportOptions& options, const Recording* reference,
                         const std::string& reference_title) {
   const std::string html = sessionReportHtml(recording, title, options, reference, reference_title);
-  std::ofstream out(html_path, std::ios::binary | std::ios::trunc);
-  if (!out) throw std::runtime_error(html_path.string() + ": cannot be written");
-  out << html;
-  out.flush();
-  if (!out) throw std::runtime_error(html_path.string() + ": write failed");
+  io::PrivateOutput file(html_path);  // 0600, renamed into place only when whole
+  file.stream() << html;
+  file.commit();
 }
 
 std::vector<std::string> writeSessionReport(const fs::path& recording_path, const fs::path& html_path,

@@ -37,6 +37,7 @@
 #include <vtkImageData.h>
 #include <vtkRenderer.h>
 
+#include "vh/io/private_files.h"
 #include "vh/runtime/session_metadata.h"
 #include "vh/runtime/scene.h"
 #include "vh/runtime/session.h"
@@ -734,8 +735,12 @@ void ReplayController::exportFromMenu(int kind) {
     if (out.isEmpty()) return;
     if (active_) {
       exportPng(fs::path(out.toStdString()), 0, 0, askOverlay(window_));
-    } else if (!view_.widget()->grabFrame().save(out, "PNG")) {
-      throw std::runtime_error(out.toStdString() + ": the PNG could not be written");
+    } else {
+      io::PrivateOutput file(fs::path(out.toStdString()));  // 0600, renamed into place when whole
+      if (!view_.widget()->grabFrame().save(QString::fromStdString(file.tempPath().string()), "PNG")) {
+        throw std::runtime_error(out.toStdString() + ": the PNG could not be written");
+      }
+      file.commit();
     }
     emit noticeRequested("Saved " + QFileInfo(out).fileName());
   } catch (const std::exception& e) {

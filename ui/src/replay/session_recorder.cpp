@@ -21,6 +21,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include "vh/io/private_files.h"
 #include "vh/runtime/recording.h"
 #include "vh/runtime/session_metadata.h"
 #include "vh/runtime/session.h"
@@ -86,7 +87,10 @@ fs::path SessionRecorder::defaultPath() {
   QString docs = QStandardPaths::writableLocation(QStandardPaths::DocumentsLocation);
   if (docs.isEmpty()) docs = QDir::homePath();
   const QString folder = QDir(docs).filePath("VolumeHaptics");
-  QDir().mkpath(folder);
+  try {
+    io::createPrivateDirectories(folder.toStdString());  // 0700: recordings are patient data
+  } catch (const std::runtime_error&) {  // NOLINT(bugprone-empty-catch): start() reports the file it cannot create
+  }
   const QString name = "session-" + QDateTime::currentDateTime().toString("yyyyMMdd-HHmmss") + ".vhrec";
   return fs::path(QDir(folder).filePath(name).toStdString());
 }
@@ -139,7 +143,7 @@ bool SessionRecorder::start(const fs::path& path) {
     if (options.chunk_records >= options.servo_rate_Hz) {
       options.chunk_records = static_cast<std::size_t>(std::max(1.0, options.servo_rate_Hz / 2.0));
     }
-    if (!path.parent_path().empty()) fs::create_directories(path.parent_path());
+    if (!path.parent_path().empty()) io::createPrivateDirectories(path.parent_path());
     writer_ = std::make_unique<runtime::RecordingWriter>(path, metadata, options);
   } catch (const std::exception& e) {
     writer_.reset();

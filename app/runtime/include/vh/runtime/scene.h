@@ -125,6 +125,12 @@ struct OpenIgtlinkSpec {
   double rate_Hz = 60.0; ///< Messages per second per kind, > 0 (the link clamps it to the servo rate) [Hz].
 };
 
+/// Largest coupling stiffnesses a scene file may ask for (the Haptics panel's limits): far past
+/// any desktop device's rating (a Phantom Premium's is about 3.5 kN/m), below where forces
+/// overflow. Larger ones are refused naming the field.
+inline constexpr double kMaxLinearStiffness_N_per_m = 1e5;
+inline constexpr double kMaxAngularStiffness_Nm_per_rad = 50.0;
+
 /// A parsed scene (paths already resolved to absolute ones where they exist).
 struct SceneSpec {
   std::filesystem::path source;  ///< Scene file (empty for built-in scenes).
