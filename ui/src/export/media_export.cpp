@@ -549,7 +549,9 @@ int writeRecordingVideo(RecordingFrameRenderer& frames, const runtime::Recording
   writer->SetFileName(file.tempPath().string().c_str());
   writer->SetRate(std::max(1, static_cast<int>(std::lround(fps))));
   writer->SetQuality(2);
-  writer->SetSubsampling(0);
+  // 4:2:0 chroma, as players expect and twice as fast to encode as 4:4:4 (which took half of
+  // each frame's time at 640 x 480 on a 2-core machine).
+  writer->SetSubsampling(1);
   const auto showAt = [&](double t) {
     const std::size_t i = recordIndexAt(recording.records, t);
     frames.showCavityAt(i);  // the cavity first: the shadow falls into it
