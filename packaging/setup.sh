@@ -16,6 +16,8 @@ packages=(cmake ninja-build g++ pkg-config libeigen3-dev libgtest-dev libgmock-d
   libbenchmark-dev nlohmann-json3-dev libcli11-dev libvtk9-dev libvtk-dicom-dev libdcmtk-dev
   qt6-base-dev libqt6opengl6-dev qt6-charts-dev libhidapi-dev libusb-1.0-0-dev
   zlib1g-dev zstd xvfb xauth libgl1-mesa-dri umockdev libumockdev-dev libopenigtlink-dev)
+# The Python module volume_haptics (app/python): pybind11, the system Python's headers, NumPy.
+packages+=(pybind11-dev python3-dev python3-numpy)
 # test also builds the fuzz targets (tests/fuzz/ci.sh): clang and its libFuzzer / sanitizer runtimes.
 # test also builds and checks the Debian package (tests/packaging/deb_test.sh): dpkg-shlibdeps
 # (dpkg-dev) and file for cpack's Depends, help2man for the man page, desktop-file-utils and
@@ -26,7 +28,9 @@ packages=(cmake ninja-build g++ pkg-config libeigen3-dev libgtest-dev libgmock-d
 # Orthanc's REST API whether it is up and holds the series).
 # test also opens a session report in a real browser engine (headless Chromium:
 # tests/ui/report_cli_test.sh) to check that its inline pictures decode.
+# test also runs the Python module's pytest suite and checks NIfTI placement against nibabel.
 if [[ $mode == test ]]; then
+  packages+=(python3-pytest python3-nibabel)
   packages+=(clang libclang-rt-14-dev dpkg-dev file help2man desktop-file-utils shared-mime-info orthanc dcmtk curl
     chromium)
 fi

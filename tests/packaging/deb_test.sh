@@ -134,6 +134,15 @@ done
 ((nscenes >= 2)) || fail "only $nscenes installed scenes"
 echo "scenes: $nscenes open"
 
+step "the Python module imports from the package (system Python) and runs"
+if [[ -d $root/usr/lib/python3/dist-packages/volume_haptics ]]; then
+  (cd "$tmp/work" && env -i PATH=/usr/bin:/bin HOME="$tmp/home" PYTHONPATH="$root/usr/lib/python3/dist-packages" \
+    /usr/bin/python3 -c "import sys, volume_haptics as vh; r = vh.run(sys.argv[1], sys.argv[2]); print('python run:', r.report['ticks'], 'ticks')" \
+    "$root/usr/share/volume-haptics/scenes/sphere-probe.json" "$tmp/work/sphere.csv") || fail "import volume_haptics / run from the package"
+else
+  echo "no Python module in the package (built without pybind11)"
+fi
+
 step "bench writes under the user's data folder"
 vh bench table1 --help >"$tmp/bench-help.txt" || fail "bench table1 --help exited with $?"
 grep -q "$tmp/home/.local/share/volume-haptics/bench/table1" "$tmp/bench-help.txt" ||

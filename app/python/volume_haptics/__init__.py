@@ -1,0 +1,235 @@
+"""VolumeHaptics from Python: headless runs, recordings, trajectories and session metrics.
+
+The functions call the same C++ code as the command line (``volume-haptics run``, ``export``,
+``report``), so a study scripted here gets the same ticks, numbers and error messages:
+
+    import numpy as np, volume_haptics as vh
+    scene = vh.load_scene("resources/scenes/sphere-probe.json")
+    result = vh.run(scene, trajectory)            # trajectory: (N, 8) array, see run()
+    result.force_N.max(), result.report["max_penetration_m"]
+
+Frames and units everywhere: W is the scene (world) frame (patient LPS for scans), positions in
+metres, quaternions (w, x, y, z) of the rotation R_WD (device) or R_WP (proxy), forces in newtons
+(on the user's hand, in W), torques in newton metres, times in seconds.
+
+Errors are Python exceptions carrying the command line's message (what ``volume-haptics`` prints
+after "volume-haptics: error: "): ``LoadError`` (a ``RuntimeError``) for a volume, segmentation or
+mesh that cannot be read, ``RuntimeError`` for a bad scene, trajectory or recording file,
+``ValueError`` for bad arguments (a trajectory of the wrong shape, times not increasing).
+"""
+import json
+import os
+import tempfile
+from dataclasses import dataclass, field
+from typing import Any, Dict, List, Optional, Union
+
+import numpy as np
+
+from . import _core
+from ._core import LoadError
+
+__all__ = [
+    "LoadError", "Scene", "RunResult", "Recording", "TICK_DTYPE", "load_scene", "run", "read_recording",
+    "write_trajectory", "read_trajectory", "session_metrics",
+]
+
+#: One servo tick of a recording, as NumPy sees the file's 200-byte TickRecord (recording.h).
+#: The field names are the columns of ``volume-haptics export --csv``: device_* and proxy_* are
+#: the device and proxy poses in W (position [m], quaternion w, x, y, z), force_* [N] and
+#: torque_* [N*m] on the hand in W, isovalue in the data's units, tick_time_s the solver's compute
+#: time of the tick [s], flags the kRecordFlag* bits (bits 16..31: touched segment + 1).
+TICK_DTYPE = np.dtype({
+    "names": ["t_s", "device_x_m", "device_y_m", "device_z_m", "device_qw", "device_qx", "device_qy", "device_qz",
+              "proxy_x_m", "proxy_y_m", "proxy_z_m", "proxy_qw", "proxy_qx", "proxy_qy", "proxy_qz",
+              "force_x_N", "force_y_N", "force_z_N", "torque_x_Nm", "torque_y_Nm", "torque_z_Nm",
+              "isovalue", "tick", "tick_time_s", "contacts", "flags"],
+    "formats": ["<f8"] * 22 + ["<u8", "<f8", "<u4", "<u4"],
+    "offsets": [0, 8, 16, 24, 32, 40, 48, 56, 64, 72, 80, 88, 96, 104, 112, 120, 128, 136, 144, 152, 160,
+                168, 176, 184, 192, 196],
+    "itemsize": 200,
+})
+assert TICK_DTYPE.itemsize == _core.TICK_RECORD_BYTES
+
+#: The columns of ``volume-haptics export --csv``, in its order.
+CSV_COLUMNS = ["t_s", "tick", "device_x_m", "device_y_m", "device_z_m", "device_qw", "device_qx", "device_qy",
+               "device_qz", "proxy_x_m", "proxy_y_m", "proxy_z_m", "proxy_qw", "proxy_qx", "proxy_qy", "proxy_qz",
+               "force_x_N", "force_y_N", "force_z_N", "torque_x_Nm", "torque_y_Nm", "torque_z_Nm", "contacts",
+               "isovalue", "tick_time_s", "flags"]
+
+Scene = _core.Scene
+# Scene's docstring: volume_haptics_core.cpp.
+
+
+def _ticks(raw: np.ndarray) -> np.ndarray:
+    return np.frombuffer(raw.tobytes(), dtype=TICK_DTYPE)
+
+
+def load_scene(scene: Union[str, "os.PathLike[str]", Dict[str, Any]], base_dir: Union[str, "os.PathLike[str]", None] = None) -> Scene:
+    """Loads a scene: a scene .json file, or a dict with the file's keys (volume, tool, coupling,
+    segmentation, drill; see docs/command-line.md, "Scene files").
+
+    base_dir: where a dict's relative paths resolve first (default: the current folder), then the
+    shared datasets and the generated data, as for a scene file's folder.
+    Returns a Scene. Raises LoadError (volume / mesh unreadable) or RuntimeError (bad scene) with
+    the command line's message; the source is the file name, or "scene dict" for a dict.
+    """
+    if isinstance(scene, Scene):
+        return scene
+    if isinstance(scene, dict):
+        return _core.load_scene_json(json.dumps(scene), "scene dict", os.fspath(base_dir or os.getcwd()))
+    return _core.load_scene_file(os.fspath(scene))
+
+
+@dataclass
+class RunResult:
+    """What run() returns: one row per servo tick (N ticks), and the run's report.
+
+    ticks: structured array (N,) of TICK_DTYPE (the columns of ``export --csv``).
+    t_s: (N,) servo time of each tick [s], from 0.
+    device_pose, proxy_pose: (N, 7) position in W [m] and quaternion (w, x, y, z) of R_WD / R_WP.
+    force_N: (N, 3) force on the hand in W [N] (the renderer's, before the safety layer).
+    torque_Nm: (N, 3) torque on the hand in W [N*m].
+    contacts: (N,) contact set size per tick.
+    report: the run report as a dict (the keys of ``run --report``'s JSON: ticks, mean_us, max_force_N,
+    max_penetration_m, crossings, ...).
+    """
+    ticks: np.ndarray
+    report: Dict[str, Any]
+    t_s: np.ndarray = field(init=False)
+    device_pose: np.ndarray = field(init=False)
+    proxy_pose: np.ndarray = field(init=False)
+    force_N: np.ndarray = field(init=False)
+    torque_Nm: np.ndarray = field(init=False)
+    contacts: np.ndarray = field(init=False)
+
+    def __post_init__(self):
+        t = self.ticks
+
+        def cols(*names):
+            return np.column_stack([t[n] for n in names]) if len(t) else np.zeros((0, len(names)))
+
+        self.t_s = np.array(t["t_s"])
+        self.device_pose = cols("device_x_m", "device_y_m", "device_z_m", "device_qw", "device_qx", "device_qy",
+                                "device_qz")
+        self.proxy_pose = cols("proxy_x_m", "proxy_y_m", "proxy_z_m", "proxy_qw", "proxy_qx", "proxy_qy", "proxy_qz")
+        self.force_N = cols("force_x_N", "force_y_N", "force_z_N")
+        self.torque_Nm = cols("torque_x_Nm", "torque_y_Nm", "torque_z_Nm")
+        self.contacts = np.array(t["contacts"])
+
+
+def _trajectory_array(trajectory) -> np.ndarray:
+    a = np.ascontiguousarray(trajectory, dtype=np.float64)
+    if a.ndim != 2 or a.shape[1] not in (8, 9):
+        raise ValueError("trajectory: expected an (N, 8) or (N, 9) array (t_s, x_m, y_m, z_m, qw, qx, qy, qz[, "
+                         "isovalue]), got shape %s" % (a.shape,))
+    return a
+
+
+def run(scene, trajectory, *, servo_rate_Hz: float = 1000.0, verify_step_voxels: float = 0.01,
+        lag_reference: bool = True, record: Union[str, "os.PathLike[str]", None] = None) -> RunResult:
+    """Replays a device trajectory through the renderer, as ``volume-haptics run`` does.
+
+    scene: a Scene (load_scene(); load once, run many), a scene dict or a scene file.
+    trajectory: (N, 8) or (N, 9) array of key poses of the device in W, one row per key:
+        t_s [s, strictly increasing], x_m, y_m, z_m [m], qw, qx, qy, qz (R_WD, normalised on use)
+        [, isovalue in data units, NaN for the scene's]; or a trajectory CSV file.
+        Tick i runs at t = t_first + i / servo_rate_Hz up to the last key's time.
+    servo_rate_Hz: the simulated servo rate [Hz]. verify_step_voxels: the crossing check's step
+    [voxels], 0 turns it off. lag_reference: also measure the work budget's lag.
+    record: also keep the session recording (.vhrec) here (``run --record``).
+    The GIL is released while the renderer runs, so runs in threads proceed in parallel.
+    Returns a RunResult (per-tick NumPy arrays and the report dict).
+    Raises LoadError / RuntimeError / ValueError with the command line's messages.
+    """
+    loaded = load_scene(scene)
+    if isinstance(trajectory, (str, os.PathLike)):
+        name = os.fspath(trajectory)
+        trajectory = _core.read_trajectory(name)
+    else:
+        name = "python"
+        trajectory = _trajectory_array(trajectory)
+    with tempfile.TemporaryDirectory(prefix="volume-haptics-") as tmp:
+        path = os.fspath(record) if record is not None else os.path.join(tmp, "run.vhrec")
+        report_json, rec = _core.run(loaded, trajectory, path, float(servo_rate_Hz), float(verify_step_voxels),
+                                     bool(lag_reference), name)
+    return RunResult(ticks=_ticks(rec[2]), report=json.loads(report_json))
+
+
+@dataclass
+class Recording:
+    """A session recording (.vhrec) as read back (``volume-haptics export``).
+
+    ticks: structured array (N,) of TICK_DTYPE, one per servo tick (the ``export --csv`` rows).
+    events: list of dicts {"t_s", "tick", "type", "detail"} (detail: the event's JSON object).
+    metadata: the header's JSON object (scene, dataset and its SHA-256, tool, gains, device, ...).
+    scene: metadata["scene"], the scene description (or None).
+    warnings: a truncated or damaged tail, one sentence each (empty for a clean file).
+    version, chunks, dropped_records, bytes_ignored: as ``export`` reports them.
+    """
+    ticks: np.ndarray
+    events: List[Dict[str, Any]]
+    metadata: Dict[str, Any]
+    warnings: List[str]
+    version: int
+    chunks: int
+    dropped_records: int
+    bytes_ignored: int
+
+    @property
+    def scene(self) -> Optional[Dict[str, Any]]:
+        return self.metadata.get("scene")
+
+    def dataframe(self):
+        """The ticks as a pandas DataFrame, columns in ``export --csv``'s order.
+        Raises ImportError when pandas is not installed."""
+        import pandas as pd
+        return pd.DataFrame({c: self.ticks[c] for c in CSV_COLUMNS})
+
+
+def read_recording(path: Union[str, "os.PathLike[str]"]) -> Recording:
+    """Reads a session recording (.vhrec) up to its last good chunk (see Recording).
+    Raises RuntimeError (not a recording, unsupported version, damaged header) with the
+    command line's message."""
+    version, metadata, raw, events, warnings, chunks, dropped, ignored = _core.read_recording(os.fspath(path))
+    return Recording(
+        ticks=_ticks(raw),
+        events=[{"t_s": t, "tick": k, "type": ty, "detail": json.loads(d) if d else {}} for t, k, ty, d in events],
+        metadata=json.loads(metadata) if metadata else {}, warnings=list(warnings), version=version, chunks=chunks,
+        dropped_records=dropped, bytes_ignored=ignored)
+
+
+def write_trajectory(path: Union[str, "os.PathLike[str]"], trajectory) -> None:
+    """Writes an (N, 8) or (N, 9) trajectory array (see run()) as the CSV ``run --trajectory``
+    reads (header line, 17 significant digits: it reads back bit for bit; quaternions normalised).
+    Raises ValueError for a bad array (shape, times not increasing, a zero quaternion),
+    RuntimeError when the file cannot be written."""
+    _core.write_trajectory(os.fspath(path), _trajectory_array(trajectory))
+
+
+def read_trajectory(path: Union[str, "os.PathLike[str]"]) -> np.ndarray:
+    """Reads a trajectory CSV into an (N, 8) array, (N, 9) when a key requests an isovalue (NaN
+    where one does not). Raises RuntimeError naming the file and line for a bad CSV."""
+    return _core.read_trajectory(os.fspath(path))
+
+
+def session_metrics(recording: Union[str, "os.PathLike[str]"], *, force_threshold_N: float = 2.0,
+                    derivative_step_s: float = 0.01) -> Dict[str, Any]:
+    """The session metrics of a recording, as ``volume-haptics report --table`` writes them: a flat
+    dict of file, scene, dataset_sha256, label, start_time_utc, then every metric keyed with its
+    unit (path_length_m, mean_force_N, time_in_contact_s, log_dimensionless_jerk, ...), then
+    "segments" (a list of dicts per segment) and "notices". A cohort is a list comprehension:
+    ``pandas.DataFrame([vh.session_metrics(p) for p in paths])``.
+
+    force_threshold_N: |F| above which time is counted [N]; derivative_step_s: the central
+    differences' step for speed and jerk [s]. Raises RuntimeError for an unreadable recording,
+    ValueError for out-of-range options."""
+    path = os.fspath(recording)
+    identity, values, segments, notices = _core.session_metrics(path, float(force_threshold_N),
+                                                               float(derivative_step_s))
+    out: Dict[str, Any] = {"file": path}
+    out.update(identity)
+    for key, _label, _unit, value in values:
+        out[key] = value
+    out["segments"] = segments
+    out["notices"] = list(notices)
+    return out

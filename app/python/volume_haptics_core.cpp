@@ -1,0 +1,223 @@
+// volume_haptics._core: the C++ side of the Python module (pybind11). Thin: each function calls
+// the code the command line calls (runtime::loadScene and runHeadless for `run`, readRecording
+// for `export`, computeSessionMetrics for `report`, the trajectory CSV reader and writer), so a
+// study scripted in Python gets the same ticks, numbers and error messages as the command line.
+// The Python-facing API, its docstrings and the NumPy / pandas views are in
+// volume_haptics/__init__.py.
+#include <cstring>
+#include <filesystem>
+#include <limits>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include <pybind11/numpy.h>
+#include <pybind11/pybind11.h>
+#include <pybind11/stl.h>
+#include <pybind11/stl/filesystem.h>
+
+#include "vh/io/volume_loader.h"
+#include "vh/runtime/recording.h"
+#include "vh/runtime/runner.h"
+#include "vh/runtime/scene.h"
+#include "vh/runtime/session_metrics.h"
+#include "vh/runtime/trajectory.h"
+
+namespace py = pybind11;
+namespace fs = std::filesystem;
+
+namespace {
+
+using vh::runtime::TickRecord;
+
+/// A scene loaded once (volume, tool, segmentation), run many times.
+struct Scene {
+  std::shared_ptr<const vh::runtime::LoadedScene> loaded;
+  std::string source;
+};
+
+Scene loadScene(const vh::runtime::SceneSpec& spec, const std::string& source) {
+  Scene s;
+  s.source = source;
+  {
+    py::gil_scoped_release release;
+    s.loaded = std::make_shared<const vh::runtime::LoadedScene>(vh::runtime::loadScene(spec));
+  }
+  return s;
+}
+
+/// The records' bytes (N x 200, TickRecord's layout) as a NumPy uint8 array.
+py::array_t<std::uint8_t> recordBytes(const std::vector<TickRecord>& records) {
+  py::array_t<std::uint8_t> out(static_cast<py::ssize_t>(records.size() * sizeof(TickRecord)));
+  if (!records.empty()) std::memcpy(out.mutable_data(), records.data(), records.size() * sizeof(TickRecord));
+  return out;
+}
+
+/// A trajectory from an (N, 8) or (N, 9) float64 array: t_s, x_m, y_m, z_m, qw, qx, qy, qz
+/// [, isovalue] (NaN: the scene's).
+/// @throws std::invalid_argument for another shape or as Trajectory's constructor.
+vh::runtime::Trajectory trajectoryOf(const py::array_t<double, py::array::c_style | py::array::forcecast>& a) {
+  if (a.ndim() != 2 || (a.shape(1) != 8 && a.shape(1) != 9)) {
+    throw std::invalid_argument("trajectory: expected an (N, 8) or (N, 9) array (t_s, x_m, y_m, z_m, qw, qx, qy, qz[, "
+                                "isovalue]), got shape " +
+                                [&] {
+                                  std::string s = "(";
+                                  for (py::ssize_t d = 0; d < a.ndim(); ++d) s += (d ? ", " : "") + std::to_string(a.shape(d));
+                                  return s + ")";
+                                }());
+  }
+  const auto r = a.unchecked<2>();
+  std::vector<vh::runtime::TrajectorySample> samples(static_cast<std::size_t>(a.shape(0)));
+  for (py::ssize_t i = 0; i < a.shape(0); ++i) {
+    auto& s = samples[static_cast<std::size_t>(i)];
+    s.t_s = r(i, 0);
+    s.X_WD.p_AB_m = Eigen::Vector3d(r(i, 1), r(i, 2), r(i, 3));
+    s.X_WD.R_AB = Eigen::Quaterniond(r(i, 4), r(i, 5), r(i, 6), r(i, 7));
+    if (a.shape(1) == 9) s.isovalue = r(i, 8);
+  }
+  return vh::runtime::Trajectory(std::move(samples));
+}
+
+py::array_t<double> trajectoryArray(const vh::runtime::Trajectory& t) {
+  const py::ssize_t cols = t.hasIsovalues() ? 9 : 8;
+  py::array_t<double> out({static_cast<py::ssize_t>(t.size()), cols});
+  auto w = out.mutable_unchecked<2>();
+  for (std::size_t i = 0; i < t.size(); ++i) {
+    const auto& s = t.samples()[i];
+    const auto& q = s.X_WD.R_AB;
+    const double row[9] = {s.t_s, s.X_WD.p_AB_m.x(), s.X_WD.p_AB_m.y(), s.X_WD.p_AB_m.z(), q.w(), q.x(), q.y(), q.z(),
+                           s.isovalue};
+    for (py::ssize_t c = 0; c < cols; ++c) w(static_cast<py::ssize_t>(i), c) = row[c];
+  }
+  return out;
+}
+
+py::tuple recordingTuple(const vh::runtime::Recording& r) {
+  py::list events;
+  for (const auto& e : r.events) events.append(py::make_tuple(e.time_s, e.tick, e.type, e.detail_json));
+  return py::make_tuple(r.version, r.metadata_json, recordBytes(r.records), events, r.warnings, r.chunks,
+                        r.dropped_records, r.bytes_ignored);
+}
+
+}  // namespace
+
+PYBIND11_MODULE(_core, m) {
+  m.doc() = "C++ side of volume_haptics (see volume_haptics/__init__.py for the API).";
+  // io::LoadError (a volume, segmentation or mesh that cannot be read) as its own exception;
+  // std::runtime_error becomes RuntimeError, std::invalid_argument ValueError (pybind11's own
+  // translation), each with the message the command line prints after "volume-haptics: error: ".
+  py::register_exception<vh::io::LoadError>(m, "LoadError", PyExc_RuntimeError);
+  m.attr("TICK_RECORD_BYTES") = sizeof(TickRecord);
+  m.attr("RECORDING_FORMAT_VERSION") = vh::runtime::kRecordingFormatVersion;
+
+  py::class_<Scene>(m, "Scene",
+                    "A scene loaded once (volume, tool, segmentation, coupling), to run many trajectories on.\n\n"
+                    "Made by load_scene(). Read-only attributes: source (the file, or \"scene dict\"), volume_dims "
+                    "[nx, ny, nz], volume_spacing_m (3 floats [m]), isovalue (data units, as loaded), volume_format "
+                    "(\"NIfTI-1\", \"DICOM\", ...), volume_notices (what the loader corrected or chose, one sentence "
+                    "each).")
+      .def_readonly("source", &Scene::source)
+      .def_property_readonly("volume_dims", [](const Scene& s) { return s.loaded->volume.field->geometry().dims; })
+      .def_property_readonly("volume_spacing_m",
+                             [](const Scene& s) {
+                               const auto& sp = s.loaded->volume.field->geometry().spacing_m;
+                               return std::array<double, 3>{sp.x(), sp.y(), sp.z()};
+                             })
+      .def_property_readonly("isovalue", [](const Scene& s) { return s.loaded->isovalue; })
+      .def_property_readonly("volume_notices", [](const Scene& s) { return s.loaded->volume.info.notices; })
+      .def_property_readonly("volume_format", [](const Scene& s) { return s.loaded->volume.info.format; });
+
+  m.def("load_scene_file", [](const fs::path& path) { return loadScene(vh::runtime::loadSceneFile(path), path.string()); },
+        py::arg("path"));
+  m.def(
+      "load_scene_json",
+      [](const std::string& json_text, const std::string& source, const fs::path& base_dir) {
+        return loadScene(vh::runtime::parseScene(json_text, source, base_dir), source);
+      },
+      py::arg("json_text"), py::arg("source"), py::arg("base_dir"));
+
+  m.def(
+      "run",
+      [](const Scene& scene, const py::array_t<double, py::array::c_style | py::array::forcecast>& trajectory,
+         const fs::path& record, double servo_rate_Hz, double verify_step_voxels, bool lag_reference,
+         const std::string& trajectory_name) {
+        const vh::runtime::Trajectory t = trajectoryOf(trajectory);
+        vh::runtime::RunOptions options;
+        options.servo_rate_Hz = servo_rate_Hz;
+        options.verify_step_voxels = verify_step_voxels;
+        options.lag_reference = lag_reference;
+        options.record = record;
+        vh::runtime::RunReport report;
+        vh::runtime::Recording recording;
+        {
+          py::gil_scoped_release release;  // the run and the read touch no Python object
+          report = vh::runtime::runHeadless(*scene.loaded, t, options);
+          report.trajectory = trajectory_name;
+          recording = vh::runtime::readRecording(record);
+        }
+        return py::make_tuple(report.toJson(), recordingTuple(recording));
+      },
+      py::arg("scene"), py::arg("trajectory"), py::arg("record"), py::arg("servo_rate_Hz"),
+      py::arg("verify_step_voxels"), py::arg("lag_reference"), py::arg("trajectory_name"));
+
+  m.def(
+      "read_recording",
+      [](const fs::path& path) {
+        vh::runtime::Recording r;
+        {
+          py::gil_scoped_release release;
+          r = vh::runtime::readRecording(path);
+        }
+        return recordingTuple(r);
+      },
+      py::arg("path"));
+
+  m.def(
+      "write_trajectory",
+      [](const fs::path& path, const py::array_t<double, py::array::c_style | py::array::forcecast>& trajectory) {
+        vh::runtime::writeTrajectoryCsv(trajectoryOf(trajectory), path);
+      },
+      py::arg("path"), py::arg("trajectory"));
+  m.def("read_trajectory", [](const fs::path& path) { return trajectoryArray(vh::runtime::loadTrajectoryCsv(path)); },
+        py::arg("path"));
+  m.def(
+      "check_trajectory",
+      [](const py::array_t<double, py::array::c_style | py::array::forcecast>& trajectory) {
+        return trajectoryArray(trajectoryOf(trajectory));
+      },
+      py::arg("trajectory"));
+
+  m.def(
+      "session_metrics",
+      [](const fs::path& path, double force_threshold_N, double derivative_step_s) {
+        vh::runtime::MetricsOptions options;
+        options.force_threshold_N = force_threshold_N;
+        options.derivative_step_s = derivative_step_s;
+        vh::runtime::SessionMetrics metrics;
+        {
+          py::gil_scoped_release release;
+          metrics = vh::runtime::computeSessionMetrics(vh::runtime::readRecording(path), options);
+        }
+        py::dict identity;
+        identity["scene"] = metrics.scene;
+        identity["dataset_sha256"] = metrics.dataset_sha256;
+        identity["label"] = metrics.label;
+        identity["start_time_utc"] = metrics.start_time_utc;
+        py::list values;
+        for (const auto& v : vh::runtime::metricValues(metrics)) values.append(py::make_tuple(v.key, v.label, v.unit, v.value));
+        py::list segments;
+        for (const auto& s : metrics.segments) {
+          py::dict d;
+          d["name"] = s.name;
+          d["critical"] = s.critical;
+          d["time_in_contact_s"] = s.time_in_contact_s;
+          d["peak_force_N"] = s.peak_force_N;
+          d["touches"] = s.touches;
+          d["removed_voxels"] = s.removed_voxels;
+          d["removed_mm3"] = s.removed_mm3;
+          segments.append(d);
+        }
+        return py::make_tuple(identity, values, segments, metrics.notices);
+      },
+      py::arg("path"), py::arg("force_threshold_N"), py::arg("derivative_step_s"));
+}

@@ -1,0 +1,178 @@
+"""The Python module against the command line: the same run gives the same ticks as
+`volume-haptics run` (read from `export --csv` with NumPy's own CSV parser), a recording read in
+Python equals `export --csv` column for column, the session metrics equal `report --table`, and
+errors carry the command line's messages. Run by ctest (python.pytest) with VH_CLI naming the
+built volume-haptics, VH_SOURCE_DIR the source tree and PYTHONPATH the built module.
+"""
+import csv
+import math
+import os
+import pathlib
+import subprocess
+import threading
+import time
+
+import numpy as np
+import pytest
+
+import volume_haptics as vh
+
+CLI = os.environ.get("VH_CLI", "volume-haptics")
+SOURCE = pathlib.Path(os.environ.get("VH_SOURCE_DIR", pathlib.Path(__file__).resolve().parents[3]))
+SCENE = SOURCE / "resources/scenes/sphere-probe.json"
+
+
+def cli(*args, check=True):
+    p = subprocess.run([CLI, *map(str, args)], capture_output=True, text=True,
+                       env=dict(os.environ, QT_QPA_PLATFORM="offscreen"))
+    if check and p.returncode != 0:
+        raise AssertionError("volume-haptics %s failed (%d): %s" % (" ".join(map(str, args)), p.returncode, p.stderr))
+    return p
+
+
+def csv_columns(path):
+    """A CSV with a header as {column: float64 array}, parsed by NumPy (not by the module)."""
+    data = np.genfromtxt(path, delimiter=",", names=True, dtype=np.float64)
+    return {n: np.atleast_1d(data[n]) for n in data.dtype.names}
+
+
+@pytest.fixture(scope="module")
+def work(tmp_path_factory):
+    """A push-and-slide trajectory from `make-trajectory`, sped up 5 times (about 1000 ticks),
+    run once by the command line with --record, and that recording exported as CSV."""
+    d = tmp_path_factory.mktemp("vh")
+    cli("make-trajectory", "--scene", SCENE, "--out", d / "slow.csv")
+    t = vh.read_trajectory(d / "slow.csv")
+    t[:, 0] *= 0.2
+    vh.write_trajectory(d / "t.csv", t)
+    cli("run", "--scene", SCENE, "--trajectory", d / "t.csv", "--record", d / "cli.vhrec", "--report", d / "cli.json")
+    cli("export", d / "cli.vhrec", "--csv", d / "cli.csv", "--events-csv", d / "events.csv")
+    return d
+
+
+def test_run_gives_the_command_lines_ticks(work):
+    result = vh.run(SCENE, vh.read_trajectory(work / "t.csv"))
+    expected = csv_columns(work / "cli.csv")
+    n = len(expected["tick"])
+    assert n > 500 and len(result.ticks) == n
+    assert result.contacts.max() > 0, "the trajectory never touches: the comparison would prove little"
+    for column, values in expected.items():
+        if column == "tick_time_s":  # the solver's compute time: a clock, not a result
+            continue
+        np.testing.assert_array_equal(result.ticks[column].astype(np.float64), values, err_msg=column)
+    # The convenience arrays are the same columns, in the documented order.
+    np.testing.assert_array_equal(result.force_N, np.column_stack([expected["force_x_N"], expected["force_y_N"],
+                                                                   expected["force_z_N"]]))
+    np.testing.assert_array_equal(result.proxy_pose[:, 3], expected["proxy_qw"])
+    assert result.device_pose.shape == (n, 7) and result.torque_Nm.shape == (n, 3)
+    import json
+    cli_report = json.loads((work / "cli.json").read_text())
+    for key in ("ticks", "max_contacts", "ticks_in_contact", "max_force_N", "max_penetration_m", "crossings"):
+        assert result.report[key] == cli_report[key], key
+
+
+def test_read_recording_equals_export_csv(work):
+    rec = vh.read_recording(work / "cli.vhrec")
+    expected = csv_columns(work / "cli.csv")
+    assert len(rec.ticks) == len(expected["t_s"]) and not rec.warnings
+    for column, values in expected.items():
+        np.testing.assert_array_equal(rec.ticks[column].astype(np.float64), values, err_msg=column)
+    with open(work / "events.csv", newline="") as f:
+        rows = list(csv.DictReader(f))
+    assert [(e["tick"], e["type"]) for e in rec.events] == [(int(r["tick"]), r["type"]) for r in rows]
+    assert rec.scene is not None and rec.metadata["servo_rate_Hz"] == 1000
+
+
+def test_dataframe_when_pandas_is_installed(work):
+    pd = pytest.importorskip("pandas")
+    frame = vh.read_recording(work / "cli.vhrec").dataframe()
+    with open(work / "cli.csv") as f:
+        assert list(frame.columns) == f.readline().strip().split(",")
+    np.testing.assert_array_equal(frame["force_z_N"].to_numpy(), csv_columns(work / "cli.csv")["force_z_N"])
+    assert isinstance(frame, pd.DataFrame)
+
+
+def test_session_metrics_equal_report_table(work, tmp_path):
+    folder = tmp_path / "cohort"
+    folder.mkdir()
+    (folder / "a.vhrec").write_bytes((work / "cli.vhrec").read_bytes())
+    cli("report", folder, "--table", tmp_path / "table.csv")
+    with open(tmp_path / "table.csv", newline="") as f:
+        row = next(csv.DictReader(f))
+    metrics = vh.session_metrics(folder / "a.vhrec")
+    compared = 0
+    for key, text in row.items():
+        if key in ("file", "notices") or key not in metrics:
+            continue
+        if isinstance(metrics[key], str):
+            assert metrics[key] == text, key
+        else:
+            assert math.isclose(metrics[key], float(text), rel_tol=1e-8, abs_tol=1e-12), key
+        compared += 1
+    assert compared > 20 and metrics["time_in_contact_s"] > 0
+
+
+def test_scene_dict_and_loaded_scene(work):
+    """A dict with a scene file's keys loads like the file; a stiffer coupling pushes harder."""
+    t = vh.read_trajectory(work / "t.csv")
+    base = {"volume": {"path": "builtin:sphere", "isovalue": 0},
+            "tool": {"mesh": "builtin:probe", "point_spacing_m": 0.001}}
+    forces = []
+    for k in (500.0, 2000.0):
+        scene = vh.load_scene(dict(base, coupling={"linear_N_per_m": k, "angular_Nm_per_rad": 1.0}))
+        assert scene.volume_dims == [64, 64, 64] and scene.source == "scene dict"
+        forces.append(np.linalg.norm(vh.run(scene, t, verify_step_voxels=0, lag_reference=False).force_N, axis=1).max())
+    assert forces[1] > 2.0 * forces[0]
+
+
+def test_gil_is_released_while_running(work):
+    t = vh.read_trajectory(work / "slow.csv")  # about 5000 ticks
+    scene = vh.load_scene(SCENE)
+    done = []
+    worker = threading.Thread(target=lambda: done.append(vh.run(scene, t)))
+    worker.start()
+    spins = 0
+    while worker.is_alive():
+        spins += 1  # Python bytecode: runs only while the run holds no GIL
+        time.sleep(0.001)
+    worker.join()
+    assert done and spins > 20
+
+
+def test_errors_carry_the_command_lines_messages(work, tmp_path):
+    missing = tmp_path / "missing.json"
+    p = cli("run", "--scene", missing, "--trajectory", work / "t.csv", check=False)
+    with pytest.raises(RuntimeError) as e:
+        vh.run(missing, work / "t.csv")
+    assert p.stderr.strip().splitlines()[-1] == "volume-haptics: error: " + str(e.value)
+
+    bad = tmp_path / "bad.csv"
+    bad.write_text("t_s,x_m,y_m,z_m,qw,qx,qy,qz\n0,0,0,0,1,0,0,0\n0,0,0,0,1,0,0,zero\n")
+    p = cli("run", "--scene", SCENE, "--trajectory", bad, check=False)
+    with pytest.raises(RuntimeError) as e:
+        vh.run(SCENE, bad)
+    assert p.stderr.strip().splitlines()[-1] == "volume-haptics: error: " + str(e.value)
+
+    broken = tmp_path / "broken.nii"
+    broken.write_bytes(b"\x5c\x01\x00\x00" + bytes(100))
+    scene_file = tmp_path / "broken.json"
+    scene_file.write_text('{"volume": {"path": "%s"}, "tool": {"mesh": "builtin:probe"}}' % broken)
+    p = cli("run", "--scene", scene_file, "--trajectory", work / "t.csv", check=False)
+    with pytest.raises(vh.LoadError) as e:
+        vh.run(scene_file, work / "t.csv")
+    assert "truncated NIfTI-1 header" in str(e.value)
+    assert p.stderr.strip().splitlines()[-1] == "volume-haptics: error: " + str(e.value)
+
+    with pytest.raises(ValueError, match=r"\(N, 8\) or \(N, 9\)"):
+        vh.run(SCENE, np.zeros((3, 7)))
+
+
+def test_trajectory_round_trip(tmp_path):
+    t = np.array([[0.0, 0.01, 0.02, 0.03, 1, 0, 0, 0, np.nan], [0.5, 0.011, 0.02, 0.03, 0, 1, 0, 0, 42.5]])
+    vh.write_trajectory(tmp_path / "t.csv", t)
+    back = vh.read_trajectory(tmp_path / "t.csv")
+    np.testing.assert_array_equal(back, t)
+    with open(tmp_path / "t.csv") as f:
+        assert f.readline().strip() == "t_s,x_m,y_m,z_m,qw,qx,qy,qz,isovalue"
+    with pytest.raises(ValueError):
+        vh.write_trajectory(tmp_path / "u.csv", t[::-1])  # times must increase
