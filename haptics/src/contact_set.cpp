@@ -255,11 +255,17 @@ bool CollisionDetector::refineStuckContact(const RigidMotion& motion, const Swee
     // of the trilinear surface (a cell face, where the gradient jumps), which one normal cannot
     // hold: each side's normal lets the motion into the other. Both sides are kept, the crease's
     // other side as a second contact of the point (point_index -1: not the point's own entry).
-    if (c.crossing_normal && contact_count_ < contactCap()) {
+    if (c.crossing_normal) {
+      std::size_t slot = contact_count_;  // the point's crease contact, when it has one already
+      for (std::size_t k = 0; k < contact_count_; ++k)
+        if (contacts_[k].point_index < 0 && (contacts_[k].p_T_m - c.p_T_m).norm() < 0.25 * epsilon_) slot = k;
+      if (slot < contact_count_ && (contacts_[slot].n_W - n).norm() < 1e-9) return false;
+      if (slot == contact_count_ && contact_count_ >= contactCap()) return false;
       Contact crease = c;
       crease.point_index = -1;
       crease.n_W = n;
-      contacts_[contact_count_++] = crease;
+      contacts_[slot] = crease;
+      if (slot == contact_count_) ++contact_count_;
       return true;
     }
     c.n_W = n;

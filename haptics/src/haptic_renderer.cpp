@@ -395,6 +395,20 @@ TickOutput HapticRenderer::tick(const Pose& X_WD_in, double requested_isovalue) 
     SweepResult hit;
     solveAndSweep(solver_, collision_, coupling_, options_, motion_scale_, X_WP_, X_WD, mass, standoff_m, isovalue,
                   motion, hit, out.stats, phase);
+    // Still stopped at once with the lift on: the point sits nanometres from the interpolant's
+    // surface and slides almost along it, so a bump a few nanometres high stops it before the
+    // lift, spread along the whole step, has raised it (the drill held at 117 N on the head
+    // phantom, its contact at F - s = -0.001 HU). The lift alone this tick; the next slides from
+    // the lifted pose.
+    if (standoff_m > 0.0 && hit.hit_point >= 0 && !hit.budget_cut && hit.t < 0.01) {
+      const Eigen::Vector3d lift_W = ConfigurationSolver::standoffTranslation(collision_.contacts(), standoff_m);
+      if (lift_W.squaredNorm() > 0.0) {
+        motion = RigidMotion::FromVelocity(X_WP_, mass.p_TCm_m, lift_W, Eigen::Vector3d::Zero());
+        hit = collision_.sweep(motion, isovalue);
+        ++out.stats.sweeps;
+        phase = Clock::now();
+      }
+    }
     // Step 5: move the proxy to the first contact (or the target, or as far as the budget
     // proved free), and no farther than the tool's surface between its points allows.
     bool edge_stop = false, edge_cut = false;
