@@ -118,12 +118,15 @@ TEST(ShellFidelity, AnEdgeOnPlateComesIntoTheProbeNoFartherThanTheGapItStates) {
       deepest = std::max(deepest, edge_x - (r.proxyPose().p_AB_m.x() - r_shaft));
     }
     const double bound = gap.max_gap_m + 1.0e-3 / 2.0 / 8.0;  // epsilon = f / 8, f = half the 1 mm voxel
-    std::printf("probe at %.1f mm spacing: the plate came %.3f mm into the shaft; gap max %.3f, p99 %.3f, mean %.3f mm "
-                "(%zu samples)\n",
-                spacing * 1e3, deepest * 1e3, gap.max_gap_m * 1e3, gap.p99_gap_m * 1e3, gap.mean_gap_m * 1e3,
-                gap.samples);
+    std::printf("probe at %.1f mm spacing: the plate came %.3f mm into the shaft; gap max %.3f (at %.2f %.2f %.2f mm in "
+                "T), p99 %.3f, mean %.3f mm (%zu samples)\n",
+                spacing * 1e3, deepest * 1e3, gap.max_gap_m * 1e3, gap.worst_p_T_m.x() * 1e3, gap.worst_p_T_m.y() * 1e3,
+                gap.worst_p_T_m.z() * 1e3, gap.p99_gap_m * 1e3, gap.mean_gap_m * 1e3, gap.samples);
     EXPECT_LE(deepest, bound + 0.02e-3) << "spacing " << spacing;
-    EXPECT_EQ(gap.max_gap_m > kShellGapWarning_m, spacing >= 2e-3) << "the warning: " << gap.max_gap_m;
+    // The warning: the 2 mm spacing the Haptics panel offered without a word is warned of; the
+    // finest is not.
+    if (spacing >= 2e-3) EXPECT_GT(gap.max_gap_m, kShellGapWarning_m);
+    if (spacing <= 0.5e-3) EXPECT_LE(gap.max_gap_m, kShellGapWarning_m);
   }
 }
 
