@@ -141,9 +141,11 @@ TEST(RangeSpinBox, ATypedValueOutOfRangeIsNotTakenAndTheRangeIsSaid) {
   box.show();
   QSignalSpy said(&box, &RangeSpinBox::outOfRange);
   QSignalSpy changed(&box, &QDoubleSpinBox::valueChanged);
-  box.lineEdit()->selectAll();
+  QLineEdit* edit = box.findChild<QLineEdit*>();  // lineEdit() is protected
+  ASSERT_NE(edit, nullptr);
+  edit->selectAll();
   QTest::keyClicks(&box, "30");
-  EXPECT_EQ(box.lineEdit()->text(), "30") << "the digits typed stay as typed until Enter";
+  EXPECT_EQ(edit->text(), "30") << "the digits typed stay as typed until Enter";
   QTest::keyClick(&box, Qt::Key_Return);
   EXPECT_DOUBLE_EQ(box.value(), 0.23) << "an out-of-range number is not taken";
   EXPECT_EQ(changed.count(), 0);
@@ -151,9 +153,9 @@ TEST(RangeSpinBox, ATypedValueOutOfRangeIsNotTakenAndTheRangeIsSaid) {
   const QString message = said.first().at(0).toString();
   EXPECT_TRUE(message.contains("30") && message.contains("0.00 to 3.41") && message.contains("stays 0.23"))
       << message.toStdString();
-  EXPECT_EQ(box.lineEdit()->text(), "0.23") << "the box shows the value it kept";
+  EXPECT_EQ(edit->text(), "0.23") << "the box shows the value it kept";
   // A number in range is taken as typed.
-  box.lineEdit()->selectAll();
+  edit->selectAll();
   QTest::keyClicks(&box, "2.5");
   QTest::keyClick(&box, Qt::Key_Return);
   EXPECT_DOUBLE_EQ(box.value(), 2.5);
