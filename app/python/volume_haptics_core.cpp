@@ -201,7 +201,7 @@ PYBIND11_MODULE(_core, m) {
         py::dict identity;
         identity["scene"] = metrics.scene;
         identity["dataset_sha256"] = metrics.dataset_sha256;
-        identity["label"] = metrics.label;
+        identity["label"] = vh::runtime::cohortLabel(metrics, path);  // as `report --table` gives it
         identity["start_time_utc"] = metrics.start_time_utc;
         py::list values;
         for (const auto& v : vh::runtime::metricValues(metrics)) values.append(py::make_tuple(v.key, v.label, v.unit, v.value));

@@ -203,6 +203,10 @@ std::string joined(const std::vector<std::string>& parts, const char* separator)
 
 }  // namespace
 
+std::string cohortLabel(const SessionMetrics& m, const std::filesystem::path& file) {
+  return m.label.empty() ? file.stem().string() : m.label;
+}
+
 SessionMetrics computeSessionMetrics(const Recording& recording, const MetricsOptions& options) {
   if (!std::isfinite(options.force_threshold_N) || options.force_threshold_N < 0.0)
     throw std::invalid_argument("the force threshold must be a finite number >= 0 N");
@@ -390,7 +394,7 @@ std::size_t writeCohortTable(const std::filesystem::path& dir, const std::filesy
     out << csvField(std::filesystem::relative(files[i], dir).generic_string());
     try {
       const SessionMetrics m = computeSessionMetrics(readRecording(files[i]), options);
-      const std::string label = m.label.empty() ? files[i].stem().string() : m.label;
+      const std::string label = cohortLabel(m, files[i]);
       out << ',' << csvField(m.scene) << ',' << m.dataset_sha256 << ',' << csvField(label) << ','
           << csvField(m.start_time_utc);
       for (const MetricValue& v : metricValues(m)) out << ',' << v.value;

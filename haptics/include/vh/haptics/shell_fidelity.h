@@ -49,8 +49,9 @@ ShellFidelity measureShellFidelity(const TriangleMesh& mesh_T, const PointShell&
 ShellFidelity measureShellFidelityBruteForce(const TriangleMesh& mesh_T, const PointShell& shell,
                                              const ShellEdges& edges, double sample_step_m);
 
-/// The gap above which a tool is warned of as too coarsely sampled [m]: half a millimetre, the
-/// voxel size of a clinical CT, so the tool is felt about as finely as the bone is imaged.
-inline constexpr double kShellGapWarning_m = 0.5e-3;
+/// The gap above which a tool is warned of as too coarsely sampled [m]: a millimetre, a clinical
+/// CT's slice thickness, so the tool is felt about as finely as the bone is imaged. A resampled
+/// shell's gap is about its spacing at its worst place, so this warns of spacings above about 1 mm.
+inline constexpr double kShellGapWarning_m = 1.0e-3;
 
 }  // namespace vh::haptics

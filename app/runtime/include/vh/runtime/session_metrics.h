@@ -141,6 +141,10 @@ struct SessionMetrics {
 ///         finite, derivative step not positive).
 SessionMetrics computeSessionMetrics(const Recording& recording, const MetricsOptions& options = {});
 
+/// The label a cohort table gives the recording `file` with metrics `m`: its user, else its
+/// note (SessionMetrics::label), else the file's name without its extension.
+std::string cohortLabel(const SessionMetrics& m, const std::filesystem::path& file);
+
 /// One scalar metric, for tables: a stable column key, its unit and a label for people.
 struct MetricValue {
   std::string key;    ///< Column name, unit suffixed ("path_length_m").
