@@ -204,7 +204,7 @@ cat "$tmp/missing.txt"
 grep -q "$root/usr/share/volume-haptics/datasets" "$tmp/missing.txt" || fail "the shared datasets default is not the installed one"
 grep -q "$tmp/home/.cache/volume-haptics" "$tmp/missing.txt" || fail "the generated data default is not the user's cache"
 # Every folder looked in lies in the temporary root or home: none of the build machine's.
-looked="$(sed -n 's/.*(looked in \(.*\))$/\1/p' "$tmp/missing.txt")"
+looked="$(sed -n 's/.*(looked in \([^)]*\)).*/\1/p' "$tmp/missing.txt")"
 [[ -n $looked ]] || fail "no 'looked in' list in the error"
 while IFS= read -r path; do
   [[ $path == "$tmp"/* ]] || fail "the installed program looked in $path, outside its root (build tree $build, source $source_dir)"

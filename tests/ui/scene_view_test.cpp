@@ -326,8 +326,9 @@ TEST(SceneView, AMovedProxyAsksForANewFrameAndTheSameFrameDoesNot) {
   }
   EXPECT_TRUE(w.view->shownProxyPose().p_AB_m.isApprox(frame.X_WP.p_AB_m, 1e-12));
 
-  // Half a millimetre further: a new frame again.
-  frame.X_WP.p_AB_m.z() += 0.0005;
+  // Five millimetres further (pixels on the screen, not micrometres of a resting proxy): a new
+  // frame again.
+  frame.X_WP.p_AB_m.z() += 0.005;
   EXPECT_TRUE(w.view->show(frame));
   EXPECT_NEAR(translationOf(w.view->actors().proxyActor()).z(), frame.X_WP.p_AB_m.z(), 1e-12);
 }
