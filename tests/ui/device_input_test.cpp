@@ -234,7 +234,9 @@ TEST(DeviceInput, TouchSurfaceApproachesFromOutsideTheBodyNotFromInsideTheChest)
                  !input->touchInProgress();
       return touching;
     }, 10000 * test::kSanitizerSlowdown);
-    ASSERT_TRUE(touching) << "the tool never came to rest on the surface";
+    ASSERT_TRUE(touching) << "the tool never came to rest on the surface: contacts " << snap.contacts
+                          << ", device " << (snap.X_WD.p_AB_m - session.simulatedDevice()->pose().p_AB_m).norm()
+                          << " m from the placed pose, placement " << (input->touchInProgress() ? "pending" : "applied");
     ASSERT_GT(snap.contacts_shown, 0);
     for (int i = 0; i < snap.contacts_shown; ++i) {
       EXPECT_TRUE(reachedFromOutside(field, iso, snap.contact_p_W_m[i], forward))

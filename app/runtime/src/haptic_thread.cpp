@@ -326,6 +326,7 @@ struct HapticThread::Exchange {
   TripleBuffer<ProxyState> proxy;
   TripleBuffer<Placement> placement;  ///< GUI -> coupling: the latest place() (HapticThread::placement_requests_).
   TripleBuffer<PlacedSample> placed;  ///< Coupling -> solver: the latest placement passed on.
+  std::uint64_t placement_requests_at_start = 0;  ///< placement_requests_ when start() was called.
   SnapshotChannel gui;  ///< Both threads -> latestSnapshot().
   /// kRecordFlagForceLimited / ForceZeroed / NonFinite / Stopping of the latest command.
   std::atomic<std::uint32_t> command_flags{0};
@@ -535,6 +536,9 @@ void HapticThread::start() {
   coupling_done_.store(false, std::memory_order_release);
   running_.store(true, std::memory_order_release);
   x_->first_sample_after = x_->samples.latest();
+  // Counted here, not when the coupling thread starts: a place() made just after start() (Touch
+  // the Surface at once) is then still new to it.
+  x_->placement_requests_at_start = placement_requests_.load(std::memory_order_acquire);
   try {
     solver_thread_ = std::thread([this] { solverLoop(); });
   } catch (...) {
@@ -838,7 +842,7 @@ void HapticThread::couplingLoop() noexcept {
   // Placements (place()): the latest one asked for, whether it waits for its device sample, and
   // the ones handed to the solver.
   Placement placement;
-  std::uint64_t placement_requests_seen = placement_requests_.load(std::memory_order_acquire);
+  std::uint64_t placement_requests_seen = x_->placement_requests_at_start;
   bool placement_waiting = false;
   std::uint64_t placements_sent = 0;
   haptics::Pose X_WP_placed;

@@ -155,6 +155,27 @@ TEST(HapticThreadPlacement, FeelsOnlyTheRestingForceAndReplaysBitForBit) {
   EXPECT_LE(m.max_force_N, k_N_per_m * depth_m * 1.05 + 0.05);
 }
 
+// A placement asked for at once after start() (Touch the Surface as the scene opens, `--touch`)
+// is applied: the coupling thread may begin its loop after the request. Repeated, since the
+// order of the two is up to the scheduler.
+TEST(HapticThreadPlacement, APlacementRightAfterStartIsApplied) {
+  const LoadedScene& scene = test::sphereBallScene();
+  const auto touch = touchSurfacePose(*scene.volume.field, scene.tool->point_shell, scene.tool->mass.p_TCm_m,
+                                      scene.X_WT_initial.R_AB, Eigen::Vector3d(1.0, 0.0, 0.0), Eigen::Vector3d::Zero(),
+                                      0.0, 0.003);
+  ASSERT_TRUE(touch.has_value());
+  for (int round = 0; round < 20; ++round) {
+    SCOPED_TRACE(round);
+    auto device = std::make_shared<SimulatedDevice>(scene.X_WT_initial);
+    auto thread = scene.makeHapticThread(device);
+    thread->start();
+    ASSERT_TRUE(thread->place(touch->X_WP, touch->X_WD));
+    EXPECT_TRUE(test::waitUntil([&] { return thread->placementsApplied() == 1u; }))
+        << "the placement was never applied";
+    thread->stop();
+  }
+}
+
 TEST(SessionMetricsPlacement, APlacementsJumpEntersNeitherPathSpeedJerkNorForce) {
   // The hand moves along x at 50 mm/s for 2 s at 1 kHz, pressing with 1 N; at record 1000 a
   // placement moves the tools 100 mm along y (that tick's force 50 N).
