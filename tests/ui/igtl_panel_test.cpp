@@ -7,6 +7,8 @@
 #include <sys/socket.h>
 #include <unistd.h>
 
+#include <fstream>
+
 #include <gtest/gtest.h>
 #include <QLabel>
 #include <QSignalSpy>
@@ -164,8 +166,20 @@ TEST(IgtlPanel, ImageFromAClientOpensAsTheNewScene) {
   EXPECT_TRUE(waitFor([&] { return window.igtlPanel()->channel()->read(s) && s.tick > 20; }, 5000));
 
   // While a recording runs: the question says it will end; the recording is ended with a
-  // marker saying why and read back whole, before the new scene.
-  const std::filesystem::path rec = std::filesystem::path(::testing::TempDir()) / "igtl_panel_recording.vhrec";
+  // marker saying why and read back whole, before the new scene. (A scene sent over the link
+  // has no file to replay from and is not recorded: the recording runs on a scene from a file.)
+  const std::filesystem::path dir = std::filesystem::path(::testing::TempDir());
+  const std::filesystem::path scene_file = dir / "igtl_panel_sphere.json";
+  {
+    std::ofstream out(scene_file);
+    out << R"({"volume": {"path": "builtin:sphere"}, "tool": {"mesh": "builtin:probe"}, "device": {"kind": "simulated"}})";
+  }
+  loaded.clear();
+  window.openPath(QString::fromStdString(scene_file.string()));
+  ASSERT_TRUE(waitFor([&] { return loaded.count() > 0; }, 20000)) << window.opener()->lastError().toStdString();
+  ASSERT_EQ(window.session().loaded().spec.volume.path, "builtin:sphere");
+  ASSERT_TRUE(waitFor([&] { return window.session().hapticsRunning(); }, 5000));
+  const std::filesystem::path rec = dir / "igtl_panel_recording.vhrec";
   ASSERT_TRUE(window.recorder()->start(rec)) << window.recorder()->lastError().toStdString();
   ASSERT_TRUE(waitFor([&] { return window.recorder()->recordsWritten() > 100; }, 5000));
   loaded.clear();
