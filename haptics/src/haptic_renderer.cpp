@@ -393,8 +393,24 @@ TickOutput HapticRenderer::tick(const Pose& X_WD_in, double requested_isovalue) 
     const double standoff_m = lift ? fraction * collision_.epsilon_m() : 0.0;
     RigidMotion motion;
     SweepResult hit;
-    solveAndSweep(solver_, collision_, coupling_, options_, motion_scale_, X_WP_, X_WD, mass, standoff_m, isovalue,
-                  motion, hit, out.stats, phase);
+    // After a move the tool's surface between its points stopped at once: the lift alone this
+    // tick. The edge contact is a line touching a rounded ridge, and its one normal (the
+    // gradient's part perpendicular to the edge) holds to first order only; a solved slide,
+    // mostly tangential, with the lift spread along it, cuts the ridge again at its first
+    // sub-step, tick after tick (the probe held at the block's hole rim). Lifted first, the next
+    // slide has the stand-off to spend.
+    const Eigen::Vector3d edge_lift_W =
+        lift && edge_blocked_last_tick_ ? ConfigurationSolver::standoffTranslation(collision_.contacts(), standoff_m)
+                                        : Eigen::Vector3d::Zero();
+    if (edge_lift_W.squaredNorm() > 0.0) {
+      motion = RigidMotion::FromVelocity(X_WP_, mass.p_TCm_m, edge_lift_W, Eigen::Vector3d::Zero());
+      hit = collision_.sweep(motion, isovalue);
+      ++out.stats.sweeps;
+      phase = Clock::now();
+    } else {
+      solveAndSweep(solver_, collision_, coupling_, options_, motion_scale_, X_WP_, X_WD, mass, standoff_m, isovalue,
+                    motion, hit, out.stats, phase);
+    }
     // Still stopped at once with the lift on: the point sits nanometres from the interpolant's
     // surface and slides almost along it, so a bump a few nanometres high stops it before the
     // lift, spread along the whole step, has raised it (the drill held at 117 N on the head

@@ -396,12 +396,12 @@ TEST_F(MainWindowTest, GainsFromThePanelApplyLiveAndPersist) {
   EXPECT_FALSE(window_->session().gains().passivity_control);
   EXPECT_FALSE(window_->preferences().passivity_control);
   EXPECT_EQ(panel->pointCountLabel()->text().toULongLong(), loaded_->tool->point_shell.size());
-  // The edge test between shell points is the session's, switched from the panel.
-  EXPECT_FALSE(panel->edgeTestBox()->isChecked());
-  panel->edgeTestBox()->setChecked(true);
-  EXPECT_TRUE(window_->session().live().tool_spec.edge_test);
+  // The edge test between shell points is the session's, on by default, switched from the panel.
+  EXPECT_TRUE(panel->edgeTestBox()->isChecked());
   panel->edgeTestBox()->setChecked(false);
   EXPECT_FALSE(window_->session().live().tool_spec.edge_test);
+  panel->edgeTestBox()->setChecked(true);
+  EXPECT_TRUE(window_->session().live().tool_spec.edge_test);
   EXPECT_TRUE(window_->session().hapticsRunning());
   // The start/stop button stops and restarts the thread.
   panel->startStopButton()->click();

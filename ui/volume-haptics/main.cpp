@@ -191,7 +191,7 @@ CLI::App* addRunSubcommand(CLI::App& app, RunArgs& a) {
       "points of the tool's point shell; contacts (largest set, mean); max force of the coupling [N]; penetration = "
       "deepest shell point inside the isosurface against the tolerance epsilon [mm]; nan ticks; bad samples (not "
       "rendered); crossings = ticks a shell point crossed into the isosurface (must be 0); edges = ticks the tool's "
-      "surface between two neighbouring shell points crossed (0 guaranteed only with the scene's \"edge_test\"); "
+      "surface between two neighbouring shell points crossed (0 guaranteed with the edge test, the default; not with \"edge_test\": false); "
       "work budget: ticks the per-tick work budget cut; lag = the largest distance [mm] and angle [rad] between "
       "the budgeted proxy and the same run's unbudgeted one, behind = how much farther from the device the budgeted "
       "one was; drilled = volume the burr removed [mm^3]; touched = per segment time, peak force, touches. "

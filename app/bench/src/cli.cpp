@@ -66,9 +66,10 @@ CLI::App* addBenchSubcommand(CLI::App& app, std::function<int()>& handler) {
       ->check(CLI::IsMember({"paper", "accelerated", "both", "all"}));
   t1->add_flag("--before", *before,
                "Add the 'before' column (accelerated mode, end-sample segment test) to --mode accelerated or both");
-  t1->add_flag("--edge-test", table1->edge_test,
-               "Add the 'edges' column: the accelerated mode as the application runs it, with the edge test between "
-               "shell points (the tool's surface between its points), and its cost over the accelerated mode");
+  t1->add_flag("--edge-test,!--no-edge-test", table1->edge_test,
+               "The 'edges' column (on by default): the accelerated mode as the application runs it, with the edge "
+               "test between shell points (the tool's surface between its points), and its cost over the points-only "
+               "accelerated mode; --no-edge-test leaves it out");
   t1->add_option("--work-budget", table1->work_budget,
                  "The accelerated mode's work budget per tick (units of one trilinear sample's cost); "
                  "> 0 also runs it unbudgeted and reports the lag (how far apart the two proxies are) and behind "

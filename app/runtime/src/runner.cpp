@@ -9,6 +9,7 @@
 #include <cstdio>
 #include <fstream>
 #include <iomanip>
+#include <memory>
 #include <optional>
 #include <sstream>
 #include <stdexcept>
@@ -368,12 +369,14 @@ RunReport runHeadless(const LoadedScene& scene, const Trajectory& trajectory, co
   const haptics::ScalarVolume& felt = drill != nullptr ? drill->removal().volume() : volume;
   r.epsilon_m = renderer.epsilon_m();
   r.work_budget = renderer.workBudget();
-  std::optional<haptics::HapticRenderer> reference;  // the same without the budget: the lag
+  std::unique_ptr<haptics::HapticRenderer> reference;  // the same without the budget: the lag
   ProxyLag lag;
   if (options.lag_reference && r.work_budget > 0) {
     haptics::RendererOptions unbudgeted = renderer_options;
     unbudgeted.work_budget = 0;
-    reference.emplace(scene.hapticField(), scene.tool, unbudgeted, X_WD_first, s);
+    // Made as the servo's renderer is (the scene's gains and edge test), so that only the budget
+    // differs (a drilling scene's reference feels the uncut field).
+    reference = makeRenderer(LiveValues::initial(scene), unbudgeted, X_WD_first);
   }
   std::optional<haptics::CrossingVerifier> verifier;
   haptics::ShellEdges shell_edges;

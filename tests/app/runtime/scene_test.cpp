@@ -188,17 +188,17 @@ TEST(SceneFile, PassivityControlIsOffUnlessTheSceneAsks) {
                    .gains.passivity_control);
 }
 
-// The edge test is on only when the tool says "edge_test": true, and the setting reaches the
+// The edge test is on unless the tool says "edge_test": false, and the setting reaches the
 // renderer: the upright probe (2 mm point spacing) moved sideways into the edge of the built-in
-// one-voxel plate at 250 goes through it by default and stops at the plate's edge with the edge
-// test (the plate's extent is the oracle: its edge at x = 31.5 mm, the probe's shaft radius
+// one-voxel plate at 250 goes through it with "edge_test": false and stops at the plate's edge by
+// default (the plate's extent is the oracle: its edge at x = 31.5 mm, the probe's shaft radius
 // 0.98 mm).
-TEST(SceneFile, TheEdgeTestIsOnOnlyWhenTheToolAsks) {
+TEST(SceneFile, TheEdgeTestIsOnUnlessTheToolTurnsItOff) {
   const fs::path dir = scratchDir();
   const char* base = R"({"volume": {"path": "builtin:thin-plate", "isovalue": 250},
       "tool": {"mesh": "builtin:probe", "point_spacing_m": 0.002, "initial_pose": {"p_m": [0.0395, 0.0003, -0.0195]})";
-  const SceneSpec off = loadSceneFile(writeText(dir / "off.json", std::string(base) + "}}"));
-  const SceneSpec on = loadSceneFile(writeText(dir / "on.json", std::string(base) + ", \"edge_test\": true}}"));
+  const SceneSpec off = loadSceneFile(writeText(dir / "off.json", std::string(base) + ", \"edge_test\": false}}"));
+  const SceneSpec on = loadSceneFile(writeText(dir / "on.json", std::string(base) + "}}"));
   EXPECT_FALSE(off.tool.edge_test);
   ASSERT_TRUE(on.tool.edge_test);
   expectSceneError(R"({"volume": {"path": "builtin:plane"}, "tool": {"edge_test": 1}})",

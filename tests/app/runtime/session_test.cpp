@@ -186,20 +186,20 @@ TEST(Session, ASwappedToolReplacesTheSpecAndRestartsAtItsFreePose) {
   EXPECT_THROW(session.setTool(nullptr, spec, free_pose), std::invalid_argument);
 }
 
-TEST(Session, TheEdgeTestSwitchesWhereTheProxyIsAndTheHandStillRestsOnTheSphere) {
+TEST(Session, TheEdgeTestSwitchesOffWhereTheProxyIsAndTheHandStillRestsOnTheSphere) {
   const LoadedScene& loaded = test::sphereBallScene();
   Session session;
   EXPECT_THROW(session.setEdgeTest(true), std::invalid_argument);
   auto device = std::make_shared<SimulatedDevice>(pressedPose(0.003));
   session.setScene(loaded, device);
   session.startHaptics();
-  ASSERT_FALSE(session.live().tool_spec.edge_test) << "off by default";
+  ASSERT_TRUE(session.live().tool_spec.edge_test) << "on by default";
   HapticSnapshot snap;
   ASSERT_TRUE(waitUntil([&] { return session.latestSnapshot(snap) && snap.tick > 100 && snap.contacts > 0; }));
   Heard heard;
   session.addObserver([&](SessionChange c) { heard.changes.push_back(c); });
-  session.setEdgeTest(true);
-  EXPECT_TRUE(session.live().tool_spec.edge_test);
+  session.setEdgeTest(false);
+  EXPECT_FALSE(session.live().tool_spec.edge_test);
   EXPECT_TRUE(heard.any(SessionChange::kTool));
   EXPECT_TRUE(session.hapticsRunning());
   // The rebuilt threads start where the proxy was and, pressed 3 mm into the sphere, the ball
@@ -207,7 +207,7 @@ TEST(Session, TheEdgeTestSwitchesWhereTheProxyIsAndTheHandStillRestsOnTheSphere)
   ASSERT_TRUE(waitUntil([&] { return session.latestSnapshot(snap) && snap.tick > 100 && snap.contacts > 0; }));
   EXPECT_NEAR(snap.X_WP.p_AB_m.norm(), 0.025, 0.5e-3);
   heard.changes.clear();
-  session.setEdgeTest(true);  // the same value: nothing happens
+  session.setEdgeTest(false);  // the same value: nothing happens
   EXPECT_TRUE(heard.changes.empty());
   session.stopHaptics();
 }

@@ -62,8 +62,8 @@ HapticsPanel::HapticsPanel(QWidget* parent) : QWidget(parent) {
   edge_test_->setObjectName("edgeTest");
   edge_test_->setToolTip(
       "Keep the tool's surface between its points outside the surface felt, not only the points: bone "
-      "thinner than the point spacing cannot slip between them (about twice the solver's time; off by default "
-      "until a tool it stops at a convex rim can always slide on: see the user guide)");
+      "thinner than the point spacing cannot slip between them. On by default; off gives the paper's "
+      "points-only proxy, for comparison with the published method (about half the solver's time)");
   tool_form->addRow(edge_test_);
   layout->addWidget(tool_box);
 
@@ -241,7 +241,7 @@ void HapticsPanel::showFeltGap(const runtime::Session& session) {
   gap_edges_ = edges;
   const haptics::ShellFidelity gap = runtime::feltGap(*tool, edges);
   const QString mm = QString::number(gap.max_gap_m * 1e3, 'f', 2) + " mm of the mesh";
-  if (gap.max_gap_m > haptics::kShellGapWarning_m) {  // a millimetre
+  if (gap.max_gap_m > haptics::kShellGapWarning_m) {
     felt_gap_->setText(mm + ": too coarse for this tool's features; choose a finer spacing");
     felt_gap_->setStyleSheet("color: #b35900; font-weight: bold;");
   } else {

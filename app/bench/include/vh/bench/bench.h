@@ -51,9 +51,10 @@ struct Table1Options {
   /// the "before" column), interleaved with the others, and compare it with the exact test.
   bool before = false;
   /// When the accelerated mode runs: also run it as the application does (budget, deadline,
-  /// lanes) with the edge test between shell points (RendererOptions::edge_test, the
-  /// "accelerated-edges" column), interleaved, and give its cost over the accelerated mode.
-  bool edge_test = false;
+  /// lanes, the edge test between shell points: RendererOptions::edge_test, the
+  /// "accelerated-edges" column), interleaved, and give its cost over the points-only
+  /// accelerated mode. On by default: it is what the application renders.
+  bool edge_test = true;
   /// Crossing check of every tick's move (haptics::CrossingVerifier; table1 checks the moves
   /// after the run, so its reads of the volume do not evict the timed ticks' state from the
   /// caches): sampling step along each shell point's path [voxels]; 0: off (crossings -1).
