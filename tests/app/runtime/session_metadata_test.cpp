@@ -2,6 +2,7 @@
 // the same scene, dataset checksums (files, detached NRRD data, folders, built-ins) match the
 // documented `sha256sum` recipe, and a missing or changed dataset is refused with both checksums.
 #include <fstream>
+#include <stdexcept>
 #include <string>
 
 #include <gtest/gtest.h>
@@ -27,6 +28,15 @@ TEST(Sha256, MatchesTheFipsExamples) {
   EXPECT_EQ(sha256Of(""), "e3b0c44298fc1c149afbf4c8996fb92427ae41e4649b934ca495991b7852b855");
   EXPECT_EQ(sha256Of("abcdbcdecdefdefgefghfghighijhijkijkljklmklmnlmnomnopnopq"),
             "248d6a61d20638b8e5c026930c3e6039a33ce45964ff2167f6ecedd419db06c1");
+  // FIPS 180-2's third example: a million 'a', streamed in uneven pieces.
+  Sha256 million;
+  const std::string piece(997, 'a');
+  std::size_t left = 1000000;
+  for (; left >= piece.size(); left -= piece.size()) million.update(piece);
+  million.update(piece.data(), left);
+  EXPECT_EQ(million.hexDigest(), "cdc76e5c9914fb9281a1c7e284d73e67f1809a48a497200e046d39ccc7112cd0");
+  EXPECT_EQ(million.hexDigest(), "cdc76e5c9914fb9281a1c7e284d73e67f1809a48a497200e046d39ccc7112cd0");
+  EXPECT_THROW(million.update("a"), std::logic_error);
 }
 
 TEST(SessionMetadata, StoresTheSceneDatasetToolDeviceAndReloadsTheSameScene) {
