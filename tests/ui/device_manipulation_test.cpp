@@ -21,14 +21,14 @@ ViewCamera testCamera() {
   return c;
 }
 
-TEST(ViewCameraTest, FrameIsOrthonormalAndRightHanded) {
+TEST(ViewCamera, FrameIsOrthonormalAndRightHanded) {
   const ViewCamera c = testCamera();
   EXPECT_TRUE(c.forward_W().isApprox(Eigen::Vector3d(0, 0, -1)));
   EXPECT_TRUE(c.right_W().isApprox(Eigen::Vector3d(1, 0, 0)));
   EXPECT_TRUE(c.up_W().isApprox(Eigen::Vector3d(0, 1, 0)));
 }
 
-TEST(ViewCameraTest, MetresPerPixelScalesWithDepth) {
+TEST(ViewCamera, MetresPerPixelScalesWithDepth) {
   const ViewCamera c = testCamera();
   EXPECT_NEAR(c.metresPerPixelAt(Eigen::Vector3d(0, 0, 0)), 1.0 / 500.0, 1e-12);
   EXPECT_NEAR(c.metresPerPixelAt(Eigen::Vector3d(0.3, 0, -1.0)), 2.0 / 500.0, 1e-12);
@@ -38,7 +38,7 @@ TEST(ViewCameraTest, MetresPerPixelScalesWithDepth) {
   EXPECT_NEAR(p.metresPerPixelAt(Eigen::Vector3d(0, 0, -5)), 0.5 / 1000.0, 1e-12);
 }
 
-TEST(DeviceManipulationTest, DragFollowsTheCursorAtTheAnchorDepth) {
+TEST(DeviceManipulation, DragFollowsTheCursorAtTheAnchorDepth) {
   const ViewCamera c = testCamera();
   haptics::Pose X_WD;
   X_WD.p_AB_m = Eigen::Vector3d(0.1, 0.0, 0.0);
@@ -48,12 +48,12 @@ TEST(DeviceManipulationTest, DragFollowsTheCursorAtTheAnchorDepth) {
   EXPECT_TRUE(moved.R_AB.isApprox(X_WD.R_AB));
 }
 
-TEST(DeviceManipulationTest, MoveAlongViewGoesAwayFromTheEye) {
+TEST(DeviceManipulation, MoveAlongViewGoesAwayFromTheEye) {
   const haptics::Pose moved = moveAlongView(haptics::Pose::Identity(), testCamera(), 0.01);
   EXPECT_TRUE(moved.p_AB_m.isApprox(Eigen::Vector3d(0, 0, -0.01)));
 }
 
-TEST(DeviceManipulationTest, TrackballKeepsTheCentreAndTurnsTheFrontRight) {
+TEST(DeviceManipulation, TrackballKeepsTheCentreAndTurnsTheFrontRight) {
   const ViewCamera c = testCamera();
   haptics::Pose X_WD;
   X_WD.p_AB_m = Eigen::Vector3d(0.05, 0.02, -0.1);

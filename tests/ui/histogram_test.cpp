@@ -15,7 +15,7 @@
 namespace vh::ui {
 namespace {
 
-TEST(HistogramTest, CountsValuesIntoEqualBins) {
+TEST(Histogram, CountsValuesIntoEqualBins) {
   const Histogram h = computeHistogram(std::vector<double>{0, 1, 2, 3, 4, 5, 6, 7, 8, 10}, 5);
   ASSERT_EQ(h.binCount(), 5);
   EXPECT_DOUBLE_EQ(h.min_value, 0.0);
@@ -30,7 +30,7 @@ TEST(HistogramTest, CountsValuesIntoEqualBins) {
   EXPECT_DOUBLE_EQ(h.binCentre(0), 1.0);
 }
 
-TEST(HistogramTest, SkipsNonFiniteValuesAndHandlesConstants) {
+TEST(Histogram, SkipsNonFiniteValuesAndHandlesConstants) {
   const double nan = std::numeric_limits<double>::quiet_NaN();
   const Histogram h = computeHistogram(std::vector<double>{nan, 3.0, 3.0, INFINITY}, 4);
   EXPECT_EQ(h.total(), 2u);
@@ -40,7 +40,7 @@ TEST(HistogramTest, SkipsNonFiniteValuesAndHandlesConstants) {
   EXPECT_TRUE(computeHistogram(std::vector<double>{1.0}, 0).empty());
 }
 
-TEST(HistogramTest, ReadsImageScalarsOfAnyType) {
+TEST(Histogram, ReadsImageScalarsOfAnyType) {
   vtkNew<vtkImageData> image;
   image->SetDimensions(10, 10, 10);
   vtkNew<vtkShortArray> values;

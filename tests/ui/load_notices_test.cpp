@@ -61,7 +61,7 @@ QAction* menuAction(const MainWindow& window, const QString& text) {
   return nullptr;
 }
 
-TEST(LoadNoticesTest, TheTiltOrAGapComesBeforeTheSeriesChoice) {
+TEST(LoadNotices, TheTiltOrAGapComesBeforeTheSeriesChoice) {
   EXPECT_EQ(primaryNotice({}), "");
   const std::string series = "loaded series 3 'Head' (93 files) of 2 series in the folder";
   const std::string tilt = "resampled from a gantry tilt of 18.5 deg";
@@ -74,7 +74,7 @@ TEST(LoadNoticesTest, TheTiltOrAGapComesBeforeTheSeriesChoice) {
   EXPECT_LT(noticeRank("dropped 2 duplicate slices: a.dcm"), noticeRank(series));
 }
 
-TEST(LoadNoticesTest, ManyNotesTakeOneLineUntilAskedAndABoundedListThen) {
+TEST(LoadNotices, ManyNotesTakeOneLineUntilAskedAndABoundedListThen) {
   // A scan with 15 long notes (the two-part GE head CT had that many): the banner is one summary
   // line, the details a list of at most kMaxDetailLines lines, and the status bar names the count
   // and where to read them before the first note (a long line is cut at its end).
@@ -115,7 +115,7 @@ TEST(LoadNoticesTest, ManyNotesTakeOneLineUntilAskedAndABoundedListThen) {
   EXPECT_TRUE(status.contains("slices 0 and 1")) << status.toStdString();
 }
 
-TEST(LoadNoticesTest, ASeriesDescribedAsNoneAddsNothingToTheTitle) {
+TEST(LoadNotices, ASeriesDescribedAsNoneAddsNothingToTheTitle) {
   LoadedViewerScene loaded;
   loaded.scene = test::sphereProbeScene();
   loaded.scene.volume.info.format = "DICOM";
@@ -128,7 +128,7 @@ TEST(LoadNoticesTest, ASeriesDescribedAsNoneAddsNothingToTheTitle) {
   EXPECT_EQ(viewerSceneFor(loaded).title, "ct-missing-slice - HEAD 5mm");
 }
 
-TEST(LoadNoticesTest, ASeriesRetrievedIntoAFolderNamedByItsUidIsNamedByItsDescription) {
+TEST(LoadNotices, ASeriesRetrievedIntoAFolderNamedByItsUidIsNamedByItsDescription) {
   // A PACS retrieve writes into a folder named by the Series Instance UID: the banner and the
   // window title name the series by its description instead.
   LoadedViewerScene loaded;
@@ -141,7 +141,7 @@ TEST(LoadNoticesTest, ASeriesRetrievedIntoAFolderNamedByItsUidIsNamedByItsDescri
   EXPECT_EQ(viewerSceneFor(loaded).title, loaded.title);
 }
 
-TEST(LoadNoticesTest, AGapIsNamedInTheStatusBarTheBannerAndHelpLoadNotes) {
+TEST(LoadNotices, AGapIsNamedInTheStatusBarTheBannerAndHelpLoadNotes) {
   if (!fs::exists(kHead / "CTHead50.dcm")) GTEST_SKIP() << "dataset absent: " << kHead;
   QTemporaryDir dir;
   ASSERT_TRUE(dir.isValid());
@@ -188,7 +188,7 @@ TEST(LoadNoticesTest, AGapIsNamedInTheStatusBarTheBannerAndHelpLoadNotes) {
   window.close();
 }
 
-TEST(LoadNoticesTest, CancellingAReadShowsItsProgressAndKeepsThePreviousScene) {
+TEST(LoadNotices, CancellingAReadShowsItsProgressAndKeepsThePreviousScene) {
   if (!fs::exists(kHead)) GTEST_SKIP() << "dataset absent: " << kHead;
   MainWindow window;
   window.setInteractive(false);
@@ -244,7 +244,7 @@ TEST(LoadNoticesTest, CancellingAReadShowsItsProgressAndKeepsThePreviousScene) {
   window.close();
 }
 
-TEST(LoadNoticesTest, TheChosenTimePointReachesTheSceneSpec) {
+TEST(LoadNotices, TheChosenTimePointReachesTheSceneSpec) {
   QTemporaryDir dir;
   ASSERT_TRUE(dir.isValid());
   const fs::path folder = fs::path(dir.path().toStdString()) / "cardiac";

@@ -80,7 +80,7 @@ haptics::Pose poseOf(vtkActor* actor) {
   return X;
 }
 
-class MainWindowTest : public ::testing::Test {
+class MainWindowOnHead : public ::testing::Test {
  protected:
   static void SetUpTestSuite() {
     if (std::filesystem::exists(kHead)) {
@@ -126,9 +126,9 @@ class MainWindowTest : public ::testing::Test {
   std::unique_ptr<MainWindow> window_;
 };
 
-std::unique_ptr<runtime::LoadedScene> MainWindowTest::loaded_;
+std::unique_ptr<runtime::LoadedScene> MainWindowOnHead::loaded_;
 
-TEST_F(MainWindowTest, IsovalueSliderChangesThePictureAndTheHapticIsovalue) {
+TEST_F(MainWindowOnHead, IsovalueSliderChangesThePictureAndTheHapticIsovalue) {
   VtkView* view = window_->sceneView()->widget();
   const QImage before = view->grabFrame();
   ASSERT_FALSE(before.isNull());
@@ -163,7 +163,7 @@ TEST_F(MainWindowTest, IsovalueSliderChangesThePictureAndTheHapticIsovalue) {
   EXPECT_DOUBLE_EQ(window_->session().hapticThread()->isovalue(), window_->session().isovalue());
 }
 
-TEST_F(MainWindowTest, HistogramIsDrawnBehindTheSlider) {
+TEST_F(MainWindowOnHead, HistogramIsDrawnBehindTheSlider) {
   const Histogram& h = window_->isovalueBar()->slider()->histogram();
   ASSERT_FALSE(h.empty());
   EXPECT_EQ(h.total(), 64u * 64u * 93u);
@@ -176,7 +176,7 @@ TEST_F(MainWindowTest, HistogramIsDrawnBehindTheSlider) {
   EXPECT_GT(differingFraction(with, without, 8), 0.05);
 }
 
-TEST_F(MainWindowTest, RenderingModesChangeThePicture) {
+TEST_F(MainWindowOnHead, RenderingModesChangeThePicture) {
   VtkView* view = window_->sceneView()->widget();
   ASSERT_EQ(window_->preferences().mode, RenderMode::kIsosurface);
   // Each picture at the same (best) quality.
@@ -202,7 +202,7 @@ TEST_F(MainWindowTest, RenderingModesChangeThePicture) {
   EXPECT_LT(differingFraction(iso, grab()), 0.01) << "back to the same isosurface";
 }
 
-TEST_F(MainWindowTest, StandardViewsAndClipping) {
+TEST_F(MainWindowOnHead, StandardViewsAndClipping) {
   vtkCamera* camera = window_->sceneView()->widget()->renderer()->GetActiveCamera();
   double dop[3], up[3];
   window_->sceneView()->setStandardView(StandardView::kAnterior);
@@ -227,7 +227,7 @@ TEST_F(MainWindowTest, StandardViewsAndClipping) {
   EXPECT_FALSE(window_->sceneView()->actors().clipping());
 }
 
-TEST_F(MainWindowTest, ToolActorsExistAndFollowTheHapticThread) {
+TEST_F(MainWindowOnHead, ToolActorsExistAndFollowTheHapticThread) {
   vtkRenderer* renderer = window_->sceneView()->widget()->renderer();
   ASSERT_NE(window_->sceneView()->actors().proxyActor(), nullptr);
   ASSERT_NE(window_->sceneView()->actors().deviceActor(), nullptr);
@@ -255,7 +255,7 @@ TEST_F(MainWindowTest, ToolActorsExistAndFollowTheHapticThread) {
   EXPECT_GT(window_->stripChart() != nullptr, 0);
 }
 
-TEST_F(MainWindowTest, CtrlDragMovesTheDeviceAndPlainDragTheCamera) {
+TEST_F(MainWindowOnHead, CtrlDragMovesTheDeviceAndPlainDragTheCamera) {
   VtkView* view = window_->sceneView()->widget();
   runtime::SimulatedDevice* device = window_->session().simulatedDevice();
   ASSERT_NE(device, nullptr);
@@ -320,7 +320,7 @@ TEST_F(MainWindowTest, CtrlDragMovesTheDeviceAndPlainDragTheCamera) {
   EXPECT_EQ(device->pose().p_AB_m, before_camera.p_AB_m);
 }
 
-TEST_F(MainWindowTest, DeviceDrivenIntoTheSurfaceLeavesTheProxyOutsideWhereTheActorShowsIt) {
+TEST_F(MainWindowOnHead, DeviceDrivenIntoTheSurfaceLeavesTheProxyOutsideWhereTheActorShowsIt) {
   ASSERT_TRUE(window_->deviceInput()->touchSurface(0.003));
   EXPECT_TRUE(waitFor([&] {
     window_->viewController()->refresh();
@@ -349,7 +349,7 @@ TEST_F(MainWindowTest, DeviceDrivenIntoTheSurfaceLeavesTheProxyOutsideWhereTheAc
   EXPECT_FALSE(window_->sceneView()->widget()->grabFrame().isNull());
 }
 
-TEST_F(MainWindowTest, ToolRestingOnTheSurfaceGetsTheFullQualityStillFrame) {
+TEST_F(MainWindowOnHead, ToolRestingOnTheSurfaceGetsTheFullQualityStillFrame) {
   // The tool pressed onto the skin and left there with the haptic threads running: the proxy
   // moves micrometres a tick under the steady push, which is no visible motion, so the view
   // settles on its full-quality still frame (300 ms after the last visible change).
@@ -378,7 +378,7 @@ TEST_F(MainWindowTest, ToolRestingOnTheSurfaceGetsTheFullQualityStillFrame) {
   EXPECT_LT(differingFraction(at_rest, full, 8), 0.002) << "the frame at rest differs from a full-quality render";
 }
 
-TEST_F(MainWindowTest, GainsFromThePanelApplyLiveAndPersist) {
+TEST_F(MainWindowOnHead, GainsFromThePanelApplyLiveAndPersist) {
   HapticsPanel* panel = window_->hapticsPanel();
   ASSERT_NE(panel, nullptr);
   panel->linearStiffnessBox()->setValue(2500.0);
@@ -410,7 +410,7 @@ TEST_F(MainWindowTest, GainsFromThePanelApplyLiveAndPersist) {
   EXPECT_TRUE(window_->session().hapticsRunning());
 }
 
-TEST_F(MainWindowTest, ChoosingAToolRebuildsTheHapticThread) {
+TEST_F(MainWindowOnHead, ChoosingAToolRebuildsTheHapticThread) {
   const auto& tools = window_->toolPicker()->choices();
   int sphere = -1;
   for (std::size_t i = 0; i < tools.size(); ++i) {
@@ -449,7 +449,7 @@ TEST_F(MainWindowTest, ChoosingAToolRebuildsTheHapticThread) {
   }, 3000));
 }
 
-TEST_F(MainWindowTest, DevicePickerListsTheSimulatedDeviceAndWhatIsFound) {
+TEST_F(MainWindowOnHead, DevicePickerListsTheSimulatedDeviceAndWhatIsFound) {
   // Entry 0 is the simulated device, then whatever the catalog finds (none on a build machine).
   devices::DeviceCatalog catalog;
   const std::vector<devices::FoundDevice> found = catalog.enumerate();
@@ -491,7 +491,7 @@ TEST_F(MainWindowTest, DevicePickerListsTheSimulatedDeviceAndWhatIsFound) {
   EXPECT_EQ(window_->session().device(), sim);
 }
 
-TEST_F(MainWindowTest, LoadingErrorKeepsThePreviousScene) {
+TEST_F(MainWindowOnHead, LoadingErrorKeepsThePreviousScene) {
   vtkVolume* volume_before = window_->sceneView()->actors().volume();
   runtime::HapticThread* thread_before = window_->session().hapticThread();
   const double isovalue_before = window_->session().isovalue();
@@ -525,7 +525,7 @@ TEST_F(MainWindowTest, LoadingErrorKeepsThePreviousScene) {
 
 // ---- Windows that load by themselves ------------------------------------------------------------
 
-TEST(MainWindowLoadTest, OpensADroppedFolderOffTheGuiThreadAndCancels) {
+TEST(MainWindowLoad, OpensADroppedFolderOffTheGuiThreadAndCancels) {
   if (!std::filesystem::exists(kHead)) GTEST_SKIP() << "dataset absent: " << kHead;
   MainWindow window;
   window.setInteractive(false);

@@ -9,7 +9,7 @@
 namespace vh::ui {
 namespace {
 
-TEST(PreferencesTest, RoundTripThroughQSettings) {
+TEST(Preferences, RoundTripThroughQSettings) {
   QTemporaryDir dir;
   const QString file = dir.filePath("prefs.ini");
   Preferences p;
@@ -47,7 +47,7 @@ TEST(PreferencesTest, RoundTripThroughQSettings) {
   EXPECT_EQ(back.pacs.calling_aet, "WORKSTATION7");
 }
 
-TEST(PreferencesTest, MissingOrInvalidEntriesKeepTheDefaults) {
+TEST(Preferences, MissingOrInvalidEntriesKeepTheDefaults) {
   QTemporaryDir dir;
   QSettings s(dir.filePath("bad.ini"), QSettings::IniFormat);
   s.setValue("preferences/colours/surface", "not a colour");
@@ -63,7 +63,7 @@ TEST(PreferencesTest, MissingOrInvalidEntriesKeepTheDefaults) {
   EXPECT_TRUE(p == defaults);
 }
 
-TEST(PreferencesTest, RecentFilesAreUniqueNewestFirstAndBounded) {
+TEST(Preferences, RecentFilesAreUniqueNewestFirstAndBounded) {
   Preferences p;
   for (int i = 0; i < Preferences::kMaxRecentFiles + 5; ++i) p.addRecentFile(QString("/f%1").arg(i));
   EXPECT_EQ(p.recent_files.size(), Preferences::kMaxRecentFiles);

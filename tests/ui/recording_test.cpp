@@ -96,7 +96,7 @@ std::string firstBytes(const fs::path& path, std::size_t n) {
 
 /// One recording for the whole suite: the device pushed into the sphere (the proxy moves and a
 /// force shows), a marker, an isovalue change from the slider.
-class RecordingTest : public ::testing::Test {
+class RecordedSession : public ::testing::Test {
  protected:
   static void SetUpTestSuite() {
     dir_ = new QTemporaryDir();
@@ -171,7 +171,7 @@ class RecordingTest : public ::testing::Test {
   static inline double iso_after_ = 0.0;
 };
 
-TEST_F(RecordingTest, WindowRecordingReadsBackWithEventsAndMetadata) {
+TEST_F(RecordedSession, WindowRecordingReadsBackWithEventsAndMetadata) {
   EXPECT_TRUE(marker_ok_);
   EXPECT_NE(rec_status_.find("REC"), std::string::npos) << rec_status_;
   EXPECT_FALSE(recording_after_stop_) << "a tool swap ends the recording";
@@ -214,7 +214,7 @@ TEST_F(RecordingTest, WindowRecordingReadsBackWithEventsAndMetadata) {
   EXPECT_GT(replay.forces_compared, 100u);
 }
 
-TEST_F(RecordingTest, ReplayLoadsTheSceneAndScrubbingMovesTheProxy) {
+TEST_F(RecordedSession, ReplayLoadsTheSceneAndScrubbingMovesTheProxy) {
   const runtime::Recording rec = runtime::readRecording(path_);
   auto w = smallWindow();
   QSignalSpy started(w->replay(), &ReplayController::replayStarted);
@@ -275,7 +275,7 @@ TEST_F(RecordingTest, ReplayLoadsTheSceneAndScrubbingMovesTheProxy) {
   w->session().stopHaptics();
 }
 
-TEST_F(RecordingTest, VideoAndPngExport) {
+TEST_F(RecordedSession, VideoAndPngExport) {
   auto w = smallWindow();
   QSignalSpy started(w->replay(), &ReplayController::replayStarted);
   ASSERT_TRUE(w->replay()->openRecording(path_));
@@ -333,7 +333,7 @@ TEST_F(RecordingTest, VideoAndPngExport) {
   }
 }
 
-TEST_F(RecordingTest, CommandLineMediaExport) {
+TEST_F(RecordedSession, CommandLineMediaExport) {
   const fs::path dir(dir_->path().toStdString());
   MediaExportOptions options;
   options.video = dir / "cli.ogv";
@@ -360,7 +360,7 @@ TEST_F(RecordingTest, CommandLineMediaExport) {
   EXPECT_FALSE(fs::exists(options.video));
 }
 
-TEST_F(RecordingTest, MissingDatasetNamesItAndKeepsTheScene) {
+TEST_F(RecordedSession, MissingDatasetNamesItAndKeepsTheScene) {
   // The same recording, but its metadata names a dataset that is not there.
   const runtime::Recording rec = runtime::readRecording(path_);
   nlohmann::json meta = nlohmann::json::parse(rec.metadata_json);

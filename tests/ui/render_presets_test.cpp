@@ -30,7 +30,7 @@ double opacityAt(const VolumeLook& look, double v) {
   return o.back().opacity;
 }
 
-TEST(RenderPresetsTest, CtPresetsSeparateTissueClassesInHu) {
+TEST(RenderPresets, CtPresetsSeparateTissueClassesInHu) {
   const VolumeLook bone = compositeLook(VolumePreset::kBone, -1024, 3071, true);
   expectIncreasingWithin(bone.colour, -1024, 3071);
   expectIncreasingWithin(bone.opacity, -1024, 3071);
@@ -46,7 +46,7 @@ TEST(RenderPresetsTest, CtPresetsSeparateTissueClassesInHu) {
   EXPECT_GT(opacityAt(skin, -300), 0.8) << "the air/skin boundary is a surface";
 }
 
-TEST(RenderPresetsTest, PresetsClampToTheDataRangeAndMapForOtherUnits) {
+TEST(RenderPresets, PresetsClampToTheDataRangeAndMapForOtherUnits) {
   // CT stored without the air below -200 HU: points collapse onto the range, stay increasing.
   const VolumeLook clipped = compositeLook(VolumePreset::kBone, -200, 1500, true);
   expectIncreasingWithin(clipped.opacity, -200, 1500);
@@ -58,7 +58,7 @@ TEST(RenderPresetsTest, PresetsClampToTheDataRangeAndMapForOtherUnits) {
   EXPECT_GT(opacityAt(mapped, 250), 0.5);
 }
 
-TEST(RenderPresetsTest, MipAndIsosurfaceLooks) {
+TEST(RenderPresets, MipAndIsosurfaceLooks) {
   const VolumeLook mip = mipLook(-1024, 3071, true);
   expectIncreasingWithin(mip.opacity, -1024, 3071);
   EXPECT_FALSE(mip.shade);

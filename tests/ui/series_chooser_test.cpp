@@ -42,7 +42,7 @@ io::DicomSeriesInfo series(const char* description, int slices, const char* moda
   return s;
 }
 
-TEST(DicomSeriesModelTest, ShowsPatientStudySeriesModalitySlicesAndSpacing) {
+TEST(DicomSeriesModel, ShowsPatientStudySeriesModalitySlicesAndSpacing) {
   DicomSeriesModel model({series("Scout", 2), series("BONE 1mm", 140), series("SOFT", 70, "CT")});
   ASSERT_EQ(model.rowCount(), 3);
   ASSERT_EQ(model.columnCount(), DicomSeriesModel::kColumnCount);
@@ -65,7 +65,7 @@ TEST(DicomSeriesModelTest, ShowsPatientStudySeriesModalitySlicesAndSpacing) {
   EXPECT_EQ(dialog.model()->series(dialog.selectedRow()).series_description, "Scout");
 }
 
-TEST(DicomSeriesModelTest, ModalitySlicesAndSpacingShowFirstAndTheWholeDescriptionOnHover) {
+TEST(DicomSeriesModel, ModalitySlicesAndSpacingShowFirstAndTheWholeDescriptionOnHover) {
   const std::string long_description =
       "mocoMEAN_ep2d_bold_moco_TR2000_3mm_iso_resting_state_with_a_very_long_protocol_name";
   io::DicomSeriesInfo s = series(long_description.c_str(), 36, "MR");
@@ -96,7 +96,7 @@ TEST(DicomSeriesModelTest, ModalitySlicesAndSpacingShowFirstAndTheWholeDescripti
   EXPECT_TRUE(tip.contains("Doe, Jane")) << tip.toStdString();
 }
 
-TEST(DicomSeriesTest, ListsTheSmallHeadAsOneCtSeries) {
+TEST(DicomSeries, ListsTheSmallHeadAsOneCtSeries) {
   if (!fs::exists(kHead)) GTEST_SKIP() << "dataset absent: " << kHead;
   int calls = 0;
   const auto list = io::listDicomSeries(kHead, [&](int, int) { ++calls; });
@@ -117,7 +117,7 @@ TEST(DicomSeriesTest, ListsTheSmallHeadAsOneCtSeries) {
   EXPECT_THROW(io::loadDicomSeries(kHead, 1), io::LoadError);
 }
 
-TEST(DicomSeriesTest, AFolderWithTwoSeriesListsBothAndLoadsTheChosenOne) {
+TEST(DicomSeries, AFolderWithTwoSeriesListsBothAndLoadsTheChosenOne) {
   if (!fs::exists(kHead) || !fs::exists(kPhantom)) GTEST_SKIP() << "datasets absent";
   QTemporaryDir tmp;
   const fs::path root = tmp.path().toStdString();
@@ -144,7 +144,7 @@ TEST(DicomSeriesTest, AFolderWithTwoSeriesListsBothAndLoadsTheChosenOne) {
   EXPECT_EQ(dims[2], 3) << "only the chosen series is read";
 }
 
-TEST(DicomSeriesTest, ErrorsNameTheFolder) {
+TEST(DicomSeries, ErrorsNameTheFolder) {
   QTemporaryDir tmp;
   try {
     io::listDicomSeries(tmp.path().toStdString());

@@ -12,7 +12,7 @@
 namespace vh::ui {
 namespace {
 
-TEST(StripChartTest, KeepsTheLastWindowOfSamples) {
+TEST(StripChart, KeepsTheLastWindowOfSamples) {
   StripChart chart(nullptr, 10.0);
   for (int i = 0; i <= 150; ++i) chart.addSample(0.1 * i, 0.01 * i, 50.0, 80.0, 3.0);  // 15 s at 10 Hz
   chart.flush();

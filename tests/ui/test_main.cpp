@@ -1,4 +1,4 @@
-// GoogleTest main for the GUI tests: one QApplication for the whole run, created after the
+// GoogleTest main for the GUI tests: one QApplication per run (ctest starts one run per test), created after the
 // default surface format VTK needs (OpenGL 3.2 core, depth 24, stencil 8, no MSAA). Settings go
 // to a temporary folder so the tests never read or change the user's.
 #include <dlfcn.h>
@@ -13,6 +13,8 @@
 
 int main(int argc, char** argv) {
   ::testing::InitGoogleTest(&argc, argv);
+  // Listing the cases (ctest's discovery at build time) needs no display.
+  if (::testing::GTEST_FLAG(list_tests)) return RUN_ALL_TESTS();
 #if defined(__SANITIZE_ADDRESS__)
   // Mesa's software GL driver (loaded under Xvfb) keeps a few blocks for its lifetime and is
   // unloaded when the last GL context goes, after which LeakSanitizer can no longer name it

@@ -16,7 +16,7 @@ namespace {
 
 namespace fs = std::filesystem;
 
-TEST(ToolCatalogTest, BuiltInsAlwaysSharedMeshesWhenPresent) {
+TEST(ToolCatalog, BuiltInsAlwaysSharedMeshesWhenPresent) {
   const auto none = toolCatalog("/nonexistent");
   ASSERT_EQ(none.size(), 4u);
   EXPECT_EQ(none.front().id, "builtin:probe");
@@ -30,7 +30,7 @@ TEST(ToolCatalogTest, BuiltInsAlwaysSharedMeshesWhenPresent) {
   }
 }
 
-TEST(ToolCatalogTest, SceneToolsMatchOrAreAdded) {
+TEST(ToolCatalog, SceneToolsMatchOrAreAdded) {
   auto catalog = toolCatalog("/nonexistent");
   runtime::ToolSpec spec;
   spec.mesh = "builtin:peg";
@@ -44,7 +44,7 @@ TEST(ToolCatalogTest, SceneToolsMatchOrAreAdded) {
   EXPECT_NE(catalog[static_cast<std::size_t>(i)].label.find("custom.stl"), std::string::npos);
 }
 
-TEST(ToolCatalogTest, BuildsAFreeToolAtTheAskedSpacing) {
+TEST(ToolCatalog, BuildsAFreeToolAtTheAskedSpacing) {
   const haptics::ScalarVolume sphere = datasets::makeBuiltinVolume("sphere");
   const double iso = datasets::builtinIsovalue("sphere");
   const auto catalog = toolCatalog("/nonexistent");
@@ -60,7 +60,7 @@ TEST(ToolCatalogTest, BuildsAFreeToolAtTheAskedSpacing) {
   EXPECT_ANY_THROW(buildTool(bad, 0.002, sphere, iso));
 }
 
-TEST(AboutTest, NamesThePaperAndTheDataLicences) {
+TEST(About, NamesThePaperAndTheDataLicences) {
   const QString html = aboutHtml();
   EXPECT_TRUE(html.contains("Chan")) << html.toStdString();
   EXPECT_TRUE(html.contains("Salisbury"));

@@ -190,7 +190,7 @@ double wallNowS() {
   return std::chrono::duration<double>(std::chrono::system_clock::now().time_since_epoch()).count();
 }
 
-class IgtlLinkTest : public ::testing::Test {
+class IgtlLinkServing : public ::testing::Test {
  protected:
   // A client that vanishes must not kill the test process (libOpenIGTLink's send has no
   // MSG_NOSIGNAL).
@@ -258,7 +258,7 @@ TEST(IgtlConversion, EscapesControlBytes) {
 
 // ---- Streaming -----------------------------------------------------------------------------
 
-class IgtlLinkRate : public IgtlLinkTest, public ::testing::WithParamInterface<double> {};
+class IgtlLinkRate : public IgtlLinkServing, public ::testing::WithParamInterface<double> {};
 
 TEST_P(IgtlLinkRate, StreamsTransformsAtTheAskedRateWithRasValues) {
   const double rate_Hz = GetParam();
@@ -409,7 +409,7 @@ std::optional<io::LoadedVolume> waitForVolume(IgtlLink& link) {
   return v;
 }
 
-TEST_F(IgtlLinkTest, ReceivedImageOpensWithItsSpacingOriginAndDirection) {
+TEST_F(IgtlLinkServing, ReceivedImageOpensWithItsSpacingOriginAndDirection) {
   auto link = startLink(nullptr, LinkOptions{});
   ASSERT_NE(link, nullptr);
   Client client;
@@ -456,7 +456,7 @@ std::vector<unsigned char> truncatedImage(::igtl::ImageMessage& image, std::size
   return bytes;
 }
 
-TEST_F(IgtlLinkTest, MalformedMessagesAndDroppedClientsLeaveTheLinkServing) {
+TEST_F(IgtlLinkServing, MalformedMessagesAndDroppedClientsLeaveTheLinkServing) {
   auto channel = std::make_shared<runtime::SnapshotChannel>();
   publish(*channel, Pose(), Pose(), Eigen::Vector3d::Zero(), 0, 1, steadyNowNs());
   LinkOptions options;
@@ -534,7 +534,7 @@ TEST_F(IgtlLinkTest, MalformedMessagesAndDroppedClientsLeaveTheLinkServing) {
   EXPECT_GE(link->status().clients, 6u);
 }
 
-TEST_F(IgtlLinkTest, SecondClientIsRefusedWhileOneIsConnected) {
+TEST_F(IgtlLinkServing, SecondClientIsRefusedWhileOneIsConnected) {
   auto channel = std::make_shared<runtime::SnapshotChannel>();
   publish(*channel, Pose(), Pose(), Eigen::Vector3d::Zero(), 0, 1, steadyNowNs());
   auto link = startLink(channel, LinkOptions{});
@@ -639,7 +639,7 @@ std::vector<unsigned char> bareHeader(const std::string& type, const std::string
   return h;
 }
 
-TEST_F(IgtlLinkTest, ListensOnLoopbackOnlyUnlessAnotherAddressIsNamed) {
+TEST_F(IgtlLinkServing, ListensOnLoopbackOnlyUnlessAnotherAddressIsNamed) {
   auto link = startLink(nullptr, LinkOptions{});
   ASSERT_NE(link, nullptr);
   EXPECT_EQ(listeningAddresses(link->options().port), std::vector<std::string>{"127.0.0.1"});
@@ -655,7 +655,7 @@ TEST_F(IgtlLinkTest, ListensOnLoopbackOnlyUnlessAnotherAddressIsNamed) {
   EXPECT_EQ(listeningAddresses(open->options().port), std::vector<std::string>{"0.0.0.0"});
 }
 
-TEST_F(IgtlLinkTest, RefusesClientsNotAllowed) {
+TEST_F(IgtlLinkServing, RefusesClientsNotAllowed) {
   auto channel = std::make_shared<runtime::SnapshotChannel>();
   publish(*channel, Pose(), Pose(), Eigen::Vector3d::Zero(), 0, 1, steadyNowNs());
   auto link = startLink(channel, LinkOptions{});
@@ -693,7 +693,7 @@ TEST_F(IgtlLinkTest, RefusesClientsNotAllowed) {
   close(friendly);
 }
 
-TEST_F(IgtlLinkTest, HugeDeclaredBodyAllocatesOnlyWhatArrivesAndIdlePartialIsDropped) {
+TEST_F(IgtlLinkServing, HugeDeclaredBodyAllocatesOnlyWhatArrivesAndIdlePartialIsDropped) {
   LinkOptions options;
   options.partial_timeout_s = 1.0;
   auto link = startLink(nullptr, options);
@@ -730,7 +730,7 @@ TEST_F(IgtlLinkTest, HugeDeclaredBodyAllocatesOnlyWhatArrivesAndIdlePartialIsDro
   close(fd);
 }
 
-TEST_F(IgtlLinkTest, ImagesRefusedWhenNotAcceptedWithTheirNameEscaped) {
+TEST_F(IgtlLinkServing, ImagesRefusedWhenNotAcceptedWithTheirNameEscaped) {
   LinkOptions options;
   options.accept_images = false;
   std::vector<std::string> printed;
@@ -764,7 +764,7 @@ TEST_F(IgtlLinkTest, ImagesRefusedWhenNotAcceptedWithTheirNameEscaped) {
   EXPECT_FALSE(printed.empty());  // the hook saw them as they happened
 }
 
-TEST_F(IgtlLinkTest, AReceivedVolumeWaitingRefusesTheNextAndNamesItsSender) {
+TEST_F(IgtlLinkServing, AReceivedVolumeWaitingRefusesTheNextAndNamesItsSender) {
   auto link = startLink(nullptr, LinkOptions{});
   ASSERT_NE(link, nullptr);
   Client client;
@@ -783,7 +783,7 @@ TEST_F(IgtlLinkTest, AReceivedVolumeWaitingRefusesTheNextAndNamesItsSender) {
 
 // ---- Never blocking the haptic thread ------------------------------------------------------
 
-TEST_F(IgtlLinkTest, StalledClientNeverSlowsTheHapticThread) {
+TEST_F(IgtlLinkServing, StalledClientNeverSlowsTheHapticThread) {
   const runtime::LoadedScene& scene = test::sphereBallScene();
   auto channel = std::make_shared<runtime::SnapshotChannel>();
   runtime::HapticThreadOptions thread_options;
@@ -840,7 +840,7 @@ TEST_F(IgtlLinkTest, StalledClientNeverSlowsTheHapticThread) {
   close(fd);
 }
 
-TEST_F(IgtlLinkTest, SessionRebuildKeepsFeedingTheChannel) {
+TEST_F(IgtlLinkServing, SessionRebuildKeepsFeedingTheChannel) {
   auto channel = std::make_shared<runtime::SnapshotChannel>();
   runtime::Session session(1000.0);
   session.setMonitor(channel);
