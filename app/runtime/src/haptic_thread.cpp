@@ -9,24 +9,16 @@
 #include "vh/haptics/configuration_solver.h"
 #include "vh/haptics/passivity_controller.h"
 #include "vh/runtime/passivity_port.h"
+#include "vh/runtime/realtime.h"
 #include "vh/runtime/sample_filter.h"
-
-#include <pthread.h>
-#include <sched.h>
-#include <sys/mman.h>
-#include <sys/prctl.h>
-#include <sys/resource.h>
-#include <time.h>
-#include <unistd.h>
+#include "vh/runtime/sample_ring.h"
 
 #include <algorithm>
 #include <chrono>
-#include <cerrno>
 #include <cmath>
 #include <cstdlib>
 #include <cstring>
 #include <limits>
-#include <mutex>
 #include <span>
 #include <stdexcept>
 #include <thread>
@@ -37,158 +29,8 @@ namespace vh::runtime {
 
 namespace {
 
-constexpr std::int64_t kNsPerS = 1'000'000'000;
 constexpr int kCouplingPriority = 80;  // above the solver: on a shared core the coupling preempts it
 constexpr int kSolverPriority = 79;
-
-std::int64_t toNs(const timespec& t) noexcept { return static_cast<std::int64_t>(t.tv_sec) * kNsPerS + t.tv_nsec; }
-
-timespec fromNs(std::int64_t ns) noexcept {
-  timespec t{};
-  t.tv_sec = static_cast<time_t>(ns / kNsPerS);
-  t.tv_nsec = static_cast<long>(ns % kNsPerS);
-  return t;
-}
-
-std::int64_t monotonicNs() noexcept {
-  timespec t{};
-  clock_gettime(CLOCK_MONOTONIC, &t);
-  return toNs(t);
-}
-
-// The process's memory lock (mlockall is process-wide): taken by the first coupling thread that
-// may lock, dropped (munlockall) when the last user is gone: the coupling threads that run, and
-// the MemoryLockHolds that keep it over a restart of the threads.
-std::mutex& memoryLockMutex() {
-  static std::mutex m;
-  return m;
-}
-int memory_lock_users = 0;  // guarded by memoryLockMutex()
-bool memory_locked = false;  // guarded by memoryLockMutex()
-
-// A coupling thread's use of the lock: locks the process's memory unless it is locked already.
-// @return whether it is locked (then the caller releases it with releaseMemoryLock()).
-bool acquireMemoryLock() noexcept {
-  const std::lock_guard<std::mutex> guard(memoryLockMutex());
-  if (!memory_locked) {
-#ifdef MCL_ONFAULT
-    // ONFAULT: resident pages are locked now, later ones when first touched (no pre-faulting of
-    // large reservations such as thread stacks).
-    memory_locked = mlockall(MCL_CURRENT | MCL_FUTURE | MCL_ONFAULT) == 0;
-    if (!memory_locked && errno == EINVAL) memory_locked = mlockall(MCL_CURRENT | MCL_FUTURE) == 0;
-#else
-    memory_locked = mlockall(MCL_CURRENT | MCL_FUTURE) == 0;
-#endif
-  }
-  if (memory_locked) ++memory_lock_users;
-  return memory_locked;
-}
-
-void releaseMemoryLock() noexcept {
-  const std::lock_guard<std::mutex> guard(memoryLockMutex());
-  if (memory_lock_users > 0 && --memory_lock_users == 0 && memory_locked) {
-    munlockall();  // tens of ms on a process holding a CT
-    memory_locked = false;
-  }
-}
-
-/// Best effort real-time set-up of the calling thread (devices.md, "Servo loop timing"): 1 ns
-/// timer slack, SCHED_FIFO at `priority` and, when that worked and `lock_memory`, the memory
-/// lock (acquireMemoryLock()). Every failure (EPERM in a container or for a normal user)
-/// silently leaves the default.
-void configureRealtime(int priority, bool lock_memory, bool& fifo, bool& locked) noexcept {
-  prctl(PR_SET_TIMERSLACK, 1UL, 0UL, 0UL, 0UL);
-  sched_param param{};
-  param.sched_priority = priority;
-  fifo = pthread_setschedparam(pthread_self(), SCHED_FIFO, &param) == 0;
-  locked = false;
-  if (!fifo || !lock_memory) return;
-  // Lock only when the limit cannot make later allocations fail (root or unlimited).
-  rlimit limit{};
-  if (geteuid() != 0 && (getrlimit(RLIMIT_MEMLOCK, &limit) != 0 || limit.rlim_cur != RLIM_INFINITY)) return;
-  locked = acquireMemoryLock();
-}
-
-/// An absolute-deadline periodic wake-up with the statistics of ThreadTiming: on an overrun of
-/// more than one period it counts a miss and resynchronises (no catch-up wake-ups).
-class PeriodicClock {
- public:
-  PeriodicClock(double period_s, std::uint64_t ticks_before) noexcept
-      : period_ns_(std::max<std::int64_t>(1, std::llround(period_s * 1e9))),
-        next_ns_(monotonicNs()),
-        previous_begin_ns_(next_ns_),
-        window_start_ns_(next_ns_) {
-    timing_.nominal_rate_Hz = 1.0 / period_s;
-    timing_.ticks = ticks_before;
-  }
-
-  /// Sleeps until the next deadline. @return whether this wake-up missed its deadline.
-  bool wait() noexcept {
-    next_ns_ += period_ns_;
-    const timespec deadline = fromNs(next_ns_);
-    while (clock_nanosleep(CLOCK_MONOTONIC, TIMER_ABSTIME, &deadline, nullptr) == EINTR) {
-    }
-    const std::int64_t begin_ns = monotonicNs();
-    interval_s_ = 1e-9 * static_cast<double>(begin_ns - previous_begin_ns_);
-    const double jitter_us = 1e-3 * static_cast<double>(std::llabs(begin_ns - previous_begin_ns_ - period_ns_));
-    window_jitter_us_ = std::max(window_jitter_us_, jitter_us);
-    previous_begin_ns_ = begin_ns;
-    const bool missed = begin_ns - next_ns_ > period_ns_;
-    if (missed) {
-      ++timing_.deadline_misses;
-      next_ns_ = begin_ns;
-    }
-    return missed;
-  }
-  /// The interval between the last two wake-ups [s].
-  double interval_s() const noexcept { return interval_s_; }
-
-  /// One tick that ran from begin_ns to end_ns (monotonicNs()); closes the window after 1 s.
-  void tick(std::int64_t begin_ns, std::int64_t end_ns) noexcept {
-    ++timing_.ticks;
-    ++window_ticks_;
-    const double tick_us = 1e-3 * static_cast<double>(end_ns - begin_ns);
-    window_sum_us_ += tick_us;
-    window_max_us_ = std::max(window_max_us_, tick_us);
-    const std::int64_t window_ns = end_ns - window_start_ns_;
-    if (window_ns >= kNsPerS || !have_window_) {
-      timing_.rate_Hz = window_ns > 0 ? static_cast<double>(window_ticks_) * 1e9 / static_cast<double>(window_ns) : 0.0;
-      timing_.mean_tick_us = window_sum_us_ / static_cast<double>(window_ticks_);
-      timing_.max_tick_us = window_max_us_;
-      timing_.jitter_us = window_jitter_us_;
-    }
-    if (window_ns >= kNsPerS) {
-      have_window_ = true;
-      window_start_ns_ = end_ns;
-      window_ticks_ = 0;
-      window_sum_us_ = 0.0;
-      window_max_us_ = 0.0;
-      window_jitter_us_ = 0.0;
-    }
-  }
-  const ThreadTiming& timing() const noexcept { return timing_; }
-
- private:
-  std::int64_t period_ns_;
-  std::int64_t next_ns_;
-  std::int64_t previous_begin_ns_;
-  std::int64_t window_start_ns_;
-  double interval_s_ = 0.0;
-  std::uint64_t window_ticks_ = 0;
-  double window_sum_us_ = 0.0, window_max_us_ = 0.0, window_jitter_us_ = 0.0;
-  bool have_window_ = false;
-  ThreadTiming timing_;
-};
-
-/// One coupling tick's device sample as the solver gets it.
-struct DeviceInput {
-  haptics::Pose X_WD;            ///< As read (not normalised); meaningful only when ok.
-  double isovalue = 0.0;         ///< HapticThread's isovalue on that coupling tick.
-  haptics::CouplingGains gains;  ///< The gains the coupling thread applied on that tick.
-  bool ok = false;               ///< A usable sample (read() true, valid, finite).
-  bool connected = true;         ///< Device::connected() right after the read.
-  bool drill_button = false;     ///< The device's first button held (kDrillButton) on a usable sample.
-};
 
 /// Energy the coupling's linear spring holds [J]: 0.5 k_lin |c_D - c_P|^2 = |F|^2 / (2 k_lin)
 /// (virtual_coupling.h: F = -k_lin (c_D - c_P)); 0 without a spring.
@@ -215,82 +57,6 @@ bool sameGains(const haptics::CouplingGains& a, const haptics::CouplingGains& b)
   return a.linear_N_per_m == b.linear_N_per_m && a.angular_Nm_per_rad == b.angular_Nm_per_rad &&
          a.passivity_control == b.passivity_control;
 }
-
-/// The last `capacity` device samples, numbered 1, 2, ... One producer (the coupling thread)
-/// that never waits: it overwrites the oldest slot. One consumer (the solver thread) that reads
-/// any sample still held; each slot is a sequence lock (odd version while written), its fields
-/// relaxed atomics, so a torn read is detected and never undefined.
-class SampleRing {
- public:
-  explicit SampleRing(std::size_t capacity) {
-    std::size_t n = 2;
-    while (n < capacity) n *= 2;
-    slots_ = std::make_unique<Slot[]>(n);
-    mask_ = n - 1;
-  }
-  std::size_t capacity() const noexcept { return mask_ + 1; }
-
-  /// Producer. @return the new sample's number.
-  std::uint64_t push(const DeviceInput& in) noexcept {
-    const std::uint64_t seq = ++written_;
-    Slot& s = slots_[seq & mask_];
-    const std::uint64_t v = s.version.load(std::memory_order_relaxed);
-    s.version.store(v + 1, std::memory_order_relaxed);
-    std::atomic_thread_fence(std::memory_order_release);
-    s.seq.store(seq, std::memory_order_relaxed);
-    for (int k = 0; k < 3; ++k) s.value[k].store(in.X_WD.p_AB_m[k], std::memory_order_relaxed);
-    s.value[3].store(in.X_WD.R_AB.w(), std::memory_order_relaxed);
-    s.value[4].store(in.X_WD.R_AB.x(), std::memory_order_relaxed);
-    s.value[5].store(in.X_WD.R_AB.y(), std::memory_order_relaxed);
-    s.value[6].store(in.X_WD.R_AB.z(), std::memory_order_relaxed);
-    s.value[7].store(in.isovalue, std::memory_order_relaxed);
-    s.value[8].store(in.gains.linear_N_per_m, std::memory_order_relaxed);
-    s.value[9].store(in.gains.angular_Nm_per_rad, std::memory_order_relaxed);
-    s.flags.store((in.ok ? 1u : 0u) | (in.connected ? 2u : 0u) | (in.gains.passivity_control ? 4u : 0u) |
-                      (in.drill_button ? 8u : 0u),
-                  std::memory_order_relaxed);
-    s.version.store(v + 2, std::memory_order_release);
-    latest_.store(seq, std::memory_order_release);
-    return seq;
-  }
-  /// Any thread: the newest sample's number (0: none yet).
-  std::uint64_t latest() const noexcept { return latest_.load(std::memory_order_acquire); }
-  /// Consumer. @return false when sample `seq` is not (or no longer) held.
-  bool read(std::uint64_t seq, DeviceInput& out) const noexcept {
-    const Slot& s = slots_[seq & mask_];
-    const std::uint64_t v1 = s.version.load(std::memory_order_acquire);
-    if ((v1 & 1u) != 0) return false;
-    const std::uint64_t held = s.seq.load(std::memory_order_relaxed);
-    double value[kValues];
-    for (int k = 0; k < kValues; ++k) value[k] = s.value[k].load(std::memory_order_relaxed);
-    const std::uint32_t flags = s.flags.load(std::memory_order_relaxed);
-    std::atomic_thread_fence(std::memory_order_acquire);
-    if (s.version.load(std::memory_order_relaxed) != v1 || held != seq) return false;
-    out.X_WD.p_AB_m = {value[0], value[1], value[2]};
-    out.X_WD.R_AB = Eigen::Quaterniond(value[3], value[4], value[5], value[6]);
-    out.isovalue = value[7];
-    out.gains.linear_N_per_m = value[8];
-    out.gains.angular_Nm_per_rad = value[9];
-    out.ok = (flags & 1u) != 0;
-    out.connected = (flags & 2u) != 0;
-    out.gains.passivity_control = (flags & 4u) != 0;
-    out.drill_button = (flags & 8u) != 0;
-    return true;
-  }
-
- private:
-  static constexpr int kValues = 10;
-  struct Slot {
-    std::atomic<std::uint64_t> version{0};
-    std::atomic<std::uint64_t> seq{0};
-    std::array<std::atomic<double>, kValues> value{};
-    std::atomic<std::uint32_t> flags{0};
-  };
-  std::unique_ptr<Slot[]> slots_;
-  std::size_t mask_ = 0;
-  std::uint64_t written_ = 0;  // producer only
-  std::atomic<std::uint64_t> latest_{0};
-};
 
 /// Solver -> coupling: the proxy pose to couple to.
 struct ProxyState {
@@ -492,42 +258,6 @@ bool HapticThread::placeProxy(const haptics::Pose& X_WP) noexcept {
   proxy.bad_input = false;
   x_->proxy.publish();
   return true;
-}
-
-void mergeSnapshots(const CouplingSnapshot& c, const SolverSnapshot& s, HapticSnapshot& out) noexcept {
-  out.tick = c.tick;
-  out.solver_tick = s.tick;
-  out.time_ns = c.time_ns;
-  out.X_WP = c.X_WP;
-  out.X_WD = c.X_WD;
-  out.force_W_N = c.force_W_N;
-  out.torque_W_Nm = c.torque_W_Nm;
-  out.isovalue = s.isovalue;
-  out.contacts = s.contacts;
-  out.contacts_shown = s.contacts_shown;
-  out.segment = s.segment;
-  out.contact_p_W_m = s.contact_p_W_m;
-  out.contact_n_W = s.contact_n_W;
-  out.coupling = c.timing;
-  out.solver = s.timing;
-  out.bad_device_samples = c.bad_samples + s.rejected;
-  out.implausible_samples = c.implausible_samples;
-  out.held_ticks = c.held_ticks;
-  out.skipped_samples = s.skipped;
-  out.passivity_active_ticks = c.passivity_active_ticks;
-  out.passivity_dissipated_J = c.passivity_dissipated_J;
-}
-
-MemoryLockHold::MemoryLockHold() noexcept {
-  const std::lock_guard<std::mutex> guard(memoryLockMutex());
-  if (memory_locked) {
-    ++memory_lock_users;
-    held_ = true;
-  }
-}
-
-MemoryLockHold::~MemoryLockHold() {
-  if (held_) releaseMemoryLock();
 }
 
 void HapticThread::start() {
@@ -773,7 +503,7 @@ inline void writeRecordPoses(TickRecord& rec, const haptics::Pose& X_WD, const h
 
 /// A solver tick's own recording flags: contact, bad sample, non-finite wrench, device
 /// disconnected, the segment touched.
-inline std::uint32_t solverRecordFlags(std::uint32_t contacts, const DeviceInput& in, const haptics::TickOutput& out,
+inline std::uint32_t solverRecordFlags(std::uint32_t contacts, const CouplingSample& in, const haptics::TickOutput& out,
                                        int segment) noexcept {
   const bool nonfinite = !out.force_W_N.allFinite() || !out.torque_W_Nm.allFinite();
   return (contacts > 0 ? kRecordFlagContact : 0u) | (in.ok ? 0u : kRecordFlagBadSample) |
@@ -818,7 +548,7 @@ void HapticThread::couplingLoop() noexcept {
   PeriodicClock clock(period_s_, 0);
 
   DeviceSample sample;
-  DeviceInput input;
+  CouplingSample input;
   ProxyState proxy;
   x_->proxy.read(proxy);
   haptics::Pose X_WD_last = proxy.X_WP;  // until the first valid sample
@@ -964,7 +694,7 @@ void HapticThread::solverLoop() noexcept {
   SnapshotChannel* const monitor = options_.monitor.get();  // optional second consumer
   // Samples from before this start() are not used (a restart begins with the next one).
   std::uint64_t consumed = x_->first_sample_after;
-  DeviceInput input, last_input;
+  CouplingSample input, last_input;
   bool have_last = false;
   // The renderer's gains (and the solver's metric) are set before the first tick, as
   // replayRecording() does; then each sample brings the gains the coupling thread applied.
@@ -977,7 +707,7 @@ void HapticThread::solverLoop() noexcept {
   JamDetector jam;                                   // kRecordFlagJam
 
   // One solver tick on `in`: render, publish the proxy, record, publish the snapshot.
-  const auto solve = [&](const DeviceInput& in) noexcept {
+  const auto solve = [&](const CouplingSample& in) noexcept {
     const std::int64_t begin_ns = monotonicNs();
     const std::uint32_t gains_flags = followGains(in.gains, gains, *renderer_) ? kRecordFlagGainsApplied : 0u;
     std::uint32_t placement_flags = 0;

@@ -397,20 +397,6 @@ TEST(Recording, DamagedHeadersThrowWithTheReason) {
                        "cannot create");
 }
 
-TEST(Recording, RingOverflowCountsDrops) {
-  TickRing ring(3);  // rounded up to 4
-  EXPECT_EQ(ring.capacity(), 4u);
-  int accepted = 0;
-  for (std::uint64_t i = 0; i < 10; ++i) accepted += ring.push(makeRecord(i)) ? 1 : 0;
-  EXPECT_EQ(accepted, 4);
-  EXPECT_EQ(ring.dropped(), 6u);
-  std::array<TickRecord, 8> out{};
-  ASSERT_EQ(ring.pop(out.data(), out.size()), 4u);
-  for (std::uint64_t i = 0; i < 4; ++i) EXPECT_TRUE(sameBytes(out[i], makeRecord(i)));
-  EXPECT_TRUE(ring.push(makeRecord(42)));  // room again after the pop
-  EXPECT_EQ(ring.size(), 1u);
-}
-
 TEST(Recording, WriterStoresTheDroppedCountAndNeverLosesRecordsSilently) {
   const fs::path path = test::scratchDir() / "drops.vhrec";
   RecordingWriterOptions opt;

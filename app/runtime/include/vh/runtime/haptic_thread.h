@@ -27,15 +27,19 @@
 /// recording holds the samples the solver used).
 ///
 /// Lock-free exchange, no mutex, no allocation, no exception in either loop:
-///   coupling -> solver: a ring of the last device samples (per-slot sequence lock), each with
-///                       the isovalue and the applied gains read on the same coupling tick;
+///   coupling -> solver: a ring of the last device samples (SampleRing, sample_ring.h), each
+///                       with the isovalue and the applied gains read on the same coupling tick;
 ///   solver -> coupling: the proxy pose X_WP (TripleBuffer);
-///   both -> GUI:        one TripleBuffer each, merged by latestSnapshot();
+///   both -> GUI:        one TripleBuffer each (SnapshotChannel), merged by latestSnapshot()
+///                       into a HapticSnapshot (haptic_snapshot.h);
 ///   both -> monitor:    optionally the same again into a second SnapshotChannel
 ///                       (HapticThreadOptions::monitor) for another consumer, e.g. OpenIGTLink;
 ///   GUI -> coupling:    gains and isovalue in atomics, applied at the coupling thread's next tick;
 ///   flags:              atomics (the coupling thread's force-limited / zeroed / stopping / deadline
 ///                       miss bits, read by the solver into its TickRecord).
+///
+/// Each thread sets itself up for real time (SCHED_FIFO, the memory lock) and wakes on an
+/// absolute-deadline clock: realtime.h.
 ///
 /// Frames and units: W the scene (world) frame [m]; D the device's tool frame; P the proxy's tool
 /// frame; forces [N] and torques [N*m] in W on the user's hand about the tool's centre of mass;
@@ -53,70 +57,16 @@
 #include "vh/haptics/haptic_renderer.h"
 #include "vh/runtime/device.h"
 #include "vh/runtime/drilling.h"
+#include "vh/runtime/haptic_snapshot.h"
+#include "vh/runtime/realtime.h"
 #include "vh/runtime/segments.h"
 #include "vh/runtime/recording.h"
+#include "vh/runtime/thread_timing.h"
 #include "vh/runtime/triple_buffer.h"
 
 namespace vh::runtime {
 
 class SnapshotChannel;  // snapshot_channel.h
-
-/// Timing of one of the two haptic threads. Rate, tick times and jitter are over the last
-/// rolling window of one second (until the first window closes, over the running one).
-struct ThreadTiming {
-  double nominal_rate_Hz = 0.0;       ///< The rate the thread is set to [Hz].
-  double rate_Hz = 0.0;               ///< Ticks per second over the window [Hz].
-  double mean_tick_us = 0.0;          ///< Mean execution time of a tick [us].
-  double max_tick_us = 0.0;           ///< Longest tick execution time [us].
-  /// Period jitter: the largest |actual interval between two wake-ups - nominal period| [us].
-  double jitter_us = 0.0;
-  std::uint64_t deadline_misses = 0;  ///< Wake-ups that started > 1 period late (total since start()).
-  std::uint64_t ticks = 0;            ///< Ticks since the thread was created (total).
-};
-
-/// What the render thread sees of the haptic threads: the coupling thread's latest tick (poses,
-/// force) and the solver thread's latest tick (contacts, isovalue). The force is exactly the one
-/// commanded from X_WP and X_WD (after gains, ramp and safety layer); the contacts belong to the
-/// solver tick that published X_WP or to a newer one.
-struct HapticSnapshot {
-  static constexpr int kMaxContactsShown = 64;
-  std::uint64_t tick = 0;                 ///< Coupling (device) ticks so far; 0 before the first.
-  std::uint64_t solver_tick = 0;          ///< Solver ticks so far (= TickRecord::tick while recording).
-  /// CLOCK_MONOTONIC (std::chrono::steady_clock) time of the coupling tick's start [ns]; 0
-  /// before the first.
-  std::int64_t time_ns = 0;
-  haptics::Pose X_WP;                     ///< Proxy pose in W the coupling used (the solver's latest).
-  haptics::Pose X_WD;                     ///< Device pose in W the coupling used (the latest valid one).
-  Eigen::Vector3d force_W_N = Eigen::Vector3d::Zero();    ///< Commanded force on the hand in W [N].
-  Eigen::Vector3d torque_W_Nm = Eigen::Vector3d::Zero();  ///< Commanded torque on the hand in W [N*m].
-  double isovalue = 0.0;                  ///< Isovalue of the solver's latest tick (data units).
-  int contacts = 0;                       ///< Contact set size after the solver's latest tick.
-  int contacts_shown = 0;                 ///< Entries filled in contact_p_W_m / contact_n_W.
-  /// The segment the contacts touch (SegmentSet::segmentOf(), index into the scene's
-  /// segments), or -1: no contact, no segments, or a contact on no felt segment.
-  int segment = -1;
-  std::array<Eigen::Vector3d, kMaxContactsShown> contact_p_W_m{};  ///< Contact points in W [m].
-  std::array<Eigen::Vector3d, kMaxContactsShown> contact_n_W{};    ///< Their unit surface normals in W.
-  ThreadTiming coupling;                  ///< The coupling (device-rate) thread.
-  ThreadTiming solver;                    ///< The solver (HapticRenderer::tick()) thread.
-  /// Device reads without a usable sample plus device poses the renderer rejected (total).
-  std::uint64_t bad_device_samples = 0;
-  /// Of bad_device_samples: samples the coupling thread rejected before computing any force
-  /// from them (SampleFilter: faster than the device moves, outside its workspace, not finite);
-  /// never rendered, never handed to the solver (total).
-  std::uint64_t implausible_samples = 0;
-  /// Coupling ticks that held the last good command, decaying, through a short fault
-  /// (SafetyPolicy::fault_hold_s; total).
-  std::uint64_t held_ticks = 0;
-  /// Device samples the solver never used: it runs slower than the device, or fell more than
-  /// HapticThreadOptions::max_solver_backlog_s behind (total).
-  std::uint64_t skipped_samples = 0;
-  /// Passivity control (CouplingGains::passivity_control): port-ticks on which a controller
-  /// damped (force and torque counted apart) and the energy it took out, as predicted when
-  /// applied [J]; totals since start().
-  std::uint64_t passivity_active_ticks = 0;
-  double passivity_dissipated_J = 0.0;
-};
 
 /// Which device samples the solver thread uses.
 enum class SolverInput {
@@ -153,28 +103,6 @@ struct HapticThreadOptions {
   /// tick with a usable sample runs Drill::step() after the renderer's tick, on the solver
   /// thread (no allocation, no lock), and its record carries kRecordFlagDrillOn. Null: no drill.
   std::shared_ptr<Drill> drill;
-};
-
-/// Keeps the process's memory lock over a stop and a start of haptic threads. The coupling thread
-/// locks the process's memory when it may (SCHED_FIFO, and root or an unlimited RLIMIT_MEMLOCK:
-/// mlockall, process-wide), and the lock is dropped (munlockall, 20 to 40 ms on a process holding a
-/// 512 x 512 x 140 CT, in the coupling thread's last act, which stop() waits for) only when the last
-/// coupling thread and the last hold are gone. A hold made while the memory is locked keeps it
-/// locked until the hold is destroyed; made while it is not, it does nothing.
-/// Every restart of running threads by the Session holds one (a recording's, and a new tool,
-/// device, segmentation, edge test, drill or monitor), so neither the stop nor the new threads'
-/// start pays for unlocking and locking again.
-class MemoryLockHold {
- public:
-  MemoryLockHold() noexcept;
-  ~MemoryLockHold();
-  MemoryLockHold(const MemoryLockHold&) = delete;
-  MemoryLockHold& operator=(const MemoryLockHold&) = delete;
-  /// Whether the memory was locked when this hold was made (then it keeps it locked).
-  bool holding() const noexcept { return held_; }
-
- private:
-  bool held_ = false;
 };
 
 /// Runs the coupling and the solver threads (see the file comment).

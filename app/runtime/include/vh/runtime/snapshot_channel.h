@@ -14,7 +14,7 @@
 /// two; the next HapticThread may publish once the previous one has stopped). Consumer: one
 /// thread at a time.
 ///
-/// Frames and units as in haptic_thread.h: W the scene (world) frame [m], forces [N] and
+/// Frames and units as in haptic_snapshot.h: W the scene (world) frame [m], forces [N] and
 /// torques [N*m] in W on the user's hand.
 
 #include <array>
@@ -23,7 +23,8 @@
 #include <Eigen/Core>
 
 #include "vh/haptics/pose.h"
-#include "vh/runtime/haptic_thread.h"
+#include "vh/runtime/haptic_snapshot.h"
+#include "vh/runtime/thread_timing.h"
 #include "vh/runtime/triple_buffer.h"
 
 namespace vh::runtime {
