@@ -36,7 +36,7 @@
 #include "vh/runtime/runner.h"
 #include "vh/ui/main_window.h"
 #include "vh/ui/panels/segments_panel.h"
-#include "vh/ui/replay/replay_panel.h"
+#include "vh/ui/replay/replay_controller.h"
 #include "vh/ui/tool_picker.h"
 #include "vh/ui/export/media_export.h"
 #include "vh/ui/view/scene_view.h"

@@ -40,7 +40,7 @@
 #include "vh/ui/panels/isovalue_bar.h"
 #include "vh/ui/tool_picker.h"
 #include "vh/ui/export/media_export.h"
-#include "vh/ui/replay/replay_panel.h"
+#include "vh/ui/replay/replay_controller.h"
 #include "vh/ui/replay/session_recorder.h"
 #include "vh/ui/view/vtk_view.h"
 

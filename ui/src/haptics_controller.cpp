@@ -11,7 +11,7 @@
 #include "vh/ui/devices/device_input.h"
 #include "vh/ui/devices/device_picker.h"
 #include "vh/ui/panels/haptics_panel.h"
-#include "vh/ui/replay/replay_panel.h"
+#include "vh/ui/replay/replay_controller.h"
 #include "vh/ui/replay/session_recorder.h"
 #include "vh/ui/tool_picker.h"
 

@@ -31,7 +31,7 @@
 #include "vh/ui/panels/load_notices.h"
 #include "vh/ui/panels/status_line.h"
 #include "vh/ui/panels/strip_chart.h"
-#include "vh/ui/replay/replay_panel.h"
+#include "vh/ui/replay/replay_controller.h"
 #include "vh/ui/replay/session_recorder.h"
 #include "vh/ui/scene_loader.h"
 #include "vh/ui/scene_opener.h"
