@@ -2,12 +2,15 @@
 // the session, and the segment surfaces. Oracles: the test's own ball (its analytic radius and
 // centre in W, from the geometry the test wrote), the session's segments after each command,
 // and for a DICOM SEG opened in the window the label map it was written from with DCMTK
-// (dicom_seg_fixtures.h), compared voxel for voxel.
+// (dicom_seg_fixtures.h), compared voxel for voxel; for a replayed session in which segments
+// were felt, the scan's isovalue the scene was written with.
 #include "vh/ui/panels/segments_panel.h"
 
 #include <cmath>
+#include <cstdint>
 #include <filesystem>
 #include <fstream>
+#include <memory>
 #include <sstream>
 #include <string>
 
@@ -28,13 +31,17 @@
 
 #include "dicom_seg_fixtures.h"
 #include "ui_test_util.h"
+#include "vh/io/segmentation.h"
+#include "vh/runtime/recording.h"
 #include "vh/runtime/scene.h"
 #include "vh/runtime/session.h"
+#include "vh/runtime/session_metadata.h"
 #include "vh/ui/view/scene_view.h"
 #include "vh/ui/view/segment_surfaces.h"
 #include "vh/ui/segments_controller.h"
 #include "vh/ui/export/media_export.h"
 #include "vh/ui/main_window.h"
+#include "vh/ui/replay/replay_controller.h"
 #include "vh/ui/scene_opener.h"
 #include "vh/ui/view/vtk_view.h"
 
@@ -205,6 +212,47 @@ TEST(SegmentsController, OpensASegmentationAppliesChoicesAndAlertsOnACriticalTou
   EXPECT_EQ(errors.count(), 1);
   EXPECT_TRUE(host.session.live().feltSegments());
   host.session.clear();
+  fs::remove_all(dir);
+}
+
+// A session in which segments were felt records on every tick the level the hand felt (the
+// segments' surface level, 0.5), not the scan's isovalue. Replayed in the window, the scan must
+// stay at the scene's isovalue (150 here) while the Replay dock moves through the ticks.
+TEST(SegmentsReplay, TheReplayDockKeepsTheScansIsovalueWhenSegmentsWereFelt) {
+  const fs::path dir = writeCase("replay");
+  const fs::path path = dir / "felt.vhrec";
+  {
+    const runtime::LoadedScene scene = loadCase(dir, true);
+    ASSERT_TRUE(scene.feltSegments());
+    runtime::RecordingWriter writer(path, runtime::makeSessionMetadata(scene, {"Scripted device", "scripted", ""}));
+    for (std::uint64_t i = 0; i < 100; ++i) {
+      runtime::TickRecord r;
+      r.tick = i + 1;
+      r.time_s = 1e-3 * static_cast<double>(i);
+      r.isovalue = io::kSegmentSurfaceLevel;  // what a tick on felt segments records
+      r.p_WD_m[2] = r.p_WP_m[2] = 0.05;
+      ASSERT_TRUE(writer.push(r));
+    }
+    writer.close();
+  }
+  auto w = std::make_unique<MainWindow>();
+  w->setInteractive(false);
+  w->resize(520, 420);
+  w->show();
+  QSignalSpy started(w->replay(), &ReplayController::replayStarted);
+  w->openPath(QString::fromStdString(path.string()));
+  ASSERT_TRUE(test::waitFor([&] { return started.count() > 0 && !w->opener()->loading(); }, 60000))
+      << w->opener()->lastError().toStdString();
+  ASSERT_TRUE(w->replay()->active());
+  ASSERT_TRUE(w->session().live().feltSegments()) << "the recording's scene feels the nerve";
+  EXPECT_EQ(w->session().isovalue(), 150.0);
+  for (const double t_s : {0.0, 0.05, 0.099}) {
+    w->replay()->setTime(t_s);
+    EXPECT_EQ(w->session().isovalue(), 150.0) << "t " << t_s;
+    EXPECT_EQ(w->sceneView()->actors().isovalue(), 150.0)
+        << "t " << t_s << ": the picture shows the scan at the segments' level, not at the scene's isovalue";
+  }
+  w.reset();
   fs::remove_all(dir);
 }
 

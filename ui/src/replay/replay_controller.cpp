@@ -7,6 +7,7 @@
 #include <algorithm>
 #include <cmath>
 #include <iostream>
+#include <limits>
 #include <stdexcept>
 
 #include <QAction>
@@ -300,9 +301,13 @@ void ReplayController::setTime(double t_s) {
   index_ = recordIndexAt(recording_.records, time_s_);
   const runtime::TickRecord& r = recording_.records[index_];
   // The session owns the isovalue: the bar, the view and (when live again) the hand follow it.
-  // Ticks of felt segments carry the segments' level, not the scan's isovalue: not applied.
-  if (std::isfinite(r.isovalue) && !session_.live().feltSegments()) session_.setIsovalue(r.isovalue);
-  view_.show(toolFrameOf(r));  // the same picture as a live snapshot
+  // Ticks of felt segments carry the segments' level, not the scan's isovalue: neither the
+  // session nor the picture takes it (as RecordingFrameRenderer::show() for exports).
+  const bool scan_isovalue = !session_.live().feltSegments();
+  if (std::isfinite(r.isovalue) && scan_isovalue) session_.setIsovalue(r.isovalue);
+  ToolFrame frame = toolFrameOf(r);  // the same picture as a live snapshot
+  if (!scan_isovalue) frame.isovalue = std::numeric_limits<double>::quiet_NaN();
+  view_.show(frame);
   showDrillingAt(index_);
   timeline_->setCursor_s(time_s_);
   readout_->setText(readout());
