@@ -4,15 +4,6 @@
 
 namespace vh::haptics {
 
-Vector6d displacement_W(const Pose& X_WA, const Pose& X_WB, const Eigen::Vector3d& p_TCm_m,
-                        const Eigen::Vector3d* rotation_reference_rad) noexcept {
-  Vector6d dx;
-  dx.head<3>() = X_WB * p_TCm_m - X_WA * p_TCm_m;
-  dx.tail<3>() = rotationVector(X_WB.R_AB * X_WA.R_AB.conjugate());
-  if (rotation_reference_rad != nullptr) dx.tail<3>() = unwrapRotationVector(dx.tail<3>(), *rotation_reference_rad);
-  return dx;
-}
-
 Vector6d constraintRow(const Eigen::Vector3d& p_W_m, const Eigen::Vector3d& n_W, const Eigen::Vector3d& c_W_m) noexcept {
   Vector6d row;
   row.head<3>() = n_W;

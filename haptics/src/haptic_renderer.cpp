@@ -72,11 +72,27 @@ double HapticRenderer::edgeSafeTime(const RigidMotion& motion, double t_from, do
     return t;
   };
   const bool start_proven = edges_free_isovalue_ == isovalue && edges_free_embedded_ == collision_.embeddedCount();
-  if (!crossesAt(t_to)) return provenFree(t_to);
-  if (cut) return t_from;
+  // Poses a quarter of the point spacing of travel apart at the farthest point.
+  const double travel_m = (motion.speed_m() + motion.angle_rad() * collision_.shellRadius_m()) * (t_to - t_from);
+  const double spacing_m = std::max(collision_.shellEdges().spacing_m, collision_.epsilon_m());
+  const int steps = static_cast<int>(std::clamp(std::ceil(travel_m / (0.25 * spacing_m)), 1.0, 64.0));
+  // Swept: the whole graph at each of those poses along the move, in order, then at its end;
+  // else at its end only. The first pose where an edge crosses ends the walk; t_free is the
+  // last pose proven free before it.
+  double t_free = t_from;
+  double cross_t = t_to;
+  bool crossing = false;
+  const int tested = options_.edge_test_swept ? steps : 1;
+  for (int k = 1; k <= tested && !crossing; ++k) {
+    const double t = k == tested ? t_to : t_from + (t_to - t_from) * k / tested;
+    crossing = crossesAt(t);
+    if (cut) return t_free;
+    if (crossing) cross_t = t; else t_free = t;
+  }
+  if (!crossing) return provenFree(t_to);
   // Already crossing where the move starts (after a reset, or an edge that a lowered isovalue
   // grew a wall through): not held, as embedded points are not.
-  if (!start_proven) {
+  if (!start_proven && t_free == t_from) {
     if (crossesAt(t_from)) {
       if (cut) return t_from;
       edges_free_isovalue_ = std::numeric_limits<double>::quiet_NaN();
@@ -89,18 +105,15 @@ double HapticRenderer::edgeSafeTime(const RigidMotion& motion, double t_from, do
   // order, then the first crossing one bisected (8 halvings): on the edges found crossing so
   // far only (a whole-graph test per sub-step cost up to 72 of them a tick). The pose found is
   // then tested with the whole graph; an edge crossing there joins the list and the search
-  // starts again from the move's start. After kRounds, the proxy stays where the move started
-  // (tested free above).
+  // starts again from the last pose proven free. After kRounds, the proxy stays there.
   constexpr int kRounds = 4;
-  const double travel_m = (motion.speed_m() + motion.angle_rad() * collision_.shellRadius_m()) * (t_to - t_from);
-  const double spacing_m = std::max(collision_.shellEdges().spacing_m, collision_.epsilon_m());
-  const int steps = static_cast<int>(std::clamp(std::ceil(travel_m / (0.25 * spacing_m)), 1.0, 64.0));
-  double cross_t = t_to;
+  const int sub_steps = options_.edge_test_swept ? 1 : steps;  // swept: t_free and cross_t are one step apart
+  const double proven_t = t_free;
   for (int round = 0; round < kRounds; ++round) {
-    double free_t = t_from;
-    const double span = cross_t - t_from;
-    for (int k = 1; k < steps; ++k) {
-      const double t = t_from + span * k / steps;
+    double free_t = proven_t;
+    const double span = cross_t - proven_t;
+    for (int k = 1; k < sub_steps; ++k) {
+      const double t = proven_t + span * k / sub_steps;
       if (collision_.listedEdgesCrossAt(motion.poseAt(t), isovalue)) {
         cross_t = t;
         break;
@@ -111,11 +124,11 @@ double HapticRenderer::edgeSafeTime(const RigidMotion& motion, double t_from, do
       const double mid = 0.5 * (free_t + cross_t);
       if (collision_.listedEdgesCrossAt(motion.poseAt(mid), isovalue)) cross_t = mid; else free_t = mid;
     }
-    if (free_t <= t_from) return t_from;
+    if (free_t <= proven_t) return proven_t > t_from ? provenFree(proven_t) : t_from;
     const bool crosses = crossesAt(free_t);
     if (cut) {
       stopped = false;
-      return t_from;
+      return proven_t > t_from ? provenFree(proven_t) : t_from;
     }
     if (!crosses) {
       // The edge contact is taken at the crossing pose just past it.
@@ -124,7 +137,7 @@ double HapticRenderer::edgeSafeTime(const RigidMotion& motion, double t_from, do
     }
     cross_t = free_t;
   }
-  return t_from;
+  return proven_t > t_from ? provenFree(proven_t) : t_from;
 }
 
 void HapticRenderer::resetProxy(const Pose& X_WP) noexcept {

@@ -43,4 +43,13 @@ Eigen::Quaterniond quaternionFromRotationVector(const Eigen::Vector3d& theta) no
   return Eigen::Quaterniond(std::cos(half), axis.x() * s, axis.y() * s, axis.z() * s);
 }
 
+Vector6d displacement_W(const Pose& X_WA, const Pose& X_WB, const Eigen::Vector3d& p_TCm_m,
+                        const Eigen::Vector3d* rotation_reference_rad) noexcept {
+  Vector6d dx;
+  dx.head<3>() = X_WB * p_TCm_m - X_WA * p_TCm_m;
+  dx.tail<3>() = rotationVector(X_WB.R_AB * X_WA.R_AB.conjugate());
+  if (rotation_reference_rad != nullptr) dx.tail<3>() = unwrapRotationVector(dx.tail<3>(), *rotation_reference_rad);
+  return dx;
+}
+
 }  // namespace vh::haptics

@@ -1,6 +1,6 @@
 #include "vh/haptics/virtual_coupling.h"
 
-#include "vh/haptics/configuration_solver.h"
+#include "vh/haptics/pose.h"
 
 namespace vh::haptics {
 

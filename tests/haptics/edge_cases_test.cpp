@@ -2,6 +2,7 @@
 // analytic ball): an outlier voxel or a "no data" border must not change what the hand feels
 // far from it; a probe pressed on a ball turns and slides at every point spacing.
 #include <cmath>
+#include <cstdint>
 #include <cstdio>
 #include <functional>
 #include <limits>
@@ -324,6 +325,51 @@ TEST(EdgeCases, AnUprightProbeMovedEdgeOnIntoAThinPlateStopsAtItsEdge) {
   std::printf("probe edge-on into the plate at 250: through in %d of %d runs without the edge test, %d with it\n",
               through_without, runs, through_with);
   EXPECT_GT(through_without, 0);  // the case is real: the points alone let it through
+}
+
+TEST(EdgeCases, ASweptEdgeTestStopsAProbeAtAFinThatAMoveCouldCarryThroughItsShaft) {
+  // A fin: the one-voxel plate of the test above (slice k = 32 of 64^3 voxels of 1 mm, 0.04 mm
+  // thick at 250) cut to two voxel columns along x (i = 30, 31: about 1 mm long), so a move can
+  // carry it into the probe's shaft between two rings of points and out again. The upright
+  // probe is moved along -x across it in steps of 4 mm a tick (the free-space limit per tick),
+  // from eight start offsets and at eight heights of the fin between rings. Oracle (the fin's
+  // extent, written here): a proxy whose shaft axis ends past the fin's far side (x < 29 mm)
+  // carried the fin through its shaft. Tested at the move's end only, the fin passes in some
+  // runs (so the case is real); swept (the default), in none, and the shaft stops at the fin.
+  VolumeGeometry g;
+  g.dims = {64, 64, 64};
+  g.spacing_m = Eigen::Vector3d::Constant(1e-3);
+  g.origin_W_m = Eigen::Vector3d::Constant(-0.0315);  // centred, as test::grid1mm()
+  std::vector<std::uint8_t> voxels(g.voxelCount(), 0);
+  for (int j = 0; j < 64; ++j)
+    for (int i = 30; i <= 31; ++i) voxels[static_cast<std::size_t>(i + 64 * (j + 64 * 32))] = 255;
+  auto vol = std::make_shared<const ScalarVolume>(ScalarVolume::FromVoxels(g, voxels));
+  const double z_k = g.origin_W_m.z() + 32e-3;
+  const double fin_lo_x = g.origin_W_m.x() + 29e-3, fin_hi_x = g.origin_W_m.x() + 32e-3;
+  const auto tool = test::meshTool(datasets::makeBuiltinTool("probe"), 1e-3);
+  int through[2] = {0, 0}, runs = 0;
+  for (int offset = 0; offset < 8; ++offset)
+    for (int phase = 0; phase < 8; ++phase) {
+      const double tip_z = z_k - 0.020 - phase / 8.0e3;
+      const double start_x = fin_hi_x + 0.006 + offset * 0.5e-3;
+      ++runs;
+      for (const bool swept : {false, true}) {
+        RendererOptions o;
+        o.edge_test = 1;
+        o.edge_test_swept = swept;
+        HapticRenderer r(vol, tool, o, Pose::FromTranslation({start_x, 0.0003, tip_z}), 250.0);
+        for (int t = 1; t <= 6; ++t) r.tick(Pose::FromTranslation({start_x - 0.004 * t, 0.0003, tip_z}), 250.0);
+        const double axis_x = r.proxyPose().p_AB_m.x();
+        through[swept] += axis_x < fin_lo_x;
+        if (swept) {
+          EXPECT_GE(axis_x, fin_hi_x - 1.1e-3) << "offset " << offset << ", phase " << phase << ": the shaft was not held";
+        }
+      }
+    }
+  std::printf("probe moved 4 mm a tick across a 1 mm fin: through in %d of %d runs tested at the move's end, %d swept\n",
+              through[0], runs, through[1]);
+  EXPECT_GT(through[0], 0) << "the case is real: a move carries the fin through the shaft";
+  EXPECT_EQ(through[1], 0);
 }
 
 TEST(EdgeCases, TheEdgeTestSharesTheWorkBudgetAndStillGetsThrough) {

@@ -12,9 +12,9 @@
 #include <vtkGenericOpenGLRenderWindow.h>
 
 #include "vh/ui/devices/device_input.h"
-#include "vh/ui/export/media_export.h"
 #include "vh/ui/panels/display_panel.h"
 #include "vh/ui/view/scene_actors.h"
+#include "vh/ui/view/scene_frames.h"
 #include "vh/ui/view/scene_view.h"
 #include "vh/ui/view/tool_shadow.h"
 #include "vh/ui/view/vtk_view.h"

@@ -7,6 +7,7 @@
 
 #include "vh/bench/report.h"
 #include "vh/runtime/scene.h"
+#include "vh/runtime/servo_factory.h"
 
 namespace vh::bench {
 

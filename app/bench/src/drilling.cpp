@@ -19,6 +19,7 @@
 #include "vh/haptics/material_removal.h"
 #include "vh/runtime/drilling.h"
 #include "vh/runtime/scene.h"
+#include "vh/runtime/servo_factory.h"
 
 namespace vh::bench {
 namespace fs = std::filesystem;

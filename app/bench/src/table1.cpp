@@ -25,6 +25,7 @@
 #include "vh/runtime/placement.h"
 #include "vh/runtime/runner.h"
 #include "vh/runtime/scene.h"
+#include "vh/runtime/servo_factory.h"
 #include "vh/runtime/trajectory.h"
 
 namespace vh::bench {

@@ -7,6 +7,8 @@
 
 #include <nlohmann/json.hpp>
 
+#include "vh/runtime/servo_factory.h"
+
 namespace vh::runtime {
 namespace {
 

@@ -22,6 +22,7 @@
 #include "vh/io/available_memory.h"
 #include "vh/io/private_files.h"
 #include "vh/runtime/device.h"
+#include "vh/runtime/servo_factory.h"
 #include "vh/runtime/sha256.h"
 #include "vh/runtime/placement.h"
 #include "vh/runtime/recording.h"

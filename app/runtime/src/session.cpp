@@ -2,6 +2,7 @@
 
 #include "vh/runtime/drilling.h"
 #include "vh/runtime/placement.h"
+#include "vh/runtime/servo_factory.h"
 #include "vh/runtime/snapshot_channel.h"
 
 #include <algorithm>

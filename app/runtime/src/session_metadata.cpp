@@ -27,10 +27,6 @@ namespace {
 namespace fs = std::filesystem;
 using nlohmann::json;
 
-constexpr std::string_view kBuiltinPrefix = "builtin:";
-
-bool isBuiltin(const std::string& path) { return path.rfind(kBuiltinPrefix, 0) == 0; }
-
 std::string lower(std::string s) {
   for (char& c : s) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
   return s;
@@ -122,7 +118,7 @@ json poseJson(const haptics::Pose& X) {
 }  // namespace
 
 DatasetChecksum datasetChecksum(const std::string& volume_path) {
-  if (isBuiltin(volume_path)) {
+  if (isBuiltinPath(volume_path)) {
     Sha256 sha;
     sha.update(volume_path);
     return {"builtin", sha.hexDigest(), {}};
@@ -415,9 +411,9 @@ SceneSpec sceneFromSessionMetadata(const std::string& metadata_json) {
   // The dataset must be the recorded one.
   const std::string recorded = j.contains("dataset") ? j["dataset"].value("sha256", std::string()) : std::string();
   const std::string& volume = spec.volume.path;
-  if (!isBuiltin(volume) && !fs::exists(volume))
+  if (!isBuiltinPath(volume) && !fs::exists(volume))
     throw std::runtime_error("the recorded dataset is missing: " + volume + " (recorded SHA-256 " + recorded + ")");
-  if (!isBuiltin(spec.tool.mesh) && !fs::exists(spec.tool.mesh))
+  if (!isBuiltinPath(spec.tool.mesh) && !fs::exists(spec.tool.mesh))
     throw std::runtime_error("the recorded tool mesh is missing: " + spec.tool.mesh);
   if (!recorded.empty()) {
     const DatasetChecksum now = datasetChecksum(volume);

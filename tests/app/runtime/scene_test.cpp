@@ -17,6 +17,7 @@
 #include "runtime_test_support.h"
 #include "vh/datasets/synthetic.h"
 #include "vh/runtime/placement.h"
+#include "vh/runtime/servo_factory.h"
 
 namespace vh::runtime {
 namespace {

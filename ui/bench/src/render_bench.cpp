@@ -30,6 +30,7 @@
 #include "vh/runtime/haptic_thread.h"
 #include "vh/runtime/recording.h"
 #include "vh/runtime/scene.h"
+#include "vh/runtime/servo_factory.h"
 #include "vh/runtime/trajectory.h"
 #include "vh/ui/application.h"
 #include "vh/ui/drill_controller.h"

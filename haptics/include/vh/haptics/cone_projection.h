@@ -16,9 +16,10 @@
 
 #include <Eigen/Core>
 
+#include "vh/haptics/pose.h"
+
 namespace vh::haptics {
 
-using Vector6d = Eigen::Matrix<double, 6, 1>;
 using Matrix6d = Eigen::Matrix<double, 6, 6>;
 
 /// Result of a cone projection.

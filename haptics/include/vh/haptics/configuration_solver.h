@@ -18,12 +18,6 @@
 
 namespace vh::haptics {
 
-/// Generalised 6-D displacement of the centre of mass from X_WA to X_WB, in W:
-/// (c_B - c_A [m], rotation vector of R_WB R_WA^T [rad]). With rotation_reference_rad, the
-/// rotation vector is the one nearest it (unwrapRotationVector(): may exceed pi).
-Vector6d displacement_W(const Pose& X_WA, const Pose& X_WB, const Eigen::Vector3d& p_TCm_m,
-                        const Eigen::Vector3d* rotation_reference_rad = nullptr) noexcept;
-
 /// Constraint row of eq. 4 for a contact at p_W with normal n_W on a body rotating about c_W:
 /// (n^T, ((p - c) x n)^T).
 Vector6d constraintRow(const Eigen::Vector3d& p_W_m, const Eigen::Vector3d& n_W,

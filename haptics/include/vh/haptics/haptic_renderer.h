@@ -106,6 +106,12 @@ struct RendererOptions {
   /// (a test they stop holds the proxy where it is, and the next ticks take shorter steps); off
   /// by default for its mean cost (haptics/README.md, "Between the points").
   int edge_test = 0;
+  /// With the edge test: the edges are also tested at poses along every move, at most a quarter
+  /// of the point spacing apart at the farthest point, not only where it ends (haptics/README.md,
+  /// "Between the points": what that bounds). false: at the move's end only, so a feature
+  /// thinner than a move can enter the tool's surface between its points and leave it again
+  /// within that move.
+  bool edge_test_swept = true;
   /// Largest distance accepted between the device pose and the proxy [m]; a device farther
   /// from the proxy is treated as bad input (zero force, the proxy stays). A last line only:
   /// implausible jumps between samples are rejected before the renderer, at the coupling
@@ -242,8 +248,9 @@ class HapticRenderer {
   RigidMotion last_motion_;
   double last_t_ = 0.0;
   // RendererOptions::edge_test: the move along `motion` from t_from (edges free there) to t_to
-  // (points proven free), shortened to before the first sub-step where an edge crosses. When
-  // the work budget or the deadline stops the edge test (cut true), t_from: the proxy stays.
+  // (points proven free), shortened to before the first sub-step where an edge crosses (swept:
+  // the first of the poses tested along it). When the work budget or the deadline stops the
+  // edge test (cut true), the last pose it proved free (t_from at first): the proxy stays.
   double edgeSafeTime(const RigidMotion& motion, double t_from, double t_to, double isovalue, bool& stopped,
                       bool& cut) noexcept;
   // Goes on with the sweep the work budget cut on an earlier tick (CollisionDetector::

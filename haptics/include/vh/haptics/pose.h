@@ -10,6 +10,9 @@
 
 namespace vh::haptics {
 
+/// A 6-D motion vector: (translation [m], rotation vector [rad]) or its rates and forces.
+using Vector6d = Eigen::Matrix<double, 6, 1>;
+
 /// A rigid transform X_AB: rotation `R_AB` (unit quaternion) and translation `p_AB_m` [m].
 struct Pose {
   Eigen::Quaterniond R_AB = Eigen::Quaterniond::Identity();  ///< Orientation of B in A.
@@ -47,5 +50,13 @@ Eigen::Vector3d unwrapRotationVector(const Eigen::Vector3d& theta_rad, const Eig
                                      double max_step_rad = 0.25) noexcept;
 /// Unit quaternion of a rotation vector (axis * angle [rad]); exact for tiny angles.
 Eigen::Quaterniond quaternionFromRotationVector(const Eigen::Vector3d& theta_rad) noexcept;
+
+/// Generalised 6-D displacement of the centre of mass from X_WA to X_WB, in W:
+/// (c_B - c_A [m], rotation vector of R_WB R_WA^T [rad]), the centre at p_TCm_m in the tool
+/// frame T of both poses. With rotation_reference_rad, the rotation vector is the one nearest it
+/// (unwrapRotationVector(): may exceed pi). Used by the configuration solver (a_u = 2 dx, paper
+/// section 2.4) and the virtual coupling (eq. 5).
+Vector6d displacement_W(const Pose& X_WA, const Pose& X_WB, const Eigen::Vector3d& p_TCm_m,
+                        const Eigen::Vector3d* rotation_reference_rad = nullptr) noexcept;
 
 }  // namespace vh::haptics

@@ -29,6 +29,7 @@
 #include "vh/ui/view/view_look.h"
 #include "vh/ui/view/render_presets.h"
 #include "vh/ui/view/scene_actors.h"
+#include "vh/ui/view/scene_frames.h"
 #include "vh/ui/view/tool_shadow.h"
 
 class vtkCamera;
@@ -43,25 +44,6 @@ namespace vh::ui {
 /// Index of the record shown at recording time `t_s` [s]: the last record with time_s <= t_s
 /// (0 before the first; the last one after the end). @throws std::invalid_argument when empty.
 std::size_t recordIndexAt(const std::vector<runtime::TickRecord>& records, double t_s);
-/// The record's proxy pose X_WP / device pose X_WD (W, metres).
-haptics::Pose proxyPoseOf(const runtime::TickRecord& record);
-haptics::Pose devicePoseOf(const runtime::TickRecord& record);
-/// |F| [N] of a record.
-double forceNormOf(const runtime::TickRecord& record);
-
-/// The props' inputs for a loaded scene (image, direction; HU when the volume's unit is HU) with
-/// the live isovalue and tool mesh (Session::live(); LiveValues::initial() for a scene as
-/// loaded); the device tool shown.
-SceneActorsSpec sceneActorsSpecFor(const runtime::LoadedScene& scene, const runtime::LiveValues& live);
-
-/// The picture of `record` (scene_actors.h: ToolFrame): its poses, force and isovalue, no
-/// contact points (recordings keep the count only).
-ToolFrame toolFrameOf(const runtime::TickRecord& record);
-
-/// Shows `record` on `actors` (showToolFrame(toolFrameOf(record))).
-void showRecord(SceneActors& actors, const runtime::TickRecord& record,
-                const std::vector<Eigen::Vector3d>& tool_vertices_T_m);
-
 /// A cavity growing over a recording's records, on one grid: its voxels (linear indices, x
 /// fastest) in removal order, first the cavity the recording started from (`at_start` of them),
 /// then the voxels its replay removed, and per record how many are removed by its end.
