@@ -257,9 +257,11 @@ TEST(Bench, table1ShortWritesBothModesForEveryScene) {
   EXPECT_FALSE(report["cpu_model"].get<std::string>().empty());
   EXPECT_EQ(report["ticks_per_run"], 1000);
   EXPECT_EQ(report["verify_step_voxels"].get<double>(), 0.01);
-  // Both detection modes, the accelerated one also without its work budget, and the
-  // "before" column (end-sample segment test).
-  EXPECT_EQ(report["modes"], json({"paper", "accelerated", "accelerated-unbudgeted", "accelerated-end-sample"}));
+  // Both detection modes, the accelerated one also without its work budget, by default also as
+  // the application runs it (the edge test, budgeted and not), and the "before" column
+  // (end-sample segment test).
+  EXPECT_EQ(report["modes"], json({"paper", "accelerated", "accelerated-unbudgeted", "accelerated-edges",
+                                   "accelerated-edges-unbudgeted", "accelerated-end-sample"}));
   ASSERT_EQ(report["scenes"].size(), 4u) << "one row per Table 1 scene (short runs have no large-tool rows)";
   int ran = 0;
   for (const json& row : report["scenes"]) {
