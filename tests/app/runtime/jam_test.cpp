@@ -17,6 +17,7 @@
 #include "vh/runtime/jam_detector.h"
 #include "vh/runtime/placement.h"
 #include "vh/runtime/scene.h"
+#include "vh/runtime/servo_factory.h"
 
 namespace vh::runtime {
 namespace {

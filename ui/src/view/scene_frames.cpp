@@ -1,6 +1,8 @@
 // The scene actors' inputs for a loaded scene and a recorded tick's tool frame (scene_frames.h).
 #include "vh/ui/view/scene_frames.h"
 
+#include <vtkImageData.h>
+
 namespace vh::ui {
 
 haptics::Pose proxyPoseOf(const runtime::TickRecord& r) {
