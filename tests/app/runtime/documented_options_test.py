@@ -75,6 +75,8 @@ def spans_with_subcommand(body):
     """(commands, option) for each option written after a subcommand's name in a code span or an
     indented line, e.g. `run --check` or `bench table1 --mode all`, and the body without them."""
     pieces = CODE_SPAN.findall(body) + [line.strip() for line in body.splitlines() if line.startswith("    ")]
+    # Longest first: a span `run` must not take its name out of a later `run --check`.
+    pieces.sort(key=len, reverse=True)
     found = []
     rest = body
     for piece in pieces:
