@@ -201,7 +201,7 @@ void MainWindow::connectParts() {
   device_picker_->rescan();
 
   // Opening files -> the window; the recorder and the replay.
-  connect(loader_, &SceneLoader::sceneLoaded, this, &MainWindow::onSceneLoaded);
+  connect(opener_, &SceneOpener::sceneLoaded, this, &MainWindow::onSceneLoaded);
   connect(opener_, &SceneOpener::loadStarted, this, [this] { haptics_panel_->setEnabled(false); });
   connect(opener_, &SceneOpener::loadFailed, this, [this](const QString& message) {
     onLoadEnded();

@@ -116,6 +116,7 @@ SceneOpener::SceneOpener(SceneLoader& loader, const runtime::Session& session, P
           [this](const QString& folder, std::shared_ptr<std::vector<io::DicomSeriesInfo>> series) {
             onSeriesListed(folder, *series);
           });
+  connect(&loader_, &SceneLoader::sceneLoaded, this, &SceneOpener::sceneLoaded);
   connect(&loader_, &SceneLoader::failed, this, &SceneOpener::reportError);
   connect(&loader_, &SceneLoader::cancelled, this, [this] {
     status_bar_->showMessage("Loading cancelled; what was open is kept", 4000);

@@ -17,6 +17,8 @@
 #include "vh/datasets/synthetic.h"
 #include "vh/haptics/crossing_verifier.h"
 #include "vh/haptics/haptic_renderer.h"
+#include "vh/haptics/point_shell.h"
+#include "vh/haptics/shell_fidelity.h"
 #include "vh/haptics/tool_model.h"
 #include "vh/runtime/placement.h"
 #include "vh/runtime/scene.h"
@@ -130,6 +132,11 @@ struct SurfaceRun {
   int point_crossing_ticks = 0;    // the renderer's own points (the guarantee per point)
   int surface_crossing_ticks = 0;  // a dense sample (inset by the reach-in depth) entered bone
   double reach_in_bound_m = 0.0;   // epsilon + a quarter of the point spacing [m]
+  // Epsilon, the felt gap (the mesh's largest distance from the net of points and edges,
+  // measured) and an eighth of the spacing: how far bone that must cross an edge to enter can
+  // reach in between two poses the swept edge test checks.
+  int bound_crossing_ticks = 0;
+  double stated_bound_m = 0.0;
   int through = 0;                 // approaches whose ball centre ended beyond bone
 };
 
@@ -163,6 +170,12 @@ SurfaceRun pushBallFrom16Directions(int edge_test, std::initializer_list<double>
   run.reach_in_bound_m = epsilon_m + 0.25 * shell_options.spacing_m;
   const haptics::PointShell near = denseSurface(tool->mesh_T, 1.5e-4, epsilon_m);
   const haptics::PointShell core = denseSurface(tool->mesh_T, 1.5e-4, run.reach_in_bound_m);
+  const double felt_gap_m =
+      haptics::measureShellFidelity(tool->mesh_T, tool->point_shell, haptics::makeShellEdges(tool->point_shell), 0.05e-3)
+          .max_gap_m;
+  run.stated_bound_m = epsilon_m + felt_gap_m + shell_options.spacing_m / 8.0;
+  const haptics::PointShell bound_core = denseSurface(tool->mesh_T, 1.5e-4, run.stated_bound_m);
+  const haptics::CrossingVerifier bound_oracle(*volume, bound_core, 1e-2);
   const haptics::CrossingVerifier points_oracle(*volume, tool->point_shell, 1e-2);
   const haptics::CrossingVerifier surface_oracle(*volume, core, 1e-2);
   for (const double tilt : {0.35, 0.7})
@@ -189,6 +202,8 @@ SurfaceRun pushBallFrom16Directions(int edge_test, std::initializer_list<double>
           run.point_crossing_ticks += points_oracle.check(r.lastMotion(), r.lastTimeOfContact(), s).crossing_points > 0;
           const auto c = surface_oracle.check(r.lastMotion(), r.lastTimeOfContact(), s);
           if (c.crossing_points > 0 || c.started_inside > 0) ++run.surface_crossing_ticks;
+          const auto b = bound_oracle.check(r.lastMotion(), r.lastTimeOfContact(), s);
+          if (b.crossing_points > 0 || b.started_inside > 0) ++run.bound_crossing_ticks;
         }
         // Through the vault: the straight path of the ball's centre from start to end meets bone.
         const Eigen::Vector3d from = start.p_AB_m, to = r.proxyPose().p_AB_m;
@@ -202,13 +217,17 @@ SurfaceRun pushBallFrom16Directions(int edge_test, std::initializer_list<double>
   std::cout << "edge test " << edge_test << ": " << run.approaches << " approaches, up to " << run.max_contacts
             << " contacts, " << run.edge_stops << " edge stops; ticks with a crossing: points " << run.point_crossing_ticks
             << ", surface (" << core.size() << " samples inset by " << run.reach_in_bound_m * 1e3 << " mm) "
-            << run.surface_crossing_ticks << "; " << run.through << " through the vault\n";
+            << run.surface_crossing_ticks << ", inset by the stated bound (" << run.stated_bound_m * 1e3 << " mm) "
+            << run.bound_crossing_ticks << "; " << run.through << " through the vault\n";
   return run;
 }
 
-// With the edge test the ball never goes through the vault. Its surface is still reached between
-// its points by small pieces of bone during a move (the edge test checks the move's end, not the
-// sweep: haptics/README.md, "Between the points"); the count is printed, not yet asserted.
+// With the edge test (swept along each move, the default) the ball never goes through the vault.
+// Its surface is still reached by small pieces of bone during a move: bone that pierces a face of
+// the net of points and edges, touching none of them, is not seen by the edge test however
+// often it is tested (haptics/README.md, "Between the points"); the counts are printed, not
+// asserted (at 0.278 mm inset 14 ticks swept, 52 at the move's end only; at epsilon, the felt
+// gap and an eighth of the spacing, 4, all on free moves).
 TEST(NeverThroughPhantomSurface, WithTheEdgeTestTheFiveMillimetreBallNeverGoesThroughTheVault) {
   if (!phantomPresent()) GTEST_SKIP() << "shared dataset absent: " << test::sharedDatasets() / "ct";
   const SurfaceRun run = pushBallFrom16Directions(1, {0.5e-3, 4e-3});

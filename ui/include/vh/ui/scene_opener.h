@@ -120,6 +120,9 @@ class SceneOpener : public QObject {
   QString lastError() const { return last_error_; }
 
  signals:
+  /// A scene the loader finished, for the window to show (the loader reports to the opener
+  /// only; the window answers with sceneShown()).
+  void sceneLoaded(std::shared_ptr<vh::ui::LoadedViewerScene> scene);
   void loadStarted();
   void loadFailed(const QString& message);
   void loadCancelled();
