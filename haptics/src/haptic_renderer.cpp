@@ -52,6 +52,12 @@ HapticRenderer::HapticRenderer(std::shared_ptr<const ScalarVolume> volume, std::
                 options.segment_test == SegmentTest::kExact);
 }
 
+namespace {
+// The swept edge test's poses along a move, apart at the farthest point: this fraction of the
+// point spacing (haptics/README.md, "Between the points").
+constexpr double kSweptStepFraction = 0.25;
+}  // namespace
+
 double HapticRenderer::edgeSafeTime(const RigidMotion& motion, double t_from, double t_to, double isovalue,
                                     bool& stopped, bool& cut) noexcept {
   stopped = false;
@@ -82,7 +88,8 @@ double HapticRenderer::edgeSafeTime(const RigidMotion& motion, double t_from, do
   double t_free = t_from;
   double cross_t = t_to;
   bool crossing = false;
-  const int tested = options_.edge_test_swept ? steps : 1;
+  const int swept_steps = static_cast<int>(std::clamp(std::ceil(travel_m / (kSweptStepFraction * spacing_m)), 1.0, 64.0));
+  const int tested = options_.edge_test_swept ? swept_steps : 1;
   for (int k = 1; k <= tested && !crossing; ++k) {
     const double t = k == tested ? t_to : t_from + (t_to - t_from) * k / tested;
     crossing = crossesAt(t);
@@ -107,7 +114,7 @@ double HapticRenderer::edgeSafeTime(const RigidMotion& motion, double t_from, do
   // then tested with the whole graph; an edge crossing there joins the list and the search
   // starts again from the last pose proven free. After kRounds, the proxy stays there.
   constexpr int kRounds = 4;
-  const int sub_steps = options_.edge_test_swept ? 1 : steps;  // swept: t_free and cross_t are one step apart
+  const int sub_steps = options_.edge_test_swept ? std::max(1, steps / swept_steps) : steps;
   const double proven_t = t_free;
   for (int round = 0; round < kRounds; ++round) {
     double free_t = proven_t;

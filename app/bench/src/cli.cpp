@@ -71,6 +71,9 @@ CLI::App* addBenchSubcommand(CLI::App& app, std::function<int()>& handler) {
                "The 'edges' column (on by default): the accelerated mode as the application runs it, with the edge "
                "test between shell points (the tool's surface between its points), and its cost over the points-only "
                "accelerated mode; --no-edge-test leaves it out");
+  t1->add_flag("--edge-test-swept", table1->edge_test_swept,
+               "The 'edges' columns with the edge test swept along each move, not only at its end (to measure "
+               "what the swept test costs)");
   t1->add_option("--work-budget", table1->work_budget,
                  "The accelerated mode's work budget per tick (units of one trilinear sample's cost); "
                  "> 0 also runs it unbudgeted and reports the lag (how far apart the two proxies are) and behind "

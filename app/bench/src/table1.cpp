@@ -225,6 +225,7 @@ struct Variant {
   int lanes = 1;             ///< RendererOptions::solver_lanes.
   double deadline_us = 0.0;  ///< RendererOptions::deadline_us (0: none).
   int edge_test = 0;         ///< RendererOptions::edge_test.
+  bool edge_test_swept = false;  ///< RendererOptions::edge_test_swept.
 };
 
 /// The accelerated mode without a work budget: the reference the budgeted proxy's lag is
@@ -395,6 +396,7 @@ std::vector<ModeRun> makeModeRuns(const runtime::LoadedScene& scene,
     options.solver_lanes = variant.lanes;
     options.deadline_us = variant.deadline_us;
     options.edge_test = variant.edge_test;
+    options.edge_test_swept = variant.edge_test_swept;
     options.gains = scene.spec.gains;
     m.renderer = std::make_unique<haptics::HapticRenderer>(scene.volume.field, tool, options, X_WD0, isovalue);
     m.times_us.reserve(static_cast<std::size_t>(ticks));
@@ -781,8 +783,11 @@ std::vector<Variant> table1Variants(const Table1Options& options, int lanes, dou
     if (options.edge_test) {
       Variant edges = accelerated;
       edges.key = kEdgesKey;
-      edges.label = "accelerated with the edge test" + budget_text;
+      edges.label = std::string(options.edge_test_swept ? "accelerated with the swept edge test"
+                                                        : "accelerated with the edge test") +
+                    budget_text;
       edges.edge_test = 1;
+      edges.edge_test_swept = options.edge_test_swept;
       variants.push_back(edges);
       if (options.work_budget > 0 || deadline_us > 0.0) {
         Variant full = edges;

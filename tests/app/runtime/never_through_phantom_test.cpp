@@ -165,6 +165,7 @@ SurfaceRun pushBallFrom16Directions(int edge_test, std::initializer_list<double>
   haptics::RendererOptions o;
   o.detection_mode = haptics::DetectionMode::kAccelerated;
   o.edge_test = edge_test;
+  o.edge_test_swept = edge_test != 0;  // along each move as well as at its end
   const double epsilon_m = haptics::HapticRenderer(volume, tool, o, haptics::Pose{}, s).epsilon_m();
   SurfaceRun run;
   run.reach_in_bound_m = epsilon_m + 0.25 * shell_options.spacing_m;
@@ -222,7 +223,7 @@ SurfaceRun pushBallFrom16Directions(int edge_test, std::initializer_list<double>
   return run;
 }
 
-// With the edge test (swept along each move, the default) the ball never goes through the vault.
+// With the edge test (here swept along each move) the ball never goes through the vault.
 // Its surface is still reached by small pieces of bone during a move: bone that pierces a face of
 // the net of points and edges, touching none of them, is not seen by the edge test however
 // often it is tested (haptics/README.md, "Between the points"); the counts are printed, not

@@ -55,6 +55,9 @@ struct Table1Options {
   /// "accelerated-edges" column), interleaved, and give its cost over the points-only
   /// accelerated mode. On by default: it is what the application renders.
   bool edge_test = true;
+  /// The "edges" columns with the edge test swept along each move
+  /// (RendererOptions::edge_test_swept), to measure what testing along the move costs.
+  bool edge_test_swept = false;
   /// Crossing check of every tick's move (haptics::CrossingVerifier; table1 checks the moves
   /// after the run, so its reads of the volume do not evict the timed ticks' state from the
   /// caches): sampling step along each shell point's path [voxels]; 0: off (crossings -1).
