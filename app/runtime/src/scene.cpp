@@ -1,37 +1,23 @@
+// Loading what a scene names (scene.h): the volume, the segmentation, the tool and its pose;
+// the device kinds. Scene files are read in scene_file.cpp, the servo built in servo_factory.cpp.
 #include "vh/runtime/scene.h"
 
 #include <algorithm>
 #include <cmath>
-#include <cstdio>
 #include <cstdlib>
-#include <fstream>
-#include <initializer_list>
 #include <map>
 #include <mutex>
 #include <optional>
-#include <set>
-#include <sstream>
 #include <stdexcept>
-#include <thread>
-
-#include <nlohmann/json.hpp>
 
 #include "vh/datasets/synthetic.h"
 #include "vh/runtime/default_isovalue.h"
 #include "vh/runtime/placement.h"
 #include "vh/runtime/tool_fidelity.h"
 
-#ifndef VH_DEFAULT_SHARED_DATASETS_DIR
-#define VH_DEFAULT_SHARED_DATASETS_DIR ""
-#endif
-#ifndef VH_DEFAULT_GENERATED_DATA_DIR
-#define VH_DEFAULT_GENERATED_DATA_DIR ""
-#endif
-
 namespace vh::runtime {
 
 namespace fs = std::filesystem;
-using nlohmann::json;
 
 namespace {
 
