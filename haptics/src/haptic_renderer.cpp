@@ -53,9 +53,10 @@ HapticRenderer::HapticRenderer(std::shared_ptr<const ScalarVolume> volume, std::
 }
 
 namespace {
-// The swept edge test's poses along a move, apart at the farthest point: this fraction of the
-// point spacing (haptics/README.md, "Between the points").
-constexpr double kSweptStepFraction = 0.25;
+// The edge test's steps along a move, apart at the farthest point: this fraction of the point
+// spacing (the poses the swept test tests, the sub-steps of a stopped move's search;
+// haptics/README.md, "Between the points").
+constexpr double kEdgeStepFraction = 0.25;
 }  // namespace
 
 double HapticRenderer::edgeSafeTime(const RigidMotion& motion, double t_from, double t_to, double isovalue,
@@ -81,15 +82,14 @@ double HapticRenderer::edgeSafeTime(const RigidMotion& motion, double t_from, do
   // Poses a quarter of the point spacing of travel apart at the farthest point.
   const double travel_m = (motion.speed_m() + motion.angle_rad() * collision_.shellRadius_m()) * (t_to - t_from);
   const double spacing_m = std::max(collision_.shellEdges().spacing_m, collision_.epsilon_m());
-  const int steps = static_cast<int>(std::clamp(std::ceil(travel_m / (0.25 * spacing_m)), 1.0, 64.0));
+  const int steps = static_cast<int>(std::clamp(std::ceil(travel_m / (kEdgeStepFraction * spacing_m)), 1.0, 64.0));
   // Swept: the whole graph at each of those poses along the move, in order, then at its end;
   // else at its end only. The first pose where an edge crosses ends the walk; t_free is the
   // last pose proven free before it.
   double t_free = t_from;
   double cross_t = t_to;
   bool crossing = false;
-  const int swept_steps = static_cast<int>(std::clamp(std::ceil(travel_m / (kSweptStepFraction * spacing_m)), 1.0, 64.0));
-  const int tested = options_.edge_test_swept ? swept_steps : 1;
+  const int tested = options_.edge_test_swept ? steps : 1;
   for (int k = 1; k <= tested && !crossing; ++k) {
     const double t = k == tested ? t_to : t_from + (t_to - t_from) * k / tested;
     crossing = crossesAt(t);
@@ -114,7 +114,7 @@ double HapticRenderer::edgeSafeTime(const RigidMotion& motion, double t_from, do
   // then tested with the whole graph; an edge crossing there joins the list and the search
   // starts again from the last pose proven free. After kRounds, the proxy stays there.
   constexpr int kRounds = 4;
-  const int sub_steps = options_.edge_test_swept ? std::max(1, steps / swept_steps) : steps;
+  const int sub_steps = options_.edge_test_swept ? 1 : steps;  // swept: t_free and cross_t are one step apart
   const double proven_t = t_free;
   for (int round = 0; round < kRounds; ++round) {
     double free_t = proven_t;
@@ -413,6 +413,13 @@ TickOutput HapticRenderer::tick(const Pose& X_WD_in, double requested_isovalue) 
     const double standoff_m = lift ? fraction * collision_.epsilon_m() : 0.0;
     RigidMotion motion;
     SweepResult hit;
+    // A move of the lift alone (no rotation), swept; the next tick slides from the lifted pose.
+    const auto liftAlone = [&](const Eigen::Vector3d& lift_W) {
+      motion = RigidMotion::FromVelocity(X_WP_, mass.p_TCm_m, lift_W, Eigen::Vector3d::Zero());
+      hit = collision_.sweep(motion, isovalue);
+      ++out.stats.sweeps;
+      phase = Clock::now();
+    };
     // After a move the tool's surface between its points stopped at once: the lift alone this
     // tick. The edge contact is a line touching a rounded ridge, and its one normal (the
     // gradient's part perpendicular to the edge) holds to first order only; a solved slide,
@@ -423,26 +430,17 @@ TickOutput HapticRenderer::tick(const Pose& X_WD_in, double requested_isovalue) 
         lift && edge_blocked_last_tick_ ? ConfigurationSolver::standoffTranslation(collision_.contacts(), standoff_m)
                                         : Eigen::Vector3d::Zero();
     if (edge_lift_W.squaredNorm() > 0.0) {
-      motion = RigidMotion::FromVelocity(X_WP_, mass.p_TCm_m, edge_lift_W, Eigen::Vector3d::Zero());
-      hit = collision_.sweep(motion, isovalue);
-      ++out.stats.sweeps;
-      phase = Clock::now();
+      liftAlone(edge_lift_W);
     } else {
       solveAndSweep(solver_, collision_, coupling_, options_, motion_scale_, X_WP_, X_WD, mass, standoff_m, isovalue,
                     motion, hit, out.stats, phase);
-    }
-    // Still stopped at once with the lift on: the point sits nanometres from the interpolant's
-    // surface and slides almost along it, so a bump a few nanometres high stops it before the
-    // lift, spread along the whole step, has raised it (the drill held at 117 N on the head
-    // phantom, its contact at F - s = -0.001 HU). The lift alone this tick; the next slides from
-    // the lifted pose.
-    if (standoff_m > 0.0 && hit.hit_point >= 0 && !hit.budget_cut && hit.t < 0.01) {
-      const Eigen::Vector3d lift_W = ConfigurationSolver::standoffTranslation(collision_.contacts(), standoff_m);
-      if (lift_W.squaredNorm() > 0.0) {
-        motion = RigidMotion::FromVelocity(X_WP_, mass.p_TCm_m, lift_W, Eigen::Vector3d::Zero());
-        hit = collision_.sweep(motion, isovalue);
-        ++out.stats.sweeps;
-        phase = Clock::now();
+      // Still stopped at once with the lift on: the point sits nanometres from the interpolant's
+      // surface and slides almost along it, so a bump a few nanometres high stops it before the
+      // lift, spread along the whole step, has raised it (the drill held at 117 N on the head
+      // phantom, its contact at F - s = -0.001 HU). The lift alone this tick.
+      if (standoff_m > 0.0 && hit.hit_point >= 0 && !hit.budget_cut && hit.t < 0.01) {
+        const Eigen::Vector3d lift_W = ConfigurationSolver::standoffTranslation(collision_.contacts(), standoff_m);
+        if (lift_W.squaredNorm() > 0.0) liftAlone(lift_W);
       }
     }
     // Step 5: move the proxy to the first contact (or the target, or as far as the budget
