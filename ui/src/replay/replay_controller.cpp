@@ -483,48 +483,36 @@ void ReplayController::exportJson(const fs::path& path) const {
   runtime::writeRecordingJson(recording_, path);
 }
 
-void ReplayController::setShadowOf(RecordingFrameRenderer& frames) const {
+std::unique_ptr<RecordingFrameRenderer> ReplayController::exportFrames(int width, int height, bool overlay) const {
+  if (width <= 0 || height <= 0) {
+    width = std::max(16, view_.widget()->width());
+    height = std::max(16, view_.widget()->height());
+  }
+  auto frames = std::make_unique<RecordingFrameRenderer>(sceneActorsSpecFor(session_.loaded(), session_.live()),
+                                                         width, height, prefs_);
+  frames->copyCamera(view_.widget()->renderer()->GetActiveCamera());
+  if (overlay) frames->setOverlay(&recording_);
   // The tool's shadow as the main view draws it (the look's tool_shadow decides whether it shows).
   const runtime::LiveValues& live = session_.live();
-  if (live.tool != nullptr) frames.setShadow(live.hapticField(), live.hapticIsovalue(), toolShadowSamples(*live.tool));
+  if (live.tool != nullptr) frames->setShadow(live.hapticField(), live.hapticIsovalue(), toolShadowSamples(*live.tool));
+  // The cavity as the replay shows it (only the start cavity while its replay still runs).
+  frames->setDrilling(drill_);
+  return frames;
 }
 
 int ReplayController::exportVideo(const fs::path& path, double fps, int width, int height,
                                   const std::function<bool(int, int)>& progress, bool overlay) {
   if (!active_) throw std::logic_error("exportVideo: no recording is replayed");
-  if (width <= 0 || height <= 0) {
-    width = std::max(16, view_.widget()->width());
-    height = std::max(16, view_.widget()->height());
-  }
   const double t_shown = time_s_;
-  int frames_written = 0;
-  {
-    RecordingFrameRenderer frames(sceneActorsSpecFor(session_.loaded(), session_.live()), width, height,
-                                  prefs_);
-    frames.copyCamera(view_.widget()->renderer()->GetActiveCamera());
-    if (overlay) frames.setOverlay(&recording_);
-    setShadowOf(frames);
-    // The cavity as the replay shows it (only the start cavity while its replay still runs).
-    frames.setDrilling(drill_);
-    frames_written = writeRecordingVideo(frames, recording_, path, fps, 0.0, -1.0, progress);
-  }
+  const int frames_written =
+      writeRecordingVideo(*exportFrames(width, height, overlay), recording_, path, fps, 0.0, -1.0, progress);
   setTime(t_shown);
   return frames_written;
 }
 
 void ReplayController::exportPng(const fs::path& path, int width, int height, bool overlay) {
   if (!active_) throw std::logic_error("exportPng: no recording is replayed");
-  if (width <= 0 || height <= 0) {
-    width = std::max(16, view_.widget()->width());
-    height = std::max(16, view_.widget()->height());
-  }
-  RecordingFrameRenderer frames(sceneActorsSpecFor(session_.loaded(), session_.live()), width, height,
-                                prefs_);
-  frames.copyCamera(view_.widget()->renderer()->GetActiveCamera());
-  if (overlay) frames.setOverlay(&recording_);
-  setShadowOf(frames);
-  frames.setDrilling(drill_);
-  writeRecordingPng(frames, recording_, time_s_, path);
+  writeRecordingPng(*exportFrames(width, height, overlay), recording_, time_s_, path);
 }
 
 const runtime::Recording* ReplayController::recordingToExport(runtime::Recording& loaded, fs::path& from,

@@ -155,8 +155,10 @@ class ReplayController : public QObject {
   void buildDock();
   void advance();
   void exportFromMenu(int kind);
-  /// The tool's shadow on the felt field, as the main view casts it, for exported frames.
-  void setShadowOf(RecordingFrameRenderer& frames) const;
+  /// An off-screen renderer of the replayed recording for an export: `width` x `height` pixels
+  /// (0: the view's size, at least 16), the view's camera, the overlay when asked, the tool's
+  /// shadow as the main view casts it and the cavity as the replay shows it.
+  std::unique_ptr<RecordingFrameRenderer> exportFrames(int width, int height, bool overlay) const;
   /// File > Session Report: of the replayed recording, else of one the user picks.
   void reportFromMenu();
   /// The replayed recording, else one the user picks (read into `loaded`; null when cancelled);
