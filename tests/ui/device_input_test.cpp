@@ -21,6 +21,8 @@
 #include <QCoreApplication>
 #include <QTimer>
 #include <QKeyEvent>
+#include <QMouseEvent>
+#include <QSignalSpy>
 #include <QVBoxLayout>
 #include <QWidget>
 
@@ -28,7 +30,9 @@
 
 #include "ui_test_util.h"
 #include <vtkActor.h>
+#include <vtkCamera.h>
 #include <vtkMatrix4x4.h>
+#include <vtkRenderer.h>
 
 #include "vh/haptics/point_shell.h"
 #include "vh/runtime/scene.h"
@@ -94,6 +98,59 @@ TEST(DeviceInput, TouchSurfaceSinksTheToolTheDepthAskedIntoTheSphere) {
   vtkMatrix4x4* m = s.view->actors().deviceActor()->GetUserMatrix();
   ASSERT_NE(m, nullptr);
   for (int r = 0; r < 3; ++r) EXPECT_NEAR(m->GetElement(r, 3), X_WD.p_AB_m[r], 1e-12);
+}
+
+/// Where the view's VTK camera draws `p_W`, in widget pixels with y down (the oracle: VTK's
+/// projection, not the code under test).
+Eigen::Vector2d pixelOf(SceneView& view, const Eigen::Vector3d& p_W) {
+  vtkRenderer* renderer = view.widget()->renderer();
+  const int* vtk_size = renderer->GetSize();
+  const int size[2] = {vtk_size[0] > 0 ? vtk_size[0] : view.widget()->width(),
+                       vtk_size[1] > 0 ? vtk_size[1] : view.widget()->height()};
+  vtkMatrix4x4* m = renderer->GetActiveCamera()->GetCompositeProjectionTransformMatrix(
+      static_cast<double>(size[0]) / size[1], -1.0, 1.0);
+  const double in[4] = {p_W.x(), p_W.y(), p_W.z(), 1.0};
+  double out[4];
+  m->MultiplyPoint(in, out);
+  return {(out[0] / out[3] + 1.0) * 0.5 * size[0], (1.0 - out[1] / out[3]) * 0.5 * size[1]};
+}
+
+TEST(DeviceInput, CtrlShiftClickTouchesTheSurfaceUnderTheCursor) {
+  ViewAndDevice s;
+  const haptics::PointShell& shell = s.session.live().tool->point_shell;
+  const Eigen::Vector3d p_TCm = s.session.live().tool->mass.p_TCm_m;
+  QCoreApplication::processEvents();
+  // A pixel off the view's centre whose line of sight passes 12 mm from the sphere's centre:
+  // on the sphere (radius 20 mm), but not where the centre's line would land.
+  const Eigen::Vector2d centre_px = pixelOf(*s.view, Eigen::Vector3d::Zero());
+  const Eigen::Vector2d right_px = pixelOf(*s.view, 0.012 * s.view->camera().right_W());
+  const QPointF click(right_px.x(), right_px.y());
+  ASSERT_GT((right_px - centre_px).norm(), 5.0) << "the pick must differ from the centre's line";
+  QMouseEvent press(QEvent::MouseButtonPress, click, s.view->widget()->mapToGlobal(click), Qt::LeftButton,
+                    Qt::LeftButton, Qt::ControlModifier | Qt::ShiftModifier);
+  EXPECT_TRUE(QCoreApplication::sendEvent(s.view->widget(), &press)) << "the view's filter takes the click";
+  const Pose X_WD = s.session.simulatedDevice()->pose();
+  const Eigen::Vector3d c_W = X_WD * p_TCm;
+  // The tool's centre of mass on the line of sight of the clicked pixel, as VTK projects it.
+  const Eigen::Vector2d seen = pixelOf(*s.view, c_W);
+  EXPECT_NEAR(seen.x(), click.x(), 0.5);
+  EXPECT_NEAR(seen.y(), click.y(), 0.5);
+  // On the viewer's side, the proxy's pose (the device 3 mm back along the line of sight) just
+  // touching the analytic sphere.
+  const Eigen::Vector3d eye_W = s.view->camera().position_W_m;
+  const Eigen::Vector3d dir_W = (c_W - eye_W).normalized();
+  EXPECT_LT((c_W - eye_W).norm(), eye_W.norm()) << "behind the sphere's centre";
+  const Pose X_WP{X_WD.R_AB, X_WD.p_AB_m - DeviceInput::kTouchDepth_m * dir_W};
+  EXPECT_NEAR(deepestRadius_m(shell, X_WP), 0.020, 0.1e-3);
+
+  // A click beside the sphere, in the view's corner: nothing to touch, nothing moves, a message.
+  QSignalSpy messages(s.input, &DeviceInput::message);
+  const QPointF corner(2.0, 2.0);
+  QMouseEvent miss(QEvent::MouseButtonPress, corner, s.view->widget()->mapToGlobal(corner), Qt::LeftButton,
+                   Qt::LeftButton, Qt::ControlModifier | Qt::ShiftModifier);
+  QCoreApplication::sendEvent(s.view->widget(), &miss);
+  EXPECT_EQ(messages.count(), 1);
+  EXPECT_LT((s.session.simulatedDevice()->pose().p_AB_m - X_WD.p_AB_m).norm(), 1e-15);
 }
 
 TEST(DeviceInput, TheWheelStepIsA200thOfTheVolumesDiagonal) {

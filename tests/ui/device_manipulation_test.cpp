@@ -6,6 +6,10 @@
 
 #include <gtest/gtest.h>
 
+#include <vtkCamera.h>
+#include <vtkMatrix4x4.h>
+#include <vtkNew.h>
+
 namespace vh::ui {
 namespace {
 
@@ -70,6 +74,55 @@ TEST(DeviceManipulation, TrackballKeepsTheCentreAndTurnsTheFrontRight) {
   const haptics::Pose up = rotateTrackball(haptics::Pose::Identity(), c, Eigen::Vector3d::Zero(),
                                            0.0, -100.0, std::numbers::pi / 200.0);
   EXPECT_TRUE((up.R_AB * Eigen::Vector3d::UnitZ()).isApprox(Eigen::Vector3d::UnitY(), 1e-12));
+}
+
+/// Where VTK's camera draws `p_W` in a `w` x `h` view, in pixels with y down (the oracle for
+/// rayThroughPixel(): vtkCamera's own projection matrix, not our geometry).
+Eigen::Vector2d vtkPixelOf(vtkCamera* camera, const Eigen::Vector3d& p_W, int w, int h) {
+  vtkMatrix4x4* m = camera->GetCompositeProjectionTransformMatrix(static_cast<double>(w) / h, -1.0, 1.0);
+  const double in[4] = {p_W.x(), p_W.y(), p_W.z(), 1.0};
+  double out[4];
+  m->MultiplyPoint(in, out);
+  const double x_ndc = out[0] / out[3], y_ndc = out[1] / out[3];
+  return {(x_ndc + 1.0) * 0.5 * w, (1.0 - y_ndc) * 0.5 * h};
+}
+
+TEST(ViewRay, EveryPointOfThePixelsRayProjectsOntoThatPixelAsVtksCameraSeesIt) {
+  const int w = 640, h = 360;  // wider than high: the aspect matters
+  for (const bool parallel : {false, true}) {
+    SCOPED_TRACE(parallel ? "parallel" : "perspective");
+    vtkNew<vtkCamera> camera;
+    camera->SetPosition(0.3, -0.4, 0.5);
+    camera->SetFocalPoint(0.01, 0.02, -0.03);
+    camera->SetViewUp(0.1, 0.2, 1.0);
+    camera->OrthogonalizeViewUp();
+    camera->SetViewAngle(35.0);
+    camera->SetParallelProjection(parallel);
+    camera->SetParallelScale(0.12);
+    ViewCamera c;
+    double v[3];
+    camera->GetPosition(v);
+    c.position_W_m = Eigen::Vector3d(v[0], v[1], v[2]);
+    camera->GetFocalPoint(v);
+    c.focal_point_W_m = Eigen::Vector3d(v[0], v[1], v[2]);
+    camera->GetViewUp(v);
+    c.view_up_W = Eigen::Vector3d(v[0], v[1], v[2]);
+    c.view_angle_deg = 35.0;
+    c.parallel = parallel;
+    c.parallel_scale_m = 0.12;
+    c.viewport_width_px = w;
+    c.viewport_height_px = h;
+    for (const Eigen::Vector2d px : {Eigen::Vector2d(320, 180), Eigen::Vector2d(10.5, 20.25), Eigen::Vector2d(600, 350)}) {
+      const ViewRay ray = rayThroughPixel(c, px.x(), px.y());
+      EXPECT_NEAR(ray.dir_W.norm(), 1.0, 1e-12);
+      EXPECT_GT(ray.dir_W.dot(c.forward_W()), 0.0) << "away from the viewer";
+      for (const double t : {0.2, 0.7, 1.5}) {
+        const Eigen::Vector2d seen = vtkPixelOf(camera, ray.origin_W_m + t * ray.dir_W, w, h);
+        EXPECT_NEAR(seen.x(), px.x(), 1e-6) << "t " << t;
+        EXPECT_NEAR(seen.y(), px.y(), 1e-6) << "t " << t;
+      }
+    }
+  }
 }
 
 }  // namespace

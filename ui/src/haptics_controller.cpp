@@ -97,7 +97,7 @@ QMenu* HapticsController::addMenu(QMenuBar* bar, QWidget* window) {
   run_action_->setShortcut(QKeySequence("Ctrl+H"));
   menu->addAction("Reset &Device", this, [this] { resetDevice(); })->setShortcut(QKeySequence("Ctrl+Home"));
   QAction* touch = menu->addAction("&Touch the Surface", this, [this] {
-    if (!input_.touchSurface(0.003)) emit message("No simulated device, or no surface along the view through the volume's centre", 4000);
+    if (!input_.touchSurface(DeviceInput::kTouchDepth_m)) emit message("No simulated device, or no surface along the view through the volume's centre", 4000);
   });
   touch->setShortcut(QKeySequence("Ctrl+T"));
   touch->setToolTip("Puts the tool on the felt surface (the felt segments, else the scan) along the view direction, resting with the device 3 mm in: a placement, not the hand's motion");

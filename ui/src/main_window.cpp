@@ -196,6 +196,7 @@ void MainWindow::connectParts() {
   connect(tool_picker_, &ToolPicker::message, this, show_message);
   connect(haptics_, &HapticsController::message, this, show_message);
   connect(drill_, &DrillController::message, this, show_message);
+  connect(device_input_, &DeviceInput::message, this, show_message);
   view_controller_->setCarvedRegion(&drill_->carved());
   connect(drill_, &DrillController::cavityChanged, view_controller_, [this] { view_controller_->updateShadow(); });
   device_picker_->rescan();

@@ -133,15 +133,21 @@ Pose legalPoseNear(const haptics::ScalarVolume& volume, const haptics::PointShel
   return defaultInitialPose(volume, shell, X_WT.R_AB, isovalue);
 }
 
-std::optional<SurfaceTouch> touchSurfacePose(const haptics::ScalarVolume& volume, const haptics::PointShell& shell,
-                                             const Eigen::Vector3d& p_TCm_m, const Eigen::Quaterniond& R_WT,
-                                             const Eigen::Vector3d& dir_W, const Eigen::Vector3d& aim_W,
-                                             double isovalue, double depth_m) {
+namespace {
+
+/// The geometry shared by the approach lines: where a line's approach starts and how far it may go.
+struct Approach {
+  Eigen::Vector3d dir;   // unit, W
+  Eigen::Quaterniond R;  // the tool's orientation, normalised
+  double outside_m;      // start this far before the aim: no shell point in the box from there
+  double max_travel_m;   // then go at most this far
+};
+
+std::optional<Approach> approachFor(const haptics::ScalarVolume& volume, const haptics::PointShell& shell,
+                                    const Eigen::Vector3d& p_TCm_m, const Eigen::Quaterniond& R_WT,
+                                    const Eigen::Vector3d& dir_W, const Eigen::Vector3d& aim_W) {
   if (!dir_W.allFinite() || dir_W.norm() < 1e-9 || !aim_W.allFinite() || shell.empty()) return std::nullopt;
-  const Eigen::Vector3d dir = dir_W.normalized();
-  const Eigen::Quaterniond R = R_WT.normalized();
   const Eigen::Vector3d lo = volume.boundsMin_W_m(), hi = volume.boundsMax_W_m();
-  const double diagonal_m = (hi - lo).norm();
   // The tool's reach about its centre of mass [m]; the box's farthest corner from the aim [m].
   double reach_m = 0.0;
   for (const Eigen::Vector3d& p_T : shell.points_T_m()) reach_m = std::max(reach_m, (p_T - p_TCm_m).norm());
@@ -150,28 +156,55 @@ std::optional<SurfaceTouch> touchSurfacePose(const haptics::ScalarVolume& volume
     const Eigen::Vector3d corner((c & 1) ? hi.x() : lo.x(), (c & 2) ? hi.y() : lo.y(), (c & 4) ? hi.z() : lo.z());
     corner_m = std::max(corner_m, (corner - aim_W).norm());
   }
-  const double margin_m = std::max(0.005, 0.05 * diagonal_m);
-  const double outside_m = corner_m + reach_m + margin_m;  // no shell point in the box from there
-  const double max_travel_m = outside_m + corner_m + reach_m;
-  const auto poseWithCentreAt = [&](const Eigen::Vector3d& c_W) { return Pose{R, c_W - R * p_TCm_m}; };
-  const Eigen::Vector3d e1 = dir.unitOrthogonal();
-  const Eigen::Vector3d e2 = dir.cross(e1);
+  const double margin_m = std::max(0.005, 0.05 * (hi - lo).norm());
+  const double outside_m = corner_m + reach_m + margin_m;
+  return Approach{dir_W.normalized(), R_WT.normalized(), outside_m, outside_m + corner_m + reach_m};
+}
+
+/// The approach along the line along a.dir through `through_W` (the tool's centre of mass on it).
+std::optional<SurfaceTouch> touchAlong(const haptics::ScalarVolume& volume, const haptics::PointShell& shell,
+                                       const Eigen::Vector3d& p_TCm_m, const Approach& a,
+                                       const Eigen::Vector3d& through_W, double isovalue, double depth_m) {
+  const Pose from{a.R, through_W - a.outside_m * a.dir - a.R * p_TCm_m};
+  const std::optional<double> free_m =
+      firstContactDistance(volume, shell, from, a.dir, a.max_travel_m, isovalue, 0.05 * volume.featureSize_m());
+  if (!free_m) return std::nullopt;
+  SurfaceTouch touch;
+  touch.X_WP = translatedBy(from, *free_m * a.dir);
+  touch.X_WD = translatedBy(touch.X_WP, std::max(0.0, depth_m) * a.dir);
+  touch.dir_W = a.dir;
+  return touch;
+}
+
+}  // namespace
+
+std::optional<SurfaceTouch> touchSurfacePose(const haptics::ScalarVolume& volume, const haptics::PointShell& shell,
+                                             const Eigen::Vector3d& p_TCm_m, const Eigen::Quaterniond& R_WT,
+                                             const Eigen::Vector3d& dir_W, const Eigen::Vector3d& aim_W,
+                                             double isovalue, double depth_m) {
+  const std::optional<Approach> a = approachFor(volume, shell, p_TCm_m, R_WT, dir_W, aim_W);
+  if (!a) return std::nullopt;
+  const double diagonal_m = (volume.boundsMax_W_m() - volume.boundsMin_W_m()).norm();
+  const Eigen::Vector3d e1 = a->dir.unitOrthogonal();
+  const Eigen::Vector3d e2 = a->dir.cross(e1);
   for (const double ring : {0.0, 0.05, 0.1, 0.2, 0.3}) {
     const int n = ring == 0.0 ? 1 : 8;
     for (int k = 0; k < n; ++k) {
-      const double a = 2.0 * std::numbers::pi * k / n;
-      const Pose from = poseWithCentreAt(aim_W - outside_m * dir + ring * diagonal_m * (std::cos(a) * e1 + std::sin(a) * e2));
-      const std::optional<double> free_m =
-          firstContactDistance(volume, shell, from, dir, max_travel_m, isovalue, 0.05 * volume.featureSize_m());
-      if (!free_m) continue;
-      SurfaceTouch touch;
-      touch.X_WP = translatedBy(from, *free_m * dir);
-      touch.X_WD = translatedBy(touch.X_WP, std::max(0.0, depth_m) * dir);
-      touch.dir_W = dir;
-      return touch;
+      const double angle = 2.0 * std::numbers::pi * k / n;
+      const Eigen::Vector3d through_W = aim_W + ring * diagonal_m * (std::cos(angle) * e1 + std::sin(angle) * e2);
+      if (auto touch = touchAlong(volume, shell, p_TCm_m, *a, through_W, isovalue, depth_m)) return touch;
     }
   }
   return std::nullopt;
+}
+
+std::optional<SurfaceTouch> touchSurfacePoseOnLine(const haptics::ScalarVolume& volume,
+                                                   const haptics::PointShell& shell, const Eigen::Vector3d& p_TCm_m,
+                                                   const Eigen::Quaterniond& R_WT, const Eigen::Vector3d& dir_W,
+                                                   const Eigen::Vector3d& through_W, double isovalue, double depth_m) {
+  const std::optional<Approach> a = approachFor(volume, shell, p_TCm_m, R_WT, dir_W, through_W);
+  if (!a) return std::nullopt;
+  return touchAlong(volume, shell, p_TCm_m, *a, through_W, isovalue, depth_m);
 }
 
 std::optional<Eigen::Vector3d> insideBoxCentre_W(const haptics::ScalarVolume& volume, double isovalue) {

@@ -27,7 +27,8 @@ constexpr double kKeyRotation_rad = 5.0 * std::numbers::pi / 180.0;
 const char* const kHintCamera = "Camera: left drag rotate | middle drag pan | right drag / wheel zoom";
 const char* const kHintDevice =
     "Device: Ctrl+left drag move in view plane | Ctrl+wheel or Ctrl+right drag move in depth\n"
-    "        Shift+left drag rotate | keys (click the view): arrows, PgUp/PgDn, Shift+arrows, Home";
+    "        Shift+left drag rotate | Ctrl+Shift+click touch the surface there\n"
+    "        keys (click the view): arrows, PgUp/PgDn, Shift+arrows, Home";
 
 const char* const kControlsHtml =
     "<h3>Mouse in the view</h3><table cellpadding='2'>"
@@ -35,7 +36,8 @@ const char* const kControlsHtml =
     "<tr><td>middle drag / right drag or wheel</td><td>pan / zoom the camera</td></tr>"
     "<tr><td>Ctrl + left drag</td><td>move the simulated device in the view plane</td></tr>"
     "<tr><td>Ctrl + wheel, Ctrl + right drag</td><td>move the device along the view direction</td></tr>"
-    "<tr><td>Shift + left drag</td><td>rotate the device about the tool's centre</td></tr></table>"
+    "<tr><td>Shift + left drag</td><td>rotate the device about the tool's centre</td></tr>"
+    "<tr><td>Ctrl + Shift + click</td><td>touch the surface under the cursor (the tool comes to rest on it)</td></tr></table>"
     "<h3>Keys (click the view first)</h3><table cellpadding='2'>"
     "<tr><td>arrows</td><td>move the device in the view plane</td></tr>"
     "<tr><td>Page Up / Page Down</td><td>move the device away / towards you</td></tr>"
@@ -112,6 +114,20 @@ bool DeviceInput::touchSurface(double depth_m) {
   return true;
 }
 
+bool DeviceInput::touchSurfaceAt(const QPointF& pos_px, double depth_m) {
+  runtime::SimulatedDevice* device = session_.simulatedDevice();
+  const runtime::LiveValues& scene = session_.live();
+  if (device == nullptr || scene.tool == nullptr || scene.hapticField() == nullptr) return false;
+  const double ratio = view_.widget() != nullptr ? view_.widget()->devicePixelRatioF() : 1.0;
+  const ViewRay ray = rayThroughPixel(view_.camera(), pos_px.x() * ratio, pos_px.y() * ratio);
+  const std::optional<runtime::SurfaceTouch> touch =
+      runtime::touchSurfacePoseOnLine(*scene.hapticField(), scene.tool->point_shell, scene.tool->mass.p_TCm_m,
+                                      device->pose().R_AB, ray.dir_W, ray.origin_W_m, scene.hapticIsovalue(), depth_m);
+  if (!touch) return false;
+  place(touch->X_WP, touch->X_WD);
+  return true;
+}
+
 bool DeviceInput::touchInProgress() const {
   const runtime::HapticThread* thread = session_.hapticThread();
   return thread != nullptr && thread == awaited_thread_ && thread->running() &&
@@ -179,6 +195,10 @@ bool DeviceInput::eventFilter(QObject* watched, QEvent* event) {
       auto* e = static_cast<QMouseEvent*>(event);
       const bool ctrl = e->modifiers() & Qt::ControlModifier;
       const bool shift = e->modifiers() & Qt::ShiftModifier;
+      if (ctrl && shift && e->button() == Qt::LeftButton) {
+        if (!touchSurfaceAt(e->position(), kTouchDepth_m)) emit message(tr("No surface under the cursor to touch"), 4000);
+        return true;
+      }
       if (ctrl && e->button() == Qt::LeftButton) {
         drag_ = DragMode::kTranslate;
       } else if (ctrl && e->button() == Qt::RightButton) {

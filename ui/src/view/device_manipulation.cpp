@@ -35,6 +35,21 @@ double ViewCamera::metresPerPixelAt(const Eigen::Vector3d& p_W_m) const {
   return 2.0 * depth * std::tan(half_angle) / h_px;
 }
 
+ViewRay rayThroughPixel(const ViewCamera& camera, double x_px, double y_px) {
+  const double w_px = std::max(1, camera.viewport_width_px);
+  const double h_px = std::max(1, camera.viewport_height_px);
+  // The pixel's offset from the view's centre, in units of half the view's height.
+  const double u = (2.0 * x_px - w_px) / h_px;
+  const double v = (h_px - 2.0 * y_px) / h_px;
+  const Eigen::Vector3d forward = camera.forward_W(), right = camera.right_W(), up = camera.up_W();
+  if (camera.parallel) {
+    const double half_h_m = camera.parallel_scale_m;
+    return {camera.position_W_m + half_h_m * (u * right + v * up), forward};
+  }
+  const double t = std::tan(0.5 * camera.view_angle_deg * std::numbers::pi / 180.0);
+  return {camera.position_W_m, (forward + t * (u * right + v * up)).normalized()};
+}
+
 haptics::Pose dragInViewPlane(const haptics::Pose& X_WD, const ViewCamera& camera,
                               const Eigen::Vector3d& p_W_anchor_m, double dx_px, double dy_px) {
   const double m_per_px = camera.metresPerPixelAt(p_W_anchor_m);

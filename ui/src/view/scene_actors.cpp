@@ -795,7 +795,7 @@ vtkActor* SceneActors::forceActor() const noexcept { return force_actor_; }
 vtkTextActor* SceneActors::hintActor() const noexcept { return hint_actor_; }
 vtkRenderer* SceneActors::overlayRenderer() const noexcept { return overlay_; }
 
-ViewCamera viewCameraOf(vtkCamera* camera, int viewport_height_px) {
+ViewCamera viewCameraOf(vtkCamera* camera, int viewport_height_px, int viewport_width_px) {
   ViewCamera c;
   double v[3];
   camera->GetPosition(v);
@@ -808,6 +808,7 @@ ViewCamera viewCameraOf(vtkCamera* camera, int viewport_height_px) {
   c.parallel = camera->GetParallelProjection() != 0;
   c.parallel_scale_m = camera->GetParallelScale();
   c.viewport_height_px = std::max(1, viewport_height_px);
+  c.viewport_width_px = std::max(1, viewport_width_px);
   return c;
 }
 

@@ -485,7 +485,8 @@ bool SceneView::frameSegment(int s) {
 
 ViewCamera SceneView::camera() const {
   const int* size = view_->renderer()->GetSize();
-  return viewCameraOf(view_->renderer()->GetActiveCamera(), size[1] > 0 ? size[1] : view_->height());
+  return viewCameraOf(view_->renderer()->GetActiveCamera(), size[1] > 0 ? size[1] : view_->height(),
+                      size[0] > 0 ? size[0] : view_->width());
 }
 
 void SceneView::setClipping(bool enabled, ClipAxis axis, double fraction, bool flip) {

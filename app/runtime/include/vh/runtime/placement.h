@@ -78,6 +78,15 @@ std::optional<SurfaceTouch> touchSurfacePose(const haptics::ScalarVolume& volume
                                              const Eigen::Vector3d& dir_W, const Eigen::Vector3d& aim_W,
                                              double isovalue, double depth_m);
 
+/// Touch the Surface at a picked point: as touchSurfacePose(), on the one line along `dir_W`
+/// through `through_W` [m, W] (e.g. the ray under the cursor: the eye and its direction), with
+/// no neighbouring lines tried, so the tool lands where the user pointed or not at all.
+/// @return nullopt when the line meets no surface, or `dir_W` is zero or not finite.
+std::optional<SurfaceTouch> touchSurfacePoseOnLine(const haptics::ScalarVolume& volume,
+                                                   const haptics::PointShell& shell, const Eigen::Vector3d& p_TCm_m,
+                                                   const Eigen::Quaterniond& R_WT, const Eigen::Vector3d& dir_W,
+                                                   const Eigen::Vector3d& through_W, double isovalue, double depth_m);
+
 /// The centre of the axis-aligned box (in W [m]) around the centres of the voxels inside the
 /// isosurface (value > `isovalue`): where Touch the Surface aims at felt segments, whose
 /// surfaces may lie anywhere in the volume. One pass over the voxels.

@@ -3,8 +3,8 @@
 /// The mouse and keyboard as a 6-DOF device: when the session's device is a simulated one
 /// (runtime::Session::simulatedDevice()), drags and keys in the view move it (Ctrl+left drag in
 /// the view plane, Ctrl+wheel / Ctrl+right drag in depth, Shift+left drag rotates about the
-/// tool's centre; arrows, Page Up / Down, Shift+arrows, Home), and touchSurface() brings the
-/// tool onto the surface. Plain drags stay the camera's. The [ and ] keys step the isovalue with
+/// tool's centre; arrows, Page Up / Down, Shift+arrows, Home), touchSurface() brings the tool
+/// onto the surface, and Ctrl+Shift+click (touchSurfaceAt()) onto the surface under the cursor. Plain drags stay the camera's. The [ and ] keys step the isovalue with
 /// or without a device. GUI thread only.
 
 #include <cstdint>
@@ -27,6 +27,10 @@ class DeviceInput : public QObject {
   Q_OBJECT
 
  public:
+  /// How far past the first contact Touch the Surface puts the device [m]: a resting force of
+  /// a few newtons at the usual stiffness, nothing more.
+  static constexpr double kTouchDepth_m = 0.003;
+
   /// Filters the events of `view`'s widget; `session` and `view` must outlive it.
   DeviceInput(runtime::Session& session, SceneView& view);
 
@@ -51,6 +55,13 @@ class DeviceInput : public QObject {
   /// so the hand feels the resting force at once and nothing more.
   /// @return false without a simulated device or when no approach meets the surface.
   bool touchSurface(double depth_m);
+  /// Touch the Surface at the point the user picks, as a placement: the tool's centre of mass
+  /// moves along the line of sight through the view's pixel `pos_px` (widget pixels, y down;
+  /// rayThroughPixel()) until its point shell meets the felt isosurface
+  /// (runtime::touchSurfacePoseOnLine()), and the device `depth_m` [m] further along it.
+  /// @return false without a simulated device or when the line of sight meets no surface (the
+  /// tool stays where it was).
+  bool touchSurfaceAt(const QPointF& pos_px, double depth_m);
   /// Whether the last placement has not yet reached the running haptic threads' solver.
   bool touchInProgress() const;
   /// One step of the device's keyboard motion and of the mouse wheel [m]: 1/200 of the volume's
@@ -60,6 +71,8 @@ class DeviceInput : public QObject {
  signals:
   /// [ (-1) or ] (+1) was pressed in the view.
   void isovalueStepRequested(int direction);
+  /// A line for the status bar (e.g. a pick that met no surface).
+  void message(const QString& text, int timeout_ms);
 
  protected:
   bool eventFilter(QObject* watched, QEvent* event) override;

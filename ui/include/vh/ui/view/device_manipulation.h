@@ -20,6 +20,7 @@ struct ViewCamera {
   bool parallel = false;         ///< Parallel projection.
   double parallel_scale_m = 1.0; ///< Half the view height (parallel projection) [m].
   int viewport_height_px = 1;    ///< Height of the view [px].
+  int viewport_width_px = 1;     ///< Width of the view [px].
 
   /// Unit direction of projection (from the eye towards the focal point).
   Eigen::Vector3d forward_W() const;
@@ -30,6 +31,17 @@ struct ViewCamera {
   /// Size of one pixel [m] in the plane through p_W parallel to the screen.
   double metresPerPixelAt(const Eigen::Vector3d& p_W_m) const;
 };
+
+/// A line of sight in W: the points origin_W_m + t * dir_W, t >= 0.
+struct ViewRay {
+  Eigen::Vector3d origin_W_m;  ///< Where it starts [m]: the eye (perspective), or the pixel's point in the plane through the eye (parallel).
+  Eigen::Vector3d dir_W;       ///< Unit direction, away from the viewer.
+};
+
+/// The line of sight through the view's pixel (x_px, y_px) (y down, Qt's convention; (0, 0) the
+/// top-left corner, the pixel's centre at +0.5), what the viewer sees there: the inverse of the
+/// camera's projection (vtkCamera's, with the aspect of viewport_width_px / viewport_height_px).
+ViewRay rayThroughPixel(const ViewCamera& camera, double x_px, double y_px);
 
 /// Moves the device in the view plane so that the point p_W_anchor (e.g. the tool's centre)
 /// follows the cursor: (dx, dy) pixels, y down.

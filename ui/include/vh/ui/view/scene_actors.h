@@ -268,8 +268,8 @@ struct ToolFrame {
 };
 
 /// `camera` as ViewCamera (position, focal point, view up, view angle, projection; W [m]), for a
-/// viewport `viewport_height_px` pixels high.
-ViewCamera viewCameraOf(vtkCamera* camera, int viewport_height_px = 1);
+/// viewport `viewport_width_px` x `viewport_height_px` pixels.
+ViewCamera viewCameraOf(vtkCamera* camera, int viewport_height_px = 1, int viewport_width_px = 1);
 
 /// Where the force arrow starts: the proxy tool's extreme point against the force (the vertex of
 /// `tool_vertices_T_m` (tool frame T, metres) with the least F.p in W: where the surface pushes
