@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cctype>
 #include <iostream>
+#include <set>
 #include <stdexcept>
 #include <string>
 #include <system_error>
@@ -15,6 +16,7 @@
 #include <QMenu>
 #include <QMessageBox>
 #include <QMimeData>
+#include <QRegularExpression>
 #include <QStatusBar>
 #include <QUrl>
 
@@ -258,22 +260,29 @@ void SceneOpener::cancelLoading() {
   emit loadCancelled();
 }
 
-fs::path damagedFileNamed(const QString& message) {
-  const QString tail = ": a damaged file";
-  const qsizetype end = message.indexOf(tail);
+std::vector<fs::path> damagedFilesNamed(const QString& message) {
+  static const QRegularExpression several(" on \\d+ damaged files: (.*?)(?:; |\\. To open|$)");
+  if (const QRegularExpressionMatch m = several.match(message); m.hasMatch()) {
+    std::vector<fs::path> files;
+    for (const QString& p : m.captured(1).split(" | ", Qt::SkipEmptyParts)) files.emplace_back(p.toStdString());
+    return files;
+  }
+  const qsizetype end = message.indexOf(": a damaged file");
   if (end < 0) return {};
   const qsizetype on = message.lastIndexOf(" on ", end);
   if (on < 0) return {};
-  return fs::path(message.mid(on + 4, end - on - 4).toStdString());
+  return {fs::path(message.mid(on + 4, end - on - 4).toStdString())};
 }
 
-fs::path folderWithout(const fs::path& folder, const fs::path& without) {
+fs::path folderWithout(const fs::path& folder, const std::vector<fs::path>& without) {
   std::error_code ec;
   if (!fs::is_directory(folder, ec)) throw std::runtime_error(folder.string() + ": not a folder");
   const fs::path base = fs::path(QDir::tempPath().toStdString());
   fs::path out;
   for (int n = 0; n < 1000; ++n) {
-    out = base / ("volume-haptics-" + folder.filename().string() + "-without-" + without.filename().string() + "-" +
+    const std::string left_out = without.size() == 1 ? without[0].filename().string()
+                                                     : std::to_string(without.size()) + "-damaged-files";
+    out = base / ("volume-haptics-" + folder.filename().string() + "-without-" + left_out + "-" +
                   std::to_string(QCoreApplication::applicationPid()) + "-" + std::to_string(n));
     if (fs::create_directory(out, ec)) {
       fs::permissions(out, io::kPrivateDirPerms, ec);  // copies of the patient's files: owner only
@@ -282,7 +291,8 @@ fs::path folderWithout(const fs::path& folder, const fs::path& without) {
     out.clear();
   }
   if (out.empty()) throw std::runtime_error(folder.string() + ": cannot make a folder in " + base.string());
-  const fs::path skip = fs::weakly_canonical(without, ec);
+  std::set<fs::path> skip;
+  for (const fs::path& w : without) skip.insert(fs::weakly_canonical(w, ec));
   for (auto it = fs::recursive_directory_iterator(folder, ec); !ec && it != fs::recursive_directory_iterator();
        it.increment(ec)) {
     const fs::path rel = it->path().lexically_relative(folder);
@@ -290,7 +300,7 @@ fs::path folderWithout(const fs::path& folder, const fs::path& without) {
       fs::create_directories(out / rel, ec);
       continue;
     }
-    if (fs::weakly_canonical(it->path(), ec) == skip) continue;
+    if (skip.count(fs::weakly_canonical(it->path(), ec)) != 0) continue;
     std::error_code link_ec;
     fs::create_symlink(fs::absolute(it->path()), out / rel, link_ec);
     if (link_ec) fs::copy_file(it->path(), out / rel, link_ec);
@@ -300,39 +310,48 @@ fs::path folderWithout(const fs::path& folder, const fs::path& without) {
   return out;
 }
 
+bool SceneOpener::offerWithoutDamaged(const QString& what, const QString& message) {
+  // Damaged files of a folder, every one inside it: offer the series without them.
+  std::error_code ec;
+  const fs::path folder = fs::path(what.toStdString());
+  const std::vector<fs::path> damaged = damagedFilesNamed(message);
+  if (damaged.empty() || !fs::is_directory(folder, ec)) return false;
+  for (const fs::path& d : damaged) {
+    const fs::path within = fs::relative(d, folder, ec);
+    if (ec || within.empty() || *within.begin() == ".." || !fs::is_regular_file(d, ec)) return false;
+  }
+  QString names;
+  for (std::size_t i = 0; i < damaged.size(); ++i) {
+    names += (i == 0 ? "" : i + 1 == damaged.size() ? " and " : ", ") + QString::fromStdString(damaged[i].filename().string());
+  }
+  const bool one = damaged.size() == 1;
+  auto* box = new QMessageBox(QMessageBox::Question, "VolumeHaptics",
+                              QString("Cannot open %1: %2 %3 damaged").arg(QFileInfo(what).fileName(), names, one ? "is" : "are"),
+                              QMessageBox::Open | QMessageBox::Cancel, window_);
+  box->setObjectName("damagedFileBox");
+  box->setInformativeText(message + "\n\nOpen the series without " + (one ? names : "these " + QString::number(damaged.size()) + " files") +
+                          "? (The folder is left as it is; the other files are opened from a temporary folder.)");
+  box->button(QMessageBox::Open)->setText(one ? "Open Without It" : "Open Without Them");
+  box->setAttribute(Qt::WA_DeleteOnClose);
+  connect(box, &QMessageBox::finished, this, [this, box, folder, damaged](int) {
+    if (box->clickedButton() != box->button(QMessageBox::Open)) return;
+    try {
+      openPath(QString::fromStdString(folderWithout(folder, damaged).string()));
+    } catch (const std::exception& e) {
+      reportError(QString::fromStdString(folder.string()), QString::fromUtf8(e.what()));
+    }
+  });
+  box->open();
+  return true;
+}
+
 void SceneOpener::reportError(const QString& what, const QString& message) {
   last_error_ = message;
   status_.hideProgress();
   std::cerr << "volume-haptics: " << message.toStdString() << '\n';
   emit loadFailed(message);
   if (!interactive_) return;
-  // A damaged file of a folder: offer the series without it.
-  std::error_code ec;
-  const fs::path folder = fs::path(what.toStdString());
-  const fs::path damaged = damagedFileNamed(message);
-  const fs::path within = damaged.empty() ? fs::path() : fs::relative(damaged, folder, ec);
-  const bool inside = !ec && !within.empty() && *within.begin() != "..";
-  if (inside && fs::is_directory(folder, ec) && fs::is_regular_file(damaged, ec)) {
-    auto* box = new QMessageBox(QMessageBox::Question, "VolumeHaptics",
-                                QString("Cannot open %1: %2 is damaged").arg(QFileInfo(what).fileName(),
-                                                                             QString::fromStdString(damaged.filename().string())),
-                                QMessageBox::Open | QMessageBox::Cancel, window_);
-    box->setObjectName("damagedFileBox");
-    box->setInformativeText(message + "\n\nOpen the series without " + QString::fromStdString(damaged.filename().string()) +
-                            "? (The folder is left as it is; the other files are opened from a temporary folder.)");
-    box->button(QMessageBox::Open)->setText("Open Without It");
-    box->setAttribute(Qt::WA_DeleteOnClose);
-    connect(box, &QMessageBox::finished, this, [this, box, folder, damaged](int) {
-      if (box->clickedButton() != box->button(QMessageBox::Open)) return;
-      try {
-        openPath(QString::fromStdString(folderWithout(folder, damaged).string()));
-      } catch (const std::exception& e) {
-        reportError(QString::fromStdString(folder.string()), QString::fromUtf8(e.what()));
-      }
-    });
-    box->open();
-    return;
-  }
+  if (offerWithoutDamaged(what, message)) return;
   const QString name = QFileInfo(what).fileName().isEmpty() ? what : QFileInfo(what).fileName();
   auto* box = new QMessageBox(QMessageBox::Critical, "VolumeHaptics", QString("Cannot open %1").arg(name),
                               QMessageBox::Ok, window_);

@@ -32,15 +32,27 @@ fs::path readerFor(DicomIsolation isolation) {
   return isolation == DicomIsolation::kInProcess ? fs::path() : readerProcessPath();
 }
 
-/// The LoadError text for a DICOM reader that crashed or stalled (`what`): names the file the
-/// probe stops on, else `doing` ("reading the series"), then `consequence`; with a file named,
-/// how to open the series without it (the folder is scanned with its sub-folders, so the file
-/// must leave the folder).
-std::string dicomReaderProblem(const std::string& what, const std::string& culprit, const char* doing,
+/// The LoadError text for a DICOM reader that crashed or stalled (`what`): names the files the
+/// probe stops on (findCulpritFiles()), else `doing` ("reading the series"), then
+/// `consequence`; with files named, how to open the series without them (the folder is scanned
+/// with its sub-folders, so the files must leave the folder). One file: "... on PATH: a damaged
+/// file..."; several: "... on N damaged files: PATH | PATH | PATH..." (damagedFilesNamed() in
+/// the window reads them back).
+std::string dicomReaderProblem(const std::string& what, const std::vector<std::string>& culprits, const char* doing,
                                const char* consequence) {
-  if (culprit.empty()) return "the DICOM reader " + what + " " + doing + ": a damaged file" + consequence;
-  return "the DICOM reader " + what + " on " + culprit + ": a damaged file" + consequence +
-         ". To open the series without it, move " + fs::path(culprit).filename().string() +
+  if (culprits.empty()) return "the DICOM reader " + what + " " + doing + ": a damaged file" + consequence;
+  if (culprits.size() == 1) {
+    return "the DICOM reader " + what + " on " + culprits[0] + ": a damaged file" + consequence +
+           ". To open the series without it, move " + fs::path(culprits[0]).filename().string() +
+           " out of the folder (and its sub-folders) and open the folder again";
+  }
+  std::string paths, names;
+  for (std::size_t i = 0; i < culprits.size(); ++i) {
+    paths += (i == 0 ? "" : " | ") + culprits[i];
+    names += (i == 0 ? "" : i + 1 == culprits.size() ? " and " : ", ") + fs::path(culprits[i]).filename().string();
+  }
+  return "the DICOM reader " + what + " on " + std::to_string(culprits.size()) + " damaged files: " + paths +
+         consequence + ". To open the series without them, move " + names +
          " out of the folder (and its sub-folders) and open the folder again";
 }
 
@@ -77,8 +89,8 @@ std::vector<DicomSeriesInfo> listDicomSeries(const fs::path& folder, const std::
   const bool finished = detail::runReaderToEnd(
       {reader.string(), "list", fs::absolute(folder, ec).string(), out.path().string()}, folder,
       detail::kDefaultStallS, on_line, cancel, [&](const std::string& what) {
-        const std::string file = detail::findCulpritFile(reader, folder, detail::kDefaultStallS);
-        return dicomReaderProblem(what, file, "listing the folder", "");
+        return dicomReaderProblem(what, detail::findCulpritFiles(reader, folder, detail::kDefaultStallS),
+                                  "listing the folder", "");
       });
   if (!finished) return {};
   return detail::readSeriesList(out.path(), folder);
@@ -180,8 +192,8 @@ LoadedVolume loadDicom(const fs::path& path, const VolumeLoadOptions& options) {
   };
   const double stall_s = stallLimitFor(path, options.worker_stall_timeout_s);
   const bool finished = runReaderToEnd(args, path, stall_s, on_line, options.cancel, [&](const std::string& what) {
-    const std::string file = findCulpritFile(reader, path, stall_s);
-    return dicomReaderProblem(what, file, "reading the series", "; nothing was loaded");
+    return dicomReaderProblem(what, findCulpritFiles(reader, path, stall_s), "reading the series",
+                              "; nothing was loaded");
   });
   if (!finished) throw LoadCancelled(path.string() + ": loading cancelled");
   RawVolume raw = readRaw(out.path(), path);

@@ -149,8 +149,12 @@ ReaderOutputFile::~ReaderOutputFile() {
   fs::remove(path_, ec);
 }
 
-std::string findCulpritFile(const fs::path& program, const fs::path& path, double stall_s) {
-  ReaderProcess probe({program.string(), "probe", path.string()});
+namespace {
+
+std::string culpritAfter(const fs::path& program, const fs::path& path, double stall_s, const std::string& after) {
+  std::vector<std::string> args = {program.string(), "probe", path.string()};
+  if (!after.empty()) args.insert(args.end(), {"--after", after});
+  ReaderProcess probe(args);
   std::string line, last;
   auto last_line = std::chrono::steady_clock::now();
   while (probe.readLine(line, kPollMs)) {
@@ -167,6 +171,22 @@ std::string findCulpritFile(const fs::path& program, const fs::path& path, doubl
   }
   const int status = probe.wait();
   return WIFSIGNALED(status) ? last : std::string();
+}
+
+}  // namespace
+
+std::vector<std::string> findCulpritFiles(const fs::path& program, const fs::path& path, double stall_s,
+                                          std::size_t max_files) {
+  std::vector<std::string> found;
+  std::string after;
+  while (found.size() < max_files) {
+    const std::string culprit = culpritAfter(program, path, stall_s, after);
+    // A probe that stops again on a file at or before the last one found is going nowhere.
+    if (culprit.empty() || (!after.empty() && !(fs::path(after) < fs::path(culprit)))) break;
+    found.push_back(culprit);
+    after = culprit;
+  }
+  return found;
 }
 
 bool runReaderToEnd(const std::vector<std::string>& args, const fs::path& named, double stall_s,

@@ -53,10 +53,13 @@ bool runReaderToEnd(const std::vector<std::string>& args, const fs::path& named,
                     const std::function<void(const std::string&)>& on_line, const std::atomic<bool>* cancel,
                     const std::function<std::string(const std::string&)>& problem);
 
-/// After a crash or a stall: the file the reader `program`'s DICOM probe of `path` crashes or
-/// stops on, or "". The probe has its own watchdog (`stall_s`, 0 = none): a file it stays on
-/// that long is the culprit.
+/// After a crash or a stall: every file that stops the reader `program`'s DICOM probe of
+/// `path` (it crashes or stops on it; the probe has its own watchdog, `stall_s`, 0 = none: a
+/// file it stays on that long is a culprit). The probe runs again past each culprit
+/// (`probe PATH --after FILE`, the files in sorted order) until it reaches the end, at most
+/// `max_files` culprits. Sorted; empty when the probe stops on none.
 /// @throws LoadError when the program cannot be started.
-std::string findCulpritFile(const fs::path& program, const fs::path& path, double stall_s);
+std::vector<std::string> findCulpritFiles(const fs::path& program, const fs::path& path, double stall_s,
+                                          std::size_t max_files = 64);
 
 }  // namespace vh::io::detail

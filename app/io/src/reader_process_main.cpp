@@ -25,7 +25,7 @@ namespace fs = std::filesystem;
 
 constexpr char kUsage[] =
     "usage: volume-haptics-dicom-worker load PATH OUT [--series S] [--phase N] | volume FILE OUT | list FOLDER OUT | "
-    "mesh PATH OUT SCALE | seg FILE OUT | rtstruct FILE OUT | probe PATH";
+    "mesh PATH OUT SCALE | seg FILE OUT | rtstruct FILE OUT | probe PATH [--after FILE]";
 
 /// Runs `read`; an exception becomes the protocol's "error MESSAGE" line (on one line) and exit
 /// status 1, else 0.
@@ -44,7 +44,7 @@ int reportingErrors(Read&& read) {
 
 /// `probe PATH`: each DICOM file's header and pixels parsed on its own, the name printed first,
 /// so that a crash names the file.
-int probeMode(const fs::path& path) {
+int probeMode(const fs::path& path, const fs::path& after) {
   std::error_code ec;
   std::vector<fs::path> files;
   if (fs::is_directory(path, ec)) {
@@ -58,6 +58,7 @@ int probeMode(const fs::path& path) {
   }
   std::sort(files.begin(), files.end());
   for (const auto& f : files) {
+    if (!after.empty() && !(after < f)) continue;  // resumes past a damaged file already found
     std::cout << "file " << f.string() << std::endl;
     detail::VtkErrorCapture capture;
     auto meta = vtkSmartPointer<vtkDICOMMetaData>::New();
@@ -142,7 +143,7 @@ int readerProcessMain(int argc, char** argv) {
   }
   const std::string mode = argv[1];
   const fs::path path = argv[2];
-  if (mode == "probe") return probeMode(path);
+  if (mode == "probe") return probeMode(path, argc >= 5 && std::string(argv[3]) == "--after" ? fs::path(argv[4]) : fs::path());
   if (mode == "volume" && argc >= 4) return volumeMode(path, argv[3], argc, argv);
   if (mode == "mesh" && argc >= 5) return meshMode(path, argv[3], argv[4]);
   if (mode == "seg" && argc >= 4) return segMode(path, argv[3]);

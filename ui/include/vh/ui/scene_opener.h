@@ -36,14 +36,16 @@ class Session;
 
 namespace vh::ui {
 
-/// The file a reader's error names as damaged ("... on PATH: a damaged file ..."), or empty.
-std::filesystem::path damagedFileNamed(const QString& message);
+/// The files a reader's error names as damaged ("... on PATH: a damaged file ..." or "... on N
+/// damaged files: PATH | PATH; ..."), in the message's order; empty when it names none.
+std::vector<std::filesystem::path> damagedFilesNamed(const QString& message);
 
 /// A new temporary folder that mirrors `folder` and its sub-folders with a symbolic link (a copy
-/// where links fail) to every file but `without`: the series opened without a damaged file,
-/// the original folder untouched.
+/// where links fail) to every file but those in `without`: the series opened without its
+/// damaged files, the original folder untouched.
 /// @throws std::runtime_error naming the folder when it cannot be made.
-std::filesystem::path folderWithout(const std::filesystem::path& folder, const std::filesystem::path& without);
+std::filesystem::path folderWithout(const std::filesystem::path& folder,
+                                    const std::vector<std::filesystem::path>& without);
 
 class SceneLoader;
 class StatusLine;
@@ -114,7 +116,8 @@ class SceneOpener : public QObject {
   /// largest DICOM series is taken (scripted runs, tests).
   void setInteractive(bool interactive) { interactive_ = interactive; }
   /// Shows `message` about `what` (a path) and emits loadFailed(). When it names a damaged file
-  /// of the folder `what`, the dialog offers to open the series without it (folderWithout()).
+  /// of the folder `what` (or several), the dialog offers to open the series without them
+  /// (folderWithout()).
   void reportError(const QString& what, const QString& message);
   /// The last error ("FILE: problem"); empty when none or after a successful load.
   QString lastError() const { return last_error_; }
@@ -130,6 +133,9 @@ class SceneOpener : public QObject {
   void segmentationRequested(const std::filesystem::path& path);
 
  private:
+  /// When `message` names damaged files inside the folder `what`: the dialog offering the series
+  /// without them, and true; else false.
+  bool offerWithoutDamaged(const QString& what, const QString& message);
   void onSeriesListed(const QString& folder, const std::vector<io::DicomSeriesInfo>& series);
   void openFileDialog(int kind);
   void rebuildRecentMenu();
