@@ -523,6 +523,65 @@ TEST_F(MainWindowOnHead, LoadingErrorKeepsThePreviousScene) {
   EXPECT_EQ(window_->sceneView()->actors().volume(), volume_before);
 }
 
+TEST(MainWindowDataFolder, TheChosenFolderListsItsToolsPersistsAndAFolderWithoutDatasetsIsRefused) {
+  // The environment would win over the choice: unset for the test, restored after.
+  const char* env = std::getenv("VH_SHARED_DATASETS_DIR");
+  const std::string saved = env != nullptr ? env : "";
+  ::unsetenv("VH_SHARED_DATASETS_DIR");
+  QTemporaryDir tmp;
+  ASSERT_TRUE(tmp.isValid());
+  // A folder holding one real-tool mesh by its shared path (a tetrahedron written here), and one
+  // holding nothing of the datasets.
+  const QString data = QDir(tmp.path()).filePath("data"), empty = QDir(tmp.path()).filePath("empty");
+  ASSERT_TRUE(QDir().mkpath(data + "/meshes/wrench") && QDir().mkpath(empty));
+  {
+    std::ofstream stl((data + "/meshes/wrench/adjustable-wrench-body.stl").toStdString());
+    stl << "solid t\n";
+    const char* faces[4][3] = {{"0 0 0", "0.01 0 0", "0 0.01 0"}, {"0 0 0", "0 0 0.01", "0.01 0 0"},
+                               {"0 0 0", "0 0.01 0", "0 0 0.01"}, {"0.01 0 0", "0 0 0.01", "0 0.01 0"}};
+    for (const auto& f : faces) {
+      stl << "facet normal 0 0 0\nouter loop\n";
+      for (const char* v : f) stl << "vertex " << v << "\n";
+      stl << "endloop\nendfacet\n";
+    }
+    stl << "endsolid t\n";
+  }
+  const std::string wrench = (std::filesystem::path(data.toStdString()) / "meshes/wrench/adjustable-wrench-body.stl").string();
+  const auto hasWrench = [&](const MainWindow& w) {
+    for (const ToolChoice& t : w.toolPicker()->choices())
+      if (std::filesystem::path(t.mesh).lexically_normal() == std::filesystem::path(wrench).lexically_normal()) return true;
+    return false;
+  };
+  {
+    MainWindow window;
+    window.setInteractive(true);
+    EXPECT_FALSE(hasWrench(window));
+    EXPECT_FALSE(window.setDataFolder(empty));
+    auto* box = window.findChild<QMessageBox*>("dataFolderBox");
+    ASSERT_NE(box, nullptr) << "the refusal is said";
+    EXPECT_TRUE(box->text().contains(empty)) << box->text().toStdString();
+    box->close();
+    EXPECT_NE(window.preferences().datasets_dir, empty);
+
+    ASSERT_TRUE(window.setDataFolder(data));
+    EXPECT_EQ(runtime::sharedDatasetsDir(), std::filesystem::path(data.toStdString()));
+    EXPECT_TRUE(hasWrench(window)) << "the tools list what the chosen folder holds";
+    EXPECT_EQ(window.preferences().datasets_dir, data);
+    window.saveSettings();
+  }
+  runtime::setPreferredSharedDatasetsDir({});
+  {
+    MainWindow again;  // the next start reads the choice back
+    EXPECT_EQ(again.preferences().datasets_dir, data);
+    EXPECT_EQ(runtime::sharedDatasetsDir(), std::filesystem::path(data.toStdString()));
+    EXPECT_TRUE(hasWrench(again));
+    again.preferences().datasets_dir.clear();
+    again.saveSettings();
+  }
+  runtime::setPreferredSharedDatasetsDir({});
+  if (env != nullptr) ::setenv("VH_SHARED_DATASETS_DIR", saved.c_str(), 1);
+}
+
 // ---- Windows that load by themselves ------------------------------------------------------------
 
 TEST(MainWindowLoad, OpensADroppedFolderOffTheGuiThreadAndCancels) {

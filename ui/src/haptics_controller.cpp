@@ -41,6 +41,7 @@ HapticsController::HapticsController(runtime::Session& session, HapticsPanel& pa
     recorder_.noteTool(label, spacing_m);
     panel_.setBuilding(true);
   });
+  connect(&tools_, &ToolPicker::choicesChanged, this, [this] { refresh(); });
   connect(&tools_, &ToolPicker::buildEnded, this, [this] {
     panel_.setBuilding(false);
     refresh();

@@ -60,6 +60,7 @@ MainWindow::MainWindow(QWidget* parent) : QMainWindow(parent) {
     QSettings settings;
     prefs_ = Preferences::load(settings);
   }
+  runtime::setPreferredSharedDatasetsDir(prefs_.datasets_dir.toStdString());
   session_.setGains({prefs_.linear_stiffness_N_per_m, prefs_.torsional_stiffness_Nm_per_rad, prefs_.passivity_control});
   loader_ = new SceneLoader(this);
   tool_picker_ = new ToolPicker(session_, *loader_, runtime::sharedDatasetsDir(), this);
@@ -328,6 +329,31 @@ void MainWindow::updateStatus() {
   status_->showHaptics(session_, view_controller_->snapshot(), replaying);
 }
 
+bool MainWindow::setDataFolder(const QString& dir) {
+  const QDir d(dir);
+  const QStringList parts = {"ct", "nrrd", "classic", "meshes"};
+  if (!d.exists() || std::none_of(parts.begin(), parts.end(), [&](const QString& p) { return d.exists(p); })) {
+    auto* box = new QMessageBox(QMessageBox::Warning, "Data Folder",
+                                dir + " holds none of ct/, nrrd/, classic/ and meshes/: it is not the shared "
+                                      "datasets' folder. The data folder stays " +
+                                    q(runtime::sharedDatasetsDir().string()) + ".",
+                                QMessageBox::Ok, this);
+    box->setObjectName("dataFolderBox");
+    box->setAttribute(Qt::WA_DeleteOnClose);
+    box->open();  // window-modal, does not block the haptic display
+    return false;
+  }
+  prefs_.datasets_dir = d.absolutePath();
+  runtime::setPreferredSharedDatasetsDir(prefs_.datasets_dir.toStdString());
+  tool_picker_->setSharedDatasetsDir(runtime::sharedDatasetsDir());
+  statusBar()->showMessage(
+      runtime::sharedDatasetsDirFromEnvironment()
+          ? "Data folder kept for later; VH_SHARED_DATASETS_DIR is set and wins: " + q(runtime::sharedDatasetsDir().string())
+          : "Data folder: " + prefs_.datasets_dir,
+      kNoticeStatusMs);
+  return true;
+}
+
 QString MainWindow::statusText() const { return status_ != nullptr ? status_->text() : QString(); }
 
 void MainWindow::updateWindowTitle() { setWindowTitle(windowTitleFor(title_, session_)); }
@@ -352,6 +378,12 @@ void MainWindow::buildMenus() {
   shot->setShortcut(QKeySequence("Ctrl+Shift+S"));
   drill_->addMenuActions(nullptr, file, this);
   file->addSeparator();
+  file->addAction("Data &Folder...", this, [this] {
+    const QString dir = QFileDialog::getExistingDirectory(
+        this, "The folder holding the shared datasets (ct/, nrrd/, classic/, meshes/)",
+        QString::fromStdString(runtime::sharedDatasetsDir().string()));
+    if (!dir.isEmpty()) setDataFolder(dir);
+  });
   file->addAction("&Quit", this, &QWidget::close)->setShortcut(QKeySequence::Quit);
 
   // View: the Display panel's actions (the same choices as its dock), then the window's.

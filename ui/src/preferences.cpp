@@ -49,6 +49,7 @@ Preferences Preferences::load(QSettings& s) {
   p.recent_files = s.value("files/recent").toStringList();
   while (p.recent_files.size() > kMaxRecentFiles) p.recent_files.removeLast();
   p.last_folder = s.value("files/last_folder").toString();
+  p.datasets_dir = s.value("files/datasets_dir").toString();
   p.pacs.host = s.value("pacs/host", QString::fromStdString(p.pacs.host)).toString().toStdString();
   const int port = s.value("pacs/port", p.pacs.port).toInt();
   if (port >= 1 && port <= 65535) p.pacs.port = port;
@@ -75,6 +76,7 @@ void Preferences::save(QSettings& s) const {
   s.setValue("view/tool_shadow", tool_shadow);
   s.setValue("files/recent", recent_files);
   s.setValue("files/last_folder", last_folder);
+  s.setValue("files/datasets_dir", datasets_dir);
   s.setValue("pacs/host", QString::fromStdString(pacs.host));
   s.setValue("pacs/port", pacs.port);
   s.setValue("pacs/called_aet", QString::fromStdString(pacs.called_aet));

@@ -20,6 +20,12 @@ ToolPicker::ToolPicker(runtime::Session& session, SceneLoader& loader, const std
 
 ToolPicker::~ToolPicker() { session_.removeObserver(observer_); }
 
+void ToolPicker::setSharedDatasetsDir(const std::filesystem::path& shared_datasets_dir) {
+  tools_ = toolCatalog(shared_datasets_dir);
+  index_ = session_.hasScene() ? findOrAddSceneTool(tools_, session_.live().tool_spec) : -1;
+  emit choicesChanged();
+}
+
 void ToolPicker::select(int choice_index, double point_spacing_m) {
   if (!session_.hasScene() || session_.loaded().volume.field == nullptr || choice_index < 0 ||
       choice_index >= static_cast<int>(tools_.size())) {

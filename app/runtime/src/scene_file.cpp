@@ -215,9 +215,35 @@ fs::path installedDataDir() {
   return {};
 }
 
+namespace {
+
+std::mutex& preferredDatasetsMutex() {
+  static std::mutex m;
+  return m;
+}
+
+fs::path& preferredDatasetsDir() {  // guarded by preferredDatasetsMutex()
+  static fs::path dir;
+  return dir;
+}
+
+}  // namespace
+
+void setPreferredSharedDatasetsDir(const fs::path& dir) {
+  const std::lock_guard lock(preferredDatasetsMutex());
+  preferredDatasetsDir() = dir;
+}
+
+bool sharedDatasetsDirFromEnvironment() {
+  const char* env = std::getenv("VH_SHARED_DATASETS_DIR");
+  return env != nullptr && *env != '\0';
+}
+
 fs::path sharedDatasetsDir() {
-  if (const char* env = std::getenv("VH_SHARED_DATASETS_DIR"); env != nullptr && *env != '\0') {
-    return fs::path(env);
+  if (sharedDatasetsDirFromEnvironment()) return fs::path(std::getenv("VH_SHARED_DATASETS_DIR"));
+  {
+    const std::lock_guard lock(preferredDatasetsMutex());
+    if (!preferredDatasetsDir().empty()) return preferredDatasetsDir();
   }
   if (const fs::path installed = installedDataDir(); !installed.empty()) return installed / "datasets";
   return fs::path(VH_DEFAULT_SHARED_DATASETS_DIR).lexically_normal();
@@ -231,7 +257,8 @@ std::string sharedDatasetsNote() {
          (present ? "" : " (absent)") +
          ". They are not shipped with the program: download them from the public sources that Help > About "
          "(and datasets/manifest.json in the source) lists, into one folder keeping their paths (ct/, nrrd/, "
-         "classic/, meshes/), and set VH_SHARED_DATASETS_DIR to that folder.";
+         "classic/, meshes/), and choose that folder with File > Data Folder in the window, or set "
+         "VH_SHARED_DATASETS_DIR to it (which wins over the window's choice).";
 }
 
 fs::path generatedDataDir() {

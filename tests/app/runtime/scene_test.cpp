@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <fstream>
 #include <cstdlib>
 #include <limits>
 #include <optional>
@@ -291,6 +292,37 @@ TEST(SceneFileErrors, DataFileNotFoundSaysHowToPointAtTheDatasets) {
                    "'ct/philips-head-phantom-bone' not found", missing.string() + " (absent)",
                    "VH_SHARED_DATASETS_DIR", "Help > About");
   EXPECT_NE(sharedDatasetsNote().find(missing.string() + " (absent)"), std::string::npos) << sharedDatasetsNote();
+  if (before != nullptr) ::setenv("VH_SHARED_DATASETS_DIR", saved.c_str(), 1);
+  else ::unsetenv("VH_SHARED_DATASETS_DIR");
+}
+
+TEST(SceneFiles, TheChosenDataFolderResolvesDatasetNamesUnlessTheEnvironmentNamesAnother) {
+  // A folder holding one dataset under its shared name (a NRRD the test writes): found through
+  // the chosen folder when VH_SHARED_DATASETS_DIR is unset, not when the variable names another.
+  const char* before = std::getenv("VH_SHARED_DATASETS_DIR");
+  const std::string saved = before != nullptr ? before : "";
+  const fs::path dir = scratchDir();  // made afresh on each call: once
+  const fs::path chosen = dir / "chosen-datasets";
+  fs::create_directories(chosen / "nrrd");
+  {
+    std::ofstream f(chosen / "nrrd" / "tiny.nrrd", std::ios::binary);
+    f << "NRRD0004\ntype: uint8\ndimension: 3\nsizes: 4 4 4\nspacings: 1 1 1\nencoding: raw\n\n"
+      << std::string(64, '\x10');
+  }
+  ::unsetenv("VH_SHARED_DATASETS_DIR");
+  setPreferredSharedDatasetsDir(chosen);
+  EXPECT_EQ(sharedDatasetsDir(), chosen);
+  EXPECT_FALSE(sharedDatasetsDirFromEnvironment());
+  const SceneSpec spec =
+      loadSceneFile(writeText(dir / "chosen.json", R"({"volume": {"path": "nrrd/tiny.nrrd"}})"));
+  EXPECT_EQ(fs::path(spec.volume.path), chosen / "nrrd" / "tiny.nrrd");
+  const fs::path other = dir / "env-datasets";
+  ::setenv("VH_SHARED_DATASETS_DIR", other.c_str(), 1);
+  EXPECT_EQ(sharedDatasetsDir(), other) << "the environment wins over the chosen folder";
+  EXPECT_TRUE(sharedDatasetsDirFromEnvironment());
+  VH_EXPECT_THROW_WITH(loadSceneFile(dir / "chosen.json"), std::runtime_error, "not found",
+                       other.string() + " (absent)", "File > Data Folder");
+  setPreferredSharedDatasetsDir({});
   if (before != nullptr) ::setenv("VH_SHARED_DATASETS_DIR", saved.c_str(), 1);
   else ::unsetenv("VH_SHARED_DATASETS_DIR");
 }

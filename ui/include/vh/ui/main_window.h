@@ -102,6 +102,12 @@ class MainWindow : public QMainWindow {
   /// A PNG of the whole window (the view composited in). @return false when it cannot be written.
   bool saveScreenshot(const QString& path);
   QString statusText() const;
+  /// File > Data Folder's choice: where the shared datasets (scans named by their shared path,
+  /// the real tool meshes) are looked for. A folder holding none of ct/, nrrd/, classic/ and
+  /// meshes/ is refused (a message box naming it, nothing changes); else it is kept in the
+  /// preferences, the Haptics panel's tools list what it holds, and the status bar says so
+  /// (and that VH_SHARED_DATASETS_DIR, when set, wins). @return whether it was taken.
+  bool setDataFolder(const QString& dir);
 
   // ---- Parts, for the application, tests and scripting ---------------------------------------
   SceneOpener* opener() const noexcept { return opener_; }

@@ -26,6 +26,9 @@ struct Preferences : ViewLook {
 
   QStringList recent_files;                       ///< Most recent first, at most kMaxRecentFiles.
   QString last_folder;                            ///< Where the last file dialog ended.
+  /// The shared datasets' folder the user chose (File > Data Folder; empty: the installed or
+  /// build-time one). runtime::setPreferredSharedDatasetsDir() takes it; VH_SHARED_DATASETS_DIR wins.
+  QString datasets_dir;
 
   /// The DICOM server of File > Open from PACS: host, port, its AE title and ours (timeouts
   /// keep io::PacsServer's defaults and are not stored).

@@ -34,6 +34,8 @@ class ToolPicker : public QObject {
 
   /// The tools to choose from; the scene's own tool is appended when the catalogue lacks it.
   const std::vector<ToolChoice>& choices() const noexcept { return tools_; }
+  /// The catalogue of another shared datasets folder (File > Data Folder); choicesChanged().
+  void setSharedDatasetsDir(const std::filesystem::path& shared_datasets_dir);
   /// Index into choices() of the tool in use, -1 before a scene.
   int currentIndex() const noexcept { return index_; }
   /// Rebuilds tool `choice_index` at `point_spacing_m` [m] (0: automatic) for the felt field and
@@ -49,6 +51,8 @@ class ToolPicker : public QObject {
   void buildEnded();
   /// The session uses the rebuilt tool.
   void toolChanged();
+  /// choices() changed (another datasets folder).
+  void choicesChanged();
   /// A short text for the status bar.
   void message(const QString& text, int timeout_ms);
 

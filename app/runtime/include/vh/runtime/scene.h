@@ -161,15 +161,23 @@ SceneSpec parseScene(const std::string& json_text, const std::string& source,
 /// executable, PREFIX/bin/), when it exists; empty when running from the build tree.
 std::filesystem::path installedDataDir();
 
-/// The folder of the real shared datasets: $VH_SHARED_DATASETS_DIR when set, else for an
+/// The folder of the real shared datasets: $VH_SHARED_DATASETS_DIR when set, else the folder
+/// the user chose (setPreferredSharedDatasetsDir(): the GUI's File > Data Folder), else for an
 /// installed copy installedDataDir()/datasets (absent unless someone puts datasets there), else
-/// the folder configured at build time (CMake cache VH_SHARED_DATASETS_DIR).
+/// the folder configured at build time (CMake cache VH_SHARED_DATASETS_DIR). Thread-safe.
 std::filesystem::path sharedDatasetsDir();
 
+/// The folder the user chose for the shared datasets (the GUI's Data Folder preference), used
+/// by sharedDatasetsDir() when VH_SHARED_DATASETS_DIR is not set; empty forgets it. Thread-safe.
+void setPreferredSharedDatasetsDir(const std::filesystem::path& dir);
+
+/// Whether VH_SHARED_DATASETS_DIR is set (it then wins over the chosen folder).
+bool sharedDatasetsDirFromEnvironment();
+
 /// Where the shared datasets are looked for and how to get them, for messages and Help > About:
-/// the folder (sharedDatasetsDir(), "(absent)" when it does not exist), that
-/// VH_SHARED_DATASETS_DIR points the program at another folder holding them (ct/, nrrd/,
-/// classic/, meshes/: the tool meshes too), and that Help > About and datasets/manifest.json
+/// the folder (sharedDatasetsDir(), "(absent)" when it does not exist), that File > Data Folder
+/// in the window or VH_SHARED_DATASETS_DIR points the program at another folder holding them
+/// (ct/, nrrd/, classic/, meshes/: the tool meshes too), and that Help > About and datasets/manifest.json
 /// list each dataset with its public source. One paragraph, no trailing newline.
 std::string sharedDatasetsNote();
 
