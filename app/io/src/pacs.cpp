@@ -387,6 +387,20 @@ void seriesKeys(DcmDataset& keys, const std::string& study_uid, const std::strin
   keys.putAndInsertString(DCM_NumberOfSeriesRelatedInstances, "");
 }
 
+/// A retrieval stopped on purpose: the server ended the C-GET (status Cancel), or we stop
+/// listening (abort); the files received are deleted.
+void endCancelled(Scu& scu, PacsRetrieveResult& result) {
+  if (scu.finalReceived()) {
+    result.cancel_acknowledged = scu.finalStatus() == kStatusCancel;
+    scu.release();
+  } else {
+    scu.abortAssociation();
+  }
+  std::error_code ec;
+  for (const fs::path& f : scu.files()) fs::remove(f, ec);
+  result.cancelled = true;
+}
+
 }  // namespace
 
 std::string PacsServer::describe() const {
@@ -520,17 +534,8 @@ PacsRetrieveResult pacsRetrieveSeries(const PacsServer& server, const std::strin
   PacsRetrieveResult result;
   result.folder = out_dir;
   result.failed = scu.failedSubops();
-  const bool cancelled = scu.cancelRequested() && (scu.cancelSent() || !scu.finalReceived());
-  if (cancelled) {
-    // Stopped on purpose: the server ended the C-GET (status Cancel) or we stop listening.
-    if (scu.finalReceived()) {
-      result.cancel_acknowledged = scu.finalStatus() == kStatusCancel;
-      scu.release();
-    } else {
-      scu.abortAssociation();
-    }
-    for (const fs::path& f : scu.files()) fs::remove(f, ec);
-    result.cancelled = true;
+  if (scu.cancelRequested() && (scu.cancelSent() || !scu.finalReceived())) {
+    endCancelled(scu, result);
     result.seconds = std::chrono::duration<double>(Clock::now() - t0).count();
     return result;
   }
