@@ -24,15 +24,16 @@ packages+=(pybind11-dev python3-dev python3-numpy)
 # shared-mime-info to validate the desktop entry and compile the MIME type.
 # test also starts a real PACS for the PACS client's tests (tests/app/io/pacs_orthanc_fixture.sh):
 # Orthanc, run from the build tree with its own configuration (the package's service is not
-# used), DCMTK's command-line tools (dcmtk: storescu stores the test series in it) and curl (asks
-# Orthanc's REST API whether it is up and holds the series).
+# used), DCMTK's command-line tools (dcmtk: storescu stores the test series in it), curl (asks
+# Orthanc's REST API whether it is up and holds the series) and the openssl command (makes the
+# throwaway CA and certificates of the second, DICOM TLS, Orthanc).
 # test also opens a session report in a real browser engine (headless Chromium:
 # tests/ui/report_cli_test.sh) to check that its inline pictures decode.
 # test also runs the Python module's pytest suite and checks NIfTI placement against nibabel.
 if [[ $mode == test ]]; then
   packages+=(python3-pytest python3-nibabel)
   packages+=(clang libclang-rt-14-dev dpkg-dev file help2man desktop-file-utils shared-mime-info orthanc dcmtk curl
-    chromium)
+    openssl chromium)
 fi
 missing=()
 for p in "${packages[@]}"; do

@@ -18,11 +18,14 @@
 
 #include <QAction>
 #include <QApplication>
+#include <QCheckBox>
+#include <QLabel>
 #include <QLineEdit>
 #include <QSignalSpy>
 #include <QTimer>
 #include <QProgressDialog>
 #include <QPushButton>
+#include <QSpinBox>
 #include <QTemporaryDir>
 #include <QTreeWidget>
 #include <QTreeWidgetItemIterator>
@@ -58,7 +61,7 @@ io::PacsServer fixtureServer(const std::map<std::string, std::string>& v) {
   s.port = std::stoi(v.at("dicom_port"));
   s.called_aet = v.at("aet");
   s.calling_aet = v.at("client_aet");
-  s.connect_timeout_s = 5;
+  s.timeout_s = 20;
   return s;
 }
 
@@ -260,7 +263,7 @@ TEST(PacsDialog, ClosingNeverWaitsForTheNetwork) {
   io::PacsServer silent;
   silent.host = "127.0.0.1";
   silent.port = ntohs(addr.sin_port);
-  silent.connect_timeout_s = 3;
+  silent.timeout_s = 3;
   auto dialog = std::make_unique<PacsBrowserDialog>(silent, nullptr, nullptr);
   dialog->show();
   dialog->search();
@@ -272,6 +275,57 @@ TEST(PacsDialog, ClosingNeverWaitsForTheNetwork) {
   std::printf("[ TIMING   ] closed during a search of a silent server in %.3f s\n", close_s);
   EXPECT_LT(close_s, 0.5);
   test::pump(3500);  // the search's thread ends on its own (connection timeout)
+  ::close(listener);
+}
+
+TEST(PacsDialog, TheSettingsCarryTheTimeoutAndTlsAndTheTestObeysTheTimeout) {
+  // A socket that accepts connections (the kernel's backlog) and never answers.
+  const int listener = ::socket(AF_INET, SOCK_STREAM, 0);
+  sockaddr_in addr{};
+  addr.sin_family = AF_INET;
+  addr.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+  socklen_t len = sizeof addr;
+  ASSERT_EQ(::bind(listener, reinterpret_cast<sockaddr*>(&addr), sizeof addr), 0);
+  ASSERT_EQ(::listen(listener, 4), 0);
+  ASSERT_EQ(::getsockname(listener, reinterpret_cast<sockaddr*>(&addr), &len), 0);
+  io::PacsServer start;
+  start.host = "127.0.0.1";
+  start.port = ntohs(addr.sin_port);
+  start.timeout_s = 45;
+  start.ca_cert = "/etc/pki/hospital-ca.pem";
+  PacsSettingsDialog dialog(start);
+  auto* timeout = dialog.findChild<QSpinBox*>("pacsTimeout");
+  auto* tls = dialog.findChild<QCheckBox*>("pacsTls");
+  auto* ca = dialog.findChild<QLineEdit*>("pacsCaCert");
+  auto* key = dialog.findChild<QLineEdit*>("pacsClientKey");
+  ASSERT_TRUE(timeout && tls && ca && key);
+  EXPECT_EQ(timeout->value(), 45);
+  EXPECT_FALSE(tls->isChecked());
+  EXPECT_EQ(ca->text(), "/etc/pki/hospital-ca.pem");
+  EXPECT_FALSE(ca->isEnabled()) << "the TLS files are for TLS only";
+  tls->setChecked(true);
+  EXPECT_TRUE(ca->isEnabled());
+  key->setText(" /home/u/ws7.key ");
+  timeout->setValue(2);
+  const io::PacsServer edited = dialog.server();
+  EXPECT_TRUE(edited.tls);
+  EXPECT_EQ(edited.timeout_s, 2);
+  EXPECT_EQ(edited.ca_cert, "/etc/pki/hospital-ca.pem");
+  EXPECT_EQ(edited.client_key, "/home/u/ws7.key");
+
+  // The Test button uses the timeout shown: the silent server's test fails after it.
+  tls->setChecked(false);
+  dialog.show();
+  auto* result = dialog.findChild<QLabel*>("pacsTestResult");
+  auto* test_button = dialog.findChild<QPushButton*>("pacsTest");
+  ASSERT_TRUE(result && test_button);
+  const auto t0 = std::chrono::steady_clock::now();
+  test_button->click();
+  ASSERT_TRUE(test::waitFor([&] { return result->text().contains("timeout"); }, 8000)) << result->text().toStdString();
+  const double s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  std::printf("[ TIMING   ] Test Connection to a silent server: %.3f s: %s\n", s, result->text().toStdString().c_str());
+  EXPECT_TRUE(result->text().contains("within the timeout of 2 s")) << result->text().toStdString();
+  EXPECT_LT(s, 6.0);
   ::close(listener);
 }
 

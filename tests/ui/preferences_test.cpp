@@ -33,6 +33,11 @@ TEST(Preferences, RoundTripThroughQSettings) {
   p.pacs.port = 11112;
   p.pacs.called_aet = "HOSPITAL";
   p.pacs.calling_aet = "WORKSTATION7";
+  p.pacs.timeout_s = 45;
+  p.pacs.tls = true;
+  p.pacs.ca_cert = "/etc/pki/hospital-ca.pem";
+  p.pacs.client_cert = "/home/u/ws7.pem";
+  p.pacs.client_key = "/home/u/ws7.key";
   {
     QSettings s(file, QSettings::IniFormat);
     p.save(s);
@@ -45,6 +50,10 @@ TEST(Preferences, RoundTripThroughQSettings) {
   EXPECT_EQ(back.surface, QColor(200, 100, 50));
   EXPECT_EQ(back.pacs.describe(), "HOSPITAL at pacs.example.org:11112");
   EXPECT_EQ(back.pacs.calling_aet, "WORKSTATION7");
+  EXPECT_EQ(back.pacs.timeout_s, 45);
+  EXPECT_TRUE(back.pacs.tls);
+  EXPECT_EQ(back.pacs.ca_cert, "/etc/pki/hospital-ca.pem");
+  EXPECT_EQ(back.pacs.client_key, "/home/u/ws7.key");
 }
 
 TEST(Preferences, MissingOrInvalidEntriesKeepTheDefaults) {
@@ -54,6 +63,7 @@ TEST(Preferences, MissingOrInvalidEntriesKeepTheDefaults) {
   s.setValue("preferences/haptics/linear_stiffness_N_per_m", -5.0);
   s.setValue("preferences/view/mode", 42);
   s.setValue("preferences/pacs/port", 70000);
+  s.setValue("preferences/pacs/timeout_s", 0);
   const Preferences p = Preferences::load(s);
   const Preferences defaults;
   EXPECT_EQ(p.surface, defaults.surface);

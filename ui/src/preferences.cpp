@@ -55,6 +55,12 @@ Preferences Preferences::load(QSettings& s) {
   if (port >= 1 && port <= 65535) p.pacs.port = port;
   p.pacs.called_aet = s.value("pacs/called_aet", QString::fromStdString(p.pacs.called_aet)).toString().toStdString();
   p.pacs.calling_aet = s.value("pacs/calling_aet", QString::fromStdString(p.pacs.calling_aet)).toString().toStdString();
+  const int timeout = s.value("pacs/timeout_s", p.pacs.timeout_s).toInt();
+  if (timeout >= 1 && timeout <= 3600) p.pacs.timeout_s = timeout;
+  p.pacs.tls = s.value("pacs/tls", p.pacs.tls).toBool();
+  p.pacs.ca_cert = s.value("pacs/ca_cert").toString().toStdString();
+  p.pacs.client_cert = s.value("pacs/client_cert").toString().toStdString();
+  p.pacs.client_key = s.value("pacs/client_key").toString().toStdString();
   s.endGroup();
   return p;
 }
@@ -81,6 +87,11 @@ void Preferences::save(QSettings& s) const {
   s.setValue("pacs/port", pacs.port);
   s.setValue("pacs/called_aet", QString::fromStdString(pacs.called_aet));
   s.setValue("pacs/calling_aet", QString::fromStdString(pacs.calling_aet));
+  s.setValue("pacs/timeout_s", pacs.timeout_s);
+  s.setValue("pacs/tls", pacs.tls);
+  s.setValue("pacs/ca_cert", QString::fromStdString(pacs.ca_cert));
+  s.setValue("pacs/client_cert", QString::fromStdString(pacs.client_cert));
+  s.setValue("pacs/client_key", QString::fromStdString(pacs.client_key));
   s.endGroup();
 }
 

@@ -32,9 +32,20 @@ void addServerOptions(CLI::App* cmd, PacsArgs& a) {
   cmd->add_option("--calling-aet", a.server.calling_aet,
                   "Our AE title, as the PACS knows it (it must be configured there for find and get)")
       ->capture_default_str();
-  cmd->add_option("--timeout", a.server.connect_timeout_s, "Longest wait for the connection and association [s]")
+  cmd->add_option("--timeout", a.server.timeout_s,
+                  "Longest an echo or a query may take in all, and a retrieval for each next file [s]; "
+                  "past it the connection is cut off")
       ->capture_default_str()
       ->check(CLI::Range(1, 3600));
+  cmd->add_flag("--tls", a.server.tls, "DICOM TLS (PS3.15 Annex B, TLS 1.2 or later) instead of plain TCP");
+  cmd->add_option("--ca-cert", a.server.ca_cert,
+                  "With --tls: PEM file of the CA certificate the server's certificate must verify against "
+                  "(it must also name --host)")
+      ->check(CLI::ExistingFile);
+  cmd->add_option("--cert", a.server.client_cert, "With --tls: PEM file of our certificate, for a server that asks for one")
+      ->check(CLI::ExistingFile);
+  cmd->add_option("--key", a.server.client_key, "With --tls: PEM file of our certificate's private key (unencrypted)")
+      ->check(CLI::ExistingFile);
 }
 
 /// Tab-separated, one line per study and per series, for scripts: level, UID, study UID,

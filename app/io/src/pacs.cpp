@@ -19,6 +19,7 @@
 #include <dcmtk/dcmnet/scu.h>
 #include <dcmtk/oflog/oflog.h>
 
+#include "pacs_transport.h"
 #include "vh/io/private_files.h"
 
 namespace vh::io {
@@ -35,6 +36,9 @@ constexpr Uint16 kStatusPendingWarning = 0xFF01;
 constexpr Uint16 kStatusStoreOutOfResources = 0xA700;
 // A C-GET ending "with one or more failures or warnings" (PS3.4 C.4.3.1.4).
 constexpr Uint16 kStatusGetWarning = 0xB000;
+
+/// How much longer than the operation's timeout DCMTK's per-PDU timeouts are [s].
+constexpr int kDcmtkBackstopS = 5;
 
 /// dcmnet's console log off (its messages would reach stderr; PacsError says what failed).
 void initDcmtk() {
@@ -70,6 +74,9 @@ void checkServer(const PacsServer& s) {
   };
   check_aet(s.called_aet, "the called (server's)");
   check_aet(s.calling_aet, "the calling (our)");
+  if (s.timeout_s < 1 || s.timeout_s > 3600) {
+    throw fail(s, "timeout " + std::to_string(s.timeout_s) + " s is not in 1..3600 s");
+  }
 }
 
 std::string text(DcmItem* ds, const DcmTagKey& tag) {
@@ -89,22 +96,32 @@ int number(DcmItem* ds, const DcmTagKey& tag) {
   }
 }
 
+/// What an association travels through: the operation's deadline and the transport layers.
+/// Scu's first base, so that it is made before and destroyed after the DcmSCU that uses it.
+struct ScuTransport {
+  explicit ScuTransport(const PacsServer& server) : watchdog(server.timeout_s) {}
+  pacs_detail::Watchdog watchdog;  // started now: the deadline counts from the operation's start
+  std::unique_ptr<DcmTLSTransportLayer> tls;
+  std::unique_ptr<pacs_detail::WatchedTransportLayer> layer;
+};
+
 /// Our DcmSCU: an association to `server`, and for C-GET the files written as they come.
-class Scu : public DcmSCU {
+class Scu : private ScuTransport, public DcmSCU {
  public:
-  explicit Scu(const PacsServer& server) : server_(server) {
+  explicit Scu(const PacsServer& server) : ScuTransport(server), server_(server) {
     initDcmtk();
     checkServer(server);
     setAETitle(trim(server.calling_aet).c_str());
     setPeerAETitle(trim(server.called_aet).c_str());
     setPeerHostName(trim(server.host).c_str());
     setPeerPort(static_cast<Uint16>(server.port));
-    const int connect_s = std::max(1, server.connect_timeout_s);
-    // A process-wide DCMTK setting (the TCP connection's timeout): every association sets it.
-    setConnectionTimeout(connect_s);
-    setACSETimeout(static_cast<Uint32>(connect_s));
+    // The watchdog bounds the whole operation. DCMTK's own timeouts bound each PDU, and restart
+    // with the next: they are a backstop here, longer, so that the watchdog's error is the one
+    // given. The TCP connection's is a process-wide DCMTK setting: every association sets it.
+    setConnectionTimeout(server.timeout_s);
+    setACSETimeout(static_cast<Uint32>(server.timeout_s + kDcmtkBackstopS));
     setDIMSEBlockingMode(DIMSE_NONBLOCKING);
-    setDIMSETimeout(static_cast<Uint32>(std::max(1, server.response_timeout_s)));
+    setDIMSETimeout(static_cast<Uint32>(server.timeout_s + kDcmtkBackstopS));
     setVerbosePCMode(OFFalse);
   }
   ~Scu() override {
@@ -127,24 +144,34 @@ class Scu : public DcmSCU {
   void connect() {
     OFCondition cond = initNetwork();
     if (cond.bad()) throw fail(server_, std::string("cannot start the network: ") + cond.text());
+    if (server_.tls) tls = pacs_detail::makeTlsLayer(server_);
+    layer = std::make_unique<pacs_detail::WatchedTransportLayer>(watchdog, tls.get());
+    cond = useSecureConnection(layer.get());
+    if (cond.bad()) throw fail(server_, std::string("cannot set up the connection: ") + cond.text());
     cond = negotiateAssociation();
     if (cond.good()) return;
     const std::string why = cond.text();
+    if (watchdog.expired() || (cond.module() == OFM_dcmnet && cond.code() == DULC_READTIMEOUT)) {
+      throw fail(server_, "no complete answer to the association request within the timeout of " +
+                              std::to_string(server_.timeout_s) + " s" +
+                              (watchdog.expired() ? " (the connection was cut off)" : "") +
+                              ": is a DICOM server listening on that port, and is it not overloaded?");
+    }
+    if (server_.tls) throwTlsFailure(cond);
     if (cond == DUL_ASSOCIATIONREJECTED) {
       throw fail(server_, "the server rejected the association (" + why + "): check the called AE title '" +
                               trim(server_.called_aet) + "' and that the server knows the calling AE title '" +
                               trim(server_.calling_aet) + "'");
-    }
-    if (cond.module() == OFM_dcmnet && cond.code() == DULC_READTIMEOUT) {
-      throw fail(server_, "no answer to the association request within " +
-                              std::to_string(std::max(1, server_.connect_timeout_s)) + " s (" + why +
-                              "): is a DICOM server listening on that port?");
     }
     if (cond.module() == OFM_dcmnet && (cond.code() == DULC_UNRECOGNIZEDPDUTYPE || cond.code() == DULC_ILLEGALPDU)) {
       throw fail(server_, "what answers on that port is not a DICOM server (" + why + ")");
     }
     if (cond == NET_EC_NoAcceptablePresentationContexts) {
       throw fail(server_, "the server accepts none of the services asked for (" + why + ")");
+    }
+    if (cond == DUL_PEERABORTEDASSOCIATION) {
+      throw fail(server_, "the server closed the connection at once (" + why +
+                              "): does it expect DICOM TLS on that port?");
     }
     throw fail(server_, "no connection (" + why + "): is the server running on that host and port?");
   }
@@ -159,6 +186,27 @@ class Scu : public DcmSCU {
   /// Ends the association politely (a failed release is no error: the work is done).
   void release() {
     if (isConnected()) releaseAssociation();
+  }
+
+  /// Throws why a TLS association failed when it is TLS that failed: the server's certificate, or
+  /// the handshake (a server that does not speak TLS on that port).
+  void throwTlsFailure(const OFCondition& cond) const {
+    const std::string problem = pacs_detail::lastCertificateProblem();
+    if (!problem.empty()) {
+      throw fail(server_, "DICOM TLS: the server's certificate was refused: " + problem + ", checked against the CA '" +
+                              server_.ca_cert + "' for the host name '" + trim(server_.host) + "'");
+    }
+    if (cond.module() == OFM_dcmtls) {
+      throw fail(server_, std::string("DICOM TLS: the handshake failed (") + cond.text() +
+                              "): does the server speak DICOM TLS on that port, and accept our certificate?");
+    }
+  }
+
+  /// Throws the timeout error when the deadline passed (`what` stopped by it, e.g. "C-FIND").
+  void throwIfTimedOut(const std::string& what) const {
+    if (!watchdog.expired()) return;
+    throw fail(server_, what + " did not finish within the timeout of " + std::to_string(server_.timeout_s) +
+                            " s, so the connection was cut off: is the server or the network very slow?");
   }
 
   // ---- C-GET ----
@@ -209,6 +257,7 @@ class Scu : public DcmSCU {
     }
     if (std::find(files_.begin(), files_.end(), path) == files_.end()) files_.push_back(path);
     store_status = kStatusSuccess;
+    watchdog.restart();  // a retrieval's deadline is for the next file
     progress_.received = static_cast<int>(files_.size());
     progress_.last_file = path;
     if (options_->progress) options_->progress(progress_);
@@ -226,6 +275,7 @@ class Scu : public DcmSCU {
     failed_ = std::max(failed_, static_cast<int>(response->m_numberOfFailedSubops));
     if (status == kStatusPending || status == kStatusPendingWarning) {
       saw_pending_ = true;
+      watchdog.restart();
       const int total = static_cast<int>(response->m_numberOfCompletedSubops + response->m_numberOfFailedSubops +
                                          response->m_numberOfWarningSubops + response->m_numberOfRemainingSubops);
       if (progress_.total < 0 && total > 0) progress_.total = total;
@@ -303,6 +353,7 @@ std::vector<std::unique_ptr<DcmDataset>> find(const PacsServer& server, DcmDatas
       final_status = r->m_status;
     }
   }
+  if (cond.bad()) scu.throwIfTimedOut("C-FIND");
   if (cond.bad()) throw fail(server, "C-FIND failed: " + why(cond, server));
   if (!final_seen) throw fail(server, "C-FIND failed: the server sent no final response");
   if (final_status != kStatusSuccess) {
@@ -336,6 +387,20 @@ void seriesKeys(DcmDataset& keys, const std::string& study_uid, const std::strin
   keys.putAndInsertString(DCM_NumberOfSeriesRelatedInstances, "");
 }
 
+/// A retrieval stopped on purpose: the server ended the C-GET (status Cancel), or we stop
+/// listening (abort); the files received are deleted.
+void endCancelled(Scu& scu, PacsRetrieveResult& result) {
+  if (scu.finalReceived()) {
+    result.cancel_acknowledged = scu.finalStatus() == kStatusCancel;
+    scu.release();
+  } else {
+    scu.abortAssociation();
+  }
+  std::error_code ec;
+  for (const fs::path& f : scu.files()) fs::remove(f, ec);
+  result.cancelled = true;
+}
+
 }  // namespace
 
 std::string PacsServer::describe() const {
@@ -348,6 +413,7 @@ void pacsEcho(const PacsServer& server) {
   scu.connect();
   const T_ASC_PresentationContextID id = scu.contextFor(UID_VerificationSOPClass, "verification (C-ECHO)");
   const OFCondition cond = scu.sendECHORequest(id);
+  if (cond.bad()) scu.throwIfTimedOut("C-ECHO");
   if (cond.bad()) throw fail(server, std::string("C-ECHO failed: ") + cond.text());
   scu.release();
 }
@@ -468,17 +534,8 @@ PacsRetrieveResult pacsRetrieveSeries(const PacsServer& server, const std::strin
   PacsRetrieveResult result;
   result.folder = out_dir;
   result.failed = scu.failedSubops();
-  const bool cancelled = scu.cancelRequested() && (scu.cancelSent() || !scu.finalReceived());
-  if (cancelled) {
-    // Stopped on purpose: the server ended the C-GET (status Cancel) or we stop listening.
-    if (scu.finalReceived()) {
-      result.cancel_acknowledged = scu.finalStatus() == kStatusCancel;
-      scu.release();
-    } else {
-      scu.abortAssociation();
-    }
-    for (const fs::path& f : scu.files()) fs::remove(f, ec);
-    result.cancelled = true;
+  if (scu.cancelRequested() && (scu.cancelSent() || !scu.finalReceived())) {
+    endCancelled(scu, result);
     result.seconds = std::chrono::duration<double>(Clock::now() - t0).count();
     return result;
   }
@@ -491,6 +548,7 @@ PacsRetrieveResult pacsRetrieveSeries(const PacsServer& server, const std::strin
   }
   if (cond.bad()) {
     remove_files();
+    scu.throwIfTimedOut("C-GET of series " + series + " (" + std::to_string(scu.files().size()) + " files so far)");
     throw fail(server, "C-GET of series " + series + " failed after " + std::to_string(scu.files().size()) +
                            " files: " + why(cond, server));
   }

@@ -3,15 +3,22 @@
 # tree on free ports, holding the shared small CT head. ctest runs `start` as a FIXTURES_SETUP
 # test and `stop` as its FIXTURES_CLEANUP test, so Orthanc is killed even when a test fails.
 #
-#   pacs_orthanc_fixture.sh start STATE_DIR DATASET_DIR [ORTHANC] [STORESCU]
+#   pacs_orthanc_fixture.sh start STATE_DIR DATASET_DIR [ORTHANC] [STORESCU] [tls]
 #   pacs_orthanc_fixture.sh stop STATE_DIR
+#
+# With `tls`, Orthanc's DICOM port speaks DICOM TLS only ("DicomTlsEnabled", Orthanc >= 1.9.0):
+# the openssl command makes a throwaway CA, a server certificate it signs for localhost and
+# 127.0.0.1, a client certificate, and a second, unrelated CA, in STATE_DIR/tls; the dataset is
+# then stored through Orthanc's REST API (curl), as storescu would need TLS itself: its first
+# four files, enough for a study to find.
 #
 # STATE_DIR receives orthanc.json (its own configuration: storage in STATE_DIR/db, HTTP on the
 # loopback only, no authentication, the tests' AE titles as known modalities), orthanc.log, and
 # fixture.env, which the tests read:
 #   status=ready|unavailable  reason=...  (unavailable: Orthanc or the dataset is absent; the
 #   tests then skip, saying why) host=127.0.0.1 dicom_port=N http_port=N aet=VHPACS
-#   client_aet=VHTEST instances=93 dataset=DATASET_DIR pid=N
+#   client_aet=VHTEST instances=93 dataset=DATASET_DIR pid=N; with tls also ca_cert=,
+#   other_ca_cert=, client_cert=, client_key= (PEM files).
 # The dataset is stored with DCMTK's storescu (C-STORE), independently of the code under test.
 set -uo pipefail
 
@@ -50,7 +57,7 @@ unavailable() {
 case "$mode" in
   stop)
     stop_orthanc
-    rm -rf "$state/db"
+    rm -rf "$state/db" "$state/tls"
     [[ -d $state ]] && printf 'status=unavailable\nreason=the test PACS was stopped (run the tests through ctest)\n' >"$env_file"
     echo "orthanc fixture: stopped"
     exit 0
@@ -62,16 +69,51 @@ esac
 dataset="${3:-}"
 orthanc="${4:-}"; [[ -n $orthanc ]] || orthanc="$(command -v Orthanc || echo /usr/sbin/Orthanc)"
 storescu="${5:-}"; [[ -n $storescu ]] || storescu="$(command -v storescu || true)"
+tls="${6:-}"
 mkdir -p "$state"
 stop_orthanc  # a previous run's server, if its cleanup never ran
-rm -rf "$state/db" "$env_file"
+rm -rf "$state/db" "$state/tls" "$env_file"
 
 [[ -x $orthanc ]] || unavailable "Orthanc is not installed (Debian package orthanc; packaging/setup.sh test installs it)"
 [[ -x $storescu ]] || unavailable "storescu is not installed (Debian package dcmtk; packaging/setup.sh test installs it)"
 command -v curl >/dev/null || unavailable "curl is not installed (packaging/setup.sh test installs it)"
 [[ -d $dataset ]] || unavailable "shared dataset missing: $dataset"
-instances=$(find "$dataset" -maxdepth 1 -type f -name '*.dcm' | wc -l)
-((instances > 0)) || unavailable "no .dcm files in $dataset"
+mapfile -t files < <(find "$dataset" -maxdepth 1 -type f -name '*.dcm' | sort)
+((${#files[@]} > 0)) || unavailable "no .dcm files in $dataset"
+[[ ${6:-} == tls ]] && files=("${files[@]:0:4}")
+instances=${#files[@]}
+
+tls_config=""
+if [[ $tls == tls ]]; then
+  command -v openssl >/dev/null || unavailable "the openssl command is not installed (Debian package openssl)"
+  version="$("$orthanc" --version 2>/dev/null | sed -n '1s/^[^ ]* \([0-9.]*\).*/\1/p')"  # "PATH 1.10.1"
+  [[ -n $version && $(printf '%s\n1.9.0\n' "$version" | sort -V | head -n 1) == 1.9.0 ]] ||
+    unavailable "Orthanc ${version:-?} has no DICOM TLS (it needs 1.9.0 or later)"
+  t="$state/tls"; mkdir -p "$t"
+  # A CA, a server certificate it signs (for the names the tests connect to), a client one, and
+  # a second CA that signed nothing here. Throwaway keys: two days, no passphrase.
+  make_ca() {
+    openssl req -x509 -newkey rsa:2048 -nodes -days 2 -keyout "$t/$1.key" -out "$t/$1.crt" -subj "/CN=$2" \
+      -addext basicConstraints=critical,CA:TRUE -addext keyUsage=critical,keyCertSign,cRLSign
+  }
+  sign() {  # name, common name, extensions
+    openssl req -newkey rsa:2048 -nodes -keyout "$t/$1.key" -out "$t/$1.csr" -subj "/CN=$2" &&
+      printf '%s\n' "$3" >"$t/$1.ext" &&
+      openssl x509 -req -in "$t/$1.csr" -CA "$t/ca.crt" -CAkey "$t/ca.key" -CAcreateserial -days 2 \
+        -extfile "$t/$1.ext" -out "$t/$1.crt"
+  }
+  if ! { make_ca ca "VolumeHaptics test CA" && make_ca other-ca "Another test CA" &&
+         sign server localhost $'subjectAltName=DNS:localhost,IP:127.0.0.1\nextendedKeyUsage=serverAuth' &&
+         sign client "$kClientAet" "extendedKeyUsage=clientAuth"; } >"$t/openssl.log" 2>&1; then
+    echo "orthanc fixture: openssl failed:" >&2; cat "$t/openssl.log" >&2; exit 1
+  fi
+  tls_config="
+  \"DicomTlsEnabled\" : true,
+  \"DicomTlsCertificate\" : \"$t/server.crt\",
+  \"DicomTlsPrivateKey\" : \"$t/server.key\",
+  \"DicomTlsTrustedCertificates\" : \"$t/ca.crt\",
+  \"DicomTlsRemoteCertificateRequired\" : false,"
+fi
 
 started=""
 for attempt in 1 2 3 4 5 6 7 8; do
@@ -92,7 +134,7 @@ for attempt in 1 2 3 4 5 6 7 8; do
   "AuthenticationEnabled" : false,
   "SslEnabled" : false,
   "HttpThreadsCount" : 4,
-  "DicomServerEnabled" : true,
+  "DicomServerEnabled" : true,$tls_config
   "DicomAet" : "$kPacsAet",
   "DicomPort" : $dicom_port,
   "DicomCheckCalledAet" : true,
@@ -133,7 +175,12 @@ done
 [[ -n $started ]] || { echo "orthanc fixture: Orthanc would not start; see $state/orthanc.log" >&2; exit 1; }
 
 t0_us=${EPOCHREALTIME/./}
-if ! "$storescu" -aet "$kStoreAet" -aec "$kPacsAet" --no-halt 127.0.0.1 "$dicom_port" "$dataset"/*.dcm \
+if [[ $tls == tls ]]; then
+  for f in "${files[@]}"; do
+    curl -s --fail --max-time 10 -X POST --data-binary "@$f" "http://127.0.0.1:$http_port/instances" \
+      >>"$state/store.log" 2>&1 || { echo "orthanc fixture: storing $f over HTTP failed" >&2; stop_orthanc; exit 1; }
+  done
+elif ! "$storescu" -aet "$kStoreAet" -aec "$kPacsAet" --no-halt 127.0.0.1 "$dicom_port" "$dataset"/*.dcm \
      >"$state/storescu.log" 2>&1; then
   echo "orthanc fixture: storescu failed:" >&2; tail -n 20 "$state/storescu.log" >&2
   stop_orthanc; exit 1
@@ -144,8 +191,8 @@ if [[ $stored != "$instances" ]]; then
   stop_orthanc; exit 1
 fi
 store_ms=$(( (${EPOCHREALTIME/./} - t0_us) / 1000 ))
-echo "orthanc fixture: Orthanc $(cat "$pid_file") on DICOM port $dicom_port, HTTP port $http_port;" \
-  "stored $stored instances with storescu in $store_ms ms"
+echo "orthanc fixture: Orthanc $(cat "$pid_file") on DICOM${tls:+ TLS} port $dicom_port, HTTP port $http_port;" \
+  "stored $stored instances in $store_ms ms"
 cat >"$env_file" <<EOF
 status=ready
 host=127.0.0.1
@@ -157,3 +204,7 @@ instances=$stored
 dataset=$dataset
 pid=$(cat "$pid_file")
 EOF
+if [[ $tls == tls ]]; then
+  printf 'ca_cert=%s\nother_ca_cert=%s\nclient_cert=%s\nclient_key=%s\n' \
+    "$state/tls/ca.crt" "$state/tls/other-ca.crt" "$state/tls/client.crt" "$state/tls/client.key" >>"$env_file"
+fi

@@ -6,7 +6,9 @@
 #include <thread>
 #include <system_error>
 
+#include <QCheckBox>
 #include <QDialogButtonBox>
+#include <QFileDialog>
 #include <QFormLayout>
 #include <QHBoxLayout>
 #include <QHeaderView>
@@ -165,6 +167,15 @@ PacsSettingsDialog::PacsSettingsDialog(const io::PacsServer& server, QWidget* pa
   form->addRow("Port:", port_);
   form->addRow("Server's AE title (called):", called_);
   form->addRow("Our AE title (calling):", calling_);
+  timeout_ = new QSpinBox;
+  timeout_->setObjectName("pacsTimeout");
+  timeout_->setRange(1, 3600);
+  timeout_->setSuffix(" s");
+  timeout_->setValue(server.timeout_s);
+  timeout_->setToolTip("The longest a test or a search may take in all, and a retrieval for each next file; "
+                       "past it the connection is cut off.");
+  form->addRow("Timeout:", timeout_);
+  addTlsRows(*form, server);
   auto* hint = new QLabel("The server must know our AE title, with this computer's address, to answer queries and "
                           "retrievals (C-FIND, C-GET).");
   hint->setWordWrap(true);
@@ -208,6 +219,37 @@ PacsSettingsDialog::PacsSettingsDialog(const io::PacsServer& server, QWidget* pa
   layout->addWidget(buttons);
 }
 
+void PacsSettingsDialog::addTlsRows(QFormLayout& form, const io::PacsServer& server) {
+  tls_ = new QCheckBox("DICOM TLS (the server's certificate checked against the CA)");
+  tls_->setObjectName("pacsTls");
+  tls_->setChecked(server.tls);
+  form.addRow("Security:", tls_);
+  const auto file_row = [&](QLineEdit*& edit, const std::string& value, const char* name, const QString& label,
+                            const QString& filter) {
+    edit = new QLineEdit(q(value));
+    edit->setObjectName(name);
+    auto* browse = new QPushButton("Browse...");
+    connect(browse, &QPushButton::clicked, this, [this, edit, label, filter] {
+      const QString file = QFileDialog::getOpenFileName(this, label, edit->text(), filter);
+      if (!file.isEmpty()) edit->setText(file);
+    });
+    auto* row = new QHBoxLayout;
+    row->addWidget(edit, 1);
+    row->addWidget(browse);
+    form.addRow(label + ":", row);
+    const auto enable = [edit, browse](bool on) {
+      edit->setEnabled(on);
+      browse->setEnabled(on);
+    };
+    enable(server.tls);
+    connect(tls_, &QCheckBox::toggled, this, enable);
+  };
+  const QString pem = "PEM files (*.pem *.crt *.cer *.key);;All files (*)";
+  file_row(ca_cert_, server.ca_cert, "pacsCaCert", "CA certificate", pem);
+  file_row(client_cert_, server.client_cert, "pacsClientCert", "Our certificate (optional)", pem);
+  file_row(client_key_, server.client_key, "pacsClientKey", "Our private key (optional)", pem);
+}
+
 PacsSettingsDialog::~PacsSettingsDialog() { mailbox_->close(); }
 
 io::PacsServer PacsSettingsDialog::server() const {
@@ -216,6 +258,11 @@ io::PacsServer PacsSettingsDialog::server() const {
   s.port = port_->value();
   s.called_aet = called_->text().trimmed().toStdString();
   s.calling_aet = calling_->text().trimmed().toStdString();
+  s.timeout_s = timeout_->value();
+  s.tls = tls_->isChecked();
+  s.ca_cert = ca_cert_->text().trimmed().toStdString();
+  s.client_cert = client_cert_->text().trimmed().toStdString();
+  s.client_key = client_key_->text().trimmed().toStdString();
   return s;
 }
 

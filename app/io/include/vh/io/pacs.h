@@ -6,8 +6,8 @@
 /// server to call back as C-MOVE would). The protocol is DCMTK's dcmnet (DcmSCU); nothing of it
 /// is reimplemented here, and no DCMTK header is in this one.
 ///
-/// Every call opens its own association and closes it before returning; calls may run on any
-/// thread, several at once. Errors are PacsError exceptions naming the server ("VHPACS at
+/// Every call opens its own association and closes it before returning, within
+/// PacsServer::timeout_s; calls may run on any thread, several at once. Errors are PacsError exceptions naming the server ("VHPACS at
 /// 127.0.0.1:4242") and what failed; nothing here crashes on a server's answer.
 
 #include <atomic>
@@ -25,11 +25,19 @@ struct PacsServer {
   int port = 104;                          ///< Its DICOM port, 1..65535 (104 is DICOM's own; Orthanc uses 4242).
   std::string called_aet = "ORTHANC";      ///< The server's AE title (at most 16 characters).
   std::string calling_aet = "VOLUMEHAPTICS";  ///< Ours, as the server knows it (at most 16 characters).
-  /// The longest wait for the TCP connection and the association's answer [s]: a host that
-  /// does not answer fails after this long.
-  int connect_timeout_s = 10;
-  /// The longest silence within an association (between two messages) [s].
-  int response_timeout_s = 30;
+  /// The longest an operation may take [s], 1..3600: an echo or a query from connecting to its
+  /// last answer; a retrieval until its first file and then from one file to the next (a large
+  /// series may take longer in all). It bounds the whole time, not each wait for the next bytes,
+  /// so a server that answers a byte at a time is cut off all the same.
+  int timeout_s = 30;
+
+  /// DICOM TLS (PS3.15 Annex B, BCP 195 profile: TLS 1.2 or later) instead of plain TCP. The
+  /// server's certificate must verify against `ca_cert` and name `host` (as a DNS name, or as an
+  /// IP address when `host` is one).
+  bool tls = false;
+  std::string ca_cert;      ///< PEM file of the CA certificate(s) trusted for the server's; required with `tls`.
+  std::string client_cert;  ///< PEM file of our certificate, for a server that asks for one (with `client_key`).
+  std::string client_key;   ///< PEM file of its private key (unencrypted); both or neither.
 
   /// "CALLED at HOST:PORT", how messages name the server.
   std::string describe() const;
@@ -84,7 +92,10 @@ struct PacsStudyQuery {
 };
 
 /// Checks that the server answers: an association and a C-ECHO.
-/// @throws PacsError when there is no connection, the association is rejected or the echo fails.
+/// @throws PacsError when there is no connection, the association is rejected or the echo fails;
+///   when it takes longer than `server.timeout_s` ("... within the timeout of 30 s"); with TLS,
+///   when the server's certificate does not verify (the message says why, e.g. "unable to get
+///   local issuer certificate") or the server does not speak TLS.
 void pacsEcho(const PacsServer& server);
 
 /// The studies matching `query` (C-FIND at STUDY level, Study Root model), with their patient.

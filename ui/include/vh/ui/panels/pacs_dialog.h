@@ -5,7 +5,7 @@
 /// patients > studies > series from C-FIND, one series retrieved by C-GET into the cache with a
 /// progress dialog and Cancel). Every network call runs on a thread of its own, never on the GUI
 /// thread; the dialogs only show what comes back, and closing one never waits for the network (a
-/// call still running ends on its own, bounded by the server's timeouts; a retrieval is cancelled). The retrieved folder is then opened as any
+/// call still running ends on its own, within the server settings' timeout; a retrieval is cancelled). The retrieved folder is then opened as any
 /// DICOM folder (SceneOpener::openPath()).
 
 #include <atomic>
@@ -20,6 +20,8 @@
 
 #include "vh/io/pacs.h"
 
+class QCheckBox;
+class QFormLayout;
 class QLabel;
 class QLineEdit;
 class QProgressDialog;
@@ -33,8 +35,9 @@ namespace vh::ui {
 
 class PacsMailbox;  // how the network threads hand their results back (pacs_dialog.cpp)
 
-/// The PACS settings: host, port, called AE title (the server's), calling AE title (ours), and a
-/// Test button (C-ECHO, off the GUI thread) that says whether the server answers.
+/// The PACS settings: host, port, called AE title (the server's), calling AE title (ours), the
+/// timeout, DICOM TLS with its CA certificate (and ours with its key, for a server that asks for
+/// one), and a Test button (C-ECHO, off the GUI thread) that says whether the server answers.
 class PacsSettingsDialog : public QDialog {
   Q_OBJECT
 
@@ -46,10 +49,18 @@ class PacsSettingsDialog : public QDialog {
   io::PacsServer server() const;
 
  private:
+  /// The rows of DICOM TLS: the switch and the three files, each with a Browse button.
+  void addTlsRows(QFormLayout& form, const io::PacsServer& server);
+
   QLineEdit* host_;
   QSpinBox* port_;
   QLineEdit* called_;
   QLineEdit* calling_;
+  QSpinBox* timeout_;
+  QCheckBox* tls_;
+  QLineEdit* ca_cert_;
+  QLineEdit* client_cert_;
+  QLineEdit* client_key_;
   QLabel* test_result_;
   bool testing_ = false;
   io::PacsServer base_;
