@@ -29,7 +29,7 @@ while (($#)); do
     *) targets+=("$1"); shift ;;
   esac
 done
-((${#targets[@]})) || targets=(dicom nrrd metaimage nifti mesh scene trajectory recording spacemouse falcon)
+((${#targets[@]})) || targets=(dicom nrrd metaimage nifti mesh seg rtstruct pacs_response igtl scene trajectory recording spacemouse falcon)
 
 table="$build/fuzz-campaign.md"
 rows=()

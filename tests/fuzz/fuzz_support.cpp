@@ -8,7 +8,12 @@
 #include <unistd.h>
 
 #if VH_FUZZ_WITH_VTK
+#include <memory>
+#include <vector>
+
 #include <vtkLogger.h>
+
+#include "vh/haptics/scalar_volume.h"
 #endif
 
 namespace vh::fuzz {
@@ -70,5 +75,20 @@ void quietVtk() {
   vtkLogger::SetStderrVerbosity(vtkLogger::VERBOSITY_OFF);
 #endif
 }
+
+#if VH_FUZZ_WITH_VTK
+vh::io::LoadedVolume smallScan() {
+  haptics::VolumeGeometry g;
+  g.dims = {16, 16, 4};
+  g.spacing_m = Eigen::Vector3d(1e-3, 1e-3, 1e-3);
+  const std::vector<std::int16_t> voxels(g.voxelCount(), 0);
+  auto field = std::make_shared<const haptics::ScalarVolume>(haptics::ScalarVolume::FromVoxels(g, voxels));
+  vh::io::LoadedVolume scan;
+  scan.image = vh::io::imageFromField(field);
+  scan.field = std::move(field);
+  scan.info.source = "fuzz-scan";
+  return scan;
+}
+#endif
 
 }  // namespace vh::fuzz

@@ -9,6 +9,10 @@
 #include <filesystem>
 #include <string>
 
+#if VH_FUZZ_WITH_VTK
+#include "vh/io/volume_loader.h"
+#endif
+
 namespace vh::fuzz {
 
 /// This process's own temporary folder: /dev/shm/vh-fuzz-PID (in memory) when /dev/shm is
@@ -31,5 +35,12 @@ void expected(const std::exception& e);
 /// Keeps VTK's logger off stderr (the readers' own errors are captured by vh::io and thrown as
 /// LoadError; what VTK logs besides is noise at thousands of runs per second).
 void quietVtk();
+
+#if VH_FUZZ_WITH_VTK
+/// The scan the segmentation targets place a SEG or RT Structure Set on: 16 x 16 x 4 int16
+/// voxels (all 0) of 1 mm, voxel (0, 0, 0) at the origin, axes along L, P, S, without DICOM UIDs
+/// (so matched by position only), the grid of the seeds make_corpus.py writes.
+vh::io::LoadedVolume smallScan();
+#endif
 
 }  // namespace vh::fuzz

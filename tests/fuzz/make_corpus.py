@@ -295,6 +295,240 @@ def device_seeds():
     out("falcon", "status-junk-split", transfer(b"xx<AB" + status((1500, 1500, 1500), 3, 5)[:9]) +
         transfer(status((1500, 1500, 1500), 3, 5)[9:] + status((-2000, 0, 2000))))
 
+# ---- DICOM written here (explicit VR little endian unless said otherwise) ---------------------
+# Minimal SEG, RT Structure Set and C-FIND response datasets on the fuzz targets' scan
+# (fuzz_support.h smallScan(): 16 x 16 x 4 voxels of 1 mm from the origin, axes along L, P, S).
+LONG_VRS = {"OB", "OW", "OF", "SQ", "UN", "UT", "UC", "UR", "OD", "OL"}
+
+
+def dcm_value(vr, value):
+    if vr == "SQ":
+        return b"".join(dcm_item(i) for i in value)
+    if vr == "US":
+        return struct.pack("<%dH" % len(value), *value) if isinstance(value, (list, tuple)) else struct.pack("<H", value)
+    if vr == "UL":
+        return struct.pack("<%dI" % len(value), *value) if isinstance(value, (list, tuple)) else struct.pack("<I", value)
+    if isinstance(value, bytes):
+        return value + (b"\0" if len(value) % 2 else b"")
+    b = value.encode()
+    if len(b) % 2:
+        b += b"\0" if vr == "UI" else b" "
+    return b
+
+
+def dcm_element(tag, vr, value, big=False):
+    group, element = tag
+    v = dcm_value(vr, value)
+    e = ">" if big else "<"
+    head = struct.pack(e + "HH", group, element) + vr.encode()
+    if vr in LONG_VRS:
+        return head + b"\0\0" + struct.pack(e + "I", len(v)) + v
+    return head + struct.pack(e + "H", len(v)) + v
+
+
+def dcm_elements(elements):
+    return b"".join(dcm_element(*el) for el in sorted(elements, key=lambda el: el[0]))
+
+
+def dcm_item(elements):
+    body = dcm_elements(elements)
+    return struct.pack("<HHI", 0xFFFE, 0xE000, len(body)) + body
+
+
+def dcm_implicit(elements):
+    """Implicit VR little endian (the default transfer syntax of a C-FIND response)."""
+    out = b""
+    for (group, element), vr, value in sorted(elements, key=lambda el: el[0]):
+        v = dcm_value(vr, value)
+        out += struct.pack("<HHI", group, element, len(v)) + v
+    return out
+
+
+def dcm_file(sop_class, sop_instance, elements):
+    meta_rest = dcm_elements([
+        ((0x0002, 0x0001), "OB", b"\0\1"),
+        ((0x0002, 0x0002), "UI", sop_class),
+        ((0x0002, 0x0003), "UI", sop_instance),
+        ((0x0002, 0x0010), "UI", "1.2.840.10008.1.2.1"),
+        ((0x0002, 0x0012), "UI", "1.2.826.0.1.3680043.9.7433.1"),
+    ])
+    meta = dcm_element((0x0002, 0x0000), "UL", len(meta_rest)) + meta_rest
+    return b"\0" * 128 + b"DICM" + meta + dcm_elements(elements)
+
+
+UID = "1.2.826.0.1.3680043.9.7433.2."
+
+
+def dcm_common(modality, sop_class, n):
+    return [
+        ((0x0008, 0x0016), "UI", sop_class), ((0x0008, 0x0018), "UI", UID + "%d.1" % n),
+        ((0x0008, 0x0020), "DA", "20260101"), ((0x0008, 0x0030), "TM", "120000"),
+        ((0x0008, 0x0050), "SH", ""), ((0x0008, 0x0060), "CS", modality),
+        ((0x0008, 0x0070), "LO", "VolumeHaptics"), ((0x0008, 0x0090), "PN", ""),
+        ((0x0010, 0x0010), "PN", "Fuzz^Seed"), ((0x0010, 0x0020), "LO", "VH-FUZZ"),
+        ((0x0010, 0x0030), "DA", ""), ((0x0010, 0x0040), "CS", ""),
+        ((0x0020, 0x000D), "UI", UID + "1"), ((0x0020, 0x000E), "UI", UID + "%d.2" % n),
+        ((0x0020, 0x0010), "SH", ""), ((0x0020, 0x0011), "IS", str(n)),
+    ]
+
+
+def code(value, meaning, scheme="SCT"):
+    return [[((0x0008, 0x0100), "SH", value), ((0x0008, 0x0102), "SH", scheme), ((0x0008, 0x0104), "LO", meaning)]]
+
+
+def seg_seed(name, fractional=False, overlap=False):
+    """Two segments on 16 x 16 frames at z = 0..3 mm: a square per slice (BINARY: 1 bit a pixel,
+    frames packed back to back; FRACTIONAL: a byte a pixel, maximum 255)."""
+    rows = cols = 16
+    frames = []  # (segment, z, inside(c, r))
+    for z in range(4):
+        frames.append((1, z, lambda c, r: 4 <= c < 12 and 4 <= r < 12))
+    for z in (1, 2):
+        frames.append((2, z, (lambda c, r: 6 <= c < 14 and 2 <= r < 8) if overlap else (lambda c, r: c < 3 and r < 3)))
+    bits = []
+    for _, _, inside in frames:
+        bits += [inside(c, r) for r in range(rows) for c in range(cols)]
+    if fractional:
+        pixels = bytes(255 if b else 0 for b in bits)
+    else:
+        pixels = bytearray((len(bits) + 7) // 8)
+        for n, b in enumerate(bits):
+            if b:
+                pixels[n >> 3] |= 1 << (n & 7)
+        pixels = bytes(pixels)
+    segments = [[((0x0062, 0x0003), "SQ", code("91723000", "Anatomical Structure")),
+                 ((0x0062, 0x0004), "US", k), ((0x0062, 0x0005), "LO", label),
+                 ((0x0062, 0x0008), "CS", "MANUAL"), ((0x0062, 0x000D), "US", lab),
+                 ((0x0062, 0x000F), "SQ", code(type_code, type_meaning))]
+                for k, label, lab, type_code, type_meaning in
+                ((1, "Square", [21169, 53249, 46135], "39607008", "Lung"),
+                 (2, "Corner", [54534, 20018, 50563], "80891009", "Heart"))]
+    per_frame = [[((0x0020, 0x9111), "SQ", [[((0x0020, 0x9157), "UL", [k, z + 1])]]),
+                  ((0x0020, 0x9113), "SQ", [[((0x0020, 0x0032), "DS", "0\\0\\%d" % z)]]),
+                  ((0x0062, 0x000A), "SQ", [[((0x0062, 0x000B), "US", k)]])]
+                 for k, z, _ in frames]
+    shared = [[((0x0020, 0x9116), "SQ", [[((0x0020, 0x0037), "DS", "1\\0\\0\\0\\1\\0")]]),
+               ((0x0028, 0x9110), "SQ", [[((0x0018, 0x0050), "DS", "1"), ((0x0018, 0x0088), "DS", "1"),
+                                          ((0x0028, 0x0030), "DS", "1\\1")]])]]
+    seg_class = "1.2.840.10008.5.1.4.1.1.66.4"
+    el = dcm_common("SEG", seg_class, 7) + [
+        ((0x0008, 0x0023), "DA", "20260101"), ((0x0008, 0x0033), "TM", "120000"),
+        ((0x0008, 0x1090), "LO", "fuzz"), ((0x0018, 0x1000), "LO", "1"), ((0x0018, 0x1020), "LO", "1"),
+        ((0x0020, 0x0013), "IS", "1"), ((0x0020, 0x0052), "UI", UID + "9"),
+        ((0x0020, 0x1040), "LO", ""),
+        ((0x0020, 0x9221), "SQ", [[((0x0020, 0x9164), "UI", UID + "10")]]),
+        ((0x0020, 0x9222), "SQ", [[((0x0020, 0x9164), "UI", UID + "10"), ((0x0020, 0x9165), "AT", struct.pack("<HH", 0x0062, 0x000B)),
+                                   ((0x0020, 0x9167), "AT", struct.pack("<HH", 0x0062, 0x000A))],
+                                  [((0x0020, 0x9164), "UI", UID + "10"), ((0x0020, 0x9165), "AT", struct.pack("<HH", 0x0020, 0x0032)),
+                                   ((0x0020, 0x9167), "AT", struct.pack("<HH", 0x0020, 0x9113))]]),
+        ((0x0028, 0x0002), "US", 1), ((0x0028, 0x0004), "CS", "MONOCHROME2"),
+        ((0x0028, 0x0008), "IS", str(len(frames))), ((0x0028, 0x0010), "US", rows), ((0x0028, 0x0011), "US", cols),
+        ((0x0028, 0x0100), "US", 8 if fractional else 1), ((0x0028, 0x0101), "US", 8 if fractional else 1),
+        ((0x0028, 0x0102), "US", 7 if fractional else 0), ((0x0028, 0x0103), "US", 0),
+        ((0x0028, 0x2110), "CS", "00"),
+        ((0x0062, 0x0001), "CS", "FRACTIONAL" if fractional else "BINARY"),
+        ((0x0062, 0x0002), "SQ", segments),
+        ((0x0070, 0x0080), "CS", "FUZZ"), ((0x0070, 0x0081), "LO", ""), ((0x0070, 0x0084), "PN", ""),
+        ((0x5200, 0x9229), "SQ", shared), ((0x5200, 0x9230), "SQ", per_frame),
+        ((0x7FE0, 0x0010), "OB", pixels if len(pixels) % 2 == 0 else pixels + b"\0"),
+    ]
+    if fractional:
+        el += [((0x0062, 0x000E), "US", 255), ((0x0062, 0x0010), "CS", "PROBABILITY")]
+    out("seg", name, b"\0" + dcm_file(seg_class, UID + "7.1", el))
+    out("seg", name + "-on-scan", b"\1" + dcm_file(seg_class, UID + "7.1", el))
+
+
+def square(x0, y0, x1, y1, z):
+    return "\\".join("%g\\%g\\%g" % (x, y, z) for x, y in ((x0, y0), (x1, y0), (x1, y1), (x0, y1)))
+
+
+def rtstruct_seeds():
+    rt_class = "1.2.840.10008.5.1.4.1.1.481.3"
+    rois = [((1, "Box", "255\\0\\0"), [("CLOSED_PLANAR", square(3, 3, 12, 12, z)) for z in range(4)] +
+             [("CLOSED_PLANAR", square(6, 6, 9, 9, 2))]),
+            ((2, "Marker", None), [("POINT", "8\\8\\1")]),
+            ((3, "Line", "0\\255\\0"), [("OPEN_PLANAR", "1\\1\\0\\14\\14\\0"),
+                                           ("CLOSED_PLANAR", square(1, 10, 5, 14, 3))])]
+    el = dcm_common("RTSTRUCT", rt_class, 8) + [
+        ((0x3006, 0x0002), "SH", "fuzz"), ((0x3006, 0x0008), "DA", "20260101"), ((0x3006, 0x0009), "TM", "120000"),
+        ((0x3006, 0x0010), "SQ", [[((0x0020, 0x0052), "UI", UID + "9"),
+                                   ((0x3006, 0x0012), "SQ", [[((0x0008, 0x1150), "UI", "1.2.840.10008.3.1.2.3.1"),
+                                                              ((0x0008, 0x1155), "UI", UID + "1"),
+                                                              ((0x3006, 0x0014), "SQ", [[((0x0020, 0x000E), "UI", UID + "3.2")]])]])]]),
+        ((0x3006, 0x0020), "SQ", [[((0x3006, 0x0022), "IS", str(n)), ((0x3006, 0x0024), "UI", UID + "9"),
+                                   ((0x3006, 0x0026), "LO", name), ((0x3006, 0x0036), "CS", "MANUAL")]
+                                  for (n, name, _), _ in rois]),
+        ((0x3006, 0x0039), "SQ", [[((0x3006, 0x0084), "IS", str(n))] +
+                                  ([((0x3006, 0x002A), "IS", color)] if color else []) +
+                                  [((0x3006, 0x0040), "SQ", [[((0x3006, 0x0042), "CS", kind),
+                                                              ((0x3006, 0x0046), "IS", str(len(data.split("\\")) // 3)),
+                                                              ((0x3006, 0x0048), "IS", str(c + 1)),
+                                                              ((0x3006, 0x0050), "DS", data)]
+                                                             for c, (kind, data) in enumerate(contours)])]
+                                  for (n, _, color), contours in rois]),
+        ((0x3006, 0x0080), "SQ", [[((0x3006, 0x0082), "IS", str(n)), ((0x3006, 0x0084), "IS", str(n)),
+                                   ((0x3006, 0x00A4), "CS", "ORGAN"), ((0x3006, 0x00A6), "PN", "")]
+                                  for (n, _, _), _ in rois]),
+    ]
+    out("rtstruct", "three-rois.dcm", dcm_file(rt_class, UID + "8.1", el))
+
+
+def pacs_seeds():
+    study = [((0x0008, 0x0005), "CS", "ISO_IR 100"), ((0x0008, 0x0020), "DA", "20260101"),
+             ((0x0008, 0x0030), "TM", "120000.5"), ((0x0008, 0x0050), "SH", "ACC1"),
+             ((0x0008, 0x0052), "CS", "STUDY"), ((0x0008, 0x0061), "CS", "CT\\SEG"),
+             ((0x0008, 0x1030), "LO", "Head"), ((0x0010, 0x0010), "PN", "Fuzz^Seed"),
+             ((0x0010, 0x0020), "LO", "VH-FUZZ"), ((0x0010, 0x0030), "DA", "19700101"),
+             ((0x0010, 0x0040), "CS", "O"), ((0x0020, 0x000D), "UI", UID + "1"),
+             ((0x0020, 0x1206), "IS", "2")]
+    series = [((0x0008, 0x0052), "CS", "SERIES"), ((0x0008, 0x0060), "CS", "CT"),
+              ((0x0008, 0x103E), "LO", "Axial 1 mm"), ((0x0020, 0x000D), "UI", UID + "1"),
+              ((0x0020, 0x000E), "UI", UID + "3.2"), ((0x0020, 0x0011), "IS", "3"),
+              ((0x0020, 0x1209), "IS", "93")]
+    out("pacs_response", "study-implicit", b"\0" + dcm_implicit(study))
+    out("pacs_response", "series-implicit", b"\0" + dcm_implicit(series))
+    out("pacs_response", "study-explicit", b"\1" + dcm_elements(study))
+    out("pacs_response", "series-explicit-bad-numbers", b"\1" + dcm_elements(
+        [el for el in series if el[0] not in ((0x0020, 0x0011), (0x0020, 0x1209))] +
+        [((0x0020, 0x0011), "IS", " -4 "), ((0x0020, 0x1209), "IS", "1e9")]))
+
+
+def igtl_message(msg_type, name, body, version=1):
+    header = struct.pack(">H12s20sQQQ", version, msg_type.encode(), name.encode(), 0, len(body), 0)
+    return header, body
+
+
+def igtl_image_body(dims, scalar_type, voxels, endian=2, coord=1, components=1):
+    """An IMAGE content (version-1 image header of 72 bytes, then the voxels): unit axes,
+    spacing 1 mm, centre 0; endian 1 big, 2 little; coordinates 1 RAS, 2 LPS."""
+    head = struct.pack(">HBBBB3H", 1, components, scalar_type, endian, coord, *dims)
+    axes = [1, 0, 0, 0, 1, 0, 0, 0, 1]
+    head += struct.pack(">12f", *(axes + [0, 0, 0]))
+    head += struct.pack(">3H3H", 0, 0, 0, *dims)
+    return head + voxels
+
+
+def igtl_seeds():
+    # Mode byte 3: body size and CRC-64 set by the target (fuzz_igtl.cpp).
+    dims = (4, 3, 2)
+    n = dims[0] * dims[1] * dims[2]
+    uint8 = igtl_image_body(dims, 3, bytes(range(n)))
+    int16_be = igtl_image_body(dims, 4, struct.pack(">%dh" % n, *range(-n, n, 2)), endian=1, coord=2)
+    float64 = igtl_image_body(dims, 11, struct.pack("<%dd" % n, *[0.5 * i for i in range(n)]))
+    for name, body in (("image-uint8-ras", uint8), ("image-int16-bigendian-lps", int16_be),
+                       ("image-float64", float64)):
+        header, body = igtl_message("IMAGE", name, body)
+        out("igtl", name, b"\3" + header + body)
+    # Header version 2: extended header (12 bytes: its size, metadata header size, metadata size,
+    # message id), the content, metadata (index entry: key size 2, encoding 2, value size 4).
+    meta_header = struct.pack(">H", 1) + struct.pack(">HHI", 3, 3, 2)
+    meta = b"key" + b"ok"
+    ext = struct.pack(">HHII", 12, len(meta_header), len(meta), 7)
+    header, body = igtl_message("IMAGE", "image-v2-metadata", ext + uint8 + meta_header + meta, version=2)
+    out("igtl", "image-v2-metadata", b"\3" + header + body)
+    header, body = igtl_message("TRANSFORM", "other-type", bytes(48))
+    out("igtl", "transform", b"\3" + header + body)
+
 
 def main():
     ap = argparse.ArgumentParser()
@@ -312,6 +546,11 @@ def main():
     trajectory_seeds(a.trajectory)
     recording_seeds(a.recording)
     device_seeds()
+    seg_seed("binary-two-segments")
+    seg_seed("fractional-overlapping", fractional=True, overlap=True)
+    rtstruct_seeds()
+    pacs_seeds()
+    igtl_seeds()
 
 
 if __name__ == "__main__":

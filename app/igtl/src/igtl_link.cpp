@@ -10,6 +10,8 @@
 // packed and unpacked (CRC included) by libOpenIGTLink.
 #include "vh/igtl/igtl_link.h"
 
+#include "igtl_message.h"
+
 #include <arpa/inet.h>
 #include <netinet/in.h>
 #include <netinet/tcp.h>
@@ -48,7 +50,8 @@ namespace vh::igtl {
 
 namespace {
 
-constexpr std::size_t kHeaderSize = IGTL_HEADER_SIZE;  // 58 bytes
+using detail::kHeaderSize;  // 58 bytes
+static_assert(kHeaderSize == IGTL_HEADER_SIZE);
 constexpr std::size_t kImageHeaderSize = 72;            // IGTL_IMAGE_HEADER_SIZE, version 1
 constexpr std::size_t kExtendedHeaderSize = 12;         // header version 2 (protocol 3)
 /// Unsent bytes beyond which a frame is skipped (about 8 frames): the client is not reading, and
@@ -485,6 +488,107 @@ bool imageIjkToRas_mm(::igtl::ImageMessage& image, const int (&dims)[3], Eigen::
 
 }  // namespace
 
+// ---- Incoming messages (igtl_message.h) ----------------------------------------------------
+
+namespace detail {
+
+MessageHeaderFields parseMessageHeader(const HeaderBytes& header) {
+  MessageHeaderFields f;
+  f.version = static_cast<std::uint16_t>(readBigEndian(header.data(), 2));
+  f.type = fixedString(header.data() + 2, 12);
+  f.device_name = fixedString(header.data() + 14, 20);
+  f.timestamp = readBigEndian(header.data() + 34, 8);
+  f.body_size = readBigEndian(header.data() + 42, 8);
+  f.crc = readBigEndian(header.data() + 50, 8);
+  return f;
+}
+
+namespace {
+
+[[noreturn]] void refuse(const std::string& why) { throw std::invalid_argument(why); }
+
+/// The content of an IMAGE body (the image header and voxels) and the version-1 header that
+/// libOpenIGTLink 1.11 reads with it: for header version 2 (protocol 3: extended header,
+/// content, metadata) the CRC is checked over the whole body here and the header rewritten to
+/// version 1 with the content's size and CRC.
+std::pair<const unsigned char*, std::uint64_t> imageContent(const HeaderBytes& header,
+                                                            const std::vector<unsigned char>& body,
+                                                            HeaderBytes& v1_header) {
+  const MessageHeaderFields fields = parseMessageHeader(header);
+  v1_header = header;
+  if (fields.version == 1) return {body.data(), body.size()};
+  if (fields.version != 2) refuse("unknown header version " + std::to_string(fields.version));
+  if (body.size() < kExtendedHeaderSize) refuse("body shorter than its extended header");
+  const std::uint64_t crc = crc64(const_cast<unsigned char*>(body.data()), body.size(), 0ULL);
+  if (crc != fields.crc) refuse("CRC mismatch");
+  const std::uint64_t ext = readBigEndian(body.data(), 2);
+  const std::uint64_t meta_header = readBigEndian(body.data() + 2, 2);
+  const std::uint64_t meta = readBigEndian(body.data() + 4, 4);
+  if (ext < kExtendedHeaderSize || ext + meta_header + meta > body.size()) {
+    refuse("extended header sizes exceed the body");
+  }
+  const unsigned char* content = body.data() + ext;
+  const std::uint64_t content_size = body.size() - ext - meta_header - meta;
+  writeBigEndian(v1_header.data(), 2, 1);
+  writeBigEndian(v1_header.data() + 42, 8, content_size);
+  writeBigEndian(v1_header.data() + 50, 8, crc64(const_cast<unsigned char*>(content), content_size, 0ULL));
+  return {content, content_size};
+}
+
+}  // namespace
+
+io::LoadedVolume decodeImageMessage(const HeaderBytes& header, const std::vector<unsigned char>& body) {
+  HeaderBytes v1_header{};
+  const auto [content, content_size] = imageContent(header, body, v1_header);
+  if (content_size < kImageHeaderSize) refuse("body shorter than the image header");
+  ::igtl::MessageHeader::Pointer igtl_header = ::igtl::MessageHeader::New();
+  igtl_header->InitPack();
+  std::memcpy(igtl_header->GetPackPointer(), v1_header.data(), kHeaderSize);
+  igtl_header->Unpack();
+  ::igtl::ImageMessage::Pointer image = ::igtl::ImageMessage::New();
+  image->SetMessageHeader(igtl_header);
+  image->AllocatePack();
+  if (static_cast<std::uint64_t>(image->GetPackBodySize()) != content_size) refuse("body size mismatch");
+  std::memcpy(image->GetPackBodyPointer(), content, content_size);
+  if (!(image->Unpack(1) & ::igtl::MessageHeader::UNPACK_BODY)) refuse("CRC mismatch or unknown image header version");
+  int dims[3], sub_dims[3], sub_off[3];
+  image->GetDimensions(dims);
+  image->GetSubVolume(sub_dims, sub_off);
+  if (image->GetNumComponents() != 1) {
+    refuse(std::to_string(image->GetNumComponents()) + " components (only scalar volumes)");
+  }
+  for (int a = 0; a < 3; ++a) {
+    if (dims[a] < 2) {
+      refuse(std::to_string(dims[0]) + " x " + std::to_string(dims[1]) + " x " + std::to_string(dims[2]) +
+             " voxels (at least 2 along every axis)");
+    }
+    if (sub_dims[a] != dims[a] || sub_off[a] != 0) refuse("a sub-volume (only whole volumes)");
+  }
+  const int type = image->GetScalarType();
+  const std::uint64_t scalar_size = scalarSize(type);
+  if (scalar_size == 0) refuse("unknown scalar type " + std::to_string(type));
+  const std::uint64_t count =
+      static_cast<std::uint64_t>(dims[0]) * static_cast<std::uint64_t>(dims[1]) * static_cast<std::uint64_t>(dims[2]);
+  if (kImageHeaderSize + count * scalar_size != content_size) {
+    refuse(std::to_string(content_size - kImageHeaderSize) + " bytes of voxels, expected " +
+           std::to_string(count * scalar_size));
+  }
+  auto* voxels = static_cast<unsigned char*>(image->GetScalarPointer());
+  const bool little_host = igtl_is_little_endian() != 0;
+  const bool little_data = image->GetEndian() == ::igtl::ImageMessage::ENDIAN_LITTLE;
+  if (scalar_size > 1 && little_host != little_data) {
+    for (std::uint64_t i = 0; i < count; ++i) std::reverse(voxels + i * scalar_size, voxels + (i + 1) * scalar_size);
+  }
+  Eigen::Matrix4d X;
+  if (!imageIjkToRas_mm(*image, dims, X)) refuse("a zero or non-finite axis");
+  std::vector<std::byte> bytes;
+  const haptics::VoxelType voxel_type = convertVoxels(type, voxels, static_cast<std::size_t>(count), bytes);
+  return volumeFromIjkToRas({dims[0], dims[1], dims[2]}, X, voxel_type, std::move(bytes),
+                            escapeControl(fixedString(header.data() + 14, 20)));
+}
+
+}  // namespace detail
+
 void IgtlLink::closeClient(const std::string& why) {
   Impl& m = *impl_;
   if (m.client_fd < 0) return;
@@ -579,81 +683,10 @@ void IgtlLink::sendFrame() {
 
 void IgtlLink::handleImage() {
   Impl& m = *impl_;
-  const std::uint16_t version = static_cast<std::uint16_t>(readBigEndian(m.header.data(), 2));
   const std::string name = escapeControl(fixedString(m.header.data() + 14, 20));
-  std::array<unsigned char, kHeaderSize> v1_header = m.header;
-  const unsigned char* content = m.body.data();
-  std::uint64_t content_size = m.body.size();
-  if (version == 2) {
-    // Header version 2 (protocol 3): extended header, content, metadata. libOpenIGTLink 1.11
-    // knows version 1 only: check the CRC over the whole body here, then hand it the content.
-    if (m.body.size() < kExtendedHeaderSize) return reject("IMAGE '" + name + "': body shorter than its extended header");
-    const std::uint64_t crc = crc64(m.body.data(), m.body.size(), 0ULL);
-    if (crc != readBigEndian(m.header.data() + 50, 8)) return reject("IMAGE '" + name + "': CRC mismatch");
-    const std::uint64_t ext = readBigEndian(m.body.data(), 2);
-    const std::uint64_t meta_header = readBigEndian(m.body.data() + 2, 2);
-    const std::uint64_t meta = readBigEndian(m.body.data() + 4, 4);
-    if (ext < kExtendedHeaderSize || ext + meta_header + meta > m.body.size()) {
-      return reject("IMAGE '" + name + "': extended header sizes exceed the body");
-    }
-    content = m.body.data() + ext;
-    content_size = m.body.size() - ext - meta_header - meta;
-    writeBigEndian(v1_header.data(), 2, 1);
-    writeBigEndian(v1_header.data() + 42, 8, content_size);
-    writeBigEndian(v1_header.data() + 50, 8, crc64(const_cast<unsigned char*>(content), content_size, 0ULL));
-  } else if (version != 1) {
-    return reject("IMAGE '" + name + "': unknown header version " + std::to_string(version));
-  }
-  if (content_size < kImageHeaderSize) return reject("IMAGE '" + name + "': body shorter than the image header");
-  ::igtl::MessageHeader::Pointer header = ::igtl::MessageHeader::New();
-  header->InitPack();
-  std::memcpy(header->GetPackPointer(), v1_header.data(), kHeaderSize);
-  header->Unpack();
-  ::igtl::ImageMessage::Pointer image = ::igtl::ImageMessage::New();
-  image->SetMessageHeader(header);
-  image->AllocatePack();
-  if (static_cast<std::uint64_t>(image->GetPackBodySize()) != content_size) {
-    return reject("IMAGE '" + name + "': body size mismatch");
-  }
-  std::memcpy(image->GetPackBodyPointer(), content, content_size);
-  if (!(image->Unpack(1) & ::igtl::MessageHeader::UNPACK_BODY)) {
-    return reject("IMAGE '" + name + "': CRC mismatch or unknown image header version");
-  }
-  int dims[3], sub_dims[3], sub_off[3];
-  image->GetDimensions(dims);
-  image->GetSubVolume(sub_dims, sub_off);
-  if (image->GetNumComponents() != 1) {
-    return reject("IMAGE '" + name + "': " + std::to_string(image->GetNumComponents()) + " components (only scalar volumes)");
-  }
-  for (int a = 0; a < 3; ++a) {
-    if (dims[a] < 2) {
-      return reject("IMAGE '" + name + "': " + std::to_string(dims[0]) + " x " + std::to_string(dims[1]) + " x " +
-                    std::to_string(dims[2]) + " voxels (at least 2 along every axis)");
-    }
-    if (sub_dims[a] != dims[a] || sub_off[a] != 0) return reject("IMAGE '" + name + "': a sub-volume (only whole volumes)");
-  }
-  const int type = image->GetScalarType();
-  const std::uint64_t scalar_size = scalarSize(type);
-  if (scalar_size == 0) return reject("IMAGE '" + name + "': unknown scalar type " + std::to_string(type));
-  const std::uint64_t count =
-      static_cast<std::uint64_t>(dims[0]) * static_cast<std::uint64_t>(dims[1]) * static_cast<std::uint64_t>(dims[2]);
-  if (kImageHeaderSize + count * scalar_size != content_size) {
-    return reject("IMAGE '" + name + "': " + std::to_string(content_size - kImageHeaderSize) + " bytes of voxels, expected " +
-                  std::to_string(count * scalar_size));
-  }
-  auto* voxels = static_cast<unsigned char*>(image->GetScalarPointer());
-  const bool little_host = igtl_is_little_endian() != 0;
-  const bool little_data = image->GetEndian() == ::igtl::ImageMessage::ENDIAN_LITTLE;
-  if (scalar_size > 1 && little_host != little_data) {
-    for (std::uint64_t i = 0; i < count; ++i) std::reverse(voxels + i * scalar_size, voxels + (i + 1) * scalar_size);
-  }
-  Eigen::Matrix4d X;
-  if (!imageIjkToRas_mm(*image, dims, X)) return reject("IMAGE '" + name + "': a zero or non-finite axis");
   try {
-    std::vector<std::byte> bytes;
-    const haptics::VoxelType voxel_type = convertVoxels(type, voxels, static_cast<std::size_t>(count), bytes);
-    io::LoadedVolume volume =
-        volumeFromIjkToRas({dims[0], dims[1], dims[2]}, X, voxel_type, std::move(bytes), name);
+    io::LoadedVolume volume = detail::decodeImageMessage(m.header, m.body);
+    const std::array<int, 3> dims = volume.field->geometry().dims;
     notice("OpenIGTLink: received volume '" + name + "' (" + std::to_string(dims[0]) + " x " + std::to_string(dims[1]) +
            " x " + std::to_string(dims[2]) + ") from " + m.peer);
     const std::lock_guard<std::mutex> lock(mutex_);
@@ -666,9 +699,10 @@ void IgtlLink::handleImage() {
 
 bool IgtlLink::startMessage() {
   Impl& m = *impl_;
-  m.body_size = readBigEndian(m.header.data() + 42, 8);
-  const std::string type = escapeControl(fixedString(m.header.data() + 2, 12));
-  const std::string what = type + " '" + escapeControl(fixedString(m.header.data() + 14, 20)) + "'";
+  const detail::MessageHeaderFields fields = detail::parseMessageHeader(m.header);
+  m.body_size = fields.body_size;
+  const std::string type = escapeControl(fields.type);
+  const std::string what = type + " '" + escapeControl(fields.device_name) + "'";
   m.header_got = 0;
   if (m.body_size > options_.max_message_bytes) {
     reject(what + ": body of " + std::to_string(m.body_size) + " bytes exceeds the limit of " +

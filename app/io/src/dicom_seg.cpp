@@ -255,7 +255,7 @@ std::string sopClassName(const std::string& uid) {
 
 std::string mediaStorageSopClassUid(const fs::path& path) noexcept {
   try {
-    if (!hasDicomPreamble(path)) return {};
+    if (!hasDicomPreamble(path) || dicomNestingDepth(path, kMaxDicomNesting) > kMaxDicomNesting) return {};
     initDcmtk();
     DcmFileFormat file;  // the meta header only
     if (file.loadFile(path.c_str(), EXS_Unknown, EGL_noChange, DCM_MaxReadLength, ERM_metaOnly).bad()) return {};
@@ -287,6 +287,11 @@ void loadDicomFile(const fs::path& path, const std::string& kind, DcmFileFormat&
   if (!fs::is_regular_file(path, ec)) fail(path, "not " + kind + ": not a file");
   if (!dcmDataDict.isDictionaryLoaded()) {
     fail(path, "DCMTK's DICOM dictionary is not loaded (dicom.dic of libdcmtk17; see DCMDICTPATH)");
+  }
+  const std::size_t depth = dicomNestingDepth(path, kMaxDicomNesting);
+  if (depth > kMaxDicomNesting) {
+    fail(path, "a damaged DICOM file: its sequences nest more than " + std::to_string(kMaxDicomNesting) +
+                   " levels deep (real files nest a few), which the DICOM parser cannot read safely");
   }
   const OFCondition loaded = file.loadFile(path.c_str());
   if (loaded.bad() || file.getDataset() == nullptr) {

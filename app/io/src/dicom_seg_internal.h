@@ -98,10 +98,25 @@ std::string mediaStorageSopClassUid(const fs::path& path) noexcept;
 /// "CTImageStorage (1.2.840.10008.5.1.4.1.1.2)", or the UID alone when DCMTK does not know it.
 std::string sopClassName(const std::string& uid);
 
+/// Deepest nesting of sequences that the SEG and RT Structure Set readers let DCMTK parse. Real
+/// files nest a few levels (a SEG's functional groups: 3; an RT Structure Set's references: 4);
+/// DCMTK 3.6.7 parses nested sequences by recursion without a limit, and tens of thousands of
+/// levels overflow its stack (a crash, not an error).
+inline constexpr std::size_t kMaxDicomNesting = 128;
+
+/// How deep the sequences of the DICOM file `path` nest (0: none; 1: a sequence at the top
+/// level; ...), found by walking its element headers without DCMTK (dicom_nesting.cpp), in its
+/// meta information and data set; the walk stops once the depth exceeds `limit` (and returns
+/// limit + 1), at the end of the file, or where the encoding cannot be followed (DCMTK stops
+/// there too). Errs towards counting more levels than DCMTK would parse; a deflated data set is
+/// not walked. Never throws but std::bad_alloc; 0 for a file that cannot be opened.
+std::size_t dicomNestingDepth(const fs::path& path, std::size_t limit);
+
 /// Reads the whole DICOM file `path` into `file` with DCMTK (its log off, the RLE decoder
 /// registered), for the SEG and RT Structure Set readers; `kind` names what the file should be
 /// ("a DICOM SEG") in the error for a path that is no file. Afterwards file.getDataset() is set.
-/// @throws LoadError naming `path`: no such file, not a file, DCMTK's dictionary not loaded, or a
+/// @throws LoadError naming `path`: no such file, not a file, DCMTK's dictionary not loaded,
+///         sequences nested deeper than kMaxDicomNesting (checked before DCMTK parses), or a
 ///         damaged, cut short or non-DICOM file (with DCMTK's reason).
 void loadDicomFile(const fs::path& path, const std::string& kind, DcmFileFormat& file);
 

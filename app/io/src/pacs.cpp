@@ -19,6 +19,7 @@
 #include <dcmtk/dcmnet/scu.h>
 #include <dcmtk/oflog/oflog.h>
 
+#include "pacs_internal.h"
 #include "pacs_transport.h"
 #include "vh/io/private_files.h"
 
@@ -363,17 +364,6 @@ std::vector<std::unique_ptr<DcmDataset>> find(const PacsServer& server, DcmDatas
   return matches;
 }
 
-PacsSeries seriesFrom(DcmDataset* ds) {
-  PacsSeries s;
-  s.study_uid = text(ds, DCM_StudyInstanceUID);
-  s.series_uid = text(ds, DCM_SeriesInstanceUID);
-  s.modality = text(ds, DCM_Modality);
-  s.description = text(ds, DCM_SeriesDescription);
-  s.number = number(ds, DCM_SeriesNumber);
-  s.instance_count = number(ds, DCM_NumberOfSeriesRelatedInstances);
-  return s;
-}
-
 /// The keys of a SERIES-level query: what we want back, `study_uid` / `series_uid` / `modality`
 /// as matching keys when not empty.
 void seriesKeys(DcmDataset& keys, const std::string& study_uid, const std::string& series_uid,
@@ -402,6 +392,37 @@ void endCancelled(Scu& scu, PacsRetrieveResult& result) {
 }
 
 }  // namespace
+
+namespace detail {
+
+PacsStudy studyFromResponse(DcmItem* ds) {
+  PacsStudy s;
+  s.patient_name = text(ds, DCM_PatientName);
+  s.patient_id = text(ds, DCM_PatientID);
+  s.patient_birth_date = text(ds, DCM_PatientBirthDate);
+  s.patient_sex = text(ds, DCM_PatientSex);
+  s.study_uid = text(ds, DCM_StudyInstanceUID);
+  s.study_date = text(ds, DCM_StudyDate);
+  s.study_time = text(ds, DCM_StudyTime);
+  s.description = text(ds, DCM_StudyDescription);
+  s.accession_number = text(ds, DCM_AccessionNumber);
+  s.modalities = text(ds, DCM_ModalitiesInStudy);
+  s.series_count = number(ds, DCM_NumberOfStudyRelatedSeries);
+  return s;
+}
+
+PacsSeries seriesFromResponse(DcmItem* ds) {
+  PacsSeries s;
+  s.study_uid = text(ds, DCM_StudyInstanceUID);
+  s.series_uid = text(ds, DCM_SeriesInstanceUID);
+  s.modality = text(ds, DCM_Modality);
+  s.description = text(ds, DCM_SeriesDescription);
+  s.number = number(ds, DCM_SeriesNumber);
+  s.instance_count = number(ds, DCM_NumberOfSeriesRelatedInstances);
+  return s;
+}
+
+}  // namespace detail
 
 std::string PacsServer::describe() const {
   return trim(called_aet) + " at " + trim(host) + ":" + std::to_string(port);
@@ -434,18 +455,7 @@ std::vector<PacsStudy> pacsFindStudies(const PacsServer& server, const PacsStudy
   keys.putAndInsertString(DCM_NumberOfStudyRelatedSeries, "");
   std::vector<PacsStudy> studies;
   for (const auto& ds : find(server, keys)) {
-    PacsStudy s;
-    s.patient_name = text(ds.get(), DCM_PatientName);
-    s.patient_id = text(ds.get(), DCM_PatientID);
-    s.patient_birth_date = text(ds.get(), DCM_PatientBirthDate);
-    s.patient_sex = text(ds.get(), DCM_PatientSex);
-    s.study_uid = text(ds.get(), DCM_StudyInstanceUID);
-    s.study_date = text(ds.get(), DCM_StudyDate);
-    s.study_time = text(ds.get(), DCM_StudyTime);
-    s.description = text(ds.get(), DCM_StudyDescription);
-    s.accession_number = text(ds.get(), DCM_AccessionNumber);
-    s.modalities = text(ds.get(), DCM_ModalitiesInStudy);
-    s.series_count = number(ds.get(), DCM_NumberOfStudyRelatedSeries);
+    PacsStudy s = detail::studyFromResponse(ds.get());
     if (!s.study_uid.empty()) studies.push_back(std::move(s));
   }
   return studies;
@@ -458,7 +468,7 @@ std::vector<PacsSeries> pacsFindSeries(const PacsServer& server, const std::stri
   seriesKeys(keys, trim(study_uid), "", trim(modality));
   std::vector<PacsSeries> series;
   for (const auto& ds : find(server, keys)) {
-    PacsSeries s = seriesFrom(ds.get());
+    PacsSeries s = detail::seriesFromResponse(ds.get());
     if (s.study_uid.empty()) s.study_uid = trim(study_uid);
     if (!s.series_uid.empty()) series.push_back(std::move(s));
   }
@@ -471,7 +481,7 @@ PacsSeries pacsFindSeriesByUid(const PacsServer& server, const std::string& seri
   DcmDataset keys;
   seriesKeys(keys, "", trim(series_uid), "");
   for (const auto& ds : find(server, keys)) {
-    PacsSeries s = seriesFrom(ds.get());
+    PacsSeries s = detail::seriesFromResponse(ds.get());
     if (s.series_uid == trim(series_uid) && !s.study_uid.empty()) return s;
   }
   throw fail(server, "no series with Series Instance UID " + trim(series_uid));

@@ -7,6 +7,7 @@
 #include <algorithm>
 #include <cstdint>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "dicom_seg_fixtures.h"
@@ -251,6 +252,83 @@ TEST(DicomSeg, ASegOpenedAsAScanNamesItselfAndPointsToOpenSegmentation) {
       EXPECT_EQ(e.find("same position"), std::string::npos) << e;
     }
   }
+}
+
+// ---- sequences nested too deep ---------------------------------------------------------------
+
+/// A little-endian value of `bytes` bytes.
+std::string le(std::uint32_t v, int bytes) {
+  std::string s;
+  for (int i = 0; i < bytes; ++i) s += static_cast<char>((v >> (8 * i)) & 0xff);
+  return s;
+}
+
+/// Explicit VR little endian element with a 2-byte length (PS3.5 7.1.2).
+std::string shortElement(std::uint16_t group, std::uint16_t element, const char* vr, std::string value) {
+  if (value.size() % 2 != 0) value += '\0';
+  return le(group, 2) + le(element, 2) + vr + le(static_cast<std::uint32_t>(value.size()), 2) + value;
+}
+
+/// A SEG-class DICOM file (preamble, meta information, SOP Class UID) holding `levels` nested
+/// sequences of undefined length: Content Sequence (0040,A730) > item > Content Sequence ...,
+/// explicit or implicit VR, each closed by its delimiters or (cut_short) left open at the end
+/// of the file; or, with in_meta, nested in a group-0002 element of the meta information.
+std::string nestedSeg(std::size_t levels, bool explicit_vr, bool cut_short, bool in_meta) {
+  const std::string sop = kSegmentationStorageUid;
+  const char* syntax = explicit_vr ? "1.2.840.10008.1.2.1" : "1.2.840.10008.1.2";
+  const std::string undefined = le(0xFFFFFFFFu, 4);
+  const std::string open_item = le(0xFFFE, 2) + le(0xE000, 2) + undefined;
+  const std::string close = le(0xFFFE, 2) + le(0xE00D, 2) + le(0, 4) + le(0xFFFE, 2) + le(0xE0DD, 2) + le(0, 4);
+  const auto nest = [&](std::uint16_t group, std::uint16_t element, bool explicit_here) {
+    const std::string sq = le(group, 2) + le(element, 2) + (explicit_here ? std::string("SQ") + le(0, 2) : "") + undefined;
+    std::string s;
+    for (std::size_t n = 0; n < levels; ++n) s += sq + open_item;
+    if (!cut_short) {
+      for (std::size_t n = 0; n < levels; ++n) s += close;
+    }
+    return s;
+  };
+  std::string meta = shortElement(0x0002, 0x0002, "UI", sop) + shortElement(0x0002, 0x0003, "UI", "1.2.3.4") +
+                     shortElement(0x0002, 0x0010, "UI", syntax);
+  if (in_meta) meta += nest(0x0002, 0x0100, true);
+  meta = shortElement(0x0002, 0x0000, "UL", le(static_cast<std::uint32_t>(meta.size()), 4)) + meta;
+  std::string data;
+  std::string uid = sop;
+  if (uid.size() % 2 != 0) uid += '\0';
+  data = explicit_vr ? shortElement(0x0008, 0x0016, "UI", sop)
+                     : le(0x0008, 2) + le(0x0016, 2) + le(static_cast<std::uint32_t>(uid.size()), 4) + uid;
+  if (!in_meta) data += nest(0x0040, 0xA730, explicit_vr);
+  return std::string(128, '\0') + "DICM" + meta + data;
+}
+
+// Sequences nested 100,000 deep (1.6 to 3.2 MB): DCMTK 3.6.7 parses nested sequences by
+// recursion without a limit, and such a file overflows its stack (dcmdump dies of SIGSEGV on
+// these files from about 6,000 levels). The SEG reader refuses them before DCMTK parses, in the
+// reader process and in this one, and the check of a file's SOP Class, which runs in the
+// application's own process, does not parse them. A file nested 100 deep is parsed (its error is
+// the next check's: no Segmentation Type).
+TEST(DicomSeg, SequencesNestedTooDeepAreRefusedBeforeDcmtkParsesThem) {
+  TempDir dir("dicom-seg-nested");
+  const std::vector<std::pair<std::string, std::string>> deep = {
+      {"explicit-cut-short.dcm", nestedSeg(100000, true, true, false)},
+      {"implicit-delimited.dcm", nestedSeg(100000, false, false, false)},
+      {"in-meta-information.dcm", nestedSeg(100000, true, true, true)},
+  };
+  for (const auto& [name, bytes] : deep) test::writeFile(dir / name, bytes);
+  test::writeFile(dir / "nested-100.dcm", nestedSeg(100, true, false, false));
+  for (const DicomIsolation isolation : {DicomIsolation::kAuto, DicomIsolation::kInProcess}) {
+    VolumeLoadOptions options;
+    options.dicom_isolation = isolation;
+    for (const auto& [name, bytes] : deep) {
+      const std::string e = test::loadErrorOf([&] { (void)loadDicomSegmentation(dir / name, nullptr, options); });
+      EXPECT_CONTAINS(e, name);
+      EXPECT_CONTAINS(e, "its sequences nest more than 128 levels deep");
+      EXPECT_FALSE(isDicomSegmentationFile(dir / name)) << name;
+    }
+    const std::string e = test::loadErrorOf([&] { (void)loadDicomSegmentation(dir / "nested-100.dcm", nullptr, options); });
+    EXPECT_CONTAINS(e, "Segmentation Type \"\" is neither BINARY nor FRACTIONAL");
+  }
+  EXPECT_TRUE(isDicomSegmentationFile(dir / "nested-100.dcm"));
 }
 
 }  // namespace
