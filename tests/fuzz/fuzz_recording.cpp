@@ -2,11 +2,11 @@
 // through vh::runtime::sceneFromSessionMetadata (what File > Open Recording does before the
 // replay).
 // Input: byte 0 is a mode; the rest is the file. Mode bit 0 set: before writing the file, every
-// CRC-32 (metadata, record chunks, event chunks) whose extent fits in the file is recomputed, so
-// the fuzzer reaches the chunk contents instead of stopping at a checksum mismatch; clear: the
-// bytes are written as they are (damaged checksums are fuzzed too).
-// Expected: a Recording (with warnings for a damaged tail) or std::runtime_error. Anything else
-// is a finding.
+// CRC-32 (metadata, record chunks, event chunks, end marker) whose extent fits in the file is
+// recomputed, so the fuzzer reaches the chunk contents instead of stopping at a checksum
+// mismatch; clear: the bytes are written as they are (damaged checksums are fuzzed too).
+// Expected: a Recording (with warnings for damaged chunks or a damaged tail) or
+// std::runtime_error. Anything else is a finding.
 #include <cstddef>
 #include <cstdint>
 #include <cstring>
@@ -19,10 +19,11 @@
 
 namespace {
 
-// The layout of recording.h's format (version 1 and 2).
+// The layout of recording.h's format (versions 1 to 3).
 constexpr std::size_t kFileHeaderBytes = 24;  // magic[8] version record_size meta_size meta_crc
 constexpr std::size_t kChunkHeaderBytes = 16;  // "CHNK" count dropped(u64), records, crc
 constexpr std::size_t kEventHeaderBytes = 12;  // "EVNT" count payload_bytes, payload, crc
+constexpr std::size_t kEndBodyBytes = 24;      // "ENDR" status records(u64) dropped(u64), crc
 
 std::uint32_t getU32(const std::uint8_t* p) {
   return std::uint32_t{p[0]} | std::uint32_t{p[1]} << 8 | std::uint32_t{p[2]} << 16 | std::uint32_t{p[3]} << 24;
@@ -46,6 +47,8 @@ void fixChecksums(std::vector<std::uint8_t>& f) {
     std::size_t body = 0;
     if (left >= kEventHeaderBytes && std::memcmp(c, "EVNT", 4) == 0) {
       body = kEventHeaderBytes + std::size_t{getU32(c + 8)};
+    } else if (left >= kEndBodyBytes && std::memcmp(c, "ENDR", 4) == 0) {
+      body = kEndBodyBytes;
     } else if (left >= kChunkHeaderBytes && std::memcmp(c, "CHNK", 4) == 0) {
       body = kChunkHeaderBytes + std::size_t{getU32(c + 4)} * record_bytes;
     } else {

@@ -1,7 +1,8 @@
 // Session recordings in the GUI: recording from the window (records, events and
 // metadata read back), replay (the recorded scene reloads, scrubbing the timeline puts the proxy
 // actor at the recorded pose, one |F| sample per record), video and PNG export (GUI and command
-// line), and a recording whose dataset is missing (error naming it, the scene shown stays).
+// line), a recording whose dataset is missing (error naming it, the scene shown stays), and a
+// full disk while recording (the status bar says so at once; the file keeps its ticks).
 // Scenes: the built-in 64^3 sphere (no shared data needed), small windows (llvmpipe).
 #include <chrono>
 #include <cmath>
@@ -13,7 +14,13 @@
 #include <memory>
 #include <string>
 
+#include <csignal>
+
+#include <sys/resource.h>
+#include <sys/stat.h>
+
 #include <QApplication>
+#include <QLabel>
 #include <QImage>
 #include <QListWidget>
 #include <QSignalSpy>
@@ -585,6 +592,73 @@ TEST(ExportFrames, ReusingTheVolumesPictureGivesTheFullRendersFrames) {
   }
   EXPECT_EQ(kept.volumeRenders(), 2u) << "the volume is ray cast once (picture and depth) for every frame";
   EXPECT_EQ(full.volumeRenders(), records.size());
+}
+
+/// RLIMIT_FSIZE as a full disk: writes past `bytes` fail with EFBIG (SIGXFSZ ignored, so it is
+/// an error, not a kill).
+class FileSizeLimit {
+ public:
+  explicit FileSizeLimit(rlim_t bytes) {
+    old_handler_ = ::signal(SIGXFSZ, SIG_IGN);
+    ::getrlimit(RLIMIT_FSIZE, &old_);
+    const rlimit limit{bytes, old_.rlim_max};
+    ::setrlimit(RLIMIT_FSIZE, &limit);
+  }
+  ~FileSizeLimit() {
+    ::setrlimit(RLIMIT_FSIZE, &old_);
+    ::signal(SIGXFSZ, old_handler_);
+  }
+  FileSizeLimit(const FileSizeLimit&) = delete;
+  FileSizeLimit& operator=(const FileSizeLimit&) = delete;
+
+ private:
+  rlimit old_{};
+  sighandler_t old_handler_ = nullptr;
+};
+
+TEST(RecordingWriteFailure, AFullDiskEndsTheRecordingAndTheStatusBarSaysWhy) {
+  QTemporaryDir dir;
+  const fs::path path = fs::path(dir.path().toStdString()) / "full.vhrec";
+  auto w = smallWindow();
+  ASSERT_TRUE(loadInto(*w, sphereScene())) << w->opener()->lastError().toStdString();
+  ASSERT_TRUE(w->session().hapticsRunning());
+  ASSERT_TRUE(w->recorder()->start(path)) << w->recorder()->lastError().toStdString();
+  ASSERT_TRUE(waitFor([&] { return w->recorder()->recordsWritten() > 0; }, 10000));
+  auto* label = w->findChild<QLabel*>("recordingStatus");
+  ASSERT_NE(label, nullptr);
+  EXPECT_TRUE(label->text().contains("REC")) << label->text().toStdString();
+  // Room for about half a second more (a tick is 200 bytes, the servo runs at about 1 kHz):
+  // the disk fills within a second, and the status bar must say so within a second or two.
+  const rlim_t limit = static_cast<rlim_t>(fs::file_size(path)) + 100000;
+  QString status;
+  {
+    const FileSizeLimit full(limit);
+    const bool said = waitFor([&] { return label->text().startsWith("REC stopped"); }, 4000);
+    status = label->text();
+    ASSERT_TRUE(said) << "status bar: " << status.toStdString();
+    EXPECT_FALSE(w->recorder()->recording());
+  }
+  EXPECT_TRUE(status.startsWith(QString::fromUtf8("REC stopped: file size limit reached (File too large) \u2014 ")))
+      << status.toStdString();
+  EXPECT_TRUE(label->isVisible());
+  // The file (stat) stayed under the limit and reads back whole: every tick it kept, in order,
+  // as many as the status bar says, no truncated chunk.
+  struct stat st{};
+  ASSERT_EQ(::stat(path.c_str(), &st), 0);
+  EXPECT_LE(static_cast<rlim_t>(st.st_size), limit);
+  const runtime::Recording rec = runtime::readRecording(path);
+  ASSERT_GT(rec.records.size(), 0u);
+  for (std::size_t i = 1; i < rec.records.size(); ++i) ASSERT_EQ(rec.records[i].tick, rec.records[0].tick + i);
+  EXPECT_TRUE(status.contains(QString::fromUtf8("\u2014 %1 ticks kept").arg(rec.records.size()))) << status.toStdString();
+  for (const std::string& warning : rec.warnings) EXPECT_EQ(warning.find("truncated"), std::string::npos) << warning;
+  ASSERT_FALSE(rec.warnings.empty());
+  EXPECT_TRUE(rec.warnings.back().find("file size limit reached") != std::string::npos ||
+              rec.warnings.back().find("unfinished recording") != std::string::npos)
+      << rec.warnings.back();
+  // The next recording clears the message.
+  ASSERT_TRUE(w->recorder()->start(fs::path(dir.path().toStdString()) / "next.vhrec"));
+  EXPECT_TRUE(label->text().startsWith(QString::fromUtf8("\u25cf REC"))) << label->text().toStdString();
+  w->recorder()->stop();
 }
 
 }  // namespace

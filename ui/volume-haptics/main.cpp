@@ -38,6 +38,7 @@
 #include "vh/devices/device_catalog.h"
 #include "vh/igtl/igtl_link.h"
 #include "vh/runtime/placement.h"
+#include "vh/runtime/anonymize.h"
 #include "vh/runtime/recording.h"
 #include "vh/runtime/runner.h"
 #include "vh/runtime/scene.h"
@@ -403,16 +404,22 @@ struct ExportArgs {
   std::string csv;
   std::string json;
   std::string events_csv;
+  bool anonymize = false;
   vh::ui::MediaExportOptions media;
 };
 
 CLI::App* addExportSubcommand(CLI::App& app, ExportArgs& a) {
   CLI::App* export_cmd = app.add_subcommand("export", "Export a session recording (.vhrec) as CSV (one row per tick, "
-                                               "SI units) and/or JSON metadata; a damaged tail is reported");
+                                               "SI units) and/or JSON metadata; damage and an unfinished recording are reported");
   export_cmd->add_option("recording", a.recording, "Recording file (.vhrec)")->required();
   export_cmd->add_option("--csv", a.csv, "CSV to write: one row per tick, units in the header");
   export_cmd->add_option("--json", a.json, "JSON to write: the session metadata, a summary and the events");
   export_cmd->add_option("--events-csv", a.events_csv, "CSV to write: one row per event (t_s,tick,type,detail_json)");
+  export_cmd->add_flag("--anonymize", a.anonymize,
+                       "Leave out of --csv, --json and --events-csv what identifies the patient (DICOM PS3.15 "
+                       "Annex E, for the fields a recording keeps): paths and file names become ANONYMIZED, the "
+                       "series UID a 2.25 UID derived from it, the series description and the start date and time "
+                       "are removed; the pictures of --video and --png are not changed");
   export_cmd->add_option("--video", a.media.video,
                          "Ogg/Theora video (.ogv) of the replay, rendered off screen (needs an X display with "
                          "OpenGL, e.g. xvfb-run); prints the frames done and the time left, Ctrl+C ends it there "
@@ -452,8 +459,9 @@ int exportCommand(int argc, char** argv, const ExportArgs& a) {
   prepareOutputFolder(a.events_csv, "--events-csv");
   prepareOutputFolder(a.media.video, "--video");
   prepareOutputFolder(a.media.png, "--png");
-  const vh::runtime::Recording recording = vh::runtime::readRecording(a.recording);
+  vh::runtime::Recording recording = vh::runtime::readRecording(a.recording);
   for (const std::string& w : recording.warnings) std::cerr << "volume-haptics export: warning: " << w << std::endl;
+  if (a.anonymize) vh::runtime::anonymizeRecording(recording, a.recording);
   if (!a.csv.empty()) vh::runtime::writeRecordingCsv(recording, std::filesystem::path(a.csv));
   if (!a.json.empty()) vh::runtime::writeRecordingJson(recording, a.json);
   if (!a.events_csv.empty()) vh::runtime::writeRecordingEventsCsv(recording, std::filesystem::path(a.events_csv));

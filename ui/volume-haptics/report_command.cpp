@@ -30,10 +30,12 @@ int reportCommand(const ReportArgs& a) {
   if (!a.table.empty()) {
     if (!a.reference.empty()) throw std::runtime_error("report: --reference goes with --html, not --table");
     const std::size_t rows = runtime::writeCohortTable(
-        a.input, a.table, a.options.metrics, [](std::size_t done, std::size_t total) {
+        a.input, a.table, a.options.metrics,
+        [](std::size_t done, std::size_t total) {
           std::cerr << "\rvolume-haptics report: " << done << " of " << total << " recordings" << std::flush;
           if (done == total) std::cerr << '\n';
-        });
+        },
+        a.options.anonymize);
     std::cout << "volume-haptics report: " << rows << (rows == 1 ? " recording" : " recordings") << " in "
               << a.table << std::endl;
     return EXIT_SUCCESS;
@@ -71,6 +73,10 @@ CLI::App* addReportSubcommand(CLI::App& app, std::function<int()>& handler) {
       ->check(CLI::NonNegativeNumber);
   cmd->add_flag("!--no-anatomy", a->options.anatomy,
                 "Draw the contact map without the scan behind it (the scan is not reloaded)");
+  cmd->add_flag("--anonymize", a->options.anonymize,
+                "Leave out what identifies the patient (DICOM PS3.15 Annex E, for the fields a recording keeps): "
+                "paths and file names become ANONYMIZED, the series UID a 2.25 UID derived from it, the series "
+                "description and the start date and time are removed");
   cmd->callback([&handler, a] { handler = [a] { return reportCommand(*a); }; });
   return cmd;
 }

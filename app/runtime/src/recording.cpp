@@ -9,6 +9,7 @@
 #include <bit>
 #include <chrono>
 #include <cmath>
+#include <cerrno>
 #include <cstring>
 #include <ctime>
 #include <fstream>
@@ -34,6 +35,8 @@ namespace {
 constexpr std::array<char, 8> kMagic = {'V', 'H', 'R', 'E', 'C', '\r', '\n', '\x1a'};
 constexpr std::array<char, 4> kChunkTag = {'C', 'H', 'N', 'K'};
 constexpr std::array<char, 4> kEventTag = {'E', 'V', 'N', 'T'};
+constexpr std::array<char, 4> kEndTag = {'E', 'N', 'D', 'R'};
+constexpr std::size_t kEndChunkBytes = 28;
 constexpr std::size_t kEventHeaderBytes = 12;
 constexpr std::size_t kMaxEventPayloadBytes = std::size_t{16} << 20;
 constexpr std::size_t kMaxChunkEvents = 65535;
@@ -125,16 +128,10 @@ RecordingWriter::RecordingWriter(const std::filesystem::path& path, const std::s
   const std::string text = meta.dump();
 
   // Owner-only (0600) whatever the umask: a recording names the scan and carries the session.
-  int fd = -1;
   try {
-    fd = io::openPrivateFile(path);
+    fd_ = io::openPrivateFile(path);
   } catch (const std::runtime_error& e) {
     throw std::runtime_error(std::string("RecordingWriter: ") + e.what());
-  }
-  file_ = ::fdopen(fd, "wb");
-  if (file_ == nullptr) {
-    ::close(fd);
-    throw std::runtime_error("RecordingWriter: cannot create " + path.string());
   }
   std::array<unsigned char, kFileHeaderBytes> header{};
   std::memcpy(header.data(), kMagic.data(), kMagic.size());
@@ -142,11 +139,10 @@ RecordingWriter::RecordingWriter(const std::filesystem::path& path, const std::s
   putU32(header.data() + 12, static_cast<std::uint32_t>(sizeof(TickRecord)));
   putU32(header.data() + 16, static_cast<std::uint32_t>(text.size()));
   putU32(header.data() + 20, crc32(text.data(), text.size()));
-  if (std::fwrite(header.data(), 1, header.size(), file_) != header.size() ||
-      std::fwrite(text.data(), 1, text.size(), file_) != text.size() || std::fflush(file_) != 0) {
-    std::fclose(file_);
-    file_ = nullptr;
-    throw std::runtime_error("RecordingWriter: cannot write the header of " + path.string());
+  if (!writeWhole({{header.data(), header.size()}, {text.data(), text.size()}})) {
+    ::close(fd_);
+    fd_ = -1;
+    throw std::runtime_error("RecordingWriter: cannot write the header of " + path.string() + ": " + failure());
   }
   chunk_.resize(options.chunk_records);
   thread_ = std::thread([this] { run(); });
@@ -157,6 +153,52 @@ RecordingWriter::~RecordingWriter() {
     close();
   } catch (...) {  // NOLINT(bugprone-empty-catch): documented, close() reports
   }
+}
+
+namespace {
+/// What a write's errno means to the user: "disk full (No space left on device)".
+std::string writeErrorText(int error_number) {
+  std::string cause;
+  switch (error_number) {
+    case ENOSPC: cause = "disk full"; break;
+    case EDQUOT: cause = "disk quota exceeded"; break;
+    case EFBIG: cause = "file size limit reached"; break;
+    case EIO: cause = "input/output error on the disk"; break;
+    default: cause = "write failed"; break;
+  }
+  return cause + " (" + std::strerror(error_number) + ")";
+}
+}  // namespace
+
+std::string RecordingWriter::failure() const {
+  const int error_number = error_number_.load(std::memory_order_acquire);
+  if (error_number != 0) return writeErrorText(error_number);
+  return failed() ? std::string("write failed (out of memory)") : std::string();
+}
+
+bool RecordingWriter::writeWhole(std::initializer_list<Bytes> parts) noexcept {
+  if (fd_ < 0) return false;
+  std::uint64_t written = 0;
+  for (const Bytes& part : parts) {
+    const auto* p = static_cast<const unsigned char*>(part.data);
+    std::size_t left = part.size;
+    while (left > 0) {
+      const ::ssize_t n = ::write(fd_, p, left);
+      if (n < 0 && errno == EINTR) continue;
+      if (n <= 0) {
+        error_number_.store(n < 0 ? errno : EIO, std::memory_order_release);
+        // The file ends on its last whole chunk: a reader sees no truncated one.
+        if (::ftruncate(fd_, static_cast<::off_t>(file_size_)) == 0) (void)::lseek(fd_, 0, SEEK_END);
+        failed_.store(true, std::memory_order_release);
+        return false;
+      }
+      p += n;
+      left -= static_cast<std::size_t>(n);
+      written += static_cast<std::uint64_t>(n);
+    }
+  }
+  file_size_ += written;
+  return true;
 }
 
 bool RecordingWriter::writeChunk(const TickRecord* records, std::size_t count) noexcept {
@@ -170,12 +212,23 @@ bool RecordingWriter::writeChunk(const TickRecord* records, std::size_t count) n
   crc = crc32(records, payload, crc);
   std::array<unsigned char, 4> trailer{};
   putU32(trailer.data(), crc);
-  const bool ok = std::fwrite(header.data(), 1, header.size(), file_) == header.size() &&
-                  std::fwrite(records, 1, payload, file_) == payload &&
-                  std::fwrite(trailer.data(), 1, trailer.size(), file_) == trailer.size() &&
-                  std::fflush(file_) == 0;
+  const bool ok = writeWhole({{header.data(), header.size()}, {records, payload}, {trailer.data(), trailer.size()}});
   if (ok) written_.fetch_add(count, std::memory_order_relaxed);
   return ok;
+}
+
+void RecordingWriter::writeEndMarker() noexcept {
+  std::array<unsigned char, kEndChunkBytes> end{};
+  std::memcpy(end.data(), kEndTag.data(), kEndTag.size());
+  putU32(end.data() + 4, static_cast<std::uint32_t>(error_number_.load(std::memory_order_acquire)));
+  putU64(end.data() + 8, written_.load(std::memory_order_relaxed));
+  putU64(end.data() + 16, ring_.dropped());
+  putU32(end.data() + 24, crc32(end.data(), 24));
+  // After a failure too (with its errno): one try, which may not fit either; the first cause
+  // stays the one reported.
+  const bool had_failed = failed();
+  const int error_number = error_number_.load(std::memory_order_acquire);
+  if (!writeWhole({{end.data(), end.size()}}) && had_failed) error_number_.store(error_number, std::memory_order_release);
 }
 
 void RecordingWriter::pushWaiting(const TickRecord& record) noexcept {
@@ -286,11 +339,8 @@ bool RecordingWriter::writeEvents() noexcept {
       crc = crc32(payload.data(), payload.size(), crc);
       std::array<unsigned char, 4> trailer{};
       putU32(trailer.data(), crc);
-      const bool ok = std::fwrite(header.data(), 1, header.size(), file_) == header.size() &&
-                      std::fwrite(payload.data(), 1, payload.size(), file_) == payload.size() &&
-                      std::fwrite(trailer.data(), 1, trailer.size(), file_) == trailer.size() &&
-                      std::fflush(file_) == 0;
-      if (!ok) return false;
+      if (!writeWhole({{header.data(), header.size()}, {payload.data(), payload.size()}, {trailer.data(), trailer.size()}}))
+        return false;
       events_written_.fetch_add(n, std::memory_order_relaxed);
       first += n;
     }
@@ -331,8 +381,8 @@ void RecordingWriter::run() noexcept {
       }
     }
     if (full || due || events_due || (stopping && n == 0)) {
-      if (!failed_.load(std::memory_order_relaxed) && !(writeEvents() && writeChunk(chunk_.data(), filled)))
-        failed_.store(true, std::memory_order_relaxed);
+      if (!failed() && !(writeEvents() && writeChunk(chunk_.data(), filled)))
+        failed_.store(true, std::memory_order_release);
       filled = 0;
       events_started = Clock::now();
     }
@@ -349,18 +399,26 @@ void RecordingWriter::close() {
   }
   stop_.store(true, std::memory_order_release);
   if (thread_.joinable()) thread_.join();
-  const bool closed_ok = std::fclose(file_) == 0;
-  file_ = nullptr;
-  if (failed_.load() || !closed_ok) throw std::runtime_error("RecordingWriter: write failed on " + path_.string());
+  writeEndMarker();
+  const bool closed_ok = ::close(fd_) == 0;
+  if (!closed_ok && error_number_.load() == 0) error_number_.store(errno);
+  fd_ = -1;
+  if (failed() || !closed_ok) {
+    throw std::runtime_error("RecordingWriter: " + path_.string() + ": " + failure() + "; " +
+                             std::to_string(recordsWritten()) + " ticks kept");
+  }
 }
 
 // ---- Reader ----------------------------------------------------------------------------------------
 
-Recording readRecording(const std::filesystem::path& path) {
+namespace {
+
+/// The whole file in one read (a 5-minute recording is 60 MB): sized by the file's length, then
+/// whatever else a file still being written has by the time it is read.
+/// @throws std::runtime_error when it cannot be opened.
+std::string readWholeFile(const std::filesystem::path& path) {
   std::ifstream in(path, std::ios::binary);
   if (!in) throw std::runtime_error("readRecording: cannot open " + path.string());
-  // One read of the whole file (a 5-minute recording is 60 MB): sized by the file's length, then
-  // whatever else a file still being written has by the time it is read.
   std::string bytes;
   std::error_code size_error;
   const std::uintmax_t expected = std::filesystem::file_size(path, size_error);
@@ -370,116 +428,228 @@ Recording readRecording(const std::filesystem::path& path) {
     bytes.resize(static_cast<std::size_t>(in.gcount()));
   }
   if (in) bytes.append(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
+  return bytes;
+}
+
+/// Checks the file header and the metadata, sets rec.version and rec.metadata_json.
+/// @return the offset of the first chunk. @throws std::runtime_error as readRecording().
+std::size_t readHeader(const std::string& bytes, const std::string& where, Recording& rec) {
   const auto* data = reinterpret_cast<const unsigned char*>(bytes.data());
   const std::size_t size = bytes.size();
-  const std::string where = path.string() + ": ";
   if (size < kFileHeaderBytes || std::memcmp(data, kMagic.data(), kMagic.size()) != 0)
     throw std::runtime_error("readRecording: " + where + "not a volume-haptics recording (bad magic)");
-  Recording rec;
-  rec.records.reserve(size / sizeof(TickRecord));  // an upper bound: every chunk byte a record
   rec.version = getU32(data + 8);
-  if (rec.version != 1 && rec.version != kRecordingFormatVersion)
+  if (rec.version < 1 || rec.version > kRecordingFormatVersion)
     throw std::runtime_error("readRecording: " + where + "unsupported format version " + std::to_string(rec.version));
   const std::uint32_t record_size = getU32(data + 12);
   if (record_size != sizeof(TickRecord))
     throw std::runtime_error("readRecording: " + where + "record size " + std::to_string(record_size) +
                              " bytes, expected " + std::to_string(sizeof(TickRecord)));
   const std::uint32_t meta_size = getU32(data + 16);
-  if (size - kFileHeaderBytes < meta_size ||
-      crc32(data + kFileHeaderBytes, meta_size) != getU32(data + 20))
+  if (size - kFileHeaderBytes < meta_size || crc32(data + kFileHeaderBytes, meta_size) != getU32(data + 20))
     throw std::runtime_error("readRecording: " + where + "damaged metadata header");
   rec.metadata_json.assign(bytes, kFileHeaderBytes, meta_size);
+  return kFileHeaderBytes + meta_size;
+}
 
-  std::size_t offset = kFileHeaderBytes + meta_size;
-  while (offset < size) {
-    const std::size_t left = size - offset;
-    const unsigned char* chunk = data + offset;
-    std::string problem;
-    if (rec.version >= 2 && left >= kEventTag.size() && std::memcmp(chunk, kEventTag.data(), kEventTag.size()) == 0) {
-      if (left < kEventHeaderBytes) {
-        problem = "truncated event chunk header";
-      } else {
-        const std::uint32_t count = getU32(chunk + 4);
-        const std::uint32_t payload = getU32(chunk + 8);
-        if (count == 0 || count > kMaxChunkEvents || payload > kMaxEventPayloadBytes) {
-          problem = "bad event chunk (" + std::to_string(count) + " events, " + std::to_string(payload) + " bytes)";
-        } else if (left < kEventHeaderBytes + payload + 4) {
-          problem = "truncated event chunk (" + std::to_string(left) + " of " +
-                    std::to_string(kEventHeaderBytes + payload + 4) + " bytes)";
-        } else if (crc32(chunk, kEventHeaderBytes + payload) != getU32(chunk + kEventHeaderBytes + payload)) {
-          problem = "event chunk checksum mismatch";
-        } else {
-          std::vector<RecordingEvent> events;
-          const unsigned char* p = chunk + kEventHeaderBytes;
-          const unsigned char* const end = p + payload;
-          for (std::uint32_t i = 0; i < count && problem.empty(); ++i) {
-            RecordingEvent e;
-            if (end - p < 20) {
-              problem = "malformed event chunk";
-              break;
-            }
-            std::memcpy(&e.time_s, p, 8);
-            e.tick = getU64(p + 8);
-            const std::uint32_t type_size = getU32(p + 16);
-            p += 20;
-            if (static_cast<std::size_t>(end - p) < std::size_t{type_size} + 4) {
-              problem = "malformed event chunk";
-              break;
-            }
-            e.type.assign(reinterpret_cast<const char*>(p), type_size);
-            p += type_size;
-            const std::uint32_t detail_size = getU32(p);
-            p += 4;
-            if (static_cast<std::size_t>(end - p) < detail_size) {
-              problem = "malformed event chunk";
-              break;
-            }
-            e.detail_json.assign(reinterpret_cast<const char*>(p), detail_size);
-            p += detail_size;
-            events.push_back(std::move(e));
-          }
-          if (problem.empty() && p != end) problem = "malformed event chunk";
-          if (problem.empty()) {
-            rec.events.insert(rec.events.end(), std::make_move_iterator(events.begin()),
-                              std::make_move_iterator(events.end()));
-            ++rec.event_chunks;
-            offset += kEventHeaderBytes + payload + 4;
-            continue;
-          }
-        }
-      }
-    } else if (left < kChunkHeaderBytes) {
-      problem = "truncated chunk header";
-    } else if (std::memcmp(chunk, kChunkTag.data(), kChunkTag.size()) != 0) {
-      problem = "bad chunk tag";
-    } else {
-      const std::uint32_t count = getU32(chunk + 4);
-      const std::size_t payload = std::size_t{count} * sizeof(TickRecord);
-      if (count == 0 || count > kMaxChunkRecords) {
-        problem = "bad chunk record count " + std::to_string(count);
-      } else if (left < kChunkHeaderBytes + payload + 4) {
-        problem = "truncated chunk (" + std::to_string(left) + " of " +
-                  std::to_string(kChunkHeaderBytes + payload + 4) + " bytes)";
-      } else if (crc32(chunk, kChunkHeaderBytes + payload) != getU32(chunk + kChunkHeaderBytes + payload)) {
-        problem = "chunk checksum mismatch";
-      } else {
-        const std::size_t first = rec.records.size();
-        rec.records.resize(first + count);
-        std::memcpy(rec.records.data() + first, chunk + kChunkHeaderBytes, payload);
-        rec.dropped_records = getU64(chunk + 8);
-        ++rec.chunks;
-        offset += kChunkHeaderBytes + payload + 4;
-        continue;
-      }
-    }
-    rec.bytes_ignored = left;
-    std::ostringstream msg;
-    msg << where << problem << " at byte " << offset << " (chunk " << rec.chunks + rec.event_chunks << "); kept "
-        << rec.chunks + rec.event_chunks << " good chunks (" << rec.records.size() << " records, "
-        << rec.events.size() << " events), ignored the last " << left << " bytes";
-    rec.warnings.push_back(msg.str());
-    break;
+/// The `count` events of an event chunk's `payload` bytes at `p`. @return false when their
+/// framing does not fill the payload exactly.
+bool parseEvents(const unsigned char* p, std::size_t payload, std::uint32_t count, std::vector<RecordingEvent>& out) {
+  const unsigned char* const end = p + payload;
+  for (std::uint32_t i = 0; i < count; ++i) {
+    RecordingEvent e;
+    if (end - p < 20) return false;
+    std::memcpy(&e.time_s, p, 8);
+    e.tick = getU64(p + 8);
+    const std::uint32_t type_size = getU32(p + 16);
+    p += 20;
+    if (static_cast<std::size_t>(end - p) < std::size_t{type_size} + 4) return false;
+    e.type.assign(reinterpret_cast<const char*>(p), type_size);
+    p += type_size;
+    const std::uint32_t detail_size = getU32(p);
+    p += 4;
+    if (static_cast<std::size_t>(end - p) < detail_size) return false;
+    e.detail_json.assign(reinterpret_cast<const char*>(p), detail_size);
+    p += detail_size;
+    out.push_back(std::move(e));
   }
+  return p == end;
+}
+
+enum class ChunkKind { kRecords, kEvents, kEnd };
+
+/// A chunk that checked out (size > 0), or why not (problem).
+struct CheckedChunk {
+  ChunkKind kind = ChunkKind::kRecords;
+  std::size_t size = 0;               ///< Bytes of the whole chunk; 0 when it is not good.
+  std::string problem;
+  std::vector<RecordingEvent> events;  ///< kEvents: its events.
+};
+
+bool hasTag(const unsigned char* chunk, std::size_t left, const std::array<char, 4>& tag) noexcept {
+  return left >= tag.size() && std::memcmp(chunk, tag.data(), tag.size()) == 0;
+}
+
+/// Checks the chunk at `chunk` (`left` bytes to the end of the file): its tag (the kinds
+/// `version` has), header sanity, length and CRC-32, and for events their framing.
+CheckedChunk checkChunk(const unsigned char* chunk, std::size_t left, std::uint32_t version) {
+  CheckedChunk c;
+  if (version >= 2 && hasTag(chunk, left, kEventTag)) {
+    c.kind = ChunkKind::kEvents;
+    const std::uint32_t count = left >= kEventHeaderBytes ? getU32(chunk + 4) : 0;
+    const std::uint32_t payload = left >= kEventHeaderBytes ? getU32(chunk + 8) : 0;
+    if (left < kEventHeaderBytes) c.problem = "truncated event chunk header";
+    else if (count == 0 || count > kMaxChunkEvents || payload > kMaxEventPayloadBytes)
+      c.problem = "bad event chunk (" + std::to_string(count) + " events, " + std::to_string(payload) + " bytes)";
+    else if (left < kEventHeaderBytes + payload + 4)
+      c.problem = "truncated event chunk (" + std::to_string(left) + " of " +
+                  std::to_string(kEventHeaderBytes + payload + 4) + " bytes)";
+    else if (crc32(chunk, kEventHeaderBytes + payload) != getU32(chunk + kEventHeaderBytes + payload))
+      c.problem = "event chunk checksum mismatch";
+    else if (!parseEvents(chunk + kEventHeaderBytes, payload, count, c.events)) c.problem = "malformed event chunk";
+    else c.size = kEventHeaderBytes + payload + 4;
+  } else if (version >= 3 && hasTag(chunk, left, kEndTag)) {
+    c.kind = ChunkKind::kEnd;
+    if (left < kEndChunkBytes) c.problem = "truncated end marker";
+    else if (crc32(chunk, kEndChunkBytes - 4) != getU32(chunk + kEndChunkBytes - 4)) c.problem = "end marker checksum mismatch";
+    else c.size = kEndChunkBytes;
+  } else if (left < kChunkHeaderBytes) {
+    c.problem = "truncated chunk header";
+  } else if (!hasTag(chunk, left, kChunkTag)) {
+    c.problem = "bad chunk tag";
+  } else {
+    const std::uint32_t count = getU32(chunk + 4);
+    const std::size_t payload = std::size_t{count} * sizeof(TickRecord);
+    if (count == 0 || count > kMaxChunkRecords) c.problem = "bad chunk record count " + std::to_string(count);
+    else if (left < kChunkHeaderBytes + payload + 4)
+      c.problem = "truncated chunk (" + std::to_string(left) + " of " + std::to_string(kChunkHeaderBytes + payload + 4) +
+                  " bytes)";
+    else if (crc32(chunk, kChunkHeaderBytes + payload) != getU32(chunk + kChunkHeaderBytes + payload))
+      c.problem = "chunk checksum mismatch";
+    else c.size = kChunkHeaderBytes + payload + 4;
+  }
+  return c;
+}
+
+/// Adds the good chunk `c` at `chunk` to `rec`.
+void addChunk(const unsigned char* chunk, CheckedChunk& c, Recording& rec) {
+  if (c.kind == ChunkKind::kEvents) {
+    rec.events.insert(rec.events.end(), std::make_move_iterator(c.events.begin()), std::make_move_iterator(c.events.end()));
+    ++rec.event_chunks;
+  } else if (c.kind == ChunkKind::kEnd) {
+    rec.ended = true;
+    rec.end_status = getU32(chunk + 4);
+  } else {
+    const std::size_t count = getU32(chunk + 4);
+    const std::size_t first = rec.records.size();
+    rec.records.resize(first + count);
+    std::memcpy(rec.records.data() + first, chunk + kChunkHeaderBytes, count * sizeof(TickRecord));
+    rec.dropped_records = getU64(chunk + 8);
+    ++rec.chunks;
+  }
+}
+
+/// The offset of the first good chunk after `from` (a tag of `version`'s kinds whose header,
+/// length and CRC-32 check out), or `size` when there is none.
+std::size_t nextGoodChunk(const unsigned char* data, std::size_t size, std::size_t from, std::uint32_t version) {
+  for (std::size_t at = from + 1; at + 4 <= size; ++at) {
+    const unsigned char* p = data + at;
+    if (!hasTag(p, size - at, kChunkTag) && !hasTag(p, size - at, kEventTag) && !hasTag(p, size - at, kEndTag)) continue;
+    if (checkChunk(p, size - at, version).size > 0) return at;
+  }
+  return size;
+}
+
+/// A damaged stretch skipped: from `offset` (where `problem` was found) to the next good chunk.
+struct Damage {
+  std::size_t offset = 0;
+  std::size_t bytes = 0;
+  std::size_t records_before = 0;  ///< Records read before it.
+  std::size_t chunks_before = 0;   ///< Good chunks read before it.
+  std::string problem;
+};
+
+/// The warning for a damage that the reader went on after: the bytes and the ticks it cost
+/// (the gap in the tick counter around it; after the last record, by the end marker's count).
+std::string damageWarning(const std::string& where, const Damage& d, const Recording& rec,
+                          std::uint64_t records_in_end_marker) {
+  std::ostringstream msg;
+  msg << where << d.problem << " at byte " << d.offset << " (after " << d.chunks_before
+      << " good chunks): skipped " << d.bytes << " damaged bytes to the next good chunk at byte " << d.offset + d.bytes;
+  const std::size_t i = d.records_before;
+  if (i > 0 && i < rec.records.size() && rec.records[i].tick > rec.records[i - 1].tick + 1) {
+    const std::uint64_t first = rec.records[i - 1].tick + 1;
+    const std::uint64_t last = rec.records[i].tick - 1;
+    msg << "; ticks " << first << " to " << last << " are missing (" << last - first + 1 << " ticks)";
+  } else if (i == 0 && !rec.records.empty()) {
+    msg << "; the ticks before tick " << rec.records.front().tick << " are missing";
+  } else if (i > 0 && i == rec.records.size() && records_in_end_marker > i) {
+    msg << "; the " << records_in_end_marker - i << " ticks after tick " << rec.records.back().tick << " are missing";
+  } else {
+    msg << "; no ticks are missing around it";
+  }
+  return msg.str();
+}
+
+/// The warnings about how the recording ended: no end marker, a write failure, ticks the end
+/// marker counts that damaged chunks lost.
+void endWarnings(const std::uint64_t records_in_end_marker, Recording& rec) {
+  const std::string kept = std::to_string(rec.records.size()) + " ticks kept";
+  if (rec.version >= 3 && !rec.ended) {
+    rec.warnings.push_back("unfinished recording: ended without its end marker (the program stopped, or a write "
+                           "failed, while recording); " + kept);
+    return;
+  }
+  if (rec.ended && rec.end_status != 0) {
+    rec.warnings.push_back("the recording ended early: " + writeErrorText(static_cast<int>(rec.end_status)) + "; " + kept);
+  }
+  if (rec.ended && records_in_end_marker > rec.records.size()) {
+    rec.warnings.push_back(kept + " of the " + std::to_string(records_in_end_marker) +
+                           " written (the others were in damaged chunks)");
+  }
+}
+
+}  // namespace
+
+Recording readRecording(const std::filesystem::path& path) {
+  const std::string bytes = readWholeFile(path);
+  const auto* data = reinterpret_cast<const unsigned char*>(bytes.data());
+  const std::size_t size = bytes.size();
+  const std::string where = path.string() + ": ";
+  Recording rec;
+  std::size_t offset = readHeader(bytes, where, rec);
+  rec.records.reserve(size / sizeof(TickRecord));  // an upper bound: every chunk byte a record
+  std::vector<Damage> damages;
+  std::string tail_warning;  // a bad tail: after the damages, which come before it in the file
+  std::uint64_t records_in_end_marker = 0;
+  while (offset < size && !rec.ended) {
+    CheckedChunk c = checkChunk(data + offset, size - offset, rec.version);
+    if (c.size > 0) {
+      addChunk(data + offset, c, rec);
+      if (c.kind == ChunkKind::kEnd) records_in_end_marker = getU64(data + offset + 8);
+      offset += c.size;
+      continue;
+    }
+    const std::size_t next = nextGoodChunk(data, size, offset, rec.version);
+    rec.bytes_ignored += next - offset;
+    if (next < size) {
+      damages.push_back({offset, next - offset, rec.records.size(), rec.chunks + rec.event_chunks, c.problem});
+      ++rec.damaged_regions;
+    } else {
+      std::ostringstream msg;
+      msg << where << c.problem << " at byte " << offset << " (after " << rec.chunks + rec.event_chunks
+          << " good chunks); ignored the last " << size - offset << " bytes";
+      tail_warning = msg.str();
+    }
+    offset = next;
+  }
+  if (rec.ended && offset < size) {
+    rec.bytes_ignored += size - offset;
+    tail_warning = where + std::to_string(size - offset) + " bytes after the end marker ignored";
+  }
+  for (const Damage& d : damages) rec.warnings.push_back(damageWarning(where, d, rec, records_in_end_marker));
+  if (!tail_warning.empty()) rec.warnings.push_back(tail_warning);
+  endWarnings(records_in_end_marker, rec);
   std::stable_sort(rec.events.begin(), rec.events.end(),
                    [](const RecordingEvent& a, const RecordingEvent& b) { return a.tick < b.tick; });
   return rec;

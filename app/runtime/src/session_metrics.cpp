@@ -9,6 +9,7 @@
 #include <nlohmann/json.hpp>
 
 #include "vh/io/private_files.h"
+#include "vh/runtime/anonymize.h"
 #include "vh/runtime/runner.h"
 
 namespace vh::runtime {
@@ -381,7 +382,7 @@ std::vector<std::filesystem::path> findRecordings(const std::filesystem::path& d
 
 std::size_t writeCohortTable(const std::filesystem::path& dir, const std::filesystem::path& csv,
                              const MetricsOptions& options,
-                             const std::function<void(std::size_t, std::size_t)>& progress) {
+                             const std::function<void(std::size_t, std::size_t)>& progress, bool anonymize) {
   const std::vector<std::filesystem::path> files = findRecordings(dir);
   io::PrivateOutput file(csv);  // 0600 (labels and scene names), renamed into place when whole
   std::ostream& out = file.stream();
@@ -391,10 +392,13 @@ std::size_t writeCohortTable(const std::filesystem::path& dir, const std::filesy
   out << ",notices\n";
   out.precision(9);
   for (std::size_t i = 0; i < files.size(); ++i) {
-    out << csvField(std::filesystem::relative(files[i], dir).generic_string());
+    const std::string anonymous = std::string(kAnonymized) + " " + std::to_string(i + 1);
+    out << csvField(anonymize ? anonymous : std::filesystem::relative(files[i], dir).generic_string());
     try {
-      const SessionMetrics m = computeSessionMetrics(readRecording(files[i]), options);
-      const std::string label = cohortLabel(m, files[i]);
+      Recording recording = readRecording(files[i]);
+      if (anonymize) anonymizeRecording(recording, files[i]);
+      const SessionMetrics m = computeSessionMetrics(recording, options);
+      const std::string label = anonymize && m.label.empty() ? anonymous : cohortLabel(m, files[i]);
       out << ',' << csvField(m.scene) << ',' << m.dataset_sha256 << ',' << csvField(label) << ','
           << csvField(m.start_time_utc);
       for (const MetricValue& v : metricValues(m)) out << ',' << v.value;
@@ -402,7 +406,8 @@ std::size_t writeCohortTable(const std::filesystem::path& dir, const std::filesy
     } catch (const std::runtime_error& e) {
       out << ",,,,";
       for (std::size_t c = 0; c < columns.size(); ++c) out << ',';
-      out << ',' << csvField(std::string("not read: ") + e.what()) << '\n';
+      const std::vector<std::string> ids = anonymize ? pathIdentifiers(files[i]) : std::vector<std::string>{};
+      out << ',' << csvField(scrubText(std::string("not read: ") + e.what(), ids)) << '\n';
     }
     if (progress) progress(i + 1, files.size());
   }

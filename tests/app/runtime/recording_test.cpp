@@ -1,6 +1,7 @@
 // Tests of session recordings (app/runtime/src/recording.cpp): the SPSC ring, the chunked file
-// format (round trip, crash truncation, corruption), dropped-record accounting, allocation-free
-// push, and the CSV / JSON export (library and `volume-haptics export`).
+// format (round trip, crash truncation, kill -9, corruption skipped chunk by chunk, a write
+// failure), dropped-record accounting, allocation-free push, and the CSV / JSON export (library
+// and `volume-haptics export`).
 #include <array>
 #include <chrono>
 #include <iostream>
@@ -13,6 +14,14 @@
 #include <sstream>
 #include <string>
 #include <vector>
+
+#include <cerrno>
+#include <csignal>
+
+#include <sys/resource.h>
+#include <sys/stat.h>
+#include <sys/wait.h>
+#include <unistd.h>
 
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
@@ -77,7 +86,7 @@ void writeBytes(const fs::path& path, const std::string& bytes) {
 
 struct ChunkAt {
   std::size_t offset = 0;
-  std::string tag;  ///< "CHNK" or "EVNT".
+  std::string tag;  ///< "CHNK", "EVNT" or "ENDR".
   std::size_t size = 0;
 };
 
@@ -94,7 +103,9 @@ std::vector<ChunkAt> chunksOf(const std::string& bytes) {
     std::uint32_t count = 0, payload = 0;
     std::memcpy(&count, bytes.data() + off + 4, 4);
     std::memcpy(&payload, bytes.data() + off + 8, 4);
-    c.size = c.tag == "EVNT" ? 12 + std::size_t{payload} + 4 : 16 + std::size_t{count} * sizeof(TickRecord) + 4;
+    c.size = c.tag == "EVNT"   ? 12 + std::size_t{payload} + 4
+             : c.tag == "ENDR" ? 28
+                               : 16 + std::size_t{count} * sizeof(TickRecord) + 4;
     chunks.push_back(c);
     off += c.size;
   }
@@ -157,12 +168,21 @@ TEST(Recording, RoundTripKeepsEveryRecordBitForBit) {
   EXPECT_EQ(rec.events[0].time_s, makeRecord(1000).time_s);
   EXPECT_EQ(nlohmann::json::parse(rec.events[0].detail_json), nlohmann::json::parse(R"({"from":300.0,"to":325.0})"));
   EXPECT_EQ(rec.events[1].tick, 2000u);
-  // Size: header, metadata, 20 bytes of framing per record chunk, and the event chunks.
+  // Size: header, metadata, 20 bytes of framing per record chunk, the event chunks and the
+  // 28-byte end marker, which says how the recording ended and how many ticks it holds.
   std::uintmax_t event_bytes = 0;
-  for (const ChunkAt& c : chunksOf(readBytes(path)))
+  const std::string bytes = readBytes(path);
+  for (const ChunkAt& c : chunksOf(bytes))
     if (c.tag == "EVNT") event_bytes += c.size;
   EXPECT_EQ(rec.event_chunks, 2u);
-  const std::uintmax_t expected_size = 24 + rec.metadata_json.size() + 2500 * 200 + rec.chunks * 20 + event_bytes;
+  EXPECT_TRUE(rec.ended);
+  EXPECT_EQ(rec.end_status, 0u);
+  ASSERT_GE(bytes.size(), 28u);
+  EXPECT_EQ(bytes.substr(bytes.size() - 28, 4), "ENDR");
+  std::uint64_t ticks_in_end_marker = 0;
+  std::memcpy(&ticks_in_end_marker, bytes.data() + bytes.size() - 20, 8);
+  EXPECT_EQ(ticks_in_end_marker, 2500u);
+  const std::uintmax_t expected_size = 24 + rec.metadata_json.size() + 2500 * 200 + rec.chunks * 20 + event_bytes + 28;
   EXPECT_EQ(fs::file_size(path), expected_size);
 }
 
@@ -253,22 +273,30 @@ TEST(Recording, DeviceDisconnectFlagsBecomeConnectAndDisconnectEvents) {
   }
 }
 
-TEST(Recording, ReadsVersionOneFiles) {
-  // A version 1 file is a version 2 file without event chunks and with version 1 in the header.
+TEST(Recording, ReadsVersionOneAndTwoFiles) {
+  // A version 2 file is a version 3 file without the end marker, and a version 1 file one
+  // without event chunks either, with their version in the header.
   const fs::path dir = test::scratchDir();
-  RecordingWriter writer(dir / "v2.vhrec", R"({"scene":"x"})");
+  RecordingWriter writer(dir / "v3.vhrec", R"({"scene":"x"})");
   for (std::uint64_t i = 0; i < 600; ++i) ASSERT_TRUE(writer.push(makeRecord(i)));  // one isovalue: no events
   writer.close();
-  std::string bytes = readBytes(dir / "v2.vhrec");
-  for (const ChunkAt& c : chunksOf(bytes)) ASSERT_EQ(c.tag, "CHNK");
-  bytes[8] = 1;
-  writeBytes(dir / "v1.vhrec", bytes);
-  const Recording rec = readRecording(dir / "v1.vhrec");
-  EXPECT_EQ(rec.version, 1u);
-  EXPECT_TRUE(rec.warnings.empty());
-  ASSERT_EQ(rec.records.size(), 600u);
-  for (std::uint64_t i = 0; i < 600; ++i) ASSERT_TRUE(sameBytes(rec.records[i], makeRecord(i)));
-  EXPECT_TRUE(rec.events.empty());
+  std::string bytes = readBytes(dir / "v3.vhrec");
+  const std::vector<ChunkAt> chunks = chunksOf(bytes);
+  ASSERT_EQ(chunks.back().tag, "ENDR");
+  ASSERT_EQ(chunks.back().offset + 28, bytes.size());
+  for (std::size_t i = 0; i + 1 < chunks.size(); ++i) ASSERT_EQ(chunks[i].tag, "CHNK");
+  bytes.resize(chunks.back().offset);
+  for (const char version : {'\x01', '\x02'}) {
+    bytes[8] = version;
+    writeBytes(dir / "old.vhrec", bytes);
+    const Recording rec = readRecording(dir / "old.vhrec");
+    EXPECT_EQ(rec.version, static_cast<std::uint32_t>(version));
+    EXPECT_TRUE(rec.warnings.empty()) << rec.warnings.front();  // no end marker expected
+    EXPECT_FALSE(rec.ended);
+    ASSERT_EQ(rec.records.size(), 600u);
+    for (std::uint64_t i = 0; i < 600; ++i) ASSERT_TRUE(sameBytes(rec.records[i], makeRecord(i)));
+    EXPECT_TRUE(rec.events.empty());
+  }
 }
 
 TEST(Recording, CrashTruncationOpensUpToTheLastGoodChunkLosingUnderOneSecond) {
@@ -277,12 +305,13 @@ TEST(Recording, CrashTruncationOpensUpToTheLastGoodChunkLosingUnderOneSecond) {
   const std::vector<std::size_t> chunks = chunkOffsets(bytes);
   ASSERT_GE(chunks.size(), 2u);
   // Cut in the middle of the last chunk, as a kill -9 during its write would.
-  const std::size_t cut = chunks.back() + (bytes.size() - chunks.back()) / 2;
+  const std::size_t cut = chunks.back() + (bytes.size() - 28 - chunks.back()) / 2;
   writeBytes(path, bytes.substr(0, cut));
 
   const Recording rec = readRecording(path);
-  ASSERT_EQ(rec.warnings.size(), 1u);
+  ASSERT_EQ(rec.warnings.size(), 2u);
   EXPECT_NE(rec.warnings[0].find("truncated chunk"), std::string::npos) << rec.warnings[0];
+  EXPECT_NE(rec.warnings[1].find("unfinished recording"), std::string::npos) << rec.warnings[1];
   EXPECT_EQ(rec.chunks, chunks.size() - 1);
   EXPECT_EQ(rec.bytes_ignored, cut - chunks.back());
   ASSERT_FALSE(rec.records.empty());
@@ -295,7 +324,7 @@ TEST(Recording, CrashTruncationOpensUpToTheLastGoodChunkLosingUnderOneSecond) {
   // A cut inside a chunk header too.
   writeBytes(path, bytes.substr(0, chunks.back() + 7));
   const Recording rec2 = readRecording(path);
-  ASSERT_EQ(rec2.warnings.size(), 1u);
+  ASSERT_EQ(rec2.warnings.size(), 2u);
   EXPECT_NE(rec2.warnings[0].find("truncated chunk header"), std::string::npos) << rec2.warnings[0];
   EXPECT_EQ(rec2.records.size(), rec.records.size());
 }
@@ -323,8 +352,9 @@ TEST(Recording, CrashTruncationInsideAnEventChunkKeepsEverythingBeforeIt) {
   for (const std::size_t cut : {chunks[k].offset + 5, chunks[k].offset + chunks[k].size - 3}) {
     writeBytes(path, bytes.substr(0, cut));
     const Recording rec = readRecording(path);
-    ASSERT_EQ(rec.warnings.size(), 1u);
+    ASSERT_EQ(rec.warnings.size(), 2u);
     EXPECT_NE(rec.warnings[0].find("truncated event chunk"), std::string::npos) << rec.warnings[0];
+    EXPECT_NE(rec.warnings[1].find("unfinished recording"), std::string::npos) << rec.warnings[1];
     EXPECT_EQ(rec.records.size(), records_before);
     EXPECT_EQ(rec.events.size(), events_before);
     EXPECT_EQ(rec.bytes_ignored, cut - chunks[k].offset);
@@ -332,7 +362,7 @@ TEST(Recording, CrashTruncationInsideAnEventChunkKeepsEverythingBeforeIt) {
   }
 }
 
-TEST(Recording, CorruptedEventChunkStopsTheReaderBeforeItWithAWarning) {
+TEST(Recording, CorruptedEventChunkCostsOnlyItsEvents) {
   const fs::path path = writeSessionWithEvents(test::scratchDir() / "corrupt-events.vhrec", 3000);
   std::string bytes = readBytes(path);
   const std::vector<ChunkAt> chunks = chunksOf(bytes);
@@ -350,26 +380,167 @@ TEST(Recording, CorruptedEventChunkStopsTheReaderBeforeItWithAWarning) {
   ASSERT_EQ(rec.warnings.size(), 1u);
   EXPECT_NE(rec.warnings[0].find("event chunk checksum mismatch"), std::string::npos) << rec.warnings[0];
   EXPECT_NE(rec.warnings[0].find("at byte " + std::to_string(chunks[k].offset)), std::string::npos) << rec.warnings[0];
-  EXPECT_EQ(rec.bytes_ignored, bytes.size() - chunks[k].offset);
-  EXPECT_EQ(rec.chunks + rec.event_chunks, k);
+  EXPECT_NE(rec.warnings[0].find("no ticks are missing"), std::string::npos) << rec.warnings[0];
+  EXPECT_EQ(rec.bytes_ignored, chunks[k].size);
+  EXPECT_EQ(rec.damaged_regions, 1u);
+  EXPECT_EQ(rec.chunks + rec.event_chunks, chunks.size() - 2);  // all but the damaged one and the end marker
+  EXPECT_TRUE(rec.ended);
+  ASSERT_EQ(rec.records.size(), 3000u);
+  for (std::uint64_t i = 0; i < rec.records.size(); ++i) ASSERT_EQ(rec.records[i].tick, i);
+  std::uint32_t lost = 0;
+  std::memcpy(&lost, bytes.data() + chunks[k].offset + 4, 4);
+  const Recording whole = readRecording(writeSessionWithEvents(test::scratchDir() / "whole-events.vhrec", 3000));
+  EXPECT_EQ(rec.events.size() + lost, whole.events.size());
 }
 
-TEST(Recording, CorruptedMiddleChunkStopsTheReaderBeforeItWithAWarning) {
+TEST(Recording, OneDamagedChunkCostsThatChunkOnly) {
+  // Ten chunks of 500 ticks; one byte flipped in chunk k (in a record, in the header's count,
+  // in the tag): every other chunk's ticks read back as written.
   const fs::path path = writeSession(test::scratchDir() / "corrupt.vhrec", 5000);
-  std::string bytes = readBytes(path);
-  const std::vector<std::size_t> chunks = chunkOffsets(bytes);
-  ASSERT_GE(chunks.size(), 3u);
-  const std::size_t bad = chunks.size() / 2;
-  bytes[chunks[bad] + 16 + 1234] ^= 0x10;  // one bit in a record of the middle chunk
-  writeBytes(path, bytes);
+  const std::string whole = readBytes(path);
+  const std::vector<std::size_t> chunks = chunkOffsets(whole);
+  ASSERT_EQ(chunks.size(), 10u);
+  for (const std::size_t k : {std::size_t{0}, std::size_t{4}, std::size_t{9}}) {
+    for (const std::size_t at : {std::size_t{16 + 1234}, std::size_t{5}, std::size_t{1}}) {
+      std::string bytes = whole;
+      bytes[chunks[k] + at] = static_cast<char>(bytes[chunks[k] + at] ^ 0x10);
+      writeBytes(path, bytes);
+      const Recording rec = readRecording(path);
+      SCOPED_TRACE("chunk " + std::to_string(k) + ", byte " + std::to_string(at));
+      ASSERT_EQ(rec.records.size(), 4500u);
+      for (std::size_t i = 0; i < rec.records.size(); ++i) {
+        const std::uint64_t tick = i < 500 * k ? i : i + 500;  // the oracle: the ticks written
+        ASSERT_TRUE(sameBytes(rec.records[i], makeRecord(tick))) << "record " << i;
+      }
+      EXPECT_EQ(rec.chunks, 9u);
+      EXPECT_EQ(rec.damaged_regions, 1u);
+      EXPECT_TRUE(rec.ended);
+      const std::size_t chunk_bytes = 16 + 500 * sizeof(TickRecord) + 4;
+      EXPECT_EQ(rec.bytes_ignored, chunk_bytes);
+      ASSERT_EQ(rec.warnings.size(), 2u);
+      const std::string& w = rec.warnings[0];
+      EXPECT_NE(w.find("at byte " + std::to_string(chunks[k])), std::string::npos) << w;
+      EXPECT_NE(w.find("skipped " + std::to_string(chunk_bytes) + " damaged bytes"), std::string::npos) << w;
+      if (k == 0) {
+        EXPECT_NE(w.find("the ticks before tick 500 are missing"), std::string::npos) << w;
+      } else if (k == 9) {
+        EXPECT_NE(w.find("the 500 ticks after tick 4499 are missing"), std::string::npos) << w;
+      } else {
+        EXPECT_NE(w.find("ticks " + std::to_string(500 * k) + " to " + std::to_string(500 * k + 499) +
+                         " are missing (500 ticks)"),
+                  std::string::npos)
+            << w;
+      }
+      EXPECT_NE(rec.warnings[1].find("4500 ticks kept of the 5000 written"), std::string::npos) << rec.warnings[1];
+    }
+  }
+}
 
-  const Recording rec = readRecording(path);
+/// A kill -9 while recording: the child writes `n` records, waits until they are on disk and
+/// kills itself. @return the recording.
+fs::path killedWhileRecording(const fs::path& path, std::uint64_t n) {
+  const pid_t child = ::fork();
+  if (child == 0) {
+    RecordingWriterOptions opt;
+    opt.ring_capacity = 1u << 16;
+    auto* writer = new RecordingWriter(path, R"({"scene":"killed"})", opt);  // never closed
+    for (std::uint64_t i = 0; i < n; ++i) (void)writer->push(makeRecord(i));
+    while (writer->recordsWritten() < n) std::this_thread::sleep_for(std::chrono::milliseconds(5));
+    ::kill(::getpid(), SIGKILL);
+    ::_exit(3);
+  }
+  int status = 0;
+  EXPECT_EQ(::waitpid(child, &status, 0), child);
+  EXPECT_TRUE(WIFSIGNALED(status) && WTERMSIG(status) == SIGKILL) << "status " << status;
+  return path;
+}
+
+TEST(Recording, KillNineLeavesARecordingReadAsUnfinished) {
+  const fs::path dir = test::scratchDir();
+  const Recording rec = readRecording(killedWhileRecording(dir / "killed.vhrec", 1234));
+  ASSERT_EQ(rec.records.size(), 1234u);
+  for (std::uint64_t i = 0; i < 1234; ++i) ASSERT_TRUE(sameBytes(rec.records[i], makeRecord(i)));
+  EXPECT_FALSE(rec.ended);
   ASSERT_EQ(rec.warnings.size(), 1u);
-  EXPECT_NE(rec.warnings[0].find("checksum mismatch"), std::string::npos) << rec.warnings[0];
-  EXPECT_NE(rec.warnings[0].find("at byte " + std::to_string(chunks[bad])), std::string::npos) << rec.warnings[0];
-  EXPECT_EQ(rec.chunks, bad);
-  EXPECT_EQ(rec.bytes_ignored, bytes.size() - chunks[bad]);
-  for (std::size_t i = 0; i < rec.records.size(); ++i) ASSERT_TRUE(sameBytes(rec.records[i], makeRecord(i)));
+  EXPECT_NE(rec.warnings[0].find("unfinished recording: ended without its end marker"), std::string::npos)
+      << rec.warnings[0];
+  EXPECT_NE(rec.warnings[0].find("1234 ticks kept"), std::string::npos) << rec.warnings[0];
+  // The same records closed normally: finished, no warning.
+  const Recording closed = readRecording(writeSession(dir / "closed.vhrec", 1234));
+  EXPECT_TRUE(closed.ended);
+  EXPECT_EQ(closed.end_status, 0u);
+  EXPECT_TRUE(closed.warnings.empty());
+}
+
+/// RLIMIT_FSIZE as a full disk: writes past `bytes` fail with EFBIG (SIGXFSZ ignored, so it is
+/// an error, not a kill).
+class FileSizeLimit {
+ public:
+  explicit FileSizeLimit(rlim_t bytes) {
+    old_handler_ = ::signal(SIGXFSZ, SIG_IGN);
+    ::getrlimit(RLIMIT_FSIZE, &old_);
+    const rlimit limit{bytes, old_.rlim_max};
+    ::setrlimit(RLIMIT_FSIZE, &limit);
+  }
+  ~FileSizeLimit() {
+    ::setrlimit(RLIMIT_FSIZE, &old_);
+    ::signal(SIGXFSZ, old_handler_);
+  }
+  FileSizeLimit(const FileSizeLimit&) = delete;
+  FileSizeLimit& operator=(const FileSizeLimit&) = delete;
+
+ private:
+  rlimit old_{};
+  sighandler_t old_handler_ = nullptr;
+};
+
+TEST(Recording, AWriteFailureStopsAtOnceAndKeepsEveryWholeChunk) {
+  const fs::path path = test::scratchDir() / "full.vhrec";
+  const rlim_t limit = 300000;  // room for the header and 2 whole chunks of 500 ticks, not 3
+  std::string close_error;
+  std::uint64_t written = 0;
+  std::string failure;
+  {
+    const FileSizeLimit full(limit);
+    RecordingWriterOptions opt;
+    opt.ring_capacity = 1u << 16;
+    RecordingWriter writer(path, R"({"scene":"full"})", opt);
+    for (std::uint64_t i = 0; i < 5000; ++i) ASSERT_TRUE(writer.push(makeRecord(i)));
+    for (int i = 0; i < 400 && !writer.failed(); ++i) std::this_thread::sleep_for(std::chrono::milliseconds(5));
+    EXPECT_TRUE(writer.failed());
+    failure = writer.failure();
+    try {
+      writer.close();
+    } catch (const std::runtime_error& e) {
+      close_error = e.what();
+    }
+    written = writer.recordsWritten();
+  }
+  EXPECT_EQ(failure, "file size limit reached (File too large)");
+  EXPECT_NE(close_error.find("file size limit reached (File too large); 1000 ticks kept"), std::string::npos)
+      << close_error;
+  EXPECT_EQ(written, 1000u);
+  // The file (stat) ends on whole chunks: the 2 record chunks, the isovalue event at tick 1000
+  // (written before the chunk that failed), and the end marker, which fitted once the partly
+  // written chunk was cut off.
+  struct stat st{};
+  ASSERT_EQ(::stat(path.c_str(), &st), 0);
+  EXPECT_LE(static_cast<rlim_t>(st.st_size), limit);
+  const std::string bytes = readBytes(path);
+  ASSERT_EQ(bytes.size(), static_cast<std::size_t>(st.st_size));
+  const std::vector<ChunkAt> chunks = chunksOf(bytes);
+  std::string tags;
+  for (const ChunkAt& c : chunks) tags += c.tag + " ";
+  EXPECT_EQ(tags, "CHNK CHNK EVNT ENDR ");
+  ASSERT_FALSE(chunks.empty());
+  EXPECT_EQ(chunks.back().offset + chunks.back().size, bytes.size());
+  const Recording rec = readRecording(path);
+  ASSERT_EQ(rec.records.size(), 1000u);
+  for (std::uint64_t i = 0; i < 1000; ++i) ASSERT_TRUE(sameBytes(rec.records[i], makeRecord(i)));
+  EXPECT_TRUE(rec.ended);
+  EXPECT_EQ(rec.end_status, static_cast<std::uint32_t>(EFBIG));
+  ASSERT_EQ(rec.warnings.size(), 1u);  // no truncated chunk: only how it ended
+  EXPECT_EQ(rec.warnings[0], "the recording ended early: file size limit reached (File too large); 1000 ticks kept");
 }
 
 TEST(Recording, DamagedHeadersThrowWithTheReason) {
@@ -379,10 +550,10 @@ TEST(Recording, DamagedHeadersThrowWithTheReason) {
 
   writeBytes(dir / "magic.vhrec", "not a recording at all, just text");
   VH_EXPECT_THROW_WITH(readRecording(dir / "magic.vhrec"), std::runtime_error, "bad magic");
-  std::string v3 = bytes;
-  v3[8] = 3;
-  writeBytes(dir / "v3.vhrec", v3);
-  VH_EXPECT_THROW_WITH(readRecording(dir / "v3.vhrec"), std::runtime_error, "unsupported format version 3");
+  std::string v4 = bytes;
+  v4[8] = 4;
+  writeBytes(dir / "v4.vhrec", v4);
+  VH_EXPECT_THROW_WITH(readRecording(dir / "v4.vhrec"), std::runtime_error, "unsupported format version 4");
   std::string meta = bytes;
   meta[26] ^= 0x01;
   writeBytes(dir / "meta.vhrec", meta);
@@ -518,6 +689,32 @@ TEST(RecordingExport, CommandLineWritesCsvAndJson) {
   while (std::fgets(buffer.data(), static_cast<int>(buffer.size()), bad) != nullptr) bad_output += buffer.data();
   EXPECT_NE(pclose(bad), 0);
   EXPECT_NE(bad_output.find("cannot open"), std::string::npos) << bad_output;
+}
+
+TEST(RecordingExport, CommandLineSaysARecordingIsUnfinished) {
+  // A kill -9 that ended on a chunk boundary: nothing truncated, but `export` and `report`
+  // both say the recording is unfinished and how many ticks it kept.
+  const fs::path dir = test::scratchDir();
+  const fs::path rec_path = killedWhileRecording(dir / "killed.vhrec", 1500);
+  const auto run = [](const std::string& args, std::string& output) {
+    const std::string command = "env -u DISPLAY -u WAYLAND_DISPLAY '" + std::string(VH_APP_EXECUTABLE) + "' " + args + " 2>&1";
+    FILE* pipe = popen(command.c_str(), "r");
+    if (pipe == nullptr) return -1;
+    std::array<char, 4096> buffer{};
+    while (std::fgets(buffer.data(), static_cast<int>(buffer.size()), pipe) != nullptr) output += buffer.data();
+    return pclose(pipe);
+  };
+  const std::string expected = "unfinished recording: ended without its end marker (the program stopped, or a write "
+                               "failed, while recording); 1500 ticks kept";
+  std::string output;
+  ASSERT_EQ(run("export '" + rec_path.string() + "' --csv '" + (dir / "out.csv").string() + "'", output), 0) << output;
+  EXPECT_NE(output.find("warning: " + expected), std::string::npos) << output;
+  std::string report_output;
+  const fs::path html = dir / "report.html";
+  ASSERT_EQ(run("report '" + rec_path.string() + "' --no-anatomy --html '" + html.string() + "'", report_output), 0)
+      << report_output;
+  EXPECT_NE(report_output.find("warning: " + expected), std::string::npos) << report_output;
+  EXPECT_NE(readBytes(html).find(expected), std::string::npos);
 }
 
 }  // namespace

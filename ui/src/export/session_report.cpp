@@ -28,6 +28,7 @@
 #include "vh/haptics/scalar_volume.h"
 #include "vh/io/private_files.h"
 #include "vh/runtime/scene.h"
+#include "vh/runtime/anonymize.h"
 #include "vh/runtime/session_metadata.h"
 #include "vh/ui/export/report_format.h"
 
@@ -651,6 +652,23 @@ std::unique_ptr<Anatomy> loadAnatomy(const Recording& rec, std::string& why) {
   }
 }
 
+/// --anonymize: anonymized copies of the recording and the reference (runtime::anonymizeRecording());
+/// empty when not asked for.
+struct Anonymized {
+  Anonymized(bool anonymize, const Recording& original, const Recording* original_reference) {
+    if (!anonymize) return;
+    recording = std::make_unique<Recording>(original);
+    ids = runtime::anonymizeRecording(*recording);
+    if (original_reference != nullptr) {
+      reference = std::make_unique<Recording>(*original_reference);
+      runtime::anonymizeRecording(*reference);
+    }
+  }
+  std::unique_ptr<Recording> recording;
+  std::unique_ptr<Recording> reference;
+  std::vector<std::string> ids;  ///< What was removed, to scrub other text with.
+};
+
 constexpr const char* kStyle = R"(<style>
 body { font-family: sans-serif; margin: 2em; color: #222; max-width: 1160px; }
 h1 { font-size: 1.5em; } h2 { font-size: 1.2em; margin-top: 1.6em; border-bottom: 1px solid #ccc; }
@@ -665,16 +683,21 @@ figure.map figcaption { font-size: 0.85em; color: #444; margin-top: 2px; } img.m
 
 }  // namespace
 
-std::string sessionReportHtml(const Recording& recording, const std::string& title,
-                              const SessionReportOptions& options, const Recording* reference,
-                              const std::string& reference_title) {
+std::string sessionReportHtml(const Recording& original, const std::string& title_given,
+                              const SessionReportOptions& options, const Recording* reference_given,
+                              const std::string& reference_title_given) {
   if (options.chart_width < 64 || options.chart_height < 64 || options.map_size < 64)
     throw std::invalid_argument("report charts must be at least 64 pixels wide and high");
   // The scan is reloaded on a second thread while the metrics and the time charts are drawn.
   std::string why;
   std::future<std::unique_ptr<Anatomy>> anatomy_loading;
-  if (options.anatomy && !recording.records.empty())
-    anatomy_loading = std::async(std::launch::async, [&recording, &why] { return loadAnatomy(recording, why); });
+  if (options.anatomy && !original.records.empty())
+    anatomy_loading = std::async(std::launch::async, [&original, &why] { return loadAnatomy(original, why); });
+  const Anonymized anonymized(options.anonymize, original, reference_given);
+  const Recording& recording = anonymized.recording ? *anonymized.recording : original;
+  const Recording* reference = anonymized.reference ? anonymized.reference.get() : reference_given;
+  const std::string title = options.anonymize ? std::string(runtime::kAnonymized) : title_given;
+  const std::string reference_title = options.anonymize ? std::string("reference") : reference_title_given;
   std::unique_ptr<Anatomy> anatomy;
   const SessionMetrics m = runtime::computeSessionMetrics(recording, options.metrics);
   // The reference is checked before anything is drawn: another scene is refused.
@@ -707,7 +730,8 @@ std::string sessionReportHtml(const Recording& recording, const std::string& tit
             "anterior/posterior, S/I superior/inferior), each seen from the side the tool was on and framed on at "
             "least " + formatNumber(kMinField_mm) + " mm around the contacts";
     if (anatomy) html += ", over the felt surface (lit from above-left of the viewer, darker when farther)";
-    else if (options.anatomy) html += "; the scan could not be reloaded to draw it behind (" + escapeHtml(why) + ")";
+    else if (options.anatomy)
+      html += "; the scan could not be reloaded to draw it behind (" + escapeHtml(runtime::scrubText(why, anonymized.ids)) + ")";
     html += ".</p>\n" + contactMap(recording, m, options, anatomy.get());
   }
   html += "<h2>Segments</h2>\n" + segmentsTable(m);
@@ -735,7 +759,10 @@ void writeSessionReport(const Recording& recording, const std::string& title, co
 
 std::vector<std::string> writeSessionReport(const fs::path& recording_path, const fs::path& html_path,
                                             const SessionReportOptions& options, const fs::path& reference_path) {
-  const Recording recording = runtime::readRecording(recording_path);
+  Recording recording = runtime::readRecording(recording_path);
+  if (options.anonymize) {  // the reader's warnings name the file
+    for (std::string& w : recording.warnings) w = runtime::scrubText(w, runtime::pathIdentifiers(recording_path));
+  }
   std::unique_ptr<Recording> reference;
   if (!reference_path.empty()) reference = std::make_unique<Recording>(runtime::readRecording(reference_path));
   writeSessionReport(recording, recording_path.filename().string(), html_path, options, reference.get(),

@@ -61,7 +61,10 @@ SessionRecorder::SessionRecorder(runtime::Session& session, QStatusBar* status_b
   status_label_->hide();
   status_timer_ = new QTimer(this);
   status_timer_->setInterval(kStatusPeriodMs);
-  connect(status_timer_, &QTimer::timeout, this, &SessionRecorder::updateUi);
+  connect(status_timer_, &QTimer::timeout, this, [this] {
+    checkWriter();
+    updateUi();
+  });
   observer_ = session_.addObserver([this](runtime::SessionChange what) {
     using runtime::SessionChange;
     const bool replaced = runtime::has(what, SessionChange::kScene) || runtime::has(what, SessionChange::kTool) ||
@@ -98,6 +101,7 @@ fs::path SessionRecorder::defaultPath() {
 bool SessionRecorder::start(const fs::path& path) {
   if (recording()) stop();
   last_error_.clear();
+  failure_text_.clear();
   if (!session_.hasScene() || session_.hapticThread() == nullptr) {
     last_error_ = "Nothing to record: the scene has no device and haptic thread";
     updateUi();
@@ -178,6 +182,12 @@ void SessionRecorder::stop() {
   }
   const std::uint64_t records = writer_->recordsWritten();
   const std::uint64_t dropped = writer_->dropped();
+  if (writer_->failed()) {
+    failure_text_ = QString::fromUtf8("REC stopped: %1 \u2014 %2 ticks kept")
+                        .arg(QString::fromStdString(writer_->failure()))
+                        .arg(static_cast<qulonglong>(records));
+    status_label_->setToolTip(failure_text_ + "\n" + QString::fromStdString(path_.string()));
+  }
   if (thread_running) {
     retired_.push_back(std::move(writer_));  // the servo thread may be inside push() still
   } else {
@@ -194,6 +204,12 @@ void SessionRecorder::stop() {
     status_label_->setToolTip(QString::fromStdString(path_.string()));
   }
   emit recordingChanged(false);
+}
+
+void SessionRecorder::checkWriter() {
+  // stop() closes the writer (the end marker when it fits; the file keeps its whole chunks)
+  // and words the failure.
+  if (writer_ != nullptr && writer_->failed()) stop();
 }
 
 std::uint64_t SessionRecorder::recordsWritten() const noexcept {
@@ -271,7 +287,10 @@ void SessionRecorder::showNotice(const QString& text, int ms) {
 
 QString SessionRecorder::statusText() const {
   const bool notice = !notice_.isEmpty() && QDateTime::currentMSecsSinceEpoch() < notice_until_ms_;
-  if (!recording()) return notice ? notice_ : QString();
+  if (!recording()) {
+    if (!failure_text_.isEmpty()) return failure_text_ + (notice ? "   " + notice_ : QString());
+    return notice ? notice_ : QString();
+  }
   const qint64 s = elapsed_.elapsed() / 1000;
   const double bytes = static_cast<double>(writer_->recordsWritten()) * sizeof(runtime::TickRecord);
   return QString::fromUtf8("\u25cf REC %1:%2  %3  dropped %4")
@@ -285,7 +304,7 @@ void SessionRecorder::updateUi() {
   const bool on = recording();
   const QString text = statusText();
   status_label_->setText(text);
-  status_label_->setStyleSheet(on ? "QLabel { color: #d03030; font-weight: bold; }" : "");
+  status_label_->setStyleSheet(on || !failure_text_.isEmpty() ? "QLabel { color: #d03030; font-weight: bold; }" : "");
   status_label_->setVisible(!text.isEmpty());
   {
     const QSignalBlocker block(record_action_);

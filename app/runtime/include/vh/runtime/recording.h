@@ -4,25 +4,26 @@
 /// a preallocated lock-free single-producer / single-consumer ring (TickRing, tick_ring.h), drained to disk by
 /// a writer thread (RecordingWriter) in checksummed chunks together with timestamped events
 /// (RecordingEvent: markers, isovalue / tool / gains changes, device connect / disconnect), read
-/// back by readRecording() up to the last good chunk, and exported as CSV (writeRecordingCsv(),
+/// back by readRecording() (every good chunk; a damaged one is skipped and named), and exported as CSV (writeRecordingCsv(),
 /// writeRecordingEventsCsv()) and JSON (writeRecordingJson()). The session metadata is made by
 /// makeSessionMetadata() (session_metadata.h); replay.h replays a recording bit for bit.
 ///
-/// ## File format, version 2 (`.vhrec`)
+/// ## File format, version 3 (`.vhrec`)
 /// All integers and doubles are little-endian (IEEE-754 binary64 for doubles); the writer
 /// refuses to build on a big-endian host. The file is written append-only.
 ///
 ///   File header (24 bytes, then the metadata):
 ///     offset  size  field
 ///          0     8  magic "VHREC\r\n\x1a" (bytes 56 48 52 45 43 0d 0a 1a)
-///          8     4  uint32 format version (kRecordingFormatVersion = 2; readers accept 1 and 2)
+///          8     4  uint32 format version (kRecordingFormatVersion = 3; readers accept 1, 2 and 3)
 ///         12     4  uint32 record size in bytes (sizeof(TickRecord) = 200)
 ///         16     4  uint32 metadata length M in bytes
 ///         20     4  uint32 CRC-32 of the M metadata bytes
 ///         24     M  metadata: one UTF-8 JSON object (makeSessionMetadata(): scene, dataset and
 ///                   its SHA-256, tool, point shell, gains, device, software version; plus
 ///                   "servo_rate_Hz" and "start_time_utc" added by the writer)
-///   Then zero or more chunks, back to back, in any order; two kinds, told apart by the tag.
+///   Then zero or more chunks, back to back, in any order, told apart by the tag; in version 3
+///   the last one is the end marker.
 ///   Record chunk:
 ///     offset  size  field
 ///          0     4  chunk tag "CHNK" (bytes 43 48 4e 4b)
@@ -41,7 +42,15 @@
 ///                     uint32  T, then T bytes: type, UTF-8 ("marker", "isovalue", ...)
 ///                     uint32  J, then J bytes: detail, UTF-8 JSON object text
 ///       12+B     4  uint32 CRC-32 of bytes [0, 12 + B) of the chunk
-///   Version 1 files are the same without event chunks.
+///   End marker (version 3 only; written by close(), always the last chunk):
+///     offset  size  field
+///          0     4  chunk tag "ENDR" (bytes 45 4e 44 52)
+///          4     4  uint32 status: 0 = closed normally; else the errno of the write that failed
+///                   and ended the recording early (e.g. 28 ENOSPC, 27 EFBIG)
+///          8     8  uint64 records written in total
+///         16     8  uint64 dropped records in total (ring overflow)
+///         24     4  uint32 CRC-32 of bytes [0, 24)
+///   Version 2 files are the same without the end marker; version 1 files also lack event chunks.
 ///
 ///   TickRecord (tick_record.h; 200 bytes; all frames are the scene (world) frame W, SI units):
 ///     offset  field
@@ -77,14 +86,21 @@
 ///
 /// A crash (even `kill -9`) loses only the records not yet written: the writer flushes a chunk
 /// at least every RecordingWriterOptions::max_chunk_wall_s (< 1 s) and every chunk holds at most
-/// RecordingWriterOptions::chunk_records (< 1 s of ticks; the writer enforces it). readRecording() keeps every chunk up
-/// to the first truncated or corrupted one and reports the rest as a warning.
+/// RecordingWriterOptions::chunk_records (< 1 s of ticks; the writer enforces it). Such a
+/// version 3 file lacks its end marker, and readRecording() says it is unfinished. A damaged
+/// chunk costs that chunk only: readRecording() scans forward for the next chunk whose tag,
+/// header and CRC-32 check out, goes on from there and names the damage (bytes skipped, ticks
+/// missing) in a warning; a truncated tail is a warning too. A write that fails (disk full, file
+/// size limit) stops the writing at once: the partly written chunk is cut off (the file ends on
+/// its last whole chunk), failed() and failure() say so at once, and close() adds the end marker
+/// with the errno when it still fits.
 
 #include <atomic>
 #include <cstddef>
 #include <cstdint>
 #include <cstdio>
 #include <filesystem>
+#include <initializer_list>
 #include <iosfwd>
 #include <memory>
 #include <mutex>
@@ -99,7 +115,7 @@
 
 namespace vh::runtime {
 
-inline constexpr std::uint32_t kRecordingFormatVersion = 2;
+inline constexpr std::uint32_t kRecordingFormatVersion = 3;
 
 
 /// One timestamped event of a session (marker, isovalue change, tool change, device
@@ -152,9 +168,16 @@ class RecordingWriter {
   /// @throws std::invalid_argument when detail_json is not a JSON object or type is empty;
   ///         std::logic_error after close().
   void addEvent(const RecordingEvent& event);
-  /// Stops the writer thread after it drained the ring, writes the last chunk, closes the file.
-  /// Idempotent. @throws std::runtime_error when a write failed (the message says which).
+  /// Stops the writer thread after it drained the ring, writes the last chunk and the end
+  /// marker, closes the file. Idempotent.
+  /// @throws std::runtime_error when a write failed (the message names the cause, as failure()).
   void close();
+
+  /// True once a write failed (any thread): nothing more is written; what was is kept whole.
+  bool failed() const noexcept { return failed_.load(std::memory_order_acquire); }
+  /// The cause of the failure, e.g. "disk full (No space left on device)" or "file size limit
+  /// reached (File too large)"; empty when none (any thread).
+  std::string failure() const;
 
   std::uint64_t dropped() const noexcept { return ring_.dropped(); }
   /// Records written to disk so far (any thread).
@@ -166,6 +189,15 @@ class RecordingWriter {
  private:
   void run() noexcept;
   bool writeChunk(const TickRecord* records, std::size_t count) noexcept;
+  struct Bytes {
+    const void* data;
+    std::size_t size;
+  };
+  /// Writes one chunk (its parts back to back) at the end of the file; on failure records
+  /// errno, cuts the file back to its last whole chunk and sets failed_.
+  bool writeWhole(std::initializer_list<Bytes> parts) noexcept;
+  /// close(): the end marker (status = the failure's errno, 0 when none).
+  void writeEndMarker() noexcept;
   /// Writer thread: events the records imply (isovalue changes, device (dis)connection).
   void deriveEvents(const TickRecord* records, std::size_t count);
   /// Writer thread: writes the pending events as one event chunk (nothing when none).
@@ -174,7 +206,9 @@ class RecordingWriter {
   std::filesystem::path path_;
   RecordingWriterOptions options_;
   TickRing ring_;
-  std::FILE* file_ = nullptr;
+  int fd_ = -1;
+  std::uint64_t file_size_ = 0;                 // bytes of whole chunks written (writer thread)
+  std::atomic<int> error_number_{0};            // errno of the failed write; 0 when none
   std::vector<TickRecord> chunk_;
   std::mutex events_mutex_;
   std::vector<RecordingEvent> pending_events_;  // guarded by events_mutex_
@@ -202,13 +236,22 @@ struct Recording {
   std::vector<RecordingEvent> events;
   std::size_t chunks = 0;              ///< Good record chunks read.
   std::size_t event_chunks = 0;        ///< Good event chunks read.
-  std::uint64_t dropped_records = 0;   ///< Ring overflows as of the last good chunk.
-  std::uint64_t bytes_ignored = 0;     ///< Bytes after the last good chunk.
-  std::vector<std::string> warnings;   ///< Truncated / corrupted tail; empty for a clean file.
+  std::uint64_t dropped_records = 0;   ///< Ring overflows as of the last good record chunk.
+  std::uint64_t bytes_ignored = 0;     ///< Bytes not read: damaged chunks skipped and a bad tail.
+  std::size_t damaged_regions = 0;     ///< Damaged stretches skipped (each up to the next good chunk).
+  /// Version 3: the end marker was read (the writer closed the file). False for older versions.
+  bool ended = false;
+  /// The end marker's status: 0, or the errno of the write failure that ended the recording.
+  std::uint32_t end_status = 0;
+  /// Damage, a truncated tail, a missing end marker or a write failure, one sentence each;
+  /// empty for a whole file.
+  std::vector<std::string> warnings;
 };
 
-/// Reads a recording up to its last good chunk; a truncated or corrupted tail adds a warning
-/// (with its byte offset) instead of throwing.
+/// Reads every good chunk of a recording. A damaged chunk is skipped (the reader resumes at
+/// the next chunk whose tag, header and CRC-32 check out) and a truncated tail ignored, each
+/// with a warning naming the byte offset, the bytes and the ticks lost; a version 3 file
+/// without its end marker gets an "unfinished recording" warning.
 /// @throws std::runtime_error when the file cannot be opened, is not a recording (magic), has
 ///         an unsupported version or record size, or a damaged header / metadata.
 Recording readRecording(const std::filesystem::path& path);

@@ -19,8 +19,8 @@
 ///     farther);
 ///   - the segments touched; the events in words, a kind repeated more than 5 times in one row
 ///     (summariseEvents()); every metric.
-/// A recording with a damaged tail gives the report of what could be read, with the reader's
-/// notice at the top.
+/// A recording with damaged chunks, a damaged tail or no end marker gives the report of what
+/// could be read, with the reader's notices at the top.
 ///
 /// Needs a QApplication (Qt Charts draws through QGraphicsScene); without a display, create it
 /// on Qt's "offscreen" platform (QT_QPA_PLATFORM=offscreen), as `volume-haptics report` does.
@@ -44,6 +44,10 @@ struct SessionReportOptions {
   /// Draw the felt surface behind the contact map: the recorded scene is reloaded from the
   /// metadata (runtime::loadScene(); a missing or changed dataset gives a note instead).
   bool anatomy = true;
+  /// Leave out what identifies the patient: the text is of copies anonymized as
+  /// runtime::anonymizeRecording() (the scan still reloads from the original metadata), the
+  /// titles are "ANONYMIZED" and "reference".
+  bool anonymize = false;
 };
 
 /// The report of `recording` as one HTML document. `title` names it (the file's name).
@@ -64,7 +68,8 @@ void writeSessionReport(const runtime::Recording& recording, const std::string& 
                         const runtime::Recording* reference = nullptr, const std::string& reference_title = {});
 
 /// Reads `recording` (and `reference` when not empty) and writes sessionReportHtml() to `html`.
-/// @return the reader's and the metrics' notices (a damaged tail), for the caller to show.
+/// @return the reader's and the metrics' notices (damage, an unfinished recording), for the
+///         caller to show.
 /// @throws std::runtime_error when a recording cannot be read at all (not a recording, damaged
 ///         header) or `html` cannot be written; std::invalid_argument as sessionReportHtml().
 std::vector<std::string> writeSessionReport(const std::filesystem::path& recording, const std::filesystem::path& html,

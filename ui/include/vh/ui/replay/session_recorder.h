@@ -15,6 +15,11 @@
 /// once; the closed writer object is kept until the thread stops (the servo thread may still be
 /// inside RecordingWriter::push(), see HapticThread::setRecorder()).
 ///
+/// A write that fails while recording (disk full, file size limit) ends the recording within
+/// one status refresh (0.25 s): the writer keeps every whole chunk and adds the end marker when
+/// it fits, and the REC text turns into "REC stopped: disk full (No space left on device) — N
+/// ticks kept", which stays until the next recording starts.
+///
 /// Threads: GUI thread only (events go through HapticThread::recordEvent(), stamped with the
 /// latest tick). It observes runtime::Session; it holds no copy of the scene.
 
@@ -88,8 +93,11 @@ class SessionRecorder : public QObject {
   QAction* markerAction() const noexcept { return marker_action_; }
   /// A row with the Record and Add Marker buttons for the Haptics dock.
   QWidget* makeDockControls(QWidget* parent);
-  /// The status bar's recording text ("REC 0:12  2.3 MB  dropped 0"; empty when not recording).
+  /// The status bar's recording text ("REC 0:12  2.3 MB  dropped 0"; after a write failure
+  /// "REC stopped: <cause> — N ticks kept"; else empty or a notice).
   QString statusText() const;
+  /// The write failure that ended the last recording ("REC stopped: ..."); empty when none.
+  QString failureText() const { return failure_text_; }
   /// Refreshes the actions, buttons and status text (e.g. after a scene change).
   void updateUi();
   /// Shows `text` in the recording's status bar label for `ms` milliseconds (after the REC
@@ -109,6 +117,8 @@ class SessionRecorder : public QObject {
 
   /// The haptic thread stopped or was replaced: the recording ends, closed writers go.
   void onHapticsStopped();
+  /// Status refresh: a writer whose write failed ends the recording, and the REC text says why.
+  void checkWriter();
 
   runtime::Session& session_;
   QWidget* dialog_parent_;
@@ -127,6 +137,7 @@ class SessionRecorder : public QObject {
   QPushButton* record_button_ = nullptr;
   QPushButton* marker_button_ = nullptr;
   int marker_count_ = 0;
+  QString failure_text_;
   QString notice_;
   qint64 notice_until_ms_ = 0;  // QDateTime::currentMSecsSinceEpoch()
 };
