@@ -99,17 +99,41 @@ py::tuple recordingTuple(const vh::runtime::Recording& r) {
                         r.dropped_records, r.bytes_ignored);
 }
 
-}  // namespace
+/// A recording's session metrics (`report --table`'s): (identity dict, [(key, label, unit,
+/// value)], [segment dicts], notices).
+py::tuple sessionMetricsTuple(const fs::path& path, double force_threshold_N, double derivative_step_s) {
+  vh::runtime::MetricsOptions options;
+  options.force_threshold_N = force_threshold_N;
+  options.derivative_step_s = derivative_step_s;
+  vh::runtime::SessionMetrics metrics;
+  {
+    py::gil_scoped_release release;
+    metrics = vh::runtime::computeSessionMetrics(vh::runtime::readRecording(path), options);
+  }
+  py::dict identity;
+  identity["scene"] = metrics.scene;
+  identity["dataset_sha256"] = metrics.dataset_sha256;
+  identity["label"] = vh::runtime::cohortLabel(metrics, path);  // as `report --table` gives it
+  identity["start_time_utc"] = metrics.start_time_utc;
+  py::list values;
+  for (const auto& v : vh::runtime::metricValues(metrics)) values.append(py::make_tuple(v.key, v.label, v.unit, v.value));
+  py::list segments;
+  for (const auto& s : metrics.segments) {
+    py::dict d;
+    d["name"] = s.name;
+    d["critical"] = s.critical;
+    d["time_in_contact_s"] = s.time_in_contact_s;
+    d["peak_force_N"] = s.peak_force_N;
+    d["touches"] = s.touches;
+    d["removed_voxels"] = s.removed_voxels;
+    d["removed_mm3"] = s.removed_mm3;
+    segments.append(d);
+  }
+  return py::make_tuple(identity, values, segments, metrics.notices);
+}
 
-PYBIND11_MODULE(_core, m) {
-  m.doc() = "C++ side of volume_haptics (see volume_haptics/__init__.py for the API).";
-  // io::LoadError (a volume, segmentation or mesh that cannot be read) as its own exception;
-  // std::runtime_error becomes RuntimeError, std::invalid_argument ValueError (pybind11's own
-  // translation), each with the message the command line prints after "volume-haptics: error: ".
-  py::register_exception<vh::io::LoadError>(m, "LoadError", PyExc_RuntimeError);
-  m.attr("TICK_RECORD_BYTES") = sizeof(TickRecord);
-  m.attr("RECORDING_FORMAT_VERSION") = vh::runtime::kRecordingFormatVersion;
-
+/// Scene and the functions that load one.
+void bindScenes(py::module_& m) {
   py::class_<Scene>(m, "Scene",
                     "A scene loaded once (volume, tool, segmentation, coupling), to run many trajectories on.\n\n"
                     "Made by load_scene(). Read-only attributes: source (the file, or \"scene dict\"), volume_dims "
@@ -135,7 +159,10 @@ PYBIND11_MODULE(_core, m) {
         return loadScene(vh::runtime::parseScene(json_text, source, base_dir), source);
       },
       py::arg("json_text"), py::arg("source"), py::arg("base_dir"));
+}
 
+/// run() and read_recording(): a headless run's report and recording, and a recording read.
+void bindRuns(py::module_& m) {
   m.def(
       "run",
       [](const Scene& scene, const py::array_t<double, py::array::c_style | py::array::forcecast>& trajectory,
@@ -171,7 +198,10 @@ PYBIND11_MODULE(_core, m) {
         return recordingTuple(r);
       },
       py::arg("path"));
+}
 
+/// Trajectories: write, read and check (N x 8 or 9 arrays).
+void bindTrajectories(py::module_& m) {
   m.def(
       "write_trajectory",
       [](const fs::path& path, const py::array_t<double, py::array::c_style | py::array::forcecast>& trajectory) {
@@ -186,38 +216,31 @@ PYBIND11_MODULE(_core, m) {
         return trajectoryArray(trajectoryOf(trajectory));
       },
       py::arg("trajectory"));
+}
 
+/// session_metrics(): sessionMetricsTuple() of a recording.
+void bindSessionMetrics(py::module_& m) {
   m.def(
       "session_metrics",
       [](const fs::path& path, double force_threshold_N, double derivative_step_s) {
-        vh::runtime::MetricsOptions options;
-        options.force_threshold_N = force_threshold_N;
-        options.derivative_step_s = derivative_step_s;
-        vh::runtime::SessionMetrics metrics;
-        {
-          py::gil_scoped_release release;
-          metrics = vh::runtime::computeSessionMetrics(vh::runtime::readRecording(path), options);
-        }
-        py::dict identity;
-        identity["scene"] = metrics.scene;
-        identity["dataset_sha256"] = metrics.dataset_sha256;
-        identity["label"] = vh::runtime::cohortLabel(metrics, path);  // as `report --table` gives it
-        identity["start_time_utc"] = metrics.start_time_utc;
-        py::list values;
-        for (const auto& v : vh::runtime::metricValues(metrics)) values.append(py::make_tuple(v.key, v.label, v.unit, v.value));
-        py::list segments;
-        for (const auto& s : metrics.segments) {
-          py::dict d;
-          d["name"] = s.name;
-          d["critical"] = s.critical;
-          d["time_in_contact_s"] = s.time_in_contact_s;
-          d["peak_force_N"] = s.peak_force_N;
-          d["touches"] = s.touches;
-          d["removed_voxels"] = s.removed_voxels;
-          d["removed_mm3"] = s.removed_mm3;
-          segments.append(d);
-        }
-        return py::make_tuple(identity, values, segments, metrics.notices);
+        return sessionMetricsTuple(path, force_threshold_N, derivative_step_s);
       },
       py::arg("path"), py::arg("force_threshold_N"), py::arg("derivative_step_s"));
+}
+
+}  // namespace
+
+PYBIND11_MODULE(_core, m) {
+  m.doc() = "C++ side of volume_haptics (see volume_haptics/__init__.py for the API).";
+  // io::LoadError (a volume, segmentation or mesh that cannot be read) as its own exception;
+  // std::runtime_error becomes RuntimeError, std::invalid_argument ValueError (pybind11's own
+  // translation), each with the message the command line prints after "volume-haptics: error: ".
+  py::register_exception<vh::io::LoadError>(m, "LoadError", PyExc_RuntimeError);
+  m.attr("TICK_RECORD_BYTES") = sizeof(TickRecord);
+  m.attr("RECORDING_FORMAT_VERSION") = vh::runtime::kRecordingFormatVersion;
+
+  bindScenes(m);
+  bindRuns(m);
+  bindTrajectories(m);
+  bindSessionMetrics(m);
 }

@@ -61,6 +61,99 @@ double brightFraction(const QImage& image) {
   return static_cast<double>(bright) / (static_cast<double>(rgb.width()) * rgb.height());
 }
 
+/// The command line's window settings: size, saved layout (not in a scripted run), render mode,
+/// preset, and an OpenIGTLink server, which wins over the scene's and listens from now on.
+/// @return false (the error printed) when the server cannot start.
+bool applyWindowOptions(MainWindow& window, runtime::SceneSpec& spec, const AppOptions& options, bool scripted) {
+  window.setInteractive(!scripted);
+  window.resize(options.window_width, options.window_height);
+  if (!scripted) window.restoreLayout();
+  if (options.render_mode.has_value()) window.viewController()->setRenderMode(*options.render_mode);
+  if (options.preset.has_value()) window.viewController()->setPreset(*options.preset);
+  if (options.igtl_port.has_value()) {
+    // The command line's server wins over a scene file's "openigtlink" section; it listens from
+    // now on, before the scene has loaded.
+    spec.openigtlink = runtime::OpenIgtlinkSpec{*options.igtl_port, options.igtl_rate_Hz};
+    QString error;
+    if (!window.igtlPanel()->apply(
+            {true, *options.igtl_port, options.igtl_rate_Hz, options.igtl_bind, options.igtl_allow}, &error)) {
+      std::cerr << "volume-haptics: error: " << error.toStdString() << std::endl;
+      return false;
+    }
+  }
+  return true;
+}
+
+/// --touch: the simulated device moves onto the surface `depth_m` deep along the view through the
+/// volume's centre; `touch_pending` stays set until the placement has reached the haptic threads,
+/// the proxy rests on the surface and the view has framed the contact.
+void touchSurfaceAndFrame(MainWindow* window, double depth_m, bool& touch_pending) {
+  if (!window->deviceInput()->touchSurface(depth_m)) {
+    std::cerr << "volume-haptics: touch: no simulated device, or no surface along the view "
+                 "through the volume's centre\n";
+    return;
+  }
+  // Frame the contact once the placement has reached the haptic threads and the proxy
+  // rests on the surface.
+  touch_pending = true;
+  auto* arrival = new QTimer(window);
+  arrival->setInterval(50);
+  QObject::connect(arrival, &QTimer::timeout, window, [window, &touch_pending, arrival] {
+    if (window->deviceInput()->touchInProgress()) return;
+    arrival->stop();
+    arrival->deleteLater();
+    QTimer::singleShot(300, window, [window, &touch_pending] {
+      window->viewController()->refresh(true);
+      window->viewController()->focusOnTool();
+      touch_pending = false;
+    });
+  });
+  arrival->start();
+}
+
+/// The screenshot (--screenshot): the widgets with the view's frame rendered into its place
+/// (QWidget::grab() alone leaves the view's native window blank), a warning when the view looks
+/// empty. @return 0, or 1 when the file cannot be written.
+int saveScreenshot(MainWindow& window, const fs::path& file) {
+  window.viewController()->refresh(/*update_status_now=*/true);
+  window.sceneView()->renderStill(/*best_quality=*/true);
+  const QImage shot = grabWithView(window, *window.sceneView()->widget());
+  const QRect view_rect(window.sceneView()->widget()->mapTo(&window, QPoint(0, 0)), window.sceneView()->widget()->size());
+  const double bright = brightFraction(shot.copy(view_rect));
+  if (bright < 0.005) {
+    std::cerr << "volume-haptics: screenshot: the view looks empty (" << bright * 100.0
+              << "% non-background pixels)\n";
+  }
+  const QString path = QString::fromStdString(file.string());
+  if (!shot.save(path, "PNG")) {
+    std::cerr << "volume-haptics: screenshot: cannot write " << file.string() << '\n';
+    return 1;
+  }
+  std::cout << "Screenshot saved: " << file.string() << " (" << shot.width() << " x "
+            << shot.height() << ", status: " << window.statusText().toStdString() << ")\n";
+  return 0;
+}
+
+/// Opens the scene the command line gives: a folder given on its own (no --series, --phase or
+/// --isovalue) through the series chooser, a session recording (.vhrec) in replay, everything
+/// else as given.
+void openStartScene(MainWindow& window, const runtime::SceneSpec& spec, const AppOptions& options) {
+  std::error_code ec;
+  const fs::path volume_path(spec.volume.path);
+  const bool plain_folder = spec.source.empty() && !options.isovalue.has_value() && spec.volume.series.empty() &&
+                            spec.volume.phase == 0 && spec.volume.path.rfind("builtin:", 0) != 0 &&
+                            fs::is_directory(volume_path, ec);
+  // A session recording (.vhrec) opens in replay (MainWindow::openPath()).
+  const bool recording = spec.source.empty() && volume_path.extension() == ".vhrec";
+  if (plain_folder || recording) {
+    window.openPath(QString::fromStdString(volume_path.string()));
+  } else {
+    fs::path opened = spec.source;
+    if (opened.empty() && spec.volume.path.rfind("builtin:", 0) != 0) opened = volume_path;
+    window.opener()->openScene(spec, opened);
+  }
+}
+
 }  // namespace
 
 int runApplication(int argc, char** argv, const runtime::SceneSpec& scene, const AppOptions& options) {
@@ -79,22 +172,7 @@ int runApplication(int argc, char** argv, const runtime::SceneSpec& scene, const
   }
 
   auto window = std::make_unique<MainWindow>();
-  window->setInteractive(!scripted);
-  window->resize(options.window_width, options.window_height);
-  if (!scripted) window->restoreLayout();
-  if (options.render_mode.has_value()) window->viewController()->setRenderMode(*options.render_mode);
-  if (options.preset.has_value()) window->viewController()->setPreset(*options.preset);
-  if (options.igtl_port.has_value()) {
-    // The command line's server wins over a scene file's "openigtlink" section; it listens from
-    // now on, before the scene has loaded.
-    spec.openigtlink = runtime::OpenIgtlinkSpec{*options.igtl_port, options.igtl_rate_Hz};
-    QString error;
-    if (!window->igtlPanel()->apply(
-            {true, *options.igtl_port, options.igtl_rate_Hz, options.igtl_bind, options.igtl_allow}, &error)) {
-      std::cerr << "volume-haptics: error: " << error.toStdString() << std::endl;
-      return 1;
-    }
-  }
+  if (!applyWindowOptions(*window, spec, options, scripted)) return 1;
   window->show();
 
   bool loaded_once = false;
@@ -110,27 +188,7 @@ int runApplication(int argc, char** argv, const runtime::SceneSpec& scene, const
     if (options.device_pose.has_value()) {
       window->deviceInput()->setDevicePose(*options.device_pose);
     } else if (options.touch) {
-      if (!window->deviceInput()->touchSurface(options.touch_depth_m)) {
-        std::cerr << "volume-haptics: touch: no simulated device, or no surface along the view "
-                     "through the volume's centre\n";
-      } else {
-        // Frame the contact once the placement has reached the haptic threads and the proxy
-        // rests on the surface.
-        touch_pending = true;
-        auto* arrival = new QTimer(window.get());
-        arrival->setInterval(50);
-        QObject::connect(arrival, &QTimer::timeout, window.get(), [&window, &touch_pending, arrival] {
-          if (window->deviceInput()->touchInProgress()) return;
-          arrival->stop();
-          arrival->deleteLater();
-          QTimer::singleShot(300, window.get(), [&window, &touch_pending] {
-            window->viewController()->refresh(true);
-            window->viewController()->focusOnTool();
-            touch_pending = false;
-          });
-        });
-        arrival->start();
-      }
+      touchSurfaceAndFrame(window.get(), options.touch_depth_m, touch_pending);
     }
     if (!scripted) return;
     // The screenshot after the delay, and after a --touch has arrived and been framed.
@@ -139,47 +197,13 @@ int runApplication(int argc, char** argv, const runtime::SceneSpec& scene, const
         QTimer::singleShot(100, window.get(), shoot);
         return;
       }
-      window->viewController()->refresh(/*update_status_now=*/true);
-      window->sceneView()->renderStill(/*best_quality=*/true);
-      // The widgets, with the view's frame rendered into its place (QWidget::grab() alone
-      // leaves the view's native window blank).
-      const QImage shot = grabWithView(*window, *window->sceneView()->widget());
-      const QRect view_rect(window->sceneView()->widget()->mapTo(window.get(), QPoint(0, 0)), window->sceneView()->widget()->size());
-      const double bright = brightFraction(shot.copy(view_rect));
-      if (bright < 0.005) {
-        std::cerr << "volume-haptics: screenshot: the view looks empty (" << bright * 100.0
-                  << "% non-background pixels)\n";
-      }
-      const QString path = QString::fromStdString(options.screenshot.string());
-      if (!shot.save(path, "PNG")) {
-        std::cerr << "volume-haptics: screenshot: cannot write " << options.screenshot.string() << '\n';
-        screenshot_status = 1;
-      } else {
-        std::cout << "Screenshot saved: " << options.screenshot.string() << " (" << shot.width() << " x "
-                  << shot.height() << ", status: " << window->statusText().toStdString() << ")\n";
-      }
+      screenshot_status = saveScreenshot(*window, options.screenshot);
       window->session().stopHaptics();
       QApplication::exit(screenshot_status);
     };
     QTimer::singleShot(std::max(0, options.screenshot_delay_ms), window.get(), shoot);
   });
-
-  // A folder given on its own (no --series, --phase or --isovalue) goes through the series
-  // chooser; everything else loads as given.
-  std::error_code ec;
-  const fs::path volume_path(spec.volume.path);
-  const bool plain_folder = spec.source.empty() && !options.isovalue.has_value() && spec.volume.series.empty() &&
-                            spec.volume.phase == 0 && spec.volume.path.rfind("builtin:", 0) != 0 &&
-                            fs::is_directory(volume_path, ec);
-  // A session recording (.vhrec) opens in replay (MainWindow::openPath()).
-  const bool recording = spec.source.empty() && volume_path.extension() == ".vhrec";
-  if (plain_folder || recording) {
-    window->openPath(QString::fromStdString(volume_path.string()));
-  } else {
-    fs::path opened = spec.source;
-    if (opened.empty() && spec.volume.path.rfind("builtin:", 0) != 0) opened = volume_path;
-    window->opener()->openScene(spec, opened);
-  }
+  openStartScene(*window, spec, options);
 
   const int code = QApplication::exec();
   window->session().stopHaptics();

@@ -44,19 +44,14 @@ int runGuarded(const char* name, const std::function<void()>& f) {
 }
 
 
-CLI::App* addBenchSubcommand(CLI::App& app, std::function<int()>& handler) {
-  CLI::App* bench = app.add_subcommand(
-      "bench", "Benchmarks of the rendering core: the paper's Table 1, error against run time, stiff and "
-               "extreme cases, big scans; "
-               "reports (JSON, Markdown, PNG) go into --out, by default $VH_BENCH_OUT_DIR/NAME, else for an installed "
-               "copy $XDG_DATA_HOME/volume-haptics/bench/NAME (~/.local/share/...), from a build tree BUILD/bench/NAME "
-               "(each benchmark's --help names the folder)");
-  bench->require_subcommand(1);
+namespace {
 
+/// "bench table1": the paper's Table 1 and its options.
+void addTable1Subcommand(CLI::App& bench, std::function<int()>& handler) {
   auto table1 = std::make_shared<Table1Options>();
   auto mode = std::make_shared<std::string>("both");
   auto before = std::make_shared<bool>(false);
-  CLI::App* t1 = bench->add_subcommand("table1", "The paper's Table 1: four scenes, tick times in both detection "
+  CLI::App* t1 = bench.add_subcommand("table1", "The paper's Table 1: four scenes, tick times in both detection "
                                                  "modes side by side, the accelerated mode before and after the "
                                                  "exact segment test, plus the large-tool runs");
   addCommonOptions(*t1, table1->common);
@@ -122,9 +117,12 @@ CLI::App* addBenchSubcommand(CLI::App& app, std::function<int()>& handler) {
                                              "both or all");
     handler = [table1] { return runGuarded("table1", [&] { runTable1(*table1); }); };
   });
+}
 
+/// "bench accuracy", "bench stability" and "bench drilling" (the common options only).
+void addAccuracyStabilityDrilling(CLI::App& bench, std::function<int()>& handler) {
   auto accuracy = std::make_shared<CommonOptions>();
-  CLI::App* acc = bench->add_subcommand("accuracy", "Contact-position and normal error against tick time on exact "
+  CLI::App* acc = bench.add_subcommand("accuracy", "Contact-position and normal error against tick time on exact "
                                                     "isosurfaces; Pareto front and recommended defaults");
   addCommonOptions(*acc, *accuracy);
   acc->callback([&handler, accuracy] {
@@ -132,22 +130,26 @@ CLI::App* addBenchSubcommand(CLI::App& app, std::function<int()>& handler) {
   });
 
   auto stability = std::make_shared<CommonOptions>();
-  CLI::App* stab = bench->add_subcommand("stability", "Coupling-stiffness sweep with the simulated device, and "
+  CLI::App* stab = bench.add_subcommand("stability", "Coupling-stiffness sweep with the simulated device, and "
                                                       "extreme cases with their outcomes");
   addCommonOptions(*stab, *stability);
   stab->callback([&handler, stability] {
     handler = [stability] { return runGuarded("stability", [&] { runStability(*stability); }); };
   });
   auto drilling = std::make_shared<CommonOptions>();
-  CLI::App* drill = bench->add_subcommand("drilling", "Drilling: the removal against the swept capsule, and the "
+  CLI::App* drill = bench.add_subcommand("drilling", "Drilling: the removal against the swept capsule, and the "
                                                       "solver's tick times drilling against touching alone on the "
                                                       "CT head phantom");
   addCommonOptions(*drill, *drilling);
   drill->callback([&handler, drilling] {
     handler = [drilling] { return runGuarded("drilling", [&] { runDrilling(*drilling); }); };
   });
+}
+
+/// "bench bigscan": a generated big CT series, its load, memory and tick times.
+void addBigScanSubcommand(CLI::App& bench, std::function<int()>& handler) {
   auto bigscan = std::make_shared<BigScanOptions>();
-  CLI::App* big = bench->add_subcommand("bigscan", "Big scans: a 512 x 512 x 2000 int16 CT series "
+  CLI::App* big = bench.add_subcommand("bigscan", "Big scans: a 512 x 512 x 2000 int16 CT series "
                                                    "generated into the output folder, its load time, peak memory, "
                                                    "min/max tree build, a cancelled load, and tick times against "
                                                    "the 140-slice phantom's");
@@ -171,6 +173,22 @@ CLI::App* addBenchSubcommand(CLI::App& app, std::function<int()>& handler) {
     }
     handler = [bigscan] { return runGuarded("bigscan", [&] { runBigScan(*bigscan); }); };
   });
+}
+
+}  // namespace
+
+CLI::App* addBenchSubcommand(CLI::App& app, std::function<int()>& handler) {
+  CLI::App* bench = app.add_subcommand(
+      "bench", "Benchmarks of the rendering core: the paper's Table 1, error against run time, stiff and "
+               "extreme cases, big scans; "
+               "reports (JSON, Markdown, PNG) go into --out, by default $VH_BENCH_OUT_DIR/NAME, else for an installed "
+               "copy $XDG_DATA_HOME/volume-haptics/bench/NAME (~/.local/share/...), from a build tree BUILD/bench/NAME "
+               "(each benchmark's --help names the folder)");
+  bench->require_subcommand(1);
+
+  addTable1Subcommand(*bench, handler);
+  addAccuracyStabilityDrilling(*bench, handler);
+  addBigScanSubcommand(*bench, handler);
   return bench;
 }
 

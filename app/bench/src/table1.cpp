@@ -568,6 +568,80 @@ void addModeResults(nlohmann::ordered_json& row, const std::vector<ModeRun>& run
   }
 }
 
+/// One mode's tick `i` at the device pose X_WD (X_WD_last: the tick before's), timed (wall and
+/// thread CPU); then, outside the timed section, its statistics, its move for the crossing check
+/// (`collect_moves`) and its row of the tick CSV (`tick_csv` not null).
+/// @return whether its output was finite; then its proxy pose into `proxy`, `proxy_R`.
+bool tickMode(ModeRun& m, int i, const haptics::Pose& X_WD, const haptics::Pose& X_WD_last, double s,
+              bool collect_moves, std::ostream* tick_csv, const haptics::ScalarVolume& volume,
+              const haptics::ToolModel& tool, int penetration_stride, Eigen::Vector3d& proxy,
+              Eigen::Quaterniond& proxy_R) {
+  const auto w0 = std::chrono::steady_clock::now();
+  const double c0 = threadCpu_us();
+  const haptics::Pose X_WP_before = m.renderer->proxyPose();
+  const haptics::TickOutput out = m.renderer->tick(X_WD, s);
+  m.cpu_us.push_back(threadCpu_us() - c0);
+  m.edge_us_sum += out.stats.edge_us;
+  m.wall_s += std::chrono::duration<double>(std::chrono::steady_clock::now() - w0).count();
+  // Everything below is outside the timed section.
+  const bool finite = out.force_W_N.allFinite() && out.torque_W_Nm.allFinite() && out.X_WP.allFinite();
+  // The crossing check runs after the run (checkMoves()): between ticks its dense reads of the
+  // volume would evict the timed columns' state from the caches, which the application's
+  // servo thread does not suffer.
+  if (collect_moves && finite) m.moves.push_back({m.renderer->lastMotion(), m.renderer->lastTimeOfContact(), i});
+  if (tick_csv != nullptr)
+    *tick_csv << i << ',' << out.stats.exec_time_us << ',' << m.cpu_us.back() << ',' << out.stats.contacts << ','
+              << out.stats.volume_samples << ',' << out.stats.box_queries << ',' << out.stats.tree_nodes << ','
+              << out.stats.cells << ',' << out.stats.cells_walked << ','
+              << out.stats.time_of_contact << ',' << (X_WD.p_AB_m - X_WD_last.p_AB_m).norm() << ','
+              << X_WD.R_AB.angularDistance(X_WD_last.R_AB) << ','
+              << (X_WD.p_AB_m - X_WP_before.p_AB_m).norm() << ','
+              << X_WD.R_AB.angularDistance(X_WP_before.R_AB) << ','
+              << out.stats.prune_us << ',' << out.stats.solve_us << ',' << out.stats.sweep_us << ',' << out.stats.sweeps << ','
+              << out.stats.contacts_us << ',' << out.stats.work << ',' << int(out.stats.budget_cut) << ','
+              << out.stats.edge_us << '\n';
+  m.times_us.push_back(out.stats.exec_time_us);
+  m.contacts.push_back(out.stats.contacts);
+  m.samples.push_back(static_cast<double>(out.stats.volume_samples));
+  m.cells_sum += static_cast<double>(out.stats.cells);
+  m.budget_cuts += out.stats.budget_cut;
+  m.deadline_cuts += out.stats.deadline_cut;
+  m.max_work = std::max(m.max_work, static_cast<double>(out.stats.work));
+  m.work_sum += static_cast<double>(out.stats.work);
+  m.critical_work_sum += static_cast<double>(out.stats.critical_work);
+  if (out.stats.exec_time_us > 1000.0) ++m.over_1ms;
+  if (out.stats.contacts > 0) ++m.in_contact;
+  if (!finite) {
+    ++m.nan_ticks;
+    return false;
+  }
+  proxy = out.X_WP.p_AB_m;
+  proxy_R = out.X_WP.R_AB;
+  m.max_force_N = std::max(m.max_force_N, out.force_W_N.norm());
+  if (i % penetration_stride == 0)
+    m.max_penetration_m = std::max(m.max_penetration_m, haptics::maxPenetration_m(volume, tool.point_shell, out.X_WP, s));
+  return true;
+}
+
+/// The lag of a budgeted mode (run index `budgeted`) behind the same mode's full solve (`full`)
+/// on tick `i`, when both ran and were finite; a row of the lag CSV (`lag_csv` not null).
+void addLag(std::vector<ModeRun>& runs, const std::vector<char>& proxy_finite, int budgeted, int full, int i,
+            const haptics::Pose& X_WD, std::ostream* lag_csv) {
+  if (budgeted < 0 || full < 0 || !proxy_finite[static_cast<std::size_t>(budgeted)] ||
+      !proxy_finite[static_cast<std::size_t>(full)])
+    return;
+  ModeRun& b = runs[static_cast<std::size_t>(budgeted)];
+  const haptics::Pose X_WP_b = b.renderer->proxyPose();
+  const haptics::Pose X_WP_f = runs[static_cast<std::size_t>(full)].renderer->proxyPose();
+  b.lag.add(X_WP_b, X_WP_f, X_WD);
+  if (lag_csv) {
+    const runtime::ProxyLag::Gap apart = runtime::ProxyLag::apart(X_WP_b, X_WP_f);
+    const runtime::ProxyLag::Gap behind = runtime::ProxyLag::behind(X_WP_b, X_WP_f, X_WD);
+    *lag_csv << i << ',' << b.variant.key << ',' << apart.m << ',' << apart.rad << ',' << behind.m << ','
+             << behind.rad << '\n';
+  }
+}
+
 /// Runs one scene (loaded) in the selected variants, interleaved tick by tick so that all see
 /// the same machine load: the first `ticks` ticks of the trajectory timed to last
 /// `trajectory_ticks` (>= ticks; fewer ticks run only its beginning, at the same speed). After
@@ -619,53 +693,9 @@ void runScene(const runtime::LoadedScene& scene, std::shared_ptr<const haptics::
   for (int i = 0; i < ticks; ++i) {
     const haptics::Pose X_WD = traj.poseAt(i * 1e-3, cursor);
     for (std::size_t r = 0; r < runs.size(); ++r) {
-      ModeRun& m = runs[r];
-      const auto w0 = std::chrono::steady_clock::now();
-      const double c0 = threadCpu_us();
-      const haptics::Pose X_WP_before = m.renderer->proxyPose();
-      const haptics::TickOutput out = m.renderer->tick(X_WD, s);
-      m.cpu_us.push_back(threadCpu_us() - c0);
-      m.edge_us_sum += out.stats.edge_us;
-      m.wall_s += std::chrono::duration<double>(std::chrono::steady_clock::now() - w0).count();
-      // Everything below is outside the timed section.
-      const bool finite = out.force_W_N.allFinite() && out.torque_W_Nm.allFinite() && out.X_WP.allFinite();
-      // The crossing check runs after the run (checkMoves()): between ticks its dense reads of the
-      // volume would evict the timed columns' state from the caches, which the application's
-      // servo thread does not suffer.
-      if (verifier && finite) m.moves.push_back({m.renderer->lastMotion(), m.renderer->lastTimeOfContact(), i});
-      if (!tick_csv.empty())
-        *tick_csv[r] << i << ',' << out.stats.exec_time_us << ',' << m.cpu_us.back() << ',' << out.stats.contacts << ','
-                     << out.stats.volume_samples << ',' << out.stats.box_queries << ',' << out.stats.tree_nodes << ','
-                     << out.stats.cells << ',' << out.stats.cells_walked << ','
-                     << out.stats.time_of_contact << ',' << (X_WD.p_AB_m - X_WD_last.p_AB_m).norm() << ','
-                     << X_WD.R_AB.angularDistance(X_WD_last.R_AB) << ','
-                     << (X_WD.p_AB_m - X_WP_before.p_AB_m).norm() << ','
-                     << X_WD.R_AB.angularDistance(X_WP_before.R_AB) << ','
-                     << out.stats.prune_us << ',' << out.stats.solve_us << ',' << out.stats.sweep_us << ',' << out.stats.sweeps << ','
-                     << out.stats.contacts_us << ',' << out.stats.work << ',' << int(out.stats.budget_cut) << ','
-                     << out.stats.edge_us << '\n';
-      m.times_us.push_back(out.stats.exec_time_us);
-      m.contacts.push_back(out.stats.contacts);
-      m.samples.push_back(static_cast<double>(out.stats.volume_samples));
-      m.cells_sum += static_cast<double>(out.stats.cells);
-      m.budget_cuts += out.stats.budget_cut;
-      m.deadline_cuts += out.stats.deadline_cut;
-      m.max_work = std::max(m.max_work, static_cast<double>(out.stats.work));
-      m.work_sum += static_cast<double>(out.stats.work);
-      m.critical_work_sum += static_cast<double>(out.stats.critical_work);
-      if (out.stats.exec_time_us > 1000.0) ++m.over_1ms;
-      if (out.stats.contacts > 0) ++m.in_contact;
-      proxy_finite[r] = finite;
-      if (!finite) {
-        ++m.nan_ticks;
-        continue;
-      }
-      proxy[r] = out.X_WP.p_AB_m;
-      proxy_R[r] = out.X_WP.R_AB;
-      m.max_force_N = std::max(m.max_force_N, out.force_W_N.norm());
-      if (i % penetration_stride == 0)
-        m.max_penetration_m =
-            std::max(m.max_penetration_m, haptics::maxPenetration_m(volume, tool->point_shell, out.X_WP, s));
+      proxy_finite[r] = tickMode(runs[r], i, X_WD, X_WD_last, s, verifier.has_value(),
+                                 tick_csv.empty() ? nullptr : tick_csv[r].get(), volume, *tool, penetration_stride,
+                                 proxy[r], proxy_R[r]);
     }
     const auto difference = [&](int a, int b) {
       return a >= 0 && b >= 0 && proxy_finite[static_cast<std::size_t>(a)] && proxy_finite[static_cast<std::size_t>(b)]
@@ -674,25 +704,9 @@ void runScene(const runtime::LoadedScene& scene, std::shared_ptr<const haptics::
     };
     max_mode_difference_m = std::max(max_mode_difference_m, difference(i_paper, i_accel));
     max_before_difference_m = std::max(max_before_difference_m, difference(i_accel, i_before));
-    // The lag of a budgeted mode behind the same mode's full solve.
-    const auto addLag = [&](int budgeted, int full) {
-      if (budgeted < 0 || full < 0 || !proxy_finite[static_cast<std::size_t>(budgeted)] ||
-          !proxy_finite[static_cast<std::size_t>(full)])
-        return;
-      ModeRun& b = runs[static_cast<std::size_t>(budgeted)];
-      const haptics::Pose X_WP_b = b.renderer->proxyPose();
-      const haptics::Pose X_WP_f = runs[static_cast<std::size_t>(full)].renderer->proxyPose();
-      b.lag.add(X_WP_b, X_WP_f, X_WD);
-      if (lag_csv) {
-        const runtime::ProxyLag::Gap apart = runtime::ProxyLag::apart(X_WP_b, X_WP_f);
-        const runtime::ProxyLag::Gap behind = runtime::ProxyLag::behind(X_WP_b, X_WP_f, X_WD);
-        *lag_csv << i << ',' << b.variant.key << ',' << apart.m << ',' << apart.rad << ',' << behind.m << ','
-                 << behind.rad << '\n';
-      }
-    };
     if (i_unbudgeted >= 0) full_solve_poses.push_back(runs[static_cast<std::size_t>(i_unbudgeted)].renderer->proxyPose());
-    addLag(i_accel, i_unbudgeted);
-    addLag(i_edges, i_edges_unbudgeted);
+    addLag(runs, proxy_finite, i_accel, i_unbudgeted, i, X_WD, lag_csv.get());
+    addLag(runs, proxy_finite, i_edges, i_edges_unbudgeted, i, X_WD, lag_csv.get());
     X_WD_last = X_WD;
   }
   if (verifier)

@@ -304,6 +304,57 @@ void FalconDevice::command(const Eigen::Vector3d& force_B_N, const Eigen::Vector
   forces_.publish();
 }
 
+namespace {
+
+/// The round's command: with a usable position (`usable`), the force at the grip through the
+/// Jacobian at `p_K` as motor commands (none where the Jacobian is singular); the LEDs red and
+/// homing mode while the grip must still be homed (`homing`), else green.
+falcon::Command falconCommand(const Eigen::Vector3d& p_K, const Eigen::Vector3d& force_B_N, bool usable,
+                              bool homing) noexcept {
+  falcon::Command cmd;
+  if (usable) {
+    Eigen::Vector3d tau;
+    if (falcon::jointTorques(p_K, force_B_N, tau)) cmd.motor = falcon::motorCommands(tau);
+  }
+  cmd.flags = homing ? (falcon::kLedRed | falcon::kHomingMode) : falcon::kLedGreen;
+  return cmd;
+}
+
+/// The grip's position by forward kinematics of the status' encoders, warm-started at the last
+/// solution `p_K` (`have_position`), else from the default start; a failed warm start is tried
+/// again from the default start. @return whether it solved (into `p_new`).
+bool gripPosition(const falcon::Status& status, bool have_position, const Eigen::Vector3d& p_K,
+                  Eigen::Vector3d& p_new) noexcept {
+  const Eigen::Vector3d theta(falcon::encoderToAngle_rad(status.encoder[0]),
+                              falcon::encoderToAngle_rad(status.encoder[1]),
+                              falcon::encoderToAngle_rad(status.encoder[2]));
+  return falcon::forwardKinematics(theta, p_new, have_position ? p_K : Eigen::Vector3d(0.0, 0.0, falcon::kForwardStartZ_m)) ||
+         (have_position && falcon::forwardKinematics(theta, p_new));
+}
+
+/// A status round's device sample: taken at `time_s`, the grip at `p_K` (the workspace centre
+/// the origin) moving at `v_m_per_s`, the status' buttons.
+void fillSample(runtime::DeviceSample& s, double time_s, const Eigen::Vector3d& p_K, const Eigen::Vector3d& v_m_per_s,
+                const falcon::Status& status, std::uint32_t connection, bool valid) noexcept {
+  s.time_s = time_s;
+  s.X_WD = haptics::Pose::FromTranslation(p_K - Eigen::Vector3d(0.0, 0.0, falcon::kWorkspaceCentreZ_m));
+  s.v_WD_m_per_s = v_m_per_s;
+  s.w_WD_rad_per_s.setZero();
+  s.buttons = status.buttons;
+  s.connection = connection;
+  s.valid = valid;
+}
+
+/// Leaves the motors off: a zero command, and its reply drained.
+void commandMotorsOff(UsbTransport& usb, unsigned timeout_ms) noexcept {
+  const falcon::Packet zero = falcon::encodeCommand({});
+  usb.bulkWrite(falcon::kEndpointOut, zero.data(), static_cast<int>(zero.size()), timeout_ms);
+  std::uint8_t drain[falcon::kUsbPacketBytes];
+  usb.bulkRead(falcon::kEndpointIn, drain, static_cast<int>(sizeof drain), timeout_ms);
+}
+
+}  // namespace
+
 void FalconDevice::ioLoop() noexcept {
   UsbTransport& usb = *transport_;
   falcon::PacketParser parser;
@@ -331,13 +382,7 @@ void FalconDevice::ioLoop() noexcept {
     forces_.read(force_B_N);
     const bool homed = have_status && status.allHomed();
     const bool usable = have_position && (homed || !options_.require_homing);
-    falcon::Command cmd;
-    if (usable) {
-      Eigen::Vector3d tau;
-      if (falcon::jointTorques(p_K, force_B_N, tau)) cmd.motor = falcon::motorCommands(tau);
-    }
-    cmd.flags = options_.require_homing && !homed ? (falcon::kLedRed | falcon::kHomingMode) : falcon::kLedGreen;
-    const falcon::Packet packet = falcon::encodeCommand(cmd);
+    const falcon::Packet packet = falcon::encodeCommand(falconCommand(p_K, force_B_N, usable, options_.require_homing && !homed));
 
     const int w = usb.bulkWrite(falcon::kEndpointOut, packet.data(), static_cast<int>(packet.size()), options_.io_timeout_ms);
     const int r = w < 0 ? w : usb.bulkRead(falcon::kEndpointIn, raw, static_cast<int>(sizeof raw), options_.io_timeout_ms);
@@ -366,12 +411,8 @@ void FalconDevice::ioLoop() noexcept {
     if (!fresh) continue;
 
     // Position by forward kinematics, warm-started at the last solution.
-    const Eigen::Vector3d theta(falcon::encoderToAngle_rad(status.encoder[0]),
-                                falcon::encoderToAngle_rad(status.encoder[1]),
-                                falcon::encoderToAngle_rad(status.encoder[2]));
     Eigen::Vector3d p_new;
-    const bool solved = falcon::forwardKinematics(theta, p_new, have_position ? p_K : Eigen::Vector3d(0.0, 0.0, falcon::kForwardStartZ_m)) ||
-                        (have_position && falcon::forwardKinematics(theta, p_new));
+    const bool solved = gripPosition(status, have_position, p_K, p_new);
     const double now_s = steadySeconds() - t0_s;
     if (solved) {
       velocity.update(p_new, now_s);
@@ -385,23 +426,12 @@ void FalconDevice::ioLoop() noexcept {
       setProblem(homed_now || !options_.require_homing ? "" : "not homed yet: move the grip through its whole range");
       was_homed = homed_now;
     }
-    runtime::DeviceSample& s = samples_.writeSlot();
-    s.time_s = last_time_s;
-    s.X_WD = haptics::Pose::FromTranslation(p_K - Eigen::Vector3d(0.0, 0.0, falcon::kWorkspaceCentreZ_m));
-    s.v_WD_m_per_s = velocity.velocity();
-    s.w_WD_rad_per_s.setZero();
-    s.buttons = status.buttons;
-    s.connection = this_connection;
-    s.valid = have_position && (homed_now || !options_.require_homing);
+    fillSample(samples_.writeSlot(), last_time_s, p_K, velocity.velocity(), status, this_connection,
+               have_position && (homed_now || !options_.require_homing));
     samples_.publish();
   }
   // Leave the motors off when the device is still there.
-  if (connected()) {
-    const falcon::Packet zero = falcon::encodeCommand({});
-    usb.bulkWrite(falcon::kEndpointOut, zero.data(), static_cast<int>(zero.size()), options_.io_timeout_ms);
-    std::uint8_t drain[falcon::kUsbPacketBytes];
-    usb.bulkRead(falcon::kEndpointIn, drain, static_cast<int>(sizeof drain), options_.io_timeout_ms);
-  }
+  if (connected()) commandMotorsOff(usb, options_.io_timeout_ms);
 }
 
 }  // namespace vh::devices

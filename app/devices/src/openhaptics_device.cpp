@@ -105,6 +105,53 @@ void OpenHapticsDevice::shutdown() noexcept {
   connected_.store(false, std::memory_order_release);
 }
 
+namespace {
+
+/// The current device's limits from its nominal properties: force, linear stiffness and damping
+/// (per mm in OpenHaptics), with 6 output DOF (`output_dof`) torque and torsional stiffness (per
+/// mN*m), the workspace ball inside the usable workspace box, and the speed limit of the
+/// lightest 3D Systems mechanism across the box's longest side.
+runtime::DeviceLimits readDeviceLimits(const HdApi& a, int output_dof) {
+  double max_force_N = 0.0, max_stiffness_N_per_mm = 0.0, max_damping = 0.0;
+  double workspace_mm[6] = {0, 0, 0, 0, 0, 0};
+  a.getDoublev(hd::kNominalMaxForce, &max_force_N);
+  a.getDoublev(hd::kNominalMaxStiffness, &max_stiffness_N_per_mm);
+  a.getDoublev(hd::kNominalMaxDamping, &max_damping);
+  a.getDoublev(hd::kUsableWorkspaceDimensions, workspace_mm);
+  runtime::DeviceLimits limits{};
+  limits.max_force_N = max_force_N > 0.0 ? max_force_N : 0.0;
+  limits.max_linear_stiffness_N_per_m = max_stiffness_N_per_mm > 0.0 ? max_stiffness_N_per_mm * 1e3 : 0.0;
+  if (max_damping > 0.0) limits.max_linear_damping_N_s_per_m = max_damping * 1e3;
+  limits.max_torque_Nm = 0.0;
+  limits.max_angular_stiffness_Nm_per_rad = 0.0;
+  if (output_dof >= 6) {
+    double torque_mNm = 0.0, torque_stiffness_mNm_per_rad = 0.0;
+    a.getDoublev(hd::kNominalMaxTorqueForce, &torque_mNm);
+    a.getDoublev(hd::kNominalMaxTorqueStiffness, &torque_stiffness_mNm_per_rad);
+    limits.max_torque_Nm = torque_mNm > 0.0 ? torque_mNm * 1e-3 : 0.0;
+    limits.max_angular_stiffness_Nm_per_rad = torque_stiffness_mNm_per_rad > 0.0 ? torque_stiffness_mNm_per_rad * 1e-3 : 0.0;
+  }
+  // The usable workspace box [mm]: minx, miny, minz, maxx, maxy, maxz; the ball inside it.
+  double half_mm = 0.0;
+  for (int i = 0; i < 3; ++i) {
+    const double h = 0.5 * (workspace_mm[i + 3] - workspace_mm[i]);
+    half_mm = i == 0 ? h : std::min(half_mm, h);
+  }
+  if (half_mm > 0.0) limits.workspace_radius_m = half_mm * 1e-3;
+  double longest_half_mm = 0.0;
+  for (int i = 0; i < 3; ++i) {
+    limits.workspace_centre_m[i] = 0.5e-3 * (workspace_mm[i] + workspace_mm[i + 3]);
+    longest_half_mm = std::max(longest_half_mm, 0.5 * (workspace_mm[i + 3] - workspace_mm[i]));
+  }
+  // Speed limit: the lightest 3D Systems mechanism, the Touch's 45 g apparent mass
+  // (app/simulation device_catalog.cpp), across the box's longest side: e.g. Touch 3.3 N,
+  // 160 mm: 6.8 m/s; Touch X 7.9 N: 9.5 m/s.
+  limits.max_speed_m_per_s = runtime::handleMaxSpeed_m_per_s(limits.max_force_N, longest_half_mm * 1e-3, 0.045);
+  return limits;
+}
+
+}  // namespace
+
 void OpenHapticsDevice::openAndStart() {
   const HdApi& a = *api_;
   a.takeErrors("before hdInitDevice");
@@ -128,43 +175,9 @@ void OpenHapticsDevice::openAndStart() {
     a.getIntegerv(hd::kInputDof, &input_dof);
     a.getIntegerv(hd::kOutputDof, &output_dof);
     a.getIntegerv(hd::kCalibrationStyle, &calibration_style);
-    double max_force_N = 0.0, max_stiffness_N_per_mm = 0.0, max_damping = 0.0;
-    double workspace_mm[6] = {0, 0, 0, 0, 0, 0};
-    a.getDoublev(hd::kNominalMaxForce, &max_force_N);
-    a.getDoublev(hd::kNominalMaxStiffness, &max_stiffness_N_per_mm);
-    a.getDoublev(hd::kNominalMaxDamping, &max_damping);
-    a.getDoublev(hd::kUsableWorkspaceDimensions, workspace_mm);
     sensed_ = input_dof >= 6 ? runtime::kDofAll : runtime::kDofTranslation;
     actuated_ = output_dof >= 6 ? runtime::kDofAll : runtime::kDofTranslation;
-    limits_ = {};
-    limits_.max_force_N = max_force_N > 0.0 ? max_force_N : 0.0;
-    limits_.max_linear_stiffness_N_per_m = max_stiffness_N_per_mm > 0.0 ? max_stiffness_N_per_mm * 1e3 : 0.0;
-    if (max_damping > 0.0) limits_.max_linear_damping_N_s_per_m = max_damping * 1e3;
-    limits_.max_torque_Nm = 0.0;
-    limits_.max_angular_stiffness_Nm_per_rad = 0.0;
-    if (output_dof >= 6) {
-      double torque_mNm = 0.0, torque_stiffness_mNm_per_rad = 0.0;
-      a.getDoublev(hd::kNominalMaxTorqueForce, &torque_mNm);
-      a.getDoublev(hd::kNominalMaxTorqueStiffness, &torque_stiffness_mNm_per_rad);
-      limits_.max_torque_Nm = torque_mNm > 0.0 ? torque_mNm * 1e-3 : 0.0;
-      limits_.max_angular_stiffness_Nm_per_rad = torque_stiffness_mNm_per_rad > 0.0 ? torque_stiffness_mNm_per_rad * 1e-3 : 0.0;
-    }
-    // The usable workspace box [mm]: minx, miny, minz, maxx, maxy, maxz; the ball inside it.
-    double half_mm = 0.0;
-    for (int i = 0; i < 3; ++i) {
-      const double h = 0.5 * (workspace_mm[i + 3] - workspace_mm[i]);
-      half_mm = i == 0 ? h : std::min(half_mm, h);
-    }
-    if (half_mm > 0.0) limits_.workspace_radius_m = half_mm * 1e-3;
-    double longest_half_mm = 0.0;
-    for (int i = 0; i < 3; ++i) {
-      limits_.workspace_centre_m[i] = 0.5e-3 * (workspace_mm[i] + workspace_mm[i + 3]);
-      longest_half_mm = std::max(longest_half_mm, 0.5 * (workspace_mm[i + 3] - workspace_mm[i]));
-    }
-    // Speed limit: the lightest 3D Systems mechanism, the Touch's 45 g apparent mass
-    // (app/simulation device_catalog.cpp), across the box's longest side: e.g. Touch 3.3 N,
-    // 160 mm: 6.8 m/s; Touch X 7.9 N: 9.5 m/s.
-    limits_.max_speed_m_per_s = runtime::handleMaxSpeed_m_per_s(limits_.max_force_N, longest_half_mm * 1e-3, 0.045);
+    limits_ = readDeviceLimits(a, output_dof);
     error = a.takeErrors("reading the device's properties");
     if (!error.empty()) throw std::runtime_error("OpenHaptics: " + error);
 

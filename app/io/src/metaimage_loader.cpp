@@ -88,10 +88,15 @@ bool isTrue(const std::string& v) {
   return t == "true" || t == "1" || t == "yes";
 }
 
-}  // namespace
+/// The voxel count and the bytes of one voxel that a MetaImage header declares.
+struct MetaLayout {
+  std::uintmax_t voxel_count = 1;
+  std::size_t type_size = 0;
+};
 
-LoadedVolume loadMetaImage(const fs::path& path) {
-  const MetaHeader h = readHeader(path);
+/// The header's voxel layout: 3-D, sizes in [1, 2^20], a known ElementType, one channel.
+/// @throws LoadError naming `path` otherwise.
+MetaLayout metaLayout(const MetaHeader& h, const fs::path& path) {
   const auto ndims = parseInt(get(h, "NDims"));
   if (!ndims) fail(path, "MetaImage header has no valid NDims");
   if (*ndims != 3) {
@@ -100,73 +105,92 @@ LoadedVolume loadMetaImage(const fs::path& path) {
   }
   const auto dim_size = numbers(get(h, "DimSize"), path, "DimSize");
   if (dim_size.size() != 3) fail(path, "MetaImage DimSize must list 3 sizes");
-  std::uintmax_t voxel_count = 1;
+  MetaLayout layout;
   for (double d : dim_size) {
     if (!(d >= 1.0 && d <= 1048576.0)) fail(path, "MetaImage DimSize has an invalid size");  // also keeps the cast and the product in range
-    voxel_count *= static_cast<std::uintmax_t>(d);
+    layout.voxel_count *= static_cast<std::uintmax_t>(d);
   }
   const std::string type = get(h, "ElementType");
-  const std::size_t type_size = metaTypeSize(type);
-  if (type_size == 0) fail(path, "unsupported MetaImage ElementType \"" + type + "\"");
+  layout.type_size = metaTypeSize(type);
+  if (layout.type_size == 0) fail(path, "unsupported MetaImage ElementType \"" + type + "\"");
   const auto channels = parseInt(get(h, "ElementNumberOfChannels")).value_or(1);
   if (channels != 1) {
     fail(path, "has " + std::to_string(channels) +
                    " channels per voxel; only scalar volumes are supported");
   }
+  return layout;
+}
 
+/// "ElementDataFile = LIST": the file names follow the header, one per line; each must be a
+/// regular file beside the header. @throws LoadError naming `path` otherwise.
+void checkListedFiles(const MetaHeader& h, const fs::path& path) {
+  std::ifstream in(path, std::ios::binary);
+  in.seekg(static_cast<std::streamoff>(h.header_bytes));
+  std::string line;
+  for (int n = 0; std::getline(in, line) && n < 100000; ++n) {
+    const std::string name = trim(line);
+    if (name.empty()) continue;
+    fs::path file(name);
+    if (file.is_relative()) file = path.parent_path() / file;
+    requireBesideHeader(path, file);
+    requireRegularFile(file, path);
+  }
+}
+
+/// One data file (attached "LOCAL" or detached, then a regular file beside the header): it
+/// exists and holds the declared voxels (uncompressed) or CompressedDataSize bytes (compressed)
+/// after the header and HeaderSize. @throws LoadError naming `path` otherwise.
+void checkDataFileSize(const MetaHeader& h, const fs::path& path, const std::string& data_file,
+                       const MetaLayout& layout) {
+  const bool compressed = isTrue(get(h, "CompressedData"));
+  const bool local = data_file == "LOCAL" || data_file == "Local" || data_file == "local";
+  fs::path file = local ? path : fs::path(data_file);
+  if (!local && file.is_relative()) file = path.parent_path() / file;
+  if (!local) {
+    requireBesideHeader(path, file);
+    requireRegularFile(file, path);
+  }
+  const auto size = fileSize(file);
+  if (!size) fail(path, "data file " + file.string() + " is missing");
+  std::uintmax_t start = local ? h.header_bytes : 0;
+  const long long header_size = parseInt(get(h, "HeaderSize")).value_or(0);
+  if (header_size > 0) start += static_cast<std::uintmax_t>(header_size);
+  const std::uintmax_t available = *size > start ? *size - start : 0;
+  if (!compressed) {
+    const std::uintmax_t expected = layout.voxel_count * layout.type_size;
+    if (available < expected) {
+      fail(path, "truncated: expected " + std::to_string(expected) +
+                     " bytes of voxel data" +
+                     (local ? std::string() : " in " + file.filename().string()) + ", found " +
+                     std::to_string(available));
+    }
+  } else if (const auto csize = parseInt(get(h, "CompressedDataSize"));
+             csize && static_cast<std::uintmax_t>(*csize) > available) {
+    fail(path, "truncated: expected " + std::to_string(*csize) +
+                   " bytes of compressed voxel data, found " + std::to_string(available));
+  }
+}
+
+/// The data files before VTK reads them: the declared voxels fit in memory, no file-name
+/// pattern (vtkmetaio would expand it as a printf format), and the listed or single data file
+/// checked. @throws LoadError naming `path` otherwise.
+void checkDataFiles(const MetaHeader& h, const fs::path& path, const MetaLayout& layout) {
   // Size check for an uncompressed single data file (attached "LOCAL" or detached).
-  requireDeclaredFits(path, static_cast<std::uint64_t>(voxel_count) * type_size);
+  requireDeclaredFits(path, static_cast<std::uint64_t>(layout.voxel_count) * layout.type_size);
   const std::string data_file = get(h, "ElementDataFile");
   if (data_file.find('%') != std::string::npos) {
     fail(path, "ElementDataFile names a file-name pattern (\"" + data_file +
                    "\"): MetaImage's list format with a pattern is not supported; list the files with "
                    "\"ElementDataFile = LIST\" or use one data file");
   }
-  const bool compressed = isTrue(get(h, "CompressedData"));
   const bool list = splitWords(data_file).size() >= 1 && splitWords(data_file)[0] == "LIST";
-  if (list) {
-    // The file names follow the header, one per line: each must be beside the header.
-    std::ifstream in(path, std::ios::binary);
-    in.seekg(static_cast<std::streamoff>(h.header_bytes));
-    std::string line;
-    for (int n = 0; std::getline(in, line) && n < 100000; ++n) {
-      const std::string name = trim(line);
-      if (name.empty()) continue;
-      fs::path file(name);
-      if (file.is_relative()) file = path.parent_path() / file;
-      requireBesideHeader(path, file);
-      requireRegularFile(file, path);
-    }
-  } else {
-    const bool local = data_file == "LOCAL" || data_file == "Local" || data_file == "local";
-    fs::path file = local ? path : fs::path(data_file);
-    if (!local && file.is_relative()) file = path.parent_path() / file;
-    if (!local) {
-      requireBesideHeader(path, file);
-      requireRegularFile(file, path);
-    }
-    const auto size = fileSize(file);
-    if (!size) fail(path, "data file " + file.string() + " is missing");
-    std::uintmax_t start = local ? h.header_bytes : 0;
-    const long long header_size = parseInt(get(h, "HeaderSize")).value_or(0);
-    if (header_size > 0) start += static_cast<std::uintmax_t>(header_size);
-    const std::uintmax_t available = *size > start ? *size - start : 0;
-    if (!compressed) {
-      const std::uintmax_t expected = voxel_count * type_size;
-      if (available < expected) {
-        fail(path, "truncated: expected " + std::to_string(expected) +
-                       " bytes of voxel data" +
-                       (local ? std::string() : " in " + file.filename().string()) + ", found " +
-                       std::to_string(available));
-      }
-    } else if (const auto csize = parseInt(get(h, "CompressedDataSize"));
-               csize && static_cast<std::uintmax_t>(*csize) > available) {
-      fail(path, "truncated: expected " + std::to_string(*csize) +
-                     " bytes of compressed voxel data, found " + std::to_string(available));
-    }
-  }
+  if (list) checkListedFiles(h, path);
+  else checkDataFileSize(h, path, data_file, layout);
+}
 
-  // The spacing before VTK reads (VTK cannot parse "nan" and would say only that).
+/// ElementSpacing (else ElementSize, else 1 1 1) [mm]: 3 positive numbers.
+/// @throws LoadError naming `path` otherwise.
+std::vector<double> metaSpacing(const MetaHeader& h, const fs::path& path) {
   std::vector<double> spacing = numbers(get(h, "ElementSpacing"), path, "ElementSpacing");
   if (spacing.empty()) spacing = numbers(get(h, "ElementSize"), path, "ElementSize");
   if (spacing.empty()) spacing = {1.0, 1.0, 1.0};
@@ -179,6 +203,12 @@ LoadedVolume loadMetaImage(const fs::path& path) {
                      (get(h, "ElementSpacing").empty() ? get(h, "ElementSize") : get(h, "ElementSpacing")) + "\"");
     }
   }
+  return spacing;
+}
+
+/// The voxels as vtkMetaImageReader reads them. @throws LoadError naming `path` when it reports
+/// an error or reads no scalars.
+vtkSmartPointer<vtkImageData> readMetaVoxels(const fs::path& path) {
   VtkErrorCapture capture;
   auto reader = vtkSmartPointer<vtkMetaImageReader>::New();
   capture.watch(reader);
@@ -191,9 +221,12 @@ LoadedVolume loadMetaImage(const fs::path& path) {
   if (out == nullptr || out->GetPointData()->GetScalars() == nullptr) {
     fail(path, "no voxel data was read");
   }
+  return out;
+}
 
-  // Geometry: MetaImage coordinates are millimetres in the file's world frame (patient LPS for
-  // files written by ITK). TransformMatrix rows are the grid axes' directions.
+/// The grid's origin (Offset, else Position, else Origin, else 0) [mm].
+/// @throws LoadError naming `path` when it does not list 3 values.
+std::vector<double> metaOrigin(const MetaHeader& h, const fs::path& path) {
   std::vector<double> origin;
   for (const char* key : {"Offset", "Position", "Origin"}) {
     origin = numbers(get(h, key), path, key);
@@ -201,6 +234,13 @@ LoadedVolume loadMetaImage(const fs::path& path) {
   }
   if (origin.empty()) origin = {0.0, 0.0, 0.0};
   if (origin.size() != 3) fail(path, "MetaImage Offset must list 3 values");
+  return origin;
+}
+
+/// The grid axes' directions (TransformMatrix, else Rotation, else Orientation, else the
+/// identity; its rows are the axes), columns scaled by `spacing` [mm].
+/// @throws LoadError naming `path` when the matrix does not hold 9 values.
+Eigen::Matrix3d metaAxes(const MetaHeader& h, const fs::path& path, const std::vector<double>& spacing) {
   std::vector<double> matrix;
   for (const char* key : {"TransformMatrix", "Rotation", "Orientation"}) {
     matrix = numbers(get(h, key), path, key);
@@ -214,6 +254,23 @@ LoadedVolume loadMetaImage(const fs::path& path) {
     }
   }
   for (int c = 0; c < 3; ++c) axes.col(c) *= spacing[static_cast<std::size_t>(c)];
+  return axes;
+}
+
+}  // namespace
+
+LoadedVolume loadMetaImage(const fs::path& path) {
+  const MetaHeader h = readHeader(path);
+  const MetaLayout layout = metaLayout(h, path);
+  checkDataFiles(h, path, layout);
+  // The spacing before VTK reads (VTK cannot parse "nan" and would say only that).
+  const std::vector<double> spacing = metaSpacing(h, path);
+  vtkSmartPointer<vtkImageData> out = readMetaVoxels(path);
+
+  // Geometry: MetaImage coordinates are millimetres in the file's world frame (patient LPS for
+  // files written by ITK). TransformMatrix rows are the grid axes' directions.
+  const std::vector<double> origin = metaOrigin(h, path);
+  const Eigen::Matrix3d axes = metaAxes(h, path, spacing);
   Eigen::Matrix3d direction;
   Eigen::Vector3d spacing_mm;
   splitAxes(axes, path, direction, spacing_mm);

@@ -203,6 +203,122 @@ class GzFile {
 
 bool isGzipName(const fs::path& path) { return endsWith(lowerName(path), ".gz"); }
 
+/// The NIfTI-1 header's fields (`b`, its 348 bytes; `be`: big-endian) into `h`: the magic, the
+/// dimensions, datatype, voxel sizes and offset, the value scale and the qform and sform.
+/// @throws LoadError naming `path` for an Analyze 7.5 header (no NIfTI magic) or a vox_offset
+///         that is no byte offset.
+void readNifti1Fields(const std::vector<unsigned char>& b, bool be, const fs::path& path, NiftiHeader& h) {
+  const char* magic = reinterpret_cast<const char*>(b.data() + 344);
+  if (std::memcmp(magic, "n+1\0", 4) == 0) h.single_file = true;
+  else if (std::memcmp(magic, "ni1\0", 4) == 0) h.single_file = false;
+  else {
+    fail(path, "an Analyze 7.5 header or a damaged NIfTI-1 header (no \"n+1\" or \"ni1\" magic): Analyze files "
+               "do not say where the patient is; convert it to NIfTI (e.g. with nibabel or 3D Slicer)");
+  }
+  for (int i = 0; i < 8; ++i) h.dim[static_cast<std::size_t>(i)] = readAt<std::int16_t>(b, 40 + 2 * i, be);
+  h.intent_code = readAt<std::int16_t>(b, 68, be);
+  h.datatype = readAt<std::int16_t>(b, 70, be);
+  for (int i = 0; i < 8; ++i) h.pixdim[static_cast<std::size_t>(i)] = readAt<float>(b, 76 + 4 * i, be);
+  const double vox_offset = readAt<float>(b, 108, be);
+  if (!std::isfinite(vox_offset) || vox_offset < 0.0 || vox_offset > 1e15 || vox_offset != std::floor(vox_offset)) {
+    fail(path, "damaged NIfTI-1 header: vox_offset " + std::to_string(vox_offset) + " is not a byte offset");
+  }
+  h.vox_offset = static_cast<std::int64_t>(vox_offset);
+  h.scl_slope = readAt<float>(b, 112, be);
+  h.scl_inter = readAt<float>(b, 116, be);
+  h.xyzt_units = b[123];
+  h.qform_code = readAt<std::int16_t>(b, 252, be);
+  h.sform_code = readAt<std::int16_t>(b, 254, be);
+  h.quatern_b = readAt<float>(b, 256, be);
+  h.quatern_c = readAt<float>(b, 260, be);
+  h.quatern_d = readAt<float>(b, 264, be);
+  for (int r = 0; r < 3; ++r) h.qoffset[r] = readAt<float>(b, static_cast<std::size_t>(268 + 4 * r), be);
+  for (int r = 0; r < 3; ++r) {
+    for (int c = 0; c < 4; ++c) h.srow(r, c) = readAt<float>(b, static_cast<std::size_t>(280 + 16 * r + 4 * c), be);
+  }
+}
+
+/// The NIfTI-2 header's fields (`b`, its 540 bytes; `be`: big-endian) into `h`, as
+/// readNifti1Fields() for NIfTI-1.
+/// @throws LoadError naming `path` for a damaged magic or a vox_offset that is no byte offset.
+void readNifti2Fields(const std::vector<unsigned char>& b, bool be, const fs::path& path, NiftiHeader& h) {
+  const char* magic = reinterpret_cast<const char*>(b.data() + 4);
+  if (std::memcmp(magic, "n+2\0", 4) == 0) h.single_file = true;
+  else if (std::memcmp(magic, "ni2\0", 4) == 0) h.single_file = false;
+  else fail(path, "damaged NIfTI-2 header: no \"n+2\" or \"ni2\" magic");
+  if (std::memcmp(magic + 4, "\r\n\032\n", 4) != 0) {
+    fail(path, "damaged NIfTI-2 header: its magic's line-end bytes are altered (the file was copied as text?)");
+  }
+  h.datatype = readAt<std::int16_t>(b, 12, be);
+  for (int i = 0; i < 8; ++i) h.dim[static_cast<std::size_t>(i)] = readAt<std::int64_t>(b, static_cast<std::size_t>(16 + 8 * i), be);
+  for (int i = 0; i < 8; ++i) h.pixdim[static_cast<std::size_t>(i)] = readAt<double>(b, static_cast<std::size_t>(104 + 8 * i), be);
+  h.vox_offset = readAt<std::int64_t>(b, 168, be);
+  if (h.vox_offset < 0 || h.vox_offset > (std::int64_t{1} << 50)) {
+    fail(path, "damaged NIfTI-2 header: vox_offset " + std::to_string(h.vox_offset) + " is not a byte offset");
+  }
+  h.scl_slope = readAt<double>(b, 176, be);
+  h.scl_inter = readAt<double>(b, 184, be);
+  h.qform_code = readAt<std::int32_t>(b, 344, be);
+  h.sform_code = readAt<std::int32_t>(b, 348, be);
+  h.quatern_b = readAt<double>(b, 352, be);
+  h.quatern_c = readAt<double>(b, 360, be);
+  h.quatern_d = readAt<double>(b, 368, be);
+  for (int r = 0; r < 3; ++r) h.qoffset[r] = readAt<double>(b, static_cast<std::size_t>(376 + 8 * r), be);
+  for (int r = 0; r < 3; ++r) {
+    for (int c = 0; c < 4; ++c) h.srow(r, c) = readAt<double>(b, static_cast<std::size_t>(400 + 32 * r + 8 * c), be);
+  }
+  h.xyzt_units = readAt<std::int32_t>(b, 500, be);
+  h.intent_code = readAt<std::int32_t>(b, 504, be);
+}
+
+/// Dimensions: dim[0] axes, each at least 1 (the axes past dim[0] become 1); a scalar 3-D volume
+/// (or the first of a 4-D series) of a sane voxel count.
+/// @throws LoadError naming `path` otherwise.
+void checkNiftiDimensions(const fs::path& path, NiftiHeader& h) {
+  const std::int64_t ndim = h.dim[0];
+  if (ndim < 1 || ndim > 7) {
+    fail(path, "damaged NIfTI header: dim[0] (the number of dimensions) is " + std::to_string(ndim) +
+                   ", not 1..7");
+  }
+  for (std::int64_t i = 1; i <= ndim; ++i) {
+    const std::int64_t d = h.dim[static_cast<std::size_t>(i)];
+    if (d <= 0) fail(path, "damaged NIfTI header: dim[" + std::to_string(i) + "] is " + std::to_string(d) + " (0 or negative)");
+    if (d > kMaxAxisVoxels) {
+      fail(path, "NIfTI dim[" + std::to_string(i) + "] = " + std::to_string(d) + " is absurd (over " +
+                     std::to_string(kMaxAxisVoxels) + " voxels along one axis)");
+    }
+  }
+  for (std::int64_t i = ndim + 1; i < 8; ++i) h.dim[static_cast<std::size_t>(i)] = 1;
+  if (ndim < 3 || h.dim[3] < 2) {
+    fail(path, "not a 3-D volume: a " + std::to_string(ndim) + "-D NIfTI image of " + std::to_string(h.dim[1]) + "x" +
+                   std::to_string(h.dim[2]) + "x" + std::to_string(h.dim[3]) + " voxels");
+  }
+  if (h.dim[5] > 1 || h.dim[6] > 1 || h.dim[7] > 1) {
+    fail(path, "has " + std::to_string(h.dim[5] * h.dim[6] * h.dim[7]) +
+                   " values per voxel (NIfTI dim[5..7]: a vector, tensor or displacement field); only scalar volumes "
+                   "are supported");
+  }
+  const std::uintmax_t voxels = static_cast<std::uintmax_t>(h.dim[1]) * static_cast<std::uintmax_t>(h.dim[2]) *
+                                static_cast<std::uintmax_t>(h.dim[3]);
+  if (voxels > kMaxVolumeVoxels) fail(path, "NIfTI dimensions announce an absurd number of voxels (" + std::to_string(voxels) + ")");
+}
+
+/// A scalar datatype this reader knows, and finite voxel sizes.
+/// @throws LoadError naming `path` otherwise.
+void checkNiftiDatatypeAndSpacing(const fs::path& path, const NiftiHeader& h) {
+  if (niftiType(h.datatype).bytes == 0) {
+    if (const char* name = nonScalarTypeName(h.datatype)) {
+      fail(path, std::string("has NIfTI datatype ") + name + "; only scalar volumes (integers, float32, float64) are supported");
+    }
+    fail(path, "damaged NIfTI header: unknown datatype " + std::to_string(h.datatype));
+  }
+  for (int i = 1; i <= 3; ++i) {
+    if (!std::isfinite(h.pixdim[static_cast<std::size_t>(i)])) {
+      fail(path, "damaged NIfTI header: pixdim[" + std::to_string(i) + "] (a voxel size) is not a number");
+    }
+  }
+}
+
 /// Reads and checks the header of `header_path`.
 /// @throws LoadError naming `path` for a short file, a bad sizeof_hdr or magic, bad dimensions
 ///         or an unsupported datatype.
@@ -234,108 +350,15 @@ NiftiHeader readHeader(const fs::path& path, const fs::path& header_path) {
                    std::to_string(sizeof_hdr) + " bytes");
   }
   const bool be = h.big_endian;
-  if (h.version == 1) {
-    const char* magic = reinterpret_cast<const char*>(b.data() + 344);
-    if (std::memcmp(magic, "n+1\0", 4) == 0) h.single_file = true;
-    else if (std::memcmp(magic, "ni1\0", 4) == 0) h.single_file = false;
-    else {
-      fail(path, "an Analyze 7.5 header or a damaged NIfTI-1 header (no \"n+1\" or \"ni1\" magic): Analyze files "
-                 "do not say where the patient is; convert it to NIfTI (e.g. with nibabel or 3D Slicer)");
-    }
-    for (int i = 0; i < 8; ++i) h.dim[static_cast<std::size_t>(i)] = readAt<std::int16_t>(b, 40 + 2 * i, be);
-    h.intent_code = readAt<std::int16_t>(b, 68, be);
-    h.datatype = readAt<std::int16_t>(b, 70, be);
-    for (int i = 0; i < 8; ++i) h.pixdim[static_cast<std::size_t>(i)] = readAt<float>(b, 76 + 4 * i, be);
-    const double vox_offset = readAt<float>(b, 108, be);
-    if (!std::isfinite(vox_offset) || vox_offset < 0.0 || vox_offset > 1e15 || vox_offset != std::floor(vox_offset)) {
-      fail(path, "damaged NIfTI-1 header: vox_offset " + std::to_string(vox_offset) + " is not a byte offset");
-    }
-    h.vox_offset = static_cast<std::int64_t>(vox_offset);
-    h.scl_slope = readAt<float>(b, 112, be);
-    h.scl_inter = readAt<float>(b, 116, be);
-    h.xyzt_units = b[123];
-    h.qform_code = readAt<std::int16_t>(b, 252, be);
-    h.sform_code = readAt<std::int16_t>(b, 254, be);
-    h.quatern_b = readAt<float>(b, 256, be);
-    h.quatern_c = readAt<float>(b, 260, be);
-    h.quatern_d = readAt<float>(b, 264, be);
-    for (int r = 0; r < 3; ++r) h.qoffset[r] = readAt<float>(b, static_cast<std::size_t>(268 + 4 * r), be);
-    for (int r = 0; r < 3; ++r) {
-      for (int c = 0; c < 4; ++c) h.srow(r, c) = readAt<float>(b, static_cast<std::size_t>(280 + 16 * r + 4 * c), be);
-    }
-  } else {
-    const char* magic = reinterpret_cast<const char*>(b.data() + 4);
-    if (std::memcmp(magic, "n+2\0", 4) == 0) h.single_file = true;
-    else if (std::memcmp(magic, "ni2\0", 4) == 0) h.single_file = false;
-    else fail(path, "damaged NIfTI-2 header: no \"n+2\" or \"ni2\" magic");
-    if (std::memcmp(magic + 4, "\r\n\032\n", 4) != 0) {
-      fail(path, "damaged NIfTI-2 header: its magic's line-end bytes are altered (the file was copied as text?)");
-    }
-    h.datatype = readAt<std::int16_t>(b, 12, be);
-    for (int i = 0; i < 8; ++i) h.dim[static_cast<std::size_t>(i)] = readAt<std::int64_t>(b, static_cast<std::size_t>(16 + 8 * i), be);
-    for (int i = 0; i < 8; ++i) h.pixdim[static_cast<std::size_t>(i)] = readAt<double>(b, static_cast<std::size_t>(104 + 8 * i), be);
-    h.vox_offset = readAt<std::int64_t>(b, 168, be);
-    if (h.vox_offset < 0 || h.vox_offset > (std::int64_t{1} << 50)) {
-      fail(path, "damaged NIfTI-2 header: vox_offset " + std::to_string(h.vox_offset) + " is not a byte offset");
-    }
-    h.scl_slope = readAt<double>(b, 176, be);
-    h.scl_inter = readAt<double>(b, 184, be);
-    h.qform_code = readAt<std::int32_t>(b, 344, be);
-    h.sform_code = readAt<std::int32_t>(b, 348, be);
-    h.quatern_b = readAt<double>(b, 352, be);
-    h.quatern_c = readAt<double>(b, 360, be);
-    h.quatern_d = readAt<double>(b, 368, be);
-    for (int r = 0; r < 3; ++r) h.qoffset[r] = readAt<double>(b, static_cast<std::size_t>(376 + 8 * r), be);
-    for (int r = 0; r < 3; ++r) {
-      for (int c = 0; c < 4; ++c) h.srow(r, c) = readAt<double>(b, static_cast<std::size_t>(400 + 32 * r + 8 * c), be);
-    }
-    h.xyzt_units = readAt<std::int32_t>(b, 500, be);
-    h.intent_code = readAt<std::int32_t>(b, 504, be);
-  }
+  if (h.version == 1) readNifti1Fields(b, be, path, h);
+  else readNifti2Fields(b, be, path, h);
   if (h.single_file && h.vox_offset < sizeof_hdr) {
     fail(path, "damaged NIfTI header: vox_offset " + std::to_string(h.vox_offset) + " lies inside the " +
                    std::to_string(sizeof_hdr) + "-byte header");
   }
 
-  // Dimensions: dim[0] axes, each at least 1; a scalar 3-D volume (or the first of a 4-D series).
-  const std::int64_t ndim = h.dim[0];
-  if (ndim < 1 || ndim > 7) {
-    fail(path, "damaged NIfTI header: dim[0] (the number of dimensions) is " + std::to_string(ndim) +
-                   ", not 1..7");
-  }
-  for (std::int64_t i = 1; i <= ndim; ++i) {
-    const std::int64_t d = h.dim[static_cast<std::size_t>(i)];
-    if (d <= 0) fail(path, "damaged NIfTI header: dim[" + std::to_string(i) + "] is " + std::to_string(d) + " (0 or negative)");
-    if (d > kMaxAxisVoxels) {
-      fail(path, "NIfTI dim[" + std::to_string(i) + "] = " + std::to_string(d) + " is absurd (over " +
-                     std::to_string(kMaxAxisVoxels) + " voxels along one axis)");
-    }
-  }
-  for (std::int64_t i = ndim + 1; i < 8; ++i) h.dim[static_cast<std::size_t>(i)] = 1;
-  if (ndim < 3 || h.dim[3] < 2) {
-    fail(path, "not a 3-D volume: a " + std::to_string(ndim) + "-D NIfTI image of " + std::to_string(h.dim[1]) + "x" +
-                   std::to_string(h.dim[2]) + "x" + std::to_string(h.dim[3]) + " voxels");
-  }
-  if (h.dim[5] > 1 || h.dim[6] > 1 || h.dim[7] > 1) {
-    fail(path, "has " + std::to_string(h.dim[5] * h.dim[6] * h.dim[7]) +
-                   " values per voxel (NIfTI dim[5..7]: a vector, tensor or displacement field); only scalar volumes "
-                   "are supported");
-  }
-  const std::uintmax_t voxels = static_cast<std::uintmax_t>(h.dim[1]) * static_cast<std::uintmax_t>(h.dim[2]) *
-                                static_cast<std::uintmax_t>(h.dim[3]);
-  if (voxels > kMaxVolumeVoxels) fail(path, "NIfTI dimensions announce an absurd number of voxels (" + std::to_string(voxels) + ")");
-
-  if (niftiType(h.datatype).bytes == 0) {
-    if (const char* name = nonScalarTypeName(h.datatype)) {
-      fail(path, std::string("has NIfTI datatype ") + name + "; only scalar volumes (integers, float32, float64) are supported");
-    }
-    fail(path, "damaged NIfTI header: unknown datatype " + std::to_string(h.datatype));
-  }
-  for (int i = 1; i <= 3; ++i) {
-    if (!std::isfinite(h.pixdim[static_cast<std::size_t>(i)])) {
-      fail(path, "damaged NIfTI header: pixdim[" + std::to_string(i) + "] (a voxel size) is not a number");
-    }
-  }
+  checkNiftiDimensions(path, h);
+  checkNiftiDatatypeAndSpacing(path, h);
   return h;
 }
 

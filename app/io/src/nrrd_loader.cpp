@@ -176,6 +176,33 @@ std::optional<std::string> expandFormat(const std::string& fmt, long long value)
   return out;
 }
 
+/// The "data file" field's `value`: the header is detached, and its data files are one file, a
+/// printf-style pattern over a range ("slice%03d.raw 1 100 1", at most `max_files`), or
+/// "LIST" (the names follow, one per line). @return whether the names follow as a list.
+/// @throws LoadError naming `path` for a malformed range or pattern, or too many files.
+bool addDataFiles(NrrdHeader& h, const fs::path& path, const std::string& value, std::size_t max_files) {
+  h.detached = true;
+  const auto words = splitWords(value);
+  if (!words.empty() && words[0] == "LIST") return true;
+  if (value.find('%') != std::string::npos && (words.size() == 4 || words.size() == 5)) {
+    const auto lo = parseInt(words[1]);
+    const auto hi = parseInt(words[2]);
+    const auto step = parseInt(words[3]);
+    if (!lo || !hi || !step || *step == 0) {
+      fail(path, "malformed \"data file\" range: \"" + value + "\"");
+    }
+    for (long long v = *lo; *step > 0 ? v <= *hi : v >= *hi; v += *step) {
+      const auto name = expandFormat(words[0], v);
+      if (!name) fail(path, "unsupported \"data file\" format string \"" + words[0] + "\"");
+      h.data_files.emplace_back(*name);
+      if (h.data_files.size() > max_files) fail(path, "too many data files");
+    }
+  } else {
+    h.data_files.emplace_back(value);
+  }
+  return false;
+}
+
 NrrdHeader readHeader(const fs::path& path) {
   std::ifstream in(path, std::ios::binary);
   if (!in) fail(path, "cannot be opened for reading");
@@ -227,28 +254,7 @@ NrrdHeader readHeader(const fs::path& path) {
     const std::string key = toLower(trim(line.substr(0, pos)));
     const std::string value = pos + 1 < line.size() ? trim(line.substr(pos + 1)) : std::string();
     h.fields[key] = value;
-    if (key == "data file" || key == "datafile") {
-      h.detached = true;
-      const auto words = splitWords(value);
-      if (!words.empty() && words[0] == "LIST") {
-        in_list = true;
-      } else if (value.find('%') != std::string::npos && (words.size() == 4 || words.size() == 5)) {
-        const auto lo = parseInt(words[1]);
-        const auto hi = parseInt(words[2]);
-        const auto step = parseInt(words[3]);
-        if (!lo || !hi || !step || *step == 0) {
-          fail(path, "malformed \"data file\" range: \"" + value + "\"");
-        }
-        for (long long v = *lo; *step > 0 ? v <= *hi : v >= *hi; v += *step) {
-          const auto name = expandFormat(words[0], v);
-          if (!name) fail(path, "unsupported \"data file\" format string \"" + words[0] + "\"");
-          h.data_files.emplace_back(*name);
-          if (h.data_files.size() > kMaxLines) fail(path, "too many data files");
-        }
-      } else {
-        h.data_files.emplace_back(value);
-      }
-    }
+    if (key == "data file" || key == "datafile") in_list = addDataFiles(h, path, value, kMaxLines);
   }
   if (!h.detached) {
     if (!ended) fail(path, "NRRD header never ends (no blank line) and names no \"data file\"");

@@ -138,6 +138,58 @@ LoadedSegmentation loadSegmentation(const fs::path& path, const LoadedVolume& sc
 
 namespace {
 
+/// Slicer's segment `n` (the Segment<n>_ keys of `kv`): its ID and name (defaults
+/// "Segment_<n+1>"), label value (default 1), layer (default 0) and colour (else the palette's).
+/// @throws LoadError naming `path` for a label outside 0..65535 or a layer outside 0..255.
+SegmentInfo slicerSegment(const std::map<std::string, std::string>& kv, int n, const fs::path& path) {
+  SegmentInfo s;
+  s.id = segmentKey(kv, n, "ID");
+  s.name = segmentKey(kv, n, "Name");
+  if (s.id.empty()) s.id = "Segment_" + std::to_string(n + 1);
+  if (s.name.empty()) s.name = s.id;
+  const std::string label = segmentKey(kv, n, "LabelValue");
+  const auto label_value = label.empty() ? std::optional<long long>(1) : detail::parseInt(label);
+  if (!label_value || *label_value < 0 || *label_value > 65535) {
+    fail(path, "Segment" + std::to_string(n) + "_LabelValue \"" + label + "\" is not a label (0..65535)");
+  }
+  s.label_value = static_cast<int>(*label_value);
+  const std::string layer = segmentKey(kv, n, "Layer");
+  const auto layer_value = layer.empty() ? std::optional<long long>(0) : detail::parseInt(layer);
+  if (!layer_value || *layer_value < 0 || *layer_value > 255) {
+    fail(path, "Segment" + std::to_string(n) + "_Layer \"" + layer + "\" is not a layer index");
+  }
+  s.layer = static_cast<int>(*layer_value);
+  const auto rgb = detail::splitWords(segmentKey(kv, n, "Color"));
+  s.color_rgb = detail::segmentPaletteColour(static_cast<std::size_t>(n));
+  if (rgb.size() == 3) {
+    for (std::size_t c = 0; c < 3; ++c) {
+      if (const auto v = detail::parseDouble(rgb[c])) s.color_rgb[c] = std::clamp(*v, 0.0, 1.0);
+    }
+  }
+  return s;
+}
+
+/// A label map without segment names: one segment per nonzero label of the first layer, named by
+/// value, with a notice saying so.
+/// @throws LoadError naming `path` for a label outside 0..65535.
+void addLabelMapSegments(LoadedSegmentation& seg, const fs::path& path) {
+  const auto counts = labelCounts(*seg.layers.front(), path);
+  std::size_t n = 0;
+  for (const auto& [label, count] : counts) {
+    if (label == 0) continue;
+    if (label < 0 || label > 65535) fail(path, "label " + std::to_string(label) + " is outside 0..65535");
+    SegmentInfo s;
+    s.id = "Label_" + std::to_string(label);
+    s.name = "Label " + std::to_string(label);
+    s.label_value = label;
+    s.voxel_count = count;
+    s.color_rgb = detail::segmentPaletteColour(n++);
+    seg.segments.push_back(std::move(s));
+  }
+  seg.notices.push_back("a label map without segment names: " + std::to_string(seg.segments.size()) +
+                        " label(s), named by value");
+}
+
 LoadedSegmentation loadNrrdSegmentation(const fs::path& path, const VolumeLoadOptions& options) {
   if (!fs::exists(path)) fail(path, "no such file");
   // A NIfTI label map names no segments: each label is one.
@@ -151,31 +203,8 @@ LoadedSegmentation loadNrrdSegmentation(const fs::path& path, const VolumeLoadOp
   for (int n = 0; kv.count("Segment" + std::to_string(n) + "_LabelValue") != 0 ||
                   kv.count("Segment" + std::to_string(n) + "_Name") != 0;
        ++n) {
-    SegmentInfo s;
-    s.id = segmentKey(kv, n, "ID");
-    s.name = segmentKey(kv, n, "Name");
-    if (s.id.empty()) s.id = "Segment_" + std::to_string(n + 1);
-    if (s.name.empty()) s.name = s.id;
-    const std::string label = segmentKey(kv, n, "LabelValue");
-    const auto label_value = label.empty() ? std::optional<long long>(1) : detail::parseInt(label);
-    if (!label_value || *label_value < 0 || *label_value > 65535) {
-      fail(path, "Segment" + std::to_string(n) + "_LabelValue \"" + label + "\" is not a label (0..65535)");
-    }
-    s.label_value = static_cast<int>(*label_value);
-    const std::string layer = segmentKey(kv, n, "Layer");
-    const auto layer_value = layer.empty() ? std::optional<long long>(0) : detail::parseInt(layer);
-    if (!layer_value || *layer_value < 0 || *layer_value > 255) {
-      fail(path, "Segment" + std::to_string(n) + "_Layer \"" + layer + "\" is not a layer index");
-    }
-    s.layer = static_cast<int>(*layer_value);
+    SegmentInfo s = slicerSegment(kv, n, path);
     max_layer = std::max(max_layer, s.layer);
-    const auto rgb = detail::splitWords(segmentKey(kv, n, "Color"));
-    s.color_rgb = detail::segmentPaletteColour(static_cast<std::size_t>(n));
-    if (rgb.size() == 3) {
-      for (std::size_t c = 0; c < 3; ++c) {
-        if (const auto v = detail::parseDouble(rgb[c])) s.color_rgb[c] = std::clamp(*v, 0.0, 1.0);
-      }
-    }
     seg.segments.push_back(std::move(s));
   }
   seg.from_slicer = !seg.segments.empty();
@@ -201,21 +230,7 @@ LoadedSegmentation loadNrrdSegmentation(const fs::path& path, const VolumeLoadOp
       if (s.voxel_count == 0) seg.notices.push_back("segment \"" + s.name + "\" is empty");
     }
   } else {
-    const auto counts = labelCounts(*seg.layers.front(), path);
-    std::size_t n = 0;
-    for (const auto& [label, count] : counts) {
-      if (label == 0) continue;
-      if (label < 0 || label > 65535) fail(path, "label " + std::to_string(label) + " is outside 0..65535");
-      SegmentInfo s;
-      s.id = "Label_" + std::to_string(label);
-      s.name = "Label " + std::to_string(label);
-      s.label_value = label;
-      s.voxel_count = count;
-      s.color_rgb = detail::segmentPaletteColour(n++);
-      seg.segments.push_back(std::move(s));
-    }
-    seg.notices.push_back("a label map without segment names: " + std::to_string(seg.segments.size()) +
-                          " label(s), named by value");
+    addLabelMapSegments(seg, path);
   }
   if (seg.segments.empty()) fail(path, "no segments: every voxel is 0");
   return seg;

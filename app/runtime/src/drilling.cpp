@@ -133,111 +133,161 @@ Burr burrOf(const haptics::ToolModel& tool, const DrillSpec& spec) {
   return burr;
 }
 
-DrillMaterials makeDrillMaterials(const haptics::ScalarVolume& felt, const haptics::ScalarVolume& scan, bool hounsfield,
-                                  const SegmentSet* segments, const DrillSpec& spec) {
-  DrillMaterials out;
-  std::map<std::string, double> hardness;
-  for (const auto& [name, e] : spec.hardness_J_per_mm3) {
-    if (!(e > 0.0) || !std::isfinite(e))
-      throw std::invalid_argument("drill.hardness." + name + ": expected a specific energy > 0 J/mm^3");
-    hardness[lower(name)] = e;
+namespace {
+
+/// The HU class of a scan value: 0 soft tissue, 1 cancellous bone, 2 cortical bone; 0 (one class)
+/// without Hounsfield units.
+std::uint8_t huClassOf(double value, bool hounsfield) {
+  if (!hounsfield) return 0;
+  return value >= kCorticalFrom_HU ? 2 : value >= kCancellousFrom_HU ? 1 : 0;
+}
+
+/// The scene's hardness overrides (drill.hardness) by lower-case material or segment name, and
+/// which of them a material used.
+class HardnessOverrides {
+ public:
+  /// @throws std::invalid_argument for a specific energy that is not > 0 and finite.
+  explicit HardnessOverrides(const DrillSpec& spec) {
+    for (const auto& [name, e] : spec.hardness_J_per_mm3) {
+      if (!(e > 0.0) || !std::isfinite(e))
+        throw std::invalid_argument("drill.hardness." + name + ": expected a specific energy > 0 J/mm^3");
+      hardness_[lower(name)] = e;
+    }
   }
-  std::map<std::string, bool> used;
-  const auto energyOf = [&](const std::string& name, const std::string& id, double fallback) {
+
+  /// The override for the material `name` (else its segment `id`), or `fallback` [J/mm^3].
+  double energyOf(const std::string& name, const std::string& id, double fallback) {
     for (const std::string& key : {lower(name), lower(id)}) {
-      const auto it = hardness.find(key);
-      if (!key.empty() && it != hardness.end()) {
-        used[key] = true;
+      const auto it = hardness_.find(key);
+      if (!key.empty() && it != hardness_.end()) {
+        used_[key] = true;
         return it->second;
       }
     }
     return fallback;
-  };
+  }
+
+  /// @throws std::invalid_argument listing `materials` when an override names none of them.
+  void requireAllUsed(const std::vector<haptics::CuttingMaterial>& materials) const {
+    for (const auto& [key, e] : hardness_)
+      if (!used_.count(key))
+        throw std::invalid_argument("drill.hardness: '" + key + "' names no material of this scene (" +
+                                    [&] {
+                                      std::string list;
+                                      for (const auto& m : materials) list += (list.empty() ? "" : ", ") + m.name;
+                                      return list;
+                                    }() +
+                                    ")");
+  }
+
+ private:
+  std::map<std::string, double> hardness_;
+  std::map<std::string, bool> used_;
+};
+
+/// The scan's value at the felt grid's voxel centres (the voxel itself when both share a grid).
+struct ScanAtFeltVoxels {
+  const haptics::VolumeGeometry& g;  // the felt field's grid
+  const haptics::ScalarVolume& scan;
+  bool same_grid;
+  Eigen::Vector3d centre(int i, int j, int k) const { return g.pointOf_W(Eigen::Vector3d(i, j, k)); }
+  double value(int i, int j, int k) const { return same_grid ? scan.voxel(i, j, k) : scan.sample(centre(i, j, k)); }
+};
+
+/// First pass over the felt grid: each voxel's segment (stored as segment + 1, 0 none: the label
+/// of the nearest segmentation voxel), and per segment the sum of its scan values and its count.
+std::vector<std::uint16_t> segmentOfVoxels(const ScanAtFeltVoxels& scan, const io::LoadedSegmentation& seg,
+                                           std::vector<double>& sum, std::vector<std::size_t>& count) {
+  const auto& g = scan.g;
+  std::vector<std::uint16_t> segment_of_voxel(g.voxelCount(), 0);
+  const haptics::ScalarVolume& grid = *seg.layers.front();
+  const auto& sd = grid.geometry().dims;
+  std::size_t idx = 0;
+  for (int k = 0; k < g.dims[2]; ++k)
+    for (int j = 0; j < g.dims[1]; ++j)
+      for (int i = 0; i < g.dims[0]; ++i, ++idx) {
+        const Eigen::Vector3d q = grid.gridCoordinates(scan.centre(i, j, k));
+        const int a = static_cast<int>(std::lround(q.x())), b = static_cast<int>(std::lround(q.y())),
+                  c = static_cast<int>(std::lround(q.z()));
+        if (a < 0 || b < 0 || c < 0 || a >= sd[0] || b >= sd[1] || c >= sd[2]) continue;
+        for (std::size_t s = 0; s < seg.segments.size() && s < 65535; ++s) {
+          const auto& info = seg.segments[s];
+          if (seg.label(info.layer, a, b, c) == info.label_value) {
+            segment_of_voxel[idx] = static_cast<std::uint16_t>(s + 1);
+            sum[s] += scan.value(i, j, k);
+            ++count[s];
+            break;
+          }
+        }
+      }
+  return segment_of_voxel;
+}
+
+/// One material per segment with voxels (critical segments critical; at most 255 materials in
+/// all), its specific energy the override or that of its mean value's HU class.
+/// @return each segment's material, -1 for none.
+std::vector<int> addSegmentMaterials(DrillMaterials& out, const SegmentSet& segments, const io::LoadedSegmentation& seg,
+                                     const std::vector<double>& sum, const std::vector<std::size_t>& count,
+                                     HardnessOverrides& hardness, bool hounsfield) {
+  std::vector<int> material_of_segment(seg.segments.size(), -1);
+  for (std::size_t s = 0; s < seg.segments.size(); ++s) {
+    if (count[s] == 0 || out.materials.size() >= 255) continue;
+    const auto& info = seg.segments[s];
+    const double mean = sum[s] / static_cast<double>(count[s]);
+    const double fallback = out.materials[huClassOf(mean, hounsfield)].specific_energy_J_per_mm3;
+    material_of_segment[s] = static_cast<int>(out.materials.size());
+    out.materials.push_back({info.name, hardness.energyOf(info.name, info.id, fallback),
+                             segments.isCritical(static_cast<int>(s))});
+    out.segment_of_material.push_back(static_cast<int>(s));
+  }
+  return material_of_segment;
+}
+
+}  // namespace
+
+DrillMaterials makeDrillMaterials(const haptics::ScalarVolume& felt, const haptics::ScalarVolume& scan, bool hounsfield,
+                                  const SegmentSet* segments, const DrillSpec& spec) {
+  DrillMaterials out;
+  HardnessOverrides hardness(spec);
   // The HU classes (or one class), materials 0..2 (or 0).
-  const auto classOf = [&](double value) -> std::uint8_t {
-    if (!hounsfield) return 0;
-    return value >= kCorticalFrom_HU ? 2 : value >= kCancellousFrom_HU ? 1 : 0;
-  };
   if (hounsfield) {
-    out.materials.push_back({"soft tissue", energyOf("soft tissue", "", kSoftTissue_J_per_mm3), false});
-    out.materials.push_back({"cancellous bone", energyOf("cancellous bone", "", kCancellousBone_J_per_mm3), false});
-    out.materials.push_back({"cortical bone", energyOf("cortical bone", "", kCorticalBone_J_per_mm3), false});
+    out.materials.push_back({"soft tissue", hardness.energyOf("soft tissue", "", kSoftTissue_J_per_mm3), false});
+    out.materials.push_back(
+        {"cancellous bone", hardness.energyOf("cancellous bone", "", kCancellousBone_J_per_mm3), false});
+    out.materials.push_back({"cortical bone", hardness.energyOf("cortical bone", "", kCorticalBone_J_per_mm3), false});
   } else {
-    out.materials.push_back({"tissue", energyOf("tissue", "", kTissue_J_per_mm3), false});
+    out.materials.push_back({"tissue", hardness.energyOf("tissue", "", kTissue_J_per_mm3), false});
   }
   out.segment_of_material.assign(out.materials.size(), -1);
 
   const auto& g = felt.geometry();
   const std::size_t n = g.voxelCount();
   out.voxel_material.resize(n);
-  const bool same_grid = &felt == &scan || g.sameGridAs(scan.geometry());
-  const auto centre = [&](int i, int j, int k) { return g.pointOf_W(Eigen::Vector3d(i, j, k)); };
-  const auto scanValue = [&](int i, int j, int k) {
-    return same_grid ? scan.voxel(i, j, k) : scan.sample(centre(i, j, k));
-  };
+  const ScanAtFeltVoxels scan_at{g, scan, &felt == &scan || g.sameGridAs(scan.geometry())};
 
   // Segments: one material each (critical ones critical), the label of the nearest voxel.
-  std::vector<int> material_of_segment;
   const io::LoadedSegmentation* seg = segments != nullptr ? &segments->segmentation() : nullptr;
   if (seg != nullptr && !seg->layers.empty()) {
     std::vector<double> sum(seg->segments.size(), 0.0);
     std::vector<std::size_t> count(seg->segments.size(), 0);
-    // First pass: each voxel's segment (stored as segment + 1, 0 none) and the segments' mean value.
-    std::vector<std::uint16_t> segment_of_voxel(n, 0);
-    const haptics::ScalarVolume& grid = *seg->layers.front();
-    const auto& sd = grid.geometry().dims;
+    const std::vector<std::uint16_t> segment_of_voxel = segmentOfVoxels(scan_at, *seg, sum, count);
+    const std::vector<int> material_of_segment =
+        addSegmentMaterials(out, *segments, *seg, sum, count, hardness, hounsfield);
     std::size_t idx = 0;
-    for (int k = 0; k < g.dims[2]; ++k)
-      for (int j = 0; j < g.dims[1]; ++j)
-        for (int i = 0; i < g.dims[0]; ++i, ++idx) {
-          const Eigen::Vector3d q = grid.gridCoordinates(centre(i, j, k));
-          const int a = static_cast<int>(std::lround(q.x())), b = static_cast<int>(std::lround(q.y())),
-                    c = static_cast<int>(std::lround(q.z()));
-          if (a < 0 || b < 0 || c < 0 || a >= sd[0] || b >= sd[1] || c >= sd[2]) continue;
-          for (std::size_t s = 0; s < seg->segments.size() && s < 65535; ++s) {
-            const auto& info = seg->segments[s];
-            if (seg->label(info.layer, a, b, c) == info.label_value) {
-              segment_of_voxel[idx] = static_cast<std::uint16_t>(s + 1);
-              sum[s] += scanValue(i, j, k);
-              ++count[s];
-              break;
-            }
-          }
-        }
-    material_of_segment.assign(seg->segments.size(), -1);
-    for (std::size_t s = 0; s < seg->segments.size(); ++s) {
-      if (count[s] == 0 || out.materials.size() >= 255) continue;
-      const auto& info = seg->segments[s];
-      const double mean = sum[s] / static_cast<double>(count[s]);
-      const double fallback = out.materials[classOf(mean)].specific_energy_J_per_mm3;
-      material_of_segment[s] = static_cast<int>(out.materials.size());
-      out.materials.push_back({info.name, energyOf(info.name, info.id, fallback),
-                               segments->isCritical(static_cast<int>(s))});
-      out.segment_of_material.push_back(static_cast<int>(s));
-    }
-    idx = 0;
     for (int k = 0; k < g.dims[2]; ++k)
       for (int j = 0; j < g.dims[1]; ++j)
         for (int i = 0; i < g.dims[0]; ++i, ++idx) {
           const int s = static_cast<int>(segment_of_voxel[idx]) - 1;
           const int m = s >= 0 ? material_of_segment[static_cast<std::size_t>(s)] : -1;
-          out.voxel_material[idx] = m >= 0 ? static_cast<std::uint8_t>(m) : classOf(scanValue(i, j, k));
+          out.voxel_material[idx] = m >= 0 ? static_cast<std::uint8_t>(m) : huClassOf(scan_at.value(i, j, k), hounsfield);
         }
   } else {
     std::size_t idx = 0;
     for (int k = 0; k < g.dims[2]; ++k)
       for (int j = 0; j < g.dims[1]; ++j)
-        for (int i = 0; i < g.dims[0]; ++i, ++idx) out.voxel_material[idx] = classOf(scanValue(i, j, k));
+        for (int i = 0; i < g.dims[0]; ++i, ++idx) out.voxel_material[idx] = huClassOf(scan_at.value(i, j, k), hounsfield);
   }
-  for (const auto& [key, e] : hardness)
-    if (!used.count(key))
-      throw std::invalid_argument("drill.hardness: '" + key + "' names no material of this scene (" +
-                                  [&] {
-                                    std::string list;
-                                    for (const auto& m : out.materials) list += (list.empty() ? "" : ", ") + m.name;
-                                    return list;
-                                  }() +
-                                  ")");
+  hardness.requireAllUsed(out.materials);
   return out;
 }
 

@@ -3,12 +3,12 @@
 
 #include "vh/runtime/snapshot_channel.h"
 
+#include "coupling_passivity.h"
 #include "vh/runtime/jam_detector.h"
 #include "vh/runtime/placement.h"
 
 #include "vh/haptics/configuration_solver.h"
 #include "vh/haptics/passivity_controller.h"
-#include "vh/runtime/passivity_port.h"
 #include "vh/runtime/realtime.h"
 #include "vh/runtime/sample_filter.h"
 #include "vh/runtime/sample_ring.h"
@@ -29,29 +29,10 @@ namespace vh::runtime {
 
 namespace {
 
+using detail::CouplingPassivity;
+
 constexpr int kCouplingPriority = 80;  // above the solver: on a shared core the coupling preempts it
 constexpr int kSolverPriority = 79;
-
-/// Energy the coupling's linear spring holds [J]: 0.5 k_lin |c_D - c_P|^2 = |F|^2 / (2 k_lin)
-/// (virtual_coupling.h: F = -k_lin (c_D - c_P)); 0 without a spring.
-double linearStoredEnergy_J(const Eigen::Vector3d& force_W_N, double k_lin_N_per_m) noexcept {
-  return k_lin_N_per_m > 0.0 ? force_W_N.squaredNorm() / (2.0 * k_lin_N_per_m) : 0.0;
-}
-
-/// Energy the coupling's torsional spring holds [J]. Eq. 5 gives tau = -(k_ang / i) I_W dtheta
-/// (i = trace(I_Cm) / 3, I_W = R_WP I_Cm_T R_WP^T: virtual_coupling.h), the gradient of
-/// 0.5 (k_ang / i) dtheta^T I_W dtheta, which is (i / (2 k_ang)) tau^T I_W^-1 tau. Exact for the
-/// quadratic form in the rotation vector; the rotation manifold's curvature is neglected (small
-/// angles). Infinity (no cap) when it cannot be computed (e.g. a singular inertia); 0 without a
-/// spring.
-double angularStoredEnergy_J(const Eigen::Vector3d& torque_W_Nm, const Eigen::Quaterniond& R_WP,
-                             const Eigen::Matrix3d& I_Cm_inv_T, double mean_moment_kgm2,
-                             double k_ang_Nm_per_rad) noexcept {
-  if (!(k_ang_Nm_per_rad > 0.0)) return 0.0;
-  const Eigen::Vector3d tau_T = R_WP.conjugate() * torque_W_Nm;
-  const double e = mean_moment_kgm2 / (2.0 * k_ang_Nm_per_rad) * tau_T.dot(I_Cm_inv_T * tau_T);
-  return std::isfinite(e) && e >= 0.0 ? e : std::numeric_limits<double>::infinity();
-}
 
 bool sameGains(const haptics::CouplingGains& a, const haptics::CouplingGains& b) noexcept {
   return a.linear_N_per_m == b.linear_N_per_m && a.angular_Nm_per_rad == b.angular_Nm_per_rad &&
@@ -317,75 +298,6 @@ namespace {
 
 // ---- Helpers of the servo loops: no allocation, no throw, no lock; inlined into the loops. ----
 
-/// The coupling thread's passivity control (CouplingGains::passivity_control, passivity_port.h):
-/// one controller per port, the force with the centre of mass's displacement and the torque with
-/// the rotation vector since the previous coupled sample. Their state is kept across gain changes
-/// (the rendered stiffness stays continuous) and short faults; they start afresh when the switch
-/// turns on and after an outage (ForceSafety re-armed).
-struct CouplingPassivity {
-  explicit CouplingPassivity(const haptics::MassProperties& mass) noexcept
-      : I_Cm_inv_T(mass.I_Cm_T_kgm2.inverse()), mean_moment_kgm2(mass.I_Cm_T_kgm2.trace() / 3.0) {}
-
-  /// Both controllers afresh for `gains` on a device rated `limits`.
-  void configure(const haptics::CouplingGains& gains, const DeviceLimits& limits) noexcept {
-    force.configure(gains.linear_N_per_m, limits.max_linear_stiffness_N_per_m);
-    torque.configure(gains.angular_Nm_per_rad, limits.max_angular_stiffness_Nm_per_rad);
-  }
-
-  /// A gain change: the controllers keep their state; the rendered stiffness moves on without a step.
-  void setStiffness(const haptics::CouplingGains& gains, const DeviceLimits& limits) noexcept {
-    force.setStiffness(gains.linear_N_per_m, limits.max_linear_stiffness_N_per_m);
-    torque.setStiffness(gains.angular_Nm_per_rad, limits.max_angular_stiffness_Nm_per_rad);
-  }
-
-  /// A coupled tick at the device pose X_WD: with passivity control on, the wrench goes through
-  /// both controllers (the hand's motion since the last coupled sample, over the ticks since: a
-  /// short fault keeps the controllers' state; the spring's stored energy as the cap). Then
-  /// X_WD is the last coupled pose.
-  inline void coupled(Eigen::Vector3d& force_W_N, Eigen::Vector3d& torque_W_Nm, const haptics::Pose& X_WD,
-                      const haptics::Pose& X_WP, const haptics::MassProperties& mass,
-                      const haptics::CouplingGains& gains, double period_s) noexcept {
-    if (gains.passivity_control) {
-      haptics::Vector6d step_W = haptics::Vector6d::Zero();
-      if (have_coupled_last) step_W = haptics::displacement_W(X_WD_coupled_last, X_WD, mass.p_TCm_m);
-      const double dt_s = period_s * static_cast<double>(have_coupled_last ? ticks_since_coupled : 1);
-      const auto f =
-          force.step(force_W_N, step_W.head<3>(), dt_s, linearStoredEnergy_J(force_W_N, gains.linear_N_per_m));
-      const auto t = torque.step(
-          torque_W_Nm, step_W.tail<3>(), dt_s,
-          angularStoredEnergy_J(torque_W_Nm, X_WP.R_AB, I_Cm_inv_T, mean_moment_kgm2, gains.angular_Nm_per_rad));
-      force_W_N = f.effort_W;
-      torque_W_Nm = t.effort_W;
-      if (f.alpha > 0.0) ++active_ticks;
-      if (t.alpha > 0.0) ++active_ticks;
-      dissipated_J += f.predicted_dissipation_J + t.predicted_dissipation_J;
-    }
-    X_WD_coupled_last = X_WD;
-    have_coupled_last = true;
-    ticks_since_coupled = 0;
-  }
-
-  /// After the safety layer's step: an outage (a new count in `outages`) breaks the motion history.
-  inline void afterSafety(std::uint64_t outages) noexcept {
-    if (outages == outages_seen) return;
-    outages_seen = outages;
-    force.restart();
-    torque.restart();
-    have_coupled_last = false;
-  }
-
-  PassivityPort force;
-  PassivityPort torque;
-  haptics::Pose X_WD_coupled_last;         ///< The device pose of the last coupled tick.
-  bool have_coupled_last = false;          ///< X_WD_coupled_last is valid (no outage since).
-  std::uint64_t ticks_since_coupled = 0;
-  std::uint64_t outages_seen = 0;
-  const Eigen::Matrix3d I_Cm_inv_T;        ///< I_Cm^-1 in T, for the torsional spring's stored energy.
-  const double mean_moment_kgm2;
-  std::uint64_t active_ticks = 0;          ///< Summed over controller restarts.
-  double dissipated_J = 0.0;
-};
-
 /// The coupling thread's counters since start() (CouplingSnapshot).
 struct CouplingCounts {
   std::uint64_t tick = 0;
@@ -534,6 +446,262 @@ inline void showContacts(SolverSnapshot& snap, std::span<const haptics::Contact>
   }
 }
 
+/// The coupling gains the GUI asks for (HapticThread::setGains()).
+inline haptics::CouplingGains loadRequestedGains(const std::atomic<double>& linear, const std::atomic<double>& angular,
+                                                 const std::atomic<bool>& passivity) noexcept {
+  return {linear.load(std::memory_order_relaxed), angular.load(std::memory_order_relaxed),
+          passivity.load(std::memory_order_relaxed)};
+}
+
+/// The coupling thread's state from tick to tick (couplingLoop()): the device sample and the
+/// solver's proxy, the safety layer and plausibility test, the gains and the coupling, and the
+/// placements (place()).
+struct CouplingState {
+  CouplingState(const Device& device, const haptics::MassProperties& mass, const haptics::CouplingGains& requested,
+                std::uint64_t placement_requests_at_start) noexcept
+      : safety(device.limits(), device.safetyPolicy(), device.actuatedDof()),
+        filter(safety.limits()),
+        requested_gains(requested),
+        applied_gains(clampGains(requested, safety.limits())),
+        coupling(applied_gains),
+        passivity(mass),
+        placement_requests_seen(placement_requests_at_start) {
+    safety.enable();
+    passivity.configure(applied_gains, safety.limits());
+  }
+
+  CouplingCounts counts;
+  DeviceSample sample;
+  CouplingSample input;
+  ProxyState proxy;
+  haptics::Pose X_WD_last;  // the last coupled device pose (until the first valid sample: the proxy's)
+  // Every command goes through the one safety layer: the device's limits, engage gate, fault
+  // hold, ramp, watchdog, actuated DOF (device.h, ForceSafety). Every sample goes through the
+  // plausibility test first (sample_filter.h): a glitch is never coupled to. Coupling gains are
+  // kept within the device's stable stiffness.
+  ForceSafety safety;
+  SampleFilter filter;
+  haptics::CouplingGains requested_gains;
+  haptics::CouplingGains applied_gains;
+  haptics::VirtualCoupling coupling;
+  CouplingPassivity passivity;
+  // Placements (place()): the latest one asked for, whether it waits for its device sample, and
+  // the ones handed to the solver.
+  Placement placement;
+  std::uint64_t placement_requests_seen;
+  bool placement_waiting = false;
+  std::uint64_t placements_sent = 0;
+  haptics::Pose X_WP_placed;
+};
+
+/// A new place() request (`requests` so far) is taken; when this tick's sample (`read_ok`) is
+/// the placed one, the jump to it is no glitch and no motion of the hand: the placement is handed
+/// to the solver as the sample that `samples` gets next, and the sample test and coupling start
+/// afresh.
+inline void passOnPlacement(CouplingState& c, std::uint64_t requests, bool read_ok, TripleBuffer<Placement>& asked,
+                            const SampleRing& samples, TripleBuffer<PlacedSample>& placed_out) noexcept {
+  if (requests != c.placement_requests_seen) {
+    c.placement_requests_seen = requests;
+    asked.read(c.placement);
+    c.placement_waiting = true;
+  }
+  if (!c.placement_waiting || !read_ok || !samePoseBits(c.sample.X_WD, c.placement.X_WD)) return;
+  // The placed sample: the jump to it is no glitch, and no motion of the hand.
+  c.placement_waiting = false;
+  ++c.placements_sent;
+  c.X_WP_placed = c.placement.X_WP;
+  PlacedSample& placed = placed_out.writeSlot();  // before the sample is pushed: the solver sees both
+  placed.count = c.placements_sent;
+  placed.sample = samples.latest() + 1;  // this tick's sample (this thread is the ring's one producer)
+  placed.X_WP = c.placement.X_WP;
+  placed_out.publish();
+  c.filter = SampleFilter(c.safety.limits());
+  c.passivity.have_coupled_last = false;
+  c.coupling.resetTracking();
+}
+
+/// The sample handed to the solver, with this tick's isovalue and gains (a rejected sample: the
+/// last good pose, marked not ok).
+inline void fillSolverInput(CouplingState& c, bool ok, bool connected, double isovalue) noexcept {
+  c.input.X_WD = ok ? c.sample.X_WD : c.X_WD_last;
+  c.input.isovalue = isovalue;
+  c.input.gains = c.applied_gains;
+  c.input.ok = ok;
+  c.input.connected = connected;
+  c.input.drill_button = ok && (c.sample.buttons & HapticThread::kDrillButton) != 0;
+}
+
+/// Virtual coupling (eq. 5) of the good sample (`ok`) to the solver's latest proxy pose (c.proxy;
+/// the placed pose while the solver has not applied a placement), with the device pose
+/// normalised as the renderer does (so that the same pair gives the same bits), then passivity
+/// control. A pose the renderer rejected on its latest tick gives no force.
+/// @return whether the tick coupled; the wrench into `force_W_N`, `torque_W_Nm` (zero otherwise).
+inline bool coupleToProxy(CouplingState& c, bool ok, const haptics::MassProperties& mass, double period_s,
+                          Eigen::Vector3d& force_W_N, Eigen::Vector3d& torque_W_Nm) noexcept {
+  if (c.proxy.placements < c.placements_sent) {  // the solver has not applied the placement yet
+    c.proxy.X_WP = c.X_WP_placed;
+    c.proxy.bad_input = false;
+  }
+  force_W_N = Eigen::Vector3d::Zero();
+  torque_W_Nm = Eigen::Vector3d::Zero();
+  ++c.passivity.ticks_since_coupled;
+  if (!ok || c.proxy.bad_input) return false;
+  haptics::Pose X_WD = c.sample.X_WD;
+  X_WD.R_AB.coeffs() /= c.sample.X_WD.R_AB.norm();
+  c.X_WD_last = X_WD;
+  const haptics::Wrench w = c.coupling.track(c.proxy.X_WP, X_WD, mass);
+  force_W_N = w.force_W_N;
+  torque_W_Nm = w.torque_W_Nm;
+  c.passivity.coupled(force_W_N, torque_W_Nm, X_WD, c.proxy.X_WP, mass, c.applied_gains, period_s);
+  return true;
+}
+
+/// A coupling tick's snapshot to the GUI and the optional monitor.
+inline void publishCouplingTick(SnapshotChannel& gui, SnapshotChannel* monitor, const CouplingState& c,
+                                std::int64_t begin_ns, const Eigen::Vector3d& force_W_N,
+                                const Eigen::Vector3d& torque_W_Nm, const ThreadTiming& timing) noexcept {
+  CouplingSnapshot& snap = gui.couplingSlot();
+  fillCouplingSnapshot(snap, c.counts, begin_ns, c.proxy.X_WP, c.X_WD_last, force_W_N, torque_W_Nm,
+                       c.safety.stats().held_ticks, c.passivity);
+  snap.timing = timing;
+  if (monitor != nullptr) {
+    monitor->couplingSlot() = snap;
+    monitor->publishCoupling();
+  }
+  gui.publishCoupling();
+}
+
+/// The solver thread's state from tick to tick (solverLoop()).
+struct SolverState {
+  std::uint64_t tick = 0;
+  std::uint64_t rejected = 0;
+  std::uint64_t skipped = 0;
+  std::uint64_t record_first_tick = 0;         // tick of the current recording's first record
+  RecordingWriter* active_recorder = nullptr;  // the recorder of the current recording
+  std::uint64_t consumed = 0;                  // the latest sample number taken from the ring
+  CouplingSample input, last_input;
+  bool have_last = false;
+  haptics::CouplingGains gains;   // the renderer's
+  haptics::Pose X_WD_used;        // the latest pose the renderer ticked with
+  std::uint64_t placements = 0;   // applied (PlacedSample::count)
+  PlacedSample placed;            // the latest placement passed on
+  std::uint32_t wake_flags = 0;   // deadline miss of this wake-up (first tick only)
+  JamDetector jam;                // kRecordFlagJam
+};
+
+/// A placement the coupling thread passed on, once its sample has been taken: the proxy jumps
+/// with the device. @return kRecordFlagPlacement then, else 0.
+inline std::uint32_t applyPlacement(SolverState& st, TripleBuffer<PlacedSample>& placed,
+                                    haptics::HapticRenderer& renderer,
+                                    std::atomic<std::uint64_t>& placements_applied) noexcept {
+  placed.read(st.placed);
+  if (st.placed.count <= st.placements || st.consumed < st.placed.sample) return 0u;
+  st.placements = st.placed.count;
+  renderer.resetProxy(st.placed.X_WP);
+  placements_applied.fetch_add(1, std::memory_order_acq_rel);
+  return kRecordFlagPlacement;
+}
+
+/// What the renderer made of a solver tick's sample.
+struct SolverTickResult {
+  haptics::TickOutput out;
+  bool bad_input = false;
+  std::uint32_t drill_flags = 0;
+  bool stuck = false;  // a jam candidate (jam_detector.h)
+};
+
+/// Renders a good sample `in`, tests it for a jam and cuts with the burr when the drill runs
+/// (`drilling`: the switch or the sample's button, unless cutting is held).
+inline void renderSolverSample(SolverState& st, const CouplingSample& in, haptics::HapticRenderer& renderer,
+                               Drill* drill, const std::atomic<bool>& cutting_held, const std::atomic<bool>& drilling,
+                               SolverTickResult& t) noexcept {
+  st.X_WD_used = in.X_WD;
+  const haptics::Pose X_WP_before = renderer.proxyPose();
+  t.out = renderer.tick(in.X_WD, in.isovalue);
+  t.bad_input = t.out.stats.bad_input;
+  if (t.bad_input) ++st.rejected;
+  // The jam detector (jam_detector.h); the device's own freedom is tested only on candidates.
+  const haptics::ToolModel& tool = renderer.tool();
+  t.stuck = !t.bad_input &&
+            JamDetector::candidate(X_WP_before, renderer.proxyPose(), in.X_WD, tool.mass.p_TCm_m,
+                                   static_cast<int>(renderer.contacts().size())) &&
+            countPointsInside(renderer.volume(), tool.point_shell, in.X_WD, renderer.feltIsovalue()) == 0;
+  // seq_cst with solver_ticks_: holdCutting()'s handshake (a tick that starts after the one it
+  // waited for sees the hold).
+  if (drill != nullptr && !cutting_held.load(std::memory_order_seq_cst) &&
+      (drilling.load(std::memory_order_relaxed) || in.drill_button)) {
+    (void)drill->step(renderer, t.out);
+    t.drill_flags = kRecordFlagDrillOn;
+  }
+}
+
+/// A solver tick's record (lock-free push; a full ring drops the record and counts it), its
+/// times from the current recording's first tick.
+inline void recordSolverTick(RecordingWriter& recorder, const SolverState& st, const CouplingSample& in,
+                             const haptics::TickOutput& out, const haptics::Pose& X_WP, std::size_t contacts,
+                             int segment, double period_s, std::int64_t tick_ns, std::uint32_t flags) noexcept {
+  TickRecord rec;
+  rec.time_s = static_cast<double>(st.tick - st.record_first_tick) * period_s;
+  rec.tick = st.tick;
+  writeRecordPoses(rec, in.ok ? in.X_WD : st.X_WD_used, X_WP, out);
+  rec.isovalue = in.isovalue;
+  rec.tick_time_s = 1e-9 * static_cast<double>(tick_ns);
+  rec.contacts = static_cast<std::uint32_t>(contacts);
+  rec.flags = solverRecordFlags(rec.contacts, in, out, segment) | flags;
+  (void)recorder.push(rec);
+}
+
+/// A solver tick's snapshot to the GUI and the optional monitor.
+inline void publishSolverTick(SnapshotChannel& gui, SnapshotChannel* monitor, const SolverState& st, double isovalue,
+                              std::span<const haptics::Contact> contacts, int segment,
+                              const ThreadTiming& timing) noexcept {
+  SolverSnapshot& snap = gui.solverSlot();
+  snap.tick = st.tick;
+  snap.isovalue = isovalue;
+  showContacts(snap, contacts, segment);
+  snap.rejected = st.rejected;
+  snap.skipped = st.skipped;
+  snap.timing = timing;
+  if (monitor != nullptr) {
+    monitor->solverSlot() = snap;
+    monitor->publishSolver();
+  }
+  gui.publishSolver();
+}
+
+/// The samples waiting at this wake-up, each through `solve`: with `every_sample`, every sample
+/// once, in order (skipping to the newest only when `backlog_limit` behind); else the newest, or
+/// the last one again when nothing new arrived.
+template <class Solve>
+inline void solvePendingSamples(SolverState& st, const SampleRing& samples, bool every_sample,
+                                std::uint64_t backlog_limit, Solve& solve) noexcept {
+  const std::uint64_t latest = samples.latest();
+  if (every_sample) {
+    // Every sample once, in order; skip to the newest only when too far behind (or when the
+    // coupling thread overwrote the next one, which the backlog limit prevents).
+    while (st.consumed < latest) {
+      std::uint64_t next = st.consumed + 1;
+      if (latest - next >= backlog_limit) next = latest;
+      if (!samples.read(next, st.input)) {
+        next = samples.latest();
+        if (!samples.read(next, st.input)) break;
+      }
+      st.skipped += next - st.consumed - 1;
+      st.consumed = next;
+      solve(st.input);
+    }
+    return;
+  }
+  // The newest sample; the last one again when nothing new arrived.
+  if (latest > st.consumed && samples.read(latest, st.input)) {
+    if (st.have_last) st.skipped += latest - st.consumed - 1;
+    st.consumed = latest;
+    st.last_input = st.input;
+    st.have_last = true;
+  }
+  if (st.have_last) solve(st.last_input);
+}
+
 }  // namespace
 
 void HapticThread::couplingLoop() noexcept {
@@ -544,38 +712,13 @@ void HapticThread::couplingLoop() noexcept {
 
   const int ramp_ticks = std::max(1, static_cast<int>(std::lround(0.050 / period_s_)));  // ~50 ms
   int ramp_left = -1;  // -1: not stopping
-  CouplingCounts counts;
   PeriodicClock clock(period_s_, 0);
-
-  DeviceSample sample;
-  CouplingSample input;
-  ProxyState proxy;
-  x_->proxy.read(proxy);
-  haptics::Pose X_WD_last = proxy.X_WP;  // until the first valid sample
   const haptics::MassProperties& mass = renderer_->tool().mass;  // immutable: shared with the solver
   SnapshotChannel* const monitor = options_.monitor.get();  // optional second consumer
-
-  // Every command goes through the one safety layer: the device's limits, engage gate, fault
-  // hold, ramp, watchdog, actuated DOF (device.h, ForceSafety). Every sample goes through the
-  // plausibility test first (sample_filter.h): a glitch is never coupled to. Coupling gains are
-  // kept within the device's stable stiffness.
-  ForceSafety safety(device_->limits(), device_->safetyPolicy(), device_->actuatedDof());
-  safety.enable();
-  SampleFilter filter(safety.limits());
-  haptics::CouplingGains requested_gains{gain_linear_.load(std::memory_order_relaxed),
-                                         gain_angular_.load(std::memory_order_relaxed),
-                                         gain_passivity_.load(std::memory_order_relaxed)};
-  haptics::CouplingGains applied_gains = clampGains(requested_gains, safety.limits());
-  haptics::VirtualCoupling coupling(applied_gains);
-  CouplingPassivity passivity(mass);
-  passivity.configure(applied_gains, safety.limits());
-  // Placements (place()): the latest one asked for, whether it waits for its device sample, and
-  // the ones handed to the solver.
-  Placement placement;
-  std::uint64_t placement_requests_seen = x_->placement_requests_at_start;
-  bool placement_waiting = false;
-  std::uint64_t placements_sent = 0;
-  haptics::Pose X_WP_placed;
+  CouplingState c(*device_, mass, loadRequestedGains(gain_linear_, gain_angular_, gain_passivity_),
+                  x_->placement_requests_at_start);
+  x_->proxy.read(c.proxy);
+  c.X_WD_last = c.proxy.X_WP;  // until the first valid sample
 
   while (true) {
     if (ramp_left < 0 && stop_requested_.load(std::memory_order_acquire)) ramp_left = ramp_ticks;
@@ -587,91 +730,41 @@ void HapticThread::couplingLoop() noexcept {
     // 1. Device sample, tested before anything is computed from it: missing, non-finite,
     //    outside the workspace or faster than the device moves is no sample (never rendered,
     //    never handed to the solver, which keeps the last good one).
-    safety.setLimits(device_->limits());
-    filter.setLimits(safety.limits());
-    const bool read_ok = device_->read(sample);
-    const std::uint64_t placement_requests = placement_requests_.load(std::memory_order_acquire);
-    if (placement_requests != placement_requests_seen) {
-      placement_requests_seen = placement_requests;
-      x_->placement.read(placement);
-      placement_waiting = true;
-    }
-    if (placement_waiting && read_ok && samePoseBits(sample.X_WD, placement.X_WD)) {
-      // The placed sample: the jump to it is no glitch, and no motion of the hand.
-      placement_waiting = false;
-      ++placements_sent;
-      X_WP_placed = placement.X_WP;
-      PlacedSample& placed = x_->placed.writeSlot();  // before the sample is pushed: the solver sees both
-      placed.count = placements_sent;
-      placed.sample = x_->samples.latest() + 1;  // this tick's sample (this thread is the ring's one producer)
-      placed.X_WP = placement.X_WP;
-      x_->placed.publish();
-      filter = SampleFilter(safety.limits());
-      passivity.have_coupled_last = false;
-      coupling.resetTracking();
-    }
-    const SampleFilter::Verdict verdict = filter.check(sample, read_ok, clock.interval_s());
+    c.safety.setLimits(device_->limits());
+    c.filter.setLimits(c.safety.limits());
+    const bool read_ok = device_->read(c.sample);
+    passOnPlacement(c, placement_requests_.load(std::memory_order_acquire), read_ok, x_->placement, x_->samples,
+                    x_->placed);
+    const SampleFilter::Verdict verdict = c.filter.check(c.sample, read_ok, clock.interval_s());
     const bool ok = verdict == SampleFilter::Verdict::kGood || verdict == SampleFilter::Verdict::kReseeded;
     const bool connected = device_->connected();
-    if (!ok) ++counts.bad_samples;
-    if (verdict == SampleFilter::Verdict::kImplausible) ++counts.implausible;
+    if (!ok) ++c.counts.bad_samples;
+    if (verdict == SampleFilter::Verdict::kImplausible) ++c.counts.implausible;
     // 2. Pending GUI commands; gains within the device's current limits (a workspace scale
     //    change alters them).
-    if (gains_dirty_.exchange(false, std::memory_order_acq_rel)) {
-      requested_gains = {gain_linear_.load(std::memory_order_relaxed), gain_angular_.load(std::memory_order_relaxed),
-                         gain_passivity_.load(std::memory_order_relaxed)};
-    }
-    applyGains(clampGains(requested_gains, safety.limits()), safety.limits(), applied_gains, passivity, coupling);
+    if (gains_dirty_.exchange(false, std::memory_order_acq_rel))
+      c.requested_gains = loadRequestedGains(gain_linear_, gain_angular_, gain_passivity_);
+    applyGains(clampGains(c.requested_gains, c.safety.limits()), c.safety.limits(), c.applied_gains, c.passivity,
+               c.coupling);
     // 3. Hand the sample to the solver, with this tick's isovalue and gains.
-    input.X_WD = ok ? sample.X_WD : X_WD_last;
-    input.isovalue = isovalue_.load(std::memory_order_relaxed);
-    input.gains = applied_gains;
-    input.ok = ok;
-    input.connected = connected;
-    input.drill_button = ok && (sample.buttons & kDrillButton) != 0;
-    x_->samples.push(input);
-    // 4. Virtual coupling (eq. 5) to the solver's latest proxy pose, with the device pose
-    //    normalised as the renderer does (so that the same pair gives the same bits). A pose
-    //    the renderer rejected on its latest tick gives no force. 4b: passivity control.
-    x_->proxy.read(proxy);
-    if (proxy.placements < placements_sent) {  // the solver has not applied the placement yet
-      proxy.X_WP = X_WP_placed;
-      proxy.bad_input = false;
-    }
-    Eigen::Vector3d force_W_N = Eigen::Vector3d::Zero();
-    Eigen::Vector3d torque_W_Nm = Eigen::Vector3d::Zero();
-    bool coupled = false;
-    ++passivity.ticks_since_coupled;
-    if (ok && !proxy.bad_input) {
-      haptics::Pose X_WD = sample.X_WD;
-      X_WD.R_AB.coeffs() /= sample.X_WD.R_AB.norm();
-      X_WD_last = X_WD;
-      const haptics::Wrench w = coupling.track(proxy.X_WP, X_WD, mass);
-      force_W_N = w.force_W_N;
-      torque_W_Nm = w.torque_W_Nm;
-      coupled = true;
-      passivity.coupled(force_W_N, torque_W_Nm, X_WD, proxy.X_WP, mass, applied_gains, period_s_);
-    }
+    fillSolverInput(c, ok, connected, isovalue_.load(std::memory_order_relaxed));
+    x_->samples.push(c.input);
+    // 4. Virtual coupling to the solver's latest proxy pose; 4b: passivity control.
+    x_->proxy.read(c.proxy);
+    Eigen::Vector3d force_W_N, torque_W_Nm;
+    const bool coupled = coupleToProxy(c, ok, mass, period_s_, force_W_N, torque_W_Nm);
     rampDown(ramp_left, ramp_ticks, force_W_N, torque_W_Nm);
     // 5. Safety layer, then command (never NaN, never beyond the device's limits).
     const SafetyInput safety_in =
-        couplingSafetyInput(coupled, verdict, period_s_, sample, clock.interval_s(), force_W_N, torque_W_Nm);
-    const SafetyOutcome outcome = commandThroughSafety(safety, safety_in, *device_, force_W_N, torque_W_Nm);
-    passivity.afterSafety(safety.stats().outages);
+        couplingSafetyInput(coupled, verdict, period_s_, c.sample, clock.interval_s(), force_W_N, torque_W_Nm);
+    const SafetyOutcome outcome = commandThroughSafety(c.safety, safety_in, *device_, force_W_N, torque_W_Nm);
+    c.passivity.afterSafety(c.safety.stats().outages);
     x_->command_flags.store(commandFlags(outcome, ramp_left >= 0), std::memory_order_relaxed);
-    ++counts.tick;
+    ++c.counts.tick;
 
     // 6. Statistics and snapshot.
     clock.tick(begin_ns, monotonicNs());
-    CouplingSnapshot& snap = x_->gui.couplingSlot();
-    fillCouplingSnapshot(snap, counts, begin_ns, proxy.X_WP, X_WD_last, force_W_N, torque_W_Nm,
-                         safety.stats().held_ticks, passivity);
-    snap.timing = clock.timing();
-    if (monitor != nullptr) {
-      monitor->couplingSlot() = snap;
-      monitor->publishCoupling();
-    }
-    x_->gui.publishCoupling();
+    publishCouplingTick(x_->gui, monitor, c, begin_ns, force_W_N, torque_W_Nm, clock.timing());
   }
 
   device_->command(Eigen::Vector3d::Zero(), Eigen::Vector3d::Zero());
@@ -685,70 +778,31 @@ void HapticThread::solverLoop() noexcept {
   configureRealtime(kSolverPriority, false, fifo, locked);
   x_->solver_fifo.store(fifo, std::memory_order_release);
 
-  std::uint64_t tick = 0;
-  std::uint64_t rejected = 0;
-  std::uint64_t skipped = 0;
-  std::uint64_t record_first_tick = 0;         // tick of the current recording's first record
-  RecordingWriter* active_recorder = nullptr;  // the recorder of the current recording
   PeriodicClock clock(solver_period_s_, 0);
   SnapshotChannel* const monitor = options_.monitor.get();  // optional second consumer
+  SolverState st;
   // Samples from before this start() are not used (a restart begins with the next one).
-  std::uint64_t consumed = x_->first_sample_after;
-  CouplingSample input, last_input;
-  bool have_last = false;
+  st.consumed = x_->first_sample_after;
   // The renderer's gains (and the solver's metric) are set before the first tick, as
   // replayRecording() does; then each sample brings the gains the coupling thread applied.
-  haptics::CouplingGains gains = renderer_->coupling().gains();
-  renderer_->setGains(gains);
-  haptics::Pose X_WD_used = renderer_->proxyPose();  // the latest pose the renderer ticked with
-  std::uint64_t placements = 0;                      // applied (PlacedSample::count)
-  PlacedSample placed;                               // the latest placement passed on
-  std::uint32_t wake_flags = 0;                      // deadline miss of this wake-up (first tick only)
-  JamDetector jam;                                   // kRecordFlagJam
+  st.gains = renderer_->coupling().gains();
+  renderer_->setGains(st.gains);
+  st.X_WD_used = renderer_->proxyPose();
 
   // One solver tick on `in`: render, publish the proxy, record, publish the snapshot.
   const auto solve = [&](const CouplingSample& in) noexcept {
     const std::int64_t begin_ns = monotonicNs();
-    const std::uint32_t gains_flags = followGains(in.gains, gains, *renderer_) ? kRecordFlagGainsApplied : 0u;
-    std::uint32_t placement_flags = 0;
-    x_->placed.read(placed);
-    if (placed.count > placements && consumed >= placed.sample) {  // a placement: the proxy jumps with the device
-      placements = placed.count;
-      renderer_->resetProxy(placed.X_WP);
-      placement_flags = kRecordFlagPlacement;
-      placements_applied_.fetch_add(1, std::memory_order_acq_rel);
-    }
-    haptics::TickOutput out;
-    bool bad_input = false;
-    std::uint32_t drill_flags = 0;
-    bool stuck = false;
-    if (in.ok) {
-      X_WD_used = in.X_WD;
-      const haptics::Pose X_WP_before = renderer_->proxyPose();
-      out = renderer_->tick(in.X_WD, in.isovalue);
-      bad_input = out.stats.bad_input;
-      if (bad_input) ++rejected;
-      // The jam detector (jam_detector.h); the device's own freedom is tested only on candidates.
-      const haptics::ToolModel& tool = renderer_->tool();
-      stuck = !bad_input &&
-              JamDetector::candidate(X_WP_before, renderer_->proxyPose(), in.X_WD, tool.mass.p_TCm_m,
-                                     static_cast<int>(renderer_->contacts().size())) &&
-              countPointsInside(renderer_->volume(), tool.point_shell, in.X_WD, renderer_->feltIsovalue()) == 0;
-      // seq_cst with solver_ticks_ below: holdCutting()'s handshake (a tick that starts after the
-      // one it waited for sees the hold).
-      if (options_.drill != nullptr && !cutting_held_.load(std::memory_order_seq_cst) &&
-          (drilling_.load(std::memory_order_relaxed) || in.drill_button)) {
-        (void)options_.drill->step(*renderer_, out);
-        drill_flags = kRecordFlagDrillOn;
-      }
-    }
-    const std::uint32_t jam_flags = jam.update(stuck) ? kRecordFlagJam : 0u;
+    const std::uint32_t gains_flags = followGains(in.gains, st.gains, *renderer_) ? kRecordFlagGainsApplied : 0u;
+    const std::uint32_t placement_flags = applyPlacement(st, x_->placed, *renderer_, placements_applied_);
+    SolverTickResult t;
+    if (in.ok) renderSolverSample(st, in, *renderer_, options_.drill.get(), cutting_held_, drilling_, t);
+    const std::uint32_t jam_flags = st.jam.update(t.stuck) ? kRecordFlagJam : 0u;
     ProxyState& proxy = x_->proxy.writeSlot();
     proxy.X_WP = renderer_->proxyPose();
-    proxy.bad_input = bad_input;
-    proxy.placements = placements;
+    proxy.bad_input = t.bad_input;
+    proxy.placements = st.placements;
     x_->proxy.publish();
-    ++tick;
+    ++st.tick;
     if (options_.solver_tick_hook != nullptr) options_.solver_tick_hook(options_.solver_tick_hook_context);
     const std::int64_t end_ns = monotonicNs();
 
@@ -756,79 +810,32 @@ void HapticThread::solverLoop() noexcept {
     const std::uint32_t coupling_flags = x_->command_flags.load(std::memory_order_relaxed) |
                                          x_->sticky_flags.exchange(0, std::memory_order_relaxed);
     RecordingWriter* const recorder = recorder_.load(std::memory_order_acquire);
-    if (recorder != active_recorder) {  // a new recording starts its clock at its first tick
-      active_recorder = recorder;
-      record_first_tick = tick;
-      first_recorded_tick_.store(tick, std::memory_order_release);
+    if (recorder != st.active_recorder) {  // a new recording starts its clock at its first tick
+      st.active_recorder = recorder;
+      st.record_first_tick = st.tick;
+      first_recorded_tick_.store(st.tick, std::memory_order_release);
     }
     const auto contacts = renderer_->contacts();
     const int segment = options_.segments != nullptr ? options_.segments->segmentOf(contacts) : -1;
     if (recorder != nullptr) {
-      TickRecord rec;
-      rec.time_s = static_cast<double>(tick - record_first_tick) * solver_period_s_;
-      rec.tick = tick;
-      writeRecordPoses(rec, in.ok ? in.X_WD : X_WD_used, renderer_->proxyPose(), out);
-      rec.isovalue = in.isovalue;
-      rec.tick_time_s = 1e-9 * static_cast<double>(end_ns - begin_ns);
-      rec.contacts = static_cast<std::uint32_t>(contacts.size());
-      rec.flags =
-          solverRecordFlags(rec.contacts, in, out, segment) | wake_flags | coupling_flags | drill_flags | gains_flags |
-          jam_flags | placement_flags;
-      (void)recorder->push(rec);
-      latest_recorded_tick_.store(tick, std::memory_order_release);
+      recordSolverTick(*recorder, st, in, t.out, renderer_->proxyPose(), contacts.size(), segment, solver_period_s_,
+                       end_ns - begin_ns,
+                       st.wake_flags | coupling_flags | t.drill_flags | gains_flags | jam_flags | placement_flags);
+      latest_recorded_tick_.store(st.tick, std::memory_order_release);
     }
-    wake_flags = 0;
+    st.wake_flags = 0;
 
     clock.tick(begin_ns, end_ns);
-    SolverSnapshot& snap = x_->gui.solverSlot();
-    snap.tick = tick;
-    snap.isovalue = in.isovalue;
-    showContacts(snap, contacts, segment);
-    snap.rejected = rejected;
-    snap.skipped = skipped;
-    snap.timing = clock.timing();
-    if (monitor != nullptr) {
-      monitor->solverSlot() = snap;
-      monitor->publishSolver();
-    }
-    x_->gui.publishSolver();
+    publishSolverTick(x_->gui, monitor, st, in.isovalue, contacts, segment, clock.timing());
     solver_ticks_.fetch_add(1, std::memory_order_seq_cst);
   };
 
-  // The samples waiting at this wake-up.
-  const auto solvePending = [&]() noexcept {
-    const std::uint64_t latest = x_->samples.latest();
-    if (every_sample_) {
-      // Every sample once, in order; skip to the newest only when too far behind (or when the
-      // coupling thread overwrote the next one, which the backlog limit prevents).
-      while (consumed < latest) {
-        std::uint64_t next = consumed + 1;
-        if (latest - next >= x_->backlog_limit) next = latest;
-        if (!x_->samples.read(next, input)) {
-          next = x_->samples.latest();
-          if (!x_->samples.read(next, input)) break;
-        }
-        skipped += next - consumed - 1;
-        consumed = next;
-        solve(input);
-      }
-      return;
-    }
-    // The newest sample; the last one again when nothing new arrived.
-    if (latest > consumed && x_->samples.read(latest, input)) {
-      if (have_last) skipped += latest - consumed - 1;
-      consumed = latest;
-      last_input = input;
-      have_last = true;
-    }
-    if (have_last) solve(last_input);
-  };
-
   while (!coupling_done_.load(std::memory_order_acquire)) {
-    if (clock.wait()) wake_flags = kRecordFlagDeadlineMiss;
-    solvePending();
+    if (clock.wait()) st.wake_flags = kRecordFlagDeadlineMiss;
+    solvePendingSamples(st, x_->samples, every_sample_, x_->backlog_limit, solve);
   }
-  if (every_sample_) solvePending();  // the samples of the coupling thread's last ticks
+  // The samples of the coupling thread's last ticks.
+  if (every_sample_) solvePendingSamples(st, x_->samples, every_sample_, x_->backlog_limit, solve);
 }
 
 }  // namespace vh::runtime

@@ -51,20 +51,30 @@ bool ReplayDevice::read(DeviceSample& sample) noexcept {
 
 void ReplayDevice::command(const Eigen::Vector3d& /*force_W_N*/, const Eigen::Vector3d& /*torque_W_Nm*/) noexcept {}
 
-ReplayComparison replayRecording(const LoadedScene& scene, const Recording& recording,
-                                 const haptics::RendererOptions& options, const ReplayProgress& progress) {
-  if (recording.records.empty()) throw std::invalid_argument("replayRecording: the recording has no records");
-  // "gains" events, in tick order (readRecording() sorts events by tick).
-  struct GainsChange {
-    std::uint64_t tick;
-    haptics::CouplingGains gains;
-  };
+namespace {
+
+/// A "gains" event: the coupling gains from its tick on.
+struct GainsChange {
+  std::uint64_t tick;
+  haptics::CouplingGains gains;
+};
+
+/// A "hardness" event (Session::setHardness()): a material's specific energy from its tick on.
+struct HardnessChange {
+  std::uint64_t tick;
+  std::string material;
+  double J_per_mm3;
+};
+
+/// The recording's "gains" events, in tick order (readRecording() sorts events by tick); what an
+/// event leaves out stays the scene's, and a malformed event changes nothing.
+std::vector<GainsChange> gainsChanges(const Recording& recording, const haptics::CouplingGains& scene_gains) {
   std::vector<GainsChange> gains_changes;
   for (const RecordingEvent& e : recording.events) {
     if (e.type != "gains") continue;
     try {
       const nlohmann::json d = nlohmann::json::parse(e.detail_json);
-      haptics::CouplingGains g = scene.spec.gains;
+      haptics::CouplingGains g = scene_gains;
       g.linear_N_per_m = d.value("linear_N_per_m", g.linear_N_per_m);
       g.angular_Nm_per_rad = d.value("angular_Nm_per_rad", g.angular_Nm_per_rad);
       g.passivity_control = d.value("passivity_control", g.passivity_control);
@@ -72,36 +82,26 @@ ReplayComparison replayRecording(const LoadedScene& scene, const Recording& reco
     } catch (const nlohmann::json::exception&) {  // a malformed event changes nothing
     }
   }
+  return gains_changes;
+}
 
-  // With a drill, the renderer feels its own copy of the field, carved on the ticks the
-  // recording flags (kRecordFlagDrillOn) exactly as the solver thread did.
-  const double servo_rate_Hz = [&] {
-    try {
-      return nlohmann::json::parse(recording.metadata_json).value("servo_rate_Hz", 1000.0);
-    } catch (const nlohmann::json::exception&) {
-      return 1000.0;
-    }
-  }();
-  DrillingRenderer servo = makeServoRenderer(LiveValues::initial(scene), options, scene.X_WT_initial, servo_rate_Hz);
-  std::unique_ptr<haptics::HapticRenderer> renderer = std::move(servo.renderer);
-  // "hardness" events (Session::setHardness()), applied like the gains: before the first record
-  // after their tick.
-  struct HardnessChange {
-    std::uint64_t tick;
-    std::string material;
-    double J_per_mm3;
-  };
+/// The recording's "hardness" events, in tick order; a malformed event changes nothing.
+std::vector<HardnessChange> hardnessChanges(const Recording& recording) {
   std::vector<HardnessChange> hardness_changes;
   for (const RecordingEvent& e : recording.events) {
-    if (e.type != "hardness" || servo.drill == nullptr) continue;
+    if (e.type != "hardness") continue;
     try {
       const nlohmann::json d = nlohmann::json::parse(e.detail_json);
       hardness_changes.push_back({e.tick, d.at("material").get<std::string>(), d.at("J_per_mm3").get<double>()});
     } catch (const nlohmann::json::exception&) {  // a malformed event changes nothing
     }
   }
-  // Placements (kRecordFlagPlacement): the "placement" events' proxy poses, in order, one per
-  // flagged record.
+  return hardness_changes;
+}
+
+/// The "placement" events' proxy poses, in order, one per record flagged kRecordFlagPlacement; a
+/// malformed event places nothing.
+std::vector<haptics::Pose> placementPoses(const Recording& recording) {
   std::vector<haptics::Pose> placements;
   for (const RecordingEvent& e : recording.events) {
     if (e.type != "placement") continue;
@@ -115,31 +115,92 @@ ReplayComparison replayRecording(const LoadedScene& scene, const Recording& reco
     } catch (const nlohmann::json::exception&) {  // a malformed event places nothing
     }
   }
+  return placements;
+}
+
+/// The servo rate the recording's metadata names [Hz]; 1000 when it names none or is malformed.
+double recordedServoRate_Hz(const Recording& recording) {
+  try {
+    return nlohmann::json::parse(recording.metadata_json).value("servo_rate_Hz", 1000.0);
+  } catch (const nlohmann::json::exception&) {
+    return 1000.0;
+  }
+}
+
+/// The material of `h` (every material it names) gets its specific energy.
+void applyHardness(haptics::MaterialRemoval& removal, const HardnessChange& h) {
+  for (std::size_t m = 0; m < removal.materials().size(); ++m)
+    if (namesMaterial(h.material, removal.materials()[m].name)) removal.setSpecificEnergy(static_cast<int>(m), h.J_per_mm3);
+}
+
+/// The first mismatch into `result`: at record `index` (`r`), what differed, and the first
+/// record up to it on which the solver's deadline cut the work short.
+void markMismatch(ReplayComparison& result, const Recording& recording, const TickRecord& r, std::size_t index,
+                  const char* what) {
+  result.identical = false;
+  result.first_mismatch_tick = r.tick;
+  result.first_mismatch_index = index;
+  result.mismatch = what;
+  for (std::size_t k = 0; k <= index; ++k)
+    if ((recording.records[k].flags & kRecordFlagDeadlineCut) != 0) {
+      result.deadline_cut_tick = recording.records[k].tick;
+      break;
+    }
+}
+
+/// The voxels the burr removed on this record, into the removal log.
+void logRemovals(Drill& drill, ReplayComparison& result) {
+  std::uint64_t buffer[4096];
+  for (std::size_t n; (n = drill.removal().drainRemoved(buffer)) > 0;)
+    result.removed_voxels.insert(result.removed_voxels.end(), buffer, buffer + n);
+  result.removed_after_record.push_back(result.removed_voxels.size());
+}
+
+/// What of the re-run tick differs, bit for bit, from record `r`: the proxy pose, the contact
+/// count and, on a rendered tick (`rendered`) whose command the safety layer left alone, the
+/// wrench. @return nullptr when nothing differs (`forces_compared` counts the wrenches compared).
+const char* recordMismatch(const haptics::HapticRenderer& renderer, const haptics::TickOutput& out, bool rendered,
+                           const TickRecord& r, std::uint64_t& forces_compared) {
+  const haptics::Pose& X_WP = renderer.proxyPose();
+  for (int k = 0; k < 3; ++k)
+    if (!sameBits(X_WP.p_AB_m[k], r.p_WP_m[k])) return "proxy position";
+  if (!sameBits(X_WP.R_AB.w(), r.q_WP[0]) || !sameBits(X_WP.R_AB.x(), r.q_WP[1]) ||
+      !sameBits(X_WP.R_AB.y(), r.q_WP[2]) || !sameBits(X_WP.R_AB.z(), r.q_WP[3]))
+    return "proxy orientation";
+  if (renderer.contacts().size() != r.contacts) return "contacts";
+  if (rendered && (r.flags & (kRecordFlagForceLimited | kRecordFlagForceZeroed | kRecordFlagStopping)) == 0) {
+    for (int k = 0; k < 3; ++k)
+      if (!sameBits(out.force_W_N[k], r.force_W_N[k])) return "force";
+    for (int k = 0; k < 3; ++k)
+      if (!sameBits(out.torque_W_Nm[k], r.torque_W_Nm[k])) return "torque";
+    ++forces_compared;
+  }
+  return nullptr;
+}
+
+}  // namespace
+
+ReplayComparison replayRecording(const LoadedScene& scene, const Recording& recording,
+                                 const haptics::RendererOptions& options, const ReplayProgress& progress) {
+  if (recording.records.empty()) throw std::invalid_argument("replayRecording: the recording has no records");
+  const std::vector<GainsChange> gains_changes = gainsChanges(recording, scene.spec.gains);
+  // With a drill, the renderer feels its own copy of the field, carved on the ticks the
+  // recording flags (kRecordFlagDrillOn) exactly as the solver thread did.
+  DrillingRenderer servo =
+      makeServoRenderer(LiveValues::initial(scene), options, scene.X_WT_initial, recordedServoRate_Hz(recording));
+  std::unique_ptr<haptics::HapticRenderer> renderer = std::move(servo.renderer);
+  // "hardness" events, applied like the gains: before the first record after their tick.
+  const std::vector<HardnessChange> hardness_changes =
+      servo.drill != nullptr ? hardnessChanges(recording) : std::vector<HardnessChange>{};
+  const std::vector<haptics::Pose> placements = placementPoses(recording);
   std::size_t next_placement = 0;
   std::size_t next_hardness = 0;
-  const auto applyHardness = [&](const HardnessChange& h) {
-    haptics::MaterialRemoval& removal = servo.drill->removal();
-    for (std::size_t m = 0; m < removal.materials().size(); ++m)
-      if (namesMaterial(h.material, removal.materials()[m].name)) removal.setSpecificEnergy(static_cast<int>(m), h.J_per_mm3);
-  };
   renderer->setGains(renderer->coupling().gains());  // as the haptic thread does before its first tick
   ReplayDevice device(recording.records, "replayRecording");
   ReplayComparison result;
   std::size_t next_gains = 0;
   const bool gains_flagged = std::any_of(recording.records.begin(), recording.records.end(),
                                          [](const TickRecord& r) { return (r.flags & kRecordFlagGainsApplied) != 0; });
-  const auto fail = [&result, &recording](const TickRecord& r, std::size_t index, const char* what) {
-    result.identical = false;
-    result.first_mismatch_tick = r.tick;
-    result.first_mismatch_index = index;
-    result.mismatch = what;
-    for (std::size_t k = 0; k <= index; ++k)
-      if ((recording.records[k].flags & kRecordFlagDeadlineCut) != 0) {
-        result.deadline_cut_tick = recording.records[k].tick;
-        break;
-      }
-    return result;
-  };
   const double record_count = static_cast<double>(recording.records.size());
   for (std::size_t i = 0; i < recording.records.size(); ++i) {
     if (i % 1000 == 0) {
@@ -151,7 +212,7 @@ ReplayComparison replayRecording(const LoadedScene& scene, const Recording& reco
     }
     const TickRecord& r = recording.records[i];
     while (next_hardness < hardness_changes.size() && hardness_changes[next_hardness].tick < r.tick)
-      applyHardness(hardness_changes[next_hardness++]);
+      applyHardness(servo.drill->removal(), hardness_changes[next_hardness++]);
     // Where the solver flagged the tick it applied new gains on, there (the latest event stamped
     // before it); an older recording: on the first record after the event's tick.
     if (!gains_flagged || (r.flags & kRecordFlagGainsApplied) != 0) {
@@ -170,25 +231,10 @@ ReplayComparison replayRecording(const LoadedScene& scene, const Recording& reco
       ++result.ticks_replayed;
       if (servo.drill != nullptr && (r.flags & kRecordFlagDrillOn) != 0) servo.drill->step(*renderer, out);
     }
-    if (servo.drill != nullptr) {  // the removal log, record by record
-      std::uint64_t buffer[4096];
-      for (std::size_t n; (n = servo.drill->removal().drainRemoved(buffer)) > 0;)
-        result.removed_voxels.insert(result.removed_voxels.end(), buffer, buffer + n);
-      result.removed_after_record.push_back(result.removed_voxels.size());
-    }
-    const haptics::Pose& X_WP = renderer->proxyPose();
-    for (int k = 0; k < 3; ++k)
-      if (!sameBits(X_WP.p_AB_m[k], r.p_WP_m[k])) return fail(r, i, "proxy position");
-    if (!sameBits(X_WP.R_AB.w(), r.q_WP[0]) || !sameBits(X_WP.R_AB.x(), r.q_WP[1]) ||
-        !sameBits(X_WP.R_AB.y(), r.q_WP[2]) || !sameBits(X_WP.R_AB.z(), r.q_WP[3]))
-      return fail(r, i, "proxy orientation");
-    if (renderer->contacts().size() != r.contacts) return fail(r, i, "contacts");
-    if (ok && (r.flags & (kRecordFlagForceLimited | kRecordFlagForceZeroed | kRecordFlagStopping)) == 0) {
-      for (int k = 0; k < 3; ++k)
-        if (!sameBits(out.force_W_N[k], r.force_W_N[k])) return fail(r, i, "force");
-      for (int k = 0; k < 3; ++k)
-        if (!sameBits(out.torque_W_Nm[k], r.torque_W_Nm[k])) return fail(r, i, "torque");
-      ++result.forces_compared;
+    if (servo.drill != nullptr) logRemovals(*servo.drill, result);  // the removal log, record by record
+    if (const char* what = recordMismatch(*renderer, out, ok, r, result.forces_compared)) {
+      markMismatch(result, recording, r, i, what);
+      return result;
     }
   }
   if (servo.drill != nullptr) result.drilled_field = std::make_shared<haptics::ScalarVolume>(servo.drill->removal().volume());

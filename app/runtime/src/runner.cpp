@@ -333,9 +333,10 @@ DrillReport drillReport(const Drill& drill, const LoadedScene& scene) {
   }
   return d;
 }
-}  // namespace
-
-RunReport runHeadless(const LoadedScene& scene, const Trajectory& trajectory, const RunOptions& options) {
+/// The run's arguments checked before anything is set up: a trajectory, a positive servo rate, a
+/// crossing-check step >= 0 and at most a day of ticks whose times fit in memory.
+/// @throws std::runtime_error for an empty trajectory, std::invalid_argument for the rest.
+void checkRunArguments(const Trajectory& trajectory, const RunOptions& options) {
   if (trajectory.empty()) throw std::runtime_error("runHeadless: empty trajectory");
   if (!(options.servo_rate_Hz > 0.0)) throw std::invalid_argument("runHeadless: servo rate must be > 0");
   if (!(options.verify_step_voxels >= 0.0) || !std::isfinite(options.verify_step_voxels))
@@ -350,6 +351,211 @@ RunReport runHeadless(const LoadedScene& scene, const Trajectory& trajectory, co
   }
   const double ticks = std::floor(duration_s * options.servo_rate_Hz + 1e-9) + 1.0;
   io::requireFitsInMemory(static_cast<std::uint64_t>(ticks) * sizeof(double), "the run's per-tick times");
+}
+
+/// The work budget's reference: the servo's renderer again without the budget (the lag), or none
+/// when the lag is not asked for or there is no budget.
+std::unique_ptr<haptics::HapticRenderer> makeLagReference(const LoadedScene& scene,
+                                                          const haptics::RendererOptions& renderer_options,
+                                                          const haptics::Pose& X_WD_first, const RunOptions& options,
+                                                          std::int64_t work_budget) {
+  if (!options.lag_reference || work_budget <= 0) return nullptr;
+  haptics::RendererOptions unbudgeted = renderer_options;
+  unbudgeted.work_budget = 0;
+  // Made as the servo's renderer is (the scene's gains and edge test), so that only the budget
+  // differs (a drilling scene's reference feels the uncut field).
+  return makeRenderer(LiveValues::initial(scene), unbudgeted, X_WD_first);
+}
+
+/// The crossing check of every tick's move (RunOptions::verify_step_voxels > 0) on the field the
+/// tool feels, with the report's crossing counts started at 0 (checked); off, nothing changes.
+void startCrossingCheck(RunReport& r, const haptics::ScalarVolume& felt, const haptics::ToolModel& tool,
+                        const RunOptions& options, std::optional<haptics::CrossingVerifier>& verifier,
+                        haptics::ShellEdges& shell_edges) {
+  if (!(options.verify_step_voxels > 0.0)) return;
+  verifier.emplace(felt, tool.point_shell, options.verify_step_voxels);
+  r.verify_step_voxels = options.verify_step_voxels;
+  r.crossings = 0;
+  r.crossing_points = 0;
+  r.edge_crossings = 0;
+  shell_edges = haptics::makeShellEdges(tool.point_shell);
+}
+
+/// What a headless run ticks with, set up once by runHeadless(): the servo's renderer and its
+/// checks, the scripted device behind the coupling thread's plausibility test and safety layer,
+/// the outputs, and the sums over the ticks.
+struct HeadlessRun {
+  const LoadedScene& scene;
+  const Trajectory& trajectory;
+  const RunOptions& options;
+  const haptics::ToolModel& tool;
+  const haptics::ScalarVolume& felt;  // the field the renderer feels (carved while drilling)
+  double s;                           // the scene's isovalue
+  double period_s;
+  haptics::HapticRenderer& renderer;
+  Drill* drill;
+  bool drilling;
+  haptics::HapticRenderer* reference;  // without the work budget, or null
+  ProxyLag& lag;
+  const haptics::CrossingVerifier* verifier;  // null: no crossing check
+  const haptics::ShellEdges& shell_edges;
+  ScriptedDevice& device;
+  SampleFilter& filter;
+  ForceSafety& safety;
+  std::ofstream& trace;
+  RecordingWriter* recorder;
+  SegmentContactTally* segment_tally;
+  JamDetector& jam;
+  std::vector<double>& times_us;
+  RunReport& r;
+  haptics::Pose X_WD_used;  // the last sample the renderer ticked with
+  double contact_sum = 0.0;
+  double samples_sum = 0.0;
+};
+
+/// One tick's device sample, what the renderer made of it and the command the device got.
+struct RunTick {
+  DeviceSample sample;
+  SampleFilter::Verdict verdict = SampleFilter::Verdict::kGood;
+  bool sample_ok = false;
+  double isovalue = 0.0;  // asked for this tick
+  haptics::TickOutput out;
+  haptics::Pose X_WP_before;  // the proxy before the tick
+  Eigen::Vector3d command_W_N, command_W_Nm;
+};
+
+/// Tick `i`'s servo work: read and test the device sample, render it (a rejected sample is not
+/// rendered: the proxy stays, no force) and command the safety layer's force to the device.
+void renderRunTick(HeadlessRun& run, std::uint64_t i, RunTick& t) {
+  const bool read_ok = run.device.read(t.sample);
+  t.verdict = run.filter.check(t.sample, read_ok, i == 0 ? 0.0 : run.period_s);
+  t.sample_ok = t.verdict == SampleFilter::Verdict::kGood || t.verdict == SampleFilter::Verdict::kReseeded;
+  // The isovalue asked for this tick: the trajectory's ninth column, else the scene's.
+  t.isovalue = run.trajectory.isovalueAt(t.sample.time_s, run.s);
+  t.X_WP_before = run.renderer.proxyPose();
+  if (t.sample_ok) {
+    t.out = run.renderer.tick(t.sample.X_WD, t.isovalue);
+    run.X_WD_used = t.sample.X_WD;
+  } else {
+    t.out.X_WP = run.renderer.proxyPose();  // not rendered: the proxy stays, no force
+    t.out.stats.contacts = static_cast<int>(run.renderer.contacts().size());
+    if (t.verdict == SampleFilter::Verdict::kImplausible) ++run.r.implausible_samples;
+  }
+  const SafetyInput safety_in =
+      runSafetyInput(t.sample_ok && !t.out.stats.bad_input, t.verdict, t.sample, run.period_s, t.out);
+  run.safety.step(safety_in, t.command_W_N, t.command_W_Nm);
+  run.device.command(t.command_W_N, t.command_W_Nm);
+}
+
+/// The burr's cut after tick `i`'s checks, and a "critical_removed" event in the recording (as the
+/// GUI writes it) when it removed part of a critical segment.
+void drillRunTick(HeadlessRun& run, std::uint64_t i, const haptics::TickOutput& out) {
+  const haptics::CutResult cut = run.drill->step(run.renderer, out);
+  if (cut.critical_removed <= 0 || !run.recorder) return;
+  // As the GUI does: every removal of a critical segment is an event with its count.
+  RecordingEvent event;
+  event.time_s = static_cast<double>(i) / run.options.servo_rate_Hz;
+  event.tick = i + 1;
+  event.type = "critical_removed";
+  event.detail_json =
+      nlohmann::json{{"segment", run.drill->removal().materials()[static_cast<std::size_t>(cut.critical_material)].name},
+                     {"voxels", cut.critical_removed},
+                     {"mm3", cut.critical_removed * run.drill->removal().voxelVolume_mm3()}}
+          .dump();
+  run.recorder->addEvent(event);
+}
+
+/// The jam detector (jam_detector.h) after tick `i`: held in contact, far from a device in free
+/// space. @return whether the proxy is jammed now.
+bool updateRunJam(HeadlessRun& run, std::uint64_t i, const RunTick& t) {
+  const bool stuck =
+      t.sample_ok && !t.out.stats.bad_input &&
+      JamDetector::candidate(t.X_WP_before, run.renderer.proxyPose(), t.sample.X_WD, run.tool.mass.p_TCm_m,
+                             static_cast<int>(run.renderer.contacts().size())) &&
+      countPointsInside(run.renderer.volume(), run.tool.point_shell, t.sample.X_WD, run.renderer.feltIsovalue()) == 0;
+  const bool jammed = run.jam.update(stuck);
+  if (jammed && run.r.first_jam_tick < 0) run.r.first_jam_tick = static_cast<std::int64_t>(i);
+  return jammed;
+}
+
+/// Tick `i`'s bookkeeping, outside the timed section (exec_time_us is measured by tick()): the
+/// reference's lag, the counts, the crossing and depth checks, the burr, the jam detector, and
+/// the recording, trace and monitor.
+void checkRunTick(HeadlessRun& run, std::uint64_t i, const RunTick& t) {
+  const haptics::TickOutput& out = t.out;
+  RunReport& r = run.r;
+  run.times_us.push_back(out.stats.exec_time_us);
+  if (run.reference && t.sample_ok) {
+    const haptics::TickOutput ref = run.reference->tick(t.sample.X_WD, t.isovalue);
+    if (ref.X_WP.allFinite() && out.X_WP.allFinite()) run.lag.add(out.X_WP, ref.X_WP, t.sample.X_WD);
+  }
+  addTickCounts(r, out, t.command_W_N, i, t.sample_ok, run.contact_sum, run.samples_sum);
+  // |F| itself must be finite: components near 1e300 (a stiffness of 1e300 N/m) square to inf.
+  const bool finite = out.force_W_N.allFinite() && out.torque_W_Nm.allFinite() && out.X_WP.allFinite() &&
+                      std::isfinite(out.force_W_N.norm()) && std::isfinite(out.torque_W_Nm.norm());
+  const int segment = run.scene.segments ? run.scene.segments->segmentOf(run.renderer.contacts()) : -1;
+  if (run.segment_tally) run.segment_tally->add(segment, out.force_W_N.norm(), 1.0 / run.options.servo_rate_Hz);
+  // The checks below use the isovalue the renderer rendered this tick (it may lag the
+  // requested one while the tool presses on the surface: a lowered isovalue is deferred for
+  // the hand), and the trace writes both.
+  const double felt_isovalue = std::isfinite(out.stats.felt_isovalue) ? out.stats.felt_isovalue : t.isovalue;
+  const int crossing_points = run.verifier && finite && t.sample_ok
+                                  ? checkCrossings(r, *run.verifier, run.shell_edges, run.renderer, felt_isovalue, i)
+                                  : -1;
+  double depth = 0.0;
+  if (!finite) ++r.nan_ticks;
+  else depth = addForceAndDepth(r, out, run.X_WD_used, run.felt, run.tool, felt_isovalue, run.options.check_penetration, i);
+  // The burr cuts after the checks (they test this tick's motion against the field it moved in).
+  const bool drill_on = run.drilling && t.sample_ok && !out.stats.bad_input;
+  if (drill_on) drillRunTick(run, i, out);
+  const bool jammed = updateRunJam(run, i, t);
+  if (run.recorder) {
+    TickRecord rec = runRecord(i, run.options.servo_rate_Hz, run.X_WD_used, run.renderer.proxyPose(), out, t.isovalue,
+                               run.renderer.contacts().size(), finite, t.sample_ok, segment);
+    if (drill_on) rec.flags |= kRecordFlagDrillOn;
+    if (jammed) rec.flags |= kRecordFlagJam;
+    run.recorder->pushWaiting(rec);
+  }
+  if (run.trace.is_open()) {
+    writeTraceRow(run.trace, i, t.sample, out,
+                  {depth, crossing_points, t.command_W_N, t.command_W_Nm, t.verdict, t.isovalue, felt_isovalue});
+  }
+  if (SnapshotChannel* monitor = run.options.monitor.get()) {
+    publishRunTick(*monitor, i, r, out, run.X_WD_used, t.command_W_N, t.command_W_Nm, run.safety.stats().held_ticks,
+                   t.isovalue, run.renderer.contacts().size(), segment);
+  }
+}
+
+/// After the last of the `n` ticks: the "drilled" event (what the burr removed in all), the
+/// recording closed, and the report's totals.
+/// @throws std::runtime_error naming the recording when one of its writes failed.
+void finishRun(HeadlessRun& run, std::uint64_t n, std::chrono::steady_clock::time_point wall_begin) {
+  RunReport& r = run.r;
+  if (run.recorder && run.drill != nullptr && n > 0) {
+    // What the burr removed in all, for the cohort table (session_metrics.h: removed_mm3).
+    RecordingEvent event;
+    event.time_s = static_cast<double>(n - 1) / run.options.servo_rate_Hz;
+    event.tick = n;
+    event.type = "drilled";
+    event.detail_json =
+        nlohmann::json{{"voxels", run.drill->removal().removedVoxels()}, {"mm3", run.drill->removed_mm3()}}.dump();
+    run.recorder->addEvent(event);
+  }
+  if (run.recorder) run.recorder->close();  // throws naming the file when a write failed
+  if (run.segment_tally) r.segment_contacts = run.segment_tally->segments();
+  if (run.drill != nullptr) r.drill = drillReport(*run.drill, run.scene);
+  if (run.reference) reportLag(r, run.lag);
+  r.total_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - wall_begin).count();
+  r.ticks = n;
+  r.held_ticks = run.safety.stats().held_ticks;
+  r.jam_ticks = run.jam.jamTicks();
+  r.jams = run.jam.jams();
+  summariseTicks(r, run.times_us, n, run.contact_sum, run.samples_sum);
+}
+}  // namespace
+
+RunReport runHeadless(const LoadedScene& scene, const Trajectory& trajectory, const RunOptions& options) {
+  checkRunArguments(trajectory, options);
   const haptics::ScalarVolume& volume = *scene.hapticField();
   const haptics::ToolModel& tool = *scene.tool;
   const double s = scene.hapticIsovalue();
@@ -364,31 +570,17 @@ RunReport runHeadless(const LoadedScene& scene, const Trajectory& trajectory, co
   // With a "drill" section the renderer feels its own copy of the field, which the burr carves
   // after each tick's checks; the checks read that carved field.
   DrillingRenderer servo = makeServoRenderer(LiveValues::initial(scene), renderer_options, X_WD_first, options.servo_rate_Hz);
-  haptics::HapticRenderer& renderer = *servo.renderer;
   Drill* const drill = servo.drill.get();
-  const bool drilling = drill != nullptr && scene.spec.drill && scene.spec.drill->on;
   const haptics::ScalarVolume& felt = drill != nullptr ? drill->removal().volume() : volume;
-  r.epsilon_m = renderer.epsilon_m();
-  r.work_budget = renderer.workBudget();
-  std::unique_ptr<haptics::HapticRenderer> reference;  // the same without the budget: the lag
+  r.epsilon_m = servo.renderer->epsilon_m();
+  r.work_budget = servo.renderer->workBudget();
+  // The same without the budget: the lag.
+  std::unique_ptr<haptics::HapticRenderer> reference =
+      makeLagReference(scene, renderer_options, X_WD_first, options, r.work_budget);
   ProxyLag lag;
-  if (options.lag_reference && r.work_budget > 0) {
-    haptics::RendererOptions unbudgeted = renderer_options;
-    unbudgeted.work_budget = 0;
-    // Made as the servo's renderer is (the scene's gains and edge test), so that only the budget
-    // differs (a drilling scene's reference feels the uncut field).
-    reference = makeRenderer(LiveValues::initial(scene), unbudgeted, X_WD_first);
-  }
   std::optional<haptics::CrossingVerifier> verifier;
   haptics::ShellEdges shell_edges;
-  if (options.verify_step_voxels > 0.0) {
-    verifier.emplace(felt, tool.point_shell, options.verify_step_voxels);
-    r.verify_step_voxels = options.verify_step_voxels;
-    r.crossings = 0;
-    r.crossing_points = 0;
-    r.edge_crossings = 0;
-    shell_edges = haptics::makeShellEdges(tool.point_shell);
-  }
+  startCrossingCheck(r, felt, tool, options, verifier, shell_edges);
   ScriptedDevice device(trajectory, 1.0 / options.servo_rate_Hz);
   device.setLimits(options.device_limits);
   device.setSafetyPolicy(options.safety_policy);
@@ -396,11 +588,9 @@ RunReport runHeadless(const LoadedScene& scene, const Trajectory& trajectory, co
   // The same plausibility test and safety layer as the coupling thread (HapticThread): a sample
   // faster than the device moves, outside its workspace or not finite is never rendered; the
   // command the device gets is the safety layer's (fault hold, ramp, clamp).
-  const double period_s = 1.0 / options.servo_rate_Hz;
   SampleFilter filter(device.limits());
   ForceSafety safety(device.limits(), device.safetyPolicy(), device.actuatedDof());
   safety.enable();
-  haptics::Pose X_WD_used = X_WD_first;  // the last sample the renderer ticked with
 
   const auto n = static_cast<std::uint64_t>(std::floor(trajectory.duration_s() * options.servo_rate_Hz + 1e-9)) + 1;
   std::vector<double> times_us;
@@ -408,112 +598,19 @@ RunReport runHeadless(const LoadedScene& scene, const Trajectory& trajectory, co
   std::ofstream trace = openTrace(options.trace_csv);
   std::unique_ptr<RecordingWriter> recorder = openRecorder(scene, X_WD_first, device, options);
   std::optional<SegmentContactTally> segment_tally = segmentTally(scene);
-  double contact_sum = 0.0, samples_sum = 0.0;
   JamDetector jam;
+  HeadlessRun run{scene,  trajectory, options, tool, felt, s, 1.0 / options.servo_rate_Hz, *servo.renderer, drill,
+                  drill != nullptr && scene.spec.drill && scene.spec.drill->on, reference.get(), lag,
+                  verifier ? &*verifier : nullptr, shell_edges, device, filter, safety, trace, recorder.get(),
+                  segment_tally ? &*segment_tally : nullptr, jam, times_us, r, X_WD_first};
   const auto wall_begin = std::chrono::steady_clock::now();
   for (std::uint64_t i = 0; i < n; ++i) {
-    DeviceSample sample;
-    const bool read_ok = device.read(sample);
-    const SampleFilter::Verdict verdict = filter.check(sample, read_ok, i == 0 ? 0.0 : period_s);
-    const bool sample_ok = verdict == SampleFilter::Verdict::kGood || verdict == SampleFilter::Verdict::kReseeded;
-    // The isovalue asked for this tick: the trajectory's ninth column, else the scene's.
-    const double isovalue = trajectory.isovalueAt(sample.time_s, s);
-    haptics::TickOutput out;
-    const haptics::Pose X_WP_before = renderer.proxyPose();
-    if (sample_ok) {
-      out = renderer.tick(sample.X_WD, isovalue);
-      X_WD_used = sample.X_WD;
-    } else {
-      out.X_WP = renderer.proxyPose();  // not rendered: the proxy stays, no force
-      out.stats.contacts = static_cast<int>(renderer.contacts().size());
-      if (verdict == SampleFilter::Verdict::kImplausible) ++r.implausible_samples;
-    }
-    const SafetyInput safety_in = runSafetyInput(sample_ok && !out.stats.bad_input, verdict, sample, period_s, out);
-    Eigen::Vector3d command_W_N, command_W_Nm;
-    safety.step(safety_in, command_W_N, command_W_Nm);
-    device.command(command_W_N, command_W_Nm);
-
-    // Everything below is outside the timed section (exec_time_us is measured by tick()).
-    times_us.push_back(out.stats.exec_time_us);
-    if (reference && sample_ok) {
-      const haptics::TickOutput ref = reference->tick(sample.X_WD, isovalue);
-      if (ref.X_WP.allFinite() && out.X_WP.allFinite()) lag.add(out.X_WP, ref.X_WP, sample.X_WD);
-    }
-    addTickCounts(r, out, command_W_N, i, sample_ok, contact_sum, samples_sum);
-    // |F| itself must be finite: components near 1e300 (a stiffness of 1e300 N/m) square to inf.
-    const bool finite = out.force_W_N.allFinite() && out.torque_W_Nm.allFinite() && out.X_WP.allFinite() &&
-                        std::isfinite(out.force_W_N.norm()) && std::isfinite(out.torque_W_Nm.norm());
-    const int segment = scene.segments ? scene.segments->segmentOf(renderer.contacts()) : -1;
-    if (segment_tally) segment_tally->add(segment, out.force_W_N.norm(), 1.0 / options.servo_rate_Hz);
-    // The checks below use the isovalue the renderer rendered this tick (it may lag the
-    // requested one while the tool presses on the surface: a lowered isovalue is deferred for
-    // the hand), and the trace writes both.
-    const double felt_isovalue = std::isfinite(out.stats.felt_isovalue) ? out.stats.felt_isovalue : isovalue;
-    const int crossing_points =
-        verifier && finite && sample_ok ? checkCrossings(r, *verifier, shell_edges, renderer, felt_isovalue, i) : -1;
-    double depth = 0.0;
-    if (!finite) ++r.nan_ticks;
-    else depth = addForceAndDepth(r, out, X_WD_used, felt, tool, felt_isovalue, options.check_penetration, i);
-    // The burr cuts after the checks (they test this tick's motion against the field it moved in).
-    if (drilling && sample_ok && !out.stats.bad_input) {
-      const haptics::CutResult cut = drill->step(renderer, out);
-      if (cut.critical_removed > 0 && recorder) {
-        // As the GUI does: every removal of a critical segment is an event with its count.
-        RecordingEvent event;
-        event.time_s = static_cast<double>(i) / options.servo_rate_Hz;
-        event.tick = i + 1;
-        event.type = "critical_removed";
-        event.detail_json = nlohmann::json{{"segment", drill->removal().materials()[static_cast<std::size_t>(cut.critical_material)].name},
-                                           {"voxels", cut.critical_removed},
-                                           {"mm3", cut.critical_removed * drill->removal().voxelVolume_mm3()}}
-                                .dump();
-        recorder->addEvent(event);
-      }
-    }
-    // The jam detector (jam_detector.h): held in contact, far from a device in free space.
-    const bool stuck = sample_ok && !out.stats.bad_input &&
-                       JamDetector::candidate(X_WP_before, renderer.proxyPose(), sample.X_WD, tool.mass.p_TCm_m,
-                                              static_cast<int>(renderer.contacts().size())) &&
-                       countPointsInside(renderer.volume(), tool.point_shell, sample.X_WD, renderer.feltIsovalue()) == 0;
-    const bool jammed = jam.update(stuck);
-    if (jammed && r.first_jam_tick < 0) r.first_jam_tick = static_cast<std::int64_t>(i);
-    if (recorder) {
-      TickRecord rec = runRecord(i, options.servo_rate_Hz, X_WD_used, renderer.proxyPose(), out, isovalue,
-                                 renderer.contacts().size(), finite, sample_ok, segment);
-      if (drilling && sample_ok && !out.stats.bad_input) rec.flags |= kRecordFlagDrillOn;
-      if (jammed) rec.flags |= kRecordFlagJam;
-      recorder->pushWaiting(rec);
-    }
-    if (trace.is_open()) {
-      writeTraceRow(trace, i, sample, out,
-                    {depth, crossing_points, command_W_N, command_W_Nm, verdict, isovalue, felt_isovalue});
-    }
-    if (SnapshotChannel* monitor = options.monitor.get()) {
-      publishRunTick(*monitor, i, r, out, X_WD_used, command_W_N, command_W_Nm, safety.stats().held_ticks, isovalue,
-                     renderer.contacts().size(), segment);
-    }
+    RunTick t;
+    renderRunTick(run, i, t);
+    checkRunTick(run, i, t);
     if (options.realtime) std::this_thread::sleep_until(wall_begin + std::chrono::nanoseconds(static_cast<std::int64_t>(1e9 * static_cast<double>(i + 1) / options.servo_rate_Hz)));
   }
-  if (recorder && drill != nullptr && n > 0) {
-    // What the burr removed in all, for the cohort table (session_metrics.h: removed_mm3).
-    RecordingEvent event;
-    event.time_s = static_cast<double>(n - 1) / options.servo_rate_Hz;
-    event.tick = n;
-    event.type = "drilled";
-    event.detail_json =
-        nlohmann::json{{"voxels", drill->removal().removedVoxels()}, {"mm3", drill->removed_mm3()}}.dump();
-    recorder->addEvent(event);
-  }
-  if (recorder) recorder->close();  // throws naming the file when a write failed
-  if (segment_tally) r.segment_contacts = segment_tally->segments();
-  if (drill != nullptr) r.drill = drillReport(*drill, scene);
-  if (reference) reportLag(r, lag);
-  r.total_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - wall_begin).count();
-  r.ticks = n;
-  r.held_ticks = safety.stats().held_ticks;
-  r.jam_ticks = jam.jamTicks();
-  r.jams = jam.jams();
-  summariseTicks(r, times_us, n, contact_sum, samples_sum);
+  finishRun(run, n, wall_begin);
   return r;
 }
 
@@ -527,6 +624,38 @@ RunReport runHeadless(const SceneSpec& scene, const std::filesystem::path& traje
   report.trajectory = trajectory_csv.string();
   return report;
 }
+
+namespace {
+/// The report's "segments": time in contact, peak force and touches per labelled segment.
+nlohmann::ordered_json segmentContactsJson(const std::vector<SegmentContact>& segment_contacts) {
+  nlohmann::ordered_json segments = nlohmann::ordered_json::array();
+  for (const SegmentContact& c : segment_contacts) {
+    segments.push_back({{"name", c.name},
+                        {"critical", c.critical},
+                        {"time_in_contact_s", c.time_in_contact_s},
+                        {"peak_force_N", c.peak_force_N},
+                        {"touches", c.touches}});
+  }
+  return segments;
+}
+
+/// A drilling run's removal into the report: the volumes removed and eroded, the burr, the carved
+/// field's hash and what was removed of each material.
+void addDrillJson(nlohmann::ordered_json& j, const DrillReport& drill) {
+  j["removed_mm3"] = drill.removed_mm3;
+  j["eroded_mm3"] = drill.eroded_mm3;
+  j["burr_radius_m"] = drill.burr_radius_m;
+  j["drilled_field_sha256"] = drill.drilled_field_sha256;
+  j["removed"] = nlohmann::ordered_json::array();
+  for (const auto& m : drill.materials)
+    j["removed"].push_back({{"material", m.name},
+                            {"segment", m.segment.empty() ? nlohmann::ordered_json(nullptr) : nlohmann::ordered_json(m.segment)},
+                            {"critical", m.critical},
+                            {"voxels", m.voxels},
+                            {"removed_mm3", m.removed_mm3},
+                            {"specific_energy_J_per_mm3", m.specific_energy_J_per_mm3}});
+}
+}  // namespace
 
 std::string RunReport::toJson() const {
   nlohmann::ordered_json j;
@@ -591,28 +720,8 @@ std::string RunReport::toJson() const {
   j["max_lag_rad"] = max_lag_rad >= 0.0 ? nlohmann::ordered_json(max_lag_rad) : nlohmann::ordered_json(nullptr);
   j["max_behind_m"] = lag_ticks >= 0 ? nlohmann::ordered_json(max_behind_m) : nlohmann::ordered_json(nullptr);
   j["max_behind_rad"] = lag_ticks >= 0 ? nlohmann::ordered_json(max_behind_rad) : nlohmann::ordered_json(nullptr);
-  j["segments"] = nlohmann::ordered_json::array();
-  for (const SegmentContact& c : segment_contacts) {
-    j["segments"].push_back({{"name", c.name},
-                             {"critical", c.critical},
-                             {"time_in_contact_s", c.time_in_contact_s},
-                             {"peak_force_N", c.peak_force_N},
-                             {"touches", c.touches}});
-  }
-  if (drill) {
-    j["removed_mm3"] = drill->removed_mm3;
-    j["eroded_mm3"] = drill->eroded_mm3;
-    j["burr_radius_m"] = drill->burr_radius_m;
-    j["drilled_field_sha256"] = drill->drilled_field_sha256;
-    j["removed"] = nlohmann::ordered_json::array();
-    for (const auto& m : drill->materials)
-      j["removed"].push_back({{"material", m.name},
-                              {"segment", m.segment.empty() ? nlohmann::ordered_json(nullptr) : nlohmann::ordered_json(m.segment)},
-                              {"critical", m.critical},
-                              {"voxels", m.voxels},
-                              {"removed_mm3", m.removed_mm3},
-                              {"specific_energy_J_per_mm3", m.specific_energy_J_per_mm3}});
-  }
+  j["segments"] = segmentContactsJson(segment_contacts);
+  if (drill) addDrillJson(j, *drill);
   return j.dump(2) + "\n";
 }
 

@@ -236,16 +236,55 @@ DrilledCavity cavityFromJson(const json& j) {
   return cavity;
 }
 
-}  // namespace
+/// The session's segmentation: the file, the felt, shown and critical choices by name (what a
+/// scene file says), and every segment as loaded (the recording names the touched segment by its
+/// index into "segments").
+json segmentationJson(const SegmentSet& set, const SegmentationSpec& segmentation) {
+  const auto names = [&set](const std::vector<int>& indices) {
+    std::vector<std::string> out;
+    for (const int s : indices) out.push_back(set.name(s));
+    return out;
+  };
+  json seg;
+  seg["path"] = segmentation.path;
+  seg["felt"] = names(set.felt());
+  seg["shown"] = names(set.shown());
+  seg["critical"] = names(set.critical());
+  seg["smoothing_voxels"] = set.smoothingVoxels();
+  seg["segments"] = json::array();
+  for (int s = 0; s < static_cast<int>(set.size()); ++s) {
+    const io::SegmentInfo& segment = set.segment(s);
+    seg["segments"].push_back({{"name", segment.name},
+                               {"id", segment.id},
+                               {"label_value", segment.label_value},
+                               {"layer", segment.layer},
+                               {"color_rgb", segment.color_rgb},
+                               {"felt", set.isFelt(s)},
+                               {"critical", set.isCritical(s)}});
+  }
+  return seg;
+}
 
-std::string makeSessionMetadata(const LoadedScene& scene, const LiveValues& live, const SessionInfo& info) {
+/// The session's drill: what a replay needs to cut as the session did.
+json drillJson(const DrillSpec& spec) {
+  json drill;
+  drill["on"] = spec.on;
+  if (spec.burr_radius_m > 0.0) drill["burr_radius_m"] = spec.burr_radius_m;
+  if (spec.burr_center_T_m) {
+    const Eigen::Vector3d& c = *spec.burr_center_T_m;
+    drill["burr_center_T_m"] = {c.x(), c.y(), c.z()};
+  }
+  drill["burr_speed_rpm"] = spec.burr_speed_rpm;
+  drill["hardness"] = spec.hardness_J_per_mm3;
+  if (spec.cavity != nullptr && !spec.cavity->voxels.empty())
+    drill["cavity"] = cavityJson(*spec.cavity);
+  return drill;
+}
+
+/// The scene as the session ran it: the volume as loaded, the tool, the coupling, the
+/// segmentation and the drill.
+json sceneJson(const LoadedScene& scene, const LiveValues& live) {
   const SceneSpec& spec = scene.spec;
-  json j;
-  j["format"] = "volume-haptics session";
-  j["software"] = {{"name", "volume-haptics"}, {"version", VH_SOFTWARE_VERSION}};
-  j["start_time_utc"] = utcNow();
-  j["servo_rate_Hz"] = 1000.0;
-
   json sc;
   sc["source"] = spec.source.string();
   sc["volume"] = {{"path", spec.volume.path}, {"isovalue", live.isovalue}};
@@ -265,49 +304,17 @@ std::string makeSessionMetadata(const LoadedScene& scene, const LiveValues& live
                     {"angular_Nm_per_rad", live.gains.angular_Nm_per_rad},
                     {"passivity_control", live.gains.passivity_control}};
   if (live.segments != nullptr && live.segmentation) {
-    // The choices by name (what a scene file says), and every segment as loaded: the recording
-    // names the touched segment by its index into "segments".
-    const SegmentSet& set = *live.segments;
-    const auto names = [&set](const std::vector<int>& indices) {
-      std::vector<std::string> out;
-      for (const int s : indices) out.push_back(set.name(s));
-      return out;
-    };
-    json seg;
-    seg["path"] = live.segmentation->path;
-    seg["felt"] = names(set.felt());
-    seg["shown"] = names(set.shown());
-    seg["critical"] = names(set.critical());
-    seg["smoothing_voxels"] = set.smoothingVoxels();
-    seg["segments"] = json::array();
-    for (int s = 0; s < static_cast<int>(set.size()); ++s) {
-      const io::SegmentInfo& segment = set.segment(s);
-      seg["segments"].push_back({{"name", segment.name},
-                                 {"id", segment.id},
-                                 {"label_value", segment.label_value},
-                                 {"layer", segment.layer},
-                                 {"color_rgb", segment.color_rgb},
-                                 {"felt", set.isFelt(s)},
-                                 {"critical", set.isCritical(s)}});
-    }
-    sc["segmentation"] = seg;
+    sc["segmentation"] = segmentationJson(*live.segments, *live.segmentation);
   }
   if (live.drill) {  // what a replay needs to cut as the session did
-    json drill;
-    drill["on"] = live.drill->on;
-    if (live.drill->burr_radius_m > 0.0) drill["burr_radius_m"] = live.drill->burr_radius_m;
-    if (live.drill->burr_center_T_m) {
-      const Eigen::Vector3d& c = *live.drill->burr_center_T_m;
-      drill["burr_center_T_m"] = {c.x(), c.y(), c.z()};
-    }
-    drill["burr_speed_rpm"] = live.drill->burr_speed_rpm;
-    drill["hardness"] = live.drill->hardness_J_per_mm3;
-    if (live.drill->cavity != nullptr && !live.drill->cavity->voxels.empty())
-      drill["cavity"] = cavityJson(*live.drill->cavity);
-    sc["drill"] = drill;
+    sc["drill"] = drillJson(*live.drill);
   }
-  j["scene"] = sc;
+  return sc;
+}
 
+/// The dataset: its path, checksum, grid, format and what the loader said of it.
+json datasetJson(const LoadedScene& scene) {
+  const SceneSpec& spec = scene.spec;
   const DatasetChecksum checksum = datasetChecksum(spec.volume.path);
   json ds;
   ds["path"] = spec.volume.path;
@@ -330,7 +337,20 @@ std::string makeSessionMetadata(const LoadedScene& scene, const LiveValues& live
   ds["notices"] = scene.volume.info.notices;
   ds["sha256"] = checksum.sha256;
   ds["checksum_files"] = checksum.files;
-  j["dataset"] = ds;
+  return ds;
+}
+
+}  // namespace
+
+std::string makeSessionMetadata(const LoadedScene& scene, const LiveValues& live, const SessionInfo& info) {
+  json j;
+  j["format"] = "volume-haptics session";
+  j["software"] = {{"name", "volume-haptics"}, {"version", VH_SOFTWARE_VERSION}};
+  j["start_time_utc"] = utcNow();
+  j["servo_rate_Hz"] = 1000.0;
+
+  j["scene"] = sceneJson(scene, live);
+  j["dataset"] = datasetJson(scene);
 
   json tool;
   tool["mesh"] = live.tool_spec.mesh;
@@ -339,7 +359,7 @@ std::string makeSessionMetadata(const LoadedScene& scene, const LiveValues& live
     tool["point_spacing_m"] = live.tool->point_shell.meanNearestNeighbourSpacing_m();
   }
   j["tool"] = tool;
-  j["gains"] = sc["coupling"];
+  j["gains"] = j["scene"]["coupling"];
   j["device"] = {{"name", info.device_name}, {"kind", info.device_kind}};
   if (!info.note.empty()) j["note"] = info.note;
   return j.dump();

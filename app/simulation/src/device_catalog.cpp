@@ -28,92 +28,107 @@ DeviceParams DeviceModelSpec::params(double lever_m) const {
 //              http://piglix.com/piglix/Novint: "the motors are updated 1000 times per second");
 //              Force Dimension devices: 4 kHz [estimate: the DHD SDK's loop over USB 2.0 commonly
 //              runs at 4 kHz; the vendor quotes "up to" higher rates].
+
+namespace {
+
+/// The Falcon.
+DeviceModelSpec falconSpec() {
+  DeviceModelSpec d;
+  d.name = "Falcon";
+  d.mass_kg = 0.15;                   // [estimate] moving arms + grip; no published figure found.
+  d.damping_Ns_per_m = 1.5;           // [estimate] 3000 N/m * 1 ms / 2.
+  d.encoder_resolution_m = 25.4e-3 / 400.0;  // [vendor] "400 dpi" = 0.0635 mm.
+  d.servo_rate_Hz = 1000.0;           // Novint (piglix.com/piglix/Novint), 1 kHz.
+  d.max_force_N = 9.0;                // [vendor] ~9 N (CHAI3D: 8.0 N).
+  d.vendor_stiffness_N_per_m = 0.0;    // No vendor stiffness found.
+  d.rated_stiffness_N_per_m = 3000.0;  // [CHAI3D] CDeltaDevices.cpp, DHD_DEVICE_FALCON.
+  return d;
+}
+
+/// The Touch.
+DeviceModelSpec touchSpec() {
+  DeviceModelSpec d;
+  d.name = "Touch";
+  d.mass_kg = 0.045;                  // [vendor, estimate] "apparent mass at tip" ~45 g as
+                                      // commonly quoted; not re-checked.
+  d.damping_Ns_per_m = 0.2;           // [estimate] 400 N/m * 1 ms / 2.
+  d.encoder_resolution_m = 0.055e-3;  // [vendor] nominal position resolution 0.055 mm.
+  d.servo_rate_Hz = 1000.0;           // [vendor] OpenHaptics servo loop, 1 kHz.
+  d.max_force_N = 3.3;                // [vendor] 3.3 N; [CHAI3D] 3.3 N.
+  d.vendor_stiffness_N_per_m = 1260.0; // [vendor] x axis 1.26 N/mm.
+  d.rated_stiffness_N_per_m = 400.0; // [CHAI3D] CPhantomDevices.cpp, "Touch".
+  return d;
+}
+
+/// The Touch X.
+DeviceModelSpec touchXSpec() {
+  DeviceModelSpec d;
+  d.name = "Touch X";
+  d.mass_kg = 0.045;                  // [vendor, estimate] apparent mass at tip ~45 g; not re-checked.
+  d.damping_Ns_per_m = 0.5;           // [estimate] 1000 N/m * 1 ms / 2 (PHANTOM Desktop's figure).
+  d.encoder_resolution_m = 0.023e-3;  // [vendor] 0.023 mm.
+  d.servo_rate_Hz = 1000.0;           // [vendor] OpenHaptics servo loop, 1 kHz.
+  d.max_force_N = 7.9;                // [vendor] 7.9 N; [CHAI3D] 7.9 N (PHANTOM Desktop).
+  d.vendor_stiffness_N_per_m = 1860.0; // [vendor] x axis 1.86 N/mm.
+  d.rated_stiffness_N_per_m = 1000.0;  // [CHAI3D] "PHANTOM Desktop", the Touch X's predecessor
+                                        // (CHAI3D 3.2 has no "Touch X" entry).
+  return d;
+}
+
+/// The omega.6.
+DeviceModelSpec omega6Spec() {
+  DeviceModelSpec d;
+  d.name = "omega.6";
+  d.mass_kg = 0.2;                    // [estimate] delta-mechanism moving mass; no published
+                                      // apparent-mass figure found.
+  d.damping_Ns_per_m = 0.625;         // [estimate] 5000 N/m * 0.25 ms / 2.
+  d.encoder_resolution_m = 0.01e-3;   // [vendor] translation resolution < 0.01 mm (bound used).
+  d.servo_rate_Hz = 4000.0;           // [estimate] see the header comment.
+  d.max_force_N = 12.0;               // [vendor] 12 N; [CHAI3D] 12 N.
+  d.vendor_stiffness_N_per_m = 14500.0;  // [vendor] closed-loop stiffness 14.5 N/mm.
+  d.rated_stiffness_N_per_m = 5000.0;  // [CHAI3D] CDeltaDevices.cpp, omega.6.
+  return d;
+}
+
+/// The sigma.7.
+DeviceModelSpec sigma7Spec() {
+  DeviceModelSpec d;
+  d.name = "sigma.7";
+  d.mass_kg = 0.5;                    // [estimate] heavier delta with a 3-DOF active wrist;
+                                      // no published apparent-mass figure found.
+  d.damping_Ns_per_m = 0.5;           // [estimate] 4000 N/m * 0.25 ms / 2.
+  d.encoder_resolution_m = 0.0015e-3; // [estimate] vendor figure recalled as < 0.0015 mm,
+                                      // not verified in this session.
+  d.servo_rate_Hz = 4000.0;           // [estimate] see the header comment.
+  d.max_force_N = 20.0;               // [vendor] 20 N (CHAI3D: 12 N).
+  d.torque_actuated = true;           // [vendor] active rotations: 6-DOF force feedback + gripper.
+  d.vendor_stiffness_N_per_m = 14500.0;  // [vendor] 14.5 N/mm.
+  d.rated_stiffness_N_per_m = 4000.0;  // [CHAI3D] CDeltaDevices.cpp, sigma.7.
+  return d;
+}
+
+/// The Phantom Premium 1.5.
+DeviceModelSpec phantomPremium15Spec() {
+  DeviceModelSpec d;
+  d.name = "Phantom Premium 1.5";
+  d.mass_kg = 0.075;                  // [vendor, estimate] apparent mass at tip < 75 g as
+                                      // commonly quoted; not re-checked.
+  d.damping_Ns_per_m = 0.4;           // [estimate] 800 N/m * 1 ms / 2.
+  d.encoder_resolution_m = 0.03e-3;   // [vendor] 0.03 mm.
+  d.servo_rate_Hz = 1000.0;           // [vendor] OpenHaptics servo loop, 1 kHz.
+  d.max_force_N = 8.5;                // [vendor] 8.5 N; [CHAI3D] 8.5 N.
+  d.torque_actuated = false;          // [vendor] the Premium 1.5 renders force only (its
+                                      // "6DOF" variant, CHAI3D's entry, adds torque motors).
+  d.vendor_stiffness_N_per_m = 3500.0; // [vendor] 3.5 N/mm.
+  d.rated_stiffness_N_per_m = 800.0; // [CHAI3D] "PHANTOM Premium 1.5 6DOF".
+  return d;
+}
+
+}  // namespace
+
 const std::vector<DeviceModelSpec>& deviceCatalog() {
-  static const std::vector<DeviceModelSpec> catalog = [] {
-    std::vector<DeviceModelSpec> c;
-    {
-      DeviceModelSpec d;
-      d.name = "Falcon";
-      d.mass_kg = 0.15;                   // [estimate] moving arms + grip; no published figure found.
-      d.damping_Ns_per_m = 1.5;           // [estimate] 3000 N/m * 1 ms / 2.
-      d.encoder_resolution_m = 25.4e-3 / 400.0;  // [vendor] "400 dpi" = 0.0635 mm.
-      d.servo_rate_Hz = 1000.0;           // Novint (piglix.com/piglix/Novint), 1 kHz.
-      d.max_force_N = 9.0;                // [vendor] ~9 N (CHAI3D: 8.0 N).
-      d.vendor_stiffness_N_per_m = 0.0;    // No vendor stiffness found.
-      d.rated_stiffness_N_per_m = 3000.0;  // [CHAI3D] CDeltaDevices.cpp, DHD_DEVICE_FALCON.
-      c.push_back(d);
-    }
-    {
-      DeviceModelSpec d;
-      d.name = "Touch";
-      d.mass_kg = 0.045;                  // [vendor, estimate] "apparent mass at tip" ~45 g as
-                                          // commonly quoted; not re-checked.
-      d.damping_Ns_per_m = 0.2;           // [estimate] 400 N/m * 1 ms / 2.
-      d.encoder_resolution_m = 0.055e-3;  // [vendor] nominal position resolution 0.055 mm.
-      d.servo_rate_Hz = 1000.0;           // [vendor] OpenHaptics servo loop, 1 kHz.
-      d.max_force_N = 3.3;                // [vendor] 3.3 N; [CHAI3D] 3.3 N.
-      d.vendor_stiffness_N_per_m = 1260.0; // [vendor] x axis 1.26 N/mm.
-      d.rated_stiffness_N_per_m = 400.0; // [CHAI3D] CPhantomDevices.cpp, "Touch".
-      c.push_back(d);
-    }
-    {
-      DeviceModelSpec d;
-      d.name = "Touch X";
-      d.mass_kg = 0.045;                  // [vendor, estimate] apparent mass at tip ~45 g; not re-checked.
-      d.damping_Ns_per_m = 0.5;           // [estimate] 1000 N/m * 1 ms / 2 (PHANTOM Desktop's figure).
-      d.encoder_resolution_m = 0.023e-3;  // [vendor] 0.023 mm.
-      d.servo_rate_Hz = 1000.0;           // [vendor] OpenHaptics servo loop, 1 kHz.
-      d.max_force_N = 7.9;                // [vendor] 7.9 N; [CHAI3D] 7.9 N (PHANTOM Desktop).
-      d.vendor_stiffness_N_per_m = 1860.0; // [vendor] x axis 1.86 N/mm.
-      d.rated_stiffness_N_per_m = 1000.0;  // [CHAI3D] "PHANTOM Desktop", the Touch X's predecessor
-                                            // (CHAI3D 3.2 has no "Touch X" entry).
-      c.push_back(d);
-    }
-    {
-      DeviceModelSpec d;
-      d.name = "omega.6";
-      d.mass_kg = 0.2;                    // [estimate] delta-mechanism moving mass; no published
-                                          // apparent-mass figure found.
-      d.damping_Ns_per_m = 0.625;         // [estimate] 5000 N/m * 0.25 ms / 2.
-      d.encoder_resolution_m = 0.01e-3;   // [vendor] translation resolution < 0.01 mm (bound used).
-      d.servo_rate_Hz = 4000.0;           // [estimate] see the header comment.
-      d.max_force_N = 12.0;               // [vendor] 12 N; [CHAI3D] 12 N.
-      d.vendor_stiffness_N_per_m = 14500.0;  // [vendor] closed-loop stiffness 14.5 N/mm.
-      d.rated_stiffness_N_per_m = 5000.0;  // [CHAI3D] CDeltaDevices.cpp, omega.6.
-      c.push_back(d);
-    }
-    {
-      DeviceModelSpec d;
-      d.name = "sigma.7";
-      d.mass_kg = 0.5;                    // [estimate] heavier delta with a 3-DOF active wrist;
-                                          // no published apparent-mass figure found.
-      d.damping_Ns_per_m = 0.5;           // [estimate] 4000 N/m * 0.25 ms / 2.
-      d.encoder_resolution_m = 0.0015e-3; // [estimate] vendor figure recalled as < 0.0015 mm,
-                                          // not verified in this session.
-      d.servo_rate_Hz = 4000.0;           // [estimate] see the header comment.
-      d.max_force_N = 20.0;               // [vendor] 20 N (CHAI3D: 12 N).
-      d.torque_actuated = true;           // [vendor] active rotations: 6-DOF force feedback + gripper.
-      d.vendor_stiffness_N_per_m = 14500.0;  // [vendor] 14.5 N/mm.
-      d.rated_stiffness_N_per_m = 4000.0;  // [CHAI3D] CDeltaDevices.cpp, sigma.7.
-      c.push_back(d);
-    }
-    {
-      DeviceModelSpec d;
-      d.name = "Phantom Premium 1.5";
-      d.mass_kg = 0.075;                  // [vendor, estimate] apparent mass at tip < 75 g as
-                                          // commonly quoted; not re-checked.
-      d.damping_Ns_per_m = 0.4;           // [estimate] 800 N/m * 1 ms / 2.
-      d.encoder_resolution_m = 0.03e-3;   // [vendor] 0.03 mm.
-      d.servo_rate_Hz = 1000.0;           // [vendor] OpenHaptics servo loop, 1 kHz.
-      d.max_force_N = 8.5;                // [vendor] 8.5 N; [CHAI3D] 8.5 N.
-      d.torque_actuated = false;          // [vendor] the Premium 1.5 renders force only (its
-                                          // "6DOF" variant, CHAI3D's entry, adds torque motors).
-      d.vendor_stiffness_N_per_m = 3500.0; // [vendor] 3.5 N/mm.
-      d.rated_stiffness_N_per_m = 800.0; // [CHAI3D] "PHANTOM Premium 1.5 6DOF".
-      c.push_back(d);
-    }
-    return c;
-  }();
+  static const std::vector<DeviceModelSpec> catalog = {falconSpec(), touchSpec(),  touchXSpec(),
+                                                       omega6Spec(), sigma7Spec(), phantomPremium15Spec()};
   return catalog;
 }
 

@@ -274,6 +274,66 @@ TickRecord startRecord(double t, const Pose& X_WD, const Eigen::Vector3d& c, con
   return rec;
 }
 
+/// The tick's force against eq. 5 recomputed here (`m`), and the energy books: the coupling's
+/// stored energy (`v0`: on the `first` tick), the work out `w_out` and the device damper's
+/// `d_dev` so far [J], and the energy generated; into `rec` and the maxima of `res`.
+void checkForceAndEnergy(const Coupling& cp, const haptics::TickOutput& out, const Pose& X_WD, const MoveWrenches& m,
+                         bool first, double w_out, double d_dev, double& v0, TickRecord& rec, SimulationResult& res) {
+  // Force consistency with eq. 5 recomputed here.
+  rec.force_error_rel = ((out.force_W_N - m.f1).norm() + (out.torque_W_Nm - m.t1).norm() / 0.02) /
+                        std::max(m.f1.norm() + m.t1.norm() / 0.02, 1e-3);
+  res.max_force_error_rel = std::max(res.max_force_error_rel, rec.force_error_rel);
+
+  rec.stored_J = cp.stored(out.X_WP, X_WD);
+  if (first) v0 = rec.stored_J;
+  rec.w_out_J = w_out;
+  rec.d_dev_J = d_dev;
+  rec.e_gen_J = rec.stored_J - v0 + w_out - d_dev;
+  res.max_e_gen_J = std::max(res.max_e_gen_J, rec.e_gen_J);
+}
+
+/// The proxy's penetration (SimulationConfig::check_penetration) and the crossing check of its
+/// move (`verifier` not null), into `rec` and `res`.
+void checkPenetrationAndCrossings(const HapticRenderer& renderer, const SimulationConfig& cfg,
+                                  const haptics::TickOutput& out, const haptics::CrossingVerifier* verifier,
+                                  TickRecord& rec, SimulationResult& res) {
+  if (cfg.check_penetration) {
+    rec.penetration_m = penetration(renderer.volume(), renderer.tool(), out.X_WP, cfg.isovalue);
+    res.max_penetration_m = std::max(res.max_penetration_m, rec.penetration_m);
+  }
+  if (verifier) {
+    const int crossed = verifier->check(renderer.lastMotion(), renderer.lastTimeOfContact(), cfg.isovalue).crossing_points;
+    res.crossings += crossed > 0;
+    res.crossing_points += crossed;
+  }
+}
+
+/// The plant over the hold interval from time `t`: the applied wrench `a` held (zero-order hold)
+/// over cfg.substeps RK4 steps of `h` [s]; the state (c, v, q, w) moves on, the held wrench's
+/// work is added to `w_out` and the damper's to `d_dev` [J], the controller's share and the
+/// energy in and out to `res`.
+void holdWrench(const SimulationConfig& cfg, const HandTrajectory& hand, const AppliedWrench& a, double t, double h,
+                Eigen::Vector3d& c, Eigen::Vector3d& v, Eigen::Quaterniond& q, Eigen::Vector3d& w, double& w_out,
+                double& d_dev, SimulationResult& res) {
+  // Plant over the hold interval: the applied wrench is held (zero-order hold).
+  PlantState y{c, v, q, w, Eigen::Vector3d::Zero(), 0.0};
+  const Eigen::Vector3d c_start = c;
+  for (int s = 0; s < cfg.substeps; ++s) y = rk4Step(y, t + s * h, h, a.F, a.tau, cfg.device, cfg.hand, hand);
+  // Exact work of the held wrench along the integrated path; the damper's work integrated
+  // with the state (RK4): the energy books close to O(h^4), see
+  // StabilityHarness.FreeBounceMatchesTheZeroOrderHoldPrediction.
+  const double tick_work = a.F.dot(y.c - c_start) + a.tau.dot(y.phi);
+  // The controller's share: the damping it added, held over this tick, against the motion.
+  res.controller_dissipated_J += (a.F_free - a.F).dot(y.c - c_start) + (a.tau_free - a.tau).dot(y.phi);
+  d_dev += y.damper_J;
+  c = y.c;
+  v = y.v;
+  q = y.q.normalized();
+  w = y.w;
+  w_out += tick_work;
+  (tick_work > 0.0 ? res.energy_out_J : res.energy_in_J) += std::abs(tick_work);
+}
+
 }  // namespace
 
 SimulationResult simulate(HapticRenderer& renderer, const SimulationConfig& cfg, const HandTrajectory& hand,
@@ -313,49 +373,15 @@ SimulationResult simulate(HapticRenderer& renderer, const SimulationConfig& cfg,
     }
     const MoveWrenches m = bookSolverWork(cp, P_prev, out.X_WP, X_WD, c, k, cfg.lift_bound_m, rec, res);
 
-    // Force consistency with eq. 5 recomputed here.
-    rec.force_error_rel = ((out.force_W_N - m.f1).norm() + (out.torque_W_Nm - m.t1).norm() / 0.02) /
-                          std::max(m.f1.norm() + m.t1.norm() / 0.02, 1e-3);
-    res.max_force_error_rel = std::max(res.max_force_error_rel, rec.force_error_rel);
-
-    rec.stored_J = cp.stored(out.X_WP, X_WD);
-    if (k == 0) v0 = rec.stored_J;
-    rec.w_out_J = w_out;
-    rec.d_dev_J = d_dev;
-    rec.e_gen_J = rec.stored_J - v0 + w_out - d_dev;
-    res.max_e_gen_J = std::max(res.max_e_gen_J, rec.e_gen_J);
-    if (cfg.check_penetration) {
-      rec.penetration_m = penetration(renderer.volume(), renderer.tool(), out.X_WP, cfg.isovalue);
-      res.max_penetration_m = std::max(res.max_penetration_m, rec.penetration_m);
-    }
-    if (verifier) {
-      const int crossed = verifier->check(renderer.lastMotion(), renderer.lastTimeOfContact(), cfg.isovalue).crossing_points;
-      res.crossings += crossed > 0;
-      res.crossing_points += crossed;
-    }
+    checkForceAndEnergy(cp, out, X_WD, m, k == 0, w_out, d_dev, v0, rec, res);
+    checkPenetrationAndCrossings(renderer, cfg, out, verifier ? &*verifier : nullptr, rec, res);
 
     const AppliedWrench a = actuate(path, cfg, cp, X_WD, out, c_sensed, q, rec.stored_J, res);
     rec.force = a.F;
     rec.torque = a.tau;
     res.peak_force_N = std::max(res.peak_force_N, a.F.norm());
 
-    // Plant over the hold interval: the applied wrench is held (zero-order hold).
-    PlantState y{c, v, q, w, Eigen::Vector3d::Zero(), 0.0};
-    const Eigen::Vector3d c_start = c;
-    for (int s = 0; s < cfg.substeps; ++s) y = rk4Step(y, t + s * h, h, a.F, a.tau, cfg.device, cfg.hand, hand);
-    // Exact work of the held wrench along the integrated path; the damper's work integrated
-    // with the state (RK4): the energy books close to O(h^4), see
-    // StabilityHarness.FreeBounceMatchesTheZeroOrderHoldPrediction.
-    const double tick_work = a.F.dot(y.c - c_start) + a.tau.dot(y.phi);
-    // The controller's share: the damping it added, held over this tick, against the motion.
-    res.controller_dissipated_J += (a.F_free - a.F).dot(y.c - c_start) + (a.tau_free - a.tau).dot(y.phi);
-    d_dev += y.damper_J;
-    c = y.c;
-    v = y.v;
-    q = y.q.normalized();
-    w = y.w;
-    w_out += tick_work;
-    (tick_work > 0.0 ? res.energy_out_J : res.energy_in_J) += std::abs(tick_work);
+    holdWrench(cfg, hand, a, t, h, c, v, q, w, w_out, d_dev, res);
     if (!c.allFinite() || !v.allFinite() || !q.coeffs().allFinite()) {
       res.finite = false;
       res.ticks.push_back(rec);

@@ -31,6 +31,100 @@ Pose poseOfCm(const haptics::ToolModel& tool, const Eigen::Vector3d& c, const Ei
   return {R, c - R * tool.mass.p_TCm_m};
 }
 
+/// Plane: press, hold, slide, hold, tilt, hold.
+Scenario planePressSlideTilt(const std::shared_ptr<const haptics::ScalarVolume>& plane,
+                             const std::shared_ptr<const haptics::ToolModel>& box, double half_h) {
+  const Eigen::Vector3d up = Eigen::Vector3d::UnitZ();
+  Scenario sc;
+  sc.name = "plane press-slide-tilt";
+  sc.volume = plane;
+  sc.tool = box;
+  const Eigen::Vector3d c0(0, 0, half_h + 0.002);
+  sc.X_WP0 = poseOfCm(*box, c0, Eigen::Quaterniond::Identity());
+  sc.start.c_W_m = c0;
+  const double drop = 0.002 + kDepth_m;  // to kDepth_m past contact
+  sc.hand = [c0, drop](double t) {
+    HandTarget h;
+    h.c_W_m = c0 + Eigen::Vector3d(0.015 * ramp(t, 0.85, 1.15), 0.0, -drop * ramp(t, 0.05, 0.25));
+    h.v_W_mps = Eigen::Vector3d(0.015 * rampRate(t, 0.85, 1.15), 0.0, -drop * rampRate(t, 0.05, 0.25));
+    const double a = 0.15 * ramp(t, 1.25, 1.45);
+    h.R_W = Eigen::Quaterniond(Eigen::AngleAxisd(a, Eigen::Vector3d::UnitY()));
+    h.w_W_radps = Eigen::Vector3d(0.0, 0.15 * rampRate(t, 1.25, 1.45), 0.0);
+    return h;
+  };
+  sc.duration_s = 2.05;
+  sc.settle = {{0.75, 0.85, up}, {1.95, 2.05, up}};
+  return sc;
+}
+
+/// Sphere: press onto the top, hold, slide 0.5 rad around, hold.
+Scenario spherePressSlide() {
+  const Eigen::Vector3d up = Eigen::Vector3d::UnitZ();
+  Scenario sc;
+  sc.name = "sphere press-slide";
+  sc.volume = std::make_shared<const haptics::ScalarVolume>(
+      datasets::makeSphereVolume(grid1mm(), Eigen::Vector3d::Zero(), 0.020));
+  sc.tool = meshTool(datasets::makeBuiltinTool("sphere"), 1e-3);
+  const double r_rest = 0.020 + 0.005;
+  const Eigen::Vector3d c0(0, 0, r_rest + 0.003);
+  sc.X_WP0 = poseOfCm(*sc.tool, c0, Eigen::Quaterniond::Identity());
+  sc.start.c_W_m = c0;
+  sc.hand = [r_rest](double t) {
+    HandTarget h;
+    const double r = r_rest + 0.003 - (0.003 + kDepth_m) * ramp(t, 0.05, 0.25);
+    const double dr = -(0.003 + kDepth_m) * rampRate(t, 0.05, 0.25);
+    const double phi = 0.5 * ramp(t, 0.85, 1.15), dphi = 0.5 * rampRate(t, 0.85, 1.15);
+    const Eigen::Vector3d dir(std::sin(phi), 0.0, std::cos(phi)), ddir(std::cos(phi), 0.0, -std::sin(phi));
+    h.c_W_m = r * dir;
+    h.v_W_mps = dr * dir + r * dphi * ddir;
+    return h;
+  };
+  sc.duration_s = 1.75;
+  sc.settle = {{0.75, 0.85, up}, {1.65, 1.75, Eigen::Vector3d(std::sin(0.5), 0.0, std::cos(0.5))}};
+  return sc;
+}
+
+/// Tap: the target falls at 0.3 m/s from 10 mm above the plane and stops dead.
+Scenario planeTap(const std::shared_ptr<const haptics::ScalarVolume>& plane,
+                  const std::shared_ptr<const haptics::ToolModel>& box, double half_h) {
+  const Eigen::Vector3d up = Eigen::Vector3d::UnitZ();
+  Scenario sc;
+  sc.name = "plane tap 0.3 m/s";
+  sc.volume = plane;
+  sc.tool = box;
+  const Eigen::Vector3d c0(0, 0, half_h + 0.010);
+  sc.X_WP0 = poseOfCm(*box, c0, Eigen::Quaterniond::Identity());
+  sc.start.c_W_m = c0;
+  const double speed = 0.3, t0 = 0.02, drop = 0.010 + kDepth_m, t1 = t0 + drop / speed;
+  sc.hand = [=](double t) {
+    HandTarget h;
+    const double s = std::clamp((t - t0) / (t1 - t0), 0.0, 1.0);
+    h.c_W_m = c0 - up * drop * s;
+    h.v_W_mps = (t > t0 && t < t1) ? Eigen::Vector3d(-up * speed) : Eigen::Vector3d::Zero();
+    return h;
+  };
+  sc.duration_s = 0.7;
+  sc.settle = {{0.6, 0.7, up}};
+  return sc;
+}
+
+/// Bounce: released handle reaching the plane at 0.1 m/s.
+Scenario planeBounce(const std::shared_ptr<const haptics::ScalarVolume>& plane,
+                     const std::shared_ptr<const haptics::ToolModel>& box, double half_h) {
+  const Eigen::Vector3d up = Eigen::Vector3d::UnitZ();
+  Scenario sc;
+  sc.name = "plane bounce 0.1 m/s";
+  sc.volume = plane;
+  sc.tool = box;
+  const Eigen::Vector3d c0(0, 0, half_h + 0.0005);
+  sc.X_WP0 = poseOfCm(*box, c0, Eigen::Quaterniond::Identity());
+  sc.start.c_W_m = c0;
+  sc.start.v_W_mps = -0.1 * up;
+  sc.duration_s = 0.3;
+  sc.bounce = true;
+  return sc;
+}
+
 }  // namespace
 
 std::vector<Scenario> defaultScenarios() {
@@ -40,87 +134,10 @@ std::vector<Scenario> defaultScenarios() {
   // 10 x 10 x 4 mm box; Cm at its centre, bottom face 2 mm below Cm.
   const auto box = meshTool(datasets::makeBoxMesh({0.005, 0.005, 0.002}), 1e-3);
   const double half_h = 0.002;
-  const Eigen::Vector3d up = Eigen::Vector3d::UnitZ();
-
-  {  // Plane: press, hold, slide, hold, tilt, hold.
-    Scenario sc;
-    sc.name = "plane press-slide-tilt";
-    sc.volume = plane;
-    sc.tool = box;
-    const Eigen::Vector3d c0(0, 0, half_h + 0.002);
-    sc.X_WP0 = poseOfCm(*box, c0, Eigen::Quaterniond::Identity());
-    sc.start.c_W_m = c0;
-    const double drop = 0.002 + kDepth_m;  // to kDepth_m past contact
-    sc.hand = [c0, drop](double t) {
-      HandTarget h;
-      h.c_W_m = c0 + Eigen::Vector3d(0.015 * ramp(t, 0.85, 1.15), 0.0, -drop * ramp(t, 0.05, 0.25));
-      h.v_W_mps = Eigen::Vector3d(0.015 * rampRate(t, 0.85, 1.15), 0.0, -drop * rampRate(t, 0.05, 0.25));
-      const double a = 0.15 * ramp(t, 1.25, 1.45);
-      h.R_W = Eigen::Quaterniond(Eigen::AngleAxisd(a, Eigen::Vector3d::UnitY()));
-      h.w_W_radps = Eigen::Vector3d(0.0, 0.15 * rampRate(t, 1.25, 1.45), 0.0);
-      return h;
-    };
-    sc.duration_s = 2.05;
-    sc.settle = {{0.75, 0.85, up}, {1.95, 2.05, up}};
-    out.push_back(std::move(sc));
-  }
-  {  // Sphere: press onto the top, hold, slide 0.5 rad around, hold.
-    Scenario sc;
-    sc.name = "sphere press-slide";
-    sc.volume = std::make_shared<const haptics::ScalarVolume>(
-        datasets::makeSphereVolume(grid1mm(), Eigen::Vector3d::Zero(), 0.020));
-    sc.tool = meshTool(datasets::makeBuiltinTool("sphere"), 1e-3);
-    const double r_rest = 0.020 + 0.005;
-    const Eigen::Vector3d c0(0, 0, r_rest + 0.003);
-    sc.X_WP0 = poseOfCm(*sc.tool, c0, Eigen::Quaterniond::Identity());
-    sc.start.c_W_m = c0;
-    sc.hand = [r_rest](double t) {
-      HandTarget h;
-      const double r = r_rest + 0.003 - (0.003 + kDepth_m) * ramp(t, 0.05, 0.25);
-      const double dr = -(0.003 + kDepth_m) * rampRate(t, 0.05, 0.25);
-      const double phi = 0.5 * ramp(t, 0.85, 1.15), dphi = 0.5 * rampRate(t, 0.85, 1.15);
-      const Eigen::Vector3d dir(std::sin(phi), 0.0, std::cos(phi)), ddir(std::cos(phi), 0.0, -std::sin(phi));
-      h.c_W_m = r * dir;
-      h.v_W_mps = dr * dir + r * dphi * ddir;
-      return h;
-    };
-    sc.duration_s = 1.75;
-    sc.settle = {{0.75, 0.85, up}, {1.65, 1.75, Eigen::Vector3d(std::sin(0.5), 0.0, std::cos(0.5))}};
-    out.push_back(std::move(sc));
-  }
-  {  // Tap: the target falls at 0.3 m/s from 10 mm above the plane and stops dead.
-    Scenario sc;
-    sc.name = "plane tap 0.3 m/s";
-    sc.volume = plane;
-    sc.tool = box;
-    const Eigen::Vector3d c0(0, 0, half_h + 0.010);
-    sc.X_WP0 = poseOfCm(*box, c0, Eigen::Quaterniond::Identity());
-    sc.start.c_W_m = c0;
-    const double speed = 0.3, t0 = 0.02, drop = 0.010 + kDepth_m, t1 = t0 + drop / speed;
-    sc.hand = [=](double t) {
-      HandTarget h;
-      const double s = std::clamp((t - t0) / (t1 - t0), 0.0, 1.0);
-      h.c_W_m = c0 - up * drop * s;
-      h.v_W_mps = (t > t0 && t < t1) ? Eigen::Vector3d(-up * speed) : Eigen::Vector3d::Zero();
-      return h;
-    };
-    sc.duration_s = 0.7;
-    sc.settle = {{0.6, 0.7, up}};
-    out.push_back(std::move(sc));
-  }
-  {  // Bounce: released handle reaching the plane at 0.1 m/s.
-    Scenario sc;
-    sc.name = "plane bounce 0.1 m/s";
-    sc.volume = plane;
-    sc.tool = box;
-    const Eigen::Vector3d c0(0, 0, half_h + 0.0005);
-    sc.X_WP0 = poseOfCm(*box, c0, Eigen::Quaterniond::Identity());
-    sc.start.c_W_m = c0;
-    sc.start.v_W_mps = -0.1 * up;
-    sc.duration_s = 0.3;
-    sc.bounce = true;
-    out.push_back(std::move(sc));
-  }
+  out.push_back(planePressSlideTilt(plane, box, half_h));
+  out.push_back(spherePressSlide());
+  out.push_back(planeTap(plane, box, half_h));
+  out.push_back(planeBounce(plane, box, half_h));
   return out;
 }
 
@@ -270,6 +287,71 @@ double linearStabilityLimit(double m, double b, double k_h, double b_h, double T
   return std::sqrt(lo * hi);
 }
 
+namespace {
+
+/// One scenario's run into the sweep point's totals and extremes.
+void addRunTotals(StiffnessResult& s, const SimulationResult& r) {
+  s.finite &= r.finite;
+  s.bad_inputs += r.bad_inputs;
+  s.solver_violations += r.solver_violations;
+  s.solver_injected_J += r.solver_injected_J;
+  s.lift_bound_violations += r.lift_bound_violations;
+  s.worst_solver_work_J = std::min(s.worst_solver_work_J, r.worst_solver_work_J);
+  s.max_penetration_over_eps = std::max(s.max_penetration_over_eps, r.max_penetration_m / r.epsilon_m);
+  s.crossings += r.crossings;
+  s.crossing_points += r.crossing_points;
+  s.max_force_error_rel = std::max(s.max_force_error_rel, r.max_force_error_rel);
+  s.controller_dissipated_J += r.controller_dissipated_J;
+  s.controller_active_ticks += r.controller_active_ticks;
+  s.saturated_ticks += r.saturated_ticks;
+  s.controller_end_gain = std::min(s.controller_end_gain, r.controller_final_gain);
+  s.max_e_gen_J = std::max(s.max_e_gen_J, r.max_e_gen_J);
+  s.peak_force_N = std::max(s.peak_force_N, r.peak_force_N);
+}
+
+/// What one hold window of a run says: settled, decaying (the peak-to-peak force at most half
+/// what it was kDecayLag_s before, in contact), and the mean normal force [N].
+struct HoldVerdict {
+  bool settled = false;
+  bool decaying = false;
+  double mean_force_N = 0.0;
+};
+
+/// Hold window `w` of run `r` at stiffness `k_lin` [N/m] with an encoder of resolution `q` [m]
+/// (0: none): the contact lost, the force's peak-to-peak and decay, the handle's travel in
+/// counts, into the extremes of `s`.
+HoldVerdict checkHold(StiffnessResult& s, const SimulationResult& r, const Window& w, double k_lin, double q) {
+  const Eigen::Vector3d n = w.normal_W;
+  const auto fn = [n](const TickRecord& t) { return t.force.dot(n); };
+  const double ptp = peakToPeak(r, w.t0_s, w.t1_s, fn);
+  const double ptp_before = peakToPeak(r, w.t0_s - kDecayLag_s, w.t1_s - kDecayLag_s, fn);
+  const double avg = mean(r, w.t0_s, w.t1_s, fn);
+  const double rel = ptp / std::max(std::abs(avg), 1e-9);
+  int lost = 0;
+  for (const TickRecord& t : r.ticks)
+    if (t.t_s >= w.t0_s && t.t_s <= w.t1_s && t.contacts == 0) ++lost;
+  s.contact_lost_ticks += lost;
+  s.settled_ptp_rel = std::max(s.settled_ptp_rel, rel);
+  s.settled_ptp_N = std::max(s.settled_ptp_N, ptp);
+  const double ratio = ptp / std::max(ptp_before, 1e-300);
+  s.decay_ratio = std::max(s.decay_ratio, ratio);
+  // A quantised encoder cannot hold the sensed position between two counts: a contact whose
+  // handle stays within kDitherCounts counts and whose force moves by at most that many
+  // counts' worth of spring (K q each) plus kSettledPtp is at rest, dithering at the floor.
+  const double travel_counts =
+      q > 0.0 ? peakToPeak(r, w.t0_s, w.t1_s, [n](const TickRecord& t) { return t.c_D.dot(n); }) / q : 0.0;
+  const bool at_floor = q > 0.0 && travel_counts <= kDitherCounts &&
+                        ptp <= kDitherCounts * k_lin * q + kSettledPtp * std::abs(avg);
+  s.hold_ptp_counts = std::max(s.hold_ptp_counts, travel_counts);
+  HoldVerdict v;
+  v.settled = (rel < kSettledPtp || at_floor) && avg > 0.0 && lost == 0;
+  v.decaying = ratio <= 0.5 && avg > 0.0 && lost == 0;
+  v.mean_force_N = avg;
+  return v;
+}
+
+}  // namespace
+
 StiffnessResult evaluate(const std::vector<Scenario>& scenarios, double k_lin, const DeviceParams& device,
                          const HandParams& hand, const SweepOptions& options) {
   StiffnessResult s;
@@ -292,53 +374,15 @@ StiffnessResult evaluate(const std::vector<Scenario>& scenarios, double k_lin, c
   bool passive = true, settled = true, decaying = true, first_hold = true;
   for (const Scenario& sc : scenarios) {
     const SimulationResult r = runScenario(sc, k_lin, device, hand, options);
-    s.finite &= r.finite;
-    s.bad_inputs += r.bad_inputs;
-    s.solver_violations += r.solver_violations;
-    s.solver_injected_J += r.solver_injected_J;
-    s.lift_bound_violations += r.lift_bound_violations;
-    s.worst_solver_work_J = std::min(s.worst_solver_work_J, r.worst_solver_work_J);
-    s.max_penetration_over_eps = std::max(s.max_penetration_over_eps, r.max_penetration_m / r.epsilon_m);
-    s.crossings += r.crossings;
-    s.crossing_points += r.crossing_points;
-    s.max_force_error_rel = std::max(s.max_force_error_rel, r.max_force_error_rel);
-    s.controller_dissipated_J += r.controller_dissipated_J;
-    s.controller_active_ticks += r.controller_active_ticks;
-    s.saturated_ticks += r.saturated_ticks;
-    s.controller_end_gain = std::min(s.controller_end_gain, r.controller_final_gain);
-    s.max_e_gen_J = std::max(s.max_e_gen_J, r.max_e_gen_J);
-    s.peak_force_N = std::max(s.peak_force_N, r.peak_force_N);
+    addRunTotals(s, r);
     passive &= r.max_e_gen_J <= passivityTolerance(r.energy_in_J + r.energy_out_J);
     if (sc.bounce) s.bounce_ratio = r.energy_out_J / std::max(r.energy_in_J, 1e-300);
     for (const Window& w : sc.settle) {
-      const Eigen::Vector3d n = w.normal_W;
-      const auto fn = [n](const TickRecord& t) { return t.force.dot(n); };
-      const double ptp = peakToPeak(r, w.t0_s, w.t1_s, fn);
-      const double ptp_before = peakToPeak(r, w.t0_s - kDecayLag_s, w.t1_s - kDecayLag_s, fn);
-      const double avg = mean(r, w.t0_s, w.t1_s, fn);
-      const double rel = ptp / std::max(std::abs(avg), 1e-9);
-      int lost = 0;
-      for (const TickRecord& t : r.ticks)
-        if (t.t_s >= w.t0_s && t.t_s <= w.t1_s && t.contacts == 0) ++lost;
-      s.contact_lost_ticks += lost;
-      s.settled_ptp_rel = std::max(s.settled_ptp_rel, rel);
-      s.settled_ptp_N = std::max(s.settled_ptp_N, ptp);
-      const double ratio = ptp / std::max(ptp_before, 1e-300);
-      s.decay_ratio = std::max(s.decay_ratio, ratio);
-      // A quantised encoder cannot hold the sensed position between two counts: a contact whose
-      // handle stays within kDitherCounts counts and whose force moves by at most that many
-      // counts' worth of spring (K q each) plus kSettledPtp is at rest, dithering at the floor.
-      const double q = options.signal.encoder_resolution_m;
-      const double travel_counts =
-          q > 0.0 ? peakToPeak(r, w.t0_s, w.t1_s, [n](const TickRecord& t) { return t.c_D.dot(n); }) / q : 0.0;
-      const bool at_floor = q > 0.0 && travel_counts <= kDitherCounts &&
-                            ptp <= kDitherCounts * k_lin * q + kSettledPtp * std::abs(avg);
-      s.hold_ptp_counts = std::max(s.hold_ptp_counts, travel_counts);
-      const bool window_settled = (rel < kSettledPtp || at_floor) && avg > 0.0 && lost == 0;
-      settled &= window_settled;
-      decaying &= window_settled || (ratio <= 0.5 && avg > 0.0 && lost == 0);
+      const HoldVerdict hold = checkHold(s, r, w, k_lin, options.signal.encoder_resolution_m);
+      settled &= hold.settled;
+      decaying &= hold.settled || hold.decaying;
       if (first_hold && sc.name.starts_with("plane")) {
-        s.steady_force_error_rel = std::abs(avg - k_eff * kDepth_m) / (k_eff * kDepth_m);
+        s.steady_force_error_rel = std::abs(hold.mean_force_N - k_eff * kDepth_m) / (k_eff * kDepth_m);
         first_hold = false;
       }
     }

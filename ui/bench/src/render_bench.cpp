@@ -268,6 +268,188 @@ nlohmann::ordered_json statsJson(const bench::Stats& s) {
 
 }  // namespace
 
+namespace {
+
+/// The scan to render: --volume, else (short) the shared small CT head, else the generated big
+/// series (made once in --series-dir).
+fs::path renderBenchScan(const RenderBenchOptions& o, bool short_run) {
+  using namespace bench;
+  fs::path volume = o.volume;
+  if (volume.empty() && short_run) volume = runtime::sharedDatasetsDir() / "ct" / "ct-head-small";
+  if (volume.empty()) {
+    const int slices = o.slices > 0 ? o.slices : kGeneratedSlices;
+    const fs::path dir = o.series_dir.empty() ? defaultOutputDir() / "render" / format("ct-512x512x%d", slices) : o.series_dir;
+    volume = bigScanSeries(dir, slices);
+  }
+  return volume;
+}
+
+/// One row: the view at `size` in `mode` (drilling: the burr on) for `row_s` seconds of frames,
+/// then its still frame and as long without rendering; its picture into `picture_dir` (empty:
+/// none). `scan_voxel_m`: the scan's smallest spacing [m].
+nlohmann::ordered_json renderRow(Bench& b, runtime::HapticThread& thread, RenderMode mode, bool drilling,
+                                 const std::array<int, 2>& size, const ViewLook& look, double row_s,
+                                 const fs::path& picture_dir, const GlInfo& gl, double scan_voxel_m) {
+  using namespace bench;
+  b.resizeView(size[0], size[1]);
+  b.view->setRenderMode(mode, look.preset);
+  b.view->resetCamera();
+  auto t0 = Clock::now();
+  b.view->widget()->renderNow();  // a new mode compiles its shader
+  const double first_ms = msSince(t0);
+  if (drilling) {  // the burr switched on: the picture's copy for the cavity, uploaded once
+    b.view->actors().prepareRemoval();
+    b.view->widget()->renderNow();
+  }
+  thread.setDrilling(drilling);
+  const std::uint64_t partial0 = b.view->actors().partialUploads(), full0 = b.view->actors().fullUploads();
+  std::uint64_t removed = 0;
+  std::vector<double> frames;
+  FrameParts parts;
+  const std::uint64_t paints0 = b.view->widget()->frameCount();
+  Phase on = b.begin(true);
+  t0 = Clock::now();
+  while (msSince(t0) < 1e3 * row_s || frames.size() < 3) frames.push_back(b.frame(on, drilling, removed, parts));
+  const double elapsed_s = 1e-3 * msSince(t0);
+  b.end(on);
+  thread.setDrilling(false);
+  const double interactive_px = b.view->actors().imageSampleDistance_px();
+  const double interactive_voxels = b.view->actors().sampleDistance_m() / scan_voxel_m;
+  // What the eyes got meanwhile: one more frame at the row's last interactive sampling.
+  std::string picture;
+  if (!picture_dir.empty()) {
+    picture = format("interactive-%s-%dx%d.png", drilling ? "drilling" : rowName(mode).c_str(),
+                     b.view->widget()->width(), b.view->widget()->height());
+    if (!b.view->widget()->grabFrame().save(QString::fromStdString((picture_dir / picture).string()), "PNG"))
+      picture.clear();
+  }
+  // The still frame when the hand rests, at the quality the view chooses for it.
+  b.view->renderStill();
+  const double still_sample_voxels = b.view->actors().sampleDistance_m() /
+                                     scan_voxel_m;
+  const double still_px = b.view->actors().imageSampleDistance_px();
+  // Painted until the view has drawn a new frame (a repaint that draws nothing does not count).
+  const std::uint64_t frames_before_still = b.view->widget()->frameCount();
+  t0 = Clock::now();
+  b.view->widget()->renderNow();
+  while (b.view->widget()->frameCount() == frames_before_still && msSince(t0) < 30000.0) {
+    QCoreApplication::processEvents(QEventLoop::AllEvents, 5);
+  }
+  const double still_ms = msSince(t0);
+  b.idle(row_s);
+
+  const Stats s = summarize(frames);
+  nlohmann::ordered_json row;
+  row["mode"] = drilling ? std::string("drilling") : rowName(mode);
+  row["width"] = b.view->widget()->width();
+  row["height"] = b.view->widget()->height();
+  row["frames"] = frames.size();
+  row["fps_mean"] = static_cast<double>(frames.size()) / elapsed_s;
+  row["frame_ms_mean"] = s.mean;
+  row["frame_ms_p99"] = s.p99;
+  row["frame_ms_max"] = s.max;
+  row["frames_ms"] = frames;  // each frame in order: the first ones after the still frame and the mode change show
+  // VtkView paints per frame: 1 when each frame is painted once (no queued repaint on top).
+  row["paints_per_frame"] = static_cast<double>(b.view->widget()->frameCount() - paints0) / static_cast<double>(frames.size());
+  // Each frame's parts: VTK's render and the blit as the CPU issues them (the GPU may still
+  // be working), then the swap (where the driver waits for the GPU and the display).
+  row["paint_ms_mean"] = summarize(parts.paint_ms).mean;
+  row["swap_ms_mean"] = summarize(parts.swap_ms).mean;
+  row["frames_paint_ms"] = parts.paint_ms;
+  row["frames_swap_ms"] = parts.swap_ms;
+  row["frames_image_sample_px"] = parts.image_sample_px;  // each frame's rays apart [px]
+  const Stats shadow = summarize(parts.shadow_ms);  // the tool's shadow cast (inside frame_ms)
+  row["shadow_ms_mean"] = shadow.mean;
+  row["shadow_ms_max"] = shadow.max;
+  row["first_frame_ms"] = first_ms;
+  row["interactive_image_sample_px"] = interactive_px;  // the last interactive frame's
+  row["interactive_sample_voxels"] = interactive_voxels;
+  if (!picture.empty()) row["interactive_picture"] = picture;  // beside render.json
+  row["still_frame_ms"] = still_ms;
+  row["still_sample_voxels"] = still_sample_voxels;
+  row["still_image_sample_px"] = still_px;
+  if (drilling) {
+    row["removed_voxels"] = removed;
+    row["partial_uploads"] = b.view->actors().partialUploads() - partial0;
+    row["full_uploads"] = b.view->actors().fullUploads() - full0;
+  }
+  row["contacts"] = b.snapshot.contacts;  // the haptic threads' last snapshot of the row
+  row["force_N"] = b.snapshot.force_W_N.norm();
+  row["renderer"] = gl.renderer;
+  std::cout << format("bench render: %-10s %4d x %4d  %6.1f fps  mean %6.1f  p99 %6.1f  max %6.1f ms"
+                      "  (render %4.1f, swap %4.1f)  still %6.0f ms  (shadow %4.1f / %4.1f ms)",
+                      row["mode"].get<std::string>().c_str(), row["width"].get<int>(), row["height"].get<int>(),
+                      row["fps_mean"].get<double>(), s.mean, s.p99, s.max, row["paint_ms_mean"].get<double>(),
+                      row["swap_ms_mean"].get<double>(), still_ms, shadow.mean, shadow.max)
+            << std::endl;
+  return row;
+}
+
+/// The haptic threads' side of the run: the solver's tick times (from the recording), the
+/// coupling's longest tick and jitter and the deadline misses, each with rendering on and off.
+nlohmann::ordered_json servoJson(const runtime::Recording& recording, const std::vector<Phase>& phases,
+                                 bool realtime_scheduling) {
+  using namespace bench;
+  std::vector<double> on_us, off_us;
+  double coupling_on = 0.0, coupling_off = 0.0, jitter_on = 0.0, jitter_off = 0.0;
+  std::uint64_t misses_on = 0, misses_off = 0;
+  for (const runtime::TickRecord& r : recording.records) {
+    for (const Phase& p : phases) {
+      if (r.tick < p.begin || r.tick >= p.end) continue;
+      (p.rendering ? on_us : off_us).push_back(1e6 * r.tick_time_s);
+      break;
+    }
+  }
+  for (const Phase& p : phases) {
+    (p.rendering ? coupling_on : coupling_off) = std::max(p.rendering ? coupling_on : coupling_off, p.coupling_max_tick_us);
+    (p.rendering ? jitter_on : jitter_off) = std::max(p.rendering ? jitter_on : jitter_off, p.coupling_jitter_us);
+    (p.rendering ? misses_on : misses_off) += p.misses_end - p.misses_begin;
+  }
+  const Stats son = summarize(on_us), soff = summarize(off_us);
+  nlohmann::ordered_json servo;
+  servo["rate_Hz"] = kServoRate_Hz;
+  servo["realtime_scheduling"] = realtime_scheduling;
+  servo["solver_tick_us"] = {{"rendering_on", statsJson(son)}, {"rendering_off", statsJson(soff)}};
+  servo["coupling_max_tick_us"] = {{"rendering_on", coupling_on}, {"rendering_off", coupling_off}};
+  servo["coupling_jitter_us"] = {{"rendering_on", jitter_on}, {"rendering_off", jitter_off}};
+  servo["deadline_misses"] = {{"rendering_on", misses_on}, {"rendering_off", misses_off}};
+  servo["dropped_records"] = recording.dropped_records;
+  return servo;
+}
+
+/// render.json and render.md: the rows and the haptic threads' table.
+void writeRenderReport(const fs::path& out, nlohmann::ordered_json& report, const haptics::VolumeGeometry& g,
+                       const GlInfo& gl, double row_s, bool short_run) {
+  using namespace bench;
+  const nlohmann::ordered_json& rows = report["rows"];
+  std::ostringstream md;
+  md << "## Frame rate of the main view (`volume-haptics bench render" << (short_run ? " --short" : "") << "`)\n\n"
+     << format("Scan %d x %d x %d, ", g.dims[0], g.dims[1], g.dims[2]) << "renderer " << gl.renderer << ", CPU "
+     << report["cpu_model"].get<std::string>() << " (" << report["cpus"].get<unsigned>() << " CPUs, load average "
+     << format("%.1f before, %.1f after", report["load_average_before"].get<double>(),
+               report["load_average_after"].get<double>())
+     << "); " << format("%.1f s per row, the haptic threads at 1 kHz throughout.\n\n", row_s)
+     << "| mode | window | fps | mean [ms] | p99 [ms] | max [ms] | render / swap mean [ms] | still frame [ms] | tool shadow mean / max [ms] |\n"
+     << "|---|---|---|---|---|---|---|---|---|\n";
+  for (const auto& r : rows)
+    md << format("| %s | %d x %d | %.1f | %.1f | %.1f | %.1f | %.1f / %.1f | %.0f | %.2f / %.2f |\n",
+                 r["mode"].get<std::string>().c_str(), r["width"].get<int>(), r["height"].get<int>(),
+                 r["fps_mean"].get<double>(), r["frame_ms_mean"].get<double>(), r["frame_ms_p99"].get<double>(),
+                 r["frame_ms_max"].get<double>(), r["paint_ms_mean"].get<double>(), r["swap_ms_mean"].get<double>(),
+                 r["still_frame_ms"].get<double>(), r["shadow_ms_mean"].get<double>(), r["shadow_ms_max"].get<double>());
+  const auto& st = report["servo"]["solver_tick_us"];
+  md << "\n| haptic threads | solver p99 [us] | solver p99.9 [us] | solver max [us] | coupling max [us] | deadline misses |\n"
+     << "|---|---|---|---|---|---|\n";
+  for (const char* k : {"rendering_on", "rendering_off"})
+    md << format("| %s | %.1f | %.1f | %.1f | %.1f | %llu |\n", k, st[k]["p99"].get<double>(),
+                 st[k]["p99_9"].get<double>(), st[k]["max"].get<double>(),
+                 report["servo"]["coupling_max_tick_us"][k].get<double>(),
+                 static_cast<unsigned long long>(report["servo"]["deadline_misses"][k].get<std::uint64_t>()));
+  writeReport(out, "render", report, md, {});
+}
+
+}  // namespace
+
 fs::path runRenderBench(const RenderBenchOptions& o) {
   using namespace bench;
   if (!displayAvailable())
@@ -279,13 +461,7 @@ fs::path runRenderBench(const RenderBenchOptions& o) {
   const double row_s = o.row_seconds > 0.0 ? o.row_seconds : (short_run ? 0.5 : 4.0);
 
   // The scan.
-  fs::path volume = o.volume;
-  if (volume.empty() && short_run) volume = runtime::sharedDatasetsDir() / "ct" / "ct-head-small";
-  if (volume.empty()) {
-    const int slices = o.slices > 0 ? o.slices : kGeneratedSlices;
-    const fs::path dir = o.series_dir.empty() ? defaultOutputDir() / "render" / format("ct-512x512x%d", slices) : o.series_dir;
-    volume = bigScanSeries(dir, slices);
-  }
+  const fs::path volume = renderBenchScan(o, short_run);
   std::cout << "bench render: loading " << volume.string() << " ..." << std::endl;
   // The burr is spun up for the drilling rows only.
   const runtime::LoadedScene scene = runtime::loadScene(bench::drillingScene(volume, /*drill_on=*/false));
@@ -350,98 +526,8 @@ fs::path runRenderBench(const RenderBenchOptions& o) {
     b.phases.clear();
     for (const auto& size : o.sizes) {
       for (const auto& [mode, drilling] : kinds) {
-        b.resizeView(size[0], size[1]);
-        b.view->setRenderMode(mode, look.preset);
-        b.view->resetCamera();
-        auto t0 = Clock::now();
-        b.view->widget()->renderNow();  // a new mode compiles its shader
-        const double first_ms = msSince(t0);
-        if (drilling) {  // the burr switched on: the picture's copy for the cavity, uploaded once
-          b.view->actors().prepareRemoval();
-          b.view->widget()->renderNow();
-        }
-        thread->setDrilling(drilling);
-        const std::uint64_t partial0 = b.view->actors().partialUploads(), full0 = b.view->actors().fullUploads();
-        std::uint64_t removed = 0;
-        std::vector<double> frames;
-        FrameParts parts;
-        const std::uint64_t paints0 = b.view->widget()->frameCount();
-        Phase on = b.begin(true);
-        t0 = Clock::now();
-        while (msSince(t0) < 1e3 * row_s || frames.size() < 3) frames.push_back(b.frame(on, drilling, removed, parts));
-        const double elapsed_s = 1e-3 * msSince(t0);
-        b.end(on);
-        thread->setDrilling(false);
-        const double interactive_px = b.view->actors().imageSampleDistance_px();
-        const double interactive_voxels = b.view->actors().sampleDistance_m() / scene.volume.field->geometry().spacing_m.minCoeff();
-        // What the eyes got meanwhile: one more frame at the row's last interactive sampling.
-        std::string picture;
-        if (o.common.plots) {
-          picture = format("interactive-%s-%dx%d.png", drilling ? "drilling" : rowName(mode).c_str(),
-                           b.view->widget()->width(), b.view->widget()->height());
-          if (!b.view->widget()->grabFrame().save(QString::fromStdString((out / picture).string()), "PNG"))
-            picture.clear();
-        }
-        // The still frame when the hand rests, at the quality the view chooses for it.
-        b.view->renderStill();
-        const double still_sample_voxels = b.view->actors().sampleDistance_m() /
-                                           scene.volume.field->geometry().spacing_m.minCoeff();
-        const double still_px = b.view->actors().imageSampleDistance_px();
-        // Painted until the view has drawn a new frame (a repaint that draws nothing does not count).
-        const std::uint64_t frames_before_still = b.view->widget()->frameCount();
-        t0 = Clock::now();
-        b.view->widget()->renderNow();
-        while (b.view->widget()->frameCount() == frames_before_still && msSince(t0) < 30000.0) {
-          QCoreApplication::processEvents(QEventLoop::AllEvents, 5);
-        }
-        const double still_ms = msSince(t0);
-        b.idle(row_s);
-
-        const Stats s = summarize(frames);
-        nlohmann::ordered_json row;
-        row["mode"] = drilling ? std::string("drilling") : rowName(mode);
-        row["width"] = b.view->widget()->width();
-        row["height"] = b.view->widget()->height();
-        row["frames"] = frames.size();
-        row["fps_mean"] = static_cast<double>(frames.size()) / elapsed_s;
-        row["frame_ms_mean"] = s.mean;
-        row["frame_ms_p99"] = s.p99;
-        row["frame_ms_max"] = s.max;
-        row["frames_ms"] = frames;  // each frame in order: the first ones after the still frame and the mode change show
-        // VtkView paints per frame: 1 when each frame is painted once (no queued repaint on top).
-        row["paints_per_frame"] = static_cast<double>(b.view->widget()->frameCount() - paints0) / static_cast<double>(frames.size());
-        // Each frame's parts: VTK's render and the blit as the CPU issues them (the GPU may still
-        // be working), then the swap (where the driver waits for the GPU and the display).
-        row["paint_ms_mean"] = summarize(parts.paint_ms).mean;
-        row["swap_ms_mean"] = summarize(parts.swap_ms).mean;
-        row["frames_paint_ms"] = parts.paint_ms;
-        row["frames_swap_ms"] = parts.swap_ms;
-        row["frames_image_sample_px"] = parts.image_sample_px;  // each frame's rays apart [px]
-        const Stats shadow = summarize(parts.shadow_ms);  // the tool's shadow cast (inside frame_ms)
-        row["shadow_ms_mean"] = shadow.mean;
-        row["shadow_ms_max"] = shadow.max;
-        row["first_frame_ms"] = first_ms;
-        row["interactive_image_sample_px"] = interactive_px;  // the last interactive frame's
-        row["interactive_sample_voxels"] = interactive_voxels;
-        if (!picture.empty()) row["interactive_picture"] = picture;  // beside render.json
-        row["still_frame_ms"] = still_ms;
-        row["still_sample_voxels"] = still_sample_voxels;
-        row["still_image_sample_px"] = still_px;
-        if (drilling) {
-          row["removed_voxels"] = removed;
-          row["partial_uploads"] = b.view->actors().partialUploads() - partial0;
-          row["full_uploads"] = b.view->actors().fullUploads() - full0;
-        }
-        row["contacts"] = b.snapshot.contacts;  // the haptic threads' last snapshot of the row
-        row["force_N"] = b.snapshot.force_W_N.norm();
-        row["renderer"] = gl.renderer;
-        std::cout << format("bench render: %-10s %4d x %4d  %6.1f fps  mean %6.1f  p99 %6.1f  max %6.1f ms"
-                            "  (render %4.1f, swap %4.1f)  still %6.0f ms  (shadow %4.1f / %4.1f ms)",
-                            row["mode"].get<std::string>().c_str(), row["width"].get<int>(), row["height"].get<int>(),
-                            row["fps_mean"].get<double>(), s.mean, s.p99, s.max, row["paint_ms_mean"].get<double>(),
-                            row["swap_ms_mean"].get<double>(), still_ms, shadow.mean, shadow.max)
-                  << std::endl;
-        rows.push_back(row);
+        rows.push_back(renderRow(b, *thread, mode, drilling, size, look, row_s, o.common.plots ? out : fs::path(), gl,
+                                 scene.volume.field->geometry().spacing_m.minCoeff()));
       }
     }
     thread->stop();
@@ -452,33 +538,9 @@ fs::path runRenderBench(const RenderBenchOptions& o) {
 
     // The solver's tick times of each stretch, rendering on and off.
     const runtime::Recording recording = runtime::readRecording(ticks_path);
-    std::vector<double> on_us, off_us;
-    double coupling_on = 0.0, coupling_off = 0.0, jitter_on = 0.0, jitter_off = 0.0;
-    std::uint64_t misses_on = 0, misses_off = 0;
-    for (const runtime::TickRecord& r : recording.records) {
-      for (const Phase& p : b.phases) {
-        if (r.tick < p.begin || r.tick >= p.end) continue;
-        (p.rendering ? on_us : off_us).push_back(1e6 * r.tick_time_s);
-        break;
-      }
-    }
-    for (const Phase& p : b.phases) {
-      (p.rendering ? coupling_on : coupling_off) = std::max(p.rendering ? coupling_on : coupling_off, p.coupling_max_tick_us);
-      (p.rendering ? jitter_on : jitter_off) = std::max(p.rendering ? jitter_on : jitter_off, p.coupling_jitter_us);
-      (p.rendering ? misses_on : misses_off) += p.misses_end - p.misses_begin;
-    }
     std::error_code ec;
     fs::remove(ticks_path, ec);
-    const Stats son = summarize(on_us), soff = summarize(off_us);
-    nlohmann::ordered_json servo;
-    servo["rate_Hz"] = kServoRate_Hz;
-    servo["realtime_scheduling"] = thread->realtimeScheduling();
-    servo["solver_tick_us"] = {{"rendering_on", statsJson(son)}, {"rendering_off", statsJson(soff)}};
-    servo["coupling_max_tick_us"] = {{"rendering_on", coupling_on}, {"rendering_off", coupling_off}};
-    servo["coupling_jitter_us"] = {{"rendering_on", jitter_on}, {"rendering_off", jitter_off}};
-    servo["deadline_misses"] = {{"rendering_on", misses_on}, {"rendering_off", misses_off}};
-    servo["dropped_records"] = recording.dropped_records;
-    report["servo"] = servo;
+    report["servo"] = servoJson(recording, b.phases, thread->realtimeScheduling());
   }
 
   const haptics::VolumeGeometry& g = scene.volume.field->geometry();
@@ -493,30 +555,7 @@ fs::path runRenderBench(const RenderBenchOptions& o) {
   report["row_seconds"] = row_s;
   report["rows"] = rows;
 
-  std::ostringstream md;
-  md << "## Frame rate of the main view (`volume-haptics bench render" << (short_run ? " --short" : "") << "`)\n\n"
-     << format("Scan %d x %d x %d, ", g.dims[0], g.dims[1], g.dims[2]) << "renderer " << gl.renderer << ", CPU "
-     << report["cpu_model"].get<std::string>() << " (" << report["cpus"].get<unsigned>() << " CPUs, load average "
-     << format("%.1f before, %.1f after", report["load_average_before"].get<double>(),
-               report["load_average_after"].get<double>())
-     << "); " << format("%.1f s per row, the haptic threads at 1 kHz throughout.\n\n", row_s)
-     << "| mode | window | fps | mean [ms] | p99 [ms] | max [ms] | render / swap mean [ms] | still frame [ms] | tool shadow mean / max [ms] |\n"
-     << "|---|---|---|---|---|---|---|---|---|\n";
-  for (const auto& r : rows)
-    md << format("| %s | %d x %d | %.1f | %.1f | %.1f | %.1f | %.1f / %.1f | %.0f | %.2f / %.2f |\n",
-                 r["mode"].get<std::string>().c_str(), r["width"].get<int>(), r["height"].get<int>(),
-                 r["fps_mean"].get<double>(), r["frame_ms_mean"].get<double>(), r["frame_ms_p99"].get<double>(),
-                 r["frame_ms_max"].get<double>(), r["paint_ms_mean"].get<double>(), r["swap_ms_mean"].get<double>(),
-                 r["still_frame_ms"].get<double>(), r["shadow_ms_mean"].get<double>(), r["shadow_ms_max"].get<double>());
-  const auto& st = report["servo"]["solver_tick_us"];
-  md << "\n| haptic threads | solver p99 [us] | solver p99.9 [us] | solver max [us] | coupling max [us] | deadline misses |\n"
-     << "|---|---|---|---|---|---|\n";
-  for (const char* k : {"rendering_on", "rendering_off"})
-    md << format("| %s | %.1f | %.1f | %.1f | %.1f | %llu |\n", k, st[k]["p99"].get<double>(),
-                 st[k]["p99_9"].get<double>(), st[k]["max"].get<double>(),
-                 report["servo"]["coupling_max_tick_us"][k].get<double>(),
-                 static_cast<unsigned long long>(report["servo"]["deadline_misses"][k].get<std::uint64_t>()));
-  writeReport(out, "render", report, md, {});
+  writeRenderReport(out, report, g, gl, row_s, short_run);
   return out;
 }
 

@@ -373,6 +373,88 @@ double scaleBar_mm(double field_mm) {
   return best;
 }
 
+/// The map's layers in the square field `plot` (`side` pixels) showing `frame`: lines as
+/// polylines, points as dots, clipped to the field.
+void drawMapLayers(QPainter& painter, const QRectF& plot, int side, const MapFrame& frame,
+                   const std::vector<MapLayer>& layers) {
+  const auto toPixel = [&](const QPointF& p) {
+    return QPointF(plot.left() + (p.x() - frame.x0) / frame.width_mm() * side,
+                   plot.top() + (frame.y1 - p.y()) / (frame.y1 - frame.y0) * side);
+  };
+  painter.setClipRect(plot);
+  for (const MapLayer& layer : layers) {
+    if (layer.line) {
+      QPen pen(layer.colour, 2.0, layer.style);
+      painter.setPen(pen);
+      QPolygonF poly;
+      for (const QPointF& p : layer.points_mm) poly << toPixel(p);
+      painter.drawPolyline(poly);
+    } else {
+      painter.setPen(QPen(layer.colour.darker(150), 0.8));
+      painter.setBrush(layer.colour);
+      for (const QPointF& p : layer.points_mm) painter.drawEllipse(toPixel(p), 2.6, 2.6);
+    }
+  }
+}
+
+/// The patient-frame letters of `view`, in boxes at the middle of each side of `plot` (`font`
+/// becomes 16 px).
+void drawFrameLetters(QPainter& painter, QFont& font, const QRectF& plot, const MapView& view) {
+  font.setPixelSize(16);
+  painter.setFont(font);
+  const auto letterBox = [&](const QPointF& centre, const std::string& letter) {
+    const QRectF box(centre.x() - 12, centre.y() - 12, 24, 24);
+    painter.setPen(Qt::NoPen);
+    painter.setBrush(QColor(255, 255, 255, 220));
+    painter.drawRoundedRect(box, 4, 4);
+    painter.setPen(QColor(0x10, 0x10, 0x10));
+    painter.drawText(box, Qt::AlignCenter, QString::fromStdString(letter));
+  };
+  letterBox(QPointF(plot.center().x(), plot.top() + 16), directionLetter(view.up_W));
+  letterBox(QPointF(plot.center().x(), plot.bottom() - 16), directionLetter(-view.up_W));
+  letterBox(QPointF(plot.left() + 16, plot.center().y()), directionLetter(-view.right_W));
+  letterBox(QPointF(plot.right() - 16, plot.center().y()), directionLetter(view.right_W));
+}
+
+/// The scale bar, bottom left in `plot` (`side` pixels for the frame's width; `font` becomes
+/// 12 px, not bold).
+void drawScaleBar(QPainter& painter, QFont& font, const QRectF& plot, int side, const MapFrame& frame) {
+  const double bar_mm = scaleBar_mm(frame.width_mm());
+  const double bar_px = bar_mm / frame.width_mm() * side;
+  const QRectF bar_box(plot.left() + 8, plot.bottom() - 40, bar_px + 16, 32);
+  painter.setPen(Qt::NoPen);
+  painter.setBrush(QColor(255, 255, 255, 220));
+  painter.drawRoundedRect(bar_box, 4, 4);
+  painter.setBrush(QColor(0x10, 0x10, 0x10));
+  painter.drawRect(QRectF(bar_box.left() + 8, bar_box.bottom() - 10, bar_px, 4));
+  font.setPixelSize(12);
+  font.setBold(false);
+  painter.setFont(font);
+  painter.setPen(QColor(0x10, 0x10, 0x10));
+  painter.drawText(QRectF(bar_box.left(), bar_box.top() + 2, bar_box.width(), 16), Qt::AlignCenter,
+                   QString::fromStdString(formatNumber(bar_mm) + " mm"));
+}
+
+/// The legend below `plot`: two columns of the layers' marks and names.
+void drawMapLegend(QPainter& painter, const QRectF& plot, int side, const std::vector<MapLayer>& layers,
+                   int margin, int legend_row) {
+  const double legend_top = plot.bottom() + margin;
+  for (std::size_t i = 0; i < layers.size(); ++i) {
+    const double x = margin + (i % 2) * side / 2.0, y = legend_top + (i / 2) * legend_row + legend_row / 2.0;
+    if (layers[i].line) {
+      painter.setPen(QPen(layers[i].colour, 2.0, layers[i].style));
+      painter.drawLine(QPointF(x + 2, y), QPointF(x + 22, y));
+    } else {
+      painter.setPen(QPen(layers[i].colour.darker(150), 0.8));
+      painter.setBrush(layers[i].colour);
+      painter.drawEllipse(QPointF(x + 12, y), 5, 5);
+    }
+    painter.setPen(QColor(0x22, 0x22, 0x22));
+    painter.drawText(QRectF(x + 28, y - legend_row / 2.0, side / 2.0 - 30, legend_row), Qt::AlignVCenter | Qt::AlignLeft,
+                     layers[i].name);
+  }
+}
+
 /// A map as a PNG data: URI, `size` pixels wide: the title, the square field (`frame`) with the
 /// anatomy behind the layers, the patient-frame letters at its four sides, a scale bar, and the
 /// legend below. The alt text and caption say the same in words.
@@ -395,74 +477,14 @@ std::string mapImage(const QString& title, const MapView& view, const MapFrame& 
   const QRectF plot(kMargin, kTitle, side, side);
   painter.fillRect(plot, QColor(0x3a, 0x3f, 0x47));  // dark behind the surface, as a CT viewer
   if (anatomy != nullptr) painter.drawImage(plot, anatomyProjection(*anatomy, view, frame, std::min(side, 240)));
-  const auto toPixel = [&](const QPointF& p) {
-    return QPointF(plot.left() + (p.x() - frame.x0) / frame.width_mm() * side,
-                   plot.top() + (frame.y1 - p.y()) / (frame.y1 - frame.y0) * side);
-  };
-  painter.setClipRect(plot);
-  for (const MapLayer& layer : layers) {
-    if (layer.line) {
-      QPen pen(layer.colour, 2.0, layer.style);
-      painter.setPen(pen);
-      QPolygonF poly;
-      for (const QPointF& p : layer.points_mm) poly << toPixel(p);
-      painter.drawPolyline(poly);
-    } else {
-      painter.setPen(QPen(layer.colour.darker(150), 0.8));
-      painter.setBrush(layer.colour);
-      for (const QPointF& p : layer.points_mm) painter.drawEllipse(toPixel(p), 2.6, 2.6);
-    }
-  }
+  drawMapLayers(painter, plot, side, frame, layers);
   painter.setClipping(false);
   painter.setBrush(Qt::NoBrush);
   painter.setPen(QPen(QColor(0x88, 0x88, 0x88), 1.0));
   painter.drawRect(plot);
-  // The patient-frame letters, in boxes at the middle of each side.
-  font.setPixelSize(16);
-  painter.setFont(font);
-  const auto letterBox = [&](const QPointF& centre, const std::string& letter) {
-    const QRectF box(centre.x() - 12, centre.y() - 12, 24, 24);
-    painter.setPen(Qt::NoPen);
-    painter.setBrush(QColor(255, 255, 255, 220));
-    painter.drawRoundedRect(box, 4, 4);
-    painter.setPen(QColor(0x10, 0x10, 0x10));
-    painter.drawText(box, Qt::AlignCenter, QString::fromStdString(letter));
-  };
-  letterBox(QPointF(plot.center().x(), plot.top() + 16), directionLetter(view.up_W));
-  letterBox(QPointF(plot.center().x(), plot.bottom() - 16), directionLetter(-view.up_W));
-  letterBox(QPointF(plot.left() + 16, plot.center().y()), directionLetter(-view.right_W));
-  letterBox(QPointF(plot.right() - 16, plot.center().y()), directionLetter(view.right_W));
-  // The scale bar, bottom left.
-  const double bar_mm = scaleBar_mm(frame.width_mm());
-  const double bar_px = bar_mm / frame.width_mm() * side;
-  const QRectF bar_box(plot.left() + 8, plot.bottom() - 40, bar_px + 16, 32);
-  painter.setPen(Qt::NoPen);
-  painter.setBrush(QColor(255, 255, 255, 220));
-  painter.drawRoundedRect(bar_box, 4, 4);
-  painter.setBrush(QColor(0x10, 0x10, 0x10));
-  painter.drawRect(QRectF(bar_box.left() + 8, bar_box.bottom() - 10, bar_px, 4));
-  font.setPixelSize(12);
-  font.setBold(false);
-  painter.setFont(font);
-  painter.setPen(QColor(0x10, 0x10, 0x10));
-  painter.drawText(QRectF(bar_box.left(), bar_box.top() + 2, bar_box.width(), 16), Qt::AlignCenter,
-                   QString::fromStdString(formatNumber(bar_mm) + " mm"));
-  // The legend.
-  const double legend_top = plot.bottom() + kMargin;
-  for (std::size_t i = 0; i < layers.size(); ++i) {
-    const double x = kMargin + (i % 2) * side / 2.0, y = legend_top + (i / 2) * kLegendRow + kLegendRow / 2.0;
-    if (layers[i].line) {
-      painter.setPen(QPen(layers[i].colour, 2.0, layers[i].style));
-      painter.drawLine(QPointF(x + 2, y), QPointF(x + 22, y));
-    } else {
-      painter.setPen(QPen(layers[i].colour.darker(150), 0.8));
-      painter.setBrush(layers[i].colour);
-      painter.drawEllipse(QPointF(x + 12, y), 5, 5);
-    }
-    painter.setPen(QColor(0x22, 0x22, 0x22));
-    painter.drawText(QRectF(x + 28, y - kLegendRow / 2.0, side / 2.0 - 30, kLegendRow), Qt::AlignVCenter | Qt::AlignLeft,
-                     layers[i].name);
-  }
+  drawFrameLetters(painter, font, plot, view);
+  drawScaleBar(painter, font, plot, side, frame);
+  drawMapLegend(painter, plot, side, layers, kMargin, kLegendRow);
   painter.end();
   return pngUri(image);
 }

@@ -21,6 +21,23 @@ namespace vh::ui {
 DisplayPanel::DisplayPanel(QWidget* parent) : QWidget(parent) {
   auto* layout = new QVBoxLayout(this);
   layout->setContentsMargins(6, 6, 6, 6);
+  layout->addLayout(buildRenderingForm());
+  layout->addWidget(buildViewsBox());
+  layout->addWidget(buildClipBox());
+  marker_box_ = new QCheckBox("Orientation marker", this);
+  device_box_ = new QCheckBox("Show the device tool (wire)", this);
+  layout->addWidget(marker_box_);
+  layout->addWidget(device_box_);
+  shadow_box_ = new QCheckBox("Tool shadow on the surface", this);
+  shadow_box_->setObjectName("toolShadow");
+  shadow_box_->setToolTip("A depth cue: the tool's shadow under a light above the view, and a line from the tool "
+                          "to it, on the surface the hand feels");
+  layout->addWidget(shadow_box_);
+  layout->addStretch(1);
+  connectControls();
+}
+
+QFormLayout* DisplayPanel::buildRenderingForm() {
   auto* form = new QFormLayout();
   mode_box_ = new QComboBox(this);
   mode_box_->setObjectName("renderMode");
@@ -37,8 +54,10 @@ DisplayPanel::DisplayPanel(QWidget* parent) : QWidget(parent) {
   preset_box_->setToolTip("Transfer function of the composite mode (CT presets, in HU)");
   form->addRow("Rendering", mode_box_);
   form->addRow("Preset", preset_box_);
-  layout->addLayout(form);
+  return form;
+}
 
+QGroupBox* DisplayPanel::buildViewsBox() {
   auto* views = new QGroupBox("Views", this);
   auto* grid = new QGridLayout(views);
   struct ViewButton {
@@ -62,8 +81,10 @@ DisplayPanel::DisplayPanel(QWidget* parent) : QWidget(parent) {
   reset_view->setObjectName("resetView");
   connect(reset_view, &QPushButton::clicked, this, &DisplayPanel::resetViewRequested);
   grid->addWidget(reset_view, 3, 0, 1, 2);
-  layout->addWidget(views);
+  return views;
+}
 
+QGroupBox* DisplayPanel::buildClipBox() {
   clip_group_ = new QGroupBox("Clipping plane", this);
   clip_group_->setObjectName("clipGroup");
   clip_group_->setCheckable(true);
@@ -82,19 +103,10 @@ DisplayPanel::DisplayPanel(QWidget* parent) : QWidget(parent) {
   clip_form->addRow("Axis", clip_axis_);
   clip_form->addRow("Position", clip_position_);
   clip_form->addRow(clip_flip_);
-  layout->addWidget(clip_group_);
+  return clip_group_;
+}
 
-  marker_box_ = new QCheckBox("Orientation marker", this);
-  device_box_ = new QCheckBox("Show the device tool (wire)", this);
-  layout->addWidget(marker_box_);
-  layout->addWidget(device_box_);
-  shadow_box_ = new QCheckBox("Tool shadow on the surface", this);
-  shadow_box_->setObjectName("toolShadow");
-  shadow_box_->setToolTip("A depth cue: the tool's shadow under a light above the view, and a line from the tool "
-                          "to it, on the surface the hand feels");
-  layout->addWidget(shadow_box_);
-  layout->addStretch(1);
-
+void DisplayPanel::connectControls() {
   connect(mode_box_, &QComboBox::currentIndexChanged, this,
           [this](int i) { emit renderModeChosen(static_cast<RenderMode>(mode_box_->itemData(i).toInt())); });
   connect(preset_box_, &QComboBox::currentIndexChanged, this,

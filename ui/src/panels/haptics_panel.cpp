@@ -21,7 +21,20 @@ namespace vh::ui {
 HapticsPanel::HapticsPanel(QWidget* parent) : QWidget(parent) {
   auto* layout = new QVBoxLayout(this);
   layout->setContentsMargins(6, 6, 6, 6);
+  layout->addLayout(buildButtons());
+  layout->addWidget(buildToolBox());
+  layout->addWidget(buildCouplingBox());
+  layout->addWidget(buildDeviceBox());
+  layout->addStretch(1);
 
+  spacing_timer_ = new QTimer(this);
+  spacing_timer_->setSingleShot(true);
+  spacing_timer_->setInterval(400);
+  connectControls();
+  setRunning(false, false);
+}
+
+QHBoxLayout* HapticsPanel::buildButtons() {
   auto* buttons = new QHBoxLayout();
   start_stop_ = new QPushButton("Start haptics", this);
   start_stop_->setObjectName("startStopHaptics");
@@ -30,8 +43,10 @@ HapticsPanel::HapticsPanel(QWidget* parent) : QWidget(parent) {
   reset_device_->setToolTip("Move the simulated device back to the tool's starting pose");
   buttons->addWidget(start_stop_);
   buttons->addWidget(reset_device_);
-  layout->addLayout(buttons);
+  return buttons;
+}
 
+QGroupBox* HapticsPanel::buildToolBox() {
   auto* tool_box = new QGroupBox("Tool", this);
   auto* tool_form = new QFormLayout(tool_box);
   tool_ = new QComboBox(tool_box);
@@ -65,8 +80,10 @@ HapticsPanel::HapticsPanel(QWidget* parent) : QWidget(parent) {
       "thinner than the point spacing cannot slip between them. On by default; off gives the paper's "
       "points-only proxy, for comparison with the published method (about half the solver's time)");
   tool_form->addRow(edge_test_);
-  layout->addWidget(tool_box);
+  return tool_box;
+}
 
+QGroupBox* HapticsPanel::buildCouplingBox() {
   auto* coupling = new QGroupBox("Virtual coupling", this);
   auto* coupling_form = new QFormLayout(coupling);
   linear_ = new QDoubleSpinBox(coupling);
@@ -93,8 +110,10 @@ HapticsPanel::HapticsPanel(QWidget* parent) : QWidget(parent) {
       "coupling would create, so stiffer contact stays stable; slightly softer feel on release. Off by default.");
   coupling_form->addRow("Torsional", torsional_);
   coupling_form->addRow(passivity_);
-  layout->addWidget(coupling);
+  return coupling;
+}
 
+QGroupBox* HapticsPanel::buildDeviceBox() {
   auto* device = new QGroupBox("Device", this);
   auto* device_layout = new QVBoxLayout(device);
   auto* device_row = new QHBoxLayout();
@@ -119,13 +138,10 @@ HapticsPanel::HapticsPanel(QWidget* parent) : QWidget(parent) {
   device_limits_->setTextInteractionFlags(Qt::TextSelectableByMouse);
   device_layout->addWidget(device_name_);
   device_layout->addWidget(device_limits_);
-  layout->addWidget(device);
-  layout->addStretch(1);
+  return device;
+}
 
-  spacing_timer_ = new QTimer(this);
-  spacing_timer_->setSingleShot(true);
-  spacing_timer_->setInterval(400);
-
+void HapticsPanel::connectControls() {
   connect(start_stop_, &QPushButton::clicked, this, [this] { emit startStopRequested(!running_); });
   connect(reset_device_, &QPushButton::clicked, this, &HapticsPanel::resetDeviceRequested);
   connect(rescan_, &QPushButton::clicked, this, &HapticsPanel::rescanRequested);
@@ -146,7 +162,6 @@ HapticsPanel::HapticsPanel(QWidget* parent) : QWidget(parent) {
   connect(edge_test_, &QCheckBox::toggled, this, [this](bool on) {
     if (!updating_) emit edgeTestRequested(on);
   });
-  setRunning(false, false);
 }
 
 void HapticsPanel::setTools(const std::vector<ToolChoice>& tools, int current) {

@@ -349,6 +349,79 @@ void SceneActors::buildTools(const SceneActorsSpec& spec) {
   setDevicePose(haptics::Pose::Identity());
 }
 
+namespace {
+
+/// Points drawn as spheres (shader impostors; cheap on llvmpipe too): `poly` holds `points` as
+/// its vertices, drawn by `actor` in `rgb`, `size_px` wide, not pickable.
+void setUpPointSprites(vtkPoints* points, vtkPolyData* poly, vtkActor* actor, const double rgb[3], double size_px) {
+  points->SetDataTypeToDouble();
+  poly->SetPoints(points);
+  vtkNew<vtkCellArray> verts;
+  poly->SetVerts(verts);
+  vtkNew<vtkPolyDataMapper> mapper;
+  mapper->SetInputData(poly);
+  actor->SetMapper(mapper);
+  actor->GetProperty()->SetColor(rgb[0], rgb[1], rgb[2]);
+  actor->GetProperty()->SetPointSize(size_px);
+  actor->GetProperty()->SetRenderPointsAsSpheres(true);
+  actor->PickableOff();
+}
+
+/// The force arrow: a unit arrow along +x, placed and scaled by its user matrix, hidden until
+/// there is a force.
+void setUpForceArrow(vtkActor* force_actor) {
+  vtkNew<vtkArrowSource> arrow;
+  arrow->SetShaftRadius(0.04);
+  arrow->SetTipRadius(0.1);
+  arrow->SetTipLength(0.3);
+  arrow->SetShaftResolution(16);
+  arrow->SetTipResolution(16);
+  vtkNew<vtkPolyDataMapper> arrow_mapper;
+  arrow_mapper->SetInputConnection(arrow->GetOutputPort());
+  force_actor->SetMapper(arrow_mapper);
+  force_actor->GetProperty()->SetColor(kForce[0], kForce[1], kForce[2]);
+  force_actor->GetProperty()->SetAmbient(0.3);
+  force_actor->PickableOff();
+  force_actor->VisibilityOff();
+  vtkNew<vtkMatrix4x4> arrow_matrix;
+  force_actor->SetUserMatrix(arrow_matrix);
+}
+
+/// The drop line from the tool to its shadow: one segment between the two points, hidden until
+/// the shadow is shown.
+void setUpGapLine(vtkPoints* gap_points, vtkPolyData* gap_poly, vtkActor* gap_actor) {
+  gap_points->SetDataTypeToDouble();
+  gap_points->SetNumberOfPoints(2);
+  gap_poly->SetPoints(gap_points);
+  vtkNew<vtkCellArray> gap_lines;
+  const vtkIdType gap_ids[2] = {0, 1};
+  gap_lines->InsertNextCell(2, gap_ids);
+  gap_poly->SetLines(gap_lines);
+  vtkNew<vtkPolyDataMapper> gap_mapper;
+  gap_mapper->SetInputData(gap_poly);
+  gap_actor->SetMapper(gap_mapper);
+  gap_actor->GetProperty()->SetColor(kGapLine[0], kGapLine[1], kGapLine[2]);
+  gap_actor->GetProperty()->SetLineWidth(1.5);
+  gap_actor->GetProperty()->SetAmbient(1.0);
+  gap_actor->GetProperty()->SetDiffuse(0.0);
+  gap_actor->PickableOff();
+  gap_actor->VisibilityOff();
+}
+
+/// The hint text, screen space top left (hidden when there is none).
+void setUpHint(vtkTextActor* hint_actor, const std::string& hint) {
+  hint_actor->SetInput(hint.c_str());
+  hint_actor->GetTextProperty()->SetFontSize(13);
+  hint_actor->GetTextProperty()->SetColor(0.92, 0.92, 0.92);
+  hint_actor->GetTextProperty()->ShadowOn();
+  hint_actor->GetTextProperty()->SetVerticalJustificationToTop();
+  hint_actor->GetPositionCoordinate()->SetCoordinateSystemToNormalizedViewport();
+  hint_actor->GetPositionCoordinate()->SetValue(0.01, 0.985);
+  hint_actor->SetVisibility(!hint.empty());
+}
+
+}  // namespace
+
 void SceneActors::buildOverlay(const SceneActorsSpec& spec) {
   // --- Overlay layer for contacts and force: drawn over everything (same camera), because
   // both sit where the tool meets the surface and the tool would hide them.
@@ -362,17 +435,7 @@ void SceneActors::buildOverlay(const SceneActorsSpec& spec) {
   overlay_->PreserveDepthBufferOff();
 
   // --- Contacts: points drawn as spheres (shader impostors; cheap on llvmpipe too).
-  contact_points_->SetDataTypeToDouble();
-  contact_poly_->SetPoints(contact_points_);
-  vtkNew<vtkCellArray> verts;
-  contact_poly_->SetVerts(verts);
-  vtkNew<vtkPolyDataMapper> contact_mapper;
-  contact_mapper->SetInputData(contact_poly_);
-  contact_actor_->SetMapper(contact_mapper);
-  contact_actor_->GetProperty()->SetColor(kContact[0], kContact[1], kContact[2]);
-  contact_actor_->GetProperty()->SetPointSize(7.0);
-  contact_actor_->GetProperty()->SetRenderPointsAsSpheres(true);
-  contact_actor_->PickableOff();
+  setUpPointSprites(contact_points_, contact_poly_, contact_actor_, kContact, 7.0);
   overlay_->AddActor(contact_actor_);
 
   // --- Force arrow: a unit arrow along +x, placed and scaled by the user matrix.
@@ -381,66 +444,20 @@ void SceneActors::buildOverlay(const SceneActorsSpec& spec) {
                                      : Eigen::Vector3d(spec.tool_mesh_T.boundsMax_T_m() -
                                                        spec.tool_mesh_T.boundsMin_T_m());
   arrow_reference_m_ = std::max(0.5 * extent.norm(), 1e-3);
-  vtkNew<vtkArrowSource> arrow;
-  arrow->SetShaftRadius(0.04);
-  arrow->SetTipRadius(0.1);
-  arrow->SetTipLength(0.3);
-  arrow->SetShaftResolution(16);
-  arrow->SetTipResolution(16);
-  vtkNew<vtkPolyDataMapper> arrow_mapper;
-  arrow_mapper->SetInputConnection(arrow->GetOutputPort());
-  force_actor_->SetMapper(arrow_mapper);
-  force_actor_->GetProperty()->SetColor(kForce[0], kForce[1], kForce[2]);
-  force_actor_->GetProperty()->SetAmbient(0.3);
-  force_actor_->PickableOff();
-  force_actor_->VisibilityOff();
-  vtkNew<vtkMatrix4x4> arrow_matrix;
-  force_actor_->SetUserMatrix(arrow_matrix);
+  setUpForceArrow(force_actor_);
   overlay_->AddActor(force_actor_);
 
   // --- The tool's shadow and drop line: in the scene, not the overlay (the tool hides them).
-  shadow_points_->SetDataTypeToDouble();
-  shadow_poly_->SetPoints(shadow_points_);
-  vtkNew<vtkCellArray> shadow_verts;
-  shadow_poly_->SetVerts(shadow_verts);
-  vtkNew<vtkPolyDataMapper> shadow_mapper;
-  shadow_mapper->SetInputData(shadow_poly_);
-  shadow_actor_->SetMapper(shadow_mapper);
-  shadow_actor_->GetProperty()->SetColor(kShadow[0], kShadow[1], kShadow[2]);
-  shadow_actor_->GetProperty()->SetPointSize(6.0);
-  shadow_actor_->GetProperty()->SetRenderPointsAsSpheres(true);
+  setUpPointSprites(shadow_points_, shadow_poly_, shadow_actor_, kShadow, 6.0);
   shadow_actor_->GetProperty()->SetAmbient(1.0);
   shadow_actor_->GetProperty()->SetDiffuse(0.0);
-  shadow_actor_->PickableOff();
   shadow_actor_->VisibilityOff();
   renderer_->AddActor(shadow_actor_);
-  gap_points_->SetDataTypeToDouble();
-  gap_points_->SetNumberOfPoints(2);
-  gap_poly_->SetPoints(gap_points_);
-  vtkNew<vtkCellArray> gap_lines;
-  const vtkIdType gap_ids[2] = {0, 1};
-  gap_lines->InsertNextCell(2, gap_ids);
-  gap_poly_->SetLines(gap_lines);
-  vtkNew<vtkPolyDataMapper> gap_mapper;
-  gap_mapper->SetInputData(gap_poly_);
-  gap_actor_->SetMapper(gap_mapper);
-  gap_actor_->GetProperty()->SetColor(kGapLine[0], kGapLine[1], kGapLine[2]);
-  gap_actor_->GetProperty()->SetLineWidth(1.5);
-  gap_actor_->GetProperty()->SetAmbient(1.0);
-  gap_actor_->GetProperty()->SetDiffuse(0.0);
-  gap_actor_->PickableOff();
-  gap_actor_->VisibilityOff();
+  setUpGapLine(gap_points_, gap_poly_, gap_actor_);
   renderer_->AddActor(gap_actor_);
 
   // --- Hint text (screen space, top left).
-  hint_actor_->SetInput(spec.hint.c_str());
-  hint_actor_->GetTextProperty()->SetFontSize(13);
-  hint_actor_->GetTextProperty()->SetColor(0.92, 0.92, 0.92);
-  hint_actor_->GetTextProperty()->ShadowOn();
-  hint_actor_->GetTextProperty()->SetVerticalJustificationToTop();
-  hint_actor_->GetPositionCoordinate()->SetCoordinateSystemToNormalizedViewport();
-  hint_actor_->GetPositionCoordinate()->SetValue(0.01, 0.985);
-  hint_actor_->SetVisibility(!spec.hint.empty());
+  setUpHint(hint_actor_, spec.hint);
   renderer_->AddActor2D(hint_actor_);
 }
 

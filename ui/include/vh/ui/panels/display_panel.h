@@ -16,6 +16,7 @@ class QAction;
 class QActionGroup;
 class QCheckBox;
 class QComboBox;
+class QFormLayout;
 class QGroupBox;
 class QMenu;
 class QSlider;
@@ -79,6 +80,11 @@ class DisplayPanel : public QWidget {
   QAction* clip_action_ = nullptr;
   QAction* device_action_ = nullptr;
   QAction* shadow_action_ = nullptr;
+  // The constructor's groups, top to bottom, then the controls' signals.
+  QFormLayout* buildRenderingForm();  ///< The rendering mode and the composite mode's preset.
+  QGroupBox* buildViewsBox();         ///< The standard views and reset view (their signals too).
+  QGroupBox* buildClipBox();          ///< The clipping plane's switch, axis, position and side.
+  void connectControls();
 };
 
 }  // namespace vh::ui

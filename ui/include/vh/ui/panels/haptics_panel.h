@@ -17,6 +17,8 @@
 
 class QCheckBox;
 class QComboBox;
+class QGroupBox;
+class QHBoxLayout;
 class QDoubleSpinBox;
 class QLabel;
 class QPushButton;
@@ -108,6 +110,12 @@ class HapticsPanel : public QWidget {
   const void* gap_tool_ = nullptr;
   bool gap_edges_ = false;
   void showFeltGap(const runtime::Session& session);
+  // The constructor's groups, top to bottom, then the controls' signals.
+  QHBoxLayout* buildButtons();  ///< Start / stop and reset device.
+  QGroupBox* buildToolBox();    ///< The tool's mesh, point spacing, points, felt gap and edge test.
+  QGroupBox* buildCouplingBox();  ///< The virtual coupling's stiffnesses and passivity control.
+  QGroupBox* buildDeviceBox();    ///< The device choice, rescan, name and limits.
+  void connectControls();
 };
 
 }  // namespace vh::ui
