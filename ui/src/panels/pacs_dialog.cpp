@@ -497,6 +497,47 @@ void PacsBrowserDialog::listSeries(QTreeWidgetItem* study_item) {
       });
 }
 
+namespace {
+
+/// The modal progress dialog of a retrieval from `server` of `expected` files (-1: unknown).
+QProgressDialog* makeRetrievalProgress(const QString& server, int expected, QWidget* parent) {
+  auto* progress = new QProgressDialog("Retrieving the series from " + server + "...", "Cancel", 0,
+                                       std::max(expected, 0), parent);
+  progress->setObjectName("pacsProgress");
+  progress->setWindowTitle("Open from PACS");
+  progress->setWindowModality(Qt::WindowModal);
+  progress->setAutoClose(false);
+  progress->setAutoReset(false);
+  progress->setMinimumDuration(0);
+  progress->setValue(0);
+  return progress;
+}
+
+/// A retrieval's work, off the GUI thread: the series into `folder` of the cache (an earlier,
+/// perhaps partial, copy replaced), counting into `received` / `total`, then the cache pruned.
+/// An exception's text goes to `error`.
+void retrieveIntoCache(const io::PacsServer& server, const std::string& study_uid, const std::string& series_uid,
+                       const fs::path& folder, int expected, std::atomic<bool>& cancel, std::atomic<int>& received,
+                       std::atomic<int>& total, io::PacsRetrieveResult& result, std::string& error) {
+  try {
+    std::error_code ec;
+    fs::remove_all(folder, ec);
+    io::PacsRetrieveOptions options;
+    options.expected_instances = expected;
+    options.cancel = &cancel;
+    options.progress = [&](const io::PacsRetrieveProgress& p) {
+      received = p.received;
+      if (p.total > 0) total = p.total;
+    };
+    result = io::pacsRetrieveSeries(server, study_uid, series_uid, folder, options);
+    if (!result.cancelled) prunePacsCache(folder.parent_path(), kPacsCacheMaxBytes, folder);
+  } catch (const std::exception& e) {
+    error = e.what();
+  }
+}
+
+}  // namespace
+
 void PacsBrowserDialog::retrieveSelected() {
   const auto selected = tree_->selectedItems();
   if (selected.isEmpty() || progress_ != nullptr) return;
@@ -511,15 +552,7 @@ void PacsBrowserDialog::retrieveSelected() {
   auto state = std::make_shared<Retrieval>();
   state->total = expected;
   retrieval_ = state;
-  progress_ = new QProgressDialog("Retrieving the series from " + q(server.describe()) + "...", "Cancel", 0,
-                                  std::max(expected, 0), this);
-  progress_->setObjectName("pacsProgress");
-  progress_->setWindowTitle("Open from PACS");
-  progress_->setWindowModality(Qt::WindowModal);
-  progress_->setAutoClose(false);
-  progress_->setAutoReset(false);
-  progress_->setMinimumDuration(0);
-  progress_->setValue(0);
+  progress_ = makeRetrievalProgress(q(server.describe()), expected, this);
   connect(progress_, &QProgressDialog::canceled, this, [this, state] {
     state->cancel = true;
     if (progress_ != nullptr) progress_->setLabelText("Cancelling...");
@@ -545,21 +578,9 @@ void PacsBrowserDialog::retrieveSelected() {
   auto error = std::make_shared<std::string>();
   runInBackground(
       [state, server, study_uid, series_uid, folder, expected, result, error] {
-        try {
-          std::error_code ec;
-          fs::remove_all(folder, ec);  // an earlier, perhaps partial, copy of this series
-          io::PacsRetrieveOptions options;
-          options.expected_instances = expected;
-          options.cancel = &state->cancel;  // `state` lives as long as this thread
-          options.progress = [state](const io::PacsRetrieveProgress& p) {
-            state->received = p.received;
-            if (p.total > 0) state->total = p.total;
-          };
-          *result = io::pacsRetrieveSeries(server, study_uid, series_uid, folder, options);
-          if (!result->cancelled) prunePacsCache(folder.parent_path(), kPacsCacheMaxBytes, folder);
-        } catch (const std::exception& e) {
-          *error = e.what();
-        }
+        // `state` lives as long as this thread.
+        retrieveIntoCache(server, study_uid, series_uid, folder, expected, state->cancel, state->received,
+                          state->total, *result, *error);
       },
       [this, result, error] {
         retrieval_.reset();
