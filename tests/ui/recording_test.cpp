@@ -35,6 +35,7 @@
 #include <vtkMatrix4x4.h>
 #include <vtkRenderer.h>
 
+#include "file_size_limit.h"
 #include "ui_test_util.h"
 #include "vh/runtime/device.h"
 #include "vh/runtime/recording.h"
@@ -594,27 +595,7 @@ TEST(ExportFrames, ReusingTheVolumesPictureGivesTheFullRendersFrames) {
   EXPECT_EQ(full.volumeRenders(), records.size());
 }
 
-/// RLIMIT_FSIZE as a full disk: writes past `bytes` fail with EFBIG (SIGXFSZ ignored, so it is
-/// an error, not a kill).
-class FileSizeLimit {
- public:
-  explicit FileSizeLimit(rlim_t bytes) {
-    old_handler_ = ::signal(SIGXFSZ, SIG_IGN);
-    ::getrlimit(RLIMIT_FSIZE, &old_);
-    const rlimit limit{bytes, old_.rlim_max};
-    ::setrlimit(RLIMIT_FSIZE, &limit);
-  }
-  ~FileSizeLimit() {
-    ::setrlimit(RLIMIT_FSIZE, &old_);
-    ::signal(SIGXFSZ, old_handler_);
-  }
-  FileSizeLimit(const FileSizeLimit&) = delete;
-  FileSizeLimit& operator=(const FileSizeLimit&) = delete;
-
- private:
-  rlimit old_{};
-  sighandler_t old_handler_ = nullptr;
-};
+using vh::test::FileSizeLimit;
 
 TEST(RecordingWriteFailure, AFullDiskEndsTheRecordingAndTheStatusBarSaysWhy) {
   QTemporaryDir dir;

@@ -15,6 +15,7 @@
 
 #include <gtest/gtest.h>
 
+#include "file_size_limit.h"
 #include "runtime_test_support.h"
 #include "vh/io/nrrd_writer.h"
 #include "vh/io/private_files.h"
@@ -44,25 +45,7 @@ class UmaskScope {
   mode_t old_;
 };
 
-/// Limits the size of any file this process writes (a full disk, as writers see it: write()
-/// fails with EFBIG once a file would pass `bytes`); SIGXFSZ ignored so it is an error, not a kill.
-class FileSizeLimit {
- public:
-  explicit FileSizeLimit(rlim_t bytes) {
-    old_handler_ = ::signal(SIGXFSZ, SIG_IGN);
-    ::getrlimit(RLIMIT_FSIZE, &old_);
-    const rlimit limit{bytes, old_.rlim_max};
-    ::setrlimit(RLIMIT_FSIZE, &limit);
-  }
-  ~FileSizeLimit() {
-    ::setrlimit(RLIMIT_FSIZE, &old_);
-    ::signal(SIGXFSZ, old_handler_);
-  }
-
- private:
-  rlimit old_{};
-  sighandler_t old_handler_ = nullptr;
-};
+using vh::test::FileSizeLimit;
 
 std::vector<std::string> namesIn(const fs::path& dir) {
   std::vector<std::string> names;

@@ -26,6 +26,7 @@
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
 
+#include "file_size_limit.h"
 #include "allocation_guard.h"
 #include "runtime_test_support.h"
 #include "vh/runtime/haptic_thread.h"
@@ -472,27 +473,7 @@ TEST(Recording, KillNineLeavesARecordingReadAsUnfinished) {
   EXPECT_TRUE(closed.warnings.empty());
 }
 
-/// RLIMIT_FSIZE as a full disk: writes past `bytes` fail with EFBIG (SIGXFSZ ignored, so it is
-/// an error, not a kill).
-class FileSizeLimit {
- public:
-  explicit FileSizeLimit(rlim_t bytes) {
-    old_handler_ = ::signal(SIGXFSZ, SIG_IGN);
-    ::getrlimit(RLIMIT_FSIZE, &old_);
-    const rlimit limit{bytes, old_.rlim_max};
-    ::setrlimit(RLIMIT_FSIZE, &limit);
-  }
-  ~FileSizeLimit() {
-    ::setrlimit(RLIMIT_FSIZE, &old_);
-    ::signal(SIGXFSZ, old_handler_);
-  }
-  FileSizeLimit(const FileSizeLimit&) = delete;
-  FileSizeLimit& operator=(const FileSizeLimit&) = delete;
-
- private:
-  rlimit old_{};
-  sighandler_t old_handler_ = nullptr;
-};
+using vh::test::FileSizeLimit;
 
 TEST(Recording, AWriteFailureStopsAtOnceAndKeepsEveryWholeChunk) {
   const fs::path path = test::scratchDir() / "full.vhrec";
