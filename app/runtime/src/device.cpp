@@ -112,25 +112,15 @@ double ForceSafety::rampFactor() const noexcept {
   }
 }
 
-void ForceSafety::step(const SafetyInput& in, Eigen::Vector3d& force_W_N, Eigen::Vector3d& torque_W_Nm) noexcept {
-  ++stats_.ticks;
-  force_W_N.setZero();
-  torque_W_Nm.setZero();
-  const bool enabled = state_ != State::kOff;
-  const double dt = std::isfinite(in.tick_interval_s) && in.tick_interval_s > 0.0 ? in.tick_interval_s : 0.0;
-  const double period = std::isfinite(in.period_s) && in.period_s > 0.0 ? in.period_s : dt;
-
-  // 1 and 2: what kind of tick this is.
-  bool gate = false;   // re-arm the engage gate: the hand may be anywhere
-  bool fault = false;  // hold the last good command
-  bool stall = false;  // a stall longer than a silent device: an outage at once
+ForceSafety::TickKind ForceSafety::classifyTick(const SafetyInput& in, double dt) noexcept {
+  TickKind kind;
   if (!in.sample_ok) {
     ++stats_.missing_samples;
-    fault = true;
+    kind.fault = true;
   } else {
-    if (in.reseeded) gate = true;
+    if (in.reseeded) kind.gate = true;
     if (!have_connection_ || in.connection != connection_) {
-      if (have_connection_) gate = true;  // a new connection
+      if (have_connection_) kind.gate = true;  // a new connection: the hand may be anywhere
       connection_ = in.connection;
       have_connection_ = true;
       stale_s_ = 0.0;
@@ -141,47 +131,74 @@ void ForceSafety::step(const SafetyInput& in, Eigen::Vector3d& force_W_N, Eigen:
     if (stale_s_ > policy_.silent_s) {
       if (!silent_) ++stats_.silent_trips;
       silent_ = true;
-      fault = true;
+      kind.fault = true;
     }
   }
   if (in.tick_interval_s > policy_.watchdog_s) {
     ++stats_.watchdog_trips;
-    fault = true;
-    stall = in.tick_interval_s > policy_.silent_s;
+    kind.fault = true;
+    kind.stall = in.tick_interval_s > policy_.silent_s;
   }
   if (!in.force_W_N.allFinite() || !in.torque_W_Nm.allFinite()) {
     ++stats_.nonfinite_commands;
-    gate = true;
+    kind.gate = true;
   }
+  return kind;
+}
+
+void ForceSafety::holdLastCommand(double period_s, bool stall, Eigen::Vector3d& force_W_N,
+                                  Eigen::Vector3d& torque_W_Nm) noexcept {
+  hold_age_s_ += period_s;
+  const double scale = faultHoldScale(hold_age_s_, policy_.fault_hold_s, stall);
+  if (scale > 0.0 && state_ != State::kWaitingForSmallForce) {
+    force_W_N = scale * held_force_W_N_;
+    torque_W_Nm = scale * held_torque_W_Nm_;
+    ++stats_.held_ticks;
+  } else {
+    ++stats_.zeroed_ticks;
+  }
+  if (scale == 0.0 && !outage_ && state_ != State::kWaitingForSmallForce) {
+    // Re-armed for an outage: good ticks ramp up from where the output is now (zero).
+    outage_ = true;
+    ++stats_.outages;
+    state_ = State::kRamping;
+    ramp_elapsed_s_ = 0.0;
+    ramp_from_force_W_N_.setZero();
+    ramp_from_torque_W_Nm_.setZero();
+  }
+}
+
+bool ForceSafety::passEngageGate(const Eigen::Vector3d& f, const Eigen::Vector3d& tau) noexcept {
+  if (state_ != State::kWaitingForSmallForce) return true;
+  if (f.norm() > policy_.engage_force_N || tau.norm() > policy_.engage_torque_Nm) return false;
+  state_ = policy_.ramp_time_s > 0.0 ? State::kRamping : State::kEngaged;
+  ramp_elapsed_s_ = 0.0;
+  ramp_from_force_W_N_.setZero();
+  ramp_from_torque_W_Nm_.setZero();
+  return true;
+}
+
+void ForceSafety::step(const SafetyInput& in, Eigen::Vector3d& force_W_N, Eigen::Vector3d& torque_W_Nm) noexcept {
+  ++stats_.ticks;
+  force_W_N.setZero();
+  torque_W_Nm.setZero();
+  const bool enabled = state_ != State::kOff;
+  const double dt = std::isfinite(in.tick_interval_s) && in.tick_interval_s > 0.0 ? in.tick_interval_s : 0.0;
+  const double period = std::isfinite(in.period_s) && in.period_s > 0.0 ? in.period_s : dt;
+
+  // 1 and 2: what kind of tick this is.
+  const TickKind kind = classifyTick(in, dt);
   if (!enabled) {
     ++stats_.zeroed_ticks;
     return;
   }
-  if (gate) {
+  if (kind.gate) {
     rearm();
     ++stats_.zeroed_ticks;
     return;
   }
-  if (fault) {
-    // The last good command, decaying linearly over the hold; an outage once it is spent.
-    hold_age_s_ += period;
-    const double scale = faultHoldScale(hold_age_s_, policy_.fault_hold_s, stall);
-    if (scale > 0.0 && state_ != State::kWaitingForSmallForce) {
-      force_W_N = scale * held_force_W_N_;
-      torque_W_Nm = scale * held_torque_W_Nm_;
-      ++stats_.held_ticks;
-    } else {
-      ++stats_.zeroed_ticks;
-    }
-    if (scale == 0.0 && !outage_ && state_ != State::kWaitingForSmallForce) {
-      // Re-armed for an outage: good ticks ramp up from where the output is now (zero).
-      outage_ = true;
-      ++stats_.outages;
-      state_ = State::kRamping;
-      ramp_elapsed_s_ = 0.0;
-      ramp_from_force_W_N_.setZero();
-      ramp_from_torque_W_Nm_.setZero();
-    }
+  if (kind.fault) {
+    holdLastCommand(period, kind.stall, force_W_N, torque_W_Nm);
     return;
   }
   hold_age_s_ = 0.0;
@@ -193,16 +210,9 @@ void ForceSafety::step(const SafetyInput& in, Eigen::Vector3d& force_W_N, Eigen:
   if (dropUnactuated(actuated_, f, tau)) ++stats_.dropped_dof_ticks;
 
   // 4. Engage gate (on what the device would render, before clamping).
-  if (state_ == State::kWaitingForSmallForce) {
-    if (f.norm() <= policy_.engage_force_N && tau.norm() <= policy_.engage_torque_Nm) {
-      state_ = policy_.ramp_time_s > 0.0 ? State::kRamping : State::kEngaged;
-      ramp_elapsed_s_ = 0.0;
-      ramp_from_force_W_N_.setZero();
-      ramp_from_torque_W_Nm_.setZero();
-    } else {
-      ++stats_.zeroed_ticks;
-      return;
-    }
+  if (!passEngageGate(f, tau)) {
+    ++stats_.zeroed_ticks;
+    return;
   }
 
   // 5. Clamp to the limits.

@@ -290,6 +290,19 @@ class ForceSafety {
   const SafetyPolicy& policy() const noexcept { return policy_; }
 
  private:
+  /// What kind of tick step() has: the engage gate to re-arm, a fault (hold the last good
+  /// command), a stall longer than a silent device (an outage at once).
+  struct TickKind {
+    bool gate = false;
+    bool fault = false;
+    bool stall = false;
+  };
+  TickKind classifyTick(const SafetyInput& in, double dt) noexcept;
+  /// A fault tick: the last good command, decaying linearly over the hold; an outage once spent.
+  void holdLastCommand(double period_s, bool stall, Eigen::Vector3d& force_W_N, Eigen::Vector3d& torque_W_Nm) noexcept;
+  /// While waiting for a small force: whether `f` and `tau` are small enough to engage (then
+  /// the ramp starts). Always true once engaged.
+  bool passEngageGate(const Eigen::Vector3d& f, const Eigen::Vector3d& tau) noexcept;
   void rearm() noexcept;
 
   DeviceLimits limits_;
