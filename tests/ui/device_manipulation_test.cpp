@@ -10,6 +10,8 @@
 #include <vtkMatrix4x4.h>
 #include <vtkNew.h>
 
+#include "vh/ui/view/scene_actors.h"
+
 namespace vh::ui {
 namespace {
 
@@ -99,19 +101,7 @@ TEST(ViewRay, EveryPointOfThePixelsRayProjectsOntoThatPixelAsVtksCameraSeesIt) {
     camera->SetViewAngle(35.0);
     camera->SetParallelProjection(parallel);
     camera->SetParallelScale(0.12);
-    ViewCamera c;
-    double v[3];
-    camera->GetPosition(v);
-    c.position_W_m = Eigen::Vector3d(v[0], v[1], v[2]);
-    camera->GetFocalPoint(v);
-    c.focal_point_W_m = Eigen::Vector3d(v[0], v[1], v[2]);
-    camera->GetViewUp(v);
-    c.view_up_W = Eigen::Vector3d(v[0], v[1], v[2]);
-    c.view_angle_deg = 35.0;
-    c.parallel = parallel;
-    c.parallel_scale_m = 0.12;
-    c.viewport_width_px = w;
-    c.viewport_height_px = h;
+    const ViewCamera c = viewCameraOf(camera, h, w);  // as the view reads its camera
     for (const Eigen::Vector2d px : {Eigen::Vector2d(320, 180), Eigen::Vector2d(10.5, 20.25), Eigen::Vector2d(600, 350)}) {
       const ViewRay ray = rayThroughPixel(c, px.x(), px.y());
       EXPECT_NEAR(ray.dir_W.norm(), 1.0, 1e-12);
