@@ -99,24 +99,95 @@ void CollisionDetector::startSearch(int j) noexcept {
   search_[j].backoff = 0;
 }
 
+double CollisionDetector::nodeBall(const WalkArc& arc, const ShellNode& node, Eigen::Vector3d& centre_W) const noexcept {
+  const Eigen::Vector3d r_c = arc.motion.radial_W(node.center_T_m);
+  centre_W = arc.c_mid_W_m + arc.R_mid * r_c;
+  return (0.5 * arc.t_max * arc.motion.pathLengthBound(r_c) + node.radius_m + epsilon_) * (1.0 + 1e-9) + 1e-12;
+}
+
+bool CollisionDetector::nearPathFree(WorkCounters& k, const WalkArc& arc, const ShellNode& node, int j,
+                                     LeafSteps& steps, bool& within_a_voxel) const noexcept {
+  // F's steps per grid axis over the leaf's ball, for its points' direction tests: one read
+  // of the step bricks per leaf instead of one per point. The ball holds every point's arc
+  // over [0, t_max], and so its chord and the straight lines from the chord to the arc that
+  // runFreeAlongItsDirection() bounds F along (the ball is convex).
+  if (steps.state == 0) {
+    Eigen::Vector3d centre_W, box_lo, box_hi;
+    const double radius = nodeBall(arc, node, centre_W);
+    ballGridBox(centre_W, radius, box_lo, box_hi);
+    steps.state = volume_->gridStepRange(box_lo, box_hi, steps.lo, steps.hi) ? 1 : -1;
+  }
+  return runFreeAlongItsDirection(k, arc.motion, j, 0.0, arc.t_max, arc.isovalue, steps.state > 0 ? &steps.lo : nullptr,
+                                  steps.state > 0 ? &steps.hi : nullptr, &within_a_voxel);
+}
+
+std::size_t CollisionDetector::collectLeaf(Lane& lane, const WalkArc& arc, int node_index, std::size_t logged,
+                                           QueueEntry* heap, std::size_t count) noexcept {
+  WorkCounters& k = lane.counters;
+  const ShellNode& node = nodes_[node_index];
+  // Tested one by one, a leaf is near when one of its points is not culled by its own test.
+  if (arc.queue) lane.walk_log[logged] = ~node_index;
+  LeafSteps steps;
+  for (int i = node.begin; i < node.end; ++i) {
+    const int j = order_[i];
+    lane.active[lane.active_count++] = j;
+    if (started_[j] == sweep_stamp_) {  // a contact point: started (and queued) already
+      lane.walk_log[logged] = node_index;
+      continue;
+    }
+    startPoint(k, arc.motion, j);
+    if (!arc.queue || embedded_[j] || !(pt_[j].path > 0.0)) continue;
+    // A point whose walk met the surface last sweep (near_surface) is walked at once: its
+    // first segment directly, then run tests. Only a cull is skipped, so the first time of
+    // contact is the same; this sweep's walks decide the flag again.
+    const bool near = pt_[j].near_surface != 0;
+    pt_[j].near_surface = 0;
+    if (near) {
+      // Unless its whole path is proven free by F at its start and the most F can rise along
+      // it: a point gliding along a wall or leaving it is neither walked nor queued.
+      bool within_a_voxel = false;
+      if (nearPathFree(k, arc, node, j, steps, within_a_voxel)) {
+        pt_[j].clear_until = arc.t_max;
+        // Still within about a voxel of the surface: the same test next sweep, where its
+        // ball would only say "may hit" and a walk follow; farther, the ball culls it.
+        pt_[j].near_surface = within_a_voxel ? 1 : 0;
+        if (within_a_voxel) lane.walk_log[logged] = node_index;
+        continue;
+      }
+      lane.walk_log[logged] = node_index;
+      startSearch(j);
+      heap[count++] = {0.0, j, 0, pt_[j].segments == 1 ? 0 : -1};
+      continue;
+    }
+    // The path over [0, t_max] first: its own ball culls the point at once (on the Engine
+    // wrench 62 % of the points with several segments, which otherwise cost about two run
+    // tests and two heap steps each).
+    const double radius_j = 0.5 * arc.t_max * pt_[j].path * (1.0 + 1e-9) + 1e-12;
+    if (!ballMayBeInside(k, arc.c_mid_W_m + arc.R_mid * pt_[j].r0, radius_j, arc.isovalue, pt_[j].sagitta)) {
+      pt_[j].clear_until = arc.t_max;
+      continue;
+    }
+    // One segment: sample it; several: resolved lazily, in time order.
+    lane.walk_log[logged] = node_index;
+    startSearch(j);
+    heap[count++] = {0.0, j, 0, pt_[j].segments == 1 ? 0 : 1};
+  }
+  return count;
+}
+
 std::size_t CollisionDetector::collectActive(Lane& lane, const RigidMotion& motion, double t_max, double isovalue,
                                              bool queue, bool resume) noexcept {
   WorkCounters& k = lane.counters;
   const double angle = motion.omega_W_rad().norm();
-  const Eigen::Matrix3d R_mid = angle > 0.0 && t_max > 0.0
-      ? Eigen::AngleAxisd(0.5 * t_max * angle, motion.omega_W_rad() / angle).toRotationMatrix()
-      : Eigen::Matrix3d::Identity();
-  const Eigen::Vector3d c_mid = motion.c0_W_m() + (0.5 * t_max) * motion.v_W_m();
+  const WalkArc arc{motion, t_max, isovalue, queue,
+                    angle > 0.0 && t_max > 0.0
+                        ? Eigen::AngleAxisd(0.5 * t_max * angle, motion.omega_W_rad() / angle).toRotationMatrix()
+                        : Eigen::Matrix3d::Identity(),
+                    motion.c0_W_m() + (0.5 * t_max) * motion.v_W_m()};
   // Point-shell tree, top down: a node whose points' arcs over [0, t_max], plus epsilon of
   // further travel (addContactsAt's look-ahead), lie in bricks that cannot hold an inside point
   // is skipped. A point at r = r_c + d (|d| <= node radius) stays within t_max path(r_c) / 2 +
-  // radius of the node centre's position at t_max / 2.
-  // The ball in W about the node centre's position at t_max / 2 that holds all its points' arcs.
-  const auto nodeBall = [&](const ShellNode& node, Eigen::Vector3d& centre_W) {
-    const Eigen::Vector3d r_c = motion.radial_W(node.center_T_m);
-    centre_W = c_mid + R_mid * r_c;
-    return (0.5 * t_max * motion.pathLengthBound(r_c) + node.radius_m + epsilon_) * (1.0 + 1e-9) + 1e-12;
-  };
+  // radius of the node centre's position at t_max / 2 (nodeBall()).
   std::size_t count = 0;
   int top = 0;
   int* const stack = lane.stack.data();
@@ -155,7 +226,7 @@ std::size_t CollisionDetector::collectActive(Lane& lane, const RigidMotion& moti
     // in a walk that tests its points one by one).
     if (!node_near_[node_index] || (node.left < 0 && !queue)) {
       Eigen::Vector3d centre_W;
-      const double radius = nodeBall(node, centre_W);
+      const double radius = nodeBall(arc, node, centre_W);
       // Culled points are not touched at all (addContactsAt visits only the active ones).
       if (!ballMayBeInside(k, centre_W, radius, isovalue, sweep_sagitta_)) {
         lane.walk_log[lane.walk_logged++] = ~node_index;
@@ -169,66 +240,7 @@ std::size_t CollisionDetector::collectActive(Lane& lane, const RigidMotion& moti
       stack[top++] = node.left;
       continue;
     }
-    // Tested one by one, a leaf is near when one of its points is not culled by its own test.
-    if (queue) lane.walk_log[logged] = ~node_index;
-    // F's steps per grid axis over the leaf's ball, for its points' direction tests: one read
-    // of the step bricks per leaf instead of one per point. The ball holds every point's arc
-    // over [0, t_max], and so its chord and the straight lines from the chord to the arc that
-    // runFreeAlongItsDirection() bounds F along (the ball is convex). 0: not read yet; -1: the
-    // ball leaves the grid (each point then reads its own).
-    int leaf_ranges = 0;
-    Eigen::Vector3d leaf_lo, leaf_hi;
-    for (int i = node.begin; i < node.end; ++i) {
-      const int j = order_[i];
-      lane.active[lane.active_count++] = j;
-      if (started_[j] == sweep_stamp_) {  // a contact point: started (and queued) already
-        lane.walk_log[logged] = node_index;
-        continue;
-      }
-      startPoint(k, motion, j);
-      if (!queue || embedded_[j] || !(pt_[j].path > 0.0)) continue;
-      // A point whose walk met the surface last sweep (near_surface) is walked at once: its
-      // first segment directly, then run tests. Only a cull is skipped, so the first time of
-      // contact is the same; this sweep's walks decide the flag again.
-      const bool near = pt_[j].near_surface != 0;
-      pt_[j].near_surface = 0;
-      if (near) {
-        // Unless its whole path is proven free by F at its start and the most F can rise along
-        // it: a point gliding along a wall or leaving it is neither walked nor queued.
-        if (leaf_ranges == 0) {
-          Eigen::Vector3d centre_W, box_lo, box_hi;
-          const double radius = nodeBall(node, centre_W);
-          ballGridBox(centre_W, radius, box_lo, box_hi);
-          leaf_ranges = volume_->gridStepRange(box_lo, box_hi, leaf_lo, leaf_hi) ? 1 : -1;
-        }
-        bool within_a_voxel = false;
-        if (runFreeAlongItsDirection(k, motion, j, 0.0, t_max, isovalue, leaf_ranges > 0 ? &leaf_lo : nullptr,
-                                     leaf_ranges > 0 ? &leaf_hi : nullptr, &within_a_voxel)) {
-          pt_[j].clear_until = t_max;
-          // Still within about a voxel of the surface: the same test next sweep, where its
-          // ball would only say "may hit" and a walk follow; farther, the ball culls it.
-          pt_[j].near_surface = within_a_voxel ? 1 : 0;
-          if (within_a_voxel) lane.walk_log[logged] = node_index;
-          continue;
-        }
-        lane.walk_log[logged] = node_index;
-        startSearch(j);
-        heap[count++] = {0.0, j, 0, pt_[j].segments == 1 ? 0 : -1};
-        continue;
-      }
-      // The path over [0, t_max] first: its own ball culls the point at once (on the Engine
-      // wrench 62 % of the points with several segments, which otherwise cost about two run
-      // tests and two heap steps each).
-      const double radius_j = 0.5 * t_max * pt_[j].path * (1.0 + 1e-9) + 1e-12;
-      if (!ballMayBeInside(k, c_mid + R_mid * pt_[j].r0, radius_j, isovalue, pt_[j].sagitta)) {
-        pt_[j].clear_until = t_max;
-        continue;
-      }
-      // One segment: sample it; several: resolved lazily, in time order.
-      lane.walk_log[logged] = node_index;
-      startSearch(j);
-      heap[count++] = {0.0, j, 0, pt_[j].segments == 1 ? 0 : 1};
-    }
+    count = collectLeaf(lane, arc, node_index, logged, heap, count);
   }
   return count;
 }
@@ -286,61 +298,51 @@ void CollisionDetector::laneJob(void* detector, int lane) noexcept {
   if (l.phase == 1 || l.phase == 2) self->runLane(l);
 }
 
-SweepResult CollisionDetector::runAccelerated() noexcept {
+bool CollisionDetector::runContactPass() noexcept {
   PendingSweep& st = pending_;
   const RigidMotion& motion = st.motion;
-  const double isovalue = st.isovalue;
   SweepResult& result = st.result;
-  st.active = false;
-  // The contact points first: they are the likely first hits (a proxy resting or pushed
-  // against the surface is blocked by one of them, often at t = 0). Their first segment is
-  // taken before any other point's, which is one of the orders the queue may pop segments
-  // starting at t = 0 in. A hit here bounds the search: the tree and the other points are then
-  // only tested over [0, t]; a hit at t = 0 ends the sweep at once (addContactsAt then
-  // collects the points near the proxy itself).
-  // Budget cut before the lanes: nothing is proven for the points not yet looked at; the
-  // sweep can be resumed where it stopped.
-  const auto cutAtStart = [&] {
-    st.active = true;
-    active_complete_ = false;
-    SweepResult cut;
-    cut.t = cut.t_inside = 0.0;
-    cut.budget_cut = true;
-    return cut;
-  };
-  if (st.phase == 0) {
-    for (; st.contact_index < contact_count_; ++st.contact_index) {
-      if (overBudget()) return cutAtStart();
-      const int j = contacts_[st.contact_index].point_index;
-      if (j < 0 || embedded_[j]) continue;  // an edge contact has no path of its own
-      startPoint(counters_, motion, j);
-      if (!(pt_[j].path > 0.0)) continue;
-      started_[j] = sweep_stamp_;
-      startSearch(j);
-      const double t_end = stepSegment(counters_, motion, j, 0, 0.0, isovalue, result.t, result);
-      // Outside at the end of its first segment: a run test next (in the lane that holds it).
-      if (t_end >= 0.0 && t_end < 1.0) {
-        Lane& lane = lanes_[static_cast<std::size_t>(root_lane_[static_cast<std::size_t>(rank_of_point_[j])])];
-        lane.heap[lane.queued++] = {t_end, j, 1, 1};
-      }
-      if (result.t == 0.0) break;  // nothing can come earlier
+  for (; st.contact_index < contact_count_; ++st.contact_index) {
+    if (overBudget()) return false;
+    const int j = contacts_[st.contact_index].point_index;
+    if (j < 0 || embedded_[j]) continue;  // an edge contact has no path of its own
+    startPoint(counters_, motion, j);
+    if (!(pt_[j].path > 0.0)) continue;
+    started_[j] = sweep_stamp_;
+    startSearch(j);
+    const double t_end = stepSegment(counters_, motion, j, 0, 0.0, st.isovalue, result.t, result);
+    // Outside at the end of its first segment: a run test next (in the lane that holds it).
+    if (t_end >= 0.0 && t_end < 1.0) {
+      Lane& lane = lanes_[static_cast<std::size_t>(root_lane_[static_cast<std::size_t>(rank_of_point_[j])])];
+      lane.heap[lane.queued++] = {t_end, j, 1, 1};
     }
-    if (result.t == 0.0) {
-      active_complete_ = false;
-      return result;
-    }
-    st.phase = 1;
-    st.walk_t = result.t;
-    for (Lane& lane : lanes_) {
-      lane.phase = 1;
-      lane.walk_top = -1;  // not started
-      lane.count = 0;
-      lane.result = SweepResult{};
-    }
+    if (result.t == 0.0) break;  // nothing can come earlier
   }
-  // The lanes: each walks its share of the point-shell tree, then searches its points in time
-  // order, all bounded by the earliest hit any has found.
-  bound_->store(result.t, std::memory_order_relaxed);
+  return true;
+}
+
+SweepResult CollisionDetector::cutBeforeLanes() noexcept {
+  pending_.active = true;
+  active_complete_ = false;
+  SweepResult cut;
+  cut.t = cut.t_inside = 0.0;
+  cut.budget_cut = true;
+  return cut;
+}
+
+void CollisionDetector::startLanePhase() noexcept {
+  pending_.phase = 1;
+  pending_.walk_t = pending_.result.t;
+  for (Lane& lane : lanes_) {
+    lane.phase = 1;
+    lane.walk_top = -1;  // not started
+    lane.count = 0;
+    lane.result = SweepResult{};
+  }
+}
+
+void CollisionDetector::forkLanes(double t_bound) noexcept {
+  bound_->store(t_bound, std::memory_order_relaxed);
   for (Lane& lane : lanes_) {
     startLaneWork(lane);
     lane.cut = false;
@@ -354,7 +356,10 @@ SweepResult CollisionDetector::runAccelerated() noexcept {
       if (lane.phase == 1 || lane.phase == 2) runLane(lane);
   }
   joinLaneWork();
-  SweepResult best = result;
+}
+
+SweepResult CollisionDetector::mergeLanes(const SweepResult& contact_hit) noexcept {
+  SweepResult best = contact_hit;
   double cut_t = 2.0;
   bool walked = true;
   for (const Lane& lane : lanes_) {
@@ -367,7 +372,7 @@ SweepResult CollisionDetector::runAccelerated() noexcept {
   if (!(best.t <= cut_t)) {
     // A lane was stopped before every path up to the first hit was proven free: proven free up
     // to the earliest place a lane stopped (0 while a lane still walks the tree).
-    st.active = true;
+    pending_.active = true;
     active_complete_ = walked;
     SweepResult cut;
     cut.t = cut.t_inside = walked ? std::min(cut_t, best.t) : 0.0;
@@ -378,24 +383,99 @@ SweepResult CollisionDetector::runAccelerated() noexcept {
   return best;
 }
 
-void CollisionDetector::runLane(Lane& lane) noexcept {
+SweepResult CollisionDetector::runAccelerated() noexcept {
   PendingSweep& st = pending_;
-  const RigidMotion& motion = st.motion;
-  const double isovalue = st.isovalue;
-  WorkCounters& k = lane.counters;
-  SweepResult& result = lane.result;
-  if (lane.phase == 1) {
-    const bool resume = lane.walk_top >= 0;
-    lane.count = lane.queued + collectActive(lane, motion, st.walk_t, isovalue, true, resume);
-    if (lane.walk_stopped) {
-      lane.cut = true;
-      lane.cut_t = 0.0;
-      return;
+  SweepResult& result = st.result;
+  st.active = false;
+  // The contact points first: they are the likely first hits (a proxy resting or pushed
+  // against the surface is blocked by one of them, often at t = 0). Their first segment is
+  // taken before any other point's, which is one of the orders the queue may pop segments
+  // starting at t = 0 in. A hit here bounds the search: the tree and the other points are then
+  // only tested over [0, t]; a hit at t = 0 ends the sweep at once (addContactsAt then
+  // collects the points near the proxy itself).
+  // Budget cut before the lanes: nothing is proven for the points not yet looked at; the
+  // sweep can be resumed where it stopped.
+  if (st.phase == 0) {
+    if (!runContactPass()) return cutBeforeLanes();
+    if (result.t == 0.0) {
+      active_complete_ = false;
+      return result;
     }
-    std::make_heap(lane.heap.begin(), lane.heap.begin() + static_cast<std::ptrdiff_t>(lane.count), Later{});
-    lane.phase = 2;
-    lane.pop_pending = false;
+    startLanePhase();
   }
+  // The lanes: each walks its share of the point-shell tree, then searches its points in time
+  // order, all bounded by the earliest hit any has found.
+  forkLanes(result.t);
+  return mergeLanes(result);
+}
+
+bool CollisionDetector::walkLane(Lane& lane) noexcept {
+  const PendingSweep& st = pending_;
+  const bool resume = lane.walk_top >= 0;
+  lane.count = lane.queued + collectActive(lane, st.motion, st.walk_t, st.isovalue, true, resume);
+  if (lane.walk_stopped) {
+    lane.cut = true;
+    lane.cut_t = 0.0;
+    return false;
+  }
+  std::make_heap(lane.heap.begin(), lane.heap.begin() + static_cast<std::ptrdiff_t>(lane.count), Later{});
+  lane.phase = 2;
+  lane.pop_pending = false;
+  return true;
+}
+
+void CollisionDetector::pushSuccessor(Lane& lane, const QueueEntry& entry) noexcept {
+  replaceTop(lane.heap.data(), lane.count, entry);
+  lane.pop_pending = false;
+}
+
+void CollisionDetector::resolveRun(Lane& lane, const QueueEntry& e) noexcept {
+  const int j = e.point;
+  const std::int64_t total = pt_[j].segments;
+  const std::int64_t run = std::min(e.run, total - e.segment);
+  if (!runMayHit(lane.counters, pending_.motion, j, e.segment, run, pending_.isovalue)) {
+    search_[j].backoff = 0;
+    const std::int64_t after = e.segment + run;
+    if (search_[j].clear_segments == e.segment) {
+      search_[j].clear_segments = after;
+      pt_[j].clear_until = after >= total ? 1.0 : segmentBegin(j, after);
+    }
+    if (after < total) pushSuccessor(lane, {segmentBegin(j, after), j, after, std::min(2 * run, total - after)});
+  } else {
+    pushSuccessor(lane, {e.t_begin, j, e.segment, run / 2});  // run 1 becomes 0: sample it
+  }
+}
+
+std::int64_t CollisionDetector::runAfterOutsideStep(PointSearch& search, std::int64_t run) noexcept {
+  // Near the surface, after a failed test of one segment (run 0): 2^b direct steps (-2^b,
+  // counting up to -1), then test a run again (1); b grows with each failure in a row and
+  // is reset by a run proven empty. Along a surface (a tool sliding in a hole) the tests
+  // fail nearly always and this keeps them to a few per point instead of one per 2 samples.
+  std::int64_t successor = 1;
+  if (run == 0) {
+    successor = -(std::int64_t{1} << search.backoff);
+    if (search.backoff < 6) ++search.backoff;
+  } else if (run < -1) {
+    successor = run + 1;
+  }
+  return successor;
+}
+
+void CollisionDetector::stepQueuedSegment(Lane& lane, const QueueEntry& e, double limit) noexcept {
+  const int j = e.point;
+  std::atomic<double>& bound = *bound_;
+  SweepResult& result = lane.result;
+  const double t_end = stepSegment(lane.counters, pending_.motion, j, e.segment, e.t_begin, pending_.isovalue, limit,
+                                   result);
+  if (result.hit_point == j && result.t < bound.load(std::memory_order_relaxed)) {
+    double seen = bound.load(std::memory_order_relaxed);
+    while (result.t < seen && !bound.compare_exchange_weak(seen, result.t, std::memory_order_relaxed)) {
+    }
+  }
+  if (t_end >= 0.0 && t_end < 1.0) pushSuccessor(lane, {t_end, j, e.segment + 1, runAfterOutsideStep(search_[j], e.run)});
+}
+
+void CollisionDetector::searchLane(Lane& lane) noexcept {
   // The paper's time-ordered search over the segments that remain; the samples and the
   // bisection are the paper's, so the first time of contact is the same double.
   // Entries with run <= 0 are single segments sampled as the paper does (0: after a run test,
@@ -404,78 +484,42 @@ void CollisionDetector::runLane(Lane& lane) noexcept {
   // segment, whose end is then sampled as the paper does, and after a sample that stays
   // outside the next segment is sampled directly once more before testing resumes.
   // Each step replaces the minimum by at most one successor (replaceTop: one sift).
-  // The minimum stays at the root while it is processed; push() (at most once per step) puts
-  // its successor there, else it is popped at the top of the next step.
+  // The minimum stays at the root while it is processed; pushSuccessor() (at most once per
+  // step) puts its successor there, else it is popped at the top of the next step.
   // With several lanes the search stops at the earliest hit of any lane (bound_).
   QueueEntry* const heap = lane.heap.data();
-  std::size_t& count = lane.count;
-  bool& pop_pending = lane.pop_pending;
   std::atomic<double>& bound = *bound_;
-  const auto push = [&](const QueueEntry& entry) {
-    replaceTop(heap, count, entry);
-    pop_pending = false;
-  };
   // Each step's work is charged to the upper node holding its point (rebalanceLanes()).
-  std::int64_t mark = k.total();
+  std::int64_t mark = lane.counters.total();
   int stepped = -1;
-  const auto charge = [&] {
-    if (balanced_lanes_ && stepped >= 0) chargeRoot(lane, rank_of_point_[static_cast<std::size_t>(stepped)], mark);
-  };
   for (;;) {
-    charge();
-    if (pop_pending) {
-      pop_pending = false;
-      if (--count > 0) replaceTop(heap, count, heap[count]);
+    if (balanced_lanes_ && stepped >= 0) chargeRoot(lane, rank_of_point_[static_cast<std::size_t>(stepped)], mark);
+    if (lane.pop_pending) {
+      lane.pop_pending = false;
+      if (--lane.count > 0) replaceTop(heap, lane.count, heap[lane.count]);
     }
-    const double limit = std::min(result.t, bound.load(std::memory_order_relaxed));
-    if (!(count > 0 && heap[0].t_begin < limit)) break;
+    const double limit = std::min(lane.result.t, bound.load(std::memory_order_relaxed));
+    if (!(lane.count > 0 && heap[0].t_begin < limit)) break;
     if (overBudget(lane)) {  // every path of the lane is proven free up to the queue's front
       lane.cut = true;
       lane.cut_t = heap[0].t_begin;
       return;
     }
     const QueueEntry e = heap[0];
-    pop_pending = true;
-    const int j = e.point;
-    stepped = j;
-    const std::int64_t total = pt_[j].segments;
+    lane.pop_pending = true;
+    stepped = e.point;
     if (e.run > 0) {  // an unresolved run
-      const std::int64_t run = std::min(e.run, total - e.segment);
-      if (!runMayHit(k, motion, j, e.segment, run, isovalue)) {
-        search_[j].backoff = 0;
-        const std::int64_t after = e.segment + run;
-        if (search_[j].clear_segments == e.segment) {
-          search_[j].clear_segments = after;
-          pt_[j].clear_until = after >= total ? 1.0 : segmentBegin(j, after);
-        }
-        if (after < total) push({segmentBegin(j, after), j, after, std::min(2 * run, total - after)});
-      } else {
-        push({e.t_begin, j, e.segment, run / 2});  // run 1 becomes 0: sample it
-      }
-      continue;
-    }
-    const double t_end = stepSegment(k, motion, j, e.segment, e.t_begin, isovalue, limit, result);
-    if (result.hit_point == j && result.t < bound.load(std::memory_order_relaxed)) {
-      double seen = bound.load(std::memory_order_relaxed);
-      while (result.t < seen && !bound.compare_exchange_weak(seen, result.t, std::memory_order_relaxed)) {
-      }
-    }
-    if (t_end >= 0.0 && t_end < 1.0) {
-      // Near the surface, after a failed test of one segment (run 0): 2^b direct steps (-2^b,
-      // counting up to -1), then test a run again (1); b grows with each failure in a row and
-      // is reset by a run proven empty. Along a surface (a tool sliding in a hole) the tests
-      // fail nearly always and this keeps them to a few per point instead of one per 2 samples.
-      std::int64_t successor = 1;
-      if (e.run == 0) {
-        successor = -(std::int64_t{1} << search_[j].backoff);
-        if (search_[j].backoff < 6) ++search_[j].backoff;
-      } else if (e.run < -1) {
-        successor = e.run + 1;
-      }
-      push({t_end, j, e.segment + 1, successor});
+      resolveRun(lane, e);
+    } else {
+      stepQueuedSegment(lane, e, limit);
     }
   }
   lane.phase = 3;
+}
+
+void CollisionDetector::runLane(Lane& lane) noexcept {
+  if (lane.phase == 1 && !walkLane(lane)) return;
+  searchLane(lane);
 }
 
 }  // namespace vh::haptics

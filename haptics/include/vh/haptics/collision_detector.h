@@ -393,6 +393,37 @@ class CollisionDetector {
   // kAccelerated: one lane's walk and time-ordered search (resumable).
   void runLane(Lane& lane) noexcept;
   static void laneJob(void* detector, int lane) noexcept;
+  // kAccelerated, the sweep's first phase: each contact point's first segment, taken before any
+  // other point's (a hit recorded in pending_.result; an outside end queued for a run test in
+  // the lane holding the point), up to a hit at t = 0. False when the budget stopped it (it goes
+  // on at pending_.contact_index).
+  bool runContactPass() noexcept;
+  // A sweep the budget stopped in its contact pass: nothing proven (t = 0), to be resumed.
+  SweepResult cutBeforeLanes() noexcept;
+  // After the contact pass: every lane starts its walk over [0, the pass's first hit] afresh.
+  void startLanePhase() noexcept;
+  // The lanes' walks and searches (on the pool, else one after the other on the caller), their
+  // shared first time of contact (bound_) starting at t_bound or a finished lane's earlier hit;
+  // then their work added to the caller's.
+  void forkLanes(double t_bound) noexcept;
+  // The sweep's result from the lanes': the earliest of contact_hit and their hits (on a tie the
+  // lowest point index), or, where a lane stopped before it, a budget cut proven free up to
+  // where the first lane stopped.
+  SweepResult mergeLanes(const SweepResult& contact_hit) noexcept;
+  // A lane's walk of its share of the point-shell tree over [0, pending_.walk_t] (collectActive()
+  // with queue), its queue then made a heap; false when the budget stopped it (lane.cut at 0).
+  bool walkLane(Lane& lane) noexcept;
+  // A lane's time-ordered search (resumable): until its queue's front reaches its own hit or
+  // bound_, or the budget stops it (lane.cut at the front's time).
+  void searchLane(Lane& lane) noexcept;
+  // Puts `entry` in place of the lane's queue minimum, the entry being processed (one sift).
+  static inline void pushSuccessor(Lane& lane, const QueueEntry& entry) noexcept;
+  // An unresolved run of segments (e.run > 0): proven empty by runMayHit() and skipped (the next
+  // run twice as long), else halved in place (a run of 1 becomes a sample).
+  inline void resolveRun(Lane& lane, const QueueEntry& e) noexcept;
+  // A single segment (e.run <= 0) stepped as the paper does, looking no later than `limit`: a
+  // hit lowers bound_; an end outside queues the next segment.
+  inline void stepQueuedSegment(Lane& lane, const QueueEntry& e, double limit) noexcept;
   // The state of an accelerated sweep between ticks (a cut sweep resumes on the next tick).
   struct PendingSweep {
     bool active = false;         // a cut sweep can be resumed
@@ -465,6 +496,36 @@ class CollisionDetector {
   // lane.walk_stopped. With `resume`, goes on with a walk the budget stopped.
   std::size_t collectActive(Lane& lane, const RigidMotion& motion, double t_max, double isovalue, bool queue,
                             bool resume = false) noexcept;
+  // collectActive()'s arc over [0, t_max]: the tool's rotation and its centre of mass in W [m]
+  // at t_max / 2, about which the balls that hold a node's points' arcs, or one point's, are
+  // centred; with `queue`, each point's path is tested and queued.
+  struct WalkArc {
+    const RigidMotion& motion;
+    double t_max;
+    double isovalue;
+    bool queue;
+    Eigen::Matrix3d R_mid;
+    Eigen::Vector3d c_mid_W_m;
+  };
+  // The ball in W about `node`'s centre at t_max / 2 that holds its points' arcs over [0, t_max]
+  // plus epsilon of further travel: returns its radius [m], its centre in centre_W [m].
+  inline double nodeBall(const WalkArc& arc, const ShellNode& node, Eigen::Vector3d& centre_W) const noexcept;
+  // F's steps per grid axis over a leaf's ball (ScalarVolume::gridStepRange()), read at its
+  // first near point: state 0 not read yet, 1 read, -1 the ball leaves the grid.
+  struct LeafSteps {
+    int state = 0;
+    Eigen::Vector3d lo, hi;
+  };
+  // Point j of leaf `node`, near the surface last sweep (PointState::near_surface): whether its
+  // path over [0, t_max] is proven free along its direction (runFreeAlongItsDirection() with the
+  // leaf's steps); within_a_voxel: the surface may be about a voxel away.
+  inline bool nearPathFree(WorkCounters& k, const WalkArc& arc, const ShellNode& node, int j, LeafSteps& steps,
+                    bool& within_a_voxel) const noexcept;
+  // A leaf the walk reached (logged at lane.walk_log[logged]): its points made active; with
+  // arc.queue, each point the contact pass did not start is proven free by its own test or
+  // queued at heap[count]. Returns the new count of queued entries.
+  inline std::size_t collectLeaf(Lane& lane, const WalkArc& arc, int node_index, std::size_t logged, QueueEntry* heap,
+                          std::size_t count) noexcept;
   // Readies a lane for work on the caller's budget and clock (base work, counters, clock reads).
   void startLaneWork(Lane& lane) const noexcept;
   // After a fork: adds the lanes' work to the caller's (the budget counting the busiest lane's)
@@ -607,6 +668,9 @@ class CollisionDetector {
     unsigned char backoff = 0;          // kAccelerated: direct steps after a failed test = 2^backoff
   };
   std::vector<PointSearch> search_;
+  // The run of the entry that follows a step of one segment (run <= 0) ending outside: 2^backoff
+  // direct steps after a failed run test, then a run test again (see stepQueuedSegment()).
+  static inline std::int64_t runAfterOutsideStep(PointSearch& search, std::int64_t run) noexcept;
   // kAccelerated, per point: sweep_stamp_ when started by the contact pre-pass (written before
   // the lanes run, read by them).
   std::vector<std::uint32_t> started_;
