@@ -59,6 +59,82 @@ namespace {
 constexpr double kEdgeStepFraction = 0.25;
 }  // namespace
 
+bool HapticRenderer::graphCrossesAt(const RigidMotion& motion, double t, double isovalue, bool& cut) noexcept {
+  const bool crosses = collision_.edgesCrossAt(motion.poseAt(t), isovalue);
+  cut = cut || collision_.edgeTestCut();
+  return crosses;
+}
+
+double HapticRenderer::markEdgesFree(double t, double isovalue) noexcept {
+  edges_free_isovalue_ = isovalue;
+  edges_free_embedded_ = collision_.embeddedCount();
+  return t;
+}
+
+int HapticRenderer::edgeTestSteps(const RigidMotion& motion, double t_from, double t_to) const noexcept {
+  // Poses a quarter of the point spacing of travel apart at the farthest point.
+  const double travel_m = (motion.speed_m() + motion.angle_rad() * collision_.shellRadius_m()) * (t_to - t_from);
+  const double spacing_m = std::max(collision_.shellEdges().spacing_m, collision_.epsilon_m());
+  return static_cast<int>(std::clamp(std::ceil(travel_m / (kEdgeStepFraction * spacing_m)), 1.0, 64.0));
+}
+
+bool HapticRenderer::firstCrossingPose(const RigidMotion& motion, double t_from, double t_to, int tested,
+                                       double isovalue, double& t_free, double& cross_t, bool& cut) noexcept {
+  bool crossing = false;
+  for (int k = 1; k <= tested && !crossing; ++k) {
+    const double t = k == tested ? t_to : t_from + (t_to - t_from) * k / tested;
+    crossing = graphCrossesAt(motion, t, isovalue, cut);
+    if (cut) return crossing;
+    if (crossing) cross_t = t; else t_free = t;
+  }
+  return crossing;
+}
+
+void HapticRenderer::bisectListedCrossing(const RigidMotion& motion, double proven_t, int sub_steps, double isovalue,
+                                          double& free_t, double& cross_t) noexcept {
+  free_t = proven_t;
+  const double span = cross_t - proven_t;
+  for (int k = 1; k < sub_steps; ++k) {
+    const double t = proven_t + span * k / sub_steps;
+    if (collision_.listedEdgesCrossAt(motion.poseAt(t), isovalue)) {
+      cross_t = t;
+      break;
+    }
+    free_t = t;
+  }
+  for (int i = 0; i < 8; ++i) {
+    const double mid = 0.5 * (free_t + cross_t);
+    if (collision_.listedEdgesCrossAt(motion.poseAt(mid), isovalue)) cross_t = mid; else free_t = mid;
+  }
+}
+
+double HapticRenderer::searchEdgeStop(const RigidMotion& motion, double t_from, double proven_t, double cross_t,
+                                      int sub_steps, double isovalue, bool& stopped, bool& cut) noexcept {
+  // Sub-steps of at most a quarter of the point spacing of travel at the farthest point, in
+  // order, then the first crossing one bisected (8 halvings): on the edges found crossing so
+  // far only (a whole-graph test per sub-step cost up to 72 of them a tick). The pose found is
+  // then tested with the whole graph; an edge crossing there joins the list and the search
+  // starts again from the last pose proven free. After kRounds, the proxy stays there.
+  constexpr int kRounds = 4;
+  for (int round = 0; round < kRounds; ++round) {
+    double free_t = proven_t;
+    bisectListedCrossing(motion, proven_t, sub_steps, isovalue, free_t, cross_t);
+    if (free_t <= proven_t) return proven_t > t_from ? markEdgesFree(proven_t, isovalue) : t_from;
+    const bool crosses = graphCrossesAt(motion, free_t, isovalue, cut);
+    if (cut) {
+      stopped = false;
+      return proven_t > t_from ? markEdgesFree(proven_t, isovalue) : t_from;
+    }
+    if (!crosses) {
+      // The edge contact is taken at the crossing pose just past it.
+      collision_.listedEdgesCrossAt(motion.poseAt(cross_t), isovalue);
+      return markEdgesFree(free_t, isovalue);
+    }
+    cross_t = free_t;
+  }
+  return proven_t > t_from ? markEdgesFree(proven_t, isovalue) : t_from;
+}
+
 double HapticRenderer::edgeSafeTime(const RigidMotion& motion, double t_from, double t_to, double isovalue,
                                     bool& stopped, bool& cut) noexcept {
   stopped = false;
@@ -66,41 +142,23 @@ double HapticRenderer::edgeSafeTime(const RigidMotion& motion, double t_from, do
   if (!edge_test_ || !(t_to > t_from)) return t_to;
   collision_.clearCrossingEdges();
   // A whole-graph test the budget or the deadline stopped: nothing is known past t_from.
-  const auto crossesAt = [&](double t) {
-    const bool crosses = collision_.edgesCrossAt(motion.poseAt(t), isovalue);
-    cut = cut || collision_.edgeTestCut();
-    return crosses;
-  };
-  // The pose the move ends at, proven free by a whole-graph test: the next move need not test
-  // its start (the field only falls under drilling; a new isovalue or a released point redoes it).
-  const auto provenFree = [&](double t) {
-    edges_free_isovalue_ = isovalue;
-    edges_free_embedded_ = collision_.embeddedCount();
-    return t;
-  };
+  // The pose a move ends at, proven free by a whole-graph test, need not be tested again as the
+  // next move's start (markEdgesFree()).
   const bool start_proven = edges_free_isovalue_ == isovalue && edges_free_embedded_ == collision_.embeddedCount();
-  // Poses a quarter of the point spacing of travel apart at the farthest point.
-  const double travel_m = (motion.speed_m() + motion.angle_rad() * collision_.shellRadius_m()) * (t_to - t_from);
-  const double spacing_m = std::max(collision_.shellEdges().spacing_m, collision_.epsilon_m());
-  const int steps = static_cast<int>(std::clamp(std::ceil(travel_m / (kEdgeStepFraction * spacing_m)), 1.0, 64.0));
+  const int steps = edgeTestSteps(motion, t_from, t_to);
   // Swept: the whole graph at each of those poses along the move, in order, then at its end;
   // else at its end only. The first pose where an edge crosses ends the walk; t_free is the
   // last pose proven free before it.
   double t_free = t_from;
   double cross_t = t_to;
-  bool crossing = false;
-  const int tested = options_.edge_test_swept ? steps : 1;
-  for (int k = 1; k <= tested && !crossing; ++k) {
-    const double t = k == tested ? t_to : t_from + (t_to - t_from) * k / tested;
-    crossing = crossesAt(t);
-    if (cut) return t_free;
-    if (crossing) cross_t = t; else t_free = t;
-  }
-  if (!crossing) return provenFree(t_to);
+  const bool crossing = firstCrossingPose(motion, t_from, t_to, options_.edge_test_swept ? steps : 1, isovalue, t_free,
+                                          cross_t, cut);
+  if (cut) return t_free;
+  if (!crossing) return markEdgesFree(t_to, isovalue);
   // Already crossing where the move starts (after a reset, or an edge that a lowered isovalue
   // grew a wall through): not held, as embedded points are not.
   if (!start_proven && t_free == t_from) {
-    if (crossesAt(t_from)) {
+    if (graphCrossesAt(motion, t_from, isovalue, cut)) {
       if (cut) return t_from;
       edges_free_isovalue_ = std::numeric_limits<double>::quiet_NaN();
       return t_to;
@@ -108,43 +166,8 @@ double HapticRenderer::edgeSafeTime(const RigidMotion& motion, double t_from, do
     if (cut) return t_from;
   }
   stopped = true;
-  // Sub-steps of at most a quarter of the point spacing of travel at the farthest point, in
-  // order, then the first crossing one bisected (8 halvings): on the edges found crossing so
-  // far only (a whole-graph test per sub-step cost up to 72 of them a tick). The pose found is
-  // then tested with the whole graph; an edge crossing there joins the list and the search
-  // starts again from the last pose proven free. After kRounds, the proxy stays there.
-  constexpr int kRounds = 4;
-  const int sub_steps = options_.edge_test_swept ? 1 : steps;  // swept: t_free and cross_t are one step apart
-  const double proven_t = t_free;
-  for (int round = 0; round < kRounds; ++round) {
-    double free_t = proven_t;
-    const double span = cross_t - proven_t;
-    for (int k = 1; k < sub_steps; ++k) {
-      const double t = proven_t + span * k / sub_steps;
-      if (collision_.listedEdgesCrossAt(motion.poseAt(t), isovalue)) {
-        cross_t = t;
-        break;
-      }
-      free_t = t;
-    }
-    for (int i = 0; i < 8; ++i) {
-      const double mid = 0.5 * (free_t + cross_t);
-      if (collision_.listedEdgesCrossAt(motion.poseAt(mid), isovalue)) cross_t = mid; else free_t = mid;
-    }
-    if (free_t <= proven_t) return proven_t > t_from ? provenFree(proven_t) : t_from;
-    const bool crosses = crossesAt(free_t);
-    if (cut) {
-      stopped = false;
-      return proven_t > t_from ? provenFree(proven_t) : t_from;
-    }
-    if (!crosses) {
-      // The edge contact is taken at the crossing pose just past it.
-      collision_.listedEdgesCrossAt(motion.poseAt(cross_t), isovalue);
-      return provenFree(free_t);
-    }
-    cross_t = free_t;
-  }
-  return proven_t > t_from ? provenFree(proven_t) : t_from;
+  // Swept: t_free and cross_t are one step apart, so no sub-steps.
+  return searchEdgeStop(motion, t_from, t_free, cross_t, options_.edge_test_swept ? 1 : steps, isovalue, stopped, cut);
 }
 
 void HapticRenderer::resetProxy(const Pose& X_WP) noexcept {
@@ -366,6 +389,110 @@ void HapticRenderer::resumeCutSweep(const Pose& X_WD, double isovalue, TickStats
   stats.time_of_contact = t;
 }
 
+double HapticRenderer::liftStandoff_m(bool& lift) const noexcept {
+  // The stand-off lift (an option, off by default) is a recovery: only after a tick that was
+  // blocked almost at once (a lift on every tick drove a hook hanging from one contact into a
+  // 2-cycle), and never while the surface has swallowed part of the tool (a moving surface must
+  // not push the proxy against the user).
+  // After a move the tool's surface between its points stopped at once, the lift is on (at
+  // least kEdgeStandoffFraction): an edge contact is found at the crossing itself, with no
+  // clearance, and an edge tangent to a rounded ridge cuts into it at second order as soon as
+  // it turns, so a plain tangent move is stopped again at its start, tick after tick (the
+  // tool held at a convex edge of the block).
+  // A point contact stopped at once on two moves in a row is stuck the same way (a probe spun
+  // about its shaft on a ball at 2 mm point spacing: its one contact creeps along the
+  // interpolant's bumps to zero clearance and holds the turn at 0.43 of 0.5 rad): the lift is
+  // on (at least RendererOptions::stuck_standoff_fraction).
+  lift = blocked_ticks_ > 0 && collision_.embeddedCount() == 0;
+  const double fraction = edge_blocked_last_tick_ ? std::max(options_.standoff_fraction, kEdgeStandoffFraction)
+                          : blocked_ticks_ >= 2   ? std::max(options_.standoff_fraction, stuck_standoff_fraction_)
+                                                  : options_.standoff_fraction;
+  return lift ? fraction * collision_.epsilon_m() : 0.0;
+}
+
+void HapticRenderer::sweepLiftAlone(const Eigen::Vector3d& lift_W, double isovalue, RigidMotion& motion,
+                                    SweepResult& hit, TickStats& stats, Clock::time_point& phase) noexcept {
+  motion = RigidMotion::FromVelocity(X_WP_, tool_->mass.p_TCm_m, lift_W, Eigen::Vector3d::Zero());
+  hit = collision_.sweep(motion, isovalue);
+  ++stats.sweeps;
+  phase = Clock::now();
+}
+
+void HapticRenderer::solveOrLift(const Pose& X_WD, double isovalue, bool lift, double standoff_m, RigidMotion& motion,
+                                 SweepResult& hit, TickStats& stats, Clock::time_point& phase) noexcept {
+  // After a move the tool's surface between its points stopped at once: the lift alone this
+  // tick. The edge contact is a line touching a rounded ridge, and its one normal (the
+  // gradient's part perpendicular to the edge) holds to first order only; a solved slide,
+  // mostly tangential, with the lift spread along it, cuts the ridge again at its first
+  // sub-step, tick after tick (the probe held at the block's hole rim). Lifted first, the next
+  // slide has the stand-off to spend.
+  const Eigen::Vector3d edge_lift_W =
+      lift && edge_blocked_last_tick_ ? ConfigurationSolver::standoffTranslation(collision_.contacts(), standoff_m)
+                                      : Eigen::Vector3d::Zero();
+  if (edge_lift_W.squaredNorm() > 0.0) {
+    sweepLiftAlone(edge_lift_W, isovalue, motion, hit, stats, phase);
+    return;
+  }
+  solveAndSweep(solver_, collision_, coupling_, options_, motion_scale_, X_WP_, X_WD, tool_->mass, standoff_m, isovalue,
+                motion, hit, stats, phase);
+  // Still stopped at once with the lift on: the point sits nanometres from the interpolant's
+  // surface and slides almost along it, so a bump a few nanometres high stops it before the
+  // lift, spread along the whole step, has raised it (the drill held at 117 N on the head
+  // phantom, its contact at F - s = -0.001 HU). The lift alone this tick.
+  if (standoff_m > 0.0 && hit.hit_point >= 0 && !hit.budget_cut && hit.t < 0.01) {
+    const Eigen::Vector3d lift_W = ConfigurationSolver::standoffTranslation(collision_.contacts(), standoff_m);
+    if (lift_W.squaredNorm() > 0.0) sweepLiftAlone(lift_W, isovalue, motion, hit, stats, phase);
+  }
+}
+
+void HapticRenderer::moveProxy(const RigidMotion& motion, const SweepResult& hit, double isovalue, TickStats& stats,
+                               Clock::time_point phase) noexcept {
+  bool edge_stop = false, edge_cut = false;
+  const auto edge_start = edge_test_ ? Clock::now() : Clock::time_point{};  // no clock read without it
+  const double t_move = edgeSafeTime(motion, 0.0, hit.t, isovalue, edge_stop, edge_cut);
+  if (edge_test_) stats.edge_us = usSince(edge_start, Clock::now());
+  stats.edge_stop = edge_stop;
+  if (edge_stop) collision_.abandonSweep();
+  // An edge test the budget stopped holds the proxy like a cut sweep: not a blocked move.
+  if (!edge_cut) blocked_ticks_ = (hit.hit_point >= 0 || edge_stop) && t_move < 0.01 ? blocked_ticks_ + 1 : 0;
+  edge_blocked_last_tick_ = edge_stop && t_move < 0.01;
+  X_WP_ = motion.poseAt(t_move);
+  last_motion_ = motion;
+  last_t_ = t_move;
+  collision_.refreshPositions(X_WP_);
+  if (collision_.sweepPending()) {  // cut: goes on next tick, from where the proxy is
+    pending_t_ = t_move;
+  } else {
+    // After a cut edge test, a shorter step too: the edges' clearance certificates then hold
+    // over more of it (CollisionDetector::edgesCrossAt()), so the test gets through.
+    adaptMotionScale(hit.budget_cut || edge_cut, motion_scale_);
+  }
+  if (hit.hit_point >= 0 && !hit.budget_cut && !edge_stop && !edge_cut) collision_.addContactsAt(motion, hit, isovalue);
+  // Stopped by the tool's surface between its points: that place on the wall joins the contact
+  // set, so that the next tick's configuration solver slides along it.
+  if (edge_stop) {
+    const auto edge_contact_start = Clock::now();
+    collision_.addEdgeContact(X_WP_, isovalue);
+    stats.edge_us += usSince(edge_contact_start, Clock::now());
+  }
+  stats.contacts_us = usSince(phase, Clock::now());
+  stats.budget_cut = hit.budget_cut || edge_cut;
+  stats.time_of_contact = t_move;
+}
+
+void HapticRenderer::sweepNewMove(const Pose& X_WD, double isovalue, Clock::time_point start,
+                                  TickStats& stats) noexcept {
+  prepareContactSet(collision_, X_WP_, X_WD, isovalue, embedded_scan_needed_, last_isovalue_);
+  auto phase = Clock::now();
+  stats.prune_us = usSince(start, phase);
+  bool lift = false;
+  const double standoff_m = liftStandoff_m(lift);
+  RigidMotion motion;
+  SweepResult hit;
+  solveOrLift(X_WD, isovalue, lift, standoff_m, motion, hit, stats, phase);
+  moveProxy(motion, hit, isovalue, stats, phase);
+}
+
 TickOutput HapticRenderer::tick(const Pose& X_WD_in, double requested_isovalue) noexcept {
   const auto start = Clock::now();
   TickOutput out;
@@ -390,92 +517,7 @@ TickOutput HapticRenderer::tick(const Pose& X_WD_in, double requested_isovalue) 
   if (collision_.sweepPending()) {
     resumeCutSweep(X_WD, isovalue, out.stats);
   } else {
-    prepareContactSet(collision_, X_WP_, X_WD, isovalue, embedded_scan_needed_, last_isovalue_);
-    auto phase = Clock::now();
-    out.stats.prune_us = usSince(start, phase);
-    // The stand-off lift (an option, off by default) is a recovery: only after a tick that was
-    // blocked almost at once (a lift on every tick drove a hook hanging from one contact into a
-    // 2-cycle), and never while the surface has swallowed part of the tool (a moving surface must
-    // not push the proxy against the user).
-    // After a move the tool's surface between its points stopped at once, the lift is on (at
-    // least kEdgeStandoffFraction): an edge contact is found at the crossing itself, with no
-    // clearance, and an edge tangent to a rounded ridge cuts into it at second order as soon as
-    // it turns, so a plain tangent move is stopped again at its start, tick after tick (the
-    // tool held at a convex edge of the block).
-    // A point contact stopped at once on two moves in a row is stuck the same way (a probe spun
-    // about its shaft on a ball at 2 mm point spacing: its one contact creeps along the
-    // interpolant's bumps to zero clearance and holds the turn at 0.43 of 0.5 rad): the lift is
-    // on (at least RendererOptions::stuck_standoff_fraction).
-    const bool lift = blocked_ticks_ > 0 && collision_.embeddedCount() == 0;
-    const double fraction = edge_blocked_last_tick_ ? std::max(options_.standoff_fraction, kEdgeStandoffFraction)
-                            : blocked_ticks_ >= 2   ? std::max(options_.standoff_fraction, stuck_standoff_fraction_)
-                                                    : options_.standoff_fraction;
-    const double standoff_m = lift ? fraction * collision_.epsilon_m() : 0.0;
-    RigidMotion motion;
-    SweepResult hit;
-    // A move of the lift alone (no rotation), swept; the next tick slides from the lifted pose.
-    const auto liftAlone = [&](const Eigen::Vector3d& lift_W) {
-      motion = RigidMotion::FromVelocity(X_WP_, mass.p_TCm_m, lift_W, Eigen::Vector3d::Zero());
-      hit = collision_.sweep(motion, isovalue);
-      ++out.stats.sweeps;
-      phase = Clock::now();
-    };
-    // After a move the tool's surface between its points stopped at once: the lift alone this
-    // tick. The edge contact is a line touching a rounded ridge, and its one normal (the
-    // gradient's part perpendicular to the edge) holds to first order only; a solved slide,
-    // mostly tangential, with the lift spread along it, cuts the ridge again at its first
-    // sub-step, tick after tick (the probe held at the block's hole rim). Lifted first, the next
-    // slide has the stand-off to spend.
-    const Eigen::Vector3d edge_lift_W =
-        lift && edge_blocked_last_tick_ ? ConfigurationSolver::standoffTranslation(collision_.contacts(), standoff_m)
-                                        : Eigen::Vector3d::Zero();
-    if (edge_lift_W.squaredNorm() > 0.0) {
-      liftAlone(edge_lift_W);
-    } else {
-      solveAndSweep(solver_, collision_, coupling_, options_, motion_scale_, X_WP_, X_WD, mass, standoff_m, isovalue,
-                    motion, hit, out.stats, phase);
-      // Still stopped at once with the lift on: the point sits nanometres from the interpolant's
-      // surface and slides almost along it, so a bump a few nanometres high stops it before the
-      // lift, spread along the whole step, has raised it (the drill held at 117 N on the head
-      // phantom, its contact at F - s = -0.001 HU). The lift alone this tick.
-      if (standoff_m > 0.0 && hit.hit_point >= 0 && !hit.budget_cut && hit.t < 0.01) {
-        const Eigen::Vector3d lift_W = ConfigurationSolver::standoffTranslation(collision_.contacts(), standoff_m);
-        if (lift_W.squaredNorm() > 0.0) liftAlone(lift_W);
-      }
-    }
-    // Step 5: move the proxy to the first contact (or the target, or as far as the budget
-    // proved free), and no farther than the tool's surface between its points allows.
-    bool edge_stop = false, edge_cut = false;
-    const auto edge_start = edge_test_ ? Clock::now() : Clock::time_point{};  // no clock read without it
-    const double t_move = edgeSafeTime(motion, 0.0, hit.t, isovalue, edge_stop, edge_cut);
-    if (edge_test_) out.stats.edge_us = usSince(edge_start, Clock::now());
-    out.stats.edge_stop = edge_stop;
-    if (edge_stop) collision_.abandonSweep();
-    // An edge test the budget stopped holds the proxy like a cut sweep: not a blocked move.
-    if (!edge_cut) blocked_ticks_ = (hit.hit_point >= 0 || edge_stop) && t_move < 0.01 ? blocked_ticks_ + 1 : 0;
-    edge_blocked_last_tick_ = edge_stop && t_move < 0.01;
-    X_WP_ = motion.poseAt(t_move);
-    last_motion_ = motion;
-    last_t_ = t_move;
-    collision_.refreshPositions(X_WP_);
-    if (collision_.sweepPending()) {  // cut: goes on next tick, from where the proxy is
-      pending_t_ = t_move;
-    } else {
-      // After a cut edge test, a shorter step too: the edges' clearance certificates then hold
-      // over more of it (CollisionDetector::edgesCrossAt()), so the test gets through.
-      adaptMotionScale(hit.budget_cut || edge_cut, motion_scale_);
-    }
-    if (hit.hit_point >= 0 && !hit.budget_cut && !edge_stop && !edge_cut) collision_.addContactsAt(motion, hit, isovalue);
-    // Stopped by the tool's surface between its points: that place on the wall joins the contact
-    // set, so that the next tick's configuration solver slides along it.
-    if (edge_stop) {
-      const auto edge_contact_start = Clock::now();
-      collision_.addEdgeContact(X_WP_, isovalue);
-      out.stats.edge_us += usSince(edge_contact_start, Clock::now());
-    }
-    out.stats.contacts_us = usSince(phase, Clock::now());
-    out.stats.budget_cut = hit.budget_cut || edge_cut;
-    out.stats.time_of_contact = t_move;
+    sweepNewMove(X_WD, isovalue, start, out.stats);
   }
   // Step 6: virtual coupling (the relative rotation tracked through the ticks: continuous past pi).
   const Wrench w = coupling_.track(X_WP_, X_WD, mass);

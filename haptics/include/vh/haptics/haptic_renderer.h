@@ -13,6 +13,7 @@
 /// act on the user's hand at the tool's centre of mass.
 
 #include <algorithm>
+#include <chrono>
 #include <cstdint>
 #include <limits>
 #include <memory>
@@ -257,6 +258,54 @@ class HapticRenderer {
   // Goes on with the sweep the work budget cut on an earlier tick (CollisionDetector::
   // resumeSweep()) and moves the proxy along its motion as far as proven free.
   void resumeCutSweep(const Pose& X_WD, double isovalue, TickStats& stats) noexcept;
+  // The whole neighbour graph's edge test at motion.poseAt(t) (CollisionDetector::edgesCrossAt()):
+  // whether an edge crosses; cut set when the budget or the deadline stopped it.
+  bool graphCrossesAt(const RigidMotion& motion, double t, double isovalue, bool& cut) noexcept;
+  // Notes that the pose the move ends at, time t, was proven free by a whole-graph test at this
+  // isovalue, so the next move need not test its start (the field only falls under drilling; a
+  // new isovalue or a released point redoes it). Returns t.
+  double markEdgesFree(double t, double isovalue) noexcept;
+  // The poses the edge test takes along motion over [t_from, t_to]: a quarter of the point
+  // spacing (at least epsilon) of travel apart at the farthest point, 1 to 64.
+  int edgeTestSteps(const RigidMotion& motion, double t_from, double t_to) const noexcept;
+  // The whole graph at `tested` poses evenly along [t_from, t_to] in order, the last at t_to, up
+  // to the first where an edge crosses (then its time in cross_t); t_free: the last pose proven
+  // free before it. Returns whether one crosses; stops at once when the test is cut.
+  bool firstCrossingPose(const RigidMotion& motion, double t_from, double t_to, int tested, double isovalue,
+                         double& t_free, double& cross_t, bool& cut) noexcept;
+  // On the edges listed as crossing only: sub_steps sub-steps from proven_t (free) towards
+  // cross_t (crossing) in order, then 8 halvings of the first crossing one; free_t and cross_t:
+  // the bracket found (free_t == proven_t when none was free).
+  void bisectListedCrossing(const RigidMotion& motion, double proven_t, int sub_steps, double isovalue, double& free_t,
+                            double& cross_t) noexcept;
+  // A move stopped by an edge between proven_t (free) and cross_t: up to four rounds of
+  // bisectListedCrossing(), each pose found tested with the whole graph (an edge crossing there
+  // joins the list and the next round starts again from proven_t). Returns the time the proxy
+  // may move to (t_from when nothing past it is proven); a cut test clears `stopped`.
+  double searchEdgeStop(const RigidMotion& motion, double t_from, double proven_t, double cross_t, int sub_steps,
+                        double isovalue, bool& stopped, bool& cut) noexcept;
+  // The tick's stand-off lift [m] (0: none) and in `lift` whether it is on: after a move blocked
+  // almost at once and with no point embedded; at least kEdgeStandoffFraction of epsilon after
+  // an edge stopped it, kStuckStandoffFraction after two blocked moves in a row.
+  double liftStandoff_m(bool& lift) const noexcept;
+  // A move of the lift alone (lift_W [m] in W, no rotation), swept; the next tick slides from
+  // the lifted pose. Counts the sweep and ends the phase (phase = now).
+  void sweepLiftAlone(const Eigen::Vector3d& lift_W, double isovalue, RigidMotion& motion, SweepResult& hit,
+                      TickStats& stats, std::chrono::steady_clock::time_point& phase) noexcept;
+  // Steps 3 and 4 of a new move: the constrained motion solved and swept (solveAndSweep()), or
+  // the stand-off lift alone where the last move was stopped at once (see tick()).
+  void solveOrLift(const Pose& X_WD, double isovalue, bool lift, double standoff_m, RigidMotion& motion,
+                   SweepResult& hit, TickStats& stats, std::chrono::steady_clock::time_point& phase) noexcept;
+  // Step 5: moves the proxy along `motion` to the first contact (or the target, or as far as
+  // the budget proved free), and no farther than the tool's surface between its points allows
+  // (edgeSafeTime()); then the contact set: the contacts at the hit, or the edge's contact.
+  // phase: when the sweep ended (contacts_us is counted from there).
+  void moveProxy(const RigidMotion& motion, const SweepResult& hit, double isovalue, TickStats& stats,
+                 std::chrono::steady_clock::time_point phase) noexcept;
+  // A tick with no cut sweep pending: step 2 (prune the contact set), the stand-off, steps 3-5
+  // (solveOrLift(), moveProxy()); start: the tick's start (prune_us is counted from there).
+  void sweepNewMove(const Pose& X_WD, double isovalue, std::chrono::steady_clock::time_point start,
+                    TickStats& stats) noexcept;
   bool edge_test_ = false;
   bool edge_blocked_last_tick_ = false;  // the last move was stopped at once by an edge
   // The edge test proved the proxy's pose free at this isovalue with this many embedded points
