@@ -73,73 +73,81 @@ std::uint64_t MaterialRemoval::removedVoxels() const noexcept {
   return total;
 }
 
-CutResult MaterialRemoval::cut(const Eigen::Vector3d& burr_center_W_m, double burr_radius_m, double force_N,
-                               double dt_s, double isovalue, bool burr_touches) noexcept {
-  CutResult result;
-  if (!burr_touches || !burr_center_W_m.allFinite() || !(burr_radius_m > 0.0) || !std::isfinite(burr_radius_m) ||
-      !(force_N > 0.0) || !std::isfinite(force_N) || !(dt_s > 0.0) || !std::isfinite(dt_s))
-    return result;
-  ScalarVolume& v = *volume_;
+void MaterialRemoval::gatherReach(const Eigen::Vector3d& c, double reach, double raw_threshold, bool rising,
+                                  BurrReach& r) const noexcept {
+  const ScalarVolume& v = *volume_;
   const VolumeGeometry& g = v.geometry();
-  const Eigen::Vector3d c = v.gridCoordinates(burr_center_W_m);
   const Eigen::Vector3d& s = g.spacing_m;
-  const double raw_threshold = (isovalue - v.valueOffset()) / v.valueScale();  // raw above (or below) it is felt
-  const bool rising = v.valueScale() > 0.0;
   const std::ptrdiff_t sy = g.dims[0], sz = static_cast<std::ptrdiff_t>(g.dims[0]) * g.dims[1];
-
-  int lo[3], hi[3];
-  double sum_w = 0.0;
-  int count = 0;
-  bool felt = false;
-  double nearest_felt = std::numeric_limits<double>::infinity();  // centre distance of the nearest felt voxel
-  // One pass over the voxels within `reach` of the centre: their count, weights, and whether
-  // (and how near) one of them is felt.
-  const auto gather = [&](double reach) {
-    sum_w = 0.0;
-    count = 0;
-    felt = false;
-    nearest_felt = std::numeric_limits<double>::infinity();
-    for (int a = 0; a < 3; ++a) {
-      lo[a] = static_cast<int>(std::max(0.0, std::ceil(c[a] - reach / s[a])));
-      hi[a] = static_cast<int>(std::min(static_cast<double>(g.dims[a] - 1), std::floor(c[a] + reach / s[a])));
-    }
-    for (int k = lo[2]; k <= hi[2]; ++k)
-      for (int j = lo[1]; j <= hi[1]; ++j)
-        for (int i = lo[0]; i <= hi[0]; ++i) {
-          const std::size_t idx = static_cast<std::size_t>(i + j * sy + k * sz);
-          if (remaining_[idx] == 0) continue;
-          const double d = Eigen::Vector3d((i - c[0]) * s[0], (j - c[1]) * s[1], (k - c[2]) * s[2]).norm();
-          if (d >= reach) continue;
-          sum_w += reach - d;
-          ++count;
-          const double raw = v.rawAt(idx);
-          if (rising ? raw > raw_threshold : raw < raw_threshold) {
-            felt = true;
-            nearest_felt = std::min(nearest_felt, d);
-          }
-        }
-  };
-  // The box of voxel centres is empty when the burr is far outside the grid.
-  if (!c.allFinite() || (c.array() < -1e6).any() || (c.array() > 1e9).any()) return result;
-  double reach = burr_radius_m;
-  gather(reach);
-  if (!felt) {
-    // The surface touches the burr but its voxels lie farther: cut the nearest layer of them
-    // (a quarter voxel beyond the nearest), at most one voxel diagonal beyond the burr.
-    gather(burr_radius_m + s.norm());
-    if (!felt) return result;
-    reach = std::min(nearest_felt + 0.25 * s.minCoeff(), burr_radius_m + s.norm());
-    gather(reach);
-    result.widened = true;
+  r.sum_w = 0.0;
+  r.count = 0;
+  r.felt = false;
+  r.nearest_felt = std::numeric_limits<double>::infinity();
+  for (int a = 0; a < 3; ++a) {
+    r.lo[a] = static_cast<int>(std::max(0.0, std::ceil(c[a] - reach / s[a])));
+    r.hi[a] = static_cast<int>(std::min(static_cast<double>(g.dims[a] - 1), std::floor(c[a] + reach / s[a])));
   }
-  const double energy_J = force_N * model_.burr_speed_rad_per_s * burr_radius_m * dt_s;
-  result.energy_J = energy_J;
-  int changed_lo[3] = {g.dims[0], g.dims[1], g.dims[2]}, changed_hi[3] = {-1, -1, -1};
+  for (int k = r.lo[2]; k <= r.hi[2]; ++k)
+    for (int j = r.lo[1]; j <= r.hi[1]; ++j)
+      for (int i = r.lo[0]; i <= r.hi[0]; ++i) {
+        const std::size_t idx = static_cast<std::size_t>(i + j * sy + k * sz);
+        if (remaining_[idx] == 0) continue;
+        const double d = Eigen::Vector3d((i - c[0]) * s[0], (j - c[1]) * s[1], (k - c[2]) * s[2]).norm();
+        if (d >= reach) continue;
+        r.sum_w += reach - d;
+        ++r.count;
+        const double raw = v.rawAt(idx);
+        if (rising ? raw > raw_threshold : raw < raw_threshold) {
+          r.felt = true;
+          r.nearest_felt = std::min(r.nearest_felt, d);
+        }
+      }
+}
+
+bool MaterialRemoval::feltReach(const Eigen::Vector3d& c, double burr_radius_m, double raw_threshold, bool rising,
+                                double& reach, BurrReach& r, bool& widened) const noexcept {
+  const Eigen::Vector3d& s = volume_->geometry().spacing_m;
+  reach = burr_radius_m;
+  gatherReach(c, reach, raw_threshold, rising, r);
+  if (r.felt) return true;
+  // The surface touches the burr but its voxels lie farther: cut the nearest layer of them
+  // (a quarter voxel beyond the nearest), at most one voxel diagonal beyond the burr.
+  gatherReach(c, burr_radius_m + s.norm(), raw_threshold, rising, r);
+  if (!r.felt) return false;
+  reach = std::min(r.nearest_felt + 0.25 * s.minCoeff(), burr_radius_m + s.norm());
+  gatherReach(c, reach, raw_threshold, rising, r);
+  widened = true;
+  return true;
+}
+
+void MaterialRemoval::removeVoxel(std::size_t idx, int m, std::uint64_t& head, std::uint64_t tail,
+                                  CutResult& result) noexcept {
+  volume_->writeRaw(idx, removed_raw_);
+  removed_[static_cast<std::size_t>(m)].fetch_add(1, std::memory_order_relaxed);
+  ++result.voxels_removed;
+  if (materials_[static_cast<std::size_t>(m)].critical) {
+    ++result.critical_removed;
+    if (result.critical_material < 0) result.critical_material = m;
+  }
+  if (head - tail < log_.size()) {
+    log_[head % log_.size()] = idx;
+    ++head;
+  } else {
+    dropped_.fetch_add(1, std::memory_order_relaxed);
+  }
+}
+
+void MaterialRemoval::shareEnergy(const Eigen::Vector3d& c, double reach, const BurrReach& r, double energy_J,
+                                  CutResult& result, std::array<int, 3>& changed_lo,
+                                  std::array<int, 3>& changed_hi) noexcept {
+  const VolumeGeometry& g = volume_->geometry();
+  const Eigen::Vector3d& s = g.spacing_m;
+  const std::ptrdiff_t sy = g.dims[0], sz = static_cast<std::ptrdiff_t>(g.dims[0]) * g.dims[1];
   std::uint64_t head = head_.load(std::memory_order_relaxed);
   const std::uint64_t tail = tail_.load(std::memory_order_acquire);
-  for (int k = lo[2]; k <= hi[2]; ++k)
-    for (int j = lo[1]; j <= hi[1]; ++j)
-      for (int i = lo[0]; i <= hi[0]; ++i) {
+  for (int k = r.lo[2]; k <= r.hi[2]; ++k)
+    for (int j = r.lo[1]; j <= r.hi[1]; ++j)
+      for (int i = r.lo[0]; i <= r.hi[0]; ++i) {
         const std::size_t idx = static_cast<std::size_t>(i + j * sy + k * sz);
         std::uint16_t& left = remaining_[idx];
         if (left == 0) continue;
@@ -147,7 +155,7 @@ CutResult MaterialRemoval::cut(const Eigen::Vector3d& burr_center_W_m, double bu
         if (d >= reach) continue;
         const int m = materialOf(idx);
         const double fraction =
-            energy_J * (reach - d) / sum_w / energy_J_per_voxel_[static_cast<std::size_t>(m)].load(std::memory_order_relaxed);
+            energy_J * (reach - d) / r.sum_w / energy_J_per_voxel_[static_cast<std::size_t>(m)].load(std::memory_order_relaxed);
         // Rounded down, the remainder carried to the next voxel (and tick): the removed material
         // never exceeds the energy delivered, and a light press on hard bone still cuts.
         const double exact = std::min(fraction, 1.0) * kWhole + carry_;
@@ -160,19 +168,7 @@ CutResult MaterialRemoval::cut(const Eigen::Vector3d& burr_center_W_m, double bu
         }
         eroded_ += left;
         left = 0;
-        v.writeRaw(idx, removed_raw_);
-        removed_[static_cast<std::size_t>(m)].fetch_add(1, std::memory_order_relaxed);
-        ++result.voxels_removed;
-        if (materials_[static_cast<std::size_t>(m)].critical) {
-          ++result.critical_removed;
-          if (result.critical_material < 0) result.critical_material = m;
-        }
-        if (head - tail < log_.size()) {
-          log_[head % log_.size()] = idx;
-          ++head;
-        } else {
-          dropped_.fetch_add(1, std::memory_order_relaxed);
-        }
+        removeVoxel(idx, m, head, tail, result);
         const int ijk[3] = {i, j, k};
         for (int a = 0; a < 3; ++a) {
           changed_lo[a] = std::min(changed_lo[a], ijk[a]);
@@ -180,8 +176,30 @@ CutResult MaterialRemoval::cut(const Eigen::Vector3d& burr_center_W_m, double bu
         }
       }
   head_.store(head, std::memory_order_release);
+}
+
+CutResult MaterialRemoval::cut(const Eigen::Vector3d& burr_center_W_m, double burr_radius_m, double force_N,
+                               double dt_s, double isovalue, bool burr_touches) noexcept {
+  CutResult result;
+  if (!burr_touches || !burr_center_W_m.allFinite() || !(burr_radius_m > 0.0) || !std::isfinite(burr_radius_m) ||
+      !(force_N > 0.0) || !std::isfinite(force_N) || !(dt_s > 0.0) || !std::isfinite(dt_s))
+    return result;
+  ScalarVolume& v = *volume_;
+  const VolumeGeometry& g = v.geometry();
+  const Eigen::Vector3d c = v.gridCoordinates(burr_center_W_m);
+  const double raw_threshold = (isovalue - v.valueOffset()) / v.valueScale();  // raw above (or below) it is felt
+  const bool rising = v.valueScale() > 0.0;
+  // The box of voxel centres is empty when the burr is far outside the grid.
+  if (!c.allFinite() || (c.array() < -1e6).any() || (c.array() > 1e9).any()) return result;
+  double reach = 0.0;
+  BurrReach in_reach;
+  if (!feltReach(c, burr_radius_m, raw_threshold, rising, reach, in_reach, result.widened)) return result;
+  const double energy_J = force_N * model_.burr_speed_rad_per_s * burr_radius_m * dt_s;
+  result.energy_J = energy_J;
+  std::array<int, 3> changed_lo = {g.dims[0], g.dims[1], g.dims[2]}, changed_hi = {-1, -1, -1};
+  shareEnergy(c, reach, in_reach, energy_J, result, changed_lo, changed_hi);
   if (result.voxels_removed > 0) {
-    v.refreshRegion({changed_lo[0], changed_lo[1], changed_lo[2]}, {changed_hi[0], changed_hi[1], changed_hi[2]});
+    v.refreshRegion(changed_lo, changed_hi);
     for (int a = 0; a < 3; ++a) {
       cut_lo_[a] = std::min(cut_lo_[a], changed_lo[a]);
       cut_hi_[a] = std::max(cut_hi_[a], changed_hi[a]);

@@ -169,6 +169,33 @@ class MaterialRemoval {
   alignas(64) std::atomic<std::uint64_t> head_{0};
   alignas(64) std::atomic<std::uint64_t> tail_{0};
   std::atomic<std::uint64_t> dropped_{0};
+  // The voxels not yet removed whose centres lie within a reach [m] of the burr's centre: their
+  // box of voxel indices (clipped to the grid), the sum of their weights reach - d [m] (d: the
+  // centre distance), their count, and whether one is felt (and the nearest felt one's d [m]).
+  struct BurrReach {
+    std::array<int, 3> lo{}, hi{};
+    double sum_w = 0.0;
+    int count = 0;
+    bool felt = false;
+    double nearest_felt = 0.0;
+  };
+  // One pass over the voxels within `reach` [m] of c (the burr's centre, grid coordinates) into
+  // r; felt: raw above raw_threshold (below it when the raw-to-data scale is negative: !rising).
+  void gatherReach(const Eigen::Vector3d& c, double reach, double raw_threshold, bool rising,
+                   BurrReach& r) const noexcept;
+  // The reach cut() shares its energy within [m], with its voxels in r: the burr's radius when a
+  // voxel there is felt; else, widened (widened = true), a quarter voxel beyond the nearest felt
+  // voxel within one voxel diagonal beyond the burr. False when none is felt there.
+  bool feltReach(const Eigen::Vector3d& c, double burr_radius_m, double raw_threshold, bool rising, double& reach,
+                 BurrReach& r, bool& widened) const noexcept;
+  // Shares energy_J [J] over r's voxels within `reach` [m] of c by weight reach - d, eroding
+  // each (the rounding carried on, carry_) and removing those used up (removeVoxel()); their box
+  // grows changed_lo / changed_hi (voxel indices).
+  void shareEnergy(const Eigen::Vector3d& c, double reach, const BurrReach& r, double energy_J, CutResult& result,
+                   std::array<int, 3>& changed_lo, std::array<int, 3>& changed_hi) noexcept;
+  // Voxel idx (material m) used up: written as removed, counted (critical too), and put in the
+  // removal log at `head` (dropped when the log, read up to `tail`, is full).
+  void removeVoxel(std::size_t idx, int m, std::uint64_t& head, std::uint64_t tail, CutResult& result) noexcept;
 };
 
 }  // namespace vh::haptics
