@@ -80,6 +80,51 @@ inline void startCellWalk(const Eigen::Vector3d& a, const Eigen::Vector3d& d, co
   }
 }
 
+// The eight corner values of one cell (raw), c_xyz at corner offset (x, y, z).
+struct CellCorners {
+  double c000, c100, c010, c110, c001, c101, c011, c111;
+};
+
+// Reads the corners of the cell whose (0, 0, 0) corner is at c; sy, sz: the voxel strides.
+template <typename T>
+inline CellCorners loadCorners(const T* c, std::ptrdiff_t sy, std::ptrdiff_t sz) noexcept {
+  const auto at = [c](std::ptrdiff_t offset) { return static_cast<double>(c[offset]); };
+  return {at(0), at(1), at(sy), at(1 + sy), at(sz), at(1 + sz), at(sy + sz), at(1 + sy + sz)};
+}
+
+// The cell's trilinear interpolant (raw) along the chord a + u' d, as a cubic in w = u' - u
+// from the cell's entry u (grid coordinates; cell: the cell's (0, 0, 0) corner).
+inline Cubic chordCubicInCell(const CellCorners& cc, const Eigen::Vector3d& a, const Eigen::Vector3d& d, double u,
+                              const int (&cell)[3]) noexcept {
+  // Local coordinates at the cell's entry, then the cubic in w = u - u_entry.
+  const double x = a[0] + u * d[0] - cell[0], y = a[1] + u * d[1] - cell[1], z = a[2] + u * d[2] - cell[2];
+  const double dx = d[0], dy = d[1], dz = d[2];
+  const double k0 = cc.c000, k1 = cc.c100 - cc.c000, k2 = cc.c010 - cc.c000, k3 = cc.c001 - cc.c000;
+  const double k4 = cc.c110 - cc.c010 - cc.c100 + cc.c000, k5 = cc.c101 - cc.c001 - cc.c100 + cc.c000,
+               k6 = cc.c011 - cc.c001 - cc.c010 + cc.c000;
+  const double k7 = cc.c111 - cc.c011 - cc.c101 - cc.c110 + cc.c100 + cc.c010 + cc.c001 - cc.c000;
+  const double r0 = k0 + k1 * x + k2 * y + k3 * z + k4 * x * y + k5 * x * z + k6 * y * z + k7 * x * y * z;
+  const double r1 = k1 * dx + k2 * dy + k3 * dz + k4 * (x * dy + y * dx) + k5 * (x * dz + z * dx) +
+                    k6 * (y * dz + z * dy) + k7 * (dx * y * z + x * dy * z + x * y * dz);
+  const double r2 = k4 * dx * dy + k5 * dx * dz + k6 * dy * dz + k7 * (x * dy * dz + dx * y * dz + dx * dy * z);
+  const double r3 = k7 * dx * dy * dz;
+  return {r0, r1, r2, r3};
+}
+
+// The walk's step (3-D DDA): into the next cell along every axis whose face it reaches at
+// u_exit. False when that leaves the grid's cells.
+inline bool stepToNextCell(double u_exit, const std::array<int, 3>& dims, const int (&step)[3],
+                           const double (&u_delta)[3], int (&cell)[3], double (&u_next)[3]) noexcept {
+  bool out_of_grid = false;
+  for (int axis = 0; axis < 3; ++axis) {
+    if (u_next[axis] != u_exit) continue;
+    cell[axis] += step[axis];
+    u_next[axis] += u_delta[axis];
+    if (cell[axis] < 0 || cell[axis] > dims[axis] - 2) out_of_grid = true;
+  }
+  return !out_of_grid;
+}
+
 // The root refinement in one examined cell: g (the cell's cubic with the bubble, minus the
 // threshold, in w = u' - u from the cell's entry u) on [0, w_end], split at its critical points
 // into monotone pieces, each bisected to u_tolerance where it crosses 0. inside_run: entered
@@ -186,11 +231,10 @@ SegmentEntry ScalarVolume::firstEntry(const Eigen::Vector3d& a, const Eigen::Vec
     ++result.cells_walked;
     const double u_exit = std::min({u_next[0], u_next[1], u_next[2], u_hi});
     const double w_end = std::max(0.0, u_exit - u);
-    const T* c = data + cell[0] + sy * cell[1] + sz * cell[2];
-    const double c000 = c[0], c100 = c[1], c010 = c[sy], c110 = c[1 + sy];
-    const double c001 = c[sz], c101 = c[1 + sz], c011 = c[sy + sz], c111 = c[1 + sy + sz];
-    const double corner_max = sign > 0.0 ? std::max({c000, c100, c010, c110, c001, c101, c011, c111})
-                                         : std::min({c000, c100, c010, c110, c001, c101, c011, c111});
+    const CellCorners cc = loadCorners(data + cell[0] + sy * cell[1] + sz * cell[2], sy, sz);
+    const double corner_max =
+        sign > 0.0 ? std::max({cc.c000, cc.c100, cc.c010, cc.c110, cc.c001, cc.c101, cc.c011, cc.c111})
+                   : std::min({cc.c000, cc.c100, cc.c010, cc.c110, cc.c001, cc.c101, cc.c011, cc.c111});
     // The bubble's height over this cell: the local Lipschitz bound (valid within a cell of
     // this one, where the arc is) times the sagitta.
     const double height = bubble.sagitta_m > 0.0
@@ -208,35 +252,18 @@ SegmentEntry ScalarVolume::firstEntry(const Eigen::Vector3d& a, const Eigen::Vec
       result.excess_max = std::max(result.excess_max, corner_bound + height - threshold);
     } else {
       ++result.cells;
-      // Local coordinates at the cell's entry, then the cubic in w = u - u_entry.
-      const double x = a[0] + u * d[0] - cell[0], y = a[1] + u * d[1] - cell[1], z = a[2] + u * d[2] - cell[2];
-      const double dx = d[0], dy = d[1], dz = d[2];
-      const double k0 = c000, k1 = c100 - c000, k2 = c010 - c000, k3 = c001 - c000;
-      const double k4 = c110 - c010 - c100 + c000, k5 = c101 - c001 - c100 + c000, k6 = c011 - c001 - c010 + c000;
-      const double k7 = c111 - c011 - c101 - c110 + c100 + c010 + c001 - c000;
-      const double r0 = k0 + k1 * x + k2 * y + k3 * z + k4 * x * y + k5 * x * z + k6 * y * z + k7 * x * y * z;
-      const double r1 = k1 * dx + k2 * dy + k3 * dz + k4 * (x * dy + y * dx) + k5 * (x * dz + z * dx) +
-                        k6 * (y * dz + z * dy) + k7 * (dx * y * z + x * dy * z + x * y * dz);
-      const double r2 = k4 * dx * dy + k5 * dx * dz + k6 * dy * dz + k7 * (x * dy * dz + dx * y * dz + dx * dy * z);
-      const double r3 = k7 * dx * dy * dz;
+      const Cubic r = chordCubicInCell(cc, a, d, u, cell);
       // The bubble 4 h U (1 - U), U = U0 + D (u + w) the parameter of the whole chord.
       const double Uc = bubble.u0 + bubble.du * u, D = bubble.du, h4 = 4.0 * height;
-      const Cubic g{scale_ * r0 + offset_ - threshold + h4 * Uc * (1.0 - Uc), scale_ * r1 + h4 * D * (1.0 - 2.0 * Uc),
-                    scale_ * r2 - h4 * D * D, scale_ * r3};
+      const Cubic g{scale_ * r.c0 + offset_ - threshold + h4 * Uc * (1.0 - Uc), scale_ * r.c1 + h4 * D * (1.0 - 2.0 * Uc),
+                    scale_ * r.c2 - h4 * D * D, scale_ * r.c3};
       if (refineInCell(g, w_end, u, u_lo, u_tolerance, first, inside_run, result)) return result;
     }
     first = false;
     if (u_exit >= u_hi) break;
     // Step into the next cell along every axis whose face is reached here.
     u = u_exit;
-    bool out_of_grid = false;
-    for (int axis = 0; axis < 3; ++axis) {
-      if (u_next[axis] != u_exit) continue;
-      cell[axis] += step[axis];
-      u_next[axis] += u_delta[axis];
-      if (cell[axis] < 0 || cell[axis] > geometry_.dims[axis] - 2) out_of_grid = true;
-    }
-    if (out_of_grid) break;
+    if (!stepToNextCell(u_exit, geometry_.dims, step, u_delta, cell, u_next)) break;
   }
   return result;
 }
