@@ -289,25 +289,11 @@ void ScalarVolume::refreshRegion(std::array<int, 3> lo, std::array<int, 3> hi) n
 }
 
 template <typename T>
-void ScalarVolume::refreshRegionT(const std::array<int, 3>& lo, const std::array<int, 3>& hi) noexcept {
+void ScalarVolume::recountOwnLipschitz(const std::array<int, 3>& e0, const std::array<int, 3>& e1) noexcept {
   constexpr int kB = MinMaxTree::kBrickCells;
   const auto& n = geometry_.dims;
   const T* d = reinterpret_cast<const T*>(bytes_.data());
   const std::ptrdiff_t sy = n[0], sz = static_cast<std::ptrdiff_t>(n[0]) * n[1];
-  const auto brickIndex = [&](int a, int b, int c) {
-    return static_cast<std::size_t>(a) + static_cast<std::size_t>(bricks_[0]) * (b + static_cast<std::size_t>(bricks_[1]) * c);
-  };
-  // Ranges: brick a reads voxels [4a, 4a + 4], so the bricks with 4a <= hi and 4a + 4 >= lo.
-  std::array<int, 3> r0, r1, e0, e1;
-  for (int a = 0; a < 3; ++a) {
-    r0[a] = std::max(0, (lo[a] + kB - 1) / kB - 1);
-    r1[a] = std::min(bricks_[a] - 1, hi[a] / kB);
-    // Edges (v, v + 1) are booked to the brick of cell min(v, n - 2); those touching a written
-    // voxel x have v in {x - 1, x}.
-    e0[a] = std::max(0, lo[a] - 1) / kB;
-    e1[a] = std::min(bricks_[a] - 1, std::min(hi[a], n[a] - 2) / kB);
-  }
-  tree_.refreshBricks(d, r0, r1);
   for (int c = e0[2]; c <= e1[2]; ++c)
     for (int b = e0[1]; b <= e1[1]; ++b)
       for (int a = e0[0]; a <= e1[0]; ++a) {
@@ -330,10 +316,12 @@ void ScalarVolume::refreshRegionT(const std::array<int, 3>& lo, const std::array
             }
           }
         const float f = brickBound(step);
-        own_lipschitz_[brickIndex(a, b, c)] = f;
+        own_lipschitz_[ownBrickIndex(a, b, c)] = f;
         lipschitz_ = std::max(lipschitz_, static_cast<double>(f));
       }
-  // The dilated bounds of the recomputed bricks' neighbours (as initialise()).
+}
+
+void ScalarVolume::dilateLipschitz(const std::array<int, 3>& e0, const std::array<int, 3>& e1) noexcept {
   std::array<int, 3> g0, g1;
   for (int a = 0; a < 3; ++a) {
     g0[a] = std::max(0, e0[a] - 1);
@@ -346,15 +334,18 @@ void ScalarVolume::refreshRegionT(const std::array<int, 3>& lo, const std::array
         for (int z = std::max(0, c - 1); z <= std::min(bricks_[2] - 1, c + 1); ++z)
           for (int y = std::max(0, b - 1); y <= std::min(bricks_[1] - 1, b + 1); ++y)
             for (int x = std::max(0, a - 1); x <= std::min(bricks_[0] - 1, a + 1); ++x)
-              m = std::max(m, own_lipschitz_[brickIndex(x, y, z)]);
+              m = std::max(m, own_lipschitz_[ownBrickIndex(x, y, z)]);
         tree_.setBrickLipschitz(a, b, c, m);
       }
   tree_.propagateLipschitz(g0, g1);
-  // The derivative ranges only widen: every edge that touches a written voxel (from voxel
-  // lo - 1 to hi per axis) adds its new step to its step brick; an edge not touching one kept
-  // its step, which the range holds already (looser than a recount where a step vanished,
-  // never too narrow).
+}
+
+template <typename T>
+void ScalarVolume::widenStepRanges(const std::array<int, 3>& lo, const std::array<int, 3>& hi) noexcept {
   constexpr int kS = kStepBrickCells;
+  const auto& n = geometry_.dims;
+  const T* d = reinterpret_cast<const T*>(bytes_.data());
+  const std::ptrdiff_t sy = n[0], sz = static_cast<std::ptrdiff_t>(n[0]) * n[1];
   const auto stepBrick = [&](int i, int j, int k) {  // of the edges from voxel (i, j, k)
     return steps_.data() + stepBrickOffset(std::min(i, n[0] - 2) / kS, std::min(j, n[1] - 2) / kS,
                                            std::min(k, n[2] - 2) / kS);
@@ -370,6 +361,31 @@ void ScalarVolume::refreshRegionT(const std::array<int, 3>& lo, const std::array
         if (k + 1 < n[2]) bookStep(steps, 2, static_cast<double>(row[i + sz]) - v);
       }
     }
+}
+
+template <typename T>
+void ScalarVolume::refreshRegionT(const std::array<int, 3>& lo, const std::array<int, 3>& hi) noexcept {
+  constexpr int kB = MinMaxTree::kBrickCells;
+  const auto& n = geometry_.dims;
+  // Ranges: brick a reads voxels [4a, 4a + 4], so the bricks with 4a <= hi and 4a + 4 >= lo.
+  std::array<int, 3> r0, r1, e0, e1;
+  for (int a = 0; a < 3; ++a) {
+    r0[a] = std::max(0, (lo[a] + kB - 1) / kB - 1);
+    r1[a] = std::min(bricks_[a] - 1, hi[a] / kB);
+    // Edges (v, v + 1) are booked to the brick of cell min(v, n - 2); those touching a written
+    // voxel x have v in {x - 1, x}.
+    e0[a] = std::max(0, lo[a] - 1) / kB;
+    e1[a] = std::min(bricks_[a] - 1, std::min(hi[a], n[a] - 2) / kB);
+  }
+  tree_.refreshBricks(reinterpret_cast<const T*>(bytes_.data()), r0, r1);
+  recountOwnLipschitz<T>(e0, e1);
+  // The dilated bounds of the recomputed bricks' neighbours (as initialise()).
+  dilateLipschitz(e0, e1);
+  // The derivative ranges only widen: every edge that touches a written voxel (from voxel
+  // lo - 1 to hi per axis) adds its new step to its step brick; an edge not touching one kept
+  // its step, which the range holds already (looser than a recount where a step vanished,
+  // never too narrow).
+  widenStepRanges<T>(lo, hi);
 }
 
 bool ScalarVolume::gridStepRange(const Eigen::Vector3d& lo_ijk, const Eigen::Vector3d& hi_ijk,

@@ -335,6 +335,22 @@ class ScalarVolume {
   float brickBound(const double* step) const noexcept;  // Lipschitz bound from a brick's raw steps
   template <typename T>
   void refreshRegionT(const std::array<int, 3>& lo, const std::array<int, 3>& hi) noexcept;
+  // Where level-0 brick (a, b, c)'s own Lipschitz bound is in own_lipschitz_.
+  std::size_t ownBrickIndex(int a, int b, int c) const noexcept {
+    return static_cast<std::size_t>(a) +
+           static_cast<std::size_t>(bricks_[0]) * (b + static_cast<std::size_t>(bricks_[1]) * c);
+  }
+  // refreshRegion(): the own Lipschitz bound of the level-0 bricks [e0, e1] per axis (those the
+  // written voxels' edges are booked to) recounted from their raw steps; lipschitz_ grows with it.
+  template <typename T>
+  void recountOwnLipschitz(const std::array<int, 3>& e0, const std::array<int, 3>& e1) noexcept;
+  // refreshRegion(): the 3 x 3 x 3-dilated bound of the bricks [e0 - 1, e1 + 1] per axis (those
+  // next to a recounted brick) set again in the min-max tree, and propagated up it.
+  void dilateLipschitz(const std::array<int, 3>& e0, const std::array<int, 3>& e1) noexcept;
+  // refreshRegion(): each edge touching a written voxel of [lo, hi] (voxel indices) adds its new
+  // raw step to its step brick's range (steps_), which only widens.
+  template <typename T>
+  void widenStepRanges(const std::array<int, 3>& lo, const std::array<int, 3>& hi) noexcept;
   Eigen::Matrix3d W_to_grid_ = Eigen::Matrix3d::Identity();  // (D diag(s))^-1
   Eigen::Vector3d upper_{0, 0, 0};                           // n - 1 per axis
   MinMaxTree tree_;
