@@ -10,79 +10,20 @@
 #include <cstdint>
 #include <limits>
 #include <memory>
-#include <ostream>
 #include <span>
 #include <vector>
 
 #include <Eigen/Core>
 
+#include "vh/haptics/contact_set.h"
 #include "vh/haptics/pose.h"
 #include "vh/haptics/rigid_motion.h"
 #include "vh/haptics/scalar_volume.h"
+#include "vh/haptics/sweep.h"
 #include "vh/haptics/tool_model.h"
 #include "vh/haptics/worker_pool.h"
 
 namespace vh::haptics {
-
-/// Which collision-detection path runs.
-/// - kPaper: section 2.3 as published: every point's arc is split into ceil(s / f) equal time
-///   segments (s = path-length bound, f = feature size), each segment end is sampled, the first
-///   crossing is bisected. Kept as the reference path and for side-by-side benchmarks.
-/// - kAccelerated: the same contract (first time of contact to the same tolerance, same contact
-///   set) computed with fewer samples: see haptics/README.md, "Speed".
-enum class DetectionMode { kPaper, kAccelerated };
-
-
-/// How one segment of a point's path is tested against the isosurface.
-/// - kExact (default): the cells the segment's chord crosses are walked and the trilinear cubic
-///   in each is solved for the first entry (ScalarVolume::firstEntryOnSegment), so a feature of
-///   any thickness is found; rotating points' arcs are split into chords of sagitta <= epsilon / 64
-///   and the threshold is lowered by the Lipschitz bound times the sagitta, so the arc itself is
-///   covered (haptics/README.md, "Never through").
-/// - kEndSample: the earlier test, the paper's (section 2.3): sample the segment's end, bisect
-///   when it is inside. Misses features thinner than a segment (f) that a segment crosses
-///   between its ends; kept only as the "before" column of `bench table1` and to show that the
-///   crossing oracle catches tunnels.
-enum class SegmentTest { kExact, kEndSample };
-
-/// "paper" or "accelerated".
-const char* toString(DetectionMode mode) noexcept;
-/// "exact" or "end-sample".
-const char* toString(SegmentTest test) noexcept;
-/// Writes toString(mode) (also names parametrised tests).
-inline std::ostream& operator<<(std::ostream& os, DetectionMode mode) { return os << toString(mode); }
-
-/// One point of the contact set.
-struct Contact {
-  /// Index into the point shell, or -1 for a contact of the tool's surface between two points
-  /// (an edge of the neighbour graph: CollisionDetector::addEdgeContact()).
-  int point_index = -1;
-  /// The contact's point on the tool, in T [m]: the shell point, or the point of the edge where
-  /// the isosurface met it.
-  Eigen::Vector3d p_T_m = Eigen::Vector3d::Zero();
-  Eigen::Vector3d p_W_m = Eigen::Vector3d::Zero(); ///< Point position on the proxy, in W [m].
-  Eigen::Vector3d n_W = Eigen::Vector3d::UnitZ();  ///< Unit surface normal -grad F / |grad F|, W.
-  /// Distance from p to the isosurface along -n_W [m], measured by bisection with the inside
-  /// test to epsilon / 16, capped at epsilon.
-  double clearance_m = 0.0;
-  /// True when n_W comes from the interpolant's own gradient (see refineStuckContact()).
-  bool crossing_normal = false;
-  /// For a contact between two points: the edge's unit direction, in T; zero for a shell point.
-  /// Its normal is the gradient's part perpendicular to the edge (an edge meets a ridge of the
-  /// isosurface along their common perpendicular, not along the ridge's diagonal gradient).
-  Eigen::Vector3d edge_T = Eigen::Vector3d::Zero();
-};
-
-/// Result of a swept query.
-struct SweepResult {
-  double t = 1.0;         ///< First time of contact in [0, 1] (1 = no contact).
-  double t_inside = 1.0;  ///< End of the bisection interval (the hit point is inside there).
-  int hit_point = -1;     ///< Point that collided first, or -1.
-  /// The work budget ran out before the sweep was done: t is the time up to which
-  /// every point's path is proven free (hit_point -1); the rest of the motion is left for the
-  /// next tick.
-  bool budget_cut = false;
-};
 
 /// Collision detector for one point shell against one volume. Owns the contact set and all
 /// working memory (sized at construction): no member allocates after construction.
