@@ -283,16 +283,15 @@ void MainWindow::setScene(ViewerScene v) {
   }
 }
 
-void MainWindow::onSceneLoaded(std::shared_ptr<LoadedViewerScene> loaded) {
+void MainWindow::onSceneLoaded(const std::shared_ptr<ViewerScene>& loaded) {
   haptics_panel_->setEnabled(true);
-  ViewerScene v = viewerSceneFor(*loaded);
+  const QString title = q(loaded->title);
   try {
-    setScene(std::move(v));
+    setScene(std::move(*loaded));
   } catch (const std::exception& e) {
-    opener_->reportError(q(loaded->title), q(e.what()));
+    opener_->reportError(title, q(e.what()));
     return;
   }
-  opener_->sceneShown(loaded->opened, view_->widget()->frameCount());
   // A scene file's "openigtlink" section switches the link on (or moves it to its port / rate).
   if (QString error; !igtl_->applySceneSection(session_.loaded().spec.openigtlink, &error)) {
     statusBar()->showMessage(error, kNoticeStatusMs);

@@ -118,8 +118,19 @@ SceneOpener::SceneOpener(SceneLoader& loader, const runtime::Session& session, P
           [this](const QString& folder, std::shared_ptr<std::vector<io::DicomSeriesInfo>> series) {
             onSeriesListed(folder, *series);
           });
-  connect(&loader_, &SceneLoader::sceneLoaded, this, &SceneOpener::sceneLoaded);
+  connect(&loader_, &SceneLoader::sceneLoaded, this, [this](std::shared_ptr<LoadedViewerScene> loaded) {
+    shown_pending_ = loaded->opened;
+    emit sceneLoaded(std::make_shared<ViewerScene>(viewerSceneFor(*loaded)));
+    shown_pending_.reset();  // not taken (the window refused it): nothing joins the recent files
+  });
   connect(&loader_, &SceneLoader::failed, this, &SceneOpener::reportError);
+  observer_ = session_.addObserver([this](runtime::SessionChange what) {
+    if (runtime::has(what, runtime::SessionChange::kScene) && shown_pending_.has_value() && session_.hasScene()) {
+      const fs::path opened = *shown_pending_;
+      shown_pending_.reset();
+      onOwnSceneShown(opened);
+    }
+  });
   connect(&loader_, &SceneLoader::cancelled, this, [this] {
     status_bar_->showMessage("Loading cancelled; what was open is kept", 4000);
     emit loadCancelled();
@@ -234,9 +245,11 @@ QString SceneOpener::droppedPath(const QMimeData& mime) {
   return path;
 }
 
-void SceneOpener::sceneShown(const fs::path& opened, std::uint64_t frames_rendered) {
+SceneOpener::~SceneOpener() { session_.removeObserver(observer_); }
+
+void SceneOpener::onOwnSceneShown(const fs::path& opened) {
   upload_pending_ = true;
-  upload_frame_ = frames_rendered;
+  upload_frame_ = last_frame_;
   status_.showProgress("Uploading the volume to the GPU", 95, false);
   if (!opened.empty()) {
     prefs_.addRecentFile(q(fs::absolute(opened).lexically_normal().string()));
@@ -246,6 +259,7 @@ void SceneOpener::sceneShown(const fs::path& opened, std::uint64_t frames_render
 }
 
 void SceneOpener::frameRendered(std::uint64_t frame_count) {
+  last_frame_ = frame_count;
   if (upload_pending_ && frame_count > upload_frame_) {
     upload_pending_ = false;
     if (!loader_.busy()) status_.hideProgress();

@@ -27,13 +27,13 @@ Session::~Session() {
   if (haptics_ != nullptr) haptics_->stop();
 }
 
-int Session::addObserver(Observer observer) {
+int Session::addObserver(Observer observer) const {
   const int id = next_observer_++;
   observers_.emplace_back(id, std::move(observer));
   return id;
 }
 
-void Session::removeObserver(int id) {
+void Session::removeObserver(int id) const {
   observers_.erase(std::remove_if(observers_.begin(), observers_.end(), [id](const auto& o) { return o.first == id; }),
                    observers_.end());
 }

@@ -59,7 +59,6 @@ class StatusLine;
 class StripChart;
 class ToolPicker;
 class ViewController;
-struct LoadedViewerScene;
 
 class MainWindow : public QMainWindow {
   Q_OBJECT
@@ -148,7 +147,7 @@ class MainWindow : public QMainWindow {
   void buildMenus();
   void connectParts();
   void onSessionChanged(runtime::SessionChange what);
-  void onSceneLoaded(std::shared_ptr<LoadedViewerScene> loaded);
+  void onSceneLoaded(const std::shared_ptr<ViewerScene>& loaded);
   void onLoadEnded();
   void updateWindowTitle();
   void updateStatus();

@@ -6,7 +6,8 @@
 /// failures (a dialog naming the file and the problem; what is open stays) and cancellation.
 /// A recording (.vhrec) or a segmentation of the open scan is handed on by a signal.
 ///
-/// Data flows one way: a path -> SceneLoader -> (the window shows the scene) -> sceneShown().
+/// Data flows one way: a path -> SceneLoader -> this (sceneLoaded()) -> the window -> Session.
+/// The opener hears that its scene is shown from the Session (a new scene), not from the window.
 /// GUI thread only.
 
 #include <cstdint>
@@ -76,9 +77,11 @@ class SceneOpener : public QObject {
 
  public:
   /// File dialogs and error boxes are parented to `window`; notes go to `status_bar`. All
-  /// references outlive this.
+  /// references outlive this. Observes `session`: the scene of its own load, once the session
+  /// holds it, joins the recent files and waits for its first frame (loading()).
   SceneOpener(SceneLoader& loader, const runtime::Session& session, Preferences& prefs, StatusLine& status,
               QStatusBar* status_bar, QWidget* window);
+  ~SceneOpener() override;
 
   /// Opens `path`: a scene .json, a recording .vhrec (recordingRequested()), a DICOM folder (a
   /// chooser when it holds several series), a segmentation .seg.nrrd (segmentationRequested()
@@ -102,10 +105,8 @@ class SceneOpener : public QObject {
   /// The recent files, each opened with openPath(); disabled while empty.
   QMenu* recentFilesMenu() const noexcept { return recent_menu_; }
 
-  /// The window shows the loaded scene now; `opened` joins the recent files; loading() stays
-  /// true until the view has rendered frame `frames_rendered` + 1 (the volume's GPU upload).
-  void sceneShown(const std::filesystem::path& opened, std::uint64_t frames_rendered);
-  /// The view rendered its frame number `frame_count`.
+  /// The view rendered its frame number `frame_count`; after a new scene, loading() stays true
+  /// until the first frame after it (the volume's GPU upload).
   void frameRendered(std::uint64_t frame_count);
   /// True from a load's start until its scene is shown and rendered once (or it failed).
   bool loading() const noexcept;
@@ -123,9 +124,9 @@ class SceneOpener : public QObject {
   QString lastError() const { return last_error_; }
 
  signals:
-  /// A scene the loader finished, for the window to show (the loader reports to the opener
-  /// only; the window answers with sceneShown()).
-  void sceneLoaded(std::shared_ptr<vh::ui::LoadedViewerScene> scene);
+  /// A scene the loader finished, as the window shows it (viewerSceneFor()): the loader reports
+  /// to the opener only; the window gives it to the Session, which the opener observes.
+  void sceneLoaded(std::shared_ptr<vh::ui::ViewerScene> scene);
   void loadStarted();
   void loadFailed(const QString& message);
   void loadCancelled();
@@ -139,6 +140,9 @@ class SceneOpener : public QObject {
   void onSeriesListed(const QString& folder, const std::vector<io::DicomSeriesInfo>& series);
   void openFileDialog(int kind);
   void rebuildRecentMenu();
+  /// The Session holds the scene of this opener's load: `opened` joins the recent files; the
+  /// progress stays until the next frame.
+  void onOwnSceneShown(const std::filesystem::path& opened);
 
   SceneLoader& loader_;
   const runtime::Session& session_;
@@ -148,7 +152,11 @@ class SceneOpener : public QObject {
   QWidget* window_;
   QMenu* recent_menu_ = nullptr;
   bool interactive_ = true;
-  bool upload_pending_ = false;  // a new scene waits for its first frame (GPU upload)
+  int observer_ = 0;
+  // What this opener's finished load opened, until the Session holds its scene (or it failed).
+  std::optional<std::filesystem::path> shown_pending_;
+  std::uint64_t last_frame_ = 0;  // the view's last frame number (frameRendered())
+  bool upload_pending_ = false;   // a new scene waits for its first frame (GPU upload)
   std::uint64_t upload_frame_ = 0;
   QString last_error_;
 };

@@ -67,8 +67,9 @@ class Session {
   Session& operator=(const Session&) = delete;
 
   /// Calls `observer(what)` after every change from now on. @return an id for removeObserver().
-  int addObserver(Observer observer);
-  void removeObserver(int id);
+  /// Const: observing is not a change (a reader that holds the session const may observe it).
+  int addObserver(Observer observer) const;
+  void removeObserver(int id) const;
 
   // ---- Scene ---------------------------------------------------------------------------------
   /// Replaces the scene: the old haptic threads stop (force ramped to zero) and go; the new ones
@@ -268,8 +269,8 @@ class Session {
   RestartTiming last_restart_;
   std::shared_ptr<SnapshotChannel> monitor_;
   std::map<std::string, double> hardness_for_drill_;  ///< setHardness() before any drill
-  std::vector<std::pair<int, Observer>> observers_;
-  int next_observer_ = 1;
+  mutable std::vector<std::pair<int, Observer>> observers_;  ///< Who hears changes; not the session's state.
+  mutable int next_observer_ = 1;
 };
 
 }  // namespace vh::runtime
