@@ -13,24 +13,40 @@ Vector6d constraintRow(const Eigen::Vector3d& p_W_m, const Eigen::Vector3d& n_W,
 
 ConfigurationSolver::ConfigurationSolver(std::size_t max_contacts) : projector_(max_contacts), rows_(max_contacts) {}
 
-Eigen::Vector3d ConfigurationSolver::standoffTranslation(std::span<const Contact> contacts, double standoff_m) noexcept {
+Eigen::Vector3d ConfigurationSolver::standoffTranslation(std::span<const Contact> contacts, double standoff_m,
+                                                         const Contact* also) noexcept {
   Eigen::Vector3d d = Eigen::Vector3d::Zero();
   if (!(standoff_m > 0.0)) return d;
   // Hysteresis: only contacts closer than half the stand-off are lifted (to the full stand-off),
   // so a proxy at rest stays at rest (the clearance is measured to epsilon / 16 only).
-  bool any = false;
+  bool any = also != nullptr && also->clearance_m < 0.5 * standoff_m;
   for (const Contact& c : contacts) any |= c.clearance_m < 0.5 * standoff_m;
   if (!any) return d;
-  for (int sweep = 0; sweep < 3; ++sweep)
-    for (const Contact& c : contacts) {
-      if (c.clearance_m >= 0.5 * standoff_m) continue;
-      const double deficit = standoff_m - c.clearance_m - c.n_W.dot(d);
-      if (deficit > 0.0) d += deficit * c.n_W;
-    }
+  // The least n . d each contact allows: the stand-off for the near ones; for the others, no
+  // more than half their clearance towards the surface. Each returns how far d falls short.
+  const auto bound = [standoff_m](const Contact& c) {
+    return c.clearance_m < 0.5 * standoff_m ? standoff_m - c.clearance_m : -0.5 * c.clearance_m;
+  };
+  const auto project = [&](const Contact& c) {
+    const double deficit = bound(c) - c.n_W.dot(d);
+    if (deficit > 0.0) d += deficit * c.n_W;
+    return deficit;
+  };
+  const double tolerance = 1e-3 * standoff_m;
+  for (int sweep = 0; sweep < 32; ++sweep) {
+    double worst = also != nullptr ? project(*also) : 0.0;
+    for (const Contact& c : contacts) worst = std::max(worst, project(c));
+    if (worst <= tolerance) break;
+  }
   const double cap = 2.0 * standoff_m;
   const double norm = d.norm();
-  if (norm > cap) d *= cap / norm;
-  return d.allFinite() ? d : Eigen::Vector3d::Zero();
+  if (norm > cap) d *= cap / norm;  // a shorter lift: still towards every near contact's outside
+  // Verified: no contact is approached past its bound's sign (contacts facing each other across
+  // a gap narrower than the stand-off have no such lift).
+  const auto intrudes = [&](const Contact& c) { return c.n_W.dot(d) < std::min(0.0, bound(c)) - tolerance; };
+  bool bad = !d.allFinite() || (also != nullptr && intrudes(*also));
+  for (const Contact& c : contacts) bad = bad || intrudes(c);
+  return bad ? Eigen::Vector3d::Zero() : d;
 }
 
 RigidMotion ConfigurationSolver::constrainedMotion(const Pose& X_WP, const Pose& X_WD, const MassProperties& mass,

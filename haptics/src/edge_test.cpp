@@ -107,8 +107,8 @@ bool CollisionDetector::listedEdgesCrossAt(const Pose& X_WP, double isovalue) no
   return false;
 }
 
-void CollisionDetector::addEdgeContact(const Pose& X_WP, double isovalue) noexcept {
-  if (edge_hit_.j < 0 || contact_count_ >= std::min(contact_cap_, contacts_.size())) return;
+const Contact* CollisionDetector::addEdgeContact(const Pose& X_WP, double isovalue) noexcept {
+  if (edge_hit_.j < 0 || contact_count_ >= std::min(contact_cap_, contacts_.size())) return nullptr;
   const auto& shell = tool_->point_shell;
   const auto inset = [&](int i) {
     return shell.hasNormals() ? Eigen::Vector3d(shell.points_T_m()[i] - epsilon_ * shell.normals_T()[i])
@@ -146,6 +146,7 @@ void CollisionDetector::addEdgeContact(const Pose& X_WP, double isovalue) noexce
   measureContact(c, isovalue, X_WP.R_AB);
   if (slot == contact_count_) ++contact_count_;
   edge_hit_ = {};
+  return &c;
 }
 
 CollisionDetector::EdgeWalk CollisionDetector::edgeNodeWalk(WorkCounters& w, Lane* lane, int index, const Pose& X_WP,

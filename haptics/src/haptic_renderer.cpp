@@ -170,6 +170,11 @@ double HapticRenderer::edgeSafeTime(const RigidMotion& motion, double t_from, do
   return searchEdgeStop(motion, t_from, t_free, cross_t, options_.edge_test_swept ? 1 : steps, isovalue, stopped, cut);
 }
 
+void HapticRenderer::noteEdgeContact(const Contact* added) noexcept {
+  stopped_edge_contact_ = added != nullptr ? *added : Contact{};
+  if (added == nullptr) stopped_edge_contact_.clearance_m = std::numeric_limits<double>::infinity();  // bounds nothing
+}
+
 void HapticRenderer::resetProxy(const Pose& X_WP) noexcept {
   if (!X_WP.allFinite()) return;
   X_WP_ = X_WP;
@@ -179,6 +184,7 @@ void HapticRenderer::resetProxy(const Pose& X_WP) noexcept {
   coupling_.resetTracking();
   embedded_scan_needed_ = true;
   edge_blocked_last_tick_ = false;
+  lift_alone_stopped_ = false;
   edges_free_isovalue_ = std::numeric_limits<double>::quiet_NaN();
   blocked_ticks_ = 0;
 }
@@ -371,7 +377,7 @@ void HapticRenderer::resumeCutSweep(const Pose& X_WD, double isovalue, TickStats
   if (edge_stop) {
     collision_.abandonSweep();
     const auto edge_contact_start = Clock::now();
-    collision_.addEdgeContact(X_WP_, isovalue);
+    noteEdgeContact(collision_.addEdgeContact(X_WP_, isovalue));
     stats.edge_us += usSince(edge_contact_start, Clock::now());
     blocked_ticks_ = 1;
     edge_blocked_last_tick_ = t < pending_t + 0.01;
@@ -416,6 +422,7 @@ void HapticRenderer::sweepLiftAlone(const Eigen::Vector3d& lift_W, double isoval
   hit = collision_.sweep(motion, isovalue);
   ++stats.sweeps;
   phase = Clock::now();
+  lifted_alone_ = true;
 }
 
 void HapticRenderer::solveOrLift(const Pose& X_WD, double isovalue, bool lift, double standoff_m, RigidMotion& motion,
@@ -426,9 +433,14 @@ void HapticRenderer::solveOrLift(const Pose& X_WD, double isovalue, bool lift, d
   // mostly tangential, with the lift spread along it, cuts the ridge again at its first
   // sub-step, tick after tick (the probe held at the block's hole rim). Lifted first, the next
   // slide has the stand-off to spend.
+  // The lift clears the edge contact that stopped the move too (the pruning, which looks
+  // towards the device, may have dropped it: a lift into it was stopped at once, tick after
+  // tick, the drill held in its cavity at 25 N). A lift alone stopped at once is not repeated:
+  // the next tick takes the solved move, so that no tick repeats the one before it.
   const Eigen::Vector3d edge_lift_W =
-      lift && edge_blocked_last_tick_ ? ConfigurationSolver::standoffTranslation(collision_.contacts(), standoff_m)
-                                      : Eigen::Vector3d::Zero();
+      lift && edge_blocked_last_tick_ && !lift_alone_stopped_
+          ? ConfigurationSolver::standoffTranslation(collision_.contacts(), standoff_m, &stopped_edge_contact_)
+          : Eigen::Vector3d::Zero();
   if (edge_lift_W.squaredNorm() > 0.0) {
     sweepLiftAlone(edge_lift_W, isovalue, motion, hit, stats, phase);
     return;
@@ -456,6 +468,7 @@ void HapticRenderer::moveProxy(const RigidMotion& motion, const SweepResult& hit
   // An edge test the budget stopped holds the proxy like a cut sweep: not a blocked move.
   if (!edge_cut) blocked_ticks_ = (hit.hit_point >= 0 || edge_stop) && t_move < 0.01 ? blocked_ticks_ + 1 : 0;
   edge_blocked_last_tick_ = edge_stop && t_move < 0.01;
+  lift_alone_stopped_ = lifted_alone_ && (hit.hit_point >= 0 || edge_stop) && t_move < 0.01;
   X_WP_ = motion.poseAt(t_move);
   last_motion_ = motion;
   last_t_ = t_move;
@@ -472,7 +485,7 @@ void HapticRenderer::moveProxy(const RigidMotion& motion, const SweepResult& hit
   // set, so that the next tick's configuration solver slides along it.
   if (edge_stop) {
     const auto edge_contact_start = Clock::now();
-    collision_.addEdgeContact(X_WP_, isovalue);
+    noteEdgeContact(collision_.addEdgeContact(X_WP_, isovalue));
     stats.edge_us += usSince(edge_contact_start, Clock::now());
   }
   stats.contacts_us = usSince(phase, Clock::now());
@@ -489,6 +502,7 @@ void HapticRenderer::sweepNewMove(const Pose& X_WD, double isovalue, Clock::time
   const double standoff_m = liftStandoff_m(lift);
   RigidMotion motion;
   SweepResult hit;
+  lifted_alone_ = false;
   solveOrLift(X_WD, isovalue, lift, standoff_m, motion, hit, stats, phase);
   moveProxy(motion, hit, isovalue, stats, phase);
 }

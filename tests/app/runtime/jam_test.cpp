@@ -16,6 +16,8 @@
 #include "vh/runtime/drilling.h"
 #include "vh/runtime/jam_detector.h"
 #include "vh/runtime/placement.h"
+#include "vh/runtime/runner.h"
+#include "vh/runtime/trajectory.h"
 #include "vh/runtime/scene.h"
 #include "vh/runtime/servo_factory.h"
 
@@ -126,6 +128,37 @@ TEST(NeverStuck, TheDrillFollowsTheDeviceOffTheSkullAfterTheGuiSequence) {
   EXPECT_LT(gap.norm(), 1e-3) << "the proxy follows the device off the skull (it stayed held at "
                               << 1e3 * gap.norm() << " mm, " << gap.norm() * 1000.0 << " N at 1000 N/m)";
   EXPECT_EQ(jam.jams(), 0u) << jam.jamTicks() << " jammed ticks";
+}
+
+// The drill pushed 4 mm into the head phantom's skull and slid 20 mm through it, with the edge
+// test on (the default): a lift after an edge stop that went into the edge contact the pruning
+// had dropped was stopped at once, tick after tick, and held the drill in its cavity while the
+// device slid and retracted (25 N, 891 ticks jammed). The oracle is the device's own path: once
+// it has retracted to the start height, the proxy must be near it and the force small.
+TEST(NeverStuck, TheDrillSlidesThroughBoneAndRetractsWithTheEdgeTestOn) {
+  const fs::path phantom = kShared / "ct/philips-head-phantom-bone";
+  const fs::path drill_mesh = kShared / "meshes/drill/drill.stl";
+  if (!fs::exists(phantom) || !fs::exists(drill_mesh)) GTEST_SKIP() << "needs " << phantom << " and " << drill_mesh;
+  const LoadedScene scene = loadScene(parseScene(R"({
+    "volume": {"path": ")" + phantom.string() + R"(", "isovalue": 400},
+    "tool": {"mesh": ")" + drill_mesh.string() + R"(", "scale_to_m": 0.00044, "point_spacing_m": 0.001,
+             "initial_pose": {"q_wxyz": [0.7071067811865476, 0, -0.7071067811865476, 0]}},
+    "device": {"kind": "simulated"}, "drill": {"on": true}})", "drill.json", "."));
+  ASSERT_TRUE(scene.spec.tool.edge_test) << "the default this test is about";
+  PushSlideOptions push;
+  push.push_depth_m = 0.004;
+  const Pose start = poseAboveVolume(*scene.hapticField(), scene.tool->point_shell, scene.X_WT_initial.R_AB, 0.01);
+  const PushSlidePlan plan =
+      makePushSlideTrajectory(*scene.hapticField(), scene.tool->point_shell, scene.hapticIsovalue(), start, push);
+  RunOptions options;
+  options.verify_step_voxels = 0.0;
+  const RunReport report = runHeadless(scene, plan.trajectory, options);
+  ASSERT_TRUE(report.drill.has_value());
+  EXPECT_GT(report.drill->removed_mm3, 1.0) << "the burr cut";
+  EXPECT_EQ(report.jams, 0u) << report.jam_ticks << " jammed ticks from tick " << report.first_jam_tick;
+  EXPECT_LT(report.final_force_N, 1.0) << "retracted to the start height, the device is in free space";
+  EXPECT_LT(report.final_proxy_device_distance_m, 1e-3);
+  EXPECT_LT(report.max_force_N, 12.0) << "the device's push is 4 mm (4 N at 1000 N/m) plus the slide's cutting";
 }
 
 // Reset Device's and a restart's placement: a pose with no shell point inside, the device's own

@@ -151,7 +151,8 @@ class CollisionDetector {
   /// slides the tool along the wall it met between its points instead of holding it. A new one
   /// within epsilon / 4 of an earlier edge contact (in T) replaces it; none is added once the
   /// contact set holds the contact cap. Pruned like any contact (pruneContacts()).
-  void addEdgeContact(const Pose& X_WP, double isovalue) noexcept;
+  /// @return the contact added or replaced (valid until the contact set changes), or null.
+  const Contact* addEdgeContact(const Pose& X_WP, double isovalue) noexcept;
   /// The neighbour graph edgesCrossAt() tests (built in the constructor).
   const ShellEdges& shellEdges() const noexcept { return edges_; }
   /// Re-tests only the embedded points (cheap when there are none).

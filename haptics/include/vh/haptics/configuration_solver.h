@@ -46,12 +46,18 @@ class ConfigurationSolver {
                                 const Eigen::Vector3d* rotation_reference_rad = nullptr) noexcept;
 
   /// Translation [m, W] that lifts every contact closer than standoff_m / 2 to a clearance of
-  /// standoff_m along its normal (projected Gauss-Seidel over the deficits, three sweeps; the
-  /// hysteresis keeps a proxy at rest still), capped at 2 standoff_m. A position-level correction in the spirit of Baumgarte stabilisation: the
+  /// standoff_m along its normal while moving no other contact into the surface by more than
+  /// half its clearance (projections onto those half-spaces, in turn, until none is short by
+  /// more than 0.1 % of standoff_m, at most 32 sweeps; the hysteresis keeps a proxy at rest
+  /// still), capped at 2 standoff_m. Zero when no such translation was found: a lift that would
+  /// push the tool into one of its contacts is never returned. `also` (may be null): one more
+  /// contact, e.g. the edge contact that stopped the last move and that the pruning dropped.
+  /// A position-level correction in the spirit of Baumgarte stabilisation: the
   /// bisection of section 2.3 leaves contacts anywhere in [0, epsilon) from the surface, and at
   /// zero clearance any second-order inward drift of a tangent step (curvature, rotation,
   /// gradient error) ends inside and stops the proxy for the whole tick.
-  static Eigen::Vector3d standoffTranslation(std::span<const Contact> contacts, double standoff_m) noexcept;
+  static Eigen::Vector3d standoffTranslation(std::span<const Contact> contacts, double standoff_m,
+                                             const Contact* also = nullptr) noexcept;
 
   /// Last projection's details (for statistics and tests).
   const ConeProjection& lastProjection() const noexcept { return last_; }

@@ -253,6 +253,8 @@ class HapticRenderer {
   // (points proven free), shortened to before the first sub-step where an edge crosses (swept:
   // the first of the poses tested along it). When the work budget or the deadline stops the
   // edge test (cut true), the last pose it proved free (t_from at first): the proxy stays.
+  /// Keeps the edge contact that stopped this move (null: none was added) for the next lift.
+  void noteEdgeContact(const Contact* added) noexcept;
   double edgeSafeTime(const RigidMotion& motion, double t_from, double t_to, double isovalue, bool& stopped,
                       bool& cut) noexcept;
   // Goes on with the sweep the work budget cut on an earlier tick (CollisionDetector::
@@ -308,6 +310,11 @@ class HapticRenderer {
                     TickStats& stats) noexcept;
   bool edge_test_ = false;
   bool edge_blocked_last_tick_ = false;  // the last move was stopped at once by an edge
+  // The edge contact that stopped the last move (valid while edge_blocked_last_tick_): the lift
+  // after it must clear it too, though the pruning, which looks towards the device, drops it.
+  Contact stopped_edge_contact_;
+  bool lifted_alone_ = false;        // this tick's move is a lift alone (sweepLiftAlone())
+  bool lift_alone_stopped_ = false;  // the last tick's lift alone was stopped at once: not again
   // The edge test proved the proxy's pose free at this isovalue with this many embedded points
   // (NaN: not proven). Then a stopped move need not test its start again (edgeSafeTime()).
   double edges_free_isovalue_ = std::numeric_limits<double>::quiet_NaN();
