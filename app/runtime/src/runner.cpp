@@ -354,16 +354,19 @@ void checkRunArguments(const Trajectory& trajectory, const RunOptions& options) 
 }
 
 /// The work budget's reference: the servo's renderer again without the budget (the lag), or none
-/// when the lag is not asked for or there is no budget.
+/// when the lag is not asked for, there is no budget, or the scene drills: a reference without
+/// the burr feels the uncut field, and the two proxies part by the cavity's depth, not by the
+/// budget (17.5 mm "lag" for a drill slid through the head phantom's skull).
 std::unique_ptr<haptics::HapticRenderer> makeLagReference(const LoadedScene& scene,
                                                           const haptics::RendererOptions& renderer_options,
                                                           const haptics::Pose& X_WD_first, const RunOptions& options,
                                                           std::int64_t work_budget) {
   if (!options.lag_reference || work_budget <= 0) return nullptr;
+  if (scene.spec.drill && scene.spec.drill->on) return nullptr;
   haptics::RendererOptions unbudgeted = renderer_options;
   unbudgeted.work_budget = 0;
   // Made as the servo's renderer is (the scene's gains and edge test), so that only the budget
-  // differs (a drilling scene's reference feels the uncut field).
+  // differs.
   return makeRenderer(LiveValues::initial(scene), unbudgeted, X_WD_first);
 }
 

@@ -159,6 +159,7 @@ TEST(NeverStuck, TheDrillSlidesThroughBoneAndRetractsWithTheEdgeTestOn) {
   EXPECT_LT(report.final_force_N, 1.0) << "retracted to the start height, the device is in free space";
   EXPECT_LT(report.final_proxy_device_distance_m, 1e-3);
   EXPECT_LT(report.max_force_N, 12.0) << "the device's push is 4 mm (4 N at 1000 N/m) plus the slide's cutting";
+  EXPECT_LT(report.lag_ticks, 0) << "no lag figure: a reference without the burr parts from the proxy by the cavity";
 }
 
 // Reset Device's and a restart's placement: a pose with no shell point inside, the device's own
