@@ -53,6 +53,8 @@ SegmentsController::SegmentsController(runtime::Session& session, SceneView& vie
     if (!view_.frameSegment(segment))
       status_bar_->showMessage("That segment is not shown: tick Shown to draw it, then double-click it", 5000);
   });
+  connect(panel_->smoothingBox(), &RangeSpinBox::outOfRange, this,
+          [this](const QString& message) { status_bar_->showMessage(message, 8000); });
   observer_ = session_.addObserver([this](runtime::SessionChange what) { onSessionChanged(what); });
 }
 

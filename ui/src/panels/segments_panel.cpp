@@ -6,7 +6,6 @@
 #include <QSignalBlocker>
 
 #include <QCheckBox>
-#include <QDoubleSpinBox>
 #include <QFormLayout>
 #include <QHeaderView>
 #include <QLabel>
@@ -48,7 +47,7 @@ SegmentsPanel::SegmentsPanel(QWidget* parent) : QWidget(parent) {
   table_->setSelectionMode(QAbstractItemView::NoSelection);
   table_->setEditTriggers(QAbstractItemView::DoubleClicked | QAbstractItemView::EditKeyPressed);  // hardness only
   auto* form = new QFormLayout;
-  smoothing_ = new QDoubleSpinBox(this);
+  smoothing_ = new RangeSpinBox("the smoothing", this);
   smoothing_->setRange(0.0, 3.0);
   smoothing_->setSingleStep(0.25);
   smoothing_->setValue(1.0);
@@ -84,7 +83,7 @@ SegmentsPanel::SegmentsPanel(QWidget* parent) : QWidget(parent) {
     }
     emit choicesChanged(choices());
   });
-  connect(smoothing_, &QDoubleSpinBox::editingFinished, this, [this] {
+  connect(smoothing_, &QAbstractSpinBox::editingFinished, this, [this] {
     if (!filling_) emit choicesChanged(choices());
   });
   connect(open_, &QPushButton::clicked, this, &SegmentsPanel::openRequested);

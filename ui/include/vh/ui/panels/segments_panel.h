@@ -15,9 +15,9 @@
 #include <QWidget>
 
 #include "vh/runtime/segments.h"
+#include "vh/ui/panels/range_spin_box.h"
 
 class QCheckBox;
-class QDoubleSpinBox;
 class QLabel;
 class QPushButton;
 class QTableWidget;
@@ -57,6 +57,8 @@ class SegmentsPanel : public QWidget {
 
   QTableWidget* table() const noexcept { return table_; }
   QPushButton* openButton() const noexcept { return open_; }
+  /// The felt surface's smoothing [voxels]; a number typed out of its range is not taken.
+  RangeSpinBox* smoothingBox() const noexcept { return smoothing_; }
 
  signals:
   /// A check box or the smoothing changed.
@@ -71,7 +73,7 @@ class SegmentsPanel : public QWidget {
  private:
   QLabel* source_ = nullptr;
   QTableWidget* table_ = nullptr;
-  QDoubleSpinBox* smoothing_ = nullptr;
+  RangeSpinBox* smoothing_ = nullptr;
   QCheckBox* sound_ = nullptr;
   QLabel* touched_ = nullptr;
   QPushButton* open_ = nullptr;
