@@ -9,8 +9,9 @@
 #include <QStringList>
 
 #include "vh/io/segmentation.h"
-#include "vh/ui/view/scene_view.h"
 #include "vh/ui/panels/segments_panel.h"
+#include "vh/ui/preferences.h"
+#include "vh/ui/view/scene_view.h"
 
 namespace vh::ui {
 namespace {
@@ -32,8 +33,13 @@ std::vector<std::string> segmentNames(const io::LoadedSegmentation& seg, const s
 }  // namespace
 
 SegmentsController::SegmentsController(runtime::Session& session, SceneView& view, QMainWindow* window,
-                                       QStatusBar* status_bar)
-    : QObject(window), session_(session), view_(view), window_(window), status_bar_(status_bar) {
+                                       QStatusBar* status_bar, Preferences& prefs)
+    : QObject(window),
+      session_(session),
+      view_(view),
+      prefs_(prefs),
+      window_(window),
+      status_bar_(status_bar) {
   panel_ = new SegmentsPanel(window);
   dock_ = new QDockWidget("Segments", window);
   dock_->setObjectName("segmentsDock");
@@ -53,6 +59,9 @@ SegmentsController::SegmentsController(runtime::Session& session, SceneView& vie
     if (!view_.frameSegment(segment))
       status_bar_->showMessage("That segment is not shown: tick Shown to draw it, then double-click it", 5000);
   });
+  panel_->setThroughScan(prefs_.segments_through_scan);
+  view_.setSegmentsThroughScan(prefs_.segments_through_scan);
+  connect(panel_, &SegmentsPanel::throughScanToggled, this, &SegmentsController::setThroughScan);
   connect(panel_->smoothingBox(), &RangeSpinBox::outOfRange, this,
           [this](const QString& message) { status_bar_->showMessage(message, 8000); });
   observer_ = session_.addObserver([this](runtime::SessionChange what) { onSessionChanged(what); });
@@ -142,6 +151,12 @@ bool SegmentsController::apply(const SegmentChoices& choices) {
     return false;
   }
   return true;
+}
+
+void SegmentsController::setThroughScan(bool on) {
+  prefs_.segments_through_scan = on;
+  panel_->setThroughScan(on);
+  view_.setSegmentsThroughScan(on);
 }
 
 void SegmentsController::showSnapshot(const runtime::HapticSnapshot& snapshot) {

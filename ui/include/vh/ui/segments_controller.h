@@ -6,8 +6,10 @@
 /// session applies (runtime::Session::setSegments()); the scene view draws the shown segments;
 /// each haptic snapshot names the segment touched, and touching a critical one shows a red
 /// alert in the view (and beeps when asked). The recording gets its "segment" and
-/// "critical_contact" events from the records (runtime::RecordingWriter).
+/// "critical_contact" events from the records (runtime::RecordingWriter). "Show segments through
+/// the scan" is kept in the preferences and drawn by the view (SceneView::setSegmentsThroughScan()).
 ///
+/// Data flows one way: SegmentsPanel -> this -> Preferences and SceneView.
 /// Threads: GUI thread only. It observes runtime::Session; it holds no copy of the segments.
 #include <filesystem>
 
@@ -22,6 +24,7 @@ class QStatusBar;
 
 namespace vh::ui {
 
+struct Preferences;
 class SceneView;
 class SegmentsPanel;
 struct SegmentChoices;
@@ -30,8 +33,10 @@ class SegmentsController : public QObject {
   Q_OBJECT
 
  public:
-  /// Adds the Segments dock to `window` (right side) and observes `session`.
-  SegmentsController(runtime::Session& session, SceneView& view, QMainWindow* window, QStatusBar* status_bar);
+  /// Adds the Segments dock to `window` (right side) and observes `session`. `prefs` holds the
+  /// display choice (segments through the scan). All outlive this.
+  SegmentsController(runtime::Session& session, SceneView& view, QMainWindow* window, QStatusBar* status_bar,
+                     Preferences& prefs);
   ~SegmentsController() override;
 
   /// Loads `path` (.seg.nrrd or label map) as the segments of the scan shown: every segment
@@ -47,6 +52,9 @@ class SegmentsController : public QObject {
   /// Shows what `snapshot` touches: the panel's row, the view's emphasis and, for a critical
   /// segment, the alert (a beep on entering it when the panel asks for sound).
   void showSnapshot(const runtime::HapticSnapshot& snapshot);
+  /// The shown segments drawn through the scan or not: the preference, the panel's box, the view.
+  void setThroughScan(bool on);
+
 
   SegmentsPanel* panel() const noexcept { return panel_; }
   /// The session's segment names for other threads (the OpenIGTLink link), updated with them.
@@ -63,6 +71,7 @@ class SegmentsController : public QObject {
 
   runtime::Session& session_;
   SceneView& view_;
+  Preferences& prefs_;
   QMainWindow* window_;
   QStatusBar* status_bar_;
   SegmentsPanel* panel_ = nullptr;
