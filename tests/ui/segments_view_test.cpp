@@ -1,13 +1,18 @@
 // Segments in the view: drawn through the scan on request (the Segments panel's "Show segments
-// through the scan"). The scene is the built-in sphere (radius 20 mm about the origin, F = 20 mm
-// - r, isovalue 0) with the probe; the segments are voxelised balls on its grid
+// through the scan"), and "go to segment" putting the tool on it. The scene is the built-in
+// sphere (radius 20 mm about the origin, F = 20 mm - r, isovalue 0) with the probe (a 2 mm ball
+// tip at the origin of T, the shaft along +z); the segments are voxelised balls on its grid
 // (test::ballSegmentation). Oracles: the balls' analytic centres and radii, projected through
-// the view's camera (a perspective projection written here, the inverse of rayThroughPixel()).
+// the view's camera (a perspective projection written here, the inverse of rayThroughPixel());
+// the probe's analytic tip; the haptic thread's placement count.
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <cstdint>
 #include <iostream>
+#include <limits>
 #include <memory>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -15,13 +20,16 @@
 #include <QImage>
 #include <QMainWindow>
 #include <QStatusBar>
+#include <QTableWidget>
 
 #include <gtest/gtest.h>
 #include <vtkActor.h>
 
 #include "ui_test_util.h"
+#include "vh/haptics/point_shell.h"
 #include "vh/runtime/scene.h"
 #include "vh/runtime/session.h"
+#include "vh/ui/devices/device_input.h"
 #include "vh/ui/panels/segments_panel.h"
 #include "vh/ui/preferences.h"
 #include "vh/ui/segments_controller.h"
@@ -61,14 +69,16 @@ io::LoadedSegmentation ballsSegmentation(const std::vector<Ball>& balls) {
   return seg;
 }
 
-/// The main window's segment wiring: the scene view, the Segments dock and its controller over a Session on the sphere scene, and the preferences.
+/// The main window's segment wiring: the scene view, the simulated device's input, the
+/// Segments dock and its controller over a Session on the sphere scene, and the preferences.
 struct SegmentsHost {
   SegmentsHost() {
     view = new SceneView(&window);
     window.setCentralWidget(view->widget());
     window.resize(760, 420);
     window.show();
-    controller = new SegmentsController(session, *view, &window, window.statusBar(), prefs);
+    input = new DeviceInput(session, *view);  // owned by the view
+    controller = new SegmentsController(session, *view, &window, window.statusBar(), prefs, input);
     test::pump(200);  // the dock laid out: the view's size as it stays
     const runtime::LoadedScene& scene = test::sphereProbeScene();
     session.setScene(scene, std::make_shared<runtime::SimulatedDevice>(scene.X_WT_initial));
@@ -96,8 +106,9 @@ struct SegmentsHost {
 
   Preferences prefs;
   runtime::Session session;
-  QMainWindow window;  // owns the view and the controller
+  QMainWindow window;  // owns the view, the input and the controller
   SceneView* view = nullptr;
+  DeviceInput* input = nullptr;
   SegmentsController* controller = nullptr;
 };
 
@@ -238,6 +249,79 @@ TEST(SegmentsThroughScan, TheNearerSegmentHidesTheFartherOne) {
   EXPECT_TRUE(showsColour(at(0.5 * (a + b)), red)) << "where both disks lie, the near ball";
   EXPECT_TRUE(showsColour(at(b + 0.6 * (b - a).normalized() * diskRadius_px(camera, far.centre_W_m, far.radius_m)), blue))
       << "the far ball beyond the near one's disk";
+}
+
+/// The proxy's pose once the haptic threads have applied the last placement and the proxy
+/// touches (null after 10 s).
+std::optional<haptics::Pose> restingProxy(SegmentsHost& host) {
+  runtime::HapticSnapshot snap;
+  const bool rested = test::waitFor(
+      [&] { return !host.input->touchInProgress() && host.session.latestSnapshot(snap) && snap.contacts > 0; },
+      10000 * test::kSanitizerSlowdown);
+  if (!rested) return std::nullopt;
+  test::pump(300);  // the hand's steady push: the proxy settles
+  host.session.latestSnapshot(snap);
+  return snap.X_WP;
+}
+
+TEST(SegmentsGoTo, GoToSegmentPutsTheToolOnItAlongTheLineOfSightThroughItsCentre) {
+  SegmentsHost host;
+  // The felt "nodule" off the sphere's centre; "vessel" shown only, where the vertical line
+  // through its centre passes 18 mm from the nodule's.
+  const Ball nodule{Eigen::Vector3d(0.008, 0.002, 0.004), 0.006, "nodule", {0.9, 0.3, 0.2}};
+  const Ball vessel{Eigen::Vector3d(-0.009, -0.004, 0.0), 0.005, "vessel", {0.2, 0.45, 1.0}};
+  host.setSegments({nodule, vessel}, {0});
+  ASSERT_TRUE(host.session.live().feltSegments());
+  // Looking down the probe's shaft (tip down at the scene's pose): the tip on the line of sight.
+  const haptics::Pose start = host.session.simulatedDevice()->pose();
+  ASSERT_GT((start.R_AB * Eigen::Vector3d::UnitZ()).z(), 0.999) << "the probe's shaft is vertical";
+  host.view->setStandardView(StandardView::kSuperior);
+
+  // Haptics off: framed, the tool stays, and the status bar says why.
+  EXPECT_EQ(host.controller->goToSegment(0), SegmentsController::GoTo::kFramedOnly);
+  EXPECT_TRUE(host.window.statusBar()->currentMessage().contains("stays")) << host.window.statusBar()->currentMessage().toStdString();
+  EXPECT_LT((host.session.simulatedDevice()->pose().p_AB_m - start.p_AB_m).norm(), 1e-15);
+
+  host.session.startHaptics();
+  ASSERT_TRUE(host.session.hapticsRunning());
+  const runtime::HapticThread* thread = host.session.hapticThread();
+  const std::uint64_t placements = thread->placementsApplied();
+  // The vessel is not felt and its line of sight meets no felt surface: framed, nothing moves.
+  EXPECT_EQ(host.controller->goToSegment(1), SegmentsController::GoTo::kNoSurface);
+  EXPECT_TRUE(host.window.statusBar()->currentMessage().contains("no felt surface"));
+  EXPECT_LT((host.session.simulatedDevice()->pose().p_AB_m - start.p_AB_m).norm(), 1e-15);
+
+  // The nodule, through the panel's double-click: the tool rests on it.
+  const double tip_before_m = (start.p_AB_m - nodule.centre_W_m).norm();
+  ASSERT_GT(tip_before_m, 0.02) << "the probe starts far from the nodule";
+  emit host.controller->panel()->table()->cellDoubleClicked(0, SegmentsPanel::kName);
+  EXPECT_TRUE(host.window.statusBar()->currentMessage().contains("rests")) << host.window.statusBar()->currentMessage().toStdString();
+  const std::optional<haptics::Pose> X_WP = restingProxy(host);
+  ASSERT_TRUE(X_WP.has_value()) << "the tool never came to rest";
+  EXPECT_EQ(thread->placementsApplied(), placements + 1) << "one placement, not the hand's motion";
+
+  // Tolerance from the tool and the grid: the probe's shell samples its 2 mm tip every
+  // `spacing`, and the felt surface of a voxelised ball lies within half a voxel (1 mm) of it.
+  const haptics::PointShell& shell = host.session.live().tool->point_shell;
+  const double spacing_m = shell.meanNearestNeighbourSpacing_m();
+  const double tolerance_m = spacing_m + 0.5e-3;
+  const ViewCamera camera = host.view->camera();
+  const Eigen::Vector3d f = camera.forward_W();
+  // The tip's centre (T's origin) on the line of sight through the nodule's centre, the tip
+  // ball (2 mm) on the nodule's surface on the viewer's side.
+  const Eigen::Vector3d tip_W = X_WP->p_AB_m;
+  const Eigen::Vector3d off_W = tip_W - nodule.centre_W_m;
+  const double lateral_m = (off_W - off_W.dot(f) * f).norm();
+  double nearest_m = std::numeric_limits<double>::infinity();
+  for (const Eigen::Vector3d& p_T : shell.points_T_m()) nearest_m = std::min(nearest_m, ((*X_WP) * p_T - nodule.centre_W_m).norm());
+  std::cout << "[ go to segment ] tip " << lateral_m * 1e3 << " mm off the line; nearest shell point "
+            << nearest_m * 1e3 << " mm from the nodule's centre (radius 6 mm); tolerance " << tolerance_m * 1e3
+            << " mm (shell spacing " << spacing_m * 1e3 << " mm)\n";
+  EXPECT_LT(lateral_m, tolerance_m);
+  EXPECT_LT(off_W.dot(f), 0.0) << "on the viewer's side";
+  EXPECT_NEAR(nearest_m, nodule.radius_m, tolerance_m);
+  EXPECT_NEAR(off_W.norm(), nodule.radius_m + 0.002, tolerance_m);
+  host.session.stopHaptics();
 }
 
 }  // namespace
