@@ -26,6 +26,7 @@ TEST(Preferences, RoundTripThroughQSettings) {
   p.orientation_marker = false;
   p.show_device = false;
   p.tool_shadow = false;
+  p.segments_through_scan = true;
   p.addRecentFile("/data/a.nrrd");
   p.addRecentFile("/data/dicom");
   p.last_folder = "/data";

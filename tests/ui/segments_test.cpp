@@ -41,6 +41,7 @@
 #include "vh/ui/segments_controller.h"
 #include "vh/ui/export/media_export.h"
 #include "vh/ui/main_window.h"
+#include "vh/ui/preferences.h"
 #include "vh/ui/replay/replay_controller.h"
 #include "vh/ui/scene_opener.h"
 #include "vh/ui/view/vtk_view.h"
@@ -157,8 +158,9 @@ struct Host {
     window.setCentralWidget(view->widget());
     window.resize(480, 360);
     window.show();
-    controller = new SegmentsController(session, *view, &window, window.statusBar());
+    controller = new SegmentsController(session, *view, &window, window.statusBar(), prefs);
   }
+  Preferences prefs;
   runtime::Session session;
   QMainWindow window;
   SceneView* view = nullptr;

@@ -34,6 +34,7 @@ HapticsController::HapticsController(runtime::Session& session, HapticsPanel& pa
   });
   connect(&panel_, &HapticsPanel::resetDeviceRequested, this, [this] { resetDevice(); });
   connect(&panel_, &HapticsPanel::rescanRequested, &devices_, &DevicePicker::rescan);
+  connect(&panel_, &HapticsPanel::message, this, &HapticsController::message);
   connect(&panel_, &HapticsPanel::deviceChoiceRequested, &devices_, &DevicePicker::choose);
   connect(&devices_, &DevicePicker::choicesChanged, &panel_, &HapticsPanel::setDeviceChoices);
   connect(&devices_, &DevicePicker::choiceChanged, &panel_, &HapticsPanel::setDeviceChoice);

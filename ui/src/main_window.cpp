@@ -160,7 +160,7 @@ void MainWindow::buildDocks() {
   chart_dock_->setObjectName("chartDock");
   chart_dock_->setWidget(chart_);
   addDockWidget(Qt::BottomDockWidgetArea, chart_dock_);
-  segments_ = new SegmentsController(session_, *view_, this, statusBar());
+  segments_ = new SegmentsController(session_, *view_, this, statusBar(), prefs_, device_input_);
   drill_ = new DrillController(session_, *view_, this);
   // Display, Segments and Haptics share the right side as tabs (Haptics in front): together they
   // would be taller than a laptop screen.

@@ -46,6 +46,7 @@ Preferences Preferences::load(QSettings& s) {
   p.orientation_marker = s.value("view/orientation_marker", p.orientation_marker).toBool();
   p.show_device = s.value("view/show_device", p.show_device).toBool();
   p.tool_shadow = s.value("view/tool_shadow", p.tool_shadow).toBool();
+  p.segments_through_scan = s.value("view/segments_through_scan", p.segments_through_scan).toBool();
   p.recent_files = s.value("files/recent").toStringList();
   while (p.recent_files.size() > kMaxRecentFiles) p.recent_files.removeLast();
   p.last_folder = s.value("files/last_folder").toString();
@@ -80,6 +81,7 @@ void Preferences::save(QSettings& s) const {
   s.setValue("view/orientation_marker", orientation_marker);
   s.setValue("view/show_device", show_device);
   s.setValue("view/tool_shadow", tool_shadow);
+  s.setValue("view/segments_through_scan", segments_through_scan);
   s.setValue("files/recent", recent_files);
   s.setValue("files/last_folder", last_folder);
   s.setValue("files/datasets_dir", datasets_dir);

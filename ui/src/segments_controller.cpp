@@ -5,12 +5,16 @@
 #include <QDockWidget>
 #include <QFileDialog>
 #include <QMainWindow>
+#include <QPointF>
 #include <QStatusBar>
 #include <QStringList>
 
 #include "vh/io/segmentation.h"
-#include "vh/ui/view/scene_view.h"
+#include "vh/ui/devices/device_input.h"
 #include "vh/ui/panels/segments_panel.h"
+#include "vh/ui/preferences.h"
+#include "vh/ui/view/scene_view.h"
+#include "vh/ui/view/vtk_view.h"
 
 namespace vh::ui {
 namespace {
@@ -32,8 +36,14 @@ std::vector<std::string> segmentNames(const io::LoadedSegmentation& seg, const s
 }  // namespace
 
 SegmentsController::SegmentsController(runtime::Session& session, SceneView& view, QMainWindow* window,
-                                       QStatusBar* status_bar)
-    : QObject(window), session_(session), view_(view), window_(window), status_bar_(status_bar) {
+                                       QStatusBar* status_bar, Preferences& prefs, DeviceInput* device_input)
+    : QObject(window),
+      session_(session),
+      view_(view),
+      prefs_(prefs),
+      device_input_(device_input),
+      window_(window),
+      status_bar_(status_bar) {
   panel_ = new SegmentsPanel(window);
   dock_ = new QDockWidget("Segments", window);
   dock_->setObjectName("segmentsDock");
@@ -49,10 +59,12 @@ SegmentsController::SegmentsController(runtime::Session& session, SceneView& vie
       emit errorReported("Segments", q(e.what()));
     }
   });
-  connect(panel_, &SegmentsPanel::goToSegmentRequested, this, [this](int segment) {
-    if (!view_.frameSegment(segment))
-      status_bar_->showMessage("That segment is not shown: tick Shown to draw it, then double-click it", 5000);
-  });
+  connect(panel_, &SegmentsPanel::goToSegmentRequested, this, &SegmentsController::goToSegment);
+  panel_->setThroughScan(prefs_.segments_through_scan);
+  view_.setSegmentsThroughScan(prefs_.segments_through_scan);
+  connect(panel_, &SegmentsPanel::throughScanToggled, this, &SegmentsController::setThroughScan);
+  connect(panel_->smoothingBox(), &RangeSpinBox::outOfRange, this,
+          [this](const QString& message) { status_bar_->showMessage(message, 8000); });
   observer_ = session_.addObserver([this](runtime::SessionChange what) { onSessionChanged(what); });
 }
 
@@ -140,6 +152,41 @@ bool SegmentsController::apply(const SegmentChoices& choices) {
     return false;
   }
   return true;
+}
+
+void SegmentsController::setThroughScan(bool on) {
+  prefs_.segments_through_scan = on;
+  panel_->setThroughScan(on);
+  view_.setSegmentsThroughScan(on);
+}
+
+SegmentsController::GoTo SegmentsController::goToSegment(int segment) {
+  if (!view_.frameSegment(segment)) {
+    status_bar_->showMessage("That segment is not shown: tick Shown to draw it, then double-click it", 5000);
+    return GoTo::kNotShown;
+  }
+  const runtime::SegmentSet* set = session_.hasScene() ? session_.live().segments.get() : nullptr;
+  const QString name = set != nullptr && static_cast<std::size_t>(segment) < set->size() ? q(set->name(segment)) : "the segment";
+  if (device_input_ == nullptr || session_.simulatedDevice() == nullptr || !session_.hapticsRunning()) {
+    status_bar_->showMessage(QString("Framed %1; the tool stays where it is: it is put on the segment only with the "
+                                     "simulated device and the haptics running")
+                                 .arg(name),
+                             6000);
+    return GoTo::kFramedOnly;
+  }
+  // The segment's centre is the framed view's centre: touch the surface there, as a Ctrl+Shift+click.
+  const VtkView* widget = view_.widget();
+  if (!device_input_->touchSurfaceAt(QPointF(0.5 * widget->width(), 0.5 * widget->height()), DeviceInput::kTouchDepth_m)) {
+    status_bar_->showMessage(
+        QString("Framed %1; no felt surface along the line of sight through its centre: the tool stays where it is")
+            .arg(name),
+        6000);
+    return GoTo::kNoSurface;
+  }
+  status_bar_->showMessage(
+      QString("Framed %1; the tool rests on the first felt surface along the line of sight through its centre").arg(name),
+      6000);
+  return GoTo::kPlaced;
 }
 
 void SegmentsController::showSnapshot(const runtime::HapticSnapshot& snapshot) {

@@ -53,7 +53,7 @@ QGroupBox* HapticsPanel::buildToolBox() {
   tool_->setObjectName("toolChoice");
   tool_->setSizeAdjustPolicy(QComboBox::AdjustToMinimumContentsLengthWithIcon);
   tool_->setMinimumContentsLength(18);
-  spacing_mm_ = new QDoubleSpinBox(tool_box);
+  spacing_mm_ = new RangeSpinBox("the point spacing", tool_box);
   spacing_mm_->setObjectName("pointSpacing");
   spacing_mm_->setDecimals(2);
   spacing_mm_->setRange(0.1, 20.0);
@@ -86,7 +86,7 @@ QGroupBox* HapticsPanel::buildToolBox() {
 QGroupBox* HapticsPanel::buildCouplingBox() {
   auto* coupling = new QGroupBox("Virtual coupling", this);
   auto* coupling_form = new QFormLayout(coupling);
-  linear_ = new QDoubleSpinBox(coupling);
+  linear_ = new RangeSpinBox("the linear stiffness", coupling);
   linear_->setObjectName("linearStiffness");
   linear_->setRange(0.0, 100000.0);  // past a device's rating only with passivity control (clampGains)
   linear_->setDecimals(0);
@@ -94,7 +94,7 @@ QGroupBox* HapticsPanel::buildCouplingBox() {
   linear_->setSuffix(" N/m");
   linear_->setKeyboardTracking(false);
   linear_->setToolTip("Linear stiffness k_lin of the spring between device and proxy (paper eq. 5)");
-  torsional_ = new QDoubleSpinBox(coupling);
+  torsional_ = new RangeSpinBox("the torsional stiffness", coupling);
   torsional_->setObjectName("torsionalStiffness");
   torsional_->setRange(0.0, 50.0);
   torsional_->setDecimals(3);
@@ -159,6 +159,8 @@ void HapticsPanel::connectControls() {
   connect(linear_, &QDoubleSpinBox::valueChanged, this, gains_edited);
   connect(torsional_, &QDoubleSpinBox::valueChanged, this, gains_edited);
   connect(passivity_, &QCheckBox::toggled, this, gains_edited);
+  for (RangeSpinBox* box : {spacing_mm_, linear_, torsional_})
+    connect(box, &RangeSpinBox::outOfRange, this, [this](const QString& text) { emit message(text, 8000); });
   connect(edge_test_, &QCheckBox::toggled, this, [this](bool on) {
     if (!updating_) emit edgeTestRequested(on);
   });

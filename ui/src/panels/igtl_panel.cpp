@@ -8,15 +8,15 @@
 #include <QCheckBox>
 #include <QDialog>
 #include <QDialogButtonBox>
-#include <QDoubleSpinBox>
 #include <QFormLayout>
 #include <QLabel>
 #include <QLineEdit>
 #include <QMessageBox>
-#include <QSpinBox>
 #include <QStatusBar>
 #include <QRegularExpression>
 #include <QTimer>
+
+#include "vh/ui/panels/range_spin_box.h"
 
 namespace vh::ui {
 
@@ -158,11 +158,11 @@ void IgtlPanel::openDialog() {
   auto* form = new QFormLayout(&dialog);
   auto* enabled = new QCheckBox("Listen for a client (e.g. 3D Slicer's OpenIGTLinkIF)", &dialog);
   enabled->setChecked(settings_.enabled || link_ == nullptr);
-  auto* port = new QSpinBox(&dialog);
+  auto* port = new RangeIntSpinBox("the port", &dialog);
   port->setObjectName("igtlPort");
   port->setRange(1, 65535);
   port->setValue(settings_.port);
-  auto* rate = new QDoubleSpinBox(&dialog);
+  auto* rate = new RangeSpinBox("the rate", &dialog);
   rate->setObjectName("igtlRate");
   rate->setRange(1.0, std::max(1.0, servo_rate_Hz_));
   rate->setDecimals(0);
@@ -187,7 +187,7 @@ void IgtlPanel::openDialog() {
                           &dialog));
   auto* buttons = new QDialogButtonBox(QDialogButtonBox::Ok | QDialogButtonBox::Cancel, &dialog);
   form->addRow(buttons);
-  connect(buttons, &QDialogButtonBox::accepted, &dialog, &QDialog::accept);
+  connect(buttons, &QDialogButtonBox::accepted, &dialog, unlessRefused(dialog, {port, rate}, [&dialog] { dialog.accept(); }));
   connect(buttons, &QDialogButtonBox::rejected, &dialog, &QDialog::reject);
   if (dialog.exec() != QDialog::Accepted) return;
   QString error;

@@ -11,7 +11,6 @@
 #include <QPushButton>
 #include <QScrollArea>
 #include <QSignalBlocker>
-#include <QSpinBox>
 #include <QToolButton>
 #include <QVBoxLayout>
 
@@ -60,7 +59,7 @@ LoadNoticePanel::LoadNoticePanel(QWidget* parent)
       close_(new QToolButton(this)),
       phase_row_(new QWidget(this)),
       phase_label_(new QLabel(phase_row_)),
-      phase_spin_(new QSpinBox(phase_row_)),
+      phase_spin_(new RangeIntSpinBox("the time point", phase_row_)),
       phase_load_(new QPushButton("Load This Time Point", phase_row_)) {
   setObjectName("loadNoticePanel");
   setFrameShape(QFrame::StyledPanel);
@@ -118,11 +117,11 @@ LoadNoticePanel::LoadNoticePanel(QWidget* parent)
 
   connect(close_, &QToolButton::clicked, this, &QWidget::hide);
   connect(details_, &QToolButton::toggled, this, &LoadNoticePanel::setDetailsShown);
-  connect(phase_load_, &QPushButton::clicked, this, [this] {
+  connect(phase_load_, &QPushButton::clicked, this, unlessRefused(*this, {phase_spin_}, [this] {
     runtime::SceneSpec spec = spec_;
     spec.volume.phase = phase_spin_->value() - 1;
     emit reloadRequested(spec, opened_);
-  });
+  }));
   hide();
 }
 

@@ -16,7 +16,6 @@
 #include <QLineEdit>
 #include <QProgressDialog>
 #include <QPushButton>
-#include <QSpinBox>
 #include <QStandardPaths>
 #include <QTimer>
 #include <QTreeWidget>
@@ -153,7 +152,7 @@ PacsSettingsDialog::PacsSettingsDialog(const io::PacsServer& server, QWidget* pa
   auto* form = new QFormLayout;
   host_ = new QLineEdit(q(server.host));
   host_->setObjectName("pacsHost");
-  port_ = new QSpinBox;
+  port_ = new RangeIntSpinBox("the port");
   port_->setObjectName("pacsPort");
   port_->setRange(1, 65535);
   port_->setValue(server.port);
@@ -167,7 +166,7 @@ PacsSettingsDialog::PacsSettingsDialog(const io::PacsServer& server, QWidget* pa
   form->addRow("Port:", port_);
   form->addRow("Server's AE title (called):", called_);
   form->addRow("Our AE title (calling):", calling_);
-  timeout_ = new QSpinBox;
+  timeout_ = new RangeIntSpinBox("the timeout");
   timeout_->setObjectName("pacsTimeout");
   timeout_->setRange(1, 3600);
   timeout_->setSuffix(" s");
@@ -185,7 +184,7 @@ PacsSettingsDialog::PacsSettingsDialog(const io::PacsServer& server, QWidget* pa
   test_result_->setObjectName("pacsTestResult");
   test_result_->setWordWrap(true);
   auto* buttons = new QDialogButtonBox(QDialogButtonBox::Ok | QDialogButtonBox::Cancel);
-  connect(buttons, &QDialogButtonBox::accepted, this, &QDialog::accept);
+  connect(buttons, &QDialogButtonBox::accepted, this, unlessRefused(*this, {port_, timeout_}, [this] { accept(); }));
   connect(buttons, &QDialogButtonBox::rejected, this, &QDialog::reject);
   connect(test, &QPushButton::clicked, this, [this, test] {
     if (testing_) return;

@@ -6,7 +6,6 @@
 #include <QSignalBlocker>
 
 #include <QCheckBox>
-#include <QDoubleSpinBox>
 #include <QFormLayout>
 #include <QHeaderView>
 #include <QLabel>
@@ -48,7 +47,7 @@ SegmentsPanel::SegmentsPanel(QWidget* parent) : QWidget(parent) {
   table_->setSelectionMode(QAbstractItemView::NoSelection);
   table_->setEditTriggers(QAbstractItemView::DoubleClicked | QAbstractItemView::EditKeyPressed);  // hardness only
   auto* form = new QFormLayout;
-  smoothing_ = new QDoubleSpinBox(this);
+  smoothing_ = new RangeSpinBox("the smoothing", this);
   smoothing_->setRange(0.0, 3.0);
   smoothing_->setSingleStep(0.25);
   smoothing_->setValue(1.0);
@@ -56,6 +55,10 @@ SegmentsPanel::SegmentsPanel(QWidget* parent) : QWidget(parent) {
   smoothing_->setToolTip("Gaussian sigma of the felt surface: 0 keeps the voxels' steps; 1 smooths them "
                          "and stays within about half a voxel of the segment");
   form->addRow("Smoothing:", smoothing_);
+  through_scan_ = new QCheckBox("Show segments through the scan", this);
+  through_scan_->setObjectName("segmentsThroughScan");
+  through_scan_->setToolTip("A segment inside the body is hidden by the scan's surface: draw the shown segments in "
+                            "front of it (the tool stays in front of the segments where it is nearer)");
   sound_ = new QCheckBox("Sound when a critical segment is touched", this);
   touched_ = new QLabel("Touching: nothing", this);
   touched_->setWordWrap(true);
@@ -63,6 +66,7 @@ SegmentsPanel::SegmentsPanel(QWidget* parent) : QWidget(parent) {
   layout->addWidget(source_);
   layout->addWidget(table_, 1);
   layout->addLayout(form);
+  layout->addWidget(through_scan_);
   layout->addWidget(sound_);
   layout->addWidget(touched_);
 
@@ -84,9 +88,10 @@ SegmentsPanel::SegmentsPanel(QWidget* parent) : QWidget(parent) {
     }
     emit choicesChanged(choices());
   });
-  connect(smoothing_, &QDoubleSpinBox::editingFinished, this, [this] {
+  connect(smoothing_, &QAbstractSpinBox::editingFinished, this, [this] {
     if (!filling_) emit choicesChanged(choices());
   });
+  connect(through_scan_, &QCheckBox::toggled, this, &SegmentsPanel::throughScanToggled);
   connect(open_, &QPushButton::clicked, this, &SegmentsPanel::openRequested);
   showSegments(nullptr);
 }
@@ -206,5 +211,12 @@ SegmentChoices SegmentsPanel::choices() const {
 }
 
 bool SegmentsPanel::alertSound() const { return sound_->isChecked(); }
+
+void SegmentsPanel::setThroughScan(bool on) {
+  const QSignalBlocker block(through_scan_);
+  through_scan_->setChecked(on);
+}
+
+bool SegmentsPanel::throughScan() const { return through_scan_->isChecked(); }
 
 }  // namespace vh::ui

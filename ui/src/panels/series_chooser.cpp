@@ -6,7 +6,6 @@
 #include <QItemSelectionModel>
 #include <QLabel>
 #include <QPushButton>
-#include <QSpinBox>
 #include <QTableView>
 #include <QVBoxLayout>
 
@@ -125,7 +124,7 @@ SeriesChooserDialog::SeriesChooserDialog(const QString& folder, std::vector<io::
     : QDialog(parent),
       model_(new DicomSeriesModel(std::move(series), this)),
       table_(new QTableView(this)),
-      phase_(new QSpinBox(this)) {
+      phase_(new RangeIntSpinBox("the time point", this)) {
   setWindowTitle("Choose a DICOM series");
   auto* layout = new QVBoxLayout(this);
   auto* text = new QLabel(QString("<b>%1</b> holds %2 image series. Choose the one to open:")
@@ -165,7 +164,7 @@ SeriesChooserDialog::SeriesChooserDialog(const QString& folder, std::vector<io::
   layout->addLayout(phase_row);
   auto* buttons = new QDialogButtonBox(QDialogButtonBox::Open | QDialogButtonBox::Cancel, this);
   layout->addWidget(buttons);
-  connect(buttons, &QDialogButtonBox::accepted, this, &QDialog::accept);
+  connect(buttons, &QDialogButtonBox::accepted, this, unlessRefused(*this, {phase_}, [this] { accept(); }));
   connect(buttons, &QDialogButtonBox::rejected, this, &QDialog::reject);
   connect(table_, &QTableView::doubleClicked, this, &QDialog::accept);
   connect(table_->selectionModel(), &QItemSelectionModel::selectionChanged, this, [this, phase_count] {

@@ -61,11 +61,28 @@ double shift_px(const ViewCamera& camera, const Eigen::Vector3d& a_W, const Eige
 }
 
 
+/// The renderer the segments are drawn in through the scan, added to `view`'s window: a layer
+/// (1) over the scan's renderer with its camera and a depth buffer of its own (in front of the
+/// scan, in order among themselves), not interactive, drawing nothing until asked.
+vtkSmartPointer<vtkRenderer> addSegmentLayer(VtkView& view) {
+  auto layer = vtkSmartPointer<vtkRenderer>::New();
+  layer->SetLayer(1);
+  layer->SetActiveCamera(view.renderer()->GetActiveCamera());
+  layer->InteractiveOff();
+  layer->PreserveDepthBufferOff();
+  layer->SetDraw(false);
+  view.renderWindow()->SetNumberOfLayers(std::max(2, view.renderWindow()->GetNumberOfLayers()));
+  view.renderWindow()->AddRenderer(layer);
+  return layer;
+}
+
 }  // namespace
 
 SceneView::SceneView(QWidget* parent) : QObject(parent) {
   view_ = new VtkView(parent);
   view_->setObjectName("vtkView");
+  // Before the orientation marker's and the contacts' layers: drawn over it, in that order.
+  segment_layer_ = addSegmentLayer(*view_);
   marker_ = std::make_unique<OrientationMarker>(view_->renderWindow(), view_->renderer());
   marker_->setVisible(false);  // shown with a scene
   view_->renderer()->GradientBackgroundOn();
@@ -152,16 +169,13 @@ double SceneView::interactiveTargetMs() const {
 
 SceneView::~SceneView() {
   // VTK props release their GL objects when they leave the renderer: give them the context.
-  if (view_->context() != nullptr) {
-    view_->makeCurrent();
-    actors_.reset();
-    segments_.reset();
-    marker_.reset();
-    view_->doneCurrent();
-  }
+  const bool current = view_->context() != nullptr && view_->makeCurrent();
+  takeToolsOutOfLayer();
   actors_.reset();
   segments_.reset();
   marker_.reset();
+  view_->renderWindow()->RemoveRenderer(segment_layer_);
+  if (current) view_->doneCurrent();
 }
 
 void SceneView::setScene(const SceneActorsSpec& spec, const haptics::Pose& X_WT, const ViewLook& look) {
@@ -169,9 +183,11 @@ void SceneView::setScene(const SceneActorsSpec& spec, const haptics::Pose& X_WT,
   // The scan's props only: the segment surfaces follow the session's segments (setSegments()).
   if (view_->context() != nullptr) {
     view_->makeCurrent();
+    takeToolsOutOfLayer();
     actors_.reset();
     view_->doneCurrent();
   }
+  takeToolsOutOfLayer();
   actors_ = std::make_unique<SceneActors>(view_->renderer(), spec);
   tool_vertices_T_m_ = spec.tool_mesh_T.vertices_T_m;
   tool_corners_T_m_ = boxCorners(tool_vertices_T_m_);
@@ -186,6 +202,8 @@ void SceneView::setScene(const SceneActorsSpec& spec, const haptics::Pose& X_WT,
   prime_pending_ = true;
   if (welcome_ != nullptr) welcome_->SetVisibility(false);
   marker_->setVisible(look.orientation_marker);
+  through_scan_ = look.segments_through_scan;
+  placeSegments();
   applyColours(look);
   resetCamera();
   requestRender();
@@ -195,20 +213,52 @@ void SceneView::clearScene() {
   if (actors_ == nullptr) return;
   if (view_->context() != nullptr) {
     view_->makeCurrent();
+    takeToolsOutOfLayer();
     actors_.reset();
     segments_.reset();
     view_->doneCurrent();
   }
+  takeToolsOutOfLayer();
   actors_.reset();
   segments_.reset();
+  segment_layer_->SetDraw(false);
   if (alert_ != nullptr) alert_->SetVisibility(false);
 }
 
 const std::vector<int>& SceneView::setSegments(const runtime::SegmentSet* set) {
   if (segments_ == nullptr) segments_ = std::make_unique<SegmentSurfaces>(view_->renderer());
   segments_->show(set, surface_rgb_);
-  requestRender();
+  placeSegments();
   return segments_->recoloured();
+}
+
+void SceneView::setSegmentsThroughScan(bool on) {
+  through_scan_ = on;
+  placeSegments();
+}
+
+vtkRenderer* SceneView::segmentLayer() const noexcept { return segment_layer_; }
+
+void SceneView::takeToolsOutOfLayer() {
+  for (const vtkSmartPointer<vtkActor>& tool : layer_tools_) segment_layer_->RemoveActor(tool);
+  layer_tools_.clear();
+}
+
+void SceneView::placeSegments() {
+  takeToolsOutOfLayer();
+  const bool layered = through_scan_ && segments_ != nullptr && !segments_->shownSegments().empty();
+  if (segments_ != nullptr) segments_->setRenderer(through_scan_ ? segment_layer_.Get() : view_->renderer());
+  // The tools in the layer too (they stay in the scan's renderer): each drawn where it lies
+  // against the segments, not under them.
+  if (layered && actors_ != nullptr) {
+    for (vtkActor* tool : {actors_->proxyActor(), actors_->deviceActor()}) {
+      if (tool == nullptr) continue;
+      segment_layer_->AddActor(tool);
+      layer_tools_.emplace_back(tool);
+    }
+  }
+  segment_layer_->SetDraw(layered);
+  requestRender();
 }
 
 void SceneView::setTouchedSegment(int segment, const std::string& alert) {

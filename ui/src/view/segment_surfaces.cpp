@@ -73,6 +73,15 @@ Rgb distinctSegmentColour(const Rgb& segment_rgb, const Rgb& surface_rgb, const 
 
 SegmentSurfaces::SegmentSurfaces(vtkRenderer* renderer) : renderer_(renderer) {}
 
+void SegmentSurfaces::setRenderer(vtkRenderer* renderer) {
+  if (renderer == renderer_ || renderer == nullptr) return;
+  for (auto& [s, actor] : actors_) {
+    renderer_->RemoveActor(actor);
+    renderer->AddActor(actor);
+  }
+  renderer_ = renderer;
+}
+
 SegmentSurfaces::~SegmentSurfaces() {
   for (auto& [s, actor] : actors_) renderer_->RemoveActor(actor);
 }

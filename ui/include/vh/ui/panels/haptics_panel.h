@@ -13,13 +13,13 @@
 
 #include "vh/haptics/virtual_coupling.h"
 #include "vh/runtime/session.h"
+#include "vh/ui/panels/range_spin_box.h"
 #include "vh/ui/tool_catalog.h"
 
 class QCheckBox;
 class QComboBox;
 class QGroupBox;
 class QHBoxLayout;
-class QDoubleSpinBox;
 class QLabel;
 class QPushButton;
 class QTimer;
@@ -61,9 +61,11 @@ class HapticsPanel : public QWidget {
 
   QPushButton* startStopButton() const noexcept { return start_stop_; }
   QComboBox* toolBox() const noexcept { return tool_; }
-  QDoubleSpinBox* spacingBox() const noexcept { return spacing_mm_; }
-  QDoubleSpinBox* linearStiffnessBox() const noexcept { return linear_; }
-  QDoubleSpinBox* torsionalStiffnessBox() const noexcept { return torsional_; }
+  /// The numeric fields: a number typed outside a box's range is not taken; the box says the
+  /// range (RangeSpinBox) and message() repeats it for the status bar.
+  RangeSpinBox* spacingBox() const noexcept { return spacing_mm_; }
+  RangeSpinBox* linearStiffnessBox() const noexcept { return linear_; }
+  RangeSpinBox* torsionalStiffnessBox() const noexcept { return torsional_; }
   /// CouplingGains::passivity_control.
   QCheckBox* passivityControlBox() const noexcept { return passivity_; }
   QLabel* pointCountLabel() const noexcept { return points_; }
@@ -87,17 +89,19 @@ class HapticsPanel : public QWidget {
   void deviceChoiceRequested(int index);
   /// The user asked for the devices to be listed again.
   void rescanRequested();
+  /// A line for the status bar (a number typed out of a box's range was not taken).
+  void message(const QString& text, int timeout_ms);
 
  private:
   QPushButton* start_stop_;
   QPushButton* reset_device_;
   QComboBox* tool_;
-  QDoubleSpinBox* spacing_mm_;
+  RangeSpinBox* spacing_mm_;
   QLabel* points_;
   QLabel* felt_gap_;
   QCheckBox* edge_test_;
-  QDoubleSpinBox* linear_;
-  QDoubleSpinBox* torsional_;
+  RangeSpinBox* linear_;
+  RangeSpinBox* torsional_;
   QCheckBox* passivity_;
   QComboBox* device_choice_;
   QPushButton* rescan_;

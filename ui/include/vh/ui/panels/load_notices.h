@@ -16,11 +16,11 @@
 
 #include "vh/io/volume_loader.h"
 #include "vh/runtime/scene.h"
+#include "vh/ui/panels/range_spin_box.h"
 
 class QLabel;
 class QPushButton;
 class QScrollArea;
-class QSpinBox;
 class QToolButton;
 class QWidget;
 
@@ -66,7 +66,7 @@ class LoadNoticePanel : public QFrame {
   void setDetailsShown(bool shown);
   bool detailsShown() const;
   /// The time point chooser (1-based, as shown); hidden unless the volume is 4-D.
-  QSpinBox* phaseSpinBox() const noexcept { return phase_spin_; }
+  RangeIntSpinBox* phaseSpinBox() const noexcept { return phase_spin_; }
   /// Reloads the chosen time point (emits reloadRequested()).
   QPushButton* phaseLoadButton() const noexcept { return phase_load_; }
 
@@ -84,7 +84,7 @@ class LoadNoticePanel : public QFrame {
   QToolButton* close_;
   QWidget* phase_row_;
   QLabel* phase_label_;
-  QSpinBox* phase_spin_;
+  RangeIntSpinBox* phase_spin_;
   QPushButton* phase_load_;
   QString title_;
   QStringList notices_;

@@ -19,6 +19,7 @@
 #include <QString>
 
 #include "vh/io/pacs.h"
+#include "vh/ui/panels/range_spin_box.h"
 
 class QCheckBox;
 class QFormLayout;
@@ -26,7 +27,6 @@ class QLabel;
 class QLineEdit;
 class QProgressDialog;
 class QPushButton;
-class QSpinBox;
 class QTimer;
 class QTreeWidget;
 class QTreeWidgetItem;
@@ -53,10 +53,10 @@ class PacsSettingsDialog : public QDialog {
   void addTlsRows(QFormLayout& form, const io::PacsServer& server);
 
   QLineEdit* host_;
-  QSpinBox* port_;
+  RangeIntSpinBox* port_;
   QLineEdit* called_;
   QLineEdit* calling_;
-  QSpinBox* timeout_;
+  RangeIntSpinBox* timeout_;
   QCheckBox* tls_;
   QLineEdit* ca_cert_;
   QLineEdit* client_cert_;

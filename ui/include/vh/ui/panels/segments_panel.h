@@ -4,7 +4,8 @@
 /// with their colours, and for each whether it is felt (the hand feels its smoothed surface
 /// instead of the scan's isosurface), shown (a coloured surface beside the ray-cast scan) and
 /// critical (touching it is an alert and an event in the recording); the felt surface's
-/// smoothing; the segment touched now. It edits and shows; the main window acts on its signals
+/// smoothing; whether the shown segments are drawn through the scan (in front of its surface,
+/// which hides a segment inside the body); the segment touched now. It edits and shows; the main window acts on its signals
 /// (runtime::Session::setSegments()). GUI thread only.
 #include <array>
 #include <map>
@@ -15,9 +16,9 @@
 #include <QWidget>
 
 #include "vh/runtime/segments.h"
+#include "vh/ui/panels/range_spin_box.h"
 
 class QCheckBox;
-class QDoubleSpinBox;
 class QLabel;
 class QPushButton;
 class QTableWidget;
@@ -54,9 +55,15 @@ class SegmentsPanel : public QWidget {
   SegmentChoices choices() const;
   /// Sound on touching a critical segment (the window beeps).
   bool alertSound() const;
+  /// Ticks "Show segments through the scan" as `on` says (the preference shown). No signal.
+  void setThroughScan(bool on);
+  bool throughScan() const;
 
   QTableWidget* table() const noexcept { return table_; }
   QPushButton* openButton() const noexcept { return open_; }
+  /// The felt surface's smoothing [voxels]; a number typed out of its range is not taken.
+  RangeSpinBox* smoothingBox() const noexcept { return smoothing_; }
+  QCheckBox* throughScanBox() const noexcept { return through_scan_; }
 
  signals:
   /// A check box or the smoothing changed.
@@ -67,11 +74,14 @@ class SegmentsPanel : public QWidget {
   void hardnessChanged(int segment, double J_per_mm3);
   /// A segment's name was double-clicked: frame it in the view ("go to segment").
   void goToSegmentRequested(int segment);
+  /// "Show segments through the scan" was ticked (true) or cleared by the user.
+  void throughScanToggled(bool on);
 
  private:
   QLabel* source_ = nullptr;
   QTableWidget* table_ = nullptr;
-  QDoubleSpinBox* smoothing_ = nullptr;
+  RangeSpinBox* smoothing_ = nullptr;
+  QCheckBox* through_scan_ = nullptr;
   QCheckBox* sound_ = nullptr;
   QLabel* touched_ = nullptr;
   QPushButton* open_ = nullptr;

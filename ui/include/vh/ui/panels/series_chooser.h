@@ -11,8 +11,8 @@
 #include <QDialog>
 
 #include "vh/io/dicom_series.h"
+#include "vh/ui/panels/range_spin_box.h"
 
-class QSpinBox;
 class QTableView;
 
 namespace vh::ui {
@@ -71,14 +71,14 @@ class SeriesChooserDialog : public QDialog {
   /// is 4-D (estimatedTimePoints() > 1).
   int selectedPhase() const;
   /// The time point chooser (1-based, as shown); enabled for a 4-D series.
-  QSpinBox* phaseSpinBox() const noexcept { return phase_; }
+  RangeIntSpinBox* phaseSpinBox() const noexcept { return phase_; }
   DicomSeriesModel* model() const noexcept { return model_; }
   QTableView* table() const noexcept { return table_; }
 
  private:
   DicomSeriesModel* model_;
   QTableView* table_;
-  QSpinBox* phase_;
+  RangeIntSpinBox* phase_;
 };
 
 }  // namespace vh::ui

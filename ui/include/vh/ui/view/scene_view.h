@@ -17,6 +17,7 @@
 
 #include <Eigen/Core>
 #include <QObject>
+#include <vtkSmartPointer.h>
 
 #include "vh/haptics/pose.h"
 #include "vh/haptics/tool_model.h"
@@ -28,6 +29,8 @@
 
 class QTimer;
 class QWidget;
+class vtkActor;
+class vtkRenderer;
 class vtkTextActor;
 
 namespace vh::ui {
@@ -53,7 +56,8 @@ class SceneView : public QObject {
 
   // ---- Scene ---------------------------------------------------------------------------------
   /// Builds the props for `spec` (replacing any; the segment surfaces stay), the tools at
-  /// `X_WT`, the look of `look`, and resets the camera; hides the welcome text. @throws std::invalid_argument without an image.
+  /// `X_WT`, the look of `look` (segments through the scan included), and resets the camera;
+  /// hides the welcome text. @throws std::invalid_argument without an image.
   void setScene(const SceneActorsSpec& spec, const haptics::Pose& X_WT, const ViewLook& look);
   /// Removes the props and the segment surfaces (the welcome text stays hidden once a scene was
   /// shown).
@@ -71,6 +75,17 @@ class SceneView : public QObject {
   void setTouchedSegment(int segment, const std::string& alert);
   /// The segment surfaces (null before the first scene).
   const SegmentSurfaces* segmentSurfaces() const noexcept { return segments_.get(); }
+  /// Draws the shown segments through the scan (`on`), in front of its surface, which hides a
+  /// segment inside the body: in segmentLayer(), a renderer over the scan's (layer 1, the same
+  /// camera) with a depth buffer of its own, so the segments hide one another as they lie; the
+  /// tools are drawn there too, so that a tool nearer than a segment stays in front of it (and
+  /// shows through the scan as the segments do). The contacts and the force arrow stay on top.
+  /// Off: the segments are in the scan's renderer, where its surface hides those inside it.
+  void setSegmentsThroughScan(bool on);
+  bool segmentsThroughScan() const noexcept { return through_scan_; }
+  /// The renderer the segments are drawn in through the scan; it draws only while that is on
+  /// and some segment is shown.
+  vtkRenderer* segmentLayer() const noexcept;
   /// The alert text shown now ("" when none).
   std::string alertText() const;
   /// A new tool's display mesh, both tools at `X_WT`, no contacts, no force.
@@ -143,10 +158,18 @@ class SceneView : public QObject {
 
  private:
   void fitCamera(const double direction_W[3], const double up_W[3], double zoom);
+  /// Puts the segment actors in the scan's renderer or in segmentLayer() (with the tools) as
+  /// through_scan_ says, and draws the layer only when it holds segments.
+  void placeSegments();
+  /// Takes the tools out of segmentLayer() (before their props go).
+  void takeToolsOutOfLayer();
 
   VtkView* view_ = nullptr;
   std::unique_ptr<SceneActors> actors_;
   std::unique_ptr<SegmentSurfaces> segments_;
+  vtkSmartPointer<vtkRenderer> segment_layer_;
+  std::vector<vtkSmartPointer<vtkActor>> layer_tools_;  // the tools also drawn in segment_layer_
+  bool through_scan_ = false;
   Rgb surface_rgb_ = {237.0 / 255.0, 222.0 / 255.0, 189.0 / 255.0};  // ViewLook::surface's default
   vtkTextActor* alert_ = nullptr;  // owned by the renderer
   std::unique_ptr<OrientationMarker> marker_;

@@ -46,6 +46,9 @@ class SegmentSurfaces {
  public:
   /// Adds nothing yet; the actors go into `renderer` (which must outlive this object).
   explicit SegmentSurfaces(vtkRenderer* renderer);
+  /// Moves the actors into `renderer` (which must outlive this object); the next ones go there too.
+  void setRenderer(vtkRenderer* renderer);
+  vtkRenderer* renderer() const noexcept { return renderer_; }
   ~SegmentSurfaces();  ///< Removes the actors from the renderer.
   SegmentSurfaces(const SegmentSurfaces&) = delete;
   SegmentSurfaces& operator=(const SegmentSurfaces&) = delete;

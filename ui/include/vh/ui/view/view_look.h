@@ -1,7 +1,7 @@
 #pragma once
 /// @file
 /// How the 3D view looks, as the user chose it: the colours, the rendering mode and preset, the
-/// orientation marker and the device tool. The view reads it; what the application remembers
+/// orientation marker, the device tool, the tool's shadow and the segments drawn through the scan. The view reads it; what the application remembers
 /// between runs (Preferences, one floor up) extends it, so the view never depends on settings.
 
 #include <QColor>
@@ -26,6 +26,9 @@ struct ViewLook {
   bool orientation_marker = true;
   bool show_device = true;  ///< Draw the device's (wireframe) tool.
   bool tool_shadow = true;  ///< Draw the tool's shadow on the surface (a depth cue; ToolShadow).
+  /// Draw the shown segments in front of the scan's surface, which hides a segment inside the
+  /// body (SceneView::setSegmentsThroughScan()); off: in the scene, where the surface hides them.
+  bool segments_through_scan = false;
 
   bool operator==(const ViewLook& other) const = default;
 };
