@@ -59,8 +59,8 @@ struct BurrSoundModel {
   int flutes = 6;                                 ///< Cutting flutes of the burr (1 to 64): f0 = flutes n / 60.
   double burr_radius_m = 0.0025;                  ///< Burr radius r [m], > 0: the load torque's lever.
   double friction_coefficient = 0.2;              ///< mu: tangential over normal force at the flutes, >= 0.
-  /// Stall torque of the motor at the burr [N*m], > 0 (an otologic micromotor's few mN*m).
-  double stall_torque_Nm = 0.005;
+  /// Stall torque of the motor at the burr [N*m], > 0 (an otologic high-speed motor's ten or so mN*m).
+  double stall_torque_Nm = 0.01;
   /// e_ref [J/mm^3], > 0: the hardness at which the load torque is mu |F| r (cancellous bone's default).
   double reference_hardness_J_per_mm3 = 0.6;
   double min_speed_fraction = 0.1;                ///< Lowest speed under load, a fraction of n0 in (0, 1].
