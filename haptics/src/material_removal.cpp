@@ -134,6 +134,7 @@ CutResult MaterialRemoval::cut(const Eigen::Vector3d& burr_center_W_m, double bu
   }
   const double energy_J = force_N * model_.burr_speed_rad_per_s * burr_radius_m * dt_s;
   result.energy_J = energy_J;
+  double hardness_w = 0.0;  // sum of weight x energy per voxel, over the voxels in reach
   int changed_lo[3] = {g.dims[0], g.dims[1], g.dims[2]}, changed_hi[3] = {-1, -1, -1};
   std::uint64_t head = head_.load(std::memory_order_relaxed);
   const std::uint64_t tail = tail_.load(std::memory_order_acquire);
@@ -146,8 +147,9 @@ CutResult MaterialRemoval::cut(const Eigen::Vector3d& burr_center_W_m, double bu
         const double d = Eigen::Vector3d((i - c[0]) * s[0], (j - c[1]) * s[1], (k - c[2]) * s[2]).norm();
         if (d >= reach) continue;
         const int m = materialOf(idx);
-        const double fraction =
-            energy_J * (reach - d) / sum_w / energy_J_per_voxel_[static_cast<std::size_t>(m)].load(std::memory_order_relaxed);
+        const double voxel_J = energy_J_per_voxel_[static_cast<std::size_t>(m)].load(std::memory_order_relaxed);
+        hardness_w += (reach - d) * voxel_J;
+        const double fraction = energy_J * (reach - d) / sum_w / voxel_J;
         // Rounded down, the remainder carried to the next voxel (and tick): the removed material
         // never exceeds the energy delivered, and a light press on hard bone still cuts.
         const double exact = std::min(fraction, 1.0) * kWhole + carry_;
@@ -180,6 +182,7 @@ CutResult MaterialRemoval::cut(const Eigen::Vector3d& burr_center_W_m, double bu
         }
       }
   head_.store(head, std::memory_order_release);
+  if (sum_w > 0.0) result.specific_energy_J_per_mm3 = hardness_w / sum_w / voxel_mm3_;
   if (result.voxels_removed > 0) {
     v.refreshRegion({changed_lo[0], changed_lo[1], changed_lo[2]}, {changed_hi[0], changed_hi[1], changed_hi[2]});
     for (int a = 0; a < 3; ++a) {
