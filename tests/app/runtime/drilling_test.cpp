@@ -712,8 +712,12 @@ class ButtonDevice final : public Device {
 
 // The device's first button spins the burr while held, as a foot pedal: with the drill prepared
 // but switched off, pressing on the sphere removes nothing; holding the button removes voxels.
+// The GUI's snapshots say so too (what the burr's sound follows): the burr on, cutting with a
+// force at the scene's hardness, the eroded volume growing to the drill's.
 TEST(Drilling, TheDevicesFirstButtonSpinsTheBurrWhileHeld) {
   std::uint64_t removed[2] = {0, 0};
+  bool seen_on[2] = {false, false}, seen_cut[2] = {false, false};
+  double seen_eroded_mm3[2] = {0.0, 0.0};
   for (const bool press : {false, true}) {
     Session session;
     LoadedScene scene = loadScene(parseScene(R"({"volume": {"path": "builtin:sphere"}, "tool": {"mesh": "builtin:drill",
@@ -724,14 +728,34 @@ TEST(Drilling, TheDevicesFirstButtonSpinsTheBurrWhileHeld) {
     ASSERT_NE(session.hapticThread()->drill(), nullptr) << "the scene's drill is prepared, switched off";
     EXPECT_FALSE(session.drilling());
     session.startHaptics();
-    EXPECT_TRUE(test::waitUntil([&] { return device->reads() >= 1500; }, std::chrono::milliseconds(20000)));
+    HapticSnapshot snap;
+    const auto watch = [&] {
+      if (session.hapticThread()->latestSnapshot(snap)) {
+        seen_on[press] = seen_on[press] || snap.burr_on;
+        if (snap.burr_force_N > 0.0) {
+          seen_cut[press] = true;
+          EXPECT_DOUBLE_EQ(snap.burr_specific_energy_J_per_mm3, 2.0);
+        }
+        EXPECT_GE(snap.burr_eroded_mm3, seen_eroded_mm3[press]) << "it only grows";
+        seen_eroded_mm3[press] = snap.burr_eroded_mm3;
+      }
+      return device->reads() >= 1500;
+    };
+    EXPECT_TRUE(test::waitUntil(watch, std::chrono::milliseconds(20000)));
     session.stopHaptics();
     removed[press] = session.hapticThread()->drill()->removal().removedVoxels();
     EXPECT_FALSE(session.drilling()) << "the button does not switch the drill on for good";
   }
-  std::cout << "removed voxels: button not pressed " << removed[0] << ", held " << removed[1] << "\n";
+  std::cout << "removed voxels: button not pressed " << removed[0] << ", held " << removed[1]
+            << "; snapshots: eroded " << seen_eroded_mm3[1] << " mm^3\n";
   EXPECT_EQ(removed[0], 0u);
   EXPECT_GT(removed[1], 0u);
+  EXPECT_FALSE(seen_on[0]);
+  EXPECT_FALSE(seen_cut[0]);
+  EXPECT_EQ(seen_eroded_mm3[0], 0.0);
+  EXPECT_TRUE(seen_on[1]);
+  EXPECT_TRUE(seen_cut[1]);
+  EXPECT_GT(seen_eroded_mm3[1], 0.0);
 }
 
 }  // namespace
