@@ -57,6 +57,9 @@ SegmentsPanel::SegmentsPanel(QWidget* parent) : QWidget(parent) {
                          "and stays within about half a voxel of the segment");
   form->addRow("Smoothing:", smoothing_);
   sound_ = new QCheckBox("Sound when a critical segment is touched", this);
+  burr_sound_ = new QCheckBox("Burr sound", this);
+  burr_sound_->setToolTip("Play the drilling burr's sound: its pitch falls as you push and with the hardness "
+                          "of what it cuts, it grows louder with the volume removed per second");
   touched_ = new QLabel("Touching: nothing", this);
   touched_->setWordWrap(true);
   layout->addWidget(open_);
@@ -64,6 +67,8 @@ SegmentsPanel::SegmentsPanel(QWidget* parent) : QWidget(parent) {
   layout->addWidget(table_, 1);
   layout->addLayout(form);
   layout->addWidget(sound_);
+  layout->addWidget(burr_sound_);
+  connect(burr_sound_, &QCheckBox::toggled, this, &SegmentsPanel::burrSoundToggled);
   layout->addWidget(touched_);
 
   connect(table_, &QTableWidget::cellDoubleClicked, this, [this](int row, int column) {
@@ -206,5 +211,6 @@ SegmentChoices SegmentsPanel::choices() const {
 }
 
 bool SegmentsPanel::alertSound() const { return sound_->isChecked(); }
+bool SegmentsPanel::burrSound() const { return burr_sound_->isChecked(); }
 
 }  // namespace vh::ui

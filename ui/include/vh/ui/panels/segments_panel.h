@@ -54,6 +54,8 @@ class SegmentsPanel : public QWidget {
   SegmentChoices choices() const;
   /// Sound on touching a critical segment (the window beeps).
   bool alertSound() const;
+  /// The drilling burr's sound (ui/sound_output.h) on.
+  bool burrSound() const;
 
   QTableWidget* table() const noexcept { return table_; }
   QPushButton* openButton() const noexcept { return open_; }
@@ -67,12 +69,15 @@ class SegmentsPanel : public QWidget {
   void hardnessChanged(int segment, double J_per_mm3);
   /// A segment's name was double-clicked: frame it in the view ("go to segment").
   void goToSegmentRequested(int segment);
+  /// "Burr sound" was switched.
+  void burrSoundToggled(bool on);
 
  private:
   QLabel* source_ = nullptr;
   QTableWidget* table_ = nullptr;
   QDoubleSpinBox* smoothing_ = nullptr;
   QCheckBox* sound_ = nullptr;
+  QCheckBox* burr_sound_ = nullptr;
   QLabel* touched_ = nullptr;
   QPushButton* open_ = nullptr;
   std::vector<QString> names_;
