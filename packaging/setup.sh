@@ -15,7 +15,8 @@ jobs="${VH_JOBS:-$(nproc)}"
 packages=(cmake ninja-build g++ pkg-config libeigen3-dev libgtest-dev libgmock-dev
   libbenchmark-dev nlohmann-json3-dev libcli11-dev libvtk9-dev libvtk-dicom-dev libdcmtk-dev
   qt6-base-dev libqt6opengl6-dev qt6-charts-dev libhidapi-dev libusb-1.0-0-dev
-  zlib1g-dev libssl-dev zstd xvfb xauth libgl1-mesa-dri umockdev libumockdev-dev libopenigtlink-dev)
+  zlib1g-dev libssl-dev zstd xvfb xauth libgl1-mesa-dri umockdev libumockdev-dev libopenigtlink-dev
+  libsndfile1-dev qt6-multimedia-dev)
 # The Python module volume_haptics (app/python): pybind11, the system Python's headers, NumPy.
 packages+=(pybind11-dev python3-dev python3-numpy)
 # test also builds the fuzz targets (tests/fuzz/ci.sh): clang and its libFuzzer / sanitizer runtimes.

@@ -143,6 +143,7 @@ void MaterialRemoval::shareEnergy(const Eigen::Vector3d& c, double reach, const 
   const VolumeGeometry& g = volume_->geometry();
   const Eigen::Vector3d& s = g.spacing_m;
   const std::ptrdiff_t sy = g.dims[0], sz = static_cast<std::ptrdiff_t>(g.dims[0]) * g.dims[1];
+  double hardness_w = 0.0;  // sum of weight x energy per voxel, over the voxels in reach
   std::uint64_t head = head_.load(std::memory_order_relaxed);
   const std::uint64_t tail = tail_.load(std::memory_order_acquire);
   for (int k = r.lo[2]; k <= r.hi[2]; ++k)
@@ -154,8 +155,9 @@ void MaterialRemoval::shareEnergy(const Eigen::Vector3d& c, double reach, const 
         const double d = Eigen::Vector3d((i - c[0]) * s[0], (j - c[1]) * s[1], (k - c[2]) * s[2]).norm();
         if (d >= reach) continue;
         const int m = materialOf(idx);
-        const double fraction =
-            energy_J * (reach - d) / r.sum_w / energy_J_per_voxel_[static_cast<std::size_t>(m)].load(std::memory_order_relaxed);
+        const double voxel_J = energy_J_per_voxel_[static_cast<std::size_t>(m)].load(std::memory_order_relaxed);
+        hardness_w += (reach - d) * voxel_J;
+        const double fraction = energy_J * (reach - d) / r.sum_w / voxel_J;
         // Rounded down, the remainder carried to the next voxel (and tick): the removed material
         // never exceeds the energy delivered, and a light press on hard bone still cuts.
         const double exact = std::min(fraction, 1.0) * kWhole + carry_;
@@ -176,6 +178,7 @@ void MaterialRemoval::shareEnergy(const Eigen::Vector3d& c, double reach, const 
         }
       }
   head_.store(head, std::memory_order_release);
+  if (r.sum_w > 0.0) result.specific_energy_J_per_mm3 = hardness_w / r.sum_w / voxel_mm3_;
 }
 
 CutResult MaterialRemoval::cut(const Eigen::Vector3d& burr_center_W_m, double burr_radius_m, double force_N,

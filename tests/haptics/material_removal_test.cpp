@@ -241,6 +241,26 @@ TEST(MaterialRemoval, CriticalMaterialIsCounted) {
   EXPECT_EQ(static_cast<std::uint64_t>(critical), drill.removedVoxels(1));
 }
 
+// The cut reports the hardness of what it cut: one material's specific energy inside it, a
+// value between the two across their boundary, 0 when nothing was cut.
+TEST(MaterialRemoval, CutReportsTheHardnessOfWhatItCuts) {
+  const auto cutAt = [](double z_m, double force_N) {
+    auto volume = uniformBlock(41, 0.5e-3);
+    std::vector<std::uint8_t> material(volume->geometry().voxelCount(), 0);
+    for (std::size_t i = 0; i < material.size(); ++i)
+      if ((i / (41 * 41)) < 20) material[i] = 1;  // z < 0: the harder material
+    MaterialRemoval drill(volume, material, {{"cancellous", 1.0, false}, {"cortical", 3.0, false}});
+    return drill.cut({0, 0, z_m}, 2e-3, force_N, 1e-3, 100.0, true);
+  };
+  EXPECT_NEAR(cutAt(0.005, 1.0).specific_energy_J_per_mm3, 1.0, 1e-12);
+  EXPECT_NEAR(cutAt(-0.005, 1.0).specific_energy_J_per_mm3, 3.0, 1e-12);
+  const double across = cutAt(0.0, 1.0).specific_energy_J_per_mm3;
+  EXPECT_GT(across, 1.5);
+  EXPECT_LT(across, 2.5);
+  EXPECT_EQ(cutAt(0.005, 0.0).specific_energy_J_per_mm3, 0.0) << "no force: no cut";
+  EXPECT_EQ(cutAt(0.05, 1.0).specific_energy_J_per_mm3, 0.0) << "far above the block: nothing in reach";
+}
+
 // The guarantees stay while drilling: a drill pressed into a block by a device far below it
 // sinks as it cuts, and no point of the proxy is ever inside the carved field (checked against
 // the field after every tick's removal), with a bounded step per tick. With the edge test too:

@@ -43,7 +43,7 @@ dpkg-deb -I "$deb" >"$tmp/info"
 sed -n '/^ [A-Z][A-Za-z-]*:/,$p' "$tmp/info"
 depends="$(sed -n 's/^ Depends: //p' "$tmp/info")"
 [[ -n $depends ]] || fail "the package has no Depends"
-for lib in 'libc6 ' 'libqt6' 'libvtk' 'libstdc++6' 'libhidapi-hidraw0' 'libusb-1.0-0'; do
+for lib in 'libc6 ' 'libqt6' 'libvtk' 'libstdc++6' 'libhidapi-hidraw0' 'libusb-1.0-0' 'libsndfile1'; do
   [[ $depends == *"$lib"* ]] || fail "Depends lacks $lib (dpkg-shlibdeps did not see the shared libraries?): $depends"
 done
 grep -q '^ Section: science' "$tmp/info" || fail "Section is not science"
@@ -66,7 +66,8 @@ for f in usr/bin/volume-haptics \
          usr/share/man/man1/volume-haptics.1.gz \
          usr/lib/udev/rules.d/70-volume-haptics.rules \
          usr/share/doc/volume-haptics/copyright \
-         usr/share/volume-haptics/scenes/sphere-probe.json; do
+         usr/share/volume-haptics/scenes/sphere-probe.json \
+         usr/share/volume-haptics/scenes/sphere-drill.json; do
   [[ -f $root/$f ]] || fail "the package lacks /$f"
 done
 [[ -x $root/usr/bin/volume-haptics && -x $root/usr/libexec/volume-haptics/volume-haptics-dicom-worker ]] ||

@@ -12,7 +12,11 @@
 #include <fstream>
 #include <thread>
 
+#include <QApplication>
+#include <QCheckBox>
+#include <QAudioDevice>
 #include <QMainWindow>
+#include <QMediaDevices>
 #include <QSignalSpy>
 #include <QStatusBar>
 #include <QTableWidget>
@@ -405,6 +409,30 @@ DrilledRun recordDrilledRun(const fs::path& dir) {
   if (report.drill.has_value())
     for (const auto& m : report.drill->materials) run.removed += m.voxels;
   return run;
+}
+
+// The Segments panel's "Burr sound" in the window: off at first; ticked on a machine without an
+// audio output, the window says once that the sound is off and carries on.
+TEST(DrillingView, BurrSoundWithoutAnAudioOutputIsSaidOnceAndTheWindowCarriesOn) {
+  MainWindow window;
+  window.setInteractive(false);
+  window.resize(640, 480);
+  window.show();
+  QCheckBox* burr_sound = nullptr;
+  for (QCheckBox* box : window.findChildren<QCheckBox*>())
+    if (box->text() == "Burr sound") burr_sound = box;
+  ASSERT_NE(burr_sound, nullptr);
+  EXPECT_FALSE(burr_sound->isChecked());
+  if (!QMediaDevices::audioOutputs().isEmpty()) GTEST_SKIP() << "this machine has an audio output";
+  burr_sound->setChecked(true);
+  const QString said = window.statusBar()->currentMessage();
+  EXPECT_TRUE(said.startsWith("Sound off: no audio output")) << said.toStdString();
+  window.statusBar()->clearMessage();
+  burr_sound->setChecked(false);
+  burr_sound->setChecked(true);
+  EXPECT_EQ(window.statusBar()->currentMessage(), "") << "said once";
+  QApplication::processEvents();
+  EXPECT_TRUE(window.isVisible());
 }
 
 TEST(DrillingView, ReplayShowsTheCavityAtItsTime) {

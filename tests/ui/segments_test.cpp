@@ -16,6 +16,7 @@
 
 #include <unistd.h>
 
+#include <QCheckBox>
 #include <QLabel>
 #include <QMainWindow>
 #include <QSignalSpy>
@@ -196,7 +197,9 @@ TEST(SegmentsController, OpensASegmentationAppliesChoicesAndAlertsOnACriticalTou
   EXPECT_EQ(host.view->segmentSurfaces()->shownSegments(), std::vector<int>{0});
   ASSERT_NE(host.session.hapticThread(), nullptr) << "the threads are rebuilt on the nerve's surface";
 
-  // A snapshot touching the nerve: the alert; leaving it: none.
+  // A snapshot touching the nerve: the alert; leaving it: none. The beep (the window's alert
+  // tone) only with the panel's sound ticked.
+  QSignalSpy beeps(host.controller, &SegmentsController::alertSoundRequested);
   runtime::HapticSnapshot touching;
   touching.contacts = 2;
   touching.segment = 0;
@@ -207,6 +210,23 @@ TEST(SegmentsController, OpensASegmentationAppliesChoicesAndAlertsOnACriticalTou
   EXPECT_EQ(host.controller->criticalAlerts(), 1);
   host.controller->showSnapshot(runtime::HapticSnapshot{});
   EXPECT_EQ(host.view->alertText(), "");
+  EXPECT_EQ(beeps.count(), 0) << "sound not ticked";
+  QCheckBox* sound = nullptr;
+  QCheckBox* burr_sound = nullptr;
+  for (QCheckBox* box : host.controller->panel()->findChildren<QCheckBox*>()) {
+    if (box->text() == "Sound when a critical segment is touched") sound = box;
+    if (box->text() == "Burr sound") burr_sound = box;
+  }
+  ASSERT_NE(sound, nullptr);
+  ASSERT_NE(burr_sound, nullptr);
+  sound->setChecked(true);
+  host.controller->showSnapshot(touching);
+  EXPECT_EQ(beeps.count(), 1);
+  QSignalSpy burr_toggled(host.controller->panel(), &SegmentsPanel::burrSoundToggled);
+  EXPECT_FALSE(host.controller->panel()->burrSound()) << "the burr is silent until asked";
+  burr_sound->setChecked(true);
+  EXPECT_TRUE(host.controller->panel()->burrSound());
+  EXPECT_EQ(burr_toggled.count(), 1);
 
   // A damaged file is reported and the segments stay.
   std::ofstream(dir / "bad.seg.nrrd") << "NRRD0004\ntype: uchar\ndimension: 3\nsizes: 4 4\n\n";

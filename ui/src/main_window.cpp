@@ -20,6 +20,7 @@
 #include <QVBoxLayout>
 
 #include "vh/io/private_files.h"
+#include "vh/runtime/haptic_thread.h"
 #include "vh/ui/devices/device_input.h"
 #include "vh/ui/devices/device_picker.h"
 #include "vh/ui/haptics_controller.h"
@@ -35,7 +36,9 @@
 #include "vh/ui/replay/session_recorder.h"
 #include "vh/ui/scene_loader.h"
 #include "vh/ui/scene_opener.h"
+#include "vh/ui/panels/segments_panel.h"
 #include "vh/ui/segments_controller.h"
+#include "vh/ui/sound_output.h"
 #include "vh/ui/drill_controller.h"
 #include "vh/ui/tool_picker.h"
 #include "vh/ui/view/vtk_view.h"
@@ -162,6 +165,7 @@ void MainWindow::buildDocks() {
   addDockWidget(Qt::BottomDockWidgetArea, chart_dock_);
   segments_ = new SegmentsController(session_, *view_, this, statusBar(), prefs_, device_input_);
   drill_ = new DrillController(session_, *view_, this);
+  sound_ = new SoundOutput(this);
   // Display, Segments and Haptics share the right side as tabs (Haptics in front): together they
   // would be taller than a laptop screen.
   tabifyDockWidget(display_dock_, segments_->dock());
@@ -182,6 +186,7 @@ void MainWindow::connectParts() {
   connect(view_controller_, &ViewController::snapshotShown, this,
           [this](const runtime::HapticSnapshot& snap, bool update_status_now) {
             segments_->showSnapshot(snap);
+            followSound(snap);
             if (chart_dock_->isVisible()) chart_->addSnapshot(snap);
             if (--status_countdown_ <= 0 || update_status_now) {
               status_countdown_ = std::max(1, kStatusPeriodMs / view_controller_->displayPeriodMs());
@@ -197,6 +202,16 @@ void MainWindow::connectParts() {
   connect(tool_picker_, &ToolPicker::message, this, show_message);
   connect(haptics_, &HapticsController::message, this, show_message);
   connect(drill_, &DrillController::message, this, show_message);
+  // The burr's sound and the alert beeps on one mixer, the audio output opened at the first use.
+  connect(sound_, &SoundOutput::message, this, show_message);
+  connect(segments_->panel(), &SegmentsPanel::burrSoundToggled, sound_, [this](bool on) {
+    if (on) sound_->start();
+    sound_->setBurrEnabled(on);
+  });
+  connect(segments_, &SegmentsController::alertSoundRequested, sound_, [this] {
+    sound_->start();
+    sound_->beep();
+  });
   connect(device_input_, &DeviceInput::message, this, show_message);
   view_controller_->setCarvedRegion(&drill_->carved());
   connect(drill_, &DrillController::cavityChanged, view_controller_, [this] { view_controller_->updateShadow(); });
@@ -228,6 +243,14 @@ void MainWindow::connectParts() {
     view_controller_->updateShadow();
   });
   connect(replay_, &ReplayController::cavityShown, view_controller_, [this] { view_controller_->updateShadow(); });
+}
+
+void MainWindow::followSound(const runtime::HapticSnapshot& snap) {
+  if (!sound_->playing()) return;
+  const runtime::HapticThread* thread = session_.hapticThread();
+  if (thread != nullptr && thread->drill() != nullptr && session_.live().drill)
+    sound_->setBurr(session_.live().drill->burr_speed_rpm, thread->drill()->burr().radius_m);
+  sound_->follow(snap);
 }
 
 void MainWindow::startHaptics() { haptics_->start(); }

@@ -201,7 +201,7 @@ void SegmentsController::showSnapshot(const runtime::HapticSnapshot& snapshot) {
     alert = "CRITICAL: " + set->name(segment) + " touched";
     ++critical_alerts_;
     status_bar_->showMessage(q(alert), 4000);
-    if (panel_->alertSound()) QApplication::beep();
+    if (panel_->alertSound()) emit alertSoundRequested();
   }
   view_.setTouchedSegment(segment, alert);
 }

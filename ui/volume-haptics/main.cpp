@@ -3,6 +3,7 @@
 //   volume-haptics [PATH] [--screenshot PNG] [--isovalue V] [--igtl-port N [--igtl-rate HZ] [--igtl-bind A]
 //                  [--igtl-allow A,...]] ...   the GUI (vh::ui)
 //   volume-haptics run --scene S.json --trajectory T.csv [--report R.json] [--check] [--record R.vhrec] [--verify-step V]
+//                      [--audio OUT.wav]
 //                      [--igtl-port N [--igtl-rate HZ] [--igtl-bind A] [--igtl-allow A,...] [--igtl-accept-images]]
 //   volume-haptics export R.vhrec [--csv C] [--json J] [--events-csv E] [--video V.ogv] [--png P --at-s T]
 //   volume-haptics report R.vhrec --html OUT.html [--reference E.vhrec] | report DIR --table OUT.csv
@@ -33,6 +34,7 @@
 
 #include "pacs_command.h"
 #include "report_command.h"
+#include "run_audio.h"
 #include "vh_version.h"
 #include "vh/bench/bench.h"
 #include "vh/devices/device_catalog.h"
@@ -146,6 +148,7 @@ struct RunArgs {
   bool igtl_accept_images = false;
   std::string record;
   std::string note;
+  std::string audio;
   double verify_step = vh::runtime::RunOptions{}.verify_step_voxels;
   bool lag_reference = vh::runtime::RunOptions{}.lag_reference;
 };
@@ -178,6 +181,10 @@ CLI::App* addRunSubcommand(CLI::App& app, RunArgs& a) {
   run->add_option("--trace", a.trace, "Also write one CSV row per tick (poses, force, contacts, time, depth)");
   run->add_option("--record", a.record,
                   "Also write a session recording (.vhrec: metadata, one record per tick, events) here");
+  run->add_option("--audio", a.audio,
+                  "Also write the burr's sound as a WAV file (48 kHz mono, as long as the run): its pitch falls with "
+                  "the push and the hardness of what it cuts, its level rises with the removal rate, and a beep "
+                  "sounds while a critical segment is touched or cut; needs a scene whose \"drill\" is on");
   run->add_option("--note", a.note,
                   "Free text kept in the recording's metadata (\"note\"): the cohort table's label (else the file name)");
   run->add_option("--verify-step", a.verify_step,
@@ -300,7 +307,9 @@ int runCommand(const RunArgs& a) {
   prepareOutputFolder(a.report, "--report");
   prepareOutputFolder(a.trace, "--trace");
   prepareOutputFolder(a.record, "--record");
+  prepareOutputFolder(a.audio, "--audio");
   vh::runtime::SceneSpec spec = runScene(a);
+  if (!a.audio.empty()) vh::app::RunAudio::checkScene(spec, a.scene);
   vh::runtime::RunOptions run_options;
   run_options.on_notice = [](const std::string& notice) {
     std::cerr << "volume-haptics run: warning: " << notice << std::endl;
@@ -315,9 +324,15 @@ int runCommand(const RunArgs& a) {
   const vh::runtime::Trajectory trajectory = vh::runtime::loadTrajectoryCsv(a.trajectory);
   const vh::runtime::LoadedScene scene = vh::runtime::loadScene(spec);
   for (const std::string& notice : scene.volume.info.notices) run_options.on_notice(notice);
+  std::unique_ptr<vh::app::RunAudio> audio;
+  if (!a.audio.empty()) {
+    audio = std::make_unique<vh::app::RunAudio>(a.audio, scene, run_options.servo_rate_Hz);
+    audio->attach(run_options);
+  }
   std::unique_ptr<vh::igtl::IgtlLink> link = startRunLink(a, spec, scene.segments.get(), run_options);
   vh::runtime::RunReport report = vh::runtime::runHeadless(scene, trajectory, run_options);
   report.trajectory = a.trajectory;
+  if (audio) std::cout << "volume-haptics run: " << audio->finish() << std::endl;
   if (link) {
     const vh::igtl::LinkStatus st = link->status();
     link->stop();

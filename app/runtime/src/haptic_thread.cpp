@@ -607,6 +607,7 @@ struct SolverTickResult {
   haptics::TickOutput out;
   bool bad_input = false;
   std::uint32_t drill_flags = 0;
+  haptics::CutResult cut;  // the burr's, when it spun
   bool stuck = false;  // a jam candidate (jam_detector.h)
 };
 
@@ -630,7 +631,7 @@ inline void renderSolverSample(SolverState& st, const CouplingSample& in, haptic
   // waited for sees the hold).
   if (drill != nullptr && !cutting_held.load(std::memory_order_seq_cst) &&
       (drilling.load(std::memory_order_relaxed) || in.drill_button)) {
-    (void)drill->step(renderer, t.out);
+    t.cut = drill->step(renderer, t.out);
     t.drill_flags = kRecordFlagDrillOn;
   }
 }
@@ -651,14 +652,25 @@ inline void recordSolverTick(RecordingWriter& recorder, const SolverState& st, c
   (void)recorder.push(rec);
 }
 
+/// The burr of solver tick `t` into `snap` (HapticSnapshot::burr_on ..): on this thread, the only
+/// one that cuts, the drill's eroded volume is read safely.
+inline void showBurr(SolverSnapshot& snap, const SolverTickResult& t, const Drill* drill) noexcept {
+  snap.burr_on = t.drill_flags != 0;
+  const bool cut = t.cut.energy_J > 0.0;
+  snap.burr_force_N = cut ? t.out.force_W_N.norm() : 0.0;
+  snap.burr_specific_energy_J_per_mm3 = cut ? t.cut.specific_energy_J_per_mm3 : 0.0;
+  snap.burr_eroded_mm3 = drill != nullptr ? drill->removal().erodedVolume_mm3() : 0.0;
+}
+
 /// A solver tick's snapshot to the GUI and the optional monitor.
 inline void publishSolverTick(SnapshotChannel& gui, SnapshotChannel* monitor, const SolverState& st, double isovalue,
                               std::span<const haptics::Contact> contacts, int segment,
-                              const ThreadTiming& timing) noexcept {
+                              const ThreadTiming& timing, const SolverTickResult& t, const Drill* drill) noexcept {
   SolverSnapshot& snap = gui.solverSlot();
   snap.tick = st.tick;
   snap.isovalue = isovalue;
   showContacts(snap, contacts, segment);
+  showBurr(snap, t, drill);
   snap.rejected = st.rejected;
   snap.skipped = st.skipped;
   snap.timing = timing;
@@ -826,7 +838,7 @@ void HapticThread::solverLoop() noexcept {
     st.wake_flags = 0;
 
     clock.tick(begin_ns, end_ns);
-    publishSolverTick(x_->gui, monitor, st, in.isovalue, contacts, segment, clock.timing());
+    publishSolverTick(x_->gui, monitor, st, in.isovalue, contacts, segment, clock.timing(), t, options_.drill.get());
     solver_ticks_.fetch_add(1, std::memory_order_seq_cst);
   };
 

@@ -414,6 +414,7 @@ struct HeadlessRun {
   haptics::Pose X_WD_used;  // the last sample the renderer ticked with
   double contact_sum = 0.0;
   double samples_sum = 0.0;
+  double eroded_mm3 = 0.0;  // the drill's eroded volume after the last tick
 };
 
 /// One tick's device sample, what the renderer made of it and the command the device got.
@@ -451,10 +452,10 @@ void renderRunTick(HeadlessRun& run, std::uint64_t i, RunTick& t) {
 }
 
 /// The burr's cut after tick `i`'s checks, and a "critical_removed" event in the recording (as the
-/// GUI writes it) when it removed part of a critical segment.
-void drillRunTick(HeadlessRun& run, std::uint64_t i, const haptics::TickOutput& out) {
+/// GUI writes it) when it removed part of a critical segment. @return the cut.
+haptics::CutResult drillRunTick(HeadlessRun& run, std::uint64_t i, const haptics::TickOutput& out) {
   const haptics::CutResult cut = run.drill->step(run.renderer, out);
-  if (cut.critical_removed <= 0 || !run.recorder) return;
+  if (cut.critical_removed <= 0 || !run.recorder) return cut;
   // As the GUI does: every removal of a critical segment is an event with its count.
   RecordingEvent event;
   event.time_s = static_cast<double>(i) / run.options.servo_rate_Hz;
@@ -466,6 +467,29 @@ void drillRunTick(HeadlessRun& run, std::uint64_t i, const haptics::TickOutput& 
                      {"mm3", cut.critical_removed * run.drill->removal().voxelVolume_mm3()}}
           .dump();
   run.recorder->addEvent(event);
+  return cut;
+}
+
+/// Tick `i`'s burr to RunOptions::on_drill_tick (scenes with a drill): on or off, the force it
+/// cut with, the hardness of what it cut, the removal rate, and whether a critical segment was
+/// touched (`segment`, the contacts' segment) or cut.
+void reportDrillTick(HeadlessRun& run, std::uint64_t i, bool drill_on, const haptics::CutResult& cut,
+                     const haptics::TickOutput& out, int segment) {
+  if (run.drill == nullptr || !run.options.on_drill_tick) return;
+  DrillTick d;
+  d.tick = i + 1;
+  d.time_s = static_cast<double>(i) / run.options.servo_rate_Hz;
+  d.burr_on = drill_on;
+  if (cut.energy_J > 0.0) {
+    d.force_N = out.force_W_N.norm();
+    d.specific_energy_J_per_mm3 = cut.specific_energy_J_per_mm3;
+  }
+  const double eroded_mm3 = run.drill->removal().erodedVolume_mm3();
+  d.removal_rate_mm3_per_s = (eroded_mm3 - run.eroded_mm3) / run.period_s;
+  run.eroded_mm3 = eroded_mm3;
+  d.critical = cut.critical_removed > 0 ||
+               (segment >= 0 && run.scene.segments && run.scene.segments->isCritical(segment) && out.stats.contacts > 0);
+  run.options.on_drill_tick(d);
 }
 
 /// The jam detector (jam_detector.h) after tick `i`: held in contact, far from a device in free
@@ -510,7 +534,8 @@ void checkRunTick(HeadlessRun& run, std::uint64_t i, const RunTick& t) {
   else depth = addForceAndDepth(r, out, run.X_WD_used, run.felt, run.tool, felt_isovalue, run.options.check_penetration, i);
   // The burr cuts after the checks (they test this tick's motion against the field it moved in).
   const bool drill_on = run.drilling && t.sample_ok && !out.stats.bad_input;
-  if (drill_on) drillRunTick(run, i, out);
+  const haptics::CutResult cut = drill_on ? drillRunTick(run, i, out) : haptics::CutResult{};
+  reportDrillTick(run, i, drill_on, cut, out, segment);
   const bool jammed = updateRunJam(run, i, t);
   if (run.recorder) {
     TickRecord rec = runRecord(i, run.options.servo_rate_Hz, run.X_WD_used, run.renderer.proxyPose(), out, t.isovalue,

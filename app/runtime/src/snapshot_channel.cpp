@@ -15,6 +15,10 @@ void mergeSnapshots(const CouplingSnapshot& c, const SolverSnapshot& s, HapticSn
   out.contacts = s.contacts;
   out.contacts_shown = s.contacts_shown;
   out.segment = s.segment;
+  out.burr_on = s.burr_on;
+  out.burr_force_N = s.burr_force_N;
+  out.burr_specific_energy_J_per_mm3 = s.burr_specific_energy_J_per_mm3;
+  out.burr_eroded_mm3 = s.burr_eroded_mm3;
   out.contact_p_W_m = s.contact_p_W_m;
   out.contact_n_W = s.contact_n_W;
   out.coupling = c.timing;

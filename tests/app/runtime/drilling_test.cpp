@@ -235,6 +235,54 @@ TEST(Drilling, SessionHardnessReachesTheDrillWithoutARebuild) {
 // A bone slab (1200 HU, z 4 to 9 mm) with a "nerve" segment inside it (z 6 to 7 mm), critical,
 // each segment with the scene's hardness: drilling down through the bone reaches the nerve; its voxels
 // are counted apart in the report and every removal of them is a critical_removed event.
+// The run's per-tick burr states (RunOptions::on_drill_tick) against its report: one a tick, in
+// order, the burr on throughout; the removal rates sum to the eroded volume; a force and a
+// hardness (between the softest and the hardest material) exactly on the ticks that cut, the
+// hardest alone on some; critical ticks on some.
+void expectDrillTicksAgree(const std::vector<DrillTick>& ticks, const RunReport& report, double softest,
+                           double hardest) {
+  ASSERT_EQ(ticks.size(), report.ticks);
+  double eroded_mm3 = 0.0;
+  int cutting = 0, hardest_only = 0, softer = 0, critical = 0;
+  for (std::size_t i = 0; i < ticks.size(); ++i) {
+    const DrillTick& d = ticks[i];
+    EXPECT_EQ(d.tick, i + 1);
+    EXPECT_TRUE(d.burr_on);
+    eroded_mm3 += d.removal_rate_mm3_per_s / report.servo_rate_Hz;
+    EXPECT_EQ(d.force_N > 0.0, d.specific_energy_J_per_mm3 > 0.0) << "tick " << d.tick;
+    if (d.specific_energy_J_per_mm3 > 0.0) {
+      ++cutting;
+      EXPECT_GE(d.specific_energy_J_per_mm3, softest - 1e-12);
+      EXPECT_LE(d.specific_energy_J_per_mm3, hardest + 1e-12);
+      hardest_only += std::abs(d.specific_energy_J_per_mm3 - hardest) < 1e-12;
+      softer += d.specific_energy_J_per_mm3 < hardest - 1e-3;
+    }
+    critical += d.critical;
+  }
+  std::cout << "drill ticks: " << cutting << " cutting (" << hardest_only << " all of the hardest, " << softer
+            << " softer), " << critical << " critical; eroded " << eroded_mm3 << " mm^3 (report "
+            << report.drill->eroded_mm3 << ")\n";
+  EXPECT_NEAR(eroded_mm3, report.drill->eroded_mm3, 1e-6 * report.drill->eroded_mm3);
+  EXPECT_GT(hardest_only, 0);
+  EXPECT_GT(softer, 0);
+  EXPECT_GT(critical, 0);
+}
+
+// Without a "drill" section the run reports no burr at all.
+TEST(Drilling, NoDrillTicksWithoutADrill) {
+  const LoadedScene scene = loadScene(parseScene(
+      R"({"volume": {"path": "builtin:sphere"}, "tool": {"mesh": "builtin:drill", "point_spacing_m": 0.001}})",
+      "touch.json", "."));
+  RunOptions options;
+  options.lag_reference = false;
+  options.verify_step_voxels = 0.0;
+  int calls = 0;
+  options.on_drill_tick = [&](const DrillTick&) { ++calls; };
+  const RunReport report = runHeadless(scene, pressDown(0.0, 0.0, 0.030, 0.5, 0.019), options);
+  EXPECT_GT(report.ticks_in_contact, 0u);
+  EXPECT_EQ(calls, 0);
+}
+
 TEST(Drilling, CriticalSegmentRemovalIsReportedAndRecorded) {
   const auto dir = test::scratchDir();
   constexpr int kN = 60;  // 0.5 mm voxels
@@ -273,9 +321,12 @@ TEST(Drilling, CriticalSegmentRemovalIsReportedAndRecorded) {
   options.record = dir / "drill.vhrec";
   options.lag_reference = false;
   options.verify_step_voxels = 0.05;
+  std::vector<DrillTick> drill_ticks;  // what the burr's sound follows (run --audio)
+  options.on_drill_tick = [&](const DrillTick& d) { drill_ticks.push_back(d); };
   const RunReport report = runHeadless(scene, press, options);
   ASSERT_TRUE(report.drill.has_value());
   EXPECT_EQ(report.crossings, 0);
+  expectDrillTicksAgree(drill_ticks, report, 0.5, 2.5);
   const DrillReport::Material* nerve = nullptr;
   const DrillReport::Material* bone = nullptr;
   for (const auto& m : report.drill->materials) {
@@ -661,8 +712,12 @@ class ButtonDevice final : public Device {
 
 // The device's first button spins the burr while held, as a foot pedal: with the drill prepared
 // but switched off, pressing on the sphere removes nothing; holding the button removes voxels.
+// The GUI's snapshots say so too (what the burr's sound follows): the burr on, cutting with a
+// force at the scene's hardness, the eroded volume growing to the drill's.
 TEST(Drilling, TheDevicesFirstButtonSpinsTheBurrWhileHeld) {
   std::uint64_t removed[2] = {0, 0};
+  bool seen_on[2] = {false, false}, seen_cut[2] = {false, false};
+  double seen_eroded_mm3[2] = {0.0, 0.0};
   for (const bool press : {false, true}) {
     Session session;
     LoadedScene scene = loadScene(parseScene(R"({"volume": {"path": "builtin:sphere"}, "tool": {"mesh": "builtin:drill",
@@ -673,14 +728,34 @@ TEST(Drilling, TheDevicesFirstButtonSpinsTheBurrWhileHeld) {
     ASSERT_NE(session.hapticThread()->drill(), nullptr) << "the scene's drill is prepared, switched off";
     EXPECT_FALSE(session.drilling());
     session.startHaptics();
-    EXPECT_TRUE(test::waitUntil([&] { return device->reads() >= 1500; }, std::chrono::milliseconds(20000)));
+    HapticSnapshot snap;
+    const auto watch = [&] {
+      if (session.hapticThread()->latestSnapshot(snap)) {
+        seen_on[press] = seen_on[press] || snap.burr_on;
+        if (snap.burr_force_N > 0.0) {
+          seen_cut[press] = true;
+          EXPECT_DOUBLE_EQ(snap.burr_specific_energy_J_per_mm3, 2.0);
+        }
+        EXPECT_GE(snap.burr_eroded_mm3, seen_eroded_mm3[press]) << "it only grows";
+        seen_eroded_mm3[press] = snap.burr_eroded_mm3;
+      }
+      return device->reads() >= 1500;
+    };
+    EXPECT_TRUE(test::waitUntil(watch, std::chrono::milliseconds(20000)));
     session.stopHaptics();
     removed[press] = session.hapticThread()->drill()->removal().removedVoxels();
     EXPECT_FALSE(session.drilling()) << "the button does not switch the drill on for good";
   }
-  std::cout << "removed voxels: button not pressed " << removed[0] << ", held " << removed[1] << "\n";
+  std::cout << "removed voxels: button not pressed " << removed[0] << ", held " << removed[1]
+            << "; snapshots: eroded " << seen_eroded_mm3[1] << " mm^3\n";
   EXPECT_EQ(removed[0], 0u);
   EXPECT_GT(removed[1], 0u);
+  EXPECT_FALSE(seen_on[0]);
+  EXPECT_FALSE(seen_cut[0]);
+  EXPECT_EQ(seen_eroded_mm3[0], 0.0);
+  EXPECT_TRUE(seen_on[1]);
+  EXPECT_TRUE(seen_cut[1]);
+  EXPECT_GT(seen_eroded_mm3[1], 0.0);
 }
 
 }  // namespace

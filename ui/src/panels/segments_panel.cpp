@@ -60,6 +60,9 @@ SegmentsPanel::SegmentsPanel(QWidget* parent) : QWidget(parent) {
   through_scan_->setToolTip("A segment inside the body is hidden by the scan's surface: draw the shown segments in "
                             "front of it (the tool stays in front of the segments where it is nearer)");
   sound_ = new QCheckBox("Sound when a critical segment is touched", this);
+  burr_sound_ = new QCheckBox("Burr sound", this);
+  burr_sound_->setToolTip("Play the drilling burr's sound: its pitch falls as you push and with the hardness "
+                          "of what it cuts, it grows louder with the volume removed per second");
   touched_ = new QLabel("Touching: nothing", this);
   touched_->setWordWrap(true);
   layout->addWidget(open_);
@@ -68,6 +71,8 @@ SegmentsPanel::SegmentsPanel(QWidget* parent) : QWidget(parent) {
   layout->addLayout(form);
   layout->addWidget(through_scan_);
   layout->addWidget(sound_);
+  layout->addWidget(burr_sound_);
+  connect(burr_sound_, &QCheckBox::toggled, this, &SegmentsPanel::burrSoundToggled);
   layout->addWidget(touched_);
 
   connect(table_, &QTableWidget::cellDoubleClicked, this, [this](int row, int column) {
@@ -211,6 +216,7 @@ SegmentChoices SegmentsPanel::choices() const {
 }
 
 bool SegmentsPanel::alertSound() const { return sound_->isChecked(); }
+bool SegmentsPanel::burrSound() const { return burr_sound_->isChecked(); }
 
 void SegmentsPanel::setThroughScan(bool on) {
   const QSignalBlocker block(through_scan_);

@@ -63,6 +63,9 @@ struct CutResult {
   int critical_removed = 0;        ///< Of those, voxels of a critical material.
   int critical_material = -1;      ///< The (first) critical material they belong to, or -1.
   double energy_J = 0.0;           ///< Energy the burr delivered, P dt [J].
+  /// Hardness of what the burr cut: the specific energies of the voxels in reach, weighted by
+  /// their shares of the energy [J/mm^3]; 0 when nothing was cut (energy_J 0).
+  double specific_energy_J_per_mm3 = 0.0;
   bool widened = false;            ///< The reach grew to one voxel diagonal (see the file comment).
 };
 

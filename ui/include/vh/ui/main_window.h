@@ -56,6 +56,7 @@ class SegmentsController;
 class DrillController;
 class SessionRecorder;
 class StatusLine;
+class SoundOutput;
 class StripChart;
 class ToolPicker;
 class ViewController;
@@ -151,6 +152,8 @@ class MainWindow : public QMainWindow {
   void onLoadEnded();
   void updateWindowTitle();
   void updateStatus();
+  /// The sound follows the view's snapshot `snap` (the scene's burr, while the sound plays).
+  void followSound(const runtime::HapticSnapshot& snap);
 
   runtime::Session session_;  // before every part that observes it
   Preferences prefs_;
@@ -173,6 +176,7 @@ class MainWindow : public QMainWindow {
   SegmentsController* segments_ = nullptr;
   DrillController* drill_ = nullptr;
   StripChart* chart_ = nullptr;
+  SoundOutput* sound_ = nullptr;  // the burr and the alerts; opened at its first use
   SessionRecorder* recorder_ = nullptr;
   ReplayController* replay_ = nullptr;
   QDockWidget* display_dock_ = nullptr;

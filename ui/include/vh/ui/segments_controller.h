@@ -84,6 +84,9 @@ class SegmentsController : public QObject {
 
  signals:
   void errorReported(const QString& what, const QString& message);
+  /// A critical segment was touched with the panel's sound on: the window beeps
+  /// (SoundOutput::beep(): the alert tone on the burr's mixer).
+  void alertSoundRequested();
 
  private:
   void onSessionChanged(runtime::SessionChange what);

@@ -38,6 +38,14 @@ struct HapticSnapshot {
   /// The segment the contacts touch (SegmentSet::segmentOf(), index into the scene's
   /// segments), or -1: no contact, no segments, or a contact on no felt segment.
   int segment = -1;
+  /// The burr on the solver's latest tick (drilling.h), what its sound follows: whether it spun,
+  /// the |F| it cut with and the hardness of what it cut (haptics::CutResult; both 0 when it
+  /// cut nothing), and the material the drill has eroded since it was built [mm^3] (its
+  /// differences over time are the removal rate; a new drill starts again from 0).
+  bool burr_on = false;
+  double burr_force_N = 0.0;
+  double burr_specific_energy_J_per_mm3 = 0.0;
+  double burr_eroded_mm3 = 0.0;
   std::array<Eigen::Vector3d, kMaxContactsShown> contact_p_W_m{};  ///< Contact points in W [m].
   std::array<Eigen::Vector3d, kMaxContactsShown> contact_n_W{};    ///< Their unit surface normals in W.
   ThreadTiming coupling;                  ///< The coupling (device-rate) thread.

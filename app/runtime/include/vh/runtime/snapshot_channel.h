@@ -57,6 +57,10 @@ struct SolverSnapshot {
   int contacts = 0;                ///< Contact set size after the tick.
   int contacts_shown = 0;          ///< Entries filled in contact_p_W_m / contact_n_W.
   int segment = -1;                ///< Segment the contacts touch (SegmentSet::segmentOf()), or -1.
+  bool burr_on = false;            ///< HapticSnapshot::burr_on and the three below.
+  double burr_force_N = 0.0;
+  double burr_specific_energy_J_per_mm3 = 0.0;
+  double burr_eroded_mm3 = 0.0;
   std::array<Eigen::Vector3d, HapticSnapshot::kMaxContactsShown> contact_p_W_m{};  ///< Contact points in W [m].
   std::array<Eigen::Vector3d, HapticSnapshot::kMaxContactsShown> contact_n_W{};    ///< Unit normals in W.
   std::uint64_t rejected = 0;      ///< Device poses the renderer rejected (total).

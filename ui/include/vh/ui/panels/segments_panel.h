@@ -58,6 +58,8 @@ class SegmentsPanel : public QWidget {
   /// Ticks "Show segments through the scan" as `on` says (the preference shown). No signal.
   void setThroughScan(bool on);
   bool throughScan() const;
+  /// The drilling burr's sound (ui/sound_output.h) on.
+  bool burrSound() const;
 
   QTableWidget* table() const noexcept { return table_; }
   QPushButton* openButton() const noexcept { return open_; }
@@ -76,6 +78,8 @@ class SegmentsPanel : public QWidget {
   void goToSegmentRequested(int segment);
   /// "Show segments through the scan" was ticked (true) or cleared by the user.
   void throughScanToggled(bool on);
+  /// "Burr sound" was switched.
+  void burrSoundToggled(bool on);
 
  private:
   QLabel* source_ = nullptr;
@@ -83,6 +87,7 @@ class SegmentsPanel : public QWidget {
   RangeSpinBox* smoothing_ = nullptr;
   QCheckBox* through_scan_ = nullptr;
   QCheckBox* sound_ = nullptr;
+  QCheckBox* burr_sound_ = nullptr;
   QLabel* touched_ = nullptr;
   QPushButton* open_ = nullptr;
   std::vector<QString> names_;
