@@ -1,6 +1,7 @@
 // The coupling and solver threads of vh/runtime/haptic_thread.h.
 #include "vh/runtime/haptic_thread.h"
 
+#include "vh/runtime/burr_load.h"
 #include "vh/runtime/snapshot_channel.h"
 
 #include "coupling_passivity.h"
@@ -656,9 +657,9 @@ inline void recordSolverTick(RecordingWriter& recorder, const SolverState& st, c
 /// one that cuts, the drill's eroded volume is read safely.
 inline void showBurr(SolverSnapshot& snap, const SolverTickResult& t, const Drill* drill) noexcept {
   snap.burr_on = t.drill_flags != 0;
-  const bool cut = t.cut.energy_J > 0.0;
-  snap.burr_force_N = cut ? t.out.force_W_N.norm() : 0.0;
-  snap.burr_specific_energy_J_per_mm3 = cut ? t.cut.specific_energy_J_per_mm3 : 0.0;
+  const BurrLoad load = burrLoadOf(t.cut, t.out);
+  snap.burr_force_N = load.force_N;
+  snap.burr_specific_energy_J_per_mm3 = load.specific_energy_J_per_mm3;
   snap.burr_eroded_mm3 = drill != nullptr ? drill->removal().erodedVolume_mm3() : 0.0;
 }
 

@@ -1,5 +1,6 @@
 #include "vh/runtime/runner.h"
 
+#include "vh/runtime/burr_load.h"
 #include "vh/runtime/jam_detector.h"
 #include "vh/runtime/placement.h"
 
@@ -480,10 +481,9 @@ void reportDrillTick(HeadlessRun& run, std::uint64_t i, bool drill_on, const hap
   d.tick = i + 1;
   d.time_s = static_cast<double>(i) / run.options.servo_rate_Hz;
   d.burr_on = drill_on;
-  if (cut.energy_J > 0.0) {
-    d.force_N = out.force_W_N.norm();
-    d.specific_energy_J_per_mm3 = cut.specific_energy_J_per_mm3;
-  }
+  const BurrLoad load = burrLoadOf(cut, out);
+  d.force_N = load.force_N;
+  d.specific_energy_J_per_mm3 = load.specific_energy_J_per_mm3;
   const double eroded_mm3 = run.drill->removal().erodedVolume_mm3();
   d.removal_rate_mm3_per_s = (eroded_mm3 - run.eroded_mm3) / run.period_s;
   run.eroded_mm3 = eroded_mm3;
