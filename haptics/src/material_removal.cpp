@@ -144,6 +144,7 @@ void MaterialRemoval::shareEnergy(const Eigen::Vector3d& c, double reach, const 
   const Eigen::Vector3d& s = g.spacing_m;
   const std::ptrdiff_t sy = g.dims[0], sz = static_cast<std::ptrdiff_t>(g.dims[0]) * g.dims[1];
   double hardness_w = 0.0;  // sum of weight x energy per voxel, over the voxels in reach
+  double deepest_w = 0.0;   // the largest weight so far: its voxel's material is the cut's
   std::uint64_t head = head_.load(std::memory_order_relaxed);
   const std::uint64_t tail = tail_.load(std::memory_order_acquire);
   for (int k = r.lo[2]; k <= r.hi[2]; ++k)
@@ -157,6 +158,10 @@ void MaterialRemoval::shareEnergy(const Eigen::Vector3d& c, double reach, const 
         const int m = materialOf(idx);
         const double voxel_J = energy_J_per_voxel_[static_cast<std::size_t>(m)].load(std::memory_order_relaxed);
         hardness_w += (reach - d) * voxel_J;
+        if (reach - d > deepest_w) {
+          deepest_w = reach - d;
+          result.material = m;
+        }
         const double fraction = energy_J * (reach - d) / r.sum_w / voxel_J;
         // Rounded down, the remainder carried to the next voxel (and tick): the removed material
         // never exceeds the energy delivered, and a light press on hard bone still cuts.

@@ -259,6 +259,13 @@ TEST(MaterialRemoval, CutReportsTheHardnessOfWhatItCuts) {
   EXPECT_LT(across, 2.5);
   EXPECT_EQ(cutAt(0.005, 0.0).specific_energy_J_per_mm3, 0.0) << "no force: no cut";
   EXPECT_EQ(cutAt(0.05, 1.0).specific_energy_J_per_mm3, 0.0) << "far above the block: nothing in reach";
+  // The cut's material is that of the voxel nearest the burr's centre (the deepest in reach):
+  // voxel centres lie at multiples of 0.5 mm, layer z = 0 and above is material 0.
+  EXPECT_EQ(cutAt(0.005, 1.0).material, 0);
+  EXPECT_EQ(cutAt(-0.005, 1.0).material, 1);
+  EXPECT_EQ(cutAt(0.0006, 1.0).material, 0) << "nearest voxel centre at z = +0.5 mm";
+  EXPECT_EQ(cutAt(-0.0006, 1.0).material, 1) << "nearest voxel centre at z = -0.5 mm";
+  EXPECT_EQ(cutAt(0.05, 1.0).material, -1) << "nothing cut";
 }
 
 // The guarantees stay while drilling: a drill pressed into a block by a device far below it

@@ -663,11 +663,25 @@ inline void showBurr(SolverSnapshot& snap, const SolverTickResult& t, const Dril
   snap.burr_eroded_mm3 = drill != nullptr ? drill->removal().erodedVolume_mm3() : 0.0;
 }
 
+/// The technique rules after solver tick `t` (technique.h), as record flags: evaluated on ticks
+/// that rendered a usable sample; a tick that did not keeps the rules as they were.
+inline std::uint32_t solverTechnique(ServoTechnique* technique, const SolverState& st, const CouplingSample& in,
+                                     const SolverTickResult& t, std::span<const haptics::Contact> contacts, int segment,
+                                     double period_s) noexcept {
+  if (technique == nullptr) return 0;
+  if (!in.ok || t.bad_input) return recordTechniqueBits(technique->monitor().active());
+  return recordTechniqueBits(technique->tick(static_cast<double>(st.tick) * period_s, in.X_WD, t.out.force_W_N.norm(),
+                                             contacts, t.drill_flags != 0, t.cut.material, segment,
+                                             std::numeric_limits<double>::infinity()));
+}
+
 /// A solver tick's snapshot to the GUI and the optional monitor.
 inline void publishSolverTick(SnapshotChannel& gui, SnapshotChannel* monitor, const SolverState& st, double isovalue,
                               std::span<const haptics::Contact> contacts, int segment,
-                              const ThreadTiming& timing, const SolverTickResult& t, const Drill* drill) noexcept {
+                              const ThreadTiming& timing, const SolverTickResult& t, const Drill* drill,
+                              std::uint32_t technique_flags) noexcept {
   SolverSnapshot& snap = gui.solverSlot();
+  snap.technique = recordTechnique(technique_flags);
   snap.tick = st.tick;
   snap.isovalue = isovalue;
   showContacts(snap, contacts, segment);
@@ -830,16 +844,20 @@ void HapticThread::solverLoop() noexcept {
     }
     const auto contacts = renderer_->contacts();
     const int segment = options_.segments != nullptr ? options_.segments->segmentOf(contacts) : -1;
+    const std::uint32_t technique_flags =
+        solverTechnique(options_.technique.get(), st, in, t, contacts, segment, solver_period_s_);
     if (recorder != nullptr) {
       recordSolverTick(*recorder, st, in, t.out, renderer_->proxyPose(), contacts.size(), segment, solver_period_s_,
                        end_ns - begin_ns,
-                       st.wake_flags | coupling_flags | t.drill_flags | gains_flags | jam_flags | placement_flags);
+                       st.wake_flags | coupling_flags | t.drill_flags | gains_flags | jam_flags | placement_flags |
+                           technique_flags);
       latest_recorded_tick_.store(st.tick, std::memory_order_release);
     }
     st.wake_flags = 0;
 
     clock.tick(begin_ns, end_ns);
-    publishSolverTick(x_->gui, monitor, st, in.isovalue, contacts, segment, clock.timing(), t, options_.drill.get());
+    publishSolverTick(x_->gui, monitor, st, in.isovalue, contacts, segment, clock.timing(), t, options_.drill.get(),
+                      technique_flags);
     solver_ticks_.fetch_add(1, std::memory_order_seq_cst);
   };
 

@@ -3,6 +3,7 @@
 #include "vh/runtime/recording.h"
 
 #include "vh/runtime/jam_detector.h"
+#include "vh/runtime/technique.h"
 
 #include <algorithm>
 #include <array>
@@ -291,6 +292,17 @@ void RecordingWriter::deriveEvents(const TickRecord* records, std::size_t count)
                          jammed ? nlohmann::json{{"ticks", kJamTicks + 1}}.dump() : std::string("{}")});
       previous_jammed_ = jammed;
     }
+    // A technique rule that became active: one event per episode (the monitor's hold and
+    // clear times already keep a flickering condition to one).
+    const std::uint32_t technique = recordTechnique(r.flags);
+    for (int rule = 0; rule < kTechniqueRuleCount; ++rule) {
+      const std::uint32_t bit = 1u << rule;
+      if ((technique & bit) && !(previous_technique_ & bit)) {
+        derived.push_back({r.time_s, r.tick, "technique",
+                           nlohmann::json{{"rule", std::string(techniqueRuleName(rule))}}.dump()});
+      }
+    }
+    previous_technique_ = technique;
     previous_disconnected_ = disconnected;
     previous_isovalue_ = r.isovalue;
   }

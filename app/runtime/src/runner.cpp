@@ -10,6 +10,7 @@
 #include <cstdio>
 #include <fstream>
 #include <iomanip>
+#include <limits>
 #include <memory>
 #include <optional>
 #include <sstream>
@@ -416,6 +417,7 @@ struct HeadlessRun {
   double contact_sum = 0.0;
   double samples_sum = 0.0;
   double eroded_mm3 = 0.0;  // the drill's eroded volume after the last tick
+  ServoTechnique* technique = nullptr;  // the technique rules, or null
 };
 
 /// One tick's device sample, what the renderer made of it and the command the device got.
@@ -537,11 +539,18 @@ void checkRunTick(HeadlessRun& run, std::uint64_t i, const RunTick& t) {
   const haptics::CutResult cut = drill_on ? drillRunTick(run, i, out) : haptics::CutResult{};
   reportDrillTick(run, i, drill_on, cut, out, segment);
   const bool jammed = updateRunJam(run, i, t);
+  std::uint32_t technique = run.technique != nullptr ? run.technique->monitor().active() : 0u;
+  if (run.technique != nullptr && t.sample_ok && !out.stats.bad_input && finite) {
+    technique = run.technique->tick(static_cast<double>(i) * run.period_s, run.X_WD_used, out.force_W_N.norm(),
+                                    run.renderer.contacts(), drill_on, cut.material, segment,
+                                    std::numeric_limits<double>::infinity());
+  }
   if (run.recorder) {
     TickRecord rec = runRecord(i, run.options.servo_rate_Hz, run.X_WD_used, run.renderer.proxyPose(), out, t.isovalue,
                                run.renderer.contacts().size(), finite, t.sample_ok, segment);
     if (drill_on) rec.flags |= kRecordFlagDrillOn;
     if (jammed) rec.flags |= kRecordFlagJam;
+    rec.flags |= recordTechniqueBits(technique);
     run.recorder->pushWaiting(rec);
   }
   if (run.trace.is_open()) {
@@ -578,6 +587,8 @@ void finishRun(HeadlessRun& run, std::uint64_t n, std::chrono::steady_clock::tim
   r.held_ticks = run.safety.stats().held_ticks;
   r.jam_ticks = run.jam.jamTicks();
   r.jams = run.jam.jams();
+  for (int k = 0; k < kTechniqueRuleCount && run.technique != nullptr; ++k)
+    r.technique_episodes[static_cast<std::size_t>(k)] = run.technique->monitor().episodes(k);
   summariseTicks(r, run.times_us, n, run.contact_sum, run.samples_sum);
 }
 }  // namespace
@@ -631,6 +642,8 @@ RunReport runHeadless(const LoadedScene& scene, const Trajectory& trajectory, co
                   drill != nullptr && scene.spec.drill && scene.spec.drill->on, reference.get(), lag,
                   verifier ? &*verifier : nullptr, shell_edges, device, filter, safety, trace, recorder.get(),
                   segment_tally ? &*segment_tally : nullptr, jam, times_us, r, X_WD_first};
+  const std::unique_ptr<ServoTechnique> technique = makeServoTechnique(LiveValues::initial(scene), drill);
+  run.technique = technique.get();
   const auto wall_begin = std::chrono::steady_clock::now();
   for (std::uint64_t i = 0; i < n; ++i) {
     RunTick t;
@@ -750,6 +763,10 @@ std::string RunReport::toJson() const {
   j["max_behind_rad"] = lag_ticks >= 0 ? nlohmann::ordered_json(max_behind_rad) : nlohmann::ordered_json(nullptr);
   j["segments"] = segmentContactsJson(segment_contacts);
   if (drill) addDrillJson(j, *drill);
+  nlohmann::ordered_json technique;
+  for (int k = 0; k < kTechniqueRuleCount; ++k)
+    technique[std::string(techniqueRuleName(k))] = technique_episodes[static_cast<std::size_t>(k)];
+  j["technique_episodes"] = technique;
   return j.dump(2) + "\n";
 }
 
@@ -802,6 +819,11 @@ std::string RunReport::summary() const {
                   static_cast<unsigned long long>(jam_ticks), static_cast<long long>(first_jam_tick));
     out += line;
   }
+  std::snprintf(line, sizeof line, "; technique: force %llu, speed %llu, shaft %llu",
+                static_cast<unsigned long long>(technique_episodes[0]),
+                static_cast<unsigned long long>(technique_episodes[1]),
+                static_cast<unsigned long long>(technique_episodes[2]));
+  out += line;
   if (drill) {
     std::snprintf(line, sizeof line, "; drilled %.2f mm^3", drill->removed_mm3);
     out += line;

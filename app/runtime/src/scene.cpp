@@ -173,6 +173,7 @@ LiveValues LiveValues::initial(const LoadedScene& scene) {
   live.segmentation = scene.spec.segmentation;
   live.drill = scene.spec.drill;
   live.scan_in_HU = inHounsfieldUnits(scene.volume);
+  live.technique = scene.spec.technique;
   return live;
 }
 

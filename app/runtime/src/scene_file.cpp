@@ -455,6 +455,37 @@ DrillSpec readDrill(const ObjectReader& drill) {
   return d;
 }
 
+/// The "technique" section (technique.h): the rules' levels and times.
+TechniqueRules readTechnique(const ObjectReader& t) {
+  t.allowOnly({"on", "safe_force_N", "safe_force_by_material_N", "force_hold_s", "near_critical_m",
+               "max_speed_near_critical_m_per_s", "shaft_margin_m", "shaft_hold_s", "clear_s"});
+  TechniqueRules r;
+  if (t.has("on")) r.on = t.boolean("on");
+  if (t.has("safe_force_N")) r.safe_force_N = t.positive("safe_force_N");
+  if (t.has("safe_force_by_material_N")) {
+    const json& levels = t.at("safe_force_by_material_N");
+    if (!levels.is_object()) t.fail(t.fieldPath("safe_force_by_material_N"), "expected an object of name: force [N]");
+    for (auto it = levels.begin(); it != levels.end(); ++it) {
+      if (!it.value().is_number() || !(it.value().get<double>() > 0.0) || !std::isfinite(it.value().get<double>()))
+        t.fail(t.fieldPath("safe_force_by_material_N") + "." + it.key(), "expected a force > 0 [N], found " + it.value().dump());
+      r.safe_force_by_material_N[it.key()] = it.value().get<double>();
+    }
+  }
+  const auto non_negative = [&t](const char* key, double& out) {
+    if (!t.has(key)) return;
+    out = t.number(key);
+    if (!(out >= 0.0) || !std::isfinite(out)) t.fail(t.fieldPath(key), "expected a number >= 0");
+  };
+  non_negative("force_hold_s", r.force_hold_s);
+  if (t.has("near_critical_m")) r.near_critical_m = t.positive("near_critical_m");
+  if (t.has("max_speed_near_critical_m_per_s"))
+    r.max_speed_near_critical_m_per_s = t.positive("max_speed_near_critical_m_per_s");
+  non_negative("shaft_margin_m", r.shaft_margin_m);
+  non_negative("shaft_hold_s", r.shaft_hold_s);
+  non_negative("clear_s", r.clear_s);
+  return r;
+}
+
 }  // namespace
 
 SceneSpec parseScene(const std::string& json_text, const std::string& source, const fs::path& base_dir) {
@@ -468,7 +499,8 @@ SceneSpec parseScene(const std::string& json_text, const std::string& source, co
     throw std::runtime_error(source + ": invalid JSON: " + (pos == std::string::npos ? what : what.substr(pos + 2)));
   }
   const ObjectReader top(root, "", source);
-  top.allowOnly({"description", "volume", "tool", "coupling", "device", "segmentation", "openigtlink", "drill"});
+  top.allowOnly({"description", "volume", "tool", "coupling", "device", "segmentation", "openigtlink", "drill",
+                 "technique"});
 
   SceneSpec spec;
   spec.source = source;
@@ -479,6 +511,7 @@ SceneSpec parseScene(const std::string& json_text, const std::string& source, co
   if (top.has("segmentation")) spec.segmentation = readSegmentation(top.object("segmentation"), base_dir);
   if (top.has("openigtlink")) spec.openigtlink = readOpenIgtlink(top.object("openigtlink"));
   if (top.has("drill")) spec.drill = readDrill(top.object("drill"));
+  if (top.has("technique")) spec.technique = readTechnique(top.object("technique"));
   return spec;
 }
 

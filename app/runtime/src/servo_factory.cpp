@@ -86,6 +86,19 @@ DrillingRenderer makeServoRenderer(const LiveValues& live, const haptics::Render
                               servo_rate_Hz);
 }
 
+std::unique_ptr<ServoTechnique> makeServoTechnique(const LiveValues& live, const Drill* drill) {
+  std::vector<std::string> materials, segments;
+  if (drill != nullptr) {
+    for (const haptics::CuttingMaterial& m : drill->removal().materials()) materials.push_back(m.name);
+  }
+  if (live.segments != nullptr) {
+    for (std::size_t s = 0; s < live.segments->size(); ++s) segments.push_back(live.segments->name(static_cast<int>(s)));
+  }
+  const Eigen::Vector3d burr_center_T_m = drill != nullptr ? drill->burr().center_T_m : Eigen::Vector3d::Zero();
+  return std::make_unique<ServoTechnique>(live.technique, materials, segments, burr_center_T_m,
+                                          drill != nullptr ? drill->burr().radius_m : 0.0);
+}
+
 std::unique_ptr<HapticThread> makeHapticThread(const LiveValues& live, std::shared_ptr<Device> device,
                                                double servo_rate_Hz, const haptics::Pose& X_WP,
                                                const HapticThreadOptions& options, PreparedDrill* prepared) {
@@ -98,6 +111,7 @@ std::unique_ptr<HapticThread> makeHapticThread(const LiveValues& live, std::shar
                                          options.solver_rate_Hz > 0.0 ? options.solver_rate_Hz : servo_rate_Hz,
                                          prepared);
   with_segments.drill = r.drill;
+  with_segments.technique = makeServoTechnique(live, r.drill.get());
   auto thread = std::make_unique<HapticThread>(std::move(r.renderer), std::move(device), live.hapticIsovalue(),
                                                servo_rate_Hz, with_segments);
   thread->setGains(live.gains);

@@ -19,6 +19,7 @@ void mergeSnapshots(const CouplingSnapshot& c, const SolverSnapshot& s, HapticSn
   out.burr_force_N = s.burr_force_N;
   out.burr_specific_energy_J_per_mm3 = s.burr_specific_energy_J_per_mm3;
   out.burr_eroded_mm3 = s.burr_eroded_mm3;
+  out.technique = s.technique;
   out.contact_p_W_m = s.contact_p_W_m;
   out.contact_n_W = s.contact_n_W;
   out.coupling = c.timing;

@@ -137,4 +137,36 @@ void TechniqueMonitor::reset() noexcept {
   }
 }
 
+ServoTechnique::ServoTechnique(TechniqueRules rules, const std::vector<std::string>& material_names,
+                               const std::vector<std::string>& segment_names, const Eigen::Vector3d& burr_center_T_m,
+                               double burr_radius_m)
+    : burr_center_T_m_(burr_center_T_m), burr_radius_m_(burr_radius_m) {
+  rules.validate();
+  for (const std::string& name : material_names) material_safe_N_.push_back(rules.safeForceFor(name));
+  for (const std::string& name : segment_names) segment_safe_N_.push_back(rules.safeForceFor(name));
+  monitor_ = TechniqueMonitor(std::move(rules));
+}
+
+double ServoTechnique::safeForce_N(int material, int segment) const noexcept {
+  if (material >= 0 && static_cast<std::size_t>(material) < material_safe_N_.size())
+    return material_safe_N_[static_cast<std::size_t>(material)];
+  if (segment >= 0 && static_cast<std::size_t>(segment) < segment_safe_N_.size())
+    return segment_safe_N_[static_cast<std::size_t>(segment)];
+  return monitor_.rules().safe_force_N;
+}
+
+std::uint32_t ServoTechnique::tick(double time_s, const haptics::Pose& X_WD, double force_N,
+                                   std::span<const haptics::Contact> contacts, bool burr_on, int cut_material,
+                                   int segment, double nearest_critical_m) noexcept {
+  TechniqueSample s;
+  s.time_s = time_s;
+  s.p_W_m = X_WD * burr_center_T_m_;
+  s.force_N = force_N;
+  s.safe_force_N = safeForce_N(cut_material, segment);
+  s.nearest_critical_m = nearest_critical_m;
+  s.burr_on = burr_on && burr_radius_m_ > 0.0;
+  s.shaft_contacts = s.burr_on ? shaftContacts(contacts, burr_center_T_m_, burr_radius_m_, monitor_.rules().shaft_margin_m) : 0;
+  return monitor_.update(s);
+}
+
 }  // namespace vh::runtime

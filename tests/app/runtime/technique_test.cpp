@@ -4,12 +4,18 @@
 #include "vh/runtime/technique.h"
 
 #include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <string>
 #include <limits>
 #include <vector>
 
 #include <gtest/gtest.h>
 
 #include "allocation_guard.h"
+#include "vh/runtime/recording.h"
+#include "vh/runtime/runner.h"
+#include "vh/runtime/scene.h"
 
 namespace vh::runtime {
 namespace {
@@ -179,6 +185,118 @@ TEST(TechniqueRules, AnUpdateNeitherAllocatesNorTakesANaNPose) {
   EXPECT_TRUE(std::isfinite(m.speed_m_per_s()));
   EXPECT_NEAR(m.speed_m_per_s(), 0.001, 1e-6);
   EXPECT_TRUE(m.active() & kTechniqueForce);
+}
+
+TEST(TechniqueScene, TheSectionSetsEveryRuleAndItsAbsenceKeepsTheDefaults) {
+  const SceneSpec defaults = parseScene(R"({"volume": {"path": "builtin:plane"}})", "d.json", {});
+  EXPECT_TRUE(defaults.technique.on);
+  EXPECT_DOUBLE_EQ(defaults.technique.safe_force_N, TechniqueRules{}.safe_force_N);
+  const SceneSpec set = parseScene(R"({"volume": {"path": "builtin:plane"},
+      "technique": {"on": true, "safe_force_N": 2.0, "safe_force_by_material_N": {"facial nerve": 0.4},
+                    "force_hold_s": 0.3, "near_critical_m": 0.002, "max_speed_near_critical_m_per_s": 0.005,
+                    "shaft_margin_m": 0.001, "shaft_hold_s": 0.2, "clear_s": 1.0}})",
+                                   "s.json", {});
+  const TechniqueRules& r = set.technique;
+  EXPECT_DOUBLE_EQ(r.safe_force_N, 2.0);
+  EXPECT_DOUBLE_EQ(r.safeForceFor("Facial Nerve"), 0.4);
+  EXPECT_DOUBLE_EQ(r.force_hold_s, 0.3);
+  EXPECT_DOUBLE_EQ(r.near_critical_m, 0.002);
+  EXPECT_DOUBLE_EQ(r.max_speed_near_critical_m_per_s, 0.005);
+  EXPECT_DOUBLE_EQ(r.shaft_margin_m, 0.001);
+  EXPECT_DOUBLE_EQ(r.shaft_hold_s, 0.2);
+  EXPECT_DOUBLE_EQ(r.clear_s, 1.0);
+  EXPECT_FALSE(parseScene(R"({"volume": {"path": "builtin:plane"}, "technique": {"on": false}})", "o.json", {})
+                   .technique.on);
+}
+
+TEST(TechniqueScene, BadValuesAreRefusedNamingTheField) {
+  const auto error = [](const std::string& technique) {
+    try {
+      parseScene(R"({"volume": {"path": "builtin:plane"}, "technique": )" + technique + "}", "t.json", {});
+    } catch (const std::runtime_error& e) {
+      return std::string(e.what());
+    }
+    return std::string("(taken)");
+  };
+  EXPECT_NE(error(R"({"safe_force_N": 0})").find("technique.safe_force_N"), std::string::npos);
+  EXPECT_NE(error(R"({"safe_force_by_material_N": {"dura": -1}})").find("technique.safe_force_by_material_N.dura"),
+            std::string::npos);
+  EXPECT_NE(error(R"({"safe_force_by_material_N": 3})").find("expected an object"), std::string::npos);
+  EXPECT_NE(error(R"({"force_hold_s": -0.1})").find("technique.force_hold_s"), std::string::npos);
+  EXPECT_NE(error(R"({"max_speed_mm_per_s": 10})").find("unknown key 'max_speed_mm_per_s'"), std::string::npos);
+}
+
+/// The built-in drilling scene (the synthetic sphere, radius 20 mm, top at z = 20 mm; the
+/// drill's 2.5 mm burr at T's origin), its sphere `hardness_J_per_mm3` hard, with `technique`.
+SceneSpec drillingSphere(const std::string& technique, double hardness_J_per_mm3) {
+  return parseScene(R"({"volume": {"path": "builtin:sphere", "isovalue": 0},
+      "tool": {"mesh": "builtin:drill", "point_spacing_m": 0.001},
+      "coupling": {"linear_N_per_m": 400, "angular_Nm_per_rad": 1.0},
+      "drill": {"on": true, "burr_radius_m": 0.0025, "hardness": {"tissue": )" +
+                        std::to_string(hardness_J_per_mm3) + R"(}},
+      "technique": )" + technique + "}",
+                    "sphere-drill.json", {});
+}
+
+/// Above the sphere until 0.5 s, pressed 12 mm below its top by 1 s, held until 3 s.
+Trajectory pressIntoTheSphere() {
+  std::vector<TrajectorySample> keys;
+  for (const auto& [t, z] : {std::pair{0.0, 0.030}, {0.5, 0.030}, {1.0, 0.008}, {3.0, 0.008}}) {
+    TrajectorySample k;
+    k.t_s = t;
+    k.X_WD = haptics::Pose::FromTranslation({0.0, 0.0, z});
+    keys.push_back(k);
+  }
+  return Trajectory(keys);
+}
+
+// A headless drilling run: the hand pushes on bone too hard to cut fast, so |F| stays above the
+// safe level. The recording's "technique" events must come exactly where the rule says, as
+// recomputed here from the recorded forces (the first tick at which |F| has been above the level
+// for force_hold_s), and the run report counts the same episodes; a level above every force the
+// run reaches gives none.
+TEST(TechniqueRun, APushAboveTheSafeLevelIsRecordedWhereTheRuleSaysAndCounted) {
+  const std::filesystem::path dir = std::filesystem::path(VH_TEST_OUTPUT_DIR) / "technique-run";
+  std::filesystem::create_directories(dir);
+  const LoadedScene scene = loadScene(drillingSphere(R"({"safe_force_N": 2.0, "force_hold_s": 0.25})", 50.0));
+  RunOptions options;
+  options.verify_step_voxels = 0.0;
+  options.lag_reference = false;
+  options.record = dir / "push.vhrec";
+  const RunReport report = runHeadless(scene, pressIntoTheSphere(), options);
+  ASSERT_GT(report.max_force_N, 2.0) << "the push must exceed the level for the test to mean anything";
+  const Recording rec = readRecording(options.record);
+  // The oracle: the first record at which every record of the last 0.25 s had |F| > 2 N.
+  double expected_s = -1.0, above_since = -1.0;
+  for (const TickRecord& r : rec.records) {
+    const double f = Eigen::Vector3d(r.force_W_N[0], r.force_W_N[1], r.force_W_N[2]).norm();
+    if (f <= 2.0) {
+      above_since = -1.0;
+      continue;
+    }
+    if (above_since < 0.0) above_since = r.time_s;
+    if (r.time_s - above_since >= 0.25 - 1e-9) {
+      expected_s = r.time_s;
+      break;
+    }
+  }
+  ASSERT_GE(expected_s, 0.0) << "the run never pushed above 2 N for 0.25 s";
+  std::vector<double> events_s;
+  for (const RecordingEvent& e : rec.events) {
+    if (e.type == "technique" && e.detail_json.find("\"force\"") != std::string::npos) events_s.push_back(e.time_s);
+  }
+  ASSERT_FALSE(events_s.empty()) << report.summary();
+  std::printf("max |F| %.2f N; rule due at %.3f s, first force event at %.3f s; %zu force events\n", report.max_force_N,
+              expected_s, events_s.front(), events_s.size());
+  EXPECT_NEAR(events_s.front(), expected_s, 1.5e-3);
+  EXPECT_EQ(report.technique_episodes[0], events_s.size());
+  EXPECT_EQ(report.technique_episodes[2], 0u) << "the burr alone touched the sphere";
+  EXPECT_NE(report.toJson().find("\"technique_episodes\""), std::string::npos);
+
+  const LoadedScene lenient = loadScene(drillingSphere(R"({"safe_force_N": 1000})", 50.0));
+  options.record.clear();
+  const RunReport calm = runHeadless(lenient, pressIntoTheSphere(), options);
+  EXPECT_EQ(calm.technique_episodes[0], 0u);
 }
 
 }  // namespace

@@ -66,6 +66,9 @@ struct CutResult {
   /// Hardness of what the burr cut: the specific energies of the voxels in reach, weighted by
   /// their shares of the energy [J/mm^3]; 0 when nothing was cut (energy_J 0).
   double specific_energy_J_per_mm3 = 0.0;
+  /// The material of the voxel deepest in the burr's reach (the largest share of the energy),
+  /// index into MaterialRemoval::materials(); -1 when nothing was cut.
+  int material = -1;
   bool widened = false;            ///< The reach grew to one voxel diagonal (see the file comment).
 };
 

@@ -46,6 +46,9 @@ struct HapticSnapshot {
   double burr_force_N = 0.0;
   double burr_specific_energy_J_per_mm3 = 0.0;
   double burr_eroded_mm3 = 0.0;
+  /// The technique rules active after the solver's latest tick (technique.h: TechniqueRule
+  /// bits; 0 without rules).
+  std::uint32_t technique = 0;
   std::array<Eigen::Vector3d, kMaxContactsShown> contact_p_W_m{};  ///< Contact points in W [m].
   std::array<Eigen::Vector3d, kMaxContactsShown> contact_n_W{};    ///< Their unit surface normals in W.
   ThreadTiming coupling;                  ///< The coupling (device-rate) thread.

@@ -60,6 +60,7 @@
 #include "vh/runtime/haptic_snapshot.h"
 #include "vh/runtime/realtime.h"
 #include "vh/runtime/segments.h"
+#include "vh/runtime/technique.h"
 #include "vh/runtime/recording.h"
 #include "vh/runtime/thread_timing.h"
 #include "vh/runtime/triple_buffer.h"
@@ -103,6 +104,11 @@ struct HapticThreadOptions {
   /// tick with a usable sample runs Drill::step() after the renderer's tick, on the solver
   /// thread (no allocation, no lock), and its record carries kRecordFlagDrillOn. Null: no drill.
   std::shared_ptr<Drill> drill;
+  /// The technique rules (technique.h), evaluated by the solver thread after every tick with a
+  /// usable sample (and the drill's cut); their active bits go into the record's flags
+  /// (recordTechniqueBits()) and the GUI's snapshot. Null: no rules. Shared only to keep the
+  /// options copyable; only the solver thread touches it.
+  std::shared_ptr<ServoTechnique> technique;
 };
 
 /// Runs the coupling and the solver threads (see the file comment).

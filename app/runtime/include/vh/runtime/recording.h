@@ -82,7 +82,8 @@
 /// an "isovalue" event {"from":A,"to":B}; kRecordFlagDeviceDisconnected turning on / off gives
 /// "device_disconnected" / "device_connected" (the first record's state is in the metadata; a
 /// recording that starts disconnected gets a "device_disconnected" event at its first tick);
-/// kRecordFlagJam turning on / off gives "jam" / "jam_cleared".
+/// kRecordFlagJam turning on / off gives "jam" / "jam_cleared"; a technique rule's bit
+/// (recordTechnique()) turning on gives "technique" {"rule":"force"|"speed"|"shaft"}.
 ///
 /// A crash (even `kill -9`) loses only the records not yet written: the writer flushes a chunk
 /// at least every RecordingWriterOptions::max_chunk_wall_s (< 1 s) and every chunk holds at most
@@ -214,6 +215,7 @@ class RecordingWriter {
   std::vector<RecordingEvent> pending_events_;  // guarded by events_mutex_
   bool have_previous_ = false;                  // writer thread: deriveEvents() state
   bool previous_jammed_ = false;                // writer thread: deriveEvents() state
+  std::uint32_t previous_technique_ = 0;        // writer thread: deriveEvents() state
   int previous_segment_ = -1;
   std::vector<std::string> segment_names_;      // from the metadata (constant)
   std::vector<bool> segment_critical_;

@@ -237,6 +237,9 @@ struct RunReport {
   std::uint64_t jams = 0;
   std::uint64_t jam_ticks = 0;
   std::int64_t first_jam_tick = -1;
+  /// Technique feedback (technique.h, the scene's "technique" rules): episodes of each rule in
+  /// TechniqueRule order (force, speed, shaft), as the recording's "technique" events count them.
+  std::array<std::uint64_t, kTechniqueRuleCount> technique_episodes{};
   // The work budget (haptics::RendererOptions::work_budget) and its price.
   std::int64_t work_budget = 0;          ///< Work units per tick; 0: unbounded.
   std::uint64_t budget_cuts = 0;         ///< Ticks the budget cut (the sweep went on next tick).

@@ -16,7 +16,11 @@
 ///   "segmentation": {"path": "case.seg.nrrd",     // optional: 3D Slicer segments (segments.h)
 ///                    "felt": ["facial nerve"], "shown": ["facial nerve", "sigmoid sinus"],
 ///                    "critical": ["facial nerve"], "smoothing_voxels": 1.0},
-///   "openigtlink": {"port": 18944, "rate_Hz": 60} // optional: stream to 3D Slicer (off when absent)
+///   "openigtlink": {"port": 18944, "rate_Hz": 60}, // optional: stream to 3D Slicer (off when absent)
+///   "technique": {"safe_force_N": 3.0, "safe_force_by_material_N": {"facial nerve": 0.5},
+///                 "force_hold_s": 0.5, "near_critical_m": 0.003,
+///                 "max_speed_near_critical_m_per_s": 0.01, "shaft_margin_m": 0.0005,
+///                 "shaft_hold_s": 0.1, "clear_s": 0.5, "on": true}  // optional: technique.h
 /// }
 /// "felt" absent or empty: the scan's isosurface is felt and the segments are only shown;
 /// "shown" absent: every segment is shown.
@@ -49,6 +53,7 @@
 #include "vh/runtime/drilling.h"
 #include "vh/runtime/haptic_thread.h"
 #include "vh/runtime/segments.h"
+#include "vh/runtime/technique.h"
 
 namespace vh::runtime {
 
@@ -141,6 +146,8 @@ struct SceneSpec {
   std::optional<SegmentationSpec> segmentation;  ///< Absent: no segments.
   std::optional<OpenIgtlinkSpec> openigtlink;  ///< Absent: no OpenIGTLink server (the default).
   std::optional<DrillSpec> drill;  ///< Absent: the tool only touches (no drilling state at all).
+  /// Live feedback on technique (technique.h); absent from the file: the default rules.
+  TechniqueRules technique;
 };
 
 /// Parses a scene file.
@@ -287,9 +294,10 @@ struct LiveValues {
   /// Whether the burr spins is the haptic thread's (HapticThread::setDrilling()).
   std::optional<DrillSpec> drill;
   bool scan_in_HU = false;                        ///< The scan is CT in HU (drilling's hardness classes).
+  TechniqueRules technique;                       ///< The technique rules the servo loop checks.
 
   /// The values `scene` was loaded with (its field, isovalue, spec.gains, tool, spec.tool,
-  /// X_WT_initial, segments, spec.segmentation).
+  /// X_WT_initial, segments, spec.segmentation, spec.technique).
   static LiveValues initial(const LoadedScene& scene);
 
   /// True when segments are felt instead of the scan's isosurface.

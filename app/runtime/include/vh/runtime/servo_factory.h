@@ -13,6 +13,7 @@
 #include "vh/runtime/drilling.h"
 #include "vh/runtime/haptic_thread.h"
 #include "vh/runtime/scene.h"
+#include "vh/runtime/technique.h"
 
 namespace vh::runtime {
 
@@ -37,6 +38,11 @@ PreparedDrill prepareServoDrill(const LiveValues& live);
 DrillingRenderer makeServoRenderer(const LiveValues& live, const haptics::RendererOptions& options,
                                    const haptics::Pose& X_WP, double servo_rate_Hz,
                                    PreparedDrill* prepared = nullptr);
+
+/// The technique rules of `live` in a servo loop (technique.h): the safe level of each of
+/// `drill`'s materials and of each segment, the drill's burr (none without a drill).
+/// @throws std::invalid_argument as TechniqueRules::validate().
+std::unique_ptr<ServoTechnique> makeServoTechnique(const LiveValues& live, const Drill* drill);
 
 /// The one place a renderer and its haptic threads are built (the GUI through Session, the
 /// headless tests through LoadedScene): a HapticThread (not started) driving `device` at

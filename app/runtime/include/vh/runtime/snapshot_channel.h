@@ -61,6 +61,7 @@ struct SolverSnapshot {
   double burr_force_N = 0.0;
   double burr_specific_energy_J_per_mm3 = 0.0;
   double burr_eroded_mm3 = 0.0;
+  std::uint32_t technique = 0;     ///< HapticSnapshot::technique.
   std::array<Eigen::Vector3d, HapticSnapshot::kMaxContactsShown> contact_p_W_m{};  ///< Contact points in W [m].
   std::array<Eigen::Vector3d, HapticSnapshot::kMaxContactsShown> contact_n_W{};    ///< Unit normals in W.
   std::uint64_t rejected = 0;      ///< Device poses the renderer rejected (total).

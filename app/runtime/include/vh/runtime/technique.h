@@ -32,10 +32,12 @@
 #include <string>
 #include <string_view>
 #include <utility>
+#include <vector>
 
 #include <Eigen/Core>
 
 #include "vh/haptics/contact_set.h"
+#include "vh/haptics/pose.h"
 
 namespace vh::runtime {
 
@@ -123,6 +125,38 @@ class TechniqueMonitor {
   bool holding_[kTechniqueRuleCount] = {false, false, false};
   bool clearing_[kTechniqueRuleCount] = {false, false, false};
   std::uint64_t episodes_[kTechniqueRuleCount] = {0, 0, 0};
+};
+
+/// The rules inside a servo loop (the headless runner's, the haptic thread's solver): the safe
+/// level of each drill material and each segment looked up once, off the servo thread, so that a
+/// tick compares numbers only; the burr for the shaft rule.
+class ServoTechnique {
+ public:
+  /// @param material_names the drill's materials in order (MaterialRemoval::materials()); empty
+  ///        without a drill. @param segment_names the scene's segments in order; empty without.
+  /// @param burr_radius_m 0: no burr (the shaft rule never fires). burr_center_T_m in T [m].
+  /// @throws std::invalid_argument as TechniqueRules::validate().
+  ServoTechnique(TechniqueRules rules, const std::vector<std::string>& material_names,
+                 const std::vector<std::string>& segment_names, const Eigen::Vector3d& burr_center_T_m,
+                 double burr_radius_m);
+  /// One servo tick. @param X_WD the device pose [m] (the hand's speed is the burr centre's, or
+  /// T's origin without a burr); @param force_N |F| on the hand [N]; @param contacts the contact
+  /// set after the tick; @param cut_material the material the burr cut this tick (CutResult::
+  /// material, -1: none); @param segment the segment the contacts touch (-1: none);
+  /// @param nearest_critical_m the nearest critical segment [m] (+inf: none).
+  /// @return the active rules (TechniqueRule bits). No allocation, no exception.
+  std::uint32_t tick(double time_s, const haptics::Pose& X_WD, double force_N,
+                     std::span<const haptics::Contact> contacts, bool burr_on, int cut_material, int segment,
+                     double nearest_critical_m) noexcept;
+  const TechniqueMonitor& monitor() const noexcept { return monitor_; }
+  /// The safe level for a tick that cut `material` while touching `segment` [N].
+  double safeForce_N(int material, int segment) const noexcept;
+
+ private:
+  TechniqueMonitor monitor_;
+  std::vector<double> material_safe_N_, segment_safe_N_;
+  Eigen::Vector3d burr_center_T_m_;
+  double burr_radius_m_;
 };
 
 }  // namespace vh::runtime

@@ -55,6 +55,20 @@ inline constexpr std::uint32_t kRecordFlagJam = 1u << 11;
 /// one. Not the hand's motion: the session's metrics leave the jump out, and a replay puts its
 /// proxy there before this tick.
 inline constexpr std::uint32_t kRecordFlagPlacement = 1u << 12;
+/// Bits 13..15: the technique rules active after this tick (technique.h: TechniqueMonitor's
+/// result, kTechniqueForce / kTechniqueSpeed / kTechniqueShaft shifted by this). The writer derives
+/// a "technique" event ({"rule": "force"}) when a rule's bit turns on, so the servo thread never
+/// formats an event.
+inline constexpr int kRecordTechniqueShift = 13;
+inline constexpr std::uint32_t kRecordFlagTechniqueMask = 7u << kRecordTechniqueShift;
+/// The flag bits of the active rules `technique` (TechniqueRule bits).
+constexpr std::uint32_t recordTechniqueBits(std::uint32_t technique) noexcept {
+  return (technique << kRecordTechniqueShift) & kRecordFlagTechniqueMask;
+}
+/// The active technique rules of a record's flags (TechniqueRule bits).
+constexpr std::uint32_t recordTechnique(std::uint32_t flags) noexcept {
+  return (flags & kRecordFlagTechniqueMask) >> kRecordTechniqueShift;
+}
 
 /// One servo tick, fixed size, trivially copyable (its byte image is what the file stores).
 /// Frames: W is the scene (world) frame; D the device (tool) frame; P the proxy frame.
