@@ -38,6 +38,7 @@
 #include "vh/ui/scene_opener.h"
 #include "vh/ui/panels/segments_panel.h"
 #include "vh/ui/segments_controller.h"
+#include "vh/ui/technique_alerts.h"
 #include "vh/ui/sound_output.h"
 #include "vh/ui/drill_controller.h"
 #include "vh/ui/tool_picker.h"
@@ -166,6 +167,7 @@ void MainWindow::buildDocks() {
   segments_ = new SegmentsController(session_, *view_, this, statusBar(), prefs_, device_input_);
   drill_ = new DrillController(session_, *view_, this);
   sound_ = new SoundOutput(this);
+  technique_ = new TechniqueAlerts(this);
   // Display, Segments and Haptics share the right side as tabs (Haptics in front): together they
   // would be taller than a laptop screen.
   tabifyDockWidget(display_dock_, segments_->dock());
@@ -186,6 +188,7 @@ void MainWindow::connectParts() {
   connect(view_controller_, &ViewController::snapshotShown, this,
           [this](const runtime::HapticSnapshot& snap, bool update_status_now) {
             segments_->showSnapshot(snap);
+            technique_->showSnapshot(snap);
             followSound(snap);
             if (chart_dock_->isVisible()) chart_->addSnapshot(snap);
             if (--status_countdown_ <= 0 || update_status_now) {
@@ -209,6 +212,12 @@ void MainWindow::connectParts() {
     sound_->setBurrEnabled(on);
   });
   connect(segments_, &SegmentsController::alertSoundRequested, sound_, [this] {
+    sound_->start();
+    sound_->beep();
+  });
+  connect(technique_, &TechniqueAlerts::message, this, show_message);
+  connect(technique_, &TechniqueAlerts::alertRequested, sound_, [this] {
+    if (!segments_->panel()->alertSound()) return;
     sound_->start();
     sound_->beep();
   });

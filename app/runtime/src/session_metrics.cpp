@@ -157,6 +157,13 @@ void segmentMetrics(const Recording& recording, double dt, SessionMetrics& m) {
   }
   for (const RecordingEvent& e : recording.events) {
     if (e.type == "marker") ++m.markers;
+    if (e.type == "technique") {
+      const nlohmann::json d = nlohmann::json::parse(e.detail_json.empty() ? "{}" : e.detail_json, nullptr, false);
+      const std::string rule = d.is_object() ? stringAt(d, "rule") : std::string();
+      for (int k = 0; k < kTechniqueRuleCount; ++k)
+        if (rule == techniqueRuleName(k)) ++m.technique_events[static_cast<std::size_t>(k)];
+      continue;
+    }
     if (e.type == "drilled") {  // the totals when the recording closed: the last one counts
       const nlohmann::json d = nlohmann::json::parse(e.detail_json.empty() ? "{}" : e.detail_json, nullptr, false);
       if (d.is_object()) {
@@ -271,6 +278,9 @@ std::vector<MetricValue> metricValues(const SessionMetrics& m) {
       {"critical_removed_voxels", "Critical voxels drilled away", "", count(m.critical_removed_voxels)},
       {"critical_removed_mm3", "Critical volume drilled away", "mm^3", m.critical_removed_mm3},
       {"markers", "Markers", "", count(m.markers)},
+      {"technique_force_events", "Technique: pushed too hard for too long", "", count(m.technique_events[0])},
+      {"technique_speed_events", "Technique: too fast near a critical segment", "", count(m.technique_events[1])},
+      {"technique_shaft_events", "Technique: burr spinning with the shaft on bone", "", count(m.technique_events[2])},
       {"deadline_misses", "Servo deadline misses", "", count(m.deadline_misses)},
       {"deadline_cuts", "Ticks the solver's deadline cut short", "", count(m.deadline_cuts)},
       {"mean_tick_s", "Mean solver tick time", "s", m.mean_tick_s},

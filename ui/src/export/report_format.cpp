@@ -9,6 +9,8 @@
 
 #include <nlohmann/json.hpp>
 
+#include "vh/runtime/technique.h"
+
 namespace vh::ui {
 namespace {
 
@@ -192,13 +194,18 @@ std::string eventText(const runtime::RecordingEvent& e, const Json& d, const std
     if (numberField(d, "J_per_mm3", a)) out += ", " + formatNumber(a) + " J/mm³ to remove";
     return out;
   }
+  if (e.type == "technique") {
+    const std::string rule = stringField(d, "rule");
+    for (int k = 0; k < runtime::kTechniqueRuleCount; ++k)
+      if (rule == runtime::techniqueRuleName(k)) return "Technique: " + std::string(runtime::techniqueRuleAdvice(k));
+  }
   if (e.type == "device_connected") return "Device connected";
   if (e.type == "device_disconnected") return "Device disconnected";
   return genericText(e.type, d);
 }
 
 bool criticalType(const std::string& type) {
-  return type == "marker" || type == "critical_contact" || type == "critical_removed";
+  return type == "marker" || type == "critical_contact" || type == "critical_removed" || type == "technique";
 }
 
 /// The summary row's text of `n` events of one kind (`first`, `last` their first and last).

@@ -556,7 +556,8 @@ std::string metricsTable(const std::vector<MetricValue>& values) {
 /// The figures a teacher reads first, from the metrics (the full table is further down).
 std::string summaryTable(const std::vector<MetricValue>& values) {
   static const char* kKeys[] = {"duration_s", "time_in_contact_s", "mean_contact_force_N", "max_force_N",
-                                "time_above_threshold_s", "critical_touches", "critical_removed_mm3"};
+                                "time_above_threshold_s", "critical_touches", "critical_removed_mm3",
+                                "technique_force_events", "technique_speed_events", "technique_shaft_events"};
   std::string cells;
   for (const char* key : kKeys)
     for (const MetricValue& v : values)

@@ -53,6 +53,7 @@ class ReplayController;
 class SceneLoader;
 class SceneOpener;
 class SegmentsController;
+class TechniqueAlerts;
 class DrillController;
 class SessionRecorder;
 class StatusLine;
@@ -177,6 +178,7 @@ class MainWindow : public QMainWindow {
   DrillController* drill_ = nullptr;
   StripChart* chart_ = nullptr;
   SoundOutput* sound_ = nullptr;  // the burr and the alerts; opened at its first use
+  TechniqueAlerts* technique_ = nullptr;  // technique feedback: status and alert tone
   SessionRecorder* recorder_ = nullptr;
   ReplayController* replay_ = nullptr;
   QDockWidget* display_dock_ = nullptr;

@@ -38,6 +38,7 @@
 /// the scene frame W of the same scene, so the paths need no spatial registration, only the
 /// time alignment.
 
+#include <array>
 #include <cstddef>
 #include <cstdint>
 #include <filesystem>
@@ -49,6 +50,7 @@
 #include <Eigen/Core>
 
 #include "vh/runtime/recording.h"
+#include "vh/runtime/technique.h"
 
 namespace vh::runtime {
 
@@ -130,6 +132,8 @@ struct SessionMetrics {
   double max_tick_s = 0.0;               ///< Longest solver compute time [s].
 
   std::size_t markers = 0;               ///< "marker" events.
+  /// "technique" events per rule (technique.h: force, speed, shaft): the feedback the trainee got.
+  std::array<std::uint64_t, kTechniqueRuleCount> technique_events{};
   std::vector<SegmentMetrics> segments;  ///< Per segment of the metadata's segmentation.
   /// What the reader and the metrics could not do: the recording's warnings (a truncated or
   /// damaged tail), no records, no servo rate.

@@ -1,0 +1,42 @@
+#pragma once
+/// @file
+/// Technique feedback in the window (runtime/technique.h): when a rule becomes active in a haptic
+/// snapshot, the status bar says what to change and the alert tone sounds once. The haptic
+/// thread evaluates the rules and records their events; this only shows what it decided.
+///
+/// Threads: GUI thread only.
+#include <cstdint>
+
+#include <QObject>
+#include <QString>
+
+#include "vh/runtime/haptic_snapshot.h"
+
+namespace vh::ui {
+
+class TechniqueAlerts : public QObject {
+  Q_OBJECT
+
+ public:
+  using QObject::QObject;
+
+  /// One snapshot shown: a rule that was not active in the previous one gives message() and
+  /// alertRequested() (once per episode: the monitor's hold and clear times keep it so).
+  void showSnapshot(const runtime::HapticSnapshot& snapshot);
+  /// Rules that became active since the window opened (all rules together).
+  std::uint64_t alertsShown() const noexcept { return shown_; }
+  /// A new session: the next active rule is news again.
+  void reset() noexcept { active_ = 0; }
+
+ signals:
+  /// "Technique: moving fast near a critical structure: slow down", for the status bar (`ms`).
+  void message(const QString& text, int ms);
+  /// The alert tone (the window plays it when the segments panel's sound is on).
+  void alertRequested();
+
+ private:
+  std::uint32_t active_ = 0;
+  std::uint64_t shown_ = 0;
+};
+
+}  // namespace vh::ui
