@@ -16,6 +16,7 @@
 #include "vh/runtime/recording.h"
 #include "vh/runtime/runner.h"
 #include "vh/runtime/scene.h"
+#include "vh/runtime/session_metrics.h"
 
 namespace vh::runtime {
 namespace {
@@ -292,6 +293,10 @@ TEST(TechniqueRun, APushAboveTheSafeLevelIsRecordedWhereTheRuleSaysAndCounted) {
   EXPECT_EQ(report.technique_episodes[0], events_s.size());
   EXPECT_EQ(report.technique_episodes[2], 0u) << "the burr alone touched the sphere";
   EXPECT_NE(report.toJson().find("\"technique_episodes\""), std::string::npos);
+  // The session's metrics (the report's and the cohort table's) count the same events.
+  const SessionMetrics metrics = computeSessionMetrics(rec);
+  EXPECT_EQ(metrics.technique_events[0], events_s.size());
+  EXPECT_EQ(metrics.technique_events[1] + metrics.technique_events[2], 0u);
 
   const LoadedScene lenient = loadScene(drillingSphere(R"({"safe_force_N": 1000})", 50.0));
   options.record.clear();
