@@ -27,6 +27,8 @@ TEST(Preferences, RoundTripThroughQSettings) {
   p.show_device = false;
   p.tool_shadow = false;
   p.segments_through_scan = true;
+  p.burr_sound = true;
+  p.alert_sound = true;
   p.addRecentFile("/data/a.nrrd");
   p.addRecentFile("/data/dicom");
   p.last_folder = "/data";

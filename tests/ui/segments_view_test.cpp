@@ -326,3 +326,42 @@ TEST(SegmentsGoTo, GoToSegmentPutsTheToolOnItAlongTheLineOfSightThroughItsCentre
 
 }  // namespace
 }  // namespace vh::ui
+
+namespace vh::ui {
+namespace {
+
+// The two sound boxes are remembered: ticking them sets the preferences, and a window opened
+// with those preferences shows them ticked (the burr's sound then starts with the window).
+TEST(SegmentsSounds, TheSoundBoxesAreRememberedInThePreferences) {
+  SegmentsHost host;
+  const auto box = [](SegmentsController& c, const QString& text) {
+    for (QCheckBox* b : c.panel()->findChildren<QCheckBox*>())
+      if (b->text() == text) return b;
+    return static_cast<QCheckBox*>(nullptr);
+  };
+  QCheckBox* burr = box(*host.controller, "Burr sound");
+  QCheckBox* alert = box(*host.controller, "Sound when a critical segment is touched");
+  ASSERT_NE(burr, nullptr);
+  ASSERT_NE(alert, nullptr);
+  EXPECT_FALSE(host.prefs.burr_sound);
+  EXPECT_FALSE(host.prefs.alert_sound);
+  burr->click();
+  alert->click();
+  EXPECT_TRUE(host.prefs.burr_sound);
+  EXPECT_TRUE(host.prefs.alert_sound);
+
+  QMainWindow other;
+  SceneView* view = new SceneView(&other);
+  other.setCentralWidget(view->widget());
+  Preferences remembered = host.prefs;
+  runtime::Session session;
+  SegmentsController reopened(session, *view, &other, other.statusBar(), remembered, nullptr);
+  EXPECT_TRUE(reopened.panel()->burrSound());
+  EXPECT_TRUE(reopened.panel()->alertSound());
+  box(reopened, "Burr sound")->click();
+  EXPECT_FALSE(remembered.burr_sound);
+  EXPECT_TRUE(host.prefs.burr_sound) << "each window writes its own preferences";
+}
+
+}  // namespace
+}  // namespace vh::ui

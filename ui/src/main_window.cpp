@@ -177,6 +177,26 @@ void MainWindow::buildDocks() {
   resizeDocks({haptics_dock_}, {300}, Qt::Horizontal);
 }
 
+void MainWindow::connectSound() {
+  // The burr's sound and the alert beeps on one mixer, the audio output opened at the first use.
+  connect(segments_->panel(), &SegmentsPanel::burrSoundToggled, sound_, [this](bool on) {
+    if (on) sound_->start();
+    sound_->setBurrEnabled(on);
+  });
+  if (segments_->panel()->burrSound()) {  // remembered from the last session
+    sound_->start();
+    sound_->setBurrEnabled(true);
+  }
+  const auto alert = [this] {
+    sound_->start();
+    sound_->beep();
+  };
+  connect(segments_, &SegmentsController::alertSoundRequested, sound_, alert);
+  connect(technique_, &TechniqueAlerts::alertRequested, sound_, [this, alert] {
+    if (segments_->panel()->alertSound()) alert();
+  });
+}
+
 void MainWindow::connectParts() {
   // The isovalue bar's drags: interactive frames meanwhile.
   connect(iso_bar_, &IsovalueBar::dragStarted, view_, [this] { view_->setInteracting(true); });
@@ -205,22 +225,9 @@ void MainWindow::connectParts() {
   connect(tool_picker_, &ToolPicker::message, this, show_message);
   connect(haptics_, &HapticsController::message, this, show_message);
   connect(drill_, &DrillController::message, this, show_message);
-  // The burr's sound and the alert beeps on one mixer, the audio output opened at the first use.
   connect(sound_, &SoundOutput::message, this, show_message);
-  connect(segments_->panel(), &SegmentsPanel::burrSoundToggled, sound_, [this](bool on) {
-    if (on) sound_->start();
-    sound_->setBurrEnabled(on);
-  });
-  connect(segments_, &SegmentsController::alertSoundRequested, sound_, [this] {
-    sound_->start();
-    sound_->beep();
-  });
   connect(technique_, &TechniqueAlerts::message, this, show_message);
-  connect(technique_, &TechniqueAlerts::alertRequested, sound_, [this] {
-    if (!segments_->panel()->alertSound()) return;
-    sound_->start();
-    sound_->beep();
-  });
+  connectSound();
   connect(device_input_, &DeviceInput::message, this, show_message);
   view_controller_->setCarvedRegion(&drill_->carved());
   connect(drill_, &DrillController::cavityChanged, view_controller_, [this] { view_controller_->updateShadow(); });

@@ -47,6 +47,8 @@ Preferences Preferences::load(QSettings& s) {
   p.show_device = s.value("view/show_device", p.show_device).toBool();
   p.tool_shadow = s.value("view/tool_shadow", p.tool_shadow).toBool();
   p.segments_through_scan = s.value("view/segments_through_scan", p.segments_through_scan).toBool();
+  p.burr_sound = s.value("sound/burr", p.burr_sound).toBool();
+  p.alert_sound = s.value("sound/alert", p.alert_sound).toBool();
   p.recent_files = s.value("files/recent").toStringList();
   while (p.recent_files.size() > kMaxRecentFiles) p.recent_files.removeLast();
   p.last_folder = s.value("files/last_folder").toString();
@@ -82,6 +84,8 @@ void Preferences::save(QSettings& s) const {
   s.setValue("view/show_device", show_device);
   s.setValue("view/tool_shadow", tool_shadow);
   s.setValue("view/segments_through_scan", segments_through_scan);
+  s.setValue("sound/burr", burr_sound);
+  s.setValue("sound/alert", alert_sound);
   s.setValue("files/recent", recent_files);
   s.setValue("files/last_folder", last_folder);
   s.setValue("files/datasets_dir", datasets_dir);

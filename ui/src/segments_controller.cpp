@@ -63,6 +63,9 @@ SegmentsController::SegmentsController(runtime::Session& session, SceneView& vie
   panel_->setThroughScan(prefs_.segments_through_scan);
   view_.setSegmentsThroughScan(prefs_.segments_through_scan);
   connect(panel_, &SegmentsPanel::throughScanToggled, this, &SegmentsController::setThroughScan);
+  panel_->setSounds(prefs_.burr_sound, prefs_.alert_sound);
+  connect(panel_, &SegmentsPanel::burrSoundToggled, this, [this](bool on) { prefs_.burr_sound = on; });
+  connect(panel_, &SegmentsPanel::alertSoundToggled, this, [this](bool on) { prefs_.alert_sound = on; });
   connect(panel_->smoothingBox(), &RangeSpinBox::outOfRange, this,
           [this](const QString& message) { status_bar_->showMessage(message, 8000); });
   observer_ = session_.addObserver([this](runtime::SessionChange what) { onSessionChanged(what); });

@@ -73,6 +73,7 @@ SegmentsPanel::SegmentsPanel(QWidget* parent) : QWidget(parent) {
   layout->addWidget(sound_);
   layout->addWidget(burr_sound_);
   connect(burr_sound_, &QCheckBox::toggled, this, &SegmentsPanel::burrSoundToggled);
+  connect(sound_, &QCheckBox::toggled, this, &SegmentsPanel::alertSoundToggled);
   layout->addWidget(touched_);
 
   connect(table_, &QTableWidget::cellDoubleClicked, this, [this](int row, int column) {
@@ -224,5 +225,11 @@ void SegmentsPanel::setThroughScan(bool on) {
 }
 
 bool SegmentsPanel::throughScan() const { return through_scan_->isChecked(); }
+
+void SegmentsPanel::setSounds(bool burr, bool alert) {
+  const QSignalBlocker block_burr(burr_sound_), block_alert(sound_);
+  burr_sound_->setChecked(burr);
+  sound_->setChecked(alert);
+}
 
 }  // namespace vh::ui

@@ -148,6 +148,7 @@ class MainWindow : public QMainWindow {
   void buildDocks();
   void buildMenus();
   void connectParts();
+  void connectSound();  // the burr's sound and the alert tone (critical segments, technique)
   void onSessionChanged(runtime::SessionChange what);
   void onSceneLoaded(const std::shared_ptr<ViewerScene>& loaded);
   void onLoadEnded();

@@ -23,6 +23,10 @@ struct Preferences : ViewLook {
   double linear_stiffness_N_per_m = 1000.0;       ///< [N/m]
   double torsional_stiffness_Nm_per_rad = 1.0;    ///< [N*m/rad]
   bool passivity_control = false;                 ///< haptics::CouplingGains::passivity_control.
+  /// The Segments panel's sound choices: the burr's sound, and the alert tone on touching a
+  /// critical segment or a technique rule firing.
+  bool burr_sound = false;
+  bool alert_sound = false;
 
   QStringList recent_files;                       ///< Most recent first, at most kMaxRecentFiles.
   QString last_folder;                            ///< Where the last file dialog ended.

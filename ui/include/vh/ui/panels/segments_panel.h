@@ -57,6 +57,8 @@ class SegmentsPanel : public QWidget {
   bool alertSound() const;
   /// Ticks "Show segments through the scan" as `on` says (the preference shown). No signal.
   void setThroughScan(bool on);
+  /// The two sound boxes as remembered (no signal).
+  void setSounds(bool burr, bool alert);
   bool throughScan() const;
   /// The drilling burr's sound (ui/sound_output.h) on.
   bool burrSound() const;
@@ -80,6 +82,8 @@ class SegmentsPanel : public QWidget {
   void throughScanToggled(bool on);
   /// "Burr sound" was switched.
   void burrSoundToggled(bool on);
+  /// "Sound when a critical segment is touched" was switched.
+  void alertSoundToggled(bool on);
 
  private:
   QLabel* source_ = nullptr;
