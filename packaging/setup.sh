@@ -16,7 +16,7 @@ packages=(cmake ninja-build g++ pkg-config libeigen3-dev libgtest-dev libgmock-d
   libbenchmark-dev nlohmann-json3-dev libcli11-dev libvtk9-dev libvtk-dicom-dev libdcmtk-dev
   qt6-base-dev libqt6opengl6-dev qt6-charts-dev libhidapi-dev libusb-1.0-0-dev
   zlib1g-dev libssl-dev zstd xvfb xauth libgl1-mesa-dri umockdev libumockdev-dev libopenigtlink-dev
-  libsndfile1-dev qt6-multimedia-dev)
+  libsndfile1-dev qt6-multimedia-dev libvorbis-dev libogg-dev)
 # The Python module volume_haptics (app/python): pybind11, the system Python's headers, NumPy.
 packages+=(pybind11-dev python3-dev python3-numpy)
 # test also builds the fuzz targets (tests/fuzz/ci.sh): clang and its libFuzzer / sanitizer runtimes.
@@ -31,8 +31,9 @@ packages+=(pybind11-dev python3-dev python3-numpy)
 # test also opens a session report in a real browser engine (headless Chromium:
 # tests/ui/report_cli_test.sh) to check that its inline pictures decode.
 # test also runs the Python module's pytest suite and checks NIfTI placement against nibabel.
+# test also decodes the exported videos' Theora stream (libtheora's decoder, tests/ui/recording_test.cpp).
 if [[ $mode == test ]]; then
-  packages+=(python3-pytest python3-nibabel)
+  packages+=(python3-pytest python3-nibabel libtheora-dev)
   packages+=(clang libclang-rt-14-dev dpkg-dev file help2man desktop-file-utils shared-mime-info orthanc dcmtk curl
     openssl chromium)
 fi

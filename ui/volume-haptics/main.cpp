@@ -5,7 +5,7 @@
 //   volume-haptics run --scene S.json --trajectory T.csv [--report R.json] [--check] [--record R.vhrec] [--verify-step V]
 //                      [--audio OUT.wav]
 //                      [--igtl-port N [--igtl-rate HZ] [--igtl-bind A] [--igtl-allow A,...] [--igtl-accept-images]]
-//   volume-haptics export R.vhrec [--csv C] [--json J] [--events-csv E] [--video V.ogv] [--png P --at-s T]
+//   volume-haptics export R.vhrec [--csv C] [--json J] [--events-csv E] [--video V.ogv [--no-audio]] [--png P --at-s T]
 //   volume-haptics report R.vhrec --html OUT.html [--reference E.vhrec] | report DIR --table OUT.csv
 //   volume-haptics make-trajectory --scene S.json --out T.csv [...]
 //   volume-haptics bench table1|accuracy|stability|drilling|bigscan|render|memory [--short] [--out DIR]   benchmarks
@@ -437,14 +437,16 @@ CLI::App* addExportSubcommand(CLI::App& app, ExportArgs& a) {
                        "are removed; the pictures of --video and --png are not changed");
   export_cmd->add_option("--video", a.media.video,
                          "Ogg/Theora video (.ogv) of the replay, rendered off screen (needs an X display with "
-                         "OpenGL, e.g. xvfb-run); prints the frames done and the time left, Ctrl+C ends it there "
-                         "(a shorter video that plays)");
+                         "OpenGL, e.g. xvfb-run), with the burr's sound as an Ogg Vorbis track when the burr ran "
+                         "(the sound of `run --audio`, heard in a replay of the drilling); prints the frames done "
+                         "and the time left, Ctrl+C ends it there (a shorter video that plays)");
   export_cmd->add_option("--png", a.media.png, "PNG of the replay at --at-s");
   export_cmd->add_flag("!--no-overlay", a.media.overlay,
                        "Frames without the overlay (the time, |F| and |torque|, the markers' labels, a critical "
                        "segment drilled)");
   export_cmd->add_flag("!--no-shadow", a.media.shadow,
                        "Frames without the tool's shadow on the surface (the depth cue of the main view)");
+  export_cmd->add_flag("!--no-audio", a.media.sound, "A --video without the burr's sound track (Theora only)");
   export_cmd->add_option("--at-s", a.media.png_time_s, "Recording time of the --png frame [s]")
       ->check(CLI::NonNegativeNumber);
   export_cmd->add_option("--fps", a.media.fps, "Video frame rate [frames/s]")->check(CLI::Range(1.0, 120.0));

@@ -4,7 +4,7 @@
 #include <stdexcept>
 
 #include "vh/audio/tick_sound.h"
-#include "vh/runtime/drilling.h"
+#include "vh/runtime/recording_sound.h"
 
 namespace vh::app {
 
@@ -21,10 +21,7 @@ void RunAudio::checkScene(const vh::runtime::SceneSpec& spec, const std::string&
 
 RunAudio::RunAudio(const std::filesystem::path& wav, const vh::runtime::LoadedScene& scene, double servo_rate_Hz)
     : path_(wav) {
-  vh::audio::BurrSoundModel model;
-  model.nominal_speed_rpm = scene.spec.drill->burr_speed_rpm;
-  model.burr_radius_m = vh::runtime::burrOf(*scene.tool, *scene.spec.drill).radius_m;
-  writer_ = std::make_unique<vh::audio::TickSoundWriter>(wav, servo_rate_Hz, model);
+  writer_ = std::make_unique<vh::audio::TickSoundWriter>(wav, servo_rate_Hz, vh::runtime::burrSoundModelOf(scene));
 }
 
 RunAudio::~RunAudio() = default;

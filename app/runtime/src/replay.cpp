@@ -202,6 +202,8 @@ ReplayComparison replayRecording(const LoadedScene& scene, const Recording& reco
   const bool gains_flagged = std::any_of(recording.records.begin(), recording.records.end(),
                                          [](const TickRecord& r) { return (r.flags & kRecordFlagGainsApplied) != 0; });
   const double record_count = static_cast<double>(recording.records.size());
+  const double period_s = 1.0 / recordedServoRate_Hz(recording);
+  double eroded_mm3 = servo.drill != nullptr ? servo.drill->removal().erodedVolume_mm3() : 0.0;
   for (std::size_t i = 0; i < recording.records.size(); ++i) {
     if (i % 1000 == 0) {
       if (progress.cancel != nullptr && progress.cancel->load(std::memory_order_relaxed)) {
@@ -226,15 +228,25 @@ ReplayComparison replayRecording(const LoadedScene& scene, const Recording& reco
     DeviceSample sample;
     const bool ok = device.read(sample) && sample.valid && sample.X_WD.allFinite();
     haptics::TickOutput out;
+    haptics::CutResult cut;
+    const bool drill_on = ok && servo.drill != nullptr && (r.flags & kRecordFlagDrillOn) != 0;
     if (ok) {
       out = renderer->tick(sample.X_WD, r.isovalue);
       ++result.ticks_replayed;
-      if (servo.drill != nullptr && (r.flags & kRecordFlagDrillOn) != 0) servo.drill->step(*renderer, out);
+      if (drill_on) cut = servo.drill->step(*renderer, out);
     }
     if (servo.drill != nullptr) logRemovals(*servo.drill, result);  // the removal log, record by record
     if (const char* what = recordMismatch(*renderer, out, ok, r, result.forces_compared)) {
       markMismatch(result, recording, r, i, what);
       return result;
+    }
+    if (servo.drill != nullptr && progress.on_drill_tick) {
+      const int segment = recordSegment(r.flags);
+      const bool critical_contact = segment >= 0 && scene.segments && scene.segments->isCritical(segment) && r.contacts > 0;
+      const double eroded_now_mm3 = servo.drill->removal().erodedVolume_mm3();
+      progress.on_drill_tick(
+          drillTickOf(r.tick, r.time_s, drill_on, cut, out, eroded_now_mm3 - eroded_mm3, period_s, critical_contact));
+      eroded_mm3 = eroded_now_mm3;
     }
   }
   if (servo.drill != nullptr) result.drilled_field = std::make_shared<haptics::ScalarVolume>(servo.drill->removal().volume());

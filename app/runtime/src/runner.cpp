@@ -479,18 +479,12 @@ haptics::CutResult drillRunTick(HeadlessRun& run, std::uint64_t i, const haptics
 void reportDrillTick(HeadlessRun& run, std::uint64_t i, bool drill_on, const haptics::CutResult& cut,
                      const haptics::TickOutput& out, int segment) {
   if (run.drill == nullptr || !run.options.on_drill_tick) return;
-  DrillTick d;
-  d.tick = i + 1;
-  d.time_s = static_cast<double>(i) / run.options.servo_rate_Hz;
-  d.burr_on = drill_on;
-  const BurrLoad load = burrLoadOf(cut, out);
-  d.force_N = load.force_N;
-  d.specific_energy_J_per_mm3 = load.specific_energy_J_per_mm3;
   const double eroded_mm3 = run.drill->removal().erodedVolume_mm3();
-  d.removal_rate_mm3_per_s = (eroded_mm3 - run.eroded_mm3) / run.period_s;
+  const bool critical_contact =
+      segment >= 0 && run.scene.segments && run.scene.segments->isCritical(segment) && out.stats.contacts > 0;
+  const DrillTick d = drillTickOf(i + 1, static_cast<double>(i) / run.options.servo_rate_Hz, drill_on, cut, out,
+                                  eroded_mm3 - run.eroded_mm3, run.period_s, critical_contact);
   run.eroded_mm3 = eroded_mm3;
-  d.critical = cut.critical_removed > 0 ||
-               (segment >= 0 && run.scene.segments && run.scene.segments->isCritical(segment) && out.stats.contacts > 0);
   run.options.on_drill_tick(d);
 }
 

@@ -9,6 +9,8 @@
 #include <cstdio>
 #include <iostream>
 #include <limits>
+#include <optional>
+#include <span>
 #include <stdexcept>
 #include <string>
 
@@ -33,6 +35,8 @@
 
 #include <nlohmann/json.hpp>
 
+#include "vh/audio/ogg_vorbis_track.h"
+#include "vh/audio/timed_sound.h"
 #include "vh/io/private_files.h"
 #include "vh/runtime/drilling.h"
 #include "vh/runtime/session_metadata.h"
@@ -461,12 +465,19 @@ void addReplayedRemovals(DrillingTimeline& timeline, const runtime::LoadedScene&
   });
   if (!drilled) return;
   // The same renderer and drill as the session's, fed the recorded samples, remove the same
-  // voxels (the replay is bit for bit).
-  const runtime::ReplayComparison replay = runtime::replayRecording(scene, recording, {}, progress);
+  // voxels (the replay is bit for bit) and hear the same burr.
+  runtime::RecordingSound sound;
+  sound.burr = runtime::burrSoundModelOf(scene);
+  sound.tick_period_s = runtime::recordedServoPeriod_s(recording);
+  runtime::ReplayProgress hearing = progress;
+  hearing.on_drill_tick = [&](const runtime::DrillTick& d) { sound.add(d, recording); };
+  const runtime::ReplayComparison replay = runtime::replayRecording(scene, recording, {}, hearing);
   if (replay.cancelled) {
     timeline.cancelled = true;
     return;
   }
+  sound.completeFrom(recording);
+  timeline.sound = std::move(sound);
   const std::vector<std::uint64_t> removed = pictureIndices(*live.hapticField(), *live.scan_field, replay.removed_voxels);
   timeline.picture.voxels.insert(timeline.picture.voxels.end(), removed.begin(), removed.end());
   // Felt indices map one to one onto picture indices (or are dropped outside the scan); the
@@ -480,9 +491,25 @@ void addReplayedRemovals(DrillingTimeline& timeline, const runtime::LoadedScene&
 
 // ---- Writers -------------------------------------------------------------------------------------
 
+namespace {
+
+/// Writes to `out` the Theora video `theora` with `sound` as its Vorbis track: from the first
+/// frame's time `begin_s` [s] (the sound before it rendered and dropped, so that the burr's speed
+/// there is the session's), as long as the `frames` frames at `fps`.
+void addSoundTrack(const fs::path& theora, std::ostream& out, const runtime::RecordingSound& sound, double begin_s,
+                   int frames, double fps) {
+  audio::TimedSound renderer = sound.renderer();
+  renderer.skipTo(renderer.frameAt(begin_s));
+  const double rate_Hz = renderer.sampleRate_Hz();
+  const auto samples = static_cast<std::uint64_t>(std::llround(static_cast<double>(frames) / fps * rate_Hz));
+  audio::addVorbisTrack(theora, out, samples, rate_Hz, [&renderer](std::span<float> x) { renderer.render(x); });
+}
+
+}  // namespace
+
 int writeRecordingVideo(RecordingFrameRenderer& frames, const runtime::Recording& recording, const fs::path& path,
                         double fps, double start_s, double end_s, const FrameProgress& progress,
-                        std::vector<VideoFrameTimes>* times) {
+                        std::vector<VideoFrameTimes>* times, const runtime::RecordingSound* sound) {
   if (recording.records.empty()) throw std::invalid_argument(path.string() + ": the recording has no records");
   if (!(fps >= 1.0 && fps <= 120.0)) {
     throw std::invalid_argument(path.string() + ": frame rate " + std::to_string(fps) + " is outside 1 .. 120 fps");
@@ -497,9 +524,15 @@ int writeRecordingVideo(RecordingFrameRenderer& frames, const runtime::Recording
   }
   const int total = static_cast<int>(std::floor((end - begin) * fps + 1e-9)) + 1;
   io::PrivateOutput file(path);  // 0600, renamed into place only when written
+  // With sound, the Theora stream goes to a temporary of its own (removed at the end), which the
+  // sound track's muxer reads.
+  const bool with_sound = sound != nullptr && !sound->states.empty();
+  std::optional<io::PrivateOutput> theora;
+  if (with_sound) theora.emplace(path);
+  const fs::path video_path = with_sound ? theora->tempPath() : file.tempPath();
   vtkNew<vtkOggTheoraWriter> writer;
   writer->SetInputConnection(frames.imageFilter()->GetOutputPort());
-  writer->SetFileName(file.tempPath().string().c_str());
+  writer->SetFileName(video_path.string().c_str());
   writer->SetRate(std::max(1, static_cast<int>(std::lround(fps))));
   writer->SetQuality(2);
   // 4:2:0 chroma, as players expect and twice as fast to encode as 4:4:4 (which took half of
@@ -533,11 +566,22 @@ int writeRecordingVideo(RecordingFrameRenderer& frames, const runtime::Recording
   writer->End();
   if (writer->GetError() != 0) throw std::runtime_error(path.string() + ": the video could not be written");
   std::error_code ec;
-  if (!fs::exists(file.tempPath(), ec) || fs::file_size(file.tempPath(), ec) == 0) {
+  if (!fs::exists(video_path, ec) || fs::file_size(video_path, ec) == 0) {
     throw std::runtime_error(path.string() + ": the video could not be written");
+  }
+  if (with_sound && done > 0) {
+    try {
+      addSoundTrack(video_path, file.stream(), *sound, begin, done, fps);
+    } catch (const std::exception& e) {
+      throw std::runtime_error(path.string() + ": the sound track could not be added: " + e.what());
+    }
   }
   file.commit();
   return done;
+}
+
+const runtime::RecordingSound* videoSoundOf(const RecordingFrameRenderer& frames) noexcept {
+  return frames.drilling().sound.states.empty() ? nullptr : &frames.drilling().sound;
 }
 
 void writeRecordingPng(RecordingFrameRenderer& frames, const runtime::Recording& recording, double t_s,
@@ -620,6 +664,10 @@ std::unique_ptr<RecordingFrameRenderer> exportFrameRenderer(const runtime::Loade
     if (log != nullptr)
       *log << "volume-haptics export: the cavity grows to " << timeline.picture.removedAt(recording.records.size())
            << " voxels\n";
+    if (log != nullptr && timeline.sound.approximated_records > 0)
+      *log << "volume-haptics export: warning: the replay differs from the recording from record "
+           << recording.records.size() - timeline.sound.approximated_records
+           << " on: the burr's sound runs free (no load) from there\n";
     frames->setDrilling(std::move(timeline));
   }
   if (!recording.records.empty()) frames->show(recording.records.front());
@@ -650,10 +698,15 @@ int exportRecordingMedia(int /*argc*/, char** /*argv*/, const fs::path& recordin
     }
     if (!options.video.empty()) {
       ConsoleVideoProgress progress;
+      const runtime::RecordingSound* sound = options.sound ? videoSoundOf(frames) : nullptr;
       const int n = writeRecordingVideo(frames, recording, options.video, options.fps, options.start_s, options.end_s,
-                                        [&progress](int done, int total) { return progress(done, total); });
+                                        [&progress](int done, int total) { return progress(done, total); }, nullptr,
+                                        sound);
       std::cout << "volume-haptics export: " << options.video.string() << " (" << n << " frames at "
-                << options.fps << " fps, " << frames.width() << " x " << frames.height() << ")"
+                << options.fps << " fps, " << frames.width() << " x " << frames.height() << ", "
+                << (sound != nullptr ? "with the burr's sound (Ogg Vorbis)"
+                                     : options.sound ? "no sound: the burr never ran" : "no sound (--no-audio)")
+                << ")"
                 << (progress.wasInterrupted() ? ", stopped by Ctrl+C: the video ends there" : "") << "\n";
     }
     return 0;

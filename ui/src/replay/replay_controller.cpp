@@ -501,11 +501,13 @@ std::unique_ptr<RecordingFrameRenderer> ReplayController::exportFrames(int width
 }
 
 int ReplayController::exportVideo(const fs::path& path, double fps, int width, int height,
-                                  const std::function<bool(int, int)>& progress, bool overlay) {
+                                  const std::function<bool(int, int)>& progress, bool overlay, bool sound) {
   if (!active_) throw std::logic_error("exportVideo: no recording is replayed");
   const double t_shown = time_s_;
-  const int frames_written =
-      writeRecordingVideo(*exportFrames(width, height, overlay), recording_, path, fps, 0.0, -1.0, progress);
+  // The burr's sound as its drilling replay heard it (none while that replay still runs).
+  const std::unique_ptr<RecordingFrameRenderer> frames = exportFrames(width, height, overlay);
+  const int frames_written = writeRecordingVideo(*frames, recording_, path, fps, 0.0, -1.0, progress, nullptr,
+                                                 sound ? videoSoundOf(*frames) : nullptr);
   setTime(t_shown);
   return frames_written;
 }
@@ -584,7 +586,7 @@ void ReplayController::exportFromMenu(int kind) {
     if (kind == 2) {
       if (!active_) return;
       const QString out = QFileDialog::getSaveFileName(window_, "Export a video of the replay",
-                                                       QDir(folder).filePath(stem + ".ogv"), "Ogg/Theora video (*.ogv)");
+                                                       QDir(folder).filePath(stem + ".ogv"), "Ogg video, Theora with Vorbis sound (*.ogv)");
       if (out.isEmpty()) return;
       bool ok = false;
       const int fps = QInputDialog::getInt(window_, "Video", "Frames per second:", 30, 1, 120, 1, &ok);
@@ -603,7 +605,10 @@ void ReplayController::exportFromMenu(int kind) {
         return !progress.wasCanceled();
       }, overlay);
       progress.reset();
-      emit noticeRequested(QString("Video written: %1 (%2 frames)").arg(QFileInfo(out).fileName()).arg(n));
+      emit noticeRequested(QString("Video written: %1 (%2 frames, %3)")
+                               .arg(QFileInfo(out).fileName())
+                               .arg(n)
+                               .arg(hasVideoSound() ? "with the burr's sound" : "without sound"));
       return;
     }
     // Screenshot of the view.

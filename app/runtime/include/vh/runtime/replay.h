@@ -13,6 +13,7 @@
 #include <vector>
 
 #include "vh/haptics/haptic_renderer.h"
+#include "vh/runtime/burr_load.h"
 #include "vh/runtime/device.h"
 #include "vh/runtime/recording.h"
 #include "vh/runtime/scene.h"
@@ -76,7 +77,7 @@ struct ReplayComparison {
 };
 
 /// Progress of a long replayRecording() (a drilled recording on a big CT takes seconds), for a
-/// caller that runs it on a thread of its own.
+/// caller that runs it on a thread of its own, and what it hears on the way.
 struct ReplayProgress {
   /// Called on the replaying thread with the fraction of the records replayed (0..1), every 1000
   /// records and once at the end; may be empty.
@@ -84,6 +85,13 @@ struct ReplayProgress {
   /// When set and true (written by any thread), the replay stops at the next 1000th record:
   /// ReplayComparison::cancelled.
   const std::atomic<bool>* cancel = nullptr;
+  /// With a drill in the scene: called on the replaying thread after each record, in order, with
+  /// the burr's state as the headless run reports it (drillTickOf(): burr on where the record
+  /// flags kRecordFlagDrillOn and its sample was rendered, the replayed cut's load, the eroded
+  /// volume over one recorded servo period, critical when the cut removed part of a critical
+  /// segment or the record's contacts lie on one; tick and time the record's); may be empty. Not
+  /// called for the records after a mismatch or a cancel.
+  std::function<void(const DrillTick&)> on_drill_tick;
 };
 
 /// Re-runs `recording` through a fresh renderer of `scene` (scene.makeRenderer(options), so the

@@ -24,6 +24,7 @@
 #include <Eigen/Core>
 
 #include "vh/haptics/pose.h"
+#include "vh/runtime/burr_load.h"
 #include "vh/runtime/device.h"
 #include "vh/runtime/scene.h"
 #include "vh/runtime/trajectory.h"
@@ -31,19 +32,6 @@
 namespace vh::runtime {
 
 class SnapshotChannel;  // snapshot_channel.h
-
-/// The burr after one tick of a drilling run (RunOptions::on_drill_tick): what its sound follows
-/// (vh::audio::BurrState) and what sounds its alert.
-struct DrillTick {
-  std::uint64_t tick = 0;                  ///< Tick i + 1, as the recording numbers them.
-  double time_s = 0.0;                     ///< i / servo rate [s].
-  bool burr_on = false;                    ///< The burr spins (the drill is on; the sample was rendered).
-  double force_N = 0.0;                    ///< |F| when the burr cut this tick, else 0 (free running) [N].
-  double specific_energy_J_per_mm3 = 0.0;  ///< Hardness of what it cut (haptics::CutResult), else 0 [J/mm^3].
-  double removal_rate_mm3_per_s = 0.0;     ///< Material eroded this tick over the servo period [mm^3/s].
-  /// The tool touches a critical segment, or the burr removed part of one, this tick.
-  bool critical = false;
-};
 
 struct RunOptions {
   double servo_rate_Hz = 1000.0;  ///< Simulated tick rate [Hz].
@@ -88,7 +76,8 @@ struct RunOptions {
   /// consumer such as the OpenIGTLink link (`run --igtl-port`). Outside the timed section.
   std::shared_ptr<SnapshotChannel> monitor;
   /// When set, called after every tick of a scene with a "drill" section (never without one)
-  /// with the burr's state, e.g. to render its sound (`run --audio`). Outside the timed section.
+  /// with the burr's state (burr_load.h; tick i + 1, time i / servo rate), e.g. to render its
+  /// sound (`run --audio`). Outside the timed section.
   std::function<void(const DrillTick&)> on_drill_tick;
   /// Pace the ticks at servo_rate_Hz in wall-clock time instead of as fast as possible (tick
   /// i + 1 ends no earlier than (i + 1) / rate after the start), so a streamed run plays at the

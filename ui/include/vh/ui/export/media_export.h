@@ -4,7 +4,8 @@
 /// screen (its own vtkRenderWindow with OffScreenRenderingOn(), no Qt; needs an X display with
 /// OpenGL, e.g. under xvfb-run) with the proxy, device, force arrow and isovalue of the record
 /// shown at each frame's time, read back through vtkWindowToImageFilter and written with
-/// vtkOggTheoraWriter (Ogg/Theora video) or vtkPNGWriter.
+/// vtkOggTheoraWriter (Ogg/Theora video) or vtkPNGWriter. A drilled recording's video carries
+/// the burr's sound as an Ogg Vorbis track (runtime::recordingSound(), audio::addVorbisTrack()).
 ///
 /// Frame times: frame k of a video shows the record at t = start_s + k / fps (the last record
 /// with time_s <= t; recordIndexAt()), up to end_s.
@@ -24,6 +25,7 @@
 
 #include "vh/haptics/pose.h"
 #include "vh/runtime/recording.h"
+#include "vh/runtime/recording_sound.h"
 #include "vh/runtime/replay.h"
 #include "vh/runtime/scene.h"
 #include "vh/ui/view/view_look.h"
@@ -69,6 +71,9 @@ struct DrillingTimeline {
   CavityOrder felt;
   /// The replay was cancelled (runtime::ReplayProgress::cancel): only the start cavity is in.
   bool cancelled = false;
+  /// The burr's sound over the records, heard in the same replay (runtime::RecordingSound: one
+  /// state per record); no states when the burr never ran or the replay was cancelled.
+  runtime::RecordingSound sound;
 };
 
 /// The cavity the drill of `scene` starts from (drilled before the recording started), on the
@@ -77,8 +82,8 @@ DrillingTimeline drillingAtStart(const runtime::LoadedScene& scene);
 
 /// Adds to `timeline` (drillingAtStart(scene)) what `recording` removed, when a record has the
 /// drill on: a replay of the recording removes the same voxels (runtime::replayRecording():
-/// seconds on a big CT), mapped onto the picture's grid (pictureIndices()); a cancelled replay
-/// sets `cancelled` and adds nothing. Any thread (no VTK); not the servo thread.
+/// seconds on a big CT), mapped onto the picture's grid (pictureIndices()), and gives the burr's
+/// sound (DrillingTimeline::sound); a cancelled replay sets `cancelled` and adds nothing. Any thread (no VTK); not the servo thread.
 /// @throws as runtime::replayRecording().
 void addReplayedRemovals(DrillingTimeline& timeline, const runtime::LoadedScene& scene,
                          const runtime::Recording& recording, const runtime::ReplayProgress& progress = {});
@@ -168,6 +173,8 @@ class RecordingFrameRenderer {
   void setDrilling(DrillingTimeline timeline);
   /// Carves the picture to the cavity at record `record_index` (nothing without setDrilling()).
   void showCavityAt(std::size_t record_index);
+  /// The timeline of setDrilling() (empty before), its sound among it.
+  const DrillingTimeline& drilling() const noexcept { return drilling_; }
   /// From the next show() on, frames show the tool's shadow on `field` (the felt field, in W
   /// [m]) cast from `samples_T_m` (toolShadowSamples()) along the light of the frame's camera
   /// (shadowLightDirection_W()), at each record's isovalue (the felt one) or `isovalue` when a
@@ -241,7 +248,10 @@ struct VideoFrameTimes {
 };
 
 /// Writes an Ogg/Theora video of `recording` from `start_s` to `end_s` (negative: its end) at
-/// `fps` frames per second [1, 120], one rendered frame per frame time.
+/// `fps` frames per second [1, 120], one rendered frame per frame time. With `sound` (its states
+/// those of `recording`'s records; null or no states: none), the file also holds the sound as an
+/// Ogg Vorbis stream (48 kHz mono), as long as the frames written (frames / fps) from the first
+/// frame's time, the video's pages and its interleaved by time (audio::addVorbisTrack()).
 /// @return the frames written (fewer when cancelled; the file then holds those).
 /// @throws std::invalid_argument for an empty recording or a bad fps / time range;
 ///         std::runtime_error naming the file when it cannot be written.
@@ -250,7 +260,11 @@ struct VideoFrameTimes {
 int writeRecordingVideo(RecordingFrameRenderer& frames, const runtime::Recording& recording,
                         const std::filesystem::path& path, double fps, double start_s = 0.0,
                         double end_s = -1.0, const FrameProgress& progress = {},
-                        std::vector<VideoFrameTimes>* times = nullptr);
+                        std::vector<VideoFrameTimes>* times = nullptr, const runtime::RecordingSound* sound = nullptr);
+
+/// The sound a video of the frames of `frames` carries: its drilling timeline's (null when that
+/// has none: no drill, the burr never ran, or its replay was cancelled or is not done).
+const runtime::RecordingSound* videoSoundOf(const RecordingFrameRenderer& frames) noexcept;
 
 /// Writes a PNG of the record at `t_s` [s]. @throws std::invalid_argument for an empty
 /// recording; std::runtime_error naming the file when it cannot be written.
@@ -272,6 +286,8 @@ struct MediaExportOptions {
   bool overlay = true;
   /// Draw the tool's shadow on the surface, as the main view does (RecordingFrameRenderer::setShadow()).
   bool shadow = true;
+  /// Give the video the burr's sound (an Ogg Vorbis track; none when the burr never ran).
+  bool sound = true;
   RenderMode mode = RenderMode::kIsosurface;  ///< How the volume is drawn.
   VolumePreset preset = VolumePreset::kBone;  ///< Composite preset.
 };

@@ -111,10 +111,15 @@ class ReplayController : public QObject {
   void exportJson(const std::filesystem::path& path) const;
   /// Video of the whole recording at `fps`, frames of `width` x `height` px (0: the view's size)
   /// seen from the view's camera, with the overlay (time, |F|, |torque|, markers, the critical
-  /// alert: RecordingFrameRenderer::setOverlay()) unless `overlay` is false. @return frames
-  /// written (fewer when `progress` cancelled).
+  /// alert: RecordingFrameRenderer::setOverlay()) unless `overlay` is false, and with the burr's
+  /// sound as an Ogg Vorbis track (heard in the drilling's replay, as `export --video`) unless
+  /// `sound` is false or there is none (hasVideoSound()). @return frames written (fewer when
+  /// `progress` cancelled).
   int exportVideo(const std::filesystem::path& path, double fps = 30.0, int width = 0, int height = 0,
-                  const std::function<bool(int, int)>& progress = {}, bool overlay = true);
+                  const std::function<bool(int, int)>& progress = {}, bool overlay = true, bool sound = true);
+  /// Whether a video exported now carries the burr's sound: the recording's burr ran and the
+  /// drilling's replay is done (not while it runs, nor when it was cancelled).
+  bool hasVideoSound() const noexcept { return !drill_.sound.states.empty(); }
   /// PNG of the record shown now, from the view's camera at the view's size (or the size given),
   /// with the overlay unless `overlay` is false.
   void exportPng(const std::filesystem::path& path, int width = 0, int height = 0, bool overlay = true);
