@@ -57,7 +57,8 @@ SegmentProximity ProximityQuery::evaluateField(const DistanceField& field, const
   std::sort(order_.begin(), order_.end());  // in place: no allocation
   double best = std::numeric_limits<double>::infinity();
   for (const auto& [lower_bound_m, g] : order_) {
-    if (lower_bound_m >= best) break;  // no later group can hold a nearer point
+    // No later group can hold a nearer point, or one within the range.
+    if (lower_bound_m >= best || lower_bound_m > range_m_) break;
     const Group& group = groups_[static_cast<std::size_t>(g)];
     for (int p = group.begin; p < group.end; ++p) {
       const double d = field.sample_m(X_WP * points_T_m_[static_cast<std::size_t>(p)]);

@@ -4,7 +4,9 @@
 // distance field stored 20 mm around it. The tool: a ball of radius 5 mm with 1,000 or 20,000
 // points. Poses: "far" (30 mm away: beyond the 20 mm range), "near" (2 mm of clearance), "inside"
 // (the ball's surface 0.5 mm into the tube). A ratio table follows Google Benchmark's own.
+#include <algorithm>
 #include <cmath>
+#include <cstdint>
 #include <cstdio>
 #include <map>
 #include <memory>
@@ -40,14 +42,23 @@ std::shared_ptr<const DistanceField> nerveField() {
   return field;
 }
 
-PointShell ballShell(int n) {  // a Fibonacci sphere: consecutive points lie near each other
-  std::vector<Eigen::Vector3d> p;
+/// A Fibonacci sphere, its points in Morton (Z-curve) order as makePointShell() gives them.
+PointShell ballShell(int n) {
+  std::vector<std::pair<std::uint64_t, Eigen::Vector3d>> keyed;
   const double golden = std::numbers::pi * (3.0 - std::sqrt(5.0));
   for (int i = 0; i < n; ++i) {
     const double z = 1.0 - 2.0 * (i + 0.5) / n, r = std::sqrt(1.0 - z * z);
-    p.emplace_back(kToolRadius_m * r * std::cos(golden * i), kToolRadius_m * r * std::sin(golden * i), kToolRadius_m * z);
+    const Eigen::Vector3d p(r * std::cos(golden * i), r * std::sin(golden * i), z);
+    std::uint64_t key = 0;
+    for (int bit = 9; bit >= 0; --bit)
+      for (int a = 0; a < 3; ++a)
+        key = (key << 1) | ((static_cast<std::uint64_t>((p[a] + 1.0) * 511.5) >> bit) & 1u);
+    keyed.emplace_back(key, kToolRadius_m * p);
   }
-  return PointShell(std::move(p));
+  std::sort(keyed.begin(), keyed.end(), [](const auto& a, const auto& b) { return a.first < b.first; });
+  std::vector<Eigen::Vector3d> points;
+  for (const auto& [key, p] : keyed) points.push_back(p);
+  return PointShell(std::move(points));
 }
 
 Pose poseAt(const std::string& where) {
@@ -76,23 +87,27 @@ void BM_EveryPoint(benchmark::State& state, int points, std::string where) {
 class RatioReporter : public benchmark::ConsoleReporter {
  public:
   void ReportRuns(const std::vector<Run>& runs) override {
-    for (const Run& r : runs) t_[r.benchmark_name()] = r.GetAdjustedRealTime();
+    for (const Run& r : runs) {
+      t_[r.benchmark_name()] = r.GetAdjustedRealTime();
+      const auto c = r.counters.find("sampled");
+      if (c != r.counters.end()) sampled_[r.benchmark_name()] = c->second.value;
+    }
     ConsoleReporter::ReportRuns(runs);
   }
   void Finalize() override {
     ConsoleReporter::Finalize();
-    std::printf("\n%-8s %-7s %14s %14s %8s\n", "points", "pose", "pruned [us]", "every pt [us]", "ratio");
+    std::printf("\n%-8s %-7s %14s %14s %8s %9s\n", "points", "pose", "pruned [us]", "every pt [us]", "ratio", "sampled");
     for (const int n : {1000, 20000}) {
       for (const char* w : {"far", "near", "inside"}) {
         const std::string key = std::to_string(n) + "/" + w;
-        const double a = t_["Pruned/" + key] / 1e3, b = t_["EveryPoint/" + key] / 1e3;
-        std::printf("%-8d %-7s %14.2f %14.2f %7.1fx\n", n, w, a, b, b / a);
+        const double a = t_["Pruned/" + key], b = t_["EveryPoint/" + key];  // [us]
+        std::printf("%-8d %-7s %14.2f %14.2f %7.1fx %9.0f\n", n, w, a, b, b / a, sampled_["Pruned/" + key]);
       }
     }
   }
 
  private:
-  std::map<std::string, double> t_;
+  std::map<std::string, double> t_, sampled_;
 };
 
 }  // namespace

@@ -221,11 +221,16 @@ std::string proximityChart(const Recording& rec, const SessionMetrics& m, const 
     return -std::min(range_mm, std::isfinite(r.critical_distance_m) ? 1e3 * r.critical_distance_m : range_mm);
   });
   QList<QPointF> d;
-  for (const QPointF& p : neg) d.append(QPointF(p.x(), -p.y()));
+  double top_mm = 2.0 * 1e3 * m.proximity.front().thresholds.warn_m;  // at least twice the warning
+  for (const QPointF& p : neg) {
+    d.append(QPointF(p.x(), -p.y()));
+    top_mm = std::max(top_mm, std::min(range_mm, -p.y() * 1.1));
+  }
   const double t0 = rec.records.front().time_s, t1 = rec.records.back().time_s;
   QValueAxis* x = addAxis(chart, Qt::AlignBottom, "time [s]", t0, t1);
   x->applyNiceNumbers();
-  QValueAxis* y = addAxis(chart, Qt::AlignLeft, "distance [mm]", 0.0, range_mm);
+  QValueAxis* y = addAxis(chart, Qt::AlignLeft, "distance [mm]", 0.0, top_mm);
+  y->applyNiceNumbers();
   QLineSeries* s = lineSeries("nearest critical segment [mm]", QColor(0x1f, 0x77, 0xb4));
   s->replace(d);
   std::vector<QLineSeries*> all{s};
@@ -243,7 +248,7 @@ std::string proximityChart(const Recording& rec, const SessionMetrics& m, const 
     l->attachAxis(x);
     l->attachAxis(y);
   }
-  return chartImage(chart, o.chart_width, o.chart_height * 3 / 4);
+  return chartImage(chart, o.chart_width, o.chart_height);
 }
 
 /// Per critical segment: time within each threshold, entries, the closest approach.
