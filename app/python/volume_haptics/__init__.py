@@ -33,20 +33,22 @@ __all__ = [
     "write_trajectory", "read_trajectory", "session_metrics",
 ]
 
-#: One servo tick of a recording, as NumPy sees the file's 200-byte TickRecord (recording.h).
+#: One servo tick of a recording, as NumPy sees the file's 216-byte TickRecord (recording.h).
 #: The field names are the columns of ``volume-haptics export --csv``: device_* and proxy_* are
 #: the device and proxy poses in W (position [m], quaternion w, x, y, z), force_* [N] and
 #: torque_* [N*m] on the hand in W, isovalue in the data's units, tick_time_s the solver's compute
-#: time of the tick [s], flags the kRecordFlag* bits (bits 16..31: touched segment + 1).
+#: time of the tick [s], flags the kRecordFlag* bits (bits 16..31: touched segment + 1),
+#: critical_distance_m the point shell's distance to the nearest critical segment [m] (inf: none
+#: within 20 mm; nan: not measured) and critical_segment that segment (-1: none).
 TICK_DTYPE = np.dtype({
     "names": ["t_s", "device_x_m", "device_y_m", "device_z_m", "device_qw", "device_qx", "device_qy", "device_qz",
               "proxy_x_m", "proxy_y_m", "proxy_z_m", "proxy_qw", "proxy_qx", "proxy_qy", "proxy_qz",
               "force_x_N", "force_y_N", "force_z_N", "torque_x_Nm", "torque_y_Nm", "torque_z_Nm",
-              "isovalue", "tick", "tick_time_s", "contacts", "flags"],
-    "formats": ["<f8"] * 22 + ["<u8", "<f8", "<u4", "<u4"],
+              "isovalue", "tick", "tick_time_s", "contacts", "flags", "critical_distance_m", "critical_segment"],
+    "formats": ["<f8"] * 22 + ["<u8", "<f8", "<u4", "<u4", "<f8", "<i4"],
     "offsets": [0, 8, 16, 24, 32, 40, 48, 56, 64, 72, 80, 88, 96, 104, 112, 120, 128, 136, 144, 152, 160,
-                168, 176, 184, 192, 196],
-    "itemsize": 200,
+                168, 176, 184, 192, 196, 200, 208],
+    "itemsize": 216,
 })
 assert TICK_DTYPE.itemsize == _core.TICK_RECORD_BYTES
 
@@ -54,7 +56,7 @@ assert TICK_DTYPE.itemsize == _core.TICK_RECORD_BYTES
 CSV_COLUMNS = ["t_s", "tick", "device_x_m", "device_y_m", "device_z_m", "device_qw", "device_qx", "device_qy",
                "device_qz", "proxy_x_m", "proxy_y_m", "proxy_z_m", "proxy_qw", "proxy_qx", "proxy_qy", "proxy_qz",
                "force_x_N", "force_y_N", "force_z_N", "torque_x_Nm", "torque_y_Nm", "torque_z_Nm", "contacts",
-               "isovalue", "tick_time_s", "flags"]
+               "isovalue", "tick_time_s", "flags", "critical_distance_m", "critical_segment"]
 
 Scene = _core.Scene
 # Scene's docstring: volume_haptics_core.cpp.

@@ -127,6 +127,8 @@ HapticThread::HapticThread(std::unique_ptr<haptics::HapticRenderer> renderer, st
   const auto backlog = static_cast<std::uint64_t>(std::max(1.0, std::round(options.max_solver_backlog_s * servo_rate_Hz)));
   x_ = std::make_unique<Exchange>(static_cast<std::size_t>(backlog) + 16);
   x_->backlog_limit = backlog;
+  if (options_.segments != nullptr && !options_.segments->critical().empty())
+    proximity_ = std::make_unique<CriticalProximity>(*options_.segments, renderer_->tool().point_shell);
 
   const haptics::CouplingGains gains = renderer_->coupling().gains();
   gain_linear_.store(gains.linear_N_per_m);
@@ -641,7 +643,8 @@ inline void renderSolverSample(SolverState& st, const CouplingSample& in, haptic
 /// times from the current recording's first tick.
 inline void recordSolverTick(RecordingWriter& recorder, const SolverState& st, const CouplingSample& in,
                              const haptics::TickOutput& out, const haptics::Pose& X_WP, std::size_t contacts,
-                             int segment, double period_s, std::int64_t tick_ns, std::uint32_t flags) noexcept {
+                             int segment, const CriticalDistance& nearest, double period_s, std::int64_t tick_ns,
+                             std::uint32_t flags) noexcept {
   TickRecord rec;
   rec.time_s = static_cast<double>(st.tick - st.record_first_tick) * period_s;
   rec.tick = st.tick;
@@ -650,6 +653,8 @@ inline void recordSolverTick(RecordingWriter& recorder, const SolverState& st, c
   rec.tick_time_s = 1e-9 * static_cast<double>(tick_ns);
   rec.contacts = static_cast<std::uint32_t>(contacts);
   rec.flags = solverRecordFlags(rec.contacts, in, out, segment) | flags;
+  rec.critical_distance_m = nearest.distance_m;
+  rec.critical_segment = nearest.segment;
   (void)recorder.push(rec);
 }
 
@@ -667,17 +672,16 @@ inline void showBurr(SolverSnapshot& snap, const SolverTickResult& t, const Dril
 /// that rendered a usable sample; a tick that did not keeps the rules as they were.
 inline std::uint32_t solverTechnique(ServoTechnique* technique, const SolverState& st, const CouplingSample& in,
                                      const SolverTickResult& t, std::span<const haptics::Contact> contacts, int segment,
-                                     double period_s) noexcept {
+                                     double nearest_critical_m, double period_s) noexcept {
   if (technique == nullptr) return 0;
   if (!in.ok || t.bad_input) return recordTechniqueBits(technique->monitor().active());
   return recordTechniqueBits(technique->tick(static_cast<double>(st.tick) * period_s, in.X_WD, t.out.force_W_N.norm(),
-                                             contacts, t.drill_flags != 0, t.cut.material, segment,
-                                             std::numeric_limits<double>::infinity()));
+                                             contacts, t.drill_flags != 0, t.cut.material, segment, nearest_critical_m));
 }
 
 /// A solver tick's snapshot to the GUI and the optional monitor.
 inline void publishSolverTick(SnapshotChannel& gui, SnapshotChannel* monitor, const SolverState& st, double isovalue,
-                              std::span<const haptics::Contact> contacts, int segment,
+                              std::span<const haptics::Contact> contacts, int segment, const CriticalDistance& nearest,
                               const ThreadTiming& timing, const SolverTickResult& t, const Drill* drill,
                               std::uint32_t technique_flags) noexcept {
   SolverSnapshot& snap = gui.solverSlot();
@@ -685,6 +689,8 @@ inline void publishSolverTick(SnapshotChannel& gui, SnapshotChannel* monitor, co
   snap.tick = st.tick;
   snap.isovalue = isovalue;
   showContacts(snap, contacts, segment);
+  snap.critical_segment = nearest.segment;
+  snap.critical_distance_m = nearest.distance_m;
   showBurr(snap, t, drill);
   snap.rejected = st.rejected;
   snap.skipped = st.skipped;
@@ -844,11 +850,12 @@ void HapticThread::solverLoop() noexcept {
     }
     const auto contacts = renderer_->contacts();
     const int segment = options_.segments != nullptr ? options_.segments->segmentOf(contacts) : -1;
+    const CriticalDistance nearest = proximity_ ? proximity_->evaluate(renderer_->proxyPose()) : CriticalDistance{};
     const std::uint32_t technique_flags =
-        solverTechnique(options_.technique.get(), st, in, t, contacts, segment, solver_period_s_);
+        solverTechnique(options_.technique.get(), st, in, t, contacts, segment, nearest.distance_m, solver_period_s_);
     if (recorder != nullptr) {
-      recordSolverTick(*recorder, st, in, t.out, renderer_->proxyPose(), contacts.size(), segment, solver_period_s_,
-                       end_ns - begin_ns,
+      recordSolverTick(*recorder, st, in, t.out, renderer_->proxyPose(), contacts.size(), segment, nearest,
+                       solver_period_s_, end_ns - begin_ns,
                        st.wake_flags | coupling_flags | t.drill_flags | gains_flags | jam_flags | placement_flags |
                            technique_flags);
       latest_recorded_tick_.store(st.tick, std::memory_order_release);
@@ -856,8 +863,8 @@ void HapticThread::solverLoop() noexcept {
     st.wake_flags = 0;
 
     clock.tick(begin_ns, end_ns);
-    publishSolverTick(x_->gui, monitor, st, in.isovalue, contacts, segment, clock.timing(), t, options_.drill.get(),
-                      technique_flags);
+    publishSolverTick(x_->gui, monitor, st, in.isovalue, contacts, segment, nearest, clock.timing(), t,
+                      options_.drill.get(), technique_flags);
     solver_ticks_.fetch_add(1, std::memory_order_seq_cst);
   };
 

@@ -12,6 +12,7 @@
 #include <cmath>
 #include <cerrno>
 #include <cstring>
+#include <limits>
 #include <ctime>
 #include <fstream>
 #include <iomanip>
@@ -43,6 +44,11 @@ constexpr std::size_t kMaxEventPayloadBytes = std::size_t{16} << 20;
 constexpr std::size_t kMaxChunkEvents = 65535;
 constexpr std::size_t kFileHeaderBytes = 24;
 constexpr std::size_t kChunkHeaderBytes = 16;
+/// Bytes of one stored record: versions 1 to 3 stored the first 200 bytes of today's TickRecord
+/// (up to and including flags), version 4 the whole of it.
+constexpr std::size_t recordBytes(std::uint32_t version) noexcept {
+  return version >= 4 ? sizeof(TickRecord) : kTickRecordBytesV3;
+}
 constexpr std::size_t kMaxChunkRecords = 65535;
 
 void putU32(unsigned char* p, std::uint32_t v) noexcept { std::memcpy(p, &v, 4); }
@@ -95,19 +101,49 @@ std::uint32_t crc32(const void* data, std::size_t size, std::uint32_t crc) noexc
 namespace {
 /// The segments a recording's metadata lists ("scene.segmentation.segments": [{"name",
 /// "critical"}]); empty when none (or malformed: a recording stays readable).
-void segmentList(const nlohmann::json& meta, std::vector<std::string>& names, std::vector<bool>& critical) {
+void segmentList(const nlohmann::json& meta, std::vector<std::string>& names, std::vector<bool>& critical,
+                 std::vector<ProximityThresholds>* thresholds = nullptr) {
   names.clear();
   critical.clear();
+  if (thresholds != nullptr) thresholds->clear();
   try {
     if (!meta.is_object() || !meta.contains("scene") || !meta["scene"].contains("segmentation")) return;
     for (const auto& s : meta["scene"]["segmentation"].at("segments")) {
       names.push_back(s.at("name").get<std::string>());
       critical.push_back(s.value("critical", false));
+      const ProximityThresholds defaults;  // metadata written before the thresholds: the defaults
+      if (thresholds != nullptr)
+        thresholds->push_back({1e-3 * s.value("warn_mm", 1e3 * defaults.warn_m),
+                               1e-3 * s.value("alarm_mm", 1e3 * defaults.alarm_m)});
     }
   } catch (const nlohmann::json::exception&) {
     names.clear();
     critical.clear();
+    if (thresholds != nullptr) thresholds->clear();
   }
+}
+
+/// The event of a change of proximity level (critical_proximity.h) between two records, or an
+/// empty type: entering the warning or alarm distance of the nearest critical segment, or leaving it.
+RecordingEvent proximityEvent(const TickRecord& r, ProximityLevel from, ProximityLevel to, int from_segment,
+                              const std::vector<std::string>& names) {
+  const auto name = [&names](int s) {
+    return s >= 0 && static_cast<std::size_t>(s) < names.size() ? nlohmann::json(names[static_cast<std::size_t>(s)])
+                                                                  : nlohmann::json(nullptr);
+  };
+  nlohmann::json d;
+  const char* type = "";
+  if (to > from) {
+    type = to == ProximityLevel::kAlarm ? "proximity_alarm" : "proximity_warn";
+    d["segment"] = name(r.critical_segment);
+    d["distance_mm"] = 1e3 * r.critical_distance_m;
+  } else {
+    type = from == ProximityLevel::kAlarm ? "proximity_alarm_cleared" : "proximity_warn_cleared";
+    d["segment"] = name(from_segment);
+    d["to"] = to == ProximityLevel::kWarn ? "warn" : "clear";
+    if (std::isfinite(r.critical_distance_m)) d["distance_mm"] = 1e3 * r.critical_distance_m;
+  }
+  return {r.time_s, r.tick, type, d.dump()};
 }
 }  // namespace
 
@@ -125,7 +161,7 @@ RecordingWriter::RecordingWriter(const std::filesystem::path& path, const std::s
   nlohmann::json meta = parseObject(metadata_json, "RecordingWriter: metadata");
   meta["servo_rate_Hz"] = options.servo_rate_Hz;
   if (!meta.contains("start_time_utc")) meta["start_time_utc"] = utcNow();
-  segmentList(meta, segment_names_, segment_critical_);
+  segmentList(meta, segment_names_, segment_critical_, &segment_thresholds_);
   const std::string text = meta.dump();
 
   // Owner-only (0600) whatever the umask: a recording names the scan and carries the session.
@@ -246,6 +282,12 @@ void RecordingWriter::addEvent(const RecordingEvent& event) {
   pending_events_.push_back(std::move(copy));
 }
 
+ProximityLevel RecordingWriter::proximityLevelOf(const TickRecord& r) const noexcept {
+  const auto s = static_cast<std::size_t>(r.critical_segment);
+  if (r.critical_segment < 0 || s >= segment_thresholds_.size()) return ProximityLevel::kClear;
+  return proximityLevel(r.critical_distance_m, segment_thresholds_[s]);
+}
+
 void RecordingWriter::deriveEvents(const TickRecord* records, std::size_t count) {
   std::vector<RecordingEvent> derived;
   for (std::size_t i = 0; i < count; ++i) {
@@ -286,6 +328,12 @@ void RecordingWriter::deriveEvents(const TickRecord* records, std::size_t count)
       }
       previous_segment_ = segment;
     }
+    const ProximityLevel level = proximityLevelOf(r);
+    if (level != previous_level_) {
+      derived.push_back(proximityEvent(r, previous_level_, level, previous_critical_segment_, segment_names_));
+      previous_level_ = level;
+    }
+    previous_critical_segment_ = r.critical_segment;
     const bool jammed = (r.flags & kRecordFlagJam) != 0;
     if (jammed != previous_jammed_) {
       derived.push_back({r.time_s, r.tick, jammed ? "jam" : "jam_cleared",
@@ -454,9 +502,10 @@ std::size_t readHeader(const std::string& bytes, const std::string& where, Recor
   if (rec.version < 1 || rec.version > kRecordingFormatVersion)
     throw std::runtime_error("readRecording: " + where + "unsupported format version " + std::to_string(rec.version));
   const std::uint32_t record_size = getU32(data + 12);
-  if (record_size != sizeof(TickRecord))
+  if (record_size != recordBytes(rec.version))
     throw std::runtime_error("readRecording: " + where + "record size " + std::to_string(record_size) +
-                             " bytes, expected " + std::to_string(sizeof(TickRecord)));
+                             " bytes, expected " + std::to_string(recordBytes(rec.version)) + " for version " +
+                             std::to_string(rec.version));
   const std::uint32_t meta_size = getU32(data + 16);
   if (size - kFileHeaderBytes < meta_size || crc32(data + kFileHeaderBytes, meta_size) != getU32(data + 20))
     throw std::runtime_error("readRecording: " + where + "damaged metadata header");
@@ -531,7 +580,7 @@ CheckedChunk checkChunk(const unsigned char* chunk, std::size_t left, std::uint3
     c.problem = "bad chunk tag";
   } else {
     const std::uint32_t count = getU32(chunk + 4);
-    const std::size_t payload = std::size_t{count} * sizeof(TickRecord);
+    const std::size_t payload = std::size_t{count} * recordBytes(version);
     if (count == 0 || count > kMaxChunkRecords) c.problem = "bad chunk record count " + std::to_string(count);
     else if (left < kChunkHeaderBytes + payload + 4)
       c.problem = "truncated chunk (" + std::to_string(left) + " of " + std::to_string(kChunkHeaderBytes + payload + 4) +
@@ -555,7 +604,16 @@ void addChunk(const unsigned char* chunk, CheckedChunk& c, Recording& rec) {
     const std::size_t count = getU32(chunk + 4);
     const std::size_t first = rec.records.size();
     rec.records.resize(first + count);
-    std::memcpy(rec.records.data() + first, chunk + kChunkHeaderBytes, count * sizeof(TickRecord));
+    if (rec.version >= 4) {
+      std::memcpy(rec.records.data() + first, chunk + kChunkHeaderBytes, count * sizeof(TickRecord));
+    } else {  // older records end at flags: no proximity was measured
+      for (std::size_t k = 0; k < count; ++k) {
+        TickRecord& r = rec.records[first + k];
+        std::memcpy(static_cast<void*>(&r), chunk + kChunkHeaderBytes + k * kTickRecordBytesV3, kTickRecordBytesV3);
+        r.critical_distance_m = std::numeric_limits<double>::quiet_NaN();
+        r.critical_segment = -1;
+      }
+    }
     rec.dropped_records = getU64(chunk + 8);
     ++rec.chunks;
   }
@@ -673,7 +731,7 @@ void writeRecordingCsv(const Recording& recording, std::ostream& out) {
   out << "t_s,tick,device_x_m,device_y_m,device_z_m,device_qw,device_qx,device_qy,device_qz,"
          "proxy_x_m,proxy_y_m,proxy_z_m,proxy_qw,proxy_qx,proxy_qy,proxy_qz,"
          "force_x_N,force_y_N,force_z_N,torque_x_Nm,torque_y_Nm,torque_z_Nm,"
-         "contacts,isovalue,tick_time_s,flags\n";
+         "contacts,isovalue,tick_time_s,flags,critical_distance_m,critical_segment\n";
   out << std::setprecision(17);
   for (const TickRecord& r : recording.records) {
     out << r.time_s << ',' << r.tick;
@@ -683,7 +741,8 @@ void writeRecordingCsv(const Recording& recording, std::ostream& out) {
     for (double v : r.q_WP) out << ',' << v;
     for (double v : r.force_W_N) out << ',' << v;
     for (double v : r.torque_W_Nm) out << ',' << v;
-    out << ',' << r.contacts << ',' << r.isovalue << ',' << r.tick_time_s << ',' << r.flags << '\n';
+    out << ',' << r.contacts << ',' << r.isovalue << ',' << r.tick_time_s << ',' << r.flags << ','
+        << r.critical_distance_m << ',' << r.critical_segment << '\n';
   }
 }
 
@@ -776,6 +835,28 @@ std::vector<SegmentContact> segmentContacts(const Recording& recording) {
     const double f = std::sqrt(r.force_W_N[0] * r.force_W_N[0] + r.force_W_N[1] * r.force_W_N[1] +
                                r.force_W_N[2] * r.force_W_N[2]);
     tally.add(recordSegment(r.flags), f, rate > 0.0 ? 1.0 / rate : 0.0);
+  }
+  return tally.segments();
+}
+
+std::vector<SegmentProximityStats> segmentProximity(const Recording& recording, double dt_s) {
+  const nlohmann::json meta = nlohmann::json::parse(recording.metadata_json, nullptr, false);
+  std::vector<std::string> names;
+  std::vector<bool> critical;
+  std::vector<ProximityThresholds> thresholds;
+  segmentList(meta, names, critical, &thresholds);
+  std::vector<int> critical_segments;
+  for (std::size_t s = 0; s < critical.size(); ++s)
+    if (critical[s]) critical_segments.push_back(static_cast<int>(s));
+  if (critical_segments.empty()) return {};
+  ProximityTally tally(critical_segments, names, thresholds);
+  if (recording.version < 4) {
+    tally.markUnmeasured();
+    return tally.segments();
+  }
+  for (const TickRecord& r : recording.records) {
+    tally.add(r.critical_segment, r.critical_distance_m, r.time_s, dt_s);
+    tally.endTick();
   }
   return tally.segments();
 }

@@ -265,7 +265,7 @@ void writeTraceRow(std::ofstream& trace, std::uint64_t i, const DeviceSample& sa
 void publishRunTick(SnapshotChannel& monitor, std::uint64_t i, const RunReport& r, const haptics::TickOutput& out,
                     const haptics::Pose& X_WD_used, const Eigen::Vector3d& command_W_N,
                     const Eigen::Vector3d& command_W_Nm, std::uint64_t held_ticks, double isovalue,
-                    std::size_t contacts, int segment) {
+                    std::size_t contacts, int segment, const CriticalDistance& nearest) {
   CouplingSnapshot& c = monitor.couplingSlot();
   c.tick = i + 1;
   c.time_ns = std::chrono::duration_cast<std::chrono::nanoseconds>(std::chrono::steady_clock::now().time_since_epoch()).count();
@@ -281,6 +281,8 @@ void publishRunTick(SnapshotChannel& monitor, std::uint64_t i, const RunReport& 
   solver.isovalue = isovalue;
   solver.contacts = static_cast<int>(contacts);
   solver.segment = segment;
+  solver.critical_segment = nearest.segment;
+  solver.critical_distance_m = nearest.distance_m;
   monitor.publishSolver();
 }
 
@@ -410,6 +412,8 @@ struct HeadlessRun {
   std::ofstream& trace;
   RecordingWriter* recorder;
   SegmentContactTally* segment_tally;
+  CriticalProximity* proximity;         // null: no critical segment
+  ProximityTally* proximity_tally;
   JamDetector& jam;
   std::vector<double>& times_us;
   RunReport& r;
@@ -501,6 +505,20 @@ bool updateRunJam(HeadlessRun& run, std::uint64_t i, const RunTick& t) {
   return jammed;
 }
 
+/// The nearest critical segment after tick `i` (the proxy's shell against each one's distance
+/// field), each one's distance into the tally.
+CriticalDistance measureProximity(HeadlessRun& run, std::uint64_t i) {
+  if (run.proximity == nullptr) return {};
+  const CriticalDistance nearest = run.proximity->evaluate(run.renderer.proxyPose());
+  const auto& critical = run.scene.segments->critical();
+  const auto per_segment = run.proximity->perSegment();
+  const double dt_s = 1.0 / run.options.servo_rate_Hz;
+  for (std::size_t k = 0; k < per_segment.size(); ++k)
+    run.proximity_tally->add(critical[k], per_segment[k].distance_m, static_cast<double>(i) * dt_s, dt_s);
+  run.proximity_tally->endTick();
+  return nearest;
+}
+
 /// Tick `i`'s bookkeeping, outside the timed section (exec_time_us is measured by tick()): the
 /// reference's lag, the counts, the crossing and depth checks, the burr, the jam detector, and
 /// the recording, trace and monitor.
@@ -533,11 +551,11 @@ void checkRunTick(HeadlessRun& run, std::uint64_t i, const RunTick& t) {
   const haptics::CutResult cut = drill_on ? drillRunTick(run, i, out) : haptics::CutResult{};
   reportDrillTick(run, i, drill_on, cut, out, segment);
   const bool jammed = updateRunJam(run, i, t);
+  const CriticalDistance nearest = measureProximity(run, i);
   std::uint32_t technique = run.technique != nullptr ? run.technique->monitor().active() : 0u;
   if (run.technique != nullptr && t.sample_ok && !out.stats.bad_input && finite) {
     technique = run.technique->tick(static_cast<double>(i) * run.period_s, run.X_WD_used, out.force_W_N.norm(),
-                                    run.renderer.contacts(), drill_on, cut.material, segment,
-                                    std::numeric_limits<double>::infinity());
+                                    run.renderer.contacts(), drill_on, cut.material, segment, nearest.distance_m);
   }
   if (run.recorder) {
     TickRecord rec = runRecord(i, run.options.servo_rate_Hz, run.X_WD_used, run.renderer.proxyPose(), out, t.isovalue,
@@ -545,6 +563,8 @@ void checkRunTick(HeadlessRun& run, std::uint64_t i, const RunTick& t) {
     if (drill_on) rec.flags |= kRecordFlagDrillOn;
     if (jammed) rec.flags |= kRecordFlagJam;
     rec.flags |= recordTechniqueBits(technique);
+    rec.critical_distance_m = nearest.distance_m;
+    rec.critical_segment = nearest.segment;
     run.recorder->pushWaiting(rec);
   }
   if (run.trace.is_open()) {
@@ -553,7 +573,7 @@ void checkRunTick(HeadlessRun& run, std::uint64_t i, const RunTick& t) {
   }
   if (SnapshotChannel* monitor = run.options.monitor.get()) {
     publishRunTick(*monitor, i, r, out, run.X_WD_used, t.command_W_N, t.command_W_Nm, run.safety.stats().held_ticks,
-                   t.isovalue, run.renderer.contacts().size(), segment);
+                   t.isovalue, run.renderer.contacts().size(), segment, nearest);
   }
 }
 
@@ -574,6 +594,7 @@ void finishRun(HeadlessRun& run, std::uint64_t n, std::chrono::steady_clock::tim
   }
   if (run.recorder) run.recorder->close();  // throws naming the file when a write failed
   if (run.segment_tally) r.segment_contacts = run.segment_tally->segments();
+  if (run.proximity_tally) r.proximity = run.proximity_tally->segments();
   if (run.drill != nullptr) r.drill = drillReport(*run.drill, run.scene);
   if (run.reference) reportLag(r, run.lag);
   r.total_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - wall_begin).count();
@@ -631,11 +652,18 @@ RunReport runHeadless(const LoadedScene& scene, const Trajectory& trajectory, co
   std::ofstream trace = openTrace(options.trace_csv);
   std::unique_ptr<RecordingWriter> recorder = openRecorder(scene, X_WD_first, device, options);
   std::optional<SegmentContactTally> segment_tally = segmentTally(scene);
+  std::optional<CriticalProximity> proximity;
+  std::optional<ProximityTally> proximity_tally;
+  if (scene.segments && !scene.segments->critical().empty()) {
+    proximity.emplace(*scene.segments, tool.point_shell);
+    proximity_tally.emplace(proximityTally(*scene.segments));
+  }
   JamDetector jam;
   HeadlessRun run{scene,  trajectory, options, tool, felt, s, 1.0 / options.servo_rate_Hz, *servo.renderer, drill,
                   drill != nullptr && scene.spec.drill && scene.spec.drill->on, reference.get(), lag,
                   verifier ? &*verifier : nullptr, shell_edges, device, filter, safety, trace, recorder.get(),
-                  segment_tally ? &*segment_tally : nullptr, jam, times_us, r, X_WD_first};
+                  segment_tally ? &*segment_tally : nullptr, proximity ? &*proximity : nullptr,
+                  proximity_tally ? &*proximity_tally : nullptr, jam, times_us, r, X_WD_first};
   const std::unique_ptr<ServoTechnique> technique = makeServoTechnique(LiveValues::initial(scene), drill);
   run.technique = technique.get();
   const auto wall_begin = std::chrono::steady_clock::now();
@@ -661,6 +689,25 @@ RunReport runHeadless(const SceneSpec& scene, const std::filesystem::path& traje
 }
 
 namespace {
+/// The report's "proximity": per critical segment, the time within its warning and alarm
+/// distances and the closest approach (null when never within kProximityRange_m).
+nlohmann::ordered_json proximityJson(const std::vector<SegmentProximityStats>& proximity) {
+  const auto finite = [](double v) { return std::isfinite(v) ? nlohmann::ordered_json(v) : nlohmann::ordered_json(nullptr); };
+  nlohmann::ordered_json out = nlohmann::ordered_json::array();
+  for (const SegmentProximityStats& p : proximity) {
+    out.push_back({{"name", p.name},
+                   {"warn_mm", 1e3 * p.thresholds.warn_m},
+                   {"alarm_mm", 1e3 * p.thresholds.alarm_m},
+                   {"time_within_warn_s", p.time_within_warn_s},
+                   {"time_within_alarm_s", p.time_within_alarm_s},
+                   {"warnings", p.warnings},
+                   {"alarms", p.alarms},
+                   {"closest_mm", finite(1e3 * p.closest_m)},
+                   {"closest_time_s", finite(p.closest_time_s)}});
+  }
+  return out;
+}
+
 /// The report's "segments": time in contact, peak force and touches per labelled segment.
 nlohmann::ordered_json segmentContactsJson(const std::vector<SegmentContact>& segment_contacts) {
   nlohmann::ordered_json segments = nlohmann::ordered_json::array();
@@ -756,6 +803,7 @@ std::string RunReport::toJson() const {
   j["max_behind_m"] = lag_ticks >= 0 ? nlohmann::ordered_json(max_behind_m) : nlohmann::ordered_json(nullptr);
   j["max_behind_rad"] = lag_ticks >= 0 ? nlohmann::ordered_json(max_behind_rad) : nlohmann::ordered_json(nullptr);
   j["segments"] = segmentContactsJson(segment_contacts);
+  j["proximity"] = proximityJson(proximity);
   if (drill) addDrillJson(j, *drill);
   nlohmann::ordered_json technique;
   for (int k = 0; k < kTechniqueRuleCount; ++k)
@@ -836,6 +884,7 @@ std::string RunReport::summary() const {
                   static_cast<unsigned long long>(c.touches), c.touches == 1 ? "" : "es");
     out += line;
   }
+  out += proximitySummary(proximity);
   return out;
 }
 

@@ -70,6 +70,12 @@ class ObjectReader {
   }
 
   bool has(const char* key) const { return object_.contains(key); }
+  /// The object's keys (sorted).
+  std::vector<std::string> keys() const {
+    std::vector<std::string> out;
+    for (auto it = object_.begin(); it != object_.end(); ++it) out.push_back(it.key());
+    return out;
+  }
   const json& at(const char* key) const {
     if (!object_.contains(key)) fail(fieldPath(key), "missing");
     return object_.at(key);
@@ -395,9 +401,40 @@ DeviceSpec readDevice(const ObjectReader& device, const fs::path& base_dir) {
   return d;
 }
 
+/// Thresholds in mm (warn_mm, alarm_mm; each absent: `defaults`) of one object, checked.
+ProximityThresholds readThresholds(const ObjectReader& o, const ProximityThresholds& defaults, const std::string& what) {
+  ProximityThresholds t = defaults;
+  if (o.has("warn_mm")) t.warn_m = 1e-3 * o.positive("warn_mm");
+  if (o.has("alarm_mm")) t.alarm_m = 1e-3 * o.positive("alarm_mm");
+  // A warning distance alone below the inherited alarm distance pulls the alarm down with it.
+  if (o.has("warn_mm") && !o.has("alarm_mm")) t.alarm_m = std::min(t.alarm_m, t.warn_m);
+  try {
+    validateProximityThresholds(t, what);
+  } catch (const std::invalid_argument& e) {
+    o.fail("", e.what());
+  }
+  return t;
+}
+
+/// The "segmentation" section's "proximity": default thresholds and per segment ones.
+ProximitySpec readProximity(const ObjectReader& p) {
+  p.allowOnly({"warn_mm", "alarm_mm", "per_segment"});
+  ProximitySpec spec;
+  spec.defaults = readThresholds(p, ProximityThresholds{}, "segmentation.proximity");
+  if (p.has("per_segment")) {
+    const ObjectReader per = p.object("per_segment");
+    for (const std::string& name : per.keys()) {
+      const ObjectReader one = per.object(name.c_str());
+      one.allowOnly({"warn_mm", "alarm_mm"});
+      spec.per_segment[name] = readThresholds(one, spec.defaults, "segmentation.proximity.per_segment." + name);
+    }
+  }
+  return spec;
+}
+
 /// The "segmentation" section.
 SegmentationSpec readSegmentation(const ObjectReader& seg, const fs::path& base_dir) {
-  seg.allowOnly({"path", "felt", "shown", "critical", "smoothing_voxels"});
+  seg.allowOnly({"path", "felt", "shown", "critical", "smoothing_voxels", "proximity"});
   SegmentationSpec s;
   s.path = resolveDataPath(seg, "path", seg.string("path"), base_dir);
   s.felt = seg.strings("felt");
@@ -409,6 +446,7 @@ SegmentationSpec readSegmentation(const ObjectReader& seg, const fs::path& base_
       seg.fail(seg.fieldPath("smoothing_voxels"), "expected a number of voxels in [0, 10]");
     }
   }
+  if (seg.has("proximity")) s.proximity = readProximity(seg.object("proximity"));
   return s;
 }
 

@@ -27,10 +27,44 @@ std::vector<int> resolve(const io::LoadedSegmentation& seg, const std::vector<st
   return out;
 }
 
+/// The distance field of segment `info`'s voxels (its label in its layer), stored up to
+/// kProximityRange_m around them.
+std::shared_ptr<const haptics::DistanceField> distanceFieldOf(const io::LoadedSegmentation& seg,
+                                                              const io::SegmentInfo& info) {
+  if (info.layer < 0 || static_cast<std::size_t>(info.layer) >= seg.layers.size() ||
+      !seg.layers[static_cast<std::size_t>(info.layer)]) {
+    return std::make_shared<const haptics::DistanceField>();
+  }
+  const haptics::ScalarVolume& layer = *seg.layers[static_cast<std::size_t>(info.layer)];
+  const auto& g = layer.geometry();
+  std::vector<std::uint8_t> mask(g.voxelCount(), 0);
+  std::size_t idx = 0;
+  for (int k = 0; k < g.dims[2]; ++k)
+    for (int j = 0; j < g.dims[1]; ++j)
+      for (int i = 0; i < g.dims[0]; ++i, ++idx)
+        mask[idx] = std::lround(layer.voxel(i, j, k)) == info.label_value ? 1 : 0;
+  return std::make_shared<const haptics::DistanceField>(haptics::DistanceField::FromMask(g, mask, kProximityRange_m));
+}
+
+/// The thresholds of every segment from the spec (names resolved), defaults for the rest.
+std::vector<ProximityThresholds> thresholdsOf(const io::LoadedSegmentation& seg, const ProximitySpec& spec,
+                                              const std::vector<int>& critical, const std::string& source) {
+  std::vector<ProximityThresholds> out(seg.segments.size(), spec.defaults);
+  for (const auto& [name, t] : spec.per_segment) {
+    const int s = resolve(seg, {name}, "proximity.per_segment", source).front();
+    if (!contains(critical, s)) {
+      throw std::runtime_error(source + ": segmentation.proximity.per_segment: \"" + name +
+                               "\" is not a critical segment (list it in segmentation.critical)");
+    }
+    out[static_cast<std::size_t>(s)] = t;
+  }
+  return out;
+}
+
 }  // namespace
 
 SegmentSet::SegmentSet(io::LoadedSegmentation seg, std::vector<int> felt, std::vector<int> shown,
-                       std::vector<int> critical, double smoothing_voxels)
+                       std::vector<int> critical, double smoothing_voxels, std::vector<ProximityThresholds> thresholds)
     : seg_(std::move(seg)),
       felt_(std::move(felt)),
       shown_(std::move(shown)),
@@ -50,6 +84,33 @@ SegmentSet::SegmentSet(io::LoadedSegmentation seg, std::vector<int> felt, std::v
       felt_labels_.push_back({s, info.layer, info.label_value});
     }
   }
+  for (const int s : critical_) critical_fields_.push_back(distanceFieldOf(seg_, seg_.segments[static_cast<std::size_t>(s)]));
+  if (thresholds.empty()) thresholds.assign(seg_.segments.size(), ProximityThresholds{});
+  setThresholds(std::move(thresholds));
+}
+
+void SegmentSet::setThresholds(std::vector<ProximityThresholds> thresholds) {
+  if (thresholds.size() != seg_.segments.size()) {
+    throw std::invalid_argument("SegmentSet: " + std::to_string(thresholds.size()) + " proximity thresholds for " +
+                                std::to_string(seg_.segments.size()) + " segments");
+  }
+  for (std::size_t s = 0; s < thresholds.size(); ++s)
+    validateProximityThresholds(thresholds[s], "proximity of \"" + seg_.segments[s].name + "\"");
+  thresholds_ = std::move(thresholds);
+}
+
+std::shared_ptr<const SegmentSet> SegmentSet::withThresholds(std::vector<ProximityThresholds> thresholds) const {
+  std::shared_ptr<SegmentSet> out(new SegmentSet());
+  out->seg_ = seg_;
+  out->felt_ = felt_;
+  out->shown_ = shown_;
+  out->critical_ = critical_;
+  out->smoothing_voxels_ = smoothing_voxels_;
+  out->felt_field_ = felt_field_;
+  out->critical_fields_ = critical_fields_;
+  out->felt_labels_ = felt_labels_;
+  out->setThresholds(std::move(thresholds));
+  return out;
 }
 
 std::shared_ptr<const SegmentSet> SegmentSet::fromSpec(io::LoadedSegmentation seg, const SegmentationSpec& spec,
@@ -62,8 +123,9 @@ std::shared_ptr<const SegmentSet> SegmentSet::fromSpec(io::LoadedSegmentation se
     for (std::size_t s = 0; s < seg.segments.size(); ++s) shown.push_back(static_cast<int>(s));
   }
   std::vector<int> critical = resolve(seg, spec.critical, "critical", source);
+  std::vector<ProximityThresholds> thresholds = thresholdsOf(seg, spec.proximity, critical, source);
   return std::make_shared<const SegmentSet>(std::move(seg), std::move(felt), std::move(shown), std::move(critical),
-                                            spec.smoothing_voxels);
+                                            spec.smoothing_voxels, std::move(thresholds));
 }
 
 bool SegmentSet::isFelt(int s) const noexcept { return contains(felt_, s); }

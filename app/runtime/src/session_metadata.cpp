@@ -261,6 +261,10 @@ json segmentationJson(const SegmentSet& set, const SegmentationSpec& segmentatio
                                {"color_rgb", segment.color_rgb},
                                {"felt", set.isFelt(s)},
                                {"critical", set.isCritical(s)}});
+    if (set.isCritical(s)) {  // its warning and alarm distances (critical_proximity.h)
+      seg["segments"].back()["warn_mm"] = 1e3 * set.thresholds(s).warn_m;
+      seg["segments"].back()["alarm_mm"] = 1e3 * set.thresholds(s).alarm_m;
+    }
   }
   return seg;
 }
@@ -408,6 +412,12 @@ SceneSpec sceneFromSessionMetadata(const std::string& metadata_json) {
       s.shown = seg.at("shown").get<std::vector<std::string>>();
       s.critical = seg.at("critical").get<std::vector<std::string>>();
       s.smoothing_voxels = seg.at("smoothing_voxels").get<double>();
+      // Each critical segment's thresholds (absent in metadata written before them: defaults).
+      for (const json& one : seg.value("segments", json::array())) {
+        if (!one.value("critical", false) || !one.contains("warn_mm")) continue;
+        s.proximity.per_segment[one.at("name").get<std::string>()] = {1e-3 * one.at("warn_mm").get<double>(),
+                                                                       1e-3 * one.at("alarm_mm").get<double>()};
+      }
       spec.segmentation = s;
     }
     if (sc.contains("drill")) {

@@ -246,6 +246,7 @@ SessionMetrics computeSessionMetrics(const Recording& recording, const MetricsOp
   tickMetrics(records, dt, options.force_threshold_N, m);
   motionMetrics(records, dt, options, m);
   segmentMetrics(recording, dt, m);
+  m.proximity = segmentProximity(recording, dt);
   return m;
 }
 

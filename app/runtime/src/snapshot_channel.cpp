@@ -15,6 +15,8 @@ void mergeSnapshots(const CouplingSnapshot& c, const SolverSnapshot& s, HapticSn
   out.contacts = s.contacts;
   out.contacts_shown = s.contacts_shown;
   out.segment = s.segment;
+  out.critical_segment = s.critical_segment;
+  out.critical_distance_m = s.critical_distance_m;
   out.burr_on = s.burr_on;
   out.burr_force_N = s.burr_force_N;
   out.burr_specific_energy_J_per_mm3 = s.burr_specific_energy_J_per_mm3;

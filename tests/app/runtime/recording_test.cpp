@@ -183,7 +183,7 @@ TEST(Recording, RoundTripKeepsEveryRecordBitForBit) {
   std::uint64_t ticks_in_end_marker = 0;
   std::memcpy(&ticks_in_end_marker, bytes.data() + bytes.size() - 20, 8);
   EXPECT_EQ(ticks_in_end_marker, 2500u);
-  const std::uintmax_t expected_size = 24 + rec.metadata_json.size() + 2500 * 200 + rec.chunks * 20 + event_bytes + 28;
+  const std::uintmax_t expected_size = 24 + rec.metadata_json.size() + 2500 * sizeof(TickRecord) + rec.chunks * 20 + event_bytes + 28;
   EXPECT_EQ(fs::file_size(path), expected_size);
 }
 
@@ -287,6 +287,7 @@ TEST(Recording, ReadsVersionOneAndTwoFiles) {
   ASSERT_EQ(chunks.back().offset + 28, bytes.size());
   for (std::size_t i = 0; i + 1 < chunks.size(); ++i) ASSERT_EQ(chunks[i].tag, "CHNK");
   bytes.resize(chunks.back().offset);
+  bytes = test::asVersion3Recording(bytes);  // 200-byte records, as versions 1 to 3 stored them
   for (const char version : {'\x01', '\x02'}) {
     bytes[8] = version;
     writeBytes(dir / "old.vhrec", bytes);
@@ -295,7 +296,11 @@ TEST(Recording, ReadsVersionOneAndTwoFiles) {
     EXPECT_TRUE(rec.warnings.empty()) << rec.warnings.front();  // no end marker expected
     EXPECT_FALSE(rec.ended);
     ASSERT_EQ(rec.records.size(), 600u);
-    for (std::uint64_t i = 0; i < 600; ++i) ASSERT_TRUE(sameBytes(rec.records[i], makeRecord(i)));
+    for (std::uint64_t i = 0; i < 600; ++i) {
+      const TickRecord want = makeRecord(i);
+      ASSERT_EQ(std::memcmp(&rec.records[i], &want, kTickRecordBytesV3), 0);  // up to flags
+      ASSERT_TRUE(std::isnan(rec.records[i].critical_distance_m));                      // not measured
+    }
     EXPECT_TRUE(rec.events.empty());
   }
 }
@@ -531,10 +536,14 @@ TEST(Recording, DamagedHeadersThrowWithTheReason) {
 
   writeBytes(dir / "magic.vhrec", "not a recording at all, just text");
   VH_EXPECT_THROW_WITH(readRecording(dir / "magic.vhrec"), std::runtime_error, "bad magic");
-  std::string v4 = bytes;
-  v4[8] = 4;
-  writeBytes(dir / "v4.vhrec", v4);
-  VH_EXPECT_THROW_WITH(readRecording(dir / "v4.vhrec"), std::runtime_error, "unsupported format version 4");
+  std::string v5 = bytes;
+  v5[8] = 5;
+  writeBytes(dir / "v5.vhrec", v5);
+  VH_EXPECT_THROW_WITH(readRecording(dir / "v5.vhrec"), std::runtime_error, "unsupported format version 5");
+  std::string v3 = bytes;  // a version 3 header over version 4's 216-byte records
+  v3[8] = 3;
+  writeBytes(dir / "v3.vhrec", v3);
+  VH_EXPECT_THROW_WITH(readRecording(dir / "v3.vhrec"), std::runtime_error, "record size 216 bytes, expected 200 for version 3");
   std::string meta = bytes;
   meta[26] ^= 0x01;
   writeBytes(dir / "meta.vhrec", meta);
@@ -595,15 +604,16 @@ std::vector<TickRecord> parseCsv(std::istream& in) {
   std::string line;
   EXPECT_TRUE(std::getline(in, line));
   const std::vector<std::string> header = splitCsv(line);
-  EXPECT_EQ(header.size(), 26u);
+  EXPECT_EQ(header.size(), 28u);
+  EXPECT_EQ(header[26], "critical_distance_m");
   EXPECT_EQ(header.front(), "t_s");
   EXPECT_EQ(header[16], "force_x_N");
   EXPECT_EQ(header[21], "torque_z_Nm");
   std::vector<TickRecord> out;
   while (std::getline(in, line)) {
     const std::vector<std::string> c = splitCsv(line);
-    EXPECT_EQ(c.size(), 26u) << line;
-    if (c.size() != 26) break;
+    EXPECT_EQ(c.size(), 28u) << line;
+    if (c.size() != 28) break;
     TickRecord r;
     std::size_t k = 0;
     auto num = [&] { return std::strtod(c[k++].c_str(), nullptr); };
@@ -619,6 +629,8 @@ std::vector<TickRecord> parseCsv(std::istream& in) {
     r.isovalue = num();
     r.tick_time_s = num();
     r.flags = static_cast<std::uint32_t>(std::stoul(c[k++]));
+    r.critical_distance_m = num();
+    r.critical_segment = std::stoi(c[k++]);
     out.push_back(r);
   }
   return out;

@@ -1,5 +1,8 @@
 #include "runtime_test_support.h"
 
+#include "vh/runtime/recording.h"
+
+#include <cstring>
 #include <fstream>
 #include <thread>
 
@@ -58,6 +61,43 @@ long lockedMemory_kB() {
   while (std::getline(status, line))
     if (line.rfind("VmLck:", 0) == 0) return std::stol(line.substr(6));
   return -1;
+}
+
+namespace {
+std::uint32_t u32At(const std::string& b, std::size_t at) {
+  std::uint32_t v = 0;
+  std::memcpy(&v, b.data() + at, 4);
+  return v;
+}
+void putU32(std::string& b, std::size_t at, std::uint32_t v) { std::memcpy(b.data() + at, &v, 4); }
+}  // namespace
+
+std::string asVersion3Recording(const std::string& current) {
+  const std::size_t first = 24 + u32At(current, 16);
+  std::string out = current.substr(0, first);
+  putU32(out, 8, 3);
+  putU32(out, 12, static_cast<std::uint32_t>(runtime::kTickRecordBytesV3));
+  for (std::size_t at = first; at + 4 <= current.size();) {
+    const std::string tag = current.substr(at, 4);
+    if (tag == "CHNK") {
+      const std::uint32_t n = u32At(current, at + 4);
+      std::string chunk = current.substr(at, 16);
+      for (std::uint32_t k = 0; k < n; ++k)
+        chunk += current.substr(at + 16 + k * sizeof(runtime::TickRecord), runtime::kTickRecordBytesV3);
+      chunk += std::string(4, '\0');
+      putU32(chunk, chunk.size() - 4, runtime::crc32(chunk.data(), chunk.size() - 4));
+      out += chunk;
+      at += 16 + n * sizeof(runtime::TickRecord) + 4;
+    } else if (tag == "EVNT") {
+      const std::size_t size = 12 + u32At(current, at + 8) + 4;
+      out += current.substr(at, size);
+      at += size;
+    } else {  // "ENDR", the last
+      out += current.substr(at);
+      break;
+    }
+  }
+  return out;
 }
 
 }  // namespace vh::test

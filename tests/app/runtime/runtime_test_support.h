@@ -37,6 +37,11 @@ bool waitUntil(const std::function<bool()>& condition,
 /// when it cannot be read.
 long lockedMemory_kB();
 
+/// The bytes of a recording of the current format rewritten as format version 3: the header's
+/// version and record size, each record cut after its flags (200 bytes) and each record chunk's
+/// CRC-32 recomputed; event chunks and the end marker as they are.
+std::string asVersion3Recording(const std::string& current);
+
 }  // namespace vh::test
 
 /// Expects `statement` to throw `exception_type` whose what() contains every one of the given

@@ -8,6 +8,7 @@
 #include <future>
 #include <memory>
 #include <stdexcept>
+#include <tuple>
 
 #include <QBuffer>
 #include <QByteArray>
@@ -130,7 +131,8 @@ QList<QPointF> thinnedByMax(const std::vector<TickRecord>& records, std::size_t 
 
 /// The events worth a mark on the time charts: markers and critical contacts / removals.
 bool markedEvent(const runtime::RecordingEvent& e) {
-  return e.type == "marker" || e.type == "critical_removed" || e.type == "critical_contact";
+  return e.type == "marker" || e.type == "critical_removed" || e.type == "critical_contact" ||
+         e.type == "proximity_alarm";
 }
 
 std::string forceChart(const Recording& rec, const SessionMetrics& m, const SessionReportOptions& o) {
@@ -206,6 +208,79 @@ std::string speedChart(const Recording& rec, const SessionMetrics& m, const Sess
   s->attachAxis(x);
   s->attachAxis(y);
   return chartImage(chart, o.chart_width, o.chart_height * 3 / 4);
+}
+
+/// The nearest critical segment's distance over time [mm] (clipped at the 20 mm range) with the
+/// warning and alarm distances of the nearest critical segment as dashed lines.
+std::string proximityChart(const Recording& rec, const SessionMetrics& m, const SessionReportOptions& o) {
+  auto* chart = new QChart;
+  chart->setTitle("Distance to the nearest critical segment");
+  const double range_mm = 1e3 * runtime::kProximityRange_m;
+  // Thinned by the smallest distance of each bucket (the approaches survive): max of minus it.
+  const QList<QPointF> neg = thinnedByMax(rec.records, 2000, [range_mm](const TickRecord& r) {
+    return -std::min(range_mm, std::isfinite(r.critical_distance_m) ? 1e3 * r.critical_distance_m : range_mm);
+  });
+  QList<QPointF> d;
+  double top_mm = 2.0 * 1e3 * m.proximity.front().thresholds.warn_m;  // at least twice the warning
+  for (const QPointF& p : neg) {
+    d.append(QPointF(p.x(), -p.y()));
+    top_mm = std::max(top_mm, std::min(range_mm, -p.y() * 1.1));
+  }
+  const double t0 = rec.records.front().time_s, t1 = rec.records.back().time_s;
+  QValueAxis* x = addAxis(chart, Qt::AlignBottom, "time [s]", t0, t1);
+  x->applyNiceNumbers();
+  QValueAxis* y = addAxis(chart, Qt::AlignLeft, "distance [mm]", 0.0, top_mm);
+  y->applyNiceNumbers();
+  QLineSeries* s = lineSeries("nearest critical segment [mm]", QColor(0x1f, 0x77, 0xb4));
+  s->replace(d);
+  std::vector<QLineSeries*> all{s};
+  const runtime::SegmentProximityStats& first = m.proximity.front();  // thresholds of the first
+  for (const auto& [value_m, name, colour] : {std::tuple{first.thresholds.warn_m, "warn", QColor(0xff, 0x7f, 0x0e)},
+                                               std::tuple{first.thresholds.alarm_m, "alarm", QColor(0xd6, 0x27, 0x28)}}) {
+    QLineSeries* l = lineSeries(QString::fromStdString(std::string(name) + " " + formatQuantity(1e3 * value_m, "mm")),
+                                colour, 1.0, Qt::DashLine);
+    l->append(t0, 1e3 * value_m);
+    l->append(t1, 1e3 * value_m);
+    all.push_back(l);
+  }
+  for (QLineSeries* l : all) {
+    chart->addSeries(l);
+    l->attachAxis(x);
+    l->attachAxis(y);
+  }
+  return chartImage(chart, o.chart_width, o.chart_height);
+}
+
+/// Per critical segment: time within each threshold, entries, the closest approach.
+std::string proximityTable(const SessionMetrics& m) {
+  std::string html =
+      "<table>\n<tr><th>critical segment</th><th>warn / alarm</th><th>time within warn</th><th>time within alarm"
+      "</th><th>entries (warn / alarm)</th><th>closest approach</th><th>at</th></tr>\n";
+  for (const auto& p : m.proximity) {
+    const bool near = std::isfinite(p.closest_m);
+    html += "<tr" + std::string(p.time_within_alarm_s > 0 ? " class=\"critical\"" : "") + "><td>" + escapeHtml(p.name) +
+            "</td><td class=\"n\">" + formatNumber(1e3 * p.thresholds.warn_m) + " / " +
+            formatQuantity(1e3 * p.thresholds.alarm_m, "mm") + "</td><td class=\"n\">" +
+            formatQuantity(p.time_within_warn_s, "s") + "</td><td class=\"n\">" +
+            formatQuantity(p.time_within_alarm_s, "s") + "</td><td class=\"n\">" +
+            formatNumber(static_cast<double>(p.warnings)) + " / " + formatNumber(static_cast<double>(p.alarms)) +
+            "</td><td class=\"n\">" + (near ? formatQuantity(1e3 * p.closest_m, "mm") : std::string("beyond 20 mm")) +
+            "</td><td class=\"n\">" + (near ? formatClock(p.closest_time_s) : std::string("-")) + "</td></tr>\n";
+  }
+  return html + "</table>\n";
+}
+
+/// The "Proximity" section: the table and the distance over time, or why there is none.
+std::string proximitySection(const Recording& rec, const SessionMetrics& m, const SessionReportOptions& o) {
+  if (m.proximity.empty()) return "<p>The recording names no critical segment, so no distances to one.</p>\n";
+  if (std::isnan(m.proximity.front().closest_m))
+    return "<p>This recording (format version " + std::to_string(rec.version) +
+           ") predates the distance to critical segments: record again to see it.</p>\n";
+  std::string html = "<p class=\"small\">From the proxy's point shell to each critical segment's voxel centres, "
+                     "within half a voxel diagonal; each tick records the nearest critical segment.</p>\n" +
+                     proximityTable(m);
+  if (!rec.records.empty()) html += imageTag(proximityChart(rec, m, o), "distance to the nearest critical segment over time");
+  return html;
 }
 
 // ---- Contact maps and path maps: projections in the patient's frame ------------------------------
@@ -758,6 +833,7 @@ std::string sessionReportHtml(const Recording& original, const std::string& titl
     html += ".</p>\n" + contactMap(recording, m, options, anatomy.get());
   }
   html += "<h2>Segments</h2>\n" + segmentsTable(m);
+  html += "<h2>Proximity</h2>\n" + proximitySection(recording, m, options);
   html += "<h2>Events</h2>\n" + eventsTable(recording);
   html += "<h2>All metrics</h2>\n<p class=\"small\">Speed and jerk are of the device (the hand), central differences "
           "over " + formatQuantity(options.metrics.derivative_step_s, "s") +

@@ -9,6 +9,7 @@
 
 #include <array>
 #include <cstdint>
+#include <limits>
 
 #include <Eigen/Core>
 
@@ -38,6 +39,12 @@ struct HapticSnapshot {
   /// The segment the contacts touch (SegmentSet::segmentOf(), index into the scene's
   /// segments), or -1: no contact, no segments, or a contact on no felt segment.
   int segment = -1;
+  /// The nearest critical segment to the proxy's point shell after the solver's latest tick
+  /// (critical_proximity.h: index into the scene's segments; -1 when none is within
+  /// kProximityRange_m or there are none) and its distance [m] (+infinity then). Compare it with
+  /// SegmentSet::thresholds(critical_segment) for the warning and the alarm.
+  int critical_segment = -1;
+  double critical_distance_m = std::numeric_limits<double>::infinity();
   /// The burr on the solver's latest tick (drilling.h), what its sound follows: whether it spun,
   /// the |F| it cut with and the hardness of what it cut (haptics::CutResult; both 0 when it
   /// cut nothing), and the material the drill has eroded since it was built [mm^3] (its

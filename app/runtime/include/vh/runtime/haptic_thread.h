@@ -86,7 +86,9 @@ struct HapticThreadOptions {
   /// sample instead of catching up (bounds the proxy's lag; the skipped samples are counted).
   double max_solver_backlog_s = 0.25;
   /// The scene's segments: each solver tick names the segment its contacts touch
-  /// (HapticSnapshot::segment, and TickRecord::flags >> kRecordSegmentShift). Null: none.
+  /// (HapticSnapshot::segment, and TickRecord::flags >> kRecordSegmentShift) and measures the
+  /// nearest critical segment (HapticSnapshot::critical_segment / critical_distance_m, and
+  /// TickRecord::critical_segment / critical_distance_m). Null: none.
   std::shared_ptr<const SegmentSet> segments;
   /// Test only: called on the solver thread at the end of every solver tick (e.g. to make the
   /// solver slow). Must not throw; it may allocate or sleep (the loop's guarantees then no
@@ -241,6 +243,9 @@ class HapticThread {
   double solver_period_s_;
   bool every_sample_;
   HapticThreadOptions options_;
+  /// The nearest critical segment after each solver tick (null: no critical segment); the
+  /// solver thread's only.
+  std::unique_ptr<CriticalProximity> proximity_;
   std::unique_ptr<Exchange> x_;
   std::atomic<double> isovalue_;
   std::atomic<double> gain_linear_;

@@ -8,29 +8,30 @@
 /// writeRecordingEventsCsv()) and JSON (writeRecordingJson()). The session metadata is made by
 /// makeSessionMetadata() (session_metadata.h); replay.h replays a recording bit for bit.
 ///
-/// ## File format, version 3 (`.vhrec`)
+/// ## File format, version 4 (`.vhrec`)
 /// All integers and doubles are little-endian (IEEE-754 binary64 for doubles); the writer
 /// refuses to build on a big-endian host. The file is written append-only.
 ///
 ///   File header (24 bytes, then the metadata):
 ///     offset  size  field
 ///          0     8  magic "VHREC\r\n\x1a" (bytes 56 48 52 45 43 0d 0a 1a)
-///          8     4  uint32 format version (kRecordingFormatVersion = 3; readers accept 1, 2 and 3)
-///         12     4  uint32 record size in bytes (sizeof(TickRecord) = 200)
+///          8     4  uint32 format version (kRecordingFormatVersion = 4; readers accept 1 to 4)
+///         12     4  uint32 record size in bytes (sizeof(TickRecord) = 216; 200 in versions 1 to 3)
 ///         16     4  uint32 metadata length M in bytes
 ///         20     4  uint32 CRC-32 of the M metadata bytes
 ///         24     M  metadata: one UTF-8 JSON object (makeSessionMetadata(): scene, dataset and
 ///                   its SHA-256, tool, point shell, gains, device, software version; plus
 ///                   "servo_rate_Hz" and "start_time_utc" added by the writer)
-///   Then zero or more chunks, back to back, in any order, told apart by the tag; in version 3
-///   the last one is the end marker.
+///   Then zero or more chunks, back to back, in any order, told apart by the tag; from version 3
+///   on the last one is the end marker.
 ///   Record chunk:
 ///     offset  size  field
 ///          0     4  chunk tag "CHNK" (bytes 43 48 4e 4b)
 ///          4     4  uint32 record count N (1 .. 65535)
 ///          8     8  uint64 dropped records in total when the chunk was written (ring overflow)
-///         16  N*200 N TickRecord, each the byte image of the struct (layout below)
-///   16+N*200     4  uint32 CRC-32 of bytes [0, 16 + N*200) of the chunk
+///         16  N*R   N TickRecord, each the byte image of the struct (layout below; R = 216, or
+///                   200 in versions 1 to 3: the record up to and including flags)
+///   16+N*R       4  uint32 CRC-32 of bytes [0, 16 + N*R) of the chunk
 ///   Event chunk (version 2 only; written before the record chunk it was flushed with):
 ///     offset  size  field
 ///          0     4  chunk tag "EVNT" (bytes 45 56 4e 54)
@@ -42,7 +43,7 @@
 ///                     uint32  T, then T bytes: type, UTF-8 ("marker", "isovalue", ...)
 ///                     uint32  J, then J bytes: detail, UTF-8 JSON object text
 ///       12+B     4  uint32 CRC-32 of bytes [0, 12 + B) of the chunk
-///   End marker (version 3 only; written by close(), always the last chunk):
+///   End marker (versions 3 and 4; written by close(), always the last chunk):
 ///     offset  size  field
 ///          0     4  chunk tag "ENDR" (bytes 45 4e 44 52)
 ///          4     4  uint32 status: 0 = closed normally; else the errno of the write that failed
@@ -50,9 +51,11 @@
 ///          8     8  uint64 records written in total
 ///         16     8  uint64 dropped records in total (ring overflow)
 ///         24     4  uint32 CRC-32 of bytes [0, 24)
-///   Version 2 files are the same without the end marker; version 1 files also lack event chunks.
+///   Version 3 files are the same with 200-byte records (no proximity: a reader sets
+///   critical_distance_m to NaN and critical_segment to -1); version 2 files also lack the end
+///   marker; version 1 files also lack event chunks.
 ///
-///   TickRecord (tick_record.h; 200 bytes; all frames are the scene (world) frame W, SI units):
+///   TickRecord (tick_record.h; 216 bytes; all frames are the scene (world) frame W, SI units):
 ///     offset  field
 ///          0  double   time_s          servo time since the recording started [s]
 ///          8  double   p_WD_m[3]       device (tool) position in W [m]
@@ -66,13 +69,21 @@
 ///        184  double   tick_time_s     compute time of the tick [s]
 ///        192  uint32   contacts        contact set size
 ///        196  uint32   flags           kRecordFlag* bits (0..15), touched segment + 1 (16..31)
+///        200  double   critical_distance_m  point shell to the nearest critical segment [m]
+///                                      (critical_proximity.h; +inf: none within 20 mm)
+///        208  int32    critical_segment     that segment's index, or -1
+///        212  uint32   reserved        0
+///
+///   Why a new version rather than spare bits: the distance needs a double's range and
+///   precision (sub-millimetre near a nerve, +inf far away), and flags has 3 spare bits; events
+///   alone would lose the per-tick curve the report plots. 16 more bytes a tick (8%).
 ///
 /// CRC-32 is the ISO-HDLC / zlib one (reflected polynomial 0xEDB88320, init and final XOR
 /// 0xFFFFFFFF; crc32("123456789") = 0xCBF43926).
 ///
-/// Size: 200 bytes per tick plus 20 bytes per record chunk; at 1 kHz with the default
-/// 500-record chunks that is 200,040 bytes (about 195 KiB) per second of recording, about
-/// 720 MB per hour, plus the header (24 bytes + the metadata, typically 1-2 KiB) and the events
+/// Size: 216 bytes per tick plus 20 bytes per record chunk; at 1 kHz with the default
+/// 500-record chunks that is 216,040 bytes (about 211 KiB) per second of recording, about
+/// 778 MB per hour, plus the header (24 bytes + the metadata, typically 1-2 KiB) and the events
 /// (16 bytes of framing per event chunk, 24 bytes + type + detail per event, e.g. 57 bytes for
 /// an isovalue change {"from":400,"to":500}; sessions have a few per minute).
 ///
@@ -83,12 +94,15 @@
 /// "device_disconnected" / "device_connected" (the first record's state is in the metadata; a
 /// recording that starts disconnected gets a "device_disconnected" event at its first tick);
 /// kRecordFlagJam turning on / off gives "jam" / "jam_cleared"; a technique rule's bit
-/// (recordTechnique()) turning on gives "technique" {"rule":"force"|"speed"|"shaft"}.
+/// (recordTechnique()) turning on gives "technique" {"rule":"force"|"speed"|"shaft"}; the nearest
+/// critical segment's distance entering its warning / alarm distance (metadata's segments:
+/// "warn_mm", "alarm_mm") gives "proximity_warn" / "proximity_alarm" {"segment", "distance_mm"},
+/// leaving it "proximity_alarm_cleared" / "proximity_warn_cleared" {"segment", "to", "distance_mm"}.
 ///
 /// A crash (even `kill -9`) loses only the records not yet written: the writer flushes a chunk
 /// at least every RecordingWriterOptions::max_chunk_wall_s (< 1 s) and every chunk holds at most
 /// RecordingWriterOptions::chunk_records (< 1 s of ticks; the writer enforces it). Such a
-/// version 3 file lacks its end marker, and readRecording() says it is unfinished. A damaged
+/// version 3 or 4 file lacks its end marker, and readRecording() says it is unfinished. A damaged
 /// chunk costs that chunk only: readRecording() scans forward for the next chunk whose tag,
 /// header and CRC-32 check out, goes on from there and names the damage (bytes skipped, ticks
 /// missing) in a warning; a truncated tail is a warning too. A write that fails (disk full, file
@@ -116,7 +130,7 @@
 
 namespace vh::runtime {
 
-inline constexpr std::uint32_t kRecordingFormatVersion = 3;
+inline constexpr std::uint32_t kRecordingFormatVersion = 4;
 
 
 /// One timestamped event of a session (marker, isovalue change, tool change, device
@@ -219,6 +233,11 @@ class RecordingWriter {
   int previous_segment_ = -1;
   std::vector<std::string> segment_names_;      // from the metadata (constant)
   std::vector<bool> segment_critical_;
+  std::vector<ProximityThresholds> segment_thresholds_;  // from the metadata (constant)
+  ProximityLevel previous_level_ = ProximityLevel::kClear;  // writer thread: deriveEvents() state
+  int previous_critical_segment_ = -1;
+  /// The proximity level of a record against its segment's thresholds from the metadata.
+  ProximityLevel proximityLevelOf(const TickRecord& r) const noexcept;
   double previous_isovalue_ = 0.0;
   bool previous_disconnected_ = false;
   std::atomic<std::uint64_t> events_written_{0};
@@ -241,7 +260,7 @@ struct Recording {
   std::uint64_t dropped_records = 0;   ///< Ring overflows as of the last good record chunk.
   std::uint64_t bytes_ignored = 0;     ///< Bytes not read: damaged chunks skipped and a bad tail.
   std::size_t damaged_regions = 0;     ///< Damaged stretches skipped (each up to the next good chunk).
-  /// Version 3: the end marker was read (the writer closed the file). False for older versions.
+  /// Versions 3 and 4: the end marker was read (the writer closed the file). False for older versions.
   bool ended = false;
   /// The end marker's status: 0, or the errno of the write failure that ended the recording.
   std::uint32_t end_status = 0;
@@ -252,7 +271,7 @@ struct Recording {
 
 /// Reads every good chunk of a recording. A damaged chunk is skipped (the reader resumes at
 /// the next chunk whose tag, header and CRC-32 check out) and a truncated tail ignored, each
-/// with a warning naming the byte offset, the bytes and the ticks lost; a version 3 file
+/// with a warning naming the byte offset, the bytes and the ticks lost; a version 3 or 4 file
 /// without its end marker gets an "unfinished recording" warning.
 /// @throws std::runtime_error when the file cannot be opened, is not a recording (magic), has
 ///         an unsupported version or record size, or a damaged header / metadata.
@@ -261,7 +280,8 @@ Recording readRecording(const std::filesystem::path& path);
 /// One CSV row per record, header line with SI units:
 /// `t_s,tick,device_x_m,device_y_m,device_z_m,device_qw,device_qx,device_qy,device_qz,
 /// proxy_x_m,...,proxy_qz,force_x_N,force_y_N,force_z_N,torque_x_Nm,torque_y_Nm,torque_z_Nm,
-/// contacts,isovalue,tick_time_s,flags`. Doubles are written with 17 significant digits (they
+/// contacts,isovalue,tick_time_s,flags,critical_distance_m,critical_segment` (the distance
+/// "inf" beyond the range, "nan" where not measured). Doubles are written with 17 significant digits (they
 /// read back bit for bit).
 void writeRecordingCsv(const Recording& recording, std::ostream& out);
 /// The same to a file. @throws std::runtime_error when it cannot be written.
@@ -279,5 +299,13 @@ void writeRecordingJson(const Recording& recording, const std::filesystem::path&
 /// segment each record names (recordSegment()) and the segments its metadata lists
 /// ("scene": {"segmentation": {"segments": [{"name", "critical"}, ...]}}); empty when it has none.
 std::vector<SegmentContact> segmentContacts(const Recording& recording);
+
+/// Per critical segment of the metadata's segmentation (with its thresholds there; the defaults
+/// when absent): the time within its warning and alarm distances, the entries and the closest
+/// approach, from each record's nearest critical segment (TickRecord::critical_segment), each
+/// record lasting `dt_s`. Only the nearest critical segment is recorded per tick, so where two
+/// are within their warning distances at once, only the nearer counts then. A recording of
+/// format version 1 to 3 has no distances: every closest_m is NaN. Empty without critical segments.
+std::vector<SegmentProximityStats> segmentProximity(const Recording& recording, double dt_s);
 
 }  // namespace vh::runtime

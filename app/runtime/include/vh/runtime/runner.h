@@ -185,6 +185,9 @@ struct RunReport {
   /// Felt segments: time in contact, peak force and touches per segment of the
   /// scene's segmentation (empty without one).
   std::vector<SegmentContact> segment_contacts;
+  /// Critical segments (critical_proximity.h): per segment the time within its warning and
+  /// alarm distances, the entries and the closest approach ("proximity"; empty without any).
+  std::vector<SegmentProximityStats> proximity;
   /// Drilling: removed volume in all and per material / segment ("removed_mm3", "removed").
   std::optional<DrillReport> drill;
   double mean_volume_samples = 0.0;      ///< Trilinear samples per tick.

@@ -20,8 +20,10 @@
 #include <Eigen/Core>
 
 #include "vh/haptics/collision_detector.h"
+#include "vh/haptics/distance_field.h"
 #include "vh/haptics/scalar_volume.h"
 #include "vh/io/segmentation.h"
+#include "vh/runtime/critical_proximity.h"
 
 namespace vh::runtime {
 
@@ -33,20 +35,24 @@ struct SegmentationSpec {
   std::optional<std::vector<std::string>> shown;
   std::vector<std::string> critical;  ///< Segment names or IDs whose touch is an alert.
   double smoothing_voxels = 1.0;      ///< Sigma of the felt field's Gaussian [voxels of the segmentation].
+  ProximitySpec proximity;            ///< Warning and alarm distances of the critical segments.
 };
 
 /// A loaded segmentation and the choices made on it. Immutable and shared (the haptic threads
 /// read it while the GUI holds it).
 class SegmentSet {
  public:
+  /// Builds the felt field and one distance field per critical segment (critical_proximity.h).
   /// @param felt, shown, critical indices into seg.segments.
-  /// @throws std::invalid_argument for an index out of range or a bad smoothing (as
-  ///         io::segmentIndicatorField()).
+  /// @param thresholds per segment (one per seg.segments entry), or empty: the defaults.
+  /// @throws std::invalid_argument for an index out of range, a bad smoothing (as
+  ///         io::segmentIndicatorField()), a thresholds list of the wrong length or bad thresholds.
   SegmentSet(io::LoadedSegmentation seg, std::vector<int> felt, std::vector<int> shown, std::vector<int> critical,
-             double smoothing_voxels);
+             double smoothing_voxels, std::vector<ProximityThresholds> thresholds = {});
 
   /// Resolves the spec's names against `seg` (names or IDs, case-insensitive) and builds the set.
-  /// @throws std::runtime_error naming `source` and the unknown segment, listing those there are.
+  /// @throws std::runtime_error naming `source` and the unknown segment, listing those there are,
+  ///         or a segment given thresholds ("proximity.per_segment") that is not critical.
   static std::shared_ptr<const SegmentSet> fromSpec(io::LoadedSegmentation seg, const SegmentationSpec& spec,
                                                     const std::string& source);
 
@@ -60,6 +66,18 @@ class SegmentSet {
   bool isShown(int s) const noexcept;
   bool isCritical(int s) const noexcept;
   double smoothingVoxels() const noexcept { return smoothing_voxels_; }
+  /// One distance field per critical segment, in critical()'s order (critical_proximity.h).
+  const std::vector<std::shared_ptr<const haptics::DistanceField>>& criticalFields() const noexcept {
+    return critical_fields_;
+  }
+  /// The warning and alarm distances of segment s (meaningful for critical ones).
+  const ProximityThresholds& thresholds(int s) const { return thresholds_.at(static_cast<std::size_t>(s)); }
+  /// All of them, one per segment.
+  const std::vector<ProximityThresholds>& proximityThresholds() const noexcept { return thresholds_; }
+  /// The same set with other thresholds (one per segment), sharing the felt and distance fields
+  /// (cheap: what the GUI calls when a threshold is changed).
+  /// @throws std::invalid_argument for the wrong length or bad thresholds.
+  std::shared_ptr<const SegmentSet> withThresholds(std::vector<ProximityThresholds> thresholds) const;
   /// The felt field (null when no segment is felt); its surface is F = io::kSegmentSurfaceLevel.
   const std::shared_ptr<const haptics::ScalarVolume>& feltField() const noexcept { return felt_field_; }
 
@@ -78,6 +96,10 @@ class SegmentSet {
   std::vector<int> felt_, shown_, critical_;
   double smoothing_voxels_ = 1.0;
   std::shared_ptr<const haptics::ScalarVolume> felt_field_;
+  std::vector<std::shared_ptr<const haptics::DistanceField>> critical_fields_;
+  std::vector<ProximityThresholds> thresholds_;
+  SegmentSet() = default;
+  void setThresholds(std::vector<ProximityThresholds> thresholds);
   struct FeltLabel {
     int segment = -1;
     int layer = 0;

@@ -135,6 +135,9 @@ struct SessionMetrics {
   /// "technique" events per rule (technique.h: force, speed, shaft): the feedback the trainee got.
   std::array<std::uint64_t, kTechniqueRuleCount> technique_events{};
   std::vector<SegmentMetrics> segments;  ///< Per segment of the metadata's segmentation.
+  /// Per critical segment: time within its warning and alarm distances, entries, closest
+  /// approach (segmentProximity(); closest_m NaN for a recording that did not measure it).
+  std::vector<SegmentProximityStats> proximity;
   /// What the reader and the metrics could not do: the recording's warnings (a truncated or
   /// damaged tail), no records, no servo rate.
   std::vector<std::string> notices;

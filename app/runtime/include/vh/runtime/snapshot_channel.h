@@ -18,6 +18,7 @@
 /// torques [N*m] in W on the user's hand.
 
 #include <array>
+#include <limits>
 #include <cstdint>
 
 #include <Eigen/Core>
@@ -57,6 +58,8 @@ struct SolverSnapshot {
   int contacts = 0;                ///< Contact set size after the tick.
   int contacts_shown = 0;          ///< Entries filled in contact_p_W_m / contact_n_W.
   int segment = -1;                ///< Segment the contacts touch (SegmentSet::segmentOf()), or -1.
+  int critical_segment = -1;       ///< HapticSnapshot::critical_segment and the one below.
+  double critical_distance_m = std::numeric_limits<double>::infinity();
   bool burr_on = false;            ///< HapticSnapshot::burr_on and the three below.
   double burr_force_N = 0.0;
   double burr_specific_energy_J_per_mm3 = 0.0;

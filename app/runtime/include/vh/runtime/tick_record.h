@@ -3,7 +3,9 @@
 /// One servo tick of a session recording (recording.h): the fixed-size record whose byte image
 /// the `.vhrec` file stores, and the meaning of its flag bits.
 
+#include <cstddef>
 #include <cstdint>
+#include <limits>
 #include <type_traits>
 
 namespace vh::runtime {
@@ -85,9 +87,18 @@ struct TickRecord {
   double tick_time_s = 0.0;             ///< Compute time of the tick [s].
   std::uint32_t contacts = 0;           ///< Contact set size.
   std::uint32_t flags = 0;              ///< kRecordFlag* bits; bits 16..31: recordSegment().
+  /// Distance from the proxy's point shell to the nearest critical segment's voxel centres
+  /// after the tick [m] (critical_proximity.h): +infinity when none is within
+  /// kProximityRange_m (or the scene has none); NaN when not measured (format versions 1 to 3).
+  double critical_distance_m = std::numeric_limits<double>::infinity();
+  std::int32_t critical_segment = -1;   ///< That segment (index into the scene's segments), or -1.
+  std::uint32_t reserved = 0;           ///< 0 (keeps the record a multiple of 8 bytes).
 };
 static_assert(std::is_trivially_copyable_v<TickRecord>);
 static_assert(std::is_standard_layout_v<TickRecord>);
-static_assert(sizeof(TickRecord) == 200, "the file format stores 200-byte records");
+static_assert(sizeof(TickRecord) == 216, "the file format (version 4) stores 216-byte records");
+/// The record of format versions 1 to 3: TickRecord up to and including flags.
+inline constexpr std::size_t kTickRecordBytesV3 = 200;
+static_assert(offsetof(TickRecord, critical_distance_m) == kTickRecordBytesV3);
 
 }  // namespace vh::runtime
