@@ -152,6 +152,34 @@ TEST(SegmentsPanel, ShowsTheSegmentsAndEmitsTheChoicesTicked) {
   fs::remove_all(dir);
 }
 
+// A critical segment's warning and alarm distances in the panel: shown in mm from the set, an
+// edit within 0 < alarm <= warn <= 20 mm is taken into the choices (in metres), anything else is
+// put back without a signal.
+TEST(SegmentsPanel, TheWarningAndAlarmDistancesAreEditedWithinTheirRange) {
+  const fs::path dir = writeCase("thresholds");
+  const runtime::LoadedScene scene = loadCase(dir, true);
+  SegmentsPanel panel;
+  panel.showSegments(scene.segments.get());
+  QTableWidget* table = panel.table();
+  EXPECT_EQ(table->item(0, SegmentsPanel::kWarn)->text(), "2");
+  EXPECT_EQ(table->item(0, SegmentsPanel::kAlarm)->text(), "1");
+  QSignalSpy spy(&panel, &SegmentsPanel::choicesChanged);
+  table->item(0, SegmentsPanel::kWarn)->setText("3.5");
+  ASSERT_EQ(spy.count(), 1);
+  const auto chosen = spy.takeFirst().at(0).value<SegmentChoices>();
+  ASSERT_EQ(chosen.thresholds.size(), 2u);
+  EXPECT_DOUBLE_EQ(chosen.thresholds[0].warn_m, 3.5e-3);
+  EXPECT_DOUBLE_EQ(chosen.thresholds[0].alarm_m, 1e-3);
+  for (const char* refused : {"25", "0", "-1", "abc"}) {
+    table->item(0, SegmentsPanel::kWarn)->setText(refused);
+    EXPECT_EQ(table->item(0, SegmentsPanel::kWarn)->text(), "3.5") << refused << " is put back";
+  }
+  table->item(0, SegmentsPanel::kAlarm)->setText("4");  // above the warning distance
+  EXPECT_EQ(table->item(0, SegmentsPanel::kAlarm)->text(), "1");
+  EXPECT_EQ(spy.count(), 0) << "nothing refused is emitted";
+  fs::remove_all(dir);
+}
+
 /// A main window stand-in: the scene view as the central widget, the session, the controller.
 struct Host {
   Host() {
@@ -196,6 +224,13 @@ TEST(SegmentsController, OpensASegmentationAppliesChoicesAndAlertsOnACriticalTou
   EXPECT_EQ(host.session.live().segmentation->critical, std::vector<std::string>{"nerve"});
   EXPECT_EQ(host.view->segmentSurfaces()->shownSegments(), std::vector<int>{0});
   ASSERT_NE(host.session.hapticThread(), nullptr) << "the threads are rebuilt on the nerve's surface";
+  // The panel's distances reach the session's segments and the scene's spec (the nerve's own).
+  choices.thresholds = {runtime::ProximityThresholds{4e-3, 2e-3}, runtime::ProximityThresholds{}};
+  ASSERT_TRUE(host.controller->apply(choices));
+  EXPECT_DOUBLE_EQ(host.session.live().segments->thresholds(0).warn_m, 4e-3);
+  EXPECT_DOUBLE_EQ(host.session.live().segments->thresholds(0).alarm_m, 2e-3);
+  ASSERT_EQ(host.session.live().segmentation->proximity.per_segment.count("nerve"), 1u);
+  EXPECT_EQ(host.session.live().segmentation->proximity.per_segment.size(), 1u);
 
   // A snapshot touching the nerve: the alert; leaving it: none. The beep (the window's alert
   // tone) only with the panel's sound ticked.
@@ -214,7 +249,7 @@ TEST(SegmentsController, OpensASegmentationAppliesChoicesAndAlertsOnACriticalTou
   QCheckBox* sound = nullptr;
   QCheckBox* burr_sound = nullptr;
   for (QCheckBox* box : host.controller->panel()->findChildren<QCheckBox*>()) {
-    if (box->text() == "Sound when a critical segment is touched") sound = box;
+    if (box->text() == "Alert sounds (critical segment near or touched, technique)") sound = box;
     if (box->text() == "Burr sound") burr_sound = box;
   }
   ASSERT_NE(sound, nullptr);

@@ -19,11 +19,13 @@
 #include <QCheckBox>
 #include <QImage>
 #include <QMainWindow>
+#include <QSignalSpy>
 #include <QStatusBar>
 #include <QTableWidget>
 
 #include <gtest/gtest.h>
 #include <vtkActor.h>
+#include <vtkProperty.h>
 
 #include "ui_test_util.h"
 #include "vh/haptics/point_shell.h"
@@ -32,6 +34,7 @@
 #include "vh/ui/devices/device_input.h"
 #include "vh/ui/panels/segments_panel.h"
 #include "vh/ui/preferences.h"
+#include "vh/ui/proximity_alerts.h"
 #include "vh/ui/segments_controller.h"
 #include "vh/ui/view/device_manipulation.h"
 #include "vh/ui/view/scene_frames.h"
@@ -340,7 +343,7 @@ TEST(SegmentsSounds, TheSoundBoxesAreRememberedInThePreferences) {
     return static_cast<QCheckBox*>(nullptr);
   };
   QCheckBox* burr = box(*host.controller, "Burr sound");
-  QCheckBox* alert = box(*host.controller, "Sound when a critical segment is touched");
+  QCheckBox* alert = box(*host.controller, "Alert sounds (critical segment near or touched, technique)");
   ASSERT_NE(burr, nullptr);
   ASSERT_NE(alert, nullptr);
   EXPECT_FALSE(host.prefs.burr_sound);
@@ -361,6 +364,76 @@ TEST(SegmentsSounds, TheSoundBoxesAreRememberedInThePreferences) {
   box(reopened, "Burr sound")->click();
   EXPECT_FALSE(remembered.burr_sound);
   EXPECT_TRUE(host.prefs.burr_sound) << "each window writes its own preferences";
+}
+
+}  // namespace
+}  // namespace vh::ui
+
+namespace vh::ui {
+namespace {
+
+// Warnings before harm in the window: a snapshot's nearest critical distance against the
+// segment's own thresholds (3 mm / 1.5 mm here, not the defaults) gives the level the view
+// colours the tool with, a status line naming the structure and the distance, and a cue whose
+// rate follows proximityCueRate_Hz(); leaving the warning distance stops the cue.
+TEST(ProximityAlerts, TheSegmentsThresholdsColourTheToolNameTheDistanceAndPaceTheCue) {
+  SegmentsHost host;
+  const Ball nerve{Eigen::Vector3d(0.0, 0.0, 0.0), 0.004, "facial nerve", {0.9, 0.8, 0.2}};
+  const auto plain = std::make_shared<const runtime::SegmentSet>(ballsSegmentation({nerve}), std::vector<int>{},
+                                                                 std::vector<int>{0}, std::vector<int>{0}, 1.0);
+  const auto set = plain->withThresholds({runtime::ProximityThresholds{3e-3, 1.5e-3}});
+  ProximityAlerts alerts;
+  QSignalSpy levels(&alerts, &ProximityAlerts::levelChanged);
+  QSignalSpy messages(&alerts, &ProximityAlerts::message);
+  QSignalSpy cues(&alerts, &ProximityAlerts::cueChanged);
+  QObject::connect(&alerts, &ProximityAlerts::levelChanged, host.view,
+                   [&](runtime::ProximityLevel level) { host.view->setToolProximity(static_cast<int>(level)); });
+  const auto at = [&](double distance_m) {
+    runtime::HapticSnapshot s;
+    s.critical_segment = 0;
+    s.critical_distance_m = distance_m;
+    alerts.showSnapshot(s, set.get());
+  };
+  const auto toolColour = [&] {
+    double rgb[3];
+    host.view->actors().proxyActor()->GetProperty()->GetColor(rgb);
+    return Eigen::Vector3d(rgb[0], rgb[1], rgb[2]);
+  };
+  const Eigen::Vector3d steel = toolColour();
+  at(0.005);
+  EXPECT_EQ(levels.count(), 0);
+  EXPECT_EQ(messages.count(), 0);
+  at(0.0025);  // inside 3 mm, outside 1.5 mm: a warning (the default 2 mm would not warn)
+  ASSERT_EQ(levels.count(), 1);
+  EXPECT_EQ(alerts.level(), runtime::ProximityLevel::kWarn);
+  ASSERT_EQ(messages.count(), 1);
+  EXPECT_EQ(messages.at(0).at(0).toString().toStdString(), "facial nerve 2.5 mm (warning within 3.0 mm)");
+  ASSERT_EQ(cues.count(), 1);
+  EXPECT_TRUE(cues.at(0).at(0).toBool());
+  EXPECT_NEAR(cues.at(0).at(1).toDouble(), 2.0 + 8.0 * (1.0 - 2.5 / 3.0), 1e-9);
+  const Eigen::Vector3d amber = toolColour();
+  EXPECT_GT((amber - steel).norm(), 0.3) << "the warned tool looks different";
+  at(0.001);
+  EXPECT_EQ(alerts.level(), runtime::ProximityLevel::kAlarm);
+  EXPECT_NE(alerts.text().find("ALARM within 1.5 mm"), std::string::npos) << alerts.text();
+  EXPECT_GT(cues.last().at(1).toDouble(), cues.at(0).at(1).toDouble()) << "nearer: faster";
+  const Eigen::Vector3d red = toolColour();
+  EXPECT_GT(red.x(), red.y() + 0.5);
+  EXPECT_GT((red - amber).norm(), 0.3);
+  at(std::numeric_limits<double>::infinity());  // out of range
+  EXPECT_EQ(alerts.level(), runtime::ProximityLevel::kClear);
+  EXPECT_FALSE(cues.last().at(0).toBool()) << "the cue stops";
+  EXPECT_LT((toolColour() - steel).norm(), 1e-12);
+  // Without segments (or another scene's index), nothing is warned.
+  runtime::HapticSnapshot stale;
+  stale.critical_segment = 3;
+  stale.critical_distance_m = 0.0;
+  alerts.showSnapshot(stale, set.get());
+  alerts.showSnapshot(stale, nullptr);
+  EXPECT_EQ(alerts.level(), runtime::ProximityLevel::kClear);
+  EXPECT_LT(proximityCueRate_Hz(0.0019, 0.002), proximityCueRate_Hz(0.0001, 0.002));
+  EXPECT_DOUBLE_EQ(proximityCueRate_Hz(0.0, 0.002), 10.0);
+  EXPECT_DOUBLE_EQ(proximityCueRate_Hz(0.002, 0.002), 2.0);
 }
 
 }  // namespace

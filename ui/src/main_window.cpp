@@ -38,6 +38,7 @@
 #include "vh/ui/scene_opener.h"
 #include "vh/ui/panels/segments_panel.h"
 #include "vh/ui/segments_controller.h"
+#include "vh/ui/proximity_alerts.h"
 #include "vh/ui/technique_alerts.h"
 #include "vh/ui/sound_output.h"
 #include "vh/ui/drill_controller.h"
@@ -168,6 +169,7 @@ void MainWindow::buildDocks() {
   drill_ = new DrillController(session_, *view_, this);
   sound_ = new SoundOutput(this);
   technique_ = new TechniqueAlerts(this);
+  proximity_ = new ProximityAlerts(this);
   // Display, Segments and Haptics share the right side as tabs (Haptics in front): together they
   // would be taller than a laptop screen.
   tabifyDockWidget(display_dock_, segments_->dock());
@@ -195,6 +197,11 @@ void MainWindow::connectSound() {
   connect(technique_, &TechniqueAlerts::alertRequested, sound_, [this, alert] {
     if (segments_->panel()->alertSound()) alert();
   });
+  connect(proximity_, &ProximityAlerts::cueChanged, sound_, [this](bool on, double rate_Hz) {
+    if (on && !segments_->panel()->alertSound()) return;
+    if (on) sound_->start();
+    sound_->setProximityCue(on, rate_Hz);
+  });
 }
 
 void MainWindow::connectParts() {
@@ -209,6 +216,7 @@ void MainWindow::connectParts() {
           [this](const runtime::HapticSnapshot& snap, bool update_status_now) {
             segments_->showSnapshot(snap);
             technique_->showSnapshot(snap);
+            proximity_->showSnapshot(snap, session_.live().segments.get());
             followSound(snap);
             if (chart_dock_->isVisible()) chart_->addSnapshot(snap);
             if (--status_countdown_ <= 0 || update_status_now) {
@@ -227,6 +235,9 @@ void MainWindow::connectParts() {
   connect(drill_, &DrillController::message, this, show_message);
   connect(sound_, &SoundOutput::message, this, show_message);
   connect(technique_, &TechniqueAlerts::message, this, show_message);
+  connect(proximity_, &ProximityAlerts::message, this, show_message);
+  connect(proximity_, &ProximityAlerts::levelChanged, view_,
+          [this](runtime::ProximityLevel level) { view_->setToolProximity(static_cast<int>(level)); });
   connectSound();
   connect(device_input_, &DeviceInput::message, this, show_message);
   view_controller_->setCarvedRegion(&drill_->carved());

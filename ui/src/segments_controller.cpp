@@ -1,6 +1,8 @@
 // Segments in the main window (see segments_controller.h).
 #include "vh/ui/segments_controller.h"
 
+#include <algorithm>
+
 #include <QApplication>
 #include <QDockWidget>
 #include <QFileDialog>
@@ -147,8 +149,17 @@ bool SegmentsController::apply(const SegmentChoices& choices) {
   spec.smoothing_voxels = choices.smoothing_voxels;
   try {
     WaitCursor wait;
+    // The distances as the table has them; those other than the scene's default are the spec's own.
+    spec.proximity.per_segment.clear();
+    for (std::size_t s = 0; s < choices.thresholds.size() && s < seg.segments.size(); ++s) {
+      const runtime::ProximityThresholds& t = choices.thresholds[s];
+      const bool critical = std::find(choices.critical.begin(), choices.critical.end(), static_cast<int>(s)) !=
+                            choices.critical.end();  // the file takes distances of critical segments only
+      if (critical && (t.warn_m != spec.proximity.defaults.warn_m || t.alarm_m != spec.proximity.defaults.alarm_m))
+        spec.proximity.per_segment[seg.segments[s].name] = t;
+    }
     auto set = std::make_shared<const runtime::SegmentSet>(seg, choices.felt, choices.shown, choices.critical,
-                                                           choices.smoothing_voxels);
+                                                           choices.smoothing_voxels, choices.thresholds);
     session_.setSegments(std::move(set), spec);
   } catch (const std::exception& e) {
     emit errorReported("Segments", q(e.what()));

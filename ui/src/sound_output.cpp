@@ -181,6 +181,11 @@ void SoundOutput::beep() {
   fillRing();
 }
 
+void SoundOutput::setProximityCue(bool on, double rate_Hz) {
+  mixer_->alert().setRepeating(on, rate_Hz);
+  if (sink_ != nullptr || render_always_) fillRing();
+}
+
 void SoundOutput::fillRing() {
   const auto lead = static_cast<std::size_t>(kLead_s * kSampleRate_Hz);
   while (ring_.size() < lead) {

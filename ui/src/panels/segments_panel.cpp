@@ -27,25 +27,54 @@ QIcon swatch(const std::array<double, 3>& rgb) {
 
 }  // namespace
 
+void SegmentsPanel::buildTable() {
+  table_ = new QTableWidget(0, 7, this);
+  table_->setHorizontalHeaderLabels({"Segment", "Felt", "Shown", "Critical", "Hardness", "Warn mm", "Alarm mm"});
+  table_->horizontalHeaderItem(kFelt)->setToolTip("Feel this segment's surface instead of the scan's isosurface");
+  table_->horizontalHeaderItem(kShown)->setToolTip("Draw this segment as a coloured surface beside the scan");
+  table_->horizontalHeaderItem(kCritical)->setToolTip(
+      "Alert (and record an event) when the tool touches it, and warn as the tool comes near it");
+  table_->horizontalHeaderItem(kHardness)->setToolTip(
+      "Drilling: the energy to remove 1 mm^3 [J/mm^3] (double-click to edit); empty: from the segment's HU "
+      "(cortical bone 2.0, cancellous 0.6, soft tissue 0.1)");
+  table_->horizontalHeaderItem(kWarn)->setToolTip(
+      "A critical segment: warn (amber tool, status, a cue beeping faster as you near it) within this distance "
+      "of the tool's surface [mm], at most 20 (double-click to edit)");
+  table_->horizontalHeaderItem(kAlarm)->setToolTip(
+      "A critical segment: alarm (red tool) within this distance [mm], at most the warning distance");
+  table_->horizontalHeader()->setSectionResizeMode(kName, QHeaderView::Stretch);
+  for (int c = kFelt; c <= kAlarm; ++c) table_->horizontalHeader()->setSectionResizeMode(c, QHeaderView::ResizeToContents);
+  table_->verticalHeader()->hide();
+  table_->setSelectionMode(QAbstractItemView::NoSelection);
+  // Hardness and the distances only.
+  table_->setEditTriggers(QAbstractItemView::DoubleClicked | QAbstractItemView::EditKeyPressed);
+}
+
+bool SegmentsPanel::takeThreshold(QTableWidgetItem* item) {
+  const int r = item->row();
+  QTableWidgetItem* warn = table_->item(r, kWarn);
+  QTableWidgetItem* alarm = table_->item(r, kAlarm);
+  bool ok_warn = false, ok_alarm = false;
+  const double warn_mm = warn != nullptr ? warn->text().trimmed().toDouble(&ok_warn) : 0.0;
+  const double alarm_mm = alarm != nullptr ? alarm->text().trimmed().toDouble(&ok_alarm) : 0.0;
+  const bool taken = ok_warn && ok_alarm && alarm_mm > 0.0 && alarm_mm <= warn_mm &&
+                     warn_mm <= runtime::kProximityRange_m * 1e3;
+  const QSignalBlocker block(table_);
+  if (!taken) {
+    item->setText(item->data(Qt::UserRole).toString());  // refused: back to what it was
+    return false;
+  }
+  item->setData(Qt::UserRole, item->text());
+  return true;
+}
+
 SegmentsPanel::SegmentsPanel(QWidget* parent) : QWidget(parent) {
   auto* layout = new QVBoxLayout(this);
   open_ = new QPushButton("Open Segmentation...", this);
   open_->setToolTip("A 3D Slicer segmentation (.seg.nrrd) or a label-map NRRD on the open scan's patient frame");
   source_ = new QLabel(this);
   source_->setWordWrap(true);
-  table_ = new QTableWidget(0, 5, this);
-  table_->setHorizontalHeaderLabels({"Segment", "Felt", "Shown", "Critical", "Hardness"});
-  table_->horizontalHeaderItem(kFelt)->setToolTip("Feel this segment's surface instead of the scan's isosurface");
-  table_->horizontalHeaderItem(kShown)->setToolTip("Draw this segment as a coloured surface beside the scan");
-  table_->horizontalHeaderItem(kCritical)->setToolTip("Alert (and record an event) when the tool touches it");
-  table_->horizontalHeaderItem(kHardness)->setToolTip(
-      "Drilling: the energy to remove 1 mm^3 [J/mm^3] (double-click to edit); empty: from the segment's HU "
-      "(cortical bone 2.0, cancellous 0.6, soft tissue 0.1)");
-  table_->horizontalHeader()->setSectionResizeMode(kName, QHeaderView::Stretch);
-  for (int c = kFelt; c <= kHardness; ++c) table_->horizontalHeader()->setSectionResizeMode(c, QHeaderView::ResizeToContents);
-  table_->verticalHeader()->hide();
-  table_->setSelectionMode(QAbstractItemView::NoSelection);
-  table_->setEditTriggers(QAbstractItemView::DoubleClicked | QAbstractItemView::EditKeyPressed);  // hardness only
+  buildTable();
   auto* form = new QFormLayout;
   smoothing_ = new RangeSpinBox("the smoothing", this);
   smoothing_->setRange(0.0, 3.0);
@@ -59,7 +88,9 @@ SegmentsPanel::SegmentsPanel(QWidget* parent) : QWidget(parent) {
   through_scan_->setObjectName("segmentsThroughScan");
   through_scan_->setToolTip("A segment inside the body is hidden by the scan's surface: draw the shown segments in "
                             "front of it (the tool stays in front of the segments where it is nearer)");
-  sound_ = new QCheckBox("Sound when a critical segment is touched", this);
+  sound_ = new QCheckBox("Alert sounds (critical segment near or touched, technique)", this);
+  sound_->setToolTip("Beep when a critical segment is touched or a technique rule fires, and beep faster and "
+                     "faster while the tool is within a critical segment's warning distance");
   burr_sound_ = new QCheckBox("Burr sound", this);
   burr_sound_->setToolTip("Play the drilling burr's sound: its pitch falls as you push and with the hardness "
                           "of what it cuts, it grows louder with the volume removed per second");
@@ -90,6 +121,10 @@ SegmentsPanel::SegmentsPanel(QWidget* parent) : QWidget(parent) {
         const QSignalBlocker block(table_);
         item->setText(item->data(Qt::UserRole).toString());  // refused: back to what it was
       }
+      return;
+    }
+    if (item != nullptr && (item->column() == kWarn || item->column() == kAlarm)) {
+      if (takeThreshold(item)) emit choicesChanged(choices());
       return;
     }
     emit choicesChanged(choices());
@@ -150,6 +185,13 @@ void SegmentsPanel::showSegments(const runtime::SegmentSet* set) {
     hardness->setFlags(Qt::ItemIsEnabled | Qt::ItemIsEditable);
     hardness->setToolTip("J/mm^3; empty: from the segment's HU");
     table_->setItem(s, kHardness, hardness);
+    const runtime::ProximityThresholds& t = set->thresholds(s);
+    for (const auto& [column, mm] : {std::pair{kWarn, t.warn_m * 1e3}, std::pair{kAlarm, t.alarm_m * 1e3}}) {
+      auto* cell = new QTableWidgetItem(QString::number(mm, 'g', 3));
+      cell->setFlags(Qt::ItemIsEnabled | Qt::ItemIsEditable);
+      cell->setData(Qt::UserRole, cell->text());
+      table_->setItem(s, column, cell);
+    }
     names_.push_back(q(info.name));
     ids_.push_back(q(info.id));
     critical_.push_back(set->isCritical(s));
@@ -212,6 +254,11 @@ SegmentChoices SegmentsPanel::choices() const {
     if (on(kFelt)) c.felt.push_back(r);
     if (on(kShown)) c.shown.push_back(r);
     if (on(kCritical)) c.critical.push_back(r);
+    const auto mm = [&](Column col) {
+      const QTableWidgetItem* item = table_->item(r, col);
+      return item != nullptr ? item->data(Qt::UserRole).toString().toDouble() * 1e-3 : 0.0;
+    };
+    c.thresholds.push_back({mm(kWarn), mm(kAlarm)});
   }
   return c;
 }

@@ -806,6 +806,12 @@ vtkActor* SceneActors::gapLineActor() const noexcept { return gap_actor_; }
 vtkVolume* SceneActors::volume() const noexcept { return volume_; }
 vtkGPUVolumeRayCastMapper* SceneActors::volumeMapper() const noexcept { return volume_mapper_; }
 vtkActor* SceneActors::proxyActor() const noexcept { return proxy_actor_; }
+
+void SceneActors::setProximityLevel(int level) {
+  static constexpr double kAmber[3] = {1.0, 0.72, 0.18}, kRed[3] = {0.95, 0.22, 0.18};
+  const double* c = level >= 2 ? kRed : level == 1 ? kAmber : kSteel;
+  proxy_actor_->GetProperty()->SetColor(c[0], c[1], c[2]);
+}
 vtkActor* SceneActors::deviceActor() const noexcept { return device_actor_; }
 vtkActor* SceneActors::contactActor() const noexcept { return contact_actor_; }
 vtkActor* SceneActors::forceActor() const noexcept { return force_actor_; }

@@ -270,6 +270,12 @@ void SceneView::setTouchedSegment(int segment, const std::string& alert) {
   requestRender();
 }
 
+void SceneView::setToolProximity(int level) {
+  if (actors_ == nullptr) return;
+  actors_->setProximityLevel(level);
+  requestRender();
+}
+
 std::string SceneView::alertText() const {
   return alert_ != nullptr && alert_->GetVisibility() && alert_->GetInput() != nullptr ? alert_->GetInput() : "";
 }

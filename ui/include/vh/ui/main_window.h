@@ -54,6 +54,7 @@ class SceneLoader;
 class SceneOpener;
 class SegmentsController;
 class TechniqueAlerts;
+class ProximityAlerts;
 class DrillController;
 class SessionRecorder;
 class StatusLine;
@@ -180,6 +181,7 @@ class MainWindow : public QMainWindow {
   StripChart* chart_ = nullptr;
   SoundOutput* sound_ = nullptr;  // the burr and the alerts; opened at its first use
   TechniqueAlerts* technique_ = nullptr;  // technique feedback: status and alert tone
+  ProximityAlerts* proximity_ = nullptr;  // warnings before harm: tool colour, status, cue
   SessionRecorder* recorder_ = nullptr;
   ReplayController* replay_ = nullptr;
   QDockWidget* display_dock_ = nullptr;

@@ -64,6 +64,9 @@ class SoundOutput : public QObject {
   /// One alert beep over the burr (a critical segment touched); without an output,
   /// QApplication::beep().
   void beep();
+  /// The proximity cue: while `on`, the alert beeps `rate_Hz` times a second over the burr
+  /// (audio::AlertTone::setRepeating()); off stops it. Without an output, silent.
+  void setProximityCue(bool on, double rate_Hz);
 
   /// Tests: fill the ring on follow() although nothing plays it, and read it through source().
   void renderWithoutOutput() noexcept { render_always_ = true; }

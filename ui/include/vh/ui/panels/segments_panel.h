@@ -15,6 +15,8 @@
 #include <QMetaType>
 #include <QWidget>
 
+#include "vh/runtime/critical_proximity.h"
+
 #include "vh/runtime/segments.h"
 #include "vh/ui/panels/range_spin_box.h"
 
@@ -22,6 +24,7 @@ class QCheckBox;
 class QLabel;
 class QPushButton;
 class QTableWidget;
+class QTableWidgetItem;
 
 namespace vh::ui {
 
@@ -29,6 +32,8 @@ namespace vh::ui {
 struct SegmentChoices {
   std::vector<int> felt, shown, critical;
   double smoothing_voxels = 1.0;
+  /// Warning and alarm distances per segment (one per row; used for the critical ones) [m].
+  std::vector<runtime::ProximityThresholds> thresholds;
   bool operator==(const SegmentChoices&) const = default;
 };
 
@@ -37,7 +42,7 @@ class SegmentsPanel : public QWidget {
 
  public:
   /// Table columns.
-  enum Column { kName = 0, kFelt = 1, kShown = 2, kCritical = 3, kHardness = 4 };
+  enum Column { kName = 0, kFelt = 1, kShown = 2, kCritical = 3, kHardness = 4, kWarn = 5, kAlarm = 6 };
 
   explicit SegmentsPanel(QWidget* parent = nullptr);
 
@@ -82,7 +87,7 @@ class SegmentsPanel : public QWidget {
   void throughScanToggled(bool on);
   /// "Burr sound" was switched.
   void burrSoundToggled(bool on);
-  /// "Sound when a critical segment is touched" was switched.
+  /// "Alert sounds (critical segment near or touched, technique)" was switched.
   void alertSoundToggled(bool on);
 
  private:
@@ -99,6 +104,11 @@ class SegmentsPanel : public QWidget {
   std::vector<bool> critical_;
   int touched_segment_ = -1;
   bool filling_ = false;
+
+  void buildTable();
+  /// A warning or alarm cell was edited: taken when 0 < alarm <= warn <= 20 mm, else put back.
+  /// @return whether it was taken.
+  bool takeThreshold(QTableWidgetItem* item);
 };
 
 }  // namespace vh::ui

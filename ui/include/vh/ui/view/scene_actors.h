@@ -187,6 +187,9 @@ class SceneActors {
   vtkVolume* volume() const noexcept;
   vtkGPUVolumeRayCastMapper* volumeMapper() const noexcept;
   vtkActor* proxyActor() const noexcept;
+  /// The proxy tool's colour by its nearest critical segment: 0 steel (clear), 1 amber (within the
+  /// warning distance), 2 red (within the alarm distance).
+  void setProximityLevel(int level);
   vtkActor* deviceActor() const noexcept;
   vtkActor* contactActor() const noexcept;
   vtkActor* forceActor() const noexcept;

@@ -73,6 +73,8 @@ class SceneView : public QObject {
   /// Emphasises the touched segment (-1: none); a non-empty `alert` is shown in red at the top
   /// of the view (a critical segment touched), an empty one hides it.
   void setTouchedSegment(int segment, const std::string& alert);
+  /// The tool coloured by its nearest critical segment (SceneActors::setProximityLevel()).
+  void setToolProximity(int level);
   /// The segment surfaces (null before the first scene).
   const SegmentSurfaces* segmentSurfaces() const noexcept { return segments_.get(); }
   /// Draws the shown segments through the scan (`on`), in front of its surface, which hides a
