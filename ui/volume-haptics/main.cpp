@@ -155,6 +155,7 @@ struct RunArgs {
   std::string guide;
   vh::haptics::GuidanceGains guide_gains;
   vh::runtime::HandImpedance hand;
+  CLI::Option* hand_option = nullptr;
 };
 
 /// `run`'s guidance options (--guide and the spring's settings, the simulated hand).
@@ -182,11 +183,11 @@ void addGuideOptions(CLI::App& run, RunArgs& a) {
   run.add_option("--guide-repetition", a.guide_gains.repetition, "Which repetition this run is (0: the first)")
       ->capture_default_str()
       ->check(CLI::NonNegativeNumber);
-  run.add_option("--hand-stiffness-N-per-m", a.hand.stiffness_N_per_m,
-                 "With --guide: the simulated trainee's hand stiffness about its intended motion [N/m] (mass 0.5 kg, "
-                 "damping 20 N s/m)")
-      ->capture_default_str()
-      ->check(CLI::PositiveNumber);
+  a.hand_option = run.add_option("--hand-stiffness-N-per-m", a.hand.stiffness_N_per_m,
+                                 "The simulated hand's stiffness about the trajectory, its intended motion [N/m] (mass "
+                                 "0.5 kg, damping 20 N s/m): the device yields to the force it commands; on with "
+                                 "--guide, or when given (e.g. to record an expert the same way)");
+  a.hand_option->capture_default_str()->check(CLI::PositiveNumber);
 }
 
 CLI::App* addRunSubcommand(CLI::App& app, RunArgs& a) {
@@ -372,8 +373,8 @@ int runCommand(const RunArgs& a) {
     info.device_kind = "scripted";
     run_options.guide = vh::runtime::loadExpertPath(a.guide, vh::runtime::makeSessionMetadata(scene, info));
     run_options.guide_gains = a.guide_gains;
-    run_options.hand = a.hand;
   }
+  if (!a.guide.empty() || (a.hand_option != nullptr && a.hand_option->count() > 0)) run_options.hand = a.hand;
   std::unique_ptr<vh::igtl::IgtlLink> link = startRunLink(a, spec, scene.segments.get(), run_options);
   vh::runtime::RunReport report = vh::runtime::runHeadless(scene, trajectory, run_options);
   report.trajectory = a.trajectory;
