@@ -12,6 +12,7 @@
 #include <nlohmann/json.hpp>
 
 #include "runtime_test_support.h"
+#include "vh/runtime/haptic_thread.h"
 #include "vh/runtime/placement.h"
 #include "vh/runtime/runner.h"
 #include "vh/runtime/session_metadata.h"
@@ -169,6 +170,49 @@ TEST(Guidance, ClampedToTheDevicesRating) {
   const haptics::GuidanceGains c = clampGuidance(g, limits);
   EXPECT_EQ(c.stiffness_N_per_m, 150.0);
   EXPECT_EQ(c.cap_N, 1.0);
+}
+
+/// An expert's path as a recording: a straight line along x through `p_W_m`, 100 records.
+Recording lineRecording(const Eigen::Vector3d& p_W_m, const std::string& metadata_json) {
+  Recording r;
+  r.metadata_json = metadata_json;
+  for (int i = 0; i < 100; ++i) {
+    TickRecord t;
+    t.tick = static_cast<std::uint64_t>(i + 1);
+    for (int k = 0; k < 3; ++k) t.p_WD_m[k] = p_W_m[k];
+    t.p_WD_m[0] += 0.001 * (i - 50);
+    r.records.push_back(t);
+  }
+  return r;
+}
+
+// On the coupling thread: the device held 4 mm off the expert's line in free space feels the
+// guidance spring through the safety layer (the command the device got), and the snapshot
+// shows the nearest point; off again, the command is the coupling's alone.
+TEST(Guidance, TheCouplingThreadAddsTheSpringBeforeTheSafetyLayer) {
+  const LoadedScene& scene = test::sphereBallScene();
+  auto device = std::make_shared<SimulatedDevice>(scene.X_WT_initial);
+  auto thread = scene.makeHapticThread(device);
+  const Eigen::Vector3d line = scene.X_WT_initial.p_AB_m + Eigen::Vector3d(0.0, 0.004, 0.0);
+  auto expert = std::make_shared<const ExpertPath>(lineRecording(line, makeSessionMetadata(scene, SessionInfo{})));
+  haptics::GuidanceGains g;
+  g.stiffness_N_per_m = 100.0;  // 0.4 N at 4 mm
+  thread->start();
+  thread->setGuidance(expert, g);
+  HapticSnapshot snap;
+  ASSERT_TRUE(test::waitUntil([&] { return thread->latestSnapshot(snap) && snap.guidance_on && snap.tick > 50; }));
+  EXPECT_NEAR(snap.guidance_force_W_N.y(), 0.4, 1e-6);
+  EXPECT_NEAR((snap.guidance_nearest_W_m - Eigen::Vector3d(scene.X_WT_initial.p_AB_m.x(), line.y(), line.z())).norm(), 0.0, 1e-9);
+  DeviceCommand cmd;
+  ASSERT_TRUE(test::waitUntil([&] { return device->lastCommand(cmd) && cmd.count > snap.tick; }));
+  EXPECT_NEAR(cmd.force_W_N.y(), 0.4, 1e-3) << "the device gets the guidance force (proxy and device together: no coupling force)";
+  EXPECT_EQ(thread->guidance(), expert);
+  thread->setGuidance(nullptr, g);
+  ASSERT_TRUE(test::waitUntil([&] { return thread->latestSnapshot(snap) && !snap.guidance_on; }));
+  std::uint64_t after = snap.tick + 5;
+  ASSERT_TRUE(test::waitUntil([&] { return device->lastCommand(cmd) && cmd.count > after; }));
+  EXPECT_NEAR(cmd.force_W_N.norm(), 0.0, 1e-6);
+  thread->stop();
 }
 
 TEST(CompliantHand, SettlesWhereTheForceBalancesItsStiffness) {
