@@ -36,7 +36,11 @@ GuidancePath::GuidancePath(std::vector<Segment> segments, int cells_per_axis) : 
   const double longest = std::max((hi - lo).maxCoeff(), 1e-6);
   lo.array() -= 0.25 * longest;
   hi.array() += 0.25 * longest;
-  cell_m_ = 1.5 * longest / cells_per_axis;
+  // Cells of about four segments' length (a few segments per cell along the path), but at
+  // most cells_per_axis along the longest side.
+  double length_m = 0.0;
+  for (const Segment& seg : segments_) length_m += (seg.b_W_m - seg.a_W_m).norm();
+  cell_m_ = std::max(1.5 * longest / cells_per_axis, 4.0 * length_m / static_cast<double>(segments_.size()));
   origin_W_m_ = lo;
   for (int k = 0; k < 3; ++k) dims_[k] = std::max(1, static_cast<int>(std::ceil((hi[k] - lo[k]) / cell_m_ + 1e-9)));
   const std::size_t cells = static_cast<std::size_t>(dims_[0]) * static_cast<std::size_t>(dims_[1]) *
@@ -60,6 +64,8 @@ GuidancePath::GuidancePath(std::vector<Segment> segments, int cells_per_axis) : 
   std::vector<std::uint32_t> fill(cell_start_.begin(), cell_start_.end() - 1);
   for (std::size_t i = 0; i < segments_.size(); ++i)
     forEachCell(segments_[i], [&](std::size_t c) { cell_segments_[fill[c]++] = static_cast<std::uint32_t>(i); });
+  for (std::size_t c = 0; c < cells; ++c)
+    if (cell_start_[c + 1] > cell_start_[c]) occupied_cells_.push_back(static_cast<std::uint32_t>(c));
 }
 
 GuidancePath GuidancePath::polyline(const std::vector<Eigen::Vector3d>& points, int cells_per_axis) {
@@ -109,8 +115,7 @@ PathPoint GuidancePath::nearest(const Eigen::Vector3d& p) const noexcept {
   if (segments_.empty() || !p.allFinite()) return best;
   int c[3];
   for (int k = 0; k < 3; ++k) c[k] = clampCell(p[k], origin_W_m_[k], cell_m_, dims_[k]);
-  const int max_ring = std::max({dims_[0], dims_[1], dims_[2]});
-  for (int r = 0; r <= max_ring; ++r) {
+  for (int r = 0; r <= kMaxRings; ++r) {
     // The cells at Chebyshev distance r from c (the shell of the (2r + 1)^3 cube), in the grid.
     const int z0 = std::max(0, c[2] - r), z1 = std::min(dims_[2] - 1, c[2] + r);
     const int y0 = std::max(0, c[1] - r), y1 = std::min(dims_[1] - 1, c[1] + r);
@@ -134,9 +139,27 @@ PathPoint GuidancePath::nearest(const Eigen::Vector3d& p) const noexcept {
       if (lo[k] > 0) bound = std::min(bound, p[k] - (origin_W_m_[k] + lo[k] * cell_m_));
       if (hi[k] < dims_[k] - 1) bound = std::min(bound, origin_W_m_[k] + (hi[k] + 1) * cell_m_ - p[k]);
     }
-    if (best.distance_m <= bound) break;  // infinity: every cell searched
+    if (best.distance_m <= bound) return best;  // infinity: every cell searched
   }
+  searchOccupiedCells(p, best);  // far from the path: the cells that hold segments, pruned by distance
   return best;
+}
+
+void GuidancePath::searchOccupiedCells(const Eigen::Vector3d& p, PathPoint& best) const noexcept {
+  // A first bound from a few segments spread over the path, then every occupied cell nearer
+  // than the best so far.
+  const std::size_t stride = std::max<std::size_t>(1, segments_.size() / 16);
+  for (std::size_t i = 0; i < segments_.size(); i += stride) {
+    const PathPoint c = nearestOnSegment(i, p);
+    if (c.distance_m < best.distance_m) best = c;
+  }
+  const std::size_t nx = static_cast<std::size_t>(dims_[0]), ny = static_cast<std::size_t>(dims_[1]);
+  for (const std::uint32_t c : occupied_cells_) {
+    const int ix = static_cast<int>(c % nx), iy = static_cast<int>((c / nx) % ny), iz = static_cast<int>(c / (nx * ny));
+    const Eigen::Vector3d lo = origin_W_m_ + cell_m_ * Eigen::Vector3d(ix, iy, iz);
+    const Eigen::Vector3d gap = (lo - p).cwiseMax(p - (lo.array() + cell_m_).matrix()).cwiseMax(0.0);
+    if (gap.squaredNorm() < best.distance_m * best.distance_m) searchCell(ix, iy, iz, p, best);
+  }
 }
 
 double GuidanceGains::effectiveStiffness_N_per_m() const noexcept {

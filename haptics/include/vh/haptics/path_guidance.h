@@ -26,10 +26,13 @@
 /// Translation only: the guidance force acts on the tool origin; there is no guidance torque.
 ///
 /// Frames and units: positions p_W in the scene frame W [m]; forces F_W [N] on the user's hand.
-/// Nearest-point query: a uniform grid over the segments' bounding box, each cell listing the
-/// segments whose bounding box overlaps it; a query searches rings of cells around the query's
-/// cell outwards until the next ring cannot hold anything nearer (exact; no allocation, no
-/// throw). GuidancePath::nearestBruteForce() is the reference it is tested against.
+/// Nearest-point query: a uniform grid over the segments' bounding box (padded by a quarter of
+/// its extent; cells about four segments long, at most cells_per_axis along the longest side),
+/// each cell listing the segments whose bounding box overlaps it. A query searches rings of
+/// cells around the query's cell outwards until the next ring cannot hold anything nearer; a
+/// query still unsettled after kMaxRings rings (far from the path) tests the occupied cells
+/// nearer than its best so far instead. Exact; no allocation, no throw.
+/// GuidancePath::nearestBruteForce() is the reference it is tested against.
 
 #include <cstddef>
 #include <cstdint>
@@ -58,12 +61,12 @@ class GuidancePath {
 
   GuidancePath() = default;
   /// @param segments (n x 2 points) in W [m], all finite.
-  /// @param cells_per_axis grid resolution along the longest side of the bounding box (>= 1);
+  /// @param cells_per_axis the most cells along the longest side of the bounding box (>= 1);
   ///        the cells are cubes.
   /// @throws std::invalid_argument for a non-finite point or cells_per_axis < 1.
-  explicit GuidancePath(std::vector<Segment> segments, int cells_per_axis = 32);
+  explicit GuidancePath(std::vector<Segment> segments, int cells_per_axis = 128);
   /// A polyline through `points` (n x 3, W, [m]): segments (i, i + 1).
-  static GuidancePath polyline(const std::vector<Eigen::Vector3d>& points, int cells_per_axis = 32);
+  static GuidancePath polyline(const std::vector<Eigen::Vector3d>& points, int cells_per_axis = 128);
 
   bool empty() const noexcept { return segments_.empty(); }
   std::size_t size() const noexcept { return segments_.size(); }
@@ -84,6 +87,9 @@ class GuidancePath {
   }
   /// Tests the segments of cell (ix, iy, iz) against p, keeping the nearest in `best`.
   void searchCell(int ix, int iy, int iz, const Eigen::Vector3d& p, PathPoint& best) const noexcept;
+  /// The fallback far from the path: every occupied cell nearer than `best`.
+  void searchOccupiedCells(const Eigen::Vector3d& p, PathPoint& best) const noexcept;
+  static constexpr int kMaxRings = 3;
 
   std::vector<Segment> segments_;
   Eigen::Vector3d origin_W_m_ = Eigen::Vector3d::Zero();  ///< Lower corner of the grid [m].
@@ -91,6 +97,7 @@ class GuidancePath {
   int dims_[3] = {0, 0, 0};
   std::vector<std::uint32_t> cell_start_;  ///< (cells + 1) offsets into cell_segments_ (CSR).
   std::vector<std::uint32_t> cell_segments_;
+  std::vector<std::uint32_t> occupied_cells_;  ///< Cells that hold a segment.
 };
 
 /// The guidance spring's settings.
