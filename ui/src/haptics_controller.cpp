@@ -2,12 +2,16 @@
 #include "vh/runtime/placement.h"
 
 #include <QAction>
+#include <QFileDialog>
+#include <QMessageBox>
 #include <QMenu>
 #include <QMenuBar>
 #include <QSignalBlocker>
 #include <QWidget>
 
+#include "vh/runtime/guidance.h"
 #include "vh/runtime/session.h"
+#include "vh/runtime/session_metadata.h"
 #include "vh/ui/devices/device_input.h"
 #include "vh/ui/devices/device_picker.h"
 #include "vh/ui/panels/haptics_panel.h"
@@ -24,6 +28,8 @@ HapticsController::HapticsController(runtime::Session& session, HapticsPanel& pa
       recorder_(recorder), replay_(replay) {
   observer_ = session_.addObserver([this](runtime::SessionChange what) {
     if (runtime::has(what, runtime::SessionChange::kDevice)) devices_.sync();
+    if (runtime::has(what, runtime::SessionChange::kScene)) guide_.reset();  // the expert's path was of the last scan
+    applyGuidance();  // a rebuilt haptic thread keeps the guidance
     refresh();
   });
   connect(&panel_, &HapticsPanel::startStopRequested, this, [this](bool run) { run ? start() : session_.stopHaptics(); });
@@ -103,6 +109,14 @@ QMenu* HapticsController::addMenu(QMenuBar* bar, QWidget* window) {
   });
   touch->setShortcut(QKeySequence("Ctrl+T"));
   touch->setToolTip("Puts the tool on the felt surface (the felt segments, else the scan) along the view direction, resting with the device 3 mm in: a placement, not the hand's motion");
+  menu->addAction("&Guide with Recording...", this, [this, window] {
+    const QString file = QFileDialog::getOpenFileName(window, "Guide with an expert's recording", QString(),
+                                                      "Recordings (*.vhrec)");
+    QString error;
+    if (!file.isEmpty() && !guideWith(file, &error)) QMessageBox::warning(window, "Guide with Recording", error);
+  });
+  stop_guide_action_ = menu->addAction("Stop G&uidance", this, [this] { stopGuidance(); });
+  stop_guide_action_->setEnabled(false);
   menu->addSeparator();
   menu->addAction(recorder_.recordAction());
   menu->addAction(recorder_.markerAction());
@@ -111,6 +125,33 @@ QMenu* HapticsController::addMenu(QMenuBar* bar, QWidget* window) {
   devices_.setMenu(menu->addMenu("De&vice"));
   refresh();
   return menu;
+}
+
+bool HapticsController::guideWith(const QString& file, QString* error) {
+  try {
+    if (!session_.hasScene()) throw std::invalid_argument("open a scan first");
+    // The same scan as the recording's (its dataset SHA-256), as report --reference checks.
+    const std::string metadata = runtime::makeSessionMetadata(session_.loaded(), session_.live(), {});
+    guide_ = runtime::loadExpertPath(file.toStdString(), metadata);
+  } catch (const std::exception& e) {
+    if (error != nullptr) *error = QString("%1: %2").arg(file, QString::fromStdString(e.what()));
+    return false;
+  }
+  applyGuidance();
+  emit message(QString("Guided along %1 (%2 segments)").arg(QString::fromStdString(guide_->fileName())).arg(guide_->path().size()), 4000);
+  return true;
+}
+
+void HapticsController::stopGuidance() {
+  guide_.reset();
+  if (runtime::HapticThread* thread = session_.hapticThread()) thread->setGuidance(nullptr, haptics::GuidanceGains{});
+  if (stop_guide_action_ != nullptr) stop_guide_action_->setEnabled(false);
+}
+
+void HapticsController::applyGuidance() {
+  runtime::HapticThread* thread = session_.hapticThread();
+  if (thread != nullptr && guide_ != nullptr && thread->guidance() != guide_) thread->setGuidance(guide_, haptics::GuidanceGains{});
+  if (stop_guide_action_ != nullptr) stop_guide_action_->setEnabled(guide_ != nullptr);
 }
 
 }  // namespace vh::ui

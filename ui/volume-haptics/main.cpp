@@ -43,6 +43,7 @@
 #include "vh/runtime/anonymize.h"
 #include "vh/runtime/recording.h"
 #include "vh/runtime/runner.h"
+#include "vh/runtime/session_metadata.h"
 #include "vh/runtime/scene.h"
 #include "vh/runtime/snapshot_channel.h"
 #include "vh/runtime/trajectory.h"
@@ -151,7 +152,43 @@ struct RunArgs {
   std::string audio;
   double verify_step = vh::runtime::RunOptions{}.verify_step_voxels;
   bool lag_reference = vh::runtime::RunOptions{}.lag_reference;
+  std::string guide;
+  vh::haptics::GuidanceGains guide_gains;
+  vh::runtime::HandImpedance hand;
+  CLI::Option* hand_option = nullptr;
 };
+
+/// `run`'s guidance options (--guide and the spring's settings, the simulated hand).
+void addGuideOptions(CLI::App& run, RunArgs& a) {
+  run.add_option("--guide", a.guide,
+                 "Haptic guidance: pull the device toward the nearest point of this expert recording's device path "
+                 "(.vhrec of the same scan, else refused) with a capped spring faded over repetitions; the "
+                 "trajectory becomes the trainee's intended motion and the device yields to the force like a hand "
+                 "(--hand-stiffness-N-per-m); --guide-stiffness-N-per-m 0 gives the same run unguided");
+  run.add_option("--guide-stiffness-N-per-m", a.guide_gains.stiffness_N_per_m,
+                 "Guidance spring stiffness K on the first repetition [N/m] (clamped to the device's rating)")
+      ->capture_default_str()
+      ->check(CLI::NonNegativeNumber);
+  run.add_option("--guide-cap-N", a.guide_gains.cap_N, "Largest guidance force, never exceeded [N]")
+      ->capture_default_str()
+      ->check(CLI::NonNegativeNumber);
+  run.add_option("--guide-deadband-m", a.guide_gains.deadband_m, "No guidance force within this distance of the path [m]")
+      ->capture_default_str()
+      ->check(CLI::NonNegativeNumber);
+  run.add_option("--guide-fade", a.guide_gains.fade,
+                 "Fade per repetition: the stiffness on repetition r is K x fade^r (guidance withdrawn as the trainee "
+                 "repeats the task)")
+      ->capture_default_str()
+      ->check(CLI::Range(1e-6, 1.0));
+  run.add_option("--guide-repetition", a.guide_gains.repetition, "Which repetition this run is (0: the first)")
+      ->capture_default_str()
+      ->check(CLI::NonNegativeNumber);
+  a.hand_option = run.add_option("--hand-stiffness-N-per-m", a.hand.stiffness_N_per_m,
+                                 "The simulated hand's stiffness about the trajectory, its intended motion [N/m] (mass "
+                                 "0.5 kg, damping 20 N s/m): the device yields to the force it commands; on with "
+                                 "--guide, or when given (e.g. to record an expert the same way)");
+  a.hand_option->capture_default_str()->check(CLI::PositiveNumber);
+}
 
 CLI::App* addRunSubcommand(CLI::App& app, RunArgs& a) {
   CLI::App* run = app.add_subcommand("run", "Headless: replay a device trajectory through the renderer and "
@@ -204,6 +241,7 @@ CLI::App* addRunSubcommand(CLI::App& app, RunArgs& a) {
       "the budgeted proxy and the same run's unbudgeted one, behind = how much farther from the device the budgeted "
       "one was; drilled = volume the burr removed [mm^3]; touched = per segment time, peak force, touches. "
       "More in docs/command-line.md.");
+  addGuideOptions(*run, a);
   run->add_flag("--check", a.check,
                 "Exit with 3 when the proxy penetrated deeper than epsilon, a tick produced a non-finite value or "
                 "the proxy crossed into the isosurface (crossings > 0)");
@@ -329,6 +367,14 @@ int runCommand(const RunArgs& a) {
     audio = std::make_unique<vh::app::RunAudio>(a.audio, scene, run_options.servo_rate_Hz);
     audio->attach(run_options);
   }
+  if (!a.guide.empty()) {
+    // The expert's recording must be of this scan (the check `report --reference` makes).
+    vh::runtime::SessionInfo info;
+    info.device_kind = "scripted";
+    run_options.guide = vh::runtime::loadExpertPath(a.guide, vh::runtime::makeSessionMetadata(scene, info));
+    run_options.guide_gains = a.guide_gains;
+  }
+  if (!a.guide.empty() || (a.hand_option != nullptr && a.hand_option->count() > 0)) run_options.hand = a.hand;
   std::unique_ptr<vh::igtl::IgtlLink> link = startRunLink(a, spec, scene.segments.get(), run_options);
   vh::runtime::RunReport report = vh::runtime::runHeadless(scene, trajectory, run_options);
   report.trajectory = a.trajectory;

@@ -47,6 +47,12 @@ struct ProxyState {
   std::uint64_t placements = 0;  ///< Placements the solver had applied (PlacedSample::count).
 };
 
+/// Guidance as setGuidance() asked (GUI -> coupling thread); path null: off.
+struct GuidanceCommand {
+  const haptics::GuidancePath* path = nullptr;
+  haptics::GuidanceGains gains;
+};
+
 /// A placement asked for by HapticThread::place() (GUI -> coupling thread).
 struct Placement {
   haptics::Pose X_WP;
@@ -74,6 +80,7 @@ struct HapticThread::Exchange {
   TripleBuffer<ProxyState> proxy;
   TripleBuffer<Placement> placement;  ///< GUI -> coupling: the latest place() (HapticThread::placement_requests_).
   TripleBuffer<PlacedSample> placed;  ///< Coupling -> solver: the latest placement passed on.
+  TripleBuffer<GuidanceCommand> guidance;  ///< GUI -> coupling: the latest setGuidance().
   std::uint64_t placement_requests_at_start = 0;  ///< placement_requests_ when start() was called.
   SnapshotChannel gui;  ///< Both threads -> latestSnapshot().
   /// kRecordFlagForceLimited / ForceZeroed / NonFinite / Stopping of the latest command.
@@ -176,6 +183,22 @@ void HapticThread::setGains(const haptics::CouplingGains& gains) noexcept {
                       {"passivity_control", gains.passivity_control}};
     recordEventAt("gains", d.dump(), before_tick);
   } catch (...) {  // NOLINT(bugprone-empty-catch): the event is best effort, the gains are set
+  }
+}
+
+void HapticThread::setGuidance(std::shared_ptr<const ExpertPath> expert, const haptics::GuidanceGains& gains) {
+  const haptics::GuidanceGains applied = clampGuidance(gains, device_->limits());
+  if (expert) guides_kept_.push_back(expert);
+  guide_ = std::move(expert);
+  GuidanceCommand& slot = x_->guidance.writeSlot();
+  slot.path = guide_ ? &guide_->path() : nullptr;
+  slot.gains = applied;
+  x_->guidance.publish();
+  guidance_dirty_.store(true, std::memory_order_release);
+  if (recorder_.load(std::memory_order_acquire) == nullptr) return;
+  try {
+    recordEvent("guidance", guide_ ? guidanceEventJson(*guide_, applied, gains) : std::string("{\"off\":true}"));
+  } catch (...) {  // NOLINT(bugprone-empty-catch): the event is best effort, the guidance is set
   }
 }
 
@@ -495,6 +518,8 @@ struct CouplingState {
   bool placement_waiting = false;
   std::uint64_t placements_sent = 0;
   haptics::Pose X_WP_placed;
+  GuidanceCommand guidance;         // setGuidance()'s latest
+  haptics::GuidanceForce guide;     // this tick's guidance force and nearest point
 };
 
 /// A new place() request (`requests` so far) is taken; when this tick's sample (`read_ok`) is
@@ -567,6 +592,11 @@ inline void publishCouplingTick(SnapshotChannel& gui, SnapshotChannel* monitor, 
   fillCouplingSnapshot(snap, c.counts, begin_ns, c.proxy.X_WP, c.X_WD_last, force_W_N, torque_W_Nm,
                        c.safety.stats().held_ticks, c.passivity);
   snap.timing = timing;
+  snap.guidance_on = c.guidance.path != nullptr;
+  snap.guidance_force_W_N = c.guide.force_W_N;
+  snap.guidance_segment = c.guide.nearest.segment;
+  snap.guidance_s = c.guide.nearest.s;
+  snap.guidance_nearest_W_m = c.guide.nearest.p_W_m;
   if (monitor != nullptr) {
     monitor->couplingSlot() = snap;
     monitor->publishCoupling();
@@ -786,6 +816,12 @@ void HapticThread::couplingLoop() noexcept {
     x_->proxy.read(c.proxy);
     Eigen::Vector3d force_W_N, torque_W_Nm;
     const bool coupled = coupleToProxy(c, ok, mass, period_s_, force_W_N, torque_W_Nm);
+    // 4c. Guidance toward the expert's path (guidance.h), inside the same ramp and safety layer.
+    if (guidance_dirty_.exchange(false, std::memory_order_acq_rel)) x_->guidance.read(c.guidance);
+    c.guide = coupled && c.guidance.path != nullptr
+                  ? haptics::guidanceForce(*c.guidance.path, c.guidance.gains, c.X_WD_last.p_AB_m)
+                  : haptics::GuidanceForce{};
+    force_W_N += c.guide.force_W_N;
     rampDown(ramp_left, ramp_ticks, force_W_N, torque_W_Nm);
     // 5. Safety layer, then command (never NaN, never beyond the device's limits).
     const SafetyInput safety_in =

@@ -388,6 +388,18 @@ void startCrossingCheck(RunReport& r, const haptics::ScalarVolume& felt, const h
   shell_edges = haptics::makeShellEdges(tool.point_shell);
 }
 
+/// The guidance of a run with RunOptions::guide (its gains within the device's limits), and its
+/// "guidance" event at the recording's start; nothing without.
+std::optional<GuidanceTrack> startGuidance(const RunOptions& options, const DeviceLimits& limits,
+                                           RecordingWriter* recorder) {
+  std::optional<GuidanceTrack> track;
+  if (!options.guide) return track;
+  track.emplace(options.guide, clampGuidance(options.guide_gains, limits));
+  if (recorder != nullptr)
+    recorder->addEvent({0.0, 0, "guidance", guidanceEventJson(*options.guide, track->gains(), options.guide_gains)});
+  return track;
+}
+
 /// What a headless run ticks with, set up once by runHeadless(): the servo's renderer and its
 /// checks, the scripted device behind the coupling thread's plausibility test and safety layer,
 /// the outputs, and the sums over the ticks.
@@ -406,7 +418,8 @@ struct HeadlessRun {
   ProxyLag& lag;
   const haptics::CrossingVerifier* verifier;  // null: no crossing check
   const haptics::ShellEdges& shell_edges;
-  ScriptedDevice& device;
+  Device& device;  // the scripted device, or the compliant hand around it
+  GuidanceTrack* guidance;  // null: no guidance
   SampleFilter& filter;
   ForceSafety& safety;
   std::ofstream& trace;
@@ -452,8 +465,11 @@ void renderRunTick(HeadlessRun& run, std::uint64_t i, RunTick& t) {
     t.out.stats.contacts = static_cast<int>(run.renderer.contacts().size());
     if (t.verdict == SampleFilter::Verdict::kImplausible) ++run.r.implausible_samples;
   }
-  const SafetyInput safety_in =
+  SafetyInput safety_in =
       runSafetyInput(t.sample_ok && !t.out.stats.bad_input, t.verdict, t.sample, run.period_s, t.out);
+  if (run.guidance != nullptr)  // the guidance spring goes through the same safety layer
+    safety_in.force_W_N += run.guidance->step(i, run.options.servo_rate_Hz, t.sample.X_WD.p_AB_m,
+                                              safety_in.sample_ok, run.recorder);
   run.safety.step(safety_in, t.command_W_N, t.command_W_Nm);
   run.device.command(t.command_W_N, t.command_W_Nm);
 }
@@ -597,6 +613,7 @@ void finishRun(HeadlessRun& run, std::uint64_t n, std::chrono::steady_clock::tim
   if (run.proximity_tally) r.proximity = run.proximity_tally->segments();
   if (run.drill != nullptr) r.drill = drillReport(*run.drill, run.scene);
   if (run.reference) reportLag(r, run.lag);
+  if (run.guidance != nullptr) r.guidance = run.guidance->report(run.options.hand.has_value());
   r.total_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - wall_begin).count();
   r.ticks = n;
   r.held_ticks = run.safety.stats().held_ticks;
@@ -635,10 +652,13 @@ RunReport runHeadless(const LoadedScene& scene, const Trajectory& trajectory, co
   std::optional<haptics::CrossingVerifier> verifier;
   haptics::ShellEdges shell_edges;
   startCrossingCheck(r, felt, tool, options, verifier, shell_edges);
-  ScriptedDevice device(trajectory, 1.0 / options.servo_rate_Hz);
-  device.setLimits(options.device_limits);
-  device.setSafetyPolicy(options.safety_policy);
-  device.setActuatedDof(options.actuated_dof);
+  ScriptedDevice scripted(trajectory, 1.0 / options.servo_rate_Hz);
+  scripted.setLimits(options.device_limits);
+  scripted.setSafetyPolicy(options.safety_policy);
+  scripted.setActuatedDof(options.actuated_dof);
+  std::optional<CompliantHand> hand;
+  if (options.hand) hand.emplace(scripted, *options.hand, 1.0 / options.servo_rate_Hz);
+  Device& device = hand ? static_cast<Device&>(*hand) : scripted;
   // The same plausibility test and safety layer as the coupling thread (HapticThread): a sample
   // faster than the device moves, outside its workspace or not finite is never rendered; the
   // command the device gets is the safety layer's (fault hold, ramp, clamp).
@@ -659,10 +679,11 @@ RunReport runHeadless(const LoadedScene& scene, const Trajectory& trajectory, co
     proximity_tally.emplace(proximityTally(*scene.segments));
   }
   JamDetector jam;
+  std::optional<GuidanceTrack> guidance = startGuidance(options, device.limits(), recorder.get());
   HeadlessRun run{scene,  trajectory, options, tool, felt, s, 1.0 / options.servo_rate_Hz, *servo.renderer, drill,
                   drill != nullptr && scene.spec.drill && scene.spec.drill->on, reference.get(), lag,
-                  verifier ? &*verifier : nullptr, shell_edges, device, filter, safety, trace, recorder.get(),
-                  segment_tally ? &*segment_tally : nullptr, proximity ? &*proximity : nullptr,
+                  verifier ? &*verifier : nullptr, shell_edges, device, guidance ? &*guidance : nullptr, filter, safety,
+                  trace, recorder.get(), segment_tally ? &*segment_tally : nullptr, proximity ? &*proximity : nullptr,
                   proximity_tally ? &*proximity_tally : nullptr, jam, times_us, r, X_WD_first};
   const std::unique_ptr<ServoTechnique> technique = makeServoTechnique(LiveValues::initial(scene), drill);
   run.technique = technique.get();
@@ -809,6 +830,7 @@ std::string RunReport::toJson() const {
   for (int k = 0; k < kTechniqueRuleCount; ++k)
     technique[std::string(techniqueRuleName(k))] = technique_episodes[static_cast<std::size_t>(k)];
   j["technique_episodes"] = technique;
+  if (guidance) j["guidance"] = nlohmann::ordered_json::parse(guidance->toJson());
   return j.dump(2) + "\n";
 }
 
@@ -877,6 +899,7 @@ std::string RunReport::summary() const {
     }
     if (drill->removed_mm3 > 0.0) out += ")";
   }
+  if (guidance) out += "; " + guidance->summary();
   for (const SegmentContact& c : segment_contacts) {
     if (c.ticks == 0) continue;
     std::snprintf(line, sizeof line, "; touched %s%s: %.3f s, peak %.2f N, %llu touch%s", c.name.c_str(),

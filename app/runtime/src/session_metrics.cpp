@@ -351,20 +351,33 @@ DtwAlignment dynamicTimeWarping(const std::vector<Eigen::Vector3d>& a, const std
   return result;
 }
 
-ReferenceComparison compareWithReference(const Recording& session, const SessionMetrics& session_metrics,
-                                         const Recording& reference, const SessionMetrics& reference_metrics,
-                                         std::size_t path_samples) {
-  const auto identity = [](const SessionMetrics& m) {
+SceneIdentity sceneIdentity(const std::string& metadata_json) {
+  Recording r;
+  r.metadata_json = metadata_json;
+  SessionMetrics m;
+  readIdentity(r, m);
+  return {m.scene, m.dataset_sha256};
+}
+
+void requireSameScene(const SceneIdentity& session, const SceneIdentity& other, const std::string& role,
+                      const std::string& purpose) {
+  const auto identity = [](const SceneIdentity& m) {
     return m.dataset_sha256.empty() ? "volume " + (m.scene.empty() ? std::string("(unnamed)") : m.scene)
                                     : "dataset " + m.dataset_sha256.substr(0, 12);
   };
-  const bool same = !session_metrics.dataset_sha256.empty() || !reference_metrics.dataset_sha256.empty()
-                        ? session_metrics.dataset_sha256 == reference_metrics.dataset_sha256
-                        : session_metrics.scene == reference_metrics.scene;
+  const bool same = !session.dataset_sha256.empty() || !other.dataset_sha256.empty()
+                        ? session.dataset_sha256 == other.dataset_sha256
+                        : session.scene == other.scene;
   if (!same)
-    throw std::invalid_argument("the reference was recorded on another scene (" + identity(reference_metrics) +
-                                ", this session " + identity(session_metrics) +
-                                "): paths can only be compared on the same dataset");
+    throw std::invalid_argument(role + " was recorded on another scene (" + identity(other) + ", this session " +
+                                identity(session) + "): " + purpose);
+}
+
+ReferenceComparison compareWithReference(const Recording& session, const SessionMetrics& session_metrics,
+                                         const Recording& reference, const SessionMetrics& reference_metrics,
+                                         std::size_t path_samples) {
+  requireSameScene({session_metrics.scene, session_metrics.dataset_sha256},
+                   {reference_metrics.scene, reference_metrics.dataset_sha256});
   if (session.records.empty() || reference.records.empty())
     throw std::invalid_argument("a comparison needs ticks in both recordings");
   ReferenceComparison c;

@@ -32,6 +32,11 @@ void mergeSnapshots(const CouplingSnapshot& c, const SolverSnapshot& s, HapticSn
   out.skipped_samples = s.skipped;
   out.passivity_active_ticks = c.passivity_active_ticks;
   out.passivity_dissipated_J = c.passivity_dissipated_J;
+  out.guidance_on = c.guidance_on;
+  out.guidance_force_W_N = c.guidance_force_W_N;
+  out.guidance_segment = c.guidance_segment;
+  out.guidance_s = c.guidance_s;
+  out.guidance_nearest_W_m = c.guidance_nearest_W_m;
 }
 
 }  // namespace vh::runtime

@@ -1,4 +1,5 @@
 #pragma once
+#include <memory>
 /// @file
 /// The Haptics dock and the Haptics menu: shows the Session (running, gains, tool and its point
 /// shell, device and its limits) in the HapticsPanel whenever the session changes, and sends the
@@ -17,6 +18,7 @@ class QMenuBar;
 class QWidget;
 
 namespace vh::runtime {
+class ExpertPath;
 class Session;
 }
 
@@ -45,6 +47,14 @@ class HapticsController : public QObject {
   QMenu* addMenu(QMenuBar* bar, QWidget* window);
   /// Shows the session in the panel and the menu now.
   void refresh();
+  /// Haptics > Guide with Recording...: guidance toward the expert's path in `file` (a
+  /// recording of the same scan, runtime/guidance.h) from now on, kept over rebuilt haptic
+  /// threads. @return false with a message when the file cannot be read or is of another scan.
+  bool guideWith(const QString& file, QString* error = nullptr);
+  /// Guidance off.
+  void stopGuidance();
+  /// The expert's path guided along, or null.
+  const std::shared_ptr<const runtime::ExpertPath>& guide() const noexcept { return guide_; }
 
  signals:
   /// A short text for the status bar.
@@ -64,7 +74,11 @@ class HapticsController : public QObject {
   SessionRecorder& recorder_;
   ReplayController& replay_;
   QAction* run_action_ = nullptr;
+  QAction* stop_guide_action_ = nullptr;
   int observer_ = 0;
+  /// Guidance (Guide with Recording...): the path, applied to every haptic thread the session builds.
+  std::shared_ptr<const runtime::ExpertPath> guide_;
+  void applyGuidance();
 };
 
 }  // namespace vh::ui

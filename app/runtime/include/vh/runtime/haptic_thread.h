@@ -51,12 +51,14 @@
 #include <memory>
 #include <string>
 #include <thread>
+#include <vector>
 
 #include <Eigen/Core>
 
 #include "vh/haptics/haptic_renderer.h"
 #include "vh/runtime/device.h"
 #include "vh/runtime/drilling.h"
+#include "vh/runtime/guidance.h"
 #include "vh/runtime/haptic_snapshot.h"
 #include "vh/runtime/realtime.h"
 #include "vh/runtime/segments.h"
@@ -154,6 +156,17 @@ class HapticThread {
   /// before the stop ramp and the safety layer; a gain change keeps the controllers' state and
   /// the rendered stiffness continuous (PassivityPort). Not on a haptic thread.
   void setGains(const haptics::CouplingGains& gains) noexcept;
+
+  /// Haptic guidance (guidance.h) toward `expert`'s path with `gains` (clampGuidance() to the
+  /// device's limits), from the coupling thread's next tick; null turns it off. The coupling
+  /// thread adds the force to the coupling's after its passivity controller and before the stop
+  /// ramp and the safety layer; the snapshot shows it and the nearest point. While recording,
+  /// also records a "guidance" event (guidance.h; {"off": true} when turned off). GUI thread;
+  /// every path handed over is kept until the thread is destroyed (the coupling thread may
+  /// still read one after it was replaced).
+  void setGuidance(std::shared_ptr<const ExpertPath> expert, const haptics::GuidanceGains& gains);
+  /// The path set last (GUI thread), or null.
+  const std::shared_ptr<const ExpertPath>& guidance() const noexcept { return guide_; }
 
   /// The device button that spins the burr while held (bit 0 of DeviceSample::buttons: a Falcon's
   /// or a Touch's first button, a SpaceMouse's left key), as a surgeon's foot pedal does.
@@ -253,6 +266,9 @@ class HapticThread {
   std::atomic<bool> gain_passivity_{false};  ///< CouplingGains::passivity_control.
   std::atomic<bool> gains_dirty_{false};
   std::atomic<bool> drilling_{false};
+  std::atomic<bool> guidance_dirty_{false};  ///< setGuidance() published a new command.
+  std::shared_ptr<const ExpertPath> guide_;  ///< GUI thread.
+  std::vector<std::shared_ptr<const ExpertPath>> guides_kept_;  ///< GUI thread: alive until destruction.
   std::atomic<bool> cutting_held_{false};  ///< holdCutting(); read by the solver each tick (seq_cst).
   std::atomic<std::uint64_t> solver_ticks_{0};  ///< Solver ticks finished (seq_cst; holdCutting()).
   std::atomic<std::uint64_t> placement_requests_{0};  ///< place() calls (the latest in Exchange::placement).

@@ -26,6 +26,7 @@
 #include "vh/haptics/pose.h"
 #include "vh/runtime/burr_load.h"
 #include "vh/runtime/device.h"
+#include "vh/runtime/guidance.h"
 #include "vh/runtime/scene.h"
 #include "vh/runtime/trajectory.h"
 
@@ -83,6 +84,15 @@ struct RunOptions {
   /// i + 1 ends no earlier than (i + 1) / rate after the start), so a streamed run plays at the
   /// trajectory's speed. The exec times are unaffected.
   bool realtime = false;
+  /// Haptic guidance toward an expert's path (guidance.h; loadExpertPath() checks its scene):
+  /// each tick's guidance force (guide_gains, clamped to the device's limits: clampGuidance())
+  /// is added to the renderer's before the safety layer, and the recording gets the "guidance"
+  /// and "guidance_force" events. Null: no guidance.
+  std::shared_ptr<const ExpertPath> guide;
+  haptics::GuidanceGains guide_gains;
+  /// The simulated trainee's hand (CompliantHand): the trajectory is the hand's intended motion
+  /// and the device yields to the commanded force. Unset: the device is a position source.
+  std::optional<HandImpedance> hand;
 };
 
 /// The work budget's price: how far a budgeted proxy is from an unbudgeted one driven
@@ -244,6 +254,9 @@ struct RunReport {
   /// than the unbudgeted one at most [m], [rad] (ProxyLag::behind(): the coupling spring's extra
   /// stretch; at most the lag).
   double max_behind_m = -1.0, max_behind_rad = -1.0;
+
+  /// With RunOptions::guide: the guidance's force and how near the device kept to the expert.
+  std::optional<GuidanceReport> guidance;
 
   /// True when the crossing check ran (verify_step_voxels > 0).
   bool crossingsChecked() const noexcept { return verify_step_voxels > 0.0; }

@@ -191,7 +191,26 @@ struct ReferenceComparison {
   std::vector<Eigen::Vector3d> session_path, reference_path;  ///< The thinned paths [m].
 };
 
-/// Checks that both recordings are of the same scene (the dataset's SHA-256 in their metadata,
+/// What identifies the scene a recording was made on (from its metadata, session_metadata.h):
+/// the dataset's SHA-256, else the scene file or the volume's path ("" when absent).
+struct SceneIdentity {
+  std::string scene;
+  std::string dataset_sha256;
+};
+
+/// The SceneIdentity in a metadata JSON text (empty fields when it is not JSON).
+SceneIdentity sceneIdentity(const std::string& metadata_json);
+
+/// Checks that `other` (a reference, an expert's recording to guide with) was recorded on the
+/// scene of `session`: the same dataset SHA-256 when either has one, else the same scene path.
+/// `role` names the other recording in the message ("the reference"), `purpose` what needs the
+/// same dataset ("paths can only be compared on the same dataset").
+/// @throws std::invalid_argument naming both datasets when they differ.
+void requireSameScene(const SceneIdentity& session, const SceneIdentity& other,
+                      const std::string& role = "the reference",
+                      const std::string& purpose = "paths can only be compared on the same dataset");
+
+/// Checks that both recordings are of the same scene (requireSameScene()) (the dataset's SHA-256 in their metadata,
 /// else the volume's path) and compares them: metrics side by side and the DTW of their device
 /// paths, each thinned to `path_samples` points.
 /// @throws std::invalid_argument naming both datasets when the scenes differ, or when either

@@ -48,6 +48,13 @@ struct CouplingSnapshot {
   /// applied [J]; totals since start().
   std::uint64_t passivity_active_ticks = 0;
   double passivity_dissipated_J = 0.0;
+  /// Guidance (HapticThread::setGuidance()): on, its force before the safety layer [N, W], and
+  /// the expert's path's nearest point to the device (segment, s, position [m, W]).
+  bool guidance_on = false;
+  Eigen::Vector3d guidance_force_W_N = Eigen::Vector3d::Zero();
+  std::int64_t guidance_segment = -1;
+  double guidance_s = 0.0;
+  Eigen::Vector3d guidance_nearest_W_m = Eigen::Vector3d::Zero();
   ThreadTiming timing;             ///< The coupling thread's timing.
 };
 
