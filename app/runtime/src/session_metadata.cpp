@@ -270,6 +270,68 @@ json segmentationJson(const SegmentSet& set, const SegmentationSpec& segmentatio
 }
 
 /// The session's drill: what a replay needs to cut as the session did.
+/// The technique rules the session ran with (the scene file's "technique" section, technique.h).
+json techniqueJson(const TechniqueRules& r) {
+  return {{"on", r.on},
+          {"safe_force_N", r.safe_force_N},
+          {"safe_force_by_material_N", r.safe_force_by_material_N},
+          {"force_hold_s", r.force_hold_s},
+          {"near_critical_m", r.near_critical_m},
+          {"max_speed_near_critical_m_per_s", r.max_speed_near_critical_m_per_s},
+          {"shaft_margin_m", r.shaft_margin_m},
+          {"shaft_hold_s", r.shaft_hold_s},
+          {"clear_s", r.clear_s}};
+}
+
+/// The rules of techniqueJson(); absent keys (metadata written before them) keep the defaults.
+TechniqueRules techniqueFromJson(const json& t) {
+  TechniqueRules r;
+  r.on = t.value("on", r.on);
+  r.safe_force_N = t.value("safe_force_N", r.safe_force_N);
+  if (t.contains("safe_force_by_material_N"))
+    r.safe_force_by_material_N = t.at("safe_force_by_material_N").get<std::map<std::string, double>>();
+  r.force_hold_s = t.value("force_hold_s", r.force_hold_s);
+  r.near_critical_m = t.value("near_critical_m", r.near_critical_m);
+  r.max_speed_near_critical_m_per_s = t.value("max_speed_near_critical_m_per_s", r.max_speed_near_critical_m_per_s);
+  r.shaft_margin_m = t.value("shaft_margin_m", r.shaft_margin_m);
+  r.shaft_hold_s = t.value("shaft_hold_s", r.shaft_hold_s);
+  r.clear_s = t.value("clear_s", r.clear_s);
+  return r;
+}
+
+/// The recorded "segmentation" (segmentationJson()).
+SegmentationSpec segmentationFromJson(const json& seg) {
+  SegmentationSpec s;
+  s.path = seg.at("path").get<std::string>();
+  s.felt = seg.at("felt").get<std::vector<std::string>>();
+  s.shown = seg.at("shown").get<std::vector<std::string>>();
+  s.critical = seg.at("critical").get<std::vector<std::string>>();
+  s.smoothing_voxels = seg.at("smoothing_voxels").get<double>();
+  // Each critical segment's thresholds (absent in metadata written before them: defaults).
+  for (const json& one : seg.value("segments", json::array())) {
+    if (!one.value("critical", false) || !one.contains("warn_mm")) continue;
+    s.proximity.per_segment[one.at("name").get<std::string>()] = {1e-3 * one.at("warn_mm").get<double>(),
+                                                                   1e-3 * one.at("alarm_mm").get<double>()};
+  }
+  return s;
+}
+
+/// The recorded "drill" (drillJson()).
+DrillSpec drillFromJson(const json& d) {
+  DrillSpec drill;
+  drill.on = d.value("on", false);
+  drill.burr_radius_m = d.value("burr_radius_m", 0.0);
+  if (d.contains("burr_center_T_m")) {
+    const auto c = d.at("burr_center_T_m").get<std::vector<double>>();
+    if (c.size() != 3) throw std::runtime_error("scene.drill.burr_center_T_m: expected [x, y, z]");
+    drill.burr_center_T_m = Eigen::Vector3d(c[0], c[1], c[2]);
+  }
+  drill.burr_speed_rpm = d.value("burr_speed_rpm", drill.burr_speed_rpm);
+  if (d.contains("hardness")) drill.hardness_J_per_mm3 = d.at("hardness").get<std::map<std::string, double>>();
+  if (d.contains("cavity")) drill.cavity = std::make_shared<const DrilledCavity>(cavityFromJson(d.at("cavity")));
+  return drill;
+}
+
 json drillJson(const DrillSpec& spec) {
   json drill;
   drill["on"] = spec.on;
@@ -313,6 +375,7 @@ json sceneJson(const LoadedScene& scene, const LiveValues& live) {
   if (live.drill) {  // what a replay needs to cut as the session did
     sc["drill"] = drillJson(*live.drill);
   }
+  sc["technique"] = techniqueJson(live.technique);
   return sc;
 }
 
@@ -404,37 +467,9 @@ SceneSpec sceneFromSessionMetadata(const std::string& metadata_json) {
     spec.gains.angular_Nm_per_rad = sc.at("coupling").at("angular_Nm_per_rad").get<double>();
     // Absent in metadata written before the switch existed: off.
     spec.gains.passivity_control = sc.at("coupling").value("passivity_control", false);
-    if (sc.contains("segmentation")) {
-      const json& seg = sc.at("segmentation");
-      SegmentationSpec s;
-      s.path = seg.at("path").get<std::string>();
-      s.felt = seg.at("felt").get<std::vector<std::string>>();
-      s.shown = seg.at("shown").get<std::vector<std::string>>();
-      s.critical = seg.at("critical").get<std::vector<std::string>>();
-      s.smoothing_voxels = seg.at("smoothing_voxels").get<double>();
-      // Each critical segment's thresholds (absent in metadata written before them: defaults).
-      for (const json& one : seg.value("segments", json::array())) {
-        if (!one.value("critical", false) || !one.contains("warn_mm")) continue;
-        s.proximity.per_segment[one.at("name").get<std::string>()] = {1e-3 * one.at("warn_mm").get<double>(),
-                                                                       1e-3 * one.at("alarm_mm").get<double>()};
-      }
-      spec.segmentation = s;
-    }
-    if (sc.contains("drill")) {
-      const json& d = sc.at("drill");
-      DrillSpec drill;
-      drill.on = d.value("on", false);
-      drill.burr_radius_m = d.value("burr_radius_m", 0.0);
-      if (d.contains("burr_center_T_m")) {
-        const auto c = d.at("burr_center_T_m").get<std::vector<double>>();
-        if (c.size() != 3) throw std::runtime_error("scene.drill.burr_center_T_m: expected [x, y, z]");
-        drill.burr_center_T_m = Eigen::Vector3d(c[0], c[1], c[2]);
-      }
-      drill.burr_speed_rpm = d.value("burr_speed_rpm", drill.burr_speed_rpm);
-      if (d.contains("hardness")) drill.hardness_J_per_mm3 = d.at("hardness").get<std::map<std::string, double>>();
-      if (d.contains("cavity")) drill.cavity = std::make_shared<const DrilledCavity>(cavityFromJson(d.at("cavity")));
-      spec.drill = drill;
-    }
+    if (sc.contains("segmentation")) spec.segmentation = segmentationFromJson(sc.at("segmentation"));
+    if (sc.contains("drill")) spec.drill = drillFromJson(sc.at("drill"));
+    if (sc.contains("technique")) spec.technique = techniqueFromJson(sc.at("technique"));
   } catch (const json::exception& e) {
     throw std::runtime_error(std::string("session metadata: bad \"scene\": ") + e.what());
   }

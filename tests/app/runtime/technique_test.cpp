@@ -16,6 +16,7 @@
 #include "vh/runtime/recording.h"
 #include "vh/runtime/runner.h"
 #include "vh/runtime/scene.h"
+#include "vh/runtime/session_metadata.h"
 #include "vh/runtime/session_metrics.h"
 
 namespace vh::runtime {
@@ -293,6 +294,11 @@ TEST(TechniqueRun, APushAboveTheSafeLevelIsRecordedWhereTheRuleSaysAndCounted) {
   EXPECT_EQ(report.technique_episodes[0], events_s.size());
   EXPECT_EQ(report.technique_episodes[2], 0u) << "the burr alone touched the sphere";
   EXPECT_NE(report.toJson().find("\"technique_episodes\""), std::string::npos);
+  // The recording keeps the rules it ran with (a replay or a re-opened session uses them).
+  const SceneSpec recorded = sceneFromSessionMetadata(rec.metadata_json);
+  EXPECT_DOUBLE_EQ(recorded.technique.safe_force_N, 2.0);
+  EXPECT_DOUBLE_EQ(recorded.technique.force_hold_s, 0.25);
+  EXPECT_DOUBLE_EQ(recorded.technique.clear_s, TechniqueRules{}.clear_s);
   // The session's metrics (the report's and the cohort table's) count the same events.
   const SessionMetrics metrics = computeSessionMetrics(rec);
   EXPECT_EQ(metrics.technique_events[0], events_s.size());
