@@ -133,5 +133,28 @@ TEST(ReportFormat, CriticalAndUnknownEvents) {
   EXPECT_EQ(rows[1].text, "Placement: distance 12 mm, kind touch") << "an unknown kind: its fields in words";
 }
 
+// Proximity and technique events read as sentences a teacher understands, and the alarm and the
+// technique's advice are marked.
+TEST(ReportFormat, ProximityAndTechniqueEventsInWords) {
+  const std::vector<RecordingEvent> events = {
+      {4.4, 4400, "proximity_warn", R"({"segment":"facial nerve","distance_mm":1.92})"},
+      {5.3, 5300, "proximity_alarm", R"({"segment":"facial nerve","distance_mm":0.998})"},
+      {6.0, 6000, "technique", R"({"rule":"force"})"},
+      {6.7, 6700, "proximity_alarm_cleared", R"({"segment":"facial nerve","to":"warn","distance_mm":1.0})"},
+      {7.2, 7200, "proximity_warn_cleared", R"({"segment":"facial nerve","to":"clear","distance_mm":2.14})"},
+      {7.3, 7300, "technique", R"({"rule":"shaft"})"}};
+  const std::vector<EventRow> rows = summariseEvents(events, "");
+  ASSERT_EQ(rows.size(), 6u);
+  EXPECT_EQ(rows[0].text, "Within the warning distance of “facial nerve”: 1.92 mm");
+  EXPECT_FALSE(rows[0].critical);
+  EXPECT_EQ(rows[1].text, "Within the alarm distance of “facial nerve”: 0.998 mm");
+  EXPECT_TRUE(rows[1].critical);
+  EXPECT_EQ(rows[2].text, "Technique: pressing too hard for too long: ease off and let the burr cut");
+  EXPECT_TRUE(rows[2].critical);
+  EXPECT_EQ(rows[3].text, "Out of the alarm distance of “facial nerve”: 1 mm");
+  EXPECT_EQ(rows[4].text, "Clear of “facial nerve”: 2.14 mm");
+  EXPECT_NE(rows[5].text.find("shaft"), std::string::npos) << rows[5].text;
+}
+
 }  // namespace
 }  // namespace vh::ui

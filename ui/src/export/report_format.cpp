@@ -194,6 +194,14 @@ std::string eventText(const runtime::RecordingEvent& e, const Json& d, const std
     if (numberField(d, "J_per_mm3", a)) out += ", " + formatNumber(a) + " J/mm³ to remove";
     return out;
   }
+  if (e.type.rfind("proximity_", 0) == 0) {
+    const std::string where = quoted(stringField(d, "segment"));
+    const std::string at = numberField(d, "distance_mm", a) ? ": " + formatNumber(a, 3) + " mm" : std::string();
+    if (e.type == "proximity_warn") return "Within the warning distance of " + where + at;
+    if (e.type == "proximity_alarm") return "Within the alarm distance of " + where + at;
+    if (e.type == "proximity_alarm_cleared") return "Out of the alarm distance of " + where + at;
+    if (e.type == "proximity_warn_cleared") return "Clear of " + where + at;
+  }
   if (e.type == "technique") {
     const std::string rule = stringField(d, "rule");
     for (int k = 0; k < runtime::kTechniqueRuleCount; ++k)
@@ -205,7 +213,8 @@ std::string eventText(const runtime::RecordingEvent& e, const Json& d, const std
 }
 
 bool criticalType(const std::string& type) {
-  return type == "marker" || type == "critical_contact" || type == "critical_removed" || type == "technique";
+  return type == "marker" || type == "critical_contact" || type == "critical_removed" || type == "technique" ||
+         type == "proximity_alarm";
 }
 
 /// The summary row's text of `n` events of one kind (`first`, `last` their first and last).
