@@ -28,9 +28,17 @@ HapticsController::HapticsController(runtime::Session& session, HapticsPanel& pa
       recorder_(recorder), replay_(replay) {
   observer_ = session_.addObserver([this](runtime::SessionChange what) {
     if (runtime::has(what, runtime::SessionChange::kDevice)) devices_.sync();
-    if (runtime::has(what, runtime::SessionChange::kScene)) guide_.reset();  // the expert's path was of the last scan
+    const bool dropped = runtime::has(what, runtime::SessionChange::kScene) && guide_ != nullptr;
+    if (dropped) guide_.reset();  // the expert's path was of the last scan
     applyGuidance();  // a rebuilt haptic thread keeps the guidance
     refresh();
+    if (dropped) emit guidanceChanged();
+  });
+  // A recording started now runs on fresh threads that were given the guidance before the
+  // recorder: set it again so that the recording holds its "guidance" event.
+  connect(&recorder_, &SessionRecorder::recordingChanged, this, [this](bool recording) {
+    runtime::HapticThread* thread = session_.hapticThread();
+    if (recording && thread != nullptr && guide_ != nullptr) thread->setGuidance(guide_, haptics::GuidanceGains{});
   });
   connect(&panel_, &HapticsPanel::startStopRequested, this, [this](bool run) { run ? start() : session_.stopHaptics(); });
   connect(&panel_, &HapticsPanel::toolRequested, &tools_, &ToolPicker::select);
@@ -138,6 +146,7 @@ bool HapticsController::guideWith(const QString& file, QString* error) {
     return false;
   }
   applyGuidance();
+  emit guidanceChanged();
   emit message(QString("Guided along %1 (%2 segments)").arg(QString::fromStdString(guide_->fileName())).arg(guide_->path().size()), 4000);
   return true;
 }
@@ -146,6 +155,7 @@ void HapticsController::stopGuidance() {
   guide_.reset();
   if (runtime::HapticThread* thread = session_.hapticThread()) thread->setGuidance(nullptr, haptics::GuidanceGains{});
   if (stop_guide_action_ != nullptr) stop_guide_action_->setEnabled(false);
+  emit guidanceChanged();
 }
 
 void HapticsController::applyGuidance() {

@@ -95,6 +95,7 @@ MainWindow::MainWindow(QWidget* parent) : QMainWindow(parent) {
                                    *replay_, this);
   buildMenus();
   connectParts();
+  connectGuidance();
   observer_ = session_.addObserver([this](SessionChange what) { onSessionChanged(what); });
   setAcceptDrops(true);
   haptics_panel_->setEnabled(false);
@@ -270,6 +271,15 @@ void MainWindow::connectParts() {
     view_controller_->updateShadow();
   });
   connect(replay_, &ReplayController::cavityShown, view_controller_, [this] { view_controller_->updateShadow(); });
+}
+
+void MainWindow::connectGuidance() {
+  // The expert's ghost: the live guidance's, else the replayed recording's while a replay is shown.
+  connect(haptics_, &HapticsController::guidanceChanged, view_controller_, [this] {
+    if (!replay_->active()) view_controller_->updateGhost();
+  });
+  connect(replay_, &ReplayController::replayStarted, view_controller_, [this] { view_controller_->setLiveGhost(false); });
+  connect(replay_, &ReplayController::replayClosed, view_controller_, [this] { view_controller_->setLiveGhost(true); });
 }
 
 void MainWindow::followSound(const runtime::HapticSnapshot& snap) {

@@ -107,6 +107,7 @@ void ViewController::onSessionChanged(runtime::SessionChange what) {
 
 void ViewController::showScene() {
   view_.clearScene();
+  ghost_expert_.reset();  // the new scene's view has a new, hidden ghost
   have_snapshot_ = false;
   snapshot_ = runtime::HapticSnapshot{};
   if (!session_.hasScene()) return;
@@ -130,8 +131,42 @@ bool ViewController::refresh(bool update_status_now) {
   const int n = std::clamp(snapshot_.contacts_shown, 0, runtime::HapticSnapshot::kMaxContactsShown);
   frame.contacts_W_m = std::span<const Eigen::Vector3d>(snapshot_.contact_p_W_m.data(), static_cast<std::size_t>(n));
   const bool changed = view_.show(frame);  // a new pose casts the shadow (toolFrameShown)
+  updateGhost();
   emit snapshotShown(snapshot_, update_status_now);
   return changed;
+}
+
+void ViewController::setLiveGhost(bool on) {
+  live_ghost_ = on;
+  ghost_expert_.reset();
+  if (!on) return;
+  view_.setGhostPath(nullptr);
+  updateGhost();
+}
+
+void ViewController::updateGhost() {
+  if (!live_ghost_) return;
+  const runtime::HapticThread* thread = session_.hapticThread();
+  const std::shared_ptr<const runtime::ExpertPath> expert =
+      thread != nullptr && view_.hasScene() ? thread->guidance() : nullptr;
+  if (expert != ghost_expert_) {
+    ghost_expert_ = expert;
+    view_.setGhostPath(expert != nullptr ? &expert->path() : nullptr);  // hides it
+  }
+  if (expert == nullptr) {
+    view_.hideGhost();
+    return;
+  }
+  haptics::PathPoint nearest;
+  const std::int64_t segment = have_snapshot_ && snapshot_.guidance_on ? snapshot_.guidance_segment : -1;
+  if (segment >= 0 && static_cast<std::size_t>(segment) < expert->path().size()) {
+    nearest.segment = segment;
+    nearest.s = snapshot_.guidance_s;
+    nearest.p_W_m = snapshot_.guidance_nearest_W_m;
+  } else {
+    nearest = expert->path().nearest(have_snapshot_ ? snapshot_.X_WD.p_AB_m : session_.live().X_WT_initial.p_AB_m);
+  }
+  view_.showGhost(expert->poseAt(nearest));
 }
 
 bool ViewController::updateShadow() {

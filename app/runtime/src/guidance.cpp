@@ -27,8 +27,11 @@ constexpr double kMergeDistance_m = 1e-6;  // records closer than this to the la
 
 }  // namespace
 
-ExpertPath::ExpertPath(const Recording& expert, std::string file_sha256, std::string file_name)
-    : scene_(sceneIdentity(expert.metadata_json)), file_sha256_(std::move(file_sha256)), file_name_(std::move(file_name)) {
+ExpertPath::ExpertPath(const Recording& expert, std::string file_sha256, std::string file_name, std::string file_path)
+    : scene_(sceneIdentity(expert.metadata_json)),
+      file_sha256_(std::move(file_sha256)),
+      file_name_(std::move(file_name)),
+      file_path_(std::move(file_path)) {
   std::vector<haptics::GuidancePath::Segment> segments;
   bool have_last = false;
   haptics::Pose last;
@@ -71,7 +74,10 @@ std::shared_ptr<const ExpertPath> loadExpertPath(const std::filesystem::path& fi
   const Recording expert = readRecording(file);
   requireSameScene(sceneIdentity(session_metadata_json), sceneIdentity(expert.metadata_json),
                    "the guide recording " + file.filename().string(), "guidance needs the same dataset");
-  return std::make_shared<const ExpertPath>(expert, sha256File(file), file.filename().string());
+  std::error_code ec;
+  const std::filesystem::path absolute = std::filesystem::absolute(file, ec).lexically_normal();
+  return std::make_shared<const ExpertPath>(expert, sha256File(file), file.filename().string(),
+                                            ec ? file.string() : absolute.string());
 }
 
 haptics::GuidanceGains clampGuidance(const haptics::GuidanceGains& gains, const DeviceLimits& limits) noexcept {
@@ -88,6 +94,7 @@ std::string guidanceEventJson(const ExpertPath& expert, const haptics::GuidanceG
   nlohmann::json d;
   d["expert_sha256"] = expert.fileSha256();
   d["expert_file"] = expert.fileName();
+  if (!expert.filePath().empty()) d["expert_path"] = expert.filePath();
   d["stiffness_N_per_m"] = applied.effectiveStiffness_N_per_m();
   d["requested_stiffness_N_per_m"] = requested.stiffness_N_per_m;
   d["cap_N"] = applied.cap_N;

@@ -201,6 +201,9 @@ void ReplayController::onSceneShown() {
   speed_box_->setCurrentIndex(2);
   speed_ = 1.0;
   replayDrilling();
+  guide_ = ReplayGuide(recording_, path_);
+  view_.setGhostPath(guide_.expert() != nullptr ? &guide_.expert()->path() : nullptr);
+  if (!guide_.notice().empty()) emit noticeRequested(QString::fromStdString(guide_.notice()), 10000);
   setTime(recording_.records.front().time_s);
   updateActions();
   dock_->setToolTip(QString("%1: %2 ticks, %3 s, %4 markers")
@@ -216,6 +219,8 @@ void ReplayController::onSceneTeardown() {
   if (!active_) return;
   pause();
   active_ = false;
+  view_.setGhostPath(nullptr);  // hidden; the expert's path goes with guide_
+  guide_ = ReplayGuide();
   if (dock_ != nullptr) dock_->hide();
   updateActions();
   emit replayClosed();
@@ -308,11 +313,17 @@ void ReplayController::setTime(double t_s) {
   ToolFrame frame = toolFrameOf(r);  // the same picture as a live snapshot
   if (!scan_isovalue) frame.isovalue = std::numeric_limits<double>::quiet_NaN();
   view_.show(frame);
+  showGhostAt(r);
   showDrillingAt(index_);
   timeline_->setCursor_s(time_s_);
   readout_->setText(readout());
   view_.noteMotion();
   view_.requestRender();
+}
+
+void ReplayController::showGhostAt(const runtime::TickRecord& r) {
+  if (guide_.onAt(r.time_s)) view_.showGhost(guide_.ghostPose(devicePoseOf(r).p_AB_m));
+  else view_.hideGhost();
 }
 
 void ReplayController::replayDrilling() {

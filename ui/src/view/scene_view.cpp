@@ -13,11 +13,13 @@
 #include <vtkCamera.h>
 #include <vtkGenericOpenGLRenderWindow.h>
 #include <vtkGenericRenderWindowInteractor.h>
+#include <vtkMapper.h>
 #include <vtkNew.h>
 #include <vtkRenderer.h>
 #include <vtkTextActor.h>
 #include <vtkTextProperty.h>
 
+#include "vh/ui/view/expert_ghost.h"
 #include "vh/ui/view/orientation_marker.h"
 #include "vh/ui/view/vtk_view.h"
 
@@ -171,6 +173,7 @@ SceneView::~SceneView() {
   // VTK props release their GL objects when they leave the renderer: give them the context.
   const bool current = view_->context() != nullptr && view_->makeCurrent();
   takeToolsOutOfLayer();
+  ghost_.reset();
   actors_.reset();
   segments_.reset();
   marker_.reset();
@@ -184,11 +187,14 @@ void SceneView::setScene(const SceneActorsSpec& spec, const haptics::Pose& X_WT,
   if (view_->context() != nullptr) {
     view_->makeCurrent();
     takeToolsOutOfLayer();
+    ghost_.reset();
     actors_.reset();
     view_->doneCurrent();
   }
   takeToolsOutOfLayer();
   actors_ = std::make_unique<SceneActors>(view_->renderer(), spec);
+  ghost_ = std::make_unique<ExpertGhost>(actors_->overlayRenderer(),
+                                         actors_->proxyActor()->GetMapper()->GetInputConnection(0, 0));
   tool_vertices_T_m_ = spec.tool_mesh_T.vertices_T_m;
   tool_corners_T_m_ = boxCorners(tool_vertices_T_m_);
   actors_->setProxyPose(X_WT);
@@ -214,11 +220,13 @@ void SceneView::clearScene() {
   if (view_->context() != nullptr) {
     view_->makeCurrent();
     takeToolsOutOfLayer();
+    ghost_.reset();
     actors_.reset();
     segments_.reset();
     view_->doneCurrent();
   }
   takeToolsOutOfLayer();
+  ghost_.reset();
   actors_.reset();
   segments_.reset();
   segment_layer_->SetDraw(false);
@@ -267,6 +275,26 @@ void SceneView::setTouchedSegment(int segment, const std::string& alert) {
     alert_->SetInput(alert.c_str());
     alert_->SetVisibility(!alert.empty());
   }
+  requestRender();
+}
+
+void SceneView::setGhostPath(const haptics::GuidancePath* path) {
+  if (ghost_ == nullptr) return;
+  ghost_->setPath(path);
+  requestRender();
+}
+
+void SceneView::showGhost(const haptics::Pose& X_WE) {
+  if (ghost_ == nullptr || !X_WE.allFinite()) return;
+  const bool moved = !ghost_->visible() || ghost_->pose().p_AB_m != X_WE.p_AB_m ||
+                     ghost_->pose().R_AB.coeffs() != X_WE.R_AB.coeffs();
+  ghost_->show(X_WE);
+  if (moved) requestRender();
+}
+
+void SceneView::hideGhost() {
+  if (ghost_ == nullptr || !ghost_->visible()) return;
+  ghost_->hide();
   requestRender();
 }
 

@@ -51,7 +51,8 @@ class HapticsController : public QObject {
   /// recording of the same scan, runtime/guidance.h) from now on, kept over rebuilt haptic
   /// threads. @return false with a message when the file cannot be read or is of another scan.
   bool guideWith(const QString& file, QString* error = nullptr);
-  /// Guidance off.
+  /// Guidance off. A recording started while guidance is on holds its "guidance" event too
+  /// (the expert's file and checksum: a replay shows the expert's ghost).
   void stopGuidance();
   /// The expert's path guided along, or null.
   const std::shared_ptr<const runtime::ExpertPath>& guide() const noexcept { return guide_; }
@@ -59,6 +60,8 @@ class HapticsController : public QObject {
  signals:
   /// A short text for the status bar.
   void message(const QString& text, int timeout_ms);
+  /// Guidance started, stopped or went with the scan it was of (guide() tells which).
+  void guidanceChanged();
 
  private:
   bool replaying() const;

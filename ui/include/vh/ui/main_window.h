@@ -150,6 +150,7 @@ class MainWindow : public QMainWindow {
   void buildMenus();
   void connectParts();
   void connectSound();  // the burr's sound and the alert tone (critical segments, technique)
+  void connectGuidance();  // the expert's ghost: live guidance and replay
   void onSessionChanged(runtime::SessionChange what);
   void onSceneLoaded(const std::shared_ptr<ViewerScene>& loaded);
   void onLoadEnded();

@@ -78,6 +78,16 @@ class ViewController : public QObject {
   void setCarvedRegion(const CarvedRegion* carved) noexcept { carved_ = carved; }
   /// Samples of the tool the shadow is cast from (shadowSamples() of its point shell).
   const std::vector<Eigen::Vector3d>& shadowSamples_T_m() const noexcept { return shadow_samples_T_m_; }
+  /// The expert's ghost (SceneView::showGhost()) while the haptic thread guides along an
+  /// expert's path (HapticThread::guidance()): at ExpertPath::poseAt() of the last snapshot's
+  /// nearest point of the path, or of the path's nearest point to the device shown before the
+  /// coupling thread found one; hidden without guidance. Called with every snapshot and when
+  /// guidance starts or stops.
+  void updateGhost();
+  /// Whether updateGhost() drives the view's ghost (true, the default); false while a replay
+  /// shows the ghost of its own recording (ReplayController). Back on, the live guidance's
+  /// ghost is shown again (or none).
+  void setLiveGhost(bool on);
   /// The tool's bounding sphere in view, at the proxy's latest pose.
   void focusOnTool();
   /// The preferences' colours on the view.
@@ -117,6 +127,8 @@ class ViewController : public QObject {
   runtime::HapticSnapshot snapshot_;
   bool have_snapshot_ = false;
   int observer_ = 0;
+  std::shared_ptr<const runtime::ExpertPath> ghost_expert_;  // whose path the view's ghost draws
+  bool live_ghost_ = true;
   std::vector<Eigen::Vector3d> shadow_samples_T_m_;
   struct ShadowKey {
     haptics::Pose X_WP;

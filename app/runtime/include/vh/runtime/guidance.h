@@ -19,7 +19,8 @@
 /// (ForceSafety: engage gate, fault hold, clamp to the device's force limit, ramp), so the
 /// device never gets more than the safety layer allows, whatever the two add up to.
 ///
-/// Recording: a "guidance" event {"expert_sha256", "expert_file", "stiffness_N_per_m" (applied
+/// Recording: a "guidance" event {"expert_sha256", "expert_file" (its name), "expert_path" (its
+/// absolute path, where a replay looks for it first), "stiffness_N_per_m" (applied
 /// on this repetition), "requested_stiffness_N_per_m", "cap_N", "deadband_m", "fade",
 /// "repetition"} when guidance starts; the headless run also writes "guidance_force" events
 /// every kGuidanceEventTicks ticks {"F_W_N": [x, y, z] of the window's last tick, "peak_N": the
@@ -52,14 +53,17 @@ class ExpertPath {
  public:
   /// @param expert a recording with at least two usable records (not bad samples).
   /// @param file_sha256 the recording file's SHA-256 (for the "guidance" event; may be empty).
+  /// @param file_name, file_path its name and its absolute path (for the event; may be empty).
   /// @throws std::invalid_argument when the recording has fewer than two usable records.
-  ExpertPath(const Recording& expert, std::string file_sha256 = {}, std::string file_name = {});
+  ExpertPath(const Recording& expert, std::string file_sha256 = {}, std::string file_name = {},
+             std::string file_path = {});
 
   const haptics::GuidancePath& path() const noexcept { return path_; }
   /// The recording's scene (sceneIdentity() of its metadata).
   const SceneIdentity& scene() const noexcept { return scene_; }
   const std::string& fileSha256() const noexcept { return file_sha256_; }
   const std::string& fileName() const noexcept { return file_name_; }
+  const std::string& filePath() const noexcept { return file_path_; }
   /// The usable device positions, in record order (n x 3, W [m]): the path's vertices.
   const std::vector<Eigen::Vector3d>& points() const noexcept { return points_; }
   /// The expert's device pose at a point of the path (position on the segment, orientation
@@ -75,7 +79,7 @@ class ExpertPath {
   std::vector<Eigen::Vector3d> points_;
   std::vector<haptics::Pose> segment_from_, segment_to_;  ///< The records at each segment's ends.
   SceneIdentity scene_;
-  std::string file_sha256_, file_name_;
+  std::string file_sha256_, file_name_, file_path_;
 };
 
 /// Reads the expert's recording and checks that it was recorded on the session's scene

@@ -6,7 +6,8 @@
 /// is an error dialog naming it and the current scene stays), stops the haptic thread and shows
 /// the Replay dock: play / pause, speed 0.25x .. 4x, a timeline with |F| and the markers that
 /// can be scrubbed, the marker list, and the time / tick / force / contacts of the record shown.
-/// The proxy, device, force arrow and isovalue follow the records; Close Replay returns to live
+/// The proxy, device, force arrow and isovalue follow the records, and so does the expert's ghost
+/// of a recording made with guidance (ReplayGuide); Close Replay returns to live
 /// haptics on the same scene. File > Export Recording writes CSV / JSON (runtime), a video
 /// (Ogg/Theora) and a PNG (media_export.h).
 ///
@@ -29,6 +30,7 @@
 #include "vh/runtime/recording.h"
 #include "vh/ui/export/media_export.h"
 #include "vh/ui/replay/force_timeline.h"
+#include "vh/ui/replay/replay_guide.h"
 
 class QAction;
 class QComboBox;
@@ -95,6 +97,9 @@ class ReplayController : public QObject {
   double speed() const noexcept { return speed_; }
 
   const runtime::Recording& recording() const noexcept { return recording_; }
+  /// The expert's ghost of a recording made with guidance (ReplayGuide: shown when the expert's
+  /// recording is found unchanged; else the status bar says it is not available).
+  const ReplayGuide& guide() const noexcept { return guide_; }
   /// The felt field carved to the cavity shown at the replay's time, for the tool's shadow (the
   /// window's ViewController reads it while a replay is shown).
   const CarvedRegion& carved() const noexcept { return carved_; }
@@ -180,6 +185,9 @@ class ReplayController : public QObject {
   bool interactive_ = true;
   runtime::Recording recording_;
   std::filesystem::path path_;
+  ReplayGuide guide_;
+  /// The expert's ghost at record `r` (hidden where the recording was not guided).
+  void showGhostAt(const runtime::TickRecord& r);
   std::optional<runtime::Recording> pending_;
   std::filesystem::path pending_path_;
   bool active_ = false;

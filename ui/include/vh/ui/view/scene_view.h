@@ -19,6 +19,7 @@
 #include <QObject>
 #include <vtkSmartPointer.h>
 
+#include "vh/haptics/path_guidance.h"
 #include "vh/haptics/pose.h"
 #include "vh/haptics/tool_model.h"
 #include "vh/ui/view/device_manipulation.h"
@@ -35,6 +36,7 @@ class vtkTextActor;
 
 namespace vh::ui {
 
+class ExpertGhost;
 class OrientationMarker;
 class VtkView;
 
@@ -90,6 +92,17 @@ class SceneView : public QObject {
   vtkRenderer* segmentLayer() const noexcept;
   /// The alert text shown now ("" when none).
   std::string alertText() const;
+  // ---- The expert's ghost (guidance from an expert's recording: ExpertGhost) ------------------
+  /// The expert's path drawn with the ghost (null: none); hides the ghost until showGhost().
+  /// `path` must stay alive while it is shown (the caller keeps its runtime::ExpertPath).
+  void setGhostPath(const haptics::GuidancePath* path);
+  /// The expert's tool at X_WE [m, W] (ExpertPath::poseAt() of the nearest point), translucent
+  /// green, with the path; a frame is asked for when it moved or appeared.
+  void showGhost(const haptics::Pose& X_WE);
+  void hideGhost();
+  /// The ghost (null before the first scene); a new scene has a new, hidden one.
+  const ExpertGhost* ghost() const noexcept { return ghost_.get(); }
+
   /// A new tool's display mesh, both tools at `X_WT`, no contacts, no force.
   void setTool(const haptics::ToolModel& tool, const haptics::Pose& X_WT);
 
@@ -168,6 +181,7 @@ class SceneView : public QObject {
 
   VtkView* view_ = nullptr;
   std::unique_ptr<SceneActors> actors_;
+  std::unique_ptr<ExpertGhost> ghost_;  // in actors_'s overlay layer: goes before it
   std::unique_ptr<SegmentSurfaces> segments_;
   vtkSmartPointer<vtkRenderer> segment_layer_;
   std::vector<vtkSmartPointer<vtkActor>> layer_tools_;  // the tools also drawn in segment_layer_
