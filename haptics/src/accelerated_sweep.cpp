@@ -4,7 +4,7 @@
 // a time-ordered search whose runs of segments are proven empty by their direction or their
 // ball, the paper's steps (paper_sweep.cpp) where they are not. Resumable: a sweep the work
 // budget or the deadline cut goes on next tick where it stopped (resumeSweep(), "Never late").
-#include "vh/haptics/collision_detector.h"
+#include "collision_detector_impl.h"
 
 #include <algorithm>
 #include <atomic>
@@ -36,7 +36,7 @@ void replaceTop(E* h, std::size_t count, const E& entry) noexcept {
 }
 }  // namespace
 
-bool CollisionDetector::runMayHit(WorkCounters& w, const RigidMotion& motion, int j, std::int64_t k,
+bool CollisionDetector::Impl::runMayHit(WorkCounters& w, const RigidMotion& motion, int j, std::int64_t k,
                                   std::int64_t run, double isovalue) noexcept {
   // The run's points stay within half its path-length bound of its mid-time position.
   const std::int64_t total = pt_[j].segments;
@@ -49,7 +49,7 @@ bool CollisionDetector::runMayHit(WorkCounters& w, const RigidMotion& motion, in
   return ballMayBeInside(w, motion.pointAt(pt_[j].r0, 0.5 * (t0 + t1)), radius, isovalue, pt_[j].sagitta);
 }
 
-bool CollisionDetector::runFreeAlongItsDirection(WorkCounters& w, const RigidMotion& motion, int j, double t0,
+bool CollisionDetector::Impl::runFreeAlongItsDirection(WorkCounters& w, const RigidMotion& motion, int j, double t0,
                                                  double t1, double isovalue, const Eigen::Vector3d* ranges_lo,
                                                  const Eigen::Vector3d* ranges_hi, bool* within_a_voxel) const noexcept {
   // The run's arc lies within its sagitta delta = rho (angle (t1 - t0))^2 / 8 of its chord a -> b
@@ -89,23 +89,23 @@ bool CollisionDetector::runFreeAlongItsDirection(WorkCounters& w, const RigidMot
   return f0 + std::max(0.0, rise) + off_chord + tolerance < isovalue;
 }
 
-void CollisionDetector::startPoint(WorkCounters& k, const RigidMotion& motion, int j) noexcept {
+void CollisionDetector::Impl::startPoint(WorkCounters& k, const RigidMotion& motion, int j) noexcept {
   setupPath(k, motion, j);
   pt_[j].clear_until = -1.0;
 }
 
-void CollisionDetector::startSearch(int j) noexcept {
+void CollisionDetector::Impl::startSearch(int j) noexcept {
   search_[j].clear_segments = 0;
   search_[j].backoff = 0;
 }
 
-double CollisionDetector::nodeBall(const WalkArc& arc, const ShellNode& node, Eigen::Vector3d& centre_W) const noexcept {
+double CollisionDetector::Impl::nodeBall(const WalkArc& arc, const ShellNode& node, Eigen::Vector3d& centre_W) const noexcept {
   const Eigen::Vector3d r_c = arc.motion.radial_W(node.center_T_m);
   centre_W = arc.c_mid_W_m + arc.R_mid * r_c;
   return (0.5 * arc.t_max * arc.motion.pathLengthBound(r_c) + node.radius_m + epsilon_) * (1.0 + 1e-9) + 1e-12;
 }
 
-bool CollisionDetector::nearPathFree(WorkCounters& k, const WalkArc& arc, const ShellNode& node, int j,
+bool CollisionDetector::Impl::nearPathFree(WorkCounters& k, const WalkArc& arc, const ShellNode& node, int j,
                                      LeafSteps& steps, bool& within_a_voxel) const noexcept {
   // F's steps per grid axis over the leaf's ball, for its points' direction tests: one read
   // of the step bricks per leaf instead of one per point. The ball holds every point's arc
@@ -121,7 +121,7 @@ bool CollisionDetector::nearPathFree(WorkCounters& k, const WalkArc& arc, const 
                                   steps.state > 0 ? &steps.hi : nullptr, &within_a_voxel);
 }
 
-std::size_t CollisionDetector::collectLeaf(Lane& lane, const WalkArc& arc, int node_index, std::size_t logged,
+std::size_t CollisionDetector::Impl::collectLeaf(Lane& lane, const WalkArc& arc, int node_index, std::size_t logged,
                                            QueueEntry* heap, std::size_t count) noexcept {
   WorkCounters& k = lane.counters;
   const ShellNode& node = nodes_[node_index];
@@ -175,7 +175,7 @@ std::size_t CollisionDetector::collectLeaf(Lane& lane, const WalkArc& arc, int n
   return count;
 }
 
-std::size_t CollisionDetector::collectActive(Lane& lane, const RigidMotion& motion, double t_max, double isovalue,
+std::size_t CollisionDetector::Impl::collectActive(Lane& lane, const RigidMotion& motion, double t_max, double isovalue,
                                              bool queue, bool resume) noexcept {
   WorkCounters& k = lane.counters;
   const double angle = motion.omega_W_rad().norm();
@@ -245,7 +245,7 @@ std::size_t CollisionDetector::collectActive(Lane& lane, const RigidMotion& moti
   return count;
 }
 
-void CollisionDetector::markNearNodes(Lane& lane) noexcept {
+void CollisionDetector::Impl::markNearNodes(Lane& lane) noexcept {
   // Backwards through the walk's preorder: a node's children (both logged after it whenever it
   // was passed on) are marked before it.
   for (std::size_t e = lane.walk_logged; e-- > 0;) {
@@ -261,7 +261,7 @@ void CollisionDetector::markNearNodes(Lane& lane) noexcept {
   lane.walk_logged = 0;
 }
 
-SweepResult CollisionDetector::sweepAccelerated(const RigidMotion& motion, double isovalue) noexcept {
+SweepResult CollisionDetector::Impl::sweepAccelerated(const RigidMotion& motion, double isovalue) noexcept {
   pending_.active = false;
   active_complete_ = true;
   if (motion.isStill()) return {};
@@ -283,7 +283,7 @@ SweepResult CollisionDetector::sweepAccelerated(const RigidMotion& motion, doubl
   return runAccelerated();
 }
 
-SweepResult CollisionDetector::resumeSweep() noexcept {
+SweepResult CollisionDetector::Impl::resumeSweep() noexcept {
   if (!pending_.active) return {};
   if (++chord_stamp_ == 0) {  // a new tick: the cached chord ends are recomputed (same values)
     for (PointSearch& q : search_) q.chord_end_stamp = 0u;
@@ -292,13 +292,13 @@ SweepResult CollisionDetector::resumeSweep() noexcept {
   return stopClear(runAccelerated());
 }
 
-void CollisionDetector::laneJob(void* detector, int lane) noexcept {
-  auto* self = static_cast<CollisionDetector*>(detector);
+void CollisionDetector::Impl::laneJob(void* detector, int lane) noexcept {
+  auto* self = static_cast<CollisionDetector::Impl*>(detector);
   Lane& l = self->lanes_[static_cast<std::size_t>(lane)];
   if (l.phase == 1 || l.phase == 2) self->runLane(l);
 }
 
-bool CollisionDetector::runContactPass() noexcept {
+bool CollisionDetector::Impl::runContactPass() noexcept {
   PendingSweep& st = pending_;
   const RigidMotion& motion = st.motion;
   SweepResult& result = st.result;
@@ -321,7 +321,7 @@ bool CollisionDetector::runContactPass() noexcept {
   return true;
 }
 
-SweepResult CollisionDetector::cutBeforeLanes() noexcept {
+SweepResult CollisionDetector::Impl::cutBeforeLanes() noexcept {
   pending_.active = true;
   active_complete_ = false;
   SweepResult cut;
@@ -330,7 +330,7 @@ SweepResult CollisionDetector::cutBeforeLanes() noexcept {
   return cut;
 }
 
-void CollisionDetector::startLanePhase() noexcept {
+void CollisionDetector::Impl::startLanePhase() noexcept {
   pending_.phase = 1;
   pending_.walk_t = pending_.result.t;
   for (Lane& lane : lanes_) {
@@ -341,7 +341,7 @@ void CollisionDetector::startLanePhase() noexcept {
   }
 }
 
-void CollisionDetector::forkLanes(double t_bound) noexcept {
+void CollisionDetector::Impl::forkLanes(double t_bound) noexcept {
   bound_->store(t_bound, std::memory_order_relaxed);
   for (Lane& lane : lanes_) {
     startLaneWork(lane);
@@ -350,7 +350,7 @@ void CollisionDetector::forkLanes(double t_bound) noexcept {
       bound_->store(lane.result.t, std::memory_order_relaxed);
   }
   if (pool_) {
-    pool_->run(&CollisionDetector::laneJob, this, static_cast<int>(lanes_.size()));
+    pool_->run(&CollisionDetector::Impl::laneJob, this, static_cast<int>(lanes_.size()));
   } else {
     for (Lane& lane : lanes_)
       if (lane.phase == 1 || lane.phase == 2) runLane(lane);
@@ -358,7 +358,7 @@ void CollisionDetector::forkLanes(double t_bound) noexcept {
   joinLaneWork();
 }
 
-SweepResult CollisionDetector::mergeLanes(const SweepResult& contact_hit) noexcept {
+SweepResult CollisionDetector::Impl::mergeLanes(const SweepResult& contact_hit) noexcept {
   SweepResult best = contact_hit;
   double cut_t = 2.0;
   bool walked = true;
@@ -383,7 +383,7 @@ SweepResult CollisionDetector::mergeLanes(const SweepResult& contact_hit) noexce
   return best;
 }
 
-SweepResult CollisionDetector::runAccelerated() noexcept {
+SweepResult CollisionDetector::Impl::runAccelerated() noexcept {
   PendingSweep& st = pending_;
   SweepResult& result = st.result;
   st.active = false;
@@ -409,7 +409,7 @@ SweepResult CollisionDetector::runAccelerated() noexcept {
   return mergeLanes(result);
 }
 
-bool CollisionDetector::walkLane(Lane& lane) noexcept {
+bool CollisionDetector::Impl::walkLane(Lane& lane) noexcept {
   const PendingSweep& st = pending_;
   const bool resume = lane.walk_top >= 0;
   lane.count = lane.queued + collectActive(lane, st.motion, st.walk_t, st.isovalue, true, resume);
@@ -424,12 +424,12 @@ bool CollisionDetector::walkLane(Lane& lane) noexcept {
   return true;
 }
 
-void CollisionDetector::pushSuccessor(Lane& lane, const QueueEntry& entry) noexcept {
+void CollisionDetector::Impl::pushSuccessor(Lane& lane, const QueueEntry& entry) noexcept {
   replaceTop(lane.heap.data(), lane.count, entry);
   lane.pop_pending = false;
 }
 
-void CollisionDetector::resolveRun(Lane& lane, const QueueEntry& e) noexcept {
+void CollisionDetector::Impl::resolveRun(Lane& lane, const QueueEntry& e) noexcept {
   const int j = e.point;
   const std::int64_t total = pt_[j].segments;
   const std::int64_t run = std::min(e.run, total - e.segment);
@@ -446,7 +446,7 @@ void CollisionDetector::resolveRun(Lane& lane, const QueueEntry& e) noexcept {
   }
 }
 
-std::int64_t CollisionDetector::runAfterOutsideStep(PointSearch& search, std::int64_t run) noexcept {
+std::int64_t CollisionDetector::Impl::runAfterOutsideStep(PointSearch& search, std::int64_t run) noexcept {
   // Near the surface, after a failed test of one segment (run 0): 2^b direct steps (-2^b,
   // counting up to -1), then test a run again (1); b grows with each failure in a row and
   // is reset by a run proven empty. Along a surface (a tool sliding in a hole) the tests
@@ -461,7 +461,7 @@ std::int64_t CollisionDetector::runAfterOutsideStep(PointSearch& search, std::in
   return successor;
 }
 
-void CollisionDetector::stepQueuedSegment(Lane& lane, const QueueEntry& e, double limit) noexcept {
+void CollisionDetector::Impl::stepQueuedSegment(Lane& lane, const QueueEntry& e, double limit) noexcept {
   const int j = e.point;
   std::atomic<double>& bound = *bound_;
   SweepResult& result = lane.result;
@@ -475,7 +475,7 @@ void CollisionDetector::stepQueuedSegment(Lane& lane, const QueueEntry& e, doubl
   if (t_end >= 0.0 && t_end < 1.0) pushSuccessor(lane, {t_end, j, e.segment + 1, runAfterOutsideStep(search_[j], e.run)});
 }
 
-void CollisionDetector::searchLane(Lane& lane) noexcept {
+void CollisionDetector::Impl::searchLane(Lane& lane) noexcept {
   // The paper's time-ordered search over the segments that remain; the samples and the
   // bisection are the paper's, so the first time of contact is the same double.
   // Entries with run <= 0 are single segments sampled as the paper does (0: after a run test,
@@ -517,7 +517,7 @@ void CollisionDetector::searchLane(Lane& lane) noexcept {
   lane.phase = 3;
 }
 
-void CollisionDetector::runLane(Lane& lane) noexcept {
+void CollisionDetector::Impl::runLane(Lane& lane) noexcept {
   if (lane.phase == 1 && !walkLane(lane)) return;
   searchLane(lane);
 }

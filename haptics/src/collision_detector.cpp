@@ -1,6 +1,7 @@
-// The collision detector's facade (paper section 2.3): construction of every part's working
-// memory (no member allocates after it), sweep()'s dispatch to the paper's or the accelerated
-// sweep, and the stop clearance of a finished sweep's hit. The parts, one job a file:
+// The collision detector's facade (paper section 2.3): its calls forwarded to the parts
+// (collision_detector_impl.h), construction of every part's working memory (no member
+// allocates after it), sweep()'s dispatch to the paper's or the accelerated sweep, and the
+// stop clearance of a finished sweep's hit. The parts, one job a file:
 //   paper_sweep.cpp          the paper's sweep: a point's path, the segment test with its
 //                            bisection, the time-ordered queue over all points
 //   accelerated_sweep.cpp    the accelerated sweep: the point-shell walk, the run tests and the
@@ -13,9 +14,12 @@
 //   edge_certificates.cpp    the edge test's clearance certificates, kept across ticks
 #include "vh/haptics/collision_detector.h"
 
+#include "collision_detector_impl.h"
+
 #include <algorithm>
 #include <cmath>
 #include <cstddef>
+#include <memory>
 #include <stdexcept>
 #include <string>
 #include <vector>
@@ -33,6 +37,85 @@ const char* toString(SegmentTest test) noexcept {
 CollisionDetector::CollisionDetector(const ScalarVolume& volume, const ToolModel& tool, double epsilon_m,
                                      std::size_t max_contacts, DetectionMode mode, double segment_fraction,
                                      SegmentTest segment_test)
+    : impl_(std::make_unique<Impl>(volume, tool, epsilon_m, max_contacts, mode, segment_fraction, segment_test)) {}
+
+CollisionDetector::~CollisionDetector() = default;
+CollisionDetector::CollisionDetector(CollisionDetector&&) noexcept = default;
+CollisionDetector& CollisionDetector::operator=(CollisionDetector&&) noexcept = default;
+
+// The facade's calls, forwarded.
+DetectionMode CollisionDetector::mode() const noexcept { return impl_->mode(); }
+SegmentTest CollisionDetector::segmentTest() const noexcept { return impl_->segmentTest(); }
+double CollisionDetector::maxSagitta_m() const noexcept { return impl_->maxSagitta_m(); }
+double CollisionDetector::epsilon_m() const noexcept { return impl_->epsilon_m(); }
+double CollisionDetector::featureSize_m() const noexcept { return impl_->featureSize_m(); }
+double CollisionDetector::shellRadius_m() const noexcept { return impl_->shellRadius_m(); }
+SweepResult CollisionDetector::sweep(const RigidMotion& motion, double isovalue) noexcept {
+  return impl_->sweep(motion, isovalue);
+}
+bool CollisionDetector::sweepPending() const noexcept { return impl_->sweepPending(); }
+const RigidMotion& CollisionDetector::pendingMotion() const noexcept { return impl_->pendingMotion(); }
+SweepResult CollisionDetector::resumeSweep() noexcept { return impl_->resumeSweep(); }
+void CollisionDetector::abandonSweep() noexcept { impl_->abandonSweep(); }
+void CollisionDetector::pruneContacts(const Pose& X_WP, const Pose& X_WD, double isovalue) noexcept {
+  impl_->pruneContacts(X_WP, X_WD, isovalue);
+}
+void CollisionDetector::addContactsAt(const RigidMotion& motion, const SweepResult& hit, double isovalue) noexcept {
+  impl_->addContactsAt(motion, hit, isovalue);
+}
+bool CollisionDetector::refineStuckContact(const RigidMotion& motion, const SweepResult& hit) noexcept {
+  return impl_->refineStuckContact(motion, hit);
+}
+void CollisionDetector::refreshPositions(const Pose& X_WP) noexcept { impl_->refreshPositions(X_WP); }
+int CollisionDetector::updateEmbedded(const Pose& X_WP, double isovalue) noexcept {
+  return impl_->updateEmbedded(X_WP, isovalue);
+}
+double CollisionDetector::maxFieldOnShell(const Pose& X_WP, double floor) noexcept {
+  return impl_->maxFieldOnShell(X_WP, floor);
+}
+bool CollisionDetector::edgesCrossAt(const Pose& X_WP, double isovalue) noexcept {
+  return impl_->edgesCrossAt(X_WP, isovalue);
+}
+bool CollisionDetector::edgeTestCut() const noexcept { return impl_->edgeTestCut(); }
+bool CollisionDetector::listedEdgesCrossAt(const Pose& X_WP, double isovalue) noexcept {
+  return impl_->listedEdgesCrossAt(X_WP, isovalue);
+}
+void CollisionDetector::clearCrossingEdges() noexcept { impl_->clearCrossingEdges(); }
+const Contact* CollisionDetector::addEdgeContact(const Pose& X_WP, double isovalue) noexcept {
+  return impl_->addEdgeContact(X_WP, isovalue);
+}
+const ShellEdges& CollisionDetector::shellEdges() const noexcept { return impl_->shellEdges(); }
+int CollisionDetector::releaseEmbedded(const Pose& X_WP, double isovalue) noexcept {
+  return impl_->releaseEmbedded(X_WP, isovalue);
+}
+int CollisionDetector::embeddedCount() const noexcept { return impl_->embeddedCount(); }
+void CollisionDetector::clearContacts() noexcept { impl_->clearContacts(); }
+std::span<const Contact> CollisionDetector::contacts() const noexcept { return impl_->contacts(); }
+std::int64_t CollisionDetector::sampleCount() const noexcept { return impl_->sampleCount(); }
+std::int64_t CollisionDetector::boxQueryCount() const noexcept { return impl_->boxQueryCount(); }
+std::int64_t CollisionDetector::treeNodeCount() const noexcept { return impl_->treeNodeCount(); }
+std::int64_t CollisionDetector::cellCount() const noexcept { return impl_->cellCount(); }
+std::int64_t CollisionDetector::cellsWalkedCount() const noexcept { return impl_->cellsWalkedCount(); }
+std::int64_t CollisionDetector::work() const noexcept { return impl_->work(); }
+std::int64_t CollisionDetector::budgetWork() const noexcept { return impl_->budgetWork(); }
+void CollisionDetector::setContactCap(std::size_t cap) noexcept { impl_->setContactCap(cap); }
+std::size_t CollisionDetector::contactCap() const noexcept { return impl_->contactCap(); }
+void CollisionDetector::setWorkBudget(std::int64_t units) noexcept { impl_->setWorkBudget(units); }
+void CollisionDetector::setDeadline(std::chrono::steady_clock::time_point deadline) noexcept {
+  impl_->setDeadline(deadline);
+}
+void CollisionDetector::clearDeadline() noexcept { impl_->clearDeadline(); }
+bool CollisionDetector::deadlineReached() const noexcept { return impl_->deadlineReached(); }
+void CollisionDetector::setLanes(int lanes) { impl_->setLanes(lanes); }
+int CollisionDetector::lanes() const noexcept { return impl_->lanes(); }
+void CollisionDetector::addWork(std::int64_t units) noexcept { impl_->addWork(units); }
+bool CollisionDetector::budgetSpent() const noexcept { return impl_->budgetSpent(); }
+std::int64_t CollisionDetector::workBudget() const noexcept { return impl_->workBudget(); }
+void CollisionDetector::resetSampleCount() noexcept { impl_->resetSampleCount(); }
+
+CollisionDetector::Impl::Impl(const ScalarVolume& volume, const ToolModel& tool, double epsilon_m,
+                              std::size_t max_contacts, DetectionMode mode, double segment_fraction,
+                              SegmentTest segment_test)
     : volume_(&volume), tool_(&tool), mode_(mode), segment_test_(segment_test), feature_(volume.featureSize_m()) {
   if (!(segment_fraction > 0.0 && segment_fraction <= 1.0))
     throw std::invalid_argument("CollisionDetector: segment_fraction " + std::to_string(segment_fraction) +
@@ -91,7 +174,7 @@ CollisionDetector::CollisionDetector(const ScalarVolume& volume, const ToolModel
     for (std::size_t i = 0; i < n; ++i) edge_clearance_index_[static_cast<std::size_t>(order_[i])] = static_cast<int>(i);
 }
 
-SweepResult CollisionDetector::sweep(const RigidMotion& motion, double isovalue) noexcept {
+SweepResult CollisionDetector::Impl::sweep(const RigidMotion& motion, double isovalue) noexcept {
   if (++chord_stamp_ == 0) {  // wrapped: forget every cached chord end
     for (PointSearch& q : search_) q.chord_end_stamp = 0u;
     chord_stamp_ = 1;
@@ -105,7 +188,7 @@ SweepResult CollisionDetector::sweep(const RigidMotion& motion, double isovalue)
   return stopClear(mode_ == DetectionMode::kAccelerated ? sweepAccelerated(motion, isovalue) : sweepPaper(motion, isovalue));
 }
 
-SweepResult CollisionDetector::stopClear(SweepResult result) const noexcept {
+SweepResult CollisionDetector::Impl::stopClear(SweepResult result) const noexcept {
   // The bisection's outside end may lie a rounding error from the surface; a contact that then
   // turns along the surface (a probe spun on a ball) has chords that dip under it by less than
   // any sagitta can be made, and would be held for good. Stopping the hit point a further

@@ -1,7 +1,7 @@
 // The contact set: its contacts measured (normal, clearance), pruned (step 2), added after a
 // sweep's hit (addContactsAt()) and reduced to the contact cap by farthest-point selection, and
 // a stuck contact's normal refined.
-#include "vh/haptics/collision_detector.h"
+#include "collision_detector_impl.h"
 
 #include <algorithm>
 #include <bit>
@@ -11,12 +11,12 @@
 
 namespace vh::haptics {
 
-bool CollisionDetector::inside(const Eigen::Vector3d& p_W, double isovalue) noexcept {
+bool CollisionDetector::Impl::inside(const Eigen::Vector3d& p_W, double isovalue) noexcept {
   ++counters_.samples;
   return volume_->isInside(p_W, isovalue);
 }
 
-void CollisionDetector::measureContact(Contact& c, double isovalue, const Eigen::Quaterniond& R_WT) noexcept {
+void CollisionDetector::Impl::measureContact(Contact& c, double isovalue, const Eigen::Quaterniond& R_WT) noexcept {
   counters_.samples += 6;
   const Eigen::Vector3d g = c.crossing_normal ? volume_->interpolantGradient(c.p_W_m) : volume_->gradient(c.p_W_m);
   double norm = g.norm();
@@ -45,7 +45,7 @@ void CollisionDetector::measureContact(Contact& c, double isovalue, const Eigen:
   c.clearance_m = lo;
 }
 
-void CollisionDetector::appendContact(int point, const Eigen::Vector3d& p_W, const Eigen::Vector3d& fallback_n_W,
+void CollisionDetector::Impl::appendContact(int point, const Eigen::Vector3d& p_W, const Eigen::Vector3d& fallback_n_W,
                                       double isovalue) noexcept {
   if (in_set_[point] || contact_count_ >= contacts_.size()) return;
   Contact& c = contacts_[contact_count_++];
@@ -59,13 +59,13 @@ void CollisionDetector::appendContact(int point, const Eigen::Vector3d& p_W, con
   in_set_[point] = 1;
 }
 
-void CollisionDetector::clearContacts() noexcept {
+void CollisionDetector::Impl::clearContacts() noexcept {
   for (std::size_t i = 0; i < contact_count_; ++i)
     if (contacts_[i].point_index >= 0) in_set_[contacts_[i].point_index] = 0;
   contact_count_ = 0;
 }
 
-void CollisionDetector::pruneContacts(const Pose& X_WP, const Pose& X_WD, double isovalue) noexcept {
+void CollisionDetector::Impl::pruneContacts(const Pose& X_WP, const Pose& X_WD, double isovalue) noexcept {
   const RigidMotion motion = RigidMotion::Between(X_WP, X_WD, tool_->mass.p_TCm_m);
   std::size_t kept = 0;
   for (std::size_t i = 0; i < contact_count_; ++i) {
@@ -93,7 +93,7 @@ void CollisionDetector::pruneContacts(const Pose& X_WP, const Pose& X_WD, double
   contact_count_ = kept;
 }
 
-void CollisionDetector::addContactsAt(const RigidMotion& motion, const SweepResult& hit, double isovalue) noexcept {
+void CollisionDetector::Impl::addContactsAt(const RigidMotion& motion, const SweepResult& hit, double isovalue) noexcept {
   if (hit.hit_point < 0) return;
   const auto& points = tool_->point_shell.points_T_m();
   const int n = static_cast<int>(points.size());
@@ -162,7 +162,7 @@ void CollisionDetector::addContactsAt(const RigidMotion& motion, const SweepResu
   }
 }
 
-void CollisionDetector::reduceContacts(const RigidMotion& motion, double t, int hit_point, std::size_t& candidates,
+void CollisionDetector::Impl::reduceContacts(const RigidMotion& motion, double t, int hit_point, std::size_t& candidates,
                                        std::size_t cap) noexcept {
   // Farthest-point selection over the union of the contact set and the candidates, by position
   // at the proxy's new pose, seeded with the hit point (always kept: it is what stopped the
@@ -238,7 +238,7 @@ void CollisionDetector::reduceContacts(const RigidMotion& motion, double t, int 
   candidates = kept_candidates;
 }
 
-bool CollisionDetector::refineStuckContact(const RigidMotion& motion, const SweepResult& hit) noexcept {
+bool CollisionDetector::Impl::refineStuckContact(const RigidMotion& motion, const SweepResult& hit) noexcept {
   if (hit.hit_point < 0 || !in_set_[hit.hit_point]) return false;
   const int j = hit.hit_point;
   if (pt_[j].path * hit.t >= bisection_tolerance_) return false;  // it did make progress
@@ -275,7 +275,7 @@ bool CollisionDetector::refineStuckContact(const RigidMotion& motion, const Swee
   return false;
 }
 
-void CollisionDetector::refreshPositions(const Pose& X_WP) noexcept {
+void CollisionDetector::Impl::refreshPositions(const Pose& X_WP) noexcept {
   for (std::size_t i = 0; i < contact_count_; ++i) contacts_[i].p_W_m = X_WP * contacts_[i].p_T_m;
 }
 

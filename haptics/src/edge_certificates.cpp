@@ -1,7 +1,7 @@
 // The edge test's clearance certificates (edge_certificates.h): how far an edge found free may
 // move and stay free, whether a point's certificate still holds at a new pose (by distance, or
 // along the move's direction with F's derivative ranges), and the two kept per point.
-#include "vh/haptics/collision_detector.h"
+#include "collision_detector_impl.h"
 
 #include <algorithm>
 #include <cmath>
@@ -9,7 +9,7 @@
 
 namespace vh::haptics {
 
-double CollisionDetector::edgeClearance(const Eigen::Vector3d& a, const Eigen::Vector3d& b, double excess_max,
+double CollisionDetector::Impl::edgeClearance(const Eigen::Vector3d& a, const Eigen::Vector3d& b, double excess_max,
                                         double isovalue) const noexcept {
   // Only an edge wholly in the grid's box: outside it the field counts as empty, which no
   // Lipschitz bound carries across the box's faces.
@@ -33,7 +33,7 @@ double CollisionDetector::edgeClearance(const Eigen::Vector3d& a, const Eigen::V
   return std::min(reach_m, -(excess_max + tolerance) / lipschitz);
 }
 
-CollisionDetector::EdgeHold CollisionDetector::edgesStillClear(const Pose& X_WP, int j,
+CollisionDetector::Impl::EdgeHold CollisionDetector::Impl::edgesStillClear(const Pose& X_WP, int j,
                                                                const Eigen::Vector3d& p_W) const noexcept {
   const auto i = static_cast<std::size_t>(edge_clearance_index_[static_cast<std::size_t>(j)]);
   // The newer first (edge_slot_ names the older, which the next certificate replaces): it is
@@ -75,7 +75,7 @@ CollisionDetector::EdgeHold CollisionDetector::edgesStillClear(const Pose& X_WP,
   return EdgeHold::kNone;
 }
 
-void CollisionDetector::keepEdgeClearance(int j, const EdgeClearance& proven) noexcept {
+void CollisionDetector::Impl::keepEdgeClearance(int j, const EdgeClearance& proven) noexcept {
   const auto i = static_cast<std::size_t>(j);
   const auto at = static_cast<std::size_t>(edge_clearance_index_[i]);
   edge_clearance_[2 * at + edge_slot_[at]] = proven;

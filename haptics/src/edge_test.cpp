@@ -3,7 +3,7 @@
 // the exact segment test, culled by the point-shell tree and by the certificates of earlier
 // walks (edge_certificates.cpp), forked over the lanes; and the contact it adds where a wall
 // came between two points.
-#include "vh/haptics/collision_detector.h"
+#include "collision_detector_impl.h"
 
 #include <algorithm>
 #include <atomic>
@@ -16,7 +16,7 @@
 
 namespace vh::haptics {
 
-Eigen::Vector3d CollisionDetector::edgeEnd(WorkCounters& w, const Pose& X_WP, int i) const noexcept {
+Eigen::Vector3d CollisionDetector::Impl::edgeEnd(WorkCounters& w, const Pose& X_WP, int i) const noexcept {
   // Moved epsilon into the tool along its normal: the surface is allowed to come within epsilon
   // of the tool between its points, as at its points (a facet of the tool resting on a curved
   // trilinear surface touches it by fractions of a micrometre between two points); a wall that
@@ -28,7 +28,7 @@ Eigen::Vector3d CollisionDetector::edgeEnd(WorkCounters& w, const Pose& X_WP, in
   return volume_->gridCoordinates(X_WP * p_T);
 }
 
-bool CollisionDetector::segmentCrosses(WorkCounters& w, const Eigen::Vector3d& a, const Eigen::Vector3d& b,
+bool CollisionDetector::Impl::segmentCrosses(WorkCounters& w, const Eigen::Vector3d& a, const Eigen::Vector3d& b,
                                        double isovalue, double* excess_max) const noexcept {
   // Only whether it enters: a coarse bracket is enough.
   const SegmentEntry entry = volume_->firstEntryOnSegment(a, b, isovalue, 1.0, 0.5);
@@ -38,7 +38,7 @@ bool CollisionDetector::segmentCrosses(WorkCounters& w, const Eigen::Vector3d& a
   return entry.hit;
 }
 
-void CollisionDetector::recordCrossingEdge(int j, int k, const Pose& X_WP) noexcept {
+void CollisionDetector::Impl::recordCrossingEdge(int j, int k, const Pose& X_WP) noexcept {
   edge_hit_ = {j, k, X_WP};
   if (listed_count_ < kListedEdges) {
     bool known = false;
@@ -47,7 +47,7 @@ void CollisionDetector::recordCrossingEdge(int j, int k, const Pose& X_WP) noexc
   }
 }
 
-int CollisionDetector::edgeCrosses(WorkCounters& w, const Pose& X_WP, int j, const Eigen::Vector3d& p_W,
+int CollisionDetector::Impl::edgeCrosses(WorkCounters& w, const Pose& X_WP, int j, const Eigen::Vector3d& p_W,
                                    double isovalue) noexcept {
   if (embedded_[j]) return -1;
   const auto i = static_cast<std::size_t>(j);
@@ -95,7 +95,7 @@ int CollisionDetector::edgeCrosses(WorkCounters& w, const Pose& X_WP, int j, con
   return -1;
 }
 
-bool CollisionDetector::listedEdgesCrossAt(const Pose& X_WP, double isovalue) noexcept {
+bool CollisionDetector::Impl::listedEdgesCrossAt(const Pose& X_WP, double isovalue) noexcept {
   for (int i = 0; i < listed_count_; ++i) {
     const auto [j, k] = listed_[i];
     if (embedded_[j] || embedded_[k]) continue;
@@ -107,7 +107,7 @@ bool CollisionDetector::listedEdgesCrossAt(const Pose& X_WP, double isovalue) no
   return false;
 }
 
-const Contact* CollisionDetector::addEdgeContact(const Pose& X_WP, double isovalue) noexcept {
+const Contact* CollisionDetector::Impl::addEdgeContact(const Pose& X_WP, double isovalue) noexcept {
   if (edge_hit_.j < 0 || contact_count_ >= std::min(contact_cap_, contacts_.size())) return nullptr;
   const auto& shell = tool_->point_shell;
   const auto inset = [&](int i) {
@@ -149,7 +149,7 @@ const Contact* CollisionDetector::addEdgeContact(const Pose& X_WP, double isoval
   return &c;
 }
 
-CollisionDetector::EdgeWalk CollisionDetector::edgeNodeWalk(WorkCounters& w, Lane* lane, int index, const Pose& X_WP,
+CollisionDetector::Impl::EdgeWalk CollisionDetector::Impl::edgeNodeWalk(WorkCounters& w, Lane* lane, int index, const Pose& X_WP,
                                                             const Eigen::Matrix3d& R_WT, double isovalue, int& walked,
                                                             int& j_hit, int& k_hit) noexcept {
   const ShellNode& node = nodes_[static_cast<std::size_t>(index)];
@@ -199,12 +199,12 @@ CollisionDetector::EdgeWalk CollisionDetector::edgeNodeWalk(WorkCounters& w, Lan
   return EdgeWalk::kClear;
 }
 
-void CollisionDetector::edgeLaneJob(void* detector, int lane) noexcept {
-  auto* self = static_cast<CollisionDetector*>(detector);
+void CollisionDetector::Impl::edgeLaneJob(void* detector, int lane) noexcept {
+  auto* self = static_cast<CollisionDetector::Impl*>(detector);
   self->runEdgeLane(self->lanes_[static_cast<std::size_t>(lane)]);
 }
 
-void CollisionDetector::runEdgeLane(Lane& lane) noexcept {
+void CollisionDetector::Impl::runEdgeLane(Lane& lane) noexcept {
   // The lane's roots in the single-lane walk's order; a root after one where some lane found a
   // crossing cannot hold the first crossing of that walk, and is not walked.
   int walked = 0;
@@ -234,7 +234,7 @@ void CollisionDetector::runEdgeLane(Lane& lane) noexcept {
   }
 }
 
-bool CollisionDetector::edgesCrossAt(const Pose& X_WP, double isovalue) noexcept {
+bool CollisionDetector::Impl::edgesCrossAt(const Pose& X_WP, double isovalue) noexcept {
   edge_cut_ = false;
   if (edges_.size() == 0) return false;
   prepareTreeStop(isovalue);
@@ -254,7 +254,7 @@ bool CollisionDetector::edgesCrossAt(const Pose& X_WP, double isovalue) noexcept
       lane.edge_rank = lane.edge_cut_rank = std::numeric_limits<int>::max();
       lane.edge_j = lane.edge_k = -1;
     }
-    pool_->run(&CollisionDetector::edgeLaneJob, this, static_cast<int>(lanes_.size()));
+    pool_->run(&CollisionDetector::Impl::edgeLaneJob, this, static_cast<int>(lanes_.size()));
     joinLaneWork();
     const Lane* found = nullptr;
     int cut_rank = std::numeric_limits<int>::max();

@@ -1,7 +1,7 @@
 // Embedded points (haptics/README.md, "Isovalue changes"): the points inside the isosurface
 // when the isovalue changed or the proxy was reset do not constrain the proxy until they are
 // outside again; and the largest field over the shell, below which a lowered isovalue stops.
-#include "vh/haptics/collision_detector.h"
+#include "collision_detector_impl.h"
 
 #include <algorithm>
 
@@ -9,7 +9,7 @@
 
 namespace vh::haptics {
 
-double CollisionDetector::maxFieldOnShell(const Pose& X_WP, double floor) noexcept {
+double CollisionDetector::Impl::maxFieldOnShell(const Pose& X_WP, double floor) noexcept {
   const auto& points = tool_->point_shell.points_T_m();
   double m = floor;
   const auto visit = [&](int j) {
@@ -36,7 +36,7 @@ double CollisionDetector::maxFieldOnShell(const Pose& X_WP, double floor) noexce
   return m;
 }
 
-int CollisionDetector::updateEmbedded(const Pose& X_WP, double isovalue) noexcept {
+int CollisionDetector::Impl::updateEmbedded(const Pose& X_WP, double isovalue) noexcept {
   const auto& points = tool_->point_shell.points_T_m();
   embedded_count_ = 0;
   if (mode_ == DetectionMode::kAccelerated) {
@@ -74,7 +74,7 @@ int CollisionDetector::updateEmbedded(const Pose& X_WP, double isovalue) noexcep
   return embedded_count_;
 }
 
-int CollisionDetector::releaseEmbedded(const Pose& X_WP, double isovalue) noexcept {
+int CollisionDetector::Impl::releaseEmbedded(const Pose& X_WP, double isovalue) noexcept {
   if (embedded_count_ == 0) return 0;
   const auto& points = tool_->point_shell.points_T_m();
   for (std::size_t j = 0; j < points.size(); ++j)

@@ -3,7 +3,7 @@
 // chord, refined on finer chords for a rotating point, or the paper's end sample) and the
 // first crossing bisected, all points' segments in one time-ordered queue (sweepPaper()). The
 // accelerated sweep takes the same steps (accelerated_sweep.cpp).
-#include "vh/haptics/collision_detector.h"
+#include "collision_detector_impl.h"
 
 #include <algorithm>
 #include <cmath>
@@ -13,7 +13,7 @@
 
 namespace vh::haptics {
 
-void CollisionDetector::setupPath(WorkCounters& k, const RigidMotion& motion, int j) noexcept {
+void CollisionDetector::Impl::setupPath(WorkCounters& k, const RigidMotion& motion, int j) noexcept {
   k.other += setup_work_;  // a point's path set-up: its state is touched (see setup_work_)
   pt_[j].r0 = motion.radial_W(tool_->point_shell.points_T_m()[j]);
   const double angle = motion.angle_rad();
@@ -41,7 +41,7 @@ void CollisionDetector::setupPath(WorkCounters& k, const RigidMotion& motion, in
   if (mode_ == DetectionMode::kAccelerated) pt_[j].segments = static_cast<std::int32_t>(segments);
 }
 
-double CollisionDetector::stepSegment(WorkCounters& k, const RigidMotion& motion, int j, std::int64_t segment,
+double CollisionDetector::Impl::stepSegment(WorkCounters& k, const RigidMotion& motion, int j, std::int64_t segment,
                                       double t_begin, double isovalue, double t_limit, SweepResult& result) noexcept {
   const std::int64_t next = segment + 1;
   const double t_end = (static_cast<double>(next) * pt_[j].dt >= 1.0 - 1e-12) ? 1.0 : static_cast<double>(next) * pt_[j].dt;
@@ -106,7 +106,7 @@ double CollisionDetector::stepSegment(WorkCounters& k, const RigidMotion& motion
   return -1.0;
 }
 
-bool CollisionDetector::refineArcEntry(WorkCounters& w, const RigidMotion& motion, int j, double t0, double t1,
+bool CollisionDetector::Impl::refineArcEntry(WorkCounters& w, const RigidMotion& motion, int j, double t0, double t1,
                                        double sagitta_m, double isovalue, double t_limit, int depth, double& lo,
                                        double& hi) noexcept {
   // Four chords of a quarter of the time each: a sixteenth of the sagitta (delta ~ angle^2).
@@ -135,7 +135,7 @@ bool CollisionDetector::refineArcEntry(WorkCounters& w, const RigidMotion& motio
   return false;
 }
 
-SweepResult CollisionDetector::sweepPaper(const RigidMotion& motion, double isovalue) noexcept {
+SweepResult CollisionDetector::Impl::sweepPaper(const RigidMotion& motion, double isovalue) noexcept {
   SweepResult result;
   if (motion.isStill()) return result;
   const int n = static_cast<int>(tool_->point_shell.size());

@@ -1,14 +1,14 @@
 // The point-shell tree (kAccelerated) and the question every walk of it asks: can a ball in W
 // hold an inside point? Answered by the volume's min-max tree with its local Lipschitz bounds,
 // then, for a small box, by its voxels (ballMayBeInside()).
-#include "vh/haptics/collision_detector.h"
+#include "collision_detector_impl.h"
 
 #include <algorithm>
 #include <limits>
 
 namespace vh::haptics {
 
-int CollisionDetector::buildShellTree(int begin, int end, int depth) {
+int CollisionDetector::Impl::buildShellTree(int begin, int end, int depth) {
   constexpr int kLeafPoints = 8;
   const auto& points = tool_->point_shell.points_T_m();
   Eigen::Vector3d lo = Eigen::Vector3d::Constant(std::numeric_limits<double>::infinity()), hi = -lo;
@@ -36,7 +36,7 @@ int CollisionDetector::buildShellTree(int begin, int end, int depth) {
   return index;
 }
 
-void CollisionDetector::ballGridBox(const Eigen::Vector3d& centre_W_m, double radius_m, Eigen::Vector3d& lo_ijk,
+void CollisionDetector::Impl::ballGridBox(const Eigen::Vector3d& centre_W_m, double radius_m, Eigen::Vector3d& lo_ijk,
                                     Eigen::Vector3d& hi_ijk) const noexcept {
   const Eigen::Vector3d g = volume_->gridCoordinates(centre_W_m);
   // A W ball maps to an ellipsoid with half-axes radius / spacing along the grid axes (the
@@ -46,7 +46,7 @@ void CollisionDetector::ballGridBox(const Eigen::Vector3d& centre_W_m, double ra
   hi_ijk = g + half;
 }
 
-bool CollisionDetector::ballMayBeInside(WorkCounters& k, const Eigen::Vector3d& center_W_m, double radius_m,
+bool CollisionDetector::Impl::ballMayBeInside(WorkCounters& k, const Eigen::Vector3d& center_W_m, double radius_m,
                                         double isovalue, double arc_sagitta_m) const noexcept {
   ++k.box_queries;
   Eigen::Vector3d lo, hi;
@@ -76,7 +76,7 @@ bool CollisionDetector::ballMayBeInside(WorkCounters& k, const Eigen::Vector3d& 
     // The bricks hold the surface; a small box (a voxel or two from it) may still be clear of
     // it: its own voxels decide (the same two criteria, at one voxel's resolution).
     int voxels = 0;
-    const double own = volume_->voxelUpperBoundInBox(lo, hi, kVoxelQueryMax, &voxels);
+    const double own = volume_->voxelUpperBoundInBox(lo, hi, detail::kVoxelQueryMax, &voxels);
     if (voxels > 0) {
       ++k.voxel_queries;
       k.voxels += voxels;
@@ -89,7 +89,7 @@ bool CollisionDetector::ballMayBeInside(WorkCounters& k, const Eigen::Vector3d& 
       if (may_be_inside && arc_sagitta_m > 0.0 && own <= isovalue) {
         ++k.voxel_queries;
         may_be_inside = volume_->voxelUpperBoundInBox(lo - Eigen::Vector3d::Ones(),
-                                                      hi + Eigen::Vector3d::Ones(), 8 * kVoxelQueryMax,
+                                                      hi + Eigen::Vector3d::Ones(), 8 * detail::kVoxelQueryMax,
                                                       &voxels) > isovalue;
         k.voxels += voxels;
       }

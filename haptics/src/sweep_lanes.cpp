@@ -1,7 +1,7 @@
 // The accelerated sweep's lanes on several cores (haptics/README.md, "Several cores"): the
 // point-shell tree's upper nodes dealt to the lanes, round robin at first and then by the work
 // each node cost (rebalanceLanes()), and the lanes' work joined into the caller's budget.
-#include "vh/haptics/collision_detector.h"
+#include "collision_detector_impl.h"
 
 #include <algorithm>
 #include <array>
@@ -16,7 +16,7 @@
 
 namespace vh::haptics {
 
-void CollisionDetector::setLanes(int lanes) {
+void CollisionDetector::Impl::setLanes(int lanes) {
   if (lanes < 1 || lanes > WorkerPool::kMaxLanes)
     throw std::invalid_argument("CollisionDetector: " + std::to_string(lanes) + " lanes, must be in [1, " +
                                 std::to_string(WorkerPool::kMaxLanes) + "]");
@@ -27,7 +27,7 @@ void CollisionDetector::setLanes(int lanes) {
   if (lanes_.size() > 1) pool_ = WorkerPool::shared(static_cast<int>(lanes_.size()));
 }
 
-void CollisionDetector::setLanesPartition(int lanes) {
+void CollisionDetector::Impl::setLanesPartition(int lanes) {
   // The tree's upper nodes, split until there are kRootsPerLane per lane (or nodes of at most
   // kMinRootPoints points): dealt round robin in tree order for the first sweep (then by their
   // work, rebalanceLanes()), so that the part of the tool near a surface (a spatial cluster of
@@ -89,7 +89,7 @@ void CollisionDetector::setLanesPartition(int lanes) {
   frontier_ = std::move(frontier);
 }
 
-void CollisionDetector::rebalanceLanes() noexcept {
+void CollisionDetector::Impl::rebalanceLanes() noexcept {
   // The first deal is round robin (setLanesPartition()); from then on the nodes, in the tree's
   // order, each go to the lane with the least work so far, weighed by their work last time
   // (every node at least 1, so unworked ones spread too). Neighbouring heavy nodes (a drill's
@@ -121,13 +121,13 @@ void CollisionDetector::rebalanceLanes() noexcept {
   }
 }
 
-void CollisionDetector::startLaneWork(Lane& lane) const noexcept {
+void CollisionDetector::Impl::startLaneWork(Lane& lane) const noexcept {
   lane.base_work = budgetWork();
   lane.counters = {};
   lane.clock = clock_;
 }
 
-void CollisionDetector::joinLaneWork() noexcept {
+void CollisionDetector::Impl::joinLaneWork() noexcept {
   // The work adds up; the budget counts the busiest lane (they ran side by side).
   std::int64_t busiest = 0, sum = 0;
   for (const Lane& lane : lanes_) {
