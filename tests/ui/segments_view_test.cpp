@@ -423,7 +423,13 @@ TEST(ProximityAlerts, TheSegmentsThresholdsColourTheToolNameTheDistanceAndPaceTh
   at(std::numeric_limits<double>::infinity());  // out of range
   EXPECT_EQ(alerts.level(), runtime::ProximityLevel::kClear);
   EXPECT_FALSE(cues.last().at(0).toBool()) << "the cue stops";
-  EXPECT_LT((toolColour() - steel).norm(), 1e-12);
+  EXPECT_LT((toolColour() - steel).norm(), 1e-12) << "back to the tool's own colour";
+  // A tool colour chosen while warned waits for the warning to end.
+  at(0.001);
+  host.view->actors().setToolColour(0.1, 0.2, 0.3);
+  EXPECT_LT((toolColour() - red).norm(), 1e-12);
+  at(std::numeric_limits<double>::infinity());
+  EXPECT_LT((toolColour() - Eigen::Vector3d(0.1, 0.2, 0.3)).norm(), 1e-12);
   // Without segments (or another scene's index), nothing is warned.
   runtime::HapticSnapshot stale;
   stale.critical_segment = 3;

@@ -314,6 +314,7 @@ void SceneActors::buildTools(const SceneActorsSpec& spec) {
   tool_mapper->ScalarVisibilityOff();
 
   proxy_actor_->SetMapper(tool_mapper);
+  tool_rgb_ = {kSteel[0], kSteel[1], kSteel[2]};
   proxy_actor_->GetProperty()->SetColor(kSteel[0], kSteel[1], kSteel[2]);
   proxy_actor_->GetProperty()->SetAmbient(0.15);
   proxy_actor_->GetProperty()->SetDiffuse(0.75);
@@ -519,7 +520,10 @@ void SceneActors::setSurfaceColour(double r, double g, double b) {
   if (mode_ == RenderMode::kIsosurface) applyLook();
 }
 
-void SceneActors::setToolColour(double r, double g, double b) { proxy_actor_->GetProperty()->SetColor(r, g, b); }
+void SceneActors::setToolColour(double r, double g, double b) {
+  tool_rgb_ = {r, g, b};
+  if (proximity_level_ == 0) proxy_actor_->GetProperty()->SetColor(r, g, b);  // a warning's colour stays
+}
 void SceneActors::setDeviceColour(double r, double g, double b) { device_actor_->GetProperty()->SetColor(r, g, b); }
 
 void SceneActors::setToolMesh(const haptics::TriangleMesh& mesh_T, const Eigen::Vector3d& /*p_TCm_m*/) {
@@ -809,7 +813,8 @@ vtkActor* SceneActors::proxyActor() const noexcept { return proxy_actor_; }
 
 void SceneActors::setProximityLevel(int level) {
   static constexpr double kAmber[3] = {1.0, 0.72, 0.18}, kRed[3] = {0.95, 0.22, 0.18};
-  const double* c = level >= 2 ? kRed : level == 1 ? kAmber : kSteel;
+  proximity_level_ = level;
+  const double* c = level >= 2 ? kRed : level == 1 ? kAmber : tool_rgb_.data();
   proxy_actor_->GetProperty()->SetColor(c[0], c[1], c[2]);
 }
 vtkActor* SceneActors::deviceActor() const noexcept { return device_actor_; }

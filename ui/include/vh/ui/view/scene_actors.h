@@ -187,8 +187,9 @@ class SceneActors {
   vtkVolume* volume() const noexcept;
   vtkGPUVolumeRayCastMapper* volumeMapper() const noexcept;
   vtkActor* proxyActor() const noexcept;
-  /// The proxy tool's colour by its nearest critical segment: 0 steel (clear), 1 amber (within the
-  /// warning distance), 2 red (within the alarm distance).
+  /// The proxy tool's colour by its nearest critical segment: 0 its own colour (clear:
+  /// setToolColour()'s, steel by default), 1 amber (within the warning distance), 2 red (within
+  /// the alarm distance).
   void setProximityLevel(int level);
   vtkActor* deviceActor() const noexcept;
   vtkActor* contactActor() const noexcept;
@@ -217,6 +218,8 @@ class SceneActors {
   vtkNew<vtkPiecewiseFunction> opacity_;
   vtkNew<vtkVolume> volume_;
   vtkNew<vtkActor> proxy_actor_;
+  std::array<double, 3> tool_rgb_{0.0, 0.0, 0.0};  // the tool's own colour (setToolColour())
+  int proximity_level_ = 0;                        // setProximityLevel()
   vtkNew<vtkActor> device_actor_;
   vtkNew<vtkPoints> contact_points_;
   vtkNew<vtkPolyData> contact_poly_;
