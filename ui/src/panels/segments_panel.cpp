@@ -29,7 +29,7 @@ QIcon swatch(const std::array<double, 3>& rgb) {
 
 void SegmentsPanel::buildTable() {
   table_ = new QTableWidget(0, 7, this);
-  table_->setHorizontalHeaderLabels({"Segment", "Felt", "Shown", "Critical", "Hardness", "Warn mm", "Alarm mm"});
+  table_->setHorizontalHeaderLabels({"Segment", "Felt", "Shown", "Critical", "Hardness", "Warn", "Alarm"});
   table_->horizontalHeaderItem(kFelt)->setToolTip("Feel this segment's surface instead of the scan's isosurface");
   table_->horizontalHeaderItem(kShown)->setToolTip("Draw this segment as a coloured surface beside the scan");
   table_->horizontalHeaderItem(kCritical)->setToolTip(
@@ -38,10 +38,10 @@ void SegmentsPanel::buildTable() {
       "Drilling: the energy to remove 1 mm^3 [J/mm^3] (double-click to edit); empty: from the segment's HU "
       "(cortical bone 2.0, cancellous 0.6, soft tissue 0.1)");
   table_->horizontalHeaderItem(kWarn)->setToolTip(
-      "A critical segment: warn (amber tool, status, a cue beeping faster as you near it) within this distance "
-      "of the tool's surface [mm], at most 20 (double-click to edit)");
+      "Warn [mm]: for a critical segment, warn (amber tool, status, a cue beeping faster as you near it) within "
+      "this distance of the tool's surface, at most 20 (double-click to edit)");
   table_->horizontalHeaderItem(kAlarm)->setToolTip(
-      "A critical segment: alarm (red tool) within this distance [mm], at most the warning distance");
+      "Alarm [mm]: for a critical segment, alarm (red tool) within this distance, at most the warning distance");
   table_->horizontalHeader()->setSectionResizeMode(kName, QHeaderView::Stretch);
   for (int c = kFelt; c <= kAlarm; ++c) table_->horizontalHeader()->setSectionResizeMode(c, QHeaderView::ResizeToContents);
   table_->verticalHeader()->hide();
