@@ -1,6 +1,8 @@
 // Guidance from an expert's recording: vh/runtime/guidance.h.
 #include "vh/runtime/guidance.h"
 
+#include "vh/runtime/even_samples.h"
+
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
@@ -175,9 +177,7 @@ std::vector<Eigen::Vector3d> thinned(const std::vector<Eigen::Vector3d>& p, std:
   if (p.size() <= count || count < 2) return p;
   std::vector<Eigen::Vector3d> out;
   out.reserve(count);
-  for (std::size_t j = 0; j < count; ++j)
-    out.push_back(p[static_cast<std::size_t>(std::llround(static_cast<double>(j) * static_cast<double>(p.size() - 1) /
-                                                         static_cast<double>(count - 1)))]);
+  for (std::size_t j = 0; j < count; ++j) out.push_back(p[evenlySpacedIndex(j, p.size(), count)]);
   return out;
 }
 

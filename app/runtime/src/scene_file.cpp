@@ -14,6 +14,7 @@
 #include <set>
 #include <sstream>
 #include <stdexcept>
+#include <utility>
 #include <thread>
 
 #include <nlohmann/json.hpp>
@@ -499,28 +500,30 @@ TechniqueRules readTechnique(const ObjectReader& t) {
                "max_speed_near_critical_m_per_s", "shaft_margin_m", "shaft_hold_s", "clear_s"});
   TechniqueRules r;
   if (t.has("on")) r.on = t.boolean("on");
-  if (t.has("safe_force_N")) r.safe_force_N = t.positive("safe_force_N");
   if (t.has("safe_force_by_material_N")) {
     const json& levels = t.at("safe_force_by_material_N");
     if (!levels.is_object()) t.fail(t.fieldPath("safe_force_by_material_N"), "expected an object of name: force [N]");
     for (auto it = levels.begin(); it != levels.end(); ++it) {
-      if (!it.value().is_number() || !(it.value().get<double>() > 0.0) || !std::isfinite(it.value().get<double>()))
+      if (!it.value().is_number())
         t.fail(t.fieldPath("safe_force_by_material_N") + "." + it.key(), "expected a force > 0 [N], found " + it.value().dump());
       r.safe_force_by_material_N[it.key()] = it.value().get<double>();
     }
   }
-  const auto non_negative = [&t](const char* key, double& out) {
-    if (!t.has(key)) return;
-    out = t.number(key);
-    if (!(out >= 0.0) || !std::isfinite(out)) t.fail(t.fieldPath(key), "expected a number >= 0");
-  };
-  non_negative("force_hold_s", r.force_hold_s);
-  if (t.has("near_critical_m")) r.near_critical_m = t.positive("near_critical_m");
-  if (t.has("max_speed_near_critical_m_per_s"))
-    r.max_speed_near_critical_m_per_s = t.positive("max_speed_near_critical_m_per_s");
-  non_negative("shaft_margin_m", r.shaft_margin_m);
-  non_negative("shaft_hold_s", r.shaft_hold_s);
-  non_negative("clear_s", r.clear_s);
+  for (const auto& [key, value] : {std::pair<const char*, double*>{"safe_force_N", &r.safe_force_N},
+                                   {"force_hold_s", &r.force_hold_s},
+                                   {"near_critical_m", &r.near_critical_m},
+                                   {"max_speed_near_critical_m_per_s", &r.max_speed_near_critical_m_per_s},
+                                   {"shaft_margin_m", &r.shaft_margin_m},
+                                   {"shaft_hold_s", &r.shaft_hold_s},
+                                   {"clear_s", &r.clear_s}}) {
+    if (t.has(key)) *value = t.number(key);
+  }
+  // The rules' own bounds (one place: TechniqueRules::validate()), named by field.
+  try {
+    r.validate();
+  } catch (const std::invalid_argument& e) {
+    t.fail("", e.what());
+  }
   return r;
 }
 

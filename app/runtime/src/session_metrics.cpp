@@ -1,5 +1,7 @@
 #include "vh/runtime/session_metrics.h"
 
+#include "vh/runtime/even_samples.h"
+
 #include <algorithm>
 #include <cmath>
 #include <fstream>
@@ -303,11 +305,8 @@ std::vector<Eigen::Vector3d> devicePathSamples(const Recording& recording, std::
     return out;
   }
   out.reserve(count);
-  for (std::size_t j = 0; j < count; ++j) {
-    const auto i = static_cast<std::size_t>(
-        std::llround(static_cast<double>(j) * static_cast<double>(n - 1) / static_cast<double>(count - 1)));
-    out.push_back(devicePosition(recording.records[i]));
-  }
+  for (std::size_t j = 0; j < count; ++j)
+    out.push_back(devicePosition(recording.records[evenlySpacedIndex(j, n, count)]));
   return out;
 }
 

@@ -25,8 +25,6 @@ class TechniqueAlerts : public QObject {
   void showSnapshot(const runtime::HapticSnapshot& snapshot);
   /// Rules that became active since the window opened (all rules together).
   std::uint64_t alertsShown() const noexcept { return shown_; }
-  /// A new session: the next active rule is news again.
-  void reset() noexcept { active_ = 0; }
 
  signals:
   /// "Technique: moving fast near a critical structure: slow down", for the status bar (`ms`).
