@@ -96,6 +96,7 @@ std::int64_t CollisionDetector::boxQueryCount() const noexcept { return impl_->b
 std::int64_t CollisionDetector::treeNodeCount() const noexcept { return impl_->treeNodeCount(); }
 std::int64_t CollisionDetector::cellCount() const noexcept { return impl_->cellCount(); }
 std::int64_t CollisionDetector::cellsWalkedCount() const noexcept { return impl_->cellsWalkedCount(); }
+EdgeTestCounts CollisionDetector::edgeTestCounts() const noexcept { return impl_->edgeTestCounts(); }
 std::int64_t CollisionDetector::work() const noexcept { return impl_->work(); }
 std::int64_t CollisionDetector::budgetWork() const noexcept { return impl_->budgetWork(); }
 void CollisionDetector::setContactCap(std::size_t cap) noexcept { impl_->setContactCap(cap); }

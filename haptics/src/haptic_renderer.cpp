@@ -319,6 +319,7 @@ inline void fillWorkStatistics(const CollisionDetector& collision, Clock::time_p
   stats.tree_nodes = collision.treeNodeCount();
   stats.cells_walked = collision.cellsWalkedCount();
   stats.cells = collision.cellCount();
+  stats.edge_test_counts = collision.edgeTestCounts();
   stats.work = collision.work();
   stats.critical_work = collision.budgetWork();
   // Also a tick whose sweep finished but whose contact update (or re-solve) the budget shortened.

@@ -709,6 +709,45 @@ TEST(EdgeCases, AGlidingToolsEdgeTestAsksOnlyWhereTheSurfaceMayHaveMoved) {
   ::testing::Test::RecordProperty("later_box_queries_total", static_cast<int>(later_sum));
 }
 
+TEST(EdgeCases, TheEdgeTestCountsWhatItDidWithEachPoint) {
+  // CollisionDetector::edgeTestCounts(), against the plate's geometry: a 20 x 20 x 2 mm plate
+  // (0.7 mm spacing) 0.3 mm over a plane. Its bottom face's points are 0.3 mm from the surface,
+  // nearer than any of their edges reach, so no box query can clear them: a fresh detector
+  // walks at least every bottom point that has edges, and holds none (it has no certificates).
+  // At the same pose again their certificates hold and nothing is walked; lifted 20 mm, the
+  // root's own box query clears everything and no point is reached.
+  const ScalarVolume plane = datasets::makePlaneVolume(test::grid1mm(), Eigen::Vector3d::UnitZ(), 0.0);
+  const auto plate = test::meshTool(datasets::makeBoxMesh({0.01, 0.01, 0.001}), 0.7e-3);
+  const ShellEdges edges = makeShellEdges(plate->point_shell);
+  std::int64_t bottom_with_edges = 0;
+  for (std::size_t j = 0; j < plate->point_shell.size(); ++j)
+    bottom_with_edges += plate->point_shell.points_T_m()[j].z() < -0.001 + 1e-6 && edges.offsets[j + 1] > edges.offsets[j];
+  ASSERT_GT(bottom_with_edges, 100);
+  const Pose X = Pose::FromTranslation({0.0, 0.0, 0.001 + 0.0003});
+  CollisionDetector detector(plane, *plate, 0.0);
+  detector.resetSampleCount();
+  EXPECT_FALSE(detector.edgesCrossAt(X, 0.0));
+  const EdgeTestCounts first = detector.edgeTestCounts();
+  std::printf("fresh: held %lld, boxed %lld, walked %lld (%lld edges); bottom points with edges %lld, edges %zu\n",
+              static_cast<long long>(first.points_held), static_cast<long long>(first.points_boxed),
+              static_cast<long long>(first.points_walked), static_cast<long long>(first.edges_walked),
+              static_cast<long long>(bottom_with_edges), edges.size());
+  EXPECT_EQ(first.points_held, 0);
+  EXPECT_GE(first.points_walked, bottom_with_edges);
+  EXPECT_GE(first.edges_walked, first.points_walked);
+  EXPECT_LE(first.edges_walked, static_cast<std::int64_t>(edges.size()));
+  detector.resetSampleCount();
+  EXPECT_FALSE(detector.edgesCrossAt(X, 0.0));
+  const EdgeTestCounts again = detector.edgeTestCounts();
+  EXPECT_EQ(again.points_walked, 0);
+  EXPECT_EQ(again.edges_walked, 0);
+  EXPECT_GE(again.points_held, bottom_with_edges);
+  CollisionDetector lifted(plane, *plate, 0.0);
+  EXPECT_FALSE(lifted.edgesCrossAt(Pose::FromTranslation({0.0, 0.0, 0.02}), 0.0));
+  const EdgeTestCounts far = lifted.edgeTestCounts();
+  EXPECT_EQ(far.points_held + far.points_boxed + far.points_walked + far.edges_walked, 0);
+}
+
 TEST(EdgeCases, ADirectionalCertificateExpiresBeforeItsEdgesLeaveTheBoxItKnows) {
   // The exact walk's directional certificate bounds F's rise by the range of F's derivatives
   // near the edges, so a move along a flat floor (dF/dx = 0 there) raises nothing it knows of;

@@ -251,6 +251,9 @@ struct ModeRun {
   std::vector<double> times_us, cpu_us, contacts, samples;
   double max_penetration_m = 0.0, max_force_N = 0.0, cells_sum = 0.0;
   double edge_us_sum = 0.0;  // TickStats::edge_us over the ticks (the edge test's own wall time)
+  // Per tick: TickStats::edge_us and TickStats::edge_test_counts (what the edge test did).
+  std::vector<double> edge_us;
+  std::vector<haptics::EdgeTestCounts> edge_counts;
   std::uint64_t nan_ticks = 0, over_1ms = 0, in_contact = 0;
   // Crossing check (CrossingVerifier after each tick, outside the timed section).
   std::int64_t crossings = 0, crossing_points = 0, first_crossing_tick = -1;
@@ -276,6 +279,44 @@ struct ModeRun {
   // Sums over the ticks of TickStats::work and TickStats::critical_work (the lanes' balance).
   double work_sum = 0.0, critical_work_sum = 0.0;
 };
+
+/// What the edge test did per tick (TickStats::edge_test_counts), as means over every tick and
+/// over its slowest 0.1 % (at least one tick, by the edge test's own time): the points whose
+/// edges certificates held, a box query cleared or the exact walk tested, the edges walked, and
+/// the edge test's time per edge walked on those slowest ticks [us].
+nlohmann::ordered_json edgeTestPointsJson(const ModeRun& m) {
+  const std::size_t n = m.edge_counts.size();
+  std::vector<std::size_t> order(n);
+  for (std::size_t i = 0; i < n; ++i) order[i] = i;
+  const std::size_t slowest = std::max<std::size_t>(1, n / 1000);
+  std::partial_sort(order.begin(), order.begin() + static_cast<std::ptrdiff_t>(std::min(slowest, n)), order.end(),
+                    [&](std::size_t a, std::size_t b) { return m.edge_us[a] > m.edge_us[b]; });
+  const auto means = [&](std::size_t count) {
+    double held = 0, boxed = 0, walked = 0, edges = 0, us = 0;
+    for (std::size_t k = 0; k < count; ++k) {
+      const haptics::EdgeTestCounts& c = m.edge_counts[order[k]];
+      held += static_cast<double>(c.points_held);
+      boxed += static_cast<double>(c.points_boxed);
+      walked += static_cast<double>(c.points_walked);
+      edges += static_cast<double>(c.edges_walked);
+      us += m.edge_us[order[k]];
+    }
+    const double d = std::max<double>(1.0, static_cast<double>(count));
+    nlohmann::ordered_json j;
+    j["ticks"] = count;
+    j["points_held"] = held / d;
+    j["points_boxed"] = boxed / d;
+    j["points_walked"] = walked / d;
+    j["edges_walked"] = edges / d;
+    j["edge_test_us"] = us / d;
+    if (edges > 0.0) j["us_per_edge_walked"] = us / edges;
+    return j;
+  };
+  nlohmann::ordered_json j;
+  j["mean_per_tick"] = means(n);
+  j["slowest_0_1_percent"] = means(std::min(slowest, n));
+  return j;
+}
 
 /// CPU time of this thread [us] (not advanced while the thread is preempted).
 double threadCpu_us() {
@@ -329,6 +370,7 @@ nlohmann::ordered_json modeJson(const ModeRun& m, double epsilon_m, bool verifie
   if (m.edge_us_sum > 0.0 && t.n > 0) {
     j["edge_test_mean_us"] = m.edge_us_sum / static_cast<double>(t.n);
     j["cpu_mean_without_edge_test_us"] = cpu.mean - m.edge_us_sum / static_cast<double>(t.n);
+    j["edge_test_points"] = edgeTestPointsJson(m);
   }
   j["mean_contacts"] = c.mean;
   j["max_contacts"] = c.max;
@@ -582,6 +624,8 @@ bool tickMode(ModeRun& m, int i, const haptics::Pose& X_WD, const haptics::Pose&
   const haptics::TickOutput out = m.renderer->tick(X_WD, s);
   m.cpu_us.push_back(threadCpu_us() - c0);
   m.edge_us_sum += out.stats.edge_us;
+  m.edge_us.push_back(out.stats.edge_us);
+  m.edge_counts.push_back(out.stats.edge_test_counts);
   m.wall_s += std::chrono::duration<double>(std::chrono::steady_clock::now() - w0).count();
   // Everything below is outside the timed section.
   const bool finite = out.force_W_N.allFinite() && out.torque_W_Nm.allFinite() && out.X_WP.allFinite();
@@ -926,6 +970,20 @@ void printRowResults(nlohmann::ordered_json& row) {
       std::cout << "    of which the edge test itself: mean " << num(e["edge_test_mean_us"], 1)
                 << " us; the rest of the tick: mean " << num(e["cpu_mean_without_edge_test_us"], 1) << " us = "
                 << num(q["cpu_mean_without_edge_test"], 2) << "x the tick without the edge test\n";
+    if (e.contains("edge_test_points")) {
+      const auto points = [](const nlohmann::ordered_json& p) {
+        return num(p["points_held"], 0) + " / " + num(p["points_boxed"], 0) + " / " + num(p["points_walked"], 0) + " (" +
+               num(p["edges_walked"], 0) + " edges)";
+      };
+      const auto& p = e["edge_test_points"];
+      const auto& worst = p["slowest_0_1_percent"];
+      std::cout << "    its points per tick, held by certificates / cleared by a box query / walked: mean "
+                << points(p["mean_per_tick"]) << "; its slowest " << num(worst["ticks"]) << " ticks ("
+                << num(worst["edge_test_us"], 1) << " us): " << points(worst);
+      if (worst.contains("us_per_edge_walked"))
+        std::cout << ", " << num(worst["us_per_edge_walked"], 3) << " us per edge walked";
+      std::cout << "\n";
+    }
   }
   if (row.contains("ratio_exact_over_end_sample")) {
     const auto& a = row["modes"]["accelerated"];

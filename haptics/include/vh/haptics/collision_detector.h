@@ -18,6 +18,18 @@
 
 namespace vh::haptics {
 
+/// What the edge test between the points (haptics/README.md, "Between the points") did with the
+/// points it reached: each point's edges were held by a clearance certificate of an earlier
+/// test, proven free by one box query of the min-max tree, or walked with the exact segment
+/// test (`edges_walked` edges in all). Diagnostics of its cost: the walks and the box queries
+/// are its work (CollisionDetector::work()); counts, no units.
+struct EdgeTestCounts {
+  std::int64_t points_held = 0;    ///< Points whose edges a certificate held (no query).
+  std::int64_t points_boxed = 0;   ///< Points whose edges one box query proved free.
+  std::int64_t points_walked = 0;  ///< Points whose edges were walked cell by cell.
+  std::int64_t edges_walked = 0;   ///< Edges those walks tested.
+};
+
 /// Collision detector for one point shell against one volume. Owns the contact set and all
 /// working memory (sized at construction): no member allocates after construction. A facade:
 /// its parts (the paper's sweep, the accelerated sweep and its lanes, the contact set, the
@@ -171,6 +183,9 @@ class CollisionDetector {
   std::int64_t cellCount() const noexcept;
   /// Every cell the exact segment test visited (examined or skipped by its corners).
   std::int64_t cellsWalkedCount() const noexcept;
+  /// What the edge test decided for each point it reached since the last resetSampleCount()
+  /// (edgesCrossAt(); a point with edges counts once per whole-graph test that reaches it).
+  EdgeTestCounts edgeTestCounts() const noexcept;
   /// Work since the last resetSampleCount(), in units of one trilinear sample's cost (about
   /// 0.05 us on a 2-core 2.0 GHz Xeon): samples plus box queries, tree nodes, walked and
   /// examined cells, each weighed by its cost in samples (fitted to measured thread CPU time;

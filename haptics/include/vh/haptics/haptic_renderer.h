@@ -158,6 +158,10 @@ struct TickStats {
   /// subdivision of a stopped move and the contact that adds; part of contacts_us on a tick
   /// that sweeps); 0 without it. The rest of the tick cost exec_time_us - edge_us.
   double edge_us = 0.0;
+  /// What the edge test did with the points it reached this tick (CollisionDetector::
+  /// edgeTestCounts()): its cost grows with the points walked, those near the surface whose
+  /// certificates the move outran.
+  EdgeTestCounts edge_test_counts;
   /// Sweeps this tick ran (steps 3-4 solved again after a stuck contact's normal was refined:
   /// 1 to 3; 0 on a tick that only resumed a cut sweep or rejected its sample).
   int sweeps = 0;
