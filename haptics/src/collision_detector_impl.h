@@ -77,10 +77,7 @@ class CollisionDetector::Impl {
   std::int64_t treeNodeCount() const noexcept { return counters_.tree_nodes; }
   std::int64_t cellCount() const noexcept { return counters_.cells; }
   std::int64_t cellsWalkedCount() const noexcept { return counters_.cells_walked; }
-  EdgeTestCounts edgeTestCounts() const noexcept {
-    return {counters_.edge_points_held, counters_.edge_points_boxed, counters_.edge_points_walked,
-            counters_.edges_walked};
-  }
+  EdgeTestCounts edgeTestCounts() const noexcept { return counters_.edge; }
   std::int64_t work() const noexcept { return counters_.total(); }
   std::int64_t budgetWork() const noexcept { return counters_.total() - parallel_credit_; }
   void setContactCap(std::size_t cap) noexcept { contact_cap_ = std::clamp<std::size_t>(cap, 1, contacts_.size()); }

@@ -5,6 +5,18 @@
 
 #include <cstdint>
 
+#include "vh/haptics/collision_detector.h"
+
+namespace vh::haptics {
+inline EdgeTestCounts& operator+=(EdgeTestCounts& a, const EdgeTestCounts& b) noexcept {
+  a.points_held += b.points_held;
+  a.points_boxed += b.points_boxed;
+  a.points_walked += b.points_walked;
+  a.edges_walked += b.edges_walked;
+  return a;
+}
+}  // namespace vh::haptics
+
 namespace vh::haptics::detail {
 
 // Relative costs, in trilinear samples, of a min-max tree box query (plus 1 per
@@ -31,10 +43,9 @@ struct WorkCounters {
   std::int64_t samples = 0, box_queries = 0, tree_nodes = 0, cells_walked = 0, cells = 0;
   std::int64_t voxel_queries = 0, voxels = 0;  // voxel-level box queries and the voxels they read
   std::int64_t other = 0;  // beyond samples, cells and box queries (sample units)
-  // The edge test's decisions per point (not work: their costs are counted above): points whose
-  // edges a clearance certificate held, a box query proved free, or the exact walk tested, and
-  // the edges that walk tested (CollisionDetector::edgeTestCounts()).
-  std::int64_t edge_points_held = 0, edge_points_boxed = 0, edge_points_walked = 0, edges_walked = 0;
+  // The edge test's decisions per point (not work: their costs are counted above;
+  // CollisionDetector::edgeTestCounts()).
+  EdgeTestCounts edge;
   std::int64_t total() const noexcept {
     return samples + other + kCellWork * cells + kCellWalkWork * cells_walked + kBoxQueryWork * box_queries +
            voxel_queries + voxels / kVoxelsPerWork + tree_nodes / kTreeNodesPerWork;
@@ -48,10 +59,7 @@ struct WorkCounters {
     cells_walked += o.cells_walked;
     cells += o.cells;
     other += o.other;
-    edge_points_held += o.edge_points_held;
-    edge_points_boxed += o.edge_points_boxed;
-    edge_points_walked += o.edge_points_walked;
-    edges_walked += o.edges_walked;
+    edge += o.edge;
     return *this;
   }
 };

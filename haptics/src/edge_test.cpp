@@ -50,7 +50,7 @@ void CollisionDetector::Impl::recordCrossingEdge(int j, int k, const Pose& X_WP)
 int CollisionDetector::Impl::edgeCrosses(WorkCounters& w, const Pose& X_WP, int j, const Eigen::Vector3d& p_W,
                                    double isovalue) noexcept {
   if (embedded_[j]) return -1;
-  ++w.edge_points_walked;
+  ++w.edge.points_walked;
   const auto i = static_cast<std::size_t>(j);
   const Eigen::Vector3d a = edgeEnd(w, X_WP, j);  // once for all of j's edges
   double clearance_m = std::numeric_limits<double>::infinity();
@@ -64,7 +64,7 @@ int CollisionDetector::Impl::edgeCrosses(WorkCounters& w, const Pose& X_WP, int 
       continue;
     }
     const Eigen::Vector3d b = edgeEnd(w, X_WP, k);
-    ++w.edges_walked;
+    ++w.edge.edges_walked;
     double excess_max = 0.0;
     if (segmentCrosses(w, a, b, isovalue, &excess_max)) return k;
     clearance_m = std::min(clearance_m, edgeClearance(a, b, excess_max, isovalue));
@@ -176,7 +176,7 @@ CollisionDetector::Impl::EdgeWalk CollisionDetector::Impl::edgeNodeWalk(WorkCoun
       const Eigen::Vector3d p_W = R_WT * tool_->point_shell.points_T_m()[static_cast<std::size_t>(j)] + X_WP.p_AB_m;
       const EdgeHold held = edgesStillClear(X_WP, j, p_W);
       if (held != EdgeHold::kNone) {
-        ++w.edge_points_held;
+        ++w.edge.points_held;
         found_near = found_near || held == EdgeHold::kWalk;
         continue;
       }
@@ -186,7 +186,7 @@ CollisionDetector::Impl::EdgeWalk CollisionDetector::Impl::edgeNodeWalk(WorkCoun
       // until point j has moved the margin, its edges stay in the ball however the tool turns.
       if (!ballMayBeInside(w, p_W, (edge_reach_m_[j] + epsilon_ + ballMargin_m()) * (1.0 + 1e-9) + 1e-12, isovalue)) {
         keepEdgeClearance(j, {p_W, X_WP.R_AB, ballMargin_m(), 0.0});
-        ++w.edge_points_boxed;
+        ++w.edge.points_boxed;
         continue;
       }
       found_near = true;
@@ -289,7 +289,7 @@ bool CollisionDetector::Impl::edgesCrossAt(const Pose& X_WP, double isovalue) no
     if (edges_.offsets[j + 1] == edges_.offsets[j]) continue;
     const Eigen::Vector3d p_W = X_WP * tool_->point_shell.points_T_m()[static_cast<std::size_t>(j)];
     if (edgesStillClear(X_WP, j, p_W) != EdgeHold::kNone) {
-      ++counters_.edge_points_held;
+      ++counters_.edge.points_held;
       continue;
     }
     if (walked++ > 0 && overBudget()) return edge_cut_ = true;
