@@ -116,6 +116,9 @@ Coverage coverageAt(const runtime::LoadedScene& scene, double isovalue, const st
     view->setIsovalue(s);
     view->renderStill(true);
     test::pump(100);
+    // Best quality again for the frame grabbed: a still frame drawn meanwhile that took longer
+    // than SceneActors' kStillSlowMs (3 s, a busy machine) steps the next still frames down.
+    view->renderStill(true);
     return view->widget()->grabFrame();
   };
   const QImage empty = still(scene.volume.field->maxValue() * 2.0 + 1.0);

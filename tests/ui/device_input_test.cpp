@@ -290,7 +290,7 @@ TEST(DeviceInput, TouchSurfaceApproachesFromOutsideTheBodyNotFromInsideTheChest)
                  (snap.X_WD.p_AB_m - session.simulatedDevice()->pose().p_AB_m).norm() < 1e-9 &&
                  !input->touchInProgress();
       return touching;
-    }, 10000 * test::kSanitizerSlowdown);
+    }, 30000 * test::kSanitizerSlowdown);
     ASSERT_TRUE(touching) << "the tool never came to rest on the surface: contacts " << snap.contacts
                           << ", device " << (snap.X_WD.p_AB_m - session.simulatedDevice()->pose().p_AB_m).norm()
                           << " m from the placed pose, placement " << (input->touchInProgress() ? "pending" : "applied");

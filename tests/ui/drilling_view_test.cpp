@@ -185,7 +185,7 @@ TEST(DrillingView, DrillMenuCutsShowsAndExports) {
         drill.drain();
         return drill.removed_mm3() > 20.0;
       },
-      8000 * test::kSanitizerSlowdown))
+      30000 * test::kSanitizerSlowdown))
       << "removed " << drill.removed_mm3() << " mm^3";
   drill.setDrilling(false);
   EXPECT_FALSE(session.drilling());
@@ -262,7 +262,7 @@ TEST(DrillingView, TheCavityStaysInThePictureOverRebuilds) {
           drill.drain();
           return drill.removed_mm3() > before + mm3;
         },
-        8000 * test::kSanitizerSlowdown));
+        30000 * test::kSanitizerSlowdown));
     session.stopHaptics();
     drill.drain();
   };
@@ -331,7 +331,7 @@ TEST(DrillingView, CriticalRemovalJustBeforeARebuildIsStillTold) {
   // No events processed meanwhile: the drain timer never runs, as in the last 20 ms before a rebuild.
   const auto t0 = std::chrono::steady_clock::now();
   while (first.removal().removedVoxels(nodule) == 0 &&
-         std::chrono::steady_clock::now() - t0 < std::chrono::seconds(10 * test::kSanitizerSlowdown))
+         std::chrono::steady_clock::now() - t0 < std::chrono::seconds(30 * test::kSanitizerSlowdown))
     std::this_thread::sleep_for(std::chrono::milliseconds(5));
   session.stopHaptics();
   const std::uint64_t cut = first.removal().removedVoxels(nodule);
@@ -581,8 +581,9 @@ TEST(DrillingView, ReplayStartsFromTheRecordedCavity) {
   window.replay()->setTime(window.replay()->recording().records.back().time_s);
   EXPECT_EQ(removedShown(), both) << "and what the run removed after it";
   window.replay()->closeReplay();
-  test::pump(100);  // the drill controller's drain
+  test::pump(100);
   window.session().stopHaptics();
+  window.drillController()->drain();  // what its 20 ms timer does, once the threads are still
   ASSERT_NE(window.session().hapticThread(), nullptr);
   const auto& live = window.session().hapticThread()->drill();
   ASSERT_NE(live, nullptr);
@@ -630,7 +631,15 @@ TEST(DrillingView, CavityInTheHeadPhantomGrowsInTheView) {
   }
   const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   const double fps = static_cast<double>(window.sceneView()->widget()->frameCount() - frames_before) / seconds;
-  window.drillController()->drain();
+  // How much the burr cut in those seconds depends on how many ticks the machine ran: the burr
+  // stays pressed in at the circle's end until it has cut into the skull and the view has shown
+  // the cut.
+  EXPECT_TRUE(test::waitFor(
+      [&] {
+        window.drillController()->drain();
+        return window.drillController()->removed_mm3() > 1.0 && window.sceneView()->actors().partialUploads() > 0;
+      },
+      60000));
   const double removed = window.drillController()->removed_mm3();
   std::printf("head phantom: drilled %.1f mm^3 in %.1f s; the view kept %.1f frames per second meanwhile "
               "(%llu box uploads, %llu whole)\n",

@@ -171,7 +171,7 @@ TEST_F(Guidance, AnotherScansRecordingIsRefusedNamingBothChecksumsAndTheSameScan
   ASSERT_TRUE(w->haptics()->guideWith(QString::fromStdString(expert_.string()), &error)) << error.toStdString();
   ASSERT_NE(w->session().hapticThread()->guidance(), nullptr);
   EXPECT_EQ(w->session().hapticThread()->guidance()->fileSha256(), runtime::sha256File(expert_));
-  EXPECT_TRUE(waitFor([&] { const auto* s = w->viewController()->snapshot(); return s != nullptr && s->guidance_on; }, 10000))
+  EXPECT_TRUE(waitFor([&] { const auto* s = w->viewController()->snapshot(); return s != nullptr && s->guidance_on; }, 30000))
       << "the coupling thread never reported guidance on";
   w->haptics()->stopGuidance();
   EXPECT_EQ(w->session().hapticThread()->guidance(), nullptr);
@@ -189,7 +189,7 @@ TEST_F(Guidance, TheGhostStandsAtTheExpertsNearestPoseInItsColourAndGoesWithStop
     const runtime::HapticSnapshot* s = w->viewController()->snapshot();
     return s != nullptr && s->guidance_on && s->guidance_segment >= 0 && (s->X_WD.p_AB_m - X_WD.p_AB_m).norm() < 1e-9;
   };
-  ASSERT_TRUE(waitFor(device_there, 10000)) << "no snapshot of the device guided where it was put";
+  ASSERT_TRUE(waitFor(device_there, 30000)) << "no snapshot of the device guided where it was put";
   test::pump(200);
   const ExpertGhost* ghost = w->sceneView()->ghost();
   ASSERT_NE(ghost, nullptr);
@@ -253,6 +253,7 @@ TEST_F(Guidance, AGuidedSessionReplaysWithTheGhostAndSaysSoWhenTheExpertIsGone) 
     ASSERT_TRUE(w->haptics()->guideWith(QString::fromStdString(expert_.string())));  // before the recording
     ASSERT_TRUE(w->recorder()->start(session)) << w->recorder()->lastError().toStdString();
     test::pump(400);
+    ASSERT_TRUE(waitFor([&] { return w->recorder()->recordsWritten() > 0; }, 30000)) << "no tick recorded";
     w->recorder()->stop();
     w->session().stopHaptics();
   }

@@ -155,7 +155,7 @@ TEST_F(MainWindowOnHead, IsovalueSliderChangesThePictureAndTheHapticIsovalue) {
   EXPECT_TRUE(waitFor([&] {
     window_->viewController()->refresh();
     return window_->viewController()->lastSnapshot().isovalue == new_isovalue;
-  }, 3000)) << "snapshot isovalue " << window_->viewController()->lastSnapshot().isovalue;
+  }, 30000)) << "snapshot isovalue " << window_->viewController()->lastSnapshot().isovalue;
 
   // The spin box drives it too.
   window_->isovalueBar()->spinBox()->setValue(old_isovalue);
@@ -246,12 +246,12 @@ TEST_F(MainWindowOnHead, ToolActorsExistAndFollowTheHapticThread) {
   EXPECT_TRUE(waitFor([&] {
     window_->viewController()->refresh();
     return (translationOf(window_->sceneView()->actors().proxyActor()) - target.p_AB_m).norm() < 1e-4;
-  }, 3000)) << "proxy at " << translationOf(window_->sceneView()->actors().proxyActor()).transpose();
+  }, 30000)) << "proxy at " << translationOf(window_->sceneView()->actors().proxyActor()).transpose();
   EXPECT_LT((translationOf(window_->sceneView()->actors().deviceActor()) - target.p_AB_m).norm(), 1e-6);
   EXPECT_TRUE(waitFor([&] {
     window_->viewController()->refresh();
     return window_->statusText().contains("Hz");
-  }, 3000)) << window_->statusText().toStdString();
+  }, 30000)) << window_->statusText().toStdString();
   EXPECT_GT(window_->stripChart() != nullptr, 0);
 }
 
@@ -326,7 +326,7 @@ TEST_F(MainWindowOnHead, DeviceDrivenIntoTheSurfaceLeavesTheProxyOutsideWhereThe
     window_->viewController()->refresh();
     const runtime::HapticSnapshot& s = window_->viewController()->lastSnapshot();
     return s.contacts > 0 && s.force_W_N.norm() > 0.1;
-  }, 10000)) << "contacts " << window_->viewController()->lastSnapshot().contacts << ", |F| "
+  }, 30000)) << "contacts " << window_->viewController()->lastSnapshot().contacts << ", |F| "
             << window_->viewController()->lastSnapshot().force_W_N.norm() << " N";
   // Freeze the haptic state (the force ramps down; the proxy stays), then read it once more.
   window_->session().stopHaptics();
@@ -362,10 +362,14 @@ TEST_F(MainWindowOnHead, ToolRestingOnTheSurfaceGetsTheFullQualityStillFrame) {
   test::pump(2000);  // the hand rests for 2 s
   ASSERT_TRUE(window_->session().hapticsRunning());
   window_->viewController()->refresh();
+  SceneView* view = window_->sceneView();
+  // The still frame comes 300 ms after the last visible change; on a busy machine the proxy may take
+  // longer to settle under the push, so it is waited for (a view that took every micrometre for
+  // motion would stay interactive and fail here). No events run from here to the frames grabbed.
+  EXPECT_TRUE(waitFor([&] { return !view->actors().interactive(); }, 30000))
+      << "still interactive (coarse) frames with the tool at rest";
   const runtime::HapticSnapshot& s = window_->viewController()->lastSnapshot();
   EXPECT_GT(s.contacts, 0) << "the tool should still rest on the surface";
-  SceneView* view = window_->sceneView();
-  EXPECT_FALSE(view->actors().interactive()) << "still interactive (coarse) frames after 2 s at rest";
   const double rest_sample_m = view->actors().sampleDistance_m();
   const double rest_image_px = view->actors().imageSampleDistance_px();
   const QImage at_rest = view->widget()->grabFrame();  // the frame at the quality it rests at
@@ -446,7 +450,7 @@ TEST_F(MainWindowOnHead, ChoosingAToolRebuildsTheHapticThread) {
     window_->viewController()->refresh();
     return window_->viewController()->lastSnapshot().tick > 0 &&
            (window_->viewController()->lastSnapshot().X_WP.p_AB_m - window_->session().live().X_WT_initial.p_AB_m).norm() < 1e-4;
-  }, 3000));
+  }, 30000));
 }
 
 TEST_F(MainWindowOnHead, DevicePickerListsTheSimulatedDeviceAndWhatIsFound) {
@@ -479,9 +483,9 @@ TEST_F(MainWindowOnHead, DevicePickerListsTheSimulatedDeviceAndWhatIsFound) {
   EXPECT_EQ(box->currentIndex(), 0);
   ASSERT_NE(window_->session().simulatedDevice(), nullptr);
   EXPECT_TRUE(window_->session().hapticsRunning());
-  ASSERT_TRUE(waitFor([&] { window_->viewController()->refresh(); return window_->viewController()->lastSnapshot().tick > 0; }, 3000));
+  ASSERT_TRUE(waitFor([&] { window_->viewController()->refresh(); return window_->viewController()->lastSnapshot().tick > 0; }, 30000));
   const auto first = window_->viewController()->lastSnapshot().tick;
-  EXPECT_TRUE(waitFor([&] { window_->viewController()->refresh(); return window_->viewController()->lastSnapshot().tick > first + 10; }, 3000))
+  EXPECT_TRUE(waitFor([&] { window_->viewController()->refresh(); return window_->viewController()->lastSnapshot().tick > first + 10; }, 30000))
       << "the haptic thread stopped ticking";
   // Choosing it again keeps the same device; an entry past the list is refused.
   runtime::Device* sim = window_->session().device();
@@ -503,7 +507,7 @@ TEST_F(MainWindowOnHead, LoadingErrorKeepsThePreviousScene) {
   }
   QSignalSpy failed(window_.get(), &MainWindow::loadFailed);
   window_->openPath(bad);
-  ASSERT_TRUE(waitFor([&] { return failed.count() > 0; }, 10000)) << "no error reported";
+  ASSERT_TRUE(waitFor([&] { return failed.count() > 0; }, 30000)) << "no error reported";
   EXPECT_TRUE(window_->opener()->lastError().contains("broken.nrrd")) << window_->opener()->lastError().toStdString();
   EXPECT_FALSE(window_->opener()->loading());
   EXPECT_EQ(window_->sceneView()->actors().volume(), volume_before);

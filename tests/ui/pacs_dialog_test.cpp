@@ -5,10 +5,13 @@
 
 #include <arpa/inet.h>
 #include <netinet/in.h>
+#include <poll.h>
 #include <sys/socket.h>
 #include <unistd.h>
 
+#include <cerrno>
 #include <chrono>
+#include <csignal>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
@@ -214,26 +217,31 @@ TEST(PacsDialog, CancelInTheProgressDialogKeepsNothing) {
     finished = true;
     cancelled = c;
   });
+  const fs::path folder = pacsCacheFolder(series->text(4).toStdString(), fs::path(cache.path().toStdString()));
   dialog.retrieveSelected();
   QProgressDialog* progress = nullptr;
+  // Cancelled once two files are in: seen in the cache folder itself, as soon as they are written,
+  // rather than through the progress dialog's 100 ms poll, so that the retrieval (a second or so
+  // for the small CT head) has as much of its way still to go as can be.
   ASSERT_TRUE(test::waitFor(
       [&] {
         progress = dialog.findChild<QProgressDialog*>("pacsProgress");
-        return progress != nullptr && progress->value() >= 2;
+        return progress != nullptr && (progress->value() >= 2 || dicomFilesIn(folder) >= 2);
       },
       30000));
   QPushButton* cancel_button = progress->findChild<QPushButton*>();
   ASSERT_NE(cancel_button, nullptr);
   EXPECT_EQ(cancel_button->text(), "Cancel");
   const int received_at_cancel = progress->value();
+  const std::size_t files_at_cancel = dicomFilesIn(folder);
   cancel_button->click();
-  ASSERT_TRUE(test::waitFor([&] { return finished; }, 20000));
+  ASSERT_TRUE(test::waitFor([&] { return finished; }, 30000));
   EXPECT_TRUE(cancelled) << dialog.statusText().toStdString();
-  std::printf("[ CANCEL   ] the dialog showed %d of %s files when Cancel was clicked\n", received_at_cancel,
-              values.at("instances").c_str());
+  std::printf("[ CANCEL   ] the dialog showed %d of %s files (%zu in the cache folder) when Cancel was clicked\n",
+              received_at_cancel, values.at("instances").c_str(), files_at_cancel);
   EXPECT_NE(dialog.result(), QDialog::Accepted);
   EXPECT_TRUE(dialog.statusText().contains("cancelled")) << dialog.statusText().toStdString();
-  EXPECT_EQ(dicomFilesIn(pacsCacheFolder(series->text(4).toStdString(), fs::path(cache.path().toStdString()))), 0u);
+  EXPECT_EQ(dicomFilesIn(folder), 0u);
 }
 
 TEST(PacsDialog, AClosedPortIsSaidInTheDialog) {
@@ -250,7 +258,10 @@ TEST(PacsDialog, AClosedPortIsSaidInTheDialog) {
 }
 
 TEST(PacsDialog, ClosingNeverWaitsForTheNetwork) {
-  // A server that accepts the connection and never answers: the search waits its 3 s out.
+  // A server that accepts the connection and never answers: the search would wait its 30 s out.
+  // The oracle is the server's side of the search's connection, not a clock: still open when the
+  // dialog's close has returned (a close that waited for the search would return only after the
+  // search gave up and closed it).
   const int listener = ::socket(AF_INET, SOCK_STREAM, 0);
   ASSERT_GE(listener, 0);
   sockaddr_in addr{};
@@ -263,7 +274,7 @@ TEST(PacsDialog, ClosingNeverWaitsForTheNetwork) {
   io::PacsServer silent;
   silent.host = "127.0.0.1";
   silent.port = ntohs(addr.sin_port);
-  silent.timeout_s = 3;
+  silent.timeout_s = 30;
   auto dialog = std::make_unique<PacsBrowserDialog>(silent, nullptr, nullptr);
   dialog->show();
   dialog->search();
@@ -272,10 +283,24 @@ TEST(PacsDialog, ClosingNeverWaitsForTheNetwork) {
   auto t0 = std::chrono::steady_clock::now();
   dialog.reset();  // closed while the search waits
   const double close_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-  std::printf("[ TIMING   ] closed during a search of a silent server in %.3f s\n", close_s);
-  EXPECT_LT(close_s, 0.5);
-  test::pump(3500);  // the search's thread ends on its own (connection timeout)
+  std::printf("[ TIMING   ] closed during a search of a silent server in %.3f s (measured, not checked)\n", close_s);
+  pollfd pending{listener, POLLIN, 0};
+  ASSERT_EQ(::poll(&pending, 1, 30000), 1) << "the search never connected";
+  const int connection = ::accept(listener, nullptr, nullptr);
+  ASSERT_GE(connection, 0);
+  char request[4096];
+  ssize_t got = 0;
+  while ((got = ::recv(connection, request, sizeof request, MSG_DONTWAIT)) > 0) {
+  }
+  const int recv_error = errno;
+  EXPECT_TRUE(got < 0 && (recv_error == EAGAIN || recv_error == EWOULDBLOCK))
+      << "the search's connection was closed when the dialog's close returned (recv " << got << ", errno "
+      << recv_error << ")";
+  // Closing the server's side ends the search's wait (its thread then hands its result to no one).
+  ::signal(SIGPIPE, SIG_IGN);
+  ::close(connection);
   ::close(listener);
+  test::pump(500);
 }
 
 TEST(PacsDialog, TheSettingsCarryTheTimeoutAndTlsAndTheTestObeysTheTimeout) {
@@ -321,11 +346,12 @@ TEST(PacsDialog, TheSettingsCarryTheTimeoutAndTlsAndTheTestObeysTheTimeout) {
   ASSERT_TRUE(result && test_button);
   const auto t0 = std::chrono::steady_clock::now();
   test_button->click();
-  ASSERT_TRUE(test::waitFor([&] { return result->text().contains("timeout"); }, 8000)) << result->text().toStdString();
+  // The dialog's first timeout was 45 s: an answer within 30 s comes from the 2 s one shown (a busy
+  // machine may add seconds to it, not 43).
+  ASSERT_TRUE(test::waitFor([&] { return result->text().contains("timeout"); }, 30000)) << result->text().toStdString();
   const double s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   std::printf("[ TIMING   ] Test Connection to a silent server: %.3f s: %s\n", s, result->text().toStdString().c_str());
   EXPECT_TRUE(result->text().contains("within the timeout of 2 s")) << result->text().toStdString();
-  EXPECT_LT(s, 6.0);
   ::close(listener);
 }
 
@@ -345,11 +371,11 @@ TEST(PacsDialog, ClosingDuringARetrievalCancelsIt) {
   dialog->retrieveSelected();
   ASSERT_TRUE(test::waitFor([&] { return dicomFilesIn(folder) >= 3; }, 30000));
   const auto t0 = std::chrono::steady_clock::now();
-  dialog.reset();  // closed mid-retrieval
+  dialog.reset();  // closed mid-retrieval (how long the close took is printed, not checked: that it
+                   // never waits for the network is ClosingNeverWaitsForTheNetwork's)
   const double close_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-  EXPECT_LT(close_s, 0.5);
   // The retrieval's thread stops (C-CANCEL) and deletes what it received.
-  EXPECT_TRUE(test::waitFor([&] { return dicomFilesIn(folder) == 0; }, 10000)) << dicomFilesIn(folder) << " files left";
+  EXPECT_TRUE(test::waitFor([&] { return dicomFilesIn(folder) == 0; }, 30000)) << dicomFilesIn(folder) << " files left";
   std::printf("[ TIMING   ] closed during a retrieval in %.3f s; its files gone %.3f s later\n", close_s,
               std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count());
   test::pump(500);  // the thread's last steps (releasing the association)

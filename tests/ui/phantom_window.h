@@ -24,7 +24,9 @@ inline ::testing::AssertionResult openPhantomWithDrill(MainWindow& window) {
   window.resize(1280, 860);
   window.show();
   window.openPath(QString::fromStdString(kHeadPhantom.string()));
-  if (!waitFor([&] { return window.hasScene() && !window.opener()->loading(); }, 60000))
+  // A 512 x 512 x 140 CT read, its trees built and uploaded: generous, a busy machine takes several
+  // times as long as an idle one.
+  if (!waitFor([&] { return window.hasScene() && !window.opener()->loading(); }, 120000))
     return ::testing::AssertionFailure() << "the head phantom did not open";
   window.session().setIsovalue(400.0);
   int drill_index = -1;
@@ -32,7 +34,7 @@ inline ::testing::AssertionResult openPhantomWithDrill(MainWindow& window) {
     if (window.toolPicker()->choices()[i].id == "builtin:drill") drill_index = static_cast<int>(i);
   if (drill_index < 0) return ::testing::AssertionFailure() << "no built-in drill in the tool picker";
   window.toolPicker()->select(drill_index, 0.001);
-  if (!waitFor([&] { return window.toolPicker()->currentIndex() == drill_index; }, 30000))
+  if (!waitFor([&] { return window.toolPicker()->currentIndex() == drill_index; }, 60000))
     return ::testing::AssertionFailure() << "the drill was not built";
   return ::testing::AssertionSuccess();
 }

@@ -218,29 +218,56 @@ TEST(SceneView, InteractiveRendersAimAtThePeriodLessTheGuisTimeBetweenFrames) {
   // Interactive frames rendered back to back with at least 8 ms of other work between them: the
   // renders' target falls by that much from the 33 Hz period; pauses longer than the period (the
   // view at rest) leave it alone, and it never falls under half the period.
+  // The gaps between frames are the machine's (a busy machine makes them longer, and gaps of a
+  // period or more count as rest): the oracle follows the rule on the gaps the view measured
+  // (VtkView::lastGapMs(), read after each frame), each gap under the period moving the average
+  // 0.3 of the way to it; the fixed figures are checked where the gaps allow them.
   ViewWindow w;
   w.load();
   ASSERT_TRUE(test::waitFor([&] { return w.view->widget()->frameCount() > 1; }, 20000)) << "the view never rendered";
   const double period_ms = 1000.0 / w.view->widget()->interactor()->GetDesiredUpdateRate();
   EXPECT_DOUBLE_EQ(w.view->interactiveTargetMs(), period_ms) << "no interactive frames yet";
-  for (int i = 0; i < 20; ++i) {
+  double average_gap_ms = 0.0;
+  const auto frameAfter = [&](double pause_ms) {  // @return whether its gap counted (under the period)
     w.view->noteMotion();
-    ASSERT_TRUE(w.view->widget()->renderNow());
-    std::this_thread::sleep_for(std::chrono::milliseconds(8));
-  }
+    EXPECT_TRUE(w.view->widget()->renderNow());
+    const double gap_ms = w.view->widget()->lastGapMs();
+    const bool under_period = gap_ms >= 0.0 && gap_ms < period_ms;
+    if (under_period) average_gap_ms += 0.3 * (gap_ms - average_gap_ms);
+    std::this_thread::sleep_for(std::chrono::microseconds(static_cast<int>(1000.0 * pause_ms)));
+    return under_period;
+  };
+  const auto expectedTarget = [&] { return std::max(period_ms - average_gap_ms, 0.5 * period_ms); };
+  int counted = 0;
+  for (int i = 0; i < 20; ++i) counted += frameAfter(8.0) ? 1 : 0;
   const double target_ms = w.view->interactiveTargetMs();
-  EXPECT_LE(target_ms, period_ms - 7.9) << "8 ms or more between frames";
+  std::cout << counted << " of 20 gaps after 8 ms pauses under the period; target " << target_ms << " ms\n";
+  EXPECT_NEAR(target_ms, expectedTarget(), 1e-9);
   EXPECT_GE(target_ms, 0.5 * period_ms);
+  if (counted > 0) {
+    EXPECT_LT(target_ms, period_ms) << "the time between frames lowers the target";
+  }
+  // Every gap after the first follows a pause of 8 ms: all 20 counted, the target lies 8 ms (within
+  // 0.7^19 of it) under the period.
+  if (counted == 20) {
+    EXPECT_LE(target_ms, period_ms - 7.9) << "8 ms or more between frames";
+  }
   w.view->noteMotion();
   std::this_thread::sleep_for(std::chrono::milliseconds(static_cast<int>(2.0 * period_ms)));
   ASSERT_TRUE(w.view->widget()->renderNow());
+  EXPECT_GE(w.view->widget()->lastGapMs(), 2.0 * period_ms - 1.0);
   EXPECT_DOUBLE_EQ(w.view->interactiveTargetMs(), target_ms) << "a pause longer than the period is rest";
-  for (int i = 0; i < 20; ++i) {
-    w.view->noteMotion();
-    ASSERT_TRUE(w.view->widget()->renderNow());
-    std::this_thread::sleep_for(std::chrono::milliseconds(static_cast<int>(0.8 * period_ms)));
+  counted = 0;
+  for (int i = 0; i < 20; ++i) counted += frameAfter(0.8 * period_ms) ? 1 : 0;
+  std::cout << counted << " of 20 gaps after pauses of 0.8 periods under the period; target "
+            << w.view->interactiveTargetMs() << " ms\n";
+  EXPECT_NEAR(w.view->interactiveTargetMs(), expectedTarget(), 1e-9);
+  EXPECT_GE(w.view->interactiveTargetMs(), 0.5 * period_ms) << "never under half the period";
+  // The first of these frames follows the rest frame at once; three gaps of 0.8 periods after it
+  // move the average past half the period from anywhere below it (0.8 x (1 - 0.7^3) > 0.5).
+  if (counted >= 4) {
+    EXPECT_DOUBLE_EQ(w.view->interactiveTargetMs(), 0.5 * period_ms) << "never under half the period";
   }
-  EXPECT_DOUBLE_EQ(w.view->interactiveTargetMs(), 0.5 * period_ms) << "never under half the period";
 }
 
 /// Each time `actor`'s mapper is drawn, the number of points it drew (its input's, after the

@@ -282,11 +282,14 @@ TEST(ToolShadow, InTheWindowItFallsIntoTheDrilledPit) {
   Pose up = session.proxyPose();
   up.p_AB_m.z() += 0.002;
   session.simulatedDevice()->setPose(up);
-  ASSERT_TRUE(test::waitFor([&] { return (session.proxyPose().p_AB_m - up.p_AB_m).norm() < 1e-4; }, 10000));
+  ASSERT_TRUE(test::waitFor([&] { return (session.proxyPose().p_AB_m - up.p_AB_m).norm() < 1e-4; }, 30000));
   test::pump(200);
   session.stopHaptics();
   window.drillController()->drain();
-  test::pump(200);  // the last snapshot shown, the shadow cast for it
+  test::pump(200);
+  // The threads' last snapshot shown (not only whichever the display timer reached last), and the
+  // shadow cast for it on the carved field.
+  window.viewController()->refresh();
   window.viewController()->updateShadow();
 
   const haptics::ScalarVolume& carved_field = session.hapticThread()->drill()->removal().volume();

@@ -170,7 +170,14 @@ TEST(VtkView, AFrameRenderedNowAnswersTheRequestsBeforeIt) {
   // not get that frame drawn twice: once now, once at the next display refresh.
   Window w;
   ASSERT_TRUE(test::waitFor([&] { return w.view->frameCount() > 0; }, 20000)) << "the view never rendered";
-  test::pump(200);  // the first frames settle
+  // The first frames settle: each expose of the newly shown window draws one. Waited for until
+  // 300 ms pass without a frame (on a busy machine they come later, not in a fixed time).
+  std::uint64_t settled = w.view->frameCount();
+  for (int i = 0; i < 100; ++i) {
+    test::pump(300);
+    if (w.view->frameCount() == settled) break;
+    settled = w.view->frameCount();
+  }
   for (int i = 0; i < 5; ++i) {
     const std::uint64_t before = w.view->frameCount();
     w.view->requestRender();
@@ -179,10 +186,11 @@ TEST(VtkView, AFrameRenderedNowAnswersTheRequestsBeforeIt) {
     test::pump(100);  // the display refreshes that would draw a request
     EXPECT_EQ(w.view->frameCount() - before, 1u) << "round " << i;
   }
-  // A request alone is drawn, once.
+  // A request alone is drawn, once: waited for, then 100 ms more for a second frame that must not come.
   const std::uint64_t before = w.view->frameCount();
   w.view->requestRender();
   w.view->requestRender();
+  ASSERT_TRUE(test::waitFor([&] { return w.view->frameCount() > before; }, 30000)) << "the request was never drawn";
   test::pump(100);
   EXPECT_EQ(w.view->frameCount() - before, 1u);
 }

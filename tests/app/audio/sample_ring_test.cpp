@@ -38,7 +38,10 @@ TEST(SampleRing, AProducerAndAConsumerThreadSeeEverySampleOnceInOrder) {
     while (next < kSamples) {
       const int n = std::min<int>(97, kSamples - next);
       for (int i = 0; i < n; ++i) block[static_cast<std::size_t>(i)] = static_cast<float>((next + i) % 65536);
-      next += static_cast<int>(ring.push(std::span<const float>(block.data(), static_cast<std::size_t>(n))));
+      const std::size_t pushed = ring.push(std::span<const float>(block.data(), static_cast<std::size_t>(n)));
+      next += static_cast<int>(pushed);
+      // Full: give the core away (on a loaded machine the consumer may be waiting for it).
+      if (pushed == 0) std::this_thread::yield();
     }
   });
   std::vector<float> got(61);
@@ -46,6 +49,7 @@ TEST(SampleRing, AProducerAndAConsumerThreadSeeEverySampleOnceInOrder) {
   while (expected < kSamples) {
     const std::size_t n = ring.pop(got);
     for (std::size_t i = 0; i < n; ++i, ++expected) wrong += got[i] != static_cast<float>(expected % 65536);
+    if (n == 0) std::this_thread::yield();  // empty: likewise, for the producer
   }
   producer.join();
   EXPECT_EQ(wrong, 0);

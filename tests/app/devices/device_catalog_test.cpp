@@ -5,8 +5,11 @@
 #include "vh/devices/device_catalog.h"
 #include "vh/devices/fallback_device.h"
 
+#include <chrono>
 #include <cmath>
+#include <functional>
 #include <numbers>
+#include <thread>
 
 #include <gtest/gtest.h>
 
@@ -35,6 +38,14 @@ struct Rig {
   std::shared_ptr<FakeUsbBackend> usb = std::make_shared<FakeUsbBackend>();
   std::shared_ptr<DeviceCatalog> catalog = std::make_shared<DeviceCatalog>(hid, usb);
 };
+
+/// Polls `done` every 2 ms until it holds or 30 s pass (generous: a device's I/O thread may run
+/// late on a loaded machine; a condition that holds returns at once). @return done().
+bool pollUntil(const std::function<bool()>& done) {
+  const auto give_up = std::chrono::steady_clock::now() + std::chrono::seconds(30);
+  while (!done() && std::chrono::steady_clock::now() < give_up) std::this_thread::sleep_for(std::chrono::milliseconds(2));
+  return done();
+}
 
 TEST(DeviceCatalog, ListsOnlyTheSupportedDevices) {
   Rig rig;
@@ -86,7 +97,7 @@ TEST(DeviceCatalog, OpensMappedDevicesCentredOnTheTool) {
 
   auto mapped_falcon = rig.catalog->open(found[1], options);
   EXPECT_EQ(mapped_falcon->name(), "Novint Falcon");
-  for (int i = 0; i < 500 && !(mapped_falcon->read(s) && s.valid); ++i) std::this_thread::sleep_for(std::chrono::milliseconds(2));
+  pollUntil([&] { return mapped_falcon->read(s) && s.valid; });
   ASSERT_TRUE(s.valid);
   EXPECT_LT((s.X_WD.p_AB_m - Eigen::Vector3d(0.1, 0.2, 0.3)).norm(), 2e-4);
   EXPECT_NEAR(s.X_WD.R_AB.angularDistance(options.X_WT_initial.R_AB), 0.0, 1e-12);
@@ -150,10 +161,10 @@ TEST(HotplugMonitor, ReportsArrivalsAndDepartures) {
   monitor.start();
   hid->plugIn();
   bool arrived = false;
-  for (int i = 0; i < 500 && !arrived; ++i) {
+  pollUntil([&] {
     for (const HotplugEvent& e : monitor.takeEvents()) arrived = arrived || (e.kind == HotplugEvent::Kind::kArrived && e.device.serial == "A");
-    std::this_thread::sleep_for(std::chrono::milliseconds(5));
-  }
+    return arrived;
+  });
   monitor.stop();
   EXPECT_TRUE(arrived);
   EXPECT_THROW(HotplugMonitor(nullptr), std::invalid_argument);
@@ -234,7 +245,7 @@ TEST(ServoPath, ReadAndCommandOfTheMappedHardwareDevicesAllocateNothing) {
   auto mapped_falcon = rig.catalog->open(found.at(1));
   hid->push(test::axisReport(1, 100, 0, 0));
   runtime::DeviceSample s;
-  for (int i = 0; i < 500 && !(mapped_falcon->read(s) && s.valid); ++i) std::this_thread::sleep_for(std::chrono::milliseconds(2));
+  pollUntil([&] { return mapped_falcon->read(s) && s.valid; });
   ASSERT_TRUE(s.valid);
   std::size_t allocations = 0;
   {
@@ -274,7 +285,7 @@ TEST(FallbackDevice, TheSimulatedDeviceStandsInWhileTheHardwareIsUnplugged) {
   const std::uint32_t first = s.connection;
 
   hid->unplug();
-  for (int i = 0; i < 500 && device.connected(); ++i) std::this_thread::sleep_for(std::chrono::milliseconds(2));
+  pollUntil([&] { return !device.connected(); });
   ASSERT_FALSE(device.connected());
   ASSERT_TRUE(device.read(s));
   EXPECT_TRUE(device.usingFallback());

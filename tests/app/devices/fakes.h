@@ -67,6 +67,14 @@ class FakeFalcon {
   void setSilent(bool silent) {
     std::lock_guard<std::mutex> l(m_);
     silent_ = silent;
+    empty_reads_while_silent_ = 0;
+  }
+  /// Bulk-IN transfers that found nothing to send since setSilent(true) with nothing left
+  /// queued: after two, the driver's I/O thread, which reads one transfer at a time, has dealt
+  /// with every byte the fake sent before it fell silent.
+  int emptyReadsWhileSilent() const {
+    std::lock_guard<std::mutex> l(m_);
+    return empty_reads_while_silent_;
   }
   void unplug() {
     std::lock_guard<std::mutex> l(m_);
@@ -199,6 +207,7 @@ class FakeFalcon {
     const std::size_t n = std::min<std::size_t>(pending_.size(), std::min<std::size_t>(length - 2, 62));
     std::copy(pending_.begin(), pending_.begin() + static_cast<std::ptrdiff_t>(n), data + 2);
     pending_.erase(pending_.begin(), pending_.begin() + static_cast<std::ptrdiff_t>(n));
+    if (silent_ && n == 0) ++empty_reads_while_silent_;
     return static_cast<int>(n + 2);
   }
 
@@ -208,6 +217,7 @@ class FakeFalcon {
   bool running_ = false;
   bool unplugged_ = false;
   bool silent_ = false;
+  int empty_reads_while_silent_ = 0;
   bool loader_checked_ = false;
   int boot_failures_ = 0;
   int boot_checks_ = 0;

@@ -25,7 +25,7 @@ using test::FakeFalcon;
 using test::FakeUsbBackend;
 using test::FakeUsbTransport;
 
-bool waitFor(const std::function<bool()>& condition, std::chrono::milliseconds timeout = 5000ms) {
+bool waitFor(const std::function<bool()>& condition, std::chrono::milliseconds timeout = 30000ms) {
   const auto deadline = std::chrono::steady_clock::now() + timeout;
   while (std::chrono::steady_clock::now() < deadline) {
     if (condition()) return true;
@@ -221,7 +221,9 @@ TEST(FalconDevice, ASilentFalconKeepsItsLastSampleTimeSoTheSafetyLayerZeroesIt) 
   FalconDevice device(backend, backend->enumerate(falcon::kVendorId, falcon::kProductId).at(0));
   ASSERT_TRUE(waitFor([&] { return device.packetsReceived() > 10; }));
   falcon->setSilent(true);
-  std::this_thread::sleep_for(20ms);
+  // Counted, not timed: once the I/O thread found the fake's queue empty twice, every status the
+  // fake sent before falling silent has been read, so no new measurement can follow.
+  ASSERT_TRUE(waitFor([&] { return falcon->emptyReadsWhileSilent() >= 2; }));
   runtime::DeviceSample a, b;
   ASSERT_TRUE(device.read(a));
   std::this_thread::sleep_for(30ms);

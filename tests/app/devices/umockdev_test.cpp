@@ -55,7 +55,7 @@ bool underUmockdev() {
     }                                                                                               \
   } while (false)
 
-bool waitFor(const std::function<bool()>& condition, std::chrono::milliseconds timeout = 5000ms) {
+bool waitFor(const std::function<bool()>& condition, std::chrono::milliseconds timeout = 30000ms) {
   const auto deadline = std::chrono::steady_clock::now() + timeout;
   while (std::chrono::steady_clock::now() < deadline) {
     if (condition()) return true;

@@ -44,10 +44,10 @@ class FakeLibrary {
   void* handle_;
 };
 
-/// Waits up to 3 s for `done`.
+/// Waits up to 30 s for `done` (generous for a loaded machine; returns as soon as it holds).
 template <typename Pred>
 bool waitFor(Pred done) {
-  const auto deadline = std::chrono::steady_clock::now() + 3s;
+  const auto deadline = std::chrono::steady_clock::now() + 30s;
   while (!done()) {
     if (std::chrono::steady_clock::now() > deadline) return false;
     std::this_thread::sleep_for(1ms);

@@ -199,13 +199,15 @@ TEST(DicomIsolation, AReaderStuckOnADamagedFileIsStoppedByTheWatchdog) {
 }
 
 TEST(DicomIsolation, TheWatchdogLeavesAnOrdinaryReadAlone) {
-  // A 1 s watchdog on the 140-slice phantom (progress every slice) and a NRRD volume (no
-  // progress while reading one file): both load as without it.
+  // A 5 s watchdog (a twelfth of the default) on the 140-slice phantom (progress every slice)
+  // and a NRRD volume (no progress while reading one file): both load as without it. Not 1 s:
+  // the watchdog also counts the reader program's start before its first line, which a loaded
+  // machine can stretch towards a second.
   VH_REQUIRE_SHARED(phantom, "ct/philips-head-phantom-bone");
   VH_REQUIRE_SHARED(mr_brain, "nrrd/mr-brain/brain1_image.nrrd");
   VolumeLoadOptions options;
   options.dicom_isolation = DicomIsolation::kWorker;
-  options.worker_stall_timeout_s = 1.0;
+  options.worker_stall_timeout_s = 5.0;
   EXPECT_EQ(loadVolume(phantom, options).field->geometry().dims[2], 140);
   EXPECT_GT(loadVolume(mr_brain, options).field->geometry().voxelCount(), 0u);
 }
@@ -226,7 +228,7 @@ TEST(DicomIsolation, CancellingKillsTheWorkerAtOnce) {
   EXPECT_THROW(loadVolume(phantom, options), LoadCancelled);
   const double latency_s = secondsSince(asked);
   std::cout << "[isolation] cancel latency " << latency_s * 1e3 << " ms\n";
-  EXPECT_LT(latency_s, 2.0);  // the poll period is 50 ms; generous for a loaded machine
+  EXPECT_LT(latency_s, 5.0);  // the poll period is 50 ms; generous for a loaded machine
 }
 
 /// Damages 1 to 3 slices of a copy of the small CT head (bytes changed, cut, inserted or the

@@ -158,10 +158,12 @@ for attempt in 1 2 3 4 5 6 7 8; do
 EOF
   setsid "$orthanc" --no-jobs --logfile="$state/orthanc.log" "$state/orthanc.json" </dev/null >/dev/null 2>&1 &
   echo $! >"$pid_file"
-  for _ in $(seq 1 150); do  # up to 15 s
+  # Up to 60 s: an Orthanc that lost its port exits at once (kill -0 ends the wait), so the
+  # wait is only long for one that is alive but slow to start on a loaded machine.
+  for _ in $(seq 1 600); do
     kill -0 "$(cat "$pid_file")" 2>/dev/null || break
     # Our server (its name), not another one that took the port meanwhile.
-    if curl -s --max-time 1 "http://127.0.0.1:$http_port/system" 2>/dev/null | grep -q '"DicomAet" : "'"$kPacsAet"'"' \
+    if curl -s --max-time 5 "http://127.0.0.1:$http_port/system" 2>/dev/null | grep -q '"DicomAet" : "'"$kPacsAet"'"' \
        && port_in_use "$dicom_port"; then
       started=yes; break
     fi
@@ -177,7 +179,7 @@ done
 t0_us=${EPOCHREALTIME/./}
 if [[ $tls == tls ]]; then
   for f in "${files[@]}"; do
-    curl -s --fail --max-time 10 -X POST --data-binary "@$f" "http://127.0.0.1:$http_port/instances" \
+    curl -s --fail --max-time 30 -X POST --data-binary "@$f" "http://127.0.0.1:$http_port/instances" \
       >>"$state/store.log" 2>&1 || { echo "orthanc fixture: storing $f over HTTP failed" >&2; stop_orthanc; exit 1; }
   done
 elif ! "$storescu" -aet "$kStoreAet" -aec "$kPacsAet" --no-halt 127.0.0.1 "$dicom_port" "$dataset"/*.dcm \
@@ -185,7 +187,7 @@ elif ! "$storescu" -aet "$kStoreAet" -aec "$kPacsAet" --no-halt 127.0.0.1 "$dico
   echo "orthanc fixture: storescu failed:" >&2; tail -n 20 "$state/storescu.log" >&2
   stop_orthanc; exit 1
 fi
-stored=$(curl -s --max-time 5 "http://127.0.0.1:$http_port/statistics" | sed -n 's/.*"CountInstances" : \([0-9]*\).*/\1/p')
+stored=$(curl -s --max-time 30 "http://127.0.0.1:$http_port/statistics" | sed -n 's/.*"CountInstances" : \([0-9]*\).*/\1/p')
 if [[ $stored != "$instances" ]]; then
   echo "orthanc fixture: $instances files sent, Orthanc holds ${stored:-?} instances" >&2
   stop_orthanc; exit 1

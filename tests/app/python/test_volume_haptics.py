@@ -128,15 +128,25 @@ def test_scene_dict_and_loaded_scene(work):
 def test_gil_is_released_while_running(work):
     t = vh.read_trajectory(work / "slow.csv")  # about 5000 ticks
     scene = vh.load_scene(SCENE)
-    done = []
-    worker = threading.Thread(target=lambda: done.append(vh.run(scene, t)))
+    done, span = [], []
+
+    def run():
+        start = time.monotonic()
+        done.append(vh.run(scene, t))
+        span.extend((start, time.monotonic()))
+
+    worker = threading.Thread(target=run)
     worker.start()
-    spins = 0
+    stamps = []
     while worker.is_alive():
-        spins += 1  # Python bytecode: runs only while the run holds no GIL
+        stamps.append(time.monotonic())  # Python bytecode: runs only while the run holds no GIL
         time.sleep(0.001)
     worker.join()
-    assert done and spins > 20
+    assert done and len(span) == 2
+    # Counted within the run's own start and end, not against a guess of how long it takes: a
+    # run that held the GIL would let in at most the pass of a GIL switch just before the call.
+    inside = sum(span[0] < s < span[1] for s in stamps)
+    assert inside >= 3, "%d of %d passes during the %.3f s run" % (inside, len(stamps), span[1] - span[0])
 
 
 def test_errors_carry_the_command_lines_messages(work, tmp_path):

@@ -113,13 +113,18 @@ TEST(HapticThread, TicksPublishesConsistentSnapshotsAndStops) {
   // Pressed 3 mm in: about 3 N, pushing the hand out (+z).
   EXPECT_GT(snap.force_W_N.z(), 0.9 * snap.force_W_N.norm());
   EXPECT_NEAR(snap.force_W_N.norm(), 3.0, 0.5);
+  // The measured rates and tick times depend on the machine's load: printed below, checked
+  // only for sanity. The coupling thread's rate cannot exceed its nominal rate by more than a
+  // few ticks per window (PeriodicClock wakes on absolute deadlines and resynchronises after a
+  // miss, never catching up); the solver's can (it catches up on the samples it fell behind on).
   for (const ThreadTiming* t : {&snap.coupling, &snap.solver}) {
     EXPECT_EQ(t->nominal_rate_Hz, 1000.0);
-    EXPECT_GT(t->rate_Hz, 100.0);
-    EXPECT_LT(t->rate_Hz, 1100.0);
+    EXPECT_TRUE(std::isfinite(t->rate_Hz));
+    EXPECT_GT(t->rate_Hz, 0.0);
     EXPECT_GT(t->mean_tick_us, 0.0);
     EXPECT_GE(t->max_tick_us, t->mean_tick_us);
   }
+  EXPECT_LT(snap.coupling.rate_Hz, 1.1 * snap.coupling.nominal_rate_Hz);
   EXPECT_TRUE(thread->solverUsesEverySample());
   EXPECT_GT(snap.solver_tick, 0u);
   EXPECT_EQ(snap.isovalue, scene.isovalue);
@@ -182,7 +187,11 @@ TEST(HapticThread, StopRampsTheForceToZeroOverAbout50Milliseconds) {
   auto thread = scene.makeHapticThread(device);
   thread->start();
   HapticSnapshot snap;
-  ASSERT_TRUE(waitUntil([&] { return thread->latestSnapshot(snap) && snap.tick > 150; }));
+  // In contact (the proxy rests on the sphere), then 100 more coupling ticks: the force before
+  // the ramp is the resting one however late the solver reached the surface.
+  ASSERT_TRUE(waitUntil([&] { return thread->latestSnapshot(snap) && snap.tick > 150 && snap.contacts > 0; }));
+  const std::uint64_t resting_at = snap.tick;
+  ASSERT_TRUE(waitUntil([&] { thread->latestSnapshot(snap); return snap.tick > resting_at + 100; }));
   thread->stop();
   const std::size_t n = device->count();
   ASSERT_GT(n, 200u);
@@ -207,6 +216,10 @@ TEST(HapticThread, GainsAndIsovalueAreAppliedWhileRunning) {
   thread->start();
   HapticSnapshot snap;
   ASSERT_TRUE(waitUntil([&] { return thread->latestSnapshot(snap) && snap.tick > 100 && snap.contacts > 0; }));
+  // 20 coupling ticks later: the force of the resting proxy (the snapshot that first shows the
+  // solver's contacts may carry a coupling tick that still used the proxy before them).
+  const std::uint64_t contact_at = snap.tick;
+  ASSERT_TRUE(waitUntil([&] { thread->latestSnapshot(snap); return snap.tick > contact_at + 20; }));
   const double before = snap.force_W_N.norm();
   thread->setGains({2000.0, 1.0});
   const std::uint64_t changed_at = snap.tick;
@@ -234,6 +247,9 @@ TEST(HapticThread, PassivityControlLeavesAStillDeviceAlone) {
   thread->start();
   HapticSnapshot snap;
   ASSERT_TRUE(waitUntil([&] { return thread->latestSnapshot(snap) && snap.tick > 200 && snap.contacts > 0; }));
+  // As above: the resting proxy's force, 20 coupling ticks after the contacts showed.
+  const std::uint64_t contact_at = snap.tick;
+  ASSERT_TRUE(waitUntil([&] { thread->latestSnapshot(snap); return snap.tick > contact_at + 20; }));
   const Eigen::Vector3d force_off_W_N = snap.force_W_N;
   ASSERT_GT(force_off_W_N.norm(), 1.0);
 
@@ -398,31 +414,75 @@ TEST(HapticThread, ServoLoopDoesNotAllocateWhileRecording) {
   EXPECT_GT(writer.recordsWritten() + writer.dropped(), 200u);
 }
 
-/// Makes every solver tick last at least 5 ms (HapticThreadOptions::solver_tick_hook).
-void sleepFiveMilliseconds(void*) { std::this_thread::sleep_for(5ms); }
+/// A solver_tick_hook (HapticThreadOptions) that makes every solver tick last at least `sleep`
+/// and can hold the solver thread inside a tick: while `hold` is set the hook waits, with `held`
+/// set. A test then lets the coupling thread run a counted number of ticks during one solver
+/// tick, whatever the machine's speed or load.
+struct SolverGate {
+  std::chrono::microseconds sleep{0};
+  std::atomic<bool> hold{false}, held{false};
+  HapticThreadOptions options(double solver_rate_Hz) {
+    HapticThreadOptions o;
+    o.solver_rate_Hz = solver_rate_Hz;
+    o.solver_tick_hook = &SolverGate::hook;
+    o.solver_tick_hook_context = this;
+    return o;
+  }
+  static void hook(void* context) {
+    auto* self = static_cast<SolverGate*>(context);
+    if (self->sleep.count() > 0) std::this_thread::sleep_for(self->sleep);
+    while (self->hold.load(std::memory_order_acquire)) {
+      self->held.store(true, std::memory_order_release);
+      std::this_thread::sleep_for(1ms);
+    }
+    self->held.store(false, std::memory_order_release);
+  }
+};
+
+/// Lets a held solver go on scope exit; declared after the HapticThread, so it runs before the
+/// thread's destructor stops it (a failed assertion never leaves the solver held at the stop).
+struct SolverGateRelease {
+  SolverGate& gate;
+  ~SolverGateRelease() { gate.hold.store(false, std::memory_order_release); }
+};
 
 // Paper section 3.2: a solver that overruns its period must not stall the virtual coupling. The
-// solver is made 5x slower than the device; the coupling thread keeps ticking at the device's
-// rate, and every command is the coupling of the current device pose to the latest proxy pose.
+// solver is made 5x slower than the device, then held inside one tick while the coupling thread
+// ticks on: counted, not timed, so the check does not depend on how the threads are scheduled.
+// Every command is the coupling of the current device pose to the latest proxy pose.
 TEST(HapticThread, ASlowSolverDoesNotSlowTheCouplingThread) {
   const LoadedScene& scene = test::sphereBallScene();
   auto device = std::make_shared<SimulatedDevice>(pressedPose(0.003));
-  HapticThreadOptions options;
-  options.solver_rate_Hz = 1000.0;  // the device's: every sample, until 0.25 s behind
-  options.solver_tick_hook = &sleepFiveMilliseconds;
-  HapticThread thread(scene.makeRenderer(), device, scene.isovalue, 1000.0, options);
+  SolverGate gate;
+  gate.sleep = 5ms;
+  // The device's rate: every sample, until 0.25 s (250 samples) behind.
+  HapticThread thread(scene.makeRenderer(), device, scene.isovalue, 1000.0, gate.options(1000.0));
+  const SolverGateRelease release{gate};
   ASSERT_TRUE(thread.solverUsesEverySample());
   thread.start();
   HapticSnapshot snap;
-  ASSERT_TRUE(waitUntil([&] { return thread.latestSnapshot(snap) && snap.tick > 1200 && snap.solver_tick > 20; },
-                        20000ms))
+  ASSERT_TRUE(waitUntil([&] { return thread.latestSnapshot(snap) && snap.solver_tick > 20 && snap.contacts > 0; },
+                        60000ms))
       << "coupling ticks " << snap.tick << ", solver ticks " << snap.solver_tick;
-  // Counted, not timed: the coupling thread ticked (at least) 3 times per solver tick.
-  EXPECT_GE(snap.tick, 3 * snap.solver_tick) << "coupling ticks " << snap.tick << ", solver " << snap.solver_tick;
-  EXPECT_GE(snap.coupling.ticks, 3 * snap.solver.ticks);
-  EXPECT_GT(snap.solver.mean_tick_us, 4000.0);  // the 5 ms shows in the solver's tick time
-  // More than 0.25 s behind: the solver skipped to the newest sample (counted).
-  EXPECT_GT(snap.skipped_samples, 0u);
+  // The solver held inside one tick: the coupling thread ticks on without it, 400 ticks, more
+  // than the 250-sample backlog.
+  gate.hold.store(true, std::memory_order_release);
+  ASSERT_TRUE(waitUntil([&] { return gate.held.load(std::memory_order_acquire); }));
+  thread.latestSnapshot(snap);
+  const std::uint64_t held_coupling_tick = snap.tick, held_solver_tick = snap.solver_tick;
+  ASSERT_TRUE(waitUntil([&] { thread.latestSnapshot(snap); return snap.tick > held_coupling_tick + 400; }, 60000ms))
+      << "the coupling thread stalled with the solver: " << snap.tick - held_coupling_tick << " ticks";
+  EXPECT_EQ(snap.solver_tick, held_solver_tick) << "the solver was held through those coupling ticks";
+  EXPECT_GE(snap.coupling.ticks, held_coupling_tick + 400);
+  gate.hold.store(false, std::memory_order_release);
+  // More than 0.25 s of samples behind: the solver skips to the newest sample (counted).
+  ASSERT_TRUE(waitUntil([&] { thread.latestSnapshot(snap); return snap.skipped_samples > 0; }))
+      << "solver ticks " << snap.solver_tick;
+  EXPECT_GT(snap.solver_tick, held_solver_tick);
+  EXPECT_GT(snap.solver.mean_tick_us, 4000.0);  // every solver tick sleeps 5 ms: a lower bound
+  std::cout << "coupling " << snap.coupling.rate_Hz << " Hz, solver " << snap.solver.rate_Hz << " Hz, "
+            << snap.tick << " coupling ticks, " << snap.solver_tick << " solver ticks, " << snap.skipped_samples
+            << " samples skipped\n";
 
   // Move the device: the coupling thread renders the new pose at once against the proxy the slow
   // solver last published, and its force is exactly -k (c_D - c_P) for that pair.
@@ -449,22 +509,34 @@ TEST(HapticThread, ASlowSolverDoesNotSlowTheCouplingThread) {
 TEST(HapticThread, FourKilohertzCouplingWithAOneKilohertzSolver) {
   const LoadedScene& scene = test::sphereBallScene();
   auto device = std::make_shared<RecordingDevice>(pressedPose(0.003));
-  HapticThreadOptions options;
-  options.solver_rate_Hz = 1000.0;
-  HapticThread thread(scene.makeRenderer(), device, scene.isovalue, 4000.0, options);
+  SolverGate gate;
+  HapticThread thread(scene.makeRenderer(), device, scene.isovalue, 4000.0, gate.options(1000.0));
+  const SolverGateRelease release{gate};
   EXPECT_EQ(thread.servoRate_Hz(), 4000.0);
   EXPECT_EQ(thread.solverRate_Hz(), 1000.0);
   EXPECT_FALSE(thread.solverUsesEverySample());
   thread.start();
   HapticSnapshot snap;
   ASSERT_TRUE(waitUntil([&] { return thread.latestSnapshot(snap) && snap.solver_tick > 600 && snap.contacts > 0; },
-                        20000ms));
+                        60000ms));
   EXPECT_EQ(snap.coupling.nominal_rate_Hz, 4000.0);
   EXPECT_EQ(snap.solver.nominal_rate_Hz, 1000.0);
-  // Counted: about 4 coupling ticks per solver tick (2 leaves room for a loaded machine).
-  EXPECT_GE(snap.tick, 2 * snap.solver_tick) << "coupling ticks " << snap.tick << ", solver " << snap.solver_tick;
-  EXPECT_GT(snap.skipped_samples, 0u);
-  EXPECT_GT(snap.coupling.rate_Hz, 1.5 * snap.solver.rate_Hz);
+  // Counted, not timed: with the solver held inside one tick, the coupling thread delivers
+  // samples on its own; the solver's next tick takes the newest and counts those in between as
+  // skipped. (The ratio of the two tick counts follows the machine's scheduling: printed only.)
+  gate.hold.store(true, std::memory_order_release);
+  ASSERT_TRUE(waitUntil([&] { return gate.held.load(std::memory_order_acquire); }));
+  thread.latestSnapshot(snap);
+  const std::uint64_t held_coupling_tick = snap.tick, held_solver_tick = snap.solver_tick;
+  const std::uint64_t skipped_before = snap.skipped_samples;
+  ASSERT_TRUE(waitUntil([&] { thread.latestSnapshot(snap); return snap.tick > held_coupling_tick + 8; }));
+  EXPECT_EQ(snap.solver_tick, held_solver_tick) << "the solver was held through those coupling ticks";
+  gate.hold.store(false, std::memory_order_release);
+  ASSERT_TRUE(waitUntil([&] { thread.latestSnapshot(snap); return snap.solver_tick > held_solver_tick + 2; }));
+  EXPECT_GE(snap.skipped_samples, skipped_before + 7) << "the newest sample, not the next one";
+  std::cout << "coupling " << snap.coupling.rate_Hz << " Hz, solver " << snap.solver.rate_Hz << " Hz, "
+            << snap.tick << " coupling ticks, " << snap.solver_tick << " solver ticks, " << snap.skipped_samples
+            << " samples skipped\n";
   const Eigen::Vector3d expected = couplingForce(snap, *scene.tool, 1000.0);
   EXPECT_LT((snap.force_W_N - expected).norm(), 1e-9 * (1.0 + expected.norm()));
   EXPECT_NEAR(snap.force_W_N.norm(), 3.0, 0.5);
@@ -483,7 +555,11 @@ TEST(HapticThread, FourKilohertzCouplingWithAOneKilohertzSolver) {
 TEST(HapticThread, PerThreadTimingIsFilledAndFinite) {
   const LoadedScene& scene = test::sphereBallScene();
   auto device = std::make_shared<SimulatedDevice>(pressedPose(0.003));
-  auto thread = scene.makeHapticThread(device);
+  // The longest backlog allowed (10 s): "every sample used" below then holds unless the solver
+  // thread is starved for 10 s, not 0.25 s, on a loaded machine.
+  HapticThreadOptions options;
+  options.max_solver_backlog_s = 10.0;
+  auto thread = scene.makeHapticThread(device, 1000.0, {}, options);
   HapticSnapshot snap;
   thread->latestSnapshot(snap);
   EXPECT_EQ(snap.coupling.nominal_rate_Hz, 1000.0);  // before the start: the set rates, nothing else
@@ -492,14 +568,15 @@ TEST(HapticThread, PerThreadTimingIsFilledAndFinite) {
   thread->start();
   // Past the first one-second window.
   ASSERT_TRUE(waitUntil([&] { return thread->latestSnapshot(snap) && snap.tick > 1300 && snap.solver_tick > 1300; },
-                        20000ms));
+                        60000ms));
   thread->stop();
+  // Rates, tick times, jitter and deadline misses are measurements (they follow the machine's
+  // load): printed, and checked for sanity only.
   for (const ThreadTiming* t : {&snap.coupling, &snap.solver}) {
     const char* name = t == &snap.coupling ? "coupling" : "solver";
     EXPECT_EQ(t->nominal_rate_Hz, 1000.0) << name;
     EXPECT_TRUE(std::isfinite(t->rate_Hz)) << name;
-    EXPECT_GT(t->rate_Hz, 50.0) << name;
-    EXPECT_LT(t->rate_Hz, 1100.0) << name;
+    EXPECT_GT(t->rate_Hz, 0.0) << name;
     EXPECT_TRUE(std::isfinite(t->mean_tick_us)) << name;
     EXPECT_GT(t->mean_tick_us, 0.0) << name;
     EXPECT_TRUE(std::isfinite(t->max_tick_us)) << name;
@@ -507,8 +584,16 @@ TEST(HapticThread, PerThreadTimingIsFilledAndFinite) {
     EXPECT_TRUE(std::isfinite(t->jitter_us)) << name;
     EXPECT_GE(t->jitter_us, 0.0) << name;
     EXPECT_GT(t->ticks, 1300u) << name;
-    EXPECT_LE(t->deadline_misses, t->ticks) << name;
+    std::cout << name << ": " << t->rate_Hz << " Hz, mean tick " << t->mean_tick_us << " us, max " << t->max_tick_us
+              << " us, jitter " << t->jitter_us << " us, " << t->deadline_misses << " deadline misses in " << t->ticks
+              << " ticks\n";
   }
+  // The coupling thread ticks once per wake-up, so it cannot miss more wake-ups than it ticked,
+  // and it never catches up (PeriodicClock resynchronises after a miss): its rate stays within a
+  // few ticks per window of the nominal one. The solver catches up on late samples, so neither
+  // bound holds for it.
+  EXPECT_LE(snap.coupling.deadline_misses, snap.coupling.ticks);
+  EXPECT_LT(snap.coupling.rate_Hz, 1.1 * snap.coupling.nominal_rate_Hz);
   EXPECT_EQ(snap.coupling.ticks, snap.tick);
   EXPECT_EQ(snap.solver.ticks, snap.solver_tick);
   EXPECT_EQ(snap.skipped_samples, 0u);  // equal rates, a fast solver: every sample used

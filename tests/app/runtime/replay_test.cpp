@@ -134,7 +134,14 @@ Recording recordTenSeconds(haptics::DetectionMode mode, const fs::path& path,
         marked = true;
       }
     }
-    std::this_thread::sleep_for(std::chrono::milliseconds(100));
+    // Past the script's end and caught up before the stop: the records the solver writes during
+    // the stop ramp carry kRecordFlagStopping (no force compared), and a solver still behind
+    // when the stop came would write its backlog then too. Counted, not slept for.
+    HapticSnapshot s;
+    EXPECT_TRUE(test::waitUntil([&] {
+      return thread.latestSnapshot(s) && s.solver_tick > kSessionTicks + 100 &&
+             s.solver_tick + s.skipped_samples + 5 >= s.tick;
+    })) << "solver ticks " << s.solver_tick << ", coupling ticks " << s.tick;
     thread.stop();
     thread.setRecorder(nullptr);
     thread.recordEvent("marker", "{}");  // not recording any more: a no-op
@@ -276,7 +283,7 @@ Recording recordScript(const LoadedScene& scene, const std::shared_ptr<ScriptDev
     HapticThread thread(std::move(renderer), device, scene.isovalue, 1000.0, options);
     thread.setRecorder(&writer);
     thread.start();
-    const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(30);
+    const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(120);
     while (!device->finished() && std::chrono::steady_clock::now() < deadline)
       std::this_thread::sleep_for(std::chrono::milliseconds(10));
     thread.stop();

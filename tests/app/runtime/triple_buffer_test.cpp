@@ -68,25 +68,32 @@ TEST(TripleBuffer, StressConsumerNeverSeesATornOrOlderValue) {
   TripleBuffer<Wide> buffer;
   std::atomic<bool> done{false};
   std::atomic<bool> consumer_started{false};
+  std::atomic<std::uint64_t> fresh_reads{0};  // the consumer's, for the producer's half-way wait
   constexpr std::uint64_t kPublishes = 300'000;
   std::thread producer([&] {
-    // Overlap with the consumer even on a loaded 2-core machine: start once it runs, and give
-    // the core away now and then.
+    // Overlap with the consumer even on a loaded 2-core machine: start once it runs, give the
+    // core away now and then, and half way wait until the consumer has read a value (so it read
+    // one mid-run and another later, whatever the scheduler did; the deadline only ends a hang).
     while (!consumer_started.load(std::memory_order_acquire)) std::this_thread::yield();
+    const auto give_up = std::chrono::steady_clock::now() + std::chrono::seconds(60);
     for (std::uint64_t s = 1; s <= kPublishes; ++s) {
       buffer.writeSlot().fill(s);
       buffer.publish();
       if (s % 512 == 0) std::this_thread::yield();
+      if (s == kPublishes / 2) {
+        while (fresh_reads.load(std::memory_order_acquire) == 0 && std::chrono::steady_clock::now() < give_up)
+          std::this_thread::yield();
+      }
     }
     done.store(true, std::memory_order_release);
   });
   Wide value;
   std::uint64_t last_seq = 0, reads = 0, fresh = 0, torn = 0, backwards = 0;
-  const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(20);
+  const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(120);
   consumer_started.store(true, std::memory_order_release);
   while (true) {
     const bool finished = done.load(std::memory_order_acquire);
-    if (buffer.read(value)) ++fresh;
+    if (buffer.read(value)) fresh_reads.store(++fresh, std::memory_order_release);
     ++reads;
     if (value.seq != 0 && !value.consistent()) ++torn;
     if (value.seq < last_seq) ++backwards;

@@ -1,10 +1,15 @@
-// vh::ui_bench: `bench render` in its short version (the small CT head, two small windows, half a
-// second a row) writes a well-formed report. No timing thresholds: only structure, finiteness,
-// counts and the consistency of the figures with one another are checked.
+// vh::ui_bench: `bench render` in its short version (the small CT head, two small windows, 0.3 s
+// a row) writes a well-formed report. No timing thresholds: only structure, finiteness, counts
+// and the consistency of the figures with one another are checked. How many frames a row holds
+// depends on the machine's speed and load (at least 3), so no check depends on that number.
+#include <algorithm>
 #include <cmath>
 #include <filesystem>
 #include <fstream>
+#include <iostream>
+#include <numeric>
 #include <string>
+#include <vector>
 
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
@@ -28,7 +33,7 @@ void expectStats(const json& s, const std::string& where) {
   EXPECT_LE(p50, p99);
   EXPECT_LE(p99, p999);
   EXPECT_LE(p999, max);
-  EXPECT_LT(max, 1e6) << "a solver tick of a second or more: not a tick time in microseconds";
+  EXPECT_TRUE(std::isfinite(max));
 }
 
 TEST(RenderBench, ShortRunWritesRowsAndServoFiguresOnAndOff) {
@@ -56,6 +61,9 @@ TEST(RenderBench, ShortRunWritesRowsAndServoFiguresOnAndOff) {
   EXPECT_GE(number(report, "max_3d_texture"), 256.0);
   EXPECT_EQ(report["volume"]["dims"], json({64, 64, 93}));
 
+  const double row_s = number(report, "row_seconds");
+  EXPECT_DOUBLE_EQ(row_s, o.row_seconds);
+
   // 2 sizes x (isosurface, composite, MIP, drilling), each at the size asked for.
   const json& rows = report["rows"];
   ASSERT_TRUE(rows.is_array());
@@ -68,22 +76,40 @@ TEST(RenderBench, ShortRunWritesRowsAndServoFiguresOnAndOff) {
     EXPECT_EQ(number(r, "width"), i < 4 ? 320.0 : 480.0);
     EXPECT_EQ(number(r, "height"), i < 4 ? 240.0 : 270.0);
     EXPECT_EQ(r["renderer"], renderer);
-    EXPECT_GE(number(r, "frames"), 3.0);
+    const double frames = number(r, "frames");
+    ASSERT_GE(frames, 3.0) << "a row draws frames until its time is up, and at least 3";
     const double fps = number(r, "fps_mean"), mean = number(r, "frame_ms_mean"), p99 = number(r, "frame_ms_p99"),
                  max = number(r, "frame_ms_max");
     EXPECT_GT(fps, 0.0);
     EXPECT_GT(mean, 0.0);
     EXPECT_LE(mean, max);
     EXPECT_LE(p99, max);
-    // The frames fill the row: frames per second and the mean frame time describe the same frames.
-    EXPECT_NEAR(fps * mean / 1000.0, 1.0, 0.35);
+    // The frames fill the row: the row lasted (frames / fps) at least its time, each frame was timed
+    // inside it, and the mean and the largest frame time are those of the frames listed.
+    ASSERT_TRUE(r["frames_ms"].is_array());
+    const std::vector<double> frames_ms = r["frames_ms"].get<std::vector<double>>();
+    ASSERT_EQ(static_cast<double>(frames_ms.size()), frames);
+    const double sum_ms = std::accumulate(frames_ms.begin(), frames_ms.end(), 0.0);
+    const double row_ms = 1000.0 * frames / fps;
+    EXPECT_GE(row_ms, 1000.0 * row_s - 1e-6) << "the row ended before its time";
+    EXPECT_LE(sum_ms, row_ms * (1.0 + 1e-9) + 1e-6) << "the frames' times add up to more than the row's";
+    EXPECT_NEAR(mean, sum_ms / frames, 1e-9 * sum_ms + 1e-12);
+    EXPECT_DOUBLE_EQ(max, *std::max_element(frames_ms.begin(), frames_ms.end()));
+    std::cout << "row " << i << ": " << frames << " frames, " << fps << " fps (measured, not checked)\n";
     EXPECT_GT(number(r, "still_frame_ms"), 0.0);
-    EXPECT_DOUBLE_EQ(number(r, "still_image_sample_px"), 1.0) << "a still frame casts a ray per pixel";
+    // A still frame casts a ray per pixel; only after still frames slower than SceneActors'
+    // kStillSlowMs (3 s: a slow or busy machine) do the next ones step down, to 1.5 px at most.
+    const double still_px = number(r, "still_image_sample_px");
+    EXPECT_GE(still_px, 1.0);
+    EXPECT_LE(still_px, 1.5);
     EXPECT_GE(number(r, "interactive_image_sample_px"), 1.0);
     EXPECT_GE(number(r, "interactive_sample_voxels"), 0.99);
-    // Each frame painted once: no still frame slipped in between the interactive ones.
-    EXPECT_GE(number(r, "paints_per_frame"), 1.0);
-    EXPECT_LT(number(r, "paints_per_frame"), 1.5);
+    // Each frame of the row was painted. How many paints come on top (the row's picture, its
+    // still frame, an expose after the resize, still frames when a busy machine stalls a frame
+    // past the still delay) depends on the machine's load: printed, not checked.
+    const double paints = std::round(number(r, "paints_per_frame") * frames);
+    EXPECT_GE(paints, frames) << "a frame was not painted";
+    std::cout << "row " << i << ": " << paints << " paints for " << frames << " frames (measured, not checked)\n";
     // Each frame's render and swap, timed inside it: no frame's parts outlast the frame.
     ASSERT_EQ(r["frames_paint_ms"].size(), r["frames_ms"].size());
     ASSERT_EQ(r["frames_swap_ms"].size(), r["frames_ms"].size());
