@@ -12,7 +12,7 @@ build_dir="${VH_BUILD_DIR:-$here/build}"
 jobs="${VH_JOBS:-$(nproc)}"
 
 # Debian 12 package names; each is installed only when missing.
-packages=(cmake ninja-build g++ pkg-config libeigen3-dev libgtest-dev libgmock-dev
+packages=(cmake ninja-build g++ mold pkg-config libeigen3-dev libgtest-dev libgmock-dev
   libbenchmark-dev nlohmann-json3-dev libcli11-dev libvtk9-dev libvtk-dicom-dev libdcmtk-dev
   qt6-base-dev libqt6opengl6-dev qt6-charts-dev libhidapi-dev libusb-1.0-0-dev
   zlib1g-dev libssl-dev zstd xvfb xauth libgl1-mesa-dri umockdev libumockdev-dev libopenigtlink-dev

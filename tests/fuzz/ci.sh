@@ -8,7 +8,8 @@
 # first named frame there; known ones in docs/developing.md "Fuzzing") it is
 # listed as a warning, as is an out-of-memory over the RSS limit that names no allocation. The inputs are kept under BUILD/fuzz-artifacts/TARGET/.
 #   tests/fuzz/ci.sh [BUILD_DIR]      (default build-fuzz beside build/)
-# Environment: VH_FUZZ_SECONDS per target (default 15, at most 30), VH_JOBS (default nproc),
+# Environment: VH_FUZZ_SECONDS per target (default 15, at most 30), VH_JOBS (default nproc: the
+# build's jobs, and how many targets fuzz at once),
 # VH_FUZZ_TARGETS (names, e.g. "seg igtl": build and run only those; default every target with
 # a folder in corpus/).
 set -euo pipefail
@@ -29,7 +30,7 @@ where() {
 }
 
 start=$SECONDS
-cmake -S "$root" -B "$build" -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo -DVH_WITH_APP=ON \
+cmake -S "$root" -B "$build" -G Ninja -DCMAKE_BUILD_TYPE=Release -DVH_WITH_APP=ON \
   -DVH_FUZZ=ON -DCMAKE_C_COMPILER=clang -DCMAKE_CXX_COMPILER=clang++ >/dev/null
 names=()
 if [[ -n "${VH_FUZZ_TARGETS:-}" ]]; then
@@ -42,24 +43,26 @@ fi
 cmake --build "$build" --target "${build_targets[@]}" -j "$jobs"
 echo "fuzz: targets built in $((SECONDS - start)) s"
 
-failed=()
-for name in "${names[@]}"; do
-  corpus="$here/corpus/$name"
-  bin="$build/tests/fuzz/fuzz_$name"
-  work="$build/fuzz-ci/$name"          # new inputs go here, never into the source tree
-  artifacts="$build/fuzz-artifacts/ci-$name/"
+# One target: its run, then each input it kept replayed alone and judged. Prints its report
+# and exits 1 when the project's code failed (or the fuzzer did not run).
+fuzz_one() {
+  local name="$1"
+  local corpus="$here/corpus/$name"
+  local bin="$build/tests/fuzz/fuzz_$name"
+  local work="$build/fuzz-ci/$name"          # new inputs go here, never into the source tree
+  local artifacts="$build/fuzz-artifacts/ci-$name/"
   rm -rf "$work" "$artifacts"; mkdir -p "$work" "$artifacts"
-  dict=(); [[ -f "$here/dict/$name.dict" ]] && dict=(-dict="$here/dict/$name.dict")
-  log="$build/fuzz-ci/$name.log"
+  local dict=(); [[ -f "$here/dict/$name.dict" ]] && dict=(-dict="$here/dict/$name.dict")
+  local log="$build/fuzz-ci/$name.log"
   "$bin" -fork=1 -ignore_crashes=1 -ignore_timeouts=1 -ignore_ooms=1 -max_total_time="$seconds" \
     -timeout=10 -rss_limit_mb=2048 -artifact_prefix="$artifacts" "${dict[@]}" "$work" "$corpus" \
     >"$log" 2>&1 || true
-  last="$(grep -E '^#[0-9]+: cov:' "$log" | tail -1 || true)"
+  local last; last="$(grep -E '^#[0-9]+: cov:' "$log" | tail -1 || true)"
   if [[ -z "$last" ]]; then
-    echo "fuzz: $name: FAILED to run (log $log)"; tail -20 "$log"; failed+=("$name"); continue
+    echo "fuzz: $name: FAILED to run (log $log)"; tail -20 "$log"; return 1
   fi
-  runs="$(sed -E 's/^#([0-9]+):.*/\1/' <<<"$last")"
-  project=0; system=0
+  local runs; runs="$(sed -E 's/^#([0-9]+):.*/\1/' <<<"$last")"
+  local project=0 system=0 input rc out w
   for input in "$artifacts"*; do
     [[ -f "$input" ]] || continue
     rc=0; out="$(timeout 60 "$bin" -timeout=10 -rss_limit_mb=2048 "$input" 2>&1)" || rc=$?
@@ -76,7 +79,33 @@ for name in "${names[@]}"; do
     grep -E "^ +#[0-9]+ .*( in vtk| in vh::|libvtk|libdcm|libOpenIGTLink|LLVMFuzzerTestOneInput)" <<<"$out" | head -4 | cut -c1-200 | sed 's/^/    /' || true
   done
   echo "fuzz: $name: $runs runs; $project failures in the project's code, $system inside system libraries"
-  ((project == 0)) || failed+=("$name")
+  ((project == 0))
+}
+
+# The targets run VH_JOBS at a time (each fuzzer is one process on one core); each one's report
+# is printed whole, in the targets' order.
+mkdir -p "$build/fuzz-ci"
+pending=("${names[@]}")
+running=()
+launch() {
+  local name="$1"
+  ( if fuzz_one "$name" >"$build/fuzz-ci/$name.report" 2>&1; then echo 0; else echo 1; fi \
+      >"$build/fuzz-ci/$name.status" ) &
+  running+=($!)
+}
+for name in "${pending[@]}"; do
+  if ((${#running[@]} >= jobs)); then
+    wait -n || true
+    alive=(); for pid in "${running[@]}"; do kill -0 "$pid" 2>/dev/null && alive+=("$pid"); done
+    running=("${alive[@]}")
+  fi
+  launch "$name"
+done
+wait
+failed=()
+for name in "${names[@]}"; do
+  cat "$build/fuzz-ci/$name.report"
+  [[ "$(cat "$build/fuzz-ci/$name.status" 2>/dev/null)" == 0 ]] || failed+=("$name")
 done
 echo "fuzz: done in $((SECONDS - start)) s"
 if ((${#failed[@]})); then

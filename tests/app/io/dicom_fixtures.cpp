@@ -265,23 +265,23 @@ WrittenSeries writeSeries(const fs::path& folder, const SourceVolume& source,
   out.subsample = s;
 
   // Files in writing order: time points, echoes, then slices (a duplicate right after its slice).
-  std::vector<Slot> slots;
+  std::vector<Slot> slice_slots;
   for (int t = 0; t < spec.time_points; ++t)
     for (int e = 0; e < spec.echoes; ++e)
       for (int k = 0; k < nz; ++k) {
         if (contains(spec.drop_slices, k)) continue;
-        slots.push_back({k, t, e});
-        if (contains(spec.duplicate_slices, k)) slots.push_back({k, t, e});
+        slice_slots.push_back({k, t, e});
+        if (contains(spec.duplicate_slices, k)) slice_slots.push_back({k, t, e});
       }
-  if (slots.empty()) throw std::runtime_error("every slice dropped");
+  if (slice_slots.empty()) throw std::runtime_error("every slice dropped");
 
   // The staging image: one z-slice per slot, stored values scaled per phase and echo.
   auto staging = vtkSmartPointer<vtkImageData>::New();
-  staging->SetDimensions(out.columns, out.rows, static_cast<int>(slots.size()));
+  staging->SetDimensions(out.columns, out.rows, static_cast<int>(slice_slots.size()));
   staging->SetSpacing(s * dx, s * dy, 1.0);
   staging->AllocateScalars(VTK_SHORT, 1);
   auto* dst = static_cast<short*>(staging->GetScalarPointer());
-  for (const Slot& slot : slots) {
+  for (const Slot& slot : slice_slots) {
     const double f = phaseScale(slot.t, spec.time_points) * echoScale(slot.e);
     for (int j = 0; j < ny; j += s)
       for (int i = 0; i < nx; i += s) {
@@ -328,7 +328,7 @@ WrittenSeries writeSeries(const fs::path& folder, const SourceVolume& source,
       }
       vtkDICOMSequence per_frame;
       for (int f = 0; f < frames; ++f) {
-        const Slot& slot = slots[slice_index->GetComponent(0, f)];
+        const Slot& slot = slice_slots[slice_index->GetComponent(0, f)];
         vtkDICOMItem position, content, frame;
         position.Set(DC::ImagePositionPatient, ds(out.slice_position_lps_mm[slot.k]));
         content.Set(DC::StackID, "1");
@@ -349,7 +349,7 @@ WrittenSeries writeSeries(const fs::path& folder, const SourceVolume& source,
       return true;
     }
     for (int i = 0; i < meta->GetNumberOfInstances(); ++i) {
-      const Slot& slot = slots[slice_index->GetComponent(i, 0)];
+      const Slot& slot = slice_slots[slice_index->GetComponent(i, 0)];
       const Eigen::Vector3d& p = out.slice_position_lps_mm[slot.k];
       meta->Set(i, DC::InstanceNumber, i + 1);
       meta->Set(i, DC::ImagePositionPatient, ds(p));
