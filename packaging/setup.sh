@@ -10,6 +10,14 @@ here="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 mode="${1:-test}"; shift || true
 build_dir="${VH_BUILD_DIR:-$here/build}"
 jobs="${VH_JOBS:-$(nproc)}"
+# Each step's wall time, printed as it ends and summed up at the end ("setup: times: ...").
+step_start=$SECONDS; step_times=()
+step_done() {
+  local took=$((SECONDS - step_start))
+  step_times+=("$1 $((took / 60)) min $((took % 60)) s")
+  echo "setup: $1 took $((took / 60)) min $((took % 60)) s"
+  step_start=$SECONDS
+}
 
 # Debian 12 package names; each is installed only when missing.
 packages=(cmake ninja-build g++ mold pkg-config libeigen3-dev libgtest-dev libgmock-dev
@@ -47,18 +55,25 @@ if ((${#missing[@]})); then
   "${sudo_cmd[@]}" apt-get update -q
   DEBIAN_FRONTEND=noninteractive "${sudo_cmd[@]}" apt-get install -y -q --no-install-recommends "${missing[@]}"
 fi
+step_done "Debian packages"
 
 cmake -S "$here" -B "$build_dir" -G Ninja -DCMAKE_BUILD_TYPE=Release -DVH_WITH_APP=ON
+step_done "configure"
 cmake --build "$build_dir" -j "$jobs"
+step_done "build"
 
 case "$mode" in
   test)
     cd "$build_dir"
     ctest --output-on-failure -j "$jobs" --timeout 1500
+    step_done "ctest"
     # The Debian package, left in the build tree (the package test builds its own and removes it).
     cpack -G DEB >/dev/null && echo "setup: the Debian package: $(ls "$build_dir"/volume-haptics_*.deb)"
+    step_done "cpack"
     # Fuzz targets (clang, their own build folder), each briefly on the committed corpus.
     VH_JOBS="$jobs" bash "$here/tests/fuzz/ci.sh" "${VH_FUZZ_BUILD_DIR:-$here/build-fuzz}"
+    step_done "fuzz (build and runs)"
+    echo "setup: times: $(printf '%s; ' "${step_times[@]}")total $((SECONDS / 60)) min $((SECONDS % 60)) s"
     ;;
   run)
     app="$build_dir/app/volume-haptics"
