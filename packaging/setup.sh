@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
 # One-command set-up for a fresh Debian 12 machine.
-#   packaging/setup.sh run [ARGS...]  install missing Debian packages, build, open the application
+#   packaging/setup.sh run [ARGS...]  install missing Debian packages, build the application (not
+#                                     the tests), open it
 #   packaging/setup.sh test           install missing Debian packages, build, run ctest, leave
 #                                     the Debian package in the build folder
 # Environment: VH_BUILD_DIR (default build), VH_FUZZ_BUILD_DIR (default build-fuzz), VH_JOBS
@@ -59,7 +60,11 @@ step_done "Debian packages"
 
 cmake -S "$here" -B "$build_dir" -G Ninja -DCMAKE_BUILD_TYPE=Release -DVH_WITH_APP=ON
 step_done "configure"
-cmake --build "$build_dir" -j "$jobs"
+# run builds only what the application needs (the program, its DICOM reader process, the
+# synthetic volumes of the built-in scenes): under half of the build; test builds everything.
+targets=()
+[[ $mode == run ]] && targets=(--target volume-haptics volume-haptics-dicom-worker vh_synthetic_data)
+cmake --build "$build_dir" -j "$jobs" "${targets[@]}"
 step_done "build"
 
 case "$mode" in
