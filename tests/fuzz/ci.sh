@@ -85,21 +85,10 @@ fuzz_one() {
 # The targets run VH_JOBS at a time (each fuzzer is one process on one core); each one's report
 # is printed whole, in the targets' order.
 mkdir -p "$build/fuzz-ci"
-pending=("${names[@]}")
-running=()
-launch() {
-  local name="$1"
+for name in "${names[@]}"; do
+  while (($(jobs -rp | wc -l) >= jobs)); do wait -n || true; done
   ( if fuzz_one "$name" >"$build/fuzz-ci/$name.report" 2>&1; then echo 0; else echo 1; fi \
       >"$build/fuzz-ci/$name.status" ) &
-  running+=($!)
-}
-for name in "${pending[@]}"; do
-  if ((${#running[@]} >= jobs)); then
-    wait -n || true
-    alive=(); for pid in "${running[@]}"; do kill -0 "$pid" 2>/dev/null && alive+=("$pid"); done
-    running=("${alive[@]}")
-  fi
-  launch "$name"
 done
 wait
 failed=()
