@@ -1,5 +1,6 @@
 #include "vh/tissue/hex_lattice.h"
 
+#include <algorithm>
 #include <cmath>
 #include <stdexcept>
 #include <string>
@@ -85,6 +86,32 @@ int HexLattice::elementAt(int i, int j, int k) const noexcept {
   const Eigen::Vector3i& c = geometry_.cells;
   if (i < 0 || j < 0 || k < 0 || i >= c.x() || j >= c.y() || k >= c.z()) return -1;
   return cell_element_[static_cast<std::size_t>((static_cast<std::int64_t>(k) * c.y() + j) * c.x() + i)];
+}
+
+HexLattice::Location HexLattice::locate(const Eigen::Vector3d& p_W_m) const noexcept {
+  Location out;
+  if (!p_W_m.allFinite()) return out;
+  const Eigen::Vector3d g = (p_W_m - geometry_.origin_W_m) / geometry_.spacing_m;
+  Eigen::Vector3i cell;
+  for (int a = 0; a < 3; ++a) {
+    if (g(a) < 0.0 || g(a) > geometry_.cells(a)) return out;
+    cell(a) = std::min(static_cast<int>(std::floor(g(a))), geometry_.cells(a) - 1);
+  }
+  int e = elementAt(cell.x(), cell.y(), cell.z());
+  if (e < 0) {  // on a face or an edge: try the neighbours that share it
+    for (int a = 0; a < 3 && e < 0; ++a) {
+      const double frac = g(a) - std::floor(g(a));
+      if (frac != 0.0) continue;
+      Eigen::Vector3i other = cell;
+      other(a) = static_cast<int>(g(a)) - (cell(a) == static_cast<int>(g(a)) ? 1 : 0);
+      e = elementAt(other.x(), other.y(), other.z());
+      if (e >= 0) cell = other;
+    }
+    if (e < 0) return out;
+  }
+  out.element = e;
+  out.xi = 2.0 * (g - cell.cast<double>()) - Eigen::Vector3d::Ones();
+  return out;
 }
 
 }  // namespace vh::tissue

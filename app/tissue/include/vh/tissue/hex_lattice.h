@@ -61,6 +61,14 @@ class HexLattice {
   const Eigen::Vector3i& elementCell(int element) const { return element_cell_[static_cast<std::size_t>(element)]; }
   /// The element of cell (i, j, k), or -1 when the cell is empty or off the grid.
   int elementAt(int i, int j, int k) const noexcept;
+  /// The element holding point p_W and the point's local coordinates xi in [-1, 1]^3 there, or
+  /// element -1 when p_W lies in no non-empty cell. A point on a shared face goes to the cell on
+  /// its lower side unless that one is empty.
+  struct Location {
+    int element = -1;
+    Eigen::Vector3d xi = Eigen::Vector3d::Zero();
+  };
+  Location locate(const Eigen::Vector3d& p_W_m) const noexcept;
   /// The largest material index used (-1 for none).
   int maxMaterial() const noexcept { return max_material_; }
 

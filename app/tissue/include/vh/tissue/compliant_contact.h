@@ -1,0 +1,82 @@
+#pragma once
+/// @file
+/// Contact of the tool with yielding tissue at the servo rate. A contact i is a tool point
+/// touching the tissue's rest surface at material point X_i (frame G) with outward unit normal
+/// n_i; the tool point, held by the virtual coupling (stiffness k) to the device, would be
+/// gap_i from that surface along n_i at the device's pose (negative: the device is inside). The
+/// tool pushes the tissue with lambda_i >= 0 along -n_i; the tissue's surface recedes by
+/// (W lambda)_i along -n_i, W_ij = n_i^T C(X_i, X_j) n_j with C(X_i, X_j) = sum_a sum_b
+/// N_a(X_i) N_b(X_j) C_ab the condensed compliance interpolated to the points (SurfaceCompliance),
+/// and the point proxy moves out by (1/k) sum_j lambda_j n_j. No point ends inside the deformed
+/// surface and a point is pushed only where it touches:
+///     lambda >= 0,   A lambda + gap >= 0,   lambda_i (A lambda + gap)_i = 0,
+///     A = W + N^T N / k   (symmetric positive semi-definite; positive definite with k finite),
+/// solved by projected Gauss-Seidel (Murty 1988, "Linear complementarity, linear and nonlinear
+/// programming", ch. 9; convergent for a symmetric positive definite A). Quasi-static: the hand
+/// feels the tissue's static compliance in series with the coupling; the mass and damping act in
+/// the background model that the view shows.
+///
+/// Real-time: solve() allocates nothing and touches only the blocks of the contacts' corner nodes;
+/// its cost grows with the contacts m (m^2 + 24 m times the corner nodes), not the lattice.
+#include <span>
+#include <vector>
+
+#include <Eigen/Core>
+
+#include "vh/tissue/hex_lattice.h"
+#include "vh/tissue/surface_compliance.h"
+
+namespace vh::tissue {
+
+struct TissueContactPoint {
+  Eigen::Vector3d X_G_m = Eigen::Vector3d::Zero();     ///< Material point on the rest surface, frame G [m].
+  Eigen::Vector3d n_G = Eigen::Vector3d::UnitZ();      ///< Outward unit normal of the rest surface there.
+  double gap_m = 0.0;                                   ///< Tool point's distance out of the rest surface at the device's pose [m].
+};
+
+struct CompliantContactResult {
+  int contacts = 0;                 ///< m.
+  int sweeps = 0;                   ///< Gauss-Seidel sweeps made.
+  double max_violation_m = 0.0;     ///< Largest remaining overlap or complementarity residual [m].
+  int rigid_points = 0;             ///< Contacts on cells whose corners are held or not touchable (those corners do not yield).
+  Eigen::Vector3d force_on_device_N = Eigen::Vector3d::Zero();  ///< sum lambda_i n_i: what the hand feels.
+  Eigen::Vector3d proxy_offset_m = Eigen::Vector3d::Zero();     ///< (1/k) sum lambda_i n_i: proxy minus device.
+};
+
+class CompliantContact {
+ public:
+  /// @param max_contacts capacity m_max (>= 1); solve() takes at most that many contacts.
+  /// @throws std::invalid_argument on a capacity < 1 or a table of another lattice.
+  CompliantContact(const HexLattice& lattice, const SurfaceCompliance& compliance, int max_contacts = 64);
+
+  /// Solves the contacts (at most capacity(); more are ignored and counted out). Never throws,
+  /// never allocates. Non-finite input gives 0 contacts.
+  /// @param coupling_stiffness_N_per_m k (> 0): the coupling of the point proxy to the device.
+  /// @param max_sweeps cap on Gauss-Seidel sweeps; tolerance_m the violation that ends them.
+  CompliantContactResult solve(std::span<const TissueContactPoint> contacts, double coupling_stiffness_N_per_m,
+                               int max_sweeps = 200, double tolerance_m = 1e-9) noexcept;
+
+  int capacity() const noexcept { return capacity_; }
+  /// lambda_i [N] of the last solve (its first `contacts` entries).
+  const Eigen::VectorXd& pushes_N() const noexcept { return lambda_; }
+  /// A of the last solve (its top-left contacts x contacts block) [m/N].
+  const Eigen::MatrixXd& systemMatrix() const noexcept { return A_; }
+  /// Nodal forces on the tissue of the last solve (the lattice's dof count) [N], frame G: what
+  /// the background model and the view apply. Allocates: not for the servo thread.
+  Eigen::VectorXd nodalForces_N(std::span<const TissueContactPoint> contacts) const;
+
+ private:
+  const HexLattice& lattice_;
+  const SurfaceCompliance& compliance_;
+  int capacity_;
+  // Workspace, sized once.
+  Eigen::VectorXd lambda_, gap_;
+  Eigen::MatrixXd A_;
+  Eigen::MatrixXd P_values_;     ///< (m_max x 24): N_a(X_i) n_i(c) for the corners' 24 dofs.
+  Eigen::MatrixXi P_columns_;    ///< (m_max x 24): the gathered dof index (3 u + c) of each, -1 when none.
+  std::vector<int> gathered_;    ///< Table positions of the gathered corner nodes (<= 8 m_max).
+  std::vector<int> slot_of_;     ///< Per table position: its slot in gathered_, -1 when absent.
+  Eigen::MatrixXd T_;            ///< (3 * 8 m_max x m_max): C P^T.
+};
+
+}  // namespace vh::tissue
