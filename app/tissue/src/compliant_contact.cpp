@@ -65,18 +65,23 @@ CompliantContactResult CompliantContact::solve(std::span<const TissueContactPoin
   }
   // T = C P^T over the gathered dofs, then W = P T; A = W + N^T N / k.
   const int g = static_cast<int>(gathered_.size());
-  for (int i = 0; i < m; ++i)
-    for (int row = 0; row < 3 * g; ++row) {
-      const int a = gathered_[static_cast<std::size_t>(row / 3)];
-      double sum = 0.0;
-      for (int l = 0; l < 24; ++l) {
-        const int col = P_columns_(i, l);
-        if (col < 0) continue;
-        const int b = gathered_[static_cast<std::size_t>(col / 3)];
-        sum += compliance_.entry(3 * a + row % 3, 3 * b + col % 3) * P_values_(i, l);
+  // Column by column of the table (contiguous reads), accumulated into T's column i.
+  for (int i = 0; i < m; ++i) {
+    double* t = T_.col(i).data();
+    std::fill(t, t + 3 * g, 0.0);
+    for (int l = 0; l < 24; ++l) {
+      const int col = P_columns_(i, l);
+      if (col < 0) continue;
+      const double weight = P_values_(i, l);
+      const float* column = compliance_.column(3 * gathered_[static_cast<std::size_t>(col / 3)] + col % 3);
+      for (int slot = 0; slot < g; ++slot) {
+        const float* c = column + 3 * gathered_[static_cast<std::size_t>(slot)];
+        t[3 * slot] += weight * c[0];
+        t[3 * slot + 1] += weight * c[1];
+        t[3 * slot + 2] += weight * c[2];
       }
-      T_(row, i) = sum;
     }
+  }
   for (int i = 0; i < m; ++i)
     for (int j = 0; j <= i; ++j) {
       double w = 0.0;
@@ -88,9 +93,8 @@ CompliantContactResult CompliantContact::solve(std::span<const TissueContactPoin
       A_(i, j) = a;
       A_(j, i) = a;
     }
-  // Projected Gauss-Seidel from lambda = 0 (a cold start keeps a tick independent of the last
-  // one, so a recording replays it exactly).
-  lambda_.head(m).setZero();
+  // Projected Gauss-Seidel from the caller's guess (deterministic: a replay gives the same guesses).
+  for (int i = 0; i < m; ++i) lambda_(i) = std::max(0.0, contacts[static_cast<std::size_t>(i)].push_guess_N);
   r.contacts = m;
   for (int sweep = 0; sweep < max_sweeps; ++sweep) {
     double violation = 0.0;
@@ -105,8 +109,27 @@ CompliantContactResult CompliantContact::solve(std::span<const TissueContactPoin
     r.max_violation_m = violation;
     if (violation < tolerance_m) break;
   }
-  for (int i = 0; i < m; ++i) r.force_on_device_N += lambda_(i) * contacts[static_cast<std::size_t>(i)].n_G;
+  Eigen::Vector3d mean_normal = Eigen::Vector3d::Zero();
+  for (int i = 0; i < m; ++i) {
+    r.force_on_device_N += lambda_(i) * contacts[static_cast<std::size_t>(i)].n_G;
+    mean_normal += contacts[static_cast<std::size_t>(i)].n_G;
+  }
   r.proxy_offset_m = r.force_on_device_N / k;
+  // What the sweeps left inside: move the proxy out along the mean normal until every point with
+  // a positive component along it is clear (the tissue's pushes unchanged).
+  if (m > 0 && mean_normal.norm() > 0.0) {
+    const Eigen::Vector3d d = mean_normal.normalized();
+    double out = 0.0;
+    for (int i = 0; i < m; ++i) {
+      double w = gap_(i);
+      for (int j = 0; j < m; ++j) w += A_(i, j) * lambda_(j);
+      const double along = contacts[static_cast<std::size_t>(i)].n_G.dot(d);
+      if (w < 0.0 && along > 1e-6) out = std::max(out, -w / along);
+    }
+    r.projected_m = out;
+    r.proxy_offset_m += out * d;
+    r.force_on_device_N += k * out * d;
+  }
   return r;
 }
 

@@ -10,11 +10,15 @@
 /// and the point proxy moves out by (1/k) sum_j lambda_j n_j. No point ends inside the deformed
 /// surface and a point is pushed only where it touches:
 ///     lambda >= 0,   A lambda + gap >= 0,   lambda_i (A lambda + gap)_i = 0,
-///     A = W + N^T N / k   (symmetric positive semi-definite; positive definite with k finite),
+///     A = W + N^T N / k   (symmetric positive semi-definite),
 /// solved by projected Gauss-Seidel (Murty 1988, "Linear complementarity, linear and nonlinear
-/// programming", ch. 9; convergent for a symmetric positive definite A). Quasi-static: the hand
-/// feels the tissue's static compliance in series with the coupling; the mass and damping act in
-/// the background model that the view shows.
+/// programming", ch. 9), started from the caller's guess (the last tick's pushes: the contact
+/// set moves little in a millisecond) and stopped at a sweep budget. Whatever overlap the budget
+/// leaves is then removed by moving the proxy out along the contacts' mean normal (the pushes,
+/// hence the tissue's shape, unchanged): no tool point ends inside the deformed surface on any
+/// tick, and an unconverged tick only feels a little stiffer. Quasi-static: the hand feels the
+/// tissue's static compliance in series with the coupling; the mass and damping act in the
+/// background model that the view shows.
 ///
 /// Real-time: solve() allocates nothing and touches only the blocks of the contacts' corner nodes;
 /// its cost grows with the contacts m (m^2 + 24 m times the corner nodes), not the lattice.
@@ -32,6 +36,7 @@ struct TissueContactPoint {
   Eigen::Vector3d X_G_m = Eigen::Vector3d::Zero();     ///< Material point on the rest surface, frame G [m].
   Eigen::Vector3d n_G = Eigen::Vector3d::UnitZ();      ///< Outward unit normal of the rest surface there.
   double gap_m = 0.0;                                   ///< Tool point's distance out of the rest surface at the device's pose [m].
+  double push_guess_N = 0.0;                            ///< Starting push (the last tick's for this tool point, else 0) [N].
 };
 
 struct CompliantContactResult {
@@ -39,6 +44,7 @@ struct CompliantContactResult {
   int sweeps = 0;                   ///< Gauss-Seidel sweeps made.
   double max_violation_m = 0.0;     ///< Largest remaining overlap or complementarity residual [m].
   int rigid_points = 0;             ///< Contacts on cells whose corners are held or not touchable (those corners do not yield).
+  double projected_m = 0.0;         ///< How far the proxy was moved out after the sweeps to clear every point [m].
   Eigen::Vector3d force_on_device_N = Eigen::Vector3d::Zero();  ///< sum lambda_i n_i: what the hand feels.
   Eigen::Vector3d proxy_offset_m = Eigen::Vector3d::Zero();     ///< (1/k) sum lambda_i n_i: proxy minus device.
 };

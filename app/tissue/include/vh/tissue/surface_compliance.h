@@ -39,6 +39,9 @@ class SurfaceCompliance {
   double entry(int row, int col) const noexcept {
     return table_[static_cast<std::size_t>(col) * 3 * nodes_.size() + static_cast<std::size_t>(row)];
   }
+  /// Column `col` of the table (3 S floats): the displacements of every position under a unit
+  /// force along col % 3 on position col / 3.
+  const float* column(int col) const noexcept { return table_.data() + static_cast<std::size_t>(col) * 3 * nodes_.size(); }
   /// Memory held by the table [bytes] (9 S^2 floats).
   std::size_t bytes() const noexcept { return table_.size() * sizeof(float); }
 
