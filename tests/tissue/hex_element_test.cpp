@@ -106,6 +106,33 @@ TEST(FemModel, LumpedMassAddsUpToTheRegionsMass) {
   EXPECT_EQ(model.lattice().nodeAt(0, 0, 0), -1) << "the empty corner cell's own corner is no node";
 }
 
+TEST(HexLattice, LocatesPointsInsideOnFacesAndWithinRoundingOfThem) {
+  LatticeGeometry g;
+  g.origin_W_m = Eigen::Vector3d(-0.25e-3, -0.25e-3, -0.25e-3);
+  g.spacing_m = 5e-3;
+  g.cells = Eigen::Vector3i(2, 2, 2);
+  std::vector<int> cells(8, 0);
+  for (int c = 4; c < 8; ++c) cells[static_cast<std::size_t>(c)] = -1;  // the upper layer empty
+  const HexLattice L(g, cells);
+  // Inside cell (1, 0, 0): xi from the offset.
+  HexLattice::Location at = L.locate(Eigen::Vector3d(7.25e-3, 1.0e-3, 2.25e-3));
+  ASSERT_GE(at.element, 0);
+  EXPECT_EQ(L.elementCell(at.element), Eigen::Vector3i(1, 0, 0));
+  EXPECT_NEAR(at.xi.x(), 0.0, 1e-12);
+  EXPECT_NEAR(at.xi.z(), 0.0, 1e-12);
+  // The top face of the tissue (z = 4.75 mm), computed the way a caller would: 34.75 / 5 style
+  // rounding puts it a hair into the empty layer; it still lands on the face of the layer below.
+  for (const double z : {4.75e-3, std::nextafter(4.75e-3, 1.0), std::nextafter(4.75e-3, 0.0)}) {
+    at = L.locate(Eigen::Vector3d(2.0e-3, 6.0e-3, z));
+    ASSERT_GE(at.element, 0) << z;
+    EXPECT_EQ(L.elementCell(at.element).z(), 0);
+    EXPECT_NEAR(at.xi.z(), 1.0, 1e-9);
+  }
+  EXPECT_LT(L.locate(Eigen::Vector3d(2.0e-3, 6.0e-3, 6.0e-3)).element, 0) << "in the empty layer";
+  EXPECT_LT(L.locate(Eigen::Vector3d(-1.0, 0.0, 0.0)).element, 0) << "off the grid";
+  EXPECT_LT(L.locate(Eigen::Vector3d(std::nan(""), 0.0, 0.0)).element, 0);
+}
+
 TEST(FemModel, BadInputIsRefusedWithTheReason) {
   EXPECT_THROW(HexLattice::Box(Eigen::Vector3d::Zero(), -1.0, Eigen::Vector3i::Ones()), std::invalid_argument);
   LatticeGeometry g;

@@ -8,18 +8,23 @@
 
 namespace vh::tissue {
 
-CompliantContact::CompliantContact(const HexLattice& lattice, const SurfaceCompliance& compliance, int max_contacts)
-    : lattice_(lattice), compliance_(compliance), capacity_(max_contacts) {
+CompliantContact::CompliantContact(const HexLattice& lattice, const SurfaceCompliance& compliance, int max_contacts,
+                                   int max_nodes)
+    : lattice_(lattice), compliance_(compliance), capacity_(max_contacts), max_nodes_(max_nodes) {
   if (max_contacts < 1) throw std::invalid_argument("compliant contact: the capacity must be >= 1");
+  if (max_nodes < 8) throw std::invalid_argument("compliant contact: at least 8 corner nodes a tick");
   const auto m = static_cast<Eigen::Index>(max_contacts);
+  const auto dofs = static_cast<Eigen::Index>(3 * max_nodes);
   lambda_ = Eigen::VectorXd::Zero(m);
   gap_ = Eigen::VectorXd::Zero(m);
-  A_ = Eigen::MatrixXd::Zero(m, m);
+  diagonal_ = Eigen::VectorXd::Zero(m);
   P_values_ = Eigen::MatrixXd::Zero(m, 24);
   P_columns_ = Eigen::MatrixXi::Constant(m, 24, -1);
-  gathered_.reserve(static_cast<std::size_t>(8 * max_contacts));
+  gathered_.reserve(static_cast<std::size_t>(max_nodes));
   slot_of_.assign(static_cast<std::size_t>(compliance.nodeCount()), -1);
-  T_ = Eigen::MatrixXd::Zero(24 * m, m);
+  C_ = Eigen::MatrixXd::Zero(dofs, dofs);
+  T_ = Eigen::MatrixXd::Zero(dofs, m);
+  y_ = Eigen::VectorXd::Zero(dofs);
 }
 
 CompliantContactResult CompliantContact::solve(std::span<const TissueContactPoint> contacts, double k, int max_sweeps,
@@ -29,11 +34,11 @@ CompliantContactResult CompliantContact::solve(std::span<const TissueContactPoin
   const int m = static_cast<int>(std::min<std::size_t>(contacts.size(), static_cast<std::size_t>(capacity_)));
   for (int i = 0; i < m; ++i) {
     const TissueContactPoint& c = contacts[static_cast<std::size_t>(i)];
-    if (!c.X_G_m.allFinite() || !c.n_G.allFinite() || !std::isfinite(c.gap_m)) return r;
+    if (!c.X_G_m.allFinite() || !c.n_G.allFinite() || !std::isfinite(c.gap_m) || !std::isfinite(c.push_guess_N)) return r;
   }
   for (const int s : gathered_) slot_of_[static_cast<std::size_t>(s)] = -1;
   gathered_.clear();
-  // P: each contact's 24 corner dofs with their weights N_a n_i(c).
+  // P: each contact's nonzero corner weights N_a(X_i) n_i(c) (12 on a cell face, 24 inside).
   for (int i = 0; i < m; ++i) {
     const TissueContactPoint& c = contacts[static_cast<std::size_t>(i)];
     gap_(i) = c.gap_m;
@@ -44,85 +49,111 @@ CompliantContactResult CompliantContact::solve(std::span<const TissueContactPoin
       continue;
     }
     const Eigen::Matrix<double, 8, 1> N = hexShapeFunctions(at.xi);
+    // The corners' table positions, and room for the new ones.
+    int positions[8];
+    int new_nodes = 0;
+    for (int a = 0; a < 8; ++a) {
+      positions[a] = N(a) == 0.0 ? -2 : compliance_.indexOf(lattice_.elementNodes(at.element)[static_cast<std::size_t>(a)]);
+      if (positions[a] >= 0 && slot_of_[static_cast<std::size_t>(positions[a])] < 0) ++new_nodes;
+    }
+    if (static_cast<int>(gathered_.size()) + new_nodes > max_nodes_) {
+      ++r.rigid_points;
+      continue;
+    }
+    int entries = 0;
     bool all_touchable = true;
     for (int a = 0; a < 8; ++a) {
-      const int s = compliance_.indexOf(lattice_.elementNodes(at.element)[static_cast<std::size_t>(a)]);
-      if (s < 0) {
-        all_touchable = false;
+      if (positions[a] == -2) continue;  // zero weight: the point is on the opposite face
+      if (positions[a] < 0) {
+        all_touchable = false;  // a held or untouchable corner does not yield
         continue;
       }
-      int& slot = slot_of_[static_cast<std::size_t>(s)];
+      int& slot = slot_of_[static_cast<std::size_t>(positions[a])];
       if (slot < 0) {
         slot = static_cast<int>(gathered_.size());
-        gathered_.push_back(s);
+        gathered_.push_back(positions[a]);
       }
       for (int d = 0; d < 3; ++d) {
-        P_columns_(i, 3 * a + d) = 3 * slot + d;
-        P_values_(i, 3 * a + d) = N(a) * c.n_G(d);
+        if (c.n_G(d) == 0.0) continue;
+        P_columns_(i, entries) = 3 * slot + d;
+        P_values_(i, entries) = N(a) * c.n_G(d);
+        ++entries;
       }
     }
     if (!all_touchable) ++r.rigid_points;
   }
-  // T = C P^T over the gathered dofs, then W = P T; A = W + N^T N / k.
+  // C: the gathered block of the table, contiguous.
   const int g = static_cast<int>(gathered_.size());
-  // Column by column of the table (contiguous reads), accumulated into T's column i.
+  for (int b = 0; b < g; ++b)
+    for (int cb = 0; cb < 3; ++cb) {
+      const float* column = compliance_.column(3 * gathered_[static_cast<std::size_t>(b)] + cb);
+      double* out = C_.col(3 * b + cb).data();
+      for (int a = 0; a < g; ++a) {
+        const float* src = column + 3 * gathered_[static_cast<std::size_t>(a)];
+        out[3 * a] = src[0];
+        out[3 * a + 1] = src[1];
+        out[3 * a + 2] = src[2];
+      }
+    }
+  // T_i = C P_i^T and the diagonal A_ii = P_i T_i + 1 / k.
+  const int rows = 3 * g;
   for (int i = 0; i < m; ++i) {
     double* t = T_.col(i).data();
-    std::fill(t, t + 3 * g, 0.0);
-    for (int l = 0; l < 24; ++l) {
-      const int col = P_columns_(i, l);
-      if (col < 0) continue;
+    std::fill(t, t + rows, 0.0);
+    double diagonal = contacts[static_cast<std::size_t>(i)].n_G.squaredNorm() / k;
+    for (int l = 0; l < 24 && P_columns_(i, l) >= 0; ++l) {
       const double weight = P_values_(i, l);
-      const float* column = compliance_.column(3 * gathered_[static_cast<std::size_t>(col / 3)] + col % 3);
-      for (int slot = 0; slot < g; ++slot) {
-        const float* c = column + 3 * gathered_[static_cast<std::size_t>(slot)];
-        t[3 * slot] += weight * c[0];
-        t[3 * slot + 1] += weight * c[1];
-        t[3 * slot + 2] += weight * c[2];
-      }
+      const double* column = C_.col(P_columns_(i, l)).data();
+      for (int row = 0; row < rows; ++row) t[row] += weight * column[row];
     }
+    for (int l = 0; l < 24 && P_columns_(i, l) >= 0; ++l) diagonal += P_values_(i, l) * t[P_columns_(i, l)];
+    diagonal_(i) = diagonal;
   }
-  for (int i = 0; i < m; ++i)
-    for (int j = 0; j <= i; ++j) {
-      double w = 0.0;
-      for (int l = 0; l < 24; ++l) {
-        const int row = P_columns_(i, l);
-        if (row >= 0) w += P_values_(i, l) * T_(row, j);
-      }
-      const double a = w + contacts[static_cast<std::size_t>(i)].n_G.dot(contacts[static_cast<std::size_t>(j)].n_G) / k;
-      A_(i, j) = a;
-      A_(j, i) = a;
-    }
-  // Projected Gauss-Seidel from the caller's guess (deterministic: a replay gives the same guesses).
-  for (int i = 0; i < m; ++i) lambda_(i) = std::max(0.0, contacts[static_cast<std::size_t>(i)].push_guess_N);
+  // Projected Gauss-Seidel from the caller's guess (deterministic: a replay gives the same
+  // guesses), keeping y = C P^T lambda and s = N^T lambda.
+  std::fill(y_.data(), y_.data() + rows, 0.0);
+  Eigen::Vector3d s = Eigen::Vector3d::Zero();
+  for (int i = 0; i < m; ++i) {
+    lambda_(i) = std::max(0.0, contacts[static_cast<std::size_t>(i)].push_guess_N);
+    if (lambda_(i) == 0.0) continue;
+    const double* t = T_.col(i).data();
+    for (int row = 0; row < rows; ++row) y_(row) += lambda_(i) * t[row];
+    s += lambda_(i) * contacts[static_cast<std::size_t>(i)].n_G;
+  }
+  const auto residual = [&](int i) {
+    const Eigen::Vector3d& n = contacts[static_cast<std::size_t>(i)].n_G;
+    double w = gap_(i) + n.dot(s) / k;
+    for (int l = 0; l < 24 && P_columns_(i, l) >= 0; ++l) w += P_values_(i, l) * y_(P_columns_(i, l));
+    return w;
+  };
   r.contacts = m;
-  for (int sweep = 0; sweep < max_sweeps; ++sweep) {
+  for (int sweep = 0; sweep < max_sweeps && m > 0; ++sweep) {
     double violation = 0.0;
     for (int i = 0; i < m; ++i) {
-      double residual = gap_(i);
-      for (int j = 0; j < m; ++j) residual += A_(i, j) * lambda_(j);
-      const double updated = std::max(0.0, lambda_(i) - residual / A_(i, i));
-      violation = std::max(violation, std::abs(updated - lambda_(i)) * A_(i, i));
+      const double updated = std::max(0.0, lambda_(i) - residual(i) / diagonal_(i));
+      const double change = updated - lambda_(i);
+      violation = std::max(violation, std::abs(change) * diagonal_(i));
+      if (change == 0.0) continue;
       lambda_(i) = updated;
+      const double* t = T_.col(i).data();
+      for (int row = 0; row < rows; ++row) y_(row) += change * t[row];
+      s += change * contacts[static_cast<std::size_t>(i)].n_G;
     }
     r.sweeps = sweep + 1;
     r.max_violation_m = violation;
     if (violation < tolerance_m) break;
   }
-  Eigen::Vector3d mean_normal = Eigen::Vector3d::Zero();
-  for (int i = 0; i < m; ++i) {
-    r.force_on_device_N += lambda_(i) * contacts[static_cast<std::size_t>(i)].n_G;
-    mean_normal += contacts[static_cast<std::size_t>(i)].n_G;
-  }
-  r.proxy_offset_m = r.force_on_device_N / k;
+  r.force_on_device_N = s;
+  r.proxy_offset_m = s / k;
   // What the sweeps left inside: move the proxy out along the mean normal until every point with
   // a positive component along it is clear (the tissue's pushes unchanged).
+  Eigen::Vector3d mean_normal = Eigen::Vector3d::Zero();
+  for (int i = 0; i < m; ++i) mean_normal += contacts[static_cast<std::size_t>(i)].n_G;
   if (m > 0 && mean_normal.norm() > 0.0) {
     const Eigen::Vector3d d = mean_normal.normalized();
     double out = 0.0;
     for (int i = 0; i < m; ++i) {
-      double w = gap_(i);
-      for (int j = 0; j < m; ++j) w += A_(i, j) * lambda_(j);
+      const double w = residual(i);
       const double along = contacts[static_cast<std::size_t>(i)].n_G.dot(d);
       if (w < 0.0 && along > 1e-6) out = std::max(out, -w / along);
     }

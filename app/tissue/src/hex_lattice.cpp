@@ -98,19 +98,21 @@ HexLattice::Location HexLattice::locate(const Eigen::Vector3d& p_W_m) const noex
     cell(a) = std::min(static_cast<int>(std::floor(g(a))), geometry_.cells(a) - 1);
   }
   int e = elementAt(cell.x(), cell.y(), cell.z());
-  if (e < 0) {  // on a face or an edge: try the neighbours that share it
+  if (e < 0) {  // on (or within rounding of) a face of a non-empty neighbour: that one holds it
+    constexpr double kOnFace = 1e-9;
     for (int a = 0; a < 3 && e < 0; ++a) {
-      const double frac = g(a) - std::floor(g(a));
-      if (frac != 0.0) continue;
+      const double frac = g(a) - cell(a);
+      const int step = frac < kOnFace ? -1 : (frac > 1.0 - kOnFace ? 1 : 0);
+      if (step == 0) continue;
       Eigen::Vector3i other = cell;
-      other(a) = static_cast<int>(g(a)) - (cell(a) == static_cast<int>(g(a)) ? 1 : 0);
+      other(a) += step;
       e = elementAt(other.x(), other.y(), other.z());
       if (e >= 0) cell = other;
     }
     if (e < 0) return out;
   }
   out.element = e;
-  out.xi = 2.0 * (g - cell.cast<double>()) - Eigen::Vector3d::Ones();
+  out.xi = (2.0 * (g - cell.cast<double>()) - Eigen::Vector3d::Ones()).cwiseMax(-1.0).cwiseMin(1.0);
   return out;
 }
 

@@ -116,7 +116,7 @@ int main(int argc, char** argv) {
     double max_projected = 0.0;
     std::vector<TissueContactPoint> contacts;
     contacts.reserve(points.size());
-    int max_contacts = 0, max_sweeps = 0;
+    int max_contacts = 0, max_sweeps = 0, max_rigid = 0;
     double max_force = 0.0, max_violation = 0.0;
     const Eigen::Vector2d places[4] = {{30e-3, 30e-3}, {15e-3, 30e-3}, {30e-3, 45e-3}, {40e-3, 20e-3}};
     for (const Eigen::Vector2d& xy : places)
@@ -146,6 +146,7 @@ int main(int argc, char** argv) {
         soft_s.push_back(seconds(a, b));
         max_contacts = std::max(max_contacts, r.contacts);
         max_sweeps = std::max(max_sweeps, r.sweeps);
+        max_rigid = std::max(max_rigid, r.rigid_points);
         max_force = std::max(max_force, r.force_on_device_N.norm());
         max_violation = std::max(max_violation, r.max_violation_m);
         // Rigid: the same points against an immovable surface (the coupling alone).
@@ -161,7 +162,7 @@ int main(int argc, char** argv) {
     std::printf("  ball R 5 mm, tool points every %.2f mm, %d sweeps a tick, proxy moved out after them at most %.3g m\n",
                 point_spacing_m * 1e3, sweeps, max_projected);
     std::printf("  servo tick with tissue contact (2,000 ticks, up to %d contacts, %d sweeps, peak %.3f N, "
-                "violation %.2g m):\n", max_contacts, max_sweeps, max_force, max_violation);
+                "violation %.2g m, points held rigid %d):\n", max_contacts, max_sweeps, max_force, max_violation, max_rigid);
     std::printf("    tissue: mean %.1f us, p99.9 %.1f us, max %.1f us, over 1 ms: %d, over 500 us: %d\n", 1e6 * s.mean,
                 1e6 * s.p999, 1e6 * s.max, s.over_period, s.over_500us);
     std::printf("    rigid (same points, no tissue): mean %.2f us, p99.9 %.2f us, max %.2f us\n", 1e6 * rs.mean,

@@ -20,8 +20,10 @@
 /// tissue's static compliance in series with the coupling; the mass and damping act in the
 /// background model that the view shows.
 ///
-/// Real-time: solve() allocates nothing and touches only the blocks of the contacts' corner nodes;
-/// its cost grows with the contacts m (m^2 + 24 m times the corner nodes), not the lattice.
+/// Real-time: solve() allocates nothing and touches only the blocks of the g corner nodes under
+/// the contacts. A is never formed: the sweeps keep y = C P^T lambda (the tissue's displacement
+/// at those nodes) and s = N^T lambda up to date, so a tick costs about m * 12 * 3g to set up
+/// (12 weights per point on a cell face) plus m * (3g + 15) a sweep, not the lattice's size.
 #include <span>
 #include <vector>
 
@@ -52,8 +54,11 @@ struct CompliantContactResult {
 class CompliantContact {
  public:
   /// @param max_contacts capacity m_max (>= 1); solve() takes at most that many contacts.
-  /// @throws std::invalid_argument on a capacity < 1 or a table of another lattice.
-  CompliantContact(const HexLattice& lattice, const SurfaceCompliance& compliance, int max_contacts = 64);
+  /// @param max_nodes how many corner nodes a tick may gather (>= 8); a contact whose corners
+  ///        would go past it is held rigid (counted in rigid_points).
+  /// @throws std::invalid_argument on a capacity < 1 or max_nodes < 8.
+  CompliantContact(const HexLattice& lattice, const SurfaceCompliance& compliance, int max_contacts = 64,
+                   int max_nodes = 256);
 
   /// Solves the contacts (at most capacity(); more are ignored and counted out). Never throws,
   /// never allocates. Non-finite input gives 0 contacts.
@@ -65,8 +70,6 @@ class CompliantContact {
   int capacity() const noexcept { return capacity_; }
   /// lambda_i [N] of the last solve (its first `contacts` entries).
   const Eigen::VectorXd& pushes_N() const noexcept { return lambda_; }
-  /// A of the last solve (its top-left contacts x contacts block) [m/N].
-  const Eigen::MatrixXd& systemMatrix() const noexcept { return A_; }
   /// Nodal forces on the tissue of the last solve (the lattice's dof count) [N], frame G: what
   /// the background model and the view apply. Allocates: not for the servo thread.
   Eigen::VectorXd nodalForces_N(std::span<const TissueContactPoint> contacts) const;
@@ -75,14 +78,16 @@ class CompliantContact {
   const HexLattice& lattice_;
   const SurfaceCompliance& compliance_;
   int capacity_;
+  int max_nodes_;
   // Workspace, sized once.
-  Eigen::VectorXd lambda_, gap_;
-  Eigen::MatrixXd A_;
-  Eigen::MatrixXd P_values_;     ///< (m_max x 24): N_a(X_i) n_i(c) for the corners' 24 dofs.
-  Eigen::MatrixXi P_columns_;    ///< (m_max x 24): the gathered dof index (3 u + c) of each, -1 when none.
-  std::vector<int> gathered_;    ///< Table positions of the gathered corner nodes (<= 8 m_max).
+  Eigen::VectorXd lambda_, gap_, diagonal_;
+  Eigen::MatrixXd P_values_;     ///< (m_max x 24): N_a(X_i) n_i(c), the nonzero ones first.
+  Eigen::MatrixXi P_columns_;    ///< (m_max x 24): the gathered dof (3 slot + c) of each; -1 ends the row.
+  std::vector<int> gathered_;    ///< Table positions of the gathered corner nodes (<= max_nodes).
   std::vector<int> slot_of_;     ///< Per table position: its slot in gathered_, -1 when absent.
-  Eigen::MatrixXd T_;            ///< (3 * 8 m_max x m_max): C P^T.
+  Eigen::MatrixXd C_;            ///< (3 max_nodes)^2: the gathered block of the table, contiguous.
+  Eigen::MatrixXd T_;            ///< (3 max_nodes x m_max): C P^T, column i the tissue's response to contact i.
+  Eigen::VectorXd y_;            ///< (3 max_nodes): C P^T lambda.
 };
 
 }  // namespace vh::tissue

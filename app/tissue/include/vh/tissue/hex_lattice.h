@@ -62,8 +62,8 @@ class HexLattice {
   /// The element of cell (i, j, k), or -1 when the cell is empty or off the grid.
   int elementAt(int i, int j, int k) const noexcept;
   /// The element holding point p_W and the point's local coordinates xi in [-1, 1]^3 there, or
-  /// element -1 when p_W lies in no non-empty cell. A point on a shared face goes to the cell on
-  /// its lower side unless that one is empty.
+  /// element -1 when p_W lies in no non-empty cell. A point on a face (within 1e-9 of a cell's
+  /// side, rounding) goes to the non-empty cell beside it when its own is empty.
   struct Location {
     int element = -1;
     Eigen::Vector3d xi = Eigen::Vector3d::Zero();
