@@ -3,7 +3,9 @@
 // calls: after every tick of a sphere pressed into the gel, no sample point of the deformed
 // surface is inside the sphere (0 crossings) and the touching ones sit on it.
 #include <cmath>
+#include <array>
 #include <cstdio>
+#include <utility>
 #include <vector>
 
 #include <gtest/gtest.h>
@@ -157,6 +159,72 @@ TEST(TissueCompliantContact, ASpherePressedTickByTickNeverCrossesTheDeformedSurf
   EXPECT_GT(previous_force, 0.0);
   EXPECT_GE(worst_crossing, -1e-8) << "the deformed surface went into the ball";
   EXPECT_LT(worst_active_gap, 1e-8) << "a pushed point does not touch the ball";
+}
+
+// The inclusion is felt: the force-indentation curve of the ball is steeper over the inclusion
+// than beside it, by the factor the full static solve of the same lattice gives (there, the
+// tissue's compliance at the tool's points is built from full solves, one per point, not from the
+// condensed table, and the contact problem is solved to convergence).
+TEST(TissueCompliantContact, TheInclusionIsFeltSteeperByTheFactorOfTheFullSolve) {
+  const TissueRegion region = buildTissueRegion(gelGrid(), gelSpec(2e-3), gelMaterials());
+  const StaticSolver solver(region.model, region.fixed_dofs);
+  Press press(region, solver);
+  const HexLattice& L = region.model.lattice();
+  const double R = 2e-3, k = 1e4, depth = 0.6e-3;
+  const auto slope = [&](const Eigen::Vector2d& xy, bool full) {
+    // Force at two depths; the slope between them [N/m].
+    double force[2] = {0.0, 0.0};
+    for (int level = 0; level < 2; ++level) {
+      const double d = depth * (level + 1) / 2.0;
+      const Eigen::Vector3d device(xy.x(), xy.y(), press.top_m + R - d);
+      std::vector<TissueContactPoint> contacts;
+      for (const Eigen::Vector3d& X : press.surfaceSamples(xy, R, kVoxel)) {
+        const double gap = Press::sphereBottom(device, R, X.head<2>()) - X.z();
+        if (gap < 0.3e-3) contacts.push_back({X, Eigen::Vector3d::UnitZ(), gap});
+      }
+      if (!full) {
+        force[level] = press.contact.solve(contacts, k, 5000, 1e-13).force_on_device_N.z();
+        continue;
+      }
+      // Reference: A from full solves of each point's unit push.
+      const auto m = static_cast<Eigen::Index>(contacts.size());
+      Eigen::MatrixXd response(region.model.dofCount(), m);
+      std::vector<std::array<std::pair<int, double>, 8>> weights(contacts.size());
+      for (Eigen::Index i = 0; i < m; ++i) {
+        const HexLattice::Location at = L.locate(contacts[static_cast<std::size_t>(i)].X_G_m);
+        const Eigen::Matrix<double, 8, 1> N = hexShapeFunctions(at.xi);
+        Eigen::VectorXd f = Eigen::VectorXd::Zero(region.model.dofCount());
+        for (int a = 0; a < 8; ++a) {
+          const int node = L.elementNodes(at.element)[static_cast<std::size_t>(a)];
+          weights[static_cast<std::size_t>(i)][static_cast<std::size_t>(a)] = {node, N(a)};
+          f(3 * node + 2) = N(a);
+        }
+        response.col(i) = solver.solve(f);
+      }
+      Eigen::MatrixXd A(m, m);
+      for (Eigen::Index i = 0; i < m; ++i)
+        for (Eigen::Index j = 0; j < m; ++j) {
+          double w = 0.0;
+          for (const auto& [node, N] : weights[static_cast<std::size_t>(i)]) w += N * response(3 * node + 2, j);
+          A(i, j) = w + 1.0 / k;
+        }
+      A = 0.5 * (A + A.transpose());
+      Eigen::VectorXd lambda = Eigen::VectorXd::Zero(m);
+      for (int sweep = 0; sweep < 20000; ++sweep)
+        for (Eigen::Index i = 0; i < m; ++i)
+          lambda(i) = std::max(0.0, lambda(i) - (A.row(i).dot(lambda) + contacts[static_cast<std::size_t>(i)].gap_m) / A(i, i));
+      force[level] = lambda.sum();
+    }
+    return (force[1] - force[0]) / (0.5 * depth);
+  };
+  const Eigen::Vector2d over(kInclusionCentre.x(), kInclusionCentre.y()), beside(14e-3, 14e-3);
+  const double fast_over = slope(over, false), fast_beside = slope(beside, false);
+  const double full_over = slope(over, true), full_beside = slope(beside, true);
+  std::printf("indentation slope with a 2 mm ball: over the inclusion %.2f N/m, beside it %.2f N/m (x%.3f); full "
+              "solve %.2f and %.2f N/m (x%.3f)\n", fast_over, fast_beside, fast_over / fast_beside, full_over, full_beside,
+              full_over / full_beside);
+  EXPECT_GT(fast_over / fast_beside, 1.05) << "the inclusion is not felt";
+  EXPECT_NEAR(fast_over / fast_beside, full_over / full_beside, 0.01 * full_over / full_beside);
 }
 
 }  // namespace
