@@ -810,12 +810,15 @@ void IgtlLink::acceptClients() {
     const bool allowed = std::any_of(m.allowed.begin(), m.allowed.end(),
                                      [&](const in_addr& a) { return a.s_addr == address.sin_addr.s_addr; });
     if (!allowed || m.client_fd >= 0) {
-      ::close(fd);
+      // Counted and said before the socket is closed: whoever sees the close sees the refusal.
       notice("OpenIGTLink: refused a connection from " + peer +
              (allowed ? " (one client at a time: " + m.peer + " is connected)" : " (not an allowed client)"));
-      const std::lock_guard<std::mutex> lock(mutex_);
-      ++status_.connections_refused;
-      status_.last_refused = ipv4Text(address.sin_addr);
+      {
+        const std::lock_guard<std::mutex> lock(mutex_);
+        ++status_.connections_refused;
+        status_.last_refused = ipv4Text(address.sin_addr);
+      }
+      ::close(fd);
       continue;
     }
     m.client_fd = fd;
