@@ -3,12 +3,15 @@
 // calls: after every tick of a sphere pressed into the gel, no sample point of the deformed
 // surface is inside the sphere (0 crossings) and the touching ones sit on it.
 #include <cmath>
+#include <limits>
 #include <array>
 #include <cstdio>
 #include <utility>
 #include <vector>
 
 #include <gtest/gtest.h>
+
+#include "allocation_guard.h"
 
 #include "vh/tissue/compliant_contact.h"
 #include "vh/tissue/hex_element.h"
@@ -159,6 +162,56 @@ TEST(TissueCompliantContact, ASpherePressedTickByTickNeverCrossesTheDeformedSurf
   EXPECT_GT(previous_force, 0.0);
   EXPECT_GE(worst_crossing, -1e-8) << "the deformed surface went into the ball";
   EXPECT_LT(worst_active_gap, 1e-8) << "a pushed point does not touch the ball";
+}
+
+// The servo path allocates nothing and never throws or returns a non-finite force, whatever it is
+// given: a stiff coupling, a device 10 cm inside, zero or non-finite normals, more contacts than
+// its capacity, points off the lattice.
+TEST(TissueCompliantContact, NoAllocationAndFiniteAnswersOnStiffAndExtremeInput) {
+  const TissueRegion region = buildTissueRegion(gelGrid(), gelSpec(2e-3), gelMaterials());
+  const StaticSolver solver(region.model, region.fixed_dofs);
+  Press press(region, solver);
+  const Eigen::Vector2d xy(13e-3, 12e-3);
+  std::vector<TissueContactPoint> deep, odd, many, off;
+  for (const Eigen::Vector3d& X : press.surfaceSamples(xy, 3e-3, kVoxel)) {
+    deep.push_back({X, Eigen::Vector3d::UnitZ(), -0.1, 0.0});
+    odd.push_back({X, Eigen::Vector3d::Zero(), -1e-3, 0.0});
+  }
+  for (const Eigen::Vector3d& X : press.surfaceSamples(xy, 6e-3, 0.25 * kVoxel)) many.push_back({X, Eigen::Vector3d::UnitZ(), -1e-3, 0.0});
+  ASSERT_GT(many.size(), static_cast<std::size_t>(press.contact.capacity()));
+  off.push_back({Eigen::Vector3d(1.0, 1.0, 1.0), Eigen::Vector3d::UnitZ(), -1e-3, 0.0});
+  std::vector<TissueContactPoint> bad = deep;
+  bad[0].gap_m = std::nan("");
+  std::vector<TissueContactPoint> infinite_guess = deep;
+  infinite_guess[1].push_guess_N = std::numeric_limits<double>::infinity();
+
+  struct Case {
+    const char* what;
+    const std::vector<TissueContactPoint>* contacts;
+    double k;
+  };
+  const Case cases[] = {{"a 10 cm push on a 1e6 N/m coupling", &deep, 1e6},   {"zero normals", &odd, 1e3},
+                        {"more contacts than the capacity", &many, 1e3},       {"a point off the lattice", &off, 1e3},
+                        {"a NaN gap", &bad, 1e3},                               {"an infinite guess", &infinite_guess, 1e3},
+                        {"a zero coupling", &deep, 0.0},                        {"a NaN coupling", &deep, std::nan("")}};
+  for (const Case& c : cases) {
+    CompliantContactResult r;
+    {
+      const test::AllocationGuard guard;
+      r = press.contact.solve(*c.contacts, c.k, 50, 1e-9);
+      EXPECT_EQ(guard.count(), 0u) << c.what;
+    }
+    EXPECT_TRUE(r.force_on_device_N.allFinite()) << c.what;
+    EXPECT_TRUE(r.proxy_offset_m.allFinite()) << c.what;
+    EXPECT_LE(r.contacts, press.contact.capacity()) << c.what;
+  }
+  // The stiff push: the tissue cannot give 10 cm, so the proxy stays out and the force is what
+  // the coupling's stretch says, at most k times the push.
+  const CompliantContactResult stiff = press.contact.solve(deep, 1e6, 200, 1e-9);
+  EXPECT_GT(stiff.force_on_device_N.z(), 0.0);
+  EXPECT_LE(stiff.force_on_device_N.z(), 1e6 * 0.1 * (1.0 + 1e-9));
+  // Off the lattice: rigid, said.
+  EXPECT_EQ(press.contact.solve(off, 1e3).rigid_points, 1);
 }
 
 // The inclusion is felt: the force-indentation curve of the ball is steeper over the inclusion

@@ -18,6 +18,7 @@ CompliantContact::CompliantContact(const HexLattice& lattice, const SurfaceCompl
   lambda_ = Eigen::VectorXd::Zero(m);
   gap_ = Eigen::VectorXd::Zero(m);
   diagonal_ = Eigen::VectorXd::Zero(m);
+  normals_ = Eigen::Matrix3Xd::Zero(3, m);
   P_values_ = Eigen::MatrixXd::Zero(m, 24);
   P_columns_ = Eigen::MatrixXi::Constant(m, 24, -1);
   gathered_.reserve(static_cast<std::size_t>(max_nodes));
@@ -43,6 +44,13 @@ CompliantContactResult CompliantContact::solve(std::span<const TissueContactPoin
     const TissueContactPoint& c = contacts[static_cast<std::size_t>(i)];
     gap_(i) = c.gap_m;
     P_columns_.row(i).setConstant(-1);
+    const double length = c.n_G.norm();
+    normals_.col(i) = length > 1e-9 ? Eigen::Vector3d(c.n_G / length) : Eigen::Vector3d::Zero();
+    if (length <= 1e-9) {  // no direction to push along: not a contact
+      ++r.ignored_points;
+      continue;
+    }
+    const Eigen::Vector3d n = normals_.col(i);
     const HexLattice::Location at = lattice_.locate(c.X_G_m);
     if (at.element < 0) {
       ++r.rigid_points;
@@ -74,9 +82,9 @@ CompliantContactResult CompliantContact::solve(std::span<const TissueContactPoin
         gathered_.push_back(positions[a]);
       }
       for (int d = 0; d < 3; ++d) {
-        if (c.n_G(d) == 0.0) continue;
+        if (n(d) == 0.0) continue;
         P_columns_(i, entries) = 3 * slot + d;
-        P_values_(i, entries) = N(a) * c.n_G(d);
+        P_values_(i, entries) = N(a) * n(d);
         ++entries;
       }
     }
@@ -100,7 +108,7 @@ CompliantContactResult CompliantContact::solve(std::span<const TissueContactPoin
   for (int i = 0; i < m; ++i) {
     double* t = T_.col(i).data();
     std::fill(t, t + rows, 0.0);
-    double diagonal = contacts[static_cast<std::size_t>(i)].n_G.squaredNorm() / k;
+    double diagonal = normals_.col(i).squaredNorm() / k;
     for (int l = 0; l < 24 && P_columns_(i, l) >= 0; ++l) {
       const double weight = P_values_(i, l);
       const double* column = C_.col(P_columns_(i, l)).data();
@@ -114,15 +122,15 @@ CompliantContactResult CompliantContact::solve(std::span<const TissueContactPoin
   std::fill(y_.data(), y_.data() + rows, 0.0);
   Eigen::Vector3d s = Eigen::Vector3d::Zero();
   for (int i = 0; i < m; ++i) {
-    lambda_(i) = std::max(0.0, contacts[static_cast<std::size_t>(i)].push_guess_N);
+    const double guess = contacts[static_cast<std::size_t>(i)].push_guess_N;
+    lambda_(i) = diagonal_(i) > 0.0 && guess > 0.0 && guess < 1e6 ? guess : 0.0;  // an absurd guess starts from 0
     if (lambda_(i) == 0.0) continue;
     const double* t = T_.col(i).data();
     for (int row = 0; row < rows; ++row) y_(row) += lambda_(i) * t[row];
-    s += lambda_(i) * contacts[static_cast<std::size_t>(i)].n_G;
+    s += lambda_(i) * normals_.col(i);
   }
   const auto residual = [&](int i) {
-    const Eigen::Vector3d& n = contacts[static_cast<std::size_t>(i)].n_G;
-    double w = gap_(i) + n.dot(s) / k;
+    double w = gap_(i) + normals_.col(i).dot(s) / k;
     for (int l = 0; l < 24 && P_columns_(i, l) >= 0; ++l) w += P_values_(i, l) * y_(P_columns_(i, l));
     return w;
   };
@@ -130,6 +138,7 @@ CompliantContactResult CompliantContact::solve(std::span<const TissueContactPoin
   for (int sweep = 0; sweep < max_sweeps && m > 0; ++sweep) {
     double violation = 0.0;
     for (int i = 0; i < m; ++i) {
+      if (!(diagonal_(i) > 0.0)) continue;  // an ignored point
       const double updated = std::max(0.0, lambda_(i) - residual(i) / diagonal_(i));
       const double change = updated - lambda_(i);
       violation = std::max(violation, std::abs(change) * diagonal_(i));
@@ -137,7 +146,7 @@ CompliantContactResult CompliantContact::solve(std::span<const TissueContactPoin
       lambda_(i) = updated;
       const double* t = T_.col(i).data();
       for (int row = 0; row < rows; ++row) y_(row) += change * t[row];
-      s += change * contacts[static_cast<std::size_t>(i)].n_G;
+      s += change * normals_.col(i);
     }
     r.sweeps = sweep + 1;
     r.max_violation_m = violation;
@@ -148,13 +157,14 @@ CompliantContactResult CompliantContact::solve(std::span<const TissueContactPoin
   // What the sweeps left inside: move the proxy out along the mean normal until every point with
   // a positive component along it is clear (the tissue's pushes unchanged).
   Eigen::Vector3d mean_normal = Eigen::Vector3d::Zero();
-  for (int i = 0; i < m; ++i) mean_normal += contacts[static_cast<std::size_t>(i)].n_G;
+  for (int i = 0; i < m; ++i) mean_normal += normals_.col(i);
   if (m > 0 && mean_normal.norm() > 0.0) {
     const Eigen::Vector3d d = mean_normal.normalized();
     double out = 0.0;
     for (int i = 0; i < m; ++i) {
+      if (!(diagonal_(i) > 0.0)) continue;
       const double w = residual(i);
-      const double along = contacts[static_cast<std::size_t>(i)].n_G.dot(d);
+      const double along = normals_.col(i).dot(d);
       if (w < 0.0 && along > 1e-6) out = std::max(out, -w / along);
     }
     r.projected_m = out;
@@ -173,7 +183,7 @@ Eigen::VectorXd CompliantContact::nodalForces_N(std::span<const TissueContactPoi
     if (at.element < 0) continue;
     const Eigen::Matrix<double, 8, 1> N = hexShapeFunctions(at.xi);
     for (int a = 0; a < 8; ++a)
-      f.segment<3>(3 * lattice_.elementNodes(at.element)[static_cast<std::size_t>(a)]) -= lambda_(i) * N(a) * c.n_G;
+      f.segment<3>(3 * lattice_.elementNodes(at.element)[static_cast<std::size_t>(a)]) -= lambda_(i) * N(a) * normals_.col(i);
   }
   return f;
 }

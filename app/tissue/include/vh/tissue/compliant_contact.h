@@ -36,7 +36,7 @@ namespace vh::tissue {
 
 struct TissueContactPoint {
   Eigen::Vector3d X_G_m = Eigen::Vector3d::Zero();     ///< Material point on the rest surface, frame G [m].
-  Eigen::Vector3d n_G = Eigen::Vector3d::UnitZ();      ///< Outward unit normal of the rest surface there.
+  Eigen::Vector3d n_G = Eigen::Vector3d::UnitZ();      ///< Outward normal of the rest surface there (normalised here; zero: ignored).
   double gap_m = 0.0;                                   ///< Tool point's distance out of the rest surface at the device's pose [m].
   double push_guess_N = 0.0;                            ///< Starting push (the last tick's for this tool point, else 0) [N].
 };
@@ -47,6 +47,7 @@ struct CompliantContactResult {
   double max_violation_m = 0.0;     ///< Largest remaining overlap or complementarity residual [m].
   int rigid_points = 0;             ///< Contacts on cells whose corners are held or not touchable (those corners do not yield).
   double projected_m = 0.0;         ///< How far the proxy was moved out after the sweeps to clear every point [m].
+  int ignored_points = 0;           ///< Contacts with a zero normal (no direction to push along): left out.
   Eigen::Vector3d force_on_device_N = Eigen::Vector3d::Zero();  ///< sum lambda_i n_i: what the hand feels.
   Eigen::Vector3d proxy_offset_m = Eigen::Vector3d::Zero();     ///< (1/k) sum lambda_i n_i: proxy minus device.
 };
@@ -81,6 +82,7 @@ class CompliantContact {
   int max_nodes_;
   // Workspace, sized once.
   Eigen::VectorXd lambda_, gap_, diagonal_;
+  Eigen::Matrix3Xd normals_;     ///< (3 x m_max): the contacts' normals, normalised (zero: ignored).
   Eigen::MatrixXd P_values_;     ///< (m_max x 24): N_a(X_i) n_i(c), the nonzero ones first.
   Eigen::MatrixXi P_columns_;    ///< (m_max x 24): the gathered dof (3 slot + c) of each; -1 ends the row.
   std::vector<int> gathered_;    ///< Table positions of the gathered corner nodes (<= max_nodes).
