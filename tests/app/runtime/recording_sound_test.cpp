@@ -4,6 +4,9 @@
 // at every tick and the same samples (to the WAV's 16-bit step), and its pitch while pushing must
 // sit on the motor line at the recorded |F| (computed here from the model's equation, measured
 // with the tests' own DFT).
+#include <string>
+#include <unistd.h>
+
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -62,7 +65,9 @@ struct LiveRun {
 const LiveRun& liveRun() {
   static const LiveRun run = [] {
     LiveRun r;
-    r.dir = fs::path(VH_TEST_OUTPUT_DIR) / "recording-sound";
+    // One folder per process: ctest runs this file's tests as separate processes side by side,
+    // and each makes the live run; a shared folder let one truncate the recording another read.
+    r.dir = fs::path(VH_TEST_OUTPUT_DIR) / ("recording-sound-" + std::to_string(::getpid()));
     fs::create_directories(r.dir);
     const LoadedScene scene = loadScene(drillingSphere());
     RunOptions options;
