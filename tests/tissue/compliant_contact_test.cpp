@@ -14,6 +14,7 @@
 #include "allocation_guard.h"
 
 #include "vh/tissue/compliant_contact.h"
+#include "vh/tissue/deformed_field.h"
 #include "vh/tissue/hex_element.h"
 #include "vh/tissue/static_solver.h"
 #include "vh/tissue/surface_compliance.h"
@@ -102,12 +103,7 @@ struct Press {
 
 /// u(X) on the full solve's field, interpolated in X's cell.
 Eigen::Vector3d displacementAt(const HexLattice& L, const Eigen::VectorXd& u, const Eigen::Vector3d& X) {
-  const HexLattice::Location at = L.locate(X);
-  if (at.element < 0) return Eigen::Vector3d::Zero();
-  const Eigen::Matrix<double, 8, 1> N = hexShapeFunctions(at.xi);
-  Eigen::Vector3d out = Eigen::Vector3d::Zero();
-  for (int a = 0; a < 8; ++a) out += N(a) * u.segment<3>(3 * L.elementNodes(at.element)[static_cast<std::size_t>(a)]);
-  return out;
+  return DeformedField(L, u).displacementAt(X);
 }
 
 TEST(TissueCompliantContact, ASpherePressedTickByTickNeverCrossesTheDeformedSurfaceByTheFullSolve) {

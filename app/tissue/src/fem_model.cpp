@@ -49,6 +49,21 @@ FemModel::FemModel(HexLattice lattice, std::vector<Material> materials)
   C_.setFromTriplets(c_entries.begin(), c_entries.end());
 }
 
+FreeDofs freeDofs(int dof_count, const std::vector<int>& fixed, const char* who) {
+  FreeDofs out;
+  out.free_index.assign(static_cast<std::size_t>(dof_count), 0);
+  for (const int dof : fixed) {
+    if (dof < 0 || dof >= dof_count) throw std::invalid_argument(std::string(who) + ": fixed dof " + std::to_string(dof) + " out of range");
+    out.free_index[static_cast<std::size_t>(dof)] = -1;
+  }
+  for (int dof = 0; dof < dof_count; ++dof) {
+    if (out.free_index[static_cast<std::size_t>(dof)] < 0) continue;
+    out.free_index[static_cast<std::size_t>(dof)] = static_cast<int>(out.free.size());
+    out.free.push_back(dof);
+  }
+  return out;
+}
+
 double FemModel::strainEnergy_J(const Eigen::VectorXd& u_m) const { return 0.5 * u_m.dot(K_ * u_m); }
 
 double FemModel::kineticEnergy_J(const Eigen::VectorXd& v_m_per_s) const {

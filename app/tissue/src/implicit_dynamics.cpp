@@ -10,17 +10,9 @@ ImplicitDynamics::ImplicitDynamics(const FemModel& model, const std::vector<int>
     : model_(&model), dt_(time_step_s) {
   if (!std::isfinite(time_step_s) || time_step_s <= 0.0)
     throw std::invalid_argument("tissue dynamics: the time step must be finite and > 0 s");
-  const int n = model.dofCount();
-  free_index_.assign(static_cast<std::size_t>(n), 0);
-  for (const int dof : fixed_dofs) {
-    if (dof < 0 || dof >= n) throw std::invalid_argument("tissue dynamics: fixed dof " + std::to_string(dof) + " out of range");
-    free_index_[static_cast<std::size_t>(dof)] = -1;
-  }
-  for (int dof = 0; dof < n; ++dof) {
-    if (free_index_[static_cast<std::size_t>(dof)] < 0) continue;
-    free_index_[static_cast<std::size_t>(dof)] = static_cast<int>(free_dofs_.size());
-    free_dofs_.push_back(dof);
-  }
+  FreeDofs dofs = freeDofs(model.dofCount(), fixed_dofs, "tissue dynamics");
+  free_index_ = std::move(dofs.free_index);
+  free_dofs_ = std::move(dofs.free);
   const SparseMatrix A_full = dt_ * model.damping_Ns_per_m() + (dt_ * dt_) * model.stiffness_N_per_m();
   std::vector<Eigen::Triplet<double>> entries;
   for (int col = 0; col < A_full.outerSize(); ++col) {

@@ -26,17 +26,9 @@ SparseMatrix freePart(const SparseMatrix& K, const std::vector<int>& free_index,
 }  // namespace
 
 StaticSolver::StaticSolver(const FemModel& model, const std::vector<int>& fixed_dofs) {
-  const int n = model.dofCount();
-  free_index_.assign(static_cast<std::size_t>(n), 0);
-  for (const int dof : fixed_dofs) {
-    if (dof < 0 || dof >= n) throw std::invalid_argument("static solve: fixed dof " + std::to_string(dof) + " out of range");
-    free_index_[static_cast<std::size_t>(dof)] = -1;
-  }
-  for (int dof = 0; dof < n; ++dof) {
-    if (free_index_[static_cast<std::size_t>(dof)] < 0) continue;
-    free_index_[static_cast<std::size_t>(dof)] = static_cast<int>(free_dofs_.size());
-    free_dofs_.push_back(dof);
-  }
+  FreeDofs dofs = freeDofs(model.dofCount(), fixed_dofs, "static solve");
+  free_index_ = std::move(dofs.free_index);
+  free_dofs_ = std::move(dofs.free);
   if (free_dofs_.empty()) throw std::invalid_argument("static solve: every dof is fixed");
   ldlt_.compute(freePart(model.stiffness_N_per_m(), free_index_, static_cast<int>(free_dofs_.size())));
   if (ldlt_.info() != Eigen::Success || (ldlt_.vectorD().array() <= 0.0).any())

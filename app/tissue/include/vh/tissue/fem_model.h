@@ -16,6 +16,15 @@ namespace vh::tissue {
 /// Sparse matrices in column-major storage, both triangles stored.
 using SparseMatrix = Eigen::SparseMatrix<double>;
 
+/// The dofs left free when `fixed` are held: free_index[dof] is a dof's place among the free ones
+/// (-1 when held), free[k] the k-th free dof.
+struct FreeDofs {
+  std::vector<int> free_index;
+  std::vector<int> free;
+};
+/// @throws std::invalid_argument naming `who` on a held dof out of [0, dof_count).
+FreeDofs freeDofs(int dof_count, const std::vector<int>& fixed, const char* who);
+
 class FemModel {
  public:
   /// @param materials one per material index the lattice uses (at least lattice.maxMaterial() + 1).
