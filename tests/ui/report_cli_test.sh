@@ -55,7 +55,7 @@ if [[ -z $browser ]]; then echo "SKIP: no Chromium for the browser check"; exit 
 probe="$out/session-probe.html"
 sed 's|</body>|<script>window.addEventListener("load", () => { const i = [...document.images]; document.body.insertAdjacentText("beforeend", "DECODED " + i.filter(x => x.complete \&\& x.naturalWidth > 0).length + " OF " + i.length + " SIZES " + i.map(x => x.naturalWidth + "x" + x.naturalHeight).join(",")); });</script></body>|' \
   "$out/session.html" >"$probe"
-dom=$(timeout 120 "$browser" --headless --no-sandbox --disable-gpu --virtual-time-budget=5000 --dump-dom \
+dom=$(timeout 360 "$browser" --headless --no-sandbox --disable-gpu --virtual-time-budget=5000 --dump-dom \
   "file://$probe" 2>/dev/null)
 result=$(grep -o 'DECODED [0-9]* OF [0-9]* SIZES [0-9x,]*' <<<"$dom" || true)
 echo "chromium: $result"

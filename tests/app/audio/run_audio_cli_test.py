@@ -49,7 +49,7 @@ def main():
     env = {k: v for k, v in os.environ.items() if k not in ("DISPLAY", "WAYLAND_DISPLAY")}
     done = subprocess.run([exe, "run", "--scene", scene, "--trajectory", trajectory, "--audio", wav_path,
                            "--report", report_path, "--trace", trace_path, "--verify-step", "0", "--no-lag-reference"],
-                          capture_output=True, text=True, env=env, timeout=300)
+                          capture_output=True, text=True, env=env, timeout=900)
     print(done.stdout, done.stderr)
     assert done.returncode == 0, f"run failed: {done.returncode}"
     assert "sound written to" in done.stdout
@@ -89,7 +89,7 @@ def main():
     refused_wav = os.path.join(work, "refused.wav")
     no_drill = subprocess.run([exe, "run", "--scene", os.path.join(source, "resources", "scenes", "sphere-probe.json"),
                                "--trajectory", trajectory, "--audio", refused_wav],
-                              capture_output=True, text=True, env=env, timeout=120)
+                              capture_output=True, text=True, env=env, timeout=360)
     print(no_drill.stderr)
     assert no_drill.returncode == 1
     assert "--audio needs a drilling scene" in no_drill.stderr and "has no \"drill\" section" in no_drill.stderr
@@ -102,7 +102,7 @@ def main():
     with open(off_scene, "w") as f:
         json.dump(spec, f)
     off = subprocess.run([exe, "run", "--scene", off_scene, "--trajectory", trajectory, "--audio", refused_wav],
-                         capture_output=True, text=True, env=env, timeout=120)
+                         capture_output=True, text=True, env=env, timeout=360)
     print(off.stderr)
     assert off.returncode == 1 and "--audio needs a drilling scene" in off.stderr and "is off" in off.stderr
     assert not os.path.exists(refused_wav)
@@ -111,7 +111,7 @@ def main():
     open(blocker, "w").write("a file")
     no_folder = subprocess.run([exe, "run", "--scene", "/no/such/scene.json", "--trajectory", trajectory,
                                 "--audio", os.path.join(blocker, "sub", "x.wav")],
-                               capture_output=True, text=True, env=env, timeout=120)
+                               capture_output=True, text=True, env=env, timeout=360)
     print(no_folder.stderr)
     assert no_folder.returncode == 1
     assert "--audio" in no_folder.stderr and "cannot create the folder" in no_folder.stderr

@@ -42,7 +42,7 @@ def help_options(program, command, cache={}):
         env["QT_QPA_PLATFORM"] = "offscreen"
         try:
             out = subprocess.run([program, *command, "--help"], capture_output=True, text=True, env=env,
-                                 timeout=60)
+                                 timeout=180)
             text = out.stdout + out.stderr if out.returncode == 0 else ""
         except (OSError, subprocess.TimeoutExpired) as e:
             sys.exit(f"documented_options_test: cannot run {program} {' '.join(command)} --help: {e}")
