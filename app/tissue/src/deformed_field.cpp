@@ -27,15 +27,9 @@ Eigen::Matrix3d DeformedField::deformationGradient(const Eigen::Vector3d& X) con
   Eigen::Matrix3d F = Eigen::Matrix3d::Identity();
   const HexLattice::Location at = lattice_.locate(X);
   if (at.element < 0) return F;
-  const double h = lattice_.geometry().spacing_m;
-  for (int a = 0; a < 8; ++a) {
-    const Eigen::Vector3d s(2.0 * (a & 1) - 1.0, 2.0 * ((a >> 1) & 1) - 1.0, 2.0 * ((a >> 2) & 1) - 1.0);
-    const Eigen::Vector3d dN = (2.0 / h) * 0.125 *
-                               Eigen::Vector3d(s.x() * (1 + s.y() * at.xi.y()) * (1 + s.z() * at.xi.z()),
-                                               s.y() * (1 + s.x() * at.xi.x()) * (1 + s.z() * at.xi.z()),
-                                               s.z() * (1 + s.x() * at.xi.x()) * (1 + s.y() * at.xi.y()));
-    F += u_.segment<3>(3 * lattice_.elementNodes(at.element)[static_cast<std::size_t>(a)]) * dN.transpose();
-  }
+  const Eigen::Matrix<double, 3, 8> dN = hexShapeGradients(at.xi, lattice_.geometry().spacing_m);
+  for (int a = 0; a < 8; ++a)
+    F += u_.segment<3>(3 * lattice_.elementNodes(at.element)[static_cast<std::size_t>(a)]) * dN.col(a).transpose();
   return F;
 }
 

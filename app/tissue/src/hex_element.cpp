@@ -42,14 +42,23 @@ Eigen::Matrix<double, 8, 1> hexShapeFunctions(const Eigen::Vector3d& xi) noexcep
   return N;
 }
 
-StrainDisplacement cubeStrainDisplacement(const Eigen::Vector3d& xi, double spacing_m) noexcept {
-  StrainDisplacement B = StrainDisplacement::Zero();
-  const double scale = 2.0 / spacing_m;  // d xi / d x
+Eigen::Matrix<double, 3, 8> hexShapeGradients(const Eigen::Vector3d& xi, double spacing_m) noexcept {
+  Eigen::Matrix<double, 3, 8> dN;
+  const double scale = 2.0 / spacing_m * 0.125;  // d xi / d x times the shape functions' 1/8
   for (int a = 0; a < 8; ++a) {
     const Eigen::Vector3d s = cornerSigns(a);
-    const double nx = scale * 0.125 * s.x() * (1.0 + s.y() * xi.y()) * (1.0 + s.z() * xi.z());
-    const double ny = scale * 0.125 * s.y() * (1.0 + s.x() * xi.x()) * (1.0 + s.z() * xi.z());
-    const double nz = scale * 0.125 * s.z() * (1.0 + s.x() * xi.x()) * (1.0 + s.y() * xi.y());
+    dN(0, a) = scale * s.x() * (1.0 + s.y() * xi.y()) * (1.0 + s.z() * xi.z());
+    dN(1, a) = scale * s.y() * (1.0 + s.x() * xi.x()) * (1.0 + s.z() * xi.z());
+    dN(2, a) = scale * s.z() * (1.0 + s.x() * xi.x()) * (1.0 + s.y() * xi.y());
+  }
+  return dN;
+}
+
+StrainDisplacement cubeStrainDisplacement(const Eigen::Vector3d& xi, double spacing_m) noexcept {
+  StrainDisplacement B = StrainDisplacement::Zero();
+  const Eigen::Matrix<double, 3, 8> dN = hexShapeGradients(xi, spacing_m);
+  for (int a = 0; a < 8; ++a) {
+    const double nx = dN(0, a), ny = dN(1, a), nz = dN(2, a);
     const int c = 3 * a;
     B(0, c) = nx;
     B(1, c + 1) = ny;

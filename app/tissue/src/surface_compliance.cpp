@@ -40,14 +40,4 @@ SurfaceCompliance::SurfaceCompliance(const StaticSolver& solver, const std::vect
   for (std::thread& t : pool) t.join();
 }
 
-Eigen::Matrix3d SurfaceCompliance::block(int a, int b) const noexcept {
-  const std::size_t dim = 3 * nodes_.size();
-  Eigen::Matrix3d out;
-  for (int c = 0; c < 3; ++c)
-    for (int r = 0; r < 3; ++r)
-      out(r, c) = table_[(3 * static_cast<std::size_t>(b) + static_cast<std::size_t>(c)) * dim + 3 * static_cast<std::size_t>(a) +
-                         static_cast<std::size_t>(r)];
-  return out;
-}
-
 }  // namespace vh::tissue

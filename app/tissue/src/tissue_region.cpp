@@ -22,6 +22,9 @@ TissueRegion buildTissueRegion(const VoxelGrid& grid, const RegionSpec& spec, st
   const Eigen::Vector3d extent = grid.dims.cast<double>().cwiseProduct(grid.spacing_m);
   for (int a = 0; a < 3; ++a) geometry.cells(a) = std::max(1, static_cast<int>(std::ceil(extent(a) / h - 1e-9)));
   const std::int64_t cells = geometry.cellCount();
+  const auto cellIndex = [&](const Eigen::Vector3i& c) {
+    return static_cast<std::size_t>((static_cast<std::int64_t>(c.z()) * geometry.cells.y() + c.y()) * geometry.cells.x() + c.x());
+  };
   std::vector<std::map<int, int>> counts(static_cast<std::size_t>(cells));
   std::vector<char> rigid(static_cast<std::size_t>(cells), 0), border(static_cast<std::size_t>(cells), 0);
   const int material_count = static_cast<int>(materials.size());
@@ -32,8 +35,7 @@ TissueRegion buildTissueRegion(const VoxelGrid& grid, const RegionSpec& spec, st
         const Eigen::Vector3d corner_offset = Eigen::Vector3d(i, j, k).cwiseProduct(grid.spacing_m) + 0.5 * grid.spacing_m;
         Eigen::Vector3i c;
         for (int a = 0; a < 3; ++a) c(a) = std::min(static_cast<int>(std::floor(corner_offset(a) / h)), geometry.cells(a) - 1);
-        const std::size_t cell = static_cast<std::size_t>((static_cast<std::int64_t>(c.z()) * geometry.cells.y() + c.y()) *
-                                                              geometry.cells.x() + c.x());
+        const std::size_t cell = cellIndex(c);
         if (spec.is_rigid_voxel && spec.is_rigid_voxel(i, j, k)) rigid[cell] = 1;
         const int m = spec.material_of_voxel(i, j, k);
         if (m < 0) continue;
@@ -62,9 +64,7 @@ TissueRegion buildTissueRegion(const VoxelGrid& grid, const RegionSpec& spec, st
   HexLattice lattice(geometry, cell_material);
   std::vector<char> held(static_cast<std::size_t>(lattice.nodeCount()), 0);
   for (int e = 0; e < lattice.elementCount(); ++e) {
-    const Eigen::Vector3i c = lattice.elementCell(e);
-    const std::size_t cell = static_cast<std::size_t>((static_cast<std::int64_t>(c.z()) * geometry.cells.y() + c.y()) *
-                                                          geometry.cells.x() + c.x());
+    const std::size_t cell = cellIndex(lattice.elementCell(e));
     if (rigid[cell] || (spec.hold_at_scan_border && border[cell]))
       for (const int n : lattice.elementNodes(e)) held[static_cast<std::size_t>(n)] = 1;
   }

@@ -21,6 +21,10 @@ using StrainDisplacement = Eigen::Matrix<double, 6, 24>;
 /// Trilinear shape functions N_a(xi) of the 8 corners at local coordinates xi in [-1, 1]^3.
 Eigen::Matrix<double, 8, 1> hexShapeFunctions(const Eigen::Vector3d& xi) noexcept;
 
+/// Gradients dN_a/dx (3 x 8, column a) [1/m] of the shape functions at local coordinates xi of a
+/// cube of side h [m], in the lattice's axes.
+Eigen::Matrix<double, 3, 8> hexShapeGradients(const Eigen::Vector3d& xi, double spacing_m) noexcept;
+
 /// Strain-displacement matrix B (6 x 24) at local coordinates xi of a cube of side h [m]:
 /// eps = B u_e for the element's 24 corner displacements u_e [m].
 StrainDisplacement cubeStrainDisplacement(const Eigen::Vector3d& xi, double spacing_m) noexcept;

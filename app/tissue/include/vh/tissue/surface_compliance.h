@@ -32,13 +32,6 @@ class SurfaceCompliance {
   }
   /// The lattice node of position s.
   int node(int s) const { return nodes_[static_cast<std::size_t>(s)]; }
-  /// Block C_ab (3 x 3) [m/N] between positions a and b (not lattice node numbers).
-  Eigen::Matrix3d block(int a, int b) const noexcept;
-  /// Entry (3a + r, 3b + c) of the table [m/N]: component r of position a's displacement under a
-  /// unit force along c on position b.
-  double entry(int row, int col) const noexcept {
-    return table_[static_cast<std::size_t>(col) * 3 * nodes_.size() + static_cast<std::size_t>(row)];
-  }
   /// Column `col` of the table (3 S floats): the displacements of every position under a unit
   /// force along col % 3 on position col / 3.
   const float* column(int col) const noexcept { return table_.data() + static_cast<std::size_t>(col) * 3 * nodes_.size(); }
