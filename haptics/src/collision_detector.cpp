@@ -57,6 +57,10 @@ bool CollisionDetector::sweepPending() const noexcept { return impl_->sweepPendi
 const RigidMotion& CollisionDetector::pendingMotion() const noexcept { return impl_->pendingMotion(); }
 SweepResult CollisionDetector::resumeSweep() noexcept { return impl_->resumeSweep(); }
 void CollisionDetector::abandonSweep() noexcept { impl_->abandonSweep(); }
+void CollisionDetector::forgetFieldProofs() noexcept {
+  impl_->abandonSweep();
+  impl_->forgetEdgeCertificates();
+}
 void CollisionDetector::pruneContacts(const Pose& X_WP, const Pose& X_WD, double isovalue) noexcept {
   impl_->pruneContacts(X_WP, X_WD, isovalue);
 }

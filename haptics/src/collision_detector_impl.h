@@ -285,6 +285,8 @@ class CollisionDetector::Impl {
   void keepEdgeClearance(int j, const EdgeClearance& proven) noexcept;
   bool edge_cut_ = false;  // the last edgesCrossAt() stopped at the budget or the deadline
   double edge_clearance_isovalue_ = std::numeric_limits<double>::quiet_NaN();  // the certificates' isovalue
+  // Drops every certificate: the next edge test proves them again (forgetFieldProofs()).
+  void forgetEdgeCertificates() noexcept { edge_clearance_isovalue_ = std::numeric_limits<double>::quiet_NaN(); }
   // How far edge (a, b) (grid coordinates), which the walk found free with F - s <= excess_max
   // on it, may move and stay free [m]; <= 0 when nothing is proven (see EdgeClearance).
   double edgeClearance(const Eigen::Vector3d& a, const Eigen::Vector3d& b, double excess_max,

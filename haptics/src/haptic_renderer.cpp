@@ -189,6 +189,12 @@ void HapticRenderer::resetProxy(const Pose& X_WP) noexcept {
   blocked_ticks_ = 0;
 }
 
+void HapticRenderer::noteFieldChanged() noexcept {
+  collision_.forgetFieldProofs();
+  embedded_scan_needed_ = true;
+  edges_free_isovalue_ = std::numeric_limits<double>::quiet_NaN();
+}
+
 namespace {
 
 using Clock = std::chrono::steady_clock;

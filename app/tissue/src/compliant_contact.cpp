@@ -26,11 +26,13 @@ CompliantContact::CompliantContact(const HexLattice& lattice, const SurfaceCompl
   C_ = Eigen::MatrixXd::Zero(dofs, dofs);
   T_ = Eigen::MatrixXd::Zero(dofs, m);
   y_ = Eigen::VectorXd::Zero(dofs);
+  f_ = Eigen::VectorXd::Zero(dofs);
 }
 
 CompliantContactResult CompliantContact::solve(std::span<const TissueContactPoint> contacts, double k, int max_sweeps,
                                                double tolerance_m) noexcept {
   CompliantContactResult r;
+  f_.setZero();  // no pushes until this solve gives them
   if (!(k > 0.0) || !std::isfinite(k)) return r;
   const int m = static_cast<int>(std::min<std::size_t>(contacts.size(), static_cast<std::size_t>(capacity_)));
   for (int i = 0; i < m; ++i) {
@@ -154,6 +156,10 @@ CompliantContactResult CompliantContact::solve(std::span<const TissueContactPoin
   }
   r.force_on_device_N = s;
   r.proxy_offset_m = s / k;
+  // The pushes gathered on the corner nodes, for touchableDisplacement().
+  std::fill(f_.data(), f_.data() + rows, 0.0);
+  for (int i = 0; i < m; ++i)
+    for (int l = 0; l < 24 && P_columns_(i, l) >= 0; ++l) f_(P_columns_(i, l)) -= lambda_(i) * P_values_(i, l);
   // What the sweeps left inside: move the proxy out along the mean normal until every point with
   // a positive component along it is clear (the tissue's pushes unchanged).
   Eigen::Vector3d mean_normal = Eigen::Vector3d::Zero();
@@ -172,6 +178,22 @@ CompliantContactResult CompliantContact::solve(std::span<const TissueContactPoin
     r.force_on_device_N += k * out * d;
   }
   return r;
+}
+
+void CompliantContact::touchableDisplacement(std::span<const int> positions, double* u_out) const noexcept {
+  std::fill(u_out, u_out + 3 * positions.size(), 0.0);
+  const int g = static_cast<int>(gathered_.size());
+  for (int dof = 0; dof < 3 * g; ++dof) {
+    const double f = f_(dof);
+    if (f == 0.0) continue;
+    const float* column = compliance_.column(3 * gathered_[static_cast<std::size_t>(dof / 3)] + dof % 3);
+    for (std::size_t w = 0; w < positions.size(); ++w) {
+      const float* src = column + 3 * positions[w];
+      u_out[3 * w] += f * src[0];
+      u_out[3 * w + 1] += f * src[1];
+      u_out[3 * w + 2] += f * src[2];
+    }
+  }
 }
 
 Eigen::VectorXd CompliantContact::nodalForces_N(std::span<const TissueContactPoint> contacts) const {

@@ -77,16 +77,35 @@ TissueRegion buildTissueRegion(const VoxelGrid& grid, const RegionSpec& spec, st
   return TissueRegion{FemModel(std::move(lattice), std::move(materials)), std::move(fixed), tissue_voxels};
 }
 
-std::vector<int> outerLayerNodes(const HexLattice& lattice) {
-  std::vector<char> outer(static_cast<std::size_t>(lattice.nodeCount()), 0);
+std::vector<int> outerLayerNodes(const HexLattice& lattice, int layers) {
+  if (layers < 1) throw std::invalid_argument("outer layer nodes: at least one layer of cells");
+  std::vector<char> in_layer(static_cast<std::size_t>(lattice.elementCount()), 0);
   static constexpr int kFaces[6][3] = {{-1, 0, 0}, {1, 0, 0}, {0, -1, 0}, {0, 1, 0}, {0, 0, -1}, {0, 0, 1}};
   for (int e = 0; e < lattice.elementCount(); ++e) {
     const Eigen::Vector3i c = lattice.elementCell(e);
     bool on_outside = false;
     for (const auto& d : kFaces) on_outside = on_outside || lattice.elementAt(c.x() + d[0], c.y() + d[1], c.z() + d[2]) < 0;
-    if (on_outside)
-      for (const int n : lattice.elementNodes(e)) outer[static_cast<std::size_t>(n)] = 1;
+    in_layer[static_cast<std::size_t>(e)] = on_outside ? 1 : 0;
   }
+  // Each further layer: the cells next to (sharing a corner with) a cell of the layers so far.
+  for (int layer = 2; layer <= layers; ++layer) {
+    std::vector<char> next = in_layer;
+    for (int e = 0; e < lattice.elementCount(); ++e) {
+      if (in_layer[static_cast<std::size_t>(e)] == 0) continue;
+      const Eigen::Vector3i c = lattice.elementCell(e);
+      for (int dz = -1; dz <= 1; ++dz)
+        for (int dy = -1; dy <= 1; ++dy)
+          for (int dx = -1; dx <= 1; ++dx) {
+            const int other = lattice.elementAt(c.x() + dx, c.y() + dy, c.z() + dz);
+            if (other >= 0) next[static_cast<std::size_t>(other)] = 1;
+          }
+    }
+    in_layer.swap(next);
+  }
+  std::vector<char> outer(static_cast<std::size_t>(lattice.nodeCount()), 0);
+  for (int e = 0; e < lattice.elementCount(); ++e)
+    if (in_layer[static_cast<std::size_t>(e)])
+      for (const int n : lattice.elementNodes(e)) outer[static_cast<std::size_t>(n)] = 1;
   std::vector<int> nodes;
   for (int n = 0; n < lattice.nodeCount(); ++n)
     if (outer[static_cast<std::size_t>(n)]) nodes.push_back(n);

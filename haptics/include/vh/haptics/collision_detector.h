@@ -94,6 +94,11 @@ class CollisionDetector {
   SweepResult resumeSweep() noexcept;
   /// Forgets the pending sweep (the isovalue changed, the proxy was reset).
   void abandonSweep() noexcept;
+  /// The field was rewritten between ticks and may have risen somewhere (deformable tissue
+  /// rewrites the renderer's private copy): forgets what was proven about the old field, the
+  /// pending sweep and the edge test's clearance certificates (which assume a field that only
+  /// falls, as drilling's). No allocation.
+  void forgetFieldProofs() noexcept;
 
   /// Step 2: keeps the contacts that, moved epsilon from X_WP towards X_WD, are inside or move
   /// against their normal (the first-order form of the same test, needed because contacts are

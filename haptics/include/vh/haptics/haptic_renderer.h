@@ -208,6 +208,14 @@ class HapticRenderer {
 
   /// Moves the proxy (and clears the contact set) without collision checking.
   void resetProxy(const Pose& X_WP) noexcept;
+  /// The volume was rewritten between ticks by its owner and F may have risen somewhere
+  /// (deformable tissue writes its deformed field into the renderer's copy; drilling only lowers
+  /// F and needs no call). The proxy and its contact set stay (step 2 verifies the contacts
+  /// against the new field); what was proven about the old field is dropped: a pending cut
+  /// sweep, the edge test's certificates and its proof of the proxy's pose, and the embedded
+  /// points are scanned again. The writer must leave no point of the proxy inside (it is then
+  /// never inside: tissue's felt deformation, vh::tissue::DeformableScene). No allocation.
+  void noteFieldChanged() noexcept;
   /// New coupling gains; also the solver's metric (ConfigurationSolver::setGains()).
   void setGains(const CouplingGains& gains) noexcept {
     coupling_.setGains(gains);

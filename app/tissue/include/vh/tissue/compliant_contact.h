@@ -71,6 +71,11 @@ class CompliantContact {
   int capacity() const noexcept { return capacity_; }
   /// lambda_i [N] of the last solve (its first `contacts` entries).
   const Eigen::VectorXd& pushes_N() const noexcept { return lambda_; }
+  /// The tissue's displacement under the last solve's pushes at touchable positions (table
+  /// positions of SurfaceCompliance) [m], frame G: u = C f with f = -P^T lambda the pushes on
+  /// the gathered corner nodes, 3 per position into u_out (3 x positions.size()). Reads 3g
+  /// columns of the table (g gathered nodes); never allocates.
+  void touchableDisplacement(std::span<const int> positions, double* u_out) const noexcept;
   /// Nodal forces on the tissue of the last solve (the lattice's dof count) [N], frame G: what
   /// the background model and the view apply. Allocates: not for the servo thread.
   Eigen::VectorXd nodalForces_N(std::span<const TissueContactPoint> contacts) const;
@@ -90,6 +95,7 @@ class CompliantContact {
   Eigen::MatrixXd C_;            ///< (3 max_nodes)^2: the gathered block of the table, contiguous.
   Eigen::MatrixXd T_;            ///< (3 max_nodes x m_max): C P^T, column i the tissue's response to contact i.
   Eigen::VectorXd y_;            ///< (3 max_nodes): C P^T lambda.
+  Eigen::VectorXd f_;            ///< (3 max_nodes): -P^T lambda, the pushes on the gathered nodes [N].
 };
 
 }  // namespace vh::tissue

@@ -56,6 +56,9 @@ TissueRegion buildTissueRegion(const VoxelGrid& grid, const RegionSpec& spec, st
 
 /// The nodes a tool can touch: every node of a cell with a face on the region's outside (an
 /// empty cell or the lattice's edge), ascending. The surface the tool touches lies in those cells.
-std::vector<int> outerLayerNodes(const HexLattice& lattice);
+/// With layers > 1, also the nodes of the cells up to layers - 1 cells further in (sharing a
+/// corner, step by step): where a surface blurred over several voxels, or pushed deep, lies.
+/// @throws std::invalid_argument on layers < 1.
+std::vector<int> outerLayerNodes(const HexLattice& lattice, int layers = 1);
 
 }  // namespace vh::tissue

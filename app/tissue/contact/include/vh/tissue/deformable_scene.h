@@ -1,0 +1,172 @@
+#pragma once
+/// @file
+/// Where the tissue model meets the rendering algorithm: the configuration solver, its collision
+/// detector, the crossing check and the edge test feel the deformed tissue through the very
+/// ScalarVolume they feel a rigid scan through. Each servo tick, before the renderer's tick:
+///
+///   1. The tool's points at the device's pose that lie in, or within a margin of, the tissue's
+///      rest surface become the contacts of the tissue's complementarity problem (depth: the
+///      first-order distance (s - F) / |grad F| within a voxel of the surface, deeper the
+///      exact distance transform of the voxels outside it, DistanceField).
+///   2. CompliantContact solves it: how far the tissue gives under the tool held by the
+///      coupling's stiffness (the pushes lambda, exact for the linear model, quasi-static).
+///   3. The deformed field is written into the renderer's own copy of the volume over a window
+///      about the contacts: each voxel centre p takes F(X) at its material point X + u(X) = p
+///      (three fixed-point steps), F the scan as loaded, so the scan's own voxels keep carrying
+///      the surface (the isosurface of the deformed tissue, to trilinear interpolation of the
+///      resampled voxels). Voxels the last window wrote and this one does not go back to rest.
+///   4. No point of the proxy may end inside: where the new field would swallow one (tissue
+///      springing back onto a tool that has not yet moved), the field is written only that
+///      fraction alpha of the way from the old one that swallows none (the trilinear field is
+///      linear in the voxels, so alpha is exact up to the stored type's rounding, which a
+///      check after the write catches: then nothing changes this tick). The rest follows on
+///      the next ticks as the proxy moves: the "felt deformation", as a lowered isovalue is felt
+///      only as far as it swallows nothing.
+///   5. The renderer is told (HapticRenderer::noteFieldChanged()): its proofs about the old field
+///      are dropped. Its tick then moves the proxy against the deformed surface as against any
+///      other: first contact along each point's motion, the edge test between points.
+///
+/// Frames: W the volume's world frame; G the scan's grid frame (the tissue's, tissue_region.h):
+/// p_W = origin_W + D G. Units SI. The isovalue is fixed for a scene (the region, the depth
+/// field and the compliance belong to it). Limits: the surface cannot bulge out of the lattice's
+/// cells (a voxel in an empty cell keeps its rest value); beyond the window the hand feels the
+/// rest surface (the window grows with the contacts' spread); no friction, no cutting of tissue.
+#include <array>
+#include <cstdint>
+#include <memory>
+#include <vector>
+
+#include <Eigen/Core>
+
+#include "vh/haptics/distance_field.h"
+#include "vh/haptics/haptic_renderer.h"
+#include "vh/haptics/scalar_volume.h"
+#include "vh/tissue/compliant_contact.h"
+#include "vh/tissue/static_solver.h"
+#include "vh/tissue/surface_compliance.h"
+#include "vh/tissue/tissue_region.h"
+
+namespace vh::tissue {
+
+struct DeformableSceneOptions {
+  /// Tool points at the device pose within this distance outside the rest surface join the
+  /// contact problem [m]; 0: one voxel (the smallest spacing).
+  double contact_margin_m = 0.0;
+  /// Most tool points in the contact problem (the deepest are kept), >= 1.
+  int max_contacts = 128;
+  /// Most lattice nodes under the contacts in one tick (CompliantContact), >= 8.
+  int max_nodes = 512;
+  /// Gauss-Seidel sweeps per tick at most (warm-started from the last tick's pushes).
+  int max_sweeps = 30;
+  /// The window written about the contacts' material points: their box grown by this [m];
+  /// 0: two lattice cells.
+  double window_margin_m = 0.0;
+  /// Most voxels written in one tick (the window is clipped about the deepest contact beyond it);
+  /// sets the workspace, allocated once.
+  int max_window_voxels = 40 * 40 * 40;
+  /// Cell layers under the region's outside whose nodes the compliance table holds
+  /// (outerLayerNodes()), >= 1: the deformed field is written only in cells whose eight corners
+  /// it holds, so the surface (blurred over a few voxels) and how deep it is pushed must lie in
+  /// them. The table's memory grows as the square of its nodes.
+  int touchable_layers = 2;
+  /// Worker threads for the compliance table at construction (>= 1).
+  int compliance_threads = 1;
+  /// Most proxy points checked against the new field in one step (the workspace); a step with
+  /// more of them in its window writes nothing (the tool's surface is never entered).
+  int max_proxy_points = 65536;
+};
+
+/// What one step() did.
+struct DeformableStep {
+  CompliantContactResult contact;   ///< The complementarity solve (pushes, force, sweeps).
+  int tool_points_near = 0;         ///< Tool points within the margin of the rest surface (before the cap).
+  int voxels_written = 0;           ///< Voxels rewritten this tick (window and what goes back to rest).
+  /// The fraction of the way to the solved deformation written (1: all; below 1: a proxy point
+  /// would have been swallowed, the rest follows; 0: nothing changed this tick).
+  double felt_fraction = 1.0;
+  double max_displacement_m = 0.0;  ///< Largest |u| over the window's touchable nodes [m].
+  bool window_clipped = false;      ///< The window exceeded max_window_voxels and was clipped.
+  double step_us = 0.0;             ///< Wall time of step() [us]; its parts below.
+  double gather_us = 0.0;           ///< The tool's points near the rest surface (1.).
+  double solve_us = 0.0;            ///< The complementarity solve (2.).
+  double displace_us = 0.0;         ///< u at the window's nodes from the table.
+  double resample_us = 0.0;         ///< The window's voxels resampled (3.).
+  double write_us = 0.0;            ///< Written, checked against the proxy (4.) and the volume's bounds refreshed.
+  int window_voxels = 0;            ///< Voxels of the window and of the last one (what was resampled or restored).
+};
+
+/// A scan whose tissue region yields under the tool. Owns the model, its factorisation and the
+/// compliance table (built in the constructor: seconds for thousands of nodes), and the volume
+/// the renderer feels (feltVolume(), a copy of the scan that step() rewrites).
+class DeformableScene {
+ public:
+  /// @param scan the scan as loaded (never written); its geometry is the region's grid.
+  /// @param region the tissue cut from it (buildTissueRegion() on the scan's grid: frame G).
+  /// @param isovalue the surface felt, F = s [data units].
+  /// @throws std::invalid_argument on an empty scan, a region whose lattice leaves the scan's
+  ///         grid, a non-finite isovalue, bad options, or a region with no touchable node.
+  DeformableScene(std::shared_ptr<const haptics::ScalarVolume> scan, TissueRegion region, double isovalue,
+                  const DeformableSceneOptions& options = {});
+
+  /// The volume to give the renderer (its private copy; step() writes it between ticks).
+  std::shared_ptr<const haptics::ScalarVolume> feltVolume() const noexcept { return felt_; }
+  const TissueRegion& region() const noexcept { return region_; }
+  const SurfaceCompliance& compliance() const noexcept { return *compliance_; }
+  double isovalue() const noexcept { return isovalue_; }
+
+  /// Step before the renderer's tick: solves the tissue's contact for the device pose X_WD with
+  /// the coupling's linear stiffness, writes the felt deformation into feltVolume() and tells
+  /// `renderer` (which must feel feltVolume()). A non-finite pose leaves everything as it was.
+  /// Never throws, never allocates.
+  DeformableStep step(const haptics::Pose& X_WD, haptics::HapticRenderer& renderer) noexcept;
+
+  /// The pushes of the last step [N] on the tissue, per contact, and the contacts themselves
+  /// (material points and normals in G): what the background model and the view apply.
+  std::span<const TissueContactPoint> lastContacts() const noexcept {
+    return {contacts_.data(), static_cast<std::size_t>(contact_count_)};
+  }
+  const CompliantContact& contact() const noexcept { return *contact_; }
+
+ private:
+  // G <-> W.
+  Eigen::Vector3d toW(const Eigen::Vector3d& g) const noexcept { return origin_W_ + D_W_ * g; }
+  Eigen::Vector3d toG(const Eigen::Vector3d& p_W) const noexcept { return D_W_.transpose() * (p_W - origin_W_); }
+  // Gathers the tool points near the rest surface at X_WD into contacts_ (the deepest kept).
+  void gatherContacts(const haptics::Pose& X_WD, const haptics::ToolModel& tool, DeformableStep& out) noexcept;
+  // u(X) [m] at a material point (false outside cells whose corners are all touchable: u is 0).
+  bool displacementAt(const Eigen::Vector3d& X_G, Eigen::Vector3d& u) const noexcept;
+  // The deformed F at the centre of voxel (i, j, k).
+  double deformedValue(int i, int j, int k) const noexcept;
+
+  std::shared_ptr<const haptics::ScalarVolume> scan_;
+  std::shared_ptr<haptics::ScalarVolume> felt_;
+  TissueRegion region_;
+  double isovalue_;
+  DeformableSceneOptions options_;
+  std::unique_ptr<StaticSolver> solver_;
+  std::unique_ptr<SurfaceCompliance> compliance_;
+  std::unique_ptr<CompliantContact> contact_;
+  haptics::DistanceField outside_depth_;  // distance to the nearest voxel outside the rest surface
+  Eigen::Vector3d origin_W_ = Eigen::Vector3d::Zero();
+  Eigen::Matrix3d D_W_ = Eigen::Matrix3d::Identity();
+  Eigen::Vector3d spacing_m_ = Eigen::Vector3d::Ones();
+  double margin_m_ = 0.0, window_margin_m_ = 0.0;
+  // Workspace, sized once.
+  std::vector<TissueContactPoint> contacts_;
+  std::vector<int> contact_point_;   // the tool point of each contact
+  std::vector<int> prev_point_;      // the last step's contacts' tool points (-1 ends the list)
+  std::vector<double> prev_push_N_;  // ... and their pushes (the warm start)
+  int contact_count_ = 0;
+  Eigen::Vector3i node_dims_ = Eigen::Vector3i::Ones();  // the lattice's grid of nodes (cells + 1)
+  std::vector<double> u_grid_;       // 3 per grid node, x fastest: u of the window's nodes, zero elsewhere
+  std::vector<int> window_nodes_;    // touchable positions whose u was computed this step
+  std::vector<std::size_t> window_grid_nodes_;  // ... their grid nodes
+  std::vector<double> window_u_;     // their u, 3 each
+  std::vector<std::uint8_t> cell_touchable_;  // per grid cell (x fastest): a cell whose 8 corners are all touchable
+  std::vector<double> old_raw_, new_raw_;     // the window's voxels before and as solved
+  std::vector<Eigen::Vector3d> proxy_points_W_;
+  std::vector<double> proxy_old_F_;
+  std::array<int, 3> last_lo_{0, 0, 0}, last_hi_{-1, -1, -1};  // the last window written (voxels)
+};
+
+}  // namespace vh::tissue

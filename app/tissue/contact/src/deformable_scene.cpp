@@ -1,0 +1,416 @@
+#include "vh/tissue/deformable_scene.h"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <limits>
+#include <stdexcept>
+
+#include "vh/tissue/hex_element.h"
+
+namespace vh::tissue {
+namespace {
+
+using Clock = std::chrono::steady_clock;
+
+// The raw value (stored type's scale) of a field value F.
+double rawOf(const haptics::ScalarVolume& v, double F) noexcept { return (F - v.valueOffset()) / v.valueScale(); }
+
+}  // namespace
+
+DeformableScene::DeformableScene(std::shared_ptr<const haptics::ScalarVolume> scan, TissueRegion region,
+                                 double isovalue, const DeformableSceneOptions& options)
+    : scan_(std::move(scan)), region_(std::move(region)), isovalue_(isovalue), options_(options) {
+  if (!scan_ || scan_->empty()) throw std::invalid_argument("deformable scene: no scan");
+  if (!std::isfinite(isovalue_)) throw std::invalid_argument("deformable scene: the isovalue is not finite");
+  if (options_.max_contacts < 1 || options_.max_nodes < 8 || options_.max_sweeps < 1 ||
+      options_.max_window_voxels < 8 || options_.compliance_threads < 1 || options_.max_proxy_points < 1 || options_.touchable_layers < 1 || !(options_.contact_margin_m >= 0.0) ||
+      !(options_.window_margin_m >= 0.0) || !std::isfinite(options_.contact_margin_m) ||
+      !std::isfinite(options_.window_margin_m))
+    throw std::invalid_argument("deformable scene: bad options (capacities >= 1, margins >= 0 and finite)");
+  const haptics::VolumeGeometry& geo = scan_->geometry();
+  origin_W_ = geo.origin_W_m;
+  D_W_ = geo.direction_W;
+  spacing_m_ = geo.spacing_m;
+  const HexLattice& L = region_.model.lattice();
+  const LatticeGeometry& lg = L.geometry();
+  const Eigen::Vector3d lattice_hi = lg.origin_W_m + lg.spacing_m * lg.cells.cast<double>();
+  const Eigen::Vector3d grid_hi = spacing_m_.cwiseProduct(Eigen::Vector3d(geo.dims[0] - 1, geo.dims[1] - 1, geo.dims[2] - 1));
+  if ((lg.origin_W_m.array() < -lg.spacing_m).any() || (lattice_hi.array() > (grid_hi.array() + lg.spacing_m)).any())
+    throw std::invalid_argument("deformable scene: the tissue's lattice leaves the scan's grid");
+  margin_m_ = options_.contact_margin_m > 0.0 ? options_.contact_margin_m : geo.minSpacing();
+  window_margin_m_ = options_.window_margin_m > 0.0 ? options_.window_margin_m : 2.0 * lg.spacing_m;
+
+  solver_ = std::make_unique<StaticSolver>(region_.model, region_.fixed_dofs);
+  compliance_ = std::make_unique<SurfaceCompliance>(*solver_, outerLayerNodes(L, options_.touchable_layers),
+                                                     options_.compliance_threads);
+  contact_ = std::make_unique<CompliantContact>(L, *compliance_, options_.max_contacts, options_.max_nodes);
+
+  // The depth of a point deep in the tissue: its distance to the nearest voxel outside the rest
+  // surface, over the lattice's box grown by two cells (the tissue's surface lies in it).
+  {
+    std::vector<std::uint8_t> mask(geo.voxelCount(), 0);
+    std::array<int, 3> lo{}, hi{};
+    for (int a = 0; a < 3; ++a) {
+      lo[a] = std::max(0, static_cast<int>(std::floor((lg.origin_W_m[a] - 2.0 * lg.spacing_m) / spacing_m_[a])));
+      hi[a] = std::min(geo.dims[a] - 1, static_cast<int>(std::ceil((lattice_hi[a] + 2.0 * lg.spacing_m) / spacing_m_[a])));
+    }
+    for (int k = lo[2]; k <= hi[2]; ++k)
+      for (int j = lo[1]; j <= hi[1]; ++j)
+        for (int i = lo[0]; i <= hi[0]; ++i)
+          if (!(scan_->voxel(i, j, k) > isovalue_)) mask[geo.indexOf(i, j, k)] = 1;
+    outside_depth_ = haptics::DistanceField::FromMask(geo, mask, 0.0);
+  }
+
+  felt_ = std::make_shared<haptics::ScalarVolume>(*scan_);
+  const auto m = static_cast<std::size_t>(options_.max_contacts);
+  contacts_.resize(m);
+  contact_point_.assign(m, -1);
+  prev_point_.assign(m, -1);
+  prev_push_N_.assign(m, 0.0);
+  // u on the lattice's grid of nodes (zero off the window), and which grid cells carry it.
+  node_dims_ = lg.cells + Eigen::Vector3i::Ones();
+  u_grid_.assign(static_cast<std::size_t>(3 * node_dims_.prod()), 0.0);
+  window_nodes_.reserve(static_cast<std::size_t>(compliance_->nodeCount()));
+  window_grid_nodes_.reserve(static_cast<std::size_t>(compliance_->nodeCount()));
+  window_u_.reserve(static_cast<std::size_t>(3 * compliance_->nodeCount()));
+  cell_touchable_.assign(static_cast<std::size_t>(lg.cellCount()), 0);
+  for (int e = 0; e < L.elementCount(); ++e) {
+    bool all = true;
+    for (const int node : L.elementNodes(e)) all = all && compliance_->indexOf(node) >= 0;
+    const Eigen::Vector3i c = L.elementCell(e);
+    cell_touchable_[static_cast<std::size_t>(c.x() + lg.cells.x() * (c.y() + lg.cells.y() * c.z()))] = all ? 1 : 0;
+  }
+  // The window's workspace: the largest window plus the last one (what goes back to rest).
+  old_raw_.reserve(static_cast<std::size_t>(2 * options_.max_window_voxels));
+  new_raw_.reserve(static_cast<std::size_t>(2 * options_.max_window_voxels));
+  proxy_points_W_.reserve(static_cast<std::size_t>(options_.max_proxy_points));
+  proxy_old_F_.reserve(static_cast<std::size_t>(options_.max_proxy_points));
+}
+
+void DeformableScene::gatherContacts(const haptics::Pose& X_WD, const haptics::ToolModel& tool,
+                                     DeformableStep& out) noexcept {
+  contact_count_ = 0;
+  const LatticeGeometry& lg = region_.model.lattice().geometry();
+  const Eigen::Vector3d box_lo = lg.origin_W_m.array() - margin_m_;
+  const Eigen::Vector3d box_hi = (lg.origin_W_m + lg.spacing_m * lg.cells.cast<double>()).array() + margin_m_;
+  const double voxel_m = scan_->geometry().minSpacing();
+  const auto cap = static_cast<int>(contacts_.size());
+  const std::vector<Eigen::Vector3d>& points = tool.point_shell.points_T_m();
+  for (std::size_t j = 0; j < points.size(); ++j) {
+    const Eigen::Vector3d p_W = X_WD * points[j];
+    const Eigen::Vector3d g = toG(p_W);
+    if ((g.array() < box_lo.array()).any() || (g.array() > box_hi.array()).any()) continue;
+    if (!scan_->inBounds(p_W)) continue;
+    const double F = scan_->sample(p_W);
+    // Farther than the margin outside, by the local Lipschitz bound: not a contact.
+    const double L = scan_->localLipschitzBound(scan_->gridCoordinates(p_W));
+    if (isovalue_ - F > L * margin_m_) continue;
+    // The interpolant's own gradient: exact where F is linear across the surface (eq. 1's central
+    // difference halves the slope of a ramp one voxel wide, and doubles the depth with it).
+    const Eigen::Vector3d grad = scan_->interpolantGradient(p_W);
+    const double gnorm = grad.norm();
+    double gap = 0.0;
+    Eigen::Vector3d n_W;
+    if (gnorm > 0.0 && std::abs(isovalue_ - F) <= gnorm * voxel_m) {
+      gap = (isovalue_ - F) / gnorm;  // first order, within a voxel of the surface
+      n_W = -grad / gnorm;
+    } else if (F > isovalue_) {
+      // Deeper: the distance transform of the voxels outside, and its direction.
+      const double d = outside_depth_.sample_m(p_W);
+      if (!std::isfinite(d)) continue;
+      gap = -std::max(0.0, d - 0.5 * voxel_m);
+      Eigen::Vector3d dd;
+      for (int a = 0; a < 3; ++a) {
+        const Eigen::Vector3d e = D_W_.col(a) * (0.5 * spacing_m_[a]);
+        dd[a] = outside_depth_.sample_m(p_W + e) - outside_depth_.sample_m(p_W - e);
+      }
+      dd = D_W_ * dd.cwiseQuotient(spacing_m_);  // back to W: the depth's gradient
+      if (!(dd.norm() > 0.0) || !dd.allFinite()) continue;
+      n_W = -dd.normalized();
+    } else {
+      continue;  // outside on a flat field: no surface near
+    }
+    if (gap > margin_m_) continue;
+    ++out.tool_points_near;
+    TissueContactPoint c;
+    c.X_G_m = toG(p_W - gap * n_W);
+    c.n_G = D_W_.transpose() * n_W;
+    c.gap_m = gap;
+    c.push_guess_N = 0.0;
+    for (std::size_t q = 0; q < prev_point_.size() && prev_point_[q] >= 0; ++q)
+      if (prev_point_[q] == static_cast<int>(j)) {
+        c.push_guess_N = prev_push_N_[q];
+        break;
+      }
+    int slot = contact_count_;
+    if (contact_count_ == cap) {  // full: replace the shallowest when this one is deeper
+      slot = 0;
+      for (int q = 1; q < cap; ++q)
+        if (contacts_[static_cast<std::size_t>(q)].gap_m > contacts_[static_cast<std::size_t>(slot)].gap_m) slot = q;
+      if (!(gap < contacts_[static_cast<std::size_t>(slot)].gap_m)) continue;
+    } else {
+      ++contact_count_;
+    }
+    contacts_[static_cast<std::size_t>(slot)] = c;
+    contact_point_[static_cast<std::size_t>(slot)] = static_cast<int>(j);
+  }
+}
+
+bool DeformableScene::displacementAt(const Eigen::Vector3d& X_G, Eigen::Vector3d& u) const noexcept {
+  const LatticeGeometry& lg = region_.model.lattice().geometry();
+  const Eigen::Vector3d t = (X_G - lg.origin_W_m) / lg.spacing_m;
+  int c[3];
+  double f[3];
+  for (int a = 0; a < 3; ++a) {
+    if (!(t[a] >= 0.0 && t[a] <= lg.cells[a])) return false;
+    c[a] = std::min(static_cast<int>(t[a]), lg.cells[a] - 1);  // the top face belongs to the last cell
+    f[a] = t[a] - c[a];
+  }
+  if (cell_touchable_[static_cast<std::size_t>(c[0] + lg.cells.x() * (c[1] + lg.cells.y() * c[2]))] == 0) return false;
+  // Trilinear over the cell's corners (the hexahedron's shape functions on a cube).
+  const std::size_t nx = static_cast<std::size_t>(node_dims_.x()), nxy = nx * static_cast<std::size_t>(node_dims_.y());
+  const std::size_t base = static_cast<std::size_t>(c[0]) + nx * static_cast<std::size_t>(c[1]) + nxy * static_cast<std::size_t>(c[2]);
+  u.setZero();
+  for (int a = 0; a < 8; ++a) {
+    const int dx = a & 1, dy = (a >> 1) & 1, dz = (a >> 2) & 1;
+    const double w = (dx ? f[0] : 1.0 - f[0]) * (dy ? f[1] : 1.0 - f[1]) * (dz ? f[2] : 1.0 - f[2]);
+    const double* node = u_grid_.data() + 3 * (base + static_cast<std::size_t>(dx) + nx * static_cast<std::size_t>(dy) +
+                                               nxy * static_cast<std::size_t>(dz));
+    u += w * Eigen::Vector3d(node[0], node[1], node[2]);
+  }
+  return true;
+}
+
+double DeformableScene::deformedValue(int i, int j, int k) const noexcept {
+  const Eigen::Vector3d p = spacing_m_.cwiseProduct(Eigen::Vector3d(i, j, k));
+  Eigen::Vector3d X = p, u;
+  // X + u(X) = p by fixed-point steps X <- p - u(X): a contraction while |grad u| < 1 (the
+  // small strains of the linear model), each step shrinking the error by |grad u|; stopped when a
+  // step moves X by under a thousandth of a voxel (at most 8 steps).
+  const double tolerance_m = 1e-3 * spacing_m_.minCoeff();
+  for (int it = 0; it < 8; ++it) {
+    if (!displacementAt(X, u)) {
+      if (it == 0) return scan_->voxel(i, j, k);  // not in a touchable cell: rest
+      break;
+    }
+    if (it == 0 && u.squaredNorm() < tolerance_m * tolerance_m) return scan_->voxel(i, j, k);  // not moved
+    const Eigen::Vector3d next = p - u;
+    const bool converged = (next - X).squaredNorm() < tolerance_m * tolerance_m;
+    X = next;
+    if (converged) break;
+  }
+  return scan_->sample(toW(X));
+}
+
+DeformableStep DeformableScene::step(const haptics::Pose& X_WD, haptics::HapticRenderer& renderer) noexcept {
+  const auto start = Clock::now();
+  DeformableStep out;
+  if (!X_WD.allFinite()) return out;
+  const haptics::ToolModel& tool = renderer.tool();
+  gatherContacts(X_WD, tool, out);
+  auto phase = Clock::now();
+  const auto lap = [&phase](double& us) {
+    const auto now = Clock::now();
+    us = std::chrono::duration<double, std::micro>(now - phase).count();
+    phase = now;
+  };
+  out.gather_us = std::chrono::duration<double, std::micro>(phase - start).count();
+  const double k_N_per_m = renderer.coupling().gains().linear_N_per_m;
+  out.contact = contact_->solve({contacts_.data(), static_cast<std::size_t>(contact_count_)}, k_N_per_m, options_.max_sweeps);
+  lap(out.solve_us);
+  // The pushes, for the next step's warm start.
+  std::fill(prev_point_.begin(), prev_point_.end(), -1);
+  for (int q = 0; q < contact_count_ && q < out.contact.contacts; ++q) {
+    prev_point_[static_cast<std::size_t>(q)] = contact_point_[static_cast<std::size_t>(q)];
+    prev_push_N_[static_cast<std::size_t>(q)] = contact_->pushes_N()(q);
+  }
+
+  // The window: the contacts' material points, grown; in voxel indices.
+  const haptics::VolumeGeometry& geo = scan_->geometry();
+  const LatticeGeometry& lg = region_.model.lattice().geometry();
+  std::array<int, 3> lo{0, 0, 0}, hi{-1, -1, -1};
+  double push_total = 0.0;
+  for (int q = 0; q < out.contact.contacts; ++q) push_total += contact_->pushes_N()(q);
+  if (push_total > 0.0) {
+    Eigen::Vector3d g_lo = Eigen::Vector3d::Constant(std::numeric_limits<double>::infinity());
+    Eigen::Vector3d g_hi = -g_lo;
+    int deepest = 0;
+    for (int q = 0; q < out.contact.contacts; ++q) {
+      const TissueContactPoint& c = contacts_[static_cast<std::size_t>(q)];
+      g_lo = g_lo.cwiseMin(c.X_G_m);
+      g_hi = g_hi.cwiseMax(c.X_G_m);
+      if (c.gap_m < contacts_[static_cast<std::size_t>(deepest)].gap_m) deepest = q;
+    }
+    std::int64_t voxels = 1;
+    for (int a = 0; a < 3; ++a) {
+      lo[a] = std::max(0, static_cast<int>(std::floor((g_lo[a] - window_margin_m_) / spacing_m_[a])));
+      hi[a] = std::min(geo.dims[a] - 1, static_cast<int>(std::ceil((g_hi[a] + window_margin_m_) / spacing_m_[a])));
+      voxels *= std::max(0, hi[a] - lo[a] + 1);
+    }
+    if (voxels > options_.max_window_voxels) {  // clipped to a cube about the deepest contact
+      out.window_clipped = true;
+      const int side = std::max(2, static_cast<int>(std::cbrt(static_cast<double>(options_.max_window_voxels))));
+      const Eigen::Vector3d& X = contacts_[static_cast<std::size_t>(deepest)].X_G_m;
+      for (int a = 0; a < 3; ++a) {
+        const int centre = static_cast<int>(std::lround(X[a] / spacing_m_[a]));
+        lo[a] = std::max({lo[a], 0, centre - side / 2});
+        hi[a] = std::min({hi[a], geo.dims[a] - 1, lo[a] + side - 1});
+      }
+    }
+  }
+  const bool window = hi[0] >= lo[0] && hi[1] >= lo[1] && hi[2] >= lo[2];
+  const bool last_window = last_hi_[0] >= last_lo_[0];
+
+  // u at the touchable nodes about the window (one cell beyond it, where material points of
+  // its voxels may lie); the last window's nodes back to zero first.
+  for (const std::size_t q : window_grid_nodes_) u_grid_[3 * q] = u_grid_[3 * q + 1] = u_grid_[3 * q + 2] = 0.0;
+  window_nodes_.clear();
+  window_grid_nodes_.clear();
+  if (window) {
+    const HexLattice& L = region_.model.lattice();
+    std::array<int, 3> n_lo{}, n_hi{};
+    for (int a = 0; a < 3; ++a) {
+      n_lo[a] = std::max(0, static_cast<int>(std::floor((lo[a] * spacing_m_[a] - lg.origin_W_m[a]) / lg.spacing_m)) - 1);
+      n_hi[a] = std::min(lg.cells[a], static_cast<int>(std::ceil((hi[a] * spacing_m_[a] - lg.origin_W_m[a]) / lg.spacing_m)) + 1);
+    }
+    for (int c = n_lo[2]; c <= n_hi[2]; ++c)
+      for (int b = n_lo[1]; b <= n_hi[1]; ++b)
+        for (int a = n_lo[0]; a <= n_hi[0]; ++a) {
+          const int node = L.nodeAt(a, b, c);
+          const int s = node < 0 ? -1 : compliance_->indexOf(node);
+          if (s < 0) continue;
+          window_nodes_.push_back(s);  // within the reserve: never reallocates
+          window_grid_nodes_.push_back(static_cast<std::size_t>(a) +
+                                       static_cast<std::size_t>(node_dims_.x()) *
+                                           (static_cast<std::size_t>(b) + static_cast<std::size_t>(node_dims_.y()) * static_cast<std::size_t>(c)));
+        }
+    window_u_.resize(3 * window_nodes_.size());  // within the reserve
+    contact_->touchableDisplacement(window_nodes_, window_u_.data());
+    for (std::size_t w = 0; w < window_nodes_.size(); ++w) {
+      const std::size_t q = window_grid_nodes_[w];
+      for (int r = 0; r < 3; ++r) u_grid_[3 * q + static_cast<std::size_t>(r)] = window_u_[3 * w + static_cast<std::size_t>(r)];
+      out.max_displacement_m = std::max(
+          out.max_displacement_m, Eigen::Vector3d(window_u_[3 * w], window_u_[3 * w + 1], window_u_[3 * w + 2]).norm());
+    }
+  }
+  lap(out.displace_us);
+  if (!window && !last_window) {
+    out.step_us = std::chrono::duration<double, std::micro>(Clock::now() - start).count();
+    return out;
+  }
+
+  // What is written: the union of this window and the last (which goes back to rest where this
+  // one does not reach).
+  std::array<int, 3> u_lo = lo, u_hi = hi;
+  if (!window) {
+    u_lo = last_lo_;
+    u_hi = last_hi_;
+  } else if (last_window) {
+    for (int a = 0; a < 3; ++a) {
+      u_lo[a] = std::min(lo[a], last_lo_[a]);
+      u_hi[a] = std::max(hi[a], last_hi_[a]);
+    }
+  }
+  std::size_t count = 1;
+  for (int a = 0; a < 3; ++a) count *= static_cast<std::size_t>(u_hi[a] - u_lo[a] + 1);
+  if (count > old_raw_.capacity()) {  // the union of two far windows: back to rest first, next tick the new one
+    u_lo = last_window ? last_lo_ : lo;
+    u_hi = last_window ? last_hi_ : hi;
+    count = 1;
+    for (int a = 0; a < 3; ++a) count *= static_cast<std::size_t>(u_hi[a] - u_lo[a] + 1);
+    if (last_window) {
+      for (int a = 0; a < 3; ++a) lo[a] = 0, hi[a] = -1;  // this tick: rest only
+    }
+  }
+  const bool writes_window = hi[0] >= lo[0] && hi[1] >= lo[1] && hi[2] >= lo[2];
+  old_raw_.resize(count);
+  new_raw_.resize(count);
+  std::size_t at = 0;
+  for (int k = u_lo[2]; k <= u_hi[2]; ++k)
+    for (int j = u_lo[1]; j <= u_hi[1]; ++j)
+      for (int i = u_lo[0]; i <= u_hi[0]; ++i, ++at) {
+        const std::size_t index = geo.indexOf(i, j, k);
+        old_raw_[at] = felt_->rawAt(index);
+        const bool inside = writes_window && i >= lo[0] && i <= hi[0] && j >= lo[1] && j <= hi[1] && k >= lo[2] &&
+                            k <= hi[2];
+        new_raw_[at] = inside ? rawOf(*scan_, deformedValue(i, j, k)) : scan_->rawAt(index);
+      }
+
+  out.window_voxels = static_cast<int>(count);
+  lap(out.resample_us);
+  // The proxy's points in the written box (one voxel around it): F before the write.
+  const haptics::Pose& X_WP = renderer.proxyPose();
+  const Eigen::Vector3d box_lo = spacing_m_.cwiseProduct(Eigen::Vector3d(u_lo[0] - 1, u_lo[1] - 1, u_lo[2] - 1));
+  const Eigen::Vector3d box_hi = spacing_m_.cwiseProduct(Eigen::Vector3d(u_hi[0] + 1, u_hi[1] + 1, u_hi[2] + 1));
+  proxy_points_W_.clear();
+  proxy_old_F_.clear();
+  for (const Eigen::Vector3d& p_T : tool.point_shell.points_T_m()) {
+    const Eigen::Vector3d p_W = X_WP * p_T;
+    const Eigen::Vector3d g = toG(p_W);
+    if ((g.array() < box_lo.array()).any() || (g.array() > box_hi.array()).any() || !felt_->inBounds(p_W)) continue;
+    if (proxy_points_W_.size() == proxy_points_W_.capacity()) break;  // never reallocates (checked below)
+    proxy_points_W_.push_back(p_W);
+    proxy_old_F_.push_back(felt_->sample(p_W));
+  }
+  const bool all_points_checked = proxy_points_W_.size() < proxy_points_W_.capacity();
+
+  const auto write = [&](double alpha) {
+    std::size_t q = 0;
+    int changed = 0;
+    for (int k = u_lo[2]; k <= u_hi[2]; ++k)
+      for (int j = u_lo[1]; j <= u_hi[1]; ++j)
+        for (int i = u_lo[0]; i <= u_hi[0]; ++i, ++q) {
+          const double raw = old_raw_[q] + alpha * (new_raw_[q] - old_raw_[q]);
+          const std::size_t index = geo.indexOf(i, j, k);
+          const double before = felt_->rawAt(index);
+          felt_->writeRaw(index, raw);
+          changed += felt_->rawAt(index) != before;
+        }
+    return changed;
+  };
+  const auto firstSwallowed = [&]() {
+    for (std::size_t q = 0; q < proxy_points_W_.size(); ++q)
+      if (proxy_old_F_[q] <= isovalue_ && felt_->sample(proxy_points_W_[q]) > isovalue_) return static_cast<int>(q);
+    return -1;
+  };
+  int changed = write(1.0);
+  double alpha = all_points_checked ? 1.0 : 0.0;
+  if (alpha > 0.0) {
+    // alpha: the largest fraction with (1 - a) F_old + a F_new <= s at every point, F linear in the voxels.
+    for (std::size_t q = 0; q < proxy_points_W_.size(); ++q) {
+      const double f_new = felt_->sample(proxy_points_W_[q]);
+      const double f_old = proxy_old_F_[q];
+      // A point already inside (embedded after a reset) does not constrain the proxy: left out.
+      if (f_new > isovalue_ && f_old <= isovalue_) alpha = std::min(alpha, 0.9 * (isovalue_ - f_old) / (f_new - f_old));
+    }
+  }
+  if (alpha < 1.0) {
+    changed = write(alpha);
+    if (firstSwallowed() >= 0) {  // the stored type's rounding: nothing this tick
+      changed = write(0.0);
+      alpha = 0.0;
+    }
+  }
+  out.felt_fraction = alpha;
+  out.voxels_written = changed;
+  if (changed > 0) {
+    felt_->refreshRegion(u_lo, u_hi);
+    renderer.noteFieldChanged();
+  }
+  // The window now held: this one when written in full or in part; the union's old part is at
+  // rest only when alpha is 1.
+  if (alpha >= 1.0) {
+    last_lo_ = lo;
+    last_hi_ = hi;
+    if (!writes_window) last_hi_ = {-1, -1, -1};
+  } else {
+    last_lo_ = u_lo;
+    last_hi_ = u_hi;
+  }
+  lap(out.write_us);
+  out.step_us = std::chrono::duration<double, std::micro>(Clock::now() - start).count();
+  return out;
+}
+
+}  // namespace vh::tissue

@@ -1,0 +1,251 @@
+// The rendering algorithm on deformable tissue: the 6-DOF renderer (configuration solver,
+// collision detector, edge test: unchanged) feels the gel of a scan through the volume that
+// DeformableScene rewrites tick by tick. Checked against what the servo path never uses:
+//   - the force felt at each depth against the exact frictionless contact of a rigid sphere with
+//     the same lattice (the full static solve's compliance at the rest surface, Lawson-Hanson),
+//     and against Hertz (printed: a lattice this coarse is Hertz's within its own error, see
+//     mechanics_oracles_test.cpp);
+//   - the tissue's shape under the pushes from the full static solve: the deformed surface
+//     touches the proxy's sphere and holds it out;
+//   - on every tick: no proxy point inside the felt field, 0 crossings by a dense check of the
+//     tick's motion (CrossingVerifier), and, released, the field back to the scan's voxels.
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <memory>
+#include <vector>
+
+#include <gtest/gtest.h>
+
+#include "vh/datasets/synthetic.h"
+#include "vh/haptics/crossing_verifier.h"
+#include "vh/haptics/haptic_renderer.h"
+#include "vh/haptics/tool_model.h"
+#include "vh/tissue/contact_lcp.h"
+#include "vh/tissue/deformable_scene.h"
+#include "vh/tissue/deformed_field.h"
+#include "vh/tissue/hex_element.h"
+
+namespace vh::tissue {
+namespace {
+
+// The scan: 48 x 48 x 32 voxels of 0.5 mm, float. Bone below k = 2 (rigid), gel for k = 2..25,
+// air above; the gel's top blurred over 2 mm as a scan's partial volume blurs it (100 deep in the
+// gel, 0 in the air, linear between). Isovalue 50: the top surface lies at z = 12.75 mm.
+constexpr double kVoxel = 0.5e-3;
+constexpr int kTopVoxel = 25;
+constexpr double kIsovalue = 50.0;
+constexpr double kTop_m = (kTopVoxel + 0.5) * kVoxel;
+
+std::shared_ptr<const haptics::ScalarVolume> gelScan() {
+  haptics::VolumeGeometry geo;
+  geo.dims = {48, 48, 32};
+  geo.spacing_m = Eigen::Vector3d::Constant(kVoxel);
+  std::vector<float> v(geo.voxelCount(), 0.0f);
+  for (int k = 0; k < 32; ++k) {
+    const double value = std::clamp(50.0 + 50.0 * (kTop_m - k * kVoxel) / 1e-3, 0.0, 100.0);
+    for (int j = 0; j < 48; ++j)
+      for (int i = 0; i < 48; ++i) v[geo.indexOf(i, j, k)] = static_cast<float>(value);
+  }
+  return std::make_shared<const haptics::ScalarVolume>(haptics::ScalarVolume::FromVoxels(geo, v));
+}
+
+TissueRegion gelRegion(double cell_m) {
+  VoxelGrid grid;
+  grid.dims = Eigen::Vector3i(48, 48, 32);
+  grid.spacing_m = Eigen::Vector3d::Constant(kVoxel);
+  RegionSpec spec;
+  spec.cell_size_m = cell_m;
+  spec.material_of_voxel = [](int, int, int k) { return k >= 2 && k <= kTopVoxel + 2 ? 0 : -1; };
+  spec.is_rigid_voxel = [](int, int, int k) { return k < 2; };
+  spec.hold_at_scan_border = true;  // the block is cut by the scan's sides
+  return buildTissueRegion(grid, spec, {materialPreset("gel")});
+}
+
+std::shared_ptr<const haptics::ToolModel> sphereTool(double radius_m) {
+  haptics::PointShellOptions shell;
+  shell.spacing_m = 0.4e-3;
+  return std::make_shared<const haptics::ToolModel>(
+      haptics::makeToolModel(datasets::makeSphereMesh(radius_m, 4), shell, 1000.0));
+}
+
+/// The exact frictionless contact of a rigid sphere (radius R, lowest point d below the rest
+/// top surface at (x, y)) with the lattice, from the full static solve: the rest surface sampled
+/// every 0.25 mm within 0.9 R, each sample's vertical compliance interpolated from the corner
+/// nodes' (StaticSolver::compliance), the LCP solved by Lawson-Hanson. Returns the total force [N].
+double referenceForce_N(const TissueRegion& region, const StaticSolver& solver, double R, double d,
+                        const Eigen::Vector2d& xy) {
+  const HexLattice& L = region.model.lattice();
+  std::vector<Eigen::Vector3d> samples;
+  for (double dx = -0.9 * R; dx <= 0.9 * R; dx += 0.25e-3)
+    for (double dy = -0.9 * R; dy <= 0.9 * R; dy += 0.25e-3)
+      if (dx * dx + dy * dy <= 0.81 * R * R) samples.emplace_back(xy.x() + dx, xy.y() + dy, kTop_m);
+  // The corner nodes' z dofs (free ones) and each sample's weights on them.
+  std::vector<int> dofs, slot(static_cast<std::size_t>(L.dofCount()), -1);
+  std::vector<std::vector<std::pair<int, double>>> weights(samples.size());
+  for (std::size_t s = 0; s < samples.size(); ++s) {
+    const HexLattice::Location at = L.locate(samples[s]);
+    if (at.element < 0) continue;
+    const Eigen::Matrix<double, 8, 1> N = hexShapeFunctions(at.xi);
+    for (int a = 0; a < 8; ++a) {
+      const int dof = 3 * L.elementNodes(at.element)[static_cast<std::size_t>(a)] + 2;
+      if (N(a) == 0.0 || solver.isFixed(dof)) continue;
+      if (slot[static_cast<std::size_t>(dof)] < 0) {
+        slot[static_cast<std::size_t>(dof)] = static_cast<int>(dofs.size());
+        dofs.push_back(dof);
+      }
+      weights[s].emplace_back(slot[static_cast<std::size_t>(dof)], N(a));
+    }
+  }
+  const Eigen::MatrixXd Cn = solver.compliance(dofs);
+  const auto m = static_cast<Eigen::Index>(samples.size());
+  Eigen::MatrixXd P = Eigen::MatrixXd::Zero(m, static_cast<Eigen::Index>(dofs.size()));
+  Eigen::VectorXd delta(m);
+  for (Eigen::Index s = 0; s < m; ++s) {
+    for (const auto& [col, w] : weights[static_cast<std::size_t>(s)]) P(s, col) = w;
+    const double r2 = (samples[static_cast<std::size_t>(s)].head<2>() - xy).squaredNorm();
+    delta(s) = d - (R - std::sqrt(R * R - r2));  // how far the sample must go down to clear the sphere
+  }
+  const Eigen::MatrixXd C = P * Cn * P.transpose() + 1e-15 * Eigen::MatrixXd::Identity(m, m);
+  const ContactSolution sol = solveFrictionlessContact(C, delta, 1e-12);
+  return sol.force_N.sum();
+}
+
+struct PressRecord {
+  double depth_m = 0.0;   // the proxy sphere's lowest point below the rest surface
+  double force_N = 0.0;   // what the hand feels (+z up)
+  double push_N = 0.0;    // the tissue's pushes summed (what the tissue is pushed with)
+};
+
+TEST(TissueDeformableScene, TheSolverFeelsTheGelYieldByTheFullSolveAndNeverEntersIt) {
+  const double R = 4e-3;
+  const std::shared_ptr<const haptics::ScalarVolume> scan = gelScan();
+  DeformableSceneOptions options;
+  options.compliance_threads = 2;
+  DeformableScene scene(scan, gelRegion(1.5e-3), kIsovalue, options);
+  const auto tool = sphereTool(R);
+  haptics::RendererOptions ro;
+  ro.edge_test = 1;
+  ro.gains.linear_N_per_m = 200.0;
+  ro.gains.angular_Nm_per_rad = 0.05;
+  const Eigen::Vector2d xy(12e-3, 12.2e-3);
+  haptics::Pose X_WD = haptics::Pose::FromTranslation(Eigen::Vector3d(xy.x(), xy.y(), kTop_m + R + 0.3e-3));
+  haptics::HapticRenderer renderer(scene.feltVolume(), tool, ro, X_WD, kIsovalue);
+  const haptics::CrossingVerifier verifier(*scene.feltVolume(), tool->point_shell, 1e-2);
+
+  // Down 2 um a tick to 0.75 mm below the surface, held at five depths on the way (400 ticks
+  // each, the last 100 averaged), then up and away.
+  std::vector<PressRecord> records;
+  int ticks = 0, crossings = 0, inside_after = 0, clipped = 0, held_back = 0;
+  std::vector<double> step_us;
+  step_us.reserve(4000);
+  DeformableStep parts;  // summed
+  double worst_inside = -1e300;
+  const auto tick = [&](const haptics::Pose& X) {
+    const DeformableStep s = scene.step(X, renderer);
+    step_us.push_back(s.step_us);
+    parts.gather_us += s.gather_us;
+    parts.solve_us += s.solve_us;
+    parts.displace_us += s.displace_us;
+    parts.resample_us += s.resample_us;
+    parts.write_us += s.write_us;
+    parts.window_voxels = std::max(parts.window_voxels, s.window_voxels);
+    clipped += s.window_clipped;
+    held_back += s.felt_fraction < 1.0;
+    const haptics::TickOutput out = renderer.tick(X, kIsovalue);
+    ++ticks;
+    const haptics::CrossingVerifier::Result c =
+        verifier.check(renderer.lastMotion(), renderer.lastTimeOfContact(), kIsovalue);
+    crossings += c.crossing_points;
+    for (const Eigen::Vector3d& p_T : tool->point_shell.points_T_m()) {
+      const double F = scene.feltVolume()->sample(out.X_WP * p_T);
+      worst_inside = std::max(worst_inside, F - kIsovalue);
+      inside_after += F > kIsovalue;
+    }
+    return std::make_pair(out, s);
+  };
+  const std::vector<double> holds{0.15e-3, 0.3e-3, 0.45e-3, 0.6e-3, 0.75e-3};
+  double z = X_WD.p_AB_m.z();
+  for (const double hold : holds) {
+    const double target = kTop_m + R - hold;
+    while (z > target) {
+      z = std::max(target, z - 2e-6);
+      X_WD.p_AB_m.z() = z;
+      tick(X_WD);
+    }
+    PressRecord r;
+    for (int t = 0; t < 400; ++t) {
+      const auto [out, s] = tick(X_WD);
+      if (t < 300) continue;
+      r.depth_m += (kTop_m - (out.X_WP.p_AB_m.z() - R)) / 100.0;
+      r.force_N += out.force_W_N.z() / 100.0;
+      r.push_N += s.contact.force_on_device_N.z() / 100.0;
+    }
+    records.push_back(r);
+  }
+  // The tissue's shape under the last pushes, by the full static solve: the deformed top surface
+  // under the sphere's centre sits where the proxy's lowest point is.
+  const StaticSolver solver(scene.region().model, scene.region().fixed_dofs);
+  const Eigen::VectorXd u = solver.solve(scene.contact().nodalForces_N(scene.lastContacts()));
+  const DeformedField deformed(scene.region().model.lattice(), u);
+  const double surface_z = kTop_m + deformed.displacementAt(Eigen::Vector3d(xy.x(), xy.y(), kTop_m)).z();
+  const double proxy_bottom = renderer.proxyPose().p_AB_m.z() - R;
+
+  std::printf("gel (E 10 kPa, nu 0.45), 1.5 mm lattice (%d nodes, %d touchable), sphere R = 4 mm (%zu points), "
+              "coupling 200 N/m\n", scene.region().model.lattice().nodeCount(), scene.compliance().nodeCount(),
+              tool->point_shell.size());
+  std::printf("  depth [mm]  felt [mN]  tissue pushed [mN]  full-solve contact [mN]  Hertz [mN]  felt/full\n");
+  const double k_eps = ro.gains.linear_N_per_m * renderer.epsilon_m();
+  std::printf("  (the coupling times the collision tolerance, k epsilon = %.3f mN)\n", 1e3 * k_eps);
+  for (const PressRecord& r : records) {
+    const double reference = referenceForce_N(scene.region(), solver, R, r.depth_m, xy);
+    const double hertz = 4.0 / 3.0 * materialPreset("gel").contactModulus_Pa() * std::sqrt(R) * std::pow(r.depth_m, 1.5);
+    std::printf("  %9.3f  %9.3f  %18.3f  %23.3f  %10.3f  %9.3f\n", 1e3 * r.depth_m, 1e3 * r.force_N, 1e3 * r.push_N,
+                1e3 * reference, 1e3 * hertz, r.force_N / reference);
+    // The servo path's model (the compliance table, its Gauss-Seidel, the tool's points) against
+    // the full solve's exact contact.
+    EXPECT_NEAR(r.push_N, reference, 0.15 * reference);
+    // Equal and opposite: what the hand feels is what the tissue is pushed with, up to the
+    // proxy's hover within the collision tolerance epsilon (paper section 2.3: a contact within
+    // epsilon of the surface holds the proxy there), k epsilon at most.
+    EXPECT_NEAR(r.force_N, r.push_N, k_eps + 0.05 * r.push_N);
+    EXPECT_NEAR(r.force_N, reference, k_eps + 0.15 * reference);
+  }
+  std::printf("  full solve's surface under the centre %.4f mm, proxy's lowest point %.4f mm; %d ticks, %d crossings, "
+              "deepest proxy point F - s = %.3g, %d ticks held back, %d windows clipped\n",
+              1e3 * surface_z, 1e3 * proxy_bottom, ticks, crossings, worst_inside, held_back, clipped);
+  std::sort(step_us.begin(), step_us.end());
+  double mean_us = 0.0;
+  for (const double t : step_us) mean_us += t / static_cast<double>(step_us.size());
+  std::printf("  tissue step (gather, solve, write the window; printed, not asserted): mean %.0f us, p99.9 %.0f us, max %.0f us\n",
+              mean_us, step_us[step_us.size() * 999 / 1000], step_us.back());
+  const double n = static_cast<double>(step_us.size());
+  std::printf("  its parts, mean: gather %.0f, solve %.0f, displace %.0f, resample %.0f, write %.0f us; largest window %d voxels\n",
+              parts.gather_us / n, parts.solve_us / n, parts.displace_us / n, parts.resample_us / n, parts.write_us / n,
+              parts.window_voxels);
+  // The depth grows with the push and the tissue yields: softer than the coupling alone.
+  for (std::size_t i = 1; i < records.size(); ++i) {
+    EXPECT_GT(records[i].depth_m, records[i - 1].depth_m);
+    EXPECT_GT(records[i].force_N, records[i - 1].force_N);
+  }
+  EXPECT_GT(records.back().depth_m, 0.5e-3) << "the gel did not yield";
+  EXPECT_NEAR(surface_z, proxy_bottom, 0.1e-3) << "the tissue does not hold the tool where the full solve puts it";
+  EXPECT_EQ(crossings, 0);
+  EXPECT_EQ(inside_after, 0);
+
+  // Released: up and away; the field goes back to the scan's voxels exactly.
+  for (int t = 0; t < 600; ++t) {
+    z += 4e-6;
+    X_WD.p_AB_m.z() = z;
+    tick(X_WD);
+  }
+  EXPECT_EQ(crossings, 0);
+  EXPECT_EQ(inside_after, 0);
+  std::size_t differing = 0;
+  for (std::size_t v = 0; v < scan->geometry().voxelCount(); ++v)
+    differing += scene.feltVolume()->rawAt(v) != scan->rawAt(v);
+  EXPECT_EQ(differing, 0u) << "released, the gel did not spring back";
+}
+
+}  // namespace
+}  // namespace vh::tissue
