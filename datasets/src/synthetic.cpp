@@ -240,20 +240,42 @@ TriangleMesh makeBuiltinTool(const std::string& name) {
   throw std::invalid_argument("unknown built-in tool '" + name + "' (peg, probe, drill, sphere)");
 }
 
+ScalarVolume makeGelWithInclusionVolume() {
+  GridSpec grid;
+  grid.dims = {48, 48, 40};
+  grid.spacing_m = Eigen::Vector3d::Constant(0.5e-3);
+  grid.origin_W_m = Eigen::Vector3d(-11.75e-3, -11.75e-3, 0.0);
+  const VolumeGeometry g = geometryOf(grid);
+  std::vector<float> voxels(g.voxelCount());
+  std::size_t idx = 0;
+  for (int k = 0; k < grid.dims[2]; ++k)
+    for (int j = 0; j < grid.dims[1]; ++j)
+      for (int i = 0; i < grid.dims[0]; ++i, ++idx) {
+        const Eigen::Vector3d p = g.origin_W_m + grid.spacing_m.cwiseProduct(Eigen::Vector3d(i, j, k));
+        double v = std::clamp(kGelValue / 2.0 + kGelValue / 2.0 * (kGelTop_m - p.z()) / 1e-3, 0.0, kGelValue);
+        if ((p - kGelInclusionCentre_m).norm() < kGelInclusionRadius_m) v = 2.0 * kGelValue;
+        if (p.z() < kGelPlate_m) v = 1000.0;  // the bone plate it lies on
+        voxels[idx] = static_cast<float>(v);
+      }
+  return ScalarVolume::FromVoxels(g, voxels);
+}
+
 ScalarVolume makeBuiltinVolume(const std::string& name) {
   GridSpec grid;  // 64^3 of 1 mm centred on the origin
   if (name == "block-with-hole") return makeBlockWithHoleVolume(256);
+  if (name == "gel-with-inclusion") return makeGelWithInclusionVolume();
   if (name == "plane") return makePlaneVolume(grid, Eigen::Vector3d::UnitZ(), 0.0);
   if (name == "sphere") return makeSphereVolume(grid, Eigen::Vector3d::Zero(), 0.020);
   if (name == "thin-plate") return makeThinPlateVolume(grid);
   if (name == "thin-shell") return makeThinShellVolume(grid, Eigen::Vector3d::Zero(), 0.020);
   if (name == "thin-tube") return makeThinTubeVolume(grid, 0.015);
   throw std::invalid_argument("unknown built-in volume '" + name +
-                              "' (block-with-hole, plane, sphere, thin-plate, thin-shell, thin-tube)");
+                              "' (block-with-hole, gel-with-inclusion, plane, sphere, thin-plate, thin-shell, thin-tube)");
 }
 
 double builtinIsovalue(const std::string& name) {
   if (name == "block-with-hole") return kBlockIsovalue;
+  if (name == "gel-with-inclusion") return kGelValue / 2.0;
   if (name == "thin-plate" || name == "thin-shell" || name == "thin-tube") return 127.5;
   if (name == "plane" || name == "sphere") return 0.0;
   throw std::invalid_argument("unknown built-in volume '" + name + "'");

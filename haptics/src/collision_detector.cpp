@@ -57,6 +57,9 @@ bool CollisionDetector::sweepPending() const noexcept { return impl_->sweepPendi
 const RigidMotion& CollisionDetector::pendingMotion() const noexcept { return impl_->pendingMotion(); }
 SweepResult CollisionDetector::resumeSweep() noexcept { return impl_->resumeSweep(); }
 void CollisionDetector::abandonSweep() noexcept { impl_->abandonSweep(); }
+void CollisionDetector::releaseClearContacts(const Pose& X_WP, double isovalue, double clearance_m) noexcept {
+  impl_->releaseClearContacts(X_WP, isovalue, clearance_m);
+}
 void CollisionDetector::forgetFieldProofs() noexcept {
   impl_->abandonSweep();
   impl_->forgetEdgeCertificates();

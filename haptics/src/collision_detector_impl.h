@@ -57,6 +57,7 @@ class CollisionDetector::Impl {
   SweepResult resumeSweep() noexcept;
   void abandonSweep() noexcept { pending_.active = false; }
   void pruneContacts(const Pose& X_WP, const Pose& X_WD, double isovalue) noexcept;
+  void releaseClearContacts(const Pose& X_WP, double isovalue, double clearance_m) noexcept;
   void addContactsAt(const RigidMotion& motion, const SweepResult& hit, double isovalue) noexcept;
   bool refineStuckContact(const RigidMotion& motion, const SweepResult& hit) noexcept;
   void refreshPositions(const Pose& X_WP) noexcept;

@@ -93,6 +93,22 @@ void CollisionDetector::Impl::pruneContacts(const Pose& X_WP, const Pose& X_WD, 
   contact_count_ = kept;
 }
 
+void CollisionDetector::Impl::releaseClearContacts(const Pose& X_WP, double isovalue, double clearance_m) noexcept {
+  std::size_t kept = 0;
+  for (std::size_t i = 0; i < contact_count_; ++i) {
+    Contact c = contacts_[i];
+    const int j = c.point_index;
+    c.p_W_m = X_WP * c.p_T_m;
+    measureContact(c, isovalue, X_WP.R_AB);
+    if (c.clearance_m <= clearance_m || inside(c.p_W_m, isovalue)) {
+      contacts_[kept++] = c;
+    } else if (j >= 0) {
+      in_set_[j] = 0;
+    }
+  }
+  contact_count_ = kept;
+}
+
 void CollisionDetector::Impl::addContactsAt(const RigidMotion& motion, const SweepResult& hit, double isovalue) noexcept {
   if (hit.hit_point < 0) return;
   const auto& points = tool_->point_shell.points_T_m();

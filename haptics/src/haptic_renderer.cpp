@@ -191,6 +191,10 @@ void HapticRenderer::resetProxy(const Pose& X_WP) noexcept {
 
 void HapticRenderer::noteFieldChanged() noexcept {
   collision_.forgetFieldProofs();
+  // Contacts the surface moved away from no longer hold the proxy: released beyond an eighth
+  // of epsilon (twice the clearance measurement's resolution), so that the proxy follows a
+  // receding surface to within that, not to within epsilon (the pruning's rule, for a still one).
+  if (std::isfinite(last_isovalue_)) collision_.releaseClearContacts(X_WP_, last_isovalue_, collision_.epsilon_m() / 8.0);
   embedded_scan_needed_ = true;
   edges_free_isovalue_ = std::numeric_limits<double>::quiet_NaN();
 }

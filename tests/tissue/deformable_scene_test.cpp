@@ -12,6 +12,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <cstdlib>
 #include <memory>
 #include <vector>
 
@@ -21,10 +22,9 @@
 #include "vh/haptics/crossing_verifier.h"
 #include "vh/haptics/haptic_renderer.h"
 #include "vh/haptics/tool_model.h"
-#include "vh/tissue/contact_lcp.h"
 #include "vh/tissue/deformable_scene.h"
 #include "vh/tissue/deformed_field.h"
-#include "vh/tissue/hex_element.h"
+#include "sphere_contact_reference.h"
 
 namespace vh::tissue {
 namespace {
@@ -69,48 +69,6 @@ std::shared_ptr<const haptics::ToolModel> sphereTool(double radius_m) {
       haptics::makeToolModel(datasets::makeSphereMesh(radius_m, 4), shell, 1000.0));
 }
 
-/// The exact frictionless contact of a rigid sphere (radius R, lowest point d below the rest
-/// top surface at (x, y)) with the lattice, from the full static solve: the rest surface sampled
-/// every 0.25 mm within 0.9 R, each sample's vertical compliance interpolated from the corner
-/// nodes' (StaticSolver::compliance), the LCP solved by Lawson-Hanson. Returns the total force [N].
-double referenceForce_N(const TissueRegion& region, const StaticSolver& solver, double R, double d,
-                        const Eigen::Vector2d& xy) {
-  const HexLattice& L = region.model.lattice();
-  std::vector<Eigen::Vector3d> samples;
-  for (double dx = -0.9 * R; dx <= 0.9 * R; dx += 0.25e-3)
-    for (double dy = -0.9 * R; dy <= 0.9 * R; dy += 0.25e-3)
-      if (dx * dx + dy * dy <= 0.81 * R * R) samples.emplace_back(xy.x() + dx, xy.y() + dy, kTop_m);
-  // The corner nodes' z dofs (free ones) and each sample's weights on them.
-  std::vector<int> dofs, slot(static_cast<std::size_t>(L.dofCount()), -1);
-  std::vector<std::vector<std::pair<int, double>>> weights(samples.size());
-  for (std::size_t s = 0; s < samples.size(); ++s) {
-    const HexLattice::Location at = L.locate(samples[s]);
-    if (at.element < 0) continue;
-    const Eigen::Matrix<double, 8, 1> N = hexShapeFunctions(at.xi);
-    for (int a = 0; a < 8; ++a) {
-      const int dof = 3 * L.elementNodes(at.element)[static_cast<std::size_t>(a)] + 2;
-      if (N(a) == 0.0 || solver.isFixed(dof)) continue;
-      if (slot[static_cast<std::size_t>(dof)] < 0) {
-        slot[static_cast<std::size_t>(dof)] = static_cast<int>(dofs.size());
-        dofs.push_back(dof);
-      }
-      weights[s].emplace_back(slot[static_cast<std::size_t>(dof)], N(a));
-    }
-  }
-  const Eigen::MatrixXd Cn = solver.compliance(dofs);
-  const auto m = static_cast<Eigen::Index>(samples.size());
-  Eigen::MatrixXd P = Eigen::MatrixXd::Zero(m, static_cast<Eigen::Index>(dofs.size()));
-  Eigen::VectorXd delta(m);
-  for (Eigen::Index s = 0; s < m; ++s) {
-    for (const auto& [col, w] : weights[static_cast<std::size_t>(s)]) P(s, col) = w;
-    const double r2 = (samples[static_cast<std::size_t>(s)].head<2>() - xy).squaredNorm();
-    delta(s) = d - (R - std::sqrt(R * R - r2));  // how far the sample must go down to clear the sphere
-  }
-  const Eigen::MatrixXd C = P * Cn * P.transpose() + 1e-15 * Eigen::MatrixXd::Identity(m, m);
-  const ContactSolution sol = solveFrictionlessContact(C, delta, 1e-12);
-  return sol.force_N.sum();
-}
-
 struct PressRecord {
   double depth_m = 0.0;   // the proxy sphere's lowest point below the rest surface
   double force_N = 0.0;   // what the hand feels (+z up)
@@ -144,6 +102,10 @@ TEST(TissueDeformableScene, TheSolverFeelsTheGelYieldByTheFullSolveAndNeverEnter
   const auto tick = [&](const haptics::Pose& X) {
     const DeformableStep s = scene.step(X, renderer);
     step_us.push_back(s.step_us);
+    if (s.step_us > 3000 && std::getenv("VH_DEBUG_TISSUE"))
+      std::printf("slow step %d: %.0f us: gather %.0f solve %.0f displace %.0f resample %.0f write %.0f, window %d, written %d\n",
+                  ticks, s.step_us, s.gather_us, s.solve_us, s.displace_us, s.resample_us, s.write_us, s.window_voxels,
+                  s.voxels_written);
     parts.gather_us += s.gather_us;
     parts.solve_us += s.solve_us;
     parts.displace_us += s.displace_us;
@@ -198,7 +160,7 @@ TEST(TissueDeformableScene, TheSolverFeelsTheGelYieldByTheFullSolveAndNeverEnter
   const double k_eps = ro.gains.linear_N_per_m * renderer.epsilon_m();
   std::printf("  (the coupling times the collision tolerance, k epsilon = %.3f mN)\n", 1e3 * k_eps);
   for (const PressRecord& r : records) {
-    const double reference = referenceForce_N(scene.region(), solver, R, r.depth_m, xy);
+    const double reference = sphereContactForce_N(scene.region(), solver, R, r.depth_m, xy, kTop_m);
     const double hertz = 4.0 / 3.0 * materialPreset("gel").contactModulus_Pa() * std::sqrt(R) * std::pow(r.depth_m, 1.5);
     std::printf("  %9.3f  %9.3f  %18.3f  %23.3f  %10.3f  %9.3f\n", 1e3 * r.depth_m, 1e3 * r.force_N, 1e3 * r.push_N,
                 1e3 * reference, 1e3 * hertz, r.force_N / reference);

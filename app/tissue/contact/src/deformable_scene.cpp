@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <chrono>
+#include <climits>
 #include <cmath>
 #include <limits>
 #include <stdexcept>
@@ -60,6 +61,50 @@ DeformableScene::DeformableScene(std::shared_ptr<const haptics::ScalarVolume> sc
         for (int i = lo[0]; i <= hi[0]; ++i)
           if (!(scan_->voxel(i, j, k) > isovalue_)) mask[geo.indexOf(i, j, k)] = 1;
     outside_depth_ = haptics::DistanceField::FromMask(geo, mask, 0.0);
+    // The surface band over the same box: per voxel, how many voxel steps (26-neighbours, at
+    // most 255) to the nearest voxel with a 6-neighbour on the other side of the isovalue. A
+    // voxel farther from the surface than it is displaced (plus two voxels) keeps its value's
+    // side and cannot move the isosurface: step() leaves it at rest without resampling it.
+    band_lo_ = lo;
+    for (int a = 0; a < 3; ++a) band_dims_[a] = hi[a] - lo[a] + 1;
+    band_.assign(static_cast<std::size_t>(band_dims_[0]) * band_dims_[1] * band_dims_[2], 255);
+    std::vector<std::size_t> queue;
+    const auto at = [&](int i, int j, int k) {
+      return static_cast<std::size_t>(i - lo[0]) +
+             static_cast<std::size_t>(band_dims_[0]) * (static_cast<std::size_t>(j - lo[1]) +
+                                                       static_cast<std::size_t>(band_dims_[1]) * static_cast<std::size_t>(k - lo[2]));
+    };
+    for (int k = lo[2]; k <= hi[2]; ++k)
+      for (int j = lo[1]; j <= hi[1]; ++j)
+        for (int i = lo[0]; i <= hi[0]; ++i) {
+          const bool in = scan_->voxel(i, j, k) > isovalue_;
+          const bool straddles = (scan_->voxel(i - 1, j, k) > isovalue_) != in || (scan_->voxel(i + 1, j, k) > isovalue_) != in ||
+                                 (scan_->voxel(i, j - 1, k) > isovalue_) != in || (scan_->voxel(i, j + 1, k) > isovalue_) != in ||
+                                 (scan_->voxel(i, j, k - 1) > isovalue_) != in || (scan_->voxel(i, j, k + 1) > isovalue_) != in;
+          if (straddles) {
+            band_[at(i, j, k)] = 0;
+            queue.push_back(at(i, j, k));
+          }
+        }
+    for (std::size_t head = 0; head < queue.size(); ++head) {
+      const std::size_t q = queue[head];
+      const int i = static_cast<int>(q % static_cast<std::size_t>(band_dims_[0]));
+      const int j = static_cast<int>((q / static_cast<std::size_t>(band_dims_[0])) % static_cast<std::size_t>(band_dims_[1]));
+      const int k = static_cast<int>(q / (static_cast<std::size_t>(band_dims_[0]) * static_cast<std::size_t>(band_dims_[1])));
+      const int next = band_[q] + 1;
+      if (next >= 255) continue;
+      for (int dk = -1; dk <= 1; ++dk)
+        for (int dj = -1; dj <= 1; ++dj)
+          for (int di = -1; di <= 1; ++di) {
+            const int a = i + di, b = j + dj, c = k + dk;
+            if (a < 0 || b < 0 || c < 0 || a >= band_dims_[0] || b >= band_dims_[1] || c >= band_dims_[2]) continue;
+            const std::size_t r = static_cast<std::size_t>(a) +
+                                  static_cast<std::size_t>(band_dims_[0]) * (static_cast<std::size_t>(b) + static_cast<std::size_t>(band_dims_[1]) * static_cast<std::size_t>(c));
+            if (band_[r] <= next) continue;
+            band_[r] = static_cast<std::uint8_t>(next);
+            queue.push_back(r);
+          }
+    }
   }
 
   felt_ = std::make_shared<haptics::ScalarVolume>(*scan_);
@@ -182,6 +227,15 @@ bool DeformableScene::displacementAt(const Eigen::Vector3d& X_G, Eigen::Vector3d
   return true;
 }
 
+bool DeformableScene::inBand(int i, int j, int k, double displacement_m) const noexcept {
+  const int a = i - band_lo_[0], b = j - band_lo_[1], c = k - band_lo_[2];
+  if (a < 0 || b < 0 || c < 0 || a >= band_dims_[0] || b >= band_dims_[1] || c >= band_dims_[2]) return true;
+  const int steps = band_[static_cast<std::size_t>(a) +
+                          static_cast<std::size_t>(band_dims_[0]) *
+                              (static_cast<std::size_t>(b) + static_cast<std::size_t>(band_dims_[1]) * static_cast<std::size_t>(c))];
+  return steps < 255 && steps <= displacement_m / spacing_m_.minCoeff() + 2.0;
+}
+
 double DeformableScene::deformedValue(int i, int j, int k) const noexcept {
   const Eigen::Vector3d p = spacing_m_.cwiseProduct(Eigen::Vector3d(i, j, k));
   Eigen::Vector3d X = p, u;
@@ -194,7 +248,8 @@ double DeformableScene::deformedValue(int i, int j, int k) const noexcept {
       if (it == 0) return scan_->voxel(i, j, k);  // not in a touchable cell: rest
       break;
     }
-    if (it == 0 && u.squaredNorm() < tolerance_m * tolerance_m) return scan_->voxel(i, j, k);  // not moved
+    if (it == 0 && (u.squaredNorm() < tolerance_m * tolerance_m || !inBand(i, j, k, u.norm())))
+      return scan_->voxel(i, j, k);  // not moved, or too far from the surface to move it
     const Eigen::Vector3d next = p - u;
     const bool converged = (next - X).squaredNorm() < tolerance_m * tolerance_m;
     X = next;
@@ -355,17 +410,23 @@ DeformableStep DeformableScene::step(const haptics::Pose& X_WD, haptics::HapticR
   }
   const bool all_points_checked = proxy_points_W_.size() < proxy_points_W_.capacity();
 
+  // Only the voxels whose value changes are written; their box is what the bounds refresh.
+  std::array<int, 3> c_lo{INT_MAX, INT_MAX, INT_MAX}, c_hi{-1, -1, -1};
   const auto write = [&](double alpha) {
     std::size_t q = 0;
     int changed = 0;
     for (int k = u_lo[2]; k <= u_hi[2]; ++k)
       for (int j = u_lo[1]; j <= u_hi[1]; ++j)
         for (int i = u_lo[0]; i <= u_hi[0]; ++i, ++q) {
+          if (new_raw_[q] == old_raw_[q]) continue;
           const double raw = old_raw_[q] + alpha * (new_raw_[q] - old_raw_[q]);
           const std::size_t index = geo.indexOf(i, j, k);
           const double before = felt_->rawAt(index);
           felt_->writeRaw(index, raw);
-          changed += felt_->rawAt(index) != before;
+          if (felt_->rawAt(index) == before) continue;
+          ++changed;
+          c_lo = {std::min(c_lo[0], i), std::min(c_lo[1], j), std::min(c_lo[2], k)};
+          c_hi = {std::max(c_hi[0], i), std::max(c_hi[1], j), std::max(c_hi[2], k)};
         }
     return changed;
   };
@@ -395,7 +456,7 @@ DeformableStep DeformableScene::step(const haptics::Pose& X_WD, haptics::HapticR
   out.felt_fraction = alpha;
   out.voxels_written = changed;
   if (changed > 0) {
-    felt_->refreshRegion(u_lo, u_hi);
+    felt_->refreshRegion(c_lo, c_hi);
     renderer.noteFieldChanged();
   }
   // The window now held: this one when written in full or in part; the union's old part is at

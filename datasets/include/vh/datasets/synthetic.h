@@ -99,7 +99,21 @@ haptics::TriangleMesh translated(haptics::TriangleMesh mesh, const Eigen::Vector
 /// @throws std::invalid_argument for an unknown name.
 haptics::TriangleMesh makeBuiltinTool(const std::string& name);
 
-/// Built-in volumes: "block-with-hole", "plane" (z < 0 inside, 64^3 of 1 mm), "sphere"
+/// The soft-tissue test case: a gel block (value kGelValue) 24 x 24 mm wide with its top at
+/// z = kGelTop_m, the top blurred over 2 mm (linear from 0 to kGelValue) as a scan's partial
+/// volume blurs it, holding a ball of stiffer inclusion (2 kGelValue, radius
+/// kGelInclusionRadius_m, centre kGelInclusionCentre_m) and lying on a bone plate (1000, below
+/// kGelPlate_m); 48 x 48 x 40 float voxels of 0.5 mm, x and y centred on the origin, z from 0.
+/// Its isovalue, kGelValue / 2, puts the surface at kGelTop_m. A scene's "tissue" section makes
+/// the gel and the inclusion yield (the presets "gel" and "gel inclusion").
+inline constexpr double kGelValue = 100.0;
+inline constexpr double kGelTop_m = 0.016;
+inline constexpr double kGelPlate_m = 0.001;
+inline constexpr double kGelInclusionRadius_m = 0.0035;
+inline const Eigen::Vector3d kGelInclusionCentre_m{0.005, 0.0, 0.011};
+haptics::ScalarVolume makeGelWithInclusionVolume();
+
+/// Built-in volumes: "block-with-hole", "gel-with-inclusion" (above), "plane" (z < 0 inside, 64^3 of 1 mm), "sphere"
 /// (radius 20 mm, 64^3 of 1 mm), "thin-plate" (64^3 of 1 mm), "thin-shell" (radius 20 mm, 64^3
 /// of 1 mm), "thin-tube" (radius 15 mm along z, 64^3 of 1 mm). Isovalue: see builtinIsovalue().
 /// @throws std::invalid_argument for an unknown name.

@@ -99,6 +99,10 @@ class CollisionDetector {
   /// pending sweep and the edge test's clearance certificates (which assume a field that only
   /// falls, as drilling's). No allocation.
   void forgetFieldProofs() noexcept;
+  /// After the field was rewritten: each contact is measured again at the proxy pose X_WP and
+  /// released when it is now farther than `clearance_m` from the isosurface (the surface moved
+  /// away from it: it no longer holds the proxy, which may follow the surface). No allocation.
+  void releaseClearContacts(const Pose& X_WP, double isovalue, double clearance_m) noexcept;
 
   /// Step 2: keeps the contacts that, moved epsilon from X_WP towards X_WD, are inside or move
   /// against their normal (the first-order form of the same test, needed because contacts are

@@ -135,6 +135,8 @@ class DeformableScene {
   void gatherContacts(const haptics::Pose& X_WD, const haptics::ToolModel& tool, DeformableStep& out) noexcept;
   // u(X) [m] at a material point (false outside cells whose corners are all touchable: u is 0).
   bool displacementAt(const Eigen::Vector3d& X_G, Eigen::Vector3d& u) const noexcept;
+  // Whether voxel (i, j, k), displaced by displacement_m, may move the isosurface (band_).
+  bool inBand(int i, int j, int k, double displacement_m) const noexcept;
   // The deformed F at the centre of voxel (i, j, k).
   double deformedValue(int i, int j, int k) const noexcept;
 
@@ -147,6 +149,9 @@ class DeformableScene {
   std::unique_ptr<SurfaceCompliance> compliance_;
   std::unique_ptr<CompliantContact> contact_;
   haptics::DistanceField outside_depth_;  // distance to the nearest voxel outside the rest surface
+  // Per voxel of the box about the lattice (x fastest): voxel steps to the rest surface, 255 far.
+  std::vector<std::uint8_t> band_;
+  std::array<int, 3> band_lo_{0, 0, 0}, band_dims_{0, 0, 0};
   Eigen::Vector3d origin_W_ = Eigen::Vector3d::Zero();
   Eigen::Matrix3d D_W_ = Eigen::Matrix3d::Identity();
   Eigen::Vector3d spacing_m_ = Eigen::Vector3d::Ones();
