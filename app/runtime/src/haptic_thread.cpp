@@ -668,7 +668,7 @@ void HapticThread::solverLoop() noexcept {
     const std::uint32_t gains_flags = followGains(in.gains, st.gains, *renderer_) ? kRecordFlagGainsApplied : 0u;
     const std::uint32_t placement_flags = applyPlacement(st, x_->placed, *renderer_, placements_applied_);
     SolverTickResult t;
-    if (in.ok) renderSolverSample(st, in, *renderer_, options_.drill.get(), cutting_held_, drilling_, t);
+    if (in.ok) renderSolverSample(st, in, *renderer_, options_.drill.get(), cutting_held_, drilling_, t, options_.tissue.get());
     const std::uint32_t jam_flags = st.jam.update(t.stuck) ? kRecordFlagJam : 0u;
     ProxyState& proxy = x_->proxy.writeSlot();
     proxy.X_WP = renderer_->proxyPose();

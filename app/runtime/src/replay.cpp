@@ -1,6 +1,8 @@
 // Replaying recordings: the replay device and the bit-for-bit re-run (vh/runtime/replay.h).
 #include "vh/runtime/replay.h"
 
+#include "vh/tissue/deformable_scene.h"
+
 #include <algorithm>
 #include <cstring>
 #include <stdexcept>
@@ -231,6 +233,7 @@ ReplayComparison replayRecording(const LoadedScene& scene, const Recording& reco
     haptics::CutResult cut;
     const bool drill_on = ok && servo.drill != nullptr && (r.flags & kRecordFlagDrillOn) != 0;
     if (ok) {
+      if (servo.tissue != nullptr) (void)servo.tissue->step(sample.X_WD, *renderer);  // as the live solver did
       out = renderer->tick(sample.X_WD, r.isovalue);
       ++result.ticks_replayed;
       if (drill_on) cut = servo.drill->step(*renderer, out);

@@ -1,5 +1,7 @@
 #include "vh/runtime/runner.h"
 
+#include "vh/tissue/deformable_scene.h"
+
 #include "vh/runtime/burr_load.h"
 #include "vh/runtime/jam_detector.h"
 #include "vh/runtime/placement.h"
@@ -435,6 +437,7 @@ struct HeadlessRun {
   double samples_sum = 0.0;
   double eroded_mm3 = 0.0;  // the drill's eroded volume after the last tick
   ServoTechnique* technique = nullptr;  // the technique rules, or null
+  tissue::DeformableScene* tissue = nullptr;  // soft tissue stepped before each tick, or null
 };
 
 /// One tick's device sample, what the renderer made of it and the command the device got.
@@ -458,6 +461,7 @@ void renderRunTick(HeadlessRun& run, std::uint64_t i, RunTick& t) {
   t.isovalue = run.trajectory.isovalueAt(t.sample.time_s, run.s);
   t.X_WP_before = run.renderer.proxyPose();
   if (t.sample_ok) {
+    if (run.tissue != nullptr) (void)run.tissue->step(t.sample.X_WD, run.renderer);
     t.out = run.renderer.tick(t.sample.X_WD, t.isovalue);
     run.X_WD_used = t.sample.X_WD;
   } else {
@@ -642,12 +646,16 @@ RunReport runHeadless(const LoadedScene& scene, const Trajectory& trajectory, co
   // after each tick's checks; the checks read that carved field.
   DrillingRenderer servo = makeServoRenderer(LiveValues::initial(scene), renderer_options, X_WD_first, options.servo_rate_Hz);
   Drill* const drill = servo.drill.get();
-  const haptics::ScalarVolume& felt = drill != nullptr ? drill->removal().volume() : volume;
+  // With tissue, its deformed field (rewritten in place before each tick): the checks read it.
+  const haptics::ScalarVolume& felt = drill != nullptr        ? drill->removal().volume()
+                                      : servo.tissue != nullptr ? *servo.tissue->feltVolume()
+                                                                : volume;
   r.epsilon_m = servo.renderer->epsilon_m();
   r.work_budget = servo.renderer->workBudget();
   // The same without the budget: the lag.
+  // (Not with tissue: the reference would feel the rigid scan, not the tissue's field.)
   std::unique_ptr<haptics::HapticRenderer> reference =
-      makeLagReference(scene, renderer_options, X_WD_first, options, r.work_budget);
+      servo.tissue != nullptr ? nullptr : makeLagReference(scene, renderer_options, X_WD_first, options, r.work_budget);
   ProxyLag lag;
   std::optional<haptics::CrossingVerifier> verifier;
   haptics::ShellEdges shell_edges;
@@ -687,6 +695,7 @@ RunReport runHeadless(const LoadedScene& scene, const Trajectory& trajectory, co
                   proximity_tally ? &*proximity_tally : nullptr, jam, times_us, r, X_WD_first};
   const std::unique_ptr<ServoTechnique> technique = makeServoTechnique(LiveValues::initial(scene), drill);
   run.technique = technique.get();
+  run.tissue = servo.tissue.get();
   const auto wall_begin = std::chrono::steady_clock::now();
   for (std::uint64_t i = 0; i < n; ++i) {
     RunTick t;

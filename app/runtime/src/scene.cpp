@@ -172,6 +172,7 @@ LiveValues LiveValues::initial(const LoadedScene& scene) {
   live.segments = scene.segments;
   live.segmentation = scene.spec.segmentation;
   live.drill = scene.spec.drill;
+  live.tissue = scene.spec.tissue;
   live.scan_in_HU = inHounsfieldUnits(scene.volume);
   live.technique = scene.spec.technique;
   return live;

@@ -1,6 +1,7 @@
 // Scene files (scene.h): the JSON reader with its checks and messages, the data folders a
 // scene's relative paths are looked for in, and the scenes made without a file.
 #include "vh/runtime/scene.h"
+#include "vh/tissue/material.h"
 
 #include <algorithm>
 #include <cmath>
@@ -53,6 +54,8 @@ class ObjectReader {
     throw std::runtime_error(source_ + ": " + (field.empty() ? std::string() : field + ": ") + problem);
   }
   std::string fieldPath(const std::string& key) const { return path_.empty() ? key : path_ + "." + key; }
+  /// The scene's name in errors (for a reader of a nested object, which must outlive none of it).
+  const std::string& source() const noexcept { return source_; }
 
   /// Throws for a key not in `known`.
   void allowOnly(std::initializer_list<const char*> known) const {
@@ -494,6 +497,44 @@ DrillSpec readDrill(const ObjectReader& drill) {
   return d;
 }
 
+/// The "tissue" section (tissue_scene.h): value bands with their materials.
+TissueSpec readTissue(const ObjectReader& t) {
+  t.allowOnly({"bands", "rigid_above", "cell_size_m", "touchable_layers"});
+  TissueSpec spec;
+  const json& bands = t.at("bands");
+  if (!bands.is_array() || bands.empty())
+    t.fail(t.fieldPath("bands"), "expected a list of {\"min\", \"max\", \"material\"}, found " + bands.dump());
+  for (std::size_t b = 0; b < bands.size(); ++b) {
+    const ObjectReader band(bands[b], t.fieldPath("bands") + "[" + std::to_string(b) + "]", t.source());
+    band.allowOnly({"min", "max", "material"});
+    TissueBand out;
+    out.min = band.number("min");
+    out.max = band.number("max");
+    if (!(out.max > out.min)) band.fail(band.fieldPath("max"), "must exceed min");
+    out.material = band.string("material");
+    bool known = false;
+    std::string names;
+    for (const tissue::Material& m : tissue::materialPresets()) {
+      known = known || m.name == out.material;
+      names += (names.empty() ? "" : ", ") + m.name;
+    }
+    if (!known) band.fail(band.fieldPath("material"), "unknown material '" + out.material + "' (presets: " + names + ")");
+    spec.bands.push_back(out);
+  }
+  if (t.has("rigid_above")) spec.rigid_above = t.number("rigid_above");
+  if (t.has("cell_size_m")) {
+    spec.cell_size_m = t.number("cell_size_m");
+    if (!(spec.cell_size_m >= 0.0005 && spec.cell_size_m <= 0.02))
+      t.fail(t.fieldPath("cell_size_m"), "expected 0.0005 to 0.02 (0.5 to 20 mm), found " + json(spec.cell_size_m).dump());
+  }
+  if (t.has("touchable_layers")) {
+    const std::size_t layers = t.count("touchable_layers");
+    if (layers > 4) t.fail(t.fieldPath("touchable_layers"), "expected 1 to 4, found " + std::to_string(layers));
+    spec.touchable_layers = static_cast<int>(layers);
+  }
+  return spec;
+}
+
 /// The "technique" section (technique.h): the rules' levels and times.
 TechniqueRules readTechnique(const ObjectReader& t) {
   t.allowOnly({"on", "safe_force_N", "safe_force_by_material_N", "force_hold_s", "near_critical_m",
@@ -541,7 +582,7 @@ SceneSpec parseScene(const std::string& json_text, const std::string& source, co
   }
   const ObjectReader top(root, "", source);
   top.allowOnly({"description", "volume", "tool", "coupling", "device", "segmentation", "openigtlink", "drill",
-                 "technique"});
+                 "technique", "tissue"});
 
   SceneSpec spec;
   spec.source = source;
@@ -553,6 +594,12 @@ SceneSpec parseScene(const std::string& json_text, const std::string& source, co
   if (top.has("openigtlink")) spec.openigtlink = readOpenIgtlink(top.object("openigtlink"));
   if (top.has("drill")) spec.drill = readDrill(top.object("drill"));
   if (top.has("technique")) spec.technique = readTechnique(top.object("technique"));
+  if (top.has("tissue")) {
+    spec.tissue = readTissue(top.object("tissue"));
+    if (spec.drill) top.fail("tissue", "not with \"drill\": cutting soft tissue is not supported yet");
+    if (spec.segmentation && !spec.segmentation->felt.empty())
+      top.fail("tissue", "not with felt segments: the tissue's surface is the scan's isosurface");
+  }
   return spec;
 }
 

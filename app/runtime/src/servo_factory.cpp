@@ -11,6 +11,8 @@
 #include <utility>
 
 #include "vh/haptics/worker_pool.h"
+#include "vh/runtime/tissue_scene.h"
+#include "vh/tissue/deformable_scene.h"
 
 namespace vh::runtime {
 
@@ -73,7 +75,20 @@ PreparedDrill prepareServoDrill(const LiveValues& live) {
 
 DrillingRenderer makeServoRenderer(const LiveValues& live, const haptics::RendererOptions& options,
                                    const haptics::Pose& X_WP, double servo_rate_Hz, PreparedDrill* prepared) {
-  if (!live.drill) return {makeRenderer(live, options, X_WP), nullptr};
+  if (live.tissue) {
+    if (live.drill) throw std::invalid_argument("tissue: not with a drill (cutting soft tissue is not supported yet)");
+    if (live.feltSegments()) throw std::invalid_argument("tissue: not with felt segments");
+    if (live.tool == nullptr) throw std::invalid_argument("tissue needs a tool");
+    DrillingRenderer out;
+    out.tissue = makeTissueScene(*live.tissue, live.scan_field, live.isovalue, live.scan_in_HU);
+    haptics::RendererOptions with_gains = options;
+    with_gains.gains = live.gains;
+    with_gains.edge_test = live.tool_spec.edge_test ? 1 : 0;
+    out.renderer = std::make_unique<haptics::HapticRenderer>(out.tissue->feltVolume(), live.tool, with_gains, X_WP,
+                                                             live.isovalue);
+    return out;
+  }
+  if (!live.drill) return {makeRenderer(live, options, X_WP), nullptr, nullptr};
   if (live.hapticField() == nullptr || live.scan_field == nullptr)
     throw std::invalid_argument("drilling needs a volume");
   haptics::RendererOptions with_gains = options;
@@ -111,6 +126,7 @@ std::unique_ptr<HapticThread> makeHapticThread(const LiveValues& live, std::shar
                                          options.solver_rate_Hz > 0.0 ? options.solver_rate_Hz : servo_rate_Hz,
                                          prepared);
   with_segments.drill = r.drill;
+  with_segments.tissue = r.tissue;
   with_segments.technique = makeServoTechnique(live, r.drill.get());
   auto thread = std::make_unique<HapticThread>(std::move(r.renderer), std::move(device), live.hapticIsovalue(),
                                                servo_rate_Hz, with_segments);

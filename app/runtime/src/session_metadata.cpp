@@ -347,8 +347,30 @@ json drillJson(const DrillSpec& spec) {
   return drill;
 }
 
+/// The soft tissue (tissue_scene.h), as the scene file gives it: what a replay needs to deform it
+/// as the session did.
+json tissueJson(const TissueSpec& spec) {
+  json t;
+  t["bands"] = json::array();
+  for (const TissueBand& b : spec.bands) t["bands"].push_back({{"min", b.min}, {"max", b.max}, {"material", b.material}});
+  if (spec.rigid_above) t["rigid_above"] = *spec.rigid_above;
+  t["cell_size_m"] = spec.cell_size_m;
+  t["touchable_layers"] = spec.touchable_layers;
+  return t;
+}
+
+/// The recorded "tissue" (tissueJson()).
+TissueSpec tissueFromJson(const json& t) {
+  TissueSpec spec;
+  for (const json& b : t.at("bands")) spec.bands.push_back({b.at("min").get<double>(), b.at("max").get<double>(), b.at("material").get<std::string>()});
+  if (t.contains("rigid_above")) spec.rigid_above = t.at("rigid_above").get<double>();
+  spec.cell_size_m = t.value("cell_size_m", spec.cell_size_m);
+  spec.touchable_layers = t.value("touchable_layers", spec.touchable_layers);
+  return spec;
+}
+
 /// The scene as the session ran it: the volume as loaded, the tool, the coupling, the
-/// segmentation and the drill.
+/// segmentation, the drill and the tissue.
 json sceneJson(const LoadedScene& scene, const LiveValues& live) {
   const SceneSpec& spec = scene.spec;
   json sc;
@@ -375,6 +397,7 @@ json sceneJson(const LoadedScene& scene, const LiveValues& live) {
   if (live.drill) {  // what a replay needs to cut as the session did
     sc["drill"] = drillJson(*live.drill);
   }
+  if (live.tissue) sc["tissue"] = tissueJson(*live.tissue);  // what a replay needs to deform it as the session did
   sc["technique"] = techniqueJson(live.technique);
   return sc;
 }
@@ -469,6 +492,7 @@ SceneSpec sceneFromSessionMetadata(const std::string& metadata_json) {
     spec.gains.passivity_control = sc.at("coupling").value("passivity_control", false);
     if (sc.contains("segmentation")) spec.segmentation = segmentationFromJson(sc.at("segmentation"));
     if (sc.contains("drill")) spec.drill = drillFromJson(sc.at("drill"));
+    if (sc.contains("tissue")) spec.tissue = tissueFromJson(sc.at("tissue"));
     if (sc.contains("technique")) spec.technique = techniqueFromJson(sc.at("technique"));
   } catch (const json::exception& e) {
     throw std::runtime_error(std::string("session metadata: bad \"scene\": ") + e.what());

@@ -11,6 +11,7 @@
 #include <span>
 
 #include "vh/haptics/haptic_renderer.h"
+#include "vh/tissue/deformable_scene.h"
 #include "vh/runtime/burr_load.h"
 #include "vh/runtime/critical_proximity.h"
 #include "vh/runtime/drilling.h"
@@ -110,13 +111,16 @@ struct SolverTickResult {
   bool stuck = false;  // a jam candidate (jam_detector.h)
 };
 
-/// Renders a good sample `in`, tests it for a jam and cuts with the burr when the drill runs
-/// (`drilling`: the switch or the sample's button, unless cutting is held).
+/// Renders a good sample `in` (after the tissue's step, when there is tissue), tests it for a jam
+/// and cuts with the burr when the drill runs (`drilling`: the switch or the sample's button,
+/// unless cutting is held).
 inline void renderSolverSample(SolverState& st, const CouplingSample& in, haptics::HapticRenderer& renderer,
                                Drill* drill, const std::atomic<bool>& cutting_held, const std::atomic<bool>& drilling,
-                               SolverTickResult& t) noexcept {
+                               SolverTickResult& t, tissue::DeformableScene* tissue = nullptr) noexcept {
   st.X_WD_used = in.X_WD;
   const haptics::Pose X_WP_before = renderer.proxyPose();
+  // Soft tissue yields to this sample first: the renderer then feels the deformed field.
+  if (tissue != nullptr) (void)tissue->step(in.X_WD, renderer);
   t.out = renderer.tick(in.X_WD, in.isovalue);
   t.bad_input = t.out.stats.bad_input;
   if (t.bad_input) ++st.rejected;

@@ -29,6 +29,10 @@
 #include "vh/haptics/tool_model.h"
 #include "vh/runtime/segments.h"
 
+namespace vh::tissue {
+class DeformableScene;
+}
+
 namespace vh::runtime {
 
 /// The voxels a burr removed from a felt field: the drilled state that outlives the renderer
@@ -163,6 +167,9 @@ class Drill {
 struct DrillingRenderer {
   std::unique_ptr<haptics::HapticRenderer> renderer;
   std::shared_ptr<Drill> drill;
+  /// Soft tissue (tissue_scene.h): the renderer feels its field, which its step() rewrites before
+  /// each tick; null: none. Never with a drill.
+  std::shared_ptr<tissue::DeformableScene> tissue;
 };
 
 /// The costly half of a drilling renderer, which does not depend on the proxy: a private copy of

@@ -67,6 +67,10 @@
 #include "vh/runtime/thread_timing.h"
 #include "vh/runtime/triple_buffer.h"
 
+namespace vh::tissue {
+class DeformableScene;
+}
+
 namespace vh::runtime {
 
 class SnapshotChannel;  // snapshot_channel.h
@@ -108,6 +112,10 @@ struct HapticThreadOptions {
   /// tick with a usable sample runs Drill::step() after the renderer's tick, on the solver
   /// thread (no allocation, no lock), and its record carries kRecordFlagDrillOn. Null: no drill.
   std::shared_ptr<Drill> drill;
+  /// Soft tissue (tissue_scene.h): the deformable scene whose field the renderer feels (the same
+  /// object makeServoRenderer() built it on). Every solver tick with a usable sample runs its
+  /// step() before the renderer's tick, on the solver thread (no allocation, no lock). Null: none.
+  std::shared_ptr<tissue::DeformableScene> tissue;
   /// The technique rules (technique.h), evaluated by the solver thread after every tick with a
   /// usable sample (and the drill's cut); their active bits go into the record's flags
   /// (recordTechniqueBits()) and the GUI's snapshot. Null: no rules. Shared only to keep the

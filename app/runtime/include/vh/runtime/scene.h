@@ -17,6 +17,8 @@
 ///                    "felt": ["facial nerve"], "shown": ["facial nerve", "sigmoid sinus"],
 ///                    "critical": ["facial nerve"], "smoothing_voxels": 1.0},
 ///   "openigtlink": {"port": 18944, "rate_Hz": 60}, // optional: stream to 3D Slicer (off when absent)
+///   "tissue": {"bands": [{"min": 20, "max": 80, "material": "brain grey matter"}]},  // optional:
+///                                                // soft tissue that yields (tissue_scene.h)
 ///   "technique": {"safe_force_N": 3.0, "safe_force_by_material_N": {"facial nerve": 0.5},
 ///                 "force_hold_s": 0.5, "near_critical_m": 0.003,
 ///                 "max_speed_near_critical_m_per_s": 0.01, "shaft_margin_m": 0.0005,
@@ -32,7 +34,7 @@
 /// "classic/ct-bunny/bunny.nhdr" from classic/ct-bunny.tar.zst).
 /// Tool meshes may also be "builtin:peg", "builtin:probe", "builtin:drill" (see vh::datasets).
 /// Volumes may be "builtin:block-with-hole", "builtin:plane", "builtin:sphere", "builtin:thin-plate",
-/// "builtin:thin-shell", "builtin:thin-tube".
+/// "builtin:thin-shell", "builtin:thin-tube", "builtin:gel-with-inclusion" (soft tissue: "tissue").
 /// Optional keys: a top-level "description" (text, ignored); "initial_pose" may give only
 /// "q_wxyz" (the tool keeps that orientation and is placed automatically). Every other key is
 /// an error (typos are caught), as are unreadable or missing referenced files.
@@ -54,6 +56,7 @@
 #include "vh/runtime/haptic_thread.h"
 #include "vh/runtime/segments.h"
 #include "vh/runtime/technique.h"
+#include "vh/runtime/tissue_scene.h"
 
 namespace vh::runtime {
 
@@ -146,6 +149,9 @@ struct SceneSpec {
   std::optional<SegmentationSpec> segmentation;  ///< Absent: no segments.
   std::optional<OpenIgtlinkSpec> openigtlink;  ///< Absent: no OpenIGTLink server (the default).
   std::optional<DrillSpec> drill;  ///< Absent: the tool only touches (no drilling state at all).
+  /// Soft tissue (tissue_scene.h): a region of the scan that yields. Absent: all rigid, and no
+  /// tissue state at all.
+  std::optional<TissueSpec> tissue;
   /// Live feedback on technique (technique.h); absent from the file: the default rules.
   TechniqueRules technique;
 };
@@ -295,6 +301,8 @@ struct LiveValues {
   std::optional<DrillSpec> drill;
   bool scan_in_HU = false;                        ///< The scan is CT in HU (drilling's hardness classes).
   TechniqueRules technique;                       ///< The technique rules the servo loop checks.
+  /// Soft tissue (tissue_scene.h): the haptic threads feel it yield; absent: all rigid.
+  std::optional<TissueSpec> tissue;
 
   /// The values `scene` was loaded with (its field, isovalue, spec.gains, tool, spec.tool,
   /// X_WT_initial, segments, spec.segmentation, spec.technique).
