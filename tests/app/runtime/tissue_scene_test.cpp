@@ -4,6 +4,9 @@
 // finds nothing), and a record / replay round trip that deforms it tick for tick as the run did.
 #include "vh/runtime/tissue_scene.h"
 
+#include <cstdio>
+#include <filesystem>
+
 #include <gtest/gtest.h>
 
 #include "runtime_test_support.h"
@@ -105,6 +108,33 @@ TEST(TissueScene, HeadlessRunFeelsTheGelYieldAndReplaysIt) {
   SceneSpec without = replayed_scene.spec;
   without.tissue.reset();
   EXPECT_FALSE(replayRecording(loadScene(without), recording).identical);
+}
+
+// The brain of the shared small CT head (64 x 64 x 93 voxels of 3.2 x 3.2 x 1.5 mm, the
+// classic "headsq": brain about 900-1180, bone above 1300 in its units) as tissue on a 4 mm
+// lattice: its whole surface is touchable, so the compliance table (9 S^2 floats) would not fit;
+// the scene is refused before any solve, naming the size and what to change.
+TEST(TissueScene, ARegionWhoseTableWouldNotFitIsRefusedWithItsSize) {
+  const auto head = sharedDatasetsDir() / "ct" / "ct-head-small";
+  if (!std::filesystem::exists(head)) GTEST_SKIP() << "shared dataset absent: " << head;
+  SceneSpec spec = sceneForVolume(head);
+  spec.volume.isovalue = 900.0;
+  spec.volume.isovalue_set = true;
+  const LoadedScene scene = loadScene(spec);
+  TissueSpec brain;
+  brain.bands = {{900.0, 1180.0, "brain grey matter"}};
+  brain.rigid_above = 1300.0;
+  brain.cell_size_m = 0.004;
+  try {
+    (void)makeTissueScene(brain, scene.volume.field, 900.0, false);
+    FAIL() << "a table past the limit was built";
+  } catch (const std::invalid_argument& e) {
+    std::printf("CT head brain, 4 mm lattice: %s\n", e.what());
+    const std::string what = e.what();
+    EXPECT_NE(what.find("touchable nodes"), std::string::npos) << what;
+    EXPECT_NE(what.find("GB"), std::string::npos) << what;
+    EXPECT_NE(what.find("cell_size_m"), std::string::npos) << what;
+  }
 }
 
 }  // namespace

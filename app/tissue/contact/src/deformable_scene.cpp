@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <chrono>
 #include <climits>
+#include <cstdio>
 #include <cmath>
 #include <limits>
 #include <stdexcept>
@@ -25,7 +26,7 @@ DeformableScene::DeformableScene(std::shared_ptr<const haptics::ScalarVolume> sc
   if (!scan_ || scan_->empty()) throw std::invalid_argument("deformable scene: no scan");
   if (!std::isfinite(isovalue_)) throw std::invalid_argument("deformable scene: the isovalue is not finite");
   if (options_.max_contacts < 1 || options_.max_nodes < 8 || options_.max_sweeps < 1 ||
-      options_.max_window_voxels < 8 || options_.compliance_threads < 1 || options_.max_proxy_points < 1 || options_.touchable_layers < 1 || !(options_.contact_margin_m >= 0.0) ||
+      options_.max_window_voxels < 8 || options_.compliance_threads < 1 || options_.max_proxy_points < 1 || options_.touchable_layers < 1 || !(options_.max_table_bytes > 0.0) || !(options_.contact_margin_m >= 0.0) ||
       !(options_.window_margin_m >= 0.0) || !std::isfinite(options_.contact_margin_m) ||
       !std::isfinite(options_.window_margin_m))
     throw std::invalid_argument("deformable scene: bad options (capacities >= 1, margins >= 0 and finite)");
@@ -37,14 +38,37 @@ DeformableScene::DeformableScene(std::shared_ptr<const haptics::ScalarVolume> sc
   const LatticeGeometry& lg = L.geometry();
   const Eigen::Vector3d lattice_hi = lg.origin_W_m + lg.spacing_m * lg.cells.cast<double>();
   const Eigen::Vector3d grid_hi = spacing_m_.cwiseProduct(Eigen::Vector3d(geo.dims[0] - 1, geo.dims[1] - 1, geo.dims[2] - 1));
-  if ((lg.origin_W_m.array() < -lg.spacing_m).any() || (lattice_hi.array() > (grid_hi.array() + lg.spacing_m)).any())
+  // The region's lattice covers the grid's voxel boxes, its last cell past them by less than a cell.
+  if ((lg.origin_W_m.array() < -(lg.spacing_m + spacing_m_.array())).any() ||
+      (lattice_hi.array() > (grid_hi.array() + lg.spacing_m + spacing_m_.array())).any())
     throw std::invalid_argument("deformable scene: the tissue's lattice leaves the scan's grid");
   margin_m_ = options_.contact_margin_m > 0.0 ? options_.contact_margin_m : geo.minSpacing();
   window_margin_m_ = options_.window_margin_m > 0.0 ? options_.window_margin_m : 2.0 * lg.spacing_m;
 
+  // The table's size is known before any solve: refused up front when it would not fit.
+  const std::vector<int> touchable = outerLayerNodes(L, options_.touchable_layers);
+  {
+    std::vector<char> held(static_cast<std::size_t>(L.dofCount()), 0);
+    for (const int dof : region_.fixed_dofs)
+      if (dof >= 0 && dof < L.dofCount()) held[static_cast<std::size_t>(dof)] = 1;
+    double free_nodes = 0.0;
+    for (const int n : touchable)
+      free_nodes += !(held[static_cast<std::size_t>(3 * n)] && held[static_cast<std::size_t>(3 * n + 1)] &&
+                      held[static_cast<std::size_t>(3 * n + 2)]);
+    const double bytes = 36.0 * free_nodes * free_nodes;
+    if (bytes > options_.max_table_bytes) {
+      char message[512];
+      std::snprintf(message, sizeof message,
+                    "deformable scene: the compliance table would hold %.0f touchable nodes of %d (%.2f GB, limit %.2f GB) "
+                    "and take %.0f solves of %d unknowns to build: use a coarser lattice (cell_size_m, now %.1f mm), "
+                    "fewer touchable layers (now %d) or a smaller region",
+                    free_nodes, L.nodeCount(), bytes / 1e9, options_.max_table_bytes / 1e9, 3.0 * free_nodes,
+                    L.dofCount(), lg.spacing_m * 1e3, options_.touchable_layers);
+      throw std::invalid_argument(message);
+    }
+  }
   solver_ = std::make_unique<StaticSolver>(region_.model, region_.fixed_dofs);
-  compliance_ = std::make_unique<SurfaceCompliance>(*solver_, outerLayerNodes(L, options_.touchable_layers),
-                                                     options_.compliance_threads);
+  compliance_ = std::make_unique<SurfaceCompliance>(*solver_, touchable, options_.compliance_threads);
   contact_ = std::make_unique<CompliantContact>(L, *compliance_, options_.max_contacts, options_.max_nodes);
 
   // The depth of a point deep in the tissue: its distance to the nearest voxel outside the rest

@@ -71,6 +71,9 @@ struct DeformableSceneOptions {
   int touchable_layers = 2;
   /// Worker threads for the compliance table at construction (>= 1).
   int compliance_threads = 1;
+  /// Largest compliance table accepted [bytes] (9 S^2 floats for S touchable nodes): a region
+  /// whose table would be larger is refused before any solve, with its figures.
+  double max_table_bytes = 1024.0 * 1024.0 * 1024.0;
   /// Most proxy points checked against the new field in one step (the workspace); a step with
   /// more of them in its window writes nothing (the tool's surface is never entered).
   int max_proxy_points = 65536;
@@ -104,7 +107,8 @@ class DeformableScene {
   /// @param region the tissue cut from it (buildTissueRegion() on the scan's grid: frame G).
   /// @param isovalue the surface felt, F = s [data units].
   /// @throws std::invalid_argument on an empty scan, a region whose lattice leaves the scan's
-  ///         grid, a non-finite isovalue, bad options, or a region with no touchable node.
+  ///         grid, a non-finite isovalue, bad options, a region with no touchable node, or one
+  ///         whose compliance table would exceed max_table_bytes (the message gives its size).
   DeformableScene(std::shared_ptr<const haptics::ScalarVolume> scan, TissueRegion region, double isovalue,
                   const DeformableSceneOptions& options = {});
 
