@@ -18,6 +18,7 @@
 
 #include <gtest/gtest.h>
 
+#include "allocation_guard.h"
 #include "vh/datasets/synthetic.h"
 #include "vh/haptics/crossing_verifier.h"
 #include "vh/haptics/haptic_renderer.h"
@@ -98,9 +99,15 @@ TEST(TissueDeformableScene, TheSolverFeelsTheGelYieldByTheFullSolveAndNeverEnter
   std::vector<double> step_us;
   step_us.reserve(4000);
   DeformableStep parts;  // summed
+  std::size_t step_allocations = 0;
   double worst_inside = -1e300;
   const auto tick = [&](const haptics::Pose& X) {
-    const DeformableStep s = scene.step(X, renderer);
+    DeformableStep s;
+    {
+      const test::AllocationGuard guard;  // the servo path never allocates
+      s = scene.step(X, renderer);
+      step_allocations += guard.count();
+    }
     step_us.push_back(s.step_us);
     if (s.step_us > 3000 && std::getenv("VH_DEBUG_TISSUE"))
       std::printf("slow step %d: %.0f us: gather %.0f solve %.0f displace %.0f resample %.0f write %.0f, window %d, written %d\n",
@@ -194,6 +201,16 @@ TEST(TissueDeformableScene, TheSolverFeelsTheGelYieldByTheFullSolveAndNeverEnter
   EXPECT_NEAR(surface_z, proxy_bottom, 0.1e-3) << "the tissue does not hold the tool where the full solve puts it";
   EXPECT_EQ(crossings, 0);
   EXPECT_EQ(inside_after, 0);
+  EXPECT_EQ(step_allocations, 0u) << "the tissue's step allocated on the servo path";
+
+  // A NaN device pose (a device fault): nothing is solved or written, the proxy stays.
+  {
+    haptics::Pose bad = X_WD;
+    bad.p_AB_m.x() = std::nan("");
+    const DeformableStep s = scene.step(bad, renderer);
+    EXPECT_EQ(s.contact.contacts, 0);
+    EXPECT_EQ(s.voxels_written, 0);
+  }
 
   // Released: up and away; the field goes back to the scan's voxels exactly.
   for (int t = 0; t < 600; ++t) {
