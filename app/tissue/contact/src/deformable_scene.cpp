@@ -43,7 +43,7 @@ DeformableScene::DeformableScene(std::shared_ptr<const haptics::ScalarVolume> sc
       (lattice_hi.array() > (grid_hi.array() + lg.spacing_m + spacing_m_.array())).any())
     throw std::invalid_argument("deformable scene: the tissue's lattice leaves the scan's grid");
   margin_m_ = options_.contact_margin_m > 0.0 ? options_.contact_margin_m : geo.minSpacing();
-  window_margin_m_ = options_.window_margin_m > 0.0 ? options_.window_margin_m : 2.0 * lg.spacing_m;
+  window_margin_m_ = options_.window_margin_m > 0.0 ? options_.window_margin_m : lg.spacing_m;
 
   // The table's size is known before any solve: refused up front when it would not fit.
   const std::vector<int> touchable = outerLayerNodes(L, options_.touchable_layers);

@@ -59,7 +59,9 @@ struct DeformableSceneOptions {
   /// Gauss-Seidel sweeps per tick at most (warm-started from the last tick's pushes).
   int max_sweeps = 30;
   /// The window written about the contacts' material points: their box grown by this [m];
-  /// 0: two lattice cells.
+  /// 0: one lattice cell. (Measured on vh_tissue_tick_report's gel, 2 mm cells: one cell and two
+  /// give the same forces with windows of 6,292 and 18,000 voxels; 1 mm let the window's edge,
+  /// where the field returns to rest, meet the sliding ball: peak force 0.96 N against 0.28 N.)
   double window_margin_m = 0.0;
   /// Most voxels written in one tick (the window is clipped about the deepest contact beyond it);
   /// sets the workspace, allocated once.
