@@ -130,6 +130,17 @@ std::string RunReport::toJson() const {
   j["segments"] = segmentContactsJson(segment_contacts);
   j["proximity"] = proximityJson(proximity);
   if (drill) addDrillJson(j, *drill);
+  if (tissue) {
+    nlohmann::ordered_json t;
+    t["max_indentation_m"] = tissue->max_indentation_m;
+    t["max_push_N"] = tissue->max_push_N;
+    t["force_by_indentation"] = nlohmann::ordered_json::array();
+    for (const auto& [indentation_m, force_N] : tissue->force_by_indentation)
+      t["force_by_indentation"].push_back({{"indentation_m", indentation_m}, {"max_force_N", force_N}});
+    t["mean_step_us"] = tissue->mean_step_us;
+    t["max_step_us"] = tissue->max_step_us;
+    j["tissue"] = t;
+  }
   nlohmann::ordered_json technique;
   for (int k = 0; k < kTechniqueRuleCount; ++k)
     technique[std::string(techniqueRuleName(k))] = technique_episodes[static_cast<std::size_t>(k)];

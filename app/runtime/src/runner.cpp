@@ -7,6 +7,7 @@
 #include "vh/runtime/placement.h"
 
 #include <algorithm>
+#include <array>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
@@ -438,6 +439,8 @@ struct HeadlessRun {
   double eroded_mm3 = 0.0;  // the drill's eroded volume after the last tick
   ServoTechnique* technique = nullptr;  // the technique rules, or null
   tissue::DeformableScene* tissue = nullptr;  // soft tissue stepped before each tick, or null
+  // Per rendered tick with tissue: the indentation [m], |force| [N], the push [N], the step [us].
+  std::vector<std::array<double, 4>> tissue_ticks{};
 };
 
 /// One tick's device sample, what the renderer made of it and the command the device got.
@@ -461,8 +464,11 @@ void renderRunTick(HeadlessRun& run, std::uint64_t i, RunTick& t) {
   t.isovalue = run.trajectory.isovalueAt(t.sample.time_s, run.s);
   t.X_WP_before = run.renderer.proxyPose();
   if (t.sample_ok) {
-    if (run.tissue != nullptr) (void)run.tissue->step(t.sample.X_WD, run.renderer);
+    tissue::DeformableStep step;
+    if (run.tissue != nullptr) step = run.tissue->step(t.sample.X_WD, run.renderer);
     t.out = run.renderer.tick(t.sample.X_WD, t.isovalue);
+    if (run.tissue != nullptr)
+      run.tissue_ticks.push_back({step.indentation_m, t.out.force_W_N.norm(), step.contact.force_on_device_N.norm(), step.step_us});
     run.X_WD_used = t.sample.X_WD;
   } else {
     t.out.X_WP = run.renderer.proxyPose();  // not rendered: the proxy stays, no force
@@ -600,6 +606,26 @@ void checkRunTick(HeadlessRun& run, std::uint64_t i, const RunTick& t) {
 /// After the last of the `n` ticks: the "drilled" event (what the burr removed in all), the
 /// recording closed, and the report's totals.
 /// @throws std::runtime_error naming the recording when one of its writes failed.
+/// Force against indentation from the rendered ticks (indentation, |force|, push, step us).
+TissueReport tissueReport(const std::vector<std::array<double, 4>>& ticks) {
+  TissueReport t;
+  for (const auto& k : ticks) {
+    t.max_indentation_m = std::max(t.max_indentation_m, k[0]);
+    t.max_push_N = std::max(t.max_push_N, k[2]);
+    t.mean_step_us += k[3] / static_cast<double>(ticks.size());
+    t.max_step_us = std::max(t.max_step_us, k[3]);
+  }
+  if (t.max_indentation_m > 0.0) {
+    for (int b = 1; b <= 10; ++b) t.force_by_indentation.emplace_back(t.max_indentation_m * b / 10.0, 0.0);
+    for (const auto& k : ticks) {
+      if (!(k[0] > 0.0)) continue;
+      const auto b = static_cast<std::size_t>(std::clamp(static_cast<int>(std::ceil(10.0 * k[0] / t.max_indentation_m)) - 1, 0, 9));
+      t.force_by_indentation[b].second = std::max(t.force_by_indentation[b].second, k[1]);
+    }
+  }
+  return t;
+}
+
 void finishRun(HeadlessRun& run, std::uint64_t n, std::chrono::steady_clock::time_point wall_begin) {
   RunReport& r = run.r;
   if (run.recorder && run.drill != nullptr && n > 0) {
@@ -616,6 +642,7 @@ void finishRun(HeadlessRun& run, std::uint64_t n, std::chrono::steady_clock::tim
   if (run.segment_tally) r.segment_contacts = run.segment_tally->segments();
   if (run.proximity_tally) r.proximity = run.proximity_tally->segments();
   if (run.drill != nullptr) r.drill = drillReport(*run.drill, run.scene);
+  if (run.tissue != nullptr) r.tissue = tissueReport(run.tissue_ticks);
   if (run.reference) reportLag(r, run.lag);
   if (run.guidance != nullptr) r.guidance = run.guidance->report(run.options.hand.has_value());
   r.total_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - wall_begin).count();

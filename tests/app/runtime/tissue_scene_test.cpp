@@ -98,6 +98,18 @@ TEST(TissueScene, HeadlessRunFeelsTheGelYieldAndReplaysIt) {
   EXPECT_LT(soft.max_force_N, 0.6 * rigid.max_force_N) << "the gel did not yield";
   EXPECT_EQ(soft.crossings, 0);
   EXPECT_LE(soft.max_penetration_m, soft.epsilon_m);
+  // Force against indentation in the report: the gel gave most of the 1.5 mm press (the rest is
+  // the coupling's stretch, force / k), and the force grows with the indentation.
+  ASSERT_TRUE(soft.tissue.has_value());
+  EXPECT_FALSE(rigid.tissue.has_value());
+  std::printf("indentation %.3f mm, push %.4f N; force by indentation:", soft.tissue->max_indentation_m * 1e3,
+              soft.tissue->max_push_N);
+  for (const auto& [d, f] : soft.tissue->force_by_indentation) std::printf(" %.2f mm %.3f N;", d * 1e3, f);
+  std::printf("\n");
+  EXPECT_NEAR(soft.tissue->max_indentation_m + soft.max_force_N / 200.0, 1.5e-3, 0.3e-3);
+  ASSERT_EQ(soft.tissue->force_by_indentation.size(), 10u);
+  EXPECT_GT(soft.tissue->force_by_indentation.back().second, soft.tissue->force_by_indentation[4].second);
+  EXPECT_NE(soft.toJson().find("\"force_by_indentation\""), std::string::npos);
 
   const Recording recording = readRecording(options.record);
   const LoadedScene replayed_scene = loadScene(sceneFromSessionMetadata(recording.metadata_json));

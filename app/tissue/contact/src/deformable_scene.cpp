@@ -299,6 +299,16 @@ DeformableStep DeformableScene::step(const haptics::Pose& X_WD, haptics::HapticR
   out.contact = contact_->solve({contacts_.data(), static_cast<std::size_t>(contact_count_)}, k_N_per_m, options_.max_sweeps);
   lap(out.solve_us);
   // The pushes, for the next step's warm start.
+  // The indentation: at a pushed contact the surface's recession is -gap - n . (proxy offset)
+  // (complementarity: the pushed points touch the deformed surface).
+  for (int q = 0; q < out.contact.contacts; ++q) {
+    if (!(contact_->pushes_N()(q) > 0.0)) continue;
+    const TissueContactPoint& c = contacts_[static_cast<std::size_t>(q)];
+    const double n_norm = c.n_G.norm();
+    if (!(n_norm > 0.0)) continue;
+    const double recession = -c.gap_m - (c.n_G / n_norm).dot(out.contact.proxy_offset_m);  // both in G
+    out.indentation_m = std::max(out.indentation_m, recession);
+  }
   std::fill(prev_point_.begin(), prev_point_.end(), -1);
   for (int q = 0; q < contact_count_ && q < out.contact.contacts; ++q) {
     prev_point_[static_cast<std::size_t>(q)] = contact_point_[static_cast<std::size_t>(q)];

@@ -161,6 +161,16 @@ struct DrillReport {
   std::string drilled_field_sha256;
 };
 
+/// Soft tissue in a run (scenes with a "tissue" section): force against indentation.
+struct TissueReport {
+  double max_indentation_m = 0.0;  ///< Deepest the tissue's surface gave under the tool [m].
+  double max_push_N = 0.0;         ///< Largest total push on the tissue [N].
+  /// Force against indentation: for each tenth of max_indentation_m (the bins' upper ends, m),
+  /// the largest |force| felt on the ticks whose indentation fell in it [N] (0: no tick there).
+  std::vector<std::pair<double, double>> force_by_indentation;
+  double mean_step_us = 0.0, max_step_us = 0.0;  ///< The tissue's step per tick [us] (wall).
+};
+
 /// What one headless run measured. Times are the renderer's TickStats::exec_time_us.
 struct RunReport {
   // Inputs.
@@ -200,6 +210,7 @@ struct RunReport {
   std::vector<SegmentProximityStats> proximity;
   /// Drilling: removed volume in all and per material / segment ("removed_mm3", "removed").
   std::optional<DrillReport> drill;
+  std::optional<TissueReport> tissue;    ///< Scenes with a "tissue" section.
   double mean_volume_samples = 0.0;      ///< Trilinear samples per tick.
   // Correctness.
   double max_penetration_m = 0.0;        ///< Largest first-order depth over all ticks [m].

@@ -90,6 +90,9 @@ struct DeformableStep {
   /// would have been swallowed, the rest follows; 0: nothing changed this tick).
   double felt_fraction = 1.0;
   double max_displacement_m = 0.0;  ///< Largest |u| over the window's touchable nodes [m].
+  /// The indentation [m]: how far the surface gave where the tool pushes, the largest recession
+  /// along its normal over the pushed contacts (the linear model's n . u at them); 0 untouched.
+  double indentation_m = 0.0;
   bool window_clipped = false;      ///< The window exceeded max_window_voxels and was clipped.
   double step_us = 0.0;             ///< Wall time of step() [us]; its parts below.
   double gather_us = 0.0;           ///< The tool's points near the rest surface (1.).
