@@ -723,6 +723,7 @@ RunReport runHeadless(const LoadedScene& scene, const Trajectory& trajectory, co
   const std::unique_ptr<ServoTechnique> technique = makeServoTechnique(LiveValues::initial(scene), drill);
   run.technique = technique.get();
   run.tissue = servo.tissue.get();
+  if (run.tissue != nullptr) run.tissue_ticks.reserve(n);  // as times_us: no growth in the loop
   const auto wall_begin = std::chrono::steady_clock::now();
   for (std::uint64_t i = 0; i < n; ++i) {
     RunTick t;

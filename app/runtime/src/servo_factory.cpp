@@ -16,12 +16,20 @@
 
 namespace vh::runtime {
 
-std::unique_ptr<haptics::HapticRenderer> makeRenderer(const LiveValues& live, haptics::RendererOptions options,
-                                                      const haptics::Pose& X_WP) {
+namespace {
+/// A renderer feeling `field` at live's felt isovalue with its gains, edge test and tool.
+std::unique_ptr<haptics::HapticRenderer> rendererOn(std::shared_ptr<const haptics::ScalarVolume> field,
+                                                    const LiveValues& live, haptics::RendererOptions options,
+                                                    const haptics::Pose& X_WP) {
   options.gains = live.gains;
   options.edge_test = live.tool_spec.edge_test ? 1 : 0;
-  return std::make_unique<haptics::HapticRenderer>(live.hapticField(), live.tool, options, X_WP,
-                                                   live.hapticIsovalue());
+  return std::make_unique<haptics::HapticRenderer>(std::move(field), live.tool, options, X_WP, live.hapticIsovalue());
+}
+}  // namespace
+
+std::unique_ptr<haptics::HapticRenderer> makeRenderer(const LiveValues& live, haptics::RendererOptions options,
+                                                      const haptics::Pose& X_WP) {
+  return rendererOn(live.hapticField(), live, std::move(options), X_WP);
 }
 
 std::unique_ptr<haptics::HapticRenderer> LoadedScene::makeRenderer(haptics::RendererOptions options,
@@ -81,11 +89,7 @@ DrillingRenderer makeServoRenderer(const LiveValues& live, const haptics::Render
     if (live.tool == nullptr) throw std::invalid_argument("tissue needs a tool");
     DrillingRenderer out;
     out.tissue = makeTissueScene(*live.tissue, live.scan_field, live.isovalue, live.scan_in_HU);
-    haptics::RendererOptions with_gains = options;
-    with_gains.gains = live.gains;
-    with_gains.edge_test = live.tool_spec.edge_test ? 1 : 0;
-    out.renderer = std::make_unique<haptics::HapticRenderer>(out.tissue->feltVolume(), live.tool, with_gains, X_WP,
-                                                             live.isovalue);
+    out.renderer = rendererOn(out.tissue->feltVolume(), live, options, X_WP);
     return out;
   }
   if (!live.drill) return {makeRenderer(live, options, X_WP), nullptr, nullptr};

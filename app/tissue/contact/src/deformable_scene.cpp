@@ -148,7 +148,7 @@ DeformableScene::DeformableScene(std::shared_ptr<const haptics::ScalarVolume> sc
     bool all = true;
     for (const int node : L.elementNodes(e)) all = all && compliance_->indexOf(node) >= 0;
     const Eigen::Vector3i c = L.elementCell(e);
-    cell_touchable_[static_cast<std::size_t>(c.x() + lg.cells.x() * (c.y() + lg.cells.y() * c.z()))] = all ? 1 : 0;
+    cell_touchable_[cellIndex(c.x(), c.y(), c.z())] = all ? 1 : 0;
   }
   // The window's workspace: the largest window plus the last one (what goes back to rest).
   old_raw_.reserve(static_cast<std::size_t>(2 * options_.max_window_voxels));
@@ -236,7 +236,7 @@ bool DeformableScene::displacementAt(const Eigen::Vector3d& X_G, Eigen::Vector3d
     c[a] = std::min(static_cast<int>(t[a]), lg.cells[a] - 1);  // the top face belongs to the last cell
     f[a] = t[a] - c[a];
   }
-  if (cell_touchable_[static_cast<std::size_t>(c[0] + lg.cells.x() * (c[1] + lg.cells.y() * c[2]))] == 0) return false;
+  if (cell_touchable_[cellIndex(c[0], c[1], c[2])] == 0) return false;
   // Trilinear over the cell's corners (the hexahedron's shape functions on a cube).
   const std::size_t nx = static_cast<std::size_t>(node_dims_.x()), nxy = nx * static_cast<std::size_t>(node_dims_.y());
   const std::size_t base = static_cast<std::size_t>(c[0]) + nx * static_cast<std::size_t>(c[1]) + nxy * static_cast<std::size_t>(c[2]);
@@ -298,7 +298,6 @@ DeformableStep DeformableScene::step(const haptics::Pose& X_WD, haptics::HapticR
   const double k_N_per_m = renderer.coupling().gains().linear_N_per_m;
   out.contact = contact_->solve({contacts_.data(), static_cast<std::size_t>(contact_count_)}, k_N_per_m, options_.max_sweeps);
   lap(out.solve_us);
-  // The pushes, for the next step's warm start.
   // The indentation: at a pushed contact the surface's recession is -gap - n . (proxy offset)
   // (complementarity: the pushed points touch the deformed surface).
   for (int q = 0; q < out.contact.contacts; ++q) {
@@ -309,6 +308,7 @@ DeformableStep DeformableScene::step(const haptics::Pose& X_WD, haptics::HapticR
     const double recession = -c.gap_m - (c.n_G / n_norm).dot(out.contact.proxy_offset_m);  // both in G
     out.indentation_m = std::max(out.indentation_m, recession);
   }
+  // The pushes, for the next step's warm start.
   std::fill(prev_point_.begin(), prev_point_.end(), -1);
   for (int q = 0; q < contact_count_ && q < out.contact.contacts; ++q) {
     prev_point_[static_cast<std::size_t>(q)] = contact_point_[static_cast<std::size_t>(q)];

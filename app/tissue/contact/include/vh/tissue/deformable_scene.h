@@ -142,6 +142,12 @@ class DeformableScene {
   Eigen::Vector3d toG(const Eigen::Vector3d& p_W) const noexcept { return D_W_.transpose() * (p_W - origin_W_); }
   // Gathers the tool points near the rest surface at X_WD into contacts_ (the deepest kept).
   void gatherContacts(const haptics::Pose& X_WD, const haptics::ToolModel& tool, DeformableStep& out) noexcept;
+  // The index of lattice grid cell (a, b, c), x fastest (cell_touchable_).
+  std::size_t cellIndex(int a, int b, int c) const noexcept {
+    const Eigen::Vector3i& cells = region_.model.lattice().geometry().cells;
+    return static_cast<std::size_t>(a) +
+           static_cast<std::size_t>(cells.x()) * (static_cast<std::size_t>(b) + static_cast<std::size_t>(cells.y()) * static_cast<std::size_t>(c));
+  }
   // u(X) [m] at a material point (false outside cells whose corners are all touchable: u is 0).
   bool displacementAt(const Eigen::Vector3d& X_G, Eigen::Vector3d& u) const noexcept;
   // Whether voxel (i, j, k), displaced by displacement_m, may move the isosurface (band_).
