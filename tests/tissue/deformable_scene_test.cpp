@@ -8,7 +8,9 @@
 //   - the tissue's shape under the pushes from the full static solve: the deformed surface
 //     touches the proxy's sphere and holds it out;
 //   - on every tick: no proxy point inside the felt field, 0 crossings by a dense check of the
-//     tick's motion (CrossingVerifier), and, released, the field back to the scan's voxels.
+//     tick's motion (CrossingVerifier), and, released, the field back to the scan's voxels;
+//   - what the view is given (takeDeformedWindow()): the felt field, voxel for voxel over the whole
+//     scan, whenever the field has settled under a held tool, and the rest state once released.
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
@@ -133,6 +135,28 @@ TEST(TissueDeformableScene, TheSolverFeelsTheGelYieldByTheFullSolveAndNeverEnter
     }
     return std::make_pair(out, s);
   };
+  // The view's picture of the tissue against the felt field, every voxel: the window's values
+  // inside its box, the scan's at rest outside it.
+  DeformedWindow shown;
+  const auto viewMismatches = [&]() {
+    const haptics::VolumeGeometry& g = scan->geometry();
+    std::size_t bad = 0, at = 0;
+    for (int k = 0; k < g.dims[2]; ++k)
+      for (int j = 0; j < g.dims[1]; ++j)
+        for (int i = 0; i < g.dims[0]; ++i) {
+          const bool in = !shown.empty() && i >= shown.lo[0] && i <= shown.hi[0] && j >= shown.lo[1] &&
+                          j <= shown.hi[1] && k >= shown.lo[2] && k <= shown.hi[2];
+          double view = scan->rawAt(g.indexOf(i, j, k));
+          if (in) {
+            at = static_cast<std::size_t>((i - shown.lo[0]) + (shown.hi[0] - shown.lo[0] + 1) *
+                                                               ((j - shown.lo[1]) + (shown.hi[1] - shown.lo[1] + 1) * (k - shown.lo[2])));
+            view = at < shown.values_F.size() ? shown.values_F[at] : std::nan("");
+          }
+          bad += !(std::abs(view - scene.feltVolume()->rawAt(g.indexOf(i, j, k))) <= 1e-4);
+        }
+    return bad;
+  };
+  int settled_holds = 0;
   const std::vector<double> holds{0.15e-3, 0.3e-3, 0.45e-3, 0.6e-3, 0.75e-3};
   double z = X_WD.p_AB_m.z();
   for (const double hold : holds) {
@@ -145,6 +169,12 @@ TEST(TissueDeformableScene, TheSolverFeelsTheGelYieldByTheFullSolveAndNeverEnter
     PressRecord r;
     for (int t = 0; t < 400; ++t) {
       const auto [out, s] = tick(X_WD);
+      if (t == 399 && s.voxels_written == 0) {  // settled: the step published the field as it is
+        ++settled_holds;
+        ASSERT_TRUE(scene.takeDeformedWindow(shown)) << "nothing published for the view at hold " << hold;
+        EXPECT_FALSE(shown.empty()) << "the view is told the tissue is at rest under the tool";
+        EXPECT_EQ(viewMismatches(), 0u) << "the view's picture differs from the felt field at hold " << hold;
+      }
       if (t < 300) continue;
       r.depth_m += (kTop_m - (out.X_WP.p_AB_m.z() - R)) / 100.0;
       r.force_N += out.force_W_N.z() / 100.0;
@@ -224,6 +254,12 @@ TEST(TissueDeformableScene, TheSolverFeelsTheGelYieldByTheFullSolveAndNeverEnter
   for (std::size_t v = 0; v < scan->geometry().voxelCount(); ++v)
     differing += scene.feltVolume()->rawAt(v) != scan->rawAt(v);
   EXPECT_EQ(differing, 0u) << "released, the gel did not spring back";
+  // The view follows: the tissue at rest, nothing left drawn deformed.
+  EXPECT_GE(settled_holds, 3) << "the field did not settle under a held tool";
+  ASSERT_TRUE(scene.takeDeformedWindow(shown));
+  EXPECT_TRUE(shown.empty());
+  EXPECT_EQ(viewMismatches(), 0u);
+  EXPECT_FALSE(scene.takeDeformedWindow(shown)) << "a second take without a new step";
 }
 
 }  // namespace

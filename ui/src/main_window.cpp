@@ -42,6 +42,7 @@
 #include "vh/ui/technique_alerts.h"
 #include "vh/ui/sound_output.h"
 #include "vh/ui/drill_controller.h"
+#include "vh/ui/tissue_controller.h"
 #include "vh/ui/tool_picker.h"
 #include "vh/ui/view/vtk_view.h"
 #include "vh/ui/view_controller.h"
@@ -168,6 +169,7 @@ void MainWindow::buildDocks() {
   addDockWidget(Qt::BottomDockWidgetArea, chart_dock_);
   segments_ = new SegmentsController(session_, *view_, this, statusBar(), prefs_, device_input_);
   drill_ = new DrillController(session_, *view_, this);
+  tissue_ = new TissueController(session_, *view_, this);
   sound_ = new SoundOutput(this);
   technique_ = new TechniqueAlerts(this);
   proximity_ = new ProximityAlerts(this);
@@ -175,6 +177,7 @@ void MainWindow::buildDocks() {
   // would be taller than a laptop screen.
   tabifyDockWidget(display_dock_, segments_->dock());
   tabifyDockWidget(segments_->dock(), haptics_dock_);
+  tabifyDockWidget(haptics_dock_, tissue_->dock());
   haptics_dock_->raise();
   resizeDocks({chart_dock_}, {190}, Qt::Vertical);
   resizeDocks({haptics_dock_}, {300}, Qt::Horizontal);
@@ -234,6 +237,8 @@ void MainWindow::connectParts() {
   connect(tool_picker_, &ToolPicker::message, this, show_message);
   connect(haptics_, &HapticsController::message, this, show_message);
   connect(drill_, &DrillController::message, this, show_message);
+  connect(tissue_, &TissueController::message, this, show_message);
+  connect(iso_bar_, &IsovalueBar::message, this, show_message);
   connect(sound_, &SoundOutput::message, this, show_message);
   connect(technique_, &TechniqueAlerts::message, this, show_message);
   connect(proximity_, &ProximityAlerts::message, this, show_message);

@@ -119,7 +119,7 @@ void addTable1Subcommand(CLI::App& bench, std::function<int()>& handler) {
   });
 }
 
-/// "bench accuracy", "bench stability" and "bench drilling" (the common options only).
+/// "bench accuracy", "bench stability", "bench drilling" and "bench tissue" (the common options only).
 void addAccuracyStabilityDrilling(CLI::App& bench, std::function<int()>& handler) {
   auto accuracy = std::make_shared<CommonOptions>();
   CLI::App* acc = bench.add_subcommand("accuracy", "Contact-position and normal error against tick time on exact "
@@ -143,6 +143,14 @@ void addAccuracyStabilityDrilling(CLI::App& bench, std::function<int()>& handler
   addCommonOptions(*drill, *drilling);
   drill->callback([&handler, drilling] {
     handler = [drilling] { return runGuarded("drilling", [&] { runDrilling(*drilling); }); };
+  });
+  auto tissue = std::make_shared<CommonOptions>();
+  CLI::App* soft = bench.add_subcommand("tissue", "Soft tissue: the whole tick with tissue against the rigid tick "
+                                                   "on the gel with an inclusion and the CT head's soft tissue, "
+                                                   "interleaved, and the tissue's step per lattice size");
+  addCommonOptions(*soft, *tissue);
+  soft->callback([&handler, tissue] {
+    handler = [tissue] { return runGuarded("tissue", [&] { runTissue(*tissue); }); };
   });
 }
 

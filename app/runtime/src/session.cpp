@@ -82,6 +82,17 @@ void Session::setIsovalue(double isovalue) {
   if (!std::isfinite(isovalue) || !has_scene_) return;
   const double clamped = std::clamp(isovalue, value_min_, value_max_);
   if (clamped == live_.isovalue) return;
+  if (live_.tissue && haptics_ != nullptr) {  // one surface for the tissue and the hand: rebuilt on it
+    const double before = live_.isovalue;
+    restartHaptics(
+        SessionChange::kIsovalue,
+        [&](const haptics::Pose& X_WP) {
+          live_.isovalue = clamped;
+          return X_WP;
+        },
+        [&] { live_.isovalue = before; });
+    return;
+  }
   live_.isovalue = clamped;
   // Felt segments: the isovalue sets only the scan's picture; the hand keeps the segments' surface.
   if (haptics_ != nullptr) haptics_->setIsovalue(live_.hapticIsovalue());

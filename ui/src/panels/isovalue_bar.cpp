@@ -3,6 +3,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <exception>
 
 #include <QDoubleSpinBox>
 #include <QHBoxLayout>
@@ -57,10 +58,10 @@ IsovalueBar::IsovalueBar(runtime::Session& session, QWidget* parent) : QWidget(p
   layout->addWidget(slider_, 1);
   layout->addWidget(spin_);
 
-  connect(slider_, &QSlider::valueChanged, this, [this](int position) { session_.setIsovalue(sliderToValue(position)); });
+  connect(slider_, &QSlider::valueChanged, this, [this](int position) { apply(sliderToValue(position)); });
   connect(slider_, &QSlider::sliderPressed, this, &IsovalueBar::dragStarted);
   connect(slider_, &QSlider::sliderReleased, this, &IsovalueBar::dragEnded);
-  connect(spin_, &QDoubleSpinBox::valueChanged, this, [this](double value) { session_.setIsovalue(value); });
+  connect(spin_, &QDoubleSpinBox::valueChanged, this, [this](double value) { apply(value); });
   observer_ = session_.addObserver([this](runtime::SessionChange what) { showSession(what); });
   showSession(runtime::SessionChange::kScene);
 }
@@ -72,7 +73,16 @@ void IsovalueBar::setHistogram(const Histogram& histogram, const std::string& un
   slider_->setHistogram(histogram, lo, hi, unit == "HU");
 }
 
-void IsovalueBar::step(int direction) { session_.setIsovalue(session_.isovalue() + direction * spin_->singleStep()); }
+void IsovalueBar::step(int direction) { apply(session_.isovalue() + direction * spin_->singleStep()); }
+
+void IsovalueBar::apply(double value) {
+  try {
+    session_.setIsovalue(value);
+  } catch (const std::exception& e) {
+    showSession(runtime::SessionChange::kIsovalue);  // the value kept
+    emit message(QString("The isovalue stays at %1: %2").arg(session_.isovalue(), 0, 'g', 6).arg(e.what()), 10000);
+  }
+}
 
 double IsovalueBar::sliderToValue(int position) const {
   const auto [lo, hi] = session_.valueRange();
@@ -109,6 +119,17 @@ void IsovalueBar::showSession(runtime::SessionChange what) {
       label_->setText("Isovalue");
       label_->setToolTip({});
     }
+  }
+  if (runtime::has(what, runtime::SessionChange::kScene)) {
+    // Soft tissue is rebuilt for each new surface (seconds): the slider applies where it is
+    // released, not at every step of a drag.
+    const bool tissue = on && session_.live().tissue.has_value();
+    slider_->setTracking(!tissue);
+    slider_->setToolTip(tissue ? "Isosurface value. This scene has soft tissue: its region and compliance are "
+                                 "rebuilt for the new surface where the slider is released (the force ramps to "
+                                 "zero meanwhile). Behind the slider: the volume's histogram (log scale)."
+                               : "Isosurface value: the rendered and the felt surface follow it live. Behind the "
+                                 "slider: the volume's histogram (log scale).");
   }
   if (on) {
     spin_->setValue(session_.isovalue());

@@ -309,7 +309,12 @@ void ReplayController::setTime(double t_s) {
   // Ticks of felt segments carry the segments' level, not the scan's isovalue: neither the
   // session nor the picture takes it (as RecordingFrameRenderer::show() for exports).
   const bool scan_isovalue = !session_.live().feltSegments();
-  if (std::isfinite(r.isovalue) && scan_isovalue) session_.setIsovalue(r.isovalue);
+  if (std::isfinite(r.isovalue) && scan_isovalue) {
+    try {
+      session_.setIsovalue(r.isovalue);
+    } catch (const std::exception&) {  // soft tissue not buildable there: the picture keeps the session's
+    }
+  }
   ToolFrame frame = toolFrameOf(r);  // the same picture as a live snapshot
   if (!scan_isovalue) frame.isovalue = std::numeric_limits<double>::quiet_NaN();
   view_.show(frame);

@@ -243,7 +243,56 @@ void SceneActors::removeVoxels(std::span<const std::uint64_t> indices, double va
   if (lo[0] <= hi[0]) drillable_->markChanged(lo, hi);
 }
 
+bool SceneActors::showVoxelBox(const std::array<int, 3>& lo, const std::array<int, 3>& hi,
+                               std::span<const float> values_F) {
+  if (image_ == nullptr) return false;
+  int dims[3];
+  image_->GetDimensions(dims);
+  const bool empty = hi[0] < lo[0] || hi[1] < lo[1] || hi[2] < lo[2];
+  std::size_t count = 1;
+  for (int a = 0; a < 3 && !empty; ++a) {
+    if (lo[a] < 0 || hi[a] >= dims[a]) return false;
+    count *= static_cast<std::size_t>(hi[a] - lo[a] + 1);
+  }
+  if (!empty && count != values_F.size()) return false;
+  const bool had = box_hi_[0] >= box_lo_[0];
+  if (empty && !had) return true;
+  prepareRemoval();
+  vtkDataArray* shown = drilled_image_->GetPointData()->GetScalars();
+  vtkDataArray* rest = image_->GetPointData()->GetScalars();
+  const bool integral = shown->GetDataType() != VTK_FLOAT && shown->GetDataType() != VTK_DOUBLE;
+  const auto inBox = [](int i, int j, int k, const std::array<int, 3>& l, const std::array<int, 3>& h) {
+    return i >= l[0] && i <= h[0] && j >= l[1] && j <= h[1] && k >= l[2] && k <= h[2];
+  };
+  const auto id = [&](int i, int j, int k) {
+    return static_cast<vtkIdType>(i) + static_cast<vtkIdType>(dims[0]) * (static_cast<vtkIdType>(j) + static_cast<vtkIdType>(dims[1]) * k);
+  };
+  if (had) {  // the last box, outside the new one: back to rest
+    for (int k = box_lo_[2]; k <= box_hi_[2]; ++k)
+      for (int j = box_lo_[1]; j <= box_hi_[1]; ++j)
+        for (int i = box_lo_[0]; i <= box_hi_[0]; ++i)
+          if (empty || !inBox(i, j, k, lo, hi)) shown->SetComponent(id(i, j, k), 0, rest->GetComponent(id(i, j, k), 0));
+    drillable_->markChanged(box_lo_.data(), box_hi_.data());
+  }
+  if (!empty) {
+    std::size_t at = 0;
+    for (int k = lo[2]; k <= hi[2]; ++k)
+      for (int j = lo[1]; j <= hi[1]; ++j)
+        for (int i = lo[0]; i <= hi[0]; ++i) {
+          const double v = values_F[at++];
+          shown->SetComponent(id(i, j, k), 0, integral ? std::round(v) : v);  // an integer scan: nearest
+        }
+    drillable_->markChanged(lo.data(), hi.data());
+  }
+  box_lo_ = lo;
+  box_hi_ = empty ? std::array<int, 3>{-1, -1, -1} : hi;
+  if (empty) box_lo_ = {0, 0, 0};
+  return true;
+}
+
 void SceneActors::restoreVolume() {
+  box_lo_ = {0, 0, 0};
+  box_hi_ = {-1, -1, -1};
   if (drilled_image_ == nullptr) return;
   drilled_image_ = nullptr;
   drillable_->clearPending();

@@ -155,6 +155,46 @@ DeformableScene::DeformableScene(std::shared_ptr<const haptics::ScalarVolume> sc
   new_raw_.reserve(static_cast<std::size_t>(2 * options_.max_window_voxels));
   proxy_points_W_.reserve(static_cast<std::size_t>(options_.max_proxy_points));
   proxy_old_F_.reserve(static_cast<std::size_t>(options_.max_proxy_points));
+  // The view's slots hold the largest window held (a window and the last one's union).
+  for (DeformedWindow& slot : view_slots_) slot.values_F.reserve(static_cast<std::size_t>(2 * options_.max_window_voxels));
+}
+
+void DeformableScene::publishView(Clock::time_point now, bool changed, const DeformableStep& step) noexcept {
+  view_dirty_ = view_dirty_ || changed;
+  if (!view_dirty_) return;
+  // While the field moves, at most every kViewPublishInterval_ms; the state it settles in always
+  // (the first step that changes nothing publishes it).
+  if (changed && std::chrono::duration<double, std::milli>(now - view_published_).count() < kViewPublishInterval_ms) return;
+  DeformedWindow& slot = view_slots_[view_write_];
+  slot.lo = last_lo_;
+  slot.hi = last_hi_;
+  slot.step = steps_;
+  slot.indentation_m = step.indentation_m;
+  slot.push_N = 0.0;
+  for (int q = 0; q < step.contact.contacts; ++q) slot.push_N += contact_->pushes_N()(q);
+  slot.felt_fraction = step.felt_fraction;
+  slot.values_F.clear();
+  if (!slot.empty()) {
+    std::size_t count = 1;
+    for (int a = 0; a < 3; ++a) count *= static_cast<std::size_t>(last_hi_[a] - last_lo_[a] + 1);
+    if (count > slot.values_F.capacity()) return;  // never reallocates (the held window fits: see the constructor)
+    const haptics::VolumeGeometry& geo = felt_->geometry();
+    const double scale = felt_->valueScale(), offset = felt_->valueOffset();
+    for (int k = last_lo_[2]; k <= last_hi_[2]; ++k)
+      for (int j = last_lo_[1]; j <= last_hi_[1]; ++j)
+        for (int i = last_lo_[0]; i <= last_hi_[0]; ++i)
+          slot.values_F.push_back(static_cast<float>(scale * felt_->rawAt(geo.indexOf(i, j, k)) + offset));
+  }
+  view_write_ = view_middle_.exchange(view_write_ | kFresh, std::memory_order_acq_rel) & ~kFresh;
+  view_published_ = now;
+  view_dirty_ = false;
+}
+
+bool DeformableScene::takeDeformedWindow(DeformedWindow& out) {
+  if ((view_middle_.load(std::memory_order_acquire) & kFresh) == 0) return false;
+  view_read_ = view_middle_.exchange(view_read_, std::memory_order_acq_rel) & ~kFresh;
+  out = view_slots_[view_read_];
+  return true;
 }
 
 void DeformableScene::gatherContacts(const haptics::Pose& X_WD, const haptics::ToolModel& tool,
@@ -285,6 +325,7 @@ double DeformableScene::deformedValue(int i, int j, int k) const noexcept {
 DeformableStep DeformableScene::step(const haptics::Pose& X_WD, haptics::HapticRenderer& renderer) noexcept {
   const auto start = Clock::now();
   DeformableStep out;
+  ++steps_;
   if (!X_WD.allFinite()) return out;
   const haptics::ToolModel& tool = renderer.tool();
   gatherContacts(X_WD, tool, out);
@@ -385,6 +426,7 @@ DeformableStep DeformableScene::step(const haptics::Pose& X_WD, haptics::HapticR
   }
   lap(out.displace_us);
   if (!window && !last_window) {
+    publishView(Clock::now(), false, out);
     out.step_us = std::chrono::duration<double, std::micro>(Clock::now() - start).count();
     return out;
   }
@@ -503,6 +545,7 @@ DeformableStep DeformableScene::step(const haptics::Pose& X_WD, haptics::HapticR
     last_lo_ = u_lo;
     last_hi_ = u_hi;
   }
+  publishView(phase, changed > 0, out);
   lap(out.write_us);
   out.step_us = std::chrono::duration<double, std::micro>(Clock::now() - start).count();
   return out;

@@ -56,6 +56,7 @@ class SegmentsController;
 class TechniqueAlerts;
 class ProximityAlerts;
 class DrillController;
+class TissueController;
 class SessionRecorder;
 class StatusLine;
 class SoundOutput;
@@ -118,6 +119,7 @@ class MainWindow : public QMainWindow {
   ViewController* viewController() const noexcept { return view_controller_; }
   ToolPicker* toolPicker() const noexcept { return tool_picker_; }
   DrillController* drillController() const noexcept { return drill_; }
+  TissueController* tissueController() const noexcept { return tissue_; }
   IsovalueBar* isovalueBar() const noexcept { return iso_bar_; }
   HapticsPanel* hapticsPanel() const noexcept { return haptics_panel_; }
   HapticsController* haptics() const noexcept { return haptics_; }
@@ -179,6 +181,7 @@ class MainWindow : public QMainWindow {
   StatusLine* status_ = nullptr;
   SegmentsController* segments_ = nullptr;
   DrillController* drill_ = nullptr;
+  TissueController* tissue_ = nullptr;
   StripChart* chart_ = nullptr;
   SoundOutput* sound_ = nullptr;  // the burr and the alerts; opened at its first use
   TechniqueAlerts* technique_ = nullptr;  // technique feedback: status and alert tone

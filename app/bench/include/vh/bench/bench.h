@@ -10,6 +10,8 @@
 ///              isosurfaces, swept over epsilon, segment_fraction and point-shell density;
 ///   stability  the coupling-stiffness sweep with the simulated device (vh::simulation) and a
 ///              table of extreme cases with their outcomes;
+///   tissue     the whole tick with soft tissue against the rigid tick on the same scenes, and
+///              the tissue's step per lattice size;
 ///   bigscan    a ~1 GB CT series: load time, peak memory, tree build, cancel, and
 ///              tick times against the small phantom's.
 /// Each writes a JSON report, a Markdown report and PNG plots (VTK charts rendered off screen;
@@ -150,6 +152,11 @@ std::filesystem::path runStability(const CommonOptions& options);
 /// on the CT head phantom, drilling against touching alone on the same trajectory in the same
 /// run (p99_9_ratio, max_ratio); writes drilling.json and drilling.md.
 std::filesystem::path runDrilling(const CommonOptions& options);
+/// `bench tissue`: the whole tick with soft tissue against the rigid tick on the same scenes (the
+/// gel with an inclusion; the shared small CT head's soft tissue when present), tick by tick
+/// interleaved, and the tissue's step per lattice size; writes tissue.json and tissue.md into
+/// the output folder (returned). @throws std::runtime_error when a report cannot be written.
+std::filesystem::path runTissue(const CommonOptions& options);
 
 /// The drilling benchmarks' scene on the CT at `volume`: bone (400 HU) felt, the built-in drill
 /// (2.5 mm ball burr) sampled every 1 mm, its burr spinning from the start when `drill_on`.

@@ -200,6 +200,9 @@ class HapticThread {
   /// The drill (HapticThreadOptions::drill), or null. Its removal log (MaterialRemoval::
   /// drainRemoved()) has one consumer: the picture.
   const std::shared_ptr<Drill>& drill() const noexcept { return options_.drill; }
+  /// The soft tissue (HapticThreadOptions::tissue), or null. Its deformed window
+  /// (DeformableScene::takeDeformedWindow()) has one consumer: the picture.
+  const std::shared_ptr<tissue::DeformableScene>& tissue() const noexcept { return options_.tissue; }
 
   /// Records every solver tick from the next one on into `recorder` (one TickRecord per solver
   /// tick, pushed without blocking or allocating; a full ring drops the record and the recorder

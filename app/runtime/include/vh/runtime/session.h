@@ -94,7 +94,12 @@ class Session {
   double isovalue() const noexcept { return live_.isovalue; }
   /// Sets the isovalue, clamped to valueRange(); the haptic thread applies it at its next tick
   /// (felt segments: the hand keeps the segments' surface, the isovalue sets the scan's picture).
+  /// Soft tissue (live().tissue): the tissue's region, depth field and compliance belong to one
+  /// surface, so the haptic threads are rebuilt on the new one (force ramped to zero, seconds for
+  /// thousands of lattice nodes); when that fails (no tissue left at the new surface) the old
+  /// isovalue stays, for the eyes and the hand, and the error is thrown.
   /// A non-finite value or no scene: ignored.
+  /// @throws std::invalid_argument (tissue only) naming why the tissue cannot be built there.
   void setIsovalue(double isovalue);
   const haptics::CouplingGains& gains() const noexcept { return live_.gains; }
   /// Sets the coupling gains [N/m], [N*m/rad] (applied at the haptic thread's next tick, clamped

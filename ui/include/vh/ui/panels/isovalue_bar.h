@@ -58,8 +58,12 @@ class IsovalueBar : public QWidget {
   /// The slider's handle was pressed / released (interactive frames meanwhile).
   void dragStarted();
   void dragEnded();
+  /// Why an isovalue was not taken (soft tissue that cannot be built on the new surface).
+  void message(const QString& text, int timeout_ms);
 
  private:
+  /// session_.setIsovalue(), an error said (message()) and the old value shown again.
+  void apply(double value);
   void showSession(runtime::SessionChange what);
 
   runtime::Session& session_;

@@ -82,6 +82,13 @@ class SceneActors {
   void prepareRemoval();
   /// Back to the scene's own image (drilling undone for the eyes: a rebuilt haptic thread).
   void restoreVolume();
+  /// Soft tissue: the voxel box [lo, hi] (indices of the scene's image, inclusive) takes
+  /// `values_F` (data units, x fastest, one per voxel of the box), and the voxels of the last box
+  /// shown that this one does not cover go back to the scene's image (the tissue at rest there);
+  /// an empty box (hi < lo) puts the whole last box back. Written into the private copy as
+  /// removeVoxels() writes (the next frame uploads the union of both boxes only). A box outside
+  /// the image or a size mismatch changes nothing and returns false.
+  bool showVoxelBox(const std::array<int, 3>& lo, const std::array<int, 3>& hi, std::span<const float> values_F);
   /// Volume texture uploads so far: boxes uploaded alone, and whole-volume uploads the removal
   /// needed (a texture the partial path could not reach).
   std::uint64_t partialUploads() const noexcept;
@@ -213,6 +220,7 @@ class SceneActors {
   DrillableVolumeMapper* drillable_ = nullptr;                 // the same object
   vtkSmartPointer<vtkImageData> image_;          // the scene's image (never written)
   vtkSmartPointer<vtkImageData> drilled_image_;  // a private copy once voxels were removed
+  std::array<int, 3> box_lo_{0, 0, 0}, box_hi_{-1, -1, -1};  // showVoxelBox()'s last box
   vtkNew<vtkVolumeProperty> volume_property_;
   vtkNew<vtkColorTransferFunction> colour_;
   vtkNew<vtkPiecewiseFunction> opacity_;

@@ -32,6 +32,8 @@
 /// cells (a voxel in an empty cell keeps its rest value); beyond the window the hand feels the
 /// rest surface (the window grows with the contacts' spread); no friction, no cutting of tissue.
 #include <array>
+#include <atomic>
+#include <chrono>
 #include <cstdint>
 #include <memory>
 #include <vector>
@@ -103,6 +105,20 @@ struct DeformableStep {
   int window_voxels = 0;            ///< Voxels of the window and of the last one (what was resampled or restored).
 };
 
+/// The deformed tissue as the view shows it: the box of voxels (the scan's grid, indices
+/// inclusive) outside which the felt volume is the scan at rest, and the felt field there.
+struct DeformedWindow {
+  std::array<int, 3> lo{0, 0, 0};
+  std::array<int, 3> hi{-1, -1, -1};  ///< hi < lo on an axis: the tissue at rest everywhere.
+  /// F at the box's voxels [data units], x fastest: (hi - lo + 1) per axis, multiplied.
+  std::vector<float> values_F;
+  std::uint64_t step = 0;  ///< The step() that published it (counts from 1).
+  double indentation_m = 0.0;  ///< That step's DeformableStep::indentation_m [m].
+  double push_N = 0.0;         ///< That step's pushes on the tissue, summed [N].
+  double felt_fraction = 1.0;  ///< That step's DeformableStep::felt_fraction.
+  bool empty() const noexcept { return hi[0] < lo[0] || hi[1] < lo[1] || hi[2] < lo[2]; }
+};
+
 /// A scan whose tissue region yields under the tool. Owns the model, its factorisation and the
 /// compliance table (built in the constructor: seconds for thousands of nodes), and the volume
 /// the renderer feels (feltVolume(), a copy of the scan that step() rewrites).
@@ -135,6 +151,14 @@ class DeformableScene {
     return {contacts_.data(), static_cast<std::size_t>(contact_count_)};
   }
   const CompliantContact& contact() const noexcept { return *contact_; }
+
+  /// For the view, on one other thread: the latest deformed window step() published, copied into
+  /// `out` (which may allocate: the reader's thread). step() publishes at most every
+  /// `kViewPublishInterval_ms` while the field changes, and always the state it settles in,
+  /// through a lock-free triple buffer (the servo never waits for the view).
+  /// @return false (out untouched) when nothing was published since the last call.
+  bool takeDeformedWindow(DeformedWindow& out);
+  static constexpr double kViewPublishInterval_ms = 10.0;
 
  private:
   // G <-> W.
@@ -187,6 +211,16 @@ class DeformableScene {
   std::vector<Eigen::Vector3d> proxy_points_W_;
   std::vector<double> proxy_old_F_;
   std::array<int, 3> last_lo_{0, 0, 0}, last_hi_{-1, -1, -1};  // the last window written (voxels)
+  // The view's triple buffer: the servo fills slots_[view_write_], then swaps it with the middle
+  // (view_middle_, kFresh set); the reader swaps the middle with slots_[view_read_].
+  static constexpr unsigned kFresh = 4;
+  void publishView(std::chrono::steady_clock::time_point now, bool changed, const DeformableStep& step) noexcept;
+  std::array<DeformedWindow, 3> view_slots_;
+  std::atomic<unsigned> view_middle_{1};
+  unsigned view_write_ = 0, view_read_ = 2;
+  bool view_dirty_ = false;
+  std::uint64_t steps_ = 0;
+  std::chrono::steady_clock::time_point view_published_{};
 };
 
 }  // namespace vh::tissue

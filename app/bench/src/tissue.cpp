@@ -1,0 +1,293 @@
+// `volume-haptics bench tissue`: the whole servo tick with soft tissue against the rigid tick on
+// the same scene, as the application builds both (runtime::makeServoRenderer() with the scene's
+// "tissue" section, runtime::makeRenderer() without it), one device trajectory rendered by both,
+// tick by tick interleaved (figures move 30-60 % between runs on a shared machine: the ratio is
+// what compares). Per scene: mean / p99.9 / max of the whole tick [us], ticks over 500 us and over
+// the 1 ms period, ticks the deadline cut, the proxy behind the device beyond the coupling's
+// stretch, the peak force, crossings of the felt field by a dense check of every tick's motion
+// (outside the timed part), the tissue's step and its parts, the build (region, factorisation,
+// compliance table). Scenes:
+//   - the built-in gel with a stiffer inclusion (the gel-palpation scene's tissue and tool), the
+//     ball pressed 2 mm in beside the inclusion, slid over it and lifted;
+//   - the shared small CT head (ct/ct-head-small) with its soft tissue as the tissue on 6 mm
+//     cells (one touchable layer: the compliance table must fit the 1 GiB limit), the ball
+//     pressed 3 mm into the scalp over the skull, slid 10 mm and lifted;
+//   - the step's time per lattice size on the gel (3, 2 and 1.5 mm cells).
+#include <chrono>
+#include <cmath>
+#include <filesystem>
+#include <iostream>
+#include <sstream>
+
+#include <nlohmann/json.hpp>
+
+#include "vh/bench/bench.h"
+#include "vh/bench/report.h"
+#include "vh/datasets/synthetic.h"
+#include "vh/haptics/crossing_verifier.h"
+#include "vh/runtime/drilling.h"
+#include "vh/runtime/scene.h"
+#include "vh/runtime/servo_factory.h"
+#include "vh/runtime/tissue_scene.h"
+#include "vh/tissue/deformable_scene.h"
+
+namespace vh::bench {
+namespace fs = std::filesystem;
+
+namespace {
+
+using Clock = std::chrono::steady_clock;
+double since_us(Clock::time_point a) { return std::chrono::duration<double, std::micro>(Clock::now() - a).count(); }
+
+constexpr const char* kHead = "ct/ct-head-small";
+
+/// The gel-palpation scene (resources/scenes/gel-palpation.json): the built-in gel with an
+/// inclusion, a 5 mm ball every 0.5 mm, the tissue in two value bands on 2 mm cells; the
+/// application's default coupling (1,000 N/m), the stiffest the hand gets.
+runtime::SceneSpec gelScene(double cell_m) {
+  runtime::SceneSpec spec = runtime::parseScene(R"({
+      "volume": {"path": "builtin:gel-with-inclusion", "isovalue": 50},
+      "tool": {"mesh": "builtin:sphere", "point_spacing_m": 0.0005,
+               "initial_pose": {"p_m": [-0.006, 0, 0.0195], "q_wxyz": [1, 0, 0, 0]}},
+      "tissue": {"bands": [{"min": 10, "max": 150, "material": "gel"},
+                           {"min": 150, "max": 300, "material": "gel inclusion"}],
+                 "rigid_above": 300, "cell_size_m": 0.002}})",
+                                                "bench-tissue-gel.json", {});
+  spec.tissue->cell_size_m = cell_m;
+  return spec;
+}
+
+/// A press along -z from `start` to `depth_m` below `contact_z_m` (where the ball meets the
+/// surface) in 1.5 s, held 0.5 s, slid `slide_m` along +x in 2 s, held 0.5 s, lifted 3 mm past the
+/// start height in 1 s; one pose per 1 ms tick (a quarter of the ticks in a short run).
+std::vector<haptics::Pose> pressSlideLift(const haptics::Pose& start, double contact_drop_m, double depth_m,
+                                          double slide_m, bool short_run) {
+  std::vector<haptics::Pose> path;
+  const double scale = short_run ? 0.25 : 1.0;
+  const auto segment = [&](const Eigen::Vector3d& a, const Eigen::Vector3d& b, int ticks) {
+    for (int t = 1; t <= ticks; ++t) {
+      haptics::Pose X = start;
+      X.p_AB_m = a + (b - a) * (static_cast<double>(t) / ticks);
+      path.push_back(X);
+    }
+  };
+  const Eigen::Vector3d a = start.p_AB_m;
+  const Eigen::Vector3d down = a - Eigen::Vector3d(0, 0, contact_drop_m + depth_m);
+  const Eigen::Vector3d across = down + Eigen::Vector3d(slide_m, 0, 0);
+  segment(a, down, static_cast<int>(1500 * scale));
+  segment(down, down, static_cast<int>(500 * scale));
+  segment(down, across, static_cast<int>(2000 * scale));
+  segment(across, across, static_cast<int>(500 * scale));
+  segment(across, Eigen::Vector3d(across.x(), across.y(), a.z() + 0.003), static_cast<int>(1000 * scale));
+  return path;
+}
+
+nlohmann::ordered_json statsJson(const Stats& s, const std::vector<double>& values) {
+  int over_500 = 0, over_period = 0;
+  for (const double v : values) over_500 += v > 500.0, over_period += v > 1000.0;
+  return {{"mean_us", s.mean}, {"p99_9_us", s.p999}, {"max_us", s.max}, {"over_500us", over_500},
+          {"over_1ms", over_period}};
+}
+
+/// One scene rendered with its tissue and rigid, interleaved.
+nlohmann::ordered_json runScene(const std::string& name, runtime::SceneSpec spec, double depth_m, double slide_m,
+                                bool short_run) {
+  nlohmann::ordered_json row;
+  row["scene"] = name;
+  const runtime::LoadedScene scene = runtime::loadScene(spec);
+  runtime::LiveValues live = runtime::LiveValues::initial(scene);
+  haptics::RendererOptions ro;  // as the application runs it: one lane, the deadline, the edge test
+  ro.deadline_us = runtime::solverDeadline_us(1000.0);
+  ro.solver_lanes = 1;
+  // Where the ball meets the surface straight below the start: its lowest point first inside.
+  const haptics::ToolModel& tool = *scene.tool;
+  double lowest = 1e300;
+  for (const Eigen::Vector3d& p : tool.point_shell.points_T_m()) lowest = std::min(lowest, p.z());
+  const Eigen::Vector3d bottom = scene.X_WT_initial.p_AB_m + Eigen::Vector3d(0, 0, lowest);
+  double drop_m = 0.0;
+  while (drop_m < 0.15 && !scene.volume.field->isInside(bottom - Eigen::Vector3d(0, 0, drop_m), scene.isovalue))
+    drop_m += 5e-5;
+  row["contact_below_start_m"] = drop_m;
+  row["press_depth_m"] = depth_m;
+  row["slide_m"] = slide_m;
+
+  const auto build_start = Clock::now();
+  runtime::DrillingRenderer soft;
+  try {
+    soft = runtime::makeServoRenderer(live, ro, scene.X_WT_initial, 1000.0);
+  } catch (const std::exception& e) {
+    row["refused"] = e.what();
+    return row;
+  }
+  row["build_s"] = since_us(build_start) * 1e-6;
+  tissue::DeformableScene& tissue = *soft.tissue;
+  row["tissue_voxels"] = tissue.region().tissue_voxels;
+  row["lattice_nodes"] = tissue.region().model.lattice().nodeCount();
+  row["touchable_nodes"] = tissue.compliance().nodeCount();
+  row["table_MB"] = tissue.compliance().bytes() / 1e6;
+  row["cell_m"] = live.tissue->cell_size_m;
+  row["touchable_layers"] = live.tissue->touchable_layers;
+  live.tissue.reset();
+  const auto rigid = runtime::makeRenderer(live, ro, scene.X_WT_initial);
+  const double iso = scene.isovalue;
+  const haptics::CrossingVerifier soft_check(*tissue.feltVolume(), tool.point_shell, 1e-2);
+  const haptics::CrossingVerifier rigid_check(*scene.volume.field, tool.point_shell, 1e-2);
+  const double k = soft.renderer->coupling().gains().linear_N_per_m;
+  row["coupling_N_per_m"] = k;
+  row["tool_points"] = tool.point_shell.size();
+
+  const std::vector<haptics::Pose> path = pressSlideLift(scene.X_WT_initial, drop_m, depth_m, slide_m, short_run);
+  std::vector<double> soft_us, rigid_us, step_us;
+  soft_us.reserve(path.size()), rigid_us.reserve(path.size()), step_us.reserve(path.size());
+  double gather = 0, solve = 0, displace = 0, resample = 0, write = 0;
+  int soft_cut = 0, rigid_cut = 0, soft_cross = 0, rigid_cross = 0, held_back = 0, clipped = 0, window = 0;
+  double soft_behind = 0, rigid_behind = 0, peak_soft = 0, peak_rigid = 0, deepest = 0, peak_push = 0;
+  for (const haptics::Pose& X : path) {
+    auto a = Clock::now();
+    const tissue::DeformableStep s = tissue.step(X, *soft.renderer);
+    const haptics::TickOutput so = soft.renderer->tick(X, iso);
+    soft_us.push_back(since_us(a));
+    a = Clock::now();
+    const haptics::TickOutput ri = rigid->tick(X, iso);
+    rigid_us.push_back(since_us(a));
+    step_us.push_back(s.step_us);
+    gather += s.gather_us, solve += s.solve_us, displace += s.displace_us, resample += s.resample_us,
+        write += s.write_us;
+    window = std::max(window, s.window_voxels);
+    held_back += s.felt_fraction < 1.0, clipped += s.window_clipped;
+    deepest = std::max(deepest, s.indentation_m);
+    peak_push = std::max(peak_push, s.contact.force_on_device_N.norm());
+    soft_cut += so.stats.deadline_cut, rigid_cut += ri.stats.deadline_cut;
+    soft_behind = std::max(soft_behind, (so.X_WP.p_AB_m - X.p_AB_m).norm() - so.force_W_N.norm() / k);
+    rigid_behind = std::max(rigid_behind, (ri.X_WP.p_AB_m - X.p_AB_m).norm() - ri.force_W_N.norm() / k);
+    peak_soft = std::max(peak_soft, so.force_W_N.norm());
+    peak_rigid = std::max(peak_rigid, ri.force_W_N.norm());
+    soft_cross += soft_check.check(soft.renderer->lastMotion(), soft.renderer->lastTimeOfContact(), iso).crossing_points;
+    rigid_cross += rigid_check.check(rigid->lastMotion(), rigid->lastTimeOfContact(), iso).crossing_points;
+  }
+  const double n = static_cast<double>(path.size());
+  row["ticks"] = path.size();
+  row["tissue_tick"] = statsJson(summarize(soft_us), soft_us);
+  row["tissue_step"] = statsJson(summarize(step_us), step_us);
+  row["rigid_tick"] = statsJson(summarize(rigid_us), rigid_us);
+  row["step_parts_mean_us"] = {{"gather", gather / n}, {"solve", solve / n}, {"displace", displace / n},
+                               {"resample", resample / n}, {"write", write / n}};
+  row["largest_window_voxels"] = window;
+  row["ticks_held_back"] = held_back;
+  row["windows_clipped"] = clipped;
+  row["tissue_cut"] = soft_cut;
+  row["rigid_cut"] = rigid_cut;
+  row["tissue_behind_m"] = soft_behind;
+  row["rigid_behind_m"] = rigid_behind;
+  row["tissue_peak_force_N"] = peak_soft;
+  row["rigid_peak_force_N"] = peak_rigid;
+  row["tissue_peak_push_N"] = peak_push;
+  row["deepest_indentation_m"] = deepest;
+  row["tissue_crossings"] = soft_cross;
+  row["rigid_crossings"] = rigid_cross;
+  return row;
+}
+
+std::string tickLine(const std::string& what, const nlohmann::ordered_json& t, int cut, double behind_m, double peak_N,
+                     int crossings) {
+  return format("| %s | %.0f | %.0f | %.0f | %d | %d | %d | %.3f | %.3f | %d |\n", what.c_str(),
+                t["mean_us"].get<double>(), t["p99_9_us"].get<double>(), t["max_us"].get<double>(),
+                t["over_500us"].get<int>(), t["over_1ms"].get<int>(), cut, behind_m * 1e3, peak_N, crossings);
+}
+
+}  // namespace
+
+fs::path runTissue(const CommonOptions& options) {
+  const bool short_run = options.short_run;
+  const fs::path out = outputDir(options, "tissue");
+  nlohmann::ordered_json report = reportHeader("tissue", short_run);
+  std::ostringstream md;
+  md << "# Soft tissue: the whole tick with tissue against the rigid tick\n\n"
+     << "One trajectory per scene rendered twice, tick by tick interleaved: with the scene's tissue "
+        "(DeformableScene::step, then the renderer's tick on the deformed field) and rigid (the "
+        "renderer's tick on the scan). Times are wall time per tick; behind: the proxy's distance "
+        "from the device beyond the coupling's stretch (max); crossings: a dense check of every "
+        "tick's motion (1/100 voxel).\n";
+  report["scenes"] = nlohmann::ordered_json::array();
+
+  std::vector<std::pair<std::string, runtime::SceneSpec>> scenes;
+  scenes.emplace_back("gel with an inclusion (2 mm cells)", gelScene(0.002));
+  const fs::path head = runtime::sharedDatasetsDir() / kHead;
+  if (fs::exists(head)) {
+    runtime::SceneSpec spec = runtime::sceneForVolume(head);
+    spec.volume.isovalue = 900.0;  // the classic headsq: soft tissue about 900-1180, bone above 1300
+    spec.volume.isovalue_set = true;
+    spec.tool.mesh = "builtin:sphere";
+    spec.tool.point_spacing_m = 0.001;
+    runtime::TissueSpec t;
+    t.bands = {{850.0, 1300.0, "brain grey matter"}};  // the scalp and what lies under it up to bone
+    t.rigid_above = 1300.0;
+    t.cell_size_m = 0.006;
+    t.touchable_layers = 1;
+    spec.tissue = t;
+    scenes.emplace_back("CT head, soft tissue (6 mm cells, 1 layer)", spec);
+  } else {
+    std::cout << "bench tissue: " << head.string() << " is absent: the CT head row is skipped\n";
+    report["head_skipped"] = "absent: " + head.string();
+  }
+  for (const auto& [name, spec] : scenes) {
+    const bool is_gel = name.rfind("gel", 0) == 0;
+    const nlohmann::ordered_json row = runScene(name, spec, is_gel ? 0.002 : 0.003, is_gel ? 0.011 : 0.010, short_run);
+    report["scenes"].push_back(row);
+    md << "\n## " << name << "\n\n";
+    if (row.contains("refused")) {
+      md << "Refused: " << row["refused"].get<std::string>() << "\n";
+      continue;
+    }
+    md << format("%d tissue voxels; lattice %d nodes, %d touchable (compliance table %.0f MB); built in %.2f s; "
+                 "%s ticks, ball of %d points, coupling %.0f N/m; pressed %.1f mm past first contact, slid %.0f mm.\n\n",
+                 row["tissue_voxels"].get<int>(), row["lattice_nodes"].get<int>(), row["touchable_nodes"].get<int>(),
+                 row["table_MB"].get<double>(), row["build_s"].get<double>(), row["ticks"].dump().c_str(),
+                 row["tool_points"].get<int>(), row["coupling_N_per_m"].get<double>(),
+                 row["press_depth_m"].get<double>() * 1e3, row["slide_m"].get<double>() * 1e3)
+       << "| tick [us] | mean | p99.9 | max | > 500 us | > 1 ms | cut | behind [mm] | peak force [N] | crossings |\n"
+       << "|---|---|---|---|---|---|---|---|---|---|\n"
+       << tickLine("tissue (step + tick)", row["tissue_tick"], row["tissue_cut"].get<int>(),
+                   row["tissue_behind_m"].get<double>(), row["tissue_peak_force_N"].get<double>(),
+                   row["tissue_crossings"].get<int>())
+       << tickLine("of which the step", row["tissue_step"], 0, 0.0, row["tissue_peak_push_N"].get<double>(), 0)
+       << tickLine("rigid (tick)", row["rigid_tick"], row["rigid_cut"].get<int>(), row["rigid_behind_m"].get<double>(),
+                   row["rigid_peak_force_N"].get<double>(), row["rigid_crossings"].get<int>());
+    const auto& p = row["step_parts_mean_us"];
+    md << format("\nTissue over rigid: mean %.1fx, p99.9 %.1fx, max %.1fx. The step's parts, mean [us]: gather %.0f, "
+                 "solve %.0f, displace %.0f, resample %.0f, write %.0f; largest window %d voxels; %d ticks held back "
+                 "(a proxy point would have been swallowed), %d windows clipped; deepest indentation %.2f mm.\n",
+                 row["tissue_tick"]["mean_us"].get<double>() / row["rigid_tick"]["mean_us"].get<double>(),
+                 row["tissue_tick"]["p99_9_us"].get<double>() / row["rigid_tick"]["p99_9_us"].get<double>(),
+                 row["tissue_tick"]["max_us"].get<double>() / row["rigid_tick"]["max_us"].get<double>(),
+                 p["gather"].get<double>(), p["solve"].get<double>(), p["displace"].get<double>(),
+                 p["resample"].get<double>(), p["write"].get<double>(), row["largest_window_voxels"].get<int>(),
+                 row["ticks_held_back"].get<int>(), row["windows_clipped"].get<int>(),
+                 row["deepest_indentation_m"].get<double>() * 1e3);
+  }
+
+  // The step's time per lattice size (the gel; the 2 mm row is the scene above).
+  md << "\n## The tissue's step per lattice size (gel)\n\n"
+     << "| cell [mm] | nodes | touchable | table [MB] | build [s] | step mean [us] | step p99.9 | step max | "
+        "whole tick p99.9 | deepest [mm] |\n|---|---|---|---|---|---|---|---|---|---|\n";
+  report["lattice_sweep"] = nlohmann::ordered_json::array();
+  std::vector<double> cells{0.003, 0.002};
+  if (!short_run) cells.push_back(0.0015);
+  for (const double cell : cells) {
+    const nlohmann::ordered_json row = runScene(format("gel, %.1f mm cells", cell * 1e3), gelScene(cell), 0.002, 0.011, true);
+    report["lattice_sweep"].push_back(row);
+    if (row.contains("refused")) {
+      md << format("| %.1f | refused: %s |\n", cell * 1e3, row["refused"].get<std::string>().c_str());
+      continue;
+    }
+    md << format("| %.1f | %d | %d | %.0f | %.2f | %.0f | %.0f | %.0f | %.0f | %.2f |\n", cell * 1e3,
+                 row["lattice_nodes"].get<int>(), row["touchable_nodes"].get<int>(), row["table_MB"].get<double>(),
+                 row["build_s"].get<double>(), row["tissue_step"]["mean_us"].get<double>(),
+                 row["tissue_step"]["p99_9_us"].get<double>(), row["tissue_step"]["max_us"].get<double>(),
+                 row["tissue_tick"]["p99_9_us"].get<double>(), row["deepest_indentation_m"].get<double>() * 1e3);
+  }
+  writeReport(out, "tissue", report, md, {});
+  return out;
+}
+
+}  // namespace vh::bench
