@@ -189,6 +189,16 @@ void HapticRenderer::resetProxy(const Pose& X_WP) noexcept {
   blocked_ticks_ = 0;
 }
 
+void HapticRenderer::carryProxy(const Eigen::Vector3d& dp_W_m) noexcept {
+  if (!dp_W_m.allFinite()) return;
+  X_WP_.p_AB_m += dp_W_m;
+  collision_.abandonSweep();
+  collision_.clearContacts();
+  embedded_scan_needed_ = true;
+  edge_blocked_last_tick_ = false;
+  edges_free_isovalue_ = std::numeric_limits<double>::quiet_NaN();
+}
+
 void HapticRenderer::noteFieldChanged() noexcept {
   collision_.forgetFieldProofs();
   // Contacts the surface moved away from no longer hold the proxy: released beyond an eighth

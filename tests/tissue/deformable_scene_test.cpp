@@ -262,5 +262,53 @@ TEST(TissueDeformableScene, TheSolverFeelsTheGelYieldByTheFullSolveAndNeverEnter
   EXPECT_FALSE(scene.takeDeformedWindow(shown)) << "a second take without a new step";
 }
 
+// The tool pressed in and drawn back part of the way in one jump, then held: the tissue springs
+// back onto the proxy that waits where the device was. The proxy being massless, the surface
+// carries it (it is never swallowed, never left inside the tissue); at rest the hand feels what
+// the tissue is pushed with, not nothing (a surface held back by a proxy that has no reason to
+// move would leave the tissue deformed and the hand at zero force: that was the failure).
+TEST(TissueDeformableScene, SpringingBackTheTissueCarriesTheHeldProxy) {
+  const double R = 4e-3;
+  const std::shared_ptr<const haptics::ScalarVolume> scan = gelScan();
+  DeformableSceneOptions options;
+  options.compliance_threads = 2;
+  DeformableScene scene(scan, gelRegion(1.5e-3), kIsovalue, options);
+  const auto tool = sphereTool(R);
+  haptics::RendererOptions ro;
+  ro.edge_test = 1;
+  ro.gains.linear_N_per_m = 200.0;
+  ro.gains.angular_Nm_per_rad = 0.05;
+  haptics::Pose X_WD = haptics::Pose::FromTranslation(Eigen::Vector3d(12e-3, 12.2e-3, kTop_m + R + 0.3e-3));
+  haptics::HapticRenderer renderer(scene.feltVolume(), tool, ro, X_WD, kIsovalue);
+  const haptics::CrossingVerifier verifier(*scene.feltVolume(), tool->point_shell, 1e-2);
+  int crossings = 0, inside = 0, carried = 0;
+  DeformableStep last;
+  haptics::TickOutput out;
+  const auto tick = [&] {
+    last = scene.step(X_WD, renderer);
+    carried += last.proxy_carried_m > 0.0;
+    out = renderer.tick(X_WD, kIsovalue);
+    crossings += verifier.check(renderer.lastMotion(), renderer.lastTimeOfContact(), kIsovalue).crossing_points;
+    for (const Eigen::Vector3d& p_T : tool->point_shell.points_T_m())
+      inside += scene.feltVolume()->sample(out.X_WP * p_T) > kIsovalue;
+  };
+  while (X_WD.p_AB_m.z() > kTop_m + R - 1.0e-3) {  // 1 mm in, 5 um a tick
+    X_WD.p_AB_m.z() -= 5e-6;
+    tick();
+  }
+  for (int t = 0; t < 300; ++t) tick();
+  X_WD.p_AB_m.z() += 0.6e-3;  // drawn back 0.6 mm at once, then held
+  for (int t = 0; t < 1500; ++t) tick();
+  const double push = last.contact.force_on_device_N.z();
+  const double k_eps = ro.gains.linear_N_per_m * renderer.epsilon_m();
+  std::printf("held 0.4 mm in after drawing back: felt %.2f mN, the tissue pushed %.2f mN, %d steps carried the proxy, "
+              "%d crossings, %d points inside\n", 1e3 * out.force_W_N.z(), 1e3 * push, carried, crossings, inside);
+  EXPECT_GT(push, 1e-3) << "the tissue is still pushed";
+  EXPECT_NEAR(out.force_W_N.z(), push, k_eps + 0.1 * push) << "at rest the hand feels what the tissue is pushed with";
+  EXPECT_GT(carried, 0) << "the springing-back surface never met the proxy";
+  EXPECT_EQ(crossings, 0);
+  EXPECT_EQ(inside, 0);
+}
+
 }  // namespace
 }  // namespace vh::tissue

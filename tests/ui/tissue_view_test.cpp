@@ -10,6 +10,7 @@
 //    rebuilt on the new surface: the hand's isovalue and the eyes' stay one.
 #include <cmath>
 #include <filesystem>
+#include <memory>
 
 #include <QApplication>
 #include <QDockWidget>
@@ -28,6 +29,7 @@
 #include "vh/runtime/session.h"
 #include "vh/ui/tissue_controller.h"
 #include "vh/ui/view/scene_actors.h"
+#include "vh/ui/view/scene_frames.h"
 #include "vh/ui/view/scene_view.h"
 #include "vh/ui/view/vtk_view.h"
 
@@ -169,12 +171,13 @@ TEST(TissueView, ARigidSceneStartsNoneOfIt) {
 TEST(TissueView, TheIsovalueIsOneForTheTissueAndTheHand) {
   TissueSession s(gelScene());
   runtime::Session& session = s.session;
-  const tissue::DeformableScene* before = session.hapticThread()->tissue().get();
+  // Held, so that a rebuilt one cannot take its address.
+  const std::shared_ptr<tissue::DeformableScene> before = session.hapticThread()->tissue();
   ASSERT_NE(before, nullptr);
   EXPECT_DOUBLE_EQ(before->isovalue(), session.isovalue());
   session.setIsovalue(60.0);
   ASSERT_NE(session.hapticThread(), nullptr);
-  const tissue::DeformableScene* after = session.hapticThread()->tissue().get();
+  const std::shared_ptr<tissue::DeformableScene> after = session.hapticThread()->tissue();
   ASSERT_NE(after, nullptr);
   EXPECT_NE(after, before) << "the tissue was not rebuilt on the new surface";
   EXPECT_DOUBLE_EQ(after->isovalue(), 60.0);

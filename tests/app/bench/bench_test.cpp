@@ -429,34 +429,6 @@ TEST(Bench, stabilityShortWritesSweepAndExtremeCases) {
   expectPngs(dir, report, 1);
 }
 
-// bench tissue, short: the gel (and the CT head's soft tissue when the shared data is there) built
-// as the application builds them, pressed, slid and lifted with tissue and rigid; the report's
-// figures are printed, not asserted, beside what must hold on any machine: the press indents the
-// tissue, neither felt field is crossed, the CT head's region fits the compliance table's limit.
-TEST(Bench, tissueShortPressesTheGelAndTheHeadWithoutCrossing) {
-  CommonOptions options;
-  options.short_run = true;
-  options.out_dir = std::filesystem::path(VH_BENCH_TEST_OUTPUT_DIR) / "tissue";
-  const std::filesystem::path dir = runTissue(options);
-  std::ifstream in(dir / "tissue.json");
-  const nlohmann::json report = nlohmann::json::parse(in);
-  ASSERT_GE(report["scenes"].size(), 1u);
-  for (const auto& row : report["scenes"]) {
-    ASSERT_FALSE(row.contains("refused")) << row.dump();
-    EXPECT_GT(row["ticks"].get<int>(), 1000);
-    EXPECT_EQ(row["tissue_crossings"].get<int>(), 0) << row["scene"];
-    EXPECT_EQ(row["rigid_crossings"].get<int>(), 0) << row["scene"];
-    EXPECT_GT(row["deepest_indentation_m"].get<double>(), 0.3e-3) << row["scene"] << ": the tissue did not yield";
-    EXPECT_GT(row["tissue_tick"]["mean_us"].get<double>(), 0.0);
-    EXPECT_LT(row["tissue_peak_force_N"].get<double>(), row["rigid_peak_force_N"].get<double>())
-        << row["scene"] << ": the same press on tissue must feel softer than on the rigid scan";
-  }
-  if (report.contains("head_skipped")) std::printf("%s\n", report["head_skipped"].get<std::string>().c_str());
-  else EXPECT_EQ(report["scenes"].size(), 2u);
-  ASSERT_EQ(report["lattice_sweep"].size(), 2u);
-  EXPECT_LT(report["lattice_sweep"][0]["lattice_nodes"].get<int>(), report["lattice_sweep"][1]["lattice_nodes"].get<int>());
-}
-
 }  // namespace
 }  // namespace vh::bench
 

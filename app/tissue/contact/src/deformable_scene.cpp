@@ -266,6 +266,61 @@ void DeformableScene::gatherContacts(const haptics::Pose& X_WD, const haptics::T
   }
 }
 
+bool DeformableScene::carryOut(const haptics::ToolModel& tool, const haptics::Pose& X_WP, const Eigen::Vector3d& box_lo,
+                               const Eigen::Vector3d& box_hi, Eigen::Vector3d& dp_W) const noexcept {
+  // The outward normals (-grad F) at the swallowed points, weighted by how deep each is.
+  Eigen::Vector3d dir = Eigen::Vector3d::Zero();
+  for (std::size_t q = 0; q < proxy_points_W_.size(); ++q) {
+    const double F = felt_->sample(proxy_points_W_[q]);
+    if (!(F > isovalue_) || proxy_old_F_[q] > isovalue_) continue;
+    const Eigen::Vector3d g = felt_->interpolantGradient(proxy_points_W_[q]);
+    const double gn = g.norm();
+    if (!(gn > 0.0)) return false;
+    dir -= g * ((F - isovalue_) / (gn * gn));
+  }
+  if (!(dir.norm() > 0.0)) return false;
+  dir.normalize();
+  double need_m = 0.0;  // along dir, first order, for the deepest
+  for (std::size_t q = 0; q < proxy_points_W_.size(); ++q) {
+    const double F = felt_->sample(proxy_points_W_[q]);
+    if (!(F > isovalue_) || proxy_old_F_[q] > isovalue_) continue;
+    const Eigen::Vector3d g = felt_->interpolantGradient(proxy_points_W_[q]);
+    const double gn = g.norm();
+    need_m = std::max(need_m, (F - isovalue_) / gn / std::max(0.3, -dir.dot(g) / gn));
+  }
+  const double voxel = spacing_m_.minCoeff();
+  for (int attempt = 0; attempt < 3; ++attempt, need_m *= 2.0) {
+    const double distance = 1.1 * need_m + 1e-3 * voxel;
+    if (!(distance <= 0.5 * voxel)) return false;  // more than the surface moves in a tick: held back instead
+    dp_W = distance * dir;
+    bool clear = true;
+    for (const Eigen::Vector3d& p_T : tool.point_shell.points_T_m()) {
+      const Eigen::Vector3d p_W = X_WP * p_T;
+      const Eigen::Vector3d moved = p_W + dp_W;
+      if (!felt_->inBounds(moved) || !(felt_->sample(moved) > isovalue_)) continue;
+      // Inside after the move: allowed only for a point embedded before this step (left out of
+      // the contact, as the renderer leaves it); inside the written box the old field says so.
+      const Eigen::Vector3d g = toG(p_W);
+      const bool in_box = !((g.array() < box_lo.array()).any() || (g.array() > box_hi.array()).any());
+      bool embedded = !in_box && felt_->sample(p_W) > isovalue_;
+      if (in_box) {
+        embedded = false;
+        for (std::size_t q = 0; q < proxy_points_W_.size(); ++q)
+          if (proxy_points_W_[q] == p_W) {
+            embedded = proxy_old_F_[q] > isovalue_;
+            break;
+          }
+      }
+      if (!embedded) {
+        clear = false;
+        break;
+      }
+    }
+    if (clear) return true;
+  }
+  return false;
+}
+
 bool DeformableScene::displacementAt(const Eigen::Vector3d& X_G, Eigen::Vector3d& u) const noexcept {
   const LatticeGeometry& lg = region_.model.lattice().geometry();
   const Eigen::Vector3d t = (X_G - lg.origin_W_m) / lg.spacing_m;
@@ -513,7 +568,17 @@ DeformableStep DeformableScene::step(const haptics::Pose& X_WD, haptics::HapticR
   };
   int changed = write(1.0);
   double alpha = all_points_checked ? 1.0 : 0.0;
-  if (alpha > 0.0) {
+  // Springing back onto the held proxy: the surface carries it (the proxy is massless, the hand
+  // then feels the tissue push back), when a short push along the surface's normal leaves every
+  // point of the tool outside the new field; else the write is held back (below).
+  if (alpha > 0.0 && firstSwallowed() >= 0) {
+    Eigen::Vector3d dp_W = Eigen::Vector3d::Zero();
+    if (carryOut(tool, X_WP, box_lo, box_hi, dp_W)) {
+      renderer.carryProxy(dp_W);
+      out.proxy_carried_m = dp_W.norm();
+    }
+  }
+  if (alpha > 0.0 && out.proxy_carried_m == 0.0) {
     // alpha: the largest fraction with (1 - a) F_old + a F_new <= s at every point, F linear in the voxels.
     for (std::size_t q = 0; q < proxy_points_W_.size(); ++q) {
       const double f_new = felt_->sample(proxy_points_W_[q]);

@@ -216,6 +216,13 @@ class HapticRenderer {
   /// points are scanned again. The writer must leave no point of the proxy inside (it is then
   /// never inside: tissue's felt deformation, vh::tissue::DeformableScene). No allocation.
   void noteFieldChanged() noexcept;
+  /// The surface moved onto the proxy and carries it (deformable tissue springing back under a
+  /// held tool, the proxy being massless): the proxy is translated by `dp_W_m` [m, frame W]
+  /// without collision checking (the writer checked that no point of the moved proxy is inside
+  /// the new field); its contact set is dropped and found again by the next tick, the coupling's
+  /// tracking kept. Call noteFieldChanged() after. A non-finite `dp_W_m` changes nothing. No
+  /// allocation.
+  void carryProxy(const Eigen::Vector3d& dp_W_m) noexcept;
   /// New coupling gains; also the solver's metric (ConfigurationSolver::setGains()).
   void setGains(const CouplingGains& gains) noexcept {
     coupling_.setGains(gains);

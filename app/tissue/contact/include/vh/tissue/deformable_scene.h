@@ -96,6 +96,8 @@ struct DeformableStep {
   /// along its normal over the pushed contacts (the linear model's n . u at them); 0 untouched.
   double indentation_m = 0.0;
   bool window_clipped = false;      ///< The window exceeded max_window_voxels and was clipped.
+  /// How far the springing-back surface carried the proxy this step [m] (0: not carried).
+  double proxy_carried_m = 0.0;
   double step_us = 0.0;             ///< Wall time of step() [us]; its parts below.
   double gather_us = 0.0;           ///< The tool's points near the rest surface (1.).
   double solve_us = 0.0;            ///< The complementarity solve (2.).
@@ -172,6 +174,12 @@ class DeformableScene {
     return static_cast<std::size_t>(a) +
            static_cast<std::size_t>(cells.x()) * (static_cast<std::size_t>(b) + static_cast<std::size_t>(cells.y()) * static_cast<std::size_t>(c));
   }
+  // Where the tissue springs back onto the proxy at X_WP (its points in proxy_points_W_ with F
+  // before the write in proxy_old_F_; the written box in G, box_lo..box_hi): the shortest push
+  // dp_W [m] along the surface's outward normal (at most half a voxel) after which no point of
+  // `tool` that was outside is inside the field as written. False when there is none.
+  bool carryOut(const haptics::ToolModel& tool, const haptics::Pose& X_WP, const Eigen::Vector3d& box_lo,
+                const Eigen::Vector3d& box_hi, Eigen::Vector3d& dp_W) const noexcept;
   // u(X) [m] at a material point (false outside cells whose corners are all touchable: u is 0).
   bool displacementAt(const Eigen::Vector3d& X_G, Eigen::Vector3d& u) const noexcept;
   // Whether voxel (i, j, k), displaced by displacement_m, may move the isosurface (band_).
