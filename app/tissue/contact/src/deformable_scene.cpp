@@ -520,7 +520,10 @@ DeformableStep DeformableScene::step(const haptics::Pose& X_WD, haptics::HapticR
         old_raw_[at] = felt_->rawAt(index);
         const bool inside = writes_window && i >= lo[0] && i <= hi[0] && j >= lo[1] && j <= hi[1] && k >= lo[2] &&
                             k <= hi[2];
-        new_raw_[at] = inside ? rawOf(*scan_, deformedValue(i, j, k)) : scan_->rawAt(index);
+        // A voxel farther from the rest surface than the window's largest displacement (plus the
+        // band's two voxels) cannot move the surface: the scan's value, without solving for X.
+        new_raw_[at] = inside && inBand(i, j, k, out.max_displacement_m) ? rawOf(*scan_, deformedValue(i, j, k))
+                                                                         : scan_->rawAt(index);
       }
 
   out.window_voxels = static_cast<int>(count);
