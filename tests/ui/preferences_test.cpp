@@ -1,6 +1,8 @@
 // Settings round trip (ui/preferences.h) and the recent-files list.
 #include "vh/ui/preferences.h"
 
+#include <sys/stat.h>
+
 #include <QSettings>
 #include <QTemporaryDir>
 
@@ -86,6 +88,35 @@ TEST(Preferences, RecentFilesAreUniqueNewestFirstAndBounded) {
   EXPECT_EQ(p.recent_files.count("/f10"), 1);
   p.addRecentFile("");
   EXPECT_EQ(p.recent_files.front(), "/f10");
+}
+
+// The settings file lists recent scans' paths (often folders named after patients): owner-only.
+// Made so at start-up, it stays 0600 (and its folder 0700) after Qt has rewritten it with a
+// recent path, under the usual umask 022 (before: 0644 and 0755). The oracle is stat().
+TEST(Preferences, TheSettingsFileIsOwnerOnlyAndStaysSo) {
+  const mode_t old_umask = ::umask(022);
+  {  // a file as Qt leaves it without the call: the control
+    QSettings before;
+    before.setValue("recent/files", QStringList{"/scans/control"});
+    before.sync();
+  }
+  const std::string file = QSettings().fileName().toStdString();
+  struct stat st {};
+  ASSERT_EQ(::stat(file.c_str(), &st), 0) << file;
+  ::chmod(file.c_str(), 0644);
+  makeSettingsPrivate();
+  {
+    QSettings settings;
+    settings.setValue("recent/files", QStringList{"/scans/Doe^Jane/CT"});
+    settings.sync();
+    ASSERT_EQ(settings.status(), QSettings::NoError);
+  }
+  ::umask(old_umask);
+  ASSERT_EQ(::stat(file.c_str(), &st), 0);
+  EXPECT_EQ(st.st_mode & 0777, 0600u) << file;
+  const std::string folder = file.substr(0, file.rfind('/'));
+  ASSERT_EQ(::stat(folder.c_str(), &st), 0);
+  EXPECT_EQ(st.st_mode & 0777, 0700u) << folder;
 }
 
 }  // namespace

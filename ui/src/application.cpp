@@ -15,6 +15,7 @@
 #include "vh/runtime/scene.h"
 #include "vh/ui/panels/igtl_panel.h"
 #include "vh/ui/main_window.h"
+#include "vh/ui/preferences.h"
 #include "vh/ui/scene_opener.h"
 #include "vh/ui/devices/device_input.h"
 #include "vh/ui/view_controller.h"
@@ -162,6 +163,7 @@ int runApplication(int argc, char** argv, const runtime::SceneSpec& scene, const
   QApplication::setApplicationName("VolumeHaptics");
   QApplication::setOrganizationName("VolumeHaptics");
   QApplication::setApplicationVersion(VH_VERSION_STRING);
+  makeSettingsPrivate();  // it lists recent scans' paths
   // A scripted screenshot run must never wait on a modal dialog.
   const bool scripted = !options.screenshot.empty();
 

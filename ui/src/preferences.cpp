@@ -1,8 +1,14 @@
 #include "vh/ui/preferences.h"
 
+#include <sys/stat.h>
+#include <unistd.h>
+
 #include <cmath>
+#include <filesystem>
 
 #include <QSettings>
+
+#include "vh/io/private_files.h"
 
 namespace vh::ui {
 namespace {
@@ -99,6 +105,17 @@ void Preferences::save(QSettings& s) const {
   s.setValue("pacs/client_cert", QString::fromStdString(pacs.client_cert));
   s.setValue("pacs/client_key", QString::fromStdString(pacs.client_key));
   s.endGroup();
+}
+
+void makeSettingsPrivate() noexcept {
+  try {
+    const std::filesystem::path file = QSettings().fileName().toStdString();
+    if (file.empty() || !file.has_parent_path()) return;
+    io::createPrivateDirectories(file.parent_path());
+    ::chmod(file.parent_path().c_str(), 0700);  // the application's own folder, also when it existed
+    ::close(io::openPrivateFile(file, /*append=*/true));  // created 0600, or made 0600, never truncated
+  } catch (...) {  // NOLINT(bugprone-empty-catch): best effort, the settings still work
+  }
 }
 
 }  // namespace vh::ui

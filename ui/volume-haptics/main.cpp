@@ -36,6 +36,7 @@
 #include "report_command.h"
 #include "run_audio.h"
 #include "vh_version.h"
+#include "vh/io/private_files.h"
 #include "vh/bench/bench.h"
 #include "vh/devices/device_catalog.h"
 #include "vh/igtl/igtl_link.h"
@@ -255,11 +256,14 @@ CLI::App* addRunSubcommand(CLI::App& app, RunArgs& a) {
 void prepareOutputFolder(const std::string& path, const char* option) {
   if (path.empty()) return;
   const std::filesystem::path dir = std::filesystem::absolute(std::filesystem::path(path)).parent_path();
-  std::error_code ec;
-  std::filesystem::create_directories(dir, ec);
-  if (ec || !std::filesystem::is_directory(dir)) {
-    throw std::runtime_error(std::string(option) + " " + path + ": cannot create the folder " + dir.string() +
-                             (ec ? ": " + ec.message() : std::string()));
+  // Missing folders are created owner-only (0700), as every output of a scan or session is.
+  try {
+    vh::io::createPrivateDirectories(dir);
+  } catch (const std::exception& e) {
+    throw std::runtime_error(std::string(option) + " " + path + ": " + e.what());
+  }
+  if (!std::filesystem::is_directory(dir)) {
+    throw std::runtime_error(std::string(option) + " " + path + ": cannot create the folder " + dir.string());
   }
   if (::access(dir.c_str(), W_OK) != 0) {
     throw std::runtime_error(std::string(option) + " " + path + ": the folder " + dir.string() + " is not writable");
@@ -531,7 +535,10 @@ int exportCommand(int argc, char** argv, const ExportArgs& a) {
   if (!a.media.video.empty() || !a.media.png.empty()) {
     if (vh::ui::exportRecordingMedia(argc, argv, a.recording, a.media) != 0) return kExitError;
   }
-  std::cout << "volume-haptics export: " << recording.records.size() << " records, " << recording.events.size()
+  // With an output on the standard output ("-"), the summary goes to the standard error.
+  const auto toStdout = [](const std::string& p) { return p == "-" || p == "/dev/stdout" || p == "/dev/fd/1"; };
+  std::ostream& said = toStdout(a.csv) || toStdout(a.json) || toStdout(a.events_csv) ? std::cerr : std::cout;
+  said << "volume-haptics export: " << recording.records.size() << " records, " << recording.events.size()
             << " events in " << recording.chunks << " chunks, " << recording.dropped_records << " dropped"
             << std::endl;
   return EXIT_SUCCESS;

@@ -32,6 +32,7 @@
 
 #include "loader_internal.h"
 #include "nifti_internal.h"
+#include "reader_checks.h"
 #include "vh/io/patient_frames.h"
 #include "vtk_error_capture.h"
 
@@ -508,6 +509,14 @@ LoadedVolume loadNifti(const fs::path& path) {
   const fs::path header_path = headerFileOf(path);
   const NiftiHeader h = readHeader(path, header_path);
   const fs::path data_path = h.single_file ? header_path : imageFileOf(header_path);
+  std::error_code link_ec;
+  if (!h.single_file && fs::symlink_status(data_path, link_ec).type() != fs::file_type::not_found) {
+    // A pair's voxel file follows the rules of every detached data file (NRRD, MetaImage): in
+    // the header's folder once links are resolved, and a regular file; a .img linked to
+    // /etc/shadow is not read as voxels.
+    detail::requireBesideHeader(header_path, data_path);
+    detail::requireRegularFile(data_path, header_path);
+  }
   checkVoxelData(path, data_path, h);
 
   VolumeInfo info;

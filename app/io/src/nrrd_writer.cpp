@@ -35,10 +35,10 @@ void writeNrrd(const std::filesystem::path& path, const NrrdVolume& v) {
   std::optional<PrivateOutput> file;
   try {
     file.emplace(path);
-  } catch (const std::runtime_error&) {
-    throw std::runtime_error(path.string() + ": cannot open the file for writing");
+  } catch (const std::runtime_error& e) {
+    throw std::runtime_error(path.string() + ": cannot open the file for writing (" + e.what() + ")");
   }
-  std::ofstream& out = file->stream();
+  std::ostream& out = file->stream();
   const std::string header = h.str();
   out.write(header.data(), static_cast<std::streamsize>(header.size()));
   const std::size_t bytes = static_cast<std::size_t>(v.dims[0]) * v.dims[1] * v.dims[2] * size->second;

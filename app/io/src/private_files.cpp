@@ -7,6 +7,7 @@
 
 #include <cerrno>
 #include <cstring>
+#include <iostream>
 #include <stdexcept>
 #include <vector>
 
@@ -57,6 +58,32 @@ void makePrivate(const fs::path& path) {
 }
 
 PrivateOutput::PrivateOutput(fs::path target) : target_(std::move(target)) {
+  // The standard streams by name: written to, never replaced (they are links into /proc).
+  const std::string named = target_.string();
+  if (named == "-" || named == "/dev/stdout" || named == "/dev/fd/1") {
+    temp_ = "/dev/stdout";
+    standard_ = &std::cout;
+    in_place_ = true;
+    return;
+  }
+  if (named == "/dev/stderr" || named == "/dev/fd/2") {
+    temp_ = "/dev/stderr";
+    standard_ = &std::cerr;
+    in_place_ = true;
+    return;
+  }
+  struct stat st {};
+  if (::lstat(target_.c_str(), &st) == 0) {
+    if (S_ISLNK(st.st_mode))
+      throw std::runtime_error("will not write " + named +
+                               ": it is a symbolic link (not followed, not replaced); name the file it points to");
+    if (S_ISDIR(st.st_mode)) throw std::runtime_error("cannot write " + named + ": it is a folder");
+    if (!S_ISREG(st.st_mode)) {  // a FIFO, a device, a socket: written in place, never replaced
+      temp_ = target_;
+      in_place_ = true;
+      return;
+    }
+  }
   const fs::path folder = target_.has_parent_path() ? target_.parent_path() : fs::path(".");
   const std::string ext = target_.extension().string();
   std::string leaf(1, '.');  // hidden, named after the target, with its extension
@@ -72,14 +99,20 @@ PrivateOutput::PrivateOutput(fs::path target) : target_(std::move(target)) {
 }
 
 PrivateOutput::~PrivateOutput() {
+  if (in_place_) {  // the target itself: never removed
+    if (stream_.is_open()) stream_.close();
+    return;
+  }
   if (committed_) return;
   if (stream_.is_open()) stream_.close();
   std::error_code ec;
   fs::remove(temp_, ec);
 }
 
-std::ofstream& PrivateOutput::stream() {
-  if (!stream_.is_open()) stream_.open(temp_, std::ios::binary | std::ios::trunc);
+std::ostream& PrivateOutput::stream() {
+  if (standard_ != nullptr) return *standard_;
+  // In place: no truncation (a FIFO or device has nothing to truncate; a stream is appended to).
+  if (!stream_.is_open()) stream_.open(temp_, in_place_ ? std::ios::binary | std::ios::out : std::ios::binary | std::ios::trunc);
   return stream_;
 }
 
@@ -87,7 +120,7 @@ void PrivateOutput::commit() {
   const auto fail = [&](const std::string& why) {
     if (stream_.is_open()) stream_.close();
     std::error_code ec;
-    fs::remove(temp_, ec);
+    if (!in_place_) fs::remove(temp_, ec);
     committed_ = true;  // nothing left to remove
     throw std::runtime_error("cannot write " + target_.string() + ": " + why);
   };
@@ -97,6 +130,17 @@ void PrivateOutput::commit() {
     const bool good = stream_.good();
     stream_.close();
     if (!good || stream_.fail()) fail("write failed (disk full?)");
+  }
+  if (standard_ != nullptr) {
+    standard_->flush();
+    if (!standard_->good()) {
+      standard_->clear();
+      fail("write failed (disk full, or the reader went away?)");
+    }
+  }
+  if (in_place_) {
+    committed_ = true;
+    return;
   }
   std::error_code ec;
   if (!fs::exists(temp_, ec)) fail("the temporary file vanished");

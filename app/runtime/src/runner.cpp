@@ -79,23 +79,24 @@ void describeRun(RunReport& r, const LoadedScene& scene, const haptics::ScalarVo
   r.trajectory_duration_s = trajectory.duration_s();
 }
 
-/// The per-tick trace CSV with its header written (RunOptions::trace_csv), or a closed stream
-/// when none is asked for.
-std::ofstream openTrace(const std::filesystem::path& trace_csv) {
-  std::ofstream trace;
-  if (!trace_csv.empty()) {
-    try {
-      io::createPrivateFile(trace_csv);  // 0600: the session's poses and forces
-    } catch (const std::runtime_error&) {
-      throw std::runtime_error(trace_csv.string() + ": cannot write the trace");
-    }
-    trace.open(trace_csv);
-    if (!trace) throw std::runtime_error(trace_csv.string() + ": cannot write the trace");
-    trace << "tick,t_s,xd_m,yd_m,zd_m,xp_m,yp_m,zp_m,fx_N,fy_N,fz_N,tx_Nm,ty_Nm,tz_Nm,contacts,exec_us,penetration_m,"
-             "qw_p,qx_p,qy_p,qz_p,time_of_contact,crossing_points,cmd_fx_N,cmd_fy_N,cmd_fz_N,cmd_tx_Nm,cmd_ty_Nm,"
-             "cmd_tz_Nm,sample,isovalue,felt_isovalue\n"
-          << std::setprecision(9);
+/// The per-tick trace CSV with its header written (RunOptions::trace_csv), or null when none is
+/// asked for. Written beside its target and renamed into place by commit() at the run's end
+/// (io::PrivateOutput: 0600, the session's poses and forces), so a failed write (a full disk)
+/// is an error and leaves no partial trace that looks whole.
+std::unique_ptr<io::PrivateOutput> openTrace(const std::filesystem::path& trace_csv) {
+  if (trace_csv.empty()) return nullptr;
+  std::unique_ptr<io::PrivateOutput> trace;
+  try {
+    trace = std::make_unique<io::PrivateOutput>(trace_csv);
+  } catch (const std::runtime_error& e) {
+    throw std::runtime_error(trace_csv.string() + ": cannot write the trace (" + e.what() + ")");
   }
+  std::ostream& out = trace->stream();
+  if (!out) throw std::runtime_error(trace_csv.string() + ": cannot write the trace");
+  out << "tick,t_s,xd_m,yd_m,zd_m,xp_m,yp_m,zp_m,fx_N,fy_N,fz_N,tx_Nm,ty_Nm,tz_Nm,contacts,exec_us,penetration_m,"
+         "qw_p,qx_p,qy_p,qz_p,time_of_contact,crossing_points,cmd_fx_N,cmd_fy_N,cmd_fz_N,cmd_tx_Nm,cmd_ty_Nm,"
+         "cmd_tz_Nm,sample,isovalue,felt_isovalue\n"
+      << std::setprecision(9);
   return trace;
 }
 
@@ -249,7 +250,7 @@ struct TraceExtras {
 };
 
 /// One row of the trace CSV (openTrace()'s columns).
-void writeTraceRow(std::ofstream& trace, std::uint64_t i, const DeviceSample& sample, const haptics::TickOutput& out,
+void writeTraceRow(std::ostream& trace, std::uint64_t i, const DeviceSample& sample, const haptics::TickOutput& out,
                    const TraceExtras& x) {
   const Eigen::Vector3d& pd = sample.X_WD.p_AB_m;
   const Eigen::Vector3d& pp = out.X_WP.p_AB_m;
@@ -425,7 +426,7 @@ struct HeadlessRun {
   GuidanceTrack* guidance;  // null: no guidance
   SampleFilter& filter;
   ForceSafety& safety;
-  std::ofstream& trace;
+  std::ostream* trace;  // null: no trace
   RecordingWriter* recorder;
   SegmentContactTally* segment_tally;
   CriticalProximity* proximity;         // null: no critical segment
@@ -593,8 +594,8 @@ void checkRunTick(HeadlessRun& run, std::uint64_t i, const RunTick& t) {
     rec.critical_segment = nearest.segment;
     run.recorder->pushWaiting(rec);
   }
-  if (run.trace.is_open()) {
-    writeTraceRow(run.trace, i, t.sample, out,
+  if (run.trace != nullptr) {
+    writeTraceRow(*run.trace, i, t.sample, out,
                   {depth, crossing_points, t.command_W_N, t.command_W_Nm, t.verdict, t.isovalue, felt_isovalue});
   }
   if (SnapshotChannel* monitor = run.options.monitor.get()) {
@@ -704,7 +705,7 @@ RunReport runHeadless(const LoadedScene& scene, const Trajectory& trajectory, co
   const auto n = static_cast<std::uint64_t>(std::floor(trajectory.duration_s() * options.servo_rate_Hz + 1e-9)) + 1;
   std::vector<double> times_us;
   times_us.reserve(n);
-  std::ofstream trace = openTrace(options.trace_csv);
+  const std::unique_ptr<io::PrivateOutput> trace = openTrace(options.trace_csv);
   std::unique_ptr<RecordingWriter> recorder = openRecorder(scene, X_WD_first, device, options);
   std::optional<SegmentContactTally> segment_tally = segmentTally(scene);
   std::optional<CriticalProximity> proximity;
@@ -718,7 +719,7 @@ RunReport runHeadless(const LoadedScene& scene, const Trajectory& trajectory, co
   HeadlessRun run{scene,  trajectory, options, tool, felt, s, 1.0 / options.servo_rate_Hz, *servo.renderer, drill,
                   drill != nullptr && scene.spec.drill && scene.spec.drill->on, reference.get(), lag,
                   verifier ? &*verifier : nullptr, shell_edges, device, guidance ? &*guidance : nullptr, filter, safety,
-                  trace, recorder.get(), segment_tally ? &*segment_tally : nullptr, proximity ? &*proximity : nullptr,
+                  trace != nullptr ? &trace->stream() : nullptr, recorder.get(), segment_tally ? &*segment_tally : nullptr, proximity ? &*proximity : nullptr,
                   proximity_tally ? &*proximity_tally : nullptr, jam, times_us, r, X_WD_first};
   const std::unique_ptr<ServoTechnique> technique = makeServoTechnique(LiveValues::initial(scene), drill);
   run.technique = technique.get();
@@ -732,6 +733,7 @@ RunReport runHeadless(const LoadedScene& scene, const Trajectory& trajectory, co
     if (options.realtime) std::this_thread::sleep_until(wall_begin + std::chrono::nanoseconds(static_cast<std::int64_t>(1e9 * static_cast<double>(i + 1) / options.servo_rate_Hz)));
   }
   finishRun(run, n, wall_begin);
+  if (trace != nullptr) trace->commit();  // @throws "cannot write TRACE: write failed (disk full?)"
   return r;
 }
 

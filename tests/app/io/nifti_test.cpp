@@ -4,6 +4,7 @@
 // a voxel centre of the loaded grid whose value is nibabel's: a wrong form, sign, slice order,
 // unit or scaling puts the point on another voxel or off the grid. Damaged headers are written
 // here, byte by byte, from a nibabel file.
+#include <sys/stat.h>
 #include <cmath>
 #include <cstdint>
 #include <cstdlib>
@@ -201,6 +202,31 @@ TEST_F(NiftiDamaged, PairWithoutItsImage) {
   TempDir tmp("nifti_pair");
   writeFile(tmp / "alone.hdr", readFile(path("pair.hdr")));
   EXPECT_CONTAINS(loadErrorOf([&] { loadVolume(tmp / "alone.hdr"); }), "the voxel file alone.img is missing");
+}
+
+// A pair's voxel file follows the rules of every detached data file: a .img that is a link to a
+// file outside the header's folder (before: /etc/shadow's first bytes loaded as voxels), or a
+// FIFO, is refused naming it; a link within the folder still reads.
+TEST_F(NiftiDamaged, PairImageLinkedOutsideItsFolderOrAFifoIsRefused) {
+  TempDir tmp("nifti_pair_link");
+  TempDir elsewhere("nifti_pair_secret");
+  const std::string img = readFile(path("pair.img"));
+  writeFile(elsewhere / "secret.bin", img);  // right size: only where it lies refuses it
+  writeFile(tmp / "pair2.hdr", readFile(path("pair.hdr")));
+  std::filesystem::create_symlink(elsewhere / "secret.bin", tmp / "pair2.img");
+  const std::string msg = loadErrorOf([&] { loadVolume(tmp / "pair2.hdr"); });
+  EXPECT_CONTAINS(msg, "pair2.img");
+  EXPECT_CONTAINS(msg, "outside the header's folder");
+  EXPECT_CONTAINS(loadErrorOf([&] { loadVolume(tmp / "pair2.img"); }), "outside the header's folder");
+
+  writeFile(tmp / "pair3.hdr", readFile(path("pair.hdr")));
+  ASSERT_EQ(::mkfifo((tmp / "pair3.img").c_str(), 0600), 0);
+  EXPECT_CONTAINS(loadErrorOf([&] { loadVolume(tmp / "pair3.hdr"); }), "a FIFO, not a regular file");
+
+  writeFile(tmp / "real.img", img);  // a link beside its header: read
+  writeFile(tmp / "pair4.hdr", readFile(path("pair.hdr")));
+  std::filesystem::create_symlink("real.img", tmp / "pair4.img");
+  EXPECT_NO_THROW(loadVolume(tmp / "pair4.hdr"));
 }
 
 }  // namespace

@@ -10,7 +10,10 @@
 
 #include <filesystem>
 #include <fstream>
+#include <iterator>
+#include <sstream>
 #include <string>
+#include <thread>
 #include <vector>
 
 #include <gtest/gtest.h>
@@ -167,6 +170,66 @@ TEST(PrivateFiles, AFailedWriteLeavesNoPartialFile) {
   // Without the limit the same writes succeed (the failures above were the limit's).
   writeRecordingCsv(recording, dir / "ticks.csv");
   EXPECT_GT(fs::file_size(dir / "ticks.csv"), 64u * 1024u);
+}
+
+// Only a regular file is ever replaced (the atomic write renames a temporary file over its
+// target): a FIFO of the test's own is written in place and stays a FIFO, "-" writes to the
+// standard output, a symbolic link and a folder are refused with the reason and left as they
+// were (before, each of them was replaced by a regular file: /dev/stdout, /dev/full, a link in
+// the user's folder). The oracle is the kernel: lstat() and what a reader of the FIFO receives.
+TEST(PrivateFiles, OnlyARegularFileIsEverReplaced) {
+  const fs::path dir = test::scratchDir() / "private-nonregular";
+  fs::remove_all(dir);
+  fs::create_directories(dir);
+  const fs::path rec = dir / "session.vhrec";
+  writeSession(rec, 50);
+  const Recording recording = readRecording(rec);
+  std::ostringstream expected;
+  writeRecordingCsv(recording, expected);
+
+  // A FIFO: what the export writes reaches its reader; it is still a FIFO afterwards.
+  const fs::path fifo = dir / "ticks.fifo";
+  ASSERT_EQ(::mkfifo(fifo.c_str(), 0600), 0);
+  std::string received;
+  std::thread reader([&] {
+    std::ifstream in(fifo, std::ios::binary);
+    received.assign(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
+  });
+  writeRecordingCsv(recording, fifo);
+  reader.join();
+  struct stat st {};
+  ASSERT_EQ(::lstat(fifo.c_str(), &st), 0);
+  EXPECT_TRUE(S_ISFIFO(st.st_mode)) << "the FIFO was replaced by a regular file";
+  EXPECT_EQ(received, expected.str());
+
+  // "-": the standard output.
+  testing::internal::CaptureStdout();
+  writeRecordingCsv(recording, "-");
+  const std::string out = testing::internal::GetCapturedStdout();
+  EXPECT_EQ(out, expected.str());
+  EXPECT_FALSE(fs::exists("-")) << "a file named - was written";
+
+  // A symbolic link: refused, the link and the file it points to untouched.
+  std::ofstream(dir / "real.csv") << "keep\n";
+  fs::create_symlink(dir / "real.csv", dir / "link.csv");
+  try {
+    writeRecordingCsv(recording, dir / "link.csv");
+    ADD_FAILURE() << "a symbolic link was written through";
+  } catch (const std::runtime_error& e) {
+    EXPECT_NE(std::string(e.what()).find("symbolic link"), std::string::npos) << e.what();
+  }
+  EXPECT_TRUE(fs::is_symlink(dir / "link.csv"));
+  std::ifstream real(dir / "real.csv");
+  std::string line;
+  std::getline(real, line);
+  EXPECT_EQ(line, "keep");
+
+  // A folder: refused, left as it was.
+  fs::create_directories(dir / "a-folder.csv");
+  EXPECT_THROW(writeRecordingCsv(recording, dir / "a-folder.csv"), std::runtime_error);
+  EXPECT_TRUE(fs::is_directory(dir / "a-folder.csv"));
+  EXPECT_EQ(namesIn(dir), (std::vector<std::string>{"a-folder.csv", "link.csv", "real.csv", "session.vhrec", "ticks.fifo"}))
+      << "a temporary file was left behind";
 }
 
 }  // namespace

@@ -49,4 +49,11 @@ struct Preferences : ViewLook {
   bool operator==(const Preferences& other) const = default;
 };
 
+/// Makes the application's settings file (QSettings' native file for the current organisation
+/// and application names) owner-only: its folder 0700, the file 0600, created empty when missing.
+/// It lists the recent scans' paths, often folders named after patients. Qt rewrites the file by
+/// renaming a new one over it with the old one's permissions, so one call at start-up keeps it so.
+/// Never throws: a folder or file that cannot be made private is left as it was.
+void makeSettingsPrivate() noexcept;
+
 }  // namespace vh::ui
