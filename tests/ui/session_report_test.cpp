@@ -8,6 +8,8 @@
 #include <cmath>
 #include <cstdlib>
 #include <filesystem>
+#include <limits>
+#include <cstring>
 #include <fstream>
 #include <set>
 #include <string>
@@ -240,6 +242,38 @@ TEST(SessionReport, TruncatedRecordingGivesAReportWithANotice) {
   // Not a recording at all: an error naming it, no report.
   std::ofstream(dir / "junk.vhrec") << "junk";
   EXPECT_THROW(writeSessionReport(dir / "junk.vhrec", dir / "junk.html"), std::runtime_error);
+}
+
+// Records that are all NaN, or random bits, with valid checksums (a solver that failed, a
+// hostile file): before, the force chart's NaN axis range ended the program with SIGSEGV. Now a
+// report whose pictures (the force and speed charts at least) decode.
+TEST(SessionReport, RecordsOfNaNOrRandomBitsStillGiveAReport) {
+  for (const bool random : {false, true}) {
+    Recording rec = pressSession("abc");
+    std::uint64_t state = 0x9E3779B97F4A7C15ull;
+    const auto bits = [&] {
+      state ^= state << 13, state ^= state >> 7, state ^= state << 17;  // xorshift64
+      double d;
+      std::memcpy(&d, &state, sizeof d);
+      return d;
+    };
+    const double nan = std::numeric_limits<double>::quiet_NaN();
+    for (TickRecord& t : rec.records) {
+      t.time_s = random ? bits() : nan;
+      for (int k = 0; k < 3; ++k) {
+        t.p_WD_m[k] = random ? bits() : nan;
+        t.p_WP_m[k] = random ? bits() : nan;
+        t.force_W_N[k] = random ? bits() : nan;
+        t.torque_W_Nm[k] = random ? bits() : nan;
+      }
+      t.tick_time_s = random ? bits() : nan;
+    }
+    const std::string html = sessionReportHtml(rec, random ? "random.vhrec" : "nan.vhrec");
+    EXPECT_NE(html.find("<html"), std::string::npos);
+    const auto images = inlineImages(html);
+    EXPECT_GE(images.size(), 2u) << (random ? "random" : "NaN");  // the force and speed charts at least
+    for (const auto& im : images) EXPECT_FALSE(im.image.isNull()) << im.alt;
+  }
 }
 
 TEST(SessionReport, ReferenceOfTheSameSceneIsDrawnAnotherIsRefused) {

@@ -157,6 +157,35 @@ TEST(TissueView, PressedThePictureShowsWhatTheHandFeelsReleasedTheScan) {
       << "released, the picture is not the scan";
 }
 
+// Haptic threads rebuilt on the same scene and surface (a recording starting restarts them where
+// the proxy is) keep the tissue built for it: its compliance table took 36 s on the CT head's
+// soft tissue. It starts again at rest: the felt field the scan's, voxel for voxel.
+TEST(TissueView, RebuiltThreadsKeepTheTissueAndStartItAtRest) {
+  TissueSession s(gelScene());
+  runtime::Session& session = s.session;
+  const tissue::DeformableScene* built = session.hapticThread()->tissue().get();
+  ASSERT_NE(built, nullptr);
+  session.startHaptics();
+  haptics::Pose X_WD = session.live().X_WT_initial;
+  X_WD.p_AB_m = Eigen::Vector3d(-0.005, 0.0, datasets::kGelTop_m + 0.0025 - 0.002);
+  session.simulatedDevice()->setPose(X_WD);
+  ASSERT_TRUE(test::waitFor(
+      [&] {
+        s.tissue.drain();
+        return s.tissue.shown().indentation_m > 0.3e-3;
+      },
+      30000 * test::kSanitizerSlowdown));
+  ASSERT_TRUE(session.prepareRecording().has_value());  // the threads rebuilt where the proxy is
+  ASSERT_NE(session.hapticThread(), nullptr);
+  EXPECT_EQ(session.hapticThread()->tissue().get(), built) << "the tissue was built again";
+  session.stopHaptics();
+  std::size_t differing = 0;
+  const haptics::ScalarVolume& felt = *session.hapticThread()->tissue()->feltVolume();
+  const haptics::ScalarVolume& scan = *session.live().scan_field;
+  for (std::size_t v = 0; v < scan.geometry().voxelCount(); ++v) differing += felt.rawAt(v) != scan.rawAt(v);
+  EXPECT_EQ(differing, 0u) << "the kept tissue did not start at rest";
+}
+
 TEST(TissueView, ARigidSceneStartsNoneOfIt) {
   TissueSession s(runtime::loadScene(runtime::parseScene(
       R"({"volume": {"path": "builtin:sphere"}, "device": {"kind": "simulated"}})", "rigid.json", ".")));

@@ -1,6 +1,8 @@
 // Format dispatch for loadVolume, and the helpers shared by the format loaders.
 #include "vh/io/volume_loader.h"
 
+#include <cstdio>
+
 #include <algorithm>
 #include <array>
 #include <cctype>
@@ -148,7 +150,29 @@ Format detectFormat(const fs::path& path) {
 
 }  // namespace
 
-LoadedVolume loadVolume(const std::filesystem::path& path, const VolumeLoadOptions& options) {
+namespace {
+
+/// `v` when its voxels are at least kMinVoxelSide_m on every side, else a LoadError naming the
+/// file: a voxel of 1e-30 m (a hostile ElementSpacing or pixdim) made every later step that
+/// walks the volume in voxels (the tool's placement, the trajectory's ray) run for hours.
+LoadedVolume withSaneVoxels(const fs::path& path, LoadedVolume v) {
+  if (v.field == nullptr) return v;
+  const Eigen::Vector3d& s = v.field->geometry().spacing_m;
+  if (!(s.minCoeff() >= kMinVoxelSide_m * (1.0 - 1e-9))) {  // 1 um itself, rounded either way, loads
+    char text[200];
+    std::snprintf(text, sizeof text,
+                  "a voxel side of %.3g mm (%.3g x %.3g x %.3g mm): below %.3g mm (1 um), no scanner's; "
+                  "nothing was loaded",
+                  1e3 * s.minCoeff(), 1e3 * s.x(), 1e3 * s.y(), 1e3 * s.z(), 1e3 * kMinVoxelSide_m);
+    detail::fail(path, text);
+  }
+  return v;
+}
+
+}  // namespace
+
+/// The volume of `path` as its format gives it (loadVolume() without the voxel-size check).
+static LoadedVolume loadUnchecked(const std::filesystem::path& path, const VolumeLoadOptions& options) {
   std::error_code ec;
   if (path.empty()) throw LoadError("(empty path): no file or folder given");
   const auto status = fs::status(path, ec);
@@ -177,6 +201,10 @@ LoadedVolume loadVolume(const std::filesystem::path& path, const VolumeLoadOptio
   detail::fail(path,
                "not a volume: unrecognised format (expected a DICOM folder or file, NRRD "
                ".nrrd/.nhdr, MetaImage .mha/.mhd, or NIfTI .nii/.nii.gz/.hdr)");
+}
+
+LoadedVolume loadVolume(const std::filesystem::path& path, const VolumeLoadOptions& options) {
+  return withSaneVoxels(path, loadUnchecked(path, options));
 }
 
 std::string volumeFileDialogFilter() {

@@ -112,6 +112,19 @@ CompliantHand::CompliantHand(Device& intended, const HandImpedance& hand, double
       !std::isfinite(hand.mass_kg + hand.stiffness_N_per_m + hand.damping_N_s_per_m))
     throw std::invalid_argument("the hand model needs a mass > 0 kg, a stiffness > 0 N/m and a damping >= 0 N s/m");
   if (!(step_s > 0.0) || !std::isfinite(step_s)) throw std::invalid_argument("the hand model needs a step > 0 s");
+  // Semi-implicit Euler on m x'' = -k x - b x' is stable only while k dt^2 / m + 2 b dt / m < 4
+  // (Jury's test on its characteristic polynomial); beyond it the hand's pose grows without
+  // bound and every sample after a few is bad.
+  const double stability = (hand.stiffness_N_per_m * step_s * step_s + 2.0 * hand.damping_N_s_per_m * step_s) / hand.mass_kg;
+  if (!(stability < 4.0)) {
+    const double k_max = (4.0 * hand.mass_kg - 2.0 * hand.damping_N_s_per_m * step_s) / (step_s * step_s);
+    char text[300];
+    std::snprintf(text, sizeof text,
+                  "the hand model at %g N/m is unstable at %g Hz (mass %g kg, damping %g N s/m): its stiffness must be "
+                  "below %.4g N/m",
+                  hand.stiffness_N_per_m, 1.0 / step_s, hand.mass_kg, hand.damping_N_s_per_m, k_max);
+    throw std::invalid_argument(text);
+  }
 }
 
 bool CompliantHand::read(DeviceSample& sample) noexcept {

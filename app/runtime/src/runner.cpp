@@ -349,6 +349,16 @@ void checkRunArguments(const Trajectory& trajectory, const RunOptions& options) 
   if (!(options.servo_rate_Hz > 0.0)) throw std::invalid_argument("runHeadless: servo rate must be > 0");
   if (!(options.verify_step_voxels >= 0.0) || !std::isfinite(options.verify_step_voxels))
     throw std::invalid_argument("runHeadless: the crossing-check step must be >= 0 voxels (0: off)");
+  // Each shell point's path is sampled 1 / step times a voxel: below a thousandth of a voxel
+  // (ten times finer than the default) the check would run for hours and resolve nothing more.
+  if (options.verify_step_voxels > 0.0 && options.verify_step_voxels < kMinVerifyStep_voxels) {
+    char text[200];
+    std::snprintf(text, sizeof text,
+                  "runHeadless: a crossing-check step of %g voxel is too fine: it must be at least %g voxel (0: off; "
+                  "default 0.01)",
+                  options.verify_step_voxels, kMinVerifyStep_voxels);
+    throw std::invalid_argument(text);
+  }
   // The tick count in double first: a trajectory ending at 1e19 s would overflow the integer.
   const double duration_s = trajectory.duration_s();
   if (!(duration_s >= 0.0 && duration_s <= kMaxRunDuration_s)) {

@@ -82,13 +82,19 @@ PreparedDrill prepareServoDrill(const LiveValues& live) {
 }
 
 DrillingRenderer makeServoRenderer(const LiveValues& live, const haptics::RendererOptions& options,
-                                   const haptics::Pose& X_WP, double servo_rate_Hz, PreparedDrill* prepared) {
+                                   const haptics::Pose& X_WP, double servo_rate_Hz, PreparedDrill* prepared,
+                                   std::shared_ptr<tissue::DeformableScene> reuse) {
   if (live.tissue) {
     if (live.drill) throw std::invalid_argument("tissue: not with a drill (cutting soft tissue is not supported yet)");
     if (live.feltSegments()) throw std::invalid_argument("tissue: not with felt segments");
     if (live.tool == nullptr) throw std::invalid_argument("tissue needs a tool");
     DrillingRenderer out;
-    out.tissue = makeTissueScene(*live.tissue, live.scan_field, live.isovalue, live.scan_in_HU);
+    if (reuse != nullptr && &reuse->scan() == live.scan_field.get() && reuse->isovalue() == live.isovalue) {
+      reuse->reset();  // the same scene and surface: the costly model kept, back to rest
+      out.tissue = std::move(reuse);
+    } else {
+      out.tissue = makeTissueScene(*live.tissue, live.scan_field, live.isovalue, live.scan_in_HU);
+    }
     out.renderer = rendererOn(out.tissue->feltVolume(), live, options, X_WP);
     return out;
   }
@@ -128,7 +134,7 @@ std::unique_ptr<HapticThread> makeHapticThread(const LiveValues& live, std::shar
   solver.deadline_us = solverDeadline_us(servo_rate_Hz);
   DrillingRenderer r = makeServoRenderer(live, solver, X_WP,
                                          options.solver_rate_Hz > 0.0 ? options.solver_rate_Hz : servo_rate_Hz,
-                                         prepared);
+                                         prepared, options.tissue);
   with_segments.drill = r.drill;
   with_segments.tissue = r.tissue;
   with_segments.technique = makeServoTechnique(live, r.drill.get());

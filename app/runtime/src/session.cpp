@@ -51,6 +51,7 @@ void Session::setScene(LoadedScene scene, std::shared_ptr<Device> device) {
   const bool was_running = hapticsRunning();
   if (haptics_ != nullptr) haptics_->stop();
   haptics_.reset();
+  tissue_kept_.reset();  // another scene's tissue
   loaded_ = std::move(scene);
   has_scene_ = true;
   live_ = LiveValues::initial(loaded_);
@@ -67,6 +68,7 @@ void Session::setScene(LoadedScene scene, std::shared_ptr<Device> device) {
 void Session::clear() {
   if (haptics_ != nullptr) haptics_->stop();
   haptics_.reset();
+  tissue_kept_.reset();
   device_.reset();
   const haptics::CouplingGains gains = live_.gains;
   loaded_ = LoadedScene{};
@@ -227,6 +229,7 @@ void Session::retireHaptics() {
   if (haptics_ == nullptr) return;
   haptics_->stop();
   keepCavity();
+  tissue_kept_ = haptics_->tissue();  // the next threads reuse it on the same surface
   haptics_.reset();
   restart_memory_hold_.reset();
 }
@@ -262,6 +265,8 @@ void Session::rebuildHaptics(const haptics::Pose& X_WP, PreparedDrill* prepared)
   if (device_ == nullptr || !has_scene_ || live_.hapticField() == nullptr || live_.tool == nullptr) return;
   HapticThreadOptions options;
   options.monitor = monitor_;
+  options.tissue = std::move(tissue_kept_);  // reused when built for this scan and isovalue
+  tissue_kept_.reset();
   haptics_ = makeHapticThread(live_, device_, servo_rate_Hz_, X_WP, options, prepared);
   haptics_built_X_WP_ = X_WP;
 }

@@ -287,6 +287,15 @@ TEST(Runner, CrossingCheckOffIsReportedAsNotCheckedNotAsZero) {
 
   options.verify_step_voxels = -1.0;
   EXPECT_THROW(runHeadless(scene, plan.trajectory, options), std::invalid_argument);
+  // A step so fine that the check would run for hours (1e-12 voxel ran past 65 s) is refused
+  // before anything is set up, naming the finest step accepted.
+  options.verify_step_voxels = 1e-12;
+  try {
+    (void)runHeadless(scene, plan.trajectory, options);
+    ADD_FAILURE() << "a crossing-check step of 1e-12 voxel was accepted";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("at least 0.001 voxel"), std::string::npos) << e.what();
+  }
 }
 
 TEST(Runner, PenetrationMeasureIsTheDepthBelowAPlane) {

@@ -92,7 +92,10 @@ std::string imageTag(const std::string& uri, const std::string& alt, const char*
 QValueAxis* addAxis(QChart* chart, Qt::Alignment where, const QString& title, double lo, double hi) {
   auto* axis = new QValueAxis;
   axis->setTitleText(title);
-  if (!(hi > lo)) hi = lo + 1.0;
+  // A recording of non-finite values (damaged, or a solver that failed) still gets its axes:
+  // Qt Charts refuses a NaN range and the page's pictures must survive it.
+  if (!std::isfinite(lo)) lo = 0.0;
+  if (!std::isfinite(hi) || !(hi > lo)) hi = lo + 1.0;
   axis->setRange(lo, hi);
   axis->setLabelFormat("%.4g");
   chart->addAxis(axis, where);
@@ -118,13 +121,15 @@ QList<QPointF> thinnedByMax(const std::vector<TickRecord>& records, std::size_t 
   const std::size_t n = records.size();
   const std::size_t per = std::max<std::size_t>(1, (n + buckets - 1) / buckets);
   for (std::size_t b = 0; b < n; b += per) {
-    std::size_t best = b;
-    double best_v = value(records[b]);
-    for (std::size_t i = b + 1; i < std::min(n, b + per); ++i) {
+    // Non-finite values and times are left out (a damaged or failed recording): no point drawn.
+    std::size_t best = n;
+    double best_v = 0.0;
+    for (std::size_t i = b; i < std::min(n, b + per); ++i) {
       const double v = value(records[i]);
-      if (v > best_v) best_v = v, best = i;
+      if (!std::isfinite(v) || !std::isfinite(records[i].time_s)) continue;
+      if (best == n || v > best_v) best_v = v, best = i;
     }
-    out.append(QPointF(records[best].time_s, best_v));
+    if (best < n) out.append(QPointF(records[best].time_s, best_v));
   }
   return out;
 }
@@ -144,7 +149,8 @@ std::string forceChart(const Recording& rec, const SessionMetrics& m, const Sess
   const double t0 = rec.records.front().time_s, t1 = rec.records.back().time_s;
   QValueAxis* x = addAxis(chart, Qt::AlignBottom, "time [s]", t0, t1);
   x->applyNiceNumbers();
-  const double fmax = std::max(m.max_force_N, m.force_threshold_N) * 1.1;
+  double fmax = std::max(m.max_force_N, m.force_threshold_N) * 1.1;
+  if (!std::isfinite(fmax)) fmax = 1.0;
   QValueAxis* yf = addAxis(chart, Qt::AlignLeft, "|F| [N]", 0.0, fmax > 0 ? fmax : 1.0);
   QValueAxis* yt = addAxis(chart, Qt::AlignRight, "|torque| [N*m]", 0.0, m.max_torque_Nm > 0 ? m.max_torque_Nm * 1.1 : 1.0);
   yf->applyNiceNumbers();
@@ -173,7 +179,7 @@ std::string forceChart(const Recording& rec, const SessionMetrics& m, const Sess
   marks->setMarkerSize(9);
   marks->setColor(QColor(0x2c, 0xa0, 0x2c));
   for (const auto& e : rec.events)
-    if (markedEvent(e)) marks->append(e.time_s, fmax * 0.97);
+    if (markedEvent(e) && std::isfinite(e.time_s)) marks->append(e.time_s, fmax * 0.97);
   chart->addSeries(marks);
   marks->attachAxis(x);
   marks->attachAxis(yf);
@@ -577,11 +583,12 @@ std::string mapFigure(const std::string& uri, const std::string& title, const Ma
 std::string contactMap(const Recording& rec, const SessionMetrics& m, const SessionReportOptions& o,
                        const Anatomy* anatomy) {
   std::vector<const TickRecord*> contacts;
+  // Contacts with a non-finite force or pose (a damaged or failed recording) are not drawn.
   for (const TickRecord& r : rec.records)
-    if (r.contacts > 0) contacts.push_back(&r);
+    if (r.contacts > 0 && std::isfinite(norm3(r.force_W_N)) && std::isfinite(norm3(r.p_WP_m))) contacts.push_back(&r);
   if (contacts.empty()) return "<p>The tool touched nothing: no contact map.</p>\n";
   const std::size_t stride = std::max<std::size_t>(1, contacts.size() / 3000);
-  const double fmax = std::max(m.max_force_N, 1e-9);
+  const double fmax = std::isfinite(m.max_force_N) ? std::max(m.max_force_N, 1e-9) : 1.0;
   static const QColor kBand[] = {QColor(0x31, 0x82, 0xbd), QColor(0x31, 0xa3, 0x54), QColor(0xfd, 0x8d, 0x3c),
                                  QColor(0xde, 0x2d, 0x26)};
   std::string html = "<div class=\"maps\">\n";
@@ -594,7 +601,7 @@ std::string contactMap(const Recording& rec, const SessionMetrics& m, const Sess
     QList<QPointF> all;
     for (std::size_t i = 0; i < contacts.size(); i += stride) {
       const double f = norm3(contacts[i]->force_W_N);
-      const int band = std::min(3, static_cast<int>(f / fmax * 4.0));
+      const int band = std::clamp(static_cast<int>(std::min(4.0, f / fmax * 4.0)), 0, 3);
       const QPointF p = view.project_mm(contacts[i]->p_WP_m);
       layers[static_cast<std::size_t>(band)].points_mm.append(p);
       all.append(p);

@@ -190,6 +190,31 @@ void DeformableScene::publishView(Clock::time_point now, bool changed, const Def
   view_dirty_ = false;
 }
 
+void DeformableScene::reset() noexcept {
+  // Outside the held window the felt volume is the scan already (every write lies in it).
+  if (last_hi_[0] >= last_lo_[0] && last_hi_[1] >= last_lo_[1] && last_hi_[2] >= last_lo_[2]) {
+    const haptics::VolumeGeometry& geo = scan_->geometry();
+    for (int k = last_lo_[2]; k <= last_hi_[2]; ++k)
+      for (int j = last_lo_[1]; j <= last_hi_[1]; ++j)
+        for (int i = last_lo_[0]; i <= last_hi_[0]; ++i) {
+          const std::size_t index = geo.indexOf(i, j, k);
+          felt_->writeRaw(index, scan_->rawAt(index));
+        }
+    felt_->refreshRegion(last_lo_, last_hi_);
+  }
+  last_lo_ = {0, 0, 0};
+  last_hi_ = {-1, -1, -1};
+  std::fill(prev_point_.begin(), prev_point_.end(), -1);
+  std::fill(prev_push_N_.begin(), prev_push_N_.end(), 0.0);
+  std::fill(contact_point_.begin(), contact_point_.end(), -1);
+  contact_count_ = 0;
+  for (const std::size_t q : window_grid_nodes_) u_grid_[3 * q] = u_grid_[3 * q + 1] = u_grid_[3 * q + 2] = 0.0;
+  window_nodes_.clear();
+  window_grid_nodes_.clear();
+  view_dirty_ = true;  // the rest state, at the next step
+  view_published_ = {};
+}
+
 bool DeformableScene::takeDeformedWindow(DeformedWindow& out) {
   if ((view_middle_.load(std::memory_order_acquire) & kFresh) == 0) return false;
   view_read_ = view_middle_.exchange(view_read_, std::memory_order_acq_rel) & ~kFresh;

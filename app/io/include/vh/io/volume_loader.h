@@ -101,6 +101,9 @@ struct VolumeInfo {
 /// (p_W = origin + D * (p_image - origin)). When the field holds data units (value scale 1,
 /// offset 0: every loaded CT whose HU fit int16), `image`'s scalars are the field's own buffer
 /// (imageFromField() of the shared field): one copy of the voxels for the hand and the picture.
+/// The smallest voxel side loadVolume() accepts [m]: 1 um (the finest micro-CT).
+inline constexpr double kMinVoxelSide_m = 1e-6;
+
 struct LoadedVolume {
   std::shared_ptr<const haptics::ScalarVolume> field;
   ImagePtr image;  ///< Scalars in data units (rescaled), metres; read only (may be the field's).
@@ -131,6 +134,8 @@ struct LoadedVolume {
 /// data units (HU) and the image shares its buffer. Other rescales (fractional, out of int16's
 /// range) stay the field's value_scale / value_offset, with a rescaled copy for the image.
 /// VTK's own error text during the load becomes the LoadError instead of console output.
+/// A voxel side below kMinVoxelSide_m is refused (LoadError): no scanner makes one, and every
+/// step that walks the volume in voxels would run for hours.
 /// May be called from any thread (one load per thread at a time).
 LoadedVolume loadVolume(const std::filesystem::path& path, const VolumeLoadOptions& options = {});
 

@@ -115,6 +115,8 @@ struct HapticThreadOptions {
   /// Soft tissue (tissue_scene.h): the deformable scene whose field the renderer feels (the same
   /// object makeServoRenderer() built it on). Every solver tick with a usable sample runs its
   /// step() before the renderer's tick, on the solver thread (no allocation, no lock). Null: none.
+  /// Given to makeHapticThread(): a scene of earlier, stopped threads to reuse (makeServoRenderer()'s
+  /// `reuse`); it sets the one the threads step.
   std::shared_ptr<tissue::DeformableScene> tissue;
   /// The technique rules (technique.h), evaluated by the solver thread after every tick with a
   /// usable sample (and the drill's cut); their active bits go into the record's flags

@@ -34,10 +34,15 @@ PreparedDrill prepareServoDrill(const LiveValues& live);
 /// absent; else makeDrillingRenderer() on prepareServoDrill(live) (slow: passes over the field's
 /// voxels), or on `prepared` when given (prepareServoDrill() of the same `live`: the same
 /// renderer, only its cost paid earlier; moved from).
+/// Soft tissue (live.tissue): the deformable scene of makeTissueScene() (seconds to a minute for
+/// thousands of lattice nodes), or `reuse` reset to rest when it was built for live's scan and
+/// isovalue (haptic threads rebuilt on the same scene: a recording starting, a tool or device
+/// changed); `reuse` must no longer be stepped by another thread.
 /// @throws std::invalid_argument as makeRenderer() and makeDrillingRenderer().
 DrillingRenderer makeServoRenderer(const LiveValues& live, const haptics::RendererOptions& options,
                                    const haptics::Pose& X_WP, double servo_rate_Hz,
-                                   PreparedDrill* prepared = nullptr);
+                                   PreparedDrill* prepared = nullptr,
+                                   std::shared_ptr<tissue::DeformableScene> reuse = nullptr);
 
 /// The technique rules of `live` in a servo loop (technique.h): the safe level of each of
 /// `drill`'s materials and of each segment, the drill's burr (none without a drill).

@@ -34,6 +34,10 @@
 #include "vh/runtime/haptic_thread.h"
 #include "vh/runtime/scene.h"
 
+namespace vh::tissue {
+class DeformableScene;
+}
+
 namespace vh::runtime {
 
 /// What changed, for observers (a bit set).
@@ -265,6 +269,9 @@ class Session {
   double value_max_ = 1.0;
   std::shared_ptr<Device> device_;
   std::unique_ptr<HapticThread> haptics_;
+  // The soft tissue of the threads last retired, for the next ones on the same scene and surface
+  // (its compliance table takes seconds to a minute to build); handed on by rebuildHaptics().
+  std::shared_ptr<tissue::DeformableScene> tissue_kept_;
   // Keeps the memory lock from a restart of running threads (prepareRecording(), and the setters
   // that rebuild them: tool, edge test, segments, drill, device, monitor) until these threads
   // stop: the restart neither unlocks nor locks again. Kept, not dropped when the restart

@@ -137,6 +137,14 @@ class DeformableScene {
 
   /// The volume to give the renderer (its private copy; step() writes it between ticks).
   std::shared_ptr<const haptics::ScalarVolume> feltVolume() const noexcept { return felt_; }
+  /// The scan as loaded (the rest state; never written).
+  const haptics::ScalarVolume& scan() const noexcept { return *scan_; }
+
+  /// Back to rest, as built: the felt volume the scan again, no contact, no warm start; the view
+  /// is told at the next step. For new haptic threads on the same scene and surface (the model,
+  /// its factorisation and the compliance table, the costly part, are kept). Only while no
+  /// renderer ticks on feltVolume(). Never allocates.
+  void reset() noexcept;
   const TissueRegion& region() const noexcept { return region_; }
   const SurfaceCompliance& compliance() const noexcept { return *compliance_; }
   double isovalue() const noexcept { return isovalue_; }
