@@ -78,21 +78,43 @@ struct PressRecord {
   double push_N = 0.0;    // the tissue's pushes summed (what the tissue is pushed with)
 };
 
+// A 4 mm ball 0.3 mm above the gel's top at (12, 12.2) mm on a 200 N/m coupling (the edge test
+// on): the deformable scene (1.5 mm lattice), the renderer on its felt volume and the dense
+// crossing check on it.
+struct GelPress {
+  static constexpr double kRadius_m = 4e-3;
+  static DeformableSceneOptions sceneOptions() {
+    DeformableSceneOptions o;
+    o.compliance_threads = 2;
+    return o;
+  }
+  static haptics::RendererOptions rendererOptions() {
+    haptics::RendererOptions o;
+    o.edge_test = 1;
+    o.gains.linear_N_per_m = 200.0;
+    o.gains.angular_Nm_per_rad = 0.05;
+    return o;
+  }
+  std::shared_ptr<const haptics::ScalarVolume> scan = gelScan();
+  DeformableScene scene{scan, gelRegion(1.5e-3), kIsovalue, sceneOptions()};
+  std::shared_ptr<const haptics::ToolModel> tool = sphereTool(kRadius_m);
+  haptics::RendererOptions ro = rendererOptions();
+  haptics::Pose X_WD = haptics::Pose::FromTranslation(Eigen::Vector3d(12e-3, 12.2e-3, kTop_m + kRadius_m + 0.3e-3));
+  haptics::HapticRenderer renderer{scene.feltVolume(), tool, ro, X_WD, kIsovalue};
+  haptics::CrossingVerifier verifier{*scene.feltVolume(), tool->point_shell, 1e-2};
+};
+
 TEST(TissueDeformableScene, TheSolverFeelsTheGelYieldByTheFullSolveAndNeverEntersIt) {
-  const double R = 4e-3;
-  const std::shared_ptr<const haptics::ScalarVolume> scan = gelScan();
-  DeformableSceneOptions options;
-  options.compliance_threads = 2;
-  DeformableScene scene(scan, gelRegion(1.5e-3), kIsovalue, options);
-  const auto tool = sphereTool(R);
-  haptics::RendererOptions ro;
-  ro.edge_test = 1;
-  ro.gains.linear_N_per_m = 200.0;
-  ro.gains.angular_Nm_per_rad = 0.05;
+  GelPress g;
+  const double R = GelPress::kRadius_m;
+  const auto& scan = g.scan;
+  DeformableScene& scene = g.scene;
+  const auto& tool = g.tool;
+  const haptics::RendererOptions& ro = g.ro;
   const Eigen::Vector2d xy(12e-3, 12.2e-3);
-  haptics::Pose X_WD = haptics::Pose::FromTranslation(Eigen::Vector3d(xy.x(), xy.y(), kTop_m + R + 0.3e-3));
-  haptics::HapticRenderer renderer(scene.feltVolume(), tool, ro, X_WD, kIsovalue);
-  const haptics::CrossingVerifier verifier(*scene.feltVolume(), tool->point_shell, 1e-2);
+  haptics::Pose& X_WD = g.X_WD;
+  haptics::HapticRenderer& renderer = g.renderer;
+  const haptics::CrossingVerifier& verifier = g.verifier;
 
   // Down 2 um a tick to 0.75 mm below the surface, held at five depths on the way (400 ticks
   // each, the last 100 averaged), then up and away.
@@ -268,28 +290,19 @@ TEST(TissueDeformableScene, TheSolverFeelsTheGelYieldByTheFullSolveAndNeverEnter
 // the tissue is pushed with, not nothing (a surface held back by a proxy that has no reason to
 // move would leave the tissue deformed and the hand at zero force: that was the failure).
 TEST(TissueDeformableScene, SpringingBackTheTissueCarriesTheHeldProxy) {
-  const double R = 4e-3;
-  const std::shared_ptr<const haptics::ScalarVolume> scan = gelScan();
-  DeformableSceneOptions options;
-  options.compliance_threads = 2;
-  DeformableScene scene(scan, gelRegion(1.5e-3), kIsovalue, options);
-  const auto tool = sphereTool(R);
-  haptics::RendererOptions ro;
-  ro.edge_test = 1;
-  ro.gains.linear_N_per_m = 200.0;
-  ro.gains.angular_Nm_per_rad = 0.05;
-  haptics::Pose X_WD = haptics::Pose::FromTranslation(Eigen::Vector3d(12e-3, 12.2e-3, kTop_m + R + 0.3e-3));
-  haptics::HapticRenderer renderer(scene.feltVolume(), tool, ro, X_WD, kIsovalue);
-  const haptics::CrossingVerifier verifier(*scene.feltVolume(), tool->point_shell, 1e-2);
+  GelPress g;
+  const double R = GelPress::kRadius_m;
+  DeformableScene& scene = g.scene;
+  haptics::Pose& X_WD = g.X_WD;
   int crossings = 0, inside = 0, carried = 0;
   DeformableStep last;
   haptics::TickOutput out;
   const auto tick = [&] {
-    last = scene.step(X_WD, renderer);
+    last = scene.step(X_WD, g.renderer);
     carried += last.proxy_carried_m > 0.0;
-    out = renderer.tick(X_WD, kIsovalue);
-    crossings += verifier.check(renderer.lastMotion(), renderer.lastTimeOfContact(), kIsovalue).crossing_points;
-    for (const Eigen::Vector3d& p_T : tool->point_shell.points_T_m())
+    out = g.renderer.tick(X_WD, kIsovalue);
+    crossings += g.verifier.check(g.renderer.lastMotion(), g.renderer.lastTimeOfContact(), kIsovalue).crossing_points;
+    for (const Eigen::Vector3d& p_T : g.tool->point_shell.points_T_m())
       inside += scene.feltVolume()->sample(out.X_WP * p_T) > kIsovalue;
   };
   while (X_WD.p_AB_m.z() > kTop_m + R - 1.0e-3) {  // 1 mm in, 5 um a tick
@@ -300,7 +313,7 @@ TEST(TissueDeformableScene, SpringingBackTheTissueCarriesTheHeldProxy) {
   X_WD.p_AB_m.z() += 0.6e-3;  // drawn back 0.6 mm at once, then held
   for (int t = 0; t < 1500; ++t) tick();
   const double push = last.contact.force_on_device_N.z();
-  const double k_eps = ro.gains.linear_N_per_m * renderer.epsilon_m();
+  const double k_eps = g.ro.gains.linear_N_per_m * g.renderer.epsilon_m();
   std::printf("held 0.4 mm in after drawing back: felt %.2f mN, the tissue pushed %.2f mN, %d steps carried the proxy, "
               "%d crossings, %d points inside\n", 1e3 * out.force_W_N.z(), 1e3 * push, carried, crossings, inside);
   EXPECT_GT(push, 1e-3) << "the tissue is still pushed";

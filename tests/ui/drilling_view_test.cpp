@@ -29,6 +29,7 @@
 
 #include "phantom_window.h"
 #include "ui_test_util.h"
+#include "view_host.h"
 #include "vh/io/segmentation.h"
 #include "vh/runtime/recording.h"
 #include "vh/runtime/replay.h"
@@ -50,16 +51,7 @@ namespace vh::ui {
 namespace {
 namespace fs = std::filesystem;
 
-struct ViewHost {
-  ViewHost() {
-    view = new SceneView(&window);
-    window.setCentralWidget(view->widget());
-    window.resize(400, 300);
-    window.show();
-  }
-  QMainWindow window;
-  SceneView* view = nullptr;
-};
+using ViewHost = test::SceneWindowHost;
 
 fs::path outputDir() {
   const fs::path dir = fs::temp_directory_path() / "vh-ui-drilling";

@@ -22,6 +22,7 @@
 #include <vtkPointData.h>
 
 #include "ui_test_util.h"
+#include "view_host.h"
 #include "vh/datasets/synthetic.h"
 #include "vh/haptics/haptic_renderer.h"
 #include "vh/runtime/haptic_thread.h"
@@ -37,16 +38,7 @@ namespace vh::ui {
 namespace {
 namespace fs = std::filesystem;
 
-struct ViewHost {
-  ViewHost() {
-    view = new SceneView(&window);
-    window.setCentralWidget(view->widget());
-    window.resize(400, 300);
-    window.show();
-  }
-  QMainWindow window;
-  SceneView* view = nullptr;
-};
+using ViewHost = test::SceneWindowHost;
 
 runtime::LoadedScene gelScene() {
   const fs::path file = fs::path(VH_SOURCE_DIR) / "resources" / "scenes" / "gel-palpation.json";

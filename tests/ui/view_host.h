@@ -4,6 +4,7 @@
 
 #include <memory>
 
+#include <QMainWindow>
 #include <QVBoxLayout>
 #include <QWidget>
 
@@ -15,6 +16,19 @@
 #include "vh/ui/view_controller.h"
 
 namespace vh::ui::test {
+
+/// A main window whose central widget is a SceneView (400 x 300), shown: for the controllers
+/// that draw into the view and add docks to the window (drilling, tissue).
+struct SceneWindowHost {
+  SceneWindowHost() {
+    view = new SceneView(&window);
+    window.setCentralWidget(view->widget());
+    window.resize(400, 300);
+    window.show();
+  }
+  QMainWindow window;
+  SceneView* view = nullptr;  // owned by the window
+};
 
 struct ViewControllerHost {
   ViewControllerHost() {
