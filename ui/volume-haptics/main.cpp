@@ -536,8 +536,9 @@ int exportCommand(int argc, char** argv, const ExportArgs& a) {
     if (vh::ui::exportRecordingMedia(argc, argv, a.recording, a.media) != 0) return kExitError;
   }
   // With an output on the standard output ("-"), the summary goes to the standard error.
-  const auto toStdout = [](const std::string& p) { return p == "-" || p == "/dev/stdout" || p == "/dev/fd/1"; };
-  std::ostream& said = toStdout(a.csv) || toStdout(a.json) || toStdout(a.events_csv) ? std::cerr : std::cout;
+  const bool to_stdout = vh::io::namesStandardOutput(a.csv) || vh::io::namesStandardOutput(a.json) ||
+                         vh::io::namesStandardOutput(a.events_csv);
+  std::ostream& said = to_stdout ? std::cerr : std::cout;
   said << "volume-haptics export: " << recording.records.size() << " records, " << recording.events.size()
             << " events in " << recording.chunks << " chunks, " << recording.dropped_records << " dropped"
             << std::endl;

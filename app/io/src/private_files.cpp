@@ -57,10 +57,15 @@ void makePrivate(const fs::path& path) {
   }
 }
 
+bool namesStandardOutput(const fs::path& target) {
+  const std::string named = target.string();
+  return named == "-" || named == "/dev/stdout" || named == "/dev/fd/1";
+}
+
 PrivateOutput::PrivateOutput(fs::path target) : target_(std::move(target)) {
   // The standard streams by name: written to, never replaced (they are links into /proc).
   const std::string named = target_.string();
-  if (named == "-" || named == "/dev/stdout" || named == "/dev/fd/1") {
+  if (namesStandardOutput(target_)) {
     temp_ = "/dev/stdout";
     standard_ = &std::cout;
     in_place_ = true;

@@ -7,7 +7,6 @@
 #include "vh/runtime/placement.h"
 
 #include <algorithm>
-#include <array>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
@@ -249,6 +248,14 @@ struct TraceExtras {
   double felt_isovalue = 0.0;
 };
 
+/// What a rendered tick with tissue gave the report.
+struct TissueTick {
+  double indentation_m = 0.0;  // DeformableStep::indentation_m
+  double force_N = 0.0;        // |the force on the hand|
+  double push_N = 0.0;         // |the tissue's net push|
+  double step_us = 0.0;        // the tissue's step
+};
+
 /// One row of the trace CSV (openTrace()'s columns).
 void writeTraceRow(std::ostream& trace, std::uint64_t i, const DeviceSample& sample, const haptics::TickOutput& out,
                    const TraceExtras& x) {
@@ -450,8 +457,7 @@ struct HeadlessRun {
   double eroded_mm3 = 0.0;  // the drill's eroded volume after the last tick
   ServoTechnique* technique = nullptr;  // the technique rules, or null
   tissue::DeformableScene* tissue = nullptr;  // soft tissue stepped before each tick, or null
-  // Per rendered tick with tissue: the indentation [m], |force| [N], the push [N], the step [us].
-  std::vector<std::array<double, 4>> tissue_ticks{};
+  std::vector<TissueTick> tissue_ticks{};  // per rendered tick with tissue
 };
 
 /// One tick's device sample, what the renderer made of it and the command the device got.
@@ -479,7 +485,8 @@ void renderRunTick(HeadlessRun& run, std::uint64_t i, RunTick& t) {
     if (run.tissue != nullptr) step = run.tissue->step(t.sample.X_WD, run.renderer);
     t.out = run.renderer.tick(t.sample.X_WD, t.isovalue);
     if (run.tissue != nullptr)
-      run.tissue_ticks.push_back({step.indentation_m, t.out.force_W_N.norm(), step.contact.force_on_device_N.norm(), step.step_us});
+      run.tissue_ticks.push_back({step.indentation_m, t.out.force_W_N.norm(), step.contact.force_on_device_N.norm(),
+                                  step.step_us});
     run.X_WD_used = t.sample.X_WD;
   } else {
     t.out.X_WP = run.renderer.proxyPose();  // not rendered: the proxy stays, no force
@@ -614,29 +621,30 @@ void checkRunTick(HeadlessRun& run, std::uint64_t i, const RunTick& t) {
   }
 }
 
-/// After the last of the `n` ticks: the "drilled" event (what the burr removed in all), the
-/// recording closed, and the report's totals.
-/// @throws std::runtime_error naming the recording when one of its writes failed.
-/// Force against indentation from the rendered ticks (indentation, |force|, push, step us).
-TissueReport tissueReport(const std::vector<std::array<double, 4>>& ticks) {
+/// Force against indentation from the rendered ticks.
+TissueReport tissueReport(const std::vector<TissueTick>& ticks) {
   TissueReport t;
-  for (const auto& k : ticks) {
-    t.max_indentation_m = std::max(t.max_indentation_m, k[0]);
-    t.max_push_N = std::max(t.max_push_N, k[2]);
-    t.mean_step_us += k[3] / static_cast<double>(ticks.size());
-    t.max_step_us = std::max(t.max_step_us, k[3]);
+  for (const TissueTick& k : ticks) {
+    t.max_indentation_m = std::max(t.max_indentation_m, k.indentation_m);
+    t.max_push_N = std::max(t.max_push_N, k.push_N);
+    t.mean_step_us += k.step_us / static_cast<double>(ticks.size());
+    t.max_step_us = std::max(t.max_step_us, k.step_us);
   }
   if (t.max_indentation_m > 0.0) {
     for (int b = 1; b <= 10; ++b) t.force_by_indentation.emplace_back(t.max_indentation_m * b / 10.0, 0.0);
-    for (const auto& k : ticks) {
-      if (!(k[0] > 0.0)) continue;
-      const auto b = static_cast<std::size_t>(std::clamp(static_cast<int>(std::ceil(10.0 * k[0] / t.max_indentation_m)) - 1, 0, 9));
-      t.force_by_indentation[b].second = std::max(t.force_by_indentation[b].second, k[1]);
+    for (const TissueTick& k : ticks) {
+      if (!(k.indentation_m > 0.0)) continue;
+      const auto b = static_cast<std::size_t>(
+          std::clamp(static_cast<int>(std::ceil(10.0 * k.indentation_m / t.max_indentation_m)) - 1, 0, 9));
+      t.force_by_indentation[b].second = std::max(t.force_by_indentation[b].second, k.force_N);
     }
   }
   return t;
 }
 
+/// After the last of the `n` ticks: the "drilled" event (what the burr removed in all), the
+/// recording closed, and the report's totals.
+/// @throws std::runtime_error naming the recording when one of its writes failed.
 void finishRun(HeadlessRun& run, std::uint64_t n, std::chrono::steady_clock::time_point wall_begin) {
   RunReport& r = run.r;
   if (run.recorder && run.drill != nullptr && n > 0) {

@@ -265,8 +265,7 @@ void Session::rebuildHaptics(const haptics::Pose& X_WP, PreparedDrill* prepared)
   if (device_ == nullptr || !has_scene_ || live_.hapticField() == nullptr || live_.tool == nullptr) return;
   HapticThreadOptions options;
   options.monitor = monitor_;
-  options.tissue = std::move(tissue_kept_);  // reused when built for this scan and isovalue
-  tissue_kept_.reset();
+  options.tissue = std::move(tissue_kept_);  // reused when built for this scan and isovalue (tissue_kept_ left empty)
   haptics_ = makeHapticThread(live_, device_, servo_rate_Hz_, X_WP, options, prepared);
   haptics_built_X_WP_ = X_WP;
 }

@@ -1,5 +1,7 @@
 #include "vh/ui/view/scene_actors.h"
 
+#include "drillable_volume_mapper.h"
+
 #include <algorithm>
 #include <array>
 #include <cmath>
@@ -27,125 +29,12 @@
 #include <vtkTextActor.h>
 #include <vtkTextProperty.h>
 #include <vtkDataArray.h>
-#include <vtkObjectFactory.h>
-#include <vtkOpenGLGPUVolumeRayCastMapper.h>
-#include <vtkOpenGLRenderWindow.h>
 #include <vtkPointData.h>
-#include <vtkTextureObject.h>
 #include <vtkVolume.h>
-#include <vtkVolumeInputHelper.h>
 #include <vtkVolumeProperty.h>
-#include <vtkVolumeTexture.h>
-#include <vtk_glew.h>
 
 namespace vh::ui {
 
-/// VTK's GPU ray caster, plus one thing: a box of changed voxels (drilling) goes into its volume
-/// texture with glTexSubImage3D before the next frame, instead of a re-upload of the whole volume
-/// (VTK 9.1 re-uploads everything when the image is Modified()). The image's scalars are written
-/// in place without Modified(); the box is sent where the texture is one block holding the
-/// image's own scalar type (no partitions, no conversion); otherwise the image is Modified() and
-/// VTK uploads it whole, as before.
-class DrillableVolumeMapper : public vtkOpenGLGPUVolumeRayCastMapper {
- public:
-  static DrillableVolumeMapper* New();
-  vtkTypeMacro(DrillableVolumeMapper, vtkOpenGLGPUVolumeRayCastMapper)
-
-  /// Adds the voxel box [lo, hi] (inclusive) to what the next frame uploads.
-  void markChanged(const int lo[3], const int hi[3]) {
-    for (int a = 0; a < 3; ++a) {
-      lo_[a] = std::min(lo_[a], lo[a]);
-      hi_[a] = std::max(hi_[a], hi[a]);
-    }
-    pending_ = true;
-  }
-  void clearPending() {
-    pending_ = false;
-    for (int a = 0; a < 3; ++a) lo_[a] = VTK_INT_MAX, hi_[a] = VTK_INT_MIN;
-  }
-  std::uint64_t partial_uploads = 0, full_uploads = 0;
-  /// Blocks of the volume texture per axis (1 1 1: one texture), chosen at the first frame.
-  std::array<int, 3> blocks{1, 1, 1};
-
- protected:
-  void GPURender(vtkRenderer* ren, vtkVolume* vol) override {
-    if (!partitioned_) partitionForTextureLimit(ren);
-    if (pending_) uploadPending();
-    Superclass::GPURender(ren, vol);
-  }
-
- private:
-  /// A volume longer than the GPU's 3-D texture limit on an axis (2048 on Mesa's llvmpipe and
-  /// many GPUs: a 512 x 512 x 3000 whole-body CT) would be left blank by one texture: it goes
-  /// into blocks instead, each within the limit, ray cast one after the other
-  /// (vtkOpenGLGPUVolumeRayCastMapper::SetPartitions), before its first upload. The limit is
-  /// GL_MAX_3D_TEXTURE_SIZE of the frame's context; the blocks share a voxel plane, so each holds
-  /// at most limit - 2 voxels along an axis.
-  void partitionForTextureLimit(vtkRenderer* ren) {
-    vtkImageData* image = vtkImageData::SafeDownCast(GetInput());
-    auto* window = vtkOpenGLRenderWindow::SafeDownCast(ren->GetRenderWindow());
-    if (image == nullptr || window == nullptr) return;
-    partitioned_ = true;
-    const int limit = vtkTextureObject::GetMaximumTextureSize3D(window);
-    if (limit < 16) return;  // unknown: one texture, as VTK does
-    int dims[3];
-    image->GetDimensions(dims);
-    for (int a = 0; a < 3; ++a) blocks[a] = std::max(1, (dims[a] + limit - 3) / (limit - 2));
-    if (blocks[0] * blocks[1] * blocks[2] > 1)
-      SetPartitions(static_cast<unsigned short>(blocks[0]), static_cast<unsigned short>(blocks[1]),
-                    static_cast<unsigned short>(blocks[2]));
-  }
-
-  void uploadPending() {
-    vtkImageData* image = vtkImageData::SafeDownCast(GetInput());
-    const auto it = AssembledInputs.find(0);
-    vtkTextureObject* texture = nullptr;
-    if (image != nullptr && it != AssembledInputs.end() && it->second.Texture != nullptr &&
-        it->second.Texture->GetCurrentBlock() != nullptr)
-      texture = it->second.Texture->GetCurrentBlock()->TextureObject;
-    vtkDataArray* scalars = image != nullptr ? image->GetPointData()->GetScalars() : nullptr;
-    int dims[3] = {0, 0, 0};
-    if (image != nullptr) image->GetDimensions(dims);
-    const bool whole_block = texture != nullptr && texture->GetHandle() != 0 &&
-                             static_cast<int>(texture->GetWidth()) == dims[0] &&
-                             static_cast<int>(texture->GetHeight()) == dims[1] &&
-                             static_cast<int>(texture->GetDepth()) == dims[2];
-    if (!whole_block || scalars == nullptr || scalars->GetNumberOfComponents() != 1 ||
-        texture->GetVTKDataType() != scalars->GetDataType()) {
-      if (image != nullptr) image->Modified();  // VTK uploads the whole volume
-      ++full_uploads;
-      clearPending();
-      return;
-    }
-    const int type = scalars->GetDataType();
-    const int size = scalars->GetDataTypeSize();
-    int lo[3], n[3];
-    for (int a = 0; a < 3; ++a) {
-      lo[a] = std::clamp(lo_[a], 0, dims[a] - 1);
-      n[a] = std::clamp(hi_[a], 0, dims[a] - 1) - lo[a] + 1;
-    }
-    const auto* base = static_cast<const unsigned char*>(scalars->GetVoidPointer(0));
-    const std::size_t offset =
-        (static_cast<std::size_t>(lo[2]) * dims[1] * dims[0] + static_cast<std::size_t>(lo[1]) * dims[0] + lo[0]) * size;
-    texture->Bind();
-    glPixelStorei(GL_UNPACK_ALIGNMENT, 1);
-    glPixelStorei(GL_UNPACK_ROW_LENGTH, dims[0]);
-    glPixelStorei(GL_UNPACK_IMAGE_HEIGHT, dims[1]);
-    glTexSubImage3D(GL_TEXTURE_3D, 0, lo[0], lo[1], lo[2], n[0], n[1], n[2],
-                    texture->GetFormat(type, 1, false), texture->GetDataType(type), base + offset);
-    glPixelStorei(GL_UNPACK_ROW_LENGTH, 0);
-    glPixelStorei(GL_UNPACK_IMAGE_HEIGHT, 0);
-    glPixelStorei(GL_UNPACK_ALIGNMENT, 4);
-    ++partial_uploads;
-    clearPending();
-  }
-
-  bool pending_ = false;
-  bool partitioned_ = false;
-  int lo_[3] = {VTK_INT_MAX, VTK_INT_MAX, VTK_INT_MAX};
-  int hi_[3] = {VTK_INT_MIN, VTK_INT_MIN, VTK_INT_MIN};
-};
-vtkStandardNewMacro(DrillableVolumeMapper);
 
 namespace {
 

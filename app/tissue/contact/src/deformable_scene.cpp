@@ -170,8 +170,7 @@ void DeformableScene::publishView(Clock::time_point now, bool changed, const Def
   slot.hi = last_hi_;
   slot.step = steps_;
   slot.indentation_m = step.indentation_m;
-  slot.push_N = 0.0;
-  for (int q = 0; q < step.contact.contacts; ++q) slot.push_N += contact_->pushes_N()(q);
+  slot.push_N = step.contact.force_on_device_N.norm();
   slot.felt_fraction = step.felt_fraction;
   slot.values_F.clear();
   if (!slot.empty()) {
@@ -319,24 +318,16 @@ bool DeformableScene::carryOut(const haptics::ToolModel& tool, const haptics::Po
     if (!(distance <= 0.5 * voxel)) return false;  // more than the surface moves in a tick: held back instead
     dp_W = distance * dir;
     bool clear = true;
+    std::size_t collected = 0;  // the tool's points in the written box come in proxy_points_W_'s order
     for (const Eigen::Vector3d& p_T : tool.point_shell.points_T_m()) {
       const Eigen::Vector3d p_W = X_WP * p_T;
+      const bool in_box = inWrittenBox(p_W, box_lo, box_hi);
+      const double old_F = in_box ? proxy_old_F_[collected++] : felt_->sample(p_W);  // outside the box: unchanged
       const Eigen::Vector3d moved = p_W + dp_W;
       if (!felt_->inBounds(moved) || !(felt_->sample(moved) > isovalue_)) continue;
       // Inside after the move: allowed only for a point embedded before this step (left out of
-      // the contact, as the renderer leaves it); inside the written box the old field says so.
-      const Eigen::Vector3d g = toG(p_W);
-      const bool in_box = !((g.array() < box_lo.array()).any() || (g.array() > box_hi.array()).any());
-      bool embedded = !in_box && felt_->sample(p_W) > isovalue_;
-      if (in_box) {
-        embedded = false;
-        for (std::size_t q = 0; q < proxy_points_W_.size(); ++q)
-          if (proxy_points_W_[q] == p_W) {
-            embedded = proxy_old_F_[q] > isovalue_;
-            break;
-          }
-      }
-      if (!embedded) {
+      // the contact, as the renderer leaves it).
+      if (!(old_F > isovalue_)) {
         clear = false;
         break;
       }
@@ -561,8 +552,7 @@ DeformableStep DeformableScene::step(const haptics::Pose& X_WD, haptics::HapticR
   proxy_old_F_.clear();
   for (const Eigen::Vector3d& p_T : tool.point_shell.points_T_m()) {
     const Eigen::Vector3d p_W = X_WP * p_T;
-    const Eigen::Vector3d g = toG(p_W);
-    if ((g.array() < box_lo.array()).any() || (g.array() > box_hi.array()).any() || !felt_->inBounds(p_W)) continue;
+    if (!inWrittenBox(p_W, box_lo, box_hi)) continue;
     if (proxy_points_W_.size() == proxy_points_W_.capacity()) break;  // never reallocates (checked below)
     proxy_points_W_.push_back(p_W);
     proxy_old_F_.push_back(felt_->sample(p_W));

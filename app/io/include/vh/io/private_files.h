@@ -40,6 +40,11 @@ void createPrivateFile(const std::filesystem::path& path);
 /// Sets `path` to 0600 (for files a library created itself). @throws std::runtime_error.
 void makePrivate(const std::filesystem::path& path);
 
+/// Whether `target` names the standard output ("-", /dev/stdout, /dev/fd/1): PrivateOutput
+/// writes such a target to std::cout, so a command printing its own summary sends that to
+/// std::cerr instead.
+bool namesStandardOutput(const std::filesystem::path& target);
+
 /// A whole-file output written beside its target and renamed into place by commit().
 ///
 /// Only a regular file (or a name not yet taken) is ever replaced. The target "-" and the

@@ -41,7 +41,7 @@ class vtkVolumeProperty;
 
 namespace vh::ui {
 
-class DrillableVolumeMapper;  // scene_actors.cpp
+class DrillableVolumeMapper;  // src/view/drillable_volume_mapper.h
 
 /// Inputs of the scene's props.
 struct SceneActorsSpec {

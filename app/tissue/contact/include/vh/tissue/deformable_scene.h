@@ -116,7 +116,7 @@ struct DeformedWindow {
   std::vector<float> values_F;
   std::uint64_t step = 0;  ///< The step() that published it (counts from 1).
   double indentation_m = 0.0;  ///< That step's DeformableStep::indentation_m [m].
-  double push_N = 0.0;         ///< That step's pushes on the tissue, summed [N].
+  double push_N = 0.0;         ///< That step's net push on the tissue, |force_on_device_N| [N].
   double felt_fraction = 1.0;  ///< That step's DeformableStep::felt_fraction.
   bool empty() const noexcept { return hi[0] < lo[0] || hi[1] < lo[1] || hi[2] < lo[2]; }
 };
@@ -181,6 +181,12 @@ class DeformableScene {
     const Eigen::Vector3i& cells = region_.model.lattice().geometry().cells;
     return static_cast<std::size_t>(a) +
            static_cast<std::size_t>(cells.x()) * (static_cast<std::size_t>(b) + static_cast<std::size_t>(cells.y()) * static_cast<std::size_t>(c));
+  }
+  // Whether a proxy point p_W is in the written box grown by a voxel (G, box_lo..box_hi) and in
+  // the volume: the points whose F before the write step() keeps (proxy_points_W_), in order.
+  bool inWrittenBox(const Eigen::Vector3d& p_W, const Eigen::Vector3d& box_lo, const Eigen::Vector3d& box_hi) const noexcept {
+    const Eigen::Vector3d g = toG(p_W);
+    return !(g.array() < box_lo.array()).any() && !(g.array() > box_hi.array()).any() && felt_->inBounds(p_W);
   }
   // Where the tissue springs back onto the proxy at X_WP (its points in proxy_points_W_ with F
   // before the write in proxy_old_F_; the written box in G, box_lo..box_hi): the shortest push
