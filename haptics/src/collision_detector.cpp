@@ -114,6 +114,8 @@ void CollisionDetector::setDeadline(std::chrono::steady_clock::time_point deadli
 }
 void CollisionDetector::clearDeadline() noexcept { impl_->clearDeadline(); }
 bool CollisionDetector::deadlineReached() const noexcept { return impl_->deadlineReached(); }
+void CollisionDetector::setWorkDeadline(std::int64_t work) noexcept { impl_->setWorkDeadline(work); }
+std::int64_t CollisionDetector::deadlineWork() const noexcept { return impl_->deadlineWork(); }
 void CollisionDetector::setLanes(int lanes) { impl_->setLanes(lanes); }
 int CollisionDetector::lanes() const noexcept { return impl_->lanes(); }
 void CollisionDetector::addWork(std::int64_t units) noexcept { impl_->addWork(units); }

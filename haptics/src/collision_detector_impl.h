@@ -90,7 +90,19 @@ class CollisionDetector::Impl {
     clock_ = {};
   }
   void clearDeadline() noexcept { has_deadline_ = false; }
+  void setWorkDeadline(std::int64_t work) noexcept {
+    work_deadline_ = work > 0 ? work : 0;
+    clock_ = {};
+  }
   bool deadlineReached() const noexcept { return deadline_hit_ || clock_.late; }
+  // 1 + the work at the first read that found the deadline passed (0: none; a read at work 0
+  // counts). Work only grows within a tick, so the first read is the one at the least work: a
+  // lane's (the sweep's) before the caller's later reads.
+  std::int64_t deadlineWork() const noexcept {
+    if (clock_.late && deadline_hit_) return std::min(clock_.late_work, lane_late_work_) + 1;
+    if (clock_.late) return clock_.late_work + 1;
+    return deadline_hit_ ? lane_late_work_ + 1 : 0;
+  }
   void setLanes(int lanes);
   int lanes() const noexcept { return static_cast<int>(lanes_.size()); }
   void addWork(std::int64_t units) noexcept { counters_.other += units > 0 ? units : 0; }
@@ -101,6 +113,7 @@ class CollisionDetector::Impl {
     parallel_credit_ = 0;
     clock_ = {};
     deadline_hit_ = false;
+    lane_late_work_ = 0;
   }
 
   // The parts' own functions and state.
@@ -382,6 +395,9 @@ class CollisionDetector::Impl {
   std::chrono::steady_clock::time_point deadline_{};
   bool has_deadline_ = false;
   bool deadline_hit_ = false;           // a lane stopped at the deadline since resetSampleCount()
+  std::int64_t lane_late_work_ = 0;     // the work at which that lane found it passed
+  // The deadline as work (setWorkDeadline(): a replay's stand-in for the clock), 0: none.
+  std::int64_t work_deadline_ = 0;
   mutable ClockCheck clock_;            // the caller's clock reads
   std::int64_t work_budget_ = 0;
   std::size_t contact_cap_ = static_cast<std::size_t>(-1);
@@ -398,12 +414,15 @@ class CollisionDetector::Impl {
   void reduceContacts(const RigidMotion& motion, double t, int hit_point, std::size_t& candidates,
                       std::size_t cap) noexcept;
   // The deadline has passed (read every kClockCheckWork units of `work`).
+  // With a work deadline instead, the same reads find it passed once `work` reaches it: the
+  // read at which the clock found it passed in a live tick (deadlineWork()) is found again.
   bool pastDeadline(ClockCheck& clock, std::int64_t work) const noexcept {
-    if (!has_deadline_) return false;
+    if (!has_deadline_ && work_deadline_ == 0) return false;
     if (clock.late) return true;
     if (work < clock.next) return false;
     clock.next = work + kClockCheckWork;
-    clock.late = std::chrono::steady_clock::now() >= deadline_;
+    clock.late = work_deadline_ > 0 ? work + 1 >= work_deadline_ : std::chrono::steady_clock::now() >= deadline_;
+    if (clock.late) clock.late_work = work;
     return clock.late;
   }
   bool overBudget() const noexcept {

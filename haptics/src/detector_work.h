@@ -67,6 +67,7 @@ struct WorkCounters {
 struct ClockCheck {
   std::int64_t next = 0;
   bool late = false;
+  std::int64_t late_work = 0;  // the work at the read that found the deadline passed
 };
 
 }  // namespace vh::haptics::detail

@@ -345,6 +345,7 @@ inline void fillWorkStatistics(const CollisionDetector& collision, Clock::time_p
   // Also a tick whose sweep finished but whose contact update (or re-solve) the budget shortened.
   stats.budget_cut = stats.budget_cut || collision.budgetSpent();
   stats.deadline_cut = stats.budget_cut && collision.deadlineReached();
+  stats.deadline_work = stats.deadline_cut ? collision.deadlineWork() : 0;
   stats.exec_time_us = usSince(start, Clock::now());
 }
 
@@ -535,6 +536,8 @@ TickOutput HapticRenderer::tick(const Pose& X_WD_in, double requested_isovalue) 
   if (options_.deadline_us > 0.0)
     collision_.setDeadline(start + std::chrono::duration_cast<Clock::duration>(
                                        std::chrono::duration<double, std::micro>(options_.deadline_us)));
+  collision_.setWorkDeadline(next_tick_deadline_work_);
+  next_tick_deadline_work_ = 0;
 
   const MassProperties& mass = tool_->mass;
   Pose X_WD = X_WD_in;

@@ -135,7 +135,10 @@ void CollisionDetector::Impl::joinLaneWork() noexcept {
     counters_ += lane.counters;
     sum += w;
     busiest = std::max(busiest, w);
-    if (lane.clock.late) deadline_hit_ = true;
+    if (lane.clock.late && !deadline_hit_) {
+      deadline_hit_ = true;
+      lane_late_work_ = lane.clock.late_work;
+    }
   }
   parallel_credit_ += sum - busiest;
 }

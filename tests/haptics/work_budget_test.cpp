@@ -5,6 +5,7 @@
 #include <cstdlib>
 #include <iostream>
 #include <string>
+#include <vector>
 
 #include <Eigen/Geometry>
 #include <gtest/gtest.h>
@@ -138,6 +139,84 @@ TEST(DeadlineOnTheClock, CutsTicksAndTheProxyNeverCrossesAndCatchesUp) {
   std::cout << "deadline 20 us on 2 lanes: " << late.deadline_cuts << " ticks cut by the clock, longest run "
             << late.longest_cut_run << ", " << late.settle_ticks << " ticks held after the script until one was not cut, final proxy "
             << 1e3 * (late.final.p_AB_m - free_run.final.p_AB_m).norm() << " mm from the unlimited run's\n";
+}
+
+// A tick the clock cut, repeated without a clock (a replay's case): given the live tick's
+// TickStats::deadline_work, HapticRenderer::cutNextTickAtWork() stops the same work, so every
+// tick after it repeats the live one bit for bit; without it the repeat does the whole tick and
+// parts from the live run at the first cut (so the comparison can fail). The live run's cuts
+// depend on the machine; the equality holds whichever ticks they are.
+TEST(DeadlineOnTheClock, ATickTheClockCutRepeatsBitForBitFromItsWork) {
+  struct Case {
+    DetectionMode mode;
+    int edge_test;
+  };
+  for (const Case c : {Case{DetectionMode::kAccelerated, 0}, Case{DetectionMode::kPaper, 0},
+                       Case{DetectionMode::kAccelerated, 1}}) {
+    const DetectionMode mode = c.mode;
+    const std::string name = std::string(toString(mode)) + (c.edge_test != 0 ? " with the edge test" : "");
+    SCOPED_TRACE(name);
+    auto vol = std::make_shared<const ScalarVolume>(datasets::makeThinPlateVolume(test::grid1mm()));
+    const double s = 200.0;
+    const double z_plate = vol->geometry().origin_W_m.z() + 32e-3;
+    PointShellOptions ps;
+    ps.point_count = 3000;
+    const auto tool = std::make_shared<const ToolModel>(makeToolModel(datasets::makeSphereMesh(0.010, 4), ps));
+    RendererOptions o;
+    o.detection_mode = mode;
+    o.edge_test = c.edge_test;
+    Pose above;
+    above.p_AB_m = {0.0, 0.0, z_plate + 0.011};
+    std::vector<Pose> script;
+    for (int i = 0; i < 200; ++i) {
+      Pose X_WD = above;
+      if (i < 40 && i % 4 == 1) {  // jumps through the plate with a half turn: long sweeps
+        X_WD.p_AB_m.z() = z_plate - 0.040;
+        X_WD.R_AB = Eigen::Quaterniond(Eigen::AngleAxisd(3.0, Eigen::Vector3d::UnitX()));
+      } else if (i >= 40) {
+        X_WD.p_AB_m.z() = z_plate + 0.010 - 0.003 + 1e-4 * std::sin(0.1 * i);
+      }
+      script.push_back(X_WD);
+    }
+    RendererOptions live_options = o;
+    live_options.deadline_us = 20.0;
+    HapticRenderer live(vol, tool, live_options, above, s);
+    std::vector<TickOutput> ticks;
+    int cuts = 0;
+    for (const Pose& X_WD : script) {
+      ticks.push_back(live.tick(X_WD, s));
+      if (ticks.back().stats.deadline_cut) {
+        ++cuts;
+        EXPECT_GT(ticks.back().stats.deadline_work, 0);
+      } else {
+        EXPECT_EQ(ticks.back().stats.deadline_work, 0);
+      }
+    }
+    ASSERT_GT(cuts, 0) << "a 20 us deadline cuts the jumps' sweeps on any machine";
+    const auto repeat = [&](bool with_work, std::size_t& first_difference) {
+      HapticRenderer r(vol, tool, o, above, s);
+      first_difference = script.size();
+      for (std::size_t i = 0; i < script.size(); ++i) {
+        if (with_work) r.cutNextTickAtWork(ticks[i].stats.deadline_work);
+        const TickOutput out = r.tick(script[i], s);
+        const bool same = out.X_WP.p_AB_m == ticks[i].X_WP.p_AB_m && out.X_WP.R_AB.coeffs() == ticks[i].X_WP.R_AB.coeffs() &&
+                          out.force_W_N == ticks[i].force_W_N && out.torque_W_Nm == ticks[i].torque_W_Nm &&
+                          out.stats.budget_cut == ticks[i].stats.budget_cut;
+        if (!same) {
+          first_difference = i;
+          return;
+        }
+      }
+    };
+    std::size_t with_work = 0, without = 0;
+    repeat(true, with_work);
+    repeat(false, without);
+    EXPECT_EQ(with_work, script.size()) << "the repeat parted from the live run at tick " << with_work;
+    EXPECT_LT(without, script.size()) << "without the cut's work the repeat does whole ticks";
+    std::cout << name << ": " << cuts << " of " << script.size()
+              << " ticks cut by the clock; repeated from their work: identical; without it: parts at tick " << without
+              << "\n";
+  }
 }
 
 }  // namespace

@@ -223,6 +223,17 @@ class CollisionDetector {
   void clearDeadline() noexcept;
   /// True when the deadline stopped work since the last resetSampleCount().
   bool deadlineReached() const noexcept;
+  /// The deadline as work instead of time, for a replay (no clock) of a tick the clock cut:
+  /// the clock's reads (every kClockCheckWork units) find it passed from the first read at or
+  /// above `work` - 1 units of budgetWork() on. Given the deadlineWork() of the live tick, the same
+  /// read stops the same work, so the tick ends as it did (exact on one lane; on several the
+  /// lanes' shares of the work are not repeatable). Holds until set to 0; resetSampleCount()
+  /// re-arms it.
+  void setWorkDeadline(std::int64_t work) noexcept;
+  /// 1 + the work (budgetWork()) at the clock's read that found the deadline passed since the
+  /// last resetSampleCount() (of the first lane that found it, with several); 0 when none did.
+  /// (The 1 keeps a read at work 0, a tick late from its start, apart from none.)
+  std::int64_t deadlineWork() const noexcept;
   static constexpr std::int64_t kClockCheckWork = 200;
   /// Runs the accelerated sweep's point-shell walk and time-ordered search on `lanes` cores
   /// (haptics/README.md, "Several cores"): the point-shell tree's upper nodes are dealt round

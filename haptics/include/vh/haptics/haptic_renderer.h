@@ -149,6 +149,11 @@ struct TickStats {
   bool budget_cut = false;
   /// Of those, the deadline on the clock stopped it (RendererOptions::deadline_us).
   bool deadline_cut = false;
+  /// With deadline_cut: 1 + the work [sample units] at the clock's read that found the deadline
+  /// passed (CollisionDetector::deadlineWork()); 0 otherwise. Handed to
+  /// HapticRenderer::cutNextTickAtWork() for the same sample in the same state, a tick with no
+  /// clock stops where this one did, so a recording of a busy machine replays bit for bit.
+  std::int64_t deadline_work = 0;
   double time_of_contact = 1.0;     ///< Fraction of the constrained path travelled (1 = free).
   /// Wall time of the tick's phases [us] (diagnostics; they sum to about exec_time_us):
   /// embedded-point scan and step 2 (prune), steps 1 + 3 (solve, every attempt), step 4 (sweep,
@@ -205,6 +210,11 @@ class HapticRenderer {
   /// A non-finite pose, a quaternion whose norm is off by more than 1e-3, or a jump beyond
   /// max_device_distance_m yields zero force, leaves the proxy in place and counts a bad sample.
   TickOutput tick(const Pose& X_WD, double isovalue) noexcept;
+  /// The next tick() stops its work as if the deadline had passed at `work` sample units
+  /// (TickStats::deadline_work of the live tick it repeats; CollisionDetector::setWorkDeadline()):
+  /// how a replay, which has no clock, repeats a tick the live solver's deadline cut. Applies to
+  /// one tick only; 0 or less: none.
+  void cutNextTickAtWork(std::int64_t work) noexcept { next_tick_deadline_work_ = work > 0 ? work : 0; }
 
   /// Moves the proxy (and clears the contact set) without collision checking.
   void resetProxy(const Pose& X_WP) noexcept;
@@ -347,6 +357,7 @@ class HapticRenderer {
   int blocked_ticks_ = 0;  // moves in a row stopped before 1 % of their path (0: the last was not)
   double last_isovalue_;
   double felt_isovalue_;        // see TickStats::felt_isovalue
+  std::int64_t next_tick_deadline_work_ = 0;  // cutNextTickAtWork()
   double isovalue_margin_ = 0.0;  // a felt isovalue this far above the shell's largest F
   bool embedded_scan_needed_ = false;
   double motion_scale_ = 1.0;  // < 1 after ticks the work budget cut (RendererOptions::work_budget)
