@@ -46,7 +46,7 @@ Scene loadScene(const vh::runtime::SceneSpec& spec, const std::string& source) {
   return s;
 }
 
-/// The records' bytes (N x 216, TickRecord's layout) as a NumPy uint8 array.
+/// The records' bytes (N x 224, TickRecord's layout) as a NumPy uint8 array.
 py::array_t<std::uint8_t> recordBytes(const std::vector<TickRecord>& records) {
   py::array_t<std::uint8_t> out(static_cast<py::ssize_t>(records.size() * sizeof(TickRecord)));
   if (!records.empty()) std::memcpy(out.mutable_data(), records.data(), records.size() * sizeof(TickRecord));

@@ -37,6 +37,7 @@
 #include "vh/runtime/scene.h"
 #include "vh/runtime/session.h"
 #include "vh/runtime/session_metadata.h"
+#include "vh/runtime/session_metrics.h"
 #include "vh/ui/drill_controller.h"
 #include "vh/runtime/runner.h"
 #include "vh/ui/main_window.h"
@@ -648,6 +649,28 @@ TEST(DrillingView, CavityInTheHeadPhantomGrowsInTheView) {
   const double restart_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - r0).count();
   EXPECT_TRUE(session.hapticsRunning());
   test::pump(300);
+  // On in the recording, out from the cavity's centre by 0.5 mm and down by 0.25 mm at a time
+  // (every 300 recorded ticks) into the bone around it until the burr has cut again, then 500
+  // ticks more: the burr cuts while it records, however far the cavity already reached and
+  // however many ticks a loaded machine gives it.
+  const auto recordTicks = [&](std::uint64_t n) {
+    const std::uint64_t from = window.recorder()->recordsWritten();
+    return test::waitFor([&] { return window.recorder()->recordsWritten() >= from + n; }, 60000);
+  };
+  window.drillController()->drain();
+  const double removed_before_mm3 = window.drillController()->removed_mm3();
+  haptics::Pose deeper = press;
+  bool cut_again = false;
+  deeper.p_AB_m.x() -= 0.004;  // the circle's centre
+  for (int step = 1; step <= 20 && !cut_again; ++step) {
+    deeper.p_AB_m += Eigen::Vector3d(0.0005, 0.0, -0.00025);
+    session.simulatedDevice()->setPose(deeper);
+    ASSERT_TRUE(recordTicks(300));
+    window.drillController()->drain();
+    cut_again = window.drillController()->removed_mm3() > removed_before_mm3;
+  }
+  ASSERT_TRUE(cut_again) << "the burr pressed 10 mm out and 5 mm down cut nothing";
+  ASSERT_TRUE(recordTicks(500));
   window.recorder()->stop();
   const runtime::Session::RestartTiming& restart = session.lastRestart();
   std::printf("head phantom: Record pressed while drilling started in %.0f ms (the checksum, the haptic threads' "
@@ -656,6 +679,32 @@ TEST(DrillingView, CavityInTheHeadPhantomGrowsInTheView) {
               restart_ms, restart.while_feeling_ms, restart.cutting_held_ms, restart.voxels_cut_while_preparing,
               restart.without_force_ms);
   EXPECT_TRUE(restart.prepared_while_feeling) << "the new drill was built before the force let go";
+  // What the window recorded: the cavity it began on, what the burr removed during it and the
+  // two together, by the one rule every recording follows (the records and the metadata), equal
+  // to what its replay carved (the oracle: the replayed field against the scan); and the replay
+  // matches the recording tick for tick, the ticks the clock cut on this busy machine included.
+  {
+    const runtime::Recording rec = runtime::readRecording(record_dir / "mid-drilling.vhrec");
+    const runtime::SessionMetrics m = runtime::computeSessionMetrics(rec);
+    const runtime::LoadedScene replayed_scene = runtime::loadScene(runtime::sceneFromSessionMetadata(rec.metadata_json));
+    const runtime::ReplayComparison replay = runtime::replayRecording(replayed_scene, rec);
+    EXPECT_TRUE(replay.identical) << replay.mismatch << " at tick " << replay.first_mismatch_tick.value_or(0);
+    ASSERT_NE(replay.drilled_field, nullptr);
+    const std::uint64_t cavity_end = runtime::cavityOf(*replay.drilled_field, *replayed_scene.hapticField()).voxels.size();
+    EXPECT_GT(m.cavity_at_start_voxels, 0u) << "recorded on a drilled skull";
+    EXPECT_GT(m.removed_voxels, 0u) << "the burr cut while recording";
+    EXPECT_EQ(m.removed_voxels, replay.removed_voxels.size());
+    EXPECT_EQ(m.cavity_voxels, cavity_end);
+    EXPECT_GT(m.removed_mm3, 0.0);
+    EXPECT_NEAR(m.cavity_mm3, m.cavity_at_start_mm3 + m.removed_mm3, 1e-9 * m.cavity_mm3);
+    std::uint64_t cut_ticks = 0;
+    for (const runtime::TickRecord& r : rec.records) cut_ticks += (r.flags & runtime::kRecordFlagDeadlineCut) != 0;
+    std::printf("head phantom: recorded in the window %zu ticks (%llu cut by the deadline), cavity %llu voxels at the "
+                "start, %llu removed (%.2f mm^3), %llu at the end; the replay %s\n",
+                rec.records.size(), static_cast<unsigned long long>(cut_ticks),
+                static_cast<unsigned long long>(m.cavity_at_start_voxels), static_cast<unsigned long long>(m.removed_voxels),
+                m.removed_mm3, static_cast<unsigned long long>(cavity_end), replay.identical ? "is identical" : "differs");
+  }
   // Lift the drill out and look down into the cavity.
   haptics::Pose lifted = start;
   lifted.p_AB_m += Eigen::Vector3d(0.05, 0.0, 0.03);  // up and aside, out of the line of sight

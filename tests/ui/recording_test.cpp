@@ -237,14 +237,9 @@ TEST_F(RecordedSession, WindowRecordingReadsBackWithEventsAndMetadata) {
   const runtime::ReplayComparison replay =
       runtime::replayRecording(runtime::loadScene(runtime::sceneFromSessionMetadata(rec.metadata_json)), rec);
   // The window's solver has the application's deadline on the clock; on a machine too busy to give
-  // it its period it cuts a tick short, which a replay (no clock) does not reproduce. The replay
-  // names that tick, and the comparison stops there; any other mismatch fails.
-  if (!replay.identical && replay.deadline_cut_tick.has_value()) {
-    std::cout << "NOTE: the live run's deadline cut tick " << *replay.deadline_cut_tick << " (a busy machine); the "
-              << "replay parted at tick " << replay.first_mismatch_tick.value_or(0) << " (" << replay.mismatch
-              << "): bit for bit not compared\n";
-    return;
-  }
+  // it its period it cuts a tick short, and the record says at which work: the replay (no clock)
+  // stops there too, so it matches whatever the machine's load.
+  EXPECT_TRUE(replay.identical) << runtime::replayDifference(replay, rec);
   EXPECT_TRUE(replay.identical) << replay.mismatch << " at tick " << replay.first_mismatch_tick.value_or(0) << " of "
                                 << rec.records.size();
   EXPECT_GT(replay.forces_compared, 100u);
@@ -460,12 +455,9 @@ TEST(RecordingInContact, ARecordingStartedOnTheSurfaceReplaysBitForBit) {
   const runtime::LoadedScene scene = runtime::loadScene(runtime::sceneFromSessionMetadata(rec.metadata_json));
   EXPECT_LT((scene.X_WT_initial.p_AB_m - before.X_WP.p_AB_m).norm(), 0.002) << "starts where the proxy was";
   const runtime::ReplayComparison replay = runtime::replayRecording(scene, rec);
-  // The window's solver has the application's deadline on the clock; on a machine too busy to
-  // give it its period it cuts a tick short, which a replay (no clock) does not reproduce. The
-  // replay names that tick; any other mismatch fails.
-  if (!replay.identical && replay.deadline_cut_tick.has_value())
-    GTEST_SKIP() << "the live run's deadline cut tick " << *replay.deadline_cut_tick << " (a busy machine); the replay "
-                 << "parted at tick " << replay.first_mismatch_tick.value_or(0) << " (" << replay.mismatch << ")";
+  // The window's solver has the application's deadline on the clock; a tick it cut on a busy
+  // machine is replayed where it stopped (the record's deadline_work).
+  EXPECT_TRUE(replay.identical) << runtime::replayDifference(replay, rec);
   EXPECT_TRUE(replay.identical) << replay.mismatch << " at tick " << replay.first_mismatch_tick.value_or(0) << " of "
                                 << rec.records.size();
   EXPECT_GT(replay.forces_compared, 200u);

@@ -694,7 +694,7 @@ void HapticThread::solverLoop() noexcept {
     const std::uint32_t technique_flags =
         solverTechnique(options_.technique.get(), st, in, t, contacts, segment, nearest.distance_m, solver_period_s_);
     if (recorder != nullptr) {
-      recordSolverTick(*recorder, st, in, t.out, renderer_->proxyPose(), contacts.size(), segment, nearest,
+      recordSolverTick(*recorder, st, in, t, renderer_->proxyPose(), contacts.size(), segment, nearest,
                        solver_period_s_, end_ns - begin_ns,
                        st.wake_flags | coupling_flags | t.drill_flags | gains_flags | jam_flags | placement_flags |
                            technique_flags);

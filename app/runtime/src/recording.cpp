@@ -45,9 +45,10 @@ constexpr std::size_t kMaxChunkEvents = 65535;
 constexpr std::size_t kFileHeaderBytes = 24;
 constexpr std::size_t kChunkHeaderBytes = 16;
 /// Bytes of one stored record: versions 1 to 3 stored the first 200 bytes of today's TickRecord
-/// (up to and including flags), version 4 the whole of it.
+/// (up to and including flags), version 4 the first 216 (up to critical_segment, then 4 bytes
+/// that were 0), version 5 the whole of it.
 constexpr std::size_t recordBytes(std::uint32_t version) noexcept {
-  return version >= 4 ? sizeof(TickRecord) : kTickRecordBytesV3;
+  return version >= 5 ? sizeof(TickRecord) : version == 4 ? kTickRecordBytesV4 : kTickRecordBytesV3;
 }
 constexpr std::size_t kMaxChunkRecords = 65535;
 
@@ -604,14 +605,19 @@ void addChunk(const unsigned char* chunk, CheckedChunk& c, Recording& rec) {
     const std::size_t count = getU32(chunk + 4);
     const std::size_t first = rec.records.size();
     rec.records.resize(first + count);
-    if (rec.version >= 4) {
+    if (rec.version >= 5) {
       std::memcpy(rec.records.data() + first, chunk + kChunkHeaderBytes, count * sizeof(TickRecord));
-    } else {  // older records end at flags: no proximity was measured
+    } else {  // older records are shorter: what they lack was not stored
+      const std::size_t bytes = recordBytes(rec.version);
       for (std::size_t k = 0; k < count; ++k) {
         TickRecord& r = rec.records[first + k];
-        std::memcpy(static_cast<void*>(&r), chunk + kChunkHeaderBytes + k * kTickRecordBytesV3, kTickRecordBytesV3);
-        r.critical_distance_m = std::numeric_limits<double>::quiet_NaN();
-        r.critical_segment = -1;
+        std::memcpy(static_cast<void*>(&r), chunk + kChunkHeaderBytes + k * bytes, bytes);
+        r.removed_voxels = 0;  // version 4's reserved bytes
+        r.deadline_work = 0;
+        if (rec.version < 4) {  // no proximity was measured
+          r.critical_distance_m = std::numeric_limits<double>::quiet_NaN();
+          r.critical_segment = -1;
+        }
       }
     }
     rec.dropped_records = getU64(chunk + 8);
@@ -731,7 +737,7 @@ void writeRecordingCsv(const Recording& recording, std::ostream& out) {
   out << "t_s,tick,device_x_m,device_y_m,device_z_m,device_qw,device_qx,device_qy,device_qz,"
          "proxy_x_m,proxy_y_m,proxy_z_m,proxy_qw,proxy_qx,proxy_qy,proxy_qz,"
          "force_x_N,force_y_N,force_z_N,torque_x_Nm,torque_y_Nm,torque_z_Nm,"
-         "contacts,isovalue,tick_time_s,flags,critical_distance_m,critical_segment\n";
+         "contacts,isovalue,tick_time_s,flags,critical_distance_m,critical_segment,removed_voxels,deadline_work\n";
   out << std::setprecision(17);
   for (const TickRecord& r : recording.records) {
     out << r.time_s << ',' << r.tick;
@@ -742,7 +748,8 @@ void writeRecordingCsv(const Recording& recording, std::ostream& out) {
     for (double v : r.force_W_N) out << ',' << v;
     for (double v : r.torque_W_Nm) out << ',' << v;
     out << ',' << r.contacts << ',' << r.isovalue << ',' << r.tick_time_s << ',' << r.flags << ','
-        << r.critical_distance_m << ',' << r.critical_segment << '\n';
+        << r.critical_distance_m << ',' << r.critical_segment << ',' << r.removed_voxels << ',' << r.deadline_work
+        << '\n';
   }
 }
 

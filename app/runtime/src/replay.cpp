@@ -136,7 +136,8 @@ void applyHardness(haptics::MaterialRemoval& removal, const HardnessChange& h) {
 }
 
 /// The first mismatch into `result`: at record `index` (`r`), what differed, and the first
-/// record up to it on which the solver's deadline cut the work short.
+/// record up to it on which the solver's deadline cut the work short where the replay could not
+/// repeat the cut (no TickRecord::deadline_work: format versions 1 to 4).
 void markMismatch(ReplayComparison& result, const Recording& recording, const TickRecord& r, std::size_t index,
                   const char* what) {
   result.identical = false;
@@ -144,7 +145,7 @@ void markMismatch(ReplayComparison& result, const Recording& recording, const Ti
   result.first_mismatch_index = index;
   result.mismatch = what;
   for (std::size_t k = 0; k <= index; ++k)
-    if ((recording.records[k].flags & kRecordFlagDeadlineCut) != 0) {
+    if ((recording.records[k].flags & kRecordFlagDeadlineCut) != 0 && recording.records[k].deadline_work == 0) {
       result.deadline_cut_tick = recording.records[k].tick;
       break;
     }
@@ -234,12 +235,18 @@ ReplayComparison replayRecording(const LoadedScene& scene, const Recording& reco
     const bool drill_on = ok && servo.drill != nullptr && (r.flags & kRecordFlagDrillOn) != 0;
     if (ok) {
       if (servo.tissue != nullptr) (void)servo.tissue->step(sample.X_WD, *renderer);  // as the live solver did
+      // A tick the live solver's deadline cut stops at the same work (no clock here).
+      renderer->cutNextTickAtWork(r.deadline_work);
       out = renderer->tick(sample.X_WD, r.isovalue);
       ++result.ticks_replayed;
       if (drill_on) cut = servo.drill->step(*renderer, out);
     }
     if (servo.drill != nullptr) logRemovals(*servo.drill, result);  // the removal log, record by record
-    if (const char* what = recordMismatch(*renderer, out, ok, r, result.forces_compared)) {
+    const char* what = recordMismatch(*renderer, out, ok, r, result.forces_compared);
+    // From format version 5 on a record counts the voxels its tick's burr removed.
+    if (what == nullptr && recording.version >= 5 && static_cast<std::uint64_t>(std::max(0, cut.voxels_removed)) != r.removed_voxels)
+      what = "removed voxels";
+    if (what != nullptr) {
       markMismatch(result, recording, r, i, what);
       return result;
     }
@@ -255,6 +262,21 @@ ReplayComparison replayRecording(const LoadedScene& scene, const Recording& reco
   if (servo.drill != nullptr) result.drilled_field = std::make_shared<haptics::ScalarVolume>(servo.drill->removal().volume());
   if (progress.progress) progress.progress(1.0);
   return result;
+}
+
+std::string replayDifference(const ReplayComparison& replay, const Recording& recording) {
+  if (replay.identical || !replay.first_mismatch_tick) return {};
+  std::string text = "the replay differs from the recording from record " + std::to_string(replay.first_mismatch_index) +
+                     " on (tick " + std::to_string(*replay.first_mismatch_tick) + ": " + replay.mismatch + ")";
+  if (replay.deadline_cut_tick) {
+    text += ": the live solver's deadline on the clock cut tick " + std::to_string(*replay.deadline_cut_tick) +
+            ", and this recording (format version " + std::to_string(recording.version) +
+            ") does not say where, so the replay did that tick whole";
+  } else {
+    text += ": no tick before it was cut by the clock, so the replay should have matched; please report it with the "
+            "recording";
+  }
+  return text;
 }
 
 }  // namespace vh::runtime

@@ -232,7 +232,9 @@ TickRecord runRecord(std::uint64_t i, double servo_rate_Hz, const haptics::Pose&
   rec.tick_time_s = 1e-6 * out.stats.exec_time_us;
   rec.contacts = static_cast<std::uint32_t>(contacts);
   rec.flags = (rec.contacts > 0 ? kRecordFlagContact : 0u) | (finite ? 0u : kRecordFlagNonFinite) |
-              (sample_ok ? 0u : kRecordFlagBadSample) | recordSegmentBits(segment);
+              (sample_ok ? 0u : kRecordFlagBadSample) | recordSegmentBits(segment) |
+              (sample_ok && out.stats.deadline_cut ? kRecordFlagDeadlineCut : 0u);
+  rec.deadline_work = sample_ok ? out.stats.deadline_work : 0;
   return rec;
 }
 
@@ -605,6 +607,7 @@ void checkRunTick(HeadlessRun& run, std::uint64_t i, const RunTick& t) {
     TickRecord rec = runRecord(i, run.options.servo_rate_Hz, run.X_WD_used, run.renderer.proxyPose(), out, t.isovalue,
                                run.renderer.contacts().size(), finite, t.sample_ok, segment);
     if (drill_on) rec.flags |= kRecordFlagDrillOn;
+    rec.removed_voxels = static_cast<std::uint32_t>(std::max(0, cut.voxels_removed));
     if (jammed) rec.flags |= kRecordFlagJam;
     rec.flags |= recordTechniqueBits(technique);
     rec.critical_distance_m = nearest.distance_m;
@@ -642,21 +645,11 @@ TissueReport tissueReport(const std::vector<TissueTick>& ticks) {
   return t;
 }
 
-/// After the last of the `n` ticks: the "drilled" event (what the burr removed in all), the
-/// recording closed, and the report's totals.
+/// After the last of the `n` ticks: the recording closed (what the burr removed is in its
+/// records, TickRecord::removed_voxels, as in the window's), and the report's totals.
 /// @throws std::runtime_error naming the recording when one of its writes failed.
 void finishRun(HeadlessRun& run, std::uint64_t n, std::chrono::steady_clock::time_point wall_begin) {
   RunReport& r = run.r;
-  if (run.recorder && run.drill != nullptr && n > 0) {
-    // What the burr removed in all, for the cohort table (session_metrics.h: removed_mm3).
-    RecordingEvent event;
-    event.time_s = static_cast<double>(n - 1) / run.options.servo_rate_Hz;
-    event.tick = n;
-    event.type = "drilled";
-    event.detail_json =
-        nlohmann::json{{"voxels", run.drill->removal().removedVoxels()}, {"mm3", run.drill->removed_mm3()}}.dump();
-    run.recorder->addEvent(event);
-  }
   if (run.recorder) run.recorder->close();  // throws naming the file when a write failed
   if (run.segment_tally) r.segment_contacts = run.segment_tally->segments();
   if (run.proximity_tally) r.proximity = run.proximity_tally->segments();

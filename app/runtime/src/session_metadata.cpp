@@ -441,6 +441,11 @@ std::string makeSessionMetadata(const LoadedScene& scene, const LiveValues& live
 
   j["scene"] = sceneJson(scene, live);
   j["dataset"] = datasetJson(scene);
+  if (live.drill && live.hapticField() != nullptr) {
+    // The unit of every record's removed_voxels and of the cavity (session_metrics.h).
+    const Eigen::Vector3d& h = live.hapticField()->geometry().spacing_m;
+    j["drilling"] = {{"felt_voxel_volume_mm3", 1e9 * h.x() * h.y() * h.z()}};
+  }
 
   json tool;
   tool["mesh"] = live.tool_spec.mesh;

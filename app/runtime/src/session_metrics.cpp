@@ -142,6 +142,47 @@ void tickMetrics(const std::vector<TickRecord>& records, double dt, double thres
   m.drill_on_s = static_cast<double>(drill) * dt;
 }
 
+/// The cavity at the recording's start from its metadata (scene.drill.cavity's runs; the felt
+/// voxel's volume from drilling.felt_voxel_volume_mm3, else the cavity's grid) and, from format
+/// version 5 on, what the burr removed during it from the records. Older recordings' "drilled"
+/// event is read by segmentMetrics(); the totals are summed by cavityTotals().
+void drillingMetrics(const Recording& recording, SessionMetrics& m) {
+  const nlohmann::json meta = nlohmann::json::parse(recording.metadata_json, nullptr, false);
+  if (!meta.is_object()) return;
+  double voxel_mm3 = 0.0;
+  if (const auto d = meta.find("drilling"); d != meta.end() && d->is_object()) {
+    const auto v = d->find("felt_voxel_volume_mm3");
+    if (v != d->end() && v->is_number() && std::isfinite(v->get<double>()) && v->get<double>() > 0.0) voxel_mm3 = v->get<double>();
+  }
+  const nlohmann::json cavity =
+      meta.value("scene", nlohmann::json::object()).value("drill", nlohmann::json::object()).value("cavity", nlohmann::json::object());
+  if (cavity.is_object()) {
+    const nlohmann::json runs = cavity.value("runs", nlohmann::json::array());
+    for (std::size_t r = 1; runs.is_array() && r < runs.size(); r += 2)
+      if (runs[r].is_number_unsigned()) m.cavity_at_start_voxels += runs[r].get<std::uint64_t>();
+    const nlohmann::json spacing = cavity.value("spacing_m", nlohmann::json::array());
+    if (voxel_mm3 == 0.0 && spacing.is_array() && spacing.size() == 3 && spacing[0].is_number() &&
+        spacing[1].is_number() && spacing[2].is_number())
+      voxel_mm3 = 1e9 * spacing[0].get<double>() * spacing[1].get<double>() * spacing[2].get<double>();
+  }
+  if (!(voxel_mm3 > 0.0 && std::isfinite(voxel_mm3))) voxel_mm3 = 0.0;
+  m.cavity_at_start_mm3 = static_cast<double>(m.cavity_at_start_voxels) * voxel_mm3;
+  if (recording.version < 5) return;
+  std::uint64_t removed = 0;
+  for (const TickRecord& r : recording.records) removed += r.removed_voxels;
+  m.removed_voxels = removed;
+  m.removed_mm3 = static_cast<double>(removed) * voxel_mm3;
+  if (removed > 0 && recording.dropped_records > 0)
+    m.notices.push_back("the volume drilled away counts the records kept: " + std::to_string(recording.dropped_records) +
+                        " were dropped while recording");
+}
+
+/// The cavity at the end: what it started with and what was removed during the recording.
+void cavityTotals(SessionMetrics& m) {
+  m.cavity_voxels = m.cavity_at_start_voxels + m.removed_voxels;
+  m.cavity_mm3 = m.cavity_at_start_mm3 + m.removed_mm3;
+}
+
 /// Per segment: contact (segmentContacts(), rescaled to dt) and the critical_removed events.
 void segmentMetrics(const Recording& recording, double dt, SessionMetrics& m) {
   for (const SegmentContact& c : segmentContacts(recording)) {
@@ -166,9 +207,10 @@ void segmentMetrics(const Recording& recording, double dt, SessionMetrics& m) {
         if (rule == techniqueRuleName(k)) ++m.technique_events[static_cast<std::size_t>(k)];
       continue;
     }
-    if (e.type == "drilled") {  // the totals when the recording closed: the last one counts
+    if (e.type == "drilled") {  // older recordings (drillingMetrics())
+      if (recording.version >= 5) continue;
       const nlohmann::json d = nlohmann::json::parse(e.detail_json.empty() ? "{}" : e.detail_json, nullptr, false);
-      if (d.is_object()) {
+      if (d.is_object()) {  // the totals when the recording closed: the last one counts
         m.removed_voxels = d.value("voxels", std::uint64_t{0});
         m.removed_mm3 = d.value("mm3", 0.0);
       }
@@ -239,8 +281,10 @@ SessionMetrics computeSessionMetrics(const Recording& recording, const MetricsOp
     m.notices.push_back(std::to_string(m.dropped_records) +
                         " records were dropped while recording: times in contact and above the threshold "
                         "count the records kept");
+  drillingMetrics(recording, m);
   if (records.empty()) {
     m.notices.push_back("the recording holds no ticks: every metric is 0");
+    cavityTotals(m);
     return m;
   }
   const double dt = 1.0 / m.servo_rate_Hz;
@@ -248,6 +292,7 @@ SessionMetrics computeSessionMetrics(const Recording& recording, const MetricsOp
   tickMetrics(records, dt, options.force_threshold_N, m);
   motionMetrics(records, dt, options, m);
   segmentMetrics(recording, dt, m);
+  cavityTotals(m);
   m.proximity = segmentProximity(recording, dt);
   return m;
 }
@@ -277,7 +322,9 @@ std::vector<MetricValue> metricValues(const SessionMetrics& m) {
       {"critical_contact_s", "Time touching critical segments", "s", m.critical_contact_s},
       {"critical_touches", "Touches of critical segments", "", count(m.critical_touches)},
       {"drill_on_s", "Time with the burr spinning", "s", m.drill_on_s},
-      {"removed_mm3", "Volume drilled away", "mm^3", m.removed_mm3},
+      {"cavity_at_start_mm3", "Cavity when the recording began", "mm^3", m.cavity_at_start_mm3},
+      {"removed_mm3", "Volume drilled away during the recording", "mm^3", m.removed_mm3},
+      {"cavity_mm3", "Cavity when the recording ended", "mm^3", m.cavity_mm3},
       {"critical_removed_voxels", "Critical voxels drilled away", "", count(m.critical_removed_voxels)},
       {"critical_removed_mm3", "Critical volume drilled away", "mm^3", m.critical_removed_mm3},
       {"markers", "Markers", "", count(m.markers)},

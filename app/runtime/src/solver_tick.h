@@ -142,9 +142,10 @@ inline void renderSolverSample(SolverState& st, const CouplingSample& in, haptic
 /// A solver tick's record (lock-free push; a full ring drops the record and counts it), its
 /// times from the current recording's first tick.
 inline void recordSolverTick(RecordingWriter& recorder, const SolverState& st, const CouplingSample& in,
-                             const haptics::TickOutput& out, const haptics::Pose& X_WP, std::size_t contacts,
+                             const SolverTickResult& t, const haptics::Pose& X_WP, std::size_t contacts,
                              int segment, const CriticalDistance& nearest, double period_s, std::int64_t tick_ns,
                              std::uint32_t flags) noexcept {
+  const haptics::TickOutput& out = t.out;
   TickRecord rec;
   rec.time_s = static_cast<double>(st.tick - st.record_first_tick) * period_s;
   rec.tick = st.tick;
@@ -155,6 +156,8 @@ inline void recordSolverTick(RecordingWriter& recorder, const SolverState& st, c
   rec.flags = solverRecordFlags(rec.contacts, in, out, segment) | flags;
   rec.critical_distance_m = nearest.distance_m;
   rec.critical_segment = nearest.segment;
+  rec.removed_voxels = static_cast<std::uint32_t>(std::max(0, t.cut.voxels_removed));
+  rec.deadline_work = in.ok ? out.stats.deadline_work : 0;  // where a replay stops the tick
   (void)recorder.push(rec);
 }
 

@@ -16,6 +16,7 @@
 #include "vh/runtime/haptic_thread.h"
 #include "vh/runtime/recording.h"
 #include "vh/runtime/replay.h"
+#include "vh/runtime/session_metrics.h"
 #include "vh/runtime/runner.h"
 #include "vh/runtime/scene.h"
 #include "vh/runtime/session.h"
@@ -166,6 +167,16 @@ TEST(Drilling, ARecordingThatStartsDrilledReplaysBitForBit) {
   std::cout << "cavity at the start " << cavity->voxels.size() << " voxels, at the end " << both.voxels.size() << "\n";
   EXPECT_TRUE(std::includes(both.voxels.begin(), both.voxels.end(), cavity->voxels.begin(), cavity->voxels.end()));
   EXPECT_GT(both.voxels.size(), cavity->voxels.size());
+  // The session's metrics by the rule every recording follows: the cavity it began with (the
+  // metadata), what its records say the burr removed, and the two together, which is the cavity
+  // the replay carved (the oracle: the replayed field against the scan, not the records).
+  const SessionMetrics m = computeSessionMetrics(rec);
+  EXPECT_EQ(m.cavity_at_start_voxels, cavity->voxels.size());
+  EXPECT_EQ(m.removed_voxels, replay.removed_voxels.size());
+  EXPECT_EQ(m.cavity_voxels, both.voxels.size());
+  EXPECT_NEAR(m.removed_mm3, report.drill->removed_mm3, 1e-9 * report.drill->removed_mm3);
+  const double voxel_mm3 = report.drill->removed_mm3 / static_cast<double>(m.removed_voxels);
+  EXPECT_NEAR(m.cavity_mm3, static_cast<double>(both.voxels.size()) * voxel_mm3, 1e-9 * m.cavity_mm3);
 
   LoadedScene without = reloaded;  // the check can fail: the same records on the undrilled sphere
   without.spec.drill->cavity = nullptr;
@@ -576,23 +587,14 @@ TEST(Drilling, ARecordingStartedWhileDrillingReplaysBitForBit) {
   EXPECT_EQ(reloaded.X_WT_initial.p_AB_m, X_start->p_AB_m);
   const ReplayComparison replay = replayRecording(reloaded, rec);
   // The session's solver runs with its deadline on the clock (solverDeadline_us()): a loaded
-  // machine can cut a tick short, which the replay (no clock) does not reproduce, and the
-  // recording flags it. Without such a tick the replay is identical; with one it may part from
-  // the live run, but never before the first tick flagged as cut.
+  // machine can cut a tick short, and the record says at which work; the replay (no clock) stops
+  // there too, so it is identical whatever the machine's load.
   const auto deadline_cuts = std::count_if(rec.records.begin(), rec.records.end(), [](const TickRecord& r) {
     return (r.flags & kRecordFlagDeadlineCut) != 0;
   });
-  if (deadline_cuts == 0) {
-    EXPECT_TRUE(replay.identical) << replay.mismatch << " at tick " << replay.first_mismatch_tick.value_or(0);
-  } else {
-    std::cout << deadline_cuts << " recorded ticks were cut by the solver's deadline (a loaded machine); the replay "
-              << (replay.identical ? "is identical" : "parts at tick " + std::to_string(replay.first_mismatch_tick.value_or(0)))
-              << "\n";
-    if (!replay.identical) {
-      ASSERT_TRUE(replay.deadline_cut_tick.has_value()) << replay.mismatch;
-      EXPECT_LE(*replay.deadline_cut_tick, replay.first_mismatch_tick.value_or(0));
-    }
-  }
+  EXPECT_TRUE(replay.identical) << replayDifference(replay, rec);
+  std::cout << deadline_cuts << " recorded ticks were cut by the solver's deadline; the replay "
+            << (replay.identical ? "is identical" : replayDifference(replay, rec)) << "\n";
   EXPECT_GT(replay.ticks_replayed, 300u);
   ASSERT_NE(replay.drilled_field, nullptr);
   ASSERT_EQ(replay.drilled_field->bytes().size(), live_field.bytes().size());
@@ -605,6 +607,16 @@ TEST(Drilling, ARecordingStartedWhileDrillingReplaysBitForBit) {
             << " voxels drilled, ended with " << at_end << "; the proxy started at z = " << X_start->p_AB_m.z() * 1e3
             << " mm\n";
   EXPECT_GT(at_end, cavity_at_start);
+  // The haptic thread's recording (the window's writer) says what the burr removed as `run`'s
+  // does: the cavity it began with, the records' removed voxels and the two together, which is
+  // the cavity the live drill left (the oracle: its field against the scan).
+  const SessionMetrics m = computeSessionMetrics(rec);
+  EXPECT_EQ(m.cavity_at_start_voxels, cavity_at_start);
+  EXPECT_GT(m.removed_voxels, 20u);
+  EXPECT_EQ(m.cavity_voxels, at_end);
+  const double voxel_mm3 = thread->drill()->removal().voxelVolume_mm3();
+  EXPECT_NEAR(m.removed_mm3, static_cast<double>(m.removed_voxels) * voxel_mm3, 1e-9 * m.removed_mm3);
+  EXPECT_NEAR(m.cavity_at_start_mm3, static_cast<double>(cavity_at_start) * voxel_mm3, 1e-9 * m.cavity_at_start_mm3);
 
   LoadedScene from_free = reloaded;  // the check can fail: the replay from the scene's free pose
   from_free.X_WT_initial = X_free;

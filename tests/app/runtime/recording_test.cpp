@@ -305,6 +305,42 @@ TEST(Recording, ReadsVersionOneAndTwoFiles) {
   }
 }
 
+// Format version 4 (216-byte records: proximity, but neither removed voxels nor the deadline's
+// work) still reads: the proximity as stored, the two newer fields 0.
+TEST(Recording, ReadsVersionFourFiles) {
+  const fs::path dir = test::scratchDir();
+  RecordingWriter writer(dir / "v5.vhrec", R"({"scene":"x"})");
+  for (std::uint64_t i = 0; i < 600; ++i) {
+    TickRecord r = makeRecord(i);
+    r.critical_distance_m = 1e-3 * static_cast<double>(i % 7);
+    r.critical_segment = static_cast<std::int32_t>(i % 3) - 1;
+    r.removed_voxels = static_cast<std::uint32_t>(i % 4);
+    r.deadline_work = static_cast<std::int64_t>(i % 2) * 1234;
+    ASSERT_TRUE(writer.push(r));
+  }
+  writer.close();
+  const Recording current = readRecording(dir / "v5.vhrec");
+  ASSERT_EQ(current.version, 5u);
+  ASSERT_EQ(current.records.size(), 600u);
+  EXPECT_EQ(current.records[3].removed_voxels, 3u);
+  EXPECT_EQ(current.records[3].deadline_work, 1234);
+  writeBytes(dir / "v4.vhrec", test::asVersion4Recording(readBytes(dir / "v5.vhrec")));
+  const Recording rec = readRecording(dir / "v4.vhrec");
+  EXPECT_EQ(rec.version, 4u);
+  EXPECT_TRUE(rec.warnings.empty()) << rec.warnings.front();
+  EXPECT_TRUE(rec.ended);
+  ASSERT_EQ(rec.records.size(), 600u);
+  for (std::size_t i = 0; i < 600; ++i) {
+    ASSERT_EQ(std::memcmp(&rec.records[i], &current.records[i], kTickRecordBytesV4 - 4), 0);  // up to the segment
+    ASSERT_EQ(rec.records[i].removed_voxels, 0u);
+    ASSERT_EQ(rec.records[i].deadline_work, 0);
+  }
+  std::string wrong = readBytes(dir / "v4.vhrec");
+  wrong[8] = '\x05';  // version 5 named over 216-byte records
+  writeBytes(dir / "wrong.vhrec", wrong);
+  VH_EXPECT_THROW_WITH(readRecording(dir / "wrong.vhrec"), std::runtime_error, "record size 216 bytes, expected 224 for version 5");
+}
+
 TEST(Recording, CrashTruncationOpensUpToTheLastGoodChunkLosingUnderOneSecond) {
   const fs::path path = writeSession(test::scratchDir() / "crash.vhrec", 4000);
   const std::string bytes = readBytes(path);
@@ -537,14 +573,14 @@ TEST(Recording, DamagedHeadersThrowWithTheReason) {
 
   writeBytes(dir / "magic.vhrec", "not a recording at all, just text");
   VH_EXPECT_THROW_WITH(readRecording(dir / "magic.vhrec"), std::runtime_error, "bad magic");
-  std::string v5 = bytes;
-  v5[8] = 5;
-  writeBytes(dir / "v5.vhrec", v5);
-  VH_EXPECT_THROW_WITH(readRecording(dir / "v5.vhrec"), std::runtime_error, "unsupported format version 5");
-  std::string v3 = bytes;  // a version 3 header over version 4's 216-byte records
+  std::string v6 = bytes;
+  v6[8] = 6;
+  writeBytes(dir / "v6.vhrec", v6);
+  VH_EXPECT_THROW_WITH(readRecording(dir / "v6.vhrec"), std::runtime_error, "unsupported format version 6");
+  std::string v3 = bytes;  // a version 3 header over version 5's 224-byte records
   v3[8] = 3;
   writeBytes(dir / "v3.vhrec", v3);
-  VH_EXPECT_THROW_WITH(readRecording(dir / "v3.vhrec"), std::runtime_error, "record size 216 bytes, expected 200 for version 3");
+  VH_EXPECT_THROW_WITH(readRecording(dir / "v3.vhrec"), std::runtime_error, "record size 224 bytes, expected 200 for version 3");
   std::string meta = bytes;
   meta[26] ^= 0x01;
   writeBytes(dir / "meta.vhrec", meta);

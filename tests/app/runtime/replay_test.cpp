@@ -8,7 +8,9 @@
 #include <chrono>
 #include <cmath>
 #include <cstring>
+#include <fstream>
 #include <iostream>
+#include <iterator>
 #include <thread>
 
 #include <gtest/gtest.h>
@@ -321,10 +323,12 @@ TEST(RecordingReplay, DeviceDisconnectAndReconnectAreRecordedAsEventsAndReplay) 
 }
 
 // A tick the solver's deadline on the clock cut (a machine too busy for the servo period) is
-// flagged in the recording, and a replay (no clock: it does the whole tick) that parts from the
-// live run there names it. A deadline of 1 ns cuts every tick with any work at its first clock
-// read, so the live proxy never leaves its start while the replay's follows the device.
-TEST(RecordingReplay, ATickTheDeadlineCutIsFlaggedAndTheReplayNamesIt) {
+// flagged in the recording with the work it stopped at, and a replay (no clock) stops the tick
+// there too: the replay matches the live run bit for bit. A deadline of 1 ns cuts every tick with
+// any work at its first clock read, so the live proxy never leaves its start. The same recording
+// as format version 4 (which did not store the work) parts from the live run, whose replay does
+// every tick whole, and names the cut tick, in words too (replayDifference()).
+TEST(RecordingReplay, ATickTheDeadlineCutIsReplayedWhereItStopped) {
   const LoadedScene& scene = test::sphereBallScene();
   const auto at = [](double t, double x, double z) {
     TrajectorySample s;
@@ -336,16 +340,33 @@ TEST(RecordingReplay, ATickTheDeadlineCutIsFlaggedAndTheReplayNamesIt) {
                                                  1e-3, "deadline");
   haptics::RendererOptions renderer_options;
   renderer_options.deadline_us = 1e-3;
-  const Recording rec =
-      recordScript(scene, device, scene.makeRenderer(renderer_options), test::scratchDir() / "deadline-cut.vhrec");
+  const fs::path path = test::scratchDir() / "deadline-cut.vhrec";
+  const Recording rec = recordScript(scene, device, scene.makeRenderer(renderer_options), path);
   ASSERT_GE(rec.records.size(), 600u);
   std::size_t cut = 0;
-  for (const TickRecord& r : rec.records) cut += (r.flags & kRecordFlagDeadlineCut) != 0 ? 1 : 0;
+  for (const TickRecord& r : rec.records) {
+    const bool flagged = (r.flags & kRecordFlagDeadlineCut) != 0;
+    cut += flagged ? 1 : 0;
+    EXPECT_EQ(r.deadline_work > 0, flagged) << "tick " << r.tick;
+  }
   EXPECT_GT(cut, 500u) << "every tick that moves the proxy is cut";
   const ReplayComparison replay = replayRecording(scene, rec);
-  ASSERT_FALSE(replay.identical) << "the replay has no deadline: its proxy follows the device";
-  ASSERT_TRUE(replay.deadline_cut_tick.has_value());
-  EXPECT_LE(*replay.deadline_cut_tick, replay.first_mismatch_tick.value_or(0));
+  EXPECT_TRUE(replay.identical) << replayDifference(replay, rec);
+  EXPECT_EQ(replayDifference(replay, rec), "");
+
+  std::ifstream in(path, std::ios::binary);
+  const std::string bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  const Recording old = readRecording(test::writeText(test::scratchDir() / "deadline-cut-v4.vhrec", test::asVersion4Recording(bytes)));
+  const ReplayComparison whole = replayRecording(scene, old);
+  ASSERT_FALSE(whole.identical) << "without the work the replay does each tick whole: its proxy follows the device";
+  ASSERT_TRUE(whole.deadline_cut_tick.has_value());
+  EXPECT_LE(*whole.deadline_cut_tick, whole.first_mismatch_tick.value_or(0));
+  const std::string words = replayDifference(whole, old);
+  EXPECT_NE(words.find("the live solver's deadline on the clock cut tick " + std::to_string(*whole.deadline_cut_tick)),
+            std::string::npos)
+      << words;
+  EXPECT_NE(words.find("format version 4"), std::string::npos) << words;
+  std::cout << words << "\n";
 }
 
 TEST(RecordingReplay, ReplayDeviceReturnsTheRecordedPosesOnePerRead) {

@@ -72,18 +72,23 @@ std::uint32_t u32At(const std::string& b, std::size_t at) {
 void putU32(std::string& b, std::size_t at, std::uint32_t v) { std::memcpy(b.data() + at, &v, 4); }
 }  // namespace
 
-std::string asVersion3Recording(const std::string& current) {
+namespace {
+// The records cut to `bytes` (and, for version 4, its 4 reserved bytes 0).
+std::string asOlderRecording(const std::string& current, std::uint32_t version, std::size_t bytes) {
   const std::size_t first = 24 + u32At(current, 16);
   std::string out = current.substr(0, first);
-  putU32(out, 8, 3);
-  putU32(out, 12, static_cast<std::uint32_t>(runtime::kTickRecordBytesV3));
+  putU32(out, 8, version);
+  putU32(out, 12, static_cast<std::uint32_t>(bytes));
   for (std::size_t at = first; at + 4 <= current.size();) {
     const std::string tag = current.substr(at, 4);
     if (tag == "CHNK") {
       const std::uint32_t n = u32At(current, at + 4);
       std::string chunk = current.substr(at, 16);
-      for (std::uint32_t k = 0; k < n; ++k)
-        chunk += current.substr(at + 16 + k * sizeof(runtime::TickRecord), runtime::kTickRecordBytesV3);
+      for (std::uint32_t k = 0; k < n; ++k) {
+        std::string record = current.substr(at + 16 + k * sizeof(runtime::TickRecord), bytes);
+        if (version == 4) putU32(record, bytes - 4, 0);  // reserved
+        chunk += record;
+      }
       chunk += std::string(4, '\0');
       putU32(chunk, chunk.size() - 4, runtime::crc32(chunk.data(), chunk.size() - 4));
       out += chunk;
@@ -98,6 +103,15 @@ std::string asVersion3Recording(const std::string& current) {
     }
   }
   return out;
+}
+}  // namespace
+
+std::string asVersion3Recording(const std::string& current) {
+  return asOlderRecording(current, 3, runtime::kTickRecordBytesV3);
+}
+
+std::string asVersion4Recording(const std::string& current) {
+  return asOlderRecording(current, 4, runtime::kTickRecordBytesV4);
 }
 
 }  // namespace vh::test

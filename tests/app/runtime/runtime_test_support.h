@@ -43,6 +43,8 @@ long lockedMemory_kB();
 /// version and record size, each record cut after its flags (200 bytes) and each record chunk's
 /// CRC-32 recomputed; event chunks and the end marker as they are.
 std::string asVersion3Recording(const std::string& current);
+/// The same as format version 4: 216-byte records (up to critical_segment, then 4 bytes of 0).
+std::string asVersion4Recording(const std::string& current);
 
 }  // namespace vh::test
 

@@ -271,17 +271,41 @@ TEST(SessionMetrics, TruncatedOrEmptyRecordingGivesMetricsWithANotice) {
 TEST(CohortTable, LabelFallsBackToTheFileNameAndRemovedVolumeIsAColumn) {
   const fs::path dir = test::scratchDir() / "cohort-label";
   writeCircle(dir / "trainee-07.vhrec", 1.0, "");  // no user, no note
-  {  // a drilling run's recording: its "drilled" event carries the removed volume
+  {  // a drilling session's recording: 125 voxels of 0.1 mm^3 removed over its ticks, on a
+     // cavity of 7 + 3 voxels it began with
     RecordingWriterOptions opt;
     opt.ring_capacity = 1u << 15;
-    RecordingWriter writer(dir / "drilled.vhrec", nlohmann::json{{"note", "expert"}}.dump(), opt);
-    for (const TickRecord& t : circleRecording(0.05, kPi, 1000.0, 0.5).records) writer.pushWaiting(t);
-    writer.addEvent({0.499, 500, "drilled", R"({"voxels": 125, "mm3": 12.5})"});
+    const nlohmann::json meta = {
+        {"note", "expert"},
+        {"drilling", {{"felt_voxel_volume_mm3", 0.1}}},
+        {"scene", {{"drill", {{"cavity", {{"spacing_m", {1e-3, 1e-3, 1e-3}}, {"runs", {10, 7, 40, 3}}}}}}}}};
+    RecordingWriter writer(dir / "drilled.vhrec", meta.dump(), opt);
+    int i = 0;
+    for (TickRecord t : circleRecording(0.05, kPi, 1000.0, 0.5).records) {
+      t.removed_voxels = i++ < 125 ? 1u : 0u;
+      writer.pushWaiting(t);
+    }
+    // An event such as `run` wrote until format version 4: not counted beside the records.
+    writer.addEvent({0.499, 500, "drilled", R"({"voxels": 999, "mm3": 99.9})"});
     writer.close();
   }
   const SessionMetrics m = computeSessionMetrics(readRecording(dir / "drilled.vhrec"));
   EXPECT_EQ(m.removed_voxels, 125u);
   EXPECT_DOUBLE_EQ(m.removed_mm3, 12.5);
+  EXPECT_EQ(m.cavity_at_start_voxels, 10u);
+  EXPECT_DOUBLE_EQ(m.cavity_at_start_mm3, 1.0);
+  EXPECT_EQ(m.cavity_voxels, 135u);
+  EXPECT_DOUBLE_EQ(m.cavity_mm3, 13.5);
+  {  // the same file as format version 4 (no removed voxels in its records): the event counts
+    std::ifstream in(dir / "drilled.vhrec", std::ios::binary);
+    const std::string bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+    test::writeText(dir / "old" / "drilled-v4.vhrec", test::asVersion4Recording(bytes));
+    const SessionMetrics old = computeSessionMetrics(readRecording(dir / "old" / "drilled-v4.vhrec"));
+    EXPECT_EQ(old.removed_voxels, 999u);
+    EXPECT_DOUBLE_EQ(old.removed_mm3, 99.9);
+    EXPECT_EQ(old.cavity_at_start_voxels, 10u);
+  }
+  fs::remove_all(dir / "old");
   ASSERT_EQ(writeCohortTable(dir, dir / "table.csv"), 2u);
   std::ifstream in(dir / "table.csv");
   std::vector<std::vector<std::string>> rows;

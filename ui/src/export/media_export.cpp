@@ -478,6 +478,7 @@ void addReplayedRemovals(DrillingTimeline& timeline, const runtime::LoadedScene&
   }
   sound.completeFrom(recording);
   timeline.sound = std::move(sound);
+  timeline.replay_difference = runtime::replayDifference(replay, recording);
   const std::vector<std::uint64_t> removed = pictureIndices(*live.hapticField(), *live.scan_field, replay.removed_voxels);
   timeline.picture.voxels.insert(timeline.picture.voxels.end(), removed.begin(), removed.end());
   // Felt indices map one to one onto picture indices (or are dropped outside the scan); the
@@ -664,10 +665,9 @@ std::unique_ptr<RecordingFrameRenderer> exportFrameRenderer(const runtime::Loade
     if (log != nullptr)
       *log << "volume-haptics export: the cavity grows to " << timeline.picture.removedAt(recording.records.size())
            << " voxels\n";
-    if (log != nullptr && timeline.sound.approximated_records > 0)
-      *log << "volume-haptics export: warning: the replay differs from the recording from record "
-           << recording.records.size() - timeline.sound.approximated_records
-           << " on: the burr's sound runs free (no load) from there\n";
+    if (log != nullptr && !timeline.replay_difference.empty())
+      *log << "volume-haptics export: warning: " << timeline.replay_difference
+           << "; the cavity is shown as it was there and the burr's sound runs free (no load) after it\n";
     frames->setDrilling(std::move(timeline));
   }
   if (!recording.records.empty()) frames->show(recording.records.front());

@@ -638,12 +638,20 @@ std::string metricsTable(const std::vector<MetricValue>& values) {
 /// The figures a teacher reads first, from the metrics (the full table is further down).
 std::string summaryTable(const std::vector<MetricValue>& values) {
   static const char* kKeys[] = {"duration_s", "time_in_contact_s", "mean_contact_force_N", "max_force_N",
-                                "time_above_threshold_s", "critical_touches", "critical_removed_mm3",
-                                "technique_force_events", "technique_speed_events", "technique_shaft_events"};
+                                "time_above_threshold_s", "critical_touches", "cavity_at_start_mm3", "removed_mm3",
+                                "cavity_mm3", "critical_removed_mm3", "technique_force_events", "technique_speed_events",
+                                "technique_shaft_events"};
+  // The drilling rows only for a session that drilled or began on a cavity.
+  bool drilling = false;
+  for (const MetricValue& v : values)
+    drilling = drilling || ((v.key == "drill_on_s" || v.key == "cavity_mm3") && v.value > 0.0);
+  const auto drillingRow = [](const std::string& key) {
+    return key == "cavity_at_start_mm3" || key == "removed_mm3" || key == "cavity_mm3";
+  };
   std::string cells;
   for (const char* key : kKeys)
     for (const MetricValue& v : values)
-      if (v.key == key)
+      if (v.key == key && (drilling || !drillingRow(v.key)))
         cells += "<tr><th>" + escapeHtml(v.label) + "</th><td class=\"n\">" + escapeHtml(formatQuantity(v.value, v.unit)) +
                  "</td></tr>\n";
   return "<h2>Summary</h2>\n<table class=\"meta\">\n" + cells + "</table>\n";

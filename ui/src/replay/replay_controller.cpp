@@ -5,6 +5,7 @@
 #include "vh/runtime/replay.h"
 
 #include <algorithm>
+#include <cctype>
 #include <cmath>
 #include <iostream>
 #include <limits>
@@ -408,6 +409,11 @@ void ReplayController::finishDrillingReplay(std::uint64_t generation, bool ok, D
     drill_dialog_ = nullptr;
   }
   if (ok && active_) {
+    if (!timeline.replay_difference.empty()) {
+      std::string text = timeline.replay_difference;
+      text[0] = static_cast<char>(std::toupper(static_cast<unsigned char>(text[0])));
+      emit noticeRequested(QString::fromStdString(text) + "; the cavity is shown as it was there", 15000);
+    }
     // It starts with the cavity shown since the replay began (a copy of drill_).
     drill_ = std::move(timeline);
     showDrillingAt(index_);

@@ -8,15 +8,15 @@
 /// writeRecordingEventsCsv()) and JSON (writeRecordingJson()). The session metadata is made by
 /// makeSessionMetadata() (session_metadata.h); replay.h replays a recording bit for bit.
 ///
-/// ## File format, version 4 (`.vhrec`)
+/// ## File format, version 5 (`.vhrec`)
 /// All integers and doubles are little-endian (IEEE-754 binary64 for doubles); the writer
 /// refuses to build on a big-endian host. The file is written append-only.
 ///
 ///   File header (24 bytes, then the metadata):
 ///     offset  size  field
 ///          0     8  magic "VHREC\r\n\x1a" (bytes 56 48 52 45 43 0d 0a 1a)
-///          8     4  uint32 format version (kRecordingFormatVersion = 4; readers accept 1 to 4)
-///         12     4  uint32 record size in bytes (sizeof(TickRecord) = 216; 200 in versions 1 to 3)
+///          8     4  uint32 format version (kRecordingFormatVersion = 5; readers accept 1 to 5)
+///         12     4  uint32 record size in bytes (sizeof(TickRecord) = 224; 216 in version 4, 200 in 1 to 3)
 ///         16     4  uint32 metadata length M in bytes
 ///         20     4  uint32 CRC-32 of the M metadata bytes
 ///         24     M  metadata: one UTF-8 JSON object (makeSessionMetadata(): scene, dataset and
@@ -29,7 +29,8 @@
 ///          0     4  chunk tag "CHNK" (bytes 43 48 4e 4b)
 ///          4     4  uint32 record count N (1 .. 65535)
 ///          8     8  uint64 dropped records in total when the chunk was written (ring overflow)
-///         16  N*R   N TickRecord, each the byte image of the struct (layout below; R = 216, or
+///         16  N*R   N TickRecord, each the byte image of the struct (layout below; R = 224, or
+///                   216 in version 4: the record up to critical_segment and 4 bytes of 0;
 ///                   200 in versions 1 to 3: the record up to and including flags)
 ///   16+N*R       4  uint32 CRC-32 of bytes [0, 16 + N*R) of the chunk
 ///   Event chunk (version 2 only; written before the record chunk it was flushed with):
@@ -43,7 +44,7 @@
 ///                     uint32  T, then T bytes: type, UTF-8 ("marker", "isovalue", ...)
 ///                     uint32  J, then J bytes: detail, UTF-8 JSON object text
 ///       12+B     4  uint32 CRC-32 of bytes [0, 12 + B) of the chunk
-///   End marker (versions 3 and 4; written by close(), always the last chunk):
+///   End marker (versions 3 to 5; written by close(), always the last chunk):
 ///     offset  size  field
 ///          0     4  chunk tag "ENDR" (bytes 45 4e 44 52)
 ///          4     4  uint32 status: 0 = closed normally; else the errno of the write that failed
@@ -51,11 +52,12 @@
 ///          8     8  uint64 records written in total
 ///         16     8  uint64 dropped records in total (ring overflow)
 ///         24     4  uint32 CRC-32 of bytes [0, 24)
-///   Version 3 files are the same with 200-byte records (no proximity: a reader sets
+///   Version 4 files are the same with 216-byte records (no removed voxels nor deadline work:
+///   a reader sets both to 0). Version 3 files also have 200-byte records (no proximity: a reader sets
 ///   critical_distance_m to NaN and critical_segment to -1); version 2 files also lack the end
 ///   marker; version 1 files also lack event chunks.
 ///
-///   TickRecord (tick_record.h; 216 bytes; all frames are the scene (world) frame W, SI units):
+///   TickRecord (tick_record.h; 224 bytes; all frames are the scene (world) frame W, SI units):
 ///     offset  field
 ///          0  double   time_s          servo time since the recording started [s]
 ///          8  double   p_WD_m[3]       device (tool) position in W [m]
@@ -72,18 +74,24 @@
 ///        200  double   critical_distance_m  point shell to the nearest critical segment [m]
 ///                                      (critical_proximity.h; +inf: none within 20 mm)
 ///        208  int32    critical_segment     that segment's index, or -1
-///        212  uint32   reserved        0
+///        212  uint32   removed_voxels  voxels the burr removed whole on this tick
+///        216  int64    deadline_work   1 + the work at which the solver's deadline on the
+///                                      clock cut this tick, 0 when it did not (a replay stops
+///                                      the tick there: replay.h)
 ///
 ///   Why a new version rather than spare bits: the distance needs a double's range and
 ///   precision (sub-millimetre near a nerve, +inf far away), and flags has 3 spare bits; events
-///   alone would lose the per-tick curve the report plots. 16 more bytes a tick (8%).
+///   alone would lose the per-tick curve the report plots. 16 more bytes a tick (8%). Version 5:
+///   what the burr removed is counted where it happened (one rule for every writer: the record,
+///   not an event a writer may forget) and a tick the clock cut is replayed as it ran; 8 more
+///   bytes a tick (4%).
 ///
 /// CRC-32 is the ISO-HDLC / zlib one (reflected polynomial 0xEDB88320, init and final XOR
 /// 0xFFFFFFFF; crc32("123456789") = 0xCBF43926).
 ///
-/// Size: 216 bytes per tick plus 20 bytes per record chunk; at 1 kHz with the default
-/// 500-record chunks that is 216,040 bytes (about 211 KiB) per second of recording, about
-/// 778 MB per hour, plus the header (24 bytes + the metadata, typically 1-2 KiB) and the events
+/// Size: 224 bytes per tick plus 20 bytes per record chunk; at 1 kHz with the default
+/// 500-record chunks that is 224,040 bytes (about 219 KiB) per second of recording, about
+/// 807 MB per hour, plus the header (24 bytes + the metadata, typically 1-2 KiB) and the events
 /// (16 bytes of framing per event chunk, 24 bytes + type + detail per event, e.g. 57 bytes for
 /// an isovalue change {"from":400,"to":500}; sessions have a few per minute).
 ///
@@ -130,7 +138,7 @@
 
 namespace vh::runtime {
 
-inline constexpr std::uint32_t kRecordingFormatVersion = 4;
+inline constexpr std::uint32_t kRecordingFormatVersion = 5;
 
 
 /// One timestamped event of a session (marker, isovalue change, tool change, device
@@ -280,8 +288,8 @@ Recording readRecording(const std::filesystem::path& path);
 /// One CSV row per record, header line with SI units:
 /// `t_s,tick,device_x_m,device_y_m,device_z_m,device_qw,device_qx,device_qy,device_qz,
 /// proxy_x_m,...,proxy_qz,force_x_N,force_y_N,force_z_N,torque_x_Nm,torque_y_Nm,torque_z_Nm,
-/// contacts,isovalue,tick_time_s,flags,critical_distance_m,critical_segment` (the distance
-/// "inf" beyond the range, "nan" where not measured). Doubles are written with 17 significant digits (they
+/// contacts,isovalue,tick_time_s,flags,critical_distance_m,critical_segment,removed_voxels,
+/// deadline_work` (the distance "inf" beyond the range, "nan" where not measured). Doubles are written with 17 significant digits (they
 /// read back bit for bit).
 void writeRecordingCsv(const Recording& recording, std::ostream& out);
 /// The same to a file. @throws std::runtime_error when it cannot be written.

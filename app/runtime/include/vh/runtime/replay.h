@@ -55,13 +55,16 @@ struct ReplayComparison {
   std::uint64_t forces_compared = 0;  ///< Records whose force / torque were compared.
   bool identical = true;              ///< Every compared value equal bit for bit.
   /// The first record that differs (TickRecord::tick and its index), and what differed:
-  /// "proxy position", "proxy orientation", "force", "torque" or "contacts".
+  /// "proxy position", "proxy orientation", "force", "torque", "contacts" or (format version 5
+  /// on, with a drill) "removed voxels".
   std::optional<std::uint64_t> first_mismatch_tick;
   std::size_t first_mismatch_index = 0;
   std::string mismatch;
   /// With a mismatch: the first record at or before it whose tick the live run's deadline on the
-  /// clock cut (kRecordFlagDeadlineCut), which a replay (no clock) does not reproduce; empty
-  /// when no such tick came before the mismatch (then the mismatch is not the machine's load).
+  /// clock cut (kRecordFlagDeadlineCut) without saying where (TickRecord::deadline_work 0: format
+  /// versions 1 to 4), which a replay (no clock) cannot reproduce; empty when no such tick came
+  /// before the mismatch (then the mismatch is not the machine's load). A cut tick with its
+  /// deadline_work is replayed as it ran (HapticRenderer::cutNextTickAtWork()).
   std::optional<std::uint64_t> deadline_cut_tick;
   /// With a drill in the scene: the felt field as carved by the replay when it finished (null
   /// otherwise); compare its bytes with the live run's.
@@ -114,5 +117,13 @@ struct ReplayProgress {
 ///         constructor.
 ReplayComparison replayRecording(const LoadedScene& scene, const Recording& recording,
                                  const haptics::RendererOptions& options = {}, const ReplayProgress& progress = {});
+
+/// What `replay` (replayRecording() of `recording`) found, in words for a user: "" when it
+/// matched every record; else the record and tick it parted at, what differed, and why when that
+/// is known (a tick the live solver's deadline cut in a recording of format version 4 or older,
+/// which does not say where it stopped), e.g. "the replay differs from the recording from record
+/// 19006 on (tick 20112: proxy position): the live solver's deadline on the clock cut tick 20050,
+/// and this recording (format version 4) does not say where, so the replay did that tick whole".
+std::string replayDifference(const ReplayComparison& replay, const Recording& recording);
 
 }  // namespace vh::runtime

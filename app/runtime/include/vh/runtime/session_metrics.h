@@ -112,10 +112,21 @@ struct SessionMetrics {
 
   // Drilling.
   double drill_on_s = 0.0;               ///< Ticks with the burr spinning, times dt [s].
-  /// Voxels the burr removed in all and their volume [mm^3], from the recording's last "drilled"
-  /// event {"voxels": N, "mm3": V} (written when a drilling run's recording closes); 0 without.
+  /// Drilling, by one rule for every recording whoever wrote it (the window or `run`): the cavity
+  /// the scene held when the recording began (the metadata's scene.drill.cavity, which a replay
+  /// starts from), what the burr removed during it, and the two together: the cavity at its end.
+  /// Volumes are voxels times the felt field's voxel volume (the metadata's
+  /// drilling.felt_voxel_volume_mm3; for older recordings the cavity's own grid).
+  std::uint64_t cavity_at_start_voxels = 0;
+  double cavity_at_start_mm3 = 0.0;
+  /// Removed during the recording: the sum of the records' TickRecord::removed_voxels (format
+  /// version 5 on; records the writer dropped are not counted, and a notice says so); in older
+  /// recordings the last "drilled" event {"voxels": N, "mm3": V}, which only `run` wrote; 0
+  /// without either.
   std::uint64_t removed_voxels = 0;
   double removed_mm3 = 0.0;
+  std::uint64_t cavity_voxels = 0;  ///< cavity_at_start_voxels + removed_voxels.
+  double cavity_mm3 = 0.0;          ///< cavity_at_start_mm3 + removed_mm3.
   std::uint64_t critical_removed_voxels = 0;  ///< Sum of the "critical_removed" events.
   double critical_removed_mm3 = 0.0;
 

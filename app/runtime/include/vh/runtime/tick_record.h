@@ -92,13 +92,25 @@ struct TickRecord {
   /// kProximityRange_m (or the scene has none); NaN when not measured (format versions 1 to 3).
   double critical_distance_m = std::numeric_limits<double>::infinity();
   std::int32_t critical_segment = -1;   ///< That segment (index into the scene's segments), or -1.
-  std::uint32_t reserved = 0;           ///< 0 (keeps the record a multiple of 8 bytes).
+  /// Voxels the drill's burr removed whole on this tick (haptics::CutResult::voxels_removed; 0
+  /// without a drill, and in format versions 1 to 4, which did not store it). Their sum over a
+  /// recording is what the burr removed during it (session_metrics.h: removed_voxels).
+  std::uint32_t removed_voxels = 0;
+  /// The solver's deadline on the clock cut this tick at this work (haptics::TickStats::
+  /// deadline_work: 1 + the work at the clock's read that found the deadline passed); 0 when it
+  /// did not (or format versions 1 to 4). A replay stops the tick at the same work
+  /// (HapticRenderer::cutNextTickAtWork()), so a recording made on a busy machine replays bit
+  /// for bit (one solver lane; with several, the lanes' shares of the work are not repeatable).
+  std::int64_t deadline_work = 0;
 };
 static_assert(std::is_trivially_copyable_v<TickRecord>);
 static_assert(std::is_standard_layout_v<TickRecord>);
-static_assert(sizeof(TickRecord) == 216, "the file format (version 4) stores 216-byte records");
+static_assert(sizeof(TickRecord) == 224, "the file format (version 5) stores 224-byte records");
 /// The record of format versions 1 to 3: TickRecord up to and including flags.
 inline constexpr std::size_t kTickRecordBytesV3 = 200;
 static_assert(offsetof(TickRecord, critical_distance_m) == kTickRecordBytesV3);
+/// The record of format version 4: TickRecord up to critical_segment and 4 reserved bytes (0).
+inline constexpr std::size_t kTickRecordBytesV4 = 216;
+static_assert(offsetof(TickRecord, removed_voxels) + sizeof(std::uint32_t) == kTickRecordBytesV4);
 
 }  // namespace vh::runtime

@@ -74,6 +74,9 @@ struct DrillingTimeline {
   /// The burr's sound over the records, heard in the same replay (runtime::RecordingSound: one
   /// state per record); no states when the burr never ran or the replay was cancelled.
   runtime::RecordingSound sound;
+  /// Where and why the replay parted from the recording (runtime::replayDifference()); "" when
+  /// it matched every record (or was not needed).
+  std::string replay_difference;
 };
 
 /// The cavity the drill of `scene` starts from (drilled before the recording started), on the
