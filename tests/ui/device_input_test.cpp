@@ -35,6 +35,7 @@
 #include <vtkRenderer.h>
 
 #include "vh/haptics/point_shell.h"
+#include "vh/runtime/drilling.h"
 #include "vh/runtime/scene.h"
 #include "vh/runtime/session.h"
 #include "vh/ui/export/media_export.h"
@@ -58,8 +59,7 @@ double deepestRadius_m(const haptics::PointShell& shell, const Pose& X_WT) {
 
 /// A session with a simulated device at the initial pose, shown in a small view.
 struct ViewAndDevice {
-  ViewAndDevice() {
-    const runtime::LoadedScene& scene = sphereProbeScene();
+  explicit ViewAndDevice(const runtime::LoadedScene& scene = sphereProbeScene()) {
     session.setScene(scene, std::make_shared<runtime::SimulatedDevice>(scene.X_WT_initial));
     auto* layout = new QVBoxLayout(&host);
     layout->setContentsMargins(0, 0, 0, 0);
@@ -98,6 +98,33 @@ TEST(DeviceInput, TouchSurfaceSinksTheToolTheDepthAskedIntoTheSphere) {
   vtkMatrix4x4* m = s.view->actors().deviceActor()->GetUserMatrix();
   ASSERT_NE(m, nullptr);
   for (int r = 0; r < 3; ++r) EXPECT_NEAR(m->GetElement(r, 3), X_WD.p_AB_m[r], 1e-12);
+}
+
+// Touch the Surface with the built-in drill (no drill settings yet: the burr has not been
+// switched on, the mesh says it is a drill), held upright while the view looks from the front:
+// the drill is turned so that its axis runs along the line of sight into the sphere, and what
+// sinks into it is the burr (the shell points deepest in the sphere lie on the burr's ball).
+// Before, the drill came in side-on as held, its shaft on the sphere.
+TEST(DeviceInput, TouchSurfaceWithADrillPutsTheBurrOnTheSurface) {
+  const runtime::LoadedScene scene = runtime::loadScene(runtime::parseScene(
+      R"({"volume": {"path": "builtin:sphere"}, "tool": {"mesh": "builtin:drill", "point_spacing_m": 0.001}})",
+      "drill.json", "."));
+  ViewAndDevice s(scene);
+  ASSERT_FALSE(s.session.live().drill.has_value());
+  const haptics::ToolModel& tool = *s.session.live().tool;
+  const runtime::Burr burr = runtime::burrOf(tool, runtime::DrillSpec{});
+  ASSERT_TRUE(s.input->touchSurface(0.002));
+  const Pose X_WD = s.session.simulatedDevice()->pose();
+  const Eigen::Vector3d forward = s.view->camera().forward_W();
+  const Eigen::Vector3d axis_W = X_WD.R_AB * (burr.center_T_m - tool.mass.p_TCm_m).normalized();
+  EXPECT_GT(axis_W.dot(forward), 0.99) << "the burr leads along the line of sight";
+  int on_burr = 0, elsewhere = 0;
+  for (const Eigen::Vector3d& p_T : tool.point_shell.points_T_m()) {
+    if ((X_WD * p_T).norm() >= 0.020) continue;  // inside the sphere: what the device pressed in
+    ++((p_T - burr.center_T_m).norm() <= burr.radius_m + 0.5e-3 ? on_burr : elsewhere);
+  }
+  EXPECT_GT(on_burr, 0);
+  EXPECT_EQ(elsewhere, 0) << "only the burr is in the sphere";
 }
 
 /// Where the view's VTK camera draws `p_W`, in widget pixels with y down (the oracle: VTK's

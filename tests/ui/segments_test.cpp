@@ -16,13 +16,17 @@
 
 #include <unistd.h>
 
+#include <QApplication>
 #include <QCheckBox>
+#include <QFileDialog>
 #include <QLabel>
 #include <QMainWindow>
+#include <QPushButton>
 #include <QSignalSpy>
 #include <QStatusBar>
 #include <QTableWidget>
 #include <QTemporaryDir>
+#include <QTimer>
 
 #include <gtest/gtest.h>
 #include <vtkCamera.h>
@@ -275,6 +279,29 @@ TEST(SegmentsController, OpensASegmentationAppliesChoicesAndAlertsOnACriticalTou
 // A session in which segments were felt records on every tick the level the hand felt (the
 // segments' surface level, 0.5), not the scan's isovalue. Replayed in the window, the scan must
 // stay at the scene's isovalue (150 here) while the Replay dock moves through the ticks.
+// The panel's "Open Segmentation..." button opens the same file dialog as File > Open
+// Segmentation (it was connected to nothing: four clicks did nothing); cancelled, nothing opens.
+TEST(SegmentsController, ThePanelsOpenButtonAsksForTheFile) {
+  Host host;
+  QPushButton* button = nullptr;
+  for (QPushButton* b : host.controller->panel()->findChildren<QPushButton*>())
+    if (b->text() == "Open Segmentation...") button = b;
+  ASSERT_NE(button, nullptr);
+  QString title;
+  QTimer closer;
+  QObject::connect(&closer, &QTimer::timeout, [&] {
+    if (auto* dialog = qobject_cast<QFileDialog*>(QApplication::activeModalWidget())) {
+      title = dialog->windowTitle();
+      dialog->reject();
+    }
+  });
+  closer.start(50);
+  QTimer::singleShot(0, button, &QPushButton::click);
+  ASSERT_TRUE(test::waitFor([&] { return !title.isEmpty(); }, 30000)) << "no file dialog came up";
+  EXPECT_NE(title.indexOf("segmentation"), -1) << title.toStdString();
+  EXPECT_EQ(host.session.hasScene(), false);
+}
+
 TEST(SegmentsReplay, TheReplayDockKeepsTheScansIsovalueWhenSegmentsWereFelt) {
   const fs::path dir = writeCase("replay");
   const fs::path path = dir / "felt.vhrec";

@@ -126,6 +126,13 @@ TEST(SessionReport, PicturesArePresentDecodeAndAreNotBlank) {
   // with their units.
   EXPECT_NE(html.find("<td class=\"n\">4 N</td>"), std::string::npos);
   EXPECT_NE(html.find("<td class=\"n\">2 s</td>"), std::string::npos);
+  // The jerk measures are in the appendix with what they mean, not among the teacher's figures.
+  const std::size_t appendix = html.find("<h2>Appendix: smoothness");
+  ASSERT_NE(appendix, std::string::npos);
+  EXPECT_GT(html.find("<code>dimensionless_jerk</code>"), appendix);
+  EXPECT_GT(html.find("<code>integrated_squared_jerk_m2_per_s5</code>"), appendix);
+  EXPECT_LT(html.find("<code>max_force_N</code>"), appendix);
+  EXPECT_NE(html.find("smaller dimensionless jerk"), std::string::npos);
   // No number in C's exponent notation ("6.392e-06", "1.3e+02") anywhere in the text.
   const std::string text = withoutPictures(html);
   for (std::size_t i = 1; i + 2 < text.size(); ++i)

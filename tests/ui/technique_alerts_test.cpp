@@ -27,7 +27,7 @@ TEST(TechniqueAlerts, EachRuleThatBecomesActiveIsSaidOnce) {
   alerts.showSnapshot(withRules(runtime::kTechniqueForce));
   ASSERT_EQ(messages.count(), 1);
   EXPECT_EQ(messages.at(0).at(0).toString().toStdString(),
-            "Technique: " + std::string(runtime::techniqueRuleAdvice(0)));
+            "Technique: " + std::string(runtime::techniqueRuleAdvice(0, false)));
   EXPECT_EQ(tones.count(), 1);
   for (int i = 0; i < 50; ++i) alerts.showSnapshot(withRules(runtime::kTechniqueForce));
   EXPECT_EQ(messages.count(), 1) << "an active rule is said once";
@@ -46,6 +46,57 @@ TEST(TechniqueAlerts, EachRuleThatBecomesActiveIsSaidOnce) {
   alerts.showSnapshot(withRules(runtime::kTechniqueSpeed | runtime::kTechniqueShaft));
   EXPECT_EQ(messages.count(), 5);
   EXPECT_EQ(tones.count(), 4);
+}
+
+// The burr spinning while only the shaft touches (the burr cannot cut): said once, after the
+// episode has lasted kShaftOnlyTicks solver ticks, with how to bring the burr to the surface; a
+// passing touch is not said; the burr touching ends the episode. And the force rule's advice
+// speaks of a burr only when there is a drill.
+TEST(TechniqueAlerts, OnlyTheShaftTouchingIsSaidWithHowToBringTheBurr) {
+  TechniqueAlerts alerts;
+  QSignalSpy messages(&alerts, &TechniqueAlerts::message);
+  const auto snapshot = [](std::uint64_t tick, bool burr_on, bool shaft_only) {
+    runtime::HapticSnapshot s;
+    s.solver_tick = tick;
+    s.drill = true;
+    s.burr_on = burr_on;
+    s.shaft_only = shaft_only;
+    s.contacts = 3;
+    return s;
+  };
+  std::uint64_t tick = 1;
+  for (int i = 0; i < 50; ++i, tick += 2) alerts.showSnapshot(snapshot(tick, true, true));  // 100 ticks: a passing touch
+  alerts.showSnapshot(snapshot(tick++, true, false));                                     // the burr touches
+  for (int i = 0; i < 90; ++i, tick += 2) alerts.showSnapshot(snapshot(tick, true, true));
+  EXPECT_EQ(messages.count(), 0) << "180 ticks: not yet";
+  for (int i = 0; i < 20; ++i, tick += 2) alerts.showSnapshot(snapshot(tick, true, true));
+  ASSERT_EQ(messages.count(), 1);
+  const QString said = messages.at(0).at(0).toString();
+  EXPECT_NE(said.indexOf("only the shaft touches"), -1) << said.toStdString();
+  EXPECT_NE(said.indexOf("Ctrl+T"), -1) << said.toStdString();
+  for (int i = 0; i < 500; ++i, tick += 2) alerts.showSnapshot(snapshot(tick, true, true));
+  EXPECT_EQ(messages.count(), 1) << "once per episode";
+  alerts.showSnapshot(snapshot(tick++, false, true));  // the burr stops: the episode ends
+  for (int i = 0; i < 150; ++i, tick += 2) alerts.showSnapshot(snapshot(tick, true, true));
+  EXPECT_EQ(messages.count(), 2) << "a new episode is news";
+  EXPECT_EQ(alerts.shaftOnlyShown(), 2u);
+  runtime::HapticSnapshot probe = snapshot(tick++, false, false);
+  probe.drill = false;
+  probe.shaft_only = false;
+  for (int i = 0; i < 300; ++i, ++probe.solver_tick) alerts.showSnapshot(probe);
+  EXPECT_EQ(messages.count(), 2) << "no drill: nothing about a shaft";
+
+  // The force rule with a probe: no burr in the advice; with a drill, the burr.
+  alerts.showSnapshot(withRules(0));
+  runtime::HapticSnapshot pressing = withRules(runtime::kTechniqueForce);
+  alerts.showSnapshot(pressing);
+  ASSERT_EQ(messages.count(), 3);
+  EXPECT_EQ(messages.at(2).at(0).toString().indexOf("burr"), -1) << messages.at(2).at(0).toString().toStdString();
+  alerts.showSnapshot(withRules(0));
+  pressing.drill = true;
+  alerts.showSnapshot(pressing);
+  ASSERT_EQ(messages.count(), 4);
+  EXPECT_NE(messages.at(3).at(0).toString().indexOf("burr"), -1) << messages.at(3).at(0).toString().toStdString();
 }
 
 }  // namespace

@@ -62,6 +62,7 @@ SegmentsController::SegmentsController(runtime::Session& session, SceneView& vie
     }
   });
   connect(panel_, &SegmentsPanel::goToSegmentRequested, this, &SegmentsController::goToSegment);
+  connect(panel_, &SegmentsPanel::openRequested, this, [this] { openDialog(prefs_.last_folder); });
   panel_->setThroughScan(prefs_.segments_through_scan);
   view_.setSegmentsThroughScan(prefs_.segments_through_scan);
   connect(panel_, &SegmentsPanel::throughScanToggled, this, &SegmentsController::setThroughScan);

@@ -299,16 +299,17 @@ Drill::Drill(std::shared_ptr<haptics::MaterialRemoval> removal, Burr burr, doubl
   if (!(dt_s_ > 0.0) || !std::isfinite(dt_s_)) throw std::invalid_argument("Drill: the period must be > 0 s");
 }
 
-haptics::CutResult Drill::step(const haptics::HapticRenderer& renderer, const haptics::TickOutput& out) noexcept {
+bool Drill::burrTouches(const haptics::HapticRenderer& renderer) const noexcept {
   const Eigen::Vector3d c_W = renderer.proxyPose() * burr_.center_T_m;
   const double on_burr_m = burr_.radius_m + 2.0 * renderer.epsilon_m();
-  bool touches = false;
   for (const haptics::Contact& contact : renderer.contacts())
-    if ((contact.p_W_m - c_W).norm() <= on_burr_m) {
-      touches = true;
-      break;
-    }
-  return removal_->cut(c_W, burr_.radius_m, out.force_W_N.norm(), dt_s_, renderer.feltIsovalue(), touches);
+    if ((contact.p_W_m - c_W).norm() <= on_burr_m) return true;
+  return false;
+}
+
+haptics::CutResult Drill::step(const haptics::HapticRenderer& renderer, const haptics::TickOutput& out) noexcept {
+  const Eigen::Vector3d c_W = renderer.proxyPose() * burr_.center_T_m;
+  return removal_->cut(c_W, burr_.radius_m, out.force_W_N.norm(), dt_s_, renderer.feltIsovalue(), burrTouches(renderer));
 }
 
 PreparedDrill prepareDrill(const haptics::ScalarVolume& felt, DrillMaterials materials, const DrillSpec& spec) {

@@ -692,7 +692,8 @@ void HapticThread::solverLoop() noexcept {
     const int segment = options_.segments != nullptr ? options_.segments->segmentOf(contacts) : -1;
     const CriticalDistance nearest = proximity_ ? proximity_->evaluate(renderer_->proxyPose()) : CriticalDistance{};
     const std::uint32_t technique_flags =
-        solverTechnique(options_.technique.get(), st, in, t, contacts, segment, nearest.distance_m, solver_period_s_);
+        solverTechnique(options_.technique.get(), st, in, t, contacts, segment, nearest.distance_m, solver_period_s_,
+                        placement_flags != 0);
     if (recorder != nullptr) {
       recordSolverTick(*recorder, st, in, t, renderer_->proxyPose(), contacts.size(), segment, nearest,
                        solver_period_s_, end_ns - begin_ns,

@@ -207,6 +207,35 @@ std::optional<SurfaceTouch> touchSurfacePoseOnLine(const haptics::ScalarVolume& 
   return touchAlong(volume, shell, p_TCm_m, *a, through_W, isovalue, depth_m);
 }
 
+std::optional<SurfaceTouch> touchSurfaceTipFirst(const haptics::ScalarVolume& volume, const haptics::PointShell& shell,
+                                                 const Eigen::Vector3d& p_TCm_m, const Eigen::Vector3d& tip_T_m,
+                                                 const Eigen::Quaterniond& R_WT, const Eigen::Vector3d& dir_W,
+                                                 const Eigen::Vector3d& through_W, double isovalue, double depth_m) {
+  if (!dir_W.allFinite() || dir_W.norm() < 1e-9 || !through_W.allFinite()) return std::nullopt;
+  const Eigen::Vector3d axis_T = tip_T_m - p_TCm_m;
+  if (!axis_T.allFinite() || axis_T.norm() < 1e-9) return std::nullopt;
+  const Eigen::Vector3d dir = dir_W.normalized();
+  // The line from outside the box, past its far side: where it first enters the surface.
+  const Eigen::Vector3d lo = volume.boundsMin_W_m(), hi = volume.boundsMax_W_m();
+  double reach_m = 0.0;
+  for (int c = 0; c < 8; ++c) {
+    const Eigen::Vector3d corner((c & 1) ? hi.x() : lo.x(), (c & 2) ? hi.y() : lo.y(), (c & 4) ? hi.z() : lo.z());
+    reach_m = std::max(reach_m, (corner - through_W).norm());
+  }
+  const Eigen::Vector3d a_W = through_W - (reach_m + 1e-3) * dir, b_W = through_W + (reach_m + 1e-3) * dir;
+  const haptics::SegmentEntry entry =
+      volume.firstEntryOnSegment(volume.gridCoordinates(a_W), volume.gridCoordinates(b_W), isovalue, 1.0, 1e-9);
+  if (!entry.hit) return std::nullopt;
+  const Eigen::Vector3d surface_W = a_W + entry.u_inside * (b_W - a_W);
+  // Into the surface: F grows inwards (inside is F > s), so along the gradient.
+  const Eigen::Vector3d g_W = volume.gradient(surface_W);
+  Eigen::Vector3d in_W = dir;
+  if (g_W.allFinite() && g_W.norm() > 0.0 && g_W.normalized().dot(dir) > 0.0) in_W = g_W.normalized();
+  const Eigen::Quaterniond R = (Eigen::Quaterniond::FromTwoVectors(R_WT.normalized() * axis_T.normalized(), in_W) *
+                                R_WT.normalized()).normalized();
+  return touchSurfacePoseOnLine(volume, shell, p_TCm_m, R, in_W, surface_W, isovalue, depth_m);
+}
+
 std::optional<Eigen::Vector3d> insideBoxCentre_W(const haptics::ScalarVolume& volume, double isovalue) {
   const haptics::VolumeGeometry& g = volume.geometry();
   Eigen::Vector3d lo = Eigen::Vector3d::Constant(std::numeric_limits<double>::infinity());

@@ -342,6 +342,36 @@ std::vector<MetricValue> metricValues(const SessionMetrics& m) {
   };
 }
 
+DeviceSpeedSeries deviceSpeedSeries(const Recording& recording, double servo_rate_Hz, double derivative_step_s,
+                                    std::size_t stride) {
+  DeviceSpeedSeries out;
+  const std::vector<TickRecord>& r = recording.records;
+  if (!(servo_rate_Hz > 0.0) || !std::isfinite(servo_rate_Hz) || !(derivative_step_s > 0.0)) return out;
+  const std::size_t k =
+      std::max<std::size_t>(1, static_cast<std::size_t>(std::lround(derivative_step_s * servo_rate_Hz)));
+  stride = std::max<std::size_t>(1, stride);
+  // placed[i] = placements among records 0..i-1: (a, b] holds one iff placed[b + 1] > placed[a + 1].
+  std::vector<std::size_t> placed(r.size() + 1, 0);
+  for (std::size_t i = 0; i < r.size(); ++i) {
+    const bool jump = (r[i].flags & kRecordFlagPlacement) != 0;
+    placed[i + 1] = placed[i] + (jump ? 1 : 0);
+    if (jump) out.placements_s.push_back(r[i].time_s);
+  }
+  out.pieces.emplace_back();
+  for (std::size_t i = k; i + k < r.size(); i += stride) {
+    if (placed[i + k + 1] > placed[i - k + 1]) {
+      if (!out.pieces.back().empty()) out.pieces.emplace_back();
+      continue;
+    }
+    const double v = (devicePosition(r[i + k]) - devicePosition(r[i - k])).norm() / (r[i + k].time_s - r[i - k].time_s);
+    if (!std::isfinite(v)) continue;
+    out.max_m_per_s = std::max(out.max_m_per_s, v);
+    out.pieces.back().emplace_back(r[i].time_s, v);
+  }
+  if (out.pieces.back().empty()) out.pieces.pop_back();
+  return out;
+}
+
 std::vector<Eigen::Vector3d> devicePathSamples(const Recording& recording, std::size_t count) {
   const std::size_t n = recording.records.size();
   std::vector<Eigen::Vector3d> out;

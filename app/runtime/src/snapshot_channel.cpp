@@ -17,6 +17,8 @@ void mergeSnapshots(const CouplingSnapshot& c, const SolverSnapshot& s, HapticSn
   out.segment = s.segment;
   out.critical_segment = s.critical_segment;
   out.critical_distance_m = s.critical_distance_m;
+  out.drill = s.drill;
+  out.shaft_only = s.shaft_only;
   out.burr_on = s.burr_on;
   out.burr_force_N = s.burr_force_N;
   out.burr_specific_energy_J_per_mm3 = s.burr_specific_energy_J_per_mm3;

@@ -109,6 +109,7 @@ struct SolverTickResult {
   std::uint32_t drill_flags = 0;
   haptics::CutResult cut;  // the burr's, when it spun
   bool stuck = false;  // a jam candidate (jam_detector.h)
+  bool shaft_only = false;  // with a drill: contacts, none on the burr (HapticSnapshot::shaft_only)
 };
 
 /// Renders a good sample `in` (after the tissue's step, when there is tissue), tests it for a jam
@@ -132,6 +133,7 @@ inline void renderSolverSample(SolverState& st, const CouplingSample& in, haptic
             countPointsInside(renderer.volume(), tool.point_shell, in.X_WD, renderer.feltIsovalue()) == 0;
   // seq_cst with solver_ticks_: holdCutting()'s handshake (a tick that starts after the one it
   // waited for sees the hold).
+  if (drill != nullptr) t.shaft_only = !t.bad_input && !renderer.contacts().empty() && !drill->burrTouches(renderer);
   if (drill != nullptr && !cutting_held.load(std::memory_order_seq_cst) &&
       (drilling.load(std::memory_order_relaxed) || in.drill_button)) {
     t.cut = drill->step(renderer, t.out);
@@ -165,6 +167,8 @@ inline void recordSolverTick(RecordingWriter& recorder, const SolverState& st, c
 /// one that cuts, the drill's eroded volume is read safely.
 inline void showBurr(SolverSnapshot& snap, const SolverTickResult& t, const Drill* drill) noexcept {
   snap.burr_on = t.drill_flags != 0;
+  snap.drill = drill != nullptr;
+  snap.shaft_only = t.shaft_only;
   const BurrLoad load = burrLoadOf(t.cut, t.out);
   snap.burr_force_N = load.force_N;
   snap.burr_specific_energy_J_per_mm3 = load.specific_energy_J_per_mm3;
@@ -175,11 +179,12 @@ inline void showBurr(SolverSnapshot& snap, const SolverTickResult& t, const Dril
 /// that rendered a usable sample; a tick that did not keeps the rules as they were.
 inline std::uint32_t solverTechnique(ServoTechnique* technique, const SolverState& st, const CouplingSample& in,
                                      const SolverTickResult& t, std::span<const haptics::Contact> contacts, int segment,
-                                     double nearest_critical_m, double period_s) noexcept {
+                                     double nearest_critical_m, double period_s, bool placed) noexcept {
   if (technique == nullptr) return 0;
   if (!in.ok || t.bad_input) return recordTechniqueBits(technique->monitor().active());
   return recordTechniqueBits(technique->tick(static_cast<double>(st.tick) * period_s, in.X_WD, t.out.force_W_N.norm(),
-                                             contacts, t.drill_flags != 0, t.cut.material, segment, nearest_critical_m));
+                                             contacts, t.drill_flags != 0, t.cut.material, segment, nearest_critical_m,
+                                             placed));
 }
 
 /// A solver tick's snapshot to the GUI and the optional monitor.

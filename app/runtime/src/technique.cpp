@@ -18,13 +18,19 @@ std::string_view techniqueRuleName(int rule_index) noexcept {
   }
 }
 
-std::string_view techniqueRuleAdvice(int rule_index) noexcept {
+std::string_view techniqueRuleAdvice(int rule_index, bool drilling) noexcept {
   switch (rule_index) {
-    case 0: return "pressing too hard for too long: ease off and let the burr cut";
+    case 0: return drilling ? "pressing too hard for too long: ease off and let the burr cut"
+                            : "pressing too hard for too long: ease off";
     case 1: return "moving fast near a critical structure: slow down";
     case 2: return "the shaft is on bone while the burr spins: bring the burr, not the shaft, to the bone";
     default: return "";
   }
+}
+
+std::string_view shaftOnlyAdvice() noexcept {
+  return "only the shaft touches, so the burr cannot cut: Touch the Surface (Ctrl+T) points the burr at the "
+         "surface, or turn the tool (Shift+arrow keys)";
 }
 
 double TechniqueRules::safeForceFor(const std::string& name) const {
@@ -101,7 +107,7 @@ std::uint32_t TechniqueMonitor::update(const TechniqueSample& s) noexcept {
   if (!rules_.on || !std::isfinite(s.time_s)) return active_ = 0;
   // The tool's speed: a first-order low pass of the finite difference (a bad sample's pose is
   // skipped, not differenced).
-  if (have_previous_ && s.p_W_m.allFinite()) {
+  if (have_previous_ && s.p_W_m.allFinite() && !s.placed) {
     const double dt_s = s.time_s - previous_time_s_;
     if (dt_s > 0.0) {
       const double raw = (s.p_W_m - previous_p_W_m_).norm() / dt_s;
@@ -157,8 +163,9 @@ double ServoTechnique::safeForce_N(int material, int segment) const noexcept {
 
 std::uint32_t ServoTechnique::tick(double time_s, const haptics::Pose& X_WD, double force_N,
                                    std::span<const haptics::Contact> contacts, bool burr_on, int cut_material,
-                                   int segment, double nearest_critical_m) noexcept {
+                                   int segment, double nearest_critical_m, bool placed) noexcept {
   TechniqueSample s;
+  s.placed = placed;
   s.time_s = time_s;
   s.p_W_m = X_WD * burr_center_T_m_;
   s.force_N = force_N;

@@ -7,6 +7,7 @@
 #include <atomic>
 #include <fstream>
 #include <iostream>
+#include <optional>
 #include <thread>
 
 #include <gtest/gtest.h>
@@ -14,6 +15,7 @@
 
 #include "runtime_test_support.h"
 #include "vh/runtime/haptic_thread.h"
+#include "vh/runtime/placement.h"
 #include "vh/runtime/recording.h"
 #include "vh/runtime/replay.h"
 #include "vh/runtime/session_metrics.h"
@@ -184,6 +186,72 @@ TEST(Drilling, ARecordingThatStartsDrilledReplaysBitForBit) {
   EXPECT_FALSE(undrilled.identical) << "the second press overlaps the first cavity: it feels different without it";
   std::cout << "replayed without the cavity: " << undrilled.mismatch << " differs at tick "
             << undrilled.first_mismatch_tick.value_or(0) << "\n";
+}
+
+// Touch the Surface with a drill held upright (burr down, shaft and handle up +z), approached
+// from the side (+y) at the sphere's centre. Tip first (touchSurfaceTipFirst()) the drill is
+// turned so that its axis points into the sphere along the normal where the line of sight meets
+// it, only the burr touches, and pressed on along that axis with the burr on it cuts. Placed as
+// held (touchSurfacePose()), the shaft meets the sphere first and the same press cuts nothing
+// (so the checks can fail; the oracle for "what touches" is the sphere itself: the shell points
+// inside it 0.3 mm further on, and where they lie on the tool).
+TEST(Drilling, TouchTheSurfaceWithADrillPutsItsBurrOnTheSurface) {
+  const LoadedScene scene = loadScene(parseScene(kDrillScene, "drill.json", "."));
+  const haptics::ToolModel& tool = *scene.tool;
+  const haptics::ScalarVolume& field = *scene.hapticField();
+  const double s = scene.hapticIsovalue();
+  const Burr burr = burrOf(tool, *scene.spec.drill);
+  const Eigen::Quaterniond upright = Eigen::Quaterniond::Identity();
+  const Eigen::Vector3d dir(0.0, 1.0, 0.0), aim(0.0, 0.0, 0.0);
+  const std::optional<SurfaceTouch> tip =
+      touchSurfaceTipFirst(field, tool.point_shell, tool.mass.p_TCm_m, burr.center_T_m, upright, dir, aim, s, 0.0);
+  const std::optional<SurfaceTouch> held =
+      touchSurfacePose(field, tool.point_shell, tool.mass.p_TCm_m, upright, dir, aim, s, 0.0);
+  ASSERT_TRUE(tip.has_value());
+  ASSERT_TRUE(held.has_value());
+  struct Touching {
+    int on_burr = 0, elsewhere = 0;
+  };
+  const auto touching = [&](const SurfaceTouch& t) {
+    haptics::Pose X = t.X_WP;
+    X.p_AB_m += 0.3e-3 * t.dir_W;
+    Touching n;
+    for (const Eigen::Vector3d& p_T : tool.point_shell.points_T_m())
+      if (field.isInside(X * p_T, s)) ++((p_T - burr.center_T_m).norm() <= burr.radius_m + 0.5e-3 ? n.on_burr : n.elsewhere);
+    return n;
+  };
+  EXPECT_EQ(countPointsInside(field, tool.point_shell, tip->X_WP, s), 0) << "placed free";
+  const Touching by_tip = touching(*tip), as_held = touching(*held);
+  EXPECT_GT(by_tip.on_burr, 0);
+  EXPECT_EQ(by_tip.elsewhere, 0) << "tip first, only the burr touches";
+  EXPECT_GT(as_held.elsewhere, 0) << "held upright from the side, the shaft meets the sphere first";
+  // The drill's axis along the sphere's inward normal at the burr (the sphere is centred at 0).
+  const Eigen::Vector3d burr_W = tip->X_WP * burr.center_T_m;
+  const Eigen::Vector3d axis_W = tip->X_WP.R_AB * (burr.center_T_m - tool.mass.p_TCm_m).normalized();
+  EXPECT_GT(axis_W.dot(-burr_W.normalized()), 0.99);
+  EXPECT_NEAR(burr_W.norm(), 0.020 + burr.radius_m, 0.5e-3) << "the burr rests on the sphere";
+  // Pressed 10 mm on along the approach over 0.5 s and held for 2.5 s, the burr spinning (as
+  // HeadlessRunDrillsAndReplaysBitForBit presses from above).
+  const auto removedByPress = [&](const SurfaceTouch& t) {
+    const auto at = [&](double time_s, double along_m) {
+      TrajectorySample sample;
+      sample.t_s = time_s;
+      sample.X_WD = t.X_WP;
+      sample.X_WD.p_AB_m += along_m * t.dir_W;
+      return sample;
+    };
+    RunOptions options;
+    options.lag_reference = false;
+    options.verify_step_voxels = 0.0;
+    const RunReport report = runHeadless(scene, Trajectory({at(0.0, 0.0), at(0.5, 0.010), at(3.0, 0.010)}), options);
+    return report.drill.has_value() ? report.drill->removed_mm3 : -1.0;
+  };
+  const double tip_mm3 = removedByPress(*tip), held_mm3 = removedByPress(*held);
+  EXPECT_GT(tip_mm3, 1.0) << "the burr on the surface cuts";
+  EXPECT_EQ(held_mm3, 0.0) << "the shaft on the surface cuts nothing";
+  std::cout << "touched tip first: " << by_tip.on_burr << " points of the burr touch, " << by_tip.elsewhere
+            << " elsewhere, pressed on it cut " << tip_mm3 << " mm^3; as held: " << as_held.on_burr << " on the burr, "
+            << as_held.elsewhere << " elsewhere, cut " << held_mm3 << " mm^3\n";
 }
 
 // A cavity moved onto another grid (the felt field changed): the voxels of the finer grid whose

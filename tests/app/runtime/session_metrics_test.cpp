@@ -268,6 +268,33 @@ TEST(SessionMetrics, TruncatedOrEmptyRecordingGivesMetricsWithANotice) {
   EXPECT_TRUE(said);
 }
 
+// The report's speed over time: a circle at 0.05 m x pi rad/s = 0.157 m/s, with a 0.1 m jump
+// half way. Flagged as a placement, the jump is no motion: the line breaks there, its time is
+// marked, and the largest speed is the circle's; unflagged, the same jump reads as about 5 m/s
+// (0.1 m over the 20 ms of the central difference), the spike a teacher saw.
+TEST(SessionMetrics, TheSpeedSeriesBreaksAtAPlacementInsteadOfSpiking) {
+  for (const bool flagged : {true, false}) {
+    Recording rec = circleRecording(0.05, kPi, 1000.0, 2.0);
+    for (std::size_t i = 1000; i < rec.records.size(); ++i) rec.records[i].p_WD_m[2] += 0.1;
+    if (flagged) rec.records[1000].flags |= kRecordFlagPlacement;
+    const DeviceSpeedSeries series = deviceSpeedSeries(rec, 1000.0, 0.01, 1);
+    const double circle = 0.05 * kPi;
+    if (flagged) {
+      EXPECT_NEAR(series.max_m_per_s, circle, 0.01 * circle);
+      ASSERT_EQ(series.placements_s.size(), 1u);
+      EXPECT_DOUBLE_EQ(series.placements_s[0], 1.0);
+      ASSERT_EQ(series.pieces.size(), 2u) << "the line breaks at the placement";
+      EXPECT_LT(series.pieces[0].back().first, 1.0);
+      EXPECT_GE(series.pieces[1].front().first, 1.0);
+      EXPECT_NEAR(computeSessionMetrics(rec).peak_speed_m_per_s, series.max_m_per_s, 0.01 * circle)
+          << "the chart and the metrics agree";
+    } else {
+      EXPECT_GT(series.max_m_per_s, 4.0);
+      EXPECT_EQ(series.pieces.size(), 1u);
+    }
+  }
+}
+
 TEST(CohortTable, LabelFallsBackToTheFileNameAndRemovedVolumeIsAColumn) {
   const fs::path dir = test::scratchDir() / "cohort-label";
   writeCircle(dir / "trainee-07.vhrec", 1.0, "");  // no user, no note

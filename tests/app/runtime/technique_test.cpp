@@ -116,6 +116,25 @@ TEST(TechniqueRules, SpeedRuleOnlyNearACriticalSegmentAndOnlyAboveTheLimit) {
   }
 }
 
+// A placement (Touch the Surface, Home: the tools put somewhere, not moved by the hand) near a
+// critical segment: a 40 mm jump in one tick is 40 m/s as a difference, which fires the speed
+// rule; flagged as placed it is no motion and the rule stays quiet while the hand stays still.
+TEST(TechniqueRules, APlacementIsNotTheHandsSpeed) {
+  for (const bool placed : {false, true}) {
+    TechniqueMonitor m{TechniqueRules{}};
+    bool fired = false;
+    for (int i = 0; i < 300; ++i) {
+      TechniqueSample s = at(i * kDt);
+      s.p_W_m = Eigen::Vector3d(i < 100 ? 0.0 : 0.040, 0.01, -0.02);
+      s.nearest_critical_m = 0.002;
+      s.placed = placed && i == 100;
+      fired = fired || (m.update(s) & kTechniqueSpeed) != 0;
+    }
+    EXPECT_EQ(fired, !placed) << (placed ? "flagged as a placement" : "the same jump as the hand's");
+    if (placed) EXPECT_EQ(m.speed_m_per_s(), 0.0);
+  }
+}
+
 TEST(TechniqueRules, ShaftContactsAreThoseOutsideTheBurrByTheMargin) {
   const Eigen::Vector3d c_T(0, 0, 0.001);
   std::vector<haptics::Contact> contacts(4);

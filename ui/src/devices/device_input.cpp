@@ -1,7 +1,10 @@
 #include "vh/ui/devices/device_input.h"
 
 #include <algorithm>
+#include <cctype>
 #include <cmath>
+#include <filesystem>
+#include <string>
 #include <numbers>
 #include <optional>
 #include <limits>
@@ -14,6 +17,7 @@
 #include <QMouseEvent>
 #include <QWheelEvent>
 
+#include "vh/runtime/drilling.h"
 #include "vh/runtime/placement.h"
 #include "vh/ui/view/device_manipulation.h"
 #include "vh/ui/view/scene_view.h"
@@ -37,7 +41,8 @@ const char* const kControlsHtml =
     "<tr><td>Ctrl + left drag</td><td>move the simulated device in the view plane</td></tr>"
     "<tr><td>Ctrl + wheel, Ctrl + right drag</td><td>move the device along the view direction</td></tr>"
     "<tr><td>Shift + left drag</td><td>rotate the device about the tool's centre</td></tr>"
-    "<tr><td>Ctrl + Shift + click</td><td>touch the surface under the cursor (the tool comes to rest on it)</td></tr></table>"
+    "<tr><td>Ctrl + Shift + click</td><td>touch the surface under the cursor (the tool comes to rest on it; a "
+    "drill turns its burr onto it first)</td></tr></table>"
     "<h3>Keys (click the view first)</h3><table cellpadding='2'>"
     "<tr><td>arrows</td><td>move the device in the view plane</td></tr>"
     "<tr><td>Page Up / Page Down</td><td>move the device away / towards you</td></tr>"
@@ -47,6 +52,21 @@ const char* const kControlsHtml =
     "<p>The solid tool is the proxy, which stays on the surface; the wire tool is the device. "
     "The yellow arrow is the force on your hand, red dots are the contacts.</p>";
 
+
+/// The drill's burr centre in T [m] when the tool is a drill (the scene's drill settings, or a
+/// mesh named as a drill before its burr was first switched on): Touch the Surface then turns
+/// the burr onto the surface, since only the burr cuts. nullopt for another tool.
+std::optional<Eigen::Vector3d> burrCentre_T(const runtime::LiveValues& scene) {
+  if (scene.tool == nullptr) return std::nullopt;
+  std::string name = std::filesystem::path(scene.tool_spec.mesh).filename().string();
+  std::transform(name.begin(), name.end(), name.begin(), [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
+  if (!scene.drill && name.find("drill") == std::string::npos) return std::nullopt;
+  try {
+    return runtime::burrOf(*scene.tool, scene.drill.value_or(runtime::DrillSpec{})).center_T_m;
+  } catch (const std::invalid_argument&) {  // no burr to point: the tool is placed as it is held
+    return std::nullopt;
+  }
+}
 
 }  // namespace
 
@@ -107,8 +127,13 @@ bool DeviceInput::touchSurface(double depth_m) {
   }
   Eigen::Vector3d dir_W = view_.camera().forward_W();
   if (!dir_W.allFinite() || dir_W.norm() < 0.5) dir_W = Eigen::Vector3d::UnitY();  // from anterior (LPS)
-  const std::optional<runtime::SurfaceTouch> touch = runtime::touchSurfacePose(
-      field, scene.tool->point_shell, scene.tool->mass.p_TCm_m, device->pose().R_AB, dir_W, aim_W, isovalue, depth_m);
+  std::optional<runtime::SurfaceTouch> touch;
+  if (const std::optional<Eigen::Vector3d> burr_T = burrCentre_T(scene))  // a drill: burr first
+    touch = runtime::touchSurfaceTipFirst(field, scene.tool->point_shell, scene.tool->mass.p_TCm_m, *burr_T,
+                                          device->pose().R_AB, dir_W, aim_W, isovalue, depth_m);
+  if (!touch)
+    touch = runtime::touchSurfacePose(field, scene.tool->point_shell, scene.tool->mass.p_TCm_m, device->pose().R_AB,
+                                      dir_W, aim_W, isovalue, depth_m);
   if (!touch) return false;
   place(touch->X_WP, touch->X_WD);
   return true;
@@ -120,9 +145,15 @@ bool DeviceInput::touchSurfaceAt(const QPointF& pos_px, double depth_m) {
   if (device == nullptr || scene.tool == nullptr || scene.hapticField() == nullptr) return false;
   const double ratio = view_.widget() != nullptr ? view_.widget()->devicePixelRatioF() : 1.0;
   const ViewRay ray = rayThroughPixel(view_.camera(), pos_px.x() * ratio, pos_px.y() * ratio);
-  const std::optional<runtime::SurfaceTouch> touch =
-      runtime::touchSurfacePoseOnLine(*scene.hapticField(), scene.tool->point_shell, scene.tool->mass.p_TCm_m,
-                                      device->pose().R_AB, ray.dir_W, ray.origin_W_m, scene.hapticIsovalue(), depth_m);
+  std::optional<runtime::SurfaceTouch> touch;
+  if (const std::optional<Eigen::Vector3d> burr_T = burrCentre_T(scene))  // a drill: burr first
+    touch = runtime::touchSurfaceTipFirst(*scene.hapticField(), scene.tool->point_shell, scene.tool->mass.p_TCm_m,
+                                          *burr_T, device->pose().R_AB, ray.dir_W, ray.origin_W_m,
+                                          scene.hapticIsovalue(), depth_m);
+  if (!touch)
+    touch = runtime::touchSurfacePoseOnLine(*scene.hapticField(), scene.tool->point_shell, scene.tool->mass.p_TCm_m,
+                                            device->pose().R_AB, ray.dir_W, ray.origin_W_m, scene.hapticIsovalue(),
+                                            depth_m);
   if (!touch) return false;
   place(touch->X_WP, touch->X_WD);
   return true;

@@ -191,28 +191,41 @@ std::string speedChart(const Recording& rec, const SessionMetrics& m, const Sess
   chart->setTitle("Speed of the device (the hand)");
   chart->legend()->hide();
   const std::vector<TickRecord>& r = rec.records;
-  const double dt = 1.0 / m.servo_rate_Hz;
-  const std::size_t k = std::max<std::size_t>(1, static_cast<std::size_t>(std::lround(o.metrics.derivative_step_s / dt)));
-  QList<QPointF> points;
-  const std::size_t stride = std::max<std::size_t>(1, r.size() / 2000);
-  double vmax = 0.0;
-  for (std::size_t i = k; i + k < r.size(); i += stride) {
-    double d2 = 0.0;
-    for (int c = 0; c < 3; ++c) d2 += std::pow(r[i + k].p_WD_m[c] - r[i - k].p_WD_m[c], 2);
-    const double v = std::sqrt(d2) / (r[i + k].time_s - r[i - k].time_s);
-    if (!std::isfinite(v)) continue;
-    vmax = std::max(vmax, v);
-    points.append(QPointF(r[i].time_s, v));
-  }
+  // A placement (Touch the Surface, Home, Reset Device) moved the tools, not the hand: the line
+  // breaks there (runtime::deviceSpeedSeries(), as the metrics leave it out) and each is marked
+  // on the time axis.
+  const runtime::DeviceSpeedSeries series =
+      runtime::deviceSpeedSeries(rec, m.servo_rate_Hz, o.metrics.derivative_step_s, std::max<std::size_t>(1, r.size() / 2000));
+  QList<QPointF> placements;
+  for (const double t_s : series.placements_s) placements.append(QPointF(t_s, 0.0));
+  const double vmax = series.max_m_per_s;
   QValueAxis* x = addAxis(chart, Qt::AlignBottom, "time [s]", r.front().time_s, r.back().time_s);
   x->applyNiceNumbers();
   QValueAxis* y = addAxis(chart, Qt::AlignLeft, "speed [m/s]", 0.0, vmax > 0 ? vmax * 1.1 : 1.0);
   y->applyNiceNumbers();
-  QLineSeries* s = lineSeries("speed", QColor(0x94, 0x67, 0xbd));
-  s->replace(points);
-  chart->addSeries(s);
-  s->attachAxis(x);
-  s->attachAxis(y);
+  for (const auto& piece : series.pieces) {
+    QList<QPointF> points;
+    for (const auto& [t_s, v] : piece) points.append(QPointF(t_s, v));
+    QLineSeries* s = lineSeries("speed", QColor(0x94, 0x67, 0xbd));
+    s->replace(points);
+    chart->addSeries(s);
+    s->attachAxis(x);
+    s->attachAxis(y);
+  }
+  if (!placements.isEmpty()) {
+    auto* marks = new QScatterSeries;
+    marks->setName("placement (the tools moved, not the hand)");
+    marks->setMarkerShape(QScatterSeries::MarkerShapeTriangle);
+    marks->setMarkerSize(9.0);
+    marks->setColor(QColor(0x7f, 0x7f, 0x7f));
+    marks->replace(placements);
+    chart->addSeries(marks);
+    marks->attachAxis(x);
+    marks->attachAxis(y);
+    chart->legend()->show();
+    for (QLegendMarker* m : chart->legend()->markers())
+      if (m->series() != marks) m->setVisible(false);
+  }
   return chartImage(chart, o.chart_width, o.chart_height * 3 / 4);
 }
 
@@ -850,11 +863,24 @@ std::string sessionReportHtml(const Recording& original, const std::string& titl
   html += "<h2>Segments</h2>\n" + segmentsTable(m);
   html += "<h2>Proximity</h2>\n" + proximitySection(recording, m, options);
   html += "<h2>Events</h2>\n" + eventsTable(recording);
-  html += "<h2>All metrics</h2>\n<p class=\"small\">Speed and jerk are of the device (the hand), central differences "
+  // The jerk measures are for research (their numbers mean something only beside the same task's
+  // other sessions): an appendix, with what they mean, not among the figures a teacher reads.
+  std::vector<MetricValue> teaching, smoothness;
+  for (const MetricValue& v : runtime::metricValues(m))
+    (v.key.find("jerk") != std::string::npos ? smoothness : teaching).push_back(v);
+  html += "<h2>All metrics</h2>\n<p class=\"small\">Speed is of the device (the hand), central differences "
           "over " + formatQuantity(options.metrics.derivative_step_s, "s") +
-          "; jerk as Hogan &amp; Sternad (2009); times are servo ticks times the servo period. Crossings "
-          "into the surface are not in a recording: <code>volume-haptics run --check</code> measures them.</p>\n" +
-          metricsTable(runtime::metricValues(m));
+          ", placements (Touch the Surface, Home, Reset Device) left out; times are servo ticks times the servo "
+          "period. Crossings into the surface are not in a recording: <code>volume-haptics run --check</code> "
+          "measures them.</p>\n" +
+          metricsTable(teaching);
+  html += "<h2>Appendix: smoothness of the hand's motion (research measures)</h2>\n<p class=\"small\">How smooth "
+          "the device's path was, as Hogan &amp; Sternad (2009) measure it: the jerk (the third derivative of the "
+          "position) squared and integrated, made dimensionless by the movement's duration and peak speed. A "
+          "smoother motion has a smaller dimensionless jerk and a higher log dimensionless jerk. The values "
+          "depend on the task (the path's length and duration, the pauses in it), so compare them between "
+          "sessions of the same task or against an expert's recording of it, not with a fixed range.</p>\n" +
+          metricsTable(smoothness);
   html += "<h2>Sources</h2>\n<ul class=\"small\"><li>N. Hogan, D. Sternad, \"Sensitivity of smoothness measures "
           "to movement duration, amplitude, and arrests\", J. Motor Behavior 41(6), 2009.</li>\n<li>H. Sakoe, "
           "S. Chiba, \"Dynamic programming algorithm optimization for spoken word recognition\", IEEE Trans. "

@@ -6,6 +6,7 @@
 ///
 /// Threads: GUI thread only.
 #include <cstdint>
+#include <optional>
 
 #include <QObject>
 #include <QString>
@@ -25,6 +26,10 @@ class TechniqueAlerts : public QObject {
   void showSnapshot(const runtime::HapticSnapshot& snapshot);
   /// Rules that became active since the window opened (all rules together).
   std::uint64_t alertsShown() const noexcept { return shown_; }
+  /// Episodes of the burr spinning while only the shaft touched (HapticSnapshot::shaft_only)
+  /// for at least kShaftOnlyTicks solver ticks, each said once (runtime::shaftOnlyAdvice()).
+  std::uint64_t shaftOnlyShown() const noexcept { return shaft_only_shown_; }
+  static constexpr std::uint64_t kShaftOnlyTicks = 200;
 
  signals:
   /// "Technique: moving fast near a critical structure: slow down", for the status bar (`ms`).
@@ -33,8 +38,12 @@ class TechniqueAlerts : public QObject {
   void alertRequested();
 
  private:
+  void showShaftOnly(const runtime::HapticSnapshot& snapshot);
   std::uint32_t active_ = 0;
   std::uint64_t shown_ = 0;
+  std::optional<std::uint64_t> shaft_only_since_;  // solver tick the episode began on
+  bool shaft_only_said_ = false;
+  std::uint64_t shaft_only_shown_ = 0;
 };
 
 }  // namespace vh::ui

@@ -139,6 +139,10 @@ class Drill {
   /// of the contacts lies on it (within its radius plus the collision tolerance, twice).
   /// No allocation, no exception, no lock.
   haptics::CutResult step(const haptics::HapticRenderer& renderer, const haptics::TickOutput& out) noexcept;
+  /// Whether one of the renderer's contacts lies on the burr (the test step() cuts by): false
+  /// with contacts means only the shaft or handle touches, and the burr cannot cut. No
+  /// allocation, no exception, no lock.
+  bool burrTouches(const haptics::HapticRenderer& renderer) const noexcept;
 
   haptics::MaterialRemoval& removal() noexcept { return *removal_; }
   const haptics::MaterialRemoval& removal() const noexcept { return *removal_; }

@@ -51,6 +51,11 @@ struct HapticSnapshot {
   /// differences over time are the removal rate; a new drill starts again from 0).
   bool burr_on = false;
   double burr_force_N = 0.0;
+  /// The scene's haptic threads have a drill; and on the solver's latest tick the tool touched
+  /// with none of its contacts on the burr (Drill::burrTouches()): only the shaft or the handle
+  /// touches, so the burr cannot cut however hard the hand presses.
+  bool drill = false;
+  bool shaft_only = false;
   double burr_specific_energy_J_per_mm3 = 0.0;
   double burr_eroded_mm3 = 0.0;
   /// The technique rules active after the solver's latest tick (technique.h: TechniqueRule

@@ -87,6 +87,21 @@ std::optional<SurfaceTouch> touchSurfacePoseOnLine(const haptics::ScalarVolume& 
                                                    const Eigen::Quaterniond& R_WT, const Eigen::Vector3d& dir_W,
                                                    const Eigen::Vector3d& through_W, double isovalue, double depth_m);
 
+/// Touch the Surface tip first, for a tool with a working end (a drill's burr): the first point
+/// where the line along `dir_W` through `through_W` [m, W] enters the isosurface F = `isovalue`
+/// (ScalarVolume::firstEntryOnSegment(), from outside the volume's box), the tool turned by the
+/// smallest rotation that points its axis (from its centre of mass `p_TCm_m` to `tip_T_m`, both
+/// in T [m]) along the field's gradient there (into the surface, eq. 1; the approach `dir_W`
+/// itself where the gradient is zero or faces back against it), then approached along that
+/// axis through the point (touchSurfacePoseOnLine()): the tip leads, so it is what touches.
+/// `R_WT` is the tool's orientation before the turn (its roll about the axis is kept).
+/// @return nullopt when the line meets no surface, `dir_W` is zero or not finite, or the tip
+///         lies at the centre of mass (no axis).
+std::optional<SurfaceTouch> touchSurfaceTipFirst(const haptics::ScalarVolume& volume, const haptics::PointShell& shell,
+                                                 const Eigen::Vector3d& p_TCm_m, const Eigen::Vector3d& tip_T_m,
+                                                 const Eigen::Quaterniond& R_WT, const Eigen::Vector3d& dir_W,
+                                                 const Eigen::Vector3d& through_W, double isovalue, double depth_m);
+
 /// The centre of the axis-aligned box (in W [m]) around the centres of the voxels inside the
 /// isosurface (value > `isovalue`): where Touch the Surface aims at felt segments, whose
 /// surfaces may lie anywhere in the volume. One pass over the voxels.

@@ -175,6 +175,21 @@ struct MetricValue {
 /// columns, the report's tables).
 std::vector<MetricValue> metricValues(const SessionMetrics& m);
 
+/// The device's speed over a recording, as the report draws it: central differences over
+/// `derivative_step_s` (whole ticks, >= 1) at every `stride`-th record, in pieces: no difference
+/// across a placement (kRecordFlagPlacement: Touch the Surface, Home, Reset Device moved the
+/// tools, not the hand) is taken, so a piece ends before one and the next starts after it, as
+/// the metrics leave the jump out (peak_speed_m_per_s).
+struct DeviceSpeedSeries {
+  /// (time [s], speed [m/s]) pairs, each piece without a placement inside.
+  std::vector<std::vector<std::pair<double, double>>> pieces;
+  std::vector<double> placements_s;  ///< Times of the records flagged as placements [s].
+  double max_m_per_s = 0.0;          ///< The largest speed in the pieces [m/s].
+};
+/// @param servo_rate_Hz the recording's servo rate (SessionMetrics::servo_rate_Hz), > 0.
+DeviceSpeedSeries deviceSpeedSeries(const Recording& recording, double servo_rate_Hz, double derivative_step_s,
+                                    std::size_t stride);
+
 /// `count` device positions p_WD [m] (count x 3) taken evenly over the records (index
 /// round(j (n - 1) / (count - 1))), every record when there are fewer. Empty for no records.
 std::vector<Eigen::Vector3d> devicePathSamples(const Recording& recording, std::size_t count);

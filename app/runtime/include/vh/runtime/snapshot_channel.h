@@ -67,6 +67,8 @@ struct SolverSnapshot {
   int segment = -1;                ///< Segment the contacts touch (SegmentSet::segmentOf()), or -1.
   int critical_segment = -1;       ///< HapticSnapshot::critical_segment and the one below.
   double critical_distance_m = std::numeric_limits<double>::infinity();
+  bool drill = false;              ///< HapticSnapshot::drill and shaft_only.
+  bool shaft_only = false;
   bool burr_on = false;            ///< HapticSnapshot::burr_on and the three below.
   double burr_force_N = 0.0;
   double burr_specific_energy_J_per_mm3 = 0.0;

@@ -52,8 +52,13 @@ inline constexpr int kTechniqueRuleCount = 3;
 
 /// The rule's name in events, reports and the scene file: "force", "speed", "shaft".
 std::string_view techniqueRuleName(int rule_index) noexcept;
-/// What the rule asks of the trainee, one short sentence for the status bar.
-std::string_view techniqueRuleAdvice(int rule_index) noexcept;
+/// What the rule asks of the trainee, one short sentence for the status bar; `drilling`: the
+/// scene has a drill (the force rule's advice then speaks of the burr; without one, a probe
+/// pressing hard is told to ease off, not to let a burr it does not have cut).
+std::string_view techniqueRuleAdvice(int rule_index, bool drilling = true) noexcept;
+/// What the window says when the burr spins and only the shaft or the handle touches (the burr
+/// cannot cut): how to bring the burr to the surface.
+std::string_view shaftOnlyAdvice() noexcept;
 
 /// The scene file's "technique" section.
 struct TechniqueRules {
@@ -88,6 +93,10 @@ struct TechniqueSample {
   double nearest_critical_m = std::numeric_limits<double>::infinity();
   bool burr_on = false;                        ///< The burr spins.
   int shaft_contacts = 0;                      ///< Contacts on the shaft (shaftContacts()).
+  /// A placement (Touch the Surface, Home, Reset Device) put the tool at p_W_m just before this
+  /// tick: not the hand's motion, so no speed is taken across it (the speed rule never fires
+  /// on a jump the hand did not make).
+  bool placed = false;
 };
 
 /// The contacts of `contacts` that lie off the burr: farther than burr_radius_m + margin_m from
@@ -143,11 +152,12 @@ class ServoTechnique {
   /// T's origin without a burr); @param force_N |F| on the hand [N]; @param contacts the contact
   /// set after the tick; @param cut_material the material the burr cut this tick (CutResult::
   /// material, -1: none); @param segment the segment the contacts touch (-1: none);
-  /// @param nearest_critical_m the nearest critical segment [m] (+inf: none).
+  /// @param nearest_critical_m the nearest critical segment [m] (+inf: none); @param placed a
+  /// placement put the tools at X_WD just before this tick (TechniqueSample::placed).
   /// @return the active rules (TechniqueRule bits). No allocation, no exception.
   std::uint32_t tick(double time_s, const haptics::Pose& X_WD, double force_N,
                      std::span<const haptics::Contact> contacts, bool burr_on, int cut_material, int segment,
-                     double nearest_critical_m) noexcept;
+                     double nearest_critical_m, bool placed = false) noexcept;
   const TechniqueMonitor& monitor() const noexcept { return monitor_; }
   /// The safe level for a tick that cut `material` while touching `segment` [N].
   double safeForce_N(int material, int segment) const noexcept;

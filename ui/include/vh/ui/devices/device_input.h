@@ -52,13 +52,17 @@ class DeviceInput : public QObject {
   /// (runtime::touchSurfacePose()) aimed at the felt segments when some are felt (the centre of
   /// their box), else at the volume's centre, from outside the volume; the proxy is put where
   /// its point shell first meets the felt isosurface and the device `depth_m` [m] further in,
-  /// so the hand feels the resting force at once and nothing more.
+  /// so the hand feels the resting force at once and nothing more. A drill (the scene's drill
+  /// settings, or a drill's mesh) is turned first so that its burr points into the surface
+  /// where the line of sight meets it, and approaches along that axis
+  /// (runtime::touchSurfaceTipFirst()): the burr, the only part that cuts, is what touches.
   /// @return false without a simulated device or when no approach meets the surface.
   bool touchSurface(double depth_m);
   /// Touch the Surface at the point the user picks, as a placement: the tool's centre of mass
   /// moves along the line of sight through the view's pixel `pos_px` (widget pixels, y down;
   /// rayThroughPixel()) until its point shell meets the felt isosurface
-  /// (runtime::touchSurfacePoseOnLine()), and the device `depth_m` [m] further along it.
+  /// (runtime::touchSurfacePoseOnLine()), and the device `depth_m` [m] further along it; a drill
+  /// is turned burr first onto that point, as in touchSurface().
   /// @return false without a simulated device or when the line of sight meets no surface (the
   /// tool stays where it was).
   bool touchSurfaceAt(const QPointF& pos_px, double depth_m);
