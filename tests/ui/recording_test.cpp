@@ -48,7 +48,9 @@
 #include "vh/ui/panels/isovalue_bar.h"
 #include "vh/ui/tool_picker.h"
 #include "vh/ui/export/media_export.h"
+#include "vh/ui/replay/recorded_camera.h"
 #include "vh/ui/replay/replay_controller.h"
+#include "vh/ui/view/scene_view.h"
 #include "vh/ui/replay/session_recorder.h"
 #include "vh/ui/view/vtk_view.h"
 
@@ -461,6 +463,54 @@ TEST(RecordingInContact, ARecordingStartedOnTheSurfaceReplaysBitForBit) {
   EXPECT_TRUE(replay.identical) << replay.mismatch << " at tick " << replay.first_mismatch_tick.value_or(0) << " of "
                                 << rec.records.size();
   EXPECT_GT(replay.forces_compared, 200u);
+}
+
+// A recording made in the window holds the view's camera (at its start and after each move),
+// and its exported frames are seen from the camera the user had at their time: from the default
+// view at the start, from above after View > Superior; before, every export used the default
+// camera, the drill site hard to see.
+TEST(RecordingCamera, ExportedFramesAreSeenFromTheCameraTheUserHad) {
+  QTemporaryDir dir;
+  const fs::path path = fs::path(dir.path().toStdString()) / "camera.vhrec";
+  auto w = smallWindow();
+  ASSERT_TRUE(loadInto(*w, sphereScene()));
+  ASSERT_TRUE(w->recorder()->start(path)) << w->recorder()->lastError().toStdString();
+  const ViewCamera at_start = w->sceneView()->camera();
+  ASSERT_TRUE(waitFor([&] { return w->recorder()->recordsWritten() > 300; }, 30000));
+  w->sceneView()->setStandardView(StandardView::kSuperior);
+  const ViewCamera from_above = w->sceneView()->camera();
+  ASSERT_LT(at_start.forward_W().dot(from_above.forward_W()), 0.9) << "the view turned";
+  const std::uint64_t written = w->recorder()->recordsWritten();
+  ASSERT_TRUE(waitFor([&] { return w->recorder()->recordsWritten() > written + 600; }, 30000));
+  w->recorder()->stop();
+  w->session().stopHaptics();
+
+  const runtime::Recording rec = runtime::readRecording(path);
+  const std::vector<RecordedCamera> cameras = recordedCameras(rec);
+  ASSERT_GE(cameras.size(), 2u);
+  EXPECT_TRUE(sameView(cameras.front().camera, at_start)) << "the camera as the recording started";
+  EXPECT_TRUE(sameView(cameras.back().camera, from_above)) << "and after the move";
+  EXPECT_LT(cameras.back().time_s, rec.records.back().time_s);
+
+  runtime::SceneSpec spec = runtime::sceneFromSessionMetadata(rec.metadata_json);
+  spec.device.reset();
+  const runtime::LoadedScene scene = runtime::loadScene(spec);
+  MediaExportOptions options;
+  options.width = 160;
+  options.height = 120;
+  const std::unique_ptr<RecordingFrameRenderer> frames = exportFrameRenderer(scene, rec, options, nullptr);
+  frames->show(rec.records.front());
+  EXPECT_GT(frames->camera().forward_W().dot(at_start.forward_W()), 1.0 - 1e-9);
+  frames->show(rec.records.back());
+  EXPECT_GT(frames->camera().forward_W().dot(from_above.forward_W()), 1.0 - 1e-9);
+  EXPECT_LT((frames->camera().position_W_m - from_above.position_W_m).norm(), 1e-9);
+  // A recording without camera events (a headless run's): the default camera stays.
+  runtime::Recording without = rec;
+  without.events.clear();
+  const std::unique_ptr<RecordingFrameRenderer> plain = exportFrameRenderer(scene, without, options, nullptr);
+  const ViewCamera default_view = plain->camera();
+  plain->show(without.records.back());
+  EXPECT_TRUE(sameView(plain->camera(), default_view));
 }
 
 TEST(ReplayForceArrow, StartsAtTheToolsExtremePointAgainstTheForce) {

@@ -88,6 +88,7 @@ MainWindow::MainWindow(QWidget* parent) : QMainWindow(parent) {
     opener_->openLoadedVolume(std::move(volume));
   });
   recorder_ = new SessionRecorder(session_, statusBar(), this);
+  recorder_->setCameraSource([this] { return view_->camera(); });  // exports see what the user saw
   buildDocks();
   igtl_->setSegmentNames(segments_->names());
   replay_ = new ReplayController(session_, *view_, prefs_, this, chart_dock_);

@@ -18,8 +18,11 @@ void ProximityAlerts::showSnapshot(const runtime::HapticSnapshot& snapshot, cons
   const int s = snapshot.critical_segment;
   const bool known = segments != nullptr && s >= 0 && static_cast<std::size_t>(s) < segments->size();
   const runtime::ProximityThresholds t = known ? segments->thresholds(s) : runtime::ProximityThresholds{};
+  // With hysteresis on the same segment: a tool hovering at a threshold is warned once.
+  const runtime::ProximityLevel after = s == segment_ ? level_ : runtime::ProximityLevel::kClear;
   const runtime::ProximityLevel level =
-      known ? runtime::proximityLevel(snapshot.critical_distance_m, t) : runtime::ProximityLevel::kClear;
+      known ? runtime::proximityLevelAfter(after, snapshot.critical_distance_m, t) : runtime::ProximityLevel::kClear;
+  segment_ = s;
   if (level != level_) {
     level_ = level;
     emit levelChanged(level);

@@ -286,7 +286,9 @@ void RecordingWriter::addEvent(const RecordingEvent& event) {
 ProximityLevel RecordingWriter::proximityLevelOf(const TickRecord& r) const noexcept {
   const auto s = static_cast<std::size_t>(r.critical_segment);
   if (r.critical_segment < 0 || s >= segment_thresholds_.size()) return ProximityLevel::kClear;
-  return proximityLevel(r.critical_distance_m, segment_thresholds_[s]);
+  // The same segment as the last record: with hysteresis (proximityLevelAfter()).
+  const ProximityLevel after = r.critical_segment == previous_critical_segment_ ? previous_level_ : ProximityLevel::kClear;
+  return proximityLevelAfter(after, r.critical_distance_m, segment_thresholds_[s]);
 }
 
 void RecordingWriter::deriveEvents(const TickRecord* records, std::size_t count) {

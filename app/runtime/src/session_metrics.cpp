@@ -154,13 +154,19 @@ void drillingMetrics(const Recording& recording, SessionMetrics& m) {
     const auto v = d->find("felt_voxel_volume_mm3");
     if (v != d->end() && v->is_number() && std::isfinite(v->get<double>()) && v->get<double>() > 0.0) voxel_mm3 = v->get<double>();
   }
-  const nlohmann::json cavity =
-      meta.value("scene", nlohmann::json::object()).value("drill", nlohmann::json::object()).value("cavity", nlohmann::json::object());
-  if (cavity.is_object()) {
-    const nlohmann::json runs = cavity.value("runs", nlohmann::json::array());
+  // Any member may be missing or of another type (a damaged or foreign metadata): then nothing.
+  const auto objectAt = [](const nlohmann::json& j, const char* key) {
+    const auto it = j.is_object() ? j.find(key) : j.end();
+    return j.is_object() && it != j.end() && it->is_object() ? *it : nlohmann::json::object();
+  };
+  const nlohmann::json cavity = objectAt(objectAt(objectAt(meta, "scene"), "drill"), "cavity");
+  {
+    const auto runs_it = cavity.find("runs");
+    const nlohmann::json runs = runs_it != cavity.end() && runs_it->is_array() ? *runs_it : nlohmann::json::array();
     for (std::size_t r = 1; runs.is_array() && r < runs.size(); r += 2)
       if (runs[r].is_number_unsigned()) m.cavity_at_start_voxels += runs[r].get<std::uint64_t>();
-    const nlohmann::json spacing = cavity.value("spacing_m", nlohmann::json::array());
+    const auto spacing_it = cavity.find("spacing_m");
+    const nlohmann::json spacing = spacing_it != cavity.end() ? *spacing_it : nlohmann::json::array();
     if (voxel_mm3 == 0.0 && spacing.is_array() && spacing.size() == 3 && spacing[0].is_number() &&
         spacing[1].is_number() && spacing[2].is_number())
       voxel_mm3 = 1e9 * spacing[0].get<double>() * spacing[1].get<double>() * spacing[2].get<double>();

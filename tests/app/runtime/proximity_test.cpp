@@ -92,7 +92,7 @@ TEST(CriticalProximity, HeadlessApproachMatchesTheAnalyticDistance) {
 
   // The analytic distance per tick (the proxy follows the device: nothing is felt).
   const Recording rec = readRecording(dir / "approach.vhrec");
-  ASSERT_EQ(rec.version, 4u);
+  ASSERT_EQ(rec.version, kRecordingFormatVersion);
   ASSERT_EQ(rec.records.size(), r.ticks);
   const double dt = 1e-3;
   // Stated bound: sampling (half the voxel diagonal) plus the ball's voxel centres against the
@@ -159,6 +159,55 @@ TEST(CriticalProximity, HeadlessApproachMatchesTheAnalyticDistance) {
   const auto old_proximity = segmentProximity(old, dt);
   ASSERT_EQ(old_proximity.size(), 1u);
   EXPECT_TRUE(std::isnan(old_proximity[0].closest_m));
+}
+
+// A tool hovering at the warning distance (2 mm, the point shell's distance moving by +-0.03 mm
+// from tick to tick, as contact jitter does), then at the alarm's (1 mm), then between them, then
+// away, gives one warning, one alarm, one end of each,
+// not a warn / clear pair every other tick (the flicker a teacher saw: 4 pairs within 15 ms); the
+// alarm likewise. Without the hysteresis (proximityLevel() tick by tick) the same distances
+// change level 150 times (the check can fail).
+TEST(CriticalProximity, AToolHoveringAtAThresholdIsWarnedOnce) {
+  const fs::path dir = test::scratchDir();
+  const nlohmann::json meta = {
+      {"scene", {{"segmentation", {{"segments", {{{"name", "facial nerve"}, {"critical", true}, {"warn_mm", 2.0}, {"alarm_mm", 1.0}}}}}}}}};
+  std::vector<double> distances_m;
+  for (int i = 0; i < 300; ++i) distances_m.push_back(2.0e-3 + ((i % 2) != 0 ? 0.03e-3 : -0.03e-3));  // at warn
+  for (int i = 0; i < 300; ++i) distances_m.push_back(1.0e-3 + ((i % 2) != 0 ? 0.03e-3 : -0.03e-3));  // at alarm
+  for (int i = 0; i < 300; ++i) distances_m.push_back(1.5e-3 + ((i % 2) != 0 ? 0.03e-3 : -0.03e-3));  // out of the alarm
+  for (int i = 0; i < 100; ++i) distances_m.push_back(5.0e-3);                                          // away
+  {
+    RecordingWriter writer(dir / "hover.vhrec", meta.dump());
+    for (std::size_t i = 0; i < distances_m.size(); ++i) {
+      TickRecord r;
+      r.tick = i + 1;
+      r.time_s = 1e-3 * static_cast<double>(i);
+      r.critical_segment = 0;
+      r.critical_distance_m = distances_m[i];
+      writer.pushWaiting(r);
+    }
+    writer.close();
+  }
+  const Recording rec = readRecording(dir / "hover.vhrec");
+  std::vector<std::string> types;
+  for (const auto& e : rec.events)
+    if (e.type.rfind("proximity", 0) == 0) types.push_back(e.type);
+  EXPECT_EQ(types, (std::vector<std::string>{"proximity_warn", "proximity_alarm", "proximity_alarm_cleared",
+                                             "proximity_warn_cleared"}));
+  int raw_changes = 0;
+  ProximityLevel previous = ProximityLevel::kClear;
+  for (const double d : distances_m) {
+    const ProximityLevel now = proximityLevel(d, ProximityThresholds{2e-3, 1e-3});
+    raw_changes += now != previous;
+    previous = now;
+  }
+  EXPECT_GT(raw_changes, 100);
+  // The hysteresis leaves a level 0.2 mm past the warning distance (10 %), 0.1 mm past the alarm's.
+  EXPECT_EQ(proximityLevelAfter(ProximityLevel::kWarn, 2.19e-3, {2e-3, 1e-3}), ProximityLevel::kWarn);
+  EXPECT_EQ(proximityLevelAfter(ProximityLevel::kWarn, 2.21e-3, {2e-3, 1e-3}), ProximityLevel::kClear);
+  EXPECT_EQ(proximityLevelAfter(ProximityLevel::kAlarm, 1.09e-3, {2e-3, 1e-3}), ProximityLevel::kAlarm);
+  EXPECT_EQ(proximityLevelAfter(ProximityLevel::kAlarm, 1.11e-3, {2e-3, 1e-3}), ProximityLevel::kWarn);
+  EXPECT_EQ(proximityLevelAfter(ProximityLevel::kClear, 1.99e-3, {2e-3, 1e-3}), ProximityLevel::kWarn) << "nearer: at once";
 }
 
 TEST(CriticalProximity, SceneFileThresholdsAndTheirErrors) {

@@ -169,7 +169,8 @@ TEST(RecordingPhantom, CsvExportOfAPhantomSessionOpensInASpreadsheetStyleReader)
       "t_s",        "tick",       "device_x_m", "device_y_m", "device_z_m", "device_qw",   "device_qx",
       "device_qy",  "device_qz",  "proxy_x_m",  "proxy_y_m",  "proxy_z_m",  "proxy_qw",    "proxy_qx",
       "proxy_qy",   "proxy_qz",   "force_x_N",  "force_y_N",  "force_z_N",  "torque_x_Nm", "torque_y_Nm",
-      "torque_z_Nm", "contacts",  "isovalue",   "tick_time_s", "flags", "critical_distance_m", "critical_segment"};
+      "torque_z_Nm", "contacts",  "isovalue",   "tick_time_s", "flags", "critical_distance_m", "critical_segment",
+      "removed_voxels", "deadline_work"};
   ASSERT_EQ(table->GetNumberOfColumns(), static_cast<vtkIdType>(expected.size()));
   for (std::size_t c = 0; c < expected.size(); ++c)
     EXPECT_EQ(std::string(table->GetColumnName(static_cast<vtkIdType>(c))), expected[c]);

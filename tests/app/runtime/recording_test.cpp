@@ -59,6 +59,8 @@ TickRecord makeRecord(std::uint64_t i) {
   r.tick_time_s = 1e-5 * static_cast<double>(i % 13) + 1e-7;
   r.contacts = static_cast<std::uint32_t>(i % 5);
   r.flags = r.contacts > 0 ? kRecordFlagContact : 0u;
+  r.removed_voxels = static_cast<std::uint32_t>(i % 3);
+  r.deadline_work = i % 5 == 0 ? static_cast<std::int64_t>(1000 + i) : 0;
   return r;
 }
 
@@ -641,7 +643,9 @@ std::vector<TickRecord> parseCsv(std::istream& in) {
   std::string line;
   EXPECT_TRUE(std::getline(in, line));
   const std::vector<std::string> header = splitCsv(line);
-  EXPECT_EQ(header.size(), 28u);
+  EXPECT_EQ(header.size(), 30u);
+  EXPECT_EQ(header[28], "removed_voxels");
+  EXPECT_EQ(header[29], "deadline_work");
   EXPECT_EQ(header[26], "critical_distance_m");
   EXPECT_EQ(header.front(), "t_s");
   EXPECT_EQ(header[16], "force_x_N");
@@ -649,8 +653,8 @@ std::vector<TickRecord> parseCsv(std::istream& in) {
   std::vector<TickRecord> out;
   while (std::getline(in, line)) {
     const std::vector<std::string> c = splitCsv(line);
-    EXPECT_EQ(c.size(), 28u) << line;
-    if (c.size() != 28) break;
+    EXPECT_EQ(c.size(), 30u) << line;
+    if (c.size() != 30) break;
     TickRecord r;
     std::size_t k = 0;
     auto num = [&] { return std::strtod(c[k++].c_str(), nullptr); };
@@ -668,6 +672,8 @@ std::vector<TickRecord> parseCsv(std::istream& in) {
     r.flags = static_cast<std::uint32_t>(std::stoul(c[k++]));
     r.critical_distance_m = num();
     r.critical_segment = std::stoi(c[k++]);
+    r.removed_voxels = static_cast<std::uint32_t>(std::stoul(c[k++]));
+    r.deadline_work = std::stoll(c[k++]);
     out.push_back(r);
   }
   return out;

@@ -145,7 +145,32 @@ void RecordingFrameRenderer::copyCamera(vtkCamera* camera) {
   ++camera_generation_;
 }
 
+void RecordingFrameRenderer::setRecordedCameras(std::vector<RecordedCamera> cameras) {
+  recorded_cameras_ = std::move(cameras);
+  recorded_camera_shown_ = 0;
+}
+
+ViewCamera RecordingFrameRenderer::camera() const { return viewCameraOf(renderer_->GetActiveCamera(), height_, width_); }
+
 void RecordingFrameRenderer::show(const runtime::TickRecord& record) {
+  // The user's camera at this time (the latest recorded at or before it).
+  std::size_t latest = 0;  // 1 + index
+  for (std::size_t c = 0; c < recorded_cameras_.size() && recorded_cameras_[c].time_s <= record.time_s + 1e-12; ++c)
+    latest = c + 1;
+  if (latest != 0 && latest != recorded_camera_shown_) {
+    const ViewCamera& v = recorded_cameras_[latest - 1].camera;
+    vtkCamera* cam = renderer_->GetActiveCamera();
+    cam->SetPosition(v.position_W_m.data());
+    cam->SetFocalPoint(v.focal_point_W_m.data());
+    cam->SetViewUp(v.view_up_W.data());
+    cam->SetViewAngle(v.view_angle_deg);
+    cam->SetParallelProjection(v.parallel ? 1 : 0);
+    cam->SetParallelScale(v.parallel_scale_m);
+    cam->OrthogonalizeViewUp();
+    renderer_->ResetCameraClippingRange();
+    recorded_camera_shown_ = latest;
+    ++camera_generation_;
+  }
   ToolFrame frame = toolFrameOf(record);
   if (!isovalue_from_records_) frame.isovalue = std::numeric_limits<double>::quiet_NaN();  // felt segments' level
   showToolFrame(*actors_, frame, tool_vertices_T_m_);
@@ -672,6 +697,11 @@ std::unique_ptr<RecordingFrameRenderer> exportFrameRenderer(const runtime::Loade
   }
   if (!recording.records.empty()) frames->show(recording.records.front());
   frames->resetCamera();  // fitted to the volume and the tools where they start
+  // Seen as the user saw it where the recording holds the window's camera.
+  std::vector<RecordedCamera> cameras = recordedCameras(recording);
+  if (log != nullptr && !cameras.empty())
+    *log << "volume-haptics export: the view's camera as recorded (" << cameras.size() << " camera events)\n";
+  frames->setRecordedCameras(std::move(cameras));
   return frames;
 }
 

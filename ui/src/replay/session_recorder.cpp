@@ -1,5 +1,7 @@
 #include "vh/ui/replay/session_recorder.h"
 
+#include "vh/ui/replay/recorded_camera.h"
+
 #include <algorithm>
 #include <filesystem>
 #include <iostream>
@@ -63,6 +65,7 @@ SessionRecorder::SessionRecorder(runtime::Session& session, QStatusBar* status_b
   status_timer_->setInterval(kStatusPeriodMs);
   connect(status_timer_, &QTimer::timeout, this, [this] {
     checkWriter();
+    noteCamera();
     updateUi();
   });
   observer_ = session_.addObserver([this](runtime::SessionChange what) {
@@ -159,8 +162,10 @@ bool SessionRecorder::start(const fs::path& path) {
   }
   path_ = path;
   marker_count_ = 0;
+  camera_recorded_.reset();
   haptics->setRecorder(writer_.get());  // before the threads' first tick
   session_.startHaptics();
+  noteCamera();  // the view as the recording starts
   elapsed_.start();
   status_timer_->start();
   updateUi();
@@ -262,6 +267,13 @@ void SessionRecorder::toggleFromUi(bool on) {
     if (path.extension().empty()) path += ".vhrec";
   }
   if (!start(path)) emit failed(QString::fromStdString(path.string()), last_error_);
+}
+
+void SessionRecorder::noteCamera() {
+  if (writer_ == nullptr || !camera_source_) return;
+  const ViewCamera camera = camera_source_();
+  if (camera_recorded_ && sameView(*camera_recorded_, camera)) return;
+  if (recordEvent("camera", cameraEventJson(camera))) camera_recorded_ = camera;
 }
 
 void SessionRecorder::addMarkerFromUi() {

@@ -48,6 +48,7 @@ class ProximityAlerts : public QObject {
 
  private:
   runtime::ProximityLevel level_ = runtime::ProximityLevel::kClear;
+  int segment_ = -1;  // the critical segment level_ is of
   std::string text_;
   double cue_rate_Hz_ = 0.0;
 };

@@ -57,6 +57,29 @@ constexpr ProximityLevel proximityLevel(double distance_m, const ProximityThresh
                                  : distance_m <= t.warn_m ? ProximityLevel::kWarn : ProximityLevel::kClear;
 }
 
+/// The level of `distance_m` after `previous`, with hysteresis, for what a user is told (the
+/// recording's proximity events, the window's warnings): a nearer level at once; a level is left
+/// only once the distance is past its threshold by kProximityHysteresis of it (at least
+/// kProximityHysteresisMin_m), so a tool that hovers at a threshold (the point shell's distance
+/// moves by hundredths of a millimetre from tick to tick) gives one warning, not a flicker of
+/// warn / clear pairs. The measures (time within, closest approach) keep proximityLevel().
+inline constexpr double kProximityHysteresis = 0.1;
+inline constexpr double kProximityHysteresisMin_m = 0.1e-3;
+constexpr ProximityLevel proximityLevelAfter(ProximityLevel previous, double distance_m,
+                                             const ProximityThresholds& t) noexcept {
+  const ProximityLevel now = proximityLevel(distance_m, t);
+  if (now >= previous) return now;
+  const auto held = [&](double threshold_m) {
+    const double margin_m = kProximityHysteresis * threshold_m > kProximityHysteresisMin_m
+                                ? kProximityHysteresis * threshold_m
+                                : kProximityHysteresisMin_m;
+    return distance_m <= threshold_m + margin_m;
+  };
+  if (previous == ProximityLevel::kAlarm && held(t.alarm_m)) return ProximityLevel::kAlarm;
+  if (held(t.warn_m)) return ProximityLevel::kWarn;
+  return now;
+}
+
 /// The nearest critical segment on one tick.
 struct CriticalDistance {
   int segment = -1;  ///< Index into the scene's segments, or -1: none within kProximityRange_m.

@@ -33,6 +33,7 @@
 #include "vh/ui/view/scene_actors.h"
 #include "vh/ui/view/scene_frames.h"
 #include "vh/ui/view/tool_shadow.h"
+#include "vh/ui/replay/recorded_camera.h"
 
 class vtkCamera;
 class vtkImageData;
@@ -137,6 +138,12 @@ class RecordingFrameRenderer {
   void resetCamera();
   /// Uses a copy of `camera` (e.g. the main view's) for the next frames.
   void copyCamera(vtkCamera* camera);
+  /// From the next show() on, each frame is seen from the camera the user had at its record's
+  /// time (the latest of `cameras` at or before it: recordedCameras() of the recording); before
+  /// the first, or with none, the camera set by resetCamera() / copyCamera() stays.
+  void setRecordedCameras(std::vector<RecordedCamera> cameras);
+  /// The view camera now (as viewCameraOf() reads the frame's VTK camera).
+  ViewCamera camera() const;
   /// Shows `record` (see showRecord()).
   void show(const runtime::TickRecord& record);
   /// Renders a frame and returns its pixels (RGB, vtkWindowToImageFilter; bottom row first):
@@ -225,7 +232,9 @@ class RecordingFrameRenderer {
   void keepVolume();
   bool reuse_volume_ = true;
   std::uint64_t volume_renders_ = 0;
-  std::uint64_t camera_generation_ = 0;  ///< Counts resetCamera() / copyCamera().
+  std::uint64_t camera_generation_ = 0;  ///< Counts resetCamera() / copyCamera() / recorded cameras applied.
+  std::vector<RecordedCamera> recorded_cameras_;  ///< setRecordedCameras()
+  std::size_t recorded_camera_shown_ = 0;         ///< 1 + the index applied last (0: none yet)
   struct KeptKey {
     double isovalue = 0.0;
     std::uint64_t cavity = 0;
@@ -298,7 +307,9 @@ struct MediaExportOptions {
 /// The frames of `recording` as `volume-haptics export` renders them: `scene` (the recording's,
 /// runtime::loadScene(runtime::sceneFromSessionMetadata()), without its device; it must outlive
 /// the renderer) in the look, size, overlay and shadow of `options`; a drilled scene's cavity
-/// replayed (messages on `log` when not null); the camera fitted to the first record.
+/// replayed (messages on `log` when not null); the camera fitted to the first record, then, where
+/// the recording holds the window's camera ("camera" events: recordedCameras()), the camera the
+/// user had at each shown record's time.
 /// @throws as RecordingFrameRenderer and drillingTimeline().
 std::unique_ptr<RecordingFrameRenderer> exportFrameRenderer(const runtime::LoadedScene& scene,
                                                             const runtime::Recording& recording,

@@ -25,6 +25,8 @@
 
 #include <chrono>
 #include <filesystem>
+#include <functional>
+#include <optional>
 #include <memory>
 #include <string>
 #include <vector>
@@ -32,6 +34,8 @@
 #include <QElapsedTimer>
 #include <QObject>
 #include <QString>
+
+#include "vh/ui/view/device_manipulation.h"
 
 
 class QAction;
@@ -85,6 +89,10 @@ class SessionRecorder : public QObject {
 
   /// While a replay is shown the haptic thread waits: nothing can be recorded.
   void setReplayActive(bool active);
+  /// Where the view's camera is read from (the window's scene view): a recording then holds a
+  /// "camera" event at its start and whenever the camera moved since, at most every 250 ms
+  /// (recorded_camera.h), so its exported pictures are seen as the user saw them. Unset: none.
+  void setCameraSource(std::function<ViewCamera()> source) { camera_source_ = std::move(source); }
   /// Dialogs (file name, marker label) when true; else the default path and labels.
   void setInteractive(bool interactive) { interactive_ = interactive; }
 
@@ -117,6 +125,8 @@ class SessionRecorder : public QObject {
 
   /// The haptic thread stopped or was replaced: the recording ends, closed writers go.
   void onHapticsStopped();
+  /// Records a "camera" event when the view's camera moved since the last one (or none yet).
+  void noteCamera();
   /// Status refresh: a writer whose write failed ends the recording, and the REC text says why.
   void checkWriter();
 
@@ -128,6 +138,8 @@ class SessionRecorder : public QObject {
   std::unique_ptr<runtime::RecordingWriter> writer_;
   std::vector<std::unique_ptr<runtime::RecordingWriter>> retired_;  // closed, thread still running
   std::filesystem::path path_;
+  std::function<ViewCamera()> camera_source_;
+  std::optional<ViewCamera> camera_recorded_;  // the last "camera" event of this recording
   QString last_error_;
   QElapsedTimer elapsed_;
   QTimer* status_timer_ = nullptr;
