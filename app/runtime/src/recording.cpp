@@ -6,6 +6,7 @@
 #include "vh/runtime/technique.h"
 
 #include <algorithm>
+#include <string_view>
 #include <array>
 #include <bit>
 #include <chrono>
@@ -494,6 +495,25 @@ std::string readWholeFile(const std::filesystem::path& path) {
   return bytes;
 }
 
+/// The deepest nesting of arrays and objects in JSON text `text` (brackets inside strings not
+/// counted); O(n), no parse. Any text: what is not JSON gives some depth, and the parse says the rest.
+std::size_t jsonNestingDepth(std::string_view text) noexcept {
+  std::size_t depth = 0, deepest = 0;
+  bool in_string = false, escaped = false;
+  for (const char c : text) {
+    if (in_string) {
+      if (escaped) escaped = false;
+      else if (c == '\\') escaped = true;
+      else if (c == '"') in_string = false;
+      continue;
+    }
+    if (c == '"') in_string = true;
+    else if (c == '[' || c == '{') deepest = std::max(deepest, ++depth);
+    else if ((c == ']' || c == '}') && depth > 0) --depth;
+  }
+  return deepest;
+}
+
 /// Checks the file header and the metadata, sets rec.version and rec.metadata_json.
 /// @return the offset of the first chunk. @throws std::runtime_error as readRecording().
 std::size_t readHeader(const std::string& bytes, const std::string& where, Recording& rec) {
@@ -513,6 +533,11 @@ std::size_t readHeader(const std::string& bytes, const std::string& where, Recor
   if (size - kFileHeaderBytes < meta_size || crc32(data + kFileHeaderBytes, meta_size) != getU32(data + 20))
     throw std::runtime_error("readRecording: " + where + "damaged metadata header");
   rec.metadata_json.assign(bytes, kFileHeaderBytes, meta_size);
+  // What this program writes nests a few levels; text nested thousands deep makes every reader
+  // of it (parse, pretty print: the indentation grows with the depth) take minutes and gigabytes.
+  if (const std::size_t depth = jsonNestingDepth(rec.metadata_json); depth > kMaxRecordingJsonDepth)
+    throw std::runtime_error("readRecording: " + where + "damaged metadata: JSON nested " + std::to_string(depth) +
+                             " deep (at most " + std::to_string(kMaxRecordingJsonDepth) + ")");
   return kFileHeaderBytes + meta_size;
 }
 
@@ -728,6 +753,13 @@ Recording readRecording(const std::filesystem::path& path) {
   for (const Damage& d : damages) rec.warnings.push_back(damageWarning(where, d, rec, records_in_end_marker));
   if (!tail_warning.empty()) rec.warnings.push_back(tail_warning);
   endWarnings(records_in_end_marker, rec);
+  // Events whose detail nests deeper than anything written here are dropped, and said.
+  const auto too_deep = [](const RecordingEvent& e) { return jsonNestingDepth(e.detail_json) > kMaxRecordingJsonDepth; };
+  if (const auto dropped = std::count_if(rec.events.begin(), rec.events.end(), too_deep); dropped > 0) {
+    rec.events.erase(std::remove_if(rec.events.begin(), rec.events.end(), too_deep), rec.events.end());
+    rec.warnings.push_back(where + std::to_string(dropped) + " event(s) dropped: their detail is JSON nested deeper than " +
+                           std::to_string(kMaxRecordingJsonDepth) + " levels");
+  }
   std::stable_sort(rec.events.begin(), rec.events.end(),
                    [](const RecordingEvent& a, const RecordingEvent& b) { return a.tick < b.tick; });
   return rec;

@@ -343,6 +343,53 @@ TEST(Recording, ReadsVersionFourFiles) {
   VH_EXPECT_THROW_WITH(readRecording(dir / "wrong.vhrec"), std::runtime_error, "record size 216 bytes, expected 224 for version 5");
 }
 
+// JSON nested 100,000 deep in the metadata (its CRC-32 right) is refused at once as damaged,
+// and an event whose detail nests 200,000 deep is dropped with a warning while the rest reads:
+// before, `export --json` ran past 60 s and 4 GB pretty-printing them (the indentation grows
+// with the depth). No clock is checked: the test would not end if the reader took minutes.
+TEST(Recording, JsonNestedThousandsDeepIsRefusedOrDropped) {
+  const fs::path dir = test::scratchDir();
+  const std::string good = readBytes(writeSession(dir / "ok.vhrec", 10));
+  const auto u32 = [](const std::string& b, std::size_t at) {
+    std::uint32_t v = 0;
+    std::memcpy(&v, b.data() + at, 4);
+    return v;
+  };
+  const auto put32 = [](std::string& b, std::size_t at, std::uint32_t v) { std::memcpy(b.data() + at, &v, 4); };
+  const auto le32 = [](std::uint32_t v) { return std::string(reinterpret_cast<const char*>(&v), 4); };
+  const std::uint32_t meta_size = u32(good, 16);
+  const std::string deep_meta = "{\"a\":" + std::string(100000, '[') + std::string(100000, ']') + "}";
+  std::string bad = good.substr(0, 24) + deep_meta + good.substr(24 + meta_size);
+  put32(bad, 16, static_cast<std::uint32_t>(deep_meta.size()));
+  put32(bad, 20, crc32(deep_meta.data(), deep_meta.size()));
+  writeBytes(dir / "deep-meta.vhrec", bad);
+  VH_EXPECT_THROW_WITH(readRecording(dir / "deep-meta.vhrec"), std::runtime_error,
+                       "damaged metadata: JSON nested 100001 deep (at most 100)");
+
+  // An event chunk with one deep "marker" and one plain one, before the end marker.
+  const auto event = [&](const std::string& detail) {
+    const double t = 0.001;
+    const std::uint64_t tick = 1;
+    std::string e(reinterpret_cast<const char*>(&t), 8);
+    e += std::string(reinterpret_cast<const char*>(&tick), 8);
+    e += le32(6) + "marker" + le32(static_cast<std::uint32_t>(detail.size())) + detail;
+    return e;
+  };
+  const std::string payload = event("{\"x\":" + std::string(200000, '[') + std::string(200000, ']') + "}") +
+                              event(R"({"label": "kept"})");
+  std::string chunk = "EVNT" + le32(2) + le32(static_cast<std::uint32_t>(payload.size())) + payload;
+  chunk += le32(crc32(chunk.data(), chunk.size()));
+  ASSERT_EQ(good.substr(good.size() - 28, 4), "ENDR");
+  writeBytes(dir / "deep-event.vhrec", good.substr(0, good.size() - 28) + chunk + good.substr(good.size() - 28));
+  const Recording rec = readRecording(dir / "deep-event.vhrec");
+  EXPECT_EQ(rec.records.size(), 10u);
+  ASSERT_EQ(rec.events.size(), 1u);
+  EXPECT_EQ(rec.events[0].detail_json, R"({"label": "kept"})");
+  bool said = false;
+  for (const std::string& w : rec.warnings) said = said || w.find("1 event(s) dropped") != std::string::npos;
+  EXPECT_TRUE(said);
+}
+
 TEST(Recording, CrashTruncationOpensUpToTheLastGoodChunkLosingUnderOneSecond) {
   const fs::path path = writeSession(test::scratchDir() / "crash.vhrec", 4000);
   const std::string bytes = readBytes(path);

@@ -139,6 +139,10 @@
 namespace vh::runtime {
 
 inline constexpr std::uint32_t kRecordingFormatVersion = 5;
+/// Deepest nesting of arrays and objects readRecording() accepts in the metadata (deeper: the
+/// recording is refused as damaged) and in an event's detail (deeper: the event is dropped,
+/// with a warning). What this program writes nests under 10 levels.
+inline constexpr std::size_t kMaxRecordingJsonDepth = 100;
 
 
 /// One timestamped event of a session (marker, isovalue change, tool change, device
@@ -281,8 +285,10 @@ struct Recording {
 /// the next chunk whose tag, header and CRC-32 check out) and a truncated tail ignored, each
 /// with a warning naming the byte offset, the bytes and the ticks lost; a version 3 or 4 file
 /// without its end marker gets an "unfinished recording" warning.
+/// An event whose detail nests deeper than kMaxRecordingJsonDepth is dropped with a warning.
 /// @throws std::runtime_error when the file cannot be opened, is not a recording (magic), has
-///         an unsupported version or record size, or a damaged header / metadata.
+///         an unsupported version or record size, or a damaged header / metadata (metadata
+///         nested deeper than kMaxRecordingJsonDepth included).
 Recording readRecording(const std::filesystem::path& path);
 
 /// One CSV row per record, header line with SI units:
