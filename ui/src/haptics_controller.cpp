@@ -147,7 +147,13 @@ bool HapticsController::guideWith(const QString& file, QString* error) {
   }
   applyGuidance();
   emit guidanceChanged();
-  emit message(QString("Guided along %1 (%2 segments)").arg(QString::fromStdString(guide_->fileName())).arg(guide_->path().size()), 4000);
+  if (!guide_->damage().empty()) {  // guided along part of the path: never without a word
+    emit message(QString("Guided along part of %1: %2")
+                     .arg(QString::fromStdString(guide_->fileName()), QString::fromStdString(guide_->damage())),
+                 15000);
+  } else {
+    emit message(QString("Guided along %1 (%2 segments)").arg(QString::fromStdString(guide_->fileName())).arg(guide_->path().size()), 4000);
+  }
   return true;
 }
 

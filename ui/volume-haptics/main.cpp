@@ -377,6 +377,8 @@ int runCommand(const RunArgs& a) {
     info.device_kind = "scripted";
     run_options.guide = vh::runtime::loadExpertPath(a.guide, vh::runtime::makeSessionMetadata(scene, info));
     run_options.guide_gains = a.guide_gains;
+    if (!run_options.guide->damage().empty())
+      std::cerr << "volume-haptics run: warning: " << run_options.guide->damage() << std::endl;
   }
   if (!a.guide.empty() || (a.hand_option != nullptr && a.hand_option->count() > 0)) run_options.hand = a.hand;
   std::unique_ptr<vh::igtl::IgtlLink> link = startRunLink(a, spec, scene.segments.get(), run_options);

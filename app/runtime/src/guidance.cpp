@@ -59,6 +59,14 @@ ExpertPath::ExpertPath(const Recording& expert, std::string file_sha256, std::st
     throw std::invalid_argument("the expert's recording has no path to guide along (fewer than two usable records)");
   path_ = haptics::GuidancePath(std::move(segments));
   dtw_samples_ = devicePathSamples(expert, kDtwSamples);
+  if (!expert.warnings.empty()) {  // truncated, bit-flipped, killed: say so and how much is used
+    const double read_s = expert.records.back().time_s - expert.records.front().time_s;
+    damage_ = "the expert's recording" + (file_name_.empty() ? std::string() : " " + file_name_) +
+              " is damaged or unfinished; guidance follows the " + std::to_string(expert.records.size()) +
+              " records read (" + std::to_string(static_cast<long long>(std::lround(read_s * 10.0)) / 10) + "." +
+              std::to_string(static_cast<long long>(std::lround(read_s * 10.0)) % 10) + " s of the path): ";
+    for (std::size_t w = 0; w < expert.warnings.size(); ++w) damage_ += (w > 0 ? "; " : "") + expert.warnings[w];
+  }
 }
 
 haptics::Pose ExpertPath::poseAt(const haptics::PathPoint& p) const noexcept {
@@ -204,6 +212,7 @@ double GuidanceTrack::dtwMean_m() const {
 GuidanceReport GuidanceTrack::report(bool compliant_hand) const {
   GuidanceReport r;
   r.expert_sha256 = expert_->fileSha256();
+  r.expert_damage = expert_->damage();
   r.stiffness_N_per_m = gains_.effectiveStiffness_N_per_m();
   r.cap_N = gains_.cap_N;
   r.repetition = gains_.repetition;
@@ -224,6 +233,7 @@ std::string GuidanceReport::toJson() const {
   j["mean_distance_m"] = mean_distance_m;
   j["dtw_mean_m"] = dtw_mean_m;
   j["compliant_hand"] = compliant_hand;
+  if (!expert_damage.empty()) j["expert_damage"] = expert_damage;
   return j.dump();
 }
 

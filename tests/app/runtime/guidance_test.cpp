@@ -6,6 +6,8 @@
 #include "vh/runtime/guidance.h"
 
 #include <cmath>
+#include <fstream>
+#include <iterator>
 #include <random>
 
 #include <gtest/gtest.h>
@@ -158,6 +160,34 @@ TEST(Guidance, RefusesARecordingOfAnotherScan) {
     EXPECT_NE(what.find("the guide recording expert.vhrec was recorded on another scene"), std::string::npos) << what;
     EXPECT_NE(what.find("guidance needs the same dataset"), std::string::npos) << what;
   }
+}
+
+// A damaged expert recording (killed: its tail and end marker gone) guides along what could be
+// read, and says so with how much: ExpertPath::damage(), which the run prints, the window shows
+// and the run's report carries; a whole one says nothing.
+TEST(Guidance, ADamagedExpertRecordingIsSaidWithHowMuchOfItGuides) {
+  const GuideFixture& f = fixture();
+  EXPECT_EQ(f.path->damage(), "") << "the whole recording";
+  std::ifstream in(f.expert_file, std::ios::binary);
+  std::string bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  bytes.resize(bytes.size() * 2 / 3);  // killed mid-session
+  const std::filesystem::path cut = test::writeText(f.expert_file.parent_path() / "killed.vhrec", bytes);
+  const auto path = loadExpertPath(cut, makeSessionMetadata(f.scene, SessionInfo{}));
+  const Recording read = readRecording(cut);
+  const std::string said = path->damage();
+  EXPECT_NE(said.find("killed.vhrec is damaged or unfinished"), std::string::npos) << said;
+  EXPECT_NE(said.find("follows the " + std::to_string(read.records.size()) + " records read"), std::string::npos) << said;
+  EXPECT_NE(said.find("unfinished recording"), std::string::npos) << said;
+  EXPECT_LT(read.records.size(), readRecording(f.expert_file).records.size());
+  RunOptions options;
+  options.verify_step_voxels = 0.0;
+  options.lag_reference = false;
+  options.hand = HandImpedance{};
+  options.guide = path;
+  const RunReport r = runHeadless(f.scene, f.trainee, options);
+  ASSERT_TRUE(r.guidance.has_value());
+  EXPECT_EQ(r.guidance->expert_damage, said);
+  EXPECT_NE(r.toJson().find("expert_damage"), std::string::npos);
 }
 
 TEST(Guidance, ClampedToTheDevicesRating) {

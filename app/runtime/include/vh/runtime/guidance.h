@@ -69,6 +69,10 @@ class ExpertPath {
   /// The expert's device pose at a point of the path (position on the segment, orientation
   /// slerped between its two records); the first record's pose for an empty PathPoint.
   haptics::Pose poseAt(const haptics::PathPoint& p) const noexcept;
+  /// What was wrong with the expert's recording (its reader's warnings: damaged chunks, an
+  /// unfinished end) and how much of its path is used, for the run, the window and the report
+  /// to say; empty for a whole recording.
+  const std::string& damage() const noexcept { return damage_; }
   /// devicePathSamples(expert, kDtwSamples): the path `report --reference` aligns with DTW.
   const std::vector<Eigen::Vector3d>& dtwSamples() const noexcept { return dtw_samples_; }
   static constexpr std::size_t kDtwSamples = 1000;
@@ -80,6 +84,7 @@ class ExpertPath {
   std::vector<haptics::Pose> segment_from_, segment_to_;  ///< The records at each segment's ends.
   SceneIdentity scene_;
   std::string file_sha256_, file_name_, file_path_;
+  std::string damage_;
 };
 
 /// Reads the expert's recording and checks that it was recorded on the session's scene
@@ -140,6 +145,9 @@ class CompliantHand final : public Device {
 /// What guidance did in a headless run (RunReport::guidance).
 struct GuidanceReport {
   std::string expert_sha256;        ///< The expert recording's SHA-256.
+  /// ExpertPath::damage(): the expert's recording was damaged or unfinished and how much of it
+  /// guided (in the JSON only when not empty).
+  std::string expert_damage;
   double stiffness_N_per_m = 0.0;   ///< Applied on this repetition (K fade^r, clamped) [N/m].
   double cap_N = 0.0;               ///< The cap [N].
   int repetition = 0;
