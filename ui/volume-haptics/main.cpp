@@ -148,6 +148,7 @@ struct RunArgs {
   std::string igtl_bind = vh::igtl::LinkOptions{}.bind_address;
   std::vector<std::string> igtl_allow;
   bool igtl_accept_images = false;
+  bool anonymize = false;
   std::string record;
   std::string note;
   std::string audio;
@@ -197,6 +198,9 @@ CLI::App* addRunSubcommand(CLI::App& app, RunArgs& a) {
   run->add_option("--scene", a.scene, "Scene .json (its device section is ignored)")->required();
   run->add_option("--trajectory", a.trajectory, "Trajectory CSV: t_s,x_m,y_m,z_m,qw,qx,qy,qz")->required();
   run->add_option("--report", a.report, "Write the JSON report here");
+  run->add_flag("--anonymize", a.anonymize,
+                "Leave what identifies the patient out of the report: the scene's, the volume's and "
+                "the trajectory's paths, the series' description and UID in the volume's notices");
   run->add_option("--isovalue", a.isovalue, "Override the scene's isovalue");
   run->add_option("--series", a.series,
                   "DICOM folder: the series to load (number, Series Instance UID or text of its description); default: the scene's, else the largest");
@@ -384,6 +388,8 @@ int runCommand(const RunArgs& a) {
   std::unique_ptr<vh::igtl::IgtlLink> link = startRunLink(a, spec, scene.segments.get(), run_options);
   vh::runtime::RunReport report = vh::runtime::runHeadless(scene, trajectory, run_options);
   report.trajectory = a.trajectory;
+  if (a.anonymize)
+    vh::runtime::anonymizeRunReport(report, {scene.volume.info.description, scene.volume.info.series_uid});
   if (audio) std::cout << "volume-haptics run: " << audio->finish() << std::endl;
   if (link) {
     const vh::igtl::LinkStatus st = link->status();

@@ -145,4 +145,15 @@ std::vector<std::string> anonymizeRecording(Recording& recording, const std::fil
   return ids;
 }
 
+void anonymizeRunReport(RunReport& report, std::vector<std::string> identifiers) {
+  for (const std::string* path : {&report.scene, &report.volume, &report.trajectory}) {
+    if (path->empty() || *path == "builtin" || path->rfind("builtin:", 0) == 0) continue;
+    const std::vector<std::string> ids = pathIdentifiers(*path);
+    identifiers.insert(identifiers.end(), ids.begin(), ids.end());
+  }
+  for (std::string* path : {&report.scene, &report.volume, &report.trajectory})
+    if (!path->empty() && *path != "builtin" && path->rfind("builtin:", 0) != 0) *path = kAnonymized;
+  for (std::string& notice : report.volume_notices) notice = scrubText(notice, identifiers);
+}
+
 }  // namespace vh::runtime

@@ -53,6 +53,33 @@ TEST(Anonymize, ScrubTextReplacesEveryOccurrenceLongestFirst) {
             "ANONYMIZED and ANONYMIZED");
 }
 
+// `run --anonymize`'s report: the scene's, the volume's and the trajectory's paths (folders
+// named after a patient) replaced, the notices scrubbed of them and of the series' description
+// and UID; the figures kept. Before, `run --report` held the description and the path.
+TEST(Anonymize, ARunReportKeepsItsFiguresAndLosesThePatientsNames) {
+  RunReport r;
+  r.scene = "/data/DOE_JOHN_19700101/scene.json";
+  r.volume = "/data/DOE_JOHN_19700101/CT HEAD";
+  r.trajectory = "/data/DOE_JOHN_19700101/press.csv";
+  r.volume_notices = {"series 'HEAD ROUTINE DOE' chosen of 3 in /data/DOE_JOHN_19700101/CT HEAD",
+                      "series 1.2.840.113619.2.55.3.1 has a gap"};
+  r.max_force_N = 3.25;
+  anonymizeRunReport(r, {"HEAD ROUTINE DOE", "1.2.840.113619.2.55.3.1"});
+  const std::string json = r.toJson();
+  EXPECT_EQ(json.find("DOE"), std::string::npos) << json;
+  EXPECT_EQ(json.find("1.2.840.113619"), std::string::npos) << json;
+  EXPECT_EQ(r.scene, kAnonymized);
+  EXPECT_EQ(r.volume, kAnonymized);
+  EXPECT_EQ(r.trajectory, kAnonymized);
+  EXPECT_NE(r.volume_notices[1].find("has a gap"), std::string::npos) << "the notice's meaning stays";
+  EXPECT_EQ(r.max_force_N, 3.25);
+  RunReport builtin;
+  builtin.scene = "builtin";
+  builtin.volume = "builtin:sphere";
+  anonymizeRunReport(builtin, {});
+  EXPECT_EQ(builtin.volume, "builtin:sphere") << "nothing of a patient in a built-in volume";
+}
+
 TEST(Anonymize, ExportsAndReportsOfACtHeadCarryNoPatientIdentifiers) {
   const fs::path head = test::sharedDatasets() / "ct" / "ct-head-small";
   if (!fs::exists(head)) GTEST_SKIP() << "shared dataset missing: " << head;

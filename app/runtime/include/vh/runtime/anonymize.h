@@ -24,6 +24,7 @@
 #include <vector>
 
 #include "vh/runtime/recording.h"
+#include "vh/runtime/runner.h"
 
 namespace vh::runtime {
 
@@ -52,5 +53,11 @@ std::string scrubText(std::string text, const std::vector<std::string>& identifi
 /// folder names). The records and events are left as they are.
 /// @return the identifiers removed (for scrubText() of other text about the recording).
 std::vector<std::string> anonymizeRecording(Recording& recording, const std::filesystem::path& recording_path = {});
+
+/// `run --anonymize`: `report` (runHeadless()'s) with the scene file's, the volume's and the
+/// trajectory's paths "ANONYMIZED" and the volume's notices scrubbed of their file and folder
+/// names and of `identifiers` (the caller's: the series description and UID the loader read).
+/// The figures are left as they are.
+void anonymizeRunReport(RunReport& report, std::vector<std::string> identifiers);
 
 }  // namespace vh::runtime
