@@ -238,10 +238,22 @@ std::vector<std::size_t> rasterise(const RtStructRoi& roi, const haptics::Volume
 /// The label layers being filled: voxels on the grid (0 = no ROI), labels used per layer.
 /// Puts `voxels` into the first layer where none is taken (a new one when none) as the next
 /// label of that layer; sets info.layer, info.label_value and info.voxel_count.
-void place(SegmentLayers& layers, const std::vector<std::size_t>& voxels, SegmentInfo& info) {
+/// Layers of overlapping ROIs opened at most: each is a label map of the scan's size (1,000
+/// overlapping one-circle ROIs took 6.0 GB and over a minute); real structure sets overlap a few
+/// deep (a target inside its organ inside the body).
+constexpr std::size_t kMaxRoiLayers = 32;
+
+void place(SegmentLayers& layers, const std::vector<std::size_t>& voxels, SegmentInfo& info, const fs::path& path) {
   const auto [l, label] = layers.take([&](const std::vector<std::uint8_t>& layer) {
     return std::none_of(voxels.begin(), voxels.end(), [&](std::size_t n) { return layer[n] != 0; });
   });
+  if (layers.voxels.size() > kMaxRoiLayers) {
+    char mb[32];
+    std::snprintf(mb, sizeof mb, "%.1f", static_cast<double>(layers.voxel_count) / 1e6);
+    fail(path, "ROI \"" + info.name + "\" overlaps ROIs in " + std::to_string(kMaxRoiLayers) +
+                   " layers already: at most " + std::to_string(kMaxRoiLayers) +
+                   " layers of overlapping ROIs are opened (each a label map of the scan's size, " + mb + " MB)");
+  }
   info.layer = static_cast<int>(l);
   info.label_value = label;
   for (const std::size_t n : voxels) layers.voxels[l][n] = static_cast<std::uint8_t>(info.label_value);
@@ -285,7 +297,7 @@ LoadedSegmentation loadDicomRtStruct(const fs::path& path, const LoadedVolume* s
     if (roi.has_color) {
       for (std::size_t c = 0; c < 3; ++c) info.color_rgb[c] = roi.color[c] / 255.0;
     }
-    place(layers, voxels, info);
+    place(layers, voxels, info, path);
     if (info.voxel_count == 0) seg.notices.push_back("segment \"" + info.name + "\" is empty (no voxel centre inside)");
     seg.segments.push_back(std::move(info));
   }
