@@ -24,6 +24,7 @@
 #include <cerrno>
 #include <chrono>
 #include <cmath>
+#include <cstdio>
 #include <cstring>
 #include <limits>
 #include <sstream>
@@ -572,6 +573,22 @@ io::LoadedVolume decodeImageMessage(const HeaderBytes& header, const std::vector
   if (kImageHeaderSize + count * scalar_size != content_size) {
     refuse(std::to_string(content_size - kImageHeaderSize) + " bytes of voxels, expected " +
            std::to_string(count * scalar_size));
+  }
+  // What libOpenIGTLink takes as it comes: the byte order (any value but 2 read as big-endian)
+  // and the spacing (1e38 mm reached the volume's checks as "non-finite").
+  const int endian = image->GetEndian();
+  if (endian != ::igtl::ImageMessage::ENDIAN_BIG && endian != ::igtl::ImageMessage::ENDIAN_LITTLE)
+    refuse("endian " + std::to_string(endian) + " (1: big-endian, 2: little-endian)");
+  float spacing_mm[3];
+  image->GetSpacing(spacing_mm);
+  for (int a = 0; a < 3; ++a) {
+    const double s = spacing_mm[a];
+    if (!(s >= kMinImageSpacing_mm && s <= kMaxImageSpacing_mm)) {
+      char text[128];
+      std::snprintf(text, sizeof text, "spacing %g mm along axis %d (expected %g to %g mm)", s, a, kMinImageSpacing_mm,
+                    kMaxImageSpacing_mm);
+      refuse(text);
+    }
   }
   auto* voxels = static_cast<unsigned char*>(image->GetScalarPointer());
   const bool little_host = igtl_is_little_endian() != 0;

@@ -42,8 +42,13 @@ MessageHeaderFields parseMessageHeader(const HeaderBytes& header);
 /// along every axis, any scalar type and byte order, RAS or LPS, header version 1 or 2 (see
 /// igtl_link.h). The volume's name is the device name, control bytes escaped.
 /// @throws std::invalid_argument saying why the message is refused (CRC mismatch, sizes that
-///         disagree, unknown version or scalar type, several components, a sub-volume, a zero,
+///         disagree, unknown version, scalar type or byte order, several components, a
+///         sub-volume, a spacing outside kMinImageSpacing_mm..kMaxImageSpacing_mm, a zero,
 ///         non-finite or sheared axis); std::bad_alloc.
 io::LoadedVolume decodeImageMessage(const HeaderBytes& header, const std::vector<unsigned char>& body);
+/// The voxel spacings an IMAGE may give [mm]: 1 um (the scan readers' smallest voxel side) to
+/// 10 m (no scan's voxel is larger); outside, decodeImageMessage() refuses it with the value.
+inline constexpr double kMinImageSpacing_mm = 1e-3;
+inline constexpr double kMaxImageSpacing_mm = 1e4;
 
 }  // namespace vh::igtl::detail

@@ -33,6 +33,7 @@
 #include <igtl_header.h>
 #include <igtl_util.h>
 
+#include "igtl_message.h"
 #include "runtime_test_support.h"
 #include "vh/runtime/scene.h"
 #include "vh/runtime/session.h"
@@ -429,6 +430,40 @@ std::optional<io::LoadedVolume> waitForVolume(IgtlLink& link) {
   std::optional<io::LoadedVolume> v;
   test::waitUntil([&] { return (v = link.takeReceivedVolume()).has_value(); });
   return v;
+}
+
+// What libOpenIGTLink takes as it comes is checked by the link: a byte order that is neither
+// big (1) nor little (2) and a spacing beyond any scan's are refused naming the value (an endian
+// of 7 was read as big-endian; a spacing of 1e38 mm was refused as "a zero or non-finite axis").
+TEST(IgtlImage, AnUnknownByteOrderAndAnAbsurdSpacingAreRefusedNamingTheValue) {
+  const auto decode = [](::igtl::ImageMessage::Pointer m) {
+    m->Pack();
+    const auto* p = static_cast<const unsigned char*>(m->GetPackPointer());
+    detail::HeaderBytes header{};
+    std::memcpy(header.data(), p, detail::kHeaderSize);
+    const std::vector<unsigned char> body(p + detail::kHeaderSize, p + m->GetPackSize());
+    return detail::decodeImageMessage(header, body);
+  };
+  const auto refusal = [&](::igtl::ImageMessage::Pointer m) {
+    try {
+      (void)decode(m);
+    } catch (const std::invalid_argument& e) {
+      return std::string(e.what());
+    }
+    return std::string("(taken)");
+  };
+  EXPECT_EQ(decode(makeImage(Eigen::Matrix3d::Identity(), Eigen::Vector3d::Zero())).field->geometry().dims[0], 20)
+      << "the same message as it should be";
+  ::igtl::ImageMessage::Pointer endian = makeImage(Eigen::Matrix3d::Identity(), Eigen::Vector3d::Zero());
+  endian->SetEndian(7);
+  EXPECT_NE(refusal(endian).find("endian 7 (1: big-endian, 2: little-endian)"), std::string::npos) << refusal(endian);
+  ::igtl::ImageMessage::Pointer huge = makeImage(Eigen::Matrix3d::Identity(), Eigen::Vector3d::Zero());
+  huge->SetSpacing(1e38f, 0.7f, 1.2f);
+  // (libOpenIGTLink carries the spacing in the matrix's column norms: 1e38 comes back as inf.)
+  EXPECT_NE(refusal(huge).find("mm along axis 0 (expected 0.001 to 10000 mm)"), std::string::npos) << refusal(huge);
+  ::igtl::ImageMessage::Pointer tiny = makeImage(Eigen::Matrix3d::Identity(), Eigen::Vector3d::Zero());
+  tiny->SetSpacing(0.5f, 1e-9f, 1.2f);
+  EXPECT_NE(refusal(tiny).find("along axis 1"), std::string::npos) << refusal(tiny);
 }
 
 TEST_F(IgtlLinkServing, ReceivedImageOpensWithItsSpacingOriginAndDirection) {
