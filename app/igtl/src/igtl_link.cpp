@@ -52,6 +52,7 @@ namespace vh::igtl {
 namespace {
 
 using detail::kHeaderSize;  // 58 bytes
+using detail::kMinReceiveBytesPerSecond;
 static_assert(kHeaderSize == IGTL_HEADER_SIZE);
 constexpr std::size_t kImageHeaderSize = 72;            // IGTL_IMAGE_HEADER_SIZE, version 1
 constexpr std::size_t kExtendedHeaderSize = 12;         // header version 2 (protocol 3)
@@ -259,6 +260,7 @@ struct IgtlLink::Impl {
   std::string peer;
   std::vector<in_addr> allowed;            ///< 127.0.0.1 and LinkOptions::allowed_clients.
   std::int64_t last_byte_ns = 0;           ///< When the client's last byte arrived (steady clock).
+  std::int64_t message_start_ns = 0;       ///< When the first byte of the message being received arrived.
   std::vector<unsigned char> output;     ///< Packed messages not yet sent.
   std::size_t output_sent = 0;           ///< Bytes of `output` already sent.
 
@@ -774,6 +776,7 @@ bool IgtlLink::receive() {
         return false;
       }
       m.last_byte_ns = steadyNs();
+      if (!m.in_body && m.header_got == 0) m.message_start_ns = m.last_byte_ns;  // a new message begins
       if (!m.in_body) {
         m.header_got += static_cast<std::size_t>(n);
       } else {
@@ -807,10 +810,23 @@ bool IgtlLink::receive() {
 void IgtlLink::dropIdlePartial() {
   Impl& m = *impl_;
   if (m.client_fd < 0 || (!m.in_body && m.header_got == 0)) return;
+  const std::int64_t now = steadyNs();
   const auto timeout_ns = static_cast<std::int64_t>(options_.partial_timeout_s * 1e9);
-  if (steadyNs() - m.last_byte_ns < timeout_ns) return;
-  reject("a message was left half sent for " + std::to_string(options_.partial_timeout_s) + " s");
-  closeClient("dropped (a message idle half sent)");
+  if (now - m.last_byte_ns >= timeout_ns) {
+    reject("a message was left half sent for " + std::to_string(options_.partial_timeout_s) + " s");
+    closeClient("dropped (a message idle half sent)");
+    return;
+  }
+  // A message trickling in (a byte now and then, each within the idle timeout) is cut off too:
+  // the whole of it must arrive within the timeout plus its size at kMinReceiveBytesPerSecond.
+  const double bytes = static_cast<double>(kHeaderSize) + (m.in_body ? static_cast<double>(m.body_size) : 0.0);
+  const double allowed_s = options_.partial_timeout_s + bytes / kMinReceiveBytesPerSecond;
+  if (static_cast<double>(now - m.message_start_ns) < allowed_s * 1e9) return;
+  char text[160];
+  std::snprintf(text, sizeof text, "a message of %.0f bytes took longer than %.1f s to arrive (at least %.0f kB/s after the first %.1f s)",
+                bytes, allowed_s, kMinReceiveBytesPerSecond / 1e3, options_.partial_timeout_s);
+  reject(text);
+  closeClient("dropped (a message trickling in)");
 }
 
 void IgtlLink::acceptClients() {

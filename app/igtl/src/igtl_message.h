@@ -49,6 +49,10 @@ io::LoadedVolume decodeImageMessage(const HeaderBytes& header, const std::vector
 /// The voxel spacings an IMAGE may give [mm]: 1 um (the scan readers' smallest voxel side) to
 /// 10 m (no scan's voxel is larger); outside, decodeImageMessage() refuses it with the value.
 inline constexpr double kMinImageSpacing_mm = 1e-3;
+/// The slowest a message may arrive once begun, after LinkOptions::partial_timeout_s [bytes/s]:
+/// a 150 MB CT over a slow network still arrives; a client sending a byte every few seconds
+/// (each within the idle timeout) is cut off.
+inline constexpr double kMinReceiveBytesPerSecond = 1e6;
 inline constexpr double kMaxImageSpacing_mm = 1e4;
 
 }  // namespace vh::igtl::detail

@@ -788,6 +788,33 @@ TEST_F(IgtlLinkServing, HugeDeclaredBodyAllocatesOnlyWhatArrivesAndIdlePartialIs
   close(fd);
 }
 
+// A client trickling a message in, one byte every 0.4 s (each within the 1 s idle timeout), is
+// cut off once the message has taken longer than the timeout plus its size at 1 MB/s, while it
+// is still trickling: before, each byte restarted the idle timer and the link waited as long as
+// the bytes kept coming (1 byte every 2 s was not cut off in 30 s). The check is on what was
+// sent by then, not on a clock: the drop comes before the 40th of the header's 58 bytes.
+TEST_F(IgtlLinkServing, AMessageTricklingInIsCutOff) {
+  LinkOptions options;
+  options.partial_timeout_s = 1.0;
+  auto link = startLink(nullptr, options);
+  ASSERT_NE(link, nullptr);
+  const int fd = connectFrom("127.0.0.1", link->options().port);
+  ASSERT_GE(fd, 0);
+  ASSERT_TRUE(test::waitUntil([&] { return link->status().connected; }));
+  const std::vector<unsigned char> header = bareHeader("STRING", "slow", 10);
+  int sent = 0;
+  for (; sent < 40 && link->status().connected; ++sent) {
+    if (send(fd, header.data() + sent, 1, MSG_NOSIGNAL) != 1) break;
+    std::this_thread::sleep_for(400ms);
+  }
+  EXPECT_LT(sent, 40) << "still connected after 40 bytes over 16 s";
+  ASSERT_TRUE(test::waitUntil([&] { return !link->status().connected; }));
+  bool said = false;
+  for (const std::string& n : link->takeNotices()) said = said || n.find("took longer than") != std::string::npos;
+  EXPECT_TRUE(said);
+  close(fd);
+}
+
 TEST_F(IgtlLinkServing, ImagesRefusedWhenNotAcceptedWithTheirNameEscaped) {
   LinkOptions options;
   options.accept_images = false;

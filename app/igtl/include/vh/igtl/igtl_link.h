@@ -90,7 +90,9 @@ struct LinkOptions {
   bool accept_images = true;
   /// Received volumes kept until taken; an IMAGE arriving while the queue is full is refused.
   std::size_t max_queued_images = 1;
-  /// A message half received with nothing more for this long closes the client [s], > 0.
+  /// A message half received with nothing more for this long closes the client [s], > 0; so
+  /// does one still not whole this long plus its size at 1 MB/s after its first byte (a client
+  /// trickling a byte at a time).
   double partial_timeout_s = 10.0;
   double rate_Hz = 60.0;     ///< Frames per second (one of each message per frame) [Hz], > 0.
   /// The haptic threads' servo rate [Hz]: rate_Hz is clamped to it (the channel holds nothing
