@@ -312,6 +312,7 @@ std::unique_ptr<vh::igtl::IgtlLink> startRunLink(const RunArgs& a, vh::runtime::
   link_options.bind_address = a.igtl_bind;
   link_options.allowed_clients = a.igtl_allow;
   link_options.accept_images = a.igtl_accept_images;
+  link_options.max_queued_images = 0;  // checked and logged as they come: nothing here opens or declines one
   // Every connection, refusal and rejected message is printed as it happens (wire text escaped).
   link_options.on_notice = [](const std::string& notice) { std::cerr << "volume-haptics run: " << notice << std::endl; };
   if (segments != nullptr) {  // ContactState names the segment touched
@@ -394,8 +395,7 @@ int runCommand(const RunArgs& a) {
   if (link) {
     const vh::igtl::LinkStatus st = link->status();
     link->stop();
-    std::size_t volumes = 0;
-    while (link->takeReceivedImage()) ++volumes;  // logged on arrival; a headless run keeps its scene
+    const std::uint64_t volumes = st.images_received;  // logged on arrival; a headless run keeps its scene
     std::cout << "volume-haptics run: OpenIGTLink sent " << st.frames_sent << " frames to " << st.clients
               << (st.clients == 1 ? " client" : " clients") << ", refused " << st.connections_refused
               << " connections and " << st.messages_rejected << " messages, received " << volumes

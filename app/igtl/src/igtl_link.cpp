@@ -706,10 +706,11 @@ void IgtlLink::handleImage() {
   try {
     io::LoadedVolume volume = detail::decodeImageMessage(m.header, m.body);
     const std::array<int, 3> dims = volume.field->geometry().dims;
+    const bool kept = options_.max_queued_images > 0;  // 0: checked and said, nothing kept (a headless run)
     notice("OpenIGTLink: received volume '" + name + "' (" + std::to_string(dims[0]) + " x " + std::to_string(dims[1]) +
-           " x " + std::to_string(dims[2]) + ") from " + m.peer);
+           " x " + std::to_string(dims[2]) + ") from " + m.peer + (kept ? "" : " (checked, not kept)"));
     const std::lock_guard<std::mutex> lock(mutex_);
-    inbox_.push_back(ReceivedImage{std::move(volume), m.peer});
+    if (kept) inbox_.push_back(ReceivedImage{std::move(volume), m.peer});
     ++status_.images_received;
   } catch (const std::exception& e) {
     reject("IMAGE '" + name + "': " + e.what());
@@ -742,7 +743,7 @@ bool IgtlLink::startMessage() {
     const std::lock_guard<std::mutex> lock(mutex_);
     queued = inbox_.size();
   }
-  if (queued >= options_.max_queued_images) {
+  if (options_.max_queued_images > 0 && queued >= options_.max_queued_images) {
     reject(what + ": a volume received before is still waiting to be opened or declined (the image is skipped)");
     return true;
   }

@@ -815,6 +815,35 @@ TEST_F(IgtlLinkServing, AMessageTricklingInIsCutOff) {
   close(fd);
 }
 
+// A link that keeps no volume (max_queued_images 0: a headless run, where nothing opens or
+// declines one) receives, checks and says every IMAGE: three in a row are all received, none
+// refused; with a queue of one, the second and third were refused as "still waiting to be opened
+// or declined" (the check can fail).
+TEST_F(IgtlLinkServing, ALinkThatKeepsNoVolumeReceivesEveryImage) {
+  for (const std::size_t queue : {std::size_t{0}, std::size_t{1}}) {
+    LinkOptions options;
+    options.max_queued_images = queue;
+    auto link = startLink(nullptr, options);
+    ASSERT_NE(link, nullptr);
+    Client client;
+    ASSERT_TRUE(client.connect(link->options().port));
+    for (int n = 0; n < 3; ++n) {
+      ::igtl::ImageMessage::Pointer image = makeImage(obliqueAxes(), Eigen::Vector3d(1, 2, 3));
+      image->Pack();
+      ASSERT_EQ(client.socket().Send(image->GetPackPointer(), image->GetPackSize()), 1);
+    }
+    ASSERT_TRUE(test::waitUntil([&] { return link->status().messages_received == 3; }));
+    if (queue == 0) {
+      EXPECT_EQ(link->status().images_received, 3u);
+      EXPECT_EQ(link->status().messages_rejected, 0u);
+      EXPECT_FALSE(link->takeReceivedImage().has_value()) << "none kept";
+    } else {
+      EXPECT_EQ(link->status().images_received, 1u);
+      EXPECT_EQ(link->status().messages_rejected, 2u);
+    }
+  }
+}
+
 TEST_F(IgtlLinkServing, ImagesRefusedWhenNotAcceptedWithTheirNameEscaped) {
   LinkOptions options;
   options.accept_images = false;

@@ -89,6 +89,8 @@ struct LinkOptions {
   /// notice, their bodies skipped, nothing kept.
   bool accept_images = true;
   /// Received volumes kept until taken; an IMAGE arriving while the queue is full is refused.
+  /// 0: each IMAGE is received, checked and said (the notice), none kept (a headless run, where
+  /// nothing opens or declines a volume, so none waits either).
   std::size_t max_queued_images = 1;
   /// A message half received with nothing more for this long closes the client [s], > 0; so
   /// does one still not whole this long plus its size at 1 MB/s after its first byte (a client
