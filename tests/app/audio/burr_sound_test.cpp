@@ -2,11 +2,16 @@
 // free running and under load against the motor line's numbers, the level against the removal
 // rate, the mixer's bound with alerts on, no clicks at parameter steps, no allocation per
 // block, and the tick-paced WAV writer.
+#include <algorithm>
 #include <cmath>
+#include <csignal>
 #include <filesystem>
 #include <iostream>
 #include <string>
 #include <vector>
+
+#include <sys/resource.h>
+#include <unistd.h>
 
 #include <gtest/gtest.h>
 
@@ -243,6 +248,56 @@ TEST(BurrSound, BadModelIsRefusedNamingTheField) {
 
 // Ticks at a rate that does not divide the sample rate: the file lasts ticks / rate exactly,
 // its rate is the mixer's, and the push lowers its pitch.
+// A WAV whose writing fails (a full disk: the process's file size limit at 64 kB, 2 s of 48 kHz
+// 16-bit sound is 192 kB) or that is abandoned without close() (an exception, a kill) leaves
+// nothing at its path and nothing beside it: before, the first looked like a valid 0.13 s sound
+// and a killed one declared 0 bytes over the audio. A whole one is renamed into place; a link
+// at the path is refused, never replaced.
+TEST(WavWriter, OnlyAWholeSoundIsEverAtItsPath) {
+  const auto dir = std::filesystem::path(VH_TEST_OUTPUT_DIR) / ("wav-" + std::to_string(::getpid()));
+  std::filesystem::remove_all(dir);
+  std::filesystem::create_directories(dir);
+  const std::vector<float> second(48000, 0.25f);
+  {
+    WavWriter whole(dir / "whole.wav", 48000.0);
+    whole.write(second);
+    EXPECT_FALSE(std::filesystem::exists(dir / "whole.wav")) << "not there until whole";
+    whole.close();
+  }
+  EXPECT_EQ(readWav(dir / "whole.wav").frames(), 48000u);
+  {
+    WavWriter abandoned(dir / "abandoned.wav", 48000.0);
+    abandoned.write(second);
+  }  // destroyed without close()
+  EXPECT_FALSE(std::filesystem::exists(dir / "abandoned.wav"));
+  {
+    ::signal(SIGXFSZ, SIG_IGN);
+    rlimit old{};
+    ::getrlimit(RLIMIT_FSIZE, &old);
+    const rlimit small{64 * 1024, old.rlim_max};
+    ::setrlimit(RLIMIT_FSIZE, &small);
+    bool failed = false;
+    try {
+      WavWriter full(dir / "full.wav", 48000.0);
+      full.write(second);
+      full.write(second);
+      full.close();
+    } catch (const std::runtime_error& e) {
+      failed = std::string(e.what()).find("full.wav: cannot write the sound") != std::string::npos;
+    }
+    ::setrlimit(RLIMIT_FSIZE, &old);
+    ::signal(SIGXFSZ, SIG_DFL);
+    EXPECT_TRUE(failed) << "the failed write is an error naming the file";
+  }
+  EXPECT_FALSE(std::filesystem::exists(dir / "full.wav"));
+  std::filesystem::create_symlink(dir / "whole.wav", dir / "link.wav");
+  EXPECT_THROW(WavWriter(dir / "link.wav", 48000.0), std::runtime_error);
+  std::vector<std::string> names;
+  for (const auto& e : std::filesystem::directory_iterator(dir)) names.push_back(e.path().filename().string());
+  std::sort(names.begin(), names.end());
+  EXPECT_EQ(names, (std::vector<std::string>{"link.wav", "whole.wav"})) << "no partial file left beside them";
+}
+
 TEST(TickSoundWriter, WritesTheTicksSoundAtTheirPace) {
   const auto path = std::filesystem::path(VH_TEST_OUTPUT_DIR) / "tick_sound.wav";
   std::filesystem::remove(path);
