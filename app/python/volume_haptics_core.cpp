@@ -132,6 +132,39 @@ py::tuple sessionMetricsTuple(const fs::path& path, double force_threshold_N, do
   return py::make_tuple(identity, values, segments, metrics.notices);
 }
 
+/// The scan's voxels as felt (data units: after rescale, SUV, NIfTI scaling), float64, shape
+/// (nx, ny, nz) indexed [i, j, k] (Fortran order: i fastest, as the grid stores them).
+py::array_t<double> volumeArray(const Scene& s) {
+  const vh::haptics::ScalarVolume& field = *s.loaded->volume.field;
+  const auto& d = field.geometry().dims;
+  py::array_t<double, py::array::f_style> out({static_cast<py::ssize_t>(d[0]), static_cast<py::ssize_t>(d[1]),
+                                               static_cast<py::ssize_t>(d[2])});
+  double* v = out.mutable_data();
+  {
+    py::gil_scoped_release release;
+    std::size_t n = 0;
+    for (int k = 0; k < d[2]; ++k)
+      for (int j = 0; j < d[1]; ++j)
+        for (int i = 0; i < d[0]; ++i) v[n++] = field.voxel(i, j, k);
+  }
+  return out;
+}
+
+/// Index -> patient LPS [m]: 4 x 4, columns the i, j, k axes scaled by the spacing, then the
+/// centre of voxel (0, 0, 0).
+py::array_t<double> affineLps(const Scene& s) {
+  const vh::haptics::VolumeGeometry& g = s.loaded->volume.field->geometry();
+  py::array_t<double> out({4, 4});
+  auto a = out.mutable_unchecked<2>();
+  for (int r = 0; r < 4; ++r)
+    for (int c = 0; c < 4; ++c) a(r, c) = r == c ? 1.0 : 0.0;
+  for (int r = 0; r < 3; ++r) {
+    for (int c = 0; c < 3; ++c) a(r, c) = g.direction_W(r, c) * g.spacing_m[c];
+    a(r, 3) = g.origin_W_m[r];
+  }
+  return out;
+}
+
 /// Scene and the functions that load one.
 void bindScenes(py::module_& m) {
   py::class_<Scene>(m, "Scene",
@@ -139,7 +172,7 @@ void bindScenes(py::module_& m) {
                     "Made by load_scene(). Read-only attributes: source (the file, or \"scene dict\"), volume_dims "
                     "[nx, ny, nz], volume_spacing_m (3 floats [m]), isovalue (data units, as loaded), volume_format "
                     "(\"NIfTI-1\", \"DICOM\", ...), volume_notices (what the loader corrected or chose, one sentence "
-                    "each).")
+                    "each), volume (the voxels as a NumPy array), affine_LPS_m and direction_LPS (where they are).")
       .def_readonly("source", &Scene::source)
       .def_property_readonly("volume_dims", [](const Scene& s) { return s.loaded->volume.field->geometry().dims; })
       .def_property_readonly("volume_spacing_m",
@@ -149,7 +182,25 @@ void bindScenes(py::module_& m) {
                              })
       .def_property_readonly("isovalue", [](const Scene& s) { return s.loaded->isovalue; })
       .def_property_readonly("volume_notices", [](const Scene& s) { return s.loaded->volume.info.notices; })
-      .def_property_readonly("volume_format", [](const Scene& s) { return s.loaded->volume.info.format; });
+      .def_property_readonly("volume_format", [](const Scene& s) { return s.loaded->volume.info.format; })
+      .def_property_readonly("volume", &volumeArray,
+                             "The scan's voxels as felt (data units: after rescale, SUV or NIfTI scaling), a new "
+                             "float64 array of shape (nx, ny, nz) indexed [i, j, k]; voxel (i, j, k) is centred at "
+                             "affine_LPS_m @ [i, j, k, 1].")
+      .def_property_readonly("affine_LPS_m", &affineLps,
+                             "Index -> patient LPS [m], 4 x 4: the voxel centre of (i, j, k) is affine_LPS_m @ "
+                             "[i, j, k, 1] (voxel centres at integer indices; columns 0..2 the i, j, k axes times "
+                             "the spacing, column 3 the centre of voxel (0, 0, 0)). The frame the tool is run in.")
+      .def_property_readonly("direction_LPS",
+                             [](const Scene& s) {
+                               const auto& D = s.loaded->volume.field->geometry().direction_W;
+                               py::array_t<double> out({3, 3});
+                               auto a = out.mutable_unchecked<2>();
+                               for (int r = 0; r < 3; ++r)
+                                 for (int c = 0; c < 3; ++c) a(r, c) = D(r, c);
+                               return out;
+                             },
+                             "The grid's axes in patient LPS, 3 x 3 (columns: unit i, j, k directions).");
 
   m.def("load_scene_file", [](const fs::path& path) { return loadScene(vh::runtime::loadSceneFile(path), path.string()); },
         py::arg("path"));
