@@ -4,6 +4,7 @@
 // study scripted in Python gets the same ticks, numbers and error messages as the command line.
 // The Python-facing API, its docstrings and the NumPy / pandas views are in
 // volume_haptics/__init__.py.
+#include <cmath>
 #include <cstring>
 #include <filesystem>
 #include <limits>
@@ -20,6 +21,7 @@
 #include "vh/runtime/recording.h"
 #include "vh/runtime/runner.h"
 #include "vh/runtime/scene.h"
+#include "vh/runtime/session_metadata.h"
 #include "vh/runtime/session_metrics.h"
 #include "vh/runtime/trajectory.h"
 
@@ -165,6 +167,56 @@ py::array_t<double> affineLps(const Scene& s) {
   return out;
 }
 
+/// A volume from a NumPy array (nx, ny, nz) indexed [i, j, k] placed by `affine` (4 x 4, index
+/// -> patient LPS [m], voxel centres at integer indices), stored as float32 (as a float NIfTI).
+/// @throws std::invalid_argument (ValueError) for another shape, fewer than 2 voxels along an
+///         axis, values that are not finite, an affine that is not finite, not [.. ; 0 0 0 1],
+///         sheared, or with a voxel side below 1 um.
+vh::io::LoadedVolume volumeOfArray(const py::array_t<double, py::array::f_style | py::array::forcecast>& values,
+                                   const py::array_t<double, py::array::c_style | py::array::forcecast>& affine) {
+  if (values.ndim() != 3) throw std::invalid_argument("volume array: expected 3 dimensions (nx, ny, nz)");
+  if (affine.ndim() != 2 || affine.shape(0) != 4 || affine.shape(1) != 4)
+    throw std::invalid_argument("volume affine_LPS_m: expected a 4 x 4 array");
+  vh::haptics::VolumeGeometry g;
+  for (int a = 0; a < 3; ++a) {
+    if (values.shape(a) < 2 || values.shape(a) > 100000)
+      throw std::invalid_argument("volume array: " + std::to_string(values.shape(a)) + " voxels along axis " +
+                                  std::to_string(a) + " (2 to 100000)");
+    g.dims[static_cast<std::size_t>(a)] = static_cast<int>(values.shape(a));
+  }
+  Eigen::Matrix4d A;
+  const auto a4 = affine.unchecked<2>();
+  for (int r = 0; r < 4; ++r)
+    for (int c = 0; c < 4; ++c) A(r, c) = a4(r, c);
+  if (!A.allFinite() || A.row(3) != Eigen::RowVector4d(0, 0, 0, 1))
+    throw std::invalid_argument("volume affine_LPS_m: expected finite numbers with a last row of 0 0 0 1");
+  for (int a = 0; a < 3; ++a) {
+    const double side_m = A.block<3, 1>(0, a).norm();
+    if (!(side_m >= vh::io::kMinVoxelSide_m))
+      throw std::invalid_argument("volume affine_LPS_m: voxel side " + std::to_string(side_m) + " m along axis " +
+                                  std::to_string(a) + " (at least 1 um)");
+    g.spacing_m[a] = side_m;
+    g.direction_W.col(a) = A.block<3, 1>(0, a) / side_m;
+  }
+  if (!(g.direction_W.transpose() * g.direction_W).isApprox(Eigen::Matrix3d::Identity(), 1e-9))
+    throw std::invalid_argument("volume affine_LPS_m: the axes are not orthogonal (sheared grids are not supported)");
+  g.origin_W_m = A.block<3, 1>(0, 3);
+  std::vector<float> voxels(g.voxelCount());
+  const double* v = values.data();
+  for (std::size_t n = 0; n < voxels.size(); ++n) {
+    if (!std::isfinite(v[n])) throw std::invalid_argument("volume array: holds NaN or infinite values");
+    voxels[n] = static_cast<float>(v[n]);
+  }
+  auto field = std::make_shared<const vh::haptics::ScalarVolume>(vh::haptics::ScalarVolume::FromVoxels(g, voxels));
+  vh::io::LoadedVolume volume;
+  volume.image = vh::io::imageFromField(field);
+  volume.field = std::move(field);
+  volume.info.source = "array";
+  volume.info.format = "NumPy array";
+  volume.info.description = "array";
+  return volume;
+}
+
 /// Scene and the functions that load one.
 void bindScenes(py::module_& m) {
   py::class_<Scene>(m, "Scene",
@@ -210,6 +262,23 @@ void bindScenes(py::module_& m) {
         return loadScene(vh::runtime::parseScene(json_text, source, base_dir), source);
       },
       py::arg("json_text"), py::arg("source"), py::arg("base_dir"));
+  m.def(
+      "load_scene_array",
+      [](const std::string& json_text, const std::string& source, const fs::path& base_dir,
+         const py::array_t<double, py::array::f_style | py::array::forcecast>& values,
+         const py::array_t<double, py::array::c_style | py::array::forcecast>& affine) {
+        vh::io::LoadedVolume volume = volumeOfArray(values, affine);
+        // The text's volume path is a stand-in (a built-in the parser takes without a file): the
+        // array is the volume, named so in reports.
+        vh::runtime::SceneSpec spec = vh::runtime::parseScene(json_text, source, base_dir);
+        spec.volume.path = vh::runtime::kArrayVolumePath;
+        Scene s;
+        s.source = source;
+        py::gil_scoped_release release;
+        s.loaded = std::make_shared<const vh::runtime::LoadedScene>(vh::runtime::loadScene(spec, std::move(volume)));
+        return s;
+      },
+      py::arg("json_text"), py::arg("source"), py::arg("base_dir"), py::arg("values"), py::arg("affine_LPS_m"));
 }
 
 /// run() and read_recording(): a headless run's report and recording, and a recording read.

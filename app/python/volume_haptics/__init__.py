@@ -72,7 +72,11 @@ def _ticks(raw: np.ndarray) -> np.ndarray:
 
 def load_scene(scene: Union[str, "os.PathLike[str]", Dict[str, Any]], base_dir: Union[str, "os.PathLike[str]", None] = None) -> Scene:
     """Loads a scene: a scene .json file, or a dict with the file's keys (volume, tool, coupling,
-    segmentation, drill; see docs/command-line.md, "Scene files").
+    segmentation, drill; see docs/command-line.md, "Scene files"). The dict's volume may be an
+    array instead of a file: {"array": a, "affine_LPS_m": A, "isovalue": s}, `a` (nx, ny, nz)
+    indexed [i, j, k] in data units, `A` the 4 x 4 index -> patient LPS [m] (voxel centres at
+    integer indices; Scene.volume and Scene.affine_LPS_m give them back). Raises ValueError for
+    an array or affine it cannot place (shape, NaN, shear, voxels below 1 um).
 
     base_dir: where a dict's relative paths resolve first (default: the current folder), then the
     shared datasets and the generated data, as for a scene file's folder.
@@ -82,6 +86,20 @@ def load_scene(scene: Union[str, "os.PathLike[str]", Dict[str, Any]], base_dir: 
     if isinstance(scene, Scene):
         return scene
     if isinstance(scene, dict):
+        volume = scene.get("volume")
+        if isinstance(volume, dict) and "array" in volume:
+            # A volume made in Python: {"array": (nx, ny, nz) values indexed [i, j, k],
+            # "affine_LPS_m": 4 x 4 index -> patient LPS [m], voxel centres at integer indices},
+            # felt as it is (no file written). The rest of the scene as from a file.
+            rest = {k: v for k, v in volume.items() if k not in ("array", "affine_LPS_m")}
+            if "affine_LPS_m" not in volume:
+                raise ValueError("volume: an array needs its affine_LPS_m (4 x 4, index -> patient LPS [m])")
+            # The scene text names a built-in volume in the array's place (a path the parser takes
+            # without a file); load_scene_array() replaces it with the array.
+            text = json.dumps(dict(scene, volume=dict(rest, path="builtin:plane")))
+            return _core.load_scene_array(text, "scene dict", os.fspath(base_dir or os.getcwd()),
+                                          np.asarray(volume["array"], dtype=np.float64),
+                                          np.asarray(volume["affine_LPS_m"], dtype=np.float64))
         return _core.load_scene_json(json.dumps(scene), "scene dict", os.fspath(base_dir or os.getcwd()))
     return _core.load_scene_file(os.fspath(scene))
 

@@ -405,7 +405,15 @@ json sceneJson(const LoadedScene& scene, const LiveValues& live) {
 /// The dataset: its path, checksum, grid, format and what the loader said of it.
 json datasetJson(const LoadedScene& scene) {
   const SceneSpec& spec = scene.spec;
-  const DatasetChecksum checksum = datasetChecksum(spec.volume.path);
+  // A volume given as an array (Python's load_scene) has no file: its voxels' SHA-256 stands in.
+  DatasetChecksum checksum;
+  if (spec.volume.path == kArrayVolumePath && scene.volume.field != nullptr) {
+    Sha256 sha;
+    sha.update(scene.volume.field->bytes().data(), scene.volume.field->bytes().size());
+    checksum = {"array", sha.hexDigest(), {}};
+  } else {
+    checksum = datasetChecksum(spec.volume.path);
+  }
   json ds;
   ds["path"] = spec.volume.path;
   ds["kind"] = checksum.kind;

@@ -233,3 +233,43 @@ def test_scene_volume_is_where_nibabel_puts_it(tmp_path):
     assert n == raw.size
     # Not a copy of the raw ints: the scaling is applied as nibabel applies it.
     assert values.max() == pytest.approx(0.5 * raw.max() - 10.0)
+
+
+def test_an_array_is_felt_as_the_same_volume_from_a_file(tmp_path):
+    """A ball written to NIfTI by nibabel and the same voxels given as an array with the
+    affine Scene gives back: the same ticks, force for force; a sheared affine or NaN voxels
+    are refused naming the problem."""
+    nib = pytest.importorskip("nibabel")
+    shape = (40, 40, 40)
+    i, j, k = np.meshgrid(*[np.arange(n) for n in shape], indexing="ij")
+    ball = (100.0 - np.sqrt((i - 19.5) ** 2 + (j - 19.5) ** 2 + (k - 19.5) ** 2) * 1.0).astype(np.float32)
+    A = np.diag([1.0, 1.0, 1.0, 1.0])
+    A[:3, 3] = [-19.5, -19.5, -19.5]
+    img = nib.Nifti1Image(ball, A)
+    img.header.set_xyzt_units("mm")
+    path = tmp_path / "ball.nii"
+    nib.save(img, str(path))
+    tool = {"mesh": "builtin:probe", "point_spacing_m": 0.001}
+    from_file = vh.load_scene({"volume": {"path": str(path), "isovalue": 90}, "tool": tool})
+    from_array = vh.load_scene({"volume": {"array": from_file.volume, "affine_LPS_m": from_file.affine_LPS_m,
+                                           "isovalue": 90}, "tool": tool})
+    assert from_array.volume_format == "NumPy array"
+    assert np.array_equal(from_array.volume, from_file.volume)
+    assert np.array_equal(np.asarray(from_array.affine_LPS_m), np.asarray(from_file.affine_LPS_m))
+    # Down onto the ball's top (radius 10 mm at the isovalue 90) and pressed 3 mm in.
+    t = np.array([[0.0, 0.0, 0.0, 0.030, 1, 0, 0, 0],
+                  [0.5, 0.0, 0.0, 0.007, 1, 0, 0, 0],
+                  [1.0, 0.0, 0.0, 0.007, 1, 0, 0, 0]])
+    a = vh.run(from_file, t, verify_step_voxels=0, lag_reference=False)
+    b = vh.run(from_array, t, verify_step_voxels=0, lag_reference=False)
+    assert np.linalg.norm(a.force_N, axis=1).max() > 0.5, "the tool pressed on the ball"
+    assert np.array_equal(a.force_N, b.force_N) and np.array_equal(a.proxy_pose, b.proxy_pose)
+
+    sheared = np.asarray(from_file.affine_LPS_m).copy()
+    sheared[0, 1] = 0.0005
+    with pytest.raises(ValueError, match="not orthogonal"):
+        vh.load_scene({"volume": {"array": from_file.volume, "affine_LPS_m": sheared}, "tool": tool})
+    holed = from_file.volume.copy()
+    holed[3, 4, 5] = np.nan
+    with pytest.raises(ValueError, match="NaN"):
+        vh.load_scene({"volume": {"array": holed, "affine_LPS_m": from_file.affine_LPS_m}, "tool": tool})

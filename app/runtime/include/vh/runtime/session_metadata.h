@@ -61,10 +61,14 @@ struct SessionInfo {
 
 /// A dataset's identity: what the checksum covers and its SHA-256 (hex, lower case).
 struct DatasetChecksum {
-  std::string kind;                         ///< "dicom-folder", "nrrd", "metaimage", "file", "builtin".
+  std::string kind;                         ///< "dicom-folder", "nrrd", "metaimage", "file", "builtin", "array".
   std::string sha256;                       ///< Hex digest (64 characters).
   std::vector<std::string> files;           ///< Files covered (relative to the folder / header's folder).
 };
+
+/// The volume path of a scene whose volume was given as an array (Python's load_scene(): no file);
+/// its metadata's dataset checksum is the SHA-256 of the voxels' bytes (kind "array").
+inline constexpr const char* kArrayVolumePath = "array";
 
 /// The checksum of a volume path as documented above (cached per path, total size and newest
 /// modification time). Any thread but the servo thread; thread-safe.
