@@ -17,6 +17,7 @@
 #include <map>
 #include <sstream>
 #include <thread>
+#include <utility>
 
 #include <Eigen/Geometry>
 #include <gtest/gtest.h>
@@ -751,12 +752,19 @@ TEST_F(IgtlLinkServing, RefusesClientsNotAllowed) {
   close(friendly);
 }
 
-TEST_F(IgtlLinkServing, HugeDeclaredBodyAllocatesOnlyWhatArrivesAndIdlePartialIsDropped) {
+/// A link whose half-sent messages time out after 1 s, and a raw socket connected to it (-1
+/// when it could not connect).
+std::pair<std::unique_ptr<IgtlLink>, int> linkWithOneSecondPartialTimeout() {
   LinkOptions options;
   options.partial_timeout_s = 1.0;
   auto link = startLink(nullptr, options);
+  const int fd = link != nullptr ? connectFrom("127.0.0.1", link->options().port) : -1;
+  return {std::move(link), fd};
+}
+
+TEST_F(IgtlLinkServing, HugeDeclaredBodyAllocatesOnlyWhatArrivesAndIdlePartialIsDropped) {
+  auto [link, fd] = linkWithOneSecondPartialTimeout();
   ASSERT_NE(link, nullptr);
-  const int fd = connectFrom("127.0.0.1", link->options().port);
   ASSERT_GE(fd, 0);
   const std::int64_t rss_before = residentBytes();
   std::vector<unsigned char> bytes = bareHeader("IMAGE", "Big", std::uint64_t{1} << 30);
@@ -794,11 +802,8 @@ TEST_F(IgtlLinkServing, HugeDeclaredBodyAllocatesOnlyWhatArrivesAndIdlePartialIs
 // the bytes kept coming (1 byte every 2 s was not cut off in 30 s). The check is on what was
 // sent by then, not on a clock: the drop comes before the 40th of the header's 58 bytes.
 TEST_F(IgtlLinkServing, AMessageTricklingInIsCutOff) {
-  LinkOptions options;
-  options.partial_timeout_s = 1.0;
-  auto link = startLink(nullptr, options);
+  auto [link, fd] = linkWithOneSecondPartialTimeout();
   ASSERT_NE(link, nullptr);
-  const int fd = connectFrom("127.0.0.1", link->options().port);
   ASSERT_GE(fd, 0);
   ASSERT_TRUE(test::waitUntil([&] { return link->status().connected; }));
   const std::vector<unsigned char> header = bareHeader("STRING", "slow", 10);
