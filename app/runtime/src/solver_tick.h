@@ -131,9 +131,9 @@ inline void renderSolverSample(SolverState& st, const CouplingSample& in, haptic
             JamDetector::candidate(X_WP_before, renderer.proxyPose(), in.X_WD, tool.mass.p_TCm_m,
                                    static_cast<int>(renderer.contacts().size())) &&
             countPointsInside(renderer.volume(), tool.point_shell, in.X_WD, renderer.feltIsovalue()) == 0;
+  if (drill != nullptr) t.shaft_only = !t.bad_input && !renderer.contacts().empty() && !drill->burrTouches(renderer);
   // seq_cst with solver_ticks_: holdCutting()'s handshake (a tick that starts after the one it
   // waited for sees the hold).
-  if (drill != nullptr) t.shaft_only = !t.bad_input && !renderer.contacts().empty() && !drill->burrTouches(renderer);
   if (drill != nullptr && !cutting_held.load(std::memory_order_seq_cst) &&
       (drilling.load(std::memory_order_relaxed) || in.drill_button)) {
     t.cut = drill->step(renderer, t.out);
