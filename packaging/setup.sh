@@ -26,6 +26,8 @@ packages=(cmake ninja-build g++ mold pkg-config libeigen3-dev libgtest-dev libgm
   qt6-base-dev libqt6opengl6-dev qt6-charts-dev libhidapi-dev libusb-1.0-0-dev
   zlib1g-dev libssl-dev zstd xvfb xauth libgl1-mesa-dri umockdev libumockdev-dev libopenigtlink-dev
   libsndfile1-dev qt6-multimedia-dev libvorbis-dev libogg-dev)
+# Recordings as HDF5 files (export --hdf5): the HDF5 library, serial build.
+packages+=(libhdf5-dev)
 # Soft tissue (app/tissue): Spectra's eigensolvers for the modal model, header-only.
 packages+=(libspectra-dev)
 # The Python module volume_haptics (app/python): pybind11, the system Python's headers, NumPy.

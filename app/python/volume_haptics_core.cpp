@@ -19,6 +19,7 @@
 
 #include "vh/io/volume_loader.h"
 #include "vh/runtime/recording.h"
+#include "vh/runtime/recording_hdf5.h"
 #include "vh/runtime/runner.h"
 #include "vh/runtime/scene.h"
 #include "vh/runtime/session_metadata.h"
@@ -98,7 +99,36 @@ py::tuple recordingTuple(const vh::runtime::Recording& r) {
   py::list events;
   for (const auto& e : r.events) events.append(py::make_tuple(e.time_s, e.tick, e.type, e.detail_json));
   return py::make_tuple(r.version, r.metadata_json, recordBytes(r.records), events, r.warnings, r.chunks,
-                        r.dropped_records, r.bytes_ignored);
+                        r.dropped_records, r.bytes_ignored, r.event_chunks, r.damaged_regions, r.ended, r.end_status);
+}
+
+/// The inverse of recordingTuple(): a Recording from a Python Recording's fields.
+/// @throws std::invalid_argument when the tick bytes are not whole TickRecords.
+vh::runtime::Recording recordingOf(const py::tuple& t) {
+  if (t.size() != 12) throw std::invalid_argument("recording: expected the 12 fields of read_recording()");
+  vh::runtime::Recording r;
+  r.version = t[0].cast<std::uint32_t>();
+  r.metadata_json = t[1].cast<std::string>();
+  const std::string bytes = t[2].cast<py::bytes>();
+  if (bytes.size() % sizeof(TickRecord) != 0)
+    throw std::invalid_argument("recording: the ticks are " + std::to_string(bytes.size()) + " bytes, not a multiple of " +
+                                std::to_string(sizeof(TickRecord)));
+  r.records.resize(bytes.size() / sizeof(TickRecord));
+  if (!bytes.empty()) std::memcpy(r.records.data(), bytes.data(), bytes.size());
+  for (const py::handle e : t[3].cast<py::list>()) {
+    const auto ev = e.cast<py::tuple>();
+    r.events.push_back({ev[0].cast<double>(), ev[1].cast<std::uint64_t>(), ev[2].cast<std::string>(),
+                        ev[3].cast<std::string>()});
+  }
+  r.warnings = t[4].cast<std::vector<std::string>>();
+  r.chunks = t[5].cast<std::size_t>();
+  r.dropped_records = t[6].cast<std::uint64_t>();
+  r.bytes_ignored = t[7].cast<std::uint64_t>();
+  r.event_chunks = t[8].cast<std::size_t>();
+  r.damaged_regions = t[9].cast<std::size_t>();
+  r.ended = t[10].cast<bool>();
+  r.end_status = t[11].cast<std::uint32_t>();
+  return r;
 }
 
 /// A recording's session metrics (`report --table`'s): (identity dict, [(key, label, unit,
@@ -318,6 +348,19 @@ void bindRuns(py::module_& m) {
         return recordingTuple(r);
       },
       py::arg("path"));
+
+  m.def(
+      "write_recording_hdf5",
+      [](const py::tuple& recording, const fs::path& path, bool volume) {
+        const vh::runtime::Recording r = recordingOf(recording);
+        py::gil_scoped_release release;
+        if (!volume) {
+          vh::runtime::writeRecordingHdf5(r, path);
+          return std::string();
+        }
+        return vh::runtime::writeRecordingHdf5WithVolume(r, path);
+      },
+      py::arg("recording"), py::arg("path"), py::arg("volume"));
 }
 
 /// Trajectories: write, read and check (N x 8 or 9 arrays).

@@ -5,7 +5,8 @@
 //   volume-haptics run --scene S.json --trajectory T.csv [--report R.json] [--check] [--record R.vhrec] [--verify-step V]
 //                      [--audio OUT.wav]
 //                      [--igtl-port N [--igtl-rate HZ] [--igtl-bind A] [--igtl-allow A,...] [--igtl-accept-images]]
-//   volume-haptics export R.vhrec [--csv C] [--json J] [--events-csv E] [--video V.ogv [--no-audio]] [--png P --at-s T]
+//   volume-haptics export R.vhrec [--csv C] [--json J] [--events-csv E] [--hdf5 H.h5 [--hdf5-volume]]
+//                         [--video V.ogv [--no-audio]] [--png P --at-s T]
 //   volume-haptics report R.vhrec --html OUT.html [--reference E.vhrec] | report DIR --table OUT.csv
 //   volume-haptics make-trajectory --scene S.json --out T.csv [...]
 //   volume-haptics bench table1|accuracy|stability|drilling|bigscan|render|memory [--short] [--out DIR]   benchmarks
@@ -43,6 +44,7 @@
 #include "vh/runtime/placement.h"
 #include "vh/runtime/anonymize.h"
 #include "vh/runtime/recording.h"
+#include "vh/runtime/recording_hdf5.h"
 #include "vh/runtime/runner.h"
 #include "vh/runtime/session_metadata.h"
 #include "vh/runtime/scene.h"
@@ -477,17 +479,27 @@ struct ExportArgs {
   std::string csv;
   std::string json;
   std::string events_csv;
+  std::string hdf5;
+  bool hdf5_volume = false;
   bool anonymize = false;
   vh::ui::MediaExportOptions media;
 };
 
 CLI::App* addExportSubcommand(CLI::App& app, ExportArgs& a) {
-  CLI::App* export_cmd = app.add_subcommand("export", "Export a session recording (.vhrec) as CSV (one row per tick, "
-                                               "SI units) and/or JSON metadata; damage and an unfinished recording are reported");
+  CLI::App* export_cmd = app.add_subcommand("export", "Export a session recording (.vhrec, or one exported as HDF5) "
+                                               "as CSV (one row per tick, SI units), JSON metadata and/or one HDF5 file; "
+                                               "damage and an unfinished recording are reported");
   export_cmd->add_option("recording", a.recording, "Recording file (.vhrec)")->required();
   export_cmd->add_option("--csv", a.csv, "CSV to write: one row per tick, units in the header");
   export_cmd->add_option("--json", a.json, "JSON to write: the session metadata, a summary and the events");
   export_cmd->add_option("--events-csv", a.events_csv, "CSV to write: one row per event (t_s,tick,type,detail_json)");
+  export_cmd->add_option("--hdf5", a.hdf5,
+                         "HDF5 file to write: the ticks as one dataset per --csv column (units in attributes), the "
+                         "events, markers, metadata and scene (layout: docs/python.md); a regular file, not \"-\"");
+  export_cmd->add_flag("--hdf5-volume", a.hdf5_volume,
+                       "With --hdf5: also the scan as felt (/volume/scan, with its index -> patient LPS affine) and, "
+                       "with a drill, the drilled field at the end (/volume/drilled, from a replay); needs the "
+                       "recording's dataset, unchanged");
   export_cmd->add_flag("--anonymize", a.anonymize,
                        "Leave out of --csv, --json and --events-csv what identifies the patient (DICOM PS3.15 "
                        "Annex E, for the fields a recording keeps): paths and file names become ANONYMIZED, the "
@@ -532,14 +544,24 @@ int exportCommand(int argc, char** argv, const ExportArgs& a) {
   prepareOutputFolder(a.csv, "--csv");
   prepareOutputFolder(a.json, "--json");
   prepareOutputFolder(a.events_csv, "--events-csv");
+  prepareOutputFolder(a.hdf5, "--hdf5");
+  if (a.hdf5_volume && a.hdf5.empty()) throw std::runtime_error("export --hdf5-volume needs --hdf5 FILE");
   prepareOutputFolder(a.media.video, "--video");
   prepareOutputFolder(a.media.png, "--png");
   vh::runtime::Recording recording = vh::runtime::readRecording(a.recording);
   for (const std::string& w : recording.warnings) std::cerr << "volume-haptics export: warning: " << w << std::endl;
+  const std::string recorded_metadata = recording.metadata_json;  // names the dataset --hdf5-volume loads
   if (a.anonymize) vh::runtime::anonymizeRecording(recording, a.recording);
   if (!a.csv.empty()) vh::runtime::writeRecordingCsv(recording, std::filesystem::path(a.csv));
   if (!a.json.empty()) vh::runtime::writeRecordingJson(recording, a.json);
   if (!a.events_csv.empty()) vh::runtime::writeRecordingEventsCsv(recording, std::filesystem::path(a.events_csv));
+  if (!a.hdf5.empty() && !a.hdf5_volume) vh::runtime::writeRecordingHdf5(recording, a.hdf5);
+  if (!a.hdf5.empty() && a.hdf5_volume) {
+    const std::string difference = vh::runtime::writeRecordingHdf5WithVolume(recording, a.hdf5, recorded_metadata);
+    if (!difference.empty())
+      std::cerr << "volume-haptics export: warning: --hdf5-volume: " << difference
+                << "; the drilled field is left out of " << a.hdf5 << std::endl;
+  }
   if (!a.media.video.empty() || !a.media.png.empty()) {
     if (vh::ui::exportRecordingMedia(argc, argv, a.recording, a.media) != 0) return kExitError;
   }

@@ -181,14 +181,16 @@ def run(scene, trajectory, *, servo_rate_Hz: float = 1000.0, verify_step_voxels:
 
 @dataclass
 class Recording:
-    """A session recording (.vhrec) as read back (``volume-haptics export``).
+    """A session recording (.vhrec, or its HDF5 export) as read back (``volume-haptics export``).
 
     ticks: structured array (N,) of TICK_DTYPE, one per servo tick (the ``export --csv`` rows).
     events: list of dicts {"t_s", "tick", "type", "detail"} (detail: the event's JSON object).
     metadata: the header's JSON object (scene, dataset and its SHA-256, tool, gains, device, ...).
     scene: metadata["scene"], the scene description (or None).
     warnings: a truncated or damaged tail, one sentence each (empty for a clean file).
-    version, chunks, dropped_records, bytes_ignored: as ``export`` reports them.
+    version, chunks, dropped_records, bytes_ignored: as ``export`` reports them; event_chunks,
+    damaged_regions, ended (the writer closed the file) and end_status (0, or the errno of the
+    write failure that ended it): the rest of what the reader found.
     """
     ticks: np.ndarray
     events: List[Dict[str, Any]]
@@ -198,6 +200,10 @@ class Recording:
     chunks: int
     dropped_records: int
     bytes_ignored: int
+    event_chunks: int = 0
+    damaged_regions: int = 0
+    ended: bool = False
+    end_status: int = 0
 
     @property
     def scene(self) -> Optional[Dict[str, Any]]:
@@ -209,17 +215,43 @@ class Recording:
         import pandas as pd
         return pd.DataFrame({c: self.ticks[c] for c in CSV_COLUMNS})
 
+    def to_hdf5(self, path: Union[str, "os.PathLike[str]"], *, volume: bool = False) -> str:
+        """Writes this recording as one HDF5 file (``export --hdf5``; layout in docs/python.md):
+        /ticks/<column> one dataset per TICK_DTYPE field (unit and description attributes),
+        /events, /markers, /metadata and /scene (JSON text), /warnings. read_recording() of the
+        file gives this recording back, field for field.
 
-def read_recording(path: Union[str, "os.PathLike[str]"]) -> Recording:
-    """Reads a session recording (.vhrec) up to its last good chunk (see Recording).
-    Raises RuntimeError (not a recording, unsupported version, damaged header) with the
-    command line's message."""
-    version, metadata, raw, events, warnings, chunks, dropped, ignored = _core.read_recording(os.fspath(path))
+        volume: also /volume/scan, the scan as felt with its affine_LPS_m, and with a drill
+        /volume/drilled, the field a replay carved by the end (``export --hdf5-volume``); needs
+        the recording's dataset, unchanged, where its metadata says.
+        Returns "" or, when the replay parted from the recording, why (the drilled field is then
+        left out). Raises RuntimeError (a target that is not a regular file, a full disk, the
+        dataset missing or changed), ValueError for ticks that are not whole records."""
+        events = [(float(e["t_s"]), int(e["tick"]), str(e["type"]), json.dumps(e["detail"]) if e["detail"] else "")
+                  for e in self.events]
+        fields = (int(self.version), json.dumps(self.metadata) if self.metadata else "",
+                  np.ascontiguousarray(self.ticks, dtype=TICK_DTYPE).tobytes(), events, list(self.warnings),
+                  int(self.chunks), int(self.dropped_records), int(self.bytes_ignored), int(self.event_chunks),
+                  int(self.damaged_regions), bool(self.ended), int(self.end_status))
+        return _core.write_recording_hdf5(fields, os.fspath(path), bool(volume))
+
+
+def _recording(fields) -> Recording:
+    version, metadata, raw, events, warnings, chunks, dropped, ignored, event_chunks, damaged, ended, status = fields
     return Recording(
         ticks=_ticks(raw),
         events=[{"t_s": t, "tick": k, "type": ty, "detail": json.loads(d) if d else {}} for t, k, ty, d in events],
         metadata=json.loads(metadata) if metadata else {}, warnings=list(warnings), version=version, chunks=chunks,
-        dropped_records=dropped, bytes_ignored=ignored)
+        dropped_records=dropped, bytes_ignored=ignored, event_chunks=event_chunks, damaged_regions=damaged,
+        ended=ended, end_status=status)
+
+
+def read_recording(path: Union[str, "os.PathLike[str]"]) -> Recording:
+    """Reads a session recording (.vhrec up to its last good chunk, or an HDF5 file written by
+    ``export --hdf5`` / Recording.to_hdf5(), recognised by its signature; see Recording).
+    Raises RuntimeError (not a recording, unsupported version, damaged header) with the
+    command line's message."""
+    return _recording(_core.read_recording(os.fspath(path)))
 
 
 def write_trajectory(path: Union[str, "os.PathLike[str]"], trajectory) -> None:

@@ -3,6 +3,8 @@
 #include "vh/runtime/recording.h"
 
 #include "vh/runtime/jam_detector.h"
+#include "vh/runtime/recording_hdf5.h"
+#include "recording_internal.h"
 #include "vh/runtime/technique.h"
 
 #include <algorithm>
@@ -473,6 +475,35 @@ void RecordingWriter::close() {
   }
 }
 
+/// The deepest nesting of arrays and objects in JSON text `text` (brackets inside strings not
+/// counted); O(n), no parse. Any text: what is not JSON gives some depth, and the parse says the rest.
+std::size_t jsonNestingDepth(std::string_view text) noexcept {
+  std::size_t depth = 0, deepest = 0;
+  bool in_string = false, escaped = false;
+  for (const char c : text) {
+    if (in_string) {
+      if (escaped) escaped = false;
+      else if (c == '\\') escaped = true;
+      else if (c == '"') in_string = false;
+      continue;
+    }
+    if (c == '"') in_string = true;
+    else if (c == '[' || c == '{') deepest = std::max(deepest, ++depth);
+    else if ((c == ']' || c == '}') && depth > 0) --depth;
+  }
+  return deepest;
+}
+
+void dropTooDeepEvents(const std::string& where, Recording& rec) {
+  // Events whose detail nests deeper than anything written here are dropped, and said.
+  const auto too_deep = [](const RecordingEvent& e) { return jsonNestingDepth(e.detail_json) > kMaxRecordingJsonDepth; };
+  if (const auto dropped = std::count_if(rec.events.begin(), rec.events.end(), too_deep); dropped > 0) {
+    rec.events.erase(std::remove_if(rec.events.begin(), rec.events.end(), too_deep), rec.events.end());
+    rec.warnings.push_back(where + std::to_string(dropped) + " event(s) dropped: their detail is JSON nested deeper than " +
+                           std::to_string(kMaxRecordingJsonDepth) + " levels");
+  }
+}
+
 // ---- Reader ----------------------------------------------------------------------------------------
 
 namespace {
@@ -495,24 +526,6 @@ std::string readWholeFile(const std::filesystem::path& path) {
   return bytes;
 }
 
-/// The deepest nesting of arrays and objects in JSON text `text` (brackets inside strings not
-/// counted); O(n), no parse. Any text: what is not JSON gives some depth, and the parse says the rest.
-std::size_t jsonNestingDepth(std::string_view text) noexcept {
-  std::size_t depth = 0, deepest = 0;
-  bool in_string = false, escaped = false;
-  for (const char c : text) {
-    if (in_string) {
-      if (escaped) escaped = false;
-      else if (c == '\\') escaped = true;
-      else if (c == '"') in_string = false;
-      continue;
-    }
-    if (c == '"') in_string = true;
-    else if (c == '[' || c == '{') deepest = std::max(deepest, ++depth);
-    else if ((c == ']' || c == '}') && depth > 0) --depth;
-  }
-  return deepest;
-}
 
 /// Checks the file header and the metadata, sets rec.version and rec.metadata_json.
 /// @return the offset of the first chunk. @throws std::runtime_error as readRecording().
@@ -715,6 +728,7 @@ void endWarnings(const std::uint64_t records_in_end_marker, Recording& rec) {
 }  // namespace
 
 Recording readRecording(const std::filesystem::path& path) {
+  if (isHdf5File(path)) return readRecordingHdf5(path);
   const std::string bytes = readWholeFile(path);
   const auto* data = reinterpret_cast<const unsigned char*>(bytes.data());
   const std::size_t size = bytes.size();
@@ -753,13 +767,7 @@ Recording readRecording(const std::filesystem::path& path) {
   for (const Damage& d : damages) rec.warnings.push_back(damageWarning(where, d, rec, records_in_end_marker));
   if (!tail_warning.empty()) rec.warnings.push_back(tail_warning);
   endWarnings(records_in_end_marker, rec);
-  // Events whose detail nests deeper than anything written here are dropped, and said.
-  const auto too_deep = [](const RecordingEvent& e) { return jsonNestingDepth(e.detail_json) > kMaxRecordingJsonDepth; };
-  if (const auto dropped = std::count_if(rec.events.begin(), rec.events.end(), too_deep); dropped > 0) {
-    rec.events.erase(std::remove_if(rec.events.begin(), rec.events.end(), too_deep), rec.events.end());
-    rec.warnings.push_back(where + std::to_string(dropped) + " event(s) dropped: their detail is JSON nested deeper than " +
-                           std::to_string(kMaxRecordingJsonDepth) + " levels");
-  }
+  dropTooDeepEvents(where, rec);
   std::stable_sort(rec.events.begin(), rec.events.end(),
                    [](const RecordingEvent& a, const RecordingEvent& b) { return a.tick < b.tick; });
   return rec;
