@@ -47,6 +47,8 @@ packages+=(pybind11-dev python3-dev python3-numpy)
 # test also decodes the exported videos' Theora stream (libtheora's decoder, tests/ui/recording_test.cpp).
 if [[ $mode == test ]]; then
   packages+=(python3-pytest python3-nibabel libtheora-dev)
+  # The HDF5 recordings read by h5py and pandas alone (tests/app/python/test_hdf5.py).
+  packages+=(python3-h5py python3-pandas)
   packages+=(clang libclang-rt-14-dev dpkg-dev file help2man desktop-file-utils shared-mime-info orthanc dcmtk curl
     openssl chromium)
 fi
