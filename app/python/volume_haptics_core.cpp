@@ -20,6 +20,7 @@
 #include "vh/io/volume_loader.h"
 #include "vh/runtime/recording.h"
 #include "vh/runtime/recording_hdf5.h"
+#include "vh/runtime/replay.h"
 #include "vh/runtime/runner.h"
 #include "vh/runtime/scene.h"
 #include "vh/runtime/session_metadata.h"
@@ -166,8 +167,7 @@ py::tuple sessionMetricsTuple(const fs::path& path, double force_threshold_N, do
 
 /// The scan's voxels as felt (data units: after rescale, SUV, NIfTI scaling), float64, shape
 /// (nx, ny, nz) indexed [i, j, k] (Fortran order: i fastest, as the grid stores them).
-py::array_t<double> volumeArray(const Scene& s) {
-  const vh::haptics::ScalarVolume& field = *s.loaded->volume.field;
+py::array_t<double> arrayOf(const vh::haptics::ScalarVolume& field) {
   const auto& d = field.geometry().dims;
   py::array_t<double, py::array::f_style> out({static_cast<py::ssize_t>(d[0]), static_cast<py::ssize_t>(d[1]),
                                                static_cast<py::ssize_t>(d[2])});
@@ -181,21 +181,19 @@ py::array_t<double> volumeArray(const Scene& s) {
   }
   return out;
 }
+py::array_t<double> volumeArray(const Scene& s) { return arrayOf(*s.loaded->volume.field); }
 
 /// Index -> patient LPS [m]: 4 x 4, columns the i, j, k axes scaled by the spacing, then the
-/// centre of voxel (0, 0, 0).
-py::array_t<double> affineLps(const Scene& s) {
-  const vh::haptics::VolumeGeometry& g = s.loaded->volume.field->geometry();
+/// centre of voxel (0, 0, 0) (VolumeGeometry::indexToWorld()).
+py::array_t<double> affineOf(const vh::haptics::VolumeGeometry& g) {
   py::array_t<double> out({4, 4});
   auto a = out.mutable_unchecked<2>();
+  const Eigen::Matrix4d m = g.indexToWorld();
   for (int r = 0; r < 4; ++r)
-    for (int c = 0; c < 4; ++c) a(r, c) = r == c ? 1.0 : 0.0;
-  for (int r = 0; r < 3; ++r) {
-    for (int c = 0; c < 3; ++c) a(r, c) = g.direction_W(r, c) * g.spacing_m[c];
-    a(r, 3) = g.origin_W_m[r];
-  }
+    for (int c = 0; c < 4; ++c) a(r, c) = m(r, c);
   return out;
 }
+py::array_t<double> affineLps(const Scene& s) { return affineOf(s.loaded->volume.field->geometry()); }
 
 /// A volume from a NumPy array (nx, ny, nz) indexed [i, j, k] placed by `affine` (4 x 4, index
 /// -> patient LPS [m], voxel centres at integer indices), stored as float32 (as a float NIfTI).
@@ -349,6 +347,25 @@ void bindRuns(py::module_& m) {
       },
       py::arg("path"));
 
+  m.def(
+      "drilled_volume",
+      [](const py::tuple& recording) {
+        const vh::runtime::Recording r = recordingOf(recording);
+        std::shared_ptr<const vh::haptics::ScalarVolume> drilled;
+        {
+          py::gil_scoped_release release;
+          const vh::runtime::LoadedScene scene =
+              vh::runtime::loadScene(vh::runtime::sceneFromSessionMetadata(r.metadata_json));
+          if (!scene.spec.drill.has_value()) throw std::runtime_error("drilled_volume: the recorded scene has no drill");
+          if (r.records.empty()) throw std::runtime_error("drilled_volume: the recording has no records");
+          const vh::runtime::ReplayComparison replay = vh::runtime::replayRecording(scene, r);
+          const std::string difference = vh::runtime::replayDifference(replay, r);
+          if (!difference.empty()) throw std::runtime_error("drilled_volume: " + difference);
+          drilled = replay.drilled_field;
+        }
+        return py::make_tuple(arrayOf(*drilled), affineOf(drilled->geometry()));
+      },
+      py::arg("recording"));
   m.def(
       "write_recording_hdf5",
       [](const py::tuple& recording, const fs::path& path, bool volume) {

@@ -215,6 +215,23 @@ class Recording:
         import pandas as pd
         return pd.DataFrame({c: self.ticks[c] for c in CSV_COLUMNS})
 
+    def drilled_volume(self):
+        """The drilled field at the recording's end, as a replay of it carves the scan: float64
+        (nx, ny, nz) indexed [i, j, k] in data units (removed voxels at the scan's lowest value),
+        and its affine_LPS_m (4 x 4), as Scene.volume and Scene.affine_LPS_m. Needs the
+        recording's dataset, unchanged, where its metadata says; takes a replay's time.
+        Returns (array, affine). Raises RuntimeError when the recorded scene has no drill, the
+        dataset is missing or changed, or the replay parts from the recording (saying where)."""
+        return _core.drilled_volume(self._fields())
+
+    def _fields(self):
+        events = [(float(e["t_s"]), int(e["tick"]), str(e["type"]), json.dumps(e["detail"]) if e["detail"] else "")
+                  for e in self.events]
+        return (int(self.version), json.dumps(self.metadata) if self.metadata else "",
+                np.ascontiguousarray(self.ticks, dtype=TICK_DTYPE).tobytes(), events, list(self.warnings),
+                int(self.chunks), int(self.dropped_records), int(self.bytes_ignored), int(self.event_chunks),
+                int(self.damaged_regions), bool(self.ended), int(self.end_status))
+
     def to_hdf5(self, path: Union[str, "os.PathLike[str]"], *, volume: bool = False) -> str:
         """Writes this recording as one HDF5 file (``export --hdf5``; layout in docs/python.md):
         /ticks/<column> one dataset per TICK_DTYPE field (unit and description attributes),
@@ -227,13 +244,7 @@ class Recording:
         Returns "" or, when the replay parted from the recording, why (the drilled field is then
         left out). Raises RuntimeError (a target that is not a regular file, a full disk, the
         dataset missing or changed), ValueError for ticks that are not whole records."""
-        events = [(float(e["t_s"]), int(e["tick"]), str(e["type"]), json.dumps(e["detail"]) if e["detail"] else "")
-                  for e in self.events]
-        fields = (int(self.version), json.dumps(self.metadata) if self.metadata else "",
-                  np.ascontiguousarray(self.ticks, dtype=TICK_DTYPE).tobytes(), events, list(self.warnings),
-                  int(self.chunks), int(self.dropped_records), int(self.bytes_ignored), int(self.event_chunks),
-                  int(self.damaged_regions), bool(self.ended), int(self.end_status))
-        return _core.write_recording_hdf5(fields, os.fspath(path), bool(volume))
+        return _core.write_recording_hdf5(self._fields(), os.fspath(path), bool(volume))
 
 
 def _recording(fields) -> Recording:

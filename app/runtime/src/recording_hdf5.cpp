@@ -318,12 +318,8 @@ void writeVolume(const Writer& w, hid_t group, const char* name, const haptics::
   const std::string where = std::string("/volume/") + name;
   Dataset d = createDataset(w, group, name, exact_in_float ? H5T_IEEE_F32LE : H5T_IEEE_F64LE, dims);
   w.check(H5Dwrite(d.get(), H5T_NATIVE_DOUBLE, H5S_ALL, H5S_ALL, H5P_DEFAULT, values.data()), where);
-  std::array<double, 16> affine{};
-  for (int r = 0; r < 3; ++r) {
-    for (int c = 0; c < 3; ++c) affine[static_cast<std::size_t>(4 * r + c)] = g.direction_W(r, c) * g.spacing_m[c];
-    affine[static_cast<std::size_t>(4 * r + 3)] = g.origin_W_m[r];
-  }
-  affine[15] = 1.0;
+  // Row-major, as HDF5 stores a 4 x 4 array.
+  const Eigen::Matrix<double, 4, 4, Eigen::RowMajor> affine = g.indexToWorld();
   const hsize_t shape[2] = {4, 4};
   Dataspace space(w.check(H5Screate_simple(2, shape, nullptr), where));
   Attribute a(w.check(H5Acreate2(d.get(), "affine_LPS_m", H5T_IEEE_F64LE, space.get(), H5P_DEFAULT, H5P_DEFAULT),

@@ -158,3 +158,15 @@ def test_bad_targets_and_foreign_files_are_refused_with_reasons(drilled, tmp_pat
         cut.write_bytes(whole[:int(len(whole) * fraction)])
         with pytest.raises(RuntimeError):
             vh.read_recording(cut)
+
+
+def test_drilled_volume_is_the_hdf5_files_drilled_field(drilled):
+    rec = vh.read_recording(drilled / "drill.vhrec")
+    field, affine = rec.drilled_volume()
+    with h5py.File(drilled / "drill.h5", "r") as f:
+        np.testing.assert_array_equal(field, f["volume/drilled"][()])
+        np.testing.assert_array_equal(affine, f["volume/drilled"].attrs["affine_LPS_m"])
+    probe = vh.read_recording(drilled / "drill.vhrec")
+    probe.metadata["scene"].pop("drill")
+    with pytest.raises(RuntimeError, match="no drill"):
+        probe.drilled_volume()

@@ -67,6 +67,14 @@ struct VolumeGeometry {
   Eigen::Vector3d pointOf_W(const Eigen::Vector3d& ijk) const noexcept {
     return origin_W_m + direction_W * spacing_m.cwiseProduct(ijk);
   }
+  /// The 4 x 4 affine taking voxel coordinates (i, j, k, 1) to W [m], pointOf_W() as a matrix:
+  /// [D diag(spacing), origin; 0 0 0 1] (NIfTI's and nibabel's affine, in W and metres).
+  Eigen::Matrix4d indexToWorld() const noexcept {
+    Eigen::Matrix4d a = Eigen::Matrix4d::Identity();
+    a.topLeftCorner<3, 3>() = direction_W * spacing_m.asDiagonal();
+    a.topRightCorner<3, 1>() = origin_W_m;
+    return a;
+  }
 };
 
 /// Result of ScalarVolume::firstEntryOnSegment(): where a straight segment first enters
