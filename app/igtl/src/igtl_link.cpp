@@ -260,6 +260,7 @@ struct IgtlLink::Impl {
   std::string peer;
   std::vector<in_addr> allowed;            ///< 127.0.0.1 and LinkOptions::allowed_clients.
   std::int64_t last_byte_ns = 0;           ///< When the client's last byte arrived (steady clock).
+  std::int64_t last_taken_ns = 0;          ///< When the client last took bytes of ours (a send progressed).
   std::int64_t message_start_ns = 0;       ///< When the first byte of the message being received arrived.
   std::vector<unsigned char> output;     ///< Packed messages not yet sent.
   std::size_t output_sent = 0;           ///< Bytes of `output` already sent.
@@ -303,6 +304,10 @@ IgtlLink::IgtlLink(std::shared_ptr<runtime::SnapshotChannel> channel, LinkOption
   }
   if (!(options_.partial_timeout_s > 0.0) || !std::isfinite(options_.partial_timeout_s)) {
     throw std::invalid_argument("OpenIGTLink: the partial-message timeout must be a positive number of seconds");
+  }
+  if (!(options_.takeover_idle_s > 0.0) || !std::isfinite(options_.takeover_idle_s)) {
+    throw std::invalid_argument("OpenIGTLink: the idle time before a new client takes over must be a positive number "
+                                "of seconds");
   }
   in_addr address{};
   if (!parseIpv4(options_.bind_address, address)) {
@@ -643,6 +648,7 @@ bool IgtlLink::flush() {
                              MSG_NOSIGNAL | MSG_DONTWAIT);
     if (n > 0) {
       m.output_sent += static_cast<std::size_t>(n);
+      m.last_taken_ns = steadyNs();
       continue;
     }
     if (n < 0 && (errno == EAGAIN || errno == EWOULDBLOCK)) return true;
@@ -843,6 +849,17 @@ void IgtlLink::acceptClients() {
     const std::string peer = ipv4Text(address.sin_addr) + ":" + std::to_string(ntohs(address.sin_port));
     const bool allowed = std::any_of(m.allowed.begin(), m.allowed.end(),
                                      [&](const in_addr& a) { return a.s_addr == address.sin_addr.s_addr; });
+    if (allowed && m.client_fd >= 0) {
+      // The connected client has been silent both ways for takeover_idle_s: hung, or gone
+      // without closing (its buffers full). The newcomer takes the slot.
+      const double idle_s = 1e-9 * static_cast<double>(steadyNs() - std::max(m.last_byte_ns, m.last_taken_ns));
+      if (idle_s >= options_.takeover_idle_s) {
+        char text[160];
+        std::snprintf(text, sizeof text, "dropped: nothing sent or read for %.1f s, and %s connected", idle_s,
+                      peer.c_str());
+        closeClient(text);
+      }
+    }
     if (!allowed || m.client_fd >= 0) {
       // Counted and said before the socket is closed: whoever sees the close sees the refusal.
       notice("OpenIGTLink: refused a connection from " + peer +
@@ -864,6 +881,7 @@ void IgtlLink::acceptClients() {
     setsockopt(fd, IPPROTO_TCP, TCP_KEEPCNT, &kKeepCount, sizeof(kKeepCount));
     m.peer = peer;
     m.last_byte_ns = steadyNs();
+    m.last_taken_ns = m.last_byte_ns;
     notice("OpenIGTLink: client " + m.peer + " connected");
     const std::lock_guard<std::mutex> lock(mutex_);
     status_.connected = true;

@@ -752,6 +752,77 @@ TEST_F(IgtlLinkServing, RefusesClientsNotAllowed) {
   close(friendly);
 }
 
+// A client that connects and then neither reads nor sends (hung, or gone without closing) held
+// the only slot for good: every later client was refused. Once it has been silent both ways for
+// takeover_idle_s (its receive buffer full, so the link's sends stop progressing), a newcomer
+// takes its place and the silent one is closed, said in a notice.
+TEST_F(IgtlLinkServing, AClientSilentBothWaysGivesUpTheSlotToANewcomer) {
+  auto channel = std::make_shared<runtime::SnapshotChannel>();
+  publish(*channel, Pose(), Pose(), Eigen::Vector3d::Zero(), 0, 1, steadyNowNs());
+  LinkOptions options;
+  options.takeover_idle_s = 0.5;
+  options.rate_Hz = 500.0;  // fills the silent client's buffers within a second or two
+  auto link = startLink(channel, options);
+  ASSERT_NE(link, nullptr);
+  const int port = link->options().port;
+  // The silent client: a small receive buffer it never reads.
+  const int silent = socket(AF_INET, SOCK_STREAM, 0);
+  const int small = 1024;
+  ASSERT_EQ(setsockopt(silent, SOL_SOCKET, SO_RCVBUF, &small, sizeof small), 0);
+  sockaddr_in server{};
+  server.sin_family = AF_INET;
+  server.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+  server.sin_port = htons(static_cast<std::uint16_t>(port));
+  ASSERT_EQ(connect(silent, reinterpret_cast<sockaddr*>(&server), sizeof server), 0);
+  ASSERT_TRUE(test::waitUntil([&] { return link->status().connected; }));
+  // Newcomers are refused while the silent client's buffers still take frames, then one is taken.
+  int accepted = -1;
+  ASSERT_TRUE(test::waitUntil([&] {
+    const int fd = connectFrom("127.0.0.1", port);
+    if (fd >= 0 && readsBytes(fd, IGTL_HEADER_SIZE)) {
+      accepted = fd;
+      return true;
+    }
+    if (fd >= 0) close(fd);
+    std::this_thread::sleep_for(100ms);
+    return false;
+  }));
+  EXPECT_EQ(link->status().clients, 2u);
+  bool said = false;
+  for (const std::string& n : link->takeNotices()) said = said || n.find("nothing sent or read") != std::string::npos;
+  EXPECT_TRUE(said);
+  // The silent client was closed: after what was in its buffer, the end of the stream.
+  std::vector<char> drain(4096);
+  ssize_t n = 0;
+  while ((n = recv(silent, drain.data(), drain.size(), 0)) > 0) {
+  }
+  EXPECT_EQ(n, 0) << "the silent client's connection is still open";
+  close(silent);
+  close(accepted);
+}
+
+// A client that reads the frames (and sends nothing, as a viewer that only listens) keeps the
+// slot: a newcomer is refused. The idle time is long enough (3 s) that only a client silent
+// both ways, not a busy machine, reaches it.
+TEST_F(IgtlLinkServing, AClientThatReadsKeepsTheSlot) {
+  auto channel = std::make_shared<runtime::SnapshotChannel>();
+  publish(*channel, Pose(), Pose(), Eigen::Vector3d::Zero(), 0, 1, steadyNowNs());
+  LinkOptions options;
+  options.takeover_idle_s = 3.0;
+  auto link = startLink(channel, options);
+  ASSERT_NE(link, nullptr);
+  Client reader;
+  ASSERT_TRUE(reader.connect(link->options().port));
+  Received r;
+  for (int i = 0; i < 20; ++i) ASSERT_TRUE(reader.read(r));
+  const int newcomer = connectFrom("127.0.0.1", link->options().port);
+  ASSERT_GE(newcomer, 0);
+  EXPECT_FALSE(readsBytes(newcomer, IGTL_HEADER_SIZE)) << "the newcomer took a reading client's slot";
+  close(newcomer);
+  EXPECT_TRUE(reader.read(r));
+  EXPECT_EQ(link->status().clients, 1u);
+}
+
 /// A link whose half-sent messages time out after 1 s, and a raw socket connected to it (-1
 /// when it could not connect).
 std::pair<std::unique_ptr<IgtlLink>, int> linkWithOneSecondPartialTimeout() {

@@ -96,6 +96,11 @@ struct LinkOptions {
   /// does one still not whole this long plus its size at 1 MB/s after its first byte (a client
   /// trickling a byte at a time).
   double partial_timeout_s = 10.0;
+  /// An allowed client connecting while another is connected takes its place when that one has
+  /// neither sent a byte nor taken one of the link's for this long [s], > 0: a client that hung,
+  /// or went away without closing, does not keep the only slot. One that reads the frames or
+  /// sends keeps it, and the newcomer is refused.
+  double takeover_idle_s = 5.0;
   double rate_Hz = 60.0;     ///< Frames per second (one of each message per frame) [Hz], > 0.
   /// The haptic threads' servo rate [Hz]: rate_Hz is clamped to it (the channel holds nothing
   /// newer between two servo ticks).
