@@ -8,7 +8,9 @@
 #include <cstring>
 #include <filesystem>
 #include <limits>
+#include <map>
 #include <memory>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -17,6 +19,7 @@
 #include <pybind11/stl.h>
 #include <pybind11/stl/filesystem.h>
 
+#include "vh/io/segmentation.h"
 #include "vh/io/volume_loader.h"
 #include "vh/runtime/recording.h"
 #include "vh/runtime/recording_hdf5.h"
@@ -294,19 +297,33 @@ void bindScenes(py::module_& m) {
       "load_scene_array",
       [](const std::string& json_text, const std::string& source, const fs::path& base_dir,
          const py::array_t<double, py::array::f_style | py::array::forcecast>& values,
-         const py::array_t<double, py::array::c_style | py::array::forcecast>& affine) {
+         const py::array_t<double, py::array::c_style | py::array::forcecast>& affine, const py::object& labels,
+         const std::map<int, std::string>& names) {
         vh::io::LoadedVolume volume = volumeOfArray(values, affine);
-        // The text's volume path is a stand-in (a built-in the parser takes without a file): the
-        // array is the volume, named so in reports.
+        // The text's volume (and segmentation) path is a stand-in (a built-in the parser takes
+        // without a file): the arrays are the volume and the label map, named so in reports.
         vh::runtime::SceneSpec spec = vh::runtime::parseScene(json_text, source, base_dir);
         spec.volume.path = vh::runtime::kArrayVolumePath;
+        std::optional<vh::io::LoadedSegmentation> segmentation;
+        if (!labels.is_none()) {
+          const auto label_values = labels.cast<py::array_t<double, py::array::f_style | py::array::forcecast>>();
+          if (label_values.ndim() != 3 || label_values.shape(0) != values.shape(0) ||
+              label_values.shape(1) != values.shape(1) || label_values.shape(2) != values.shape(2))
+            throw std::invalid_argument("segmentation labels: expected the volume's shape (nx, ny, nz)");
+          if (!spec.segmentation) throw std::invalid_argument("segmentation labels: the scene has no segmentation section");
+          spec.segmentation->path = vh::runtime::kArrayVolumePath;
+          segmentation = vh::io::segmentationFromLabels(volumeOfArray(label_values, affine).field, "label array", names);
+        }
         Scene s;
         s.source = source;
         py::gil_scoped_release release;
-        s.loaded = std::make_shared<const vh::runtime::LoadedScene>(vh::runtime::loadScene(spec, std::move(volume)));
+        s.loaded = std::make_shared<const vh::runtime::LoadedScene>(
+            segmentation ? vh::runtime::loadScene(spec, std::move(volume), std::move(*segmentation))
+                         : vh::runtime::loadScene(spec, std::move(volume)));
         return s;
       },
-      py::arg("json_text"), py::arg("source"), py::arg("base_dir"), py::arg("values"), py::arg("affine_LPS_m"));
+      py::arg("json_text"), py::arg("source"), py::arg("base_dir"), py::arg("values"), py::arg("affine_LPS_m"),
+      py::arg("labels") = py::none(), py::arg("names") = std::map<int, std::string>{});
 }
 
 /// run() and read_recording(): a headless run's report and recording, and a recording read.

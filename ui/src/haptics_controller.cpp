@@ -140,7 +140,7 @@ bool HapticsController::guideWith(const QString& file, QString* error) {
     if (!session_.hasScene()) throw std::invalid_argument("open a scan first");
     // The same scan as the recording's (its dataset SHA-256), as report --reference checks.
     const std::string metadata = runtime::makeSessionMetadata(session_.loaded(), session_.live(), {});
-    guide_ = runtime::loadExpertPath(file.toStdString(), metadata);
+    guide_ = runtime::loadExpertPath(file.toStdString(), metadata, runtime::RecordingFiles::kVhrecOnly);
   } catch (const std::exception& e) {
     if (error != nullptr) *error = QString("%1: %2").arg(file, QString::fromStdString(e.what()));
     return false;

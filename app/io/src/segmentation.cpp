@@ -238,6 +238,24 @@ LoadedSegmentation loadNrrdSegmentation(const fs::path& path, const VolumeLoadOp
 
 }  // namespace
 
+LoadedSegmentation segmentationFromLabels(std::shared_ptr<const haptics::ScalarVolume> labels, const fs::path& source,
+                                          const std::map<int, std::string>& names) {
+  if (labels == nullptr) fail(source, "no label volume");
+  LoadedSegmentation seg;
+  seg.source = source;
+  seg.layers.push_back(std::move(labels));
+  addLabelMapSegments(seg, source);
+  if (seg.segments.empty()) fail(source, "no segments: every voxel is 0");
+  for (const auto& [label, name] : names) {
+    const auto it = std::find_if(seg.segments.begin(), seg.segments.end(),
+                                 [&](const SegmentInfo& s) { return s.label_value == label; });
+    if (it == seg.segments.end()) fail(source, "a name for label " + std::to_string(label) + ", which no voxel has");
+    it->name = name;
+  }
+  if (!names.empty()) seg.notices.clear();  // named: not "a label map without segment names"
+  return seg;
+}
+
 bool isSegmentationFile(const fs::path& path) noexcept {
   try {
     std::error_code ec;

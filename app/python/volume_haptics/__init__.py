@@ -96,10 +96,19 @@ def load_scene(scene: Union[str, "os.PathLike[str]", Dict[str, Any]], base_dir: 
                 raise ValueError("volume: an array needs its affine_LPS_m (4 x 4, index -> patient LPS [m])")
             # The scene text names a built-in volume in the array's place (a path the parser takes
             # without a file); load_scene_array() replaces it with the array.
-            text = json.dumps(dict(scene, volume=dict(rest, path="builtin:plane")))
-            return _core.load_scene_array(text, "scene dict", os.fspath(base_dir or os.getcwd()),
+            spec = dict(scene, volume=dict(rest, path="builtin:plane"))
+            # Segments as a label array on the volume's grid: {"labels": (nx, ny, nz) integers
+            # (0: none), "names": {label: name}, "felt": [...], "critical": [...], ...}.
+            labels, names = None, {}
+            segmentation = scene.get("segmentation")
+            if isinstance(segmentation, dict) and "labels" in segmentation:
+                labels = np.asarray(segmentation["labels"], dtype=np.float64)
+                names = {int(k): str(v) for k, v in segmentation.get("names", {}).items()}
+                spec["segmentation"] = dict({k: v for k, v in segmentation.items() if k not in ("labels", "names")},
+                                            path="builtin:plane")
+            return _core.load_scene_array(json.dumps(spec), "scene dict", os.fspath(base_dir or os.getcwd()),
                                           np.asarray(volume["array"], dtype=np.float64),
-                                          np.asarray(volume["affine_LPS_m"], dtype=np.float64))
+                                          np.asarray(volume["affine_LPS_m"], dtype=np.float64), labels, names)
         return _core.load_scene_json(json.dumps(scene), "scene dict", os.fspath(base_dir or os.getcwd()))
     return _core.load_scene_file(os.fspath(scene))
 

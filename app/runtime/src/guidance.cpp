@@ -80,8 +80,8 @@ haptics::Pose ExpertPath::poseAt(const haptics::PathPoint& p) const noexcept {
 }
 
 std::shared_ptr<const ExpertPath> loadExpertPath(const std::filesystem::path& file,
-                                                 const std::string& session_metadata_json) {
-  const Recording expert = readRecording(file);
+                                                 const std::string& session_metadata_json, RecordingFiles files) {
+  const Recording expert = readRecording(file, files);
   requireSameScene(sceneIdentity(session_metadata_json), sceneIdentity(expert.metadata_json),
                    "the guide recording " + file.filename().string(), "guidance needs the same dataset");
   std::error_code ec;

@@ -727,6 +727,13 @@ void endWarnings(const std::uint64_t records_in_end_marker, Recording& rec) {
 
 }  // namespace
 
+Recording readRecording(const std::filesystem::path& path, RecordingFiles files) {
+  if (files == RecordingFiles::kVhrecOnly && isHdf5File(path))
+    throw std::runtime_error(path.string() + ": an HDF5 export of a recording; the window opens the .vhrec it came "
+                             "from (volume-haptics export, report and Python read HDF5 exports)");
+  return readRecording(path);
+}
+
 Recording readRecording(const std::filesystem::path& path) {
   if (isHdf5File(path)) return readRecordingHdf5(path);
   const std::string bytes = readWholeFile(path);

@@ -41,7 +41,9 @@ namespace {
 
 /// The part of loading after the volume: the spec's isovalue, the segmentation, the tool, the
 /// initial pose. `cancel` as loadScene()'s (the segmentation's read).
-void loadToolAndPose(LoadedScene& scene, const std::string& where, const std::atomic<bool>* cancel = nullptr);
+/// `preloaded`: the segmentation in memory instead of spec.segmentation->path's file.
+void loadToolAndPose(LoadedScene& scene, const std::string& where, const std::atomic<bool>* cancel = nullptr,
+                     std::optional<io::LoadedSegmentation> preloaded = std::nullopt);
 
 }  // namespace
 
@@ -54,6 +56,21 @@ LoadedScene loadScene(const SceneSpec& spec, io::LoadedVolume preloaded) {
   if (scene.volume.image == nullptr) scene.volume.image = io::imageFromField(scene.volume.field);
   scene.isovalue = defaultIsovalue(scene.volume);
   loadToolAndPose(scene, where);
+  return scene;
+}
+
+LoadedScene loadScene(const SceneSpec& spec, io::LoadedVolume preloaded, io::LoadedSegmentation segmentation) {
+  if (!spec.segmentation) throw std::invalid_argument("loadScene: a preloaded segmentation needs the scene's segmentation section");
+  if (preloaded.field == nullptr || segmentation.layers.empty() || segmentation.layers.front() == nullptr ||
+      !segmentation.layers.front()->geometry().sameGridAs(preloaded.field->geometry()))
+    throw std::invalid_argument("loadScene: the label volume is not on the volume's grid (same shape and affine)");
+  const std::string where = spec.source.empty() ? std::string("scene") : spec.source.string();
+  LoadedScene scene;
+  scene.spec = spec;
+  scene.volume = std::move(preloaded);
+  if (scene.volume.image == nullptr) scene.volume.image = io::imageFromField(scene.volume.field);
+  scene.isovalue = defaultIsovalue(scene.volume);
+  loadToolAndPose(scene, where, nullptr, std::move(segmentation));
   return scene;
 }
 
@@ -94,10 +111,13 @@ LoadedScene loadScene(const SceneSpec& spec, const std::function<void(double)>& 
 
 namespace {
 
-void loadToolAndPose(LoadedScene& scene, const std::string& where, const std::atomic<bool>* cancel) {
+void loadToolAndPose(LoadedScene& scene, const std::string& where, const std::atomic<bool>* cancel,
+                     std::optional<io::LoadedSegmentation> preloaded) {
   const SceneSpec& spec = scene.spec;
   if (spec.volume.isovalue_set) scene.isovalue = spec.volume.isovalue;
-  if (spec.segmentation) {
+  if (spec.segmentation && preloaded) {
+    scene.segments = SegmentSet::fromSpec(std::move(*preloaded), *spec.segmentation, where);
+  } else if (spec.segmentation) {
     io::VolumeLoadOptions options;
     options.cancel = cancel;
     // On the scan: a DICOM SEG is placed on the scan's voxels and checked against its series.

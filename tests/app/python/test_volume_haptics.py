@@ -273,3 +273,61 @@ def test_an_array_is_felt_as_the_same_volume_from_a_file(tmp_path):
     holed[3, 4, 5] = np.nan
     with pytest.raises(ValueError, match="NaN"):
         vh.load_scene({"volume": {"array": holed, "affine_LPS_m": from_file.affine_LPS_m}, "tool": tool})
+
+
+def test_a_label_array_is_the_segmentation_a_label_file_gives(tmp_path):
+    """Segments given as a label array on the volume's grid are the segments a NIfTI label map
+    written by nibabel gives: both label the halves of a 12 mm ball by where their voxels are in
+    the patient (x < 0: 1, x > 0: 2), both felt (their surface the ball's), and a press on each
+    half gives the same ticks from both, the touched segment and the distance to the critical
+    one included; the touched half is the one the press is on."""
+    nib = pytest.importorskip("nibabel")
+    shape = (40, 40, 40)
+    i, j, k = np.meshgrid(*[np.arange(n) for n in shape], indexing="ij")
+    ball = (100.0 - np.sqrt((i - 19.5) ** 2 + (j - 19.5) ** 2 + (k - 19.5) ** 2)).astype(np.float32)
+    A = np.diag([1.0, 1.0, 1.0, 1.0])
+    A[:3, 3] = [-19.5, -19.5, -19.5]
+
+    def halves(x_lps_mm, r_mm):
+        return np.where(r_mm > 12.0, 0, np.where(x_lps_mm < 0, 1, 2))
+
+    ras = np.einsum("ab,bijk->aijk", A[:3, :3], np.stack([i, j, k])) + A[:3, 3, None, None, None]
+    file_labels = halves(-ras[0], np.linalg.norm(ras, axis=0)).astype(np.int16)  # RAS x = -LPS x
+    for name, data in (("ball.nii", ball), ("labels.nii", file_labels)):
+        img = nib.Nifti1Image(data, A)
+        img.header.set_xyzt_units("mm")
+        nib.save(img, str(tmp_path / name))
+    tool = {"mesh": "builtin:probe", "point_spacing_m": 0.001}
+    segmentation = {"felt": ["Label 1", "Label 2"], "critical": ["Label 2"]}  # felt: contacts are named
+    from_file = vh.load_scene({"volume": {"path": str(tmp_path / "ball.nii"), "isovalue": 90}, "tool": tool,
+                               "segmentation": dict(segmentation, path=str(tmp_path / "labels.nii"))})
+    affine = np.asarray(from_file.affine_LPS_m)
+    lps_mm = 1000.0 * (np.einsum("ab,bijk->aijk", affine[:3, :3], np.stack([i, j, k])) + affine[:3, 3, None, None, None])
+    array_labels = halves(lps_mm[0], np.linalg.norm(lps_mm, axis=0))
+    from_array = vh.load_scene({"volume": {"array": from_file.volume, "affine_LPS_m": affine, "isovalue": 90},
+                                "tool": tool, "segmentation": dict(segmentation, labels=array_labels)})
+    for x_m in (-0.005, 0.005):  # down onto each half of the ball's top, pressed 3 mm in
+        t = np.array([[0.0, x_m, 0.0, 0.030, 1, 0, 0, 0],
+                      [0.5, x_m, 0.0, 0.006, 1, 0, 0, 0],
+                      [1.0, x_m, 0.0, 0.006, 1, 0, 0, 0]])
+        a = vh.run(from_file, t, verify_step_voxels=0, lag_reference=False)
+        b = vh.run(from_array, t, verify_step_voxels=0, lag_reference=False)
+        assert np.linalg.norm(a.force_N, axis=1).max() > 0.5, "the tool pressed on the ball"
+        for column in ("force_z_N", "proxy_z_m", "flags", "critical_distance_m", "critical_segment"):
+            np.testing.assert_array_equal(a.ticks[column], b.ticks[column], err_msg=column)
+        touched = (b.ticks["flags"] >> 16).astype(int) - 1
+        expected = 0 if x_m < 0 else 1  # segments in label order: "Label 1", "Label 2"
+        assert set(touched[b.ticks["contacts"] > 0]) == {expected}, (x_m, set(touched[b.ticks["contacts"] > 0]))
+        pressed = b.ticks["contacts"] > 0
+        closest_mm = 1000.0 * b.ticks["critical_distance_m"][pressed].min()
+        assert (closest_mm < 0.5) if x_m > 0 else (3.0 < closest_mm < 6.0), (x_m, closest_mm)
+    named = vh.load_scene({"volume": {"array": from_file.volume, "affine_LPS_m": affine, "isovalue": 90},
+                           "tool": tool, "segmentation": {"felt": [], "critical": ["tumour"], "labels": array_labels,
+                                                          "names": {2: "tumour"}}})
+    assert named is not None
+    with pytest.raises(ValueError, match="shape"):
+        vh.load_scene({"volume": {"array": from_file.volume, "affine_LPS_m": affine}, "tool": tool,
+                       "segmentation": {"felt": [], "critical": [], "labels": array_labels[:-1]}})
+    with pytest.raises(RuntimeError, match="not an integer label"):
+        vh.load_scene({"volume": {"array": from_file.volume, "affine_LPS_m": affine}, "tool": tool,
+                       "segmentation": {"felt": [], "critical": [], "labels": array_labels + 0.5}})

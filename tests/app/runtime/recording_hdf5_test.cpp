@@ -205,5 +205,19 @@ TEST(RecordingHdf5, MetadataNestedBeyondTheLimitIsRefusedAsTheVhrecReaderDoes) {
   EXPECT_NE(back.warnings.back().find("dropped"), std::string::npos) << back.warnings.back();
 }
 
+/// The window reads only the .vhrec (its parser is this program's own and fuzzed; HDF5's is
+/// neither, and a crash there would end a session): an HDF5 export is refused with the reason.
+TEST(RecordingHdf5, TheWindowsReaderRefusesAnHdf5ExportSayingWhy) {
+  const fs::path path = test::scratchDir() / "export.h5";
+  writeRecordingHdf5(awkwardRecording(10), path);
+  try {
+    readRecording(path, RecordingFiles::kVhrecOnly);
+    ADD_FAILURE() << "the window's reader read an HDF5 file";
+  } catch (const std::runtime_error& e) {
+    EXPECT_NE(std::string(e.what()).find("HDF5 export"), std::string::npos) << e.what();
+  }
+  EXPECT_EQ(readRecording(path, RecordingFiles::kVhrecOrHdf5).records.size(), 10u);
+}
+
 }  // namespace
 }  // namespace vh::runtime

@@ -121,7 +121,7 @@ bool ReplayController::openRecording(const fs::path& path) {
   const QString file = q(path.string());
   runtime::Recording recording;
   try {
-    recording = runtime::readRecording(path);
+    recording = runtime::readRecording(path, runtime::RecordingFiles::kVhrecOnly);
   } catch (const std::exception& e) {
     emit errorReported(file, QString::fromUtf8(e.what()));
     return false;
@@ -548,7 +548,7 @@ const runtime::Recording* ReplayController::recordingToExport(runtime::Recording
   const QString in =
       QFileDialog::getOpenFileName(window_, "Export which recording?", folder, "Session recordings (*.vhrec)");
   if (in.isEmpty()) return nullptr;
-  loaded = runtime::readRecording(fs::path(in.toStdString()));
+  loaded = runtime::readRecording(fs::path(in.toStdString()), runtime::RecordingFiles::kVhrecOnly);
   from = fs::path(in.toStdString());
   return &loaded;
 }

@@ -49,7 +49,7 @@ void ReplayGuide::findExpert(const std::string& sha256, const std::string& recor
         changed = file.string() + " has SHA-256 " + found.substr(0, 12) + ", not the recorded " + sha256.substr(0, 12);
         continue;
       }
-      expert_ = std::make_shared<const runtime::ExpertPath>(runtime::readRecording(file), found,
+      expert_ = std::make_shared<const runtime::ExpertPath>(runtime::readRecording(file, runtime::RecordingFiles::kVhrecOnly), found,
                                                             file.filename().string(), file.string());
       return;
     } catch (const std::exception& e) {

@@ -16,6 +16,7 @@
 /// Frames and units as loadVolume(): W is patient LPS in metres (a RAS file is converted).
 #include <array>
 #include <filesystem>
+#include <map>
 #include <memory>
 #include <string>
 #include <vector>
@@ -66,6 +67,15 @@ struct LoadedSegmentation {
 ///         segment whose layer is missing, non-integer labels, more than 4096 distinct labels in a
 ///         label map, or no segment at all; for a DICOM SEG as loadDicomSegmentation().
 LoadedSegmentation loadSegmentation(const std::filesystem::path& path, const VolumeLoadOptions& options = {});
+
+/// A segmentation from a label map already in memory (an array made in Python): each distinct
+/// non-zero integer value of `labels` one segment, as a label-map file gives them ("Label V",
+/// id "Label_V"), named `names[V]` where given; `source` names it in messages.
+/// @throws LoadError naming `source` for non-integer labels, labels outside 0..65535, more than
+///         4096 distinct labels, a name for a label that no voxel has, or no segment at all.
+LoadedSegmentation segmentationFromLabels(std::shared_ptr<const haptics::ScalarVolume> labels,
+                                          const std::filesystem::path& source,
+                                          const std::map<int, std::string>& names = {});
 
 /// Loads a segmentation opened on `scan`: a DICOM SEG is placed on the scan's grid, voxel for
 /// voxel, and its referenced series and frame of reference checked against the scan's

@@ -90,10 +90,12 @@ class ExpertPath {
 /// Reads the expert's recording and checks that it was recorded on the session's scene
 /// (requireSameScene(), as `report --reference` does).
 /// @param session_metadata_json the session's metadata (makeSessionMetadata()).
+/// @param files the window passes kVhrecOnly (readRecording()).
 /// @throws std::runtime_error when the file cannot be read; std::invalid_argument naming both
 ///         datasets when the scene differs, or when the recording has too few records.
 std::shared_ptr<const ExpertPath> loadExpertPath(const std::filesystem::path& file,
-                                                 const std::string& session_metadata_json);
+                                                 const std::string& session_metadata_json,
+                                                 RecordingFiles files = RecordingFiles::kVhrecOrHdf5);
 
 /// The guidance gains within what the device renders: the stiffness at most the device's
 /// max_linear_stiffness_N_per_m, the cap at most its max_force_N.

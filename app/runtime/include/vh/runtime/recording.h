@@ -291,6 +291,16 @@ struct Recording {
 ///         nested deeper than kMaxRecordingJsonDepth included).
 Recording readRecording(const std::filesystem::path& path);
 
+/// Which files a reader takes: a command-line tool or a script (where a crash in a library's
+/// parser ends that command only) reads both the .vhrec and its HDF5 export; the window, which
+/// holds a session and haptic threads, reads only the .vhrec, whose parser is this program's own
+/// and fuzzed (the HDF5 library's parser is neither).
+enum class RecordingFiles { kVhrecOrHdf5, kVhrecOnly };
+
+/// readRecording() for `files`. @throws std::runtime_error as readRecording(), and for an HDF5
+///         file under kVhrecOnly ("an HDF5 export of a recording: ... open the .vhrec it came from").
+Recording readRecording(const std::filesystem::path& path, RecordingFiles files);
+
 /// One CSV row per record, header line with SI units:
 /// `t_s,tick,device_x_m,device_y_m,device_z_m,device_qw,device_qx,device_qy,device_qz,
 /// proxy_x_m,...,proxy_qz,force_x_N,force_y_N,force_z_N,torque_x_Nm,torque_y_Nm,torque_z_Nm,

@@ -355,5 +355,11 @@ LoadedScene loadScene(const SceneSpec& spec, const std::function<void(double fra
 /// as for a file (400 HU for CT in HU, else midway; the spec's when set).
 /// @throws std::invalid_argument when `preloaded` has no field; else as loadScene() (the tool).
 LoadedScene loadScene(const SceneSpec& spec, io::LoadedVolume preloaded);
+/// loadScene() with the volume and the segmentation already in memory (arrays from Python):
+/// `segmentation` replaces the read of spec.segmentation->path (spec.segmentation gives the
+/// felt, shown and critical choices), on the volume's grid.
+/// @throws std::invalid_argument when spec.segmentation is absent or the label grid is not the
+///         volume's; else as the overload above and SegmentSet::fromSpec().
+LoadedScene loadScene(const SceneSpec& spec, io::LoadedVolume preloaded, io::LoadedSegmentation segmentation);
 
 }  // namespace vh::runtime
