@@ -49,6 +49,8 @@ if [[ $mode == test ]]; then
   packages+=(python3-pytest python3-nibabel libtheora-dev)
   # The HDF5 recordings read by h5py and pandas alone (tests/app/python/test_hdf5.py).
   packages+=(python3-h5py python3-pandas)
+  # Scene.volume of a DICOM series against nibabel's DICOM wrapper (tests/app/python/test_dicom_volume.py).
+  packages+=(python3-pydicom)
   # Studies on a Dask cluster (tests/app/python/test_study.py: a LocalCluster of two workers).
   packages+=(python3-dask python3-distributed)
   packages+=(clang libclang-rt-14-dev dpkg-dev file help2man desktop-file-utils shared-mime-info orthanc dcmtk curl
