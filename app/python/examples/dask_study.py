@@ -19,7 +19,6 @@ import pathlib
 import subprocess
 import time
 
-import numpy as np
 
 import volume_haptics as vh
 import volume_haptics.study as st

@@ -47,23 +47,11 @@ void loadToolAndPose(LoadedScene& scene, const std::string& where, const std::at
 
 }  // namespace
 
-LoadedScene loadScene(const SceneSpec& spec, io::LoadedVolume preloaded) {
-  if (preloaded.field == nullptr) throw std::invalid_argument("loadScene: the preloaded volume has no field");
-  const std::string where = spec.source.empty() ? std::string("scene") : spec.source.string();
-  LoadedScene scene;
-  scene.spec = spec;
-  scene.volume = std::move(preloaded);
-  if (scene.volume.image == nullptr) scene.volume.image = io::imageFromField(scene.volume.field);
-  scene.isovalue = defaultIsovalue(scene.volume);
-  loadToolAndPose(scene, where);
-  return scene;
-}
+namespace {
 
-LoadedScene loadScene(const SceneSpec& spec, io::LoadedVolume preloaded, io::LoadedSegmentation segmentation) {
-  if (!spec.segmentation) throw std::invalid_argument("loadScene: a preloaded segmentation needs the scene's segmentation section");
-  if (preloaded.field == nullptr || segmentation.layers.empty() || segmentation.layers.front() == nullptr ||
-      !segmentation.layers.front()->geometry().sameGridAs(preloaded.field->geometry()))
-    throw std::invalid_argument("loadScene: the label volume is not on the volume's grid (same shape and affine)");
+/// loadScene() of `preloaded` (and `segmentation` when given) instead of the spec's files.
+LoadedScene loadPreloaded(const SceneSpec& spec, io::LoadedVolume preloaded,
+                          std::optional<io::LoadedSegmentation> segmentation) {
   const std::string where = spec.source.empty() ? std::string("scene") : spec.source.string();
   LoadedScene scene;
   scene.spec = spec;
@@ -72,6 +60,21 @@ LoadedScene loadScene(const SceneSpec& spec, io::LoadedVolume preloaded, io::Loa
   scene.isovalue = defaultIsovalue(scene.volume);
   loadToolAndPose(scene, where, nullptr, std::move(segmentation));
   return scene;
+}
+
+}  // namespace
+
+LoadedScene loadScene(const SceneSpec& spec, io::LoadedVolume preloaded) {
+  if (preloaded.field == nullptr) throw std::invalid_argument("loadScene: the preloaded volume has no field");
+  return loadPreloaded(spec, std::move(preloaded), std::nullopt);
+}
+
+LoadedScene loadScene(const SceneSpec& spec, io::LoadedVolume preloaded, io::LoadedSegmentation segmentation) {
+  if (!spec.segmentation) throw std::invalid_argument("loadScene: a preloaded segmentation needs the scene's segmentation section");
+  if (preloaded.field == nullptr || segmentation.layers.empty() || segmentation.layers.front() == nullptr ||
+      !segmentation.layers.front()->geometry().sameGridAs(preloaded.field->geometry()))
+    throw std::invalid_argument("loadScene: the label volume is not on the volume's grid (same shape and affine)");
+  return loadPreloaded(spec, std::move(preloaded), std::move(segmentation));
 }
 
 LoadedScene loadScene(const SceneSpec& spec) { return loadScene(spec, {}, nullptr); }

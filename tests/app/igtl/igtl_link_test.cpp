@@ -649,8 +649,12 @@ std::vector<std::string> listeningAddresses(int port) {
 
 /// A plain TCP connection to 127.0.0.1:port from the local address `from` (127.0.0.2 is on lo
 /// too: a second address of this machine, so the allow list decides); -1 when it fails.
-int connectFrom(const char* from, int port) {
+/// receive_buffer_bytes > 0: the socket's SO_RCVBUF, set before connecting (a client whose
+/// buffer a link fills quickly).
+int connectFrom(const char* from, int port, int receive_buffer_bytes = 0) {
   const int fd = socket(AF_INET, SOCK_STREAM, 0);
+  if (receive_buffer_bytes > 0)
+    setsockopt(fd, SOL_SOCKET, SO_RCVBUF, &receive_buffer_bytes, sizeof receive_buffer_bytes);
   sockaddr_in local{};
   local.sin_family = AF_INET;
   inet_pton(AF_INET, from, &local.sin_addr);
@@ -766,14 +770,8 @@ TEST_F(IgtlLinkServing, AClientSilentBothWaysGivesUpTheSlotToANewcomer) {
   ASSERT_NE(link, nullptr);
   const int port = link->options().port;
   // The silent client: a small receive buffer it never reads.
-  const int silent = socket(AF_INET, SOCK_STREAM, 0);
-  const int small = 1024;
-  ASSERT_EQ(setsockopt(silent, SOL_SOCKET, SO_RCVBUF, &small, sizeof small), 0);
-  sockaddr_in server{};
-  server.sin_family = AF_INET;
-  server.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
-  server.sin_port = htons(static_cast<std::uint16_t>(port));
-  ASSERT_EQ(connect(silent, reinterpret_cast<sockaddr*>(&server), sizeof server), 0);
+  const int silent = connectFrom("127.0.0.1", port, 1024);
+  ASSERT_GE(silent, 0);
   ASSERT_TRUE(test::waitUntil([&] { return link->status().connected; }));
   // Newcomers are refused while the silent client's buffers still take frames, then one is taken.
   int accepted = -1;

@@ -5,32 +5,20 @@ The oracles: the command line's ``export --csv`` parsed by NumPy for the ticks, 
 file's structure, and the synthetic sphere's analytic signed distance for the stored volume.
 """
 import json
-import os
-import pathlib
-import subprocess
 
 import numpy as np
 import pytest
 
 import volume_haptics as vh
+from vh_test_support import SOURCE, cli
 
 h5py = pytest.importorskip("h5py", reason="python3-h5py is not installed (packaging/setup.sh test installs it)")
 
-CLI = os.environ.get("VH_CLI", "volume-haptics")
-SOURCE = pathlib.Path(os.environ.get("VH_SOURCE_DIR", pathlib.Path(__file__).resolve().parents[3]))
 DRILL_SCENE = SOURCE / "resources/scenes/sphere-drill.json"
 
 #: The documented HDF5 type of each tick column (recording_hdf5.h).
 INTEGER_COLUMNS = {"tick": np.uint64, "contacts": np.uint32, "flags": np.uint32, "critical_segment": np.int32,
                    "removed_voxels": np.uint32, "deadline_work": np.int64}
-
-
-def cli(*args, check=True):
-    p = subprocess.run([CLI, *map(str, args)], capture_output=True, text=True,
-                       env=dict(os.environ, QT_QPA_PLATFORM="offscreen"))
-    if check and p.returncode != 0:
-        raise AssertionError("volume-haptics %s failed (%d): %s" % (" ".join(map(str, args)), p.returncode, p.stderr))
-    return p
 
 
 def press_into_the_sphere():

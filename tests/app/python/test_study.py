@@ -2,22 +2,19 @@
 worker processes gives the plain loop's table, row for row; a failed run's error reaches the
 caller with its message. The oracle is the plain loop, which test_volume_haptics.py checks
 against the command line."""
-import os
 import pathlib
-import subprocess
 
 import numpy as np
 import pytest
 
 import volume_haptics as vh
 import volume_haptics.study as st
+from vh_test_support import SOURCE, cli
 
 pd = pytest.importorskip("pandas", reason="python3-pandas is not installed (packaging/setup.sh test installs it)")
 distributed = pytest.importorskip("distributed",
                                   reason="python3-distributed is not installed (packaging/setup.sh test installs it)")
 
-CLI = os.environ.get("VH_CLI", "volume-haptics")
-SOURCE = pathlib.Path(os.environ.get("VH_SOURCE_DIR", pathlib.Path(__file__).resolve().parents[3]))
 SCENE = SOURCE / "resources/scenes/sphere-probe.json"
 
 
@@ -26,8 +23,7 @@ def study(tmp_path_factory):
     """Six runs: two trajectories (a push-and-slide from make-trajectory sped up 5 times, and a
     deeper push) x three coupling stiffnesses on the sphere."""
     d = tmp_path_factory.mktemp("study")
-    subprocess.run([CLI, "make-trajectory", "--scene", str(SCENE), "--out", str(d / "slow.csv")], check=True,
-                   capture_output=True, env=dict(os.environ, QT_QPA_PLATFORM="offscreen"))
+    cli("make-trajectory", "--scene", SCENE, "--out", d / "slow.csv")
     push = vh.read_trajectory(d / "slow.csv")
     push[:, 0] *= 0.2
     deeper = push.copy()

@@ -6,9 +6,6 @@ built volume-haptics, VH_SOURCE_DIR the source tree and PYTHONPATH the built mod
 """
 import csv
 import math
-import os
-import pathlib
-import subprocess
 import threading
 import time
 
@@ -16,18 +13,9 @@ import numpy as np
 import pytest
 
 import volume_haptics as vh
+from vh_test_support import SOURCE, cli
 
-CLI = os.environ.get("VH_CLI", "volume-haptics")
-SOURCE = pathlib.Path(os.environ.get("VH_SOURCE_DIR", pathlib.Path(__file__).resolve().parents[3]))
 SCENE = SOURCE / "resources/scenes/sphere-probe.json"
-
-
-def cli(*args, check=True):
-    p = subprocess.run([CLI, *map(str, args)], capture_output=True, text=True,
-                       env=dict(os.environ, QT_QPA_PLATFORM="offscreen"))
-    if check and p.returncode != 0:
-        raise AssertionError("volume-haptics %s failed (%d): %s" % (" ".join(map(str, args)), p.returncode, p.stderr))
-    return p
 
 
 def csv_columns(path):
