@@ -266,6 +266,18 @@ def recording_seeds(recording):
     # The header and metadata only.
     meta = struct.unpack_from("<I", rec, 16)[0]
     out("recording", "sphere-header-only", b"\x01" + rec[:24 + meta])
+    # Metadata nested as deep as the reader accepts (100 levels) and one deeper (refused as
+    # damaged), and an event whose detail nests 101 deep (dropped with a warning): the bound on
+    # JSON depth (recording.h: kMaxRecordingJsonDepth).
+    for depth in (100, 101):
+        deep = ('{"scene":' + "[" * (depth - 1) + "]" * (depth - 1) + "}").encode()
+        header = rec[:16] + struct.pack("<II", len(deep), zlib.crc32(deep) & 0xFFFFFFFF)
+        out("recording", "sphere-metadata-depth-%d" % depth, b"\x01" + header + deep + rec[24 + meta:])
+    detail = b"[" * 101 + b"]" * 101
+    payload = struct.pack("<dQI", 0.01, 10, len(etype)) + etype + struct.pack("<I", len(detail)) + detail
+    chunk = b"EVNT" + struct.pack("<II", 1, len(payload)) + payload
+    chunk += struct.pack("<I", zlib.crc32(chunk) & 0xFFFFFFFF)
+    out("recording", "sphere-event-depth-101", b"\x01" + rec + chunk)
 
 
 def device_seeds():
@@ -443,12 +455,21 @@ def square(x0, y0, x1, y1, z):
 
 
 def rtstruct_seeds():
-    rt_class = "1.2.840.10008.5.1.4.1.1.481.3"
     rois = [((1, "Box", "255\\0\\0"), [("CLOSED_PLANAR", square(3, 3, 12, 12, z)) for z in range(4)] +
              [("CLOSED_PLANAR", square(6, 6, 9, 9, 2))]),
             ((2, "Marker", None), [("POINT", "8\\8\\1")]),
             ((3, "Line", "0\\255\\0"), [("OPEN_PLANAR", "1\\1\\0\\14\\14\\0"),
                                            ("CLOSED_PLANAR", square(1, 10, 5, 14, 3))])]
+    rtstruct_file("three-rois.dcm", rois)
+    # 40 ROIs of one square each, all overlapping: more label layers than the reader builds
+    # (dicom_rtstruct.h: kMaxRoiLayers, 32): refused, not read at gigabytes.
+    rtstruct_file("forty-overlapping-rois.dcm",
+                  [((n, "ROI %d" % n, None), [("CLOSED_PLANAR", square(3, 3, 12, 12, 1))]) for n in range(1, 41)])
+
+
+def rtstruct_file(name, rois):
+    """An RT Structure Set of `rois` [((number, name, colour), [(kind, points)])] on the seed series."""
+    rt_class = "1.2.840.10008.5.1.4.1.1.481.3"
     el = dcm_common("RTSTRUCT", rt_class, 8) + [
         ((0x3006, 0x0002), "SH", "fuzz"), ((0x3006, 0x0008), "DA", "20260101"), ((0x3006, 0x0009), "TM", "120000"),
         ((0x3006, 0x0010), "SQ", [[((0x0020, 0x0052), "UI", UID + "9"),
@@ -470,7 +491,7 @@ def rtstruct_seeds():
                                    ((0x3006, 0x00A4), "CS", "ORGAN"), ((0x3006, 0x00A6), "PN", "")]
                                   for (n, _, _), _ in rois]),
     ]
-    out("rtstruct", "three-rois.dcm", dcm_file(rt_class, UID + "8.1", el))
+    out("rtstruct", name, dcm_file(rt_class, UID + "8.1", el))
 
 
 def pacs_seeds():
@@ -528,6 +549,15 @@ def igtl_seeds():
     out("igtl", "image-v2-metadata", b"\3" + header + body)
     header, body = igtl_message("TRANSFORM", "other-type", bytes(48))
     out("igtl", "transform", b"\3" + header + body)
+    # The bounds on what an IMAGE may say: a byte order that is neither 1 nor 2, and spacings far
+    # beyond a scan's (1e38 mm, finite) and below it (1e-30 mm): each refused naming the value.
+    header, body = igtl_message("IMAGE", "endian-7", igtl_image_body(dims, 3, bytes(range(n)), endian=7))
+    out("igtl", "image-endian-7", b"\3" + header + body)
+    for label, spacing in (("1e38", 1e38), ("1e-30", 1e-30)):
+        image = bytearray(igtl_image_body(dims, 3, bytes(range(n))))
+        struct.pack_into(">3f", image, 12, spacing, 0, 0)  # the i axis scaled by the spacing
+        header, body = igtl_message("IMAGE", "spacing-" + label, bytes(image))
+        out("igtl", "image-spacing-" + label, b"\3" + header + body)
 
 
 def main():
