@@ -191,6 +191,15 @@ void writeStringScalar(const Writer& w, hid_t parent, const char* name, const st
   w.check(H5Dwrite(d.get(), type.get(), H5S_ALL, H5S_ALL, H5P_DEFAULT, &text), name);
 }
 
+/// Voxels per compressed chunk of a volume, and per slab written at a time [voxels].
+constexpr hsize_t kVolumeChunkVoxels = hsize_t{1} << 16;
+
+/// The i rows of one chunk (and slab) of a (nx, ny, nz) volume: whole (j, k) planes, about
+/// kVolumeChunkVoxels voxels, at least one plane.
+hsize_t volumeSlabRows(const std::vector<hsize_t>& dims) {
+  return std::max<hsize_t>(1, std::min<hsize_t>(dims[0], kVolumeChunkVoxels / (dims[1] * dims[2])));
+}
+
 /// A dataset creation list: chunked and compressed for `rows` > 0 along the first of `rank` axes
 /// (HDF5 cannot chunk an empty dataset with fixed dimensions: those stay contiguous).
 PropertyList compressed(const Writer& w, const std::vector<hsize_t>& dims, const std::string& what) {
@@ -201,7 +210,7 @@ PropertyList compressed(const Writer& w, const std::vector<hsize_t>& dims, const
   if (dims.size() == 1) {
     chunk[0] = std::min(dims[0], kChunkRows);
   } else {  // a volume: one slab of whole k columns per chunk, at most ~1 M voxels
-    chunk[0] = std::max<hsize_t>(1, std::min<hsize_t>(dims[0], (hsize_t{1} << 20) / (dims[1] * dims[2] + 1)));
+    chunk[0] = volumeSlabRows(dims);
   }
   w.check(H5Pset_chunk(p.get(), static_cast<int>(chunk.size()), chunk.data()), what);
   w.check(H5Pset_shuffle(p.get()), what);
@@ -305,19 +314,36 @@ void writeVolume(const Writer& w, hid_t group, const char* name, const haptics::
   const auto& g = volume.geometry();
   const std::vector<hsize_t> dims = {static_cast<hsize_t>(g.dims[0]), static_cast<hsize_t>(g.dims[1]),
                                      static_cast<hsize_t>(g.dims[2])};
-  std::vector<double> values(static_cast<std::size_t>(dims[0] * dims[1] * dims[2]));
+  // float32 when every value is exact in it (CT in HU, 8- and 16-bit data): a first pass.
   bool exact_in_float = true;
-  std::size_t n = 0;
-  for (int i = 0; i < g.dims[0]; ++i)
-    for (int j = 0; j < g.dims[1]; ++j)
-      for (int k = 0; k < g.dims[2]; ++k) {
+  for (int k = 0; k < g.dims[2] && exact_in_float; ++k)
+    for (int j = 0; j < g.dims[1] && exact_in_float; ++j)
+      for (int i = 0; i < g.dims[0]; ++i) {
         const double v = volume.voxel(i, j, k);
-        exact_in_float = exact_in_float && static_cast<double>(static_cast<float>(v)) == v;
-        values[n++] = v;
+        if (static_cast<double>(static_cast<float>(v)) != v) {
+          exact_in_float = false;
+          break;
+        }
       }
   const std::string where = std::string("/volume/") + name;
   Dataset d = createDataset(w, group, name, exact_in_float ? H5T_IEEE_F32LE : H5T_IEEE_F64LE, dims);
-  w.check(H5Dwrite(d.get(), H5T_NATIVE_DOUBLE, H5S_ALL, H5S_ALL, H5P_DEFAULT, values.data()), where);
+  // Written a slab of whole (j, k) planes at a time (one chunk each), k fastest: the memory
+  // held is one slab, not a copy of the volume (a 512^3 CT would take 1 GiB as doubles).
+  const hsize_t rows = volumeSlabRows(dims);
+  std::vector<double> slab(static_cast<std::size_t>(rows * dims[1] * dims[2]));
+  Dataspace file_space(w.check(H5Dget_space(d.get()), where));
+  for (hsize_t i0 = 0; i0 < dims[0]; i0 += rows) {
+    const hsize_t count[3] = {std::min(rows, dims[0] - i0), dims[1], dims[2]};
+    const hsize_t start[3] = {i0, 0, 0};
+    std::size_t n = 0;
+    for (hsize_t i = i0; i < i0 + count[0]; ++i)
+      for (int j = 0; j < g.dims[1]; ++j)
+        for (int k = 0; k < g.dims[2]; ++k) slab[n++] = volume.voxel(static_cast<int>(i), j, k);
+    w.check(H5Sselect_hyperslab(file_space.get(), H5S_SELECT_SET, start, nullptr, count, nullptr), where);
+    Dataspace memory_space(w.check(H5Screate_simple(3, count, nullptr), where));
+    w.check(H5Dwrite(d.get(), H5T_NATIVE_DOUBLE, memory_space.get(), file_space.get(), H5P_DEFAULT, slab.data()),
+            where);
+  }
   // Row-major, as HDF5 stores a 4 x 4 array.
   const Eigen::Matrix<double, 4, 4, Eigen::RowMajor> affine = g.indexToWorld();
   const hsize_t shape[2] = {4, 4};
