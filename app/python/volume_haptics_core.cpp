@@ -373,12 +373,13 @@ void bindRuns(py::module_& m) {
           py::gil_scoped_release release;
           const vh::runtime::LoadedScene scene =
               vh::runtime::loadScene(vh::runtime::sceneFromSessionMetadata(r.metadata_json));
-          if (!scene.spec.drill.has_value()) throw std::runtime_error("drilled_volume: the recorded scene has no drill");
-          if (r.records.empty()) throw std::runtime_error("drilled_volume: the recording has no records");
-          const vh::runtime::ReplayComparison replay = vh::runtime::replayRecording(scene, r);
-          const std::string difference = vh::runtime::replayDifference(replay, r);
-          if (!difference.empty()) throw std::runtime_error("drilled_volume: " + difference);
-          drilled = replay.drilled_field;
+          std::string difference;
+          try {
+            drilled = vh::runtime::drilledFieldAtEnd(scene, r, difference);
+          } catch (const std::invalid_argument& e) {  // no drill, no records: about the recording
+            throw std::runtime_error(std::string("drilled_volume: ") + e.what());
+          }
+          if (drilled == nullptr) throw std::runtime_error("drilled_volume: " + difference);
         }
         return py::make_tuple(arrayOf(*drilled), affineOf(drilled->geometry()));
       },

@@ -494,6 +494,14 @@ std::size_t jsonNestingDepth(std::string_view text) noexcept {
   return deepest;
 }
 
+void requireMetadataDepth(const std::string& where, const std::string& metadata_json) {
+  // What this program writes nests a few levels; text nested thousands deep makes every reader
+  // of it (parse, pretty print: the indentation grows with the depth) take minutes and gigabytes.
+  if (const std::size_t depth = jsonNestingDepth(metadata_json); depth > kMaxRecordingJsonDepth)
+    throw std::runtime_error(where + "damaged metadata: JSON nested " + std::to_string(depth) + " deep (at most " +
+                             std::to_string(kMaxRecordingJsonDepth) + ")");
+}
+
 void dropTooDeepEvents(const std::string& where, Recording& rec) {
   // Events whose detail nests deeper than anything written here are dropped, and said.
   const auto too_deep = [](const RecordingEvent& e) { return jsonNestingDepth(e.detail_json) > kMaxRecordingJsonDepth; };
@@ -546,11 +554,7 @@ std::size_t readHeader(const std::string& bytes, const std::string& where, Recor
   if (size - kFileHeaderBytes < meta_size || crc32(data + kFileHeaderBytes, meta_size) != getU32(data + 20))
     throw std::runtime_error("readRecording: " + where + "damaged metadata header");
   rec.metadata_json.assign(bytes, kFileHeaderBytes, meta_size);
-  // What this program writes nests a few levels; text nested thousands deep makes every reader
-  // of it (parse, pretty print: the indentation grows with the depth) take minutes and gigabytes.
-  if (const std::size_t depth = jsonNestingDepth(rec.metadata_json); depth > kMaxRecordingJsonDepth)
-    throw std::runtime_error("readRecording: " + where + "damaged metadata: JSON nested " + std::to_string(depth) +
-                             " deep (at most " + std::to_string(kMaxRecordingJsonDepth) + ")");
+  requireMetadataDepth("readRecording: " + where, rec.metadata_json);
   return kFileHeaderBytes + meta_size;
 }
 
@@ -727,15 +731,15 @@ void endWarnings(const std::uint64_t records_in_end_marker, Recording& rec) {
 
 }  // namespace
 
-Recording readRecording(const std::filesystem::path& path, RecordingFiles files) {
-  if (files == RecordingFiles::kVhrecOnly && isHdf5File(path))
-    throw std::runtime_error(path.string() + ": an HDF5 export of a recording; the window opens the .vhrec it came "
-                             "from (volume-haptics export, report and Python read HDF5 exports)");
-  return readRecording(path);
-}
+Recording readRecording(const std::filesystem::path& path) { return readRecording(path, RecordingFiles::kVhrecOrHdf5); }
 
-Recording readRecording(const std::filesystem::path& path) {
-  if (isHdf5File(path)) return readRecordingHdf5(path);
+Recording readRecording(const std::filesystem::path& path, RecordingFiles files) {
+  if (isHdf5File(path)) {
+    if (files == RecordingFiles::kVhrecOnly)
+      throw std::runtime_error(path.string() + ": an HDF5 export of a recording; the window opens the .vhrec it came "
+                               "from (volume-haptics export, report and Python read HDF5 exports)");
+    return readRecordingHdf5(path);
+  }
   const std::string bytes = readWholeFile(path);
   const auto* data = reinterpret_cast<const unsigned char*>(bytes.data());
   const std::size_t size = bytes.size();

@@ -126,27 +126,31 @@ const std::array<Column, 30>& columns() {
   return c;
 }
 
-hid_t fileType(Column::Kind kind) {
+/// A column kind's HDF5 types (in the file, little-endian; in memory, native) and size [bytes].
+struct KindTypes {
+  hid_t file;
+  hid_t memory;
+  std::size_t size;
+};
+KindTypes typesOf(Column::Kind kind) {
   switch (kind) {
-    case Column::kF64: return H5T_IEEE_F64LE;
-    case Column::kU64: return H5T_STD_U64LE;
-    case Column::kU32: return H5T_STD_U32LE;
-    case Column::kI32: return H5T_STD_I32LE;
-    case Column::kI64: return H5T_STD_I64LE;
+    case Column::kU64: return {H5T_STD_U64LE, H5T_NATIVE_UINT64, 8};
+    case Column::kU32: return {H5T_STD_U32LE, H5T_NATIVE_UINT32, 4};
+    case Column::kI32: return {H5T_STD_I32LE, H5T_NATIVE_INT32, 4};
+    case Column::kI64: return {H5T_STD_I64LE, H5T_NATIVE_INT64, 8};
+    case Column::kF64: break;
   }
-  return H5T_IEEE_F64LE;
+  return {H5T_IEEE_F64LE, H5T_NATIVE_DOUBLE, 8};
 }
-hid_t memoryType(Column::Kind kind) {
-  switch (kind) {
-    case Column::kF64: return H5T_NATIVE_DOUBLE;
-    case Column::kU64: return H5T_NATIVE_UINT64;
-    case Column::kU32: return H5T_NATIVE_UINT32;
-    case Column::kI32: return H5T_NATIVE_INT32;
-    case Column::kI64: return H5T_NATIVE_INT64;
-  }
-  return H5T_NATIVE_DOUBLE;
+
+/// The variable-length UTF-8 string type, its creation checked by `c` (a Writer or a Reader).
+template <typename Checker>
+Datatype utf8String(const Checker& c, const std::string& what) {
+  Datatype t(c.check(H5Tcopy(H5T_C_S1), what));
+  c.check(H5Tset_size(t.get(), H5T_VARIABLE), what);
+  c.check(H5Tset_cset(t.get(), H5T_CSET_UTF8), what);
+  return t;
 }
-std::size_t kindSize(Column::Kind kind) { return kind == Column::kU32 || kind == Column::kI32 ? 4 : 8; }
 
 // ---- Writing ------------------------------------------------------------------------------------
 
@@ -159,15 +163,8 @@ struct Writer {
   }
 };
 
-Datatype utf8String(const Writer& w) {
-  Datatype t(w.check(H5Tcopy(H5T_C_S1), "a string type"));
-  w.check(H5Tset_size(t.get(), H5T_VARIABLE), "a string type");
-  w.check(H5Tset_cset(t.get(), H5T_CSET_UTF8), "a string type");
-  return t;
-}
-
 void writeStringAttribute(const Writer& w, hid_t object, const char* name, const std::string& value) {
-  Datatype type = utf8String(w);
+  Datatype type = utf8String(w, name);
   Dataspace space(w.check(H5Screate(H5S_SCALAR), name));
   Attribute a(w.check(H5Acreate2(object, name, type.get(), space.get(), H5P_DEFAULT, H5P_DEFAULT), name));
   const char* text = value.c_str();
@@ -184,7 +181,7 @@ void writeNumberAttribute(const Writer& w, hid_t object, const char* name, hid_t
 
 /// A scalar string dataset (the metadata JSON: too long for an attribute's 64 KiB).
 void writeStringScalar(const Writer& w, hid_t parent, const char* name, const std::string& value) {
-  Datatype type = utf8String(w);
+  Datatype type = utf8String(w, name);
   Dataspace space(w.check(H5Screate(H5S_SCALAR), name));
   Dataset d(w.check(H5Dcreate2(parent, name, type.get(), space.get(), H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT), name));
   const char* text = value.c_str();
@@ -200,8 +197,9 @@ hsize_t volumeSlabRows(const std::vector<hsize_t>& dims) {
   return std::max<hsize_t>(1, std::min<hsize_t>(dims[0], kVolumeChunkVoxels / (dims[1] * dims[2])));
 }
 
-/// A dataset creation list: chunked and compressed for `rows` > 0 along the first of `rank` axes
-/// (HDF5 cannot chunk an empty dataset with fixed dimensions: those stay contiguous).
+/// A dataset creation list for `dims`: chunked (kChunkRows rows of a column; volumeSlabRows()
+/// planes of a volume), shuffled and compressed; an empty dataset stays contiguous (HDF5 cannot
+/// chunk one with fixed dimensions).
 PropertyList compressed(const Writer& w, const std::vector<hsize_t>& dims, const std::string& what) {
   PropertyList p(w.check(H5Pcreate(H5P_DATASET_CREATE), what));
   for (hsize_t d : dims)
@@ -209,7 +207,7 @@ PropertyList compressed(const Writer& w, const std::vector<hsize_t>& dims, const
   std::vector<hsize_t> chunk = dims;
   if (dims.size() == 1) {
     chunk[0] = std::min(dims[0], kChunkRows);
-  } else {  // a volume: one slab of whole k columns per chunk, at most ~1 M voxels
+  } else {
     chunk[0] = volumeSlabRows(dims);
   }
   w.check(H5Pset_chunk(p.get(), static_cast<int>(chunk.size()), chunk.data()), what);
@@ -240,7 +238,7 @@ Dataset createDataset(const Writer& w, hid_t parent, const std::string& name, hi
 }
 
 void writeStrings(const Writer& w, hid_t parent, const char* name, const std::vector<std::string>& values) {
-  Datatype type = utf8String(w);
+  Datatype type = utf8String(w, name);
   const hsize_t n = values.size();
   Dataspace space(w.check(H5Screate_simple(1, &n, nullptr), name));
   PropertyList create = compressed(w, {n}, name);
@@ -264,12 +262,13 @@ void writeTicks(const Writer& w, hid_t file, const std::vector<TickRecord>& reco
   Group ticks = createGroup(w, file, "ticks");
   std::vector<unsigned char> column(records.size() * 8);
   for (const Column& c : columns()) {
-    const std::size_t size = kindSize(c.kind);
+    const KindTypes types = typesOf(c.kind);
     for (std::size_t r = 0; r < records.size(); ++r)
-      std::memcpy(column.data() + r * size, reinterpret_cast<const unsigned char*>(&records[r]) + c.offset, size);
-    Dataset d = createDataset(w, ticks.get(), c.name, fileType(c.kind), {records.size()});
+      std::memcpy(column.data() + r * types.size, reinterpret_cast<const unsigned char*>(&records[r]) + c.offset,
+                  types.size);
+    Dataset d = createDataset(w, ticks.get(), c.name, types.file, {records.size()});
     if (!records.empty())
-      w.check(H5Dwrite(d.get(), memoryType(c.kind), H5S_ALL, H5S_ALL, H5P_DEFAULT, column.data()),
+      w.check(H5Dwrite(d.get(), types.memory, H5S_ALL, H5S_ALL, H5P_DEFAULT, column.data()),
               std::string("/ticks/") + c.name);
     writeStringAttribute(w, d.get(), "unit", c.unit);
     writeStringAttribute(w, d.get(), "description", c.description);
@@ -374,9 +373,7 @@ std::string readStringAttribute(const Reader& r, hid_t object, const char* name)
   Datatype stored(r.check(H5Aget_type(a.get()), name));
   if (H5Tget_class(stored.get()) != H5T_STRING || H5Tis_variable_str(stored.get()) <= 0)
     throw std::runtime_error(r.where + "attribute " + name + " is not a string");
-  Datatype type(r.check(H5Tcopy(H5T_C_S1), name));
-  r.check(H5Tset_size(type.get(), H5T_VARIABLE), name);
-  r.check(H5Tset_cset(type.get(), H5T_CSET_UTF8), name);
+  Datatype type = utf8String(r, name);
   char* text = nullptr;
   r.check(H5Aread(a.get(), type.get(), &text), name);
   std::string value = text != nullptr ? text : "";
@@ -419,9 +416,7 @@ std::vector<std::string> readStrings(const Reader& r, hid_t parent, const std::s
   Dataset d(r.check(H5Dopen2(parent, name, H5P_DEFAULT), where));
   const hsize_t n = rowsOf(r, d.get(), where, H5T_STRING);
   io::requireFitsInMemory(n * sizeof(char*), r.where + where);
-  Datatype type(r.check(H5Tcopy(H5T_C_S1), where));
-  r.check(H5Tset_size(type.get(), H5T_VARIABLE), where);
-  r.check(H5Tset_cset(type.get(), H5T_CSET_UTF8), where);
+  Datatype type = utf8String(r, where);
   std::vector<char*> text(static_cast<std::size_t>(n), nullptr);
   std::vector<std::string> out;
   if (n == 0) return out;
@@ -441,9 +436,7 @@ std::string readStringScalar(const Reader& r, hid_t parent, const char* name) {
   if (H5Sget_simple_extent_type(space.get()) != H5S_SCALAR || H5Tget_class(stored.get()) != H5T_STRING ||
       H5Tis_variable_str(stored.get()) <= 0)
     throw std::runtime_error(r.where + "/" + name + " is not one string");
-  Datatype type(r.check(H5Tcopy(H5T_C_S1), name));
-  r.check(H5Tset_size(type.get(), H5T_VARIABLE), name);
-  r.check(H5Tset_cset(type.get(), H5T_CSET_UTF8), name);
+  Datatype type = utf8String(r, name);
   char* text = nullptr;
   r.check(H5Dread(d.get(), type.get(), H5S_ALL, H5S_ALL, H5P_DEFAULT, &text), name);
   std::string value = text != nullptr ? text : "";
@@ -539,12 +532,9 @@ std::string writeRecordingHdf5WithVolume(const Recording& recording, const std::
   RecordingHdf5Volumes volumes;
   volumes.scan = scene.volume.field.get();
   std::string difference;
-  ReplayComparison replay;
-  if (scene.spec.drill.has_value() && !recording.records.empty()) {
-    replay = replayRecording(scene, recording);
-    difference = replayDifference(replay, recording);
-    if (difference.empty()) volumes.drilled = replay.drilled_field.get();
-  }
+  std::shared_ptr<const haptics::ScalarVolume> drilled;
+  if (scene.spec.drill.has_value() && !recording.records.empty()) drilled = drilledFieldAtEnd(scene, recording, difference);
+  volumes.drilled = drilled.get();
   writeRecordingHdf5(recording, path, volumes);
   return difference;
 }
@@ -577,9 +567,7 @@ Recording readRecordingHdf5(const std::filesystem::path& path) {
   rec.end_status = readNumberAttribute<std::uint32_t>(r, f, "end_status", H5T_NATIVE_UINT32);
   rec.metadata_json = readStringScalar(r, f, "metadata");
   // The .vhrec reader's checks: metadata nested no deeper than it accepts, events likewise.
-  if (const std::size_t depth = jsonNestingDepth(rec.metadata_json); depth > kMaxRecordingJsonDepth)
-    throw std::runtime_error(r.where + "damaged metadata: JSON nested " + std::to_string(depth) + " deep (at most " +
-                             std::to_string(kMaxRecordingJsonDepth) + ")");
+  requireMetadataDepth(r.where, rec.metadata_json);
   rec.warnings = readStrings(r, f, "", "warnings");
 
   if (!hasLink(f, "ticks")) throw std::runtime_error(r.where + "no group /ticks");
@@ -588,8 +576,9 @@ Recording readRecordingHdf5(const std::filesystem::path& path) {
   bool first = true;
   for (const Column& c : columns()) {
     const H5T_class_t type_class = c.kind == Column::kF64 ? H5T_FLOAT : H5T_INTEGER;
-    const std::size_t size = kindSize(c.kind);
-    const hsize_t n = readNumberColumn(r, ticks.get(), "/ticks", c.name, memoryType(c.kind), size, type_class, bytes);
+    const KindTypes types = typesOf(c.kind);
+    const std::size_t size = types.size;
+    const hsize_t n = readNumberColumn(r, ticks.get(), "/ticks", c.name, types.memory, size, type_class, bytes);
     if (first) {
       io::requireFitsInMemory(n * sizeof(TickRecord), r.where + "/ticks");
       rec.records.assign(static_cast<std::size_t>(n), TickRecord{});

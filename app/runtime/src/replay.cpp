@@ -279,4 +279,13 @@ std::string replayDifference(const ReplayComparison& replay, const Recording& re
   return text;
 }
 
+std::shared_ptr<const haptics::ScalarVolume> drilledFieldAtEnd(const LoadedScene& scene, const Recording& recording,
+                                                               std::string& difference) {
+  if (!scene.spec.drill.has_value()) throw std::invalid_argument("the recorded scene has no drill");
+  if (recording.records.empty()) throw std::invalid_argument("the recording has no records");
+  const ReplayComparison replay = replayRecording(scene, recording);
+  difference = replayDifference(replay, recording);
+  return difference.empty() ? replay.drilled_field : nullptr;
+}
+
 }  // namespace vh::runtime

@@ -126,4 +126,13 @@ ReplayComparison replayRecording(const LoadedScene& scene, const Recording& reco
 /// and this recording (format version 4) does not say where, so the replay did that tick whole".
 std::string replayDifference(const ReplayComparison& replay, const Recording& recording);
 
+/// The drilled field at the end of `recording`, as a replay of it on `scene` (the scene it was
+/// recorded on) carves it. Not for the servo thread.
+/// @return the field; null when the replay parts from the recording, with `difference` saying
+///         why (replayDifference()), else `difference` empty.
+/// @throws std::invalid_argument when the scene has no drill or the recording no records; as
+///         replayRecording().
+std::shared_ptr<const haptics::ScalarVolume> drilledFieldAtEnd(const LoadedScene& scene, const Recording& recording,
+                                                               std::string& difference);
+
 }  // namespace vh::runtime
