@@ -246,9 +246,11 @@ LoadedSegmentation segmentationFromLabels(std::shared_ptr<const haptics::ScalarV
   seg.layers.push_back(std::move(labels));
   addLabelMapSegments(seg, source);
   if (seg.segments.empty()) fail(source, "no segments: every voxel is 0");
-  for (const auto& [label, name] : names) {
+  for (const auto& entry : names) {
+    const int label = entry.first;  // not a structured binding: clang 14 cannot capture one in a lambda
+    const std::string& name = entry.second;
     const auto it = std::find_if(seg.segments.begin(), seg.segments.end(),
-                                 [&](const SegmentInfo& s) { return s.label_value == label; });
+                                 [label](const SegmentInfo& s) { return s.label_value == label; });
     if (it == seg.segments.end()) fail(source, "a name for label " + std::to_string(label) + ", which no voxel has");
     it->name = name;
   }
