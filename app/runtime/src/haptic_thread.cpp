@@ -316,6 +316,38 @@ bool HapticThread::holdCutting(double timeout_ms) {
   return true;
 }
 
+void HapticThread::swapSegmentParts(SegmentParts& parts) noexcept {
+  options_.segments.swap(parts.segments);
+  proximity_.swap(parts.proximity);
+  options_.technique.swap(parts.technique);
+}
+
+bool HapticThread::replaceSegments(std::shared_ptr<const SegmentSet> segments, std::shared_ptr<ServoTechnique> technique,
+                                   double timeout_ms) {
+  if (options_.drill != nullptr || recorder_.load(std::memory_order_acquire) != nullptr) return false;
+  auto parts = std::make_unique<SegmentParts>();
+  parts->segments = std::move(segments);
+  if (parts->segments != nullptr && !parts->segments->critical().empty())
+    parts->proximity = std::make_unique<CriticalProximity>(*parts->segments, renderer_->tool().point_shell);
+  parts->technique = std::move(technique);
+  if (!solver_thread_.joinable()) {  // no solver thread: this thread's own
+    swapSegmentParts(*parts);
+    return true;  // the old parts go with `parts`
+  }
+  segments_retired_.store(nullptr, std::memory_order_release);
+  segments_pending_.store(parts.get(), std::memory_order_release);
+  const auto until = std::chrono::steady_clock::now() + std::chrono::duration<double, std::milli>(timeout_ms);
+  while (segments_retired_.load(std::memory_order_acquire) != parts.get()) {
+    if (std::chrono::steady_clock::now() > until) {
+      // Taken back unless the solver has just taken it (it then hands it back within its tick).
+      if (segments_pending_.exchange(nullptr, std::memory_order_acq_rel) == parts.get()) return false;
+    }
+    std::this_thread::sleep_for(std::chrono::microseconds(100));
+  }
+  segments_retired_.store(nullptr, std::memory_order_release);
+  return true;  // the old parts are freed here, on this thread
+}
+
 void HapticThread::stop() {
   if (!coupling_thread_.joinable()) return;
   stop_requested_.store(true, std::memory_order_release);
@@ -711,6 +743,11 @@ void HapticThread::solverLoop() noexcept {
 
   while (!coupling_done_.load(std::memory_order_acquire)) {
     if (clock.wait()) st.wake_flags = kRecordFlagDeadlineMiss;
+    // New segment choices (replaceSegments()): swapped between two ticks, the old ones handed back.
+    if (SegmentParts* parts = segments_pending_.exchange(nullptr, std::memory_order_acq_rel)) {
+      swapSegmentParts(*parts);
+      segments_retired_.store(parts, std::memory_order_release);
+    }
     solvePendingSamples(st, x_->samples, every_sample_, x_->backlog_limit, solve);
   }
   // The samples of the coupling thread's last ticks.

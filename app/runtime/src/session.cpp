@@ -140,6 +140,20 @@ void Session::setEdgeTest(bool on) {
 void Session::setSegments(std::shared_ptr<const SegmentSet> segments, std::optional<SegmentationSpec> spec) {
   if (!has_scene_) throw std::invalid_argument("Session::setSegments: no scene");
   if (segments != nullptr && !spec) throw std::invalid_argument("Session::setSegments: segments without a spec");
+  // The same felt surface (what is shown or critical changed, or segments opened to be seen):
+  // the running threads take the new segments between two ticks, the hand feels no pause.
+  if (haptics_ != nullptr && !live_.drill &&
+      feltFieldOf(segments, live_.scan_field) == live_.hapticField() &&
+      feltIsovalueOf(segments, live_.isovalue) == live_.hapticIsovalue()) {
+    LiveValues next = live_;
+    next.segments = segments;
+    if (haptics_->replaceSegments(segments, makeServoTechnique(next, nullptr))) {
+      live_.segments = std::move(segments);
+      live_.segmentation = live_.segments != nullptr ? std::move(spec) : std::nullopt;
+      notify(SessionChange::kSegments);
+      return;
+    }
+  }
   // The cavity so far is kept on the old felt field (the stop comes before the change).
   restartHaptics(SessionChange::kSegments, [&](const haptics::Pose& X_WP) {
     live_.segments = std::move(segments);

@@ -5,7 +5,9 @@
 // time in contact and peak force per segment.
 #include <gtest/gtest.h>
 
+#include <atomic>
 #include <cmath>
+#include <limits>
 #include <fstream>
 #include <string>
 
@@ -298,6 +300,94 @@ TEST(FeltSegments, TheSessionSwapsTheFeltSegmentsAndStartsTheProxyFreeOfTheNewSu
   session.setSegments(nullptr, std::nullopt);
   EXPECT_FALSE(session.live().feltSegments());
   EXPECT_FALSE(session.live().segmentation.has_value());
+  session.stopHaptics();
+}
+
+}  // namespace
+}  // namespace vh::runtime
+
+namespace vh::runtime {
+namespace {
+
+/// The simulated device, watched: the smallest force magnitude commanded while armed.
+class ForceWatchDevice final : public Device {
+ public:
+  explicit ForceWatchDevice(const haptics::Pose& X_WD) : inner_(std::make_shared<SimulatedDevice>(X_WD)) {}
+  std::string name() const override { return "watched " + inner_->name(); }
+  SimulatedDevice* simulatedDevice() noexcept override { return inner_.get(); }
+  bool read(DeviceSample& sample) noexcept override { return inner_->read(sample); }
+  void command(const Eigen::Vector3d& force_W_N, const Eigen::Vector3d& torque_W_Nm) noexcept override {
+    if (armed_.load()) {
+      const double f = force_W_N.norm();
+      double seen = min_force_N_.load();
+      while (f < seen && !min_force_N_.compare_exchange_weak(seen, f)) {
+      }
+      commands_.fetch_add(1);
+    }
+    inner_->command(force_W_N, torque_W_Nm);
+  }
+  void arm() {
+    min_force_N_.store(std::numeric_limits<double>::infinity());
+    commands_.store(0);
+    armed_.store(true);
+  }
+  void disarm() { armed_.store(false); }
+  double minForce_N() const { return min_force_N_.load(); }
+  std::uint64_t commands() const { return commands_.load(); }
+
+ private:
+  std::shared_ptr<SimulatedDevice> inner_;
+  std::atomic<bool> armed_{false};
+  std::atomic<double> min_force_N_{std::numeric_limits<double>::infinity()};
+  std::atomic<std::uint64_t> commands_{0};
+};
+
+// A segmentation opened to be seen, or other segments made critical, leaves the felt surface as
+// it is: the running threads take the new segments between two ticks and the hand pressing on
+// the surface never loses it (a restart ramps the force to zero and commands zero: the wall
+// vanishes for the ramp and the rebuild). Oracle: every force the device was commanded over the
+// change, against the pressing force before it; the restart is shown to drop it to 0.
+TEST(FeltSegments, SegmentChoicesThatKeepTheFeltSurfaceNeverLetTheForceGo) {
+  const fs::path dir = writeCase();
+  const fs::path seen = test::writeText(dir / "seen.json", R"({"volume": {"path": "ct.nrrd", "isovalue": 150},
+      "tool": {"mesh": "builtin:sphere", "scale_to_m": 0.4, "point_spacing_m": 0.0006},
+      "segmentation": {"path": "case.seg.nrrd", "felt": [], "critical": []}})");
+  LoadedScene scene = loadScene(loadSceneFile(seen));
+  const io::LoadedSegmentation seg = scene.segments->segmentation();
+  // Pressed 1 mm into the nerve's top (felt as the scan's surface at 150).
+  const PushSlidePlan plan = pushDownOverTheNerve(scene);
+  haptics::Pose pressed = plan.X_WD_contact;
+  pressed.p_AB_m.z() -= 0.001;
+  auto device = std::make_shared<ForceWatchDevice>(pressed);
+  Session session;
+  session.setScene(std::move(scene), device);
+  session.startHaptics();
+  HapticSnapshot snap;
+  ASSERT_TRUE(test::waitUntil([&] { return session.latestSnapshot(snap) && snap.tick > 200 && snap.contacts > 0; }));
+  const double pressing_N = snap.force_W_N.norm();
+  ASSERT_GT(pressing_N, 0.5) << "the device is pressed 1 mm into the surface";
+
+  // The nerve made critical: the same felt surface.
+  SegmentationSpec spec = *session.live().segmentation;
+  spec.critical = {"facial nerve"};
+  device->arm();
+  session.setSegments(SegmentSet::fromSpec(seg, spec, "test"), spec);
+  ASSERT_TRUE(test::waitUntil([&] { return session.latestSnapshot(snap) && snap.critical_segment == 0; }))
+      << "the running threads measure the nerve, critical now";
+  const std::uint64_t after = device->commands();
+  ASSERT_TRUE(test::waitUntil([&] { return device->commands() > after + 50; }));
+  device->disarm();
+  EXPECT_TRUE(session.hapticsRunning());
+  EXPECT_EQ(session.live().segmentation->critical, std::vector<std::string>{"facial nerve"});
+  EXPECT_GT(device->minForce_N(), 0.5 * pressing_N) << "the force held over the change (pressing " << pressing_N << " N)";
+  EXPECT_LT(snap.critical_distance_m, 0.0005) << "pressed on the nerve";
+
+  // Felt segments instead of the scan: a new surface, the threads rebuilt (the force ramped to 0).
+  spec.felt = {"facial nerve"};
+  device->arm();
+  session.setSegments(SegmentSet::fromSpec(seg, spec, "test"), spec);
+  device->disarm();
+  EXPECT_EQ(device->minForce_N(), 0.0) << "the restart ramps the force to zero";
   session.stopHaptics();
 }
 

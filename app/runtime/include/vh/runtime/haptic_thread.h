@@ -206,6 +206,23 @@ class HapticThread {
   /// (DeformableScene::takeDeformedWindow()) has one consumer: the picture.
   const std::shared_ptr<tissue::DeformableScene>& tissue() const noexcept { return options_.tissue; }
 
+  /// New segment choices that leave the felt surface as it is (a segmentation opened to be
+  /// seen, other segments shown or critical, other warning distances): from one solver tick on,
+  /// the segment each tick touches and the nearest critical segment are measured on `segments`,
+  /// and `technique` replaces the technique rules (their timers start afresh). The running
+  /// threads go on between two ticks: the force is not interrupted (no stop, no ramp, no new
+  /// thread), which a restart of the threads would do. Before start() or after stop(): at once.
+  /// GUI thread; the solver takes the new parts at its next wake-up, allocating and freeing
+  /// nothing (this thread builds them and frees the old ones). Blocks for about one solver
+  /// period, at most `timeout_ms` [ms].
+  /// @return false (nothing changes) with a drill (its materials follow the segments), while
+  ///         recording (a recording's segments are its scene's), or when the solver took no new
+  ///         parts within `timeout_ms` (threads that ended by themselves, a stalled solver);
+  ///         the caller then restarts the threads.
+  /// @throws std::bad_alloc (nothing changes).
+  bool replaceSegments(std::shared_ptr<const SegmentSet> segments, std::shared_ptr<ServoTechnique> technique,
+                       double timeout_ms = 100.0);
+
   /// Records every solver tick from the next one on into `recorder` (one TickRecord per solver
   /// tick, pushed without blocking or allocating; a full ring drops the record and the recorder
   /// counts it). Not owned: it must outlive the recording. Set it before start(), or clear it
@@ -272,6 +289,16 @@ class HapticThread {
   /// The nearest critical segment after each solver tick (null: no critical segment); the
   /// solver thread's only.
   std::unique_ptr<CriticalProximity> proximity_;
+  /// What replaceSegments() hands over: the solver swaps these with options_.segments,
+  /// proximity_ and options_.technique (no allocation), and hands the old ones back.
+  struct SegmentParts {
+    std::shared_ptr<const SegmentSet> segments;
+    std::unique_ptr<CriticalProximity> proximity;
+    std::shared_ptr<ServoTechnique> technique;
+  };
+  void swapSegmentParts(SegmentParts& parts) noexcept;
+  std::atomic<SegmentParts*> segments_pending_{nullptr};  ///< GUI -> solver (replaceSegments()).
+  std::atomic<SegmentParts*> segments_retired_{nullptr};  ///< Solver -> GUI: taken, now holding the old ones.
   std::unique_ptr<Exchange> x_;
   std::atomic<double> isovalue_;
   std::atomic<double> gain_linear_;

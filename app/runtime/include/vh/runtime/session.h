@@ -127,7 +127,10 @@ class Session {
 
   // ---- Segments ------------------------------------------------------------------------------
   /// Replaces the live segments (null: none) and their spec (what recordings and scene files
-  /// say): the haptic threads stop (force ramped to zero) and are rebuilt on the new felt field
+  /// say). When the felt surface stays the same (LiveValues::hapticField() and its isovalue:
+  /// segments opened to be seen, other segments shown or critical) and there is no drill, the
+  /// running threads take them between two ticks (HapticThread::replaceSegments()): the force
+  /// goes on. Otherwise, or while recording, the haptic threads stop (force ramped to zero) and are rebuilt on the new felt field
   /// (LiveValues::hapticField()) at the proxy's pose when no shell point is inside the new
   /// surface there, else at a free pose above the volume (defaultInitialPose(); a simulated
   /// device is moved there); restarted when they ran.
