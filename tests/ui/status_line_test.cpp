@@ -55,6 +55,11 @@ TEST(StatusLine, ShowsTheSnapshotsNumbers) {
   EXPECT_TRUE(contains(text, "contacts 3")) << text.toStdString();
   EXPECT_TRUE(contains(text, "|F| 3.01 N")) << text.toStdString();
   EXPECT_FALSE(contains(text, "skipped")) << "no skipped samples: not mentioned";
+  // Without real-time scheduling (a user outside the group volume-haptics) the line says so and
+  // how to get it; with it, nothing.
+  EXPECT_EQ(contains(text, "normal priority"), !session.hapticThread()->realtimeScheduling()) << text.toStdString();
+  EXPECT_TRUE(schedulingNote(true).isEmpty());
+  EXPECT_TRUE(contains(schedulingNote(false), "adduser $USER volume-haptics")) << schedulingNote(false).toStdString();
 
   // The widget shows the same text in its label, with the misses of the last minute.
   QStatusBar bar;

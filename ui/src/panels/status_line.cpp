@@ -48,6 +48,12 @@ QString contactText(int contacts, double force_N) {
 
 }  // namespace
 
+QString schedulingNote(bool realtime) {
+  if (realtime) return {};
+  return "  |  normal priority: a busy computer can delay the force (real-time: sudo adduser $USER volume-haptics, "
+         "then log in again)";
+}
+
 QString hapticStatusText(const runtime::Session& session, const runtime::HapticSnapshot* snapshot,
                          const QString& replaying, const MissWindow* misses) {
   if (!session.hasScene()) return "No scan open";
@@ -81,7 +87,7 @@ QString hapticStatusText(const runtime::Session& session, const runtime::HapticS
   if (s.skipped_samples > 0) {
     text += QString("  |  solver skipped %1 device samples").arg(static_cast<qulonglong>(s.skipped_samples));
   }
-  return text;
+  return text + schedulingNote(session.hapticThread()->realtimeScheduling());
 }
 
 StatusLine::StatusLine(QStatusBar* bar) : QObject(bar) {

@@ -46,10 +46,17 @@ class MissWindow {
   std::deque<Entry> entries_;  // oldest first; the first is the window's baseline
 };
 
+/// What the status line adds when the haptic threads run without real-time scheduling
+/// (HapticThread::realtimeScheduling() false: SCHED_OTHER, so any busy program, a load or the
+/// window's own drawing can delay a force update by milliseconds): that, and how to get it
+/// (packaging/95-volume-haptics-realtime.conf). Empty when `realtime`.
+QString schedulingNote(bool realtime);
+
 /// The statistics text for `session` (its latest snapshot `snapshot`, null before the first),
 /// or why there are none; `replaying` names the recording a replay shows (empty: live). With
 /// segments, it names the one the tool touches ("touching facial nerve (CRITICAL)"). Deadline
-/// misses per minute from `misses` when given (StatusLine), else the snapshot's totals.
+/// misses per minute from `misses` when given (StatusLine), else the snapshot's totals; then
+/// schedulingNote() of the running threads.
 QString hapticStatusText(const runtime::Session& session, const runtime::HapticSnapshot* snapshot,
                          const QString& replaying, const MissWindow* misses = nullptr);
 
