@@ -36,6 +36,7 @@
 
 #include "dicom_seg_fixtures.h"
 #include "ui_test_util.h"
+#include "vh/io/nrrd_writer.h"
 #include "vh/io/segmentation.h"
 #include "vh/runtime/recording.h"
 #include "vh/runtime/scene.h"
@@ -281,6 +282,65 @@ TEST(SegmentsController, OpensASegmentationAppliesChoicesAndAlertsOnACriticalTou
 // stay at the scene's isovalue (150 here) while the Replay dock moves through the ticks.
 // The panel's "Open Segmentation..." button opens the same file dialog as File > Open
 // Segmentation (it was connected to nothing: four clicks did nothing); cancelled, nothing opens.
+// Opening a segmentation reads it and builds its surfaces on a worker thread: the window goes on
+// drawing (its timers and repaints run during the open; input waits until it is done) and the
+// haptic threads go on with the force (a segmentation opened to be seen keeps the felt surface),
+// where the GUI thread used to be held for the whole load (about 10 s on the head phantom).
+// Oracle: a timer due at once fires before open() returns, and the threads are the same,
+// running ones, their tick count going on.
+TEST(SegmentsController, OpeningASegmentationLeavesTheWindowDrawingAndTheForceOn) {
+  if (!fs::exists(test::kHead)) GTEST_SKIP() << test::kHead << " is absent (the shared datasets, ../shared/datasets)";
+  Host host;
+  runtime::LoadedScene scene = runtime::loadScene(runtime::sceneForVolume(test::kHead));
+  auto device = scene.makeDevice();
+  const SceneActorsSpec spec = sceneActorsSpecFor(scene, runtime::LiveValues::initial(scene));
+  host.session.setScene(std::move(scene), device);
+  host.view->setScene(spec, host.session.live().X_WT_initial, ViewLook{});
+  host.session.startHaptics();
+  ASSERT_TRUE(host.session.hapticsRunning());
+  runtime::HapticSnapshot snap;
+  ASSERT_TRUE(test::waitFor([&] { return host.session.latestSnapshot(snap) && snap.tick > 500; }, 30000));
+
+  // Two labels from the scan itself: its brightest voxels (bone) in the middle third.
+  const haptics::ScalarVolume& f = *host.session.loaded().volume.field;
+  const haptics::VolumeGeometry& g = f.geometry();
+  std::vector<std::uint8_t> labels(g.voxelCount(), 0);
+  const double bone = f.minValue() + 0.7 * (f.maxValue() - f.minValue());
+  for (int k = g.dims[2] / 3; k < 2 * g.dims[2] / 3; ++k)
+    for (int j = 0; j < g.dims[1]; ++j)
+      for (int i = 0; i < g.dims[0]; ++i)
+        if (f.voxel(i, j, k) > bone)
+          labels[static_cast<std::size_t>(i) + static_cast<std::size_t>(g.dims[0]) * (j + static_cast<std::size_t>(g.dims[1]) * k)] =
+              i < g.dims[0] / 2 ? 1 : 2;
+  io::NrrdVolume label_map;
+  label_map.dims = g.dims;
+  label_map.spacing_m = g.spacing_m;
+  label_map.origin_W_m = g.origin_W_m;
+  label_map.direction_W = g.direction_W;
+  label_map.type = "uchar";
+  label_map.voxels = labels.data();
+  QTemporaryDir dir;
+  const fs::path path = fs::path(dir.path().toStdString()) / "bone-halves.nrrd";
+  io::writeNrrd(path, label_map);
+
+  const runtime::HapticThread* threads = host.session.hapticThread();
+  bool opening = true;
+  int timer_fired_during_open = 0;
+  QTimer::singleShot(0, host.controller, [&] { timer_fired_during_open += opening ? 1 : 0; });
+  host.session.latestSnapshot(snap);
+  const std::uint64_t tick_before = snap.tick;
+  ASSERT_TRUE(host.controller->open(path));
+  opening = false;
+  EXPECT_EQ(timer_fired_during_open, 1) << "the window's event loop ran while the segmentation loaded";
+  ASSERT_NE(host.session.live().segments, nullptr);
+  EXPECT_EQ(host.view->segmentSurfaces()->shownSegments(), (std::vector<int>{0, 1})) << "the surfaces built off the GUI thread are drawn";
+  EXPECT_EQ(host.session.hapticThread(), threads);
+  EXPECT_TRUE(host.session.hapticsRunning());
+  host.session.latestSnapshot(snap);
+  EXPECT_GE(snap.tick, tick_before) << "the same threads' count goes on (a restart counts from 0 again)";
+  host.session.stopHaptics();
+}
+
 TEST(SegmentsController, ThePanelsOpenButtonAsksForTheFile) {
   Host host;
   QPushButton* button = nullptr;

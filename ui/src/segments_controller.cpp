@@ -2,20 +2,30 @@
 #include "vh/ui/segments_controller.h"
 
 #include <algorithm>
+#include <map>
+#include <memory>
+
+#include <sys/resource.h>
+#include <unistd.h>
 
 #include <QApplication>
 #include <QDockWidget>
+#include <QEventLoop>
 #include <QFileDialog>
 #include <QMainWindow>
 #include <QPointF>
 #include <QStatusBar>
 #include <QStringList>
+#include <QThread>
+#include <vtkMatrix4x4.h>
+#include <vtkPolyData.h>
 
 #include "vh/io/segmentation.h"
 #include "vh/ui/devices/device_input.h"
 #include "vh/ui/panels/segments_panel.h"
 #include "vh/ui/preferences.h"
 #include "vh/ui/view/scene_view.h"
+#include "vh/ui/view/segment_surfaces.h"
 #include "vh/ui/view/vtk_view.h"
 
 namespace vh::ui {
@@ -108,19 +118,69 @@ void SegmentsController::onSessionChanged(runtime::SessionChange what) {
   view_.setTouchedSegment(-1, {});
 }
 
+namespace {
+
+/// What a segmentation's open computes off the GUI thread.
+struct PreparedSegments {
+  std::shared_ptr<const runtime::SegmentSet> set;
+  runtime::SegmentationSpec spec;
+  std::map<int, SegmentSurface> surfaces;
+  std::string error;  // empty: prepared
+};
+
+/// The calling thread at a lower CPU priority (nice 10; raising it needs no privilege), so that
+/// a load leaves the cores to the haptic threads when they run at normal priority, and to the
+/// window's drawing.
+void lowerThisThreadsPriority() noexcept { (void)setpriority(PRIO_PROCESS, static_cast<id_t>(::gettid()), 10); }
+
+}  // namespace
+
 bool SegmentsController::open(const std::filesystem::path& path) {
   if (!session_.hasScene()) {
     emit errorReported(q(path.string()), q(path.string()) + ": open a scan first; a segmentation is opened on it");
     return false;
   }
-  try {
+  // Reading the file, building the set and its surfaces takes seconds on a CT: a worker thread
+  // at lower priority does it while the window goes on drawing (input held until it is done, so
+  // nothing else changes the scene meanwhile); the haptic threads never wait for it.
+  const std::shared_ptr<const haptics::ScalarVolume> scan_field = session_.loaded().volume.field;
+  PreparedSegments prepared;
+  {
     WaitCursor wait;
-    // On the scan shown: a DICOM SEG is placed on its grid and checked against its series.
-    io::LoadedSegmentation seg = io::loadSegmentation(path, session_.loaded().volume);
-    runtime::SegmentationSpec spec;
-    spec.path = std::filesystem::absolute(path).lexically_normal().string();
-    auto set = runtime::SegmentSet::fromSpec(std::move(seg), spec, path.filename().string());  // all shown
-    session_.setSegments(std::move(set), spec);
+    status_bar_->showMessage(QString("Opening segmentation %1...").arg(q(path.filename().string())));
+    const io::LoadedVolume& scan = session_.loaded().volume;  // unchanged while input is held; checked after
+    std::unique_ptr<QThread> worker(QThread::create([&prepared, &scan, path] {
+      lowerThisThreadsPriority();
+      try {
+        // On the scan shown: a DICOM SEG is placed on its grid and checked against its series.
+        io::LoadedSegmentation seg = io::loadSegmentation(path, scan);
+        prepared.spec.path = std::filesystem::absolute(path).lexically_normal().string();
+        prepared.set = runtime::SegmentSet::fromSpec(std::move(seg), prepared.spec, path.filename().string());  // all shown
+        for (const int s : prepared.set->shown()) {
+          if (prepared.set->segment(s).voxel_count > 0) prepared.surfaces[s] = buildSegmentSurface(*prepared.set, s);
+        }
+      } catch (const std::exception& e) {
+        prepared.error = e.what();
+      } catch (...) {
+        prepared.error = "the segmentation could not be read";
+      }
+    }));
+    QEventLoop loop;
+    connect(worker.get(), &QThread::finished, &loop, &QEventLoop::quit);
+    worker->start(QThread::NormalPriority);
+    if (!worker->isFinished()) loop.exec(QEventLoop::ExcludeUserInputEvents);
+    worker->wait();
+    status_bar_->clearMessage();
+  }
+  if (prepared.error.empty() && (!session_.hasScene() || session_.loaded().volume.field != scan_field))
+    prepared.error = "another scan was opened while the segmentation loaded; open it again on this one";
+  if (!prepared.error.empty()) {
+    emit errorReported(q(path.string()), q(prepared.error));
+    return false;
+  }
+  try {
+    view_.adoptSegmentSurfaces(*prepared.set, std::move(prepared.surfaces));
+    session_.setSegments(std::move(prepared.set), prepared.spec);
   } catch (const std::exception& e) {
     emit errorReported(q(path.string()), q(e.what()));
     return false;

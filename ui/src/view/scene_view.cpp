@@ -240,6 +240,11 @@ const std::vector<int>& SceneView::setSegments(const runtime::SegmentSet* set) {
   return segments_->recoloured();
 }
 
+void SceneView::adoptSegmentSurfaces(const runtime::SegmentSet& set, std::map<int, SegmentSurface> built) {
+  if (segments_ == nullptr) segments_ = std::make_unique<SegmentSurfaces>(view_->renderer());
+  segments_->adopt(set, std::move(built));
+}
+
 void SceneView::setSegmentsThroughScan(bool on) {
   through_scan_ = on;
   placeSegments();

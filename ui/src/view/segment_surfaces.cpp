@@ -71,7 +71,42 @@ Rgb distinctSegmentColour(const Rgb& segment_rgb, const Rgb& surface_rgb, const 
   return best;
 }
 
+SegmentSurface buildSegmentSurface(const runtime::SegmentSet& set, int s) {
+  const auto field = io::segmentIndicatorField(set.segmentation(), {s}, set.smoothingVoxels());
+  const io::ImagePtr image = io::imageFromField(field);
+  vtkNew<vtkFlyingEdges3D> contour;
+  contour->SetInputData(image.get());
+  contour->SetValue(0, io::kSegmentSurfaceLevel);
+  contour->ComputeNormalsOn();
+  contour->Update();
+  SegmentSurface out;
+  out.surface = contour->GetOutput();
+  const haptics::VolumeGeometry& g = field->geometry();
+  const Eigen::Vector3d t = g.origin_W_m - g.direction_W * g.origin_W_m;
+  out.X_W_image = vtkSmartPointer<vtkMatrix4x4>::New();
+  for (int r = 0; r < 3; ++r) {
+    for (int c = 0; c < 3; ++c) out.X_W_image->SetElement(r, c, g.direction_W(r, c));
+    out.X_W_image->SetElement(r, 3, t[r]);
+  }
+  return out;
+}
+
 SegmentSurfaces::SegmentSurfaces(vtkRenderer* renderer) : renderer_(renderer) {}
+
+void SegmentSurfaces::adopt(const runtime::SegmentSet& set, std::map<int, SegmentSurface> built) {
+  const std::string source = set.segmentation().source.string();
+  if (source != source_ || set.smoothingVoxels() != smoothing_voxels_) {
+    cache_.clear();
+    matrices_.clear();
+    source_ = source;
+    smoothing_voxels_ = set.smoothingVoxels();
+  }
+  for (auto& [s, b] : built) {
+    if (b.surface == nullptr || b.X_W_image == nullptr) continue;
+    cache_[s] = std::move(b.surface);
+    matrices_[s] = std::move(b.X_W_image);
+  }
+}
 
 void SegmentSurfaces::setRenderer(vtkRenderer* renderer) {
   if (renderer == renderer_ || renderer == nullptr) return;
@@ -105,23 +140,9 @@ void SegmentSurfaces::show(const runtime::SegmentSet* set, const Rgb& surface_rg
     if (info.voxel_count == 0) continue;
     auto& surface = cache_[s];
     if (surface == nullptr) {
-      const auto field = io::segmentIndicatorField(set->segmentation(), {s}, set->smoothingVoxels());
-      const io::ImagePtr image = io::imageFromField(field);
-      vtkNew<vtkFlyingEdges3D> contour;
-      contour->SetInputData(image.get());
-      contour->SetValue(0, io::kSegmentSurfaceLevel);
-      contour->ComputeNormalsOn();
-      contour->Update();
-      surface = contour->GetOutput();
-      // The image has no direction: the actor applies it about the origin, as the volume's.
-      const haptics::VolumeGeometry& g = field->geometry();
-      const Eigen::Vector3d t = g.origin_W_m - g.direction_W * g.origin_W_m;
-      vtkNew<vtkMatrix4x4> m;
-      for (int r = 0; r < 3; ++r) {
-        for (int c = 0; c < 3; ++c) m->SetElement(r, c, g.direction_W(r, c));
-        m->SetElement(r, 3, t[r]);
-      }
-      matrices_[s] = m;
+      SegmentSurface built = buildSegmentSurface(*set, s);
+      surface = std::move(built.surface);
+      matrices_[s] = std::move(built.X_W_image);
     }
     vtkNew<vtkPolyDataMapper> mapper;
     mapper->SetInputData(surface);

@@ -11,6 +11,7 @@
 /// Threads: GUI thread only.
 
 #include <limits>
+#include <map>
 #include <memory>
 #include <string>
 #include <vector>
@@ -72,6 +73,9 @@ class SceneView : public QObject {
   /// in a colour that stands out from the scan surface's (the look's last applyColours()).
   /// @return the segments drawn in another colour than their file's (SegmentSurfaces::recoloured()).
   const std::vector<int>& setSegments(const runtime::SegmentSet* set);
+  /// Surfaces of `set`'s segments built off the GUI thread (buildSegmentSurface()), for the next
+  /// setSegments(set) to draw without contouring (SegmentSurfaces::adopt()).
+  void adoptSegmentSurfaces(const runtime::SegmentSet& set, std::map<int, SegmentSurface> built);
   /// Emphasises the touched segment (-1: none); a non-empty `alert` is shown in red at the top
   /// of the view (a critical segment touched), an empty one hides it.
   void setTouchedSegment(int segment, const std::string& alert);

@@ -42,6 +42,21 @@ inline constexpr double kMinSegmentContrast_Lab = 20.0;
 /// in Delta E*ab, from the surface and from every colour in `taken` (the other segments').
 Rgb distinctSegmentColour(const Rgb& segment_rgb, const Rgb& surface_rgb, const std::vector<Rgb>& taken);
 
+/// One segment's surface as SegmentSurfaces draws it: the contour in the image's frame and the
+/// matrix that turns it into W (the image has no direction: the matrix applies it about W's
+/// origin, as the volume's actor does).
+struct SegmentSurface {
+  vtkSmartPointer<vtkPolyData> surface;
+  vtkSmartPointer<vtkMatrix4x4> X_W_image;
+};
+
+/// Builds segment `s`'s surface of `set` (its smoothed indicator contoured at
+/// io::kSegmentSurfaceLevel): seconds on a CT-sized grid. Any thread (it touches only its own
+/// VTK objects), so a load can build surfaces off the GUI thread and hand them to
+/// SegmentSurfaces::adopt().
+/// @throws std::invalid_argument as io::segmentIndicatorField() for a bad segment index.
+SegmentSurface buildSegmentSurface(const runtime::SegmentSet& set, int s);
+
 class SegmentSurfaces {
  public:
   /// Adds nothing yet; the actors go into `renderer` (which must outlive this object).
@@ -57,6 +72,9 @@ class SegmentSurfaces {
   /// `surface_rgb` (the scan surface's colour) and the segments drawn before it. A different
   /// segmentation file or smoothing drops the cached surfaces.
   void show(const runtime::SegmentSet* set, const Rgb& surface_rgb);
+  /// Takes surfaces built elsewhere (buildSegmentSurface(), on a worker thread) for `set`'s
+  /// segments into the cache, so the next show() of `set` contours nothing.
+  void adopt(const runtime::SegmentSet& set, std::map<int, SegmentSurface> built);
   /// The colour segment `s` is drawn in (empty when it is not shown).
   std::vector<double> colour(int s) const;
   /// The shown segments drawn in another colour than their file's (too close to the surface).
