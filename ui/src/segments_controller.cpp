@@ -2,6 +2,7 @@
 #include "vh/ui/segments_controller.h"
 
 #include <algorithm>
+#include <functional>
 #include <map>
 #include <memory>
 
@@ -33,7 +34,7 @@ namespace {
 
 QString q(const std::string& s) { return QString::fromStdString(s); }
 
-/// A wait cursor while the felt field is smoothed (a second or two for a large CT).
+/// A wait cursor while a segmentation is read or its felt field smoothed (seconds on a CT).
 struct WaitCursor {
   WaitCursor() { QApplication::setOverrideCursor(Qt::WaitCursor); }
   ~WaitCursor() { QApplication::restoreOverrideCursor(); }
@@ -128,10 +129,39 @@ struct PreparedSegments {
   std::string error;  // empty: prepared
 };
 
+
 /// The calling thread at a lower CPU priority (nice 10; raising it needs no privilege), so that
 /// a load leaves the cores to the haptic threads when they run at normal priority, and to the
 /// window's drawing.
 void lowerThisThreadsPriority() noexcept { (void)setpriority(PRIO_PROCESS, static_cast<id_t>(::gettid()), 10); }
+
+/// Runs `work` (seconds on a CT: reading, smoothing, contouring; it must not touch a widget) on
+/// a worker thread at lower priority while the window's event loop goes on drawing, with user
+/// input held until it is done (nothing else changes the scene meanwhile from the window), and
+/// `message` in the status bar. @return the error `work` threw, empty when it finished.
+std::string runBesideTheWindow(QStatusBar* bar, const QString& message, const std::function<void()>& work) {
+  WaitCursor wait;
+  bar->showMessage(message);
+  std::string error;
+  std::unique_ptr<QThread> worker(QThread::create([&] {
+    lowerThisThreadsPriority();
+    try {
+      work();
+    } catch (const std::exception& e) {
+      error = e.what();
+      if (error.empty()) error = "failed";
+    } catch (...) {
+      error = "failed";
+    }
+  }));
+  QEventLoop loop;
+  QObject::connect(worker.get(), &QThread::finished, &loop, &QEventLoop::quit);
+  worker->start();
+  if (!worker->isFinished()) loop.exec(QEventLoop::ExcludeUserInputEvents);
+  worker->wait();
+  bar->clearMessage();
+  return error;
+}
 
 }  // namespace
 
@@ -143,15 +173,10 @@ bool SegmentsController::open(const std::filesystem::path& path) {
   // Reading the file, building the set and its surfaces takes seconds on a CT: a worker thread
   // at lower priority does it while the window goes on drawing (input held until it is done, so
   // nothing else changes the scene meanwhile); the haptic threads never wait for it.
-  const std::shared_ptr<const haptics::ScalarVolume> scan_field = session_.loaded().volume.field;
+  const io::LoadedVolume scan = session_.loaded().volume;  // a copy (shared voxels): the worker's, whatever opens meanwhile
   PreparedSegments prepared;
-  {
-    WaitCursor wait;
-    status_bar_->showMessage(QString("Opening segmentation %1...").arg(q(path.filename().string())));
-    const io::LoadedVolume& scan = session_.loaded().volume;  // unchanged while input is held; checked after
-    std::unique_ptr<QThread> worker(QThread::create([&prepared, &scan, path] {
-      lowerThisThreadsPriority();
-      try {
+  prepared.error =
+      runBesideTheWindow(status_bar_, QString("Opening segmentation %1...").arg(q(path.filename().string())), [&] {
         // On the scan shown: a DICOM SEG is placed on its grid and checked against its series.
         io::LoadedSegmentation seg = io::loadSegmentation(path, scan);
         prepared.spec.path = std::filesystem::absolute(path).lexically_normal().string();
@@ -159,20 +184,8 @@ bool SegmentsController::open(const std::filesystem::path& path) {
         for (const int s : prepared.set->shown()) {
           if (prepared.set->segment(s).voxel_count > 0) prepared.surfaces[s] = buildSegmentSurface(*prepared.set, s);
         }
-      } catch (const std::exception& e) {
-        prepared.error = e.what();
-      } catch (...) {
-        prepared.error = "the segmentation could not be read";
-      }
-    }));
-    QEventLoop loop;
-    connect(worker.get(), &QThread::finished, &loop, &QEventLoop::quit);
-    worker->start(QThread::NormalPriority);
-    if (!worker->isFinished()) loop.exec(QEventLoop::ExcludeUserInputEvents);
-    worker->wait();
-    status_bar_->clearMessage();
-  }
-  if (prepared.error.empty() && (!session_.hasScene() || session_.loaded().volume.field != scan_field))
+      });
+  if (prepared.error.empty() && (!session_.hasScene() || session_.loaded().volume.field != scan.field))
     prepared.error = "another scan was opened while the segmentation loaded; open it again on this one";
   if (!prepared.error.empty()) {
     emit errorReported(q(path.string()), q(prepared.error));
@@ -208,19 +221,29 @@ bool SegmentsController::apply(const SegmentChoices& choices) {
   spec.shown = segmentNames(seg, choices.shown);
   spec.critical = segmentNames(seg, choices.critical);
   spec.smoothing_voxels = choices.smoothing_voxels;
+  // The distances as the table has them; those other than the scene's default are the spec's own.
+  spec.proximity.per_segment.clear();
+  for (std::size_t s = 0; s < choices.thresholds.size() && s < seg.segments.size(); ++s) {
+    const runtime::ProximityThresholds& t = choices.thresholds[s];
+    const bool critical = std::find(choices.critical.begin(), choices.critical.end(), static_cast<int>(s)) !=
+                          choices.critical.end();  // the file takes distances of critical segments only
+    if (critical && (t.warn_m != spec.proximity.defaults.warn_m || t.alarm_m != spec.proximity.defaults.alarm_m))
+      spec.proximity.per_segment[seg.segments[s].name] = t;
+  }
+  // A felt choice smooths the segments' field (seconds on a CT): beside the window, as an open.
+  const std::shared_ptr<const runtime::SegmentSet> kept = session_.live().segments;  // alive while the worker reads it
+  std::shared_ptr<const runtime::SegmentSet> set;
+  std::string error = runBesideTheWindow(status_bar_, "Building the felt segments' surface...", [&] {
+    set = std::make_shared<const runtime::SegmentSet>(seg, choices.felt, choices.shown, choices.critical,
+                                                      choices.smoothing_voxels, choices.thresholds);
+  });
+  if (error.empty() && (!session_.hasScene() || session_.live().segments != kept))
+    error = "the segments changed while the choice was being applied; tick it again";
+  if (!error.empty()) {
+    emit errorReported("Segments", q(error));
+    return false;
+  }
   try {
-    WaitCursor wait;
-    // The distances as the table has them; those other than the scene's default are the spec's own.
-    spec.proximity.per_segment.clear();
-    for (std::size_t s = 0; s < choices.thresholds.size() && s < seg.segments.size(); ++s) {
-      const runtime::ProximityThresholds& t = choices.thresholds[s];
-      const bool critical = std::find(choices.critical.begin(), choices.critical.end(), static_cast<int>(s)) !=
-                            choices.critical.end();  // the file takes distances of critical segments only
-      if (critical && (t.warn_m != spec.proximity.defaults.warn_m || t.alarm_m != spec.proximity.defaults.alarm_m))
-        spec.proximity.per_segment[seg.segments[s].name] = t;
-    }
-    auto set = std::make_shared<const runtime::SegmentSet>(seg, choices.felt, choices.shown, choices.critical,
-                                                           choices.smoothing_voxels, choices.thresholds);
     session_.setSegments(std::move(set), spec);
   } catch (const std::exception& e) {
     emit errorReported("Segments", q(e.what()));
