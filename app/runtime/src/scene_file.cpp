@@ -621,6 +621,10 @@ SceneSpec builtinBlockWithHoleScene() {
   spec.volume.isovalue = datasets::kBlockIsovalue;
   spec.volume.isovalue_set = true;
   spec.tool.mesh = "builtin:peg";
+  // Sampled finely enough for its rims (felt within 1 mm of the mesh, haptics::kShellGapWarning_m;
+  // the automatic spacing, 1.5 mm for ~1000 points, leaves 1.35 mm and would open the program's
+  // own scene with a warning about its own tool).
+  spec.tool.point_spacing_m = 0.0009;
   // The peg (tip at the origin of T, shaft along +z) 5 mm over the hole in the block's top face.
   spec.tool.X_WT_initial = haptics::Pose::FromTranslation({0.0, 0.0, datasets::kBlockHalfHeight_m + 0.005});
   spec.tool.initial_pose_set = true;

@@ -1,6 +1,7 @@
 // Tests of vh/runtime/scene.h: parsing scene files (good and every error), built-in scenes,
 // loading a scene into a renderer, and the default placement of the tool.
 #include "vh/runtime/scene.h"
+#include "vh/runtime/tool_fidelity.h"
 
 #include <algorithm>
 #include <cmath>
@@ -359,6 +360,9 @@ TEST(SceneLoading, BuiltinBlockWithHoleScene) {
   EXPECT_EQ(image_dims[0], 256);
   EXPECT_DOUBLE_EQ(scene.isovalue, datasets::kBlockIsovalue);
   EXPECT_EQ(scene.initial_points_inside, 0);
+  EXPECT_TRUE(scene.volume.info.notices.empty())
+      << "the program's own scene opens without a note on its own tool: " << scene.volume.info.notices.front();
+  EXPECT_LE(feltGap(*scene.tool, spec.tool.edge_test).max_gap_m, haptics::kShellGapWarning_m);
   // The peg hangs over the hole: lowering it along -z, it passes through without touching.
   EXPECT_FALSE(firstContactDistance(*scene.volume.field, scene.tool->point_shell, scene.X_WT_initial,
                                     -Eigen::Vector3d::UnitZ(), 0.03, scene.isovalue)
