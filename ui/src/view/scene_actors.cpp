@@ -11,6 +11,7 @@
 #include <vtkArrowSource.h>
 #include <vtkCamera.h>
 #include <vtkCellArray.h>
+#include <vtkDelaunay2D.h>
 #include <vtkColorTransferFunction.h>
 #include <vtkContourValues.h>
 #include <vtkGPUVolumeRayCastMapper.h>
@@ -390,6 +391,10 @@ void SceneActors::buildOverlay(const SceneActorsSpec& spec) {
   setUpPointSprites(shadow_points_, shadow_poly_, shadow_actor_, kShadow, 6.0);
   shadow_actor_->GetProperty()->SetAmbient(1.0);
   shadow_actor_->GetProperty()->SetDiffuse(0.0);
+  // Drawn in front of the surface it lies on (its triangles are chords of a curved surface): the
+  // patch's depth is pulled toward the camera, and the ray-cast volume stops at that depth.
+  shadow_actor_->GetMapper()->SetResolveCoincidentTopologyToPolygonOffset();
+  shadow_actor_->GetMapper()->SetRelativeCoincidentTopologyPolygonOffsetParameters(-2.0, -400.0);
   shadow_actor_->VisibilityOff();
   renderer_->AddActor(shadow_actor_);
   setUpGapLine(gap_points_, gap_poly_, gap_actor_);
@@ -689,6 +694,25 @@ void SceneActors::setShadow(const ToolShadow& shadow, const Eigen::Vector3d& dir
                                             : Eigen::Vector3d::Zero();
   const std::size_t n = shadow.footprint_W_m.size();
   setVertices(shadow_points_, shadow_poly_, shadow.footprint_W_m, lift_W);
+  // A shadow, not scattered dots: the footprint's points triangulated (2-D Delaunay in their
+  // best-fitting plane, across the light: the convex hull of the tool's footprint), each
+  // triangle's corners on the surface itself, so the patch follows it; drawn dark and opaque
+  // (the ray-cast volume is composited after translucent geometry and would paint over a
+  // translucent patch). The points stay drawn as before, in the same colour: they round the
+  // patch's edge and keep a small tool's shadow visible when the view is small.
+  vtkNew<vtkCellArray> triangles;
+  if (n >= 3) {
+    vtkNew<vtkPolyData> cloud;
+    cloud->SetPoints(shadow_points_);
+    vtkNew<vtkDelaunay2D> delaunay;
+    delaunay->SetInputData(cloud);
+    delaunay->SetProjectionPlaneMode(VTK_BEST_FITTING_PLANE);
+    delaunay->Update();
+    if (delaunay->GetOutput()->GetNumberOfPoints() == static_cast<vtkIdType>(n))  // ids are the footprint's
+      triangles->DeepCopy(delaunay->GetOutput()->GetPolys());
+  }
+  shadow_poly_->SetPolys(triangles);
+  shadow_poly_->Modified();
   if (shadow.has_gap) {
     const Eigen::Vector3d to = shadow.gap_to_W_m + lift_W;
     gap_points_->SetPoint(0, shadow.gap_from_W_m.x(), shadow.gap_from_W_m.y(), shadow.gap_from_W_m.z());
