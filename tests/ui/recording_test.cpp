@@ -301,9 +301,22 @@ TEST_F(RecordedSession, ReplayLoadsTheSceneAndScrubbingMovesTheProxy) {
     EXPECT_TRUE(w->grab().toImage().save(out, "PNG")) << out.toStdString();
   }
 
+  // A replay is watched for what it shows: however late its frames, none is coarser than
+  // SceneView::kReplayImageSample_px between rays nor sampled at the nearest voxel (live, the
+  // same lateness brings 8 px blocks).
+  SceneActors& actors = w->sceneView()->actors();
+  w->replay()->setTime(rec.records[far].time_s);
+  ASSERT_TRUE(actors.interactive()) << "the tool moved: an interactive frame";
+  for (int i = 0; i < 4; ++i) actors.adaptQuality(2000.0, 30.0);
+  EXPECT_LE(actors.imageSampleDistance_px(), SceneView::kReplayImageSample_px);
+  EXPECT_FALSE(actors.nearestSampling());
+
   // Close Replay: live haptics again on the same scene.
   w->replay()->closeReplay();
   EXPECT_FALSE(w->replay()->active());
+  actors.setInteractive(true);
+  for (int i = 0; i < 4; ++i) actors.adaptQuality(2000.0, 30.0);
+  EXPECT_GT(actors.imageSampleDistance_px(), SceneView::kReplayImageSample_px) << "live frames keep to their time";
   EXPECT_TRUE(w->session().hapticsRunning());
   w->session().stopHaptics();
 }

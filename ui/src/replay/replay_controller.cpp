@@ -197,6 +197,7 @@ void ReplayController::onSceneShown() {
   timeline_->setMarkers(marker_times_s_, labels);
   dock_->setWindowTitle("Replay: " + QFileInfo(q(path_.string())).fileName());
   active_ = true;
+  view_.setSharpMotion(true);  // a replay is watched for what it shows: fewer frames, none coarse
   dock_->show();
   dock_->raise();
   speed_box_->setCurrentIndex(2);
@@ -220,6 +221,7 @@ void ReplayController::onSceneTeardown() {
   if (!active_) return;
   pause();
   active_ = false;
+  view_.setSharpMotion(false);
   view_.setGhostPath(nullptr);  // hidden; the expert's path goes with guide_
   guide_ = ReplayGuide();
   if (dock_ != nullptr) dock_->hide();

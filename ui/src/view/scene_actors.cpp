@@ -553,11 +553,13 @@ void SceneActors::applyQuality() {
   } else if (interactive_reduction_ < kLinearBelowReduction) {
     nearest_when_interactive_ = false;
   }
+  const bool capped = std::isfinite(interactive_cap_px_);
   const int interpolation =
-      interactive_ && nearest_when_interactive_ ? VTK_NEAREST_INTERPOLATION : VTK_LINEAR_INTERPOLATION;
+      interactive_ && nearest_when_interactive_ && !capped ? VTK_NEAREST_INTERPOLATION : VTK_LINEAR_INTERPOLATION;
   if (volume_property_->GetInterpolationType() != interpolation) volume_property_->SetInterpolationType(interpolation);
   if (interactive_) {
-    const auto [samples, pixels] = interactiveSampling(interactive_reduction_);
+    const auto [samples, sampled_pixels] = interactiveSampling(interactive_reduction_);
+    const double pixels = std::min(sampled_pixels, interactive_cap_px_);
     volume_mapper_->SetSampleDistance(static_cast<float>(std::max(samples, kStillSampleVoxels[still_level_]) * min_spacing_m_));
     volume_mapper_->SetImageSampleDistance(static_cast<float>(std::max(pixels, kStillImageSample[still_level_])));
   } else {
@@ -572,6 +574,13 @@ void SceneActors::setInteractive(bool interactive) {
     interactive_ = interactive;
     applyQuality();
   }
+}
+
+void SceneActors::setInteractiveImageSampleCap_px(double pixels) {
+  const double cap = std::isnan(pixels) ? std::numeric_limits<double>::infinity() : std::max(pixels, 1.0);
+  if (cap == interactive_cap_px_) return;
+  interactive_cap_px_ = cap;
+  applyQuality();
 }
 
 void SceneActors::resetQuality() {

@@ -201,6 +201,7 @@ void SceneView::setScene(const SceneActorsSpec& spec, const haptics::Pose& X_WT,
   actors_->setDevicePose(X_WT);
   actors_->setRenderMode(look.mode, look.preset);
   actors_->setShadowVisible(look.tool_shadow);
+  setSharpMotion(sharp_motion_);
   shown_X_WP_ = shown_X_WD_ = X_WT;
   shown_contacts_ = -1;
   shown_force_W_N_.setZero();
@@ -604,6 +605,12 @@ void SceneView::setInteracting(bool interacting) {
   interacting_ = interacting;
   if (interacting) noteMotion();
   else settle_timer_->start();
+}
+
+void SceneView::setSharpMotion(bool on) {
+  sharp_motion_ = on;
+  if (actors_ != nullptr)
+    actors_->setInteractiveImageSampleCap_px(on ? kReplayImageSample_px : std::numeric_limits<double>::infinity());
 }
 
 void SceneView::renderStill(bool best_quality) {

@@ -158,6 +158,10 @@ class SceneActors {
   /// fewer rays (image sample distance, adaptQuality()) so that they keep to a frame time.
   void setInteractive(bool interactive);
   bool interactive() const noexcept { return interactive_; }
+  /// Interactive frames never coarser than `pixels` between rays (>= 1; infinity: as
+  /// adaptQuality() finds, up to 8) nor sampled at the nearest voxel when capped: what a replay
+  /// shows (fewer frames, none in blocks). Still frames are unchanged.
+  void setInteractiveImageSampleCap_px(double pixels);
   /// Adapts the quality to the wall time of the frame just rendered [ms]. Interactive frames
   /// aim at `interactive_target_ms`: their work (one sample per voxel, one ray per pixel) is
   /// divided by a reduction, taken first from the rays (image sample distance up to 3 px), then
@@ -266,6 +270,7 @@ class SceneActors {
   double resumedReduction(double still_ratio) const;
   bool nearest_when_interactive_ = false;    // interactive frames sample the nearest voxel
   bool interactive_ = false;
+  double interactive_cap_px_ = std::numeric_limits<double>::infinity();  // setInteractiveImageSampleCap_px()
   static constexpr double kReferenceForce_N = 3.0;
 };
 

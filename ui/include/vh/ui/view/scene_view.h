@@ -162,6 +162,11 @@ class SceneView : public QObject {
   void noteMotion();
   /// While true (a camera or slider drag) frames stay interactive.
   void setInteracting(bool interacting);
+  /// While true (a replay shown), frames while anything moves cast a ray every kReplayImageSample_px
+  /// pixels at most (SceneActors::setInteractiveImageSampleCap_px()): a replay is watched for what
+  /// it shows, so it gets fewer frames rather than coarse ones. Kept across scenes.
+  void setSharpMotion(bool on);
+  static constexpr double kReplayImageSample_px = 2.0;
   /// Ends interactive frames now; `best_quality` also resets the still quality (screenshots).
   void renderStill(bool best_quality = false);
   /// What an interactive frame's render may take [ms]: the interactive period (1 / 33 Hz) less
@@ -187,6 +192,7 @@ class SceneView : public QObject {
   std::unique_ptr<SceneActors> actors_;
   std::unique_ptr<ExpertGhost> ghost_;  // in actors_'s overlay layer: goes before it
   std::unique_ptr<SegmentSurfaces> segments_;
+  bool sharp_motion_ = false;  // setSharpMotion()
   vtkSmartPointer<vtkRenderer> segment_layer_;
   std::vector<vtkSmartPointer<vtkActor>> layer_tools_;  // the tools also drawn in segment_layer_
   bool through_scan_ = false;
