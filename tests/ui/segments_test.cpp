@@ -29,7 +29,11 @@
 #include <QTimer>
 
 #include <gtest/gtest.h>
+#include <vtkActor.h>
 #include <vtkCamera.h>
+#include <vtkMapper.h>
+#include <vtkPropCollection.h>
+#include <vtkProperty.h>
 #include <vtkMatrix4x4.h>
 #include <vtkRenderer.h>
 #include <vtkPolyData.h>
@@ -397,6 +401,56 @@ TEST(SegmentsReplay, TheReplayDockKeepsTheScansIsovalueWhenSegmentsWereFelt) {
         << "t " << t_s << ": the picture shows the scan at the segments' level, not at the scene's isovalue";
   }
   w.reset();
+  fs::remove_all(dir);
+}
+
+// Exported pictures show the segments the replay showed (they were left out): the exporter's
+// frames draw the recording scene's shown segments with SegmentSurfaces, as the main view, and
+// emphasise the one each record touched. Oracle: the surfaces drawn are the shown segments, the
+// touched one is drawn brighter while it is touched.
+TEST(SegmentsExport, ExportedFramesShowTheShownSegmentsAndTheTouchedOne) {
+  const fs::path dir = writeCase("export");
+  const fs::path path = dir / "shown.vhrec";
+  const runtime::LoadedScene scene = loadCase(dir, true);  // the nerve felt and critical, both shown
+  ASSERT_NE(scene.segments, nullptr);
+  {
+    runtime::RecordingWriter writer(path, runtime::makeSessionMetadata(scene, {"Scripted device", "scripted", ""}));
+    for (std::uint64_t i = 0; i < 20; ++i) {
+      runtime::TickRecord r;
+      r.tick = i + 1;
+      r.time_s = 1e-3 * static_cast<double>(i);
+      r.isovalue = io::kSegmentSurfaceLevel;
+      r.p_WD_m[2] = r.p_WP_m[2] = 0.05;
+      r.flags = runtime::recordSegmentBits(i < 10 ? -1 : 0);  // the nerve touched from record 10 on
+      ASSERT_TRUE(writer.push(r));
+    }
+    writer.close();
+  }
+  const runtime::Recording recording = runtime::readRecording(path);
+  MediaExportOptions options;
+  options.width = 160;
+  options.height = 120;
+  const auto frames = exportFrameRenderer(scene, recording, options, nullptr);
+  ASSERT_NE(frames->segmentSurfaces(), nullptr) << "the recording's scene has segments: the frames draw them";
+  EXPECT_EQ(frames->segmentSurfaces()->shownSegments(), scene.segments->shown());
+  vtkActor* nerve = nullptr;
+  vtkPropCollection* props = frames->renderer()->GetViewProps();
+  props->InitTraversal();
+  while (vtkProp* p = props->GetNextProp()) {
+    auto* a = vtkActor::SafeDownCast(p);
+    if (a != nullptr && a->GetMapper() != nullptr && a->GetMapper()->GetInput() == frames->segmentSurfaces()->surface(0)) nerve = a;
+  }
+  ASSERT_NE(nerve, nullptr) << "the nerve's surface is in the exported frames' scene";
+  const auto brightness = [&] {
+    const double* c = nerve->GetProperty()->GetColor();
+    return c[0] + c[1] + c[2];
+  };
+  frames->show(recording.records[5]);
+  const double untouched = brightness();
+  frames->show(recording.records[15]);
+  EXPECT_GT(brightness(), untouched + 0.1) << "the touched nerve is drawn brighter";
+  frames->show(recording.records[5]);
+  EXPECT_DOUBLE_EQ(brightness(), untouched);
   fs::remove_all(dir);
 }
 

@@ -116,7 +116,8 @@ RecordingFrameRenderer::RecordingFrameRenderer(const SceneActorsSpec& spec, int 
 RecordingFrameRenderer::~RecordingFrameRenderer() {
   grabber_ = nullptr;
   if (window_ != nullptr) window_->MakeCurrent();
-  actors_.reset();  // props leave the renderer while its window (and context) still exists
+  segments_.reset();  // props leave the renderer while its window (and context) still exists
+  actors_.reset();
   if (window_ != nullptr) window_->Finalize();
 }
 
@@ -180,7 +181,18 @@ void RecordingFrameRenderer::show(const runtime::TickRecord& record) {
     actors_->setShadow(castToolShadow(*shadow_field_, shadow_carved_, isovalue, frame.X_WP, shadow_samples_T_m_, light_W),
                        light_W);
   }
+  if (segments_ != nullptr) segments_->setTouched(runtime::recordSegment(record.flags));
   if (overlay_ != nullptr) showOverlay(record);
+}
+
+void RecordingFrameRenderer::setSegments(std::shared_ptr<const runtime::SegmentSet> set, const Rgb& surface_rgb) {
+  segment_set_ = std::move(set);
+  if (segment_set_ == nullptr) {
+    segments_.reset();
+    return;
+  }
+  if (segments_ == nullptr) segments_ = std::make_unique<SegmentSurfaces>(renderer_);
+  segments_->show(segment_set_.get(), surface_rgb);
 }
 
 void RecordingFrameRenderer::setShadow(std::shared_ptr<const haptics::ScalarVolume> field, double isovalue,
@@ -682,6 +694,8 @@ std::unique_ptr<RecordingFrameRenderer> exportFrameRenderer(const runtime::Loade
   if (options.shadow && scene.tool != nullptr) {
     frames->setShadow(scene.hapticField(), scene.hapticIsovalue(), toolShadowSamples(*scene.tool));
   }
+  if (scene.segments != nullptr)
+    frames->setSegments(scene.segments, {look.surface.redF(), look.surface.greenF(), look.surface.blueF()});
   if (scene.spec.drill) {
     // The cavity grows in the frames as it did in the session: the recording is replayed
     // first (a few seconds on a big CT).

@@ -519,6 +519,9 @@ std::unique_ptr<RecordingFrameRenderer> ReplayController::exportFrames(int width
   // The tool's shadow as the main view draws it (the look's tool_shadow decides whether it shows).
   const runtime::LiveValues& live = session_.live();
   if (live.tool != nullptr) frames->setShadow(live.hapticField(), live.hapticIsovalue(), toolShadowSamples(*live.tool));
+  // The segments as the replay shows them.
+  if (live.segments != nullptr)
+    frames->setSegments(live.segments, {prefs_.surface.redF(), prefs_.surface.greenF(), prefs_.surface.blueF()});
   // The cavity as the replay shows it (only the start cavity while its replay still runs).
   frames->setDrilling(drill_);
   return frames;

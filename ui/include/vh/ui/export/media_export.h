@@ -31,6 +31,7 @@
 #include "vh/ui/view/view_look.h"
 #include "vh/ui/view/render_presets.h"
 #include "vh/ui/view/scene_actors.h"
+#include "vh/ui/view/segment_surfaces.h"
 #include "vh/ui/view/scene_frames.h"
 #include "vh/ui/view/tool_shadow.h"
 #include "vh/ui/replay/recorded_camera.h"
@@ -193,6 +194,13 @@ class RecordingFrameRenderer {
   /// as it was at the frame's record (showCavityAt() carves it).
   void setShadow(std::shared_ptr<const haptics::ScalarVolume> field, double isovalue,
                  std::vector<Eigen::Vector3d> samples_T_m);
+  /// From now on, frames show the shown segments of `set` as the main view draws them
+  /// (SegmentSurfaces: each in its colour, or a distinct one where it is too close to
+  /// `surface_rgb`, the scan surface's), the segment a record's contacts touch emphasised; null:
+  /// none (the default).
+  void setSegments(std::shared_ptr<const runtime::SegmentSet> set, const Rgb& surface_rgb);
+  /// The segment surfaces drawn (null without setSegments()).
+  const SegmentSurfaces* segmentSurfaces() const noexcept { return segments_.get(); }
   /// Voxels of the picture removed now (the cavity shown).
   std::uint64_t cavityVoxelsShown() const noexcept { return cavity_shown_; }
   /// The shadow's field carved to the cavity shown (empty without setShadow()).
@@ -210,6 +218,8 @@ class RecordingFrameRenderer {
   vtkSmartPointer<vtkRenderer> renderer_;
   vtkSmartPointer<vtkWindowToImageFilter> grabber_;
   std::unique_ptr<SceneActors> actors_;
+  std::shared_ptr<const runtime::SegmentSet> segment_set_;  ///< setSegments()
+  std::unique_ptr<SegmentSurfaces> segments_;               ///< setSegments(); null: none
   std::vector<Eigen::Vector3d> tool_vertices_T_m_;
   bool isovalue_from_records_ = true;  ///< SceneActorsSpec::isovalue_from_records.
   const runtime::Recording* overlay_ = nullptr;  ///< setOverlay(); not owned.
