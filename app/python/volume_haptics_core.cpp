@@ -22,6 +22,7 @@
 #include "vh/io/segmentation.h"
 #include "vh/io/volume_loader.h"
 #include "vh/runtime/recording.h"
+#include "vh/runtime/tick_columns.h"
 #include "vh/runtime/recording_hdf5.h"
 #include "vh/runtime/replay.h"
 #include "vh/runtime/runner.h"
@@ -435,6 +436,21 @@ PYBIND11_MODULE(_core, m) {
   // translation), each with the message the command line prints after "volume-haptics: error: ".
   py::register_exception<vh::io::LoadError>(m, "LoadError", PyExc_RuntimeError);
   m.attr("TICK_RECORD_BYTES") = sizeof(TickRecord);
+  // The tick columns' one table (tick_columns.h), in `export --csv`'s order: (name, unit,
+  // description, byte offset in a record, NumPy type). TICK_DTYPE and CSV_COLUMNS are built on it.
+  py::list columns;
+  for (const vh::runtime::TickColumn& c : vh::runtime::tickColumns()) {
+    const char* numpy_type = "<f8";
+    switch (c.kind) {
+      case vh::runtime::TickColumn::kF64: numpy_type = "<f8"; break;
+      case vh::runtime::TickColumn::kU64: numpy_type = "<u8"; break;
+      case vh::runtime::TickColumn::kU32: numpy_type = "<u4"; break;
+      case vh::runtime::TickColumn::kI32: numpy_type = "<i4"; break;
+      case vh::runtime::TickColumn::kI64: numpy_type = "<i8"; break;
+    }
+    columns.append(py::make_tuple(c.name, c.unit, c.description, c.offset, numpy_type));
+  }
+  m.attr("TICK_COLUMNS") = columns;
   m.attr("RECORDING_FORMAT_VERSION") = vh::runtime::kRecordingFormatVersion;
 
   bindScenes(m);

@@ -33,34 +33,22 @@ __all__ = [
     "write_trajectory", "read_trajectory", "session_metrics",
 ]
 
-#: One servo tick of a recording, as NumPy sees the file's 224-byte TickRecord (recording.h).
-#: The field names are the columns of ``volume-haptics export --csv``: device_* and proxy_* are
-#: the device and proxy poses in W (position [m], quaternion w, x, y, z), force_* [N] and
-#: torque_* [N*m] on the hand in W, isovalue in the data's units, tick_time_s the solver's compute
-#: time of the tick [s], flags the kRecordFlag* bits (bits 16..31: touched segment + 1),
-#: critical_distance_m the point shell's distance to the nearest critical segment [m] (inf: none
-#: within 20 mm; nan: not measured), critical_segment that segment (-1: none), removed_voxels the
-#: voxels the burr removed on the tick, deadline_work 1 + the work at which the solver's deadline
-#: cut the tick (0: not cut).
+#: One servo tick of a recording, as NumPy sees the file's TickRecord (recording.h), its fields in
+#: the record's order. Their names are the columns of ``volume-haptics export --csv``; each one's
+#: unit and meaning are in ``_core.TICK_COLUMNS`` (name, unit, description, byte offset, NumPy
+#: type), the table the CSV and HDF5 exports are written from: device_* and proxy_* are the device
+#: and proxy poses in W (position [m], quaternion w, x, y, z), force_* [N] and torque_* [N*m] on the
+#: hand in W, flags the kRecordFlag* bits (bits 16..31: touched segment + 1).
+_BY_OFFSET = sorted(_core.TICK_COLUMNS, key=lambda c: c[3])
 TICK_DTYPE = np.dtype({
-    "names": ["t_s", "device_x_m", "device_y_m", "device_z_m", "device_qw", "device_qx", "device_qy", "device_qz",
-              "proxy_x_m", "proxy_y_m", "proxy_z_m", "proxy_qw", "proxy_qx", "proxy_qy", "proxy_qz",
-              "force_x_N", "force_y_N", "force_z_N", "torque_x_Nm", "torque_y_Nm", "torque_z_Nm",
-              "isovalue", "tick", "tick_time_s", "contacts", "flags", "critical_distance_m", "critical_segment",
-              "removed_voxels", "deadline_work"],
-    "formats": ["<f8"] * 22 + ["<u8", "<f8", "<u4", "<u4", "<f8", "<i4", "<u4", "<i8"],
-    "offsets": [0, 8, 16, 24, 32, 40, 48, 56, 64, 72, 80, 88, 96, 104, 112, 120, 128, 136, 144, 152, 160,
-                168, 176, 184, 192, 196, 200, 208, 212, 216],
-    "itemsize": 224,
+    "names": [c[0] for c in _BY_OFFSET],
+    "formats": [c[4] for c in _BY_OFFSET],
+    "offsets": [c[3] for c in _BY_OFFSET],
+    "itemsize": _core.TICK_RECORD_BYTES,
 })
-assert TICK_DTYPE.itemsize == _core.TICK_RECORD_BYTES
 
 #: The columns of ``volume-haptics export --csv``, in its order.
-CSV_COLUMNS = ["t_s", "tick", "device_x_m", "device_y_m", "device_z_m", "device_qw", "device_qx", "device_qy",
-               "device_qz", "proxy_x_m", "proxy_y_m", "proxy_z_m", "proxy_qw", "proxy_qx", "proxy_qy", "proxy_qz",
-               "force_x_N", "force_y_N", "force_z_N", "torque_x_Nm", "torque_y_Nm", "torque_z_Nm", "contacts",
-               "isovalue", "tick_time_s", "flags", "critical_distance_m", "critical_segment", "removed_voxels",
-               "deadline_work"]
+CSV_COLUMNS = [c[0] for c in _core.TICK_COLUMNS]
 
 Scene = _core.Scene
 # Scene's docstring: volume_haptics_core.cpp.

@@ -2,9 +2,12 @@
 /// A recording's exports as text (recording.h): one CSV row per tick, one per event, and the
 /// metadata, summary and events as JSON. The HDF5 export is recording_hdf5.cpp.
 
+#include <cstdint>
+#include <cstring>
 #include <filesystem>
 #include <iomanip>
 #include <ostream>
+#include <span>
 #include <string>
 #include <utility>
 
@@ -12,26 +15,39 @@
 
 #include "vh/io/private_files.h"
 #include "vh/runtime/recording.h"
+#include "vh/runtime/tick_columns.h"
 
 namespace vh::runtime {
+namespace {
+
+/// The value of type T at `at` (a column's place in a TickRecord).
+template <typename T>
+T valueAt(const unsigned char* at) {
+  T v;
+  std::memcpy(&v, at, sizeof(T));
+  return v;
+}
+
+}  // namespace
 
 void writeRecordingCsv(const Recording& recording, std::ostream& out) {
-  out << "t_s,tick,device_x_m,device_y_m,device_z_m,device_qw,device_qx,device_qy,device_qz,"
-         "proxy_x_m,proxy_y_m,proxy_z_m,proxy_qw,proxy_qx,proxy_qy,proxy_qz,"
-         "force_x_N,force_y_N,force_z_N,torque_x_Nm,torque_y_Nm,torque_z_Nm,"
-         "contacts,isovalue,tick_time_s,flags,critical_distance_m,critical_segment,removed_voxels,deadline_work\n";
-  out << std::setprecision(17);
+  const std::span<const TickColumn> columns = tickColumns();
+  for (std::size_t c = 0; c < columns.size(); ++c) out << (c == 0 ? "" : ",") << columns[c].name;
+  out << '\n' << std::setprecision(17);
   for (const TickRecord& r : recording.records) {
-    out << r.time_s << ',' << r.tick;
-    for (double v : r.p_WD_m) out << ',' << v;
-    for (double v : r.q_WD) out << ',' << v;
-    for (double v : r.p_WP_m) out << ',' << v;
-    for (double v : r.q_WP) out << ',' << v;
-    for (double v : r.force_W_N) out << ',' << v;
-    for (double v : r.torque_W_Nm) out << ',' << v;
-    out << ',' << r.contacts << ',' << r.isovalue << ',' << r.tick_time_s << ',' << r.flags << ','
-        << r.critical_distance_m << ',' << r.critical_segment << ',' << r.removed_voxels << ',' << r.deadline_work
-        << '\n';
+    const auto* bytes = reinterpret_cast<const unsigned char*>(&r);
+    for (std::size_t c = 0; c < columns.size(); ++c) {
+      if (c != 0) out << ',';
+      const unsigned char* at = bytes + columns[c].offset;
+      switch (columns[c].kind) {
+        case TickColumn::kF64: out << valueAt<double>(at); break;
+        case TickColumn::kU64: out << valueAt<std::uint64_t>(at); break;
+        case TickColumn::kU32: out << valueAt<std::uint32_t>(at); break;
+        case TickColumn::kI32: out << valueAt<std::int32_t>(at); break;
+        case TickColumn::kI64: out << valueAt<std::int64_t>(at); break;
+      }
+    }
+    out << '\n';
   }
 }
 

@@ -3,6 +3,7 @@
 /// build) behind a few small owners of its handles.
 
 #include "vh/runtime/recording_hdf5.h"
+#include "vh/runtime/tick_columns.h"
 
 #include <algorithm>
 #include <array>
@@ -73,72 +74,19 @@ void silenceHdf5() {
   (void)silenced;
 }
 
-/// One column of `export --csv` as a dataset: where it lies in a TickRecord and its HDF5 type.
-struct Column {
-  const char* name;
-  const char* unit;
-  const char* description;
-  std::size_t offset;  // in TickRecord
-  enum Kind { kF64, kU64, kU32, kI32, kI64 } kind;
-};
-
-constexpr std::size_t at(std::size_t base, std::size_t i) { return base + i * sizeof(double); }
-
-/// The columns in `export --csv`'s order (recording.h: writeRecordingCsv()).
-const std::array<Column, 30>& columns() {
-  static const std::array<Column, 30> c = {{
-      {"t_s", "s", "servo time since the recording started", offsetof(TickRecord, time_s), Column::kF64},
-      {"tick", "1", "servo tick counter", offsetof(TickRecord, tick), Column::kU64},
-      {"device_x_m", "m", "device position in W, x", at(offsetof(TickRecord, p_WD_m), 0), Column::kF64},
-      {"device_y_m", "m", "device position in W, y", at(offsetof(TickRecord, p_WD_m), 1), Column::kF64},
-      {"device_z_m", "m", "device position in W, z", at(offsetof(TickRecord, p_WD_m), 2), Column::kF64},
-      {"device_qw", "1", "device orientation in W, quaternion w", at(offsetof(TickRecord, q_WD), 0), Column::kF64},
-      {"device_qx", "1", "device orientation in W, quaternion x", at(offsetof(TickRecord, q_WD), 1), Column::kF64},
-      {"device_qy", "1", "device orientation in W, quaternion y", at(offsetof(TickRecord, q_WD), 2), Column::kF64},
-      {"device_qz", "1", "device orientation in W, quaternion z", at(offsetof(TickRecord, q_WD), 3), Column::kF64},
-      {"proxy_x_m", "m", "proxy position in W, x", at(offsetof(TickRecord, p_WP_m), 0), Column::kF64},
-      {"proxy_y_m", "m", "proxy position in W, y", at(offsetof(TickRecord, p_WP_m), 1), Column::kF64},
-      {"proxy_z_m", "m", "proxy position in W, z", at(offsetof(TickRecord, p_WP_m), 2), Column::kF64},
-      {"proxy_qw", "1", "proxy orientation in W, quaternion w", at(offsetof(TickRecord, q_WP), 0), Column::kF64},
-      {"proxy_qx", "1", "proxy orientation in W, quaternion x", at(offsetof(TickRecord, q_WP), 1), Column::kF64},
-      {"proxy_qy", "1", "proxy orientation in W, quaternion y", at(offsetof(TickRecord, q_WP), 2), Column::kF64},
-      {"proxy_qz", "1", "proxy orientation in W, quaternion z", at(offsetof(TickRecord, q_WP), 3), Column::kF64},
-      {"force_x_N", "N", "force on the hand in W, x", at(offsetof(TickRecord, force_W_N), 0), Column::kF64},
-      {"force_y_N", "N", "force on the hand in W, y", at(offsetof(TickRecord, force_W_N), 1), Column::kF64},
-      {"force_z_N", "N", "force on the hand in W, z", at(offsetof(TickRecord, force_W_N), 2), Column::kF64},
-      {"torque_x_Nm", "N*m", "torque on the hand in W, x", at(offsetof(TickRecord, torque_W_Nm), 0), Column::kF64},
-      {"torque_y_Nm", "N*m", "torque on the hand in W, y", at(offsetof(TickRecord, torque_W_Nm), 1), Column::kF64},
-      {"torque_z_Nm", "N*m", "torque on the hand in W, z", at(offsetof(TickRecord, torque_W_Nm), 2), Column::kF64},
-      {"contacts", "1", "contact set size", offsetof(TickRecord, contacts), Column::kU32},
-      {"isovalue", "data units", "isovalue (HU for CT)", offsetof(TickRecord, isovalue), Column::kF64},
-      {"tick_time_s", "s", "the solver's compute time of the tick", offsetof(TickRecord, tick_time_s), Column::kF64},
-      {"flags", "1", "kRecordFlag* bits (tick_record.h); bits 16..31: touched segment + 1",
-       offsetof(TickRecord, flags), Column::kU32},
-      {"critical_distance_m", "m", "point shell to the nearest critical segment (inf: none within range, nan: "
-       "not measured)", offsetof(TickRecord, critical_distance_m), Column::kF64},
-      {"critical_segment", "1", "that segment's index (-1: none)", offsetof(TickRecord, critical_segment),
-       Column::kI32},
-      {"removed_voxels", "1", "voxels the burr removed on the tick", offsetof(TickRecord, removed_voxels),
-       Column::kU32},
-      {"deadline_work", "1", "1 + the work at which the solver's deadline cut the tick (0: not cut)",
-       offsetof(TickRecord, deadline_work), Column::kI64},
-  }};
-  return c;
-}
-
 /// A column kind's HDF5 types (in the file, little-endian; in memory, native) and size [bytes].
 struct KindTypes {
   hid_t file;
   hid_t memory;
   std::size_t size;
 };
-KindTypes typesOf(Column::Kind kind) {
+KindTypes typesOf(TickColumn::Kind kind) {
   switch (kind) {
-    case Column::kU64: return {H5T_STD_U64LE, H5T_NATIVE_UINT64, 8};
-    case Column::kU32: return {H5T_STD_U32LE, H5T_NATIVE_UINT32, 4};
-    case Column::kI32: return {H5T_STD_I32LE, H5T_NATIVE_INT32, 4};
-    case Column::kI64: return {H5T_STD_I64LE, H5T_NATIVE_INT64, 8};
-    case Column::kF64: break;
+    case TickColumn::kU64: return {H5T_STD_U64LE, H5T_NATIVE_UINT64, 8};
+    case TickColumn::kU32: return {H5T_STD_U32LE, H5T_NATIVE_UINT32, 4};
+    case TickColumn::kI32: return {H5T_STD_I32LE, H5T_NATIVE_INT32, 4};
+    case TickColumn::kI64: return {H5T_STD_I64LE, H5T_NATIVE_INT64, 8};
+    case TickColumn::kF64: break;
   }
   return {H5T_IEEE_F64LE, H5T_NATIVE_DOUBLE, 8};
 }
@@ -261,7 +209,7 @@ void writeNumbers(const Writer& w, hid_t parent, const char* name, hid_t file_ty
 void writeTicks(const Writer& w, hid_t file, const std::vector<TickRecord>& records) {
   Group ticks = createGroup(w, file, "ticks");
   std::vector<unsigned char> column(records.size() * 8);
-  for (const Column& c : columns()) {
+  for (const TickColumn& c : tickColumns()) {
     const KindTypes types = typesOf(c.kind);
     for (std::size_t r = 0; r < records.size(); ++r)
       std::memcpy(column.data() + r * types.size, reinterpret_cast<const unsigned char*>(&records[r]) + c.offset,
@@ -574,8 +522,8 @@ Recording readRecordingHdf5(const std::filesystem::path& path) {
   Group ticks(r.check(H5Gopen2(f, "ticks", H5P_DEFAULT), "/ticks"));
   std::vector<unsigned char> bytes;
   bool first = true;
-  for (const Column& c : columns()) {
-    const H5T_class_t type_class = c.kind == Column::kF64 ? H5T_FLOAT : H5T_INTEGER;
+  for (const TickColumn& c : tickColumns()) {
+    const H5T_class_t type_class = c.kind == TickColumn::kF64 ? H5T_FLOAT : H5T_INTEGER;
     const KindTypes types = typesOf(c.kind);
     const std::size_t size = types.size;
     const hsize_t n = readNumberColumn(r, ticks.get(), "/ticks", c.name, types.memory, size, type_class, bytes);
