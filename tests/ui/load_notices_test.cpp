@@ -72,6 +72,15 @@ TEST(LoadNotices, TheTiltOrAGapComesBeforeTheSeriesChoice) {
   EXPECT_EQ(primaryNotice({series, phases}), phases);
   EXPECT_EQ(primaryNotice({"something new", series}), series);
   EXPECT_LT(noticeRank("dropped 2 duplicate slices: a.dcm"), noticeRank(series));
+  // A PET's note on its values leads, not the scene's note on its tool's spacing (which says
+  // "spacing" too); the tool's note comes after every note on the scan, unknown ones included.
+  const std::string suv = "PET in SUV (body weight): weight 70 kg, injected dose 370 MBq";
+  const std::string tool =
+      "tool: at 1.50 mm point spacing a surface can come up to 1.35 mm inside the tool's mesh before it is felt";
+  EXPECT_EQ(primaryNotice({tool, suv, series}), suv);
+  EXPECT_EQ(primaryNotice({tool, "something new"}), "something new");
+  EXPECT_EQ(primaryNotice({tool}), tool);
+  EXPECT_LT(noticeRank(gap), noticeRank(suv));
 }
 
 TEST(LoadNotices, ManyNotesTakeOneLineUntilAskedAndABoundedListThen) {

@@ -25,11 +25,15 @@ std::string lower(std::string s) {
 }  // namespace
 
 int noticeRank(const std::string& notice) {
-  // Key phrases of io's notices, most important first.
-  static constexpr std::array<std::string_view, 9> kOrder = {"gantry tilt", "sheared",  "missing slice",
-                                                             "spacing",     "resampled", "duplicate",
-                                                             "skipped",     "time point", "series"};
+  // Key phrases of io's notices, most important first; what the values mean (a PET's SUV or
+  // its absence) right after what moved voxels.
+  static constexpr std::array<std::string_view, 10> kOrder = {"gantry tilt", "sheared",    "missing slice", "suv",
+                                                              "spacing",     "resampled",  "duplicate",     "skipped",
+                                                              "time point",  "series"};
   const std::string text = lower(notice);
+  // The scene's note on its own tool (runtime::feltGapNotice(): "tool: at 1.50 mm point spacing
+  // ...") after every note on the scan: a choice in the Haptics panel, not how the scan was read.
+  if (text.starts_with("tool:")) return static_cast<int>(kOrder.size()) + 1;
   for (std::size_t i = 0; i < kOrder.size(); ++i) {
     if (text.find(kOrder[i]) != std::string::npos) return static_cast<int>(i);
   }

@@ -27,8 +27,9 @@ class QWidget;
 namespace vh::ui {
 
 /// How much a notice matters to someone touching the volume, 0 first: what moved voxels (a
-/// gantry tilt, missing slices, uneven spacing), then what was left out (duplicates, skipped
-/// series), then what was chosen (the time point, the series). Unknown text ranks last.
+/// gantry tilt, missing slices), what the values mean (a PET in SUV or not), uneven spacing,
+/// then what was left out (duplicates, skipped series), then what was chosen (the time point,
+/// the series). Unknown text ranks after these; the scene's note on its tool ("tool: ...") last.
 int noticeRank(const std::string& notice);
 
 /// The notice to show first (status bar): the lowest noticeRank(), the first of equals; empty
