@@ -223,12 +223,20 @@ TEST(SegmentsController, OpensASegmentationAppliesChoicesAndAlertsOnACriticalTou
   EXPECT_EQ(host.view->segmentSurfaces()->shownSegments(), (std::vector<int>{0, 1}));
 
   // Feel and guard the nerve; show only it.
+  ASSERT_FALSE(host.prefs.segments_through_scan);
   SegmentChoices choices;
   choices.felt = {0};
   choices.shown = {0};
   choices.critical = {0};
   ASSERT_TRUE(host.controller->apply(choices));
   ASSERT_TRUE(host.session.live().feltSegments());
+  // Felt from now on, the nerve (inside the scan's surface) and the tool are drawn through the
+  // scan, once; unticked again, they stay behind it while the nerve stays felt.
+  EXPECT_TRUE(host.prefs.segments_through_scan);
+  EXPECT_TRUE(host.view->segmentLayer()->GetDraw()) << "the segments' layer is drawn over the scan";
+  host.controller->setThroughScan(false);
+  ASSERT_TRUE(host.controller->apply(choices));
+  EXPECT_FALSE(host.prefs.segments_through_scan) << "the user's choice is kept while the nerve stays felt";
   EXPECT_EQ(host.session.live().segmentation->felt, std::vector<std::string>{"nerve"});
   EXPECT_EQ(host.session.live().segmentation->critical, std::vector<std::string>{"nerve"});
   EXPECT_EQ(host.view->segmentSurfaces()->shownSegments(), std::vector<int>{0});

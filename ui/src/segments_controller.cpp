@@ -243,11 +243,21 @@ bool SegmentsController::apply(const SegmentChoices& choices) {
     emit errorReported("Segments", q(error));
     return false;
   }
+  const bool felt_before = !kept->felt().empty();
   try {
     session_.setSegments(std::move(set), spec);
   } catch (const std::exception& e) {
     emit errorReported("Segments", q(e.what()));
     return false;
+  }
+  // Segments felt from now on lie inside the scan's surface as often as not (a tumour under the
+  // skin): drawn through the scan, with the tool, the hand's surface is seen where the hand is.
+  // Once, as Felt is first ticked; unticking the box again is kept.
+  if (!felt_before && !choices.felt.empty() && !prefs_.segments_through_scan) {
+    setThroughScan(true);
+    status_bar_->showMessage("The felt segments and the tool are drawn through the scan (untick Through the scan in "
+                             "the Segments panel to see them behind its surface)",
+                             10000);
   }
   return true;
 }
