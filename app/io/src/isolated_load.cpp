@@ -8,7 +8,9 @@
 // (tests/fuzz/known-crashes); DCMTK's dcmseg reads whole multi-frame files that may be as
 // damaged; in the reader process such a crash ends that process, and the
 // application names the file and keeps what it had open. After a DICOM reader's crash the
-// reader's `probe` mode parses the files one by one: the last one named is the damaged file.
+// reader's `probe` mode parses the files one by one: the last one named is the damaged file;
+// when every file parses alone, the series read is repeated on halves of the files
+// (findSeriesCulprits()) until the damaged slice among good ones is found.
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
@@ -192,8 +194,16 @@ LoadedVolume loadDicom(const fs::path& path, const VolumeLoadOptions& options) {
   };
   const double stall_s = stallLimitFor(path, options.worker_stall_timeout_s);
   const bool finished = runReaderToEnd(args, path, stall_s, on_line, options.cancel, [&](const std::string& what) {
-    return dicomReaderProblem(what, findCulpritFiles(reader, path, stall_s), "reading the series",
-                              "; nothing was loaded");
+    std::vector<std::string> culprits = findCulpritFiles(reader, path, stall_s);
+    // Every file parses alone: the series read itself fails on a damaged slice among good ones.
+    std::error_code ec;
+    if (culprits.empty() && fs::is_directory(path, ec)) {
+      try {
+        culprits = findSeriesCulprits(reader, path, std::vector<std::string>(args.begin() + 4, args.end()), stall_s);
+      } catch (const LoadError&) {  // NOLINT(bugprone-empty-catch): the crash is said without a file then
+      }
+    }
+    return dicomReaderProblem(what, culprits, "reading the series", "; nothing was loaded");
   });
   if (!finished) throw LoadCancelled(path.string() + ": loading cancelled");
   RawVolume raw = readRaw(out.path(), path);

@@ -8,6 +8,7 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <atomic>
 #include <cerrno>
 #include <chrono>
@@ -187,6 +188,113 @@ std::vector<std::string> findCulpritFiles(const fs::path& program, const fs::pat
     after = culprit;
   }
   return found;
+}
+
+namespace {
+
+/// The regular files under `folder` as a series read scans them (sub-folders to
+/// kDicomScanDepth), sorted.
+std::vector<fs::path> seriesFolderFiles(const fs::path& folder) {
+  std::error_code ec;
+  std::vector<fs::path> files;
+  for (auto it = fs::recursive_directory_iterator(folder, ec); !ec && it != fs::recursive_directory_iterator();
+       it.increment(ec)) {
+    if (it.depth() >= kDicomScanDepth) it.disable_recursion_pending();
+    if (it->is_regular_file(ec)) files.push_back(it->path());
+  }
+  std::sort(files.begin(), files.end());
+  return files;
+}
+
+/// A temporary folder of symbolic links to some files (each named NNNNN-<its name>, so that two
+/// files of one name in different sub-folders stay apart), removed with it.
+class LinkFolder {
+ public:
+  explicit LinkFolder(const std::vector<fs::path>& files) {
+    std::error_code ec;
+    path_ = fs::temp_directory_path(ec) /
+            ("vh-dicom-bisect-" + std::to_string(getpid()) + "-" + std::to_string(g_output_counter++));
+    fs::create_directory(path_, ec);
+    if (ec) fail(path_, "cannot make a folder to find the damaged file in: " + ec.message());
+    for (std::size_t i = 0; i < files.size(); ++i) {
+      char index[16];
+      std::snprintf(index, sizeof(index), "%05zu-", i);
+      fs::create_symlink(fs::absolute(files[i], ec), path_ / (index + files[i].filename().string()), ec);
+      if (ec) fail(path_, "cannot link " + files[i].string() + " to find the damaged file: " + ec.message());
+    }
+  }
+  ~LinkFolder() {
+    std::error_code ec;
+    fs::remove_all(path_, ec);
+  }
+  LinkFolder(const LinkFolder&) = delete;
+  LinkFolder& operator=(const LinkFolder&) = delete;
+  const fs::path& path() const { return path_; }
+
+ private:
+  fs::path path_;
+};
+
+/// Whether the reader `program` crashes (or stops responding for `stall_s` s, 0: never) reading
+/// the series made of `files` alone, as `load` with `extra_args` (the series, the time point).
+bool seriesReadFails(const fs::path& program, const std::vector<fs::path>& files,
+                     const std::vector<std::string>& extra_args, double stall_s) {
+  const LinkFolder folder(files);
+  const ReaderOutputFile out("dicom-bisect");
+  std::vector<std::string> args = {program.string(), "load", folder.path().string(), out.path().string()};
+  args.insert(args.end(), extra_args.begin(), extra_args.end());
+  ReaderProcess run(args);
+  std::string line;
+  auto last_line = std::chrono::steady_clock::now();
+  while (run.readLine(line, kPollMs)) {
+    if (!line.empty()) {
+      last_line = std::chrono::steady_clock::now();
+    } else if (stall_s > 0.0 && secondsSince(last_line) > stall_s) {
+      run.kill9();
+      return true;
+    }
+  }
+  return WIFSIGNALED(run.wait());
+}
+
+}  // namespace
+
+std::vector<std::string> findSeriesCulprits(const fs::path& program, const fs::path& folder,
+                                            const std::vector<std::string>& extra_args, double stall_s,
+                                            std::size_t max_tests) {
+  const std::vector<fs::path> files = seriesFolderFiles(folder);
+  if (files.size() < 2) return {};
+  std::size_t tests = 0;
+  const auto fails = [&](const std::vector<fs::path>& subset) {
+    ++tests;
+    return seriesReadFails(program, subset, extra_args, stall_s);
+  };
+  // Halve the files while one half alone still fails.
+  std::vector<fs::path> s = files;
+  while (s.size() > 1 && tests + 2 <= max_tests) {
+    const auto middle = s.begin() + static_cast<std::ptrdiff_t>(s.size() / 2);
+    std::vector<fs::path> a(s.begin(), middle), b(middle, s.end());
+    if (fails(a)) {
+      s = std::move(a);
+    } else if (fails(b)) {
+      s = std::move(b);
+    } else {
+      break;  // the failure needs files of both halves (a damaged slice beside good ones)
+    }
+  }
+  if (s.size() == 1) return {s.front().string()};
+  // Each file left, read beside one file from outside them: the damaged one fails with any
+  // other, a good one beside a good one does not.
+  const auto partner = std::find_if(files.begin(), files.end(),
+                                    [&](const fs::path& f) { return std::find(s.begin(), s.end(), f) == s.end(); });
+  if (partner == files.end() || s.size() + tests > max_tests) return {};
+  std::vector<std::string> culprits;
+  for (const fs::path& f : s) {
+    if (fails({f, *partner})) culprits.push_back(f.string());
+  }
+  // Every one failing: the partner is as likely the damaged one; nothing is named.
+  if (culprits.size() == s.size()) return {};
+  return culprits;
 }
 
 bool runReaderToEnd(const std::vector<std::string>& args, const fs::path& named, double stall_s,

@@ -62,4 +62,16 @@ bool runReaderToEnd(const std::vector<std::string>& args, const fs::path& named,
 std::vector<std::string> findCulpritFiles(const fs::path& program, const fs::path& path, double stall_s,
                                           std::size_t max_files = 64);
 
+/// After a series read crashed or stalled and the probe named no file (each file parses alone;
+/// the crash needs the series read, a damaged slice among good ones): the files under `folder`
+/// halved while one half alone still makes the reader `program` fail (`load` of a folder of
+/// links to them, with `extra_args`: the series, the time point), then each file left read
+/// beside one file from outside them. At most `max_tests` reads.
+/// @return the files that make the read fail (original paths, sorted); empty when none is
+///         found within the reads allowed.
+/// @throws LoadError when the program cannot be started or the links cannot be made.
+std::vector<std::string> findSeriesCulprits(const fs::path& program, const fs::path& folder,
+                                            const std::vector<std::string>& extra_args, double stall_s,
+                                            std::size_t max_tests = 32);
+
 }  // namespace vh::io::detail

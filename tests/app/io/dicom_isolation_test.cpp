@@ -107,6 +107,34 @@ TEST(DicomIsolation, AWorkerCrashNamesTheFileAndLoadsNothing) {
   EXPECT_CONTAINS(msg, "To open the series without it, move CTHead8.dcm out of the folder");
 }
 
+TEST(DicomIsolation, ASeriesReadThatCrashesOnlyBesideOtherSlicesNamesTheDamagedSlice) {
+  VH_REQUIRE_SHARED(head, kCtHead);
+  // A stand-in worker that crashes as the held-back damaged series does: each file parses alone
+  // (the probe stops on none), but reading the series crashes whenever CTHead8.dcm is read
+  // with any other slice. The series read is repeated on halves of the files (folders of links
+  // to them) until the damaged slice is found.
+  TempDir tmp("crash_series");
+  const fs::path script = tmp / "worker.sh";
+  writeFile(script,
+            "#!/bin/sh\n"
+            "if [ \"$1\" = load ]; then\n"
+            "  n=$(ls \"$2\" | wc -l)\n"
+            "  if ls \"$2\" | grep -q 'CTHead8.dcm$' && [ \"$n\" -ge 2 ]; then kill -SEGV $$; fi\n"
+            "  echo 'error the stand-in reads no pixels'; exit 1\n"
+            "fi\n"
+            "exit 0\n");
+  fs::permissions(script, fs::perms::owner_all);
+  ScopedEnv env("VH_DICOM_WORKER", script.string());
+  const std::string msg = loadErrorOf([&] { loadVolume(head); });
+  EXPECT_CONTAINS(msg, "the DICOM reader crashed (SIGSEGV) on " + (head / "CTHead8.dcm").string());
+  EXPECT_CONTAINS(msg, "To open the series without it, move CTHead8.dcm out of the folder");
+  // The folders of links are gone.
+  std::error_code ec;
+  const std::string prefix = "vh-dicom-bisect-" + std::to_string(getpid()) + "-";
+  for (const auto& e : fs::directory_iterator(fs::temp_directory_path(), ec))
+    EXPECT_NE(e.path().filename().string().rfind(prefix, 0), 0u) << e.path() << " was left behind";
+}
+
 TEST(DicomIsolation, ListingSeriesRunsInTheWorkerToo) {
   VH_REQUIRE_SHARED(phantom, "ct/philips-head-phantom-bone");
   ASSERT_FALSE(readerProcessPath().empty());
