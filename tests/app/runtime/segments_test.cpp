@@ -380,7 +380,7 @@ TEST(FeltSegments, SegmentChoicesThatKeepTheFeltSurfaceNeverLetTheForceGo) {
   EXPECT_TRUE(session.hapticsRunning());
   EXPECT_EQ(session.live().segmentation->critical, std::vector<std::string>{"facial nerve"});
   EXPECT_GT(device->minForce_N(), 0.5 * pressing_N) << "the force held over the change (pressing " << pressing_N << " N)";
-  EXPECT_LT(snap.critical_distance_m, 0.0005) << "pressed on the nerve";
+  EXPECT_LT(snap.critical_distance_m, 0.001) << "pressed on the nerve (within two voxels)";
 
   // Felt segments instead of the scan: a new surface, the threads rebuilt (the force ramped to 0).
   spec.felt = {"facial nerve"};
