@@ -60,6 +60,8 @@ void addDrillJson(nlohmann::ordered_json& j, const DrillReport& drill) {
                             {"critical", m.critical},
                             {"voxels", m.voxels},
                             {"removed_mm3", m.removed_mm3},
+                            {"voxels_below_surface", m.voxels_below_surface},
+                            {"below_surface_mm3", m.below_surface_mm3},
                             {"specific_energy_J_per_mm3", m.specific_energy_J_per_mm3}});
 }
 }  // namespace
@@ -211,6 +213,10 @@ std::string RunReport::summary() const {
       std::snprintf(line, sizeof line, "%s %s %.2f mm^3%s", m.name == drill->materials.front().name ? " (" : ", ",
                     m.name.c_str(), m.removed_mm3, m.critical ? " CRITICAL" : "");
       out += line;
+      if (m.voxels_below_surface > 0) {
+        std::snprintf(line, sizeof line, " [%.2f of it below the felt surface]", m.below_surface_mm3);
+        out += line;
+      }
     }
     if (drill->removed_mm3 > 0.0) out += ")";
   }

@@ -337,6 +337,25 @@ DrillReport drillReport(const Drill& drill, const LoadedScene& scene) {
   Sha256 sha;
   sha.update(removal.volume().bytes().data(), removal.volume().bytes().size());
   d.drilled_field_sha256 = sha.hexDigest();
+  // Which removed voxels lay below the felt isovalue: the carved field against the felt field
+  // as loaded (the drill carves a copy), the cavity the run began with left out.
+  std::vector<std::uint64_t> below(removal.materials().size(), 0);
+  const haptics::ScalarVolume& carved = removal.volume();
+  const haptics::ScalarVolume* felt = scene.hapticField().get();
+  if (felt != nullptr && felt->geometry().sameGridAs(carved.geometry())) {
+    std::vector<bool> at_start;
+    if (const auto& cavity = drill.cavityAtStart(); cavity != nullptr) {
+      at_start.assign(carved.geometry().voxelCount(), false);
+      for (const std::uint64_t v : cavity->voxels)
+        if (v < at_start.size()) at_start[v] = true;
+    }
+    const double lowest = carved.lowestRaw(), isovalue = scene.hapticIsovalue();
+    for (std::size_t i = 0; i < carved.geometry().voxelCount(); ++i) {
+      if (carved.rawAt(i) != lowest || felt->rawAt(i) == lowest || (!at_start.empty() && at_start[i])) continue;
+      if (felt->valueScale() * felt->rawAt(i) + felt->valueOffset() < isovalue)
+        ++below[static_cast<std::size_t>(removal.materialOf(i))];
+    }
+  }
   for (std::size_t m = 0; m < removal.materials().size(); ++m) {
     const auto& material = removal.materials()[m];
     DrillReport::Material row;
@@ -345,6 +364,8 @@ DrillReport drillReport(const Drill& drill, const LoadedScene& scene) {
     row.critical = material.critical;
     row.voxels = removal.removedVoxels(static_cast<int>(m));
     row.removed_mm3 = static_cast<double>(row.voxels) * removal.voxelVolume_mm3();
+    row.voxels_below_surface = std::min(below[m], row.voxels);
+    row.below_surface_mm3 = static_cast<double>(row.voxels_below_surface) * removal.voxelVolume_mm3();
     row.specific_energy_J_per_mm3 = material.specific_energy_J_per_mm3;
     d.materials.push_back(row);
   }

@@ -128,6 +128,29 @@ TEST(Drilling, HeadlessRunDrillsAndReplaysBitForBit) {
   Sha256 untouched;
   untouched.update(scene.hapticField()->bytes().data(), scene.hapticField()->bytes().size());
   EXPECT_NE(untouched.hexDigest(), report.drill->drilled_field_sha256);
+
+  // The burr's reach takes voxels outside the felt surface too (air about the ball): the report
+  // counts them apart. Oracle: the analytic ball (radius 20 mm about the origin, F = 1000 (R -
+  // |p|) mm), each removed voxel's centre outside R - isovalue / 1000.
+  const haptics::ScalarVolume& felt = *scene.hapticField();
+  const haptics::ScalarVolume& carved = *replay.drilled_field;
+  const Eigen::Matrix4d X_W_index = felt.geometry().indexToWorld();
+  const auto& dims = felt.geometry().dims;
+  std::uint64_t removed = 0, outside = 0;
+  for (int k = 0; k < dims[2]; ++k)
+    for (int j = 0; j < dims[1]; ++j)
+      for (int i = 0; i < dims[0]; ++i) {
+        const std::size_t index = static_cast<std::size_t>(i) + static_cast<std::size_t>(dims[0]) * (j + static_cast<std::size_t>(dims[1]) * k);
+        if (carved.rawAt(index) != carved.lowestRaw() || felt.rawAt(index) == carved.lowestRaw()) continue;
+        ++removed;
+        const Eigen::Vector3d p_W = (X_W_index * Eigen::Vector4d(i, j, k, 1.0)).head<3>();
+        if (p_W.norm() > 0.020 - scene.hapticIsovalue() / 1000.0) ++outside;
+      }
+  EXPECT_EQ(removed, report.drill->materials[0].voxels);
+  EXPECT_GT(outside, 0u) << "the reach passed through the air above the ball";
+  EXPECT_EQ(report.drill->materials[0].voxels_below_surface, outside);
+  EXPECT_NEAR(report.drill->materials[0].below_surface_mm3, static_cast<double>(outside) * 1.0, 1e-9) << "1 mm voxels";
+  EXPECT_NE(report.summary().find("below the felt surface"), std::string::npos) << report.summary();
 }
 
 // A recording that starts on a drilled field (a session that drilled, rebuilt its haptic threads

@@ -156,6 +156,13 @@ struct DrillReport {
     bool critical = false;         ///< A critical segment.
     std::uint64_t voxels = 0;      ///< Voxels removed.
     double removed_mm3 = 0.0;      ///< voxels x voxel volume [mm^3].
+    /// Of those, voxels whose value was below the felt isovalue (centres outside the felt
+    /// surface: air, or tissue not felt at this isovalue) that the burr's reach took with it, and
+    /// their volume [mm^3]. Lowering them moves the felt surface only where it passes between
+    /// them and felt voxels (trilinear interpolation), and hardly at all for air already near
+    /// the lowest value.
+    std::uint64_t voxels_below_surface = 0;
+    double below_surface_mm3 = 0.0;
     double specific_energy_J_per_mm3 = 0.0;  ///< Its hardness.
   };
   double burr_radius_m = 0.0;      ///< The burr [m].
