@@ -15,6 +15,7 @@
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
+#include <functional>
 
 #include "loader_internal.h"
 #include "reader_process_internal.h"
@@ -152,26 +153,36 @@ ReaderOutputFile::~ReaderOutputFile() {
 
 namespace {
 
-std::string culpritAfter(const fs::path& program, const fs::path& path, double stall_s, const std::string& after) {
-  std::vector<std::string> args = {program.string(), "probe", path.string()};
-  if (!after.empty()) args.insert(args.end(), {"--after", after});
-  ReaderProcess probe(args);
-  std::string line, last;
+/// Runs the reader `args` to its end, `on_line` seeing each line it prints; killed when it prints
+/// nothing for `stall_s` seconds (0: never). @return true when it crashed or stalled.
+bool readerCrashesOrStalls(const std::vector<std::string>& args, double stall_s,
+                           const std::function<void(const std::string&)>& on_line) {
+  ReaderProcess run(args);
+  std::string line;
   auto last_line = std::chrono::steady_clock::now();
-  while (probe.readLine(line, kPollMs)) {
+  while (run.readLine(line, kPollMs)) {
     if (line.empty()) {
       if (stall_s > 0.0 && secondsSince(last_line) > stall_s) {
-        probe.kill9();
-        return last;
+        run.kill9();
+        return true;
       }
       continue;
     }
     last_line = std::chrono::steady_clock::now();
+    on_line(line);
+  }
+  return WIFSIGNALED(run.wait());
+}
+
+std::string culpritAfter(const fs::path& program, const fs::path& path, double stall_s, const std::string& after) {
+  std::vector<std::string> args = {program.string(), "probe", path.string()};
+  if (!after.empty()) args.insert(args.end(), {"--after", after});
+  std::string last;
+  const bool failed = readerCrashesOrStalls(args, stall_s, [&](const std::string& line) {
     if (line.rfind("file ", 0) == 0) last = line.substr(5);
     if (line == "ok") last.clear();
-  }
-  const int status = probe.wait();
-  return WIFSIGNALED(status) ? last : std::string();
+  });
+  return failed ? last : std::string();
 }
 
 }  // namespace
@@ -192,20 +203,6 @@ std::vector<std::string> findCulpritFiles(const fs::path& program, const fs::pat
 
 namespace {
 
-/// The regular files under `folder` as a series read scans them (sub-folders to
-/// kDicomScanDepth), sorted.
-std::vector<fs::path> seriesFolderFiles(const fs::path& folder) {
-  std::error_code ec;
-  std::vector<fs::path> files;
-  for (auto it = fs::recursive_directory_iterator(folder, ec); !ec && it != fs::recursive_directory_iterator();
-       it.increment(ec)) {
-    if (it.depth() >= kDicomScanDepth) it.disable_recursion_pending();
-    if (it->is_regular_file(ec)) files.push_back(it->path());
-  }
-  std::sort(files.begin(), files.end());
-  return files;
-}
-
 /// A temporary folder of symbolic links to some files (each named NNNNN-<its name>, so that two
 /// files of one name in different sub-folders stay apart), removed with it.
 class LinkFolder {
@@ -217,7 +214,7 @@ class LinkFolder {
     fs::create_directory(path_, ec);
     if (ec) fail(path_, "cannot make a folder to find the damaged file in: " + ec.message());
     for (std::size_t i = 0; i < files.size(); ++i) {
-      char index[16];
+      char index[32];
       std::snprintf(index, sizeof(index), "%05zu-", i);
       fs::create_symlink(fs::absolute(files[i], ec), path_ / (index + files[i].filename().string()), ec);
       if (ec) fail(path_, "cannot link " + files[i].string() + " to find the damaged file: " + ec.message());
@@ -243,26 +240,27 @@ bool seriesReadFails(const fs::path& program, const std::vector<fs::path>& files
   const ReaderOutputFile out("dicom-bisect");
   std::vector<std::string> args = {program.string(), "load", folder.path().string(), out.path().string()};
   args.insert(args.end(), extra_args.begin(), extra_args.end());
-  ReaderProcess run(args);
-  std::string line;
-  auto last_line = std::chrono::steady_clock::now();
-  while (run.readLine(line, kPollMs)) {
-    if (!line.empty()) {
-      last_line = std::chrono::steady_clock::now();
-    } else if (stall_s > 0.0 && secondsSince(last_line) > stall_s) {
-      run.kill9();
-      return true;
-    }
-  }
-  return WIFSIGNALED(run.wait());
+  return readerCrashesOrStalls(args, stall_s, [](const std::string&) {});
 }
 
 }  // namespace
 
+std::vector<fs::path> dicomFolderFiles(const fs::path& folder) {
+  std::error_code ec;
+  std::vector<fs::path> files;
+  for (auto it = fs::recursive_directory_iterator(folder, ec); !ec && it != fs::recursive_directory_iterator();
+       it.increment(ec)) {
+    if (it.depth() >= kDicomScanDepth) it.disable_recursion_pending();
+    if (it->is_regular_file(ec)) files.push_back(it->path());
+  }
+  std::sort(files.begin(), files.end());
+  return files;
+}
+
 std::vector<std::string> findSeriesCulprits(const fs::path& program, const fs::path& folder,
                                             const std::vector<std::string>& extra_args, double stall_s,
                                             std::size_t max_tests) {
-  const std::vector<fs::path> files = seriesFolderFiles(folder);
+  const std::vector<fs::path> files = dicomFolderFiles(folder);
   if (files.size() < 2) return {};
   std::size_t tests = 0;
   const auto fails = [&](const std::vector<fs::path>& subset) {

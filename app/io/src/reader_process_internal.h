@@ -62,6 +62,10 @@ bool runReaderToEnd(const std::vector<std::string>& args, const fs::path& named,
 std::vector<std::string> findCulpritFiles(const fs::path& program, const fs::path& path, double stall_s,
                                           std::size_t max_files = 64);
 
+/// The regular files under `folder` as a DICOM series read scans them (sub-folders to
+/// kDicomScanDepth), sorted: what the reader's probe parses one by one.
+std::vector<fs::path> dicomFolderFiles(const fs::path& folder);
+
 /// After a series read crashed or stalled and the probe named no file (each file parses alone;
 /// the crash needs the series read, a damaged slice among good ones): the files under `folder`
 /// halved while one half alone still makes the reader `program` fail (`load` of a folder of

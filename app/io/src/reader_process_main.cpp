@@ -14,6 +14,7 @@
 #include "dicom_rtstruct_internal.h"
 #include "dicom_seg_internal.h"
 #include "loader_internal.h"
+#include "reader_process_internal.h"
 #include "reader_transfer.h"
 #include "vh/io/reader_process.h"
 #include "vtk_error_capture.h"
@@ -46,17 +47,7 @@ int reportingErrors(Read&& read) {
 /// so that a crash names the file.
 int probeMode(const fs::path& path, const fs::path& after) {
   std::error_code ec;
-  std::vector<fs::path> files;
-  if (fs::is_directory(path, ec)) {
-    for (auto it = fs::recursive_directory_iterator(path, ec); !ec && it != fs::recursive_directory_iterator();
-         it.increment(ec)) {
-      if (it.depth() >= detail::kDicomScanDepth) it.disable_recursion_pending();
-      if (it->is_regular_file(ec)) files.push_back(it->path());
-    }
-  } else {
-    files.push_back(path);
-  }
-  std::sort(files.begin(), files.end());
+  const std::vector<fs::path> files = fs::is_directory(path, ec) ? detail::dicomFolderFiles(path) : std::vector<fs::path>{path};
   for (const auto& f : files) {
     if (!after.empty() && !(after < f)) continue;  // resumes past a damaged file already found
     std::cout << "file " << f.string() << std::endl;
