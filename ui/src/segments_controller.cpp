@@ -129,7 +129,6 @@ struct PreparedSegments {
   std::string error;  // empty: prepared
 };
 
-
 /// The calling thread at a lower CPU priority (nice 10; raising it needs no privilege), so that
 /// a load leaves the cores to the haptic threads when they run at normal priority, and to the
 /// window's drawing.

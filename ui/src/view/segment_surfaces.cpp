@@ -93,18 +93,18 @@ SegmentSurface buildSegmentSurface(const runtime::SegmentSet& set, int s) {
 
 SegmentSurfaces::SegmentSurfaces(vtkRenderer* renderer) : renderer_(renderer) {}
 
-void SegmentSurfaces::adopt(const runtime::SegmentSet& set, std::map<int, SegmentSurface> built) {
+void SegmentSurfaces::keepCacheFor(const runtime::SegmentSet& set) {
   const std::string source = set.segmentation().source.string();
-  if (source != source_ || set.smoothingVoxels() != smoothing_voxels_) {
-    cache_.clear();
-    matrices_.clear();
-    source_ = source;
-    smoothing_voxels_ = set.smoothingVoxels();
-  }
+  if (source == source_ && set.smoothingVoxels() == smoothing_voxels_) return;
+  cache_.clear();
+  source_ = source;
+  smoothing_voxels_ = set.smoothingVoxels();
+}
+
+void SegmentSurfaces::adopt(const runtime::SegmentSet& set, std::map<int, SegmentSurface> built) {
+  keepCacheFor(set);
   for (auto& [s, b] : built) {
-    if (b.surface == nullptr || b.X_W_image == nullptr) continue;
-    cache_[s] = std::move(b.surface);
-    matrices_[s] = std::move(b.X_W_image);
+    if (b.surface != nullptr && b.X_W_image != nullptr) cache_[s] = std::move(b);
   }
 }
 
@@ -128,28 +128,18 @@ void SegmentSurfaces::show(const runtime::SegmentSet* set, const Rgb& surface_rg
   recoloured_.clear();
   std::vector<Rgb> taken;
   if (set == nullptr) return;
-  const std::string source = set->segmentation().source.string();
-  if (source != source_ || set->smoothingVoxels() != smoothing_voxels_) {
-    cache_.clear();
-    matrices_.clear();
-    source_ = source;
-    smoothing_voxels_ = set->smoothingVoxels();
-  }
+  keepCacheFor(*set);
   for (const int s : set->shown()) {
     const io::SegmentInfo& info = set->segment(s);
     if (info.voxel_count == 0) continue;
-    auto& surface = cache_[s];
-    if (surface == nullptr) {
-      SegmentSurface built = buildSegmentSurface(*set, s);
-      surface = std::move(built.surface);
-      matrices_[s] = std::move(built.X_W_image);
-    }
+    SegmentSurface& cached = cache_[s];
+    if (cached.surface == nullptr) cached = buildSegmentSurface(*set, s);
     vtkNew<vtkPolyDataMapper> mapper;
-    mapper->SetInputData(surface);
+    mapper->SetInputData(cached.surface);
     mapper->ScalarVisibilityOff();
     vtkNew<vtkActor> actor;
     actor->SetMapper(mapper);
-    actor->SetUserMatrix(matrices_[s]);
+    actor->SetUserMatrix(cached.X_W_image);
     const Rgb file_rgb = {info.color_rgb[0], info.color_rgb[1], info.color_rgb[2]};
     const Rgb rgb = distinctSegmentColour(file_rgb, surface_rgb, taken);
     if (rgb != file_rgb) recoloured_.push_back(s);
@@ -200,7 +190,7 @@ std::vector<int> SegmentSurfaces::shownSegments() const {
 
 vtkPolyData* SegmentSurfaces::surface(int s) const {
   const auto it = cache_.find(s);
-  return actors_.count(s) != 0 && it != cache_.end() ? it->second.Get() : nullptr;
+  return actors_.count(s) != 0 && it != cache_.end() ? it->second.surface.Get() : nullptr;
 }
 
 }  // namespace vh::ui

@@ -93,8 +93,9 @@ class SegmentSurfaces {
   vtkRenderer* renderer_;
   std::string source_;            // segmentation file of the cached surfaces
   double smoothing_voxels_ = -1.0;
-  std::map<int, vtkSmartPointer<vtkPolyData>> cache_;
-  std::map<int, vtkSmartPointer<vtkMatrix4x4>> matrices_;  // direction about the origin
+  std::map<int, SegmentSurface> cache_;  // per segment: its contour and the matrix into W
+  /// Keeps the cached surfaces when they are `set`'s file and smoothing, else drops them.
+  void keepCacheFor(const runtime::SegmentSet& set);
   std::map<int, vtkSmartPointer<vtkActor>> actors_;
   std::map<int, std::vector<double>> colours_;
   std::vector<int> recoloured_;
