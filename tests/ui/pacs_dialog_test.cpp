@@ -35,11 +35,14 @@
 
 #include <gtest/gtest.h>
 
+#include "hostile_pacs.h"
 #include "ui_test_util.h"
 #include "vh/io/volume_loader.h"
 #include "vh/ui/main_window.h"
 #include "vh/ui/panels/pacs_dialog.h"
+#include "vh/ui/replay/session_recorder.h"
 #include "vh/ui/scene_opener.h"
+#include "vh/runtime/recording.h"
 #include "vh/runtime/session.h"
 
 namespace vh::ui {
@@ -439,6 +442,73 @@ TEST(PacsMainWindow, OpensTheRetrievedSeriesAsADicomFolder) {
   window.close();
   std::error_code ec;
   fs::remove_all(cached, ec);  // the test-mode cache (QStandardPaths::setTestModeEnabled)
+}
+
+// A hostile server's answer in the window while a recording runs: File > Open from PACS >
+// Search against a server whose C-FIND answer is nested 100,000 deep (which crashes DCMTK's
+// parser). The dialog says what happened; the window, the haptic threads and the recording go on,
+// and the recording reads back whole.
+TEST(PacsMainWindow, AHostileAnswerDuringARecordingEndsNeitherTheWindowNorTheRecording) {
+  io::test::HostilePacs pacs(io::test::nestedSequencesIdentifier(100'000));
+  ASSERT_TRUE(pacs.waitUntilUp()) << "the hostile server did not start";
+  MainWindow window;
+  window.setInteractive(false);
+  window.preferences().pacs = pacs.server();
+  window.resize(800, 600);
+  window.show();
+  QSignalSpy loaded(&window, &MainWindow::sceneLoaded);
+  const fs::path dir = fs::path(::testing::TempDir());
+  const fs::path scene_file = dir / "pacs_hostile_sphere.json";
+  {
+    std::ofstream out(scene_file);
+    out << R"({"volume": {"path": "builtin:sphere"}, "tool": {"mesh": "builtin:probe"}, "device": {"kind": "simulated"}})";
+  }
+  window.openPath(QString::fromStdString(scene_file.string()));
+  ASSERT_TRUE(test::waitFor([&] { return loaded.count() > 0; }, 30000)) << window.opener()->lastError().toStdString();
+  ASSERT_TRUE(test::waitFor([&] { return window.session().hapticsRunning(); }, 30000));
+  const fs::path rec = dir / "pacs_hostile_recording.vhrec";
+  ASSERT_TRUE(window.recorder()->start(rec)) << window.recorder()->lastError().toStdString();
+  ASSERT_TRUE(test::waitFor([&] { return window.recorder()->recordsWritten() > 100; }, 30000));
+
+  QAction* open_from_pacs = nullptr;
+  for (QAction* a : window.findChildren<QAction*>()) {
+    if (a->text() == "Open from &PACS...") open_from_pacs = a;
+  }
+  ASSERT_NE(open_from_pacs, nullptr) << "File > Open from PACS";
+  int step = 0;
+  QString status;
+  QTimer driver;
+  QObject::connect(&driver, &QTimer::timeout, [&] {
+    auto* dialog = qobject_cast<PacsBrowserDialog*>(QApplication::activeModalWidget());
+    if (dialog == nullptr || dialog->busy()) return;
+    if (step == 0) {
+      dialog->search();
+      step = 1;
+    } else if (step == 1) {
+      status = dialog->statusText();
+      dialog->reject();
+      step = 2;
+    }
+  });
+  driver.start(50);
+  open_from_pacs->trigger();  // returns once the dialog is closed
+  driver.stop();
+  ASSERT_EQ(step, 2) << "the dialog closed before its search ended";
+  std::printf("[ MESSAGE  ] the dialog said: %s\n", status.toStdString().c_str());
+  EXPECT_TRUE(status.contains("the DICOM network process crashed (SIGSEGV)")) << status.toStdString();
+  EXPECT_EQ(pacs.findsAnswered(), 1) << "the hostile answer was not sent";
+  // The window, its haptics and the recording go on.
+  EXPECT_TRUE(window.recorder()->recording());
+  EXPECT_TRUE(window.session().hapticsRunning());
+  const auto written = window.recorder()->recordsWritten();
+  EXPECT_TRUE(test::waitFor([&] { return window.recorder()->recordsWritten() > written + 100; }, 30000))
+      << "the recording stopped growing after the search";
+  window.recorder()->stop();
+  const runtime::Recording read = runtime::readRecording(rec);
+  EXPECT_TRUE(read.warnings.empty()) << read.warnings.front();
+  EXPECT_GT(read.records.size(), 200u);
+  window.session().stopHaptics();
+  window.close();
 }
 
 }  // namespace

@@ -1,5 +1,6 @@
 // A PACS client on DCMTK's dcmnet (DcmSCU): C-ECHO, C-FIND (Study Root, STUDY and SERIES
-// levels) and C-GET of one series. See vh/io/pacs.h.
+// levels) and C-GET of one series, in the calling process (pacs_internal.h); the public
+// functions of vh/io/pacs.h run these in the DICOM network process (pacs_process.cpp).
 
 #include "vh/io/pacs.h"
 
@@ -326,6 +327,9 @@ std::string why(const OFCondition& cond, const PacsServer& server) {
   if (cond == DUL_PEERABORTEDASSOCIATION) {
     text += ": the server ended the association; does it know the calling AE title '" + trim(server.calling_aet) +
             "' and allow it this?";
+  } else if (cond == DIMSE_BADDATA) {
+    text += ": the server's answer is not a well-formed DICOM dataset (cut short, or a value that declares more "
+            "bytes than were sent); nothing of it was used";
   }
   return text;
 }
@@ -422,13 +426,9 @@ PacsSeries seriesFromResponse(DcmItem* ds) {
   return s;
 }
 
-}  // namespace detail
+void checkPacsServer(const PacsServer& server) { checkServer(server); }
 
-std::string PacsServer::describe() const {
-  return trim(called_aet) + " at " + trim(host) + ":" + std::to_string(port);
-}
-
-void pacsEcho(const PacsServer& server) {
+void pacsEchoInProcess(const PacsServer& server) {
   Scu scu(server);
   scu.propose(UID_VerificationSOPClass);
   scu.connect();
@@ -439,7 +439,7 @@ void pacsEcho(const PacsServer& server) {
   scu.release();
 }
 
-std::vector<PacsStudy> pacsFindStudies(const PacsServer& server, const PacsStudyQuery& query) {
+std::vector<PacsStudy> pacsFindStudiesInProcess(const PacsServer& server, const PacsStudyQuery& query) {
   DcmDataset keys;
   keys.putAndInsertString(DCM_QueryRetrieveLevel, "STUDY");
   keys.putAndInsertString(DCM_PatientName, query.patient_name.c_str());
@@ -461,8 +461,8 @@ std::vector<PacsStudy> pacsFindStudies(const PacsServer& server, const PacsStudy
   return studies;
 }
 
-std::vector<PacsSeries> pacsFindSeries(const PacsServer& server, const std::string& study_uid,
-                                       const std::string& modality) {
+std::vector<PacsSeries> pacsFindSeriesInProcess(const PacsServer& server, const std::string& study_uid,
+                                                const std::string& modality) {
   if (trim(study_uid).empty()) throw fail(server, "a series query needs the Study Instance UID");
   DcmDataset keys;
   seriesKeys(keys, trim(study_uid), "", trim(modality));
@@ -476,7 +476,7 @@ std::vector<PacsSeries> pacsFindSeries(const PacsServer& server, const std::stri
   return series;
 }
 
-PacsSeries pacsFindSeriesByUid(const PacsServer& server, const std::string& series_uid) {
+PacsSeries pacsFindSeriesByUidInProcess(const PacsServer& server, const std::string& series_uid) {
   if (trim(series_uid).empty()) throw fail(server, "no Series Instance UID given");
   DcmDataset keys;
   seriesKeys(keys, "", trim(series_uid), "");
@@ -485,6 +485,12 @@ PacsSeries pacsFindSeriesByUid(const PacsServer& server, const std::string& seri
     if (s.series_uid == trim(series_uid) && !s.study_uid.empty()) return s;
   }
   throw fail(server, "no series with Series Instance UID " + trim(series_uid));
+}
+
+}  // namespace detail
+
+std::string PacsServer::describe() const {
+  return trim(called_aet) + " at " + trim(host) + ":" + std::to_string(port);
 }
 
 std::vector<PacsPatient> pacsPatientsOf(const std::vector<PacsStudy>& studies) {
@@ -503,16 +509,18 @@ std::vector<PacsPatient> pacsPatientsOf(const std::vector<PacsStudy>& studies) {
   return patients;
 }
 
-PacsRetrieveResult pacsRetrieveSeries(const PacsServer& server, const std::string& study_uid,
-                                      const std::string& series_uid, const fs::path& out_dir,
-                                      const PacsRetrieveOptions& options) {
+namespace detail {
+
+PacsRetrieveResult pacsRetrieveSeriesInProcess(const PacsServer& server, const std::string& study_uid,
+                                               const std::string& series_uid, const fs::path& out_dir,
+                                               const PacsRetrieveOptions& options) {
   const auto t0 = Clock::now();
   PacsRetrieveOptions opts = options;
   std::string study = trim(study_uid);
   const std::string series = trim(series_uid);
   if (series.empty()) throw fail(server, "no Series Instance UID given");
   if (study.empty() || opts.expected_instances < 0) {
-    const PacsSeries found = pacsFindSeriesByUid(server, series);
+    const PacsSeries found = pacsFindSeriesByUidInProcess(server, series);
     if (study.empty()) study = found.study_uid;
     if (opts.expected_instances < 0) opts.expected_instances = found.instance_count;
   }
@@ -582,4 +590,5 @@ PacsRetrieveResult pacsRetrieveSeries(const PacsServer& server, const std::strin
   return result;
 }
 
+}  // namespace detail
 }  // namespace vh::io

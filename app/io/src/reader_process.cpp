@@ -25,105 +25,96 @@ extern char** environ;
 
 namespace vh::io {
 namespace detail {
-namespace {
 
-/// Waits at most this long per poll of the reader's stdout [ms].
-constexpr int kPollMs = 50;
-
-/// A running reader program with its stdout; killed (SIGKILL) and reaped when destroyed.
-class ReaderProcess {
- public:
-  /// Starts `args[0]` with `args`, stdout into a pipe, stderr into /dev/null.
-  /// @throws LoadError when the pipe or the process cannot be made.
-  explicit ReaderProcess(const std::vector<std::string>& args) {
-    int fds[2];
-    if (pipe2(fds, O_CLOEXEC) != 0) {
-      throw LoadError(std::string("cannot start the reader process: ") + std::strerror(errno));
-    }
-    posix_spawn_file_actions_t actions;
-    posix_spawn_file_actions_init(&actions);
-    posix_spawn_file_actions_adddup2(&actions, fds[1], STDOUT_FILENO);
-    // A crashing reader's last words (glibc's "*** buffer overflow detected ***", VTK text that
-    // escaped the capture) are not the user's console's: the crash itself is reported.
-    posix_spawn_file_actions_addopen(&actions, STDERR_FILENO, "/dev/null", O_WRONLY, 0);
-    std::vector<char*> argv;
-    for (const auto& a : args) argv.push_back(const_cast<char*>(a.c_str()));
-    argv.push_back(nullptr);
-    const int rc = posix_spawn(&pid_, argv[0], &actions, nullptr, argv.data(), environ);
-    posix_spawn_file_actions_destroy(&actions);
-    close(fds[1]);
-    out_ = fds[0];
-    if (rc != 0) {
-      close(out_);
-      throw LoadError(std::string("cannot start the reader process ") + args[0] + ": " + std::strerror(rc));
-    }
+ReaderProcess::ReaderProcess(const std::vector<std::string>& args) {
+  int fds[2];
+  if (pipe2(fds, O_CLOEXEC) != 0) {
+    throw LoadError(std::string("cannot start the reader process: ") + std::strerror(errno));
   }
-  ~ReaderProcess() {
-    if (pid_ > 0) {
-      kill(pid_, SIGKILL);
-      waitpid(pid_, nullptr, 0);
-    }
-    if (out_ >= 0) close(out_);
+  posix_spawn_file_actions_t actions;
+  posix_spawn_file_actions_init(&actions);
+  posix_spawn_file_actions_adddup2(&actions, fds[1], STDOUT_FILENO);
+  // A crashing reader's last words (glibc's "*** buffer overflow detected ***", VTK text that
+  // escaped the capture) are not the user's console's: the crash itself is reported.
+  posix_spawn_file_actions_addopen(&actions, STDERR_FILENO, "/dev/null", O_WRONLY, 0);
+  std::vector<char*> argv;
+  for (const auto& a : args) argv.push_back(const_cast<char*>(a.c_str()));
+  argv.push_back(nullptr);
+  const int rc = posix_spawn(&pid_, argv[0], &actions, nullptr, argv.data(), environ);
+  posix_spawn_file_actions_destroy(&actions);
+  close(fds[1]);
+  out_ = fds[0];
+  if (rc != 0) {
+    close(out_);
+    out_ = -1;
+    pid_ = -1;
+    throw LoadError(std::string("cannot start the reader process ") + args[0] + ": " + std::strerror(rc));
   }
-  ReaderProcess(const ReaderProcess&) = delete;
-  ReaderProcess& operator=(const ReaderProcess&) = delete;
+}
 
-  /// Next line of stdout; false at the end. Waits at most `timeout_ms` (then `line` is empty
-  /// and true is returned).
-  bool readLine(std::string& line, int timeout_ms) {
-    line.clear();
-    for (;;) {
-      const auto nl = buffer_.find('\n');
-      if (nl != std::string::npos) {
-        line = buffer_.substr(0, nl);
-        buffer_.erase(0, nl + 1);
+ReaderProcess::~ReaderProcess() {
+  if (pid_ > 0) {
+    kill(pid_, SIGKILL);
+    waitpid(pid_, nullptr, 0);
+  }
+  if (out_ >= 0) close(out_);
+}
+
+bool ReaderProcess::readLine(std::string& line, int timeout_ms) {
+  line.clear();
+  for (;;) {
+    const auto nl = buffer_.find('\n');
+    if (nl != std::string::npos) {
+      line = buffer_.substr(0, nl);
+      buffer_.erase(0, nl + 1);
+      return true;
+    }
+    pollfd p{out_, POLLIN, 0};
+    const int ready = poll(&p, 1, timeout_ms);
+    if (ready == 0) return true;
+    if (ready < 0) {
+      if (errno == EINTR) continue;
+      return false;
+    }
+    char chunk[4096];
+    const ssize_t got = read(out_, chunk, sizeof(chunk));
+    if (got < 0 && errno == EINTR) continue;
+    if (got <= 0) {
+      if (!buffer_.empty()) {
+        line.swap(buffer_);
         return true;
       }
-      pollfd p{out_, POLLIN, 0};
-      const int ready = poll(&p, 1, timeout_ms);
-      if (ready == 0) return true;
-      if (ready < 0) {
-        if (errno == EINTR) continue;
-        return false;
-      }
-      char chunk[4096];
-      const ssize_t got = read(out_, chunk, sizeof(chunk));
-      if (got < 0 && errno == EINTR) continue;
-      if (got <= 0) {
-        if (!buffer_.empty()) {
-          line.swap(buffer_);
-          return true;
-        }
-        return false;
-      }
-      buffer_.append(chunk, static_cast<std::size_t>(got));
+      return false;
     }
+    buffer_.append(chunk, static_cast<std::size_t>(got));
   }
-  /// Waits for the end; the wait status.
-  int wait() {
-    int status = 0;
-    while (waitpid(pid_, &status, 0) < 0 && errno == EINTR) {
-    }
-    pid_ = -1;
-    return status;
-  }
-  void kill9() {
-    if (pid_ > 0) {
-      kill(pid_, SIGKILL);
-      wait();
-    }
-  }
+}
 
- private:
-  pid_t pid_ = -1;
-  int out_ = -1;
-  std::string buffer_;
-};
+int ReaderProcess::wait() {
+  int status = 0;
+  while (waitpid(pid_, &status, 0) < 0 && errno == EINTR) {
+  }
+  pid_ = -1;
+  return status;
+}
+
+void ReaderProcess::kill9() {
+  if (pid_ > 0) {
+    kill(pid_, SIGKILL);
+    wait();
+  }
+}
+
+void ReaderProcess::signal(int sig) {
+  if (pid_ > 0) kill(pid_, sig);
+}
 
 std::string signalName(int sig) {
   const char* abbrev = sigabbrev_np(sig);
   return abbrev != nullptr ? std::string("SIG") + abbrev : "signal " + std::to_string(sig);
 }
+
+namespace {
 
 double secondsSince(std::chrono::steady_clock::time_point t) {
   return std::chrono::duration<double>(std::chrono::steady_clock::now() - t).count();
@@ -160,7 +151,7 @@ bool readerCrashesOrStalls(const std::vector<std::string>& args, double stall_s,
   ReaderProcess run(args);
   std::string line;
   auto last_line = std::chrono::steady_clock::now();
-  while (run.readLine(line, kPollMs)) {
+  while (run.readLine(line, kReaderPollMs)) {
     if (line.empty()) {
       if (stall_s > 0.0 && secondsSince(last_line) > stall_s) {
         run.kill9();
@@ -301,7 +292,7 @@ bool runReaderToEnd(const std::vector<std::string>& args, const fs::path& named,
   ReaderProcess run(args);
   std::string line, error;
   auto last_line = std::chrono::steady_clock::now();
-  while (run.readLine(line, kPollMs)) {
+  while (run.readLine(line, kReaderPollMs)) {
     if (cancel != nullptr && cancel->load(std::memory_order_relaxed)) {
       run.kill9();
       return false;

@@ -8,6 +8,8 @@
 /// "error MESSAGE" before exiting 1 on a LoadError; in `probe` mode "file NAME" before and "ok"
 /// after each file parsed.
 
+#include <sys/types.h>
+
 #include <atomic>
 #include <filesystem>
 #include <functional>
@@ -22,6 +24,39 @@ namespace fs = std::filesystem;
 inline constexpr char kReaderProgramName[] = "volume-haptics-dicom-worker";
 /// The watchdog for readers run without VolumeLoadOptions (meshes, series listing) [s].
 inline constexpr double kDefaultStallS = 60.0;
+
+/// Waits at most this long per poll of a reader's stdout [ms].
+inline constexpr int kReaderPollMs = 50;
+
+/// A running reader program (posix_spawn) with its stdout in a pipe and its stderr into
+/// /dev/null; killed (SIGKILL) and reaped when destroyed.
+class ReaderProcess {
+ public:
+  /// Starts `args[0]` with `args`.
+  /// @throws LoadError when the pipe or the process cannot be made.
+  explicit ReaderProcess(const std::vector<std::string>& args);
+  ~ReaderProcess();
+  ReaderProcess(const ReaderProcess&) = delete;
+  ReaderProcess& operator=(const ReaderProcess&) = delete;
+
+  /// The next line of its stdout; false at the end. Waits at most `timeout_ms` [ms] (then
+  /// `line` is empty and true is returned).
+  bool readLine(std::string& line, int timeout_ms);
+  /// Waits for the end; the wait status (waitpid()'s).
+  int wait();
+  /// Kills it (SIGKILL) and waits for the end.
+  void kill9();
+  /// Sends it `sig` (e.g. SIGUSR1: a request to stop), while it runs.
+  void signal(int sig);
+
+ private:
+  pid_t pid_ = -1;
+  int out_ = -1;
+  std::string buffer_;
+};
+
+/// "SIGSEGV" for SIGSEGV; "signal N" for one without a name.
+std::string signalName(int sig);
 
 /// Seconds the watchdog allows a single-file reader that reports no progress: `base_s` plus
 /// 1 s per 8 MiB of `file`; 0 (no watchdog) stays 0.

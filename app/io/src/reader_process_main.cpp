@@ -14,6 +14,7 @@
 #include "dicom_rtstruct_internal.h"
 #include "dicom_seg_internal.h"
 #include "loader_internal.h"
+#include "pacs_internal.h"
 #include "reader_process_internal.h"
 #include "reader_transfer.h"
 #include "vh/io/reader_process.h"
@@ -26,7 +27,7 @@ namespace fs = std::filesystem;
 
 constexpr char kUsage[] =
     "usage: volume-haptics-dicom-worker load PATH OUT [--series S] [--phase N] | volume FILE OUT | list FOLDER OUT | "
-    "mesh PATH OUT SCALE | seg FILE OUT | rtstruct FILE OUT | probe PATH [--after FILE]";
+    "mesh PATH OUT SCALE | seg FILE OUT | rtstruct FILE OUT | probe PATH [--after FILE] | pacs OP REQUEST OUT";
 
 /// Runs `read`; an exception becomes the protocol's "error MESSAGE" line (on one line) and exit
 /// status 1, else 0.
@@ -141,6 +142,7 @@ int readerProcessMain(int argc, char** argv) {
   if (mode == "rtstruct" && argc >= 4) return rtstructMode(path, argv[3]);
   if (mode == "list" && argc >= 4) return listMode(path, argv[3]);
   if (mode == "load" && argc >= 4) return loadMode(path, argv[3], argc, argv);
+  if (mode == "pacs") return detail::pacsProcessMain(argc, argv);
   std::cerr << kUsage << std::endl;
   return 2;
 }

@@ -7,8 +7,18 @@
 /// is reimplemented here, and no DCMTK header is in this one.
 ///
 /// Every call opens its own association and closes it before returning, within
-/// PacsServer::timeout_s; calls may run on any thread, several at once. Errors are PacsError exceptions naming the server ("VHPACS at
-/// 127.0.0.1:4242") and what failed; nothing here crashes on a server's answer.
+/// PacsServer::timeout_s; calls may run on any thread, several at once. Errors are PacsError
+/// exceptions naming the server ("VHPACS at 127.0.0.1:4242") and what failed.
+///
+/// Each call runs in the DICOM network process (the reader program's `pacs` mode, see
+/// reader_process.h), as the scan readers do: DCMTK parses an answer with recursion as deep as
+/// its nesting and allocates a value's declared length before its bytes arrive, so a hostile or
+/// broken server's answer (a sequence nested 100,000 deep; a 156-byte response that declares
+/// 3.6 GB) ends that process, and the call throws "... the DICOM network process crashed
+/// (SIGSEGV) on the server's answer to C-FIND ...": the calling program, a recording in progress
+/// and the haptic threads go on. The calling side's own deadline, the timeout plus 3 s, covers
+/// what the operation's watchdog cannot cut off (the host name's lookup). Without the reader
+/// program (a build without it) the call runs in the calling process.
 
 #include <atomic>
 #include <filesystem>

@@ -37,7 +37,10 @@ std::vector<std::filesystem::path> readerProcessCandidates(const std::filesystem
 ///  - `seg FILE OUT`: reads a DICOM SEG with DCMTK (dicom_seg.h) and writes its segments and
 ///    each frame's plane and inside pixels;
 ///  - `probe PATH`: parses each DICOM file of PATH alone, printing "file NAME" before and "ok"
-///    after each (a crash names the file).
+///    after each (a crash names the file);
+///  - `pacs OP REQUEST OUT`: the DICOM network process, one PACS operation of vh/io/pacs.h
+///    (echo, find-studies, find-series, find-series-by-uid, retrieve), so that a server's answer
+///    that crashes DCMTK's parser ends this process, not the application.
 /// A LoadError (any exception) prints "error MESSAGE" and exits with status 1.
 /// @return the process exit status: 0 done, 1 a read error, 2 a usage error.
 int readerProcessMain(int argc, char** argv);
