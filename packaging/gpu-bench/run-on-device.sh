@@ -3,7 +3,8 @@
 #   packaging/gpu-bench/run-on-device.sh STEP...
 # Steps: unpack-b (Xvfb, Mesa, the phantom), unpack-a (the program and its libraries), render
 # (bench render under VirtualGL's EGL back end), memory (bench memory, likewise), table1 (bench
-# table1). Each archive is nearly the transfer limit alone, so unpack-b runs in one call (carry
+# table1), lanes (the lane-scaling table with the 20,000-point tools and the 1920 x 1080 frame
+# rate, in under 8 minutes). Each archive is nearly the transfer limit alone, so unpack-b runs in one call (carry
 # .gpu-bench/b.tar.zst, .gpu-bench/bin, .gpu-bench/gl) and unpack-a with the benchmarks in the
 # next, while the machine is still warm (carry .gpu-bench/a.tar.zst, .gpu-bench/bin,
 # .gpu-bench/gl, .gpu-bench/vgl). Results go to $OUT. Environment: RENDER_ARGS, MEMORY_ARGS,
@@ -54,6 +55,17 @@ for step in "$@"; do
       # shellcheck disable=SC2086
       env LD_LIBRARY_PATH="$LIBS" /opt/vh/bin/volume-haptics bench table1 --no-plots --verify-step 0 \
         ${TABLE1_ARGS:-} --out "$OUT/table1" ;;
+    lanes)
+      # The many-core table in one step, under 8 minutes on 16 cores: the four scenes and the
+      # 20,000-point tools (the edge test on, as the application runs it), each on 1, 2, 4 and 8
+      # lanes without budget or deadline beside the budgeted run; then the frame rate at 1920 x
+      # 1080. Each part is bounded, so that a slow machine still leaves time to fetch $OUT.
+      env LD_LIBRARY_PATH="$LIBS" timeout 330 /opt/vh/bin/volume-haptics bench table1 --no-plots --verify-step 0 \
+        --mode accelerated --ticks 2000 --lanes-sweep 1,2,4,8 ${TABLE1_ARGS:-} --out "$OUT/lanes"
+      start_x
+      # shellcheck disable=SC2086
+      under_vgl timeout 120 /opt/vh/bin/volume-haptics bench render --no-plots --sizes 1920x1080 --seconds 3 \
+        --series-dir ${SERIES_DIR:-/tmp/vhgen/ct} ${RENDER_ARGS:-} --out "$OUT/render-1080" 2>&1 | grep -v '^\[VGL\]' ;;
     *) echo "unknown step $step"; exit 2 ;;
   esac
 done

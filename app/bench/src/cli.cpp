@@ -85,6 +85,9 @@ void addTable1Subcommand(CLI::App& bench, std::function<int()>& handler) {
   t1->add_option("--ticks", table1->ticks, "Ticks per scene and mode (default 20000; short 1000); the 20,000- and 50,000-point tools run the first quarter of them (at least 1,000), the same hand at the same speed")
       ->check(CLI::PositiveNumber);
   t1->add_flag("!--no-large-tools", table1->large_tools, "Skip the 20,000- and 50,000-point tool runs");
+  t1->add_flag("--50k-tools", table1->tools_50k,
+               "Also the 50,000-point tool rows on Bone and Engine (left out by default, so that the default run "
+               "finishes within 30 minutes on a 2-core machine; --tool-rows 50000 runs them alone)");
   t1->add_option("--tool-rows", table1->tool_rows,
                  "Only the rows of this tool: paper (the paper's tool), 20000 or 50000 (the large tools on Bone and Engine)")
       ->check(CLI::IsMember(std::vector<std::string>(Table1Options::kToolRows.begin(), Table1Options::kToolRows.end())));

@@ -79,8 +79,12 @@ struct Table1Options {
   std::string scene;
   /// Ticks per scene and mode; 0: 20,000 (short: 1,000).
   int ticks = 0;
-  /// Also the large-tool runs (~20,000 points on Bone and Engine); never in short runs.
+  /// Also the large-tool runs (20,000 points on Bone and Engine); never in short runs.
   bool large_tools = true;
+  /// Also the 50,000-point rows (on Bone and Engine, after the 20,000-point ones). Off by
+  /// default: on a 2-core machine the Engine's alone took longer than the four scenes, and
+  /// default table1 must finish within 30 minutes there; tool_rows "50000" runs them too.
+  bool tools_50k = false;
   /// Run only the rows of this tool, one of kToolRows: "paper" (the paper's tool), "20000" or
   /// "50000" (the resampled large tools); empty: all (subject to large_tools).
   std::string tool_rows;
