@@ -27,6 +27,7 @@
 #include "vh/runtime/runner.h"
 #include "vh/runtime/scene.h"
 #include "vh/runtime/servo_factory.h"
+#include "vh/runtime/tool_fit.h"
 #include "vh/runtime/trajectory.h"
 
 namespace vh::bench {
@@ -1029,6 +1030,26 @@ bool runTableRow(const SceneDef& def, int large, const std::function<std::vector
             << def.tool_label << ", " << scene.tool->point_shell.size() << " points (paper "
             << row["paper_points"].get<std::size_t>() << "); loaded in " << num(load_s, 1) << " s; "
             << run_ticks << " ticks ..." << std::endl;
+  // The fit check, as the application runs it when a tool is chosen (its own warm-up and
+  // calibration), judged against what this row then measures.
+  const runtime::ToolFit fit = runtime::checkToolFit(runtime::LiveValues::initial(scene));
+  row["tool_fit"] = {{"fits", fit.fits()},
+                     {"ns_per_work", fit.ns_per_work},
+                     {"work_budget", fit.work_budget},
+                     {"lanes", fit.lanes},
+                     {"warmup_s", fit.warmup_s},
+                     {"warmup_ticks", fit.asked.ticks},
+                     {"cut_ticks", fit.asked.cut_ticks},
+                     {"behind_max_m", fit.asked.behind_max_m},
+                     {"work_max", fit.asked.work_max},
+                     {"felt_gap_m", fit.asked.felt_gap_m},
+                     {"summary", fit.summary()}};
+  if (fit.suggested) {
+    row["tool_fit"]["suggested_spacing_m"] = fit.suggested->spacing_m;
+    row["tool_fit"]["suggested_points"] = fit.suggested->points;
+  }
+  std::cout << "  fit check: " << fit.summary() << " (a work unit " << num(fit.ns_per_work, 1) << " ns; warm-up "
+            << num(fit.warmup_s, 2) << " s)" << std::endl;
   const auto t_run = std::chrono::steady_clock::now();
   runScene(scene, scene.tool, variants_for(scene.tool->point_shell.size()), run_ticks, ticks, locations, large ? 5 : 1,
            verify_step_voxels, row, series);
@@ -1083,6 +1104,39 @@ void writeTimesTable(std::ostringstream& md, const nlohmann::ordered_json& rows)
          << num(m["mean_volume_samples"]) << " | " << num(1e3 * m["max_penetration_m"].get<double>(), 4) << " ("
          << num(1e3 * row["epsilon_m"].get<double>(), 4) << ") | " << crossingsText(m) << " |\n";
     }
+  }
+}
+
+/// The fit check (runtime::checkToolFit(), tool_fit.h) of each row against what the row
+/// measured: its verdict on its warm-up beside the ticks the application's mode (the edge test,
+/// budget and deadline) cut and how far it fell behind over the whole run.
+void writeFitTable(std::ostringstream& md, const nlohmann::ordered_json& rows) {
+  bool any = false;
+  for (const auto& row : rows) any = any || (row["status"] == "ran" && row.contains("tool_fit"));
+  if (!any) return;
+  md << "\nThe fit check against the run: its verdict on its own warm-up (the calibrated cost of a work unit, the "
+        "deadline as a work budget, the ticks it would cut and how far behind), beside what the run measured in "
+        "the application's mode (edge test, budget, deadline):\n\n";
+  md << "| scene | points | a work unit [ns] | warm-up: cut / ticks, behind [mm] | verdict | run: ticks cut, behind max [mm] |\n";
+  md << "|---|---|---|---|---|---|\n";
+  for (const auto& row : rows) {
+    if (row["status"] != "ran" || !row.contains("tool_fit")) continue;
+    const auto& f = row["tool_fit"];
+    const char* key = row["modes"].contains("accelerated-edges") ? "accelerated-edges" : "accelerated";
+    std::string run = "-";
+    if (row["modes"].contains(key) && row["modes"][key].contains("budget_cuts")) {
+      const auto& m = row["modes"][key];
+      run = num(m["budget_cuts"]) + " of " + num(m["ticks"]) + ", " + num(1e3 * m["max_behind_m"].get<double>(), 3);
+    }
+    md << "| " << row["name"].get<std::string>() << " | " << row["points"].get<std::size_t>() << " | "
+       << num(f["ns_per_work"], 1) << " | " << num(f["cut_ticks"]) << " / " << num(f["warmup_ticks"]) << ", "
+       << num(1e3 * f["behind_max_m"].get<double>(), 3) << " | "
+       << (f["fits"].get<bool>() ? std::string("fits")
+                                 : "flagged" + (f.contains("suggested_spacing_m")
+                                                    ? "; suggests " + num(1e3 * f["suggested_spacing_m"].get<double>(), 2) +
+                                                          " mm (" + num(f["suggested_points"]) + " points)"
+                                                    : std::string()))
+       << " | " << run << " |\n";
   }
 }
 
@@ -1355,6 +1409,7 @@ fs::path runTable1(const Table1Options& options) {
   writeScalingTable(md, rows, options);
   writeSpeedupTable(md, rows);
   writeBeforeAfterTable(md, rows);
+  writeFitTable(md, rows);
   md << "\nSpeed targets: mean at most a tenth of the paper's (Bunny 21, Engine 78, Hole 41, Bone 26 us), max "
         "under 250 us; a 20,000-point tool on Bone and Engine: mean under 200 us, max under 1000 us.\n";
 
@@ -1362,6 +1417,19 @@ fs::path runTable1(const Table1Options& options) {
   if (options.common.plots) plots = table1Plots(out, scene_plots, rows, mode_names, mode_labels);
   writeReport(out, "table1", report, md, plots);
   return out;
+}
+
+std::optional<runtime::SceneSpec> table1SceneSpec(const std::string& name, std::size_t point_count, std::string& why) {
+  const std::vector<SceneDef> defs = selectScenes(name);
+  runtime::SceneSpec spec;
+  if (name.empty()) {
+    why = "no scene named";
+    return std::nullopt;
+  }
+  if (defs.size() != 1 || !resolveSceneSpec(defs.front(), point_count > 0 ? point_count : defs.front().paper_points,
+                                           spec, why))
+    return std::nullopt;
+  return spec;
 }
 
 }  // namespace vh::bench

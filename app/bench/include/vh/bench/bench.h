@@ -21,11 +21,13 @@
 #include <array>
 #include <filesystem>
 #include <functional>
+#include <optional>
 #include <string>
 #include <vector>
 
 #include "vh/haptics/haptic_renderer.h"
 #include "vh/runtime/scene.h"
+#include "vh/runtime/trajectory.h"
 
 namespace CLI {
 class App;
@@ -145,6 +147,21 @@ int runBigScanChild(const BigScanOptions& options);
 /// message (and listed as skipped in the report). @return the output folder.
 /// @throws std::runtime_error for an unknown scene name or an unwritable output folder.
 std::filesystem::path runTable1(const Table1Options& options);
+
+/// The scene `name` of Table 1 (Bunny, Engine, Hole or Bone, case-insensitive) as runTable1()
+/// loads it, its tool resampled to `point_count` points (0: the paper's count): its volume and
+/// tool mesh found in the shared datasets (the CT bunny unpacked when needed).
+/// @return the spec, or nullopt with `why` when its data are absent.
+/// @throws std::runtime_error for an unknown scene name.
+std::optional<runtime::SceneSpec> table1SceneSpec(const std::string& name, std::size_t point_count, std::string& why);
+
+/// The scripted hand of a Table 1 scene (runTable1()): at `locations` spots over `volume` the
+/// tool, at orientation R0, hovers and circles, touches the isosurface F = `isovalue`, presses,
+/// slides, pries, wedges and hooks, in `ticks` ticks at 1 kHz. Spots whose ray meets no surface
+/// add a line to `notes` (when not null).
+runtime::Trajectory table1Trajectory(const haptics::ScalarVolume& volume, const haptics::PointShell& shell,
+                                     double isovalue, const Eigen::Quaterniond& R0, int ticks, int locations,
+                                     std::vector<std::string>* notes = nullptr);
 
 /// Error against run time (see the file comment). @return the output folder.
 std::filesystem::path runAccuracy(const CommonOptions& options);
