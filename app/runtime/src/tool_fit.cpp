@@ -10,6 +10,8 @@
 #include <cstdio>
 #include <memory>
 #include <stdexcept>
+#include <tuple>
+#include <utility>
 
 #include "vh/haptics/haptic_renderer.h"
 #include "vh/runtime/placement.h"
@@ -32,38 +34,29 @@ Eigen::Quaterniond aa(double angle_rad, const Eigen::Vector3d& axis) {
   return Eigen::Quaterniond(Eigen::AngleAxisd(angle_rad, axis));
 }
 
-/// What one run of the warm-up measured.
-struct WarmupRun {
-  std::vector<std::int64_t> work;  ///< The full solve's critical work per tick [units].
-  double cpu_us = 0.0, wall_us = 0.0, wall_max_us = 0.0;  ///< The full solve's totals and slowest tick.
-  std::int64_t work_sum = 0;
-  int cut_ticks = 0;  ///< The budgeted run's ticks cut.
-  ProxyLag lag;       ///< The budgeted proxy against the full solve's.
-  bool budgeted = false;
+/// What the warm-up's full solve measured, tick by tick.
+struct FullSolveRun {
+  std::vector<std::int64_t> work;   ///< Critical work per tick [units].
+  std::vector<double> time_us;      ///< Thread CPU time per tick (wall on several lanes) [us].
+  std::vector<haptics::Pose> X_WP;  ///< Its proxy after each tick (NaN when not finite).
+  double wall_max_us = 0.0;         ///< Its slowest tick (wall) [us].
 };
 
-/// The warm-up of `tool`: the full solve over `traj`; with `budget` > 0 the budgeted solver
-/// beside it, tick by tick, on the same device samples.
-WarmupRun runWarmup(const LiveValues& live, const std::shared_ptr<const haptics::ToolModel>& tool,
-                    const Trajectory& traj, int ticks, int lanes, std::int64_t budget) {
+/// The warm-up's full solve of `live` with `tool` over `traj`: no budget, no deadline.
+FullSolveRun runFullSolve(const LiveValues& live, const std::shared_ptr<const haptics::ToolModel>& tool,
+                          const Trajectory& traj, int ticks, int lanes) {
   LiveValues with_tool = live;
   with_tool.tool = tool;
-  haptics::RendererOptions full_options;
-  full_options.work_budget = 0;
-  full_options.deadline_us = 0.0;
-  full_options.solver_lanes = lanes;
-  const haptics::Pose X_WD0 = traj.poseAt(0.0);
-  std::unique_ptr<haptics::HapticRenderer> full = makeRenderer(with_tool, full_options, X_WD0);
-  std::unique_ptr<haptics::HapticRenderer> budgeted;
-  if (budget > 0) {
-    haptics::RendererOptions budget_options = full_options;
-    budget_options.work_budget = budget;
-    budgeted = makeRenderer(with_tool, budget_options, X_WD0);
-  }
+  haptics::RendererOptions options;
+  options.work_budget = 0;
+  options.deadline_us = 0.0;
+  options.solver_lanes = lanes;
+  std::unique_ptr<haptics::HapticRenderer> full = makeRenderer(with_tool, options, traj.poseAt(0.0));
   const double s = with_tool.hapticIsovalue();
-  WarmupRun run;
-  run.budgeted = budgeted != nullptr;
+  FullSolveRun run;
   run.work.reserve(static_cast<std::size_t>(ticks));
+  run.time_us.reserve(static_cast<std::size_t>(ticks));
+  run.X_WP.reserve(static_cast<std::size_t>(ticks));
   std::size_t cursor = 0;
   for (int i = 0; i < ticks; ++i) {
     const haptics::Pose X_WD = traj.poseAt(i * 1e-3, cursor);
@@ -71,18 +64,64 @@ WarmupRun runWarmup(const LiveValues& live, const std::shared_ptr<const haptics:
     const auto w0 = Clock::now();
     const haptics::TickOutput out = full->tick(X_WD, s);
     const double wall = std::chrono::duration<double, std::micro>(Clock::now() - w0).count();
-    run.cpu_us += threadCpu_us() - c0;
-    run.wall_us += wall;
+    const double cpu = threadCpu_us() - c0;
+    run.time_us.push_back(lanes > 1 ? wall : cpu);
     run.wall_max_us = std::max(run.wall_max_us, wall);
     run.work.push_back(out.stats.critical_work);
-    run.work_sum += out.stats.critical_work;
-    if (budgeted) {
-      const haptics::TickOutput b = budgeted->tick(X_WD, s);
-      run.cut_ticks += b.stats.budget_cut ? 1 : 0;
-      if (b.X_WP.allFinite() && out.X_WP.allFinite()) run.lag.add(budgeted->proxyPose(), full->proxyPose(), X_WD);
-    }
+    run.X_WP.push_back(out.X_WP);
   }
   return run;
+}
+
+/// The same touch with the work budget `budget`: the ticks it cuts and how far its proxy falls
+/// behind the full solve's (`reference`).
+std::pair<int, ProxyLag> runBudgeted(const LiveValues& live, const std::shared_ptr<const haptics::ToolModel>& tool,
+                                     const Trajectory& traj, int ticks, int lanes, std::int64_t budget,
+                                     const FullSolveRun& reference) {
+  LiveValues with_tool = live;
+  with_tool.tool = tool;
+  haptics::RendererOptions options;
+  options.work_budget = budget;
+  options.deadline_us = 0.0;
+  options.solver_lanes = lanes;
+  std::unique_ptr<haptics::HapticRenderer> budgeted = makeRenderer(with_tool, options, traj.poseAt(0.0));
+  const double s = with_tool.hapticIsovalue();
+  int cut = 0;
+  ProxyLag lag;
+  std::size_t cursor = 0;
+  for (int i = 0; i < ticks; ++i) {
+    const haptics::Pose X_WD = traj.poseAt(i * 1e-3, cursor);
+    const haptics::TickOutput out = budgeted->tick(X_WD, s);
+    cut += out.stats.budget_cut ? 1 : 0;
+    const haptics::Pose& X_WP_full = reference.X_WP[static_cast<std::size_t>(i)];
+    if (out.X_WP.allFinite() && X_WP_full.allFinite()) lag.add(out.X_WP, X_WP_full, X_WD);
+  }
+  return {cut, lag};
+}
+
+/// This computer's cost model from the full solve's ticks: time = fixed + per_unit x work, fitted
+/// by least squares (the fixed part: what a tick costs besides the work it counts, the coupling
+/// and the bookkeeping). @return {fixed [us], per unit [ns]}; per unit from the totals when the
+/// fit is degenerate (all ticks of about the same work).
+std::pair<double, double> fitCostModel(const FullSolveRun& run) {
+  const std::size_t n = run.work.size();
+  double sw = 0.0, st = 0.0, sww = 0.0, swt = 0.0;
+  for (std::size_t i = 0; i < n; ++i) {
+    const double w = static_cast<double>(run.work[i]), t = run.time_us[i];
+    sw += w;
+    st += t;
+    sww += w * w;
+    swt += w * t;
+  }
+  const double dn = static_cast<double>(std::max<std::size_t>(n, 1));
+  const double var = sww - sw * sw / dn;
+  if (n >= 2 && var > 0.0) {
+    const double slope_us = (swt - sw * st / dn) / var;
+    const double fixed_us = (st - slope_us * sw) / dn;
+    if (slope_us > 0.0 && fixed_us >= 0.0) return {fixed_us, 1e3 * slope_us};
+    if (slope_us > 0.0) return {0.0, 1e3 * st / std::max(sw, 1.0)};
+  }
+  return {0.0, 1e3 * st / std::max(sw, 1.0)};
 }
 
 std::int64_t percentile(std::vector<std::int64_t> v, double q) {
@@ -93,24 +132,23 @@ std::int64_t percentile(std::vector<std::int64_t> v, double q) {
   return v[k];
 }
 
-/// Judges `tool` at `spacing_m`: its warm-up's full solve and budgeted run.
+/// Judges `tool` at `spacing_m`: its warm-up's full solve (given as `full` when run already), then
+/// the same touch with the work budget beside it.
 ToolFitRun judge(const LiveValues& live, const std::shared_ptr<const haptics::ToolModel>& tool, double spacing_m,
-                 const ToolFitOptions& options, int lanes, std::int64_t budget, WarmupRun* kept = nullptr) {
-  const Trajectory traj = fitWarmupTrajectory(*live.hapticField(), tool->point_shell, live.hapticIsovalue(),
-                                              live.X_WT_initial.R_AB, options.ticks);
-  WarmupRun run = runWarmup(live, tool, traj, options.ticks, lanes, budget);
+                 const Trajectory& traj, const ToolFitOptions& options, int lanes, std::int64_t budget,
+                 const FullSolveRun& full) {
+  const auto [cut, lag] = runBudgeted(live, tool, traj, options.ticks, lanes, budget, full);
   ToolFitRun r;
   r.spacing_m = spacing_m;
   r.points = tool->point_shell.size();
   r.ticks = options.ticks;
-  r.cut_ticks = run.cut_ticks;
-  r.behind_max_m = std::max(0.0, run.lag.max_behind_m);
-  r.behind_max_rad = std::max(0.0, run.lag.max_behind_rad);
+  r.cut_ticks = cut;
+  r.behind_max_m = std::max(0.0, lag.max_behind_m);
+  r.behind_max_rad = std::max(0.0, lag.max_behind_rad);
   r.felt_gap_m = feltGap(*tool, live.tool_spec.edge_test).max_gap_m;
-  r.work_max = run.work.empty() ? 0 : *std::max_element(run.work.begin(), run.work.end());
-  r.work_p999 = percentile(run.work, 0.999);
+  r.work_max = full.work.empty() ? 0 : *std::max_element(full.work.begin(), full.work.end());
+  r.work_p999 = percentile(full.work, 0.999);
   r.fits = r.cutFraction() <= options.max_cut_fraction && r.behind_max_m <= options.max_behind_m;
-  if (kept != nullptr) *kept = std::move(run);
   return r;
 }
 
@@ -196,26 +234,29 @@ ToolFit checkToolFit(const LiveValues& live, const ToolFitOptions& options) {
   fit.deadline_us = options.deadline_us > 0.0 ? options.deadline_us : solverDeadline_us(1000.0);
   fit.lanes = options.lanes > 0 ? options.lanes : solverLanesFor(live.tool->point_shell.size());
   const double spacing_m = live.pointSpacing_m();
-  // The tool as chosen: the full solve alone first when the cost of a unit is to be measured.
+  const auto touch = [&](const haptics::ToolModel& tool) {
+    return fitWarmupTrajectory(*live.hapticField(), tool.point_shell, live.hapticIsovalue(), live.X_WT_initial.R_AB,
+                               options.ticks);
+  };
+  // The tool as chosen: its full solve calibrates the cost model, unless the cost is given.
   const auto t0 = Clock::now();
+  const Trajectory traj = touch(*live.tool);
+  const FullSolveRun full = runFullSolve(live, live.tool, traj, options.ticks, fit.lanes);
+  double fixed_us = 0.0;
   if (options.ns_per_work > 0.0) {
     fit.ns_per_work = options.ns_per_work;
   } else {
-    WarmupRun calibration;
-    const Trajectory traj = fitWarmupTrajectory(*live.hapticField(), live.tool->point_shell, live.hapticIsovalue(),
-                                                live.X_WT_initial.R_AB, options.ticks);
-    calibration = runWarmup(live, live.tool, traj, options.ticks, fit.lanes, 0);
-    const double time_us = fit.lanes > 1 ? calibration.wall_us : calibration.cpu_us;
-    fit.ns_per_work = 1e3 * time_us / static_cast<double>(std::max<std::int64_t>(1, calibration.work_sum));
+    std::tie(fixed_us, fit.ns_per_work) = fitCostModel(full);
     fit.ns_per_work_measured = true;
   }
-  fit.work_budget = std::max<std::int64_t>(1, static_cast<std::int64_t>(1e3 * fit.deadline_us / fit.ns_per_work));
-  WarmupRun asked_run;
-  fit.asked = judge(live, live.tool, spacing_m, options, fit.lanes, fit.work_budget, &asked_run);
-  fit.full_solve_max_us = asked_run.wall_max_us;
+  fit.fixed_us = fixed_us;
+  fit.work_budget = std::max<std::int64_t>(
+      1, static_cast<std::int64_t>(1e3 * std::max(0.0, fit.deadline_us - fixed_us) / fit.ns_per_work));
+  fit.asked = judge(live, live.tool, spacing_m, traj, options, fit.lanes, fit.work_budget, full);
+  fit.full_solve_max_us = full.wall_max_us;
   fit.warmup_s = std::chrono::duration<double>(Clock::now() - t0).count();
   if (fit.asked.fits || live.tool->mesh_T.triangles.empty()) return fit;
-  // Coarser spacings, finest first, until one fits.
+  // Coarser spacings, finest first, until one fits (the cost model as calibrated).
   for (double factor : options.spacing_factors) {
     haptics::PointShellOptions shell;
     shell.spacing_m = spacing_m * factor;
@@ -226,7 +267,9 @@ ToolFit checkToolFit(const LiveValues& live, const ToolFitOptions& options) {
       break;  // too coarse for the mesh
     }
     const int lanes = options.lanes > 0 ? options.lanes : solverLanesFor(coarser->point_shell.size());
-    ToolFitRun r = judge(live, coarser, shell.spacing_m, options, lanes, fit.work_budget);
+    const Trajectory coarse_traj = touch(*coarser);
+    const FullSolveRun coarse_full = runFullSolve(live, coarser, coarse_traj, options.ticks, lanes);
+    ToolFitRun r = judge(live, coarser, shell.spacing_m, coarse_traj, options, lanes, fit.work_budget, coarse_full);
     if (r.fits) {
       fit.suggested = r;
       break;

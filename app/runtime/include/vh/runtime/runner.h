@@ -28,6 +28,7 @@
 #include "vh/runtime/device.h"
 #include "vh/runtime/guidance.h"
 #include "vh/runtime/scene.h"
+#include "vh/runtime/tool_fit.h"
 #include "vh/runtime/trajectory.h"
 
 namespace vh::runtime {
@@ -198,6 +199,9 @@ struct RunReport {
   std::string tool;                      ///< Tool mesh path or built-in name.
   std::size_t point_count = 0;           ///< Point shell size.
   double point_spacing_m = 0.0;          ///< Mean nearest-neighbour spacing of the shell [m].
+  /// The fit check of the tool on this computer (tool_fit.h), when the command ran it; the run
+  /// keeps the tool it was given either way.
+  std::optional<ToolFit> tool_fit;
   double epsilon_m = 0.0;                ///< Collision tolerance [m].
   double feature_size_m = 0.0;           ///< f [m].
   double servo_rate_Hz = 1000.0;

@@ -38,8 +38,9 @@ struct ToolFitOptions {
   double deadline_us = 0.0;
   /// The sweep's lanes; 0: the application's for the tool, solverLanesFor(its points).
   int lanes = 0;
-  /// This computer's cost of one work unit [ns]; 0: measured by the warm-up's full solve (its
-  /// thread CPU time, or wall time on several lanes, over its work on the critical path).
+  /// This computer's cost of one work unit [ns]; 0: measured by the warm-up's full solve, a
+  /// least-squares line through its ticks' thread CPU time (wall time on several lanes) against
+  /// their work on the critical path (ToolFit::fixed_us its intercept).
   double ns_per_work = 0.0;
   /// Most ticks cut, as a fraction of the warm-up's (0.1 %: on 700 ticks, none).
   double max_cut_fraction = 0.001;
@@ -71,10 +72,13 @@ struct ToolFitRun {
 /// What the fit check found.
 struct ToolFit {
   double ns_per_work = 0.0;      ///< The cost of a work unit used [ns].
+  /// What a tick costs besides its work [us] (the coupling, the bookkeeping), fitted with
+  /// ns_per_work by least squares over the warm-up's ticks; 0 when the cost was given.
+  double fixed_us = 0.0;
   bool ns_per_work_measured = false;  ///< Measured by this warm-up (else given).
   double deadline_us = 0.0;      ///< The deadline judged against [us].
   int lanes = 1;                 ///< The sweep's lanes.
-  std::int64_t work_budget = 0;  ///< The deadline as work: deadline_us / ns_per_work [units].
+  std::int64_t work_budget = 0;  ///< The deadline as work: (deadline_us - fixed_us) / ns_per_work [units].
   double warmup_s = 0.0;         ///< Wall time of the asked tool's warm-up [s].
   double full_solve_max_us = 0.0;  ///< The warm-up's slowest full-solve tick (wall) [us].
   ToolFitRun asked;              ///< The tool as chosen.
