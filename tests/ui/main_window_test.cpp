@@ -7,6 +7,9 @@
 #include "vh/ui/devices/device_picker.h"
 #include "vh/ui/panels/isovalue_bar.h"
 #include "vh/ui/tool_picker.h"
+#include "vh/ui/haptics_controller.h"
+#include "vh/ui/panels/haptics_panel.h"
+#include "vh/ui/tool_fit_checker.h"
 #include "vh/ui/view_controller.h"
 
 #include <cmath>
@@ -46,6 +49,8 @@
 #include "vh/runtime/device.h"
 #include "vh/runtime/placement.h"
 #include "vh/runtime/scene.h"
+#include "vh/runtime/servo_factory.h"
+#include "vh/runtime/tool_fit.h"
 #include "vh/ui/view/device_manipulation.h"
 #include "vh/ui/panels/haptics_panel.h"
 #include "vh/ui/panels/histogram_slider.h"
@@ -412,6 +417,48 @@ TEST_F(MainWindowOnHead, GainsFromThePanelApplyLiveAndPersist) {
   EXPECT_FALSE(window_->session().hapticsRunning());
   panel->startStopButton()->click();
   EXPECT_TRUE(window_->session().hapticsRunning());
+}
+
+// The fit check in the window, judged with a fixed cost of a work unit (so that the verdict is
+// the same on every machine): a cost at which the head's tool would be cut at its worst ticks is
+// said in the panel with a coarser spacing offered; the offer, clicked, rebuilds the tool at that
+// spacing, and the check of the rebuilt tool says it is on time.
+TEST_F(MainWindowOnHead, TheFitCheckSaysWhenTheToolIsLateAndItsOfferRebuildsAToolThatIsNot) {
+  HapticsPanel* panel = window_->hapticsPanel();
+  ToolFitChecker& checker = window_->haptics()->fitChecker();
+  // The tool's heaviest tick of the warm-up, counted in work units (the same on every machine).
+  runtime::ToolFitOptions probe;
+  probe.ns_per_work = 1e-3;
+  probe.lanes = 1;
+  const runtime::ToolFit free_fit = runtime::checkToolFit(window_->session().live(), probe);
+  ASSERT_TRUE(free_fit.fits());
+  ASSERT_GT(free_fit.asked.work_max, 100);
+  // A cost at which that tick takes twice the deadline: late.
+  runtime::ToolFitOptions costly = probe;
+  costly.ns_per_work = 2.0 * 1e3 * runtime::solverDeadline_us(1000.0) / static_cast<double>(free_fit.asked.work_max);
+  QSignalSpy checked(&checker, &ToolFitChecker::checked);
+  checker.setOptions(costly);
+  checker.check(window_->session().live());
+  ASSERT_TRUE(waitFor([&] { return checked.count() > 0; }, 60000)) << "the fit check never ended";
+  ASSERT_TRUE(checker.last());
+  const runtime::ToolFit fit = *checker.last();
+  std::printf("[ FIT      ] %s\n", fit.summary().c_str());
+  EXPECT_FALSE(fit.fits());
+  EXPECT_TRUE(panel->toolFitLabel()->text().startsWith("late")) << panel->toolFitLabel()->text().toStdString();
+  ASSERT_TRUE(fit.suggested) << "no coarser spacing fits at this cost";
+  EXPECT_TRUE(panel->useFittingSpacingButton()->isVisibleTo(panel));
+  EXPECT_TRUE(panel->useFittingSpacingButton()->text().contains(
+      QString::number(fit.suggested->spacing_m * 1e3, 'f', 2)));
+  // The offer taken: the tool rebuilt at the suggested spacing, checked again, on time.
+  QSignalSpy changed(window_->toolPicker(), &ToolPicker::toolChanged);
+  panel->useFittingSpacingButton()->click();
+  ASSERT_TRUE(waitFor([&] { return changed.count() > 0; }, 60000)) << "the tool was never rebuilt";
+  EXPECT_EQ(window_->session().live().tool->point_shell.size(), fit.suggested->points);
+  ASSERT_TRUE(waitFor([&] { return checked.count() > 1; }, 60000)) << "the rebuilt tool was never checked";
+  ASSERT_TRUE(checker.last());
+  EXPECT_TRUE(checker.last()->fits()) << checker.last()->summary();
+  EXPECT_TRUE(panel->toolFitLabel()->text().startsWith("on time")) << panel->toolFitLabel()->text().toStdString();
+  EXPECT_FALSE(panel->useFittingSpacingButton()->isVisibleTo(panel));
 }
 
 TEST_F(MainWindowOnHead, ChoosingAToolRebuildsTheHapticThread) {

@@ -9,7 +9,11 @@
 #include <QSignalBlocker>
 #include <QWidget>
 
+#include <algorithm>
+#include <cstdint>
+
 #include "vh/runtime/guidance.h"
+#include "vh/runtime/tool_fit.h"
 #include "vh/runtime/session.h"
 #include "vh/runtime/session_metadata.h"
 #include "vh/ui/devices/device_input.h"
@@ -17,6 +21,7 @@
 #include "vh/ui/panels/haptics_panel.h"
 #include "vh/ui/replay/replay_controller.h"
 #include "vh/ui/replay/session_recorder.h"
+#include "vh/ui/tool_fit_checker.h"
 #include "vh/ui/tool_picker.h"
 
 namespace vh::ui {
@@ -25,8 +30,21 @@ HapticsController::HapticsController(runtime::Session& session, HapticsPanel& pa
                                      DevicePicker& devices, DeviceInput& input, SessionRecorder& recorder,
                                      ReplayController& replay, QObject* parent)
     : QObject(parent), session_(session), panel_(panel), tools_(tools), devices_(devices), input_(input),
-      recorder_(recorder), replay_(replay) {
+      recorder_(recorder), replay_(replay), fit_checker_(new ToolFitChecker(this)) {
+  connect(fit_checker_, &ToolFitChecker::started, this, [this] { panel_.showToolFit("checking...", false); });
+  connect(fit_checker_, &ToolFitChecker::checked, this, &HapticsController::showToolFit);
+  connect(fit_checker_, &ToolFitChecker::failed, this,
+          [this](const QString& why) { panel_.showToolFit("not checked: " + why, false); });
   observer_ = session_.addObserver([this](runtime::SessionChange what) {
+    if (runtime::has(what, runtime::SessionChange::kScene) || runtime::has(what, runtime::SessionChange::kTool) ||
+        runtime::has(what, runtime::SessionChange::kSegments)) {
+      if (session_.hasScene()) {
+        fit_checker_->check(session_.live());
+      } else {
+        fit_checker_->check({});
+        panel_.showToolFit("-", false);
+      }
+    }
     if (runtime::has(what, runtime::SessionChange::kDevice)) devices_.sync();
     const bool dropped = runtime::has(what, runtime::SessionChange::kScene) && guide_ != nullptr;
     if (dropped) guide_.reset();  // the expert's path was of the last scan
@@ -70,6 +88,31 @@ HapticsController::HapticsController(runtime::Session& session, HapticsPanel& pa
 }
 
 HapticsController::~HapticsController() { session_.removeObserver(observer_); }
+
+void HapticsController::showToolFit(const runtime::ToolFit& fit) {
+  const QString summary = QString::fromStdString(fit.summary());
+  if (fit.fits()) {
+    panel_.showToolFit(QString("on time (worst tick %1 % of the deadline)")
+                           .arg(100.0 * static_cast<double>(fit.asked.work_max) /
+                                    static_cast<double>(std::max<std::int64_t>(1, fit.work_budget)),
+                                0, 'f', 0),
+                       false);
+    return;
+  }
+  const QString late = QString("late: %1 in %2 ticks cut, %3 mm behind")
+                           .arg(fit.asked.cut_ticks)
+                           .arg(fit.asked.ticks)
+                           .arg(fit.asked.behind_max_m * 1e3, 0, 'f', 2);
+  if (fit.suggested) {
+    panel_.showToolFit(late + QString("; at %1 mm: felt within %2 mm, on time")
+                                  .arg(fit.suggested->spacing_m * 1e3, 0, 'f', 2)
+                                  .arg(fit.suggested->felt_gap_m * 1e3, 0, 'f', 2),
+                       true, fit.suggested->spacing_m, fit.suggested->points);
+  } else {
+    panel_.showToolFit(late + "; no coarser spacing tried is on time", true);
+  }
+  emit message("This computer renders the tool late: " + summary + ". The Haptics panel offers the spacing.", 15000);
+}
 
 bool HapticsController::replaying() const { return replay_.active(); }
 

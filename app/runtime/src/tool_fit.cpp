@@ -44,7 +44,7 @@ struct FullSolveRun {
 
 /// The warm-up's full solve of `live` with `tool` over `traj`: no budget, no deadline.
 FullSolveRun runFullSolve(const LiveValues& live, const std::shared_ptr<const haptics::ToolModel>& tool,
-                          const Trajectory& traj, int ticks, int lanes) {
+                          const Trajectory& traj, int ticks, int lanes, const std::atomic<bool>* cancel) {
   LiveValues with_tool = live;
   with_tool.tool = tool;
   haptics::RendererOptions options;
@@ -59,6 +59,7 @@ FullSolveRun runFullSolve(const LiveValues& live, const std::shared_ptr<const ha
   run.X_WP.reserve(static_cast<std::size_t>(ticks));
   std::size_t cursor = 0;
   for (int i = 0; i < ticks; ++i) {
+    if (cancel != nullptr && cancel->load(std::memory_order_relaxed)) throw ToolFitCancelled();
     const haptics::Pose X_WD = traj.poseAt(i * 1e-3, cursor);
     const double c0 = threadCpu_us();
     const auto w0 = Clock::now();
@@ -77,7 +78,7 @@ FullSolveRun runFullSolve(const LiveValues& live, const std::shared_ptr<const ha
 /// behind the full solve's (`reference`).
 std::pair<int, ProxyLag> runBudgeted(const LiveValues& live, const std::shared_ptr<const haptics::ToolModel>& tool,
                                      const Trajectory& traj, int ticks, int lanes, std::int64_t budget,
-                                     const FullSolveRun& reference) {
+                                     const FullSolveRun& reference, const std::atomic<bool>* cancel) {
   LiveValues with_tool = live;
   with_tool.tool = tool;
   haptics::RendererOptions options;
@@ -90,6 +91,7 @@ std::pair<int, ProxyLag> runBudgeted(const LiveValues& live, const std::shared_p
   ProxyLag lag;
   std::size_t cursor = 0;
   for (int i = 0; i < ticks; ++i) {
+    if (cancel != nullptr && cancel->load(std::memory_order_relaxed)) throw ToolFitCancelled();
     const haptics::Pose X_WD = traj.poseAt(i * 1e-3, cursor);
     const haptics::TickOutput out = budgeted->tick(X_WD, s);
     cut += out.stats.budget_cut ? 1 : 0;
@@ -137,7 +139,7 @@ std::int64_t percentile(std::vector<std::int64_t> v, double q) {
 ToolFitRun judge(const LiveValues& live, const std::shared_ptr<const haptics::ToolModel>& tool, double spacing_m,
                  const Trajectory& traj, const ToolFitOptions& options, int lanes, std::int64_t budget,
                  const FullSolveRun& full) {
-  const auto [cut, lag] = runBudgeted(live, tool, traj, options.ticks, lanes, budget, full);
+  const auto [cut, lag] = runBudgeted(live, tool, traj, options.ticks, lanes, budget, full, options.cancel);
   ToolFitRun r;
   r.spacing_m = spacing_m;
   r.points = tool->point_shell.size();
@@ -241,7 +243,7 @@ ToolFit checkToolFit(const LiveValues& live, const ToolFitOptions& options) {
   // The tool as chosen: its full solve calibrates the cost model, unless the cost is given.
   const auto t0 = Clock::now();
   const Trajectory traj = touch(*live.tool);
-  const FullSolveRun full = runFullSolve(live, live.tool, traj, options.ticks, fit.lanes);
+  const FullSolveRun full = runFullSolve(live, live.tool, traj, options.ticks, fit.lanes, options.cancel);
   double fixed_us = 0.0;
   if (options.ns_per_work > 0.0) {
     fit.ns_per_work = options.ns_per_work;
@@ -268,7 +270,7 @@ ToolFit checkToolFit(const LiveValues& live, const ToolFitOptions& options) {
     }
     const int lanes = options.lanes > 0 ? options.lanes : solverLanesFor(coarser->point_shell.size());
     const Trajectory coarse_traj = touch(*coarser);
-    const FullSolveRun coarse_full = runFullSolve(live, coarser, coarse_traj, options.ticks, lanes);
+    const FullSolveRun coarse_full = runFullSolve(live, coarser, coarse_traj, options.ticks, lanes, options.cancel);
     ToolFitRun r = judge(live, coarser, shell.spacing_m, coarse_traj, options, lanes, fit.work_budget, coarse_full);
     if (r.fits) {
       fit.suggested = r;

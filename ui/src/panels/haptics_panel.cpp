@@ -80,7 +80,32 @@ QGroupBox* HapticsPanel::buildToolBox() {
       "thinner than the point spacing cannot slip between them. On by default; off gives the paper's "
       "points-only proxy, for comparison with the published method (about half the solver's time)");
   tool_form->addRow(edge_test_);
+  fit_ = new QLabel("-", tool_box);
+  fit_->setObjectName("toolFit");
+  fit_->setWordWrap(true);
+  fit_->setToolTip(
+      "The fit check: a warm-up of this tool on this scene (pressed, slid and twisted on the surface) says whether "
+      "this computer renders it on time: its worst ticks cut by the solver's deadline at most 0.1 % of the time and "
+      "the proxy at most 0.5 mm behind. When not, the finest coarser spacing that fits is offered");
+  use_fit_ = new QPushButton(tool_box);
+  use_fit_->setObjectName("useFittingSpacing");
+  use_fit_->setVisible(false);
+  use_fit_->setToolTip("Rebuild the tool at the finest point spacing this computer renders on time");
+  tool_form->addRow("This computer", fit_);
+  tool_form->addRow(use_fit_);
+  connect(use_fit_, &QPushButton::clicked, this, [this] {
+    if (fit_spacing_m_ > 0.0) emit toolRequested(currentTool(), fit_spacing_m_);
+  });
   return tool_box;
+}
+
+void HapticsPanel::showToolFit(const QString& text, bool late, double suggested_spacing_m, std::size_t suggested_points) {
+  fit_->setText(text);
+  fit_->setStyleSheet(late ? "color: #b35900; font-weight: bold;" : "");
+  fit_spacing_m_ = suggested_spacing_m;
+  use_fit_->setVisible(suggested_spacing_m > 0.0);
+  if (suggested_spacing_m > 0.0)
+    use_fit_->setText(QString("Use %1 mm (%2 points)").arg(suggested_spacing_m * 1e3, 0, 'f', 2).arg(suggested_points));
 }
 
 QGroupBox* HapticsPanel::buildCouplingBox() {

@@ -6,6 +6,10 @@
 /// panel's and the menu's commands to the session, the tool picker and the device picker. While
 /// a replay is shown the haptic thread waits: starting it is refused with a notice.
 ///
+/// Whenever a scene or a tool is chosen, the fit check (runtime/tool_fit.h) runs beside the
+/// window (ToolFitChecker); a tool this computer does not render on time is said in the panel
+/// and the status bar, with the finest spacing that fits offered as a button.
+///
 /// Data flows one way: Session -> this -> HapticsPanel; panel and menu -> this -> Session.
 /// GUI thread only.
 
@@ -20,6 +24,7 @@ class QWidget;
 namespace vh::runtime {
 class ExpertPath;
 class Session;
+struct ToolFit;
 }
 
 namespace vh::ui {
@@ -29,6 +34,7 @@ class DevicePicker;
 class HapticsPanel;
 class ReplayController;
 class SessionRecorder;
+class ToolFitChecker;
 class ToolPicker;
 
 class HapticsController : public QObject {
@@ -54,6 +60,8 @@ class HapticsController : public QObject {
   /// Guidance off. A recording started while guidance is on holds its "guidance" event too
   /// (the expert's file and checksum: a replay shows the expert's ghost).
   void stopGuidance();
+  /// The fit check of the session's tool (run whenever a scene or a tool is chosen).
+  ToolFitChecker& fitChecker() noexcept { return *fit_checker_; }
   /// The expert's path guided along, or null.
   const std::shared_ptr<const runtime::ExpertPath>& guide() const noexcept { return guide_; }
 
@@ -81,6 +89,9 @@ class HapticsController : public QObject {
   int observer_ = 0;
   /// Guidance (Guide with Recording...): the path, applied to every haptic thread the session builds.
   std::shared_ptr<const runtime::ExpertPath> guide_;
+  ToolFitChecker* fit_checker_;  ///< Owned as a child.
+  /// The fit check's verdict, in the panel and (when late) the status bar.
+  void showToolFit(const runtime::ToolFit& fit);
   void applyGuidance();
 };
 

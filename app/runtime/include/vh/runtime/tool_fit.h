@@ -17,9 +17,11 @@
 /// `bench table1` measures them. Given the cost of a unit (ToolFitOptions::ns_per_work), the
 /// verdict is deterministic, which is how it is tested.
 
+#include <atomic>
 #include <cstddef>
 #include <cstdint>
 #include <optional>
+#include <stdexcept>
 #include <string>
 #include <vector>
 
@@ -48,6 +50,15 @@ struct ToolFitOptions {
   double max_behind_m = 0.0005;
   /// When the tool does not fit: coarser spacings tried, as factors of its own, finest first.
   std::vector<double> spacing_factors = {1.25, 1.5, 2.0, 2.5, 3.0, 4.0, 6.0, 8.0};
+  /// When set and it becomes true, the check stops within a tick and throws ToolFitCancelled
+  /// (the window's check of a tool no longer chosen, or of a window closing).
+  const std::atomic<bool>* cancel = nullptr;
+};
+
+/// checkToolFit() was stopped through ToolFitOptions::cancel.
+class ToolFitCancelled : public std::runtime_error {
+ public:
+  ToolFitCancelled() : std::runtime_error("the fit check was cancelled") {}
 };
 
 /// One point spacing of the tool, judged.
@@ -107,8 +118,8 @@ Trajectory fitWarmupTrajectory(const haptics::ScalarVolume& volume, const haptic
 
 /// The fit check of live's tool on live's felt surface (its gains, its edge test setting), off
 /// the servo thread (it runs solvers of its own: a second or so for a 20,000-point tool).
-/// @throws std::invalid_argument without a tool or a field, or for ticks < 100; as
-///         haptics::makeToolModel() for a spacing the mesh cannot take.
+/// @throws std::invalid_argument without a tool or a field, or for ticks < 100; ToolFitCancelled
+///         when options.cancel became true.
 ToolFit checkToolFit(const LiveValues& live, const ToolFitOptions& options = {});
 
 }  // namespace vh::runtime

@@ -74,6 +74,13 @@ class HapticsPanel : public QWidget {
   QLabel* feltGapLabel() const noexcept { return felt_gap_; }
   /// ToolSpec::edge_test: the tool's surface between its points kept outside too.
   QCheckBox* edgeTestBox() const noexcept { return edge_test_; }
+  /// The fit check's verdict on this computer (runtime/tool_fit.h), in warning colours when
+  /// `late`; with a suggested spacing [m] > 0, a button that rebuilds the tool at it
+  /// (toolRequested()).
+  void showToolFit(const QString& text, bool late, double suggested_spacing_m = 0.0, std::size_t suggested_points = 0);
+  QLabel* toolFitLabel() const noexcept { return fit_; }
+  /// "Use 1.77 mm (1,997 points)": shown when the fit check suggests a spacing.
+  QPushButton* useFittingSpacingButton() const noexcept { return use_fit_; }
   QComboBox* deviceBox() const noexcept { return device_choice_; }
   QPushButton* rescanButton() const noexcept { return rescan_; }
 
@@ -100,6 +107,9 @@ class HapticsPanel : public QWidget {
   QLabel* points_;
   QLabel* felt_gap_;
   QCheckBox* edge_test_;
+  QLabel* fit_;
+  QPushButton* use_fit_;
+  double fit_spacing_m_ = 0.0;  ///< The spacing use_fit_ asks for [m]; 0: none.
   RangeSpinBox* linear_;
   RangeSpinBox* torsional_;
   QCheckBox* passivity_;
