@@ -27,6 +27,7 @@
 #include "vh/runtime/replay.h"
 #include "vh/runtime/runner.h"
 #include "vh/runtime/scene.h"
+#include "vh/runtime/tool_fit.h"
 #include "vh/runtime/session_metadata.h"
 #include "vh/runtime/session_metrics.h"
 #include "vh/runtime/trajectory.h"
@@ -284,7 +285,45 @@ void bindScenes(py::module_& m) {
                                  for (int c = 0; c < 3; ++c) a(r, c) = D(r, c);
                                return out;
                              },
-                             "The grid's axes in patient LPS, 3 x 3 (columns: unit i, j, k directions).");
+                             "The grid's axes in patient LPS, 3 x 3 (columns: unit i, j, k directions).")
+      .def(
+          "tool_fit",
+          [](const Scene& s, double ns_per_work) {
+            vh::runtime::ToolFitOptions options;
+            options.ns_per_work = ns_per_work;
+            vh::runtime::ToolFit fit;
+            {
+              py::gil_scoped_release release;
+              fit = vh::runtime::checkToolFit(vh::runtime::LiveValues::initial(*s.loaded), options);
+            }
+            py::dict d;
+            d["fits"] = fit.fits();
+            d["summary"] = fit.summary();
+            d["ns_per_work"] = fit.ns_per_work;
+            d["fixed_us"] = fit.fixed_us;
+            d["work_budget"] = fit.work_budget;
+            d["lanes"] = fit.lanes;
+            d["warmup_s"] = fit.warmup_s;
+            d["ticks"] = fit.asked.ticks;
+            d["cut_ticks"] = fit.asked.cut_ticks;
+            d["behind_max_m"] = fit.asked.behind_max_m;
+            d["work_max"] = fit.asked.work_max;
+            d["spacing_m"] = fit.asked.spacing_m;
+            d["points"] = fit.asked.points;
+            d["felt_gap_m"] = fit.asked.felt_gap_m;
+            d["suggested_spacing_m"] = fit.suggested ? py::object(py::float_(fit.suggested->spacing_m)) : py::none();
+            d["suggested_points"] = fit.suggested ? py::object(py::int_(fit.suggested->points)) : py::none();
+            d["suggested_felt_gap_m"] = fit.suggested ? py::object(py::float_(fit.suggested->felt_gap_m)) : py::none();
+            return d;
+          },
+          py::arg("ns_per_work") = 0.0,
+          "The fit check: whether this computer renders the scene's tool on time (its worst ticks cut by the "
+          "solver's deadline at most 0.1 % of the time, the proxy at most 0.5 mm behind), from a warm-up touch of "
+          "the tool on the surface (about a second or less), and when not, the finest coarser point spacing that "
+          "fits. ns_per_work: this computer's cost of one work unit [ns]; 0 measures it. Returns a dict: fits, "
+          "summary (one line), ns_per_work, fixed_us, work_budget, lanes, warmup_s, ticks, cut_ticks, "
+          "behind_max_m, work_max, spacing_m, points, felt_gap_m, suggested_spacing_m / suggested_points / "
+          "suggested_felt_gap_m (None when it fits or nothing coarser does). See docs/command-line.md, run.");
 
   m.def("load_scene_file", [](const fs::path& path) { return loadScene(vh::runtime::loadSceneFile(path), path.string()); },
         py::arg("path"));

@@ -113,6 +113,24 @@ def test_scene_dict_and_loaded_scene(work):
     assert forces[1] > 2.0 * forces[0]
 
 
+def test_tool_fit_flags_a_tool_too_costly_and_offers_a_coarser_spacing():
+    """The fit check at a given cost of a work unit (the verdict the same on every machine): free, the
+    probe fits; at a cost that puts its heaviest warm-up tick at twice the deadline, it is late and a
+    coarser spacing that fits at that cost is offered, with how closely it is felt."""
+    scene = vh.load_scene({"volume": {"path": "builtin:sphere", "isovalue": 0},
+                           "tool": {"mesh": "builtin:probe", "point_spacing_m": 0.0005}})
+    free = scene.tool_fit(ns_per_work=1e-3)
+    assert free["fits"] and free["cut_ticks"] == 0 and free["suggested_spacing_m"] is None
+    assert free["work_max"] > 0 and free["points"] > 0 and free["spacing_m"] == pytest.approx(0.0005, rel=0.3)
+    costly = scene.tool_fit(ns_per_work=2.0 * 900e3 / free["work_max"])
+    assert not costly["fits"] and costly["cut_ticks"] > costly["ticks"] / 1000
+    assert "late" in costly["summary"]
+    assert costly["suggested_spacing_m"] is not None and costly["suggested_spacing_m"] > free["spacing_m"]
+    assert costly["suggested_points"] < free["points"] and costly["suggested_felt_gap_m"] > 0
+    measured = scene.tool_fit()  # this computer's cost, measured: a figure, not judged here
+    assert measured["ns_per_work"] > 0 and measured["warmup_s"] > 0
+
+
 def test_gil_is_released_while_running(work):
     t = vh.read_trajectory(work / "slow.csv")  # about 5000 ticks
     scene = vh.load_scene(SCENE)
