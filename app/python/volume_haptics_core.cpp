@@ -296,25 +296,7 @@ void bindScenes(py::module_& m) {
               py::gil_scoped_release release;
               fit = vh::runtime::checkToolFit(vh::runtime::LiveValues::initial(*s.loaded), options);
             }
-            py::dict d;
-            d["fits"] = fit.fits();
-            d["summary"] = fit.summary();
-            d["ns_per_work"] = fit.ns_per_work;
-            d["fixed_us"] = fit.fixed_us;
-            d["work_budget"] = fit.work_budget;
-            d["lanes"] = fit.lanes;
-            d["warmup_s"] = fit.warmup_s;
-            d["ticks"] = fit.asked.ticks;
-            d["cut_ticks"] = fit.asked.cut_ticks;
-            d["behind_max_m"] = fit.asked.behind_max_m;
-            d["work_max"] = fit.asked.work_max;
-            d["spacing_m"] = fit.asked.spacing_m;
-            d["points"] = fit.asked.points;
-            d["felt_gap_m"] = fit.asked.felt_gap_m;
-            d["suggested_spacing_m"] = fit.suggested ? py::object(py::float_(fit.suggested->spacing_m)) : py::none();
-            d["suggested_points"] = fit.suggested ? py::object(py::int_(fit.suggested->points)) : py::none();
-            d["suggested_felt_gap_m"] = fit.suggested ? py::object(py::float_(fit.suggested->felt_gap_m)) : py::none();
-            return d;
+            return py::module_::import("json").attr("loads")(fit.toJson());
           },
           py::arg("ns_per_work") = 0.0,
           "The fit check: whether this computer renders the scene's tool on time (its worst ticks cut by the "

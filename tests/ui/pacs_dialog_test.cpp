@@ -49,6 +49,7 @@ namespace vh::ui {
 namespace {
 
 namespace fs = std::filesystem;
+using io::test::closedPort;
 
 std::map<std::string, std::string> fixtureValues() {
   std::map<std::string, std::string> v;
@@ -76,19 +77,6 @@ io::PacsServer fixtureServer(const std::map<std::string, std::string>& v) {
   if (!values.count("status") || values.at("status") != "ready") {                                              \
     GTEST_SKIP() << "no test PACS: " << (values.count("reason") ? values.at("reason") : "fixture not started"); \
   }
-
-/// A loopback port that nothing listens on: one the kernel just gave out, closed again.
-int closedPort() {
-  const int fd = ::socket(AF_INET, SOCK_STREAM, 0);
-  sockaddr_in addr{};
-  addr.sin_family = AF_INET;
-  addr.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
-  socklen_t len = sizeof addr;
-  const bool ok = ::bind(fd, reinterpret_cast<sockaddr*>(&addr), sizeof addr) == 0 &&
-                  ::getsockname(fd, reinterpret_cast<sockaddr*>(&addr), &len) == 0;
-  ::close(fd);
-  return ok ? ntohs(addr.sin_port) : 9;
-}
 
 std::size_t dicomFilesIn(const fs::path& folder) {
   std::size_t n = 0;

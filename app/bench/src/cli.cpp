@@ -81,6 +81,9 @@ void addTable1Subcommand(CLI::App& bench, std::function<int()>& handler) {
                  "Crossing check of every tick's move, after the run (its reads of the volume do not share the timed ticks' caches): path sampling step [voxels]; 0: off")
       ->capture_default_str()
       ->check(CLI::NonNegativeNumber);
+  t1->add_flag("--verify-references", table1->verify_references,
+               "Also crossing-check the unbudgeted reference runs (the full solves that measure the work budget's "
+               "lag; left out by default: no proxy the hand feels comes from them)");
   t1->add_option("--scene", table1->scene, "Only this scene: Bunny, Engine, Hole or Bone");
   t1->add_option("--ticks", table1->ticks, "Ticks per scene and mode (default 20000; short 1000); the 20,000- and 50,000-point tools run the first quarter of them (at least 1,000), the same hand at the same speed")
       ->check(CLI::PositiveNumber);

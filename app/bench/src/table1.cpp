@@ -249,6 +249,7 @@ constexpr int kHeldSampleEvery = Table1Options::kHeldSampleEvery;
 
 struct ModeRun {
   Variant variant;
+  bool checked = true;  ///< Its moves are crossing-checked (the references only with verify_references).
   std::unique_ptr<haptics::HapticRenderer> renderer;
   std::vector<double> times_us, cpu_us, contacts, samples;
   double max_penetration_m = 0.0, max_force_N = 0.0, cells_sum = 0.0;
@@ -388,13 +389,13 @@ nlohmann::ordered_json modeJson(const ModeRun& m, double epsilon_m, bool verifie
   j["bad_device_samples"] = m.renderer->badInputCount();
   // Ticks in which the proxy carried a shell point from outside into the isosurface; -1: not
   // checked (--verify-step 0).
-  j["crossings"] = verified ? m.crossings : -1;
-  j["crossing_points"] = verified ? m.crossing_points : -1;
-  j["first_crossing_tick"] = verified ? m.first_crossing_tick : -1;
+  j["crossings"] = verified && m.checked ? m.crossings : -1;
+  j["crossing_points"] = verified && m.checked ? m.crossing_points : -1;
+  j["first_crossing_tick"] = verified && m.checked ? m.first_crossing_tick : -1;
   // Ticks at whose end an edge of the point shell's neighbour graph (ends inset by epsilon) was
   // inside the isosurface while free at the tick's start; -1: not checked.
-  j["edge_crossings"] = verified ? m.edge_crossings : -1;
-  j["first_edge_crossing_tick"] = verified ? m.first_edge_crossing_tick : -1;
+  j["edge_crossings"] = verified && m.checked ? m.edge_crossings : -1;
+  j["first_edge_crossing_tick"] = verified && m.checked ? m.first_edge_crossing_tick : -1;
   if (m.held_samples >= 0) {
     j["held_samples"] = m.held_samples;
     j["held_every"] = kHeldSampleEvery;
@@ -695,7 +696,7 @@ void addLag(std::vector<ModeRun>& runs, const std::vector<char>& proxy_finite, i
 /// path the proxy moved along. Fills `row`.
 void runScene(const runtime::LoadedScene& scene, std::shared_ptr<const haptics::ToolModel> tool,
               const std::vector<Variant>& variants, int ticks, int trajectory_ticks, int locations,
-              int penetration_stride, double verify_step_voxels, nlohmann::ordered_json& row,
+              int penetration_stride, double verify_step_voxels, bool verify_references, nlohmann::ordered_json& row,
               std::vector<Series>& plot_series) {
   const haptics::ScalarVolume& volume = *scene.volume.field;
   const double s = scene.isovalue;
@@ -712,8 +713,11 @@ void runScene(const runtime::LoadedScene& scene, std::shared_ptr<const haptics::
   }
 
   std::vector<ModeRun> runs = makeModeRuns(scene, tool, variants, X_WD0, s, ticks);
+  for (ModeRun& m : runs)
+    m.checked = verify_references || (m.variant.key != kUnbudgetedKey && m.variant.key != kEdgesUnbudgetedKey);
   if (verifier)
-    for (ModeRun& m : runs) m.moves.reserve(static_cast<std::size_t>(ticks));
+    for (ModeRun& m : runs)
+      if (m.checked) m.moves.reserve(static_cast<std::size_t>(ticks));
   const int i_paper = runIndex(runs, "paper"), i_accel = runIndex(runs, "accelerated");
   const int i_before = runIndex(runs, kBeforeKey);
   const int i_unbudgeted = runIndex(runs, kUnbudgetedKey);
@@ -739,7 +743,7 @@ void runScene(const runtime::LoadedScene& scene, std::shared_ptr<const haptics::
   for (int i = 0; i < ticks; ++i) {
     const haptics::Pose X_WD = traj.poseAt(i * 1e-3, cursor);
     for (std::size_t r = 0; r < runs.size(); ++r) {
-      proxy_finite[r] = tickMode(runs[r], i, X_WD, X_WD_last, s, verifier.has_value(),
+      proxy_finite[r] = tickMode(runs[r], i, X_WD, X_WD_last, s, verifier.has_value() && runs[r].checked,
                                  tick_csv.empty() ? nullptr : tick_csv[r].get(), volume, *tool, penetration_stride,
                                  proxy[r], proxy_R[r]);
     }
@@ -756,7 +760,8 @@ void runScene(const runtime::LoadedScene& scene, std::shared_ptr<const haptics::
     X_WD_last = X_WD;
   }
   if (verifier)
-    for (ModeRun& m : runs) checkMoves(*verifier, shell_edges, s, epsilon_m, m);
+    for (ModeRun& m : runs)
+      if (m.checked) checkMoves(*verifier, shell_edges, s, epsilon_m, m);
   if (i_unbudgeted >= 0)
     runHeldSampleControl(scene, tool, traj, X_WD0, s, full_solve_poses, runs[static_cast<std::size_t>(i_unbudgeted)],
                          lag_csv.get());
@@ -1005,7 +1010,7 @@ void printRowResults(nlohmann::ordered_json& row) {
 /// tool's point count (the application's lanes depend on it). @return false when its data are
 /// absent (`row` then says "skipped" and why); `series` gets its tick-time plot series.
 bool runTableRow(const SceneDef& def, int large, const std::function<std::vector<Variant>(std::size_t)>& variants_for,
-                 int ticks, int locations, double verify_step_voxels, nlohmann::ordered_json& row,
+                 int ticks, int locations, double verify_step_voxels, bool verify_references, nlohmann::ordered_json& row,
                  std::vector<Series>& series) {
   // The paper's tool, then the same tool resampled to 20,000 and 50,000 points.
   const int large_points = large == 1 ? 20000 : 50000;
@@ -1033,26 +1038,15 @@ bool runTableRow(const SceneDef& def, int large, const std::function<std::vector
   // The fit check, as the application runs it when a tool is chosen (its own warm-up and
   // calibration), judged against what this row then measures.
   const runtime::ToolFit fit = runtime::checkToolFit(runtime::LiveValues::initial(scene));
-  row["tool_fit"] = {{"fits", fit.fits()},
-                     {"ns_per_work", fit.ns_per_work},
-                     {"work_budget", fit.work_budget},
-                     {"lanes", fit.lanes},
-                     {"warmup_s", fit.warmup_s},
-                     {"warmup_ticks", fit.asked.ticks},
-                     {"cut_ticks", fit.asked.cut_ticks},
-                     {"behind_max_m", fit.asked.behind_max_m},
-                     {"work_max", fit.asked.work_max},
-                     {"felt_gap_m", fit.asked.felt_gap_m},
-                     {"summary", fit.summary()}};
-  if (fit.suggested) {
-    row["tool_fit"]["suggested_spacing_m"] = fit.suggested->spacing_m;
-    row["tool_fit"]["suggested_points"] = fit.suggested->points;
-  }
+  row["tool_fit"] = nlohmann::ordered_json::parse(fit.toJson());
+  // The report holds no nulls (a null would read as a non-finite number): no suggestion, no keys.
+  for (const char* key : {"suggested_spacing_m", "suggested_points", "suggested_felt_gap_m"})
+    if (row["tool_fit"][key].is_null()) row["tool_fit"].erase(key);
   std::cout << "  fit check: " << fit.summary() << " (a work unit " << num(fit.ns_per_work, 1) << " ns; warm-up "
             << num(fit.warmup_s, 2) << " s)" << std::endl;
   const auto t_run = std::chrono::steady_clock::now();
   runScene(scene, scene.tool, variants_for(scene.tool->point_shell.size()), run_ticks, ticks, locations, large ? 5 : 1,
-           verify_step_voxels, row, series);
+           verify_step_voxels, verify_references, row, series);
   row["load_s"] = load_s;
   row["run_s"] = std::chrono::duration<double>(std::chrono::steady_clock::now() - t_run).count();
   printRowResults(row);
@@ -1129,7 +1123,7 @@ void writeFitTable(std::ostringstream& md, const nlohmann::ordered_json& rows) {
       run = num(m["budget_cuts"]) + " of " + num(m["ticks"]) + ", " + num(1e3 * m["max_behind_m"].get<double>(), 3);
     }
     md << "| " << row["name"].get<std::string>() << " | " << row["points"].get<std::size_t>() << " | "
-       << num(f["ns_per_work"], 1) << " | " << num(f["cut_ticks"]) << " / " << num(f["warmup_ticks"]) << ", "
+       << num(f["ns_per_work"], 1) << " | " << num(f["cut_ticks"]) << " / " << num(f["ticks"]) << ", "
        << num(1e3 * f["behind_max_m"].get<double>(), 3) << " | "
        << (f["fits"].get<bool>() ? std::string("fits")
                                  : "flagged" + (f.contains("suggested_spacing_m")
@@ -1375,6 +1369,7 @@ fs::path runTable1(const Table1Options& options) {
   report["modes"] = mode_names;
   report["mode_labels"] = mode_labels;
   report["verify_step_voxels"] = options.verify_step_voxels;
+  report["verify_references"] = options.verify_references;
   report["paper_machine"] = "2.67 GHz Intel Core i7 (Chan et al., WHC 2011, Table 1)";
   nlohmann::ordered_json rows = nlohmann::ordered_json::array();
   std::vector<std::pair<std::string, std::vector<Series>>> scene_plots;
@@ -1393,7 +1388,8 @@ fs::path runTable1(const Table1Options& options) {
         continue;
       nlohmann::ordered_json row;
       std::vector<Series> series;
-      if (runTableRow(def, large, variants_for, ticks, locations, options.verify_step_voxels, row, series))
+      if (runTableRow(def, large, variants_for, ticks, locations, options.verify_step_voxels, options.verify_references,
+                      row, series))
         scene_plots.emplace_back(row["name"].get<std::string>(), std::move(series));
       rows.push_back(row);
     }

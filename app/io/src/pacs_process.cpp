@@ -419,21 +419,18 @@ int pacsProcessMain(int argc, char** argv) {
   boundAddressSpace();
   installCancelHandler();
   const std::string op = argv[2];
-  try {
+  bool known = true;
+  const int status = reportingErrors([&] {
     FieldReader in{fs::path(argv[3])};
     FieldWriter out;
-    if (!runOperation(op, in, out)) {
-      std::cerr << kUsage << std::endl;
-      return 2;
-    }
-    out.save(argv[4]);
-  } catch (const std::exception& e) {
-    std::string message = e.what();
-    std::replace(message.begin(), message.end(), '\n', ' ');
-    std::cout << "error " << message << std::endl;
-    return 1;
+    known = runOperation(op, in, out);
+    if (known) out.save(argv[4]);
+  });
+  if (!known) {
+    std::cerr << kUsage << std::endl;
+    return 2;
   }
-  return 0;
+  return status;
 }
 
 }  // namespace detail

@@ -10,7 +10,10 @@
 
 #include <sys/types.h>
 
+#include <algorithm>
 #include <atomic>
+#include <exception>
+#include <iostream>
 #include <filesystem>
 #include <functional>
 #include <string>
@@ -54,6 +57,21 @@ class ReaderProcess {
   int out_ = -1;
   std::string buffer_;
 };
+
+/// In the reader program: runs `read`; an exception becomes the protocol's "error MESSAGE" line
+/// (on one line) and exit status 1, else 0.
+template <typename Read>
+int reportingErrors(Read&& read) {
+  try {
+    read();
+  } catch (const std::exception& e) {
+    std::string message = e.what();
+    std::replace(message.begin(), message.end(), '\n', ' ');
+    std::cout << "error " << message << std::endl;
+    return 1;
+  }
+  return 0;
+}
 
 /// "SIGSEGV" for SIGSEGV; "signal N" for one without a name.
 std::string signalName(int sig);

@@ -29,21 +29,6 @@ constexpr char kUsage[] =
     "usage: volume-haptics-dicom-worker load PATH OUT [--series S] [--phase N] | volume FILE OUT | list FOLDER OUT | "
     "mesh PATH OUT SCALE | seg FILE OUT | rtstruct FILE OUT | probe PATH [--after FILE] | pacs OP REQUEST OUT";
 
-/// Runs `read`; an exception becomes the protocol's "error MESSAGE" line (on one line) and exit
-/// status 1, else 0.
-template <typename Read>
-int reportingErrors(Read&& read) {
-  try {
-    read();
-  } catch (const std::exception& e) {
-    std::string message = e.what();
-    std::replace(message.begin(), message.end(), '\n', ' ');
-    std::cout << "error " << message << std::endl;
-    return 1;
-  }
-  return 0;
-}
-
 /// `probe PATH`: each DICOM file's header and pixels parsed on its own, the name printed first,
 /// so that a crash names the file.
 int probeMode(const fs::path& path, const fs::path& after) {
@@ -66,7 +51,7 @@ int probeMode(const fs::path& path, const fs::path& after) {
 
 /// `volume FILE OUT [--layer N]`: any loadVolume() input, converted here.
 int volumeMode(const fs::path& path, const fs::path& out, int argc, char** argv) {
-  return reportingErrors([&] {
+  return detail::reportingErrors([&] {
     VolumeLoadOptions in_process;
     in_process.dicom_isolation = DicomIsolation::kInProcess;
     for (int a = 4; a + 1 < argc; ++a) {
@@ -79,7 +64,7 @@ int volumeMode(const fs::path& path, const fs::path& out, int argc, char** argv)
 
 /// `mesh PATH OUT SCALE`: a tool mesh, SCALE the factor from file units to metres.
 int meshMode(const fs::path& path, const fs::path& out, const char* scale) {
-  return reportingErrors([&] {
+  return detail::reportingErrors([&] {
     const haptics::TriangleMesh mesh = detail::loadMeshInProcess(path, std::strtod(scale, nullptr));
     detail::writeMesh(mesh, out, path);
   });
@@ -87,18 +72,18 @@ int meshMode(const fs::path& path, const fs::path& out, const char* scale) {
 
 /// `seg FILE OUT`: a DICOM SEG read with DCMTK (dicom_seg.h), not yet placed on a grid.
 int segMode(const fs::path& path, const fs::path& out) {
-  return reportingErrors([&] { detail::writeDicomSeg(detail::readDicomSegInProcess(path), out); });
+  return detail::reportingErrors([&] { detail::writeDicomSeg(detail::readDicomSegInProcess(path), out); });
 }
 
 /// `rtstruct FILE OUT`: an RT Structure Set read with DCMTK's dcmrt (dicom_rtstruct.h), not yet
 /// rasterised on a scan.
 int rtstructMode(const fs::path& path, const fs::path& out) {
-  return reportingErrors([&] { detail::writeDicomRtStruct(detail::readDicomRtStructInProcess(path), out); });
+  return detail::reportingErrors([&] { detail::writeDicomRtStruct(detail::readDicomRtStructInProcess(path), out); });
 }
 
 /// `list FOLDER OUT`: the DICOM series of a folder, with "progress DONE TOTAL" lines.
 int listMode(const fs::path& folder, const fs::path& out) {
-  return reportingErrors([&] {
+  return detail::reportingErrors([&] {
     const auto series = detail::listDicomSeriesInProcess(folder, [](int done, int total) {
       std::cout << "progress " << done << " " << total << std::endl;
     }, nullptr);
@@ -123,7 +108,7 @@ int loadMode(const fs::path& path, const fs::path& out, int argc, char** argv) {
       std::cout << "progress " << f << std::endl;
     }
   };
-  return reportingErrors([&] { detail::writeRaw(detail::loadDicomRaw(path, options), out); });
+  return detail::reportingErrors([&] { detail::writeRaw(detail::loadDicomRaw(path, options), out); });
 }
 
 }  // namespace

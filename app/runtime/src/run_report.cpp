@@ -78,23 +78,7 @@ std::string RunReport::toJson() const {
   j["tool"] = tool;
   j["point_count"] = point_count;
   j["point_spacing_m"] = point_spacing_m;
-  if (tool_fit) {
-    const ToolFit& f = *tool_fit;
-    j["tool_fit"] = {{"fits", f.fits()},
-                     {"summary", f.summary()},
-                     {"ns_per_work", f.ns_per_work},
-                     {"work_budget", f.work_budget},
-                     {"deadline_us", f.deadline_us},
-                     {"lanes", f.lanes},
-                     {"warmup_s", f.warmup_s},
-                     {"warmup_ticks", f.asked.ticks},
-                     {"cut_ticks", f.asked.cut_ticks},
-                     {"behind_max_m", f.asked.behind_max_m},
-                     {"felt_gap_m", f.asked.felt_gap_m},
-                     {"suggested_spacing_m", f.suggested ? nlohmann::ordered_json(f.suggested->spacing_m) : nullptr},
-                     {"suggested_points", f.suggested ? nlohmann::ordered_json(f.suggested->points) : nullptr},
-                     {"suggested_felt_gap_m", f.suggested ? nlohmann::ordered_json(f.suggested->felt_gap_m) : nullptr}};
-  }
+  if (tool_fit) j["tool_fit"] = nlohmann::ordered_json::parse(tool_fit->toJson());
   j["epsilon_m"] = epsilon_m;
   j["feature_size_m"] = feature_size_m;
   j["servo_rate_Hz"] = servo_rate_Hz;

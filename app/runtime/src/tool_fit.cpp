@@ -13,6 +13,8 @@
 #include <tuple>
 #include <utility>
 
+#include <nlohmann/json.hpp>
+
 #include "vh/haptics/haptic_renderer.h"
 #include "vh/runtime/placement.h"
 #include "vh/runtime/runner.h"
@@ -292,6 +294,30 @@ std::string ToolFit::summary() const {
     s += "; no coarser spacing tried fits";
   }
   return s;
+}
+
+std::string ToolFit::toJson() const {
+  const auto optional = [&](auto value) { return suggested ? nlohmann::ordered_json(value) : nlohmann::ordered_json(); };
+  const nlohmann::ordered_json j = {
+      {"fits", fits()},
+      {"summary", summary()},
+      {"ns_per_work", ns_per_work},
+      {"fixed_us", fixed_us},
+      {"work_budget", work_budget},
+      {"deadline_us", deadline_us},
+      {"lanes", lanes},
+      {"warmup_s", warmup_s},
+      {"ticks", asked.ticks},
+      {"cut_ticks", asked.cut_ticks},
+      {"behind_max_m", asked.behind_max_m},
+      {"work_max", asked.work_max},
+      {"spacing_m", asked.spacing_m},
+      {"points", asked.points},
+      {"felt_gap_m", asked.felt_gap_m},
+      {"suggested_spacing_m", optional(suggested ? suggested->spacing_m : 0.0)},
+      {"suggested_points", optional(suggested ? suggested->points : std::size_t{0})},
+      {"suggested_felt_gap_m", optional(suggested ? suggested->felt_gap_m : 0.0)}};
+  return j.dump();
 }
 
 }  // namespace vh::runtime

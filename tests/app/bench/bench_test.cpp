@@ -122,6 +122,7 @@ Table1Options shortAcceleratedHole(const std::string& out_name) {
   options.scene = "Hole";
   options.modes = ModeSelection::kAccelerated;
   options.large_tools = false;
+  options.verify_references = true;  // the full solves' crossings checked too (tests check them)
   return options;
 }
 
@@ -248,6 +249,7 @@ TEST(Bench, table1ShortWritesBothModesForEveryScene) {
   options.common.short_run = true;
   options.common.out_dir = outDir("table1");
   options.before = true;  // the "before" column (end-sample segment test)
+  options.verify_references = true;
   const fs::path dir = runTable1(options);
   const json report = readJson(dir / "table1.json");
   expectNoNull(report);

@@ -18,19 +18,6 @@
 namespace vh::io::test {
 namespace {
 
-/// A loopback port that nothing listens on: one the kernel just gave out, closed again.
-int freePort() {
-  const int fd = ::socket(AF_INET, SOCK_STREAM, 0);
-  sockaddr_in addr{};
-  addr.sin_family = AF_INET;
-  addr.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
-  socklen_t len = sizeof addr;
-  const bool ok = ::bind(fd, reinterpret_cast<sockaddr*>(&addr), sizeof addr) == 0 &&
-                  ::getsockname(fd, reinterpret_cast<sockaddr*>(&addr), &len) == 0;
-  ::close(fd);
-  return ok ? ntohs(addr.sin_port) : 0;
-}
-
 void putLE(std::string& out, std::uint32_t v, int bytes) {
   for (int i = 0; i < bytes; ++i) out += static_cast<char>((v >> (8 * i)) & 0xFF);
 }
@@ -91,7 +78,7 @@ bool sendPdvs(T_ASC_Association* assoc, T_ASC_PresentationContextID id, DUL_DATA
 }  // namespace
 
 HostilePacs::HostilePacs(std::string identifier, bool explicit_vr)
-    : identifier_(std::move(identifier)), explicit_vr_(explicit_vr), port_(freePort()) {
+    : identifier_(std::move(identifier)), explicit_vr_(explicit_vr), port_(closedPort()) {
   thread_ = std::thread([this] { run(); });
 }
 
@@ -125,7 +112,7 @@ bool HostilePacs::waitUntilUp() {
 
 void HostilePacs::run() {
   T_ASC_Network* net = nullptr;
-  if (port_ == 0 || ASC_initializeNetwork(NET_ACCEPTOR, port_, 5, &net).bad()) return;
+  if (ASC_initializeNetwork(NET_ACCEPTOR, port_, 5, &net).bad()) return;
   const char* abstract_syntaxes[] = {UID_VerificationSOPClass, UID_FINDStudyRootQueryRetrieveInformationModel};
   const char* transfer_syntaxes[] = {explicit_vr_ ? UID_LittleEndianExplicitTransferSyntax
                                                  : UID_LittleEndianImplicitTransferSyntax};
@@ -169,6 +156,18 @@ void HostilePacs::run() {
     ASC_destroyAssociation(&assoc);
   }
   ASC_dropNetwork(&net);
+}
+
+int closedPort() {
+  const int fd = ::socket(AF_INET, SOCK_STREAM, 0);
+  sockaddr_in addr{};
+  addr.sin_family = AF_INET;
+  addr.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+  socklen_t len = sizeof addr;
+  const bool ok = ::bind(fd, reinterpret_cast<sockaddr*>(&addr), sizeof addr) == 0 &&
+                  ::getsockname(fd, reinterpret_cast<sockaddr*>(&addr), &len) == 0;
+  ::close(fd);
+  return ok ? ntohs(addr.sin_port) : 9;
 }
 
 std::string nestedSequencesIdentifier(int depth) {

@@ -43,6 +43,10 @@ class HostilePacs {
   std::thread thread_;
 };
 
+/// A loopback port that nothing listens on: one the kernel just gave out, closed again (9, the
+/// discard port, unused on test machines, when none could be had).
+int closedPort();
+
 /// A STUDY-level identifier (implicit VR little endian) whose Content Sequence holds itself
 /// `depth` times: an item in a sequence in an item..., every length undefined and never closed.
 std::string nestedSequencesIdentifier(int depth);

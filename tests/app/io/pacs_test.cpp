@@ -33,6 +33,7 @@
 #include <dcmtk/dcmdata/dcuid.h>
 #include <dcmtk/dcmnet/scp.h>
 
+#include "hostile_pacs.h"
 #include "io_test_support.h"
 #include "vh/io/pacs.h"
 #include "vh/io/volume_loader.h"
@@ -41,6 +42,7 @@ namespace vh::io {
 namespace {
 
 namespace fs = std::filesystem;
+using test::closedPort;
 using test::secondsSince;
 using test::TempDir;
 using Clock = std::chrono::steady_clock;
@@ -161,19 +163,6 @@ std::uint64_t voxelChecksum(vtkImageData* image) {
   vtkDataArray* a = image->GetPointData()->GetScalars();
   mix(a->GetVoidPointer(0), static_cast<std::size_t>(a->GetNumberOfValues()) * static_cast<std::size_t>(a->GetDataTypeSize()));
   return h;
-}
-
-/// A loopback port that nothing listens on: one the kernel just gave out, closed again.
-int closedPort() {
-  const int fd = ::socket(AF_INET, SOCK_STREAM, 0);
-  sockaddr_in addr{};
-  addr.sin_family = AF_INET;
-  addr.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
-  socklen_t len = sizeof addr;
-  const bool ok = ::bind(fd, reinterpret_cast<sockaddr*>(&addr), sizeof addr) == 0 &&
-                  ::getsockname(fd, reinterpret_cast<sockaddr*>(&addr), &len) == 0;
-  ::close(fd);
-  return ok ? ntohs(addr.sin_port) : 9;  // 9: discard, unused on test machines
 }
 
 TEST(Pacs, EchoAnswers) {

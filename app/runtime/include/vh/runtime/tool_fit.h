@@ -104,6 +104,11 @@ struct ToolFit {
   /// ticks late, 3.1 mm behind on this computer; at 0.90 mm (5,030 points): felt within 0.61 mm,
   /// fits this computer", or "... fits this computer (worst tick 61 % of the deadline)".
   std::string summary() const;
+  /// The verdict as a JSON object (the one list of its fields, for the run report, bench table1
+  /// and Python): fits, summary, ns_per_work, fixed_us, work_budget, deadline_us, lanes,
+  /// warmup_s, ticks, cut_ticks, behind_max_m, work_max, spacing_m, points, felt_gap_m, and
+  /// suggested_spacing_m, suggested_points, suggested_felt_gap_m (null when none).
+  std::string toJson() const;
 };
 
 /// The warm-up touch of `shell` on the isosurface F = `isovalue` of `volume`, `ticks` samples at
