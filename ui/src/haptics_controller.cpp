@@ -9,9 +9,6 @@
 #include <QSignalBlocker>
 #include <QWidget>
 
-#include <algorithm>
-#include <cstdint>
-
 #include "vh/runtime/guidance.h"
 #include "vh/runtime/tool_fit.h"
 #include "vh/runtime/session.h"
@@ -92,10 +89,7 @@ HapticsController::~HapticsController() { session_.removeObserver(observer_); }
 void HapticsController::showToolFit(const runtime::ToolFit& fit) {
   const QString summary = QString::fromStdString(fit.summary());
   if (fit.fits()) {
-    panel_.showToolFit(QString("on time (worst tick %1 % of the deadline)")
-                           .arg(100.0 * static_cast<double>(fit.asked.work_max) /
-                                    static_cast<double>(std::max<std::int64_t>(1, fit.work_budget)),
-                                0, 'f', 0),
+    panel_.showToolFit(QString("on time (worst tick %1 % of the deadline)").arg(100.0 * fit.deadlineShare(fit.asked), 0, 'f', 0),
                        false);
     return;
   }

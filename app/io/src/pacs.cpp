@@ -48,11 +48,8 @@ void initDcmtk() {
   std::call_once(once, [] { OFLog::configure(OFLogger::OFF_LOG_LEVEL); });
 }
 
-std::string trim(std::string_view s) {
-  const auto first = s.find_first_not_of(" \t\r\n");
-  if (first == std::string_view::npos) return {};
-  return std::string(s.substr(first, s.find_last_not_of(" \t\r\n") - first + 1));
-}
+using detail::pacsTrim;
+using detail::pacsError;
 
 std::string hex4(Uint16 v) {
   char buf[8];
@@ -60,31 +57,27 @@ std::string hex4(Uint16 v) {
   return buf;
 }
 
-PacsError fail(const PacsServer& server, const std::string& what) {
-  return PacsError("PACS " + server.describe() + ": " + what);
-}
-
 /// The settings a DICOM association needs, checked before any connection.
 void checkServer(const PacsServer& s) {
-  if (trim(s.host).empty()) throw fail(s, "no host name given");
-  if (s.port < 1 || s.port > 65535) throw fail(s, "port " + std::to_string(s.port) + " is not in 1..65535");
+  if (pacsTrim(s.host).empty()) throw pacsError(s, "no host name given");
+  if (s.port < 1 || s.port > 65535) throw pacsError(s, "port " + std::to_string(s.port) + " is not in 1..65535");
   const auto check_aet = [&](const std::string& aet, const char* whose) {
-    const std::string t = trim(aet);
+    const std::string t = pacsTrim(aet);
     if (t.empty() || t.size() > 16 || t.find('\\') != std::string::npos) {
-      throw fail(s, std::string(whose) + " AE title '" + aet + "' must have 1 to 16 characters, no backslash");
+      throw pacsError(s, std::string(whose) + " AE title '" + aet + "' must have 1 to 16 characters, no backslash");
     }
   };
   check_aet(s.called_aet, "the called (server's)");
   check_aet(s.calling_aet, "the calling (our)");
   if (s.timeout_s < 1 || s.timeout_s > 3600) {
-    throw fail(s, "timeout " + std::to_string(s.timeout_s) + " s is not in 1..3600 s");
+    throw pacsError(s, "timeout " + std::to_string(s.timeout_s) + " s is not in 1..3600 s");
   }
 }
 
 std::string text(DcmItem* ds, const DcmTagKey& tag) {
   OFString v;
   if (ds == nullptr || ds->findAndGetOFStringArray(tag, v).bad()) return {};
-  return trim(std::string_view(v.c_str(), v.length()));
+  return pacsTrim(std::string_view(v.c_str(), v.length()));
 }
 
 int number(DcmItem* ds, const DcmTagKey& tag) {
@@ -113,9 +106,9 @@ class Scu : private ScuTransport, public DcmSCU {
   explicit Scu(const PacsServer& server) : ScuTransport(server), server_(server) {
     initDcmtk();
     checkServer(server);
-    setAETitle(trim(server.calling_aet).c_str());
-    setPeerAETitle(trim(server.called_aet).c_str());
-    setPeerHostName(trim(server.host).c_str());
+    setAETitle(pacsTrim(server.calling_aet).c_str());
+    setPeerAETitle(pacsTrim(server.called_aet).c_str());
+    setPeerHostName(pacsTrim(server.host).c_str());
     setPeerPort(static_cast<Uint16>(server.port));
     // The watchdog bounds the whole operation. DCMTK's own timeouts bound each PDU, and restart
     // with the next: they are a backstop here, longer, so that the watchdog's error is the one
@@ -138,50 +131,50 @@ class Scu : private ScuTransport, public DcmSCU {
     syntaxes.push_back(UID_LittleEndianExplicitTransferSyntax);
     syntaxes.push_back(UID_LittleEndianImplicitTransferSyntax);
     if (addPresentationContext(abstract_syntax, syntaxes, role).bad()) {
-      throw fail(server_, std::string("cannot propose ") + dcmFindNameOfUID(abstract_syntax, abstract_syntax));
+      throw pacsError(server_, std::string("cannot propose ") + dcmFindNameOfUID(abstract_syntax, abstract_syntax));
     }
   }
 
   /// Opens the association; throws what failed, naming the server.
   void connect() {
     OFCondition cond = initNetwork();
-    if (cond.bad()) throw fail(server_, std::string("cannot start the network: ") + cond.text());
+    if (cond.bad()) throw pacsError(server_, std::string("cannot start the network: ") + cond.text());
     if (server_.tls) tls = pacs_detail::makeTlsLayer(server_);
     layer = std::make_unique<pacs_detail::WatchedTransportLayer>(watchdog, tls.get());
     cond = useSecureConnection(layer.get());
-    if (cond.bad()) throw fail(server_, std::string("cannot set up the connection: ") + cond.text());
+    if (cond.bad()) throw pacsError(server_, std::string("cannot set up the connection: ") + cond.text());
     cond = negotiateAssociation();
     if (cond.good()) return;
     const std::string why = cond.text();
     if (watchdog.expired() || (cond.module() == OFM_dcmnet && cond.code() == DULC_READTIMEOUT)) {
-      throw fail(server_, "no complete answer to the association request within the timeout of " +
+      throw pacsError(server_, "no complete answer to the association request within the timeout of " +
                               std::to_string(server_.timeout_s) + " s" +
                               (watchdog.expired() ? " (the connection was cut off)" : "") +
                               ": is a DICOM server listening on that port, and is it not overloaded?");
     }
     if (server_.tls) throwTlsFailure(cond);
     if (cond == DUL_ASSOCIATIONREJECTED) {
-      throw fail(server_, "the server rejected the association (" + why + "): check the called AE title '" +
-                              trim(server_.called_aet) + "' and that the server knows the calling AE title '" +
-                              trim(server_.calling_aet) + "'");
+      throw pacsError(server_, "the server rejected the association (" + why + "): check the called AE title '" +
+                              pacsTrim(server_.called_aet) + "' and that the server knows the calling AE title '" +
+                              pacsTrim(server_.calling_aet) + "'");
     }
     if (cond.module() == OFM_dcmnet && (cond.code() == DULC_UNRECOGNIZEDPDUTYPE || cond.code() == DULC_ILLEGALPDU)) {
-      throw fail(server_, "what answers on that port is not a DICOM server (" + why + ")");
+      throw pacsError(server_, "what answers on that port is not a DICOM server (" + why + ")");
     }
     if (cond == NET_EC_NoAcceptablePresentationContexts) {
-      throw fail(server_, "the server accepts none of the services asked for (" + why + ")");
+      throw pacsError(server_, "the server accepts none of the services asked for (" + why + ")");
     }
     if (cond == DUL_PEERABORTEDASSOCIATION) {
-      throw fail(server_, "the server closed the connection at once (" + why +
+      throw pacsError(server_, "the server closed the connection at once (" + why +
                               "): does it expect DICOM TLS on that port?");
     }
-    throw fail(server_, "no connection (" + why + "): is the server running on that host and port?");
+    throw pacsError(server_, "no connection (" + why + "): is the server running on that host and port?");
   }
 
   /// The accepted presentation context for `abstract_syntax`; throws when the server refused it.
   T_ASC_PresentationContextID contextFor(const char* abstract_syntax, const char* what) {
     const T_ASC_PresentationContextID id = findAnyPresentationContextID(abstract_syntax, "");
-    if (id == 0) throw fail(server_, std::string("the server does not offer ") + what);
+    if (id == 0) throw pacsError(server_, std::string("the server does not offer ") + what);
     return id;
   }
 
@@ -195,11 +188,11 @@ class Scu : private ScuTransport, public DcmSCU {
   void throwTlsFailure(const OFCondition& cond) const {
     const std::string problem = pacs_detail::lastCertificateProblem();
     if (!problem.empty()) {
-      throw fail(server_, "DICOM TLS: the server's certificate was refused: " + problem + ", checked against the CA '" +
-                              server_.ca_cert + "' for the host name '" + trim(server_.host) + "'");
+      throw pacsError(server_, "DICOM TLS: the server's certificate was refused: " + problem + ", checked against the CA '" +
+                              server_.ca_cert + "' for the host name '" + pacsTrim(server_.host) + "'");
     }
     if (cond.module() == OFM_dcmtls) {
-      throw fail(server_, std::string("DICOM TLS: the handshake failed (") + cond.text() +
+      throw pacsError(server_, std::string("DICOM TLS: the handshake failed (") + cond.text() +
                               "): does the server speak DICOM TLS on that port, and accept our certificate?");
     }
   }
@@ -207,7 +200,7 @@ class Scu : private ScuTransport, public DcmSCU {
   /// Throws the timeout error when the deadline passed (`what` stopped by it, e.g. "C-FIND").
   void throwIfTimedOut(const std::string& what) const {
     if (!watchdog.expired()) return;
-    throw fail(server_, what + " did not finish within the timeout of " + std::to_string(server_.timeout_s) +
+    throw pacsError(server_, what + " did not finish within the timeout of " + std::to_string(server_.timeout_s) +
                             " s, so the connection was cut off: is the server or the network very slow?");
   }
 
@@ -325,7 +318,7 @@ class Scu : private ScuTransport, public DcmSCU {
 std::string why(const OFCondition& cond, const PacsServer& server) {
   std::string text = cond.text();
   if (cond == DUL_PEERABORTEDASSOCIATION) {
-    text += ": the server ended the association; does it know the calling AE title '" + trim(server.calling_aet) +
+    text += ": the server ended the association; does it know the calling AE title '" + pacsTrim(server.calling_aet) +
             "' and allow it this?";
   } else if (cond == DIMSE_BADDATA) {
     text += ": the server's answer is not a well-formed DICOM dataset (cut short, or a value that declares more "
@@ -359,10 +352,10 @@ std::vector<std::unique_ptr<DcmDataset>> find(const PacsServer& server, DcmDatas
     }
   }
   if (cond.bad()) scu.throwIfTimedOut("C-FIND");
-  if (cond.bad()) throw fail(server, "C-FIND failed: " + why(cond, server));
-  if (!final_seen) throw fail(server, "C-FIND failed: the server sent no final response");
+  if (cond.bad()) throw pacsError(server, "C-FIND failed: " + why(cond, server));
+  if (!final_seen) throw pacsError(server, "C-FIND failed: the server sent no final response");
   if (final_status != kStatusSuccess) {
-    throw fail(server, "C-FIND failed: status " + hex4(final_status) + " (" + DU_cfindStatusString(final_status) + ")");
+    throw pacsError(server, "C-FIND failed: status " + hex4(final_status) + " (" + DU_cfindStatusString(final_status) + ")");
   }
   scu.release();
   return matches;
@@ -426,6 +419,16 @@ PacsSeries seriesFromResponse(DcmItem* ds) {
   return s;
 }
 
+std::string pacsTrim(std::string_view s) {
+  const auto first = s.find_first_not_of(" \t\r\n");
+  if (first == std::string_view::npos) return {};
+  return std::string(s.substr(first, s.find_last_not_of(" \t\r\n") - first + 1));
+}
+
+PacsError pacsError(const PacsServer& server, const std::string& what) {
+  return PacsError("PACS " + server.describe() + ": " + what);
+}
+
 void checkPacsServer(const PacsServer& server) { checkServer(server); }
 
 void pacsEchoInProcess(const PacsServer& server) {
@@ -435,7 +438,7 @@ void pacsEchoInProcess(const PacsServer& server) {
   const T_ASC_PresentationContextID id = scu.contextFor(UID_VerificationSOPClass, "verification (C-ECHO)");
   const OFCondition cond = scu.sendECHORequest(id);
   if (cond.bad()) scu.throwIfTimedOut("C-ECHO");
-  if (cond.bad()) throw fail(server, std::string("C-ECHO failed: ") + cond.text());
+  if (cond.bad()) throw pacsError(server, std::string("C-ECHO failed: ") + cond.text());
   scu.release();
 }
 
@@ -463,13 +466,13 @@ std::vector<PacsStudy> pacsFindStudiesInProcess(const PacsServer& server, const 
 
 std::vector<PacsSeries> pacsFindSeriesInProcess(const PacsServer& server, const std::string& study_uid,
                                                 const std::string& modality) {
-  if (trim(study_uid).empty()) throw fail(server, "a series query needs the Study Instance UID");
+  if (pacsTrim(study_uid).empty()) throw pacsError(server, "a series query needs the Study Instance UID");
   DcmDataset keys;
-  seriesKeys(keys, trim(study_uid), "", trim(modality));
+  seriesKeys(keys, pacsTrim(study_uid), "", pacsTrim(modality));
   std::vector<PacsSeries> series;
   for (const auto& ds : find(server, keys)) {
     PacsSeries s = detail::seriesFromResponse(ds.get());
-    if (s.study_uid.empty()) s.study_uid = trim(study_uid);
+    if (s.study_uid.empty()) s.study_uid = pacsTrim(study_uid);
     if (!s.series_uid.empty()) series.push_back(std::move(s));
   }
   std::stable_sort(series.begin(), series.end(), [](const PacsSeries& a, const PacsSeries& b) { return a.number < b.number; });
@@ -477,20 +480,20 @@ std::vector<PacsSeries> pacsFindSeriesInProcess(const PacsServer& server, const 
 }
 
 PacsSeries pacsFindSeriesByUidInProcess(const PacsServer& server, const std::string& series_uid) {
-  if (trim(series_uid).empty()) throw fail(server, "no Series Instance UID given");
+  if (pacsTrim(series_uid).empty()) throw pacsError(server, "no Series Instance UID given");
   DcmDataset keys;
-  seriesKeys(keys, "", trim(series_uid), "");
+  seriesKeys(keys, "", pacsTrim(series_uid), "");
   for (const auto& ds : find(server, keys)) {
     PacsSeries s = detail::seriesFromResponse(ds.get());
-    if (s.series_uid == trim(series_uid) && !s.study_uid.empty()) return s;
+    if (s.series_uid == pacsTrim(series_uid) && !s.study_uid.empty()) return s;
   }
-  throw fail(server, "no series with Series Instance UID " + trim(series_uid));
+  throw pacsError(server, "no series with Series Instance UID " + pacsTrim(series_uid));
 }
 
 }  // namespace detail
 
 std::string PacsServer::describe() const {
-  return trim(called_aet) + " at " + trim(host) + ":" + std::to_string(port);
+  return pacsTrim(called_aet) + " at " + pacsTrim(host) + ":" + std::to_string(port);
 }
 
 std::vector<PacsPatient> pacsPatientsOf(const std::vector<PacsStudy>& studies) {
@@ -516,9 +519,9 @@ PacsRetrieveResult pacsRetrieveSeriesInProcess(const PacsServer& server, const s
                                                const PacsRetrieveOptions& options) {
   const auto t0 = Clock::now();
   PacsRetrieveOptions opts = options;
-  std::string study = trim(study_uid);
-  const std::string series = trim(series_uid);
-  if (series.empty()) throw fail(server, "no Series Instance UID given");
+  std::string study = pacsTrim(study_uid);
+  const std::string series = pacsTrim(series_uid);
+  if (series.empty()) throw pacsError(server, "no Series Instance UID given");
   if (study.empty() || opts.expected_instances < 0) {
     const PacsSeries found = pacsFindSeriesByUidInProcess(server, series);
     if (study.empty()) study = found.study_uid;
@@ -530,7 +533,7 @@ PacsRetrieveResult pacsRetrieveSeriesInProcess(const PacsServer& server, const s
   try {
     createPrivateDirectories(out_dir);
   } catch (const std::runtime_error& e) {
-    throw fail(server, e.what());
+    throw pacsError(server, e.what());
   }
 
   Scu scu(server);
@@ -562,24 +565,24 @@ PacsRetrieveResult pacsRetrieveSeriesInProcess(const PacsServer& server, const s
   };
   if (!scu.writeError().empty()) {
     remove_files();
-    throw fail(server, "C-GET of series " + series + ": " + scu.writeError());
+    throw pacsError(server, "C-GET of series " + series + ": " + scu.writeError());
   }
   if (cond.bad()) {
     remove_files();
     scu.throwIfTimedOut("C-GET of series " + series + " (" + std::to_string(scu.files().size()) + " files so far)");
-    throw fail(server, "C-GET of series " + series + " failed after " + std::to_string(scu.files().size()) +
+    throw pacsError(server, "C-GET of series " + series + " failed after " + std::to_string(scu.files().size()) +
                            " files: " + why(cond, server));
   }
   const Uint16 status = scu.finalStatus();
   const bool warning = status == kStatusGetWarning || (status & 0xF000) == 0xB000;
   if (!scu.finalReceived() || (status != kStatusSuccess && !warning && status != kStatusCancel)) {
     remove_files();
-    throw fail(server, "C-GET of series " + series + " failed: status " + hex4(status) + " (" +
+    throw pacsError(server, "C-GET of series " + series + " failed: status " + hex4(status) + " (" +
                            DU_cgetStatusString(status) + ")");
   }
   scu.release();
   if (scu.files().empty()) {
-    throw fail(server, "C-GET of series " + series + " brought no files" +
+    throw pacsError(server, "C-GET of series " + series + " brought no files" +
                            (result.failed > 0 ? " (" + std::to_string(result.failed) +
                                                     " failed on the server: a storage class or transfer syntax we "
                                                     "did not offer?)"

@@ -8,6 +8,9 @@
 /// apart so that the fuzz target can feed it datasets that no server sent
 /// (tests/fuzz/fuzz_pacs_response.cpp).
 
+#include <string>
+#include <string_view>
+
 #include "vh/io/pacs.h"
 
 class DcmItem;
@@ -23,6 +26,13 @@ PacsStudy studyFromResponse(DcmItem* ds);
 /// The series a SERIES-level C-FIND response's identifier `ds` describes, as studyFromResponse():
 /// Series Number and Number of Series Related Instances -1 unless whole non-negative numbers.
 PacsSeries seriesFromResponse(DcmItem* ds);
+
+/// `s` without leading and trailing blanks (space, tab, CR, LF): how the client reads its
+/// settings and a server's text.
+std::string pacsTrim(std::string_view s);
+
+/// "PACS CALLED at HOST:PORT: " and `what`: the error that names the server.
+PacsError pacsError(const PacsServer& server, const std::string& what);
 
 /// The settings an association needs, checked before any connection (host, port, AE titles,
 /// timeout). @throws PacsError naming the first one that is wrong.

@@ -53,11 +53,8 @@ constexpr double kCancelMarginS = 2.0;
 /// (the program's libraries and threads alone reserve several hundred MiB of it) [bytes].
 constexpr std::uint64_t kMinAddressSpace_bytes = std::uint64_t{2} << 30;
 
-PacsError fail(const PacsServer& server, const std::string& what) {
-  return PacsError("PACS " + server.describe() + ": " + what);
-}
-
-double secondsSince(Clock::time_point t) { return std::chrono::duration<double>(Clock::now() - t).count(); }
+using detail::pacsError;
+using detail::secondsSince;
 
 // ---- the request and result files: fields, each "LENGTH\n" and its bytes ----
 
@@ -257,14 +254,14 @@ std::optional<FieldReader> runNetworkProcess(const fs::path& program, const Pacs
   try {
     request.save(request_file.path());
   } catch (const std::runtime_error& e) {
-    throw fail(server, std::string("cannot hand the request to the DICOM network process: ") + e.what());
+    throw pacsError(server, std::string("cannot hand the request to the DICOM network process: ") + e.what());
   }
   std::optional<detail::ReaderProcess> process;
   try {
     process.emplace(std::vector<std::string>{program.string(), "pacs", op, request_file.path().string(),
                                              result_file.path().string()});
   } catch (const std::exception& e) {
-    throw fail(server, std::string("cannot start the DICOM network process: ") + e.what());
+    throw pacsError(server, std::string("cannot start the DICOM network process: ") + e.what());
   }
   const double limit_s = server.timeout_s + kProcessMarginS;
   const std::atomic<bool>* cancel = watch != nullptr && watch->options != nullptr ? watch->options->cancel : nullptr;
@@ -286,7 +283,7 @@ std::optional<FieldReader> runNetworkProcess(const fs::path& program, const Pacs
       if (secondsSince(last_line) > limit_s) {
         process->kill9();
         if (watch != nullptr) watch->deleteFiles();
-        throw fail(server, what + " did not finish within the timeout of " + std::to_string(server.timeout_s) +
+        throw pacsError(server, what + " did not finish within the timeout of " + std::to_string(server.timeout_s) +
                                " s, so the DICOM network process was stopped: does the host name '" + server.host +
                                "' resolve quickly, and is the server or the network very slow?");
       }
@@ -303,7 +300,7 @@ std::optional<FieldReader> runNetworkProcess(const fs::path& program, const Pacs
   if (WIFSIGNALED(status)) {
     if (watch != nullptr) watch->deleteFiles();
     const int sig = WTERMSIG(status);
-    throw fail(server, "the DICOM network process " +
+    throw pacsError(server, "the DICOM network process " +
                            (sig == SIGKILL ? std::string("was killed (SIGKILL: out of memory?)")
                                            : "crashed (" + detail::signalName(sig) + ")") +
                            " on the server's answer to " + what +
@@ -312,13 +309,13 @@ std::optional<FieldReader> runNetworkProcess(const fs::path& program, const Pacs
   if (WEXITSTATUS(status) != 0) {
     if (watch != nullptr) watch->deleteFiles();
     if (!error.empty()) throw PacsError(error);
-    throw fail(server, "the DICOM network process " + program.string() + " failed during " + what + " (exit status " +
+    throw pacsError(server, "the DICOM network process " + program.string() + " failed during " + what + " (exit status " +
                            std::to_string(WEXITSTATUS(status)) + ")");
   }
   try {
     return FieldReader(result_file.path());
   } catch (const std::runtime_error& e) {
-    throw fail(server, std::string("the DICOM network process gave no result for ") + what + ": " + e.what());
+    throw pacsError(server, std::string("the DICOM network process gave no result for ") + what + ": " + e.what());
   }
 }
 
@@ -328,7 +325,7 @@ auto readResult(const PacsServer& server, Read&& read) {
   try {
     return read();
   } catch (const std::runtime_error& e) {
-    throw fail(server, std::string("the DICOM network process's result cannot be read: ") + e.what());
+    throw pacsError(server, std::string("the DICOM network process's result cannot be read: ") + e.what());
   }
 }
 
@@ -402,9 +399,6 @@ bool runOperation(const std::string& op, FieldReader& in, FieldWriter& out) {
   return true;
 }
 
-/// The network process `program`, or empty: the operation then runs in this process.
-fs::path networkProcess() { return readerProcessPath(); }
-
 }  // namespace
 
 namespace detail {
@@ -437,7 +431,7 @@ int pacsProcessMain(int argc, char** argv) {
 
 void pacsEcho(const PacsServer& server) {
   detail::checkPacsServer(server);
-  const fs::path program = networkProcess();
+  const fs::path program = readerProcessPath();  // empty: run here
   if (program.empty()) return detail::pacsEchoInProcess(server);
   FieldWriter request;
   addServer(request, server);
@@ -446,7 +440,7 @@ void pacsEcho(const PacsServer& server) {
 
 std::vector<PacsStudy> pacsFindStudies(const PacsServer& server, const PacsStudyQuery& query) {
   detail::checkPacsServer(server);
-  const fs::path program = networkProcess();
+  const fs::path program = readerProcessPath();  // empty: run here
   if (program.empty()) return detail::pacsFindStudiesInProcess(server, query);
   FieldWriter request;
   addServer(request, server);
@@ -458,7 +452,7 @@ std::vector<PacsStudy> pacsFindStudies(const PacsServer& server, const PacsStudy
 std::vector<PacsSeries> pacsFindSeries(const PacsServer& server, const std::string& study_uid,
                                        const std::string& modality) {
   detail::checkPacsServer(server);
-  const fs::path program = networkProcess();
+  const fs::path program = readerProcessPath();  // empty: run here
   if (program.empty()) return detail::pacsFindSeriesInProcess(server, study_uid, modality);
   FieldWriter request;
   addServer(request, server);
@@ -469,7 +463,7 @@ std::vector<PacsSeries> pacsFindSeries(const PacsServer& server, const std::stri
 
 PacsSeries pacsFindSeriesByUid(const PacsServer& server, const std::string& series_uid) {
   detail::checkPacsServer(server);
-  const fs::path program = networkProcess();
+  const fs::path program = readerProcessPath();  // empty: run here
   if (program.empty()) return detail::pacsFindSeriesByUidInProcess(server, series_uid);
   FieldWriter request;
   addServer(request, server);
@@ -477,7 +471,7 @@ PacsSeries pacsFindSeriesByUid(const PacsServer& server, const std::string& seri
   std::optional<FieldReader> result =
       runNetworkProcess(program, server, "find-series-by-uid", request, "C-FIND", nullptr);
   const std::vector<PacsSeries> series = readResult(server, [&] { return readSeries(*result); });
-  if (series.size() != 1) throw fail(server, "the DICOM network process's result holds no series");
+  if (series.size() != 1) throw pacsError(server, "the DICOM network process's result holds no series");
   return series.front();
 }
 
@@ -485,16 +479,12 @@ PacsRetrieveResult pacsRetrieveSeries(const PacsServer& server, const std::strin
                                       const std::string& series_uid, const fs::path& out_dir,
                                       const PacsRetrieveOptions& options) {
   detail::checkPacsServer(server);
-  const fs::path program = networkProcess();
+  const fs::path program = readerProcessPath();  // empty: run here
   if (program.empty()) return detail::pacsRetrieveSeriesInProcess(server, study_uid, series_uid, out_dir, options);
   const auto t0 = Clock::now();
-  auto trim = [](const std::string& s) {
-    const auto first = s.find_first_not_of(" \t\r\n");
-    return first == std::string::npos ? std::string() : s.substr(first, s.find_last_not_of(" \t\r\n") - first + 1);
-  };
-  std::string study = trim(study_uid);
-  const std::string series = trim(series_uid);
-  if (series.empty()) throw fail(server, "no Series Instance UID given");
+  std::string study = detail::pacsTrim(study_uid);
+  const std::string series = detail::pacsTrim(series_uid);
+  if (series.empty()) throw pacsError(server, "no Series Instance UID given");
   int expected = options.expected_instances;
   if (study.empty() || expected < 0) {  // the lookup in a process of its own, under its own deadline
     const PacsSeries found = pacsFindSeriesByUid(server, series);

@@ -116,10 +116,6 @@ std::string signalName(int sig) {
 
 namespace {
 
-double secondsSince(std::chrono::steady_clock::time_point t) {
-  return std::chrono::duration<double>(std::chrono::steady_clock::now() - t).count();
-}
-
 std::atomic<int> g_output_counter{0};
 
 }  // namespace

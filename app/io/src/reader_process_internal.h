@@ -12,6 +12,7 @@
 
 #include <algorithm>
 #include <atomic>
+#include <chrono>
 #include <exception>
 #include <iostream>
 #include <filesystem>
@@ -71,6 +72,11 @@ int reportingErrors(Read&& read) {
     return 1;
   }
   return 0;
+}
+
+/// Seconds from `t` to now (steady clock).
+inline double secondsSince(std::chrono::steady_clock::time_point t) {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now() - t).count();
 }
 
 /// "SIGSEGV" for SIGSEGV; "signal N" for one without a name.

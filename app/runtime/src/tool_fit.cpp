@@ -136,8 +136,8 @@ std::int64_t percentile(std::vector<std::int64_t> v, double q) {
   return v[k];
 }
 
-/// Judges `tool` at `spacing_m`: its warm-up's full solve (given as `full` when run already), then
-/// the same touch with the work budget beside it.
+/// Judges `tool` at `spacing_m`: its warm-up's full solve `full`, and the same touch run again
+/// with the work budget beside it.
 ToolFitRun judge(const LiveValues& live, const std::shared_ptr<const haptics::ToolModel>& tool, double spacing_m,
                  const Trajectory& traj, const ToolFitOptions& options, int lanes, std::int64_t budget,
                  const FullSolveRun& full) {
@@ -177,7 +177,7 @@ std::string verdict(const ToolFitRun& r, const ToolFit& fit) {
   if (r.fits) {
     char buf[96];
     std::snprintf(buf, sizeof buf, "fits this computer (worst tick %.0f %% of the deadline)",
-                  100.0 * static_cast<double>(r.work_max) / static_cast<double>(std::max<std::int64_t>(1, fit.work_budget)));
+                  100.0 * fit.deadlineShare(r));
     return "felt within " + mm(r.felt_gap_m) + ", " + buf;
   }
   return thousands(r.cut_ticks) + " in " + thousands(r.ticks) + " ticks late, " + mm(r.behind_max_m) +
@@ -311,6 +311,7 @@ std::string ToolFit::toJson() const {
       {"cut_ticks", asked.cut_ticks},
       {"behind_max_m", asked.behind_max_m},
       {"work_max", asked.work_max},
+      {"work_p999", asked.work_p999},
       {"spacing_m", asked.spacing_m},
       {"points", asked.points},
       {"felt_gap_m", asked.felt_gap_m},

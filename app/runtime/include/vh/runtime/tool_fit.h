@@ -100,13 +100,17 @@ struct ToolFit {
   std::vector<ToolFitRun> tried;
 
   bool fits() const noexcept { return asked.fits; }
+  /// The warm-up's heaviest tick of `run` as a share of the deadline (its work over work_budget).
+  double deadlineShare(const ToolFitRun& run) const noexcept {
+    return static_cast<double>(run.work_max) / static_cast<double>(work_budget > 0 ? work_budget : 1);
+  }
   /// One line for people, e.g. "the tool at 0.45 mm spacing (20,000 points): 412 in 1,000
   /// ticks late, 3.1 mm behind on this computer; at 0.90 mm (5,030 points): felt within 0.61 mm,
   /// fits this computer", or "... fits this computer (worst tick 61 % of the deadline)".
   std::string summary() const;
   /// The verdict as a JSON object (the one list of its fields, for the run report, bench table1
   /// and Python): fits, summary, ns_per_work, fixed_us, work_budget, deadline_us, lanes,
-  /// warmup_s, ticks, cut_ticks, behind_max_m, work_max, spacing_m, points, felt_gap_m, and
+  /// warmup_s, ticks, cut_ticks, behind_max_m, work_max, work_p999, spacing_m, points, felt_gap_m, and
   /// suggested_spacing_m, suggested_points, suggested_felt_gap_m (null when none).
   std::string toJson() const;
 };
