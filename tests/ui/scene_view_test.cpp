@@ -93,6 +93,7 @@ TEST(SceneActors, HeavilyReducedInteractiveFramesSampleTheNearestVoxelWithHyster
   // less reduced than the last interactive frames.
   vtkNew<vtkRenderer> renderer;
   SceneActors actors(renderer, sceneActorsSpecFor(sphereProbeScene(), runtime::LiveValues::initial(sphereProbeScene())));
+  actors.setMovingView(MovingView::kRayCast);  // the ray cast's own controller, whatever its reduction
   EXPECT_FALSE(actors.nearestSampling()) << "a still frame";
   actors.setInteractive(true);
   actors.adaptQuality(400.0, 40.0);  // reduction 10
@@ -131,12 +132,13 @@ struct QualityWindow {
     window->SetSize(400, 300);
   }
 };
-/// The quality controller alone, in that window, on the built-in sphere (1 mm voxels), with a
-/// 40 ms interactive target.
+/// The ray cast's quality controller alone (moving frames always ray cast), in that window, on
+/// the built-in sphere (1 mm voxels), with a 40 ms interactive target.
 struct QualityController : QualityWindow {
   static constexpr double kSpacing_m = 1e-3;
   SceneActors actors{renderer,
                      sceneActorsSpecFor(sphereProbeScene(), runtime::LiveValues::initial(sphereProbeScene()))};
+  QualityController() { actors.setMovingView(MovingView::kRayCast); }
   /// The interactive work's reduction now: image sample distance^2 x sample distance [voxels].
   double workReduction() const {
     const double px = actors.imageSampleDistance_px();
@@ -212,6 +214,171 @@ TEST(SceneActors, AFastViewKeepsFullQualityWhileItsRaysFit) {
   q.actors.setRenderMode(RenderMode::kComposite);
   q.resume(60.0);
   EXPECT_DOUBLE_EQ(q.actors.imageSampleDistance_px(), 8.0);
+}
+
+TEST(SceneActors, AutoMovingViewDrawsTheSurfaceMeshWhereTheRayCastWouldBeCoarse) {
+  const SceneActorsSpec spec = sceneActorsSpecFor(sphereProbeScene(), runtime::LiveValues::initial(sphereProbeScene()));
+  {
+    // As on a GPU: a still frame inside the interactive target. The moving frames are the ray
+    // cast, and no mesh is ever made.
+    QualityWindow w;
+    SceneActors actors(w.renderer, spec);
+    actors.adaptQuality(20.0, 40.0);
+    actors.setInteractive(true);
+    EXPECT_FALSE(actors.surfaceMeshShown());
+    EXPECT_EQ(actors.surfaceMeshActor(), nullptr) << "made though no frame needed it";
+    EXPECT_TRUE(actors.volume()->GetVisibility());
+  }
+  // As on a software renderer: a still frame 5 x the target, so the first motion's ray cast
+  // would cast rays 8 px apart: the moving frames draw the mesh instead, the volume hidden.
+  QualityWindow w;
+  SceneActors actors(w.renderer, spec);
+  const auto resume = [&](double still_ms) {
+    actors.setInteractive(false);
+    actors.adaptQuality(still_ms, 40.0);
+    actors.setInteractive(true);
+  };
+  resume(200.0);
+  ASSERT_TRUE(actors.surfaceMeshShown());
+  ASSERT_NE(actors.surfaceMeshActor(), nullptr);
+  EXPECT_TRUE(actors.surfaceMeshActor()->GetVisibility());
+  EXPECT_FALSE(actors.volume()->GetVisibility());
+  EXPECT_GT(actors.surfaceMeshTriangles(), 1000u);
+  EXPECT_EQ(actors.surfaceMeshFactor(), 1) << "64^3 voxels need no averaging";
+  // Fast mesh frames say nothing about the ray cast: the motion keeps the mesh, the ray cast's
+  // sampling stays where it was.
+  const double px = actors.imageSampleDistance_px();
+  for (int i = 0; i < 6; ++i) actors.adaptQuality(10.0, 40.0);
+  EXPECT_TRUE(actors.surfaceMeshShown()) << "the mesh and the ray cast alternated within one motion";
+  EXPECT_DOUBLE_EQ(actors.imageSampleDistance_px(), px);
+  // Mesh frames over twice the target, three in a row: a coarser mesh.
+  const std::size_t triangles = actors.surfaceMeshTriangles();
+  actors.adaptQuality(100.0, 40.0);
+  actors.adaptQuality(100.0, 40.0);
+  actors.adaptQuality(10.0, 40.0);  // the run broken
+  actors.adaptQuality(100.0, 40.0);
+  actors.adaptQuality(100.0, 40.0);
+  EXPECT_EQ(actors.surfaceMeshFactor(), 1) << "two late frames in a row";
+  actors.adaptQuality(100.0, 40.0);
+  EXPECT_EQ(actors.surfaceMeshFactor(), 2);
+  EXPECT_LT(actors.surfaceMeshTriangles(), triangles * 2 / 3);
+  // The still frame is the ray cast.
+  actors.setInteractive(false);
+  EXPECT_FALSE(actors.surfaceMeshShown());
+  EXPECT_TRUE(actors.volume()->GetVisibility());
+  EXPECT_FALSE(actors.surfaceMeshActor()->GetVisibility());
+  // The composite and MIP are not the felt surface: ray cast, however coarse.
+  for (const RenderMode mode : {RenderMode::kComposite, RenderMode::kMip}) {
+    actors.setRenderMode(mode);
+    resume(200.0);
+    EXPECT_FALSE(actors.surfaceMeshShown()) << modeName(mode);
+    EXPECT_TRUE(actors.volume()->GetVisibility()) << modeName(mode);
+  }
+  actors.setRenderMode(RenderMode::kIsosurface);
+  resume(200.0);
+  EXPECT_TRUE(actors.surfaceMeshShown());
+  actors.setRenderMode(RenderMode::kComposite);  // within the motion
+  EXPECT_FALSE(actors.surfaceMeshShown());
+  EXPECT_TRUE(actors.volume()->GetVisibility());
+  actors.setRenderMode(RenderMode::kIsosurface);
+  // A replay's capped frames stay the ray cast; so does a view told to ray cast.
+  actors.setInteractiveImageSampleCap_px(2.0);
+  resume(200.0);
+  EXPECT_FALSE(actors.surfaceMeshShown()) << "a replay";
+  actors.setInteractiveImageSampleCap_px(std::numeric_limits<double>::infinity());
+  actors.setMovingView(MovingView::kRayCast);
+  resume(200.0);
+  EXPECT_FALSE(actors.surfaceMeshShown()) << "MovingView::kRayCast";
+  actors.setMovingView(MovingView::kSurfaceMesh);
+  resume(20.0);
+  EXPECT_TRUE(actors.surfaceMeshShown()) << "MovingView::kSurfaceMesh, after a fast still frame";
+}
+
+TEST(SceneActors, TheSurfaceMeshLiesOnTheAnalyticSphereInTheWorldFrameAndOpensWhereVoxelsAreRemoved) {
+  // Oracle: an analytic ball, F = R - |x - c| [mm] on a 140^3 grid of 1 mm voxels (2.7 million:
+  // the mesh averages blocks of 2^3), isovalue 0, in an image turned by a direction matrix; its
+  // surface in W is the sphere of radius R about o + D (c - o). Then a box of voxels across its
+  // +x pole is removed (as the drill does): no triangle may remain inside the box, and the cavity's
+  // floor appears.
+  constexpr int n = 140;
+  constexpr double R_mm = 30.0;
+  const Eigen::Vector3d c_idx(70.3, 68.8, 71.1);
+  auto image = vtkSmartPointer<vtkImageData>::New();
+  image->SetDimensions(n, n, n);
+  image->SetSpacing(1e-3, 1e-3, 1e-3);
+  image->SetOrigin(0.010, -0.020, 0.005);
+  image->AllocateScalars(VTK_FLOAT, 1);
+  auto* voxels = static_cast<float*>(image->GetScalarPointer());
+  for (int k = 0; k < n; ++k)
+    for (int j = 0; j < n; ++j)
+      for (int i = 0; i < n; ++i)
+        voxels[i + n * (j + n * k)] = static_cast<float>(R_mm - (Eigen::Vector3d(i, j, k) - c_idx).norm());
+  SceneActorsSpec spec = sceneActorsSpecFor(sphereProbeScene(), runtime::LiveValues::initial(sphereProbeScene()));
+  spec.image = image;
+  spec.isovalue = 0.0;
+  spec.direction_W = Eigen::AngleAxisd(0.5, Eigen::Vector3d(1.0, 1.0, 0.3).normalized()).toRotationMatrix();
+  const Eigen::Vector3d o(0.010, -0.020, 0.005);
+  const Eigen::Vector3d c_W = o + spec.direction_W * (1e-3 * c_idx);  // p_image = o + index * spacing
+
+  QualityWindow w;
+  SceneActors actors(w.renderer, spec);
+  actors.setMovingView(MovingView::kSurfaceMesh);
+  actors.setInteractive(true);
+  ASSERT_TRUE(actors.surfaceMeshShown());
+  EXPECT_EQ(actors.surfaceMeshFactor(), 2);
+  vtkActor* mesh = actors.surfaceMeshActor();
+  // The mesh's vertices in W (its actor's matrix: the volume's) and in the image's index space.
+  const auto vertices = [&](std::vector<Eigen::Vector3d>& p_W, std::vector<Eigen::Vector3d>& idx) {
+    p_W.clear();
+    idx.clear();
+    vtkPolyData* poly = vtkPolyData::SafeDownCast(mesh->GetMapper()->GetInput());
+    ASSERT_NE(poly, nullptr);
+    vtkMatrix4x4* m = mesh->GetUserMatrix();
+    ASSERT_EQ(m, actors.volume()->GetUserMatrix()) << "the mesh is placed as the volume is";
+    for (vtkIdType v = 0; v < poly->GetNumberOfPoints(); ++v) {
+      double p[4] = {0.0, 0.0, 0.0, 1.0}, q[4];
+      poly->GetPoint(v, p);
+      idx.push_back((Eigen::Vector3d(p[0], p[1], p[2]) - o) / 1e-3);
+      m->MultiplyPoint(p, q);
+      p_W.emplace_back(q[0], q[1], q[2]);
+    }
+  };
+  std::vector<Eigen::Vector3d> p_W, idx;
+  vertices(p_W, idx);
+  ASSERT_GT(p_W.size(), 1000u);
+  // Within a tenth of a voxel everywhere: the averaged blocks placed at their own voxels rather
+  // than at their centres would put the sphere half a voxel off along each image axis (0.87 mm).
+  double worst_mm = 0.0;
+  for (const Eigen::Vector3d& p : p_W) worst_mm = std::max(worst_mm, std::abs(1e3 * (p - c_W).norm() - R_mm));
+  std::cout << "surface mesh on the ball: " << p_W.size() << " vertices, worst radial error " << worst_mm << " mm\n";
+  EXPECT_LT(worst_mm, 0.1);
+
+  // The box across the +x pole: i in [c + 20, c + 35], j and k within 8 voxels of the centre.
+  const int i0 = static_cast<int>(c_idx.x()) + 20, i1 = i0 + 15;
+  const int j0 = static_cast<int>(c_idx.y()) - 8, j1 = j0 + 16, k0 = static_cast<int>(c_idx.z()) - 8, k1 = k0 + 16;
+  const auto deepInBox = [&](const Eigen::Vector3d& q) {  // inside by more than a coarse voxel
+    return q.x() > i0 + 2 && q.x() < i1 - 2 && q.y() > j0 + 2 && q.y() < j1 - 2 && q.z() > k0 + 2 && q.z() < k1 - 2;
+  };
+  ASSERT_GT(std::count_if(idx.begin(), idx.end(), deepInBox), 0) << "the pole lies in the box before the removal";
+  std::vector<std::uint64_t> removed;
+  for (int k = k0; k <= k1; ++k)
+    for (int j = j0; j <= j1; ++j)
+      for (int i = i0; i <= i1; ++i) removed.push_back(static_cast<std::uint64_t>(i + n * (j + n * k)));
+  actors.removeVoxels(removed, actors.removedValue());
+  actors.setInteractive(false);  // the next motion brings the mesh up to date
+  actors.setInteractive(true);
+  vertices(p_W, idx);
+  EXPECT_EQ(std::count_if(idx.begin(), idx.end(), deepInBox), 0) << "triangles left inside the removed voxels";
+  const auto onFloor = [&](const Eigen::Vector3d& q) {  // the cavity's floor, between voxels i0 - 1 and i0
+    return std::abs(q.x() - (i0 - 0.5)) < 2.0 && std::abs(q.y() - c_idx.y()) < 4.0 && std::abs(q.z() - c_idx.z()) < 4.0;
+  };
+  EXPECT_GT(std::count_if(idx.begin(), idx.end(), onFloor), 0) << "no floor where the removal stopped";
+
+  // The clipping plane applies to the mesh as to the volume.
+  actors.setClipPlane(true, c_W, Eigen::Vector3d::UnitZ());
+  EXPECT_EQ(mesh->GetMapper()->GetClippingPlanes()->GetNumberOfItems(), 1);
+  actors.setClipPlane(false);
+  EXPECT_EQ(mesh->GetMapper()->GetClippingPlanes()->GetNumberOfItems(), 0);
 }
 
 TEST(SceneView, InteractiveRendersAimAtThePeriodLessTheGuisTimeBetweenFrames) {

@@ -131,6 +131,7 @@ struct Phase {
 /// image sample distance it was cast at [px].
 struct FrameParts {
   std::vector<double> paint_ms, swap_ms, shadow_ms, image_sample_px;
+  std::size_t surface_mesh_frames = 0;  // frames that drew the surface mesh, not the ray cast
 };
 
 struct Bench {
@@ -206,6 +207,7 @@ struct Bench {
     parts.shadow_ms.push_back(msSince(shadow_t0) + carve_ms);
     parts.image_sample_px.push_back(view->actors().imageSampleDistance_px());  // what this frame casts
     view->widget()->renderNow();
+    if (view->actors().surfaceMeshShown()) ++parts.surface_mesh_frames;
     parts.paint_ms.push_back(view->widget()->lastFrameMs());
     parts.swap_ms.push_back(view->widget()->lastSwapMs());
     QCoreApplication::processEvents();
@@ -284,14 +286,37 @@ fs::path renderBenchScan(const RenderBenchOptions& o, bool short_run) {
   return volume;
 }
 
-/// One row: the view at `size` in `mode` (drilling: the burr on) for `row_s` seconds of frames,
-/// then its still frame and as long without rendering; its picture into `picture_dir` (empty:
-/// none). `scan_voxel_m`: the scan's smallest spacing [m].
-nlohmann::ordered_json renderRow(Bench& b, runtime::HapticThread& thread, RenderMode mode, bool drilling,
+/// What a row draws: the render mode, the burr on or off, and what its moving frames draw.
+struct RowKind {
+  RenderMode mode = RenderMode::kIsosurface;
+  bool drilling = false;
+  MovingView moving = MovingView::kAuto;
+};
+
+/// The row's name in the report: "isosurface", "composite", "mip", "drilling".
+std::string rowName(const RowKind& kind) { return kind.drilling ? std::string("drilling") : rowName(kind.mode); }
+
+/// What a row's moving frames drew, for its table: "mesh" (the surface mesh in all of them),
+/// "ray cast", or "mesh N/M" when only N of its M frames did.
+std::string movingPicture(const nlohmann::ordered_json& row) {
+  const auto mesh = row["surface_mesh_frames"].get<std::size_t>(), frames = row["frames"].get<std::size_t>();
+  if (mesh == 0) return "ray cast";
+  if (mesh == frames) return "mesh";
+  return bench::format("mesh %zu/%zu", mesh, frames);
+}
+
+/// One row: the view at `size` in `kind`'s mode for `row_s` seconds of frames, then its still
+/// frame and as long without rendering; its picture into `picture_dir` (empty: none).
+/// `scan_voxel_m`: the scan's smallest spacing [m].
+nlohmann::ordered_json renderRow(Bench& b, runtime::HapticThread& thread, const RowKind& kind,
                                  const std::array<int, 2>& size, const ViewLook& look, double row_s,
                                  const fs::path& picture_dir, const GlInfo& gl, double scan_voxel_m) {
   using namespace bench;
+  const RenderMode mode = kind.mode;
+  const bool drilling = kind.drilling;
+  const bool ray_cast = kind.moving == MovingView::kRayCast;
   b.resizeView(size[0], size[1]);
+  b.view->actors().setMovingView(kind.moving);
   b.view->setRenderMode(mode, look.preset);
   b.view->resetCamera();
   auto t0 = Clock::now();
@@ -318,7 +343,7 @@ nlohmann::ordered_json renderRow(Bench& b, runtime::HapticThread& thread, Render
   // What the eyes got meanwhile: one more frame at the row's last interactive sampling.
   std::string picture;
   if (!picture_dir.empty()) {
-    picture = format("interactive-%s-%dx%d.png", drilling ? "drilling" : rowName(mode).c_str(),
+    picture = format("interactive-%s%s-%dx%d.png", rowName(kind).c_str(), ray_cast ? "-ray-cast" : "",
                      b.view->widget()->width(), b.view->widget()->height());
     if (!b.view->widget()->grabFrame().save(QString::fromStdString((picture_dir / picture).string()), "PNG"))
       picture.clear();
@@ -340,7 +365,13 @@ nlohmann::ordered_json renderRow(Bench& b, runtime::HapticThread& thread, Render
 
   const Stats s = summarize(frames);
   nlohmann::ordered_json row;
-  row["mode"] = drilling ? std::string("drilling") : rowName(mode);
+  row["mode"] = rowName(kind);
+  // What the moving frames were asked to draw ("auto": the view's own choice, as in the window;
+  // "ray cast": the ray cast whatever its cost, the comparison row), and what they drew.
+  row["moving_view"] = ray_cast ? "ray cast" : "auto";
+  row["surface_mesh_frames"] = parts.surface_mesh_frames;
+  row["surface_mesh_triangles"] = b.view->actors().surfaceMeshTriangles();
+  row["surface_mesh_factor"] = b.view->actors().surfaceMeshFactor();
   row["width"] = b.view->widget()->width();
   row["height"] = b.view->widget()->height();
   row["frames"] = frames.size();
@@ -376,10 +407,11 @@ nlohmann::ordered_json renderRow(Bench& b, runtime::HapticThread& thread, Render
   row["contacts"] = b.snapshot.contacts;  // the haptic threads' last snapshot of the row
   row["force_N"] = b.snapshot.force_W_N.norm();
   row["renderer"] = gl.renderer;
-  std::cout << format("bench render: %-10s %4d x %4d  %6.1f fps  mean %6.1f  p99 %6.1f  max %6.1f ms"
+  b.view->actors().setMovingView(MovingView::kAuto);
+  std::cout << format("bench render: %-10s %-9s %4d x %4d  %6.1f fps  mean %6.1f  p99 %6.1f  max %6.1f ms"
                       "  (render %4.1f, swap %4.1f)  still %6.0f ms  (shadow %4.1f / %4.1f ms)",
-                      row["mode"].get<std::string>().c_str(), row["width"].get<int>(), row["height"].get<int>(),
-                      row["fps_mean"].get<double>(), s.mean, s.p99, s.max, row["paint_ms_mean"].get<double>(),
+                      row["mode"].get<std::string>().c_str(), movingPicture(row).c_str(), row["width"].get<int>(),
+                      row["height"].get<int>(), row["fps_mean"].get<double>(), s.mean, s.p99, s.max, row["paint_ms_mean"].get<double>(),
                       row["swap_ms_mean"].get<double>(), still_ms, shadow.mean, shadow.max)
             << std::endl;
   return row;
@@ -429,14 +461,19 @@ void writeRenderReport(const fs::path& out, nlohmann::ordered_json& report, cons
      << format("%.1f before, %.1f after", report["load_average_before"].get<double>(),
                report["load_average_after"].get<double>())
      << "); " << format("%.1f s per row, the haptic threads at 1 kHz throughout.\n\n", row_s)
-     << "| mode | window | fps | mean [ms] | p99 [ms] | max [ms] | render / swap mean [ms] | still frame [ms] | tool shadow mean / max [ms] |\n"
-     << "|---|---|---|---|---|---|---|---|---|\n";
-  for (const auto& r : rows)
-    md << format("| %s | %d x %d | %.1f | %.1f | %.1f | %.1f | %.1f / %.1f | %.0f | %.2f / %.2f |\n",
-                 r["mode"].get<std::string>().c_str(), r["width"].get<int>(), r["height"].get<int>(),
+     << "| mode | moving frames | window | fps | mean [ms] | p99 [ms] | max [ms] | render / swap mean [ms] | still frame [ms] | tool shadow mean / max [ms] |\n"
+     << "|---|---|---|---|---|---|---|---|---|---|\n";
+  for (const auto& r : rows) {
+    std::string moving = movingPicture(r);
+    if (r["surface_mesh_triangles"].get<std::size_t>() > 0 && r["surface_mesh_frames"].get<std::size_t>() > 0)
+      moving += format(" (%zu k triangles, f %d)", r["surface_mesh_triangles"].get<std::size_t>() / 1000,
+                       r["surface_mesh_factor"].get<int>());
+    md << format("| %s | %s | %d x %d | %.1f | %.1f | %.1f | %.1f | %.1f / %.1f | %.0f | %.2f / %.2f |\n",
+                 r["mode"].get<std::string>().c_str(), moving.c_str(), r["width"].get<int>(), r["height"].get<int>(),
                  r["fps_mean"].get<double>(), r["frame_ms_mean"].get<double>(), r["frame_ms_p99"].get<double>(),
                  r["frame_ms_max"].get<double>(), r["paint_ms_mean"].get<double>(), r["swap_ms_mean"].get<double>(),
                  r["still_frame_ms"].get<double>(), r["shadow_ms_mean"].get<double>(), r["shadow_ms_max"].get<double>());
+  }
   const auto& st = report["servo"]["solver_tick_us"];
   md << "\n| haptic threads | solver p99 [us] | solver p99.9 [us] | solver max [us] | coupling max [us] | deadline misses |\n"
      << "|---|---|---|---|---|---|\n";
@@ -469,9 +506,12 @@ fs::path runRenderBench(const RenderBenchOptions& o) {
   live.segments = sphereSegment(*scene.volume.field);
 
   // The rows, each followed by as long without rendering; the trajectory outlasts them all.
-  std::vector<std::pair<RenderMode, bool>> kinds = {
-      {RenderMode::kIsosurface, false}, {RenderMode::kComposite, false}, {RenderMode::kMip, false}};
+  // The isosurface's rows again with the moving frames ray cast whatever their cost: what the
+  // view's automatic choice (a surface mesh on a software renderer) is measured against.
+  std::vector<RowKind> kinds = {{RenderMode::kIsosurface}, {RenderMode::kComposite}, {RenderMode::kMip}};
   if (o.drilling) kinds.push_back({RenderMode::kIsosurface, true});
+  kinds.push_back({RenderMode::kIsosurface, false, MovingView::kRayCast});
+  if (o.drilling) kinds.push_back({RenderMode::kIsosurface, true, MovingView::kRayCast});
   const double planned_s = static_cast<double>(o.sizes.size() * kinds.size()) * (2.0 * row_s + 10.0) + 60.0;
   auto device = std::make_shared<runtime::ScriptedDevice>(pressAndCircle(scene, planned_s), 1.0 / kServoRate_Hz,
                                                           "bench render");
@@ -525,8 +565,8 @@ fs::path runRenderBench(const RenderBenchOptions& o) {
     b.idle(1.5);  // the device reaches the surface
     b.phases.clear();
     for (const auto& size : o.sizes) {
-      for (const auto& [mode, drilling] : kinds) {
-        rows.push_back(renderRow(b, *thread, mode, drilling, size, look, row_s, o.common.plots ? out : fs::path(), gl,
+      for (const RowKind& kind : kinds) {
+        rows.push_back(renderRow(b, *thread, kind, size, look, row_s, o.common.plots ? out : fs::path(), gl,
                                  scene.volume.field->geometry().spacing_m.minCoeff()));
       }
     }

@@ -1,6 +1,7 @@
 #include "vh/ui/view/scene_actors.h"
 
 #include "drillable_volume_mapper.h"
+#include "isosurface_mesh.h"
 
 #include <algorithm>
 #include <array>
@@ -13,6 +14,7 @@
 #include <vtkCellArray.h>
 #include <vtkDelaunay2D.h>
 #include <vtkColorTransferFunction.h>
+#include <vtkCommand.h>
 #include <vtkContourValues.h>
 #include <vtkGPUVolumeRayCastMapper.h>
 #include <vtkImageData.h>
@@ -102,6 +104,7 @@ SceneActors::SceneActors(vtkRenderer* renderer, const SceneActorsSpec& spec) : r
   buildVolume(spec);
   buildTools(spec);
   buildOverlay(spec);
+  render_observer_ = renderer_->AddObserver(vtkCommand::StartEvent, this, &SceneActors::beforeRender);
 }
 
 void SceneActors::prepareRemoval() {
@@ -110,6 +113,7 @@ void SceneActors::prepareRemoval() {
   drilled_image_->DeepCopy(image_);
   volume_mapper_->SetInputData(drilled_image_);  // one whole upload, on the next frame
   drillable_->clearPending();
+  if (mesh_ != nullptr) mesh_->setImage(drilled_image_, /*same_values=*/true);
 }
 
 void SceneActors::removeVoxels(std::span<const std::uint64_t> indices, double value) {
@@ -130,7 +134,10 @@ void SceneActors::removeVoxels(std::span<const std::uint64_t> indices, double va
       hi[a] = std::max(hi[a], ijk[a]);
     }
   }
-  if (lo[0] <= hi[0]) drillable_->markChanged(lo, hi);
+  if (lo[0] <= hi[0]) {
+    drillable_->markChanged(lo, hi);
+    if (mesh_ != nullptr) mesh_->markChanged(lo, hi);
+  }
 }
 
 bool SceneActors::showVoxelBox(const std::array<int, 3>& lo, const std::array<int, 3>& hi,
@@ -163,6 +170,7 @@ bool SceneActors::showVoxelBox(const std::array<int, 3>& lo, const std::array<in
         for (int i = box_lo_[0]; i <= box_hi_[0]; ++i)
           if (empty || !inBox(i, j, k, lo, hi)) shown->SetComponent(id(i, j, k), 0, rest->GetComponent(id(i, j, k), 0));
     drillable_->markChanged(box_lo_.data(), box_hi_.data());
+    if (mesh_ != nullptr) mesh_->markChanged(box_lo_.data(), box_hi_.data());
   }
   if (!empty) {
     std::size_t at = 0;
@@ -173,6 +181,7 @@ bool SceneActors::showVoxelBox(const std::array<int, 3>& lo, const std::array<in
           shown->SetComponent(id(i, j, k), 0, integral ? std::round(v) : v);  // an integer scan: nearest
         }
     drillable_->markChanged(lo.data(), hi.data());
+    if (mesh_ != nullptr) mesh_->markChanged(lo.data(), hi.data());
   }
   box_lo_ = lo;
   box_hi_ = empty ? std::array<int, 3>{-1, -1, -1} : hi;
@@ -187,6 +196,7 @@ void SceneActors::restoreVolume() {
   drilled_image_ = nullptr;
   drillable_->clearPending();
   volume_mapper_->SetInputData(image_);
+  if (mesh_ != nullptr) mesh_->setImage(image_, /*same_values=*/false);
 }
 
 vtkImageData* SceneActors::shownImage() const noexcept {
@@ -406,6 +416,8 @@ void SceneActors::buildOverlay(const SceneActorsSpec& spec) {
 }
 
 SceneActors::~SceneActors() {
+  renderer_->RemoveObserver(render_observer_);
+  if (mesh_ != nullptr) renderer_->RemoveActor(mesh_->actor());
   renderer_->RemoveVolume(volume_);
   renderer_->RemoveActor(proxy_actor_);
   renderer_->RemoveActor(device_actor_);
@@ -448,6 +460,9 @@ void SceneActors::applyLook() {
   // be a metre and make every composite rendering nearly transparent).
   volume_property_->SetScalarOpacityUnitDistance(look.opacity_unit_distance_voxels * min_spacing_m_);
   volume_property_->Modified();
+  if (mesh_ != nullptr && mode_ == RenderMode::kIsosurface)
+    mesh_->setLook(surface_rgb_, look.ambient, look.diffuse, look.specular, look.specular_power);
+  applyMovingView();
 }
 
 void SceneActors::setRenderMode(RenderMode mode, VolumePreset preset) {
@@ -485,6 +500,7 @@ void SceneActors::setToolMesh(const haptics::TriangleMesh& mesh_T, const Eigen::
 void SceneActors::setClipPlane(bool enabled, const Eigen::Vector3d& p_W_origin_m, const Eigen::Vector3d& n_W) {
   clipping_ = enabled && p_W_origin_m.allFinite() && n_W.norm() > 0.0;
   volume_mapper_->RemoveAllClippingPlanes();
+  if (mesh_ != nullptr) mesh_->setClipPlane(nullptr);
   if (!clipping_) return;
   // The GPU ray caster takes clipping planes in world coordinates (it applies the prop's user
   // matrix itself; VTK's TestGPURayCastClippingUserTransform).
@@ -492,6 +508,7 @@ void SceneActors::setClipPlane(bool enabled, const Eigen::Vector3d& p_W_origin_m
   clip_plane_->SetOrigin(p_W_origin_m.x(), p_W_origin_m.y(), p_W_origin_m.z());
   clip_plane_->SetNormal(n.x(), n.y(), n.z());
   volume_mapper_->AddClippingPlane(clip_plane_);
+  if (mesh_ != nullptr) mesh_->setClipPlane(clip_plane_);
 }
 
 void SceneActors::setHint(const std::string& hint) {
@@ -504,6 +521,7 @@ void SceneActors::volumeBounds_W(double bounds[6]) const { volume_->GetBounds(bo
 void SceneActors::setIsovalue(double isovalue) {
   volume_property_->GetIsoSurfaceValues()->SetValue(0, isovalue);
   volume_property_->Modified();
+  if (mesh_ != nullptr) mesh_->setIsovalue(isovalue);
 }
 
 double SceneActors::isovalue() const {
@@ -532,6 +550,13 @@ constexpr double kMaxReduction = kMaxImageSample * kMaxImageSample * kMaxSampleV
 // nearest sampling saves on llvmpipe, so neither choice makes the controller switch back.
 constexpr double kNearestAboveReduction = 16.0;
 constexpr double kLinearBelowReduction = 4.0;
+// MovingView::kAuto draws the surface mesh above this reduction: rays more than kFirstImageSample
+// pixels apart, with samples already kMaxSampleVoxels apart along them.
+constexpr double kMeshAboveReduction = kFirstImageSample * kFirstImageSample * kMaxSampleVoxels;
+// The mesh's frames are late over this many times the interactive target (30 ms: under about 16
+// frames a second): three in a row make the mesh coarser.
+constexpr double kMeshLateRatio = 2.0;
+constexpr int kMeshLateFrames = 3;
 
 /// The ray sample distance [voxels] and image sample distance [px] of the reduction `r`: the
 /// work of a frame falls as 1 / (samples apart x pixels apart^2).
@@ -567,7 +592,45 @@ void SceneActors::applyQuality() {
         static_cast<float>(kStillSampleVoxels[still_level_] * min_spacing_m_));
     volume_mapper_->SetImageSampleDistance(static_cast<float>(kStillImageSample[still_level_]));
   }
+  applyMovingView();
 }
+
+void SceneActors::applyMovingView() {
+  // A replay's capped frames (setInteractiveImageSampleCap_px()) stay the ray cast: the voxels
+  // as they were drilled, not a mesh of their block averages.
+  bool want = interactive_ && mode_ == RenderMode::kIsosurface && !std::isfinite(interactive_cap_px_) &&
+              (moving_view_ == MovingView::kSurfaceMesh ||
+               (moving_view_ == MovingView::kAuto && interactive_reduction_ > kMeshAboveReduction));
+  if (want && !mesh_shown_) {
+    if (mesh_ == nullptr) {
+      mesh_ = std::make_unique<IsosurfaceMesh>(shownImage(), volume_->GetUserMatrix());
+      mesh_->setIsovalue(isovalue());
+      const VolumeLook look = isosurfaceLook(range_[0], range_[1], surface_rgb_[0], surface_rgb_[1], surface_rgb_[2]);
+      mesh_->setLook(surface_rgb_, look.ambient, look.diffuse, look.specular, look.specular_power);
+      mesh_->setClipPlane(clipping_ ? clip_plane_.GetPointer() : nullptr);
+      renderer_->AddActor(mesh_->actor());
+    }
+    late_mesh_frames_ = 0;
+    want = mesh_->drawable() && mesh_->update(/*force=*/true);
+  }
+  if (want == mesh_shown_) return;
+  mesh_shown_ = want;
+  mesh_->actor()->SetVisibility(want);
+  volume_->SetVisibility(!want);
+}
+
+void SceneActors::beforeRender() {
+  if (mesh_shown_) mesh_->update(/*force=*/false);
+}
+
+void SceneActors::setMovingView(MovingView view) {
+  moving_view_ = view;
+  applyMovingView();
+}
+
+std::size_t SceneActors::surfaceMeshTriangles() const noexcept { return mesh_ != nullptr ? mesh_->triangles() : 0; }
+int SceneActors::surfaceMeshFactor() const noexcept { return mesh_ != nullptr ? mesh_->factor() : 0; }
+vtkActor* SceneActors::surfaceMeshActor() const noexcept { return mesh_ != nullptr ? mesh_->actor() : nullptr; }
 
 void SceneActors::setInteractive(bool interactive) {
   if (interactive != interactive_) {
@@ -597,6 +660,16 @@ void SceneActors::adaptQuality(double last_frame_ms, double interactive_target_m
     return;
   }
   const double ratio = last_frame_ms / interactive_target_ms;
+  if (interactive_ && mesh_shown_) {
+    // The mesh's frame: nothing about the ray cast's cost. A mesh too heavy for this renderer
+    // gets coarser (f + 1: about 0.7 times the triangles).
+    late_mesh_frames_ = ratio > kMeshLateRatio ? late_mesh_frames_ + 1 : 0;
+    if (late_mesh_frames_ >= kMeshLateFrames) {
+      late_mesh_frames_ = 0;
+      if (mesh_->coarsen()) mesh_->update(/*force=*/true);
+    }
+    return;
+  }
   if (interactive_) {
     // Late: at once to what meets the target (the next frame must not be late too); early:
     // halfway (geometrically), so the picture does not flicker between settings.

@@ -1,7 +1,8 @@
 #pragma once
 /// @file
-/// The VTK side of the main view (no Qt): the volume's isosurface (GPU ray casting), the proxy
-/// and device tools, contact points, the force arrow and the on-screen hint. The main window
+/// The VTK side of the main view (no Qt): the volume's isosurface (GPU ray casting; a surface
+/// mesh for moving frames on a software renderer), the proxy and device tools, contact points,
+/// the force arrow and the on-screen hint. The main window
 /// edits the scene only through this class; it never touches the mapper directly.
 ///
 /// Frames: everything is drawn in the world frame W [m]. The vtkImageData has spacing and origin
@@ -9,8 +10,10 @@
 /// origin o: p_W = o + D (p_image - o).
 
 #include <array>
+#include <cstddef>
 #include <functional>
 #include <limits>
+#include <memory>
 #include <span>
 #include <string>
 #include <vector>
@@ -42,6 +45,18 @@ class vtkVolumeProperty;
 namespace vh::ui {
 
 class DrillableVolumeMapper;  // src/view/drillable_volume_mapper.h
+class IsosurfaceMesh;         // src/view/isosurface_mesh.h
+
+/// What the moving frames of the isosurface mode draw (still frames are always the ray cast).
+enum class MovingView {
+  /// The surface mesh where the ray cast would have to cast rays more than 3 px apart (at 3
+  /// voxels between samples) to keep to the frame time: a software renderer (Mesa's llvmpipe in
+  /// a virtual desktop or an office PC), whose coarse ray cast is blocks of up to 8 px; the ray
+  /// cast everywhere else (a GPU: unchanged).
+  kAuto,
+  kRayCast,      ///< Always the ray cast, however coarse.
+  kSurfaceMesh,  ///< Always the surface mesh.
+};
 
 /// Inputs of the scene's props.
 struct SceneActorsSpec {
@@ -182,6 +197,25 @@ class SceneActors {
   void adaptQuality(double last_frame_ms, double interactive_target_ms = 40.0);
   /// Back to the best still quality (half-voxel samples, every pixel).
   void resetQuality();
+  /// What the isosurface mode's moving frames draw (default kAuto). The surface mesh is the
+  /// felt isosurface of the shown image (drilled cavity and soft tissue included) triangulated by
+  /// flying edges over a copy averaged in blocks of f^3 voxels (at most 1.2 million of them; f
+  /// grows by one when the mesh's frames take over twice the interactive target, i.e. under
+  /// about 16 frames/s), rebuilt when the isovalue or the image changes, at most every 120 ms
+  /// while it keeps changing; it is made the first time a moving frame needs it (a scene on a GPU
+  /// never makes one). Once a motion shows the mesh, its frames leave the ray cast's sampling as
+  /// it was (they do not measure it): the next motion decides again. Frames capped by
+  /// setInteractiveImageSampleCap_px() (a replay) are always the ray cast.
+  void setMovingView(MovingView view);
+  MovingView movingView() const noexcept { return moving_view_; }
+  /// Whether the frame drawn now shows the surface mesh (the ray-cast volume hidden).
+  bool surfaceMeshShown() const noexcept { return mesh_shown_; }
+  /// The surface mesh's triangles and block edge f [voxels]; 0 and 0 before it was made.
+  std::size_t surfaceMeshTriangles() const noexcept;
+  int surfaceMeshFactor() const noexcept;
+  /// The mesh's actor (nullptr before it was made).
+  vtkActor* surfaceMeshActor() const noexcept;
+
   /// Ray sample distance [m] and image sample distance [px] now in use.
   double sampleDistance_m() const;
   double imageSampleDistance_px() const;
@@ -251,6 +285,15 @@ class SceneActors {
   double arrow_reference_m_ = 0.01;
   void applyQuality();
   void applyLook();
+  /// Shows the surface mesh or the ray-cast volume, as the moving view and the motion ask.
+  void applyMovingView();
+  /// Before each render: the shown mesh brought up to date (throttled).
+  void beforeRender();
+  std::unique_ptr<IsosurfaceMesh> mesh_;  // made on first need
+  MovingView moving_view_ = MovingView::kAuto;
+  bool mesh_shown_ = false;
+  int late_mesh_frames_ = 0;
+  unsigned long render_observer_ = 0;
   RenderMode mode_ = RenderMode::kIsosurface;
   VolumePreset preset_ = VolumePreset::kBone;
   bool hounsfield_ = false;

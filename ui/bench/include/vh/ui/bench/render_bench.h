@@ -15,8 +15,13 @@
 /// once into the build tree from the shared Philips head phantom (bench::bigScanSeries()); the
 /// short run uses the shared small CT head (64 x 64 x 93).
 ///
-/// Writes render.json (rows: mode, width, height, fps_mean, frame_ms_mean, frame_ms_p99,
-/// frame_ms_max, still_frame_ms, renderer; servo: the solver's tick time [us] and the coupling
+/// The isosurface's rows (still and drilling) come twice: first as the window draws them (its
+/// moving frames a surface mesh where the ray cast would be coarser than 3 px between rays: a
+/// software renderer), then with the moving frames ray cast whatever their cost (`moving_view`
+/// "ray cast"), side by side in one run.
+///
+/// Writes render.json (rows: mode, moving_view, surface_mesh_frames, surface_mesh_triangles,
+/// width, height, fps_mean, frame_ms_mean, frame_ms_p99, frame_ms_max, still_frame_ms, renderer; servo: the solver's tick time [us] and the coupling
 /// thread's with rendering on and off) and render.md, and prints the table. Needs an X display
 /// with OpenGL (e.g. xvfb-run -a -s "-screen 0 1920x1080x24"). Creates the QApplication when
 /// there is none; GUI thread only.
