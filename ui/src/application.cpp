@@ -1,10 +1,17 @@
 #include "vh/ui/application.h"
 
 #include <algorithm>
+#include <chrono>
+#include <cstdint>
+#include <fstream>
 #include <functional>
 #include <iostream>
+#include <limits>
 #include <memory>
 #include <string>
+
+#include <nlohmann/json.hpp>
+#include <unistd.h>
 
 #include <QApplication>
 #include <QImage>
@@ -155,6 +162,69 @@ void openStartScene(MainWindow& window, const runtime::SceneSpec& spec, const Ap
   }
 }
 
+/// The CPU time stolen from this machine so far [ms]: /proc/stat's "cpu" line, its 8th value
+/// (steal, in USER_HZ ticks), the time the hypervisor ran other guests on this VM's vCPUs. NaN
+/// where the kernel does not say.
+double stolenCpuMs() {
+  std::ifstream in("/proc/stat");
+  std::string cpu;
+  unsigned long long v[8] = {};
+  if (!(in >> cpu) || cpu != "cpu") return std::numeric_limits<double>::quiet_NaN();
+  for (unsigned long long& x : v)
+    if (!(in >> x)) return std::numeric_limits<double>::quiet_NaN();
+  return 1e3 * static_cast<double>(v[7]) / static_cast<double>(sysconf(_SC_CLK_TCK));
+}
+
+/// AppOptions::servo_log: a line a second from the GUI thread (the haptic snapshot is read
+/// without blocking the threads). @return false (with a message) when the file cannot be written.
+bool startServoLog(MainWindow& window, const fs::path& path) {
+  auto out = std::make_shared<std::ofstream>(path, std::ios::app);
+  if (!*out) {
+    std::cerr << "volume-haptics: --servo-log: cannot write " << path.string() << "\n";
+    return false;
+  }
+  struct Last {
+    std::chrono::steady_clock::time_point t0 = std::chrono::steady_clock::now();
+    double steal_ms = stolenCpuMs();
+    std::uint64_t frames = 0, coupling_misses = 0, solver_misses = 0, ticks = 0;
+  };
+  auto last = std::make_shared<Last>();
+  auto* timer = new QTimer(&window);
+  QObject::connect(timer, &QTimer::timeout, &window, [&window, out, last] {
+    nlohmann::ordered_json line;
+    line["t_s"] = std::chrono::duration<double>(std::chrono::steady_clock::now() - last->t0).count();
+    const double steal_ms = stolenCpuMs();
+    line["steal_ms"] = std::isfinite(steal_ms - last->steal_ms) ? nlohmann::json(steal_ms - last->steal_ms) : nlohmann::json();
+    last->steal_ms = steal_ms;
+    const std::uint64_t frames = window.sceneView()->widget()->frameCount();
+    line["frames"] = frames - last->frames;
+    last->frames = frames;
+    runtime::HapticSnapshot s;
+    if (window.session().hapticsRunning() && window.session().latestSnapshot(s)) {
+      const bool restarted = s.coupling.ticks < last->ticks;  // new threads count from zero
+      const auto thread = [&](const runtime::ThreadTiming& t, std::uint64_t& misses) {
+        nlohmann::ordered_json j;
+        j["rate_Hz"] = t.rate_Hz;
+        j["max_tick_us"] = t.max_tick_us;
+        j["jitter_us"] = t.jitter_us;
+        j["misses"] = restarted ? t.deadline_misses : t.deadline_misses - std::min(misses, t.deadline_misses);
+        misses = t.deadline_misses;
+        return j;
+      };
+      line["coupling"] = thread(s.coupling, last->coupling_misses);
+      line["solver"] = thread(s.solver, last->solver_misses);
+      line["realtime"] = window.session().hapticThread()->realtimeScheduling();
+      last->ticks = s.coupling.ticks;
+    } else {
+      line["haptics"] = false;
+    }
+    *out << line.dump() << '\n';
+    out->flush();
+  });
+  timer->start(1000);
+  return true;
+}
+
 }  // namespace
 
 int runApplication(int argc, char** argv, const runtime::SceneSpec& scene, const AppOptions& options) {
@@ -176,6 +246,7 @@ int runApplication(int argc, char** argv, const runtime::SceneSpec& scene, const
   auto window = std::make_unique<MainWindow>();
   if (!applyWindowOptions(*window, spec, options, scripted)) return 1;
   window->show();
+  if (!options.servo_log.empty() && !startServoLog(*window, options.servo_log)) return 1;
 
   bool loaded_once = false;
   int screenshot_status = 0;

@@ -129,6 +129,9 @@ void addGuiOptions(CLI::App& app, GuiArgs& gui) {
   app.add_option("--igtl-rate", gui.options.igtl_rate_Hz, "OpenIGTLink frames per second [Hz] (clamped to the servo rate)")
       ->check(CLI::Range(1.0, 100000.0));
   addIgtlAccessOptions(app, gui.options.igtl_bind, gui.options.igtl_allow);
+  app.add_option("--servo-log", gui.options.servo_log,
+                 "Append a JSON line each second: the haptic threads' rate, longest tick, jitter and deadline misses, "
+                 "the view's frames and the CPU time the hypervisor stole in that second (a servo-timing soak)");
   app.add_option("--width", gui.options.window_width, "Window width [logical pixels]")->check(CLI::PositiveNumber);
   app.add_option("--height", gui.options.window_height, "Window height [logical pixels]")->check(CLI::PositiveNumber);
 }

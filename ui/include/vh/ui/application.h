@@ -65,6 +65,13 @@ struct AppOptions {
   std::vector<std::string> igtl_allow;
   /// Its frame rate [Hz] (clamped to the servo rate).
   double igtl_rate_Hz = 60.0;
+  /// Non-empty: once a second, one JSON line appended here with the haptic threads' timing over
+  /// the last second as the status line shows it (each thread's rate [Hz], longest tick [us],
+  /// jitter [us], deadline misses in that second), the view's frames in that second and the CPU
+  /// time the hypervisor stole from this machine in it [ms] (/proc/stat; a virtual machine's
+  /// vCPUs given to others: what no thread priority inside it can win back). What a servo-timing
+  /// soak reads (packaging/servo-soak.sh).
+  std::filesystem::path servo_log;
 };
 
 /// Sets the default surface format VTK's rendering needs (OpenGL 3.2 core, RGBA 8 bits, depth 24,
