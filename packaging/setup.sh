@@ -53,6 +53,9 @@ if [[ $mode == test ]]; then
   packages+=(python3-pydicom)
   # Studies on a Dask cluster (tests/app/python/test_study.py: a LocalCluster of two workers).
   packages+=(python3-dask python3-distributed)
+  # The tissue model's static solve against CalculiX, an independent FEM program with the same
+  # 8-node brick (tests/tissue/calculix_reference_test.cpp): 2 packages, 2 MB (SfePy pulls 100).
+  packages+=(calculix-ccx)
   packages+=(clang libclang-rt-14-dev dpkg-dev file help2man desktop-file-utils shared-mime-info orthanc dcmtk curl
     openssl chromium)
 fi
