@@ -138,9 +138,14 @@ std::int64_t percentile(std::vector<std::int64_t> v, double q) {
 
 /// Judges `tool` at `spacing_m`: its warm-up's full solve `full`, and the same touch run again
 /// with the work budget beside it.
+/// How a run's cut ticks are judged against ToolFitOptions::max_cut_fraction (see there).
+enum class Evidence {
+  kLateBeyondChance,  ///< the tool as chosen: late only when its cuts are more than chance
+  kCleanRun,          ///< a spacing to offer: cut no more than the fraction of its ticks
+};
 ToolFitRun judge(const LiveValues& live, const std::shared_ptr<const haptics::ToolModel>& tool, double spacing_m,
                  const Trajectory& traj, const ToolFitOptions& options, int lanes, std::int64_t budget,
-                 const FullSolveRun& full) {
+                 const FullSolveRun& full, Evidence evidence) {
   const auto [cut, lag] = runBudgeted(live, tool, traj, options.ticks, lanes, budget, full, options.cancel);
   ToolFitRun r;
   r.spacing_m = spacing_m;
@@ -152,7 +157,9 @@ ToolFitRun judge(const LiveValues& live, const std::shared_ptr<const haptics::To
   r.felt_gap_m = feltGap(*tool, live.tool_spec.edge_test).max_gap_m;
   r.work_max = full.work.empty() ? 0 : *std::max_element(full.work.begin(), full.work.end());
   r.work_p999 = percentile(full.work, 0.999);
-  r.fits = r.cutFraction() <= options.max_cut_fraction && r.behind_max_m <= options.max_behind_m;
+  const int allowed = evidence == Evidence::kLateBeyondChance ? cutsWithinChance(r.ticks, options.max_cut_fraction)
+                                                              : static_cast<int>(options.max_cut_fraction * r.ticks);
+  r.fits = r.cut_ticks <= allowed && r.behind_max_m <= options.max_behind_m;
   return r;
 }
 
@@ -185,6 +192,22 @@ std::string verdict(const ToolFitRun& r, const ToolFit& fit) {
 }
 
 }  // namespace
+
+int cutsWithinChance(int ticks, double fraction) {
+  if (ticks <= 0 || !(fraction > 0.0)) return 0;
+  if (fraction >= 1.0) return ticks;
+  // P(X >= k) for X ~ Binomial(ticks, fraction), from P(X = 0) up; the largest k - 1 whose tail
+  // P(X >= k) is still 5 % or more.
+  const double q = 1.0 - fraction;
+  double p_k = std::pow(q, ticks);  // P(X = 0)
+  double tail = 1.0;                // P(X >= 0)
+  for (int k = 0; k < ticks; ++k) {
+    tail -= p_k;  // now P(X >= k + 1)
+    if (tail < 0.05) return k;
+    p_k *= static_cast<double>(ticks - k) / static_cast<double>(k + 1) * fraction / q;  // P(X = k + 1)
+  }
+  return ticks;
+}
 
 Trajectory fitWarmupTrajectory(const haptics::ScalarVolume& volume, const haptics::PointShell& shell,
                                double isovalue, const Eigen::Quaterniond& R_WT, int ticks) {
@@ -256,7 +279,8 @@ ToolFit checkToolFit(const LiveValues& live, const ToolFitOptions& options) {
   fit.fixed_us = fixed_us;
   fit.work_budget = std::max<std::int64_t>(
       1, static_cast<std::int64_t>(1e3 * std::max(0.0, fit.deadline_us - fixed_us) / fit.ns_per_work));
-  fit.asked = judge(live, live.tool, spacing_m, traj, options, fit.lanes, fit.work_budget, full);
+  fit.asked = judge(live, live.tool, spacing_m, traj, options, fit.lanes, fit.work_budget, full,
+                    Evidence::kLateBeyondChance);
   fit.full_solve_max_us = full.wall_max_us;
   fit.warmup_s = std::chrono::duration<double>(Clock::now() - t0).count();
   if (fit.asked.fits || live.tool->mesh_T.triangles.empty()) return fit;
@@ -273,7 +297,8 @@ ToolFit checkToolFit(const LiveValues& live, const ToolFitOptions& options) {
     const int lanes = options.lanes > 0 ? options.lanes : solverLanesFor(coarser->point_shell.size());
     const Trajectory coarse_traj = touch(*coarser);
     const FullSolveRun coarse_full = runFullSolve(live, coarser, coarse_traj, options.ticks, lanes, options.cancel);
-    ToolFitRun r = judge(live, coarser, shell.spacing_m, coarse_traj, options, lanes, fit.work_budget, coarse_full);
+    ToolFitRun r = judge(live, coarser, shell.spacing_m, coarse_traj, options, lanes, fit.work_budget, coarse_full,
+                         Evidence::kCleanRun);
     if (r.fits) {
       fit.suggested = r;
       break;

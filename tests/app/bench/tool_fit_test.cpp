@@ -5,7 +5,9 @@
 // suggestion is an independent run: the suggested tool driven by bench table1's own hand (not the
 // warm-up's) with the work budget beside the full solve, counted here tick by tick.
 
+#include <cmath>
 #include <cstdio>
+#include <utility>
 #include <memory>
 #include <string>
 
@@ -39,6 +41,26 @@ runtime::ToolFitOptions fixedCost() {
   if (!spec_##scene) GTEST_SKIP() << name << ": its data are absent: " << why_##scene; \
   const runtime::LoadedScene scene = runtime::loadScene(*spec_##scene)
 
+TEST(ToolFit, AToolIsLateOnlyWhenItsCutTicksAreMoreThanChance) {
+  // Oracle: the binomial tail summed from log-gamma terms (another way to the same numbers):
+  // cutsWithinChance(n, p) is the k with P(X >= k) >= 5 % > P(X >= k + 1), X ~ Binomial(n, p).
+  const auto tail = [](int n, double p, int k) {  // P(X >= k)
+    double sum = 0.0;
+    for (int j = k; j <= n; ++j)
+      sum += std::exp(std::lgamma(n + 1.0) - std::lgamma(j + 1.0) - std::lgamma(n - j + 1.0) + j * std::log(p) +
+                      (n - j) * std::log1p(-p));
+    return sum;
+  };
+  for (const auto& [n, p] : {std::pair{700, 0.001}, {5000, 0.001}, {700, 0.01}, {100, 0.05}, {20000, 0.0002}}) {
+    const int k = runtime::cutsWithinChance(n, p);
+    EXPECT_GE(tail(n, p, k), 0.05) << n << " ticks at " << p;
+    EXPECT_LT(tail(n, p, k + 1), 0.05) << n << " ticks at " << p;
+  }
+  EXPECT_EQ(runtime::cutsWithinChance(700, 0.001), 2) << "one or two cut ticks in 700 say nothing of a 0.1 % rate";
+  EXPECT_EQ(runtime::cutsWithinChance(700, 0.0), 0);
+  EXPECT_EQ(runtime::cutsWithinChance(0, 0.001), 0);
+}
+
 TEST(ToolFit, ThePapersToolsFitThisComputer) {
   int judged = 0;
   for (const char* name : {"Bunny", "Engine", "Hole", "Bone"}) {
@@ -67,7 +89,7 @@ TEST(ToolFit, TheLargeWrenchIsFlaggedAndItsSuggestedSpacingKeepsUpWithTable1sHan
   const runtime::ToolFit fit = runtime::checkToolFit(live, fixedCost());
   std::printf("[ FIT      ] Engine, 20,000 points: %s\n", fit.summary().c_str());
   EXPECT_FALSE(fit.fits());
-  EXPECT_GT(fit.asked.cutFraction(), 0.001);
+  EXPECT_GT(fit.asked.cut_ticks, runtime::cutsWithinChance(fit.asked.ticks, 0.001)) << "late beyond chance";
   ASSERT_TRUE(fit.suggested) << "no coarser spacing fits";
   EXPECT_GT(fit.suggested->spacing_m, fit.asked.spacing_m);
   EXPECT_LT(fit.suggested->points, fit.asked.points);

@@ -44,7 +44,11 @@ struct ToolFitOptions {
   /// least-squares line through its ticks' thread CPU time (wall time on several lanes) against
   /// their work on the critical path (ToolFit::fixed_us its intercept).
   double ns_per_work = 0.0;
-  /// Most ticks cut, as a fraction of the warm-up's (0.1 %: on 700 ticks, none).
+  /// Most ticks cut, as a fraction of the warm-up's (0.1 %). The tool as chosen is late only
+  /// when its warm-up cut more ticks than a tool cut this fraction of the time would by chance
+  /// (cutsWithinChance(): 3 or more of 700 at 0.1 %; one cut tick in 700 says nothing about a rate
+  /// of 1 in 1,000); a coarser spacing is offered only when its warm-up cut no more than this
+  /// fraction of its ticks (none of 700).
   double max_cut_fraction = 0.001;
   /// Most the budgeted proxy may fall behind the full solve's [m] (0.5 mm).
   double max_behind_m = 0.0005;
@@ -54,6 +58,12 @@ struct ToolFitOptions {
   /// (the window's check of a tool no longer chosen, or of a window closing).
   const std::atomic<bool>* cancel = nullptr;
 };
+
+/// The most ticks of `ticks` a tool cut `fraction` of the time (0..1) is cut by chance at the
+/// 5 % level: the largest k with P(X >= k) >= 0.05 for X ~ Binomial(ticks, fraction) (a one-sided
+/// test: more cuts than this say the tool is cut more often). 2 for 700 ticks at 0.001, 9 for
+/// 5,000; 0 for no ticks or a fraction <= 0.
+int cutsWithinChance(int ticks, double fraction);
 
 /// checkToolFit() was stopped through ToolFitOptions::cancel.
 class ToolFitCancelled : public std::runtime_error {
@@ -74,7 +84,7 @@ struct ToolFitRun {
   double felt_gap_m = 0.0;
   std::int64_t work_max = 0;    ///< The full solve's most work in a tick [units].
   std::int64_t work_p999 = 0;   ///< Its 99.9th percentile [units].
-  bool fits = false;            ///< cut_ticks and behind_max_m within ToolFitOptions.
+  bool fits = false;            ///< cut_ticks and behind_max_m within ToolFitOptions (see max_cut_fraction).
 
   /// cut_ticks / ticks.
   double cutFraction() const noexcept { return ticks > 0 ? static_cast<double>(cut_ticks) / ticks : 0.0; }
