@@ -217,6 +217,42 @@ TEST(SceneActors, AFastViewKeepsFullQualityWhileItsRaysFit) {
   EXPECT_DOUBLE_EQ(q.actors.imageSampleDistance_px(), 8.0);
 }
 
+TEST(SceneActors, TheCompositesMovingFramesGoUnshadedOnceTheirRaysWouldLieMoreThan3PxApart) {
+  // The composite preset is shaded. On a GPU (a still frame inside the target) its moving frames
+  // stay shaded; on a software renderer (its first motion at the largest reduction) they are
+  // cast unshaded from then on, still frames shaded; a replay's capped frames shaded; the
+  // isosurface and MIP never change.
+  {
+    QualityController gpu;
+    gpu.actors.setRenderMode(RenderMode::kComposite);
+    ASSERT_TRUE(gpu.actors.volumeShaded()) << "the composite preset is shaded";
+    gpu.resume(20.0);
+    for (int i = 0; i < 3; ++i) gpu.actors.adaptQuality(10.0, 40.0);
+    EXPECT_TRUE(gpu.actors.volumeShaded()) << "a GPU's moving frames";
+  }
+  QualityController q;
+  q.actors.setRenderMode(RenderMode::kComposite);
+  q.resume(200.0);
+  EXPECT_DOUBLE_EQ(q.actors.imageSampleDistance_px(), 8.0);
+  EXPECT_FALSE(q.actors.volumeShaded()) << "a software renderer's moving frames";
+  for (int i = 0; i < 6; ++i) q.actors.adaptQuality(10.0, 40.0);  // fast: rays closer, still unshaded
+  EXPECT_LT(q.actors.imageSampleDistance_px(), 3.0);
+  EXPECT_FALSE(q.actors.volumeShaded()) << "shading came back within the motion";
+  q.actors.setInteractive(false);
+  EXPECT_TRUE(q.actors.volumeShaded()) << "a still frame";
+  q.resume(20.0);
+  EXPECT_FALSE(q.actors.volumeShaded()) << "the next motion, whatever its still frame";
+  q.actors.setInteractiveImageSampleCap_px(2.0);
+  EXPECT_TRUE(q.actors.volumeShaded()) << "a replay's frames";
+  q.actors.setInteractiveImageSampleCap_px(std::numeric_limits<double>::infinity());
+  q.actors.setRenderMode(RenderMode::kIsosurface);
+  q.resume(200.0);
+  EXPECT_TRUE(q.actors.volumeShaded()) << "the isosurface";
+  q.actors.setRenderMode(RenderMode::kMip);
+  q.resume(200.0);
+  EXPECT_FALSE(q.actors.volumeShaded()) << "the MIP is never shaded";
+}
+
 TEST(SceneActors, AutoMovingViewDrawsTheSurfaceMeshWhereTheRayCastWouldBeCoarse) {
   const SceneActorsSpec spec = sceneActorsSpecFor(sphereProbeScene(), runtime::LiveValues::initial(sphereProbeScene()));
   {

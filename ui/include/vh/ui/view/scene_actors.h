@@ -222,6 +222,10 @@ class SceneActors {
   /// Whether the volume is sampled at the nearest voxel now (VTK_NEAREST_INTERPOLATION) rather
   /// than trilinearly.
   bool nearestSampling() const;
+  /// Whether the ray cast is shaded now. The composite's moving frames are cast unshaded (cheaper
+  /// samples, so rays closer together) from the first of its motions that needed rays more than
+  /// 3 px apart (a software renderer) on; still frames, replays' capped frames and a GPU shade.
+  bool volumeShaded() const;
 
   /// Length [m] of the arrow drawn for 3 N: half the tool's bounding-box diagonal.
   double arrowReferenceLength_m() const noexcept { return arrow_reference_m_; }
@@ -290,6 +294,9 @@ class SceneActors {
   /// Before each render: the shown mesh brought up to date (throttled).
   void beforeRender();
   std::unique_ptr<IsosurfaceMesh> mesh_;  // made on first need
+  bool look_shaded_ = true;                // the look's shading (applyLook())
+  bool composite_unshaded_motion_ = false;  // latched: see volumeShaded()
+  bool unshadedMotion() const noexcept;
   MovingView moving_view_ = MovingView::kAuto;
   bool mesh_shown_ = false;
   int late_mesh_frames_ = 0;
