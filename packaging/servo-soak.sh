@@ -12,7 +12,8 @@
 #     misses, and the CPU time the hypervisor stole from the VM in that second);
 #   - cyclictest (rt-tests): a SCHED_FIFO 80 thread of its own waking every 1 ms, as the coupling
 #     thread does, whose latency histogram is what this machine gives any real-time thread;
-#   - stress-ng: two CPU hogs and one process faulting in 256 MB (the "busy machine").
+#   - stress-ng: two CPU hogs and one process faulting in 256 MB (the "busy machine"); not with
+#     VH_SOAK_LOAD=0 (the window and cyclictest alone: the quiet machine's figures).
 # Then prints the coupling's and the solver's worst seconds beside cyclictest's, and writes
 # summary.json, servo.jsonl and cyclictest.txt into $VH_SOAK_OUT (default BUILD_DIR/bench/servo-soak).
 # Installs stress-ng and rt-tests (Debian packages) when missing. Needs root (or sudo) for
@@ -69,17 +70,22 @@ cat > "$out/soak.json" <<EOF
  "device": {"kind": "scripted", "trajectory": "$out/soak.csv"}}
 EOF
 
-echo "servo-soak: $minutes min: the window, cyclictest and stress-ng side by side; output in $out"
-stress-ng --cpu 2 --vm 1 --vm-bytes 256M --timeout "$(( minutes * 60 + 30 ))s" --quiet &
-stress=$!
+echo "servo-soak: $minutes min: the window and cyclictest side by side$([[ ${VH_SOAK_LOAD:-1} != 0 ]] && echo ", stress-ng beside them"); output in $out"
+stress=""
+if [[ ${VH_SOAK_LOAD:-1} != 0 ]]; then
+  stress-ng --cpu 2 --vm 1 --vm-bytes 256M --timeout "$(( minutes * 60 + 30 ))s" --quiet &
+  stress=$!
+fi
 cyclictest -m -p 80 -i 1000 -t 1 -q -h 20000 -D "$(( minutes * 60 ))" > "$out/cyclictest.txt" 2>&1 &
 cyclic=$!
 status=0
 xvfb-run -a -s "-screen 0 1600x1000x24" "$app" "$out/soak.json" --servo-log "$out/servo.jsonl" \
   --screenshot "$out/window.png" --screenshot-delay-ms $(( minutes * 60000 )) > "$out/window.log" 2>&1 || status=$?
 wait "$cyclic" || true
-kill "$stress" 2> /dev/null || true
-wait "$stress" 2> /dev/null || true
+if [[ -n $stress ]]; then
+  kill "$stress" 2> /dev/null || true
+  wait "$stress" 2> /dev/null || true
+fi
 if (( status != 0 )); then echo "servo-soak: the window ended with $status (see $out/window.log)" >&2; exit 1; fi
 
 /usr/bin/python3 - "$out" <<'EOF'
