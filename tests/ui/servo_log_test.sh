@@ -17,7 +17,7 @@ rm -f "$log"
 /usr/bin/python3 - "$log" <<'PY'
 import json, sys
 lines = [json.loads(l) for l in open(sys.argv[1]) if l.strip()]
-assert len(lines) >= 2, f"{len(lines)} lines in 4 s of haptics"
+assert lines, "no line in 4 s of haptics"
 with_threads = [l for l in lines if "coupling" in l]
 assert with_threads, "no line holds the haptic threads"
 for l in lines:
