@@ -146,7 +146,12 @@ enum class Evidence {
 ToolFitRun judge(const LiveValues& live, const std::shared_ptr<const haptics::ToolModel>& tool, double spacing_m,
                  const Trajectory& traj, const ToolFitOptions& options, int lanes, std::int64_t budget,
                  const FullSolveRun& full, Evidence evidence) {
-  const auto [cut, lag] = runBudgeted(live, tool, traj, options.ticks, lanes, budget, full, options.cancel);
+  // Where no tick of the full solve reached the budget, the budgeted run is the full solve tick
+  // for tick (the budget only ever stops a tick's work at it): nothing cut, nothing behind, and
+  // the warm-up is not run a second time.
+  const bool within = std::all_of(full.work.begin(), full.work.end(), [&](std::int64_t w) { return w < budget; });
+  const auto [cut, lag] = within ? std::pair<int, ProxyLag>{0, ProxyLag{}}
+                                 : runBudgeted(live, tool, traj, options.ticks, lanes, budget, full, options.cancel);
   ToolFitRun r;
   r.spacing_m = spacing_m;
   r.points = tool->point_shell.size();
