@@ -130,20 +130,14 @@ bool IsosurfaceMesh::update(bool force) {
   poly_->Modified();
   mesh_stale_ = false;
   built_at_ = std::chrono::steady_clock::now();
-  ++rebuilds_;
   return true;
 }
 
 bool IsosurfaceMesh::drawable() const noexcept {
-  if (coarse_stale_) {
-    if (image_ == nullptr) return false;
-    int dims[3];
-    image_->GetDimensions(dims);
-    return dims[0] >= 2 && dims[1] >= 2 && dims[2] >= 2;
-  }
-  if (coarse_ == nullptr) return false;
+  // The coarse copy keeps at least 2 blocks on an axis of at least 2 voxels (rebuildCoarse()).
+  if (image_ == nullptr) return false;
   int dims[3];
-  coarse_->GetDimensions(dims);
+  image_->GetDimensions(dims);
   return dims[0] >= 2 && dims[1] >= 2 && dims[2] >= 2;
 }
 

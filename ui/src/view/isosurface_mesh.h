@@ -65,7 +65,6 @@ class IsosurfaceMesh {
 
   std::size_t triangles() const noexcept;
   int factor() const noexcept { return factor_; }
-  std::size_t rebuilds() const noexcept { return rebuilds_; }
 
  private:
   void rebuildCoarse();
@@ -86,7 +85,6 @@ class IsosurfaceMesh {
   std::array<int, 3> lo_{0, 0, 0}, hi_{-1, -1, -1};
   bool mesh_stale_ = true;
   std::chrono::steady_clock::time_point built_at_{};
-  std::size_t rebuilds_ = 0;
 };
 
 }  // namespace vh::ui
