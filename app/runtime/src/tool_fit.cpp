@@ -136,13 +136,14 @@ std::int64_t percentile(std::vector<std::int64_t> v, double q) {
   return v[k];
 }
 
-/// Judges `tool` at `spacing_m`: its warm-up's full solve `full`, and the same touch run again
-/// with the work budget beside it.
 /// How a run's cut ticks are judged against ToolFitOptions::max_cut_fraction (see there).
 enum class Evidence {
   kLateBeyondChance,  ///< the tool as chosen: late only when its cuts are more than chance
   kCleanRun,          ///< a spacing to offer: cut no more than the fraction of its ticks
 };
+
+/// Judges `tool` at `spacing_m`: its warm-up's full solve `full`, and the same touch run again
+/// with the work budget beside it.
 ToolFitRun judge(const LiveValues& live, const std::shared_ptr<const haptics::ToolModel>& tool, double spacing_m,
                  const Trajectory& traj, const ToolFitOptions& options, int lanes, std::int64_t budget,
                  const FullSolveRun& full, Evidence evidence) {
@@ -162,9 +163,10 @@ ToolFitRun judge(const LiveValues& live, const std::shared_ptr<const haptics::To
   r.felt_gap_m = feltGap(*tool, live.tool_spec.edge_test).max_gap_m;
   r.work_max = full.work.empty() ? 0 : *std::max_element(full.work.begin(), full.work.end());
   r.work_p999 = percentile(full.work, 0.999);
-  const int allowed = evidence == Evidence::kLateBeyondChance ? cutsWithinChance(r.ticks, options.max_cut_fraction)
-                                                              : static_cast<int>(options.max_cut_fraction * r.ticks);
-  r.fits = r.cut_ticks <= allowed && r.behind_max_m <= options.max_behind_m;
+  const bool few_cuts = evidence == Evidence::kLateBeyondChance
+                            ? r.cut_ticks <= cutsWithinChance(r.ticks, options.max_cut_fraction)
+                            : r.cutFraction() <= options.max_cut_fraction;
+  r.fits = few_cuts && r.behind_max_m <= options.max_behind_m;
   return r;
 }
 
