@@ -289,6 +289,10 @@ class SceneActors {
   double arrow_reference_m_ = 0.01;
   void applyQuality();
   void applyLook();
+  /// The ray cast's shading: the look's, less the composite's unshaded motion (volumeShaded()).
+  void applyShade();
+  /// The volume sampled as a mode's first motion draws it: the largest reduction, the nearest voxel.
+  void sampleAsFirstMotion();
   /// Shows the surface mesh or the ray-cast volume, as the moving view and the motion ask.
   void applyMovingView();
   /// Before each render: the shown mesh brought up to date (throttled).
