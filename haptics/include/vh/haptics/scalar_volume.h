@@ -144,6 +144,9 @@ class ScalarVolume {
   /// Trilinear F(p_W) in data units (section 2.2). Coordinates outside the grid are clamped to
   /// its border for interpolation; use isInside() for the inside test.
   double sample(const Eigen::Vector3d& p_W_m) const noexcept;
+  /// sample() at continuous grid coordinates ijk (gridCoordinates()), without the map from W:
+  /// for callers that already work in the grid's frame. Clamped to the border like sample().
+  double sampleGrid(const Eigen::Vector3d& ijk) const noexcept;
 
   /// Central-difference gradient of F at p_W (eq. 1), in data units per metre, expressed in W.
   /// Differences are taken along the grid axes with delta = the voxel spacing on each axis and
@@ -316,7 +319,6 @@ class ScalarVolume {
                           double u_tolerance, bool at_segment_start, const SegmentBubble& bubble) const noexcept;
   SegmentEntry walkSegment(const Eigen::Vector3d& a, const Eigen::Vector3d& b, double threshold, double u_limit,
                            double u_tolerance, bool at_segment_start, const SegmentBubble& bubble) const noexcept;
-  double sampleGrid(const Eigen::Vector3d& ijk) const noexcept;  // F at grid coordinates
   bool gridInBounds(const Eigen::Vector3d& ijk) const noexcept;
 
   VolumeGeometry geometry_;
