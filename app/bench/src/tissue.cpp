@@ -44,21 +44,6 @@ double since_us(Clock::time_point a) { return std::chrono::duration<double, std:
 
 constexpr const char* kHead = "ct/ct-head-small";
 
-/// The gel-palpation scene (resources/scenes/gel-palpation.json): the built-in gel with an
-/// inclusion, a 5 mm ball every 0.5 mm, the tissue in two value bands on 2 mm cells; the
-/// application's default coupling (1,000 N/m), the stiffest the hand gets.
-runtime::SceneSpec gelScene(double cell_m) {
-  runtime::SceneSpec spec = runtime::parseScene(R"({
-      "volume": {"path": "builtin:gel-with-inclusion", "isovalue": 50},
-      "tool": {"mesh": "builtin:sphere", "point_spacing_m": 0.0005,
-               "initial_pose": {"p_m": [-0.006, 0, 0.0195], "q_wxyz": [1, 0, 0, 0]}},
-      "tissue": {"bands": [{"min": 10, "max": 150, "material": "gel"},
-                           {"min": 150, "max": 300, "material": "gel inclusion"}],
-                 "rigid_above": 300, "cell_size_m": 0.002}})",
-                                                "bench-tissue-gel.json", {});
-  spec.tissue->cell_size_m = cell_m;
-  return spec;
-}
 
 /// Where and how a scene is pressed: from `start_W_m` (the ball's centre, free) along the unit
 /// `press_W` to `depth_m` past where the ball first meets the surface, then slid by `slide_W_m`.
@@ -268,6 +253,19 @@ std::string tickLine(const std::string& what, const nlohmann::ordered_json& t, c
 
 }  // namespace
 
+runtime::SceneSpec gelPalpationScene(double cell_m) {
+  runtime::SceneSpec spec = runtime::parseScene(R"({
+      "volume": {"path": "builtin:gel-with-inclusion", "isovalue": 50},
+      "tool": {"mesh": "builtin:sphere", "point_spacing_m": 0.0005,
+               "initial_pose": {"p_m": [-0.006, 0, 0.0195], "q_wxyz": [1, 0, 0, 0]}},
+      "tissue": {"bands": [{"min": 10, "max": 150, "material": "gel"},
+                           {"min": 150, "max": 300, "material": "gel inclusion"}],
+                 "rigid_above": 300, "cell_size_m": 0.002}})",
+                                                "bench-tissue-gel.json", {});
+  spec.tissue->cell_size_m = cell_m;
+  return spec;
+}
+
 fs::path runTissue(const CommonOptions& options) {
   const bool short_run = options.short_run;
   const fs::path out = outputDir(options, "tissue");
@@ -282,7 +280,7 @@ fs::path runTissue(const CommonOptions& options) {
   report["scenes"] = nlohmann::ordered_json::array();
 
   std::vector<std::pair<std::string, runtime::SceneSpec>> scenes;
-  scenes.emplace_back("gel with an inclusion (2 mm cells)", gelScene(0.002));
+  scenes.emplace_back("gel with an inclusion (2 mm cells)", gelPalpationScene(0.002));
   const fs::path head = runtime::sharedDatasetsDir() / kHead;
   if (fs::exists(head)) {
     runtime::SceneSpec spec = runtime::sceneForVolume(head);
@@ -346,7 +344,7 @@ fs::path runTissue(const CommonOptions& options) {
   std::vector<double> cells{0.003, 0.002};
   if (!short_run) cells.push_back(0.0015);
   for (const double cell : cells) {
-    const nlohmann::ordered_json row = runScene(format("gel, %.1f mm cells", cell * 1e3), gelScene(cell), gelPress(), true);
+    const nlohmann::ordered_json row = runScene(format("gel, %.1f mm cells", cell * 1e3), gelPalpationScene(cell), gelPress(), true);
     report["lattice_sweep"].push_back(row);
     if (row.contains("refused")) {
       md << format("| %.1f | refused: %s |\n", cell * 1e3, row["refused"].get<std::string>().c_str());

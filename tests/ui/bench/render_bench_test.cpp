@@ -137,6 +137,31 @@ TEST(RenderBench, ShortRunWritesRowsAndServoFiguresOnAndOff) {
     }
   }
 
+  // The soft tissue rows: the gel pressed by its ball, one row per size; the view took the
+  // deformed windows the haptic thread published and showed them (how many depends on the
+  // machine's speed: printed; that there were some while the ball pressed is checked).
+  const json& tissue = report["tissue_rows"];
+  ASSERT_TRUE(tissue.is_array());
+  ASSERT_EQ(tissue.size(), o.sizes.size());
+  double windows = 0.0, deepest_mm = 0.0;
+  for (std::size_t i = 0; i < tissue.size(); ++i) {
+    const json& r = tissue[i];
+    SCOPED_TRACE(r.dump().substr(0, 400));
+    EXPECT_EQ(r["mode"], "tissue");
+    EXPECT_EQ(number(r, "width"), o.sizes[i][0]);
+    EXPECT_EQ(number(r, "height"), o.sizes[i][1]);
+    EXPECT_GE(number(r, "frames"), 3.0);
+    const double shown = number(r, "deformed_windows_shown");
+    EXPECT_NEAR(number(r, "deformed_windows_per_s") * number(r, "frames") / number(r, "fps_mean"), shown, 1e-6 * shown + 1e-9);
+    EXPECT_LE(number(r, "tissue_show_ms_max"), number(r, "frame_ms_max")) << "showing a window is part of its frame";
+    windows += shown;
+    deepest_mm = std::max(deepest_mm, number(r, "indentation_mm_max"));
+    std::cout << "tissue row " << i << ": " << shown << " deformed windows shown (measured, not checked)\n";
+  }
+  EXPECT_GT(windows, 0.0) << "the view never showed the tissue deformed";
+  EXPECT_GT(deepest_mm, 0.1) << "the ball pressed 3 mm past the gel's surface: the shown tissue gave";
+  EXPECT_LT(deepest_mm, 6.0) << "deeper than the press";
+
   // The servo figures, rendering on and off, from the same run.
   const json& servo = report["servo"];
   expectStats(servo["solver_tick_us"]["rendering_on"], "solver, rendering on");

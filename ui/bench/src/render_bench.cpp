@@ -32,6 +32,7 @@
 #include "vh/runtime/scene.h"
 #include "vh/runtime/servo_factory.h"
 #include "vh/runtime/trajectory.h"
+#include "vh/tissue/deformable_scene.h"
 #include "vh/ui/application.h"
 #include "vh/ui/drill_controller.h"
 #include "vh/ui/export/media_export.h"
@@ -132,6 +133,11 @@ struct Phase {
 struct FrameParts {
   std::vector<double> paint_ms, swap_ms, shadow_ms, image_sample_px;
   std::size_t surface_mesh_frames = 0;  // frames that drew the surface mesh, not the ray cast
+  // Soft tissue: the deformed windows the frames took from the haptic thread and showed (as the
+  // window's TissueController does), each one's showVoxelBox() [ms], the deepest indentation [m].
+  std::size_t windows_shown = 0;
+  std::vector<double> tissue_show_ms;
+  double indentation_m = 0.0;
 };
 
 struct Bench {
@@ -142,6 +148,8 @@ struct Bench {
   std::shared_ptr<const haptics::ScalarVolume> felt;  // the haptic field, which the tool's shadow falls on
   CarvedRegion carved;  // felt, carved by the drill (as the window's DrillController keeps it)
   double felt_isovalue = 0.0;
+  tissue::DeformableScene* tissue = nullptr;  // the thread's soft tissue (null: none)
+  tissue::DeformedWindow deformed;            // its last window taken
   std::vector<Eigen::Vector3d> shadow_samples_T_m;
   runtime::HapticSnapshot snapshot;
   std::vector<Phase> phases;
@@ -192,6 +200,14 @@ struct Bench {
     poll(phase);
     double carve_ms = 0.0;
     if (drilling) removed += drain(carve_ms);
+    if (tissue != nullptr && tissue->takeDeformedWindow(deformed)) {
+      const auto show_t0 = Clock::now();
+      if (view->actors().showVoxelBox(deformed.lo, deformed.hi, std::span<const float>(deformed.values_F))) {
+        ++parts.windows_shown;
+        parts.indentation_m = std::max(parts.indentation_m, deformed.indentation_m);
+      }
+      parts.tissue_show_ms.push_back(msSince(show_t0));
+    }
     view->widget()->renderer()->GetActiveCamera()->Azimuth(kCameraStep_deg);
     view->noteMotion();
     ToolFrame f;
@@ -291,10 +307,14 @@ struct RowKind {
   RenderMode mode = RenderMode::kIsosurface;
   bool drilling = false;
   MovingView moving = MovingView::kAuto;
+  bool tissue = false;  // the gel's soft tissue pressed and deformed (the bench's tissue thread)
 };
 
-/// The row's name in the report: "isosurface", "composite", "mip", "drilling".
-std::string rowName(const RowKind& kind) { return kind.drilling ? std::string("drilling") : rowName(kind.mode); }
+/// The row's name in the report: "isosurface", "composite", "mip", "drilling", "tissue".
+std::string rowName(const RowKind& kind) {
+  if (kind.tissue) return "tissue";
+  return kind.drilling ? std::string("drilling") : rowName(kind.mode);
+}
 
 /// What a row's moving frames drew, for its table: "mesh" (the surface mesh in all of them),
 /// "ray cast", or "mesh N/M" when only N of its M frames did.
@@ -404,6 +424,15 @@ nlohmann::ordered_json renderRow(Bench& b, runtime::HapticThread& thread, const 
     row["partial_uploads"] = b.view->actors().partialUploads() - partial0;
     row["full_uploads"] = b.view->actors().fullUploads() - full0;
   }
+  if (kind.tissue) {
+    const Stats show = summarize(parts.tissue_show_ms.empty() ? std::vector<double>{0.0} : parts.tissue_show_ms);
+    row["deformed_windows_shown"] = parts.windows_shown;
+    row["deformed_windows_per_s"] = static_cast<double>(parts.windows_shown) / elapsed_s;
+    row["tissue_show_ms_mean"] = show.mean;  // showVoxelBox(): the window into the picture (inside frame_ms)
+    row["tissue_show_ms_max"] = show.max;
+    row["indentation_mm_max"] = 1e3 * parts.indentation_m;
+  }
+  row["coupling_max_tick_us"] = b.phases.back().coupling_max_tick_us;  // the coupling thread's, during the row
   row["contacts"] = b.snapshot.contacts;  // the haptic threads' last snapshot of the row
   row["force_N"] = b.snapshot.force_W_N.norm();
   row["renderer"] = gl.renderer;
@@ -449,6 +478,62 @@ nlohmann::ordered_json servoJson(const runtime::Recording& recording, const std:
   return servo;
 }
 
+/// Shows `scene` in b's window at `size`, fed by `thread`, and waits for the view's first frame
+/// (shaders, the volume's upload). @return the view's GL renderer.
+/// @throws std::runtime_error when the view is never shown.
+GlInfo openBench(Bench& b, runtime::HapticThread& thread, const runtime::LoadedScene& scene,
+                 const runtime::LiveValues& live, const std::array<int, 2>& size, const ViewLook& look) {
+  b.thread = &thread;
+  b.scan = scene.volume.field.get();
+  b.felt = scene.hapticField();
+  b.carved.reset(b.felt);
+  b.felt_isovalue = scene.hapticIsovalue();
+  b.shadow_samples_T_m = toolShadowSamples(*scene.tool);
+  b.drained.resize(1 << 16);
+  b.window.setWindowTitle("VolumeHaptics: bench render");
+  auto* layout = new QVBoxLayout(&b.window);
+  layout->setContentsMargins(0, 0, 0, 0);
+  b.view = new SceneView(&b.window);
+  layout->addWidget(b.view->widget());
+  b.view->setScene(sceneActorsSpecFor(scene, live), scene.X_WT_initial, look);
+  b.view->setSegments(live.segments.get());
+  b.resizeView(size[0], size[1]);
+  b.window.show();
+  for (const auto shown = Clock::now(); b.view->widget()->frameCount() == 0 && msSince(shown) < 10000.0;)
+    QCoreApplication::processEvents(QEventLoop::AllEvents, 5);
+  if (b.view->widget()->frameCount() == 0) throw std::runtime_error("bench render: the view was never shown");
+  return glInfo(*b.view->widget());
+}
+
+/// The tissue rows: the gel-palpation scene's gel pressed 3 mm by its ball and circled, its
+/// haptic thread stepping the soft tissue, the view showing each deformed window the thread
+/// publishes as the window does (one row per size): into report's `tissue_rows`, the gel's size
+/// into its `tissue_volume_dims`.
+void tissueRows(const RenderBenchOptions& o, double row_s, const fs::path& picture_dir, nlohmann::ordered_json& report) {
+  runtime::SceneSpec spec = bench::gelPalpationScene(0.002);
+  spec.tool.X_WT_initial.p_AB_m = Eigen::Vector3d(0.0, 0.0, 0.024);  // the scene file's: above the gel, free
+  const runtime::LoadedScene scene = runtime::loadScene(spec);
+  const runtime::LiveValues live = runtime::LiveValues::initial(scene);
+  const double planned_s = static_cast<double>(o.sizes.size()) * (2.0 * row_s + 10.0) + 30.0;
+  auto device = std::make_shared<runtime::ScriptedDevice>(pressAndCircle(scene, planned_s), 1.0 / kServoRate_Hz,
+                                                          "bench render, tissue");
+  const std::unique_ptr<runtime::HapticThread> thread =
+      runtime::makeHapticThread(live, device, kServoRate_Hz, scene.X_WT_initial);
+  nlohmann::ordered_json rows = nlohmann::ordered_json::array();
+  Bench b;
+  ViewLook look;
+  const GlInfo gl = openBench(b, *thread, scene, live, o.sizes.front(), look);
+  b.tissue = thread->tissue().get();
+  thread->start();
+  b.idle(1.5);  // the ball reaches the gel and presses it
+  for (const auto& size : o.sizes)
+    rows.push_back(renderRow(b, *thread, RowKind{RenderMode::kIsosurface, false, MovingView::kAuto, true}, size, look,
+                             row_s, picture_dir, gl, scene.volume.field->geometry().spacing_m.minCoeff()));
+  thread->stop();
+  report["tissue_rows"] = rows;
+  report["tissue_volume_dims"] = scene.volume.field->geometry().dims;
+}
+
 /// render.json and render.md: the rows and the haptic threads' table.
 void writeRenderReport(const fs::path& out, nlohmann::ordered_json& report, const haptics::VolumeGeometry& g,
                        const GlInfo& gl, double row_s, bool short_run) {
@@ -482,6 +567,22 @@ void writeRenderReport(const fs::path& out, nlohmann::ordered_json& report, cons
                  st[k]["p99_9"].get<double>(), st[k]["max"].get<double>(),
                  report["servo"]["coupling_max_tick_us"][k].get<double>(),
                  static_cast<unsigned long long>(report["servo"]["deadline_misses"][k].get<std::uint64_t>()));
+  if (report.contains("tissue_rows") && !report["tissue_rows"].empty()) {
+    md << "\nSoft tissue: the gel-palpation scene's gel (" << report["tissue_volume_dims"].dump()
+       << " voxels, 2 mm lattice cells) pressed and circled by its ball, each deformed window the haptic thread "
+          "publishes shown as the window shows it.\n\n"
+       << "| mode | moving frames | window | fps | mean [ms] | p99 [ms] | max [ms] | deformed windows shown per s | "
+          "showing one, mean / max [ms] | deepest indentation [mm] | coupling max [us] |\n"
+       << "|---|---|---|---|---|---|---|---|---|---|---|\n";
+    for (const auto& r : report["tissue_rows"])
+      md << format("| %s | %s | %d x %d | %.1f | %.1f | %.1f | %.1f | %.1f | %.2f / %.2f | %.2f | %.0f |\n",
+                   r["mode"].get<std::string>().c_str(), movingPicture(r).c_str(), r["width"].get<int>(),
+                   r["height"].get<int>(), r["fps_mean"].get<double>(), r["frame_ms_mean"].get<double>(),
+                   r["frame_ms_p99"].get<double>(), r["frame_ms_max"].get<double>(),
+                   r["deformed_windows_per_s"].get<double>(), r["tissue_show_ms_mean"].get<double>(),
+                   r["tissue_show_ms_max"].get<double>(), r["indentation_mm_max"].get<double>(),
+                   r["coupling_max_tick_us"].get<double>());
+  }
   writeReport(out, "render", report, md, {});
 }
 
@@ -536,28 +637,8 @@ fs::path runRenderBench(const RenderBenchOptions& o) {
   GlInfo gl;
   {
     Bench b;
-    b.thread = thread.get();
-    b.scan = scene.volume.field.get();
-    b.felt = scene.hapticField();
-    b.carved.reset(b.felt);
-    b.felt_isovalue = scene.hapticIsovalue();
-    b.shadow_samples_T_m = toolShadowSamples(*scene.tool);
-    b.drained.resize(1 << 16);
-    b.window.setWindowTitle("VolumeHaptics: bench render");
-    auto* layout = new QVBoxLayout(&b.window);
-    layout->setContentsMargins(0, 0, 0, 0);
-    b.view = new SceneView(&b.window);
-    layout->addWidget(b.view->widget());
     ViewLook look;
-    b.view->setScene(sceneActorsSpecFor(scene, live), scene.X_WT_initial, look);
-    b.view->setSegments(live.segments.get());
-    b.resizeView(o.sizes.front()[0], o.sizes.front()[1]);
-    b.window.show();
-    // The view's first frame comes when its window is exposed: shaders, the volume's upload.
-    for (const auto shown = Clock::now(); b.view->widget()->frameCount() == 0 && msSince(shown) < 10000.0;)
-      QCoreApplication::processEvents(QEventLoop::AllEvents, 5);
-    if (b.view->widget()->frameCount() == 0) throw std::runtime_error("bench render: the view was never shown");
-    gl = glInfo(*b.view->widget());
+    gl = openBench(b, *thread, scene, live, o.sizes.front(), look);
     std::cout << "bench render: " << gl.renderer << " (OpenGL " << gl.version << ", 3-D textures up to "
               << gl.max_3d_texture << ")" << std::endl;
 
@@ -594,6 +675,10 @@ fs::path runRenderBench(const RenderBenchOptions& o) {
   report["max_3d_texture"] = gl.max_3d_texture;
   report["row_seconds"] = row_s;
   report["rows"] = rows;
+  if (o.tissue) {
+    std::cout << "bench render: the soft tissue rows (the built-in gel) ..." << std::endl;
+    tissueRows(o, row_s, o.common.plots ? out : fs::path(), report);
+  }
 
   writeRenderReport(out, report, g, gl, row_s, short_run);
   return out;
@@ -618,6 +703,7 @@ void addRenderBenchSubcommand(CLI::App& bench, std::function<int()>& handler) {
   cmd->add_option("--seconds", options->row_seconds, "Rendering time of each row [s], and as long without (default 4; short 0.5)")
       ->check(CLI::Range(0.05, 600.0));
   cmd->add_flag("!--no-drilling", options->drilling, "Skip the drilling rows");
+  cmd->add_flag("!--no-tissue", options->tissue, "Skip the soft tissue rows (the built-in gel pressed and deformed)");
   cmd->callback([&handler, options, sizes] {
     if (!sizes->empty()) {
       options->sizes.clear();

@@ -187,6 +187,12 @@ std::filesystem::path runTissue(const CommonOptions& options);
 /// (2.5 mm ball burr) sampled every 1 mm, its burr spinning from the start when `drill_on`.
 runtime::SceneSpec drillingScene(const std::filesystem::path& volume, bool drill_on);
 
+/// The gel-palpation scene (resources/scenes/gel-palpation.json) as the tissue benchmarks press
+/// it: the built-in gel with an inclusion, a 5 mm ball every 0.5 mm starting 6 mm left of the
+/// inclusion's axis, the tissue in two value bands on lattice cells of `cell_m` [m]; the
+/// application's default coupling (1,000 N/m), the stiffest the hand gets.
+runtime::SceneSpec gelPalpationScene(double cell_m);
+
 /// Where the benchmarks write: $VH_BENCH_OUT_DIR when set; installed
 /// (runtime::installedDataDir()), $XDG_DATA_HOME/volume-haptics/bench, else
 /// ~/.local/share/volume-haptics/bench, else ./volume-haptics-bench; from the build tree,

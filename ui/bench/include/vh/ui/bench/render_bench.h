@@ -20,6 +20,10 @@
 /// software renderer), then with the moving frames ray cast whatever their cost (`moving_view`
 /// "ray cast"), side by side in one run.
 ///
+/// The soft tissue rows (`tissue_rows`, one per size): the built-in gel with an inclusion pressed
+/// 3 mm by the gel-palpation scene's ball and circled, the deformation shown as the window shows
+/// it: the frame rate, the deformed windows shown per second and the time to show one.
+///
 /// Writes render.json (rows: mode, moving_view, surface_mesh_frames, surface_mesh_triangles,
 /// width, height, fps_mean, frame_ms_mean, frame_ms_p99, frame_ms_max, still_frame_ms, renderer; servo: the solver's tick time [us] and the coupling
 /// thread's with rendering on and off) and render.md, and prints the table. Needs an X display
@@ -55,6 +59,10 @@ struct RenderBenchOptions {
   double row_seconds = 0.0;
   /// Also the drilling rows (isosurface, the burr spinning).
   bool drilling = true;
+  /// Also the soft tissue rows (`tissue_rows`): the built-in gel of the gel-palpation scene pressed
+  /// and circled by its ball, its haptic thread stepping the tissue, each deformed window it
+  /// publishes shown by the view (SceneActors::showVoxelBox(), as the window's Tissue panel does).
+  bool tissue = true;
 };
 
 /// Runs the benchmark (see the file comment). @return the output folder.
