@@ -164,10 +164,14 @@ void checkDataFileSize(const MetaHeader& h, const fs::path& path, const std::str
                      (local ? std::string() : " in " + file.filename().string()) + ", found " +
                      std::to_string(available));
     }
-  } else if (const auto csize = parseInt(get(h, "CompressedDataSize"));
-             csize && static_cast<std::uintmax_t>(*csize) > available) {
-    fail(path, "truncated: expected " + std::to_string(*csize) +
-                   " bytes of compressed voxel data, found " + std::to_string(available));
+  } else if (const std::string declared = get(h, "CompressedDataSize"); !declared.empty()) {
+    // vtkmetaio allocates what it declares before reading: a count it cannot hold (67 digits
+    // became a 2^63-byte request) is refused here, as a larger one than the file has.
+    const auto csize = parseInt(declared);
+    if (!csize || *csize < 1) fail(path, "MetaImage CompressedDataSize is not a byte count (\"" + declared.substr(0, 40) + "\")");
+    if (static_cast<std::uintmax_t>(*csize) > available)
+      fail(path, "truncated: expected " + std::to_string(*csize) + " bytes of compressed voxel data, found " +
+                     std::to_string(available));
   }
 }
 

@@ -5,6 +5,8 @@
 #include <cstdio>
 #include <cstdint>
 #include <cstring>
+#include <fstream>
+#include <iterator>
 
 #include <gtest/gtest.h>
 #include <vtkDataArray.h>
@@ -232,6 +234,33 @@ TEST(MetaImage, WriterRoundTripCompressed) {
   writer->SetRAWFileName((tmp / "img.zraw").string().c_str());
   writer->SetCompression(true);
   writer->Write();
+  expectSynthetic(loadVolume(tmp / "img.mhd"));
+}
+
+// vtkMetaImageWriter's compressed header with its CompressedDataSize replaced by counts no file
+// holds: 67 digits (vtkmetaio asked for 2^63 bytes: found by the metaimage fuzz target), a
+// negative, zero, a number with letters after it. Each is refused with the key named before VTK
+// reads the file; the writer's own count (the control) loads.
+TEST(MetaImage, ACompressedDataSizeNoFileCanHoldIsRefusedBeforeVtkReadsIt) {
+  TempDir tmp("mhd_csize");
+  auto writer = vtkSmartPointer<vtkMetaImageWriter>::New();
+  writer->SetInputData(syntheticImage());
+  writer->SetFileName((tmp / "img.mhd").string().c_str());
+  writer->SetRAWFileName((tmp / "img.zraw").string().c_str());
+  writer->SetCompression(true);
+  writer->Write();
+  std::ifstream in(tmp / "img.mhd");
+  const std::string header((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  const std::size_t key = header.find("CompressedDataSize = ");
+  ASSERT_NE(key, std::string::npos) << header;
+  const std::size_t value = key + std::strlen("CompressedDataSize = "), end = header.find('\n', value);
+  for (const std::string& count : {std::string(66, '8') + "1", std::string("-5"), std::string("0"), std::string("12abc")}) {
+    SCOPED_TRACE(count);
+    writeFile(tmp / "bad.mhd", header.substr(0, value) + count + header.substr(end));
+    const std::string msg = loadErrorOf([&] { loadVolume(tmp / "bad.mhd"); });
+    EXPECT_NE(msg.find("bad.mhd"), std::string::npos) << msg;
+    EXPECT_NE(msg.find("CompressedDataSize is not a byte count"), std::string::npos) << msg;
+  }
   expectSynthetic(loadVolume(tmp / "img.mhd"));
 }
 
