@@ -246,8 +246,9 @@ int runApplication(int argc, char** argv, const runtime::SceneSpec& scene, const
 
   auto window = std::make_unique<MainWindow>();
   if (!applyWindowOptions(*window, spec, options, scripted)) return 1;
-  window->show();
+  // An unwritable log ends the program before its window shows.
   if (!options.servo_log.empty() && !startServoLog(*window, options.servo_log)) return 1;
+  window->show();
 
   bool loaded_once = false;
   int screenshot_status = 0;

@@ -19,6 +19,7 @@
 #include "vh/haptics/crossing_verifier.h"
 #include "vh/haptics/haptic_renderer.h"
 #include "vh/runtime/trajectory.h"
+#include "vh/runtime/realtime.h"
 
 namespace vh::bench {
 
@@ -103,12 +104,6 @@ struct RunResult {
 
 constexpr double kToolRadius_m = 0.004;
 
-/// CPU time of this thread [us] (not advanced while the thread is preempted).
-double threadCpu_us() {
-  timespec ts{};
-  clock_gettime(CLOCK_THREAD_CPUTIME_ID, &ts);
-  return static_cast<double>(ts.tv_sec) * 1e6 + static_cast<double>(ts.tv_nsec) * 1e-3;
-}
 constexpr double kPush_m = 0.0015;
 /// Crossing check after every tick (haptics::CrossingVerifier, outside the timed section): path
 /// sampling step [voxels of each grid].
@@ -153,9 +148,9 @@ RunResult runOne(const Surface& surf, std::shared_ptr<const haptics::ScalarVolum
   std::size_t cursor = 0;
   for (int i = 0; i < ticks; ++i) {
     const haptics::Pose X_WD = traj.poseAt(i * 1e-3, cursor);
-    const double c0 = threadCpu_us();
+    const double c0 = runtime::threadCpuTime_us();
     const haptics::TickOutput out = renderer.tick(X_WD, 0.0);
-    cpu_sum += threadCpu_us() - c0;
+    cpu_sum += runtime::threadCpuTime_us() - c0;
     times.push_back(out.stats.exec_time_us);
     if (!out.X_WP.allFinite() || !out.force_W_N.allFinite()) {
       r.finite = false;

@@ -55,6 +55,7 @@
 #include "vh/io/volume_loader.h"
 #include "vh/runtime/scene.h"
 #include "vh/runtime/trajectory.h"
+#include "vh/runtime/realtime.h"
 
 extern char** environ;
 
@@ -614,13 +615,6 @@ runtime::SceneSpec touchScene(const fs::path& volume, std::string& tool_label) {
   return spec;
 }
 
-/// CPU time of this thread [us] (not advanced while the thread is preempted).
-double threadCpu_us() {
-  timespec ts{};
-  clock_gettime(CLOCK_THREAD_CPUTIME_ID, &ts);
-  return static_cast<double>(ts.tv_sec) * 1e6 + static_cast<double>(ts.tv_nsec) * 1e-3;
-}
-
 struct TouchRun {
   std::unique_ptr<haptics::HapticRenderer> renderer;
   runtime::Trajectory trajectory;
@@ -700,9 +694,9 @@ nlohmann::ordered_json touchSideBySide(const fs::path& small_path, const fs::pat
       const std::size_t r = (i % 2 == 0) ? q : 1 - q;
       TouchRun& m = runs[r];
       const haptics::Pose X_WD = m.trajectory.poseAt(i * 1e-3, cursor[r]);
-      const double c0 = threadCpu_us();
+      const double c0 = runtime::threadCpuTime_us();
       const haptics::TickOutput out = m.renderer->tick(X_WD, scenes[r]->isovalue);
-      m.cpu_us.push_back(threadCpu_us() - c0);
+      m.cpu_us.push_back(runtime::threadCpuTime_us() - c0);
       m.wall_us.push_back(out.stats.exec_time_us);
       m.contacts_sum += out.stats.contacts;
       m.tree_nodes_sum += static_cast<double>(out.stats.tree_nodes);

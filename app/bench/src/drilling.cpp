@@ -20,6 +20,7 @@
 #include "vh/runtime/drilling.h"
 #include "vh/runtime/scene.h"
 #include "vh/runtime/servo_factory.h"
+#include "vh/runtime/realtime.h"
 
 namespace vh::bench {
 namespace fs = std::filesystem;
@@ -29,11 +30,6 @@ namespace {
 constexpr const char* kPhantom = "ct/philips-head-phantom-bone";
 constexpr double kIsovalue_HU = 400.0;
 
-double threadCpuTime_us() {
-  timespec ts{};
-  clock_gettime(CLOCK_THREAD_CPUTIME_ID, &ts);
-  return static_cast<double>(ts.tv_sec) * 1e6 + static_cast<double>(ts.tv_nsec) * 1e-3;
-}
 double wallTime_us() {
   timespec ts{};
   clock_gettime(CLOCK_MONOTONIC, &ts);
@@ -153,15 +149,15 @@ fs::path runDrilling(const CommonOptions& options) {
   std::int64_t contact_ticks = 0;
   for (int i = 0; i < ticks; ++i) {
     const haptics::Pose X_WD = trajectoryAt(scene.X_WT_initial, depth_m, i * 1e-3);
-    double c0 = threadCpuTime_us(), w0 = wallTime_us();
+    double c0 = runtime::threadCpuTime_us(), w0 = wallTime_us();
     (void)touching->tick(X_WD, scene.isovalue);
-    cpu_touch.push_back(threadCpuTime_us() - c0);
+    cpu_touch.push_back(runtime::threadCpuTime_us() - c0);
     wall_touch.push_back(wallTime_us() - w0);
-    c0 = threadCpuTime_us(), w0 = wallTime_us();
+    c0 = runtime::threadCpuTime_us(), w0 = wallTime_us();
     const haptics::TickOutput o = drilling.renderer->tick(X_WD, scene.isovalue);
-    const double c1 = threadCpuTime_us();
+    const double c1 = runtime::threadCpuTime_us();
     (void)drilling.drill->step(*drilling.renderer, o);
-    const double c2 = threadCpuTime_us();
+    const double c2 = runtime::threadCpuTime_us();
     cpu_drill.push_back(c2 - c0);
     wall_drill.push_back(wallTime_us() - w0);
     cut_cpu.push_back(c2 - c1);

@@ -29,6 +29,7 @@
 #include "vh/runtime/servo_factory.h"
 #include "vh/runtime/tool_fit.h"
 #include "vh/runtime/trajectory.h"
+#include "vh/runtime/realtime.h"
 
 namespace vh::bench {
 
@@ -319,13 +320,6 @@ nlohmann::ordered_json edgeTestPointsJson(const ModeRun& m) {
   j["mean_per_tick"] = means(n);
   j["slowest_0_1_percent"] = means(std::min(slowest, n));
   return j;
-}
-
-/// CPU time of this thread [us] (not advanced while the thread is preempted).
-double threadCpu_us() {
-  timespec ts{};
-  clock_gettime(CLOCK_THREAD_CPUTIME_ID, &ts);
-  return static_cast<double>(ts.tv_sec) * 1e6 + static_cast<double>(ts.tv_nsec) * 1e-3;
 }
 
 nlohmann::ordered_json modeJson(const ModeRun& m, double epsilon_m, bool verified) {
@@ -623,10 +617,10 @@ bool tickMode(ModeRun& m, int i, const haptics::Pose& X_WD, const haptics::Pose&
               const haptics::ToolModel& tool, int penetration_stride, Eigen::Vector3d& proxy,
               Eigen::Quaterniond& proxy_R) {
   const auto w0 = std::chrono::steady_clock::now();
-  const double c0 = threadCpu_us();
+  const double c0 = runtime::threadCpuTime_us();
   const haptics::Pose X_WP_before = m.renderer->proxyPose();
   const haptics::TickOutput out = m.renderer->tick(X_WD, s);
-  m.cpu_us.push_back(threadCpu_us() - c0);
+  m.cpu_us.push_back(runtime::threadCpuTime_us() - c0);
   m.wall_s += std::chrono::duration<double>(std::chrono::steady_clock::now() - w0).count();
   // Everything below is outside the timed section.
   m.edge_us.push_back(out.stats.edge_us);

@@ -66,6 +66,12 @@ std::int64_t monotonicNs() noexcept {
   return toNs(t);
 }
 
+double threadCpuTime_us() noexcept {
+  timespec t{};
+  clock_gettime(CLOCK_THREAD_CPUTIME_ID, &t);
+  return 1e-3 * static_cast<double>(toNs(t));
+}
+
 void releaseMemoryLock() noexcept {
   const std::lock_guard<std::mutex> guard(memoryLockMutex());
   if (memory_lock_users > 0 && --memory_lock_users == 0 && memory_locked) {

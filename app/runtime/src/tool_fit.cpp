@@ -20,17 +20,12 @@
 #include "vh/runtime/runner.h"
 #include "vh/runtime/servo_factory.h"
 #include "vh/runtime/tool_fidelity.h"
+#include "vh/runtime/realtime.h"
 
 namespace vh::runtime {
 namespace {
 
 using Clock = std::chrono::steady_clock;
-
-double threadCpu_us() {
-  timespec ts{};
-  clock_gettime(CLOCK_THREAD_CPUTIME_ID, &ts);
-  return 1e6 * static_cast<double>(ts.tv_sec) + 1e-3 * static_cast<double>(ts.tv_nsec);
-}
 
 Eigen::Quaterniond aa(double angle_rad, const Eigen::Vector3d& axis) {
   return Eigen::Quaterniond(Eigen::AngleAxisd(angle_rad, axis));
@@ -63,11 +58,11 @@ FullSolveRun runFullSolve(const LiveValues& live, const std::shared_ptr<const ha
   for (int i = 0; i < ticks; ++i) {
     if (cancel != nullptr && cancel->load(std::memory_order_relaxed)) throw ToolFitCancelled();
     const haptics::Pose X_WD = traj.poseAt(i * 1e-3, cursor);
-    const double c0 = threadCpu_us();
+    const double c0 = runtime::threadCpuTime_us();
     const auto w0 = Clock::now();
     const haptics::TickOutput out = full->tick(X_WD, s);
     const double wall = std::chrono::duration<double, std::micro>(Clock::now() - w0).count();
-    const double cpu = threadCpu_us() - c0;
+    const double cpu = runtime::threadCpuTime_us() - c0;
     run.time_us.push_back(lanes > 1 ? wall : cpu);
     run.wall_max_us = std::max(run.wall_max_us, wall);
     run.work.push_back(out.stats.critical_work);

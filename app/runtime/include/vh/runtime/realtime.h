@@ -16,6 +16,10 @@ namespace vh::runtime {
 /// CLOCK_MONOTONIC (std::chrono::steady_clock's clock on Linux) now [ns].
 std::int64_t monotonicNs() noexcept;
 
+/// CPU time the calling thread has used [us] (CLOCK_THREAD_CPUTIME_ID: it does not advance while
+/// the thread is preempted), to tell a computation's own cost from a busy machine's delays.
+double threadCpuTime_us() noexcept;
+
 /// Best effort real-time set-up of the calling thread: 1 ns timer slack, SCHED_FIFO at
 /// `priority` (1..99) and, when that worked and `lock_memory`, the process's memory lock
 /// (mlockall, only for root or with an unlimited RLIMIT_MEMLOCK, so that later allocations
