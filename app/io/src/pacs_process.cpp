@@ -429,47 +429,56 @@ int pacsProcessMain(int argc, char** argv) {
 
 }  // namespace detail
 
-void pacsEcho(const PacsServer& server) {
+namespace {
+
+/// What every public call starts with: `server`'s settings checked (@throws PacsError), the
+/// DICOM network process's program, and a request naming the server. An empty program: no reader
+/// program beside this one (a test binary), the caller runs the operation in this process.
+struct NetworkRequest {
+  fs::path program;
+  FieldWriter fields;
+};
+NetworkRequest networkRequest(const PacsServer& server) {
   detail::checkPacsServer(server);
-  const fs::path program = readerProcessPath();  // empty: run here
-  if (program.empty()) return detail::pacsEchoInProcess(server);
-  FieldWriter request;
-  addServer(request, server);
-  runNetworkProcess(program, server, "echo", request, "C-ECHO", nullptr);
+  NetworkRequest r;
+  r.program = readerProcessPath();
+  if (!r.program.empty()) addServer(r.fields, server);
+  return r;
+}
+
+}  // namespace
+
+void pacsEcho(const PacsServer& server) {
+  NetworkRequest request = networkRequest(server);
+  if (request.program.empty()) return detail::pacsEchoInProcess(server);
+  runNetworkProcess(request.program, server, "echo", request.fields, "C-ECHO", nullptr);
 }
 
 std::vector<PacsStudy> pacsFindStudies(const PacsServer& server, const PacsStudyQuery& query) {
-  detail::checkPacsServer(server);
-  const fs::path program = readerProcessPath();  // empty: run here
-  if (program.empty()) return detail::pacsFindStudiesInProcess(server, query);
-  FieldWriter request;
-  addServer(request, server);
-  request.add(query.patient_name).add(query.patient_id).add(query.study_date);
-  std::optional<FieldReader> result = runNetworkProcess(program, server, "find-studies", request, "C-FIND", nullptr);
+  NetworkRequest request = networkRequest(server);
+  if (request.program.empty()) return detail::pacsFindStudiesInProcess(server, query);
+  request.fields.add(query.patient_name).add(query.patient_id).add(query.study_date);
+  std::optional<FieldReader> result =
+      runNetworkProcess(request.program, server, "find-studies", request.fields, "C-FIND", nullptr);
   return readResult(server, [&] { return readStudies(*result); });
 }
 
 std::vector<PacsSeries> pacsFindSeries(const PacsServer& server, const std::string& study_uid,
                                        const std::string& modality) {
-  detail::checkPacsServer(server);
-  const fs::path program = readerProcessPath();  // empty: run here
-  if (program.empty()) return detail::pacsFindSeriesInProcess(server, study_uid, modality);
-  FieldWriter request;
-  addServer(request, server);
-  request.add(study_uid).add(modality);
-  std::optional<FieldReader> result = runNetworkProcess(program, server, "find-series", request, "C-FIND", nullptr);
+  NetworkRequest request = networkRequest(server);
+  if (request.program.empty()) return detail::pacsFindSeriesInProcess(server, study_uid, modality);
+  request.fields.add(study_uid).add(modality);
+  std::optional<FieldReader> result =
+      runNetworkProcess(request.program, server, "find-series", request.fields, "C-FIND", nullptr);
   return readResult(server, [&] { return readSeries(*result); });
 }
 
 PacsSeries pacsFindSeriesByUid(const PacsServer& server, const std::string& series_uid) {
-  detail::checkPacsServer(server);
-  const fs::path program = readerProcessPath();  // empty: run here
-  if (program.empty()) return detail::pacsFindSeriesByUidInProcess(server, series_uid);
-  FieldWriter request;
-  addServer(request, server);
-  request.add(series_uid);
+  NetworkRequest request = networkRequest(server);
+  if (request.program.empty()) return detail::pacsFindSeriesByUidInProcess(server, series_uid);
+  request.fields.add(series_uid);
   std::optional<FieldReader> result =
-      runNetworkProcess(program, server, "find-series-by-uid", request, "C-FIND", nullptr);
+      runNetworkProcess(request.program, server, "find-series-by-uid", request.fields, "C-FIND", nullptr);
   const std::vector<PacsSeries> series = readResult(server, [&] { return readSeries(*result); });
   if (series.size() != 1) throw pacsError(server, "the DICOM network process's result holds no series");
   return series.front();
@@ -478,9 +487,8 @@ PacsSeries pacsFindSeriesByUid(const PacsServer& server, const std::string& seri
 PacsRetrieveResult pacsRetrieveSeries(const PacsServer& server, const std::string& study_uid,
                                       const std::string& series_uid, const fs::path& out_dir,
                                       const PacsRetrieveOptions& options) {
-  detail::checkPacsServer(server);
-  const fs::path program = readerProcessPath();  // empty: run here
-  if (program.empty()) return detail::pacsRetrieveSeriesInProcess(server, study_uid, series_uid, out_dir, options);
+  NetworkRequest request = networkRequest(server);
+  if (request.program.empty()) return detail::pacsRetrieveSeriesInProcess(server, study_uid, series_uid, out_dir, options);
   const auto t0 = Clock::now();
   std::string study = detail::pacsTrim(study_uid);
   const std::string series = detail::pacsTrim(series_uid);
@@ -491,14 +499,12 @@ PacsRetrieveResult pacsRetrieveSeries(const PacsServer& server, const std::strin
     if (study.empty()) study = found.study_uid;
     if (expected < 0) expected = found.instance_count;
   }
-  FieldWriter request;
-  addServer(request, server);
-  request.add(study).add(series).add(out_dir.string()).add(static_cast<long long>(expected)).add(options.cancel_grace_s);
+  request.fields.add(study).add(series).add(out_dir.string()).add(static_cast<long long>(expected)).add(options.cancel_grace_s);
   RetrieveWatch watch;
   watch.options = &options;
   watch.folder = out_dir;
   const std::string what = "C-GET of series " + series;
-  std::optional<FieldReader> fields = runNetworkProcess(program, server, "retrieve", request, what, &watch);
+  std::optional<FieldReader> fields = runNetworkProcess(request.program, server, "retrieve", request.fields, what, &watch);
   PacsRetrieveResult result;
   result.folder = out_dir;
   if (!fields) {  // cancelled, and the process did not end within the grace: stopped
