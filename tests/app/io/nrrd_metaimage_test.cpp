@@ -215,25 +215,25 @@ void expectSynthetic(const LoadedVolume& v) {
   EXPECT_EQ(v.info.format, "MetaImage");
 }
 
-TEST(MetaImage, WriterRoundTripDetachedRaw) {
-  TempDir tmp("mhd_roundtrip");
+/// syntheticImage() written by vtkMetaImageWriter: the header `mhd` and its data file `raw`.
+void writeSyntheticMetaImage(const fs::path& mhd, const fs::path& raw, bool compressed) {
   auto writer = vtkSmartPointer<vtkMetaImageWriter>::New();
   writer->SetInputData(syntheticImage());
-  writer->SetFileName((tmp / "img.mhd").string().c_str());
-  writer->SetRAWFileName((tmp / "img.raw").string().c_str());
-  writer->SetCompression(false);
+  writer->SetFileName(mhd.string().c_str());
+  writer->SetRAWFileName(raw.string().c_str());
+  writer->SetCompression(compressed);
   writer->Write();
+}
+
+TEST(MetaImage, WriterRoundTripDetachedRaw) {
+  TempDir tmp("mhd_roundtrip");
+  writeSyntheticMetaImage(tmp / "img.mhd", tmp / "img.raw", false);
   expectSynthetic(loadVolume(tmp / "img.mhd"));
 }
 
 TEST(MetaImage, WriterRoundTripCompressed) {
   TempDir tmp("mhd_compressed");
-  auto writer = vtkSmartPointer<vtkMetaImageWriter>::New();
-  writer->SetInputData(syntheticImage());
-  writer->SetFileName((tmp / "img.mhd").string().c_str());
-  writer->SetRAWFileName((tmp / "img.zraw").string().c_str());
-  writer->SetCompression(true);
-  writer->Write();
+  writeSyntheticMetaImage(tmp / "img.mhd", tmp / "img.zraw", true);
   expectSynthetic(loadVolume(tmp / "img.mhd"));
 }
 
@@ -243,12 +243,7 @@ TEST(MetaImage, WriterRoundTripCompressed) {
 // reads the file; the writer's own count (the control) loads.
 TEST(MetaImage, ACompressedDataSizeNoFileCanHoldIsRefusedBeforeVtkReadsIt) {
   TempDir tmp("mhd_csize");
-  auto writer = vtkSmartPointer<vtkMetaImageWriter>::New();
-  writer->SetInputData(syntheticImage());
-  writer->SetFileName((tmp / "img.mhd").string().c_str());
-  writer->SetRAWFileName((tmp / "img.zraw").string().c_str());
-  writer->SetCompression(true);
-  writer->Write();
+  writeSyntheticMetaImage(tmp / "img.mhd", tmp / "img.zraw", true);
   std::ifstream in(tmp / "img.mhd");
   const std::string header((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
   const std::size_t key = header.find("CompressedDataSize = ");
