@@ -323,52 +323,5 @@ TEST(TissueDeformableScene, SpringingBackTheTissueCarriesTheHeldProxy) {
   EXPECT_EQ(inside, 0);
 }
 
-// The fast resampling (a lattice cell's corners kept while a row of voxels maps into it) against
-// the plain one (every displacement looked up from the lattice afresh), on the same press and a
-// slide across several cells: the two felt volumes are the same to the bit, every tick, over the
-// whole scan (a stale cell would write another cell's displacement).
-TEST(TissueDeformableScene, TheFastResamplingWritesWhatThePlainOneWrites) {
-  const std::shared_ptr<const haptics::ScalarVolume> scan = gelScan();
-  DeformableSceneOptions fast_options = GelPress::sceneOptions(), plain_options = GelPress::sceneOptions();
-  plain_options.reference_resample = true;
-  DeformableScene fast(scan, gelRegion(1.5e-3), kIsovalue, fast_options);
-  DeformableScene plain(scan, gelRegion(1.5e-3), kIsovalue, plain_options);
-  const auto tool = sphereTool(GelPress::kRadius_m);
-  const haptics::RendererOptions ro = GelPress::rendererOptions();
-  haptics::Pose X_WD = haptics::Pose::FromTranslation(Eigen::Vector3d(8e-3, 12.2e-3, kTop_m + GelPress::kRadius_m + 0.3e-3));
-  haptics::HapticRenderer fast_renderer(fast.feltVolume(), tool, ro, X_WD, kIsovalue);
-  haptics::HapticRenderer plain_renderer(plain.feltVolume(), tool, ro, X_WD, kIsovalue);
-  const haptics::VolumeGeometry& geo = scan->geometry();
-  double largest_difference = 0.0, largest_deformation = 0.0;
-  int ticks = 0;
-  const auto tick = [&] {
-    fast.step(X_WD, fast_renderer);
-    plain.step(X_WD, plain_renderer);
-    fast_renderer.tick(X_WD, kIsovalue);
-    plain_renderer.tick(X_WD, kIsovalue);
-    if (++ticks % 5 != 0) return;
-    for (int k = 0; k < geo.dims[2]; ++k)
-      for (int j = 0; j < geo.dims[1]; ++j)
-        for (int i = 0; i < geo.dims[0]; ++i) {
-          const double f = fast.feltVolume()->voxel(i, j, k);
-          largest_difference = std::max(largest_difference, std::abs(f - plain.feltVolume()->voxel(i, j, k)));
-          largest_deformation = std::max(largest_deformation, std::abs(f - scan->voxel(i, j, k)));
-        }
-  };
-  const double depth_z = kTop_m + GelPress::kRadius_m - 1.0e-3;
-  while (X_WD.p_AB_m.z() > depth_z) {  // 1 mm in
-    X_WD.p_AB_m.z() = std::max(depth_z, X_WD.p_AB_m.z() - 10e-6);
-    tick();
-  }
-  for (int t = 0; t < 600; ++t) {  // 6 mm across: four cells of 1.5 mm
-    X_WD.p_AB_m.x() += 10e-6;
-    tick();
-  }
-  std::printf("%d ticks: the felt field moved by up to %.2f, the two resamplings differ by %.3g\n", ticks,
-              largest_deformation, largest_difference);
-  EXPECT_GT(largest_deformation, 10.0) << "the tissue never yielded: nothing was compared";
-  EXPECT_EQ(largest_difference, 0.0);
-}
-
 }  // namespace
 }  // namespace vh::tissue

@@ -12,8 +12,6 @@
 //     mean, p99.9, max, ticks over 500 us and over the 1 ms period, ticks the deadline cut, the
 //     proxy behind the device; the step's parts;
 //   - 0 crossings of either felt field by a dense check of every tick's motion;
-//   - the resampling's fast path against the reference path (DeformableSceneOptions::
-//     reference_resample) on a second scene driven the same way: time and the felt fields' difference;
 //   - force against indentation over the inclusion and beside it, with the full solve's exact
 //     contact on the same lattice (sphere_contact_reference.h) for the factor.
 // Usage: vh_tissue_tick_report [--cell-mm=H] [--window-margin-mm=M] [--quick]
@@ -122,9 +120,6 @@ int main(int argc, char** argv) {
   options.compliance_threads = 2;
   options.window_margin_m = window_margin_m;
   DeformableScene scene(field, std::move(tissue), kIsovalue, options);
-  DeformableSceneOptions reference_options = options;  // the same scene resampled by the reference path
-  reference_options.reference_resample = true;
-  DeformableScene reference_scene(field, region(cell_m), kIsovalue, reference_options);
   const double start_s = std::chrono::duration<double>(Clock::now() - t1).count();
   std::printf("gel block with an inclusion (%d tissue voxels), lattice %.1f mm: %d nodes, %d touchable; region %.2f s, "
               "scene start (factor, table %.0f MB, depth field) %.2f s\n",
@@ -142,7 +137,6 @@ int main(int argc, char** argv) {
   haptics::Pose X_WD = haptics::Pose::FromTranslation(start);
   haptics::HapticRenderer soft(scene.feltVolume(), tool, ro, X_WD, kIsovalue);
   haptics::HapticRenderer rigid(field, tool, ro, X_WD, kIsovalue);
-  haptics::HapticRenderer reference_soft(reference_scene.feltVolume(), tool, ro, X_WD, kIsovalue);
   const haptics::CrossingVerifier soft_check(*scene.feltVolume(), tool->point_shell, 1e-2);
   const haptics::CrossingVerifier rigid_check(*field, tool->point_shell, 1e-2);
 
@@ -160,8 +154,7 @@ int main(int argc, char** argv) {
   segment(across, across, static_cast<int>(500 * scale));
   segment(across, across + Eigen::Vector3d(0, 0, 3e-3), static_cast<int>(1000 * scale));
 
-  std::vector<double> soft_us, rigid_us, step_us, resample_us, reference_resample_us;
-  double largest_difference = 0.0;  // |F| between the two paths' felt fields, over each tick's window
+  std::vector<double> soft_us, rigid_us, step_us;
   DeformableStep parts;
   int soft_cut = 0, rigid_cut = 0, soft_cross = 0, rigid_cross = 0, held_back = 0, clipped = 0;
   double soft_behind = 0, rigid_behind = 0, peak_soft_N = 0, peak_rigid_N = 0, peak_u = 0;
@@ -175,17 +168,6 @@ int main(int argc, char** argv) {
     const haptics::TickOutput ro_out = rigid.tick(X_WD, kIsovalue);
     rigid_us.push_back(since_us(a));
     step_us.push_back(s.step_us);
-    const DeformableStep r = reference_scene.step(X_WD, reference_soft);
-    reference_soft.tick(X_WD, kIsovalue);
-    resample_us.push_back(s.resample_us);
-    reference_resample_us.push_back(r.resample_us);
-    const haptics::VolumeGeometry& geo = field->geometry();
-    for (int k = 0; k < geo.dims[2]; k += 1)  // where the field moves: the gel's top 5 mm
-      if (std::abs(k * geo.spacing_m.z() - kTop_m) < 5e-3)
-        for (int j = 0; j < geo.dims[1]; ++j)
-          for (int i = 0; i < geo.dims[0]; ++i)
-            largest_difference = std::max(largest_difference, std::abs(scene.feltVolume()->voxel(i, j, k) -
-                                                                       reference_scene.feltVolume()->voxel(i, j, k)));
     parts.gather_us += s.gather_us, parts.solve_us += s.solve_us, parts.displace_us += s.displace_us;
     parts.resample_us += s.resample_us, parts.write_us += s.write_us;
     parts.window_voxels = std::max(parts.window_voxels, s.window_voxels);
@@ -219,12 +201,6 @@ int main(int argc, char** argv) {
               "largest nodal displacement %.2f mm\n",
               parts.gather_us / n, parts.solve_us / n, parts.displace_us / n, parts.resample_us / n, parts.write_us / n,
               parts.window_voxels, held_back, clipped, peak_u * 1e3);
-  const Stats fast = stats(resample_us), plain = stats(reference_resample_us);
-  std::printf("the resampling, fast (a lattice cell's corners kept) against the reference (every lookup afresh), "
-              "interleaved: mean %.0f / %.0f us (%.2fx), p99.9 %.0f / %.0f us (%.2fx); largest "
-              "difference of the felt fields %.3g data units\n",
-              fast.mean, plain.mean, plain.mean / fast.mean, fast.p999, plain.p999, plain.p999 / fast.p999,
-              largest_difference);
   std::printf("proxy behind the device beyond the coupling's stretch: tissue %.3f mm, rigid %.3f mm (max)\n",
               soft_behind * 1e3, rigid_behind * 1e3);
 

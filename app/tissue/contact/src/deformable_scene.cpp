@@ -337,7 +337,7 @@ bool DeformableScene::carryOut(const haptics::ToolModel& tool, const haptics::Po
   return false;
 }
 
-bool DeformableScene::displacementAt(const Eigen::Vector3d& X_G, Eigen::Vector3d& u, CellCorners* corners) const noexcept {
+bool DeformableScene::displacementAt(const Eigen::Vector3d& X_G, Eigen::Vector3d& u) const noexcept {
   const LatticeGeometry& lg = region_.model.lattice().geometry();
   const Eigen::Vector3d t = (X_G - lg.origin_W_m) / lg.spacing_m;
   int c[3];
@@ -347,28 +347,16 @@ bool DeformableScene::displacementAt(const Eigen::Vector3d& X_G, Eigen::Vector3d
     c[a] = std::min(static_cast<int>(t[a]), lg.cells[a] - 1);  // the top face belongs to the last cell
     f[a] = t[a] - c[a];
   }
-  CellCorners fresh;
-  CellCorners& cell = corners != nullptr ? *corners : fresh;
-  if (cell.cell[0] != c[0] || cell.cell[1] != c[1] || cell.cell[2] != c[2]) {
-    cell.cell = {c[0], c[1], c[2]};
-    cell.touchable = cell_touchable_[cellIndex(c[0], c[1], c[2])] != 0;
-    if (cell.touchable) {
-      const std::size_t nx = static_cast<std::size_t>(node_dims_.x()), nxy = nx * static_cast<std::size_t>(node_dims_.y());
-      const std::size_t base = static_cast<std::size_t>(c[0]) + nx * static_cast<std::size_t>(c[1]) + nxy * static_cast<std::size_t>(c[2]);
-      for (int a = 0; a < 8; ++a) {
-        const double* node = u_grid_.data() + 3 * (base + static_cast<std::size_t>(a & 1) + nx * static_cast<std::size_t>((a >> 1) & 1) +
-                                                   nxy * static_cast<std::size_t>((a >> 2) & 1));
-        for (int r = 0; r < 3; ++r) cell.u[static_cast<std::size_t>(3 * a + r)] = node[r];
-      }
-    }
-  }
-  if (!cell.touchable) return false;
+  if (cell_touchable_[cellIndex(c[0], c[1], c[2])] == 0) return false;
   // Trilinear over the cell's corners (the hexahedron's shape functions on a cube).
+  const std::size_t nx = static_cast<std::size_t>(node_dims_.x()), nxy = nx * static_cast<std::size_t>(node_dims_.y());
+  const std::size_t base = static_cast<std::size_t>(c[0]) + nx * static_cast<std::size_t>(c[1]) + nxy * static_cast<std::size_t>(c[2]);
   u.setZero();
   for (int a = 0; a < 8; ++a) {
     const int dx = a & 1, dy = (a >> 1) & 1, dz = (a >> 2) & 1;
     const double w = (dx ? f[0] : 1.0 - f[0]) * (dy ? f[1] : 1.0 - f[1]) * (dz ? f[2] : 1.0 - f[2]);
-    const double* node = cell.u.data() + 3 * a;
+    const double* node = u_grid_.data() + 3 * (base + static_cast<std::size_t>(dx) + nx * static_cast<std::size_t>(dy) +
+                                               nxy * static_cast<std::size_t>(dz));
     u += w * Eigen::Vector3d(node[0], node[1], node[2]);
   }
   return true;
@@ -383,7 +371,7 @@ bool DeformableScene::inBand(int i, int j, int k, double displacement_m) const n
   return steps < 255 && steps <= displacement_m / spacing_m_.minCoeff() + 2.0;
 }
 
-double DeformableScene::deformedValue(int i, int j, int k, CellCorners* corners) const noexcept {
+double DeformableScene::deformedValue(int i, int j, int k) const noexcept {
   const Eigen::Vector3d p = spacing_m_.cwiseProduct(Eigen::Vector3d(i, j, k));
   Eigen::Vector3d X = p, u;
   // X + u(X) = p by fixed-point steps X <- p - u(X): a contraction while |grad u| < 1 (the
@@ -391,7 +379,7 @@ double DeformableScene::deformedValue(int i, int j, int k, CellCorners* corners)
   // step moves X by under a thousandth of a voxel (at most 8 steps).
   const double tolerance_m = 1e-3 * spacing_m_.minCoeff();
   for (int it = 0; it < 8; ++it) {
-    if (!displacementAt(X, u, corners)) {
+    if (!displacementAt(X, u)) {
       if (it == 0) return scan_->voxel(i, j, k);  // not in a touchable cell: rest
       break;
     }
@@ -541,8 +529,6 @@ DeformableStep DeformableScene::step(const haptics::Pose& X_WD, haptics::HapticR
   old_raw_.resize(count);
   new_raw_.resize(count);
   std::size_t at = 0;
-  CellCorners corners;  // reloaded as the material points move from cell to cell (u_grid_ is final here)
-  CellCorners* const cache = options_.reference_resample ? nullptr : &corners;
   for (int k = u_lo[2]; k <= u_hi[2]; ++k)
     for (int j = u_lo[1]; j <= u_hi[1]; ++j)
       for (int i = u_lo[0]; i <= u_hi[0]; ++i, ++at) {
@@ -552,7 +538,7 @@ DeformableStep DeformableScene::step(const haptics::Pose& X_WD, haptics::HapticR
                             k <= hi[2];
         // A voxel farther from the rest surface than the window's largest displacement (plus the
         // band's two voxels) cannot move the surface: the scan's value, without solving for X.
-        new_raw_[at] = inside && inBand(i, j, k, out.max_displacement_m) ? rawOf(*scan_, deformedValue(i, j, k, cache))
+        new_raw_[at] = inside && inBand(i, j, k, out.max_displacement_m) ? rawOf(*scan_, deformedValue(i, j, k))
                                                                          : scan_->rawAt(index);
       }
 

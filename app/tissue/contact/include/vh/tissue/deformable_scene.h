@@ -81,11 +81,6 @@ struct DeformableSceneOptions {
   /// Most proxy points checked against the new field in one step (the workspace); a step with
   /// more of them in its window writes nothing (the tool's surface is never entered).
   int max_proxy_points = 65536;
-  /// Resample each voxel with the plain reference path (every displacement looked up from the
-  /// lattice afresh) instead of the fast one, which keeps a lattice cell's corners while a row
-  /// of voxels maps into it. Both write the same values: for tests and the benchmark's side by
-  /// side figures.
-  bool reference_resample = false;
 };
 
 /// What one step() did.
@@ -176,8 +171,7 @@ class DeformableScene {
   static constexpr double kViewPublishInterval_ms = 10.0;
 
  private:
-  // G <-> W.
-  Eigen::Vector3d toW(const Eigen::Vector3d& g) const noexcept { return origin_W_ + D_W_ * g; }
+  // W -> G.
   Eigen::Vector3d toG(const Eigen::Vector3d& p_W) const noexcept { return D_W_.transpose() * (p_W - origin_W_); }
   // Gathers the tool points near the rest surface at X_WD into contacts_ (the deepest kept).
   void gatherContacts(const haptics::Pose& X_WD, const haptics::ToolModel& tool, DeformableStep& out) noexcept;
@@ -199,21 +193,12 @@ class DeformableScene {
   // `tool` that was outside is inside the field as written. False when there is none.
   bool carryOut(const haptics::ToolModel& tool, const haptics::Pose& X_WP, const Eigen::Vector3d& box_lo,
                 const Eigen::Vector3d& box_hi, Eigen::Vector3d& dp_W) const noexcept;
-  // One lattice cell's corner displacements (u_grid_), x fastest, 3 each: kept while the material
-  // points of a row of voxels stay in that cell (most of a row's voxels share one).
-  struct CellCorners {
-    std::array<int, 3> cell{-1, -1, -1};  // -1: nothing loaded
-    bool touchable = false;
-    std::array<double, 24> u;  // valid when touchable
-  };
   // u(X) [m] at a material point (false outside cells whose corners are all touchable: u is 0).
-  // `corners` is reloaded only when X leaves its cell; nullptr: looked up afresh (the reference).
-  bool displacementAt(const Eigen::Vector3d& X_G, Eigen::Vector3d& u, CellCorners* corners = nullptr) const noexcept;
+  bool displacementAt(const Eigen::Vector3d& X_G, Eigen::Vector3d& u) const noexcept;
   // Whether voxel (i, j, k), displaced by displacement_m, may move the isosurface (band_).
   bool inBand(int i, int j, int k, double displacement_m) const noexcept;
-  // The deformed F at the centre of voxel (i, j, k); `corners` as for displacementAt() (the same
-  // steps either way: the same value to the bit).
-  double deformedValue(int i, int j, int k, CellCorners* corners = nullptr) const noexcept;
+  // The deformed F at the centre of voxel (i, j, k).
+  double deformedValue(int i, int j, int k) const noexcept;
 
   std::shared_ptr<const haptics::ScalarVolume> scan_;
   std::shared_ptr<haptics::ScalarVolume> felt_;
