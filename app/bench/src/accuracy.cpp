@@ -4,7 +4,6 @@
 // point-shell density.
 #include <algorithm>
 #include <chrono>
-#include <ctime>
 #include <cmath>
 #include <iostream>
 #include <map>

@@ -3,7 +3,6 @@
 // phantom: one scripted press-and-circle trajectory rendered twice, tick by tick interleaved,
 // by a renderer that only touches and by one that drills (the same solver plus Drill::step()),
 // thread CPU time and wall time per tick side by side.
-#include <time.h>
 
 #include <algorithm>
 #include <cmath>
@@ -30,11 +29,7 @@ namespace {
 constexpr const char* kPhantom = "ct/philips-head-phantom-bone";
 constexpr double kIsovalue_HU = 400.0;
 
-double wallTime_us() {
-  timespec ts{};
-  clock_gettime(CLOCK_MONOTONIC, &ts);
-  return static_cast<double>(ts.tv_sec) * 1e6 + static_cast<double>(ts.tv_nsec) * 1e-3;
-}
+double wallTime_us() { return 1e-3 * static_cast<double>(runtime::monotonicNs()); }
 
 /// One capsule case: a burr of radius r passed straight through a uniform block of voxels h; the
 /// removed volume against pi r^2 L + 4/3 pi r^3, the error in voxel layers (capsule area x h).

@@ -11,7 +11,6 @@
 #include <optional>
 #include <sstream>
 #include <stdexcept>
-#include <ctime>
 #include <atomic>
 #include <thread>
 #include <unistd.h>

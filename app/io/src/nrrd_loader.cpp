@@ -251,11 +251,12 @@ NrrdHeader readHeader(const fs::path& path) {
     if (pos == std::string::npos) {
       fail(path, "malformed NRRD header line " + std::to_string(line_no) + ": \"" + line + "\"");
     }
-    const std::string key = toLower(trim(line.substr(0, pos)));
+    const std::string name = trim(line.substr(0, pos));
+    const std::string key = toLower(name);
     // The format reads field names in any case; vtkNrrdReader 9.1 only in lower case, and a field
     // it misses ("dimensioN") left it reading through a null stream: refused, named.
-    if (key != trim(line.substr(0, pos)))
-      fail(path, "NRRD field \"" + trim(line.substr(0, pos)) + "\" on line " + std::to_string(line_no) +
+    if (key != name)
+      fail(path, "NRRD field \"" + name + "\" on line " + std::to_string(line_no) +
                      " is not in lower case (the VTK reader reads only lower-case field names)");
     const std::string value = pos + 1 < line.size() ? trim(line.substr(pos + 1)) : std::string();
     h.fields[key] = value;

@@ -2,7 +2,6 @@
 // budget beside it, for the tool as chosen and, when it does not fit, for coarser spacings.
 #include "vh/runtime/tool_fit.h"
 
-#include <time.h>
 
 #include <algorithm>
 #include <chrono>
@@ -58,11 +57,11 @@ FullSolveRun runFullSolve(const LiveValues& live, const std::shared_ptr<const ha
   for (int i = 0; i < ticks; ++i) {
     if (cancel != nullptr && cancel->load(std::memory_order_relaxed)) throw ToolFitCancelled();
     const haptics::Pose X_WD = traj.poseAt(i * 1e-3, cursor);
-    const double c0 = runtime::threadCpuTime_us();
+    const double c0 = threadCpuTime_us();
     const auto w0 = Clock::now();
     const haptics::TickOutput out = full->tick(X_WD, s);
     const double wall = std::chrono::duration<double, std::micro>(Clock::now() - w0).count();
-    const double cpu = runtime::threadCpuTime_us() - c0;
+    const double cpu = threadCpuTime_us() - c0;
     run.time_us.push_back(lanes > 1 ? wall : cpu);
     run.wall_max_us = std::max(run.wall_max_us, wall);
     run.work.push_back(out.stats.critical_work);

@@ -5,8 +5,6 @@
 #include <cstdio>
 #include <cstdint>
 #include <cstring>
-#include <fstream>
-#include <iterator>
 
 #include <gtest/gtest.h>
 #include <vtkDataArray.h>
@@ -258,8 +256,7 @@ TEST(MetaImage, WriterRoundTripCompressed) {
 TEST(MetaImage, ACompressedDataSizeNoFileCanHoldIsRefusedBeforeVtkReadsIt) {
   TempDir tmp("mhd_csize");
   writeSyntheticMetaImage(tmp / "img.mhd", tmp / "img.zraw", true);
-  std::ifstream in(tmp / "img.mhd");
-  const std::string header((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  const std::string header = vh::io::test::readFile(tmp / "img.mhd");
   const std::size_t key = header.find("CompressedDataSize = ");
   ASSERT_NE(key, std::string::npos) << header;
   const std::size_t value = key + std::strlen("CompressedDataSize = "), end = header.find('\n', value);
