@@ -549,9 +549,12 @@ void regularisationNotices(const SliceGeometry& g, const RegularGrid& grid, vtkD
   if (analysis.sheared) {
     const vtkDICOMValue& tilt = md->Get(0, DC::GantryDetectorTilt);
     const bool is_tilt = modality == "CT" || (tilt.IsValid() && tilt.AsDouble() != 0.0);
-    info.notices.push_back(std::string(is_tilt ? "resampled from a gantry tilt of " :
-                                                 "resampled from a sheared slice stack of ") +
-                           fixed(analysis.shear_deg, 1) + " deg");
+    std::string text = std::string(is_tilt ? "resampled from a gantry tilt of " : "resampled from a sheared slice stack of ") +
+                       fixed(analysis.shear_deg, 1) + " deg";
+    if (grid.dims[0] != g.stack.columns || grid.dims[1] != g.stack.rows)  // the footprints' union, so no anatomy is cut
+      text += " onto " + std::to_string(grid.dims[0]) + " x " + std::to_string(grid.dims[1]) + " pixels a slice (the slices are " +
+              std::to_string(g.stack.columns) + " x " + std::to_string(g.stack.rows) + ")";
+    info.notices.push_back(text);
   }
   if (!analysis.parts.empty()) {
     info.notices.push_back(partsText(analysis.parts) + ": resampled to " + fixed(grid.spacing_mm.z(), 2) + " mm");

@@ -15,6 +15,15 @@ namespace {
 /// (the rounding of the positions that scanners write).
 double toleranceFor(double spacing_mm) { return 0.01 * spacing_mm + 1e-3; }
 
+/// How far [mm] slices may lie off one another within their planes and still count as one
+/// unsheared stack: 0.01 pixel + 0.1 micrometre, the rounding of the positions and orientation
+/// cosines that scanners write (cosines to 6 decimals move a slice 100 mm from the isocentre by
+/// 0.1 micrometre). The grid keeps the slices' size for such offsets, and sampling clamps to a
+/// slice's edge within it, instead of adding a row and a column of background.
+double inPlaneToleranceMm(const SliceStack& stack) {
+  return 0.01 * std::min(stack.column_spacing_mm, stack.row_spacing_mm) + 1e-4;
+}
+
 double medianOf(std::vector<double> v) {
   std::nth_element(v.begin(), v.begin() + static_cast<std::ptrdiff_t>(v.size() / 2), v.end());
   return v[v.size() / 2];
@@ -156,8 +165,7 @@ StackAnalysis analyseStack(const SliceStack& stack) {
   }
   double max_offset = 0.0;
   for (const auto& o : stack.offset_mm) max_offset = std::max(max_offset, o.head<2>().norm());
-  const double pixel = std::min(stack.column_spacing_mm, stack.row_spacing_mm);
-  a.sheared = max_offset > 0.01 * pixel + 1e-4;
+  a.sheared = max_offset > inPlaneToleranceMm(stack);
   const Eigen::Vector3d& last = stack.offset_mm.back();
   a.shear_deg = std::atan2(last.head<2>().norm(), last.z()) * 180.0 / M_PI;
   return a;
@@ -179,7 +187,7 @@ RegularGrid regularGridFor(const SliceStack& stack, const StackAnalysis& analysi
   RegularGrid grid;
   for (int axis = 0; axis < 2; ++axis) {
     const double cells = (hi[axis] + slice_extent[axis] - lo[axis]) / pixel[axis];
-    grid.dims[axis] = static_cast<int>(std::ceil(cells - 1e-6)) + 1;
+    grid.dims[axis] = static_cast<int>(std::ceil(cells - inPlaneToleranceMm(stack) / pixel[axis])) + 1;
   }
   const double depth = stack.offset_mm.back().z() - stack.offset_mm.front().z();
   const double spacing = analysis.grid_spacing_mm > 0.0 ? analysis.grid_spacing_mm : analysis.median_spacing_mm;
@@ -208,15 +216,15 @@ T roundTo(double v) {
 }
 
 /// Adds weight * slice(x, y) for every grid pixel of a plane, where grid pixel (i, j) lies at
-/// slice pixel (i + fx, j + fy); `background` outside the slice's footprint.
+/// slice pixel (i + fx, j + fy); `background` outside the slice's footprint grown by (ex, ey)
+/// pixels (within it: the edge's value).
 template <typename T>
-void addSlice(const T* slice, int columns, int rows, double fx, double fy, double weight, double background,
-              int nx, int ny, double* plane) {
-  constexpr double kEps = 1e-6;
+void addSlice(const T* slice, int columns, int rows, double fx, double fy, double ex, double ey, double weight,
+              double background, int nx, int ny, double* plane) {
   for (int j = 0; j < ny; ++j) {
     double* row_out = plane + static_cast<std::size_t>(j) * nx;
     const double y = j + fy;
-    if (y < -kEps || y > rows - 1 + kEps) {
+    if (y < -ey || y > rows - 1 + ey) {
       for (int i = 0; i < nx; ++i) row_out[i] += weight * background;
       continue;
     }
@@ -226,7 +234,7 @@ void addSlice(const T* slice, int columns, int rows, double fx, double fy, doubl
     const T* r1 = rows > 1 ? r0 + columns : r0;
     for (int i = 0; i < nx; ++i) {
       const double x = i + fx;
-      if (x < -kEps || x > columns - 1 + kEps) {
+      if (x < -ex || x > columns - 1 + ex) {
         row_out[i] += weight * background;
         continue;
       }
@@ -250,6 +258,7 @@ bool resampleStack(const T* in, const SliceStack& stack, const RegularGrid& grid
   const std::size_t slice_voxels = static_cast<std::size_t>(stack.columns) * stack.rows;
   const std::size_t plane_voxels = static_cast<std::size_t>(nx) * ny;
   std::vector<double> plane(plane_voxels);
+  const double edge_mm = inPlaneToleranceMm(stack);
   const int report_every = std::max(1, nz / 100);
   std::size_t k = 0;
   for (int z = 0; z < nz; ++z) {
@@ -265,8 +274,8 @@ bool resampleStack(const T* in, const SliceStack& stack, const RegularGrid& grid
       if (weight == 0.0) continue;
       const double fx = (grid.origin_mm.x() - stack.offset_mm[s].x()) / stack.column_spacing_mm;
       const double fy = (grid.origin_mm.y() - stack.offset_mm[s].y()) / stack.row_spacing_mm;
-      addSlice(in + s * slice_voxels, stack.columns, stack.rows, fx, fy, weight, static_cast<double>(background),
-               nx, ny, plane.data());
+      addSlice(in + s * slice_voxels, stack.columns, stack.rows, fx, fy, edge_mm / stack.column_spacing_mm,
+               edge_mm / stack.row_spacing_mm, weight, static_cast<double>(background), nx, ny, plane.data());
     }
     T* dst = out + static_cast<std::size_t>(z) * plane_voxels;
     for (std::size_t p = 0; p < plane_voxels; ++p) dst[p] = roundTo<T>(plane[p]);

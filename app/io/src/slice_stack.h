@@ -87,7 +87,8 @@ StackAnalysis analyseStack(const SliceStack& stack);
 /// The rectilinear grid a stack is resampled onto: axes u, v, d; in-plane spacings those of the
 /// slices, slice spacing analysis.grid_spacing_mm (the median when that is 0), evened out so
 /// that the grid spans d from slice 0 to the last slice exactly; in-plane extent the union of
-/// every slice's footprint (a tilted stack's anatomy is kept, not cropped).
+/// every slice's footprint (a tilted stack's anatomy is kept, not cropped), less the offsets
+/// analyseStack() counts as rounding (a stack of 384 x 512 slices stays 384 x 512).
 struct RegularGrid {
   std::array<int, 3> dims{0, 0, 0};
   Eigen::Vector3d origin_mm = Eigen::Vector3d::Zero();   ///< (u, v, d) of voxel (0, 0, 0).
@@ -101,7 +102,8 @@ RegularGrid regularGridFor(const SliceStack& stack, const StackAnalysis& analysi
 /// Resamples `in` (the stack's voxels: column fastest, then row, then slice, in the stack's
 /// order) onto `grid`: bilinear in each slice plane, linear along d between the two slices
 /// around each grid plane; a slice contributes `background` where the grid point falls outside
-/// its footprint. Exact for fields linear in (u, v, d) inside the footprints. Integer types
+/// its footprint (grown by the rounding tolerance of analyseStack(), where it gives its edge's
+/// value). Exact for fields linear in (u, v, d) inside the footprints. Integer types
 /// round to nearest and clamp to their range.
 /// @param progress when set, called with the fraction done (0..1), about 100 times.
 /// @param cancel when set and true, stops early and returns false.

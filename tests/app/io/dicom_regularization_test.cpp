@@ -106,9 +106,43 @@ TEST_F(DicomRegularization, GantryTiltIsResampledAndSaid) {
     EXPECT_TRUE(anyNotice(v, "resampled from a gantry tilt of 18.5 deg")) << notices(v);
     // The grid is rectilinear (orthonormal directions) and keeps every slice's anatomy.
     const auto& g = v.field->geometry();
+    EXPECT_TRUE(anyNotice(v, "onto " + std::to_string(g.dims[0]) + " x " + std::to_string(g.dims[1]) +
+                                 " pixels a slice (the slices are 64 x 64)"))
+        << "a grid larger than the slices is said: " << notices(v);
     EXPECT_LT((g.direction_W.transpose() * g.direction_W - Eigen::Matrix3d::Identity()).norm(), 1e-9);
     EXPECT_GT(g.dims[1], 64);
   }
+}
+
+/// An oblique MR series as scanners and PACS write it: ImagePositionPatient to three decimals,
+/// ImageOrientationPatient to six, and one slice 0.6 mm off (so the stack is regularised). The
+/// rounding moves the slices off one another in their planes by about a micrometre: the grid
+/// keeps the slices' 48 x 64 pixels (not 49 x 65 with a row and a column of background), the
+/// notices say what was resampled, and the ball is where the files put it (to a tenth of a voxel).
+TEST_F(DicomRegularization, PositionsRoundedAsScannersWriteThemKeepTheSlicesSize) {
+  const Eigen::Vector3d centre(5.0, -20.0, 40.0);
+  const SourceVolume src = ballVolume({48, 64, 24}, {0.45, 0.45, 3.0}, {-5.0, -30.0, 10.0}, centre, 6.0);
+  SeriesSpec spec;
+  spec.modality = "MR";
+  spec.oblique = Eigen::AngleAxisd(0.3, Eigen::Vector3d(2, 1, 0.7).normalized()).toRotationMatrix();
+  spec.jitter_slices = {{11, 0.6}};
+  spec.instance_tags = [](vtkDICOMMetaData* meta, int instance, int) {
+    for (const auto& [tag, scale] : {std::pair{DC::ImagePositionPatient, 1e3}, std::pair{DC::ImageOrientationPatient, 1e6}}) {
+      const vtkDICOMValue& value = meta->Get(instance, tag);
+      double x[6] = {};
+      const int n = static_cast<int>(std::min<unsigned>(6, value.GetNumberOfValues()));
+      value.GetValues(x, static_cast<unsigned>(n));
+      for (int a = 0; a < n; ++a) x[a] = std::round(x[a] * scale) / scale;
+      meta->Set(instance, tag, vtkDICOMValue(vtkDICOMVR::DS, x, static_cast<unsigned>(n)));
+    }
+  };
+  const WrittenSeries s = writeSeries(folder("rounded"), src, spec);
+  const LoadedVolume v = expectLandmark(src, s, {}, 1000.0);
+  const auto& g = v.field->geometry();
+  EXPECT_EQ(g.dims[0], 48) << notices(v);
+  EXPECT_EQ(g.dims[1], 64) << notices(v);
+  EXPECT_TRUE(anyNotice(v, "uneven slice spacing")) << notices(v);
+  EXPECT_FALSE(anyNotice(v, "sheared")) << notices(v);
 }
 
 TEST_F(DicomRegularization, MissingSlicesAreFilledAndTheirPositionsSaid) {
@@ -441,6 +475,43 @@ TEST(SliceStack, ResamplingIsExactForLinearFieldsOnShearedGappedStacks) {
         }
       }
   EXPECT_GT(inside, 50);
+}
+
+TEST(SliceStack, OffsetsWithinTheRoundingKeepTheSlicesSizeAndTheirEdges) {
+  // Slices off one another in their planes by up to a micrometre (positions and orientation
+  // cosines rounded as scanners write them), one step uneven: regularised onto the slices' own
+  // 9 x 7 pixels, every grid point inside a footprint within the rounding, so a linear field is
+  // reproduced to its slope times that micrometre, at the edges too (no background).
+  detail::SliceStack stack;
+  stack.columns = 9;
+  stack.rows = 7;
+  stack.column_spacing_mm = 0.45;
+  stack.row_spacing_mm = 0.5;
+  const std::vector<double> d = {0.0, 3.0, 6.0, 9.6, 12.0, 15.0};
+  const double offsets[][2] = {{0.0, 0.0}, {1e-3, -4e-4}, {-7e-4, 1e-3}, {3e-4, 8e-4}, {-1e-3, -1e-3}, {6e-4, 2e-4}};
+  for (std::size_t k = 0; k < d.size(); ++k) stack.offset_mm.emplace_back(offsets[k][0], offsets[k][1], d[k]);
+  const auto field = [](const Eigen::Vector3d& uvd) { return 3.0 + 2.0 * uvd.x() - 1.5 * uvd.y() + 4.0 * uvd.z(); };
+  std::vector<double> in;
+  for (std::size_t k = 0; k < d.size(); ++k)
+    for (int j = 0; j < stack.rows; ++j)
+      for (int i = 0; i < stack.columns; ++i)
+        in.push_back(field(stack.offset_mm[k] + Eigen::Vector3d(i * 0.45, j * 0.5, 0.0)));
+  const detail::StackAnalysis a = detail::analyseStack(stack);
+  EXPECT_FALSE(a.sheared);
+  EXPECT_TRUE(a.uneven);
+  const detail::RegularGrid grid = detail::regularGridFor(stack, a);
+  EXPECT_EQ(grid.dims[0], 9);
+  EXPECT_EQ(grid.dims[1], 7);
+  std::vector<double> out(static_cast<std::size_t>(grid.dims[0]) * grid.dims[1] * grid.dims[2]);
+  ASSERT_TRUE(detail::resampleStack(in.data(), stack, grid, -1000.0, out.data()));
+  const double slope_bound = (2.0 + 1.5) * 2e-3;  // |grad| along u and v times twice the largest offset
+  for (int z = 0; z < grid.dims[2]; ++z)
+    for (int y = 0; y < grid.dims[1]; ++y)
+      for (int x = 0; x < grid.dims[0]; ++x) {
+        const Eigen::Vector3d uvd = grid.origin_mm + grid.spacing_mm.cwiseProduct(Eigen::Vector3d(x, y, z));
+        EXPECT_NEAR(out[(static_cast<std::size_t>(z) * grid.dims[1] + y) * grid.dims[0] + x], field(uvd), slope_bound)
+            << x << " " << y << " " << z;
+      }
 }
 
 /// The stack of a two-part head CT: 14 slices 4 mm thick at 4 mm, a 5.5 mm step, 13 slices
