@@ -209,17 +209,19 @@ std::string RunReport::summary() const {
   if (drill) {
     std::snprintf(line, sizeof line, "; drilled %.2f mm^3", drill->removed_mm3);
     out += line;
+    bool first = true;
     for (const auto& m : drill->materials) {
       if (m.voxels == 0) continue;
-      std::snprintf(line, sizeof line, "%s %s %.2f mm^3%s", m.name == drill->materials.front().name ? " (" : ", ",
-                    m.name.c_str(), m.removed_mm3, m.critical ? " CRITICAL" : "");
+      std::snprintf(line, sizeof line, "%s%s %.2f mm^3%s", first ? " (" : ", ", m.name.c_str(), m.removed_mm3,
+                    m.critical ? " CRITICAL" : "");
+      first = false;
       out += line;
       if (m.voxels_below_surface > 0) {
         std::snprintf(line, sizeof line, " [%.2f of it below the felt surface]", m.below_surface_mm3);
         out += line;
       }
     }
-    if (drill->removed_mm3 > 0.0) out += ")";
+    if (!first) out += ")";
   }
   if (guidance) out += "; " + guidance->summary();
   for (const SegmentContact& c : segment_contacts) {

@@ -14,6 +14,7 @@
 #include <nlohmann/json.hpp>
 
 #include "runtime_test_support.h"
+#include "vh/runtime/default_isovalue.h"
 #include "vh/runtime/haptic_thread.h"
 #include "vh/runtime/placement.h"
 #include "vh/runtime/recording.h"
@@ -151,6 +152,71 @@ TEST(Drilling, HeadlessRunDrillsAndReplaysBitForBit) {
   EXPECT_EQ(report.drill->materials[0].voxels_below_surface, outside);
   EXPECT_NEAR(report.drill->materials[0].below_surface_mm3, static_cast<double>(outside) * 1.0, 1e-9) << "1 mm voxels";
   EXPECT_NE(report.summary().find("below the felt surface"), std::string::npos) << report.summary();
+}
+
+// On a CT, the air the burr's reach takes (below -500 HU, charged at soft tissue's hardness) is
+// reported as air, not as soft tissue. The scan: a MetaImage CT (int16 HU, 1 mm voxels) of a
+// ball of radius 20 mm about the origin, 1000 HU inside, -1000 HU outside, linear over 2 mm
+// across its surface (a scan's partial volume); oracle: each removed voxel's value in the scan.
+TEST(Drilling, AirTheBurrTakesOnACtIsReportedAsAir) {
+  const auto dir = test::scratchDir();
+  constexpr int kN = 48;
+  {
+    std::ofstream mha(dir / "ball-ct.mha", std::ios::binary);
+    mha << "ObjectType = Image\nNDims = 3\nBinaryData = True\nBinaryDataByteOrderMSB = False\n"
+           "DimSize = 48 48 48\nElementSpacing = 1 1 1\nOffset = -23.5 -23.5 -23.5\nModality = MET_MOD_CT\n"
+           "ElementType = MET_SHORT\nElementDataFile = LOCAL\n";
+    for (int k = 0; k < kN; ++k)
+      for (int j = 0; j < kN; ++j)
+        for (int i = 0; i < kN; ++i) {
+          const double r_mm = Eigen::Vector3d(i - 23.5, j - 23.5, k - 23.5).norm();
+          const auto hu = static_cast<std::int16_t>(std::lround(std::clamp(1000.0 * (20.0 - r_mm), -1000.0, 1000.0)));
+          mha.write(reinterpret_cast<const char*>(&hu), sizeof hu);
+        }
+  }
+  std::ofstream(dir / "ball-ct.json") << R"({
+    "volume": {"path": "ball-ct.mha"},
+    "tool": {"mesh": "builtin:drill", "point_spacing_m": 0.001},
+    "coupling": {"linear_N_per_m": 400},
+    "drill": {"on": true, "burr_radius_m": 0.0025}
+  })";
+  const LoadedScene scene = loadScene(loadSceneFile(dir / "ball-ct.json"));
+  ASSERT_TRUE(inHounsfieldUnits(scene.volume));
+  RunOptions options;
+  options.record = dir / "air.vhrec";
+  options.lag_reference = false;
+  const RunReport report = runHeadless(scene, pressDown(0.0, 0.0, 0.030, 1.0, 0.0125), options);
+  ASSERT_TRUE(report.drill.has_value());
+  // The carved field: the recording replayed on its scene (its SHA-256 the run's).
+  const Recording recording = readRecording(options.record);
+  const ReplayComparison replay = replayRecording(loadScene(sceneFromSessionMetadata(recording.metadata_json)), recording);
+  ASSERT_TRUE(replay.identical) << replay.mismatch << " at tick " << replay.first_mismatch_tick.value_or(0);
+  ASSERT_NE(replay.drilled_field, nullptr);
+  const haptics::ScalarVolume& field = *scene.volume.field;
+  const haptics::ScalarVolume& carved = *replay.drilled_field;
+  Sha256 sha;
+  sha.update(carved.bytes().data(), carved.bytes().size());
+  ASSERT_EQ(sha.hexDigest(), report.drill->drilled_field_sha256);
+  std::uint64_t removed = 0, air = 0, soft = 0;
+  for (std::size_t i = 0; i < field.geometry().voxelCount(); ++i) {
+    if (carved.rawAt(i) != carved.lowestRaw() || field.rawAt(i) == carved.lowestRaw()) continue;
+    ++removed;
+    const double hu = field.valueScale() * field.rawAt(i) + field.valueOffset();
+    air += hu < -500.0;
+    soft += hu >= -500.0 && hu < kCancellousFrom_HU;
+  }
+  std::uint64_t reported = 0, reported_air = 0, reported_soft = 0;
+  for (const DrillReport::Material& m : report.drill->materials) {
+    reported += m.voxels;
+    if (m.name == "air") reported_air += m.voxels;
+    if (m.name == "soft tissue") reported_soft += m.voxels;
+  }
+  std::cout << report.summary() << "\n";
+  EXPECT_GT(air, 0u) << "the reach passed through the air about the ball";
+  EXPECT_EQ(reported, removed) << "every removed voxel is reported once";
+  EXPECT_EQ(reported_air, air);
+  EXPECT_EQ(reported_soft, soft) << "what is left as soft tissue lies between -500 HU and the bone classes";
+  EXPECT_NE(report.summary().find(", air "), std::string::npos) << report.summary();
 }
 
 // A recording that starts on a drilled field (a session that drilled, rebuilt its haptic threads

@@ -85,6 +85,9 @@ struct DrillSpec {
 /// kCancellousFrom_HU, cancellous bone up to kCorticalFrom_HU, cortical bone above (limits after
 /// the usual CT windows of trabecular and compact bone).
 inline constexpr double kCancellousFrom_HU = 250.0;
+/// Below it a CT voxel is reported as air, not soft tissue, when the burr removes it (half way
+/// from water to air: mostly air; the burr charges it at soft tissue's hardness) [HU].
+inline constexpr double kAirBelow_HU = -500.0;
 inline constexpr double kCorticalFrom_HU = 800.0;
 inline constexpr double kSoftTissue_J_per_mm3 = 0.1;
 inline constexpr double kCancellousBone_J_per_mm3 = 0.6;

@@ -169,7 +169,9 @@ struct DrillReport {
   double burr_radius_m = 0.0;      ///< The burr [m].
   double removed_mm3 = 0.0;        ///< Whole voxels removed, all materials [mm^3].
   double eroded_mm3 = 0.0;         ///< Material the energy removed, whole voxels and parts [mm^3].
-  std::vector<Material> materials; ///< Per material (HU classes, then segments).
+  /// Per material (HU classes, then segments), then on a CT "air": the removed voxels below
+  /// kAirBelow_HU in the scan, taken out of the HU class rows that charged them (drilling.h).
+  std::vector<Material> materials;
   /// SHA-256 of the carved field's raw voxels at the end (a replay's must match).
   std::string drilled_field_sha256;
 };
