@@ -431,20 +431,33 @@ TEST(DicomDir, OpeningTheIndexOpensItsSeries) {
 
 // ---- The regulariser alone, on fields linear in (u, v, d): exact --------------------------------
 
-TEST(SliceStack, ResamplingIsExactForLinearFieldsOnShearedGappedStacks) {
+/// The field linear in (u, v, d) [mm] the regulariser's tests resample.
+double linearField(const Eigen::Vector3d& uvd) { return 3.0 + 2.0 * uvd.x() - 1.5 * uvd.y() + 4.0 * uvd.z(); }
+
+/// A stack of `columns` x `rows` slices of the given pixel spacings [mm] at `offset_mm` (u, v, d
+/// of each slice's first pixel), and its voxels of linearField(), slice by slice.
+detail::SliceStack linearStack(int columns, int rows, double column_mm, double row_mm,
+                               const std::vector<Eigen::Vector3d>& offset_mm, std::vector<double>& voxels) {
   detail::SliceStack stack;
-  stack.columns = 9;
-  stack.rows = 7;
-  stack.column_spacing_mm = 0.8;
-  stack.row_spacing_mm = 0.6;
+  stack.columns = columns;
+  stack.rows = rows;
+  stack.column_spacing_mm = column_mm;
+  stack.row_spacing_mm = row_mm;
+  stack.offset_mm = offset_mm;
+  voxels.clear();
+  for (const Eigen::Vector3d& o : offset_mm)
+    for (int j = 0; j < rows; ++j)
+      for (int i = 0; i < columns; ++i) voxels.push_back(linearField(o + Eigen::Vector3d(i * column_mm, j * row_mm, 0.0)));
+  return stack;
+}
+
+TEST(SliceStack, ResamplingIsExactForLinearFieldsOnShearedGappedStacks) {
   const std::vector<double> d = {0.0, 1.0, 2.0, 5.0, 6.0, 7.1, 8.0};  // a gap and a jitter
-  for (double dk : d) stack.offset_mm.emplace_back(0.0, 0.35 * dk, dk);  // sheared along v
-  const auto field = [](const Eigen::Vector3d& uvd) { return 3.0 + 2.0 * uvd.x() - 1.5 * uvd.y() + 4.0 * uvd.z(); };
+  std::vector<Eigen::Vector3d> offsets;
+  for (double dk : d) offsets.emplace_back(0.0, 0.35 * dk, dk);  // sheared along v
   std::vector<double> in;
-  for (std::size_t k = 0; k < d.size(); ++k)
-    for (int j = 0; j < stack.rows; ++j)
-      for (int i = 0; i < stack.columns; ++i)
-        in.push_back(field(stack.offset_mm[k] + Eigen::Vector3d(i * 0.8, j * 0.6, 0.0)));
+  const detail::SliceStack stack = linearStack(9, 7, 0.8, 0.6, offsets, in);
+  const auto field = linearField;
   const detail::StackAnalysis a = detail::analyseStack(stack);
   EXPECT_TRUE(a.sheared);
   EXPECT_TRUE(a.uneven);
@@ -482,20 +495,13 @@ TEST(SliceStack, OffsetsWithinTheRoundingKeepTheSlicesSizeAndTheirEdges) {
   // cosines rounded as scanners write them), one step uneven: regularised onto the slices' own
   // 9 x 7 pixels, every grid point inside a footprint within the rounding, so a linear field is
   // reproduced to its slope times that micrometre, at the edges too (no background).
-  detail::SliceStack stack;
-  stack.columns = 9;
-  stack.rows = 7;
-  stack.column_spacing_mm = 0.45;
-  stack.row_spacing_mm = 0.5;
   const std::vector<double> d = {0.0, 3.0, 6.0, 9.6, 12.0, 15.0};
   const double offsets[][2] = {{0.0, 0.0}, {1e-3, -4e-4}, {-7e-4, 1e-3}, {3e-4, 8e-4}, {-1e-3, -1e-3}, {6e-4, 2e-4}};
-  for (std::size_t k = 0; k < d.size(); ++k) stack.offset_mm.emplace_back(offsets[k][0], offsets[k][1], d[k]);
-  const auto field = [](const Eigen::Vector3d& uvd) { return 3.0 + 2.0 * uvd.x() - 1.5 * uvd.y() + 4.0 * uvd.z(); };
+  std::vector<Eigen::Vector3d> offset_mm;
+  for (std::size_t k = 0; k < d.size(); ++k) offset_mm.emplace_back(offsets[k][0], offsets[k][1], d[k]);
   std::vector<double> in;
-  for (std::size_t k = 0; k < d.size(); ++k)
-    for (int j = 0; j < stack.rows; ++j)
-      for (int i = 0; i < stack.columns; ++i)
-        in.push_back(field(stack.offset_mm[k] + Eigen::Vector3d(i * 0.45, j * 0.5, 0.0)));
+  const detail::SliceStack stack = linearStack(9, 7, 0.45, 0.5, offset_mm, in);
+  const auto field = linearField;
   const detail::StackAnalysis a = detail::analyseStack(stack);
   EXPECT_FALSE(a.sheared);
   EXPECT_TRUE(a.uneven);
