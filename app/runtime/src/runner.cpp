@@ -371,7 +371,7 @@ DrillReport drillReport(const Drill& drill, const LoadedScene& scene) {
   }
   DrillReport::Material air_row;
   air_row.name = "air";
-  for (std::size_t m = 0; m < removal.materials().size(); ++m) {
+  for (std::size_t m = 0; m < material_count; ++m) {
     const auto& material = removal.materials()[m];
     DrillReport::Material row;
     row.name = material.name;
@@ -381,7 +381,7 @@ DrillReport drillReport(const Drill& drill, const LoadedScene& scene) {
     const std::uint64_t as_air = std::min(air[m], removed);
     row.voxels = removed - as_air;
     row.removed_mm3 = static_cast<double>(row.voxels) * removal.voxelVolume_mm3();
-    row.voxels_below_surface = std::min(below[m] - std::min(below[m], air_below[m]), row.voxels);
+    row.voxels_below_surface = std::min(below[m] - air_below[m], row.voxels);  // air_below[m] <= below[m]
     row.below_surface_mm3 = static_cast<double>(row.voxels_below_surface) * removal.voxelVolume_mm3();
     row.specific_energy_J_per_mm3 = material.specific_energy_J_per_mm3;
     d.materials.push_back(row);

@@ -2,7 +2,6 @@
 // budget beside it, for the tool as chosen and, when it does not fit, for coarser spacings.
 #include "vh/runtime/tool_fit.h"
 
-
 #include <algorithm>
 #include <chrono>
 #include <cmath>

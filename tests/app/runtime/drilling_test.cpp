@@ -161,15 +161,18 @@ TEST(Drilling, HeadlessRunDrillsAndReplaysBitForBit) {
 TEST(Drilling, AirTheBurrTakesOnACtIsReportedAsAir) {
   const auto dir = test::scratchDir();
   constexpr int kN = 48;
+  constexpr double kCentre = 0.5 * (kN - 1);  // voxel index of the origin: the grid centred on it
   {
     std::ofstream mha(dir / "ball-ct.mha", std::ios::binary);
+    const std::string n = std::to_string(kN), o = std::to_string(-kCentre);
     mha << "ObjectType = Image\nNDims = 3\nBinaryData = True\nBinaryDataByteOrderMSB = False\n"
-           "DimSize = 48 48 48\nElementSpacing = 1 1 1\nOffset = -23.5 -23.5 -23.5\nModality = MET_MOD_CT\n"
-           "ElementType = MET_SHORT\nElementDataFile = LOCAL\n";
+        << "DimSize = " << n << " " << n << " " << n << "\nElementSpacing = 1 1 1\n"
+        << "Offset = " << o << " " << o << " " << o << "\nModality = MET_MOD_CT\n"
+        << "ElementType = MET_SHORT\nElementDataFile = LOCAL\n";
     for (int k = 0; k < kN; ++k)
       for (int j = 0; j < kN; ++j)
         for (int i = 0; i < kN; ++i) {
-          const double r_mm = Eigen::Vector3d(i - 23.5, j - 23.5, k - 23.5).norm();
+          const double r_mm = Eigen::Vector3d(i - kCentre, j - kCentre, k - kCentre).norm();
           const auto hu = static_cast<std::int16_t>(std::lround(std::clamp(1000.0 * (20.0 - r_mm), -1000.0, 1000.0)));
           mha.write(reinterpret_cast<const char*>(&hu), sizeof hu);
         }

@@ -81,13 +81,14 @@ struct DrillSpec {
   std::shared_ptr<const DrilledCavity> cavity;
 };
 
+/// Below it a CT voxel is reported as air, not soft tissue, when the burr removes it (half way
+/// from water to air: mostly air; the burr charges it at soft tissue's hardness) [HU].
+inline constexpr double kAirBelow_HU = -500.0;
+
 /// Default hardness of the HU classes [J/mm^3] and their limits [HU]: soft tissue below
 /// kCancellousFrom_HU, cancellous bone up to kCorticalFrom_HU, cortical bone above (limits after
 /// the usual CT windows of trabecular and compact bone).
 inline constexpr double kCancellousFrom_HU = 250.0;
-/// Below it a CT voxel is reported as air, not soft tissue, when the burr removes it (half way
-/// from water to air: mostly air; the burr charges it at soft tissue's hardness) [HU].
-inline constexpr double kAirBelow_HU = -500.0;
 inline constexpr double kCorticalFrom_HU = 800.0;
 inline constexpr double kSoftTissue_J_per_mm3 = 0.1;
 inline constexpr double kCancellousBone_J_per_mm3 = 0.6;
