@@ -284,6 +284,79 @@ TEST(TissueDeformableScene, TheSolverFeelsTheGelYieldByTheFullSolveAndNeverEnter
   EXPECT_FALSE(scene.takeDeformedWindow(shown)) << "a second take without a new step";
 }
 
+// The field the step wrote, against the material points an independent solve gives: the ball
+// held 0.6 mm in, the nodal displacements from the full static solve of the last pushes (not the
+// compliance table), each voxel centre's material point by Newton to 1e-9 m (DeformedField, not
+// the step's fixed-point iteration), F sampled there. Every voxel the step moved holds that value
+// to the step's tolerance (a thousandth of a voxel: 0.025 of F's 25 per voxel here), and in each
+// column of the window the surface F = s lies where that field puts it. (Voxels deeper than the
+// band keep the scan's value: they may differ from the oracle without moving the surface.)
+TEST(TissueDeformableScene, TheWrittenFieldIsTheScanAtItsMaterialPoints) {
+  GelPress g;
+  DeformableScene& scene = g.scene;
+  haptics::Pose& X_WD = g.X_WD;
+  DeformableStep last;
+  while (X_WD.p_AB_m.z() > kTop_m + GelPress::kRadius_m - 0.6e-3) {
+    X_WD.p_AB_m.z() -= 5e-6;
+    scene.step(X_WD, g.renderer);
+    g.renderer.tick(X_WD, kIsovalue);
+  }
+  for (int t = 0; t < 300; ++t) {
+    last = scene.step(X_WD, g.renderer);
+    g.renderer.tick(X_WD, kIsovalue);
+  }
+  ASSERT_EQ(last.felt_fraction, 1.0) << "the last step was held back: its field is not the pushes' alone";
+  DeformedWindow shown;
+  ASSERT_TRUE(scene.takeDeformedWindow(shown));
+  ASSERT_FALSE(shown.empty());
+  const StaticSolver solver(scene.region().model, scene.region().fixed_dofs);
+  const DeformedField deformed(scene.region().model.lattice(), solver.solve(scene.contact().nodalForces_N(scene.lastContacts())));
+  const haptics::ScalarVolume& scan = *g.scan;
+  const haptics::ScalarVolume& felt = *scene.feltVolume();
+  // The surface's height in a column of values (k from lo[2] up): the first crossing of s from
+  // the top down, linear between voxel centres [voxels]; -1 when there is none.
+  const auto crossing = [&](const std::vector<double>& column) {
+    for (int k = static_cast<int>(column.size()) - 1; k > 0; --k)
+      if (column[k] < kIsovalue && column[k - 1] >= kIsovalue)
+        return shown.lo[2] + k - 1 + (column[k - 1] - kIsovalue) / (column[k - 1] - column[k]);
+    return -1.0;
+  };
+  double worst_moved = 0.0, largest_change = 0.0, worst_surface = 0.0, deepest = 1e9;
+  std::size_t moved = 0, columns = 0, unconverged = 0;
+  for (int j = shown.lo[1]; j <= shown.hi[1]; ++j)
+    for (int i = shown.lo[0]; i <= shown.hi[0]; ++i) {
+      std::vector<double> written_column, expected_column;
+      for (int k = shown.lo[2]; k <= shown.hi[2]; ++k) {
+        const DeformedField::Inverse X = deformed.materialPoint(kVoxel * Eigen::Vector3d(i, j, k), 1e-9, 50);
+        // No material point: above the lattice's top face pushed down (u is zero beyond it), air.
+        unconverged += !X.converged;
+        const double expected = X.converged ? scan.sampleGrid(X.X_G_m / kVoxel) : scan.voxel(i, j, k);
+        const double written = felt.voxel(i, j, k);
+        written_column.push_back(written);
+        expected_column.push_back(expected);
+        if (written == scan.voxel(i, j, k)) continue;
+        ++moved;
+        worst_moved = std::max(worst_moved, std::abs(written - expected));
+        largest_change = std::max(largest_change, std::abs(written - scan.voxel(i, j, k)));
+      }
+      const double at_written = crossing(written_column), at_expected = crossing(expected_column);
+      ASSERT_EQ(at_written < 0.0, at_expected < 0.0) << "column " << i << ", " << j;
+      if (at_written < 0.0) continue;
+      ++columns;
+      worst_surface = std::max(worst_surface, std::abs(at_written - at_expected));
+      deepest = std::min(deepest, at_written);
+    }
+  std::printf("held 0.6 mm in: %zu voxels moved (by up to %.1f of F), at most %.4f of F from the independent "
+              "material point; the surface in %zu columns within %.2e voxels of it (deepest at %.2f voxels, rest "
+              "%.2f); %zu voxels in the air above the lattice have no material point\n",
+              moved, largest_change, worst_moved, columns, worst_surface, deepest, kTop_m / kVoxel, unconverged);
+  EXPECT_GT(moved, 100u) << "the gel was not deformed";
+  EXPECT_LT(deepest, kTop_m / kVoxel - 0.5) << "the surface was not pushed half a voxel in";
+  EXPECT_GT(columns, 100u);
+  EXPECT_LT(worst_moved, 0.025);
+  EXPECT_LT(worst_surface, 2e-3);
+}
+
 // The tool pressed in and drawn back part of the way in one jump, then held: the tissue springs
 // back onto the proxy that waits where the device was. The proxy being massless, the surface
 // carries it (it is never swallowed, never left inside the tissue); at rest the hand feels what
