@@ -287,10 +287,12 @@ TEST(TissueDeformableScene, TheSolverFeelsTheGelYieldByTheFullSolveAndNeverEnter
 // The field the step wrote, against the material points an independent solve gives: the ball
 // held 0.6 mm in, the nodal displacements from the full static solve of the last pushes (not the
 // compliance table), each voxel centre's material point by Newton to 1e-9 m (DeformedField, not
-// the step's fixed-point iteration), F sampled there. Every voxel the step moved holds that value
-// to the step's tolerance (a thousandth of a voxel: 0.025 of F's 25 per voxel here), and in each
-// column of the window the surface F = s lies where that field puts it. (Voxels deeper than the
-// band keep the scan's value: they may differ from the oracle without moving the surface.)
+// the step's chord iteration), F sampled there. Every voxel the step moved holds that value to a
+// tenth of the step's stopping tolerance (a thousandth of a voxel: 0.025 of F's 25 per voxel
+// here; the chord steps contract by a tenth or better, plain fixed-point steps under this push
+// stopped 0.004 away), and in each column of the window the surface F = s lies where that field
+// puts it. (Voxels deeper than the band keep the scan's value: they may differ from the oracle
+// without moving the surface.)
 TEST(TissueDeformableScene, TheWrittenFieldIsTheScanAtItsMaterialPoints) {
   GelPress g;
   DeformableScene& scene = g.scene;
@@ -353,7 +355,7 @@ TEST(TissueDeformableScene, TheWrittenFieldIsTheScanAtItsMaterialPoints) {
   EXPECT_GT(moved, 100u) << "the gel was not deformed";
   EXPECT_LT(deepest, kTop_m / kVoxel - 0.5) << "the surface was not pushed half a voxel in";
   EXPECT_GT(columns, 100u);
-  EXPECT_LT(worst_moved, 0.025);
+  EXPECT_LT(worst_moved, 0.0025);
   EXPECT_LT(worst_surface, 2e-3);
 }
 

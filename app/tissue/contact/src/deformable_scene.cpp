@@ -8,6 +8,8 @@
 #include <limits>
 #include <stdexcept>
 
+#include <Eigen/LU>
+
 #include "vh/tissue/hex_element.h"
 
 namespace vh::tissue {
@@ -139,6 +141,7 @@ DeformableScene::DeformableScene(std::shared_ptr<const haptics::ScalarVolume> sc
   prev_push_N_.assign(m, 0.0);
   // u on the lattice's grid of nodes (zero off the window), and which grid cells carry it.
   node_dims_ = lg.cells + Eigen::Vector3i::Ones();
+  inverse_cell_m_ = 1.0 / lg.spacing_m;
   u_grid_.assign(static_cast<std::size_t>(3 * node_dims_.prod()), 0.0);
   window_nodes_.reserve(static_cast<std::size_t>(compliance_->nodeCount()));
   window_grid_nodes_.reserve(static_cast<std::size_t>(compliance_->nodeCount()));
@@ -337,29 +340,57 @@ bool DeformableScene::carryOut(const haptics::ToolModel& tool, const haptics::Po
   return false;
 }
 
-bool DeformableScene::displacementAt(const Eigen::Vector3d& X_G, Eigen::Vector3d& u) const noexcept {
+const DeformableScene::CellCorners* DeformableScene::displacementAt(const Eigen::Vector3d& X_G, CornerCache& cache,
+                                                                     Eigen::Vector3d& u) const noexcept {
   const LatticeGeometry& lg = region_.model.lattice().geometry();
-  const Eigen::Vector3d t = (X_G - lg.origin_W_m) / lg.spacing_m;
   int c[3];
   double f[3];
   for (int a = 0; a < 3; ++a) {
-    if (!(t[a] >= 0.0 && t[a] <= lg.cells[a])) return false;
-    c[a] = std::min(static_cast<int>(t[a]), lg.cells[a] - 1);  // the top face belongs to the last cell
-    f[a] = t[a] - c[a];
+    const double t = (X_G[a] - lg.origin_W_m[a]) * inverse_cell_m_;
+    if (!(t >= 0.0 && t <= lg.cells[a])) return nullptr;
+    c[a] = std::min(static_cast<int>(t), lg.cells[a] - 1);  // the top face belongs to the last cell
+    f[a] = t - c[a];
   }
-  if (cell_touchable_[cellIndex(c[0], c[1], c[2])] == 0) return false;
-  // Trilinear over the cell's corners (the hexahedron's shape functions on a cube).
-  const std::size_t nx = static_cast<std::size_t>(node_dims_.x()), nxy = nx * static_cast<std::size_t>(node_dims_.y());
-  const std::size_t base = static_cast<std::size_t>(c[0]) + nx * static_cast<std::size_t>(c[1]) + nxy * static_cast<std::size_t>(c[2]);
-  u.setZero();
-  for (int a = 0; a < 8; ++a) {
-    const int dx = a & 1, dy = (a >> 1) & 1, dz = (a >> 2) & 1;
-    const double w = (dx ? f[0] : 1.0 - f[0]) * (dy ? f[1] : 1.0 - f[1]) * (dz ? f[2] : 1.0 - f[2]);
-    const double* node = u_grid_.data() + 3 * (base + static_cast<std::size_t>(dx) + nx * static_cast<std::size_t>(dy) +
-                                               nxy * static_cast<std::size_t>(dz));
-    u += w * Eigen::Vector3d(node[0], node[1], node[2]);
+  const auto holds = [&c](const CellCorners& e) { return e.cell[0] == c[0] && e.cell[1] == c[1] && e.cell[2] == c[2]; };
+  if (!holds(cache.cells[static_cast<std::size_t>(cache.recent)])) {
+    cache.recent = 1 - cache.recent;
+    CellCorners& corners = cache.cells[static_cast<std::size_t>(cache.recent)];
+    if (!holds(corners)) {  // neither: read it in place of the least recently used
+      corners.cell = {c[0], c[1], c[2]};
+      corners.touchable = cell_touchable_[cellIndex(c[0], c[1], c[2])] != 0;
+      if (corners.touchable) {
+        const std::size_t nx = static_cast<std::size_t>(node_dims_.x()), nxy = nx * static_cast<std::size_t>(node_dims_.y());
+        const std::size_t base = static_cast<std::size_t>(c[0]) + nx * static_cast<std::size_t>(c[1]) + nxy * static_cast<std::size_t>(c[2]);
+        for (int a = 0; a < 8; ++a) {
+          const double* node = u_grid_.data() + 3 * (base + static_cast<std::size_t>(a & 1) + nx * static_cast<std::size_t>((a >> 1) & 1) +
+                                                     nxy * static_cast<std::size_t>((a >> 2) & 1));
+          for (int r = 0; r < 3; ++r) corners.u[r][a] = node[r];
+        }
+        // I + grad u at the centre: each derivative the mean of the cell's four edge differences.
+        Eigen::Matrix3d J = Eigen::Matrix3d::Identity();
+        for (int r = 0; r < 3; ++r) {
+          const double* v = corners.u[r];
+          J(r, 0) += 0.25 * inverse_cell_m_ * ((v[1] - v[0]) + (v[3] - v[2]) + (v[5] - v[4]) + (v[7] - v[6]));
+          J(r, 1) += 0.25 * inverse_cell_m_ * ((v[2] - v[0]) + (v[3] - v[1]) + (v[6] - v[4]) + (v[7] - v[5]));
+          J(r, 2) += 0.25 * inverse_cell_m_ * ((v[4] - v[0]) + (v[5] - v[1]) + (v[6] - v[2]) + (v[7] - v[3]));
+        }
+        // A cell near inversion (far beyond the linear model's small strains): plain fixed-point steps.
+        corners.inverse_gradient = J.determinant() > 0.1 ? Eigen::Matrix3d(J.inverse()) : Eigen::Matrix3d::Identity();
+      }
+    }
   }
-  return true;
+  const CellCorners& corners = cache.cells[static_cast<std::size_t>(cache.recent)];
+  if (!corners.touchable) return nullptr;
+  // Trilinear over the cell's corners (the hexahedron's shape functions on a cube), as lerps
+  // along x, then y, then z.
+  for (int r = 0; r < 3; ++r) {
+    const double* v = corners.u[r];
+    const double x00 = v[0] + f[0] * (v[1] - v[0]), x10 = v[2] + f[0] * (v[3] - v[2]);
+    const double x01 = v[4] + f[0] * (v[5] - v[4]), x11 = v[6] + f[0] * (v[7] - v[6]);
+    const double y0 = x00 + f[1] * (x10 - x00), y1 = x01 + f[1] * (x11 - x01);
+    u[r] = y0 + f[2] * (y1 - y0);
+  }
+  return &corners;
 }
 
 bool DeformableScene::inBand(int i, int j, int k, double displacement_m) const noexcept {
@@ -371,24 +402,26 @@ bool DeformableScene::inBand(int i, int j, int k, double displacement_m) const n
   return steps < 255 && steps <= displacement_m / spacing_m_.minCoeff() + 2.0;
 }
 
-double DeformableScene::deformedValue(int i, int j, int k) const noexcept {
+double DeformableScene::deformedValue(int i, int j, int k, CornerCache& cache) const noexcept {
   const Eigen::Vector3d p = spacing_m_.cwiseProduct(Eigen::Vector3d(i, j, k));
   Eigen::Vector3d X = p, u;
-  // X + u(X) = p by fixed-point steps X <- p - u(X): a contraction while |grad u| < 1 (the
-  // small strains of the linear model), each step shrinking the error by |grad u|; stopped when a
-  // step moves X by under a thousandth of a voxel (at most 8 steps).
+  // X + u(X) = p by chord steps X <- X - J^-1 (X + u(X) - p), J = I + grad u at the centre of the
+  // cell X lies in (Newton with the cell's mean Jacobian: u is trilinear, its gradient varies
+  // little within a cell, so each step shrinks the error by that variation rather than by
+  // |grad u| as plain fixed-point steps X <- p - u(X) do); stopped when a step moves X by under
+  // a thousandth of a voxel (at most 8 steps).
   const double tolerance_m = 1e-3 * spacing_m_.minCoeff();
   for (int it = 0; it < 8; ++it) {
-    if (!displacementAt(X, u)) {
+    const CellCorners* cell = displacementAt(X, cache, u);
+    if (cell == nullptr) {
       if (it == 0) return scan_->voxel(i, j, k);  // not in a touchable cell: rest
       break;
     }
     if (it == 0 && (u.squaredNorm() < tolerance_m * tolerance_m || !inBand(i, j, k, u.norm())))
       return scan_->voxel(i, j, k);  // not moved, or too far from the surface to move it
-    const Eigen::Vector3d next = p - u;
-    const bool converged = (next - X).squaredNorm() < tolerance_m * tolerance_m;
-    X = next;
-    if (converged) break;
+    const Eigen::Vector3d step = cell->inverse_gradient * (X + u - p);
+    X -= step;
+    if (step.squaredNorm() < tolerance_m * tolerance_m) break;
   }
   return scan_->sampleGrid(X.cwiseQuotient(spacing_m_));  // G is the grid's frame scaled by the spacing
 }
@@ -526,6 +559,7 @@ DeformableStep DeformableScene::step(const haptics::Pose& X_WD, haptics::HapticR
     }
   }
   const bool writes_window = hi[0] >= lo[0] && hi[1] >= lo[1] && hi[2] >= lo[2];
+  CornerCache corners;  // u_grid_ is final for this step
   old_raw_.resize(count);
   new_raw_.resize(count);
   std::size_t at = 0;
@@ -538,7 +572,7 @@ DeformableStep DeformableScene::step(const haptics::Pose& X_WD, haptics::HapticR
                             k <= hi[2];
         // A voxel farther from the rest surface than the window's largest displacement (plus the
         // band's two voxels) cannot move the surface: the scan's value, without solving for X.
-        new_raw_[at] = inside && inBand(i, j, k, out.max_displacement_m) ? rawOf(*scan_, deformedValue(i, j, k))
+        new_raw_[at] = inside && inBand(i, j, k, out.max_displacement_m) ? rawOf(*scan_, deformedValue(i, j, k, corners))
                                                                          : scan_->rawAt(index);
       }
 

@@ -12,7 +12,7 @@
 ///      coupling's stiffness (the pushes lambda, exact for the linear model, quasi-static).
 ///   3. The deformed field is written into the renderer's own copy of the volume over a window
 ///      about the contacts: each voxel centre p takes F(X) at its material point X + u(X) = p
-///      (three fixed-point steps), F the scan as loaded, so the scan's own voxels keep carrying
+///      (chord steps with the lattice cell's Jacobian), F the scan as loaded, so the scan's own voxels keep carrying
 ///      the surface (the isosurface of the deformed tissue, to trilinear interpolation of the
 ///      resampled voxels). Voxels the last window wrote and this one does not go back to rest.
 ///   4. No point of the proxy may end inside: where the new field would swallow one (tissue
@@ -193,12 +193,29 @@ class DeformableScene {
   // `tool` that was outside is inside the field as written. False when there is none.
   bool carryOut(const haptics::ToolModel& tool, const haptics::Pose& X_WP, const Eigen::Vector3d& box_lo,
                 const Eigen::Vector3d& box_hi, Eigen::Vector3d& dp_W) const noexcept;
-  // u(X) [m] at a material point (false outside cells whose corners are all touchable: u is 0).
-  bool displacementAt(const Eigen::Vector3d& X_G, Eigen::Vector3d& u) const noexcept;
+  // A lattice cell as displacementAt() reads it: its corners' displacements and the inverse of
+  // I + grad u at its centre.
+  struct CellCorners {
+    std::array<int, 3> cell{-1, -1, -1};  // the lattice cell held; -1: none yet
+    bool touchable = false;               // its eight corners touchable (else u is 0 there)
+    double u[3][8] = {};                  // [m] per component, corner a = dx + 2 dy + 4 dz
+    Eigen::Matrix3d inverse_gradient = Eigen::Matrix3d::Identity();  // (I + grad u)^-1 at the centre
+  };
+  // The two cells last read, the least recently used replaced: a voxel's iterations go between
+  // the cell of its centre and the cell of its material point (a cell apart under a deep push),
+  // and the next voxel's mostly between the same two, so each is read once for many evaluations.
+  // Valid while u_grid_ is unchanged (one step's resampling).
+  struct CornerCache {
+    std::array<CellCorners, 2> cells;
+    int recent = 0;  // the entry used last
+  };
+  // u(X) [m] at a material point, and the cell it lies in; nullptr (u untouched) outside cells
+  // whose corners are all touchable: u is 0 there.
+  const CellCorners* displacementAt(const Eigen::Vector3d& X_G, CornerCache& cache, Eigen::Vector3d& u) const noexcept;
   // Whether voxel (i, j, k), displaced by displacement_m, may move the isosurface (band_).
   bool inBand(int i, int j, int k, double displacement_m) const noexcept;
   // The deformed F at the centre of voxel (i, j, k).
-  double deformedValue(int i, int j, int k) const noexcept;
+  double deformedValue(int i, int j, int k, CornerCache& cache) const noexcept;
 
   std::shared_ptr<const haptics::ScalarVolume> scan_;
   std::shared_ptr<haptics::ScalarVolume> felt_;
@@ -223,6 +240,7 @@ class DeformableScene {
   std::vector<double> prev_push_N_;  // ... and their pushes (the warm start)
   int contact_count_ = 0;
   Eigen::Vector3i node_dims_ = Eigen::Vector3i::Ones();  // the lattice's grid of nodes (cells + 1)
+  double inverse_cell_m_ = 1.0;      // 1 / the lattice's cell side [1/m]
   std::vector<double> u_grid_;       // 3 per grid node, x fastest: u of the window's nodes, zero elsewhere
   std::vector<int> window_nodes_;    // touchable positions whose u was computed this step
   std::vector<std::size_t> window_grid_nodes_;  // ... their grid nodes
