@@ -9,10 +9,14 @@
 //     touches the proxy's sphere and holds it out;
 //   - on every tick: no proxy point inside the felt field, 0 crossings by a dense check of the
 //     tick's motion (CrossingVerifier), and, released, the field back to the scan's voxels;
+//   - sliding: no edge of the tool's surface between its points inside the felt field (checked
+//     along every edge);
+//   - the written field, voxel for voxel, against an independent solve of each material point;
 //   - what the view is given (takeDeformedWindow()): the felt field, voxel for voxel over the whole
 //     scan, whenever the field has settled under a held tool, and the rest state once released.
 #include <algorithm>
 #include <cmath>
+#include <cstdint>
 #include <cstdio>
 #include <cstdlib>
 #include <memory>
@@ -24,6 +28,7 @@
 #include "vh/datasets/synthetic.h"
 #include "vh/haptics/crossing_verifier.h"
 #include "vh/haptics/haptic_renderer.h"
+#include "vh/haptics/point_shell.h"
 #include "vh/haptics/tool_model.h"
 #include "vh/tissue/deformable_scene.h"
 #include "vh/tissue/deformed_field.h"
@@ -357,6 +362,44 @@ TEST(TissueDeformableScene, TheWrittenFieldIsTheScanAtItsMaterialPoints) {
   EXPECT_GT(columns, 100u);
   EXPECT_LT(worst_moved, 0.0025);
   EXPECT_LT(worst_surface, 2e-3);
+}
+
+// The edge test on deformed tissue: pressed 0.8 mm and slid 3 mm, the tool's surface between its
+// points never enters the felt field (each tick's move checked edge by edge by
+// CrossingVerifier::checkEdges, sampled along every edge; the renderer's own edge test walks
+// cells and trusts certificates), nor does any of its points.
+TEST(TissueDeformableScene, TheToolsSurfaceBetweenItsPointsNeverEntersTheSlidTissue) {
+  GelPress g;
+  const haptics::ShellEdges edges = haptics::makeShellEdges(g.tool->point_shell);
+  haptics::Pose& X_WD = g.X_WD;
+  int crossing_edges = 0, crossing_points = 0, changed_ticks = 0, edge_stops = 0;
+  const auto tick = [&] {
+    const DeformableStep s = g.scene.step(X_WD, g.renderer);
+    const haptics::TickOutput out = g.renderer.tick(X_WD, kIsovalue);
+    crossing_points += g.verifier.check(g.renderer.lastMotion(), g.renderer.lastTimeOfContact(), kIsovalue).crossing_points;
+    crossing_edges += g.verifier
+                          .checkEdges(g.renderer.lastMotion(), g.renderer.lastTimeOfContact(), kIsovalue, edges,
+                                      g.renderer.epsilon_m())
+                          .crossing_edges;
+    changed_ticks += s.voxels_written > 0;
+    edge_stops += out.stats.edge_stop;
+  };
+  while (X_WD.p_AB_m.z() > kTop_m + GelPress::kRadius_m - 0.8e-3) {  // 0.8 mm in, 5 um a tick
+    X_WD.p_AB_m.z() -= 5e-6;
+    tick();
+  }
+  const double depth_m = kTop_m - (g.renderer.proxyPose().p_AB_m.z() - GelPress::kRadius_m);
+  for (int t = 0; t < 600; ++t) {  // 3 mm across, 5 um a tick
+    X_WD.p_AB_m.x() += 5e-6;
+    tick();
+  }
+  std::printf("pressed 0.8 mm (the proxy %.3f mm in) and slid 3 mm: %d ticks rewrote the field, %d moves stopped by "
+              "the edge test; %d crossing edges, %d crossing points\n",
+              1e3 * depth_m, changed_ticks, edge_stops, crossing_edges, crossing_points);
+  EXPECT_GT(depth_m, 0.3e-3) << "the ball did not sink into the gel";
+  EXPECT_GT(changed_ticks, 500);
+  EXPECT_EQ(crossing_edges, 0);
+  EXPECT_EQ(crossing_points, 0);
 }
 
 // The tool pressed in and drawn back part of the way in one jump, then held: the tissue springs
