@@ -12,9 +12,9 @@
 ///      coupling's stiffness (the pushes lambda, exact for the linear model, quasi-static).
 ///   3. The deformed field is written into the renderer's own copy of the volume over a window
 ///      about the contacts: each voxel centre p takes F(X) at its material point X + u(X) = p
-///      (chord steps with the lattice cell's Jacobian), F the scan as loaded, so the scan's own voxels keep carrying
-///      the surface (the isosurface of the deformed tissue, to trilinear interpolation of the
-///      resampled voxels). Voxels the last window wrote and this one does not go back to rest.
+///      (chord steps with the lattice cell's Jacobian), F the scan as loaded, so the scan's own
+///      voxels keep carrying the surface (the isosurface of the deformed tissue, to trilinear
+///      interpolation of the resampled voxels). Voxels the last window wrote and this one does not go back to rest.
 ///   4. No point of the proxy may end inside: where the new field would swallow one (tissue
 ///      springing back onto a tool that has not yet moved), the field is written only that
 ///      fraction alpha of the way from the old one that swallows none (the trilinear field is
