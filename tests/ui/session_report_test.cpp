@@ -21,6 +21,11 @@
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
 
+#include "ct_ball.h"
+#include "vh/runtime/runner.h"
+#include "vh/runtime/session_metrics.h"
+#include "vh/runtime/trajectory.h"
+
 namespace vh::ui {
 namespace {
 
@@ -298,6 +303,55 @@ TEST(SessionReport, ReferenceOfTheSameSceneIsDrawnAnotherIsRefused) {
   } catch (const std::invalid_argument& e) {
     EXPECT_NE(std::string(e.what()).find("another scene"), std::string::npos) << e.what();
   }
+}
+
+// A recording whose burr removed bone, soft tissue and the air above it on a CT: the page gives
+// the removal per material from a replay of the recording on its reloaded scene (even with
+// --no-anatomy), row for row what `run`'s report of the same session gave (whose classes
+// tests/app/runtime's drilling test checks against each voxel's HU), and the rows sum to the
+// records' count of removed voxels. A recording that drilled nothing has no such table.
+TEST(SessionReport, DrilledAwayIsGivenPerMaterialFromAReplay) {
+  const fs::path dir = fs::path(VH_TEST_OUTPUT_DIR) / "session-report-drilled";
+  fs::remove_all(dir);
+  fs::create_directories(dir);
+  const runtime::LoadedScene scene = runtime::loadScene(runtime::loadSceneFile(test::writeCtBallScene(dir)));
+  const auto at = [](double t, double z) {
+    runtime::TrajectorySample sample;
+    sample.t_s = t;
+    sample.X_WD.p_AB_m = {0.0, 0.0, z};
+    return sample;
+  };
+  runtime::RunOptions run_options;
+  run_options.record = dir / "drill.vhrec";
+  run_options.lag_reference = false;
+  run_options.verify_step_voxels = 0.0;
+  const runtime::RunReport run =
+      runtime::runHeadless(scene, runtime::Trajectory({at(0.0, 0.030), at(1.0, 0.0125), at(2.0, 0.0125)}), run_options);
+  ASSERT_TRUE(run.drill.has_value());
+  const Recording rec = runtime::readRecording(run_options.record);
+  SessionReportOptions options;
+  options.anatomy = false;
+  const std::string html = withoutPictures(sessionReportHtml(rec, "drill.vhrec", options));
+  const std::size_t from = html.find("<h2>Drilled away, per material</h2>");
+  ASSERT_NE(from, std::string::npos) << "no table per material";
+  const std::string table = html.substr(from, html.find("</table>", from) - from);
+  std::uint64_t voxels = 0;
+  bool air = false;
+  for (const runtime::DrillReport::Material& m : run.drill->materials) {
+    if (m.voxels == 0) continue;
+    voxels += m.voxels;
+    air = air || m.name == "air";
+    const std::size_t row = table.find("<td>" + m.name + "</td>");
+    ASSERT_NE(row, std::string::npos) << m.name << " missing from\n" << table;
+    EXPECT_NE(table.find("(" + std::to_string(m.voxels) + " voxels)", row), std::string::npos) << m.name << "\n" << table;
+  }
+  EXPECT_TRUE(air) << "the burr's reach took the air above the ball";
+  EXPECT_EQ(voxels, runtime::computeSessionMetrics(rec).removed_voxels);
+  EXPECT_NE(table.find("<th>all</th><td></td><td class=\"n\">"), std::string::npos);
+  EXPECT_NE(table.find("(" + std::to_string(voxels) + " voxels)</td><td></td>"), std::string::npos) << table;
+
+  EXPECT_EQ(sessionReportHtml(pressSession("abc"), "s", options).find("per material"), std::string::npos)
+      << "a session that drilled nothing";
 }
 
 }  // namespace

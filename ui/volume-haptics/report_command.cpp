@@ -72,7 +72,8 @@ CLI::App* addReportSubcommand(CLI::App& app, std::function<int()>& handler) {
       ->capture_default_str()
       ->check(CLI::NonNegativeNumber);
   cmd->add_flag("!--no-anatomy", a->options.anatomy,
-                "Draw the contact map without the scan behind it (the scan is not reloaded)");
+                "Draw the contact map without the scan behind it (the scan is then reloaded only for a recording that "
+                "drilled, to replay it for its removal per material)");
   cmd->add_flag("--anonymize", a->options.anonymize,
                 "Leave out what identifies the patient (DICOM PS3.15 Annex E, for the fields a recording keeps): "
                 "paths and file names become ANONYMIZED, the series UID a 2.25 UID derived from it, the series "

@@ -259,7 +259,10 @@ ReplayComparison replayRecording(const LoadedScene& scene, const Recording& reco
       eroded_mm3 = eroded_now_mm3;
     }
   }
-  if (servo.drill != nullptr) result.drilled_field = std::make_shared<haptics::ScalarVolume>(servo.drill->removal().volume());
+  if (servo.drill != nullptr) {
+    result.drilled_field = std::make_shared<haptics::ScalarVolume>(servo.drill->removal().volume());
+    result.drill = drillReportOf(*servo.drill, scene);
+  }
   if (progress.progress) progress.progress(1.0);
   return result;
 }

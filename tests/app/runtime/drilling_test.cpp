@@ -7,12 +7,14 @@
 #include <atomic>
 #include <fstream>
 #include <iostream>
+#include <map>
 #include <optional>
 #include <thread>
 
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
 
+#include "ct_ball.h"
 #include "runtime_test_support.h"
 #include "vh/runtime/default_isovalue.h"
 #include "vh/runtime/haptic_thread.h"
@@ -155,35 +157,12 @@ TEST(Drilling, HeadlessRunDrillsAndReplaysBitForBit) {
 }
 
 // On a CT, the air the burr's reach takes (below -500 HU, charged at soft tissue's hardness) is
-// reported as air, not as soft tissue. The scan: a MetaImage CT (int16 HU, 1 mm voxels) of a
-// ball of radius 20 mm about the origin, 1000 HU inside, -1000 HU outside, linear over 2 mm
-// across its surface (a scan's partial volume); oracle: each removed voxel's value in the scan.
+// reported as air, not as soft tissue. The scan: test::writeCtBallScene()'s; oracle: each removed
+// voxel's value in the scan.
 TEST(Drilling, AirTheBurrTakesOnACtIsReportedAsAir) {
   const auto dir = test::scratchDir();
-  constexpr int kN = 48;
-  constexpr double kCentre = 0.5 * (kN - 1);  // voxel index of the origin: the grid centred on it
-  {
-    std::ofstream mha(dir / "ball-ct.mha", std::ios::binary);
-    const std::string n = std::to_string(kN), o = std::to_string(-kCentre);
-    mha << "ObjectType = Image\nNDims = 3\nBinaryData = True\nBinaryDataByteOrderMSB = False\n"
-        << "DimSize = " << n << " " << n << " " << n << "\nElementSpacing = 1 1 1\n"
-        << "Offset = " << o << " " << o << " " << o << "\nModality = MET_MOD_CT\n"
-        << "ElementType = MET_SHORT\nElementDataFile = LOCAL\n";
-    for (int k = 0; k < kN; ++k)
-      for (int j = 0; j < kN; ++j)
-        for (int i = 0; i < kN; ++i) {
-          const double r_mm = Eigen::Vector3d(i - kCentre, j - kCentre, k - kCentre).norm();
-          const auto hu = static_cast<std::int16_t>(std::lround(std::clamp(1000.0 * (20.0 - r_mm), -1000.0, 1000.0)));
-          mha.write(reinterpret_cast<const char*>(&hu), sizeof hu);
-        }
-  }
-  std::ofstream(dir / "ball-ct.json") << R"({
-    "volume": {"path": "ball-ct.mha"},
-    "tool": {"mesh": "builtin:drill", "point_spacing_m": 0.001},
-    "coupling": {"linear_N_per_m": 400},
-    "drill": {"on": true, "burr_radius_m": 0.0025}
-  })";
-  const LoadedScene scene = loadScene(loadSceneFile(dir / "ball-ct.json"));
+  const auto scene_file = test::writeCtBallScene(dir);
+  const LoadedScene scene = loadScene(loadSceneFile(scene_file));
   ASSERT_TRUE(inHounsfieldUnits(scene.volume));
   RunOptions options;
   options.record = dir / "air.vhrec";
@@ -278,6 +257,77 @@ TEST(Drilling, ARecordingThatStartsDrilledReplaysBitForBit) {
   EXPECT_FALSE(undrilled.identical) << "the second press overlaps the first cavity: it feels different without it";
   std::cout << "replayed without the cavity: " << undrilled.mismatch << " differs at tick "
             << undrilled.first_mismatch_tick.value_or(0) << "\n";
+}
+
+// What a recording removed, per material and as air, from its replay (the session report's
+// table): on the CT ball, a first session drills the pole, a second, recorded, starts on that
+// cavity and drills 6 mm aside. Oracle: the voxels the replayed field lacks against the scan,
+// less the cavity the recording started with, each classed by its own HU in the scan (air
+// below -500, soft tissue below 250, cancellous bone below 800, cortical bone above), and the
+// records' count of removed voxels.
+TEST(Drilling, AReplayGivesWhatItsRecordingRemovedPerMaterialAndAsAir) {
+  const auto dir = test::scratchDir();
+  const LoadedScene scene = loadScene(loadSceneFile(test::writeCtBallScene(dir)));
+  ASSERT_TRUE(inHounsfieldUnits(scene.volume));
+  RunOptions options;
+  options.record = dir / "first.vhrec";
+  options.lag_reference = false;
+  options.verify_step_voxels = 0.0;
+  (void)runHeadless(scene, pressDown(0.0, 0.0, 0.030, 1.0, 0.0125), options);
+  const Recording first_rec = readRecording(options.record);
+  const ReplayComparison first = replayRecording(loadScene(sceneFromSessionMetadata(first_rec.metadata_json)), first_rec);
+  ASSERT_TRUE(first.identical);
+  auto cavity = std::make_shared<const DrilledCavity>(cavityOf(*first.drilled_field, *scene.hapticField()));
+  ASSERT_GT(cavity->voxels.size(), 20u);
+
+  LoadedScene drilled = scene;
+  drilled.spec.drill->cavity = cavity;
+  options.record = dir / "second.vhrec";
+  const RunReport run = runHeadless(drilled, pressDown(0.006, 0.0, 0.030, 1.0, 0.0125), options);
+  const Recording rec = readRecording(options.record);
+  const ReplayComparison replay = replayRecording(loadScene(sceneFromSessionMetadata(rec.metadata_json)), rec);
+  ASSERT_TRUE(replay.identical) << replay.mismatch << " at tick " << replay.first_mismatch_tick.value_or(0);
+  ASSERT_TRUE(replay.drill.has_value()) << "a replay with a drill gives what it removed";
+  ASSERT_NE(replay.drilled_field, nullptr);
+
+  const haptics::ScalarVolume& ct = *scene.volume.field;
+  const haptics::ScalarVolume& carved = *replay.drilled_field;
+  std::vector<bool> at_start(ct.geometry().voxelCount(), false);
+  for (const std::uint64_t v : cavity->voxels) at_start[v] = true;
+  std::map<std::string, std::uint64_t> expected;
+  std::uint64_t removed = 0;
+  for (std::size_t i = 0; i < ct.geometry().voxelCount(); ++i) {
+    if (carved.rawAt(i) != carved.lowestRaw() || ct.rawAt(i) == carved.lowestRaw() || at_start[i]) continue;
+    ++removed;
+    const double hu = ct.valueScale() * ct.rawAt(i) + ct.valueOffset();
+    ++expected[hu < kAirBelow_HU       ? "air"
+               : hu < kCancellousFrom_HU ? "soft tissue"
+               : hu < kCorticalFrom_HU   ? "cancellous bone"
+                                         : "cortical bone"];
+  }
+  std::map<std::string, std::uint64_t> got;
+  std::uint64_t reported = 0;
+  for (const DrillReport::Material& m : replay.drill->materials) {
+    if (m.voxels > 0) got[m.name] += m.voxels;
+    reported += m.voxels;
+    EXPECT_NEAR(m.removed_mm3, static_cast<double>(m.voxels) * 1.0, 1e-9) << m.name << ": 1 mm voxels";
+  }
+  std::cout << "the second session removed " << removed << " voxels:";
+  for (const auto& [name, n] : expected) std::cout << " " << name << " " << n;
+  std::cout << "\n";
+  EXPECT_GT(expected["air"], 0u) << "the reach passed through the air above the ball";
+  EXPECT_GT(expected["cortical bone"], 0u);
+  EXPECT_EQ(got, expected);
+  EXPECT_EQ(reported, removed) << "the cavity the recording began on is not counted";
+  EXPECT_EQ(reported, computeSessionMetrics(rec).removed_voxels) << "the records' count";
+  EXPECT_EQ(replay.drill->drilled_field_sha256, run.drill->drilled_field_sha256);
+  // And `run`'s report of that session gives the same rows.
+  ASSERT_EQ(run.drill->materials.size(), replay.drill->materials.size());
+  for (std::size_t m = 0; m < run.drill->materials.size(); ++m) {
+    EXPECT_EQ(run.drill->materials[m].name, replay.drill->materials[m].name);
+    EXPECT_EQ(run.drill->materials[m].voxels, replay.drill->materials[m].voxels) << run.drill->materials[m].name;
+    EXPECT_EQ(run.drill->materials[m].voxels_below_surface, replay.drill->materials[m].voxels_below_surface);
+  }
 }
 
 // Touch the Surface with a drill held upright (burr down, shaft and handle up +z), approached

@@ -3,6 +3,7 @@
 // the project's haptics, io, datasets and runtime headers, Eigen and nlohmann-json: a header that
 // pulls in a VTK or Qt header fails the build.
 #include "vh/runtime/device.h"
+#include "vh/runtime/drill_report.h"
 #include "vh/runtime/haptic_snapshot.h"
 #include "vh/runtime/haptic_thread.h"
 #include "vh/runtime/passivity_port.h"

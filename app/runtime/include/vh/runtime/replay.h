@@ -15,6 +15,7 @@
 #include "vh/haptics/haptic_renderer.h"
 #include "vh/runtime/burr_load.h"
 #include "vh/runtime/device.h"
+#include "vh/runtime/drill_report.h"
 #include "vh/runtime/recording.h"
 #include "vh/runtime/scene.h"
 
@@ -74,6 +75,12 @@ struct ReplayComparison {
   /// per record replayed): what a viewer applies to show the cavity at any time of the replay.
   std::vector<std::uint64_t> removed_voxels;
   std::vector<std::uint64_t> removed_after_record;
+  /// With a drill, once every record was replayed (a mismatch or a cancel stops before): what
+  /// the replay's drill removed during the recording, per material and as air, by the rule of
+  /// `run`'s report (drillReportOf(): the cavity the recording started from is not counted).
+  /// Its voxels sum to removed_voxels.size(), which for an identical replay of a format 5
+  /// recording is the records' TickRecord::removed_voxels summed (session_metrics.h).
+  std::optional<DrillReport> drill;
   /// ReplayProgress::cancel stopped it before the end (nothing after that record compared, no
   /// drilled_field).
   bool cancelled = false;

@@ -26,6 +26,7 @@
 #include "vh/haptics/pose.h"
 #include "vh/runtime/burr_load.h"
 #include "vh/runtime/device.h"
+#include "vh/runtime/drill_report.h"
 #include "vh/runtime/guidance.h"
 #include "vh/runtime/scene.h"
 #include "vh/runtime/tool_fit.h"
@@ -147,33 +148,6 @@ struct ProxyLag {
     max_behind_m = std::max(max_behind_m, b.m);
     max_behind_rad = std::max(max_behind_rad, b.rad);
   }
-};
-
-/// What the drill removed in a run (scenes with a "drill" section that is on).
-struct DrillReport {
-  struct Material {
-    std::string name;              ///< "cortical bone", a segment's name, ...
-    std::string segment;           ///< The segment's name when the material is a segment; else empty.
-    bool critical = false;         ///< A critical segment.
-    std::uint64_t voxels = 0;      ///< Voxels removed.
-    double removed_mm3 = 0.0;      ///< voxels x voxel volume [mm^3].
-    /// Of those, voxels whose value was below the felt isovalue (centres outside the felt
-    /// surface: air, or tissue not felt at this isovalue) that the burr's reach took with it, and
-    /// their volume [mm^3]. Lowering them moves the felt surface only where it passes between
-    /// them and felt voxels (trilinear interpolation), and hardly at all for air already near
-    /// the lowest value.
-    std::uint64_t voxels_below_surface = 0;
-    double below_surface_mm3 = 0.0;
-    double specific_energy_J_per_mm3 = 0.0;  ///< Its hardness.
-  };
-  double burr_radius_m = 0.0;      ///< The burr [m].
-  double removed_mm3 = 0.0;        ///< Whole voxels removed, all materials [mm^3].
-  double eroded_mm3 = 0.0;         ///< Material the energy removed, whole voxels and parts [mm^3].
-  /// Per material (HU classes, then segments), then on a CT "air": the removed voxels below
-  /// kAirBelow_HU in the scan, taken out of the HU class rows that charged them (drilling.h).
-  std::vector<Material> materials;
-  /// SHA-256 of the carved field's raw voxels at the end (a replay's must match).
-  std::string drilled_field_sha256;
 };
 
 /// Soft tissue in a run (scenes with a "tissue" section): force against indentation.
