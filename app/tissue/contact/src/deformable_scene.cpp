@@ -405,15 +405,33 @@ bool DeformableScene::inBand(int i, int j, int k, double displacement_m) const n
 
 double DeformableScene::deformedValue(int i, int j, int k, CornerCache& cache) const noexcept {
   const Eigen::Vector3d p = spacing_m_.cwiseProduct(Eigen::Vector3d(i, j, k));
-  Eigen::Vector3d X = p, u;
   // X + u(X) = p by chord steps X <- X - J^-1 (X + u(X) - p), J = I + grad u at the centre of the
   // cell X lies in (Newton with the cell's mean Jacobian: u is trilinear, its gradient varies
   // little within a cell, so each step shrinks the error by that variation rather than by
   // |grad u| as plain fixed-point steps X <- p - u(X) do); stopped when a step moves X by under
-  // a thousandth of a voxel (at most 8 steps).
+  // a thousandth of a voxel (at most 8 steps). The start: the last voxel's material point moved
+  // by dX_dx when that voxel is this one's neighbour along the row (the same step's
+  // resampling, never an earlier step's: no history), else p.
+  bool follows = cache.has_last && cache.last_voxel[0] == i - 1 && cache.last_voxel[1] == j && cache.last_voxel[2] == k;
+  cache.has_last = false;
+  if (follows) {  // only where the start from p would solve too: p in a touchable cell
+    const LatticeGeometry& lg = region_.model.lattice().geometry();
+    int c[3];
+    for (int a = 0; a < 3; ++a) {
+      const double t = (p[a] - lg.origin_W_m[a]) * inverse_cell_m_;
+      if (!(t >= 0.0 && t <= lg.cells[a])) return scan_->voxel(i, j, k);  // off the lattice: rest
+      c[a] = std::min(static_cast<int>(t), lg.cells[a] - 1);
+    }
+    if (cell_touchable_[cellIndex(c[0], c[1], c[2])] == 0) return scan_->voxel(i, j, k);
+  }
+  Eigen::Vector3d X = follows ? Eigen::Vector3d(cache.last_X_G_m + cache.dX_dx_m) : p, u;
   const double tolerance_m = 1e-3 * spacing_m_.minCoeff();
   for (int it = 0; it < 8; ++it) {
     const CellCorners* cell = displacementAt(X, cache, u);
+    if (cell == nullptr && it == 0 && follows) {  // the start left the touchable cells: from p after all
+      X = p;
+      cell = displacementAt(X, cache, u);
+    }
     if (cell == nullptr) {
       if (it == 0) return scan_->voxel(i, j, k);  // not in a touchable cell: rest
       break;
@@ -422,8 +440,12 @@ double DeformableScene::deformedValue(int i, int j, int k, CornerCache& cache) c
       return scan_->voxel(i, j, k);  // not moved, or too far from the surface to move it
     const Eigen::Vector3d step = cell->inverse_gradient * (X + u - p);
     X -= step;
+    cache.dX_dx_m = cell->inverse_gradient.col(0) * spacing_m_[0];
     if (step.squaredNorm() < tolerance_m * tolerance_m) break;
   }
+  cache.has_last = true;
+  cache.last_voxel = {i, j, k};
+  cache.last_X_G_m = X;
   return scan_->sampleGrid(X.cwiseQuotient(spacing_m_));  // G is the grid's frame scaled by the spacing
 }
 
