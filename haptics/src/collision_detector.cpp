@@ -60,9 +60,9 @@ void CollisionDetector::abandonSweep() noexcept { impl_->abandonSweep(); }
 void CollisionDetector::releaseClearContacts(const Pose& X_WP, double isovalue, double clearance_m) noexcept {
   impl_->releaseClearContacts(X_WP, isovalue, clearance_m);
 }
-void CollisionDetector::forgetFieldProofs() noexcept {
+void CollisionDetector::forgetFieldProofs(double max_rise) noexcept {
   impl_->abandonSweep();
-  impl_->forgetEdgeCertificates();
+  impl_->noteFieldRise(max_rise);
 }
 void CollisionDetector::pruneContacts(const Pose& X_WP, const Pose& X_WD, double isovalue) noexcept {
   impl_->pruneContacts(X_WP, X_WD, isovalue);

@@ -301,6 +301,12 @@ class CollisionDetector::Impl {
   double edge_clearance_isovalue_ = std::numeric_limits<double>::quiet_NaN();  // the certificates' isovalue
   // Drops every certificate: the next edge test proves them again (forgetFieldProofs()).
   void forgetEdgeCertificates() noexcept { edge_clearance_isovalue_ = std::numeric_limits<double>::quiet_NaN(); }
+  // The field rose by at most `rise` (F units) anywhere since the last call: the certificates
+  // weaken by it (EdgeClearance::rise_at_proof); a rise that is not finite and >= 0 forgets them.
+  void noteFieldRise(double rise) noexcept;
+  // The rises noted since the detector was built, summed rounding upward (certificates keep
+  // the sum at their proof; the difference bounds the rise since).
+  double field_rise_ = 0.0;
   // How far edge (a, b) (grid coordinates), which the walk found free with F - s <= excess_max
   // on it, may move and stay free [m]; <= 0 when nothing is proven (see EdgeClearance).
   double edgeClearance(const Eigen::Vector3d& a, const Eigen::Vector3d& b, double excess_max,

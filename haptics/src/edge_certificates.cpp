@@ -6,6 +6,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstddef>
+#include <limits>
 
 namespace vh::haptics {
 
@@ -33,6 +34,18 @@ double CollisionDetector::Impl::edgeClearance(const Eigen::Vector3d& a, const Ei
   return std::min(reach_m, -(excess_max + tolerance) / lipschitz);
 }
 
+void CollisionDetector::Impl::noteFieldRise(double rise) noexcept {
+  if (!(rise >= 0.0) || !std::isfinite(rise)) {
+    forgetEdgeCertificates();
+    return;
+  }
+  if (rise == 0.0) return;
+  // Rounded upward, so that field_rise_ less a certificate's rise_at_proof is at least the sum
+  // of the rises noted since (before the subtraction's own rounding, which edgesStillClear()
+  // covers).
+  field_rise_ = std::nextafter(field_rise_ + rise, std::numeric_limits<double>::infinity());
+}
+
 CollisionDetector::Impl::EdgeHold CollisionDetector::Impl::edgesStillClear(const Pose& X_WP, int j,
                                                                const Eigen::Vector3d& p_W) const noexcept {
   const auto i = static_cast<std::size_t>(edge_clearance_index_[static_cast<std::size_t>(j)]);
@@ -41,12 +54,18 @@ CollisionDetector::Impl::EdgeHold CollisionDetector::Impl::edgesStillClear(const
   const std::size_t newer = 2 * i + (edge_slot_[i] ^ 1u);
   for (const std::size_t slot : {newer, newer ^ 1u}) {
     const EdgeClearance& proven = edge_clearance_[slot];
-    const bool by_distance = proven.clearance_m > 0.0, by_direction = proven.margin > 0.0;
-    if (!by_distance && !by_direction) continue;  // nothing proven
+    // Where F rose since the proof (noteFieldRise()): the distance certificates end, the
+    // directional one holds with its margin less the rise (widened for the subtraction's
+    // rounding).
+    const double risen = field_rise_ - proven.rise_at_proof;
+    const bool still = risen == 0.0;
+    const double margin = still ? proven.margin : proven.margin - (risen * (1.0 + 1e-12) + 1e-300);
+    const bool by_distance = still && proven.clearance_m > 0.0, by_direction = margin > 0.0;
+    if (!by_distance && !by_direction) continue;  // nothing proven, or nothing left
     const Eigen::Vector3d moved_W = p_W - proven.p_W_m;
     const double moved_m = moved_W.norm();
     if (proven.arm_m == 0.0) {  // a ball about point j: any turn stays in it
-      if (moved_m < proven.clearance_m) return EdgeHold::kBoxQuery;
+      if (by_distance && moved_m < proven.clearance_m) return EdgeHold::kBoxQuery;
       continue;
     }
     if (!by_direction && !(moved_m < proven.clearance_m)) continue;
@@ -54,7 +73,7 @@ CollisionDetector::Impl::EdgeHold CollisionDetector::Impl::edgesStillClear(const
     // (edgeEnd()), so it has moved by point j's move plus at most |R - R'| arm_m since the
     // certificate, with |R - R'| = 2 sin(theta / 2) = 2 |vec(R'^-1 R)|.
     const double lever_m = 2.0 * (proven.R_WT.conjugate() * X_WP.R_AB).vec().norm() * proven.arm_m;
-    if (moved_m + lever_m < proven.clearance_m) return EdgeHold::kWalk;
+    if (by_distance && moved_m + lever_m < proven.clearance_m) return EdgeHold::kWalk;
     if (!by_direction) continue;
     // The directional certificate: along grid axis a each point of j's edges has moved by d_a
     // within r_a = |row a of grid_from_W| lever of point j's own move. While that stays within
@@ -70,7 +89,7 @@ CollisionDetector::Impl::EdgeHold CollisionDetector::Impl::edgesStillClear(const
       const auto rise_along = [&](double x) { return x >= 0.0 ? proven.step_hi[a] * x : proven.step_lo[a] * x; };
       rise += std::max(rise_along(lo), rise_along(hi));
     }
-    if (within && rise * (1.0 + 1e-9) < proven.margin) return EdgeHold::kWalk;
+    if (within && rise * (1.0 + 1e-9) < margin) return EdgeHold::kWalk;
   }
   return EdgeHold::kNone;
 }
@@ -78,7 +97,9 @@ CollisionDetector::Impl::EdgeHold CollisionDetector::Impl::edgesStillClear(const
 void CollisionDetector::Impl::keepEdgeClearance(int j, const EdgeClearance& proven) noexcept {
   const auto i = static_cast<std::size_t>(j);
   const auto at = static_cast<std::size_t>(edge_clearance_index_[i]);
-  edge_clearance_[2 * at + edge_slot_[at]] = proven;
+  EdgeClearance& kept = edge_clearance_[2 * at + edge_slot_[at]];
+  kept = proven;
+  kept.rise_at_proof = field_rise_;
   edge_slot_[at] ^= 1;
 }
 

@@ -36,10 +36,16 @@ struct EdgeClearance {
   // margin <= 0: none. A tool sliding along a wall moves its edges along the wall, where F
   // hardly changes, and away from it, where F falls: a bound that knows the move's direction
   // keeps them proven for many ticks where the distance (clearance_m) lasts about one.
-  // Floats rounded outward (the ranges) and inward (the reaches): 128 bytes a certificate.
+  // Floats rounded outward (the ranges) and inward (the reaches): 136 bytes a certificate.
   double margin = -1.0;
   Eigen::Vector3f step_lo = Eigen::Vector3f::Zero(), step_hi = Eigen::Vector3f::Zero();
   Eigen::Vector3f reach_lo = Eigen::Vector3f::Zero(), reach_hi = Eigen::Vector3f::Zero();  // grid steps
+  // The field's rise when it was proven (CollisionDetector::Impl::field_rise_): a field that
+  // rose since by r keeps the directional certificate with margin - r (F - s <= -margin + r
+  // there now, and the derivative ranges still bound the old field's part of the rise along
+  // the move), and ends the distance ones (their clearance assumed the old field's Lipschitz
+  // bound on all of F).
+  double rise_at_proof = 0.0;
 };
 // The last edge edgesCrossAt() found crossing: its ends and the pose it was tested at.
 struct EdgeHit {

@@ -199,8 +199,8 @@ void HapticRenderer::carryProxy(const Eigen::Vector3d& dp_W_m) noexcept {
   edges_free_isovalue_ = std::numeric_limits<double>::quiet_NaN();
 }
 
-void HapticRenderer::noteFieldChanged() noexcept {
-  collision_.forgetFieldProofs();
+void HapticRenderer::noteFieldChanged(double max_rise_F) noexcept {
+  collision_.forgetFieldProofs(max_rise_F);
   // Contacts the surface moved away from no longer hold the proxy: released beyond an eighth
   // of epsilon (twice the clearance measurement's resolution), so that the proxy follows a
   // receding surface to within that, not to within epsilon (the pruning's rule, for a still one).

@@ -1,6 +1,7 @@
 // Edge cases a real scan and a real hand reach (oracles: the clean volume's own run, the
 // analytic ball): an outlier voxel or a "no data" border must not change what the hand feels
 // far from it; a probe pressed on a ball turns and slides at every point spacing.
+#include <array>
 #include <cmath>
 #include <cstdint>
 #include <cstdio>
@@ -639,6 +640,77 @@ TEST(EdgeCases, ABoxQueryCertificateHoldsForHalfAVoxelOfTravelOnly) {
     EXPECT_TRUE(fresh.edgesCrossAt(down, 250.0));
   }
   EXPECT_EQ(heights, 56);
+}
+
+TEST(EdgeCases, AFieldThatRoseKeepsOnlyTheCertificatesWithMarginBeyondTheRise) {
+  // The edge test's certificates when the field is rewritten and rises (deformable tissue):
+  // told the most any voxel rose, a detector keeps the directional certificates whose margin
+  // exceeds that rise and proves the others again. A line of eight points 4 mm apart along x
+  // is held 1.5 mm over a plane (F = the signed distance in mm, isovalue 0; 1 mm voxels).
+  // Oracle: the field sampled at the edge's middle and at its ends.
+  datasets::GridSpec grid = test::grid1mm(48);
+  std::vector<Eigen::Vector3d> points_T_m;
+  for (int i = 0; i < 8; ++i) points_T_m.emplace_back(-14e-3 + 4e-3 * i, 0.0, 0.0);
+  ToolModel line;
+  line.point_shell = PointShell(points_T_m);
+  const Pose X = Pose::FromTranslation({0.0, 0.0, 1.5e-3});
+  const auto indexOf = [&](const ScalarVolume& v, const Eigen::Vector3d& p_W) {
+    const Eigen::Vector3d g = v.gridCoordinates(p_W);
+    return std::array<int, 3>{static_cast<int>(std::lround(g.x())), static_cast<int>(std::lround(g.y())),
+                              static_cast<int>(std::lround(g.z()))};
+  };
+  // (a) The voxels about the middle of the edge between points 3 and 4 (x = -2 and 2 mm) rise
+  // by 3: F there -1.5 + 3 > 0, the edge crosses, every point stays outside.
+  {
+    ScalarVolume plane = datasets::makePlaneVolume(grid, Eigen::Vector3d::UnitZ(), 0.0);
+    CollisionDetector told(plane, line, 0.0), trusting(plane, line, 0.0);
+    ASSERT_GT(told.shellEdges().size(), 0u);
+    ASSERT_FALSE(told.edgesCrossAt(X, 0.0));
+    ASSERT_FALSE(trusting.edgesCrossAt(X, 0.0));
+    const std::array<int, 3> lo = indexOf(plane, X * Eigen::Vector3d(-0.5e-3, -0.5e-3, -1.0e-3));
+    const std::array<int, 3> hi = indexOf(plane, X * Eigen::Vector3d(0.5e-3, 0.5e-3, 1.0e-3));
+    for (int k = lo[2]; k <= hi[2]; ++k)
+      for (int j = lo[1]; j <= hi[1]; ++j)
+        for (int i = lo[0]; i <= hi[0]; ++i) {
+          const std::size_t index = plane.geometry().indexOf(i, j, k);
+          plane.writeRaw(index, plane.rawAt(index) + 3.0 / plane.valueScale());
+        }
+    plane.refreshRegion(lo, hi);
+    ASSERT_GT(plane.sample(X * Eigen::Vector3d::Zero()), 0.0) << "the edge's middle is inside";
+    for (const Eigen::Vector3d& p_T : points_T_m) ASSERT_LT(plane.sample(X * p_T), 0.0) << "every point outside";
+    told.forgetFieldProofs(3.0);
+    EXPECT_TRUE(told.edgesCrossAt(X, 0.0)) << "a certificate from before the rise hid the crossing";
+    CollisionDetector fresh(plane, line, 0.0);
+    EXPECT_TRUE(fresh.edgesCrossAt(X, 0.0));
+    // The rise must not be understated: told 0, the old certificates hold and hide it.
+    trusting.forgetFieldProofs(0.0);
+    EXPECT_FALSE(trusting.edgesCrossAt(X, 0.0)) << "the certificates were not kept at all";
+  }
+  // (b) The whole field rises by 0.2 (F -1.3 at the line): no crossing, and the certificates,
+  // with margins of about 1.5, hold: the told detector reads less than a fresh one.
+  {
+    ScalarVolume plane = datasets::makePlaneVolume(grid, Eigen::Vector3d::UnitZ(), 0.0);
+    CollisionDetector told(plane, line, 0.0);
+    ASSERT_FALSE(told.edgesCrossAt(X, 0.0));
+    for (std::size_t index = 0; index < plane.geometry().voxelCount(); ++index)
+      plane.writeRaw(index, plane.rawAt(index) + 0.2 / plane.valueScale());
+    plane.refreshRegion({0, 0, 0}, {grid.dims[0] - 1, grid.dims[1] - 1, grid.dims[2] - 1});
+    told.forgetFieldProofs(0.2);
+    told.resetSampleCount();
+    EXPECT_FALSE(told.edgesCrossAt(X, 0.0));
+    const std::int64_t told_work = told.work();
+    CollisionDetector fresh(plane, line, 0.0);
+    fresh.resetSampleCount();
+    EXPECT_FALSE(fresh.edgesCrossAt(X, 0.0));
+    std::printf("after a rise of 0.2: the told detector's edge test %lld work, a fresh one's %lld\n",
+                static_cast<long long>(told_work), static_cast<long long>(fresh.work()));
+    EXPECT_LT(told_work, fresh.work()) << "no certificate was kept";
+    // Told nothing (an unknown rise), it proves them all again.
+    told.forgetFieldProofs();
+    told.resetSampleCount();
+    EXPECT_FALSE(told.edgesCrossAt(X, 0.0));
+    EXPECT_GT(told.work(), told_work) << "certificates outlived an unknown rise";
+  }
 }
 
 TEST(EdgeCases, AGlidingToolsEdgeTestAsksOnlyWhereTheSurfaceMayHaveMoved) {

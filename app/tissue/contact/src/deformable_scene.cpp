@@ -616,11 +616,15 @@ DeformableStep DeformableScene::step(const haptics::Pose& X_WD, haptics::HapticR
   }
   const bool all_points_checked = proxy_points_W_.size() < proxy_points_W_.capacity();
 
-  // Only the voxels whose value changes are written; their box is what the bounds refresh.
+  // Only the voxels whose value changes are written; their box is what the bounds refresh, and
+  // the most a written value rose above its value before this step is what the renderer's
+  // certificates must allow for (max_rise_raw, in the stored values: F's scale is positive).
   std::array<int, 3> c_lo{INT_MAX, INT_MAX, INT_MAX}, c_hi{-1, -1, -1};
+  double max_rise_raw = 0.0;
   const auto write = [&](double alpha) {
     std::size_t q = 0;
     int changed = 0;
+    max_rise_raw = 0.0;
     for (int k = u_lo[2]; k <= u_hi[2]; ++k)
       for (int j = u_lo[1]; j <= u_hi[1]; ++j)
         for (int i = u_lo[0]; i <= u_hi[0]; ++i, ++q) {
@@ -629,7 +633,9 @@ DeformableStep DeformableScene::step(const haptics::Pose& X_WD, haptics::HapticR
           const std::size_t index = geo.indexOf(i, j, k);
           const double before = felt_->rawAt(index);
           felt_->writeRaw(index, raw);
-          if (felt_->rawAt(index) == before) continue;
+          const double after = felt_->rawAt(index);
+          max_rise_raw = std::max(max_rise_raw, after - old_raw_[q]);
+          if (after == before) continue;
           ++changed;
           c_lo = {std::min(c_lo[0], i), std::min(c_lo[1], j), std::min(c_lo[2], k)};
           c_hi = {std::max(c_hi[0], i), std::max(c_hi[1], j), std::max(c_hi[2], k)};
@@ -673,7 +679,10 @@ DeformableStep DeformableScene::step(const haptics::Pose& X_WD, haptics::HapticR
   out.voxels_written = changed;
   if (changed > 0) {
     felt_->refreshRegion(c_lo, c_hi);
-    renderer.noteFieldChanged();
+    // The rise in F units, rounded up; a field whose scale is not positive: unknown (all dropped).
+    const double scale = felt_->valueScale();
+    renderer.noteFieldChanged(scale > 0.0 ? std::nextafter(scale * max_rise_raw, std::numeric_limits<double>::infinity())
+                                          : std::numeric_limits<double>::infinity());
   }
   // The window now held: this one when written in full or in part; the union's old part is at
   // rest only when alpha is 1.

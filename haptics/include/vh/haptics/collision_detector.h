@@ -6,6 +6,7 @@
 #include <chrono>
 #include <cstddef>
 #include <cstdint>
+#include <limits>
 #include <memory>
 #include <span>
 
@@ -95,10 +96,15 @@ class CollisionDetector {
   /// Forgets the pending sweep (the isovalue changed, the proxy was reset).
   void abandonSweep() noexcept;
   /// The field was rewritten between ticks and may have risen somewhere (deformable tissue
-  /// rewrites the renderer's private copy): forgets what was proven about the old field, the
-  /// pending sweep and the edge test's clearance certificates (which assume a field that only
-  /// falls, as drilling's). No allocation.
-  void forgetFieldProofs() noexcept;
+  /// rewrites the renderer's private copy): forgets the pending sweep, and weakens the edge
+  /// test's clearance certificates (which assume a field that only falls, as drilling's) by
+  /// `max_rise`: the most F rose at any voxel since the last call [F units] (a bound on the
+  /// trilinear interpolant's rise everywhere: each value is a convex combination of voxels).
+  /// A directional certificate then holds with its margin less the rises since it was made;
+  /// the distance certificates made before end. When `max_rise` is not finite and >= 0 (unknown,
+  /// the default), every certificate is forgotten. The caller must not understate it: a
+  /// certificate would then hide an edge the rise carried into the surface. No allocation.
+  void forgetFieldProofs(double max_rise = std::numeric_limits<double>::infinity()) noexcept;
   /// After the field was rewritten: each contact is measured again at the proxy pose X_WP and
   /// released when it is now farther than `clearance_m` from the isosurface (the surface moved
   /// away from it: it no longer holds the proxy, which may follow the surface). No allocation.

@@ -222,10 +222,13 @@ class HapticRenderer {
   /// (deformable tissue writes its deformed field into the renderer's copy; drilling only lowers
   /// F and needs no call). The proxy and its contact set stay (step 2 verifies the contacts
   /// against the new field); what was proven about the old field is dropped: a pending cut
-  /// sweep, the edge test's certificates and its proof of the proxy's pose, and the embedded
-  /// points are scanned again. The writer must leave no point of the proxy inside (it is then
+  /// sweep and the proof of the proxy's pose, and the embedded points are scanned again. The
+  /// edge test's certificates are weakened by `max_rise_F`, the most any voxel's value rose
+  /// since the last call [F units] (CollisionDetector::forgetFieldProofs(): those with margin
+  /// left are kept), or all dropped when it is unknown (not finite and >= 0, the default); it
+  /// must not be understated. The writer must leave no point of the proxy inside (it is then
   /// never inside: tissue's felt deformation, vh::tissue::DeformableScene). No allocation.
-  void noteFieldChanged() noexcept;
+  void noteFieldChanged(double max_rise_F = std::numeric_limits<double>::infinity()) noexcept;
   /// The surface moved onto the proxy and carries it (deformable tissue springing back under a
   /// held tool, the proxy being massless): the proxy is translated by `dp_W_m` [m, frame W]
   /// without collision checking (the writer checked that no point of the moved proxy is inside

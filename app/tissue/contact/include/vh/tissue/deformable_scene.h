@@ -22,9 +22,11 @@
 ///      check after the write catches: then nothing changes this tick). The rest follows on
 ///      the next ticks as the proxy moves: the "felt deformation", as a lowered isovalue is felt
 ///      only as far as it swallows nothing.
-///   5. The renderer is told (HapticRenderer::noteFieldChanged()): its proofs about the old field
-///      are dropped. Its tick then moves the proxy against the deformed surface as against any
-///      other: first contact along each point's motion, the edge test between points.
+///   5. The renderer is told (HapticRenderer::noteFieldChanged()) with the most any written
+///      voxel's value rose: its proofs about the old field are dropped, but for the edge test's
+///      directional certificates with margin left beyond that rise. Its tick then moves the proxy
+///      against the deformed surface as against any other: first contact along each point's
+///      motion, the edge test between points.
 ///
 /// Frames: W the volume's world frame; G the scan's grid frame (the tissue's, tissue_region.h):
 /// p_W = origin_W + D G. Units SI. The isovalue is fixed for a scene (the region, the depth
