@@ -22,8 +22,11 @@ CompliantContact::CompliantContact(const HexLattice& lattice, const SurfaceCompl
   P_values_ = Eigen::MatrixXd::Zero(m, 24);
   P_columns_ = Eigen::MatrixXi::Constant(m, 24, -1);
   gathered_.reserve(static_cast<std::size_t>(max_nodes));
+  prev_gathered_.reserve(static_cast<std::size_t>(max_nodes));
   slot_of_.assign(static_cast<std::size_t>(compliance.nodeCount()), -1);
+  prev_slot_of_.assign(static_cast<std::size_t>(compliance.nodeCount()), -1);
   C_ = Eigen::MatrixXd::Zero(dofs, dofs);
+  C_prev_ = Eigen::MatrixXd::Zero(dofs, dofs);
   T_ = Eigen::MatrixXd::Zero(dofs, m);
   y_ = Eigen::VectorXd::Zero(dofs);
   f_ = Eigen::VectorXd::Zero(dofs);
@@ -40,6 +43,9 @@ CompliantContactResult CompliantContact::solve(std::span<const TissueContactPoin
     if (!c.X_G_m.allFinite() || !c.n_G.allFinite() || !std::isfinite(c.gap_m) || !std::isfinite(c.push_guess_N)) return r;
   }
   for (const int s : gathered_) slot_of_[static_cast<std::size_t>(s)] = -1;
+  // The last solve's nodes and block become the previous ones (swaps: no copy, no allocation).
+  gathered_.swap(prev_gathered_);
+  C_.swap(C_prev_);
   gathered_.clear();
   // P: each contact's nonzero corner weights N_a(X_i) n_i(c) (12 on a cell face, 24 inside).
   for (int i = 0; i < m; ++i) {
@@ -92,28 +98,46 @@ CompliantContactResult CompliantContact::solve(std::span<const TissueContactPoin
     }
     if (!all_touchable) ++r.rigid_points;
   }
-  // C: the gathered block of the table, contiguous.
+  // C: the gathered block of the table, contiguous (3 g x 3 g, column-major with 3 g rows: the
+  // block's columns adjacent, not a column of the workspace's full height apart, so that it
+  // spans few pages and cache lines): a pair of nodes the last solve gathered too from its
+  // block (the same values), the others from the table.
   const int g = static_cast<int>(gathered_.size());
-  for (int b = 0; b < g; ++b)
+  const auto ld = static_cast<std::ptrdiff_t>(3 * g);
+  const auto prev_ld = static_cast<std::ptrdiff_t>(3 * prev_gathered_.size());
+  for (std::size_t b = 0; b < prev_gathered_.size(); ++b)
+    prev_slot_of_[static_cast<std::size_t>(prev_gathered_[b])] = static_cast<int>(b);
+  for (int b = 0; b < g; ++b) {
+    const int old_b = prev_slot_of_[static_cast<std::size_t>(gathered_[static_cast<std::size_t>(b)])];
     for (int cb = 0; cb < 3; ++cb) {
       const float* column = compliance_.column(3 * gathered_[static_cast<std::size_t>(b)] + cb);
-      double* out = C_.col(3 * b + cb).data();
+      const double* old = old_b >= 0 ? C_prev_.data() + (3 * old_b + cb) * prev_ld : nullptr;
+      double* out = C_.data() + (3 * b + cb) * ld;
       for (int a = 0; a < g; ++a) {
+        const int old_a = old != nullptr ? prev_slot_of_[static_cast<std::size_t>(gathered_[static_cast<std::size_t>(a)])] : -1;
+        if (old_a >= 0) {
+          out[3 * a] = old[3 * old_a];
+          out[3 * a + 1] = old[3 * old_a + 1];
+          out[3 * a + 2] = old[3 * old_a + 2];
+          continue;
+        }
         const float* src = column + 3 * gathered_[static_cast<std::size_t>(a)];
         out[3 * a] = src[0];
         out[3 * a + 1] = src[1];
         out[3 * a + 2] = src[2];
       }
     }
+  }
+  for (const int s : prev_gathered_) prev_slot_of_[static_cast<std::size_t>(s)] = -1;
   // T_i = C P_i^T and the diagonal A_ii = P_i T_i + 1 / k.
   const int rows = 3 * g;
   for (int i = 0; i < m; ++i) {
-    double* t = T_.col(i).data();
+    double* t = T_.data() + i * static_cast<std::ptrdiff_t>(rows);
     std::fill(t, t + rows, 0.0);
     double diagonal = normals_.col(i).squaredNorm() / k;
     for (int l = 0; l < 24 && P_columns_(i, l) >= 0; ++l) {
       const double weight = P_values_(i, l);
-      const double* column = C_.col(P_columns_(i, l)).data();
+      const double* column = C_.data() + P_columns_(i, l) * ld;
       for (int row = 0; row < rows; ++row) t[row] += weight * column[row];
     }
     for (int l = 0; l < 24 && P_columns_(i, l) >= 0; ++l) diagonal += P_values_(i, l) * t[P_columns_(i, l)];
@@ -127,7 +151,7 @@ CompliantContactResult CompliantContact::solve(std::span<const TissueContactPoin
     const double guess = contacts[static_cast<std::size_t>(i)].push_guess_N;
     lambda_(i) = diagonal_(i) > 0.0 && guess > 0.0 && guess < 1e6 ? guess : 0.0;  // an absurd guess starts from 0
     if (lambda_(i) == 0.0) continue;
-    const double* t = T_.col(i).data();
+    const double* t = T_.data() + i * static_cast<std::ptrdiff_t>(rows);
     for (int row = 0; row < rows; ++row) y_(row) += lambda_(i) * t[row];
     s += lambda_(i) * normals_.col(i);
   }
@@ -146,7 +170,7 @@ CompliantContactResult CompliantContact::solve(std::span<const TissueContactPoin
       violation = std::max(violation, std::abs(change) * diagonal_(i));
       if (change == 0.0) continue;
       lambda_(i) = updated;
-      const double* t = T_.col(i).data();
+      const double* t = T_.data() + i * static_cast<std::ptrdiff_t>(rows);
       for (int row = 0; row < rows; ++row) y_(row) += change * t[row];
       s += change * normals_.col(i);
     }

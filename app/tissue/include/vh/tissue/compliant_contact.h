@@ -92,8 +92,17 @@ class CompliantContact {
   Eigen::MatrixXi P_columns_;    ///< (m_max x 24): the gathered dof (3 slot + c) of each; -1 ends the row.
   std::vector<int> gathered_;    ///< Table positions of the gathered corner nodes (<= max_nodes).
   std::vector<int> slot_of_;     ///< Per table position: its slot in gathered_, -1 when absent.
-  Eigen::MatrixXd C_;            ///< (3 max_nodes)^2: the gathered block of the table, contiguous.
-  Eigen::MatrixXd T_;            ///< (3 max_nodes x m_max): C P^T, column i the tissue's response to contact i.
+  /// Room for (3 max_nodes)^2: the gathered block of the table, 3 g x 3 g for g gathered nodes,
+  /// stored compactly (column-major with 3 g rows, not the room's height: few pages and lines).
+  Eigen::MatrixXd C_;
+  /// The last solve's gathered nodes, their slots by table position (-1: absent; set only while
+  /// a solve gathers) and their block C_prev_ (as C_): the pairs a solve gathers again are
+  /// copied from there, the same values, instead of read from the table, whose scattered reads
+  /// miss the cache (a table of tens to hundreds of MB).
+  std::vector<int> prev_gathered_;
+  std::vector<int> prev_slot_of_;
+  Eigen::MatrixXd C_prev_;
+  Eigen::MatrixXd T_;            ///< Room for (3 max_nodes x m_max): C P^T (3 g rows, compact as C_), column i the tissue's response to contact i.
   Eigen::VectorXd y_;            ///< (3 max_nodes): C P^T lambda.
   Eigen::VectorXd f_;            ///< (3 max_nodes): -P^T lambda, the pushes on the gathered nodes [N].
 };
