@@ -30,6 +30,7 @@
 #include "phantom_window.h"
 #include "ui_test_util.h"
 #include "view_host.h"
+#include "drilling_scenes.h"
 #include "vh/io/segmentation.h"
 #include "vh/runtime/recording.h"
 #include "vh/runtime/replay.h"
@@ -385,18 +386,11 @@ DrilledRun recordDrilledRun(const fs::path& dir) {
   std::ofstream(scene_path) << R"({"volume": {"path": "builtin:sphere"}, "tool": {"mesh": "builtin:drill", "point_spacing_m": 0.001},
       "coupling": {"linear_N_per_m": 400}, "device": {"kind": "simulated"}, "drill": {"on": true}})";
   const runtime::LoadedScene scene = runtime::loadScene(runtime::loadSceneFile(scene_path));
-  const auto at = [](double t, double z) {
-    runtime::TrajectorySample s;
-    s.t_s = t;
-    s.X_WD.p_AB_m = {0.0, 0.0, z};
-    return s;
-  };
   runtime::RunOptions options;
   options.record = dir / "drill.vhrec";
   options.lag_reference = false;
   options.verify_step_voxels = 0.0;
-  const runtime::RunReport report =
-      runtime::runHeadless(scene, runtime::Trajectory({at(0.0, 0.030), at(0.5, 0.0125), at(1.5, 0.0125)}), options);
+  const runtime::RunReport report = runtime::runHeadless(scene, vh::test::pressTrajectory(0.0, 0.0, 0.030, 0.5, 0.0125, 1.5), options);
   DrilledRun run;
   run.recording = options.record;
   if (report.drill.has_value())

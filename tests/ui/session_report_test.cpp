@@ -21,7 +21,7 @@
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
 
-#include "ct_ball.h"
+#include "drilling_scenes.h"
 #include "vh/runtime/runner.h"
 #include "vh/runtime/session_metrics.h"
 #include "vh/runtime/trajectory.h"
@@ -315,18 +315,11 @@ TEST(SessionReport, DrilledAwayIsGivenPerMaterialFromAReplay) {
   fs::remove_all(dir);
   fs::create_directories(dir);
   const runtime::LoadedScene scene = runtime::loadScene(runtime::loadSceneFile(test::writeCtBallScene(dir)));
-  const auto at = [](double t, double z) {
-    runtime::TrajectorySample sample;
-    sample.t_s = t;
-    sample.X_WD.p_AB_m = {0.0, 0.0, z};
-    return sample;
-  };
   runtime::RunOptions run_options;
   run_options.record = dir / "drill.vhrec";
   run_options.lag_reference = false;
   run_options.verify_step_voxels = 0.0;
-  const runtime::RunReport run =
-      runtime::runHeadless(scene, runtime::Trajectory({at(0.0, 0.030), at(1.0, 0.0125), at(2.0, 0.0125)}), run_options);
+  const runtime::RunReport run = runtime::runHeadless(scene, test::pressTrajectory(0.0, 0.0, 0.030, 1.0, 0.0125, 2.0), run_options);
   ASSERT_TRUE(run.drill.has_value());
   const Recording rec = runtime::readRecording(run_options.record);
   SessionReportOptions options;

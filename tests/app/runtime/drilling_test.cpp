@@ -14,7 +14,7 @@
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
 
-#include "ct_ball.h"
+#include "drilling_scenes.h"
 #include "runtime_test_support.h"
 #include "vh/runtime/default_isovalue.h"
 #include "vh/runtime/haptic_thread.h"
@@ -35,13 +35,7 @@ namespace {
 // The device at (x, y) [m], lowered from z_from to z_to [m] over the first t_down_s seconds,
 // then held until 3 s.
 Trajectory pressDown(double x, double y, double z_from, double t_down_s, double z_to) {
-  const auto at = [&](double t, double z) {
-    TrajectorySample s;
-    s.t_s = t;
-    s.X_WD.p_AB_m = {x, y, z};
-    return s;
-  };
-  return Trajectory({at(0.0, z_from), at(t_down_s, z_to), at(3.0, z_to)});
+  return test::pressTrajectory(x, y, z_from, t_down_s, z_to, 3.0);
 }
 
 const char* kDrillScene = R"({
@@ -201,12 +195,17 @@ TEST(Drilling, AirTheBurrTakesOnACtIsReportedAsAir) {
   EXPECT_NE(report.summary().find(", air "), std::string::npos) << report.summary();
 }
 
-// A recording that starts on a drilled field (a session that drilled, rebuilt its haptic threads
-// and recorded on): its metadata carries the cavity, and the replay carves on from it to the very
-// same field (SHA-256), which holds both cavities; replayed without the cavity, it is another.
-TEST(Drilling, ARecordingThatStartsDrilledReplaysBitForBit) {
-  const auto dir = test::scratchDir();
-  const LoadedScene scene = loadScene(parseScene(kDrillScene, "drill.json", "."));
+// Two sessions on `scene`, each recorded in `dir`: the first presses the drill onto the pole
+// (first.vhrec, replayed: it must match) and leaves `cavity` (on the felt field's grid; null when
+// nothing was carved, and then no second session); the second starts on that cavity and presses
+// x_m [m] aside (second.vhrec, `record`), `run` its report.
+struct SecondSession {
+  std::shared_ptr<const DrilledCavity> cavity;
+  RunReport run;
+  std::filesystem::path record;
+};
+SecondSession drillBesideAFirstCavity(const LoadedScene& scene, const std::filesystem::path& dir, double x_m) {
+  SecondSession out;
   RunOptions options;
   options.record = dir / "first.vhrec";
   options.lag_reference = false;
@@ -214,18 +213,31 @@ TEST(Drilling, ARecordingThatStartsDrilledReplaysBitForBit) {
   (void)runHeadless(scene, pressDown(0.0, 0.0, 0.030, 1.0, 0.0125), options);
   const Recording first_rec = readRecording(options.record);
   const ReplayComparison first = replayRecording(loadScene(sceneFromSessionMetadata(first_rec.metadata_json)), first_rec);
-  ASSERT_TRUE(first.identical);
-  auto cavity = std::make_shared<const DrilledCavity>(cavityOf(*first.drilled_field, *scene.hapticField()));
-  ASSERT_GT(cavity->voxels.size(), 20u);
-
-  // The second session starts from that cavity and drills 4 mm aside.
+  EXPECT_TRUE(first.identical) << first.mismatch;
+  if (first.drilled_field == nullptr) return out;
+  out.cavity = std::make_shared<const DrilledCavity>(cavityOf(*first.drilled_field, *scene.hapticField()));
   LoadedScene drilled = scene;
-  drilled.spec.drill->cavity = cavity;
-  options.record = dir / "second.vhrec";
-  const RunReport report = runHeadless(drilled, pressDown(0.004, 0.0, 0.030, 1.0, 0.0125), options);
+  drilled.spec.drill->cavity = out.cavity;
+  options.record = out.record = dir / "second.vhrec";
+  out.run = runHeadless(drilled, pressDown(x_m, 0.0, 0.030, 1.0, 0.0125), options);
+  return out;
+}
+
+// A recording that starts on a drilled field (a session that drilled, rebuilt its haptic threads
+// and recorded on): its metadata carries the cavity, and the replay carves on from it to the very
+// same field (SHA-256), which holds both cavities; replayed without the cavity, it is another.
+TEST(Drilling, ARecordingThatStartsDrilledReplaysBitForBit) {
+  const auto dir = test::scratchDir();
+  const LoadedScene scene = loadScene(parseScene(kDrillScene, "drill.json", "."));
+  // The second session starts from the first one's cavity and drills 4 mm aside.
+  const SecondSession second = drillBesideAFirstCavity(scene, dir, 0.004);
+  ASSERT_NE(second.cavity, nullptr);
+  ASSERT_GT(second.cavity->voxels.size(), 20u);
+  const std::shared_ptr<const DrilledCavity>& cavity = second.cavity;
+  const RunReport& report = second.run;
   ASSERT_TRUE(report.drill.has_value());
   EXPECT_GT(report.drill->removed_mm3, 5.0) << "the second press cut too";
-  const Recording rec = readRecording(options.record);
+  const Recording rec = readRecording(second.record);
   const LoadedScene reloaded = loadScene(sceneFromSessionMetadata(rec.metadata_json));
   ASSERT_TRUE(reloaded.spec.drill.has_value());
   ASSERT_NE(reloaded.spec.drill->cavity, nullptr) << "the metadata carries the cavity";
@@ -269,22 +281,13 @@ TEST(Drilling, AReplayGivesWhatItsRecordingRemovedPerMaterialAndAsAir) {
   const auto dir = test::scratchDir();
   const LoadedScene scene = loadScene(loadSceneFile(test::writeCtBallScene(dir)));
   ASSERT_TRUE(inHounsfieldUnits(scene.volume));
-  RunOptions options;
-  options.record = dir / "first.vhrec";
-  options.lag_reference = false;
-  options.verify_step_voxels = 0.0;
-  (void)runHeadless(scene, pressDown(0.0, 0.0, 0.030, 1.0, 0.0125), options);
-  const Recording first_rec = readRecording(options.record);
-  const ReplayComparison first = replayRecording(loadScene(sceneFromSessionMetadata(first_rec.metadata_json)), first_rec);
-  ASSERT_TRUE(first.identical);
-  auto cavity = std::make_shared<const DrilledCavity>(cavityOf(*first.drilled_field, *scene.hapticField()));
-  ASSERT_GT(cavity->voxels.size(), 20u);
-
-  LoadedScene drilled = scene;
-  drilled.spec.drill->cavity = cavity;
-  options.record = dir / "second.vhrec";
-  const RunReport run = runHeadless(drilled, pressDown(0.006, 0.0, 0.030, 1.0, 0.0125), options);
-  const Recording rec = readRecording(options.record);
+  const SecondSession second = drillBesideAFirstCavity(scene, dir, 0.006);
+  ASSERT_NE(second.cavity, nullptr);
+  ASSERT_GT(second.cavity->voxels.size(), 20u);
+  const std::shared_ptr<const DrilledCavity>& cavity = second.cavity;
+  const RunReport& run = second.run;
+  ASSERT_TRUE(run.drill.has_value());
+  const Recording rec = readRecording(second.record);
   const ReplayComparison replay = replayRecording(loadScene(sceneFromSessionMetadata(rec.metadata_json)), rec);
   ASSERT_TRUE(replay.identical) << replay.mismatch << " at tick " << replay.first_mismatch_tick.value_or(0);
   ASSERT_TRUE(replay.drill.has_value()) << "a replay with a drill gives what it removed";

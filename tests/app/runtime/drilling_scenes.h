@@ -1,6 +1,6 @@
 #pragma once
-// A CT scan made for drilling tests: a ball whose HU classes and partial volume are known at
-// every voxel, so that what a burr removed can be classed from the scan alone.
+// For drilling tests: a CT scan of a ball whose HU classes and partial volume are known at every
+// voxel (so that what a burr removed can be classed from the scan alone), and a straight press.
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
@@ -10,7 +10,22 @@
 
 #include <Eigen/Core>
 
+#include "vh/runtime/trajectory.h"
+
 namespace vh::test {
+
+/// The device (its orientation the identity) straight down at (x, y) [m] in W from z_from to
+/// z_to [m] over the first t_down_s seconds, then held there until t_end_s [s].
+inline runtime::Trajectory pressTrajectory(double x, double y, double z_from, double t_down_s, double z_to,
+                                           double t_end_s) {
+  const auto at = [&](double t, double z) {
+    runtime::TrajectorySample s;
+    s.t_s = t;
+    s.X_WD.p_AB_m = {x, y, z};
+    return s;
+  };
+  return runtime::Trajectory({at(0.0, z_from), at(t_down_s, z_to), at(t_end_s, z_to)});
+}
 
 /// Writes a MetaImage CT (int16 HU, 1 mm voxels, 48^3, the grid centred on the origin) of a
 /// ball of radius 20 mm about the origin, 1000 HU inside, -1000 HU outside, linear over 2 mm
