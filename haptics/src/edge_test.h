@@ -36,7 +36,7 @@ struct EdgeClearance {
   // margin <= 0: none. A tool sliding along a wall moves its edges along the wall, where F
   // hardly changes, and away from it, where F falls: a bound that knows the move's direction
   // keeps them proven for many ticks where the distance (clearance_m) lasts about one.
-  // Floats rounded outward (the ranges) and inward (the reaches): 136 bytes a certificate.
+  // Floats rounded outward (the ranges) and inward (the reaches): 144 bytes a certificate.
   double margin = -1.0;
   Eigen::Vector3f step_lo = Eigen::Vector3f::Zero(), step_hi = Eigen::Vector3f::Zero();
   Eigen::Vector3f reach_lo = Eigen::Vector3f::Zero(), reach_hi = Eigen::Vector3f::Zero();  // grid steps
