@@ -797,7 +797,7 @@ DrilledByMaterial reloadScene(const Recording& rec, bool replay_drilling, std::s
     anatomy.set_value(std::move(loaded));
   } catch (const std::exception& e) {
     why = e.what();
-    drilled.why = "the scene could not be reloaded (" + why + ")";
+    if (replay_drilling) drilled.why = "the scene could not be reloaded (" + why + ")";
     anatomy.set_value(nullptr);
     return drilled;
   }
