@@ -44,6 +44,15 @@ TEST(StatusLine, ShowsTheSnapshotsNumbers) {
   session.setScene(sphereProbeScene(), std::make_shared<runtime::SimulatedDevice>(sphereProbeScene().X_WT_initial));
   session.startHaptics();
   ASSERT_TRUE(session.hapticsRunning());
+  // Each thread sets its scheduling when it starts: realtimeScheduling(), which the line reads,
+  // is final once both have ticked (a snapshot with ticks of each), not when start() returns.
+  runtime::HapticSnapshot ticked;
+  ASSERT_TRUE(test::waitFor(
+      [&] {
+        session.hapticThread()->latestSnapshot(ticked);
+        return ticked.tick > 0 && ticked.solver_tick > 0;
+      },
+      30000));
   runtime::HapticSnapshot s;
   s.coupling.rate_Hz = 1000.0;
   s.solver.rate_Hz = 250.0;
