@@ -31,10 +31,9 @@
 #include "vh/io/private_files.h"
 #include "vh/runtime/scene.h"
 #include "vh/runtime/anonymize.h"
-#include "vh/runtime/drilling.h"
-#include "vh/runtime/replay.h"
 #include "vh/runtime/session_metadata.h"
 #include "vh/ui/export/report_format.h"
+#include "report_drilling.h"
 
 namespace vh::ui {
 namespace {
@@ -46,21 +45,6 @@ using runtime::SessionMetrics;
 using runtime::TickRecord;
 
 double norm3(const double v[3]) { return std::sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2]); }
-
-std::string escapeHtml(const std::string& s) {
-  std::string out;
-  out.reserve(s.size());
-  for (char c : s) {
-    switch (c) {
-      case '&': out += "&amp;"; break;
-      case '<': out += "&lt;"; break;
-      case '>': out += "&gt;"; break;
-      case '"': out += "&quot;"; break;
-      default: out += c;
-    }
-  }
-  return out;
-}
 
 /// `image` as a data: URI of a PNG.
 std::string pngUri(const QImage& image) {
@@ -762,28 +746,13 @@ std::string metadataLine(const Recording& rec, const SessionMetrics& m) {
   return html + "</table>\n";
 }
 
-/// What the burr removed during the recording, per material, from a replay of it on its scene.
-struct DrilledByMaterial {
-  std::optional<runtime::DrillReport> report;  ///< Empty when not replayed (see why).
-  std::string why;                             ///< Why there is no report (empty: none was asked for).
-};
-
-/// Whether the recording's burr removed anything (format version 5 on: its records; older: a
-/// "drilled" event with voxels).
-bool drilledDuring(const Recording& rec) {
-  if (rec.version >= 5)
-    return std::any_of(rec.records.begin(), rec.records.end(), [](const TickRecord& r) { return r.removed_voxels > 0; });
-  return std::any_of(rec.events.begin(), rec.events.end(), [](const runtime::RecordingEvent& e) { return e.type == "drilled"; });
-}
-
 /// The recorded scene reloaded from the metadata once, for two things: its felt surface (its
 /// scan, or its felt segments), set into `anatomy` as soon as it is loaded (null with `why` set
 /// when it cannot be: a missing or changed dataset); then, with `replay_drilling`, the recording
-/// replayed on it for what its burr removed per material (runtime::ReplayComparison::drill; a
-/// replay that differs from the recording gives no table, and says where it parted).
-DrilledByMaterial reloadScene(const Recording& rec, bool replay_drilling, std::string& why,
-                              std::promise<std::unique_ptr<Anatomy>>& anatomy) {
-  DrilledByMaterial drilled;
+/// replayed on it for what its burr removed per material (detail::drilledByMaterialOf()).
+detail::DrilledByMaterial reloadScene(const Recording& rec, bool replay_drilling, std::string& why,
+                                      std::promise<std::unique_ptr<Anatomy>>& anatomy) {
+  detail::DrilledByMaterial drilled;
   std::optional<runtime::LoadedScene> scene;
   try {
     runtime::SceneSpec spec = runtime::sceneFromSessionMetadata(rec.metadata_json);
@@ -801,47 +770,7 @@ DrilledByMaterial reloadScene(const Recording& rec, bool replay_drilling, std::s
     anatomy.set_value(nullptr);
     return drilled;
   }
-  if (!replay_drilling) return drilled;
-  try {
-    const runtime::ReplayComparison replay = runtime::replayRecording(*scene, rec);
-    if (!replay.identical) drilled.why = runtime::replayDifference(replay, rec);
-    else if (!replay.drill) drilled.why = "the reloaded scene has no drill";
-    else drilled.report = replay.drill;
-  } catch (const std::exception& e) {
-    drilled.why = std::string("the replay failed (") + e.what() + ")";
-  }
-  return drilled;
-}
-
-/// The burr's removal during the recording per material (`run`'s rule: drill_report.h), or why
-/// it is not known; empty for a recording that removed nothing.
-std::string drilledByMaterialSection(const DrilledByMaterial& d, const std::vector<std::string>& scrub) {
-  if (!d.report && d.why.empty()) return {};
-  std::string html = "<h2>Drilled away, per material</h2>\n";
-  if (!d.report)
-    return html + "<p>Per material: not known: " + escapeHtml(runtime::scrubText(d.why, scrub)) + ".</p>\n";
-  html += "<p class=\"small\">What the burr removed during the recording (the cavity it began on left out), "
-          "from a replay of the recording on its scene, by the rule of <code>volume-haptics run</code>'s report. "
-          "\"Below the felt surface\": voxels whose value was under the felt isovalue, which the burr's reach "
-          "took with the tissue beside them. \"air\": on a CT, voxels below " + formatNumber(runtime::kAirBelow_HU) +
-          " HU in the scan, charged at the hardness of the class they were counted in.</p>\n"
-          "<table>\n<tr><th>material</th><th>critical</th><th>drilled away</th><th>of it below the felt "
-          "surface</th><th>hardness charged</th></tr>\n";
-  std::uint64_t voxels = 0;
-  double mm3 = 0.0;
-  for (const runtime::DrillReport::Material& m : d.report->materials) {
-    if (m.voxels == 0) continue;
-    voxels += m.voxels;
-    mm3 += m.removed_mm3;
-    html += "<tr" + std::string(m.critical ? " class=\"critical\"" : "") + "><td>" + escapeHtml(m.name) + "</td><td>" +
-            (m.critical ? "yes" : "no") + "</td><td class=\"n\">" + formatQuantity(m.removed_mm3, "mm^3") + " (" +
-            std::to_string(m.voxels) + " voxels)</td><td class=\"n\">" +
-            formatQuantity(m.below_surface_mm3, "mm^3") + "</td><td class=\"n\">" +
-            formatQuantity(m.specific_energy_J_per_mm3, "J/mm^3") + "</td></tr>\n";
-  }
-  html += "<tr><th>all</th><td></td><td class=\"n\">" + formatQuantity(mm3, "mm^3") + " (" +
-          std::to_string(voxels) + " voxels)</td><td></td><td></td></tr>\n";
-  return html + "</table>\n";
+  return replay_drilling ? detail::drilledByMaterialOf(*scene, rec) : drilled;
 }
 
 /// --anonymize: anonymized copies of the recording and the reference (runtime::anonymizeRecording());
@@ -886,8 +815,8 @@ std::string sessionReportHtml(const Recording& original, const std::string& titl
   std::string why;
   std::promise<std::unique_ptr<Anatomy>> anatomy_promise;
   std::future<std::unique_ptr<Anatomy>> anatomy_loading;
-  std::future<DrilledByMaterial> drilled_replay;
-  const bool drilled = drilledDuring(original);
+  std::future<detail::DrilledByMaterial> drilled_replay;
+  const bool drilled = detail::drilledDuring(original);
   if ((options.anatomy || drilled) && !original.records.empty()) {
     if (options.anatomy) anatomy_loading = anatomy_promise.get_future();
     drilled_replay = std::async(std::launch::async, [&original, &why, &anatomy_promise, drilled] {
@@ -936,7 +865,7 @@ std::string sessionReportHtml(const Recording& original, const std::string& titl
     html += ".</p>\n" + contactMap(recording, m, options, anatomy.get());
   }
   html += "<h2>Segments</h2>\n" + segmentsTable(m);
-  if (drilled_replay.valid()) html += drilledByMaterialSection(drilled_replay.get(), anonymized.ids);
+  if (drilled_replay.valid()) html += detail::drilledByMaterialSection(drilled_replay.get(), anonymized.ids);
   html += "<h2>Proximity</h2>\n" + proximitySection(recording, m, options);
   html += "<h2>Events</h2>\n" + eventsTable(recording);
   // The jerk measures are for research (their numbers mean something only beside the same task's

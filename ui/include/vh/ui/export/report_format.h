@@ -13,6 +13,9 @@
 
 namespace vh::ui {
 
+/// `s` safe inside HTML text and attribute values: & < > " written as entities.
+std::string escapeHtml(const std::string& s);
+
 /// `v` with `significant` significant digits (1 .. 15; 3 by default), trailing zeros after the
 /// decimal point dropped: 130.3 -> "130", 98.44 -> "98.4", 0.012345 -> "0.0123", 4.0 -> "4".
 /// Integers below 10^6 are printed whole (12345 -> "12345"); magnitudes of 10^6 and more, or
