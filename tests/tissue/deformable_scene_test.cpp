@@ -20,6 +20,7 @@
 #include <cstdio>
 #include <cstdlib>
 #include <memory>
+#include <stdexcept>
 #include <vector>
 
 #include <gtest/gtest.h>
@@ -30,6 +31,7 @@
 #include "vh/haptics/haptic_renderer.h"
 #include "vh/haptics/point_shell.h"
 #include "vh/haptics/tool_model.h"
+#include "vh/haptics/worker_pool.h"
 #include "vh/tissue/deformable_scene.h"
 #include "vh/tissue/deformed_field.h"
 #include "sphere_contact_reference.h"
@@ -400,6 +402,38 @@ TEST(TissueDeformableScene, TheToolsSurfaceBetweenItsPointsNeverEntersTheSlidTis
   EXPECT_GT(changed_ticks, 500);
   EXPECT_EQ(crossing_edges, 0);
   EXPECT_EQ(crossing_points, 0);
+}
+
+// The resampling on several lanes (the window's rows dealt to the solver's pool) writes the
+// field that one lane writes, bit for bit, tick after tick of a press and a slide: each row is
+// solved in the same order on any lane. The lanes are checked when set.
+TEST(TissueDeformableScene, ResamplingOnSeveralLanesWritesTheSameFieldAsOne) {
+  GelPress one, three;
+  three.scene.setResampleLanes(3);
+  EXPECT_EQ(three.scene.resampleLanes(), 3);
+  EXPECT_THROW(one.scene.setResampleLanes(0), std::invalid_argument);
+  EXPECT_THROW(one.scene.setResampleLanes(haptics::WorkerPool::kMaxLanes + 1), std::invalid_argument);
+  EXPECT_EQ(one.scene.resampleLanes(), 1);
+  int ticks = 0, rewritten = 0, differing_fields = 0, differing_forces = 0;
+  const auto tick = [&](const Eigen::Vector3d& dp_W) {
+    for (GelPress* g : {&one, &three}) g->X_WD.p_AB_m += dp_W;
+    const DeformableStep s1 = one.scene.step(one.X_WD, one.renderer);
+    const DeformableStep s3 = three.scene.step(three.X_WD, three.renderer);
+    const haptics::TickOutput o1 = one.renderer.tick(one.X_WD, kIsovalue);
+    const haptics::TickOutput o3 = three.renderer.tick(three.X_WD, kIsovalue);
+    ++ticks;
+    rewritten += s1.voxels_written > 0;
+    differing_fields += one.scene.feltVolume()->bytes() != three.scene.feltVolume()->bytes() ||
+                        s1.voxels_written != s3.voxels_written;
+    differing_forces += o1.force_W_N != o3.force_W_N;
+  };
+  for (int t = 0; t < 180; ++t) tick(Eigen::Vector3d(0.0, 0.0, -5e-6));  // 0.9 mm down
+  for (int t = 0; t < 200; ++t) tick(Eigen::Vector3d(5e-6, 2e-6, 0.0));  // 1 mm across
+  std::printf("%d ticks, %d rewrote the field; fields differing %d, forces differing %d\n", ticks, rewritten,
+              differing_fields, differing_forces);
+  EXPECT_GT(rewritten, 200) << "the ball hardly deformed the gel: nothing was compared";
+  EXPECT_EQ(differing_fields, 0);
+  EXPECT_EQ(differing_forces, 0);
 }
 
 // The tool pressed in and drawn back part of the way in one jump, then held: the tissue springs

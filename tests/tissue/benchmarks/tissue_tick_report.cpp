@@ -14,8 +14,9 @@
 //   - 0 crossings of either felt field by a dense check of every tick's motion;
 //   - force against indentation over the inclusion and beside it, with the full solve's exact
 //     contact on the same lattice (sphere_contact_reference.h) for the factor.
-// Usage: vh_tissue_tick_report [--cell-mm=H] [--window-margin-mm=M] [--quick]
+// Usage: vh_tissue_tick_report [--cell-mm=H] [--window-margin-mm=M] [--lanes=N] [--quick]
 //   M: DeformableSceneOptions::window_margin_m (default 0: its default)
+//   N: the resampling's lanes (DeformableScene::setResampleLanes(); default 1: one core)
 #include <algorithm>
 #include <chrono>
 #include <cmath>
@@ -103,11 +104,13 @@ double since_us(Clock::time_point a) { return std::chrono::duration<double, std:
 
 int main(int argc, char** argv) {
   double cell_m = 2e-3, window_margin_m = 0.0;
+  int lanes = 1;
   bool quick = false;
   for (int i = 1; i < argc; ++i) {
     if (std::strncmp(argv[i], "--cell-mm=", 10) == 0) cell_m = std::atof(argv[i] + 10) * 1e-3;
     else if (std::strcmp(argv[i], "--quick") == 0) quick = true;
     else if (std::strncmp(argv[i], "--window-margin-mm=", 19) == 0) window_margin_m = std::atof(argv[i] + 19) * 1e-3;
+    else if (std::strncmp(argv[i], "--lanes=", 8) == 0) lanes = std::atoi(argv[i] + 8);
   }
   const double R = 4e-3;
   const auto t0 = Clock::now();
@@ -120,11 +123,13 @@ int main(int argc, char** argv) {
   options.compliance_threads = 2;
   options.window_margin_m = window_margin_m;
   DeformableScene scene(field, std::move(tissue), kIsovalue, options);
+  scene.setResampleLanes(lanes);
   const double start_s = std::chrono::duration<double>(Clock::now() - t1).count();
   std::printf("gel block with an inclusion (%d tissue voxels), lattice %.1f mm: %d nodes, %d touchable; region %.2f s, "
-              "scene start (factor, table %.0f MB, depth field) %.2f s\n",
+              "scene start (factor, table %.0f MB, depth field) %.2f s; resampling on %d lane(s)\n",
               voxels, cell_m * 1e3, nodes, scene.compliance().nodeCount(),
-              std::chrono::duration<double>(t1 - t0).count(), scene.compliance().bytes() / 1e6, start_s);
+              std::chrono::duration<double>(t1 - t0).count(), scene.compliance().bytes() / 1e6, start_s,
+              scene.resampleLanes());
 
   haptics::PointShellOptions shell;
   shell.spacing_m = 0.4e-3;

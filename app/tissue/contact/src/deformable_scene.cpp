@@ -7,6 +7,7 @@
 #include <cmath>
 #include <limits>
 #include <stdexcept>
+#include <string>
 
 #include <Eigen/LU>
 
@@ -455,6 +456,37 @@ double DeformableScene::deformedValue(int i, int j, int k, CornerCache& cache) c
   return scan_->sampleGrid(X.cwiseQuotient(spacing_m_));  // G is the grid's frame scaled by the spacing
 }
 
+void DeformableScene::resampleRows(const Resampling& job, int lane) noexcept {
+  const haptics::VolumeGeometry& geo = scan_->geometry();
+  CornerCache& cache = lane_caches_[static_cast<std::size_t>(lane)];
+  const int nx = job.u_hi[0] - job.u_lo[0] + 1, ny = job.u_hi[1] - job.u_lo[1] + 1;
+  const int rows = ny * (job.u_hi[2] - job.u_lo[2] + 1);
+  for (int row = lane; row < rows; row += job.lanes) {
+    const int j = job.u_lo[1] + row % ny, k = job.u_lo[2] + row / ny;
+    const bool row_inside = job.window && j >= job.lo[1] && j <= job.hi[1] && k >= job.lo[2] && k <= job.hi[2];
+    std::size_t at = static_cast<std::size_t>(row) * static_cast<std::size_t>(nx);
+    for (int i = job.u_lo[0]; i <= job.u_hi[0]; ++i, ++at) {
+      const std::size_t index = geo.indexOf(i, j, k);
+      old_raw_[at] = felt_->rawAt(index);
+      const bool inside = row_inside && i >= job.lo[0] && i <= job.hi[0];
+      // A voxel farther from the rest surface than the window's largest displacement (plus the
+      // band's two voxels) cannot move the surface: the scan's value, without solving for X.
+      new_raw_[at] = inside && inBand(i, j, k, job.max_displacement_m) ? rawOf(*scan_, deformedValue(i, j, k, cache))
+                                                                       : scan_->rawAt(index);
+    }
+  }
+}
+
+void DeformableScene::setResampleLanes(int lanes) {
+  if (lanes < 1 || lanes > haptics::WorkerPool::kMaxLanes)
+    throw std::invalid_argument("deformable scene: resampling lanes must be 1 to " +
+                                std::to_string(haptics::WorkerPool::kMaxLanes));
+  std::shared_ptr<haptics::WorkerPool> pool = lanes > 1 ? haptics::WorkerPool::shared(lanes) : nullptr;
+  lane_caches_.assign(static_cast<std::size_t>(lanes), CornerCache{});
+  pool_ = std::move(pool);
+  lanes_ = lanes;
+}
+
 DeformableStep DeformableScene::step(const haptics::Pose& X_WD, haptics::HapticRenderer& renderer) noexcept {
   const auto start = Clock::now();
   DeformableStep out;
@@ -588,22 +620,28 @@ DeformableStep DeformableScene::step(const haptics::Pose& X_WD, haptics::HapticR
     }
   }
   const bool writes_window = hi[0] >= lo[0] && hi[1] >= lo[1] && hi[2] >= lo[2];
-  CornerCache corners;  // u_grid_ is final for this step
   old_raw_.resize(count);
   new_raw_.resize(count);
-  std::size_t at = 0;
-  for (int k = u_lo[2]; k <= u_hi[2]; ++k)
-    for (int j = u_lo[1]; j <= u_hi[1]; ++j)
-      for (int i = u_lo[0]; i <= u_hi[0]; ++i, ++at) {
-        const std::size_t index = geo.indexOf(i, j, k);
-        old_raw_[at] = felt_->rawAt(index);
-        const bool inside = writes_window && i >= lo[0] && i <= hi[0] && j >= lo[1] && j <= hi[1] && k >= lo[2] &&
-                            k <= hi[2];
-        // A voxel farther from the rest surface than the window's largest displacement (plus the
-        // band's two voxels) cannot move the surface: the scan's value, without solving for X.
-        new_raw_[at] = inside && inBand(i, j, k, out.max_displacement_m) ? rawOf(*scan_, deformedValue(i, j, k, corners))
-                                                                         : scan_->rawAt(index);
-      }
+  for (CornerCache& cache : lane_caches_) cache = CornerCache{};  // u_grid_ is final for this step
+  Resampling job;
+  job.scene = this;
+  job.u_lo = u_lo;
+  job.u_hi = u_hi;
+  job.lo = lo;
+  job.hi = hi;
+  job.window = writes_window;
+  job.max_displacement_m = out.max_displacement_m;
+  const int rows = (u_hi[1] - u_lo[1] + 1) * (u_hi[2] - u_lo[2] + 1);
+  job.lanes = pool_ != nullptr ? std::min(lanes_, rows) : 1;
+  if (job.lanes > 1) {
+    pool_->run([](void* context, int lane) noexcept {
+                 const auto& j = *static_cast<const Resampling*>(context);
+                 j.scene->resampleRows(j, lane);
+               },
+               &job, job.lanes);
+  } else {
+    resampleRows(job, 0);
+  }
 
   out.window_voxels = static_cast<int>(count);
   lap(out.resample_us);

@@ -45,6 +45,7 @@
 #include "vh/haptics/distance_field.h"
 #include "vh/haptics/haptic_renderer.h"
 #include "vh/haptics/scalar_volume.h"
+#include "vh/haptics/worker_pool.h"
 #include "vh/tissue/compliant_contact.h"
 #include "vh/tissue/static_solver.h"
 #include "vh/tissue/surface_compliance.h"
@@ -151,6 +152,17 @@ class DeformableScene {
   const SurfaceCompliance& compliance() const noexcept { return *compliance_; }
   double isovalue() const noexcept { return isovalue_; }
 
+  /// Cores the resampling (3. above) runs on: the caller plus lanes - 1 threads of the process's
+  /// shared pool (haptics::WorkerPool::shared(), the configuration solver's, whose threads spin
+  /// between forks: give it only cores the coupling thread does not need); 1, as built: no
+  /// thread. The window's rows are dealt to the lanes whole and each row is solved in the same
+  /// order on any lane, so the field written does not depend on the lanes, bit for bit. Not on
+  /// the servo path (it may start threads), and only while no step() runs.
+  /// @throws std::invalid_argument for lanes outside [1, haptics::WorkerPool::kMaxLanes]; as
+  ///         haptics::WorkerPool::shared().
+  void setResampleLanes(int lanes);
+  int resampleLanes() const noexcept { return lanes_; }
+
   /// Step before the renderer's tick: solves the tissue's contact for the device pose X_WD with
   /// the coupling's linear stiffness, writes the felt deformation into feltVolume() and tells
   /// `renderer` (which must feel feltVolume()). A non-finite pose leaves everything as it was.
@@ -228,9 +240,25 @@ class DeformableScene {
   bool inBand(int i, int j, int k, double displacement_m) const noexcept;
   // The deformed F at the centre of voxel (i, j, k).
   double deformedValue(int i, int j, int k, CornerCache& cache) const noexcept;
+  // One step's resampling (3.): the box u_lo..u_hi (this window and the last one), of which the
+  // voxels in lo..hi are resampled when `window`, the others restored; its rows dealt to lanes.
+  struct Resampling {
+    DeformableScene* scene = nullptr;
+    std::array<int, 3> u_lo{}, u_hi{}, lo{}, hi{};
+    bool window = false;
+    double max_displacement_m = 0.0;
+    int lanes = 1;
+  };
+  // Lane `lane`'s rows of the box (every lanes-th, x rows, z slowest): old_raw_ and new_raw_ there.
+  void resampleRows(const Resampling& job, int lane) noexcept;
 
   std::shared_ptr<const haptics::ScalarVolume> scan_;
   std::shared_ptr<haptics::ScalarVolume> felt_;
+  // The resampling's lanes (setResampleLanes()), its pool (null for one lane) and one corner
+  // cache per lane (valid within one step's resampling: cleared at its start).
+  int lanes_ = 1;
+  std::shared_ptr<haptics::WorkerPool> pool_;
+  std::vector<CornerCache> lane_caches_ = std::vector<CornerCache>(1);
   TissueRegion region_;
   double isovalue_;
   DeformableSceneOptions options_;
