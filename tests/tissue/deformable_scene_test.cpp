@@ -404,17 +404,18 @@ TEST(TissueDeformableScene, TheToolsSurfaceBetweenItsPointsNeverEntersTheSlidTis
   EXPECT_EQ(crossing_points, 0);
 }
 
-// The resampling on several lanes (the window's rows dealt to the solver's pool) writes the
-// field that one lane writes, bit for bit, tick after tick of a press and a slide: each row is
-// solved in the same order on any lane. The lanes are checked when set.
-TEST(TissueDeformableScene, ResamplingOnSeveralLanesWritesTheSameFieldAsOne) {
+// The step on several lanes (the tool's points and the window's rows dealt to the solver's pool)
+// gathers the contacts and writes the field that one lane does, bit for bit, tick after tick of
+// a press and a slide: each point and row is done as on one lane, the contacts taken in the
+// tool's order. The lanes are checked when set.
+TEST(TissueDeformableScene, AStepOnSeveralLanesGathersAndWritesWhatOneLaneDoes) {
   GelPress one, three;
-  three.scene.setResampleLanes(3);
-  EXPECT_EQ(three.scene.resampleLanes(), 3);
-  EXPECT_THROW(one.scene.setResampleLanes(0), std::invalid_argument);
-  EXPECT_THROW(one.scene.setResampleLanes(haptics::WorkerPool::kMaxLanes + 1), std::invalid_argument);
-  EXPECT_EQ(one.scene.resampleLanes(), 1);
-  int ticks = 0, rewritten = 0, differing_fields = 0, differing_forces = 0;
+  three.scene.setLanes(3);
+  EXPECT_EQ(three.scene.lanes(), 3);
+  EXPECT_THROW(one.scene.setLanes(0), std::invalid_argument);
+  EXPECT_THROW(one.scene.setLanes(haptics::WorkerPool::kMaxLanes + 1), std::invalid_argument);
+  EXPECT_EQ(one.scene.lanes(), 1);
+  int ticks = 0, rewritten = 0, differing_fields = 0, differing_forces = 0, differing_contacts = 0, most_contacts = 0;
   const auto tick = [&](const Eigen::Vector3d& dp_W) {
     for (GelPress* g : {&one, &three}) g->X_WD.p_AB_m += dp_W;
     const DeformableStep s1 = one.scene.step(one.X_WD, one.renderer);
@@ -425,13 +426,22 @@ TEST(TissueDeformableScene, ResamplingOnSeveralLanesWritesTheSameFieldAsOne) {
     rewritten += s1.voxels_written > 0;
     differing_fields += one.scene.feltVolume()->bytes() != three.scene.feltVolume()->bytes() ||
                         s1.voxels_written != s3.voxels_written;
+    const auto c1 = one.scene.lastContacts(), c3 = three.scene.lastContacts();
+    bool same_contacts = c1.size() == c3.size() && s1.tool_points_near == s3.tool_points_near;
+    for (std::size_t q = 0; same_contacts && q < c1.size(); ++q)
+      same_contacts = c1[q].X_G_m == c3[q].X_G_m && c1[q].n_G == c3[q].n_G && c1[q].gap_m == c3[q].gap_m &&
+                      c1[q].push_guess_N == c3[q].push_guess_N;
+    differing_contacts += !same_contacts;
+    most_contacts = std::max(most_contacts, static_cast<int>(c1.size()));
     differing_forces += o1.force_W_N != o3.force_W_N;
   };
   for (int t = 0; t < 180; ++t) tick(Eigen::Vector3d(0.0, 0.0, -5e-6));  // 0.9 mm down
   for (int t = 0; t < 200; ++t) tick(Eigen::Vector3d(5e-6, 2e-6, 0.0));  // 1 mm across
-  std::printf("%d ticks, %d rewrote the field; fields differing %d, forces differing %d\n", ticks, rewritten,
-              differing_fields, differing_forces);
+  std::printf("%d ticks, %d rewrote the field, up to %d contacts; contacts differing %d, fields %d, forces %d\n", ticks,
+              rewritten, most_contacts, differing_contacts, differing_fields, differing_forces);
   EXPECT_GT(rewritten, 200) << "the ball hardly deformed the gel: nothing was compared";
+  EXPECT_GT(most_contacts, 20);
+  EXPECT_EQ(differing_contacts, 0);
   EXPECT_EQ(differing_fields, 0);
   EXPECT_EQ(differing_forces, 0);
 }

@@ -95,7 +95,7 @@ DrillingRenderer makeServoRenderer(const LiveValues& live, const haptics::Render
     } else {
       out.tissue = makeTissueScene(*live.tissue, live.scan_field, live.isovalue, live.scan_in_HU);
     }
-    out.tissue->setResampleLanes(std::clamp(options.solver_lanes, 1, haptics::WorkerPool::kMaxLanes));
+    out.tissue->setLanes(std::clamp(options.solver_lanes, 1, haptics::WorkerPool::kMaxLanes));
     out.renderer = rendererOn(out.tissue->feltVolume(), live, options, X_WP);
     return out;
   }

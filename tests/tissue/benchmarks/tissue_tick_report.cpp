@@ -16,7 +16,7 @@
 //     contact on the same lattice (sphere_contact_reference.h) for the factor.
 // Usage: vh_tissue_tick_report [--cell-mm=H] [--window-margin-mm=M] [--lanes=N] [--quick]
 //   M: DeformableSceneOptions::window_margin_m (default 0: its default)
-//   N: the resampling's lanes (DeformableScene::setResampleLanes(); default 1: one core)
+//   N: the resampling's lanes (DeformableScene::setLanes(); default 1: one core)
 #include <algorithm>
 #include <chrono>
 #include <cmath>
@@ -123,13 +123,13 @@ int main(int argc, char** argv) {
   options.compliance_threads = 2;
   options.window_margin_m = window_margin_m;
   DeformableScene scene(field, std::move(tissue), kIsovalue, options);
-  scene.setResampleLanes(lanes);
+  scene.setLanes(lanes);
   const double start_s = std::chrono::duration<double>(Clock::now() - t1).count();
   std::printf("gel block with an inclusion (%d tissue voxels), lattice %.1f mm: %d nodes, %d touchable; region %.2f s, "
               "scene start (factor, table %.0f MB, depth field) %.2f s; resampling on %d lane(s)\n",
               voxels, cell_m * 1e3, nodes, scene.compliance().nodeCount(),
               std::chrono::duration<double>(t1 - t0).count(), scene.compliance().bytes() / 1e6, start_s,
-              scene.resampleLanes());
+              scene.lanes());
 
   haptics::PointShellOptions shell;
   shell.spacing_m = 0.4e-3;

@@ -231,67 +231,105 @@ void DeformableScene::gatherContacts(const haptics::Pose& X_WD, const haptics::T
   const LatticeGeometry& lg = region_.model.lattice().geometry();
   const Eigen::Vector3d box_lo = lg.origin_W_m.array() - margin_m_;
   const Eigen::Vector3d box_hi = (lg.origin_W_m + lg.spacing_m * lg.cells.cast<double>()).array() + margin_m_;
-  const double voxel_m = scan_->geometry().minSpacing();
-  const auto cap = static_cast<int>(contacts_.size());
   const std::vector<Eigen::Vector3d>& points = tool.point_shell.points_T_m();
-  for (std::size_t j = 0; j < points.size(); ++j) {
-    const Eigen::Vector3d p_W = X_WD * points[j];
-    const Eigen::Vector3d g = toG(p_W);
-    if ((g.array() < box_lo.array()).any() || (g.array() > box_hi.array()).any()) continue;
-    if (!scan_->inBounds(p_W)) continue;
-    const double F = scan_->sample(p_W);
-    // Farther than the margin outside, by the local Lipschitz bound: not a contact.
-    const double L = scan_->localLipschitzBound(scan_->gridCoordinates(p_W));
-    if (isovalue_ - F > L * margin_m_) continue;
-    // The interpolant's own gradient: exact where F is linear across the surface (eq. 1's central
-    // difference halves the slope of a ramp one voxel wide, and doubles the depth with it).
-    const Eigen::Vector3d grad = scan_->interpolantGradient(p_W);
-    const double gnorm = grad.norm();
-    double gap = 0.0;
-    Eigen::Vector3d n_W;
-    if (gnorm > 0.0 && std::abs(isovalue_ - F) <= gnorm * voxel_m) {
-      gap = (isovalue_ - F) / gnorm;  // first order, within a voxel of the surface
-      n_W = -grad / gnorm;
-    } else if (F > isovalue_) {
-      // Deeper: the distance transform of the voxels outside, and its direction.
-      const double d = outside_depth_.sample_m(p_W);
-      if (!std::isfinite(d)) continue;
-      gap = -std::max(0.0, d - 0.5 * voxel_m);
-      Eigen::Vector3d dd;
-      for (int a = 0; a < 3; ++a) {
-        const Eigen::Vector3d e = D_W_.col(a) * (0.5 * spacing_m_[a]);
-        dd[a] = outside_depth_.sample_m(p_W + e) - outside_depth_.sample_m(p_W - e);
-      }
-      dd = D_W_ * dd.cwiseQuotient(spacing_m_);  // back to W: the depth's gradient
-      if (!(dd.norm() > 0.0) || !dd.allFinite()) continue;
-      n_W = -dd.normalized();
-    } else {
-      continue;  // outside on a flat field: no surface near
-    }
-    if (gap > margin_m_) continue;
-    ++out.tool_points_near;
-    TissueContactPoint c;
-    c.X_G_m = toG(p_W - gap * n_W);
-    c.n_G = D_W_.transpose() * n_W;
-    c.gap_m = gap;
-    c.push_guess_N = 0.0;
-    for (std::size_t q = 0; q < prev_point_.size() && prev_point_[q] >= 0; ++q)
-      if (prev_point_[q] == static_cast<int>(j)) {
-        c.push_guess_N = prev_push_N_[q];
-        break;
-      }
-    int slot = contact_count_;
-    if (contact_count_ == cap) {  // full: replace the shallowest when this one is deeper
-      slot = 0;
-      for (int q = 1; q < cap; ++q)
-        if (contacts_[static_cast<std::size_t>(q)].gap_m > contacts_[static_cast<std::size_t>(slot)].gap_m) slot = q;
-      if (!(gap < contacts_[static_cast<std::size_t>(slot)].gap_m)) continue;
-    } else {
-      ++contact_count_;
-    }
-    contacts_[static_cast<std::size_t>(slot)] = c;
-    contact_point_[static_cast<std::size_t>(slot)] = static_cast<int>(j);
+  if (pool_ == nullptr || points.size() > near_points_.size()) {
+    NearPoint near;
+    for (std::size_t j = 0; j < points.size(); ++j)
+      if (nearPoint(X_WD * points[j], box_lo, box_hi, near)) addContact(static_cast<int>(j), near, out);
+    return;
   }
+  // On the lanes: each claims a few points at a time until none is left; then the near ones
+  // join in the tool's order.
+  struct Job {
+    DeformableScene* scene;
+    const haptics::Pose* X_WD;
+    const std::vector<Eigen::Vector3d>* points;
+    const Eigen::Vector3d* box_lo;
+    const Eigen::Vector3d* box_hi;
+    std::atomic<std::size_t> next{0};  // the first point no lane has claimed yet
+  } job{this, &X_WD, &points, &box_lo, &box_hi};
+  pool_->run(
+      [](void* context, int) noexcept {
+        constexpr std::size_t kPointsPerClaim = 32;
+        Job& g = *static_cast<Job*>(context);
+        DeformableScene& s = *g.scene;
+        const std::size_t n = g.points->size();
+        for (std::size_t first = g.next.fetch_add(kPointsPerClaim, std::memory_order_relaxed); first < n;
+             first = g.next.fetch_add(kPointsPerClaim, std::memory_order_relaxed))
+          for (std::size_t j = first; j < std::min(n, first + kPointsPerClaim); ++j)
+            s.point_near_[j] = s.nearPoint(*g.X_WD * (*g.points)[j], *g.box_lo, *g.box_hi, s.near_points_[j]) ? 1 : 0;
+      },
+      &job, lanes_);
+  for (std::size_t j = 0; j < points.size(); ++j)
+    if (point_near_[j] != 0) addContact(static_cast<int>(j), near_points_[j], out);
+}
+
+bool DeformableScene::nearPoint(const Eigen::Vector3d& p_W, const Eigen::Vector3d& box_lo, const Eigen::Vector3d& box_hi,
+                                NearPoint& near) const noexcept {
+  const double voxel_m = scan_->geometry().minSpacing();
+  const Eigen::Vector3d g = toG(p_W);
+  if ((g.array() < box_lo.array()).any() || (g.array() > box_hi.array()).any()) return false;
+  if (!scan_->inBounds(p_W)) return false;
+  const double F = scan_->sample(p_W);
+  // Farther than the margin outside, by the local Lipschitz bound: not a contact.
+  const double L = scan_->localLipschitzBound(scan_->gridCoordinates(p_W));
+  if (isovalue_ - F > L * margin_m_) return false;
+  // The interpolant's own gradient: exact where F is linear across the surface (eq. 1's central
+  // difference halves the slope of a ramp one voxel wide, and doubles the depth with it).
+  const Eigen::Vector3d grad = scan_->interpolantGradient(p_W);
+  const double gnorm = grad.norm();
+  double gap = 0.0;
+  Eigen::Vector3d n_W;
+  if (gnorm > 0.0 && std::abs(isovalue_ - F) <= gnorm * voxel_m) {
+    gap = (isovalue_ - F) / gnorm;  // first order, within a voxel of the surface
+    n_W = -grad / gnorm;
+  } else if (F > isovalue_) {
+    // Deeper: the distance transform of the voxels outside, and its direction.
+    const double d = outside_depth_.sample_m(p_W);
+    if (!std::isfinite(d)) return false;
+    gap = -std::max(0.0, d - 0.5 * voxel_m);
+    Eigen::Vector3d dd;
+    for (int a = 0; a < 3; ++a) {
+      const Eigen::Vector3d e = D_W_.col(a) * (0.5 * spacing_m_[a]);
+      dd[a] = outside_depth_.sample_m(p_W + e) - outside_depth_.sample_m(p_W - e);
+    }
+    dd = D_W_ * dd.cwiseQuotient(spacing_m_);  // back to W: the depth's gradient
+    if (!(dd.norm() > 0.0) || !dd.allFinite()) return false;
+    n_W = -dd.normalized();
+  } else {
+    return false;  // outside on a flat field: no surface near
+  }
+  if (gap > margin_m_) return false;
+  near.X_G_m = toG(p_W - gap * n_W);
+  near.n_G = D_W_.transpose() * n_W;
+  near.gap_m = gap;
+  return true;
+}
+
+void DeformableScene::addContact(int j, const NearPoint& near, DeformableStep& out) noexcept {
+  ++out.tool_points_near;
+  TissueContactPoint c;
+  c.X_G_m = near.X_G_m;
+  c.n_G = near.n_G;
+  c.gap_m = near.gap_m;
+  c.push_guess_N = 0.0;
+  for (std::size_t q = 0; q < prev_point_.size() && prev_point_[q] >= 0; ++q)
+    if (prev_point_[q] == j) {
+      c.push_guess_N = prev_push_N_[q];
+      break;
+    }
+  const auto cap = static_cast<int>(contacts_.size());
+  int slot = contact_count_;
+  if (contact_count_ == cap) {  // full: replace the shallowest when this one is deeper
+    slot = 0;
+    for (int q = 1; q < cap; ++q)
+      if (contacts_[static_cast<std::size_t>(q)].gap_m > contacts_[static_cast<std::size_t>(slot)].gap_m) slot = q;
+    if (!(near.gap_m < contacts_[static_cast<std::size_t>(slot)].gap_m)) return;
+  } else {
+    ++contact_count_;
+  }
+  contacts_[static_cast<std::size_t>(slot)] = c;
+  contact_point_[static_cast<std::size_t>(slot)] = j;
 }
 
 bool DeformableScene::carryOut(const haptics::ToolModel& tool, const haptics::Pose& X_WP, const Eigen::Vector3d& box_lo,
@@ -456,33 +494,41 @@ double DeformableScene::deformedValue(int i, int j, int k, CornerCache& cache) c
   return scan_->sampleGrid(X.cwiseQuotient(spacing_m_));  // G is the grid's frame scaled by the spacing
 }
 
-void DeformableScene::resampleRows(const Resampling& job, int lane) noexcept {
+void DeformableScene::resampleRows(Resampling& job, int lane) noexcept {
+  constexpr int kRowsPerClaim = 8;
   const haptics::VolumeGeometry& geo = scan_->geometry();
   CornerCache& cache = lane_caches_[static_cast<std::size_t>(lane)];
   const int nx = job.u_hi[0] - job.u_lo[0] + 1, ny = job.u_hi[1] - job.u_lo[1] + 1;
   const int rows = ny * (job.u_hi[2] - job.u_lo[2] + 1);
-  for (int row = lane; row < rows; row += job.lanes) {
-    const int j = job.u_lo[1] + row % ny, k = job.u_lo[2] + row / ny;
-    const bool row_inside = job.window && j >= job.lo[1] && j <= job.hi[1] && k >= job.lo[2] && k <= job.hi[2];
-    std::size_t at = static_cast<std::size_t>(row) * static_cast<std::size_t>(nx);
-    for (int i = job.u_lo[0]; i <= job.u_hi[0]; ++i, ++at) {
-      const std::size_t index = geo.indexOf(i, j, k);
-      old_raw_[at] = felt_->rawAt(index);
-      const bool inside = row_inside && i >= job.lo[0] && i <= job.hi[0];
-      // A voxel farther from the rest surface than the window's largest displacement (plus the
-      // band's two voxels) cannot move the surface: the scan's value, without solving for X.
-      new_raw_[at] = inside && inBand(i, j, k, job.max_displacement_m) ? rawOf(*scan_, deformedValue(i, j, k, cache))
-                                                                       : scan_->rawAt(index);
+  for (int first = job.next_row.fetch_add(kRowsPerClaim, std::memory_order_relaxed); first < rows;
+       first = job.next_row.fetch_add(kRowsPerClaim, std::memory_order_relaxed)) {
+    for (int row = first; row < std::min(rows, first + kRowsPerClaim); ++row) {
+      const int j = job.u_lo[1] + row % ny, k = job.u_lo[2] + row / ny;
+      const bool row_inside = job.window && j >= job.lo[1] && j <= job.hi[1] && k >= job.lo[2] && k <= job.hi[2];
+      std::size_t at = static_cast<std::size_t>(row) * static_cast<std::size_t>(nx);
+      for (int i = job.u_lo[0]; i <= job.u_hi[0]; ++i, ++at) {
+        const std::size_t index = geo.indexOf(i, j, k);
+        old_raw_[at] = felt_->rawAt(index);
+        const bool inside = row_inside && i >= job.lo[0] && i <= job.hi[0];
+        // A voxel farther from the rest surface than the window's largest displacement (plus the
+        // band's two voxels) cannot move the surface: the scan's value, without solving for X.
+        new_raw_[at] = inside && inBand(i, j, k, job.max_displacement_m) ? rawOf(*scan_, deformedValue(i, j, k, cache))
+                                                                         : scan_->rawAt(index);
+      }
     }
   }
 }
 
-void DeformableScene::setResampleLanes(int lanes) {
+void DeformableScene::setLanes(int lanes) {
   if (lanes < 1 || lanes > haptics::WorkerPool::kMaxLanes)
-    throw std::invalid_argument("deformable scene: resampling lanes must be 1 to " +
-                                std::to_string(haptics::WorkerPool::kMaxLanes));
+    throw std::invalid_argument("deformable scene: lanes must be 1 to " + std::to_string(haptics::WorkerPool::kMaxLanes));
   std::shared_ptr<haptics::WorkerPool> pool = lanes > 1 ? haptics::WorkerPool::shared(lanes) : nullptr;
+  const auto points = static_cast<std::size_t>(lanes > 1 ? options_.max_proxy_points : 0);
+  std::vector<std::uint8_t> point_near(points, 0);
+  std::vector<NearPoint> near_points(points);
   lane_caches_.assign(static_cast<std::size_t>(lanes), CornerCache{});
+  point_near_ = std::move(point_near);
+  near_points_ = std::move(near_points);
   pool_ = std::move(pool);
   lanes_ = lanes;
 }
@@ -635,7 +681,7 @@ DeformableStep DeformableScene::step(const haptics::Pose& X_WD, haptics::HapticR
   job.lanes = pool_ != nullptr ? std::min(lanes_, rows) : 1;
   if (job.lanes > 1) {
     pool_->run([](void* context, int lane) noexcept {
-                 const auto& j = *static_cast<const Resampling*>(context);
+                 auto& j = *static_cast<Resampling*>(context);
                  j.scene->resampleRows(j, lane);
                },
                &job, job.lanes);

@@ -37,9 +37,9 @@ PreparedDrill prepareServoDrill(const LiveValues& live);
 /// Soft tissue (live.tissue): the deformable scene of makeTissueScene() (seconds to a minute for
 /// thousands of lattice nodes), or `reuse` reset to rest when it was built for live's scan and
 /// isovalue (haptic threads rebuilt on the same scene: a recording starting, a tool or device
-/// changed); `reuse` must no longer be stepped by another thread. Its resampling runs on
-/// options.solver_lanes lanes, the configuration solver's (DeformableScene::setResampleLanes():
-/// the same field on any count).
+/// changed); `reuse` must no longer be stepped by another thread. Its step runs on
+/// options.solver_lanes lanes, the configuration solver's (DeformableScene::setLanes(): the
+/// same contacts and field on any count).
 /// @throws std::invalid_argument as makeRenderer() and makeDrillingRenderer().
 DrillingRenderer makeServoRenderer(const LiveValues& live, const haptics::RendererOptions& options,
                                    const haptics::Pose& X_WP, double servo_rate_Hz,

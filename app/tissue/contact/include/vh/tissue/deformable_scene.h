@@ -152,16 +152,20 @@ class DeformableScene {
   const SurfaceCompliance& compliance() const noexcept { return *compliance_; }
   double isovalue() const noexcept { return isovalue_; }
 
-  /// Cores the resampling (3. above) runs on: the caller plus lanes - 1 threads of the process's
-  /// shared pool (haptics::WorkerPool::shared(), the configuration solver's, whose threads spin
-  /// between forks: give it only cores the coupling thread does not need); 1, as built: no
-  /// thread. The window's rows are dealt to the lanes whole and each row is solved in the same
-  /// order on any lane, so the field written does not depend on the lanes, bit for bit. Not on
-  /// the servo path (it may start threads), and only while no step() runs.
+  /// Cores step() runs its two loops over points and voxels on, the tool's points near the rest
+  /// surface (1. above) and the resampling (3.): the caller plus lanes - 1 threads of the
+  /// process's shared pool (haptics::WorkerPool::shared(), the configuration solver's, whose
+  /// threads spin between forks: give it only cores the coupling thread does not need); 1, as
+  /// built: no thread. The lanes claim the tool's points and the window's rows a few at a time
+  /// (a lane the system holds back delays the step by what it claimed, not by a share of the
+  /// work); a row is solved in the order one lane solves it and the contacts are taken in the
+  /// tool's order, so the contacts and the field written do not depend on the lanes, bit for bit. Not on the servo path (it may
+  /// start threads and allocates a workspace of max_proxy_points contacts), and only while no
+  /// step() runs.
   /// @throws std::invalid_argument for lanes outside [1, haptics::WorkerPool::kMaxLanes]; as
   ///         haptics::WorkerPool::shared().
-  void setResampleLanes(int lanes);
-  int resampleLanes() const noexcept { return lanes_; }
+  void setLanes(int lanes);
+  int lanes() const noexcept { return lanes_; }
 
   /// Step before the renderer's tick: solves the tissue's contact for the device pose X_WD with
   /// the coupling's linear stiffness, writes the felt deformation into feltVolume() and tells
@@ -189,6 +193,18 @@ class DeformableScene {
   Eigen::Vector3d toG(const Eigen::Vector3d& p_W) const noexcept { return D_W_.transpose() * (p_W - origin_W_); }
   // Gathers the tool points near the rest surface at X_WD into contacts_ (the deepest kept).
   void gatherContacts(const haptics::Pose& X_WD, const haptics::ToolModel& tool, DeformableStep& out) noexcept;
+  // A tool point near the rest surface: its contact's material point, normal (G) and gap.
+  struct NearPoint {
+    Eigen::Vector3d X_G_m = Eigen::Vector3d::Zero();
+    Eigen::Vector3d n_G = Eigen::Vector3d::Zero();
+    double gap_m = 0.0;
+  };
+  // Whether the tool point at p_W lies within the margin of the rest surface (in the lattice's
+  // box lo..hi grown by the margin, G), and its contact then.
+  bool nearPoint(const Eigen::Vector3d& p_W, const Eigen::Vector3d& box_lo, const Eigen::Vector3d& box_hi,
+                 NearPoint& near) const noexcept;
+  // Tool point j near the surface joins the contacts (its warm start; the deepest kept at the cap).
+  void addContact(int j, const NearPoint& near, DeformableStep& out) noexcept;
   // The index of lattice grid cell (a, b, c), x fastest (cell_touchable_).
   std::size_t cellIndex(int a, int b, int c) const noexcept {
     const Eigen::Vector3i& cells = region_.model.lattice().geometry().cells;
@@ -248,17 +264,23 @@ class DeformableScene {
     bool window = false;
     double max_displacement_m = 0.0;
     int lanes = 1;
+    std::atomic<int> next_row{0};  // the first row no lane has claimed yet
   };
-  // Lane `lane`'s rows of the box (every lanes-th, x rows, z slowest): old_raw_ and new_raw_ there.
-  void resampleRows(const Resampling& job, int lane) noexcept;
+  // Rows of the box (x rows, z slowest) claimed by lane `lane` a few at a time until none is
+  // left (a lane the system holds back delays the step by its claim, not by a share of the
+  // rows): old_raw_ and new_raw_ there.
+  void resampleRows(Resampling& job, int lane) noexcept;
 
   std::shared_ptr<const haptics::ScalarVolume> scan_;
   std::shared_ptr<haptics::ScalarVolume> felt_;
-  // The resampling's lanes (setResampleLanes()), its pool (null for one lane) and one corner
-  // cache per lane (valid within one step's resampling: cleared at its start).
+  // The lanes (setLanes()), their pool (null for one lane), one corner cache per lane (valid
+  // within one step's resampling: cleared at its start) and, with several lanes, per tool point
+  // whether it is near the surface and its contact (max_proxy_points of each).
   int lanes_ = 1;
   std::shared_ptr<haptics::WorkerPool> pool_;
   std::vector<CornerCache> lane_caches_ = std::vector<CornerCache>(1);
+  std::vector<std::uint8_t> point_near_;
+  std::vector<NearPoint> near_points_;
   TissueRegion region_;
   double isovalue_;
   DeformableSceneOptions options_;
