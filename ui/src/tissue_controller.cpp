@@ -35,13 +35,14 @@ TissueController::TissueController(runtime::Session& session, SceneView& view, Q
   summary_->setTextInteractionFlags(Qt::TextSelectableByMouse);
   layout->addWidget(summary_);
   bands_ = new QTableWidget(0, 4, panel);
-  bands_->setHorizontalHeaderLabels({"Values", "Material", "E [kPa]", "Poisson"});
+  bands_->setHorizontalHeaderLabels({"Where", "Material", "E [kPa]", "Poisson"});
   bands_->horizontalHeader()->setSectionResizeMode(QHeaderView::ResizeToContents);
   bands_->horizontalHeader()->setStretchLastSection(true);
   bands_->verticalHeader()->setVisible(false);
   bands_->setEditTriggers(QAbstractItemView::NoEditTriggers);
-  bands_->setToolTip("The scan's values that yield, each band with its material (hover a material for the "
-                     "measurement its figures come from). Set in the scene file's \"tissue\" section.");
+  bands_->setToolTip("What yields: segments of the scan's segmentation (taken first), then bands of the scan's "
+                     "values, each with its material (hover a material for the measurement its figures come "
+                     "from). Set in the scene file's \"tissue\" section.");
   layout->addWidget(bands_, 1);
   live_ = new QLabel(panel);
   live_->setWordWrap(true);
@@ -107,13 +108,13 @@ void TissueController::describeScene() {
     return;
   }
   const runtime::TissueSpec& spec = *session_.live().tissue;
-  for (const runtime::TissueBand& band : spec.bands) {
+  const auto addRow = [this](const QString& where, const std::string& material) {
     const int row = bands_->rowCount();
     bands_->insertRow(row);
-    bands_->setItem(row, 0, new QTableWidgetItem(QString("%1 to %2").arg(band.min, 0, 'g', 6).arg(band.max, 0, 'g', 6)));
-    auto* name = new QTableWidgetItem(QString::fromStdString(band.material));
+    bands_->setItem(row, 0, new QTableWidgetItem(where));
+    auto* name = new QTableWidgetItem(QString::fromStdString(material));
     try {
-      const tissue::Material m = tissue::materialPreset(band.material);
+      const tissue::Material m = tissue::materialPreset(material);
       name->setToolTip(QString::fromStdString(m.source));
       bands_->setItem(row, 2, new QTableWidgetItem(QString::number(m.youngs_modulus_Pa / 1e3, 'g', 4)));
       bands_->setItem(row, 3, new QTableWidgetItem(QString::number(m.poisson_ratio, 'g', 3)));
@@ -121,7 +122,11 @@ void TissueController::describeScene() {
       name->setToolTip(e.what());
     }
     bands_->setItem(row, 1, name);
-  }
+  };
+  for (const runtime::TissueSegment& segment : spec.segments)
+    addRow(QString("segment %1").arg(QString::fromStdString(segment.segment)), segment.material);
+  for (const runtime::TissueBand& band : spec.bands)
+    addRow(QString("values %1 to %2").arg(band.min, 0, 'g', 6).arg(band.max, 0, 'g', 6), band.material);
   const runtime::HapticThread* thread = session_.hapticThread();
   const tissue::DeformableScene* scene = thread != nullptr ? thread->tissue().get() : nullptr;
   QString lattice = QString("a lattice of %1 mm cells").arg(spec.cell_size_m * 1e3, 0, 'g', 3);

@@ -128,6 +128,20 @@ int LoadedSegmentation::label(int layer, int i, int j, int k) const noexcept {
   return static_cast<int>(std::lround(layers[static_cast<std::size_t>(layer)]->voxel(i, j, k)));
 }
 
+bool LoadedSegmentation::nearestVoxel(const Eigen::Vector3d& p_W_m, std::array<int, 3>& ijk) const noexcept {
+  if (layers.empty() || !layers.front()) return false;
+  const haptics::ScalarVolume& grid = *layers.front();
+  const Eigen::Vector3d q = grid.gridCoordinates(p_W_m);
+  std::array<int, 3> v{};
+  for (int a = 0; a < 3; ++a) {
+    if (!(q[a] > -0.5 && q[a] < grid.geometry().dims[a] - 0.5)) return false;  // NaN too
+    v[a] = static_cast<int>(std::lround(q[a]));
+    if (v[a] < 0 || v[a] >= grid.geometry().dims[a]) return false;
+  }
+  ijk = v;
+  return true;
+}
+
 LoadedSegmentation loadSegmentation(const fs::path& path, const VolumeLoadOptions& options) {
   return loadAnySegmentation(path, nullptr, options);
 }

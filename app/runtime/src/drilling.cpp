@@ -200,19 +200,15 @@ std::vector<std::uint16_t> segmentOfVoxels(const ScanAtFeltVoxels& scan, const i
                                            std::vector<double>& sum, std::vector<std::size_t>& count) {
   const auto& g = scan.g;
   std::vector<std::uint16_t> segment_of_voxel(g.voxelCount(), 0);
-  const haptics::ScalarVolume& grid = *seg.layers.front();
-  const auto& sd = grid.geometry().dims;
   std::size_t idx = 0;
+  std::array<int, 3> v{};
   for (int k = 0; k < g.dims[2]; ++k)
     for (int j = 0; j < g.dims[1]; ++j)
       for (int i = 0; i < g.dims[0]; ++i, ++idx) {
-        const Eigen::Vector3d q = grid.gridCoordinates(scan.centre(i, j, k));
-        const int a = static_cast<int>(std::lround(q.x())), b = static_cast<int>(std::lround(q.y())),
-                  c = static_cast<int>(std::lround(q.z()));
-        if (a < 0 || b < 0 || c < 0 || a >= sd[0] || b >= sd[1] || c >= sd[2]) continue;
+        if (!seg.nearestVoxel(scan.centre(i, j, k), v)) continue;
         for (std::size_t s = 0; s < seg.segments.size() && s < 65535; ++s) {
           const auto& info = seg.segments[s];
-          if (seg.label(info.layer, a, b, c) == info.label_value) {
+          if (seg.label(info.layer, v[0], v[1], v[2]) == info.label_value) {
             segment_of_voxel[idx] = static_cast<std::uint16_t>(s + 1);
             sum[s] += scan.value(i, j, k);
             ++count[s];

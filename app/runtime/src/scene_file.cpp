@@ -497,29 +497,49 @@ DrillSpec readDrill(const ObjectReader& drill) {
   return d;
 }
 
-/// The "tissue" section (tissue_scene.h): value bands with their materials.
+/// The "tissue" section (tissue_scene.h): value bands and segments with their materials.
 TissueSpec readTissue(const ObjectReader& t) {
-  t.allowOnly({"bands", "rigid_above", "cell_size_m", "touchable_layers"});
+  t.allowOnly({"bands", "segments", "rigid_above", "cell_size_m", "touchable_layers"});
   TissueSpec spec;
-  const json& bands = t.at("bands");
-  if (!bands.is_array() || bands.empty())
-    t.fail(t.fieldPath("bands"), "expected a list of {\"min\", \"max\", \"material\"}, found " + bands.dump());
-  for (std::size_t b = 0; b < bands.size(); ++b) {
-    const ObjectReader band(bands[b], t.fieldPath("bands") + "[" + std::to_string(b) + "]", t.source());
-    band.allowOnly({"min", "max", "material"});
-    TissueBand out;
-    out.min = band.number("min");
-    out.max = band.number("max");
-    if (!(out.max > out.min)) band.fail(band.fieldPath("max"), "must exceed min");
-    out.material = band.string("material");
-    bool known = false;
-    std::string names;
-    for (const tissue::Material& m : tissue::materialPresets()) {
-      known = known || m.name == out.material;
-      names += (names.empty() ? "" : ", ") + m.name;
+  std::string presets;
+  for (const tissue::Material& m : tissue::materialPresets()) presets += (presets.empty() ? "" : ", ") + m.name;
+  const auto material = [&presets](const ObjectReader& entry) {
+    const std::string name = entry.string("material");
+    for (const tissue::Material& m : tissue::materialPresets())
+      if (m.name == name) return name;
+    entry.fail(entry.fieldPath("material"), "unknown material '" + name + "' (presets: " + presets + ")");
+  };
+  const auto list = [&t](const char* key, const char* shape) -> const json& {
+    const json& entries = t.at(key);
+    if (!entries.is_array() || entries.empty())
+      t.fail(t.fieldPath(key), std::string("expected a list of ") + shape + ", found " + entries.dump());
+    return entries;
+  };
+  if (!t.has("bands") && !t.has("segments"))
+    t.fail(t.fieldPath("bands"), "expected \"bands\" (value bands) or \"segments\" (segments of the scene's segmentation)");
+  if (t.has("bands")) {
+    const json& bands = list("bands", "{\"min\", \"max\", \"material\"}");
+    for (std::size_t b = 0; b < bands.size(); ++b) {
+      const ObjectReader band(bands[b], t.fieldPath("bands") + "[" + std::to_string(b) + "]", t.source());
+      band.allowOnly({"min", "max", "material"});
+      TissueBand out;
+      out.min = band.number("min");
+      out.max = band.number("max");
+      if (!(out.max > out.min)) band.fail(band.fieldPath("max"), "must exceed min");
+      out.material = material(band);
+      spec.bands.push_back(out);
     }
-    if (!known) band.fail(band.fieldPath("material"), "unknown material '" + out.material + "' (presets: " + names + ")");
-    spec.bands.push_back(out);
+  }
+  if (t.has("segments")) {
+    const json& segments = list("segments", "{\"segment\", \"material\"}");
+    for (std::size_t s = 0; s < segments.size(); ++s) {
+      const ObjectReader entry(segments[s], t.fieldPath("segments") + "[" + std::to_string(s) + "]", t.source());
+      entry.allowOnly({"segment", "material"});
+      TissueSegment out;
+      out.segment = entry.string("segment");
+      out.material = material(entry);
+      spec.segments.push_back(out);
+    }
   }
   if (t.has("rigid_above")) spec.rigid_above = t.number("rigid_above");
   if (t.has("cell_size_m")) {
@@ -599,6 +619,8 @@ SceneSpec parseScene(const std::string& json_text, const std::string& source, co
     if (spec.drill) top.fail("tissue", "not with \"drill\": cutting soft tissue is not supported yet");
     if (spec.segmentation && !spec.segmentation->felt.empty())
       top.fail("tissue", "not with felt segments: the tissue's surface is the scan's isosurface");
+    if (!spec.tissue->segments.empty() && !spec.segmentation)
+      top.fail("tissue", "its \"segments\" need the scene's \"segmentation\" (the file they are read from)");
   }
   return spec;
 }

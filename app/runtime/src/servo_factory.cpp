@@ -93,7 +93,8 @@ DrillingRenderer makeServoRenderer(const LiveValues& live, const haptics::Render
       reuse->reset();  // the same scene and surface: the costly model kept, back to rest
       out.tissue = std::move(reuse);
     } else {
-      out.tissue = makeTissueScene(*live.tissue, live.scan_field, live.isovalue, live.scan_in_HU);
+      out.tissue = makeTissueScene(*live.tissue, live.scan_field, live.isovalue, live.scan_in_HU,
+                                   live.segments != nullptr ? &live.segments->segmentation() : nullptr);
     }
     out.tissue->setLanes(std::clamp(options.solver_lanes, 1, haptics::WorkerPool::kMaxLanes));
     out.renderer = rendererOn(out.tissue->feltVolume(), live, options, X_WP);

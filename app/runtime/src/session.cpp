@@ -140,9 +140,12 @@ void Session::setEdgeTest(bool on) {
 void Session::setSegments(std::shared_ptr<const SegmentSet> segments, std::optional<SegmentationSpec> spec) {
   if (!has_scene_) throw std::invalid_argument("Session::setSegments: no scene");
   if (segments != nullptr && !spec) throw std::invalid_argument("Session::setSegments: segments without a spec");
+  // Soft tissue made of segments: its region is rebuilt on the new ones (a failure, e.g. the
+  // segments closed, leaves the old ones).
+  const bool tissue_of_segments = live_.tissue && !live_.tissue->segments.empty();
   // The same felt surface (what is shown or critical changed, or segments opened to be seen):
   // the running threads take the new segments between two ticks, the hand feels no pause.
-  if (haptics_ != nullptr && !live_.drill &&
+  if (haptics_ != nullptr && !live_.drill && !tissue_of_segments &&
       feltFieldOf(segments, live_.scan_field) == live_.hapticField() &&
       feltIsovalueOf(segments, live_.isovalue) == live_.hapticIsovalue()) {
     LiveValues next = live_;
@@ -155,7 +158,17 @@ void Session::setSegments(std::shared_ptr<const SegmentSet> segments, std::optio
     }
   }
   // The cavity so far is kept on the old felt field (the stop comes before the change).
+  std::shared_ptr<const SegmentSet> old_segments = live_.segments;
+  std::optional<SegmentationSpec> old_spec = live_.segmentation;
+  std::function<void()> undo;
+  if (tissue_of_segments) {
+    undo = [&] {
+      live_.segments = old_segments;
+      live_.segmentation = old_spec;
+    };
+  }
   restartHaptics(SessionChange::kSegments, [&](const haptics::Pose& X_WP) {
+    if (tissue_of_segments) tissue_kept_.reset();  // built on the old segments
     live_.segments = std::move(segments);
     live_.segmentation = live_.segments != nullptr ? std::move(spec) : std::nullopt;
     // The proxy must start free of the new surface: where it is, else above the volume.
@@ -165,7 +178,7 @@ void Session::setSegments(std::shared_ptr<const SegmentSet> segments, std::optio
     const haptics::Pose free = defaultInitialPose(field, live_.tool->point_shell, X_WP.R_AB, live_.hapticIsovalue());
     if (SimulatedDevice* sim = simulatedDevice()) sim->setPose(free);
     return free;
-  });
+  }, undo);
 }
 
 void Session::setDrilling(bool on) {

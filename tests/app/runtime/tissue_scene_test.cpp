@@ -4,6 +4,7 @@
 // finds nothing), and a record / replay round trip that deforms it tick for tick as the run did.
 #include "vh/runtime/tissue_scene.h"
 
+#include <algorithm>
 #include <cstdio>
 #include <filesystem>
 
@@ -16,8 +17,12 @@
 #include "vh/runtime/runner.h"
 #include "vh/runtime/scene.h"
 #include "vh/runtime/servo_factory.h"
+#include "vh/runtime/session.h"
+#include "vh/runtime/segments.h"
 #include "vh/runtime/session_metadata.h"
 #include "vh/tissue/deformable_scene.h"
+#include "vh/tissue/hex_lattice.h"
+#include "vh/io/segmentation.h"
 
 namespace vh::runtime {
 namespace {
@@ -120,6 +125,178 @@ TEST(TissueScene, HeadlessRunFeelsTheGelYieldAndReplaysIt) {
   SceneSpec without = replayed_scene.spec;
   without.tissue.reset();
   EXPECT_FALSE(replayRecording(loadScene(without), recording).identical);
+}
+
+// A label map on the gel's grid (`geo`): "slab", the block's voxels with x_lo < x < x_hi [m]
+// above the bone plate and up to 1 mm over the gel's top (its blurred edge). `voxels`: how many
+// voxels it labels.
+io::LoadedSegmentation slabSegmentation(const haptics::VolumeGeometry& geo, double x_lo, double x_hi, int* voxels) {
+  std::vector<float> labels(geo.voxelCount(), 0.0f);
+  int count = 0;
+  for (int k = 0; k < geo.dims[2]; ++k)
+    for (int j = 0; j < geo.dims[1]; ++j)
+      for (int i = 0; i < geo.dims[0]; ++i) {
+        const Eigen::Vector3d p = geo.pointOf_W(Eigen::Vector3d(i, j, k));
+        if (p.x() > x_lo && p.x() < x_hi && p.z() > datasets::kGelPlate_m + 1e-3 &&
+            p.z() < datasets::kGelTop_m + 1e-3) {
+          labels[geo.indexOf(i, j, k)] = 1.0f;
+          ++count;
+        }
+      }
+  if (voxels != nullptr) *voxels = count;
+  const auto label_map = std::make_shared<const haptics::ScalarVolume>(haptics::ScalarVolume::FromVoxels(geo, labels));
+  return io::segmentationFromLabels(label_map, "slab.nrrd", {{1, "slab"}});
+}
+
+// A segment of a segmentation as the tissue: the left half of the gel block labelled "slab" (on
+// the scan's grid), the right half left rigid. Oracles: the region is exactly the labelled voxels
+// (counted from the label's box, not from the rule under test); a press on the left yields,
+// the same press on the right is felt as the rigid scan; a segment given before a band takes its
+// voxels with its own material (the stiffer "gel inclusion" over the slab, "gel" elsewhere), and
+// it feels stiffer than the same slab of "gel". Errors name what is missing.
+TEST(TissueScene, ASegmentIsTissueOfItsOwnMaterialAndTheRestStaysRigid) {
+  const LoadedScene scene = loadScene(parseScene(kGelScene, "gel.json", "."));
+  const haptics::ScalarVolume& field = *scene.volume.field;
+  const haptics::VolumeGeometry& geo = field.geometry();
+  int slab_voxels = 0;
+  const io::LoadedSegmentation seg = slabSegmentation(geo, -1.0, 0.0, &slab_voxels);  // the left half
+  auto segments = std::make_shared<const SegmentSet>(seg, std::vector<int>{}, std::vector<int>{0}, std::vector<int>{}, 1.0);
+
+  TissueSpec only_slab;
+  only_slab.segments = {{"SLAB", "gel"}};  // names are matched ignoring case
+  only_slab.rigid_above = 300.0;
+  const auto slab_scene = makeTissueScene(only_slab, scene.volume.field, 50.0, false, &seg);
+  EXPECT_EQ(slab_scene->region().tissue_voxels, slab_voxels);
+
+  // The press: 1.5 mm below the rest surface over 1,000 ticks, then held 300 ticks: the force
+  // felt [N]; `k_tissue`: the tissue's stiffness there, its push over its indentation [N/m].
+  const auto press = [&](const TissueSpec& spec, double x_m, double* k_tissue = nullptr) {
+    LiveValues live = LiveValues::initial(scene);
+    live.tissue = spec;
+    live.segments = segments;
+    const double R = 0.005, z0 = datasets::kGelTop_m + R + 0.5e-3, z1 = datasets::kGelTop_m + R - 1.5e-3;
+    haptics::Pose X = haptics::Pose::FromTranslation(Eigen::Vector3d(x_m, 0.0, z0));
+    DrillingRenderer r = makeServoRenderer(live, {}, X, 1000.0);
+    EXPECT_NE(r.tissue, nullptr);
+    double force_N = 0.0;
+    for (int t = 0; t <= 1300; ++t) {
+      X.p_AB_m.z() = z0 + (z1 - z0) * std::min(1.0, t / 1000.0);
+      const tissue::DeformableStep step = r.tissue ? r.tissue->step(X, *r.renderer) : tissue::DeformableStep{};
+      force_N = r.renderer->tick(X, 50.0).force_W_N.z();
+      if (k_tissue != nullptr && step.indentation_m > 0.0)
+        *k_tissue = step.contact.force_on_device_N.norm() / step.indentation_m;
+    }
+    return force_N;
+  };
+  LiveValues rigid_live = LiveValues::initial(scene);
+  rigid_live.tissue.reset();
+  const auto rigidPress = [&](double x_m) {
+    const double R = 0.005, z0 = datasets::kGelTop_m + R + 0.5e-3, z1 = datasets::kGelTop_m + R - 1.5e-3;
+    haptics::Pose X = haptics::Pose::FromTranslation(Eigen::Vector3d(x_m, 0.0, z0));
+    const auto renderer = makeRenderer(rigid_live, {}, X);
+    double force_N = 0.0;
+    for (int t = 0; t <= 1300; ++t) {
+      X.p_AB_m.z() = z0 + (z1 - z0) * std::min(1.0, t / 1000.0);
+      force_N = renderer->tick(X, 50.0).force_W_N.z();
+    }
+    return force_N;
+  };
+  const double left = press(only_slab, -0.006), right = press(only_slab, 0.006);
+  const double rigid_left = rigidPress(-0.006), rigid_right = rigidPress(0.006);
+  // The slab in gel (a band), of its own material: "gel", then the 4x stiffer "gel inclusion".
+  TissueSpec soft_slab, stiff_slab;
+  soft_slab.segments = {{"slab", "gel"}};
+  stiff_slab.segments = {{"slab", "gel inclusion"}};
+  soft_slab.bands = stiff_slab.bands = {{10.0, 150.0, "gel"}};
+  soft_slab.rigid_above = stiff_slab.rigid_above = 300.0;
+  double soft_k = 0.0, stiff_k = 0.0;
+  const double soft_F = press(soft_slab, -0.006, &soft_k), stiff_F = press(stiff_slab, -0.006, &stiff_k);
+  std::printf("1.5 mm press on the slab of gel %.4f N (rigid %.4f N), beside it %.4f N (rigid %.4f N); the slab in "
+              "gel: of gel %.4f N (tissue %.0f N/m), of gel inclusion %.4f N (tissue %.0f N/m)\n",
+              left, rigid_left, right, rigid_right, soft_F, soft_k, stiff_F, stiff_k);
+  EXPECT_GT(left, 0.01) << "the slab was not touched";
+  EXPECT_LT(left, 0.6 * rigid_left) << "the slab did not yield";
+  EXPECT_NEAR(right, rigid_right, 0.02 * rigid_right) << "beside the slab is not tissue: felt as the rigid scan";
+  EXPECT_GT(stiff_F, soft_F);
+  EXPECT_GT(stiff_k, 2.0 * soft_k) << "the segment's stiffer material (4x the gel's modulus) was not used";
+
+  // The segment's material over the slab, the band's elsewhere (materials: segments first).
+  const auto stiff_scene = makeTissueScene(stiff_slab, scene.volume.field, 50.0, false, &seg);
+  const tissue::HexLattice& L = stiff_scene->region().model.lattice();
+  const double h = L.geometry().spacing_m;
+  int inside_slab = 0, wrong_inside = 0, outside_slab = 0, wrong_outside = 0;
+  for (int e = 0; e < L.elementCount(); ++e) {
+    // The cell's centre in W (the lattice is in G; the gel's grid is axis-aligned).
+    const Eigen::Vector3d c_G = L.geometry().origin_W_m + h * (L.elementCell(e).cast<double>() + Eigen::Vector3d::Constant(0.5));
+    const Eigen::Vector3d c_W = geo.origin_W_m + c_G;
+    if (c_W.z() < datasets::kGelPlate_m + 1e-3 + h || c_W.z() > datasets::kGelTop_m - h) continue;  // mixed cells
+    if (c_W.x() < -h) {
+      ++inside_slab;
+      wrong_inside += L.elementMaterial(e) != 0;
+    } else if (c_W.x() > h && (c_W - datasets::kGelInclusionCentre_m).norm() > datasets::kGelInclusionRadius_m + h) {
+      ++outside_slab;
+      wrong_outside += L.elementMaterial(e) != 1;
+    }
+  }
+  EXPECT_GT(inside_slab, 20);
+  EXPECT_GT(outside_slab, 20);
+  EXPECT_EQ(wrong_inside, 0);
+  EXPECT_EQ(wrong_outside, 0);
+
+  // Errors: segments without a segmentation, a segment it does not hold, a scene file's segments
+  // without its "segmentation".
+  VH_EXPECT_THROW_WITH(makeTissueScene(only_slab, scene.volume.field, 50.0, false, nullptr), std::invalid_argument,
+                       "segmentation");
+  TissueSpec unknown = only_slab;
+  unknown.segments[0].segment = "liver";
+  VH_EXPECT_THROW_WITH(makeTissueScene(unknown, scene.volume.field, 50.0, false, &seg), std::invalid_argument, "liver",
+                       "slab");
+  VH_EXPECT_THROW_WITH(
+      parseScene(R"({"volume": {"path": "builtin:sphere"}, "tissue": {"segments": [{"segment": "a", "material": "gel"}]}})",
+                 "s.json", "."),
+      std::runtime_error, "s.json", "segmentation");
+  VH_EXPECT_THROW_WITH(
+      parseScene(R"({"volume": {"path": "builtin:sphere"}, "tissue": {"cell_size_m": 0.002}})", "s.json", "."),
+      std::runtime_error, "bands", "segments");
+}
+
+// A session whose tissue is a segment: new segments rebuild the tissue on them (the haptic
+// thread's region is the new slab's voxels, counted from its box), and segments that cannot
+// carry it (closed) are refused with the old ones kept and the threads running on them.
+TEST(TissueScene, TheSessionRebuildsTissueOfSegmentsOnNewSegmentsAndKeepsTheOldWhenItCannot) {
+  LoadedScene scene = loadScene(parseScene(kGelScene, "gel.json", "."));
+  const haptics::VolumeGeometry geo = scene.volume.field->geometry();
+  int left_voxels = 0, right_voxels = 0;
+  const io::LoadedSegmentation left = slabSegmentation(geo, -1.0, 0.0, &left_voxels);
+  const io::LoadedSegmentation right = slabSegmentation(geo, 0.003, 1.0, &right_voxels);
+  ASSERT_NE(left_voxels, right_voxels) << "the halves must differ for the check to tell them apart";
+  SegmentationSpec seg_spec;
+  seg_spec.path = "slab.nrrd";
+  scene.spec.segmentation = seg_spec;
+  scene.spec.tissue->bands.clear();
+  scene.spec.tissue->segments = {{"slab", "gel"}};
+  scene.segments = std::make_shared<const SegmentSet>(left, std::vector<int>{}, std::vector<int>{0}, std::vector<int>{}, 1.0);
+  auto device = std::make_shared<SimulatedDevice>(scene.X_WT_initial);
+  Session session;
+  session.setScene(std::move(scene), device);
+  ASSERT_NE(session.hapticThread(), nullptr);
+  ASSERT_NE(session.hapticThread()->tissue(), nullptr);
+  EXPECT_EQ(session.hapticThread()->tissue()->region().tissue_voxels, left_voxels);
+
+  session.setSegments(std::make_shared<const SegmentSet>(right, std::vector<int>{}, std::vector<int>{0},
+                                                         std::vector<int>{}, 1.0),
+                      seg_spec);
+  ASSERT_NE(session.hapticThread(), nullptr);
+  ASSERT_NE(session.hapticThread()->tissue(), nullptr);
+  EXPECT_EQ(session.hapticThread()->tissue()->region().tissue_voxels, right_voxels) << "the tissue was not rebuilt";
+
+  const SegmentSet* kept = session.live().segments.get();
+  VH_EXPECT_THROW_WITH(session.setSegments(nullptr, std::nullopt), std::invalid_argument, "segmentation");
+  EXPECT_EQ(session.live().segments.get(), kept);
+  EXPECT_TRUE(session.live().segmentation.has_value());
+  ASSERT_NE(session.hapticThread(), nullptr);
+  ASSERT_NE(session.hapticThread()->tissue(), nullptr);
+  EXPECT_EQ(session.hapticThread()->tissue()->region().tissue_voxels, right_voxels);
 }
 
 // The brain of the shared small CT head (64 x 64 x 93 voxels of 3.2 x 3.2 x 1.5 mm, the

@@ -55,6 +55,10 @@ struct LoadedSegmentation {
   int find(const std::string& name_or_id) const;
   /// Label of the voxel (i, j, k) of `layer` (indices clamped to the grid).
   int label(int layer, int i, int j, int k) const noexcept;
+  /// The voxel of the layers' grid nearest to p_W_m (W [m]; its grid coordinates rounded): what a
+  /// point of another grid (a scan's voxel centre) takes its segments from.
+  /// @return false (ijk untouched) without layers or when that voxel lies outside the grid.
+  bool nearestVoxel(const Eigen::Vector3d& p_W_m, std::array<int, 3>& ijk) const noexcept;
 };
 
 /// Loads a segmentation (.seg.nrrd, a label-map .nrrd / .nhdr, a NIfTI label map (.nii, .nii.gz,

@@ -133,8 +133,12 @@ class Session {
   /// goes on. Otherwise, or while recording, the haptic threads stop (force ramped to zero) and are rebuilt on the new felt field
   /// (LiveValues::hapticField()) at the proxy's pose when no shell point is inside the new
   /// surface there, else at a free pose above the volume (defaultInitialPose(); a simulated
-  /// device is moved there); restarted when they ran.
-  /// @throws std::invalid_argument without a scene, or for segments without a spec.
+  /// device is moved there); restarted when they ran. Soft tissue made of segments
+  /// (TissueSpec::segments) is always rebuilt on the new ones; when it cannot be (the segments
+  /// closed, or without one it names), the old segments stay, the threads are rebuilt on them,
+  /// and the error is thrown.
+  /// @throws std::invalid_argument without a scene, or for segments without a spec; as
+  ///         makeTissueScene().
   void setSegments(std::shared_ptr<const SegmentSet> segments, std::optional<SegmentationSpec> spec);
 
   // ---- Drilling --------------------------------------------------------------------------------
