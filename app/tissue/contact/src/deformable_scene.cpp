@@ -448,11 +448,9 @@ double DeformableScene::deformedValue(int i, int j, int k, CornerCache& cache) c
   // cell X lies in (Newton with the cell's mean Jacobian: u is trilinear, its gradient varies
   // little within a cell, so each step shrinks the error by that variation rather than by
   // |grad u| as plain fixed-point steps X <- p - u(X) do); stopped when a step moves X by under
-  // a thousandth of a voxel (at most 8 steps). The start, from the same step's resampling (never
-  // an earlier step's: no history): where the last two voxels solved are this one's neighbours
-  // along the row, the line through their material points (X's second difference along a row is
-  // small within a cell, where J^-1 s_x from the cell's centre is off by the gradient's change
-  // over half a cell); where only the last is, its material point moved by dX_dx; else p.
+  // a thousandth of a voxel (at most 8 steps). The start: the last voxel's material point moved
+  // by dX_dx when that voxel is this one's neighbour along the row (the same step's
+  // resampling, never an earlier step's: no history), else p.
   bool follows = cache.has_last && cache.last_voxel[0] == i - 1 && cache.last_voxel[1] == j && cache.last_voxel[2] == k;
   cache.has_last = false;
   if (follows) {  // only where the start from p would solve too: p in a touchable cell
@@ -465,9 +463,7 @@ double DeformableScene::deformedValue(int i, int j, int k, CornerCache& cache) c
     }
     if (cell_touchable_[cellIndex(c[0], c[1], c[2])] == 0) return scan_->voxel(i, j, k);
   }
-  const bool quadratic = follows && cache.has_before_last;
-  Eigen::Vector3d X = quadratic ? Eigen::Vector3d(2.0 * cache.last_X_G_m - cache.before_last_X_G_m)
-                      : follows ? Eigen::Vector3d(cache.last_X_G_m + cache.dX_dx_m) : p, u;
+  Eigen::Vector3d X = follows ? Eigen::Vector3d(cache.last_X_G_m + cache.dX_dx_m) : p, u;
   const double tolerance_m = 1e-3 * spacing_m_.minCoeff();
   for (int it = 0; it < 8; ++it) {
     const CellCorners* cell = displacementAt(X, cache, u);
@@ -486,8 +482,6 @@ double DeformableScene::deformedValue(int i, int j, int k, CornerCache& cache) c
     cache.dX_dx_m = cell->inverse_gradient.col(0) * spacing_m_[0];
     if (step.squaredNorm() < tolerance_m * tolerance_m) break;
   }
-  cache.has_before_last = follows;
-  cache.before_last_X_G_m = cache.last_X_G_m;
   cache.has_last = true;
   cache.last_voxel = {i, j, k};
   cache.last_X_G_m = X;

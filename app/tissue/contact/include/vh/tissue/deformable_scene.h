@@ -236,8 +236,7 @@ class DeformableScene {
   // and the next voxel's mostly between the same two, so each is read once for many evaluations.
   // Valid while u_grid_ is unchanged (one step's resampling). It also carries the last solved
   // voxel's material point X and dX_dx = J^-1 s_x (how X moves per voxel along the row, J the
-  // cell's I + grad u), and the material point of the voxel before it: the row's next voxel
-  // starts on the line through the last two (else from X + dX_dx), within a voxel's curvature
+  // cell's I + grad u): the row's next voxel starts from X + dX_dx, within a voxel's curvature
   // of its own material point, so its first step is mostly the last.
   struct CornerCache {
     std::array<CellCorners, 2> cells;
@@ -246,8 +245,6 @@ class DeformableScene {
     std::array<int, 3> last_voxel{0, 0, 0};     // the voxel whose material point was solved last
     Eigen::Vector3d last_X_G_m = Eigen::Vector3d::Zero();  // its material point [m], in G
     Eigen::Vector3d dX_dx_m = Eigen::Vector3d::Zero();     // J^-1 s_x there [m], in G
-    bool has_before_last = false;                // last_voxel followed its row neighbour, solved too
-    Eigen::Vector3d before_last_X_G_m = Eigen::Vector3d::Zero();  // that neighbour's material point [m], in G
   };
   // u(X) [m] at a material point, and the cell it lies in; nullptr (u untouched) outside cells
   // whose corners are all touchable: u is 0 there.
