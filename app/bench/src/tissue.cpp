@@ -14,6 +14,8 @@
 //     pressed 3 mm into the deepest soft tissue a horizontal line finds (the tissue over the
 //     scalp's bone is thinner than a cell, held by it), slid 10 mm up and taken out;
 //   - the step's time per lattice size on the gel (3, 2 and 1.5 mm cells).
+// --short (the ctest entry): fewer ticks, and no deadline on the clock, so that what the test
+// checks does not depend on the machine's load.
 #include <array>
 #include <chrono>
 #include <cmath>
@@ -149,8 +151,12 @@ nlohmann::ordered_json runScene(const std::string& name, runtime::SceneSpec spec
   row["scene"] = name;
   const runtime::LoadedScene scene = runtime::loadScene(spec);
   runtime::LiveValues live = runtime::LiveValues::initial(scene);
-  haptics::RendererOptions ro;  // as the application runs it: one lane, the deadline, the edge test
-  ro.deadline_us = runtime::solverDeadline_us(1000.0);
+  // As the application runs it: one lane, the deadline, the edge test. The short run (the ctest
+  // entry's) has no deadline on the clock: on a loaded machine a burst of cut ticks leaves the
+  // proxy behind the device and the felt peak depends on the load (forced bursts of 5-44 cut
+  // ticks gave the gel 1.88 to 4.55 N), so its figures would too.
+  haptics::RendererOptions ro;
+  ro.deadline_us = short_run ? 0.0 : runtime::solverDeadline_us(1000.0);
   ro.solver_lanes = 1;
   const haptics::ToolModel& tool = *scene.tool;
   double radius_m = 0.0;  // the ball's
