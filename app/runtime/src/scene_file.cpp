@@ -501,13 +501,15 @@ DrillSpec readDrill(const ObjectReader& drill) {
 TissueSpec readTissue(const ObjectReader& t) {
   t.allowOnly({"bands", "segments", "rigid_above", "cell_size_m", "touchable_layers"});
   TissueSpec spec;
-  std::string presets;
-  for (const tissue::Material& m : tissue::materialPresets()) presets += (presets.empty() ? "" : ", ") + m.name;
-  const auto material = [&presets](const ObjectReader& entry) {
+  // A preset's name; an unknown one refused with the presets' list (tissue::materialPreset()).
+  const auto material = [](const ObjectReader& entry) {
     const std::string name = entry.string("material");
-    for (const tissue::Material& m : tissue::materialPresets())
-      if (m.name == name) return name;
-    entry.fail(entry.fieldPath("material"), "unknown material '" + name + "' (presets: " + presets + ")");
+    try {
+      (void)tissue::materialPreset(name);
+    } catch (const std::invalid_argument& e) {
+      entry.fail(entry.fieldPath("material"), e.what());
+    }
+    return name;
   };
   const auto list = [&t](const char* key, const char* shape) -> const json& {
     const json& entries = t.at(key);

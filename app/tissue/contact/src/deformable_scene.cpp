@@ -672,13 +672,13 @@ DeformableStep DeformableScene::step(const haptics::Pose& X_WD, haptics::HapticR
   job.window = writes_window;
   job.max_displacement_m = out.max_displacement_m;
   const int rows = (u_hi[1] - u_lo[1] + 1) * (u_hi[2] - u_lo[2] + 1);
-  job.lanes = pool_ != nullptr ? std::min(lanes_, rows) : 1;
-  if (job.lanes > 1) {
+  const int lanes = pool_ != nullptr ? std::min(lanes_, rows) : 1;
+  if (lanes > 1) {
     pool_->run([](void* context, int lane) noexcept {
                  auto& j = *static_cast<Resampling*>(context);
                  j.scene->resampleRows(j, lane);
                },
-               &job, job.lanes);
+               &job, lanes);
   } else {
     resampleRows(job, 0);
   }

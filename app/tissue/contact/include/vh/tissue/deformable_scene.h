@@ -260,7 +260,6 @@ class DeformableScene {
     std::array<int, 3> u_lo{}, u_hi{}, lo{}, hi{};
     bool window = false;
     double max_displacement_m = 0.0;
-    int lanes = 1;
     std::atomic<int> next_row{0};  // the first row no lane has claimed yet
   };
   // Rows of the box (x rows, z slowest) claimed by lane `lane` a few at a time until none is
