@@ -10,7 +10,7 @@
 
 #include <QApplication>
 
-#include "vh/runtime/session_metrics.h"
+#include "vh/runtime/cohort_table.h"
 #include "vh/ui/export/session_report.h"
 
 namespace vh::app {
@@ -21,6 +21,7 @@ struct ReportArgs {
   std::string html;
   std::string reference;
   std::string table;
+  bool per_material = false;
   ui::SessionReportOptions options;
 };
 
@@ -29,17 +30,20 @@ int reportCommand(const ReportArgs& a) {
     throw std::runtime_error("report: give either --html OUT.html (for one recording) or --table OUT.csv (for a folder)");
   if (!a.table.empty()) {
     if (!a.reference.empty()) throw std::runtime_error("report: --reference goes with --html, not --table");
-    const std::size_t rows = runtime::writeCohortTable(
-        a.input, a.table, a.options.metrics,
-        [](std::size_t done, std::size_t total) {
+    runtime::CohortTableOptions table;
+    table.metrics = a.options.metrics;
+    table.anonymize = a.options.anonymize;
+    table.drilled_per_material = a.per_material;
+    const std::size_t rows =
+        runtime::writeCohortTable(a.input, a.table, table, [](std::size_t done, std::size_t total) {
           std::cerr << "\rvolume-haptics report: " << done << " of " << total << " recordings" << std::flush;
           if (done == total) std::cerr << '\n';
-        },
-        a.options.anonymize);
+        });
     std::cout << "volume-haptics report: " << rows << (rows == 1 ? " recording" : " recordings") << " in "
               << a.table << std::endl;
     return EXIT_SUCCESS;
   }
+  if (a.per_material) throw std::runtime_error("report: --per-material goes with --table (the HTML report always has it)");
   // Qt Charts draws through a QGraphicsScene, which needs a QApplication: on the offscreen
   // platform, so that no display is needed and no window appears.
   setenv("QT_QPA_PLATFORM", "offscreen", 1);
@@ -67,6 +71,10 @@ CLI::App* addReportSubcommand(CLI::App& app, std::function<int()>& handler) {
                   "A reference recording (an expert's) of the same scene to compare with: metrics side by side, "
                   "paths aligned by dynamic time warping");
   cmd->add_option("--table", a->table, "CSV to write: one row per recording found under input, every metric");
+  cmd->add_flag("--per-material", a->per_material,
+                "With --table: replay each recording that drilled on its scan for what the burr removed per material "
+                "(a column removed_mm3[MATERIAL] each, air included), as the HTML report does; takes about as long as "
+                "the drilling did");
   cmd->add_option("--force-threshold-N", a->options.metrics.force_threshold_N,
                   "Force above which time is counted [N]")
       ->capture_default_str()

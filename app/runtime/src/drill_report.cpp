@@ -4,9 +4,11 @@
 
 #include <algorithm>
 #include <cstddef>
+#include <exception>
 #include <vector>
 
 #include "vh/runtime/default_isovalue.h"
+#include "vh/runtime/replay.h"
 #include "vh/runtime/sha256.h"
 
 namespace vh::runtime {
@@ -79,6 +81,27 @@ DrillReport drillReportOf(const Drill& drill, const LoadedScene& scene) {
     d.materials.push_back(air_row);
   }
   return d;
+}
+
+bool drilledDuring(const Recording& recording) {
+  if (recording.version >= 5)
+    return std::any_of(recording.records.begin(), recording.records.end(),
+                       [](const TickRecord& r) { return r.removed_voxels > 0; });
+  return std::any_of(recording.events.begin(), recording.events.end(),
+                     [](const RecordingEvent& e) { return e.type == "drilled"; });
+}
+
+RecordingDrillReport drillReportOfRecording(const LoadedScene& scene, const Recording& recording) {
+  RecordingDrillReport drilled;
+  try {
+    const ReplayComparison replay = replayRecording(scene, recording);
+    if (!replay.identical) drilled.why = replayDifference(replay, recording);
+    else if (!replay.drill) drilled.why = "the reloaded scene has no drill";
+    else drilled.report = replay.drill;
+  } catch (const std::exception& e) {
+    drilled.why = std::string("the replay failed (") + e.what() + ")";
+  }
+  return drilled;
 }
 
 }  // namespace vh::runtime

@@ -10,8 +10,6 @@
 
 #include <nlohmann/json.hpp>
 
-#include "vh/io/private_files.h"
-#include "vh/runtime/anonymize.h"
 #include "vh/runtime/runner.h"
 
 namespace vh::runtime {
@@ -242,23 +240,6 @@ void segmentMetrics(const Recording& recording, double dt, SessionMetrics& m) {
   }
 }
 
-/// RFC 4180 field: quoted when it holds a comma, quote or line break; inner quotes doubled.
-std::string csvField(const std::string& s) {
-  if (s.find_first_of(",\"\r\n") == std::string::npos) return s;
-  std::string out = "\"";
-  for (char c : s) {
-    if (c == '"') out += '"';
-    out += c;
-  }
-  return out + '"';
-}
-
-std::string joined(const std::vector<std::string>& parts, const char* separator) {
-  std::string out;
-  for (const std::string& p : parts) out += (out.empty() ? "" : separator) + p;
-  return out;
-}
-
 }  // namespace
 
 std::string cohortLabel(const SessionMetrics& m, const std::filesystem::path& file) {
@@ -484,41 +465,6 @@ std::vector<std::filesystem::path> findRecordings(const std::filesystem::path& d
   }
   std::sort(out.begin(), out.end());
   return out;
-}
-
-std::size_t writeCohortTable(const std::filesystem::path& dir, const std::filesystem::path& csv,
-                             const MetricsOptions& options,
-                             const std::function<void(std::size_t, std::size_t)>& progress, bool anonymize) {
-  const std::vector<std::filesystem::path> files = findRecordings(dir);
-  io::PrivateOutput file(csv);  // 0600 (labels and scene names), renamed into place when whole
-  std::ostream& out = file.stream();
-  out << "file,scene,dataset_sha256,label,start_time_utc";
-  const std::vector<MetricValue> columns = metricValues(SessionMetrics{});
-  for (const MetricValue& v : columns) out << ',' << v.key;
-  out << ",notices\n";
-  out.precision(9);
-  for (std::size_t i = 0; i < files.size(); ++i) {
-    const std::string anonymous = std::string(kAnonymized) + " " + std::to_string(i + 1);
-    out << csvField(anonymize ? anonymous : std::filesystem::relative(files[i], dir).generic_string());
-    try {
-      Recording recording = readRecording(files[i]);
-      if (anonymize) anonymizeRecording(recording, files[i]);
-      const SessionMetrics m = computeSessionMetrics(recording, options);
-      const std::string label = anonymize && m.label.empty() ? anonymous : cohortLabel(m, files[i]);
-      out << ',' << csvField(m.scene) << ',' << m.dataset_sha256 << ',' << csvField(label) << ','
-          << csvField(m.start_time_utc);
-      for (const MetricValue& v : metricValues(m)) out << ',' << v.value;
-      out << ',' << csvField(joined(m.notices, "; ")) << '\n';
-    } catch (const std::runtime_error& e) {
-      out << ",,,,";
-      for (std::size_t c = 0; c < columns.size(); ++c) out << ',';
-      const std::vector<std::string> ids = anonymize ? pathIdentifiers(files[i]) : std::vector<std::string>{};
-      out << ',' << csvField(scrubText(std::string("not read: ") + e.what(), ids)) << '\n';
-    }
-    if (progress) progress(i + 1, files.size());
-  }
-  file.commit();
-  return files.size();
 }
 
 }  // namespace vh::runtime

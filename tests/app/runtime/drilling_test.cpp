@@ -7,6 +7,7 @@
 #include <atomic>
 #include <fstream>
 #include <iostream>
+#include <iterator>
 #include <map>
 #include <optional>
 #include <thread>
@@ -16,6 +17,7 @@
 
 #include "drilling_scenes.h"
 #include "runtime_test_support.h"
+#include "vh/runtime/cohort_table.h"
 #include "vh/runtime/default_isovalue.h"
 #include "vh/runtime/haptic_thread.h"
 #include "vh/runtime/placement.h"
@@ -271,6 +273,32 @@ TEST(Drilling, ARecordingThatStartsDrilledReplaysBitForBit) {
             << undrilled.first_mismatch_tick.value_or(0) << "\n";
 }
 
+// The oracle's classes: each voxel of `voxels` classed by its own HU in the scan `ct` (air below
+// -500, soft tissue below 250, cancellous bone below 800, cortical bone above).
+std::map<std::string, std::uint64_t> byHuClass(const haptics::ScalarVolume& ct, const std::vector<std::uint64_t>& voxels) {
+  std::map<std::string, std::uint64_t> classes;
+  for (const std::uint64_t i : voxels) {
+    const double hu = ct.valueScale() * ct.rawAt(i) + ct.valueOffset();
+    ++classes[hu < kAirBelow_HU       ? "air"
+              : hu < kCancellousFrom_HU ? "soft tissue"
+              : hu < kCorticalFrom_HU   ? "cancellous bone"
+                                        : "cortical bone"];
+  }
+  return classes;
+}
+
+// The voxels `carved` lacks against the scan `ct` (at its lowest value there, not in the scan),
+// less those of `at_start` (a sorted cavity): what a session that began on `at_start` removed.
+std::vector<std::uint64_t> removedAgainstScan(const haptics::ScalarVolume& carved, const haptics::ScalarVolume& ct,
+                                              const std::vector<std::uint64_t>& at_start) {
+  std::vector<std::uint64_t> removed;
+  for (std::uint64_t i = 0; i < ct.geometry().voxelCount(); ++i)
+    if (carved.rawAt(i) == carved.lowestRaw() && ct.rawAt(i) != carved.lowestRaw() &&
+        !std::binary_search(at_start.begin(), at_start.end(), i))
+      removed.push_back(i);
+  return removed;
+}
+
 // What a recording removed, per material and as air, from its replay (the session report's
 // table): on the CT ball, a first session drills the pole, a second, recorded, starts on that
 // cavity and drills 6 mm aside. Oracle: the voxels the replayed field lacks against the scan,
@@ -294,20 +322,9 @@ TEST(Drilling, AReplayGivesWhatItsRecordingRemovedPerMaterialAndAsAir) {
   ASSERT_NE(replay.drilled_field, nullptr);
 
   const haptics::ScalarVolume& ct = *scene.volume.field;
-  const haptics::ScalarVolume& carved = *replay.drilled_field;
-  std::vector<bool> at_start(ct.geometry().voxelCount(), false);
-  for (const std::uint64_t v : cavity->voxels) at_start[v] = true;
-  std::map<std::string, std::uint64_t> expected;
-  std::uint64_t removed = 0;
-  for (std::size_t i = 0; i < ct.geometry().voxelCount(); ++i) {
-    if (carved.rawAt(i) != carved.lowestRaw() || ct.rawAt(i) == carved.lowestRaw() || at_start[i]) continue;
-    ++removed;
-    const double hu = ct.valueScale() * ct.rawAt(i) + ct.valueOffset();
-    ++expected[hu < kAirBelow_HU       ? "air"
-               : hu < kCancellousFrom_HU ? "soft tissue"
-               : hu < kCorticalFrom_HU   ? "cancellous bone"
-                                         : "cortical bone"];
-  }
+  const std::vector<std::uint64_t> removed_voxels = removedAgainstScan(*replay.drilled_field, ct, cavity->voxels);
+  const std::uint64_t removed = removed_voxels.size();
+  std::map<std::string, std::uint64_t> expected = byHuClass(ct, removed_voxels);
   std::map<std::string, std::uint64_t> got;
   std::uint64_t reported = 0;
   for (const DrillReport::Material& m : replay.drill->materials) {
@@ -331,6 +348,102 @@ TEST(Drilling, AReplayGivesWhatItsRecordingRemovedPerMaterialAndAsAir) {
     EXPECT_EQ(run.drill->materials[m].voxels, replay.drill->materials[m].voxels) << run.drill->materials[m].name;
     EXPECT_EQ(run.drill->materials[m].voxels_below_surface, replay.drill->materials[m].voxels_below_surface);
   }
+}
+
+// RFC 4180 rows (quoted fields with commas, doubled quotes and line breaks), for the cohort table.
+std::vector<std::vector<std::string>> readCsvRows(const std::filesystem::path& path) {
+  std::ifstream in(path, std::ios::binary);
+  const std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  std::vector<std::vector<std::string>> rows(1, std::vector<std::string>(1));
+  bool quoted = false;
+  for (std::size_t i = 0; i < text.size(); ++i) {
+    const char c = text[i];
+    if (quoted) {
+      if (c == '"' && i + 1 < text.size() && text[i + 1] == '"') rows.back().back() += text[++i];
+      else if (c == '"') quoted = false;
+      else rows.back().back() += c;
+    } else if (c == '"') {
+      quoted = true;
+    } else if (c == ',') {
+      rows.back().emplace_back();
+    } else if (c == '\n') {
+      rows.emplace_back(1);
+    } else {
+      rows.back().back() += c;
+    }
+  }
+  if (rows.back().size() == 1 && rows.back()[0].empty()) rows.pop_back();
+  return rows;
+}
+
+// The cohort table per material (`report DIR --table --per-material`), by the session report's
+// rule, for every recording in the folder: on the CT ball a first session drills the pole, a
+// second starts on its cavity and drills 6 mm aside, a third stays 20 mm above the ball.
+// Oracle: each session's removed voxels classed by their own HU in the scan (the first: its
+// cavity against the scan; the second: what its replayed field lacks against the scan, less
+// that cavity); 1 mm voxels, so a count is its volume in mm^3. Without the option there are
+// no such columns.
+TEST(Drilling, TheCohortTableGivesEachRecordingsRemovalPerMaterial) {
+  const auto dir = test::scratchDir();
+  const LoadedScene scene = loadScene(loadSceneFile(test::writeCtBallScene(dir)));
+  const SecondSession second = drillBesideAFirstCavity(scene, dir, 0.006);
+  ASSERT_NE(second.cavity, nullptr);
+  {
+    RunOptions options;
+    options.record = dir / "above.vhrec";
+    options.lag_reference = false;
+    options.verify_step_voxels = 0.0;
+    (void)runHeadless(scene, pressDown(0.0, 0.0, 0.060, 1.0, 0.050), options);
+  }
+  const Recording second_rec = readRecording(second.record);
+  const ReplayComparison replay =
+      replayRecording(loadScene(sceneFromSessionMetadata(second_rec.metadata_json)), second_rec);
+  ASSERT_NE(replay.drilled_field, nullptr);
+  const haptics::ScalarVolume& ct = *scene.volume.field;
+  std::map<std::string, std::map<std::string, std::uint64_t>> expected;
+  expected["above.vhrec"] = {};
+  expected["first.vhrec"] = byHuClass(ct, second.cavity->voxels);
+  expected["second.vhrec"] = byHuClass(ct, removedAgainstScan(*replay.drilled_field, ct, second.cavity->voxels));
+  EXPECT_GT(expected["first.vhrec"]["cortical bone"], 0u);
+  EXPECT_GT(expected["second.vhrec"]["air"], 0u);
+
+  CohortTableOptions options;
+  options.drilled_per_material = true;
+  ASSERT_EQ(writeCohortTable(dir, dir / "table.csv", options), 3u);
+  const std::vector<std::vector<std::string>> rows = readCsvRows(dir / "table.csv");
+  ASSERT_EQ(rows.size(), 4u);
+  const std::vector<std::string>& header = rows[0];
+  const auto column = [&](const std::string& key) {
+    return static_cast<std::size_t>(std::find(header.begin(), header.end(), key) - header.begin());
+  };
+  std::vector<std::string> materials;
+  for (const std::string& h : header)
+    if (h.rfind("removed_mm3[", 0) == 0) materials.push_back(h.substr(12, h.size() - 13));
+  std::cout << "material columns:";
+  for (const std::string& m : materials) std::cout << " [" << m << "]";
+  std::cout << "\n";
+  for (const char* name : {"air", "soft tissue", "cancellous bone", "cortical bone"})
+    EXPECT_NE(std::find(materials.begin(), materials.end(), name), materials.end()) << name;
+  for (std::size_t r = 1; r < rows.size(); ++r) {
+    const std::vector<std::string>& row = rows[r];
+    ASSERT_EQ(row.size(), header.size()) << row[0];
+    ASSERT_EQ(expected.count(row[0]), 1u) << row[0];
+    std::map<std::string, std::uint64_t>& want = expected[row[0]];
+    double sum_mm3 = 0.0;
+    for (const std::string& m : materials) {
+      const std::string& cell = row[column("removed_mm3[" + m + "]")];
+      ASSERT_FALSE(cell.empty()) << row[0] << " " << m << ": " << row[column("notices")];
+      EXPECT_DOUBLE_EQ(std::stod(cell), static_cast<double>(want[m])) << row[0] << " " << m;
+      sum_mm3 += std::stod(cell);
+    }
+    EXPECT_NEAR(sum_mm3, std::stod(row[column("removed_mm3")]), 1e-6) << row[0] << ": the records' total";
+    EXPECT_EQ(row[column("notices")].find("not known"), std::string::npos) << row[column("notices")];
+    std::cout << row[0] << ": removed " << row[column("removed_mm3")] << " mm^3\n";
+  }
+  ASSERT_EQ(writeCohortTable(dir, dir / "plain.csv"), 3u);
+  const std::vector<std::vector<std::string>> plain = readCsvRows(dir / "plain.csv");
+  ASSERT_FALSE(plain.empty());
+  for (const std::string& h : plain[0]) EXPECT_EQ(h.rfind("removed_mm3[", 0), std::string::npos) << h;
 }
 
 // Touch the Surface with a drill held upright (burr down, shaft and handle up +z), approached

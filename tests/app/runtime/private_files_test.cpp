@@ -22,6 +22,7 @@
 #include "runtime_test_support.h"
 #include "vh/io/nrrd_writer.h"
 #include "vh/io/private_files.h"
+#include "vh/runtime/cohort_table.h"
 #include "vh/runtime/recording.h"
 #include "vh/runtime/runner.h"
 #include "vh/runtime/session_metrics.h"
@@ -108,7 +109,7 @@ TEST(PrivateFiles, EveryWriterCreatesOwnerOnlyFilesUnderAPermissiveUmask) {
   EXPECT_EQ(modeOf(dir / "events.csv"), 0600) << "export --events-csv";
   writeRunReport(RunReport{}, dir / "report.json");
   EXPECT_EQ(modeOf(dir / "report.json"), 0600) << "run --report";
-  writeCohortTable(dir, dir / "cohort.csv", MetricsOptions{}, {});
+  writeCohortTable(dir, dir / "cohort.csv");
   EXPECT_EQ(modeOf(dir / "cohort.csv"), 0600) << "report DIR --table";
   std::vector<unsigned char> voxels;
   io::writeNrrd(dir / "drilled.nrrd", cube(voxels, 8));

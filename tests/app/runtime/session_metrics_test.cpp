@@ -1,6 +1,7 @@
 // Session metrics (vh/runtime/session_metrics.h) against analytic trajectories and force
 // profiles, DTW against a second, recursive implementation, the reference check, damaged input
 // and the cohort table.
+#include "vh/runtime/cohort_table.h"
 #include "vh/runtime/session_metrics.h"
 
 #include <algorithm>
@@ -355,6 +356,20 @@ TEST(CohortTable, LabelFallsBackToTheFileNameAndRemovedVolumeIsAColumn) {
   EXPECT_EQ(rows[2][0], "trainee-07.vhrec");
   EXPECT_EQ(rows[2][column("label")], "trainee-07") << "no user or note: the file name";
   EXPECT_DOUBLE_EQ(std::stod(rows[2][column("removed_mm3")]), 0.0);
+  // Per material: the drilled one's scene cannot be reloaded (its metadata has none), which its
+  // notices say; no recording gives materials, so no column is added.
+  CohortTableOptions per_material;
+  per_material.drilled_per_material = true;
+  ASSERT_EQ(writeCohortTable(dir, dir / "per-material.csv", per_material), 2u);
+  std::ifstream in2(dir / "per-material.csv");
+  std::vector<std::string> lines;
+  for (std::string line; std::getline(in2, line);) lines.push_back(line);
+  ASSERT_EQ(lines.size(), 3u);
+  EXPECT_EQ(lines[0].find("removed_mm3["), std::string::npos) << lines[0];
+  EXPECT_NE(lines[1].find("removal per material not known: the scene could not be reloaded (session metadata: bad"),
+            std::string::npos)
+      << lines[1];
+  EXPECT_EQ(lines[2].find("not known"), std::string::npos) << "drilled nothing: " << lines[2];
 }
 
 TEST(CohortTable, OneRowPerRecordingInTheTreeWithProgress) {

@@ -2,36 +2,13 @@
 
 #include "report_drilling.h"
 
-#include <algorithm>
 #include <cstdint>
-#include <exception>
 
 #include "vh/runtime/anonymize.h"
 #include "vh/runtime/drilling.h"
-#include "vh/runtime/replay.h"
 #include "vh/ui/export/report_format.h"
 
 namespace vh::ui::detail {
-
-bool drilledDuring(const runtime::Recording& rec) {
-  if (rec.version >= 5)
-    return std::any_of(rec.records.begin(), rec.records.end(),
-                       [](const runtime::TickRecord& r) { return r.removed_voxels > 0; });
-  return std::any_of(rec.events.begin(), rec.events.end(), [](const runtime::RecordingEvent& e) { return e.type == "drilled"; });
-}
-
-DrilledByMaterial drilledByMaterialOf(const runtime::LoadedScene& scene, const runtime::Recording& rec) {
-  DrilledByMaterial drilled;
-  try {
-    const runtime::ReplayComparison replay = runtime::replayRecording(scene, rec);
-    if (!replay.identical) drilled.why = runtime::replayDifference(replay, rec);
-    else if (!replay.drill) drilled.why = "the reloaded scene has no drill";
-    else drilled.report = replay.drill;
-  } catch (const std::exception& e) {
-    drilled.why = std::string("the replay failed (") + e.what() + ")";
-  }
-  return drilled;
-}
 
 std::string drilledByMaterialSection(const DrilledByMaterial& d, const std::vector<std::string>& scrub) {
   if (!d.report && d.why.empty()) return {};

@@ -749,7 +749,7 @@ std::string metadataLine(const Recording& rec, const SessionMetrics& m) {
 /// The recorded scene reloaded from the metadata once, for two things: its felt surface (its
 /// scan, or its felt segments), set into `anatomy` as soon as it is loaded (null with `why` set
 /// when it cannot be: a missing or changed dataset); then, with `replay_drilling`, the recording
-/// replayed on it for what its burr removed per material (detail::drilledByMaterialOf()).
+/// replayed on it for what its burr removed per material (runtime::drillReportOfRecording()).
 detail::DrilledByMaterial reloadScene(const Recording& rec, bool replay_drilling, std::string& why,
                                       std::promise<std::unique_ptr<Anatomy>>& anatomy) {
   detail::DrilledByMaterial drilled;
@@ -770,7 +770,7 @@ detail::DrilledByMaterial reloadScene(const Recording& rec, bool replay_drilling
     anatomy.set_value(nullptr);
     return drilled;
   }
-  return replay_drilling ? detail::drilledByMaterialOf(*scene, rec) : drilled;
+  return replay_drilling ? runtime::drillReportOfRecording(*scene, rec) : drilled;
 }
 
 /// --anonymize: anonymized copies of the recording and the reference (runtime::anonymizeRecording());
@@ -816,7 +816,7 @@ std::string sessionReportHtml(const Recording& original, const std::string& titl
   std::promise<std::unique_ptr<Anatomy>> anatomy_promise;
   std::future<std::unique_ptr<Anatomy>> anatomy_loading;
   std::future<detail::DrilledByMaterial> drilled_replay;
-  const bool drilled = detail::drilledDuring(original);
+  const bool drilled = runtime::drilledDuring(original);
   if ((options.anatomy || drilled) && !original.records.empty()) {
     if (options.anatomy) anatomy_loading = anatomy_promise.get_future();
     drilled_replay = std::async(std::launch::async, [&original, &why, &anatomy_promise, drilled] {

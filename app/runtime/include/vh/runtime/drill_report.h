@@ -5,10 +5,12 @@
 /// recording's session carved; the session report's table per material).
 
 #include <cstdint>
+#include <optional>
 #include <string>
 #include <vector>
 
 #include "vh/runtime/drilling.h"
+#include "vh/runtime/recording.h"
 #include "vh/runtime/scene.h"
 
 namespace vh::runtime {
@@ -49,5 +51,24 @@ struct DrillReport {
 /// The carved field's SHA-256. Off the servo thread: one pass over the field's voxels.
 /// @param drill a drill built on scene's felt field (the same grid; else no "below" counts and no air).
 DrillReport drillReportOf(const Drill& drill, const LoadedScene& scene);
+
+/// What the burr removed during a recording, per material, or why that is not known.
+struct RecordingDrillReport {
+  std::optional<DrillReport> report;  ///< Empty when not known (see why).
+  std::string why;                    ///< Why there is no report, in words; empty with one.
+};
+
+/// Whether `recording`'s burr removed anything during it (format version 5 on: its records'
+/// TickRecord::removed_voxels; older: a "drilled" event, which only `run` wrote).
+bool drilledDuring(const Recording& recording);
+
+/// What `recording`'s burr removed during it, per material and as air: `recording` replayed on
+/// `scene` (the scene it was recorded on, reloaded from its metadata) and drillReportOf() of the
+/// replay's drill (ReplayComparison::drill; the cavity the recording started on is not counted).
+/// A replay that parts from the recording gives no report, and `why` says at which record and
+/// why when that is known (replayDifference()); so does a scene without a drill, and a replay
+/// that throws (its message). As long as the recording's drilling took, on the calling thread.
+/// Never throws for a bad recording: every error becomes `why`.
+RecordingDrillReport drillReportOfRecording(const LoadedScene& scene, const Recording& recording);
 
 }  // namespace vh::runtime

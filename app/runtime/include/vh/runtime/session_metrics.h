@@ -249,19 +249,4 @@ ReferenceComparison compareWithReference(const Recording& session, const Session
 /// @throws std::runtime_error when `dir` is not a readable folder.
 std::vector<std::filesystem::path> findRecordings(const std::filesystem::path& dir);
 
-/// Writes the cohort table: one CSV row (RFC 4180) per recording under `dir` (findRecordings()):
-/// file (relative to dir), scene, dataset_sha256, label (SessionMetrics::label, else the
-/// recording's file name without .vhrec), start_time_utc, then every
-/// metricValues() key, then "notices" (the recording's warnings joined by "; "). A recording
-/// that cannot be read at all still gets a row, with its error in "notices" and empty metrics.
-/// `progress(done, total)` is called after each recording (may be empty).
-/// `anonymize`: each recording as anonymizeRecording() (anonymize.h), and the file column
-/// (and a label taken from it) "ANONYMIZED <row number>".
-/// @return the number of rows written.
-/// @throws std::runtime_error when `dir` cannot be listed or `csv` cannot be written.
-std::size_t writeCohortTable(const std::filesystem::path& dir, const std::filesystem::path& csv,
-                             const MetricsOptions& options = {},
-                             const std::function<void(std::size_t, std::size_t)>& progress = {},
-                             bool anonymize = false);
-
 }  // namespace vh::runtime
