@@ -13,6 +13,7 @@
 #include <limits>
 #include <memory>
 #include <string>
+#include <vector>
 
 #include <csignal>
 
@@ -680,6 +681,113 @@ TEST(ExportFrames, ReusingTheVolumesPictureGivesTheFullRendersFrames) {
   }
   EXPECT_EQ(kept.volumeRenders(), 2u) << "the volume is ray cast once (picture and depth) for every frame";
   EXPECT_EQ(full.volumeRenders(), records.size());
+}
+
+// While the burr drills, the kept picture is ray cast again only where the cavity lies on the
+// screen. Oracle: a full render of each frame, its cavity carved the same. On the sphere a
+// cavity grows on the side the camera looks at, over four records (balls of 3 to 7.5 voxels); the frames must be the full
+// renders' and show it growing, while the pixels ray cast for it are a small part of the four
+// full frames that re-casting the kept picture whole would cost. Then the probe is pushed into
+// the cavity: it must be hidden where the surface is nearer, as in the full render.
+TEST(ExportFrames, AGrowingCavityIsCastAgainOnlyWhereItLies) {
+  const runtime::LoadedScene& scene = test::sphereProbeScene();
+  const SceneActorsSpec spec = sceneActorsSpecFor(scene, runtime::LiveValues::initial(scene));
+  int dims[3];
+  spec.image->GetDimensions(dims);
+  // The sphere's front (-y, anterior: the default camera looks from there) on the centre column.
+  const int ic = dims[0] / 2, kc = dims[2] / 2;
+  const auto at = [&](int i, int j, int k) { return spec.image->GetScalarComponentAsDouble(i, j, k, 0); };
+  int js = 0;
+  while (js < dims[1] && at(ic, js, kc) < spec.isovalue) ++js;
+  ASSERT_LT(js, dims[1] / 2) << "no surface in front of the centre";
+  DrillingTimeline timeline;
+  timeline.picture.after_record.push_back(0);  // record 0: nothing removed yet
+  std::vector<bool> taken(static_cast<std::size_t>(dims[0]) * dims[1] * dims[2], false);
+  for (int step = 1; step <= 4; ++step) {  // balls of 3 to 7.5 voxels about a voxel inside the surface
+    const double r = 1.5 + 1.5 * step;
+    for (int k = kc - 8; k <= kc + 8; ++k)
+      for (int j = js - 7; j <= js + 9; ++j)
+        for (int i = ic - 8; i <= ic + 8; ++i) {
+          if (j < 0 || (i - ic) * (i - ic) + (j - js - 1) * (j - js - 1) + (k - kc) * (k - kc) > r * r) continue;
+          const auto v = static_cast<std::uint64_t>(i) + static_cast<std::uint64_t>(dims[0]) * (j + static_cast<std::uint64_t>(dims[1]) * k);
+          if (taken[v]) continue;
+          taken[v] = true;
+          timeline.picture.voxels.push_back(v);
+        }
+    timeline.picture.after_record.push_back(timeline.picture.voxels.size());
+  }
+  runtime::TickRecord away;  // the probe 10 cm above: not in the picture's way
+  const Eigen::Vector3d p = scene.X_WT_initial.p_AB_m + Eigen::Vector3d(0, 0, 0.1);
+  for (int a = 0; a < 3; ++a) away.p_WP_m[a] = away.p_WD_m[a] = p[a];
+  away.isovalue = std::numeric_limits<double>::quiet_NaN();
+  RecordingFrameRenderer kept(spec, 320, 240, ViewLook{});
+  RecordingFrameRenderer full(spec, 320, 240, ViewLook{});
+  full.setReuseVolume(false);
+  kept.setDrilling(timeline);
+  full.setDrilling(timeline);
+  kept.show(away);
+  kept.resetCamera();
+  full.copyCamera(kept.renderer()->GetActiveCamera());
+  const auto pixels = [](vtkImageData* image) {
+    const auto* px = static_cast<const unsigned char*>(image->GetScalarPointer());
+    return std::vector<unsigned char>(px, px + image->GetNumberOfPoints() * 3);
+  };
+  const auto differing = [](const std::vector<unsigned char>& a, const std::vector<unsigned char>& b) {
+    std::size_t n = 0;
+    for (std::size_t i = 0; i < a.size(); i += 3)
+      n += std::abs(a[i] - b[i]) > 24 || std::abs(a[i + 1] - b[i + 1]) > 24 || std::abs(a[i + 2] - b[i + 2]) > 24;
+    return n;
+  };
+  std::vector<unsigned char> before;
+  std::uint64_t cast_for_the_first = 0;
+  const std::uint64_t frame_pixels = 320u * 240u;
+  for (std::size_t record = 0; record < timeline.picture.after_record.size(); ++record) {
+    kept.showCavityAt(record);
+    full.showCavityAt(record);
+    kept.show(away);
+    full.show(away);
+    const std::vector<unsigned char> a = pixels(kept.render()), b = pixels(full.render());
+    std::cout << "record " << record << ": " << differing(a, b) << " pixels differ from the full render, "
+              << (before.empty() ? 0 : differing(a, before)) << " from the frame before\n";
+    // The pixels cast again are shaded as the full render shades them; those not cast again
+    // still show what they showed, which the cavity did not change.
+    EXPECT_LE(differing(a, b), 4u) << "record " << record << ": the frame differs from a full render's";
+    if (record == 0) {
+      cast_for_the_first = kept.volumePixelsCast();
+    } else {
+      EXPECT_GT(differing(a, before), 20u) << "record " << record << ": the cavity did not grow in the picture";
+    }
+    before = a;
+  }
+  const std::uint64_t cast_for_the_cavity = kept.volumePixelsCast() - cast_for_the_first;
+  // The probe's lowest point pushed through the cavity, 2.5 voxels into its back wall: which of
+  // the tool is drawn now rests on the depth cast for the cavity's pixels (the kept picture is
+  // not cast again), and its tip is hidden.
+  double origin[3], spacing[3];
+  spec.image->GetOrigin(origin);
+  spec.image->GetSpacing(spacing);
+  const Eigen::Vector3d o(origin[0], origin[1], origin[2]);
+  const Eigen::Vector3d centre_image = o + Eigen::Vector3d(ic * spacing[0], (js + 11) * spacing[1], kc * spacing[2]);
+  const Eigen::Vector3d centre_W = o + spec.direction_W * (centre_image - o);
+  Eigen::Vector3d tip_T = spec.tool_mesh_T.vertices_T_m.front();
+  for (const Eigen::Vector3d& v : spec.tool_mesh_T.vertices_T_m)
+    if (v.z() < tip_T.z()) tip_T = v;
+  runtime::TickRecord in_cavity = away;
+  for (int a = 0; a < 3; ++a) in_cavity.p_WP_m[a] = in_cavity.p_WD_m[a] = centre_W[a] - tip_T[a];
+  const std::uint64_t renders = kept.volumeRenders();
+  kept.show(in_cavity);
+  full.show(in_cavity);
+  const std::vector<unsigned char> a = pixels(kept.render()), b = pixels(full.render());
+  std::cout << "the probe in the cavity: " << differing(a, b) << " pixels differ from the full render, "
+            << differing(a, before) << " from the frame without it\n";
+  EXPECT_EQ(kept.volumeRenders(), renders) << "the kept picture serves";
+  EXPECT_GT(differing(a, before), 100u) << "the probe is in the picture";
+  EXPECT_LE(differing(a, b), 8u) << "the probe is hidden where the cavity's surface is nearer, as in a full render";
+  std::cout << "the cavity's four steps cast " << cast_for_the_cavity << " pixels; the kept picture whole, "
+            << 2 * 4 * frame_pixels << "\n";
+  EXPECT_EQ(cast_for_the_first, 2 * frame_pixels) << "the first frame keeps the whole picture (colour and depth)";
+  EXPECT_GT(cast_for_the_cavity, 0u);
+  EXPECT_LT(cast_for_the_cavity, 2 * 4 * frame_pixels / 8) << "the cavity is cast again where it lies only";
 }
 
 using vh::test::FileSizeLimit;

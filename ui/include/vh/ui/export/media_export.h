@@ -17,6 +17,7 @@
 #include <functional>
 #include <iosfwd>
 #include <memory>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -119,10 +120,11 @@ void showDrilledVoxels(SceneActors& actors, const CavityOrder& picture, std::uin
 /// frame draws the tools, the shadow and the overlays (cheap geometry) and lays them over the
 /// kept picture wherever they are nearer than the surface: the same picture as a full render
 /// (where a tool meets the surface the ray caster also stops at the nearer of the two), in a
-/// few tens of milliseconds instead of seconds on software OpenGL. While what the volume shows
-/// changes at every frame (a cavity growing under the burr), each frame is one full render
-/// instead. Composite and MIP modes, whose volume is not an opaque surface, are ray cast at
-/// every frame.
+/// few tens of milliseconds instead of seconds on software OpenGL. While the cavity grows under
+/// the burr, the volume is cast again only over the pixels whose rays can meet the removed
+/// voxels; while anything else it shows changes at every frame (the isovalue swept), each frame
+/// is one full render instead. Composite and MIP modes, whose volume is not an opaque surface,
+/// are ray cast at every frame.
 class RecordingFrameRenderer {
  public:
   /// @param width, height frame size [px] (at least 16; rounded up to even for video).
@@ -160,6 +162,10 @@ class RecordingFrameRenderer {
   /// Times the volume was ray cast for frames so far (each kept picture costs two: colour and
   /// depth; a full render one).
   std::uint64_t volumeRenders() const noexcept { return volume_renders_; }
+  /// Pixels the volume was ray cast for so far by the ray caster (a full render: the frame's; a
+  /// whole kept picture twice, colour and depth; a cavity's update the pixels it covers): what
+  /// the ray casting cost, on any machine.
+  std::uint64_t volumePixelsCast() const noexcept { return volume_pixels_cast_; }
   /// The filter render() reads the window through (input of the writers).
   vtkWindowToImageFilter* imageFilter() const noexcept;
 
@@ -238,10 +244,25 @@ class RecordingFrameRenderer {
   void drawFull();
   /// Draws the frame over the kept volume picture, keeping it first when out of date.
   void drawOverKeptVolume();
-  /// Ray casts the volume alone: its picture (with the background) and its depth.
-  void keepVolume();
+  /// A rectangle of the frame's pixels (bottom left origin, as OpenGL's).
+  struct PixelRect {
+    int x = 0, y = 0, width = 0, height = 0;
+  };
+  /// Ray casts the volume alone: its picture (with the background) and its depth, into the kept
+  /// picture; with `rect`, within those pixels only (the rest of the kept picture stays).
+  void keepVolume(const std::optional<PixelRect>& rect = std::nullopt);
+  /// The pixels whose rays can meet the voxels of drilling_.picture.voxels [from, to) or their
+  /// neighbours (the box that holds them, grown by 2 voxels, projected, grown by 2 pixels); an
+  /// empty rectangle when it lies off the frame; none when nothing is removed or a corner lies
+  /// behind the eye (then the whole frame).
+  std::optional<PixelRect> cavityRect(std::uint64_t from, std::uint64_t to) const;
+  /// The kept depth within `r`: along each pixel's ray (through its centre, near to far plane),
+  /// the first crossing of the isovalue in the picture's scan (trilinear, marched a quarter voxel
+  /// at a time and bisected), as a distance along the view axis; +inf where the ray meets none.
+  void surfaceEyeDepthIn(const PixelRect& r);
   bool reuse_volume_ = true;
   std::uint64_t volume_renders_ = 0;
+  std::uint64_t volume_pixels_cast_ = 0;
   std::uint64_t camera_generation_ = 0;  ///< Counts resetCamera() / copyCamera() / recorded cameras applied.
   std::vector<RecordedCamera> recorded_cameras_;  ///< setRecordedCameras()
   std::size_t recorded_camera_shown_ = 0;         ///< 1 + the index applied last (0: none yet)
