@@ -17,6 +17,7 @@
 #include <limits>
 #include <memory>
 #include <numbers>
+#include <sstream>
 #include <string>
 
 #include <QImage>
@@ -27,6 +28,7 @@
 #include <nlohmann/json.hpp>
 #include <vtkActor.h>
 #include <vtkCamera.h>
+#include <vtkImageData.h>
 #include <vtkMatrix4x4.h>
 #include <vtkRenderer.h>
 
@@ -37,6 +39,7 @@
 #include "vh/runtime/sha256.h"
 #include "vh/runtime/trajectory.h"
 #include "vh/ui/devices/device_input.h"
+#include "vh/ui/export/media_export.h"
 #include "vh/ui/haptics_controller.h"
 #include "vh/ui/main_window.h"
 #include "vh/ui/replay/replay_controller.h"
@@ -293,6 +296,72 @@ TEST_F(Guidance, AGuidedSessionReplaysWithTheGhostAndSaysSoWhenTheExpertIsGone) 
   for (const QList<QVariant>& n : notices) said = said || n.at(0).toString().contains("not available");
   EXPECT_TRUE(said) << "no notice that the expert's recording is not available";
   EXPECT_TRUE(w->recorder()->statusText().contains("not available")) << w->recorder()->statusText().toStdString();
+}
+
+// Ghost-green pixels (green well above red and blue) of a frame (RGB, vtkImageData).
+int greenPixels(vtkImageData* frame) {
+  const auto* p = static_cast<const unsigned char*>(frame->GetScalarPointer());
+  int n = 0;
+  for (vtkIdType i = 0; i < frame->GetNumberOfPoints(); ++i, p += 3) n += (p[1] > p[0] + 25 && p[1] > p[2] + 25) ? 1 : 0;
+  return n;
+}
+
+// `export` draws the expert's ghost in a guided session's frames, as its replay shows it: a
+// headless trainee pass guided by the expert, exported (exportFrameRenderer()), stands the ghost
+// at the expert's nearest pose to each record's device (oracle: nearestExpertPose(), by brute
+// force) and puts ghost-green pixels in the frame. The expert's own recording (not guided)
+// exports without a ghost; the guided one whose expert is gone too, and the log says why.
+TEST_F(Guidance, AnExportOfAGuidedSessionDrawsTheExpertsGhost) {
+  const fs::path dir(dir_->path().toStdString());
+  const fs::path session = dir / "guided-headless.vhrec";
+  const runtime::LoadedScene scene = runtime::loadScene(sphereScene());
+  {
+    const Eigen::Vector3d p0 = scene.X_WT_initial.p_AB_m;
+    std::vector<runtime::TrajectorySample> keys(2);
+    keys[0].t_s = 0.0;
+    keys[0].X_WD = Pose::FromTranslation(p0 + Eigen::Vector3d(-0.010, 0.003, 0.004));
+    keys[1].t_s = 0.5;
+    keys[1].X_WD = Pose::FromTranslation(p0 + Eigen::Vector3d(0.010, 0.003, 0.004));
+    runtime::RunOptions options;
+    options.verify_step_voxels = 0.0;
+    options.lag_reference = false;
+    options.record = session;
+    options.guide = std::make_shared<const runtime::ExpertPath>(runtime::readRecording(expert_), runtime::sha256File(expert_),
+                                                                expert_.filename().string(), fs::absolute(expert_).string());
+    runtime::runHeadless(scene, runtime::Trajectory(std::move(keys)), options);
+  }
+  const runtime::Recording rec = runtime::readRecording(session);
+  const runtime::Recording expert = runtime::readRecording(expert_);
+  MediaExportOptions options;
+  options.width = 320;
+  options.height = 240;
+  std::ostringstream log;
+  const auto frames = exportFrameRenderer(scene, rec, options, &log, session);
+  ASSERT_NE(frames->ghost(), nullptr) << log.str();
+  EXPECT_NE(log.str().find("the expert's ghost of expert.vhrec"), std::string::npos) << log.str();
+  const runtime::TickRecord& r = rec.records[rec.records.size() / 2];
+  frames->show(r);
+  ASSERT_TRUE(frames->ghost()->visible());
+  const Eigen::Vector3d p_WD(r.p_WD_m[0], r.p_WD_m[1], r.p_WD_m[2]);
+  const Pose oracle = nearestExpertPose(expert, p_WD);
+  EXPECT_LT((frames->ghost()->pose().p_AB_m - oracle.p_AB_m).norm(), 1e-9);
+  EXPECT_LT((actorPose(frames->ghost()->toolActor()).p_AB_m - oracle.p_AB_m).norm(), 1e-9);
+  const int green = greenPixels(frames->render());
+  std::cout << "ghost-green pixels in the guided frame: " << green << "\n";
+  EXPECT_GT(green, 50) << "the ghost is not in the exported frame";
+
+  // Not guided: the expert's own recording.
+  const auto plain = exportFrameRenderer(scene, expert, options, nullptr, expert_);
+  EXPECT_EQ(plain->ghost(), nullptr);
+  plain->show(expert.records[expert.records.size() / 2]);
+  EXPECT_LT(greenPixels(plain->render()), 5);
+  // Guided, but the expert's recording gone: no ghost, and why.
+  fs::rename(expert_, expert_.string() + ".moved");
+  std::ostringstream gone_log;
+  const auto gone = exportFrameRenderer(scene, rec, options, &gone_log, session);
+  fs::rename(expert_.string() + ".moved", expert_);
+  EXPECT_EQ(gone->ghost(), nullptr);
+  EXPECT_NE(gone_log.str().find("is not available"), std::string::npos) << gone_log.str();
 }
 
 }  // namespace

@@ -618,6 +618,20 @@ TEST(ExportOverlay, ShowsTheRecordsFiguresAndTheEventsOfTheLastTwoSeconds) {
   EXPECT_GT(differing, 300u) << "the overlay's text and alert are not in the picture";
 }
 
+// A frame's RGB bytes (bottom row first).
+std::vector<unsigned char> framePixels(vtkImageData* image) {
+  const auto* p = static_cast<const unsigned char*>(image->GetScalarPointer());
+  return std::vector<unsigned char>(p, p + image->GetNumberOfPoints() * 3);
+}
+
+// Pixels of two frames of one size whose colour differs by more than 24 in any channel.
+std::size_t differingPixels(const std::vector<unsigned char>& a, const std::vector<unsigned char>& b) {
+  std::size_t n = 0;
+  for (std::size_t i = 0; i < a.size(); i += 3)
+    n += std::abs(a[i] - b[i]) > 24 || std::abs(a[i + 1] - b[i + 1]) > 24 || std::abs(a[i + 2] - b[i + 2]) > 24;
+  return n;
+}
+
 // Exported frames reuse the volume's ray-cast picture and depth, and lay the tools over it where
 // they are nearer: the frames must be the ones a full render gives (VTK's ray caster stopping at
 // the tools' depth), with the probe above the sphere, pushed into it (the device's lines inside
@@ -657,26 +671,16 @@ TEST(ExportFrames, ReusingTheVolumesPictureGivesTheFullRendersFrames) {
   empty.actors().proxyActor()->SetVisibility(false);
   empty.actors().deviceActor()->SetVisibility(false);
   empty.setReuseVolume(false);
-  const auto pixels = [](vtkImageData* image) {
-    const auto* p = static_cast<const unsigned char*>(image->GetScalarPointer());
-    return std::vector<unsigned char>(p, p + image->GetNumberOfPoints() * 3);
-  };
-  const auto differing = [](const std::vector<unsigned char>& a, const std::vector<unsigned char>& b) {
-    std::size_t n = 0;
-    for (std::size_t i = 0; i < a.size(); i += 3)
-      n += std::abs(a[i] - b[i]) > 24 || std::abs(a[i + 1] - b[i + 1]) > 24 || std::abs(a[i + 2] - b[i + 2]) > 24;
-    return n;
-  };
   empty.show(records[0]);
-  const std::vector<unsigned char> sphere_alone = pixels(empty.render());
+  const std::vector<unsigned char> sphere_alone = framePixels(empty.render());
   const std::size_t frame_pixels = sphere_alone.size() / 3;
   for (std::size_t k = 0; k < records.size(); ++k) {
     kept.show(records[k]);
     full.show(records[k]);
-    const std::vector<unsigned char> a = pixels(kept.render()), b = pixels(full.render());
-    EXPECT_LT(differing(a, b), frame_pixels / 200) << "record " << k << ": the frame differs from a full render's";
+    const std::vector<unsigned char> a = framePixels(kept.render()), b = framePixels(full.render());
+    EXPECT_LT(differingPixels(a, b), frame_pixels / 200) << "record " << k << ": the frame differs from a full render's";
     if (k < 2) {
-      EXPECT_GT(differing(b, sphere_alone), 100u) << "record " << k << ": the probe is not in the picture";
+      EXPECT_GT(differingPixels(b, sphere_alone), 100u) << "record " << k << ": the probe is not in the picture";
     }
   }
   EXPECT_EQ(kept.volumeRenders(), 2u) << "the volume is ray cast once (picture and depth) for every frame";
@@ -728,16 +732,6 @@ TEST(ExportFrames, AGrowingCavityIsCastAgainOnlyWhereItLies) {
   kept.show(away);
   kept.resetCamera();
   full.copyCamera(kept.renderer()->GetActiveCamera());
-  const auto pixels = [](vtkImageData* image) {
-    const auto* px = static_cast<const unsigned char*>(image->GetScalarPointer());
-    return std::vector<unsigned char>(px, px + image->GetNumberOfPoints() * 3);
-  };
-  const auto differing = [](const std::vector<unsigned char>& a, const std::vector<unsigned char>& b) {
-    std::size_t n = 0;
-    for (std::size_t i = 0; i < a.size(); i += 3)
-      n += std::abs(a[i] - b[i]) > 24 || std::abs(a[i + 1] - b[i + 1]) > 24 || std::abs(a[i + 2] - b[i + 2]) > 24;
-    return n;
-  };
   std::vector<unsigned char> before;
   std::uint64_t cast_for_the_first = 0;
   const std::uint64_t frame_pixels = 320u * 240u;
@@ -746,16 +740,16 @@ TEST(ExportFrames, AGrowingCavityIsCastAgainOnlyWhereItLies) {
     full.showCavityAt(record);
     kept.show(away);
     full.show(away);
-    const std::vector<unsigned char> a = pixels(kept.render()), b = pixels(full.render());
-    std::cout << "record " << record << ": " << differing(a, b) << " pixels differ from the full render, "
-              << (before.empty() ? 0 : differing(a, before)) << " from the frame before\n";
+    const std::vector<unsigned char> a = framePixels(kept.render()), b = framePixels(full.render());
+    std::cout << "record " << record << ": " << differingPixels(a, b) << " pixels differ from the full render, "
+              << (before.empty() ? 0 : differingPixels(a, before)) << " from the frame before\n";
     // The pixels cast again are shaded as the full render shades them; those not cast again
     // still show what they showed, which the cavity did not change.
-    EXPECT_LE(differing(a, b), 4u) << "record " << record << ": the frame differs from a full render's";
+    EXPECT_LE(differingPixels(a, b), 4u) << "record " << record << ": the frame differs from a full render's";
     if (record == 0) {
       cast_for_the_first = kept.volumePixelsCast();
     } else {
-      EXPECT_GT(differing(a, before), 20u) << "record " << record << ": the cavity did not grow in the picture";
+      EXPECT_GT(differingPixels(a, before), 20u) << "record " << record << ": the cavity did not grow in the picture";
     }
     before = a;
   }
@@ -777,12 +771,12 @@ TEST(ExportFrames, AGrowingCavityIsCastAgainOnlyWhereItLies) {
   const std::uint64_t renders = kept.volumeRenders();
   kept.show(in_cavity);
   full.show(in_cavity);
-  const std::vector<unsigned char> a = pixels(kept.render()), b = pixels(full.render());
-  std::cout << "the probe in the cavity: " << differing(a, b) << " pixels differ from the full render, "
-            << differing(a, before) << " from the frame without it\n";
+  const std::vector<unsigned char> a = framePixels(kept.render()), b = framePixels(full.render());
+  std::cout << "the probe in the cavity: " << differingPixels(a, b) << " pixels differ from the full render, "
+            << differingPixels(a, before) << " from the frame without it\n";
   EXPECT_EQ(kept.volumeRenders(), renders) << "the kept picture serves";
-  EXPECT_GT(differing(a, before), 100u) << "the probe is in the picture";
-  EXPECT_LE(differing(a, b), 8u) << "the probe is hidden where the cavity's surface is nearer, as in a full render";
+  EXPECT_GT(differingPixels(a, before), 100u) << "the probe is in the picture";
+  EXPECT_LE(differingPixels(a, b), 8u) << "the probe is hidden where the cavity's surface is nearer, as in a full render";
   std::cout << "the cavity's four steps cast " << cast_for_the_cavity << " pixels; the kept picture whole, "
             << 2 * 4 * frame_pixels << "\n";
   EXPECT_EQ(cast_for_the_first, 2 * frame_pixels) << "the first frame keeps the whole picture (colour and depth)";

@@ -206,22 +206,29 @@ struct SecondSession {
   RunReport run;
   std::filesystem::path record;
 };
-SecondSession drillBesideAFirstCavity(const LoadedScene& scene, const std::filesystem::path& dir, double x_m) {
-  SecondSession out;
+// `run --record path` of a press at (x_m, 0) from z_from_m down to z_to_m [m] over 1 s, held
+// (no lag reference, no step check).
+RunReport recordPress(const LoadedScene& scene, const std::filesystem::path& path, double x_m, double z_from_m,
+                      double z_to_m) {
   RunOptions options;
-  options.record = dir / "first.vhrec";
+  options.record = path;
   options.lag_reference = false;
   options.verify_step_voxels = 0.0;
-  (void)runHeadless(scene, pressDown(0.0, 0.0, 0.030, 1.0, 0.0125), options);
-  const Recording first_rec = readRecording(options.record);
+  return runHeadless(scene, pressDown(x_m, 0.0, z_from_m, 1.0, z_to_m), options);
+}
+
+SecondSession drillBesideAFirstCavity(const LoadedScene& scene, const std::filesystem::path& dir, double x_m) {
+  SecondSession out;
+  (void)recordPress(scene, dir / "first.vhrec", 0.0, 0.030, 0.0125);
+  const Recording first_rec = readRecording(dir / "first.vhrec");
   const ReplayComparison first = replayRecording(loadScene(sceneFromSessionMetadata(first_rec.metadata_json)), first_rec);
   EXPECT_TRUE(first.identical) << first.mismatch;
   if (first.drilled_field == nullptr) return out;
   out.cavity = std::make_shared<const DrilledCavity>(cavityOf(*first.drilled_field, *scene.hapticField()));
   LoadedScene drilled = scene;
   drilled.spec.drill->cavity = out.cavity;
-  options.record = out.record = dir / "second.vhrec";
-  out.run = runHeadless(drilled, pressDown(x_m, 0.0, 0.030, 1.0, 0.0125), options);
+  out.record = dir / "second.vhrec";
+  out.run = recordPress(drilled, out.record, x_m, 0.030, 0.0125);
   return out;
 }
 
@@ -388,13 +395,7 @@ TEST(Drilling, TheCohortTableGivesEachRecordingsRemovalPerMaterial) {
   const LoadedScene scene = loadScene(loadSceneFile(test::writeCtBallScene(dir)));
   const SecondSession second = drillBesideAFirstCavity(scene, dir, 0.006);
   ASSERT_NE(second.cavity, nullptr);
-  {
-    RunOptions options;
-    options.record = dir / "above.vhrec";
-    options.lag_reference = false;
-    options.verify_step_voxels = 0.0;
-    (void)runHeadless(scene, pressDown(0.0, 0.0, 0.060, 1.0, 0.050), options);
-  }
+  (void)recordPress(scene, dir / "above.vhrec", 0.0, 0.060, 0.050);
   const Recording second_rec = readRecording(second.record);
   const ReplayComparison replay =
       replayRecording(loadScene(sceneFromSessionMetadata(second_rec.metadata_json)), second_rec);

@@ -99,7 +99,7 @@ fs::path runVideoBench(const VideoBenchOptions& o) {
   options.height = o.height;
   options.fps = o.fps;
   const Clock::time_point setup_begin = Clock::now();
-  const std::unique_ptr<RecordingFrameRenderer> frames = exportFrameRenderer(scene, recording, options, &std::cout);
+  const std::unique_ptr<RecordingFrameRenderer> frames = exportFrameRenderer(scene, recording, options, &std::cout, recording_path);
   frames->setReuseVolume(!o.full_render);
   const double setup_s = std::chrono::duration<double>(Clock::now() - setup_begin).count();
   const double first_s = recording.records.front().time_s;

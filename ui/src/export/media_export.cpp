@@ -14,6 +14,7 @@
 #include <stdexcept>
 #include <string>
 
+#include <vtkActor.h>
 #include <vtkCamera.h>
 #include <vtkDataArray.h>
 #include <vtkFloatArray.h>
@@ -25,6 +26,7 @@
 #include <vtkUnsignedCharArray.h>
 #include <vtkVolume.h>
 #include <vtkImageData.h>
+#include <vtkMapper.h>
 #include <vtkMatrix4x4.h>
 #include <vtkRect.h>
 #include <vtkNew.h>
@@ -120,6 +122,7 @@ RecordingFrameRenderer::~RecordingFrameRenderer() {
   grabber_ = nullptr;
   if (window_ != nullptr) window_->MakeCurrent();
   segments_.reset();  // props leave the renderer while its window (and context) still exists
+  ghost_.reset();
   actors_.reset();
   if (window_ != nullptr) window_->Finalize();
 }
@@ -185,7 +188,21 @@ void RecordingFrameRenderer::show(const runtime::TickRecord& record) {
                        light_W);
   }
   if (segments_ != nullptr) segments_->setTouched(runtime::recordSegment(record.flags));
+  if (ghost_ != nullptr) {
+    const haptics::Pose X_WE = guide_.ghostPose(Eigen::Vector3d(record.p_WD_m[0], record.p_WD_m[1], record.p_WD_m[2]));
+    if (guide_.onAt(record.time_s) && X_WE.allFinite()) ghost_->show(X_WE);
+    else ghost_->hide();
+  }
   if (overlay_ != nullptr) showOverlay(record);
+}
+
+void RecordingFrameRenderer::setGuide(ReplayGuide guide) {
+  guide_ = std::move(guide);
+  ghost_.reset();
+  if (guide_.expert() == nullptr) return;
+  ghost_ = std::make_unique<ExpertGhost>(actors_->overlayRenderer(),
+                                         actors_->proxyActor()->GetMapper()->GetInputConnection(0, 0));
+  ghost_->setPath(&guide_.expert()->path());
 }
 
 void RecordingFrameRenderer::setSegments(std::shared_ptr<const runtime::SegmentSet> set, const Rgb& surface_rgb) {
@@ -854,7 +871,8 @@ class ConsoleVideoProgress {
 
 std::unique_ptr<RecordingFrameRenderer> exportFrameRenderer(const runtime::LoadedScene& scene,
                                                             const runtime::Recording& recording,
-                                                            const MediaExportOptions& options, std::ostream* log) {
+                                                            const MediaExportOptions& options, std::ostream* log,
+                                                            const fs::path& recording_file) {
   ViewLook look;
   look.mode = options.mode;
   look.preset = options.preset;
@@ -879,6 +897,12 @@ std::unique_ptr<RecordingFrameRenderer> exportFrameRenderer(const runtime::Loade
            << "; the cavity is shown as it was there and the burr's sound runs free (no load) after it\n";
     frames->setDrilling(std::move(timeline));
   }
+  // The expert's ghost where the session was guided, as its replay shows it.
+  ReplayGuide guide(recording, recording_file);
+  if (log != nullptr && !guide.notice().empty()) *log << "volume-haptics export: " << guide.notice() << "\n";
+  if (log != nullptr && guide.expert() != nullptr)
+    *log << "volume-haptics export: the expert's ghost of " << guide.expert()->fileName() << "\n";
+  frames->setGuide(std::move(guide));
   if (!recording.records.empty()) frames->show(recording.records.front());
   frames->resetCamera();  // fitted to the volume and the tools where they start
   // Seen as the user saw it where the recording holds the window's camera.
@@ -903,7 +927,8 @@ int exportRecordingMedia(int /*argc*/, char** /*argv*/, const fs::path& recordin
     runtime::SceneSpec spec = runtime::sceneFromSessionMetadata(recording.metadata_json);
     spec.device.reset();
     const runtime::LoadedScene scene = runtime::loadScene(spec);
-    const std::unique_ptr<RecordingFrameRenderer> renderer = exportFrameRenderer(scene, recording, options, &std::cerr);
+    const std::unique_ptr<RecordingFrameRenderer> renderer =
+        exportFrameRenderer(scene, recording, options, &std::cerr, recording_path);
     RecordingFrameRenderer& frames = *renderer;
     if (!options.png.empty()) {
       writeRecordingPng(frames, recording, options.png_time_s, options.png);

@@ -524,6 +524,7 @@ std::unique_ptr<RecordingFrameRenderer> ReplayController::exportFrames(int width
     frames->setSegments(live.segments, {prefs_.surface.redF(), prefs_.surface.greenF(), prefs_.surface.blueF()});
   // The cavity as the replay shows it (only the start cavity while its replay still runs).
   frames->setDrilling(drill_);
+  frames->setGuide(guide_);  // the expert's ghost, as the replay shows it
   return frames;
 }
 

@@ -36,6 +36,8 @@
 #include "vh/ui/view/scene_frames.h"
 #include "vh/ui/view/tool_shadow.h"
 #include "vh/ui/replay/recorded_camera.h"
+#include "vh/ui/replay/replay_guide.h"
+#include "vh/ui/view/expert_ghost.h"
 
 class vtkCamera;
 class vtkImageData;
@@ -205,6 +207,13 @@ class RecordingFrameRenderer {
   /// `surface_rgb`, the scan surface's), the segment a record's contacts touch emphasised; null:
   /// none (the default).
   void setSegments(std::shared_ptr<const runtime::SegmentSet> set, const Rgb& surface_rgb);
+  /// From the next show() on, frames show the expert's ghost of a guided recording as its replay
+  /// shows it (ExpertGhost in the overlay layer: the expert's tool at the nearest point of its
+  /// path to the record's device, and the path, while `guide` is on at the record's time); a
+  /// guide without an expert (not guided, or the expert's recording not found): none.
+  void setGuide(ReplayGuide guide);
+  /// The ghost drawn (null without an expert to show).
+  const ExpertGhost* ghost() const noexcept { return ghost_.get(); }
   /// The segment surfaces drawn (null without setSegments()).
   const SegmentSurfaces* segmentSurfaces() const noexcept { return segments_.get(); }
   /// Voxels of the picture removed now (the cavity shown).
@@ -226,6 +235,8 @@ class RecordingFrameRenderer {
   std::unique_ptr<SceneActors> actors_;
   std::shared_ptr<const runtime::SegmentSet> segment_set_;  ///< setSegments()
   std::unique_ptr<SegmentSurfaces> segments_;               ///< setSegments(); null: none
+  ReplayGuide guide_;                                       ///< setGuide()
+  std::unique_ptr<ExpertGhost> ghost_;                      ///< setGuide() with an expert; null: none
   std::vector<Eigen::Vector3d> tool_vertices_T_m_;
   bool isovalue_from_records_ = true;  ///< SceneActorsSpec::isovalue_from_records.
   const runtime::Recording* overlay_ = nullptr;  ///< setOverlay(); not owned.
@@ -340,12 +351,15 @@ struct MediaExportOptions {
 /// the renderer) in the look, size, overlay and shadow of `options`; a drilled scene's cavity
 /// replayed (messages on `log` when not null); the camera fitted to the first record, then, where
 /// the recording holds the window's camera ("camera" events: recordedCameras()), the camera the
-/// user had at each shown record's time.
+/// user had at each shown record's time; for a guided recording, the expert's ghost (ReplayGuide
+/// of `recording_file`, the path the recording was read from: the expert is looked for at its
+/// recorded path, then beside it; a notice on `log` when it is not found).
 /// @throws as RecordingFrameRenderer and drillingTimeline().
 std::unique_ptr<RecordingFrameRenderer> exportFrameRenderer(const runtime::LoadedScene& scene,
                                                             const runtime::Recording& recording,
                                                             const MediaExportOptions& options,
-                                                            std::ostream* log = nullptr);
+                                                            std::ostream* log = nullptr,
+                                                            const std::filesystem::path& recording_file = {});
 
 /// Command line export: reads `recording` (warnings to stderr), reloads its scene
 /// (runtime::sceneFromSessionMetadata(), runtime::loadScene()), renders off screen (no Qt
