@@ -17,7 +17,6 @@
 #include "vh/runtime/anonymize.h"
 #include "vh/runtime/drill_report.h"
 #include "vh/runtime/recording.h"
-#include "vh/runtime/scene.h"
 #include "vh/runtime/session_metadata.h"
 
 namespace vh::runtime {
@@ -47,23 +46,20 @@ std::string number(double v) {
   return s.str();
 }
 
-/// The scene a recording was made on, reloaded from its metadata, and kept for the next
-/// recordings of the same scene (a cohort's sessions are mostly on one scan).
+/// The scene a recording was made on (loadRecordedScene()), kept for the next recordings of the
+/// same scene (a cohort's sessions are mostly on one scan).
 class RecordedScenes {
  public:
-  /// @throws std::runtime_error as sceneFromSessionMetadata() and loadScene().
-  const LoadedScene& of(const Recording& recording) {
-    const nlohmann::json meta = nlohmann::json::parse(recording.metadata_json, nullptr, false);
+  /// `metadata` is the recording's metadata_json, parsed (its scene and dataset are the key).
+  /// @throws std::runtime_error as loadRecordedScene().
+  const LoadedScene& of(const Recording& recording, const nlohmann::json& metadata) {
     std::string key;
-    if (meta.is_object() && meta.contains("scene"))
-      key = meta["scene"].dump() + (meta.contains("dataset") ? meta["dataset"].dump() : std::string());
+    if (metadata.is_object() && metadata.contains("scene"))
+      key = metadata["scene"].dump() + (metadata.contains("dataset") ? metadata["dataset"].dump() : std::string());
     if (!scene_ || key.empty() || key != key_) {
       scene_.reset();
       key_.clear();
-      SceneSpec spec = sceneFromSessionMetadata(recording.metadata_json);
-      spec.device.reset();
-      spec.openigtlink.reset();
-      scene_ = std::make_unique<LoadedScene>(loadScene(spec));
+      scene_ = std::make_unique<LoadedScene>(loadRecordedScene(recording.metadata_json));
       key_ = key;
     }
     return *scene_;
@@ -112,7 +108,7 @@ std::size_t writeCohortTable(const std::filesystem::path& dir, const std::filesy
           row.removed_nothing = true;
         } else {
           try {
-            drilled = drillReportOfRecording(scenes.of(recording), recording);
+            drilled = drillReportOfRecording(scenes.of(recording, meta), recording);
           } catch (const std::exception& e) {
             drilled = RecordingDrillReport{std::nullopt, std::string("the scene could not be reloaded (") + e.what() + ")"};
           }

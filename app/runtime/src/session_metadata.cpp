@@ -527,4 +527,11 @@ SceneSpec sceneFromSessionMetadata(const std::string& metadata_json) {
   return spec;
 }
 
+LoadedScene loadRecordedScene(const std::string& metadata_json) {
+  SceneSpec spec = sceneFromSessionMetadata(metadata_json);
+  spec.device.reset();
+  spec.openigtlink.reset();
+  return loadScene(spec);
+}
+
 }  // namespace vh::runtime

@@ -755,10 +755,7 @@ detail::DrilledByMaterial reloadScene(const Recording& rec, bool replay_drilling
   detail::DrilledByMaterial drilled;
   std::optional<runtime::LoadedScene> scene;
   try {
-    runtime::SceneSpec spec = runtime::sceneFromSessionMetadata(rec.metadata_json);
-    spec.device.reset();
-    spec.openigtlink.reset();
-    scene.emplace(runtime::loadScene(spec));
+    scene.emplace(runtime::loadRecordedScene(rec.metadata_json));
     auto loaded = std::make_unique<Anatomy>();
     loaded->field = scene->hapticField();
     loaded->isovalue = scene->hapticIsovalue();

@@ -97,4 +97,10 @@ inline std::string makeSessionMetadata(const LoadedScene& scene, const SessionIn
 ///         checksums); std::runtime_error for metadata that is not JSON or lacks the scene.
 SceneSpec sceneFromSessionMetadata(const std::string& metadata_json);
 
+/// loadScene() of sceneFromSessionMetadata(metadata_json) without its device and OpenIGTLink
+/// sections: the scene a recording was made on, to replay or report it (nothing is opened but
+/// the dataset and the tool). Not for the servo thread.
+/// @throws as sceneFromSessionMetadata() and loadScene().
+LoadedScene loadRecordedScene(const std::string& metadata_json);
+
 }  // namespace vh::runtime

@@ -161,8 +161,8 @@ class RecordingFrameRenderer {
   /// Whether frames reuse the kept volume picture (see the class comment; on by default). Off:
   /// every frame is one full render, as the main view draws it.
   void setReuseVolume(bool reuse);
-  /// Times the volume was ray cast for frames so far (each kept picture costs two: colour and
-  /// depth; a full render one).
+  /// Times the volume was ray cast for frames so far (a whole kept picture costs two: colour and
+  /// depth; a full render, and a cavity's update of the kept picture (colour only), one).
   std::uint64_t volumeRenders() const noexcept { return volume_renders_; }
   /// Pixels the volume was ray cast for so far by the ray caster (a full render: the frame's; a
   /// whole kept picture twice, colour and depth; a cavity's update the pixels it covers): what
